@@ -1,0 +1,1 @@
+"""continuum-mhe: shape and tip estimation of continuum robots from a tip IMU."""

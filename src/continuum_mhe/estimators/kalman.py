@@ -1,0 +1,157 @@
+"""Extended and unscented Kalman filters on a formulation's model.
+
+Both use exactly the formulation's ``Q(dt)`` and ``R`` (the same numbers the MHE
+weights with), and wrap angle innovations to ``(-pi, pi]``. The pure functions
+:func:`ekf_predict` and :func:`ekf_update` are shared with the MHE's arrival cost.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.model.formulations import Formulation, ModelFunctions
+from continuum_mhe.model.imu import wrap_angle
+
+
+def ekf_predict(
+    fns: ModelFunctions, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
+) -> tuple[FloatArray, FloatArray]:
+    """Prediction ``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q(dt)``."""
+    xn, F, Q = (np.asarray(v, dtype=float) for v in fns.predict(x, u, dt))
+    F = F.reshape(len(x), len(x))
+    return xn.ravel(), F @ P @ F.T + Q.reshape(len(x), len(x))
+
+
+def ekf_update(
+    fns: ModelFunctions, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Measurement update with a wrapped innovation and Joseph-form covariance."""
+    h, H = (np.asarray(v, dtype=float) for v in fns.measure(x))
+    H = H.reshape(len(z), len(x))
+    y = wrap_angle(z - h.ravel())
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T
+    ikh = np.eye(len(x)) - K @ H
+    return x + K @ y, ikh @ P @ ikh.T + K @ R @ K.T
+
+
+class _KalmanBase(Estimator):
+    def __init__(self, formulation: Formulation) -> None:
+        super().__init__(formulation)
+        self._R = formulation.meas_cov()
+        self.reset()
+
+    def reset(self) -> None:
+        self._x: FloatArray | None = None
+        self._P: FloatArray | None = None
+        self._t_prev = 0.0
+        self._z_prev: FloatArray | None = None
+
+    def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+        f = self.formulation
+        if self._x is None or self._P is None:
+            if not m.valid:  # nothing to start from yet
+                return None, None, "no-estimate"
+            self._x, self._P = f.initial_state(m.z), f.initial_cov()
+            self._t_prev, self._z_prev = m.t, m.z
+            return self._x.copy(), self._P.copy(), "ok"
+        dt = m.t - self._t_prev
+        u = f.inputs(self._z_prev, m.z, dt)
+        x, P = self._predict(self._x, self._P, u, dt)
+        status: Status = "dropout"
+        if m.valid:
+            x, P = self._update(x, P, m.z)
+            status = "ok"
+            self._z_prev = m.z
+        self._x, self._P, self._t_prev = x, P, m.t
+        return x.copy(), P.copy(), status
+
+    def _predict(
+        self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
+    ) -> tuple[FloatArray, FloatArray]:
+        raise NotImplementedError
+
+    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        raise NotImplementedError
+
+
+class ExtendedKalmanFilter(_KalmanBase):
+    """EKF with Jacobians from CasADi's automatic differentiation of the model."""
+
+    name = "ekf"
+
+    def _predict(
+        self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
+    ) -> tuple[FloatArray, FloatArray]:
+        return ekf_predict(self.formulation.functions, x, P, u, dt)
+
+    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return ekf_update(self.formulation.functions, x, P, z, self._R)
+
+
+@dataclass(frozen=True)
+class SigmaPointSettings:
+    """Van der Merwe's scaled sigma points (alpha, beta, kappa)."""
+
+    alpha: float = 0.5
+    beta: float = 2.0
+    kappa: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.alpha <= 1:
+            raise ValueError(f"alpha must lie in (0, 1], got {self.alpha!r}")
+
+
+def merwe_sigma_points(
+    x: FloatArray, P: FloatArray, s: SigmaPointSettings
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Sigma points (2n+1, n) and their mean and covariance weights."""
+    n = len(x)
+    lam = s.alpha**2 * (n + s.kappa) - n
+    L = np.linalg.cholesky((n + lam) * P)
+    pts = np.vstack([x, x + L.T, x - L.T])
+    wm = np.full(2 * n + 1, 0.5 / (n + lam))
+    wc = wm.copy()
+    wm[0] = lam / (n + lam)
+    wc[0] = wm[0] + 1 - s.alpha**2 + s.beta
+    return pts, wm, wc
+
+
+class UnscentedKalmanFilter(_KalmanBase):
+    """UKF with scaled sigma points; angle residuals are wrapped before averaging."""
+
+    name = "ukf"
+
+    def __init__(self, formulation: Formulation, sigma: SigmaPointSettings | None = None):
+        self.sigma = sigma or SigmaPointSettings()
+        super().__init__(formulation)
+
+    def _predict(
+        self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
+    ) -> tuple[FloatArray, FloatArray]:
+        fns = self.formulation.functions
+        pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
+        k = len(pts)
+        prop = np.asarray(fns.transition(pts.T, np.tile(u[:, None], (1, k)), dt), float)
+        prop = prop.reshape(len(x), k).T
+        mean = wm @ prop
+        d = prop - mean
+        Q = np.asarray(fns.predict(x, u, dt)[2], dtype=float).reshape(len(x), len(x))
+        return mean, (wc[:, None] * d).T @ d + Q
+
+    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        fns = self.formulation.functions
+        pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
+        zs = np.asarray(fns.observe(pts.T), dtype=float).reshape(len(z), len(pts)).T
+        # average angles as offsets from the central sigma point, so +-pi never splits
+        zs = zs[0] + wrap_angle(zs - zs[0])
+        zm = wm @ zs
+        dz = zs - zm
+        dx = pts - x
+        S = (wc[:, None] * dz).T @ dz + self._R
+        C = (wc[:, None] * dx).T @ dz
+        K = np.linalg.solve(S, C.T).T
+        return x + K @ wrap_angle(z - zm), P - K @ S @ K.T

@@ -1,0 +1,275 @@
+"""Moving horizon estimation, solved with IPOPT through CasADi.
+
+The window holds the last ``N`` samples; node ``i`` of the decision variables is the
+state at window sample ``i`` (the last node is the estimate). The cost is::
+
+    1/2 sum_i  m_i ||z_i - h(x_i)||^2_{R^-1}                 (wrapped angles)
+  + 1/2 sum_i  ||x_{i+1} - f(x_i, u_i, dt_i)||^2_{Q(dt_i)^-1}
+  + 1/2 ||x_0 - xbar||^2_{P^-1}                               (arrival cost)
+
+subject to the formulation's bounds as hard constraints, where ``m_i`` masks
+dropouts. The NLP is built once per (formulation, N) with the window's measurements,
+masks, time steps, inputs, per-stage ``Q^-1`` and the arrival prior as parameters.
+
+Arrival cost: ``xbar`` is the previous solution's second node (the smoothed estimate
+of the new first sample); ``P`` follows the EKF covariance recursion along the
+smoothed first nodes (update with the sample leaving the window, then predict).
+
+Growing window: before ``N`` samples exist, the active nodes are the last ``n`` ones;
+the inactive leading nodes are pinned to the prior and carry no other cost, so they
+are decoupled and do not change the answer. With ``paper_start`` no estimate is made
+before ``N`` samples (Algorithm 1).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.settings import MHESettings
+
+
+@dataclass(frozen=True)
+class WindowProblem:
+    """The window NLP's data for one solve (all numeric, shapes for horizon N)."""
+
+    z: FloatArray  # (N, m) measurements (0 where masked)
+    zmask: FloatArray  # (N,) 1 for a valid, active measurement
+    dt: FloatArray  # (N-1,) s
+    u: FloatArray  # (N-1, nu)
+    qinv: FloatArray  # (N-1, nx, nx) inverse process covariance per stage (0 if inactive)
+    xbar: FloatArray  # (nx,) arrival prior
+    arrival: FloatArray  # (N, nx, nx) arrival weight per node (P^-1 on first active node)
+
+
+@dataclass(frozen=True)
+class _Nlp:
+    solver: ca.Function
+    lbx: FloatArray
+    ubx: FloatArray
+    lbg: FloatArray
+    ubg: FloatArray
+    cost: ca.Function
+
+
+@lru_cache(maxsize=32)
+def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float) -> _Nlp:
+    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, 2
+    X = ca.SX.sym("X", nx, n)
+    Z = ca.SX.sym("Z", m, n)
+    zmask = ca.SX.sym("zmask", n)
+    DT = ca.SX.sym("DT", n - 1)
+    U = ca.SX.sym("U", nu, n - 1)
+    QI = ca.SX.sym("QI", nx * nx, n - 1)
+    xbar = ca.SX.sym("xbar", nx)
+    AR = ca.SX.sym("AR", nx * nx, n)
+    rinv = np.linalg.inv(f.meas_cov())
+    cost = 0
+    g = []
+    for i in range(n):
+        r = f.measurement_residual_sym(Z[:, i], X[:, i])
+        cost += 0.5 * zmask[i] * ca.bilin(rinv, r, r)
+        e = X[:, i] - xbar
+        cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
+        if i < n - 1:
+            w = X[:, i + 1] - f.transition_sym(X[:, i], U[:, i], DT[i])
+            cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), w, w)
+        gi, _, _ = f.constraint_sym(X[:, i])
+        g.append(gi)
+    params = ca.vertcat(ca.vec(Z), zmask, DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
+    w = ca.vec(X)
+    nlp = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
+    opts = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.max_iter": max_iter,
+        "ipopt.tol": tol,
+        "ipopt.acceptable_tol": 1e-6,
+    }
+    solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
+    lo, hi = f.state_bounds()
+    _, glo, ghi = f.constraint_sym(ca.SX.sym("x", nx))
+    ng = int(ca.vertcat(*g).numel())
+    return _Nlp(
+        solver=solver,
+        lbx=np.tile(lo, n),
+        ubx=np.tile(hi, n),
+        lbg=np.full(ng, glo),
+        ubg=np.full(ng, ghi),
+        cost=ca.Function("cost", [w, params], [cost]),
+    )
+
+
+def pack_parameters(problem: WindowProblem) -> FloatArray:
+    """Flatten a :class:`WindowProblem` in the NLP's parameter order (column-major)."""
+    return np.concatenate(
+        [
+            problem.z.ravel(),  # (N, m) row-major == (m, N) column-major
+            problem.zmask,
+            problem.dt,
+            problem.u.ravel(),
+            problem.qinv.reshape(len(problem.dt), -1).ravel(),
+            problem.xbar,
+            problem.arrival.reshape(len(problem.zmask), -1).ravel(),
+        ]
+    )
+
+
+class MovingHorizonEstimator(Estimator):
+    """MHE over the last ``N`` samples; IPOPT backend (the paper's solver)."""
+
+    name = "mhe"
+
+    def __init__(self, formulation: Formulation, settings: MHESettings | None = None) -> None:
+        super().__init__(formulation)
+        self.settings = settings or MHESettings()
+        s = self.settings
+        self._nlp = _build_nlp(formulation, s.horizon, s.max_iter, s.tol)
+        self._qinv_cache: dict[float, FloatArray] = {}
+        self.reset()
+
+    def reset(self) -> None:
+        n = self.settings.horizon
+        self._t: deque[float] = deque(maxlen=n)
+        self._z: deque[FloatArray] = deque(maxlen=n)
+        self._u: deque[FloatArray] = deque(maxlen=n)  # input into each sample
+        self._z_prev_valid: FloatArray | None = None
+        self._xbar: FloatArray | None = None
+        self._P: FloatArray | None = None
+        self._X: FloatArray | None = None  # (N, nx) previous solution
+
+    # --- window bookkeeping -------------------------------------------------
+    def _push(self, m: Measurement) -> None:
+        f = self.formulation
+        n = self.settings.horizon
+        if len(self._t) == n:
+            self._slide_arrival()
+        u = np.zeros(f.nu)
+        if self._t:
+            u = f.inputs(self._z_prev_valid, m.z, m.t - self._t[-1])
+        self._t.append(m.t)
+        self._z.append(m.z)
+        self._u.append(u)
+        if m.valid:
+            self._z_prev_valid = m.z
+
+    def _slide_arrival(self) -> None:
+        """Move the arrival prior from window sample 0 to window sample 1."""
+        assert self._X is not None and self._P is not None
+        fns, x0 = self.formulation.functions, self._X[0]
+        P = self._P
+        z0 = self._z[0]
+        if np.all(np.isfinite(z0)):
+            _, P = ekf_update(fns, x0, P, z0, self.formulation.meas_cov())
+        _, P = ekf_predict(fns, x0, P, self._u[1], self._t[1] - self._t[0])
+        self._P = 0.5 * (P + P.T)
+        self._xbar = self._X[1].copy()
+
+    def window_problem(self) -> WindowProblem:
+        """The NLP data for the current window (for tests and other backends)."""
+        f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
+        k = len(self._t)
+        off = n - k  # leading inactive nodes
+        z = np.zeros((n, 2))
+        zmask = np.zeros(n)
+        dt = np.full(n - 1, 1.0)
+        u = np.zeros((n - 1, f.nu))
+        qinv = np.zeros((n - 1, nx, nx))
+        arrival = np.zeros((n, nx, nx))
+        pin = np.eye(nx)
+        for i in range(off):
+            arrival[i] = pin
+        assert self._P is not None and self._xbar is not None
+        arrival[off] = np.linalg.inv(self._P)
+        for j in range(k):
+            i = off + j
+            zj = self._z[j]
+            if np.all(np.isfinite(zj)):
+                z[i] = zj
+                zmask[i] = 1.0
+            if j > 0:
+                dt[i - 1] = self._t[j] - self._t[j - 1]
+                u[i - 1] = self._u[j]
+                qinv[i - 1] = self._process_weight(dt[i - 1])
+        return WindowProblem(z, zmask, dt, u, qinv, self._xbar, arrival)
+
+    def _process_weight(self, dt: float) -> FloatArray:
+        """``Q(dt)^-1``; Q depends on the time step only, so it is cached per dt."""
+        key = round(dt, 9)
+        w = self._qinv_cache.get(key)
+        if w is None:
+            f, nx = self.formulation, self.formulation.nx
+            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
+            w = np.linalg.inv(Q.reshape(nx, nx))
+            if len(self._qinv_cache) < 4096:
+                self._qinv_cache[key] = w
+        return w
+
+    def _initial_guess(self) -> FloatArray:
+        f, n = self.formulation, self.settings.horizon
+        assert self._xbar is not None
+        if self._X is None:
+            return np.tile(self._xbar, (n, 1))
+        X = np.roll(self._X, -1, axis=0)
+        k = len(self._t)
+        dt = self._t[-1] - self._t[-2] if k > 1 else 0.0
+        xn = np.asarray(f.functions.transition(self._X[-1], self._u[-1], dt), float).ravel()
+        X[-1] = f.project(xn)
+        return X
+
+    # --- solve ----------------------------------------------------------------
+    def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+        f = self.formulation
+        if self._xbar is None:
+            if not m.valid:
+                return None, None, "no-estimate"
+            self._xbar = f.project(f.initial_state(m.z))
+            self._P = f.initial_cov()
+        self._push(m)
+        X0 = self._initial_guess()
+        if self.settings.paper_start and len(self._t) < self.settings.horizon:
+            self._X = X0
+            return None, None, "no-estimate"
+        X, status = self._solve(self.window_problem(), X0)
+        self._X = X
+        if status == "ok" and not m.valid:
+            status = "dropout"
+        return X[-1].copy(), None, status
+
+    def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
+        nlp, n, nx = self._nlp, self.settings.horizon, self.formulation.nx
+        try:
+            sol = nlp.solver(
+                x0=X0.ravel(),
+                p=pack_parameters(problem),
+                lbx=nlp.lbx,
+                ubx=nlp.ubx,
+                lbg=nlp.lbg,
+                ubg=nlp.ubg,
+            )
+            stats = nlp.solver.stats()
+            X = np.asarray(sol["x"], dtype=float).reshape(n, nx)
+        except RuntimeError:
+            return self._fallback(X0), "solver-failed"
+        if not np.all(np.isfinite(X)):
+            return self._fallback(X0), "solver-failed"
+        if stats["success"]:
+            return X, "ok"
+        if all(self.formulation.is_feasible(x, 1e-6) for x in X):
+            return X, "not-converged"
+        return self._fallback(X0), "solver-failed"
+
+    def _fallback(self, X0: FloatArray) -> FloatArray:
+        return np.array([self.formulation.project(x) for x in X0])
+
+    def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
+        """The NLP's objective for a trajectory ``X`` (N, nx)."""
+        return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))

@@ -1,0 +1,1 @@
+"""Pure model functions: kinematics, IMU measurement model, motion formulations."""

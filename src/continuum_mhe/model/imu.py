@@ -1,0 +1,114 @@
+"""IMU measurement model: roll and pitch of the tip (corrected eq. 6).
+
+Convention: Z-Y-X Euler angles of eq. (5), ``R = Rz(alpha) Ry(beta) Rx(gamma)`` with
+roll ``gamma`` about x and pitch ``beta`` about y, both in radians. An accelerometer at
+rest measures the specific force ``f = R^T u g`` in the tip frame, where ``u`` is the
+world's "up" direction in the base frame; then ``roll = atan2(f_y, f_z)`` and
+``pitch = atan2(-f_x, hypot(f_y, f_z))``.
+
+Mounting:
+
+* ``"z-up"`` (default): the base z axis points up, against gravity, ``u = (0, 0, 1)``.
+  Then ``roll = atan2(sin phi sin theta, cos theta)`` and
+  ``pitch = asin(-cos phi sin theta)``.
+* ``"z-down"``: the robot hangs from its base, ``u = (0, 0, -1)``. Straight down reads
+  ``roll = pi``.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from continuum_mhe.model.kinematics import FloatArray, Sym, cosc_q, sinc_q
+
+Mounting = Literal["z-up", "z-down"]
+MOUNTINGS: tuple[Mounting, ...] = ("z-up", "z-down")
+
+
+def _up_sign(mounting: Mounting) -> float:
+    if mounting == "z-up":
+        return 1.0
+    if mounting == "z-down":
+        return -1.0
+    raise ValueError(f"mounting must be one of {MOUNTINGS}, got {mounting!r}")
+
+
+def gravity_direction_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> Sym:
+    """Unit specific-force direction in the tip frame, ``R^T u``, from the bend vector.
+
+    ``R^T e_z`` is R's third row, ``(a sinc theta, b sinc theta, cos theta)``.
+    """
+    q = a**2 + b**2
+    s = sinc_q(q)
+    return _up_sign(mounting) * ca.vertcat(a * s, b * s, 1 + q * cosc_q(q))
+
+
+def tilt_from_gravity_sym(f: Sym) -> Sym:
+    """``(roll, pitch)`` in radians from a specific-force vector in the tip frame."""
+    roll = ca.atan2(f[1], f[2])
+    pitch = ca.atan2(-f[0], ca.sqrt(f[1] ** 2 + f[2] ** 2))
+    return ca.vertcat(roll, pitch)
+
+
+def tilt_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> Sym:
+    """Measurement ``h``: ``(roll, pitch)`` from the bend vector."""
+    return tilt_from_gravity_sym(gravity_direction_bend_sym(a, b, mounting))
+
+
+def tilt_sym(theta: Sym, phi: Sym, mounting: Mounting = "z-up") -> Sym:
+    """Measurement ``h``: ``(roll, pitch)`` from ``(theta, phi)``."""
+    return tilt_bend_sym(theta * ca.cos(phi), theta * ca.sin(phi), mounting)
+
+
+def wrap_angle_sym(x: Sym) -> Sym:
+    """Angle wrapped to ``(-pi, pi]``, smooth away from ``+-pi``."""
+    return ca.atan2(ca.sin(x), ca.cos(x))
+
+
+def wrap_angle(x: ArrayLike) -> FloatArray:
+    """Angle wrapped to ``[-pi, pi)`` (numpy)."""
+    return (np.asarray(x, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+
+
+@lru_cache(maxsize=None)
+def _tilt_function(mounting: Mounting) -> ca.Function:
+    theta, phi = ca.SX.sym("theta"), ca.SX.sym("phi")
+    return ca.Function("tilt", [theta, phi], [tilt_sym(theta, phi, mounting)])
+
+
+def tilt(theta: ArrayLike, phi: ArrayLike, mounting: Mounting = "z-up") -> FloatArray:
+    """``(roll, pitch)`` in radians, shape ``(..., 2)``."""
+    t, p = np.broadcast_arrays(np.asarray(theta, dtype=float), np.asarray(phi, dtype=float))
+    out = np.asarray(_tilt_function(mounting)(t.reshape(1, -1), p.reshape(1, -1)), dtype=float)
+    return out.reshape(2, -1).T.reshape(*t.shape, 2)
+
+
+def shape_from_tilt(
+    roll: ArrayLike, pitch: ArrayLike, mounting: Mounting = "z-up"
+) -> tuple[FloatArray, FloatArray]:
+    """Closed-form inverse: ``(theta, phi)`` from ``(roll, pitch)``.
+
+    For ``"z-up"``: ``theta = acos(cos pitch cos roll)``,
+    ``phi = atan2(cos pitch sin roll, -sin pitch)``. ``phi = 0`` when straight.
+    """
+    g = np.asarray(roll, dtype=float)
+    bt = np.asarray(pitch, dtype=float)
+    sign = _up_sign(mounting)
+    r3 = sign * np.stack([-np.sin(bt), np.cos(bt) * np.sin(g), np.cos(bt) * np.cos(g)])
+    theta = np.arccos(np.clip(r3[2], -1.0, 1.0))
+    phi = np.arctan2(r3[1], r3[0])
+    phi = np.where(theta == 0.0, 0.0, phi)
+    return theta, phi
+
+
+def tilt_from_accelerometer(f: ArrayLike) -> FloatArray:
+    """``(roll, pitch)`` from specific force ``f`` (..., 3) in the tip frame, any units."""
+    f_ = np.asarray(f, dtype=float)
+    roll = np.arctan2(f_[..., 1], f_[..., 2])
+    pitch = np.arctan2(-f_[..., 0], np.hypot(f_[..., 1], f_[..., 2]))
+    return np.stack([roll, pitch], axis=-1)

@@ -1,0 +1,98 @@
+"""Typed, frozen settings. Every field is validated on construction."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from continuum_mhe.model.imu import MOUNTINGS, Mounting
+
+FormulationName = Literal["bend", "paper"]
+FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """One inextensible constant-curvature section with an IMU at its tip.
+
+    Attributes:
+        length: section length ``s`` in metres.
+        theta_max: upper bound on the bending angle ``theta`` in radians (eq. 11 uses
+            ``pi/2``). Must lie in ``(0, pi)``.
+        mounting: ``"z-up"`` (base z against gravity) or ``"z-down"`` (hanging).
+    """
+
+    length: float = 0.2
+    theta_max: float = math.pi / 2
+    mounting: Mounting = "z-up"
+
+    def __post_init__(self) -> None:
+        _positive("length", self.length)
+        if not (0 < self.theta_max < math.pi):
+            raise ValueError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}")
+        if self.mounting not in MOUNTINGS:
+            raise ValueError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+
+
+@dataclass(frozen=True)
+class NoiseSettings:
+    """Noise model shared by every estimator (same Q and R for MHE, EKF and UKF).
+
+    Attributes:
+        measurement_std: standard deviation of roll and pitch, rad. The paper's
+            ``V = diag(2, 2)`` "degrees" is read as 2 degrees; weights are 1/std^2.
+        bend_accel_psd: white-noise acceleration spectral density of the bend vector
+            ``(a, b)`` in the default formulation, rad^2/s^3.
+        paper_process_weight: the paper's ``W = w I`` (weight, i.e. inverse
+            covariance per step) for the five-state formulation.
+        initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
+            ``(theta, phi)``, rad.
+        initial_rate_std: prior standard deviation of the initial bend rates, rad/s.
+    """
+
+    measurement_std: float = math.radians(2.0)
+    bend_accel_psd: float = 2.0
+    paper_process_weight: float = 10.0
+    initial_bend_std: float = 0.1
+    initial_rate_std: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in (
+            "measurement_std",
+            "bend_accel_psd",
+            "paper_process_weight",
+            "initial_bend_std",
+            "initial_rate_std",
+        ):
+            _positive(name, getattr(self, name))
+
+
+@dataclass(frozen=True)
+class MHESettings:
+    """Moving-horizon settings.
+
+    Attributes:
+        horizon: number of measurements ``N`` in the window.
+        paper_start: if True, give no estimate before ``N`` samples (Algorithm 1);
+            otherwise the window grows from the first sample.
+        max_iter: IPOPT iteration limit per sample.
+        tol: IPOPT convergence tolerance.
+    """
+
+    horizon: int = 30
+    paper_start: bool = False
+    max_iter: int = 100
+    tol: float = 1e-8
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.horizon, int) and self.horizon >= 2):
+            raise ValueError(f"horizon must be an integer >= 2, got {self.horizon!r}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+        _positive("tol", self.tol)
