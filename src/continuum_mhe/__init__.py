@@ -1,1 +1,54 @@
-"""continuum-mhe: shape and tip estimation of continuum robots from a tip IMU."""
+"""continuum-mhe: shape and tip estimation of continuum robots from a tip IMU.
+
+Public surface::
+
+    from continuum_mhe import (RobotSettings, NoiseSettings, MHESettings,
+                               make_formulation, make_estimator, simulate, Measurement)
+"""
+
+from continuum_mhe.estimators import (
+    METHODS,
+    Estimate,
+    EstimateSeries,
+    Estimator,
+    ExtendedKalmanFilter,
+    Measurement,
+    MovingHorizonEstimator,
+    UnscentedKalmanFilter,
+    make_estimator,
+)
+from continuum_mhe.metrics import Metrics, compute_metrics
+from continuum_mhe.model.formulations import (
+    BendFormulation,
+    Formulation,
+    PaperFormulation,
+    make_formulation,
+)
+from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
+from continuum_mhe.simulation.scenarios import Recording, simulate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "METHODS",
+    "BendFormulation",
+    "Estimate",
+    "EstimateSeries",
+    "Estimator",
+    "ExtendedKalmanFilter",
+    "Formulation",
+    "MHESettings",
+    "Measurement",
+    "Metrics",
+    "MovingHorizonEstimator",
+    "NoiseSettings",
+    "PaperFormulation",
+    "Recording",
+    "RobotSettings",
+    "UnscentedKalmanFilter",
+    "__version__",
+    "compute_metrics",
+    "make_estimator",
+    "make_formulation",
+    "simulate",
+]

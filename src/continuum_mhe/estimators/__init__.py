@@ -1,0 +1,48 @@
+"""Estimators with one interface: ``step(Measurement) -> Estimate`` and ``run``."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from continuum_mhe.estimators.base import (
+    Estimate,
+    EstimateSeries,
+    Estimator,
+    Measurement,
+    Status,
+)
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.settings import MHESettings
+
+Method = Literal["mhe", "ekf", "ukf"]
+METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
+
+
+def make_estimator(
+    method: Method, formulation: Formulation, mhe: MHESettings | None = None
+) -> Estimator:
+    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only."""
+    if method == "mhe":
+        return MovingHorizonEstimator(formulation, mhe)
+    if method == "ekf":
+        return ExtendedKalmanFilter(formulation)
+    if method == "ukf":
+        return UnscentedKalmanFilter(formulation)
+    raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+
+
+__all__ = [
+    "METHODS",
+    "Estimate",
+    "EstimateSeries",
+    "Estimator",
+    "ExtendedKalmanFilter",
+    "Measurement",
+    "Method",
+    "MovingHorizonEstimator",
+    "Status",
+    "UnscentedKalmanFilter",
+    "make_estimator",
+]

@@ -1,0 +1,284 @@
+"""Command line: ``continuum-mhe {demo,simulate,estimate,evaluate,...}``.
+
+User errors print one line, ``continuum-mhe: error: ...``, and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
+from continuum_mhe.io.csv_files import (
+    InputError,
+    read_measurements,
+    read_states,
+    write_estimates,
+    write_measurements,
+    write_truth,
+)
+from continuum_mhe.metrics import Metrics, compute_metrics
+from continuum_mhe.model.formulations import Formulation, make_formulation
+from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.progress import progress_bar
+from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings, RobotSettings
+from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
+
+PROG = "continuum-mhe"
+
+#: Modules that add subcommands through ``register(subparsers)``.
+COMMAND_MODULES: tuple[str, ...] = ()
+
+
+# --- shared options ---------------------------------------------------------------
+def _add_model_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("model")
+    g.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
+    g.add_argument(
+        "--theta-max",
+        type=float,
+        default=math.pi / 2,
+        help="upper bound on theta in rad (default pi/2)",
+    )
+    g.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    g.add_argument(
+        "--formulation",
+        choices=FORMULATIONS,
+        default="bend",
+        help="motion model: bend (default, singularity-free) or paper (5-state, eq. 4)",
+    )
+    g.add_argument(
+        "--noise-deg",
+        type=float,
+        default=2.0,
+        help="roll/pitch noise standard deviation in degrees (default 2)",
+    )
+
+
+def _add_mhe_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("MHE")
+    g.add_argument("--horizon", type=int, default=30, help="window length N (default 30)")
+    g.add_argument(
+        "--paper-start",
+        action="store_true",
+        help="no estimate before N samples (the paper's Algorithm 1)",
+    )
+
+
+def _formulation(args: argparse.Namespace) -> Formulation:
+    if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
+        raise InputError(f"--noise-deg must be positive, got {args.noise_deg}")
+    robot = RobotSettings(length=args.length, theta_max=args.theta_max, mounting=args.mounting)
+    noise = NoiseSettings(measurement_std=math.radians(args.noise_deg))
+    return make_formulation(args.formulation, robot, noise)
+
+
+def _mhe_settings(args: argparse.Namespace) -> MHESettings:
+    return MHESettings(horizon=args.horizon, paper_start=args.paper_start)
+
+
+# --- commands --------------------------------------------------------------------------
+def cmd_simulate(args: argparse.Namespace) -> int:
+    rec = simulate(
+        args.scenario,
+        duration=args.duration,
+        dt=args.dt,
+        noise_deg=args.noise_deg,
+        length=args.length,
+        seed=args.seed,
+        mounting=args.mounting,
+    )
+    write_measurements(args.output, rec.t, rec.z)
+    if args.truth:
+        write_truth(args.truth, rec.t, rec.truth)
+    print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
+    return 0
+
+
+def cmd_estimate(args: argparse.Namespace) -> int:
+    out = Path(args.output)
+    if out.resolve() == Path(args.measurements).resolve():
+        raise InputError(f"{out}: refusing to overwrite the input file")
+    table = read_measurements(args.measurements, degrees=args.degrees, skip_bad=args.skip_bad)
+    formulation = _formulation(args)
+    est = make_estimator(args.method, formulation, _mhe_settings(args))
+    series = est.run(table.t, table.z, progress=progress_bar(f"{args.method} estimate"))
+    write_estimates(out, series)
+    counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
+    msg = f"wrote {len(series.t)} estimates to {out} ({', '.join(f'{k}: {v}' for k, v in counts.items())})"
+    if table.skipped:
+        msg += f"; skipped {len(table.skipped)} bad sample(s), first: {table.skipped[0]}"
+    print(msg, file=sys.stderr)
+    return 0
+
+
+def _align(
+    path_est: str, t_est: np.ndarray, path_truth: str, t_truth: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    idx = np.searchsorted(t_truth, t_est)
+    idx = np.clip(idx, 0, len(t_truth) - 1)
+    lo = np.clip(idx - 1, 0, len(t_truth) - 1)
+    nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
+    match = np.abs(t_truth[nearest] - t_est) <= 1e-6 * np.maximum(1.0, np.abs(t_est))
+    if not match.any():
+        raise InputError(f"{path_est}: no timestamp matches one in {path_truth}")
+    return np.flatnonzero(match), nearest[match]
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    t_e, est, _ = read_states(args.estimates)
+    t_t, truth, _ = read_states(args.truth)
+    i_e, i_t = _align(args.estimates, t_e, args.truth, t_t)
+    if not (math.isfinite(args.length) and args.length > 0):
+        raise InputError(f"--length must be positive, got {args.length}")
+    try:
+        m = compute_metrics(est[i_e], truth[i_t], args.length)
+    except ValueError as exc:
+        raise InputError(f"{args.estimates}: {exc}") from None
+    if args.json:
+        print(json.dumps({**m.as_dict(), "unmatched": int(len(t_e) - len(i_e))}, indent=2))
+    else:
+        print(format_metrics(m))
+    return 0
+
+
+def format_metrics(m: Metrics) -> str:
+    r = m.rmse
+    return "\n".join(
+        [
+            f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
+            f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
+            f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
+            f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",
+            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, {math.degrees(r['phi']):.2f} deg",
+            f"SRMSE                {m.srmse:.4f} (sum of RMSEs, m + rad)",
+        ]
+    )
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    from continuum_mhe import plotting
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    robot = RobotSettings(length=0.2)
+    formulation = make_formulation("bend", robot, NoiseSettings())
+    rec = simulate("paper3d", seed=args.seed, length=robot.length)
+    results: list[tuple[EstimateSeries, Metrics]] = []
+    for method in METHODS:
+        est = make_estimator(method, formulation, MHESettings())
+        series = est.run(rec.t, rec.z, progress=progress_bar(f"demo: {method}"))
+        results.append((series, compute_metrics(series.output, rec.truth, robot.length)))
+        write_estimates(out / f"estimates_{method}.csv", series)
+    write_measurements(out / "measurements.csv", rec.t, rec.z)
+    write_truth(out / "truth.csv", rec.t, rec.truth)
+    table = Table(title="paper3d, 0.2 m, 2 deg noise, N = 30 (continuum-mhe demo)")
+    for col in ("method", "tip mean mm", "tip mean %", "tip max mm", "theta RMSE deg",
+                "phi RMSE deg", "median solve ms"):
+        table.add_column(col, justify="right")
+    for s, m in results:
+        table.add_row(
+            s.method.upper(),
+            f"{m.tip_mean_mm:.2f}",
+            f"{m.tip_mean_pct:.2f}",
+            f"{m.tip_max_mm:.2f}",
+            f"{math.degrees(m.rmse['theta']):.2f}",
+            f"{math.degrees(m.rmse['phi']):.2f}",
+            f"{float(np.median(s.solve_ms)):.3f}",
+        )
+    Console().print(table)
+    series = [s for s, _ in results]
+    figs = plotting.save(
+        plotting.trajectory_3d(rec.truth, series, "paper3d: tip trajectory"),
+        out / "demo_trajectory_3d",
+    ) + plotting.save(
+        plotting.states_vs_time(rec.t, rec.truth, series, "paper3d: states", robot.theta_max),
+        out / "demo_states",
+    )
+    print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
+    return 0
+
+
+# --- parser ---------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Shape and tip estimation of continuum robots from a tip IMU "
+        "(constrained MHE, EKF, UKF).",
+    )
+    from continuum_mhe import __version__
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser("demo", help="simulate paper3d, run MHE, EKF and UKF, print errors, plot")
+    p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("simulate", help="write a synthetic measurement CSV and its truth")
+    p.add_argument("scenario", choices=SCENARIOS)
+    p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
+    p.add_argument("--truth", help="truth CSV to write")
+    p.add_argument("--noise-deg", type=float, default=2.0, help="noise std in degrees")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
+    p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")
+    p.add_argument("--length", type=float, default=0.2, help="section length in m")
+    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("estimate", help="estimate shape and tip from a measurement CSV")
+    p.add_argument("measurements", help="CSV with t,roll,pitch (s, rad)")
+    p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
+    p.add_argument("--method", choices=METHODS, default="mhe")
+    p.add_argument("--degrees", action="store_true", help="roll and pitch are in degrees")
+    p.add_argument(
+        "--skip-bad",
+        action="store_true",
+        help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
+    )
+    _add_model_options(p)
+    _add_mhe_options(p)
+    p.set_defaults(func=cmd_estimate)
+
+    p = sub.add_parser("evaluate", help="errors of an estimate CSV against a truth CSV")
+    p.add_argument("estimates")
+    p.add_argument("truth")
+    p.add_argument("--length", type=float, default=0.2, help="section length in m")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_evaluate)
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (InputError, ValueError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

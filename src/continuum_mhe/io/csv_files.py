@@ -1,0 +1,292 @@
+"""CSV files: measurements in, estimates and truth out.
+
+Formats (see README "File formats"):
+
+* Measurement CSV: a header with at least ``t,roll,pitch``; ``t`` in seconds, strictly
+  increasing; roll and pitch in radians (``degrees=True`` for degrees), in the
+  convention of :mod:`continuum_mhe.model.imu`. Other columns are ignored.
+* Estimate CSV: ``t,x,y,z,theta,phi,status,solve_ms`` (m, rad, ms); rows without an
+  estimate leave the six state fields empty. Truth CSV: ``t,x,y,z,theta,phi``.
+
+Every problem in an input file raises :class:`InputError` with a one-line message
+naming the file and line. Outputs are written atomically: a temporary file in the same
+folder is renamed over the target only once it is complete.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import math
+import os
+import tempfile
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.estimators.base import EstimateSeries
+
+FloatArray = NDArray[np.float64]
+
+STATE_COLUMNS = ("t", "x", "y", "z", "theta", "phi")
+ESTIMATE_COLUMNS = (*STATE_COLUMNS, "status", "solve_ms")
+MEASUREMENT_COLUMNS = ("t", "roll", "pitch")
+
+#: Largest plausible |roll| and |pitch| in radians; beyond these, the file is in degrees.
+_ROLL_LIMIT = math.pi + 0.05
+_PITCH_LIMIT = math.pi / 2 + 0.05
+
+
+class InputError(ValueError):
+    """A problem with user input; the message is one line, naming file and line."""
+
+
+@dataclass(frozen=True)
+class MeasurementTable:
+    """Measurements read from a file.
+
+    Attributes:
+        t: (n,) s, strictly increasing.
+        z: (n, 2) ``[roll, pitch]`` rad; NaN marks a skipped (bad) sample, kept as a
+            dropout so the output still has its row.
+        skipped: descriptions of rows dropped or turned into dropouts (``skip_bad``).
+    """
+
+    t: FloatArray
+    z: FloatArray
+    skipped: list[str] = field(default_factory=list)
+
+
+def _open_text(path: Path) -> IO[str]:
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, expected a CSV file")
+    try:
+        return path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot open ({exc.strerror})") from None
+
+
+def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header and ``(line_number, fields)`` rows; blank lines are ignored."""
+    with _open_text(path) as fh:
+        reader = csv.reader(fh)
+        try:
+            rows = [
+                (reader.line_num, [c.strip() for c in r])
+                for r in reader
+                if any(c.strip() for c in r)
+            ]
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: not a UTF-8 text file") from None
+        except csv.Error as exc:
+            raise InputError(f"{path}: line {reader.line_num}: malformed CSV ({exc})") from None
+    if not rows:
+        raise InputError(f"{path}: line 1: file is empty, expected a header such as t,roll,pitch")
+    (_, header), body = rows[0], rows[1:]
+    return [h.lower() for h in header], body
+
+
+def _column_indices(path: Path, header: list[str], required: Sequence[str]) -> list[int]:
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(
+            f"{path}: line 1: missing column(s) {', '.join(missing)} "
+            f"(header has: {', '.join(header) or 'nothing'})"
+        )
+    return [header.index(c) for c in required]
+
+
+def _parse_float(path: Path, line: int, name: str, text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        shown = text if len(text) <= 20 else text[:20] + "..."
+        raise InputError(f"{path}: line {line}: column {name}: {shown!r} is not a number") from None
+
+
+def read_measurements(
+    path: str | os.PathLike[str], *, degrees: bool = False, skip_bad: bool = False
+) -> MeasurementTable:
+    """Read a measurement CSV (``t,roll,pitch``), validating every row.
+
+    With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
+    dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
+    dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
+    """
+    p = Path(path)
+    header, body = _read_rows(p)
+    idx = _column_indices(p, header, MEASUREMENT_COLUMNS)
+    if not body:
+        raise InputError(f"{p}: line 2: no data rows after the header")
+    t_list: list[float] = []
+    z_list: list[tuple[float, float]] = []
+    lines: list[int] = []
+    skipped: list[str] = []
+
+    def bad(line: int, msg: str) -> None:
+        if not skip_bad:
+            raise InputError(f"{p}: line {line}: {msg}")
+        skipped.append(f"line {line}: {msg}")
+
+    for line, row in body:
+        if len(row) < len(header):
+            msg = f"expected {len(header)} fields, found {len(row)} (truncated row?)"
+            if len(row) <= idx[0]:
+                bad(line, msg)
+                continue
+        try:
+            t = _parse_float(p, line, "t", row[idx[0]])
+        except InputError as exc:
+            bad(line, str(exc).split(": ", 2)[-1])
+            continue
+        if not math.isfinite(t):
+            bad(line, f"t is {row[idx[0]]}")
+            continue
+        if t_list and t <= t_list[-1]:
+            kind = "duplicate" if t == t_list[-1] else "decreasing"
+            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
+            continue
+        angles: list[float] = []
+        for name, j in zip(MEASUREMENT_COLUMNS[1:], idx[1:]):
+            if j >= len(row):
+                bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
+                angles.append(math.nan)
+                continue
+            try:
+                v = _parse_float(p, line, name, row[j])
+            except InputError as exc:
+                bad(line, str(exc).split(": ", 2)[-1])
+                v = math.nan
+            else:
+                if not math.isfinite(v):
+                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
+            angles.append(v)
+        t_list.append(t)
+        z_list.append((angles[0], angles[1]))
+        lines.append(line)
+    if not t_list:
+        raise InputError(f"{p}: no usable rows ({len(skipped)} skipped)")
+    t_arr = np.array(t_list)
+    z = np.array(z_list, dtype=float)
+    if degrees:
+        z = np.radians(z)
+    _check_angle_units(p, z, lines, degrees)
+    return MeasurementTable(t=t_arr, z=z, skipped=skipped)
+
+
+def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: bool) -> None:
+    with np.errstate(invalid="ignore"):
+        over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
+    if not over.any():
+        return
+    i = int(np.argmax(over))
+    roll, pitch = z[i]
+    where = f"{path}: line {lines[i]}: roll={roll:.4g}, pitch={pitch:.4g}"
+    if degrees:
+        raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
+    raise InputError(
+        f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); "
+        "the angles look like degrees: pass --degrees"
+    )
+
+
+def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
+    """Read an estimate or truth CSV: ``t`` (n,), states (n, 5) with NaN where empty,
+    and status (n,) (``"ok"`` where the file has no status column)."""
+    p = Path(path)
+    header, body = _read_rows(p)
+    idx = _column_indices(p, header, STATE_COLUMNS)
+    if not body:
+        raise InputError(f"{p}: line 2: no data rows after the header")
+    s_idx = header.index("status") if "status" in header else None
+    t, out, status = [], [], []
+    for line, row in body:
+        if len(row) < len(header):
+            raise InputError(
+                f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (truncated?)"
+            )
+        st = row[s_idx] if s_idx is not None else "ok"
+        tv = _parse_float(p, line, "t", row[idx[0]])
+        vals = [
+            math.nan if (row[j] == "" and st == "no-estimate") else _parse_float(p, line, c, row[j])
+            for c, j in zip(STATE_COLUMNS[1:], idx[1:])
+        ]
+        if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
+            raise InputError(f"{p}: line {line}: NaN or infinite value")
+        if t and tv <= t[-1]:
+            raise InputError(f"{p}: line {line}: t={tv:g} does not increase (previous t={t[-1]:g})")
+        t.append(tv)
+        out.append(vals)
+        status.append(st)
+    return np.array(t), np.array(out, dtype=float), np.array(status, dtype=str)
+
+
+@contextlib.contextmanager
+def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[str]]:
+    """Open a temporary file next to ``path``; rename it over ``path`` on success only."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{target}: folder {folder} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+            yield fh
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.10g}"
+
+
+def write_table(
+    path: str | os.PathLike[str], columns: Sequence[str], rows: Sequence[Sequence[object]]
+) -> None:
+    """Write a CSV atomically; floats must be finite (refuses to write NaN)."""
+    with atomic_writer(path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            cells = []
+            for v in r:
+                if isinstance(v, (float, np.floating)):
+                    if not math.isfinite(v):
+                        raise ValueError(f"refusing to write non-finite value to {path}")
+                    cells.append(_fmt(float(v)))
+                else:
+                    cells.append(str(v))
+            w.writerow(cells)
+
+
+def estimate_rows(series: EstimateSeries) -> list[list[object]]:
+    """Rows of the estimate CSV; no-estimate rows leave the state empty."""
+    rows: list[list[object]] = []
+    for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
+        state: list[object] = [""] * 5 if st == "no-estimate" else [float(v) for v in out]
+        rows.append([float(t), *state, str(st), float(ms)])
+    return rows
+
+
+def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
+    """Write an estimate CSV atomically."""
+    write_table(path, ESTIMATE_COLUMNS, estimate_rows(series))
+
+
+def write_truth(path: str | os.PathLike[str], t: FloatArray, truth: FloatArray) -> None:
+    """Write a truth CSV ``t,x,y,z,theta,phi`` atomically."""
+    write_table(path, STATE_COLUMNS, [[float(a), *map(float, b)] for a, b in zip(t, truth)])
+
+
+def write_measurements(path: str | os.PathLike[str], t: FloatArray, z: FloatArray) -> None:
+    """Write a measurement CSV ``t,roll,pitch`` (rad) atomically."""
+    write_table(path, MEASUREMENT_COLUMNS, [[float(a), float(b[0]), float(b[1])] for a, b in zip(t, z)])

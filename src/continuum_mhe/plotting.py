@@ -1,0 +1,96 @@
+"""Figures. Plots read results (arrays, :class:`EstimateSeries`); they never run estimators."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from continuum_mhe.estimators.base import EstimateSeries  # noqa: E402
+from continuum_mhe.metrics import STATE_NAMES  # noqa: E402
+
+_UNITS = {"x": "mm", "y": "mm", "z": "mm", "theta": "deg", "phi": "deg"}
+_STYLE = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
+
+
+def _scale(name: str, v: np.ndarray) -> np.ndarray:
+    """Display units; phi gets NaN breaks where it wraps at +-180 deg."""
+    if _UNITS[name] == "mm":
+        return v * 1e3
+    d = np.degrees(v)
+    if name == "phi" and len(d) > 1:
+        jump = np.abs(np.diff(d)) > 180
+        d = np.insert(d, np.flatnonzero(jump) + 1, np.nan)
+    return d
+
+
+def _breaks(name: str, t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Time axis matching :func:`_scale` (NaN inserted at phi wraps)."""
+    if name != "phi" or len(v) < 2:
+        return t
+    jump = np.abs(np.diff(np.degrees(v))) > 180
+    return np.insert(np.asarray(t, float), np.flatnonzero(jump) + 1, np.nan)
+
+
+def trajectory_3d(
+    truth: np.ndarray, series: Sequence[EstimateSeries], title: str = "Tip trajectory"
+) -> Figure:
+    """3D tip trajectory (mm): truth against each estimate."""
+    fig = plt.figure(figsize=(6.4, 5.2))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(*(truth[:, :3].T * 1e3), "k-", lw=2.0, label="truth")
+    for i, s in enumerate(series):
+        ok = s.has_estimate
+        ax.plot(*(s.output[ok, :3].T * 1e3), "--", lw=1.2,
+                color=_STYLE.get(s.method, f"C{i + 3}"), label=s.method.upper())
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+    ax.set_title(title)
+    ax.legend(loc="upper left")
+    fig.tight_layout()
+    return fig
+
+
+def states_vs_time(
+    t: np.ndarray,
+    truth: np.ndarray | None,
+    series: Sequence[EstimateSeries],
+    title: str = "States",
+    theta_max: float | None = None,
+) -> Figure:
+    """The five output states against time, with truth and an optional theta bound."""
+    fig, axes = plt.subplots(5, 1, figsize=(7.5, 9.0), sharex=True)
+    for k, (ax, name) in enumerate(zip(axes, STATE_NAMES)):
+        if truth is not None:
+            ax.plot(_breaks(name, t, truth[:, k]), _scale(name, truth[:, k]), "k-", lw=2.0,
+                    label="truth")
+        for i, s in enumerate(series):
+            ax.plot(_breaks(name, s.t, s.output[:, k]), _scale(name, s.output[:, k]), "-", lw=1.0,
+                    color=_STYLE.get(s.method, f"C{i + 3}"), label=s.method.upper())
+        if name == "theta" and theta_max is not None:
+            ax.axhline(np.degrees(theta_max), color="r", ls=":", lw=1.0, label="bound")
+        ax.set_ylabel(f"{name} ({_UNITS[name]})")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", ncol=5, fontsize="small")
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def save(fig: Figure, path: Path, formats: Sequence[str] = ("png",)) -> list[Path]:
+    """Save ``fig`` as ``path`` with each suffix in ``formats``; closes the figure."""
+    out = []
+    for fmt in formats:
+        p = path.with_suffix(f".{fmt}")
+        fig.savefig(p, dpi=130)
+        out.append(p)
+    plt.close(fig)
+    return out

@@ -1,0 +1,35 @@
+"""Progress bars (rich), shown only when stderr is a terminal."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterable, Iterator
+from typing import TypeVar
+
+from rich.console import Console
+from rich.progress import track
+
+T = TypeVar("T")
+
+
+def progress_bar(description: str, enabled: bool | None = None) -> Callable[[Iterable[T]], Iterator[T]] | None:
+    """A wrapper that shows a progress bar over an iterable, or None when off.
+
+    ``enabled=None`` turns it on only when stderr is a terminal.
+    """
+    if enabled is None:
+        enabled = sys.stderr.isatty()
+    if not enabled:
+        return None
+
+    def wrap(it: Iterable[T]) -> Iterator[T]:
+        total = len(it) if hasattr(it, "__len__") else None  # type: ignore[arg-type]
+        yield from track(
+            it,
+            description=description,
+            total=total,
+            transient=True,
+            console=Console(stderr=True),
+        )
+
+    return wrap
