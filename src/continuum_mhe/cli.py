@@ -112,7 +112,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     series = est.run(table.t, table.z, progress=progress_bar(f"{args.method} estimate"))
     write_estimates(out, series)
     counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
-    msg = f"wrote {len(series.t)} estimates to {out} ({', '.join(f'{k}: {v}' for k, v in counts.items())})"
+    summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
+    msg = f"wrote {len(series.t)} estimates to {out} ({summary})"
     if table.skipped:
         msg += f"; skipped {len(table.skipped)} bad sample(s), first: {table.skipped[0]}"
     print(msg, file=sys.stderr)
@@ -157,7 +158,8 @@ def format_metrics(m: Metrics) -> str:
             f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
             f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
             f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",
-            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, {math.degrees(r['phi']):.2f} deg",
+            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, "
+            f"{math.degrees(r['phi']):.2f} deg",
             f"SRMSE                {m.srmse:.4f} (sum of RMSEs, m + rad)",
         ]
     )
@@ -183,8 +185,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     write_measurements(out / "measurements.csv", rec.t, rec.z)
     write_truth(out / "truth.csv", rec.t, rec.truth)
     table = Table(title="paper3d, 0.2 m, 2 deg noise, N = 30 (continuum-mhe demo)")
-    for col in ("method", "tip mean mm", "tip mean %", "tip max mm", "theta RMSE deg",
-                "phi RMSE deg", "median solve ms"):
+    for col in (
+        "method",
+        "tip mean mm",
+        "tip mean %",
+        "tip max mm",
+        "theta RMSE deg",
+        "phi RMSE deg",
+        "median solve ms",
+    ):
         table.add_column(col, justify="right")
     for s, m in results:
         table.add_row(

@@ -47,8 +47,13 @@ def trajectory_3d(
     ax.plot(*(truth[:, :3].T * 1e3), "k-", lw=2.0, label="truth")
     for i, s in enumerate(series):
         ok = s.has_estimate
-        ax.plot(*(s.output[ok, :3].T * 1e3), "--", lw=1.2,
-                color=_STYLE.get(s.method, f"C{i + 3}"), label=s.method.upper())
+        ax.plot(
+            *(s.output[ok, :3].T * 1e3),
+            "--",
+            lw=1.2,
+            color=_STYLE.get(s.method, f"C{i + 3}"),
+            label=s.method.upper(),
+        )
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
@@ -69,11 +74,22 @@ def states_vs_time(
     fig, axes = plt.subplots(5, 1, figsize=(7.5, 9.0), sharex=True)
     for k, (ax, name) in enumerate(zip(axes, STATE_NAMES)):
         if truth is not None:
-            ax.plot(_breaks(name, t, truth[:, k]), _scale(name, truth[:, k]), "k-", lw=2.0,
-                    label="truth")
+            ax.plot(
+                _breaks(name, t, truth[:, k]),
+                _scale(name, truth[:, k]),
+                "k-",
+                lw=2.0,
+                label="truth",
+            )
         for i, s in enumerate(series):
-            ax.plot(_breaks(name, s.t, s.output[:, k]), _scale(name, s.output[:, k]), "-", lw=1.0,
-                    color=_STYLE.get(s.method, f"C{i + 3}"), label=s.method.upper())
+            ax.plot(
+                _breaks(name, s.t, s.output[:, k]),
+                _scale(name, s.output[:, k]),
+                "-",
+                lw=1.0,
+                color=_STYLE.get(s.method, f"C{i + 3}"),
+                label=s.method.upper(),
+            )
         if name == "theta" and theta_max is not None:
             ax.axhline(np.degrees(theta_max), color="r", ls=":", lw=1.0, label="bound")
         ax.set_ylabel(f"{name} ({_UNITS[name]})")

@@ -12,7 +12,9 @@ from rich.progress import track
 T = TypeVar("T")
 
 
-def progress_bar(description: str, enabled: bool | None = None) -> Callable[[Iterable[T]], Iterator[T]] | None:
+def progress_bar(
+    description: str, enabled: bool | None = None
+) -> Callable[[Iterable[T]], Iterator[T]] | None:
     """A wrapper that shows a progress bar over an iterable, or None when off.
 
     ``enabled=None`` turns it on only when stderr is a terminal.

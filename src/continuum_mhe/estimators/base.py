@@ -116,7 +116,9 @@ class Estimator(ABC):
         """Forget all samples; the next ``step`` starts a new recording."""
 
     @abstractmethod
-    def _step(self, measurement: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+    def _step(
+        self, measurement: Measurement
+    ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """Return ``(state, covariance, status)`` for this sample."""
 
     def step(self, measurement: Measurement) -> Estimate:

@@ -1,8 +1,9 @@
 """Extended and unscented Kalman filters on a formulation's model.
 
 Both use exactly the formulation's ``Q(dt)`` and ``R`` (the same numbers the MHE
-weights with), and wrap angle innovations to ``(-pi, pi]``. The pure functions
-:func:`ekf_predict` and :func:`ekf_update` are shared with the MHE's arrival cost.
+weights with). Innovations use the formulation's ``residual`` (angles wrapped to
+``(-pi, pi]``). The pure functions :func:`ekf_predict` and :func:`ekf_update` are
+shared with the MHE's arrival cost.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
-from continuum_mhe.model.imu import wrap_angle
 
 
 def ekf_predict(
@@ -26,12 +26,12 @@ def ekf_predict(
 
 
 def ekf_update(
-    fns: ModelFunctions, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+    formulation: Formulation, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Measurement update with a wrapped innovation and Joseph-form covariance."""
-    h, H = (np.asarray(v, dtype=float) for v in fns.measure(x))
+    """Measurement update with the formulation's (wrapped) innovation, Joseph form."""
+    h, H = (np.asarray(v, dtype=float) for v in formulation.functions.measure(x))
     H = H.reshape(len(z), len(x))
-    y = wrap_angle(z - h.ravel())
+    y = formulation.residual(z, h.ravel())
     S = H @ P @ H.T + R
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(len(x)) - K @ H
@@ -89,7 +89,7 @@ class ExtendedKalmanFilter(_KalmanBase):
         return ekf_predict(self.formulation.functions, x, P, u, dt)
 
     def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        return ekf_update(self.formulation.functions, x, P, z, self._R)
+        return ekf_update(self.formulation, x, P, z, self._R)
 
 
 @dataclass(frozen=True)
@@ -147,11 +147,11 @@ class UnscentedKalmanFilter(_KalmanBase):
         pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
         zs = np.asarray(fns.observe(pts.T), dtype=float).reshape(len(z), len(pts)).T
         # average angles as offsets from the central sigma point, so +-pi never splits
-        zs = zs[0] + wrap_angle(zs - zs[0])
+        zs = zs[0] + self.formulation.residual(zs, zs[0])
         zm = wm @ zs
         dz = zs - zm
         dx = pts - x
         S = (wc[:, None] * dz).T @ dz + self._R
         C = (wc[:, None] * dx).T @ dz
         K = np.linalg.solve(S, C.T).T
-        return x + K @ wrap_angle(z - zm), P - K @ S @ K.T
+        return x + K @ self.formulation.residual(z, zm), P - K @ S @ K.T

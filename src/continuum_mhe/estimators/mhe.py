@@ -61,7 +61,7 @@ class _Nlp:
 
 @lru_cache(maxsize=32)
 def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float) -> _Nlp:
-    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, 2
+    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
     X = ca.SX.sym("X", nx, n)
     Z = ca.SX.sym("Z", m, n)
     zmask = ca.SX.sym("zmask", n)
@@ -168,7 +168,7 @@ class MovingHorizonEstimator(Estimator):
         P = self._P
         z0 = self._z[0]
         if np.all(np.isfinite(z0)):
-            _, P = ekf_update(fns, x0, P, z0, self.formulation.meas_cov())
+            _, P = ekf_update(self.formulation, x0, P, z0, self.formulation.meas_cov())
         _, P = ekf_predict(fns, x0, P, self._u[1], self._t[1] - self._t[0])
         self._P = 0.5 * (P + P.T)
         self._xbar = self._X[1].copy()
@@ -178,7 +178,7 @@ class MovingHorizonEstimator(Estimator):
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
         k = len(self._t)
         off = n - k  # leading inactive nodes
-        z = np.zeros((n, 2))
+        z = np.zeros((n, f.nz))
         zmask = np.zeros(n)
         dt = np.full(n - 1, 1.0)
         u = np.zeros((n - 1, f.nu))

@@ -289,4 +289,6 @@ def write_truth(path: str | os.PathLike[str], t: FloatArray, truth: FloatArray) 
 
 def write_measurements(path: str | os.PathLike[str], t: FloatArray, z: FloatArray) -> None:
     """Write a measurement CSV ``t,roll,pitch`` (rad) atomically."""
-    write_table(path, MEASUREMENT_COLUMNS, [[float(a), float(b[0]), float(b[1])] for a, b in zip(t, z)])
+    write_table(
+        path, MEASUREMENT_COLUMNS, [[float(a), float(b[0]), float(b[1])] for a, b in zip(t, z)]
+    )

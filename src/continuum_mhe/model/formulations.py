@@ -66,6 +66,9 @@ class Formulation:
     state_names: tuple[str, ...] = ()
     nu: int = 0
 
+    #: size of the measurement vector z
+    nz: int = 2
+
     @property
     def nx(self) -> int:
         return len(self.state_names)
@@ -116,9 +119,14 @@ class Formulation:
         return np.eye(2) * self.noise.measurement_std**2
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
-        """``z - h(x)`` with both angles wrapped to ``(-pi, pi]``."""
+        """``z - h(x)`` with both angles wrapped to ``(-pi, pi]`` (override for
+        measurements that are not angles)."""
         d = z - self.measurement_sym(x)
         return ca.atan2(ca.sin(d), ca.cos(d))
+
+    def residual(self, z: FloatArray, h: FloatArray) -> FloatArray:
+        """Numeric ``z - h`` as :meth:`measurement_residual_sym` defines it."""
+        return wrap_angle(np.asarray(z, dtype=float) - h)
 
     @cached_property
     def functions(self) -> ModelFunctions:

@@ -17,7 +17,7 @@ Mounting:
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import Literal
 
 import casadi as ca
@@ -75,7 +75,7 @@ def wrap_angle(x: ArrayLike) -> FloatArray:
     return (np.asarray(x, dtype=float) + np.pi) % (2 * np.pi) - np.pi
 
 
-@lru_cache(maxsize=None)
+@cache
 def _tilt_function(mounting: Mounting) -> ca.Function:
     theta, phi = ca.SX.sym("theta"), ca.SX.sym("phi")
     return ca.Function("tilt", [theta, phi], [tilt_sym(theta, phi, mounting)])

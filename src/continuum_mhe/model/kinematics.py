@@ -18,7 +18,7 @@ matching shape (vectorised over trailing samples).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 import casadi as ca
@@ -87,7 +87,7 @@ def tip_position_sym(theta: Sym, phi: Sym, length: Sym | float) -> Sym:
     return tip_position_bend_sym(*bend_from_shape_sym(theta, phi), length)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _numeric() -> dict[str, ca.Function]:
     theta, phi, length = ca.SX.sym("theta"), ca.SX.sym("phi"), ca.SX.sym("length")
     a, b = ca.SX.sym("a"), ca.SX.sym("b")

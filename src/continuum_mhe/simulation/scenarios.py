@@ -14,7 +14,12 @@ from typing import Literal
 import numpy as np
 
 from continuum_mhe.model.imu import Mounting, shape_from_tilt, tilt, wrap_angle
-from continuum_mhe.model.kinematics import FloatArray, bend_from_shape, shape_from_bend, tip_position
+from continuum_mhe.model.kinematics import (
+    FloatArray,
+    bend_from_shape,
+    shape_from_bend,
+    tip_position,
+)
 
 ScenarioName = Literal["paper3d", "planar-overbend", "straight"]
 SCENARIOS: tuple[ScenarioName, ...] = ("paper3d", "planar-overbend", "straight")
