@@ -8,7 +8,7 @@ from typing import Literal
 
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
-FormulationName = Literal["bend", "paper"]
+FormulationName = Literal["bend", "paper", "direct"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
 
 
