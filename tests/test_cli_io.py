@@ -1,0 +1,191 @@
+"""The command line and file formats: round trips, bad input, atomic output."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import (
+    ESTIMATE_COLUMNS,
+    InputError,
+    read_measurements,
+    read_states,
+    write_measurements,
+)
+from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.simulation.scenarios import simulate
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _good_rows(n: int = 40, dt: float = 0.05) -> list[str]:
+    rec = simulate("paper3d", duration=(n - 1) * dt, dt=dt, seed=3)
+    return [f"{t:.3f},{r:.6f},{p:.6f}" for t, (r, p) in zip(rec.t, rec.z)]
+
+
+def _meas(tmp_path: Path, rows: list[str], header: str = "t,roll,pitch") -> Path:
+    return _write(tmp_path / "meas.csv", "\n".join([header, *rows]) + "\n")
+
+
+# --- round trips ------------------------------------------------------------------------
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_simulate_estimate_evaluate_round_trip(tmp_path, capsys, method):
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "truth.csv", tmp_path / "est.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "6", "--seed", "4"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", method]) == 0
+    with est.open() as fh:
+        rows = list(csv.reader(fh))
+    assert tuple(rows[0][: len(ESTIMATE_COLUMNS)]) == ESTIMATE_COLUMNS
+    t_m = [r[0] for r in list(csv.reader(meas.open()))[1:]]
+    assert [r[0] for r in rows[1:]] == [f"{float(t):.10g}" for t in t_m]  # one row per input row
+    assert all(r[6] in ("ok", "dropout") for r in rows[1:])
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["n"] == len(rows) - 1
+    assert report["tip_mean_pct"] < 2.5
+    assert set(report["rmse"]) == {"x", "y", "z", "theta", "phi"}
+
+
+def test_estimate_positions_match_forward_kinematics(tmp_path):
+    meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
+    main(["simulate", "straight", "-o", str(meas), "--duration", "12"])
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "mhe"]) == 0
+    t, out, status = read_states(est)
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out[:, :3], tip_position(out[:, 3], out[:, 4], 0.2), atol=1e-9)
+
+
+def test_paper_start_leaves_first_rows_empty(tmp_path):
+    meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
+    main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"])
+    assert main(["estimate", str(meas), "-o", str(est), "--horizon", "10", "--paper-start"]) == 0
+    rows = list(csv.reader(est.open()))[1:]
+    assert all(r[1:6] == [""] * 5 and r[6] == "no-estimate" for r in rows[:9])
+    assert rows[9][6] == "ok" and all(r[1:6] != [""] * 5 for r in rows[9:])
+    assert "nan" not in est.read_text().lower()
+
+
+def test_theta_max_option_bounds_and_releases(tmp_path):
+    meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
+    main(["simulate", "planar-overbend", "-o", str(meas)])
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    _, out, _ = read_states(est)
+    assert out[:, 3].max() <= math.pi / 2 + 1e-7
+    assert main(["estimate", str(meas), "-o", str(est), "--theta-max", "3"]) == 0
+    _, out3, _ = read_states(est)
+    assert out3[:, 3].max() > 2.0
+
+
+def test_degrees_flag_matches_radians(tmp_path):
+    rec = simulate("paper3d", duration=2, seed=1)
+    rad, deg = tmp_path / "rad.csv", tmp_path / "deg.csv"
+    write_measurements(rad, rec.t, rec.z)
+    write_measurements(deg, rec.t, np.degrees(rec.z))
+    a = read_measurements(rad)
+    b = read_measurements(deg, degrees=True)
+    np.testing.assert_allclose(a.z, b.z, atol=1e-9)
+
+
+def test_extra_columns_and_column_order_are_accepted(tmp_path):
+    rows = [f"{r.split(',')[2]},x,{r.split(',')[0]},{r.split(',')[1]}" for r in _good_rows(10)]
+    table = read_measurements(_meas(tmp_path, rows, header="pitch,note,t,roll"))
+    assert table.t.shape == (10,) and table.z.shape == (10, 2)
+
+
+# --- bad input: one line, file and line named, exit 2, no output ---------------------------
+BAD_INPUTS = {
+    "missing-columns": ("t,roll\n0,0.1\n", "missing column(s) pitch"),
+    "empty-file": ("", "line 1: file is empty"),
+    "header-only": ("t,roll,pitch\n", "no data rows"),
+    "non-numeric": ("t,roll,pitch\n0,0.1,0.1\n0.05,abc,0.1\n", "line 3: column roll: 'abc'"),
+    "nan-row": ("t,roll,pitch\n0,0.1,0.1\n0.05,nan,0.1\n", "line 3: column roll is nan"),
+    "decreasing-t": (
+        "t,roll,pitch\n0,0.1,0.1\n0.1,0.1,0.1\n0.05,0.1,0.1\n",
+        "line 4: decreasing timestamp",
+    ),
+    "duplicate-t": ("t,roll,pitch\n0,0.1,0.1\n0,0.1,0.1\n", "line 3: duplicate timestamp"),
+    "degrees": ("t,roll,pitch\n0,10,20\n0.05,11,21\n", "look like degrees: pass --degrees"),
+    "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
+    "binary": ("t,roll,pitch\n0,0.1,\x000.1\n", "line 2"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
+    text, expected = BAD_INPUTS[case]
+    meas = _write(tmp_path / "meas.csv", text)
+    est = tmp_path / "est.csv"
+    code = main(["estimate", str(meas), "-o", str(est)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("continuum-mhe: error: ") and str(meas) in err
+    assert expected in err
+    assert list(tmp_path.iterdir()) == [meas]  # no output, no temporary left behind
+
+
+def test_missing_file(tmp_path, capsys):
+    assert main(["estimate", str(tmp_path / "nope.csv"), "-o", str(tmp_path / "e.csv")]) == 2
+    assert "nope.csv: no such file" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_folder_missing_is_an_error(tmp_path, capsys):
+    meas = _meas(tmp_path, _good_rows(5))
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "no" / "e.csv")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_existing_output_is_kept_on_error(tmp_path):
+    meas = _write(tmp_path / "meas.csv", "t,roll,pitch\n0,0.1,0.1\n0.05,abc,0.1\n")
+    est = _write(tmp_path / "est.csv", "previous result\n")
+    assert main(["estimate", str(meas), "-o", str(est)]) == 2
+    assert est.read_text() == "previous result\n"
+
+
+def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
+    rows = _good_rows(40)
+    rows[10] = rows[10].split(",")[0] + ",nan,0.1"
+    rows[20] = rows[20].split(",")[0] + ",oops,0.1"
+    rows.insert(30, rows[29])  # duplicate timestamp: dropped
+    meas, est = _meas(tmp_path, rows), tmp_path / "est.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
+    err = capsys.readouterr().err
+    assert "skipped 3 bad sample(s)" in err
+    t, out, status = read_states(est)
+    assert len(t) == 40 and np.all(np.isfinite(out))
+    assert list(np.flatnonzero(status == "dropout")) == [10, 20]
+
+
+def test_evaluate_rejects_bad_truth(tmp_path, capsys):
+    est = _write(tmp_path / "est.csv", "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n")
+    truth = _write(tmp_path / "truth.csv", "t,x,y\n0,0,0\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert "truth.csv: line 1: missing column(s) z, theta, phi" in capsys.readouterr().err
+
+
+def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
+    meas = _meas(tmp_path, _good_rows(5))
+    for opts in (["--theta-max", "4"], ["--length", "-1"], ["--horizon", "1"],
+                 ["--noise-deg", "0"]):
+        assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *opts]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("continuum-mhe: error:") and err.count("\n") == 1
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_read_measurements_raises_input_error_with_line(tmp_path):
+    meas = _write(tmp_path / "m.csv", "t,roll,pitch\n0,0.1,0.1\n\n0.1,0.1,inf\n")
+    with pytest.raises(InputError, match=r"m.csv: line 4: column pitch is inf"):
+        read_measurements(meas)
