@@ -258,7 +258,7 @@ def make_formulation(
     robot: RobotSettings | None = None,
     noise: NoiseSettings | None = None,
 ) -> Formulation:
-    """Formulation by name: ``"bend"`` (default) or ``"paper"``."""
+    """Formulation by name: ``"bend"`` (default), ``"paper"`` or ``"direct"`` (raw IMU)."""
     kwargs: dict[str, Any] = {
         "robot": robot or RobotSettings(),
         "noise": noise or NoiseSettings(),
@@ -267,4 +267,8 @@ def make_formulation(
         return BendFormulation(**kwargs)
     if name == "paper":
         return PaperFormulation(**kwargs)
-    raise ValueError(f"formulation must be 'bend' or 'paper', got {name!r}")
+    if name == "direct":  # raw IMU: gravity direction and gyro (model/direct.py)
+        from continuum_mhe.model.direct import DirectFormulation
+
+        return DirectFormulation(**kwargs)
+    raise ValueError(f"formulation must be 'bend', 'paper' or 'direct', got {name!r}")

@@ -1,0 +1,128 @@
+"""Direct raw-IMU measurement model: gravity direction and gyro, no Euler angles.
+
+The state and motion model are those of ``bend`` (``[a, b, a_dot, b_dot]``, rad and
+rad/s, constant velocity). The measurement is six numbers in the tip frame::
+
+    z = [f / |f|, omega]      f: specific force (any unit), omega: gyro, rad/s
+
+with the model
+
+* ``f / |f| = R^T u`` (:func:`~continuum_mhe.model.imu.gravity_direction_bend_sym`,
+  ``u`` the world's up direction for the mounting); the tip's own acceleration is
+  not modelled and acts as measurement noise;
+* ``omega = vee(R^T dR/dt)``, the tip's angular velocity in the tip frame, with
+  ``dR/dt = dR/d(a, b) (a_dot, b_dot)`` by CasADi's chain rule on
+  :func:`~continuum_mhe.model.kinematics.rotation_bend_sym`.
+
+Residuals are plain differences (no wrapping), so nothing is singular at
+``pitch = +-pi/2`` or at ``theta = 0``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from continuum_mhe.model.formulations import BendFormulation, FloatArray
+from continuum_mhe.model.imu import (
+    gravity_direction_bend_sym,
+    shape_from_tilt,
+    tilt_from_accelerometer,
+)
+from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
+from continuum_mhe.settings import FormulationName
+
+#: Measurement names, in order.
+DIRECT_MEASUREMENTS = ("fx", "fy", "fz", "wx", "wy", "wz")
+
+
+def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym:
+    """Tip angular velocity in the tip frame, rad/s: ``vee(R^T dR/dt)``.
+
+    ``dR/dt`` is the chain rule through ``ca.jacobian`` of
+    :func:`rotation_bend_sym`, so the kinematics are written once.
+    """
+    bend = ca.vertcat(a, b)
+    rot = rotation_bend_sym(a, b)
+    d_vec = ca.mtimes(ca.jacobian(ca.vec(rot), bend), ca.vertcat(a_dot, b_dot))
+    w_hat = ca.mtimes(rot.T, ca.reshape(d_vec, 3, 3))
+    # vee of the (skew-symmetric) matrix, averaged over both triangles
+    return 0.5 * ca.vertcat(
+        w_hat[2, 1] - w_hat[1, 2], w_hat[0, 2] - w_hat[2, 0], w_hat[1, 0] - w_hat[0, 1]
+    )
+
+
+@dataclass(frozen=True)
+class DirectFormulation(BendFormulation):
+    """``bend`` state and motion, raw IMU measurement ``[f/|f|, omega]`` (nz = 6).
+
+    Attributes:
+        gyro_std: gyro noise standard deviation, rad/s (includes uncalibrated bias).
+        accel_direction_std: standard deviation of each component of ``f/|f|``
+            (dimensionless, about rad). ``None`` uses ``noise.measurement_std``.
+    """
+
+    name: FormulationName = "direct"
+    nz: int = 6
+    gyro_std: float = 0.05
+    accel_direction_std: float | None = None
+
+    def __post_init__(self) -> None:
+        for label, v in (
+            ("gyro_std", self.gyro_std),
+            ("accel_direction_std", self.accel_direction_std),
+        ):
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{label} must be a positive finite number, got {v!r}")
+
+    def measurement_sym(self, x: Sym) -> Sym:
+        g = gravity_direction_bend_sym(x[0], x[1], self.robot.mounting)
+        return ca.vertcat(g, tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3]))
+
+    def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
+        """``z - h(x)``, unwrapped (unit vector and rates are not angles)."""
+        return z - self.measurement_sym(x)
+
+    def residual(self, z: FloatArray, h: FloatArray) -> FloatArray:
+        return np.asarray(z, dtype=float) - np.asarray(h, dtype=float)
+
+    def meas_cov(self) -> FloatArray:
+        f_std = self.accel_direction_std or self.noise.measurement_std
+        return np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
+
+    @cached_property
+    def _rate_map(self) -> ca.Function:
+        """``(a, b) -> d omega / d(a_dot, b_dot)`` (3x2; omega is linear in the rates)."""
+        x = ca.SX.sym("x", 4)
+        w = tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3])
+        return ca.Function("rate_map", [x], [ca.jacobian(w, x[2:4])])
+
+    def initial_state(self, z0: FloatArray) -> FloatArray:
+        """Bend from the gravity direction (closed-form tilt inverse), rates from the
+        gyro by least squares."""
+        z0 = np.asarray(z0, dtype=float)
+        roll, pitch = tilt_from_accelerometer(z0[:3])
+        theta_a, phi_a = shape_from_tilt(roll, pitch, self.robot.mounting)
+        theta, phi = min(float(theta_a), self.robot.theta_max), float(phi_a)
+        x = np.array([theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
+        m = np.asarray(self._rate_map(x), dtype=float).reshape(3, 2, order="F")
+        x[2:] = np.linalg.lstsq(m, z0[3:6], rcond=None)[0]
+        return x
+
+
+def direct_measurements(acc: FloatArray, gyr: FloatArray) -> FloatArray:
+    """Measurement rows ``[f/|f|, omega]`` (n, 6) from raw specific force (n, 3), any
+    unit, and gyro (n, 3) rad/s. A zero or non-finite accelerometer reading gives a
+    NaN row (a dropout)."""
+    acc = np.atleast_2d(np.asarray(acc, dtype=float))
+    gyr = np.atleast_2d(np.asarray(gyr, dtype=float))
+    norm = np.linalg.norm(acc, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = np.where(norm > 0, acc / norm, np.nan)
+    z = np.hstack([unit, gyr])
+    z[~np.all(np.isfinite(z), axis=1)] = np.nan
+    return z
