@@ -1,0 +1,449 @@
+"""Known-answer tests of the kinematics and the IMU measurement model.
+
+Every reference value here is computed independently of the library: elementary
+rotations built in numpy, the circle geometry of the arc, accelerometer tilt of the
+specific force, and central finite differences. See ``docs/model-notes`` for the
+corrected equations (erratum 1: rotation entry (2,2); erratum 2: roll/pitch labels).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from continuum_mhe.model import imu, kinematics
+from continuum_mhe.model.imu import (
+    shape_from_tilt,
+    tilt,
+    tilt_bend_sym,
+    tilt_from_accelerometer,
+    tilt_sym,
+    wrap_angle,
+)
+from continuum_mhe.model.kinematics import (
+    SERIES_SWITCH_Q,
+    cosc_q,
+    rotation,
+    rotation_bend,
+    rotation_bend_sym,
+    rotation_sym,
+    sinc_q,
+    tip_jacobian,
+    tip_jacobian_bend,
+    tip_position,
+    tip_position_bend,
+    tip_position_bend_sym,
+    tip_position_sym,
+)
+
+LENGTH = 0.2
+G = 9.81
+HALF_PI = math.pi / 2
+
+# theta exactly at the singular / boundary points, then interior values
+THETAS = np.array([0.0, 1e-8, 1e-4, 0.05, 0.0999, 0.1001, 0.3, 0.9, 1.2, HALF_PI])
+PHIS = np.array([-math.pi, -2.5, -HALF_PI, -0.7, 0.0, 0.4, 1.3, HALF_PI, 2.9, math.pi])
+# a grid over the workspace (theta x phi)
+GRID_T, GRID_P = (g.ravel() for g in np.meshgrid(THETAS, PHIS, indexing="ij"))
+# Z-Y-X Euler gimbal lock: pitch = +-pi/2 where theta = pi/2 and sin(phi) = 0. Roll is
+# undefined there (atan2 of two round-off values), so roll comparisons skip it.
+GIMBAL_LOCK = (GRID_T == HALF_PI) & (np.abs(np.sin(GRID_P)) < 1e-12)
+
+
+# --- independent references --------------------------------------------------------
+def rz(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def ry(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rotation_reference(theta: float, phi: float) -> np.ndarray:
+    """``Rz(phi) Ry(-theta) Rz(-phi)`` from elementary rotations."""
+    return rz(phi) @ ry(-theta) @ rz(-phi)
+
+
+def arc_point(theta: float, phi: float, length: float, s: float) -> np.ndarray:
+    """Point at arclength ``s`` of the circular arc (radius ``length/theta``), theta > 0."""
+    r = length / theta
+    alpha = s / r  # bend angle swept up to arclength s
+    cos_minus_1 = -2 * math.sin(alpha / 2) ** 2  # cos(alpha) - 1 without cancellation
+    return np.array(
+        [
+            r * math.cos(phi) * cos_minus_1,
+            r * math.sin(phi) * cos_minus_1,
+            r * math.sin(alpha),
+        ]
+    )
+
+
+def central_difference(fun, x: np.ndarray, h: float) -> np.ndarray:
+    """Jacobian of ``fun: R^n -> R^m`` by central differences, shape (m, n)."""
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i in range(len(x)):
+        e = np.zeros_like(x)
+        e[i] = h
+        cols.append((np.asarray(fun(x + e)) - np.asarray(fun(x - e))) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+# --- tip Jacobians -------------------------------------------------------------------
+@pytest.mark.parametrize("theta", [1e-3, 0.05, 0.0999, 0.1001, 0.3, 0.9, HALF_PI])
+@pytest.mark.parametrize("phi", [-2.5, 0.0, 0.4, HALF_PI, math.pi])
+def test_tip_jacobian_matches_central_differences(theta: float, phi: float) -> None:
+    numeric = central_difference(lambda v: tip_position(v[0], v[1], LENGTH), [theta, phi], 1e-6)
+    assert_allclose(tip_jacobian(theta, phi, LENGTH), numeric, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "a, b",
+    [(0.0, 0.0), (1e-8, -1e-8), (1e-3, 2e-3), (0.07, 0.0707), (0.0, 0.1), (-0.5, 0.8), (1.1, 1.1)],
+)
+def test_tip_jacobian_bend_matches_central_differences(a: float, b: float) -> None:
+    numeric = central_difference(lambda v: tip_position_bend(v[0], v[1], LENGTH), [a, b], 1e-6)
+    assert_allclose(tip_jacobian_bend(a, b, LENGTH), numeric, rtol=0, atol=1e-9)
+
+
+def test_tip_jacobian_is_vectorised_over_samples() -> None:
+    jac = tip_jacobian(GRID_T, GRID_P, LENGTH)
+    assert jac.shape == (len(GRID_T), 3, 2)
+    for k in (0, 17, len(GRID_T) - 1):
+        assert_allclose(jac[k], tip_jacobian(GRID_T[k], GRID_P[k], LENGTH), rtol=0, atol=1e-15)
+
+
+# --- rotation ------------------------------------------------------------------------
+def test_rotation_is_orthonormal_with_unit_determinant() -> None:
+    R = rotation(GRID_T, GRID_P)
+    eye = np.broadcast_to(np.eye(3), R.shape)
+    assert_allclose(R @ np.swapaxes(R, -1, -2), eye, rtol=0, atol=1e-14)
+    assert_allclose(np.linalg.det(R), 1.0, rtol=0, atol=1e-14)
+
+
+def test_rotation_bend_is_orthonormal_with_unit_determinant() -> None:
+    a, b = GRID_T * np.cos(GRID_P), GRID_T * np.sin(GRID_P)
+    R = rotation_bend(a, b)
+    eye = np.broadcast_to(np.eye(3), R.shape)
+    assert_allclose(R @ np.swapaxes(R, -1, -2), eye, rtol=0, atol=1e-14)
+    assert_allclose(np.linalg.det(R), 1.0, rtol=0, atol=1e-14)
+
+
+def test_rotation_equals_product_of_elementary_rotations() -> None:
+    R = rotation(GRID_T, GRID_P)
+    for k in range(len(GRID_T)):
+        assert_allclose(
+            R[k], rotation_reference(GRID_T[k], GRID_P[k]), rtol=0, atol=1e-14, err_msg=f"k={k}"
+        )
+
+
+def test_rotation_bend_equals_rotation_of_shape() -> None:
+    a, b = GRID_T * np.cos(GRID_P), GRID_T * np.sin(GRID_P)
+    assert_allclose(rotation_bend(a, b), rotation(GRID_T, GRID_P), rtol=0, atol=1e-14)
+
+
+def test_rotation_entry_22_is_the_corrected_erratum_value() -> None:
+    # erratum 1: printed cos^2 phi (cos theta - 1) + cos theta is wrong
+    R = rotation(GRID_T, GRID_P)
+    corrected = np.sin(GRID_P) ** 2 * (np.cos(GRID_T) - 1) + 1
+    assert_allclose(R[:, 1, 1], corrected, rtol=0, atol=1e-14)
+    printed = np.cos(GRID_P) ** 2 * (np.cos(GRID_T) - 1) + np.cos(GRID_T)
+    bent = GRID_T > 0.3
+    assert np.max(np.abs(R[bent, 1, 1] - printed[bent])) > 0.1  # the test can tell them apart
+
+
+def test_rotation_third_column_is_the_closed_form_tangent() -> None:
+    R = rotation(GRID_T, GRID_P)
+    tangent = np.column_stack(
+        [-np.cos(GRID_P) * np.sin(GRID_T), -np.sin(GRID_P) * np.sin(GRID_T), np.cos(GRID_T)]
+    )
+    assert_allclose(R[:, :, 2], tangent, rtol=0, atol=1e-14)
+
+
+# --- arc tangent -----------------------------------------------------------------------
+@pytest.mark.parametrize("theta", [0.05, 0.3, 0.9, 1.2, HALF_PI])
+@pytest.mark.parametrize("phi", [-2.5, -0.7, 0.0, 1.3, math.pi])
+def test_arc_tangent_from_circle_geometry_equals_rotation_z_column(theta: float, phi: float):
+    h = 1e-6
+    d = (arc_point(theta, phi, LENGTH, LENGTH + h) - arc_point(theta, phi, LENGTH, LENGTH - h)) / (
+        2 * h
+    )
+    assert_allclose(d, rotation(theta, phi)[:, 2], rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize("theta", [0.0, 1e-8, 0.05, 0.3, 0.9, HALF_PI])
+@pytest.mark.parametrize("phi", [-2.5, 0.0, 1.3, math.pi])
+def test_arc_tangent_from_tip_position_along_arclength_equals_rotation_z_column(
+    theta: float, phi: float
+) -> None:
+    # a sub-arc of length s of the same curvature has bending angle theta * s / length
+    def point(s: float) -> np.ndarray:
+        return tip_position(theta * s / LENGTH, phi, s)
+
+    h = 1e-6
+    d = (point(LENGTH + h) - point(LENGTH - h)) / (2 * h)
+    assert_allclose(d, rotation(theta, phi)[:, 2], rtol=0, atol=1e-8)
+
+
+def test_tip_position_matches_circle_geometry() -> None:
+    for theta, phi in zip(GRID_T, GRID_P):
+        if theta == 0.0:
+            expected = np.array([0.0, 0.0, LENGTH])
+        else:
+            expected = arc_point(theta, phi, LENGTH, LENGTH)
+        assert_allclose(tip_position(theta, phi, LENGTH), expected, rtol=0, atol=1e-15)
+
+
+# --- IMU tilt ---------------------------------------------------------------------------
+def test_tilt_equals_accelerometer_tilt_z_up() -> None:
+    for theta, phi in zip(GRID_T[~GIMBAL_LOCK], GRID_P[~GIMBAL_LOCK]):
+        f = rotation_reference(theta, phi).T @ np.array([0.0, 0.0, G])
+        expected = tilt_from_accelerometer(f)
+        got = tilt(theta, phi)
+        assert_allclose(wrap_angle(got - expected), 0.0, rtol=0, atol=1e-12)
+
+
+def test_tilt_equals_accelerometer_tilt_z_down() -> None:
+    for theta, phi in zip(GRID_T[~GIMBAL_LOCK], GRID_P[~GIMBAL_LOCK]):
+        f = rotation_reference(theta, phi).T @ np.array([0.0, 0.0, -G])
+        expected = tilt_from_accelerometer(f)
+        got = tilt(theta, phi, "z-down")
+        assert_allclose(wrap_angle(got - expected), 0.0, rtol=0, atol=1e-12)
+
+
+def test_tilt_equals_corrected_roll_pitch_formulas() -> None:
+    # erratum 2: roll = atan2(sin phi sin theta, cos theta), pitch = asin(-cos phi sin theta)
+    roll = np.arctan2(np.sin(GRID_P) * np.sin(GRID_T), np.cos(GRID_T))
+    pitch = np.arcsin(-np.cos(GRID_P) * np.sin(GRID_T))
+    got = tilt(GRID_T, GRID_P)
+    ok = ~GIMBAL_LOCK
+    assert_allclose(got[ok, 0], roll[ok], rtol=0, atol=1e-12)
+    assert_allclose(got[:, 1], pitch, rtol=0, atol=1e-7)  # asin is ill-conditioned at +-pi/2
+
+
+def test_tilt_at_gimbal_lock_gives_pitch_minus_half_pi() -> None:
+    # theta = pi/2, phi = 0: tip points along -x, the accelerometer's x axis is vertical
+    assert_allclose(tilt(HALF_PI, 0.0)[1], -HALF_PI, rtol=0, atol=1e-7)
+    assert_allclose(tilt(HALF_PI, math.pi)[1], HALF_PI, rtol=0, atol=1e-7)
+
+
+def test_tilt_z_down_straight_reads_roll_pi() -> None:
+    got = tilt(0.0, 0.3, "z-down")
+    assert_allclose(abs(got[0]), math.pi, rtol=0, atol=1e-15)
+    assert_allclose(got[1], 0.0, rtol=0, atol=1e-15)
+
+
+def test_tilt_from_accelerometer_known_values() -> None:
+    # level: (0, 0, g) -> (0, 0); rolled +90 deg: gravity along +y; pitched nose-down
+    assert_allclose(tilt_from_accelerometer([0.0, 0.0, G]), [0.0, 0.0], atol=1e-15)
+    assert_allclose(tilt_from_accelerometer([0.0, G, 0.0]), [HALF_PI, 0.0], atol=1e-15)
+    assert_allclose(tilt_from_accelerometer([-G, 0.0, 0.0]), [0.0, HALF_PI], atol=1e-15)
+
+
+def test_invalid_mounting_is_rejected() -> None:
+    with pytest.raises(ValueError, match="mounting"):
+        tilt(0.1, 0.2, "sideways")  # type: ignore[arg-type]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    theta=st.floats(1e-3, HALF_PI - 1e-3),
+    phi=st.floats(-3 * math.pi, 3 * math.pi),
+    mounting=st.sampled_from(imu.MOUNTINGS),
+)
+@example(theta=1e-3, phi=math.pi, mounting="z-up")
+@example(theta=1.5, phi=-math.pi, mounting="z-down")
+@example(theta=0.3, phi=0.0, mounting="z-down")
+def test_shape_from_tilt_round_trips(theta: float, phi: float, mounting: imu.Mounting) -> None:
+    roll, pitch = tilt(theta, phi, mounting)
+    theta_back, phi_back = shape_from_tilt(roll, pitch, mounting)
+    assert_allclose(theta_back, theta, rtol=0, atol=1e-9)
+    assert_allclose(wrap_angle(phi_back - phi), 0.0, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("mounting", imu.MOUNTINGS)
+def test_shape_from_tilt_straight_gives_theta_zero_phi_zero(mounting: imu.Mounting) -> None:
+    roll, pitch = tilt(0.0, 1.0, mounting)
+    theta, phi = shape_from_tilt(roll, pitch, mounting)
+    assert_allclose([theta, phi], [0.0, 0.0], rtol=0, atol=1e-12)
+
+
+# --- derivatives at the singular points (CasADi AD) -----------------------------------
+def _value_jac_hess(expr: ca.SX, v: ca.SX) -> ca.Function:
+    """Value, Jacobian, and stacked Hessians of every component of ``expr`` w.r.t. ``v``."""
+    flat = ca.vec(expr)
+    hessians = [ca.hessian(flat[i], v)[0] for i in range(flat.numel())]
+    return ca.Function("vjh", [v], [flat, ca.jacobian(flat, v), ca.vertcat(*hessians)])
+
+
+def _assert_all_finite(fun: ca.Function, point: list[float]) -> None:
+    for name, out in zip(("value", "jacobian", "hessian"), fun(point)):
+        arr = np.asarray(out, dtype=float)
+        assert np.all(np.isfinite(arr)), f"{name} not finite at {point}: {arr}"
+
+
+SHAPE_POINTS = [(t, p) for t in (0.0, 1e-8, HALF_PI) for p in (-math.pi, -1.0, 0.0, 0.7, HALF_PI)]
+BEND_POINTS = [(0.0, 0.0), (1e-8, 0.0), (0.0, -1e-8), (HALF_PI, 0.0), (0.0, HALF_PI), (-1.0, 1.2)]
+
+
+@pytest.mark.parametrize("theta, phi", SHAPE_POINTS)
+def test_tip_position_sym_derivatives_finite(theta: float, phi: float) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(tip_position_sym(v[0], v[1], LENGTH), v), [theta, phi])
+
+
+@pytest.mark.parametrize("theta, phi", SHAPE_POINTS)
+def test_rotation_sym_derivatives_finite(theta: float, phi: float) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(rotation_sym(v[0], v[1]), v), [theta, phi])
+
+
+@pytest.mark.parametrize("a, b", BEND_POINTS)
+def test_tip_position_bend_sym_derivatives_finite(a: float, b: float) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(tip_position_bend_sym(v[0], v[1], LENGTH), v), [a, b])
+
+
+@pytest.mark.parametrize("a, b", BEND_POINTS)
+def test_rotation_bend_sym_derivatives_finite(a: float, b: float) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(rotation_bend_sym(v[0], v[1]), v), [a, b])
+
+
+# Roll/pitch is a Z-Y-X Euler measurement: it is genuinely singular at the gimbal lock
+# pitch = +-pi/2, i.e. theta = pi/2 with phi = 0 or pi (b = 0). Those two points are
+# excluded; every other point at theta = pi/2 and the straight configuration are kept.
+TILT_BEND_POINTS = [(0.0, 0.0), (1e-8, 0.0), (0.0, 1e-8), (-1e-8, 1e-8), (0.0, HALF_PI),
+                    (0.0, -HALF_PI), (HALF_PI * math.cos(0.7), HALF_PI * math.sin(0.7)),
+                    (HALF_PI * math.cos(-2.0), HALF_PI * math.sin(-2.0)), (-1.0, 1.2)]  # fmt: skip
+
+
+@pytest.mark.parametrize("mounting", imu.MOUNTINGS)
+@pytest.mark.parametrize("a, b", TILT_BEND_POINTS)
+def test_tilt_bend_sym_derivatives_finite(a: float, b: float, mounting: imu.Mounting) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(tilt_bend_sym(v[0], v[1], mounting), v), [a, b])
+
+
+@pytest.mark.parametrize("theta, phi", [(0.0, 0.0), (1e-8, 2.0), (HALF_PI, HALF_PI)])
+def test_tilt_sym_derivatives_finite(theta: float, phi: float) -> None:
+    v = ca.SX.sym("v", 2)
+    _assert_all_finite(_value_jac_hess(tilt_sym(v[0], v[1]), v), [theta, phi])
+
+
+def test_tip_position_bend_sym_derivatives_at_straight_known_values() -> None:
+    # p(a, b) = L (a c(q), b c(q), s(q)) with c(0) = -1/2, s'(q) = -1/6:
+    # dp/d(a, b) = L [[-1/2, 0], [0, -1/2], [0, 0]], d2 p_z / d(a, b)^2 = -L/3 I
+    v = ca.SX.sym("v", 2)
+    value, jac, hess = (np.asarray(x, float) for x in _value_jac_hess(
+        tip_position_bend_sym(v[0], v[1], LENGTH), v)([0.0, 0.0]))  # fmt: skip
+    assert_allclose(value.ravel(), [0.0, 0.0, LENGTH], rtol=0, atol=1e-16)
+    assert_allclose(jac, LENGTH * np.array([[-0.5, 0.0], [0.0, -0.5], [0.0, 0.0]]), atol=1e-16)
+    assert_allclose(hess[4:6], -LENGTH / 3 * np.eye(2), rtol=0, atol=1e-15)
+
+
+# --- series switch -----------------------------------------------------------------------
+def _sinc_exact(q: float, order: int) -> float:
+    """``d^order/dq^order sin(sqrt q)/sqrt q`` from its power series (40 terms)."""
+    return sum(
+        (-1) ** k / math.factorial(2 * k + 1) * math.perm(k, order) * q ** (k - order)
+        for k in range(order, 40)
+    )
+
+
+def _cosc_exact(q: float, order: int) -> float:
+    """``d^order/dq^order (cos(sqrt q) - 1)/q`` from its power series (40 terms)."""
+    return sum(
+        (-1) ** (k + 1) / math.factorial(2 * k + 2) * math.perm(k, order) * q ** (k - order)
+        for k in range(order, 40)
+    )
+
+
+@pytest.mark.parametrize(
+    "fun, exact", [(sinc_q, _sinc_exact), (cosc_q, _cosc_exact)], ids=["sinc_q", "cosc_q"]
+)
+def test_series_switch_is_continuous_to_second_derivative(fun, exact) -> None:
+    q = ca.SX.sym("q")
+    expr = fun(q)
+    d1 = ca.jacobian(expr, q)
+    d2 = ca.jacobian(d1, q)
+    f = ca.Function("f", [q], [expr, d1, d2])
+    below = np.nextafter(SERIES_SWITCH_Q, 0.0)
+    above = SERIES_SWITCH_Q * (1 + 1e-12)
+    left = [float(v) for v in f(below)]
+    right = [float(v) for v in f(above)]
+    # Relative tolerances per derivative order. The closed form's AD derivatives lose
+    # digits to cancellation near the switch (measured: 1e-14, 1.2e-11, 3.7e-8 for
+    # cosc_q); dropping the last series term breaks the second-derivative bound.
+    rtol = (3e-14, 1e-10, 1e-7)
+    for order in range(3):
+        assert_allclose(left[order], right[order], rtol=rtol[order], err_msg=f"d{order}")
+        assert_allclose(left[order], exact(below, order), rtol=rtol[order], err_msg=f"d{order}")
+        assert_allclose(right[order], exact(above, order), rtol=rtol[order], err_msg=f"d{order}")
+
+
+@pytest.mark.parametrize("q", [0.0, 1e-16, 1e-4, 5e-3, 0.02, 0.5, 2.4])
+def test_sinc_q_and_cosc_q_values(q: float) -> None:
+    sym = ca.SX.sym("q")
+    f = ca.Function("f", [sym], [sinc_q(sym), cosc_q(sym)])
+    s, c = (float(v) for v in f(q))
+    assert_allclose(s, _sinc_exact(q, 0), rtol=0, atol=4e-15)
+    assert_allclose(c, _cosc_exact(q, 0), rtol=0, atol=4e-15)
+
+
+# --- workspace properties (hypothesis) ------------------------------------------------------
+thetas = st.floats(0.0, HALF_PI, allow_nan=False)
+phis = st.floats(-math.pi, math.pi, allow_nan=False)
+
+
+@settings(max_examples=80, deadline=None)
+@given(theta=thetas, phi=phis)
+@example(theta=0.0, phi=0.0)
+@example(theta=1e-8, phi=-math.pi)
+@example(theta=HALF_PI, phi=math.pi)
+@example(theta=HALF_PI, phi=0.0)
+def test_tip_stays_inside_the_workspace(theta: float, phi: float) -> None:
+    p = tip_position(theta, phi, LENGTH)
+    eps = 1e-15
+    assert np.linalg.norm(p) <= LENGTH + eps
+    assert np.all(np.abs(p) <= LENGTH + eps)
+    assert p[2] >= 0.0
+
+
+@settings(max_examples=80, deadline=None)
+@given(theta=thetas, phi=phis)
+@example(theta=0.0, phi=1.0)
+@example(theta=1e-8, phi=2.0)
+@example(theta=HALF_PI, phi=-math.pi)
+def test_tip_position_equals_bend_vector_form(theta: float, phi: float) -> None:
+    p = tip_position(theta, phi, LENGTH)
+    pb = tip_position_bend(theta * math.cos(phi), theta * math.sin(phi), LENGTH)
+    assert_allclose(p, pb, rtol=0, atol=1e-16)
+
+
+@settings(max_examples=40, deadline=None)
+@given(theta=thetas, phi=phis)
+@example(theta=0.0, phi=0.0)
+@example(theta=1e-8, phi=0.5)
+@example(theta=HALF_PI, phi=-2.0)
+def test_tip_distance_from_base_is_the_chord(theta: float, phi: float) -> None:
+    # chord of an arc of length L and angle theta: 2 L sin(theta/2)/theta
+    chord = LENGTH if theta == 0.0 else 2 * LENGTH * math.sin(theta / 2) / theta
+    assert_allclose(np.linalg.norm(tip_position(theta, phi, LENGTH)), chord, rtol=1e-14, atol=0)
+
+
+def test_straight_tip_is_on_the_z_axis_for_every_phi() -> None:
+    p = tip_position(np.zeros_like(PHIS), PHIS, LENGTH)
+    assert_allclose(p, np.tile([0.0, 0.0, LENGTH], (len(PHIS), 1)), rtol=0, atol=1e-18)
+
+
+def test_kinematics_module_exposes_switch_constant() -> None:
+    assert 0 < kinematics.SERIES_SWITCH_Q < 0.1
