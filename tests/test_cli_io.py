@@ -40,8 +40,23 @@ def _meas(tmp_path: Path, rows: list[str], header: str = "t,roll,pitch") -> Path
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
 def test_simulate_estimate_evaluate_round_trip(tmp_path, capsys, method):
     meas, truth, est = tmp_path / "m.csv", tmp_path / "truth.csv", tmp_path / "est.csv"
-    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
-                 "--duration", "6", "--seed", "4"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "paper3d",
+                "-o",
+                str(meas),
+                "--truth",
+                str(truth),
+                "--duration",
+                "6",
+                "--seed",
+                "4",
+            ]
+        )
+        == 0
+    )
     assert main(["estimate", str(meas), "-o", str(est), "--method", method]) == 0
     with est.open() as fh:
         rows = list(csv.reader(fh))
@@ -177,8 +192,12 @@ def test_evaluate_rejects_bad_truth(tmp_path, capsys):
 
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
     meas = _meas(tmp_path, _good_rows(5))
-    for opts in (["--theta-max", "4"], ["--length", "-1"], ["--horizon", "1"],
-                 ["--noise-deg", "0"]):
+    for opts in (
+        ["--theta-max", "4"],
+        ["--length", "-1"],
+        ["--horizon", "1"],
+        ["--noise-deg", "0"],
+    ):
         assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *opts]) == 2
         err = capsys.readouterr().err
         assert err.startswith("continuum-mhe: error:") and err.count("\n") == 1

@@ -60,6 +60,12 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
         default=2.0,
         help="roll/pitch noise standard deviation in degrees (default 2)",
     )
+    g.add_argument(
+        "--accel-psd",
+        type=float,
+        default=NoiseSettings.bend_accel_psd,
+        help="bend formulation: white-noise acceleration density in rad^2/s^3 (default 0.5)",
+    )
 
 
 def _add_mhe_options(p: argparse.ArgumentParser) -> None:
@@ -76,7 +82,9 @@ def _formulation(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
         raise InputError(f"--noise-deg must be positive, got {args.noise_deg}")
     robot = RobotSettings(length=args.length, theta_max=args.theta_max, mounting=args.mounting)
-    noise = NoiseSettings(measurement_std=math.radians(args.noise_deg))
+    noise = NoiseSettings(
+        measurement_std=math.radians(args.noise_deg), bend_accel_psd=args.accel_psd
+    )
     return make_formulation(args.formulation, robot, noise)
 
 
@@ -206,12 +214,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
             f"{float(np.median(s.solve_ms)):.3f}",
         )
     Console().print(table)
-    series = [s for s, _ in results]
+    all_series = [s for s, _ in results]
     figs = plotting.save(
-        plotting.trajectory_3d(rec.truth, series, "paper3d: tip trajectory"),
+        plotting.trajectory_3d(rec.truth, all_series, "paper3d: tip trajectory"),
         out / "demo_trajectory_3d",
     ) + plotting.save(
-        plotting.states_vs_time(rec.t, rec.truth, series, "paper3d: states", robot.theta_max),
+        plotting.states_vs_time(rec.t, rec.truth, all_series, "paper3d: states", robot.theta_max),
         out / "demo_states",
     )
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)

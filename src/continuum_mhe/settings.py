@@ -48,7 +48,8 @@ class NoiseSettings:
         measurement_std: standard deviation of roll and pitch, rad. The paper's
             ``V = diag(2, 2)`` "degrees" is read as 2 degrees; weights are 1/std^2.
         bend_accel_psd: white-noise acceleration spectral density of the bend vector
-            ``(a, b)`` in the default formulation, rad^2/s^3.
+            ``(a, b)`` in the default formulation, rad^2/s^3. The default came from a
+            sweep of the EKF's tip error over simulated recordings (docs/model.md).
         paper_process_weight: the paper's ``W = w I`` (weight, i.e. inverse
             covariance per step) for the five-state formulation.
         initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
@@ -57,7 +58,7 @@ class NoiseSettings:
     """
 
     measurement_std: float = math.radians(2.0)
-    bend_accel_psd: float = 2.0
+    bend_accel_psd: float = 0.5
     paper_process_weight: float = 10.0
     initial_bend_std: float = 0.1
     initial_rate_std: float = 0.5

@@ -205,7 +205,9 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
     if not body:
         raise InputError(f"{p}: line 2: no data rows after the header")
     s_idx = header.index("status") if "status" in header else None
-    t, out, status = [], [], []
+    t: list[float] = []
+    out: list[list[float]] = []
+    status: list[str] = []
     for line, row in body:
         if len(row) < len(header):
             raise InputError(

@@ -186,8 +186,8 @@ class BendFormulation(Formulation):
         return x[0] ** 2 + x[1] ** 2, -np.inf, self.robot.theta_max**2
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
-        theta, phi = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
-        theta = min(float(theta), self.robot.theta_max)
+        th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
+        theta, phi = min(float(th), self.robot.theta_max), float(ph)
         return np.array([theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
 
     def initial_cov(self) -> FloatArray:
@@ -235,10 +235,10 @@ class PaperFormulation(Formulation):
         )
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
-        theta, phi = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
-        theta = min(float(theta), self.robot.theta_max)
-        pos = tip_position(theta, float(phi), self.robot.length)
-        return np.array([*pos, theta, float(phi)])
+        th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
+        theta, phi = min(float(th), self.robot.theta_max), float(ph)
+        pos = tip_position(theta, phi, self.robot.length)
+        return np.array([*pos, theta, phi])
 
     def initial_cov(self) -> FloatArray:
         n = self.noise

@@ -92,7 +92,7 @@ def simulate(
     if not (math.isfinite(noise_deg) and noise_deg >= 0):
         raise ValueError(f"noise-deg must be >= 0, got {noise_deg}")
     n = int(round(duration / dt)) + 1
-    t = np.arange(n) * dt
+    t: FloatArray = np.arange(n, dtype=float) * dt
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
