@@ -1,0 +1,285 @@
+"""Raw IMU input: accelerometer and gyro samples to estimator measurements.
+
+Raw CSV format: a header with at least ``t,ax,ay,az`` and optionally ``gx,gy,gz``;
+``t`` in seconds, strictly increasing; ``a*`` the specific force in m/s^2 and ``g*``
+the angular rate in rad/s, both in the *sensor* frame. Other columns are ignored.
+
+Sensor frame: once the mounting rotation is applied (``mount_rpy``), the sensor z axis
+lies along the tip tangent (pointing away from the base) and x, y are the tip frame's
+axes of :mod:`continuum_mhe.model.kinematics`. A sensor mounted differently is
+described by the fixed rotation ``R_mount = Rz(yaw) Ry(pitch) Rx(roll)`` that maps
+sensor-frame vectors into the tip frame (``v_tip = R_mount v_sensor``).
+
+Two measurement models (``imu_model``):
+
+* ``"tilt"``: ``[roll, pitch]`` (rad) from the accelerometer alone (``attitude=
+  "accel"``) or from the gyro-fused attitude of the ``ahrs`` package's Madgwick or
+  Mahony filter; then any formulation (``bend``, ``paper``) applies.
+* ``"direct"``: ``[f/|f|, omega]`` for :class:`~continuum_mhe.model.direct.
+  DirectFormulation` (needs the gyro columns).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    InputError,
+    _column_indices,
+    _parse_float,
+    _read_rows,
+)
+from continuum_mhe.model.direct import direct_measurements
+from continuum_mhe.model.imu import tilt_from_accelerometer
+
+ImuModel = Literal["tilt", "direct"]
+IMU_MODELS: tuple[ImuModel, ...] = ("tilt", "direct")
+Attitude = Literal["accel", "madgwick", "mahony"]
+ATTITUDES: tuple[Attitude, ...] = ("accel", "madgwick", "mahony")
+
+ACC_COLUMNS = ("ax", "ay", "az")
+GYRO_COLUMNS = ("gx", "gy", "gz")
+RAW_COLUMNS = ("t", *ACC_COLUMNS, *GYRO_COLUMNS)
+
+STANDARD_GRAVITY = 9.80665  # m/s^2
+#: Median |a| in this band (in the file's unit) means the file is in g, not m/s^2.
+_LOOKS_LIKE_G = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
+class RawImuSettings:
+    """How raw samples become measurements.
+
+    Attributes:
+        imu_model: ``"tilt"`` (roll, pitch) or ``"direct"`` (gravity direction, gyro).
+        attitude: for ``tilt``: ``"accel"`` (accelerometer only), ``"madgwick"`` or
+            ``"mahony"`` (gyro fusion by the ``ahrs`` package; needs the gyro).
+        mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X:
+            ``v_tip = Rz(yaw) Ry(pitch) Rx(roll) v_sensor``. Zero when the sensor
+            axes already match the tip frame.
+    """
+
+    imu_model: ImuModel = "tilt"
+    attitude: Attitude = "accel"
+    mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.imu_model not in IMU_MODELS:
+            raise ValueError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
+        if self.attitude not in ATTITUDES:
+            raise ValueError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
+        if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
+            raise ValueError(
+                f"mount_rpy must be three finite angles in degrees, got {self.mount_rpy!r}"
+            )
+
+    @property
+    def needs_gyro(self) -> bool:
+        return self.imu_model == "direct" or self.attitude != "accel"
+
+
+def parse_mount_rpy(text: str) -> tuple[float, float, float]:
+    """``"roll,pitch,yaw"`` in degrees (e.g. ``"0,0,90"``) to a tuple."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise InputError(f"--mount-rpy must be three angles in degrees, e.g. 0,0,90; got {text!r}")
+    return values[0], values[1], values[2]
+
+
+def mount_rotation(rpy_deg: tuple[float, float, float]) -> FloatArray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` (3x3) from degrees: sensor frame to tip frame."""
+    r, p, y = np.radians(rpy_deg)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return np.asarray(rz @ ry @ rx, dtype=float)
+
+
+def gravity_from_quaternion(q: FloatArray) -> FloatArray:
+    """Up direction in the sensor frame, ``R(q)^T e_z``, for a sensor-to-world ``q``
+    ``(w, x, y, z)`` as the ``ahrs`` filters return it."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([2 * (x * z - w * y), 2 * (w * x + y * z), 1 - 2 * (x * x + y * y)])
+
+
+class RawImuConverter:
+    """Stateful conversion of raw samples, one at a time (the attitude filters keep a
+    quaternion). Call :meth:`reset` after a gap in time."""
+
+    def __init__(self, settings: RawImuSettings) -> None:
+        self.settings = settings
+        self._mount = mount_rotation(settings.mount_rpy)
+        self._filter: Any = None
+        if settings.imu_model == "tilt" and settings.attitude != "accel":
+            from ahrs.filters import Madgwick, Mahony
+
+            self._filter = Madgwick() if settings.attitude == "madgwick" else Mahony()
+        self.reset()
+
+    @property
+    def nz(self) -> int:
+        return 6 if self.settings.imu_model == "direct" else 2
+
+    def reset(self) -> None:
+        self._q: FloatArray | None = None
+        self._t: float | None = None
+
+    def convert(self, t: float, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
+        """Measurement (nz,) for one sample; NaN (a dropout) if the sample is unusable.
+
+        ``acc`` specific force (3,) in any unit, ``gyr`` (3,) rad/s or None.
+        """
+        acc = self._mount @ np.asarray(acc, dtype=float)
+        gyro = None if gyr is None else self._mount @ np.asarray(gyr, dtype=float)
+        if self.settings.imu_model == "direct":
+            if gyro is None:
+                raise ValueError("the direct IMU model needs gyro readings (gx, gy, gz)")
+            return direct_measurements(acc, gyro)[0]
+        if not (np.all(np.isfinite(acc)) and np.linalg.norm(acc) > 0):
+            return np.full(2, np.nan)
+        if self._filter is None:
+            return tilt_from_accelerometer(acc)
+        if gyro is None:
+            raise ValueError(f"attitude {self.settings.attitude!r} needs gyro readings")
+        if not np.all(np.isfinite(gyro)):
+            return np.full(2, np.nan)
+        if self._q is None or self._t is None:
+            from ahrs.common.orientation import acc2q
+
+            self._q = np.asarray(acc2q(acc), dtype=float)
+        else:
+            self._q = np.asarray(
+                self._filter.updateIMU(self._q, gyro, acc, dt=t - self._t), dtype=float
+            )
+        self._t = t
+        return tilt_from_accelerometer(gravity_from_quaternion(self._q))
+
+
+def raw_to_measurements(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray | None, settings: RawImuSettings
+) -> FloatArray:
+    """Measurements (n, nz) for a whole recording (``t`` s, ``acc`` (n, 3), ``gyr``
+    (n, 3) rad/s or None)."""
+    conv = RawImuConverter(settings)
+    rows = [
+        conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(len(t))
+    ]
+    return np.array(rows, dtype=float).reshape(len(t), conv.nz)
+
+
+@dataclass(frozen=True)
+class RawImuTable:
+    """Raw samples read from a file.
+
+    Attributes:
+        t: (n,) s, strictly increasing.
+        acc: (n, 3) specific force, m/s^2, sensor frame; NaN rows are dropouts.
+        gyr: (n, 3) rad/s, or None when the file has no gyro columns.
+        skipped: descriptions of rows dropped or turned into dropouts (``skip_bad``).
+    """
+
+    t: FloatArray
+    acc: FloatArray
+    gyr: FloatArray | None
+    skipped: list[str] = field(default_factory=list)
+
+
+def is_raw_header(header: list[str]) -> bool:
+    """True when a (lower-case) CSV header names the accelerometer columns."""
+    return all(c in header for c in ACC_COLUMNS)
+
+
+def csv_input_kind(path: str | os.PathLike[str]) -> Literal["tilt", "raw"]:
+    """``"raw"`` if the CSV header has ``ax,ay,az``, else ``"tilt"`` (``t,roll,pitch``)."""
+    header, _ = _read_rows(Path(path))
+    return "raw" if is_raw_header(header) else "tilt"
+
+
+def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> RawImuTable:
+    """Read a raw IMU CSV (``t,ax,ay,az[,gx,gy,gz]``), validating every row.
+
+    Errors are one line naming the file and line. With ``skip_bad``, rows with bad
+    values become dropouts and rows with a bad or non-increasing ``t`` are dropped,
+    each recorded in ``skipped``.
+    """
+    p = Path(path)
+    header, body = _read_rows(p)
+    has_gyro = any(c in header for c in GYRO_COLUMNS)
+    names = RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]
+    idx = _column_indices(p, header, names)
+    if not body:
+        raise InputError(f"{p}: line 2: no data rows after the header")
+    t_list: list[float] = []
+    values: list[list[float]] = []
+    lines: list[int] = []
+    skipped: list[str] = []
+
+    def bad(line: int, msg: str) -> None:
+        if not skip_bad:
+            raise InputError(f"{p}: line {line}: {msg}")
+        skipped.append(f"line {line}: {msg}")
+
+    for line, row in body:
+        if len(row) <= idx[0]:
+            bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
+            continue
+        try:
+            t = _parse_float(p, line, "t", row[idx[0]])
+        except InputError as exc:
+            bad(line, str(exc).split(": ", 2)[-1])
+            continue
+        if not math.isfinite(t):
+            bad(line, f"t is {row[idx[0]]}")
+            continue
+        if t_list and t <= t_list[-1]:
+            kind = "duplicate" if t == t_list[-1] else "decreasing"
+            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
+            continue
+        vals: list[float] = []
+        for name, j in zip(names[1:], idx[1:]):
+            if j >= len(row):
+                bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
+                vals = [math.nan] * (len(names) - 1)
+                break
+            try:
+                v = _parse_float(p, line, name, row[j])
+            except InputError as exc:
+                bad(line, str(exc).split(": ", 2)[-1])
+                v = math.nan
+            else:
+                if not math.isfinite(v):
+                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
+            vals.append(v)
+        t_list.append(t)
+        values.append(vals)
+        lines.append(line)
+    if not t_list:
+        raise InputError(f"{p}: no usable rows ({len(skipped)} skipped)")
+    arr = np.array(values, dtype=float)
+    acc = arr[:, :3]
+    _check_accel_units(p, acc)
+    return RawImuTable(
+        t=np.array(t_list), acc=acc, gyr=arr[:, 3:6] if has_gyro else None, skipped=skipped
+    )
+
+
+def _check_accel_units(path: Path | str, acc: FloatArray) -> None:
+    norm = np.linalg.norm(acc, axis=1)
+    norm = norm[np.isfinite(norm)]
+    if len(norm) and _LOOKS_LIKE_G[0] < float(np.median(norm)) < _LOOKS_LIKE_G[1]:
+        raise InputError(
+            f"{path}: accelerometer magnitude is about {float(np.median(norm)):.2f}: the "
+            f"values look like g; ax, ay, az must be in m/s^2 (multiply by {STANDARD_GRAVITY})"
+        )

@@ -1,0 +1,491 @@
+"""Robot logs in and out: ROS 1 / ROS 2 bags and MCAP files, and MCAP estimates.
+
+Input: a ``sensor_msgs/msg/Imu`` topic. ``linear_acceleration`` (m/s^2, specific
+force) and ``angular_velocity`` (rad/s) are the raw IMU samples of
+:mod:`continuum_mhe.io.raw_imu`; ``orientation`` is used only when asked (its roll
+and pitch become a tilt measurement). Sample time is ``header.stamp``, or the log
+time where the stamp is zero; times in the estimates are seconds since the first
+sample (``t0_ns`` keeps the absolute start). Messages with a non-increasing time are
+skipped and counted.
+
+* ROS 1 ``.bag`` files, ROS 2 bag folders (``metadata.yaml``) and ``.db3`` files are
+  read with ``rosbags``' ``AnyReader``.
+* ``.mcap`` files are read with the ``mcap`` library; CDR messages (ROS 2) are
+  decoded by ``rosbags``' typestore, JSON messages by ``json``.
+
+Output: ``write_estimates_mcap`` writes JSON-encoded channels that Foxglove shows
+next to the robot's other topics: ``/continuum/tip`` (``foxglove.PoseInFrame``, frame
+``continuum_base``), ``/continuum/backbone`` (``foxglove.PosesInFrame``, poses along
+the arc) and ``/continuum/estimate`` (the estimate CSV's fields).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.estimators.base import EstimateSeries
+from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements, write_estimates
+from continuum_mhe.io.raw_imu import (
+    RawImuSettings,
+    _check_accel_units,
+    csv_input_kind,
+    raw_to_measurements,
+    read_raw_imu,
+)
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.imu import tilt_from_accelerometer
+from continuum_mhe.model.kinematics import rotation_bend, tip_position_bend
+
+IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+LOG_SUFFIXES = (".bag", ".mcap", ".db3")
+BASE_FRAME = "continuum_base"
+
+
+@dataclass(frozen=True)
+class ImuLog:
+    """IMU samples read from a robot log.
+
+    Attributes:
+        topic: the topic read.
+        t: (n,) s since ``t0_ns``, strictly increasing.
+        t0_ns: absolute time of the first sample, ns (ROS time).
+        acc: (n, 3) ``linear_acceleration``, m/s^2.
+        gyr: (n, 3) ``angular_velocity``, rad/s.
+        orientation: (n, 4) ``(w, x, y, z)``, NaN where the message has none.
+        skipped: descriptions of skipped messages.
+    """
+
+    topic: str
+    t: FloatArray
+    t0_ns: int
+    acc: FloatArray
+    gyr: FloatArray
+    orientation: FloatArray
+    skipped: list[str] = field(default_factory=list)
+
+
+def is_robot_log(path: str | os.PathLike[str]) -> bool:
+    """True for ``.bag``, ``.mcap``, ``.db3`` files and ROS 2 bag folders."""
+    p = Path(path)
+    return p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
+
+
+def _stamp_ns(msg: Any, log_ns: int) -> int:
+    if isinstance(msg, dict):  # JSON message: header.stamp {sec, nanosec | nsec}
+        st = (msg.get("header") or {}).get("stamp") or {}
+        sec, nsec = st.get("sec", 0), st.get("nanosec", st.get("nsec", 0))
+    else:
+        sec, nsec = msg.header.stamp.sec, msg.header.stamp.nanosec
+    ns = int(sec) * 1_000_000_000 + int(nsec)
+    return ns if ns > 0 else int(log_ns)
+
+
+def _vec(v: Any) -> list[float]:
+    if isinstance(v, dict):
+        return [float(v["x"]), float(v["y"]), float(v["z"])]
+    return [float(v.x), float(v.y), float(v.z)]
+
+
+def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
+    if isinstance(msg, dict):
+        o = msg.get("orientation") or {}
+        ocov = msg.get("orientation_covariance") or [0.0]
+        acc, gyr = _vec(msg["linear_acceleration"]), _vec(msg["angular_velocity"])
+        quat = [float(o.get(k, math.nan)) for k in ("w", "x", "y", "z")]
+    else:
+        ocov = list(msg.orientation_covariance)
+        acc, gyr = _vec(msg.linear_acceleration), _vec(msg.angular_velocity)
+        o = msg.orientation
+        quat = [float(o.w), float(o.x), float(o.y), float(o.z)]
+    if float(ocov[0]) == -1.0 or not any(quat):  # REP 145: -1 marks "no orientation"
+        quat = [math.nan] * 4
+    return acc, gyr, quat
+
+
+def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
+    imu = sorted(t for t, typ in topics.items() if typ in IMU_TYPES)
+    if topic is None:
+        if len(imu) == 1:
+            return imu[0]
+        listing = ", ".join(imu) or "none"
+        raise InputError(f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {listing}")
+    if topic not in topics:
+        listing = ", ".join(f"{t} ({typ})" for t, typ in sorted(topics.items())) or "none"
+        raise InputError(f"{path}: no topic {topic!r}; topics: {listing}")
+    if topics[topic] not in IMU_TYPES:
+        raise InputError(f"{path}: topic {topic} is {topics[topic]}, expected sensor_msgs/msg/Imu")
+    return topic
+
+
+def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    bag = path.parent if path.suffix.lower() == ".db3" else path
+    reader = AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    reader.open()
+    topics = {c.topic: c.msgtype for c in reader.connections}
+    name = _pick_topic(path, topics, topic)
+
+    def gen() -> Iterator[tuple[int, Any]]:
+        try:
+            conns = [c for c in reader.connections if c.topic == name]
+            for conn, log_ns, raw in reader.messages(connections=conns):
+                yield log_ns, reader.deserialize(raw, conn.msgtype)
+        finally:
+            reader.close()
+
+    return name, gen()
+
+
+def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    fh = path.open("rb")
+    reader = make_reader(fh)
+    summary = reader.get_summary()
+    if summary is None:
+        fh.close()
+        raise InputError(f"{path}: MCAP file has no summary section (unfinished recording?)")
+    topics = {
+        ch.topic: (summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "")
+        for ch in summary.channels.values()
+    }
+    name = _pick_topic(path, topics, topic)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+
+    def gen() -> Iterator[tuple[int, Any]]:
+        try:
+            for schema, channel, message in reader.iter_messages(topics=[name]):
+                if channel.message_encoding == "cdr":
+                    msgtype = schema.name if schema is not None else IMU_TYPES[0]
+                    if msgtype == "sensor_msgs/Imu":
+                        msgtype = IMU_TYPES[0]
+                    yield message.log_time, store.deserialize_cdr(message.data, msgtype)
+                elif channel.message_encoding == "json":
+                    yield message.log_time, json.loads(message.data)
+                else:
+                    raise InputError(
+                        f"{path}: topic {name}: message encoding "
+                        f"{channel.message_encoding!r} is not supported (cdr or json)"
+                    )
+        finally:
+            fh.close()
+
+    return name, gen()
+
+
+def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuLog:
+    """Read the ``sensor_msgs/msg/Imu`` samples of ``topic`` from a bag or MCAP file
+    (``topic`` may be omitted when the log has exactly one Imu topic)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file or folder")
+    try:
+        if p.suffix.lower() == ".mcap":
+            name, messages = _iter_mcap(p, topic)
+        else:
+            name, messages = _iter_rosbags(p, topic)
+        stamps: list[int] = []
+        rows: list[tuple[list[float], list[float], list[float]]] = []
+        skipped: list[str] = []
+        for i, (log_ns, msg) in enumerate(messages):
+            ns = _stamp_ns(msg, log_ns)
+            if stamps and ns <= stamps[-1]:
+                skipped.append(f"message {i}: time {ns} ns does not increase")
+                continue
+            stamps.append(ns)
+            rows.append(_row(msg))
+    except InputError:
+        raise
+    except Exception as exc:  # a corrupt or foreign file: one line, no traceback
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{p}: cannot read robot log ({msg})") from None
+    if not stamps:
+        raise InputError(f"{p}: topic {name} has no messages")
+    t0 = stamps[0]
+    arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
+    _check_accel_units(f"{p}: topic {name}", arr[0])
+    return ImuLog(
+        topic=name,
+        t=(np.array(stamps, dtype=np.int64) - t0) / 1e9,
+        t0_ns=t0,
+        acc=arr[0],
+        gyr=arr[1],
+        orientation=arr[2],
+        skipped=skipped,
+    )
+
+
+def tilt_from_quaternion(q: FloatArray) -> FloatArray:
+    """``(roll, pitch)`` (n, 2) rad from sensor-to-world quaternions ``(w, x, y, z)``."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    w, x, y, z = q.T
+    up = np.stack([2 * (x * z - w * y), 2 * (w * x + y * z), w * w - x * x - y * y + z * z], -1)
+    return tilt_from_accelerometer(up)
+
+
+# --- estimate command input and output ---------------------------------------------------
+@dataclass(frozen=True)
+class InputOptions:
+    """How ``estimate`` reads its input (command-line options).
+
+    Attributes:
+        raw: raw-IMU conversion (raw CSV, bags, MCAP).
+        topic: Imu topic in a bag or MCAP file (None: the only one).
+        use_orientation: use the Imu message's orientation (roll, pitch) instead of
+            its raw accelerometer and gyro.
+        gyro_std: gyro noise, rad/s, for the direct model.
+        degrees: a tilt CSV is in degrees.
+        skip_bad: skip bad samples instead of stopping.
+    """
+
+    raw: RawImuSettings = field(default_factory=RawImuSettings)
+    topic: str | None = None
+    use_orientation: bool = False
+    gyro_std: float = 0.05
+    degrees: bool = False
+    skip_bad: bool = False
+
+
+@dataclass(frozen=True)
+class EstimateInput:
+    """Measurements ready for an estimator.
+
+    Attributes:
+        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
+        t: (n,) s; z: (n, nz) measurements for ``formulation``.
+        t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
+        skipped: descriptions of skipped samples.
+    """
+
+    kind: str
+    t: FloatArray
+    z: FloatArray
+    formulation: Formulation
+    t0_ns: int = 0
+    skipped: list[str] = field(default_factory=list)
+
+
+def _formulation_for(
+    options: InputOptions, base: Formulation, raw_input: bool, path: Path
+) -> Formulation:
+    if options.raw.imu_model != "direct":
+        return base
+    if not raw_input or options.use_orientation:
+        raise InputError(f"{path}: --imu-model direct needs raw accelerometer and gyro input")
+    if base.name not in ("bend", "direct"):
+        raise InputError(
+            f"--imu-model direct uses the bend state; --formulation {base.name} does not apply"
+        )
+    from continuum_mhe.model.direct import DirectFormulation
+
+    return DirectFormulation(robot=base.robot, noise=base.noise, gyro_std=options.gyro_std)
+
+
+def load_estimate_input(
+    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+) -> EstimateInput:
+    """Read any supported input (tilt CSV, raw CSV, bag, MCAP) as measurements."""
+    p = Path(path)
+    if is_robot_log(p):
+        log = read_imu_log(p, options.topic)
+        f = _formulation_for(options, formulation, True, p)
+        if options.use_orientation:
+            if not np.all(np.isfinite(log.orientation)):
+                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+            z = tilt_from_quaternion(log.orientation)
+        else:
+            z = _convert(p, log.t, log.acc, log.gyr, options.raw)
+        return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
+    if csv_input_kind(p) == "raw":
+        table = read_raw_imu(p, skip_bad=options.skip_bad)
+        f = _formulation_for(options, formulation, True, p)
+        z = _convert(p, table.t, table.acc, table.gyr, options.raw)
+        return EstimateInput("raw-csv", table.t, z, f, 0, table.skipped)
+    tilt = read_measurements(p, degrees=options.degrees, skip_bad=options.skip_bad)
+    f = _formulation_for(options, formulation, False, p)
+    return EstimateInput("tilt-csv", tilt.t, tilt.z, f, 0, tilt.skipped)
+
+
+def _convert(
+    path: Path, t: FloatArray, acc: FloatArray, gyr: FloatArray | None, raw: RawImuSettings
+) -> FloatArray:
+    if raw.needs_gyro and gyr is None:
+        what = "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
+        raise InputError(f"{path}: {what} needs gyro columns gx, gy, gz")
+    return raw_to_measurements(t, acc, gyr, raw)
+
+
+def write_estimate_output(
+    path: str | os.PathLike[str], series: EstimateSeries, data: EstimateInput
+) -> None:
+    """Estimate CSV, or MCAP when ``path`` ends in ``.mcap``."""
+    if Path(path).suffix.lower() == ".mcap":
+        write_estimates_mcap(path, series, data.formulation.robot.length, data.t0_ns)
+    else:
+        write_estimates(path, series)
+
+
+# --- MCAP output ------------------------------------------------------------------------------
+_TIME = {
+    "type": "object",
+    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+}
+_VEC = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z")},
+}
+_QUAT = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
+}
+_POSE = {"type": "object", "properties": {"position": _VEC, "orientation": _QUAT}}
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "foxglove.PoseInFrame": {
+        "title": "foxglove.PoseInFrame",
+        "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "pose": _POSE},
+    },
+    "foxglove.PosesInFrame": {
+        "title": "foxglove.PosesInFrame",
+        "type": "object",
+        "properties": {
+            "timestamp": _TIME,
+            "frame_id": {"type": "string"},
+            "poses": {"type": "array", "items": _POSE},
+        },
+    },
+    "continuum_mhe.Estimate": {
+        "title": "continuum_mhe.Estimate",
+        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate",
+        "type": "object",
+        "properties": {
+            **{k: {"type": ["number", "null"]} for k in ("t", "x", "y", "z", "theta", "phi")},
+            "status": {"type": "string"},
+            "solve_ms": {"type": "number"},
+        },
+    },
+}
+TOPICS = {
+    "/continuum/tip": "foxglove.PoseInFrame",
+    "/continuum/backbone": "foxglove.PosesInFrame",
+    "/continuum/estimate": "continuum_mhe.Estimate",
+}
+
+
+def _quaternion(rot: FloatArray) -> dict[str, float]:
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(rot).as_quat()
+    return {"x": float(x), "y": float(y), "z": float(z), "w": float(w)}
+
+
+def backbone_poses(theta: float, phi: float, length: float, n: int = 11) -> list[dict[str, Any]]:
+    """Poses along the arc from base to tip (constant curvature), Foxglove JSON."""
+    a, b = theta * math.cos(phi), theta * math.sin(phi)
+    frac = np.linspace(0.0, 1.0, n)
+    pos = tip_position_bend(a * frac, b * frac, length * frac)
+    rots = rotation_bend(a * frac, b * frac)
+    return [
+        {"position": dict(zip("xyz", map(float, p))), "orientation": _quaternion(r)}
+        for p, r in zip(pos, rots)
+    ]
+
+
+def estimate_messages(
+    series: EstimateSeries, length: float, t0_ns: int = 0
+) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
+    for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
+        ns = t0_ns + int(round(float(t) * 1e9))
+        stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+        has = st != "no-estimate" and bool(np.all(np.isfinite(out)))
+        row: dict[str, Any] = {"t": float(t)}
+        row.update(
+            {k: (float(v) if has else None) for k, v in zip(("x", "y", "z", "theta", "phi"), out)}
+        )
+        row.update(status=str(st), solve_ms=float(ms))
+        yield "/continuum/estimate", ns, row
+        if not has:
+            continue
+        poses = backbone_poses(float(out[3]), float(out[4]), length)
+        yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
+        yield (
+            "/continuum/backbone",
+            ns,
+            {"timestamp": stamp, "frame_id": BASE_FRAME, "poses": poses},
+        )
+
+
+def write_estimates_mcap(
+    path: str | os.PathLike[str], series: EstimateSeries, length: float, t0_ns: int = 0
+) -> None:
+    """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
+    from mcap.writer import CompressionType, Writer
+
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{target}: folder {folder} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            writer = Writer(fh, compression=CompressionType.NONE)
+            writer.start(profile="", library="continuum-mhe")
+            channels: dict[str, int] = {}
+            for topic, schema in TOPICS.items():
+                sid = writer.register_schema(
+                    name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
+                )
+                channels[topic] = writer.register_channel(
+                    topic=topic, message_encoding="json", schema_id=sid
+                )
+            for seq, (topic, ns, msg) in enumerate(estimate_messages(series, length, t0_ns)):
+                writer.add_message(
+                    channels[topic],
+                    log_time=ns,
+                    data=json.dumps(msg).encode(),
+                    publish_time=ns,
+                    sequence=seq,
+                )
+            writer.finish()
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def read_estimates_mcap(
+    path: str | os.PathLike[str],
+) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
+    """``t`` (n,), output (n, 5) with NaN where empty, status (n,) from an estimate MCAP."""
+    from mcap.reader import make_reader
+
+    t, out, status = [], [], []
+    with Path(path).open("rb") as fh:
+        for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
+            row = json.loads(message.data)
+            t.append(row["t"])
+            out.append(
+                [math.nan if row[k] is None else row[k] for k in ("x", "y", "z", "theta", "phi")]
+            )
+            status.append(row["status"])
+    return (
+        np.array(t, dtype=float),
+        np.array(out, dtype=float).reshape(-1, 5),
+        np.array(status, dtype=str),
+    )
