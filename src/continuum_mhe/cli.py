@@ -18,7 +18,6 @@ import numpy as np
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.io.csv_files import (
     InputError,
-    read_measurements,
     read_states,
     write_estimates,
     write_measurements,
@@ -34,7 +33,7 @@ from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
 PROG = "continuum-mhe"
 
 #: Modules that add subcommands through ``register(subparsers)``.
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("continuum_mhe.live",)
 
 
 # --- shared options ---------------------------------------------------------------
@@ -111,19 +110,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
+    # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5
+    from continuum_mhe.io.robot_logs import load_estimate_input, write_estimate_output
+    from continuum_mhe.live import input_options
+
     out = Path(args.output)
     if out.resolve() == Path(args.measurements).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
-    table = read_measurements(args.measurements, degrees=args.degrees, skip_bad=args.skip_bad)
-    formulation = _formulation(args)
-    est = make_estimator(args.method, formulation, _mhe_settings(args))
-    series = est.run(table.t, table.z, progress=progress_bar(f"{args.method} estimate"))
-    write_estimates(out, series)
+    data = load_estimate_input(args.measurements, input_options(args), _formulation(args))
+    est = make_estimator(args.method, data.formulation, _mhe_settings(args))
+    series = est.run(data.t, data.z, progress=progress_bar(f"{args.method} estimate"))
+    write_estimate_output(out, series, data)
     counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
     summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
     msg = f"wrote {len(series.t)} estimates to {out} ({summary})"
-    if table.skipped:
-        msg += f"; skipped {len(table.skipped)} bad sample(s), first: {table.skipped[0]}"
+    if data.skipped:
+        msg += f"; skipped {len(data.skipped)} bad sample(s), first: {data.skipped[0]}"
     print(msg, file=sys.stderr)
     return 0
 
