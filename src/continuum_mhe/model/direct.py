@@ -126,3 +126,39 @@ def direct_measurements(acc: FloatArray, gyr: FloatArray) -> FloatArray:
     z = np.hstack([unit, gyr])
     z[~np.all(np.isfinite(z), axis=1)] = np.nan
     return z
+
+
+def raw_imu_readings(
+    t: FloatArray,
+    theta: FloatArray,
+    phi: FloatArray,
+    length: float,
+    mounting: str = "z-up",
+    gravity: float = 9.80665,
+) -> tuple[FloatArray, FloatArray]:
+    """Noise-free raw IMU readings of a moving tip, for simulation and tests.
+
+    Specific force ``f = R^T (a_tip + g u)`` in m/s^2, with ``a_tip`` the second
+    finite difference of the true tip position, and angular rate
+    ``omega = vee(R^T dR/dt)`` in rad/s from central differences of the rotation
+    (independent of :func:`tip_angular_velocity_bend_sym`). ``t`` (n,) s, uniform.
+    Returns ``(acc (n, 3), gyr (n, 3))``.
+    """
+    from continuum_mhe.model.kinematics import bend_from_shape, rotation_bend, tip_position_bend
+
+    a, b = bend_from_shape(theta, phi)
+    pos = tip_position_bend(a, b, length)
+    rot = rotation_bend(a, b)
+    acc_tip = np.gradient(np.gradient(pos, t, axis=0), t, axis=0)
+    up = np.array([0.0, 0.0, 1.0 if mounting == "z-up" else -1.0])
+    f = np.einsum("nji,nj->ni", rot, acc_tip + gravity * up)
+    w_hat = np.einsum("nji,njk->nik", rot, np.gradient(rot, t, axis=0))
+    gyr = 0.5 * np.stack(
+        [
+            w_hat[:, 2, 1] - w_hat[:, 1, 2],
+            w_hat[:, 0, 2] - w_hat[:, 2, 0],
+            w_hat[:, 1, 0] - w_hat[:, 0, 1],
+        ],
+        axis=-1,
+    )
+    return f, gyr
