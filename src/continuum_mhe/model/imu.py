@@ -29,6 +29,9 @@ from continuum_mhe.model.kinematics import FloatArray, Sym, cosc_q, sinc_q
 Mounting = Literal["z-up", "z-down"]
 MOUNTINGS: tuple[Mounting, ...] = ("z-up", "z-down")
 
+#: Floor of ``hypot(f_y, f_z)`` (unit specific force) in the pitch formula.
+_LOCK_EPS = 1e-9
+
 
 def _up_sign(mounting: Mounting) -> float:
     if mounting == "z-up":
@@ -49,9 +52,19 @@ def gravity_direction_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> S
 
 
 def tilt_from_gravity_sym(f: Sym) -> Sym:
-    """``(roll, pitch)`` in radians from a specific-force vector in the tip frame."""
-    roll = ca.atan2(f[1], f[2])
-    pitch = ca.atan2(-f[0], ca.sqrt(f[1] ** 2 + f[2] ** 2))
+    """``(roll, pitch)`` in radians from a specific-force vector in the tip frame.
+
+    At gimbal lock (``f_y = f_z = 0``, pitch = +-pi/2) roll is undefined and both
+    formulas have unbounded derivatives. Roll is taken as 0 there (derivative 0) and
+    ``hypot`` gets a 1e-9 floor, so automatic derivatives stay finite; elsewhere the
+    values are exact to 1e-18 rad.
+    """
+    r2 = f[1] ** 2 + f[2] ** 2
+    lock = r2 < _LOCK_EPS**2
+    roll = ca.if_else(
+        lock, 0.0, ca.atan2(ca.if_else(lock, 0.0, f[1]), ca.if_else(lock, 1.0, f[2]))
+    )
+    pitch = ca.atan2(-f[0], ca.sqrt(r2 + _LOCK_EPS**2))
     return ca.vertcat(roll, pitch)
 
 
