@@ -109,6 +109,8 @@ class LiveSettings:
         gap_factor: a step longer than this many usual periods is a gap.
         behind_s: report falling behind when a line waits longer than this, s.
         retry_max_s: longest wait between attempts to reopen a lost device, s.
+        restart_gap_s: after a gap longer than this (s) the estimator starts afresh
+            from the next sample; the old motion says nothing about the new one.
     """
 
     port: str
@@ -119,6 +121,7 @@ class LiveSettings:
     gap_factor: float = 3.0
     behind_s: float = 1.0
     retry_max_s: float = 5.0
+    restart_gap_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.fmt not in LINE_FORMATS:
@@ -127,7 +130,7 @@ class LiveSettings:
             raise ValueError(f"baud must be a positive integer, got {self.baud!r}")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
             raise ValueError(f"duration must be positive seconds, got {self.duration!r}")
-        for name in ("status_every", "behind_s", "retry_max_s"):
+        for name in ("status_every", "behind_s", "retry_max_s", "restart_gap_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive, got {v!r}")
@@ -306,12 +309,15 @@ class LiveSession:
                 lost = max(int(round(dt / p)) - 1, 0)
                 c.gaps += 1
                 c.missing += lost
+                restart = dt > self.settings.restart_gap_s
+                how = "estimator restarts" if restart else "estimating across it"
                 self.say(
-                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); "
-                    "estimating across it"
+                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); {how}"
                 )
                 if self.converter is not None:
                     self.converter.reset()
+                if restart:
+                    self.estimator.reset()
             else:
                 self._periods.append(dt)
         self._t_last, self._dev_last, self._wall_last = t, s.t, arrival
@@ -334,9 +340,9 @@ class LiveSession:
         self.writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
         self.out.flush()
 
-    def status(self, rate_hz: float, behind_s: float, queued: int) -> str:
+    def status(self, rate_hz: float, behind_s: float, queued: int, waiting: bool = False) -> str:
         c = self.counts
-        parts = [f"{rate_hz:5.1f} Hz"]
+        parts = ["WAITING for the device" if waiting else f"{rate_hz:5.1f} Hz"]
         if self.solve_ms:
             ms = np.asarray(self.solve_ms)
             parts.append(f"latency {np.median(ms):.1f} ms (max {ms.max():.1f})")
@@ -382,7 +388,7 @@ def run_live(
     next_status = start + settings.status_every
     window_start, window_n = start, 0
     behind_since: float | None = None
-    stopping = False
+    stopping = waiting = False
     reader.start()
     try:
         while True:
@@ -414,18 +420,20 @@ def run_live(
             elif kind == "partial":
                 session.counts.partial += 1
             elif kind == "lost":
+                waiting = True
                 session.counts.disconnects += 1
                 say(
                     f"{settings.port} disconnected ({payload}); waiting for it to come back "
                     f"(retrying up to every {settings.retry_max_s:g} s, Ctrl-C to stop)"
                 )
             elif kind == "back":
+                waiting = False
                 session.device_back()
                 say(f"{settings.port} is back after {payload:.1f} s")
             if now >= next_status:
                 rate = window_n / max(now - window_start, 1e-9)
                 lag = now - arrival if kind == "line" else 0.0
-                say(session.status(rate, lag, events.qsize()))
+                say(session.status(rate, lag, events.qsize(), waiting))
                 window_start, window_n = now, 0
                 next_status = now + settings.status_every
                 if plot is not None and session.last is not None:
