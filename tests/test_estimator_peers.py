@@ -1,0 +1,570 @@
+"""Estimators against independent peers and known answers.
+
+* EKF and UKF against filterpy on identical inputs (same model functions, Q, R,
+  wrapped residuals, initial state and covariance).
+* MHE against a plain CasADi ``Opti`` problem written here from the kinematics and
+  IMU symbolic functions only (not the estimator's NLP builder).
+* On a linear Gaussian model, the full-horizon MHE equals dense batch least squares,
+  and its last node equals a Kalman filter.
+* Bounds, the straight configuration, position consistency, solver failures and
+  dropouts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import pytest
+from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
+from filterpy.kalman import MerweScaledSigmaPoints
+from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+from numpy.testing import assert_allclose
+
+from continuum_mhe.estimators.base import Estimator, Measurement
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
+from continuum_mhe.model.formulations import BendFormulation, Formulation, make_formulation
+from continuum_mhe.model.imu import shape_from_tilt, tilt_bend_sym, wrap_angle
+from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.settings import MHESettings, RobotSettings
+from continuum_mhe.simulation.scenarios import Recording, simulate
+
+FORMULATIONS = ("bend", "paper")
+MOUNTINGS = ("z-up", "z-down")  # z-down puts roll near +-pi: the angle wrap is active
+
+
+def ipopt_settings(**kwargs: Any) -> MHESettings:
+    """MHESettings that select the IPOPT backend, with or without a ``solver`` field."""
+    if "solver" in {f.name for f in dataclasses.fields(MHESettings)}:
+        kwargs.setdefault("solver", "ipopt")
+    return MHESettings(**kwargs)
+
+
+def step_all(estimator: Estimator, t: np.ndarray, z: np.ndarray) -> list:
+    estimator.reset()
+    return [estimator.step(Measurement(float(ti), np.asarray(zi, float))) for ti, zi in zip(t, z)]
+
+
+def window_states(mhe: MovingHorizonEstimator) -> np.ndarray:
+    """The last solved window, (N, nx) (private attribute; the last row is the estimate)."""
+    X = mhe._X
+    assert X is not None
+    return np.asarray(X, dtype=float)
+
+
+@pytest.fixture(scope="module")
+def paper3d() -> Recording:
+    return simulate("paper3d", duration=3)
+
+
+@pytest.fixture(scope="module")
+def paper3d_down() -> Recording:
+    return simulate("paper3d", duration=3, mounting="z-down")
+
+
+def recording_for(mounting: str, up: Recording, down: Recording) -> Recording:
+    return up if mounting == "z-up" else down
+
+
+# --- EKF vs filterpy -----------------------------------------------------------------------
+def filterpy_ekf_states(f: Formulation, rec: Recording) -> np.ndarray:
+    fns, nx = f.functions, f.nx
+
+    def h_jacobian(x: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.measure(x)[1], dtype=float).reshape(f.nz, nx)
+
+    def hx(x: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.measure(x)[0], dtype=float).ravel()
+
+    ekf = FilterpyEKF(dim_x=nx, dim_z=f.nz, dim_u=max(f.nu, 1))
+    # first sample: initialised from the measurement, no update (as _KalmanBase._step)
+    ekf.x = f.initial_state(rec.z[0])
+    ekf.P = f.initial_cov()
+    ekf.R = f.meas_cov()
+    states = [ekf.x.copy()]
+    z_prev = rec.z[0]
+    for k in range(1, len(rec.t)):
+        dt = float(rec.t[k] - rec.t[k - 1])
+        u = f.inputs(z_prev, rec.z[k], dt)
+        xn, F, Q = (np.asarray(v, dtype=float) for v in fns.predict(ekf.x, u, dt))
+        ekf.F = F.reshape(nx, nx)
+        ekf.Q = Q.reshape(nx, nx)
+        ekf.predict_x = lambda u=0, xn=xn: setattr(ekf, "x", xn.ravel())  # f(x, u, dt)
+        ekf.predict()
+        ekf.update(rec.z[k], h_jacobian, hx, residual=f.residual)
+        z_prev = rec.z[k]
+        states.append(np.array(ekf.x, dtype=float).ravel())
+    return np.array(states)
+
+
+@pytest.mark.parametrize("mounting", MOUNTINGS)
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_ekf_matches_filterpy(name: str, mounting: str, paper3d, paper3d_down) -> None:
+    rec = recording_for(mounting, paper3d, paper3d_down)
+    f = make_formulation(name, robot=RobotSettings(mounting=mounting))
+    ours = np.array([e.state for e in step_all(ExtendedKalmanFilter(f), rec.t, rec.z)])
+    assert_allclose(ours, filterpy_ekf_states(f, rec), rtol=0, atol=1e-9)
+
+
+# --- UKF vs filterpy -----------------------------------------------------------------------
+def filterpy_ukf_states(f: Formulation, rec: Recording) -> np.ndarray:
+    fns, nx = f.functions, f.nx
+
+    def fx(x: np.ndarray, dt: float, u: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.transition(x, u, dt), dtype=float).ravel()
+
+    def hx(x: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.observe(x), dtype=float).ravel()
+
+    def z_mean(sigmas: np.ndarray, wm: np.ndarray) -> np.ndarray:
+        # angles averaged as wrapped offsets from the central sigma point
+        sigmas = np.atleast_2d(sigmas)
+        return wm @ (sigmas[0] + f.residual(sigmas, sigmas[0]))
+
+    points = MerweScaledSigmaPoints(nx, alpha=0.5, beta=2.0, kappa=0.0)
+    ukf = FilterpyUKF(
+        dim_x=nx,
+        dim_z=f.nz,
+        dt=float(rec.t[1] - rec.t[0]),
+        hx=hx,
+        fx=fx,
+        points=points,
+        z_mean_fn=z_mean,
+        residual_z=f.residual,
+    )
+    ukf.x = f.initial_state(rec.z[0])
+    ukf.P = f.initial_cov()
+    ukf.R = f.meas_cov()
+    states = [ukf.x.copy()]
+    z_prev = rec.z[0]
+    for k in range(1, len(rec.t)):
+        dt = float(rec.t[k] - rec.t[k - 1])
+        u = f.inputs(z_prev, rec.z[k], dt)
+        ukf.Q = np.asarray(fns.predict(ukf.x, u, dt)[2], dtype=float).reshape(nx, nx)
+        ukf.predict(dt=dt, u=u)
+        ukf.update(rec.z[k])
+        z_prev = rec.z[k]
+        states.append(ukf.x.copy())
+    return np.array(states)
+
+
+@pytest.mark.parametrize("mounting", MOUNTINGS)
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_ukf_matches_filterpy(name: str, mounting: str, paper3d, paper3d_down) -> None:
+    rec = recording_for(mounting, paper3d, paper3d_down)
+    f = make_formulation(name, robot=RobotSettings(mounting=mounting))
+    ours = np.array([e.state for e in step_all(UnscentedKalmanFilter(f), rec.t, rec.z)])
+    assert_allclose(ours, filterpy_ukf_states(f, rec), rtol=0, atol=1e-8)
+
+
+def test_z_down_recording_exercises_the_angle_wrap(paper3d_down) -> None:
+    # guards the z-down peer tests above: roll must actually cross +-pi
+    roll = paper3d_down.z[:, 0]
+    assert roll.min() < -3.0 and roll.max() > 3.0
+
+
+# --- MHE vs an independent Opti formulation ---------------------------------------------------
+def bend_process_cov(q: float, dt: float) -> np.ndarray:
+    """White-noise-acceleration covariance for state (a, b, a_dot, b_dot)."""
+    block = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    Q = np.zeros((4, 4))
+    Q[np.ix_([0, 2], [0, 2])] = block
+    Q[np.ix_([1, 3], [1, 3])] = block
+    return Q
+
+
+def solve_bend_window_independently(
+    f: BendFormulation, problem: WindowProblem, active: int
+) -> np.ndarray:
+    """The bend-formulation window NLP from scratch: returns the active nodes (k, 4)."""
+    n = len(problem.zmask)
+    off = n - active
+    rinv = 1.0 / f.noise.measurement_std**2
+    opti = ca.Opti()
+    X = opti.variable(4, active)
+    cost = 0
+    for j in range(active):
+        i = off + j
+        a, b = X[0, j], X[1, j]
+        if problem.zmask[i]:
+            d = problem.z[i] - tilt_bend_sym(a, b, f.robot.mounting)
+            d = ca.atan2(ca.sin(d), ca.cos(d))
+            cost += 0.5 * rinv * ca.sumsqr(d)
+        if j > 0:
+            dt = float(problem.dt[i - 1])
+            prev = X[:, j - 1]
+            pred = ca.vertcat(prev[0] + dt * prev[2], prev[1] + dt * prev[3], prev[2], prev[3])
+            w = X[:, j] - pred
+            cost += 0.5 * ca.bilin(np.linalg.inv(bend_process_cov(f.noise.bend_accel_psd, dt)), w)
+        opti.subject_to(a**2 + b**2 <= f.robot.theta_max**2)
+        theta, phi = shape_from_tilt(*problem.z[i], f.robot.mounting)  # own initial guess
+        theta = min(float(theta), 0.95 * f.robot.theta_max)
+        opti.set_initial(X[:, j], [theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
+    e = X[:, 0] - problem.xbar
+    cost += 0.5 * ca.bilin(problem.arrival[off], e)
+    opti.minimize(cost)
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "tol": 1e-10})
+    sol = opti.solve()
+    return np.asarray(sol.value(X), dtype=float).reshape(4, active).T
+
+
+def run_mhe_and_compare_window(f: BendFormulation, rec: Recording, horizon: int, upto: int):
+    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=horizon))
+    mhe.reset()
+    for k in range(upto + 1):
+        est = mhe.step(Measurement(float(rec.t[k]), rec.z[k]))
+    assert est.status == "ok"
+    active = min(upto + 1, horizon)
+    ours = window_states(mhe)[-active:]
+    peer = solve_bend_window_independently(f, mhe.window_problem(), active)
+    return est, ours, peer
+
+
+@pytest.mark.parametrize("upto", [6, 39], ids=["growing-window", "full-window"])
+def test_mhe_matches_independent_opti_problem(upto: int, paper3d) -> None:
+    f = BendFormulation()
+    est, ours, peer = run_mhe_and_compare_window(f, paper3d, horizon=15, upto=upto)
+    assert_allclose(ours, peer, rtol=0, atol=1e-6)
+    assert_allclose(est.state, peer[-1], rtol=0, atol=1e-6)
+
+
+def test_mhe_matches_independent_opti_problem_with_active_disk_bound() -> None:
+    rec = simulate("planar-overbend", duration=8.5)
+    f = BendFormulation()
+    upto = len(rec.t) - 1  # truth theta = 1.85 rad > pi/2 at the end
+    est, ours, peer = run_mhe_and_compare_window(f, rec, horizon=15, upto=upto)
+    assert_allclose(np.hypot(peer[-1, 0], peer[-1, 1]), math.pi / 2, atol=1e-6)  # bound active
+    assert_allclose(ours, peer, rtol=0, atol=1e-6)
+
+
+def test_mhe_window_process_weight_is_inverse_white_noise_acceleration_cov(paper3d) -> None:
+    f = BendFormulation()
+    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=8))
+    step_all(mhe, paper3d.t[:8], paper3d.z[:8])
+    problem = mhe.window_problem()
+    for dt, qinv in zip(problem.dt, problem.qinv):
+        expected = np.linalg.inv(bend_process_cov(f.noise.bend_accel_psd, float(dt)))
+        assert_allclose(qinv, expected, rtol=1e-9)
+
+
+# --- linear Gaussian model: MHE == batch least squares == Kalman filter -----------------------
+@dataclass(frozen=True)
+class LinearBend(BendFormulation):
+    """Constant-velocity model with a linear measurement ``z = x[:2]`` and no bounds."""
+
+    def measurement_sym(self, x):
+        return x[:2]
+
+    def measurement_residual_sym(self, z, x):
+        return z - x[:2]
+
+    def residual(self, z, h):
+        return np.asarray(z, dtype=float) - h
+
+    def constraint_sym(self, x):
+        return ca.SX(0, 1), -np.inf, np.inf
+
+    def initial_state(self, z0):
+        return np.array([z0[0], z0[1], 0.0, 0.0])
+
+    def project(self, x):
+        return np.array(x, dtype=float)
+
+    def is_feasible(self, x, tol=1e-7):
+        return True
+
+
+LIN_DT = 0.05
+LIN_N = 15
+LIN_H = np.hstack([np.eye(2), np.zeros((2, 2))])
+
+
+def lin_transition(dt: float) -> np.ndarray:
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    return F
+
+
+@pytest.fixture(scope="module")
+def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
+    f = LinearBend()
+    rng = np.random.default_rng(7)
+    F, Q, R = lin_transition(LIN_DT), bend_process_cov(f.noise.bend_accel_psd, LIN_DT), f.meas_cov()
+    x = np.array([0.3, -0.2, 0.5, 0.4])
+    z = []
+    for _ in range(LIN_N):
+        z.append(LIN_H @ x + rng.multivariate_normal(np.zeros(2), R))
+        x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
+    return f, np.arange(LIN_N) * LIN_DT, np.array(z)
+
+
+def batch_least_squares(f: LinearBend, z: np.ndarray) -> np.ndarray:
+    """Dense weighted least squares over all states: prior on x0, process, measurements."""
+    n = len(z)
+    F = lin_transition(LIN_DT)
+    Qi = np.linalg.inv(bend_process_cov(f.noise.bend_accel_psd, LIN_DT))
+    Ri = np.linalg.inv(f.meas_cov())
+    P0i = np.linalg.inv(f.initial_cov())
+    xbar = np.array([z[0, 0], z[0, 1], 0.0, 0.0])
+    # stack residual blocks r = A X - c with weights W; solve (A^T W A) X = A^T W c
+    rows, rhs, weights = [], [], []
+    sel = np.zeros((4, 4 * n))
+    sel[:, :4] = np.eye(4)
+    rows.append(sel)
+    rhs.append(xbar)
+    weights.append(P0i)
+    for k in range(n):
+        a = np.zeros((2, 4 * n))
+        a[:, 4 * k : 4 * k + 4] = LIN_H
+        rows.append(a)
+        rhs.append(z[k])
+        weights.append(Ri)
+        if k < n - 1:
+            a = np.zeros((4, 4 * n))
+            a[:, 4 * k + 4 : 4 * k + 8] = np.eye(4)
+            a[:, 4 * k : 4 * k + 4] = -F
+            rows.append(a)
+            rhs.append(np.zeros(4))
+            weights.append(Qi)
+    A = np.vstack(rows)
+    c = np.concatenate(rhs)
+    W = np.zeros((len(c), len(c)))
+    i = 0
+    for w in weights:
+        W[i : i + len(w), i : i + len(w)] = w
+        i += len(w)
+    return np.linalg.solve(A.T @ W @ A, A.T @ W @ c).reshape(n, 4)
+
+
+def kalman_filter_with_prior(f: LinearBend, z: np.ndarray) -> np.ndarray:
+    """Textbook KF from the prior (xbar, P0), updating on every sample including the first."""
+    F, Q, R = lin_transition(LIN_DT), bend_process_cov(f.noise.bend_accel_psd, LIN_DT), f.meas_cov()
+    x, P = np.array([z[0, 0], z[0, 1], 0.0, 0.0]), f.initial_cov()
+    for k in range(len(z)):
+        if k > 0:
+            x, P = F @ x, F @ P @ F.T + Q
+        S = LIN_H @ P @ LIN_H.T + R
+        K = P @ LIN_H.T @ np.linalg.inv(S)
+        x, P = x + K @ (z[k] - LIN_H @ x), (np.eye(4) - K @ LIN_H) @ P
+    return x
+
+
+def full_horizon_mhe(f: LinearBend, t: np.ndarray, z: np.ndarray):
+    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=LIN_N + 5))  # growing window only
+    estimates = step_all(mhe, t, z)
+    return estimates, window_states(mhe)[-len(z) :]
+
+
+def test_linear_full_horizon_mhe_equals_batch_least_squares(linear_recording) -> None:
+    f, t, z = linear_recording
+    estimates, window = full_horizon_mhe(f, t, z)
+    assert all(e.status == "ok" for e in estimates)
+    assert_allclose(window, batch_least_squares(f, z), rtol=0, atol=1e-8)
+
+
+def test_linear_mhe_last_node_equals_kalman_filter_with_same_prior(linear_recording) -> None:
+    f, t, z = linear_recording
+    estimates, _ = full_horizon_mhe(f, t, z)
+    assert_allclose(estimates[-1].state, kalman_filter_with_prior(f, z), rtol=0, atol=1e-8)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="library inconsistency: MovingHorizonEstimator weights the first measurement "
+    "z0 on top of a prior built from z0 (zmask=1 on node 0), whereas _KalmanBase._step "
+    "initialises from z0 without an update; on a linear Gaussian model the two differ "
+    "(~3e-3 in the state) instead of agreeing at the last sample",
+)
+@pytest.mark.parametrize("filter_cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
+def test_linear_mhe_last_node_equals_library_filter(linear_recording, filter_cls) -> None:
+    f, t, z = linear_recording
+    estimates, _ = full_horizon_mhe(f, t, z)
+    filtered = step_all(filter_cls(f), t, z)
+    assert_allclose(estimates[-1].state, filtered[-1].state, rtol=0, atol=1e-8)
+
+
+# --- bounds --------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def overbend() -> Recording:
+    return simulate("planar-overbend", duration=10)
+
+
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_mhe_never_exceeds_theta_max(name: str, overbend) -> None:
+    assert overbend.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
+    f = make_formulation(name)
+    series = MovingHorizonEstimator(f, MHESettings(horizon=20)).run(overbend.t, overbend.z)
+    assert np.all(np.isfinite(series.output))
+    # IPOPT's default bound relaxation (1e-8 relative) allows ~1.6e-8 rad
+    assert series.output[:, 3].max() <= f.robot.theta_max + 1e-7
+    late = overbend.t > 7.0  # truth beyond the bound: the estimate sits on it
+    assert_allclose(series.output[late, 3], f.robot.theta_max, rtol=0, atol=1e-3)
+
+
+def test_mhe_with_larger_theta_max_tracks_further_bending(overbend) -> None:
+    f = make_formulation("bend", robot=RobotSettings(theta_max=3.0))
+    series = MovingHorizonEstimator(f, MHESettings(horizon=20)).run(overbend.t, overbend.z)
+    assert series.output[:, 3].max() > 2.0
+    assert series.output[:, 3].max() <= 3.0 + 1e-7
+    err = np.abs(series.output[:, 3] - overbend.truth[:, 3])
+    assert np.mean(err) < 0.05  # rad
+
+
+# --- straight configuration -----------------------------------------------------------------
+@pytest.fixture(scope="module")
+def straight() -> Recording:
+    return simulate("straight", duration=10)
+
+
+def make_estimator(kind: str, f: Formulation) -> Estimator:
+    if kind == "mhe":
+        return MovingHorizonEstimator(f, MHESettings(horizon=20))
+    return {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
+
+
+ESTIMATORS = ("ekf", "ukf", "mhe")
+
+
+@pytest.mark.parametrize("kind", ESTIMATORS)
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_straight_configuration_gives_finite_estimates(name: str, kind: str, straight) -> None:
+    assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
+    series = make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
+    assert np.all(np.isfinite(series.output))
+    assert np.all(series.status == "ok")
+
+
+@pytest.mark.parametrize("kind", ESTIMATORS)
+def test_straight_configuration_tip_error_is_small_for_bend(kind: str, straight) -> None:
+    series = make_estimator(kind, make_formulation("bend")).run(straight.t, straight.z)
+    err = np.linalg.norm(series.output[:, :3] - straight.truth[:, :3], axis=1)
+    assert err.mean() < 0.02 * straight.length
+
+
+# --- position consistency (bend formulation) ---------------------------------------------------
+@pytest.mark.parametrize("kind", ESTIMATORS)
+def test_bend_output_position_equals_kinematics_of_its_own_shape(kind: str, straight) -> None:
+    f = make_formulation("bend")
+    series = make_estimator(kind, f).run(straight.t, straight.z)
+    theta, phi = series.output[:, 3], series.output[:, 4]
+    assert_allclose(series.output[:, :3], tip_position(theta, phi, f.robot.length), atol=1e-12)
+
+
+# --- solver failures ---------------------------------------------------------------------------
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_mhe_iteration_limit_is_flagged_and_finite(name: str, paper3d) -> None:
+    f = make_formulation(name)
+    series = MovingHorizonEstimator(f, ipopt_settings(horizon=10, max_iter=1)).run(
+        paper3d.t[:25], paper3d.z[:25]
+    )
+    assert np.all(np.isfinite(series.output))
+    assert set(series.status) <= {"not-converged", "solver-failed"}
+    assert np.all(series.output[:, 3] <= f.robot.theta_max + 1e-6)
+
+
+class FlakySolver:
+    """Wraps a CasADi nlpsol: raises or returns NaN on chosen calls, else delegates."""
+
+    def __init__(self, solver: ca.Function, raise_on: set[int], nan_on: set[int]) -> None:
+        self.solver, self.raise_on, self.nan_on, self.calls = solver, raise_on, nan_on, 0
+
+    def __call__(self, **kwargs: Any) -> dict:
+        k = self.calls
+        self.calls += 1
+        if k in self.raise_on:
+            raise RuntimeError("injected IPOPT failure")
+        sol = self.solver(**kwargs)
+        if k in self.nan_on:
+            sol = dict(sol)
+            sol["x"] = sol["x"] * np.nan
+        return sol
+
+    def stats(self) -> dict:
+        return self.solver.stats()
+
+
+def run_with_injected_failures(name: str, rec: Recording, n: int) -> tuple[list, list]:
+    """(estimates with IPOPT failing at samples 12-14, estimates of a clean run)."""
+    f = make_formulation(name)
+    clean = step_all(MovingHorizonEstimator(f, ipopt_settings(horizon=10)), rec.t[:n], rec.z[:n])
+    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=10))
+    mhe._nlp = dataclasses.replace(
+        mhe._nlp, solver=FlakySolver(mhe._nlp.solver, raise_on={12, 13}, nan_on={14})
+    )
+    return step_all(mhe, rec.t[:n], rec.z[:n]), clean
+
+
+FAILING = [12, 13, 14]
+
+
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_mhe_injected_solver_failures_are_flagged_and_finite(name: str, paper3d) -> None:
+    estimates, _ = run_with_injected_failures(name, paper3d, 40)
+    status = np.array([e.status for e in estimates])
+    assert np.all(np.isfinite([e.output for e in estimates]))
+    assert list(status[FAILING]) == ["solver-failed"] * 3
+    assert np.all(np.delete(status, FAILING) == "ok")
+
+
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_mhe_shape_recovers_after_injected_solver_failures(name: str, paper3d) -> None:
+    estimates, clean = run_with_injected_failures(name, paper3d, 40)
+    later = slice(FAILING[-1] + 10, 40)  # once the failed samples have left the window
+    out = np.array([e.output for e in estimates])[later]
+    ref = np.array([e.output for e in clean])[later]
+    assert_allclose(out[:, 3], ref[:, 3], rtol=0, atol=1e-6)
+    assert_allclose(wrap_angle(out[:, 4] - ref[:, 4]), 0.0, rtol=0, atol=1e-6)
+
+
+def test_mhe_bend_position_recovers_after_injected_solver_failures(paper3d) -> None:
+    # (the paper formulation's x, y, z are unobservable integrator states: an offset
+    # left by a failure persists, so only the bend formulation is checked here)
+    estimates, clean = run_with_injected_failures("bend", paper3d, 40)
+    later = slice(FAILING[-1] + 10, 40)
+    out = np.array([e.output for e in estimates])[later]
+    ref = np.array([e.output for e in clean])[later]
+    assert_allclose(out[:, :3], ref[:, :3], rtol=0, atol=1e-6)  # metres
+
+
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_mhe_survives_wildly_inconsistent_measurements(name: str, paper3d) -> None:
+    z = paper3d.z[:40].copy()
+    z[10:14] = [[3.0, -1.5], [-3.0, 1.5], [2.0, 1.4], [-2.5, -1.4]]  # garbage burst
+    f = make_formulation(name)
+    series = MovingHorizonEstimator(f, ipopt_settings(horizon=10)).run(paper3d.t[:40], z)
+    assert np.all(np.isfinite(series.output))
+    assert np.all(series.output[:, 3] <= f.robot.theta_max + 1e-6)
+    assert np.all(series.status[-10:] == "ok")  # recovers once the burst leaves the window
+
+
+# --- dropouts ---------------------------------------------------------------------------------
+DROPOUTS = [5, 6, 7, 20, 33]
+
+
+@pytest.mark.parametrize("kind", ESTIMATORS)
+@pytest.mark.parametrize("name", FORMULATIONS)
+def test_dropouts_are_flagged_and_finite(name: str, kind: str, paper3d) -> None:
+    z = paper3d.z[:40].copy()
+    z[DROPOUTS] = np.nan
+    z[25, 1] = np.nan  # a partial reading is a dropout too
+    series = make_estimator(kind, make_formulation(name)).run(paper3d.t[:40], z)
+    expected = np.full(40, "ok", dtype=object)
+    expected[[*DROPOUTS, 25]] = "dropout"
+    assert list(series.status) == list(expected)
+    assert np.all(np.isfinite(series.output))
+
+
+@pytest.mark.parametrize("kind", ESTIMATORS)
+def test_leading_dropouts_give_no_estimate_then_start(kind: str, paper3d) -> None:
+    z = paper3d.z[:15].copy()
+    z[:3] = np.nan
+    series = make_estimator(kind, make_formulation("bend")).run(paper3d.t[:15], z)
+    assert list(series.status[:3]) == ["no-estimate"] * 3
+    assert np.all(np.isnan(series.output[:3]))
+    assert np.all(series.status[3:] == "ok")
+    assert np.all(np.isfinite(series.output[3:]))
