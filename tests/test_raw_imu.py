@@ -1,0 +1,239 @@
+"""Raw IMU input: the direct formulation, the raw CSV reader, the attitude options, and
+estimation from a simulated recording whose accelerometer feels the tip's own
+acceleration."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.io.csv_files import InputError, read_states
+from continuum_mhe.io.raw_imu import (
+    RawImuSettings,
+    mount_rotation,
+    raw_to_measurements,
+    read_raw_imu,
+)
+from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.model.direct import (
+    DirectFormulation,
+    raw_imu_readings,
+    tip_angular_velocity_bend_sym,
+)
+from continuum_mhe.model.formulations import make_formulation
+from continuum_mhe.model.imu import tilt_from_accelerometer
+from continuum_mhe.model.kinematics import rotation_bend
+from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
+from continuum_mhe.simulation.scenarios import simulate
+
+G = 9.80665
+_X = ca.SX.sym("x", 4)
+OMEGA = ca.Function("w", [_X], [tip_angular_velocity_bend_sym(_X[0], _X[1], _X[2], _X[3])])
+
+
+@pytest.mark.parametrize(
+    "x",
+    [
+        [0.0, 0.0, 0.3, -0.2],  # straight
+        [1e-8, 0.0, 0.4, 0.5],
+        [math.pi / 2, 0.0, 0.1, 0.2],
+        [0.3, -0.9, -0.7, 0.25],
+        [-0.6, 0.2, 0.0, 1.3],
+    ],
+)
+def test_angular_velocity_matches_finite_differences(x: list[float]) -> None:
+    a, b, ad, bd = x
+    h = 1e-6
+    dr = (rotation_bend(a + h * ad, b + h * bd) - rotation_bend(a - h * ad, b - h * bd)) / (2 * h)
+    w_hat = rotation_bend(a, b).T @ dr
+    np.testing.assert_allclose(w_hat, -w_hat.T, atol=1e-8)  # skew: R^T dR/dt is so(3)
+    expected = [w_hat[2, 1], w_hat[0, 2], w_hat[1, 0]]
+    np.testing.assert_allclose(np.asarray(OMEGA(x)).ravel(), expected, atol=1e-7)
+
+
+def test_direct_formulation_model() -> None:
+    f = make_formulation("direct")
+    assert isinstance(f, DirectFormulation) and f.nz == 6
+    x = np.array([0.4, -0.3, 0.2, 0.1])
+    z = np.asarray(f.functions.observe(x)).ravel()
+    assert np.linalg.norm(z[:3]) == pytest.approx(1.0)
+    # gravity part agrees with the tilt model, rates are linear in (a_dot, b_dot)
+    np.testing.assert_allclose(
+        tilt_from_accelerometer(z[:3]),
+        np.asarray(make_formulation("bend").functions.observe(x)).ravel(),
+    )
+    np.testing.assert_allclose(f.initial_state(z), x, atol=1e-12)
+    # residuals are plain differences: no wrapping
+    assert f.residual(np.array([4.0] * 6), np.zeros(6)).tolist() == [4.0] * 6
+    r = np.diag(f.meas_cov())
+    assert r[0] == pytest.approx(f.noise.measurement_std**2) and r[3] == pytest.approx(0.05**2)
+    with pytest.raises(ValueError, match="gyro_std"):
+        DirectFormulation(gyro_std=-1.0)
+
+
+def test_mhe_uses_direct_model_generically() -> None:
+    """The IPOPT MHE builds its NLP from nz and measurement_residual_sym unchanged."""
+    f = make_formulation("direct")
+    t = np.arange(40) * 0.05
+    X = np.column_stack([0.5 * np.sin(t), 0.3 * np.cos(t), 0.5 * np.cos(t), -0.3 * np.sin(t)])
+    Z = np.array([np.asarray(f.functions.observe(x)).ravel() for x in X])
+    Z[20] = np.nan
+    s = make_estimator("mhe", f, MHESettings(horizon=10)).run(t, Z)
+    assert s.status[20] == "dropout" and set(s.status) <= {"ok", "dropout"}
+    np.testing.assert_allclose(s.output[:, 3], np.hypot(X[:, 0], X[:, 1]), atol=5e-3)
+
+
+@pytest.fixture(scope="module")
+def moving_tip() -> dict[str, np.ndarray]:
+    """A 0.2 m robot moving through paper3d, 50 Hz; accelerometer includes a_tip."""
+    rec = simulate("paper3d", duration=8.0, dt=0.02, noise_deg=0.0)
+    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
+    rng = np.random.default_rng(7)
+    return {
+        "t": rec.t,
+        "truth": rec.truth,
+        "acc_clean": acc,
+        "acc": acc + rng.normal(size=acc.shape) * 0.3,  # about 1.8 deg of direction
+        "gyr": gyr + rng.normal(size=gyr.shape) * 0.02,
+    }
+
+
+def test_simulated_accelerometer_feels_tip_acceleration(moving_tip: dict[str, np.ndarray]) -> None:
+    norm = np.linalg.norm(moving_tip["acc_clean"], axis=1)
+    assert np.abs(norm - G).max() > 1e-3  # the tip's own acceleration is in there
+    assert np.abs(norm - G).max() < 1.0
+
+
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_raw_estimation_accuracy_comparable_to_tilt(
+    moving_tip: dict[str, np.ndarray], method: str
+) -> None:
+    t, truth = moving_tip["t"], moving_tip["truth"]
+    robot, noise = RobotSettings(length=0.2), NoiseSettings(measurement_std=math.radians(2))
+    mhe = MHESettings(horizon=10)
+    errors = {}
+    for model in ("tilt", "direct"):
+        z = raw_to_measurements(
+            t, moving_tip["acc"], moving_tip["gyr"], RawImuSettings(imu_model=model)
+        )
+        f = make_formulation("direct" if model == "direct" else "bend", robot, noise)
+        s = make_estimator(method, f, mhe).run(t, z)
+        errors[model] = compute_metrics(s.output, truth, robot.length).tip_mean_mm
+    assert errors["tilt"] < 5.0
+    assert errors["direct"] < 5.0
+    assert errors["direct"] < 1.5 * errors["tilt"] + 0.5, errors
+
+
+def test_gyro_fusion_tracks_tilt(moving_tip: dict[str, np.ndarray]) -> None:
+    t, acc, gyr = moving_tip["t"], moving_tip["acc"], moving_tip["gyr"]
+    truth = tilt_from_accelerometer(
+        np.einsum("nji,j->ni", rotation_bend(*_bend(moving_tip["truth"])), [0.0, 0.0, 1.0])
+    )
+    err = {}
+    for att in ("accel", "madgwick", "mahony"):
+        z = raw_to_measurements(t, acc, gyr, RawImuSettings(attitude=att))
+        err[att] = float(np.sqrt(np.mean((z - truth)[50:] ** 2)))
+    assert err["madgwick"] < err["accel"]  # the gyro smooths the accelerometer noise
+    assert err["mahony"] < 2 * err["accel"]
+
+
+def _bend(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return truth[:, 3] * np.cos(truth[:, 4]), truth[:, 3] * np.sin(truth[:, 4])
+
+
+def test_mount_rotation_undoes_a_rotated_sensor(moving_tip: dict[str, np.ndarray]) -> None:
+    t, acc, gyr = moving_tip["t"], moving_tip["acc"], moving_tip["gyr"]
+    rpy = (10.0, -20.0, 90.0)
+    m = mount_rotation(rpy)
+    np.testing.assert_allclose(m @ m.T, np.eye(3), atol=1e-12)
+    sensor_acc, sensor_gyr = acc @ m, gyr @ m  # v_sensor = M^T v_tip
+    for model in ("tilt", "direct"):
+        ref = raw_to_measurements(t, acc, gyr, RawImuSettings(imu_model=model))
+        got = raw_to_measurements(
+            t, sensor_acc, sensor_gyr, RawImuSettings(imu_model=model, mount_rpy=rpy)
+        )
+        np.testing.assert_allclose(got, ref, atol=1e-12)
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("body", "needle"),
+    [
+        ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.1,0,zz,9.8,0,0,0\n", "line 3: column ay: 'zz'"),
+        ("t,ax,ay,az\n0,0,0,9.8\n0.1,0,0,9.8\n0.05,0,0,9.8\n", "line 4: decreasing timestamp"),
+        ("t,ax,ay,az\n0,0,0,1.0\n0.1,0,0,1.0\n", "look like g"),
+        ("t,ax,ay\n0,0,0\n", "line 1: missing column(s) az"),
+        ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0\n", "line 2: expected 7 fields, found 6"),
+    ],
+)
+def test_raw_csv_errors_name_the_line(tmp_path: Path, body: str, needle: str) -> None:
+    with pytest.raises(InputError, match=None) as info:
+        read_raw_imu(_write(tmp_path / "raw.csv", body))
+    assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+def test_raw_csv_skip_bad_keeps_dropouts(tmp_path: Path) -> None:
+    body = (
+        "t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.1,0,x,9.8,0,0,0\n"
+        "0.05,0,0,9.8,0,0,0\n0.2,0,0,9.8,0,0,0\n"
+    )
+    table = read_raw_imu(_write(tmp_path / "raw.csv", body), skip_bad=True)
+    assert table.t.tolist() == [0.0, 0.1, 0.2]
+    assert np.isnan(table.acc[1, 1]) and len(table.skipped) == 2
+
+
+def test_estimate_cli_on_raw_csv(tmp_path: Path, moving_tip: dict[str, np.ndarray]) -> None:
+    t, acc, gyr = moving_tip["t"][:100], moving_tip["acc"][:100], moving_tip["gyr"][:100]
+    rows = ["t,ax,ay,az,gx,gy,gz"] + [
+        ",".join(repr(float(v)) for v in (ti, *a, *g)) for ti, a, g in zip(t, acc, gyr)
+    ]
+    raw = _write(tmp_path / "raw.csv", "\n".join(rows) + "\n")
+    for model, extra in (("tilt", ["--attitude", "madgwick"]), ("direct", [])):
+        out = tmp_path / f"est_{model}.csv"
+        assert (
+            main(
+                [
+                    "estimate",
+                    str(raw),
+                    "-o",
+                    str(out),
+                    "--method",
+                    "ekf",
+                    "--imu-model",
+                    model,
+                    *extra,
+                ]
+            )
+            == 0
+        )
+        te, xe, _ = read_states(out)
+        np.testing.assert_allclose(te, t, rtol=1e-9)
+        assert np.linalg.norm(xe[:, :3] - moving_tip["truth"][:100, :3], axis=1).mean() < 5e-3
+
+
+def test_direct_on_tilt_csv_is_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tilt_csv = _write(tmp_path / "m.csv", "t,roll,pitch\n0,0.1,0.2\n0.05,0.1,0.2\n")
+    assert (
+        main(["estimate", str(tilt_csv), "-o", str(tmp_path / "e.csv"), "--imu-model", "direct"])
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert err.startswith("continuum-mhe: error: ") and "needs raw" in err and err.count("\n") == 1
+    raw = _write(tmp_path / "r.csv", "t,ax,ay,az\n0,0,0,9.8\n0.05,0,0,9.8\n")
+    assert main(["estimate", str(raw), "-o", str(tmp_path / "e.csv"), "--imu-model", "direct"]) == 2
+    assert "needs gyro columns" in capsys.readouterr().err
+    assert main(["estimate", str(raw), "-o", str(tmp_path / "e.csv"), "--mount-rpy", "1,2"]) == 2
+    assert "--mount-rpy" in capsys.readouterr().err
+    assert not (tmp_path / "e.csv").exists()
