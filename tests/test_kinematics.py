@@ -318,12 +318,13 @@ def test_rotation_bend_sym_derivatives_finite(a: float, b: float) -> None:
     _assert_all_finite(_value_jac_hess(rotation_bend_sym(v[0], v[1]), v), [a, b])
 
 
-# Roll/pitch is a Z-Y-X Euler measurement: it is genuinely singular at the gimbal lock
-# pitch = +-pi/2, i.e. theta = pi/2 with phi = 0 or pi (b = 0). Those two points are
-# excluded; every other point at theta = pi/2 and the straight configuration are kept.
+# Roll/pitch is a Z-Y-X Euler measurement with a gimbal lock at pitch = +-pi/2, i.e.
+# theta = pi/2 with phi = 0 or pi (b = 0): (HALF_PI, 0.0) and (-HALF_PI, 0.0) below. The
+# model defines roll = 0 there and floors hypot(f_y, f_z), so derivatives stay finite.
 TILT_BEND_POINTS = [(0.0, 0.0), (1e-8, 0.0), (0.0, 1e-8), (-1e-8, 1e-8), (0.0, HALF_PI),
                     (0.0, -HALF_PI), (HALF_PI * math.cos(0.7), HALF_PI * math.sin(0.7)),
-                    (HALF_PI * math.cos(-2.0), HALF_PI * math.sin(-2.0)), (-1.0, 1.2)]  # fmt: skip
+                    (HALF_PI * math.cos(-2.0), HALF_PI * math.sin(-2.0)), (-1.0, 1.2),
+                    (HALF_PI, 0.0), (-HALF_PI, 0.0)]  # fmt: skip
 
 
 @pytest.mark.parametrize("mounting", imu.MOUNTINGS)
@@ -333,7 +334,9 @@ def test_tilt_bend_sym_derivatives_finite(a: float, b: float, mounting: imu.Moun
     _assert_all_finite(_value_jac_hess(tilt_bend_sym(v[0], v[1], mounting), v), [a, b])
 
 
-@pytest.mark.parametrize("theta, phi", [(0.0, 0.0), (1e-8, 2.0), (HALF_PI, HALF_PI)])
+@pytest.mark.parametrize(
+    "theta, phi", [(0.0, 0.0), (1e-8, 2.0), (HALF_PI, HALF_PI), (HALF_PI, 0.0), (HALF_PI, math.pi)]
+)
 def test_tilt_sym_derivatives_finite(theta: float, phi: float) -> None:
     v = ca.SX.sym("v", 2)
     _assert_all_finite(_value_jac_hess(tilt_sym(v[0], v[1]), v), [theta, phi])
