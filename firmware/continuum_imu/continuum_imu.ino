@@ -1,0 +1,173 @@
+// continuum_imu: stream raw MPU9250 readings for `continuum-mhe live`.
+//
+// Board: Arduino UNO (ATmega328P, 16 MHz). Sensor: MPU9250 (or MPU6500/9255) on I2C
+// at 0x68 (AD0 low; define MPU_ADDRESS 0x69 for AD0 high). Plain Wire.h register
+// access, no external library.
+//
+// Line protocol (ASCII, 115200 baud, one sample per line, '\n' terminated):
+//   t_ms,ax,ay,az,gx,gy,gz
+//     t_ms      device time, milliseconds since boot (millis())
+//     ax,ay,az  specific force in m/s^2, sensor frame (flat and still: 0,0,+9.81)
+//     gx,gy,gz  angular rate in rad/s, sensor frame, start-up bias removed
+// Lines starting with '#' are comments: a header with the version, ranges and rate
+// at start-up, and any error. The host ignores them except for display.
+//
+// Mounting: put the sensor's z axis along the robot's tip tangent (pointing away
+// from the base); see firmware/README.md and docs/hardware.md for other mountings
+// (`--mount-rpy`) and calibration.
+
+#include <Arduino.h>
+#include <Wire.h>
+
+#define FIRMWARE_VERSION "1.0.0"
+
+#ifndef RATE_HZ
+#define RATE_HZ 100  // samples per second; up to about 200 at 115200 baud
+#endif
+#ifndef BAUD
+#define BAUD 115200
+#endif
+#ifndef MPU_ADDRESS
+#define MPU_ADDRESS 0x68
+#endif
+#ifndef BIAS_SAMPLES
+#define BIAS_SAMPLES 200  // gyro bias average at start-up (keep the robot still)
+#endif
+
+// MPU9250 registers
+static const uint8_t REG_SMPLRT_DIV = 0x19;
+static const uint8_t REG_CONFIG = 0x1A;
+static const uint8_t REG_GYRO_CONFIG = 0x1B;
+static const uint8_t REG_ACCEL_CONFIG = 0x1C;
+static const uint8_t REG_ACCEL_CONFIG2 = 0x1D;
+static const uint8_t REG_ACCEL_XOUT_H = 0x3B;
+static const uint8_t REG_PWR_MGMT_1 = 0x6B;
+static const uint8_t REG_WHO_AM_I = 0x75;
+
+// Ranges: accelerometer +-4 g (8192 LSB/g), gyro +-500 deg/s (65.5 LSB/(deg/s)).
+static const uint8_t ACCEL_FS_BITS = 1 << 3;
+static const uint8_t GYRO_FS_BITS = 1 << 3;
+static const float ACCEL_SCALE = 9.80665f / 8192.0f;              // m/s^2 per LSB
+static const float GYRO_SCALE = (3.14159265f / 180.0f) / 65.5f;   // rad/s per LSB
+
+static const unsigned long PERIOD_US = 1000000UL / RATE_HZ;
+
+static float gyro_bias[3] = {0.0f, 0.0f, 0.0f};
+static unsigned long next_us = 0;
+static unsigned long late_samples = 0;
+
+static bool writeRegister(uint8_t reg, uint8_t value) {
+  Wire.beginTransmission(MPU_ADDRESS);
+  Wire.write(reg);
+  Wire.write(value);
+  return Wire.endTransmission() == 0;
+}
+
+static bool readRegisters(uint8_t reg, uint8_t *buf, uint8_t count) {
+  Wire.beginTransmission(MPU_ADDRESS);
+  Wire.write(reg);
+  if (Wire.endTransmission(false) != 0) return false;
+  if (Wire.requestFrom((uint8_t)MPU_ADDRESS, count) != count) return false;
+  for (uint8_t i = 0; i < count; i++) buf[i] = Wire.read();
+  return true;
+}
+
+// Raw counts: ax, ay, az, gx, gy, gz (temperature skipped).
+static bool readRaw(int16_t out[6]) {
+  uint8_t b[14];
+  if (!readRegisters(REG_ACCEL_XOUT_H, b, 14)) return false;
+  for (uint8_t i = 0; i < 3; i++) {
+    out[i] = (int16_t)((b[2 * i] << 8) | b[2 * i + 1]);
+    out[3 + i] = (int16_t)((b[8 + 2 * i] << 8) | b[9 + 2 * i]);
+  }
+  return true;
+}
+
+static uint8_t setupSensor() {
+  writeRegister(REG_PWR_MGMT_1, 0x80);  // reset
+  delay(100);
+  writeRegister(REG_PWR_MGMT_1, 0x01);  // clock: PLL from the gyro
+  delay(10);
+  uint8_t who = 0;
+  if (!readRegisters(REG_WHO_AM_I, &who, 1)) return 0;
+  writeRegister(REG_CONFIG, 0x03);         // gyro DLPF 41 Hz, 1 kHz internal rate
+  writeRegister(REG_SMPLRT_DIV, 0x00);     // 1 kHz register updates; we poll at RATE_HZ
+  writeRegister(REG_GYRO_CONFIG, GYRO_FS_BITS);
+  writeRegister(REG_ACCEL_CONFIG, ACCEL_FS_BITS);
+  writeRegister(REG_ACCEL_CONFIG2, 0x03);  // accel DLPF 44.8 Hz
+  delay(50);
+  return who;
+}
+
+static void calibrateGyro() {
+  long sum[3] = {0, 0, 0};
+  int n = 0;
+  int16_t raw[6];
+  for (int i = 0; i < BIAS_SAMPLES; i++) {
+    if (readRaw(raw)) {
+      for (uint8_t k = 0; k < 3; k++) sum[k] += raw[3 + k];
+      n++;
+    }
+    delay(5);
+  }
+  for (uint8_t k = 0; k < 3; k++) gyro_bias[k] = n ? GYRO_SCALE * (float)sum[k] / n : 0.0f;
+  Serial.print(F("# gyro bias rad/s: "));
+  for (uint8_t k = 0; k < 3; k++) {
+    Serial.print(gyro_bias[k], 5);
+    Serial.print(k < 2 ? ',' : '\n');
+  }
+}
+
+void setup() {
+  Serial.begin(BAUD);
+  Wire.begin();
+  Wire.setClock(400000);
+#if defined(WIRE_HAS_TIMEOUT)
+  Wire.setWireTimeout(3000, true);  // never hang on a stuck bus
+#endif
+  uint8_t who = setupSensor();
+  while (who != 0x71 && who != 0x73 && who != 0x70) {
+    Serial.print(F("# error: no MPU9250 at I2C address 0x"));
+    Serial.print(MPU_ADDRESS, HEX);
+    Serial.print(F(" (WHO_AM_I=0x"));
+    Serial.print(who, HEX);
+    Serial.println(F("); check wiring, retrying"));
+    delay(1000);
+    who = setupSensor();
+  }
+  Serial.print(F("# continuum_imu " FIRMWARE_VERSION " mpu9250 who_am_i=0x"));
+  Serial.print(who, HEX);
+  Serial.print(F(" accel_range=+-4g gyro_range=+-500dps rate_hz="));
+  Serial.print(RATE_HZ);
+  Serial.print(F(" baud="));
+  Serial.println(BAUD);
+  Serial.println(F("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s; sensor frame)"));
+  Serial.println(F("# calibrating gyro bias: keep the robot still"));
+  calibrateGyro();
+  next_us = micros();
+}
+
+void loop() {
+  if ((long)(micros() - next_us) < 0) return;
+  next_us += PERIOD_US;
+  if ((long)(micros() - next_us) > (long)PERIOD_US) {  // fell behind: resynchronise
+    next_us = micros() + PERIOD_US;
+    late_samples++;
+  }
+  int16_t raw[6];
+  unsigned long t = millis();
+  if (!readRaw(raw)) {
+    Serial.println(F("# error: I2C read failed"));
+    return;
+  }
+  Serial.print(t);
+  for (uint8_t k = 0; k < 3; k++) {
+    Serial.print(',');
+    Serial.print(ACCEL_SCALE * raw[k], 3);
+  }
+  for (uint8_t k = 0; k < 3; k++) {
+    Serial.print(',');
+    Serial.print(GYRO_SCALE * raw[3 + k] - gyro_bias[k], 4);
+  }
+  Serial.print('\n');
+}
