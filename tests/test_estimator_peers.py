@@ -428,6 +428,8 @@ def make_estimator(kind: str, f: Formulation) -> Estimator:
 
 
 ESTIMATORS = ("ekf", "ukf", "mhe")
+# a successful sample with the default MHE backend (a fast backend may hand over to IPOPT)
+SOLVED = ["ok", "fallback-ipopt"]
 
 
 @pytest.mark.parametrize("kind", ESTIMATORS)
@@ -436,7 +438,7 @@ def test_straight_configuration_gives_finite_estimates(name: str, kind: str, str
     assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
     series = make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
     assert np.all(np.isfinite(series.output))
-    assert np.all(series.status == "ok")
+    assert np.all(np.isin(series.status, SOLVED))
 
 
 @pytest.mark.parametrize("kind", ESTIMATORS)
@@ -553,9 +555,10 @@ def test_dropouts_are_flagged_and_finite(name: str, kind: str, paper3d) -> None:
     z[DROPOUTS] = np.nan
     z[25, 1] = np.nan  # a partial reading is a dropout too
     series = make_estimator(kind, make_formulation(name)).run(paper3d.t[:40], z)
-    expected = np.full(40, "ok", dtype=object)
-    expected[[*DROPOUTS, 25]] = "dropout"
-    assert list(series.status) == list(expected)
+    dropped = np.zeros(40, dtype=bool)
+    dropped[[*DROPOUTS, 25]] = True
+    assert np.all(series.status[dropped] == "dropout")
+    assert np.all(np.isin(series.status[~dropped], SOLVED))
     assert np.all(np.isfinite(series.output))
 
 
@@ -566,5 +569,5 @@ def test_leading_dropouts_give_no_estimate_then_start(kind: str, paper3d) -> Non
     series = make_estimator(kind, make_formulation("bend")).run(paper3d.t[:15], z)
     assert list(series.status[:3]) == ["no-estimate"] * 3
     assert np.all(np.isnan(series.output[:3]))
-    assert np.all(series.status[3:] == "ok")
+    assert np.all(np.isin(series.status[3:], SOLVED))
     assert np.all(np.isfinite(series.output[3:]))
