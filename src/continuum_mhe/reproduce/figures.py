@@ -1,0 +1,226 @@
+"""Figures of the reproduction, rendered from the saved experiment data only.
+
+Nothing here runs an estimator: every function takes the loaded JSON
+(:func:`continuum_mhe.reproduce.pipeline.load_results`) and returns a figure.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from continuum_mhe import plotting
+from continuum_mhe.estimators.base import EstimateSeries
+
+plt = plotting.plt
+Figure = plotting.Figure
+FORMATS = ("png", "pdf")
+_COLORS = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
+
+
+def arr(x: Any) -> np.ndarray:
+    """JSON list (None for NaN) to a float array."""
+    return np.array(x, dtype=float)
+
+
+def series_of(trial_series: dict[str, Any], method: str) -> EstimateSeries:
+    """An :class:`EstimateSeries` view of a saved series (solve times not kept)."""
+    t = arr(trial_series["t"])
+    out = arr(trial_series[method])
+    status = trial_series.get(f"{method}_status")
+    if status is None:
+        status = np.where(np.all(np.isfinite(out), axis=1), "ok", "no-estimate")
+    return EstimateSeries(method, t, out, np.asarray(status, dtype=str), np.zeros(len(t)))
+
+
+def exp1_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    s = d["example"]["series"]
+    truth = arr(s["truth"])
+    mhe = series_of(s, "mhe")
+    return {
+        "exp1_synthetic3d_trajectory": plotting.trajectory_3d(
+            truth, [mhe], "Sec. 3.1 synthetic 3D: tip, truth vs MHE (N = 30)"
+        ),
+        "exp1_synthetic3d_states": plotting.states_vs_time(
+            arr(s["t"]), truth, [mhe], "Sec. 3.1 synthetic 3D: states, truth vs MHE"
+        ),
+    }
+
+
+def exp2_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    s = d["example"]["series"]
+    t, truth = arr(s["t"]), arr(s["truth"])
+    fig, axes = plt.subplots(3, 1, figsize=(7.5, 7.5), sharex=True)
+    panels = [(3, "theta (deg)", np.degrees), (1, "y (mm)", None), (2, "z (mm)", None)]
+    for ax, (k, label, conv) in zip(axes, panels):
+        f: Callable[[np.ndarray], np.ndarray] = conv if conv else (lambda v: v * 1e3)
+        ax.plot(t, f(truth[:, k]), "k-", lw=2, label="truth")
+        for m in ("mhe", "ekf"):
+            ax.plot(t, f(arr(s[m])[:, k]), color=_COLORS[m], lw=1.2, label=m.upper())
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].axhline(90.0, color="r", ls=":", label="bound pi/2")
+    over = truth[:, 3] > math.pi / 2
+    for ax in axes:
+        if over.any():
+            ax.axvspan(t[over][0], t[over][-1], color="r", alpha=0.07)
+    axes[0].legend(ncol=4, fontsize="small")
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle("Sec. 3.2 constraint handling: true theta leaves the workspace (shaded)")
+    fig.tight_layout()
+    return {"exp2_constraints": fig}
+
+
+def exp3_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    s = d["series"]
+    t, truth, fk = arr(s["t"]), arr(s["truth"]), arr(s["fk"])
+    mhe, ekf = arr(s["mhe"]), arr(s["ekf"])
+    fig, axes = plt.subplots(4, 1, figsize=(7.5, 9), sharex=True)
+    rows = [(1, "y (mm)", 1e3), (2, "z (mm)", 1e3), (3, "theta (deg)", 180 / math.pi)]
+    for ax, (k, label, sc) in zip(axes, rows):
+        ax.plot(t, fk[:, k] * sc, color="0.6", lw=1.0, label="FK of measurements")
+        ax.plot(t, truth[:, k] * sc, "k-", lw=1.6, label="rod truth (tip; CC fit theta)")
+        ax.plot(t, mhe[:, k] * sc, color=_COLORS["mhe"], lw=1.2, label="MHE")
+        ax.plot(t, ekf[:, k] * sc, color=_COLORS["ekf"], lw=1.0, ls="--", label="EKF")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    tip_true = truth[:, :3]
+    for name, v, style in (
+        ("MHE", mhe, dict(color=_COLORS["mhe"])),
+        ("EKF", ekf, dict(color=_COLORS["ekf"], ls="--")),
+        ("FK of meas.", fk, dict(color="0.6")),
+        ("best CC arc", arr(s["cc_fit_tip"]), dict(color="k", ls=":")),
+    ):
+        axes[3].plot(t, np.linalg.norm(v[:, :3] - tip_true, axis=1) * 1e3, lw=1.0, label=name,
+                     **style)  # type: ignore[arg-type]
+    axes[3].set_ylabel("tip error vs rod (mm)")
+    axes[3].grid(alpha=0.3)
+    axes[3].legend(ncol=4, fontsize="small")
+    axes[0].legend(ncol=2, fontsize="small")
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle("Sec. 3.3 rod recording (Cosserat rod + MPU9250-like IMU)")
+    fig.tight_layout()
+    return {"exp3_rod": fig}
+
+
+def _bars(ax: Any, labels: list[str], blocks: list[dict[str, Any]], methods: tuple[str, ...],
+          key: str) -> None:
+    x = np.arange(len(labels))
+    w = 0.8 / len(methods)
+    for j, m in enumerate(methods):
+        mean = np.array([b[m][key]["mean"] for b in blocks], dtype=float)
+        lo = np.array([b[m][key]["lo"] for b in blocks], dtype=float)
+        hi = np.array([b[m][key]["hi"] for b in blocks], dtype=float)
+        err = np.vstack([mean - lo, hi - mean])
+        ax.bar(x + (j - (len(methods) - 1) / 2) * w, mean, w, yerr=np.nan_to_num(err),
+               capsize=2, color=_COLORS[m], label=m.upper())
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels)
+    ax.grid(alpha=0.3, axis="y")
+
+
+def exp4_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    s = d["example"]["series"]
+    truth = arr(s["truth"])
+    traj = plotting.trajectory_3d(
+        truth, [series_of(s, "mhe"), series_of(s, "ekf")],
+        "Sec. 3.4: tip, truth vs MHE vs EKF (Table 1 scenario 10 noise)",
+    )
+    mc = d["monte_carlo"]
+    keys = sorted(mc, key=lambda g: int(g.split("-")[1]))
+    fig, ax = plt.subplots(figsize=(8.5, 4.2))
+    _bars(ax, [k.split("-")[1] for k in keys], [mc[k] for k in keys], ("mhe", "ekf", "ukf"),
+          "srmse")
+    n = mc[keys[0]]["n_trials"]
+    ax.set_xlabel("Table 1 scenario")
+    ax.set_ylabel("SRMSE (m + rad)")
+    ax.set_title(f"Monte Carlo, {n} seeds per scenario, mean and 95 % CI")
+    ax.legend()
+    fig.tight_layout()
+    cond = d["conditions"]
+    ck = list(cond)
+    fig2, axes = plt.subplots(1, 2, figsize=(10, 4))
+    _bars(axes[0], [k.removeprefix("condition-") for k in ck], [cond[k] for k in ck],
+          ("mhe", "ekf", "ukf"), "srmse")
+    axes[0].set_ylabel("SRMSE (m + rad)")
+    axes[0].set_title("whole run")
+    early = d["conditions_early"]
+    _bars(axes[1], [k.removeprefix("condition-") for k in ck], [early[k] for k in ck],
+          ("mhe", "ekf", "ukf"), "tip_mean_mm")
+    axes[1].set_ylabel("mean tip error (mm)")
+    axes[1].set_title("first N samples")
+    for a in axes:
+        a.tick_params(axis="x", labelrotation=20)
+        a.legend(fontsize="small")
+    fig2.suptitle("Conditions the comparison depends on (mean and 95 % CI)")
+    fig2.tight_layout()
+    return {"exp4_trajectory_3d": traj, "exp4_monte_carlo": fig, "exp4_conditions": fig2}
+
+
+def exp5_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    summ = d["summary"]
+    ns = np.array(sorted(int(k) for k in summ))
+    get = lambda key, f="mean": np.array(  # noqa: E731
+        [summ[str(n)][key][f] for n in ns], dtype=float
+    )
+    fig, axes = plt.subplots(3, 1, figsize=(6.5, 8), sharex=True)
+    axes[0].errorbar(ns, get("srmse"), yerr=np.nan_to_num(
+        [get("srmse") - get("srmse", "lo"), get("srmse", "hi") - get("srmse")]), marker="o")
+    axes[0].set_ylabel("SRMSE (m + rad)")
+    axes[1].plot(ns, get("solve_ms_mean"), marker="o")
+    axes[1].set_ylabel("mean time per estimate (ms)")
+    axes[2].plot(ns, get("solve_ms_total") / 1e3, marker="o", color="C3")
+    axes[2].set_ylabel("total time, M - N + 1 solves (s)")
+    axes[2].set_xlabel("horizon N")
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.suptitle("Sec. 3.5 horizon sweep (paper start: no estimate before N samples)")
+    fig.tight_layout()
+    return {"exp5_horizon": fig}
+
+
+def exp6_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    ex = d["examples"]
+    fig, ax = plt.subplots(figsize=(7.5, 4))
+    g = ex["growing"]["series"]
+    t, truth = arr(g["t"]), arr(g["truth"])
+    for label, out, style in (
+        ("MHE, growing window", arr(g["mhe"]), dict(color="C0")),
+        ("EKF", arr(g["ekf"]), dict(color="C1", ls="--")),
+        ("MHE, paper start", arr(ex["paper-start"]["series"]["mhe"]), dict(color="C3")),
+    ):
+        ax.plot(t, np.linalg.norm(out[:, :3] - truth[:, :3], axis=1) * 1e3, label=label,
+                **style)  # type: ignore[arg-type]
+    n = int(ex["growing"]["spec"]["horizon"])
+    ax.axvline(t[min(n - 1, len(t) - 1)], color="k", ls=":", lw=1, label=f"sample N = {n}")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("tip error (mm)")
+    ax.set_title("Growing window vs the paper's start (no estimate before N samples)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    return {"exp6_window": fig}
+
+
+RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
+    "exp1_synthetic3d": exp1_figures,
+    "exp2_constraints": exp2_figures,
+    "exp3_rod": exp3_figures,
+    "exp4_ekf_comparison": exp4_figures,
+    "exp5_horizon": exp5_figures,
+    "exp6_window": exp6_figures,
+}
+
+
+def render_all(results: dict[str, dict[str, Any]], folder: str | Path) -> list[Path]:
+    """Render the figures of every experiment present in ``results`` into ``folder``."""
+    out: list[Path] = []
+    for name, render in RENDERERS.items():
+        if name in results:
+            for fname, fig in render(results[name]).items():
+                out += plotting.save(fig, Path(folder) / fname, FORMATS)
+    return out

@@ -1,0 +1,236 @@
+"""Run every experiment, save one JSON file per experiment, then plot and report.
+
+Layout of a results folder::
+
+    manifest.json              config, versions, timing, command
+    exp1_synthetic3d.json ...  one data file per experiment (see EXPERIMENTS)
+    *.png, *.pdf               figures (re-rendered from the JSON by ``plot``)
+    report.md                  tables, settings of every run, paper vs. ours
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.reproduce.experiments import (
+    EXPERIMENTS,
+    TABLE1,
+    ReproduceConfig,
+    TrialSpec,
+    mean_ci,
+    plan_trials,
+    run_rod,
+    run_trial,
+    summarise_groups,
+    to_jsonable,
+)
+from continuum_mhe.reproduce.runner import run_parallel
+from continuum_mhe.settings import MHESettings, NoiseSettings
+
+
+@dataclass(frozen=True)
+class RodTask:
+    """The Sec. 3.3 run on a rod recording (``path``; None: the shipped example)."""
+
+    cfg: ReproduceConfig
+    path: str | None = None
+
+
+def run_task(task: TrialSpec | RodTask) -> dict[str, Any]:
+    """Run one task of either kind (the function the workers call)."""
+    if isinstance(task, RodTask):
+        from continuum_mhe.simulation.cosserat import default_data_path
+
+        path = Path(task.path) if task.path else default_data_path()
+        return run_rod(path, task.cfg)
+    return run_trial(task)
+
+
+def save_json(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as JSON (NaN as null), atomically."""
+    from continuum_mhe.io.csv_files import atomic_writer
+
+    with atomic_writer(path) as fh:
+        json.dump(to_jsonable(data), fh, allow_nan=False, separators=(",", ":"))
+
+
+def load_results(folder: str | Path) -> dict[str, dict[str, Any]]:
+    """Read every experiment's JSON in ``folder``; raises InputError if none is there."""
+    d = Path(folder)
+    if not d.is_dir():
+        raise InputError(f"{d}: no such results folder")
+    out: dict[str, dict[str, Any]] = {}
+    for name in EXPERIMENTS:
+        p = d / f"{name}.json"
+        if p.is_file():
+            try:
+                out[name] = json.loads(p.read_text(encoding="utf-8"))
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                raise InputError(f"{p}: not a results file ({exc})") from None
+    if not out:
+        raise InputError(
+            f"{d}: no experiment data (expected {EXPERIMENTS[0]}.json ...); "
+            "run 'continuum-mhe reproduce --out DIR' first"
+        )
+    manifest = d / "manifest.json"
+    if manifest.is_file():
+        out["manifest"] = json.loads(manifest.read_text(encoding="utf-8"))
+    return out
+
+
+def _strip_series(trial: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in trial.items() if k != "series"}
+
+
+def assemble(
+    cfg: ReproduceConfig, trials: Sequence[dict[str, Any]], rod: dict[str, Any]
+) -> dict[str, dict[str, Any]]:
+    """Group trial results into the per-experiment data files."""
+    by: dict[str, list[dict[str, Any]]] = {}
+    for tr in trials:
+        by.setdefault(tr["spec"]["experiment"], []).append(tr)
+    common = {"config": asdict(cfg)}
+
+    def example(name: str) -> dict[str, Any]:
+        return next(tr for tr in by[name] if tr["spec"]["group"] == "example")
+
+    exp4 = by["exp4_ekf_comparison"]
+    mc = [_strip_series(tr) for tr in exp4 if tr["spec"]["group"].startswith("table1-")]
+    cond = [_strip_series(tr) for tr in exp4 if tr["spec"]["group"].startswith("condition-")]
+    sweep = by["exp5_horizon"]
+    horizons: dict[int, list[dict[str, Any]]] = {}
+    for tr in sweep:
+        horizons.setdefault(int(tr["spec"]["horizon"]), []).append(tr)
+    sweep_summary = {
+        str(n): {
+            "srmse": mean_ci([tr["methods"]["mhe"]["all"]["srmse"] for tr in trs]),
+            "solve_ms_mean": mean_ci([tr["methods"]["mhe"]["solve_ms_mean"] for tr in trs]),
+            "solve_ms_total": mean_ci([tr["methods"]["mhe"]["solve_ms_total"] for tr in trs]),
+            "n_estimates": trs[0]["methods"]["mhe"]["all"]["n"],
+            "n_samples": trs[0]["methods"]["mhe"]["all"]["n"]
+            + trs[0]["methods"]["mhe"]["all"]["n_without_estimate"],
+        }
+        for n, trs in sorted(horizons.items())
+    }
+    win = by["exp6_window"]
+    win_summary: dict[str, Any] = {}
+    for g in ("growing", "paper-start"):
+        trs = [tr for tr in win if tr["spec"]["group"] == g]
+        m = [tr["methods"]["mhe"] for tr in trs]
+        dt = trs[0]["spec"]["dt"]
+        win_summary[g] = {
+            "first_estimate_s": mean_ci([x["first_estimate_index"] * dt for x in m]),
+            "early_srmse": mean_ci([x["early"]["srmse"] if x["early"] else math.nan for x in m]),
+            "early_tip_mm": mean_ci(
+                [x["early"]["tip_mean_mm"] if x["early"] else math.nan for x in m]
+            ),
+            "late_srmse": mean_ci([x["late"]["srmse"] for x in m]),
+            "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in m]),
+            "solve_ms_mean": mean_ci([x["solve_ms_mean"] for x in m]),
+        }
+        if g == "growing":
+            e = [tr["methods"]["ekf"] for tr in trs]
+            win_summary["ekf"] = {
+                "first_estimate_s": mean_ci([x["first_estimate_index"] * dt for x in e]),
+                "early_srmse": mean_ci([x["early"]["srmse"] for x in e]),
+                "early_tip_mm": mean_ci([x["early"]["tip_mean_mm"] for x in e]),
+                "late_srmse": mean_ci([x["late"]["srmse"] for x in e]),
+                "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in e]),
+            }
+    return {
+        "exp1_synthetic3d": {**common, "example": example("exp1_synthetic3d")},
+        "exp2_constraints": {**common, "example": example("exp2_constraints")},
+        "exp3_rod": {**common, **rod},
+        "exp4_ekf_comparison": {
+            **common,
+            "table1": [list(r) for r in TABLE1],
+            "example": example("exp4_ekf_comparison"),
+            "monte_carlo": summarise_groups(mc, ("mhe", "ekf", "ukf")),
+            "conditions": summarise_groups(cond, ("mhe", "ekf", "ukf")),
+            "conditions_early": summarise_groups(cond, ("mhe", "ekf", "ukf"), part="early"),
+            "trials": mc + cond,
+        },
+        "exp5_horizon": {
+            **common,
+            "summary": sweep_summary,
+            "trials": [_strip_series(tr) for tr in sweep],
+        },
+        "exp6_window": {
+            **common,
+            "summary": win_summary,
+            "examples": {
+                tr["spec"]["group"]: tr for tr in win if "series" in tr
+            },
+            "trials": [_strip_series(tr) for tr in win],
+        },
+    }
+
+
+def reproduce(
+    out: str | Path,
+    cfg: ReproduceConfig,
+    *,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    rod_path: str | None = None,
+    progress: bool | None = None,
+    command: str = "",
+) -> list[Path]:
+    """Run every experiment into ``out`` and write data, figures and ``report.md``.
+
+    Returns the files written.
+    """
+    from continuum_mhe import __version__
+    from continuum_mhe.reproduce.figures import render_all
+    from continuum_mhe.reproduce.report import write_report
+
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    specs = plan_trials(cfg)
+    tasks: list[TrialSpec | RodTask] = [RodTask(cfg, rod_path), *specs]
+    start = time.perf_counter()
+    results = run_parallel(
+        run_task, tasks, jobs=jobs, scheduler=scheduler, description="reproduce",
+        progress=progress,
+    )
+    wall = time.perf_counter() - start
+    data = assemble(cfg, results[1:], results[0])
+    written: list[Path] = []
+    for name, d in data.items():
+        p = folder / f"{name}.json"
+        save_json(p, d)
+        written.append(p)
+    import casadi
+    import numpy
+
+    manifest = {
+        "command": command,
+        "config": asdict(cfg),
+        "n_trials": len(specs),
+        "wall_s_trials": wall,
+        "jobs": jobs,
+        "scheduler": scheduler,
+        "mhe_settings_default": repr(MHESettings()),
+        "noise_settings_default": repr(NoiseSettings()),
+        "versions": {
+            "continuum_mhe": __version__,
+            "python": platform.python_version(),
+            "numpy": numpy.__version__,
+            "casadi": casadi.__version__,
+        },
+        "machine": platform.platform(),
+    }
+    save_json(folder / "manifest.json", manifest)
+    written.append(folder / "manifest.json")
+    loaded = load_results(folder)
+    written += render_all(loaded, folder)
+    written.append(write_report(loaded, folder))
+    return written
