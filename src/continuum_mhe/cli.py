@@ -33,7 +33,7 @@ from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
 PROG = "continuum-mhe"
 
 #: Modules that add subcommands through ``register(subparsers)``.
-COMMAND_MODULES: tuple[str, ...] = ("continuum_mhe.live",)
+COMMAND_MODULES: tuple[str, ...] = ("continuum_mhe.live", "continuum_mhe.reproduce.cli")
 
 
 # --- shared options ---------------------------------------------------------------
