@@ -437,9 +437,11 @@ def test_tip_position_equals_bend_vector_form(theta: float, phi: float) -> None:
 @example(theta=0.0, phi=0.0)
 @example(theta=1e-8, phi=0.5)
 @example(theta=HALF_PI, phi=-2.0)
+@example(theta=5e-324, phi=0.0)
 def test_tip_distance_from_base_is_the_chord(theta: float, phi: float) -> None:
     # chord of an arc of length L and angle theta: 2 L sin(theta/2)/theta
-    chord = LENGTH if theta == 0.0 else 2 * LENGTH * math.sin(theta / 2) / theta
+    h = theta / 2
+    chord = LENGTH * (math.sin(h) / h if h > 1e-6 else 1 - h * h / 6)  # L sinc(theta/2)
     assert_allclose(np.linalg.norm(tip_position(theta, phi, LENGTH)), chord, rtol=1e-14, atol=0)
 
 
