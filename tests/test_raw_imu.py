@@ -237,3 +237,16 @@ def test_direct_on_tilt_csv_is_one_line_error(
     assert main(["estimate", str(raw), "-o", str(tmp_path / "e.csv"), "--mount-rpy", "1,2"]) == 2
     assert "--mount-rpy" in capsys.readouterr().err
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_mount_calibration_recipe_of_the_docs() -> None:
+    """docs/hardware.md: a still, straight robot reading m needs --mount-rpy roll,pitch,0."""
+    m = np.array([1.5, -2.0, 9.5])
+    roll, pitch = np.degrees(tilt_from_accelerometer(m))
+    z = raw_to_measurements(
+        np.array([0.0]),
+        m[None],
+        np.zeros((1, 3)),
+        RawImuSettings(imu_model="direct", mount_rpy=(roll, pitch, 0.0)),
+    )
+    np.testing.assert_allclose(z[0, :3], [0.0, 0.0, 1.0], atol=1e-12)
