@@ -55,7 +55,9 @@ class _KalmanBase(Estimator):
         if self._x is None or self._P is None:
             if not m.valid:  # nothing to start from yet
                 return None, None, "no-estimate"
-            self._x, self._P = f.initial_state(m.z), f.initial_cov()
+            # prior from the first reading's inverse, then updated with that reading:
+            # the same convention as the MHE (arrival prior plus the first measurement)
+            self._x, self._P = self._update(f.initial_state(m.z), f.initial_cov(), m.z)
             self._t_prev, self._z_prev = m.t, m.z
             return self._x.copy(), self._P.copy(), "ok"
         dt = m.t - self._t_prev

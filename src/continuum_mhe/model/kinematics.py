@@ -53,7 +53,8 @@ def sinc_q(q: Sym) -> Sym:
 def cosc_q(q: Sym) -> Sym:
     """``(cos(theta) - 1)/theta**2`` as an analytic function of ``q = theta**2``."""
     series = -0.5 + q / 24 - q**2 / 720 + q**3 / 40320 - q**4 / 3628800
-    return _series_or_closed(q, series, lambda t: (ca.cos(t) - 1) / t**2)
+    # -2 sin^2(t/2)/t^2: no cancellation near the switch, unlike (cos t - 1)/t^2
+    return _series_or_closed(q, series, lambda t: -0.5 * (ca.sin(t / 2) / (t / 2)) ** 2)
 
 
 def rotation_bend_sym(a: Sym, b: Sym) -> Sym:
