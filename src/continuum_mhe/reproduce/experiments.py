@@ -78,7 +78,7 @@ class ReproduceConfig:
     duration: float = 20.0
     mc_seeds: int = 50
     mc_duration: float = 10.0
-    condition_seeds: int = 50
+    condition_seeds: int = 30
     sweep_horizons: tuple[int, ...] = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100)
     sweep_seeds: int = 3
     sweep_duration: float = 20.0
@@ -105,11 +105,11 @@ FULL = ReproduceConfig()
 QUICK = ReproduceConfig(
     duration=8.0,
     mc_seeds=5,
-    mc_duration=4.0,
-    condition_seeds=3,
-    sweep_horizons=(5, 15, 30, 60, 100),
+    mc_duration=3.0,
+    condition_seeds=2,
+    sweep_horizons=(5, 20, 50, 100),
     sweep_seeds=2,
-    sweep_duration=6.0,
+    sweep_duration=5.5,
     window_seeds=2,
     window_duration=3.0,
 )
@@ -227,9 +227,7 @@ def score_series(
 
 
 def _formulation(name: FormulationName, length: float, std: float) -> Any:
-    return make_formulation(
-        name, RobotSettings(length=length), NoiseSettings(measurement_std=std)
-    )
+    return make_formulation(name, RobotSettings(length=length), NoiseSettings(measurement_std=std))
 
 
 def estimate_all(
@@ -419,16 +417,26 @@ def plan_trials(cfg: ReproduceConfig) -> list[TrialSpec]:
     for name, kw in conditions:
         specs += [
             _trial(
-                cfg, "exp4_ekf_comparison", f"condition-{name}", 50_000 + seed,
-                cfg.mc_duration, **kw,
+                cfg,
+                "exp4_ekf_comparison",
+                f"condition-{name}",
+                50_000 + seed,
+                cfg.mc_duration,
+                **kw,
             )
             for seed in range(cfg.condition_seeds)
         ]
     for n in cfg.sweep_horizons:
         specs += [
             _trial(
-                cfg, "exp5_horizon", f"N={n}", 70_000 + seed, cfg.sweep_duration,
-                horizon=n, paper_start=True, methods=("mhe",),
+                cfg,
+                "exp5_horizon",
+                f"N={n}",
+                70_000 + seed,
+                cfg.sweep_duration,
+                horizon=n,
+                paper_start=True,
+                methods=("mhe",),
             )
             for seed in range(cfg.sweep_seeds)
         ]

@@ -89,14 +89,14 @@ def exp3_figures(d: dict[str, Any]) -> dict[str, Figure]:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     tip_true = truth[:, :3]
-    for name, v, style in (
-        ("MHE", mhe, dict(color=_COLORS["mhe"])),
-        ("EKF", ekf, dict(color=_COLORS["ekf"], ls="--")),
-        ("FK of meas.", fk, dict(color="0.6")),
-        ("best CC arc", arr(s["cc_fit_tip"]), dict(color="k", ls=":")),
+    for name, v, color, ls in (
+        ("MHE", mhe, _COLORS["mhe"], "-"),
+        ("EKF", ekf, _COLORS["ekf"], "--"),
+        ("FK of meas.", fk, "0.6", "-"),
+        ("best CC arc", arr(s["cc_fit_tip"]), "k", ":"),
     ):
-        axes[3].plot(t, np.linalg.norm(v[:, :3] - tip_true, axis=1) * 1e3, lw=1.0, label=name,
-                     **style)  # type: ignore[arg-type]
+        err = np.linalg.norm(v[:, :3] - tip_true, axis=1) * 1e3
+        axes[3].plot(t, err, color=color, ls=ls, lw=1.0, label=name)
     axes[3].set_ylabel("tip error vs rod (mm)")
     axes[3].grid(alpha=0.3)
     axes[3].legend(ncol=4, fontsize="small")
@@ -107,8 +107,9 @@ def exp3_figures(d: dict[str, Any]) -> dict[str, Figure]:
     return {"exp3_rod": fig}
 
 
-def _bars(ax: Any, labels: list[str], blocks: list[dict[str, Any]], methods: tuple[str, ...],
-          key: str) -> None:
+def _bars(
+    ax: Any, labels: list[str], blocks: list[dict[str, Any]], methods: tuple[str, ...], key: str
+) -> None:
     x = np.arange(len(labels))
     w = 0.8 / len(methods)
     for j, m in enumerate(methods):
@@ -116,8 +117,15 @@ def _bars(ax: Any, labels: list[str], blocks: list[dict[str, Any]], methods: tup
         lo = np.array([b[m][key]["lo"] for b in blocks], dtype=float)
         hi = np.array([b[m][key]["hi"] for b in blocks], dtype=float)
         err = np.vstack([mean - lo, hi - mean])
-        ax.bar(x + (j - (len(methods) - 1) / 2) * w, mean, w, yerr=np.nan_to_num(err),
-               capsize=2, color=_COLORS[m], label=m.upper())
+        ax.bar(
+            x + (j - (len(methods) - 1) / 2) * w,
+            mean,
+            w,
+            yerr=np.nan_to_num(err),
+            capsize=2,
+            color=_COLORS[m],
+            label=m.upper(),
+        )
     ax.set_xticks(x)
     ax.set_xticklabels(labels)
     ax.grid(alpha=0.3, axis="y")
@@ -127,14 +135,16 @@ def exp4_figures(d: dict[str, Any]) -> dict[str, Figure]:
     s = d["example"]["series"]
     truth = arr(s["truth"])
     traj = plotting.trajectory_3d(
-        truth, [series_of(s, "mhe"), series_of(s, "ekf")],
+        truth,
+        [series_of(s, "mhe"), series_of(s, "ekf")],
         "Sec. 3.4: tip, truth vs MHE vs EKF (Table 1 scenario 10 noise)",
     )
     mc = d["monte_carlo"]
     keys = sorted(mc, key=lambda g: int(g.split("-")[1]))
     fig, ax = plt.subplots(figsize=(8.5, 4.2))
-    _bars(ax, [k.split("-")[1] for k in keys], [mc[k] for k in keys], ("mhe", "ekf", "ukf"),
-          "srmse")
+    _bars(
+        ax, [k.split("-")[1] for k in keys], [mc[k] for k in keys], ("mhe", "ekf", "ukf"), "srmse"
+    )
     n = mc[keys[0]]["n_trials"]
     ax.set_xlabel("Table 1 scenario")
     ax.set_ylabel("SRMSE (m + rad)")
@@ -144,13 +154,23 @@ def exp4_figures(d: dict[str, Any]) -> dict[str, Figure]:
     cond = d["conditions"]
     ck = list(cond)
     fig2, axes = plt.subplots(1, 2, figsize=(10, 4))
-    _bars(axes[0], [k.removeprefix("condition-") for k in ck], [cond[k] for k in ck],
-          ("mhe", "ekf", "ukf"), "srmse")
+    _bars(
+        axes[0],
+        [k.removeprefix("condition-") for k in ck],
+        [cond[k] for k in ck],
+        ("mhe", "ekf", "ukf"),
+        "srmse",
+    )
     axes[0].set_ylabel("SRMSE (m + rad)")
     axes[0].set_title("whole run")
     early = d["conditions_early"]
-    _bars(axes[1], [k.removeprefix("condition-") for k in ck], [early[k] for k in ck],
-          ("mhe", "ekf", "ukf"), "tip_mean_mm")
+    _bars(
+        axes[1],
+        [k.removeprefix("condition-") for k in ck],
+        [early[k] for k in ck],
+        ("mhe", "ekf", "ukf"),
+        "tip_mean_mm",
+    )
     axes[1].set_ylabel("mean tip error (mm)")
     axes[1].set_title("first N samples")
     for a in axes:
@@ -168,8 +188,12 @@ def exp5_figures(d: dict[str, Any]) -> dict[str, Figure]:
         [summ[str(n)][key][f] for n in ns], dtype=float
     )
     fig, axes = plt.subplots(3, 1, figsize=(6.5, 8), sharex=True)
-    axes[0].errorbar(ns, get("srmse"), yerr=np.nan_to_num(
-        [get("srmse") - get("srmse", "lo"), get("srmse", "hi") - get("srmse")]), marker="o")
+    axes[0].errorbar(
+        ns,
+        get("srmse"),
+        yerr=np.nan_to_num([get("srmse") - get("srmse", "lo"), get("srmse", "hi") - get("srmse")]),
+        marker="o",
+    )
     axes[0].set_ylabel("SRMSE (m + rad)")
     axes[1].plot(ns, get("solve_ms_mean"), marker="o")
     axes[1].set_ylabel("mean time per estimate (ms)")
@@ -188,13 +212,13 @@ def exp6_figures(d: dict[str, Any]) -> dict[str, Figure]:
     fig, ax = plt.subplots(figsize=(7.5, 4))
     g = ex["growing"]["series"]
     t, truth = arr(g["t"]), arr(g["truth"])
-    for label, out, style in (
-        ("MHE, growing window", arr(g["mhe"]), dict(color="C0")),
-        ("EKF", arr(g["ekf"]), dict(color="C1", ls="--")),
-        ("MHE, paper start", arr(ex["paper-start"]["series"]["mhe"]), dict(color="C3")),
+    for label, out, color, ls in (
+        ("MHE, growing window", arr(g["mhe"]), "C0", "-"),
+        ("EKF", arr(g["ekf"]), "C1", "--"),
+        ("MHE, paper start", arr(ex["paper-start"]["series"]["mhe"]), "C3", "-"),
     ):
-        ax.plot(t, np.linalg.norm(out[:, :3] - truth[:, :3], axis=1) * 1e3, label=label,
-                **style)  # type: ignore[arg-type]
+        err = np.linalg.norm(out[:, :3] - truth[:, :3], axis=1) * 1e3
+        ax.plot(t, err, color=color, ls=ls, label=label)
     n = int(ex["growing"]["spec"]["horizon"])
     ax.axvline(t[min(n - 1, len(t) - 1)], color="k", ls=":", lw=1, label=f"sample N = {n}")
     ax.set_xlabel("t (s)")

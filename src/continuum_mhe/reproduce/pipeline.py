@@ -166,9 +166,7 @@ def assemble(
         "exp6_window": {
             **common,
             "summary": win_summary,
-            "examples": {
-                tr["spec"]["group"]: tr for tr in win if "series" in tr
-            },
+            "examples": {tr["spec"]["group"]: tr for tr in win if "series" in tr},
             "trials": [_strip_series(tr) for tr in win],
         },
     }
@@ -198,7 +196,11 @@ def reproduce(
     tasks: list[TrialSpec | RodTask] = [RodTask(cfg, rod_path), *specs]
     start = time.perf_counter()
     results = run_parallel(
-        run_task, tasks, jobs=jobs, scheduler=scheduler, description="reproduce",
+        run_task,
+        tasks,
+        jobs=jobs,
+        scheduler=scheduler,
+        description="reproduce",
         progress=progress,
     )
     wall = time.perf_counter() - start
@@ -208,7 +210,8 @@ def reproduce(
         p = folder / f"{name}.json"
         save_json(p, d)
         written.append(p)
-    import casadi
+    from importlib import metadata
+
     import numpy
 
     manifest = {
@@ -224,7 +227,7 @@ def reproduce(
             "continuum_mhe": __version__,
             "python": platform.python_version(),
             "numpy": numpy.__version__,
-            "casadi": casadi.__version__,
+            "casadi": metadata.version("casadi"),
         },
         "machine": platform.platform(),
     }

@@ -193,10 +193,10 @@ def simulate_rod(settings: RodSettings, duration: float, record_dt: float = 1e-3
 
     s = settings
 
-    class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):  # type: ignore[misc]
+    class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
         pass
 
-    class _CableMoment(ea.NoForces):  # type: ignore[misc]
+    class _CableMoment(ea.NoForces):
         """Tip moment about base +x (bends towards -y, ``phi = pi/2``), servo profile."""
 
         def __init__(self, max_moment: float, period: float) -> None:
@@ -227,9 +227,7 @@ def simulate_rod(settings: RodSettings, duration: float, record_dt: float = 1e-3
     sim.constrain(rod).using(
         ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
-    sim.add_forcing_to(rod).using(
-        ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY])
-    )
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
     sim.add_forcing_to(rod).using(_CableMoment, max_moment=s.max_moment, period=s.period)
     sim.dampen(rod).using(
         ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
@@ -276,7 +274,7 @@ def _quantise(v: FloatArray, full_scale: float, bits: int) -> FloatArray:
 
 def imu_readings(
     traj: RodTrajectory, imu: ImuSettings, seed: int = 0
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
     """Sample the IMU every ``imu.sample_dt`` s.
 
     Returns ``(t, tilt, gyro, idx)``: times (n,), ``[roll, pitch]`` (n, 2) rad from the
@@ -295,8 +293,10 @@ def imu_readings(
     spec_base = acc - g
     mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3))
     spec_tip = np.einsum("nij,nj->ni", traj.tip_director[idx], spec_base) @ mis
-    f = spec_tip + imu.accel_bias * rng.normal(size=3) + imu.accel_noise * rng.normal(
-        size=spec_tip.shape
+    f = (
+        spec_tip
+        + imu.accel_bias * rng.normal(size=3)
+        + imu.accel_noise * rng.normal(size=spec_tip.shape)
     )
     f = _quantise(f, imu.accel_range, imu.bits)
     w = traj.tip_omega[idx] @ mis
