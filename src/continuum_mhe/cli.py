@@ -258,7 +258,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("estimate", help="estimate shape and tip from a measurement CSV")
-    p.add_argument("measurements", help="CSV with t,roll,pitch (s, rad)")
+    p.add_argument(
+        "measurements",
+        help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap",
+    )
     p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
     p.add_argument("--method", choices=METHODS, default="mhe")
     p.add_argument("--degrees", action="store_true", help="roll and pitch are in degrees")
