@@ -10,6 +10,8 @@ from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 FormulationName = Literal["bend", "paper", "direct"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
+MHESolver = Literal["fast", "ipopt"]
+MHE_SOLVERS: tuple[MHESolver, ...] = ("fast", "ipopt")
 
 
 def _positive(name: str, value: float) -> None:
@@ -84,14 +86,20 @@ class MHESettings:
             otherwise the window grows from the first sample.
         max_iter: IPOPT iteration limit per sample.
         tol: IPOPT convergence tolerance.
+        solver: ``"fast"`` (default), the structure-exploiting Gauss-Newton SQP that
+            falls back to IPOPT when it cannot certify convergence; ``"ipopt"``, the
+            reference.
     """
 
     horizon: int = 30
     paper_start: bool = False
     max_iter: int = 100
     tol: float = 1e-8
+    solver: MHESolver = "fast"
 
     def __post_init__(self) -> None:
+        if self.solver not in MHE_SOLVERS:
+            raise ValueError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
             raise ValueError(f"horizon must be an integer >= 2, got {self.horizon!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):

@@ -1,4 +1,4 @@
-"""Moving horizon estimation, solved with IPOPT through CasADi.
+"""Moving horizon estimation: a fast structure-exploiting backend, and IPOPT.
 
 The window holds the last ``N`` samples; node ``i`` of the decision variables is the
 state at window sample ``i`` (the last node is the estimate). The cost is::
@@ -19,18 +19,30 @@ Growing window: before ``N`` samples exist, the active nodes are the last ``n`` 
 the inactive leading nodes are pinned to the prior and carry no other cost, so they
 are decoupled and do not change the answer. With ``paper_start`` no estimate is made
 before ``N`` samples (Algorithm 1).
+
+Backends (``MHESettings.solver``): ``"fast"`` solves the same window problem with
+the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast_mhe` and hands the window
+to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
+``"ipopt"`` is the reference.
 """
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.fast_mhe import (
+    FastOptions,
+    WindowModel,
+    arrival_covariance,
+    build_window_model,
+    solve_window,
+)
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
@@ -85,8 +97,8 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
         g.append(gi)
     params = ca.vertcat(ca.vec(Z), zmask, DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
     w = ca.vec(X)
-    nlp = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
-    opts = {
+    nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
+    opts: dict[str, Any] = {
         "print_time": False,
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",
@@ -124,93 +136,141 @@ def pack_parameters(problem: WindowProblem) -> FloatArray:
 
 
 class MovingHorizonEstimator(Estimator):
-    """MHE over the last ``N`` samples; IPOPT backend (the paper's solver)."""
+    """MHE over the last ``N`` samples.
+
+    Backends (``settings.solver``): ``"fast"`` (default), the structure-exploiting
+    Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast_mhe`, which falls back to
+    IPOPT on the same window (status ``"fallback-ipopt"``) when it cannot certify
+    convergence; ``"ipopt"``, the paper's solver and the reference.
+
+    Args:
+        formulation: the model.
+        settings: horizon, solver and IPOPT options.
+        fast_options: options of the fast backend (iterations, tolerance).
+    """
 
     name = "mhe"
 
-    def __init__(self, formulation: Formulation, settings: MHESettings | None = None) -> None:
+    def __init__(
+        self,
+        formulation: Formulation,
+        settings: MHESettings | None = None,
+        fast_options: FastOptions | None = None,
+    ) -> None:
         super().__init__(formulation)
         self.settings = settings or MHESettings()
+        self.fast_options = fast_options or FastOptions()
         s = self.settings
-        self._nlp = _build_nlp(formulation, s.horizon, s.max_iter, s.tol)
-        self._qinv_cache: dict[float, FloatArray] = {}
+        self._fast: WindowModel | None = None
+        if s.solver == "fast":
+            try:
+                self._fast = build_window_model(formulation, s.horizon, self.fast_options.compile)
+            except NotImplementedError:  # feasible set the fast backend cannot handle
+                self._fast = None
+        self._nlp_built: _Nlp | None = None
+        if self._fast is None:
+            self._nlp_built = self._nlp
+        self._weight_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
         self.reset()
 
+    @property
+    def _nlp(self) -> _Nlp:
+        """The IPOPT NLP, built on first use (the fast backend needs it only to fall back)."""
+        if self._nlp_built is None:
+            s = self.settings
+            self._nlp_built = _build_nlp(self.formulation, s.horizon, s.max_iter, s.tol)
+        return self._nlp_built
+
+    @_nlp.setter
+    def _nlp(self, nlp: _Nlp) -> None:
+        self._nlp_built = nlp
+
     def reset(self) -> None:
-        n = self.settings.horizon
-        self._t: deque[float] = deque(maxlen=n)
-        self._z: deque[FloatArray] = deque(maxlen=n)
-        self._u: deque[FloatArray] = deque(maxlen=n)  # input into each sample
+        f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
+        # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
+        self._k = 0  # samples in the window
+        self._tw = np.zeros(n)
+        self._zw = np.zeros((n, f.nz))  # 0 where masked
+        self._zmask = np.zeros(n)
+        self._dt = np.ones(n - 1)  # 1 s on inactive stages
+        self._uw = np.zeros((n - 1, f.nu))
+        self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
+        self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
         self._z_prev_valid: FloatArray | None = None
         self._xbar: FloatArray | None = None
         self._P: FloatArray | None = None
         self._X: FloatArray | None = None  # (N, nx) previous solution
+        self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
 
     # --- window bookkeeping -------------------------------------------------
     def _push(self, m: Measurement) -> None:
         f = self.formulation
         n = self.settings.horizon
-        if len(self._t) == n:
+        if self._k == n:
             self._slide_arrival()
         u = np.zeros(f.nu)
-        if self._t:
-            u = f.inputs(self._z_prev_valid, m.z, m.t - self._t[-1])
-        self._t.append(m.t)
-        self._z.append(m.z)
-        self._u.append(u)
+        if self._k:
+            u = f.inputs(self._z_prev_valid, m.z, m.t - self._tw[-1])
+        for buf in (self._tw, self._zw, self._zmask, self._dt, self._uw, self._qw, self._qinvw):
+            buf[:-1] = buf[1:]
+        self._tw[-1] = m.t
+        self._zmask[-1] = 1.0 if m.valid else 0.0
+        self._zw[-1] = m.z if m.valid else 0.0
+        if self._k:
+            dt = m.t - self._tw[-2]
+            self._dt[-1] = dt
+            self._uw[-1] = u
+            self._qw[-1], self._qinvw[-1] = self._process_weight(dt)
+        else:
+            self._dt[-1], self._uw[-1], self._qw[-1], self._qinvw[-1] = 1.0, 0.0, 0.0, 0.0
+        self._k = min(self._k + 1, n)
         if m.valid:
             self._z_prev_valid = m.z
 
     def _slide_arrival(self) -> None:
         """Move the arrival prior from window sample 0 to window sample 1."""
         assert self._X is not None and self._P is not None
-        fns, x0 = self.formulation.functions, self._X[0]
-        P = self._P
-        z0 = self._z[0]
-        if np.all(np.isfinite(z0)):
-            _, P = ekf_update(self.formulation, x0, P, z0, self.formulation.meas_cov())
-        _, P = ekf_predict(fns, x0, P, self._u[1], self._t[1] - self._t[0])
-        self._P = 0.5 * (P + P.T)
+        f, x0, P = self.formulation, self._X[0], self._P
+        if self._fast is not None:  # same EKF step, Jacobians from the compiled model
+            _, F, H = self._fast.evaluate_node(x0, self._uw[0], float(self._dt[0]))
+            valid = bool(self._zmask[0])
+            self._P = arrival_covariance(P, H, f.meas_cov(), F, self._qw[0], valid)
+        else:
+            if self._zmask[0]:
+                _, P = ekf_update(f, x0, P, self._zw[0], f.meas_cov())
+            _, P = ekf_predict(f.functions, x0, P, self._uw[0], float(self._dt[0]))
+            self._P = 0.5 * (P + P.T)
         self._xbar = self._X[1].copy()
 
     def window_problem(self) -> WindowProblem:
         """The NLP data for the current window (for tests and other backends)."""
-        f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
-        k = len(self._t)
-        off = n - k  # leading inactive nodes
-        z = np.zeros((n, f.nz))
-        zmask = np.zeros(n)
-        dt = np.full(n - 1, 1.0)
-        u = np.zeros((n - 1, f.nu))
-        qinv = np.zeros((n - 1, nx, nx))
-        arrival = np.zeros((n, nx, nx))
-        pin = np.eye(nx)
-        for i in range(off):
-            arrival[i] = pin
+        n, nx = self.settings.horizon, self.formulation.nx
+        off = n - self._k  # leading inactive nodes
         assert self._P is not None and self._xbar is not None
+        arrival = np.zeros((n, nx, nx))
+        arrival[:off] = np.eye(nx)
         arrival[off] = np.linalg.inv(self._P)
-        for j in range(k):
-            i = off + j
-            zj = self._z[j]
-            if np.all(np.isfinite(zj)):
-                z[i] = zj
-                zmask[i] = 1.0
-            if j > 0:
-                dt[i - 1] = self._t[j] - self._t[j - 1]
-                u[i - 1] = self._u[j]
-                qinv[i - 1] = self._process_weight(dt[i - 1])
-        return WindowProblem(z, zmask, dt, u, qinv, self._xbar, arrival)
+        return WindowProblem(
+            z=self._zw.copy(),
+            zmask=self._zmask.copy(),
+            dt=self._dt.copy(),
+            u=self._uw.copy(),
+            qinv=self._qinvw.copy(),
+            xbar=self._xbar.copy(),
+            arrival=arrival,
+        )
 
-    def _process_weight(self, dt: float) -> FloatArray:
-        """``Q(dt)^-1``; Q depends on the time step only, so it is cached per dt."""
+    def _process_weight(self, dt: float) -> tuple[FloatArray, FloatArray]:
+        """``(Q(dt), Q(dt)^-1)``; Q depends on the time step only, so it is cached."""
         key = round(dt, 9)
-        w = self._qinv_cache.get(key)
+        w = self._weight_cache.get(key)
         if w is None:
             f, nx = self.formulation, self.formulation.nx
             Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            w = np.linalg.inv(Q.reshape(nx, nx))
-            if len(self._qinv_cache) < 4096:
-                self._qinv_cache[key] = w
+            Q = Q.reshape(nx, nx)
+            w = (Q, np.linalg.inv(Q))
+            if len(self._weight_cache) < 4096:
+                self._weight_cache[key] = w
         return w
 
     def _initial_guess(self) -> FloatArray:
@@ -219,9 +279,12 @@ class MovingHorizonEstimator(Estimator):
         if self._X is None:
             return np.tile(self._xbar, (n, 1))
         X = np.roll(self._X, -1, axis=0)
-        k = len(self._t)
-        dt = self._t[-1] - self._t[-2] if k > 1 else 0.0
-        xn = np.asarray(f.functions.transition(self._X[-1], self._u[-1], dt), float).ravel()
+        dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
+        u = self._uw[-1]
+        if self._fast is not None:
+            xn = self._fast.evaluate_node(self._X[-1], u, dt)[0]
+        else:
+            xn = np.asarray(f.functions.transition(self._X[-1], u, dt), float).ravel()
         X[-1] = f.project(xn)
         return X
 
@@ -235,7 +298,7 @@ class MovingHorizonEstimator(Estimator):
             self._P = f.initial_cov()
         self._push(m)
         X0 = self._initial_guess()
-        if self.settings.paper_start and len(self._t) < self.settings.horizon:
+        if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
             return None, None, "no-estimate"
         X, status = self._solve(self.window_problem(), X0)
@@ -245,6 +308,21 @@ class MovingHorizonEstimator(Estimator):
         return X[-1].copy(), None, status
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
+        if self._fast is None:
+            return self._solve_ipopt(problem, X0)
+        lam0 = None
+        if self._lam is not None:
+            lam0 = np.roll(self._lam, -1)
+            lam0[-1] = 0.0
+        res = solve_window(self._fast, problem, X0, self.fast_options, lam0)
+        if res.converged:
+            self._lam = res.lam
+            return res.X, "ok"
+        self._lam = None
+        X, status = self._solve_ipopt(problem, X0)
+        return X, "fallback-ipopt" if status == "ok" else status
+
+    def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         nlp, n, nx = self._nlp, self.settings.horizon, self.formulation.nx
         try:
             sol = nlp.solver(
