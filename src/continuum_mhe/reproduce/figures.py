@@ -193,11 +193,25 @@ def exp5_figures(d: dict[str, Any]) -> dict[str, Figure]:
         get("srmse"),
         yerr=np.nan_to_num([get("srmse") - get("srmse", "lo"), get("srmse", "hi") - get("srmse")]),
         marker="o",
+        label="own estimates",
     )
+    if "srmse_common" in summ[str(ns[0])]:
+        axes[0].plot(ns, get("srmse_common"), marker="s", label="same samples for every N")
+        axes[0].legend(fontsize="small")
     axes[0].set_ylabel("SRMSE (m + rad)")
-    axes[1].plot(ns, get("solve_ms_mean"), marker="o")
-    axes[1].set_ylabel("mean time per estimate (ms)")
-    axes[2].plot(ns, get("solve_ms_total") / 1e3, marker="o", color="C3")
+    axes[1].plot(ns, get("solve_ms_mean"), marker="o", label="mean")
+    if "solve_ms_median" in summ[str(ns[0])]:
+        axes[1].plot(ns, get("solve_ms_median"), marker="s", label="median")
+    ip = [summ[str(n)].get("ipopt") for n in ns]
+    if all(ip):
+        axes[1].plot(ns, [x["solve_ms_median"] for x in ip], marker="^", label="IPOPT median")
+        axes[2].plot(
+            ns, [x["solve_ms_total"] / 1e3 for x in ip], marker="^", color="C4", label="IPOPT"
+        )
+        axes[2].legend(fontsize="small")
+    axes[1].legend(fontsize="small")
+    axes[1].set_ylabel("time per estimate (ms)")
+    axes[2].plot(ns, get("solve_ms_total") / 1e3, marker="o", color="C3", label="default")
     axes[2].set_ylabel("total time, M - N + 1 solves (s)")
     axes[2].set_xlabel("horizon N")
     for a in axes:
@@ -242,6 +256,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
 
 def render_all(results: dict[str, dict[str, Any]], folder: str | Path) -> list[Path]:
     """Render the figures of every experiment present in ``results`` into ``folder``."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
     for name, render in RENDERERS.items():
         if name in results:

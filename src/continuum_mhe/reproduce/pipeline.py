@@ -107,16 +107,30 @@ def assemble(
     cond = [_strip_series(tr) for tr in exp4 if tr["spec"]["group"].startswith("condition-")]
     sweep = by["exp5_horizon"]
     horizons: dict[int, list[dict[str, Any]]] = {}
+    ipopt: dict[int, dict[str, Any]] = {}
     for tr in sweep:
-        horizons.setdefault(int(tr["spec"]["horizon"]), []).append(tr)
+        if tr["spec"].get("mhe_solver"):
+            ipopt[int(tr["spec"]["horizon"])] = tr["methods"]["mhe"]
+        else:
+            horizons.setdefault(int(tr["spec"]["horizon"]), []).append(tr)
     sweep_summary = {
         str(n): {
             "srmse": mean_ci([tr["methods"]["mhe"]["all"]["srmse"] for tr in trs]),
+            "srmse_common": mean_ci([tr["methods"]["mhe"]["from"]["srmse"] for tr in trs]),
+            "tip_mm_common": mean_ci([tr["methods"]["mhe"]["from"]["tip_mean_mm"] for tr in trs]),
+            "score_from": trs[0]["spec"]["score_from"],
             "solve_ms_mean": mean_ci([tr["methods"]["mhe"]["solve_ms_mean"] for tr in trs]),
+            "solve_ms_median": mean_ci([tr["methods"]["mhe"]["solve_ms_median"] for tr in trs]),
             "solve_ms_total": mean_ci([tr["methods"]["mhe"]["solve_ms_total"] for tr in trs]),
             "n_estimates": trs[0]["methods"]["mhe"]["all"]["n"],
             "n_samples": trs[0]["methods"]["mhe"]["all"]["n"]
             + trs[0]["methods"]["mhe"]["all"]["n_without_estimate"],
+            "ipopt": {
+                k: ipopt[n][k]
+                for k in ("solve_ms_mean", "solve_ms_median", "solve_ms_total", "from")
+            }
+            if n in ipopt
+            else None,
         }
         for n, trs in sorted(horizons.items())
     }
