@@ -55,7 +55,8 @@ def record_ipopt(formulation: Formulation, horizon: int, t: FloatArray, z: Float
 
     def recording_solve(problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, str]:
         X, status = solve(problem, X0)
-        rec.windows.append(Window(problem, X0.copy(), X.copy(), status))
+        kept = WindowProblem(**{k: np.copy(v) for k, v in vars(problem).items()})
+        rec.windows.append(Window(kept, X0.copy(), X.copy(), status))
         return X, status
 
     est._solve = recording_solve  # type: ignore[method-assign, assignment]
@@ -343,7 +344,7 @@ def test_box_qp_matches_bounded_least_squares() -> None:
     lo, hi = np.array([-0.5, -np.inf]), np.array([0.4, 0.6])
     X = np.zeros((n, nx))
     d = np.empty((n, nx))
-    status, _ = fm._solve_qp(
+    status, _, _ = fm._solve_qp(
         X, D, E, g.reshape(n, nx), lo, hi, np.zeros(0, np.int64), np.inf, 200, d, np.zeros(n)
     )
     assert status == fm.CONVERGED

@@ -33,7 +33,11 @@ from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
 PROG = "continuum-mhe"
 
 #: Modules that add subcommands through ``register(subparsers)``.
-COMMAND_MODULES: tuple[str, ...] = ("continuum_mhe.live", "continuum_mhe.reproduce.cli")
+COMMAND_MODULES: tuple[str, ...] = (
+    "continuum_mhe.live",
+    "continuum_mhe.reproduce.cli",
+    "continuum_mhe.benchmark",
+)
 
 
 # --- shared options ---------------------------------------------------------------

@@ -67,6 +67,8 @@ class FastOptions:
         max_iter: SQP (Gauss-Newton) iterations per window before falling back.
         step_tol: convergence certificate: max-norm of the QP step, state units
             (rad, rad/s, m).
+        err_tol: convergence certificate: error bound of the answer estimated from
+            the contraction of successive steps, state units.
         max_qp_iter: active-set changes allowed per QP subproblem.
         compile: compile the CasADi model to C (cached on disk) when a C compiler is
             available; otherwise, or if False, CasADi's virtual machine evaluates it.
@@ -74,6 +76,7 @@ class FastOptions:
 
     max_iter: int = 30
     step_tol: float = 1e-8
+    err_tol: float = 1e-8
     max_qp_iter: int = 500
     compile: bool = True
 
@@ -84,6 +87,8 @@ class FastOptions:
             raise ValueError(f"max_qp_iter must be a positive integer, got {self.max_qp_iter!r}")
         if not (isinstance(self.step_tol, float) and 0 < self.step_tol < 1e-3):
             raise ValueError(f"step_tol must lie in (0, 1e-3), got {self.step_tol!r}")
+        if not (isinstance(self.err_tol, float) and 0 < self.err_tol < 1e-3):
+            raise ValueError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
 
 
 # --- the model, from the formulation's CasADi expressions -------------------------
@@ -323,15 +328,40 @@ class WindowModel:
         self, x: FloatArray, u: FloatArray, dt: float
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(f(x, u, dt), df/dx, dh/dx)`` at one node: (nx,), (nx, nx), (nz, nx)."""
-        nx, nz = self.nx, self.nz
-        xs = np.ascontiguousarray(x, dtype=float)
-        us = np.ascontiguousarray(u, dtype=float)
-        dts = np.array([dt], dtype=float)
-        out = np.empty(nx + nx * nx + nz * nx)
-        ptrs = np.array([xs.ctypes.data, us.ctypes.data if us.size else 0, dts.ctypes.data])
-        if self.node(ptrs.ctypes.data, out.ctypes.data) != 0:
+        return NodeEvaluator(self).evaluate(x, u, dt)
+
+
+class NodeEvaluator:
+    """Reusable buffers for :meth:`WindowModel.evaluate_node` (one per estimator)."""
+
+    def __init__(self, model: WindowModel) -> None:
+        nx, nz = model.nx, model.nz
+        self._fn = model.node
+        self._x = np.zeros(nx)
+        self._u = np.zeros(model.nu)
+        self._dt = np.zeros(1)
+        self._out = np.empty(nx + nx * nx + nz * nx)
+        self._ptrs = np.array(
+            [self._x.ctypes.data, self._u.ctypes.data if model.nu else 0, self._dt.ctypes.data],
+            dtype=np.uintp,
+        )
+        self._views = (
+            self._out[:nx],
+            self._out[nx : nx + nx * nx].reshape(nx, nx),
+            self._out[nx + nx * nx :].reshape(nz, nx),
+        )
+
+    def evaluate(
+        self, x: FloatArray, u: FloatArray, dt: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(f(x, u, dt), df/dx, dh/dx)``, copies: (nx,), (nx, nx), (nz, nx)."""
+        self._x[:] = x
+        self._u[:] = u
+        self._dt[0] = dt
+        if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
-        return out[:nx], out[nx : nx + nx * nx].reshape(nx, nx), out[nx + nx * nx :].reshape(nz, nx)
+        f, F, H = self._views
+        return f.copy(), F.copy(), H.copy()
 
 
 @lru_cache(maxsize=32)
@@ -627,7 +657,8 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
 
     ``min 1/2 d^T H d + g^T d`` s.t. ``lo <= X + d <= hi`` and the ball linearised at
     ``X``. Starts from ``d = 0`` with the constraints active at ``X``. On success
-    ``lam`` holds the ball multipliers. Returns ``(status, iterations)``.
+    ``lam`` holds the ball multipliers. Returns ``(status, iterations, number of
+    active constraints)``.
     """
     n, nx = X.shape
     has_ball = ball_idx.shape[0] > 0
@@ -675,7 +706,7 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
             for j in range(nx):
                 grad[i, j] += g[i, j]
         if not _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
-            return NOT_PD, it
+            return NOT_PD, it, 0
         alpha = 1.0
         kind, bi, bj = 0, -1, -1
         for i in range(n):
@@ -728,12 +759,12 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
                 if lam[i] < worst:
                     worst, wi, wj = lam[i], i, -1
         if wi < 0:
-            return CONVERGED, it + 1
+            return CONVERGED, it + 1, np.count_nonzero(wbox) + np.count_nonzero(wball)
         if wj < 0:
             wball[wi] = 0
         else:
             wbox[wi, wj] = 0
-    return QP_FAILED, max_it
+    return QP_FAILED, max_it, 0
 
 
 @numba.njit(cache=True)
@@ -814,6 +845,7 @@ def _sqp(
     lam,
     max_iter,
     step_tol,
+    err_tol,
     max_qp,
     D,
     E,
@@ -822,24 +854,37 @@ def _sqp(
     lam_qp,
 ):
     """Gauss-Newton SQP on two buffers (current, trial); returns
-    ``(outcome, iterations, step, cost, index of the current buffer)``."""
+    ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
+
+    Certified when the QP step ``d`` is below ``step_tol``, or, with no constraint
+    active, when the observed contraction ``rho = |d_k| / |d_k-1| <= 1/2`` of two
+    full steps bounds the error of ``X_k + d_k`` by ``rho / (1 - rho) |d_k| <= err_tol``.
+    The answer is then the projection of ``X_k + d_k`` (not evaluated again);
+    ``cost`` is at ``X_k``.
+    """
     cur = 0
     _project(Xb[0], lo, hi, bidx, r2)
     cost = _evaluate(
         fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0], g[0]
     )
     step = np.inf
+    prev = np.inf  # previous full step (inf after a shortened one)
     for it in range(1, max_iter + 1):
         if not np.isfinite(cost):
             return LINE_SEARCH_FAILED, it, step, cost, cur
-        status, _ = _solve_qp(Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp)
+        status, _, active = _solve_qp(
+            Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
+        )
         if status != CONVERGED:
             return status, it, step, cost, cur
         step = np.max(np.abs(d))
-        if step <= step_tol:
-            lam[:] = lam_qp
-            return CONVERGED, it, step, cost, cur
         tr = 1 - cur
+        contracted = active == 0 and prev < np.inf and step <= 0.5 * prev
+        if step <= step_tol or (contracted and step * step / (prev - step) <= err_tol):
+            lam[:] = lam_qp
+            Xb[tr] = Xb[cur] + d
+            _project(Xb[tr], lo, hi, bidx, r2)
+            return CONVERGED, it, step, cost, tr
         alpha = 1.0
         slack = 1e-13 * (1.0 + abs(cost))
         accepted = False
@@ -868,6 +913,7 @@ def _sqp(
             alpha *= 0.5
         if not accepted:
             return LINE_SEARCH_FAILED, it, step, cost, cur
+        prev = step if alpha == 1.0 else np.inf
         cur, cost = tr, ct
         lam[:] = lam_qp
     return MAX_ITER, max_iter, step, cost, cur
@@ -878,12 +924,13 @@ class FastResult:
     """Outcome of :func:`solve_window`.
 
     Attributes:
-        X: (N, nx) last iterate; feasible exactly.
+        X: (N, nx) the answer (see :func:`_sqp`); feasible exactly.
         converged: True if the KKT certificate holds at ``X``.
         outcome: one of :data:`OUTCOMES`.
         iterations: SQP iterations (QP solves).
         step: max-norm of the last QP step, state units.
-        cost: the window cost at ``X``.
+        cost: the window cost at the last evaluated iterate (the answer minus the last
+            step when certified).
         lam: (N,) multipliers of the ball constraint at ``X`` (zero if none).
     """
 
@@ -928,7 +975,7 @@ def solve_window(
     outcome, it, step, cost, cur = _sqp(
         model.window, ptrs, Xb, out, problem.zmask, model.rinv, problem.qinv, problem.xbar,
         problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam, opt.max_iter, opt.step_tol,
-        opt.max_qp_iter, np.empty((2, n, nx, nx)), np.empty((2, n - 1, nx, nx)),
+        opt.err_tol, opt.max_qp_iter, np.empty((2, n, nx, nx)), np.empty((2, n - 1, nx, nx)),
         np.empty((2, n, nx)), np.empty((n, nx)), np.zeros(n),
     )  # fmt: skip
     return FastResult(

@@ -38,6 +38,7 @@ import numpy as np
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.estimators.fast_mhe import (
     FastOptions,
+    NodeEvaluator,
     WindowModel,
     arrival_covariance,
     build_window_model,
@@ -167,10 +168,12 @@ class MovingHorizonEstimator(Estimator):
                 self._fast = build_window_model(formulation, s.horizon, self.fast_options.compile)
             except NotImplementedError:  # feasible set the fast backend cannot handle
                 self._fast = None
+        self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._nlp_built: _Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
         self._weight_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._R = formulation.meas_cov()
         self.reset()
 
     @property
@@ -196,6 +199,7 @@ class MovingHorizonEstimator(Estimator):
         self._uw = np.zeros((n - 1, f.nu))
         self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
         self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
+        self._arrival = np.zeros((n, nx, nx))  # see window_problem
         self._z_prev_valid: FloatArray | None = None
         self._xbar: FloatArray | None = None
         self._P: FloatArray | None = None
@@ -203,19 +207,19 @@ class MovingHorizonEstimator(Estimator):
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
 
     # --- window bookkeeping -------------------------------------------------
-    def _push(self, m: Measurement) -> None:
+    def _push(self, m: Measurement, valid: bool) -> None:
         f = self.formulation
         n = self.settings.horizon
         if self._k == n:
             self._slide_arrival()
         u = np.zeros(f.nu)
-        if self._k:
+        if self._k and f.nu:
             u = f.inputs(self._z_prev_valid, m.z, m.t - self._tw[-1])
         for buf in (self._tw, self._zw, self._zmask, self._dt, self._uw, self._qw, self._qinvw):
             buf[:-1] = buf[1:]
         self._tw[-1] = m.t
-        self._zmask[-1] = 1.0 if m.valid else 0.0
-        self._zw[-1] = m.z if m.valid else 0.0
+        self._zmask[-1] = 1.0 if valid else 0.0
+        self._zw[-1] = m.z if valid else 0.0
         if self._k:
             dt = m.t - self._tw[-2]
             self._dt[-1] = dt
@@ -224,40 +228,46 @@ class MovingHorizonEstimator(Estimator):
         else:
             self._dt[-1], self._uw[-1], self._qw[-1], self._qinvw[-1] = 1.0, 0.0, 0.0, 0.0
         self._k = min(self._k + 1, n)
-        if m.valid:
+        if valid:
             self._z_prev_valid = m.z
 
     def _slide_arrival(self) -> None:
         """Move the arrival prior from window sample 0 to window sample 1."""
         assert self._X is not None and self._P is not None
         f, x0, P = self.formulation, self._X[0], self._P
-        if self._fast is not None:  # same EKF step, Jacobians from the compiled model
-            _, F, H = self._fast.evaluate_node(x0, self._uw[0], float(self._dt[0]))
+        if self._node is not None:  # same EKF step, Jacobians from the compiled model
+            _, F, H = self._node.evaluate(x0, self._uw[0], float(self._dt[0]))
             valid = bool(self._zmask[0])
-            self._P = arrival_covariance(P, H, f.meas_cov(), F, self._qw[0], valid)
+            self._P = arrival_covariance(P, H, self._R, F, self._qw[0], valid)
         else:
             if self._zmask[0]:
-                _, P = ekf_update(f, x0, P, self._zw[0], f.meas_cov())
+                _, P = ekf_update(f, x0, P, self._zw[0], self._R)
             _, P = ekf_predict(f.functions, x0, P, self._uw[0], float(self._dt[0]))
             self._P = 0.5 * (P + P.T)
         self._xbar = self._X[1].copy()
 
-    def window_problem(self) -> WindowProblem:
-        """The NLP data for the current window (for tests and other backends)."""
-        n, nx = self.settings.horizon, self.formulation.nx
-        off = n - self._k  # leading inactive nodes
+    def window_problem(self, copy: bool = True) -> WindowProblem:
+        """The NLP data for the current window (for tests and other backends).
+
+        With ``copy=False`` the arrays are views of the window buffers, valid until
+        the next sample.
+        """
+        off = self.settings.horizon - self._k  # leading inactive nodes
         assert self._P is not None and self._xbar is not None
-        arrival = np.zeros((n, nx, nx))
-        arrival[:off] = np.eye(nx)
+        arrival = self._arrival  # pinned identity before off, P^-1 at off, 0 after
+        if off:
+            arrival[:off] = np.eye(self.formulation.nx)
+        arrival[off : off + 2] = 0.0  # off moves down by one per sample while growing
         arrival[off] = np.linalg.inv(self._P)
+        c = np.copy if copy else np.asarray
         return WindowProblem(
-            z=self._zw.copy(),
-            zmask=self._zmask.copy(),
-            dt=self._dt.copy(),
-            u=self._uw.copy(),
-            qinv=self._qinvw.copy(),
-            xbar=self._xbar.copy(),
-            arrival=arrival,
+            z=c(self._zw),
+            zmask=c(self._zmask),
+            dt=c(self._dt),
+            u=c(self._uw),
+            qinv=c(self._qinvw),
+            xbar=c(self._xbar),
+            arrival=c(arrival),
         )
 
     def _process_weight(self, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -278,11 +288,12 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None
         if self._X is None:
             return np.tile(self._xbar, (n, 1))
-        X = np.roll(self._X, -1, axis=0)
+        X = np.empty_like(self._X)
+        X[:-1] = self._X[1:]
         dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
         u = self._uw[-1]
-        if self._fast is not None:
-            xn = self._fast.evaluate_node(self._X[-1], u, dt)[0]
+        if self._node is not None:
+            xn = self._node.evaluate(self._X[-1], u, dt)[0]
         else:
             xn = np.asarray(f.functions.transition(self._X[-1], u, dt), float).ravel()
         X[-1] = f.project(xn)
@@ -291,19 +302,20 @@ class MovingHorizonEstimator(Estimator):
     # --- solve ----------------------------------------------------------------
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
+        valid = m.valid
         if self._xbar is None:
-            if not m.valid:
+            if not valid:
                 return None, None, "no-estimate"
             self._xbar = f.project(f.initial_state(m.z))
             self._P = f.initial_cov()
-        self._push(m)
+        self._push(m, valid)
         X0 = self._initial_guess()
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
             return None, None, "no-estimate"
-        X, status = self._solve(self.window_problem(), X0)
+        X, status = self._solve(self.window_problem(copy=False), X0)
         self._X = X
-        if status == "ok" and not m.valid:
+        if status == "ok" and not valid:
             status = "dropout"
         return X[-1].copy(), None, status
 

@@ -1,0 +1,350 @@
+"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and the EKF.
+
+Every method runs in this one process on the same simulated recording (bend
+formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
+the median and 99th-percentile wall time per sample (the whole ``step``, with the
+window bookkeeping and the arrival-cost update), their ratios to IPOPT and to the
+EKF, and the largest difference of the estimates ``[x, y, z, theta, phi]`` from
+IPOPT's. A long recording then shows that the fast MHE's memory does not grow per
+sample (tracemalloc and RSS slopes).
+
+do-mpc's MHE is built from the same CasADi expressions of the bend formulation
+(transition, tilt measurement, disk constraint) and the same Q^-1, R^-1 and P0^-1;
+its arrival cost stays fixed (do-mpc has no EKF arrival update), so its estimates are
+close to ours but not identical.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+import tracemalloc
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.formulations import Formulation, make_formulation
+from continuum_mhe.model.imu import wrap_angle
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import Recording, simulate
+
+METHODS = ("fast", "ipopt", "do-mpc", "ekf")
+
+
+@dataclass(frozen=True)
+class Timing:
+    """One method at one horizon.
+
+    Attributes:
+        method: ``fast``, ``ipopt``, ``do-mpc`` or ``ekf``.
+        horizon: N (0 for the EKF).
+        median_us, p99_us: wall time per sample once the window is full, us.
+        max_diff_vs_ipopt: largest ``|output - IPOPT's output|`` (m and rad, phi
+            wrapped) over the recording.
+        fallbacks: samples the fast backend handed to IPOPT.
+    """
+
+    method: str
+    horizon: int
+    median_us: float
+    p99_us: float
+    max_diff_vs_ipopt: float
+    fallbacks: int
+
+
+@dataclass(frozen=True)
+class Memory:
+    """Memory of the fast MHE over a long recording.
+
+    Attributes:
+        samples: recording length.
+        tracemalloc_slope_bytes_per_sample: slope of Python-allocated memory.
+        tracemalloc_peak_kib: peak Python-allocated memory during the run, KiB.
+        rss_slope_bytes_per_sample: slope of the resident set size (Linux only; nan
+            elsewhere).
+    """
+
+    samples: int
+    tracemalloc_slope_bytes_per_sample: float
+    tracemalloc_peak_kib: float
+    rss_slope_bytes_per_sample: float
+
+
+def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, list[str]]:
+    """``(output (n, 5), seconds per sample (n,), statuses)`` from a reset."""
+    est.reset()
+    out = np.full((len(rec.t), 5), np.nan)
+    sec = np.empty(len(rec.t))
+    status: list[str] = []
+    for i, (t, z) in enumerate(zip(rec.t, rec.z)):
+        t0 = time.perf_counter()
+        e = est.step(Measurement(float(t), z))
+        sec[i] = time.perf_counter() - t0
+        if e.output is not None:
+            out[i] = e.output
+        status.append(e.status)
+    return out, sec, status
+
+
+def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> Any:
+    """do-mpc's MHE on the bend formulation's CasADi expressions."""
+    import casadi as ca
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import do_mpc
+
+    f = formulation
+    model = do_mpc.model.Model("discrete", "SX")
+    x = model.set_variable("_x", "x", shape=(f.nx, 1))
+    model.set_rhs("x", f.transition_sym(x, ca.SX(0, 1), dt), process_noise=True)
+    model.set_meas("y", f.measurement_sym(x), meas_noise=True)
+    model.setup()
+    mhe = do_mpc.estimator.MHE(model)
+    mhe.settings.n_horizon = horizon
+    mhe.settings.t_step = dt
+    mhe.settings.store_full_solution = False
+    mhe.settings.meas_from_data = True
+    mhe.settings.nlpsol_opts = {
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "print_time": False,
+        "ipopt.tol": 1e-8,
+    }
+    g, _, hi = f.constraint_sym(x)
+    mhe.set_nl_cons("disk", g, ub=hi)
+    Q = np.asarray(f.functions.predict(np.zeros(f.nx), np.zeros(f.nu), dt)[2], float)
+    mhe.set_default_objective(
+        P_x=np.linalg.inv(f.initial_cov()),
+        P_v=np.linalg.inv(f.meas_cov()),
+        P_w=np.linalg.inv(Q.reshape(f.nx, f.nx)),
+    )
+    mhe.setup()
+    return mhe
+
+
+def _run_dompc(
+    formulation: Formulation, horizon: int, rec: Recording
+) -> tuple[FloatArray, FloatArray]:
+    dt = float(rec.t[1] - rec.t[0])
+    mhe = _dompc_mhe(formulation, horizon, dt)
+    mhe.x0 = formulation.project(formulation.initial_state(rec.z[0]))
+    mhe.set_initial_guess()
+    out = np.empty((len(rec.t), 5))
+    sec = np.empty(len(rec.t))
+    for i, z in enumerate(rec.z):
+        t0 = time.perf_counter()
+        x = np.asarray(mhe.make_step(z.reshape(-1, 1)), float).ravel()
+        out[i] = formulation.output(x)
+        sec[i] = time.perf_counter() - t0
+    return out, sec
+
+
+def _max_diff(a: FloatArray, b: FloatArray) -> float:
+    d = np.abs(a - b)
+    d[:, 4] = np.abs(wrap_angle(a[:, 4] - b[:, 4]))
+    return float(np.nanmax(d))
+
+
+def _rss_bytes() -> float:
+    try:
+        with open("/proc/self/statm") as fh:
+            return float(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError):
+        return math.nan
+
+
+def memory_profile(formulation: Formulation, horizon: int, samples: int) -> Memory:
+    """Run the fast MHE over ``samples`` samples; slopes of allocated memory and RSS."""
+    rec = simulate("paper3d", duration=(samples - 1) * 0.05, seed=1)
+    est = MovingHorizonEstimator(formulation, MHESettings(horizon=horizon))
+    warm = min(2 * horizon + 50, samples // 4)
+    for t, z in zip(rec.t[:warm], rec.z[:warm]):
+        est.step(Measurement(float(t), z))
+    tracemalloc.start()
+    k, traced, rss = [], [], []
+    every = max(samples // 40, 1)
+    for i in range(warm, samples):
+        est.step(Measurement(float(rec.t[i]), rec.z[i]))
+        if (i - warm) % every == 0:
+            k.append(i)
+            traced.append(tracemalloc.get_traced_memory()[0])
+            rss.append(_rss_bytes())
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    slope = float(np.polyfit(k, traced, 1)[0])
+    rss_slope = float(np.polyfit(k, rss, 1)[0]) if np.all(np.isfinite(rss)) else math.nan
+    return Memory(samples, slope, peak / 1024, rss_slope)
+
+
+def run_benchmark(
+    horizons: list[int],
+    duration: float = 20.0,
+    methods: tuple[str, ...] = METHODS,
+    memory_samples: int = 20000,
+) -> dict[str, Any]:
+    """Time every method at every horizon on one recording; see the module docstring."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
+    results: list[Timing] = []
+    ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
+    ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
+    for n in horizons:
+        ipopt_out, ipopt_sec, _ = _run_timed(
+            MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
+        )
+        full = slice(n, None)
+        rows = {"ipopt": (ipopt_out, ipopt_sec, 0)}
+        if "fast" in methods:
+            est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
+            _run_timed(est, rec)  # compile and warm up (numba, C model)
+            out, sec, status = _run_timed(est, rec)
+            rows["fast"] = (out, sec, status.count("fallback-ipopt"))
+        if "do-mpc" in methods:
+            out, sec = _run_dompc(f, n, rec)
+            rows["do-mpc"] = (out, sec, 0)
+        for name in (m for m in METHODS if m in rows):
+            out, sec, fb = rows[name]
+            results.append(
+                Timing(
+                    method=name,
+                    horizon=n,
+                    median_us=float(np.median(sec[full]) * 1e6),
+                    p99_us=float(np.percentile(sec[full], 99) * 1e6),
+                    max_diff_vs_ipopt=_max_diff(out, ipopt_out),
+                    fallbacks=fb,
+                )
+            )
+        if "ekf" in methods:
+            results.append(
+                Timing(
+                    method="ekf",
+                    horizon=n,
+                    median_us=float(np.median(ekf_sec[full]) * 1e6),
+                    p99_us=float(np.percentile(ekf_sec[full], 99) * 1e6),
+                    max_diff_vs_ipopt=_max_diff(ekf_out, ipopt_out),
+                    fallbacks=0,
+                )
+            )
+    memory = memory_profile(f, 30, memory_samples) if memory_samples > 0 else None
+    return {
+        "formulation": "bend",
+        "scenario": "paper3d",
+        "noise_deg": 2.0,
+        "samples": len(rec.t),
+        "dt_s": float(rec.t[1] - rec.t[0]),
+        "cpus": os.cpu_count(),
+        "results": [asdict(r) for r in results],
+        "memory": None if memory is None else asdict(memory),
+    }
+
+
+def _ratios(report: dict[str, Any]) -> list[dict[str, Any]]:
+    rows = report["results"]
+    ref = {(r["method"], r["horizon"]): r["median_us"] for r in rows}
+    out = []
+    for r in rows:
+        n = r["horizon"]
+        out.append(
+            {
+                **r,
+                "x_ipopt": r["median_us"] / ref[("ipopt", n)],
+                "x_ekf": r["median_us"] / ref[("ekf", n)] if ("ekf", n) in ref else math.nan,
+            }
+        )
+    return out
+
+
+def print_report(report: dict[str, Any]) -> None:
+    """Rich table of :func:`run_benchmark`'s report."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title=f"MHE time per sample: bend, {report['scenario']}, {report['samples']} samples, "
+        f"{report['cpus']} CPUs (median and p99 once the window is full)"
+    )
+    for col in ("N", "method", "median us", "p99 us", "x IPOPT", "x EKF", "max|d| vs IPOPT"):
+        table.add_column(col, justify="right")
+    table.add_column("fallbacks", justify="right")
+    for r in _ratios(report):
+        table.add_row(
+            str(r["horizon"]),
+            r["method"],
+            f"{r['median_us']:.0f}",
+            f"{r['p99_us']:.0f}",
+            f"{r['x_ipopt']:.4f}",
+            f"{r['x_ekf']:.2f}",
+            f"{r['max_diff_vs_ipopt']:.1e}",
+            str(r["fallbacks"]),
+        )
+    console = Console()
+    console.print(table)
+    fast = {r["horizon"]: r["median_us"] for r in report["results"] if r["method"] == "fast"}
+    if 30 in fast and 300 in fast:
+        console.print(f"fast: time(N=300) / time(N=30) = {fast[300] / fast[30]:.2f}")
+    mem = report.get("memory")
+    if mem:
+        console.print(
+            f"fast MHE memory over {mem['samples']} samples (N=30): "
+            f"tracemalloc slope {mem['tracemalloc_slope_bytes_per_sample']:.3f} B/sample, "
+            f"peak {mem['tracemalloc_peak_kib']:.0f} KiB; "
+            f"RSS slope {mem['rss_slope_bytes_per_sample']:.2f} B/sample"
+        )
+
+
+def _horizons(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
+    if not values or min(values) < 2:
+        raise argparse.ArgumentTypeError("horizons must be integers >= 2")
+    return values
+
+
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ValueError(f"--duration must be positive, got {args.duration}")
+    methods = tuple(m for m in METHODS if m not in set(args.skip or []))
+    report = run_benchmark(args.horizons, args.duration, methods, args.memory_samples)
+    print_report(report)
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    """Add ``benchmark`` to the CLI."""
+    p = subparsers.add_parser(
+        "benchmark",
+        help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF",
+        description=__doc__.split("\n\n")[0] if __doc__ else None,
+    )
+    p.add_argument(
+        "--horizons",
+        type=_horizons,
+        default=[10, 30, 100, 300],
+        help="comma-separated horizons (default 10,30,100,300)",
+    )
+    p.add_argument("--duration", type=float, default=20.0, help="recording length in s")
+    p.add_argument("--json", help="write the report as JSON to this file")
+    p.add_argument(
+        "--skip", action="append", choices=("fast", "do-mpc", "ekf"), help="leave out a method"
+    )
+    p.add_argument(
+        "--memory-samples",
+        type=int,
+        default=20000,
+        help="length of the memory run of the fast MHE (0: skip)",
+    )
+    p.set_defaults(func=cmd_benchmark)
