@@ -107,10 +107,10 @@ def assemble(
     cond = [_strip_series(tr) for tr in exp4 if tr["spec"]["group"].startswith("condition-")]
     sweep = by["exp5_horizon"]
     horizons: dict[int, list[dict[str, Any]]] = {}
-    ipopt: dict[int, dict[str, Any]] = {}
+    ipopt: dict[int, list[dict[str, Any]]] = {}
     for tr in sweep:
         if tr["spec"].get("mhe_solver"):
-            ipopt[int(tr["spec"]["horizon"])] = tr["methods"]["mhe"]
+            ipopt.setdefault(int(tr["spec"]["horizon"]), []).append(tr["methods"]["mhe"])
         else:
             horizons.setdefault(int(tr["spec"]["horizon"]), []).append(tr)
     sweep_summary = {
@@ -126,8 +126,12 @@ def assemble(
             "n_samples": trs[0]["methods"]["mhe"]["all"]["n"]
             + trs[0]["methods"]["mhe"]["all"]["n_without_estimate"],
             "ipopt": {
-                k: ipopt[n][k]
-                for k in ("solve_ms_mean", "solve_ms_median", "solve_ms_total", "from")
+                "n_seeds": len(ipopt[n]),
+                "srmse_common": mean_ci([x["from"]["srmse"] for x in ipopt[n]]),
+                **{
+                    k: mean_ci([x[k] for x in ipopt[n]])
+                    for k in ("solve_ms_mean", "solve_ms_median", "solve_ms_total")
+                },
             }
             if n in ipopt
             else None,
@@ -160,7 +164,14 @@ def assemble(
                 "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in e]),
             }
     return {
-        "exp1_synthetic3d": {**common, "example": example("exp1_synthetic3d")},
+        "exp1_synthetic3d": {
+            **common,
+            "example": example("exp1_synthetic3d"),
+            "paper_formulation": next(
+                (t for t in by["exp1_synthetic3d"] if t["spec"]["group"] == "paper-formulation"),
+                None,
+            ),
+        },
         "exp2_constraints": {**common, "example": example("exp2_constraints")},
         "exp3_rod": {**common, **rod},
         "exp4_ekf_comparison": {
