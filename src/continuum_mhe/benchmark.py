@@ -17,6 +17,7 @@ close to ours but not identical.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -67,10 +68,11 @@ class Memory:
 
     Attributes:
         samples: recording length.
-        tracemalloc_slope_bytes_per_sample: slope of Python-allocated memory.
+        tracemalloc_slope_bytes_per_sample: slope of Python-allocated memory (after
+            a garbage collection) over the second half of the run.
         tracemalloc_peak_kib: peak Python-allocated memory during the run, KiB.
-        rss_slope_bytes_per_sample: slope of the resident set size (Linux only; nan
-            elsewhere).
+        rss_slope_bytes_per_sample: slope of the resident set size over the second
+            half (Linux only; nan elsewhere).
     """
 
     samples: int
@@ -176,13 +178,16 @@ def memory_profile(formulation: Formulation, horizon: int, samples: int) -> Memo
     for i in range(warm, samples):
         est.step(Measurement(float(rec.t[i]), rec.z[i]))
         if (i - warm) % every == 0:
+            gc.collect()  # count what is retained, not cycles waiting for the collector
             k.append(i)
             traced.append(tracemalloc.get_traced_memory()[0])
             rss.append(_rss_bytes())
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    slope = float(np.polyfit(k, traced, 1)[0])
-    rss_slope = float(np.polyfit(k, rss, 1)[0]) if np.all(np.isfinite(rss)) else math.nan
+    half = len(k) // 2  # fit the second half: allocator free lists settle in the first
+    slope = float(np.polyfit(k[half:], traced[half:], 1)[0])
+    rss_ok = np.all(np.isfinite(rss))
+    rss_slope = float(np.polyfit(k[half:], rss[half:], 1)[0]) if rss_ok else math.nan
     return Memory(samples, slope, peak / 1024, rss_slope)
 
 

@@ -950,36 +950,58 @@ def _pointers(X: FloatArray, z: FloatArray, u: FloatArray, dt: FloatArray) -> ND
     )
 
 
+class Workspace:
+    """Buffers of :func:`solve_window`, reusable across windows of one model.
+
+    The window data are copied into fixed buffers, so the C model's argument
+    pointers are computed once.
+    """
+
+    def __init__(self, model: WindowModel) -> None:
+        n, nx, nz, nu = model.horizon, model.nx, model.nz, model.nu
+        self.z = np.zeros((n, nz))
+        self.u = np.zeros((n - 1, nu))
+        self.dt = np.zeros(n - 1)
+        self.Xb = np.empty((2, n, nx))
+        self.out = np.empty((2, model.window_size))
+        self.D = np.empty((2, n, nx, nx))
+        self.E = np.empty((2, n - 1, nx, nx))
+        self.g = np.empty((2, n, nx))
+        self.d = np.empty((n, nx))
+        self.lam_qp = np.zeros(n)
+        self.ptrs = np.stack([_pointers(x, self.z, self.u, self.dt) for x in self.Xb])
+
+
 def solve_window(
     model: WindowModel,
     problem: WindowProblemLike,
     X0: FloatArray,
     options: FastOptions | None = None,
     lam0: FloatArray | None = None,
+    workspace: Workspace | None = None,
 ) -> FastResult:
     """Solve one window problem from the initial guess ``X0`` (N, nx).
 
     ``lam0`` (N,) warm-starts the ball multipliers (the curvature term). The guess is
-    projected onto the feasible set first. See the module docstring for the method.
+    projected onto the feasible set first. ``workspace`` (of this model) saves the
+    allocations. See the module docstring for the method.
     """
     opt = options or FastOptions()
-    fs, n, nx = model.feasible, model.horizon, model.nx
-    z = np.ascontiguousarray(problem.z, dtype=float)
-    u = np.ascontiguousarray(problem.u, dtype=float)
-    dt = np.ascontiguousarray(problem.dt, dtype=float)
+    fs, n = model.feasible, model.horizon
+    ws = workspace or Workspace(model)
+    ws.z[:] = problem.z
+    ws.u[:] = problem.u
+    ws.dt[:] = problem.dt
+    ws.Xb[0] = X0
     lam = np.zeros(n) if lam0 is None else np.array(lam0, dtype=float)
-    Xb = np.empty((2, n, nx))
-    Xb[0] = X0
-    ptrs = np.stack([_pointers(Xb[0], z, u, dt), _pointers(Xb[1], z, u, dt)])
-    out = np.empty((2, model.window_size))
     outcome, it, step, cost, cur = _sqp(
-        model.window, ptrs, Xb, out, problem.zmask, model.rinv, problem.qinv, problem.xbar,
-        problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam, opt.max_iter, opt.step_tol,
-        opt.err_tol, opt.max_qp_iter, np.empty((2, n, nx, nx)), np.empty((2, n - 1, nx, nx)),
-        np.empty((2, n, nx)), np.empty((n, nx)), np.zeros(n),
+        model.window, ws.ptrs, ws.Xb, ws.out, problem.zmask, model.rinv, problem.qinv,
+        problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
+        opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, ws.D, ws.E, ws.g, ws.d,
+        ws.lam_qp,
     )  # fmt: skip
     return FastResult(
-        X=Xb[cur].copy(),
+        X=ws.Xb[cur].copy(),
         converged=outcome == CONVERGED,
         outcome=OUTCOMES[outcome],
         iterations=int(it),

@@ -40,6 +40,7 @@ from continuum_mhe.estimators.fast_mhe import (
     FastOptions,
     NodeEvaluator,
     WindowModel,
+    Workspace,
     arrival_covariance,
     build_window_model,
     solve_window,
@@ -169,6 +170,7 @@ class MovingHorizonEstimator(Estimator):
             except NotImplementedError:  # feasible set the fast backend cannot handle
                 self._fast = None
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
+        self._workspace = None if self._fast is None else Workspace(self._fast)
         self._nlp_built: _Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
@@ -326,7 +328,7 @@ class MovingHorizonEstimator(Estimator):
         if self._lam is not None:
             lam0 = np.roll(self._lam, -1)
             lam0[-1] = 0.0
-        res = solve_window(self._fast, problem, X0, self.fast_options, lam0)
+        res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"
