@@ -701,11 +701,21 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
     M = np.empty_like(E)
     T = np.empty_like(D)
     for it in range(max_it):
-        _matvec(D, E, d, grad)
-        for i in range(n):
-            for j in range(nx):
-                grad[i, j] += g[i, j]
-        if not _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
+        nfix = np.count_nonzero(wbox) + np.count_nonzero(wball)
+        if it == 0:  # d = 0
+            grad[:] = g
+        else:
+            _matvec(D, E, d, grad)
+            for i in range(n):
+                for j in range(nx):
+                    grad[i, j] += g[i, j]
+        if nfix == 0:  # nothing fixed: the plain Newton system
+            for i in range(n):
+                for j in range(nx):
+                    b[i, j] = -grad[i, j]
+            if not _btd_solve(D, E, b, L, M, p):
+                return NOT_PD, it, 0
+        elif not _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
             return NOT_PD, it, 0
         alpha = 1.0
         kind, bi, bj = 0, -1, -1
@@ -742,6 +752,9 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
                 d[bi, bj] = (hi[bj] if kind == 1 else lo[bj]) - X[bi, bj]
             continue
         # at the minimiser on the working set: check the multipliers' signs
+        if nfix == 0:
+            lam[:] = 0.0
+            return CONVERGED, it + 1, 0
         _matvec(D, E, d, grad)
         worst, wi, wj = -mu_tol, -1, -1
         for i in range(n):
