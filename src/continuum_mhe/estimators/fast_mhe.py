@@ -12,8 +12,10 @@ Algorithm (see ``docs/fast-solver.md``):
   window. It is compiled to C with CasADi's code generator when a C compiler is
   available (cached on disk) and evaluated by CasADi's virtual machine otherwise.
   The model is never written a second time by hand.
-* **Step.** The Gauss-Newton Hessian ``J^T W J`` of the window is block-tridiagonal
-  (blocks ``nx x nx``); each QP subproblem is solved by a primal active-set method
+* **Step.** The Hessian of the window cost is block-tridiagonal (blocks
+  ``nx x nx``): Gauss-Newton ``J^T W J`` plus the measurement residuals' exact
+  second-order term (Newton; dropped for an iterate where it is not positive
+  definite); each QP subproblem is solved by a primal active-set method
   whose equality-constrained steps use a block-tridiagonal Cholesky factorisation,
   ``O(N nx^3)`` per factorisation. Box bounds fix coordinates; the ball constraint
   ``sum_S x_j^2 <= r^2`` (the ``bend`` formulation's disk, recognised from the
@@ -22,10 +24,12 @@ Algorithm (see ``docs/fast-solver.md``):
   Hessian of the Lagrangian through the multiplier estimate.
 * **Globalisation.** Projected line search on the exact cost (iterates always
   satisfy the bounds exactly: clipping for boxes, radial scaling for the ball).
-* **Certificate.** Converged when the QP step at the current iterate is below
-  ``step_tol`` (rad) in the max norm: then the current iterate satisfies the NLP's
-  KKT conditions (the QP's multipliers are nonnegative by construction). Otherwise
-  the caller falls back to IPOPT.
+* **Certificate.** The QP at an iterate has the NLP's KKT conditions as its own at
+  ``d = 0`` (nonnegative multipliers by construction). Converged when the QP step
+  is below ``step_tol`` in the max norm, or, with no constraint active, when the
+  contraction of two successive full steps bounds the answer's error by
+  ``err_tol``. Otherwise (iteration limit, failed line search, QP failure) the
+  caller falls back to IPOPT.
 """
 
 from __future__ import annotations
@@ -70,6 +74,8 @@ class FastOptions:
         err_tol: convergence certificate: error bound of the answer estimated from
             the contraction of successive steps, state units.
         max_qp_iter: active-set changes allowed per QP subproblem.
+        newton: add the measurement residuals' second-order term to the Hessian
+            (exact Newton; Gauss-Newton where that is not positive definite).
         compile: compile the CasADi model to C (cached on disk) when a C compiler is
             available; otherwise, or if False, CasADi's virtual machine evaluates it.
     """
@@ -77,6 +83,7 @@ class FastOptions:
     max_iter: int = 30
     step_tol: float = 1e-8
     err_tol: float = 1e-8
+    newton: bool = True
     max_qp_iter: int = 500
     compile: bool = True
 
@@ -143,27 +150,32 @@ def feasible_set(formulation: Formulation) -> Feasible:
 
 
 def _window_function(formulation: Formulation, horizon: int) -> ca.Function:
-    """``(X, Z, U, DT) -> (R, JR, W, FJ)`` for the whole window, in one call.
+    """``(X, Z, U, DT) -> (R, JR, W, FJ, SR)`` for the whole window, in one call.
 
     Inputs (CasADi column-major): ``X`` (nx, N), ``Z`` (nz, N), ``U`` (nu, N-1),
     ``DT`` (1, N-1). Outputs: measurement residuals ``R`` (nz, N); their Jacobians
     ``JR`` (nz nx, N), each column the row-major ``dr/dx``; process residuals
     ``W = x_{i+1} - f(x_i, u_i, dt_i)`` (nx, N-1); ``FJ`` (nx^2, N-1), each column
-    the row-major ``df/dx_i``.
+    the row-major ``df/dx_i``; ``SR`` (nx^2, N), the second-order part of the
+    measurement cost's Hessian ``sum_a (R^-1 r)_a d2r_a/dx2`` per node.
     """
     f, nx, nu, nz, n = formulation, formulation.nx, formulation.nu, formulation.nz, horizon
     x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
     u, dt = ca.SX.sym("u", nu), ca.SX.sym("dt")
     r = f.measurement_residual_sym(z, x)
-    meas = ca.Function("meas", [x, z], [r, ca.vec(ca.jacobian(r, x).T)])
+    jr = ca.jacobian(r, x)
+    rinv = ca.DM(np.linalg.inv(f.meas_cov()))
+    # second-order part of the measurement cost's Hessian, sum_a (R^-1 r)_a d2 r_a/dx2
+    curv = ca.hessian(0.5 * ca.bilin(rinv, r, r), x)[0] - ca.mtimes([jr.T, rinv, jr])
+    meas = ca.Function("meas", [x, z], [r, ca.vec(jr.T), ca.vec(curv)])
     xf = f.transition_sym(x, u, dt)
     proc = ca.Function("proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
     # MX, so that the maps stay loops in the generated code (SX would unroll them)
     X, Z = ca.MX.sym("X", nx, n), ca.MX.sym("Z", nz, n)
     U, DT = ca.MX.sym("U", nu, n - 1), ca.MX.sym("DT", 1, n - 1)
-    R, JR = meas.map(n, "serial")(X, Z)
+    R, JR, SR = meas.map(n, "serial")(X, Z)
     W, FJ = proc.map(n - 1, "serial")(X[:, : n - 1], X[:, 1:], U, DT)
-    outs = [ca.densify(v) for v in (R, JR, W, FJ)]
+    outs = [ca.densify(v) for v in (R, JR, W, FJ, SR)]
     return ca.Function("mhe_window", [X, Z, U, DT], outs)
 
 
@@ -322,7 +334,7 @@ class WindowModel:
     @property
     def window_size(self) -> int:
         n, nx, nz = self.horizon, self.nx, self.nz
-        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1)
+        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nx * nx * n
 
     def evaluate_node(
         self, x: FloatArray, u: FloatArray, dt: float
@@ -833,11 +845,25 @@ def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, 
     if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
         return np.inf
     o1, o2, o3 = nz * n, nz * n + nz * nx * n, nz * n + nz * nx * n + nx * (n - 1)
+    o4 = o3 + nx * nx * (n - 1)
     R = out[:o1].reshape(n, nz)
     JR = out[o1:o2].reshape(n, nz, nx)
     W = out[o2:o3].reshape(n - 1, nx)
-    FJ = out[o3:].reshape(n - 1, nx, nx)
+    FJ = out[o3:o4].reshape(n - 1, nx, nx)
     return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g)
+
+
+@numba.njit(cache=True)
+def _add_curvature(out, zmask, D, sign):
+    """``D_i += sign * m_i S_i``: the measurement residuals' second-order Hessian term
+    (exact Newton instead of Gauss-Newton); ``S`` is the model's last output."""
+    n, nx = D.shape[0], D.shape[1]
+    S = out[out.shape[0] - n * nx * nx :].reshape(n, nx, nx)
+    for i in range(n):
+        if zmask[i] != 0.0:
+            for j in range(nx):
+                for k in range(nx):
+                    D[i, j, k] += sign * zmask[i] * S[i, j, k]
 
 
 @numba.njit(cache=True)
@@ -860,6 +886,7 @@ def _sqp(
     step_tol,
     err_tol,
     max_qp,
+    newton,
     D,
     E,
     g,
@@ -880,6 +907,9 @@ def _sqp(
     cost = _evaluate(
         fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0], g[0]
     )
+    exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
+    if exact:
+        _add_curvature(out[0], zmask, D[0], 1.0)
     step = np.inf
     prev = np.inf  # previous full step (inf after a shortened one)
     for it in range(1, max_iter + 1):
@@ -888,6 +918,12 @@ def _sqp(
         status, _, active = _solve_qp(
             Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
         )
+        if status == NOT_PD and exact:  # indefinite: fall back to Gauss-Newton here
+            _add_curvature(out[cur], zmask, D[cur], -1.0)
+            exact = False
+            status, _, active = _solve_qp(
+                Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
+            )
         if status != CONVERGED:
             return status, it, step, cost, cur
         step = np.max(np.abs(d))
@@ -922,6 +958,9 @@ def _sqp(
             )
             if ct <= cost + 1e-4 * np.sum(g[cur] * (Xb[tr] - Xb[cur])) + slack:
                 accepted = True
+                exact = newton
+                if exact:
+                    _add_curvature(out[tr], zmask, D[tr], 1.0)
                 break
             alpha *= 0.5
         if not accepted:
@@ -1010,8 +1049,8 @@ def solve_window(
     outcome, it, step, cost, cur = _sqp(
         model.window, ws.ptrs, ws.Xb, ws.out, problem.zmask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
-        opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, ws.D, ws.E, ws.g, ws.d,
-        ws.lam_qp,
+        opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
+        ws.g, ws.d, ws.lam_qp,
     )  # fmt: skip
     return FastResult(
         X=ws.Xb[cur].copy(),
