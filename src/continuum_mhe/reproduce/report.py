@@ -279,7 +279,7 @@ def _exp4(d: dict[str, Any]) -> list[str]:
         "in rad, |sigma| (some printed values are negative, so they cannot be variances). "
         "All estimators use the same model, Q and R (R: 2 deg std, the paper's V). "
         "Mean SRMSE with 95 % Student-t CI; the last columns are the paired difference "
-        "MHE - EKF over the same seeds and its verdict (significant if the CI excludes 0).",
+        "MHE - EKF over the same seeds and its verdict (rules in the header).",
         "",
     ]
     rows = []
@@ -353,7 +353,9 @@ def _exp4(d: dict[str, Any]) -> list[str]:
 
 def _ipopt(entry: dict[str, Any], key: str) -> float:
     block = (entry.get("ipopt") or {}).get(key)
-    return float(block["mean"]) if block and block.get("mean") is not None else math.nan
+    if isinstance(block, dict):
+        block = block.get("mean")
+    return math.nan if block is None else float(block)
 
 
 def _exp5(d: dict[str, Any]) -> list[str]:
@@ -448,7 +450,7 @@ def _exp6(d: dict[str, Any]) -> list[str]:
         "## 6. Beyond the paper: growing window vs the paper's start",
         "",
         f"paper3d, {sp['duration']} s, N = {sp['horizon']}, {n} seeds. Time to first "
-        "estimate is the sample time of the first estimate (plus its solve time, ms). "
+        "estimate is the sample time of the first estimate. "
         "Figure: `exp6_window`.",
         "",
         *_table(
@@ -654,7 +656,11 @@ def render_report(r: Results) -> str:
         f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; "
         f"{man.get('n_trials', '?')} synthetic trials + 1 rod run in "
         f"{_f(man.get('wall_s_trials'), 0)} s "
-        f"(jobs: {man.get('jobs') or 'all CPUs'}, scheduler: {man.get('scheduler') or 'local'}).",
+        + (
+            f"(Dask scheduler {man['scheduler']})."
+            if man.get("scheduler")
+            else f"(local processes: {man.get('jobs') or 'all CPUs'})."
+        ),
         f"Versions: {json.dumps(man.get('versions', {}))}; machine: {man.get('machine', '?')}.",
         f"MHE settings (defaults except N and paper_start): `{man.get('mhe_settings_default')}`;"
         f" noise settings (except measurement_std): `{man.get('noise_settings_default')}`.",
