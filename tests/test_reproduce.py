@@ -221,3 +221,19 @@ def test_fit_constant_curvature_recovers_an_arc() -> None:
     nodes = tip_position(0.9 * frac, np.full(11, 0.4), 0.2 * frac).T
     th, ph = cosserat.fit_constant_curvature(nodes, 0.2)
     assert th == pytest.approx(0.9, abs=1e-8) and ph == pytest.approx(0.4, abs=1e-8)
+
+
+def test_settings_reject_bad_values() -> None:
+    std = math.radians(2.0)
+    with pytest.raises(ValueError, match="methods"):
+        ex.TrialSpec("e", "g", "paper3d", 0, 1.0, 0.05, 0.2, (std, std), std, ())
+    with pytest.raises(ValueError, match="outlier_fraction"):
+        ex.TrialSpec(
+            "e", "g", "paper3d", 0, 1.0, 0.05, 0.2, (std, std), std, ("ekf",), outlier_fraction=1.5
+        )
+    with pytest.raises(ValueError, match="sweep_duration"):
+        ex.ReproduceConfig(sweep_horizons=(5, 500))
+    with pytest.raises(ValueError, match="bits"):
+        cosserat.ImuSettings(bits=4)
+    with pytest.raises(ValueError, match="n_elements"):
+        cosserat.RodSettings(n_elements=2)

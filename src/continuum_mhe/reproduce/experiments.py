@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -156,13 +156,21 @@ class TrialSpec:
     keep_series: bool = False
     score_from: int = 0
     mhe_solver: str = ""
-    extra: tuple[tuple[str, float], ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        if not self.methods:
+            raise ValueError("methods must name at least one estimator")
+        if self.corruption not in ("none", "bad-init", "outliers"):
+            raise ValueError(f"unknown corruption {self.corruption!r}")
+        if not 0 <= self.outlier_fraction < 1:
+            raise ValueError(f"outlier_fraction must lie in [0, 1), got {self.outlier_fraction}")
+        if len(self.noise_std) != 2 or min(self.noise_std) < 0 or self.assumed_std <= 0:
+            raise ValueError("noise_std must be two stds >= 0 rad and assumed_std > 0 rad")
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["noise_std"] = list(self.noise_std)
         d["methods"] = list(self.methods)
-        d["extra"] = [list(e) for e in self.extra]
         return d
 
     @classmethod
@@ -170,7 +178,7 @@ class TrialSpec:
         d = dict(d)
         d["noise_std"] = tuple(d["noise_std"])
         d["methods"] = tuple(d["methods"])
-        d["extra"] = tuple(tuple(e) for e in d.get("extra", ()))
+        d.pop("extra", None)  # written by early versions
         return cls(**d)
 
 

@@ -140,6 +140,18 @@ class ImuSettings:
     misalignment_deg: float = 1.0
     bits: int = 16
 
+    def __post_init__(self) -> None:
+        for name in ("sample_dt", "dlpf_window", "accel_range", "gyro_range"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        for name in ("accel_noise", "accel_bias", "gyro_noise", "gyro_bias", "misalignment_deg"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be >= 0, got {v!r}")
+        if not (isinstance(self.bits, int) and 8 <= self.bits <= 32):
+            raise ValueError(f"bits must be an integer in [8, 32], got {self.bits!r}")
+
 
 @dataclass(frozen=True)
 class RodTrajectory:
