@@ -303,7 +303,8 @@ def test_arrival_covariance_is_the_ekf_step() -> None:
         u, dt = np.full(f.nu, 0.1), 0.05
         _, F, H = model.evaluate_node(x, u, dt)
         Q = np.asarray(f.functions.predict(x, u, dt)[2], float).reshape(f.nx, f.nx)
-        got = fm.arrival_covariance(P, H, f.meas_cov(), F, Q, True)
+        got, got_inv = fm.arrival_covariance(P, H, f.meas_cov(), F, Q, True)
+        np.testing.assert_allclose(got @ got_inv, np.eye(f.nx), atol=1e-9)
         _, ref = ekf_update(f, x, P, np.array([0.31, -0.19]), f.meas_cov())
         _, ref = ekf_predict(f.functions, x, ref, u, dt)
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)

@@ -189,10 +189,10 @@ def _node_function(formulation: Formulation) -> ca.Function:
 
 
 _WRAPPER = """
-static const casadi_real* {name}_arg[{sz_arg}];
-static casadi_real* {name}_res[{sz_res}];
-static casadi_int {name}_iw[{sz_iw}];
-static casadi_real {name}_w[{sz_w}];
+static __thread const casadi_real* {name}_arg[{sz_arg}];
+static __thread casadi_real* {name}_res[{sz_res}];
+static __thread casadi_int {name}_iw[{sz_iw}];
+static __thread casadi_real {name}_w[{sz_w}];
 int {name}_flat(const casadi_real** in, casadi_real* out) {{
   int i;
   for (i = 0; i < {n_in}; ++i) {name}_arg[i] = in[i];
@@ -203,7 +203,10 @@ int {name}_flat(const casadi_real** in, casadi_real* out) {{
 
 
 def _c_source(fns: tuple[ca.Function, ...]) -> str:
-    """C source of ``fns`` with a flat entry ``<name>_flat(inputs, out)`` each."""
+    """C source of ``fns`` with a flat entry ``<name>_flat(inputs, out)`` each.
+
+    The entries' work arrays are thread-local: ctypes releases the GIL during calls.
+    """
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator("model.c", {"with_header": False, "casadi_real": "double"})
         for fn in fns:
@@ -818,7 +821,8 @@ def _project(X, lo, hi, ball_idx, ball_r2):
 
 @numba.njit(cache=True)
 def arrival_covariance(P, H, R, F, Q, valid):
-    """EKF covariance step of the arrival prior: Joseph update (if ``valid``), predict.
+    """EKF covariance step of the arrival prior: Joseph update (if ``valid``), predict;
+    returns ``(P, P^-1)``.
 
     Same equations as :func:`continuum_mhe.estimators.kalman.ekf_update` and
     :func:`~continuum_mhe.estimators.kalman.ekf_predict`, with the Jacobians ``H``
@@ -831,7 +835,8 @@ def arrival_covariance(P, H, R, F, Q, valid):
         ikh = np.eye(nx) - K @ H
         P = ikh @ P @ ikh.T + K @ R @ K.T
     P = F @ P @ F.T + Q
-    return 0.5 * (P + P.T)
+    P = 0.5 * (P + P.T)
+    return P, np.linalg.inv(P)
 
 
 # --- the window solve -----------------------------------------------------------------

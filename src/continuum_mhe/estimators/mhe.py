@@ -205,6 +205,7 @@ class MovingHorizonEstimator(Estimator):
         self._z_prev_valid: FloatArray | None = None
         self._xbar: FloatArray | None = None
         self._P: FloatArray | None = None
+        self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
 
@@ -240,12 +241,13 @@ class MovingHorizonEstimator(Estimator):
         if self._node is not None:  # same EKF step, Jacobians from the compiled model
             _, F, H = self._node.evaluate(x0, self._uw[0], float(self._dt[0]))
             valid = bool(self._zmask[0])
-            self._P = arrival_covariance(P, H, self._R, F, self._qw[0], valid)
+            self._P, self._Pinv = arrival_covariance(P, H, self._R, F, self._qw[0], valid)
         else:
             if self._zmask[0]:
                 _, P = ekf_update(f, x0, P, self._zw[0], self._R)
             _, P = ekf_predict(f.functions, x0, P, self._uw[0], float(self._dt[0]))
             self._P = 0.5 * (P + P.T)
+            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
         self._xbar = self._X[1].copy()
 
     def window_problem(self, copy: bool = True) -> WindowProblem:
@@ -255,12 +257,12 @@ class MovingHorizonEstimator(Estimator):
         the next sample.
         """
         off = self.settings.horizon - self._k  # leading inactive nodes
-        assert self._P is not None and self._xbar is not None
+        assert self._Pinv is not None and self._xbar is not None
         arrival = self._arrival  # pinned identity before off, P^-1 at off, 0 after
         if off:
             arrival[:off] = np.eye(self.formulation.nx)
         arrival[off : off + 2] = 0.0  # off moves down by one per sample while growing
-        arrival[off] = np.linalg.inv(self._P)
+        arrival[off] = self._Pinv
         c = np.copy if copy else np.asarray
         return WindowProblem(
             z=c(self._zw),
@@ -310,6 +312,7 @@ class MovingHorizonEstimator(Estimator):
                 return None, None, "no-estimate"
             self._xbar = f.project(f.initial_state(m.z))
             self._P = f.initial_cov()
+            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
         self._push(m, valid)
         X0 = self._initial_guess()
         if self.settings.paper_start and self._k < self.settings.horizon:
