@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.estimators import EstimateSeries, Method, make_estimator
 from continuum_mhe.metrics import compute_metrics
-from continuum_mhe.model.formulations import make_formulation
+from continuum_mhe.model.formulations import Formulation, make_formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import tip_position
 from continuum_mhe.settings import FormulationName, MHESettings, NoiseSettings, RobotSettings
@@ -241,7 +241,7 @@ def score_series(
     }
 
 
-def _formulation(name: FormulationName, length: float, std: float) -> Any:
+def _formulation(name: FormulationName, length: float, std: float) -> Formulation:
     return make_formulation(name, RobotSettings(length=length), NoiseSettings(measurement_std=std))
 
 
