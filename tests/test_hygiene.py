@@ -48,7 +48,7 @@ def test_readme_demo_command_runs(tmp_path):
 
 def _readme_examples() -> list[str]:
     """README lines that are plain CLI examples on files they create themselves."""
-    skip = ("--port", "reproduce", "benchmark", " demo", "--topic", "live ")
+    skip = ("--port", "reproduce", "benchmark", " demo", "--topic", "live ", " plot ")
     return [
         ln.strip()
         for ln in (ROOT / "README.md").read_text().splitlines()
