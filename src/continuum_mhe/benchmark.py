@@ -157,6 +157,9 @@ def _run_dompc(
 
 
 def _max_diff(a: FloatArray, b: FloatArray) -> float:
+    """Largest difference of two estimate series (phi wrapped); nan if empty."""
+    if len(a) == 0:
+        return math.nan
     d = np.abs(a - b)
     d[:, 4] = np.abs(wrap_angle(a[:, 4] - b[:, 4]))
     return float(np.nanmax(d))
