@@ -1,4 +1,4 @@
-"""Structure-exploiting MHE backend: Gauss-Newton SQP with a block-tridiagonal solver.
+"""Structure-exploiting MHE backend: Newton-type SQP with a block-tridiagonal solver.
 
 It solves exactly the window problem of :mod:`continuum_mhe.estimators.mhe` (same
 :class:`~continuum_mhe.estimators.mhe.WindowProblem`, same cost, same hard
@@ -898,7 +898,7 @@ def _sqp(
     d,
     lam_qp,
 ):
-    """Gauss-Newton SQP on two buffers (current, trial); returns
+    """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
 
     Certified when the QP step ``d`` is below ``step_tol``, or, with no constraint
