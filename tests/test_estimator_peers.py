@@ -1,7 +1,8 @@
 """Estimators against independent peers and known answers.
 
-* EKF and UKF against filterpy on identical inputs (same model functions, Q, R,
-  wrapped residuals, initial state and covariance).
+* EKF and UKF against filterpy on identical inputs (same Q, R, initial state and
+  covariance; the measurement written independently: wrapped angles for ``paper``, the
+  gravity direction on the measured tangent plane for ``bend``).
 * MHE against a plain CasADi ``Opti`` problem written here from the kinematics and
   IMU symbolic functions only (not the estimator's NLP builder).
 * On a linear Gaussian model, the full-horizon MHE equals dense batch least squares,
@@ -29,8 +30,8 @@ from continuum_mhe.estimators.base import Estimator, Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.model.formulations import BendFormulation, Formulation, make_formulation
-from continuum_mhe.model.imu import shape_from_tilt, tilt_bend_sym, wrap_angle
-from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
+from continuum_mhe.model.kinematics import rotation_bend_sym, tip_position
 from continuum_mhe.settings import MHESettings, RobotSettings
 from continuum_mhe.simulation.scenarios import Recording, simulate
 
@@ -71,23 +72,92 @@ def recording_for(mounting: str, up: Recording, down: Recording) -> Recording:
     return up if mounting == "z-up" else down
 
 
+# --- the measurement, written independently for the peers ---------------------------------
+def tilt_tangent_basis(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Measured gravity direction f(z) and the tangent basis E = [e_roll, e_pitch] (3x2)."""
+    g, b = float(z[0]), float(z[1])
+    f_z = np.array([-math.sin(b), math.cos(b) * math.sin(g), math.cos(b) * math.cos(g)])
+    e_roll = np.array([0.0, math.cos(g), -math.sin(g)])
+    e_pitch = np.array(
+        [-math.cos(b), -math.sin(b) * math.sin(g), -math.sin(b) * math.cos(g)]
+    )  # d f_z / d pitch
+    return f_z, np.column_stack([e_roll, e_pitch])
+
+
+def _gravity_jacobian_fn(mounting: str) -> ca.Function:
+    x = ca.SX.sym("x", 4)
+    up = 1.0 if mounting == "z-up" else -1.0
+    g = ca.mtimes(rotation_bend_sym(x[0], x[1]).T, ca.DM([0.0, 0.0, up]))
+    return ca.Function("g", [x], [g, ca.jacobian(g, x)])
+
+
+def peer_measurement(f: Formulation, z: np.ndarray) -> tuple[Any, Any, Any, Any]:
+    """``(z_eff, hx, H, residual)`` such that the library's residual r(z, x) equals
+    ``residual(z_eff, hx(x))`` and ``H = d hx / dx``, for filterpy.
+
+    ``paper``: the angles themselves, wrapped. ``bend``: the gravity direction
+    ``R(a, b)^T up`` (from the rotation, not the tilt code) projected on the tangent
+    plane of the measured direction, so the peer's measurement is linear in it.
+    """
+    nx = f.nx
+    if f.name == "paper":
+        fns = f.functions
+
+        def hx(x: np.ndarray) -> np.ndarray:
+            return np.asarray(fns.measure(x)[0], dtype=float).ravel()
+
+        def H(x: np.ndarray) -> np.ndarray:
+            return np.asarray(fns.measure(x)[1], dtype=float).reshape(2, nx)
+
+        return z, hx, H, lambda a, b: wrap_angle(np.subtract(a, b))
+    gfn = _gravity_jacobian_fn(f.robot.mounting)
+    f_z, E = tilt_tangent_basis(z)
+
+    def hx_b(x: np.ndarray) -> np.ndarray:
+        return E.T @ np.asarray(gfn(x)[0], dtype=float).ravel()
+
+    def H_b(x: np.ndarray) -> np.ndarray:
+        return E.T @ np.asarray(gfn(x)[1], dtype=float).reshape(3, nx)
+
+    return E.T @ f_z, hx_b, H_b, np.subtract
+
+
+def test_bend_residual_is_the_tangent_projection_of_the_gravity_direction(paper3d) -> None:
+    f = BendFormulation()
+    rng = np.random.default_rng(3)
+    for z in paper3d.z[::7]:
+        x = np.array([*rng.uniform(-1.0, 1.0, 2), 0.0, 0.0])
+        z_eff, hx, H, res = peer_measurement(f, z)
+        r, Jr = (np.asarray(v, dtype=float) for v in f.functions.innovate(z, x))
+        assert_allclose(r.ravel(), res(z_eff, hx(x)), atol=1e-12)
+        assert_allclose(-Jr.reshape(2, 4), H(x), atol=1e-12)
+
+
+def test_bend_residual_is_angle_difference_to_first_order() -> None:
+    # small errors: r = (cos(pitch) d_roll, d_pitch) + O(d^2)
+    f = BendFormulation()
+    x = np.array([0.4, -0.7, 0.0, 0.0])
+    z0 = np.asarray(f.functions.observe(x), dtype=float).ravel()
+    d = np.array([1e-6, -2e-6])
+    r = np.asarray(f.functions.innovate(z0 + d, x)[0], dtype=float).ravel()
+    assert_allclose(r, [math.cos(z0[1]) * d[0], d[1]], rtol=1e-5)
+
+
 # --- EKF vs filterpy -----------------------------------------------------------------------
 def filterpy_ekf_states(f: Formulation, rec: Recording) -> np.ndarray:
     fns, nx = f.functions, f.nx
 
-    def h_jacobian(x: np.ndarray) -> np.ndarray:
-        return np.asarray(fns.measure(x)[1], dtype=float).reshape(f.nz, nx)
-
-    def hx(x: np.ndarray) -> np.ndarray:
-        return np.asarray(fns.measure(x)[0], dtype=float).ravel()
+    def update(ekf: FilterpyEKF, z: np.ndarray) -> None:
+        z_eff, hx, H, res = peer_measurement(f, z)
+        ekf.update(z_eff, H, hx, residual=res)
 
     ekf = FilterpyEKF(dim_x=nx, dim_z=f.nz, dim_u=max(f.nu, 1))
     # first sample: prior from the measurement's inverse, then updated with it
     ekf.x = f.initial_state(rec.z[0])
     ekf.P = f.initial_cov()
     ekf.R = f.meas_cov()
-    ekf.update(rec.z[0], h_jacobian, hx, residual=f.residual)
-    states = [ekf.x.copy()]
+    update(ekf, rec.z[0])
+    states = [np.array(ekf.x, dtype=float).ravel()]
     z_prev = rec.z[0]
     for k in range(1, len(rec.t)):
         dt = float(rec.t[k] - rec.t[k - 1])
@@ -97,7 +167,7 @@ def filterpy_ekf_states(f: Formulation, rec: Recording) -> np.ndarray:
         ekf.Q = Q.reshape(nx, nx)
         ekf.predict_x = lambda u=0, xn=xn: setattr(ekf, "x", xn.ravel())  # f(x, u, dt)
         ekf.predict()
-        ekf.update(rec.z[k], h_jacobian, hx, residual=f.residual)
+        update(ekf, rec.z[k])
         z_prev = rec.z[k]
         states.append(np.array(ekf.x, dtype=float).ravel())
     return np.array(states)
@@ -119,30 +189,34 @@ def filterpy_ukf_states(f: Formulation, rec: Recording) -> np.ndarray:
     def fx(x: np.ndarray, dt: float, u: np.ndarray) -> np.ndarray:
         return np.asarray(fns.transition(x, u, dt), dtype=float).ravel()
 
-    def hx(x: np.ndarray) -> np.ndarray:
-        return np.asarray(fns.observe(x), dtype=float).ravel()
+    def update(ukf: FilterpyUKF, z: np.ndarray) -> None:
+        z_eff, hx, _, res = peer_measurement(f, z)
 
-    def z_mean(sigmas: np.ndarray, wm: np.ndarray) -> np.ndarray:
-        # angles averaged as wrapped offsets from the central sigma point
-        sigmas = np.atleast_2d(sigmas)
-        return wm @ (sigmas[0] + f.residual(sigmas, sigmas[0]))
+        def z_mean(sigmas: np.ndarray, wm: np.ndarray) -> np.ndarray:
+            # predicted measurement as the measurement minus the mean residual
+            return z_eff - wm @ np.array([res(z_eff, s) for s in np.atleast_2d(sigmas)])
+
+        def residual_z(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            # differences of residuals taken against the measurement, as our UKF does
+            return res(z_eff, b) - res(z_eff, a)
+
+        ukf.residual_z, ukf.z_mean = residual_z, z_mean
+        ukf.update(z_eff, hx=hx)
 
     points = MerweScaledSigmaPoints(nx, alpha=0.5, beta=2.0, kappa=0.0)
     ukf = FilterpyUKF(
         dim_x=nx,
         dim_z=f.nz,
         dt=float(rec.t[1] - rec.t[0]),
-        hx=hx,
+        hx=lambda x: x[:2],
         fx=fx,
         points=points,
-        z_mean_fn=z_mean,
-        residual_z=f.residual,
     )
     ukf.x = f.initial_state(rec.z[0])
     ukf.P = f.initial_cov()
     ukf.R = f.meas_cov()
     ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)  # no predict before the first update
-    ukf.update(rec.z[0])
+    update(ukf, rec.z[0])
     states = [ukf.x.copy()]
     z_prev = rec.z[0]
     for k in range(1, len(rec.t)):
@@ -150,7 +224,7 @@ def filterpy_ukf_states(f: Formulation, rec: Recording) -> np.ndarray:
         u = f.inputs(z_prev, rec.z[k], dt)
         ukf.Q = np.asarray(fns.predict(ukf.x, u, dt)[2], dtype=float).reshape(nx, nx)
         ukf.predict(dt=dt, u=u)
-        ukf.update(rec.z[k])
+        update(ukf, rec.z[k])
         z_prev = rec.z[k]
         states.append(ukf.x.copy())
     return np.array(states)
@@ -195,9 +269,11 @@ def solve_bend_window_independently(
         i = off + j
         a, b = X[0, j], X[1, j]
         if problem.zmask[i]:
-            d = problem.z[i] - tilt_bend_sym(a, b, f.robot.mounting)
-            d = ca.atan2(ca.sin(d), ca.cos(d))
-            cost += 0.5 * rinv * ca.sumsqr(d)
+            # tangent-plane tilt residual, from the rotation and the measured direction
+            f_z, E = tilt_tangent_basis(problem.z[i])
+            up = 1.0 if f.robot.mounting == "z-up" else -1.0
+            g = ca.mtimes(rotation_bend_sym(a, b).T, ca.DM([0.0, 0.0, up]))
+            cost += 0.5 * rinv * ca.sumsqr(ca.mtimes(E.T, f_z - g))
         if j > 0:
             dt = float(problem.dt[i - 1])
             prev = X[:, j - 1]
@@ -265,9 +341,6 @@ class LinearBend(BendFormulation):
 
     def measurement_residual_sym(self, z, x):
         return z - x[:2]
-
-    def residual(self, z, h):
-        return np.asarray(z, dtype=float) - h
 
     def constraint_sym(self, x):
         return ca.SX(0, 1), -np.inf, np.inf
@@ -567,3 +640,19 @@ def test_leading_dropouts_give_no_estimate_then_start(kind: str, paper3d) -> Non
     assert np.all(np.isnan(series.output[:3]))
     assert np.all(np.isin(series.status[3:], SOLVED))
     assert np.all(np.isfinite(series.output[3:]))
+
+
+@pytest.mark.parametrize(
+    "cls", [ExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
+)
+def test_non_increasing_time_is_a_clear_error(cls) -> None:
+    est = cls(BendFormulation())
+    z = np.array([0.1, 0.2])
+    est.step(Measurement(0.0, z))
+    est.step(Measurement(0.05, z))
+    for bad in (0.05, 0.01, math.nan):
+        with pytest.raises(ValueError, match="must be finite and later than the previous"):
+            est.step(Measurement(bad, z))
+    assert est.step(Measurement(0.1, z)).status == "ok"  # the estimator is still usable
+    est.reset()
+    assert est.step(Measurement(0.0, z)).status == "ok"  # a reset starts a new time axis

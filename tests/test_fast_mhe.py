@@ -307,11 +307,12 @@ def test_arrival_covariance_is_the_ekf_step() -> None:
         x = f.initial_state(np.array([0.3, -0.2]))
         P = f.initial_cov()
         u, dt = np.full(f.nu, 0.1), 0.05
-        _, F, H = model.evaluate_node(x, u, dt)
+        z = np.array([0.31, -0.19])
+        _, F, H = model.evaluate_node(x, u, dt, z)
         Q = np.asarray(f.functions.predict(x, u, dt)[2], float).reshape(f.nx, f.nx)
         got, got_inv = fm.arrival_covariance(P, H, f.meas_cov(), F, Q, True)
         np.testing.assert_allclose(got @ got_inv, np.eye(f.nx), atol=1e-9)
-        _, ref = ekf_update(f, x, P, np.array([0.31, -0.19]), f.meas_cov())
+        _, ref = ekf_update(f, x, P, z, f.meas_cov())
         _, ref = ekf_predict(f.functions, x, ref, u, dt)
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
 

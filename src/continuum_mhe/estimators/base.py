@@ -6,6 +6,7 @@ recording. Plots, metrics and the CLI read these and never touch an estimator.
 
 from __future__ import annotations
 
+import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
@@ -110,10 +111,16 @@ class Estimator(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
+        self._last_t = -math.inf
 
-    @abstractmethod
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
+        self._last_t = -math.inf
+        self._reset()
+
+    @abstractmethod
+    def _reset(self) -> None:
+        """Clear the estimator's own state (called by :meth:`reset`)."""
 
     @abstractmethod
     def _step(
@@ -122,7 +129,19 @@ class Estimator(ABC):
         """Return ``(state, covariance, status)`` for this sample."""
 
     def step(self, measurement: Measurement) -> Estimate:
-        """Process one sample and return its estimate. Never raises on solver failure."""
+        """Process one sample and return its estimate. Never raises on solver failure.
+
+        Raises:
+            ValueError: if ``measurement.t`` is not finite or not later than the
+                previous sample's (time must strictly increase).
+        """
+        t = measurement.t
+        if not (math.isfinite(t) and t > self._last_t):
+            raise ValueError(
+                f"sample time t={t!r} s must be finite and later than the previous "
+                f"sample's t={self._last_t!r} s"
+            )
+        self._last_t = t
         start = time.perf_counter()
         state, cov, status = self._step(measurement)
         ms = (time.perf_counter() - start) * 1e3

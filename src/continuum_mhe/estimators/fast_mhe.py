@@ -180,12 +180,14 @@ def _window_function(formulation: Formulation, horizon: int) -> ca.Function:
 
 
 def _node_function(formulation: Formulation) -> ca.Function:
-    """``(x, u, dt) -> (f, F, H)``: transition, its Jacobian and ``dh/dx`` (row-major)."""
+    """``(x, u, dt, z) -> (f, F, H)``: transition, its Jacobian and the measurement
+    Jacobian ``H = -dr(z, x)/dx`` of the residual (row-major), as the EKF uses it."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    xf, h = f.transition_sym(x, u, dt), f.measurement_sym(x)
-    outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(ca.jacobian(h, x).T)]
-    return ca.Function("mhe_node", [x, u, dt], [ca.densify(v) for v in outs])
+    z = ca.SX.sym("z", f.nz)
+    xf, r = f.transition_sym(x, u, dt), f.measurement_residual_sym(z, x)
+    outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T)]
+    return ca.Function("mhe_node", [x, u, dt, z], [ca.densify(v) for v in outs])
 
 
 _WRAPPER = """
@@ -340,10 +342,10 @@ class WindowModel:
         return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nx * nx * n
 
     def evaluate_node(
-        self, x: FloatArray, u: FloatArray, dt: float
+        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, dh/dx)`` at one node: (nx,), (nx, nx), (nz, nx)."""
-        return NodeEvaluator(self).evaluate(x, u, dt)
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx)`` at one node: (nx,), (nx, nx), (nz, nx)."""
+        return NodeEvaluator(self).evaluate(x, u, dt, z)
 
 
 class NodeEvaluator:
@@ -355,9 +357,15 @@ class NodeEvaluator:
         self._x = np.zeros(nx)
         self._u = np.zeros(model.nu)
         self._dt = np.zeros(1)
+        self._z = np.zeros(nz)
         self._out = np.empty(nx + nx * nx + nz * nx)
         self._ptrs = np.array(
-            [self._x.ctypes.data, self._u.ctypes.data if model.nu else 0, self._dt.ctypes.data],
+            [
+                self._x.ctypes.data,
+                self._u.ctypes.data if model.nu else 0,
+                self._dt.ctypes.data,
+                self._z.ctypes.data,
+            ],
             dtype=np.uintp,
         )
         self._views = (
@@ -367,12 +375,15 @@ class NodeEvaluator:
         )
 
     def evaluate(
-        self, x: FloatArray, u: FloatArray, dt: float
+        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, dh/dx)``, copies: (nx,), (nx, nx), (nz, nx)."""
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx)``, copies: (nx,), (nx, nx), (nz, nx).
+
+        ``z`` matters for the last one only (zeros when omitted)."""
         self._x[:] = x
         self._u[:] = u
         self._dt[0] = dt
+        self._z[:] = 0.0 if z is None else z
         if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
         f, F, H = self._views

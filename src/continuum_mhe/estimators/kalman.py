@@ -28,14 +28,17 @@ def ekf_predict(
 def ekf_update(
     formulation: Formulation, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Measurement update with the formulation's (wrapped) innovation, Joseph form."""
-    h, H = (np.asarray(v, dtype=float) for v in formulation.functions.measure(x))
-    H = H.reshape(len(z), len(x))
-    y = formulation.residual(z, h.ravel())
+    """Measurement update on the formulation's residual ``r(z, x)``, Joseph form.
+
+    The innovation is ``r(z, x)`` and ``H = -dr/dx``; for ``r = z - h(x)`` this is the
+    textbook EKF (with wrapped angles).
+    """
+    r, Jr = (np.asarray(v, dtype=float) for v in formulation.functions.innovate(z, x))
+    H = -Jr.reshape(len(r), len(x))
     S = H @ P @ H.T + R
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(len(x)) - K @ H
-    return x + K @ y, ikh @ P @ ikh.T + K @ R @ K.T
+    return x + K @ r.ravel(), ikh @ P @ ikh.T + K @ R @ K.T
 
 
 class _KalmanBase(Estimator):
@@ -44,7 +47,7 @@ class _KalmanBase(Estimator):
         self._R = formulation.meas_cov()
         self.reset()
 
-    def reset(self) -> None:
+    def _reset(self) -> None:
         self._x: FloatArray | None = None
         self._P: FloatArray | None = None
         self._t_prev = 0.0
@@ -145,15 +148,16 @@ class UnscentedKalmanFilter(_KalmanBase):
         return mean, (wc[:, None] * d).T @ d + Q
 
     def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Sigma points through the residual ``r(z, .)``: the innovation is its mean,
+        and the predicted measurement's deviations are ``-(r_i - mean)``."""
         fns = self.formulation.functions
         pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
-        zs = np.asarray(fns.observe(pts.T), dtype=float).reshape(len(z), len(pts)).T
-        # average angles as offsets from the central sigma point, so +-pi never splits
-        zs = zs[0] + self.formulation.residual(zs, zs[0])
-        zm = wm @ zs
-        dz = zs - zm
-        dx = pts - x
-        S = (wc[:, None] * dz).T @ dz + self._R
-        C = (wc[:, None] * dx).T @ dz
+        k = len(pts)
+        rs = np.asarray(fns.innovate(np.tile(z[:, None], (1, k)), pts.T)[0], dtype=float)
+        rs = rs.reshape(-1, k).T
+        rm = wm @ rs
+        dr = rs - rm
+        S = (wc[:, None] * dr).T @ dr + self._R
+        C = -(wc[:, None] * (pts - x)).T @ dr
         K = np.linalg.solve(S, C.T).T
-        return x + K @ self.formulation.residual(z, zm), P - K @ S @ K.T
+        return x + K @ rm, P - K @ S @ K.T

@@ -190,7 +190,7 @@ class MovingHorizonEstimator(Estimator):
     def _nlp(self, nlp: _Nlp) -> None:
         self._nlp_built = nlp
 
-    def reset(self) -> None:
+    def _reset(self) -> None:
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
         # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
         self._k = 0  # samples in the window
@@ -239,7 +239,7 @@ class MovingHorizonEstimator(Estimator):
         assert self._X is not None and self._P is not None
         f, x0, P = self.formulation, self._X[0], self._P
         if self._node is not None:  # same EKF step, Jacobians from the compiled model
-            _, F, H = self._node.evaluate(x0, self._uw[0], float(self._dt[0]))
+            _, F, H = self._node.evaluate(x0, self._uw[0], float(self._dt[0]), self._zw[0])
             valid = bool(self._zmask[0])
             self._P, self._Pinv = arrival_covariance(P, H, self._R, F, self._qw[0], valid)
         else:

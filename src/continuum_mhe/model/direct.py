@@ -87,9 +87,6 @@ class DirectFormulation(BendFormulation):
         """``z - h(x)``, unwrapped (unit vector and rates are not angles)."""
         return z - self.measurement_sym(x)
 
-    def residual(self, z: FloatArray, h: FloatArray) -> FloatArray:
-        return np.asarray(z, dtype=float) - np.asarray(h, dtype=float)
-
     def meas_cov(self) -> FloatArray:
         f_std = self.accel_direction_std or self.noise.measurement_std
         return np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)

@@ -26,7 +26,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.model.imu import shape_from_tilt, tilt_bend_sym, tilt_sym, wrap_angle
+from continuum_mhe.model.imu import (
+    gravity_direction_bend_sym,
+    shape_from_tilt,
+    tilt_bend_sym,
+    tilt_sym,
+    tilt_tangent_residual_sym,
+    wrap_angle,
+)
 from continuum_mhe.model.kinematics import (
     Sym,
     tip_position,
@@ -45,11 +52,13 @@ class ModelFunctions:
     """Numeric CasADi functions compiled from a formulation's symbolic model.
 
     ``predict(x, u, dt) -> (x+, F, Q)``, ``measure(x) -> (h, H)``,
-    ``output(x) -> [x, y, z, theta, phi]``.
+    ``innovate(z, x) -> (r, dr/dx)`` (the residual the estimators weight with
+    ``R^-1``), ``output(x) -> [x, y, z, theta, phi]``.
     """
 
     predict: ca.Function
     measure: ca.Function
+    innovate: ca.Function
     output: ca.Function
     transition: ca.Function
     observe: ca.Function
@@ -119,14 +128,14 @@ class Formulation:
         return np.eye(2) * self.noise.measurement_std**2
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
-        """``z - h(x)`` with both angles wrapped to ``(-pi, pi]`` (override for
-        measurements that are not angles)."""
+        """Residual ``r(z, x)``, "measurement minus model", weighted by ``R^-1``.
+
+        Here ``z - h(x)`` with both angles wrapped to ``(-pi, pi]`` (the paper's
+        measurement model); formulations may override it. Every estimator uses it: the
+        MHE's cost, and the filters' innovation with ``H = -dr/dx``.
+        """
         d = z - self.measurement_sym(x)
         return ca.atan2(ca.sin(d), ca.cos(d))
-
-    def residual(self, z: FloatArray, h: FloatArray) -> FloatArray:
-        """Numeric ``z - h`` as :meth:`measurement_residual_sym` defines it."""
-        return wrap_angle(np.asarray(z, dtype=float) - h)
 
     @cached_property
     def functions(self) -> ModelFunctions:
@@ -135,11 +144,14 @@ class Formulation:
         dt = ca.SX.sym("dt")
         xn = self.transition_sym(x, u, dt)
         h = self.measurement_sym(x)
+        z = ca.SX.sym("z", self.nz)
+        r = self.measurement_residual_sym(z, x)
         return ModelFunctions(
             predict=ca.Function(
                 "predict", [x, u, dt], [xn, ca.jacobian(xn, x), self.process_cov_sym(dt)]
             ),
             measure=ca.Function("measure", [x], [h, ca.jacobian(h, x)]),
+            innovate=ca.Function("innovate", [z, x], [r, ca.jacobian(r, x)]),
             output=ca.Function("output", [x], [self.output_sym(x)]),
             transition=ca.Function("f", [x, u, dt], [xn]),
             observe=ca.Function("h", [x], [h]),
@@ -167,6 +179,15 @@ class BendFormulation(Formulation):
 
     def measurement_sym(self, x: Sym) -> Sym:
         return tilt_bend_sym(x[0], x[1], self.robot.mounting)
+
+    def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
+        """Tilt residual on the tangent plane of the measured gravity direction.
+
+        Smooth everywhere (no Euler-angle wrap or gimbal lock); to first order
+        ``(cos(pitch) d_roll, d_pitch)``. See :func:`imu.tilt_tangent_residual_sym`.
+        """
+        f_model = gravity_direction_bend_sym(x[0], x[1], self.robot.mounting)
+        return tilt_tangent_residual_sym(z, f_model)
 
     def process_cov_sym(self, dt: Sym) -> Sym:
         q = self.noise.bend_accel_psd

@@ -68,6 +68,31 @@ def tilt_from_gravity_sym(f: Sym) -> Sym:
     return ca.vertcat(roll, pitch)
 
 
+def gravity_direction_from_tilt_sym(z: Sym) -> Sym:
+    """Unit specific-force direction in the tip frame from measured ``(roll, pitch)``."""
+    roll, pitch = z[0], z[1]
+    cb = ca.cos(pitch)
+    return ca.vertcat(-ca.sin(pitch), cb * ca.sin(roll), cb * ca.cos(roll))
+
+
+def tilt_tangent_residual_sym(z: Sym, f_model: Sym) -> Sym:
+    """Smooth tilt residual: ``f(z) - f_model`` on the tangent plane at the measurement.
+
+    ``f(z)`` is the measured gravity direction; the basis is ``e_roll = (0, cos g,
+    -sin g)`` and ``e_pitch = d f / d pitch``, both unit vectors. To first order the
+    residual is ``(cos(pitch) d_roll, d_pitch)``: isotropic noise on the gravity
+    direction, as an accelerometer has. Unlike angle differences it is smooth in the
+    state everywhere, including at gimbal lock (pitch = +-pi/2) and where roll wraps.
+    """
+    roll, pitch = z[0], z[1]
+    e_roll = ca.vertcat(0, ca.cos(roll), -ca.sin(roll))
+    e_pitch = ca.vertcat(
+        -ca.cos(pitch), -ca.sin(pitch) * ca.sin(roll), -ca.sin(pitch) * ca.cos(roll)
+    )
+    d = gravity_direction_from_tilt_sym(z) - f_model
+    return ca.vertcat(ca.dot(e_roll, d), ca.dot(e_pitch, d))
+
+
 def tilt_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> Sym:
     """Measurement ``h``: ``(roll, pitch)`` from the bend vector."""
     return tilt_from_gravity_sym(gravity_direction_bend_sym(a, b, mounting))
