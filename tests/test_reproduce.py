@@ -124,6 +124,7 @@ def _errors(results: list[dict[str, object]]) -> list[float]:
 
 def test_dask_local_cluster_matches_local_processes() -> None:
     import dask.distributed as distributed
+
     specs = _tiny_specs()
     local = run_parallel(run_task, specs, jobs=2, progress=False)
     with distributed.LocalCluster(
@@ -201,6 +202,7 @@ def test_shipped_rod_recording_is_valid() -> None:
 @pytest.mark.slow
 def test_rod_generator_short_run(tmp_path: Path) -> None:
     import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
+
     rod = cosserat.RodSettings(n_elements=8, period=0.4, sim_dt=4e-5)
     rec = cosserat.make_recording(rod, cosserat.ImuSettings(), duration=0.3, seed=1)
     cols = rec.columns

@@ -79,6 +79,12 @@ def _add_mhe_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="no estimate before N samples (the paper's Algorithm 1)",
     )
+    g.add_argument(
+        "--solver",
+        choices=("fast", "ipopt"),
+        default="fast",
+        help="MHE backend: fast (structure-exploiting, default) or ipopt (the paper's)",
+    )
 
 
 def _formulation(args: argparse.Namespace) -> Formulation:
@@ -92,7 +98,7 @@ def _formulation(args: argparse.Namespace) -> Formulation:
 
 
 def _mhe_settings(args: argparse.Namespace) -> MHESettings:
-    return MHESettings(horizon=args.horizon, paper_start=args.paper_start)
+    return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
 
 
 # --- commands --------------------------------------------------------------------------

@@ -632,7 +632,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format")
     p.add_argument("-o", "--output", help="estimate CSV, appended and flushed per sample")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
-    p.add_argument("--method", choices=METHODS, default="ekf", help="estimator (default ekf)")
+    p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
     p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
     p.add_argument("--status-every", type=float, default=1.0, help="seconds between status lines")
     p.add_argument(

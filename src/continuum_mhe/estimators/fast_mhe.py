@@ -180,13 +180,13 @@ def _window_function(formulation: Formulation, horizon: int) -> ca.Function:
 
 
 def _node_function(formulation: Formulation) -> ca.Function:
-    """``(x, u, dt, z) -> (f, F, H)``: transition, its Jacobian and the measurement
-    Jacobian ``H = -dr(z, x)/dx`` of the residual (row-major), as the EKF uses it."""
+    """``(x, u, dt, z) -> (f, F, H, r)``: transition, its Jacobian, the measurement
+    Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     z = ca.SX.sym("z", f.nz)
     xf, r = f.transition_sym(x, u, dt), f.measurement_residual_sym(z, x)
-    outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T)]
+    outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T), r]
     return ca.Function("mhe_node", [x, u, dt, z], [ca.densify(v) for v in outs])
 
 
@@ -343,8 +343,8 @@ class WindowModel:
 
     def evaluate_node(
         self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, -dr(z, x)/dx)`` at one node: (nx,), (nx, nx), (nz, nx)."""
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))`` at one node."""
         return NodeEvaluator(self).evaluate(x, u, dt, z)
 
 
@@ -358,7 +358,7 @@ class NodeEvaluator:
         self._u = np.zeros(model.nu)
         self._dt = np.zeros(1)
         self._z = np.zeros(nz)
-        self._out = np.empty(nx + nx * nx + nz * nx)
+        self._out = np.empty(nx + nx * nx + nz * nx + nz)
         self._ptrs = np.array(
             [
                 self._x.ctypes.data,
@@ -368,26 +368,27 @@ class NodeEvaluator:
             ],
             dtype=np.uintp,
         )
+        k = nx + nx * nx
         self._views = (
             self._out[:nx],
-            self._out[nx : nx + nx * nx].reshape(nx, nx),
-            self._out[nx + nx * nx :].reshape(nz, nx),
+            self._out[nx:k].reshape(nx, nx),
+            self._out[k : k + nz * nx].reshape(nz, nx),
+            self._out[k + nz * nx :],
         )
 
     def evaluate(
         self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, -dr(z, x)/dx)``, copies: (nx,), (nx, nx), (nz, nx).
-
-        ``z`` matters for the last one only (zeros when omitted)."""
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))``, copies: (nx,), (nx, nx),
+        (nz, nx), (nz,). ``z`` matters for the last two only (zeros when omitted)."""
         self._x[:] = x
         self._u[:] = u
         self._dt[0] = dt
         self._z[:] = 0.0 if z is None else z
         if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
-        f, F, H = self._views
-        return f.copy(), F.copy(), H.copy()
+        f, F, H, r = self._views
+        return f.copy(), F.copy(), H.copy(), r.copy()
 
 
 @lru_cache(maxsize=32)
@@ -831,20 +832,23 @@ def _project(X, lo, hi, ball_idx, ball_r2):
 
 
 @numba.njit(cache=True)
-def arrival_covariance(P, H, R, F, Q, valid):
-    """EKF covariance step of the arrival prior: Joseph update (if ``valid``), predict;
-    returns ``(P, P^-1)``.
+def arrival_update(x, P, r, H, R):
+    """EKF measurement update of the arrival prior, Joseph form: ``(x, P)``.
 
-    Same equations as :func:`continuum_mhe.estimators.kalman.ekf_update` and
-    :func:`~continuum_mhe.estimators.kalman.ekf_predict`, with the Jacobians ``H``
-    (nz, nx) and ``F`` (nx, nx) from :meth:`WindowModel.evaluate_node`.
+    Same equations as :func:`continuum_mhe.estimators.kalman.ekf_update`, with the
+    residual ``r`` (nz,) and ``H = -dr/dx`` (nz, nx) from
+    :meth:`WindowModel.evaluate_node`.
     """
     nx = P.shape[0]
-    if valid:
-        S = H @ P @ H.T + R
-        K = np.linalg.solve(S, H @ P).T
-        ikh = np.eye(nx) - K @ H
-        P = ikh @ P @ ikh.T + K @ R @ K.T
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T
+    ikh = np.eye(nx) - K @ H
+    return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
+
+
+@numba.njit(cache=True)
+def arrival_predict(P, F, Q):
+    """EKF covariance prediction of the arrival prior: ``(P, P^-1)``."""
     P = F @ P @ F.T + Q
     P = 0.5 * (P + P.T)
     return P, np.linalg.inv(P)

@@ -3,7 +3,7 @@
 The window holds the last ``N`` samples; node ``i`` of the decision variables is the
 state at window sample ``i`` (the last node is the estimate). The cost is::
 
-    1/2 sum_i  m_i ||z_i - h(x_i)||^2_{R^-1}                 (wrapped angles)
+    1/2 sum_i  m_i ||r(z_i, x_i)||^2_{R^-1}                  (formulation's residual)
   + 1/2 sum_i  ||x_{i+1} - f(x_i, u_i, dt_i)||^2_{Q(dt_i)^-1}
   + 1/2 ||x_0 - xbar||^2_{P^-1}                               (arrival cost)
 
@@ -11,9 +11,12 @@ subject to the formulation's bounds as hard constraints, where ``m_i`` masks
 dropouts. The NLP is built once per (formulation, N) with the window's measurements,
 masks, time steps, inputs, per-stage ``Q^-1`` and the arrival prior as parameters.
 
-Arrival cost: ``xbar`` is the previous solution's second node (the smoothed estimate
-of the new first sample); ``P`` follows the EKF covariance recursion along the
-smoothed first nodes (update with the sample leaving the window, then predict).
+Arrival cost: when the window slides, ``(xbar, P)`` take one EKF step, an update with
+the sample that leaves the window and a prediction to the new first sample. The prior
+holds only samples that have left the window, so none is counted twice; on a linear
+Gaussian model the MHE equals the Kalman filter at every sample. (Taking the previous
+solution's smoothed second node as ``xbar`` instead counts the window's measurements
+twice: on raw-IMU data it raised the MHE's tip error by 35 % over the EKF's.)
 
 Growing window: before ``N`` samples exist, the active nodes are the last ``n`` ones;
 the inactive leading nodes are pinned to the prior and carry no other cost, so they
@@ -41,7 +44,8 @@ from continuum_mhe.estimators.fast_mhe import (
     NodeEvaluator,
     WindowModel,
     Workspace,
-    arrival_covariance,
+    arrival_predict,
+    arrival_update,
     build_window_model,
     solve_window,
 )
@@ -235,20 +239,30 @@ class MovingHorizonEstimator(Estimator):
             self._z_prev_valid = m.z
 
     def _slide_arrival(self) -> None:
-        """Move the arrival prior from window sample 0 to window sample 1."""
-        assert self._X is not None and self._P is not None
-        f, x0, P = self.formulation, self._X[0], self._P
-        if self._node is not None:  # same EKF step, Jacobians from the compiled model
-            _, F, H = self._node.evaluate(x0, self._uw[0], float(self._dt[0]), self._zw[0])
-            valid = bool(self._zmask[0])
-            self._P, self._Pinv = arrival_covariance(P, H, self._R, F, self._qw[0], valid)
+        """Move the arrival prior from window sample 0 to window sample 1.
+
+        One EKF step on the prior itself: update ``(xbar, P)`` with the sample that
+        leaves the window, then predict to the next sample. The prior therefore holds
+        only information from samples that have left the window (no measurement is
+        counted twice), and on a linear Gaussian model the MHE equals the Kalman
+        filter at every sample, sliding or not.
+        """
+        assert self._xbar is not None and self._P is not None
+        f, x, P = self.formulation, self._xbar, self._P
+        u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
+        if self._node is not None:  # the same EKF step, on the compiled model
+            if self._zmask[0]:
+                _, _, H, r = self._node.evaluate(x, u, dt, z)
+                x, P = arrival_update(x, P, r, H, self._R)
+            xn, F, _, _ = self._node.evaluate(x, u, dt, z)
+            self._P, self._Pinv = arrival_predict(P, F, self._qw[0])
         else:
             if self._zmask[0]:
-                _, P = ekf_update(f, x0, P, self._zw[0], self._R)
-            _, P = ekf_predict(f.functions, x0, P, self._uw[0], float(self._dt[0]))
+                x, P = ekf_update(f, x, P, z, self._R)
+            xn, P = ekf_predict(f.functions, x, P, u, dt)
             self._P = 0.5 * (P + P.T)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
-        self._xbar = self._X[1].copy()
+        self._xbar = f.project(xn)
 
     def window_problem(self, copy: bool = True) -> WindowProblem:
         """The NLP data for the current window (for tests and other backends).
