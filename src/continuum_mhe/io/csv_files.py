@@ -110,6 +110,84 @@ def _parse_float(path: Path, line: int, name: str, text: str) -> float:
         raise InputError(f"{path}: line {line}: column {name}: {shown!r} is not a number") from None
 
 
+@dataclass(frozen=True)
+class SampleRows:
+    """Validated rows of a sample CSV: ``t`` (n,), ``values`` (n, k) with NaN for a
+    bad value kept as a dropout, the file's line number of each row, and ``skipped``."""
+
+    t: FloatArray
+    values: FloatArray
+    lines: list[int]
+    skipped: list[str]
+
+
+def read_sample_rows(
+    path: Path,
+    header: list[str],
+    body: list[tuple[int, list[str]]],
+    columns: Sequence[str],
+    *,
+    skip_bad: bool = False,
+) -> SampleRows:
+    """Validate the rows of a sample CSV whose ``columns[0]`` is the time ``t`` (s).
+
+    A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
+    dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
+    ``skip_bad`` the row is dropped. Each skip is recorded as ``"line N: problem"``.
+    """
+    idx = _column_indices(path, header, columns)
+    if not body:
+        raise InputError(f"{path}: line 2: no data rows after the header")
+    t_list: list[float] = []
+    values: list[list[float]] = []
+    lines: list[int] = []
+    skipped: list[str] = []
+
+    def bad(line: int, msg: str) -> None:
+        if not skip_bad:
+            raise InputError(f"{path}: line {line}: {msg}")
+        skipped.append(f"line {line}: {msg}")
+
+    truncated = "expected {} fields, found {} (truncated row?)"
+    for line, row in body:
+        if len(row) <= idx[0]:
+            bad(line, truncated.format(len(header), len(row)))
+            continue
+        try:
+            t = _parse_float(path, line, columns[0], row[idx[0]])
+        except InputError as exc:
+            bad(line, str(exc).split(": ", 2)[-1])
+            continue
+        if not math.isfinite(t):
+            bad(line, f"t is {row[idx[0]]}")
+            continue
+        if t_list and t <= t_list[-1]:
+            kind = "duplicate" if t == t_list[-1] else "decreasing"
+            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
+            continue
+        vals: list[float] = []
+        for name, j in zip(columns[1:], idx[1:]):
+            if j >= len(row):
+                bad(line, truncated.format(len(header), len(row)))
+                vals = [math.nan] * (len(columns) - 1)
+                break
+            try:
+                v = _parse_float(path, line, name, row[j])
+            except InputError as exc:
+                bad(line, str(exc).split(": ", 2)[-1])
+                v = math.nan
+            else:
+                if not math.isfinite(v):
+                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
+            vals.append(v)
+        t_list.append(t)
+        values.append(vals)
+        lines.append(line)
+    if not t_list:
+        raise InputError(f"{path}: no usable rows ({len(skipped)} skipped)")
+    return SampleRows(np.array(t_list), np.array(values, dtype=float), lines, skipped)
+
+
 def read_measurements(
     path: str | os.PathLike[str], *, degrees: bool = False, skip_bad: bool = False
 ) -> MeasurementTable:
@@ -121,63 +199,10 @@ def read_measurements(
     """
     p = Path(path)
     header, body = _read_rows(p)
-    idx = _column_indices(p, header, MEASUREMENT_COLUMNS)
-    if not body:
-        raise InputError(f"{p}: line 2: no data rows after the header")
-    t_list: list[float] = []
-    z_list: list[tuple[float, float]] = []
-    lines: list[int] = []
-    skipped: list[str] = []
-
-    def bad(line: int, msg: str) -> None:
-        if not skip_bad:
-            raise InputError(f"{p}: line {line}: {msg}")
-        skipped.append(f"line {line}: {msg}")
-
-    for line, row in body:
-        if len(row) < len(header):
-            msg = f"expected {len(header)} fields, found {len(row)} (truncated row?)"
-            if len(row) <= idx[0]:
-                bad(line, msg)
-                continue
-        try:
-            t = _parse_float(p, line, "t", row[idx[0]])
-        except InputError as exc:
-            bad(line, str(exc).split(": ", 2)[-1])
-            continue
-        if not math.isfinite(t):
-            bad(line, f"t is {row[idx[0]]}")
-            continue
-        if t_list and t <= t_list[-1]:
-            kind = "duplicate" if t == t_list[-1] else "decreasing"
-            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
-            continue
-        angles: list[float] = []
-        for name, j in zip(MEASUREMENT_COLUMNS[1:], idx[1:]):
-            if j >= len(row):
-                bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
-                angles.append(math.nan)
-                continue
-            try:
-                v = _parse_float(p, line, name, row[j])
-            except InputError as exc:
-                bad(line, str(exc).split(": ", 2)[-1])
-                v = math.nan
-            else:
-                if not math.isfinite(v):
-                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
-            angles.append(v)
-        t_list.append(t)
-        z_list.append((angles[0], angles[1]))
-        lines.append(line)
-    if not t_list:
-        raise InputError(f"{p}: no usable rows ({len(skipped)} skipped)")
-    t_arr = np.array(t_list)
-    z = np.array(z_list, dtype=float)
-    if degrees:
-        z = np.radians(z)
-    _check_angle_units(p, z, lines, degrees)
-    return MeasurementTable(t=t_arr, z=z, skipped=skipped)
+    rows = read_sample_rows(p, header, body, MEASUREMENT_COLUMNS, skip_bad=skip_bad)
+    z = np.radians(rows.values) if degrees else rows.values
+    _check_angle_units(p, z, rows.lines, degrees)
+    return MeasurementTable(t=rows.t, z=z, skipped=rows.skipped)
 
 
 def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: bool) -> None:

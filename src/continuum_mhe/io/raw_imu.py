@@ -32,9 +32,8 @@ import numpy as np
 from continuum_mhe.io.csv_files import (
     FloatArray,
     InputError,
-    _column_indices,
-    _parse_float,
     _read_rows,
+    read_sample_rows,
 )
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -218,61 +217,11 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     header, body = _read_rows(p)
     has_gyro = any(c in header for c in GYRO_COLUMNS)
     names = RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]
-    idx = _column_indices(p, header, names)
-    if not body:
-        raise InputError(f"{p}: line 2: no data rows after the header")
-    t_list: list[float] = []
-    values: list[list[float]] = []
-    lines: list[int] = []
-    skipped: list[str] = []
-
-    def bad(line: int, msg: str) -> None:
-        if not skip_bad:
-            raise InputError(f"{p}: line {line}: {msg}")
-        skipped.append(f"line {line}: {msg}")
-
-    for line, row in body:
-        if len(row) <= idx[0]:
-            bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
-            continue
-        try:
-            t = _parse_float(p, line, "t", row[idx[0]])
-        except InputError as exc:
-            bad(line, str(exc).split(": ", 2)[-1])
-            continue
-        if not math.isfinite(t):
-            bad(line, f"t is {row[idx[0]]}")
-            continue
-        if t_list and t <= t_list[-1]:
-            kind = "duplicate" if t == t_list[-1] else "decreasing"
-            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
-            continue
-        vals: list[float] = []
-        for name, j in zip(names[1:], idx[1:]):
-            if j >= len(row):
-                bad(line, f"expected {len(header)} fields, found {len(row)} (truncated row?)")
-                vals = [math.nan] * (len(names) - 1)
-                break
-            try:
-                v = _parse_float(p, line, name, row[j])
-            except InputError as exc:
-                bad(line, str(exc).split(": ", 2)[-1])
-                v = math.nan
-            else:
-                if not math.isfinite(v):
-                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
-            vals.append(v)
-        t_list.append(t)
-        values.append(vals)
-        lines.append(line)
-    if not t_list:
-        raise InputError(f"{p}: no usable rows ({len(skipped)} skipped)")
-    arr = np.array(values, dtype=float)
+    rows = read_sample_rows(p, header, body, names, skip_bad=skip_bad)
+    t_list, arr, skipped = rows.t, rows.values, rows.skipped
     acc = arr[:, :3]
     _check_accel_units(p, acc)
-    return RawImuTable(
-        t=np.array(t_list), acc=acc, gyr=arr[:, 3:6] if has_gyro else None, skipped=skipped
-    )
+    return RawImuTable(t=t_list, acc=acc, gyr=arr[:, 3:6] if has_gyro else None, skipped=skipped)
 
 
 def _check_accel_units(path: Path | str, acc: FloatArray) -> None:
