@@ -23,7 +23,7 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -255,21 +255,37 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
 
 
 @contextlib.contextmanager
-def atomic_writer(path: str | os.PathLike[str]) -> Iterator[IO[str]]:
-    """Open a temporary file next to ``path``; rename it over ``path`` on success only."""
+def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{target}: folder {folder} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
     try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-            yield fh
+        if binary:
+            with os.fdopen(fd, "wb") as fb:
+                yield fb
+        else:
+            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+                yield fh
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def atomic_writer(path: str | os.PathLike[str]) -> contextlib.AbstractContextManager[IO[str]]:
+    """Open a temporary text file next to ``path``; rename it over ``path`` on success
+    only, so an error never leaves a partial file (or touches an existing one)."""
+    return _atomic(path, binary=False)
+
+
+def atomic_binary_writer(
+    path: str | os.PathLike[str],
+) -> contextlib.AbstractContextManager[IO[bytes]]:
+    """Binary counterpart of :func:`atomic_writer`."""
+    return _atomic(path, binary=True)
 
 
 def _fmt(v: float) -> str:

@@ -21,11 +21,9 @@ the arc) and ``/continuum/estimate`` (the estimate CSV's fields).
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
-import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +33,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.base import EstimateSeries
-from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements, write_estimates
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    InputError,
+    atomic_binary_writer,
+    read_measurements,
+    write_estimates,
+)
 from continuum_mhe.io.raw_imu import (
     RawImuSettings,
     _check_accel_units,
@@ -436,37 +440,26 @@ def write_estimates_mcap(
     """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
     from mcap.writer import CompressionType, Writer
 
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"{target}: folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            writer = Writer(fh, compression=CompressionType.NONE)
-            writer.start(profile="", library="continuum-mhe")
-            channels: dict[str, int] = {}
-            for topic, schema in TOPICS.items():
-                sid = writer.register_schema(
-                    name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
-                )
-                channels[topic] = writer.register_channel(
-                    topic=topic, message_encoding="json", schema_id=sid
-                )
-            for seq, (topic, ns, msg) in enumerate(estimate_messages(series, length, t0_ns)):
-                writer.add_message(
-                    channels[topic],
-                    log_time=ns,
-                    data=json.dumps(msg).encode(),
-                    publish_time=ns,
-                    sequence=seq,
-                )
-            writer.finish()
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    with atomic_binary_writer(path) as fh:
+        writer = Writer(fh, compression=CompressionType.NONE)
+        writer.start(profile="", library="continuum-mhe")
+        channels: dict[str, int] = {}
+        for topic, schema in TOPICS.items():
+            sid = writer.register_schema(
+                name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
+            )
+            channels[topic] = writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=sid
+            )
+        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, length, t0_ns)):
+            writer.add_message(
+                channels[topic],
+                log_time=ns,
+                data=json.dumps(msg).encode(),
+                publish_time=ns,
+                sequence=seq,
+            )
+        writer.finish()
 
 
 def read_estimates_mcap(
