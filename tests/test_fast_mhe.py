@@ -431,3 +431,26 @@ def test_benchmark_command_smoke(tmp_path: Path) -> None:
     fast = next(r for r in report["results"] if r["method"] == "fast")
     assert fast["max_diff_vs_ipopt"] < 1e-6 and fast["fallbacks"] == 0
     assert report["memory"]["samples"] == 200
+
+
+@pytest.mark.parametrize("compile_model", [True, False])
+def test_compiled_arrival_step_and_output_match_the_python_model(compile_model: bool) -> None:
+    for name in ("bend", "paper"):
+        f = make_formulation(name)
+        node = fm.NodeEvaluator(fm.build_window_model(f, 4, compile_model))
+        x = f.initial_state(np.array([0.3, -0.2]))
+        P, R = f.initial_cov(), f.meas_cov()
+        u, dt, z = np.full(f.nu, 0.1), 0.05, np.array([0.31, -0.19])
+        Q = np.asarray(f.functions.predict(x, u, dt)[2], float).reshape(f.nx, f.nx)
+        for valid in (True, False):
+            xn, Pn, Pinv = node.arrival_step(x, P, u, dt, z, valid, R, Q)
+            x_ref, P_ref = ekf_update(f, x, P, z, R) if valid else (x, P)
+            x_ref, P_ref = ekf_predict(f.functions, x_ref, P_ref, u, dt)
+            np.testing.assert_allclose(xn, x_ref, rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(Pn, 0.5 * (P_ref + P_ref.T), rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(Pn @ Pinv, np.eye(f.nx), atol=1e-9)
+        states = [x, f.initial_state(np.array([0.0, 0.0]))]
+        if name == "bend":
+            states.append(np.array([-0.5, 0.0, 0.0, 0.0]))  # phi = pi: wrapped to -pi
+        for s in states:
+            np.testing.assert_allclose(node.output(s), f.output(s), rtol=1e-13, atol=1e-15)

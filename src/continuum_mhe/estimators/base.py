@@ -128,6 +128,10 @@ class Estimator(ABC):
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """Return ``(state, covariance, status)`` for this sample."""
 
+    def _output(self, state: FloatArray) -> FloatArray:
+        """``[x, y, z, theta, phi]`` of a state (a backend may use a compiled copy)."""
+        return self.formulation.output(state)
+
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
 
@@ -145,7 +149,7 @@ class Estimator(ABC):
         start = time.perf_counter()
         state, cov, status = self._step(measurement)
         ms = (time.perf_counter() - start) * 1e3
-        output = None if state is None else self.formulation.output(state)
+        output = None if state is None else self._output(state)
         return Estimate(measurement.t, state, output, cov, status, ms)
 
     def run(

@@ -323,6 +323,7 @@ class WindowModel:
         rinv: (nz, nz) inverse measurement covariance (rad^-2 for tilt).
         window: C function of :func:`_window_function`.
         node: C function of :func:`_node_function`.
+        output: C function of the formulation's ``output_sym``.
         compiled: True if the model runs as compiled C (else through CasADi's VM).
     """
 
@@ -334,6 +335,7 @@ class WindowModel:
     rinv: FloatArray
     window: Any  # ctypes function pointer (CFunction)
     node: Any
+    output: Any  # formulation.output_sym: state -> [x, y, z, theta, phi]
     compiled: bool
 
     @property
@@ -368,6 +370,10 @@ class NodeEvaluator:
             ],
             dtype=np.uintp,
         )
+        self._ofn = model.output
+        self._ox = np.zeros(nx)
+        self._oout = np.empty(5)
+        self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
         k = nx + nx * nx
         self._views = (
             self._out[:nx],
@@ -390,12 +396,45 @@ class NodeEvaluator:
         f, F, H, r = self._views
         return f.copy(), F.copy(), H.copy(), r.copy()
 
+    def arrival_step(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray,
+        valid: bool,
+        R: FloatArray,
+        Q: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """One EKF step of the arrival prior in one compiled call: update with ``z``
+        (if ``valid``), predict with ``(u, dt)``. Returns ``(x+, P+, P+^-1)``; the same
+        equations as :func:`arrival_update` then :func:`arrival_predict`."""
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = z
+        return _arrival_step(
+            self._fn, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
+        )
+
+    def output(self, x: FloatArray) -> FloatArray:
+        """``[x, y, z, theta, phi]`` of state ``x`` (compiled ``output_sym``; phi
+        wrapped to ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
+        self._ox[:] = x
+        if self._ofn(self._optrs.ctypes.data, self._oout.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        y = self._oout.copy()
+        y[4] = (y[4] + np.pi) % (2 * np.pi) - np.pi
+        return y
+
 
 @lru_cache(maxsize=32)
 def build_window_model(formulation: Formulation, horizon: int, compile: bool = True) -> WindowModel:
     """Build (and compile, if possible) the window model. Cached per arguments."""
     win, node = _window_function(formulation, horizon), _node_function(formulation)
-    lib = _compile(_c_source((win, node))) if compile else None
+    xo = ca.SX.sym("x", formulation.nx)
+    out = ca.Function("mhe_output", [xo], [ca.densify(formulation.output_sym(xo))])
+    lib = _compile(_c_source((win, node, out))) if compile else None
     return WindowModel(
         nx=formulation.nx,
         nu=formulation.nu,
@@ -405,6 +444,7 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
         rinv=np.asarray(np.linalg.inv(formulation.meas_cov()), dtype=np.float64),
         window=_c_function(win, lib),
         node=_c_function(node, lib),
+        output=_c_function(out, lib),
         compiled=lib is not None,
     )
 
@@ -844,6 +884,27 @@ def arrival_update(x, P, r, H, R):
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(nx) - K @ H
     return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
+
+
+@numba.njit(cache=True)
+def _arrival_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
+    """:meth:`NodeEvaluator.arrival_step` in one compiled call (two model calls)."""
+    nz = R.shape[0]
+    k = nx + nx * nx
+    if valid:
+        xin[:] = x
+        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        H = out[k : k + nz * nx].copy().reshape(nz, nx)
+        r = out[k + nz * nx : k + nz * nx + nz].copy()
+        x, P = arrival_update(x, P, r, H, R)
+    xin[:] = x
+    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    xn = out[:nx].copy()
+    F = out[nx:k].copy().reshape(nx, nx)
+    P, Pinv = arrival_predict(P, F, Q)
+    return xn, P, Pinv
 
 
 @numba.njit(cache=True)

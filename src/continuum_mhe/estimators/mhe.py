@@ -44,8 +44,6 @@ from continuum_mhe.estimators.fast_mhe import (
     NodeEvaluator,
     WindowModel,
     Workspace,
-    arrival_predict,
-    arrival_update,
     build_window_model,
     solve_window,
 )
@@ -251,11 +249,10 @@ class MovingHorizonEstimator(Estimator):
         f, x, P = self.formulation, self._xbar, self._P
         u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
         if self._node is not None:  # the same EKF step, on the compiled model
-            if self._zmask[0]:
-                _, _, H, r = self._node.evaluate(x, u, dt, z)
-                x, P = arrival_update(x, P, r, H, self._R)
-            xn, F, _, _ = self._node.evaluate(x, u, dt, z)
-            self._P, self._Pinv = arrival_predict(P, F, self._qw[0])
+            valid = bool(self._zmask[0])
+            xn, self._P, self._Pinv = self._node.arrival_step(
+                x, P, u, dt, z, valid, self._R, self._qw[0]
+            )
         else:
             if self._zmask[0]:
                 x, P = ekf_update(f, x, P, z, self._R)
@@ -318,6 +315,11 @@ class MovingHorizonEstimator(Estimator):
         return X
 
     # --- solve ----------------------------------------------------------------
+    def _output(self, state: FloatArray) -> FloatArray:
+        if self._node is not None:
+            return self._node.output(state)
+        return self.formulation.output(state)
+
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
         valid = m.valid
@@ -343,7 +345,8 @@ class MovingHorizonEstimator(Estimator):
             return self._solve_ipopt(problem, X0)
         lam0 = None
         if self._lam is not None:
-            lam0 = np.roll(self._lam, -1)
+            lam0 = np.empty_like(self._lam)
+            lam0[:-1] = self._lam[1:]
             lam0[-1] = 0.0
         res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
         if res.converged:
