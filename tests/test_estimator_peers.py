@@ -46,6 +46,14 @@ def ipopt_settings(**kwargs: Any) -> MHESettings:
     return MHESettings(**kwargs)
 
 
+SOLVERS = ("fast", "ipopt")  # every MHE behaviour below holds for both backends
+
+
+def solver_settings(solver: str, **kwargs: Any) -> MHESettings:
+    """MHESettings for backend ``solver`` ("fast" is the default)."""
+    return ipopt_settings(**kwargs) if solver == "ipopt" else MHESettings(**kwargs)
+
+
 def step_all(estimator: Estimator, t: np.ndarray, z: np.ndarray) -> list:
     estimator.reset()
     return [estimator.step(Measurement(float(ti), np.asarray(zi, float))) for ti, zi in zip(t, z)]
@@ -292,8 +300,10 @@ def solve_bend_window_independently(
     return np.asarray(sol.value(X), dtype=float).reshape(4, active).T
 
 
-def run_mhe_and_compare_window(f: BendFormulation, rec: Recording, horizon: int, upto: int):
-    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=horizon))
+def run_mhe_and_compare_window(
+    f: BendFormulation, rec: Recording, horizon: int, upto: int, solver: str = "ipopt"
+):
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=horizon))
     mhe.reset()
     for k in range(upto + 1):
         est = mhe.step(Measurement(float(rec.t[k]), rec.z[k]))
@@ -304,19 +314,21 @@ def run_mhe_and_compare_window(f: BendFormulation, rec: Recording, horizon: int,
     return est, ours, peer
 
 
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("upto", [6, 39], ids=["growing-window", "full-window"])
-def test_mhe_matches_independent_opti_problem(upto: int, paper3d) -> None:
+def test_mhe_matches_independent_opti_problem(upto: int, solver: str, paper3d) -> None:
     f = BendFormulation()
-    est, ours, peer = run_mhe_and_compare_window(f, paper3d, horizon=15, upto=upto)
+    est, ours, peer = run_mhe_and_compare_window(f, paper3d, 15, upto, solver)
     assert_allclose(ours, peer, rtol=0, atol=1e-6)
     assert_allclose(est.state, peer[-1], rtol=0, atol=1e-6)
 
 
-def test_mhe_matches_independent_opti_problem_with_active_disk_bound() -> None:
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_mhe_matches_independent_opti_problem_with_active_disk_bound(solver: str) -> None:
     rec = simulate("planar-overbend", duration=8.5)
     f = BendFormulation()
     upto = len(rec.t) - 1  # truth theta = 1.85 rad > pi/2 at the end
-    est, ours, peer = run_mhe_and_compare_window(f, rec, horizon=15, upto=upto)
+    est, ours, peer = run_mhe_and_compare_window(f, rec, 15, upto, solver)
     assert_allclose(np.hypot(peer[-1, 0], peer[-1, 1]), math.pi / 2, atol=1e-6)  # bound active
     assert_allclose(ours, peer, rtol=0, atol=1e-6)
 
@@ -430,15 +442,16 @@ def kalman_filter_with_prior(f: LinearBend, z: np.ndarray) -> np.ndarray:
     return x
 
 
-def full_horizon_mhe(f: LinearBend, t: np.ndarray, z: np.ndarray):
-    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=LIN_N + 5))  # growing window only
+def full_horizon_mhe(f: LinearBend, t: np.ndarray, z: np.ndarray, solver: str = "ipopt"):
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=LIN_N + 5))  # growing only
     estimates = step_all(mhe, t, z)
     return estimates, window_states(mhe)[-len(z) :]
 
 
-def test_linear_full_horizon_mhe_equals_batch_least_squares(linear_recording) -> None:
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_linear_full_horizon_mhe_equals_batch_least_squares(linear_recording, solver) -> None:
     f, t, z = linear_recording
-    estimates, window = full_horizon_mhe(f, t, z)
+    estimates, window = full_horizon_mhe(f, t, z, solver)
     assert all(e.status == "ok" for e in estimates)
     assert_allclose(window, batch_least_squares(f, z), rtol=0, atol=1e-8)
 
@@ -463,11 +476,13 @@ def overbend() -> Recording:
     return simulate("planar-overbend", duration=10)
 
 
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("name", FORMULATIONS)
-def test_mhe_never_exceeds_theta_max(name: str, overbend) -> None:
+def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
     assert overbend.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
     f = make_formulation(name)
-    series = MovingHorizonEstimator(f, MHESettings(horizon=20)).run(overbend.t, overbend.z)
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    series = mhe.run(overbend.t, overbend.z)
     assert np.all(np.isfinite(series.output))
     # IPOPT's default bound relaxation (1e-8 relative) allows ~1.6e-8 rad
     assert series.output[:, 3].max() <= f.robot.theta_max + 1e-7
@@ -475,9 +490,11 @@ def test_mhe_never_exceeds_theta_max(name: str, overbend) -> None:
     assert_allclose(series.output[late, 3], f.robot.theta_max, rtol=0, atol=1e-3)
 
 
-def test_mhe_with_larger_theta_max_tracks_further_bending(overbend) -> None:
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_mhe_with_larger_theta_max_tracks_further_bending(solver: str, overbend) -> None:
     f = make_formulation("bend", robot=RobotSettings(theta_max=3.0))
-    series = MovingHorizonEstimator(f, MHESettings(horizon=20)).run(overbend.t, overbend.z)
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    series = mhe.run(overbend.t, overbend.z)
     assert series.output[:, 3].max() > 2.0
     assert series.output[:, 3].max() <= 3.0 + 1e-7
     err = np.abs(series.output[:, 3] - overbend.truth[:, 3])
@@ -493,10 +510,12 @@ def straight() -> Recording:
 def make_estimator(kind: str, f: Formulation) -> Estimator:
     if kind == "mhe":
         return MovingHorizonEstimator(f, MHESettings(horizon=20))
+    if kind == "mhe-ipopt":
+        return MovingHorizonEstimator(f, ipopt_settings(horizon=20))
     return {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
 
 
-ESTIMATORS = ("ekf", "ukf", "mhe")
+ESTIMATORS = ("ekf", "ukf", "mhe", "mhe-ipopt")
 # a successful sample with the default MHE backend (a fast backend may hand over to IPOPT)
 SOLVED = ["ok", "fallback-ipopt"]
 
