@@ -675,6 +675,8 @@ def test_non_increasing_time_is_a_clear_error(cls) -> None:
     assert est.step(Measurement(0.1, z)).status == "ok"  # the estimator is still usable
     est.reset()
     assert est.step(Measurement(0.0, z)).status == "ok"  # a reset starts a new time axis
+    with pytest.raises(ValueError, match=r"must have shape \(2,\)"):
+        est.step(Measurement(1.0, np.array([0.1, 0.2, 0.3])))
 
 
 def _overbend_in_xz_plane() -> Recording:

@@ -136,10 +136,17 @@ class Estimator(ABC):
         """Process one sample and return its estimate. Never raises on solver failure.
 
         Raises:
-            ValueError: if ``measurement.t`` is not finite or not later than the
-                previous sample's (time must strictly increase).
+            ValueError: if ``measurement.z`` does not have the formulation's size, or
+                ``measurement.t`` is not finite or not later than the previous
+                sample's (time must strictly increase).
         """
         t = measurement.t
+        nz = self.formulation.nz
+        if np.shape(measurement.z) != (nz,):
+            raise ValueError(
+                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
+                f"formulation, got {np.shape(measurement.z)}"
+            )
         if not (math.isfinite(t) and t > self._last_t):
             raise ValueError(
                 f"sample time t={t!r} s must be finite and later than the previous "
