@@ -181,10 +181,10 @@ class BendFormulation(Formulation):
         return tilt_bend_sym(x[0], x[1], self.robot.mounting)
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
-        """Tilt residual on the tangent plane of the measured gravity direction.
-
-        Smooth everywhere (no Euler-angle wrap or gimbal lock); to first order
-        ``(cos(pitch) d_roll, d_pitch)``. See :func:`imu.tilt_tangent_residual_sym`.
+        """Tilt residual on the tangent plane of the measured gravity direction
+        (stereographic). Smooth everywhere (no Euler-angle wrap or gimbal lock), norm
+        ``2 tan(error/2)``; to first order ``(cos(pitch) d_roll, d_pitch)``. See
+        :func:`imu.tilt_tangent_residual_sym`.
         """
         f_model = gravity_direction_bend_sym(x[0], x[1], self.robot.mounting)
         return tilt_tangent_residual_sym(z, f_model)

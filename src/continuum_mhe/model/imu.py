@@ -76,21 +76,26 @@ def gravity_direction_from_tilt_sym(z: Sym) -> Sym:
 
 
 def tilt_tangent_residual_sym(z: Sym, f_model: Sym) -> Sym:
-    """Smooth tilt residual: ``f(z) - f_model`` on the tangent plane at the measurement.
+    """Smooth tilt residual: the model's gravity direction seen from the measured one.
 
-    ``f(z)`` is the measured gravity direction; the basis is ``e_roll = (0, cos g,
-    -sin g)`` and ``e_pitch = d f / d pitch``, both unit vectors. To first order the
-    residual is ``(cos(pitch) d_roll, d_pitch)``: isotropic noise on the gravity
-    direction, as an accelerometer has. Unlike angle differences it is smooth in the
-    state everywhere, including at gimbal lock (pitch = +-pi/2) and where roll wraps.
+    ``f(z)`` is the measured gravity direction, ``E = [e_roll, e_pitch]`` the unit
+    tangent basis there (``e_roll = (0, cos g, -sin g)``, ``e_pitch = df/d pitch``).
+    The residual is the stereographic projection of ``f_model`` from ``-f(z)`` onto
+    that tangent plane, negated: ``-2 E^T f_model / (1 + f(z) . f_model)``. Its norm is
+    ``2 tan(alpha/2)`` for the angle ``alpha`` between the two directions, so the cost
+    grows monotonically with the tilt error (no spurious minimum at the antipode, as a
+    plain tangent projection would have), and to first order it is
+    ``(cos(pitch) d_roll, d_pitch)``: isotropic noise on the gravity direction, as an
+    accelerometer has. It is smooth in the state everywhere, including at gimbal lock
+    (pitch = +-pi/2) and where roll wraps.
     """
     roll, pitch = z[0], z[1]
     e_roll = ca.vertcat(0, ca.cos(roll), -ca.sin(roll))
     e_pitch = ca.vertcat(
         -ca.cos(pitch), -ca.sin(pitch) * ca.sin(roll), -ca.sin(pitch) * ca.cos(roll)
     )
-    d = gravity_direction_from_tilt_sym(z) - f_model
-    return ca.vertcat(ca.dot(e_roll, d), ca.dot(e_pitch, d))
+    c = 1 + ca.dot(gravity_direction_from_tilt_sym(z), f_model)
+    return -2 * ca.vertcat(ca.dot(e_roll, f_model), ca.dot(e_pitch, f_model)) / c
 
 
 def tilt_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> Sym:
