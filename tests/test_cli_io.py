@@ -208,3 +208,71 @@ def test_read_measurements_raises_input_error_with_line(tmp_path):
     meas = _write(tmp_path / "m.csv", "t,roll,pitch\n0,0.1,0.1\n\n0.1,0.1,inf\n")
     with pytest.raises(InputError, match=r"m.csv: line 4: column pitch is inf"):
         read_measurements(meas)
+
+
+def test_utf8_bom_header_is_accepted(tmp_path):
+    text = "\ufefft,roll,pitch\r\n0,0.1,0.1\r\n0.05,0.1,0.12\r\n"
+    table = read_measurements(_write(tmp_path / "bom.csv", text))
+    assert table.t.tolist() == [0.0, 0.05]
+
+
+@pytest.mark.parametrize("target", ["-", "DIR"])
+def test_output_must_be_a_regular_file_name(tmp_path, capsys, target):
+    meas = _meas(tmp_path, _good_rows(5))
+    out = str(tmp_path) if target == "DIR" else target
+    assert main(["estimate", str(meas), "-o", out]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and ("standard output" in err or "is a directory" in err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["meas.csv"]
+
+
+def test_outputs_follow_the_umask(tmp_path):
+    import os
+    import stat
+
+    meas, est = _meas(tmp_path, _good_rows(5)), tmp_path / "est.csv"
+    old = os.umask(0o022)
+    try:
+        assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    finally:
+        os.umask(old)
+    from continuum_mhe.io import csv_files
+
+    assert stat.S_IMODE(est.stat().st_mode) == 0o666 & ~csv_files._UMASK
+
+
+def test_no_estimate_at_all_is_an_error_and_writes_nothing(tmp_path, capsys):
+    meas = _write(tmp_path / "m.csv", "t,roll,pitch\n0,nan,nan\n0.05,,\n0.1,abc,x\n")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 2
+    err = capsys.readouterr().err
+    assert "no sample gave an estimate" in err and err.count("\n") == 1
+    assert not est.exists()
+
+
+def test_skip_count_is_per_row_not_per_field(tmp_path, capsys):
+    rows = _good_rows(10)
+    rows[4] = rows[4].split(",")[0] + ",nan,nan"
+    meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
+    assert "skipped 1 bad sample(s)" in capsys.readouterr().err
+
+
+def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):
+    out = str(tmp_path / "s.csv")
+    assert main(["simulate", "paper3d", "-o", out, "--dt", "1e-9"]) == 2
+    assert "more than" in capsys.readouterr().err
+    assert main(["simulate", "paper3d", "-o", out, "--seed", "-1"]) == 2
+    assert "seed must be a non-negative integer" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_evaluate_reports_unmatched_rows(tmp_path, capsys):
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"])
+    main(["estimate", str(meas), "-o", str(est), "--method", "ekf"])
+    lines = truth.read_text().splitlines()
+    _write(truth, "\n".join(lines[:11]) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    assert "unmatched rows       31 of 41" in capsys.readouterr().out

@@ -753,3 +753,13 @@ def test_mhe_recovers_after_a_long_gap_in_the_data() -> None:
     s = MovingHorizonEstimator(BendFormulation()).run(rec.t[keep], rec.z[keep])
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[keep, :3], axis=1)
     assert tip.mean() < 0.02 * 0.2
+
+
+@pytest.mark.parametrize(
+    "cls", [ExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
+)
+def test_list_measurements_and_mismatched_lengths(cls, paper3d) -> None:
+    est = cls(BendFormulation())
+    assert est.step(Measurement(0.0, [0.1, 0.1])).status == "ok"  # a list is fine
+    with pytest.raises(ValueError, match="t has 5 samples but z has 4"):
+        est.run(paper3d.t[:5], paper3d.z[:4])

@@ -252,3 +252,15 @@ def test_mount_calibration_recipe_of_the_docs() -> None:
         RawImuSettings(imu_model="direct", mount_rpy=(roll, pitch, 0.0)),
     )
     np.testing.assert_allclose(z[0, :3], [0.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
+    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.io.raw_imu import read_raw_imu
+
+    p = tmp_path / "raw.csv"
+    p.write_text("t,ax,ay,az\n0,0,0,9.81\n0.01,0,0,0\n0.02,0,0.1,9.8\n")
+    with pytest.raises(InputError, match=r"raw.csv: line 3: acceleration is zero"):
+        read_raw_imu(p)
+    table = read_raw_imu(p, skip_bad=True)
+    assert np.isnan(table.acc[1]).all() and len(table.skipped) == 1

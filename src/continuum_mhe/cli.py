@@ -9,6 +9,7 @@ import argparse
 import importlib
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -130,6 +131,16 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     data = load_estimate_input(args.measurements, input_options(args), _formulation(args))
     est = make_estimator(args.method, data.formulation, _mhe_settings(args))
     series = est.run(data.t, data.z, progress=progress_bar(f"{args.method} estimate"))
+    if not series.has_estimate.any():
+        why = (
+            "every sample is a dropout"
+            if not args.paper_start
+            else (f"--paper-start needs at least --horizon {args.horizon} samples")
+        )
+        raise InputError(
+            f"{args.measurements}: no sample gave an estimate ({len(series.t)} samples; "
+            f"{why}); nothing written"
+        )
     write_estimate_output(out, series, data)
     counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
     summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
@@ -163,10 +174,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         m = compute_metrics(est[i_e], truth[i_t], args.length)
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
+    unmatched = int(len(t_e) - len(i_e))
     if args.json:
-        print(json.dumps({**m.as_dict(), "unmatched": int(len(t_e) - len(i_e))}, indent=2))
+        print(json.dumps({**m.as_dict(), "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m))
+        if unmatched:
+            print(f"unmatched rows       {unmatched} of {len(t_e)} (no truth at their t)")
     return 0
 
 
@@ -304,6 +318,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (InputError, ValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `... | head`: the reader left; stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 1
     except OSError as exc:
         print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
         return 2

@@ -40,6 +40,9 @@ class Measurement:
     t: float
     z: FloatArray
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "z", np.asarray(self.z, dtype=float))
+
     @property
     def valid(self) -> bool:
         return bool(np.all(np.isfinite(self.z)))
@@ -166,6 +169,8 @@ class Estimator(ABC):
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset."""
+        if len(t) != len(z):
+            raise ValueError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()
         idx: Iterable[int] = range(len(t))
         if progress is not None:

@@ -67,7 +67,7 @@ def _open_text(path: Path) -> IO[str]:
     if path.is_dir():
         raise InputError(f"{path}: is a directory, expected a CSV file")
     try:
-        return path.open(newline="", encoding="utf-8")
+        return path.open(newline="", encoding="utf-8-sig")  # tolerate a BOM (Excel)
     except OSError as exc:
         raise InputError(f"{path}: cannot open ({exc.strerror})") from None
 
@@ -146,7 +146,8 @@ def read_sample_rows(
     def bad(line: int, msg: str) -> None:
         if not skip_bad:
             raise InputError(f"{path}: line {line}: {msg}")
-        skipped.append(f"line {line}: {msg}")
+        if not skipped or not skipped[-1].startswith(f"line {line}: "):  # one per row
+            skipped.append(f"line {line}: {msg}")
 
     truncated = "expected {} fields, found {} (truncated row?)"
     for line, row in body:
@@ -254,13 +255,29 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
     return np.array(t), np.array(out, dtype=float), np.array(status, dtype=str)
 
 
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _current_umask()
+
+
 @contextlib.contextmanager
 def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
     target = Path(path)
+    if str(path) == "-":
+        raise InputError("-: writing to standard output is not supported; give a file name")
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{target}: folder {folder} does not exist")
+    if target.is_dir():
+        raise InputError(f"{target}: is a directory, expected a file name")
+    if target.exists() and not target.is_file():
+        raise InputError(f"{target}: not a regular file; give a file name")
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
     try:
         if binary:
             with os.fdopen(fd, "wb") as fb:

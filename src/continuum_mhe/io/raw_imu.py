@@ -218,8 +218,16 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     has_gyro = any(c in header for c in GYRO_COLUMNS)
     names = RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]
     rows = read_sample_rows(p, header, body, names, skip_bad=skip_bad)
-    t_list, arr, skipped = rows.t, rows.values, rows.skipped
+    t_list, arr, skipped = rows.t, rows.values, list(rows.skipped)
     acc = arr[:, :3]
+    with np.errstate(invalid="ignore"):
+        zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
+    for i in np.flatnonzero(zero):
+        msg = f"line {rows.lines[i]}: acceleration is zero (no gravity direction)"
+        if not skip_bad:
+            raise InputError(f"{p}: {msg}")
+        skipped.append(msg)
+        acc[i] = np.nan
     _check_accel_units(p, acc)
     return RawImuTable(t=t_list, acc=acc, gyr=arr[:, 3:6] if has_gyro else None, skipped=skipped)
 

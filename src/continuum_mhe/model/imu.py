@@ -61,9 +61,7 @@ def tilt_from_gravity_sym(f: Sym) -> Sym:
     """
     r2 = f[1] ** 2 + f[2] ** 2
     lock = r2 < _LOCK_EPS**2
-    roll = ca.if_else(
-        lock, 0.0, ca.atan2(ca.if_else(lock, 0.0, f[1]), ca.if_else(lock, 1.0, f[2]))
-    )
+    roll = ca.if_else(lock, 0.0, ca.atan2(ca.if_else(lock, 0.0, f[1]), ca.if_else(lock, 1.0, f[2])))
     pitch = ca.atan2(-f[0], ca.sqrt(r2 + _LOCK_EPS**2))
     return ca.vertcat(roll, pitch)
 

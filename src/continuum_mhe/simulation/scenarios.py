@@ -24,6 +24,9 @@ from continuum_mhe.model.kinematics import (
 ScenarioName = Literal["paper3d", "planar-overbend", "straight"]
 SCENARIOS: tuple[ScenarioName, ...] = ("paper3d", "planar-overbend", "straight")
 
+#: Largest recording :func:`simulate` makes (10 million samples, about 0.5 GB).
+MAX_SAMPLES = 10_000_000
+
 
 @dataclass(frozen=True)
 class Recording:
@@ -91,7 +94,14 @@ def simulate(
             raise ValueError(f"{name} must be positive, got {v}")
     if not (math.isfinite(noise_deg) and noise_deg >= 0):
         raise ValueError(f"noise-deg must be >= 0, got {noise_deg}")
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     n = int(round(duration / dt)) + 1
+    if n > MAX_SAMPLES:
+        raise ValueError(
+            f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "
+            "use a shorter --duration or a larger --dt"
+        )
     t: FloatArray = np.arange(n, dtype=float) * dt
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
