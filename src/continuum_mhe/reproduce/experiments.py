@@ -459,37 +459,27 @@ def plan_trials(cfg: ReproduceConfig) -> list[TrialSpec]:
             )
             for seed in range(cfg.condition_seeds)
         ]
+    # the default backend on every seed; the paper's solver, IPOPT, for its timing on
+    # fewer seeds (the optimum is the same)
+    sweep_runs = (("", None, cfg.sweep_seeds), ("ipopt ", "ipopt", min(3, cfg.sweep_seeds)))
     for n in cfg.sweep_horizons:
-        specs += [
-            _trial(
-                cfg,
-                "exp5_horizon",
-                f"N={n}",
-                70_000 + seed,
-                cfg.sweep_duration,
-                horizon=n,
-                paper_start=True,
-                methods=("mhe",),
-                score_from=max(cfg.sweep_horizons) - 1,
-            )
-            for seed in range(cfg.sweep_seeds)
-        ]
-        # the paper's solver, for its timing (fewer seeds: the optimum is the same)
-        specs += [
-            _trial(
-                cfg,
-                "exp5_horizon",
-                f"ipopt N={n}",
-                70_000 + seed,
-                cfg.sweep_duration,
-                horizon=n,
-                paper_start=True,
-                methods=("mhe",),
-                score_from=max(cfg.sweep_horizons) - 1,
-                mhe_solver="ipopt",
-            )
-            for seed in range(min(3, cfg.sweep_seeds))
-        ]
+        for prefix, solver, seeds in sweep_runs:
+            extra = {"mhe_solver": solver} if solver else {}
+            specs += [
+                _trial(
+                    cfg,
+                    "exp5_horizon",
+                    f"{prefix}N={n}",
+                    70_000 + seed,
+                    cfg.sweep_duration,
+                    horizon=n,
+                    paper_start=True,
+                    methods=("mhe",),
+                    score_from=max(cfg.sweep_horizons) - 1,
+                    **extra,
+                )
+                for seed in range(seeds)
+            ]
     for paper_start in (False, True):
         specs += [
             _trial(
