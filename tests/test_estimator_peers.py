@@ -30,7 +30,8 @@ from numpy.testing import assert_allclose
 from continuum_mhe.estimators.base import Estimator, Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
-from continuum_mhe.model.formulations import BendFormulation, Formulation, make_formulation
+from continuum_mhe.model.formulations import BendFormulation, Formulation
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import rotation_bend_sym, tip_position
 from continuum_mhe.settings import MHESettings, RobotSettings

@@ -21,7 +21,8 @@ from scipy.optimize import lsq_linear
 from continuum_mhe.estimators import fast_mhe as fm
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
-from continuum_mhe.model.formulations import BendFormulation, Formulation, make_formulation
+from continuum_mhe.model.formulations import BendFormulation, Formulation
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
 

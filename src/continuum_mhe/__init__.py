@@ -18,12 +18,10 @@ from continuum_mhe.estimators import (
     make_estimator,
 )
 from continuum_mhe.metrics import Metrics, compute_metrics
-from continuum_mhe.model.formulations import (
-    BendFormulation,
-    Formulation,
-    PaperFormulation,
-    make_formulation,
-)
+from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
 from continuum_mhe.simulation.scenarios import Recording, simulate
 
@@ -32,11 +30,13 @@ __version__ = "0.1.0"
 __all__ = [
     "METHODS",
     "BendFormulation",
+    "DirectFormulation",
     "Estimate",
     "EstimateSeries",
     "Estimator",
     "ExtendedKalmanFilter",
     "Formulation",
+    "ImuPlacement",
     "MHESettings",
     "Measurement",
     "Metrics",
@@ -44,7 +44,9 @@ __all__ = [
     "NoiseSettings",
     "PaperFormulation",
     "Recording",
+    "Robot",
     "RobotSettings",
+    "Section",
     "UnscentedKalmanFilter",
     "__version__",
     "compute_metrics",

@@ -25,7 +25,8 @@ from continuum_mhe.io.csv_files import (
     write_truth,
 )
 from continuum_mhe.metrics import Metrics, compute_metrics
-from continuum_mhe.model.formulations import Formulation, make_formulation
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings, RobotSettings

@@ -1,7 +1,8 @@
 """Direct raw-IMU measurement model: gravity direction and gyro, no Euler angles.
 
-The state and motion model are those of ``bend`` (``[a, b, a_dot, b_dot]``, rad and
-rad/s, constant velocity). The measurement is six numbers in the tip frame::
+The state and motion model are those of ``bend`` (bend vectors and their rates, rad
+and rad/s, constant velocity). The measurement is six numbers per IMU, in that IMU's
+frame (shown here for one section with a tip IMU)::
 
     z = [f / |f|, omega]      f: specific force (any unit), omega: gyro, rad/s
 
@@ -27,21 +28,19 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
 from continuum_mhe.model.formulations import BendFormulation, FloatArray
-from continuum_mhe.model.imu import (
-    gravity_direction_bend_sym,
-    shape_from_tilt,
-    tilt_from_accelerometer,
-)
+from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
+from continuum_mhe.model.pcc import angular_velocity_at_sym
 from continuum_mhe.settings import FormulationName
 
-#: Measurement names, in order.
+#: Measurement names of one IMU, in order.
 DIRECT_MEASUREMENTS = ("fx", "fy", "fz", "wx", "wy", "wz")
 
 
 def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym:
-    """Tip angular velocity in the tip frame, rad/s: ``vee(R^T dR/dt)``.
+    """Tip angular velocity of one section in the tip frame, rad/s: ``vee(R^T dR/dt)``.
 
     ``dR/dt`` is the chain rule through ``ca.jacobian`` of
     :func:`rotation_bend_sym`, so the kinematics are written once.
@@ -58,7 +57,12 @@ def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym
 
 @dataclass(frozen=True)
 class DirectFormulation(BendFormulation):
-    """``bend`` state and motion, raw IMU measurement ``[f/|f|, omega]`` (nz = 6).
+    """``bend`` state and motion, raw IMU measurement ``[f/|f|, omega]`` per IMU
+    (6 per IMU).
+
+    The gyro of an IMU sees the composed body rate of every section below it (and of
+    its own section up to its place). Gyro bias is not estimated: calibrate it at rest
+    (``continuum-mhe calibrate``) and subtract it; what remains counts as gyro noise.
 
     Attributes:
         gyro_std: gyro noise standard deviation, rad/s (includes uncalibrated bias).
@@ -67,11 +71,11 @@ class DirectFormulation(BendFormulation):
     """
 
     name: FormulationName = "direct"
-    nz: int = 6
     gyro_std: float = 0.05
     accel_direction_std: float | None = None
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for label, v in (
             ("gyro_std", self.gyro_std),
             ("accel_direction_std", self.accel_direction_std),
@@ -79,9 +83,22 @@ class DirectFormulation(BendFormulation):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{label} must be a positive finite number, got {v!r}")
 
+    @property
+    def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
+        return direct_blocks(self.robot.n_imus)
+
+    def angular_velocities_sym(self, x: Sym) -> list[Sym]:
+        """Angular velocity in each IMU's frame, rad/s."""
+        if self.robot.is_single:
+            return [tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3])]
+        bends, rates = self.bends_sym(x), self.rates_sym(x)
+        return [
+            angular_velocity_at_sym(bends, rates, imu.section, imu.at) for imu in self.robot.imus
+        ]
+
     def measurement_sym(self, x: Sym) -> Sym:
-        g = gravity_direction_bend_sym(x[0], x[1], self.robot.mounting)
-        return ca.vertcat(g, tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3]))
+        g, w = self.gravity_directions_sym(x), self.angular_velocities_sym(x)
+        return ca.vertcat(*[ca.vertcat(gi, wi) for gi, wi in zip(g, w)])
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """``z - h(x)``, unwrapped (unit vector and rates are not angles)."""
@@ -89,25 +106,43 @@ class DirectFormulation(BendFormulation):
 
     def meas_cov(self) -> FloatArray:
         f_std = self.accel_direction_std or self.noise.measurement_std
-        return np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
+        return np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3) if self.robot.n_imus == 1 else (
+            np.kron(np.eye(self.robot.n_imus), np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3))
+        )
 
     @cached_property
     def _rate_map(self) -> ca.Function:
-        """``(a, b) -> d omega / d(a_dot, b_dot)`` (3x2; omega is linear in the rates)."""
-        x = ca.SX.sym("x", 4)
-        w = tip_angular_velocity_bend_sym(x[0], x[1], x[2], x[3])
-        return ca.Function("rate_map", [x], [ca.jacobian(w, x[2:4])])
+        """``bends -> d omega / d rates`` (3 m x 2 n; omega is linear in the rates)."""
+        x = ca.SX.sym("x", self.nx)
+        n2 = 2 * self.robot.n_sections
+        w = ca.vertcat(*self.angular_velocities_sym(x))
+        return ca.Function("rate_map", [x], [ca.jacobian(w, x[n2:])])
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
-        """Bend from the gravity direction (closed-form tilt inverse), rates from the
-        gyro by least squares."""
+        """Bends from the gravity directions (closed-form tilt inverse for one section,
+        section by section otherwise), rates from the gyros by least squares."""
         z0 = np.asarray(z0, dtype=float)
-        roll, pitch = tilt_from_accelerometer(z0[:3])
-        theta_a, phi_a = shape_from_tilt(roll, pitch, self.robot.mounting)
-        theta, phi = min(float(theta_a), self.robot.theta_max), float(phi_a)
-        x = np.array([theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
-        m = np.asarray(self._rate_map(x), dtype=float).reshape(3, 2, order="F")
-        x[2:] = np.linalg.lstsq(m, z0[3:6], rcond=None)[0]
+        gravity: list[FloatArray | None] = []
+        gyro_rows: list[int] = []
+        for b in self.measurement_blocks:
+            zb = z0[b.slice]
+            ok = bool(np.all(np.isfinite(zb)))
+            gravity.append(zb[:3] / np.linalg.norm(zb[:3]) if ok else None)
+            if ok:
+                gyro_rows += list(range(b.start + 3, b.start + 6))
+        if self.robot.is_single and gravity[0] is not None:  # closed form
+            roll, pitch = tilt_from_accelerometer(z0[:3])
+            th, ph = shape_from_tilt(roll, pitch, self.robot.mounting)
+            theta, phi = min(float(th), self.robot.theta_max), float(ph)
+            bends = np.array([[theta * math.cos(phi), theta * math.sin(phi)]])
+        else:
+            bends = self._initial_bends(gravity)
+        n2 = bends.size
+        x = np.concatenate([bends.ravel(), np.zeros(n2)])
+        if gyro_rows:
+            m = np.asarray(self._rate_map(x), dtype=float).reshape(self.nz // 2, n2, order="F")
+            rows = [3 * (r // 6) + (r % 6 - 3) for r in gyro_rows]
+            x[n2:] = np.linalg.lstsq(m[rows], z0[gyro_rows], rcond=None)[0]
         return x
 
 

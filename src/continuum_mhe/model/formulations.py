@@ -1,18 +1,26 @@
 """Motion models ("formulations") shared by every estimator.
 
 A formulation fixes the state, the discrete transition ``x+ = f(x, u, dt)``, the
-measurement ``z = h(x)``, the noise covariances, and the feasible set. Each is written
-once, symbolically; :meth:`Formulation.functions` compiles the numeric versions the
-filters use, and the MHE builds its NLP from the same symbolic methods.
+measurement ``z = h(x)`` (one block per IMU), the noise covariances, the feasible set,
+and the outputs. Each is written once, symbolically; :attr:`Formulation.functions`
+compiles the numeric versions the filters use, and the MHE builds its NLP from the same
+symbolic methods. The robot (:class:`~continuum_mhe.model.robot.Robot`) is data: the
+same formulation code serves one section with a tip IMU or several sections with an IMU
+each.
 
-* ``bend`` (default): state ``[a, b, a_dot, b_dot]`` with the bend vector
-  ``(a, b) = (theta cos phi, theta sin phi)`` and a constant-velocity model driven by
-  white-noise acceleration. Position is always ``p(a, b)``; nothing is singular at
-  ``theta = 0``. Feasible set: ``a^2 + b^2 <= theta_max^2``.
-* ``paper``: the paper's state ``[x, y, z, theta, phi]`` with
+* ``bend`` (default): state ``[a_1, b_1, ..., a_n, b_n, a_1', b_1', ..., b_n']``, the
+  bend vector ``(a_k, b_k) = (theta_k cos phi_k, theta_k sin phi_k)`` of every section
+  and its rate, with a constant-velocity model driven by white-noise acceleration.
+  Positions always equal the PCC forward kinematics; nothing is singular at a straight
+  section. Measurement: roll and pitch of every IMU. Feasible set: one disk
+  ``a_k^2 + b_k^2 <= theta_max_k^2`` per section.
+* ``paper``: the paper's state ``[x, y, z, theta, phi]`` (one section, tip IMU) with
   ``u = [theta_dot, phi_dot]`` from consecutive readings and the (sign-corrected)
   Euler step ``x+ = x + dt [J u; u]``; process noise ``W^-1`` is a soft penalty.
   Feasible set: eq. (11) boxes.
+* ``direct`` (:mod:`continuum_mhe.model.direct`): the ``bend`` state with raw IMUs.
+
+Formulations are looked up by name in :mod:`continuum_mhe.model.registry`.
 """
 
 from __future__ import annotations
@@ -20,31 +28,31 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
-
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import least_squares
 
+from continuum_mhe.model.descriptions import (
+    MeasurementBlock,
+    OutputSpec,
+    pcc_outputs,
+    tilt_blocks,
+    wrapped_indices,
+)
 from continuum_mhe.model.imu import (
-    gravity_direction_bend_sym,
     shape_from_tilt,
-    tilt_bend_sym,
+    tilt_from_gravity_sym,
     tilt_sym,
     tilt_tangent_residual_sym,
     wrap_angle,
 )
-from continuum_mhe.model.kinematics import (
-    Sym,
-    tip_position,
-    tip_position_bend_sym,
-    tip_position_sym,
-)
+from continuum_mhe.model.kinematics import Sym, rotation_bend, tip_position, tip_position_sym
+from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, up_vector
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import FormulationName, NoiseSettings, RobotSettings
 
 FloatArray = NDArray[np.float64]
-
-OUTPUT_NAMES = ("x", "y", "z", "theta", "phi")
 
 
 @dataclass(frozen=True)
@@ -53,7 +61,7 @@ class ModelFunctions:
 
     ``predict(x, u, dt) -> (x+, F, Q)``, ``measure(x) -> (h, H)``,
     ``innovate(z, x) -> (r, dr/dx)`` (the residual the estimators weight with
-    ``R^-1``), ``output(x) -> [x, y, z, theta, phi]``.
+    ``R^-1``), ``output(x) -> outputs`` (see :attr:`Formulation.outputs`).
     """
 
     predict: ca.Function
@@ -64,23 +72,77 @@ class ModelFunctions:
     observe: ca.Function
 
 
+def as_robot(robot: Robot | RobotSettings | None) -> Robot:
+    """A :class:`Robot` from a robot, one-section settings, or None (the default)."""
+    if robot is None:
+        robot = RobotSettings()
+    if isinstance(robot, RobotSettings):
+        return Robot.single(robot.length, robot.theta_max, robot.mounting)
+    return robot
+
+
 @dataclass(frozen=True)
 class Formulation:
-    """Base class: subclasses define the symbolic model."""
+    """Base class: subclasses define the symbolic model.
 
-    robot: RobotSettings = field(default_factory=RobotSettings)
+    Attributes:
+        robot: the robot (a :class:`RobotSettings` is turned into a one-section robot).
+        noise: noise settings shared by every estimator.
+    """
+
+    robot: Robot = field(default_factory=lambda: Robot.single())
     noise: NoiseSettings = field(default_factory=NoiseSettings)
 
     name: FormulationName = "bend"
-    state_names: tuple[str, ...] = ()
-    nu: int = 0
 
-    #: size of the measurement vector z
-    nz: int = 2
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "robot", as_robot(self.robot))  # type: ignore[arg-type]
+
+    # --- sizes and descriptions -----------------------------------------------------
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        raise NotImplementedError
 
     @property
     def nx(self) -> int:
         return len(self.state_names)
+
+    @property
+    def nu(self) -> int:
+        return 0
+
+    @property
+    def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
+        """One block per IMU, in the robot's IMU order."""
+        return tilt_blocks(self.robot.n_imus)
+
+    @property
+    def nz(self) -> int:
+        """Size of the measurement vector z."""
+        return sum(b.size for b in self.measurement_blocks)
+
+    @property
+    def measurement_names(self) -> tuple[str, ...]:
+        return tuple(n for b in self.measurement_blocks for n in b.names)
+
+    @property
+    def outputs(self) -> tuple[OutputSpec, ...]:
+        """The outputs, in order (see :func:`~continuum_mhe.model.descriptions.pcc_outputs`)."""
+        return pcc_outputs(self.robot.n_sections)
+
+    @property
+    def ny(self) -> int:
+        return len(self.outputs)
+
+    def measurement_mask(self, z: FloatArray) -> FloatArray:
+        """``(nz,)``: 1.0 on the components of every block whose values are all finite
+        (a sensor that reported), 0.0 on the others (a dropout of that sensor only)."""
+        z = np.asarray(z, dtype=float)
+        mask = np.zeros(self.nz)
+        for b in self.measurement_blocks:
+            if np.all(np.isfinite(z[b.slice])):
+                mask[b.slice] = 1.0
+        return mask
 
     # --- symbolic model (override) ---------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
@@ -93,12 +155,12 @@ class Formulation:
         raise NotImplementedError
 
     def output_sym(self, x: Sym) -> Sym:
-        """``[x, y, z, theta, phi]`` (m, rad) from the state."""
+        """The outputs (:attr:`outputs`; m, rad) from the state."""
         raise NotImplementedError
 
-    def constraint_sym(self, x: Sym) -> tuple[Sym, float, float]:
-        """Nonlinear path constraint ``lo <= g(x) <= hi`` (empty if none)."""
-        return ca.SX(0, 1), 0.0, 0.0
+    def constraint_sym(self, x: Sym) -> tuple[Sym, FloatArray, FloatArray]:
+        """Nonlinear path constraints ``lo <= g(x) <= hi`` (empty if none)."""
+        return ca.SX(0, 1), np.zeros(0), np.zeros(0)
 
     def state_bounds(self) -> tuple[FloatArray, FloatArray]:
         return np.full(self.nx, -np.inf), np.full(self.nx, np.inf)
@@ -125,12 +187,13 @@ class Formulation:
 
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
-        return np.eye(2) * self.noise.measurement_std**2
+        """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
+        return np.eye(self.nz) * self.noise.measurement_std**2
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Residual ``r(z, x)``, "measurement minus model", weighted by ``R^-1``.
 
-        Here ``z - h(x)`` with both angles wrapped to ``(-pi, pi]`` (the paper's
+        Here ``z - h(x)`` with every angle wrapped to ``(-pi, pi]`` (the paper's
         measurement model); formulations may override it. Every estimator uses it: the
         MHE's cost, and the filters' innovation with ``H = -dr/dx``.
         """
@@ -158,84 +221,219 @@ class Formulation:
         )
 
     def output(self, x: FloatArray) -> FloatArray:
-        """``[x, y, z, theta, phi]`` for states ``x`` of shape ``(nx,)`` or ``(n, nx)``."""
+        """Outputs ``(ny,)`` for a state ``(nx,)``, or ``(n, ny)`` for states ``(n, nx)``;
+        wrapped angles in ``[-pi, pi)``."""
         x = np.asarray(x, dtype=float)
         out = np.asarray(self.functions.output(np.atleast_2d(x).T), dtype=float)
-        out = out.reshape(5, -1).T
-        out[:, 4] = wrap_angle(out[:, 4])
+        out = out.reshape(self.ny, -1).T
+        for i in wrapped_indices(self.outputs):
+            out[:, i] = wrap_angle(out[:, i])
         return out[0] if x.ndim == 1 else out
 
 
 @dataclass(frozen=True)
 class BendFormulation(Formulation):
-    """Default formulation: bend vector and its rate, constant-velocity model."""
+    """Default formulation: every section's bend vector and its rate, constant velocity;
+    roll and pitch of every IMU."""
 
     name: FormulationName = "bend"
-    state_names: tuple[str, ...] = ("a", "b", "a_dot", "b_dot")
-    nu: int = 0
 
+    # --- the state ----------------------------------------------------------------
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        n = self.robot.n_sections
+        if n == 1:
+            return ("a", "b", "a_dot", "b_dot")
+        bends = [f"{c}_{k}" for k in range(1, n + 1) for c in ("a", "b")]
+        return (*bends, *(f"{c}_dot" for c in bends))
+
+    def bends_sym(self, x: Sym) -> list[tuple[Sym, Sym]]:
+        """``[(a_k, b_k)]`` per section."""
+        return [(x[2 * k], x[2 * k + 1]) for k in range(self.robot.n_sections)]
+
+    def rates_sym(self, x: Sym) -> list[tuple[Sym, Sym]]:
+        n2 = 2 * self.robot.n_sections
+        return [(x[n2 + 2 * k], x[n2 + 2 * k + 1]) for k in range(self.robot.n_sections)]
+
+    def gravity_directions_sym(self, x: Sym) -> list[Sym]:
+        """Unit specific-force direction at rest in each IMU's frame."""
+        bends = self.bends_sym(x)
+        return [
+            gravity_direction_at_sym(bends, imu.section, imu.at, self.robot.mounting)
+            for imu in self.robot.imus
+        ]
+
+    # --- model --------------------------------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
-        return ca.vertcat(x[0] + dt * x[2], x[1] + dt * x[3], x[2], x[3])
+        n2 = 2 * self.robot.n_sections
+        return ca.vertcat(*[x[i] + dt * x[n2 + i] for i in range(n2)], x[n2:])
 
     def measurement_sym(self, x: Sym) -> Sym:
-        return tilt_bend_sym(x[0], x[1], self.robot.mounting)
+        return ca.vertcat(*[tilt_from_gravity_sym(g) for g in self.gravity_directions_sym(x)])
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
-        """Tilt residual on the tangent plane of the measured gravity direction
-        (stereographic). Smooth everywhere (no Euler-angle wrap or gimbal lock), norm
-        ``2 tan(error/2)``; to first order ``(cos(pitch) d_roll, d_pitch)``. See
-        :func:`imu.tilt_tangent_residual_sym`.
+        """Tilt residual of every IMU on the tangent plane of its measured gravity
+        direction (stereographic). Smooth everywhere (no Euler-angle wrap or gimbal
+        lock), norm ``2 tan(error/2)``; to first order ``(cos(pitch) d_roll, d_pitch)``.
+        See :func:`imu.tilt_tangent_residual_sym`.
         """
-        f_model = gravity_direction_bend_sym(x[0], x[1], self.robot.mounting)
-        return tilt_tangent_residual_sym(z, f_model)
-
-    def process_cov_sym(self, dt: Sym) -> Sym:
-        q = self.noise.bend_accel_psd
-        q11, q12, q22 = q * dt**3 / 3, q * dt**2 / 2, q * dt
+        g = self.gravity_directions_sym(x)
         return ca.vertcat(
-            ca.horzcat(q11, 0, q12, 0),
-            ca.horzcat(0, q11, 0, q12),
-            ca.horzcat(q12, 0, q22, 0),
-            ca.horzcat(0, q12, 0, q22),
+            *[tilt_tangent_residual_sym(z[b.slice], gi) for b, gi in zip(self.measurement_blocks, g)]
         )
 
-    def output_sym(self, x: Sym) -> Sym:
-        p = tip_position_bend_sym(x[0], x[1], self.robot.length)
-        return ca.vertcat(p, ca.sqrt(x[0] ** 2 + x[1] ** 2), ca.atan2(x[1], x[0]))
+    def process_cov_sym(self, dt: Sym) -> Sym:
+        """White-noise acceleration on every bend coordinate, independent."""
+        q = self.noise.bend_accel_psd
+        q11, q12, q22 = q * dt**3 / 3, q * dt**2 / 2, q * dt
+        n2 = 2 * self.robot.n_sections
+        rows = []
+        for i in range(2 * n2):
+            row = [0] * (2 * n2)
+            j = i % n2
+            if i < n2:
+                row[j], row[n2 + j] = q11, q12
+            else:
+                row[j], row[n2 + j] = q12, q22
+            rows.append(ca.horzcat(*row))
+        return ca.vertcat(*rows)
 
-    def constraint_sym(self, x: Sym) -> tuple[Sym, float, float]:
-        return x[0] ** 2 + x[1] ** 2, -np.inf, self.robot.theta_max**2
+    def output_sym(self, x: Sym) -> Sym:
+        bends, lengths = self.bends_sym(x), self.robot.lengths
+        n = len(lengths)
+        shape = [(ca.sqrt(a**2 + b**2), ca.atan2(b, a)) for a, b in bends]
+        if n == 1:
+            return ca.vertcat(pose_at_sym(bends, lengths, 0)[1], *shape[0])
+        ends = [pose_at_sym(bends, lengths, k)[1] for k in range(n)]
+        parts = [ends[-1]]
+        for k in range(n):
+            parts += [shape[k][0], shape[k][1], ends[k]]
+        return ca.vertcat(*parts)
+
+    def constraint_sym(self, x: Sym) -> tuple[Sym, FloatArray, FloatArray]:
+        """One disk per section: ``a_k^2 + b_k^2 <= theta_max_k^2``."""
+        g = ca.vertcat(*[a**2 + b**2 for a, b in self.bends_sym(x)])
+        hi = np.array([s.theta_max**2 for s in self.robot.sections])
+        return g, np.full(len(hi), -np.inf), hi
+
+    # --- numeric helpers ----------------------------------------------------------
+    def _measured_gravity(self, z0: FloatArray) -> list[FloatArray | None]:
+        """Measured unit gravity direction per IMU (None where that IMU dropped out)."""
+        out: list[FloatArray | None] = []
+        for b in self.measurement_blocks:
+            zb = np.asarray(z0[b.slice], dtype=float)
+            if not np.all(np.isfinite(zb)):
+                out.append(None)
+                continue
+            roll, pitch = zb[0], zb[1]
+            cb = math.cos(pitch)
+            out.append(np.array([-math.sin(pitch), cb * math.sin(roll), cb * math.cos(roll)]))
+        return out
+
+    def _initial_bends(self, gravity: list[FloatArray | None]) -> FloatArray:
+        """Bend vectors (n, 2) from the measured gravity directions, section by section
+        from the base: section ``k`` turns the known up direction in its base frame into
+        the measurement of its farthest IMU. Sections without an IMU start straight."""
+        robot = self.robot
+        bends = np.zeros((robot.n_sections, 2))
+        up = up_vector(robot.mounting)
+        R_prev = np.eye(3)
+        for k, sec in enumerate(robot.sections):
+            cands = [
+                (imu.at, g)
+                for imu, g in zip(robot.imus, gravity)
+                if imu.section == k and g is not None
+            ]
+            if cands:
+                at, f = max(cands, key=lambda c: c[0])
+                v = R_prev.T @ up
+                bends[k] = _bend_turning(v, f, at, sec.theta_max)
+            R_prev = R_prev @ rotation_bend(bends[k, 0], bends[k, 1])
+        return bends
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
-        th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
-        theta, phi = min(float(th), self.robot.theta_max), float(ph)
-        return np.array([theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
+        z0 = np.asarray(z0, dtype=float)
+        if self.robot.is_single:  # closed form (the paper's robot)
+            th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
+            theta, phi = min(float(th), self.robot.theta_max), float(ph)
+            return np.array([theta * math.cos(phi), theta * math.sin(phi), 0.0, 0.0])
+        bends = self._initial_bends(self._measured_gravity(z0))
+        return np.concatenate([bends.ravel(), np.zeros(bends.size)])
 
     def initial_cov(self) -> FloatArray:
-        n = self.noise
-        return np.diag([n.initial_bend_std**2] * 2 + [n.initial_rate_std**2] * 2)
+        n, n2 = self.noise, 2 * self.robot.n_sections
+        return np.diag([n.initial_bend_std**2] * n2 + [n.initial_rate_std**2] * n2)
 
     def project(self, x: FloatArray) -> FloatArray:
         x = np.array(x, dtype=float)
-        r = math.hypot(x[0], x[1])
-        if r > self.robot.theta_max:
-            x[:2] *= self.robot.theta_max / r
+        for k, sec in enumerate(self.robot.sections):
+            r = math.hypot(x[2 * k], x[2 * k + 1])
+            if r > sec.theta_max:
+                x[2 * k : 2 * k + 2] *= sec.theta_max / r
         return x
 
     def is_feasible(self, x: FloatArray, tol: float = 1e-7) -> bool:
-        return bool(math.hypot(x[0], x[1]) <= self.robot.theta_max + tol)
+        return all(
+            math.hypot(x[2 * k], x[2 * k + 1]) <= sec.theta_max + tol
+            for k, sec in enumerate(self.robot.sections)
+        )
+
+
+def _bend_turning(v: FloatArray, f: FloatArray, at: float, theta_max: float) -> FloatArray:
+    """Bend ``(a, b)`` of a section whose frame at fraction ``at`` sees the direction
+    ``v`` (in the section's base frame) as ``f``: ``R(at u)^T v = f``, least squares
+    from a few starts, clipped to ``theta_max``."""
+
+    def resid(w: FloatArray) -> FloatArray:
+        return np.asarray(rotation_bend(w[0], w[1]).T @ v - f, dtype=float)
+
+    if abs(abs(v[2]) - 1.0) < 1e-12:  # v vertical: the closed form is exact
+        roll = math.atan2(f[1], f[2])
+        pitch = math.atan2(-f[0], math.hypot(f[1], f[2]))
+        th, ph = shape_from_tilt(roll, pitch, "z-up" if v[2] > 0 else "z-down")
+        w = np.array([th * math.cos(ph), th * math.sin(ph)]) / at
+    else:
+        starts = [np.zeros(2)] + [
+            np.array([math.cos(ang), math.sin(ang)])
+            for ang in np.linspace(0, 2 * np.pi, 4, endpoint=False)
+        ]
+        best = min((least_squares(resid, s) for s in starts), key=lambda r: r.cost)
+        w = best.x / at
+    r = math.hypot(w[0], w[1])
+    if r > theta_max:
+        w *= theta_max / r
+    return np.asarray(w, dtype=float)
 
 
 @dataclass(frozen=True)
 class PaperFormulation(Formulation):
-    """The paper's five-state formulation, eqs. (3), (4), (10), (11), sign-corrected."""
+    """The paper's five-state formulation, eqs. (3), (4), (10), (11), sign-corrected.
+    One section with one IMU at its tip only."""
 
     name: FormulationName = "paper"
-    state_names: tuple[str, ...] = ("x", "y", "z", "theta", "phi")
-    nu: int = 2
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.robot.is_single:
+            raise ValueError(
+                "the paper formulation models one section with one tip IMU; "
+                f"this robot has {self.robot.describe()}: use --formulation bend or direct"
+            )
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return ("x", "y", "z", "theta", "phi")
+
+    @property
+    def nu(self) -> int:
+        return 2
+
+    @property
+    def length(self) -> float:
+        return self.robot.length
 
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
-        p = tip_position_sym(x[3], x[4], self.robot.length)
+        p = tip_position_sym(x[3], x[4], self.length)
         jac = ca.jacobian(p, x[3:5])
         return x + dt * ca.vertcat(ca.mtimes(jac, u), u)
 
@@ -249,7 +447,7 @@ class PaperFormulation(Formulation):
         return x
 
     def state_bounds(self) -> tuple[FloatArray, FloatArray]:
-        s = self.robot.length
+        s = self.length
         return (
             np.array([-s, -s, -s, 0.0, -math.pi]),
             np.array([s, s, s, self.robot.theta_max, math.pi]),
@@ -258,12 +456,12 @@ class PaperFormulation(Formulation):
     def initial_state(self, z0: FloatArray) -> FloatArray:
         th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
         theta, phi = min(float(th), self.robot.theta_max), float(ph)
-        pos = tip_position(theta, phi, self.robot.length)
+        pos = tip_position(theta, phi, self.length)
         return np.array([*pos, theta, phi])
 
     def initial_cov(self) -> FloatArray:
         n = self.noise
-        s = self.robot.length
+        s = self.length
         return np.diag([(0.1 * s) ** 2] * 3 + [n.initial_bend_std**2] * 2)
 
     def inputs(self, z_prev: FloatArray | None, z: FloatArray, dt: float) -> FloatArray:
@@ -274,22 +472,3 @@ class PaperFormulation(Formulation):
         return np.array([(t1 - t0) / dt, float(wrap_angle(p1 - p0)) / dt])
 
 
-def make_formulation(
-    name: FormulationName = "bend",
-    robot: RobotSettings | None = None,
-    noise: NoiseSettings | None = None,
-) -> Formulation:
-    """Formulation by name: ``"bend"`` (default), ``"paper"`` or ``"direct"`` (raw IMU)."""
-    kwargs: dict[str, Any] = {
-        "robot": robot or RobotSettings(),
-        "noise": noise or NoiseSettings(),
-    }
-    if name == "bend":
-        return BendFormulation(**kwargs)
-    if name == "paper":
-        return PaperFormulation(**kwargs)
-    if name == "direct":  # raw IMU: gravity direction and gyro (model/direct.py)
-        from continuum_mhe.model.direct import DirectFormulation
-
-        return DirectFormulation(**kwargs)
-    raise ValueError(f"formulation must be 'bend', 'paper' or 'direct', got {name!r}")

@@ -1,0 +1,133 @@
+"""Robot files (TOML): the sections, the IMUs and the base mounting.
+
+Format (every key but ``length`` is optional)::
+
+    mounting = "z-up"          # base mounting: "z-up" (default) or "z-down"
+    [[section]]
+    length = 0.16              # m
+    theta_max = 3.0            # rad, default pi/2
+    [[section]]
+    length = 0.14
+    [[imu]]
+    section = 1                # 1-based, from the base
+    at = 1.0                   # fraction of the section's length, default 1.0 (its end)
+    mount_rpy = [0, 0, 0]      # sensor mounting roll, pitch, yaw in degrees, default 0
+    [[imu]]
+    section = 2
+
+Without ``[[imu]]`` entries a robot file is refused (a robot needs a sensor). Every
+problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file and key.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+_TOP_KEYS = {"mounting", "section", "imu"}
+_SECTION_KEYS = {"length", "theta_max"}
+_IMU_KEYS = {"section", "at", "mount_rpy"}
+
+
+def _number(path: Path, where: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(f"{path}: {where}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def _unknown(path: Path, where: str, table: dict[str, Any], allowed: set[str]) -> None:
+    extra = sorted(set(table) - allowed)
+    if extra:
+        raise InputError(
+            f"{path}: {where}: unknown key {extra[0]!r} (allowed: {', '.join(sorted(allowed))})"
+        )
+
+
+def _tables(path: Path, doc: dict[str, Any], key: str) -> list[dict[str, Any]]:
+    value = doc.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(t, dict) for t in value):
+        raise InputError(f"{path}: '{key}' must be a list of tables, written [[{key}]]")
+    return value
+
+
+def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
+    """A :class:`Robot` from a parsed robot-file document (``path`` for messages)."""
+    _unknown(path, "top level", doc, _TOP_KEYS)
+    mounting = doc.get("mounting", "z-up")
+    if mounting not in MOUNTINGS:
+        raise InputError(f"{path}: mounting: must be one of {', '.join(MOUNTINGS)}, got {mounting!r}")
+    sections: list[Section] = []
+    for k, table in enumerate(_tables(path, doc, "section"), start=1):
+        where = f"section {k}"
+        _unknown(path, where, table, _SECTION_KEYS)
+        if "length" not in table:
+            raise InputError(f"{path}: {where}: missing key 'length' (m)")
+        length = _number(path, f"{where}: length", table["length"])
+        theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", math.pi / 2))
+        try:
+            sections.append(Section(length, theta_max))
+        except ValueError as exc:
+            raise InputError(f"{path}: {where}: {exc}") from None
+    if not sections:
+        raise InputError(f"{path}: no [[section]]: a robot needs at least one section")
+    imus: list[ImuPlacement] = []
+    for i, table in enumerate(_tables(path, doc, "imu"), start=1):
+        where = f"imu {i}"
+        _unknown(path, where, table, _IMU_KEYS)
+        if "section" not in table:
+            raise InputError(f"{path}: {where}: missing key 'section' (1-based section number)")
+        sec = table["section"]
+        if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= len(sections):
+            raise InputError(
+                f"{path}: {where}: section must be a section number from 1 to "
+                f"{len(sections)}, got {sec!r}"
+            )
+        at = _number(path, f"{where}: at", table.get("at", 1.0))
+        if not 0 < at <= 1:
+            raise InputError(f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}")
+        rpy = table.get("mount_rpy", [0.0, 0.0, 0.0])
+        if not isinstance(rpy, list) or len(rpy) != 3:
+            raise InputError(f"{path}: {where}: mount_rpy must be [roll, pitch, yaw] in degrees")
+        mount = tuple(_number(path, f"{where}: mount_rpy", v) for v in rpy)
+        imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
+    if not imus:
+        raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
+    return Robot(tuple(sections), tuple(imus), mounting)
+
+
+def read_robot(path: str | os.PathLike[str]) -> Robot:
+    """Read and validate a robot file (TOML)."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such robot file")
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{p}: not a UTF-8 text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: not valid TOML ({exc})") from None
+    return parse_robot(doc, p)
+
+
+def robot_toml(robot: Robot) -> str:
+    """The robot file text of ``robot`` (round-trips through :func:`read_robot`)."""
+    lines = [f'mounting = "{robot.mounting}"']
+    for s in robot.sections:
+        lines += ["", "[[section]]", f"length = {s.length!r}", f"theta_max = {s.theta_max!r}"]
+    for imu in robot.imus:
+        lines += ["", "[[imu]]", f"section = {imu.section + 1}", f"at = {imu.at!r}"]
+        if any(imu.mount_rpy):
+            lines.append(f"mount_rpy = {list(imu.mount_rpy)!r}")
+    return "\n".join(lines) + "\n"

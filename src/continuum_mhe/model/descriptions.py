@@ -1,0 +1,115 @@
+"""Self-describing outputs and measurement blocks.
+
+A formulation names its outputs (with units, and which are wrapped angles) and its
+measurement blocks (one per sensor). Estimate records, writers, metrics, plots, ``live``
+and the fast backend read these descriptions; nothing downstream hard-codes a size or a
+column list.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+Unit = Literal["m", "rad", "rad/s", "1"]
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One output column.
+
+    Attributes:
+        name: column name, e.g. ``x`` or ``theta_2``.
+        unit: ``"m"`` or ``"rad"``.
+        wrapped: True for an angle reported in ``[-pi, pi)`` (errors are wrapped too).
+        section: 1-based section it belongs to, 0 for the tip.
+    """
+
+    name: str
+    unit: Unit
+    wrapped: bool = False
+    section: int = 0
+
+
+@dataclass(frozen=True)
+class MeasurementBlock:
+    """The measurements of one sensor: ``z[start : start + size]``.
+
+    Attributes:
+        name: sensor name, e.g. ``imu1``.
+        names: one name per component, e.g. ``("roll_1", "pitch_1")``.
+        start: index of the first component in the measurement vector.
+        kind: ``"tilt"`` (roll, pitch; rad) or ``"direct"`` (unit specific force and
+            gyro, rad/s).
+    """
+
+    name: str
+    names: tuple[str, ...]
+    start: int
+    kind: Literal["tilt", "direct"] = "tilt"
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.start, self.start + self.size)
+
+
+TIP_OUTPUTS = (OutputSpec("x", "m"), OutputSpec("y", "m"), OutputSpec("z", "m"))
+
+
+def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
+    """Outputs of an ``n_sections`` robot: the tip ``x, y, z``, then per section ``k``
+    its bend ``theta_k, phi_k`` and end position ``x_k, y_k, z_k``. With one section
+    exactly ``x, y, z, theta, phi`` (the paper's five outputs)."""
+    if n_sections == 1:
+        return (*TIP_OUTPUTS, OutputSpec("theta", "rad"), OutputSpec("phi", "rad", True))
+    out = list(TIP_OUTPUTS)
+    for k in range(1, n_sections + 1):
+        out += [
+            OutputSpec(f"theta_{k}", "rad", section=k),
+            OutputSpec(f"phi_{k}", "rad", True, section=k),
+            OutputSpec(f"x_{k}", "m", section=k),
+            OutputSpec(f"y_{k}", "m", section=k),
+            OutputSpec(f"z_{k}", "m", section=k),
+        ]
+    return tuple(out)
+
+
+def output_names(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
+    return tuple(o.name for o in outputs)
+
+
+def wrapped_indices(outputs: Sequence[OutputSpec]) -> tuple[int, ...]:
+    return tuple(i for i, o in enumerate(outputs) if o.wrapped)
+
+
+def imu_suffix(i: int, n_imus: int) -> str:
+    """Column suffix of IMU ``i`` (0-based): ``""`` with one IMU, else ``"_1"``, ``"_2"``."""
+    return "" if n_imus == 1 else f"_{i + 1}"
+
+
+def tilt_blocks(n_imus: int) -> tuple[MeasurementBlock, ...]:
+    """``roll_i, pitch_i`` per IMU (``roll, pitch`` with one IMU)."""
+    return tuple(
+        MeasurementBlock(
+            f"imu{i + 1}",
+            (f"roll{imu_suffix(i, n_imus)}", f"pitch{imu_suffix(i, n_imus)}"),
+            2 * i,
+        )
+        for i in range(n_imus)
+    )
+
+
+def direct_blocks(n_imus: int) -> tuple[MeasurementBlock, ...]:
+    """``fx_i, fy_i, fz_i, wx_i, wy_i, wz_i`` per IMU (unit specific force, rad/s)."""
+    names = ("fx", "fy", "fz", "wx", "wy", "wz")
+    return tuple(
+        MeasurementBlock(
+            f"imu{i + 1}", tuple(n + imu_suffix(i, n_imus) for n in names), 6 * i, "direct"
+        )
+        for i in range(n_imus)
+    )

@@ -1,0 +1,161 @@
+"""Piecewise-constant-curvature (PCC) kinematics: a chain of constant-curvature sections.
+
+Section ``k`` has the singularity-free bend vector ``u_k = (a_k, b_k)`` (rad) and length
+``L_k`` (m), expressed in the frame at its own base (the end frame of section
+``k - 1``). Composition::
+
+    R_k = R_{k-1} R(u_k),    p_k = p_{k-1} + R_{k-1} p(u_k, L_k)
+
+with ``R(u)``, ``p(u, L)`` of :mod:`continuum_mhe.model.kinematics` (no torsion: each
+section's rotation vector is ``(b, -a, 0)`` in its base frame). A point at fraction
+``s`` of section ``k`` has the pose of a section with bend ``s u_k`` and length
+``s L_k`` on top of sections ``0..k-1``: every quantity is analytic in the bend
+vectors, straight sections included.
+
+Everything is written once, symbolically (CasADi); the numeric functions below are
+compiled from the same expressions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import cache
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from continuum_mhe.model.imu import Mounting, _up_sign, gravity_direction_bend_sym
+from continuum_mhe.model.kinematics import (
+    FloatArray,
+    Sym,
+    rotation_bend_sym,
+    tip_position_bend_sym,
+)
+
+
+def pose_at_sym(
+    bends: Sequence[tuple[Sym, Sym]], lengths: Sequence[float], section: int, frac: float = 1.0
+) -> tuple[Sym, Sym]:
+    """``(R, p)``: orientation (3x3, local-to-base) and position (3,) in metres at
+    fraction ``frac`` of ``section`` (0-based). Section 0's pose is that section's own
+    (no product with the identity, so a one-section robot has exactly the one-section
+    expressions)."""
+    R: Sym = None
+    p: Sym = None
+    for k in range(section + 1):
+        s = frac if k == section else 1.0
+        a, b = bends[k]
+        rk = rotation_bend_sym(s * a, s * b) if s != 1.0 else rotation_bend_sym(a, b)
+        pk = tip_position_bend_sym(s * a, s * b, s * lengths[k]) if s != 1.0 else (
+            tip_position_bend_sym(a, b, lengths[k])
+        )
+        if R is None:
+            R, p = rk, pk
+        else:
+            p = p + ca.mtimes(R, pk)
+            R = ca.mtimes(R, rk)
+    return R, p
+
+
+def gravity_direction_at_sym(
+    bends: Sequence[tuple[Sym, Sym]], section: int, frac: float, mounting: Mounting
+) -> Sym:
+    """Unit specific-force direction ``R^T u`` (3,) in the local frame at fraction
+    ``frac`` of ``section``, for a body at rest (``u`` the world's up direction).
+
+    Built from the base up, ``v_k = R(u_k)^T v_{k-1}`` with ``v_0 = R(u_0)^T u``, which
+    for section 0 is :func:`~continuum_mhe.model.imu.gravity_direction_bend_sym`.
+    """
+    v: Sym = None
+    for k in range(section + 1):
+        s = frac if k == section else 1.0
+        a, b = bends[k]
+        a_s, b_s = (s * a, s * b) if s != 1.0 else (a, b)
+        if v is None:
+            v = gravity_direction_bend_sym(a_s, b_s, mounting)
+        else:
+            v = ca.mtimes(rotation_bend_sym(a_s, b_s).T, v)
+    return v
+
+
+def angular_velocity_at_sym(
+    bends: Sequence[tuple[Sym, Sym]],
+    rates: Sequence[tuple[Sym, Sym]],
+    section: int,
+    frac: float,
+) -> Sym:
+    """Angular velocity (3,) rad/s in the local frame at fraction ``frac`` of
+    ``section``: ``vee(R^T dR/dt)`` with ``dR/dt`` by CasADi's chain rule through the
+    composed rotation, so it includes the motion of every section below."""
+    coords = ca.vertcat(*[c for ab in bends[: section + 1] for c in ab])
+    dots = ca.vertcat(*[c for ab in rates[: section + 1] for c in ab])
+    rot, _ = pose_at_sym(bends, [1.0] * (section + 1), section, frac)
+    d_vec = ca.mtimes(ca.jacobian(ca.vec(rot), coords), dots)
+    w_hat = ca.mtimes(rot.T, ca.reshape(d_vec, 3, 3))
+    return 0.5 * ca.vertcat(
+        w_hat[2, 1] - w_hat[1, 2], w_hat[0, 2] - w_hat[2, 0], w_hat[1, 0] - w_hat[0, 1]
+    )
+
+
+@cache
+def _pose_function(lengths: tuple[float, ...], section: int, frac: float) -> ca.Function:
+    u = ca.SX.sym("u", 2 * len(lengths))
+    bends = [(u[2 * k], u[2 * k + 1]) for k in range(len(lengths))]
+    R, p = pose_at_sym(bends, lengths, section, frac)
+    return ca.Function("pose", [u], [ca.reshape(R, 9, 1), p])
+
+
+def pose_at(
+    bends: ArrayLike, lengths: Sequence[float], section: int, frac: float = 1.0
+) -> tuple[FloatArray, FloatArray]:
+    """Numeric :func:`pose_at_sym`: ``bends`` (..., n_sections, 2) rad; returns
+    ``R`` (..., 3, 3) and ``p`` (..., 3) m."""
+    u = np.asarray(bends, dtype=float)
+    lead = u.shape[:-2]
+    flat = u.reshape(-1, 2 * len(lengths)).T
+    fn = _pose_function(tuple(float(v) for v in lengths), int(section), float(frac))
+    r, p = (np.asarray(v, dtype=float) for v in fn(flat))
+    r = r.reshape(9, -1).T.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major
+    return r.reshape(*lead, 3, 3), p.reshape(3, -1).T.reshape(*lead, 3)
+
+
+def backbone(
+    bends: ArrayLike, lengths: Sequence[float], points_per_section: int = 10
+) -> FloatArray:
+    """Backbone points (..., n_sections * points_per_section + 1, 3) in metres, from
+    the base to the tip, for drawing."""
+    u = np.asarray(bends, dtype=float)
+    pts = [np.zeros((*u.shape[:-2], 3))]
+    for k in range(len(lengths)):
+        for j in range(1, points_per_section + 1):
+            pts.append(pose_at(u, lengths, k, j / points_per_section)[1])
+    return np.stack(pts, axis=-2)
+
+
+def bend_from_tangent_frames(R_prev: FloatArray, R_next: FloatArray) -> FloatArray:
+    """The bend vector ``(a, b)`` of a torsion-free section that turns the tangent
+    ``R_prev e_z`` into ``R_next e_z`` (the section's own frame is ``R_prev``).
+
+    The tangent in the section's base frame is ``t = R_prev^T R_next e_z``; a section
+    with bend ``(a, b)`` has end tangent ``(-a sinc, -b sinc, cos theta)`` there, so
+    ``theta = acos(t_z)`` and ``(a, b) = -theta (t_x, t_y) / |(t_x, t_y)|``. Used to
+    compute the PCC model's floor on rod data (the FK of the true section-end tangents).
+    """
+    t = np.einsum("...ji,...j->...i", R_prev, R_next[..., :, 2])
+    theta = np.arccos(np.clip(t[..., 2], -1.0, 1.0))
+    h = np.hypot(t[..., 0], t[..., 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(h > 0, -theta / np.where(h > 0, h, 1.0), 0.0)
+    return np.stack([scale * t[..., 0], scale * t[..., 1]], axis=-1)
+
+
+def section_frames_from_bends(bends: ArrayLike, lengths: Sequence[float]) -> FloatArray:
+    """End frames ``R_k`` (..., n_sections, 3, 3) of every section (for tests/plots)."""
+    u = np.asarray(bends, dtype=float)
+    return np.stack([pose_at(u, lengths, k)[0] for k in range(len(lengths))], axis=-3)
+
+
+def up_vector(mounting: Mounting) -> FloatArray:
+    """The world's up direction in the base frame."""
+    return np.array([0.0, 0.0, _up_sign(mounting)])

@@ -1,0 +1,38 @@
+"""Formulations by name: the one place that knows them all (no import cycles).
+
+``make_formulation("bend" | "paper" | "direct", robot, noise)``. A robot is a
+:class:`~continuum_mhe.model.robot.Robot` or, for one section, a
+:class:`~continuum_mhe.settings.RobotSettings`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.settings import FormulationName, NoiseSettings, RobotSettings
+
+#: Formulation classes by name.
+REGISTRY: dict[str, type[Formulation]] = {
+    "bend": BendFormulation,
+    "paper": PaperFormulation,
+    "direct": DirectFormulation,
+}
+
+
+def make_formulation(
+    name: FormulationName = "bend",
+    robot: Robot | RobotSettings | None = None,
+    noise: NoiseSettings | None = None,
+    **options: Any,
+) -> Formulation:
+    """Formulation by name: ``"bend"`` (default), ``"paper"`` or ``"direct"`` (raw IMU).
+
+    ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``).
+    """
+    cls = REGISTRY.get(name)
+    if cls is None:
+        raise ValueError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
+    return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]

@@ -1,0 +1,152 @@
+"""The robot as data: sections, IMUs and base mounting.
+
+A :class:`Robot` is a chain of inextensible constant-curvature sections, numbered from
+the base, with IMUs placed on them. It says nothing about the motion model or the
+estimator (that is the formulation's job), so one robot description serves every
+formulation and every estimator.
+
+Conventions: lengths in metres, angles in radians. Sections and IMUs are 0-based in
+code and 1-based in the robot file (``continuum_mhe.io.robot_file``). An IMU at
+fraction ``at`` of section ``k`` sits at arc length ``at * length_k`` from that
+section's base; ``at = 1`` is the section's end.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from continuum_mhe.model.imu import MOUNTINGS, Mounting
+
+#: Largest plausible section length in metres; longer is almost surely millimetres.
+MAX_SECTION_LENGTH = 5.0
+
+
+@dataclass(frozen=True)
+class Section:
+    """One constant-curvature section.
+
+    Attributes:
+        length: arc length, m, in ``(0, 5]``.
+        theta_max: bound on the section's bending angle, rad, in ``(0, pi)``.
+    """
+
+    length: float
+    theta_max: float = math.pi / 2
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.length, (int, float)) and math.isfinite(self.length)):
+            raise ValueError(f"section length must be a finite number in m, got {self.length!r}")
+        if not self.length > 0:
+            raise ValueError(f"section length must be positive, got {self.length!r} m")
+        if self.length > MAX_SECTION_LENGTH:
+            raise ValueError(
+                f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
+                "lengths are in metres (millimetres?)"
+            )
+        if not (isinstance(self.theta_max, (int, float)) and 0 < self.theta_max < math.pi):
+            hint = " (degrees? give radians)" if self.theta_max >= math.pi else ""
+            raise ValueError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
+
+
+@dataclass(frozen=True)
+class ImuPlacement:
+    """Where an IMU sits.
+
+    Attributes:
+        section: 0-based index of the section it is on.
+        at: fraction of that section's length from its base, in ``(0, 1]``.
+        mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
+            sensor-frame vectors into the local backbone frame (applied to raw data).
+    """
+
+    section: int
+    at: float = 1.0
+    mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.section, int) and self.section >= 0):
+            raise ValueError(f"IMU section must be a non-negative index, got {self.section!r}")
+        if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
+            raise ValueError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
+        if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
+            raise ValueError(f"IMU mount_rpy must be three finite angles, got {self.mount_rpy!r}")
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A piecewise-constant-curvature robot with IMUs.
+
+    Attributes:
+        sections: from the base to the tip (at least one).
+        imus: the IMUs, in measurement order (at least one).
+        mounting: base orientation, ``"z-up"`` (base z against gravity) or ``"z-down"``.
+    """
+
+    sections: tuple[Section, ...]
+    imus: tuple[ImuPlacement, ...]
+    mounting: Mounting = "z-up"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sections", tuple(self.sections))
+        object.__setattr__(self, "imus", tuple(self.imus))
+        if not self.sections:
+            raise ValueError("a robot needs at least one section")
+        if not self.imus:
+            raise ValueError("a robot needs at least one IMU")
+        for i, imu in enumerate(self.imus):
+            if imu.section >= len(self.sections):
+                raise ValueError(
+                    f"IMU {i + 1} is on section {imu.section + 1}, but the robot has "
+                    f"{len(self.sections)} section(s)"
+                )
+        if self.mounting not in MOUNTINGS:
+            raise ValueError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+
+    @classmethod
+    def single(
+        cls, length: float = 0.2, theta_max: float = math.pi / 2, mounting: Mounting = "z-up"
+    ) -> Robot:
+        """One section with one IMU at its tip (the paper's robot)."""
+        return cls((Section(length, theta_max),), (ImuPlacement(0, 1.0),), mounting)
+
+    @property
+    def n_sections(self) -> int:
+        return len(self.sections)
+
+    @property
+    def n_imus(self) -> int:
+        return len(self.imus)
+
+    @property
+    def length(self) -> float:
+        """Total backbone length, m (the tip's arc length)."""
+        return float(sum(s.length for s in self.sections))
+
+    @property
+    def lengths(self) -> tuple[float, ...]:
+        return tuple(s.length for s in self.sections)
+
+    @property
+    def theta_max(self) -> float:
+        """``theta_max`` of a one-section robot (ValueError for several sections)."""
+        if len(self.sections) != 1:
+            raise ValueError("theta_max is per section on a multi-section robot")
+        return self.sections[0].theta_max
+
+    @property
+    def is_single(self) -> bool:
+        """One section with one IMU at its tip, mounted as the tip frame."""
+        return (
+            len(self.sections) == 1
+            and len(self.imus) == 1
+            and self.imus[0].at == 1.0
+            and self.imus[0].section == 0
+        )
+
+    def describe(self) -> str:
+        """One line, e.g. ``2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up``."""
+        secs = ", ".join(f"{s.length:g} m" for s in self.sections)
+        imus = ", ".join(f"{i.section + 1}@{i.at:g}" for i in self.imus)
+        n = len(self.sections)
+        return f"{n} section{'s' if n > 1 else ''} ({secs}), IMUs at {imus}, {self.mounting}"
