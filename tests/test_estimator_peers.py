@@ -31,9 +31,9 @@ from continuum_mhe.estimators.base import Estimator, Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.model.formulations import BendFormulation, Formulation
-from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import rotation_bend_sym, tip_position
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings, RobotSettings
 from continuum_mhe.simulation.scenarios import Recording, simulate
 
@@ -284,7 +284,7 @@ def solve_bend_window_independently(
     for j in range(active):
         i = off + j
         a, b = X[0, j], X[1, j]
-        if problem.zmask[i]:
+        if problem.zmask[i].all():
             # stereographic tilt residual, from the rotation and the measured direction
             f_z, E = tilt_tangent_basis(problem.z[i])
             up = 1.0 if f.robot.mounting == "z-up" else -1.0

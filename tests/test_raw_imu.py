@@ -26,9 +26,9 @@ from continuum_mhe.model.direct import (
     raw_imu_readings,
     tip_angular_velocity_bend_sym,
 )
-from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.kinematics import rotation_bend
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
 from continuum_mhe.simulation.scenarios import simulate
 

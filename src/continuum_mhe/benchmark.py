@@ -34,8 +34,8 @@ from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import wrap_angle
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording, simulate
 

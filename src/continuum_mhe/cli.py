@@ -19,18 +19,19 @@ import numpy as np
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.io.csv_files import (
     InputError,
-    read_states,
+    read_state_table,
     write_estimates,
     write_measurements,
     write_truth,
 )
 from continuum_mhe.metrics import Metrics, compute_metrics
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.progress import progress_bar
-from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings, RobotSettings
-from continuum_mhe.simulation.scenarios import SCENARIOS, simulate
+from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings
+from continuum_mhe.simulation.scenarios import SCENARIOS, simulate_robot
 
 PROG = "continuum-mhe"
 
@@ -43,8 +44,34 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 # --- shared options ---------------------------------------------------------------
+def _add_robot_option(g: argparse._ActionsContainer) -> None:
+    g.add_argument(
+        "--robot",
+        metavar="ROBOT.toml",
+        help="robot file (sections, IMUs, mounting; see README); replaces --length, "
+        "--theta-max and --mounting",
+    )
+
+
+def _robot(args: argparse.Namespace) -> Robot:
+    """The robot of a command: ``--robot`` file, else the one-section flags."""
+    if getattr(args, "robot", None):
+        from continuum_mhe.io.robot_file import read_robot
+
+        return read_robot(args.robot)
+    try:
+        return Robot.single(
+            args.length,
+            getattr(args, "theta_max", math.pi / 2),
+            getattr(args, "mounting", "z-up"),
+        )
+    except ValueError as exc:
+        raise InputError(f"robot: {exc}") from None
+
+
 def _add_model_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("model")
+    _add_robot_option(g)
     g.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
     g.add_argument(
         "--theta-max",
@@ -92,11 +119,14 @@ def _add_mhe_options(p: argparse.ArgumentParser) -> None:
 def _formulation(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
         raise InputError(f"--noise-deg must be positive, got {args.noise_deg}")
-    robot = RobotSettings(length=args.length, theta_max=args.theta_max, mounting=args.mounting)
+    robot = _robot(args)
     noise = NoiseSettings(
         measurement_std=math.radians(args.noise_deg), bend_accel_psd=args.accel_psd
     )
-    return make_formulation(args.formulation, robot, noise)
+    try:
+        return make_formulation(args.formulation, robot, noise)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _mhe_settings(args: argparse.Namespace) -> MHESettings:
@@ -105,18 +135,18 @@ def _mhe_settings(args: argparse.Namespace) -> MHESettings:
 
 # --- commands --------------------------------------------------------------------------
 def cmd_simulate(args: argparse.Namespace) -> int:
-    rec = simulate(
+    robot = _robot(args)
+    rec = simulate_robot(
         args.scenario,
+        robot,
         duration=args.duration,
         dt=args.dt,
         noise_deg=args.noise_deg,
-        length=args.length,
         seed=args.seed,
-        mounting=args.mounting,
     )
-    write_measurements(args.output, rec.t, rec.z)
+    write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     if args.truth:
-        write_truth(args.truth, rec.t, rec.truth)
+        write_truth(args.truth, rec.t, rec.truth, rec.outputs)
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
     return 0
 
@@ -166,38 +196,59 @@ def _align(
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    t_e, est, _ = read_states(args.estimates)
-    t_t, truth, _ = read_states(args.truth)
-    i_e, i_t = _align(args.estimates, t_e, args.truth, t_t)
-    if not (math.isfinite(args.length) and args.length > 0):
+    est = read_state_table(args.estimates)
+    truth = read_state_table(args.truth)
+    i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
+    if args.robot:
+        length = _robot(args).length
+    elif not (math.isfinite(args.length) and args.length > 0):
         raise InputError(f"--length must be positive, got {args.length}")
+    else:
+        length = args.length
+    out_names = [n for n in est.names if not n.startswith("std_")]
+    cols = [est.names.index(n) for n in out_names]
     try:
-        m = compute_metrics(est[i_e], truth[i_t], args.length)
+        m = compute_metrics(
+            est.values[i_e][:, cols], truth.values[i_t], length, out_names, truth.names
+        )
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
-    unmatched = int(len(t_e) - len(i_e))
+    unmatched = int(len(est.t) - len(i_e))
     if args.json:
         print(json.dumps({**m.as_dict(), "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m))
         if unmatched:
-            print(f"unmatched rows       {unmatched} of {len(t_e)} (no truth at their t)")
+            print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
 
 
 def format_metrics(m: Metrics) -> str:
     r = m.rmse
-    return "\n".join(
-        [
-            f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
-            f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
-            f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
-            f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",
+    lines = [
+        f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
+        f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
+        f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
+        f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",
+    ]
+    if "theta" in r and "phi" in r:
+        lines.append(
             f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, "
-            f"{math.degrees(r['phi']):.2f} deg",
-            f"SRMSE                {m.srmse:.4f} (sum of RMSEs, m + rad)",
-        ]
-    )
+            f"{math.degrees(r['phi']):.2f} deg"
+        )
+    for k, mean in m.section_end_mean_mm.items():
+        lines.append(
+            f"section {k} end error  mean {mean:.2f} mm, max {m.section_end_max_mm[k]:.2f} mm"
+        )
+    k = 1
+    while f"theta_{k}" in r:
+        lines.append(
+            f"RMSE theta_{k}, phi_{k}  {math.degrees(r[f'theta_{k}']):.2f}, "
+            f"{math.degrees(r[f'phi_{k}']):.2f} deg"
+        )
+        k += 1
+    lines.append(f"SRMSE                {m.srmse:.4f} (sum of RMSEs, m + rad)")
+    return "\n".join(lines)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -207,49 +258,60 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from continuum_mhe import plotting
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    robot = RobotSettings(length=0.2)
+    robot = _robot(args) if args.robot else Robot.single(0.2)
+    scenario = "paper3d" if robot.is_single else "spatial"
+    rec = simulate_robot(scenario, robot, seed=args.seed)
     formulation = make_formulation("bend", robot, NoiseSettings())
-    rec = simulate("paper3d", seed=args.seed, length=robot.length)
+    out.mkdir(parents=True, exist_ok=True)
+    names = [o.name for o in rec.outputs]
     results: list[tuple[EstimateSeries, Metrics]] = []
     for method in METHODS:
         est = make_estimator(method, formulation, MHESettings())
         series = est.run(rec.t, rec.z, progress=progress_bar(f"demo: {method}"))
-        results.append((series, compute_metrics(series.output, rec.truth, robot.length)))
+        results.append((series, compute_metrics(series.output, rec.truth, robot.length, names)))
         write_estimates(out / f"estimates_{method}.csv", series)
-    write_measurements(out / "measurements.csv", rec.t, rec.z)
-    write_truth(out / "truth.csv", rec.t, rec.truth)
-    table = Table(title="paper3d, 0.2 m, 2 deg noise, N = 30 (continuum-mhe demo)")
-    for col in (
-        "method",
-        "tip mean mm",
-        "tip mean %",
-        "tip max mm",
-        "theta RMSE deg",
-        "phi RMSE deg",
-        "median solve ms",
-    ):
+    write_measurements(out / "measurements.csv", rec.t, rec.z, rec.measurement_names)
+    write_truth(out / "truth.csv", rec.t, rec.truth, rec.outputs)
+    what = "0.2 m" if robot.is_single else robot.describe()
+    table = Table(title=f"{scenario}, {what}, 2 deg noise, N = 30 (continuum-mhe demo)")
+    angles = [n for n in names if n.startswith(("theta", "phi"))]
+    for col in ("method", "tip mean mm", "tip mean %", "tip max mm"):
         table.add_column(col, justify="right")
+    for n in angles:
+        table.add_column(f"{n} RMSE deg", justify="right")
+    table.add_column("median solve ms", justify="right")
     for s, m in results:
         table.add_row(
             s.method.upper(),
             f"{m.tip_mean_mm:.2f}",
             f"{m.tip_mean_pct:.2f}",
             f"{m.tip_max_mm:.2f}",
-            f"{math.degrees(m.rmse['theta']):.2f}",
-            f"{math.degrees(m.rmse['phi']):.2f}",
+            *(f"{math.degrees(m.rmse[n]):.2f}" for n in angles),
             f"{float(np.median(s.solve_ms)):.3f}",
         )
     Console().print(table)
     all_series = [s for s, _ in results]
+    bounds = [sec.theta_max for sec in robot.sections]
     figs = plotting.save(
-        plotting.trajectory_3d(rec.truth, all_series, "paper3d: tip trajectory"),
+        plotting.trajectory_3d(rec.truth, all_series, f"{scenario}: tip trajectory"),
         out / "demo_trajectory_3d",
     ) + plotting.save(
-        plotting.states_vs_time(rec.t, rec.truth, all_series, "paper3d: states", robot.theta_max),
+        plotting.states_vs_time(rec.t, rec.truth, all_series, f"{scenario}: states", bounds),
         out / "demo_states",
     )
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
+    return 0
+
+
+def cmd_check_robot(args: argparse.Namespace) -> int:
+    from continuum_mhe.analysis.observability import format_report, observability_report
+
+    robot = _robot(args)
+    report = observability_report(robot, samples=args.samples, seed=args.seed)
+    if args.json:
+        print(json.dumps(report.as_dict(), indent=2))
+    else:
+        print(format_report(robot, report))
     return 0
 
 
@@ -268,6 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="simulate paper3d, run MHE, EKF and UKF, print errors, plot")
     p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    _add_robot_option(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="write a synthetic measurement CSV and its truth")
@@ -280,6 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up")
+    _add_robot_option(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("estimate", help="estimate shape and tip from a measurement CSV")
@@ -303,8 +367,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("estimates")
     p.add_argument("truth")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
+    _add_robot_option(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser(
+        "check-robot",
+        help="observability of a robot: rank of the measurement Jacobian over the workspace",
+    )
+    p.add_argument("robot", metavar="ROBOT.toml", help="robot file")
+    p.add_argument("--samples", type=int, default=2000, help="random shapes (default 2000)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_check_robot)
 
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)

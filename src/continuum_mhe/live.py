@@ -37,7 +37,7 @@ from typing import IO, Any, Literal
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimate, EstimateSeries, Estimator, Measurement
-from continuum_mhe.io.csv_files import ESTIMATE_COLUMNS, FloatArray, InputError, estimate_rows
+from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     ATTITUDES,
     IMU_MODELS,
@@ -250,7 +250,7 @@ class LiveSession:
         self._wall_last = 0.0
         self._restarted = False
         if self.writer is not None and out is not None:
-            self.writer.writerow(ESTIMATE_COLUMNS)
+            self.writer.writerow(estimate_columns(estimator.formulation.outputs))
             out.flush()
         estimator.reset()
 
@@ -336,7 +336,8 @@ class LiveSession:
         self.solve_ms.append(est.solve_ms)
         if self.writer is None or self.out is None:
             return
-        row = estimate_rows(EstimateSeries.from_estimates(self.estimator.name, [est]))[0]
+        ny = self.estimator.formulation.ny
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny)
         self.writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
         self.out.flush()
 

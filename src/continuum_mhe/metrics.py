@@ -1,17 +1,31 @@
-"""Error metrics of estimates against truth (results as data)."""
+"""Error metrics of estimates against truth (results as data).
+
+Columns are named (see :mod:`continuum_mhe.model.descriptions`): the tip ``x, y, z``
+(m), and per section ``theta_k`` (rad), ``phi_k`` (rad, wrapped) and its end
+``x_k, y_k, z_k`` (m); one section uses ``theta, phi``. Metrics are computed over the
+columns both sides have.
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.model.descriptions import output_names, pcc_outputs
 from continuum_mhe.model.imu import wrap_angle
 
 FloatArray = NDArray[np.float64]
 
-STATE_NAMES = ("x", "y", "z", "theta", "phi")
+#: One section's outputs, the default column order of arrays without names.
+STATE_NAMES = output_names(pcc_outputs(1))
+
+
+def is_wrapped(name: str) -> bool:
+    """``phi`` and ``phi_k`` are angles wrapped to ``[-pi, pi)``."""
+    return name == "phi" or name.startswith("phi_")
 
 
 @dataclass(frozen=True)
@@ -19,11 +33,13 @@ class Metrics:
     """Errors over the samples that have an estimate.
 
     Attributes:
-        rmse: RMSE per state ``x, y, z`` (m), ``theta, phi`` (rad; phi wrapped).
-        srmse: the paper's SRMSE, the sum of the five RMSEs (mixed units, as printed).
+        rmse: RMSE per compared column (m or rad; phi wrapped).
+        srmse: the sum of the RMSEs (the paper's SRMSE for one section, mixed units).
         tip_mean_mm, tip_max_mm: Euclidean tip error, mm.
-        tip_mean_pct, tip_max_pct: the same in % of the section length.
+        tip_mean_pct, tip_max_pct: the same in % of the robot's length.
         n: samples compared; n_without_estimate: samples with no estimate.
+        section_end_mean_mm, section_end_max_mm: Euclidean error of each section's end
+            (1-based section number as a string key), where both sides have it.
     """
 
     rmse: dict[str, float]
@@ -34,28 +50,58 @@ class Metrics:
     tip_max_pct: float
     n: int
     n_without_estimate: int
+    section_end_mean_mm: dict[str, float] = field(default_factory=dict)
+    section_end_max_mm: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
-def state_errors(estimate: FloatArray, truth: FloatArray) -> FloatArray:
-    """Per-sample errors (n, 5), with phi wrapped to ``[-pi, pi)``."""
+def state_errors(
+    estimate: FloatArray, truth: FloatArray, names: Sequence[str] = STATE_NAMES
+) -> FloatArray:
+    """Per-sample errors (n, k) of named columns, with phi columns wrapped."""
     err = np.asarray(estimate, float) - np.asarray(truth, float)
-    err[:, 4] = wrap_angle(err[:, 4])
+    for j, name in enumerate(names):
+        if is_wrapped(name):
+            err[:, j] = wrap_angle(err[:, j])
     return err
 
 
-def compute_metrics(estimate: FloatArray, truth: FloatArray, length: float) -> Metrics:
-    """Metrics of ``estimate`` (n, 5) against ``truth`` (n, 5); NaN rows are skipped."""
-    has = np.all(np.isfinite(estimate), axis=1)
+def compute_metrics(
+    estimate: FloatArray,
+    truth: FloatArray,
+    length: float,
+    names: Sequence[str] = STATE_NAMES,
+    truth_names: Sequence[str] | None = None,
+) -> Metrics:
+    """Metrics of ``estimate`` (n, k) with columns ``names`` against ``truth`` (n, k')
+    with columns ``truth_names`` (default: the same). Columns in only one of them are
+    ignored; both must have ``x, y, z``. Rows with a NaN estimate are skipped."""
+    names = list(names)
+    tnames = list(names if truth_names is None else truth_names)
+    common = [c for c in names if c in tnames]
+    for c in ("x", "y", "z"):
+        if c not in common:
+            raise ValueError(f"both sides need the tip column {c!r}")
+    est = np.asarray(estimate, float)[:, [names.index(c) for c in common]]
+    tru = np.asarray(truth, float)[:, [tnames.index(c) for c in common]]
+    has = np.all(np.isfinite(est), axis=1)
     if not has.any():
         raise ValueError("no sample has an estimate")
-    err = state_errors(estimate[has], truth[has])
+    err = state_errors(est[has], tru[has], common)
     rmse = np.sqrt(np.mean(err**2, axis=0))
-    tip = np.linalg.norm(err[:, :3], axis=1)
+    col = {c: i for i, c in enumerate(common)}
+    tip = np.linalg.norm(err[:, [col["x"], col["y"], col["z"]]], axis=1)
+    end_mean: dict[str, float] = {}
+    end_max: dict[str, float] = {}
+    k = 1
+    while all(f"{c}_{k}" in col for c in "xyz"):
+        e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
+        end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
+        k += 1
     return Metrics(
-        rmse={k: float(v) for k, v in zip(STATE_NAMES, rmse)},
+        rmse={c: float(v) for c, v in zip(common, rmse)},
         srmse=float(rmse.sum()),
         tip_mean_mm=float(tip.mean() * 1e3),
         tip_max_mm=float(tip.max() * 1e3),
@@ -63,4 +109,6 @@ def compute_metrics(estimate: FloatArray, truth: FloatArray, length: float) -> M
         tip_max_pct=float(tip.max() / length * 100),
         n=int(has.sum()),
         n_without_estimate=int((~has).sum()),
+        section_end_mean_mm=end_mean,
+        section_end_max_mm=end_max,
     )

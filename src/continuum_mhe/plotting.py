@@ -12,19 +12,21 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from continuum_mhe.estimators.base import EstimateSeries  # noqa: E402
-from continuum_mhe.metrics import STATE_NAMES  # noqa: E402
+from continuum_mhe.results import EstimateSeries  # noqa: E402
 
-_UNITS = {"x": "mm", "y": "mm", "z": "mm", "theta": "deg", "phi": "deg"}
 _STYLE = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
+
+
+def _unit(name: str) -> str:
+    return "deg" if name.startswith(("theta", "phi")) else "mm"
 
 
 def _scale(name: str, v: np.ndarray) -> np.ndarray:
     """Display units; phi gets NaN breaks where it wraps at +-180 deg."""
-    if _UNITS[name] == "mm":
+    if _unit(name) == "mm":
         return v * 1e3
     d = np.degrees(v)
-    if name == "phi" and len(d) > 1:
+    if name.startswith("phi") and len(d) > 1:
         jump = np.abs(np.diff(d)) > 180
         d = np.insert(d, np.flatnonzero(jump) + 1, np.nan)
     return d
@@ -32,7 +34,7 @@ def _scale(name: str, v: np.ndarray) -> np.ndarray:
 
 def _breaks(name: str, t: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Time axis matching :func:`_scale` (NaN inserted at phi wraps)."""
-    if name != "phi" or len(v) < 2:
+    if not name.startswith("phi") or len(v) < 2:
         return t
     jump = np.abs(np.diff(np.degrees(v))) > 180
     return np.insert(np.asarray(t, float), np.flatnonzero(jump) + 1, np.nan)
@@ -68,11 +70,19 @@ def states_vs_time(
     truth: np.ndarray | None,
     series: Sequence[EstimateSeries],
     title: str = "States",
-    theta_max: float | None = None,
+    theta_max: float | Sequence[float] | None = None,
 ) -> Figure:
-    """The five output states against time, with truth and an optional theta bound."""
-    fig, axes = plt.subplots(5, 1, figsize=(7.5, 9.0), sharex=True)
-    for k, (ax, name) in enumerate(zip(axes, STATE_NAMES)):
+    """The tip position and every section's ``theta, phi`` against time, with truth
+    (same columns as the series) and optional theta bounds (one per section)."""
+    outputs = series[0].outputs
+    names = [o.name for o in outputs]
+    shown = [
+        i for i, n in enumerate(names) if n in ("x", "y", "z") or n.startswith(("theta", "phi"))
+    ]
+    bounds = [theta_max] if isinstance(theta_max, (int, float)) else list(theta_max or [])
+    fig, axes = plt.subplots(len(shown), 1, figsize=(7.5, 1.8 * len(shown)), sharex=True)
+    for ax, k in zip(np.atleast_1d(axes), shown):
+        name = names[k]
         if truth is not None:
             ax.plot(
                 _breaks(name, t, truth[:, k]),
@@ -90,12 +100,15 @@ def states_vs_time(
                 color=_STYLE.get(s.method, f"C{i + 3}"),
                 label=s.method.upper(),
             )
-        if name == "theta" and theta_max is not None:
-            ax.axhline(np.degrees(theta_max), color="r", ls=":", lw=1.0, label="bound")
-        ax.set_ylabel(f"{name} ({_UNITS[name]})")
+        if name.startswith("theta") and bounds:
+            sec = int(name.split("_")[1]) - 1 if "_" in name else 0
+            if sec < len(bounds):
+                ax.axhline(np.degrees(bounds[sec]), color="r", ls=":", lw=1.0, label="bound")
+        ax.set_ylabel(f"{name} ({_unit(name)})")
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper right", ncol=5, fontsize="small")
-    axes[-1].set_xlabel("t (s)")
+    first = np.atleast_1d(axes)[0]
+    first.legend(loc="upper right", ncol=5, fontsize="small")
+    np.atleast_1d(axes)[-1].set_xlabel("t (s)")
     fig.suptitle(title)
     fig.tight_layout()
     return fig

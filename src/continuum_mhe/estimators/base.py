@@ -1,7 +1,7 @@
 """One interface for every estimator: ``step(measurement) -> Estimate`` and ``run``.
 
-Results are data: :class:`Estimate` for one sample, :class:`EstimateSeries` for a
-recording. Plots, metrics and the CLI read these and never touch an estimator.
+Results are data (:mod:`continuum_mhe.results`): :class:`Estimate` for one sample,
+:class:`EstimateSeries` for a recording.
 """
 
 from __future__ import annotations
@@ -10,101 +10,16 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 
 FloatArray = NDArray[np.float64]
 
-Status = Literal[
-    "ok",  # converged (or a filter update)
-    "dropout",  # no valid measurement at this sample: prediction only
-    "not-converged",  # solver stopped early; its last feasible iterate is used
-    "solver-failed",  # solver error; projected prediction is used
-    "no-estimate",  # --paper-start: fewer than N samples so far
-    "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
-]
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """One sample: time ``t`` in seconds and the measurement vector ``z``.
-
-    For tilt input ``z = [roll, pitch]`` in radians. NaN entries mark a dropout.
-    """
-
-    t: float
-    z: FloatArray
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "z", np.asarray(self.z, dtype=float))
-
-    @property
-    def valid(self) -> bool:
-        return bool(np.all(np.isfinite(self.z)))
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """The estimate at one sample.
-
-    Attributes:
-        t: sample time, s.
-        state: the formulation's state vector, or None for ``no-estimate``.
-        output: ``[x, y, z, theta, phi]`` (m, rad), or None for ``no-estimate``.
-        covariance: state covariance where the method has one, else None.
-        status: see :data:`Status`.
-        solve_ms: wall time spent on this sample, ms.
-    """
-
-    t: float
-    state: FloatArray | None
-    output: FloatArray | None
-    covariance: FloatArray | None
-    status: Status
-    solve_ms: float
-
-
-@dataclass(frozen=True)
-class EstimateSeries:
-    """Estimates over a recording. Rows without an estimate hold NaN in ``output``.
-
-    Attributes:
-        method: estimator name (``mhe``, ``ekf``, ``ukf``...).
-        t: (n,) s.
-        output: (n, 5) ``[x, y, z, theta, phi]`` (m, rad).
-        status: (n,) status strings.
-        solve_ms: (n,) ms.
-    """
-
-    method: str
-    t: FloatArray
-    output: FloatArray
-    status: NDArray[np.str_]
-    solve_ms: FloatArray
-
-    @property
-    def has_estimate(self) -> NDArray[np.bool_]:
-        return self.status != "no-estimate"
-
-    @classmethod
-    def from_estimates(cls, method: str, estimates: Iterable[Estimate]) -> EstimateSeries:
-        est = list(estimates)
-        out = np.full((len(est), 5), np.nan)
-        for i, e in enumerate(est):
-            if e.output is not None:
-                out[i] = e.output
-        return cls(
-            method=method,
-            t=np.array([e.t for e in est], dtype=float),
-            output=out,
-            status=np.array([e.status for e in est], dtype=str),
-            solve_ms=np.array([e.solve_ms for e in est], dtype=float),
-        )
+__all__ = ["Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
 
 
 class Estimator(ABC):
@@ -132,7 +47,7 @@ class Estimator(ABC):
         """Return ``(state, covariance, status)`` for this sample."""
 
     def _output(self, state: FloatArray) -> FloatArray:
-        """``[x, y, z, theta, phi]`` of a state (a backend may use a compiled copy)."""
+        """The outputs of a state (a backend may use a compiled copy)."""
         return self.formulation.output(state)
 
     def step(self, measurement: Measurement) -> Estimate:
@@ -176,5 +91,7 @@ class Estimator(ABC):
         if progress is not None:
             idx = progress(idx)
         return EstimateSeries.from_estimates(
-            self.name, [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx]
+            self.name,
+            [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx],
+            self.formulation.outputs,
         )

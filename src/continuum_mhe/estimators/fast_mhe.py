@@ -128,7 +128,8 @@ def feasible_set(formulation: Formulation) -> Feasible:
     nx = formulation.nx
     lo, hi = (np.asarray(v, dtype=float) for v in formulation.state_bounds())
     x = ca.SX.sym("x", nx)
-    g, glo, ghi = formulation.constraint_sym(x)
+    g, glo_v, ghi_v = formulation.constraint_sym(x)
+    glo, ghi = np.ravel(glo_v)[:1].sum(), np.ravel(ghi_v)[:1].sum()  # one ball (for now)
     if g.numel() == 0:
         return Feasible(lo, hi, np.zeros(0, dtype=np.int64), float("inf"))
     if g.numel() != 1 or glo > 0 or not np.isfinite(ghi):

@@ -1,9 +1,10 @@
 """Extended and unscented Kalman filters on a formulation's model.
 
 Both use exactly the formulation's ``Q(dt)`` and ``R`` (the same numbers the MHE
-weights with). Innovations use the formulation's ``residual`` (angles wrapped to
-``(-pi, pi]``). The pure functions :func:`ekf_predict` and :func:`ekf_update` are
-shared with the MHE's arrival cost.
+weights with). Innovations use the formulation's residual ``r(z, x)``. Validity is per
+measurement block: a sensor that dropped out is left out of the update, the others are
+used. The pure functions :func:`ekf_predict` and :func:`ekf_update` are shared with the
+MHE's arrival cost.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
@@ -25,20 +27,35 @@ def ekf_predict(
     return xn.ravel(), F @ P @ F.T + Q.reshape(len(x), len(x))
 
 
+def valid_rows(mask: FloatArray | None, nz: int) -> NDArray[np.intp]:
+    """Indices of the measurement components to use (all when ``mask`` is None)."""
+    return np.arange(nz) if mask is None else np.flatnonzero(mask)
+
+
 def ekf_update(
-    formulation: Formulation, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+    formulation: Formulation,
+    x: FloatArray,
+    P: FloatArray,
+    z: FloatArray,
+    R: FloatArray,
+    mask: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Measurement update on the formulation's residual ``r(z, x)``, Joseph form.
 
     The innovation is ``r(z, x)`` and ``H = -dr/dx``; for ``r = z - h(x)`` this is the
-    textbook EKF (with wrapped angles).
+    textbook EKF (with wrapped angles). ``mask`` (nz,) selects the valid components
+    (:meth:`Formulation.measurement_mask`); masked ones are left out.
     """
-    r, Jr = (np.asarray(v, dtype=float) for v in formulation.functions.innovate(z, x))
-    H = -Jr.reshape(len(r), len(x))
+    rows = valid_rows(mask, len(z))
+    zf = np.where(np.isfinite(z), z, 0.0)
+    r, Jr = (np.asarray(v, dtype=float) for v in formulation.functions.innovate(zf, x))
+    H = -Jr.reshape(len(z), len(x))[rows]
+    r = r.ravel()[rows]
+    R = R[np.ix_(rows, rows)]
     S = H @ P @ H.T + R
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(len(x)) - K @ H
-    return x + K @ r.ravel(), ikh @ P @ ikh.T + K @ R @ K.T
+    return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
 
 
 class _KalmanBase(Estimator):
@@ -55,20 +72,21 @@ class _KalmanBase(Estimator):
 
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
+        mask = f.measurement_mask(m.z)
         if self._x is None or self._P is None:
-            if not m.valid:  # nothing to start from yet
+            if not mask.any():  # nothing to start from yet
                 return None, None, "no-estimate"
             # prior from the first reading's inverse, then updated with that reading:
             # the same convention as the MHE (arrival prior plus the first measurement)
-            self._x, self._P = self._update(f.initial_state(m.z), f.initial_cov(), m.z)
+            self._x, self._P = self._update(f.initial_state(m.z), f.initial_cov(), m.z, mask)
             self._t_prev, self._z_prev = m.t, m.z
             return self._x.copy(), self._P.copy(), "ok"
         dt = m.t - self._t_prev
         u = f.inputs(self._z_prev, m.z, dt)
         x, P = self._predict(self._x, self._P, u, dt)
         status: Status = "dropout"
-        if m.valid:
-            x, P = self._update(x, P, m.z)
+        if mask.any():
+            x, P = self._update(x, P, m.z, mask)
             status = "ok"
             self._z_prev = m.z
         self._x, self._P, self._t_prev = x, P, m.t
@@ -79,7 +97,9 @@ class _KalmanBase(Estimator):
     ) -> tuple[FloatArray, FloatArray]:
         raise NotImplementedError
 
-    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def _update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
         raise NotImplementedError
 
 
@@ -93,8 +113,10 @@ class ExtendedKalmanFilter(_KalmanBase):
     ) -> tuple[FloatArray, FloatArray]:
         return ekf_predict(self.formulation.functions, x, P, u, dt)
 
-    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        return ekf_update(self.formulation, x, P, z, self._R)
+    def _update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        return ekf_update(self.formulation, x, P, z, self._R, mask)
 
 
 @dataclass(frozen=True)
@@ -147,17 +169,22 @@ class UnscentedKalmanFilter(_KalmanBase):
         Q = np.asarray(fns.predict(x, u, dt)[2], dtype=float).reshape(len(x), len(x))
         return mean, (wc[:, None] * d).T @ d + Q
 
-    def _update(self, x: FloatArray, P: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def _update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
         """Sigma points through the residual ``r(z, .)``: the innovation is its mean,
-        and the predicted measurement's deviations are ``-(r_i - mean)``."""
+        and the predicted measurement's deviations are ``-(r_i - mean)``. Only the
+        valid blocks (``mask``) take part."""
         fns = self.formulation.functions
+        rows = valid_rows(mask, len(z))
+        zf = np.where(np.isfinite(z), z, 0.0)
         pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
         k = len(pts)
-        rs = np.asarray(fns.innovate(np.tile(z[:, None], (1, k)), pts.T)[0], dtype=float)
-        rs = rs.reshape(-1, k).T
+        rs = np.asarray(fns.innovate(np.tile(zf[:, None], (1, k)), pts.T)[0], dtype=float)
+        rs = rs.reshape(-1, k).T[:, rows]
         rm = wm @ rs
         dr = rs - rm
-        S = (wc[:, None] * dr).T @ dr + self._R
+        S = (wc[:, None] * dr).T @ dr + self._R[np.ix_(rows, rows)]
         C = -(wc[:, None] * (pts - x)).T @ dr
         K = np.linalg.solve(S, C.T).T
         return x + K @ rm, P - K @ S @ K.T

@@ -3,13 +3,15 @@
 The window holds the last ``N`` samples; node ``i`` of the decision variables is the
 state at window sample ``i`` (the last node is the estimate). The cost is::
 
-    1/2 sum_i  m_i ||r(z_i, x_i)||^2_{R^-1}                  (formulation's residual)
+    1/2 sum_i  ||m_i * r(z_i, x_i)||^2_{R^-1}               (formulation's residual)
   + 1/2 sum_i  ||x_{i+1} - f(x_i, u_i, dt_i)||^2_{Q(dt_i)^-1}
   + 1/2 ||x_0 - xbar||^2_{P^-1}                               (arrival cost)
 
-subject to the formulation's bounds as hard constraints, where ``m_i`` masks
-dropouts. The NLP is built once per (formulation, N) with the window's measurements,
-masks, time steps, inputs, per-stage ``Q^-1`` and the arrival prior as parameters.
+subject to the formulation's bounds as hard constraints, where ``m_i`` (one 0/1 per
+measurement component) masks the sensors that dropped out at sample ``i``: validity is
+per measurement block, so one IMU's dropout keeps the others. The NLP is built once
+per (formulation, N) with the window's measurements, masks, time steps, inputs,
+per-stage ``Q^-1`` and the arrival prior as parameters.
 
 Arrival cost: when the window slides, ``(xbar, P)`` take one EKF step, an update with
 the sample that leaves the window and a prediction to the new first sample. The prior
@@ -31,7 +33,7 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -57,7 +59,7 @@ class WindowProblem:
     """The window NLP's data for one solve (all numeric, shapes for horizon N)."""
 
     z: FloatArray  # (N, m) measurements (0 where masked)
-    zmask: FloatArray  # (N,) 1 for a valid, active measurement
+    zmask: FloatArray  # (N, m) 1 for a valid, active measurement component
     dt: FloatArray  # (N-1,) s
     u: FloatArray  # (N-1, nu)
     qinv: FloatArray  # (N-1, nx, nx) inverse process covariance per stage (0 if inactive)
@@ -80,7 +82,7 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
     f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
     X = ca.SX.sym("X", nx, n)
     Z = ca.SX.sym("Z", m, n)
-    zmask = ca.SX.sym("zmask", n)
+    zmask = ca.SX.sym("zmask", m, n)
     DT = ca.SX.sym("DT", n - 1)
     U = ca.SX.sym("U", nu, n - 1)
     QI = ca.SX.sym("QI", nx * nx, n - 1)
@@ -90,8 +92,8 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
     cost = 0
     g = []
     for i in range(n):
-        r = f.measurement_residual_sym(Z[:, i], X[:, i])
-        cost += 0.5 * zmask[i] * ca.bilin(rinv, r, r)
+        r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[:, i])
+        cost += 0.5 * ca.bilin(rinv, r, r)
         e = X[:, i] - xbar
         cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
         if i < n - 1:
@@ -99,7 +101,7 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
             cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), w, w)
         gi, _, _ = f.constraint_sym(X[:, i])
         g.append(gi)
-    params = ca.vertcat(ca.vec(Z), zmask, DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
+    params = ca.vertcat(ca.vec(Z), ca.vec(zmask), DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
     w = ca.vec(X)
     nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {
@@ -118,8 +120,8 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
         solver=solver,
         lbx=np.tile(lo, n),
         ubx=np.tile(hi, n),
-        lbg=np.full(ng, glo),
-        ubg=np.full(ng, ghi),
+        lbg=np.tile(np.asarray(glo, dtype=float).ravel(), n)[:ng],
+        ubg=np.tile(np.asarray(ghi, dtype=float).ravel(), n)[:ng],
         cost=ca.Function("cost", [w, params], [cost]),
     )
 
@@ -129,7 +131,7 @@ def pack_parameters(problem: WindowProblem) -> FloatArray:
     return np.concatenate(
         [
             problem.z.ravel(),  # (N, m) row-major == (m, N) column-major
-            problem.zmask,
+            problem.zmask.ravel(),  # (N, m) row-major == (m, N) column-major
             problem.dt,
             problem.u.ravel(),
             problem.qinv.reshape(len(problem.dt), -1).ravel(),
@@ -198,7 +200,7 @@ class MovingHorizonEstimator(Estimator):
         self._k = 0  # samples in the window
         self._tw = np.zeros(n)
         self._zw = np.zeros((n, f.nz))  # 0 where masked
-        self._zmask = np.zeros(n)
+        self._zmask = np.zeros((n, f.nz))
         self._dt = np.ones(n - 1)  # 1 s on inactive stages
         self._uw = np.zeros((n - 1, f.nu))
         self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
@@ -212,8 +214,9 @@ class MovingHorizonEstimator(Estimator):
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
 
     # --- window bookkeeping -------------------------------------------------
-    def _push(self, m: Measurement, valid: bool) -> None:
+    def _push(self, m: Measurement, mask: FloatArray) -> None:
         f = self.formulation
+        valid = bool(mask.any())
         n = self.settings.horizon
         if self._k == n:
             self._slide_arrival()
@@ -223,8 +226,8 @@ class MovingHorizonEstimator(Estimator):
         for buf in (self._tw, self._zw, self._zmask, self._dt, self._uw, self._qw, self._qinvw):
             buf[:-1] = buf[1:]
         self._tw[-1] = m.t
-        self._zmask[-1] = 1.0 if valid else 0.0
-        self._zw[-1] = m.z if valid else 0.0
+        self._zmask[-1] = mask
+        self._zw[-1] = np.where(mask > 0, m.z, 0.0)
         if self._k:
             dt = m.t - self._tw[-2]
             self._dt[-1] = dt
@@ -248,14 +251,15 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None and self._P is not None
         f, x, P = self.formulation, self._xbar, self._P
         u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
-        if self._node is not None:  # the same EKF step, on the compiled model
-            valid = bool(self._zmask[0])
+        whole = bool(self._zmask[0].all() or not self._zmask[0].any())
+        if self._node is not None and whole:  # the same EKF step, on the compiled model
+            valid = bool(self._zmask[0].any())
             xn, self._P, self._Pinv = self._node.arrival_step(
                 x, P, u, dt, z, valid, self._R, self._qw[0]
             )
         else:
-            if self._zmask[0]:
-                x, P = ekf_update(f, x, P, z, self._R)
+            if self._zmask[0].any():
+                x, P = ekf_update(f, x, P, z, self._R, self._zmask[0])
             xn, P = ekf_predict(f.functions, x, P, u, dt)
             self._P = 0.5 * (P + P.T)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
@@ -322,14 +326,15 @@ class MovingHorizonEstimator(Estimator):
 
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
-        valid = m.valid
+        mask = f.measurement_mask(m.z)
+        valid = bool(mask.any())
         if self._xbar is None:
             if not valid:
                 return None, None, "no-estimate"
             self._xbar = f.project(f.initial_state(m.z))
             self._P = f.initial_cov()
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
-        self._push(m, valid)
+        self._push(m, mask)
         X0 = self._initial_guess()
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
@@ -348,7 +353,19 @@ class MovingHorizonEstimator(Estimator):
             lam0 = np.empty_like(self._lam)
             lam0[:-1] = self._lam[1:]
             lam0[-1] = 0.0
-        res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
+        zm = problem.zmask
+        if not np.all(zm.all(axis=1) | ~zm.any(axis=1)):
+            # TODO(fast backend): per-component masks; until then IPOPT, flagged
+            X, status = self._solve_ipopt(problem, X0)
+            return X, "fallback-ipopt" if status == "ok" else status
+        res = solve_window(
+            self._fast,
+            replace(problem, zmask=zm[:, 0].copy()),
+            X0,
+            self.fast_options,
+            lam0,
+            self._workspace,
+        )
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"

@@ -2,11 +2,15 @@
 
 Formats (see README "File formats"):
 
-* Measurement CSV: a header with at least ``t,roll,pitch``; ``t`` in seconds, strictly
-  increasing; roll and pitch in radians (``degrees=True`` for degrees), in the
-  convention of :mod:`continuum_mhe.model.imu`. Other columns are ignored.
-* Estimate CSV: ``t,x,y,z,theta,phi,status,solve_ms`` (m, rad, ms); rows without an
-  estimate leave the six state fields empty. Truth CSV: ``t,x,y,z,theta,phi``.
+* Measurement CSV: a header with at least ``t,roll,pitch`` (one IMU) or
+  ``t,roll_1,pitch_1,roll_2,pitch_2,...`` (IMUs numbered from the base in the robot
+  file's order); ``t`` in seconds, strictly increasing; angles in radians
+  (``degrees=True`` for degrees), in the convention of :mod:`continuum_mhe.model.imu`.
+  Other columns are ignored. With several IMUs an empty field is a dropout of that IMU.
+* Estimate CSV: ``t``, the formulation's outputs (one section: ``x,y,z,theta,phi``;
+  several: ``x,y,z`` then ``theta_k,phi_k,x_k,y_k,z_k`` per section), then
+  ``status,solve_ms`` (m, rad, ms); rows without an estimate leave the outputs empty.
+  Truth CSV: ``t,x,y,z`` and any of the per-section columns.
 
 Every problem in an input file raises :class:`InputError` with a one-line message
 naming the file and line. Outputs are written atomically: a temporary file in the same
@@ -28,13 +32,25 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.estimators.base import EstimateSeries
+from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs
+from continuum_mhe.results import EstimateSeries
 
 FloatArray = NDArray[np.float64]
 
-STATE_COLUMNS = ("t", "x", "y", "z", "theta", "phi")
-ESTIMATE_COLUMNS = (*STATE_COLUMNS, "status", "solve_ms")
+#: The tip position columns every estimate and truth file has.
+TIP_COLUMNS = ("x", "y", "z")
+#: One section's state columns (the paper's robot); several sections: see
+#: :func:`~continuum_mhe.model.descriptions.pcc_outputs`.
+STATE_COLUMNS = ("t", *output_names(pcc_outputs(1)))
 MEASUREMENT_COLUMNS = ("t", "roll", "pitch")
+
+
+def estimate_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
+    """Header of an estimate CSV: ``t``, the outputs, ``status``, ``solve_ms``."""
+    return ("t", *output_names(outputs), "status", "solve_ms")
+
+
+ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
 
 #: Largest plausible |roll| and |pitch| in radians; beyond these, the file is in degrees.
 _ROLL_LIMIT = math.pi + 0.05
@@ -128,12 +144,15 @@ def read_sample_rows(
     columns: Sequence[str],
     *,
     skip_bad: bool = False,
+    empty_is_dropout: bool = False,
 ) -> SampleRows:
     """Validate the rows of a sample CSV whose ``columns[0]`` is the time ``t`` (s).
 
     A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
     dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
     ``skip_bad`` the row is dropped. Each skip is recorded as ``"line N: problem"``.
+    With ``empty_is_dropout`` an empty value is a dropout (NaN) without complaint (one
+    sensor of several that did not report).
     """
     idx = _column_indices(path, header, columns)
     if not body:
@@ -172,6 +191,9 @@ def read_sample_rows(
                 bad(line, truncated.format(len(header), len(row)))
                 vals = [math.nan] * (len(columns) - 1)
                 break
+            if empty_is_dropout and row[j] == "":
+                vals.append(math.nan)
+                continue
             try:
                 v = _parse_float(path, line, name, row[j])
             except InputError as exc:
@@ -189,21 +211,60 @@ def read_sample_rows(
     return SampleRows(np.array(t_list), np.array(values, dtype=float), lines, skipped)
 
 
+def tilt_columns(n_imus: int) -> tuple[str, ...]:
+    """``roll, pitch`` for one IMU; ``roll_1, pitch_1, roll_2, ...`` for several."""
+    if n_imus == 1:
+        return ("roll", "pitch")
+    return tuple(f"{c}_{i}" for i in range(1, n_imus + 1) for c in ("roll", "pitch"))
+
+
 def read_measurements(
-    path: str | os.PathLike[str], *, degrees: bool = False, skip_bad: bool = False
+    path: str | os.PathLike[str],
+    *,
+    degrees: bool = False,
+    skip_bad: bool = False,
+    n_imus: int = 1,
 ) -> MeasurementTable:
-    """Read a measurement CSV (``t,roll,pitch``), validating every row.
+    """Read a measurement CSV (``t,roll,pitch``, or ``t,roll_1,pitch_1,...`` for
+    ``n_imus`` IMUs), validating every row.
 
     With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
     dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
+    With several IMUs an empty field is a dropout of that IMU only.
     """
     p = Path(path)
     header, body = _read_rows(p)
-    rows = read_sample_rows(p, header, body, MEASUREMENT_COLUMNS, skip_bad=skip_bad)
+    columns = ("t", *tilt_columns(n_imus))
+    if n_imus == 1 and "roll" not in header and "roll_1" in header:
+        columns = ("t", "roll_1", "pitch_1")
+    if n_imus > 1:
+        _check_imu_count(p, header, n_imus)
+    rows = read_sample_rows(
+        p, header, body, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1
+    )
     z = np.radians(rows.values) if degrees else rows.values
-    _check_angle_units(p, z, rows.lines, degrees)
+    for i in range(n_imus):
+        _check_angle_units(p, z[:, 2 * i : 2 * i + 2], rows.lines, degrees)
     return MeasurementTable(t=rows.t, z=z, skipped=rows.skipped)
+
+
+def _check_imu_count(path: Path, header: list[str], n_imus: int) -> None:
+    """The file's numbered IMU columns must match the robot's IMU count."""
+    have = sorted(
+        int(h.rsplit("_", 1)[1])
+        for h in header
+        if "_" in h and h.rsplit("_", 1)[1].isdigit() and h.rsplit("_", 1)[0] in _IMU_FIELDS
+    )
+    found = max(have, default=0)
+    if found and found != n_imus:
+        raise InputError(
+            f"{path}: line 1: the file has columns for {found} IMU(s) but the robot file "
+            f"describes {n_imus}"
+        )
+
+
+_IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
 
 
 def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: bool) -> None:
@@ -222,12 +283,35 @@ def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: boo
     )
 
 
-def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
-    """Read an estimate or truth CSV: ``t`` (n,), states (n, 5) with NaN where empty,
-    and status (n,) (``"ok"`` where the file has no status column)."""
+@dataclass(frozen=True)
+class StateTable:
+    """An estimate or truth CSV: ``t`` (n,), ``values`` (n, k) with NaN where empty,
+    ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), and ``status`` (n,)
+    (``"ok"`` where the file has no status column)."""
+
+    t: FloatArray
+    names: tuple[str, ...]
+    values: FloatArray
+    status: NDArray[np.str_]
+
+    def column(self, name: str) -> FloatArray:
+        return self.values[:, self.names.index(name)]
+
+
+_NOT_STATES = {"t", "status", "solve_ms", "outlier"}
+
+
+def read_state_table(
+    path: str | os.PathLike[str], required: Sequence[str] = TIP_COLUMNS
+) -> StateTable:
+    """Read an estimate or truth CSV with at least ``t`` and ``required`` columns; every
+    other numeric output column (``theta``, ``phi_2``, ``std_x``...) is kept."""
     p = Path(path)
     header, body = _read_rows(p)
-    idx = _column_indices(p, header, STATE_COLUMNS)
+    _column_indices(p, header, ("t", *required))
+    names = tuple(h for h in header if h not in _NOT_STATES and h)
+    idx = [header.index(c) for c in names]
+    t_idx = header.index("t")
     if not body:
         raise InputError(f"{p}: line 2: no data rows after the header")
     s_idx = header.index("status") if "status" in header else None
@@ -240,10 +324,10 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
                 f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (truncated?)"
             )
         st = row[s_idx] if s_idx is not None else "ok"
-        tv = _parse_float(p, line, "t", row[idx[0]])
+        tv = _parse_float(p, line, "t", row[t_idx])
         vals = [
             math.nan if (row[j] == "" and st == "no-estimate") else _parse_float(p, line, c, row[j])
-            for c, j in zip(STATE_COLUMNS[1:], idx[1:])
+            for c, j in zip(names, idx)
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
             raise InputError(f"{p}: line {line}: NaN or infinite value")
@@ -252,7 +336,19 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
         t.append(tv)
         out.append(vals)
         status.append(st)
-    return np.array(t), np.array(out, dtype=float), np.array(status, dtype=str)
+    return StateTable(
+        np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
+        np.array(status, dtype=str),
+    )  # fmt: skip
+
+
+def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
+    """Read a one-section estimate or truth CSV: ``t`` (n,), states (n, 5)
+    ``x, y, z, theta, phi`` with NaN where empty, and status (n,)."""
+    cols = STATE_COLUMNS[1:]
+    table = read_state_table(path, cols)
+    values = np.column_stack([table.column(c) for c in cols])
+    return table.t, values, table.status
 
 
 def _current_umask() -> int:
@@ -328,27 +424,54 @@ def write_table(
             w.writerow(cells)
 
 
+def estimate_row(
+    t: float, output: Sequence[float] | None, status: str, solve_ms: float, ny: int
+) -> list[object]:
+    """One estimate CSV row; a row without an estimate leaves the outputs empty."""
+    if status == "no-estimate" or output is None:
+        return [float(t), *([""] * ny), str(status), float(solve_ms)]
+    return [float(t), *(float(v) for v in output), str(status), float(solve_ms)]
+
+
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
-    """Rows of the estimate CSV; no-estimate rows leave the state empty."""
-    rows: list[list[object]] = []
-    for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
-        state: list[object] = [""] * 5 if st == "no-estimate" else [float(v) for v in out]
-        rows.append([float(t), *state, str(st), float(ms)])
-    return rows
+    """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
+    ny = len(series.outputs)
+    return [
+        estimate_row(t, out, str(st), ms, ny)
+        for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms)
+    ]
 
 
 def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
-    """Write an estimate CSV atomically."""
-    write_table(path, ESTIMATE_COLUMNS, estimate_rows(series))
+    """Write an estimate CSV atomically (columns from ``series.outputs``)."""
+    write_table(path, estimate_columns(series.outputs), estimate_rows(series))
 
 
-def write_truth(path: str | os.PathLike[str], t: FloatArray, truth: FloatArray) -> None:
-    """Write a truth CSV ``t,x,y,z,theta,phi`` atomically."""
-    write_table(path, STATE_COLUMNS, [[float(a), *map(float, b)] for a, b in zip(t, truth)])
-
-
-def write_measurements(path: str | os.PathLike[str], t: FloatArray, z: FloatArray) -> None:
-    """Write a measurement CSV ``t,roll,pitch`` (rad) atomically."""
+def write_truth(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    truth: FloatArray,
+    outputs: Sequence[OutputSpec] = pcc_outputs(1),
+) -> None:
+    """Write a truth CSV ``t`` + the output columns atomically."""
+    if truth.shape[1] != len(outputs):
+        raise ValueError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
     write_table(
-        path, MEASUREMENT_COLUMNS, [[float(a), float(b[0]), float(b[1])] for a, b in zip(t, z)]
+        path,
+        ("t", *output_names(outputs)),
+        [[float(a), *map(float, b)] for a, b in zip(t, truth)],
     )
+
+
+def write_measurements(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    z: FloatArray,
+    names: Sequence[str] = ("roll", "pitch"),
+) -> None:
+    """Write a measurement CSV ``t`` + ``names`` (rad) atomically; NaN (a dropout of
+    that sensor) is written as an empty field."""
+    if z.shape[1] != len(names):
+        raise ValueError(f"z has {z.shape[1]} columns, expected {len(names)}")
+    rows = [[float(a), *(float(v) if np.isfinite(v) else "" for v in b)] for a, b in zip(t, z)]
+    write_table(path, ("t", *names), rows)

@@ -196,8 +196,63 @@ class RawImuTable:
 
 
 def is_raw_header(header: list[str]) -> bool:
-    """True when a (lower-case) CSV header names the accelerometer columns."""
-    return all(c in header for c in ACC_COLUMNS)
+    """True when a (lower-case) CSV header names the accelerometer columns (``ax,ay,az``,
+    or ``ax_1,ay_1,az_1`` for several IMUs)."""
+    return all(c in header for c in ACC_COLUMNS) or all(f"{c}_1" in header for c in ACC_COLUMNS)
+
+
+def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
+    """Raw columns of IMU ``i`` (0-based): ``ax..gz`` for one IMU, ``ax_1..gz_1``..."""
+    names = (*ACC_COLUMNS, *GYRO_COLUMNS) if gyro else ACC_COLUMNS
+    return names if n_imus == 1 else tuple(f"{c}_{i + 1}" for c in names)
+
+
+@dataclass(frozen=True)
+class MultiRawImuTable:
+    """Raw samples of several IMUs on one time axis.
+
+    Attributes:
+        t: (n,) s, strictly increasing.
+        imus: one :class:`RawImuTable` per IMU (sharing ``t``); an empty field makes
+            that IMU's sample a dropout (NaN), the other IMUs' samples are kept.
+        skipped: descriptions of skipped rows or values.
+    """
+
+    t: FloatArray
+    imus: list[RawImuTable]
+    skipped: list[str] = field(default_factory=list)
+
+
+def read_raw_imus(
+    path: str | os.PathLike[str], n_imus: int, *, skip_bad: bool = False
+) -> MultiRawImuTable:
+    """Read a raw CSV of ``n_imus`` IMUs: ``t,ax_1,ay_1,az_1[,gx_1,gy_1,gz_1],ax_2,...``
+    (m/s^2, rad/s, each IMU in its own sensor frame)."""
+    p = Path(path)
+    header, body = _read_rows(p)
+    found = 0
+    while all(f"{c}_{found + 1}" in header for c in ACC_COLUMNS):
+        found += 1
+    if found != n_imus:
+        raise InputError(
+            f"{p}: line 1: the file has raw columns for {found} IMU(s) (ax_1 ... ax_{found}) "
+            f"but the robot describes {n_imus}"
+        )
+    has_gyro = all(f"gx_{i + 1}" in header for i in range(n_imus))
+    cols = [c for i in range(n_imus) for c in raw_columns(i, n_imus, has_gyro)]
+    rows = read_sample_rows(p, header, body, ("t", *cols), skip_bad=skip_bad, empty_is_dropout=True)
+    k = 6 if has_gyro else 3
+    imus = []
+    for i in range(n_imus):
+        block = rows.values[:, k * i : k * (i + 1)].copy()
+        bad = ~np.all(np.isfinite(block), axis=1)
+        block[bad] = np.nan
+        acc = block[:, :3]
+        with np.errstate(invalid="ignore"):
+            acc[np.linalg.norm(acc, axis=1) == 0.0] = np.nan  # no gravity direction
+        _check_accel_units(p, acc)
+        imus.append(RawImuTable(rows.t, acc, block[:, 3:6] if has_gyro else None))
+    return MultiRawImuTable(rows.t, imus, list(rows.skipped))
 
 
 def csv_input_kind(path: str | os.PathLike[str]) -> Literal["tilt", "raw"]:

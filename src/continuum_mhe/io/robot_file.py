@@ -67,7 +67,9 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     _unknown(path, "top level", doc, _TOP_KEYS)
     mounting = doc.get("mounting", "z-up")
     if mounting not in MOUNTINGS:
-        raise InputError(f"{path}: mounting: must be one of {', '.join(MOUNTINGS)}, got {mounting!r}")
+        raise InputError(
+            f"{path}: mounting: must be one of {', '.join(MOUNTINGS)}, got {mounting!r}"
+        )
     sections: list[Section] = []
     for k, table in enumerate(_tables(path, doc, "section"), start=1):
         where = f"section {k}"
@@ -96,7 +98,9 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             )
         at = _number(path, f"{where}: at", table.get("at", 1.0))
         if not 0 < at <= 1:
-            raise InputError(f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}")
+            raise InputError(
+                f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}"
+            )
         rpy = table.get("mount_rpy", [0.0, 0.0, 0.0])
         if not isinstance(rpy, list) or len(rpy) != 3:
             raise InputError(f"{path}: {where}: mount_rpy must be [roll, pitch, yaw] in degrees")

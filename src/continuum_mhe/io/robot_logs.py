@@ -24,15 +24,14 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.estimators.base import EstimateSeries
 from continuum_mhe.io.csv_files import (
     FloatArray,
     InputError,
@@ -46,10 +45,14 @@ from continuum_mhe.io.raw_imu import (
     csv_input_kind,
     raw_to_measurements,
     read_raw_imu,
+    read_raw_imus,
 )
+from continuum_mhe.model.descriptions import section_bends
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import tilt_from_accelerometer
-from continuum_mhe.model.kinematics import rotation_bend, tip_position_bend
+from continuum_mhe.model.pcc import pose_at
+from continuum_mhe.model.robot import ImuPlacement
+from continuum_mhe.results import EstimateSeries
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 LOG_SUFFIXES = (".bag", ".mcap", ".db3")
@@ -314,14 +317,34 @@ def load_estimate_input(
         else:
             z = _convert(p, log.t, log.acc, log.gyr, options.raw)
         return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
+    n_imus = formulation.robot.n_imus
     if csv_input_kind(p) == "raw":
-        table = read_raw_imu(p, skip_bad=options.skip_bad)
         f = _formulation_for(options, formulation, True, p)
+        if n_imus > 1:
+            multi = read_raw_imus(p, n_imus, skip_bad=options.skip_bad)
+            z = np.hstack(
+                [
+                    _convert(p, multi.t, imu.acc, imu.gyr, _imu_settings(options.raw, place))
+                    for imu, place in zip(multi.imus, formulation.robot.imus)
+                ]
+            )
+            return EstimateInput("raw-csv", multi.t, z, f, 0, multi.skipped)
+        table = read_raw_imu(p, skip_bad=options.skip_bad)
         z = _convert(p, table.t, table.acc, table.gyr, options.raw)
         return EstimateInput("raw-csv", table.t, z, f, 0, table.skipped)
-    tilt = read_measurements(p, degrees=options.degrees, skip_bad=options.skip_bad)
+    if n_imus > 1 and options.raw.imu_model == "direct":
+        raise InputError(f"{p}: --imu-model direct needs raw accelerometer and gyro input")
+    tilt = read_measurements(p, degrees=options.degrees, skip_bad=options.skip_bad, n_imus=n_imus)
     f = _formulation_for(options, formulation, False, p)
     return EstimateInput("tilt-csv", tilt.t, tilt.z, f, 0, tilt.skipped)
+
+
+def _imu_settings(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
+    """The conversion settings of one IMU: the robot file's mounting where it gives one,
+    else ``--mount-rpy``."""
+    if any(place.mount_rpy):
+        return replace(raw, mount_rpy=place.mount_rpy)
+    return raw
 
 
 def _convert(
@@ -338,7 +361,7 @@ def write_estimate_output(
 ) -> None:
     """Estimate CSV, or MCAP when ``path`` ends in ``.mcap``."""
     if Path(path).suffix.lower() == ".mcap":
-        write_estimates_mcap(path, series, data.formulation.robot.length, data.t0_ns)
+        write_estimates_mcap(path, series, data.formulation.robot.lengths, data.t0_ns)
     else:
         write_estimates(path, series)
 
@@ -397,35 +420,37 @@ def _quaternion(rot: FloatArray) -> dict[str, float]:
     return {"x": float(x), "y": float(y), "z": float(z), "w": float(w)}
 
 
-def backbone_poses(theta: float, phi: float, length: float, n: int = 11) -> list[dict[str, Any]]:
-    """Poses along the arc from base to tip (constant curvature), Foxglove JSON."""
-    a, b = theta * math.cos(phi), theta * math.sin(phi)
-    frac = np.linspace(0.0, 1.0, n)
-    pos = tip_position_bend(a * frac, b * frac, length * frac)
-    rots = rotation_bend(a * frac, b * frac)
-    return [
-        {"position": dict(zip("xyz", map(float, p))), "orientation": _quaternion(r)}
-        for p, r in zip(pos, rots)
-    ]
+def backbone_poses(
+    bends: FloatArray, lengths: Sequence[float], per_section: int = 10
+) -> list[dict[str, Any]]:
+    """Poses along the PCC backbone from base to tip (bends (n_sections, 2) rad,
+    lengths m), Foxglove JSON: the base, then ``per_section`` poses per section."""
+    poses = [{"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": _quaternion(np.eye(3))}]
+    for k in range(len(lengths)):
+        for j in range(1, per_section + 1):
+            r, p = pose_at(bends, lengths, k, j / per_section)
+            poses.append(
+                {"position": dict(zip("xyz", map(float, p))), "orientation": _quaternion(r)}
+            )
+    return poses
 
 
 def estimate_messages(
-    series: EstimateSeries, length: float, t0_ns: int = 0
+    series: EstimateSeries, lengths: Sequence[float], t0_ns: int = 0
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
+    names = [o.name for o in series.outputs]
     for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
         ns = t0_ns + int(round(float(t) * 1e9))
         stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
         has = st != "no-estimate" and bool(np.all(np.isfinite(out)))
         row: dict[str, Any] = {"t": float(t)}
-        row.update(
-            {k: (float(v) if has else None) for k, v in zip(("x", "y", "z", "theta", "phi"), out)}
-        )
+        row.update({k: (float(v) if has else None) for k, v in zip(names, out)})
         row.update(status=str(st), solve_ms=float(ms))
         yield "/continuum/estimate", ns, row
         if not has:
             continue
-        poses = backbone_poses(float(out[3]), float(out[4]), length)
+        poses = backbone_poses(section_bends(series.outputs, out), lengths)
         yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
         yield (
             "/continuum/backbone",
@@ -435,7 +460,10 @@ def estimate_messages(
 
 
 def write_estimates_mcap(
-    path: str | os.PathLike[str], series: EstimateSeries, length: float, t0_ns: int = 0
+    path: str | os.PathLike[str],
+    series: EstimateSeries,
+    lengths: Sequence[float],
+    t0_ns: int = 0,
 ) -> None:
     """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
     from mcap.writer import CompressionType, Writer
@@ -451,7 +479,7 @@ def write_estimates_mcap(
             channels[topic] = writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=sid
             )
-        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, length, t0_ns)):
+        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
             writer.add_message(
                 channels[topic],
                 log_time=ns,
@@ -465,20 +493,22 @@ def write_estimates_mcap(
 def read_estimates_mcap(
     path: str | os.PathLike[str],
 ) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
-    """``t`` (n,), output (n, 5) with NaN where empty, status (n,) from an estimate MCAP."""
+    """``t`` (n,), outputs (n, k) in the file's column order with NaN where empty, and
+    status (n,) from an estimate MCAP."""
     from mcap.reader import make_reader
 
     t, out, status = [], [], []
+    names: list[str] = []
     with Path(path).open("rb") as fh:
         for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
             row = json.loads(message.data)
+            if not names:
+                names = [k for k in row if k not in ("t", "status", "solve_ms")]
             t.append(row["t"])
-            out.append(
-                [math.nan if row[k] is None else row[k] for k in ("x", "y", "z", "theta", "phi")]
-            )
+            out.append([math.nan if row[k] is None else row[k] for k in names])
             status.append(row["status"])
     return (
         np.array(t, dtype=float),
-        np.array(out, dtype=float).reshape(-1, 5),
+        np.array(out, dtype=float).reshape(len(t), len(names)),
         np.array(status, dtype=str),
     )

@@ -8,9 +8,13 @@ column list.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
 
 Unit = Literal["m", "rad", "rad/s", "1"]
 
@@ -113,3 +117,22 @@ def direct_blocks(n_imus: int) -> tuple[MeasurementBlock, ...]:
         )
         for i in range(n_imus)
     )
+
+
+def section_bends(outputs: Sequence[OutputSpec], values: Sequence[float]) -> NDArray[np.float64]:
+    """Bend vectors (n_sections, 2) rad from one row of outputs (``theta, phi`` or
+    ``theta_k, phi_k``): ``(theta cos phi, theta sin phi)``."""
+    names = [o.name for o in outputs]
+    if "theta" in names:
+        pairs = [(names.index("theta"), names.index("phi"))]
+    else:
+        pairs = []
+        k = 1
+        while f"theta_{k}" in names:
+            pairs.append((names.index(f"theta_{k}"), names.index(f"phi_{k}")))
+            k += 1
+    out = np.zeros((len(pairs), 2))
+    for k, (i, j) in enumerate(pairs):
+        th, ph = float(values[i]), float(values[j])
+        out[k] = th * math.cos(ph), th * math.sin(ph)
+    return out

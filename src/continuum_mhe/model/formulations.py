@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
@@ -279,7 +280,10 @@ class BendFormulation(Formulation):
         """
         g = self.gravity_directions_sym(x)
         return ca.vertcat(
-            *[tilt_tangent_residual_sym(z[b.slice], gi) for b, gi in zip(self.measurement_blocks, g)]
+            *[
+                tilt_tangent_residual_sym(z[b.slice], gi)
+                for b, gi in zip(self.measurement_blocks, g)
+            ]
         )
 
     def process_cov_sym(self, dt: Sym) -> Sym:
@@ -470,5 +474,3 @@ class PaperFormulation(Formulation):
         t0, p0 = shape_from_tilt(z_prev[0], z_prev[1], self.robot.mounting)
         t1, p1 = shape_from_tilt(z[0], z[1], self.robot.mounting)
         return np.array([(t1 - t0) / dt, float(wrap_angle(p1 - p0)) / dt])
-
-

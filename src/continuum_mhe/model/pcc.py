@@ -46,10 +46,10 @@ def pose_at_sym(
     for k in range(section + 1):
         s = frac if k == section else 1.0
         a, b = bends[k]
-        rk = rotation_bend_sym(s * a, s * b) if s != 1.0 else rotation_bend_sym(a, b)
-        pk = tip_position_bend_sym(s * a, s * b, s * lengths[k]) if s != 1.0 else (
-            tip_position_bend_sym(a, b, lengths[k])
-        )
+        if s != 1.0:
+            a, b = s * a, s * b
+        rk = rotation_bend_sym(a, b)
+        pk = tip_position_bend_sym(a, b, s * lengths[k] if s != 1.0 else lengths[k])
         if R is None:
             R, p = rk, pk
         else:

@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 from continuum_mhe.estimators import EstimateSeries, Method, make_estimator
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import FormulationName, MHESettings, NoiseSettings, RobotSettings
 from continuum_mhe.simulation.scenarios import ScenarioName, simulate
 

@@ -1,18 +1,24 @@
 """Synthetic recordings: a true shape trajectory and noisy roll/pitch readings.
 
-Truth comes from the same kinematics the estimators use (``model.kinematics``); the
-IMU readings from the measurement model plus Gaussian noise of ``noise_deg``.
+Truth comes from the same kinematics the estimators use (``model.kinematics``,
+``model.pcc``); the IMU readings from the measurement model plus Gaussian noise of
+``noise_deg``. One-section scenarios: ``paper3d``, ``planar-overbend``, ``straight``.
+Multi-section scenarios (a robot with two or more sections, one tilt IMU per entry of
+the robot's IMU list): ``s-curve`` (planar, neighbouring sections bend in opposite
+senses) and ``spatial`` (bending planes turning at different rates, bends up to
+1.7 rad per section where the bounds allow).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import Mounting, shape_from_tilt, tilt, wrap_angle
 from continuum_mhe.model.kinematics import (
     FloatArray,
@@ -20,9 +26,18 @@ from continuum_mhe.model.kinematics import (
     shape_from_bend,
     tip_position,
 )
+from continuum_mhe.model.robot import Robot
 
-ScenarioName = Literal["paper3d", "planar-overbend", "straight"]
-SCENARIOS: tuple[ScenarioName, ...] = ("paper3d", "planar-overbend", "straight")
+ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial"]
+SCENARIOS: tuple[ScenarioName, ...] = (
+    "paper3d",
+    "planar-overbend",
+    "straight",
+    "s-curve",
+    "spatial",
+)
+#: Scenarios for robots with two or more sections.
+MULTI_SECTION_SCENARIOS: tuple[ScenarioName, ...] = ("s-curve", "spatial")
 
 #: Largest recording :func:`simulate` makes (10 million samples, about 0.5 GB).
 MAX_SAMPLES = 10_000_000
@@ -34,15 +49,20 @@ class Recording:
 
     Attributes:
         t: (n,) sample times, s.
-        z: (n, 2) measured ``[roll, pitch]``, rad.
-        truth: (n, 5) ``[x, y, z, theta, phi]`` (m, rad).
-        length: section length, m.
+        z: (n, 2 m) measured ``[roll, pitch]`` of each of the m IMUs, rad.
+        truth: (n, ny) the outputs described by ``outputs`` (one section:
+            ``[x, y, z, theta, phi]``; m, rad).
+        length: the robot's length, m.
+        outputs: what each truth column is.
+        measurement_names: what each column of ``z`` is.
     """
 
     t: FloatArray
     z: FloatArray
     truth: FloatArray
     length: float
+    outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
+    measurement_names: tuple[str, ...] = ("roll", "pitch")
 
 
 def _paper3d(t: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -72,6 +92,79 @@ _SHAPES: dict[str, Callable[[FloatArray], tuple[FloatArray, FloatArray]]] = {
 }
 
 
+def _multi_bends(scenario: str, t: FloatArray, theta_max: Sequence[float]) -> FloatArray:
+    """Bend vectors (n, sections, 2) of a multi-section scenario."""
+    out = np.zeros((len(t), len(theta_max), 2))
+    for k, tmax in enumerate(theta_max):
+        sign = 1.0 if k % 2 == 0 else -1.0
+        if scenario == "s-curve":
+            # planar (base y-z plane); neighbours bend in opposite senses
+            amp = min(1.2, 0.9 * tmax)
+            theta = amp * 0.5 * (1 - np.cos(2 * np.pi * t / 8.0))
+            out[:, k, 1] = sign * theta
+        else:  # spatial: bending planes turn at different rates, large bends
+            amp = min(1.7, 0.95 * tmax)
+            theta = amp * (0.55 + 0.45 * np.sin(2 * np.pi * t / (7.0 + 2.0 * k)))
+            phi = sign * 2 * np.pi * t / (6.0 + 4.0 * k) + 0.7 * k
+            out[:, k, 0], out[:, k, 1] = theta * np.cos(phi), theta * np.sin(phi)
+    return out
+
+
+def simulate_robot(
+    scenario: ScenarioName,
+    robot: Robot,
+    *,
+    duration: float = 20.0,
+    dt: float = 0.05,
+    noise_deg: float = 2.0,
+    seed: int = 0,
+) -> Recording:
+    """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed)."""
+    from continuum_mhe.model.formulations import BendFormulation
+
+    if scenario not in MULTI_SECTION_SCENARIOS:
+        if robot.n_sections == 1 and robot.is_single:
+            return simulate(
+                scenario, duration=duration, dt=dt, noise_deg=noise_deg,
+                length=robot.length, seed=seed, mounting=robot.mounting,
+            )  # fmt: skip
+        raise ValueError(
+            f"scenario {scenario!r} is for one section with a tip IMU; for this robot "
+            f"({robot.describe()}) choose from {', '.join(MULTI_SECTION_SCENARIOS)}"
+        )
+    if robot.n_sections < 2:
+        raise ValueError(f"scenario {scenario!r} needs a robot with two or more sections")
+    t = _time_axis(duration, dt, noise_deg, seed)
+    bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
+    f = BendFormulation(robot=robot)
+    x = np.concatenate([bends.reshape(len(t), -1), np.zeros((len(t), bends[0].size))], axis=1)
+    truth = f.output(x)
+    h = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
+    rng = np.random.default_rng(seed)
+    z = wrap_angle(h + rng.normal(size=h.shape) * math.radians(noise_deg))
+    return Recording(
+        t=t, z=z, truth=truth, length=robot.length, outputs=f.outputs,
+        measurement_names=f.measurement_names,
+    )  # fmt: skip
+
+
+def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
+    for name, v in (("duration", duration), ("dt", dt)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be positive, got {v}")
+    if not (math.isfinite(noise_deg) and noise_deg >= 0):
+        raise ValueError(f"noise-deg must be >= 0, got {noise_deg}")
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    n = int(round(duration / dt)) + 1
+    if n > MAX_SAMPLES:
+        raise ValueError(
+            f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "
+            "use a shorter --duration or a larger --dt"
+        )
+    return np.arange(n, dtype=float) * dt
+
+
 def simulate(
     scenario: ScenarioName,
     *,
@@ -87,22 +180,14 @@ def simulate(
 
     ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
     """
+    if scenario in MULTI_SECTION_SCENARIOS:
+        raise ValueError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
     if scenario not in _SHAPES:
         raise ValueError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    for name, v in (("duration", duration), ("dt", dt), ("length", length)):
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be positive, got {v}")
-    if not (math.isfinite(noise_deg) and noise_deg >= 0):
-        raise ValueError(f"noise-deg must be >= 0, got {noise_deg}")
-    if not (isinstance(seed, int) and seed >= 0):
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    n = int(round(duration / dt)) + 1
-    if n > MAX_SAMPLES:
-        raise ValueError(
-            f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "
-            "use a shorter --duration or a larger --dt"
-        )
-    t: FloatArray = np.arange(n, dtype=float) * dt
+    if not (math.isfinite(length) and length > 0):
+        raise ValueError(f"length must be positive, got {length}")
+    t = _time_axis(duration, dt, noise_deg, seed)
+    n = len(t)
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
