@@ -187,7 +187,7 @@ def test_evaluate_rejects_bad_truth(tmp_path, capsys):
     est = _write(tmp_path / "est.csv", "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n")
     truth = _write(tmp_path / "truth.csv", "t,x,y\n0,0,0\n")
     assert main(["evaluate", str(est), str(truth)]) == 2
-    assert "truth.csv: line 1: missing column(s) z, theta, phi" in capsys.readouterr().err
+    assert "truth.csv: line 1: missing column(s) z (header has: t, x, y)" in capsys.readouterr().err
 
 
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):

@@ -36,7 +36,7 @@ from typing import IO, Any, Literal
 
 import numpy as np
 
-from continuum_mhe.estimators.base import Estimate, EstimateSeries, Estimator, Measurement
+from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     ATTITUDES,

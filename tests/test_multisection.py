@@ -1,0 +1,323 @@
+"""Multi-section robots: PCC kinematics, the robot file, per-IMU dropouts, filters
+against filterpy, the estimators on two sections, and bad robot files."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+from scipy.integrate import solve_ivp
+
+from continuum_mhe.analysis.observability import observability_report
+from continuum_mhe.cli import main
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.kalman import ekf_update
+from continuum_mhe.io.csv_files import InputError, read_state_table
+from continuum_mhe.io.robot_file import read_robot, robot_toml
+from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate_robot
+
+TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+ROBOT_FILE = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def integrated_backbone(bends: np.ndarray, lengths: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Tip frame and position by integrating ``dR/ds = R [k]x``, ``dp/ds = R e_z`` with
+    the piecewise-constant curvature ``k = (b, -a, 0) / L`` of each section (an
+    independent route to the composed kinematics)."""
+    R, p = np.eye(3), np.zeros(3)
+    for (a, b), length in zip(bends, lengths):
+        kappa = np.array([b, -a, 0.0]) / length
+
+        def rhs(_s: float, y: np.ndarray, kappa: np.ndarray = kappa) -> np.ndarray:
+            Rs = y[:9].reshape(3, 3)
+            return np.concatenate([(Rs @ _skew(kappa)).ravel(), Rs[:, 2]])
+
+        sol = solve_ivp(rhs, (0, length), np.concatenate([R.ravel(), p]), rtol=1e-11, atol=1e-12)
+        R, p = sol.y[:9, -1].reshape(3, 3), sol.y[9:, -1]
+    return R, p
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6))
+def test_composed_kinematics_equal_integrated_backbone(u: list[float]) -> None:
+    bends = np.array(u).reshape(3, 2)
+    lengths = [0.1, 0.07, 0.05]
+    R, p = pose_at(bends, lengths, 2)
+    R_ref, p_ref = integrated_backbone(bends, lengths)
+    assert_allclose(R, R_ref, atol=1e-8)
+    assert_allclose(p, p_ref, atol=1e-9)
+
+
+@pytest.mark.parametrize("u", [[0.0, 0.0, 0.0, 0.0], [0.4, -0.3, 0.0, 0.0], [0.0, 0.0, 1e-9, 0]])
+def test_output_jacobian_matches_finite_differences_including_straight(u: list[float]) -> None:
+    f = make_formulation("bend", TWO)
+    x = np.array([*u, 0.0, 0.0, 0.0, 0.0])
+    import casadi as ca
+
+    xs = ca.SX.sym("x", f.nx)
+    jac = ca.Function("j", [xs], [ca.jacobian(f.output_sym(xs)[[0, 1, 2, 5, 6, 7]], xs[:4])])
+    J = np.asarray(jac(x), dtype=float)
+    h = 1e-6
+    fd = np.zeros_like(J)
+    cols = [0, 1, 2, 5, 6, 7]
+    for j in range(4):
+        e = np.zeros(f.nx)
+        e[j] = h
+        fd[:, j] = (f.output(x + e)[cols] - f.output(x - e)[cols]) / (2 * h)
+    assert np.all(np.isfinite(J))
+    assert_allclose(J, fd, atol=1e-8)
+
+
+def test_same_curvature_sections_equal_one_longer_section() -> None:
+    # two sections with the same bend per unit length form one arc of the total length
+    one = make_formulation("bend", Robot.single(0.3, 3.0))
+    two = make_formulation("bend", TWO)
+    a, b = 1.1, -0.4  # total bend of the arc
+    x_two = np.array([a * 0.16 / 0.3, b * 0.16 / 0.3, a * 0.14 / 0.3, b * 0.14 / 0.3, 0, 0, 0, 0])
+    x_one = np.array([a, b, 0, 0])
+    assert_allclose(two.output(x_two)[:3], one.output(x_one)[:3], atol=1e-14)
+    h_one = np.asarray(one.functions.observe(x_one), dtype=float).ravel()
+    h_two = np.asarray(two.functions.observe(x_two), dtype=float).ravel()
+    assert_allclose(h_two[2:], h_one, atol=1e-12)  # the tip IMU reads the same tilt
+
+
+def test_straight_second_section_equals_one_section_model() -> None:
+    one = make_formulation("bend", Robot.single(0.16, 3.0))
+    two = make_formulation("bend", TWO)
+    x_two = np.array([0.7, 0.2, 0.0, 0.0, 0, 0, 0, 0])
+    out = two.output(x_two)
+    names = [o.name for o in two.outputs]
+    ref = one.output(np.array([0.7, 0.2, 0.0, 0.0]))  # x, y, z, theta, phi
+    got = [out[names.index(n)] for n in ("x_1", "y_1", "z_1", "theta_1", "phi_1")]
+    assert_allclose(got, ref, atol=1e-15)
+    h = np.asarray(two.functions.observe(x_two), dtype=float).ravel()
+    assert_allclose(h[2:], h[:2], atol=1e-14)  # a straight section does not turn the IMU
+
+
+def test_imu_inside_a_section_sees_the_partial_bend() -> None:
+    mid = Robot((Section(0.2),), (ImuPlacement(0, 0.5),))
+    f = make_formulation("bend", mid)
+    tip = make_formulation("bend", Robot.single(0.2))
+    h_mid = np.asarray(f.functions.observe([0.6, 0.2, 0, 0]), dtype=float).ravel()
+    h_tip = np.asarray(tip.functions.observe([0.3, 0.1, 0, 0]), dtype=float).ravel()
+    assert_allclose(h_mid, h_tip, atol=1e-14)
+
+
+def test_bend_from_tangent_frames_inverts_the_kinematics() -> None:
+    bends = np.array([[0.5, -1.2], [-0.9, 0.3]])
+    R1 = pose_at(bends, [0.16, 0.14], 0)[0]
+    R2 = pose_at(bends, [0.16, 0.14], 1)[0]
+    assert_allclose(bend_from_tangent_frames(np.eye(3), R1), bends[0], atol=1e-12)
+    assert_allclose(bend_from_tangent_frames(R1, R2), bends[1], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["bend", "direct"])
+def test_initial_state_inverts_the_measurement(name: str) -> None:
+    f = make_formulation(name, TWO)
+    x = np.array([0.3, -0.2, 0.5, 0.4, 0.1, 0.2, -0.1, 0.3])
+    h = np.asarray(f.functions.observe(x), dtype=float).ravel()
+    x0 = f.initial_state(h)
+    assert_allclose(x0[:4], x[:4], atol=1e-7)
+    if name == "direct":
+        assert_allclose(x0[4:], x[4:], atol=1e-7)
+
+
+# --- per-IMU dropouts ---------------------------------------------------------------------
+def test_ekf_update_with_one_imu_masked_equals_the_robot_without_that_imu() -> None:
+    f = make_formulation("bend", TWO)
+    only_first = make_formulation("bend", Robot(TWO.sections, (ImuPlacement(0),), TWO.mounting))
+    x = np.array([0.3, -0.2, 0.5, 0.4, 0.1, 0.2, -0.1, 0.3])
+    P = np.diag(np.linspace(0.01, 0.2, 8))
+    z = np.array([0.21, -0.3, np.nan, np.nan])
+    mask = f.measurement_mask(z)
+    assert_allclose(mask, [1, 1, 0, 0])
+    x1, P1 = ekf_update(f, x, P, z, f.meas_cov(), mask)
+    x2, P2 = ekf_update(only_first, x, P, z[:2], only_first.meas_cov())
+    assert_allclose(x1, x2, atol=1e-14)
+    assert_allclose(P1, P2, atol=1e-14)
+
+
+@pytest.mark.parametrize(
+    ("method", "solver"), [("ekf", "fast"), ("ukf", "fast"), ("mhe", "ipopt"), ("mhe", "fast")]
+)
+def test_one_imu_dropout_keeps_the_other(method: str, solver: str) -> None:
+    rec = simulate_robot("s-curve", TWO, duration=4.0, dt=0.05, seed=2)
+    z = rec.z.copy()
+    z[20:45, 2:] = np.nan  # IMU 2 drops out for 1.25 s
+    f = make_formulation("bend", TWO)
+    est = make_estimator(method, f, MHESettings(horizon=10, solver=solver))  # type: ignore[arg-type]
+    series = est.run(rec.t, z)
+    assert np.all(np.isfinite(series.output))
+    assert set(series.status[20:45]) <= {"ok", "fallback-ipopt"}  # IMU 1 still updates
+    names = [o.name for o in f.outputs]
+    m = compute_metrics(series.output, rec.truth, TWO.length, names)
+    assert m.section_end_mean_mm["1"] < 8.0  # section 1 stays observed throughout
+    assert m.tip_mean_mm < 25.0
+
+
+# --- filters against filterpy on the two-section model -----------------------------------
+def test_ekf_matches_filterpy_on_two_sections() -> None:
+    f = make_formulation("direct", TWO)
+    rec = simulate_robot("spatial", TWO, duration=2.0, dt=0.05, seed=1)
+    # direct measurements of the true states plus noise (any model-consistent data)
+    x_true = np.concatenate([_bends(rec), np.zeros((len(rec.t), 4))], axis=1)
+    rng = np.random.default_rng(0)
+    z = np.asarray(f.functions.observe(x_true.T), dtype=float).reshape(f.nz, -1).T
+    z += rng.normal(scale=0.02, size=z.shape)
+    ekf = make_estimator("ekf", f)
+    ours = np.array([ekf.step(Measurement(float(t), zi)).state for t, zi in zip(rec.t, z)])
+    fns, nx = f.functions, f.nx
+    peer = FilterpyEKF(dim_x=nx, dim_z=f.nz)
+    peer.x, peer.P, peer.R = f.initial_state(z[0]), f.initial_cov(), f.meas_cov()
+
+    def hx(x: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.observe(x), dtype=float).ravel()
+
+    def H(x: np.ndarray) -> np.ndarray:
+        return np.asarray(fns.measure(x)[1], dtype=float).reshape(f.nz, nx)
+
+    peer.update(z[0], H, hx)
+    states = [peer.x.copy()]
+    for k in range(1, len(rec.t)):
+        dt = float(rec.t[k] - rec.t[k - 1])
+        xn, F, Q = (np.asarray(v, dtype=float) for v in fns.predict(peer.x, [], dt))
+        peer.F, peer.Q = F.reshape(nx, nx), Q.reshape(nx, nx)
+        peer.predict_x = lambda u=0, xn=xn: setattr(peer, "x", xn.ravel())
+        peer.predict()
+        peer.update(z[k], H, hx)
+        states.append(peer.x.copy())
+    assert_allclose(ours, np.array(states), atol=1e-9)
+
+
+def _bends(rec) -> np.ndarray:  # type: ignore[no-untyped-def]
+    names = [o.name for o in rec.outputs]
+    cols = []
+    for k in (1, 2):
+        th, ph = rec.truth[:, names.index(f"theta_{k}")], rec.truth[:, names.index(f"phi_{k}")]
+        cols += [th * np.cos(ph), th * np.sin(ph)]
+    return np.column_stack(cols)
+
+
+# --- estimators on two sections -----------------------------------------------------------
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_two_section_tilt_estimates_track_the_s_curve(method: str) -> None:
+    rec = simulate_robot("s-curve", TWO, duration=6.0, dt=0.05, seed=0)
+    f = make_formulation("bend", TWO)
+    series = make_estimator(method, f, MHESettings(horizon=15)).run(rec.t, rec.z)  # type: ignore[arg-type]
+    m = compute_metrics(series.output, rec.truth, TWO.length, [o.name for o in f.outputs])
+    assert m.tip_mean_mm < 6.0, m
+    assert set(m.section_end_mean_mm) == {"1", "2"}
+
+
+def test_mhe_holds_the_per_section_bounds() -> None:
+    tight = Robot((Section(0.16, 0.8), Section(0.14, 0.8)), TWO.imus)
+    rec = simulate_robot("s-curve", TWO, duration=6.0, dt=0.05, seed=0)  # bends to 1.08 rad
+    f = make_formulation("bend", tight)
+    for solver in ("ipopt", "fast"):
+        series = make_estimator("mhe", f, MHESettings(horizon=10, solver=solver)).run(  # type: ignore[arg-type]
+            rec.t, rec.z
+        )
+        for name in ("theta_1", "theta_2"):
+            assert series.column(name).max() <= 0.8 + 1e-7
+
+
+# --- observability ------------------------------------------------------------------------
+def test_check_robot_finds_the_unobservable_case_and_the_gyro_fixes_it() -> None:
+    r = observability_report(TWO, samples=200)
+    assert r.known_case["tilt"] < 1e-10  # section 2 bending about the vertical
+    assert r.known_case["gyro_window"] > 1e-3
+    assert r.gyro_window.full_rank_fraction == 1.0
+    single = observability_report(Robot.single(0.2, 3.0), samples=200)
+    assert single.tilt.full_rank_fraction > 0.99
+
+
+# --- the robot file -----------------------------------------------------------------------
+def test_robot_file_round_trip() -> None:
+    robot = read_robot(ROBOT_FILE)
+    assert robot == TWO
+    assert robot_toml(robot) and read_robot(ROBOT_FILE).describe().startswith("2 sections")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[[section]]\n[[imu]]\nsection = 1\n", "section 1: missing key 'length'"),
+        ("[[section]]\nlength = -0.1\n[[imu]]\nsection = 1\n", "section 1: section length must"),
+        ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 2\n", "imu 1: section must be"),
+        ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 1.5\n", "imu 1: at must lie"),
+        ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 0\n", "imu 1: at must lie"),
+        ("[[section]]\nlength = 0.1\ncolour = 1\n[[imu]]\nsection = 1\n", "unknown key 'colour'"),
+        ("[[section]]\nlength = 0.1\n", "no [[imu]]"),
+        ("[[section]]\nlength = 200\n[[imu]]\nsection = 1\n", "millimetres?"),
+        ("[[section]]\nlength = 0.1\ntheta_max = 90\n[[imu]]\nsection = 1\n", "degrees?"),
+        ("mounting = 'sideways'\n[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\n", "mounting"),
+        ("[[section]\n", "not valid TOML"),
+    ],
+)
+def test_bad_robot_file_is_one_line_exit_2_nothing_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, message: str
+) -> None:
+    robot = tmp_path / "robot.toml"
+    robot.write_text(text)
+    with pytest.raises(InputError, match=None) as info:
+        read_robot(robot)
+    assert message in str(info.value) and str(robot) in str(info.value)
+    out = tmp_path / "m.csv"
+    assert main(["simulate", "s-curve", "--robot", str(robot), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+    assert not out.exists()
+
+
+def test_measurement_file_with_the_wrong_imu_count(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3\n0,0,0,0,0,0,0\n")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(out), "--robot", str(ROBOT_FILE)]) == 2
+    assert "3 IMU(s) but the robot file describes 2" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_truth_without_a_tip_is_refused(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n")
+    truth = tmp_path / "t.csv"
+    truth.write_text("t,theta_1,phi_1\n0,0,0\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert "missing column(s) x, y, z" in capsys.readouterr().err
+
+
+def test_cli_round_trip_two_sections(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    robot = ["--robot", str(ROBOT_FILE)]
+    assert main(["simulate", "s-curve", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "4", *robot]) == 0  # fmt: skip
+    assert meas.read_text().splitlines()[0] == "t,roll_1,pitch_1,roll_2,pitch_2"
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", *robot]) == 0
+    table = read_state_table(est)
+    assert table.names == (
+        "x", "y", "z", "theta_1", "phi_1", "x_1", "y_1", "z_1",
+        "theta_2", "phi_2", "x_2", "y_2", "z_2",
+    )  # fmt: skip
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), *robot]) == 0
+    out = capsys.readouterr().out
+    assert "section 1 end error" in out and "section 2 end error" in out
+    assert_allclose(table.column("x"), table.column("x_2"))
+    assert math.isfinite(float(table.column("theta_2").max()))
