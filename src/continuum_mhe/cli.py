@@ -31,7 +31,7 @@ from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings
-from continuum_mhe.simulation.scenarios import SCENARIOS, simulate_robot
+from continuum_mhe.simulation.scenarios import SCENARIOS, ScenarioName, simulate_robot
 
 PROG = "continuum-mhe"
 
@@ -236,9 +236,9 @@ def format_metrics(m: Metrics) -> str:
             f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, "
             f"{math.degrees(r['phi']):.2f} deg"
         )
-    for k, mean in m.section_end_mean_mm.items():
+    for sec, mean in m.section_end_mean_mm.items():
         lines.append(
-            f"section {k} end error  mean {mean:.2f} mm, max {m.section_end_max_mm[k]:.2f} mm"
+            f"section {sec} end error  mean {mean:.2f} mm, max {m.section_end_max_mm[sec]:.2f} mm"
         )
     k = 1
     while f"theta_{k}" in r:
@@ -259,7 +259,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     robot = _robot(args) if args.robot else Robot.single(0.2)
-    scenario = "paper3d" if robot.is_single else "spatial"
+    scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
     formulation = make_formulation("bend", robot, NoiseSettings())
     out.mkdir(parents=True, exist_ok=True)

@@ -425,7 +425,7 @@ def write_table(
 
 
 def estimate_row(
-    t: float, output: Sequence[float] | None, status: str, solve_ms: float, ny: int
+    t: float, output: Sequence[float] | FloatArray | None, status: str, solve_ms: float, ny: int
 ) -> list[object]:
     """One estimate CSV row; a row without an estimate leaves the outputs empty."""
     if status == "no-estimate" or output is None:

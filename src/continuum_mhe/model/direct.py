@@ -107,7 +107,8 @@ class DirectFormulation(BendFormulation):
     def meas_cov(self) -> FloatArray:
         f_std = self.accel_direction_std or self.noise.measurement_std
         one = np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
-        return one if self.robot.n_imus == 1 else np.kron(np.eye(self.robot.n_imus), one)
+        full = one if self.robot.n_imus == 1 else np.kron(np.eye(self.robot.n_imus), one)
+        return np.asarray(full, dtype=np.float64)
 
     @cached_property
     def _rate_map(self) -> ca.Function:

@@ -97,7 +97,7 @@ class Formulation:
     name: FormulationName = "bend"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "robot", as_robot(self.robot))  # type: ignore[arg-type]
+        object.__setattr__(self, "robot", as_robot(self.robot))
 
     # --- sizes and descriptions -----------------------------------------------------
     @property
