@@ -25,7 +25,21 @@ Status = Literal[
     "solver-failed",  # solver error; projected prediction is used
     "no-estimate",  # --paper-start: fewer than N samples so far
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
+    "reset",  # diverged, failed numerically or lost all certainty: restarted from this sample
 ]
+
+#: Every status, with its meaning (the one vocabulary of every estimator and output).
+STATUS_MEANINGS: dict[str, str] = {
+    "ok": "converged (MHE) or updated with a measurement (filters)",
+    "dropout": "no valid measurement at this sample: prediction only",
+    "not-converged": "solver stopped early; its last feasible iterate is used",
+    "solver-failed": "solver error; the projected prediction is used",
+    "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",
+    "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
+    "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
+    "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
+    "from this sample's measurement, and this is the restarted estimate",
+}
 
 
 @dataclass(frozen=True)

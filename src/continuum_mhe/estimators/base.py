@@ -30,6 +30,10 @@ class Estimator(ABC):
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
         self._last_t = -math.inf
+        #: times the estimator restarted after a divergence or numerical failure
+        self.restarts = 0
+        #: the last numerical failure's message, if any
+        self.last_failure: str | None = None
 
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
@@ -53,6 +57,10 @@ class Estimator(ABC):
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
 
+        A diverged (non-finite, or far outside the workspace: ``is_diverged``) or
+        numerically failed step restarts the estimator from this sample's measurement;
+        that estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
+
         Raises:
             ValueError: if ``measurement.z`` does not have the formulation's size, or
                 ``measurement.t`` is not finite or not later than the previous
@@ -72,7 +80,27 @@ class Estimator(ABC):
             )
         self._last_t = t
         start = time.perf_counter()
-        state, cov, status = self._step(measurement)
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are caught below
+                state, cov, status = self._step(measurement)
+            healthy = state is None or not self.formulation.is_diverged(state, cov)
+        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
+            self.last_failure = f"{type(exc).__name__}: {exc}"
+            healthy = False
+        if not healthy:  # flag it and restart from this sample's measurement
+            self.restarts += 1
+            self._reset()
+            try:
+                with np.errstate(all="ignore"):
+                    state, cov, status = self._step(measurement)
+            except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
+                self.last_failure = f"{type(exc).__name__}: {exc}"
+                state, cov, status = None, None, "no-estimate"
+            if state is not None and self.formulation.is_diverged(state, cov):
+                self._reset()
+                state, cov, status = None, None, "no-estimate"
+            if state is not None:
+                status = "reset"
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         return Estimate(measurement.t, state, output, cov, status, ms)

@@ -33,6 +33,7 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
@@ -141,6 +142,10 @@ def pack_parameters(problem: WindowProblem) -> FloatArray:
     )
 
 
+class BackendFallbackWarning(UserWarning):
+    """The requested MHE backend or compiled model is not what runs (said once)."""
+
+
 class MovingHorizonEstimator(Estimator):
     """MHE over the last ``N`` samples.
 
@@ -165,14 +170,27 @@ class MovingHorizonEstimator(Estimator):
     ) -> None:
         super().__init__(formulation)
         self.settings = settings or MHESettings()
+        #: why the requested backend is not the one that runs (None when it is)
+        self.backend_note: str | None = None
         self.fast_options = fast_options or FastOptions()
         s = self.settings
         self._fast: WindowModel | None = None
         if s.solver == "fast":
             try:
                 self._fast = build_window_model(formulation, s.horizon, self.fast_options.compile)
-            except NotImplementedError:  # feasible set the fast backend cannot handle
+            except NotImplementedError as exc:  # feasible set the fast backend cannot take
                 self._fast = None
+                self.backend_note = (
+                    f"the fast MHE backend cannot take this problem ({exc}); "
+                    "IPOPT solves every window (status fallback-ipopt)"
+                )
+                warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
+        elif s.solver == "fast" and not self._fast.compiled:  # type: ignore[union-attr]
+            self.backend_note = (
+                "no working C compiler: the fast MHE runs its model through CasADi's virtual "
+                "machine (about 10x slower); install a C compiler (gcc) to compile it"
+            )
+            warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
         self._nlp_built: _Nlp | None = None
@@ -347,7 +365,10 @@ class MovingHorizonEstimator(Estimator):
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         if self._fast is None:
-            return self._solve_ipopt(problem, X0)
+            X, status = self._solve_ipopt(problem, X0)
+            if self.settings.solver == "fast" and status == "ok":
+                status = "fallback-ipopt"  # announced once at construction
+            return X, status
         lam0 = None
         if self._lam is not None:
             lam0 = np.empty_like(self._lam)

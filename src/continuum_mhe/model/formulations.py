@@ -186,6 +186,13 @@ class Formulation:
         lo, hi = self.state_bounds()
         return bool(np.all(x >= lo - tol) and np.all(x <= hi + tol))
 
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """True when a state (and covariance) cannot be a meaningful estimate: not
+        finite, or far outside the workspace (see subclasses)."""
+        if not np.all(np.isfinite(x)):
+            return True
+        return P is not None and not np.all(np.isfinite(P))
+
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
@@ -382,6 +389,27 @@ class BendFormulation(Formulation):
             for k, sec in enumerate(self.robot.sections)
         )
 
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """Non-finite; a section bent more than ``DIVERGED_MARGIN`` rad beyond its bound
+        (the filters are unconstrained, but not that far); a bend rate over
+        ``DIVERGED_RATE`` rad/s; or a bend standard deviation over pi rad (the estimate
+        knows nothing any more, e.g. after a long gap)."""
+        if super().is_diverged(x, P):
+            return True
+        n2 = 2 * self.robot.n_sections
+        for k, sec in enumerate(self.robot.sections):
+            if math.hypot(x[2 * k], x[2 * k + 1]) > sec.theta_max + DIVERGED_MARGIN:
+                return True
+        if np.any(np.abs(x[n2:]) > DIVERGED_RATE):
+            return True
+        return P is not None and bool(np.any(np.diag(P)[:n2] > math.pi**2))
+
+
+#: Divergence test (:meth:`BendFormulation.is_diverged`): rad beyond ``theta_max``.
+DIVERGED_MARGIN = 1.0
+#: Divergence test: largest plausible bend rate, rad/s.
+DIVERGED_RATE = 50.0
+
 
 def _bend_turning(v: FloatArray, f: FloatArray, at: float, theta_max: float) -> FloatArray:
     """Bend ``(a, b)`` of a section whose frame at fraction ``at`` sees the direction
@@ -456,6 +484,14 @@ class PaperFormulation(Formulation):
             np.array([-s, -s, -s, 0.0, -math.pi]),
             np.array([s, s, s, self.robot.theta_max, math.pi]),
         )
+
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """Non-finite, theta more than ``DIVERGED_MARGIN`` outside ``[0, theta_max]``, or
+        the position more than three lengths from the base."""
+        if super().is_diverged(x, P):
+            return True
+        theta_out = x[3] < -DIVERGED_MARGIN or x[3] > self.robot.theta_max + DIVERGED_MARGIN
+        return bool(theta_out or np.linalg.norm(x[:3]) > 3 * self.length)
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)
