@@ -321,3 +321,42 @@ def test_cli_round_trip_two_sections(tmp_path: Path, capsys) -> None:  # type: i
     assert "section 1 end error" in out and "section 2 end error" in out
     assert_allclose(table.column("x"), table.column("x_2"))
     assert math.isfinite(float(table.column("theta_2").max()))
+
+
+# --- the fast backend on two sections ------------------------------------------------------
+@pytest.mark.parametrize("name", ["bend", "direct"])
+def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name: str) -> None:
+    import warnings
+
+    from continuum_mhe.estimators.fast_mhe import feasible_set
+
+    tight = Robot((Section(0.16, 0.8), Section(0.14, 0.8)), TWO.imus)
+    f = make_formulation(name, tight)
+    fs = feasible_set(f)
+    assert fs.ball_idx.tolist() == [[0, 1], [2, 3]]
+    rec = simulate_robot("s-curve", TWO, duration=4.0, dt=0.05, seed=3)  # beyond the bound
+    if name == "direct":  # model-consistent raw measurements of the (clipped) truth
+        b = _bends(rec)
+        for k in (0, 2):
+            r = np.hypot(b[:, k], b[:, k + 1])
+            b[:, k : k + 2] *= np.minimum(1.0, 0.8 / np.maximum(r, 1e-12))[:, None]
+        rates = np.gradient(b, rec.t, axis=0)
+        x = np.concatenate([b, rates], axis=1)
+        z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
+        z += np.random.default_rng(0).normal(scale=0.03, size=z.shape)
+    else:
+        z = rec.z.copy()
+    z[30:45, f.measurement_blocks[1].slice] = np.nan  # one IMU drops out
+    out = {}
+    for solver in ("fast", "ipopt"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # the fast backend must take this problem
+            est = make_estimator("mhe", f, MHESettings(horizon=12, solver=solver))  # type: ignore[arg-type]
+        series = est.run(rec.t, z)
+        assert set(series.status) == {"ok"}
+        out[solver] = series
+    angles = [i for i, o in enumerate(f.outputs) if o.unit == "rad"]
+    assert_allclose(out["fast"].output[:, angles], out["ipopt"].output[:, angles], atol=1e-6)
+    for k in ("theta_1", "theta_2"):
+        assert out["fast"].column(k).max() <= 0.8 + 1e-12
+        assert out["fast"].column(k).max() > 0.8 - 1e-6  # the bound is active

@@ -103,58 +103,73 @@ class FastOptions:
 
 @dataclass(frozen=True)
 class Feasible:
-    """The feasible set of one node: a box and an optional ball on coordinates ``S``.
+    """The feasible set of one node: a box and balls on disjoint coordinate sets.
 
     Attributes:
         lo, hi: (nx,) box bounds (may be infinite).
-        ball_idx: (k,) coordinates ``S`` of the ball ``sum_S x_j^2 <= ball_r2``
-            (empty if none).
-        ball_r2: squared radius, rad^2 (inf if none).
+        ball_idx: (nb, k) coordinates ``S_b`` of ball ``b``,
+            ``sum_{S_b} x_j^2 <= ball_r2[b]`` (one per robot section; ``nb = 0`` if none).
+        ball_r2: (nb,) squared radii, rad^2.
     """
 
     lo: FloatArray
     hi: FloatArray
     ball_idx: IntArray
-    ball_r2: float
+    ball_r2: FloatArray
 
 
 def feasible_set(formulation: Formulation) -> Feasible:
     """Read the feasible set from the formulation's bounds and ``constraint_sym``.
 
-    The nonlinear path constraint must be empty or a ball ``sum_S x_j^2 <= r^2``;
-    this is checked on the CasADi expression (its Hessian is ``2 diag(1_S)``, its
-    value and gradient vanish at 0). Raises ``NotImplementedError`` otherwise.
+    Every component of the path constraint must be a ball ``sum_S x_j^2 <= r^2`` (checked
+    on the CasADi expression: Hessian ``2 diag(1_S)``, value and gradient 0 at 0), all of
+    one size, on disjoint coordinates without box bounds. Raises ``NotImplementedError``
+    with the reason otherwise.
     """
     nx = formulation.nx
     lo, hi = (np.asarray(v, dtype=float) for v in formulation.state_bounds())
     x = ca.SX.sym("x", nx)
     g, glo_v, ghi_v = formulation.constraint_sym(x)
-    glo, ghi = np.ravel(glo_v)[:1].sum(), np.ravel(ghi_v)[:1].sum()  # one ball (for now)
+    glo, ghi = np.ravel(np.asarray(glo_v, float)), np.ravel(np.asarray(ghi_v, float))
     if g.numel() == 0:
-        return Feasible(lo, hi, np.zeros(0, dtype=np.int64), float("inf"))
-    if g.numel() != 1 or glo > 0 or not np.isfinite(ghi):
-        raise NotImplementedError("fast backend: only a ball constraint g(x) <= r^2 is supported")
-    fn = ca.Function("g", [x], [g, ca.gradient(g, x), ca.hessian(g, x)[0]])
-    v0, g0, h0 = (np.asarray(v, dtype=float) for v in fn(np.zeros(nx)))
-    diag = np.diag(h0.reshape(nx, nx))
-    idx = np.flatnonzero(np.isclose(diag, 2.0)).astype(np.int64)
-    mask = np.zeros(nx)
-    mask[idx] = 1.0
+        return Feasible(lo, hi, np.zeros((0, 1), dtype=np.int64), np.zeros(0))
+    if len(glo) != g.numel() or len(ghi) != g.numel():
+        raise NotImplementedError("constraint bounds do not match the constraints")
     rng = np.random.default_rng(0)
-    for xt in rng.normal(size=(5, nx)):
-        value = float(np.asarray(fn(xt)[0])[0, 0])
-        if not np.isclose(value, float(np.sum(mask * xt**2)), rtol=1e-12, atol=0):
-            raise NotImplementedError("fast backend: constraint is not a ball sum_S x_j^2")
-    if np.any(v0 != 0) or np.any(g0 != 0) or np.any(np.isfinite(lo[idx]) | np.isfinite(hi[idx])):
-        raise NotImplementedError("fast backend: ball coordinates must have no box bounds")
-    return Feasible(lo, hi, idx, float(ghi))
+    balls: list[IntArray] = []
+    used = np.zeros(nx, dtype=bool)
+    for j in range(g.numel()):
+        if glo[j] > 0 or not np.isfinite(ghi[j]):
+            raise NotImplementedError("only ball constraints g(x) <= r^2 are supported")
+        fn = ca.Function("g", [x], [g[j], ca.gradient(g[j], x), ca.hessian(g[j], x)[0]])
+        v0, g0, h0 = (np.asarray(v, dtype=float) for v in fn(np.zeros(nx)))
+        idx = np.flatnonzero(np.isclose(np.diag(h0.reshape(nx, nx)), 2.0)).astype(np.int64)
+        mask = np.zeros(nx)
+        mask[idx] = 1.0
+        for xt in rng.normal(size=(5, nx)):
+            value = float(np.asarray(fn(xt)[0])[0, 0])
+            if not np.isclose(value, float(np.sum(mask * xt**2)), rtol=1e-12, atol=0):
+                raise NotImplementedError(f"constraint {j + 1} is not a ball sum_S x_j^2")
+        if (
+            np.any(v0 != 0)
+            or np.any(g0 != 0)
+            or np.any(np.isfinite(lo[idx]) | np.isfinite(hi[idx]))
+        ):
+            raise NotImplementedError("ball coordinates must have no box bounds")
+        if np.any(used[idx]) or (balls and len(idx) != len(balls[0])) or len(idx) == 0:
+            raise NotImplementedError("balls must be non-empty, disjoint and of one size")
+        used[idx] = True
+        balls.append(idx)
+    return Feasible(lo, hi, np.array(balls, dtype=np.int64), ghi.copy())
 
 
 def _window_function(formulation: Formulation, horizon: int) -> ca.Function:
-    """``(X, Z, U, DT) -> (R, JR, W, FJ, SR)`` for the whole window, in one call.
+    """``(X, Z, M, U, DT) -> (R, JR, W, FJ, SR)`` for the whole window, in one call.
 
-    Inputs (CasADi column-major): ``X`` (nx, N), ``Z`` (nz, N), ``U`` (nu, N-1),
-    ``DT`` (1, N-1). Outputs: measurement residuals ``R`` (nz, N); their Jacobians
+    Inputs (CasADi column-major): ``X`` (nx, N), ``Z`` (nz, N), ``M`` (nz, N) the 0/1
+    measurement mask (a masked component has zero residual, Jacobian and curvature: a
+    sensor that dropped out), ``U`` (nu, N-1), ``DT`` (1, N-1). Outputs: masked
+    measurement residuals ``R`` (nz, N); their Jacobians
     ``JR`` (nz nx, N), each column the row-major ``dr/dx``; process residuals
     ``W = x_{i+1} - f(x_i, u_i, dt_i)`` (nx, N-1); ``FJ`` (nx^2, N-1), each column
     the row-major ``df/dx_i``; ``SR`` (nx^2, N), the second-order part of the
@@ -162,33 +177,34 @@ def _window_function(formulation: Formulation, horizon: int) -> ca.Function:
     """
     f, nx, nu, nz, n = formulation, formulation.nx, formulation.nu, formulation.nz, horizon
     x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
-    u, dt = ca.SX.sym("u", nu), ca.SX.sym("dt")
-    r = f.measurement_residual_sym(z, x)
+    u, dt, mk = ca.SX.sym("u", nu), ca.SX.sym("dt"), ca.SX.sym("m", nz)
+    r = mk * f.measurement_residual_sym(z, x)
     jr = ca.jacobian(r, x)
     rinv = ca.DM(np.linalg.inv(f.meas_cov()))
     # second-order part of the measurement cost's Hessian, sum_a (R^-1 r)_a d2 r_a/dx2
     curv = ca.hessian(0.5 * ca.bilin(rinv, r, r), x)[0] - ca.mtimes([jr.T, rinv, jr])
-    meas = ca.Function("meas", [x, z], [r, ca.vec(jr.T), ca.vec(curv)])
+    meas = ca.Function("meas", [x, z, mk], [r, ca.vec(jr.T), ca.vec(curv)])
     xf = f.transition_sym(x, u, dt)
     proc = ca.Function("proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
     # MX, so that the maps stay loops in the generated code (SX would unroll them)
-    X, Z = ca.MX.sym("X", nx, n), ca.MX.sym("Z", nz, n)
+    X, Z, M = ca.MX.sym("X", nx, n), ca.MX.sym("Z", nz, n), ca.MX.sym("M", nz, n)
     U, DT = ca.MX.sym("U", nu, n - 1), ca.MX.sym("DT", 1, n - 1)
-    R, JR, SR = meas.map(n, "serial")(X, Z)
+    R, JR, SR = meas.map(n, "serial")(X, Z, M)
     W, FJ = proc.map(n - 1, "serial")(X[:, : n - 1], X[:, 1:], U, DT)
     outs = [ca.densify(v) for v in (R, JR, W, FJ, SR)]
-    return ca.Function("mhe_window", [X, Z, U, DT], outs)
+    return ca.Function("mhe_window", [X, Z, M, U, DT], outs)
 
 
 def _node_function(formulation: Formulation) -> ca.Function:
-    """``(x, u, dt, z) -> (f, F, H, r)``: transition, its Jacobian, the measurement
-    Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``."""
+    """``(x, u, dt, z, m) -> (f, F, H, r)``: transition, its Jacobian, the measurement
+    Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``, with
+    the masked components (``m = 0``) zero."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    z = ca.SX.sym("z", f.nz)
-    xf, r = f.transition_sym(x, u, dt), f.measurement_residual_sym(z, x)
+    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+    xf, r = f.transition_sym(x, u, dt), mk * f.measurement_residual_sym(z, x)
     outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T), r]
-    return ca.Function("mhe_node", [x, u, dt, z], [ca.densify(v) for v in outs])
+    return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
 
 
 _WRAPPER = """
@@ -325,6 +341,7 @@ class WindowModel:
         window: C function of :func:`_window_function`.
         node: C function of :func:`_node_function`.
         output: C function of the formulation's ``output_sym``.
+        ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
         compiled: True if the model runs as compiled C (else through CasADi's VM).
     """
 
@@ -336,8 +353,10 @@ class WindowModel:
     rinv: FloatArray
     window: Any  # ctypes function pointer (CFunction)
     node: Any
-    output: Any  # formulation.output_sym: state -> [x, y, z, theta, phi]
+    output: Any  # formulation.output_sym: state -> the formulation's outputs
     compiled: bool
+    ny: int = 5
+    wrapped: tuple[int, ...] = (4,)
 
     @property
     def window_size(self) -> int:
@@ -345,10 +364,15 @@ class WindowModel:
         return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nx * nx * n
 
     def evaluate_node(
-        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
+        self,
+        x: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray | None = None,
+        mask: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))`` at one node."""
-        return NodeEvaluator(self).evaluate(x, u, dt, z)
+        return NodeEvaluator(self).evaluate(x, u, dt, z, mask)
 
 
 class NodeEvaluator:
@@ -361,6 +385,7 @@ class NodeEvaluator:
         self._u = np.zeros(model.nu)
         self._dt = np.zeros(1)
         self._z = np.zeros(nz)
+        self._m = np.ones(nz)
         self._out = np.empty(nx + nx * nx + nz * nx + nz)
         self._ptrs = np.array(
             [
@@ -368,12 +393,14 @@ class NodeEvaluator:
                 self._u.ctypes.data if model.nu else 0,
                 self._dt.ctypes.data,
                 self._z.ctypes.data,
+                self._m.ctypes.data,
             ],
             dtype=np.uintp,
         )
         self._ofn = model.output
         self._ox = np.zeros(nx)
-        self._oout = np.empty(5)
+        self._oout = np.empty(model.ny)
+        self._wrapped = list(model.wrapped)
         self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
         k = nx + nx * nx
         self._views = (
@@ -384,14 +411,21 @@ class NodeEvaluator:
         )
 
     def evaluate(
-        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray | None = None
+        self,
+        x: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray | None = None,
+        mask: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))``, copies: (nx,), (nx, nx),
-        (nz, nx), (nz,). ``z`` matters for the last two only (zeros when omitted)."""
+        (nz, nx), (nz,). ``z`` matters for the last two only (zeros when omitted);
+        ``mask`` (nz,) zeroes the components of sensors that dropped out."""
         self._x[:] = x
         self._u[:] = u
         self._dt[0] = dt
         self._z[:] = 0.0 if z is None else z
+        self._m[:] = 1.0 if mask is None else mask
         if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
         f, F, H, r = self._views
@@ -404,28 +438,32 @@ class NodeEvaluator:
         u: FloatArray,
         dt: float,
         z: FloatArray,
-        valid: bool,
+        mask: FloatArray,
         R: FloatArray,
         Q: FloatArray,
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """One EKF step of the arrival prior in one compiled call: update with ``z``
-        (if ``valid``), predict with ``(u, dt)``. Returns ``(x+, P+, P+^-1)``; the same
+        (its valid components, ``mask``; none: prediction only), predict with
+        ``(u, dt)``. Returns ``(x+, P+, P+^-1)``; the same
         equations as :func:`arrival_update` then :func:`arrival_predict`."""
         self._u[:] = u
         self._dt[0] = dt
         self._z[:] = z
+        self._m[:] = mask
+        valid = bool(np.any(mask))
         return _arrival_step(
             self._fn, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
         )
 
     def output(self, x: FloatArray) -> FloatArray:
-        """``[x, y, z, theta, phi]`` of state ``x`` (compiled ``output_sym``; phi
-        wrapped to ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
+        """The outputs of state ``x`` (compiled ``output_sym``; wrapped angles in
+        ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
         self._ox[:] = x
         if self._ofn(self._optrs.ctypes.data, self._oout.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
         y = self._oout.copy()
-        y[4] = (y[4] + np.pi) % (2 * np.pi) - np.pi
+        for i in self._wrapped:
+            y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
         return y
 
 
@@ -447,6 +485,8 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
         node=_c_function(node, lib),
         output=_c_function(out, lib),
         compiled=lib is not None,
+        ny=formulation.ny,
+        wrapped=tuple(i for i, o in enumerate(formulation.outputs) if o.wrapped),
     )
 
 
@@ -456,7 +496,8 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
 @numba.njit(cache=True)
 def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, D, E, g):
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
-    gradient ``g`` and the cost; ``lam`` adds the ball's curvature ``2 lam I_S``."""
+    gradient ``g`` and the cost; ``lam`` (n, nb) adds each ball's curvature
+    ``2 lam_b I_{S_b}``."""
     n, nx = X.shape
     D[:] = 0.0
     E[:] = 0.0
@@ -528,9 +569,10 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, 
                     D[i + 1, j, k] += qinv[i, j, k]
                     E[i, j, k] = -qf[k, j]
     for i in range(n):
-        if lam[i] > 0.0:
-            for s_ in ball_idx:
-                D[i, s_, s_] += 2.0 * lam[i]
+        for bb in range(ball_idx.shape[0]):
+            if lam[i, bb] > 0.0:
+                for s_ in ball_idx[bb]:
+                    D[i, s_, s_] += 2.0 * lam[i, bb]
     return cost
 
 
@@ -638,17 +680,32 @@ def _householder(nrm, ball_idx, T):
 def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
     """Equality-constrained Newton step ``H p = -grad`` on the working set.
 
-    Box-fixed coordinates get ``p = 0``; ball-active nodes get ``n . p = 0``
-    (eliminated by a Householder reflection per node, which keeps the blocks).
+    Box-fixed coordinates get ``p = 0``; each active ball ``b`` of a node gets
+    ``n_b . p = 0``, eliminated by a Householder reflection on its coordinates. The
+    balls of a node are disjoint, so their reflections commute and their product ``T``
+    is symmetric and orthogonal; the blocks keep their structure.
     """
     n, nx = grad.shape
-    piv = np.full(n, -1)
+    nb = ball_idx.shape[0]
+    anyb = np.zeros(n, dtype=np.bool_)
+    fixed = np.zeros((n, nx), dtype=np.bool_)
     tmp = np.empty((nx, nx))
+    Tb = np.empty((nx, nx))
     for i in range(n):
-        if wball[i] != 0:
-            piv[i] = _householder(nrm[i], ball_idx, T[i])
+        for bb in range(nb):
+            if wball[i, bb] != 0:
+                if not anyb[i]:
+                    for j in range(nx):
+                        for k in range(nx):
+                            T[i, j, k] = 1.0 if j == k else 0.0
+                    anyb[i] = True
+                piv = _householder(nrm[i, bb], ball_idx[bb], Tb)
+                fixed[i, piv] = True
+                for j in ball_idx[bb]:
+                    for k in ball_idx[bb]:
+                        T[i, j, k] = Tb[j, k]
     for i in range(n):
-        if piv[i] >= 0:
+        if anyb[i]:
             for j in range(nx):
                 for k in range(nx):
                     s = 0.0
@@ -674,7 +731,7 @@ def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
             for j in range(nx):
                 for k in range(nx):
                     Et[i, j, k] = E[i, j, k]
-            if piv[i] >= 0:
+            if anyb[i]:
                 for j in range(nx):
                     for k in range(nx):
                         s = 0.0
@@ -682,7 +739,7 @@ def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
                             s += T[i, j, a] * Et[i, a, k]
                         tmp[j, k] = s
                 Et[i] = tmp
-            if piv[i + 1] >= 0:
+            if anyb[i + 1]:
                 for j in range(nx):
                     for k in range(nx):
                         s = 0.0
@@ -692,7 +749,7 @@ def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
                 Et[i] = tmp
     for i in range(n):
         for c in range(nx):
-            if wbox[i, c] != 0 or piv[i] == c:
+            if wbox[i, c] != 0 or fixed[i, c]:
                 for k in range(nx):
                     Dt[i, c, k] = 0.0
                     Dt[i, k, c] = 0.0
@@ -705,7 +762,7 @@ def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
     if not _btd_solve(Dt, Et, b, L, M, p):
         return False
     for i in range(n):
-        if piv[i] >= 0:
+        if anyb[i]:
             for j in range(nx):
                 s = 0.0
                 for a in range(nx):
@@ -723,37 +780,37 @@ def _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
 def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
     """Primal active-set solution ``d`` of the SQP subproblem at ``X``.
 
-    ``min 1/2 d^T H d + g^T d`` s.t. ``lo <= X + d <= hi`` and the ball linearised at
+    ``min 1/2 d^T H d + g^T d`` s.t. ``lo <= X + d <= hi`` and every ball linearised at
     ``X``. Starts from ``d = 0`` with the constraints active at ``X``. On success
-    ``lam`` holds the ball multipliers. Returns ``(status, iterations, number of
-    active constraints)``.
+    ``lam`` (n, nb) holds the ball multipliers. Returns ``(status, iterations, number
+    of active constraints)``.
     """
     n, nx = X.shape
-    has_ball = ball_idx.shape[0] > 0
+    nb = ball_idx.shape[0]
     wbox = np.zeros((n, nx), dtype=np.int8)
-    wball = np.zeros(n, dtype=np.int8)
-    nrm = np.zeros((n, nx))
-    gnorm = np.zeros(n)
-    slack = np.zeros(n)
+    wball = np.zeros((n, max(nb, 1)), dtype=np.int8)
+    nrm = np.zeros((n, max(nb, 1), nx))
+    gnorm = np.zeros((n, max(nb, 1)))
+    slack = np.zeros((n, max(nb, 1)))
     for i in range(n):
         for j in range(nx):
             if X[i, j] <= lo[j]:
                 wbox[i, j] = -1
             elif X[i, j] >= hi[j]:
                 wbox[i, j] = 1
-        if has_ball:
+        for bb in range(nb):
             q = 0.0
-            for s_ in ball_idx:
+            for s_ in ball_idx[bb]:
                 q += X[i, s_] * X[i, s_]
             if q > 0.0:
                 rq = np.sqrt(q)
-                for s_ in ball_idx:
-                    nrm[i, s_] = X[i, s_] / rq
-                gnorm[i] = 2.0 * rq
-                slack[i] = max(ball_r2 - q, 0.0) / gnorm[i]
-                if q >= ball_r2 * (1.0 - 1e-12):
-                    wball[i] = 1
-                    slack[i] = 0.0
+                for s_ in ball_idx[bb]:
+                    nrm[i, bb, s_] = X[i, s_] / rq
+                gnorm[i, bb] = 2.0 * rq
+                slack[i, bb] = max(ball_r2[bb] - q, 0.0) / gnorm[i, bb]
+                if q >= ball_r2[bb] * (1.0 - 1e-12):
+                    wball[i, bb] = 1
+                    slack[i, bb] = 0.0
     gscale = 1.0
     for i in range(n):
         for j in range(nx):
@@ -799,22 +856,23 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
                         a = max((lo[j] - X[i, j] - d[i, j]) / pij, 0.0)
                         if a < alpha:
                             alpha, kind, bi, bj = a, -1, i, j
-            if has_ball and wball[i] == 0 and gnorm[i] > 0.0:
-                sp = 0.0
-                sd = 0.0
-                for s_ in ball_idx:
-                    sp += nrm[i, s_] * p[i, s_]
-                    sd += nrm[i, s_] * d[i, s_]
-                if sp > 0.0:
-                    a = max((slack[i] - sd) / sp, 0.0)
-                    if a < alpha:
-                        alpha, kind, bi, bj = a, 2, i, -1
+            for bb in range(nb):
+                if wball[i, bb] == 0 and gnorm[i, bb] > 0.0:
+                    sp = 0.0
+                    sd = 0.0
+                    for s_ in ball_idx[bb]:
+                        sp += nrm[i, bb, s_] * p[i, s_]
+                        sd += nrm[i, bb, s_] * d[i, s_]
+                    if sp > 0.0:
+                        a = max((slack[i, bb] - sd) / sp, 0.0)
+                        if a < alpha:
+                            alpha, kind, bi, bj = a, 2, i, bb
         for i in range(n):
             for j in range(nx):
                 d[i, j] += alpha * p[i, j]
         if kind != 0:
             if kind == 2:
-                wball[bi] = 1
+                wball[bi, bj] = 1
             else:
                 wbox[bi, bj] = kind
                 d[bi, bj] = (hi[bj] if kind == 1 else lo[bj]) - X[bi, bj]
@@ -824,25 +882,26 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
             lam[:] = 0.0
             return CONVERGED, it + 1, 0
         _matvec(D, E, d, grad)
-        worst, wi, wj = -mu_tol, -1, -1
+        worst, wi, wj = -mu_tol, -1, 0
         for i in range(n):
             for j in range(nx):
                 if wbox[i, j] != 0:
                     mu = -grad[i, j] - g[i, j] if wbox[i, j] == 1 else grad[i, j] + g[i, j]
                     if mu < worst:
                         worst, wi, wj = mu, i, j
-            lam[i] = 0.0
-            if wball[i] != 0:
-                s = 0.0
-                for s_ in ball_idx:
-                    s += (grad[i, s_] + g[i, s_]) * nrm[i, s_]
-                lam[i] = -s / gnorm[i]
-                if lam[i] < worst:
-                    worst, wi, wj = lam[i], i, -1
+            for bb in range(nb):
+                lam[i, bb] = 0.0
+                if wball[i, bb] != 0:
+                    s = 0.0
+                    for s_ in ball_idx[bb]:
+                        s += (grad[i, s_] + g[i, s_]) * nrm[i, bb, s_]
+                    lam[i, bb] = -s / gnorm[i, bb]
+                    if lam[i, bb] < worst:
+                        worst, wi, wj = lam[i, bb], i, -1 - bb
         if wi < 0:
             return CONVERGED, it + 1, np.count_nonzero(wbox) + np.count_nonzero(wball)
         if wj < 0:
-            wball[wi] = 0
+            wball[wi, -1 - wj] = 0
         else:
             wbox[wi, wj] = 0
     return QP_FAILED, max_it, 0
@@ -850,25 +909,26 @@ def _solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
 
 @numba.njit(cache=True)
 def _project(X, lo, hi, ball_idx, ball_r2):
-    """Project each node onto the box and the ball, in place (bounds hold exactly)."""
+    """Project each node onto the box and the balls, in place (bounds hold exactly)."""
     n, nx = X.shape
     for i in range(n):
         for j in range(nx):
             X[i, j] = min(max(X[i, j], lo[j]), hi[j])
-        if ball_idx.shape[0] > 0:
+        for bb in range(ball_idx.shape[0]):
+            r2 = ball_r2[bb]
             q = 0.0
-            for s_ in ball_idx:
+            for s_ in ball_idx[bb]:
                 q += X[i, s_] * X[i, s_]
-            if q > ball_r2:
-                c = np.sqrt(ball_r2 / q)
+            if q > r2:
+                c = np.sqrt(r2 / q)
                 for _ in range(4):  # rounding: shrink by ulps until it holds exactly
                     q = 0.0
-                    for s_ in ball_idx:
+                    for s_ in ball_idx[bb]:
                         q += (c * X[i, s_]) ** 2
-                    if q <= ball_r2:
+                    if q <= r2:
                         break
                     c = np.nextafter(c, 0.0) * (1.0 - 2e-16)
-                for s_ in ball_idx:
+                for s_ in ball_idx[bb]:
                     X[i, s_] *= c
 
 
@@ -1065,7 +1125,7 @@ class FastResult:
         step: max-norm of the last QP step, state units.
         cost: the window cost at the last evaluated iterate (the answer minus the last
             step when certified).
-        lam: (N,) multipliers of the ball constraint at ``X`` (zero if none).
+        lam: (N, nb) multipliers of the ball constraints at ``X``.
     """
 
     X: FloatArray
@@ -1077,9 +1137,17 @@ class FastResult:
     lam: FloatArray
 
 
-def _pointers(X: FloatArray, z: FloatArray, u: FloatArray, dt: FloatArray) -> NDArray[np.uintp]:
+def _pointers(
+    X: FloatArray, z: FloatArray, m: FloatArray, u: FloatArray, dt: FloatArray
+) -> NDArray[np.uintp]:
     return np.array(
-        [X.ctypes.data, z.ctypes.data, u.ctypes.data if u.size else 0, dt.ctypes.data],
+        [
+            X.ctypes.data,
+            z.ctypes.data,
+            m.ctypes.data,
+            u.ctypes.data if u.size else 0,
+            dt.ctypes.data,
+        ],
         dtype=np.uintp,
     )
 
@@ -1094,6 +1162,7 @@ class Workspace:
     def __init__(self, model: WindowModel) -> None:
         n, nx, nz, nu = model.horizon, model.nx, model.nz, model.nu
         self.z = np.zeros((n, nz))
+        self.m = np.zeros((n, nz))
         self.u = np.zeros((n - 1, nu))
         self.dt = np.zeros(n - 1)
         self.Xb = np.empty((2, n, nx))
@@ -1102,8 +1171,8 @@ class Workspace:
         self.E = np.empty((2, n - 1, nx, nx))
         self.g = np.empty((2, n, nx))
         self.d = np.empty((n, nx))
-        self.lam_qp = np.zeros(n)
-        self.ptrs = np.stack([_pointers(x, self.z, self.u, self.dt) for x in self.Xb])
+        self.lam_qp = np.zeros((n, len(model.feasible.ball_r2)))
+        self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
 
 
 def solve_window(
@@ -1116,7 +1185,8 @@ def solve_window(
 ) -> FastResult:
     """Solve one window problem from the initial guess ``X0`` (N, nx).
 
-    ``lam0`` (N,) warm-starts the ball multipliers (the curvature term). The guess is
+    ``problem.zmask`` (N, nz) masks the measurement components of sensors that dropped
+    out. ``lam0`` (N, nb) warm-starts the ball multipliers (the curvature term). The guess is
     projected onto the feasible set first. ``workspace`` (of this model) saves the
     allocations. See the module docstring for the method.
     """
@@ -1124,12 +1194,15 @@ def solve_window(
     fs, n = model.feasible, model.horizon
     ws = workspace or Workspace(model)
     ws.z[:] = problem.z
+    ws.m[:] = problem.zmask
     ws.u[:] = problem.u
     ws.dt[:] = problem.dt
     ws.Xb[0] = X0
-    lam = np.zeros(n) if lam0 is None else np.array(lam0, dtype=float)
+    nb = len(fs.ball_r2)
+    lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
+    node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)  # the residuals are masked
     outcome, it, step, cost, cur = _sqp(
-        model.window, ws.ptrs, ws.Xb, ws.out, problem.zmask, model.rinv, problem.qinv,
+        model.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp,
@@ -1151,11 +1224,14 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
     Xc = np.array(X, dtype=float)
     z, u = np.ascontiguousarray(problem.z, float), np.ascontiguousarray(problem.u, float)
     dt = np.ascontiguousarray(problem.dt, float)
+    m = np.ascontiguousarray(problem.zmask, float)
+    node_mask = np.any(m != 0.0, axis=1).astype(np.float64)
+    nb = len(model.feasible.ball_r2)
     return float(
         _evaluate(
-            model.window, _pointers(Xc, z, u, dt), np.empty(model.window_size), Xc,
-            problem.zmask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
-            np.zeros(n), model.feasible.ball_idx, np.empty((n, nx, nx)),
+            model.window, _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
+            node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
+            np.zeros((n, nb)), model.feasible.ball_idx, np.empty((n, nx, nx)),
             np.empty((n - 1, nx, nx)), np.empty((n, nx)),
         )
     )  # fmt: skip

@@ -34,7 +34,7 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
@@ -269,11 +269,9 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None and self._P is not None
         f, x, P = self.formulation, self._xbar, self._P
         u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
-        whole = bool(self._zmask[0].all() or not self._zmask[0].any())
-        if self._node is not None and whole:  # the same EKF step, on the compiled model
-            valid = bool(self._zmask[0].any())
+        if self._node is not None:  # the same EKF step, on the compiled model
             xn, self._P, self._Pinv = self._node.arrival_step(
-                x, P, u, dt, z, valid, self._R, self._qw[0]
+                x, P, u, dt, z, self._zmask[0], self._R, self._qw[0]
             )
         else:
             if self._zmask[0].any():
@@ -374,19 +372,7 @@ class MovingHorizonEstimator(Estimator):
             lam0 = np.empty_like(self._lam)
             lam0[:-1] = self._lam[1:]
             lam0[-1] = 0.0
-        zm = problem.zmask
-        if not np.all(zm.all(axis=1) | ~zm.any(axis=1)):
-            # TODO(fast backend): per-component masks; until then IPOPT, flagged
-            X, status = self._solve_ipopt(problem, X0)
-            return X, "fallback-ipopt" if status == "ok" else status
-        res = solve_window(
-            self._fast,
-            replace(problem, zmask=zm[:, 0].copy()),
-            X0,
-            self.fast_options,
-            lam0,
-            self._workspace,
-        )
+        res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"

@@ -38,6 +38,8 @@ SCENARIOS: tuple[ScenarioName, ...] = (
 )
 #: Scenarios for robots with two or more sections.
 MULTI_SECTION_SCENARIOS: tuple[ScenarioName, ...] = ("s-curve", "spatial")
+#: Scenarios for one section with a tip IMU.
+SINGLE_SECTION_SCENARIOS: tuple[ScenarioName, ...] = ("paper3d", "planar-overbend", "straight")
 
 #: Largest recording :func:`simulate` makes (10 million samples, about 0.5 GB).
 MAX_SAMPLES = 10_000_000
@@ -181,7 +183,9 @@ def simulate(
     ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
     """
     if scenario in MULTI_SECTION_SCENARIOS:
-        raise ValueError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
+        raise ValueError(
+            f"scenario {scenario!r} needs a robot with two or more sections (--robot)"
+        )
     if scenario not in _SHAPES:
         raise ValueError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if not (math.isfinite(length) and length > 0):
