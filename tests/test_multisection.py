@@ -360,3 +360,13 @@ def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name:
     for k in ("theta_1", "theta_2"):
         assert out["fast"].column(k).max() <= 0.8 + 1e-12
         assert out["fast"].column(k).max() > 0.8 - 1e-6  # the bound is active
+
+
+def test_robot_benchmark_reports_fast_against_ipopt_on_the_same_windows() -> None:
+    from continuum_mhe.benchmark import run_robot_benchmark
+
+    report = run_robot_benchmark(TWO, [6], 1.0)
+    (row,) = report["rows"]
+    assert row["fallbacks"] == 0
+    assert row["max_diff_vs_ipopt"] < 1e-6
+    assert row["ipopt_over_fast"] == pytest.approx(row["ipopt_median_us"] / row["fast_median_us"])

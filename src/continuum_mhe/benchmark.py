@@ -24,7 +24,7 @@ import os
 import time
 import tracemalloc
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +36,9 @@ from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import Recording, simulate
+from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
 METHODS = ("fast", "ipopt", "do-mpc", "ekf")
 
@@ -86,9 +87,9 @@ class Memory:
 
 
 def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, list[str]]:
-    """``(output (n, 5), seconds per sample (n,), statuses)`` from a reset."""
+    """``(output (n, ny), seconds per sample (n,), statuses)`` from a reset."""
     est.reset()
-    out = np.full((len(rec.t), 5), np.nan)
+    out = np.full((len(rec.t), est.formulation.ny), np.nan)
     sec = np.empty(len(rec.t))
     status: list[str] = []
     for i, (t, z) in enumerate(zip(rec.t, rec.z)):
@@ -157,13 +158,81 @@ def _run_dompc(
     return out, sec
 
 
-def _max_diff(a: FloatArray, b: FloatArray) -> float:
-    """Largest difference of two estimate series (phi wrapped); nan if empty."""
+def _max_diff(a: FloatArray, b: FloatArray, wrapped: tuple[int, ...] = (4,)) -> float:
+    """Largest difference of two estimate series (wrapped angles wrapped); nan if empty."""
     if len(a) == 0:
         return math.nan
     d = np.abs(a - b)
-    d[:, 4] = np.abs(wrap_angle(a[:, 4] - b[:, 4]))
+    for i in wrapped:
+        d[:, i] = np.abs(wrap_angle(a[:, i] - b[:, i]))
     return float(np.nanmax(d))
+
+
+def raw_imu_recording(robot: Robot, duration: float, dt: float = 0.02, seed: int = 0) -> Recording:
+    """The ``spatial`` scenario on ``robot`` measured by its IMUs as raw accelerometer
+    direction and gyro (the ``direct`` model, noise 0.03), for timing."""
+    from continuum_mhe.model.descriptions import section_bends
+
+    rec = simulate_robot("spatial", robot, duration=duration, dt=dt, seed=seed)
+    f = make_formulation("direct", robot)
+    bends = np.array([section_bends(rec.outputs, row).ravel() for row in rec.truth])
+    x = np.concatenate([bends, np.gradient(bends, rec.t, axis=0)], axis=1)
+    z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
+    z += np.random.default_rng(seed).normal(scale=0.03, size=z.shape)
+    return replace(rec, z=z, measurement_names=f.measurement_names)
+
+
+def run_robot_benchmark(robot: Robot, horizons: list[int], duration: float) -> dict[str, Any]:
+    """The fast MHE against IPOPT on the same windows of a (multi-section) robot with raw
+    IMUs (``direct``), per horizon: median and p99 time per sample, the ratio, and the
+    largest output difference (m and rad)."""
+    f = make_formulation("direct", robot)
+    rec = raw_imu_recording(robot, duration)
+    wrapped = tuple(i for i, o in enumerate(f.outputs) if o.wrapped)
+    rows = []
+    for n in horizons:
+        fast = MovingHorizonEstimator(f, MHESettings(horizon=n))
+        _run_timed(fast, rec)  # compile and warm up
+        out_f, sec_f, status = _run_timed(fast, rec)
+        out_i, sec_i, _ = _run_timed(
+            MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
+        )
+        full = slice(n, None)
+        rows.append(
+            {
+                "horizon": n,
+                "fast_median_us": float(np.median(sec_f[full]) * 1e6),
+                "fast_p99_us": float(np.percentile(sec_f[full], 99) * 1e6),
+                "ipopt_median_us": float(np.median(sec_i[full]) * 1e6),
+                "ipopt_over_fast": float(np.median(sec_i[full]) / np.median(sec_f[full])),
+                "max_diff_vs_ipopt": _max_diff(out_f, out_i, wrapped),
+                "fallbacks": status.count("fallback-ipopt"),
+            }
+        )
+    return {"robot": robot.describe(), "model": "direct", "samples": len(rec.t), "rows": rows}
+
+
+def print_robot_report(report: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title=f"fast MHE vs IPOPT on the same windows: {report['robot']}, raw IMUs "
+        f"({report['model']}), {report['samples']} samples"
+    )
+    for col in ("N", "fast us", "fast p99 us", "IPOPT us", "IPOPT / fast", "max|d|", "fallbk"):
+        table.add_column(col, justify="right", no_wrap=True)
+    for r in report["rows"]:
+        table.add_row(
+            str(r["horizon"]),
+            f"{r['fast_median_us']:.0f}",
+            f"{r['fast_p99_us']:.0f}",
+            f"{r['ipopt_median_us']:.0f}",
+            f"{r['ipopt_over_fast']:.1f}",
+            f"{r['max_diff_vs_ipopt']:.1e}",
+            str(r["fallbacks"]),
+        )
+    Console().print(table)
 
 
 def _rss_bytes() -> float:
@@ -334,6 +403,14 @@ def _horizons(text: str) -> list[int]:
 def cmd_benchmark(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise ValueError(f"--duration must be positive, got {args.duration}")
+    if args.robot:
+        from continuum_mhe.io.robot_file import read_robot
+
+        robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
+        print_robot_report(robot_report)
+        if args.json:
+            Path(args.json).write_text(json.dumps(robot_report, indent=2) + "\n")
+        return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     report = run_benchmark(args.horizons, args.duration, methods, args.memory_samples)
     print_report(report)
@@ -357,6 +434,11 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--duration", type=float, default=20.0, help="recording length in s")
     p.add_argument("--json", help="write the report as JSON to this file")
+    p.add_argument(
+        "--robot",
+        metavar="ROBOT.toml",
+        help="instead: fast MHE against IPOPT on this robot with raw IMUs (direct model)",
+    )
     p.add_argument(
         "--skip", action="append", choices=("fast", "do-mpc", "ekf"), help="leave out a method"
     )

@@ -185,7 +185,7 @@ class MovingHorizonEstimator(Estimator):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-        elif s.solver == "fast" and not self._fast.compiled:  # type: ignore[union-attr]
+        elif s.solver == "fast" and not self._fast.compiled:
             self.backend_note = (
                 "no working C compiler: the fast MHE runs its model through CasADi's virtual "
                 "machine (about 10x slower); install a C compiler (gcc) to compile it"
