@@ -370,3 +370,22 @@ def test_robot_benchmark_reports_fast_against_ipopt_on_the_same_windows() -> Non
     assert row["fallbacks"] == 0
     assert row["max_diff_vs_ipopt"] < 1e-6
     assert row["ipopt_over_fast"] == pytest.approx(row["ipopt_median_us"] / row["fast_median_us"])
+
+
+@pytest.mark.parametrize("name", ["bend", "paper", "direct"])
+def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
+    from continuum_mhe.benchmark import raw_imu_recording
+    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
+
+    robot = TWO if name == "direct" else Robot.single(0.2)
+    f = make_formulation(name, robot)
+    if name == "direct":
+        rec = raw_imu_recording(TWO, 3.0)
+    else:
+        rec = simulate_robot("paper3d", robot, duration=3.0)
+    z = rec.z.copy()
+    z[10:20, : f.measurement_blocks[0].size] = np.nan  # the first IMU drops out
+    a = ExtendedKalmanFilter(f).run(rec.t, z)
+    b = CompiledExtendedKalmanFilter(f).run(rec.t, z)
+    assert list(a.status) == list(b.status)
+    assert_allclose(b.output, a.output, rtol=0, atol=1e-9)

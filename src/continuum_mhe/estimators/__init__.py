@@ -11,7 +11,11 @@ from continuum_mhe.estimators.base import (
     Measurement,
     Status,
 )
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.kalman import (
+    CompiledExtendedKalmanFilter,
+    ExtendedKalmanFilter,
+    UnscentedKalmanFilter,
+)
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
@@ -26,8 +30,11 @@ def make_estimator(
     """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only."""
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe)
-    if method == "ekf":
-        return ExtendedKalmanFilter(formulation)
+    if method == "ekf":  # the compiled step where the model compiles (same answers)
+        try:
+            return CompiledExtendedKalmanFilter(formulation)
+        except NotImplementedError:
+            return ExtendedKalmanFilter(formulation)
     if method == "ukf":
         return UnscentedKalmanFilter(formulation)
     raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -38,6 +45,7 @@ __all__ = [
     "Estimate",
     "EstimateSeries",
     "Estimator",
+    "CompiledExtendedKalmanFilter",
     "ExtendedKalmanFilter",
     "Measurement",
     "Method",

@@ -455,6 +455,28 @@ class NodeEvaluator:
             self._fn, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
         )
 
+    def ekf_step(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray,
+        mask: FloatArray,
+        R: FloatArray,
+        Q: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        """One EKF step in one compiled call: predict with ``(u, dt)``, then update with
+        the valid components of ``z`` (``mask``); the equations of
+        :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``."""
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = np.where(mask > 0, z, 0.0)
+        self._m[:] = mask
+        return _ekf_step(
+            self._fn, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
+        )
+
     def output(self, x: FloatArray) -> FloatArray:
         """The outputs of state ``x`` (compiled ``output_sym``; wrapped angles in
         ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
@@ -966,6 +988,28 @@ def _arrival_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
     F = out[nx:k].copy().reshape(nx, nx)
     P, Pinv = arrival_predict(P, F, Q)
     return xn, P, Pinv
+
+
+@numba.njit(cache=True)
+def _ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
+    """:meth:`NodeEvaluator.ekf_step`: EKF prediction, then (if ``valid``) the update on
+    the masked residual, in one compiled call (two model calls)."""
+    nz = R.shape[0]
+    k = nx + nx * nx
+    xin[:] = x
+    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    xn = out[:nx].copy()
+    F = out[nx:k].copy().reshape(nx, nx)
+    P = F @ P @ F.T + Q
+    if valid:
+        xin[:] = xn
+        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        H = out[k : k + nz * nx].copy().reshape(nz, nx)
+        r = out[k + nz * nx : k + nz * nx + nz].copy()
+        xn, P = arrival_update(xn, P, r, H, R)
+    return xn, P
 
 
 @numba.njit(cache=True)
