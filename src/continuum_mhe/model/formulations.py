@@ -135,14 +135,20 @@ class Formulation:
     def ny(self) -> int:
         return len(self.outputs)
 
+    @cached_property
+    def _block_slices(self) -> tuple[slice, ...]:
+        return tuple(b.slice for b in self.measurement_blocks)
+
     def measurement_mask(self, z: FloatArray) -> FloatArray:
         """``(nz,)``: 1.0 on the components of every block whose values are all finite
         (a sensor that reported), 0.0 on the others (a dropout of that sensor only)."""
-        z = np.asarray(z, dtype=float)
-        mask = np.zeros(self.nz)
-        for b in self.measurement_blocks:
-            if np.all(np.isfinite(z[b.slice])):
-                mask[b.slice] = 1.0
+        finite = np.isfinite(z)
+        if finite.all():
+            return np.ones(len(finite))
+        mask = np.zeros(len(finite))
+        for sl in self._block_slices:
+            if finite[sl].all():
+                mask[sl] = 1.0
         return mask
 
     # --- symbolic model (override) ---------------------------------------------
@@ -189,9 +195,9 @@ class Formulation:
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
         """True when a state (and covariance) cannot be a meaningful estimate: not
         finite, or far outside the workspace (see subclasses)."""
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return True
-        return P is not None and not np.all(np.isfinite(P))
+        return P is not None and not np.isfinite(P).all()
 
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
@@ -394,15 +400,24 @@ class BendFormulation(Formulation):
         (the filters are unconstrained, but not that far); a bend rate over
         ``DIVERGED_RATE`` rad/s; or a bend standard deviation over pi rad (the estimate
         knows nothing any more, e.g. after a long gap)."""
-        if super().is_diverged(x, P):
+        v = x.tolist()  # a few floats: plain Python is faster than numpy here
+        if not all(map(math.isfinite, v)):
             return True
         n2 = 2 * self.robot.n_sections
-        for k, sec in enumerate(self.robot.sections):
-            if math.hypot(x[2 * k], x[2 * k + 1]) > sec.theta_max + DIVERGED_MARGIN:
+        for k, lim in enumerate(self._diverged_bend2):
+            if v[2 * k] ** 2 + v[2 * k + 1] ** 2 > lim:
                 return True
-        if np.any(np.abs(x[n2:]) > DIVERGED_RATE):
+        if any(abs(r) > DIVERGED_RATE for r in v[n2:]):
             return True
-        return P is not None and bool(np.any(np.diag(P)[:n2] > math.pi**2))
+        if P is None:
+            return False
+        if not np.isfinite(P).all():
+            return True
+        return any(d > math.pi**2 for d in P.diagonal()[:n2].tolist())
+
+    @cached_property
+    def _diverged_bend2(self) -> tuple[float, ...]:
+        return tuple((s.theta_max + DIVERGED_MARGIN) ** 2 for s in self.robot.sections)
 
 
 #: Divergence test (:meth:`BendFormulation.is_diverged`): rad beyond ``theta_max``.
