@@ -443,9 +443,13 @@ def test_benchmark_command_smoke(tmp_path: Path) -> None:
     assert main([*args, "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     methods = {r["method"] for r in report["results"]}
-    assert methods == {"fast", "ipopt", "do-mpc", "ekf"}
+    assert methods == {"fast", "ipopt", "do-mpc", "ekf", "ekf-compiled"}
     fast = next(r for r in report["results"] if r["method"] == "fast")
     assert fast["max_diff_vs_ipopt"] < 1e-6 and fast["fallbacks"] == 0
+    ekf, ekfc = (
+        next(r for r in report["results"] if r["method"] == m) for m in ("ekf", "ekf-compiled")
+    )
+    assert ekfc["max_diff_vs_ipopt"] == pytest.approx(ekf["max_diff_vs_ipopt"], abs=1e-9)
     assert report["memory"]["samples"] == 200
 
 

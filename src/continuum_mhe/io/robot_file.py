@@ -111,11 +111,21 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     return Robot(tuple(sections), tuple(imus), mounting)
 
 
+def shipped_robots() -> dict[str, Path]:
+    """Robot files shipped with the package, by name (``two-section``...)."""
+    folder = Path(__file__).parents[1] / "data" / "robots"
+    return {f.stem.replace("_", "-"): f for f in sorted(folder.glob("*.toml"))}
+
+
 def read_robot(path: str | os.PathLike[str]) -> Robot:
-    """Read and validate a robot file (TOML)."""
+    """Read and validate a robot file (TOML), or a shipped robot by name
+    (:func:`shipped_robots`, e.g. ``two-section``)."""
     p = Path(path)
+    if not p.exists() and str(path) in shipped_robots():
+        p = shipped_robots()[str(path)]
     if not p.is_file():
-        raise InputError(f"{p}: no such robot file")
+        names = ", ".join(shipped_robots())
+        raise InputError(f"{p}: no such robot file (shipped robots by name: {names})")
     try:
         doc = tomllib.loads(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError:
