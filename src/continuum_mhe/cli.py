@@ -10,6 +10,7 @@ import importlib
 import json
 import math
 import os
+import signal
 import sys
 import warnings
 from collections.abc import Sequence
@@ -234,8 +235,7 @@ def format_metrics(m: Metrics) -> str:
     ]
     if "theta" in r and "phi" in r:
         lines.append(
-            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, "
-            f"{math.degrees(r['phi']):.2f} deg"
+            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, {math.degrees(r['phi']):.2f} deg"
         )
     for sec, mean in m.section_end_mean_mm.items():
         lines.append(
@@ -397,12 +397,30 @@ def _one_line_warning(
     return f"{PROG}: warning: {message}\n"
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C (drain, write, clean up), then exit 143."""
+
+
+#: set when SIGTERM arrived (a command such as ``live`` drains and returns normally)
+_SIGTERM_SEEN: list[bool] = []
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    _SIGTERM_SEEN.append(True)
+    raise Terminated()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     warnings.formatwarning = _one_line_warning
+    try:
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a test runner's thread)
+        pass
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        return 143 if _SIGTERM_SEEN else code
     except (InputError, ValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
@@ -413,9 +431,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
         return 2
+    except Terminated:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ import os
 import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from glob import escape as glob_escape
 from pathlib import Path
 from typing import IO, Any
 
@@ -372,7 +373,8 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
         raise InputError(f"{target}: is a directory, expected a file name")
     if target.exists() and not target.is_file():
         raise InputError(f"{target}: not a regular file; give a file name")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    _remove_stale_temporaries(folder, target.name)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder)
     os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
     try:
         if binary:
@@ -386,6 +388,23 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def _remove_stale_temporaries(folder: Path, name: str) -> None:
+    """Remove ``.NAME.PID.*.tmp`` files left by a killed writer (SIGKILL) of the same
+    target, once their process is gone."""
+    for stale in folder.glob(f".{glob_escape(name)}.*.tmp"):
+        parts = stale.name[len(name) + 2 :].split(".")
+        if not parts or not parts[0].isdigit():
+            continue
+        pid = int(parts[0])
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            with contextlib.suppress(OSError):
+                stale.unlink()
+        except PermissionError:  # alive, another user's
+            continue
 
 
 def atomic_writer(path: str | os.PathLike[str]) -> contextlib.AbstractContextManager[IO[str]]:

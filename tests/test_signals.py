@@ -1,0 +1,52 @@
+"""SIGTERM is handled like Ctrl-C: nothing partial is left, exit 143; stale temporary
+files of a killed writer are removed by the next write into the same folder."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from continuum_mhe.io.csv_files import atomic_writer
+
+EXE = str(Path(sys.executable).with_name("continuum-mhe"))
+
+
+def test_sigterm_during_estimate_leaves_nothing_and_exits_143(tmp_path: Path) -> None:
+    meas = tmp_path / "m.csv"
+    subprocess.run(
+        [EXE, "simulate", "paper3d", "--duration", "3000", "-o", str(meas)],
+        check=True,
+        capture_output=True,
+    )
+    out = tmp_path / "e.csv"
+    proc = subprocess.Popen(
+        [EXE, "estimate", str(meas), "-o", str(out), "--method", "ukf"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(4.0)  # well into the estimation (60,001 samples)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]  # no output, no temp
+
+
+def test_stale_temporary_of_a_dead_writer_is_removed(tmp_path: Path) -> None:
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f".e.csv.{dead.pid}.abc123.tmp"
+    stale.write_text("partial")
+    alive = tmp_path / f".e.csv.{os.getpid()}.def456.tmp"  # ours: still running
+    alive.write_text("in progress")
+    other = tmp_path / f".other.csv.{dead.pid}.x.tmp"  # another target: not ours to judge
+    other.write_text("x")
+    with atomic_writer(tmp_path / "e.csv") as fh:
+        fh.write("t\n")
+    assert not stale.exists()
+    assert alive.exists() and other.exists()
+    assert (tmp_path / "e.csv").read_text() == "t\n"
