@@ -300,6 +300,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
         plotting.states_vs_time(rec.t, rec.truth, all_series, f"{scenario}: states", bounds),
         out / "demo_states",
     )
+    if not robot.is_single:
+        figs += plotting.save(
+            plotting.backbone_snapshots(
+                rec.t, rec.truth, all_series, robot.lengths, f"{scenario}: backbone"
+            ),
+            out / "demo_backbone",
+        )
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
 

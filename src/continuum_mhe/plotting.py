@@ -114,6 +114,50 @@ def states_vs_time(
     return fig
 
 
+def backbone_snapshots(
+    t: np.ndarray,
+    truth: np.ndarray,
+    series: Sequence[EstimateSeries],
+    lengths: Sequence[float],
+    title: str = "Backbone",
+    count: int = 4,
+) -> Figure:
+    """The whole backbone (every section, mm) at ``count`` instants: truth (black)
+    against each estimate, with the section ends marked."""
+    from continuum_mhe.model.descriptions import section_bends
+    from continuum_mhe.model.pcc import backbone
+
+    outputs = series[0].outputs
+    idx = np.linspace(len(t) // (count + 1), len(t) - 1, count).astype(int)
+    fig = plt.figure(figsize=(4.2 * count, 4.4))
+    ends = np.cumsum([0, *[10] * len(lengths)])
+    for j, i in enumerate(idx):
+        ax = fig.add_subplot(1, count, j + 1, projection="3d")
+        pts = backbone(section_bends(outputs, truth[i]), lengths) * 1e3
+        ax.plot(*pts.T, "k-", lw=3, label="truth")
+        ax.plot(*pts[ends].T, "ko", ms=4)
+        for k, s in enumerate(series):
+            if not np.all(np.isfinite(s.output[i])):
+                continue
+            est = backbone(section_bends(outputs, s.output[i]), lengths) * 1e3
+            color = _STYLE.get(s.method, f"C{k + 3}")
+            ax.plot(*est.T, "-", lw=1.4, color=color, label=s.method.upper())
+            ax.plot(*est[ends].T, "o", ms=3, color=color)
+        reach = sum(lengths) * 1e3
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
+        ax.set_zlim(-0.2 * reach, reach)
+        ax.set_title(f"t = {t[i]:.1f} s", fontsize="medium")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        ax.set_zlabel("z (mm)")
+        if j == 0:
+            ax.legend(loc="upper left", fontsize="small")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
 def save(fig: Figure, path: Path, formats: Sequence[str] = ("png",)) -> list[Path]:
     """Save ``fig`` as ``path`` with each suffix in ``formats``; closes the figure."""
     out = []
