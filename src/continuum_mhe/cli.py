@@ -408,43 +408,57 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, handled like Ctrl-C (drain, write, clean up), then exit 143."""
 
 
-#: set when SIGTERM arrived (a command such as ``live`` drains and returns normally)
-_SIGTERM_SEEN: list[bool] = []
+#: signals received (a command such as ``live`` drains and returns normally)
+_SIGNALS_SEEN: list[int] = []
 
 
-def _on_sigterm(signum: int, frame: object) -> None:
-    _SIGTERM_SEEN.append(True)
-    raise Terminated()
+def _on_signal(signum: int, frame: object) -> None:
+    _SIGNALS_SEEN.append(signum)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _signal_exit() -> int:
+    """``continuum-mhe: terminated`` (143) or ``interrupted`` (130)."""
+    if signal.SIGTERM in _SIGNALS_SEEN:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return 143
+    print(f"{PROG}: interrupted", file=sys.stderr)
+    return 130
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     warnings.formatwarning = _one_line_warning
     try:
-        signal.signal(signal.SIGTERM, _on_sigterm)
+        signal.signal(signal.SIGTERM, _on_signal)
+        signal.signal(signal.SIGINT, _on_signal)
     except ValueError:  # not the main thread (e.g. called from a test runner's thread)
         pass
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         code = int(args.func(args))
-        return 143 if _SIGTERM_SEEN else code
-    except (InputError, ValueError) as exc:
+    except BaseException as exc:  # noqa: BLE001 - sorted out just below
+        # a signal raised inside a C extension (CasADi, numpy) can surface as any
+        # exception type: once a signal arrived, the run ends as interrupted
+        if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):
+            return _signal_exit()
+        return _user_error(exc)
+    return _signal_exit() if _SIGNALS_SEEN else code
+
+
+def _user_error(exc: BaseException) -> int:
+    """One line and exit 2 for user errors; anything else propagates (a bug)."""
+    if isinstance(exc, (InputError, ValueError)):
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # e.g. `... | head`: the reader left; stop quietly
+    if isinstance(exc, BrokenPipeError):  # e.g. `... | head`: the reader left; stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1
-    except OSError as exc:
+    if isinstance(exc, OSError):
         print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
         return 2
-    except Terminated:
-        print(f"{PROG}: terminated", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
-
+    raise exc
 
 
 if __name__ == "__main__":
