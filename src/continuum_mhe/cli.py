@@ -13,7 +13,7 @@ import os
 import signal
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -163,7 +163,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         raise InputError(f"{out}: refusing to overwrite the input file")
     data = load_estimate_input(args.measurements, input_options(args), _formulation(args))
     est = make_estimator(args.method, data.formulation, _mhe_settings(args))
-    series = est.run(data.t, data.z, progress=progress_bar(f"{args.method} estimate"))
+    series = est.run(
+        data.t, data.z, progress=interruptible(progress_bar(f"{args.method} estimate"))
+    )
     if not series.has_estimate.any():
         why = (
             "every sample is a dropout"
@@ -268,7 +270,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     results: list[tuple[EstimateSeries, Metrics]] = []
     for method in METHODS:
         est = make_estimator(method, formulation, MHESettings())
-        series = est.run(rec.t, rec.z, progress=progress_bar(f"demo: {method}"))
+        series = est.run(rec.t, rec.z, progress=interruptible(progress_bar(f"demo: {method}")))
         results.append((series, compute_metrics(series.output, rec.truth, robot.length, names)))
         write_estimates(out / f"estimates_{method}.csv", series)
     write_measurements(out / "measurements.csv", rec.t, rec.z, rec.measurement_names)
@@ -412,9 +414,38 @@ class Terminated(KeyboardInterrupt):
 _SIGNALS_SEEN: list[int] = []
 
 
+#: non-empty while an estimation loop polls for signals between samples
+_DEFER: list[bool] = []
+
+
 def _on_signal(signum: int, frame: object) -> None:
     _SIGNALS_SEEN.append(signum)
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    if not _DEFER:  # else the loop stops at the next sample, outside any C code
+        _raise_for_signal()
+
+
+def _raise_for_signal() -> None:
+    raise Terminated() if signal.SIGTERM in _SIGNALS_SEEN else KeyboardInterrupt()
+
+
+def interruptible(
+    progress: Callable[[Iterable[int]], Iterator[int]] | None,
+) -> Callable[[Iterable[int]], Iterator[int]]:
+    """Wrap an estimation loop's sample iterator so that SIGINT/SIGTERM stop it between
+    two samples (a signal raised inside CasADi or numpy code can surface as another
+    exception, or be caught as a numerical failure)."""
+
+    def wrap(idx: Iterable[int]) -> Iterator[int]:
+        _DEFER.append(True)
+        try:
+            for i in progress(idx) if progress is not None else idx:
+                if _SIGNALS_SEEN:
+                    _raise_for_signal()
+                yield i
+        finally:
+            _DEFER.clear()
+
+    return wrap
 
 
 def _signal_exit() -> int:

@@ -22,6 +22,16 @@ FloatArray = NDArray[np.float64]
 __all__ = ["Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
 
 
+def _reraise_interrupt(exc: BaseException) -> None:
+    """A Ctrl-C or SIGTERM that surfaced inside C code as another exception is not a
+    numerical failure: raise it again."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            raise seen
+        seen = seen.__cause__ or seen.__context__
+
+
 class Estimator(ABC):
     """Base class of every estimator. Subclasses implement ``reset`` and ``_step``."""
 
@@ -85,6 +95,7 @@ class Estimator(ABC):
                 state, cov, status = self._step(measurement)
             healthy = state is None or not self.formulation.is_diverged(state, cov)
         except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
+            _reraise_interrupt(exc)
             self.last_failure = f"{type(exc).__name__}: {exc}"
             healthy = False
         if not healthy:  # flag it and restart from this sample's measurement
@@ -94,6 +105,7 @@ class Estimator(ABC):
                 with np.errstate(all="ignore"):
                     state, cov, status = self._step(measurement)
             except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
+                _reraise_interrupt(exc)
                 self.last_failure = f"{type(exc).__name__}: {exc}"
                 state, cov, status = None, None, "no-estimate"
             if state is not None and self.formulation.is_diverged(state, cov):
