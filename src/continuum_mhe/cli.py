@@ -474,7 +474,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):
             return _signal_exit()
         return _user_error(exc)
-    return _signal_exit() if _SIGNALS_SEEN else code
+    # a command that drained and finished on its own (``live`` after Ctrl-C) keeps its
+    # exit status; after SIGTERM the status is 143, as a service manager expects
+    return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
 
 
 def _user_error(exc: BaseException) -> int:

@@ -58,6 +58,27 @@ def ekf_update(
     return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
 
 
+class ProcessNoiseCache:
+    """``(Q(dt), Q(dt)^-1)`` of a formulation, cached per time step (Q depends on the
+    time step only; at most 4096 distinct steps are kept)."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        self._f = formulation
+        self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+
+    def __call__(self, dt: float) -> tuple[FloatArray, FloatArray]:
+        key = round(dt, 9)
+        w = self._cache.get(key)
+        if w is None:
+            f, nx = self._f, self._f.nx
+            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
+            Q = Q.reshape(nx, nx)
+            w = (Q, np.linalg.inv(Q))
+            if len(self._cache) < 4096:
+                self._cache[key] = w
+        return w
+
+
 class _KalmanBase(Estimator):
     def __init__(self, formulation: Formulation) -> None:
         super().__init__(formulation)
@@ -131,19 +152,8 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         from continuum_mhe.estimators.fast_mhe import NodeEvaluator, build_window_model
 
         self._node = NodeEvaluator(build_window_model(formulation, 2))
-        self._q_cache: dict[float, FloatArray] = {}
+        self._q = ProcessNoiseCache(formulation)
         super().__init__(formulation)
-
-    def _q(self, dt: float) -> FloatArray:
-        key = round(dt, 9)
-        Q = self._q_cache.get(key)
-        if Q is None:
-            f, nx = self.formulation, self.formulation.nx
-            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            Q = Q.reshape(nx, nx)
-            if len(self._q_cache) < 4096:
-                self._q_cache[key] = Q
-        return Q
 
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._x is None or self._P is None:
@@ -152,7 +162,7 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         mask = f.measurement_mask(m.z)
         dt = m.t - self._t_prev
         u = f.inputs(self._z_prev, m.z, dt)
-        x, P = self._node.ekf_step(self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt))
+        x, P = self._node.ekf_step(self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt)[0])
         status: Status = "ok" if mask.any() else "dropout"
         if mask.any():
             self._z_prev = m.z

@@ -50,7 +50,7 @@ from continuum_mhe.estimators.fast_mhe import (
     build_window_model,
     solve_window,
 )
-from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 
@@ -196,7 +196,7 @@ class MovingHorizonEstimator(Estimator):
         self._nlp_built: _Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
-        self._weight_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
         self.reset()
 
@@ -304,19 +304,6 @@ class MovingHorizonEstimator(Estimator):
             xbar=c(self._xbar),
             arrival=c(arrival),
         )
-
-    def _process_weight(self, dt: float) -> tuple[FloatArray, FloatArray]:
-        """``(Q(dt), Q(dt)^-1)``; Q depends on the time step only, so it is cached."""
-        key = round(dt, 9)
-        w = self._weight_cache.get(key)
-        if w is None:
-            f, nx = self.formulation, self.formulation.nx
-            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            Q = Q.reshape(nx, nx)
-            w = (Q, np.linalg.inv(Q))
-            if len(self._weight_cache) < 4096:
-                self._weight_cache[key] = w
-        return w
 
     def _initial_guess(self) -> FloatArray:
         f, n = self.formulation, self.settings.horizon
