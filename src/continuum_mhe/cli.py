@@ -18,6 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
+from continuum_mhe.cli_options import (
+    add_mhe_options,
+    add_model_options,
+    add_robot_option,
+    formulation_from_args,
+    mhe_settings_from_args,
+    robot_from_args,
+)
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.io.csv_files import (
     InputError,
@@ -27,12 +35,11 @@ from continuum_mhe.io.csv_files import (
     write_truth,
 )
 from continuum_mhe.metrics import Metrics, compute_metrics
-from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.progress import progress_bar
-from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings
+from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.simulation.scenarios import SCENARIOS, ScenarioName, simulate_robot
 
 PROG = "continuum-mhe"
@@ -45,99 +52,9 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
-# --- shared options ---------------------------------------------------------------
-def _add_robot_option(g: argparse._ActionsContainer) -> None:
-    g.add_argument(
-        "--robot",
-        metavar="ROBOT.toml",
-        help="robot file (sections, IMUs, mounting; see README); replaces --length, "
-        "--theta-max and --mounting",
-    )
-
-
-def _robot(args: argparse.Namespace) -> Robot:
-    """The robot of a command: ``--robot`` file, else the one-section flags."""
-    if getattr(args, "robot", None):
-        from continuum_mhe.io.robot_file import read_robot
-
-        return read_robot(args.robot)
-    try:
-        return Robot.single(
-            args.length,
-            getattr(args, "theta_max", math.pi / 2),
-            getattr(args, "mounting", "z-up"),
-        )
-    except ValueError as exc:
-        raise InputError(f"robot: {exc}") from None
-
-
-def _add_model_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("model")
-    _add_robot_option(g)
-    g.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
-    g.add_argument(
-        "--theta-max",
-        type=float,
-        default=math.pi / 2,
-        help="upper bound on theta in rad (default pi/2)",
-    )
-    g.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
-    g.add_argument(
-        "--formulation",
-        choices=FORMULATIONS,
-        default="bend",
-        help="motion model: bend (default, singularity-free) or paper (5-state, eq. 4)",
-    )
-    g.add_argument(
-        "--noise-deg",
-        type=float,
-        default=2.0,
-        help="roll/pitch noise standard deviation in degrees (default 2)",
-    )
-    g.add_argument(
-        "--accel-psd",
-        type=float,
-        default=NoiseSettings.bend_accel_psd,
-        help="bend formulation: white-noise acceleration density in rad^2/s^3 (default 0.5)",
-    )
-
-
-def _add_mhe_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("MHE")
-    g.add_argument("--horizon", type=int, default=30, help="window length N (default 30)")
-    g.add_argument(
-        "--paper-start",
-        action="store_true",
-        help="no estimate before N samples (the paper's Algorithm 1)",
-    )
-    g.add_argument(
-        "--solver",
-        choices=("fast", "ipopt"),
-        default="fast",
-        help="MHE backend: fast (structure-exploiting, default) or ipopt (the paper's)",
-    )
-
-
-def _formulation(args: argparse.Namespace) -> Formulation:
-    if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
-        raise InputError(f"--noise-deg must be positive, got {args.noise_deg}")
-    robot = _robot(args)
-    noise = NoiseSettings(
-        measurement_std=math.radians(args.noise_deg), bend_accel_psd=args.accel_psd
-    )
-    try:
-        return make_formulation(args.formulation, robot, noise)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-
-
-def _mhe_settings(args: argparse.Namespace) -> MHESettings:
-    return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
-
-
 # --- commands --------------------------------------------------------------------------
 def cmd_simulate(args: argparse.Namespace) -> int:
-    robot = _robot(args)
+    robot = robot_from_args(args)
     rec = simulate_robot(
         args.scenario,
         robot,
@@ -161,8 +78,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.resolve() == Path(args.measurements).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
-    data = load_estimate_input(args.measurements, input_options(args), _formulation(args))
-    est = make_estimator(args.method, data.formulation, _mhe_settings(args))
+    data = load_estimate_input(args.measurements, input_options(args), formulation_from_args(args))
+    est = make_estimator(args.method, data.formulation, mhe_settings_from_args(args))
     series = est.run(
         data.t, data.z, progress=interruptible(progress_bar(f"{args.method} estimate"))
     )
@@ -204,7 +121,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     truth = read_state_table(args.truth)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
     if args.robot:
-        length = _robot(args).length
+        length = robot_from_args(args).length
     elif not (math.isfinite(args.length) and args.length > 0):
         raise InputError(f"--length must be positive, got {args.length}")
     else:
@@ -261,7 +178,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from continuum_mhe import plotting
 
     out = Path(args.out)
-    robot = _robot(args) if args.robot else Robot.single(0.2)
+    robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
     formulation = make_formulation("bend", robot, NoiseSettings())
@@ -316,7 +233,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def cmd_check_robot(args: argparse.Namespace) -> int:
     from continuum_mhe.analysis.observability import format_report, observability_report
 
-    robot = _robot(args)
+    robot = robot_from_args(args)
     report = observability_report(robot, samples=args.samples, seed=args.seed)
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
@@ -340,7 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="simulate paper3d, run MHE, EKF and UKF, print errors, plot")
     p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    _add_robot_option(p)
+    add_robot_option(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="write a synthetic measurement CSV and its truth")
@@ -353,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up")
-    _add_robot_option(p)
+    add_robot_option(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("estimate", help="estimate shape and tip from a measurement CSV")
@@ -369,15 +286,15 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
     )
-    _add_model_options(p)
-    _add_mhe_options(p)
+    add_model_options(p)
+    add_mhe_options(p)
     p.set_defaults(func=cmd_estimate)
 
     p = sub.add_parser("evaluate", help="errors of an estimate CSV against a truth CSV")
     p.add_argument("estimates")
     p.add_argument("truth")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
-    _add_robot_option(p)
+    add_robot_option(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_evaluate)
 

@@ -45,6 +45,7 @@ from continuum_mhe.io.raw_imu import (
     RawImuSettings,
     parse_mount_rpy,
 )
+from continuum_mhe.model.descriptions import OutputSpec
 
 LineFormat = Literal["raw", "tilt"]
 LINE_FORMATS: tuple[LineFormat, ...] = ("raw", "tilt")
@@ -438,7 +439,7 @@ def run_live(
                 window_start, window_n = now, 0
                 next_status = now + settings.status_every
                 if plot is not None and session.last is not None:
-                    plot.update(session.last)
+                    plot.update(session.last, session.estimator.formulation.outputs)
     except KeyboardInterrupt:
         reader.stop.set()
         left = events.qsize()
@@ -463,11 +464,12 @@ def run_live(
 class LivePlot:
     """Matplotlib view of the current backbone and the tip's trace (``--plot``)."""
 
-    def __init__(self, length: float) -> None:
+    def __init__(self, lengths: tuple[float, ...]) -> None:
         import matplotlib.pyplot as plt
 
         self.plt = plt
-        self.length = length
+        self.lengths = lengths
+        length = sum(lengths)
         plt.ion()
         self.fig = plt.figure("continuum-mhe live")
         self.ax = self.fig.add_subplot(projection="3d")
@@ -482,14 +484,13 @@ class LivePlot:
         (self.trace,) = self.ax.plot([], [], [], lw=1, color="C1")
         self.tips: deque[FloatArray] = deque(maxlen=500)
 
-    def update(self, est: Estimate) -> None:
-        from continuum_mhe.model.kinematics import tip_position_bend
+    def update(self, est: Estimate, outputs: tuple[OutputSpec, ...]) -> None:
+        from continuum_mhe.model.descriptions import section_bends
+        from continuum_mhe.model.pcc import backbone
 
-        if est.output is None:
+        if est.output is None or not np.all(np.isfinite(est.output)):
             return
-        th, ph = float(est.output[3]), float(est.output[4])
-        frac = np.linspace(0, 1, 30)
-        pts = tip_position_bend(th * np.cos(ph) * frac, th * np.sin(ph) * frac, self.length * frac)
+        pts = backbone(section_bends(outputs, est.output), self.lengths)
         self.body.set_data_3d(pts[:, 0], pts[:, 1], pts[:, 2])
         self.tips.append(pts[-1])
         tr = np.asarray(self.tips)
@@ -556,7 +557,7 @@ def input_options(args: argparse.Namespace) -> Any:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    from continuum_mhe.cli import _formulation, _mhe_settings
+    from continuum_mhe.cli_options import formulation_from_args, mhe_settings_from_args
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.direct import DirectFormulation
 
@@ -569,7 +570,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         retry_max_s=args.retry_max,
     )
     raw = raw_settings(args)
-    formulation = _formulation(args)
+    formulation = formulation_from_args(args)
     if raw.imu_model == "direct":
         if settings.fmt != "raw":
             raise InputError("--imu-model direct needs --format raw")
@@ -581,7 +582,7 @@ def cmd_live(args: argparse.Namespace) -> int:
             robot=formulation.robot, noise=formulation.noise, gyro_std=args.gyro_std
         )
     converter = RawImuConverter(raw) if settings.fmt == "raw" else None
-    estimator = make_estimator(args.method, formulation, _mhe_settings(args))
+    estimator = make_estimator(args.method, formulation, mhe_settings_from_args(args))
     try:
         conn = open_port(settings.port, settings.baud)
     except Exception as exc:
@@ -592,7 +593,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         if not (out.parent if str(out.parent) else Path(".")).is_dir():
             raise InputError(f"{out}: folder {out.parent} does not exist")
         out_fh = out.open("w", newline="", encoding="utf-8")
-    plot = LivePlot(formulation.robot.length) if args.plot else None
+    plot = LivePlot(formulation.robot.lengths) if args.plot else None
     try:
         session = LiveSession(settings, estimator, converter, out_fh)
         fmt = "t_ms,ax,ay,az,gx,gy,gz" if settings.fmt == "raw" else "t_ms,roll,pitch"
@@ -608,7 +609,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 
 def register(subparsers: Any) -> None:
     """Add ``live`` and the raw-IMU / robot-log options of ``estimate``."""
-    from continuum_mhe.cli import _add_mhe_options, _add_model_options
+    from continuum_mhe.cli_options import add_mhe_options, add_model_options
     from continuum_mhe.estimators import METHODS
 
     est = subparsers.choices.get("estimate")
@@ -639,7 +640,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--retry-max", type=float, default=5.0, help="longest wait between reopen attempts, s"
     )
-    _add_model_options(p)
-    _add_mhe_options(p)
+    add_model_options(p)
+    add_mhe_options(p)
     add_raw_imu_options(p)
     p.set_defaults(func=cmd_live)
