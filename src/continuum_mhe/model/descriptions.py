@@ -119,7 +119,9 @@ def direct_blocks(n_imus: int) -> tuple[MeasurementBlock, ...]:
     )
 
 
-def section_bends(outputs: Sequence[OutputSpec], values: Sequence[float]) -> NDArray[np.float64]:
+def section_bends(
+    outputs: Sequence[OutputSpec], values: Sequence[float] | NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Bend vectors (n_sections, 2) rad from one row of outputs (``theta, phi`` or
     ``theta_k, phi_k``): ``(theta cos phi, theta sin phi)``."""
     names = [o.name for o in outputs]
