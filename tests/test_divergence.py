@@ -81,3 +81,14 @@ def test_reset_rows_round_trip_through_the_csv(tmp_path: Path) -> None:
     )
     rows = list(csv.DictReader(out.open()))
     assert rows[-1]["status"] == "reset" and rows[-1]["theta"] != ""
+
+
+def test_skip_bad_keeps_an_infinite_angle_as_a_dropout(tmp_path: Path) -> None:
+    out = tmp_path / "o.csv"
+    src = str(REPRO / "inf_skip_bad.csv")
+    assert main(["estimate", src, "-o", str(out)]) == 2  # without the flag: one-line error
+    assert not out.exists()
+    assert main(["estimate", src, "-o", str(out), "--skip-bad"]) == 0
+    _, x, status = read_states(out)
+    assert list(status) == ["ok", "dropout", "ok", *status[3:]]
+    assert np.all(np.isfinite(x))

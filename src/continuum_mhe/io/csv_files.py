@@ -203,6 +203,7 @@ def read_sample_rows(
             else:
                 if not math.isfinite(v):
                     bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
+                    v = math.nan  # with --skip-bad: a dropout, as the message says
             vals.append(v)
         t_list.append(t)
         values.append(vals)
