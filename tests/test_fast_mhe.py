@@ -474,3 +474,35 @@ def test_compiled_arrival_step_and_output_match_the_python_model(compile_model: 
             states.append(np.array([-0.5, 0.0, 0.0, 0.0]))  # phi = pi: wrapped to -pi
         for s in states:
             np.testing.assert_allclose(node.output(s), f.output(s), rtol=1e-13, atol=1e-15)
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip"])
+def test_corrupted_cached_model_is_rebuilt_not_loaded(tmp_path: Path, damage: str) -> None:
+    """A truncated or bit-flipped cached library must not be loaded (it would crash
+    the process with SIGBUS or SIGSEGV): its stored sha256 no longer matches."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "from continuum_mhe.model.registry import make_formulation\n"
+        "from continuum_mhe.estimators import fast_mhe as fm\n"
+        "m = fm.build_window_model(make_formulation('bend'), 5)\n"
+        "print('compiled' if m.compiled else 'vm')\n"
+    )
+    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path)}
+    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert first.stdout.strip() == "compiled", first.stderr
+    (lib,) = tmp_path.glob("mhe_*.so")
+    data = lib.read_bytes()
+    if damage == "truncate":
+        lib.write_bytes(data[: len(data) // 3])
+    else:
+        mid = len(data) // 2
+        lib.write_bytes(data[:mid] + bytes([data[mid] ^ 0xFF]) + data[mid + 1 :])
+    again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr  # no SIGBUS / SIGSEGV
+    assert again.stdout.strip() == "compiled"
+    digest = lib.with_name(lib.name + ".sha256").read_text().strip()
+    assert hashlib.sha256(lib.read_bytes()).hexdigest() == digest  # rebuilt, checked

@@ -257,14 +257,29 @@ def _cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "continuum-mhe"
 
 
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _cached_library(lib: Path) -> bool:
+    """True if ``lib`` exists and matches the sha256 stored beside it when it was built
+    (a truncated or corrupted library would crash the process when loaded)."""
+    digest = lib.with_name(lib.name + ".sha256")
+    try:
+        return lib.is_file() and digest.read_text().strip() == _file_digest(lib)
+    except OSError:
+        return False
+
+
 def _compile(src: str) -> ctypes.CDLL | None:
-    """Compile C source to a shared library (cached by content hash); None on failure."""
+    """Compile C source to a shared library (cached by content hash, checked against
+    the sha256 stored beside it, rebuilt on mismatch); None on failure."""
     key = hashlib.sha256(src.encode()).hexdigest()[:20]
     try:
         cache = _cache_dir()
         cache.mkdir(parents=True, exist_ok=True)
         lib = cache / f"mhe_{key}.so"
-        if not lib.exists():
+        if not _cached_library(lib):
             with tempfile.TemporaryDirectory(dir=cache) as tmp:
                 c_file = Path(tmp, "model.c")
                 c_file.write_text(src)
@@ -282,7 +297,14 @@ def _compile(src: str) -> ctypes.CDLL | None:
                     except subprocess.TimeoutExpired:
                         os.killpg(proc.pid, signal.SIGKILL)
                         raise
-                os.replace(so_tmp, lib)  # atomic: concurrent builders race safely
+                digest_tmp = Path(tmp, "model.sha256")
+                digest_tmp.write_text(_file_digest(so_tmp) + "\n")
+                # the library first, then its digest, each atomically: a reader sees a
+                # digest only for a complete library (a race ends in a rebuild, not a crash)
+                os.replace(so_tmp, lib)
+                os.replace(digest_tmp, lib.with_name(lib.name + ".sha256"))
+        if not _cached_library(lib):
+            return None
         return ctypes.CDLL(str(lib))
     except (OSError, subprocess.SubprocessError):
         return None
