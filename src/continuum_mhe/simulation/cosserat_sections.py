@@ -1,0 +1,345 @@
+"""Ground truth the PCC model did not generate: a two-section Cosserat rod (PyElastica).
+
+Robot: one elastic rod, base clamped, z up, under gravity, split into two sections
+(default 0.16 m + 0.14 m, as ``two-section``). Each section is driven by its own
+"tendon", modelled as a point couple at the section's end (a tendon terminated there
+and routed along the backbone loads the rod with a couple ``tension x offset``), with
+a servo-like profile. Scenarios:
+
+* ``planar-s``: both couples about base x, opposite senses: section 1 bends one way,
+  section 2 the other (an S-curve in the y-z plane);
+* ``spatial``: the couples' axes turn about base z at different rates (bending planes
+  turning at different rates), large enough for bends over 90 degrees per section.
+
+The shear modulus sets how much the rod twists under the couples (the PCC model has no
+torsion): ``G = E/3`` (a plain elastomer rod) or ``G = 5 E`` (a robot built to resist
+torsion). An MPU9250-like IMU sits at each section's end (specific force including its
+own acceleration, DLPF, noise, bias, misalignment, 16-bit quantisation; gyro with noise
+and bias), as in :mod:`continuum_mhe.simulation.cosserat`.
+
+Outputs, per recording (``write_section_recording``):
+
+* ``NAME_raw.csv``: ``t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...`` (m/s^2, rad/s, each
+  IMU in its own frame, z along the backbone);
+* ``NAME_tilt.csv``: ``t,roll_1,pitch_1,roll_2,pitch_2`` from the accelerometers;
+* ``NAME_truth.csv``: ``t,x,y,z`` (the rod's tip) and per section ``theta_k, phi_k``
+  (the PCC bends of the true section-end tangents) and ``x_k,y_k,z_k`` (the rod's true
+  section ends);
+* ``NAME_info.json``: the PCC-model floor (tip error of the PCC forward kinematics of
+  the true section-end tangents), a one-section model's error (the whole robot as one
+  arc through the tip tangent), and the rod's twist at the tip.
+
+Regenerate (needs the ``rod`` extra)::
+
+    python -m continuum_mhe.simulation.cosserat_sections --scenario planar-s -o DIR
+    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.model.kinematics import rotation_bend
+from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
+from continuum_mhe.simulation.cosserat import (
+    GRAVITY,
+    ImuSettings,
+    _quantise,
+    _rotation_xyz,
+    servo_profile,
+)
+
+FloatArray = NDArray[np.float64]
+SCENARIOS = ("planar-s", "spatial")
+
+
+@dataclass(frozen=True)
+class SectionRodSettings:
+    """The two-section rod and its actuation.
+
+    Attributes:
+        lengths: section lengths, m.
+        radius: m; youngs_modulus: Pa; shear_ratio: G / E (1/3 or 5); density: kg/m^3.
+        imu_mass: each IMU board, kg.
+        n_elements: Cosserat elements; every section must be a whole number of them.
+        damping: uniform linear damping constant, 1/s; sim_dt: integration step, s.
+        max_moment: each section's largest couple, N m.
+        period: one pull-hold-release-rest cycle, s.
+    """
+
+    lengths: tuple[float, float] = (0.16, 0.14)
+    radius: float = 0.005
+    youngs_modulus: float = 3.0e7
+    shear_ratio: float = 1.0 / 3.0
+    density: float = 1200.0
+    imu_mass: float = 0.004
+    n_elements: int = 30
+    damping: float = 4.0
+    sim_dt: float = 2.0e-5
+    max_moment: float = 0.12
+    period: float = 6.0
+
+
+@dataclass(frozen=True)
+class SectionTrajectory:
+    """Rod states every ``record_dt``: times (n,), nodes (n, 3, k+1), the directors
+    (n, 2, 3, 3) of the elements ending each section, the velocities (n, 2, 3) of the
+    section-end nodes, the angular velocities (n, 2, 3) of those elements (their
+    frame), the total twist (n,) rad, and the section-end node indices."""
+
+    t: FloatArray
+    nodes: FloatArray
+    directors: FloatArray
+    velocities: FloatArray
+    omegas: FloatArray
+    twist: FloatArray
+    end_nodes: tuple[int, int]
+
+
+def couples(scenario: str, t: float, s: SectionRodSettings) -> tuple[FloatArray, FloatArray]:
+    """The couples (base frame, N m) at the ends of section 1 and section 2 at ``t``.
+
+    Section 1 carries both couples, section 2 only its own; ``planar-s`` gives section 1
+    the net moment ``+m`` and section 2 ``-m`` about base x.
+    """
+    m = s.max_moment * float(servo_profile(t, s.period))
+    if scenario == "planar-s":
+        return np.array([2.0 * m, 0.0, 0.0]), np.array([-m, 0.0, 0.0])
+    a1, a2 = 2 * np.pi * t / 9.0, -2 * np.pi * t / 5.0 + 1.0
+    m2 = 1.3 * m * np.array([math.cos(a2), math.sin(a2), 0.0])
+    net1 = 1.3 * m * np.array([math.cos(a1), math.sin(a1), 0.0])
+    return net1 - m2, m2
+
+
+def simulate_sections(
+    settings: SectionRodSettings, scenario: str, duration: float, record_dt: float = 1e-3
+) -> SectionTrajectory:
+    """Integrate the rod for ``duration`` s and record every ``record_dt`` s."""
+    try:
+        import elastica as ea
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise RuntimeError(
+            "the rod simulation needs PyElastica: pip install 'continuum-mhe[rod]'"
+        ) from None
+    if scenario not in SCENARIOS:
+        raise ValueError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
+    s = settings
+    total = sum(s.lengths)
+    e1 = int(round(s.n_elements * s.lengths[0] / total))
+    if abs(e1 * total / s.n_elements - s.lengths[0]) > 1e-9:
+        raise ValueError(
+            f"{s.n_elements} elements do not split the rod at {s.lengths[0]} m: choose "
+            "n_elements so that every section is a whole number of elements"
+        )
+    ends = (e1, s.n_elements)  # node indices of the section ends
+
+    class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
+        pass
+
+    class _Couples(ea.NoForces):
+        def apply_torques(self, system: object, time: float = 0.0) -> None:
+            c1, c2 = couples(scenario, float(time), s)
+            q = system.director_collection  # type: ignore[attr-defined]
+            system.external_torques[:, e1 - 1] += q[:, :, e1 - 1] @ c1  # type: ignore[attr-defined]
+            system.external_torques[:, -1] += q[:, :, -1] @ c2  # type: ignore[attr-defined]
+
+    sim = _Sim()
+    rod = ea.CosseratRod.straight_rod(
+        s.n_elements,
+        np.zeros(3),
+        np.array([0.0, 0.0, 1.0]),
+        np.array([1.0, 0.0, 0.0]),
+        total,
+        s.radius,
+        s.density,
+        youngs_modulus=s.youngs_modulus,
+        shear_modulus=s.youngs_modulus * s.shear_ratio,
+    )
+    rod.mass[e1] += s.imu_mass
+    rod.mass[-1] += s.imu_mass
+    sim.append(rod)
+    sim.constrain(rod).using(
+        ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
+    )
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+    sim.add_forcing_to(rod).using(_Couples)
+    sim.dampen(rod).using(
+        ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
+    )
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    per_record = max(1, int(round(record_dt / s.sim_dt)))
+    n_rec = int(round(duration / (per_record * s.sim_dt))) + 1
+    t_rec = np.zeros(n_rec)
+    nodes = np.zeros((n_rec, 3, s.n_elements + 1))
+    directors = np.zeros((n_rec, 2, 3, 3))
+    vel = np.zeros((n_rec, 2, 3))
+    omega = np.zeros((n_rec, 2, 3))
+    twist = np.zeros(n_rec)
+    time = np.float64(0.0)
+    for i in range(n_rec):
+        if i > 0:
+            for _ in range(per_record):
+                time = stepper.step(sim, time, np.float64(s.sim_dt))
+        if not np.all(np.isfinite(rod.position_collection)):
+            raise RuntimeError(f"rod simulation diverged at t = {float(time):.4f} s")
+        t_rec[i] = time
+        nodes[i] = rod.position_collection
+        for k, (node, elem) in enumerate(((e1, e1 - 1), (s.n_elements, s.n_elements - 1))):
+            directors[i, k] = rod.director_collection[:, :, elem]
+            vel[i, k] = rod.velocity_collection[:, node]
+            omega[i, k] = rod.omega_collection[:, elem]
+        # total twist: the torsional curvature integrated along the rod
+        twist[i] = float(np.sum(rod.kappa[2] * rod.rest_voronoi_lengths))
+    return SectionTrajectory(t_rec, nodes, directors, vel, omega, twist, ends)
+
+
+def pcc_truth(traj: SectionTrajectory, lengths: Sequence[float]) -> tuple[FloatArray, FloatArray]:
+    """PCC bends (n, 2, 2) from the true section-end tangents, and the PCC forward
+    kinematics' tip (n, 3) of those bends. Section 2's bend turns the PCC (torsion-free)
+    frame of section 1's end into section 2's true end tangent."""
+    R_true = np.transpose(traj.directors, (0, 1, 3, 2))  # local-to-base
+    n = len(traj.t)
+    bends = np.zeros((n, 2, 2))
+    bends[:, 0] = bend_from_tangent_frames(np.broadcast_to(np.eye(3), (n, 3, 3)), R_true[:, 0])
+    R1 = rotation_bend(bends[:, 0, 0], bends[:, 0, 1])
+    bends[:, 1] = bend_from_tangent_frames(R1, R_true[:, 1])
+    tip = pose_at(bends, lengths, 1)[1]
+    return bends, tip
+
+
+def one_section_tip(traj: SectionTrajectory, total: float) -> FloatArray:
+    """Tip (n, 3) of one arc of the whole length through the true tip tangent (a
+    one-section model of the robot fed with the tip IMU's tangent)."""
+    R_tip = np.transpose(traj.directors[:, 1], (0, 2, 1))
+    u = bend_from_tangent_frames(np.broadcast_to(np.eye(3), R_tip.shape), R_tip)
+    return pose_at(u[:, None, :], [total], 0)[1]
+
+
+def imu_samples(
+    traj: SectionTrajectory, imu: ImuSettings, seed: int = 0
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
+    """Both IMUs every ``imu.sample_dt``: times (n,), specific force (n, 2, 3) m/s^2,
+    gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices."""
+    rng = np.random.default_rng(seed)
+    dt_rec = float(traj.t[1] - traj.t[0])
+    step = max(1, int(round(imu.sample_dt / dt_rec)))
+    lag = max(1, int(round(imu.dlpf_window / dt_rec)))
+    idx = np.arange(0, len(traj.t), step)
+    prev = np.maximum(idx - lag, 0)
+    span = np.maximum((idx - prev) * dt_rec, dt_rec)
+    f = np.zeros((len(idx), 2, 3))
+    w = np.zeros((len(idx), 2, 3))
+    for k in range(2):
+        acc = (traj.velocities[idx, k] - traj.velocities[prev, k]) / span[:, None]
+        spec_base = acc - np.array([0.0, 0.0, -GRAVITY])
+        mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3))
+        spec = np.einsum("nij,nj->ni", traj.directors[idx, k], spec_base) @ mis
+        spec = (
+            spec
+            + imu.accel_bias * rng.normal(size=3)
+            + imu.accel_noise * rng.normal(size=spec.shape)
+        )
+        f[:, k] = _quantise(spec, imu.accel_range, imu.bits)
+        om = traj.omegas[idx, k] @ mis
+        om = om + imu.gyro_bias * rng.normal(size=3) + imu.gyro_noise * rng.normal(size=om.shape)
+        w[:, k] = _quantise(om, imu.gyro_range, imu.bits)
+    return traj.t[idx], f, w, idx
+
+
+def write_section_recording(
+    out: Path,
+    name: str,
+    settings: SectionRodSettings,
+    scenario: str,
+    duration: float,
+    imu: ImuSettings | None = None,
+    seed: int = 0,
+) -> dict[str, object]:
+    """Simulate, sample and write the four files (see the module docstring); returns
+    the info (floor, one-section error, twist)."""
+    from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.model.imu import tilt_from_accelerometer
+
+    imu = imu or ImuSettings(sample_dt=0.02)
+    traj = simulate_sections(settings, scenario, duration)
+    t, f, w, idx = imu_samples(traj, imu, seed)
+    t = t - t[0]
+    bends, fk_tip = pcc_truth(traj, settings.lengths)
+    nodes = traj.nodes[idx]
+    tip = nodes[:, :, -1] - nodes[:, :, 0]
+    ends = [nodes[:, :, traj.end_nodes[k]] - nodes[:, :, 0] for k in range(2)]
+    raw_cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
+    write_table(out / f"{name}_raw.csv", raw_cols, raw.tolist())
+    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(2)])
+    write_table(
+        out / f"{name}_tilt.csv",
+        ["t", "roll_1", "pitch_1", "roll_2", "pitch_2"],
+        np.column_stack([t, tilt]).tolist(),
+    )
+    b = bends[idx]
+    theta = np.hypot(b[..., 0], b[..., 1])
+    phi = np.arctan2(b[..., 1], b[..., 0])
+    truth_cols = ["t", "x", "y", "z"]
+    truth = [t, *tip.T]
+    for k in range(2):
+        truth_cols += [f"theta_{k + 1}", f"phi_{k + 1}", f"x_{k + 1}", f"y_{k + 1}", f"z_{k + 1}"]
+        truth += [theta[:, k], phi[:, k], *ends[k].T]
+    write_table(out / f"{name}_truth.csv", truth_cols, np.column_stack(truth).tolist())
+    floor = np.linalg.norm(fk_tip[idx] - tip, axis=1) * 1e3
+    one = np.linalg.norm(one_section_tip(traj, sum(settings.lengths))[idx] - tip, axis=1) * 1e3
+    info = {
+        "scenario": scenario,
+        "shear_ratio": settings.shear_ratio,
+        "pcc_floor_mean_mm": float(floor.mean()),
+        "pcc_floor_max_mm": float(floor.max()),
+        "one_section_mean_mm": float(one.mean()),
+        "one_section_max_mm": float(one.max()),
+        "twist_max_deg": float(np.degrees(np.max(np.abs(traj.twist)))),
+        "theta_max_deg": [float(np.degrees(theta[:, k].max())) for k in range(2)],
+        "samples": len(t),
+    }
+    (out / f"{name}_info.json").write_text(json.dumps(info, indent=2) + "\n")
+    return info
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m continuum_mhe.simulation.cosserat_sections",
+        description="Simulate a two-section Cosserat rod with an IMU at each section's end.",
+    )
+    p.add_argument("-o", "--out", required=True, help="folder for the files")
+    p.add_argument("--scenario", choices=SCENARIOS, default="planar-s")
+    p.add_argument("--name", help="file name prefix (default: the scenario)")
+    p.add_argument("--duration", type=float, default=12.0, help="seconds (default 12)")
+    p.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, help="G / E (default 1/3)")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    if not out.is_dir():
+        print(f"{p.prog}: error: {out}: no such folder", file=sys.stderr)
+        return 2
+    info = write_section_recording(
+        out,
+        args.name or args.scenario,
+        SectionRodSettings(shear_ratio=args.shear_ratio),
+        args.scenario,
+        args.duration,
+        seed=args.seed,
+    )
+    print(json.dumps(info), file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
