@@ -33,6 +33,8 @@ Regenerate (needs the ``rod`` extra)::
 
     python -m continuum_mhe.simulation.cosserat_sections --scenario planar-s -o DIR
     python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR
+    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
+        --shear-ratio 5 --sim-dt 5e-6 --name spatial-stiff-torsion
 """
 
 from __future__ import annotations
@@ -323,6 +325,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--name", help="file name prefix (default: the scenario)")
     p.add_argument("--duration", type=float, default=12.0, help="seconds (default 12)")
     p.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, help="G / E (default 1/3)")
+    p.add_argument(
+        "--sim-dt", type=float, default=2.0e-5, help="integration step in s (G = 5E: 5e-6)"
+    )
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
     out = Path(args.out)
@@ -332,7 +337,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     info = write_section_recording(
         out,
         args.name or args.scenario,
-        SectionRodSettings(shear_ratio=args.shear_ratio),
+        SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=args.sim_dt),
         args.scenario,
         args.duration,
         seed=args.seed,
