@@ -6,6 +6,10 @@ Public surface::
                                make_formulation, make_estimator, simulate, Measurement)
 """
 
+# isort: off
+from continuum_mhe import numba_cache  # noqa: F401  (first: a cache folder before numba)
+
+# isort: on
 from continuum_mhe.estimators import (
     METHODS,
     Estimate,
