@@ -1,4 +1,4 @@
-"""continuum-mhe: shape and tip estimation of continuum robots from a tip IMU.
+"""continuum-mhe: shape and tip estimation of continuum robots from IMUs on the robot.
 
 Public surface::
 
