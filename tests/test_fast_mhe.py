@@ -506,3 +506,24 @@ def test_corrupted_cached_model_is_rebuilt_not_loaded(tmp_path: Path, damage: st
     assert again.stdout.strip() == "compiled"
     digest = lib.with_name(lib.name + ".sha256").read_text().strip()
     assert hashlib.sha256(lib.read_bytes()).hexdigest() == digest  # rebuilt, checked
+
+
+def test_missing_c_compiler_is_announced_once(tmp_path: Path) -> None:
+    """No C compiler: the fast MHE runs through CasADi's VM and says so in one line."""
+    import os
+    import subprocess
+    import sys
+
+    meas = tmp_path / "m.csv"
+    exe = str(Path(sys.executable).with_name("continuum-mhe"))
+    subprocess.run([exe, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    env = {**os.environ, "CC": "false", "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
+    r = subprocess.run(
+        [exe, "estimate", str(meas), "-o", str(tmp_path / "e.csv")],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    notes = [ln for ln in r.stderr.splitlines() if "no working C compiler" in ln]
+    assert len(notes) == 1 and notes[0].startswith("continuum-mhe: warning: ")

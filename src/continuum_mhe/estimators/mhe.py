@@ -185,12 +185,13 @@ class MovingHorizonEstimator(Estimator):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-        elif s.solver == "fast" and not self._fast.compiled:
-            self.backend_note = (
-                "no working C compiler: the fast MHE runs its model through CasADi's virtual "
-                "machine (about 10x slower); install a C compiler (gcc) to compile it"
-            )
-            warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
+            else:
+                if self.fast_options.compile and not self._fast.compiled:
+                    self.backend_note = (
+                        "no working C compiler: the fast MHE runs its model through CasADi's "
+                        "virtual machine (about 10x slower); install a C compiler (gcc)"
+                    )
+                    warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
         self._nlp_built: _Nlp | None = None
