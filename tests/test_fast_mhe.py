@@ -18,7 +18,8 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
-from continuum_mhe.estimators import fast_mhe as fm
+from continuum_mhe.estimators import fast as fm
+from continuum_mhe.estimators.fast import linalg, qp
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.mhe import (
     BackendFallbackWarning,
@@ -350,10 +351,10 @@ def test_block_tridiagonal_solve_matches_dense() -> None:
     E = np.array([H[i * nx : (i + 1) * nx, (i + 1) * nx : (i + 2) * nx] for i in range(n - 1)])
     b = rng.normal(size=(n, nx))
     y = np.empty_like(b)
-    assert fm._btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
+    assert linalg.btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
     np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-10)
     D[2] = -np.eye(nx)
-    assert not fm._btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
+    assert not linalg.btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
 
 
 def test_box_qp_matches_bounded_least_squares() -> None:
@@ -373,7 +374,7 @@ def test_box_qp_matches_bounded_least_squares() -> None:
     lo, hi = np.array([-0.5, -np.inf]), np.array([0.4, 0.6])
     X = np.zeros((n, nx))
     d = np.empty((n, nx))
-    status, _, _ = fm._solve_qp(
+    status, _, _ = qp.solve_qp(
         X,
         D,
         E,
@@ -487,7 +488,7 @@ def test_corrupted_cached_model_is_rebuilt_not_loaded(tmp_path: Path, damage: st
 
     code = (
         "from continuum_mhe.model.registry import make_formulation\n"
-        "from continuum_mhe.estimators import fast_mhe as fm\n"
+        "from continuum_mhe.estimators import fast as fm\n"
         "m = fm.build_window_model(make_formulation('bend'), 5)\n"
         "print('compiled' if m.compiled else 'vm')\n"
     )

@@ -328,7 +328,7 @@ def test_cli_round_trip_two_sections(tmp_path: Path, capsys) -> None:  # type: i
 def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name: str) -> None:
     import warnings
 
-    from continuum_mhe.estimators.fast_mhe import feasible_set
+    from continuum_mhe.estimators.fast import feasible_set
 
     tight = Robot((Section(0.16, 0.8), Section(0.14, 0.8)), TWO.imus)
     f = make_formulation(name, tight)

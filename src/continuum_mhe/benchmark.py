@@ -23,6 +23,8 @@ import gc
 import json
 import math
 import os
+import platform
+import subprocess
 import time
 import tracemalloc
 import warnings
@@ -211,7 +213,13 @@ def run_robot_benchmark(robot: Robot, horizons: list[int], duration: float) -> d
                 "fallbacks": status.count("fallback-ipopt"),
             }
         )
-    return {"robot": robot.describe(), "model": "direct", "samples": len(rec.t), "rows": rows}
+    return {
+        "robot": robot.describe(),
+        "model": "direct",
+        "samples": len(rec.t),
+        **environment(f),
+        "rows": rows,
+    }
 
 
 def print_robot_report(report: dict[str, Any]) -> None:
@@ -234,7 +242,9 @@ def print_robot_report(report: dict[str, Any]) -> None:
             f"{r['max_diff_vs_ipopt']:.1e}",
             str(r["fallbacks"]),
         )
-    Console().print(table)
+    console = Console()
+    console.print(table)
+    console.print(environment_line(report))
 
 
 def _rss_bytes() -> float:
@@ -271,6 +281,25 @@ def memory_profile(formulation: Formulation, horizon: int, samples: int) -> Memo
     return Memory(samples, slope, peak / 1024, rss_slope)
 
 
+def environment(formulation: Formulation) -> dict[str, Any]:
+    """Where the numbers come from: whether the fast MHE's model is compiled C (else
+    CasADi's VM), the C compiler's version line, and the machine."""
+    from continuum_mhe.estimators.fast import build_window_model
+
+    cc = os.environ.get("CC") or "cc"
+    try:
+        done = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30)
+        compiler = (done.stdout.splitlines() or [cc])[0].strip() if done.returncode == 0 else None
+    except (OSError, subprocess.SubprocessError):
+        compiler = None
+    return {
+        "compiled": build_window_model(formulation, 2).compiled,
+        "compiler": compiler,
+        "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
+        "platform": platform.platform(),
+    }
+
+
 def run_benchmark(
     horizons: list[int],
     duration: float = 20.0,
@@ -283,9 +312,15 @@ def run_benchmark(
     results: list[Timing] = []
     ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
     ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
-    ekfc = CompiledExtendedKalmanFilter(f)
-    _run_timed(ekfc, rec)  # compile and warm up
-    ekfc_out, ekfc_sec, _ = _run_timed(ekfc, rec)
+    filters = [("ekf", ekf_out, ekf_sec)]
+    try:
+        ekfc = CompiledExtendedKalmanFilter(f)
+    except NotImplementedError:  # no C compiler (said once): no compiled EKF to time
+        pass
+    else:
+        _run_timed(ekfc, rec)  # compile and warm up
+        ekfc_out, ekfc_sec, _ = _run_timed(ekfc, rec)
+        filters.append(("ekf-compiled", ekfc_out, ekfc_sec))
     for n in horizons:
         ipopt_out, ipopt_sec, _ = _run_timed(
             MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
@@ -313,7 +348,7 @@ def run_benchmark(
                     fallbacks=fb,
                 )
             )
-        for name, out, sec in (("ekf", ekf_out, ekf_sec), ("ekf-compiled", ekfc_out, ekfc_sec)):
+        for name, out, sec in filters:
             if name not in methods:
                 continue
             results.append(
@@ -335,6 +370,7 @@ def run_benchmark(
         "samples": len(rec.t),
         "dt_s": float(rec.t[1] - rec.t[0]),
         "cpus": os.cpu_count(),
+        **environment(f),
         "results": [asdict(r) for r in results],
         "memory": None if memory is None else asdict(memory),
     }
@@ -383,6 +419,7 @@ def print_report(report: dict[str, Any]) -> None:
     console = Console()
     console.width = max(console.width, 104)
     console.print(table)
+    console.print(environment_line(report))
     fast = {r["horizon"]: r["median_us"] for r in report["results"] if r["method"] == "fast"}
     if 30 in fast and 300 in fast:
         console.print(f"fast: time(N=300) / time(N=30) = {fast[300] / fast[30]:.2f}")
@@ -394,6 +431,15 @@ def print_report(report: dict[str, Any]) -> None:
             f"peak {mem['tracemalloc_peak_kib']:.0f} KiB; "
             f"RSS slope {mem['rss_slope_bytes_per_sample']:.2f} B/sample"
         )
+
+
+def environment_line(report: dict[str, Any]) -> str:
+    """One line: compiled or VM model, the compiler, the machine."""
+    model = "compiled C" if report.get("compiled") else "CasADi's VM (no C compiler)"
+    return (
+        f"fast MHE model: {model}; compiler: {report.get('compiler') or 'none'}; "
+        f"machine: {report.get('machine')}, {report.get('platform')}"
+    )
 
 
 def _horizons(text: str) -> list[int]:

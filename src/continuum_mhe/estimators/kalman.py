@@ -143,15 +143,20 @@ class ExtendedKalmanFilter(_KalmanBase):
 class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
     """The same EKF, each step one compiled call (the fast MHE's C model and numba
     kernels): the strongest EKF baseline for timing. Same equations and answers as
-    :class:`ExtendedKalmanFilter` (to rounding); falls back to it, announced by the
-    MHE's compile notice, when no C compiler exists."""
+    :class:`ExtendedKalmanFilter` (to rounding). Without a C compiler (said once by
+    :func:`~continuum_mhe.estimators.fast.build_window_model`) it raises
+    ``NotImplementedError`` and :func:`~continuum_mhe.estimators.make_estimator` uses the
+    CasADi EKF."""
 
     name = "ekf"
 
     def __init__(self, formulation: Formulation) -> None:
-        from continuum_mhe.estimators.fast_mhe import NodeEvaluator, build_window_model
+        from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
 
-        self._node = NodeEvaluator(build_window_model(formulation, 2))
+        model = build_window_model(formulation, 2)
+        if not model.compiled:  # the VM is slower than the CasADi EKF: use that instead
+            raise NotImplementedError(model.backend_note or "the model is not compiled")
+        self._node = NodeEvaluator(model)
         self._q = ProcessNoiseCache(formulation)
         super().__init__(formulation)
 

@@ -26,7 +26,7 @@ are decoupled and do not change the answer. With ``paper_start`` no estimate is 
 before ``N`` samples (Algorithm 1).
 
 Backends (``MHESettings.solver``): ``"fast"`` solves the same window problem with
-the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast_mhe` and hands the window
+the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast` and hands the window
 to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 ``"ipopt"`` is the reference.
 """
@@ -42,7 +42,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
-from continuum_mhe.estimators.fast_mhe import (
+from continuum_mhe.estimators.fast import (
     FastOptions,
     NodeEvaluator,
     WindowModel,
@@ -150,7 +150,7 @@ class MovingHorizonEstimator(Estimator):
     """MHE over the last ``N`` samples.
 
     Backends (``settings.solver``): ``"fast"`` (default), the structure-exploiting
-    Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast_mhe`, which falls back to
+    Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast`, which falls back to
     IPOPT on the same window (status ``"fallback-ipopt"``) when it cannot certify
     convergence; ``"ipopt"``, the paper's solver and the reference.
 
@@ -185,13 +185,10 @@ class MovingHorizonEstimator(Estimator):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-            else:
-                if self.fast_options.compile and not self._fast.compiled:
-                    self.backend_note = (
-                        "no working C compiler: the fast MHE runs its model through CasADi's "
-                        "virtual machine (about 10x slower); install a C compiler (gcc)"
-                    )
-                    warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
+            else:  # without a C compiler: said once by build_window_model
+                self.backend_note = self._fast.backend_note
+        #: whether the fast backend's model runs as compiled C (None: no fast backend)
+        self.compiled: bool | None = None if self._fast is None else self._fast.compiled
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
         self._nlp_built: _Nlp | None = None

@@ -1,0 +1,96 @@
+"""Structure-exploiting MHE backend: Newton-type SQP with a block-tridiagonal solver.
+
+It solves exactly the window problem of :mod:`continuum_mhe.estimators.mhe` (same
+:class:`~continuum_mhe.estimators.mhe.WindowProblem`, same cost, same hard
+constraints) and reaches the same KKT point as the IPOPT backend.
+
+Algorithm (see ``docs/fast-solver.md``):
+
+* **Model.** Residuals and Jacobians of the whole window come from one call of a
+  CasADi function built from the formulation's symbolic methods
+  (``measurement_residual_sym``, ``transition_sym``) and ``map``-ped over the
+  window. It is compiled to C with CasADi's code generator when a C compiler is
+  available (cached on disk) and evaluated by CasADi's virtual machine otherwise.
+  The model is never written a second time by hand.
+* **Step.** The Hessian of the window cost is block-tridiagonal (blocks
+  ``nx x nx``): Gauss-Newton ``J^T W J`` plus the measurement residuals' exact
+  second-order term (Newton; dropped for an iterate where it is not positive
+  definite); each QP subproblem is solved by a primal active-set method
+  whose equality-constrained steps use a block-tridiagonal Cholesky factorisation,
+  ``O(N nx^3)`` per factorisation. Box bounds fix coordinates; each ball constraint
+  ``sum_{S_b} x_j^2 <= r_b^2`` (one per robot section, on disjoint coordinates,
+  recognised from the CasADi expression) is linearised and eliminated by a Householder
+  reflection on its coordinates; a node's reflections commute, and their product keeps
+  the Hessian's block structure. Each ball's curvature ``2 lam_b I`` enters the
+  Hessian of the Lagrangian through its multiplier estimate.
+* **Globalisation.** Projected line search on the exact cost (iterates always
+  satisfy the bounds exactly: clipping for boxes, radial scaling for each ball).
+* **Certificate.** The QP at an iterate has the NLP's KKT conditions as its own at
+  ``d = 0`` (nonnegative multipliers by construction). Converged when the QP step
+  is below ``step_tol`` in the max norm, or, with no constraint active, when the
+  contraction of two successive full steps bounds the answer's error by
+  ``err_tol``. Otherwise (iteration limit, failed line search, QP failure) the
+  caller falls back to IPOPT.
+
+Modules (one responsibility each):
+
+* :mod:`~continuum_mhe.estimators.fast.codegen`: CasADi functions of the window, node and
+  outputs, C code generation, compile and on-disk cache (sha256-checked), VM fallback.
+* :mod:`~continuum_mhe.estimators.fast.model`: the feasible set read from the
+  formulation, :class:`WindowModel`, :class:`NodeEvaluator`, :func:`build_window_model`.
+* :mod:`~continuum_mhe.estimators.fast.linalg`: block-tridiagonal Cholesky, product,
+  Householder reflection.
+* :mod:`~continuum_mhe.estimators.fast.qp`: the active-set QP and the projection.
+* :mod:`~continuum_mhe.estimators.fast.sqp`: assembly, SQP, :func:`solve_window`.
+* :mod:`~continuum_mhe.estimators.fast.arrival`: the EKF step of the arrival prior.
+"""
+
+from __future__ import annotations
+
+from continuum_mhe.estimators.fast.arrival import arrival_predict, arrival_update
+from continuum_mhe.estimators.fast.codegen import CFunction, Library
+from continuum_mhe.estimators.fast.model import (
+    Feasible,
+    NodeEvaluator,
+    WindowModel,
+    build_window_model,
+    feasible_set,
+)
+from continuum_mhe.estimators.fast.qp import (
+    CONVERGED,
+    LINE_SEARCH_FAILED,
+    MAX_ITER,
+    NOT_PD,
+    OUTCOMES,
+    QP_FAILED,
+)
+from continuum_mhe.estimators.fast.sqp import (
+    FastOptions,
+    FastResult,
+    Workspace,
+    solve_window,
+    window_cost,
+)
+
+__all__ = [
+    "CONVERGED",
+    "CFunction",
+    "Feasible",
+    "FastOptions",
+    "FastResult",
+    "LINE_SEARCH_FAILED",
+    "Library",
+    "MAX_ITER",
+    "NOT_PD",
+    "NodeEvaluator",
+    "OUTCOMES",
+    "QP_FAILED",
+    "WindowModel",
+    "Workspace",
+    "arrival_predict",
+    "arrival_update",
+    "build_window_model",
+    "feasible_set",
+    "solve_window",
+    "window_cost",
+]

@@ -1,0 +1,81 @@
+"""The EKF step of the arrival prior (and of the compiled EKF), as numba kernels.
+
+When the window slides, the arrival prior ``(xbar, P)`` takes one EKF step: an update
+with the sample that leaves the window (its valid components only: the node function's
+residual and Jacobian are masked) and a prediction to the new first sample. These
+kernels call the compiled node model (:func:`~continuum_mhe.estimators.fast.codegen.node_function`)
+directly, so one step is one call from Python. A failed model evaluation raises
+``RuntimeError("model evaluation failed")``; the caller adds the model's own message
+(:meth:`~continuum_mhe.estimators.fast.model.NodeEvaluator.arrival_step`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def arrival_update(x, P, r, H, R):
+    """EKF measurement update of the arrival prior, Joseph form: ``(x, P)``.
+
+    Same equations as :func:`continuum_mhe.estimators.kalman.ekf_update`, with the
+    residual ``r`` (nz,) and ``H = -dr/dx`` (nz, nx) from
+    :meth:`WindowModel.evaluate_node`.
+    """
+    nx = P.shape[0]
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T
+    ikh = np.eye(nx) - K @ H
+    return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
+
+
+@numba.njit(cache=True)
+def arrival_predict(P, F, Q):
+    """EKF covariance prediction of the arrival prior: ``(P, P^-1)``."""
+    P = F @ P @ F.T + Q
+    P = 0.5 * (P + P.T)
+    return P, np.linalg.inv(P)
+
+
+@numba.njit(cache=True)
+def arrival_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
+    """:meth:`NodeEvaluator.arrival_step` in one compiled call (two model calls)."""
+    nz = R.shape[0]
+    k = nx + nx * nx
+    if valid:
+        xin[:] = x
+        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        H = out[k : k + nz * nx].copy().reshape(nz, nx)
+        r = out[k + nz * nx : k + nz * nx + nz].copy()
+        x, P = arrival_update(x, P, r, H, R)
+    xin[:] = x
+    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    xn = out[:nx].copy()
+    F = out[nx:k].copy().reshape(nx, nx)
+    P, Pinv = arrival_predict(P, F, Q)
+    return xn, P, Pinv
+
+
+@numba.njit(cache=True)
+def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
+    """:meth:`NodeEvaluator.ekf_step`: EKF prediction, then (if ``valid``) the update on
+    the masked residual, in one compiled call (two model calls)."""
+    nz = R.shape[0]
+    k = nx + nx * nx
+    xin[:] = x
+    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    xn = out[:nx].copy()
+    F = out[nx:k].copy().reshape(nx, nx)
+    P = F @ P @ F.T + Q
+    if valid:
+        xin[:] = xn
+        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        H = out[k : k + nz * nx].copy().reshape(nz, nx)
+        r = out[k + nz * nx : k + nz * nx + nz].copy()
+        xn, P = arrival_update(xn, P, r, H, R)
+    return xn, P

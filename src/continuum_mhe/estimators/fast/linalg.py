@@ -1,0 +1,112 @@
+"""Dense and block-tridiagonal linear algebra of the fast backend (numba kernels).
+
+The window Hessian is symmetric block-tridiagonal, ``H = (D, E)`` with diagonal blocks
+``D`` (n, nx, nx) and super-diagonal blocks ``E`` (n-1, nx, nx) (``E_i`` couples node
+``i`` with node ``i+1``): its product with a vector, its Cholesky solve in
+``O(n nx^3)``, and the Householder reflection that eliminates one linearised ball.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def matvec(D, E, v, out):
+    """``out = H v`` for the symmetric block-tridiagonal ``H = (D, E)``."""
+    n, nx = v.shape
+    for i in range(n):
+        for j in range(nx):
+            s = 0.0
+            for k in range(nx):
+                s += D[i, j, k] * v[i, k]
+                if i < n - 1:
+                    s += E[i, j, k] * v[i + 1, k]
+                if i > 0:
+                    s += E[i - 1, k, j] * v[i - 1, k]
+            out[i, j] = s
+
+
+@numba.njit(cache=True)
+def btd_solve(D, E, b, L, M, y):
+    """Solve ``H y = b`` by block-tridiagonal Cholesky ``H = L L^T``; False if not PD.
+
+    ``L`` (n, nx, nx) holds the diagonal factors, ``M`` (n-1, nx, nx) the sub-diagonal
+    blocks ``M_i = E_i^T L_i^-T``.
+    """
+    n, nx = b.shape
+    a = np.empty((nx, nx))
+    for i in range(n):
+        for j in range(nx):
+            for k in range(nx):
+                s = D[i, j, k]
+                if i > 0:
+                    for c in range(nx):
+                        s -= M[i - 1, j, c] * M[i - 1, k, c]
+                a[j, k] = s
+        for j in range(nx):  # dense Cholesky of the nx x nx block
+            s = a[j, j]
+            for c in range(j):
+                s -= L[i, j, c] * L[i, j, c]
+            if not s > 0.0:
+                return False
+            L[i, j, j] = np.sqrt(s)
+            for k in range(j + 1, nx):
+                t = a[k, j]
+                for c in range(j):
+                    t -= L[i, k, c] * L[i, j, c]
+                L[i, k, j] = t / L[i, j, j]
+            for k in range(j):
+                L[i, k, j] = 0.0
+        if i < n - 1:  # M_i L_i^T = E_i^T, row by row (forward substitution)
+            for r in range(nx):
+                for j in range(nx):
+                    t = E[i, j, r]
+                    for c in range(j):
+                        t -= M[i, r, c] * L[i, j, c]
+                    M[i, r, j] = t / L[i, j, j]
+    for i in range(n):  # L z = b
+        for j in range(nx):
+            t = b[i, j]
+            if i > 0:
+                for c in range(nx):
+                    t -= M[i - 1, j, c] * y[i - 1, c]
+            for c in range(j):
+                t -= L[i, j, c] * y[i, c]
+            y[i, j] = t / L[i, j, j]
+    for i in range(n - 1, -1, -1):  # L^T y = z
+        for j in range(nx - 1, -1, -1):
+            t = y[i, j]
+            if i < n - 1:
+                for c in range(nx):
+                    t -= M[i, c, j] * y[i + 1, c]
+            for c in range(j + 1, nx):
+                t -= L[i, c, j] * y[i, c]
+            y[i, j] = t / L[i, j, j]
+    return True
+
+
+@numba.njit(cache=True)
+def householder(nrm, ball_idx, T):
+    """Symmetric orthogonal ``T`` with ``T n = -+e_c``; returns the pivot coordinate c."""
+    nx = T.shape[0]
+    for j in range(nx):
+        for k in range(nx):
+            T[j, k] = 1.0 if j == k else 0.0
+    piv = ball_idx[0]
+    for s_ in ball_idx:
+        if abs(nrm[s_]) > abs(nrm[piv]):
+            piv = s_
+    sg = 1.0 if nrm[piv] >= 0.0 else -1.0
+    v = np.zeros(nx)
+    for s_ in ball_idx:
+        v[s_] = nrm[s_]
+    v[piv] += sg
+    vv = 0.0
+    for j in range(nx):
+        vv += v[j] * v[j]
+    for j in range(nx):
+        for k in range(nx):
+            T[j, k] -= 2.0 * v[j] * v[k] / vv
+    return piv

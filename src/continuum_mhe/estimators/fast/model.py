@@ -1,0 +1,299 @@
+"""The window model of the fast backend: feasible set, compiled functions, node evaluator.
+
+:func:`build_window_model` turns a formulation and a horizon into a :class:`WindowModel`:
+the node feasible set read from ``constraint_sym`` (:func:`feasible_set`), and the
+window, node and output functions compiled to C (or CasADi's VM,
+:mod:`continuum_mhe.estimators.fast.codegen`). :class:`NodeEvaluator` evaluates one node
+and runs the arrival prior's EKF step (:mod:`continuum_mhe.estimators.fast.arrival`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.estimators.fast import arrival
+from continuum_mhe.estimators.fast.codegen import (
+    Library,
+    announce_vm_fallback,
+    c_function,
+    c_source,
+    compile_library,
+    failure_message,
+    node_function,
+    output_function,
+    window_function,
+)
+from continuum_mhe.model.formulations import Formulation
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class Feasible:
+    """The feasible set of one node: a box and balls on disjoint coordinate sets.
+
+    Attributes:
+        lo, hi: (nx,) box bounds (may be infinite).
+        ball_idx: (nb, k) coordinates ``S_b`` of ball ``b``,
+            ``sum_{S_b} x_j^2 <= ball_r2[b]`` (one per robot section; ``nb = 0`` if none).
+        ball_r2: (nb,) squared radii, rad^2.
+    """
+
+    lo: FloatArray
+    hi: FloatArray
+    ball_idx: IntArray
+    ball_r2: FloatArray
+
+
+def feasible_set(formulation: Formulation) -> Feasible:
+    """Read the feasible set from the formulation's bounds and ``constraint_sym``.
+
+    Every component of the path constraint must be a ball ``sum_S x_j^2 <= r^2`` (checked
+    on the CasADi expression: Hessian ``2 diag(1_S)``, value and gradient 0 at 0), all of
+    one size, on disjoint coordinates without box bounds. Raises ``NotImplementedError``
+    with the reason otherwise.
+    """
+    nx = formulation.nx
+    lo, hi = (np.asarray(v, dtype=float) for v in formulation.state_bounds())
+    x = ca.SX.sym("x", nx)
+    g, glo_v, ghi_v = formulation.constraint_sym(x)
+    glo, ghi = np.ravel(np.asarray(glo_v, float)), np.ravel(np.asarray(ghi_v, float))
+    if g.numel() == 0:
+        return Feasible(lo, hi, np.zeros((0, 1), dtype=np.int64), np.zeros(0))
+    if len(glo) != g.numel() or len(ghi) != g.numel():
+        raise NotImplementedError("constraint bounds do not match the constraints")
+    rng = np.random.default_rng(0)
+    balls: list[IntArray] = []
+    used = np.zeros(nx, dtype=bool)
+    for j in range(g.numel()):
+        if glo[j] > 0 or not np.isfinite(ghi[j]):
+            raise NotImplementedError("only ball constraints g(x) <= r^2 are supported")
+        fn = ca.Function("g", [x], [g[j], ca.gradient(g[j], x), ca.hessian(g[j], x)[0]])
+        v0, g0, h0 = (np.asarray(v, dtype=float) for v in fn(np.zeros(nx)))
+        idx = np.flatnonzero(np.isclose(np.diag(h0.reshape(nx, nx)), 2.0)).astype(np.int64)
+        mask = np.zeros(nx)
+        mask[idx] = 1.0
+        for xt in rng.normal(size=(5, nx)):
+            value = float(np.asarray(fn(xt)[0])[0, 0])
+            if not np.isclose(value, float(np.sum(mask * xt**2)), rtol=1e-12, atol=0):
+                raise NotImplementedError(f"constraint {j + 1} is not a ball sum_S x_j^2")
+        if (
+            np.any(v0 != 0)
+            or np.any(g0 != 0)
+            or np.any(np.isfinite(lo[idx]) | np.isfinite(hi[idx]))
+        ):
+            raise NotImplementedError("ball coordinates must have no box bounds")
+        if np.any(used[idx]) or (balls and len(idx) != len(balls[0])) or len(idx) == 0:
+            raise NotImplementedError("balls must be non-empty, disjoint and of one size")
+        used[idx] = True
+        balls.append(idx)
+    return Feasible(lo, hi, np.array(balls, dtype=np.int64), ghi.copy())
+
+
+@dataclass(frozen=True)
+class WindowModel:
+    """Compiled window model of one (formulation, horizon).
+
+    Attributes:
+        nx, nu, nz, horizon: sizes.
+        feasible: the node feasible set.
+        rinv: (nz, nz) inverse measurement covariance (rad^-2 for tilt).
+        window: C function of :func:`~continuum_mhe.estimators.fast.codegen.window_function`.
+        node: C function of :func:`~continuum_mhe.estimators.fast.codegen.node_function`.
+        output: C function of the formulation's ``output_sym``.
+        ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
+        compiled: True if the model runs as compiled C (else through CasADi's VM).
+        backend_note: why the model is not compiled (the notice said on stderr), or None.
+    """
+
+    nx: int
+    nu: int
+    nz: int
+    horizon: int
+    feasible: Feasible
+    rinv: FloatArray
+    window: Any  # ctypes function pointer (CFunction)
+    node: Any
+    output: Any  # formulation.output_sym: state -> the formulation's outputs
+    compiled: bool
+    ny: int = 5
+    wrapped: tuple[int, ...] = (4,)
+    backend_note: str | None = None
+
+    @property
+    def window_size(self) -> int:
+        n, nx, nz = self.horizon, self.nx, self.nz
+        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nx * nx * n
+
+    def evaluate_node(
+        self,
+        x: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray | None = None,
+        mask: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))`` at one node."""
+        return NodeEvaluator(self).evaluate(x, u, dt, z, mask)
+
+
+class NodeEvaluator:
+    """Reusable buffers for :meth:`WindowModel.evaluate_node` (one per estimator)."""
+
+    def __init__(self, model: WindowModel) -> None:
+        nx, nz = model.nx, model.nz
+        self._fn = model.node
+        self._x = np.zeros(nx)
+        self._u = np.zeros(model.nu)
+        self._dt = np.zeros(1)
+        self._z = np.zeros(nz)
+        self._m = np.ones(nz)
+        self._out = np.empty(nx + nx * nx + nz * nx + nz)
+        self._ptrs = np.array(
+            [
+                self._x.ctypes.data,
+                self._u.ctypes.data if model.nu else 0,
+                self._dt.ctypes.data,
+                self._z.ctypes.data,
+                self._m.ctypes.data,
+            ],
+            dtype=np.uintp,
+        )
+        self._ofn = model.output
+        self._ox = np.zeros(nx)
+        self._oout = np.empty(model.ny)
+        self._wrapped = list(model.wrapped)
+        self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
+        k = nx + nx * nx
+        self._views = (
+            self._out[:nx],
+            self._out[nx:k].reshape(nx, nx),
+            self._out[k : k + nz * nx].reshape(nz, nx),
+            self._out[k + nz * nx :],
+        )
+
+    def evaluate(
+        self,
+        x: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray | None = None,
+        mask: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))``, copies: (nx,), (nx, nx),
+        (nz, nx), (nz,). ``z`` matters for the last two only (zeros when omitted);
+        ``mask`` (nz,) zeroes the components of sensors that dropped out."""
+        self._x[:] = x
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = 0.0 if z is None else z
+        self._m[:] = 1.0 if mask is None else mask
+        if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
+            raise RuntimeError(failure_message(self._fn))
+        f, F, H, r = self._views
+        return f.copy(), F.copy(), H.copy(), r.copy()
+
+    def arrival_step(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray,
+        mask: FloatArray,
+        R: FloatArray,
+        Q: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """One EKF step of the arrival prior in one compiled call: update with ``z``
+        (its valid components, ``mask``; none: prediction only), predict with
+        ``(u, dt)``. Returns ``(x+, P+, P+^-1)``; the same
+        equations as :func:`arrival_update` then :func:`arrival_predict`."""
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = z
+        self._m[:] = mask
+        valid = bool(np.any(mask))
+        try:
+            return arrival.arrival_step(
+                self._fn, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
+            )
+        except RuntimeError as exc:  # the kernel cannot format the model's own message
+            if str(exc) != "model evaluation failed":
+                raise
+            raise RuntimeError(failure_message(self._fn)) from exc
+
+    def ekf_step(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray,
+        mask: FloatArray,
+        R: FloatArray,
+        Q: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        """One EKF step in one compiled call: predict with ``(u, dt)``, then update with
+        the valid components of ``z`` (``mask``); the equations of
+        :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``."""
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = np.where(mask > 0, z, 0.0)
+        self._m[:] = mask
+        try:
+            return arrival.ekf_step(
+                self._fn, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
+            )
+        except RuntimeError as exc:  # the kernel cannot format the model's own message
+            if str(exc) != "model evaluation failed":
+                raise
+            raise RuntimeError(failure_message(self._fn)) from exc
+
+    def output(self, x: FloatArray) -> FloatArray:
+        """The outputs of state ``x`` (compiled ``output_sym``; wrapped angles in
+        ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
+        self._ox[:] = x
+        if self._ofn(self._optrs.ctypes.data, self._oout.ctypes.data) != 0:
+            raise RuntimeError(failure_message(self._ofn))
+        y = self._oout.copy()
+        for i in self._wrapped:
+            y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
+        return y
+
+
+@lru_cache(maxsize=32)
+def build_window_model(formulation: Formulation, horizon: int, compile: bool = True) -> WindowModel:
+    """Build (and compile, if possible) the window model. Cached per arguments.
+
+    Raises ``NotImplementedError`` (with the reason) if the feasible set is not a box
+    and disjoint balls. Without a working C compiler the model runs in CasADi's VM,
+    said once on stderr and recorded in ``compiled`` and ``backend_note``.
+    """
+    feasible = feasible_set(formulation)
+    win, node = window_function(formulation, horizon), node_function(formulation)
+    out = output_function(formulation)
+    library = compile_library(c_source((win, node, out))) if compile else Library(None)
+    note = announce_vm_fallback(library) if library.reason else None
+    wrapped = tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False))
+    return WindowModel(
+        nx=formulation.nx,
+        nu=formulation.nu,
+        nz=formulation.nz,
+        horizon=horizon,
+        feasible=feasible,
+        rinv=np.asarray(np.linalg.inv(formulation.meas_cov()), dtype=np.float64),
+        window=c_function(win, library.lib),
+        node=c_function(node, library.lib),
+        output=c_function(out, library.lib),
+        compiled=library.lib is not None,
+        ny=int(out.nnz_out(0)),
+        wrapped=wrapped,
+        backend_note=note,
+    )

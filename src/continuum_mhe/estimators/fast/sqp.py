@@ -1,0 +1,411 @@
+"""The window solve: Newton-type SQP with a projected line search (numba kernels).
+
+Each iteration evaluates the whole window's model in one call (residuals, Jacobians and
+the measurement residuals' second-order term), assembles the block-tridiagonal Hessian
+of the Lagrangian (:func:`_assemble`: Gauss-Newton ``J^T W J``, plus the exact
+second-order term where that keeps it positive definite, plus ``2 lam_b I`` on the
+coordinates of each ball ``b`` with a positive multiplier), and solves the QP subproblem
+(:func:`~continuum_mhe.estimators.fast.qp.solve_qp`). Iterates stay exactly feasible
+(projection). See ``docs/fast-solver.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.estimators.fast.model import WindowModel
+from continuum_mhe.estimators.fast.qp import (
+    CONVERGED,
+    LINE_SEARCH_FAILED,
+    MAX_ITER,
+    NOT_PD,
+    OUTCOMES,
+    project,
+    solve_qp,
+)
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators.mhe import WindowProblem as WindowProblemLike
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FastOptions:
+    """Options of the fast backend.
+
+    Attributes:
+        max_iter: SQP (Gauss-Newton) iterations per window before falling back.
+        step_tol: convergence certificate: max-norm of the QP step, state units
+            (rad, rad/s, m).
+        err_tol: convergence certificate: error bound of the answer estimated from
+            the contraction of successive steps, state units.
+        max_qp_iter: active-set changes allowed per QP subproblem.
+        newton: add the measurement residuals' second-order term to the Hessian
+            (exact Newton; Gauss-Newton where that is not positive definite).
+        compile: compile the CasADi model to C (cached on disk) when a C compiler is
+            available; otherwise, or if False, CasADi's virtual machine evaluates it.
+    """
+
+    max_iter: int = 30
+    step_tol: float = 1e-8
+    err_tol: float = 1e-8
+    newton: bool = True
+    max_qp_iter: int = 500
+    compile: bool = True
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+        if not (isinstance(self.max_qp_iter, int) and self.max_qp_iter >= 1):
+            raise ValueError(f"max_qp_iter must be a positive integer, got {self.max_qp_iter!r}")
+        if not (isinstance(self.step_tol, float) and 0 < self.step_tol < 1e-3):
+            raise ValueError(f"step_tol must lie in (0, 1e-3), got {self.step_tol!r}")
+        if not (isinstance(self.err_tol, float) and 0 < self.err_tol < 1e-3):
+            raise ValueError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
+
+
+@numba.njit(cache=True)
+def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, D, E, g):
+    """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
+    gradient ``g`` and the cost; ``lam`` (n, nb) adds each ball's curvature
+    ``2 lam_b I_{S_b}``."""
+    n, nx = X.shape
+    D[:] = 0.0
+    E[:] = 0.0
+    g[:] = 0.0
+    cost = 0.0
+    nz = R.shape[1]
+    wr = np.empty(nz)
+    qw = np.empty(nx)
+    qf = np.empty((nx, nx))
+    e = np.empty(nx)
+    wj = np.empty((nz, nx))
+    for i in range(n):
+        m = zmask[i]
+        if m != 0.0:
+            for a in range(nz):
+                s = 0.0
+                for b in range(nz):
+                    s += rinv[a, b] * R[i, b]
+                wr[a] = s
+                cost += 0.5 * m * R[i, a] * s
+                for k in range(nx):
+                    s = 0.0
+                    for b in range(nz):
+                        s += rinv[a, b] * JR[i, b, k]
+                    wj[a, k] = s
+            for j in range(nx):
+                s = 0.0
+                for a in range(nz):
+                    s += JR[i, a, j] * wr[a]
+                g[i, j] += m * s
+                for k in range(nx):
+                    s = 0.0
+                    for a in range(nz):
+                        s += JR[i, a, j] * wj[a, k]
+                    D[i, j, k] += m * s
+        for j in range(nx):
+            e[j] = X[i, j] - xbar[j]
+        for j in range(nx):
+            s = 0.0
+            for k in range(nx):
+                s += arrival[i, j, k] * e[k]
+                D[i, j, k] += arrival[i, j, k]
+            g[i, j] += s
+            cost += 0.5 * e[j] * s
+        if i < n - 1:
+            for j in range(nx):
+                s = 0.0
+                for k in range(nx):
+                    s += qinv[i, j, k] * W[i, k]
+                qw[j] = s
+                cost += 0.5 * W[i, j] * s
+            for j in range(nx):
+                for k in range(nx):
+                    s = 0.0
+                    for a in range(nx):
+                        s += qinv[i, j, a] * FJ[i, a, k]
+                    qf[j, k] = s
+            for j in range(nx):
+                s = 0.0
+                for a in range(nx):
+                    s += FJ[i, a, j] * qw[a]
+                g[i, j] -= s
+                g[i + 1, j] += qw[j]
+                for k in range(nx):
+                    s = 0.0
+                    for a in range(nx):
+                        s += FJ[i, a, j] * qf[a, k]
+                    D[i, j, k] += s
+                    D[i + 1, j, k] += qinv[i, j, k]
+                    E[i, j, k] = -qf[k, j]
+    for i in range(n):
+        for bb in range(ball_idx.shape[0]):
+            if lam[i, bb] > 0.0:
+                for s_ in ball_idx[bb]:
+                    D[i, s_, s_] += 2.0 * lam[i, bb]
+    return cost
+
+
+@numba.njit(cache=True)
+def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g):
+    """Evaluate the model at ``X`` (one C call) and assemble; inf cost on failure."""
+    n, nx = X.shape
+    nz = rinv.shape[0]
+    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        return np.inf
+    o1, o2, o3 = nz * n, nz * n + nz * nx * n, nz * n + nz * nx * n + nx * (n - 1)
+    o4 = o3 + nx * nx * (n - 1)
+    R = out[:o1].reshape(n, nz)
+    JR = out[o1:o2].reshape(n, nz, nx)
+    W = out[o2:o3].reshape(n - 1, nx)
+    FJ = out[o3:o4].reshape(n - 1, nx, nx)
+    return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g)
+
+
+@numba.njit(cache=True)
+def _add_curvature(out, zmask, D, sign):
+    """``D_i += sign * m_i S_i``: the measurement residuals' second-order Hessian term
+    (exact Newton instead of Gauss-Newton); ``S`` is the model's last output."""
+    n, nx = D.shape[0], D.shape[1]
+    S = out[out.shape[0] - n * nx * nx :].reshape(n, nx, nx)
+    for i in range(n):
+        if zmask[i] != 0.0:
+            for j in range(nx):
+                for k in range(nx):
+                    D[i, j, k] += sign * zmask[i] * S[i, j, k]
+
+
+@numba.njit(cache=True)
+def _sqp(
+    fn,
+    ptrs,
+    Xb,
+    out,
+    zmask,
+    rinv,
+    qinv,
+    xbar,
+    arrival,
+    lo,
+    hi,
+    bidx,
+    r2,
+    lam,
+    max_iter,
+    step_tol,
+    err_tol,
+    max_qp,
+    newton,
+    D,
+    E,
+    g,
+    d,
+    lam_qp,
+):
+    """Newton-type SQP on two buffers (current, trial); returns
+    ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
+
+    Certified when the QP step ``d`` is below ``step_tol``, or, with no constraint
+    active, when the observed contraction ``rho = |d_k| / |d_k-1| <= 1/2`` of two
+    full steps bounds the error of ``X_k + d_k`` by ``rho / (1 - rho) |d_k| <= err_tol``.
+    The answer is then the projection of ``X_k + d_k`` (not evaluated again);
+    ``cost`` is at ``X_k``.
+    """
+    cur = 0
+    project(Xb[0], lo, hi, bidx, r2)
+    cost = _evaluate(
+        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0], g[0]
+    )
+    exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
+    if exact:
+        _add_curvature(out[0], zmask, D[0], 1.0)
+    step = np.inf
+    prev = np.inf  # previous full step (inf after a shortened one)
+    for it in range(1, max_iter + 1):
+        if not np.isfinite(cost):
+            return LINE_SEARCH_FAILED, it, step, cost, cur
+        status, _, active = solve_qp(
+            Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
+        )
+        if status == NOT_PD and exact:  # indefinite: fall back to Gauss-Newton here
+            _add_curvature(out[cur], zmask, D[cur], -1.0)
+            exact = False
+            status, _, active = solve_qp(
+                Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
+            )
+        if status != CONVERGED:
+            return status, it, step, cost, cur
+        step = np.max(np.abs(d))
+        tr = 1 - cur
+        contracted = active == 0 and prev < np.inf and step <= 0.5 * prev
+        if step <= step_tol or (contracted and step * step / (prev - step) <= err_tol):
+            lam[:] = lam_qp
+            Xb[tr] = Xb[cur] + d
+            project(Xb[tr], lo, hi, bidx, r2)
+            return CONVERGED, it, step, cost, tr
+        alpha = 1.0
+        slack = 1e-13 * (1.0 + abs(cost))
+        accepted = False
+        for _ in range(30):
+            Xb[tr] = Xb[cur] + alpha * d
+            project(Xb[tr], lo, hi, bidx, r2)
+            ct = _evaluate(
+                fn,
+                ptrs[tr],
+                out[tr],
+                Xb[tr],
+                zmask,
+                rinv,
+                qinv,
+                xbar,
+                arrival,
+                lam_qp,
+                bidx,
+                D[tr],
+                E[tr],
+                g[tr],
+            )
+            if ct <= cost + 1e-4 * np.sum(g[cur] * (Xb[tr] - Xb[cur])) + slack:
+                accepted = True
+                exact = newton
+                if exact:
+                    _add_curvature(out[tr], zmask, D[tr], 1.0)
+                break
+            alpha *= 0.5
+        if not accepted:
+            return LINE_SEARCH_FAILED, it, step, cost, cur
+        prev = step if alpha == 1.0 else np.inf
+        cur, cost = tr, ct
+        lam[:] = lam_qp
+    return MAX_ITER, max_iter, step, cost, cur
+
+
+@dataclass(frozen=True)
+class FastResult:
+    """Outcome of :func:`solve_window`.
+
+    Attributes:
+        X: (N, nx) the answer (see :func:`_sqp`); feasible exactly.
+        converged: True if the KKT certificate holds at ``X``.
+        outcome: one of :data:`OUTCOMES`.
+        iterations: SQP iterations (QP solves).
+        step: max-norm of the last QP step, state units.
+        cost: the window cost at the last evaluated iterate (the answer minus the last
+            step when certified).
+        lam: (N, nb) multipliers of the ball constraints at ``X``.
+    """
+
+    X: FloatArray
+    converged: bool
+    outcome: str
+    iterations: int
+    step: float
+    cost: float
+    lam: FloatArray
+
+
+def _pointers(
+    X: FloatArray, z: FloatArray, m: FloatArray, u: FloatArray, dt: FloatArray
+) -> NDArray[np.uintp]:
+    return np.array(
+        [
+            X.ctypes.data,
+            z.ctypes.data,
+            m.ctypes.data,
+            u.ctypes.data if u.size else 0,
+            dt.ctypes.data,
+        ],
+        dtype=np.uintp,
+    )
+
+
+class Workspace:
+    """Buffers of :func:`solve_window`, reusable across windows of one model.
+
+    The window data are copied into fixed buffers, so the C model's argument
+    pointers are computed once.
+    """
+
+    def __init__(self, model: WindowModel) -> None:
+        n, nx, nz, nu = model.horizon, model.nx, model.nz, model.nu
+        self.z = np.zeros((n, nz))
+        self.m = np.zeros((n, nz))
+        self.u = np.zeros((n - 1, nu))
+        self.dt = np.zeros(n - 1)
+        self.Xb = np.empty((2, n, nx))
+        self.out = np.empty((2, model.window_size))
+        self.D = np.empty((2, n, nx, nx))
+        self.E = np.empty((2, n - 1, nx, nx))
+        self.g = np.empty((2, n, nx))
+        self.d = np.empty((n, nx))
+        self.lam_qp = np.zeros((n, len(model.feasible.ball_r2)))
+        self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
+
+
+def solve_window(
+    model: WindowModel,
+    problem: WindowProblemLike,
+    X0: FloatArray,
+    options: FastOptions | None = None,
+    lam0: FloatArray | None = None,
+    workspace: Workspace | None = None,
+) -> FastResult:
+    """Solve one window problem from the initial guess ``X0`` (N, nx).
+
+    ``problem.zmask`` (N, nz) masks the measurement components of sensors that dropped
+    out. ``lam0`` (N, nb) warm-starts the ball multipliers (the curvature term). The guess is
+    projected onto the feasible set first. ``workspace`` (of this model) saves the
+    allocations. See the module docstring for the method.
+    """
+    opt = options or FastOptions()
+    fs, n = model.feasible, model.horizon
+    ws = workspace or Workspace(model)
+    ws.z[:] = problem.z
+    ws.m[:] = problem.zmask
+    ws.u[:] = problem.u
+    ws.dt[:] = problem.dt
+    ws.Xb[0] = X0
+    nb = len(fs.ball_r2)
+    lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
+    node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)  # the residuals are masked
+    outcome, it, step, cost, cur = _sqp(
+        model.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
+        problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
+        opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
+        ws.g, ws.d, ws.lam_qp,
+    )  # fmt: skip
+    return FastResult(
+        X=ws.Xb[cur].copy(),
+        converged=outcome == CONVERGED,
+        outcome=OUTCOMES[outcome],
+        iterations=int(it),
+        step=float(step),
+        cost=float(cost),
+        lam=lam,
+    )
+
+
+def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -> float:
+    """The window cost at ``X`` (N, nx), from the compiled model."""
+    n, nx = model.horizon, model.nx
+    Xc = np.array(X, dtype=float)
+    z, u = np.ascontiguousarray(problem.z, float), np.ascontiguousarray(problem.u, float)
+    dt = np.ascontiguousarray(problem.dt, float)
+    m = np.ascontiguousarray(problem.zmask, float)
+    node_mask = np.any(m != 0.0, axis=1).astype(np.float64)
+    nb = len(model.feasible.ball_r2)
+    return float(
+        _evaluate(
+            model.window, _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
+            node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
+            np.zeros((n, nb)), model.feasible.ball_idx, np.empty((n, nx, nx)),
+            np.empty((n - 1, nx, nx)), np.empty((n, nx)),
+        )
+    )  # fmt: skip
