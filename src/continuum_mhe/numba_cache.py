@@ -30,7 +30,7 @@ def ensure_numba_cache_dir() -> str | None:
     returns that folder, or None when nothing had to change."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return None
-    source = Path(__file__).resolve().parent / "estimators" / "__pycache__"
+    source = Path(__file__).resolve().parent / "estimators" / "fast" / "__pycache__"
     home = os.environ.get("HOME") or "/nonexistent"
     user = Path(os.environ.get("XDG_CACHE_HOME") or Path(home) / ".cache") / "numba"
     if writable(source) or writable(user):
