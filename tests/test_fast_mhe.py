@@ -55,9 +55,12 @@ class Recorded:
     windows: list[Window] = field(default_factory=list)
 
 
-def record_ipopt(formulation: Formulation, horizon: int, t: FloatArray, z: FloatArray) -> Recorded:
-    """Run the IPOPT estimator and keep every window problem it solved."""
-    est = MovingHorizonEstimator(formulation, MHESettings(horizon=horizon, solver="ipopt"))
+def record_ipopt(
+    formulation: Formulation, horizon: int, t: FloatArray, z: FloatArray, tol: float = 1e-8
+) -> Recorded:
+    """Run the IPOPT estimator (tolerance ``tol``) and keep every window problem it solved."""
+    settings = MHESettings(horizon=horizon, solver="ipopt", tol=tol)
+    est = MovingHorizonEstimator(formulation, settings)
     rec = Recorded(est)
     solve = est._solve
 
@@ -507,6 +510,232 @@ def test_corrupted_cached_model_is_rebuilt_not_loaded(tmp_path: Path, damage: st
     assert again.stdout.strip() == "compiled"
     digest = lib.with_name(lib.name + ".sha256").read_text().strip()
     assert hashlib.sha256(lib.read_bytes()).hexdigest() == digest  # rebuilt, checked
+
+
+# --- several sections: one ball per section, per-IMU masks -------------------------------
+
+
+def _two_section(theta_max: float = 0.5, imus: tuple[int, ...] = (0, 1)) -> Formulation:
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot(
+        (Section(0.16, theta_max), Section(0.14, theta_max)), tuple(ImuPlacement(k) for k in imus)
+    )
+    return make_formulation("bend", robot)
+
+
+def _two_section_recording(f: Formulation, duration: float = 3.0) -> tuple[FloatArray, FloatArray]:
+    """The s-curve on two sections: both bends go beyond ``theta_max = 0.5`` (active
+    balls from about 1.6 s on); IMU 2 drops out for 0.5 s, IMU 1 for two samples."""
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    loose = _two_section(3.0, tuple(imu.section for imu in f.robot.imus)).robot
+    rec = simulate_robot("s-curve", loose, duration=duration, dt=0.05, seed=3)
+    z = rec.z.copy()
+    z[30:40, f.measurement_blocks[1].slice] = np.nan
+    z[45:47, f.measurement_blocks[0].slice] = np.nan
+    return rec.t, z
+
+
+def test_two_sections_with_active_balls_agree_with_ipopt_window_by_window() -> None:
+    """Every window IPOPT solves on a two-section robot (two balls on disjoint
+    coordinates, both active on many nodes, one IMU dropping out at a time): the fast
+    backend certifies it and agrees to 1e-6 rad with the same active set."""
+    f = _two_section()
+    fs = fm.feasible_set(f)
+    assert fs.ball_idx.tolist() == [[0, 1], [2, 3]]
+    np.testing.assert_allclose(fs.ball_r2, [0.25, 0.25])
+    t, z = _two_section_recording(f)
+    # IPOPT to 1e-10: at its default 1e-8 two windows' rates differed by 1.07e-6 rad/s
+    # (bends within 1.4e-7 rad), IPOPT's answer 1e-8 outside the balls, the fast cost lower
+    rec = record_ipopt(f, 10, t, z, tol=1e-10)
+    partial = [w for w in rec.windows if 0 < w.problem.zmask.sum(axis=1).min() < f.nz]
+    assert partial  # windows with one IMU masked and the other valid
+    compare_windows(f, rec)  # all certified, all agree (states and active sets)
+    model = fm.build_window_model(f, 10)
+    active = np.zeros(2, dtype=int)
+    both = 0
+    for w in rec.windows:
+        res = fm.solve_window(model, w.problem, w.X0)
+        on = np.column_stack([np.sum(res.X[:, idx] ** 2, axis=1) >= r2 * (1 - 1e-12)
+                              for idx, r2 in zip(fs.ball_idx, fs.ball_r2)])  # fmt: skip
+        active += on.any(axis=0)
+        both += int(np.any(on.all(axis=1)))
+        assert res.lam.shape == (10, 2) and np.all(res.lam >= 0)
+        assert np.all(res.lam[~on] == 0.0)  # a multiplier only on an active ball
+    assert np.all(active >= 10) and both >= 10  # each ball, and both on one node
+
+
+def test_masked_imu_block_is_dropped_from_the_window() -> None:
+    """Masking one IMU's block equals leaving its residual out: with IMU 2 masked on
+    every node the two-IMU problem is the robot without IMU 2 (same answer, same
+    cost); masked on some nodes, the cost drops by exactly those nodes' IMU-2 terms."""
+    f2, f1 = _two_section(), _two_section(imus=(0,))
+    t, z = _two_section_recording(f2, duration=1.5)
+    rec = record_ipopt(f2, 8, t, z)
+    m2, m1 = fm.build_window_model(f2, 8), fm.build_window_model(f1, 8)
+    sl = f2.measurement_blocks[1].slice
+    rinv = np.linalg.inv(f2.meas_cov())[sl, sl]
+    for w in rec.windows[8::5]:
+        p = w.problem
+        mask = p.zmask.copy()
+        mask[:, sl] = 0.0
+        masked = WindowProblem(**{**vars(p), "zmask": mask})
+        dropped = WindowProblem(**{**vars(p), "z": p.z[:, :2], "zmask": p.zmask[:, :2]})
+        a, b = fm.solve_window(m2, masked, w.X0), fm.solve_window(m1, dropped, w.X0)
+        assert a.converged and b.converged
+        np.testing.assert_allclose(a.X, b.X, rtol=0, atol=1e-12)
+        assert fm.window_cost(m2, masked, a.X) == pytest.approx(
+            fm.window_cost(m1, dropped, a.X), rel=1e-13
+        )
+        # on some nodes only: the unmasked cost minus those nodes' IMU-2 terms
+        some = p.zmask.copy()
+        some[1::2, sl] = 0.0
+        half = WindowProblem(**{**vars(p), "zmask": some})
+        terms = 0.0
+        for i in np.flatnonzero(p.zmask[:, sl].all(axis=1)):
+            if i % 2 == 1:
+                r = np.asarray(f2.functions.innovate(p.z[i], w.X0[i])[0], float).ravel()[sl]
+                terms += 0.5 * r @ rinv @ r
+        assert terms > 1e-3  # the dropped terms matter
+        assert fm.window_cost(m2, half, w.X0) == pytest.approx(
+            fm.window_cost(m2, p, w.X0) - terms, rel=1e-12
+        )
+        assert fm.window_cost(m2, half, w.X0) == pytest.approx(
+            rec.estimator.window_cost(half, w.X0), rel=1e-12
+        )  # the IPOPT NLP has the same masked residual
+
+
+def test_node_function_masks_rows_for_the_arrival_step() -> None:
+    """The arrival EKF step with IMU 2 masked is the step of the robot without IMU 2."""
+    f2, f1 = _two_section(), _two_section(imus=(0,))
+    n2 = fm.NodeEvaluator(fm.build_window_model(f2, 3))
+    n1 = fm.NodeEvaluator(fm.build_window_model(f1, 3))
+    x = np.array([0.3, -0.2, 0.5, 0.1, 0.2, 0.1, -0.3, 0.05])
+    P = np.diag(np.linspace(0.05, 0.3, 8))
+    z2 = np.array([0.31, -0.19, 0.7, 0.2])
+    Q = np.eye(8) * 1e-3
+    R2, R1 = f2.meas_cov(), f1.meas_cov()
+    got = n2.arrival_step(x, P, np.zeros(0), 0.05, z2, np.array([1.0, 1, 0, 0]), R2, Q)
+    ref = n1.arrival_step(x, P, np.zeros(0), 0.05, z2[:2], np.ones(2), R1, Q)
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+    _, _, H, r = n2.evaluate(x, np.zeros(0), 0.05, z2, np.array([1.0, 1, 0, 0]))
+    assert np.all(H[2:] == 0.0) and np.all(r[2:] == 0.0)
+
+
+def test_outputs_of_any_size_with_the_formulations_wrapped_angles() -> None:
+    f = _two_section()
+    node = fm.NodeEvaluator(fm.build_window_model(f, 3))
+    assert node.output(np.zeros(8)).shape == (f.ny,) == (13,)
+    wrapped = [i for i, o in enumerate(f.outputs) if o.wrapped]
+    assert len(wrapped) == 2  # phi_1, phi_2
+    for x in (
+        np.array([-0.5, 0.0, 0.3, 0.4, 0, 0, 0, 0]),
+        np.array([0.2, -0.1, -0.4, 0, 0, 0, 0, 0]),
+    ):
+        np.testing.assert_allclose(node.output(x), f.output(x), rtol=1e-13, atol=1e-15)
+
+
+@dataclass(frozen=True)
+class _ScalarBall(BendFormulation):
+    """Today's scalar form of ``constraint_sym``: ``(g, lo, hi)`` with floats."""
+
+    def constraint_sym(self, x):
+        return x[0] ** 2 + x[1] ** 2, -np.inf, 1.0
+
+
+def test_feasible_set_accepts_the_scalar_constraint_form() -> None:
+    fs = fm.feasible_set(_ScalarBall())
+    assert fs.ball_idx.tolist() == [[0, 1]] and fs.ball_r2.tolist() == [1.0]
+
+
+def test_vm_failure_keeps_its_text_and_step_does_not_raise() -> None:
+    """A model evaluation that fails inside CasADi's VM: the exception's text reaches
+    the error, and ``step`` flags the sample and restarts instead of raising."""
+    from continuum_mhe.estimators.base import Measurement
+    from continuum_mhe.estimators.fast import codegen
+
+    class Broken:
+        def __init__(self, fn):
+            self._fn = fn
+
+        def __getattr__(self, name):
+            return getattr(self._fn, name)
+
+        def call(self, args):
+            raise ValueError("broken model\nsecond line")
+
+    f = make_formulation("bend")
+    model = fm.build_window_model(f, 4, compile=False)
+    broken = codegen._vm_function(Broken(codegen.node_function(f)))
+    node = fm.NodeEvaluator(model)
+    node._fn = broken
+    with pytest.raises(RuntimeError, match="ValueError: broken model second line"):
+        node.evaluate(np.zeros(4), np.zeros(0), 0.05)
+    with pytest.raises(RuntimeError, match="broken model"):
+        node.arrival_step(np.zeros(4), np.eye(4), np.zeros(0), 0.05, np.zeros(2), np.ones(2),
+                          f.meas_cov(), np.eye(4))  # fmt: skip
+    est = MovingHorizonEstimator(f, MHESettings(horizon=4), fm.FastOptions(compile=False))
+    rec = simulate("paper3d", duration=0.5, seed=1)
+    statuses = [est.step(Measurement(float(t), z)).status for t, z in zip(rec.t[:6], rec.z[:6])]
+    assert est._node is not None
+    est._node._fn = broken  # the arrival step and the initial guess now fail
+    for t, z in zip(rec.t[6:], rec.z[6:]):
+        statuses.append(est.step(Measurement(float(t), z)).status)
+    assert statuses[:6] == ["ok"] * 6
+    assert "reset" in statuses[6:]  # flagged, restarted from the sample, never raised
+    assert est.last_failure is not None and "broken model" in est.last_failure
+
+
+def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
+    """With a compiler that fails: one line on stderr, once per process; the model,
+    the estimator and the benchmark record it; the answers are the compiled ones."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np\n"
+        "from continuum_mhe.estimators import make_estimator\n"
+        "from continuum_mhe.model.registry import make_formulation\n"
+        "from continuum_mhe.settings import MHESettings\n"
+        "from continuum_mhe.simulation.scenarios import simulate\n"
+        "from continuum_mhe.benchmark import environment\n"
+        "f = make_formulation('bend')\n"
+        "rec = simulate('paper3d', duration=1.0, seed=2)\n"
+        "a = make_estimator('mhe', f, MHESettings(horizon=6))\n"
+        "b = make_estimator('mhe', f, MHESettings(horizon=7))\n"
+        "e = make_estimator('ekf', f)\n"
+        "out = a.run(rec.t, rec.z)\n"
+        "print(a.compiled, b.compiled, type(e).__name__, environment(f)['compiled'])\n"
+        "print(a.backend_note)\n"
+        "np.save('out.npy', out.output)\n"
+    )
+    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
+    runs = {}
+    for cc in ("false", "cc"):
+        work = tmp_path / cc
+        work.mkdir()
+        runs[cc] = subprocess.run(
+            [sys.executable, "-c", code], env={**env, "CC": cc}, cwd=work,
+            capture_output=True, text=True,
+        )  # fmt: skip
+        assert runs[cc].returncode == 0, runs[cc].stderr
+    vm = runs["false"]
+    lines = [ln for ln in vm.stderr.splitlines() if ln.strip()]
+    assert lines == [
+        "continuum-mhe: no C compiler (false failed): the fast MHE runs through CasADi's VM, "
+        "about 10x slower; install gcc"
+    ]
+    first, note = vm.stdout.splitlines()[:2]
+    assert first == "False False ExtendedKalmanFilter False"
+    assert note.startswith("no C compiler (false failed)")
+    assert runs["cc"].stdout.splitlines()[0] == "True True CompiledExtendedKalmanFilter True"
+    assert not runs["cc"].stderr.strip()
+    np.testing.assert_array_equal(
+        np.load(tmp_path / "false" / "out.npy"), np.load(tmp_path / "cc" / "out.npy")
+    )
 
 
 def test_missing_c_compiler_is_announced_once(tmp_path: Path) -> None:
