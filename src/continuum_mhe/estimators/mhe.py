@@ -43,6 +43,7 @@ import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.estimators.fast import (
+    BackendFallbackWarning,
     FastOptions,
     NodeEvaluator,
     WindowModel,
@@ -140,10 +141,6 @@ def pack_parameters(problem: WindowProblem) -> FloatArray:
             problem.arrival.reshape(len(problem.zmask), -1).ravel(),
         ]
     )
-
-
-class BackendFallbackWarning(UserWarning):
-    """The requested MHE backend or compiled model is not what runs (said once)."""
 
 
 class MovingHorizonEstimator(Estimator):

@@ -48,7 +48,7 @@ Modules (one responsibility each):
 from __future__ import annotations
 
 from continuum_mhe.estimators.fast.arrival import arrival_predict, arrival_update
-from continuum_mhe.estimators.fast.codegen import CFunction, Library
+from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction, Library
 from continuum_mhe.estimators.fast.model import (
     Feasible,
     NodeEvaluator,
@@ -73,6 +73,7 @@ from continuum_mhe.estimators.fast.sqp import (
 )
 
 __all__ = [
+    "BackendFallbackWarning",
     "CONVERGED",
     "CFunction",
     "Feasible",

@@ -8,7 +8,8 @@ generator turns them into C, compiled with the system C compiler and cached on d
 source, with a sha256 of each library stored beside it and checked before loading (a
 truncated or corrupted library would crash the process). Without a working compiler the
 same functions run in CasADi's virtual machine behind the same C calling convention
-(a ctypes callback): identical answers, about 10x slower, said once on stderr.
+(a ctypes callback): identical answers, about 10x slower, said once
+(:class:`BackendFallbackWarning`).
 
 Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`CFunction`),
 0 on success; :func:`failure_message` gives the reason of a failed one.
@@ -21,8 +22,8 @@ import hashlib
 import os
 import signal
 import subprocess
-import sys
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -222,20 +223,25 @@ def compile_library(src: str) -> Library:
         )
 
 
+class BackendFallbackWarning(UserWarning):
+    """The requested MHE backend or compiled model is not what runs (said once)."""
+
+
 _announced: set[str] = set()
 
 
 def announce_vm_fallback(library: Library) -> str:
-    """The one-line notice that the model runs in CasADi's VM, printed on stderr once
-    per process (per reason); returns it (for the estimator's ``backend_note``)."""
-    what = "no C compiler" if library.fix == "install gcc" else "no compiled model"
+    """Warn (:class:`BackendFallbackWarning`, one line under the CLI) that the model runs
+    in CasADi's VM, once per process and reason; returns the notice (for the
+    estimator's ``backend_note``)."""
+    what = "no working C compiler" if library.fix == "install gcc" else "no compiled model"
     note = (
         f"{what} ({library.reason}): the fast MHE runs through CasADi's VM, "
         f"about 10x slower; {library.fix}"
     )
     if note not in _announced:
         _announced.add(note)
-        print(f"continuum-mhe: {note}", file=sys.stderr, flush=True)
+        warnings.warn(note, BackendFallbackWarning, stacklevel=4)
     return note
 
 
