@@ -7,7 +7,6 @@ compared with IPOPT's answer: states, cost, active bounds, exact feasibility.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -436,25 +435,6 @@ def test_direct_formulation_agrees() -> None:
     }
     assert set(out["fast"].status) == {"ok"}
     np.testing.assert_allclose(out["fast"].output, out["ipopt"].output, atol=1e-6, rtol=0)
-
-
-def test_benchmark_command_smoke(tmp_path: Path) -> None:
-    """``continuum-mhe benchmark`` on a tiny recording: every method, JSON written."""
-    from continuum_mhe.cli import main
-
-    out = tmp_path / "bench.json"
-    args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "200"]
-    assert main([*args, "--json", str(out)]) == 0
-    report = json.loads(out.read_text())
-    methods = {r["method"] for r in report["results"]}
-    assert methods == {"fast", "ipopt", "do-mpc", "ekf", "ekf-compiled"}
-    fast = next(r for r in report["results"] if r["method"] == "fast")
-    assert fast["max_diff_vs_ipopt"] < 1e-6 and fast["fallbacks"] == 0
-    ekf, ekfc = (
-        next(r for r in report["results"] if r["method"] == m) for m in ("ekf", "ekf-compiled")
-    )
-    assert ekfc["max_diff_vs_ipopt"] == pytest.approx(ekf["max_diff_vs_ipopt"], abs=1e-9)
-    assert report["memory"]["samples"] == 200
 
 
 @pytest.mark.parametrize("compile_model", [True, False])

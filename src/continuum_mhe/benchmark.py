@@ -1,19 +1,26 @@
-"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and the EKF.
+"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs.
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
-the median and 99th-percentile wall time per sample (the whole ``step``, with the
-window bookkeeping and the arrival-cost update), their ratios to IPOPT and to the
-strongest EKF (``ekf-compiled``: the same EKF step as one compiled call, the
-fast MHE's C model and numba kernels; ``ekf`` is the EKF through CasADi calls), and
-the largest difference of the estimates ``[x, y, z, theta, phi]`` from IPOPT's. A
-long recording then shows that the fast MHE's memory does not grow per sample
-(tracemalloc and RSS slopes).
+the median and 99th-percentile wall time per sample once the window is full, the ratio
+of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
+(:data:`METHOD_NOTES` says what each method times), and the largest difference of the
+outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
+``N`` on. A long recording then shows that the fast MHE's memory does not grow per
+sample (tracemalloc and RSS slopes). The report records where the numbers come from:
+whether the model ran compiled, the C compiler, the machine and the versions.
 
-do-mpc's MHE is built from the same CasADi expressions of the bend formulation
-(transition, tilt measurement, disk constraint) and the same Q^-1, R^-1 and P0^-1;
-its arrival cost stays fixed (do-mpc has no EKF arrival update), so its estimates are
-close to ours but not identical.
+do-mpc's MHE is given our window cost through its own API: the tangent-plane tilt
+residual as its measurement (the window's measurements enter as time-varying
+parameters, the measured value is 0, so its measurement noise ``v`` is the residual),
+the same ``Q^-1`` and ``R^-1``, the disk bound, and our arrival prior (the EKF's
+filtered state and covariance of the sample before the window) as a parameter of its
+arrival cost. The transition is linear, so its extra arrival node is exactly our prior
+propagated one step. From sample ``N`` on it solves the same problem as our IPOPT
+backend (agreement to the solvers' tolerance); before, do-mpc has no growing window and
+pads the missing samples, so its first ``N`` estimates differ. Its bound covers window
+nodes 0 to N-1 (do-mpc's rule, the newest node is not bounded); the disk is not reached
+in this recording.
 """
 
 from __future__ import annotations
@@ -44,7 +51,21 @@ from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
-METHODS = ("fast", "ipopt", "do-mpc", "ekf", "ekf-compiled")
+METHODS = ("fast", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
+
+#: What each method's time covers.
+METHOD_NOTES: dict[str, str] = {
+    "fast": "fast MHE (structure-exploiting SQP): the whole estimator step",
+    "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
+    "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
+    "make_step plus our EKF arrival step; its first N estimates differ (no growing "
+    "window)",
+    "ekf": "EKF through three CasADi calls per step: the whole estimator step",
+    "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "
+    "returns): the whole estimator step",
+    "ekf-kernel": "the compiled EKF step and output alone, no estimator interface "
+    "(validation, masks, divergence check)",
+}
 
 
 @dataclass(frozen=True)
@@ -52,13 +73,14 @@ class Timing:
     """One method at one horizon.
 
     Attributes:
-        method: ``fast``, ``ipopt``, ``do-mpc`` or ``ekf``.
-        horizon: N (0 for the EKF).
-        median_us, p99_us: wall time per sample once the window is full, us.
+        method: one of :data:`METHODS`.
+        horizon: N (the EKFs run once and are repeated at every N).
+        median_us, p99_us: wall time per sample from sample ``N`` on (the window is
+            full), us.
         max_diff_vs_ipopt: largest ``|output - IPOPT's output|`` (m and rad, phi
             wrapped) over the recording.
-        max_diff_after_2n: the same from sample ``2 N`` on (after the start-up, where
-            do-mpc fills its first window differently).
+        max_diff_from_n: the same from sample ``N`` on (do-mpc has no growing window,
+            so its first ``N`` estimates differ).
         fallbacks: samples the fast backend handed to IPOPT.
     """
 
@@ -67,7 +89,7 @@ class Timing:
     median_us: float
     p99_us: float
     max_diff_vs_ipopt: float
-    max_diff_after_2n: float
+    max_diff_from_n: float
     fallbacks: int
 
 
@@ -106,8 +128,46 @@ def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, 
     return out, sec, status
 
 
-def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> Any:
-    """do-mpc's MHE on the bend formulation's CasADi expressions."""
+def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
+    """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
+    and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
+    alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
+    part. The first sample (prior, then its update) is the EKF's own and not timed.
+    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
+    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+    from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
+
+    f = formulation
+    node = NodeEvaluator(build_window_model(f, 2))
+    noise = ProcessNoiseCache(f)
+    R = f.meas_cov()
+    n = len(rec.t)
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
+    mask = f.measurement_mask(rec.z[0])
+    x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
+    out[0] = node.output(x)
+    z_prev = rec.z[0]
+    for i in range(1, n):
+        z = rec.z[i]
+        dt = float(rec.t[i] - rec.t[i - 1])
+        u = f.inputs(z_prev, z, dt)
+        mask = f.measurement_mask(z)
+        Q = noise(dt)[0]
+        t0 = time.perf_counter()
+        x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
+        y = node.output(x)
+        sec[i] = time.perf_counter() - t0
+        out[i] = y
+        if mask.any():
+            z_prev = z
+    return out, sec
+
+
+def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> tuple[Any, Any, Any]:
+    """do-mpc's MHE with our window cost (see the module docstring); returns the MHE
+    and its time-varying-parameter and parameter templates, which the caller fills
+    before each ``make_step``."""
     import casadi as ca
 
     with warnings.catch_warnings():
@@ -115,12 +175,18 @@ def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> Any:
         import do_mpc
 
     f = formulation
+    nx, nz = f.nx, f.nz
     model = do_mpc.model.Model("discrete", "SX")
-    x = model.set_variable("_x", "x", shape=(f.nx, 1))
+    x = model.set_variable("_x", "x", shape=(nx, 1))
+    z = model.set_variable("_tvp", "z", shape=(nz, 1))  # the stage's measurement
+    m = model.set_variable("_tvp", "m", shape=(nz, 1))  # its sensor mask
+    xbar = model.set_variable("_p", "xbar", shape=(nx, 1))  # arrival prior
+    pinv = model.set_variable("_p", "pinv", shape=(nx * nx, 1))
     model.set_rhs("x", f.transition_sym(x, ca.SX(0, 1), dt), process_noise=True)
-    model.set_meas("y", f.measurement_sym(x), meas_noise=True)
+    # measured value 0, so v = -m * r(z, x): the stage cost v' R^-1 v is our residual term
+    model.set_meas("r", m * f.measurement_residual_sym(z, x), meas_noise=True)
     model.setup()
-    mhe = do_mpc.estimator.MHE(model)
+    mhe = do_mpc.estimator.MHE(model, p_est_list=[])
     mhe.settings.n_horizon = horizon
     mhe.settings.t_step = dt
     mhe.settings.store_full_solution = False
@@ -129,36 +195,64 @@ def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> Any:
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",
         "print_time": False,
-        "ipopt.tol": 1e-8,
+        "ipopt.tol": MHESettings().tol,
     }
     g, _, hi = f.constraint_sym(x)
     mhe.set_nl_cons("disk", g, ub=hi)
-    Q = np.asarray(f.functions.predict(np.zeros(f.nx), np.zeros(f.nu), dt)[2], float)
-    mhe.set_default_objective(
-        P_x=np.linalg.inv(f.initial_cov()),
-        P_v=np.linalg.inv(f.meas_cov()),
-        P_w=np.linalg.inv(Q.reshape(f.nx, f.nx)),
-    )
+    Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
+    v, w = mhe._v.cat, mhe._w.cat
+    stage = v.T @ np.linalg.inv(f.meas_cov()) @ v + w.T @ np.linalg.inv(Q.reshape(nx, nx)) @ w
+    dx = mhe._x.cat - xbar
+    mhe.set_objective(stage, dx.T @ ca.reshape(pinv, nx, nx) @ dx)
+    tvp, par = mhe.get_tvp_template(), mhe.get_p_template()
+    mhe.set_tvp_fun(lambda t: tvp)
+    mhe.set_p_fun(lambda t: par)
     mhe.setup()
-    return mhe
+    return mhe, tvp, par
 
 
 def _run_dompc(
     formulation: Formulation, horizon: int, rec: Recording
 ) -> tuple[FloatArray, FloatArray]:
+    """do-mpc's MHE over the recording: ``(output (n, ny), seconds per sample (n,))``.
+
+    Before each ``make_step`` the window's measurements and masks go into the
+    time-varying parameters and the arrival prior into the parameters: from sample
+    ``N`` on, the EKF's filtered state and covariance at sample ``k - N`` (one EKF step
+    per sample, timed with do-mpc's step, as our MHE's arrival update is); before,
+    the first sample's prior ``(initial_state, initial_cov)``."""
+    from continuum_mhe.estimators import make_estimator
+
+    f = formulation
+    n, nz = len(rec.t), f.nz
     dt = float(rec.t[1] - rec.t[0])
-    out = np.empty((len(rec.t), 5))
-    sec = np.empty(len(rec.t))
+    out = np.full((n, f.ny), np.nan)
+    sec = np.empty(n)
+    x0 = f.project(f.initial_state(rec.z[0]))
+    pinv0 = np.linalg.inv(f.initial_cov()).ravel()
+    ekf = make_estimator("ekf", f)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # do-mpc calls numpy functions on CasADi values
-        mhe = _dompc_mhe(formulation, horizon, dt)
-        mhe.x0 = formulation.project(formulation.initial_state(rec.z[0]))
+        mhe, tvp, par = _dompc_mhe(f, horizon, dt)
+        mhe.x0 = x0
         mhe.set_initial_guess()
-        for i, z in enumerate(rec.z):
+        zero = np.zeros((nz, 1))
+        for j in range(n):
             t0 = time.perf_counter()
-            x = np.asarray(mhe.make_step(z.reshape(-1, 1)), float).ravel()
-            out[i] = formulation.output(x)
-            sec[i] = time.perf_counter() - t0
+            for k in range(horizon):
+                s = j - horizon + 1 + k
+                tvp["_tvp", k, "z"] = rec.z[max(s, 0)]
+                tvp["_tvp", k, "m"] = f.measurement_mask(rec.z[s]) if s >= 0 else np.zeros(nz)
+            if j >= horizon:
+                prior = ekf.step(Measurement(float(rec.t[j - horizon]), rec.z[j - horizon]))
+                if prior.state is None or prior.covariance is None:
+                    raise RuntimeError(f"the EKF gave no arrival prior at sample {j - horizon}")
+                par["xbar"], par["pinv"] = prior.state, np.linalg.inv(prior.covariance).ravel()
+            else:
+                par["xbar"], par["pinv"] = x0, pinv0
+            x = np.asarray(mhe.make_step(zero), float).ravel()
+            sec[j] = time.perf_counter() - t0
+            out[j] = f.output(x)
     return out, sec
 
 
@@ -281,23 +375,75 @@ def memory_profile(formulation: Formulation, horizon: int, samples: int) -> Memo
     return Memory(samples, slope, peak / 1024, rss_slope)
 
 
+def _first_line(cmd: list[str]) -> str | None:
+    """First line of a command's output, or None if it cannot run."""
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    lines = (done.stdout or done.stderr).strip().splitlines()
+    return lines[0].strip() if done.returncode == 0 and lines else None
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def environment(formulation: Formulation) -> dict[str, Any]:
-    """Where the numbers come from: whether the fast MHE's model is compiled C (else
-    CasADi's VM), the C compiler's version line, and the machine."""
+    """Where the numbers come from: whether the fast MHE's model runs as compiled C
+    (else CasADi's VM, about 10x slower), the C compiler (``$CC --version``, first
+    line), the machine and the versions of the numeric packages."""
+    from importlib import metadata
+
     from continuum_mhe.estimators.fast import build_window_model
 
-    cc = os.environ.get("CC") or "cc"
+    def version(name: str) -> str | None:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return None
+
     try:
-        done = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30)
-        compiler = (done.stdout.splitlines() or [cc])[0].strip() if done.returncode == 0 else None
-    except (OSError, subprocess.SubprocessError):
-        compiler = None
+        usable = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        usable = os.cpu_count() or 0
     return {
-        "compiled": build_window_model(formulation, 2).compiled,
-        "compiler": compiler,
-        "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
-        "platform": platform.platform(),
+        "compiled": bool(build_window_model(formulation, 2).compiled),
+        "compiler": _first_line([os.environ.get("CC", "cc"), "--version"]),
+        "machine": {
+            "platform": platform.platform(),
+            "cpu": _cpu_model(),
+            "cores": os.cpu_count(),
+            "usable_cores": usable,
+            "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+        },
+        "versions": {
+            "python": platform.python_version(),
+            **{k: version(k) for k in ("continuum-mhe", "numpy", "casadi", "numba", "do-mpc")},
+        },
     }
+
+
+def environment_line(report: dict[str, Any]) -> str:
+    """One line of the :func:`environment` record in ``report``, for the printed report."""
+    m, v = report["machine"], report["versions"]
+    model = "compiled C" if report["compiled"] else "CasADi VM (no C compiler: about 10x slower)"
+    return (
+        f"model: {model}; compiler: {report['compiler'] or 'none'}; machine: {m['cpu']}, "
+        f"{m['cores']} cores ({m['usable_cores']} usable), {m['platform']}; "
+        + ", ".join(f"{k} {val}" for k, val in v.items() if val)
+    )
+
+
+def _ratio(a: float, b: float | None) -> float:
+    return a / b if b else math.nan
 
 
 def run_benchmark(
@@ -309,24 +455,33 @@ def run_benchmark(
     """Time every method at every horizon on one recording; see the module docstring."""
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
-    results: list[Timing] = []
-    ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
-    ekf_out, ekf_sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
-    filters = [("ekf", ekf_out, ekf_sec)]
-    try:
+    env = environment(f)
+    skipped = {
+        m: "no compiled model (no C compiler): there is no compiled EKF to time"
+        for m in ("ekf-compiled", "ekf-kernel")
+        if m in methods and not env["compiled"]
+    }
+    methods = tuple(m for m in methods if m not in skipped)
+    filters: list[tuple[str, FloatArray, FloatArray]] = []
+    if "ekf" in methods:
+        _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
+        out, sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
+        filters.append(("ekf", out, sec))
+    if "ekf-compiled" in methods:
         ekfc = CompiledExtendedKalmanFilter(f)
-    except NotImplementedError:  # no C compiler (said once): no compiled EKF to time
-        pass
-    else:
         _run_timed(ekfc, rec)  # compile and warm up
-        ekfc_out, ekfc_sec, _ = _run_timed(ekfc, rec)
-        filters.append(("ekf-compiled", ekfc_out, ekfc_sec))
+        out, sec, _ = _run_timed(ekfc, rec)
+        filters.append(("ekf-compiled", out, sec))
+    if "ekf-kernel" in methods:
+        run_ekf_kernel(f, rec)  # warm up
+        out, sec = run_ekf_kernel(f, rec)
+        filters.append(("ekf-kernel", out, sec))
+    results: list[Timing] = []
     for n in horizons:
         ipopt_out, ipopt_sec, _ = _run_timed(
             MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
         )
-        full = slice(n, None)
-        rows = {"ipopt": (ipopt_out, ipopt_sec, 0)}
+        rows: dict[str, tuple[FloatArray, FloatArray, int]] = {"ipopt": (ipopt_out, ipopt_sec, 0)}
         if "fast" in methods:
             est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
             _run_timed(est, rec)  # compile and warm up (numba, C model)
@@ -335,6 +490,9 @@ def run_benchmark(
         if "do-mpc" in methods:
             out, sec = _run_dompc(f, n, rec)
             rows["do-mpc"] = (out, sec, 0)
+        for name, out, sec in filters:
+            rows[name] = (out, sec, 0)
+        full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
             out, sec, fb = rows[name]
             results.append(
@@ -344,22 +502,8 @@ def run_benchmark(
                     median_us=float(np.median(sec[full]) * 1e6),
                     p99_us=float(np.percentile(sec[full], 99) * 1e6),
                     max_diff_vs_ipopt=_max_diff(out, ipopt_out),
-                    max_diff_after_2n=_max_diff(out[2 * n :], ipopt_out[2 * n :]),
+                    max_diff_from_n=_max_diff(out[full], ipopt_out[full]),
                     fallbacks=fb,
-                )
-            )
-        for name, out, sec in filters:
-            if name not in methods:
-                continue
-            results.append(
-                Timing(
-                    method=name,
-                    horizon=n,
-                    median_us=float(np.median(sec[full]) * 1e6),
-                    p99_us=float(np.percentile(sec[full], 99) * 1e6),
-                    max_diff_vs_ipopt=_max_diff(out, ipopt_out),
-                    max_diff_after_2n=_max_diff(out[2 * n :], ipopt_out[2 * n :]),
-                    fallbacks=0,
                 )
             )
     memory = memory_profile(f, 30, memory_samples) if memory_samples > 0 else None
@@ -369,26 +513,35 @@ def run_benchmark(
         "noise_deg": 2.0,
         "samples": len(rec.t),
         "dt_s": float(rec.t[1] - rec.t[0]),
-        "cpus": os.cpu_count(),
-        **environment(f),
-        "results": [asdict(r) for r in results],
+        **env,
+        "methods": {m: METHOD_NOTES[m] for m in METHODS if m in methods or m == "ipopt"},
+        "skipped": skipped,
+        "results": with_ratios([asdict(r) for r in results]),
         "memory": None if memory is None else asdict(memory),
     }
 
 
-def _ratios(report: dict[str, Any]) -> list[dict[str, Any]]:
-    """Each row's time over IPOPT's and over the strongest EKF baseline (the compiled
-    EKF where it ran, else the CasADi-call EKF) at the same horizon."""
-    rows = report["results"]
+def with_ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each row with its median over IPOPT's, the compiled EKF's and the EKF kernel's
+    at the same horizon (``over_ipopt``, ``over_ekf_compiled``, ``over_ekf_kernel``;
+    nan where that method did not run)."""
     ref = {(r["method"], r["horizon"]): r["median_us"] for r in rows}
-    out = []
-    for r in rows:
-        n = r["horizon"]
-        ekf = ref.get(("ekf-compiled", n), ref.get(("ekf", n), math.nan))
-        out.append(
-            {**r, "x_ipopt": r["median_us"] / ref[("ipopt", n)], "x_ekf": r["median_us"] / ekf}
-        )
-    return out
+    return [
+        {
+            **r,
+            "over_ipopt": _ratio(r["median_us"], ref.get(("ipopt", r["horizon"]))),
+            "over_ekf_compiled": _ratio(r["median_us"], ref.get(("ekf-compiled", r["horizon"]))),
+            "over_ekf_kernel": _ratio(r["median_us"], ref.get(("ekf-kernel", r["horizon"]))),
+        }
+        for r in rows
+    ]
+
+
+def _times(x: float) -> str:
+    """A ratio as people read it: ``1/23`` below 0.1, else ``0.42`` or ``1.80``."""
+    if not math.isfinite(x):
+        return "-"
+    return f"1/{1 / x:.0f}" if x < 0.1 else f"{x:.2f}"
 
 
 def print_report(report: dict[str, Any]) -> None:
@@ -397,32 +550,46 @@ def print_report(report: dict[str, Any]) -> None:
     from rich.table import Table
 
     table = Table(
-        title=f"MHE time per sample: bend, {report['scenario']}, {report['samples']} samples, "
-        f"{report['cpus']} CPUs (median and p99 once the window is full; max|d|: largest "
-        "estimate difference from IPOPT's, m and rad)"
+        title=f"Time per sample: bend, {report['scenario']}, {report['samples']} samples "
+        "(median and p99 from sample N on; /IPOPT, /EKFc, /kernel: median over IPOPT's, "
+        "the compiled EKF's and the bare compiled EKF kernel's; max|d|: largest output "
+        "difference from IPOPT's, m and rad, over the run and from sample N on)"
     )
-    cols = ("N", "method", "median us", "p99 us", "/IPOPT", "/EKFc", "max|d|", "from 2N", "fallbk")
+    cols = ("N", "method", "median us", "p99 us", "/IPOPT", "/EKFc", "/kernel", "max|d|",
+            "from N", "fallbk")  # fmt: skip
     for col in cols:
         table.add_column(col, justify="right", no_wrap=True)
-    for r in _ratios(report):
+    for r in report["results"]:
         table.add_row(
             str(r["horizon"]),
             r["method"],
             f"{r['median_us']:.0f}",
             f"{r['p99_us']:.0f}",
-            f"{r['x_ipopt']:.4f}",
-            f"{r['x_ekf']:.2f}",
+            _times(r["over_ipopt"]),
+            _times(r["over_ekf_compiled"]),
+            _times(r["over_ekf_kernel"]),
             f"{r['max_diff_vs_ipopt']:.1e}",
-            f"{r['max_diff_after_2n']:.1e}",
+            f"{r['max_diff_from_n']:.1e}",
             str(r["fallbacks"]),
         )
     console = Console()
-    console.width = max(console.width, 104)
+    console.width = max(console.width, 110)
     console.print(table)
-    console.print(environment_line(report))
-    fast = {r["horizon"]: r["median_us"] for r in report["results"] if r["method"] == "fast"}
-    if 30 in fast and 300 in fast:
-        console.print(f"fast: time(N=300) / time(N=30) = {fast[300] / fast[30]:.2f}")
+    for name, note in report["methods"].items():
+        console.print(f"  {name}: {note}")
+    for name, why in report.get("skipped", {}).items():
+        console.print(f"  {name}: not timed: {why}")
+    fast = {r["horizon"]: r for r in report["results"] if r["method"] == "fast"}
+    for n, r in fast.items():
+        console.print(
+            f"fast MHE at N = {n}: {_times(r['over_ipopt'])} of IPOPT, "
+            f"{_times(r['over_ekf_compiled'])}x the compiled EKF, "
+            f"{_times(r['over_ekf_kernel'])}x the bare EKF kernel"
+        )
+    ns = sorted(fast)
+    if len(ns) > 1:
+        growth = fast[ns[-1]]["median_us"] / fast[ns[0]]["median_us"]
+        console.print(f"fast: time(N={ns[-1]}) / time(N={ns[0]}) = {growth:.2f}")
     mem = report.get("memory")
     if mem:
         console.print(
@@ -431,15 +598,7 @@ def print_report(report: dict[str, Any]) -> None:
             f"peak {mem['tracemalloc_peak_kib']:.0f} KiB; "
             f"RSS slope {mem['rss_slope_bytes_per_sample']:.2f} B/sample"
         )
-
-
-def environment_line(report: dict[str, Any]) -> str:
-    """One line: compiled or VM model, the compiler, the machine."""
-    model = "compiled C" if report.get("compiled") else "CasADi's VM (no C compiler)"
-    return (
-        f"fast MHE model: {model}; compiler: {report.get('compiler') or 'none'}; "
-        f"machine: {report.get('machine')}, {report.get('platform')}"
-    )
+    console.print(environment_line(report))
 
 
 def _horizons(text: str) -> list[int]:
@@ -452,6 +611,15 @@ def _horizons(text: str) -> list[int]:
     return values
 
 
+def _write_json(path: str, report: dict[str, Any]) -> None:
+    """The report as JSON (NaN as null), written atomically."""
+    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.reproduce.experiments import to_jsonable
+
+    with atomic_writer(Path(path)) as fh:
+        fh.write(json.dumps(to_jsonable(report), indent=2, allow_nan=False) + "\n")
+
+
 def cmd_benchmark(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise ValueError(f"--duration must be positive, got {args.duration}")
@@ -461,13 +629,13 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
         print_robot_report(robot_report)
         if args.json:
-            Path(args.json).write_text(json.dumps(robot_report, indent=2) + "\n")
+            _write_json(args.json, robot_report)
         return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     report = run_benchmark(args.horizons, args.duration, methods, args.memory_samples)
     print_report(report)
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        _write_json(args.json, report)
     return 0
 
 
@@ -475,7 +643,7 @@ def register(subparsers: Any) -> None:
     """Add ``benchmark`` to the CLI."""
     p = subparsers.add_parser(
         "benchmark",
-        help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF",
+        help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
         description=__doc__.split("\n\n")[0] if __doc__ else None,
     )
     p.add_argument(
@@ -494,7 +662,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--skip",
         action="append",
-        choices=("fast", "do-mpc", "ekf", "ekf-compiled"),
+        choices=("fast", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
         help="leave out a method",
     )
     p.add_argument(

@@ -1,0 +1,105 @@
+"""``continuum-mhe benchmark``: its baselines compute what they claim to, and its report
+records the ratios and where the numbers come from."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from continuum_mhe import benchmark as bm
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate
+
+
+@pytest.mark.parametrize("name", ["bend", "paper"])
+def test_ekf_kernel_gives_the_casadi_ekf_answers(name: str) -> None:
+    """The bare compiled kernel the benchmark times is the EKF (to 1e-9), dropouts too."""
+    f = make_formulation(name)
+    rec = simulate("paper3d", duration=3.0, seed=4)
+    z = rec.z.copy()
+    z[12:18] = np.nan  # the IMU drops out: prediction only
+    rec = replace(rec, z=z)
+    out, sec = bm.run_ekf_kernel(f, rec)
+    ref = ExtendedKalmanFilter(f).run(rec.t, z)
+    assert_allclose(out, ref.output, rtol=0, atol=1e-9)
+    assert sec[0] == 0.0 and np.all(sec[1:] > 0)
+
+
+def test_dompc_with_our_cost_solves_our_problem_once_the_window_is_full() -> None:
+    """do-mpc, given the tangent-plane residual and the EKF arrival prior through its
+    API, is an independent peer of the IPOPT backend from sample N on (1e-6; both
+    converge to IPOPT's tolerance). Before, it has no growing window, so it differs."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=2.0, seed=0)
+    n = 6
+    out, _ = bm._run_dompc(f, n, rec)
+    ref = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")).run(rec.t, rec.z)
+    assert bm._max_diff(out[n:], ref.output[n:]) < 1e-6
+    assert bm._max_diff(out[:n], ref.output[:n]) > 1e-4  # the start-up is not the same
+
+
+def test_benchmark_command_records_ratios_and_environment(tmp_path: Path) -> None:
+    """``continuum-mhe benchmark`` on a tiny recording: every method, the ratios, the
+    agreement with IPOPT, the compiled EKF's answers, where the numbers come from."""
+    import casadi
+    import numba
+
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "bench.json"
+    args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "200"]
+    assert main([*args, "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    rows = {r["method"]: r for r in report["results"]}
+    assert set(rows) == set(bm.METHODS) == set(report["methods"])
+    fast = rows["fast"]
+    assert fast["max_diff_vs_ipopt"] < 1e-6 and fast["fallbacks"] == 0
+    assert rows["do-mpc"]["max_diff_from_n"] < 1e-6
+    for m in ("ekf-compiled", "ekf-kernel"):  # the same EKF, three ways
+        assert rows[m]["max_diff_vs_ipopt"] == pytest.approx(
+            rows["ekf"]["max_diff_vs_ipopt"], abs=1e-9
+        )
+    for r in rows.values():
+        for key, ref in (("over_ipopt", "ipopt"), ("over_ekf_compiled", "ekf-compiled"),
+                         ("over_ekf_kernel", "ekf-kernel")):  # fmt: skip
+            assert r[key] == pytest.approx(r["median_us"] / rows[ref]["median_us"])
+    assert report["memory"]["samples"] == 200
+    assert isinstance(report["compiled"], bool)
+    assert report["versions"]["casadi"] == casadi.__version__
+    assert report["versions"]["numba"] == numba.__version__
+    assert report["machine"]["cores"] == os.cpu_count()
+    assert report["machine"]["cpu"]
+
+
+def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> None:
+    out = tmp_path / "bench.json"
+    report = bm.run_benchmark([3], 0.4, tuple(m for m in bm.METHODS if m != "do-mpc"
+                                                  and m != "ekf-kernel"), 0)  # fmt: skip
+    assert {r["method"] for r in report["results"]} == {"fast", "ipopt", "ekf", "ekf-compiled"}
+    assert all(np.isnan(r["over_ekf_kernel"]) for r in report["results"])
+    bm._write_json(str(out), report)
+    assert json.loads(out.read_text())["results"][0]["over_ekf_kernel"] is None
+
+
+def test_compiler_line_is_the_first_line_of_cc_version(monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+    import subprocess
+
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    first = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
+    monkeypatch.setenv("CC", cc)
+    env = bm.environment(make_formulation("bend"))
+    assert env["compiler"] == first.splitlines()[0].strip()
+    monkeypatch.setenv("CC", "false")  # a compiler that fails: recorded as none
+    assert bm.environment(make_formulation("bend"))["compiler"] is None
