@@ -2,17 +2,22 @@
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import math
+import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.reproduce import experiments as ex
+from continuum_mhe.reproduce import report as rp
 from continuum_mhe.reproduce.figures import RENDERERS
-from continuum_mhe.reproduce.pipeline import RodTask, run_task
+from continuum_mhe.reproduce.pipeline import RodTask, load_results, run_task
 from continuum_mhe.reproduce.runner import run_parallel
 from continuum_mhe.simulation import cosserat
 
@@ -47,18 +52,177 @@ def test_quick_run_writes_data_figures_and_report(quick_run: Path) -> None:
     mc_rows = [ln for ln in report.splitlines() if ln.startswith("| ") and "| 0.0" in ln]
     scenarios = {ln.split("|")[1].strip() for ln in mc_rows}
     assert {str(i) for i in range(1, 11)} <= scenarios
-    assert "## Paper vs. ours" in report and "3.5: mean time rises" in report
-    assert "spec = {" in report  # the exact settings of every run
+    # a quick run says first that its verdicts come from few seeds
+    assert report.splitlines()[2].startswith(f"**Few seeds (mc {ex.QUICK.mc_seeds}, ")
+
+
+def _claim_rows(report: str) -> list[list[str]]:
+    """The cells of the 'Paper vs. ours' table (escaped pipes kept inside cells)."""
+    lines = report.split("## Paper vs. ours\n\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    return [
+        [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", ln)[1:-1]]
+        for ln in lines[2:]
+    ]
+
+
+def test_report_claim_verdicts_follow_their_rules(quick_run: Path) -> None:
+    """Claim 3.1's verdict, recomputed here from the saved numbers by its stated rule,
+    is the one the report prints; every row states its rule."""
+    results = load_results(quick_run)
+    rows = _claim_rows((quick_run / "report.md").read_text())
+    assert len(rows) == len(rp.claims(results)) and all(len(r) == 4 for r in rows)
+    assert all(r[3].startswith(("holds if", "from the", "the per-condition")) for r in rows)
+    ex1 = results["exp1_synthetic3d"]["example"]
+    m, sp = ex1["methods"]["mhe"]["all"], ex1["spec"]
+    ok = (m["tip_mean_mm"] <= 0.02 * sp["length"] * 1e3
+          and m["rmse"]["theta"] <= sp["assumed_std"])  # fmt: skip
+    (row,) = [r for r in rows if r[0].startswith("3.1")]
+    assert row[2] == ("**holds**" if ok else "**does not hold**")
+    assert f"{m['tip_mean_mm']:.2f} mm" in row[1]
+
+
+def test_report_rerun_snippet_reproduces_its_trial(quick_run: Path) -> None:
+    """The Python block the report gives for a Monte Carlo group reruns its first seed
+    and gives the saved numbers."""
+    report = (quick_run / "report.md").read_text()
+    block = report.split("group `table1-1`:\n\n```python\n", 1)[1].split("```", 1)[0]
+    namespace: dict[str, Any] = {}
+    exec(compile(block, "report.md", "exec"), namespace)
+    saved = json.loads((quick_run / "exp4_ekf_comparison.json").read_text())["trials"]
+    first = next(t for t in saved if t["spec"]["group"] == "table1-1")
+    assert namespace["SEED"] == first["spec"]["seed"]
+    got = namespace["result"]["methods"]
+    for m in ("mhe", "ekf"):
+        assert got[m]["all"]["srmse"] == pytest.approx(first["methods"][m]["all"]["srmse"], 1e-9)
+
+
+def test_report_prose_reads_the_configuration(quick_run: Path) -> None:
+    """Change the saved settings: the report's prose follows (nothing typed in)."""
+    results = copy.deepcopy(load_results(quick_run))
+    for d in results.values():
+        if "config" in d:
+            d["config"].update(length=0.25, noise_deg=3.0, horizon=17, mc_seeds=50,
+                               condition_seeds=50, sweep_seeds=50, window_seeds=50)  # fmt: skip
+    results["exp1_synthetic3d"]["paper_formulation"]["noise_settings"]["paper_process_weight"] = 7
+    results["exp3_rod"]["generator"]["rod"]["length"] = 0.31
+    results["exp1_synthetic3d"]["example"]["spec"]["horizon"] = 23
+    text = rp.render_report(results)
+    assert "W = 7 I), same scenario" in text
+    assert "Cosserat rod (0.31 m," in text
+    assert "this run uses 3.0 deg" in text and "on a 0.250 m section" in text
+    assert "whole run and over the first N = 17 samples" in text
+    assert "N = 23, seed 0" in text
+    assert "Few seeds" not in text
+    results["exp3_rod"]["generator"] = None  # a recording from elsewhere
+    assert "with no generator settings beside it" in rp.render_report(results)
+
+
+def _flip(results: dict[str, Any], claim: Any, key: str, edit: Any) -> str:
+    d = copy.deepcopy(results[key])
+    edit(d)
+    return str(claim(d).verdict)
+
+
+def test_claim_verdicts_change_with_the_numbers(quick_run: Path) -> None:
+    r = load_results(quick_run)
+
+    def far_tip(d: dict[str, Any]) -> None:
+        d["example"]["methods"]["mhe"]["all"]["tip_mean_mm"] = (
+            0.03 * d["example"]["spec"]["length"] * 1e3
+        )
+
+    def over(d: dict[str, Any]) -> None:
+        d["example"]["constraints"]["mhe"]["n_estimates_over_bound"] = 1
+
+    def off_fk(d: dict[str, Any]) -> None:
+        d["methods"]["mhe"]["vs_fk_of_measurements"]["all"]["tip_mean_mm"] = (
+            0.05 * d["length"] * 1e3
+        )
+
+    def same_start(d: dict[str, Any]) -> None:
+        d["summary"]["growing"]["first_estimate_s"] = d["summary"]["paper-start"][
+            "first_estimate_s"
+        ]
+
+    assert rp.claim_synthetic(r["exp1_synthetic3d"]).verdict == "holds"
+    assert _flip(r, rp.claim_synthetic, "exp1_synthetic3d", far_tip) == "does not hold"
+    assert rp.claim_constraints(r["exp2_constraints"]).verdict == "holds"
+    assert _flip(r, rp.claim_constraints, "exp2_constraints", over) == "does not hold"
+    assert rp.claim_rod(r["exp3_rod"]).verdict == "holds on a simulated stand-in"
+    assert _flip(r, rp.claim_rod, "exp3_rod", off_fk) == "does not hold on a simulated stand-in"
+    assert rp.claim_growing_window(r["exp6_window"]).verdict == "holds"
+    assert _flip(r, rp.claim_growing_window, "exp6_window", same_start) == "does not hold"
+
+
+def _ci_block(mean: float, lo: float, hi: float) -> dict[str, float]:
+    return {"mean": mean, "lo": lo, "hi": hi, "n": 5}
+
+
+def _monte_carlo(mhe_lower: int, ekf_means: list[float], mhe_means: list[float]) -> dict[str, Any]:
+    mc = {}
+    for i, (e, m) in enumerate(zip(ekf_means, mhe_means)):
+        diff = _ci_block(-0.1, -0.2, -0.05) if i < mhe_lower else _ci_block(0.0, -1e-6, 1e-6)
+        mc[f"table1-{i + 1}"] = {"n_trials": 5, "ekf": {"srmse": _ci_block(e, e, e)},
+                                 "mhe": {"srmse": _ci_block(m, m, m)},
+                                 "mhe_minus_ekf": {"srmse": diff}}  # fmt: skip
+    return {"monte_carlo": mc, "table1": [list(r) for r in ex.TABLE1],
+            "example": {"methods": {m: {"all": {"srmse": 0.3, "tip_mean_mm": 2.0}}
+                                    for m in ("mhe", "ekf")}}}  # fmt: skip
+
+
+def test_monte_carlo_claims_follow_their_rules() -> None:
+    flat = [0.3] * 10
+    steep = [0.3 + 0.05 * i for i in range(10)]
+    assert rp.claim_more_accurate(_monte_carlo(10, flat, flat)).verdict == "holds"
+    assert rp.claim_more_accurate(_monte_carlo(3, flat, flat)).verdict == "partly holds"
+    assert rp.claim_more_accurate(_monte_carlo(0, flat, flat)).verdict == "does not hold"
+    assert rp.claim_noise_robust(_monte_carlo(10, steep, flat)).verdict == "holds"
+    assert rp.claim_noise_robust(_monte_carlo(10, steep, steep)).verdict == "does not hold"
+    assert rp.claim_noise_robust(_monte_carlo(0, steep, flat)).verdict == "does not hold"
+
+
+def _sweep(per_ms: list[float], srmse: list[float], m: int = 400) -> dict[str, Any]:
+    ns = [5, 20, 40, 80]
+    return {"summary": {str(n): {"srmse_common": {"mean": e}, "solve_ms_median": {"mean": t},
+                                 "n_estimates": m - n + 1, "n_samples": m}
+                        for n, t, e in zip(ns, per_ms, srmse)}}  # fmt: skip
+
+
+def test_horizon_claims_follow_their_rules() -> None:
+    same = [0.35] * 4
+    assert rp.claim_horizon_accuracy(_sweep([1, 2, 3, 4], same)).verdict == "holds"
+    worse = [0.40, 0.35, 0.35, 0.35]
+    assert rp.claim_horizon_accuracy(_sweep([1, 2, 3, 4], worse)).verdict == "does not hold"
+    assert rp.claim_horizon_time(_sweep([1, 4, 2, 1], same)).verdict == "holds"
+    # per estimate it rises, the total (M - N + 1) t(N) peaks inside: the M - N effect only
+    assert rp.claim_horizon_time(_sweep([1, 2, 4, 4.4], same, m=100)).verdict == "partly holds"
+    assert rp.claim_horizon_time(_sweep([1, 2, 3, 4], same, m=10_000)).verdict == "does not hold"
+
+
+def test_few_seeds_line_only_for_few_seeds() -> None:
+    assert rp._few_seeds_line(dataclasses.asdict(ex.FULL)) == []
+    assert "verdicts come from few seeds" in rp._few_seeds_line(dataclasses.asdict(ex.QUICK))[0]
 
 
 def test_quick_run_numbers_are_sane(quick_run: Path) -> None:
     mc = json.loads((quick_run / "exp4_ekf_comparison.json").read_text())
     assert len(mc["monte_carlo"]) == 10
-    for g in mc["monte_carlo"].values():
+    trials = [t for t in mc["trials"] if t["spec"]["group"].startswith("table1-")]
+    for group, g in mc["monte_carlo"].items():
         assert g["n_trials"] == ex.QUICK.mc_seeds
+        mine = [t for t in trials if t["spec"]["group"] == group]
         for m in ("mhe", "ekf"):
+            values = [t["methods"][m]["all"]["srmse"] for t in mine]
             ci = g[m]["srmse"]
-            assert ci["lo"] <= ci["mean"] <= ci["hi"]
+            # the summary is the mean of its trials, and its interval lies within them
+            assert ci["mean"] == pytest.approx(float(np.mean(values)), rel=1e-12)
+            assert min(values) <= ci["lo"] < ci["hi"] <= max(values) and ci["n"] == len(values)
+        diffs = [t["methods"]["mhe"]["all"]["srmse"] - t["methods"]["ekf"]["all"]["srmse"]
+                 for t in mine]  # fmt: skip
+        assert g["mhe_minus_ekf"]["srmse"]["mean"] == pytest.approx(float(np.mean(diffs)))
+    for c in mc["conditions"].values():  # tip errors: never a negative bound
+        for m in ("mhe", "ekf"):
+            assert c[m]["tip_mean_mm"]["lo"] >= 0
     c = json.loads((quick_run / "exp2_constraints.json").read_text())["example"]["constraints"]
     assert c["mhe"]["n_estimates_over_bound"] == 0
     assert c["mhe"]["theta_max_estimate"] <= math.pi / 2 + 1e-6
@@ -170,12 +334,26 @@ def test_corruptions() -> None:
     assert not np.any(bad[1:])
 
 
-def test_mean_ci_known_answer() -> None:
-    ci = ex.mean_ci([1.0, 2.0, 3.0])
-    half = 4.302652729911275 / math.sqrt(3.0)  # t(0.975, 2) * s / sqrt(n), s = 1
-    assert ci["mean"] == 2.0
-    assert ci["lo"] == pytest.approx(2.0 - half) and ci["hi"] == pytest.approx(2.0 + half)
-    assert ex.mean_ci([])["n"] == 0
+def test_mean_ci_known_answers() -> None:
+    """Percentile bootstrap of the mean: exact quantiles of the resampled means."""
+    # two values: means 0, 1/2, 1 with probabilities 1/4, 1/2, 1/4
+    two = ex.mean_ci([0.0, 1.0])
+    assert (two["mean"], two["lo"], two["hi"]) == (0.5, 0.0, 1.0)
+    # [0, 0, 0, 10]: the mean is 2.5 k, k ~ Binomial(4, 1/4); P(k = 0) = 0.32 > 2.5 %,
+    # P(k >= 3) = 0.051 > 2.5 % > P(k = 4) = 0.004: the interval is [0, 7.5] (a
+    # Student-t interval would be 2.5 +- 7.96, below zero for a non-negative error)
+    skew = ex.mean_ci([0.0, 0.0, 0.0, 10.0])
+    assert (skew["lo"], skew["hi"]) == (0.0, 7.5)
+    assert ex.mean_ci([3.0] * 6)["lo"] == ex.mean_ci([3.0] * 6)["hi"] == 3.0
+    assert math.isnan(ex.mean_ci([1.0])["lo"]) and ex.mean_ci([])["n"] == 0
+    # many normal values: close to the Student-t interval
+    from scipy.stats import t as student_t
+
+    v = np.random.default_rng(5).normal(2.0, 1.0, 400)
+    half = student_t.ppf(0.975, 399) * v.std(ddof=1) / math.sqrt(400)
+    ci = ex.mean_ci(v.tolist())
+    assert ci["lo"] == pytest.approx(v.mean() - half, abs=0.1 * half)
+    assert ci["hi"] == pytest.approx(v.mean() + half, abs=0.1 * half)
 
 
 def test_every_figure_has_a_renderer() -> None:
@@ -214,6 +392,34 @@ def test_rod_generator_short_run(tmp_path: Path) -> None:
     back = cosserat.read_recording(path).columns
     np.testing.assert_allclose(back["roll"], cols["roll"], rtol=1e-6, atol=1e-9)
     assert cosserat.main(["-o", str(tmp_path / "x.csv"), "--duration", "-1"]) == 2
+
+
+@pytest.mark.slow
+def test_shipped_rod_recording_comes_from_its_generator_settings() -> None:
+    """The settings shipped beside rod_planar.csv (which the report prints) regenerate
+    its first samples to the CSV's 7 digits."""
+    import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
+
+    info = cosserat.read_generator_info(cosserat.default_data_path())
+    assert info is not None and info["duration"] == 20.0
+    rod, imu = cosserat.RodSettings(**info["rod"]), cosserat.ImuSettings(**info["imu"])
+    again = cosserat.make_recording(rod, imu, duration=0.3, seed=info["seed"]).columns
+    shipped = cosserat.read_recording(cosserat.default_data_path()).columns
+    for name in ("roll", "pitch", "y_true", "z_true", "theta_fit"):
+        k = len(again[name])
+        np.testing.assert_allclose(again[name], shipped[name][:k], rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.slow
+def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) -> None:
+    out = tmp_path / "rod.csv"
+    assert cosserat.main(["-o", str(out), "--duration", "0.1", "--seed", "3"]) == 0
+    info = cosserat.read_generator_info(out)
+    assert info is not None and (info["seed"], info["duration"]) == (3, 0.1)
+    assert info["rod"] == dataclasses.asdict(cosserat.RodSettings())
+    (tmp_path / "rod_info.json").write_text("{")
+    with pytest.raises(ValueError, match="rod_info.json"):
+        cosserat.read_generator_info(out)
 
 
 def test_fit_constant_curvature_recovers_an_arc() -> None:

@@ -279,12 +279,16 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
     )
     z = corrupt(rec.z, spec)
     mhe = _mhe_settings(spec)
+    f = _formulation(spec.formulation, spec.length, spec.assumed_std)
     series = estimate_all(
         rec.t, z, spec.methods, spec.formulation, spec.length, spec.assumed_std, mhe
     )
+    theta_max = f.robot.theta_max
     result: dict[str, Any] = {
         "spec": spec.as_dict(),
         "mhe_settings": repr(mhe),
+        "noise_settings": asdict(f.noise),
+        "theta_max": theta_max,
         "methods": {
             m: score_series(s, rec.truth, spec.length, spec.horizon, spec.score_from)
             for m, s in series.items()
@@ -292,7 +296,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
     }
     if spec.experiment == "exp2_constraints":
         result["constraints"] = {
-            m: constraint_scores(s.output, rec.truth, spec.length, math.pi / 2)
+            m: constraint_scores(s.output, rec.truth, spec.length, theta_max)
             for m, s in series.items()
         }
     if spec.keep_series:
@@ -503,9 +507,9 @@ def run_rod(path: Path, cfg: ReproduceConfig) -> dict[str, Any]:
     """MHE and EKF on the rod recording; errors against the rod's truth and against the
     forward kinematics of the measurements (the paper's Fig. 7 reference), and the error
     the constant-curvature assumption makes by itself."""
-    from continuum_mhe.simulation.cosserat import read_recording
+    from continuum_mhe.simulation import cosserat
 
-    cols = read_recording(path).columns
+    cols = cosserat.read_recording(path).columns
     t = cols["t"]
     z = np.column_stack([cols["roll"], cols["pitch"]])
     length = cfg.length
@@ -525,6 +529,7 @@ def run_rod(path: Path, cfg: ReproduceConfig) -> dict[str, Any]:
 
     result = {
         "source": str(path.name),
+        "generator": cosserat.read_generator_info(path),
         "n": len(t),
         "dt": float(np.median(np.diff(t))),
         "length": length,
@@ -557,10 +562,19 @@ def run_rod(path: Path, cfg: ReproduceConfig) -> dict[str, Any]:
 
 
 # --- aggregation ---------------------------------------------------------------------------
-def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
-    """Mean and two-sided ``level`` Student-t confidence interval of the mean."""
-    from scipy.stats import t as student_t
+#: Resamples of :func:`mean_ci`'s bootstrap (fixed seed: the same data give the same
+#: interval in every run).
+BOOTSTRAP_RESAMPLES = 10_000
 
+
+def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
+    """Mean and a two-sided ``level`` percentile-bootstrap interval of the mean.
+
+    The interval is made of means of resampled data, so it never leaves the range of
+    the values: errors and times (non-negative) never get a negative bound, whatever
+    the number of seeds. With few seeds it is narrow and optimistic (two values give
+    their range); the report says so. Non-finite values are left out; fewer than two
+    values give no interval (nan)."""
     v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
     n = len(v)
     if n == 0:
@@ -568,8 +582,10 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
     mean = float(v.mean())
     if n < 2:
         return {"mean": mean, "lo": math.nan, "hi": math.nan, "n": n}
-    half = float(student_t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
-    return {"mean": mean, "lo": mean - half, "hi": mean + half, "n": n}
+    rng = np.random.default_rng(0)
+    means = v[rng.integers(0, n, size=(BOOTSTRAP_RESAMPLES, n))].mean(axis=1)
+    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return {"mean": mean, "lo": float(lo), "hi": float(hi), "n": n}
 
 
 def _get(trial: dict[str, Any], method: str, part: str, key: str) -> float:

@@ -43,7 +43,9 @@ def exp1_figures(d: dict[str, Any]) -> dict[str, Figure]:
     mhe = series_of(s, "mhe")
     return {
         "exp1_synthetic3d_trajectory": plotting.trajectory_3d(
-            truth, [mhe], "Sec. 3.1 synthetic 3D: tip, truth vs MHE (N = 30)"
+            truth,
+            [mhe],
+            f"Sec. 3.1 synthetic 3D: tip, truth vs MHE (N = {d['example']['spec']['horizon']})",
         ),
         "exp1_synthetic3d_states": plotting.states_vs_time(
             arr(s["t"]), truth, [mhe], "Sec. 3.1 synthetic 3D: states, truth vs MHE"
@@ -63,8 +65,9 @@ def exp2_figures(d: dict[str, Any]) -> dict[str, Figure]:
             ax.plot(t, f(arr(s[m])[:, k]), color=_COLORS[m], lw=1.2, label=m.upper())
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0].axhline(90.0, color="r", ls=":", label="bound pi/2")
-    over = truth[:, 3] > math.pi / 2
+    bound = float(d["example"]["theta_max"])
+    axes[0].axhline(math.degrees(bound), color="r", ls=":", label="theta_max")
+    over = truth[:, 3] > bound
     for ax in axes:
         if over.any():
             ax.axvspan(t[over][0], t[over][-1], color="r", alpha=0.07)

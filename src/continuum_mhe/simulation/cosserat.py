@@ -28,11 +28,13 @@ continuum-mhe[rod]``)::
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -418,6 +420,42 @@ def read_recording(path: str | Path) -> RodRecording:
     return RodRecording(columns={c: np.asarray(data[c], dtype=float) for c in COLUMNS})
 
 
+def info_path(path: str | Path) -> Path:
+    """The generator settings written beside a recording: ``NAME_info.json``."""
+    p = Path(path)
+    return p.with_name(f"{p.stem}_info.json")
+
+
+def generator_info(
+    rod: RodSettings, imu: ImuSettings, duration: float, seed: int
+) -> dict[str, Any]:
+    """What made a recording: the command, the rod, the sensor, its length and seed."""
+    return {
+        "generator": "python -m continuum_mhe.simulation.cosserat",
+        "duration": duration,
+        "seed": seed,
+        "rod": asdict(rod),
+        "imu": asdict(imu),
+    }
+
+
+def read_generator_info(path: str | Path) -> dict[str, Any] | None:
+    """The generator settings beside a recording (:func:`info_path`), or None if there
+    are none (a recording from elsewhere)."""
+    from continuum_mhe.io.csv_files import InputError
+
+    p = info_path(path)
+    if not p.is_file():
+        return None
+    try:
+        info = json.loads(p.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: not a generator settings file ({exc})") from None
+    if not isinstance(info, dict) or not {"rod", "imu", "seed", "duration"} <= set(info):
+        raise InputError(f"{p}: expected the keys rod, imu, seed and duration")
+    return info
+
+
 def default_data_path() -> Path:
     """The shipped example recording, ``continuum_mhe/data/rod_planar.csv``."""
     return Path(__file__).resolve().parent.parent / "data" / "rod_planar.csv"
@@ -439,6 +477,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     rod, imu = RodSettings(), ImuSettings()
     rec = make_recording(rod, imu, args.duration, args.seed)
     write_recording(args.output, rec)
+    from continuum_mhe.io.csv_files import atomic_writer
+
+    with atomic_writer(info_path(args.output)) as fh:
+        json.dump(generator_info(rod, imu, args.duration, args.seed), fh, indent=2)
+        fh.write("\n")
     print(f"wrote {len(rec.columns['t'])} samples to {args.output}", file=sys.stderr)
     return 0
 
