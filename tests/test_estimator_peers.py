@@ -42,10 +42,8 @@ MOUNTINGS = ("z-up", "z-down")  # z-down puts roll near +-pi: the angle wrap is 
 
 
 def ipopt_settings(**kwargs: Any) -> MHESettings:
-    """MHESettings that select the IPOPT backend, with or without a ``solver`` field."""
-    if "solver" in {f.name for f in dataclasses.fields(MHESettings)}:
-        kwargs.setdefault("solver", "ipopt")
-    return MHESettings(**kwargs)
+    """MHESettings that select the IPOPT backend."""
+    return MHESettings(solver="ipopt", **kwargs)
 
 
 SOLVERS = ("fast", "ipopt")  # every MHE behaviour below holds for both backends

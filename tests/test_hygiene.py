@@ -7,6 +7,9 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -34,7 +37,20 @@ def test_ci_runs_exactly_the_readme_test_command():
     assert test_cmd.group(1).strip() in ci.splitlines()
 
 
-def test_readme_demo_command_runs(tmp_path):
+def _table_rows(text: str, sep: str) -> dict[str, list[str]]:
+    """Rows of a printed table whose first cell is MHE, EKF or UKF: name -> other cells."""
+    rows = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip(sep).split(sep)]
+        if cells and cells[0] in ("MHE", "EKF", "UKF"):
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+def test_readme_demo_command_runs_and_prints_the_readme_numbers(tmp_path):
+    """``continuum-mhe demo`` runs as the README says, and its errors are the README's
+    table (tip mean mm and %, tip max mm, theta RMSE deg, to the printed precision)
+    and its phi RMSE the README's 'about N degrees'. Times depend on the machine."""
     readme = (ROOT / "README.md").read_text()
     demo = re.search(r"# main job\n(.+)\n", readme)
     assert demo and demo.group(1).strip().endswith("continuum-mhe demo")
@@ -43,7 +59,18 @@ def test_readme_demo_command_runs(tmp_path):
     assert r.returncode == 0, r.stderr
     for name in ("demo_trajectory_3d.png", "demo_states.png", "estimates_mhe.csv"):
         assert (tmp_path / "demo" / name).stat().st_size > 0
-    assert "MHE" in r.stdout and "EKF" in r.stdout and "UKF" in r.stdout
+    section = readme.split("## What the demo prints", 1)[1].split("\n## ", 1)[0]
+    documented = _table_rows(section, "|")
+    printed = _table_rows(r.stdout, "\u2502")  # rich's box-drawing column separator
+    assert set(documented) == set(printed) == {"MHE", "EKF", "UKF"}, r.stdout
+    for method, cells in documented.items():
+        for doc, got in zip(cells[:4], printed[method][:4]):
+            step = 10.0 ** -len(doc.split(".")[1])  # one unit of the README's last digit
+            assert abs(float(got) - float(doc)) <= step * (1 + 1e-9), (method, doc, got)
+    phi = re.search(r"phi RMSE \(about (\d+)\N{DEGREE SIGN}\)", section)
+    assert phi, "the README states the phi RMSE"
+    for cells in printed.values():
+        assert abs(float(cells[4]) - float(phi.group(1))) <= 1.0
 
 
 def _readme_examples() -> list[str]:
@@ -73,7 +100,15 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
     blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
     assert len(blocks) >= 2
     monkeypatch.chdir(tmp_path)
+    spaces = []
     for code in blocks:
-        namespace: dict[str, object] = {}
+        namespace: dict[str, Any] = {}
         exec(compile(code, "README.md", "exec"), namespace)
+        spaces.append(namespace)
+    # the first example's batch run estimates its recording: finite, within 1 cm of the tip
+    first = spaces[0]
+    out, truth = first["series"].output, first["rec"].truth
+    assert out.shape == truth.shape and np.all(np.isfinite(out))
+    assert np.mean(np.linalg.norm(out[:, :3] - truth[:, :3], axis=1)) < 0.01
+    assert first["est"].status == "ok"
     assert (tmp_path / "two_section_estimates.csv").read_text().startswith("t,x,y,z,theta_1,")

@@ -450,5 +450,17 @@ def test_straight_tip_is_on_the_z_axis_for_every_phi() -> None:
     assert_allclose(p, np.tile([0.0, 0.0, LENGTH], (len(PHIS), 1)), rtol=0, atol=1e-18)
 
 
-def test_kinematics_module_exposes_switch_constant() -> None:
-    assert 0 < kinematics.SERIES_SWITCH_Q < 0.1
+def test_series_switch_constant_is_where_the_branch_changes() -> None:
+    """Below ``SERIES_SWITCH_Q`` sinc_q is its degree-4 series in q (fifth derivative
+    exactly 0), from it on the closed form (fifth derivative not 0): the published
+    constant is the one the expressions use."""
+    sym = ca.SX.sym("q")
+    d = sinc_q(sym)
+    for _ in range(5):
+        d = ca.jacobian(d, sym)
+    f = ca.Function("f", [sym], [sinc_q(sym), d])
+    below = float(np.nextafter(kinematics.SERIES_SWITCH_Q, 0.0))
+    series = 1 - below / 6 + below**2 / 120 - below**3 / 5040 + below**4 / 362880
+    value, d5 = (float(v) for v in f(below))
+    assert value == series and d5 == 0.0
+    assert float(f(kinematics.SERIES_SWITCH_Q)[1]) != 0.0
