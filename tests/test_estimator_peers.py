@@ -703,10 +703,7 @@ def _overbend_in_xz_plane() -> Recording:
 def test_mhe_converges_through_gimbal_lock_and_tracks_beyond(solver: str) -> None:
     rec = _overbend_in_xz_plane()
     f = BendFormulation(robot=RobotSettings(theta_max=3.0))
-    kwargs = {"solver": solver} if solver == "ipopt" else {}
-    s = MovingHorizonEstimator(f, ipopt_settings(**kwargs) if kwargs else MHESettings()).run(
-        rec.t, rec.z
-    )
+    s = MovingHorizonEstimator(f, solver_settings(solver)).run(rec.t, rec.z)
     assert set(s.status) == {"ok"}
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[:, :3], axis=1)
     assert tip.mean() < 0.015 * 0.2 and tip.max() < 0.06 * 0.2
