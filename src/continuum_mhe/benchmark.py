@@ -18,9 +18,9 @@ filtered state and covariance of the sample before the window) as a parameter of
 arrival cost. The transition is linear, so its extra arrival node is exactly our prior
 propagated one step. From sample ``N`` on it solves the same problem as our IPOPT
 backend (agreement to the solvers' tolerance); before, do-mpc has no growing window and
-pads the missing samples, so its first ``N`` estimates differ. Its bound covers window
-nodes 0 to N-1 (do-mpc's rule, the newest node is not bounded); the disk is not reached
-in this recording.
+pads the missing samples, so its first ``N`` estimates differ. Its bound covers its
+nodes 0 to N-1 (do-mpc's rule): its extra arrival node and every node of our window but
+the newest; the disk is not reached in this recording.
 """
 
 from __future__ import annotations
