@@ -695,7 +695,8 @@ def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
         "print(a.compiled, b.compiled, type(e).__name__, environment(f)['compiled'])\n"
         "print(a.backend_note)\n"
         "for w in seen:\n"
-        "    print(type(w.message).__name__, w.message)\n"
+        "    if type(w.message).__name__ != 'CompileNotice':  # the first run's, if any\n"
+        "        print(type(w.message).__name__, w.message)\n"
         "np.save('out.npy', out.output)\n"
     )
     env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}

@@ -112,3 +112,11 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
     assert np.mean(np.linalg.norm(out[:, :3] - truth[:, :3], axis=1)) < 0.01
     assert first["est"].status == "ok"
     assert (tmp_path / "two_section_estimates.csv").read_text().startswith("t,x,y,z,theta_1,")
+    # the CSV example: read back, estimated within 1 cm, x, y, z written with its header
+    (csv_example,) = [ns for ns in spaces if "table" in ns]
+    tip = np.loadtxt(tmp_path / "tip.csv", delimiter=",", skiprows=1)
+    truth = csv_example["rec"].truth
+    assert tip.shape == (len(truth), 4)
+    np.testing.assert_array_equal(tip[:, 0], csv_example["table"].t)
+    assert np.mean(np.linalg.norm(tip[:, 1:] - truth[:, :3], axis=1)) < 0.01
+    assert (tmp_path / "estimates.csv").read_text().startswith("t,x,y,z,theta,phi,")

@@ -2,59 +2,86 @@
 
 Public surface::
 
-    from continuum_mhe import (RobotSettings, NoiseSettings, MHESettings,
+    from continuum_mhe import (Robot, Section, ImuPlacement, NoiseSettings, MHESettings,
                                make_formulation, make_estimator, simulate, Measurement)
+    from continuum_mhe.io import read_measurements, write_estimates
+
+The names are imported on first use (PEP 562), so that ``continuum-mhe --help`` and
+``--version`` stay light.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 # isort: off
 from continuum_mhe import numba_cache  # noqa: F401  (first: a cache folder before numba)
 
 # isort: on
-from continuum_mhe.estimators import (
-    METHODS,
-    Estimate,
-    EstimateSeries,
-    Estimator,
-    ExtendedKalmanFilter,
-    Measurement,
-    MovingHorizonEstimator,
-    UnscentedKalmanFilter,
-    make_estimator,
-)
-from continuum_mhe.metrics import Metrics, compute_metrics
-from continuum_mhe.model.direct import DirectFormulation
-from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
-from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
-from continuum_mhe.simulation.scenarios import Recording, simulate
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "METHODS",
-    "BendFormulation",
-    "DirectFormulation",
-    "Estimate",
-    "EstimateSeries",
-    "Estimator",
-    "ExtendedKalmanFilter",
-    "Formulation",
-    "ImuPlacement",
-    "MHESettings",
-    "Measurement",
-    "Metrics",
-    "MovingHorizonEstimator",
-    "NoiseSettings",
-    "PaperFormulation",
-    "Recording",
-    "Robot",
-    "RobotSettings",
-    "Section",
-    "UnscentedKalmanFilter",
-    "__version__",
-    "compute_metrics",
-    "make_estimator",
-    "make_formulation",
-    "simulate",
-]
+#: public name -> the module that defines it
+_EXPORTS: dict[str, str] = {
+    "METHODS": "continuum_mhe.estimators",
+    "Estimate": "continuum_mhe.estimators",
+    "EstimateSeries": "continuum_mhe.estimators",
+    "Estimator": "continuum_mhe.estimators",
+    "ExtendedKalmanFilter": "continuum_mhe.estimators",
+    "Measurement": "continuum_mhe.estimators",
+    "MovingHorizonEstimator": "continuum_mhe.estimators",
+    "UnscentedKalmanFilter": "continuum_mhe.estimators",
+    "make_estimator": "continuum_mhe.estimators",
+    "Metrics": "continuum_mhe.metrics",
+    "compute_metrics": "continuum_mhe.metrics",
+    "DirectFormulation": "continuum_mhe.model.direct",
+    "BendFormulation": "continuum_mhe.model.formulations",
+    "Formulation": "continuum_mhe.model.formulations",
+    "PaperFormulation": "continuum_mhe.model.formulations",
+    "make_formulation": "continuum_mhe.model.registry",
+    "ImuPlacement": "continuum_mhe.model.robot",
+    "Robot": "continuum_mhe.model.robot",
+    "Section": "continuum_mhe.model.robot",
+    "MHESettings": "continuum_mhe.settings",
+    "NoiseSettings": "continuum_mhe.settings",
+    "RobotSettings": "continuum_mhe.settings",
+    "Recording": "continuum_mhe.simulation.scenarios",
+    "simulate": "continuum_mhe.simulation.scenarios",
+}
+
+__all__ = sorted([*_EXPORTS, "__version__"])
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'continuum_mhe' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
+    from continuum_mhe.estimators import (
+        METHODS,
+        Estimate,
+        EstimateSeries,
+        Estimator,
+        ExtendedKalmanFilter,
+        Measurement,
+        MovingHorizonEstimator,
+        UnscentedKalmanFilter,
+        make_estimator,
+    )
+    from continuum_mhe.metrics import Metrics, compute_metrics
+    from continuum_mhe.model.direct import DirectFormulation
+    from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
+    from continuum_mhe.simulation.scenarios import Recording, simulate

@@ -44,6 +44,7 @@ import numpy as np
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.extras import available, missing
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation
@@ -632,6 +633,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
             _write_json(args.json, robot_report)
         return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
+    if "do-mpc" in methods and not available("do_mpc"):
+        raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
     report = run_benchmark(args.horizons, args.duration, methods, args.memory_samples)
     print_report(report)
     if args.json:

@@ -37,6 +37,7 @@ from typing import IO, Any, Literal
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
+from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     ATTITUDES,
@@ -163,8 +164,7 @@ Event = tuple[str, Any, float]  # (kind, payload, monotonic arrival time)
 
 def open_port(port: str, baud: int) -> Any:
     """Open a serial device or pyserial URL with a short read timeout."""
-    import serial
-
+    serial = require("serial", "robot", "live on a serial port", package="pyserial")
     return serial.serial_for_url(port, baudrate=baud, timeout=0.05)
 
 

@@ -15,6 +15,27 @@ from matplotlib.figure import Figure  # noqa: E402
 from continuum_mhe.results import EstimateSeries  # noqa: E402
 
 _STYLE = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
+#: line style per method: on smooth data the three estimates lie within a line width of
+#: each other, so they differ in width and dash as well as colour (all stay visible)
+_LINES: dict[str, dict[str, object]] = {
+    "mhe": {"ls": "-", "lw": 3.2, "alpha": 0.55},
+    "ekf": {"ls": "--", "lw": 1.6, "alpha": 0.95},
+    "ukf": {"ls": ":", "lw": 1.6, "alpha": 0.95},
+}
+#: below this true bend angle (rad) the bending plane phi is shaded as undefined
+STRAIGHT_THETA = np.radians(3.0)
+
+
+def _line(method: str, i: int) -> dict[str, object]:
+    """Matplotlib keywords for method ``method`` (the ``i``-th series)."""
+    style = {"ls": "-", "lw": 1.2, "alpha": 0.9, **_LINES.get(method, {})}
+    return {"color": _STYLE.get(method, f"C{i + 3}"), "label": method.upper(), **style}
+
+
+def _spans(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` index ranges where ``mask`` is True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 def _unit(name: str) -> str:
@@ -49,13 +70,7 @@ def trajectory_3d(
     ax.plot(*(truth[:, :3].T * 1e3), "k-", lw=2.0, label="truth")
     for i, s in enumerate(series):
         ok = s.has_estimate
-        ax.plot(
-            *(s.output[ok, :3].T * 1e3),
-            "--",
-            lw=1.2,
-            color=_STYLE.get(s.method, f"C{i + 3}"),
-            label=s.method.upper(),
-        )
+        ax.plot(*(s.output[ok, :3].T * 1e3), **_line(s.method, i))
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
@@ -73,16 +88,44 @@ def states_vs_time(
     theta_max: float | Sequence[float] | None = None,
 ) -> Figure:
     """The tip position and every section's ``theta, phi`` against time, with truth
-    (same columns as the series) and optional theta bounds (one per section)."""
+    (same columns as the series) and optional theta bounds (one per section).
+
+    With truth, a first panel shows each method's tip error (mm), and each ``phi`` panel
+    shades the stretches where the true section is nearly straight
+    (``theta < STRAIGHT_THETA``), where ``phi`` is undefined.
+    """
     outputs = series[0].outputs
     names = [o.name for o in outputs]
     shown = [
         i for i, n in enumerate(names) if n in ("x", "y", "z") or n.startswith(("theta", "phi"))
     ]
     bounds = [theta_max] if isinstance(theta_max, (int, float)) else list(theta_max or [])
-    fig, axes = plt.subplots(len(shown), 1, figsize=(7.5, 1.8 * len(shown)), sharex=True)
-    for ax, k in zip(np.atleast_1d(axes), shown):
+    panels = len(shown) + (truth is not None)
+    fig, axes = plt.subplots(panels, 1, figsize=(7.5, 1.8 * panels), sharex=True)
+    axes = np.atleast_1d(axes)
+    if truth is not None:
+        ax = axes[0]
+        for i, s in enumerate(series):
+            err = np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1) * 1e3
+            ax.plot(s.t, err, **_line(s.method, i))
+        ax.set_ylabel("tip error (mm)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        axes = axes[1:]
+    for ax, k in zip(axes, shown):
         name = names[k]
+        if truth is not None and name.startswith("phi"):
+            theta_name = "theta" + name[len("phi") :]
+            if theta_name in names:
+                straight = np.abs(truth[:, names.index(theta_name)]) < STRAIGHT_THETA
+                for j, (a, b) in enumerate(_spans(straight)):
+                    ax.axvspan(
+                        t[a], t[min(b, len(t) - 1)], color="0.85", zorder=0,
+                        label=f"phi undefined (theta < {np.degrees(STRAIGHT_THETA):.0f} deg)"
+                        if j == 0 else None,
+                    )  # fmt: skip
+                if straight.any():
+                    ax.legend(loc="upper right", fontsize="small")
         if truth is not None:
             ax.plot(
                 _breaks(name, t, truth[:, k]),
@@ -95,20 +138,28 @@ def states_vs_time(
             ax.plot(
                 _breaks(name, s.t, s.output[:, k]),
                 _scale(name, s.output[:, k]),
-                "-",
-                lw=1.0,
-                color=_STYLE.get(s.method, f"C{i + 3}"),
-                label=s.method.upper(),
+                **_line(s.method, i),
             )
         if name.startswith("theta") and bounds:
             sec = int(name.split("_")[1]) - 1 if "_" in name else 0
             if sec < len(bounds):
-                ax.axhline(np.degrees(bounds[sec]), color="r", ls=":", lw=1.0, label="bound")
+                bound = np.degrees(bounds[sec])
+                ax.axhline(bound, color="r", ls="-.", lw=1.0)
+                ax.annotate(
+                    f"bound theta_max = {bound:.0f} deg", (0.01, bound), color="r",
+                    xycoords=("axes fraction", "data"), va="bottom", fontsize="small",
+                )  # fmt: skip
+                top = max(ax.get_ylim()[1], bound * 1.12)
+                ax.set_ylim(top=top)
         ax.set_ylabel(f"{name} ({_unit(name)})")
         ax.grid(alpha=0.3)
-    first = np.atleast_1d(axes)[0]
-    first.legend(loc="upper right", ncol=5, fontsize="small")
-    np.atleast_1d(axes)[-1].set_xlabel("t (s)")
+    handles, labels = axes[0].get_legend_handles_labels()  # truth, the methods, the bound
+    keep = [j for j, lab in enumerate(labels) if not lab.startswith("phi undefined")]
+    fig.axes[0].legend(
+        [handles[j] for j in keep], [labels[j] for j in keep],
+        loc="upper right", ncol=5, fontsize="small",
+    )  # fmt: skip
+    axes[-1].set_xlabel("t (s)")
     fig.suptitle(title)
     fig.tight_layout()
     return fig
@@ -140,9 +191,9 @@ def backbone_snapshots(
             if not np.all(np.isfinite(s.output[i])):
                 continue
             est = backbone(section_bends(outputs, s.output[i]), lengths) * 1e3
-            color = _STYLE.get(s.method, f"C{k + 3}")
-            ax.plot(*est.T, "-", lw=1.4, color=color, label=s.method.upper())
-            ax.plot(*est[ends].T, "o", ms=3, color=color)
+            style = _line(s.method, k)
+            ax.plot(*est.T, **style)
+            ax.plot(*est[ends].T, "o", ms=3, color=style["color"])
         reach = sum(lengths) * 1e3
         ax.set_xlim(-reach, reach)
         ax.set_ylim(-reach, reach)

@@ -11,6 +11,7 @@ from continuum_mhe.estimators.base import (
     Measurement,
     Status,
 )
+from continuum_mhe.estimators.fast.warmup import FirstRun
 from continuum_mhe.estimators.kalman import (
     CompiledExtendedKalmanFilter,
     ExtendedKalmanFilter,
@@ -25,14 +26,23 @@ METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
 
 
 def make_estimator(
-    method: Method, formulation: Formulation, mhe: MHESettings | None = None
+    method: Method,
+    formulation: Formulation,
+    mhe: MHESettings | None = None,
+    first_run: FirstRun = "foreground",
 ) -> Estimator:
-    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only."""
+    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only.
+
+    ``first_run``: what to do when the fast kernels are not compiled yet (the first run
+    of an install): ``"foreground"`` compiles them now, ``"background"`` compiles them
+    in another process and runs this estimator without them (IPOPT for the MHE, the
+    CasADi EKF), said once; see :mod:`continuum_mhe.estimators.fast.warmup`.
+    """
     if method == "mhe":
-        return MovingHorizonEstimator(formulation, mhe)
+        return MovingHorizonEstimator(formulation, mhe, first_run=first_run)
     if method == "ekf":  # the compiled step where the model compiles (same answers)
         try:
-            return CompiledExtendedKalmanFilter(formulation)
+            return CompiledExtendedKalmanFilter(formulation, first_run=first_run)
         except NotImplementedError:
             return ExtendedKalmanFilter(formulation)
     if method == "ukf":

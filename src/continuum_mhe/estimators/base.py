@@ -40,6 +40,7 @@ class Estimator(ABC):
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
         self._last_t = -math.inf
+        self._ran = False  # the last call was run(): a later step needs reset()
         #: times the estimator restarted after a divergence or numerical failure
         self.restarts = 0
         #: the last numerical failure's message, if any
@@ -48,6 +49,7 @@ class Estimator(ABC):
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
         self._last_t = -math.inf
+        self._ran = False
         self._reset()
 
     @abstractmethod
@@ -84,10 +86,16 @@ class Estimator(ABC):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         if not (math.isfinite(t) and t > self._last_t):
+            hint = ""
+            if math.isfinite(t) and self._ran:
+                hint = "; run() left the estimator at its recording's end: call reset() first"
+            elif math.isfinite(t):
+                hint = "; to start a new recording, call reset() first"
             raise ValueError(
                 f"sample time t={t!r} s must be finite and later than the previous "
-                f"sample's t={self._last_t!r} s"
+                f"sample's t={self._last_t!r} s{hint}"
             )
+        self._ran = False
         self._last_t = t
         start = time.perf_counter()
         try:
@@ -130,8 +138,10 @@ class Estimator(ABC):
         idx: Iterable[int] = range(len(t))
         if progress is not None:
             idx = progress(idx)
-        return EstimateSeries.from_estimates(
+        series = EstimateSeries.from_estimates(
             self.name,
             [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx],
             self.formulation.outputs,
         )
+        self._ran = True
+        return series

@@ -10,12 +10,16 @@ MHE's arrival cost.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators.fast.warmup import FirstRun
 
 
 def ekf_predict(
@@ -146,13 +150,26 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
     :class:`ExtendedKalmanFilter` (to rounding). Without a C compiler (said once by
     :func:`~continuum_mhe.estimators.fast.build_window_model`) it raises
     ``NotImplementedError`` and :func:`~continuum_mhe.estimators.make_estimator` uses the
-    CasADi EKF."""
+    CasADi EKF. ``first_run`` is as for
+    :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator`; with ``"background"``
+    and the kernels not compiled yet it raises ``NotImplementedError`` too."""
 
     name = "ekf"
 
-    def __init__(self, formulation: Formulation) -> None:
+    def __init__(self, formulation: Formulation, first_run: FirstRun | None = "foreground") -> None:
         from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+        from continuum_mhe.estimators.fast.warmup import (
+            defer_compiling,
+            ensure_compiled,
+            kernels_ready,
+        )
 
+        if first_run is not None and not kernels_ready():  # the first run of an install
+            if first_run == "background":
+                raise NotImplementedError(
+                    defer_compiling("the CasADi EKF for the EKF (the same equations, slower)")
+                )
+            ensure_compiled()
         model = build_window_model(formulation, 2)
         if not model.compiled:  # the VM is slower than the CasADi EKF: use that instead
             raise NotImplementedError(model.backend_note or "the model is not compiled")

@@ -51,6 +51,12 @@ from continuum_mhe.estimators.fast import (
     build_window_model,
     solve_window,
 )
+from continuum_mhe.estimators.fast.warmup import (
+    FirstRun,
+    defer_compiling,
+    ensure_compiled,
+    kernels_ready,
+)
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
@@ -155,6 +161,11 @@ class MovingHorizonEstimator(Estimator):
         formulation: the model.
         settings: horizon, solver and IPOPT options.
         fast_options: options of the fast backend (iterations, tolerance).
+        first_run: when the fast backend's kernels are not compiled yet (the first
+            run of an install): ``"foreground"`` compiles them now (said once),
+            ``"background"`` compiles them in another process while IPOPT solves this
+            estimator's windows (status ``fallback-ipopt``; said once), None does not
+            check (see :mod:`continuum_mhe.estimators.fast.warmup`).
     """
 
     name = "mhe"
@@ -164,6 +175,7 @@ class MovingHorizonEstimator(Estimator):
         formulation: Formulation,
         settings: MHESettings | None = None,
         fast_options: FastOptions | None = None,
+        first_run: FirstRun | None = "foreground",
     ) -> None:
         super().__init__(formulation)
         self.settings = settings or MHESettings()
@@ -172,7 +184,17 @@ class MovingHorizonEstimator(Estimator):
         self.fast_options = fast_options or FastOptions()
         s = self.settings
         self._fast: WindowModel | None = None
-        if s.solver == "fast":
+        deferred = False
+        if s.solver == "fast" and first_run is not None and not kernels_ready():
+            if first_run == "background":
+                deferred = True
+                self.backend_note = defer_compiling(
+                    "IPOPT for the MHE (the same window problem, slower; rows flagged "
+                    "fallback-ipopt)"
+                )
+            else:
+                ensure_compiled()
+        if s.solver == "fast" and not deferred:
             try:
                 self._fast = build_window_model(formulation, s.horizon, self.fast_options.compile)
             except NotImplementedError as exc:  # feasible set the fast backend cannot take

@@ -1,0 +1,73 @@
+"""Reading and writing recordings, estimates, robot files and robot logs.
+
+The common readers and writers, importable from here::
+
+    from continuum_mhe.io import (read_measurements, read_raw_imus, read_states,
+                                  read_robot, read_imu_log, write_estimates,
+                                  write_measurements, write_truth, InputError)
+
+Every reader raises :class:`InputError` (a ``ValueError``) with one line naming the
+file and line. Names are imported on first use.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS: dict[str, str] = {
+    "InputError": "continuum_mhe.io.csv_files",
+    "MeasurementTable": "continuum_mhe.io.csv_files",
+    "StateTable": "continuum_mhe.io.csv_files",
+    "atomic_writer": "continuum_mhe.io.csv_files",
+    "read_measurements": "continuum_mhe.io.csv_files",
+    "read_state_table": "continuum_mhe.io.csv_files",
+    "read_states": "continuum_mhe.io.csv_files",
+    "write_estimates": "continuum_mhe.io.csv_files",
+    "write_measurements": "continuum_mhe.io.csv_files",
+    "write_truth": "continuum_mhe.io.csv_files",
+    "RawImuSettings": "continuum_mhe.io.raw_imu",
+    "read_raw_imu": "continuum_mhe.io.raw_imu",
+    "read_raw_imus": "continuum_mhe.io.raw_imu",
+    "read_robot": "continuum_mhe.io.robot_file",
+    "read_imu_log": "continuum_mhe.io.robot_logs",
+    "read_estimates_mcap": "continuum_mhe.io.robot_logs",
+    "write_estimates_mcap": "continuum_mhe.io.robot_logs",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'continuum_mhe.io' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])
+
+
+if TYPE_CHECKING:
+    from continuum_mhe.io.csv_files import (
+        InputError,
+        MeasurementTable,
+        StateTable,
+        atomic_writer,
+        read_measurements,
+        read_state_table,
+        read_states,
+        write_estimates,
+        write_measurements,
+        write_truth,
+    )
+    from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.robot_logs import (
+        read_estimates_mcap,
+        read_imu_log,
+        write_estimates_mcap,
+    )

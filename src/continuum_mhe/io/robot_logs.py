@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import (
     FloatArray,
     InputError,
@@ -136,6 +137,7 @@ def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
 
 
 def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
+    require("rosbags", "robot", f"reading the ROS bag {path}")
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -157,6 +159,8 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
 
 
 def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
+    require("mcap", "robot", f"reading the MCAP file {path}")
+    require("rosbags", "robot", f"reading the MCAP file {path}")
     from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
@@ -466,6 +470,7 @@ def write_estimates_mcap(
     t0_ns: int = 0,
 ) -> None:
     """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
+    require("mcap", "robot", "writing MCAP")
     from mcap.writer import CompressionType, Writer
 
     with atomic_binary_writer(path) as fh:
@@ -495,6 +500,7 @@ def read_estimates_mcap(
 ) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
     """``t`` (n,), outputs (n, k) in the file's column order with NaN where empty, and
     status (n,) from an estimate MCAP."""
+    require("mcap", "robot", f"reading the MCAP file {path}")
     from mcap.reader import make_reader
 
     t, out, status = [], [], []

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import InputError
 
 
@@ -18,6 +19,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.scheduler:  # before anything is written
+        require("dask.distributed", "dask", "reproduce --scheduler", package="dask[distributed]")
     if args.rod_csv is not None and not Path(args.rod_csv).is_file():
         raise InputError(f"{args.rod_csv}: no such file")
     out = Path(args.out)

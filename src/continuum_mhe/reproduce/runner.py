@@ -12,6 +12,8 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
+from continuum_mhe.extras import require
+
 S = TypeVar("S")
 R = TypeVar("R")
 
@@ -90,11 +92,10 @@ def _run_dask(
     description: str,
     progress: bool | None,
 ) -> list[R]:
-    try:
-        from dask.distributed import Client
-        from dask.distributed import as_completed as dask_as_completed
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise RuntimeError("--scheduler needs dask[distributed]") from exc
+    require("dask.distributed", "dask", "reproduce --scheduler", package="dask[distributed]")
+    from dask.distributed import Client
+    from dask.distributed import as_completed as dask_as_completed
+
     try:
         client = Client(address, timeout="10s")
     except OSError as exc:

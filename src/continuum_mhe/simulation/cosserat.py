@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
 
@@ -198,12 +199,7 @@ def simulate_rod(settings: RodSettings, duration: float, record_dt: float = 1e-3
 
     Needs PyElastica (the ``rod`` extra).
     """
-    try:
-        import elastica as ea
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise RuntimeError(
-            "the rod simulation needs PyElastica: pip install 'continuum-mhe[rod]'"
-        ) from exc
+    ea: Any = require("elastica", "rod", "the rod simulation", package="pyelastica")
 
     s = settings
 
@@ -471,6 +467,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     args = p.parse_args(argv)
+    if not available("elastica"):  # one line, before anything is written
+        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
+              file=sys.stderr)  # fmt: skip
+        return 2
     if not (math.isfinite(args.duration) and args.duration > 0):
         print(f"{p.prog}: error: --duration must be positive", file=sys.stderr)
         return 2

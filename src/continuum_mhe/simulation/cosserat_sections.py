@@ -46,10 +46,12 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
 from continuum_mhe.simulation.cosserat import (
@@ -126,12 +128,7 @@ def simulate_sections(
     settings: SectionRodSettings, scenario: str, duration: float, record_dt: float = 1e-3
 ) -> SectionTrajectory:
     """Integrate the rod for ``duration`` s and record every ``record_dt`` s."""
-    try:
-        import elastica as ea
-    except ImportError:  # pragma: no cover - depends on the environment
-        raise RuntimeError(
-            "the rod simulation needs PyElastica: pip install 'continuum-mhe[rod]'"
-        ) from None
+    ea: Any = require("elastica", "rod", "the rod simulation", package="pyelastica")
     if scenario not in SCENARIOS:
         raise ValueError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
     s = settings
@@ -330,6 +327,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
+    if not available("elastica"):  # one line, before anything is written
+        print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
+              file=sys.stderr)  # fmt: skip
+        return 2
     out = Path(args.out)
     if not out.is_dir():
         print(f"{p.prog}: error: {out}: no such folder", file=sys.stderr)

@@ -1,0 +1,7 @@
+"""``python -m continuum_mhe``: the ``continuum-mhe`` command."""
+
+import sys
+
+from continuum_mhe.entry import main
+
+sys.exit(main())

@@ -1,0 +1,199 @@
+"""The first run: compiling the fast backend's numba kernels, in the background.
+
+numba compiles the fast MHE's and the compiled EKF's kernels on their first call and
+caches them on disk; on 2 cores that takes 15 to 60 s, once per install. A command that
+finds them not yet compiled can
+
+* compile them now, in this process (``"foreground"``, the library's way: it says
+  ``compiling ... (first run only)`` once and then waits), or
+* start a background process that compiles them and run this command on the paths that
+  need no compiling: IPOPT for the MHE (the same window problem; rows flagged
+  ``fallback-ipopt``) and the CasADi EKF (the same equations) (``"background"``, the
+  command line's way for short recordings). The next run finds the kernels compiled.
+
+"Compiled" is a marker file written after every kernel was compiled by
+:func:`warm_up`. Its name carries a key of the kernels' source, numba's and Python's
+versions and the package's place; it lies in numba's cache folder, so a changed kernel,
+a new numba or a removed cache compiles again. ``CONTINUUM_MHE_FIRST_RUN=foreground``
+makes the command line wait too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import warnings
+from importlib import metadata
+from pathlib import Path
+from typing import Literal
+
+from continuum_mhe.numba_cache import writable
+
+FirstRun = Literal["foreground", "background"]
+
+_FAST = Path(__file__).resolve().parent
+_KERNEL_MODULES = ("arrival.py", "linalg.py", "qp.py", "sqp.py")
+_announced: set[str] = set()
+
+
+class CompileNotice(UserWarning):
+    """The fast backend is compiling its kernels (first run only), or another path runs
+    while it does; one line under the command line, said once per process."""
+
+
+def kernels_key() -> str:
+    """A key of everything that decides whether numba's cached kernels can be used."""
+    h = hashlib.sha256()
+    for name in _KERNEL_MODULES:
+        h.update((_FAST / name).read_bytes())
+    try:
+        h.update(metadata.version("numba").encode())
+    except metadata.PackageNotFoundError:  # pragma: no cover - numba is a dependency
+        pass
+    h.update(sys.version.encode())
+    h.update(str(_FAST).encode())
+    return h.hexdigest()[:20]
+
+
+def _numba_cache_folder() -> Path:
+    """Where numba caches these kernels: ``$NUMBA_CACHE_DIR``, else the package's
+    ``__pycache__`` when writable, else the user's numba cache (as numba does, and as
+    :mod:`continuum_mhe.numba_cache` arranges)."""
+    own = os.environ.get("NUMBA_CACHE_DIR")
+    if own:
+        return Path(own)
+    source = _FAST / "__pycache__"
+    if writable(source):
+        return source
+    home = os.environ.get("HOME") or "/nonexistent"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path(home) / ".cache") / "numba"
+
+
+def marker_path() -> Path:
+    """The file whose existence says that the kernels are compiled and cached (beside
+    numba's cache, so that removing that cache removes the marker too)."""
+    return _numba_cache_folder() / f"continuum-mhe-kernels-{kernels_key()}.ready"
+
+
+def pid_path() -> Path:
+    """The background compiler's pid file (removed when it ends)."""
+    return marker_path().with_suffix(".pid")
+
+
+def kernels_ready() -> bool:
+    """True when :func:`warm_up` has compiled and cached every kernel of this install."""
+    return marker_path().is_file()
+
+
+def first_run_mode(default: FirstRun) -> FirstRun:
+    """``$CONTINUUM_MHE_FIRST_RUN`` (``foreground`` or ``background``), else ``default``."""
+    mode = os.environ.get("CONTINUUM_MHE_FIRST_RUN", default)
+    return mode if mode in ("foreground", "background") else default  # type: ignore[return-value]
+
+
+def _say_once(message: str) -> None:
+    if message not in _announced:
+        _announced.add(message)
+        warnings.warn(message, CompileNotice, stacklevel=3)
+
+
+def warm_up() -> None:
+    """Compile every kernel (by running the fast MHE and the compiled EKF on a short
+    recording of a one-section and a two-section robot), then write the marker."""
+    import numpy as np
+
+    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
+    from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import Robot
+    from continuum_mhe.settings import MHESettings
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot.single(0.2)
+    rec = simulate_robot("paper3d", robot, duration=0.5, dt=0.05, noise_deg=2.0, seed=0)
+    f = make_formulation("bend", robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said, where it matters, by the estimators
+        MovingHorizonEstimator(f, MHESettings(horizon=5), first_run=None).run(
+            rec.t, np.asarray(rec.z)
+        )
+        try:
+            ekf = CompiledExtendedKalmanFilter(f, first_run=None)
+        except NotImplementedError:  # no compiled model (no C compiler): no EKF kernel
+            pass
+        else:
+            ekf.run(rec.t, np.asarray(rec.z))
+    path = marker_path()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text("compiled\n")
+    os.replace(tmp, path)
+
+
+def ensure_compiled() -> None:
+    """Compile the kernels now if they are not cached, saying so once (library use)."""
+    if kernels_ready():
+        return
+    _say_once("compiling the fast solver's kernels (first run only; 15 to 60 s on 2 cores)")
+    warm_up()
+
+
+def _running(pid_file: Path) -> bool:
+    try:
+        pid = int(pid_file.read_text().strip())
+        os.kill(pid, 0)
+    except (OSError, ValueError):
+        return False
+    return True
+
+
+def start_background_warmup() -> bool:
+    """Start :func:`warm_up` in a detached process unless one is running already;
+    returns True if one is running now."""
+    pid_file = pid_path()
+    if _running(pid_file):
+        return True
+    try:
+        pid_file.parent.mkdir(parents=True, exist_ok=True)
+        proc = subprocess.Popen(  # noqa: S603 - our own module, same interpreter
+            [sys.executable, "-m", "continuum_mhe.estimators.fast.warmup"],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,  # survives this command and its Ctrl-C
+        )
+        pid_file.write_text(f"{proc.pid}\n")
+    except OSError:
+        return False
+    return True
+
+
+def defer_compiling(what: str) -> str:
+    """Start the background compile and say once what this run does meanwhile; returns
+    the note (for the estimator's ``backend_note``)."""
+    started = start_background_warmup()
+    where = "in the background" if started else "on the next run"
+    note = (
+        f"the fast solver's kernels are not compiled yet: compiling them {where} "
+        f"(first run only); this run uses {what}"
+    )
+    _say_once(note)
+    return note
+
+
+def _main() -> int:
+    try:
+        warm_up()
+    finally:
+        try:
+            if pid_path().read_text().strip() == str(os.getpid()):
+                pid_path().unlink()
+        except OSError:
+            pass
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_main())

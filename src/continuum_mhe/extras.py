@@ -1,0 +1,74 @@
+"""Optional parts of continuum-mhe and the one-line error when one is missing.
+
+The core install (``pip install continuum-mhe``) runs the main path: simulate,
+estimate, evaluate, demo, reproduce, benchmark against IPOPT and the EKFs. The extras:
+
+========  ===========================================  =================================
+extra     packages                                     for
+========  ===========================================  =================================
+robot     pyserial, rosbags, mcap                      ``live`` on a serial port, ROS bags
+                                                       and MCAP in and out
+peers     filterpy, do-mpc                             do-mpc in ``benchmark``; the peer
+                                                       tests
+dask      dask[distributed]                            ``reproduce --scheduler``
+rod       pyelastica                                   the Cosserat-rod generators
+test      all of the above, pytest, hypothesis,        the test suite
+          ruff, mypy
+========  ===========================================  =================================
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+#: extra name -> what it holds (for messages and docs)
+EXTRAS: dict[str, str] = {
+    "robot": "pyserial, rosbags, mcap",
+    "peers": "filterpy, do-mpc",
+    "dask": "dask[distributed]",
+    "rod": "pyelastica",
+}
+
+
+class MissingExtraError(ValueError):
+    """An optional dependency is not installed; the message names the ``pip install``.
+
+    A ``ValueError`` so that the command line shows it as one line and exits 2.
+    """
+
+
+def install_hint(extra: str) -> str:
+    """``pip install 'continuum-mhe[EXTRA]'``."""
+    return f"pip install 'continuum-mhe[{extra}]'"
+
+
+def missing(package: str, extra: str, feature: str) -> MissingExtraError:
+    """The error for ``feature`` needing ``package`` from ``extra``."""
+    return MissingExtraError(
+        f"{feature} needs {package}, which is not installed: {install_hint(extra)}"
+    )
+
+
+def require(module: str, extra: str, feature: str, package: str | None = None) -> ModuleType:
+    """Import ``module`` or raise :class:`MissingExtraError` naming the extra to install.
+
+    Args:
+        module: the module to import (``serial``, ``do_mpc``...).
+        extra: the extra that provides it (a key of :data:`EXTRAS`).
+        feature: what needs it, for the message (``live``, ``benchmark's do-mpc row``).
+        package: the package's name on PyPI when it differs from ``module``.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise missing(package or module, extra, feature) from None
+
+
+def available(module: str) -> bool:
+    """True if ``module`` can be imported (the import is attempted)."""
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        return False
+    return True

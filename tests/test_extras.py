@@ -1,0 +1,107 @@
+"""Optional parts: a feature whose extra is missing says which ``pip install`` to run,
+in one line, exits 2 and writes nothing. The missing package is simulated by blocking
+its import (``sys.modules[name] = None`` makes ``import name`` raise ImportError)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+from continuum_mhe.cli import main
+from continuum_mhe.extras import EXTRAS, MissingExtraError, require
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _block(monkeypatch: pytest.MonkeyPatch, *modules: str) -> None:
+    for name in modules:
+        for loaded in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+            monkeypatch.delitem(sys.modules, loaded)
+        monkeypatch.setitem(sys.modules, name, None)
+
+
+def _one_error_line(err: str, extra: str) -> None:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("continuum-mhe: error:") or ": error:" in lines[0]
+    assert f"pip install 'continuum-mhe[{extra}]'" in lines[0]
+
+
+def test_require_names_the_extra(monkeypatch):
+    _block(monkeypatch, "do_mpc")
+    with pytest.raises(MissingExtraError, match=r"pip install 'continuum-mhe\[peers\]'"):
+        require("do_mpc", "peers", "benchmark", package="do-mpc")
+    assert require("json", "peers", "x").dumps([1]) == "[1]"
+
+
+def test_benchmark_without_do_mpc(monkeypatch, tmp_path, capsys):
+    _block(monkeypatch, "do_mpc")
+    out = tmp_path / "bench.json"
+    code = main(["benchmark", "--horizons", "5", "--duration", "0.5", "--json", str(out)])
+    assert code == 2
+    _one_error_line(capsys.readouterr().err, "peers")
+    assert not out.exists()
+
+
+def test_reproduce_scheduler_without_dask_writes_no_folder(monkeypatch, tmp_path, capsys):
+    _block(monkeypatch, "dask")
+    out = tmp_path / "results"
+    code = main(["reproduce", "--quick", "--out", str(out), "--scheduler", "tcp://127.0.0.1:1"])
+    assert code == 2
+    _one_error_line(capsys.readouterr().err, "dask")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "module", ["continuum_mhe.simulation.cosserat", "continuum_mhe.simulation.cosserat_sections"]
+)
+def test_rod_generators_without_pyelastica(monkeypatch, tmp_path, capsys, module):
+    import importlib
+
+    _block(monkeypatch, "elastica")
+    gen = importlib.import_module(module)
+    target = tmp_path / "rod.csv" if module.endswith("cosserat") else tmp_path
+    argv = ["-o", str(target)]
+    assert gen.main(argv) == 2
+    _one_error_line(capsys.readouterr().err, "rod")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_live_without_pyserial(monkeypatch):
+    from continuum_mhe.live import open_port
+
+    _block(monkeypatch, "serial")
+    with pytest.raises(MissingExtraError, match=r"pyserial.*continuum-mhe\[robot\]"):
+        open_port("/dev/ttyACM0", 115200)
+
+
+def test_bag_without_rosbags(monkeypatch, tmp_path, capsys):
+    bag = tmp_path / "run.bag"
+    bag.write_bytes(b"#ROSBAG V2.0\n")
+    _block(monkeypatch, "rosbags")
+    code = main(["estimate", str(bag), "-o", str(tmp_path / "e.csv")])
+    assert code == 2
+    _one_error_line(capsys.readouterr().err, "robot")
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_pyproject_extras_match_the_documented_ones():
+    """The extras in pyproject.toml are the ones the messages name, and ``test`` pulls
+    in all of them; the core needs none of the optional packages."""
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    extras = meta["optional-dependencies"]
+    assert set(EXTRAS) <= set(extras)
+    test_self = [d for d in extras["test"] if d.startswith("continuum-mhe[")]
+    assert test_self and set(EXTRAS) <= set(test_self[0][len("continuum-mhe[") : -1].split(","))
+    core = " ".join(meta["dependencies"]).lower()
+    for optional in ("pyserial", "rosbags", "mcap", "do-mpc", "filterpy", "dask", "pyelastica"):
+        assert optional not in core
+    assert isinstance(meta["license"], str) and meta["license-files"] == ["LICENSE"]
+    assert not any(c.startswith("License ::") for c in meta["classifiers"])

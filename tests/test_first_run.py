@@ -1,0 +1,129 @@
+"""The first run of an install: the fast kernels compile once, and a short command does
+not wait for them (``estimators/fast/warmup.py``)."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.estimators.fast import warmup
+
+EXE = str(Path(sys.executable).with_name("continuum-mhe"))
+
+
+def _columns(path: Path) -> dict[str, np.ndarray]:
+    with path.open() as fh:
+        rows = list(csv.DictReader(fh))
+    out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    return out
+
+
+def _wait_for_exit(pid: int, seconds: float) -> bool:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        try:
+            os.kill(pid, 0)
+        except OSError:
+            return True
+        time.sleep(0.2)
+    return False
+
+
+def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
+    """With nothing compiled (a fresh numba cache), ``estimate`` says once that it
+    compiles in the background, answers with IPOPT (rows ``fallback-ipopt``, the same
+    estimates as the fast backend), and the next run finds the kernels compiled."""
+    meas, warm, cold, again = (tmp_path / n for n in ("m.csv", "w.csv", "c.csv", "a.csv"))
+    subprocess.run([EXE, "simulate", "paper3d", "--duration", "3", "-o", str(meas)], check=True)
+    subprocess.run([EXE, "estimate", str(meas), "-o", str(warm)], check=True)  # suite's cache
+    env = {k: v for k, v in os.environ.items() if k != "CONTINUUM_MHE_FIRST_RUN"}
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")  # nothing compiled there
+    r = subprocess.run(
+        [EXE, "estimate", str(meas), "-o", str(cold)], env=env, capture_output=True, text=True
+    )
+    assert r.returncode == 0, r.stderr
+    notes = [ln for ln in r.stderr.splitlines() if "first run only" in ln]
+    assert len(notes) == 1 and notes[0].startswith("continuum-mhe: note: "), r.stderr
+    assert "in the background" in notes[0] and "IPOPT" in notes[0]
+    c, w = _columns(cold), _columns(warm)
+    assert set(c["status"]) == {"fallback-ipopt"} and set(w["status"]) == {"ok"}
+    for col in ("x", "y", "z", "theta"):
+        np.testing.assert_allclose(c[col].astype(float), w[col].astype(float), atol=1e-6)
+    pid_files = list((tmp_path / "numba").glob("continuum-mhe-kernels-*.pid"))
+    assert len(pid_files) == 1
+    pid = int(pid_files[0].read_text())
+    try:  # compiling every kernel from nothing: 15 to 60 s on 2 cores
+        assert _wait_for_exit(pid, 600), "the background compile did not end"
+    finally:
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except OSError:
+            pass
+    assert list((tmp_path / "numba").glob("continuum-mhe-kernels-*.ready"))
+    assert not list((tmp_path / "numba").glob("continuum-mhe-kernels-*.pid"))
+    r = subprocess.run(
+        [EXE, "estimate", str(meas), "-o", str(again)], env=env, capture_output=True, text=True
+    )
+    assert r.returncode == 0 and "first run only" not in r.stderr, r.stderr
+    assert set(_columns(again)["status"]) == {"ok"}
+
+
+def test_library_compiles_in_the_foreground_and_says_so_once(tmp_path, monkeypatch):
+    """The library waits for the compile (said once as a CompileNotice) and then
+    records it, so the next check finds the kernels ready."""
+    from continuum_mhe import make_formulation
+    from continuum_mhe.estimators import make_estimator
+
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "_announced", set())
+    assert not warmup.kernels_ready()
+    f = make_formulation("bend")
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        make_estimator("mhe", f)
+        make_estimator("ekf", f)
+    notices = [w for w in seen if issubclass(w.category, warmup.CompileNotice)]
+    assert len(notices) == 1 and "first run only" in str(notices[0].message)
+    assert warmup.kernels_ready()
+
+
+def test_background_mode_without_kernels_picks_the_uncompiled_paths(tmp_path, monkeypatch):
+    """``first_run="background"`` with nothing compiled: IPOPT for the MHE, the CasADi
+    EKF for the EKF, and one background compile (not started twice)."""
+    from continuum_mhe import ExtendedKalmanFilter, make_formulation
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
+
+    started: list[int] = []
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "_announced", set())
+    monkeypatch.setattr(warmup, "start_background_warmup", lambda: started.append(1) or True)
+    f = make_formulation("bend")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", warmup.CompileNotice)
+        mhe = make_estimator("mhe", f, first_run="background")
+        ekf = make_estimator("ekf", f, first_run="background")
+    assert mhe._fast is None and "first run only" in (mhe.backend_note or "")
+    assert type(ekf) is ExtendedKalmanFilter and not isinstance(ekf, CompiledExtendedKalmanFilter)
+    est = mhe.step(__import__("continuum_mhe").Measurement(0.0, np.zeros(2)))
+    assert est.status == "fallback-ipopt"
+    assert len(started) == 2  # each asks; start_background_warmup runs one process
+
+
+@pytest.mark.parametrize(
+    ("mode", "expected"),
+    [("foreground", "foreground"), ("background", "background"), ("other", "foreground")],
+)
+def test_first_run_mode_from_the_environment(monkeypatch, mode, expected):
+    monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", mode)
+    assert warmup.first_run_mode("foreground") == expected
+    assert warmup.first_run_mode("background") == ("background" if mode == "other" else expected)
