@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
 from continuum_mhe.simulation.cosserat import (
@@ -133,12 +134,12 @@ def simulate_sections(
             "the rod simulation needs PyElastica: pip install 'continuum-mhe[rod]'"
         ) from None
     if scenario not in SCENARIOS:
-        raise ValueError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
+        raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
     s = settings
     total = sum(s.lengths)
     e1 = int(round(s.n_elements * s.lengths[0] / total))
     if abs(e1 * total / s.n_elements - s.lengths[0]) > 1e-9:
-        raise ValueError(
+        raise UserError(
             f"{s.n_elements} elements do not split the rod at {s.lengths[0]} m: choose "
             "n_elements so that every section is a whole number of elements"
         )
