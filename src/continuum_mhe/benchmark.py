@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
@@ -623,7 +624,7 @@ def _write_json(path: str, report: dict[str, Any]) -> None:
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ValueError(f"--duration must be positive, got {args.duration}")
+        raise UserError(f"--duration must be positive, got {args.duration}")
     if args.robot:
         from continuum_mhe.io.robot_file import read_robot
 

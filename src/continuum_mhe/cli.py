@@ -1,12 +1,16 @@
 """Command line: ``continuum-mhe {demo,simulate,estimate,evaluate,...}``.
 
-User errors print one line, ``continuum-mhe: error: ...``, and exit with status 2.
+User errors (:class:`~continuum_mhe.errors.UserError`, unreadable or unwritable files)
+print one line, ``continuum-mhe: error: ...``, and exit with status 2. Anything else is
+a bug: one line that says so, with where it happened and where to report it, and exit
+status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import itertools
 import json
 import math
 import os
@@ -26,7 +30,8 @@ from continuum_mhe.cli_options import (
     mhe_settings_from_args,
     robot_from_args,
 )
-from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
+from continuum_mhe.errors import UserError
+from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
 from continuum_mhe.estimators.fast.warmup import CompileNotice, FirstRun, first_run_mode
 from continuum_mhe.io.csv_files import (
     InputError,
@@ -72,54 +77,80 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
-    # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5
-    from continuum_mhe.io.robot_logs import load_estimate_input, write_estimate_output
+    # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5;
+    # streamed: the input is read once and memory stays flat (issue #12)
+    from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
     from continuum_mhe.live import input_options
 
     out = Path(args.output)
-    if out.resolve() == Path(args.measurements).resolve():
-        raise InputError(f"{out}: refusing to overwrite the input file")
-    data = load_estimate_input(args.measurements, input_options(args), formulation_from_args(args))
-    est = make_estimator(
-        args.method,
-        data.formulation,
-        mhe_settings_from_args(args),
-        first_run=first_run_mode(_first_run_default(len(data.t))),
-    )
-    series = est.run(
-        data.t, data.z, progress=interruptible(progress_bar(f"{args.method} estimate"))
-    )
-    if not series.has_estimate.any():
-        why = (
-            "every sample is a dropout"
-            if not args.paper_start
-            else (f"--paper-start needs at least --horizon {args.horizon} samples")
+    check_output_path(out, args.measurements)
+    counts: dict[str, int] = {}
+    with open_estimate_input(
+        args.measurements, input_options(args), formulation_from_args(args)
+    ) as stream:
+        est = make_estimator(
+            args.method,
+            stream.formulation,
+            mhe_settings_from_args(args),
+            first_run=first_run_mode(_first_run_default(args.measurements)),
         )
-        raise InputError(
-            f"{args.measurements}: no sample gave an estimate ({len(series.t)} samples; "
-            f"{why}); nothing written"
-        )
-    write_estimate_output(out, series, data)
-    counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
-    summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
-    msg = f"wrote {len(series.t)} estimates to {out} ({summary})"
-    if data.skipped:
-        msg += f"; skipped {len(data.skipped)} bad sample(s), first: {data.skipped[0]}"
+        est.reset()
+        ticks = interruptible(progress_bar(f"{args.method} estimate"))(itertools.count())
+        with EstimateSink(out, stream.formulation, stream.t0_ns) as sink:
+            try:
+                for t, z in stream.samples:
+                    next(ticks)
+                    e = est.step(Measurement(t, z))
+                    counts[e.status] = counts.get(e.status, 0) + 1
+                    sink.write(e)
+            finally:
+                ticks.close()
+            n = sum(counts.values())
+            if n == counts.get("no-estimate", 0):
+                why = (
+                    "every sample is a dropout"
+                    if not args.paper_start
+                    else (f"--paper-start needs at least --horizon {args.horizon} samples")
+                )
+                raise InputError(
+                    f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
+                    "nothing written"
+                )
+    summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    msg = f"wrote {n} estimates to {out} ({summary})"
+    if stream.problems.count:
+        msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
     print(msg, file=sys.stderr)
     return 0
 
 
-#: samples up to which a first run (kernels not compiled) uses IPOPT while the kernels
+#: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
 #: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, the
-#: fast MHE 0.3 ms after 15 to 60 s of compiling; beyond about 5,000 samples compiling
-#: first is quicker
+#: fast MHE 0.3 ms after 15 to 60 s of compiling, so beyond about 5,000 samples (about
+#: 250 kB of tilt CSV) compiling first is quicker
+FIRST_RUN_BACKGROUND_MAX_BYTES = 250_000
+#: samples up to which ``demo`` (which knows its length) does the same
 FIRST_RUN_BACKGROUND_MAX_SAMPLES = 5000
 
 
-def _first_run_default(n_samples: int) -> FirstRun:
-    """``background`` for a short recording, ``foreground`` (compile, then run fast) for
-    a long one."""
-    return "background" if n_samples <= FIRST_RUN_BACKGROUND_MAX_SAMPLES else "foreground"
+def _first_run_default(source: str | int) -> FirstRun:
+    """``background`` for a short recording (a file of at most
+    ``FIRST_RUN_BACKGROUND_MAX_BYTES``, or at most ``FIRST_RUN_BACKGROUND_MAX_SAMPLES``
+    samples), ``foreground`` (compile, then run fast) for a long one or a stream."""
+    if isinstance(source, int):
+        return "background" if source <= FIRST_RUN_BACKGROUND_MAX_SAMPLES else "foreground"
+    try:
+        path = Path(source)
+        small = path.is_file() and path.stat().st_size <= FIRST_RUN_BACKGROUND_MAX_BYTES
+    except OSError:
+        small = False
+    return "background" if small else "foreground"
+
+
+def check_output_path(out: Path, source: str) -> None:
+    """The output must be a file name in an existing folder, not the input itself."""
+    if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
+        raise InputError(f"{out}: refusing to overwrite the input file")
 
 
 def _align(
@@ -418,19 +449,59 @@ def main(argv: Sequence[str] | None = None) -> int:
     return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
 
 
+#: exit status of a bug (sysexits.h EX_SOFTWARE)
+EXIT_BUG = 70
+
+
 def _user_error(exc: BaseException) -> int:
-    """One line and exit 2 for user errors; anything else propagates (a bug)."""
-    if isinstance(exc, (InputError, ValueError)):
+    """One line and exit 2 for user errors and file-system errors; anything else is
+    a bug: one line saying so (exit 70), the traceback with ``CONTINUUM_MHE_TRACEBACK=1``."""
+    if isinstance(exc, UserError):
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
     if isinstance(exc, BrokenPipeError):  # e.g. `... | head`: the reader left; stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1
-    if isinstance(exc, OSError):
+    if isinstance(exc, OSError) and exc.strerror:
         print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
         return 2
-    raise exc
+    if not isinstance(exc, Exception):  # SystemExit and the like: not ours to report
+        raise exc
+    return _report_bug(exc)
+
+
+def _issues_hint() -> str:
+    """``at URL`` from the package's ``Project-URL`` metadata, else ``to the maintainers``."""
+    from importlib import metadata
+
+    try:
+        urls = metadata.metadata("continuum-mhe").get_all("Project-URL") or []
+    except metadata.PackageNotFoundError:
+        urls = []
+    for entry in urls:
+        label, _, url = entry.partition(",")
+        if label.strip().lower() in ("issues", "bug tracker", "bugs", "tracker"):
+            return f"at {url.strip()}"
+    return "to the maintainers"
+
+
+def _report_bug(exc: Exception) -> int:
+    """``continuum-mhe: internal error (a bug): TYPE: message (at FILE:LINE)`` and 70."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" (at {Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    if os.environ.get("CONTINUUM_MHE_TRACEBACK"):
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    print(
+        f"{PROG}: internal error (a bug in continuum-mhe): {type(exc).__name__}: {text}"
+        f"{where}; please report it with the command {_issues_hint()}"
+        "(CONTINUUM_MHE_TRACEBACK=1 shows the traceback)",
+        file=sys.stderr,
+    )
+    return EXIT_BUG
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+from continuum_mhe.errors import UserError
+
 #: extra name -> what it holds (for messages and docs)
 EXTRAS: dict[str, str] = {
     "robot": "pyserial, rosbags, mcap",
@@ -31,10 +33,11 @@ EXTRAS: dict[str, str] = {
 }
 
 
-class MissingExtraError(ValueError):
+class MissingExtraError(UserError):
     """An optional dependency is not installed; the message names the ``pip install``.
 
-    A ``ValueError`` so that the command line shows it as one line and exits 2.
+    A :class:`~continuum_mhe.errors.UserError`: the command line shows it as one line
+    and exits 2.
     """
 
 

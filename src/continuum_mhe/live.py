@@ -36,6 +36,7 @@ from typing import IO, Any, Literal
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
 from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
@@ -127,17 +128,17 @@ class LiveSettings:
 
     def __post_init__(self) -> None:
         if self.fmt not in LINE_FORMATS:
-            raise ValueError(f"format must be one of {LINE_FORMATS}, got {self.fmt!r}")
+            raise UserError(f"format must be one of {LINE_FORMATS}, got {self.fmt!r}")
         if not (isinstance(self.baud, int) and self.baud > 0):
-            raise ValueError(f"baud must be a positive integer, got {self.baud!r}")
+            raise UserError(f"baud must be a positive integer, got {self.baud!r}")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be positive seconds, got {self.duration!r}")
+            raise UserError(f"duration must be positive seconds, got {self.duration!r}")
         for name in ("status_every", "behind_s", "retry_max_s", "restart_gap_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
+                raise UserError(f"{name} must be positive, got {v!r}")
         if not self.gap_factor > 1:
-            raise ValueError(f"gap_factor must exceed 1, got {self.gap_factor!r}")
+            raise UserError(f"gap_factor must exceed 1, got {self.gap_factor!r}")
 
 
 @dataclass

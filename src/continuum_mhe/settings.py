@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 FormulationName = Literal["bend", "paper", "direct"]
@@ -16,7 +17,7 @@ MHE_SOLVERS: tuple[MHESolver, ...] = ("fast", "ipopt")
 
 def _positive(name: str, value: float) -> None:
     if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        raise UserError(f"{name} must be a positive finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -37,9 +38,9 @@ class RobotSettings:
     def __post_init__(self) -> None:
         _positive("length", self.length)
         if not (0 < self.theta_max < math.pi):
-            raise ValueError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}")
+            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}")
         if self.mounting not in MOUNTINGS:
-            raise ValueError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+            raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 
 
 @dataclass(frozen=True)
@@ -99,9 +100,9 @@ class MHESettings:
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
-            raise ValueError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
+            raise UserError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
-            raise ValueError(f"horizon must be an integer >= 2, got {self.horizon!r}")
+            raise UserError(f"horizon must be an integer >= 2, got {self.horizon!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
-            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+            raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 import casadi as ca
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 
@@ -113,7 +114,7 @@ def _eval(fn: ca.Function, x: np.ndarray) -> np.ndarray:
 def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> ObservabilityReport:
     """Rank of the measurement Jacobians over ``samples`` random shapes of ``robot``."""
     if not (isinstance(samples, int) and 10 <= samples <= 1_000_000):
-        raise ValueError(f"samples must be an integer in [10, 1000000], got {samples!r}")
+        raise UserError(f"samples must be an integer in [10, 1000000], got {samples!r}")
     j_tilt, j_tilt2, j_dir2 = _jacobian_functions(robot)
     x = _sample_states(robot, samples, seed)
     tilt, rel = _summary(_eval(j_tilt, x))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import (
     Estimate,
     EstimateSeries,
@@ -47,7 +48,7 @@ def make_estimator(
             return ExtendedKalmanFilter(formulation)
     if method == "ukf":
         return UnscentedKalmanFilter(formulation)
-    raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    raise UserError(f"method must be one of {METHODS}, got {method!r}")
 
 
 __all__ = [

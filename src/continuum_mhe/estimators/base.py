@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 
@@ -81,7 +82,7 @@ class Estimator(ABC):
         t = measurement.t
         nz = self.formulation.nz
         if np.shape(measurement.z) != (nz,):
-            raise ValueError(
+            raise UserError(
                 f"measurement z must have shape ({nz},) for the {self.formulation.name} "
                 f"formulation, got {np.shape(measurement.z)}"
             )
@@ -91,7 +92,7 @@ class Estimator(ABC):
                 hint = "; run() left the estimator at its recording's end: call reset() first"
             elif math.isfinite(t):
                 hint = "; to start a new recording, call reset() first"
-            raise ValueError(
+            raise UserError(
                 f"sample time t={t!r} s must be finite and later than the previous "
                 f"sample's t={self._last_t!r} s{hint}"
             )
@@ -133,7 +134,7 @@ class Estimator(ABC):
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset."""
         if len(t) != len(z):
-            raise ValueError(f"t has {len(t)} samples but z has {len(z)}")
+            raise UserError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()
         idx: Iterable[int] = range(len(t))
         if progress is not None:

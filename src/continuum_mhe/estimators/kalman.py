@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
 
@@ -205,7 +206,7 @@ class SigmaPointSettings:
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha <= 1:
-            raise ValueError(f"alpha must lie in (0, 1], got {self.alpha!r}")
+            raise UserError(f"alpha must lie in (0, 1], got {self.alpha!r}")
 
 
 def merwe_sigma_points(

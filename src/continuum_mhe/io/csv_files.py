@@ -23,7 +23,9 @@ import contextlib
 import csv
 import math
 import os
+import sys
 import tempfile
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from glob import escape as glob_escape
@@ -33,6 +35,15 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.io.text_rows import (
+    InputError,
+    RowProblems,
+    TextRows,
+    column_indices,
+    iter_samples,
+    open_rows,
+    parse_float,
+)
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs
 from continuum_mhe.results import EstimateSeries
 
@@ -58,10 +69,6 @@ _ROLL_LIMIT = math.pi + 0.05
 _PITCH_LIMIT = math.pi / 2 + 0.05
 
 
-class InputError(ValueError):
-    """A problem with user input; the message is one line, naming file and line."""
-
-
 @dataclass(frozen=True)
 class MeasurementTable:
     """Measurements read from a file.
@@ -78,53 +85,10 @@ class MeasurementTable:
     skipped: list[str] = field(default_factory=list)
 
 
-def _open_text(path: Path) -> IO[str]:
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, expected a CSV file")
-    try:
-        return path.open(newline="", encoding="utf-8-sig")  # tolerate a BOM (Excel)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot open ({exc.strerror})") from None
-
-
-def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """Header and ``(line_number, fields)`` rows; blank lines are ignored."""
-    with _open_text(path) as fh:
-        reader = csv.reader(fh)
-        try:
-            rows = [
-                (reader.line_num, [c.strip() for c in r])
-                for r in reader
-                if any(c.strip() for c in r)
-            ]
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not a UTF-8 text file") from None
-        except csv.Error as exc:
-            raise InputError(f"{path}: line {reader.line_num}: malformed CSV ({exc})") from None
-    if not rows:
-        raise InputError(f"{path}: line 1: file is empty, expected a header such as t,roll,pitch")
-    (_, header), body = rows[0], rows[1:]
-    return [h.lower() for h in header], body
-
-
-def _column_indices(path: Path, header: list[str], required: Sequence[str]) -> list[int]:
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(
-            f"{path}: line 1: missing column(s) {', '.join(missing)} "
-            f"(header has: {', '.join(header) or 'nothing'})"
-        )
-    return [header.index(c) for c in required]
-
-
-def _parse_float(path: Path, line: int, name: str, text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        shown = text if len(text) <= 20 else text[:20] + "..."
-        raise InputError(f"{path}: line {line}: column {name}: {shown!r} is not a number") from None
+def _read_rows(path: str | os.PathLike[str]) -> tuple[TextRows, list[tuple[int, list[str]]]]:
+    """The opened table and all its ``(line_number, fields)`` rows (a small file)."""
+    with open_rows(path) as rows:
+        return rows, list(rows.rows)
 
 
 @dataclass(frozen=True)
@@ -139,78 +103,26 @@ class SampleRows:
 
 
 def read_sample_rows(
-    path: Path,
-    header: list[str],
-    body: list[tuple[int, list[str]]],
+    rows: TextRows,
     columns: Sequence[str],
     *,
     skip_bad: bool = False,
     empty_is_dropout: bool = False,
 ) -> SampleRows:
-    """Validate the rows of a sample CSV whose ``columns[0]`` is the time ``t`` (s).
-
-    A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
-    dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
-    ``skip_bad`` the row is dropped. Each skip is recorded as ``"line N: problem"``.
-    With ``empty_is_dropout`` an empty value is a dropout (NaN) without complaint (one
-    sensor of several that did not report).
-    """
-    idx = _column_indices(path, header, columns)
-    if not body:
-        raise InputError(f"{path}: line 2: no data rows after the header")
-    t_list: list[float] = []
-    values: list[list[float]] = []
+    """All validated rows of a sample table (see :func:`~continuum_mhe.io.text_rows.
+    iter_samples`); every skipped row is listed in ``skipped``."""
+    problems = RowProblems(keep=sys.maxsize)
     lines: list[int] = []
-    skipped: list[str] = []
-
-    def bad(line: int, msg: str) -> None:
-        if not skip_bad:
-            raise InputError(f"{path}: line {line}: {msg}")
-        if not skipped or not skipped[-1].startswith(f"line {line}: "):  # one per row
-            skipped.append(f"line {line}: {msg}")
-
-    truncated = "expected {} fields, found {} (truncated row?)"
-    for line, row in body:
-        if len(row) <= idx[0]:
-            bad(line, truncated.format(len(header), len(row)))
-            continue
-        try:
-            t = _parse_float(path, line, columns[0], row[idx[0]])
-        except InputError as exc:
-            bad(line, str(exc).split(": ", 2)[-1])
-            continue
-        if not math.isfinite(t):
-            bad(line, f"t is {row[idx[0]]}")
-            continue
-        if t_list and t <= t_list[-1]:
-            kind = "duplicate" if t == t_list[-1] else "decreasing"
-            bad(line, f"{kind} timestamp t={t:g} after t={t_list[-1]:g} (t must strictly increase)")
-            continue
-        vals: list[float] = []
-        for name, j in zip(columns[1:], idx[1:]):
-            if j >= len(row):
-                bad(line, truncated.format(len(header), len(row)))
-                vals = [math.nan] * (len(columns) - 1)
-                break
-            if empty_is_dropout and row[j] == "":
-                vals.append(math.nan)
-                continue
-            try:
-                v = _parse_float(path, line, name, row[j])
-            except InputError as exc:
-                bad(line, str(exc).split(": ", 2)[-1])
-                v = math.nan
-            else:
-                if not math.isfinite(v):
-                    bad(line, f"column {name} is {row[j]} (a dropout; --skip-bad keeps it)")
-                    v = math.nan  # with --skip-bad: a dropout, as the message says
-            vals.append(v)
-        t_list.append(t)
-        values.append(vals)
+    t: list[float] = []
+    values: list[list[float]] = []
+    for line, tv, vals in iter_samples(
+        rows, columns, skip_bad=skip_bad, empty_is_dropout=empty_is_dropout, problems=problems
+    ):
         lines.append(line)
-    if not t_list:
-        raise InputError(f"{path}: no usable rows ({len(skipped)} skipped)")
-    return SampleRows(np.array(t_list), np.array(values, dtype=float), lines, skipped)
+        t.append(tv)
+        values.append(vals)
+    arr = np.array(values, dtype=float).reshape(len(t), len(columns) - 1)
+    return SampleRows(np.array(t, dtype=float), arr, lines, problems.first)
 
 
 def tilt_columns(n_imus: int) -> tuple[str, ...]:
@@ -235,23 +147,58 @@ def read_measurements(
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
     With several IMUs an empty field is a dropout of that IMU only.
     """
-    p = Path(path)
-    header, body = _read_rows(p)
+    with open_rows(path) as rows:
+        columns = tilt_sample_columns(rows, n_imus)
+        got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
+    check_time_units(rows, got.t)
+    z = tilt_values(rows.name, got.values, got.lines, degrees, n_imus)
+    return MeasurementTable(t=got.t, z=z, skipped=got.skipped)
+
+
+def tilt_sample_columns(rows: TextRows, n_imus: int) -> tuple[str, ...]:
+    """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch."""
     columns = ("t", *tilt_columns(n_imus))
-    if n_imus == 1 and "roll" not in header and "roll_1" in header:
+    if n_imus == 1 and "roll" not in rows.header and "roll_1" in rows.header:
         columns = ("t", "roll_1", "pitch_1")
     if n_imus > 1:
-        _check_imu_count(p, header, n_imus)
-    rows = read_sample_rows(
-        p, header, body, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1
-    )
-    z = np.radians(rows.values) if degrees else rows.values
+        _check_imu_count(rows.name, rows.header, n_imus)
+    return columns
+
+
+def tilt_values(
+    name: str, values: FloatArray, lines: Sequence[int], degrees: bool, n_imus: int
+) -> FloatArray:
+    """Measurements (n, 2 n_imus) in rad from the file's values, range-checked."""
+    z = np.radians(values) if degrees else values
     for i in range(n_imus):
-        _check_angle_units(p, z[:, 2 * i : 2 * i + 2], rows.lines, degrees)
-    return MeasurementTable(t=rows.t, z=z, skipped=rows.skipped)
+        _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees)
+    return z
 
 
-def _check_imu_count(path: Path, header: list[str], n_imus: int) -> None:
+#: ``t`` read in seconds whose median step exceeds this looks like milliseconds.
+MS_LIKE_STEP_S = 2.0
+
+
+def check_time_units(rows: TextRows, t: FloatArray) -> None:
+    """Warn once when a ``t`` column in seconds steps like milliseconds (median step
+    over :data:`MS_LIKE_STEP_S`), naming the likely cause and the fix."""
+    if rows.time_scale != 1.0 or len(t) < 3:
+        return
+    step = float(np.median(np.diff(t)))
+    if step > MS_LIKE_STEP_S:
+        warnings.warn(
+            f"{rows.name}: t advances by a median of {step:g} s per sample; if t is in "
+            "milliseconds, name the column t_ms (it is read in seconds)",
+            UnitWarning,
+            stacklevel=3,
+        )
+
+
+class UnitWarning(UserWarning):
+    """A value whose unit looks wrong (milliseconds for seconds, mm for m...)."""
+
+
+def _check_imu_count(path: str, header: list[str], n_imus: int) -> None:
     """The file's numbered IMU columns must match the robot's IMU count."""
     have = sorted(
         int(h.rsplit("_", 1)[1])
@@ -269,7 +216,7 @@ def _check_imu_count(path: Path, header: list[str], n_imus: int) -> None:
 _IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
 
 
-def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: bool) -> None:
+def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool) -> None:
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
     if not over.any():
@@ -308,9 +255,9 @@ def read_state_table(
 ) -> StateTable:
     """Read an estimate or truth CSV with at least ``t`` and ``required`` columns; every
     other numeric output column (``theta``, ``phi_2``, ``std_x``...) is kept."""
-    p = Path(path)
-    header, body = _read_rows(p)
-    _column_indices(p, header, ("t", *required))
+    table, body = _read_rows(path)
+    p, header = table.name, table.header
+    column_indices(table, ("t", *required))
     names = tuple(h for h in header if h not in _NOT_STATES and h)
     idx = [header.index(c) for c in names]
     t_idx = header.index("t")
@@ -326,9 +273,9 @@ def read_state_table(
                 f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (truncated?)"
             )
         st = row[s_idx] if s_idx is not None else "ok"
-        tv = _parse_float(p, line, "t", row[t_idx])
+        tv = parse_float(p, line, "t", row[t_idx]) * table.time_scale
         vals = [
-            math.nan if (row[j] == "" and st == "no-estimate") else _parse_float(p, line, c, row[j])
+            math.nan if (row[j] == "" and st == "no-estimate") else parse_float(p, line, c, row[j])
             for c, j in zip(names, idx)
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
@@ -433,15 +380,21 @@ def write_table(
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(columns)
         for r in rows:
-            cells = []
-            for v in r:
-                if isinstance(v, (float, np.floating)):
-                    if not math.isfinite(v):
-                        raise ValueError(f"refusing to write non-finite value to {path}")
-                    cells.append(_fmt(float(v)))
-                else:
-                    cells.append(str(v))
-            w.writerow(cells)
+            w.writerow(format_cells(path, r))
+
+
+def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[str]:
+    """The CSV cells of one row: floats in 10 significant digits, which must be finite
+    (a non-finite value is a bug: refused)."""
+    cells = []
+    for v in row:
+        if isinstance(v, (float, np.floating)):
+            if not math.isfinite(v):
+                raise ValueError(f"refusing to write non-finite value to {path}")
+            cells.append(_fmt(float(v)))
+        else:
+            cells.append(str(v))
+    return cells
 
 
 def estimate_row(

@@ -23,18 +23,16 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import (
-    FloatArray,
-    InputError,
-    _read_rows,
-    read_sample_rows,
-)
+from continuum_mhe.errors import UserError
+from continuum_mhe.io.csv_files import FloatArray, read_sample_rows
+from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
@@ -71,11 +69,11 @@ class RawImuSettings:
 
     def __post_init__(self) -> None:
         if self.imu_model not in IMU_MODELS:
-            raise ValueError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
+            raise UserError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
         if self.attitude not in ATTITUDES:
-            raise ValueError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
+            raise UserError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
         if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
-            raise ValueError(
+            raise UserError(
                 f"mount_rpy must be three finite angles in degrees, got {self.mount_rpy!r}"
             )
 
@@ -144,14 +142,14 @@ class RawImuConverter:
         gyro = None if gyr is None else self._mount @ np.asarray(gyr, dtype=float)
         if self.settings.imu_model == "direct":
             if gyro is None:
-                raise ValueError("the direct IMU model needs gyro readings (gx, gy, gz)")
+                raise UserError("the direct IMU model needs gyro readings (gx, gy, gz)")
             return direct_measurements(acc, gyro)[0]
         if not (np.all(np.isfinite(acc)) and np.linalg.norm(acc) > 0):
             return np.full(2, np.nan)
         if self._filter is None:
             return tilt_from_accelerometer(acc)
         if gyro is None:
-            raise ValueError(f"attitude {self.settings.attitude!r} needs gyro readings")
+            raise UserError(f"attitude {self.settings.attitude!r} needs gyro readings")
         if not np.all(np.isfinite(gyro)):
             return np.full(2, np.nan)
         if self._q is None or self._t is None:
@@ -223,42 +221,81 @@ class MultiRawImuTable:
     skipped: list[str] = field(default_factory=list)
 
 
+def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
+    """The columns to read from a raw table (``t`` first) and whether it has gyros."""
+    if n_imus == 1 and "ax_1" not in rows.header:
+        has_gyro = any(c in rows.header for c in GYRO_COLUMNS)
+        return (RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]), has_gyro
+    found = 0
+    while all(f"{c}_{found + 1}" in rows.header for c in ACC_COLUMNS):
+        found += 1
+    if found != n_imus:
+        raise InputError(
+            f"{rows.name}: line 1: the file has raw columns for {found} IMU(s) (ax_1 ... "
+            f"ax_{found}) but the robot describes {n_imus}"
+        )
+    has_gyro = all(f"gx_{i + 1}" in rows.header for i in range(n_imus))
+    cols = [c for i in range(n_imus) for c in raw_columns(i, n_imus, has_gyro)]
+    return ("t", *cols), has_gyro
+
+
+def raw_blocks(
+    name: str,
+    values: FloatArray,
+    lines: Sequence[int],
+    n_imus: int,
+    has_gyro: bool,
+    skip_bad: bool,
+    skipped: list[str] | RowProblems,
+) -> list[tuple[FloatArray, FloatArray | None]]:
+    """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked.
+
+    One IMU: a zero acceleration is an error, or with ``skip_bad`` a dropout (recorded);
+    several: any bad value makes that IMU's sample a dropout (NaN)."""
+    k = 6 if has_gyro else 3
+    out: list[tuple[FloatArray, FloatArray | None]] = []
+    for i in range(n_imus):
+        block = values[:, k * i : k * (i + 1)].copy()
+        if n_imus > 1:
+            block[~np.all(np.isfinite(block), axis=1)] = np.nan
+        acc = block[:, :3]
+        with np.errstate(invalid="ignore"):
+            zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
+        if n_imus == 1:
+            for j in np.flatnonzero(zero):
+                msg = f"line {lines[j]}: acceleration is zero (no gravity direction)"
+                if not skip_bad:
+                    raise InputError(f"{name}: {msg}")
+                if isinstance(skipped, RowProblems):
+                    skipped.add(msg)
+                else:
+                    skipped.append(msg)
+        acc[zero] = np.nan
+        _check_accel_units(name, acc)
+        out.append((acc, block[:, 3:6] if has_gyro else None))
+    return out
+
+
 def read_raw_imus(
     path: str | os.PathLike[str], n_imus: int, *, skip_bad: bool = False
 ) -> MultiRawImuTable:
     """Read a raw CSV of ``n_imus`` IMUs: ``t,ax_1,ay_1,az_1[,gx_1,gy_1,gz_1],ax_2,...``
     (m/s^2, rad/s, each IMU in its own sensor frame)."""
-    p = Path(path)
-    header, body = _read_rows(p)
-    found = 0
-    while all(f"{c}_{found + 1}" in header for c in ACC_COLUMNS):
-        found += 1
-    if found != n_imus:
-        raise InputError(
-            f"{p}: line 1: the file has raw columns for {found} IMU(s) (ax_1 ... ax_{found}) "
-            f"but the robot describes {n_imus}"
-        )
-    has_gyro = all(f"gx_{i + 1}" in header for i in range(n_imus))
-    cols = [c for i in range(n_imus) for c in raw_columns(i, n_imus, has_gyro)]
-    rows = read_sample_rows(p, header, body, ("t", *cols), skip_bad=skip_bad, empty_is_dropout=True)
-    k = 6 if has_gyro else 3
-    imus = []
-    for i in range(n_imus):
-        block = rows.values[:, k * i : k * (i + 1)].copy()
-        bad = ~np.all(np.isfinite(block), axis=1)
-        block[bad] = np.nan
-        acc = block[:, :3]
-        with np.errstate(invalid="ignore"):
-            acc[np.linalg.norm(acc, axis=1) == 0.0] = np.nan  # no gravity direction
-        _check_accel_units(p, acc)
-        imus.append(RawImuTable(rows.t, acc, block[:, 3:6] if has_gyro else None))
-    return MultiRawImuTable(rows.t, imus, list(rows.skipped))
+    with open_rows(path) as rows:
+        cols, has_gyro = raw_layout(rows, n_imus)
+        got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
+    skipped = list(got.skipped)
+    blocks = raw_blocks(rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped)
+    imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
+    return MultiRawImuTable(got.t, imus, skipped)
 
 
 def csv_input_kind(path: str | os.PathLike[str]) -> Literal["tilt", "raw"]:
-    """``"raw"`` if the CSV header has ``ax,ay,az``, else ``"tilt"`` (``t,roll,pitch``)."""
-    header, _ = _read_rows(Path(path))
-    return "raw" if is_raw_header(header) else "tilt"
+    """``"raw"`` if the CSV header has ``ax,ay,az``, else ``"tilt"`` (``t,roll,pitch``).
+    Reads the input: for a pipe, open it once with :func:`open_rows` and use
+    :func:`is_raw_header` instead."""
+    with open_rows(path) as rows:
+        return "raw" if is_raw_header(rows.header) else "tilt"
 
 
 def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> RawImuTable:
@@ -268,23 +305,12 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     values become dropouts and rows with a bad or non-increasing ``t`` are dropped,
     each recorded in ``skipped``.
     """
-    p = Path(path)
-    header, body = _read_rows(p)
-    has_gyro = any(c in header for c in GYRO_COLUMNS)
-    names = RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]
-    rows = read_sample_rows(p, header, body, names, skip_bad=skip_bad)
-    t_list, arr, skipped = rows.t, rows.values, list(rows.skipped)
-    acc = arr[:, :3]
-    with np.errstate(invalid="ignore"):
-        zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
-    for i in np.flatnonzero(zero):
-        msg = f"line {rows.lines[i]}: acceleration is zero (no gravity direction)"
-        if not skip_bad:
-            raise InputError(f"{p}: {msg}")
-        skipped.append(msg)
-        acc[i] = np.nan
-    _check_accel_units(p, acc)
-    return RawImuTable(t=t_list, acc=acc, gyr=arr[:, 3:6] if has_gyro else None, skipped=skipped)
+    with open_rows(path) as rows:
+        cols, has_gyro = raw_layout(rows, 1)
+        got = read_sample_rows(rows, cols, skip_bad=skip_bad)
+    skipped = list(got.skipped)
+    ((acc, gyr),) = raw_blocks(rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped)
+    return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
 
 
 def _check_accel_units(path: Path | str, acc: FloatArray) -> None:

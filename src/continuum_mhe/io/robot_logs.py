@@ -24,10 +24,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,18 +38,14 @@ from continuum_mhe.io.csv_files import (
     FloatArray,
     InputError,
     atomic_binary_writer,
-    read_measurements,
     write_estimates,
 )
 from continuum_mhe.io.raw_imu import (
     RawImuSettings,
     _check_accel_units,
-    csv_input_kind,
     raw_to_measurements,
-    read_raw_imu,
-    read_raw_imus,
 )
-from continuum_mhe.model.descriptions import section_bends
+from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.pcc import pose_at
@@ -321,26 +318,14 @@ def load_estimate_input(
         else:
             z = _convert(p, log.t, log.acc, log.gyr, options.raw)
         return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
-    n_imus = formulation.robot.n_imus
-    if csv_input_kind(p) == "raw":
-        f = _formulation_for(options, formulation, True, p)
-        if n_imus > 1:
-            multi = read_raw_imus(p, n_imus, skip_bad=options.skip_bad)
-            z = np.hstack(
-                [
-                    _convert(p, multi.t, imu.acc, imu.gyr, _imu_settings(options.raw, place))
-                    for imu, place in zip(multi.imus, formulation.robot.imus)
-                ]
-            )
-            return EstimateInput("raw-csv", multi.t, z, f, 0, multi.skipped)
-        table = read_raw_imu(p, skip_bad=options.skip_bad)
-        z = _convert(p, table.t, table.acc, table.gyr, options.raw)
-        return EstimateInput("raw-csv", table.t, z, f, 0, table.skipped)
-    if n_imus > 1 and options.raw.imu_model == "direct":
-        raise InputError(f"{p}: --imu-model direct needs raw accelerometer and gyro input")
-    tilt = read_measurements(p, degrees=options.degrees, skip_bad=options.skip_bad, n_imus=n_imus)
-    f = _formulation_for(options, formulation, False, p)
-    return EstimateInput("tilt-csv", tilt.t, tilt.z, f, 0, tilt.skipped)
+    from continuum_mhe.io.sample_stream import open_estimate_input
+
+    with open_estimate_input(path, options, formulation) as stream:
+        stream.problems.keep = sys.maxsize
+        pairs = list(stream.samples)
+    t = np.array([tv for tv, _ in pairs], dtype=float)
+    z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
+    return EstimateInput(stream.kind, t, z, stream.formulation, 0, stream.problems.first)
 
 
 def _imu_settings(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
@@ -445,22 +430,35 @@ def estimate_messages(
     """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
     names = [o.name for o in series.outputs]
     for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
-        ns = t0_ns + int(round(float(t) * 1e9))
-        stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
-        has = st != "no-estimate" and bool(np.all(np.isfinite(out)))
-        row: dict[str, Any] = {"t": float(t)}
-        row.update({k: (float(v) if has else None) for k, v in zip(names, out)})
-        row.update(status=str(st), solve_ms=float(ms))
-        yield "/continuum/estimate", ns, row
-        if not has:
-            continue
-        poses = backbone_poses(section_bends(series.outputs, out), lengths)
-        yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
-        yield (
-            "/continuum/backbone",
-            ns,
-            {"timestamp": stamp, "frame_id": BASE_FRAME, "poses": poses},
-        )
+        yield from sample_messages(series.outputs, names, float(t), out, str(st), float(ms),
+                                   lengths, t0_ns)  # fmt: skip
+
+
+def sample_messages(
+    outputs: Sequence[OutputSpec],
+    names: Sequence[str],
+    t: float,
+    out: FloatArray | None,
+    st: str,
+    ms: float,
+    lengths: Sequence[float],
+    t0_ns: int = 0,
+) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """The messages of one estimate (``out`` None or NaN: no pose)."""
+    ns = t0_ns + int(round(t * 1e9))
+    stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+    has = out is not None and st != "no-estimate" and bool(np.all(np.isfinite(out)))
+    row: dict[str, Any] = {"t": t}
+    row.update({k: (float(v) if has else None) for k, v in zip(names, out)}
+               if out is not None else dict.fromkeys(names))  # fmt: skip
+    row.update(status=st, solve_ms=ms)
+    yield "/continuum/estimate", ns, row
+    if not has:
+        return
+    assert out is not None
+    poses = backbone_poses(section_bends(outputs, out), lengths)
+    yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
+    yield "/continuum/backbone", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "poses": poses}
 
 
 def write_estimates_mcap(
@@ -470,29 +468,44 @@ def write_estimates_mcap(
     t0_ns: int = 0,
 ) -> None:
     """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
-    require("mcap", "robot", "writing MCAP")
-    from mcap.writer import CompressionType, Writer
-
     with atomic_binary_writer(path) as fh:
-        writer = Writer(fh, compression=CompressionType.NONE)
-        writer.start(profile="", library="continuum-mhe")
-        channels: dict[str, int] = {}
+        writer = mcap_estimate_writer(fh)
+        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
+            writer.add(topic, ns, msg, seq)
+        writer.finish()
+
+
+class McapEstimateWriter:
+    """An MCAP writer with the estimate channels registered (see the module doc)."""
+
+    def __init__(self, fh: IO[bytes]) -> None:
+        require("mcap", "robot", "writing MCAP")
+        from mcap.writer import CompressionType, Writer
+
+        self._writer = Writer(fh, compression=CompressionType.NONE)
+        self._writer.start(profile="", library="continuum-mhe")
+        self._channels: dict[str, int] = {}
         for topic, schema in TOPICS.items():
-            sid = writer.register_schema(
+            sid = self._writer.register_schema(
                 name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
             )
-            channels[topic] = writer.register_channel(
+            self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=sid
             )
-        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
-            writer.add_message(
-                channels[topic],
-                log_time=ns,
-                data=json.dumps(msg).encode(),
-                publish_time=ns,
-                sequence=seq,
-            )
-        writer.finish()
+
+    def add(self, topic: str, ns: int, msg: dict[str, Any], seq: int) -> None:
+        self._writer.add_message(
+            self._channels[topic], log_time=ns, data=json.dumps(msg).encode(),
+            publish_time=ns, sequence=seq,
+        )  # fmt: skip
+
+    def finish(self) -> None:
+        self._writer.finish()
+
+
+def mcap_estimate_writer(fh: IO[bytes]) -> McapEstimateWriter:
+    """Start an estimate MCAP on an open binary file."""
+    return McapEstimateWriter(fh)
 
 
 def read_estimates_mcap(

@@ -28,6 +28,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
 from continuum_mhe.model.formulations import BendFormulation, FloatArray
 from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
@@ -81,7 +82,7 @@ class DirectFormulation(BendFormulation):
             ("accel_direction_std", self.accel_direction_std),
         ):
             if v is not None and not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{label} must be a positive finite number, got {v!r}")
+                raise UserError(f"{label} must be a positive finite number, got {v!r}")
 
     @property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:

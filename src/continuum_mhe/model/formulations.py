@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     MeasurementBlock,
     OutputSpec,
@@ -462,7 +463,7 @@ class PaperFormulation(Formulation):
     def __post_init__(self) -> None:
         super().__post_init__()
         if not self.robot.is_single:
-            raise ValueError(
+            raise UserError(
                 "the paper formulation models one section with one tip IMU; "
                 f"this robot has {self.robot.describe()}: use --formulation bend or direct"
             )

@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.kinematics import FloatArray, Sym, cosc_q, sinc_q
 
 Mounting = Literal["z-up", "z-down"]
@@ -38,7 +39,7 @@ def _up_sign(mounting: Mounting) -> float:
         return 1.0
     if mounting == "z-down":
         return -1.0
-    raise ValueError(f"mounting must be one of {MOUNTINGS}, got {mounting!r}")
+    raise UserError(f"mounting must be one of {MOUNTINGS}, got {mounting!r}")
 
 
 def gravity_direction_bend_sym(a: Sym, b: Sym, mounting: Mounting = "z-up") -> Sym:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
 from continuum_mhe.model.robot import Robot
@@ -34,5 +35,5 @@ def make_formulation(
     """
     cls = REGISTRY.get(name)
     if cls is None:
-        raise ValueError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
+        raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
     return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -36,17 +37,17 @@ class Section:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.length, (int, float)) and math.isfinite(self.length)):
-            raise ValueError(f"section length must be a finite number in m, got {self.length!r}")
+            raise UserError(f"section length must be a finite number in m, got {self.length!r}")
         if not self.length > 0:
-            raise ValueError(f"section length must be positive, got {self.length!r} m")
+            raise UserError(f"section length must be positive, got {self.length!r} m")
         if self.length > MAX_SECTION_LENGTH:
-            raise ValueError(
+            raise UserError(
                 f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
                 "lengths are in metres (millimetres?)"
             )
         if not (isinstance(self.theta_max, (int, float)) and 0 < self.theta_max < math.pi):
             hint = " (degrees? give radians)" if self.theta_max >= math.pi else ""
-            raise ValueError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
+            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
 
 
 @dataclass(frozen=True)
@@ -66,11 +67,11 @@ class ImuPlacement:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.section, int) and self.section >= 0):
-            raise ValueError(f"IMU section must be a non-negative index, got {self.section!r}")
+            raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
-            raise ValueError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
+            raise UserError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
         if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
-            raise ValueError(f"IMU mount_rpy must be three finite angles, got {self.mount_rpy!r}")
+            raise UserError(f"IMU mount_rpy must be three finite angles, got {self.mount_rpy!r}")
 
 
 @dataclass(frozen=True)
@@ -91,17 +92,17 @@ class Robot:
         object.__setattr__(self, "sections", tuple(self.sections))
         object.__setattr__(self, "imus", tuple(self.imus))
         if not self.sections:
-            raise ValueError("a robot needs at least one section")
+            raise UserError("a robot needs at least one section")
         if not self.imus:
-            raise ValueError("a robot needs at least one IMU")
+            raise UserError("a robot needs at least one IMU")
         for i, imu in enumerate(self.imus):
             if imu.section >= len(self.sections):
-                raise ValueError(
+                raise UserError(
                     f"IMU {i + 1} is on section {imu.section + 1}, but the robot has "
                     f"{len(self.sections)} section(s)"
                 )
         if self.mounting not in MOUNTINGS:
-            raise ValueError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+            raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 
     @classmethod
     def single(
@@ -131,7 +132,7 @@ class Robot:
     def theta_max(self) -> float:
         """``theta_max`` of a one-section robot (ValueError for several sections)."""
         if len(self.sections) != 1:
-            raise ValueError("theta_max is per section on a multi-section robot")
+            raise UserError("theta_max is per section on a multi-section robot")
         return self.sections[0].theta_max
 
     @property

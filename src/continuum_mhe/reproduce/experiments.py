@@ -19,6 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import EstimateSeries, Method, make_estimator
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.formulations import Formulation
@@ -94,12 +95,12 @@ class ReproduceConfig:
         for name in ("mc_seeds", "condition_seeds", "sweep_seeds", "window_seeds"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 2):
-                raise ValueError(f"{name} must be an integer >= 2, got {v!r}")
+                raise UserError(f"{name} must be an integer >= 2, got {v!r}")
         if not self.sweep_horizons or min(self.sweep_horizons) < 2:
-            raise ValueError("sweep_horizons must be non-empty integers >= 2")
+            raise UserError("sweep_horizons must be non-empty integers >= 2")
         longest = int(round(self.sweep_duration / self.dt)) + 1
         if max(self.sweep_horizons) > longest:
-            raise ValueError("sweep_duration is shorter than the longest horizon")
+            raise UserError("sweep_duration is shorter than the longest horizon")
 
 
 FULL = ReproduceConfig()
@@ -160,13 +161,13 @@ class TrialSpec:
 
     def __post_init__(self) -> None:
         if not self.methods:
-            raise ValueError("methods must name at least one estimator")
+            raise UserError("methods must name at least one estimator")
         if self.corruption not in ("none", "bad-init", "outliers"):
-            raise ValueError(f"unknown corruption {self.corruption!r}")
+            raise UserError(f"unknown corruption {self.corruption!r}")
         if not 0 <= self.outlier_fraction < 1:
-            raise ValueError(f"outlier_fraction must lie in [0, 1), got {self.outlier_fraction}")
+            raise UserError(f"outlier_fraction must lie in [0, 1), got {self.outlier_fraction}")
         if len(self.noise_std) != 2 or min(self.noise_std) < 0 or self.assumed_std <= 0:
-            raise ValueError("noise_std must be two stds >= 0 rad and assumed_std > 0 rad")
+            raise UserError("noise_std must be two stds >= 0 rad and assumed_std > 0 rad")
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)

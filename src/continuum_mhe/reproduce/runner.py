@@ -12,6 +12,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.extras import require
 
 S = TypeVar("S")
@@ -66,7 +67,7 @@ def run_parallel(
     must be picklable (module-level function, frozen dataclasses).
     """
     if jobs is not None and jobs < 1:
-        raise ValueError(f"--jobs must be >= 1, got {jobs}")
+        raise UserError(f"--jobs must be >= 1, got {jobs}")
     if scheduler:
         return _run_dask(fn, specs, scheduler, description, progress)
     n_jobs = default_jobs() if jobs is None else jobs
@@ -99,7 +100,7 @@ def _run_dask(
     try:
         client = Client(address, timeout="10s")
     except OSError as exc:
-        raise ValueError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
+        raise UserError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
     results: list[Any] = [None] * len(specs)
     try:
         futures = client.map(fn, list(specs), pure=False)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
@@ -109,11 +110,11 @@ class RodSettings:
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
+                raise UserError(f"{name} must be positive, got {v!r}")
         if self.tip_mass < 0:
-            raise ValueError(f"tip_mass must be >= 0 kg, got {self.tip_mass!r}")
+            raise UserError(f"tip_mass must be >= 0 kg, got {self.tip_mass!r}")
         if self.n_elements < 4:
-            raise ValueError(f"n_elements must be >= 4, got {self.n_elements!r}")
+            raise UserError(f"n_elements must be >= 4, got {self.n_elements!r}")
 
 
 @dataclass(frozen=True)
@@ -147,13 +148,13 @@ class ImuSettings:
         for name in ("sample_dt", "dlpf_window", "accel_range", "gyro_range"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
+                raise UserError(f"{name} must be positive, got {v!r}")
         for name in ("accel_noise", "accel_bias", "gyro_noise", "gyro_bias", "misalignment_deg"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be >= 0, got {v!r}")
+                raise UserError(f"{name} must be >= 0, got {v!r}")
         if not (isinstance(self.bits, int) and 8 <= self.bits <= 32):
-            raise ValueError(f"bits must be an integer in [8, 32], got {self.bits!r}")
+            raise UserError(f"bits must be an integer in [8, 32], got {self.bits!r}")
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
@@ -130,12 +131,12 @@ def simulate_sections(
     """Integrate the rod for ``duration`` s and record every ``record_dt`` s."""
     ea: Any = require("elastica", "rod", "the rod simulation", package="pyelastica")
     if scenario not in SCENARIOS:
-        raise ValueError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
+        raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
     s = settings
     total = sum(s.lengths)
     e1 = int(round(s.n_elements * s.lengths[0] / total))
     if abs(e1 * total / s.n_elements - s.lengths[0]) > 1e-9:
-        raise ValueError(
+        raise UserError(
             f"{s.n_elements} elements do not split the rod at {s.lengths[0]} m: choose "
             "n_elements so that every section is a whole number of elements"
         )

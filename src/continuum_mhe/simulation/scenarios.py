@@ -18,6 +18,7 @@ from typing import Literal
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import Mounting, shape_from_tilt, tilt, wrap_angle
 from continuum_mhe.model.kinematics import (
@@ -130,12 +131,12 @@ def simulate_robot(
                 scenario, duration=duration, dt=dt, noise_deg=noise_deg,
                 length=robot.length, seed=seed, mounting=robot.mounting,
             )  # fmt: skip
-        raise ValueError(
+        raise UserError(
             f"scenario {scenario!r} is for one section with a tip IMU; for this robot "
             f"({robot.describe()}) choose from {', '.join(MULTI_SECTION_SCENARIOS)}"
         )
     if robot.n_sections < 2:
-        raise ValueError(f"scenario {scenario!r} needs a robot with two or more sections")
+        raise UserError(f"scenario {scenario!r} needs a robot with two or more sections")
     t = _time_axis(duration, dt, noise_deg, seed)
     bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
     f = BendFormulation(robot=robot)
@@ -153,14 +154,14 @@ def simulate_robot(
 def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
     for name, v in (("duration", duration), ("dt", dt)):
         if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be positive, got {v}")
+            raise UserError(f"{name} must be positive, got {v}")
     if not (math.isfinite(noise_deg) and noise_deg >= 0):
-        raise ValueError(f"noise-deg must be >= 0, got {noise_deg}")
+        raise UserError(f"noise-deg must be >= 0, got {noise_deg}")
     if not (isinstance(seed, int) and seed >= 0):
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        raise UserError(f"seed must be a non-negative integer, got {seed!r}")
     n = int(round(duration / dt)) + 1
     if n > MAX_SAMPLES:
-        raise ValueError(
+        raise UserError(
             f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "
             "use a shorter --duration or a larger --dt"
         )
@@ -183,13 +184,13 @@ def simulate(
     ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
     """
     if scenario in MULTI_SECTION_SCENARIOS:
-        raise ValueError(
+        raise UserError(
             f"scenario {scenario!r} needs a robot with two or more sections (--robot)"
         )
     if scenario not in _SHAPES:
-        raise ValueError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
+        raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if not (math.isfinite(length) and length > 0):
-        raise ValueError(f"length must be positive, got {length}")
+        raise UserError(f"length must be positive, got {length}")
     t = _time_axis(duration, dt, noise_deg, seed)
     n = len(t)
     theta, phi = _SHAPES[scenario](t)

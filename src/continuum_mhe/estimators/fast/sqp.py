@@ -18,6 +18,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.fast.model import WindowModel
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
@@ -61,13 +62,13 @@ class FastOptions:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
-            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+            raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         if not (isinstance(self.max_qp_iter, int) and self.max_qp_iter >= 1):
-            raise ValueError(f"max_qp_iter must be a positive integer, got {self.max_qp_iter!r}")
+            raise UserError(f"max_qp_iter must be a positive integer, got {self.max_qp_iter!r}")
         if not (isinstance(self.step_tol, float) and 0 < self.step_tol < 1e-3):
-            raise ValueError(f"step_tol must lie in (0, 1e-3), got {self.step_tol!r}")
+            raise UserError(f"step_tol must lie in (0, 1e-3), got {self.step_tol!r}")
         if not (isinstance(self.err_tol, float) and 0 < self.err_tol < 1e-3):
-            raise ValueError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
+            raise UserError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
 
 
 @numba.njit(cache=True)

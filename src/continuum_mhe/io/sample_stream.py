@@ -1,0 +1,224 @@
+"""``estimate`` as a stream: samples in and estimate rows out, one at a time.
+
+A CSV input (tilt or raw, a file, ``-``, a pipe or a FIFO) is read once, front to
+back, in chunks of :data:`CHUNK` rows; estimates are written as they come to a
+temporary file that replaces the output only when the run completes. Memory stays
+flat in the length of the recording (``tools/memory_study.py``, docs/reliability.md).
+ROS bags and MCAP inputs are read whole (their readers index the file).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    atomic_binary_writer,
+    atomic_writer,
+    check_time_units,
+    estimate_columns,
+    estimate_row,
+    format_cells,
+    tilt_sample_columns,
+    tilt_values,
+)
+from continuum_mhe.io.raw_imu import RawImuConverter, is_raw_header, raw_blocks, raw_layout
+from continuum_mhe.io.robot_logs import (
+    InputOptions,
+    _formulation_for,
+    _imu_settings,
+    is_robot_log,
+    load_estimate_input,
+    mcap_estimate_writer,
+    sample_messages,
+)
+from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.results import Estimate
+
+#: Rows validated and converted together (bounds the memory of a streamed input).
+CHUNK = 4096
+
+Convert = Callable[[FloatArray, FloatArray, Sequence[int]], FloatArray]
+
+
+@dataclass
+class SampleStream:
+    """Measurements of one input, produced one at a time.
+
+    Attributes:
+        name: the input as shown in messages.
+        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
+        formulation: the formulation the measurements are for.
+        samples: ``(t, z)``: s, (nz,) measurement; read once.
+        problems: rows skipped with ``skip_bad`` (count and the first few).
+        t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
+    """
+
+    name: str
+    kind: str
+    formulation: Formulation
+    samples: Iterator[tuple[float, FloatArray]]
+    problems: RowProblems = field(default_factory=RowProblems)
+    t0_ns: int = 0
+    _rows: TextRows | None = None
+
+    def close(self) -> None:
+        if self._rows is not None:
+            self._rows.close()
+
+    def __enter__(self) -> SampleStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_estimate_input(
+    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+) -> SampleStream:
+    """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream."""
+    if str(path) != "-" and is_robot_log(Path(path)):
+        data = load_estimate_input(path, options, formulation)
+        problems = RowProblems(count=len(data.skipped), first=data.skipped[:20])
+        pairs = zip(data.t.tolist(), data.z)
+        return SampleStream(str(path), data.kind, data.formulation, pairs, problems, data.t0_ns)
+    rows = open_rows(path)
+    try:
+        return _csv_stream(rows, options, formulation)
+    except BaseException:
+        rows.close()
+        raise
+
+
+def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> SampleStream:
+    n_imus, name = base.robot.n_imus, rows.name
+    problems = RowProblems()
+    convert: Convert
+    if is_raw_header(rows.header):
+        f = _formulation_for(options, base, True, Path(name))
+        cols, has_gyro = raw_layout(rows, n_imus)
+        if options.raw.needs_gyro and not has_gyro:
+            what = "--imu-model direct" if options.raw.imu_model == "direct" else (
+                f"--attitude {options.raw.attitude}")  # fmt: skip
+            raise InputError(f"{name}: {what} needs gyro columns gx, gy, gz")
+        settings = [
+            _imu_settings(options.raw, place) if n_imus > 1 else options.raw
+            for place in base.robot.imus
+        ]
+        convs = [RawImuConverter(s) for s in settings]
+
+        def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
+            blocks = raw_blocks(name, values, lines, n_imus, has_gyro, options.skip_bad, problems)
+            parts = []
+            for conv, (acc, gyr) in zip(convs, blocks):
+                parts.append(np.array([
+                    conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i])
+                    for i in range(len(t))
+                ]).reshape(len(t), conv.nz))  # fmt: skip
+            return np.hstack(parts)
+
+        kind = "raw-csv"
+    else:
+        if n_imus > 1 and options.raw.imu_model == "direct":
+            raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
+        cols = tilt_sample_columns(rows, n_imus)
+        f = _formulation_for(options, base, False, Path(name))
+
+        def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
+            return tilt_values(name, values, lines, options.degrees, n_imus)
+
+        kind = "tilt-csv"
+    found = iter_samples(
+        rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
+    )
+    return SampleStream(name, kind, f, _chunked(rows, found, convert), problems, 0, rows)
+
+
+def _chunked(
+    rows: TextRows, found: Iterator[tuple[int, float, list[float]]], convert: Convert
+) -> Iterator[tuple[float, FloatArray]]:
+    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time."""
+    first = True
+    while True:
+        chunk = [r for _, r in zip(range(CHUNK), found)]
+        if not chunk:
+            return
+        lines = [c[0] for c in chunk]
+        t = np.array([c[1] for c in chunk], dtype=float)
+        values = np.array([c[2] for c in chunk], dtype=float).reshape(len(chunk), -1)
+        del chunk
+        if first:
+            check_time_units(rows, t)
+            first = False
+        z = convert(t, values, lines)
+        for i, tv in enumerate(t.tolist()):
+            yield tv, z[i]
+
+
+class EstimateSink:
+    """Estimates written one at a time to a CSV (or an MCAP for ``.mcap``), atomically:
+    use as a context manager; the output appears only when the block completes."""
+
+    def __init__(
+        self, path: str | os.PathLike[str], formulation: Formulation, t0_ns: int = 0
+    ) -> None:
+        self.path = path
+        self.outputs = formulation.outputs
+        self.lengths = formulation.robot.lengths
+        self.t0_ns = t0_ns
+        self.mcap = Path(path).suffix.lower() == ".mcap"
+        self._cm: Any = None
+        self._write: Callable[[Estimate], None] | None = None
+
+    def __enter__(self) -> EstimateSink:
+        if self.mcap:
+            self._cm = atomic_binary_writer(self.path)
+            fb: IO[bytes] = self._cm.__enter__()
+            writer = mcap_estimate_writer(fb)
+            names = [o.name for o in self.outputs]
+            seq = iter(range(sys.maxsize))
+
+            def write_mcap(e: Estimate) -> None:
+                for topic, ns, msg in sample_messages(self.outputs, names, float(e.t), e.output,
+                                                      str(e.status), float(e.solve_ms),
+                                                      self.lengths, self.t0_ns):  # fmt: skip
+                    writer.add(topic, ns, msg, next(seq))
+
+            self._finish: Callable[[], None] = writer.finish
+            self._write = write_mcap
+        else:
+            self._cm = atomic_writer(self.path)
+            fh: IO[str] = self._cm.__enter__()
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(estimate_columns(self.outputs))
+            ny = len(self.outputs)
+
+            def write_csv(e: Estimate) -> None:
+                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny)
+                w.writerow(format_cells(self.path, row))
+
+            self._finish = lambda: None
+            self._write = write_csv
+        return self
+
+    def write(self, estimate: Estimate) -> None:
+        assert self._write is not None, "use EstimateSink as a context manager"
+        self._write(estimate)
+
+    def __exit__(self, typ: Any, exc: Any, tb: Any) -> bool | None:
+        if typ is None:
+            try:
+                self._finish()
+            except BaseException:
+                self._cm.__exit__(*sys.exc_info())  # removes the temporary file
+                raise
+        return bool(self._cm.__exit__(typ, exc, tb))

@@ -1,0 +1,327 @@
+"""Text tables read once, row by row: files, ``-`` (standard input), pipes and FIFOs.
+
+Dialects read (the same for every CSV reader of the package):
+
+* separators ``,`` ``;`` or tab, taken from the header line;
+* ``#`` comment lines anywhere and blank lines are skipped; a file without a header
+  line whose comments name one (``# format: t_ms,ax,ay,az,gx,gy,gz``, as the
+  ``continuum_imu`` firmware prints) uses that header, so a plain capture of the
+  serial line reads as it is;
+* a ``t_ms`` column (milliseconds) instead of ``t`` (seconds) is converted;
+* a UTF-8 byte-order mark is tolerated; a line longer than :data:`MAX_LINE_CHARS` or
+  with a NUL byte is refused (a binary file, or ``/dev/zero``).
+
+The input is opened once and read front to back once, so pipes, ``<(...)`` process
+substitution and named FIFOs work, and rows stream without being held in memory.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from continuum_mhe.errors import UserError
+
+#: Longest line accepted, characters (a sample row is well under 1 kB).
+MAX_LINE_CHARS = 65536
+#: Separators recognised in the header line, in order of preference.
+SEPARATORS = (",", ";", "\t")
+_SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
+
+
+class InputError(UserError):
+    """A problem with an input file or option; the message is one line, naming file
+    and line (a :class:`~continuum_mhe.errors.UserError`)."""
+
+
+def _open(path: str | os.PathLike[str]) -> tuple[str, IO[str]]:
+    """``(name shown in messages, text stream)``; ``-`` is standard input."""
+    if str(path) == "-":
+        try:
+            fd = os.dup(sys.stdin.fileno())
+        except (OSError, ValueError, io.UnsupportedOperation):
+            raise InputError("-: standard input is not readable") from None
+        return "<stdin>", open(fd, encoding="utf-8-sig", newline="")  # noqa: SIM115
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file")
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory, expected a CSV file")
+    try:
+        return str(p), p.open(encoding="utf-8-sig", newline="")  # a BOM (Excel) is fine
+    except OSError as exc:
+        raise InputError(f"{p}: cannot open ({exc.strerror})") from None
+
+
+@dataclass
+class TextRows:
+    """A text table opened once: its header and a lazy iterator over its data rows.
+
+    Attributes:
+        name: the input as shown in messages (``<stdin>`` for ``-``).
+        header: lower-case column names; a ``t_ms`` column is renamed ``t``.
+        rows: ``(line_number, fields)`` of each data row, fields stripped; blank and
+            ``#`` lines skipped. Read once.
+        separator: the field separator found in the header.
+        time_scale: seconds per unit of the ``t`` column (1e-3 for ``t_ms``).
+        comments: the ``#`` lines before the first data row, without the ``#``.
+    """
+
+    name: str
+    header: list[str]
+    rows: Iterator[tuple[int, list[str]]]
+    separator: str = ","
+    time_scale: float = 1.0
+    comments: list[str] = field(default_factory=list)
+    _stream: IO[str] | None = None
+
+    def close(self) -> None:
+        if self._stream is not None:
+            self._stream.close()
+
+    def __enter__(self) -> TextRows:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _lines(name: str, fh: IO[str]) -> Iterator[tuple[int, str]]:
+    """``(line_number, text)`` of every line, without its end; bounded in length."""
+    n = 0
+    while True:
+        try:
+            line = fh.readline(MAX_LINE_CHARS + 1)
+        except UnicodeDecodeError:
+            raise InputError(f"{name}: line {n + 1}: not a UTF-8 text file") from None
+        if not line:
+            return
+        n += 1
+        if "\x00" in line:
+            raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
+        if len(line) > MAX_LINE_CHARS:
+            raise InputError(
+                f"{name}: line {n}: longer than {MAX_LINE_CHARS} characters (not a CSV file?)"
+            )
+        yield n, line.rstrip("\r\n")
+
+
+def split_fields(text: str, separator: str) -> list[str]:
+    """Fields of one line, stripped (quotes handled as in CSV)."""
+    if '"' not in text:
+        return [c.strip() for c in text.split(separator)]
+    return [c.strip() for c in next(csv.reader([text], delimiter=separator))]
+
+
+def _separator(header: str) -> str:
+    for sep in SEPARATORS:
+        if sep in header:
+            return sep
+    return ","
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _header_from_comments(comments: list[str]) -> str | None:
+    """The column list of a ``# format: a,b,c (units...)`` comment, if any."""
+    for c in comments:
+        key, _, rest = c.strip().partition(":")
+        if key.strip().lower() in ("format", "columns") and rest.strip():
+            return rest.strip().split()[0]
+    return None
+
+
+def open_rows(path: str | os.PathLike[str]) -> TextRows:
+    """Open a text table once and read up to its header (see the module doc).
+
+    Raises :class:`InputError` for a missing, empty, binary or header-less input.
+    """
+    name, fh = _open(path)
+    try:
+        lines = _lines(name, fh)
+        comments: list[str] = []
+        first: tuple[int, str] | None = None
+        for n, text in lines:
+            s = text.strip()
+            if s.startswith("#"):
+                comments.append(s[1:].strip())
+            elif s:
+                first = (n, text)
+                break
+        if first is None:
+            what = "only comments" if comments else "file is empty"
+            raise InputError(f"{name}: line 1: {what}, expected a header such as t,roll,pitch")
+        n0, text0 = first
+        pending: list[tuple[int, str]] = []
+        declared = _header_from_comments(comments)
+        sep = _separator(text0)
+        fields0 = split_fields(text0, sep)
+        if declared is not None and fields0 and _is_number(fields0[0]):
+            header_text = declared  # a serial capture: the header is in a comment
+            sep = _separator(declared)
+            pending.append(first)
+        else:
+            header_text = text0
+        header = [h.lower() for h in split_fields(header_text, sep)]
+        if header and _is_number(header[0]) and len(header) > 1:
+            raise InputError(
+                f"{name}: line {n0}: no header line; the first line is data. Add a header "
+                "such as t,roll,pitch (or t_ms,ax,ay,az,gx,gy,gz)"
+            )
+        scale = 1.0
+        if "t" not in header and "t_ms" in header:
+            header[header.index("t_ms")] = "t"
+            scale = 1e-3
+        rows = _data_rows(lines, pending, sep)
+    except BaseException:
+        fh.close()
+        raise
+    return TextRows(name, header, rows, sep, scale, comments, fh)
+
+
+def _data_rows(
+    lines: Iterator[tuple[int, str]], pending: list[tuple[int, str]], sep: str
+) -> Iterator[tuple[int, list[str]]]:
+    for n, text in [*pending]:
+        yield n, split_fields(text, sep)
+    for n, text in lines:
+        s = text.strip()
+        if not s or s.startswith("#"):
+            continue
+        yield n, split_fields(text, sep)
+
+
+def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
+    """Positions of ``required`` columns in the header, or a one-line error that names
+    what the header has (and the separator, when it is likely the problem)."""
+    missing = [c for c in required if c not in rows.header]
+    if missing:
+        has = ", ".join(rows.header) or "nothing"
+        hint = ""
+        if len(rows.header) == 1:
+            hint = (
+                f" (one column: the separator must be {', '.join(map(repr, SEPARATORS))}; "
+                f"read as {_SEPARATOR_NAMES[rows.separator]})"
+            )
+        raise InputError(f"{rows.name}: line 1: missing column(s) {', '.join(missing)} "
+                         f"(header has: {has}){hint}")  # fmt: skip
+    return [rows.header.index(c) for c in required]
+
+
+def parse_float(name: str, line: int, column: str, text: str) -> float:
+    """``float(text)`` or a one-line error naming file, line and column."""
+    try:
+        return float(text)
+    except ValueError:
+        shown = text if len(text) <= 20 else text[:20] + "..."
+        hint = ""
+        if "," in text and _is_number(text.replace(",", ".", 1)):
+            hint = " (a decimal comma? use a point, e.g. 0.5)"
+        raise InputError(
+            f"{name}: line {line}: column {column}: {shown!r} is not a number{hint}"
+        ) from None
+
+
+@dataclass
+class RowProblems:
+    """Bad rows met while reading with ``skip_bad``: a count and the first few."""
+
+    count: int = 0
+    first: list[str] = field(default_factory=list)
+    keep: int = 20
+
+    def add(self, what: str) -> None:
+        self.count += 1
+        if len(self.first) < self.keep:
+            self.first.append(what)
+
+
+def iter_samples(
+    rows: TextRows,
+    columns: Sequence[str],
+    *,
+    skip_bad: bool = False,
+    empty_is_dropout: bool = False,
+    problems: RowProblems | None = None,
+) -> Iterator[tuple[int, float, list[float]]]:
+    """Validated ``(line, t, values)`` of a sample table whose ``columns[0]`` is the
+    time ``t`` (converted to s), one row at a time.
+
+    A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
+    dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
+    ``skip_bad`` the row is dropped; each skip is counted in ``problems``. With
+    ``empty_is_dropout`` an empty value is a dropout without complaint.
+    """
+    idx = column_indices(rows, columns)
+    problems = problems if problems is not None else RowProblems()
+    name, scale, width = rows.name, rows.time_scale, len(rows.header)
+    last_t = -math.inf
+    last_bad = -1
+    n_out = 0
+
+    def bad(line: int, msg: str) -> None:
+        nonlocal last_bad
+        if not skip_bad:
+            raise InputError(f"{name}: line {line}: {msg}")
+        if last_bad != line:  # one per row
+            problems.add(f"line {line}: {msg}")
+            last_bad = line
+
+    truncated = "expected {} fields, found {} (truncated row?)"
+    n_rows = 0
+    for line, row in rows.rows:
+        n_rows += 1
+        if len(row) <= idx[0]:
+            bad(line, truncated.format(width, len(row)))
+            continue
+        try:
+            t = parse_float(name, line, columns[0], row[idx[0]]) * scale
+        except InputError as exc:
+            bad(line, str(exc).split(": ", 2)[-1])
+            continue
+        if not math.isfinite(t):
+            bad(line, f"t is {row[idx[0]]}")
+            continue
+        if t <= last_t:
+            kind = "duplicate" if t == last_t else "decreasing"
+            bad(line, f"{kind} timestamp t={t:g} after t={last_t:g} (t must strictly increase)")
+            continue
+        vals: list[float] = []
+        for col, j in zip(columns[1:], idx[1:]):
+            if j >= len(row):
+                bad(line, truncated.format(width, len(row)))
+                vals = [math.nan] * (len(columns) - 1)
+                break
+            if empty_is_dropout and row[j] == "":
+                vals.append(math.nan)
+                continue
+            try:
+                v = parse_float(name, line, col, row[j])
+            except InputError as exc:
+                bad(line, str(exc).split(": ", 2)[-1])
+                v = math.nan
+            else:
+                if not math.isfinite(v):
+                    bad(line, f"column {col} is {row[j]} (a dropout; --skip-bad keeps it)")
+                    v = math.nan  # with --skip-bad: a dropout, as the message says
+            vals.append(v)
+        last_t = t
+        n_out += 1
+        yield line, t, vals
+    if n_rows == 0:
+        raise InputError(f"{name}: line 2: no data rows after the header")
+    if n_out == 0:
+        raise InputError(f"{name}: no usable rows ({problems.count} skipped)")

@@ -1,0 +1,190 @@
+"""Input read once (pipes, FIFOs, ``-``, ``/dev/stdin``) and CSV dialects (``#``
+comments, ``t_ms``, ``;`` and tab, a plain serial capture), with one-line errors."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
+from continuum_mhe.io.raw_imu import read_raw_imu
+from continuum_mhe.io.text_rows import MAX_LINE_CHARS, InputError
+from continuum_mhe.simulation.scenarios import simulate
+
+CLI = [sys.executable, "-m", "continuum_mhe.cli"]
+
+
+def _csv(n: int = 30, sep: str = ",", t_ms: bool = False) -> str:
+    rec = simulate("paper3d", duration=(n - 1) * 0.05, dt=0.05, seed=1)
+    t = rec.t * 1e3 if t_ms else rec.t
+    head = sep.join(["t_ms" if t_ms else "t", "roll", "pitch"])
+    rows = [sep.join(f"{v:.6f}" for v in (a, r, p)) for a, (r, p) in zip(t, rec.z)]
+    return "\n".join([head, *rows]) + "\n"
+
+
+def _estimate_rows(path: Path) -> list[str]:
+    return path.read_text().splitlines()[1:]
+
+
+def _feed(path: str, text: str) -> threading.Thread:
+    """Write ``text`` into a FIFO or pipe from another thread (the reader opens it)."""
+
+    def run() -> None:
+        with open(path, "w") as fh:
+            fh.write(text)
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    return th
+
+
+def test_named_fifo_is_read_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    th = _feed(str(fifo), _csv())
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(fifo), "-o", str(out), "--method", "ekf"]) == 0
+    th.join(5)
+    assert len(_estimate_rows(out)) == 30
+    assert "wrote 30 estimates" in capsys.readouterr().err
+
+
+def test_pipe_as_dev_fd_like_process_substitution(tmp_path: Path) -> None:
+    r, w = os.pipe()
+    data = _csv().encode()
+
+    def feed() -> None:
+        with os.fdopen(w, "wb") as fh:  # closing the only write end gives the reader EOF
+            fh.write(data)
+
+    th = threading.Thread(target=feed, daemon=True)
+    th.start()
+    out = tmp_path / "e.csv"
+    try:
+        assert main(["estimate", f"/dev/fd/{r}", "-o", str(out), "--method", "ekf"]) == 0
+    finally:
+        th.join(5)
+        os.close(r)
+    assert len(_estimate_rows(out)) == 30
+
+
+def test_dash_reads_standard_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    r, w = os.pipe()
+    os.write(w, _csv().encode())
+    os.close(w)
+    with os.fdopen(r) as stdin:
+        monkeypatch.setattr(sys, "stdin", stdin)
+        out = tmp_path / "e.csv"
+        assert main(["estimate", "-", "-o", str(out), "--method", "ekf"]) == 0
+    assert len(_estimate_rows(out)) == 30
+
+
+@pytest.mark.parametrize("source", ["-", "/dev/stdin"])
+def test_shell_pipe_into_estimate(tmp_path: Path, source: str) -> None:
+    meas = tmp_path / "m.csv"
+    meas.write_text(_csv())
+    out = tmp_path / "e.csv"
+    with meas.open("rb") as fh:
+        proc = subprocess.run(
+            [*CLI, "estimate", source, "-o", str(out), "--method", "ekf"],
+            stdin=fh,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    assert proc.returncode == 0, proc.stderr
+    assert len(_estimate_rows(out)) == 30
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_semicolon_and_tab_separators(tmp_path: Path, sep: str) -> None:
+    plain = read_measurements(_write(tmp_path / "a.csv", _csv()))
+    other = read_measurements(_write(tmp_path / "b.csv", _csv(sep=sep)))
+    np.testing.assert_array_equal(plain.t, other.t)
+    np.testing.assert_array_equal(plain.z, other.z)
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_comments_anywhere_and_t_ms(tmp_path: Path) -> None:
+    plain = read_measurements(_write(tmp_path / "a.csv", _csv()))
+    lines = _csv(t_ms=True).splitlines()
+    text = "\n".join(["# continuum_imu 1.0.0 mpu9250", lines[0], "# mid", *lines[1:]]) + "\n"
+    got = read_measurements(_write(tmp_path / "b.csv", text))
+    np.testing.assert_allclose(got.t, plain.t, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(got.z, plain.z)
+
+
+def test_plain_serial_capture_reads_as_raw_csv(tmp_path: Path) -> None:
+    text = (
+        "# continuum_imu 1.0.0 mpu9250 who_am_i=0x71 rate_hz=100 baud=115200\n"
+        "# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s; sensor frame)\n"
+        "# calibrating gyro bias: keep the robot still\n"
+        "1532,0.123,-0.045,9.811,0.0012,-0.0003,0.0001\n"
+        "1542,0.125,-0.044,9.810,0.0011,-0.0002,0.0001\n"
+    )
+    table = read_raw_imu(_write(tmp_path / "cap.txt", text))
+    np.testing.assert_allclose(table.t, [1.532, 1.542])
+    np.testing.assert_allclose(table.acc[0], [0.123, -0.045, 9.811])
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(tmp_path / "cap.txt"), "-o", str(out), "--method", "ekf"]) == 0
+    assert _estimate_rows(out)[0].startswith("1.532,")
+
+
+def test_states_table_with_t_ms(tmp_path: Path) -> None:
+    p = _write(tmp_path / "s.csv", "t_ms,x,y,z,theta,phi\n1000,0,0,0.2,0,0\n1050,0,0,0.2,0,0\n")
+    t, _, _ = read_states(p)
+    np.testing.assert_allclose(t, [1.0, 1.05])
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("t roll pitch\n0 0.1 0.1\n", "read as comma"),
+        ("t;roll;pitch\n0;0,1;0,1\n", "a decimal comma?"),
+        ("0,0.1,0.1\n0.05,0.1,0.1\n", "no header line"),
+        ("# only a comment\n", "only comments"),
+        ("x" * (MAX_LINE_CHARS + 10), f"longer than {MAX_LINE_CHARS}"),
+    ],
+)
+def test_dialect_errors_are_one_line(tmp_path: Path, text: str, needle: str) -> None:
+    with pytest.raises(InputError) as info:
+        read_measurements(_write(tmp_path / "m.csv", text))
+    assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+def test_dev_zero_gives_one_line(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [*CLI, "estimate", "/dev/zero", "-o", str(tmp_path / "e.csv")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "line 1: contains a NUL byte" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_t_in_milliseconds_warns_with_the_cause(tmp_path: Path) -> None:
+    text = _csv().replace("t,roll", "t,roll")
+    lines = text.splitlines()
+    ms = [lines[0]] + [
+        ",".join([f"{float(r.split(',')[0]) * 1e3:.0f}", *r.split(",")[1:]]) for r in lines[1:]
+    ]
+    path = _write(tmp_path / "m.csv", "\n".join(ms) + "\n")
+    with pytest.warns(UnitWarning, match="name the column t_ms"):
+        read_measurements(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_measurements(_write(tmp_path / "s.csv", _csv()))  # seconds: no warning
