@@ -179,3 +179,83 @@ def test_live_refuses_to_replace_an_output_without_overwrite(tmp_path: Path) -> 
         assert res.returncode == 2
         assert f"{old}: exists; give --overwrite" in res.stderr
         assert old.read_text() == "t,x\n1,2\n"
+
+
+def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:
+    """Raw lines of the two-section robot (s-curve motion), one IMU per section."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("s-curve", robot, duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3)
+    rng = np.random.default_rng(3)
+    lines = []
+    for i in range(n):
+        acc = np.array([specific_force(rec.z[i, 2 * k], rec.z[i, 2 * k + 1]) for k in range(2)])
+        lines.append(raw_line((t0_ms + i * dt_ms) % 2**32, acc, rng.normal(0, 0.01, (2, 3))))
+    return lines
+
+
+def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
+    """Two raw IMUs through a pty with CR, LF and CRLF line ends, garbage, a 1 MB line
+    without a line end, device messages and a millis() wrap; then SIGTERM. The
+    recording holds every valid sample, and 'estimate' on it gives the live estimates
+    to 1e-9, sample for sample."""
+    port, est, raw = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "raw.csv"
+    master = new_pty(port)
+    lines = _two_imu_stream(2**32 - 1500, 300)  # the device clock wraps after 150 samples
+    ends = ["\n", "\r", "\r\n"]
+    stream = [
+        "# continuum_imu 1.1.0 imus=2\n",
+        "# fields: t_ms,"
+        + ",".join(f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))
+        + "\n",
+    ]
+    for i, line in enumerate(lines):
+        stream.append(line + ends[i % 3])
+        if i == 40:
+            stream.append("\x01\x02garbage,,,\n")
+        if i == 80:
+            stream.append("y" * 1_000_000)  # 1 MB without a line end, then a newline
+            stream.append("\n")
+        if i == 120:
+            stream.append("# error: I2C read failed\n")
+        if i == 200:
+            stream.append(lines[i].split(",", 8)[0] + ",1,2\n")  # a line of the wrong length
+    live = LiveProcess(
+        ["--port", str(port), "--robot", "two-section", "--method", "ekf", "-o", str(est)]
+        + ["--record", str(raw), "--status-every", "0.5"]
+    )
+    try:
+        live.wait_ready()
+        for chunk in stream:
+            os.write(master, chunk.encode())
+            time.sleep(0.001)
+        wait_for(lambda: data_rows(est) >= len(lines), "every estimate")
+        code = live.finish(signal.SIGTERM)
+    finally:
+        if live.proc.poll() is None:
+            live.proc.kill()
+        os.close(master)
+    err = live.err
+    assert code == 143, err
+    assert data_rows(raw) == len(lines) and data_rows(est) == len(lines)
+    assert "device clock wrapped" in err and "device says: # error: I2C read failed" in err
+    summary = [ln for ln in err.splitlines() if "samples," in ln][-1]
+    assert "2 garbled" in summary and "1 over-long" in summary and "0 out of order" in summary
+    replay = tmp_path / "replay.csv"
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "estimate", str(raw), "-o", str(replay)]
+        + ["--robot", "two-section", "--method", "ekf"],
+        capture_output=True,
+        text=True,
+        timeout=SAFETY_S,
+    )
+    assert res.returncode == 0, res.stderr
+    a, b = read_state_table(est), read_state_table(replay)
+    assert a.names == b.names and len(a.t) == len(lines)
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+    assert list(a.status) == list(b.status) and set(a.status) == {"ok"}
+    assert np.all(np.isfinite(a.values))
+    assert np.all(np.diff(a.t) > 0) and a.t[0] == pytest.approx((2**32 - 1500) / 1e3)

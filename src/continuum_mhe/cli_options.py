@@ -104,8 +104,6 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
     return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
 
 
-
-
 def add_serial_options(p: argparse.ArgumentParser) -> None:
     """The serial stream of ``live`` and ``calibrate``: port, baud, line format."""
     from continuum_mhe.stream.protocol import LINE_FORMATS

@@ -42,7 +42,13 @@ from continuum_mhe.io.raw_imu import (
     parse_mount_rpy,
 )
 from continuum_mhe.model.descriptions import OutputSpec
-from continuum_mhe.stream.protocol import GarbledLine, Sample, line_fields, parse_line, value_columns
+from continuum_mhe.stream.protocol import (
+    GarbledLine,
+    Sample,
+    line_fields,
+    parse_line,
+    value_columns,
+)
 from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
 from continuum_mhe.stream.recording import RowFile, check_target
 from continuum_mhe.stream.session import LiveSession, LiveSettings, imu_converters
@@ -312,7 +318,11 @@ def cmd_live(args: argparse.Namespace) -> int:
     say = stderr_say("live")
     plot = open_plot(robot.lengths, say) if args.plot else None
     columns = value_columns(settings.fmt, robot.n_imus)
-    out = None if out_path is None else RowFile(out_path, estimate_columns(formulation.outputs), args.overwrite)
+    out = (
+        None
+        if out_path is None
+        else RowFile(out_path, estimate_columns(formulation.outputs), args.overwrite)
+    )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
     try:
         session = LiveSession(settings, estimator, converters, out, say, record)
@@ -323,7 +333,10 @@ def cmd_live(args: argparse.Namespace) -> int:
             f"{'; recording to ' + str(rec_path) if rec_path else ''}; Ctrl-C stops"
         )
         if out is None and record is None:
-            say("nothing is saved: give -o EST.csv for the estimates, --record RAW.csv for the samples")
+            say(
+                "nothing is saved: give -o EST.csv for the estimates, "
+                "--record RAW.csv for the samples"
+            )
         return run_live(settings, session, conn, plot)
     finally:
         for sink, what in ((out, "estimates"), (record, "samples")):

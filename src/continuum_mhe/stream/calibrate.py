@@ -91,7 +91,7 @@ def calibrate(
 def format_report(cal: Calibration, source: str) -> str:
     """The calibration as text for the terminal."""
     lines = [
-        f"calibration from {source}: {cal.n} samples over {cal.span_s:.2f} s of device time: "
+        f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
         f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
         f"{cal.longest_step_s * 1e3:.2f} ms)"
     ]
@@ -182,7 +182,9 @@ def collect(
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
     if len(t) < 2:
-        raise InputError(f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; is it streaming?")
+        raise InputError(
+            f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; is it streaming?"
+        )
     return np.asarray(t), np.asarray(rows)
 
 

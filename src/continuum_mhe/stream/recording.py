@@ -97,8 +97,9 @@ class RowFile:
                 self._fd = os.open(p, flags, 0o666)
                 self._write_whole(first)
         except FileExistsError:
-            raise InputError(f"{p}: appeared while waiting for the first sample; not replaced "
-                             "(give --overwrite)") from None
+            raise InputError(
+                f"{p}: appeared while waiting for the first sample; not replaced (give --overwrite)"
+            ) from None
         except OSError as exc:
             raise InputError(f"{p}: cannot create ({exc.strerror})") from None
 

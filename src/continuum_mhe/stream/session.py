@@ -209,7 +209,7 @@ class LiveSession:
             raise ValueError(f"{len(self.converters)} converter(s) for {self.n_imus} IMU(s)")
         columns = estimate_columns(self.formulation.outputs)
         self.out: RowSink | None = (
-            None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)  # type: ignore[arg-type]
+            None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
         )
         self.record = record
         self.say = say or stderr_say("live")
@@ -355,7 +355,9 @@ class LiveSession:
         if problem is None:
             return est
         self.counts.estimator_failures += 1
-        self.messages.show(f"estimator failed ({problem}); sample flagged, estimator restarts", time.monotonic())
+        self.messages.show(
+            f"estimator failed ({problem}); sample flagged, estimator restarts", time.monotonic()
+        )
         self._restart(t)
         return Estimate(t, None, None, None, "no-estimate", (time.perf_counter() - start) * 1e3)
 
