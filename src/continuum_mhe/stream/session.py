@@ -5,6 +5,7 @@ drives it)."""
 from __future__ import annotations
 
 import math
+import statistics
 import time
 from collections import deque
 from collections.abc import Sequence
@@ -220,12 +221,15 @@ class LiveSession:
         self.last: Estimate | None = None
         self.solve_ms: deque[float] = deque(maxlen=200)
         self._periods: deque[float] = deque(maxlen=50)
+        self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
         estimator.reset()
 
     def period(self) -> float | None:
         """The usual sample period (median of recent steps), s."""
-        return float(np.median(self._periods)) if len(self._periods) >= 3 else None
+        if self._period is None and len(self._periods) >= 3:
+            self._period = statistics.median(self._periods)
+        return self._period
 
     def device_back(self) -> None:
         """The device was reopened: its clock may have restarted."""
@@ -278,7 +282,8 @@ class LiveSession:
         c = self.counts
         t_prev = self.clock.t_last
         dev_prev = self.clock.last_ms
-        placed = self.clock.place(s.t_ms, arrival, self.period())
+        p = self.period()
+        placed = self.clock.place(s.t_ms, arrival, p)
         t = placed.t
         if placed.event == "out-of-order":
             c.out_of_order += 1
@@ -300,7 +305,6 @@ class LiveSession:
             )
         elif t_prev is not None:
             dt = t - t_prev
-            p = self.period()
             if p is not None and dt > self.settings.gap_factor * p:
                 lost = max(int(round(dt / p)) - 1, 0)
                 c.gaps += 1
@@ -312,6 +316,7 @@ class LiveSession:
                 )
             else:
                 self._periods.append(dt)
+                self._period = None
         if self.record is not None:
             self.record.write_row([csv_cell(t), *(csv_cell(float(v)) for v in s.values)])
         if restart:
