@@ -259,3 +259,60 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     assert list(a.status) == list(b.status) and set(a.status) == {"ok"}
     assert np.all(np.isfinite(a.values))
     assert np.all(np.diff(a.t) > 0) and a.t[0] == pytest.approx((2**32 - 1500) / 1e3)
+
+
+def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env.pop("MPLBACKEND", None)
+    try:
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
+            + ["--method", "ekf", "--duration", "0.5", "--plot"],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+            env=env,
+        )
+    finally:
+        os.close(master)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.count("nothing is saved") == 1
+    if sys.platform.startswith("linux"):
+        assert res.stderr.count("--plot needs a display (DISPLAY is not set") == 1
+
+
+def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) -> None:
+    """Before: -o truncated an existing file at start even if no sample ever arrived."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    out.write_text("an earlier session\n")
+    master = new_pty(port)
+    try:
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
+            + ["--method", "ekf", "--duration", "0.5", "-o", str(out), "--overwrite"],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+        )
+    finally:
+        os.close(master)
+    assert res.returncode == 0, res.stderr
+    assert out.read_text() == "an earlier session\n"
+    assert f"no sample arrived: {out} not written" in res.stderr
+
+
+def test_short_soak_two_imus_500_hz_with_faults(tmp_path: Path) -> None:
+    """tools/live_soak.py for a few seconds: garbage, a partial line, a 1 MB line and
+    the port disappearing and returning; every valid sample recorded and estimated."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "tools"))
+    from live_soak import run_soak
+
+    res = run_soak(6.0, 500.0, "ekf", "TERM", faults_every=0.8, folder=tmp_path)
+    assert res["exit_status"] == 143, res["summary"]
+    assert min(res["faults"].values()) >= 1, res["faults"]  # each kind of fault at least once
+    assert res["sent"] > 1000
+    assert res["sent"] == res["recorded_rows"] == res["estimate_rows"], res["summary"]
+    assert res["recording_reads_back"] is True
+    assert f"{res['faults']['mb_line']} over-long" in res["summary"]
