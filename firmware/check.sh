@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Compile-check firmware/continuum_imu for an Arduino UNO with Debian's AVR toolchain
-# (packages gcc-avr, avr-libc, arduino-core-avr). No upload, no board needed.
+# (packages gcc-avr, avr-libc, arduino-core-avr), in both variants: one MPU9250
+# (IMU_COUNT=1, the default) and two on one I2C bus (IMU_COUNT=2). No upload, no
+# board needed.
 #
 #   firmware/check.sh            compile; SKIP (exit 0) if the toolchain is missing
 #   FIRMWARE_CHECK_REQUIRED=1 firmware/check.sh   a missing toolchain is a failure
@@ -42,15 +44,17 @@ for src in "$core"/*.cpp "$wire"/*.cpp; do
     avr-g++ "${cxxflags[@]}" -w -c "$src" -o "$obj"
     objs+=("$obj")
 done
-# the sketch itself: warnings are errors
-cp "$sketch" "$build/sketch.cpp"
-avr-g++ "${cxxflags[@]}" -Werror -c "$build/sketch.cpp" -o "$build/sketch.o"
-avr-gcc -mmcu=atmega328p -Os -Wl,--gc-sections -o "$build/continuum_imu.elf" \
-    "$build/sketch.o" "${objs[@]}" -lm
+# the sketch itself, in each variant: warnings are errors
+for imus in 1 2; do
+    cp "$sketch" "$build/sketch.cpp"
+    avr-g++ "${cxxflags[@]}" -DIMU_COUNT=$imus -Werror -c "$build/sketch.cpp" -o "$build/sketch.o"
+    avr-gcc -mmcu=atmega328p -Os -Wl,--gc-sections -o "$build/continuum_imu.elf" \
+        "$build/sketch.o" "${objs[@]}" -lm
 
-read -r text data bss _ < <(avr-size "$build/continuum_imu.elf" | tail -1)
-flash=$((text + data))
-ram=$((data + bss))
-echo "firmware/check.sh: continuum_imu compiles for Arduino UNO: flash $flash/32256 bytes, RAM $ram/2048 bytes"
-[ "$flash" -le 32256 ] || { echo "firmware/check.sh: flash too large" >&2; exit 1; }
-[ "$ram" -le 1536 ] || { echo "firmware/check.sh: static RAM above 1536 bytes leaves too little stack" >&2; exit 1; }
+    read -r text data bss _ < <(avr-size "$build/continuum_imu.elf" | tail -1)
+    flash=$((text + data))
+    ram=$((data + bss))
+    echo "firmware/check.sh: continuum_imu IMU_COUNT=$imus compiles for Arduino UNO: flash $flash/32256 bytes, RAM $ram/2048 bytes"
+    [ "$flash" -le 32256 ] || { echo "firmware/check.sh: flash too large" >&2; exit 1; }
+    [ "$ram" -le 1536 ] || { echo "firmware/check.sh: static RAM above 1536 bytes leaves too little stack" >&2; exit 1; }
+done

@@ -75,7 +75,7 @@ def test_rod_generators_without_pyelastica(monkeypatch, tmp_path, capsys, module
 
 
 def test_live_without_pyserial(monkeypatch):
-    from continuum_mhe.live import open_port
+    from continuum_mhe.stream.reader import open_port
 
     _block(monkeypatch, "serial")
     with pytest.raises(MissingExtraError, match=r"pyserial.*continuum-mhe\[robot\]"):

@@ -1,6 +1,7 @@
 """``continuum-mhe live`` on a pseudo-terminal: a recorded raw stream with garbage,
 a partial line, a time gap, out-of-order lines and a mid-stream hang-up, followed by
-the device coming back (the port is a symlink re-pointed to a new pty)."""
+the device coming back (the port is a symlink re-pointed to a new pty); the recording
+replayed by ``estimate``; and the session's parts (protocol, clock, files) alone."""
 
 from __future__ import annotations
 
@@ -9,56 +10,36 @@ import signal
 import subprocess
 import sys
 import time
-import tty
 from pathlib import Path
 
 import numpy as np
 import pytest
+from live_helpers import (
+    SAFETY_S,
+    LiveProcess,
+    data_rows,
+    new_pty,
+    raw_line,
+    specific_force,
+    wait_for,
+)
 
-from continuum_mhe.io.csv_files import read_states
+from continuum_mhe.io.csv_files import read_state_table, read_states
 from continuum_mhe.live import GarbledLine, parse_line
 from continuum_mhe.model.direct import raw_imu_readings
 from continuum_mhe.simulation.scenarios import simulate
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 
-SAFETY_S = 120.0  # a hung test fails after this long instead of blocking the suite
-
 
 def _raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
     rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
     acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
     return [
-        f"{t0_ms + i * dt_ms},{a[0]:.4f},{a[1]:.4f},{a[2]:.4f},{g[0]:.5f},{g[1]:.5f},{g[2]:.5f}\n"
+        raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
         for i, (a, g) in enumerate(zip(acc, gyr))
         if i not in skip
     ]
-
-
-def _new_pty(link: Path) -> int:
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo: nothing comes back to the master
-    name = os.ttyname(slave)
-    os.close(slave)
-    tmp = link.with_suffix(".new")
-    tmp.unlink(missing_ok=True)
-    tmp.symlink_to(name)
-    os.replace(tmp, link)
-    return master
-
-
-def _wait_for(pred, what: str) -> None:  # type: ignore[no-untyped-def]
-    end = time.monotonic() + SAFETY_S
-    while not pred():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-
-
-def _rows(path: Path) -> int:
-    if not path.exists():
-        return 0
-    return max(sum(1 for _ in path.open()) - 1, 0)
 
 
 def test_parse_line_protocol() -> None:
@@ -68,23 +49,28 @@ def test_parse_line_protocol() -> None:
     assert parse_line("   ", "tilt") is None
     t = parse_line("20,0.1,-0.2", "tilt")
     assert t is not None and list(t.values) == [0.1, -0.2]
+    two = parse_line("20,0.1,-0.2,0.3,0.4", "tilt", n_imus=2)
+    assert two is not None and list(two.values) == [0.1, -0.2, 0.3, 0.4]
     for bad in (
         "1,2,3",
         "x,0,0,9.8,0,0,0",
         "1,nan,0,9.8,0,0,0",
         "1,0,0,9999,0,0,0",
         "12,0.1,0.2,9.8,0.01,0.0",
+        "12,0,0,0,0.01,0.0,0",  # an accelerometer reading exactly zero
     ):
         with pytest.raises(GarbledLine):
             parse_line(bad, "raw")
     with pytest.raises(GarbledLine):
         parse_line("20,45.0,10.0", "tilt")  # degrees, not radians
+    with pytest.raises(GarbledLine, match="expected 5 fields, found 3"):
+        parse_line("20,0.1,-0.2", "tilt", n_imus=2)  # one IMU's fields for two
 
 
 def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     port = tmp_path / "ttyIMU"
     out = tmp_path / "live.csv"
-    master = _new_pty(port)
+    master = new_pty(port)
     # session 1: 60 samples, gap of 10 samples after sample 40 (device lost them)
     first = _raw_lines(0, 70, skip=range(40, 50))
     garbage = [
@@ -108,55 +94,40 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         garbage[4],
     ]
     valid_first = len(first) - 2  # first[30] and first[31] were destroyed together
-    cmd = [
-        sys.executable,
-        "-m",
-        "continuum_mhe.cli",
-        "live",
-        "--port",
-        str(port),
-        "--format",
-        "raw",
-        "--method",
-        "ekf",
-        "-o",
-        str(out),
-        "--status-every",
-        "0.2",
-        "--retry-max",
-        "0.2",
-    ]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    live = LiveProcess(
+        ["--port", str(port), "--format", "raw", "--method", "ekf", "-o", str(out)]
+        + ["--status-every", "0.2", "--retry-max", "0.2"]
+    )
     try:
-        _wait_for(lambda: out.exists(), "live to open its output")
+        live.wait_ready()
         for line in lines:
             os.write(master, line.encode("latin-1"))
             time.sleep(0.002)
         os.write(master, b"99999,0.1,0.2")  # a partial line, then the device hangs up
-        _wait_for(lambda: _rows(out) >= valid_first, "estimates of session 1")
+        wait_for(lambda: data_rows(out) >= valid_first, "estimates of session 1")
         time.sleep(0.3)
         os.close(master)
         # the file is complete while live waits for the device
-        time.sleep(0.5)
+        wait_for(lambda: "disconnected" in live.err, "the hang-up")
         t1, x1, s1 = read_states(out)
         assert len(t1) == valid_first
         assert np.all(np.diff(t1) > 0)
         assert np.all(np.isfinite(x1))
         # session 2: the device comes back and restarts its clock at 0
-        master = _new_pty(port)
-        time.sleep(1.0)
+        master = new_pty(port)
+        wait_for(lambda: "is back" in live.err, "the device to be reopened")
         second = _raw_lines(0, 25)
         for line in second:
             os.write(master, line.encode())
             time.sleep(0.002)
-        _wait_for(lambda: _rows(out) >= valid_first + len(second), "estimates of session 2")
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=SAFETY_S)
+        wait_for(lambda: data_rows(out) >= valid_first + len(second), "estimates of session 2")
+        code = live.finish(signal.SIGINT)
     finally:
-        if proc.poll() is None:
-            proc.kill()
+        if live.proc.poll() is None:
+            live.proc.kill()
         os.close(master)
-    assert proc.returncode == 0, err
+    err = live.err
+    assert code == 0, err
     t, x, status = read_states(out)
     # every valid sample produced exactly one estimate, in order, none invented
     assert len(t) == valid_first + len(second)
@@ -170,15 +141,18 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     # the restarted device continues after the old samples
     assert t[valid_first] > t[valid_first - 1]
     assert "disconnected" in err and "is back" in err and "gap of" in err
+    assert "device clock restarted" in err
+    assert "device says: #continuum_imu 1.0" in err
     summary = [ln for ln in err.splitlines() if "samples," in ln][-1]
     assert f"{valid_first + len(second)} samples, {valid_first + len(second)} estimates" in summary
     assert "4 garbled" in summary  # non-ASCII, text, too few fields, the run-together line
     assert "1 partial" in summary
     assert "1 out of order" in summary
     assert "1 disconnect" in summary
+    assert "1 clock restart(s)" in summary
 
 
-def test_live_bad_port_is_one_line(tmp_path: Path) -> None:
+def test_live_bad_port_is_one_line_with_causes(tmp_path: Path) -> None:
     res = subprocess.run(
         [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(tmp_path / "none")],
         capture_output=True,
@@ -187,3 +161,158 @@ def test_live_bad_port_is_one_line(tmp_path: Path) -> None:
     )
     assert res.returncode == 2
     assert res.stderr.startswith("continuum-mhe: error: ") and res.stderr.count("\n") == 1
+    for cause in ("dialout", "/dev/cu.usbmodem", "/dev/ttyUSB0", "Serial Monitor"):
+        assert cause in res.stderr
+
+
+def test_live_refuses_to_replace_an_output_without_overwrite(tmp_path: Path) -> None:
+    for option in ("-o", "--record"):
+        old = tmp_path / "old.csv"
+        old.write_text("t,x\n1,2\n")
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(tmp_path / "none")]
+            + [option, str(old)],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+        )
+        assert res.returncode == 2
+        assert f"{old}: exists; give --overwrite" in res.stderr
+        assert old.read_text() == "t,x\n1,2\n"
+
+
+def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:
+    """Raw lines of the two-section robot (s-curve motion), one IMU per section."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("s-curve", robot, duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3)
+    rng = np.random.default_rng(3)
+    lines = []
+    for i in range(n):
+        acc = np.array([specific_force(rec.z[i, 2 * k], rec.z[i, 2 * k + 1]) for k in range(2)])
+        lines.append(raw_line((t0_ms + i * dt_ms) % 2**32, acc, rng.normal(0, 0.01, (2, 3))))
+    return lines
+
+
+def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
+    """Two raw IMUs through a pty with CR, LF and CRLF line ends, garbage, a 1 MB line
+    without a line end, device messages and a millis() wrap; then SIGTERM. The
+    recording holds every valid sample, and 'estimate' on it gives the live estimates
+    to 1e-9, sample for sample."""
+    port, est, raw = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "raw.csv"
+    master = new_pty(port)
+    lines = _two_imu_stream(2**32 - 1500, 300)  # the device clock wraps after 150 samples
+    ends = ["\n", "\r", "\r\n"]
+    stream = [
+        "# continuum_imu 1.1.0 imus=2\n",
+        "# fields: t_ms,"
+        + ",".join(f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))
+        + "\n",
+    ]
+    for i, line in enumerate(lines):
+        stream.append(line + ends[i % 3])
+        if i == 40:
+            stream.append("\x01\x02garbage,,,\n")
+        if i == 80:
+            stream.append("y" * 1_000_000)  # 1 MB without a line end, then a newline
+            stream.append("\n")
+        if i == 120:
+            stream.append("# error: I2C read failed\n")
+        if i == 200:
+            stream.append(lines[i].split(",", 8)[0] + ",1,2\n")  # a line of the wrong length
+    live = LiveProcess(
+        ["--port", str(port), "--robot", "two-section", "--method", "ekf", "-o", str(est)]
+        + ["--record", str(raw), "--status-every", "0.5"]
+    )
+    try:
+        live.wait_ready()
+        for chunk in stream:
+            os.write(master, chunk.encode())
+            time.sleep(0.001)
+        wait_for(lambda: data_rows(est) >= len(lines), "every estimate")
+        code = live.finish(signal.SIGTERM)
+    finally:
+        if live.proc.poll() is None:
+            live.proc.kill()
+        os.close(master)
+    err = live.err
+    assert code == 143, err
+    assert data_rows(raw) == len(lines) and data_rows(est) == len(lines)
+    assert "device clock wrapped" in err and "device says: # error: I2C read failed" in err
+    summary = [ln for ln in err.splitlines() if "samples," in ln][-1]
+    assert "2 garbled" in summary and "1 over-long" in summary and "0 out of order" in summary
+    replay = tmp_path / "replay.csv"
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "estimate", str(raw), "-o", str(replay)]
+        + ["--robot", "two-section", "--method", "ekf"],
+        capture_output=True,
+        text=True,
+        timeout=SAFETY_S,
+    )
+    assert res.returncode == 0, res.stderr
+    a, b = read_state_table(est), read_state_table(replay)
+    assert a.names == b.names and len(a.t) == len(lines)
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+    assert list(a.status) == list(b.status) and set(a.status) == {"ok"}
+    assert np.all(np.isfinite(a.values))
+    assert np.all(np.diff(a.t) > 0) and a.t[0] == pytest.approx((2**32 - 1500) / 1e3)
+
+
+def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env.pop("MPLBACKEND", None)
+    try:
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
+            + ["--method", "ekf", "--duration", "0.5", "--plot"],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+            env=env,
+        )
+    finally:
+        os.close(master)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.count("nothing is saved") == 1
+    if sys.platform.startswith("linux"):
+        assert res.stderr.count("--plot needs a display (DISPLAY is not set") == 1
+
+
+def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) -> None:
+    """Before: -o truncated an existing file at start even if no sample ever arrived."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    out.write_text("an earlier session\n")
+    master = new_pty(port)
+    try:
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
+            + ["--method", "ekf", "--duration", "0.5", "-o", str(out), "--overwrite"],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+        )
+    finally:
+        os.close(master)
+    assert res.returncode == 0, res.stderr
+    assert out.read_text() == "an earlier session\n"
+    assert f"no sample arrived: {out} not written" in res.stderr
+
+
+def test_short_soak_two_imus_500_hz_with_faults(tmp_path: Path) -> None:
+    """tools/live_soak.py for a few seconds: garbage, a partial line, a 1 MB line and
+    the port disappearing and returning; every valid sample recorded and estimated."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "tools"))
+    from live_soak import run_soak
+
+    res = run_soak(6.0, 500.0, "ekf", "TERM", faults_every=0.8, folder=tmp_path)
+    assert res["exit_status"] == 143, res["summary"]
+    assert min(res["faults"].values()) >= 1, res["faults"]  # each kind of fault at least once
+    assert res["sent"] > 1000
+    assert res["sent"] == res["recorded_rows"] == res["estimate_rows"], res["summary"]
+    assert res["recording_reads_back"] is True
+    assert f"{res['faults']['mb_line']} over-long" in res["summary"]

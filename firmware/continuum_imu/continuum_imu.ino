@@ -1,16 +1,21 @@
 // continuum_imu: stream raw MPU9250 readings for `continuum-mhe live`.
 //
-// Board: Arduino UNO (ATmega328P, 16 MHz). Sensor: MPU9250 (or MPU6500/9255) on I2C
-// at 0x68 (AD0 low; define MPU_ADDRESS 0x69 for AD0 high). Plain Wire.h register
-// access, no external library.
+// Board: Arduino UNO (ATmega328P, 16 MHz). Sensors: one or two MPU9250 (or
+// MPU6500/9255) on one I2C bus, chosen at compile time with IMU_COUNT:
+//   IMU_COUNT 1 (default): one sensor at MPU_ADDRESS (0x68, AD0 low; 0x69 for AD0 high)
+//   IMU_COUNT 2: IMU 1 at 0x68 (AD0 to GND), IMU 2 at 0x69 (AD0 to 3.3 V); IMU 1 is the
+//                first [[imu]] of the robot file (the one nearer the base)
+// Plain Wire.h register access, no external library.
 //
 // Line protocol (ASCII, 115200 baud, one sample per line, '\n' terminated):
-//   t_ms,ax,ay,az,gx,gy,gz
+//   t_ms,ax,ay,az,gx,gy,gz                      (one IMU)
+//   t_ms,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...  (two IMUs)
 //     t_ms      device time, milliseconds since boot (millis())
 //     ax,ay,az  specific force in m/s^2, sensor frame (flat and still: 0,0,+9.81)
 //     gx,gy,gz  angular rate in rad/s, sensor frame, start-up bias removed
-// Lines starting with '#' are comments: a header with the version, ranges and rate
-// at start-up, and any error. The host ignores them except for display.
+// Lines starting with '#' are comments: a banner with the version, ranges and rate
+// at start-up, a '# fields: ...' line naming the fields, the gyro biases, and any
+// error. The host shows them and counts them.
 //
 // Mounting: put the sensor's z axis along the robot's tip tangent (pointing away
 // from the base); see firmware/README.md and docs/hardware.md for other mountings
@@ -19,10 +24,20 @@
 #include <Arduino.h>
 #include <Wire.h>
 
-#define FIRMWARE_VERSION "1.0.0"
+#define FIRMWARE_VERSION "1.1.0"
 
+#ifndef IMU_COUNT
+#define IMU_COUNT 1
+#endif
+#if IMU_COUNT != 1 && IMU_COUNT != 2
+#error "IMU_COUNT must be 1 or 2 (one I2C bus has two MPU9250 addresses)"
+#endif
 #ifndef RATE_HZ
+#if IMU_COUNT == 1
 #define RATE_HZ 100  // samples per second; up to about 200 at 115200 baud
+#else
+#define RATE_HZ 50  // a two-IMU line is ~100 bytes: 100 Hz would use ~90 % of 115200 baud
+#endif
 #endif
 #ifndef BAUD
 #define BAUD 115200
@@ -52,30 +67,36 @@ static const float GYRO_SCALE = (3.14159265f / 180.0f) / 65.5f;   // rad/s per L
 
 static const unsigned long PERIOD_US = 1000000UL / RATE_HZ;
 
-static float gyro_bias[3] = {0.0f, 0.0f, 0.0f};
+#if IMU_COUNT == 1
+static const uint8_t ADDRESSES[IMU_COUNT] = {MPU_ADDRESS};
+#else
+static const uint8_t ADDRESSES[IMU_COUNT] = {0x68, 0x69};
+#endif
+
+static float gyro_bias[IMU_COUNT][3];
 static unsigned long next_us = 0;
 static unsigned long late_samples = 0;
 
-static bool writeRegister(uint8_t reg, uint8_t value) {
-  Wire.beginTransmission(MPU_ADDRESS);
+static bool writeRegister(uint8_t addr, uint8_t reg, uint8_t value) {
+  Wire.beginTransmission(addr);
   Wire.write(reg);
   Wire.write(value);
   return Wire.endTransmission() == 0;
 }
 
-static bool readRegisters(uint8_t reg, uint8_t *buf, uint8_t count) {
-  Wire.beginTransmission(MPU_ADDRESS);
+static bool readRegisters(uint8_t addr, uint8_t reg, uint8_t *buf, uint8_t count) {
+  Wire.beginTransmission(addr);
   Wire.write(reg);
   if (Wire.endTransmission(false) != 0) return false;
-  if (Wire.requestFrom((uint8_t)MPU_ADDRESS, count) != count) return false;
+  if (Wire.requestFrom(addr, count) != count) return false;
   for (uint8_t i = 0; i < count; i++) buf[i] = Wire.read();
   return true;
 }
 
-// Raw counts: ax, ay, az, gx, gy, gz (temperature skipped).
-static bool readRaw(int16_t out[6]) {
+// Raw counts of one sensor: ax, ay, az, gx, gy, gz (temperature skipped).
+static bool readRaw(uint8_t addr, int16_t out[6]) {
   uint8_t b[14];
-  if (!readRegisters(REG_ACCEL_XOUT_H, b, 14)) return false;
+  if (!readRegisters(addr, REG_ACCEL_XOUT_H, b, 14)) return false;
   for (uint8_t i = 0; i < 3; i++) {
     out[i] = (int16_t)((b[2 * i] << 8) | b[2 * i + 1]);
     out[3 + i] = (int16_t)((b[8 + 2 * i] << 8) | b[9 + 2 * i]);
@@ -83,37 +104,54 @@ static bool readRaw(int16_t out[6]) {
   return true;
 }
 
-static uint8_t setupSensor() {
-  writeRegister(REG_PWR_MGMT_1, 0x80);  // reset
+static uint8_t setupSensor(uint8_t addr) {
+  writeRegister(addr, REG_PWR_MGMT_1, 0x80);  // reset
   delay(100);
-  writeRegister(REG_PWR_MGMT_1, 0x01);  // clock: PLL from the gyro
+  writeRegister(addr, REG_PWR_MGMT_1, 0x01);  // clock: PLL from the gyro
   delay(10);
   uint8_t who = 0;
-  if (!readRegisters(REG_WHO_AM_I, &who, 1)) return 0;
-  writeRegister(REG_CONFIG, 0x03);         // gyro DLPF 41 Hz, 1 kHz internal rate
-  writeRegister(REG_SMPLRT_DIV, 0x00);     // 1 kHz register updates; we poll at RATE_HZ
-  writeRegister(REG_GYRO_CONFIG, GYRO_FS_BITS);
-  writeRegister(REG_ACCEL_CONFIG, ACCEL_FS_BITS);
-  writeRegister(REG_ACCEL_CONFIG2, 0x03);  // accel DLPF 44.8 Hz
+  if (!readRegisters(addr, REG_WHO_AM_I, &who, 1)) return 0;
+  writeRegister(addr, REG_CONFIG, 0x03);         // gyro DLPF 41 Hz, 1 kHz internal rate
+  writeRegister(addr, REG_SMPLRT_DIV, 0x00);     // 1 kHz register updates; polled at RATE_HZ
+  writeRegister(addr, REG_GYRO_CONFIG, GYRO_FS_BITS);
+  writeRegister(addr, REG_ACCEL_CONFIG, ACCEL_FS_BITS);
+  writeRegister(addr, REG_ACCEL_CONFIG2, 0x03);  // accel DLPF 44.8 Hz
   delay(50);
   return who;
 }
 
-static void calibrateGyro() {
+static bool isMpu(uint8_t who) { return who == 0x71 || who == 0x73 || who == 0x70; }
+
+static void printField(const __FlashStringHelper *name, uint8_t imu) {
+  Serial.print(',');
+  Serial.print(name);
+#if IMU_COUNT > 1
+  Serial.print('_');
+  Serial.print(imu + 1);
+#else
+  (void)imu;
+#endif
+}
+
+static void calibrateGyro(uint8_t imu) {
   long sum[3] = {0, 0, 0};
   int n = 0;
   int16_t raw[6];
   for (int i = 0; i < BIAS_SAMPLES; i++) {
-    if (readRaw(raw)) {
+    if (readRaw(ADDRESSES[imu], raw)) {
       for (uint8_t k = 0; k < 3; k++) sum[k] += raw[3 + k];
       n++;
     }
     delay(5);
   }
-  for (uint8_t k = 0; k < 3; k++) gyro_bias[k] = n ? GYRO_SCALE * (float)sum[k] / n : 0.0f;
-  Serial.print(F("# gyro bias rad/s: "));
   for (uint8_t k = 0; k < 3; k++) {
-    Serial.print(gyro_bias[k], 5);
+    gyro_bias[imu][k] = n ? GYRO_SCALE * (float)sum[k] / n : 0.0f;
+  }
+  Serial.print(F("# gyro bias rad/s, IMU "));
+  Serial.print(imu + 1);
+  Serial.print(F(": "));
+  for (uint8_t k = 0; k < 3; k++) {
+    Serial.print(gyro_bias[imu][k], 5);
     Serial.print(k < 2 ? ',' : '\n');
   }
 }
@@ -125,25 +163,41 @@ void setup() {
 #if defined(WIRE_HAS_TIMEOUT)
   Wire.setWireTimeout(3000, true);  // never hang on a stuck bus
 #endif
-  uint8_t who = setupSensor();
-  while (who != 0x71 && who != 0x73 && who != 0x70) {
-    Serial.print(F("# error: no MPU9250 at I2C address 0x"));
-    Serial.print(MPU_ADDRESS, HEX);
-    Serial.print(F(" (WHO_AM_I=0x"));
-    Serial.print(who, HEX);
-    Serial.println(F("); check wiring, retrying"));
-    delay(1000);
-    who = setupSensor();
+  uint8_t who[IMU_COUNT];
+  for (uint8_t i = 0; i < IMU_COUNT; i++) {
+    who[i] = setupSensor(ADDRESSES[i]);
+    while (!isMpu(who[i])) {
+      Serial.print(F("# error: no MPU9250 for IMU "));
+      Serial.print(i + 1);
+      Serial.print(F(" at I2C address 0x"));
+      Serial.print(ADDRESSES[i], HEX);
+      Serial.print(F(" (WHO_AM_I=0x"));
+      Serial.print(who[i], HEX);
+      Serial.println(F("); check wiring and AD0, retrying"));
+      delay(1000);
+      who[i] = setupSensor(ADDRESSES[i]);
+    }
   }
-  Serial.print(F("# continuum_imu " FIRMWARE_VERSION " mpu9250 who_am_i=0x"));
-  Serial.print(who, HEX);
+  Serial.print(F("# continuum_imu " FIRMWARE_VERSION " mpu9250 imus="));
+  Serial.print(IMU_COUNT);
+  Serial.print(F(" who_am_i=0x"));
+  Serial.print(who[0], HEX);
   Serial.print(F(" accel_range=+-4g gyro_range=+-500dps rate_hz="));
   Serial.print(RATE_HZ);
   Serial.print(F(" baud="));
   Serial.println(BAUD);
-  Serial.println(F("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s; sensor frame)"));
+  Serial.print(F("# fields: t_ms"));
+  for (uint8_t i = 0; i < IMU_COUNT; i++) {
+    printField(F("ax"), i);
+    printField(F("ay"), i);
+    printField(F("az"), i);
+    printField(F("gx"), i);
+    printField(F("gy"), i);
+    printField(F("gz"), i);
+  }
+  Serial.println(F(" (ms, m/s^2, rad/s; sensor frames)"));
   Serial.println(F("# calibrating gyro bias: keep the robot still"));
-  calibrateGyro();
+  for (uint8_t i = 0; i < IMU_COUNT; i++) calibrateGyro(i);
   next_us = micros();
 }
 
@@ -154,20 +208,27 @@ void loop() {
     next_us = micros() + PERIOD_US;
     late_samples++;
   }
-  int16_t raw[6];
+  int16_t raw[IMU_COUNT][6];
   unsigned long t = millis();
-  if (!readRaw(raw)) {
-    Serial.println(F("# error: I2C read failed"));
-    return;
+  for (uint8_t i = 0; i < IMU_COUNT; i++) {
+    if (!readRaw(ADDRESSES[i], raw[i])) {  // one sensor failed: no sample at all
+      Serial.print(F("# error: I2C read failed, IMU "));
+      Serial.print(i + 1);
+      Serial.print(F(" at 0x"));
+      Serial.println(ADDRESSES[i], HEX);
+      return;
+    }
   }
   Serial.print(t);
-  for (uint8_t k = 0; k < 3; k++) {
-    Serial.print(',');
-    Serial.print(ACCEL_SCALE * raw[k], 3);
-  }
-  for (uint8_t k = 0; k < 3; k++) {
-    Serial.print(',');
-    Serial.print(GYRO_SCALE * raw[3 + k] - gyro_bias[k], 4);
+  for (uint8_t i = 0; i < IMU_COUNT; i++) {
+    for (uint8_t k = 0; k < 3; k++) {
+      Serial.print(',');
+      Serial.print(ACCEL_SCALE * raw[i][k], 3);
+    }
+    for (uint8_t k = 0; k < 3; k++) {
+      Serial.print(',');
+      Serial.print(GYRO_SCALE * raw[i][3 + k] - gyro_bias[i][k], 4);
+    }
   }
   Serial.print('\n');
 }

@@ -104,3 +104,32 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
     return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
 
 
+def add_serial_options(p: argparse.ArgumentParser) -> None:
+    """The serial stream of ``live`` and ``calibrate``: port, baud, line format."""
+    from continuum_mhe.stream.protocol import LINE_FORMATS
+
+    g = p.add_argument_group("serial stream")
+    g.add_argument("--port", required=True, help="serial device, e.g. /dev/ttyACM0 or COM3")
+    g.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
+    g.add_argument(
+        "--format",
+        choices=LINE_FORMATS,
+        default="raw",
+        help="line format: raw (t_ms + ax,ay,az,gx,gy,gz per IMU, default) or tilt "
+        "(t_ms + roll,pitch per IMU); IMUs in the order of --robot",
+    )
+
+
+def add_recording_options(p: argparse.ArgumentParser) -> None:
+    """``--record`` and ``--overwrite`` of ``live``."""
+    p.add_argument(
+        "--record",
+        metavar="RAW.csv",
+        help="write every valid sample as received (the raw or tilt CSV that 'estimate' "
+        "reads, t in s of the device clock), row by row",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing -o or --record file (else refused)",
+    )

@@ -1,0 +1,233 @@
+"""``continuum-mhe calibrate``: what docs/hardware.md asks the user to measure, with
+the robot straight and still, per IMU: the accelerometer's mean and noise per axis,
+the gyro's bias (what remains after the firmware's start-up bias) and noise, the
+sample rate achieved, and the sensor mounting that makes the straight robot read
+``theta = 0`` (``--mount-rpy`` / the robot file's ``mount_rpy``). From the port
+(``--port``) or a recording (``--from RAW.csv``, e.g. written by ``live --record``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import queue
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
+from continuum_mhe.io.raw_imu import csv_input_kind, read_raw_imu, read_raw_imus
+from continuum_mhe.model.imu import Mounting
+from continuum_mhe.stream.clock import DeviceClock
+from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, LineFormat, parse_line
+from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
+
+
+@dataclass(frozen=True)
+class ImuCalibration:
+    """Statistics of one IMU at rest (raw: m/s^2 and rad/s; tilt: rad).
+
+    Attributes:
+        mean, std: per value (raw: ``ax,ay,az,gx,gy,gz``; tilt: ``roll,pitch``).
+        mount_rpy: raw only: ``(roll, pitch, 0)`` degrees that rotate the mean
+            accelerometer vector onto the straight robot's gravity reading.
+    """
+
+    mean: FloatArray
+    std: FloatArray
+    mount_rpy: tuple[float, float, float] | None
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration: ``n`` samples over ``span_s`` s of device time, one entry per IMU."""
+
+    fmt: LineFormat
+    n: int
+    span_s: float
+    median_period_s: float
+    longest_step_s: float
+    imus: list[ImuCalibration]
+
+    @property
+    def rate_hz(self) -> float:
+        return (self.n - 1) / self.span_s if self.span_s > 0 else math.nan
+
+
+def mounting_from_gravity(mean_acc: FloatArray, mounting: Mounting) -> tuple[float, float, float]:
+    """``(roll, pitch, 0)`` degrees with ``Ry(pitch) Rx(roll) m`` along the straight
+    robot's reading ``(0, 0, +|m|)`` (base z up) or ``(0, 0, -|m|)`` (z down); yaw is
+    invisible to gravity."""
+    m = np.asarray(mean_acc, dtype=float) * (1.0 if mounting == "z-up" else -1.0)
+    roll = math.atan2(m[1], m[2])
+    pitch = math.atan2(-m[0], math.hypot(m[1], m[2]))
+    return (math.degrees(roll), math.degrees(pitch), 0.0)
+
+
+def calibrate(
+    t: FloatArray, values: FloatArray, fmt: LineFormat, n_imus: int, mounting: Mounting
+) -> Calibration:
+    """Statistics of samples at rest: ``t`` (n,) s, ``values`` (n, k * n_imus)."""
+    if len(t) < 2:
+        raise InputError(f"calibration needs at least 2 samples, got {len(t)}")
+    k = VALUES_PER_IMU[fmt]
+    steps = np.diff(t)
+    imus = []
+    for i in range(n_imus):
+        block = values[:, k * i : k * (i + 1)]
+        block = block[np.all(np.isfinite(block), axis=1)]
+        if len(block) < 2:
+            raise InputError(f"IMU {i + 1}: fewer than 2 valid samples")
+        mean, std = block.mean(axis=0), block.std(axis=0, ddof=1)
+        rpy = mounting_from_gravity(mean[:3], mounting) if fmt == "raw" else None
+        imus.append(ImuCalibration(mean, std, rpy))
+    return Calibration(
+        fmt, len(t), float(t[-1] - t[0]), float(np.median(steps)), float(steps.max()), imus
+    )
+
+
+def format_report(cal: Calibration, source: str) -> str:
+    """The calibration as text for the terminal."""
+    lines = [
+        f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
+        f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
+        f"{cal.longest_step_s * 1e3:.2f} ms)"
+    ]
+    for i, imu in enumerate(cal.imus, start=1):
+        m, s = imu.mean, imu.std
+        if cal.fmt == "raw":
+            g = float(np.linalg.norm(m[:3]))
+            lines += [
+                f"IMU {i}: accelerometer mean (m/s^2) ax={m[0]:.4f} ay={m[1]:.4f} az={m[2]:.4f} "
+                f"(|a| = {g:.4f}); noise std ax={s[0]:.4f} ay={s[1]:.4f} az={s[2]:.4f}",
+                f"IMU {i}: gyro bias (rad/s) gx={m[3]:.5f} gy={m[4]:.5f} gz={m[5]:.5f}; "
+                f"noise std gx={s[3]:.5f} gy={s[4]:.5f} gz={s[5]:.5f}",
+            ]
+            assert imu.mount_rpy is not None
+            r, p, _ = imu.mount_rpy
+            tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
+            lines.append(
+                f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},0 "
+                f"(robot file: mount_rpy = [{r:.2f}, {p:.2f}, 0]); yaw: see docs/hardware.md; "
+                f"accelerometer noise as tilt: {tilt_noise:.2f} deg"
+            )
+        else:
+            lines.append(
+                f"IMU {i}: roll mean {math.degrees(m[0]):.3f} deg (std {math.degrees(s[0]):.3f}),"
+                f" pitch mean {math.degrees(m[1]):.3f} deg (std {math.degrees(s[1]):.3f}); a "
+                "straight robot should read 0, 0"
+            )
+    return "\n".join(lines)
+
+
+def read_recording(path: str, n_imus: int) -> tuple[LineFormat, FloatArray, FloatArray]:
+    """``(format, t, values)`` of a raw or tilt CSV (as ``live --record`` writes)."""
+    if csv_input_kind(path) == "tilt":
+        tilt = read_measurements(path, n_imus=n_imus)
+        return "tilt", tilt.t, tilt.z
+    tables = read_raw_imus(path, n_imus).imus if n_imus > 1 else [read_raw_imu(path)]
+    for i, tab in enumerate(tables, start=1):
+        if tab.gyr is None:
+            raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")
+    values = np.hstack([np.hstack([tab.acc, tab.gyr]) for tab in tables])  # type: ignore[list-item]
+    return "raw", tables[0].t, values
+
+
+def collect(
+    port: str, baud: int, fmt: LineFormat, n_imus: int, seconds: float, say: Any
+) -> tuple[FloatArray, FloatArray]:
+    """Samples from the port over ``seconds`` of device time (device messages shown)."""
+    try:
+        conn = open_port(port, baud)
+    except Exception as exc:
+        raise InputError(port_hint(port, exc)) from None
+    events: queue.Queue[Event] = queue.Queue()
+    reader = SerialReader(port, baud, conn, events, 1.0)
+    clock = DeviceClock()
+    t: list[float] = []
+    rows: list[FloatArray] = []
+    garbled = 0
+    give_up = time.monotonic() + seconds + 15.0  # the board resets and calibrates first
+    reader.start()
+    say(f"reading {port} for {seconds:g} s: keep the robot straight and still")
+    try:
+        while time.monotonic() < give_up and not (t and t[-1] - t[0] >= seconds):
+            try:
+                kind, payload, arrival = events.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if kind != "line":
+                continue
+            try:
+                text = payload.decode("ascii")
+                sample = parse_line(text, fmt, n_imus)
+            except (UnicodeDecodeError, GarbledLine):
+                garbled += 1
+                continue
+            if sample is None:
+                if text.strip().startswith("#"):
+                    say(f"device says: {text.strip()}")
+                continue
+            placed = clock.place(sample.t_ms, arrival, None)
+            if placed.event in ("out-of-order", "restart"):
+                say(f"device clock {placed.event} at t_ms={sample.t_ms:.0f}: starting over")
+                t, rows = [], []
+                continue
+            t.append(placed.t)
+            rows.append(sample.values)
+    finally:
+        reader.stop.set()
+    if garbled:
+        say(f"{garbled} garbled line(s) skipped")
+    if len(t) < 2:
+        raise InputError(
+            f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; is it streaming?"
+        )
+    return np.asarray(t), np.asarray(rows)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from continuum_mhe.cli_options import robot_from_args
+
+    robot = robot_from_args(args)
+    say = stderr_say("calibrate")
+    if args.source:
+        fmt, t, values = read_recording(args.source, robot.n_imus)
+        source = args.source
+    else:
+        if args.port is None:
+            raise InputError("give --port DEVICE or --from RAW.csv")
+        if not (math.isfinite(args.seconds) and args.seconds > 0):
+            raise InputError(f"--seconds must be positive, got {args.seconds}")
+        fmt = args.format
+        t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
+        source = args.port
+    print(format_report(calibrate(t, values, fmt, robot.n_imus, robot.mounting), source))
+    return 0
+
+
+def register_calibrate(subparsers: Any) -> None:
+    """Add the ``calibrate`` command."""
+    from continuum_mhe.cli_options import add_robot_option
+    from continuum_mhe.model.imu import MOUNTINGS
+    from continuum_mhe.stream.protocol import LINE_FORMATS
+
+    p = subparsers.add_parser(
+        "calibrate",
+        help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
+        description="With the robot straight and still: per IMU, the accelerometer's mean "
+        "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
+        "mounting (--mount-rpy) that makes the straight robot read theta = 0.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
+    src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
+    p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
+    p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
+    p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
+    add_robot_option(p)
+    p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
+    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    p.set_defaults(func=cmd_calibrate)

@@ -1,0 +1,89 @@
+"""The device clock: ``millis()`` on the wire, one strictly increasing time axis out.
+
+* A wrap of ``millis()`` (every 2^32 ms, 49.7 days) is unwrapped exactly: the time
+  axis goes on as if the counter were wider, and the estimator need not restart.
+* A restart (the reset button, or a board that resets when the port reopens) is a
+  backwards jump of more than ``restart_jump_s``, or any backwards step once
+  :meth:`DeviceClock.expect_restart` was called. The time base is broken there: the
+  axis continues after the wall-clock time the device was silent, and the caller
+  restarts the estimator.
+* A smaller backwards step is an out-of-order sample, dropped by the caller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+#: ``millis()`` wraps at this many ms.
+MILLIS_WRAP = 2**32
+#: A step back from the last ``WRAP_WINDOW_MS`` before the wrap into the first ones
+#: after it is a wrap, not a restart.
+WRAP_WINDOW_MS = 60_000.0
+
+ClockEvent = Literal["first", "next", "wrap", "restart", "out-of-order"]
+
+
+@dataclass(frozen=True)
+class Placed:
+    """A device time placed on the axis: ``t`` in s and what happened."""
+
+    t: float
+    event: ClockEvent
+
+
+class DeviceClock:
+    """Maps device times (ms) to one strictly increasing axis (s).
+
+    Attributes:
+        restart_jump_s: a backwards jump longer than this (s) is a restart.
+    """
+
+    def __init__(self, restart_jump_s: float = 1.0) -> None:
+        self.restart_jump_s = restart_jump_s
+        self._epoch_ms = 0.0  # 2^32 ms per wrap seen
+        self._offset_s = 0.0  # added after a restart
+        self._last_ms: float | None = None  # device time of the last accepted sample
+        self._t_last: float | None = None  # axis time of the last accepted sample, s
+        self._arrival_last = 0.0
+        self._restart_armed = False
+
+    @property
+    def t_last(self) -> float | None:
+        """Axis time of the last accepted sample, s."""
+        return self._t_last
+
+    @property
+    def last_ms(self) -> float | None:
+        """Device time of the last accepted sample, ms."""
+        return self._last_ms
+
+    def expect_restart(self) -> None:
+        """The device reconnected or printed its banner again: its next backwards step,
+        however small, is a restart."""
+        self._restart_armed = True
+
+    def place(self, t_ms: float, arrival: float, period_s: float | None) -> Placed:
+        """Place one sample (device ``t_ms``, monotonic ``arrival`` in s); the usual
+        ``period_s`` spaces a restarted axis. Out-of-order samples do not move the clock.
+        """
+        last = self._last_ms
+        event: ClockEvent = "first" if last is None else "next"
+        if last is not None and t_ms < last:
+            wrapped = t_ms + MILLIS_WRAP - last
+            if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
+                self._epoch_ms += MILLIS_WRAP
+                event = "wrap"
+            elif self._restart_armed or last - t_ms > self.restart_jump_s * 1e3:
+                assert self._t_last is not None
+                away = max(arrival - self._arrival_last, period_s or 0.0, 1e-3)
+                self._offset_s = self._t_last + away - (t_ms + self._epoch_ms) / 1e3
+                event = "restart"
+            else:
+                return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
+        t = (t_ms + self._epoch_ms) / 1e3 + self._offset_s
+        if self._t_last is not None and t <= self._t_last:
+            return Placed(t, "out-of-order")
+        self._restart_armed = False
+        self._last_ms, self._t_last, self._arrival_last = t_ms, t, arrival
+        return Placed(t, event)

@@ -1,0 +1,171 @@
+"""The line protocol of the serial IMU stream, for any number of IMUs.
+
+ASCII lines ending in LF, CR or CRLF, one sample per line:
+
+* ``raw``:  ``t_ms`` then ``ax,ay,az,gx,gy,gz`` per IMU: device time in ms, specific
+  force in m/s^2 and angular rate in rad/s, each IMU in its own sensor frame;
+* ``tilt``: ``t_ms`` then ``roll,pitch`` per IMU, rad.
+
+IMUs come in the robot file's order. Lines starting with ``#`` are comments (the
+firmware's banner, its ``# fields: ...`` line naming the fields, errors); blank lines
+are ignored. A line longer than :data:`MAX_LINE_BYTES` is dropped and counted.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import FloatArray, tilt_columns
+from continuum_mhe.io.raw_imu import raw_columns
+
+LineFormat = Literal["raw", "tilt"]
+LINE_FORMATS: tuple[LineFormat, ...] = ("raw", "tilt")
+#: Values per IMU on a line.
+VALUES_PER_IMU: dict[str, int] = {"raw": 6, "tilt": 2}
+#: Plausibility limits: MPU9250 full scale (16 g, 2000 deg/s) with 50 % margin.
+ACC_LIMIT = 16 * 9.80665 * 1.5
+GYRO_LIMIT = math.radians(2000) * 1.5
+TILT_LIMITS = (math.pi + 0.05, math.pi / 2 + 0.05)
+#: Longest accepted line, bytes (a sample of 8 raw IMUs is under 500).
+MAX_LINE_BYTES = 4096
+
+
+class GarbledLine(ValueError):
+    """A line that is not a valid sample (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One parsed line: device time ``t_ms`` in ms and the values, IMU after IMU
+    (raw: 6 per IMU, tilt: 2 per IMU)."""
+
+    t_ms: float
+    values: FloatArray
+
+    @property
+    def t(self) -> float:
+        """Device time, s."""
+        return self.t_ms / 1e3
+
+
+def value_columns(fmt: LineFormat, n_imus: int) -> tuple[str, ...]:
+    """The value names of ``n_imus`` IMUs, as the CSV files of ``estimate`` name them:
+    ``ax..gz`` or ``roll,pitch`` for one IMU, ``ax_1..gz_1,ax_2..`` for several."""
+    if fmt == "tilt":
+        return tilt_columns(n_imus)
+    return tuple(c for i in range(n_imus) for c in raw_columns(i, n_imus))
+
+
+def line_fields(fmt: LineFormat, n_imus: int) -> tuple[str, ...]:
+    """The fields of a protocol line: ``t_ms`` and :func:`value_columns`."""
+    return ("t_ms", *value_columns(fmt, n_imus))
+
+
+def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
+    """Parse one protocol line; None for comments and blank lines.
+
+    Raises :class:`GarbledLine` for anything else that is not a complete, plausible
+    sample (wrong field count, non-numbers, non-finite or out-of-range values, an
+    accelerometer that reads exactly zero).
+    """
+    line = text.strip()
+    if not line or line.startswith("#"):
+        return None
+    parts = line.split(",")
+    k = VALUES_PER_IMU[fmt]
+    if len(parts) != 1 + k * n_imus:
+        raise GarbledLine(f"expected {1 + k * n_imus} fields, found {len(parts)}")
+    try:
+        nums = [float(p) for p in parts]
+    except ValueError:
+        raise GarbledLine("non-numeric field") from None
+    if not all(math.isfinite(v) for v in nums):
+        raise GarbledLine("non-finite value")
+    if nums[0] < 0:
+        raise GarbledLine("negative time")
+    if fmt == "raw":
+        for i in range(1, len(nums), k):  # plain floats: a few microseconds per line
+            ax, ay, az, gx, gy, gz = nums[i : i + 6]
+            if max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT:
+                raise GarbledLine("value beyond the sensor's range")
+            if max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT:
+                raise GarbledLine("value beyond the sensor's range")
+            if ax == 0.0 and ay == 0.0 and az == 0.0:
+                raise GarbledLine("accelerometer reads exactly zero")
+    else:
+        for i in range(1, len(nums), k):
+            if abs(nums[i]) > TILT_LIMITS[0] or abs(nums[i + 1]) > TILT_LIMITS[1]:
+                raise GarbledLine("angle out of range (radians expected)")
+    return Sample(nums[0], np.array(nums[1:]))
+
+
+def header_fields(comment: str) -> tuple[str, ...] | None:
+    """The field names of a ``# fields: t_ms,ax,...`` (or ``# format: ...``) comment,
+    or None for any other comment."""
+    m = re.match(r"#\s*(?:fields|format)\s*:\s*([A-Za-z0-9_,\s]+?)(?:\s*\(|\s*$)", comment)
+    if m is None:
+        return None
+    return tuple(f.strip() for f in m.group(1).split(",") if f.strip())
+
+
+_EOL = re.compile(rb"\r\n|\r|\n")
+
+
+class LineSplitter:
+    """Bytes in, whole lines out: LF, CR and CRLF end a line; a line longer than
+    ``max_bytes`` is dropped (its length is reported) up to its end, never buffered.
+
+    Attributes:
+        too_long: lengths (bytes) of the lines dropped since the last :meth:`feed`.
+    """
+
+    def __init__(self, max_bytes: int = MAX_LINE_BYTES) -> None:
+        self.max_bytes = max_bytes
+        self._buf = bytearray()
+        self._skipping = 0  # bytes of an over-long line dropped so far (0: not dropping)
+        self._after_cr = False
+        self.too_long: list[int] = []
+
+    def feed(self, chunk: bytes) -> list[bytes]:
+        """The non-empty lines completed by ``chunk`` (without their line ends)."""
+        lines: list[bytes] = []
+        self.too_long = []
+        pos = 0
+        if self._after_cr and chunk[:1] == b"\n":  # a CRLF split across two reads
+            pos = 1
+        self._after_cr = chunk[-1:] == b"\r"
+        for m in _EOL.finditer(chunk, pos):
+            self._take(chunk[pos : m.start()], lines, end=True)
+            pos = m.end()
+        self._take(chunk[pos:], lines, end=False)
+        return lines
+
+    def _take(self, piece: bytes, lines: list[bytes], end: bool) -> None:
+        if self._skipping:
+            self._skipping += len(piece)
+        elif len(self._buf) + len(piece) > self.max_bytes:
+            self._skipping = len(self._buf) + len(piece)
+            self._buf.clear()
+        else:
+            self._buf += piece
+        if not end:
+            return
+        if self._skipping:
+            self.too_long.append(self._skipping)
+            self._skipping = 0
+        elif self._buf:
+            lines.append(bytes(self._buf))
+            self._buf.clear()
+
+    def pending(self) -> bytes:
+        """Take the unfinished line (when the device goes away mid-line)."""
+        left = bytes(self._buf)
+        self._buf.clear()
+        self._skipping = 0
+        self._after_cr = False
+        return left

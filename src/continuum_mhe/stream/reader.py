@@ -1,0 +1,111 @@
+"""The serial port: opening it (with a one-line hint when that fails) and a reader
+thread that drains it into a queue of whole lines, reopening a lost device."""
+
+from __future__ import annotations
+
+import glob
+import queue
+import sys
+import threading
+import time
+from typing import Any
+
+from continuum_mhe.extras import require
+from continuum_mhe.stream.protocol import MAX_LINE_BYTES, LineSplitter
+
+Event = tuple[str, Any, float]  # (kind, payload, monotonic arrival time)
+
+
+def open_port(port: str, baud: int) -> Any:
+    """Open a serial device or pyserial URL with a short read timeout."""
+    serial = require("serial", "robot", "live on a serial port", package="pyserial")
+    return serial.serial_for_url(port, baudrate=baud, timeout=0.05)
+
+
+def port_hint(port: str, exc: BaseException) -> str:
+    """One line: why ``port`` did not open, the likely causes, the ports present."""
+    present = sorted(
+        p for pat in ("/dev/ttyACM*", "/dev/ttyUSB*", "/dev/cu.usb*") for p in glob.glob(pat)
+    )
+    text = str(exc).replace("\n", " ")
+    if isinstance(exc, PermissionError) or "Permission denied" in text:
+        causes = (
+            "no permission: on Linux add yourself to the dialout group "
+            "(sudo usermod -aG dialout $USER, then log in again)"
+        )
+    elif "busy" in text.lower() or "Resource temporarily unavailable" in text:
+        causes = "the port is in use: close the Arduino IDE's Serial Monitor or other program"
+    else:
+        causes = (
+            "is the board plugged in? Linux: /dev/ttyACM0 (a CH340 clone: /dev/ttyUSB0), "
+            "dialout group; macOS: /dev/cu.usbmodem*; the Arduino IDE's Serial Monitor "
+            "must not hold the port"
+        )
+    found = f"ports present: {', '.join(present)}" if present else "no serial ports found"
+    return f"{port}: cannot open serial device ({text}); {causes}; {found}"
+
+
+class SerialReader(threading.Thread):
+    """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
+    t)``, ``("partial", bytes, t)``, ``("lost", reason, t)`` and ``("back",
+    seconds_away, t)``. Reopens with backoff."""
+
+    def __init__(
+        self,
+        port: str,
+        baud: int,
+        conn: Any,
+        events: queue.Queue[Event],
+        retry_max_s: float,
+        max_line_bytes: int = MAX_LINE_BYTES,
+    ) -> None:
+        super().__init__(name="continuum-mhe-serial", daemon=True)
+        self.port, self.baud, self.conn = port, baud, conn
+        self.events = events
+        self.retry_max_s = retry_max_s
+        self.splitter = LineSplitter(max_line_bytes)
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            try:
+                chunk = self.conn.read(max(1, min(self.conn.in_waiting, 1 << 16)))
+            except Exception as exc:  # SerialException, OSError: the device went away
+                left = self.splitter.pending()
+                if left:
+                    self.events.put(("partial", left, time.monotonic()))
+                self.events.put(("lost", str(exc) or type(exc).__name__, time.monotonic()))
+                self._close()
+                self._reopen()
+                continue
+            if not chunk:
+                continue
+            now = time.monotonic()
+            for line in self.splitter.feed(chunk):
+                self.events.put(("line", line, now))
+            for n in self.splitter.too_long:
+                self.events.put(("too-long", n, now))
+        self._close()
+
+    def _close(self) -> None:
+        try:
+            self.conn.close()
+        except Exception:  # noqa: S110 - closing a vanished device may fail; nothing to do
+            pass
+
+    def _reopen(self) -> None:
+        lost = time.monotonic()
+        delay = 0.1
+        while not self.stop.wait(delay):
+            try:
+                self.conn = open_port(self.port, self.baud)
+            except Exception:
+                delay = min(2 * delay, self.retry_max_s)
+                continue
+            self.events.put(("back", time.monotonic() - lost, time.monotonic()))
+            return
+
+
+def stderr_say(prefix: str) -> Any:
+    """A ``say(msg)`` that prints ``prefix: msg`` to stderr at once."""
+    return lambda msg: print(f"{prefix}: {msg}", file=sys.stderr, flush=True)

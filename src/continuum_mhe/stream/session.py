@@ -1,0 +1,428 @@
+"""A live session: protocol lines in; the device clock, conversion, estimation, the
+recording and the estimate rows out (no threads, no port: :mod:`continuum_mhe.live`
+drives it)."""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import IO, Any, Protocol
+
+import numpy as np
+
+from continuum_mhe.estimators.base import Estimate, Estimator, Measurement, _reraise_interrupt
+from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
+from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.stream.clock import DeviceClock
+from continuum_mhe.stream.protocol import (
+    LINE_FORMATS,
+    GarbledLine,
+    LineFormat,
+    Sample,
+    header_fields,
+    line_fields,
+    parse_line,
+)
+from continuum_mhe.stream.reader import stderr_say
+from continuum_mhe.stream.recording import csv_cell
+
+
+@dataclass(frozen=True)
+class LiveSettings:
+    """Settings of a live run.
+
+    Attributes:
+        port: serial device (or a pyserial URL such as ``socket://host:port``).
+        baud: baud rate.
+        fmt: line format, ``"raw"`` or ``"tilt"``.
+        duration: stop after this many wall-clock seconds (None: until Ctrl-C).
+        status_every: seconds between status lines.
+        gap_factor: a step longer than this many usual periods is a gap.
+        behind_s: report falling behind when a line waits longer than this, s.
+        retry_max_s: longest wait between attempts to reopen a lost device, s.
+        restart_gap_s: after a gap longer than this (s) the estimator starts afresh
+            from the next sample; the old motion says nothing about the new one.
+        restart_jump_s: a device clock that jumps back by more than this (s) restarted.
+        repeat_every_s: a device message that repeats is shown at most this often, s.
+    """
+
+    port: str
+    baud: int = 115200
+    fmt: LineFormat = "raw"
+    duration: float | None = None
+    status_every: float = 1.0
+    gap_factor: float = 3.0
+    behind_s: float = 1.0
+    retry_max_s: float = 5.0
+    restart_gap_s: float = 1.0
+    restart_jump_s: float = 1.0
+    repeat_every_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.fmt not in LINE_FORMATS:
+            raise ValueError(f"format must be one of {LINE_FORMATS}, got {self.fmt!r}")
+        if not (isinstance(self.baud, int) and self.baud > 0):
+            raise ValueError(f"baud must be a positive integer, got {self.baud!r}")
+        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be positive seconds, got {self.duration!r}")
+        for name in (
+            "status_every",
+            "behind_s",
+            "retry_max_s",
+            "restart_gap_s",
+            "restart_jump_s",
+            "repeat_every_s",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        if not self.gap_factor > 1:
+            raise ValueError(f"gap_factor must exceed 1, got {self.gap_factor!r}")
+
+
+@dataclass
+class LiveCounts:
+    """Running counts of a live session (reported in the status line and at the end)."""
+
+    lines: int = 0
+    samples: int = 0
+    estimates: int = 0
+    comments: int = 0
+    garbled: int = 0
+    partial: int = 0
+    too_long: int = 0
+    out_of_order: int = 0
+    gaps: int = 0
+    missing: int = 0  # samples the gaps are estimated to have lost on the device side
+    disconnects: int = 0
+    clock_restarts: int = 0
+    clock_wraps: int = 0
+    estimator_failures: int = 0  # exceptions and non-finite estimates: flagged, restarted
+    restarts: int = 0  # times live restarted the estimator (time base broke, long gap, failure)
+    first_restart_t: float | None = None
+    header: str = ""
+    reasons: dict[str, int] = field(default_factory=dict)
+
+
+class DeviceMessages:
+    """Shows every device ``#`` line, the same text at most once per ``every`` s (with
+    the count of repeats not shown)."""
+
+    def __init__(self, say: Any, every: float) -> None:
+        self.say, self.every = say, every
+        self._shown: dict[str, tuple[float, int]] = {}  # text -> (last shown, hidden since)
+
+    def show(self, text: str, now: float) -> None:
+        last, hidden = self._shown.get(text, (-math.inf, 0))
+        if now - last < self.every:
+            self._shown[text] = (last, hidden + 1)
+            return
+        more = f" (and {hidden} more time(s) since)" if hidden else ""
+        self.say(f"device says: {text}{more}")
+        if len(self._shown) > 1000:  # a device that never repeats itself: forget the oldest
+            self._shown.pop(next(iter(self._shown)))
+        self._shown[text] = (now, 0)
+
+
+class LatencyHistogram:
+    """Latencies (ms) in log-spaced bins (2.3 % wide), so memory stays constant."""
+
+    EDGES = np.geomspace(1e-3, 1e5, 801)
+
+    def __init__(self) -> None:
+        self.counts = np.zeros(len(self.EDGES) + 1, dtype=np.int64)
+        self.n = 0
+
+    def add(self, ms: float) -> None:
+        self.counts[int(np.searchsorted(self.EDGES, ms))] += 1
+        self.n += 1
+
+    def quantile(self, q: float) -> float:
+        """The ``q`` quantile, ms (upper edge of its bin); NaN when empty."""
+        if self.n == 0:
+            return math.nan
+        i = int(np.searchsorted(np.cumsum(self.counts), q * self.n))
+        return float(self.EDGES[min(i, len(self.EDGES) - 1)])
+
+
+class RowSink(Protocol):
+    def write_row(self, cells: Sequence[str]) -> None: ...
+
+
+class _TextSink:
+    """Rows to an open text stream (the header at once), flushed per row."""
+
+    def __init__(self, out: IO[str], header: Sequence[str]) -> None:
+        self.out = out
+        out.write(",".join(header) + "\n")
+        out.flush()
+
+    def write_row(self, cells: Sequence[str]) -> None:
+        self.out.write(",".join(cells) + "\n")
+        self.out.flush()
+
+
+def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
+    """One converter per IMU of ``robot``: its robot-file mounting where it gives one,
+    else ``raw.mount_rpy`` (as ``estimate`` does)."""
+    return [
+        RawImuConverter(replace(raw, mount_rpy=imu.mount_rpy) if any(imu.mount_rpy) else raw)
+        for imu in robot.imus
+    ]
+
+
+# --- session ----------------------------------------------------------------------------------
+class LiveSession:
+    """Turns protocol lines into estimates: parsing, the device clock, conversion,
+    estimation, recording and output. No I/O except the sinks and messages.
+
+    ``converter``: None for tilt lines, else one converter per IMU (a single converter
+    serves a one-IMU robot). ``out``: estimate rows (an open text stream or a
+    :class:`RowFile`); ``record``: a :class:`RowFile` for the samples as received.
+    """
+
+    def __init__(
+        self,
+        settings: LiveSettings,
+        estimator: Estimator,
+        converter: RawImuConverter | Sequence[RawImuConverter] | None,
+        out: IO[str] | RowSink | None,
+        say: Any = None,
+        record: RowSink | None = None,
+    ) -> None:
+        self.settings = settings
+        self.estimator = estimator
+        self.formulation = estimator.formulation
+        self.n_imus = self.formulation.robot.n_imus
+        self.converters: list[RawImuConverter] | None = (
+            None
+            if converter is None
+            else [converter]
+            if isinstance(converter, RawImuConverter)
+            else list(converter)
+        )
+        if self.converters is not None and len(self.converters) != self.n_imus:
+            raise ValueError(f"{len(self.converters)} converter(s) for {self.n_imus} IMU(s)")
+        columns = estimate_columns(self.formulation.outputs)
+        self.out: RowSink | None = (
+            None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
+        )
+        self.record = record
+        self.say = say or stderr_say("live")
+        self.counts = LiveCounts()
+        self.messages = DeviceMessages(self.say, settings.repeat_every_s)
+        self.clock = DeviceClock(settings.restart_jump_s)
+        self.latency = LatencyHistogram()
+        self.last: Estimate | None = None
+        self.solve_ms: deque[float] = deque(maxlen=200)
+        self._periods: deque[float] = deque(maxlen=50)
+        self._period: float | None = None  # median of _periods, while they are unchanged
+        self._fields_checked = False
+        estimator.reset()
+
+    def period(self) -> float | None:
+        """The usual sample period (median of recent steps), s."""
+        if self._period is None and len(self._periods) >= 3:
+            self._period = statistics.median(self._periods)
+        return self._period
+
+    def device_back(self) -> None:
+        """The device was reopened: its clock may have restarted."""
+        self.clock.expect_restart()
+
+    def _bad(self, reason: str) -> None:
+        self.counts.garbled += 1
+        self.counts.reasons[reason] = self.counts.reasons.get(reason, 0) + 1
+
+    def handle_line(self, raw: bytes, arrival: float) -> Estimate | None:
+        """Process one line from the device; return its estimate, if it made one."""
+        c = self.counts
+        c.lines += 1
+        try:
+            text = raw.decode("ascii")
+        except UnicodeDecodeError:
+            self._bad("not ASCII")
+            return None
+        try:
+            sample = parse_line(text, self.settings.fmt, self.n_imus)
+        except GarbledLine as exc:
+            self._bad(str(exc))
+            return None
+        if sample is None:
+            if text.strip().startswith("#"):
+                self._comment(text.strip(), arrival)
+            return None
+        return self._handle_sample(sample, arrival)
+
+    def _comment(self, text: str, arrival: float) -> None:
+        c = self.counts
+        c.comments += 1
+        if not c.header:
+            c.header = text
+        elif "continuum_imu" in text and c.samples:  # the banner again: the board reset
+            self.clock.expect_restart()
+        self.messages.show(text, arrival)
+        names = header_fields(text)
+        if names is not None and not self._fields_checked:
+            self._fields_checked = True
+            want = line_fields(self.settings.fmt, self.n_imus)
+            if names != want:
+                self.say(
+                    f"the device names {len(names)} fields ({','.join(names)}) but "
+                    f"--format {self.settings.fmt} with {self.n_imus} IMU(s) expects "
+                    f"{len(want)} ({','.join(want)}); check --format and --robot"
+                )
+
+    def _handle_sample(self, s: Sample, arrival: float) -> Estimate | None:
+        c = self.counts
+        t_prev = self.clock.t_last
+        dev_prev = self.clock.last_ms
+        p = self.period()
+        placed = self.clock.place(s.t_ms, arrival, p)
+        t = placed.t
+        if placed.event == "out-of-order":
+            c.out_of_order += 1
+            return None
+        c.samples += 1
+        restart = False
+        if placed.event == "wrap":
+            c.clock_wraps += 1
+            self.say(
+                f"device clock wrapped (millis() at 2^32 ms: {dev_prev:.0f} -> {s.t_ms:.0f}); "
+                f"time goes on at t={t:.3f} s"
+            )
+        elif placed.event == "restart":
+            c.clock_restarts += 1
+            restart = True
+            self.say(
+                f"device clock restarted ({dev_prev:.0f} ms -> {s.t_ms:.0f} ms); continuing at "
+                f"t={t:.3f} s, estimator restarts"
+            )
+        elif t_prev is not None:
+            dt = t - t_prev
+            if p is not None and dt > self.settings.gap_factor * p:
+                lost = max(int(round(dt / p)) - 1, 0)
+                c.gaps += 1
+                c.missing += lost
+                restart = dt > self.settings.restart_gap_s
+                how = "estimator restarts" if restart else "estimating across it"
+                self.say(
+                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); {how}"
+                )
+            else:
+                self._periods.append(dt)
+                self._period = None
+        if self.record is not None:
+            self.record.write_row([csv_cell(t), *(csv_cell(float(v)) for v in s.values)])
+        if restart:
+            self._restart(t)
+        est = self._estimate(t, self._measurement(t, s.values))
+        self._write(est)
+        self.latency.add((time.monotonic() - arrival) * 1e3)
+        return est
+
+    def _measurement(self, t: float, values: FloatArray) -> FloatArray:
+        if self.converters is None:
+            return np.asarray(values, dtype=float)
+        return np.concatenate(
+            [
+                conv.convert(t, values[6 * i : 6 * i + 3], values[6 * i + 3 : 6 * i + 6])
+                for i, conv in enumerate(self.converters)
+            ]
+        )
+
+    def _restart(self, t: float) -> None:
+        c = self.counts
+        c.restarts += 1
+        if c.first_restart_t is None:
+            c.first_restart_t = t
+        for conv in self.converters or ():
+            conv.reset()
+        self.estimator.reset()
+
+    def _estimate(self, t: float, z: FloatArray) -> Estimate:
+        """One estimator step that never ends the session: an exception or a non-finite
+        estimate restarts the estimator and flags the sample ``no-estimate``."""
+        start = time.perf_counter()
+        try:
+            est = self.estimator.step(Measurement(t, z))
+            problem = None
+            if est.output is not None and not np.all(np.isfinite(est.output)):
+                problem = "a non-finite estimate"
+        except Exception as exc:  # any failure of one window: flag, restart, go on
+            _reraise_interrupt(exc)
+            problem = f"{type(exc).__name__}: {exc}"
+        if problem is None:
+            return est
+        self.counts.estimator_failures += 1
+        self.messages.show(
+            f"estimator failed ({problem}); sample flagged, estimator restarts", time.monotonic()
+        )
+        self._restart(t)
+        return Estimate(t, None, None, None, "no-estimate", (time.perf_counter() - start) * 1e3)
+
+    def _write(self, est: Estimate) -> None:
+        self.counts.estimates += 1
+        self.last = est
+        self.solve_ms.append(est.solve_ms)
+        if self.out is None:
+            return
+        ny = self.formulation.ny
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny)
+        self.out.write_row([f"{v:.10g}" if isinstance(v, float) else str(v) for v in row])
+
+    def _describe(self, est: Estimate) -> str:
+        outputs = self.formulation.outputs
+        names = [o.name for o in outputs]
+        v = dict(zip(names, est.output if est.output is not None else ()))
+        tip = ",".join(f"{v[k] * 1e3:.0f}" for k in ("x", "y", "z") if k in v)
+        angles = " ".join(
+            f"{o.name}={math.degrees(v[o.name]):.1f}" for o in outputs if o.unit == "rad"
+        )
+        return f"t={est.t:.2f} s tip=({tip}) mm {angles} deg [{est.status}]"
+
+    def status(self, rate_hz: float, behind_s: float, queued: int, waiting: bool = False) -> str:
+        c = self.counts
+        parts = ["WAITING for the device" if waiting else f"{rate_hz:5.1f} Hz"]
+        if self.solve_ms:
+            ms = np.asarray(self.solve_ms)
+            parts.append(f"solve {np.median(ms):.1f} ms (max {ms.max():.1f})")
+        if self.last is not None and self.last.output is not None:
+            parts.append(self._describe(self.last))
+        parts.append(
+            f"estimates {c.estimates}, garbled {c.garbled + c.partial + c.too_long}, "
+            f"out-of-order {c.out_of_order}, gaps {c.gaps} (~{c.missing} missing)"
+        )
+        if behind_s > self.settings.behind_s:
+            parts.append(f"BEHIND real time by {behind_s:.1f} s ({queued} lines queued)")
+        return ", ".join(parts)
+
+    def summary(self) -> str:
+        c = self.counts
+        msg = (
+            f"{c.samples} samples, {c.estimates} estimates; {c.garbled} garbled, "
+            f"{c.partial} partial and {c.too_long} over-long line(s), {c.out_of_order} out of "
+            f"order, {c.gaps} gap(s) (~{c.missing} samples missing), {c.disconnects} "
+            f"disconnect(s), {c.comments} device message(s), {c.clock_restarts} clock "
+            f"restart(s), {c.clock_wraps} clock wrap(s), {c.estimator_failures} estimator "
+            f"failure(s)"
+        )
+        if self.latency.n:
+            msg += (
+                f"; latency from line received to estimate written: median "
+                f"{self.latency.quantile(0.5):.2f} ms, p99 {self.latency.quantile(0.99):.2f} ms"
+            )
+        if c.reasons:
+            msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
+        if self.record is not None and c.first_restart_t is not None:
+            msg += (
+                f"; live restarted the estimator {c.restarts} time(s), first at "
+                f"t={c.first_restart_t:.3f} s: 'estimate' on the recording does not, so its "
+                "estimates match this run's only before that time"
+            )
+        return msg

@@ -1,0 +1,211 @@
+"""The parts of a live session without a port: line splitting, the device clock,
+device messages, estimator failures, non-finite estimates, and the files written
+row by row. Each test names the defect it guards against."""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.base import Estimate
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.settings import MHESettings, NoiseSettings
+from continuum_mhe.stream.clock import MILLIS_WRAP
+from continuum_mhe.stream.protocol import LineSplitter, header_fields
+from continuum_mhe.stream.recording import RowFile, check_target
+from continuum_mhe.stream.session import LiveSession, LiveSettings
+
+
+def _session(method: str = "ekf", out: io.StringIO | None = None) -> tuple[LiveSession, list[str]]:
+    said: list[str] = []
+    f = make_formulation("bend", Robot.single(), NoiseSettings())
+    est = make_estimator(method, f, MHESettings(horizon=10))
+    s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, out, say=said.append)
+    return s, said
+
+
+def _feed(s: LiveSession, t_ms: list[int]) -> None:
+    now = time.monotonic()
+    for i, t in enumerate(t_ms):
+        s.handle_line(f"{t},0.1,0.1".encode(), now + 0.01 * i)
+
+
+def test_line_splitter_accepts_lf_cr_crlf_and_drops_long_lines() -> None:
+    sp = LineSplitter(max_bytes=16)
+    assert sp.feed(b"a,1\nb,2\rc,3\r\nd") == [b"a,1", b"b,2", b"c,3"]
+    assert sp.feed(b",4\r") == [b"d,4"]
+    assert sp.feed(b"\ne,5\n") == [b"e,5"]  # the LF of a CRLF split across reads: no blank line
+    # a line longer than the cap is dropped whole, however it arrives, and counted
+    assert sp.feed(b"x" * 10) == []
+    assert sp.feed(b"x" * 1_000_000) == [] and sp.too_long == []
+    assert sp.feed(b"x\nf,6\n") == [b"f,6"] and sp.too_long == [1_000_011]
+    assert sp.feed(b"g,7") == [] and sp.pending() == b"g,7"
+
+
+def test_header_fields() -> None:
+    assert header_fields("# fields: t_ms,ax_1,ay_1") == ("t_ms", "ax_1", "ay_1")
+    assert header_fields("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)") == (
+        "t_ms",
+        "ax",
+        "ay",
+        "az",
+        "gx",
+        "gy",
+        "gz",
+    )
+    assert header_fields("# error: I2C read failed") is None
+
+
+def test_device_clock_restart_gives_estimates_and_says_so() -> None:
+    """Before: every sample after a reset button press was 'out of order' (0 estimates)."""
+    s, said = _session()
+    reset = list(range(0, 10000, 10)) + list(range(0, 5000, 10))
+    _feed(s, reset)
+    assert (s.counts.estimates, s.counts.out_of_order) == (len(reset), 0)
+    assert s.counts.clock_restarts == 1 and s.counts.restarts == 1
+    assert sum("device clock restarted (9990 ms -> 0 ms)" in m for m in said) == 1
+
+
+def test_device_clock_wrap_goes_on_seamlessly() -> None:
+    """Before: every sample after millis() wrapped was 'out of order'."""
+    out = io.StringIO()
+    s, said = _session(out=out)
+    wrap = [(MILLIS_WRAP - 3000 + 10 * i) % MILLIS_WRAP for i in range(800)]
+    _feed(s, wrap)
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_wraps) == (800, 0, 1)
+    assert s.counts.restarts == 0  # the time base is intact: no restart needed
+    t = np.array([float(r.split(",")[0]) for r in out.getvalue().splitlines()[1:]])
+    np.testing.assert_allclose(np.diff(t), 0.01, atol=1e-6)  # one step of 10 ms across the wrap
+    assert sum("wrapped" in m for m in said) == 1
+
+
+def test_small_backward_step_is_out_of_order_not_a_restart() -> None:
+    s, _ = _session()
+    _feed(s, [0, 10, 20, 30, 15, 40])
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (5, 1, 0)
+
+
+def test_device_messages_all_shown_repeats_rate_limited() -> None:
+    s, said = _session()
+    now = time.monotonic()
+    s.handle_line(b"# continuum_imu 1.0.0", now)
+    s.handle_line(b"# gyro bias rad/s: 0.01,0.02,0.03", now)
+    for i in range(50):
+        s.handle_line(b"# error: I2C read failed", now + 0.01 * i)
+    s.handle_line(b"# error: I2C read failed", now + 10.0)
+    shown = [m for m in said if m.startswith("device says:")]
+    assert shown[:3] == [
+        "device says: # continuum_imu 1.0.0",
+        "device says: # gyro bias rad/s: 0.01,0.02,0.03",
+        "device says: # error: I2C read failed",
+    ]
+    assert shown[3] == "device says: # error: I2C read failed (and 49 more time(s) since)"
+    assert s.counts.comments == 53
+
+
+def test_header_with_wrong_field_count_is_reported() -> None:
+    s, said = _session()
+    s.handle_line(b"# fields: t_ms,roll_1,pitch_1,roll_2,pitch_2", time.monotonic())
+    assert any("names 5 fields" in m and "expects 3" in m for m in said)
+
+
+def test_estimator_exception_never_ends_the_session() -> None:
+    """Before: any exception in an estimator ended `live`."""
+    out = io.StringIO()
+    s, said = _session("mhe", out)
+    real_step = s.estimator.step
+    calls = {"n": 0}
+
+    def flaky(m):  # type: ignore[no-untyped-def]
+        calls["n"] += 1
+        if calls["n"] == 20:
+            raise ValueError("Array must not contain infs or NaNs")
+        return real_step(m)
+
+    s.estimator.step = flaky  # type: ignore[method-assign]
+    _feed(s, list(range(0, 400, 10)))
+    rows = out.getvalue().splitlines()[1:]
+    assert len(rows) == 40 and s.counts.estimates == 40
+    assert rows[19].split(",")[-2] == "no-estimate" and rows[19].split(",")[1] == ""
+    assert s.counts.estimator_failures == 1 and s.counts.restarts == 1
+    assert all(r.split(",")[-2] == "ok" for r in rows[20:])
+    assert any("estimator failed (ValueError: Array must not" in m for m in said)
+
+
+def test_non_finite_estimate_is_never_written_as_ok() -> None:
+    """Before: the live writer wrote NaN rows with status ok."""
+    out = io.StringIO()
+    s, _ = _session("ekf", out)
+    real_step = s.estimator.step
+
+    def nan_at_5(m):  # type: ignore[no-untyped-def]
+        e = real_step(m)
+        if abs(m.t - 0.05) < 1e-9:
+            return Estimate(e.t, e.state, np.full_like(e.output, np.nan), None, "ok", 0.1)
+        return e
+
+    s.estimator.step = nan_at_5  # type: ignore[method-assign]
+    _feed(s, list(range(0, 200, 10)))
+    rows = [r.split(",") for r in out.getvalue().splitlines()[1:]]
+    assert not any("nan" in c.lower() for r in rows for c in r)
+    assert rows[5][-2] == "no-estimate" and s.counts.estimator_failures == 1
+
+
+def test_row_file_is_created_at_the_first_row_only(tmp_path: Path) -> None:
+    """Before: -o truncated an existing file at start even if no sample ever arrived."""
+    old = tmp_path / "est.csv"
+    old.write_text("precious\n")
+    f = RowFile(check_target(old, True, "-o"), ("t", "x"), overwrite=True)
+    f.close()
+    assert old.read_text() == "precious\n"
+    f = RowFile(old, ("t", "x"), overwrite=True)
+    f.write_row(["0.1", "1"])
+    f.write_row(["0.2", "2"])
+    assert old.read_text() == "t,x\n0.1,1\n0.2,2\n"  # on disk at once, before close
+    f.close()
+    with pytest.raises(InputError, match=r"est.csv: exists; give --overwrite"):
+        check_target(old, False, "-o")
+
+
+def test_row_file_replaces_a_symlink_never_its_target(tmp_path: Path) -> None:
+    """Before: -o followed a symlink and overwrote its target."""
+    target = tmp_path / "target.csv"
+    target.write_text("keep me\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    f = RowFile(check_target(link, True, "-o"), ("t",), overwrite=True)
+    f.write_row(["1.0"])
+    f.close()
+    assert target.read_text() == "keep me\n"
+    assert not link.is_symlink() and link.read_text() == "t\n1.0\n"
+
+
+def test_row_file_full_disk_keeps_whole_rows_and_names_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Before: a full disk left a partial last row and 'error: : No space left'."""
+    path = tmp_path / "est.csv"
+    f = RowFile(path, ("t", "x"), overwrite=False)
+    f.write_row(["0.1", "1"])
+    real_write = os.write
+
+    def half_then_full(fd: int, data: bytes) -> int:
+        if len(data) > 4:
+            return real_write(fd, data[:4])  # a short write: half a row reaches the disk
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "write", half_then_full)
+    with pytest.raises(InputError, match=r"est.csv: cannot write \(No space left on device\)"):
+        f.write_row(["0.123456", "2"])
+    monkeypatch.undo()
+    f.close()
+    assert path.read_text() == "t,x\n0.1,1\n"
