@@ -30,6 +30,7 @@ COMMANDS: tuple[tuple[str, str], ...] = (
         "observability of a robot: rank of the measurement Jacobian over the workspace",
     ),
     ("live", "estimate in real time from a serial IMU stream"),
+    ("calibrate", "accelerometer mean and noise, gyro bias, sample rate and mounting, at rest"),
     ("reproduce", "run every experiment of the paper: data, figures and report.md"),
     ("plot", "re-render the reproduction's figures from its saved data"),
     ("benchmark", "time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)"),
