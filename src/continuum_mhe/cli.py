@@ -49,6 +49,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "continuum_mhe.live",
     "continuum_mhe.reproduce.cli",
     "continuum_mhe.benchmark",
+    "continuum_mhe.viewer",
 )
 
 

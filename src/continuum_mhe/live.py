@@ -379,9 +379,11 @@ def run_live(
     session: LiveSession,
     conn: Any,
     plot: Any = None,
+    view: Any = None,
 ) -> int:
     """Read ``conn`` until the duration ends or Ctrl-C; every queued line is processed
-    before returning. Returns the exit status (0)."""
+    before returning; ``view.log_estimate(est)`` (``--view``) sees every estimate.
+    Returns the exit status (0)."""
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
@@ -407,8 +409,11 @@ def run_live(
                 kind = ""
             now = time.monotonic()
             if kind == "line":
-                if session.handle_line(payload, arrival) is not None:
+                est = session.handle_line(payload, arrival)
+                if est is not None:
                     window_n += 1
+                    if view is not None:
+                        view.log_estimate(est)
                 lag = now - arrival
                 if lag > settings.behind_s and behind_since is None:
                     behind_since = now
@@ -583,6 +588,13 @@ def cmd_live(args: argparse.Namespace) -> int:
         )
     converter = RawImuConverter(raw) if settings.fmt == "raw" else None
     estimator = make_estimator(args.method, formulation, mhe_settings_from_args(args))
+    sink = None
+    if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
+        from continuum_mhe.cli_options import viewer_sink_from_args
+        from continuum_mhe.viewer import BackboneView, require_rerun
+
+        require_rerun()
+        sink = viewer_sink_from_args(args)
     try:
         conn = open_port(settings.port, settings.baud)
     except Exception as exc:
@@ -594,6 +606,10 @@ def cmd_live(args: argparse.Namespace) -> int:
             raise InputError(f"{out}: folder {out.parent} does not exist")
         out_fh = out.open("w", newline="", encoding="utf-8")
     plot = LivePlot(formulation.robot.lengths) if args.plot else None
+    view = None if sink is None else BackboneView(
+        formulation.robot, formulation.outputs, sink, trail_s=args.trail,
+        points_per_section=args.points,
+    )  # fmt: skip
     try:
         session = LiveSession(settings, estimator, converter, out_fh)
         fmt = "t_ms,ax,ay,az,gx,gy,gz" if settings.fmt == "raw" else "t_ms,roll,pitch"
@@ -601,15 +617,17 @@ def cmd_live(args: argparse.Namespace) -> int:
             f"reading {settings.port} at {settings.baud} baud ({fmt}); "
             f"{args.method} estimates{' to ' + args.output if args.output else ''}; Ctrl-C stops"
         )
-        return run_live(settings, session, conn, plot)
+        return run_live(settings, session, conn, plot, view)
     finally:
         if out_fh is not None:
             out_fh.close()
+        if view is not None:
+            view.close()
 
 
 def register(subparsers: Any) -> None:
     """Add ``live`` and the raw-IMU / robot-log options of ``estimate``."""
-    from continuum_mhe.cli_options import add_mhe_options, add_model_options
+    from continuum_mhe.cli_options import add_live_view_option, add_mhe_options, add_model_options
     from continuum_mhe.estimators import METHODS
 
     est = subparsers.choices.get("estimate")
@@ -643,4 +661,5 @@ def register(subparsers: Any) -> None:
     add_model_options(p)
     add_mhe_options(p)
     add_raw_imu_options(p)
+    add_live_view_option(p)
     p.set_defaults(func=cmd_live)
