@@ -149,6 +149,17 @@ class ViewerSink:
         return f"http://{LOOPBACK}:{self.web_port}/?url={quote(proxy, safe='')}"
 
 
+def _check_free(port: int, option: str) -> None:
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as servers do: a listener
+        try:  # blocks, a closed connection's TIME_WAIT does not
+            s.bind((LOOPBACK, port))
+        except OSError:
+            raise InputError(
+                f"port {port} on {LOOPBACK} is in use; pick another with {option}"
+            ) from None
+
+
 def _wait_for_port(port: int, proc: subprocess.Popen[bytes], seconds: float = 20.0) -> None:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
@@ -267,6 +278,8 @@ class BackboneView:
                 )
             self.rec.spawn(port=sink.grpc_port, default_blueprint=blueprint)
         else:
+            _check_free(sink.web_port, "--web-port")
+            _check_free(sink.grpc_port, "--grpc-port")
             cmd = [
                 sys.executable, "-m", "rerun", "--serve-web", "--bind", LOOPBACK,
                 "--web-viewer-port", str(sink.web_port), "--port", str(sink.grpc_port),
@@ -435,8 +448,11 @@ class BackboneView:
                 self._tmp = None
             elif self.sink.kind == "web" and wait and self._web is not None:
                 print(f"serving the view at {self.sink.web_url} (Ctrl-C stops)", file=sys.stderr)
-                while self._web.poll() is None:
-                    time.sleep(0.2)
+                try:
+                    while self._web.poll() is None:
+                        time.sleep(0.2)
+                except KeyboardInterrupt:
+                    print("stopped serving the view", file=sys.stderr)
         finally:
             if self._tmp is not None:
                 self.rec.disconnect()
