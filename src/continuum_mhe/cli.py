@@ -100,6 +100,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     msg = f"wrote {len(series.t)} estimates to {out} ({summary})"
     if data.skipped:
         msg += f"; skipped {len(data.skipped)} bad sample(s), first: {data.skipped[0]}"
+    for note in data.notes:  # e.g. how the samples of several Imu topics paired
+        print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
 

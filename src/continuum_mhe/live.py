@@ -548,12 +548,15 @@ def input_options(args: argparse.Namespace) -> Any:
     """``robot_logs.InputOptions`` for ``estimate`` from parsed options."""
     from continuum_mhe.io.robot_logs import InputOptions
 
+    topics = tuple(getattr(args, "topic", None) or ())
     gyro_std = float(getattr(args, "gyro_std", 0.05))
     if not (math.isfinite(gyro_std) and gyro_std > 0):
         raise InputError(f"--gyro-std must be positive, got {gyro_std}")
     return InputOptions(
         raw=raw_settings(args),
-        topic=getattr(args, "topic", None),
+        topic=topics[0] if len(topics) == 1 else None,
+        topics=topics,
+        pair_tolerance=getattr(args, "pair_tolerance", None),
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
         degrees=bool(getattr(args, "degrees", False)),
@@ -634,7 +637,19 @@ def register(subparsers: Any) -> None:
     if est is not None:
         add_raw_imu_options(est)
         g = est.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
-        g.add_argument("--topic", help="sensor_msgs/msg/Imu topic (default: the only one)")
+        g.add_argument(
+            "--topic",
+            action="append",
+            help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
+            "once per IMU in the robot file's order",
+        )
+        g.add_argument(
+            "--pair-tolerance",
+            type=float,
+            metavar="SECONDS",
+            help="several topics: largest header-stamp difference of paired samples "
+            "(default: half of the first topic's median sample period)",
+        )
         g.add_argument(
             "--orientation",
             action="store_true",

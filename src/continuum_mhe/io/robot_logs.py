@@ -252,6 +252,10 @@ class InputOptions:
     Attributes:
         raw: raw-IMU conversion (raw CSV, bags, MCAP).
         topic: Imu topic in a bag or MCAP file (None: the only one).
+        topics: one Imu topic per IMU, in the robot file's order, for a robot with
+            several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
+        pair_tolerance: largest header-stamp difference of paired samples, s (None:
+            half of IMU 1's median sample period).
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
         gyro_std: gyro noise, rad/s, for the direct model.
@@ -261,6 +265,8 @@ class InputOptions:
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
     topic: str | None = None
+    topics: tuple[str, ...] = ()
+    pair_tolerance: float | None = None
     use_orientation: bool = False
     gyro_std: float = 0.05
     degrees: bool = False
@@ -276,6 +282,7 @@ class EstimateInput:
         t: (n,) s; z: (n, nz) measurements for ``formulation``.
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
         skipped: descriptions of skipped samples.
+        notes: one-line reports for the user (e.g. how samples of several topics paired).
     """
 
     kind: str
@@ -284,6 +291,7 @@ class EstimateInput:
     formulation: Formulation
     t0_ns: int = 0
     skipped: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
 
 
 def _formulation_for(
@@ -307,6 +315,8 @@ def load_estimate_input(
 ) -> EstimateInput:
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) as measurements."""
     p = Path(path)
+    if is_robot_log(p) and (formulation.robot.n_imus > 1 or len(options.topics) > 1):
+        return _load_topics(p, options, formulation)
     if is_robot_log(p):
         log = read_imu_log(p, options.topic)
         f = _formulation_for(options, formulation, True, p)
@@ -337,6 +347,28 @@ def load_estimate_input(
     tilt = read_measurements(p, degrees=options.degrees, skip_bad=options.skip_bad, n_imus=n_imus)
     f = _formulation_for(options, formulation, False, p)
     return EstimateInput("tilt-csv", tilt.t, tilt.z, f, 0, tilt.skipped)
+
+
+def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
+    """One Imu topic per IMU, paired by header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
+    from continuum_mhe.io.imu_topics import read_imu_topics
+
+    robot = formulation.robot
+    paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+    f = _formulation_for(options, formulation, True, p)
+    blocks = []
+    for log, place in zip(paired.logs, robot.imus):
+        if options.use_orientation:
+            if not np.all(np.isfinite(log.orientation)):
+                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+            blocks.append(tilt_from_quaternion(log.orientation))
+        else:
+            blocks.append(
+                _convert(p, paired.t, log.acc, log.gyr, _imu_settings(options.raw, place))
+            )
+    return EstimateInput(
+        "log", paired.t, np.hstack(blocks), f, paired.t0_ns, paired.skipped, (paired.report(),)
+    )
 
 
 def _imu_settings(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
