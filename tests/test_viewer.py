@@ -77,7 +77,7 @@ def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
         "/world/estimate/tip_trail", "/world/truth/backbone", "/world/truth/tip",
         "/world/truth/tip_trail", "/status",
         *(f"/world/estimate/imu_{i + 1}" for i in range(robot.n_imus)),
-        *(f"/outputs/{o.unit}/{o.name}" for o in pcc_outputs(robot.n_sections)),
+        *(f"/outputs/{o.unit}" for o in pcc_outputs(robot.n_sections)),
     }  # fmt: skip
     assert expected <= set(rows)
     assert not {e for e in rows if e.startswith("/world")} - expected
@@ -87,9 +87,13 @@ def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
         assert timed(f"/world/estimate/imu_{i + 1}") == _ns(est.t)
     assert timed("/world/estimate/tip_trail") == _ns(est.t[1:])
     assert timed("/world/truth/backbone") == _ns(truth.t)
-    assert timed("/outputs/rad/theta_2") == _ns(est.t)
-    got = [r["Scalars:scalars"][0] for _, r in rows["/outputs/rad/theta_2"]]
-    np.testing.assert_allclose(got, est.column("theta_2"), rtol=1e-6)
+    for unit in ("m", "rad"):
+        assert timed(f"/outputs/{unit}") == _ns(est.t)
+        (names,) = [r["SeriesLines:names"] for t, r in rows[f"/outputs/{unit}"] if t is None]
+        assert names == [o.name for o in pcc_outputs(robot.n_sections) if o.unit == unit]
+        got = np.array([r["Scalars:scalars"] for t, r in rows[f"/outputs/{unit}"] if t is not None])
+        want = np.column_stack([est.column(n) for n in names])
+        np.testing.assert_allclose(got, want, rtol=1e-6)
 
 
 def test_view_geometry_matches_outputs_and_lengths(two_section: dict[str, Any]) -> None:
@@ -226,3 +230,68 @@ def test_view_user_mistakes_are_one_line(
         assert main(["view", est, "--robot", "two-section", "--spawn"]) == 2
         assert "needs a display" in _one_error_line(capsys)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_live_hook_max_hz(tmp_path: Path) -> None:
+    """At 100 Hz of sample time and at most 30 drawn per second: every 4th estimate
+    (0.03 s < 1/30 s < 0.04 s), and the one where the status changes."""
+    robot = Robot.single(0.2)
+    outs = pcc_outputs(1)
+    out = tmp_path / "v.rrd"
+    view = BackboneView(robot, outs, ViewerSink("save", out), max_hz=30.0)
+    for k in range(20):
+        status = "ok" if k < 10 else "dropout"
+        view.log_estimate(Estimate(0.01 * k, None, np.array([0, 0, 0.2, 0.1, 0.2]), None,
+                                   status, 0.1))  # type: ignore[arg-type]  # fmt: skip
+    view.close()
+    drawn = [t for t, _ in read_rrd(out)["/world/estimate/backbone"]]
+    assert drawn == _ns(0.01 * np.array([0, 4, 8, 10, 14, 18]))
+
+
+def test_imu_frame_includes_its_mounting(tmp_path: Path) -> None:
+    """A straight robot: the local frame is the base frame, so an IMU mounted with yaw
+    90 deg has its sensor x axis along base y (``v_tip = Rz(90) v_sensor``)."""
+    from continuum_mhe.model.robot import ImuPlacement, Section
+    from continuum_mhe.viewer import backbone_geometry
+
+    robot = Robot((Section(0.1), Section(0.2)), (ImuPlacement(1, 0.5, (0.0, 0.0, 90.0)),))
+    g = backbone_geometry(robot, np.zeros((1, 2, 2)), 4)
+    np.testing.assert_allclose(g.imu_rotation[0, 0], [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
+                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(g.imu_position[0, 0], [0, 0, 0.2], atol=1e-12)
+    np.testing.assert_allclose(g.sections[0, 1, :, 2], np.linspace(0.1, 0.3, 5), atol=1e-12)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_live_view_through_a_pty(tmp_path: Path) -> None:
+    """``live --view FILE.rrd --view-hz 0`` on a pseudo-terminal: the file holds one
+    backbone per estimate row of ``-o``, at the same times."""
+    import os
+    import signal
+    import subprocess
+
+    from test_live import SAFETY_S, _new_pty, _raw_lines, _rows, _wait_for
+
+    port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
+    master = _new_pty(port)
+    cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port),
+           "--method", "ekf", "-o", str(out), "--view", str(rrd), "--view-hz", "0"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    lines = _raw_lines(0, 30)
+    try:
+        _wait_for(lambda: out.exists(), "live to open its output")
+        for line in lines:
+            os.write(master, line.encode())
+        _wait_for(lambda: _rows(out) >= len(lines), "the estimates")
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=SAFETY_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    assert proc.returncode == 0, err
+    est = read_state_table(out, ())
+    rows = read_rrd(rrd)
+    assert [t for t, _ in rows["/world/estimate/backbone"]] == _ns(est.t)
+    tips = np.array([r["Points3D:positions"][0] for _, r in rows["/world/estimate/tip"]])
+    np.testing.assert_allclose(tips, np.column_stack([est.column(c) for c in "xyz"]), atol=1e-6)

@@ -140,8 +140,15 @@ def add_live_view_option(p: argparse.ArgumentParser) -> None:
         nargs="?",
         const="spawn",
         metavar="spawn|web|FILE.rrd",
-        help="3D view of every estimate in Rerun: the native viewer (default), the web "
+        help="3D view of the estimates in Rerun: the native viewer (default), the web "
         "viewer on 127.0.0.1, or a .rrd file",
+    )
+    g.add_argument(
+        "--view-hz",
+        type=float,
+        default=30.0,
+        help="draw at most this many estimates per second of sample time (default 30; "
+        "0: every estimate); status changes and gaps are always drawn",
     )
     _add_port_options(g)
 

@@ -611,7 +611,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     plot = LivePlot(formulation.robot.lengths) if args.plot else None
     view = None if sink is None else BackboneView(
         formulation.robot, formulation.outputs, sink, trail_s=args.trail,
-        points_per_section=args.points,
+        points_per_section=args.points, max_hz=args.view_hz,
     )  # fmt: skip
     try:
         session = LiveSession(settings, estimator, converter, out_fh)

@@ -14,7 +14,8 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
   from the previous tip, shown for the last ``trail_s`` seconds (a blueprint override), so
   the file grows by a constant amount per sample.
 - ``world/truth/{backbone,tip,tip_trail}``: the same for a truth CSV, where given.
-- ``outputs/<unit>/<name>``: every output as a scalar, grouped by unit (``m``, ``rad``).
+- ``outputs/<unit>``: the outputs of that unit (``m``, ``rad``) as one batch of scalars
+  per sample, named by a static ``SeriesLines`` (``x``, ``theta_1``...).
 - ``status``: a text line whenever the status changes (``dropout``, ``reset``...).
 
 A sample without an estimate clears ``world/estimate`` (no stale shape is ever shown) and
@@ -35,17 +36,19 @@ import time
 import uuid
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import quote
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_state_table
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs, section_bends
-from continuum_mhe.model.pcc import pose_at
+from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate
 
@@ -89,6 +92,25 @@ class BackboneGeometry:
         return self.sections[:, -1, -1]
 
 
+@cache
+def _geometry_function(
+    lengths: tuple[float, ...], places: tuple[tuple[int, float], ...], points: int
+) -> ca.Function:
+    """One CasADi function: bends (2 n_sections,) -> backbone points (3, n_sections *
+    points) and IMU poses (9 n_imus column-major rotations, 3 n_imus positions)."""
+    u = ca.SX.sym("u", 2 * len(lengths))
+    bends = [(u[2 * k], u[2 * k + 1]) for k in range(len(lengths))]
+    pts = [
+        pose_at_sym(bends, lengths, k, j / points)[1]
+        for k in range(len(lengths))
+        for j in range(1, points + 1)
+    ]
+    poses = [pose_at_sym(bends, lengths, sec, at) for sec, at in places]
+    rot = ca.vertcat(*[ca.reshape(r, 9, 1) for r, _ in poses])
+    pos = ca.vertcat(*[p for _, p in poses])
+    return ca.Function("backbone_geometry", [u], [ca.horzcat(*pts), rot, pos])
+
+
 def backbone_geometry(
     robot: Robot, bends: FloatArray, points_per_section: int = 16
 ) -> BackboneGeometry:
@@ -96,21 +118,18 @@ def backbone_geometry(
     u = np.asarray(bends, dtype=float)
     if u.ndim != 3 or u.shape[1:] != (robot.n_sections, 2):
         raise ValueError(f"bends must be (n, {robot.n_sections}, 2), got {u.shape}")
-    lengths = robot.lengths
-    n = u.shape[0]
-    sections = np.empty((n, robot.n_sections, points_per_section + 1, 3))
-    start = np.zeros((n, 3))
-    for k in range(robot.n_sections):
-        sections[:, k, 0] = start
-        for j in range(1, points_per_section + 1):
-            sections[:, k, j] = pose_at(u, lengths, k, j / points_per_section)[1]
-        start = sections[:, k, -1]
-    rot = np.empty((n, robot.n_imus, 3, 3))
-    pos = np.empty((n, robot.n_imus, 3))
-    for i, imu in enumerate(robot.imus):
-        r, p = pose_at(u, lengths, imu.section, imu.at)
-        rot[:, i] = r @ mount_rotation(imu.mount_rpy)
-        pos[:, i] = p
+    n, n_sec, m = u.shape[0], robot.n_sections, points_per_section
+    places = tuple((imu.section, float(imu.at)) for imu in robot.imus)
+    fn = _geometry_function(robot.lengths, places, m)
+    pts, rot, pos = (np.asarray(v, dtype=float) for v in fn.map(n)(u.reshape(n, -1).T))
+    pts = pts.reshape(3, n, n_sec, m).transpose(1, 2, 3, 0)  # (n, n_sec, m, 3)
+    starts = np.concatenate([np.zeros((n, 1, 3)), pts[:, :-1, -1]], axis=1)
+    sections = np.concatenate([starts[:, :, None, :], pts], axis=2)
+    n_imus = robot.n_imus
+    rot = rot.reshape(n_imus, 3, 3, n).transpose(3, 0, 2, 1)  # column-major blocks
+    mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
+    rot = np.einsum("nkij,kjl->nkil", rot, mounts)
+    pos = pos.reshape(n_imus, 3, n).transpose(2, 0, 1)
     return BackboneGeometry(sections, rot, pos)
 
 
@@ -207,9 +226,12 @@ class BackboneView:
         trail_s: float = 10.0,
         points_per_section: int = 16,
         name: str = "continuum-mhe",
+        max_hz: float | None = None,
     ) -> None:
         if not (math.isfinite(trail_s) and trail_s > 0):
             raise InputError(f"--trail must be positive seconds, got {trail_s}")
+        if max_hz is not None and not (math.isfinite(max_hz) and max_hz >= 0):
+            raise InputError(f"--view-hz must be 0 (every estimate) or positive, got {max_hz}")
         if points_per_section < 1:
             raise InputError(f"--points must be at least 1, got {points_per_section}")
         self.rr = rr = require_rerun()
@@ -221,6 +243,13 @@ class BackboneView:
         self._tmp: Path | None = None
         self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
         self._status = ""
+        self._min_step = 1.0 / max_hz if max_hz else 0.0
+        self._drawn_t: float | None = None
+        #: output columns by unit, in ``outputs`` order
+        self._units = {
+            u: [j for j, o in enumerate(self.outputs) if o.unit == u]
+            for u in sorted({o.unit for o in self.outputs})
+        }
         self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
         self.rec.send_recording_name(name)
         blueprint = self._blueprint(trail_s)
@@ -304,6 +333,9 @@ class BackboneView:
             up = rr.ViewCoordinates.RIGHT_HAND_Z_DOWN
         rec.log("world", up, static=True)
         rec.log("world/base", rr.TransformAxes3D(0.15 * self.robot.length), static=True)
+        for unit, cols in self._units.items():
+            names = [self.outputs[j].name for j in cols]
+            rec.log(f"outputs/{unit}", rr.SeriesLines(names=names), static=True)
 
     # logging
     def _bends(self, values: FloatArray) -> FloatArray:
@@ -327,12 +359,21 @@ class BackboneView:
         entity at a time (``log_rows`` sends a whole recording as columns)."""
         rr, rec, size = self.rr, self.rec, self.robot.length
         rec.set_time("t", duration=float(est.t))
+        changed = str(est.status) != self._status
         self._log_status(str(est.status))
         out = est.output
         if out is None or est.status == "no-estimate" or not np.all(np.isfinite(out)):
             rec.log("world/estimate", rr.Clear(recursive=True))
             self._prev_tip["estimate"] = None
+            self._drawn_t = None
             return
+        if (
+            not changed
+            and self._drawn_t is not None
+            and 0 <= est.t - self._drawn_t < self._min_step
+        ):
+            return  # max_hz: drawn often enough (status changes and gaps always are)
+        self._drawn_t = float(est.t)
         geom = backbone_geometry(self.robot, self._bends(out[None, :]), self.points_per_section)
         colours, labels = self._style("estimate")
         rec.log(
@@ -356,8 +397,8 @@ class BackboneView:
                                mat3x3=geom.imu_rotation[0, i]),
                 rr.TransformAxes3D(0.1 * size),
             )  # fmt: skip
-        for o, v in zip(self.outputs, out):
-            rec.log(f"outputs/{o.unit}/{o.name}", rr.Scalars(float(v)))
+        for unit, cols in self._units.items():
+            rec.log(f"outputs/{unit}", rr.Scalars(out[cols]))
 
     def _send_shapes(self, who: str, t: FloatArray, geom: BackboneGeometry,
                      joined: NDArray[np.bool_]) -> None:  # fmt: skip
@@ -421,11 +462,14 @@ class BackboneView:
         geom = backbone_geometry(self.robot, self._bends(values[has]), self.points_per_section)
         joined = (has & np.concatenate([[False], has[:-1]]))[has]
         self._send_shapes("estimate", t[has], geom, joined)
-        for j, o in enumerate(self.outputs):
+        n = int(has.sum())
+        for unit, cols in self._units.items():
             self.rec.send_columns(
-                f"outputs/{o.unit}/{o.name}",
+                f"outputs/{unit}",
                 indexes=[self.rr.TimeColumn("t", duration=t[has])],
-                columns=self.rr.Scalars.columns(scalars=values[has, j]),
+                columns=self.rr.Scalars.columns(scalars=values[has][:, cols].ravel()).partition(
+                    [len(cols)] * n
+                ),
             )
         self._prev_tip["estimate"] = geom.tip[-1] if has[-1] else None
 
