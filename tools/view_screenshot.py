@@ -92,6 +92,7 @@ def _screenshot(ws_url: str, url: str, wait_s: float, out: Path) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("docs/figures/viewer_two_section.png"))
+    ap.add_argument("--trail", default="10", help="view --trail: seconds of tip trail")
     ap.add_argument("--wait", type=float, default=45.0, help="seconds before the screenshot")
     ap.add_argument("--web-port", type=int, default=9191)
     ap.add_argument("--grpc-port", type=int, default=9877)
@@ -108,7 +109,8 @@ def main() -> int:
         _run("estimate", str(d / "m.csv"), "-o", str(d / "e.csv"), *robot)
         view = subprocess.Popen(
             [*CLI, "view", str(d / "e.csv"), *robot, "--truth", str(d / "t.csv"), "--serve-web",
-             "--web-port", str(args.web_port), "--grpc-port", str(args.grpc_port)],
+             "--web-port", str(args.web_port), "--grpc-port", str(args.grpc_port),
+             "--trail", args.trail],
             stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         browser = None
