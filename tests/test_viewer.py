@@ -295,3 +295,36 @@ def test_live_view_through_a_pty(tmp_path: Path) -> None:
     assert [t for t, _ in rows["/world/estimate/backbone"]] == _ns(est.t)
     tips = np.array([r["Points3D:positions"][0] for _, r in rows["/world/estimate/tip"]])
     np.testing.assert_allclose(tips, np.column_stack([est.column(c) for c in "xyz"]), atol=1e-6)
+
+
+def test_blueprint_shows_the_trail_for_its_seconds(tmp_path: Path) -> None:
+    """The recording's blueprint limits both tip trails to the last ``--trail`` seconds."""
+    from rerun.chunk import RrdReader
+
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    out = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--save", str(out), "--trail", "2.5"]) == 0
+    reader = RrdReader(out)
+    (blueprint,) = reader.blueprints()
+    ranges = {}
+    for chunk in reader.stream(store=blueprint).to_chunks():
+        rb = chunk.to_record_batch()
+        if "VisibleTimeRanges:ranges" in rb.schema.names:
+            ranges[chunk.entity_path.split("/overrides/")[1]] = rb.column(
+                "VisibleTimeRanges:ranges"
+            ).to_pylist()[0]
+    want = [{"timeline": "t", "range": {"start": -2_500_000_000, "end": 0}}]
+    assert ranges == {
+        "world/estimate/tip_trail/visualizers": want,
+        "world/truth/tip_trail/visualizers": want,
+    }
+
+
+def test_live_view_without_rerun_is_one_line_before_the_port(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    args = ["live", "--port", str(tmp_path / "no-such-port"), "--view", str(tmp_path / "v.rrd")]
+    assert main(args) == 2
+    assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
