@@ -75,7 +75,7 @@ def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
     expected = {
         "/world", "/world/base", "/world/estimate/backbone", "/world/estimate/tip",
         "/world/estimate/tip_trail", "/world/truth/backbone", "/world/truth/tip",
-        "/world/truth/tip_trail", "/status",
+        "/world/truth/tip_trail", "/world/truth/section_ends", "/status",
         *(f"/world/estimate/imu_{i + 1}" for i in range(robot.n_imus)),
         *(f"/outputs/{o.unit}" for o in pcc_outputs(robot.n_sections)),
     }  # fmt: skip
@@ -87,6 +87,12 @@ def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
         assert timed(f"/world/estimate/imu_{i + 1}") == _ns(est.t)
     assert timed("/world/estimate/tip_trail") == _ns(est.t[1:])
     assert timed("/world/truth/backbone") == _ns(truth.t)
+    ends = np.array([r["Points3D:positions"] for _, r in rows["/world/truth/section_ends"]])
+    for k in range(robot.n_sections):
+        want = np.column_stack([truth.column(f"{c}_{k + 1}") for c in "xyz"])
+        np.testing.assert_allclose(ends[:, k], want, atol=1e-6)
+    tip = np.array([r["Points3D:positions"][0] for _, r in rows["/world/truth/tip"]])
+    np.testing.assert_allclose(tip, np.column_stack([truth.column(c) for c in "xyz"]), atol=1e-6)
     for unit in ("m", "rad"):
         assert timed(f"/outputs/{unit}") == _ns(est.t)
         (names,) = [r["SeriesLines:names"] for t, r in rows[f"/outputs/{unit}"] if t is None]
@@ -328,3 +334,21 @@ def test_live_view_without_rerun_is_one_line_before_the_port(
     args = ["live", "--port", str(tmp_path / "no-such-port"), "--view", str(tmp_path / "v.rrd")]
     assert main(args) == 2
     assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
+
+
+def test_truth_without_bends_draws_its_tip_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth CSV with only ``t, x, y, z`` (as ``evaluate`` accepts): its tip and trail,
+    no backbone, and the summary line says so."""
+    est, truth = tmp_path / "e.csv", tmp_path / "t.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    truth.write_text("t,x,y,z\n0,0.01,0,0.2\n0.05,0.02,0,0.2\n")
+    out = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--truth", str(truth), "--save", str(out)]) == 0
+    assert "tip and section ends only" in capsys.readouterr().err
+    rows = read_rrd(out)
+    assert "/world/truth/backbone" not in rows and "/world/truth/section_ends" not in rows
+    tips = [r["Points3D:positions"][0] for _, r in rows["/world/truth/tip"]]
+    np.testing.assert_allclose(tips, [[0.01, 0, 0.2], [0.02, 0, 0.2]], atol=1e-7)
+    assert [t for t, _ in rows["/world/truth/tip_trail"]] == [50_000_000]

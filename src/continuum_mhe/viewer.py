@@ -13,7 +13,8 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
 - ``world/estimate/tip``: the tip; ``world/estimate/tip_trail``: one segment per estimate,
   from the previous tip, shown for the last ``trail_s`` seconds (a blueprint override), so
   the file grows by a constant amount per sample.
-- ``world/truth/{backbone,tip,tip_trail}``: the same for a truth CSV, where given.
+- ``world/truth/{tip,tip_trail}``: a truth CSV's ``x, y, z``; ``world/truth/section_ends``
+  its section ends; ``world/truth/backbone`` the PCC curve through its bends, where given.
 - ``outputs/<unit>``: the outputs of that unit (``m``, ``rad``) as one batch of scalars
   per sample, named by a static ``SeriesLines`` (``x``, ``theta_1``...).
 - ``status``: a text line whenever the status changes (``dropout``, ``reset``...).
@@ -400,10 +401,11 @@ class BackboneView:
         for unit, cols in self._units.items():
             rec.log(f"outputs/{unit}", rr.Scalars(out[cols]))
 
-    def _send_shapes(self, who: str, t: FloatArray, geom: BackboneGeometry,
-                     joined: NDArray[np.bool_]) -> None:  # fmt: skip
-        """Columns of one recording's shapes at times ``t`` (n,); ``joined[k]`` is True
-        where sample ``k`` continues the trail from sample ``k - 1``."""
+    def _send_shapes(self, who: str, t: FloatArray, geom: BackboneGeometry | None,
+                     tips: FloatArray, joined: NDArray[np.bool_]) -> None:  # fmt: skip
+        """Columns of one recording's shapes at times ``t`` (n,): the backbone and IMU
+        frames of ``geom`` (if any), the ``tips`` (n, 3) m and their trail; ``joined[k]``
+        is True where sample ``k`` continues the trail from sample ``k - 1``."""
         rr, rec, size = self.rr, self.rec, self.robot.length
         n, n_sec = len(t), self.robot.n_sections
         colours, labels = self._style(who)
@@ -412,16 +414,16 @@ class BackboneView:
             rec.send_columns(entity, indexes=[rr.TimeColumn("t", duration=times)],
                              columns=columns)  # fmt: skip
 
-        send(
-            f"world/{who}/backbone", t,
-            rr.LineStrips3D.columns(
-                strips=list(geom.sections.reshape(n * n_sec, -1, 3)),
-                radii=[0.01 * size] * (n * n_sec),
-                colors=colours * n,
-                labels=None if labels is None else labels * n,
-            ).partition([n_sec] * n),
-        )  # fmt: skip
-        tips = geom.tip
+        if geom is not None:
+            send(
+                f"world/{who}/backbone", t,
+                rr.LineStrips3D.columns(
+                    strips=list(geom.sections.reshape(n * n_sec, -1, 3)),
+                    radii=[0.01 * size] * (n * n_sec),
+                    colors=colours * n,
+                    labels=None if labels is None else labels * n,
+                ).partition([n_sec] * n),
+            )  # fmt: skip
         send(f"world/{who}/tip", t,
              rr.Points3D.columns(positions=tips, radii=[0.015 * size] * n))  # fmt: skip
         k = np.flatnonzero(joined)
@@ -434,7 +436,7 @@ class BackboneView:
                     colors=[TRUTH_COLOUR if who == "truth" else TRAIL_COLOUR] * len(k),
                 ),
             )  # fmt: skip
-        if who == "truth":
+        if who == "truth" or geom is None:
             return
         for i in range(self.robot.n_imus):
             send(
@@ -461,7 +463,7 @@ class BackboneView:
             return
         geom = backbone_geometry(self.robot, self._bends(values[has]), self.points_per_section)
         joined = (has & np.concatenate([[False], has[:-1]]))[has]
-        self._send_shapes("estimate", t[has], geom, joined)
+        self._send_shapes("estimate", t[has], geom, geom.tip, joined)
         n = int(has.sum())
         for unit, cols in self._units.items():
             self.rec.send_columns(
@@ -473,12 +475,35 @@ class BackboneView:
             )
         self._prev_tip["estimate"] = geom.tip[-1] if has[-1] else None
 
-    def log_truth(self, t: FloatArray, values: FloatArray) -> None:
-        """Send a truth recording: ``values`` (n, n_outputs) in ``outputs`` order."""
+    def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
+        """Send a truth recording: ``values`` (n, len(names)), columns named as in a truth
+        CSV. The tip and its trail are its ``x, y, z``; each section end ``x_k, y_k,
+        z_k`` it has is a point (``world/truth/section_ends``); the backbone is drawn by
+        the PCC model from its ``theta, phi`` columns, where it has them all (on rod
+        data the PCC curve through the true bends, not the rod itself). Returns whether
+        the backbone was drawn."""
+        t = np.asarray(t, dtype=float)
         values = np.asarray(values, dtype=float)
-        geom = backbone_geometry(self.robot, self._bends(values), self.points_per_section)
-        joined = np.arange(len(t)) > 0
-        self._send_shapes("truth", np.asarray(t, dtype=float), geom, joined)
+        col = {c: i for i, c in enumerate(names)}
+        tips = values[:, [col[c] for c in "xyz"]]
+        geom = None
+        if all(o.name in col for o in self.outputs if o.unit == "rad"):
+            ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
+            geom = backbone_geometry(self.robot, self._bends(ordered), self.points_per_section)
+        self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0)
+        ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
+        if ends:
+            pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
+            self.rec.send_columns(
+                "world/truth/section_ends",
+                indexes=[self.rr.TimeColumn("t", duration=t)],
+                columns=self.rr.Points3D.columns(
+                    positions=pts.reshape(-1, 3),
+                    radii=[0.012 * self.robot.length] * pts.shape[0] * pts.shape[1],
+                    colors=[TRUTH_COLOUR] * pts.shape[0] * pts.shape[1],
+                ).partition([len(ends)] * len(t)),
+            )
+        return geom is not None
 
     def close(self, wait: bool = False) -> None:
         """Finish the stream: rename the .rrd into place, or (``wait``) keep the web
@@ -534,15 +559,24 @@ def replay(
     cols = _columns(estimates, est.names, outputs, robot)
     truth_table = None
     if truth is not None:
-        truth_table = read_state_table(truth, ())
-        truth_cols = _columns(truth, truth_table.names, outputs, robot)
+        truth_table = read_state_table(truth)  # t, x, y, z and any per-section columns
+        extra = [n for n in truth_table.names if n.startswith("theta_")]
+        if len(extra) > (robot.n_sections if robot.n_sections > 1 else 0):
+            raise InputError(f"{truth}: its columns ({', '.join(extra)}) do not fit the "
+                             f"robot ({robot.describe()}); pass --robot")  # fmt: skip
     view = BackboneView(
         robot, outputs, sink, trail_s=trail_s, points_per_section=points_per_section,
         name=Path(estimates).name,
     )  # fmt: skip
+    with_truth = ""
     try:
         if truth_table is not None:
-            view.log_truth(truth_table.t, truth_table.values[:, truth_cols])
+            drawn_truth = view.log_truth(truth_table.t, truth_table.values, truth_table.names)
+            with_truth = ", with truth" + (
+                ""
+                if drawn_truth
+                else " (tip and section ends only: no theta/phi columns for every section)"
+            )
         view.log_rows(est.t, est.values[:, cols], list(est.status))
     except BaseException:
         view.close()
@@ -554,8 +588,7 @@ def replay(
         "web": "sent to the web viewer",
     }[sink.kind]
     print(
-        f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}"
-        f"{', with truth' if truth_table is not None else ''}",
+        f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{with_truth}",
         file=sys.stderr,
     )
     view.close(wait=True)
