@@ -352,3 +352,54 @@ def test_truth_without_bends_draws_its_tip_only(
     tips = [r["Points3D:positions"][0] for _, r in rows["/world/truth/tip"]]
     np.testing.assert_allclose(tips, [[0.01, 0, 0.2], [0.02, 0, 0.2]], atol=1e-7)
     assert [t for t, _ in rows["/world/truth/tip_trail"]] == [50_000_000]
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_serve_web_on_loopback_until_ctrl_c(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``view --serve-web``: the web viewer's page answers on 127.0.0.1 at the printed
+    address, a second server on the same port is one line, and Ctrl-C stops both the
+    command (exit 0) and the server (the port closes)."""
+    import signal
+    import socket
+    import subprocess
+    import urllib.request
+
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    web, grpc = _free_port(), _free_port()
+    cmd = [sys.executable, "-m", "continuum_mhe.cli", "view", str(est), "--serve-web",
+           "--web-port", str(web), "--grpc-port", str(grpc)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr is not None
+        line = ""
+        while "serving the view at" not in line:
+            line = proc.stderr.readline()
+            assert line or proc.poll() is None, "view exited before serving"
+        url = line.split(" at ")[1].split()[0]
+        assert url.startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A")
+        with urllib.request.urlopen(url, timeout=30) as page:
+            assert page.status == 200
+        # the port is taken: one line, before anything starts (in this process)
+        assert main(cmd[3:]) == 2
+        assert _one_error_line(capsys).endswith(
+            f"port {web} on 127.0.0.1 is in use; pick another with --web-port"
+        )
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped serving the view" in err
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", web)) != 0
