@@ -90,6 +90,23 @@ def write_ros2_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
     return path
 
 
+def write_ros1_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(path) as w:
+        conns = [w.add_connection(t, IMU, typestore=store) for t in TOPICS]
+        msgs = [
+            (int(ns), c, store.serialize_ros1(_imu_msg(store, int(ns), a, g, True), IMU))
+            for c, imu in zip(conns, imus)
+            for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
+        ]
+        for ns, conn, data in sorted(msgs, key=lambda m: m[0]):
+            w.write(conn, ns, data)
+    return path
+
+
 def write_mcap_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -108,7 +125,11 @@ def write_mcap_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
     return path
 
 
-WRITERS = {"ros2": (write_ros2_topics, "bag"), "mcap": (write_mcap_topics, "x.mcap")}
+WRITERS = {
+    "ros1": (write_ros1_topics, "x.bag"),
+    "ros2": (write_ros2_topics, "bag"),
+    "mcap": (write_mcap_topics, "x.mcap"),
+}
 
 
 @pytest.mark.parametrize("kind", sorted(WRITERS))
