@@ -227,7 +227,7 @@ def test_view_user_mistakes_are_one_line(
     out = tmp_path / "v.rrd"
     # two-section columns without --robot: the one-section robot does not fit
     assert main(["view", est, "--save", str(out)]) == 2
-    assert "pass --robot" in _one_error_line(capsys)
+    assert "pass --robot with the robot it was estimated on" in _one_error_line(capsys)
     assert main(["view", est, "--robot", "two-section", "--save", str(tmp_path / "v.txt")]) == 2
     assert ".rrd" in _one_error_line(capsys)
     if sys.platform.startswith("linux"):

@@ -30,7 +30,8 @@ def _columns(
         raise InputError(
             f"{path}: its columns ({', '.join(has) or 'no theta'}) do not fit the robot "
             f"({robot.describe()}): missing {', '.join(missing) or 'none'}"
-            f"{'; extra ' + ', '.join(extra_sections) if extra_sections else ''}; pass --robot"
+            f"{'; extra ' + ', '.join(extra_sections) if extra_sections else ''}; "
+            "pass --robot with the robot it was estimated on"
         )
     return [list(names).index(o.name) for o in outputs]
 
@@ -49,8 +50,10 @@ def replay(
         truth_table = read_state_table(truth)  # t, x, y, z and any per-section columns
         extra = [n for n in truth_table.names if n.startswith("theta_")]
         if len(extra) > (robot.n_sections if robot.n_sections > 1 else 0):
-            raise InputError(f"{truth}: its columns ({', '.join(extra)}) do not fit the "
-                             f"robot ({robot.describe()}); pass --robot")  # fmt: skip
+            raise InputError(
+                f"{truth}: its columns ({', '.join(extra)}) do not fit the robot "
+                f"({robot.describe()}); pass --robot with its robot"
+            )
     view = BackboneView(
         robot, outputs, sink, trail_s=trail_s, points_per_section=points_per_section,
         name=Path(estimates).name,
