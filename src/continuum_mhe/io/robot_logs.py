@@ -6,7 +6,8 @@ force) and ``angular_velocity`` (rad/s) are the raw IMU samples of
 and pitch become a tilt measurement). Sample time is ``header.stamp``, or the log
 time where the stamp is zero; times in the estimates are seconds since the first
 sample (``t0_ns`` keeps the absolute start). Messages with a non-increasing time are
-skipped and counted.
+skipped and counted. A robot with several IMUs takes one topic per IMU, paired by
+header stamp (:mod:`continuum_mhe.io.imu_topics`).
 
 * ROS 1 ``.bag`` files, ROS 2 bag folders (``metadata.yaml``) and ``.db3`` files are
   read with ``rosbags``' ``AnyReader``.
