@@ -55,6 +55,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "continuum_mhe.live",
     "continuum_mhe.reproduce.cli",
     "continuum_mhe.benchmark",
+    "continuum_mhe.viewer",
 )
 
 
@@ -120,6 +121,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     msg = f"wrote {n} estimates to {out} ({summary})"
     if stream.problems.count:
         msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
+    for note in stream.notes:  # e.g. how the samples of several Imu topics paired
+        print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any
 
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.model.formulations import Formulation
@@ -133,3 +134,67 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="replace an existing -o or --record file (else refused)",
     )
+
+def _add_port_options(g: argparse._ActionsContainer) -> None:
+    g.add_argument("--web-port", type=int, default=9090, help="web viewer HTTP port (9090)")
+    g.add_argument("--grpc-port", type=int, default=9876, help="Rerun server port (9876)")
+    g.add_argument(
+        "--trail", type=float, default=10.0, help="seconds of tip trail shown (default 10)"
+    )
+    g.add_argument(
+        "--points", type=int, default=16, help="backbone points per section (default 16)"
+    )
+
+
+def add_viewer_options(p: argparse.ArgumentParser) -> None:
+    """Where ``view`` sends the 3D view (Rerun): a file, the native viewer, or the web."""
+    g = p.add_argument_group("3D view (Rerun)")
+    sink = g.add_mutually_exclusive_group()
+    sink.add_argument("--save", metavar="OUT.rrd", help="write a Rerun file (open: rerun OUT.rrd)")
+    sink.add_argument(
+        "--spawn", action="store_true", help="show in Rerun's native viewer (default)"
+    )
+    sink.add_argument(
+        "--serve-web",
+        action="store_true",
+        help="serve Rerun's web viewer on 127.0.0.1 only (until Ctrl-C)",
+    )
+    _add_port_options(g)
+
+
+def add_live_view_option(p: argparse.ArgumentParser) -> None:
+    """``live --view [spawn|web|FILE.rrd]``: the 3D view of every estimate as it is made."""
+    g = p.add_argument_group("3D view (Rerun)")
+    g.add_argument(
+        "--view",
+        nargs="?",
+        const="spawn",
+        metavar="spawn|web|FILE.rrd",
+        help="3D view of the estimates in Rerun: the native viewer (default), the web "
+        "viewer on 127.0.0.1, or a .rrd file",
+    )
+    g.add_argument(
+        "--view-hz",
+        type=float,
+        default=30.0,
+        help="draw at most this many estimates per second of sample time (default 30; "
+        "0: every estimate); status changes and gaps are always drawn",
+    )
+    _add_port_options(g)
+
+
+def viewer_sink_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
+    from pathlib import Path
+
+    from continuum_mhe.viewer import ViewerSink
+
+    ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
+    choice = getattr(args, "view", None)
+    if choice is not None:  # live --view
+        if choice in ("spawn", "web"):
+            return ViewerSink(choice, **ports)
+        return ViewerSink("save", Path(choice), **ports)
+    if args.save:
+        return ViewerSink("save", Path(args.save), **ports)
+    return ViewerSink("web" if args.serve_web else "spawn", **ports)

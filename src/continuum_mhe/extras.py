@@ -12,6 +12,7 @@ peers     filterpy, do-mpc                             do-mpc in ``benchmark``; 
                                                        tests
 dask      dask[distributed]                            ``reproduce --scheduler``
 rod       pyelastica                                   the Cosserat-rod generators
+view      rerun-sdk                                    ``view`` and ``live --view`` (3D)
 test      all of the above, pytest, hypothesis,        the test suite
           ruff, mypy
 ========  ===========================================  =================================
@@ -30,6 +31,7 @@ EXTRAS: dict[str, str] = {
     "peers": "filterpy, do-mpc",
     "dask": "dask[distributed]",
     "rod": "pyelastica",
+    "view": "rerun-sdk",
 }
 
 

@@ -62,10 +62,12 @@ def run_live(
     session: LiveSession,
     conn: Any,
     plot: Any = None,
+    view: Any = None,
 ) -> int:
     """Read ``conn`` until the duration ends or Ctrl-C / SIGTERM; every queued line is
     processed before returning. ``plot``: anything with ``update(estimate, outputs)``,
-    called at each status line. Returns the exit status (0)."""
+    called at each status line; ``view.log_estimate(est)`` (``--view``) sees every
+    estimate. Returns the exit status (0)."""
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
@@ -91,8 +93,11 @@ def run_live(
                 kind = ""
             now = time.monotonic()
             if kind == "line":
-                if session.handle_line(payload, arrival) is not None:
+                est = session.handle_line(payload, arrival)
+                if est is not None:
                     window_n += 1
+                    if view is not None:
+                        view.log_estimate(est)
                 lag = now - arrival
                 if lag > settings.behind_s and behind_since is None:
                     behind_since = now
@@ -267,12 +272,15 @@ def input_options(args: argparse.Namespace) -> Any:
     """``robot_logs.InputOptions`` for ``estimate`` from parsed options."""
     from continuum_mhe.io.robot_logs import InputOptions
 
+    topics = tuple(getattr(args, "topic", None) or ())
     gyro_std = float(getattr(args, "gyro_std", 0.05))
     if not (math.isfinite(gyro_std) and gyro_std > 0):
         raise InputError(f"--gyro-std must be positive, got {gyro_std}")
     return InputOptions(
         raw=raw_settings(args),
-        topic=getattr(args, "topic", None),
+        topic=topics[0] if len(topics) == 1 else None,
+        topics=topics,
+        pair_tolerance=getattr(args, "pair_tolerance", None),
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
         degrees=bool(getattr(args, "degrees", False)),
@@ -311,6 +319,13 @@ def cmd_live(args: argparse.Namespace) -> int:
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
         raise InputError(f"{out_path}: -o and --record name the same file")
+    sink = None
+    if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
+        from continuum_mhe.cli_options import viewer_sink_from_args
+        from continuum_mhe.viewer import BackboneView, require_rerun
+
+        require_rerun()
+        sink = viewer_sink_from_args(args)
     try:
         conn = open_port(settings.port, settings.baud)
     except MissingExtraError:
@@ -328,6 +343,10 @@ def cmd_live(args: argparse.Namespace) -> int:
         else RowFile(out_path, estimate_columns(formulation.outputs), args.overwrite)
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
+    view = None if sink is None else BackboneView(
+        robot, formulation.outputs, sink, trail_s=args.trail,
+        points_per_section=args.points, max_hz=args.view_hz,
+    )  # fmt: skip
     try:
         session = LiveSession(settings, estimator, converters, out, say, record)
         say(
@@ -341,8 +360,10 @@ def cmd_live(args: argparse.Namespace) -> int:
                 "nothing is saved: give -o EST.csv for the estimates, "
                 "--record RAW.csv for the samples"
             )
-        return run_live(settings, session, conn, plot)
+        return run_live(settings, session, conn, plot, view)
     finally:
+        if view is not None:
+            view.close()
         for sink, what in ((out, "estimates"), (record, "samples")):
             if sink is None:
                 continue
@@ -356,6 +377,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 def register(subparsers: Any) -> None:
     """Add ``live``, ``calibrate`` and the raw-IMU / robot-log options of ``estimate``."""
     from continuum_mhe.cli_options import (
+        add_live_view_option,
         add_mhe_options,
         add_model_options,
         add_recording_options,
@@ -368,7 +390,19 @@ def register(subparsers: Any) -> None:
     if est is not None:
         add_raw_imu_options(est)
         g = est.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
-        g.add_argument("--topic", help="sensor_msgs/msg/Imu topic (default: the only one)")
+        g.add_argument(
+            "--topic",
+            action="append",
+            help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
+            "once per IMU in the robot file's order",
+        )
+        g.add_argument(
+            "--pair-tolerance",
+            type=float,
+            metavar="SECONDS",
+            help="several topics: largest header-stamp difference of paired samples "
+            "(default: half of the first topic's median sample period)",
+        )
         g.add_argument(
             "--orientation",
             action="store_true",
@@ -395,5 +429,6 @@ def register(subparsers: Any) -> None:
     add_model_options(p)
     add_mhe_options(p)
     add_raw_imu_options(p)
+    add_live_view_option(p)
     p.set_defaults(func=cmd_live)
     register_calibrate(subparsers)

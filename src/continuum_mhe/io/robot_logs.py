@@ -6,7 +6,8 @@ force) and ``angular_velocity`` (rad/s) are the raw IMU samples of
 and pitch become a tilt measurement). Sample time is ``header.stamp``, or the log
 time where the stamp is zero; times in the estimates are seconds since the first
 sample (``t0_ns`` keeps the absolute start). Messages with a non-increasing time are
-skipped and counted.
+skipped and counted. A robot with several IMUs takes one topic per IMU, paired by
+header stamp (:mod:`continuum_mhe.io.imu_topics`).
 
 * ROS 1 ``.bag`` files, ROS 2 bag folders (``metadata.yaml``) and ``.db3`` files are
   read with ``rosbags``' ``AnyReader``.
@@ -253,6 +254,10 @@ class InputOptions:
     Attributes:
         raw: raw-IMU conversion (raw CSV, bags, MCAP).
         topic: Imu topic in a bag or MCAP file (None: the only one).
+        topics: one Imu topic per IMU, in the robot file's order, for a robot with
+            several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
+        pair_tolerance: largest header-stamp difference of paired samples, s (None:
+            half of IMU 1's median sample period).
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
         gyro_std: gyro noise, rad/s, for the direct model.
@@ -262,6 +267,8 @@ class InputOptions:
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
     topic: str | None = None
+    topics: tuple[str, ...] = ()
+    pair_tolerance: float | None = None
     use_orientation: bool = False
     gyro_std: float = 0.05
     degrees: bool = False
@@ -277,6 +284,7 @@ class EstimateInput:
         t: (n,) s; z: (n, nz) measurements for ``formulation``.
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
         skipped: descriptions of skipped samples.
+        notes: one-line reports for the user (e.g. how samples of several topics paired).
     """
 
     kind: str
@@ -285,6 +293,7 @@ class EstimateInput:
     formulation: Formulation
     t0_ns: int = 0
     skipped: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
 
 
 def _formulation_for(
@@ -308,6 +317,8 @@ def load_estimate_input(
 ) -> EstimateInput:
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) as measurements."""
     p = Path(path)
+    if is_robot_log(p) and (formulation.robot.n_imus > 1 or len(options.topics) > 1):
+        return _load_topics(p, options, formulation)
     if is_robot_log(p):
         log = read_imu_log(p, options.topic)
         f = _formulation_for(options, formulation, True, p)
@@ -326,6 +337,28 @@ def load_estimate_input(
     t = np.array([tv for tv, _ in pairs], dtype=float)
     z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
     return EstimateInput(stream.kind, t, z, stream.formulation, 0, stream.problems.first)
+
+
+def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
+    """One Imu topic per IMU, paired by header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
+    from continuum_mhe.io.imu_topics import read_imu_topics
+
+    robot = formulation.robot
+    paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+    f = _formulation_for(options, formulation, True, p)
+    blocks = []
+    for log, place in zip(paired.logs, robot.imus):
+        if options.use_orientation:
+            if not np.all(np.isfinite(log.orientation)):
+                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+            blocks.append(tilt_from_quaternion(log.orientation))
+        else:
+            blocks.append(
+                _convert(p, paired.t, log.acc, log.gyr, _imu_settings(options.raw, place))
+            )
+    return EstimateInput(
+        "log", paired.t, np.hstack(blocks), f, paired.t0_ns, paired.skipped, (paired.report(),)
+    )
 
 
 def _imu_settings(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:

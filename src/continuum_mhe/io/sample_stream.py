@@ -61,6 +61,8 @@ class SampleStream:
         samples: ``(t, z)``: s, (nz,) measurement; read once.
         problems: rows skipped with ``skip_bad`` (count and the first few).
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
+        notes: lines for the user about how the input was read (e.g. how the samples
+            of several IMU topics paired).
     """
 
     name: str
@@ -70,6 +72,7 @@ class SampleStream:
     problems: RowProblems = field(default_factory=RowProblems)
     t0_ns: int = 0
     _rows: TextRows | None = None
+    notes: tuple[str, ...] = ()
 
     def close(self) -> None:
         if self._rows is not None:
@@ -90,7 +93,10 @@ def open_estimate_input(
         data = load_estimate_input(path, options, formulation)
         problems = RowProblems(count=len(data.skipped), first=data.skipped[:20])
         pairs = zip(data.t.tolist(), data.z)
-        return SampleStream(str(path), data.kind, data.formulation, pairs, problems, data.t0_ns)
+        return SampleStream(
+            str(path), data.kind, data.formulation, pairs, problems, data.t0_ns,
+            notes=tuple(data.notes),
+        )  # fmt: skip
     rows = open_rows(path)
     try:
         return _csv_stream(rows, options, formulation)

@@ -1,0 +1,137 @@
+"""Several IMUs in one robot log: one ``sensor_msgs/msg/Imu`` topic per IMU, paired by
+header stamp.
+
+``--topic /imu1 --topic /imu2`` names the topics in the robot file's IMU order. Each
+topic is read as in :mod:`continuum_mhe.io.robot_logs` (messages with a non-increasing
+stamp skipped and counted); then samples are paired across topics by header stamp: a
+sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
+(mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
+most the tolerance. A fused sample needs a partner in every topic; its time is IMU 1's
+stamp. The default tolerance is half of IMU 1's median sample period (a pair is then
+always closer than the next sample); ``--pair-tolerance`` sets it in seconds. Samples left
+without a partner are counted per topic and reported in one line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.io.robot_logs import ImuLog, read_imu_log
+
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class PairedImus:
+    """IMU samples of several topics, paired by header stamp.
+
+    Attributes:
+        logs: per topic (robot-file order), its samples at the pairs only.
+        t: (n,) s since ``t0_ns``: IMU 1's stamps.
+        t0_ns: absolute time of the first pair, ns.
+        tolerance_s: largest stamp difference accepted in a pair, s.
+        read: samples read per topic (after skipping non-increasing stamps).
+        skipped: descriptions of skipped messages, prefixed by their topic.
+    """
+
+    logs: tuple[ImuLog, ...]
+    t: FloatArray
+    t0_ns: int
+    tolerance_s: float
+    read: tuple[int, ...]
+    skipped: list[str] = field(default_factory=list)
+
+    @property
+    def unpaired(self) -> tuple[int, ...]:
+        """Samples of each topic left without a partner."""
+        return tuple(r - len(self.t) for r in self.read)
+
+    def report(self) -> str:
+        """One line: pairs, tolerance, unpaired samples per topic."""
+        topics = ", ".join(log.topic for log in self.logs)
+        left = ", ".join(f"{log.topic} {u}" for log, u in zip(self.logs, self.unpaired))
+        return (
+            f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by header "
+            f"stamp within {self.tolerance_s * 1e3:.3g} ms; unpaired: {left}"
+        )
+
+
+def _stamps_ns(log: ImuLog) -> IntArray:
+    return log.t0_ns + np.round(log.t * 1e9).astype(np.int64)
+
+
+def _nearest(src: IntArray, dst: IntArray) -> IntArray:
+    """Index in sorted ``dst`` of the nearest value to each of ``src`` (ties: later)."""
+    hi = np.clip(np.searchsorted(dst, src), 0, len(dst) - 1)
+    lo = np.clip(hi - 1, 0, len(dst) - 1)
+    return np.where(np.abs(dst[lo] - src) < np.abs(dst[hi] - src), lo, hi)
+
+
+def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]:
+    """Indices into each of ``stamps`` (increasing, ns) of the samples that pair with
+    one of ``stamps[0]`` in every other topic (mutual nearest, within the tolerance)."""
+    ref = stamps[0]
+    keep = np.ones(len(ref), dtype=bool)
+    partners = []
+    for other in stamps[1:]:
+        j = _nearest(ref, other)
+        back = _nearest(other, ref)
+        keep &= (back[j] == np.arange(len(ref))) & (np.abs(other[j] - ref) <= tolerance_ns)
+        partners.append(j)
+    idx = np.flatnonzero(keep)
+    return [idx, *(j[idx] for j in partners)]
+
+
+def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
+    return ImuLog(
+        topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=log.gyr[idx],
+        orientation=log.orientation[idx], skipped=log.skipped,
+    )  # fmt: skip
+
+
+def read_imu_topics(
+    path: str | Path, topics: Sequence[str], n_imus: int, tolerance_s: float | None = None
+) -> PairedImus:
+    """Read one Imu topic per IMU (``topics`` in the robot file's IMU order) from a bag
+    or MCAP file and pair their samples by header stamp (see the module doc)."""
+    p = Path(path)
+    if len(topics) != n_imus:
+        given = f"{len(topics)} --topic" if topics else "no --topic"
+        raise InputError(
+            f"{p}: {given} for a robot with {n_imus} IMU{'s' if n_imus > 1 else ''}: pass one "
+            "--topic per IMU, "
+            "in the robot file's order"
+        )
+    if len(set(topics)) != len(topics):
+        raise InputError(f"{p}: a --topic is given twice ({', '.join(topics)})")
+    if tolerance_s is not None and not (np.isfinite(tolerance_s) and tolerance_s > 0):
+        raise InputError(f"--pair-tolerance must be positive seconds, got {tolerance_s}")
+    logs = [read_imu_log(p, topic) for topic in topics]
+    stamps = [_stamps_ns(log) for log in logs]
+    if tolerance_s is None:
+        if len(stamps[0]) < 2:
+            raise InputError(f"{p}: topic {topics[0]} has one sample: pass --pair-tolerance")
+        tolerance_s = 0.5 * float(np.median(np.diff(stamps[0]))) / 1e9
+    idx = pair_stamps(stamps, int(round(tolerance_s * 1e9)))
+    if len(idx[0]) == 0:
+        raise InputError(
+            f"{p}: no sample of {topics[0]} has a partner in every other topic within "
+            f"{tolerance_s * 1e3:.3g} ms (--pair-tolerance)"
+        )
+    ref = stamps[0][idx[0]]
+    t0 = int(ref[0])
+    t = (ref - t0) / 1e9
+    return PairedImus(
+        logs=tuple(_subset(log, i, t, t0) for log, i in zip(logs, idx)),
+        t=t,
+        t0_ns=t0,
+        tolerance_s=tolerance_s,
+        read=tuple(len(s) for s in stamps),
+        skipped=[f"{log.topic}: {s}" for log in logs for s in log.skipped],
+    )

@@ -1,0 +1,340 @@
+"""The Rerun recording of backbone estimates (:class:`BackboneView`); see the package
+doc for its entities."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+import uuid
+from collections.abc import Sequence
+from pathlib import Path
+from subprocess import Popen
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.extras import require
+from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.model.descriptions import OutputSpec, section_bends
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.results import Estimate
+from continuum_mhe.viewer.geometry import BackboneGeometry, backbone_geometry
+from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
+
+INSTALL_HINT = "pip install 'continuum-mhe[view]'"
+APPLICATION_ID = "continuum-mhe"
+#: colours of successive sections (RGB), repeated beyond four sections
+SECTION_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40))
+TRUTH_COLOUR = (150, 150, 150)
+TRAIL_COLOUR = (227, 119, 194)
+
+
+def require_rerun() -> Any:
+    """The ``rerun`` module, or one line naming the install command (exit 2)."""
+    return require("rerun", "view", "the 3D view", package="rerun-sdk")
+
+
+class BackboneView:
+    """A Rerun recording of backbone estimates (see the module doc for its entities).
+
+    ``log_estimate`` is the per-estimate hook of ``live``; ``log_rows`` replays arrays.
+    Call ``close`` at the end (it finishes the .rrd file, or stops the web viewer).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        outputs: Sequence[OutputSpec],
+        sink: ViewerSink,
+        *,
+        trail_s: float = 10.0,
+        points_per_section: int = 16,
+        name: str = "continuum-mhe",
+        max_hz: float | None = None,
+    ) -> None:
+        if not (math.isfinite(trail_s) and trail_s > 0):
+            raise InputError(f"--trail must be positive seconds, got {trail_s}")
+        if max_hz is not None and not (math.isfinite(max_hz) and max_hz >= 0):
+            raise InputError(f"--view-hz must be 0 (every estimate) or positive, got {max_hz}")
+        if points_per_section < 1:
+            raise InputError(f"--points must be at least 1, got {points_per_section}")
+        self.rr = rr = require_rerun()
+        self.robot = robot
+        self.outputs = tuple(outputs)
+        self.sink = sink
+        self.points_per_section = points_per_section
+        self._web: Popen[bytes] | None = None
+        self._tmp: Path | None = None
+        self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
+        self._status = ""
+        self._min_step = 1.0 / max_hz if max_hz else 0.0
+        self._drawn_t: float | None = None
+        #: output columns by unit, in ``outputs`` order
+        self._units = {
+            u: [j for j, o in enumerate(self.outputs) if o.unit == u]
+            for u in sorted({o.unit for o in self.outputs})
+        }
+        self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
+        self.rec.send_recording_name(name)
+        blueprint = self._blueprint(trail_s)
+        self._open(blueprint)
+        self._log_static()
+
+    # setup
+    def _blueprint(self, trail_s: float) -> Any:
+        import rerun.blueprint as rrb
+
+        trail = rrb.VisibleTimeRanges(
+            rrb.VisibleTimeRange(
+                "t",
+                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-trail_s),
+                end=rrb.TimeRangeBoundary.cursor_relative(),
+            )
+        )
+        units = sorted({o.unit for o in self.outputs})
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Spatial3DView(
+                    origin="/world",
+                    name="backbone",
+                    overrides={f"/world/{w}/tip_trail": trail for w in ("estimate", "truth")},
+                ),
+                rrb.Vertical(
+                    *(
+                        rrb.TimeSeriesView(origin=f"/outputs/{u}", name=f"outputs ({u})")
+                        for u in units
+                    ),
+                    rrb.TextLogView(origin="/status", name="status"),
+                ),
+                column_shares=[3, 2],
+            ),
+            collapse_panels=False,
+        )
+
+    def _open(self, blueprint: Any) -> None:
+        sink = self.sink
+        if sink.kind == "save":
+            assert sink.path is not None  # checked by ViewerSink
+            folder = sink.path.parent if str(sink.path.parent) else Path(".")
+            if not folder.is_dir():
+                raise InputError(f"{sink.path}: folder {folder} does not exist")
+            # written beside the target and renamed at close: never a half-written .rrd
+            self._tmp = folder / f".{sink.path.name}.{os.getpid()}.tmp"
+            self.rec.save(self._tmp, default_blueprint=blueprint)
+        elif sink.kind == "spawn":
+            if sys.platform.startswith("linux") and not (
+                os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+            ):
+                raise InputError(
+                    "--spawn needs a display (DISPLAY is not set); "
+                    "use --serve-web or --save FILE.rrd"
+                )
+            self.rec.spawn(port=sink.grpc_port, default_blueprint=blueprint)
+        else:
+            self._web = start_web_viewer(sink)
+            self.rec.connect_grpc(sink.grpc_url, default_blueprint=blueprint)
+
+    def _log_static(self) -> None:
+        rr, rec = self.rr, self.rec
+        up = rr.ViewCoordinates.RIGHT_HAND_Z_UP
+        if self.robot.mounting == "z-down":
+            up = rr.ViewCoordinates.RIGHT_HAND_Z_DOWN
+        rec.log("world", up, static=True)
+        rec.log("world/base", rr.TransformAxes3D(0.15 * self.robot.length), static=True)
+        for unit, cols in self._units.items():
+            names = [self.outputs[j].name for j in cols]
+            rec.log(f"outputs/{unit}", rr.SeriesLines(names=names), static=True)
+
+    # logging
+    def _bends(self, values: FloatArray) -> FloatArray:
+        return np.stack([section_bends(self.outputs, row) for row in values])
+
+    def _style(self, who: str) -> tuple[list[tuple[int, int, int]], list[str] | None]:
+        n = self.robot.n_sections
+        if who == "truth":
+            return [TRUTH_COLOUR] * n, None
+        colours = [SECTION_COLOURS[k % len(SECTION_COLOURS)] for k in range(n)]
+        return colours, [f"section {k + 1}" for k in range(n)] if n > 1 else None
+
+    def _log_status(self, status: str) -> None:
+        if status != self._status:
+            level = "INFO" if status == "ok" else "WARN"
+            self.rec.log("status", self.rr.TextLog(f"status: {status}", level=level))
+            self._status = status
+
+    def log_estimate(self, est: Estimate) -> None:
+        """The live hook: log one estimate (its ``output`` in ``outputs`` order), one
+        entity at a time (``log_rows`` sends a whole recording as columns)."""
+        rr, rec, size = self.rr, self.rec, self.robot.length
+        rec.set_time("t", duration=float(est.t))
+        changed = str(est.status) != self._status
+        self._log_status(str(est.status))
+        out = est.output
+        if out is None or est.status == "no-estimate" or not np.all(np.isfinite(out)):
+            rec.log("world/estimate", rr.Clear(recursive=True))
+            self._prev_tip["estimate"] = None
+            self._drawn_t = None
+            return
+        if (
+            not changed
+            and self._drawn_t is not None
+            and 0 <= est.t - self._drawn_t < self._min_step
+        ):
+            return  # max_hz: drawn often enough (status changes and gaps always are)
+        self._drawn_t = float(est.t)
+        geom = backbone_geometry(self.robot, self._bends(out[None, :]), self.points_per_section)
+        colours, labels = self._style("estimate")
+        rec.log(
+            "world/estimate/backbone",
+            rr.LineStrips3D(list(geom.sections[0]), radii=0.01 * size, colors=colours,
+                            labels=labels),
+        )  # fmt: skip
+        tip = geom.tip[0]
+        rec.log("world/estimate/tip", rr.Points3D([tip], radii=0.015 * size))
+        prev = self._prev_tip["estimate"]
+        if prev is not None:
+            rec.log(
+                "world/estimate/tip_trail",
+                rr.LineStrips3D([[prev, tip]], radii=0.004 * size, colors=[TRAIL_COLOUR]),
+            )
+        self._prev_tip["estimate"] = tip
+        for i in range(self.robot.n_imus):
+            rec.log(
+                f"world/estimate/imu_{i + 1}",
+                rr.Transform3D(translation=geom.imu_position[0, i],
+                               mat3x3=geom.imu_rotation[0, i]),
+                rr.TransformAxes3D(0.1 * size),
+            )  # fmt: skip
+        for unit, cols in self._units.items():
+            rec.log(f"outputs/{unit}", rr.Scalars(out[cols]))
+
+    def _send_shapes(self, who: str, t: FloatArray, geom: BackboneGeometry | None,
+                     tips: FloatArray, joined: NDArray[np.bool_]) -> None:  # fmt: skip
+        """Columns of one recording's shapes at times ``t`` (n,): the backbone and IMU
+        frames of ``geom`` (if any), the ``tips`` (n, 3) m and their trail; ``joined[k]``
+        is True where sample ``k`` continues the trail from sample ``k - 1``."""
+        rr, rec, size = self.rr, self.rec, self.robot.length
+        n, n_sec = len(t), self.robot.n_sections
+        colours, labels = self._style(who)
+
+        def send(entity: str, times: FloatArray, columns: Any) -> None:
+            rec.send_columns(entity, indexes=[rr.TimeColumn("t", duration=times)],
+                             columns=columns)  # fmt: skip
+
+        if geom is not None:
+            send(
+                f"world/{who}/backbone", t,
+                rr.LineStrips3D.columns(
+                    strips=list(geom.sections.reshape(n * n_sec, -1, 3)),
+                    radii=[0.01 * size] * (n * n_sec),
+                    colors=colours * n,
+                    labels=None if labels is None else labels * n,
+                ).partition([n_sec] * n),
+            )  # fmt: skip
+        send(f"world/{who}/tip", t,
+             rr.Points3D.columns(positions=tips, radii=[0.015 * size] * n))  # fmt: skip
+        k = np.flatnonzero(joined)
+        if len(k):
+            segments = np.stack([tips[k - 1], tips[k]], axis=1)
+            send(
+                f"world/{who}/tip_trail", t[k],
+                rr.LineStrips3D.columns(
+                    strips=list(segments), radii=[0.004 * size] * len(k),
+                    colors=[TRUTH_COLOUR if who == "truth" else TRAIL_COLOUR] * len(k),
+                ),
+            )  # fmt: skip
+        if who == "truth" or geom is None:
+            return
+        for i in range(self.robot.n_imus):
+            send(
+                f"world/{who}/imu_{i + 1}", t,
+                [*rr.Transform3D.columns(translation=geom.imu_position[:, i],
+                                         mat3x3=geom.imu_rotation[:, i]),
+                 *rr.TransformAxes3D.columns(axis_length=[0.1 * size] * n)],
+            )  # fmt: skip
+
+    def log_rows(self, t: FloatArray, values: FloatArray, status: Sequence[str]) -> None:
+        """Send a recording's estimates as columns: ``t`` (n,) s, ``values`` (n,
+        n_outputs) in ``outputs`` order (m, rad; NaN where there is no estimate),
+        ``status`` (n,). Draws what ``log_estimate`` draws row by row."""
+        t = np.asarray(t, dtype=float)
+        values = np.asarray(values, dtype=float).reshape(len(t), len(self.outputs))
+        has = np.all(np.isfinite(values), axis=1) & (np.asarray(status) != "no-estimate")
+        for k in range(len(t)):  # status changes and clears: few rows, one at a time
+            if str(status[k]) != self._status or not has[k]:
+                self.rec.set_time("t", duration=float(t[k]))
+                self._log_status(str(status[k]))
+                if not has[k]:
+                    self.rec.log("world/estimate", self.rr.Clear(recursive=True))
+        if not has.any():
+            return
+        geom = backbone_geometry(self.robot, self._bends(values[has]), self.points_per_section)
+        joined = (has & np.concatenate([[False], has[:-1]]))[has]
+        self._send_shapes("estimate", t[has], geom, geom.tip, joined)
+        n = int(has.sum())
+        for unit, cols in self._units.items():
+            self.rec.send_columns(
+                f"outputs/{unit}",
+                indexes=[self.rr.TimeColumn("t", duration=t[has])],
+                columns=self.rr.Scalars.columns(scalars=values[has][:, cols].ravel()).partition(
+                    [len(cols)] * n
+                ),
+            )
+        self._prev_tip["estimate"] = geom.tip[-1] if has[-1] else None
+
+    def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
+        """Send a truth recording: ``values`` (n, len(names)), columns named as in a truth
+        CSV. The tip and its trail are its ``x, y, z``; each section end ``x_k, y_k,
+        z_k`` it has is a point (``world/truth/section_ends``); the backbone is drawn by
+        the PCC model from its ``theta, phi`` columns, where it has them all (on rod
+        data the PCC curve through the true bends, not the rod itself). Returns whether
+        the backbone was drawn."""
+        t = np.asarray(t, dtype=float)
+        values = np.asarray(values, dtype=float)
+        col = {c: i for i, c in enumerate(names)}
+        tips = values[:, [col[c] for c in "xyz"]]
+        geom = None
+        if all(o.name in col for o in self.outputs if o.unit == "rad"):
+            ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
+            geom = backbone_geometry(self.robot, self._bends(ordered), self.points_per_section)
+        self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0)
+        ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
+        if ends:
+            pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
+            self.rec.send_columns(
+                "world/truth/section_ends",
+                indexes=[self.rr.TimeColumn("t", duration=t)],
+                columns=self.rr.Points3D.columns(
+                    positions=pts.reshape(-1, 3),
+                    radii=[0.012 * self.robot.length] * pts.shape[0] * pts.shape[1],
+                    colors=[TRUTH_COLOUR] * pts.shape[0] * pts.shape[1],
+                ).partition([len(ends)] * len(t)),
+            )
+        return geom is not None
+
+    def close(self, wait: bool = False) -> None:
+        """Finish the stream: rename the .rrd into place, or (``wait``) keep the web
+        viewer up until Ctrl-C, then stop it."""
+        try:
+            self.rec.flush()
+            if self.sink.kind == "save" and self._tmp is not None:
+                self.rec.disconnect()
+                assert self.sink.path is not None
+                os.replace(self._tmp, self.sink.path)
+                self._tmp = None
+            elif self.sink.kind == "web" and wait and self._web is not None:
+                print(f"serving the view at {self.sink.web_url} (Ctrl-C stops)", file=sys.stderr)
+                try:
+                    while self._web.poll() is None:
+                        time.sleep(0.2)
+                except KeyboardInterrupt:
+                    print("stopped serving the view", file=sys.stderr)
+        finally:
+            if self._tmp is not None or self.sink.kind != "save":
+                self.rec.disconnect()  # before the server stops: no broken-connection noise
+            if self._tmp is not None:
+                self._tmp.unlink(missing_ok=True)
+            stop_web_viewer(self._web)

@@ -1,0 +1,218 @@
+"""One ``sensor_msgs/msg/Imu`` topic per IMU in ROS 2 bags and MCAP files: samples
+paired by header stamp (mutual nearest, within the tolerance), unpairable samples
+counted per topic, and the estimates equal to those of the multi-IMU raw CSV holding the
+paired samples; a topic count that does not match the robot is one line."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from test_robot_logs import IMU, T0_NS, _imu_msg  # the Imu message builder
+
+from continuum_mhe.benchmark import raw_imu_recording
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.imu_topics import pair_stamps, read_imu_topics
+from continuum_mhe.io.raw_imu import raw_columns
+from continuum_mhe.io.robot_file import read_robot
+
+TOPICS = ("/imu1", "/imu2")
+G = 9.80665
+DT_NS = 20_000_000
+
+
+def test_pair_stamps_known_answers() -> None:
+    ref = np.array([0, 10, 20, 30, 40], dtype=np.int64)
+    other = np.array([1, 12, 19, 33, 45, 50], dtype=np.int64)
+    idx = pair_stamps([ref, other], 3)  # 40-45 too far; 50 is nobody's nearest
+    assert [list(i) for i in idx] == [[0, 1, 2, 3], [0, 1, 2, 3]]
+    # two samples of IMU 1 want the same sample of IMU 2: only its nearest gets it
+    idx = pair_stamps([np.array([0, 4]), np.array([3])], 5)
+    assert [list(i) for i in idx] == [[1], [0]]
+    # three topics: a fused sample needs a partner in every one
+    idx = pair_stamps([ref, other, np.array([0, 21, 31], dtype=np.int64)], 3)
+    assert [list(i) for i in idx] == [[0, 2, 3], [0, 2, 3], [0, 1, 2]]
+
+
+@pytest.fixture(scope="module")
+def streams() -> dict[str, Any]:
+    """Two IMUs of the two-section robot with their own clocks: IMU 2 stamped 1.5 ms
+    (+- 1 ms jitter) after IMU 1, IMU 2 missing samples 5 and 6, IMU 1 missing sample 30,
+    and three stray IMU 2 samples 9 ms after an IMU 1 sample (nobody's nearest)."""
+    rec = raw_imu_recording(read_robot("two-section"), 2.0)
+    n = len(rec.t)
+    rng = np.random.default_rng(7)
+    base = T0_NS + np.arange(n, dtype=np.int64) * DT_NS
+    jitter = rng.integers(-1_000_000, 1_000_000, n)
+    imu = []
+    for k, offset in enumerate((np.zeros(n, dtype=np.int64), 1_500_000 + jitter)):
+        acc = G * rec.z[:, 6 * k : 6 * k + 3]
+        gyr = rec.z[:, 6 * k + 3 : 6 * k + 6]
+        imu.append({"stamps": base + offset, "acc": acc, "gyr": gyr})
+    keep1 = np.ones(n, dtype=bool)
+    keep1[30] = False
+    keep2 = np.ones(n, dtype=bool)
+    keep2[[5, 6]] = False
+    imu[0] = {key: v[keep1] for key, v in imu[0].items()}
+    stray = [12, 50, 80]
+    imu[1] = {
+        "stamps": np.concatenate([imu[1]["stamps"][keep2], base[stray] + 9_000_000]),
+        "acc": np.vstack([imu[1]["acc"][keep2], imu[1]["acc"][stray]]),
+        "gyr": np.vstack([imu[1]["gyr"][keep2], imu[1]["gyr"][stray]]),
+    }
+    order = np.argsort(imu[1]["stamps"])
+    imu[1] = {key: v[order] for key, v in imu[1].items()}
+    paired1 = np.flatnonzero(np.isin(np.arange(n), [5, 6, 30], invert=True))
+    return {"imu": imu, "base": base, "paired": paired1, "unpaired": (2, 1 + len(stray))}
+
+
+def _messages(store: Any, imu: dict[str, Any]) -> list[tuple[int, bytes]]:
+    return [
+        (int(ns), bytes(store.serialize_cdr(_imu_msg(store, int(ns), a, g), IMU)))
+        for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
+    ]
+
+
+def write_ros2_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(path, version=9) as w:
+        conns = [w.add_connection(t, IMU, typestore=store) for t in TOPICS]
+        msgs = [(ns, c, d) for c, imu in zip(conns, imus) for ns, d in _messages(store, imu)]
+        for ns, conn, data in sorted(msgs, key=lambda m: m[0]):
+            w.write(conn, ns, data)
+    return path
+
+
+def write_ros1_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(path) as w:
+        conns = [w.add_connection(t, IMU, typestore=store) for t in TOPICS]
+        msgs = [
+            (int(ns), c, store.serialize_ros1(_imu_msg(store, int(ns), a, g, True), IMU))
+            for c, imu in zip(conns, imus)
+            for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
+        ]
+        for ns, conn, data in sorted(msgs, key=lambda m: m[0]):
+            w.write(conn, ns, data)
+    return path
+
+
+def write_mcap_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
+    from mcap.writer import CompressionType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgdef, _ = store.generate_msgdef(IMU, ros_version=2)
+    with path.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start()
+        sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
+        cids = [w.register_channel(topic=t, message_encoding="cdr", schema_id=sid) for t in TOPICS]
+        msgs = [(ns, c, d) for c, imu in zip(cids, imus) for ns, d in _messages(store, imu)]
+        for ns, cid, data in sorted(msgs, key=lambda m: m[0]):
+            w.add_message(cid, log_time=ns, data=data, publish_time=ns)
+        w.finish()
+    return path
+
+
+WRITERS = {
+    "ros1": (write_ros1_topics, "x.bag"),
+    "ros2": (write_ros2_topics, "bag"),
+    "mcap": (write_mcap_topics, "x.mcap"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(WRITERS))
+def test_topics_pair_by_stamp_and_count_the_rest(
+    kind: str, streams: dict[str, Any], tmp_path: Path
+) -> None:
+    write, name = WRITERS[kind]
+    log = write(tmp_path / name, streams["imu"])
+    paired = read_imu_topics(log, TOPICS, 2)
+    assert paired.tolerance_s == pytest.approx(0.010)  # half of the 20 ms period
+    ref = streams["base"][streams["paired"]]
+    np.testing.assert_array_equal(paired.t, (ref - ref[0]) / 1e9)
+    assert paired.t0_ns == ref[0]
+    assert paired.unpaired == streams["unpaired"]
+    # every IMU 2 sample in a pair is the one stamped 1.5 +- 1 ms after its IMU 1 sample
+    i2 = np.searchsorted(streams["imu"][1]["stamps"], ref + 500_000)
+    np.testing.assert_array_equal(paired.logs[1].acc, streams["imu"][1]["acc"][i2])
+    assert paired.report() == (
+        f"paired {len(ref)} samples of 2 topics (/imu1, /imu2) by header stamp within 10 ms; "
+        f"unpaired: /imu1 {streams['unpaired'][0]}, /imu2 {streams['unpaired'][1]}"
+    )
+    # a tolerance below the 0.5..2.5 ms offsets pairs fewer, and says so
+    tight = read_imu_topics(log, TOPICS, 2, tolerance_s=0.0015)
+    assert 0 < len(tight.t) < len(paired.t)
+    assert tight.unpaired[0] == streams["unpaired"][0] + len(paired.t) - len(tight.t)
+
+
+def _paired_csv(path: Path, streams: dict[str, Any], pairs: Any) -> Path:
+    """The multi-IMU raw CSV holding the paired samples (the reader's own format)."""
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", *raw_columns(0, 2, True), *raw_columns(1, 2, True)])
+        for k, t in enumerate(pairs.t):
+            row = [repr(float(t))]
+            for log in pairs.logs:
+                row += [repr(float(v)) for v in (*log.acc[k], *log.gyr[k])]
+            w.writerow(row)
+    return path
+
+
+@pytest.mark.parametrize("kind", sorted(WRITERS))
+def test_estimate_from_topics_equals_the_paired_csv(
+    kind: str, streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    write, name = WRITERS[kind]
+    log = write(tmp_path / name, streams["imu"])
+    robot = ["--robot", "two-section", "--method", "ekf", "--imu-model", "direct"]
+    topics = ["--topic", TOPICS[0], "--topic", TOPICS[1]]
+    assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
+    err = capsys.readouterr().err
+    assert err.count("paired ") == 1
+    assert f"unpaired: /imu1 {streams['unpaired'][0]}, /imu2 {streams['unpaired'][1]}" in err
+    csv_in = _paired_csv(tmp_path / "p.csv", streams, read_imu_topics(log, TOPICS, 2))
+    assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
+    a = read_state_table(tmp_path / "a.csv", ())
+    b = read_state_table(tmp_path / "b.csv", ())
+    assert len(a.t) == len(streams["paired"])
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("topics", "says"),
+    [
+        ([], "no --topic for a robot with 2 IMUs"),
+        (["/imu1"], "1 --topic for a robot with 2 IMUs"),
+        (["/imu1", "/imu2", "/imu1"], "3 --topic for a robot with 2 IMUs"),
+        (["/imu1", "/imu1"], "given twice"),
+        (["/imu1", "/nope"], "no topic '/nope'"),
+    ],
+)
+def test_wrong_topics_are_one_line(
+    topics: list[str], says: str, streams: dict[str, Any], tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    log = write_mcap_topics(tmp_path / "x.mcap", streams["imu"])
+    out = tmp_path / "e.csv"
+    args = ["estimate", str(log), "-o", str(out), "--robot", "two-section"]
+    assert main([*args, *(a for t in topics for a in ("--topic", t))]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("continuum-mhe: error: "), err
+    assert says in err[0]
+    assert not out.exists()
+    # a one-IMU robot given two topics
+    assert main(["estimate", str(log), "-o", str(out), "--topic", "/imu1", "--topic", "/imu2"]) == 2
+    assert "2 --topic for a robot with 1 IMU:" in capsys.readouterr().err

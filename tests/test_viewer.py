@@ -1,0 +1,406 @@
+"""The Rerun view, checked without a display: the stream is written to an .rrd file and
+read back (rerun.chunk.RrdReader) for its entities, sizes, timestamps and geometry
+against the estimate CSV (the formulation's outputs) and the robot's lengths."""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.descriptions import pcc_outputs
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.results import Estimate
+from continuum_mhe.viewer import BackboneView, ViewerSink
+
+POINTS = 8
+
+
+def read_rrd(path: Path) -> dict[str, list[tuple[int | None, dict[str, Any]]]]:
+    """``entity -> [(t_ns or None for static, {component: value})]`` sorted by time."""
+    import pyarrow as pa
+    from rerun.chunk import RrdReader
+
+    rows: dict[str, list[tuple[int | None, dict[str, Any]]]] = defaultdict(list)
+    for chunk in RrdReader(path).stream().to_chunks():
+        rb = chunk.to_record_batch()
+        names = [n for n in rb.schema.names if ":" in n]
+        t = rb.column("t").cast(pa.int64()).to_pylist() if "t" in rb.schema.names else None
+        cols = {n: rb.column(n).to_pylist() for n in names}
+        for k in range(rb.num_rows):
+            rows[chunk.entity_path].append(
+                (None if t is None else t[k], {n: cols[n][k] for n in names})
+            )
+    for v in rows.values():
+        v.sort(key=lambda r: -1 if r[0] is None else r[0])
+    return dict(rows)
+
+
+def _ns(t: np.ndarray) -> list[int]:
+    return [round(v * 1e9) for v in t]
+
+
+def _two_section_run(tmp: Path) -> tuple[Path, Path, Path]:
+    meas, truth, est = tmp / "m.csv", tmp / "t.csv", tmp / "e.csv"
+    args = ["--robot", "two-section"]
+    assert main(["simulate", "spatial", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "2", *args]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", *args]) == 0
+    return meas, truth, est
+
+
+@pytest.fixture(scope="module")
+def two_section(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    tmp = tmp_path_factory.mktemp("view")
+    _, truth, est = _two_section_run(tmp)
+    rrd = tmp / "view.rrd"
+    code = main(["view", str(est), "--robot", "two-section", "--truth", str(truth),
+                 "--save", str(rrd), "--points", str(POINTS)])  # fmt: skip
+    assert code == 0
+    return {"est": est, "truth": truth, "rrd": rrd, "rows": read_rrd(rrd)}
+
+
+def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
+    rows, robot = two_section["rows"], read_robot("two-section")
+    est = read_state_table(two_section["est"], ())
+    truth = read_state_table(two_section["truth"], ())
+    expected = {
+        "/world", "/world/base", "/world/estimate/backbone", "/world/estimate/tip",
+        "/world/estimate/tip_trail", "/world/truth/backbone", "/world/truth/tip",
+        "/world/truth/tip_trail", "/world/truth/section_ends", "/status",
+        *(f"/world/estimate/imu_{i + 1}" for i in range(robot.n_imus)),
+        *(f"/outputs/{o.unit}" for o in pcc_outputs(robot.n_sections)),
+    }  # fmt: skip
+    assert expected <= set(rows)
+    assert not {e for e in rows if e.startswith("/world")} - expected
+    timed = lambda e: [t for t, _ in rows[e] if t is not None]  # noqa: E731
+    assert timed("/world/estimate/backbone") == _ns(est.t)
+    for i in range(robot.n_imus):
+        assert timed(f"/world/estimate/imu_{i + 1}") == _ns(est.t)
+    assert timed("/world/estimate/tip_trail") == _ns(est.t[1:])
+    assert timed("/world/truth/backbone") == _ns(truth.t)
+    ends = np.array([r["Points3D:positions"] for _, r in rows["/world/truth/section_ends"]])
+    for k in range(robot.n_sections):
+        want = np.column_stack([truth.column(f"{c}_{k + 1}") for c in "xyz"])
+        np.testing.assert_allclose(ends[:, k], want, atol=1e-6)
+    tip = np.array([r["Points3D:positions"][0] for _, r in rows["/world/truth/tip"]])
+    np.testing.assert_allclose(tip, np.column_stack([truth.column(c) for c in "xyz"]), atol=1e-6)
+    for unit in ("m", "rad"):
+        assert timed(f"/outputs/{unit}") == _ns(est.t)
+        (names,) = [r["SeriesLines:names"] for t, r in rows[f"/outputs/{unit}"] if t is None]
+        assert names == [o.name for o in pcc_outputs(robot.n_sections) if o.unit == unit]
+        got = np.array([r["Scalars:scalars"] for t, r in rows[f"/outputs/{unit}"] if t is not None])
+        want = np.column_stack([est.column(n) for n in names])
+        np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+def test_view_geometry_matches_outputs_and_lengths(two_section: dict[str, Any]) -> None:
+    """Each row: one strip per section of POINTS + 1 points, joined end to start; the
+    strip ends are the CSV's section ends and tip (the formulation's output function,
+    float32 in the file); each strip's polyline length is its section's length to the
+    chord error of POINTS points; the IMU frames sit at the section ends, rotations
+    orthonormal with z along the backbone's last chord."""
+    rows, robot = two_section["rows"], read_robot("two-section")
+    est = read_state_table(two_section["est"], ())
+    strips = np.array([r["LineStrips3D:strips"] for _, r in rows["/world/estimate/backbone"]])
+    assert strips.shape == (len(est.t), robot.n_sections, POINTS + 1, 3)
+    np.testing.assert_array_equal(strips[:, 0, 0], 0.0)
+    np.testing.assert_allclose(strips[:, 1, 0], strips[:, 0, -1], atol=0)
+    for k in range(robot.n_sections):
+        end = np.column_stack([est.column(f"{c}_{k + 1}") for c in "xyz"])
+        np.testing.assert_allclose(strips[:, k, -1], end, atol=1e-6)
+        arc = np.linalg.norm(np.diff(strips[:, k], axis=1), axis=2).sum(axis=1)
+        theta = est.column(f"theta_{k + 1}")
+        chord_rel = 1 - np.sinc(theta / POINTS / 2 / np.pi)  # chord/arc = sinc(half angle)
+        np.testing.assert_allclose(arc, robot.sections[k].length * (1 - chord_rel), rtol=1e-5)
+    tip = np.column_stack([est.column(c) for c in "xyz"])
+    np.testing.assert_allclose(strips[:, -1, -1], tip, atol=1e-6)
+    for i, imu in enumerate(robot.imus):
+        frames = rows[f"/world/estimate/imu_{i + 1}"]
+        pos = np.array([r["Transform3D:translation"][0] for _, r in frames])
+        mat = np.array([r["Transform3D:mat3x3"][0] for _, r in frames]).reshape(-1, 3, 3)
+        mat = mat.transpose(0, 2, 1)  # Rerun stores 3x3 matrices column-major
+        assert imu.at == 1.0
+        np.testing.assert_allclose(pos, strips[:, imu.section, -1], atol=1e-7)
+        np.testing.assert_allclose(
+            mat @ mat.transpose(0, 2, 1), np.broadcast_to(np.eye(3), mat.shape), atol=1e-6
+        )
+        chord = strips[:, imu.section, -1] - strips[:, imu.section, -2]
+        chord /= np.linalg.norm(chord, axis=1, keepdims=True)
+        angle = np.arccos(np.clip(np.sum(chord * mat[:, :, 2], axis=1), -1, 1))
+        half_step = est.column(f"theta_{imu.section + 1}") / POINTS / 2
+        np.testing.assert_allclose(angle, half_step, atol=1e-5)
+    trail = [np.array(r["LineStrips3D:strips"][0]) for _, r in rows["/world/estimate/tip_trail"]]
+    np.testing.assert_allclose([s[0] for s in trail], tip[:-1], atol=1e-6)
+    np.testing.assert_allclose([s[1] for s in trail], tip[1:], atol=1e-6)
+
+
+def _estimates(robot: Robot) -> list[Estimate]:
+    outs = pcc_outputs(robot.n_sections)
+    rng = np.random.default_rng(1)
+    ests = []
+    for k in range(6):
+        out = np.zeros(len(outs))
+        for j, o in enumerate(outs):
+            out[j] = rng.uniform(0.1, 1.0) if o.unit == "rad" else rng.uniform(-0.1, 0.1)
+        status = "no-estimate" if k == 3 else ("dropout" if k == 4 else "ok")
+        ests.append(Estimate(0.1 * k, None, None if k == 3 else out, None, status, 0.1))  # type: ignore[arg-type]
+    return ests
+
+
+def _same(x: Any, y: Any) -> bool:
+    try:
+        return bool(np.allclose(np.array(x, dtype=float), np.array(y, dtype=float), atol=1e-7))
+    except (TypeError, ValueError):
+        return bool(x == y)
+
+
+def test_live_hook_draws_what_replay_draws(tmp_path: Path) -> None:
+    """``log_estimate`` (one entity at a time, as ``live`` calls it) and ``log_rows``
+    (columns, as ``view`` sends a recording) give the same file content; a sample
+    without an estimate clears the shape and breaks the trail."""
+    robot = read_robot("two-section")
+    outs = pcc_outputs(robot.n_sections)
+    ests = _estimates(robot)
+    live, replay = tmp_path / "live.rrd", tmp_path / "replay.rrd"
+    view = BackboneView(robot, outs, ViewerSink("save", live), points_per_section=POINTS)
+    for e in ests:
+        view.log_estimate(e)
+    view.close()
+    view = BackboneView(robot, outs, ViewerSink("save", replay), points_per_section=POINTS)
+    values = np.array(
+        [np.full(len(outs), math.nan) if e.output is None else e.output for e in ests]
+    )
+    view.log_rows(np.array([e.t for e in ests]), values, [e.status for e in ests])
+    view.close()
+    a, b = read_rrd(live), read_rrd(replay)
+    assert set(a) == set(b)
+    for entity in a:
+        if entity == "/__properties":
+            continue
+        assert [t for t, _ in a[entity]] == [t for t, _ in b[entity]], entity
+        for (_, ra), (_, rb) in zip(a[entity], b[entity]):
+            assert set(ra) == set(rb), entity
+            for comp in ra:
+                assert _same(ra[comp], rb[comp]), (entity, comp)
+    t_ns = _ns(np.array([e.t for e in ests]))
+    clears = [t for t, r in a["/world/estimate"] if "Clear:is_recursive" in r]
+    assert clears == [t_ns[3]]
+    assert [t for t, _ in a["/world/estimate/backbone"]] == [t_ns[k] for k in (0, 1, 2, 4, 5)]
+    assert [t for t, _ in a["/world/estimate/tip_trail"]] == [t_ns[k] for k in (1, 2, 5)]
+    texts = [(t, r["TextLog:text"][0]) for t, r in a["/status"]]
+    assert texts == [(t_ns[0], "status: ok"), (t_ns[3], "status: no-estimate"),
+                     (t_ns[4], "status: dropout"), (t_ns[5], "status: ok")]  # fmt: skip
+
+
+def _one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("continuum-mhe: error: ")
+    return err[0]
+
+
+def test_view_without_rerun_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    monkeypatch.setitem(sys.modules, "rerun", None)  # import rerun raises ImportError
+    assert main(["view", str(est), "--save", str(tmp_path / "v.rrd")]) == 2
+    assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == [est]
+
+
+def test_view_user_mistakes_are_one_line(
+    tmp_path: Path, two_section: dict[str, Any], monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    est = str(two_section["est"])
+    out = tmp_path / "v.rrd"
+    # two-section columns without --robot: the one-section robot does not fit
+    assert main(["view", est, "--save", str(out)]) == 2
+    assert "pass --robot with the robot it was estimated on" in _one_error_line(capsys)
+    assert main(["view", est, "--robot", "two-section", "--save", str(tmp_path / "v.txt")]) == 2
+    assert ".rrd" in _one_error_line(capsys)
+    if sys.platform.startswith("linux"):
+        monkeypatch.delenv("DISPLAY", raising=False)
+        monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+        assert main(["view", est, "--robot", "two-section", "--spawn"]) == 2
+        assert "needs a display" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_live_hook_max_hz(tmp_path: Path) -> None:
+    """At 100 Hz of sample time and at most 30 drawn per second: every 4th estimate
+    (0.03 s < 1/30 s < 0.04 s), and the one where the status changes."""
+    robot = Robot.single(0.2)
+    outs = pcc_outputs(1)
+    out = tmp_path / "v.rrd"
+    view = BackboneView(robot, outs, ViewerSink("save", out), max_hz=30.0)
+    for k in range(20):
+        status = "ok" if k < 10 else "dropout"
+        view.log_estimate(Estimate(0.01 * k, None, np.array([0, 0, 0.2, 0.1, 0.2]), None,
+                                   status, 0.1))  # type: ignore[arg-type]  # fmt: skip
+    view.close()
+    drawn = [t for t, _ in read_rrd(out)["/world/estimate/backbone"]]
+    assert drawn == _ns(0.01 * np.array([0, 4, 8, 10, 14, 18]))
+
+
+def test_imu_frame_includes_its_mounting(tmp_path: Path) -> None:
+    """A straight robot: the local frame is the base frame, so an IMU mounted with yaw
+    90 deg has its sensor x axis along base y (``v_tip = Rz(90) v_sensor``)."""
+    from continuum_mhe.model.robot import ImuPlacement, Section
+    from continuum_mhe.viewer import backbone_geometry
+
+    robot = Robot((Section(0.1), Section(0.2)), (ImuPlacement(1, 0.5, (0.0, 0.0, 90.0)),))
+    g = backbone_geometry(robot, np.zeros((1, 2, 2)), 4)
+    np.testing.assert_allclose(g.imu_rotation[0, 0], [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
+                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(g.imu_position[0, 0], [0, 0, 0.2], atol=1e-12)
+    np.testing.assert_allclose(g.sections[0, 1, :, 2], np.linspace(0.1, 0.3, 5), atol=1e-12)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_live_view_through_a_pty(tmp_path: Path) -> None:
+    """``live --view FILE.rrd --view-hz 0`` on a pseudo-terminal: the file holds one
+    backbone per estimate row of ``-o``, at the same times."""
+    import os
+    import signal
+    import subprocess
+
+    from live_helpers import SAFETY_S, data_rows, new_pty, wait_for
+    from test_live import _raw_lines
+
+    port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
+    master = new_pty(port)
+    cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port),
+           "--method", "ekf", "-o", str(out), "--view", str(rrd), "--view-hz", "0"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    lines = _raw_lines(0, 30)
+    try:
+        wait_for(lambda: "reading " in (proc.stderr.readline() or ""), "live to start")
+        for line in lines:
+            os.write(master, line.encode())
+        wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=SAFETY_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    assert proc.returncode == 0, err
+    est = read_state_table(out, ())
+    rows = read_rrd(rrd)
+    assert [t for t, _ in rows["/world/estimate/backbone"]] == _ns(est.t)
+    tips = np.array([r["Points3D:positions"][0] for _, r in rows["/world/estimate/tip"]])
+    np.testing.assert_allclose(tips, np.column_stack([est.column(c) for c in "xyz"]), atol=1e-6)
+
+
+def test_blueprint_shows_the_trail_for_its_seconds(tmp_path: Path) -> None:
+    """The recording's blueprint limits both tip trails to the last ``--trail`` seconds."""
+    from rerun.chunk import RrdReader
+
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    out = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--save", str(out), "--trail", "2.5"]) == 0
+    reader = RrdReader(out)
+    (blueprint,) = reader.blueprints()
+    ranges = {}
+    for chunk in reader.stream(store=blueprint).to_chunks():
+        rb = chunk.to_record_batch()
+        if "VisibleTimeRanges:ranges" in rb.schema.names:
+            ranges[chunk.entity_path.split("/overrides/")[1]] = rb.column(
+                "VisibleTimeRanges:ranges"
+            ).to_pylist()[0]
+    want = [{"timeline": "t", "range": {"start": -2_500_000_000, "end": 0}}]
+    assert ranges == {
+        "world/estimate/tip_trail/visualizers": want,
+        "world/truth/tip_trail/visualizers": want,
+    }
+
+
+def test_live_view_without_rerun_is_one_line_before_the_port(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    args = ["live", "--port", str(tmp_path / "no-such-port"), "--view", str(tmp_path / "v.rrd")]
+    assert main(args) == 2
+    assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
+
+
+def test_truth_without_bends_draws_its_tip_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth CSV with only ``t, x, y, z`` (as ``evaluate`` accepts): its tip and trail,
+    no backbone, and the summary line says so."""
+    est, truth = tmp_path / "e.csv", tmp_path / "t.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    truth.write_text("t,x,y,z\n0,0.01,0,0.2\n0.05,0.02,0,0.2\n")
+    out = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--truth", str(truth), "--save", str(out)]) == 0
+    assert "tip and section ends only" in capsys.readouterr().err
+    rows = read_rrd(out)
+    assert "/world/truth/backbone" not in rows and "/world/truth/section_ends" not in rows
+    tips = [r["Points3D:positions"][0] for _, r in rows["/world/truth/tip"]]
+    np.testing.assert_allclose(tips, [[0.01, 0, 0.2], [0.02, 0, 0.2]], atol=1e-7)
+    assert [t for t, _ in rows["/world/truth/tip_trail"]] == [50_000_000]
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_serve_web_on_loopback_until_ctrl_c(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``view --serve-web``: the web viewer's page answers on 127.0.0.1 at the printed
+    address, a second server on the same port is one line, and Ctrl-C stops both the
+    command (exit 0) and the server (the port closes)."""
+    import signal
+    import socket
+    import subprocess
+    import urllib.request
+
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    web, grpc = _free_port(), _free_port()
+    cmd = [sys.executable, "-m", "continuum_mhe.cli", "view", str(est), "--serve-web",
+           "--web-port", str(web), "--grpc-port", str(grpc)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr is not None
+        line = ""
+        while "serving the view at" not in line:
+            line = proc.stderr.readline()
+            assert line or proc.poll() is None, "view exited before serving"
+        url = line.split(" at ")[1].split()[0]
+        assert url.startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A")
+        with urllib.request.urlopen(url, timeout=30) as page:
+            assert page.status == 200
+        # the port is taken: one line, before anything starts (in this process)
+        assert main(cmd[3:]) == 2
+        assert _one_error_line(capsys).endswith(
+            f"port {web} on 127.0.0.1 is in use; pick another with --web-port"
+        )
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped serving the view" in err
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", web)) != 0
