@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.robot_logs import InputOptions, load_estimate_input
 from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
@@ -35,15 +37,23 @@ CASES = (
 
 
 def evaluate(
-    robot: Robot, path: Path, imu_model: str, bias: bool, truth_path: Path
+    robot: Robot,
+    path: Path,
+    imu_model: str,
+    bias: bool,
+    truth_path: Path,
+    bias_psd: float,
+    methods: tuple[str, ...] = ("mhe", "ekf", "ukf"),
 ) -> dict[str, tuple[float, float, float]]:
     """``method -> (tip mean, tip max, section 1 end mean)``, mm, N = 30."""
     truth = read_state_table(truth_path)
     opts = InputOptions(raw=RawImuSettings(imu_model=imu_model), estimate_gyro_bias=bias)  # type: ignore[arg-type]
     data = load_estimate_input(path, opts, make_formulation("bend", robot))
+    if bias:
+        data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
     names = [o.name for o in data.formulation.outputs]
     out = {}
-    for m in ("mhe", "ekf", "ukf"):
+    for m in methods:
         s = make_estimator(m, data.formulation, MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
         end1 = met.section_end_mean_mm.get("1", float("nan"))
@@ -65,9 +75,23 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("folder", nargs="?", type=Path, default=DATA)
     p.add_argument("--only", nargs="+", metavar="NAME", help="recordings to run (default all)")
+    p.add_argument(
+        "--bias-psd",
+        type=float,
+        default=DirectFormulation.gyro_bias_psd,
+        help="gyro-bias random walk, (rad/s)^2/s (default: the formulation's)",
+    )
+    p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"])
+    p.add_argument(
+        "--theta-max", type=float, help="every section's bend bound, rad (default: the robot's)"
+    )
+    p.add_argument("--cases", nargs="+", default=[c[0] for c in CASES], help="raw raw+bias tilt")
     args = p.parse_args()
     warnings.simplefilter("ignore")
     robot = read_robot("two-section")
+    if args.theta_max is not None:
+        sections = tuple(replace(sec, theta_max=args.theta_max) for sec in robot.sections)
+        robot = replace(robot, sections=sections)
     for info_path in sorted(args.folder.glob("*_info.json")):
         name = info_path.name[: -len("_info.json")]
         if args.only and name not in args.only:
@@ -85,17 +109,20 @@ def main() -> None:
             f"material twist up to {info['twist_max_deg']:.1f} deg"
         )
         for label, suffix, imu_model, bias in CASES:
+            if label not in args.cases:
+                continue
             res = evaluate(
                 robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
-                args.folder / f"{name}_truth.csv",
+                args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
                     f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.1f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
-        one = one_section_mhe(robot, args.folder, name)
-        print(f"   one-section model (tip IMU, tilt, MHE): tip {one:6.2f} mm mean")
+        if "mhe" in args.methods:
+            one = one_section_mhe(robot, args.folder, name)
+            print(f"   one-section model (tip IMU, tilt, MHE): tip {one:6.2f} mm mean")
 
 
 if __name__ == "__main__":

@@ -51,6 +51,9 @@ Regenerate (needs the ``rod`` extra)::
         --shear-ratio 5 --sim-dt 5e-6 --name spatial-stiff-torsion
     python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
         --drive tendon --name spatial-tendon
+
+``--calibrated`` gives the IMUs no accelerometer bias and no board misalignment (noise,
+quantisation and gyro bias stay), to separate the sensors' errors from the model's.
 """
 
 from __future__ import annotations
@@ -79,6 +82,10 @@ from continuum_mhe.simulation.cosserat import (
 FloatArray = NDArray[np.float64]
 SCENARIOS = ("planar-s", "spatial")
 DRIVES = ("base", "tendon")
+#: the recordings' IMU (50 Hz) and the same IMU calibrated (no accelerometer bias, no
+#: board misalignment; noise, quantisation and gyro bias stay)
+DEFAULT_IMU = ImuSettings(sample_dt=0.02)
+CALIBRATED_IMU = ImuSettings(sample_dt=0.02, accel_bias=0.0, misalignment_deg=0.0)
 
 
 @dataclass(frozen=True)
@@ -333,7 +340,7 @@ def write_section_recording(
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
 
-    imu = imu or ImuSettings(sample_dt=0.02)
+    imu = imu or DEFAULT_IMU
     traj = simulate_sections(settings, scenario, duration)
     t, f, w, idx = imu_samples(traj, imu, seed)
     t = t - t[0]
@@ -362,8 +369,9 @@ def write_section_recording(
     floor = np.linalg.norm(fk_tip[idx] - tip, axis=1) * 1e3
     one = np.linalg.norm(one_section_tip(traj, sum(settings.lengths))[idx] - tip, axis=1) * 1e3
     twist_t = np.degrees(np.abs(tangent_twist(traj, bends)[idx]))
-    info = {
+    info: dict[str, object] = {
         "scenario": scenario,
+        "imu": "calibrated" if imu == CALIBRATED_IMU else "default",
         "drive": settings.drive,
         "shear_ratio": settings.shear_ratio,
         "pcc_floor_mean_mm": float(floor.mean()),
@@ -399,6 +407,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="base",
         help="couples fixed in the base frame (default) or in each section's frame (tendon)",
     )
+    p.add_argument(
+        "--calibrated",
+        action="store_true",
+        help="IMUs without accelerometer bias and board misalignment (as after a "
+        "calibration); noise, quantisation and gyro bias stay",
+    )
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
     out = Path(args.out)
@@ -411,6 +425,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=args.sim_dt, drive=args.drive),
         args.scenario,
         args.duration,
+        imu=CALIBRATED_IMU if args.calibrated else None,
         seed=args.seed,
     )
     print(json.dumps(info), file=sys.stderr)
