@@ -173,3 +173,29 @@ def test_bias_flag_needs_the_direct_model(tmp_path) -> None:  # type: ignore[no-
     data = load_estimate_input(raw, opts, make_formulation("bend"))
     assert isinstance(data.formulation, DirectFormulation)
     assert data.formulation.estimate_gyro_bias and data.formulation.nx == 7
+
+
+def test_estimate_cli_with_bias_keeps_the_columns(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """``estimate --imu-model direct --estimate-gyro-bias`` writes today's columns; the
+    flag on tilt input is one line, exit 2, nothing written."""
+    from continuum_mhe.cli import main
+
+    t, z, _ = _recording("one", 2.0)
+    g = z[:, :3] * 9.81  # specific force from its direction (any unit)
+    rows = ["t,ax,ay,az,gx,gy,gz"] + [
+        ",".join(f"{v:.9g}" for v in (ti, *gi, *zi[3:6])) for ti, gi, zi in zip(t, g, z)
+    ]
+    raw = tmp_path / "raw.csv"
+    raw.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "est.csv"
+    args = ["estimate", str(raw), "-o", str(out), "--imu-model", "direct", "--method", "ukf"]
+    assert main([*args, "--estimate-gyro-bias"]) == 0
+    assert out.read_text().splitlines()[0] == "t,x,y,z,theta,phi,status,solve_ms"
+    tilt = tmp_path / "tilt.csv"
+    tilt.write_text("t,roll,pitch\n0,0.1,0.2\n0.05,0.1,0.2\n")
+    out2 = tmp_path / "est2.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(tilt), "-o", str(out2), "--estimate-gyro-bias"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--estimate-gyro-bias needs --imu-model direct" in err[0]
+    assert not out2.exists()
