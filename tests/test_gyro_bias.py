@@ -199,3 +199,16 @@ def test_estimate_cli_with_bias_keeps_the_columns(tmp_path, capsys) -> None:  # 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--estimate-gyro-bias needs --imu-model direct" in err[0]
     assert not out2.exists()
+
+
+def test_live_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "live.csv"
+    args = ["live", "--port", str(tmp_path / "none"), "--format", "raw", "-o", str(out)]
+    assert main([*args, "--estimate-gyro-bias"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "continuum-mhe: error: --estimate-gyro-bias needs --imu-model direct (raw gyros)"
+    ]
+    assert not out.exists()
