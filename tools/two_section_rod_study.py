@@ -25,6 +25,7 @@ from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.robot_logs import InputOptions, load_estimate_input
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
@@ -44,21 +45,55 @@ def evaluate(
     truth_path: Path,
     bias_psd: float,
     methods: tuple[str, ...] = ("mhe", "ekf", "ukf"),
+    mhe: MHESettings | None = None,
+    fit: tuple[int, int] | None = None,
 ) -> dict[str, tuple[float, float, float]]:
-    """``method -> (tip mean, tip max, section 1 end mean)``, mm, N = 30."""
+    """``method -> (tip mean, tip max, section 1 end mean)``, mm (MHE: N = 30 unless
+    ``mhe`` says otherwise). With ``fit`` (tilt only), also prints the measurement cost
+    ``sum r^T R^-1 r`` over samples ``fit[0]:fit[1]`` of each method's bends and of the
+    rod's true PCC bends."""
     truth = read_state_table(truth_path)
     opts = InputOptions(raw=RawImuSettings(imu_model=imu_model), estimate_gyro_bias=bias)  # type: ignore[arg-type]
     data = load_estimate_input(path, opts, make_formulation("bend", robot))
     if bias:
         data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
-    names = [o.name for o in data.formulation.outputs]
+    f = data.formulation
+    names = [o.name for o in f.outputs]
     out = {}
+    costs = {}
     for m in methods:
-        s = make_estimator(m, data.formulation, MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
+        s = make_estimator(m, f, mhe or MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
         end1 = met.section_end_mean_mm.get("1", float("nan"))
         out[m] = (met.tip_mean_mm, met.tip_max_mm, end1)
+        if fit and f.name == "bend":
+            costs[m] = fit_cost(f, data.z, s.output, names, fit)
+    if costs and fit:
+        costs["truth"] = fit_cost(f, data.z, truth.values, list(truth.names), fit)
+        print(
+            f"   measurement cost over samples {fit[0]}-{fit[1]}: "
+            + ", ".join(f"{k} {v:.0f}" for k, v in costs.items())
+        )
     return out
+
+
+def fit_cost(
+    f: Formulation, z: np.ndarray, table: np.ndarray, names: list[str], fit: tuple[int, int]
+) -> float:
+    """``sum r^T R^-1 r`` of the tilt measurements over samples ``fit[0]:fit[1]`` for
+    the bends in the columns ``theta_k, phi_k`` of ``table`` (rates do not enter)."""
+    n = f.robot.n_sections
+    cols = [(names.index(f"theta_{k}"), names.index(f"phi_{k}")) for k in range(1, n + 1)]
+    r_inv = np.linalg.inv(f.meas_cov())
+    total = 0.0
+    for i in range(*fit):
+        bends = [
+            (table[i, a] * np.cos(table[i, b]), table[i, a] * np.sin(table[i, b])) for a, b in cols
+        ]
+        x = np.concatenate([np.ravel(bends), np.zeros(f.nx - 2 * n)])
+        r = np.asarray(f.functions.innovate(z[i], x)[0], dtype=float).ravel()
+        total += float(r @ r_inv @ r)
+    return total
 
 
 def one_section_mhe(robot: Robot, folder: Path, name: str) -> float:
@@ -82,6 +117,16 @@ def main() -> None:
         help="gyro-bias random walk, (rad/s)^2/s (default: the formulation's)",
     )
     p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"])
+    p.add_argument("--solver", default="fast", choices=["fast", "ipopt"], help="the MHE's")
+    p.add_argument("--horizon", type=int, default=30, help="the MHE's N (default 30)")
+    p.add_argument(
+        "--fit-cost",
+        nargs=2,
+        type=int,
+        metavar=("FIRST", "STOP"),
+        help="tilt only: print the measurement cost of each method's bends and of the "
+        "true bends over samples FIRST:STOP",
+    )
     p.add_argument(
         "--theta-max", type=float, help="every section's bend bound, rad (default: the robot's)"
     )
@@ -114,6 +159,8 @@ def main() -> None:
             res = evaluate(
                 robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
+                MHESettings(horizon=args.horizon, solver=args.solver),
+                tuple(args.fit_cost) if args.fit_cost else None,
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
