@@ -1,76 +1,175 @@
 """Estimators on the two-section Cosserat-rod recordings (data the PCC model did not
-generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``) and
-with tilt only (``bend``), beside the PCC-model floor and a one-section model of the
-whole robot driven by the tip IMU.
+generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``,
+with and without gyro-bias estimation) and with tilt only (``bend``), beside the
+PCC-model floor, a one-section model of the whole robot driven by the tip IMU, and the
+rod's twist about the tangent at each section end.
 
-    python tools/two_section_rod_study.py [FOLDER]   # default: the shipped data/rod2
+    python tools/two_section_rod_study.py [FOLDER] [--only NAME ...]
+    # FOLDER default: the shipped src/continuum_mhe/data/rod2
 """
 
+from __future__ import annotations
+
+import argparse
 import json
-import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.csv_files import read_measurements, read_state_table
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.robot_logs import InputOptions, load_estimate_input
 from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
+#: (label, input file suffix, imu model, estimate gyro bias)
+CASES = (
+    ("raw", "raw", "direct", False),
+    ("raw+bias", "raw", "direct", True),
+    ("tilt", "tilt", "tilt", False),
+)
 
 
-def evaluate(robot: Robot, path: Path, model: str, truth_path: Path) -> dict[str, tuple]:
+def evaluate(
+    robot: Robot,
+    path: Path,
+    imu_model: str,
+    bias: bool,
+    truth_path: Path,
+    bias_psd: float,
+    methods: tuple[str, ...] = ("mhe", "ekf", "ukf"),
+    mhe: MHESettings | None = None,
+    fit: tuple[int, int] | None = None,
+) -> dict[str, tuple[float, float, float]]:
+    """``method -> (tip mean, tip max, section 1 end mean)``, mm (MHE: N = 30 unless
+    ``mhe`` says otherwise). With ``fit`` (tilt only), also prints the measurement cost
+    ``sum r^T R^-1 r`` over samples ``fit[0]:fit[1]`` of each method's bends and of the
+    rod's true PCC bends."""
     truth = read_state_table(truth_path)
-    opts = InputOptions(raw=RawImuSettings(imu_model="direct" if model == "direct" else "tilt"))
+    opts = InputOptions(raw=RawImuSettings(imu_model=imu_model), estimate_gyro_bias=bias)  # type: ignore[arg-type]
     data = load_estimate_input(path, opts, make_formulation("bend", robot))
+    if bias:
+        data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
+    f = data.formulation
+    names = [o.name for o in f.outputs]
     out = {}
-    for m in ("mhe", "ekf", "ukf"):
-        s = make_estimator(m, data.formulation, MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
-        names = [o.name for o in data.formulation.outputs]
+    costs = {}
+    for m in methods:
+        s = make_estimator(m, f, mhe or MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
-        ends = met.section_end_mean_mm
-        out[m] = (met.tip_mean_mm, met.tip_max_mm, ends.get("1", float("nan")))
+        end1 = met.section_end_mean_mm.get("1", float("nan"))
+        out[m] = (met.tip_mean_mm, met.tip_max_mm, end1)
+        if fit and f.name == "bend":
+            costs[m] = fit_cost(f, data.z, s.output, names, fit)
+    if costs and fit:
+        costs["truth"] = fit_cost(f, data.z, truth.values, list(truth.names), fit)
+        print(
+            f"   measurement cost over samples {fit[0]}-{fit[1]}: "
+            + ", ".join(f"{k} {v:.0f}" for k, v in costs.items())
+        )
     return out
 
 
+def fit_cost(
+    f: Formulation, z: np.ndarray, table: np.ndarray, names: list[str], fit: tuple[int, int]
+) -> float:
+    """``sum r^T R^-1 r`` of the tilt measurements over samples ``fit[0]:fit[1]`` for
+    the bends in the columns ``theta_k, phi_k`` of ``table`` (rates do not enter)."""
+    n = f.robot.n_sections
+    cols = [(names.index(f"theta_{k}"), names.index(f"phi_{k}")) for k in range(1, n + 1)]
+    r_inv = np.linalg.inv(f.meas_cov())
+    total = 0.0
+    for i in range(*fit):
+        bends = [
+            (table[i, a] * np.cos(table[i, b]), table[i, a] * np.sin(table[i, b])) for a, b in cols
+        ]
+        x = np.concatenate([np.ravel(bends), np.zeros(f.nx - 2 * n)])
+        r = np.asarray(f.functions.innovate(z[i], x)[0], dtype=float).ravel()
+        total += float(r @ r_inv @ r)
+    return total
+
+
+def one_section_mhe(robot: Robot, folder: Path, name: str) -> float:
+    """Tip error (mm, mean) of a one-section model of the whole robot, driven by the
+    tip IMU's tilt (columns ``_2``), MHE N = 30."""
+    tilt = read_measurements(folder / f"{name}_tilt.csv", n_imus=2)
+    f1 = make_formulation("bend", Robot.single(robot.length, 3.0))
+    s = make_estimator("mhe", f1, MHESettings(horizon=30)).run(tilt.t, tilt.z[:, 2:4])
+    truth = read_state_table(folder / f"{name}_truth.csv")
+    return float(np.mean(np.linalg.norm(s.output[:, :3] - truth.values[:, :3], axis=1)) * 1e3)
+
+
 def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("folder", nargs="?", type=Path, default=DATA)
+    p.add_argument("--only", nargs="+", metavar="NAME", help="recordings to run (default all)")
+    p.add_argument(
+        "--bias-psd",
+        type=float,
+        default=DirectFormulation.gyro_bias_psd,
+        help="gyro-bias random walk, (rad/s)^2/s (default: the formulation's)",
+    )
+    p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"])
+    p.add_argument("--solver", default="fast", choices=["fast", "ipopt"], help="the MHE's")
+    p.add_argument("--horizon", type=int, default=30, help="the MHE's N (default 30)")
+    p.add_argument(
+        "--fit-cost",
+        nargs=2,
+        type=int,
+        metavar=("FIRST", "STOP"),
+        help="tilt only: print the measurement cost of each method's bends and of the "
+        "true bends over samples FIRST:STOP",
+    )
+    p.add_argument(
+        "--theta-max", type=float, help="every section's bend bound, rad (default: the robot's)"
+    )
+    p.add_argument("--cases", nargs="+", default=[c[0] for c in CASES], help="raw raw+bias tilt")
+    args = p.parse_args()
     warnings.simplefilter("ignore")
-    folder = Path(sys.argv[1]) if len(sys.argv) > 1 else DATA
     robot = read_robot("two-section")
-    one = Robot.single(robot.length, 3.0)
-    for info_path in sorted(folder.glob("*_info.json")):
+    if args.theta_max is not None:
+        sections = tuple(replace(sec, theta_max=args.theta_max) for sec in robot.sections)
+        robot = replace(robot, sections=sections)
+    for info_path in sorted(args.folder.glob("*_info.json")):
         name = info_path.name[: -len("_info.json")]
+        if args.only and name not in args.only:
+            continue
         info = json.loads(info_path.read_text())
-        truth = folder / f"{name}_truth.csv"
+        floor = info["pcc_floor_mean_mm"]
+        twist = info.get("tangent_twist_max_deg", [float("nan")] * 2)
         print(
-            f"== {name}: PCC floor {info['pcc_floor_mean_mm']:.2f} mm mean "
-            f"({info['pcc_floor_max_mm']:.2f} max), one-section arc through the true tip "
-            f"tangent {info['one_section_mean_mm']:.1f} mm, twist up to "
-            f"{info['twist_max_deg']:.1f} deg, bends up to "
-            f"{', '.join(f'{v:.0f}' for v in info['theta_max_deg'])} deg"
+            f"== {name} ({info.get('drive', 'base')} drive, G/E = {info['shear_ratio']:.3g}): "
+            f"PCC floor {floor:.2f} mm mean ({info['pcc_floor_max_mm']:.2f} max), "
+            f"one-section arc through the true tip tangent "
+            f"{info['one_section_mean_mm']:.1f} mm; bends up to "
+            f"{', '.join(f'{v:.0f}' for v in info['theta_max_deg'])} deg; twist about the "
+            f"tangent up to {twist[0]:.1f} deg (section 1 end), {twist[1]:.1f} deg (tip); "
+            f"material twist up to {info['twist_max_deg']:.1f} deg"
         )
-        for model, file in (("direct", "raw"), ("bend", "tilt")):
-            res = evaluate(robot, folder / f"{name}_{file}.csv", model, truth)
+        for label, suffix, imu_model, bias in CASES:
+            if label not in args.cases:
+                continue
+            res = evaluate(
+                robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
+                args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
+                MHESettings(horizon=args.horizon, solver=args.solver),
+                tuple(args.fit_cost) if args.fit_cost else None,
+            )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
-                ratio = mean / info["pcc_floor_mean_mm"]
                 print(
-                    f"   {file:4s} {m}: tip {mean:6.2f} mm mean ({ratio:.1f}x floor), "
+                    f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.1f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
-        # one-section model of the whole robot, driven by the tip IMU (columns _2)
-        import numpy as np
-
-        from continuum_mhe.io.csv_files import read_measurements
-
-        tilt = read_measurements(folder / f"{name}_tilt.csv", n_imus=2)
-        f1 = make_formulation("bend", one)
-        s = make_estimator("mhe", f1, MHESettings(horizon=30)).run(tilt.t, tilt.z[:, 2:4])
-        t_tab = read_state_table(truth)
-        err = np.linalg.norm(s.output[:, :3] - t_tab.values[:, :3], axis=1) * 1e3
-        print(f"   one-section model (tip IMU, tilt, MHE): tip {err.mean():6.2f} mm mean")
+        if "mhe" in args.methods:
+            one = one_section_mhe(robot, args.folder, name)
+            print(f"   one-section model (tip IMU, tilt, MHE): tip {one:6.2f} mm mean")
 
 
 if __name__ == "__main__":

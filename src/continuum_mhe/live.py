@@ -257,6 +257,12 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         default=0.05,
         help="gyro noise std in rad/s for --imu-model direct (default 0.05)",
     )
+    g.add_argument(
+        "--estimate-gyro-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
+        "IMU) instead of counting it as gyro noise",
+    )
 
 
 def raw_settings(args: argparse.Namespace) -> RawImuSettings:
@@ -283,6 +289,7 @@ def input_options(args: argparse.Namespace) -> Any:
         pair_tolerance=getattr(args, "pair_tolerance", None),
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
+        estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
         degrees=bool(getattr(args, "degrees", False)),
         skip_bad=bool(getattr(args, "skip_bad", False)),
     )
@@ -303,6 +310,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     )
     raw = raw_settings(args)
     formulation = formulation_from_args(args)
+    if getattr(args, "estimate_gyro_bias", False) and raw.imu_model != "direct":
+        raise InputError("--estimate-gyro-bias needs --imu-model direct (raw gyros)")
     if raw.imu_model == "direct":
         if settings.fmt != "raw":
             raise InputError("--imu-model direct needs --format raw")
@@ -311,7 +320,10 @@ def cmd_live(args: argparse.Namespace) -> int:
         if not (math.isfinite(args.gyro_std) and args.gyro_std > 0):
             raise InputError(f"--gyro-std must be positive, got {args.gyro_std}")
         formulation = DirectFormulation(
-            robot=formulation.robot, noise=formulation.noise, gyro_std=args.gyro_std
+            robot=formulation.robot,
+            noise=formulation.noise,
+            gyro_std=args.gyro_std,
+            estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
         )
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None

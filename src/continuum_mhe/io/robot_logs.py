@@ -261,6 +261,7 @@ class InputOptions:
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
         gyro_std: gyro noise, rad/s, for the direct model.
+        estimate_gyro_bias: the direct model estimates each gyro's bias.
         degrees: a tilt CSV is in degrees.
         skip_bad: skip bad samples instead of stopping.
     """
@@ -271,6 +272,7 @@ class InputOptions:
     pair_tolerance: float | None = None
     use_orientation: bool = False
     gyro_std: float = 0.05
+    estimate_gyro_bias: bool = False
     degrees: bool = False
     skip_bad: bool = False
 
@@ -300,6 +302,8 @@ def _formulation_for(
     options: InputOptions, base: Formulation, raw_input: bool, path: Path
 ) -> Formulation:
     if options.raw.imu_model != "direct":
+        if options.estimate_gyro_bias:
+            raise InputError("--estimate-gyro-bias needs --imu-model direct (raw gyros)")
         return base
     if not raw_input or options.use_orientation:
         raise InputError(f"{path}: --imu-model direct needs raw accelerometer and gyro input")
@@ -309,7 +313,12 @@ def _formulation_for(
         )
     from continuum_mhe.model.direct import DirectFormulation
 
-    return DirectFormulation(robot=base.robot, noise=base.noise, gyro_std=options.gyro_std)
+    return DirectFormulation(
+        robot=base.robot,
+        noise=base.noise,
+        gyro_std=options.gyro_std,
+        estimate_gyro_bias=options.estimate_gyro_bias,
+    )
 
 
 def load_estimate_input(

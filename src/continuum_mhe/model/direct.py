@@ -17,6 +17,13 @@ with the model
 
 Residuals are plain differences (no wrapping), so nothing is singular at
 ``pitch = +-pi/2`` or at ``theta = 0``.
+
+Gyro bias (``estimate_gyro_bias=True``): the state gains a bias ``b_i`` (rad/s, IMU
+frame) per IMU, after the bend rates, and the gyro model becomes ``omega + b_i``. Each
+bias is a random walk, ``b+ = b + w``, ``w ~ N(0, gyro_bias_psd dt I_3)``, with prior
+standard deviation ``initial_gyro_bias_std``. It is observable because the
+accelerometers pin the bends and hence their rates; the estimates settle over seconds
+(a few mrad/s after 12 s in the tests). It is a state, not an output.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from functools import cached_property
 
 import casadi as ca
 import numpy as np
+from scipy.linalg import block_diag
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
@@ -62,24 +70,35 @@ class DirectFormulation(BendFormulation):
     (6 per IMU).
 
     The gyro of an IMU sees the composed body rate of every section below it (and of
-    its own section up to its place). Gyro bias is not estimated: calibrate it at rest
-    (``continuum-mhe calibrate``) and subtract it; what remains counts as gyro noise.
+    its own section up to its place). By default the gyro bias is not estimated:
+    calibrate it at rest (``continuum-mhe calibrate``) and subtract it; what remains
+    counts as gyro noise. With ``estimate_gyro_bias`` each IMU's bias is a state (see
+    the module docstring).
 
     Attributes:
-        gyro_std: gyro noise standard deviation, rad/s (includes uncalibrated bias).
+        gyro_std: gyro noise standard deviation, rad/s (includes uncalibrated bias
+            when the bias is not estimated).
         accel_direction_std: standard deviation of each component of ``f/|f|``
             (dimensionless, about rad). ``None`` uses ``noise.measurement_std``.
+        estimate_gyro_bias: add a gyro bias per IMU to the state.
+        gyro_bias_psd: the bias random walk's spectral density, (rad/s)^2/s.
+        initial_gyro_bias_std: prior standard deviation of each bias, rad/s.
     """
 
     name: FormulationName = "direct"
     gyro_std: float = 0.05
     accel_direction_std: float | None = None
+    estimate_gyro_bias: bool = False
+    gyro_bias_psd: float = 1e-6
+    initial_gyro_bias_std: float = 0.05
 
     def __post_init__(self) -> None:
         super().__post_init__()
         for label, v in (
             ("gyro_std", self.gyro_std),
             ("accel_direction_std", self.accel_direction_std),
+            ("gyro_bias_psd", self.gyro_bias_psd),
+            ("initial_gyro_bias_std", self.initial_gyro_bias_std),
         ):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
@@ -87,6 +106,43 @@ class DirectFormulation(BendFormulation):
     @property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
         return direct_blocks(self.robot.n_imus)
+
+    # --- the gyro-bias states (after the bends and their rates) ---------------------
+    @property
+    def n_bias(self) -> int:
+        """Number of bias states: 3 per IMU when estimated, else 0."""
+        return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        base = super().state_names
+        if not self.estimate_gyro_bias:
+            return base
+        single = self.robot.n_imus == 1
+        return base + tuple(
+            f"bg{c}" if single else f"bg{c}_{i}"
+            for i in range(1, self.robot.n_imus + 1)
+            for c in "xyz"
+        )
+
+    def gyro_biases_sym(self, x: Sym) -> list[Sym]:
+        """Gyro bias of each IMU, rad/s (call only when estimated)."""
+        n4 = 4 * self.robot.n_sections
+        return [x[n4 + 3 * i : n4 + 3 * i + 3] for i in range(self.robot.n_imus)]
+
+    def process_cov_sym(self, dt: Sym) -> Sym:
+        """The bends' white-noise acceleration; each bias a random walk."""
+        q = super().process_cov_sym(dt)
+        if not self.estimate_gyro_bias:
+            return q
+        return ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_bias))
+
+    def initial_cov(self) -> FloatArray:
+        base = super().initial_cov()
+        if not self.estimate_gyro_bias:
+            return base
+        bias = np.full(self.n_bias, self.initial_gyro_bias_std**2)
+        return np.asarray(block_diag(base, np.diag(bias)), dtype=np.float64)
 
     def angular_velocities_sym(self, x: Sym) -> list[Sym]:
         """Angular velocity in each IMU's frame, rad/s."""
@@ -99,6 +155,8 @@ class DirectFormulation(BendFormulation):
 
     def measurement_sym(self, x: Sym) -> Sym:
         g, w = self.gravity_directions_sym(x), self.angular_velocities_sym(x)
+        if self.estimate_gyro_bias:
+            w = [wi + bi for wi, bi in zip(w, self.gyro_biases_sym(x))]
         return ca.vertcat(*[ca.vertcat(gi, wi) for gi, wi in zip(g, w)])
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
@@ -117,11 +175,12 @@ class DirectFormulation(BendFormulation):
         x = ca.SX.sym("x", self.nx)
         n2 = 2 * self.robot.n_sections
         w = ca.vertcat(*self.angular_velocities_sym(x))
-        return ca.Function("rate_map", [x], [ca.jacobian(w, x[n2:])])
+        return ca.Function("rate_map", [x], [ca.jacobian(w, x[n2 : 2 * n2])])
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """Bends from the gravity directions (closed-form tilt inverse for one section,
-        section by section otherwise), rates from the gyros by least squares."""
+        section by section otherwise), rates from the gyros by least squares, biases
+        zero (their prior mean)."""
         z0 = np.asarray(z0, dtype=float)
         gravity: list[FloatArray | None] = []
         gyro_rows: list[int] = []
@@ -139,11 +198,11 @@ class DirectFormulation(BendFormulation):
         else:
             bends = self._initial_bends(gravity)
         n2 = bends.size
-        x = np.concatenate([bends.ravel(), np.zeros(n2)])
+        x = np.concatenate([bends.ravel(), np.zeros(n2 + self.n_bias)])
         if gyro_rows:
             m = np.asarray(self._rate_map(x), dtype=float).reshape(self.nz // 2, n2, order="F")
             rows = [3 * (r // 6) + (r % 6 - 3) for r in gyro_rows]
-            x[n2:] = np.linalg.lstsq(m[rows], z0[gyro_rows], rcond=None)[0]
+            x[n2 : 2 * n2] = np.linalg.lstsq(m[rows], z0[gyro_rows], rcond=None)[0]
         return x
 
 

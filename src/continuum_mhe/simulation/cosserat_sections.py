@@ -11,6 +11,17 @@ a servo-like profile. Scenarios:
 * ``spatial``: the couples' axes turn about base z at different rates (bending planes
   turning at different rates), large enough for bends over 90 degrees per section.
 
+Two drives (``SectionRodSettings.drive``):
+
+* ``base``: the couples are fixed in the base frame. Where a section is already bent,
+  part of a base-frame couple lies along its tangent and twists the rod (up to 120
+  degrees at the tip on ``spatial`` with ``G = E/3``);
+* ``tendon``: each couple is fixed in the frame of the element it acts on (a follower
+  couple, as a tendon terminated there pulls), perpendicular to the tangent. Section
+  2's couple is ``M_2`` and section 1's is ``M_1 - M_2``, so that section ``k``
+  carries about the bending moment ``M_k`` in its own frame, as when section 2's
+  tendon runs through section 1. The rod bends with little twist.
+
 The shear modulus sets how much the rod twists under the couples (the PCC model has no
 torsion): ``G = E/3`` (a plain elastomer rod) or ``G = 5 E`` (a robot built to resist
 torsion). An MPU9250-like IMU sits at each section's end (specific force including its
@@ -27,7 +38,10 @@ Outputs, per recording (``write_section_recording``):
   section ends);
 * ``NAME_info.json``: the PCC-model floor (tip error of the PCC forward kinematics of
   the true section-end tangents), a one-section model's error (the whole robot as one
-  arc through the tip tangent), and the rod's twist at the tip.
+  arc through the tip tangent), the rod's total material twist, and the twist about
+  the tangent at each section end (the angle about the tangent between the rod's true
+  frame there and the torsion-free PCC frame of the same tangents: what an IMU there
+  sees and the PCC model cannot explain).
 
 Regenerate (needs the ``rod`` extra)::
 
@@ -35,6 +49,11 @@ Regenerate (needs the ``rod`` extra)::
     python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR
     python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
         --shear-ratio 5 --sim-dt 5e-6 --name spatial-stiff-torsion
+    python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
+        --drive tendon --name spatial-tendon
+
+``--calibrated`` gives the IMUs no accelerometer bias and no board misalignment (noise,
+quantisation and gyro bias stay), to separate the sensors' errors from the model's.
 """
 
 from __future__ import annotations
@@ -46,7 +65,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,7 +73,7 @@ from numpy.typing import NDArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.kinematics import rotation_bend
-from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
+from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at, section_frames_from_bends
 from continuum_mhe.simulation.cosserat import (
     GRAVITY,
     ImuSettings,
@@ -65,6 +84,11 @@ from continuum_mhe.simulation.cosserat import (
 
 FloatArray = NDArray[np.float64]
 SCENARIOS = ("planar-s", "spatial")
+DRIVES = ("base", "tendon")
+#: the recordings' IMU (50 Hz) and the same IMU calibrated (no accelerometer bias, no
+#: board misalignment; noise, quantisation and gyro bias stay)
+DEFAULT_IMU = ImuSettings(sample_dt=0.02)
+CALIBRATED_IMU = ImuSettings(sample_dt=0.02, accel_bias=0.0, misalignment_deg=0.0)
 
 
 @dataclass(frozen=True)
@@ -79,6 +103,10 @@ class SectionRodSettings:
         damping: uniform linear damping constant, 1/s; sim_dt: integration step, s.
         max_moment: each section's largest couple, N m.
         period: one pull-hold-release-rest cycle, s.
+        drive: ``"base"`` (couples fixed in the base frame) or ``"tendon"`` (each
+            couple fixed in the frame of the element it acts on); see the module.
+        tendon_gain: the tendon drive's section moments ``M_1, M_2`` at full pull, in
+            units of ``max_moment`` (bends to 124 and 113 degrees on ``spatial``).
     """
 
     lengths: tuple[float, float] = (0.16, 0.14)
@@ -92,6 +120,12 @@ class SectionRodSettings:
     sim_dt: float = 2.0e-5
     max_moment: float = 0.12
     period: float = 6.0
+    drive: Literal["base", "tendon"] = "base"
+    tendon_gain: tuple[float, float] = (1.5, 1.75)
+
+    def __post_init__(self) -> None:
+        if self.drive not in DRIVES:
+            raise ValueError(f"drive must be one of {DRIVES}, got {self.drive!r}")
 
 
 @dataclass(frozen=True)
@@ -111,18 +145,39 @@ class SectionTrajectory:
 
 
 def couples(scenario: str, t: float, s: SectionRodSettings) -> tuple[FloatArray, FloatArray]:
-    """The couples (base frame, N m) at the ends of section 1 and section 2 at ``t``.
+    """The couples (N m) at the ends of section 1 and section 2 at ``t``: in the base
+    frame for the ``base`` drive, in the frame of the end element for ``tendon``.
 
     Section 1 carries both couples, section 2 only its own; ``planar-s`` gives section 1
     the net moment ``+m`` and section 2 ``-m`` about base x.
     """
     m = s.max_moment * float(servo_profile(t, s.period))
+    if s.drive == "tendon":
+        return tendon_couples(scenario, t, m, s)
     if scenario == "planar-s":
         return np.array([2.0 * m, 0.0, 0.0]), np.array([-m, 0.0, 0.0])
     a1, a2 = 2 * np.pi * t / 9.0, -2 * np.pi * t / 5.0 + 1.0
     m2 = 1.3 * m * np.array([math.cos(a2), math.sin(a2), 0.0])
     net1 = 1.3 * m * np.array([math.cos(a1), math.sin(a1), 0.0])
     return net1 - m2, m2
+
+
+def tendon_couples(
+    scenario: str, t: float, m: float, s: SectionRodSettings
+) -> tuple[FloatArray, FloatArray]:
+    """Follower couples (each in its element's frame, N m) for the section moments
+    ``M_k = gain_k m e(alpha_k)`` perpendicular to the tangent, ``e(alpha) = (cos alpha,
+    sin alpha, 0)``: section 1's end gets ``M_1 - M_2``, the tip ``M_2``. ``planar-s``:
+    ``alpha_1 = 0``, ``alpha_2 = pi`` (an S); ``spatial``: the bending planes turn at
+    ``2 pi / 9`` and ``-2 pi / 5`` rad/s, as in the base drive."""
+    if scenario == "planar-s":
+        a1, a2 = 0.0, math.pi
+    else:
+        a1, a2 = 2 * np.pi * t / 9.0, -2 * np.pi * t / 5.0 + 1.0
+    g1, g2 = s.tendon_gain
+    m1 = g1 * m * np.array([math.cos(a1), math.sin(a1), 0.0])
+    m2 = g2 * m * np.array([math.cos(a2), math.sin(a2), 0.0])
+    return m1 - m2, m2
 
 
 def simulate_sections(
@@ -147,10 +202,13 @@ def simulate_sections(
 
     class _Couples(ea.NoForces):
         def apply_torques(self, system: object, time: float = 0.0) -> None:
+            # PyElastica's external torques are in each element's own frame
             c1, c2 = couples(scenario, float(time), s)
-            q = system.director_collection  # type: ignore[attr-defined]
-            system.external_torques[:, e1 - 1] += q[:, :, e1 - 1] @ c1  # type: ignore[attr-defined]
-            system.external_torques[:, -1] += q[:, :, -1] @ c2  # type: ignore[attr-defined]
+            if s.drive == "base":
+                q = system.director_collection  # type: ignore[attr-defined]
+                c1, c2 = q[:, :, e1 - 1] @ c1, q[:, :, -1] @ c2
+            system.external_torques[:, e1 - 1] += c1  # type: ignore[attr-defined]
+            system.external_torques[:, -1] += c2  # type: ignore[attr-defined]
 
     sim = _Sim()
     rod = ea.CosseratRod.straight_rod(
@@ -201,6 +259,16 @@ def simulate_sections(
         # total twist: the torsional curvature integrated along the rod
         twist[i] = float(np.sum(rod.kappa[2] * rod.rest_voronoi_lengths))
     return SectionTrajectory(t_rec, nodes, directors, vel, omega, twist, ends)
+
+
+def tangent_twist(traj: SectionTrajectory, bends: FloatArray) -> FloatArray:
+    """Twist about the tangent (n, 2) rad at each section end: the angle about the
+    tangent from the torsion-free PCC frame of the bends (which have the rod's true
+    section-end tangents, :func:`pcc_truth`) to the rod's true frame there."""
+    R_true = np.transpose(traj.directors, (0, 1, 3, 2))
+    R_pcc = section_frames_from_bends(bends, (1.0, 1.0))  # frames do not use lengths
+    m = np.einsum("nkji,nkjl->nkil", R_pcc, R_true)  # rotation about z
+    return np.asarray(np.arctan2(m[..., 1, 0], m[..., 0, 0]), dtype=float)
 
 
 def pcc_truth(traj: SectionTrajectory, lengths: Sequence[float]) -> tuple[FloatArray, FloatArray]:
@@ -270,7 +338,7 @@ def write_section_recording(
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
 
-    imu = imu or ImuSettings(sample_dt=0.02)
+    imu = imu or DEFAULT_IMU
     traj = simulate_sections(settings, scenario, duration)
     t, f, w, idx = imu_samples(traj, imu, seed)
     t = t - t[0]
@@ -298,14 +366,19 @@ def write_section_recording(
     write_table(out / f"{name}_truth.csv", truth_cols, np.column_stack(truth).tolist())
     floor = np.linalg.norm(fk_tip[idx] - tip, axis=1) * 1e3
     one = np.linalg.norm(one_section_tip(traj, sum(settings.lengths))[idx] - tip, axis=1) * 1e3
-    info = {
+    twist_t = np.degrees(np.abs(tangent_twist(traj, bends)[idx]))
+    info: dict[str, object] = {
         "scenario": scenario,
+        "imu": "calibrated" if imu == CALIBRATED_IMU else "default",
+        "drive": settings.drive,
         "shear_ratio": settings.shear_ratio,
         "pcc_floor_mean_mm": float(floor.mean()),
         "pcc_floor_max_mm": float(floor.max()),
         "one_section_mean_mm": float(one.mean()),
         "one_section_max_mm": float(one.max()),
         "twist_max_deg": float(np.degrees(np.max(np.abs(traj.twist)))),
+        "tangent_twist_max_deg": [float(twist_t[:, k].max()) for k in range(2)],
+        "tangent_twist_mean_deg": [float(twist_t[:, k].mean()) for k in range(2)],
         "theta_max_deg": [float(np.degrees(theta[:, k].max())) for k in range(2)],
         "samples": len(t),
     }
@@ -326,6 +399,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--sim-dt", type=float, default=2.0e-5, help="integration step in s (G = 5E: 5e-6)"
     )
+    p.add_argument(
+        "--drive",
+        choices=DRIVES,
+        default="base",
+        help="couples fixed in the base frame (default) or in each section's frame (tendon)",
+    )
+    p.add_argument(
+        "--calibrated",
+        action="store_true",
+        help="IMUs without accelerometer bias and board misalignment (as after a "
+        "calibration); noise, quantisation and gyro bias stay",
+    )
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
     if not available("elastica"):  # one line, before anything is written
@@ -339,9 +424,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     info = write_section_recording(
         out,
         args.name or args.scenario,
-        SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=args.sim_dt),
+        SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=args.sim_dt, drive=args.drive),
         args.scenario,
         args.duration,
+        imu=CALIBRATED_IMU if args.calibrated else None,
         seed=args.seed,
     )
     print(json.dumps(info), file=sys.stderr)
