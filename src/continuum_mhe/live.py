@@ -110,8 +110,10 @@ class LiveSettings:
         gap_factor: a step longer than this many usual periods is a gap.
         behind_s: report falling behind when a line waits longer than this, s.
         retry_max_s: longest wait between attempts to reopen a lost device, s.
-        restart_gap_s: after a gap longer than this (s) the estimator starts afresh
-            from the next sample; the old motion says nothing about the new one.
+
+    After a gap longer than the estimator's ``recovery.gap_reset`` (``--gap-reset``) the
+    estimator itself restarts from the next sample (status ``reset``), as in
+    ``estimate``: one mechanism, :meth:`~continuum_mhe.estimators.base.Estimator.step`.
     """
 
     port: str
@@ -122,7 +124,6 @@ class LiveSettings:
     gap_factor: float = 3.0
     behind_s: float = 1.0
     retry_max_s: float = 5.0
-    restart_gap_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.fmt not in LINE_FORMATS:
@@ -131,7 +132,7 @@ class LiveSettings:
             raise ValueError(f"baud must be a positive integer, got {self.baud!r}")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
             raise ValueError(f"duration must be positive seconds, got {self.duration!r}")
-        for name in ("status_every", "behind_s", "retry_max_s", "restart_gap_s"):
+        for name in ("status_every", "behind_s", "retry_max_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive, got {v!r}")
@@ -310,15 +311,14 @@ class LiveSession:
                 lost = max(int(round(dt / p)) - 1, 0)
                 c.gaps += 1
                 c.missing += lost
-                restart = dt > self.settings.restart_gap_s
+                gap_reset = self.estimator.recovery.gap_reset
+                restart = gap_reset is not None and dt > gap_reset
                 how = "estimator restarts" if restart else "estimating across it"
                 self.say(
                     f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); {how}"
                 )
                 if self.converter is not None:
                     self.converter.reset()
-                if restart:
-                    self.estimator.reset()
             else:
                 self._periods.append(dt)
         self._t_last, self._dev_last, self._wall_last = t, s.t, arrival
@@ -338,7 +338,7 @@ class LiveSession:
         if self.writer is None or self.out is None:
             return
         ny = self.estimator.formulation.ny
-        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny)
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, est.output_std)
         self.writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
         self.out.flush()
 
@@ -557,7 +557,11 @@ def input_options(args: argparse.Namespace) -> Any:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    from continuum_mhe.cli_options import formulation_from_args, mhe_settings_from_args
+    from continuum_mhe.cli_options import (
+        formulation_from_args,
+        mhe_settings_from_args,
+        recovery_settings_from_args,
+    )
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.direct import DirectFormulation
 
@@ -582,7 +586,9 @@ def cmd_live(args: argparse.Namespace) -> int:
             robot=formulation.robot, noise=formulation.noise, gyro_std=args.gyro_std
         )
     converter = RawImuConverter(raw) if settings.fmt == "raw" else None
-    estimator = make_estimator(args.method, formulation, mhe_settings_from_args(args))
+    estimator = make_estimator(
+        args.method, formulation, mhe_settings_from_args(args), recovery_settings_from_args(args)
+    )
     try:
         conn = open_port(settings.port, settings.baud)
     except Exception as exc:
@@ -609,7 +615,11 @@ def cmd_live(args: argparse.Namespace) -> int:
 
 def register(subparsers: Any) -> None:
     """Add ``live`` and the raw-IMU / robot-log options of ``estimate``."""
-    from continuum_mhe.cli_options import add_mhe_options, add_model_options
+    from continuum_mhe.cli_options import (
+        add_mhe_options,
+        add_model_options,
+        add_recovery_options,
+    )
     from continuum_mhe.estimators import METHODS
 
     est = subparsers.choices.get("estimate")
@@ -642,5 +652,6 @@ def register(subparsers: Any) -> None:
     )
     add_model_options(p)
     add_mhe_options(p)
+    add_recovery_options(p)
     add_raw_imu_options(p)
     p.set_defaults(func=cmd_live)

@@ -18,16 +18,27 @@ from continuum_mhe.estimators.kalman import (
 )
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.settings import MHESettings
+from continuum_mhe.settings import MHESettings, RecoverySettings
 
 Method = Literal["mhe", "ekf", "ukf"]
 METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
 
 
 def make_estimator(
-    method: Method, formulation: Formulation, mhe: MHESettings | None = None
+    method: Method,
+    formulation: Formulation,
+    mhe: MHESettings | None = None,
+    recovery: RecoverySettings | None = None,
 ) -> Estimator:
-    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only."""
+    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only,
+    ``recovery`` (gap reset, frozen sensors, ``uncertain``) to every method."""
+    est = _make(method, formulation, mhe)
+    if recovery is not None:
+        est.recovery = recovery
+    return est
+
+
+def _make(method: Method, formulation: Formulation, mhe: MHESettings | None) -> Estimator:
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe)
     if method == "ekf":  # the compiled step where the model compiles (same answers)

@@ -234,6 +234,19 @@ class Formulation:
             observe=ca.Function("h", [x], [h]),
         )
 
+    @cached_property
+    def output_jacobian(self) -> ca.Function:
+        """``J(x) = d output / d x`` (ny, nx), written once from :meth:`output_sym`."""
+        x = ca.SX.sym("x", self.nx)
+        return ca.Function("output_jacobian", [x], [ca.jacobian(self.output_sym(x), x)])
+
+    def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
+        """One standard deviation of every output (ny,) (m, rad) for a state ``x`` with
+        covariance ``P``: ``sqrt(diag(J P J^T))``, linearised at ``x``."""
+        J = np.asarray(self.output_jacobian(x), dtype=float).reshape(self.ny, self.nx)
+        var = np.einsum("ij,jk,ik->i", J, P, J)
+        return np.sqrt(np.maximum(var, 0.0))
+
     def output(self, x: FloatArray) -> FloatArray:
         """Outputs ``(ny,)`` for a state ``(nx,)``, or ``(n, ny)`` for states ``(n, nx)``;
         wrapped angles in ``[-pi, pi)``."""
