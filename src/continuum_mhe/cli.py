@@ -20,8 +20,8 @@ import numpy as np
 
 from continuum_mhe.cli_options import (
     add_mhe_options,
-    add_recovery_options,
     add_model_options,
+    add_recovery_options,
     add_robot_option,
     formulation_from_args,
     mhe_settings_from_args,
@@ -81,9 +81,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     if out.resolve() == Path(args.measurements).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
     data = load_estimate_input(args.measurements, input_options(args), formulation_from_args(args))
-    est = make_estimator(
-        args.method, data.formulation, mhe_settings_from_args(args), recovery_settings_from_args(args)
-    )
+    recovery = recovery_settings_from_args(args)
+    est = make_estimator(args.method, data.formulation, mhe_settings_from_args(args), recovery)
     series = est.run(
         data.t, data.z, progress=interruptible(progress_bar(f"{args.method} estimate"))
     )

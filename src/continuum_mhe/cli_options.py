@@ -115,8 +115,6 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
     return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
 
 
-
-
 #: ``--gap-reset`` and ``--freeze`` defaults, s.
 GAP_RESET_S = 1.0
 FREEZE_S = 1.0
