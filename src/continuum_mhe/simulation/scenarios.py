@@ -183,7 +183,9 @@ def simulate(
     ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
     """
     if scenario in MULTI_SECTION_SCENARIOS:
-        raise ValueError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
+        raise ValueError(
+            f"scenario {scenario!r} needs a robot with two or more sections (--robot)"
+        )
     if scenario not in _SHAPES:
         raise ValueError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if not (math.isfinite(length) and length > 0):
