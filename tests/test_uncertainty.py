@@ -162,7 +162,9 @@ def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
     import json
 
     got = json.loads(capsys.readouterr().out)["calibration"]
-    want = compute_calibration(series.output, series.std, rec.truth, ["x", "y", "z", "theta", "phi"])
+    want = compute_calibration(
+        series.output, series.std, rec.truth, ["x", "y", "z", "theta", "phi"]
+    )
     assert got["coverage"] == pytest.approx(want.coverage)
     assert got["tip_nees"] == pytest.approx(want.tip_nees)
     # a file without std columns: read, evaluated without calibration

@@ -397,7 +397,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     },
     "continuum_mhe.Estimate": {
         "title": "continuum_mhe.Estimate",
-        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate",
+        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate, "
+        "std_ fields (one standard deviation) null where unknown",
         "type": "object",
         "properties": {
             **{k: {"type": ["number", "null"]} for k in ("t", "x", "y", "z", "theta", "phi")},
@@ -440,12 +441,19 @@ def estimate_messages(
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
     names = [o.name for o in series.outputs]
-    for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
+    rows = zip(series.t, series.output, series.std, series.status, series.solve_ms)
+    for t, out, sd, st, ms in rows:
         ns = t0_ns + int(round(float(t) * 1e9))
         stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
         has = st != "no-estimate" and bool(np.all(np.isfinite(out)))
         row: dict[str, Any] = {"t": float(t)}
         row.update({k: (float(v) if has else None) for k, v in zip(names, out)})
+        row.update(
+            {
+                f"std_{k}": (float(v) if has and math.isfinite(v) else None)
+                for k, v in zip(names, sd)
+            }
+        )
         row.update(status=str(st), solve_ms=float(ms))
         yield "/continuum/estimate", ns, row
         if not has:
@@ -503,7 +511,11 @@ def read_estimates_mcap(
         for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
             row = json.loads(message.data)
             if not names:
-                names = [k for k in row if k not in ("t", "status", "solve_ms")]
+                names = [
+                    k
+                    for k in row
+                    if k not in ("t", "status", "solve_ms") and not k.startswith("std_")
+                ]
             t.append(row["t"])
             out.append([math.nan if row[k] is None else row[k] for k in names])
             status.append(row["status"])
