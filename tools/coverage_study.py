@@ -13,7 +13,8 @@ to R (``--model-error-deg``, as the CLI's option). For every method and sample:
 Usage::
 
     python tools/coverage_study.py --seeds 50 --json coverage.json
-    python tools/coverage_study.py --rod --model-error-deg 0,2,4,6 --json rod.json
+    python tools/coverage_study.py --seeds 50 --accel-psd 0.1
+    python tools/coverage_study.py --rod --model-error-deg 0,2,4,6,8 --json rod.json
 """
 
 from __future__ import annotations
@@ -85,8 +86,14 @@ def summarise(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:
     return out
 
 
+def noise(args: argparse.Namespace, model_error_deg: float) -> NoiseSettings:
+    """The estimators' noise: ``--noise-deg`` and the model error in quadrature in R."""
+    std = math.radians(math.hypot(args.noise_deg, model_error_deg))
+    return NoiseSettings(measurement_std=std, bend_accel_psd=args.accel_psd)
+
+
 def monte_carlo(args: argparse.Namespace) -> dict[str, object]:
-    f = make_formulation("bend")
+    f = make_formulation("bend", noise=noise(args, 0.0))
     per: dict[str, list[dict[str, float]]] = {m: [] for m in args.methods}
     for seed in range(args.seeds):
         rec = simulate(args.scenario, duration=args.duration, seed=seed, noise_deg=args.noise_deg)
@@ -107,8 +114,7 @@ def rod(args: argparse.Namespace) -> dict[str, object]:
     tip = np.column_stack([table.column(c) for c in ("x_true", "y_true", "z_true")])
     out: dict[str, object] = {}
     for me in args.model_error_deg:
-        std = math.radians(math.hypot(args.noise_deg, me))
-        f = make_formulation("bend", noise=NoiseSettings(measurement_std=std))
+        f = make_formulation("bend", noise=noise(args, me))
         out[f"{me:g}"] = {m: tip_calibration(f, m, t, z, tip) for m in args.methods}
         print(f"model error {me:g} deg done", file=sys.stderr)
     return out
@@ -120,6 +126,7 @@ def main() -> int:
     p.add_argument("--scenario", default="paper3d")
     p.add_argument("--duration", type=float, default=20.0)
     p.add_argument("--noise-deg", type=float, default=2.0)
+    p.add_argument("--accel-psd", type=float, default=NoiseSettings.bend_accel_psd)
     p.add_argument("--methods", type=lambda s: s.split(","), default=["mhe", "ekf", "ukf"])
     p.add_argument("--rod", action="store_true", help="the Cosserat-rod recording instead")
     p.add_argument(
