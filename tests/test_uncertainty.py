@@ -35,6 +35,7 @@ from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import read_state_table, write_estimates
 from continuum_mhe.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.model.formulations import BendFormulation
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import EstimateSeries
 from continuum_mhe.settings import MHESettings, RecoverySettings, RobotSettings
 from continuum_mhe.simulation.scenarios import simulate
@@ -271,6 +272,11 @@ def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
     assert_allclose(s.std, base.std)
     assert np.array_equal(s.status == "uncertain", tip_std > frac * 0.2)
     assert 0 < np.sum(s.status == "uncertain") < len(s.t)
+    # the paper formulation's W is a weight, not a noise model: never uncertain
+    paper = make_formulation("paper")
+    s = make_estimator("ekf", paper, recovery=RecoverySettings(uncertain_fraction=1e-6))
+    series = s.run(rec.t, rec.z)
+    assert set(series.status) == {"ok"} and np.isfinite(series.std).all()
 
 
 def test_recovery_settings_are_validated() -> None:

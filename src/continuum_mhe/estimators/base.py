@@ -174,7 +174,7 @@ class Estimator(ABC):
         std = None
         if state is not None and cov is not None:
             std = self.formulation.output_std(state, cov)
-            if status == "ok" and self._tip:
+            if status == "ok" and self._tip and self.formulation.calibrated_covariance:
                 tip_std = math.sqrt(float(np.sum(std[self._tip] ** 2)))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
