@@ -118,6 +118,16 @@ def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
     assert checked > 20
 
 
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_compiled_output_std_equals_the_casadi_one(method: str) -> None:
+    """The compiled EKF and the fast MHE use the compiled output Jacobian."""
+    rec = simulate("paper3d", duration=2)
+    f = BendFormulation()
+    est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
+    for e in est:
+        assert_allclose(e.output_std, f.output_std(e.state, e.covariance), rtol=1e-12)
+
+
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_covariance_conditioned_on_an_active_disk_bound(solver) -> None:
     """At theta_max the radial direction of the bend vector carries no variance; the

@@ -79,6 +79,11 @@ class Estimator(ABC):
         """The outputs of a state (a backend may use a compiled copy)."""
         return self.formulation.output(state)
 
+    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        """Output standard deviations ``sqrt(diag(J P J^T))`` (a backend may use a
+        compiled copy of the output Jacobian)."""
+        return self.formulation.output_std(state, cov)
+
     def _unfreeze(self, m: Measurement) -> Measurement:
         """``m`` with every sensor whose reading has repeated exactly for longer than
         ``recovery.freeze`` seconds marked as dropped out (NaN)."""
@@ -173,7 +178,7 @@ class Estimator(ABC):
         output = None if state is None else self._output(state)
         std = None
         if state is not None and cov is not None:
-            std = self.formulation.output_std(state, cov)
+            std = self._output_std(state, cov)
             if status == "ok" and self._tip and self.formulation.calibrated_covariance:
                 tip_std = math.sqrt(float(np.sum(std[self._tip] ** 2)))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:

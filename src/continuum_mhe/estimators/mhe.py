@@ -330,6 +330,11 @@ class MovingHorizonEstimator(Estimator):
             return self._node.output(state)
         return self.formulation.output(state)
 
+    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        if self._node is not None:
+            return self._node.output_std(state, cov)
+        return self.formulation.output_std(state, cov)
+
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
         mask = f.measurement_mask(m.z)
