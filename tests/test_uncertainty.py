@@ -153,6 +153,21 @@ def test_fast_and_ipopt_covariances_agree() -> None:
         assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
 
 
+def test_fast_and_ipopt_covariances_agree_on_two_sections_with_one_imu_dropped() -> None:
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=1.5)
+    f = make_formulation("bend", robot)
+    z = rec.z.copy()
+    z[10:20, 2:4] = np.nan  # the second IMU drops out: its residual is masked
+    a = make_estimator("mhe", f, MHESettings(horizon=8)).run(rec.t, z)
+    b = make_estimator("mhe", f, MHESettings(horizon=8, solver="ipopt")).run(rec.t, z)
+    assert np.isfinite(a.std).all()
+    assert_allclose(a.std, b.std, rtol=1e-6)
+
+
 # --- std columns and calibration -------------------------------------------------------------
 def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
     rec = simulate("paper3d", duration=4)
