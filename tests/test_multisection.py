@@ -164,7 +164,8 @@ def test_one_imu_dropout_keeps_the_other(method: str, solver: str) -> None:
     est = make_estimator(method, f, MHESettings(horizon=10, solver=solver))  # type: ignore[arg-type]
     series = est.run(rec.t, z)
     assert np.all(np.isfinite(series.output))
-    assert set(series.status[20:45]) <= {"ok", "fallback-ipopt"}  # IMU 1 still updates
+    # IMU 1 still updates; the tip may be too uncertain to trust without IMU 2
+    assert set(series.status[20:45]) <= {"ok", "fallback-ipopt", "uncertain"}
     names = [o.name for o in f.outputs]
     m = compute_metrics(series.output, rec.truth, TWO.length, names)
     assert m.section_end_mean_mm["1"] < 8.0  # section 1 stays observed throughout
@@ -353,8 +354,9 @@ def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name:
             warnings.simplefilter("error")  # the fast backend must take this problem
             est = make_estimator("mhe", f, MHESettings(horizon=12, solver=solver))  # type: ignore[arg-type]
         series = est.run(rec.t, z)
-        assert set(series.status) == {"ok"}
+        assert set(series.status) <= {"ok", "uncertain"}  # uncertain: IMU 2 out
         out[solver] = series
+    assert np.array_equal(out["fast"].status, out["ipopt"].status)
     angles = [i for i, o in enumerate(f.outputs) if o.unit == "rad"]
     assert_allclose(out["fast"].output[:, angles], out["ipopt"].output[:, angles], atol=1e-6)
     for k in ("theta_1", "theta_2"):

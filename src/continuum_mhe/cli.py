@@ -25,9 +25,11 @@ import numpy as np
 from continuum_mhe.cli_options import (
     add_mhe_options,
     add_model_options,
+    add_recovery_options,
     add_robot_option,
     formulation_from_args,
     mhe_settings_from_args,
+    recovery_settings_from_args,
     robot_from_args,
 )
 from continuum_mhe.errors import UserError
@@ -40,7 +42,7 @@ from continuum_mhe.io.csv_files import (
     write_measurements,
     write_truth,
 )
-from continuum_mhe.metrics import Metrics, compute_metrics
+from continuum_mhe.metrics import Calibration, Metrics, compute_calibration, compute_metrics
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
@@ -94,6 +96,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
             stream.formulation,
             mhe_settings_from_args(args),
             first_run=first_run_mode(_first_run_default(args.measurements)),
+            recovery=recovery_settings_from_args(args),
         )
         est.reset()
         ticks = interruptible(progress_bar(f"{args.method} estimate"))(itertools.count())
@@ -121,6 +124,13 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     msg = f"wrote {n} estimates to {out} ({summary})"
     if stream.problems.count:
         msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
+    if est.gap_resets:
+        msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
+    if est.frozen_samples:
+        msg += (
+            f"; {est.frozen_samples} sample(s) with a frozen IMU (same reading for over "
+            f"{args.freeze:g} s) treated as dropouts"
+        )
     for note in stream.notes:  # e.g. how the samples of several Imu topics paired
         print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
@@ -187,14 +197,36 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
+    cal = None
+    if est.has_std and est.std is not None:
+        std = est.std[i_e][:, cols]
+        cal = compute_calibration(
+            est.values[i_e][:, cols], std, truth.values[i_t], out_names, truth.names
+        )
     unmatched = int(len(est.t) - len(i_e))
     if args.json:
-        print(json.dumps({**m.as_dict(), "unmatched": unmatched}, indent=2))
+        extra = {"calibration": None if cal is None else cal.as_dict()}
+        print(json.dumps({**m.as_dict(), **extra, "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m))
+        print(format_calibration(cal))
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
+
+
+def format_calibration(c: Calibration | None) -> str:
+    """Coverage of the 95 % intervals per output, and the tip NEES with its band."""
+    if c is None:
+        return "calibration          no std_ columns in the estimate file"
+    cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
+    lo, hi = c.tip_nees_band
+    inside = "inside" if lo <= c.tip_nees <= hi else "outside"
+    return (
+        f"95% interval coverage {cover} (0.95 when calibrated)\n"
+        f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 when calibrated; "
+        f"95% band {lo:.2f} to {hi:.2f}: {inside})"
+    )
 
 
 def format_metrics(m: Metrics) -> str:
@@ -343,6 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_model_options(p)
     add_mhe_options(p)
+    add_recovery_options(p)
     p.set_defaults(func=cmd_estimate)
 
     p = sub.add_parser("evaluate", help="errors of an estimate CSV against a truth CSV")

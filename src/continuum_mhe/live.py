@@ -296,7 +296,11 @@ def input_options(args: argparse.Namespace) -> Any:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    from continuum_mhe.cli_options import formulation_from_args, mhe_settings_from_args
+    from continuum_mhe.cli_options import (
+        formulation_from_args,
+        mhe_settings_from_args,
+        recovery_settings_from_args,
+    )
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.direct import DirectFormulation
 
@@ -345,7 +349,12 @@ def cmd_live(args: argparse.Namespace) -> int:
     except Exception as exc:
         raise InputError(port_hint(settings.port, exc)) from None
     # after the port opened: a first run compiles here (said once) before any line is read
-    estimator = make_estimator(args.method, formulation, mhe_settings_from_args(args))
+    estimator = make_estimator(
+        args.method,
+        formulation,
+        mhe_settings_from_args(args),
+        recovery=recovery_settings_from_args(args),
+    )
     say = stderr_say("live")
     plot = open_plot(robot.lengths, say) if args.plot else None
     columns = value_columns(settings.fmt, robot.n_imus)
@@ -393,6 +402,7 @@ def register(subparsers: Any) -> None:
         add_mhe_options,
         add_model_options,
         add_recording_options,
+        add_recovery_options,
         add_serial_options,
     )
     from continuum_mhe.estimators import METHODS
@@ -440,6 +450,7 @@ def register(subparsers: Any) -> None:
     )
     add_model_options(p)
     add_mhe_options(p)
+    add_recovery_options(p)
     add_raw_imu_options(p)
     add_live_view_option(p)
     p.set_defaults(func=cmd_live)

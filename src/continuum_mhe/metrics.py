@@ -8,6 +8,7 @@ columns both sides have.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -112,3 +113,81 @@ def compute_metrics(
         section_end_mean_mm=end_mean,
         section_end_max_mm=end_max,
     )
+
+
+#: Two-sided 95 % quantile of the standard normal: the half-width of a 95 % interval in
+#: standard deviations.
+Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """How well an estimate's standard deviations describe its errors.
+
+    Attributes:
+        coverage: per output column, the fraction of samples whose error lies inside
+            the 95 % interval ``estimate +- 1.96 std`` (0.95 when calibrated).
+        n: per output column, the samples with a finite standard deviation.
+        tip_nees: average normalised estimation error squared of the tip position,
+            ``mean(sum_xyz (e / std)^2)`` (3 when calibrated; the per-axis variances
+            only, as an estimate file keeps no correlations).
+        tip_nees_band: its 95 % band under calibration, ``chi2(3 n) / n`` quantiles.
+        tip_n: samples in ``tip_nees``.
+    """
+
+    coverage: dict[str, float]
+    n: dict[str, int]
+    tip_nees: float
+    tip_nees_band: tuple[float, float]
+    tip_n: int
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def nees_band(dof: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Two-sided ``level`` band of the average of ``n`` independent ``chi2(dof)``."""
+    from scipy.stats import chi2
+
+    a = (1 - level) / 2
+    return float(chi2.ppf(a, dof * n) / n), float(chi2.ppf(1 - a, dof * n) / n)
+
+
+def compute_calibration(
+    estimate: FloatArray,
+    std: FloatArray,
+    truth: FloatArray,
+    names: Sequence[str],
+    truth_names: Sequence[str] | None = None,
+) -> Calibration:
+    """Coverage and tip NEES of ``estimate`` (n, k) with standard deviations ``std``
+    (n, k), columns ``names``, against ``truth`` (n, k') with columns ``truth_names``.
+    Rows without a finite estimate or standard deviation are left out per column.
+    Raises ValueError if no sample has a standard deviation."""
+    names = list(names)
+    tnames = list(names if truth_names is None else truth_names)
+    common = [c for c in names if c in tnames]
+    est = np.asarray(estimate, float)[:, [names.index(c) for c in common]]
+    sd = np.asarray(std, float)[:, [names.index(c) for c in common]]
+    tru = np.asarray(truth, float)[:, [tnames.index(c) for c in common]]
+    ok = np.isfinite(est) & np.isfinite(sd) & np.isfinite(tru)
+    if not ok.any():
+        raise ValueError("no sample has a standard deviation (std_* columns)")
+    err = state_errors(np.where(ok, est, 0.0), np.where(ok, tru, 0.0), common)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zscore = np.abs(err) / sd
+    inside = (zscore <= Z95) | ((err == 0) & (sd == 0))
+    coverage = {
+        c: float(np.mean(inside[ok[:, j], j])) if ok[:, j].any() else math.nan
+        for j, c in enumerate(common)
+    }
+    counts = {c: int(ok[:, j].sum()) for j, c in enumerate(common)}
+    tip = [common.index(c) for c in ("x", "y", "z") if c in common]
+    rows = np.all(ok[:, tip], axis=1) & np.all(sd[:, tip] > 0, axis=1) if len(tip) == 3 else []
+    n_tip = int(np.sum(rows))
+    if n_tip:
+        nees = float(np.mean(np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)))
+        band = nees_band(3, n_tip)
+    else:
+        nees, band = math.nan, (math.nan, math.nan)
+    return Calibration(coverage, counts, nees, band, n_tip)

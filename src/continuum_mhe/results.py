@@ -25,7 +25,8 @@ Status = Literal[
     "solver-failed",  # solver error; projected prediction is used
     "no-estimate",  # --paper-start: fewer than N samples so far
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
-    "reset",  # diverged, failed numerically or lost all certainty: restarted from this sample
+    "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
+    "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
 ]
 
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
@@ -38,7 +39,10 @@ STATUS_MEANINGS: dict[str, str] = {
     "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
     "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
     "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
-    "from this sample's measurement, and this is the restarted estimate",
+    "from this sample's measurement, and this is the restarted estimate; also after a gap "
+    "in the data longer than --gap-reset",
+    "uncertain": "an estimate was made, but the tip position's standard deviation exceeds "
+    "the stated fraction of the robot's length (--uncertain-fraction): do not trust it",
 }
 
 
@@ -74,6 +78,8 @@ class Estimate:
         covariance: state covariance where the method has one, else None.
         status: see :data:`Status`.
         solve_ms: wall time spent on this sample, ms.
+        output_std: one standard deviation of every output (same units as ``output``),
+            from ``covariance`` through the output Jacobian; None where unknown.
     """
 
     t: float
@@ -82,6 +88,7 @@ class Estimate:
     covariance: FloatArray | None
     status: Status
     solve_ms: float
+    output_std: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -96,6 +103,8 @@ class EstimateSeries:
         solve_ms: (n,) ms.
         outputs: what each column of ``output`` is (default: one section's
             ``x, y, z, theta, phi``).
+        output_std: (n, ny) one standard deviation of each output (m, rad), NaN where
+            unknown (default: all NaN).
     """
 
     method: str
@@ -104,13 +113,25 @@ class EstimateSeries:
     status: NDArray[np.str_]
     solve_ms: FloatArray
     outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
+    output_std: FloatArray | None = None
 
     def __post_init__(self) -> None:
-        if self.output.ndim != 2 or self.output.shape != (len(self.t), len(self.outputs)):
+        shape = (len(self.t), len(self.outputs))
+        if self.output.ndim != 2 or self.output.shape != shape:
             raise ValueError(
                 f"output has shape {self.output.shape}, expected ({len(self.t)}, "
                 f"{len(self.outputs)}) for columns {', '.join(o.name for o in self.outputs)}"
             )
+        if self.output_std is None:
+            object.__setattr__(self, "output_std", np.full(shape, np.nan))
+        elif np.shape(self.output_std) != shape:
+            raise ValueError(f"output_std has shape {np.shape(self.output_std)}, expected {shape}")
+
+    @property
+    def std(self) -> FloatArray:
+        """``output_std`` (n, ny), NaN where unknown."""
+        assert self.output_std is not None  # set in __post_init__
+        return self.output_std
 
     def column(self, name: str) -> FloatArray:
         """The output column ``name`` (n,)."""
@@ -132,9 +153,12 @@ class EstimateSeries:
     ) -> EstimateSeries:
         est = list(estimates)
         out = np.full((len(est), len(outputs)), np.nan)
+        std = np.full_like(out, np.nan)
         for i, e in enumerate(est):
             if e.output is not None:
                 out[i] = e.output
+                if e.output_std is not None:
+                    std[i] = e.output_std
         return cls(
             method=method,
             t=np.array([e.t for e in est], dtype=float),
@@ -142,4 +166,5 @@ class EstimateSeries:
             status=np.array([e.status for e in est], dtype=str),
             solve_ms=np.array([e.solve_ms for e in est], dtype=float),
             outputs=outputs,
+            output_std=std,
         )

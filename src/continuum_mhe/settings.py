@@ -106,3 +106,33 @@ class MHESettings:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)
+
+
+@dataclass(frozen=True)
+class RecoverySettings:
+    """How every estimator recovers from gaps and frozen sensors, and when it says its
+    estimate should not be trusted (:meth:`~continuum_mhe.estimators.base.Estimator.step`).
+
+    Attributes:
+        gap_reset: after no valid measurement for longer than this (s), the next valid
+            sample restarts the estimator from its own measurement (status ``reset``)
+            instead of continuing from a blind prediction; None: never (the library's
+            default; the command line's ``--gap-reset`` default is 1 s).
+        freeze: a sensor (measurement block) whose reading repeats exactly for longer
+            than this (s) is treated as dropped out until its reading changes; None:
+            never (command line ``--freeze``, default 1 s).
+        uncertain_fraction: an estimate whose tip position standard deviation
+            (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
+            length gets status ``uncertain`` instead of ``ok``.
+    """
+
+    gap_reset: float | None = None
+    freeze: float | None = None
+    uncertain_fraction: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("gap_reset", "freeze"):
+            value = getattr(self, name)
+            if value is not None:
+                _positive(name, value)
+        _positive("uncertain_fraction", self.uncertain_fraction)

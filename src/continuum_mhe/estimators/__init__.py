@@ -20,7 +20,7 @@ from continuum_mhe.estimators.kalman import (
 )
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.settings import MHESettings
+from continuum_mhe.settings import MHESettings, RecoverySettings
 
 Method = Literal["mhe", "ekf", "ukf"]
 METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
@@ -30,15 +30,27 @@ def make_estimator(
     method: Method,
     formulation: Formulation,
     mhe: MHESettings | None = None,
+    recovery: RecoverySettings | None = None,
+    *,
     first_run: FirstRun = "foreground",
 ) -> Estimator:
-    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only.
+    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only,
+    ``recovery`` (gap reset, frozen sensors, ``uncertain``) to every method.
 
     ``first_run``: what to do when the fast kernels are not compiled yet (the first run
     of an install): ``"foreground"`` compiles them now, ``"background"`` compiles them
     in another process and runs this estimator without them (IPOPT for the MHE, the
     CasADi EKF), said once; see :mod:`continuum_mhe.estimators.fast.warmup`.
     """
+    est = _make(method, formulation, mhe, first_run)
+    if recovery is not None:
+        est.recovery = recovery
+    return est
+
+
+def _make(
+    method: Method, formulation: Formulation, mhe: MHESettings | None, first_run: FirstRun
+) -> Estimator:
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe, first_run=first_run)
     if method == "ekf":  # the compiled step where the model compiles (same answers)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
+from continuum_mhe.settings import RecoverySettings
 
 FloatArray = NDArray[np.float64]
 
@@ -40,17 +41,31 @@ class Estimator(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
+        #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
+        self.recovery = RecoverySettings()
         self._last_t = -math.inf
         self._ran = False  # the last call was run(): a later step needs reset()
         #: times the estimator restarted after a divergence or numerical failure
         self.restarts = 0
+        #: times it restarted after a gap longer than ``recovery.gap_reset``
+        self.gap_resets = 0
+        #: samples with at least one sensor treated as frozen (``recovery.freeze``)
+        self.frozen_samples = 0
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
+        outs = formulation.outputs
+        self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
+        self._freeze_value: list[FloatArray | None] = []
+        self._freeze_since: list[float] = []
+        self._last_valid_t = -math.inf
 
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
         self._last_t = -math.inf
         self._ran = False
+        self._last_valid_t = -math.inf
+        self._freeze_value = [None] * len(self.formulation.measurement_blocks)
+        self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
         self._reset()
 
     @abstractmethod
@@ -67,12 +82,47 @@ class Estimator(ABC):
         """The outputs of a state (a backend may use a compiled copy)."""
         return self.formulation.output(state)
 
+    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        """Output standard deviations ``sqrt(diag(J P J^T))`` (a backend may use a
+        compiled copy of the output Jacobian)."""
+        return self.formulation.output_std(state, cov)
+
+    def _unfreeze(self, m: Measurement) -> Measurement:
+        """``m`` with every sensor whose reading has repeated exactly for longer than
+        ``recovery.freeze`` seconds marked as dropped out (NaN)."""
+        freeze = self.recovery.freeze
+        if freeze is None:
+            return m
+        if len(self._freeze_value) != len(self.formulation.measurement_blocks):
+            self._freeze_value = [None] * len(self.formulation.measurement_blocks)
+            self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
+        z: FloatArray | None = None
+        for k, b in enumerate(self.formulation.measurement_blocks):
+            zb = m.z[b.slice]
+            last = self._freeze_value[k]
+            if last is None or not np.array_equal(zb, last):  # NaN never repeats
+                self._freeze_value[k], self._freeze_since[k] = zb.copy(), m.t
+            elif m.t - self._freeze_since[k] > freeze:
+                if z is None:
+                    z = m.z.copy()
+                z[b.slice] = np.nan
+        if z is None:
+            return m
+        self.frozen_samples += 1
+        return Measurement(m.t, z)
+
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
 
         A diverged (non-finite, or far outside the workspace: ``is_diverged``) or
         numerically failed step restarts the estimator from this sample's measurement;
         that estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
+        ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor
+        frozen longer than ``freeze`` s counts as dropped out; the first valid sample
+        after more than ``gap_reset`` s without one restarts the estimator the same
+        way (``reset``); an ``ok`` estimate whose tip standard deviation exceeds
+        ``uncertain_fraction`` of the robot's length is ``uncertain``. The estimate
+        carries ``output_std`` wherever the method has a covariance.
 
         Raises:
             ValueError: if ``measurement.z`` does not have the formulation's size, or
@@ -99,6 +149,15 @@ class Estimator(ABC):
         self._ran = False
         self._last_t = t
         start = time.perf_counter()
+        measurement = self._unfreeze(measurement)
+        gap_reset = False
+        gap = self.recovery.gap_reset
+        if gap is not None and self.formulation.measurement_mask(measurement.z).any():
+            gap_reset = -math.inf < self._last_valid_t < t - gap
+            self._last_valid_t = t
+        if gap_reset:  # restart from this sample instead of a blind prediction
+            self.gap_resets += 1
+            self._reset()
         try:
             with np.errstate(all="ignore"):  # non-finite results are caught below
                 state, cov, status = self._step(measurement)
@@ -122,9 +181,18 @@ class Estimator(ABC):
                 state, cov, status = None, None, "no-estimate"
             if state is not None:
                 status = "reset"
+        if gap_reset and state is not None:
+            status = "reset"
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
-        return Estimate(measurement.t, state, output, cov, status, ms)
+        std = None
+        if state is not None and cov is not None:
+            std = self._output_std(state, cov)
+            if status == "ok" and self._tip and self.formulation.calibrated_covariance:
+                tip_std = math.sqrt(float(np.sum(std[self._tip] ** 2)))
+                if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
+                    status = "uncertain"
+        return Estimate(measurement.t, state, output, cov, status, ms, std)
 
     def run(
         self,

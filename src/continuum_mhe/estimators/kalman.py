@@ -195,6 +195,9 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
     def _output(self, state: FloatArray) -> FloatArray:
         return self._node.output(state)
 
+    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        return self._node.output_std(state, cov)
+
 
 @dataclass(frozen=True)
 class SigmaPointSettings:

@@ -51,6 +51,8 @@ from continuum_mhe.estimators.fast import (
     build_window_model,
     solve_window,
 )
+from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
+from continuum_mhe.estimators.fast.model import Feasible, feasible_set
 from continuum_mhe.estimators.fast.warmup import (
     FirstRun,
     defer_compiling,
@@ -215,6 +217,12 @@ class MovingHorizonEstimator(Estimator):
             self._nlp_built = self._nlp
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
+        self._feasible: Feasible | None = None if self._fast is None else self._fast.feasible
+        if self._feasible is None:
+            try:
+                self._feasible = feasible_set(formulation)
+            except NotImplementedError:  # a feasible set the kernel cannot read
+                self._feasible = None  # the covariance then ignores the bounds
         self.reset()
 
     @property
@@ -344,6 +352,11 @@ class MovingHorizonEstimator(Estimator):
             return self._node.output(state)
         return self.formulation.output(state)
 
+    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        if self._node is not None:
+            return self._node.output_std(state, cov)
+        return self.formulation.output_std(state, cov)
+
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
         mask = f.measurement_mask(m.z)
@@ -359,11 +372,23 @@ class MovingHorizonEstimator(Estimator):
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
             return None, None, "no-estimate"
-        X, status = self._solve(self.window_problem(copy=False), X0)
+        problem = self.window_problem(copy=False)
+        X, status = self._solve(problem, X0)
         self._X = X
         if status == "ok" and not valid:
             status = "dropout"
-        return X[-1].copy(), None, status
+        cov = None if status == "solver-failed" else self.covariance(problem, X)
+        return X[-1].copy(), cov, status
+
+    def covariance(self, problem: WindowProblem, X: FloatArray) -> FloatArray | None:
+        """Covariance of the estimate ``X[-1]`` (nx, nx): the last block of the inverse
+        of the window's Gauss-Newton Hessian at ``X`` (N, nx), conditioned on the active
+        bounds (:mod:`continuum_mhe.estimators.fast.covariance`); from the compiled
+        model on the fast backend, from CasADi on IPOPT. None if not positive definite.
+        """
+        if self._fast is not None:
+            return window_covariance(self._fast, problem, X, self._workspace)
+        return casadi_window_covariance(self.formulation, problem, X, self._feasible)
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         if self._fast is None:

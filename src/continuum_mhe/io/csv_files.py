@@ -9,7 +9,9 @@ Formats (see README "File formats"):
   Other columns are ignored. With several IMUs an empty field is a dropout of that IMU.
 * Estimate CSV: ``t``, the formulation's outputs (one section: ``x,y,z,theta,phi``;
   several: ``x,y,z`` then ``theta_k,phi_k,x_k,y_k,z_k`` per section), then
-  ``status,solve_ms`` (m, rad, ms); rows without an estimate leave the outputs empty.
+  ``std_c`` for every output ``c`` (one standard deviation, same unit; empty where
+  unknown), then ``status,solve_ms`` (m, rad, ms); rows without an estimate leave the
+  outputs empty. Files without the ``std_`` columns are read too.
   Truth CSV: ``t,x,y,z`` and any of the per-section columns.
 
 Every problem in an input file raises :class:`InputError` with a one-line message
@@ -57,9 +59,19 @@ STATE_COLUMNS = ("t", *output_names(pcc_outputs(1)))
 MEASUREMENT_COLUMNS = ("t", "roll", "pitch")
 
 
+#: Prefix of the standard-deviation column of an output (``std_x``, ``std_theta_2``).
+STD_PREFIX = "std_"
+
+
+def std_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
+    """``std_c`` for every output ``c``."""
+    return tuple(STD_PREFIX + n for n in output_names(outputs))
+
+
 def estimate_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
-    """Header of an estimate CSV: ``t``, the outputs, ``status``, ``solve_ms``."""
-    return ("t", *output_names(outputs), "status", "solve_ms")
+    """Header of an estimate CSV: ``t``, the outputs, their ``std_`` columns,
+    ``status``, ``solve_ms``."""
+    return ("t", *output_names(outputs), *std_columns(outputs), "status", "solve_ms")
 
 
 ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
@@ -235,13 +247,20 @@ def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool
 @dataclass(frozen=True)
 class StateTable:
     """An estimate or truth CSV: ``t`` (n,), ``values`` (n, k) with NaN where empty,
-    ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), and ``status`` (n,)
-    (``"ok"`` where the file has no status column)."""
+    ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), ``status`` (n,)
+    (``"ok"`` where the file has no status column), and ``std`` (n, k) the ``std_``
+    columns of the outputs (NaN where empty or absent)."""
 
     t: FloatArray
     names: tuple[str, ...]
     values: FloatArray
     status: NDArray[np.str_]
+    std: FloatArray | None = None
+
+    @property
+    def has_std(self) -> bool:
+        """The file has a finite standard deviation somewhere."""
+        return self.std is not None and bool(np.isfinite(self.std).any())
 
     def column(self, name: str) -> FloatArray:
         return self.values[:, self.names.index(name)]
@@ -258,8 +277,12 @@ def read_state_table(
     table, body = _read_rows(path)
     p, header = table.name, table.header
     column_indices(table, ("t", *required))
-    names = tuple(h for h in header if h not in _NOT_STATES and h)
+    names = tuple(
+        h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX)
+    )
     idx = [header.index(c) for c in names]
+    sd_idx = [header.index(STD_PREFIX + c) if STD_PREFIX + c in header else -1 for c in names]
+    sd: list[list[float]] = []
     t_idx = header.index("t")
     if not body:
         raise InputError(f"{p}: line 2: no data rows after the header")
@@ -280,6 +303,12 @@ def read_state_table(
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
             raise InputError(f"{p}: line {line}: NaN or infinite value")
+        sd.append(
+            [
+                math.nan if j < 0 or row[j] == "" else _parse_std(p, line, c, row[j])
+                for c, j in zip(names, sd_idx)
+            ]
+        )
         if t and tv <= t[-1]:
             raise InputError(f"{p}: line {line}: t={tv:g} does not increase (previous t={t[-1]:g})")
         t.append(tv)
@@ -287,8 +316,15 @@ def read_state_table(
         status.append(st)
     return StateTable(
         np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
-        np.array(status, dtype=str),
+        np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
     )  # fmt: skip
+
+
+def _parse_std(path: str, line: int, name: str, text: str) -> float:
+    v = parse_float(path, line, STD_PREFIX + name, text)
+    if not (math.isfinite(v) and v >= 0):
+        raise InputError(f"{path}: line {line}: {STD_PREFIX}{name} must be >= 0, got {text!r}")
+    return v
 
 
 def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
@@ -398,20 +434,31 @@ def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[st
 
 
 def estimate_row(
-    t: float, output: Sequence[float] | FloatArray | None, status: str, solve_ms: float, ny: int
+    t: float,
+    output: Sequence[float] | FloatArray | None,
+    status: str,
+    solve_ms: float,
+    ny: int,
+    std: Sequence[float] | FloatArray | None = None,
 ) -> list[object]:
-    """One estimate CSV row; a row without an estimate leaves the outputs empty."""
+    """One estimate CSV row; a row without an estimate leaves the outputs empty, and an
+    unknown standard deviation is empty too."""
     if status == "no-estimate" or output is None:
-        return [float(t), *([""] * ny), str(status), float(solve_ms)]
-    return [float(t), *(float(v) for v in output), str(status), float(solve_ms)]
+        return [float(t), *([""] * (2 * ny)), str(status), float(solve_ms)]
+    sd: list[object] = [""] * ny
+    if std is not None:
+        sd = [float(v) if math.isfinite(v) else "" for v in std]
+    return [float(t), *(float(v) for v in output), *sd, str(status), float(solve_ms)]
 
 
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
     ny = len(series.outputs)
     return [
-        estimate_row(t, out, str(st), ms, ny)
-        for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms)
+        estimate_row(t, out, str(st), ms, ny, sd)
+        for t, out, st, ms, sd in zip(
+            series.t, series.output, series.status, series.solve_ms, series.std
+        )
     ]
 
 

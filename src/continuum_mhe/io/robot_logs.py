@@ -428,7 +428,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     },
     "continuum_mhe.Estimate": {
         "title": "continuum_mhe.Estimate",
-        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate",
+        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate, "
+        "std_ fields (one standard deviation) null where unknown",
         "type": "object",
         "properties": {
             **{k: {"type": ["number", "null"]} for k in ("t", "x", "y", "z", "theta", "phi")},
@@ -471,9 +472,10 @@ def estimate_messages(
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
     names = [o.name for o in series.outputs]
-    for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms):
+    rows = zip(series.t, series.output, series.std, series.status, series.solve_ms)
+    for t, out, sd, st, ms in rows:
         yield from sample_messages(series.outputs, names, float(t), out, str(st), float(ms),
-                                   lengths, t0_ns)  # fmt: skip
+                                   lengths, t0_ns, sd)  # fmt: skip
 
 
 def sample_messages(
@@ -485,14 +487,19 @@ def sample_messages(
     ms: float,
     lengths: Sequence[float],
     t0_ns: int = 0,
+    std: Sequence[float] | FloatArray | None = None,
 ) -> Iterator[tuple[str, int, dict[str, Any]]]:
-    """The messages of one estimate (``out`` None or NaN: no pose)."""
+    """The messages of one estimate (``out`` None or NaN: no pose; ``std``: one standard
+    deviation per output, NaN or None where unknown)."""
     ns = t0_ns + int(round(t * 1e9))
     stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
     has = out is not None and st != "no-estimate" and bool(np.all(np.isfinite(out)))
     row: dict[str, Any] = {"t": t}
     row.update({k: (float(v) if has else None) for k, v in zip(names, out)}
                if out is not None else dict.fromkeys(names))  # fmt: skip
+    sd = [math.nan] * len(names) if std is None else std
+    row.update({f"std_{k}": (float(v) if has and math.isfinite(v) else None)
+                for k, v in zip(names, sd)})  # fmt: skip
     row.update(status=st, solve_ms=ms)
     yield "/continuum/estimate", ns, row
     if not has:
@@ -564,7 +571,11 @@ def read_estimates_mcap(
         for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
             row = json.loads(message.data)
             if not names:
-                names = [k for k in row if k not in ("t", "status", "solve_ms")]
+                names = [
+                    k
+                    for k in row
+                    if k not in ("t", "status", "solve_ms") and not k.startswith("std_")
+                ]
             t.append(row["t"])
             out.append([math.nan if row[k] is None else row[k] for k in names])
             status.append(row["status"])

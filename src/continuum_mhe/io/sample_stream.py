@@ -196,7 +196,8 @@ class EstimateSink:
             def write_mcap(e: Estimate) -> None:
                 for topic, ns, msg in sample_messages(self.outputs, names, float(e.t), e.output,
                                                       str(e.status), float(e.solve_ms),
-                                                      self.lengths, self.t0_ns):  # fmt: skip
+                                                      self.lengths, self.t0_ns,
+                                                      e.output_std):  # fmt: skip
                     writer.add(topic, ns, msg, next(seq))
 
             self._finish: Callable[[], None] = writer.finish
@@ -209,7 +210,7 @@ class EstimateSink:
             ny = len(self.outputs)
 
             def write_csv(e: Estimate) -> None:
-                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny)
+                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny, e.output_std)
                 w.writerow(format_cells(self.path, row))
 
             self._finish = lambda: None

@@ -45,10 +45,12 @@ class LiveSettings:
         gap_factor: a step longer than this many usual periods is a gap.
         behind_s: report falling behind when a line waits longer than this, s.
         retry_max_s: longest wait between attempts to reopen a lost device, s.
-        restart_gap_s: after a gap longer than this (s) the estimator starts afresh
-            from the next sample; the old motion says nothing about the new one.
         restart_jump_s: a device clock that jumps back by more than this (s) restarted.
         repeat_every_s: a device message that repeats is shown at most this often, s.
+
+    After a gap longer than the estimator's ``recovery.gap_reset`` (``--gap-reset``) the
+    estimator itself restarts from the next sample (status ``reset``), as in
+    ``estimate``: one mechanism, :meth:`~continuum_mhe.estimators.base.Estimator.step`.
     """
 
     port: str
@@ -59,7 +61,6 @@ class LiveSettings:
     gap_factor: float = 3.0
     behind_s: float = 1.0
     retry_max_s: float = 5.0
-    restart_gap_s: float = 1.0
     restart_jump_s: float = 1.0
     repeat_every_s: float = 5.0
 
@@ -74,7 +75,6 @@ class LiveSettings:
             "status_every",
             "behind_s",
             "retry_max_s",
-            "restart_gap_s",
             "restart_jump_s",
             "repeat_every_s",
         ):
@@ -223,6 +223,7 @@ class LiveSession:
         self._periods: deque[float] = deque(maxlen=50)
         self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
+        self._restarted = False  # the estimator was restarted: flag its next estimate
         estimator.reset()
 
     def period(self) -> float | None:
@@ -309,8 +310,12 @@ class LiveSession:
                 lost = max(int(round(dt / p)) - 1, 0)
                 c.gaps += 1
                 c.missing += lost
-                restart = dt > self.settings.restart_gap_s
-                how = "estimator restarts" if restart else "estimating across it"
+                gap_reset = self.estimator.recovery.gap_reset
+                long_gap = gap_reset is not None and dt > gap_reset
+                how = "estimator restarts" if long_gap else "estimating across it"
+                if long_gap:  # the estimator restarts itself (status reset); so do the
+                    for conv in self.converters or ():  # attitude filters of raw IMUs
+                        conv.reset()
                 self.say(
                     f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); {how}"
                 )
@@ -344,6 +349,7 @@ class LiveSession:
         for conv in self.converters or ():
             conv.reset()
         self.estimator.reset()
+        self._restarted = True  # the next estimate says so (status reset)
 
     def _estimate(self, t: float, z: FloatArray) -> Estimate:
         """One estimator step that never ends the session: an exception or a non-finite
@@ -358,6 +364,10 @@ class LiveSession:
             _reraise_interrupt(exc)
             problem = f"{type(exc).__name__}: {exc}"
         if problem is None:
+            if self._restarted and est.state is not None:
+                self._restarted = False
+                if est.status == "ok":  # restarted where the time base broke
+                    est = replace(est, status="reset")
             return est
         self.counts.estimator_failures += 1
         self.messages.show(
@@ -373,7 +383,7 @@ class LiveSession:
         if self.out is None:
             return
         ny = self.formulation.ny
-        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny)
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, est.output_std)
         self.out.write_row([f"{v:.10g}" if isinstance(v, float) else str(v) for v in row])
 
     def _describe(self, est: Estimate) -> str:

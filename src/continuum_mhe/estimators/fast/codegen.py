@@ -126,6 +126,12 @@ def output_function(formulation: Formulation) -> ca.Function:
     return ca.Function("mhe_output", [x], [ca.densify(formulation.output_sym(x))])
 
 
+def output_jacobian_function(formulation: Formulation) -> ca.Function:
+    """``x -> dy/dx`` (ny, nx), dense: the formulation's ``output_jacobian``."""
+    x = ca.SX.sym("x", formulation.nx)
+    return ca.Function("mhe_output_jacobian", [x], [ca.densify(formulation.output_jacobian(x))])
+
+
 def _cache_dir() -> Path:
     """``$CONTINUUM_MHE_CACHE``, else ``$XDG_CACHE_HOME/continuum-mhe`` or ``~/.cache/...``."""
     own = os.environ.get("CONTINUUM_MHE_CACHE")

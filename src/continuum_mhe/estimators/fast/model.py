@@ -27,6 +27,7 @@ from continuum_mhe.estimators.fast.codegen import (
     failure_message,
     node_function,
     output_function,
+    output_jacobian_function,
     window_function,
 )
 from continuum_mhe.model.formulations import Formulation
@@ -108,6 +109,7 @@ class WindowModel:
         window: C function of :func:`~continuum_mhe.estimators.fast.codegen.window_function`.
         node: C function of :func:`~continuum_mhe.estimators.fast.codegen.node_function`.
         output: C function of the formulation's ``output_sym``.
+        output_jacobian: C function of its Jacobian (ny, nx), column-major.
         ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
         compiled: True if the model runs as compiled C (else through CasADi's VM).
         backend_note: why the model is not compiled (the notice said on stderr), or None.
@@ -123,6 +125,7 @@ class WindowModel:
     node: Any
     output: Any  # formulation.output_sym: state -> the formulation's outputs
     compiled: bool
+    output_jacobian: Any = None  # state -> d outputs / d state (ny, nx), column-major
     ny: int = 5
     wrapped: tuple[int, ...] = (4,)
     backend_note: str | None = None
@@ -171,6 +174,8 @@ class NodeEvaluator:
         self._oout = np.empty(model.ny)
         self._wrapped = list(model.wrapped)
         self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
+        self._jfn = model.output_jacobian
+        self._jout = np.empty(model.ny * nx)
         k = nx + nx * nx
         self._views = (
             self._out[:nx],
@@ -256,6 +261,15 @@ class NodeEvaluator:
                 raise
             raise RuntimeError(failure_message(self._fn)) from exc
 
+    def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
+        """``sqrt(diag(J P J^T))`` with the compiled output Jacobian ``J`` at ``x``: the
+        same as :meth:`Formulation.output_std`, one C call."""
+        self._ox[:] = x
+        if self._jfn(self._optrs.ctypes.data, self._jout.ctypes.data) != 0:
+            raise RuntimeError(failure_message(self._jfn))
+        J = self._jout.reshape(-1, len(x), order="F")
+        return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P, J), 0.0))
+
     def output(self, x: FloatArray) -> FloatArray:
         """The outputs of state ``x`` (compiled ``output_sym``; wrapped angles in
         ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
@@ -278,8 +292,8 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
     """
     feasible = feasible_set(formulation)
     win, node = window_function(formulation, horizon), node_function(formulation)
-    out = output_function(formulation)
-    library = compile_library(c_source((win, node, out))) if compile else Library(None)
+    out, jac = output_function(formulation), output_jacobian_function(formulation)
+    library = compile_library(c_source((win, node, out, jac))) if compile else Library(None)
     note = announce_vm_fallback(library) if library.reason else None
     wrapped = tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False))
     return WindowModel(
@@ -292,6 +306,7 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
         window=c_function(win, library.lib),
         node=c_function(node, library.lib),
         output=c_function(out, library.lib),
+        output_jacobian=c_function(jac, library.lib),
         compiled=library.lib is not None,
         ny=int(out.nnz_out(0)),
         wrapped=wrapped,

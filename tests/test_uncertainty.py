@@ -1,0 +1,317 @@
+"""Uncertainty and recovery: covariances against known answers, std columns, calibration,
+gap reset, frozen sensors and the ``uncertain`` status.
+
+* On a linear Gaussian model the MHE's covariance (last block of the window Hessian's
+  inverse) equals the Kalman filter's ``P`` at every sample, and with the full horizon
+  the last block of the dense batch covariance.
+* The filters' output standard deviations equal ``sqrt(diag(J P J^T))`` with ``J`` from
+  central finite differences of the outputs (independent of the CasADi Jacobian).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from test_estimator_peers import (
+    LIN_DT,
+    LIN_H,
+    LIN_N,
+    LinearBend,
+    bend_process_cov,
+    lin_transition,
+    linear_recording,  # noqa: F401  (fixture)
+    solver_settings,
+    step_all,
+)
+
+from continuum_mhe.cli import main
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.base import Estimator, Measurement
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.io.csv_files import read_state_table, write_estimates
+from continuum_mhe.metrics import Z95, compute_calibration, nees_band
+from continuum_mhe.model.formulations import BendFormulation
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.results import EstimateSeries
+from continuum_mhe.settings import MHESettings, RecoverySettings, RobotSettings
+from continuum_mhe.simulation.scenarios import simulate
+
+SOLVERS = ("fast", "ipopt")
+
+
+def kalman_covariances(f: LinearBend, n: int) -> list[np.ndarray]:
+    """Textbook KF covariances from ``P0``, updating on every sample (z does not matter)."""
+    F, Q, R = lin_transition(LIN_DT), bend_process_cov(f.noise.bend_accel_psd, LIN_DT), f.meas_cov()
+    P, out = f.initial_cov(), []
+    for k in range(n):
+        if k:
+            P = F @ P @ F.T + Q
+        S = LIN_H @ P @ LIN_H.T + R
+        K = P @ LIN_H.T @ np.linalg.inv(S)
+        P = (np.eye(4) - K @ LIN_H) @ P
+        out.append(P)
+    return out
+
+
+def batch_covariance(f: LinearBend, n: int) -> np.ndarray:
+    """Dense inverse of the batch information matrix over n states (4n x 4n)."""
+    F, Qi = lin_transition(LIN_DT), np.linalg.inv(bend_process_cov(f.noise.bend_accel_psd, LIN_DT))
+    Ri, P0i = np.linalg.inv(f.meas_cov()), np.linalg.inv(f.initial_cov())
+    info = np.zeros((4 * n, 4 * n))
+    info[:4, :4] += P0i
+    for k in range(n):
+        s = slice(4 * k, 4 * k + 4)
+        info[s, s] += LIN_H.T @ Ri @ LIN_H
+        if k < n - 1:
+            A = np.zeros((4, 4 * n))  # x_{k+1} - F x_k
+            A[:, 4 * k : 4 * k + 4] = -F
+            A[:, 4 * k + 4 : 4 * k + 8] = np.eye(4)
+            info += A.T @ Qi @ A
+    return np.linalg.inv(info)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_linear_mhe_covariance_equals_kalman_p_at_every_sample(linear_recording, solver) -> None:  # noqa: F811
+    f, t, z = linear_recording
+    mhe = step_all(MovingHorizonEstimator(f, solver_settings(solver, horizon=4)), t, z)
+    kf = kalman_covariances(f, len(t))
+    assert len(t) > 3 * 4  # the window slides
+    for e, P in zip(mhe, kf):
+        assert_allclose(e.covariance, P, rtol=1e-7, atol=1e-12)
+    ekf = step_all(ExtendedKalmanFilter(f), t, z)
+    assert_allclose(ekf[-1].covariance, kf[-1], rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_full_horizon_mhe_covariance_equals_batch_covariance(linear_recording, solver) -> None:  # noqa: F811
+    f, t, z = linear_recording
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=LIN_N + 5))
+    last = step_all(mhe, t, z)[-1]
+    assert_allclose(last.covariance, batch_covariance(f, LIN_N)[-4:, -4:], rtol=1e-7, atol=1e-12)
+
+
+def fd_output_jacobian(f: BendFormulation, x: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    cols = []
+    for j in range(len(x)):
+        d = np.zeros(len(x))
+        d[j] = h
+        cols.append((f.output(x + d) - f.output(x - d)) / (2 * h))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
+def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
+    rec = simulate("paper3d", duration=3)
+    f = BendFormulation()
+    est = step_all(cls(f), rec.t, rec.z)
+    checked = 0
+    for e in est[5:]:
+        if abs(e.output[4]) > 3.0:  # phi near the wrap: finite differences would jump
+            continue
+        J = fd_output_jacobian(f, e.state)
+        assert_allclose(e.output_std, np.sqrt(np.diag(J @ e.covariance @ J.T)), rtol=1e-6)
+        checked += 1
+    assert checked > 20
+
+
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_compiled_output_std_equals_the_casadi_one(method: str) -> None:
+    """The compiled EKF and the fast MHE use the compiled output Jacobian."""
+    rec = simulate("paper3d", duration=2)
+    f = BendFormulation()
+    est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
+    for e in est:
+        assert_allclose(e.output_std, f.output_std(e.state, e.covariance), rtol=1e-12)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_covariance_conditioned_on_an_active_disk_bound(solver) -> None:
+    """At theta_max the radial direction of the bend vector carries no variance; the
+    tangential one does. Both backends give the same covariance."""
+    rec = simulate("planar-overbend", duration=10)
+    f = BendFormulation()
+    est = step_all(MovingHorizonEstimator(f, solver_settings(solver, horizon=10)), rec.t, rec.z)
+    at_bound = [e for e in est if math.hypot(*e.state[:2]) >= f.robot.theta_max * (1 - 1e-9)]
+    assert len(at_bound) > 10
+    for e in at_bound:
+        n = e.state[:2] / np.linalg.norm(e.state[:2])
+        C = e.covariance[:2, :2]
+        assert abs(n @ C @ n) < 1e-12
+        assert np.array([-n[1], n[0]]) @ C @ np.array([-n[1], n[0]]) > 1e-8
+
+
+def test_fast_and_ipopt_covariances_agree() -> None:
+    rec = simulate("paper3d", duration=3)
+    f = BendFormulation()
+    a = step_all(MovingHorizonEstimator(f, MHESettings(horizon=10)), rec.t, rec.z)
+    b = step_all(MovingHorizonEstimator(f, MHESettings(horizon=10, solver="ipopt")), rec.t, rec.z)
+    for ea, eb in zip(a, b):
+        assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
+
+
+def test_fast_and_ipopt_covariances_agree_on_two_sections_with_one_imu_dropped() -> None:
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=1.5)
+    f = make_formulation("bend", robot)
+    z = rec.z.copy()
+    z[10:20, 2:4] = np.nan  # the second IMU drops out: its residual is masked
+    a = make_estimator("mhe", f, MHESettings(horizon=8)).run(rec.t, z)
+    b = make_estimator("mhe", f, MHESettings(horizon=8, solver="ipopt")).run(rec.t, z)
+    assert np.isfinite(a.std).all()
+    assert_allclose(a.std, b.std, rtol=1e-6)
+
+
+# --- std columns and calibration -------------------------------------------------------------
+def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
+    rec = simulate("paper3d", duration=4)
+    series = make_estimator("ekf", BendFormulation()).run(rec.t, rec.z)
+    est_path, truth_path = tmp_path / "e.csv", tmp_path / "t.csv"
+    write_estimates(est_path, series)
+    from continuum_mhe.io.csv_files import write_truth
+
+    write_truth(truth_path, rec.t, rec.truth, series.outputs)
+    header = est_path.read_text().splitlines()[0].split(",")
+    assert header == ["t", "x", "y", "z", "theta", "phi"] + [
+        f"std_{c}" for c in ("x", "y", "z", "theta", "phi")
+    ] + ["status", "solve_ms"]
+    table = read_state_table(est_path)
+    assert table.names == ("x", "y", "z", "theta", "phi")
+    assert_allclose(table.std, series.std, rtol=1e-9)
+    assert main(["evaluate", str(est_path), str(truth_path), "--json"]) == 0
+    import json
+
+    got = json.loads(capsys.readouterr().out)["calibration"]
+    want = compute_calibration(
+        series.output, series.std, rec.truth, ["x", "y", "z", "theta", "phi"]
+    )
+    assert got["coverage"] == pytest.approx(want.coverage)
+    assert got["tip_nees"] == pytest.approx(want.tip_nees)
+    # a file without std columns: read, evaluated without calibration
+    lines = est_path.read_text().splitlines()
+    keep = [i for i, c in enumerate(lines[0].split(",")) if not c.startswith("std_")]
+    (tmp_path / "plain.csv").write_text(
+        "\n".join(",".join(r.split(",")[i] for i in keep) for r in lines) + "\n"
+    )
+    plain = read_state_table(tmp_path / "plain.csv")
+    assert not plain.has_std and np.isnan(plain.std).all()
+    assert main(["evaluate", str(tmp_path / "plain.csv"), str(truth_path)]) == 0
+    assert "no std_ columns" in capsys.readouterr().out
+
+
+def test_unknown_std_is_written_empty_and_read_as_nan(tmp_path) -> None:
+    t = np.array([0.0, 0.1])
+    out = np.array([[0.0, 0.0, 0.2, 0.0, 0.0], [0.01, 0.0, 0.2, 0.05, 0.0]])
+    std = np.array([[np.nan] * 5, [0.001, 0.002, 0.003, 0.01, 0.2]])
+    s = EstimateSeries("x", t, out, np.array(["ok", "ok"]), np.zeros(2), output_std=std)
+    write_estimates(tmp_path / "e.csv", s)
+    assert_allclose(read_state_table(tmp_path / "e.csv").std, std)
+
+
+def test_calibration_on_a_hand_made_case() -> None:
+    names = ["x", "y", "z", "phi"]
+    truth = np.zeros((4, 4))
+    std = np.ones((4, 4))
+    est = np.array(
+        [
+            [0.0, 1.0, 2.5, 2 * math.pi + 0.5],  # phi wraps to 0.5: inside
+            [1.9, -1.9, 0.0, -1.0],
+            [2.0, 0.0, 0.0, 3.0],
+            [np.nan, 0.0, 0.0, 0.0],  # no estimate of x here
+        ]
+    )
+    c = compute_calibration(est, std, truth, names)
+    assert c.coverage == pytest.approx({"x": 2 / 3, "y": 1.0, "z": 3 / 4, "phi": 3 / 4})
+    assert c.n == {"x": 3, "y": 4, "z": 4, "phi": 4}
+    # tip NEES over the rows with x, y, z: (0+1+6.25), (3.61+3.61+0), (4+0+0)
+    assert c.tip_n == 3
+    assert c.tip_nees == pytest.approx((7.25 + 7.22 + 4.0) / 3)
+    lo, hi = nees_band(3, 3)
+    assert c.tip_nees_band == (lo, hi) and lo < 3 < hi
+    assert Z95 == pytest.approx(1.959964, abs=1e-6)
+
+
+# --- recovery ---------------------------------------------------------------------------------
+def estimators(recovery: RecoverySettings) -> list[Estimator]:
+    f = BendFormulation()
+    out: list[Estimator] = [
+        make_estimator("ekf", f, recovery=recovery),
+        ExtendedKalmanFilter(f),
+        make_estimator("ukf", f, recovery=recovery),
+        make_estimator("mhe", f, MHESettings(horizon=10), recovery),
+        make_estimator("mhe", f, MHESettings(horizon=10, solver="ipopt"), recovery),
+    ]
+    out[1].recovery = recovery  # the CasADi EKF too
+    return out
+
+
+@pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
+def test_gap_reset_restarts_every_estimator_from_the_measurements(index: int) -> None:
+    rec = simulate("paper3d", duration=12, seed=1)
+    keep = (rec.t < 3) | (rec.t >= 10)  # a 7 s gap
+    t, z, truth = rec.t[keep], rec.z[keep], rec.truth[keep]
+    first_after = int(np.flatnonzero(t >= 10)[0])
+    est = estimators(RecoverySettings(gap_reset=1.0))[index]
+    s = est.run(t, z)
+    assert s.status[first_after] == "reset"
+    assert list(s.status).count("reset") == 1 and est.gap_resets == 1
+    # restarted from the reading: the shape the first reading gives, not a blind prediction
+    x0 = est.formulation.initial_state(z[first_after])
+    assert np.linalg.norm(s.output[first_after, :3] - est.formulation.output(x0)[:3]) < 0.01
+    tip = np.linalg.norm(s.output[first_after:, :3] - truth[first_after:, :3], axis=1)
+    assert tip.mean() < 0.01
+    plain = estimators(RecoverySettings())[index].run(t, z)
+    assert "reset" not in set(plain.status)  # off by default in the library
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
+    rec = simulate("paper3d", duration=6, seed=2)
+    z = rec.z.copy()
+    frozen = (rec.t >= 2) & (rec.t < 4)
+    z[frozen] = z[np.flatnonzero(frozen)[0]]
+    est = make_estimator(method, BendFormulation(), recovery=RecoverySettings(freeze=0.5))
+    s = est.run(rec.t, z)
+    late = frozen & (rec.t > 2 + 0.5 + 1e-9)
+    assert set(s.status[late]) == {"dropout"}
+    assert set(s.status[frozen & ~late]) <= {"ok"}
+    assert est.frozen_samples == int(late.sum())
+    assert set(s.status[rec.t >= 4]) <= {"ok", "uncertain"}  # the reading changes: used again
+
+
+def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
+    rec = simulate("paper3d", duration=2)
+    f = BendFormulation(robot=RobotSettings(length=0.2))
+    base = make_estimator("ekf", f).run(rec.t, rec.z)
+    tip_std = np.sqrt(np.sum(base.std[:, :3] ** 2, axis=1))
+    frac = float(np.median(tip_std)) / 0.2
+    s = make_estimator("ekf", f, recovery=RecoverySettings(uncertain_fraction=frac)).run(
+        rec.t, rec.z
+    )
+    assert_allclose(s.std, base.std)
+    assert np.array_equal(s.status == "uncertain", tip_std > frac * 0.2)
+    assert 0 < np.sum(s.status == "uncertain") < len(s.t)
+    # the paper formulation's W is a weight, not a noise model: never uncertain
+    paper = make_formulation("paper")
+    s = make_estimator("ekf", paper, recovery=RecoverySettings(uncertain_fraction=1e-6))
+    series = s.run(rec.t, rec.z)
+    assert set(series.status) == {"ok"} and np.isfinite(series.std).all()
+
+
+def test_recovery_settings_are_validated() -> None:
+    with pytest.raises(ValueError, match="gap_reset"):
+        RecoverySettings(gap_reset=-1.0)
+    with pytest.raises(ValueError, match="uncertain_fraction"):
+        RecoverySettings(uncertain_fraction=0.0)
+
+
+def test_measurement_passes_unchanged_without_freeze() -> None:
+    est = make_estimator("ekf", BendFormulation())
+    m = Measurement(0.0, np.array([0.1, 0.1]))
+    assert est._unfreeze(m) is m
