@@ -74,6 +74,9 @@ class Estimate:
         covariance: state covariance where the method has one, else None.
         status: see :data:`Status`.
         solve_ms: wall time spent on this sample, ms.
+        outlier: the robust MHE down-weighted this sample's measurement (a block's
+            weight below ``estimators.loss.OUTLIER_WEIGHT`` in this solve); always
+            False for the quadratic cost and the filters.
     """
 
     t: float
@@ -82,6 +85,7 @@ class Estimate:
     covariance: FloatArray | None
     status: Status
     solve_ms: float
+    outlier: bool = False
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,8 @@ class EstimateSeries:
         solve_ms: (n,) ms.
         outputs: what each column of ``output`` is (default: one section's
             ``x, y, z, theta, phi``).
+        outlier: (n,) bool, the samples the robust MHE down-weighted (see
+            :attr:`Estimate.outlier`); None when the estimator does not flag outliers.
     """
 
     method: str
@@ -104,8 +110,13 @@ class EstimateSeries:
     status: NDArray[np.str_]
     solve_ms: FloatArray
     outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
+    outlier: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
+        if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
+            raise ValueError(
+                f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"
+            )
         if self.output.ndim != 2 or self.output.shape != (len(self.t), len(self.outputs)):
             raise ValueError(
                 f"output has shape {self.output.shape}, expected ({len(self.t)}, "
@@ -129,7 +140,10 @@ class EstimateSeries:
         method: str,
         estimates: Iterable[Estimate],
         outputs: tuple[OutputSpec, ...] = pcc_outputs(1),
+        flags_outliers: bool = False,
     ) -> EstimateSeries:
+        """The series of ``estimates``; with ``flags_outliers`` it keeps their outlier
+        flags (a robust MHE's), else ``outlier`` is None."""
         est = list(estimates)
         out = np.full((len(est), len(outputs)), np.nan)
         for i, e in enumerate(est):
@@ -142,4 +156,5 @@ class EstimateSeries:
             status=np.array([e.status for e in est], dtype=str),
             solve_ms=np.array([e.solve_ms for e in est], dtype=float),
             outputs=outputs,
+            outlier=np.array([e.outlier for e in est], dtype=bool) if flags_outliers else None,
         )

@@ -12,6 +12,13 @@ FormulationName = Literal["bend", "paper", "direct"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
 MHESolver = Literal["fast", "ipopt"]
 MHE_SOLVERS: tuple[MHESolver, ...] = ("fast", "ipopt")
+MHELoss = Literal["l2", "huber", "cauchy"]
+MHE_LOSSES: tuple[MHELoss, ...] = ("l2", "huber", "cauchy")
+#: Default ``loss_scale`` per robust loss, in standard deviations of the whitened
+#: residual norm of one IMU's (roll, pitch) block: 95 % asymptotic efficiency on
+#: Gaussian noise for a two-component block (docs/robust.md; computed by
+#: ``tools/outlier_study.py efficiency``).
+DEFAULT_LOSS_SCALE: dict[str, float] = {"l2": math.inf, "huber": 2.0, "cauchy": 3.0}
 
 
 def _positive(name: str, value: float) -> None:
@@ -89,6 +96,12 @@ class MHESettings:
         solver: ``"fast"`` (default), the structure-exploiting Gauss-Newton SQP that
             falls back to IPOPT when it cannot certify convergence; ``"ipopt"``, the
             reference.
+        loss: measurement cost per IMU block and node: ``"l2"`` (quadratic, default),
+            ``"huber"`` or ``"cauchy"`` of the block's whitened residual norm
+            (docs/robust.md). The arrival prior and process terms stay quadratic.
+        loss_scale: where the robust loss departs from l2, in standard deviations of
+            the measurement noise (whitened norm of one block); None takes
+            :data:`DEFAULT_LOSS_SCALE` of the loss. Ignored for ``"l2"``.
     """
 
     horizon: int = 30
@@ -96,12 +109,25 @@ class MHESettings:
     max_iter: int = 100
     tol: float = 1e-8
     solver: MHESolver = "fast"
+    loss: MHELoss = "l2"
+    loss_scale: float | None = None
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
             raise ValueError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
+        if self.loss not in MHE_LOSSES:
+            raise ValueError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
+        if self.loss_scale is not None:
+            _positive("loss_scale", self.loss_scale)
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
             raise ValueError(f"horizon must be an integer >= 2, got {self.horizon!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)
+
+    @property
+    def scale(self) -> float:
+        """The loss scale in use, standard deviations (inf for ``"l2"``)."""
+        if self.loss == "l2":
+            return math.inf
+        return DEFAULT_LOSS_SCALE[self.loss] if self.loss_scale is None else self.loss_scale

@@ -36,6 +36,8 @@ class Estimator(ABC):
     """Base class of every estimator. Subclasses implement ``reset`` and ``_step``."""
 
     name: str = "estimator"
+    #: whether estimates carry outlier flags (a robust MHE)
+    flags_outliers: bool = False
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
@@ -59,6 +61,10 @@ class Estimator(ABC):
         self, measurement: Measurement
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """Return ``(state, covariance, status)`` for this sample."""
+
+    def _outlier(self) -> bool:
+        """Whether the last step down-weighted its measurement (robust MHE only)."""
+        return False
 
     def _output(self, state: FloatArray) -> FloatArray:
         """The outputs of a state (a backend may use a compiled copy)."""
@@ -115,7 +121,8 @@ class Estimator(ABC):
                 status = "reset"
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
-        return Estimate(measurement.t, state, output, cov, status, ms)
+        outlier = state is not None and self._outlier()
+        return Estimate(measurement.t, state, output, cov, status, ms, outlier)
 
     def run(
         self,
@@ -134,4 +141,5 @@ class Estimator(ABC):
             self.name,
             [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx],
             self.formulation.outputs,
+            self.flags_outliers,
         )

@@ -3,13 +3,16 @@
 The window holds the last ``N`` samples; node ``i`` of the decision variables is the
 state at window sample ``i`` (the last node is the estimate). The cost is::
 
-    1/2 sum_i  ||m_i * r(z_i, x_i)||^2_{R^-1}               (formulation's residual)
+    1/2 sum_i sum_b rho(||m_i * r_b(z_i, x_i)||^2_{R_b^-1})   (per IMU block b)
   + 1/2 sum_i  ||x_{i+1} - f(x_i, u_i, dt_i)||^2_{Q(dt_i)^-1}
   + 1/2 ||x_0 - xbar||^2_{P^-1}                               (arrival cost)
 
 subject to the formulation's bounds as hard constraints, where ``m_i`` (one 0/1 per
 measurement component) masks the sensors that dropped out at sample ``i``: validity is
-per measurement block, so one IMU's dropout keeps the others. The NLP is built once
+per measurement block, so one IMU's dropout keeps the others. ``rho`` is the
+measurement loss (``MHESettings.loss``, :mod:`continuum_mhe.estimators.loss`): ``s``
+for the quadratic cost, Huber or Cauchy of each block's whitened norm for the robust
+ones. The NLP is built once
 per (formulation, N) with the window's measurements, masks, time steps, inputs,
 per-stage ``Q^-1`` and the arrival prior as parameters.
 
@@ -19,6 +22,11 @@ holds only samples that have left the window, so none is counted twice; on a lin
 Gaussian model the MHE equals the Kalman filter at every sample. (Taking the previous
 solution's smoothed second node as ``xbar`` instead counts the window's measurements
 twice: on raw-IMU data it raised the MHE's tip error by 35 % over the EKF's.)
+With a robust loss the prior stays Gaussian, and the leaving sample's update uses
+``R_b / w_b`` per block, ``w_b = rho'(s_b)`` its weight in the last solve (the
+quadratic model of the robust cost at that solution, as iteratively reweighted least
+squares uses it): a rejected outlier does not enter the prior at full weight when it
+leaves the window.
 
 Growing window: before ``N`` samples exist, the active nodes are the last ``n`` ones;
 the inactive leading nodes are pinned to the prior and carry no other cost, so they
@@ -52,6 +60,7 @@ from continuum_mhe.estimators.fast import (
     solve_window,
 )
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
+from continuum_mhe.estimators.loss import OUTLIER_WEIGHT, block_array, block_weights, rho_sym
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 
@@ -80,7 +89,14 @@ class _Nlp:
 
 
 @lru_cache(maxsize=32)
-def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float) -> _Nlp:
+def _build_nlp(
+    formulation: Formulation,
+    horizon: int,
+    max_iter: int,
+    tol: float,
+    loss: str = "l2",
+    scale: float = float("inf"),
+) -> _Nlp:
     f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
     X = ca.SX.sym("X", nx, n)
     Z = ca.SX.sym("Z", m, n)
@@ -95,7 +111,9 @@ def _build_nlp(formulation: Formulation, horizon: int, max_iter: int, tol: float
     g = []
     for i in range(n):
         r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[:, i])
-        cost += 0.5 * ca.bilin(rinv, r, r)
+        for b in f.measurement_blocks:
+            rb = r[b.slice]
+            cost += 0.5 * rho_sym(loss, scale, ca.bilin(rinv[b.slice, b.slice], rb, rb))
         e = X[:, i] - xbar
         cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
         if i < n - 1:
@@ -174,7 +192,9 @@ class MovingHorizonEstimator(Estimator):
         self._fast: WindowModel | None = None
         if s.solver == "fast":
             try:
-                self._fast = build_window_model(formulation, s.horizon, self.fast_options.compile)
+                self._fast = build_window_model(
+                    formulation, s.horizon, self.fast_options.compile, s.loss, s.scale
+                )
             except NotImplementedError as exc:  # feasible set the fast backend cannot take
                 self._fast = None
                 self.backend_note = (
@@ -193,6 +213,10 @@ class MovingHorizonEstimator(Estimator):
             self._nlp_built = self._nlp
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
+        self._blocks = block_array(formulation.measurement_blocks)
+        self._Rinv = np.linalg.inv(self._R)
+        #: True when the robust loss is in use (estimates carry outlier flags)
+        self.flags_outliers = self.settings.loss != "l2"
         self.reset()
 
     @property
@@ -200,7 +224,9 @@ class MovingHorizonEstimator(Estimator):
         """The IPOPT NLP, built on first use (the fast backend needs it only to fall back)."""
         if self._nlp_built is None:
             s = self.settings
-            self._nlp_built = _build_nlp(self.formulation, s.horizon, s.max_iter, s.tol)
+            self._nlp_built = _build_nlp(
+                self.formulation, s.horizon, s.max_iter, s.tol, s.loss, s.scale
+            )
         return self._nlp_built
 
     @_nlp.setter
@@ -225,6 +251,9 @@ class MovingHorizonEstimator(Estimator):
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
+        # robust weights rho'(s_b) per block of the first and last node of the last solve
+        self._w_first = np.ones(len(self._blocks))
+        self._w_last = np.ones(len(self._blocks))
 
     # --- window bookkeeping -------------------------------------------------
     def _push(self, m: Measurement, mask: FloatArray) -> None:
@@ -264,13 +293,19 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None and self._P is not None
         f, x, P = self.formulation, self._xbar, self._P
         u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
+        R = self._R
+        if self.flags_outliers:  # the leaving sample at its weight in the last solve
+            scale = np.ones(f.nz)
+            for (start, size), w in zip(self._blocks, self._w_first):
+                scale[start : start + size] = 1.0 / max(float(w), 1e-12)
+            R = R * np.sqrt(np.outer(scale, scale))
         if self._node is not None:  # the same EKF step, on the compiled model
             xn, self._P, self._Pinv = self._node.arrival_step(
-                x, P, u, dt, z, self._zmask[0], self._R, self._qw[0]
+                x, P, u, dt, z, self._zmask[0], R, self._qw[0]
             )
         else:
             if self._zmask[0].any():
-                x, P = ekf_update(f, x, P, z, self._R, self._zmask[0])
+                x, P = ekf_update(f, x, P, z, R, self._zmask[0])
             xn, P = ekf_predict(f.functions, x, P, u, dt)
             self._P = 0.5 * (P + P.T)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
@@ -339,9 +374,28 @@ class MovingHorizonEstimator(Estimator):
             return None, None, "no-estimate"
         X, status = self._solve(self.window_problem(copy=False), X0)
         self._X = X
+        if self.flags_outliers:
+            self._w_first = self._node_weights(0, X[0])
+            self._w_last = self._node_weights(-1, X[-1])
         if status == "ok" and not valid:
             status = "dropout"
         return X[-1].copy(), None, status
+
+    def _node_weights(self, i: int, x: FloatArray) -> FloatArray:
+        """Robust weights ``rho'(s_b)`` (nblocks,) of window node ``i`` at state ``x``."""
+        z, mask = self._zw[i], self._zmask[i]
+        if self._node is not None:
+            r = self._node.evaluate(x, self._uw[0], 0.0, z, mask)[3]
+        else:
+            fns = self.formulation.functions
+            r = mask * np.asarray(fns.innovate(z, x)[0], float).ravel()
+        s = self.settings
+        return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks)
+
+    def _outlier(self) -> bool:
+        """True when the last solve down-weighted a block of the newest sample below
+        :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT`."""
+        return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         if self._fast is None:
