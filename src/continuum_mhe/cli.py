@@ -96,6 +96,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     write_estimate_output(out, series, data)
     counts = {str(k): int(v) for k, v in zip(*np.unique(series.status, return_counts=True))}
     summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
+    if series.outlier is not None:
+        summary += f"; outliers flagged: {int(series.outlier.sum())}"
     msg = f"wrote {len(series.t)} estimates to {out} ({summary})"
     if data.skipped:
         msg += f"; skipped {len(data.skipped)} bad sample(s), first: {data.skipped[0]}"

@@ -251,7 +251,8 @@ class LiveSession:
         self._wall_last = 0.0
         self._restarted = False
         if self.writer is not None and out is not None:
-            self.writer.writerow(estimate_columns(estimator.formulation.outputs))
+            flags = estimator.flags_outliers
+            self.writer.writerow(estimate_columns(estimator.formulation.outputs, outlier=flags))
             out.flush()
         estimator.reset()
 
@@ -338,7 +339,8 @@ class LiveSession:
         if self.writer is None or self.out is None:
             return
         ny = self.estimator.formulation.ny
-        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny)
+        flag = est.outlier if self.estimator.flags_outliers else None
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, flag)
         self.writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
         self.out.flush()
 

@@ -10,6 +10,8 @@ Formats (see README "File formats"):
 * Estimate CSV: ``t``, the formulation's outputs (one section: ``x,y,z,theta,phi``;
   several: ``x,y,z`` then ``theta_k,phi_k,x_k,y_k,z_k`` per section), then
   ``status,solve_ms`` (m, rad, ms); rows without an estimate leave the outputs empty.
+  A robust MHE's file has a column ``outlier`` (1: the sample's measurement was
+  down-weighted, else 0) just before ``status``.
   Truth CSV: ``t,x,y,z`` and any of the per-section columns.
 
 Every problem in an input file raises :class:`InputError` with a one-line message
@@ -46,9 +48,11 @@ STATE_COLUMNS = ("t", *output_names(pcc_outputs(1)))
 MEASUREMENT_COLUMNS = ("t", "roll", "pitch")
 
 
-def estimate_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
-    """Header of an estimate CSV: ``t``, the outputs, ``status``, ``solve_ms``."""
-    return ("t", *output_names(outputs), "status", "solve_ms")
+def estimate_columns(outputs: Sequence[OutputSpec], outlier: bool = False) -> tuple[str, ...]:
+    """Header of an estimate CSV: ``t``, the outputs, ``outlier`` (with ``outlier``:
+    a robust MHE's flags), ``status``, ``solve_ms``."""
+    flags = ("outlier",) if outlier else ()
+    return ("t", *output_names(outputs), *flags, "status", "solve_ms")
 
 
 ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
@@ -288,13 +292,15 @@ def _check_angle_units(path: Path, z: FloatArray, lines: list[int], degrees: boo
 @dataclass(frozen=True)
 class StateTable:
     """An estimate or truth CSV: ``t`` (n,), ``values`` (n, k) with NaN where empty,
-    ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), and ``status`` (n,)
-    (``"ok"`` where the file has no status column)."""
+    ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), ``status`` (n,)
+    (``"ok"`` where the file has no status column), and ``outlier`` (n,) bool where the
+    file has an ``outlier`` column (else None)."""
 
     t: FloatArray
     names: tuple[str, ...]
     values: FloatArray
     status: NDArray[np.str_]
+    outlier: NDArray[np.bool_] | None = None
 
     def column(self, name: str) -> FloatArray:
         return self.values[:, self.names.index(name)]
@@ -317,6 +323,8 @@ def read_state_table(
     if not body:
         raise InputError(f"{p}: line 2: no data rows after the header")
     s_idx = header.index("status") if "status" in header else None
+    o_idx = header.index("outlier") if "outlier" in header else None
+    flags: list[bool] = []
     t: list[float] = []
     out: list[list[float]] = []
     status: list[str] = []
@@ -335,12 +343,16 @@ def read_state_table(
             raise InputError(f"{p}: line {line}: NaN or infinite value")
         if t and tv <= t[-1]:
             raise InputError(f"{p}: line {line}: t={tv:g} does not increase (previous t={t[-1]:g})")
+        if o_idx is not None:
+            if row[o_idx] not in ("0", "1"):
+                raise InputError(f"{p}: line {line}: outlier must be 0 or 1, got {row[o_idx]!r}")
+            flags.append(row[o_idx] == "1")
         t.append(tv)
         out.append(vals)
         status.append(st)
     return StateTable(
         np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
-        np.array(status, dtype=str),
+        np.array(status, dtype=str), None if o_idx is None else np.array(flags, dtype=bool),
     )  # fmt: skip
 
 
@@ -445,26 +457,38 @@ def write_table(
 
 
 def estimate_row(
-    t: float, output: Sequence[float] | FloatArray | None, status: str, solve_ms: float, ny: int
+    t: float,
+    output: Sequence[float] | FloatArray | None,
+    status: str,
+    solve_ms: float,
+    ny: int,
+    outlier: bool | None = None,
 ) -> list[object]:
-    """One estimate CSV row; a row without an estimate leaves the outputs empty."""
+    """One estimate CSV row; a row without an estimate leaves the outputs empty.
+    ``outlier`` (None: no such column) is written as 0 or 1 before the status."""
+    flag = [] if outlier is None else [int(bool(outlier))]
     if status == "no-estimate" or output is None:
-        return [float(t), *([""] * ny), str(status), float(solve_ms)]
-    return [float(t), *(float(v) for v in output), str(status), float(solve_ms)]
+        return [float(t), *([""] * ny), *flag, str(status), float(solve_ms)]
+    return [float(t), *(float(v) for v in output), *flag, str(status), float(solve_ms)]
 
 
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
     ny = len(series.outputs)
+    flags = [None] * len(series.t) if series.outlier is None else list(series.outlier)
     return [
-        estimate_row(t, out, str(st), ms, ny)
-        for t, out, st, ms in zip(series.t, series.output, series.status, series.solve_ms)
+        estimate_row(t, out, str(st), ms, ny, fl)
+        for t, out, st, ms, fl in zip(
+            series.t, series.output, series.status, series.solve_ms, flags
+        )
     ]
 
 
 def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
-    """Write an estimate CSV atomically (columns from ``series.outputs``)."""
-    write_table(path, estimate_columns(series.outputs), estimate_rows(series))
+    """Write an estimate CSV atomically (columns from ``series.outputs``; an ``outlier``
+    column when the series carries outlier flags)."""
+    columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
+    write_table(path, columns, estimate_rows(series))
 
 
 def write_truth(
