@@ -247,3 +247,19 @@ def test_cli_loss_option(tmp_path: Path, capsys) -> None:
     assert "--loss-scale needs a robust --loss" in capsys.readouterr().err
     assert main([*args, "--loss", "huber", "--loss-scale", "0"]) == 2
     assert not est.exists()
+
+
+def test_benchmark_reports_each_loss_as_a_ratio_to_l2() -> None:
+    from continuum_mhe import benchmark as bm
+
+    report = bm.run_benchmark([4], 1.0, ("fast", "ipopt"), 0)
+    rows = report["losses"]
+    assert {(r["data"], r["loss"]) for r in rows} == {
+        (d, loss) for d in ("clean", "spikes") for loss in ("l2", "huber", "cauchy")
+    }
+    for r in rows:
+        assert r["max_diff_vs_ipopt"] < 1e-6 and r["fallbacks"] == 0
+        if r["loss"] == "l2":
+            assert r["fast_over_l2"] == 1.0 and r["ipopt_over_l2"] == 1.0
+        base = next(b for b in rows if b["data"] == r["data"] and b["loss"] == "l2")
+        assert r["fast_over_l2"] == pytest.approx(r["fast_median_us"] / base["fast_median_us"])
