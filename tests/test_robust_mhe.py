@@ -67,8 +67,9 @@ def test_loss_kernel_matches_casadi_and_finite_differences(loss: str) -> None:
         assert float(fn(v)) == pytest.approx(rho, rel=1e-14, abs=1e-14)
         h = 1e-6
         if abs(v - scale**2) > 10 * h and v > h:  # Huber: rho'' jumps at the scale
-            lo, hi = rho_derivatives(LOSS_CODES[loss], scale, v - h), rho_derivatives(
-                LOSS_CODES[loss], scale, v + h
+            lo, hi = (
+                rho_derivatives(LOSS_CODES[loss], scale, v - h),
+                rho_derivatives(LOSS_CODES[loss], scale, v + h),
             )
             assert (hi[0] - lo[0]) / (2 * h) == pytest.approx(d1, rel=1e-7)
             assert (hi[1] - lo[1]) / (2 * h) == pytest.approx(d2, rel=1e-5, abs=1e-9)
@@ -170,9 +171,7 @@ def test_huber_with_a_huge_scale_is_the_quadratic_cost(recording, solver: str) -
     f = BendFormulation()
     z = spiked(recording.z)
     l2 = MovingHorizonEstimator(f, robust(solver, "l2")).run(recording.t, z)
-    huge = MovingHorizonEstimator(f, robust(solver, "huber", loss_scale=1e6)).run(
-        recording.t, z
-    )
+    huge = MovingHorizonEstimator(f, robust(solver, "huber", loss_scale=1e6)).run(recording.t, z)
     assert_allclose(huge.output, l2.output, rtol=0, atol=1e-9)
     assert l2.outlier is None and huge.outlier is not None and not huge.outlier.any()
 
@@ -182,7 +181,9 @@ def test_robust_loss_rejects_spikes_that_move_the_quadratic_cost(recording) -> N
     moved = {}
     for loss in ("l2", *ROBUST):
         clean = MovingHorizonEstimator(f, robust("fast", loss)).run(recording.t, recording.z)
-        spiky = MovingHorizonEstimator(f, robust("fast", loss)).run(recording.t, spiked(recording.z))
+        spiky = MovingHorizonEstimator(f, robust("fast", loss)).run(
+            recording.t, spiked(recording.z)
+        )
         moved[loss] = np.max(np.linalg.norm(spiky.output[:, :3] - clean.output[:, :3], axis=1))
     # 30 deg spikes move the quadratic cost's tip by centimetres (measured 39 mm), the
     # robust ones by a fraction of that (measured 11 mm Huber, 6 mm Cauchy)
@@ -201,7 +202,10 @@ def test_outlier_flag_on_an_injected_spike_and_not_on_clean_data(recording, loss
     assert series.outlier is not None
     assert sorted(np.flatnonzero(series.outlier)) == list(SPIKES)
     # the filters and the quadratic MHE carry no flags
-    assert MovingHorizonEstimator(f, robust("fast", "l2")).run(recording.t, recording.z).outlier is None
+    assert (
+        MovingHorizonEstimator(f, robust("fast", "l2")).run(recording.t, recording.z).outlier
+        is None
+    )
 
 
 def test_estimate_csv_round_trip_with_the_outlier_column(recording, tmp_path: Path) -> None:

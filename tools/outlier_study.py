@@ -188,9 +188,10 @@ def print_table(summary: dict[str, dict], n: int) -> None:
         for cond in ("spikes", "bursts"):
             r, d = t[cond]["ratio_to_own_clean"], t[cond]["minus_ekf_mm"]
             print(
-                f"{m:11s} {cond:6s}: / own clean {r['value']:.3f} [{r['lo']:.3f}, {r['hi']:.3f}] "
-                f"{'met' if t[cond]['ratio_met'] else 'NOT met'}; - EKF {d['value']:+.3f} mm "
-                f"[{d['lo']:+.3f}, {d['hi']:+.3f}] {'met' if t[cond]['below_ekf_met'] else 'NOT met'}"
+                f"{m:11s} {cond:6s}: / own clean {r['value']:.3f} [{r['lo']:.3f}, "
+                f"{r['hi']:.3f}] {'met' if t[cond]['ratio_met'] else 'NOT met'}; - EKF "
+                f"{d['value']:+.3f} mm [{d['lo']:+.3f}, {d['hi']:+.3f}] "
+                f"{'met' if t[cond]['below_ekf_met'] else 'NOT met'}"
             )
         c = t["clean"]["ratio_to_l2_mhe"]
         print(
@@ -229,7 +230,7 @@ def efficiency(loss: str, scale: float, p: int) -> float:
 def print_efficiency() -> None:
     for p in (1, 2):
         for loss in ("huber", "cauchy"):
-            k95 = optimize.brentq(lambda c: efficiency(loss, c, p) - 0.95, 0.5, 10)
+            k95 = optimize.brentq(lambda c, ls=loss, k=p: efficiency(ls, c, k) - 0.95, 0.5, 10)
             print(f"{loss:6s} p={p}: 95 % efficiency at scale {k95:.3f}")
 
 

@@ -6,11 +6,12 @@ the median and 99th-percentile wall time per sample once the window is full, the
 of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
-``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed on
-both backends, clean and with spikes, as a ratio to ``l2``
-(:mod:`continuum_mhe.benchmark_losses`). A long recording then shows that the fast MHE's memory does not grow per
-sample (tracemalloc and RSS slopes). The report records where the numbers come from:
-whether the model ran compiled, the C compiler, the machine and the versions.
+``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed
+on both backends, clean and with spikes, as a ratio to ``l2``
+(:mod:`continuum_mhe.benchmark_losses`). A long recording then shows that the fast
+MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report records
+where the numbers come from: whether the model ran compiled, the C compiler, the
+machine and the versions.
 
 do-mpc's MHE is given our window cost through its own API: the tangent-plane tilt
 residual as its measurement (the window's measurements enter as time-varying

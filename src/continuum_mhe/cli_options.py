@@ -16,6 +16,7 @@ from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
     MHE_LOSSES,
+    MHELoss,
     MHESettings,
     NoiseSettings,
 )
@@ -123,7 +124,7 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
 
 
 def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
-    loss = getattr(args, "loss", "l2")
+    loss: MHELoss = getattr(args, "loss", "l2")
     scale = getattr(args, "loss_scale", None)
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"--loss-scale must be a positive number of stds, got {scale}")
@@ -142,5 +143,3 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
         )
     except ValueError as exc:
         raise InputError(str(exc)) from None
-
-

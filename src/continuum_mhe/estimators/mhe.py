@@ -107,7 +107,7 @@ def _build_nlp(
     xbar = ca.SX.sym("xbar", nx)
     AR = ca.SX.sym("AR", nx * nx, n)
     rinv = np.linalg.inv(f.meas_cov())
-    cost = 0
+    cost = ca.SX(0)
     g = []
     for i in range(n):
         r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[:, i])
@@ -214,7 +214,7 @@ class MovingHorizonEstimator(Estimator):
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
         self._blocks = block_array(formulation.measurement_blocks)
-        self._Rinv = np.linalg.inv(self._R)
+        self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
         self.reset()

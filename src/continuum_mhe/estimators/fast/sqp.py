@@ -19,7 +19,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.fast.model import WindowModel
-from continuum_mhe.estimators.loss import rho_derivatives
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
     LINE_SEARCH_FAILED,
@@ -29,6 +28,7 @@ from continuum_mhe.estimators.fast.qp import (
     project,
     solve_qp,
 )
+from continuum_mhe.estimators.loss import rho_derivatives
 
 if TYPE_CHECKING:
     from continuum_mhe.estimators.mhe import WindowProblem as WindowProblemLike
