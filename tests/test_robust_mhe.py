@@ -254,10 +254,10 @@ def test_cli_loss_option(tmp_path: Path, capsys) -> None:
 
 
 def test_benchmark_reports_each_loss_as_a_ratio_to_l2() -> None:
-    from continuum_mhe import benchmark as bm
+    from continuum_mhe.benchmark_losses import run_loss_benchmark
 
-    report = bm.run_benchmark([4], 1.0, ("fast", "ipopt"), 0)
-    rows = report["losses"]
+    rec = simulate("paper3d", duration=0.6, seed=0)
+    rows = run_loss_benchmark(BendFormulation(), rec, [4])
     assert {(r["data"], r["loss"]) for r in rows} == {
         (d, loss) for d in ("clean", "spikes") for loss in ("l2", "huber", "cauchy")
     }
