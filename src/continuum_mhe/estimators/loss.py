@@ -82,10 +82,17 @@ def block_weights(
     blocks: NDArray[np.int64],
 ) -> FloatArray:
     """``rho'(s_b)`` per block (nblocks,) for one node's residual ``r`` (nz,)."""
-    code = LOSS_CODES[loss]
-    out = np.ones(len(blocks))
-    for k, (start, size) in enumerate(blocks):
-        rb = r[start : start + size]
-        s = float(rb @ rinv[start : start + size, start : start + size] @ rb)
+    return _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
+
+
+@numba.njit(cache=True)
+def _block_weights(code, scale, r, rinv, blocks):
+    out = np.ones(blocks.shape[0])
+    for k in range(blocks.shape[0]):
+        b0, nb = blocks[k, 0], blocks[k, 1]
+        s = 0.0
+        for a in range(nb):
+            for c in range(nb):
+                s += r[b0 + a] * rinv[b0 + a, b0 + c] * r[b0 + c]
         out[k] = rho_derivatives(code, scale, s)[1]
     return out
