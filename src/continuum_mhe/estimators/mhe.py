@@ -251,6 +251,8 @@ class MovingHorizonEstimator(Estimator):
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
+        #: SQP iterations of the last fast solve (0 before one)
+        self.sqp_iterations = 0
         # robust weights rho'(s_b) per block of the first and last node of the last solve
         self._w_first = np.ones(len(self._blocks))
         self._w_last = np.ones(len(self._blocks))
@@ -409,6 +411,7 @@ class MovingHorizonEstimator(Estimator):
             lam0[:-1] = self._lam[1:]
             lam0[-1] = 0.0
         res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
+        self.sqp_iterations = res.iterations
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"
