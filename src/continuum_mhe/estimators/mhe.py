@@ -12,9 +12,8 @@ measurement component) masks the sensors that dropped out at sample ``i``: valid
 per measurement block, so one IMU's dropout keeps the others. ``rho`` is the
 measurement loss (``MHESettings.loss``, :mod:`continuum_mhe.estimators.loss`): ``s``
 for the quadratic cost, Huber or Cauchy of each block's whitened norm for the robust
-ones. The NLP is built once
-per (formulation, N) with the window's measurements, masks, time steps, inputs,
-per-stage ``Q^-1`` and the arrival prior as parameters.
+ones. The NLP is built once per (formulation, N, loss) with the window's measurements,
+masks, time steps, inputs, per-stage ``Q^-1`` and the arrival prior as parameters.
 
 Arrival cost: when the window slides, ``(xbar, P)`` take one EKF step, an update with
 the sample that leaves the window and a prediction to the new first sample. The prior
@@ -111,9 +110,12 @@ def _build_nlp(
     g = []
     for i in range(n):
         r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[:, i])
-        for b in f.measurement_blocks:
-            rb = r[b.slice]
-            cost += 0.5 * rho_sym(loss, scale, ca.bilin(rinv[b.slice, b.slice], rb, rb))
+        if loss == "l2":
+            cost += 0.5 * ca.bilin(rinv, r, r)
+        else:  # one loss per measurement block (R is block-diagonal)
+            for b in f.measurement_blocks:
+                rb = r[b.slice]
+                cost += 0.5 * rho_sym(loss, scale, ca.bilin(rinv[b.slice, b.slice], rb, rb))
         e = X[:, i] - xbar
         cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
         if i < n - 1:
