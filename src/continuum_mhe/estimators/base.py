@@ -122,7 +122,7 @@ class Estimator(ABC):
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         outlier = state is not None and self._outlier()
-        return Estimate(measurement.t, state, output, cov, status, ms, outlier)
+        return Estimate(measurement.t, state, output, cov, status, ms, outlier=outlier)
 
     def run(
         self,
