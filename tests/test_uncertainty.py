@@ -153,6 +153,30 @@ def test_fast_and_ipopt_covariances_agree() -> None:
         assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
 
 
+@pytest.mark.parametrize("loss", ["huber", "cauchy"])
+def test_robust_covariance_down_weights_an_outlier_alike_on_both_backends(loss: str) -> None:
+    """With a robust loss the Hessian carries the loss weights: both backends give the
+    same covariance, and a spike in the newest sample (down-weighted) leaves the
+    estimate less certain than the quadratic cost's, which trusts it fully."""
+    rec = simulate("paper3d", duration=3)
+    z = rec.z.copy()
+    z[-1] += np.radians(30.0)  # a spike on the newest sample
+    f = BendFormulation()
+    runs = {
+        (name, solver): step_all(
+            MovingHorizonEstimator(f, MHESettings(horizon=10, solver=solver, loss=name)),
+            rec.t, z,
+        )  # fmt: skip
+        for name in (loss, "l2")
+        for solver in ("fast", "ipopt")
+    }
+    for ea, eb in zip(runs[(loss, "fast")], runs[(loss, "ipopt")]):
+        assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
+    robust, quadratic = runs[(loss, "fast")][-1], runs[("l2", "fast")][-1]
+    assert robust.outlier
+    assert np.all(robust.output_std[:3] > quadratic.output_std[:3])
+
+
 def test_fast_and_ipopt_covariances_agree_on_two_sections_with_one_imu_dropped() -> None:
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.scenarios import simulate_robot

@@ -6,9 +6,12 @@ the median and 99th-percentile wall time per sample once the window is full, the
 of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
-``N`` on. A long recording then shows that the fast MHE's memory does not grow per
-sample (tracemalloc and RSS slopes). The report records where the numbers come from:
-whether the model ran compiled, the C compiler, the machine and the versions.
+``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed
+on both backends, clean and with spikes, as a ratio to ``l2``
+(:mod:`continuum_mhe.benchmark_losses`). A long recording then shows that the fast
+MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report records
+where the numbers come from: whether the model ran compiled, the C compiler, the
+machine and the versions.
 
 do-mpc's MHE is given our window cost through its own API: the tangent-plane tilt
 residual as its measurement (the window's measurements enter as time-varying
@@ -453,8 +456,13 @@ def run_benchmark(
     duration: float = 20.0,
     methods: tuple[str, ...] = METHODS,
     memory_samples: int = 20000,
+    loss_horizons: tuple[int, ...] | None = None,
 ) -> dict[str, Any]:
-    """Time every method at every horizon on one recording; see the module docstring."""
+    """Time every method at every horizon on one recording, and each MHE loss at
+    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); see
+    the module docstring."""
+    from continuum_mhe.benchmark_losses import run_loss_benchmark
+
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
     env = environment(f)
@@ -508,6 +516,9 @@ def run_benchmark(
                     fallbacks=fb,
                 )
             )
+    if loss_horizons is None:
+        loss_horizons = (30,) if 30 in horizons else tuple(horizons[:1])
+    losses = run_loss_benchmark(f, rec, list(loss_horizons)) if "fast" in methods else []
     memory = memory_profile(f, 30, memory_samples) if memory_samples > 0 else None
     return {
         "formulation": "bend",
@@ -519,6 +530,7 @@ def run_benchmark(
         "methods": {m: METHOD_NOTES[m] for m in METHODS if m in methods or m == "ipopt"},
         "skipped": skipped,
         "results": with_ratios([asdict(r) for r in results]),
+        "losses": losses,
         "memory": None if memory is None else asdict(memory),
     }
 
@@ -592,6 +604,10 @@ def print_report(report: dict[str, Any]) -> None:
     if len(ns) > 1:
         growth = fast[ns[-1]]["median_us"] / fast[ns[0]]["median_us"]
         console.print(f"fast: time(N={ns[-1]}) / time(N={ns[0]}) = {growth:.2f}")
+    if report.get("losses"):
+        from continuum_mhe.benchmark_losses import print_loss_report
+
+        print_loss_report(report["losses"])
     mem = report.get("memory")
     if mem:
         console.print(
@@ -636,7 +652,13 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     if "do-mpc" in methods and not available("do_mpc"):
         raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
-    report = run_benchmark(args.horizons, args.duration, methods, args.memory_samples)
+    report = run_benchmark(
+        args.horizons,
+        args.duration,
+        methods,
+        args.memory_samples,
+        None if args.loss_horizons is None else tuple(args.loss_horizons),
+    )
     print_report(report)
     if args.json:
         _write_json(args.json, report)
@@ -668,6 +690,13 @@ def register(subparsers: Any) -> None:
         action="append",
         choices=("fast", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
         help="leave out a method",
+    )
+    p.add_argument(
+        "--loss-horizons",
+        type=lambda text: [] if text == "none" else _horizons(text),
+        default=None,
+        help="horizons at which each MHE loss (l2, huber, cauchy) is timed on both "
+        "backends (default: 30 if among --horizons, else the first; none: skip)",
     )
     p.add_argument(
         "--memory-samples",

@@ -99,13 +99,16 @@ def cmd_estimate(args: argparse.Namespace) -> int:
             recovery=recovery_settings_from_args(args),
         )
         est.reset()
+        flags_outliers = bool(getattr(est, "flags_outliers", False))
+        outliers = 0
         ticks = interruptible(progress_bar(f"{args.method} estimate"))(itertools.count())
-        with EstimateSink(out, stream.formulation, stream.t0_ns) as sink:
+        with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers) as sink:
             try:
                 for t, z in stream.samples:
                     next(ticks)
                     e = est.step(Measurement(t, z))
                     counts[e.status] = counts.get(e.status, 0) + 1
+                    outliers += e.outlier
                     sink.write(e)
             finally:
                 ticks.close()
@@ -121,6 +124,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     "nothing written"
                 )
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    if flags_outliers:
+        summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
     if stream.problems.count:
         msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"

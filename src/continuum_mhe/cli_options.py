@@ -13,7 +13,15 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.settings import FORMULATIONS, MHESettings, NoiseSettings, RecoverySettings
+from continuum_mhe.settings import (
+    DEFAULT_LOSS_SCALE,
+    FORMULATIONS,
+    MHE_LOSSES,
+    MHELoss,
+    MHESettings,
+    NoiseSettings,
+    RecoverySettings,
+)
 
 
 def add_robot_option(g: argparse._ActionsContainer) -> None:
@@ -93,6 +101,22 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         default="fast",
         help="MHE backend: fast (structure-exploiting, default) or ipopt (the paper's)",
     )
+    g.add_argument(
+        "--loss",
+        choices=MHE_LOSSES,
+        default="l2",
+        help="MHE measurement cost per IMU: l2 (quadratic, default), or huber or cauchy "
+        "(robust to outliers; flags the samples they down-weight)",
+    )
+    g.add_argument(
+        "--loss-scale",
+        type=float,
+        default=None,
+        metavar="K",
+        help="where the robust loss departs from l2, in standard deviations of the "
+        f"measurement noise (default: huber {DEFAULT_LOSS_SCALE['huber']:g}, "
+        f"cauchy {DEFAULT_LOSS_SCALE['cauchy']:g})",
+    )
 
 
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
@@ -113,7 +137,25 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
 
 
 def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
-    return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
+    loss: MHELoss = getattr(args, "loss", "l2")
+    scale = getattr(args, "loss_scale", None)
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        raise InputError(f"--loss-scale must be a positive number of stds, got {scale}")
+    if scale is not None and loss == "l2":
+        raise InputError("--loss-scale needs a robust --loss (huber or cauchy)")
+    method = getattr(args, "method", "mhe")
+    if loss != "l2" and method != "mhe":
+        raise InputError(f"--loss {loss} is an MHE option; the {method} keeps the l2 cost")
+    try:
+        return MHESettings(
+            horizon=args.horizon,
+            paper_start=args.paper_start,
+            solver=args.solver,
+            loss=loss,
+            loss_scale=scale,
+        )
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def add_serial_options(p: argparse.ArgumentParser) -> None:

@@ -361,7 +361,11 @@ def cmd_live(args: argparse.Namespace) -> int:
     out = (
         None
         if out_path is None
-        else RowFile(out_path, estimate_columns(formulation.outputs), args.overwrite)
+        else RowFile(
+            out_path,
+            estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
+            args.overwrite,
+        )
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
     view = None if sink is None else BackboneView(

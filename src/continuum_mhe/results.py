@@ -80,6 +80,9 @@ class Estimate:
         solve_ms: wall time spent on this sample, ms.
         output_std: one standard deviation of every output (same units as ``output``),
             from ``covariance`` through the output Jacobian; None where unknown.
+        outlier: the robust MHE down-weighted this sample's measurement (a block's
+            weight below ``estimators.loss.OUTLIER_WEIGHT`` in this solve); always
+            False for the quadratic cost and the filters.
     """
 
     t: float
@@ -89,6 +92,7 @@ class Estimate:
     status: Status
     solve_ms: float
     output_std: FloatArray | None = None
+    outlier: bool = False
 
 
 @dataclass(frozen=True)
@@ -105,6 +109,8 @@ class EstimateSeries:
             ``x, y, z, theta, phi``).
         output_std: (n, ny) one standard deviation of each output (m, rad), NaN where
             unknown (default: all NaN).
+        outlier: (n,) bool, the samples the robust MHE down-weighted (see
+            :attr:`Estimate.outlier`); None when the estimator does not flag outliers.
     """
 
     method: str
@@ -114,8 +120,13 @@ class EstimateSeries:
     solve_ms: FloatArray
     outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
     output_std: FloatArray | None = None
+    outlier: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
+        if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
+            raise ValueError(
+                f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"
+            )
         shape = (len(self.t), len(self.outputs))
         if self.output.ndim != 2 or self.output.shape != shape:
             raise ValueError(
@@ -150,7 +161,10 @@ class EstimateSeries:
         method: str,
         estimates: Iterable[Estimate],
         outputs: tuple[OutputSpec, ...] = pcc_outputs(1),
+        flags_outliers: bool = False,
     ) -> EstimateSeries:
+        """The series of ``estimates``; with ``flags_outliers`` it keeps their outlier
+        flags (a robust MHE's), else ``outlier`` is None."""
         est = list(estimates)
         out = np.full((len(est), len(outputs)), np.nan)
         std = np.full_like(out, np.nan)
@@ -167,4 +181,5 @@ class EstimateSeries:
             solve_ms=np.array([e.solve_ms for e in est], dtype=float),
             outputs=outputs,
             output_std=std,
+            outlier=np.array([e.outlier for e in est], dtype=bool) if flags_outliers else None,
         )

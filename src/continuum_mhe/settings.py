@@ -13,6 +13,15 @@ FormulationName = Literal["bend", "paper", "direct"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
 MHESolver = Literal["fast", "ipopt"]
 MHE_SOLVERS: tuple[MHESolver, ...] = ("fast", "ipopt")
+MHELoss = Literal["l2", "huber", "cauchy"]
+MHE_LOSSES: tuple[MHELoss, ...] = ("l2", "huber", "cauchy")
+#: Default ``loss_scale`` per robust loss, in standard deviations of the whitened
+#: residual norm of one IMU's (roll, pitch) block (docs/robust.md). Huber: 1.5, its 95 %
+#: asymptotic efficiency on Gaussian noise for a two-component block (1.345 is the
+#: one-component value). Cauchy: 2.0 (92 % efficiency; 95 % would be 2.55), the
+#: smallest scale of the measured sweep that keeps the clean-data error within 2 % of
+#: the quadratic cost, so the one that rejects bursts best (``tools/outlier_study.py``).
+DEFAULT_LOSS_SCALE: dict[str, float] = {"l2": math.inf, "huber": 1.5, "cauchy": 2.0}
 
 
 def _positive(name: str, value: float) -> None:
@@ -90,6 +99,12 @@ class MHESettings:
         solver: ``"fast"`` (default), the structure-exploiting Gauss-Newton SQP that
             falls back to IPOPT when it cannot certify convergence; ``"ipopt"``, the
             reference.
+        loss: measurement cost per IMU block and node: ``"l2"`` (quadratic, default),
+            ``"huber"`` or ``"cauchy"`` of the block's whitened residual norm
+            (docs/robust.md). The arrival prior and process terms stay quadratic.
+        loss_scale: where the robust loss departs from l2, in standard deviations of
+            the measurement noise (whitened norm of one block); None takes
+            :data:`DEFAULT_LOSS_SCALE` of the loss. Ignored for ``"l2"``.
     """
 
     horizon: int = 30
@@ -97,16 +112,28 @@ class MHESettings:
     max_iter: int = 100
     tol: float = 1e-8
     solver: MHESolver = "fast"
+    loss: MHELoss = "l2"
+    loss_scale: float | None = None
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
             raise UserError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
+        if self.loss not in MHE_LOSSES:
+            raise UserError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
+        if self.loss_scale is not None:
+            _positive("loss_scale", self.loss_scale)
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
             raise UserError(f"horizon must be an integer >= 2, got {self.horizon!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)
 
+    @property
+    def scale(self) -> float:
+        """The loss scale in use, standard deviations (inf for ``"l2"``)."""
+        if self.loss == "l2":
+            return math.inf
+        return DEFAULT_LOSS_SCALE[self.loss] if self.loss_scale is None else self.loss_scale
 
 @dataclass(frozen=True)
 class RecoverySettings:

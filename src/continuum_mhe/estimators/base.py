@@ -38,6 +38,8 @@ class Estimator(ABC):
     """Base class of every estimator. Subclasses implement ``reset`` and ``_step``."""
 
     name: str = "estimator"
+    #: whether estimates carry outlier flags (a robust MHE)
+    flags_outliers: bool = False
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
@@ -77,6 +79,10 @@ class Estimator(ABC):
         self, measurement: Measurement
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """Return ``(state, covariance, status)`` for this sample."""
+
+    def _outlier(self) -> bool:
+        """Whether the last step down-weighted its measurement (robust MHE only)."""
+        return False
 
     def _output(self, state: FloatArray) -> FloatArray:
         """The outputs of a state (a backend may use a compiled copy)."""
@@ -192,7 +198,8 @@ class Estimator(ABC):
                 tip_std = math.sqrt(float(np.sum(std[self._tip] ** 2)))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
-        return Estimate(measurement.t, state, output, cov, status, ms, std)
+        outlier = state is not None and self._outlier()
+        return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
 
     def run(
         self,
@@ -211,6 +218,7 @@ class Estimator(ABC):
             self.name,
             [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx],
             self.formulation.outputs,
+            self.flags_outliers,
         )
         self._ran = True
         return series

@@ -11,7 +11,9 @@ Formats (see README "File formats"):
   several: ``x,y,z`` then ``theta_k,phi_k,x_k,y_k,z_k`` per section), then
   ``std_c`` for every output ``c`` (one standard deviation, same unit; empty where
   unknown), then ``status,solve_ms`` (m, rad, ms); rows without an estimate leave the
-  outputs empty. Files without the ``std_`` columns are read too.
+  outputs empty. Files without the ``std_`` columns are read too. A robust MHE's file
+  has a column ``outlier`` (1: the sample's measurement was down-weighted, else 0)
+  just before ``status``.
   Truth CSV: ``t,x,y,z`` and any of the per-section columns.
 
 Every problem in an input file raises :class:`InputError` with a one-line message
@@ -68,10 +70,11 @@ def std_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
     return tuple(STD_PREFIX + n for n in output_names(outputs))
 
 
-def estimate_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
-    """Header of an estimate CSV: ``t``, the outputs, their ``std_`` columns,
-    ``status``, ``solve_ms``."""
-    return ("t", *output_names(outputs), *std_columns(outputs), "status", "solve_ms")
+def estimate_columns(outputs: Sequence[OutputSpec], outlier: bool = False) -> tuple[str, ...]:
+    """Header of an estimate CSV: ``t``, the outputs, their ``std_`` columns, ``outlier``
+    (with ``outlier``: a robust MHE's flags), ``status``, ``solve_ms``."""
+    flags = ("outlier",) if outlier else ()
+    return ("t", *output_names(outputs), *std_columns(outputs), *flags, "status", "solve_ms")
 
 
 ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
@@ -248,14 +251,16 @@ def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool
 class StateTable:
     """An estimate or truth CSV: ``t`` (n,), ``values`` (n, k) with NaN where empty,
     ``names`` (k,) the columns (outputs such as ``x``, ``theta_2``), ``status`` (n,)
-    (``"ok"`` where the file has no status column), and ``std`` (n, k) the ``std_``
-    columns of the outputs (NaN where empty or absent)."""
+    (``"ok"`` where the file has no status column), ``std`` (n, k) the ``std_``
+    columns of the outputs (NaN where empty or absent), and ``outlier`` (n,) bool where
+    the file has an ``outlier`` column (else None)."""
 
     t: FloatArray
     names: tuple[str, ...]
     values: FloatArray
     status: NDArray[np.str_]
     std: FloatArray | None = None
+    outlier: NDArray[np.bool_] | None = None
 
     @property
     def has_std(self) -> bool:
@@ -287,6 +292,8 @@ def read_state_table(
     if not body:
         raise InputError(f"{p}: line 2: no data rows after the header")
     s_idx = header.index("status") if "status" in header else None
+    o_idx = header.index("outlier") if "outlier" in header else None
+    flags: list[bool] = []
     t: list[float] = []
     out: list[list[float]] = []
     status: list[str] = []
@@ -311,12 +318,17 @@ def read_state_table(
         )
         if t and tv <= t[-1]:
             raise InputError(f"{p}: line {line}: t={tv:g} does not increase (previous t={t[-1]:g})")
+        if o_idx is not None:
+            if row[o_idx] not in ("0", "1"):
+                raise InputError(f"{p}: line {line}: outlier must be 0 or 1, got {row[o_idx]!r}")
+            flags.append(row[o_idx] == "1")
         t.append(tv)
         out.append(vals)
         status.append(st)
     return StateTable(
         np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
+        None if o_idx is None else np.array(flags, dtype=bool),
     )  # fmt: skip
 
 
@@ -440,31 +452,37 @@ def estimate_row(
     solve_ms: float,
     ny: int,
     std: Sequence[float] | FloatArray | None = None,
+    outlier: bool | None = None,
 ) -> list[object]:
     """One estimate CSV row; a row without an estimate leaves the outputs empty, and an
-    unknown standard deviation is empty too."""
+    unknown standard deviation is empty too. ``outlier`` (None: no such column) is
+    written as 0 or 1 before the status."""
+    flag = [] if outlier is None else [int(bool(outlier))]
     if status == "no-estimate" or output is None:
-        return [float(t), *([""] * (2 * ny)), str(status), float(solve_ms)]
+        return [float(t), *([""] * (2 * ny)), *flag, str(status), float(solve_ms)]
     sd: list[object] = [""] * ny
     if std is not None:
         sd = [float(v) if math.isfinite(v) else "" for v in std]
-    return [float(t), *(float(v) for v in output), *sd, str(status), float(solve_ms)]
+    return [float(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
 
 
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
     ny = len(series.outputs)
+    flags = [None] * len(series.t) if series.outlier is None else list(series.outlier)
     return [
-        estimate_row(t, out, str(st), ms, ny, sd)
-        for t, out, st, ms, sd in zip(
-            series.t, series.output, series.status, series.solve_ms, series.std
+        estimate_row(t, out, str(st), ms, ny, sd, fl)
+        for t, out, st, ms, sd, fl in zip(
+            series.t, series.output, series.status, series.solve_ms, series.std, flags
         )
     ]
 
 
 def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
-    """Write an estimate CSV atomically (columns from ``series.outputs``)."""
-    write_table(path, estimate_columns(series.outputs), estimate_rows(series))
+    """Write an estimate CSV atomically (columns from ``series.outputs``; an ``outlier``
+    column when the series carries outlier flags)."""
+    columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
+    write_table(path, columns, estimate_rows(series))
 
 
 def write_truth(

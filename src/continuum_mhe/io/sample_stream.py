@@ -175,9 +175,14 @@ class EstimateSink:
     use as a context manager; the output appears only when the block completes."""
 
     def __init__(
-        self, path: str | os.PathLike[str], formulation: Formulation, t0_ns: int = 0
+        self,
+        path: str | os.PathLike[str],
+        formulation: Formulation,
+        t0_ns: int = 0,
+        outlier: bool = False,
     ) -> None:
         self.path = path
+        self.outlier = outlier  # an ``outlier`` column (a robust MHE's flags)
         self.outputs = formulation.outputs
         self.lengths = formulation.robot.lengths
         self.t0_ns = t0_ns
@@ -206,11 +211,12 @@ class EstimateSink:
             self._cm = atomic_writer(self.path)
             fh: IO[str] = self._cm.__enter__()
             w = csv.writer(fh, lineterminator="\n")
-            w.writerow(estimate_columns(self.outputs))
+            w.writerow(estimate_columns(self.outputs, outlier=self.outlier))
             ny = len(self.outputs)
 
             def write_csv(e: Estimate) -> None:
-                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny, e.output_std)
+                flag = e.outlier if self.outlier else None
+                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny, e.output_std, flag)
                 w.writerow(format_cells(self.path, row))
 
             self._finish = lambda: None

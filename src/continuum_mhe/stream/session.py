@@ -208,7 +208,8 @@ class LiveSession:
         )
         if self.converters is not None and len(self.converters) != self.n_imus:
             raise ValueError(f"{len(self.converters)} converter(s) for {self.n_imus} IMU(s)")
-        columns = estimate_columns(self.formulation.outputs)
+        self.flags_outliers = bool(getattr(estimator, "flags_outliers", False))
+        columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
         self.out: RowSink | None = (
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
         )
@@ -383,7 +384,8 @@ class LiveSession:
         if self.out is None:
             return
         ny = self.formulation.ny
-        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, est.output_std)
+        flag = est.outlier if self.flags_outliers else None
+        row = estimate_row(est.t, est.output, est.status, est.solve_ms, ny, est.output_std, flag)
         self.out.write_row([f"{v:.10g}" if isinstance(v, float) else str(v) for v in row])
 
     def _describe(self, est: Estimate) -> str:

@@ -51,6 +51,7 @@ from continuum_mhe.estimators.fast.arrival import arrival_predict, arrival_updat
 from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction, Library
 from continuum_mhe.estimators.fast.model import (
     Feasible,
+    LossKernel,
     NodeEvaluator,
     WindowModel,
     build_window_model,
@@ -80,6 +81,7 @@ __all__ = [
     "FastOptions",
     "FastResult",
     "LINE_SEARCH_FAILED",
+    "LossKernel",
     "Library",
     "MAX_ITER",
     "NOT_PD",

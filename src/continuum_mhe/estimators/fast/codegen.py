@@ -43,18 +43,23 @@ def window_function(formulation: Formulation, horizon: int) -> ca.Function:
     measurement residuals ``R`` (nz, N); their Jacobians
     ``JR`` (nz nx, N), each column the row-major ``dr/dx``; process residuals
     ``W = x_{i+1} - f(x_i, u_i, dt_i)`` (nx, N-1); ``FJ`` (nx^2, N-1), each column
-    the row-major ``df/dx_i``; ``SR`` (nx^2, N), the second-order part of the
-    measurement cost's Hessian ``sum_a (R^-1 r)_a d2r_a/dx2`` per node.
+    the row-major ``df/dx_i``; ``SR`` (nblocks nx^2, N), the second-order part of each
+    measurement block's quadratic cost Hessian ``sum_a (R_b^-1 r_b)_a d2r_a/dx2`` per
+    node (one per block, so that a robust loss can weight each block; ``R`` is
+    block-diagonal).
     """
     f, nx, nu, nz, n = formulation, formulation.nx, formulation.nu, formulation.nz, horizon
     x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
     u, dt, mk = ca.SX.sym("u", nu), ca.SX.sym("dt"), ca.SX.sym("m", nz)
     r = mk * f.measurement_residual_sym(z, x)
     jr = ca.jacobian(r, x)
-    rinv = ca.DM(np.linalg.inv(f.meas_cov()))
-    # second-order part of the measurement cost's Hessian, sum_a (R^-1 r)_a d2 r_a/dx2
-    curv = ca.hessian(0.5 * ca.bilin(rinv, r, r), x)[0] - ca.mtimes([jr.T, rinv, jr])
-    meas = ca.Function("meas", [x, z, mk], [r, ca.vec(jr.T), ca.vec(curv)])
+    rinv = np.linalg.inv(f.meas_cov())
+    # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2
+    curv = []
+    for b in f.measurement_blocks:
+        rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
+        curv.append(ca.vec(ca.hessian(0.5 * ca.bilin(wb, rb, rb), x)[0] - jb.T @ wb @ jb))
+    meas = ca.Function("meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
     xf = f.transition_sym(x, u, dt)
     proc = ca.Function("proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
     # MX, so that the maps stay loops in the generated code (SX would unroll them)

@@ -24,9 +24,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.fast.linalg import householder
-from continuum_mhe.estimators.fast.model import Feasible, WindowModel
+from continuum_mhe.estimators.fast.model import Feasible, LossKernel, WindowModel
 from continuum_mhe.estimators.fast.qp import _eqp
 from continuum_mhe.estimators.fast.sqp import Workspace, _assemble, _evaluate
+from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
 if TYPE_CHECKING:
@@ -147,6 +148,7 @@ def window_covariance(
     cost = _evaluate(
         model.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, np.zeros((n, len(fs.ball_r2))), fs.ball_idx, D, E, g,
+        model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
     )  # fmt: skip
     if not np.isfinite(cost):
         return None
@@ -161,11 +163,13 @@ def casadi_window_covariance(
     X: FloatArray,
     feasible: Feasible | None,
     tol: float = 1e-6,
+    loss: LossKernel | None = None,
 ) -> FloatArray | None:
     """The same quantity as :func:`window_covariance`, with the Jacobians from the
     formulation's CasADi functions (the IPOPT backend's; no compiled model).
     ``feasible`` None: no bound is conditioned on. IPOPT's answers lie within its
-    tolerance of a bound, hence the looser default ``tol``."""
+    tolerance of a bound, hence the looser default ``tol``. ``loss``: the measurement
+    loss (None: quadratic), whose weights enter the Hessian as in the fast backend."""
     f = formulation
     n, nx, nz = X.shape[0], f.nx, f.nz
     fns = f.functions
@@ -189,10 +193,14 @@ def casadi_window_covariance(
     rinv = np.asarray(np.linalg.inv(f.meas_cov()), dtype=np.float64)
     lam = np.zeros((n, len(ball_r2)))
     Xc = np.ascontiguousarray(X, dtype=float)
+    if loss is None:
+        loss = LossKernel(block_array(f.measurement_blocks), LOSS_CODES["l2"], np.inf)
+    nblk = loss.blocks.shape[0]
     _assemble(
         Xc, R, JR, W, FJ, node_mask, rinv, np.ascontiguousarray(problem.qinv, float),
         np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), lam,
-        ball_idx, D, E, g,
+        ball_idx, D, E, g, loss, np.empty((n, nblk)), np.empty((n, nblk)),
+        np.empty((n, nblk, nx)),
     )  # fmt: skip
     out = np.empty((nx, nx))
     ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out)

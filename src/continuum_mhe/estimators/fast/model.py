@@ -9,9 +9,10 @@ and runs the arrival prior's EKF step (:mod:`continuum_mhe.estimators.fast.arriv
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -30,6 +31,7 @@ from continuum_mhe.estimators.fast.codegen import (
     output_jacobian_function,
     window_function,
 )
+from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -98,6 +100,20 @@ def feasible_set(formulation: Formulation) -> Feasible:
     return Feasible(lo, hi, np.array(balls, dtype=np.int64), ghi.copy())
 
 
+class LossKernel(NamedTuple):
+    """The measurement loss as the numba kernels take it.
+
+    Attributes:
+        blocks: (nblocks, 2) start and size of each measurement block.
+        code: :data:`~continuum_mhe.estimators.loss.LOSS_CODES` of the loss.
+        scale: loss scale, standard deviations (inf for l2).
+    """
+
+    blocks: IntArray
+    code: int
+    scale: float
+
+
 @dataclass(frozen=True)
 class WindowModel:
     """Compiled window model of one (formulation, horizon).
@@ -113,6 +129,7 @@ class WindowModel:
         ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
         compiled: True if the model runs as compiled C (else through CasADi's VM).
         backend_note: why the model is not compiled (the notice said on stderr), or None.
+        loss: the measurement loss (:class:`LossKernel`).
     """
 
     nx: int
@@ -129,11 +146,12 @@ class WindowModel:
     ny: int = 5
     wrapped: tuple[int, ...] = (4,)
     backend_note: str | None = None
+    loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
 
     @property
     def window_size(self) -> int:
-        n, nx, nz = self.horizon, self.nx, self.nz
-        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nx * nx * n
+        n, nx, nz, nblk = self.horizon, self.nx, self.nz, len(self.loss.blocks)
+        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nblk * nx * nx * n
 
     def evaluate_node(
         self,
@@ -283,14 +301,30 @@ class NodeEvaluator:
 
 
 @lru_cache(maxsize=32)
-def build_window_model(formulation: Formulation, horizon: int, compile: bool = True) -> WindowModel:
+def build_window_model(
+    formulation: Formulation,
+    horizon: int,
+    compile: bool = True,
+    loss: str = "l2",
+    scale: float = math.inf,
+) -> WindowModel:
     """Build (and compile, if possible) the window model. Cached per arguments.
 
+    ``loss`` and ``scale`` (standard deviations) choose the measurement loss
+    (:mod:`continuum_mhe.estimators.loss`); the compiled code does not depend on them.
     Raises ``NotImplementedError`` (with the reason) if the feasible set is not a box
-    and disjoint balls. Without a working C compiler the model runs in CasADi's VM,
-    said once on stderr and recorded in ``compiled`` and ``backend_note``.
+    and disjoint balls, or the measurement covariance is not block-diagonal. Without a
+    working C compiler the model runs in CasADi's VM, said once on stderr and recorded
+    in ``compiled`` and ``backend_note``.
     """
     feasible = feasible_set(formulation)
+    rinv = np.asarray(np.linalg.inv(formulation.meas_cov()), dtype=np.float64)
+    blocks = block_array(formulation.measurement_blocks)
+    inside = np.zeros_like(rinv, dtype=bool)
+    for start, size in blocks:
+        inside[start : start + size, start : start + size] = True
+    if np.any(rinv[~inside] != 0.0):
+        raise NotImplementedError("the measurement covariance is not block-diagonal")
     win, node = window_function(formulation, horizon), node_function(formulation)
     out, jac = output_function(formulation), output_jacobian_function(formulation)
     library = compile_library(c_source((win, node, out, jac))) if compile else Library(None)
@@ -302,7 +336,7 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
         nz=formulation.nz,
         horizon=horizon,
         feasible=feasible,
-        rinv=np.asarray(np.linalg.inv(formulation.meas_cov()), dtype=np.float64),
+        rinv=rinv,
         window=c_function(win, library.lib),
         node=c_function(node, library.lib),
         output=c_function(out, library.lib),
@@ -311,4 +345,5 @@ def build_window_model(formulation: Formulation, horizon: int, compile: bool = T
         ny=int(out.nnz_out(0)),
         wrapped=wrapped,
         backend_note=note,
+        loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
     )

@@ -29,6 +29,7 @@ from continuum_mhe.estimators.fast.qp import (
     project,
     solve_qp,
 )
+from continuum_mhe.estimators.loss import rho_derivatives
 
 if TYPE_CHECKING:
     from continuum_mhe.estimators.mhe import WindowProblem as WindowProblemLike
@@ -72,45 +73,68 @@ class FastOptions:
 
 
 @numba.njit(cache=True)
-def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, D, E, g):
+def _assemble(
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, D, E, g, loss, wgt, extra, gb
+):
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
     gradient ``g`` and the cost; ``lam`` (n, nb) adds each ball's curvature
-    ``2 lam_b I_{S_b}``."""
+    ``2 lam_b I_{S_b}``.
+
+    Measurement block ``b`` of node ``i`` (``loss.blocks``; ``R`` block-diagonal)
+    costs ``1/2 rho(s)``, ``s = r_b^T R_b^-1 r_b``: gradient ``rho' J_b^T R_b^-1 r_b``
+    and Hessian ``J_b^T (rho' R_b^-1 + a R_b^-1 r_b r_b^T R_b^-1) J_b`` with ``a``
+    the exact ``2 rho''`` clipped at ``-rho'/s`` so that the block stays positive
+    semidefinite (a Triggs-type correction; Cauchy beyond its scale). Kept for the
+    exact Newton term (:func:`_add_curvature`): ``wgt = m rho'``, ``extra = m (2 rho''
+    - a)`` and ``gb = J_b^T R_b^-1 r_b``.
+    """
     n, nx = X.shape
     D[:] = 0.0
     E[:] = 0.0
     g[:] = 0.0
     cost = 0.0
-    nz = R.shape[1]
-    wr = np.empty(nz)
+    blocks, code, scale = loss.blocks, loss.code, loss.scale
+    nblk = blocks.shape[0]
+    wr = np.empty(R.shape[1])
     qw = np.empty(nx)
     qf = np.empty((nx, nx))
     e = np.empty(nx)
-    wj = np.empty((nz, nx))
     for i in range(n):
         m = zmask[i]
+        for bk in range(nblk):
+            wgt[i, bk] = 0.0
+            extra[i, bk] = 0.0
+            gb[i, bk, :] = 0.0
         if m != 0.0:
-            for a in range(nz):
-                s = 0.0
-                for b in range(nz):
-                    s += rinv[a, b] * R[i, b]
-                wr[a] = s
-                cost += 0.5 * m * R[i, a] * s
-                for k in range(nx):
-                    s = 0.0
-                    for b in range(nz):
-                        s += rinv[a, b] * JR[i, b, k]
-                    wj[a, k] = s
-            for j in range(nx):
-                s = 0.0
-                for a in range(nz):
-                    s += JR[i, a, j] * wr[a]
-                g[i, j] += m * s
-                for k in range(nx):
-                    s = 0.0
-                    for a in range(nz):
-                        s += JR[i, a, j] * wj[a, k]
-                    D[i, j, k] += m * s
+            for bk in range(nblk):
+                b0, nb_ = blocks[bk, 0], blocks[bk, 1]
+                ssq = 0.0
+                for a in range(nb_):
+                    t = 0.0
+                    for c in range(nb_):
+                        t += rinv[b0 + a, b0 + c] * R[i, b0 + c]
+                    wr[a] = t
+                    ssq += R[i, b0 + a] * t
+                rho, rho1, rho2 = rho_derivatives(code, scale, ssq)
+                cost += 0.5 * m * rho
+                a2 = 2.0 * rho2
+                if ssq > 0.0 and a2 < -rho1 / ssq:
+                    a2 = -rho1 / ssq
+                wgt[i, bk] = m * rho1
+                extra[i, bk] = m * (2.0 * rho2 - a2)
+                for j in range(nx):
+                    t = 0.0
+                    for a in range(nb_):
+                        t += JR[i, b0 + a, j] * wr[a]
+                    gb[i, bk, j] = t
+                    g[i, j] += m * rho1 * t
+                for j in range(nx):
+                    for k in range(nx):
+                        t = 0.0
+                        for a in range(nb_):
+                            for c in range(nb_):
+                                t += JR[i, b0 + a, j] * rinv[b0 + a, b0 + c] * JR[i, b0 + c, k]
+                        D[i, j, k] += m * (rho1 * t + a2 * gb[i, bk, j] * gb[i, bk, k])
         for j in range(nx):
             e[j] = X[i, j] - xbar[j]
         for j in range(nx):
@@ -155,7 +179,8 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, 
 
 
 @numba.njit(cache=True)
-def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g):
+def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g, loss, wgt,
+              extra, gb):  # fmt: skip
     """Evaluate the model at ``X`` (one C call) and assemble; inf cost on failure."""
     n, nx = X.shape
     nz = rinv.shape[0]
@@ -167,20 +192,25 @@ def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, 
     JR = out[o1:o2].reshape(n, nz, nx)
     W = out[o2:o3].reshape(n - 1, nx)
     FJ = out[o3:o4].reshape(n - 1, nx, nx)
-    return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g)
+    return _assemble(
+        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g, loss, wgt, extra, gb
+    )
 
 
 @numba.njit(cache=True)
-def _add_curvature(out, zmask, D, sign):
-    """``D_i += sign * m_i S_i``: the measurement residuals' second-order Hessian term
-    (exact Newton instead of Gauss-Newton); ``S`` is the model's last output."""
-    n, nx = D.shape[0], D.shape[1]
-    S = out[out.shape[0] - n * nx * nx :].reshape(n, nx, nx)
+def _add_curvature(out, D, sign, wgt, extra, gb):
+    """``D_i += sign * sum_b (wgt_ib S_ib + extra_ib gb_ib gb_ib^T)``: the exact Hessian's
+    terms that Gauss-Newton leaves out (see :func:`_assemble`); ``S`` (n, nblocks, nx,
+    nx) is the model's last output, the residuals' second-order term per block."""
+    n, nx, nblk = D.shape[0], D.shape[1], wgt.shape[1]
+    S = out[out.shape[0] - n * nblk * nx * nx :].reshape(n, nblk, nx, nx)
     for i in range(n):
-        if zmask[i] != 0.0:
-            for j in range(nx):
-                for k in range(nx):
-                    D[i, j, k] += sign * zmask[i] * S[i, j, k]
+        for bk in range(nblk):
+            w, x2 = wgt[i, bk], extra[i, bk]
+            if w != 0.0 or x2 != 0.0:
+                for j in range(nx):
+                    for k in range(nx):
+                        D[i, j, k] += sign * (w * S[i, bk, j, k] + x2 * gb[i, bk, j] * gb[i, bk, k])
 
 
 @numba.njit(cache=True)
@@ -209,6 +239,10 @@ def _sqp(
     g,
     d,
     lam_qp,
+    loss,
+    wgt,
+    extra,
+    gb,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
@@ -222,11 +256,12 @@ def _sqp(
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)
     cost = _evaluate(
-        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0], g[0]
-    )
+        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0],
+        g[0], loss, wgt[0], extra[0], gb[0],
+    )  # fmt: skip
     exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
     if exact:
-        _add_curvature(out[0], zmask, D[0], 1.0)
+        _add_curvature(out[0], D[0], 1.0, wgt[0], extra[0], gb[0])
     step = np.inf
     prev = np.inf  # previous full step (inf after a shortened one)
     for it in range(1, max_iter + 1):
@@ -236,7 +271,7 @@ def _sqp(
             Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
         )
         if status == NOT_PD and exact:  # indefinite: fall back to Gauss-Newton here
-            _add_curvature(out[cur], zmask, D[cur], -1.0)
+            _add_curvature(out[cur], D[cur], -1.0, wgt[cur], extra[cur], gb[cur])
             exact = False
             status, _, active = solve_qp(
                 Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
@@ -272,12 +307,16 @@ def _sqp(
                 D[tr],
                 E[tr],
                 g[tr],
+                loss,
+                wgt[tr],
+                extra[tr],
+                gb[tr],
             )
             if ct <= cost + 1e-4 * np.sum(g[cur] * (Xb[tr] - Xb[cur])) + slack:
                 accepted = True
                 exact = newton
                 if exact:
-                    _add_curvature(out[tr], zmask, D[tr], 1.0)
+                    _add_curvature(out[tr], D[tr], 1.0, wgt[tr], extra[tr], gb[tr])
                 break
             alpha *= 0.5
         if not accepted:
@@ -347,6 +386,10 @@ class Workspace:
         self.g = np.empty((2, n, nx))
         self.d = np.empty((n, nx))
         self.lam_qp = np.zeros((n, len(model.feasible.ball_r2)))
+        nblk = len(model.loss.blocks)
+        self.wgt = np.empty((2, n, nblk))
+        self.extra = np.empty((2, n, nblk))
+        self.gb = np.empty((2, n, nblk, nx))
         self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
 
 
@@ -380,7 +423,7 @@ def solve_window(
         model.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
-        ws.g, ws.d, ws.lam_qp,
+        ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb,
     )  # fmt: skip
     return FastResult(
         X=ws.Xb[cur].copy(),
@@ -401,12 +444,13 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
     dt = np.ascontiguousarray(problem.dt, float)
     m = np.ascontiguousarray(problem.zmask, float)
     node_mask = np.any(m != 0.0, axis=1).astype(np.float64)
-    nb = len(model.feasible.ball_r2)
+    nb, nblk = len(model.feasible.ball_r2), len(model.loss.blocks)
     return float(
         _evaluate(
             model.window, _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
             node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
             np.zeros((n, nb)), model.feasible.ball_idx, np.empty((n, nx, nx)),
-            np.empty((n - 1, nx, nx)), np.empty((n, nx)),
+            np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),
+            np.empty((n, nblk)), np.empty((n, nblk, nx)),
         )
     )  # fmt: skip

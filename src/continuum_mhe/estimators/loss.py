@@ -1,0 +1,98 @@
+"""Robust measurement losses of the MHE, written once for both backends.
+
+A loss acts on one measurement block (one IMU) at one node through the block's squared
+whitened residual norm ``s = r_b^T R_b^-1 r_b`` (dimensionless; ``sqrt(s)`` is in
+standard deviations of the measurement noise). The block's cost is ``1/2 rho(s)``:
+
+* ``l2``:     ``rho(s) = s``;
+* ``huber``:  ``rho(s) = s`` for ``s <= c^2``, else ``2 c sqrt(s) - c^2``;
+* ``cauchy``: ``rho(s) = c^2 log(1 + s / c^2)``;
+
+with ``c`` the loss scale (``MHESettings.scale``). Each is ``s`` to first order at 0,
+so a block well inside the scale counts as in the quadratic cost. ``rho'(s)`` is the
+block's weight in iteratively reweighted least squares (1 for an inlier, about
+``c / sqrt(s)`` for Huber and ``c^2 / s`` for Cauchy far out).
+
+:func:`rho_sym` is the CasADi expression (IPOPT's cost), :func:`rho_derivatives` the
+numba kernel (the fast backend and the weights), :func:`block_weights` the weights of
+one node's blocks for a residual vector.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.model.descriptions import MeasurementBlock
+
+FloatArray = NDArray[np.float64]
+
+#: Integer codes of the losses in the numba kernels.
+LOSS_CODES: dict[str, int] = {"l2": 0, "huber": 1, "cauchy": 2}
+
+#: A block is flagged as an outlier when its weight ``rho'(s)`` falls below this:
+#: it counts less than a quarter of a quadratic-cost sample (Huber: residual norm
+#: beyond 4 c; Cauchy: beyond sqrt(3) c).
+OUTLIER_WEIGHT = 0.25
+
+
+def rho_sym(loss: str, scale: float, s: ca.SX) -> ca.SX:
+    """``rho(s)`` as a CasADi expression (``s`` the squared whitened block norm)."""
+    if loss == "l2":
+        return s
+    c2 = scale * scale
+    if loss == "huber":
+        # fmax keeps the unused branch's derivative finite at s = 0
+        return ca.if_else(s <= c2, s, 2.0 * scale * ca.sqrt(ca.fmax(s, c2)) - c2)
+    if loss == "cauchy":
+        return c2 * ca.log1p(s / c2)
+    raise ValueError(f"unknown loss {loss!r}")
+
+
+@numba.njit(cache=True)
+def rho_derivatives(code: int, scale: float, s: float) -> tuple[float, float, float]:
+    """``(rho(s), rho'(s), rho''(s))`` of loss ``code`` (:data:`LOSS_CODES`)."""
+    if code == 1:
+        c2 = scale * scale
+        if s <= c2:
+            return s, 1.0, 0.0
+        r = math.sqrt(s)
+        return 2.0 * scale * r - c2, scale / r, -0.5 * scale / (s * r)
+    if code == 2:
+        c2 = scale * scale
+        q = 1.0 + s / c2
+        return c2 * math.log1p(s / c2), 1.0 / q, -1.0 / (c2 * q * q)
+    return s, 1.0, 0.0
+
+
+def block_array(blocks: tuple[MeasurementBlock, ...]) -> NDArray[np.int64]:
+    """``(nblocks, 2)``: start and size of each measurement block (for the kernels)."""
+    return np.array([(b.start, b.size) for b in blocks], dtype=np.int64).reshape(-1, 2)
+
+
+def block_weights(
+    loss: str,
+    scale: float,
+    r: FloatArray,
+    rinv: FloatArray,
+    blocks: NDArray[np.int64],
+) -> FloatArray:
+    """``rho'(s_b)`` per block (nblocks,) for one node's residual ``r`` (nz,)."""
+    return _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
+
+
+@numba.njit(cache=True)
+def _block_weights(code, scale, r, rinv, blocks):
+    out = np.ones(blocks.shape[0])
+    for k in range(blocks.shape[0]):
+        b0, nb = blocks[k, 0], blocks[k, 1]
+        s = 0.0
+        for a in range(nb):
+            for c in range(nb):
+                s += r[b0 + a] * rinv[b0 + a, b0 + c] * r[b0 + c]
+        out[k] = rho_derivatives(code, scale, s)[1]
+    return out
