@@ -26,6 +26,7 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import tip_position
 from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.reproduce.beyond import BeyondSpec, plan_beyond
 from continuum_mhe.settings import FormulationName, MHESettings, NoiseSettings, RobotSettings
 from continuum_mhe.simulation.scenarios import ScenarioName, simulate
 
@@ -53,6 +54,7 @@ EXPERIMENTS = (
     "exp4_ekf_comparison",
     "exp5_horizon",
     "exp6_window",
+    "exp7_beyond",
 )
 
 
@@ -71,6 +73,10 @@ class ReproduceConfig:
         bad_init_deg: offset added to roll and pitch of the first sample, degrees.
         outlier_fraction, outlier_deg: share of samples with a spike and its size.
         large_noise_deg: noise std of the large-noise condition (R matched), degrees.
+        beyond_seeds, beyond_duration: seeds per group of the beyond-the-paper
+            experiment (``reproduce.beyond``) and the length of its outlier and
+            coverage runs, s. beyond_recovery_duration: length of its gap and freeze
+            runs, s. beyond_gap_s: the gap's length, s.
     """
 
     length: float = 0.2
@@ -90,9 +96,19 @@ class ReproduceConfig:
     outlier_fraction: float = 0.02
     outlier_deg: float = 30.0
     large_noise_deg: float = 8.0
+    beyond_seeds: int = 50
+    beyond_duration: float = 20.0
+    beyond_recovery_duration: float = 20.0
+    beyond_gap_s: float = 3.0
 
     def __post_init__(self) -> None:
-        for name in ("mc_seeds", "condition_seeds", "sweep_seeds", "window_seeds"):
+        for name in (
+            "mc_seeds",
+            "condition_seeds",
+            "sweep_seeds",
+            "window_seeds",
+            "beyond_seeds",
+        ):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 2):
                 raise UserError(f"{name} must be an integer >= 2, got {v!r}")
@@ -114,6 +130,9 @@ QUICK = ReproduceConfig(
     sweep_duration=5.5,
     window_seeds=2,
     window_duration=3.0,
+    beyond_seeds=2,
+    beyond_duration=5.0,
+    beyond_recovery_duration=10.0,
 )
 
 
@@ -501,6 +520,20 @@ def plan_trials(cfg: ReproduceConfig) -> list[TrialSpec]:
             for seed in range(cfg.window_seeds)
         ]
     return specs
+
+
+def plan_beyond_trials(cfg: ReproduceConfig) -> list[BeyondSpec]:
+    """Every run of the beyond-the-paper experiment (``exp7_beyond``)."""
+    return plan_beyond(
+        cfg.beyond_seeds,
+        cfg.beyond_duration,
+        dt=cfg.dt,
+        length=cfg.length,
+        noise_deg=cfg.noise_deg,
+        horizon=cfg.horizon,
+        recovery_duration=cfg.beyond_recovery_duration,
+        gap_s=cfg.beyond_gap_s,
+    )
 
 
 # --- Sec. 3.3: the hardware-like rod recording ------------------------------------------

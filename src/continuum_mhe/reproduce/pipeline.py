@@ -20,12 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
 from continuum_mhe.reproduce.experiments import (
     EXPERIMENTS,
     TABLE1,
     ReproduceConfig,
     TrialSpec,
     mean_ci,
+    plan_beyond_trials,
     plan_trials,
     run_rod,
     run_trial,
@@ -44,8 +46,10 @@ class RodTask:
     path: str | None = None
 
 
-def run_task(task: TrialSpec | RodTask) -> dict[str, Any]:
-    """Run one task of either kind (the function the workers call)."""
+def run_task(task: TrialSpec | RodTask | BeyondSpec) -> dict[str, Any]:
+    """Run one task of any kind (the function the workers call)."""
+    if isinstance(task, BeyondSpec):
+        return dict(to_jsonable(run_beyond(task)))
     if isinstance(task, RodTask):
         from continuum_mhe.simulation.cosserat import default_data_path
 
@@ -91,9 +95,13 @@ def _strip_series(trial: dict[str, Any]) -> dict[str, Any]:
 
 
 def assemble(
-    cfg: ReproduceConfig, trials: Sequence[dict[str, Any]], rod: dict[str, Any]
+    cfg: ReproduceConfig,
+    trials: Sequence[dict[str, Any]],
+    rod: dict[str, Any],
+    beyond: Sequence[dict[str, Any]] = (),
 ) -> dict[str, dict[str, Any]]:
-    """Group trial results into the per-experiment data files."""
+    """Group trial results into the per-experiment data files (``beyond``: the
+    :class:`BeyondSpec` results; none: no ``exp7_beyond``)."""
     by: dict[str, list[dict[str, Any]]] = {}
     for tr in trials:
         by.setdefault(tr["spec"]["experiment"], []).append(tr)
@@ -163,7 +171,7 @@ def assemble(
                 "late_srmse": mean_ci([x["late"]["srmse"] for x in e]),
                 "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in e]),
             }
-    return {
+    files: dict[str, dict[str, Any]] = {
         "exp1_synthetic3d": {
             **common,
             "example": example("exp1_synthetic3d"),
@@ -195,6 +203,13 @@ def assemble(
             "trials": [_strip_series(tr) for tr in win],
         },
     }
+    if beyond:
+        files["exp7_beyond"] = {
+            **common,
+            "summary": summarise_beyond(beyond),
+            "trials": list(beyond),
+        }
+    return files
 
 
 def reproduce(
@@ -218,7 +233,8 @@ def reproduce(
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     specs = plan_trials(cfg)
-    tasks: list[TrialSpec | RodTask] = [RodTask(cfg, rod_path), *specs]
+    beyond = plan_beyond_trials(cfg)
+    tasks: list[TrialSpec | RodTask | BeyondSpec] = [RodTask(cfg, rod_path), *specs, *beyond]
     start = time.perf_counter()
     results = run_parallel(
         run_task,
@@ -229,7 +245,8 @@ def reproduce(
         progress=progress,
     )
     wall = time.perf_counter() - start
-    data = assemble(cfg, results[1:], results[0])
+    n = 1 + len(specs)
+    data = assemble(cfg, results[1:n], results[0], results[n:])
     written: list[Path] = []
     for name, d in data.items():
         p = folder / f"{name}.json"
@@ -243,6 +260,7 @@ def reproduce(
         "command": command,
         "config": asdict(cfg),
         "n_trials": len(specs),
+        "n_beyond_trials": len(beyond),
         "wall_s_trials": wall,
         "jobs": jobs,
         "scheduler": scheduler,
