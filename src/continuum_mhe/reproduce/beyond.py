@@ -308,7 +308,9 @@ def plan_beyond(
     return specs
 
 
-def paired(a: Sequence[float], b: Sequence[float], kind: Literal["ratio", "diff"]) -> dict[str, Any]:
+def paired(
+    a: Sequence[float], b: Sequence[float], kind: Literal["ratio", "diff"]
+) -> dict[str, Any]:
     """``mean(a) / mean(b)`` (``ratio``) or ``mean(a - b)`` (``diff``) over paired seeds
     with a 95 % percentile-bootstrap interval (the same resampled seeds on both sides)."""
     x, y = np.asarray(a, float), np.asarray(b, float)
