@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
+from continuum_mhe.errors import UserError
+from continuum_mhe.reproduce import beyond as by
 from continuum_mhe.reproduce import experiments as ex
 from continuum_mhe.reproduce import report as rp
 from continuum_mhe.reproduce.figures import RENDERERS
@@ -31,6 +33,7 @@ FIGURES = (
     "exp4_conditions",
     "exp5_horizon",
     "exp6_window",
+    "exp7_beyond",
 )
 
 
@@ -102,7 +105,8 @@ def test_report_prose_reads_the_configuration(quick_run: Path) -> None:
     for d in results.values():
         if "config" in d:
             d["config"].update(length=0.25, noise_deg=3.0, horizon=17, mc_seeds=50,
-                               condition_seeds=50, sweep_seeds=50, window_seeds=50)  # fmt: skip
+                               condition_seeds=50, sweep_seeds=50, window_seeds=50,
+                               beyond_seeds=50)  # fmt: skip
     results["exp1_synthetic3d"]["paper_formulation"]["noise_settings"]["paper_process_weight"] = 7
     results["exp3_rod"]["generator"]["rod"]["length"] = 0.31
     results["exp1_synthetic3d"]["example"]["spec"]["horizon"] = 23
@@ -445,3 +449,103 @@ def test_settings_reject_bad_values() -> None:
         cosserat.ImuSettings(bits=4)
     with pytest.raises(ValueError, match="n_elements"):
         cosserat.RodSettings(n_elements=2)
+
+
+# --- beyond the paper (issue #9) -------------------------------------------------------
+def test_quick_plan_has_every_beyond_group_on_the_same_seeds() -> None:
+    for cfg in (ex.QUICK, ex.FULL):
+        specs = ex.plan_beyond_trials(cfg)
+        seeds = {g: sorted(s.seed for s in specs if s.group == g) for g in by.BEYOND_GROUPS}
+        assert len({tuple(v) for v in seeds.values()}) == 1  # paired: the same seeds
+        assert len(seeds["spikes"]) == cfg.beyond_seeds
+    assert ex.FULL.beyond_seeds == 50 and ex.QUICK.beyond_seeds <= 3
+
+
+def test_beyond_corruptions() -> None:
+    n = 400
+    z = np.zeros((n, 2))
+    z[:, 1] = math.radians(80.0)
+    spec = by.BeyondSpec("spikes", 3, 20.0)
+    zs, mask = by.spikes(z, spec)
+    idx = np.flatnonzero(mask)
+    assert len(idx) == round(spec.spike_fraction * n) and np.all(np.diff(idx) > 1)
+    assert np.all(np.abs(zs[idx, 0]) == pytest.approx(math.radians(spec.spike_deg)))
+    assert np.all(np.abs(zs[:, 1]) <= math.pi / 2)  # pitch clipped to the sensor's range
+    assert np.array_equal(zs[~mask], z[~mask])
+    zb, mask = by.bursts(z, by.BeyondSpec("bursts", 3, 20.0))
+    runs = np.diff(np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0])))[::2]
+    assert list(runs) == [spec.burst_length] * round(spec.burst_fraction * n)
+    with pytest.raises(UserError):
+        by.BeyondSpec("gap", 0, 5.0)  # too short for the gap and the 2 s after
+
+
+def test_paired_bootstrap_known_answers() -> None:
+    b = np.array([1.0, 2.0, 3.0, 5.0])
+    r = by.paired(2 * b, b, "ratio")  # every resample: ratio exactly 2
+    assert (r["value"], r["lo"], r["hi"]) == pytest.approx((2.0, 2.0, 2.0))
+    d = by.paired(b + 0.5, b, "diff")
+    assert (d["value"], d["lo"], d["hi"]) == pytest.approx((0.5, 0.5, 0.5))
+    assert math.isnan(by.paired([1.0], [2.0], "diff")["hi"])
+
+
+def _p(value: float, lo: float, hi: float) -> dict[str, float]:
+    return {"value": value, "lo": lo, "hi": hi, "n": 50}
+
+
+def test_beyond_verdicts_follow_their_rules(quick_run: Path) -> None:
+    d = load_results(quick_run)["exp7_beyond"]
+    t = d["summary"]["targets"]
+    t["spikes"]["robust_over_own_clean"] = _p(1.05, 1.04, 1.09)
+    t["spikes"]["robust_minus_ekf_mm"] = _p(-1.0, -1.2, -0.1)
+    assert rp.claim_outliers(d, "spikes").verdict == "holds"
+    t["spikes"]["robust_over_own_clean"] = _p(1.08, 1.05, 1.11)  # the interval crosses 1.1
+    assert rp.claim_outliers(d, "spikes").verdict == "partly holds (below the EKF)"
+    t["spikes"]["robust_minus_ekf_mm"] = _p(-0.2, -0.4, 0.01)  # crosses zero
+    assert rp.claim_outliers(d, "spikes").verdict == "does not hold"
+    t["clean"]["robust_over_l2"] = _p(1.0, 0.99, 1.019)
+    assert rp.claim_clean(d).verdict == "holds"
+    t["clean"]["robust_over_l2"] = _p(1.0, 0.99, 1.021)
+    assert rp.claim_clean(d).verdict == "does not hold"
+    cov = d["summary"]["coverage"]
+    for m, v in zip(("mhe", "ekf", "ukf"), (0.95, 0.901, 0.979)):
+        cov[m]["coverage_3d"]["mean"] = v
+    assert rp.claim_coverage(d).verdict == "holds"
+    cov["ekf"]["coverage_3d"]["mean"] = 0.899
+    assert rp.claim_coverage(d).verdict == "partly holds (MHE, UKF)"
+    gap = d["summary"]["recovery"]["gap"]
+    for e in gap.values():
+        e["tip_mean_mm"]["off"]["mean"] = 10.0
+        e["tip_mean_mm"]["on_minus_off"] = _p(-1.0, -2.0, 0.19)  # within 2 % of 10 mm
+        e["ok_wrong"]["on"]["mean"] = 0.0
+    assert rp.claim_gap(d).verdict == "holds"
+    gap["ukf"]["tip_mean_mm"]["on_minus_off"] = _p(0.1, -0.1, 0.21)
+    gap["ekf"]["ok_wrong"]["on"]["mean"] = 0.5
+    assert rp.claim_gap(d).verdict == "partly holds (MHE)"
+    frz = d["summary"]["recovery"]["freeze"]
+    for e in frz.values():
+        e["ok_wrong"]["on_minus_off"] = _p(-40.0, -45.0, -30.0)
+    assert rp.claim_freeze(d).verdict == "holds"
+    for e in frz.values():
+        e["ok_wrong"]["on_minus_off"] = _p(0.0, 0.0, 0.0)
+    assert rp.claim_freeze(d).verdict == "does not hold"
+
+
+def test_quick_report_has_the_beyond_section(quick_run: Path) -> None:
+    """The section is there with one row per target, its verdicts are the claims' own,
+    its figure exists and its rerun block gives the saved numbers."""
+    report = (quick_run / "report.md").read_text()
+    section = report.split("## Beyond the paper\n", 1)[1]
+    d = load_results(quick_run)["exp7_beyond"]
+    claims = rp.beyond_claims(d)
+    assert len(claims) == 6
+    for c in claims:
+        assert f"| **{c.verdict}** |" in section and c.rule.startswith("holds")
+    assert (quick_run / "exp7_beyond.png").stat().st_size > 1000
+    block = section.split("group `spikes`:\n\n```python\n", 1)[1].split("```", 1)[0]
+    namespace: dict[str, Any] = {}
+    exec(compile(block, "report.md", "exec"), namespace)
+    first = min((t for t in d["trials"] if t["spec"]["group"] == "spikes"),
+                key=lambda t: t["spec"]["seed"])  # fmt: skip
+    got = namespace["result"]["methods"]
+    for m in by.OUTLIER_METHODS:
+        assert got[m]["tip_mean_mm"] == pytest.approx(first["methods"][m]["tip_mean_mm"], 1e-9)

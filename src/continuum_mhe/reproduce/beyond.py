@@ -112,6 +112,10 @@ class BeyondSpec:
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> BeyondSpec:
+        return cls(**d)
+
 
 # --- corruption ---------------------------------------------------------------------
 def _clip(z: FloatArray) -> FloatArray:
@@ -176,7 +180,7 @@ def tip_calibration(
             continue
         jac = np.asarray(f.output_jacobian(e.state), dtype=float).reshape(f.ny, f.nx)[:3]
         c = jac @ e.covariance @ jac.T
-        err = e.output[:3] - tip[i]
+        err = np.asarray(e.output, dtype=float)[:3] - tip[i]
         axis.append(np.abs(err) <= Z95 * np.sqrt(np.diag(c)))
         ev = np.linalg.eigvalsh(c)
         k = int(np.sum(ev > 1e-9 * ev.max()))

@@ -19,7 +19,7 @@ from continuum_mhe.estimators.base import EstimateSeries
 plt = plotting.plt
 Figure = plotting.Figure
 FORMATS = ("png", "pdf")
-_COLORS = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
+_COLORS = {"mhe": "C0", "ekf": "C1", "ukf": "C2", "mhe-l2": "C0", "mhe-robust": "C3"}
 
 
 def arr(x: Any) -> np.ndarray:
@@ -247,6 +247,47 @@ def exp6_figures(d: dict[str, Any]) -> dict[str, Figure]:
     return {"exp6_window": fig}
 
 
+def exp7_figures(d: dict[str, Any]) -> dict[str, Figure]:
+    """Beyond the paper: outliers, coverage of the 95 % intervals, recovery."""
+    s = d["summary"]
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
+    if "outliers" in s:
+        out = s["outliers"]
+        methods = tuple(out["clean"])
+        _bars(
+            axes[0], list(out), [{m: {"v": out[g][m]} for m in methods} for g in out], methods, "v"
+        )
+        axes[0].set_ylabel("mean tip error (mm)")
+        axes[0].set_title("outliers (same seeds)")
+        axes[0].legend(fontsize="small")
+    if "coverage" in s:
+        cov = s["coverage"]
+        keys = ("coverage_x", "coverage_y", "coverage_z", "coverage_3d")
+        methods = tuple(cov)
+        blocks = [{m: {"v": cov[m][k]} for m in methods} for k in keys]
+        _bars(axes[1], [k.removeprefix("coverage_") for k in keys], blocks, methods, "v")
+        axes[1].axhspan(0.90, 0.98, color="0.85", zorder=0, label="target 0.90-0.98")
+        axes[1].axhline(0.95, color="k", lw=0.8)
+        axes[1].set_ylim(0.8, 1.005)
+        axes[1].set_ylabel("share inside the 95 % interval")
+        axes[1].set_title("coverage of the tip's intervals")
+        axes[1].legend(fontsize="small")
+    if "recovery" in s:
+        rec = s["recovery"]
+        labels, blocks = [], []
+        for g in rec:
+            for side in ("off", "on"):
+                labels.append(f"{g} {side}")
+                blocks.append({m: {"v": rec[g][m]["tip_mean_mm"][side]} for m in rec[g]})
+        _bars(axes[2], labels, blocks, tuple(next(iter(rec.values()))), "v")
+        axes[2].set_ylabel("mean tip error over the event (mm)")
+        axes[2].set_title("recovery settings off / on")
+        axes[2].legend(fontsize="small")
+    fig.suptitle("Beyond the paper (mean and 95 % CI over seeds)")
+    fig.tight_layout()
+    return {"exp7_beyond": fig}
+
+
 RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
     "exp1_synthetic3d": exp1_figures,
     "exp2_constraints": exp2_figures,
@@ -254,6 +295,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
     "exp4_ekf_comparison": exp4_figures,
     "exp5_horizon": exp5_figures,
     "exp6_window": exp6_figures,
+    "exp7_beyond": exp7_figures,
 }
 
 

@@ -7,6 +7,15 @@ experiment), :mod:`.claims` (the paper's claims), :mod:`.beyond` (beyond the pap
 :mod:`.render` (the whole report).
 """
 
+from continuum_mhe.reproduce.report.beyond import (
+    beyond_claims,
+    beyond_section,
+    claim_clean,
+    claim_coverage,
+    claim_freeze,
+    claim_gap,
+    claim_outliers,
+)
 from continuum_mhe.reproduce.report.claims import (
     PAPER,
     Claim,
@@ -36,6 +45,13 @@ __all__ = [
     "Claim",
     "Results",
     "_few_seeds_line",
+    "beyond_claims",
+    "beyond_section",
+    "claim_clean",
+    "claim_coverage",
+    "claim_freeze",
+    "claim_gap",
+    "claim_outliers",
     "claim_conditions",
     "claim_constraints",
     "claim_growing_window",

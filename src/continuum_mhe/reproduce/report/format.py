@@ -92,18 +92,24 @@ _METRIC_HEADER = (
 )
 
 
-def _rerun(spec: dict[str, Any], seeds: str | None = None) -> list[str]:
+def _rerun(
+    spec: dict[str, Any],
+    seeds: str | None = None,
+    kind: tuple[str, str, str] = ("experiments", "TrialSpec", "run_trial"),
+) -> list[str]:
     """A Python block that reruns ``spec`` (for a group: with its first seed, the others
-    named in a comment)."""
+    named in a comment); ``kind``: module of ``continuum_mhe.reproduce``, spec class
+    (with ``from_dict``) and run function."""
+    module, cls, fn = kind
     s = {k: v for k, v in spec.items() if k not in ("keep_series",)}
-    lines = ["```python", "from continuum_mhe.reproduce.experiments import TrialSpec, run_trial"]
+    lines = ["```python", f"from continuum_mhe.reproduce.{module} import {cls}, {fn}"]
     if seeds:
         lines.append(f"SEED = {s['seed']!r}  # the group's seeds: {seeds}")
         s["seed"] = "<seed>"
     lines.append(f"spec = {s!r}")
     if seeds:
         lines.append("spec['seed'] = SEED")
-    lines += ["result = run_trial(TrialSpec.from_dict(spec))", "```", ""]
+    lines += [f"result = {fn}({cls}.from_dict(spec))", "```", ""]
     return lines
 
 

@@ -9,6 +9,7 @@ from typing import Any
 
 from continuum_mhe.io.csv_files import atomic_writer
 from continuum_mhe.reproduce.experiments import BOOTSTRAP_RESAMPLES
+from continuum_mhe.reproduce.report.beyond import beyond_section
 from continuum_mhe.reproduce.report.claims import PAPER, _claims
 from continuum_mhe.reproduce.report.format import (
     EQUIVALENCE,
@@ -83,7 +84,11 @@ def _config(r: Results) -> dict[str, Any]:
 
 
 def _few_seeds_line(cfg: dict[str, Any]) -> list[str]:
-    keys = ("mc_seeds", "condition_seeds", "sweep_seeds", "window_seeds")
+    keys = tuple(
+        k
+        for k in ("mc_seeds", "condition_seeds", "sweep_seeds", "window_seeds", "beyond_seeds")
+        if k in cfg
+    )
     if not cfg or min(int(cfg[k]) for k in keys) >= FEW_SEEDS:
         return []
     counts = ", ".join(f"{k.removesuffix('_seeds')} {cfg[k]}" for k in keys)
@@ -104,7 +109,9 @@ def render_report(r: Results) -> str:
         "",
         *_few_seeds_line(cfg),
         f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; "
-        f"{man.get('n_trials', '?')} synthetic trials + 1 rod run in "
+        f"{man.get('n_trials', '?')} synthetic trials + 1 rod run"
+        + (f" + {man['n_beyond_trials']} beyond the paper" if man.get("n_beyond_trials") else "")
+        + " in "
         f"{_f(man.get('wall_s_trials'), 0)} s "
         + (
             f"(Dask scheduler {man['scheduler']})."
@@ -142,6 +149,8 @@ def render_report(r: Results) -> str:
     ):
         if key in r:
             body += fn(r[key])
+    if "exp7_beyond" in r:
+        body += beyond_section(r["exp7_beyond"])
     return "\n".join(head + _claims(r) + body + _settings(r)) + "\n"
 
 
