@@ -549,3 +549,20 @@ def test_quick_report_has_the_beyond_section(quick_run: Path) -> None:
     got = namespace["result"]["methods"]
     for m in by.OUTLIER_METHODS:
         assert got[m]["tip_mean_mm"] == pytest.approx(first["methods"][m]["tip_mean_mm"], 1e-9)
+
+
+def test_reproduce_only_beyond(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--only beyond`` runs that experiment alone (here one seed per group) and the
+    report has its section and no paper claims."""
+    from continuum_mhe.reproduce import pipeline
+
+    one = [s for s in ex.plan_beyond_trials(ex.QUICK) if s.seed == 110_000]
+    monkeypatch.setattr(pipeline, "plan_beyond_trials", lambda cfg: one)
+    out = tmp_path / "r"
+    args = ["reproduce", "--quick", "--only", "beyond", "--out", str(out), "--jobs", "1"]
+    assert main(args) == 0
+    assert sorted(p.stem for p in out.glob("exp*.json")) == ["exp7_beyond"]
+    report = (out / "report.md").read_text()
+    assert "## Beyond the paper" in report and "## Paper vs. ours" not in report
+    assert f"{len(one)} runs beyond the paper" in report
+    assert (out / "exp7_beyond.png").is_file()

@@ -26,49 +26,11 @@ import sys
 import time
 
 import numpy as np
-from scipy.stats import chi2
 
-from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.metrics import Z95
-from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.settings import MHESettings, NoiseSettings
+from continuum_mhe.reproduce.beyond import tip_calibration
+from continuum_mhe.settings import NoiseSettings
 from continuum_mhe.simulation.scenarios import simulate
-
-
-def tip_calibration(
-    f: Formulation, method: str, t: np.ndarray, z: np.ndarray, truth_tip: np.ndarray
-) -> dict[str, float]:
-    """Per-axis and 3D coverage, mean NEES and mean tip error (mm) of one run."""
-    est = make_estimator(method, f, MHESettings())  # type: ignore[arg-type]
-    est.reset()
-    inside_axis, inside_3d, nees, err_mm = [], [], [], []
-    for i in range(len(t)):
-        e = est.step(Measurement(float(t[i]), z[i]))
-        if e.state is None or e.covariance is None:
-            continue
-        J = np.asarray(f.output_jacobian(e.state), dtype=float).reshape(f.ny, f.nx)[:3]
-        C = J @ e.covariance @ J.T
-        err = e.output[:3] - truth_tip[i]
-        sd = np.sqrt(np.diag(C))
-        inside_axis.append(np.abs(err) <= Z95 * sd)
-        ev = np.linalg.eigvalsh(C)
-        k = int(np.sum(ev > 1e-9 * ev.max()))
-        q = float(err @ np.linalg.pinv(C, rcond=1e-9, hermitian=True) @ err)
-        nees.append(q / k)
-        inside_3d.append(q <= chi2.ppf(0.95, k))
-        err_mm.append(float(np.linalg.norm(err)) * 1e3)
-    axis = np.mean(inside_axis, axis=0)
-    return {
-        "coverage_x": float(axis[0]),
-        "coverage_y": float(axis[1]),
-        "coverage_z": float(axis[2]),
-        "coverage_3d": float(np.mean(inside_3d)),
-        "nees_per_dof": float(np.mean(nees)),
-        "tip_mean_mm": float(np.mean(err_mm)),
-        "n": len(nees),
-    }
 
 
 def summarise(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:

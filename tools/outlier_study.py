@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 import warnings
@@ -35,7 +34,7 @@ from scipy import integrate, optimize, stats
 from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
 from continuum_mhe.metrics import compute_metrics
-from continuum_mhe.model.imu import wrap_angle
+from continuum_mhe.reproduce import beyond
 from continuum_mhe.simulation.scenarios import simulate
 
 METHODS = ("ekf", "mhe-l2", "mhe-huber", "mhe-cauchy")
@@ -44,49 +43,31 @@ SPIKE_DEG = 30.0
 SPIKE_FRACTION = 0.02
 BURST_FRACTION = 0.01
 BURST_LENGTH = 5
-RESAMPLES = 10_000
 
 
-# --- corruption ------------------------------------------------------------------------------
-def _clip(z: np.ndarray) -> np.ndarray:
-    z = np.array(z, dtype=float)
-    z[:, 0] = wrap_angle(z[:, 0])
-    z[:, 1] = np.clip(z[:, 1], -math.pi / 2, math.pi / 2)
-    return z
-
-
+# --- corruption (the package's, so this study and `reproduce` corrupt alike) -----------------
 def spikes(z: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Isolated spikes on ``SPIKE_FRACTION`` of the samples; returns ``(z, indices)``."""
-    rng = np.random.default_rng(20_000 + seed)
-    n = len(z)
-    k = max(1, round(SPIKE_FRACTION * n))
-    chosen: list[int] = []
-    while len(chosen) < k:  # isolated: no two spikes adjacent
-        i = int(rng.integers(1, n))
-        if all(abs(i - j) > 1 for j in chosen):
-            chosen.append(i)
-    idx = np.sort(np.array(chosen))
-    out = np.array(z, dtype=float)
-    out[idx] += math.radians(SPIKE_DEG) * rng.choice([-1.0, 1.0], size=(k, 2))
-    return _clip(out), idx
+    out, mask = beyond.spikes(z, _spec("spikes", seed))
+    return out, np.flatnonzero(mask)
 
 
 def bursts(z: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """``round(BURST_FRACTION n)`` bursts of ``BURST_LENGTH`` samples, each one offset."""
-    rng = np.random.default_rng(30_000 + seed)
-    n = len(z)
-    k = max(1, round(BURST_FRACTION * n))
-    starts: list[int] = []
-    while len(starts) < k:  # not overlapping, not touching
-        s = int(rng.integers(1, n - BURST_LENGTH))
-        if all(abs(s - j) > BURST_LENGTH for j in starts):
-            starts.append(s)
-    out = np.array(z, dtype=float)
-    idx = []
-    for s in sorted(starts):
-        out[s : s + BURST_LENGTH] += math.radians(SPIKE_DEG) * rng.choice([-1.0, 1.0], size=2)
-        idx.extend(range(s, s + BURST_LENGTH))
-    return _clip(out), np.array(idx)
+    out, mask = beyond.bursts(z, _spec("bursts", seed))
+    return out, np.flatnonzero(mask)
+
+
+def _spec(group: str, seed: int) -> beyond.BeyondSpec:
+    return beyond.BeyondSpec(
+        group,  # type: ignore[arg-type]
+        seed,
+        20.0,
+        spike_deg=SPIKE_DEG,
+        spike_fraction=SPIKE_FRACTION,
+        burst_fraction=BURST_FRACTION,
+        burst_length=BURST_LENGTH,
+    )
 
 
 # --- runs ------------------------------------------------------------------------------------
@@ -128,17 +109,8 @@ def run_seed(seed: int, horizon: int, scales: dict[str, float | None]) -> dict[s
 # --- statistics ------------------------------------------------------------------------------
 def paired(a: np.ndarray, b: np.ndarray, kind: str) -> dict[str, float]:
     """``mean(a) / mean(b)`` (``ratio``) or ``mean(a - b)`` (``diff``) with a 95 %
-    paired percentile-bootstrap interval over seeds (fixed resampling seed)."""
-    rng = np.random.default_rng(0)
-    pick = rng.integers(0, len(a), size=(RESAMPLES, len(a)))
-    if kind == "ratio":
-        value = float(a.mean() / b.mean())
-        boot = a[pick].mean(axis=1) / b[pick].mean(axis=1)
-    else:
-        value = float((a - b).mean())
-        boot = (a - b)[pick].mean(axis=1)
-    lo, hi = np.quantile(boot, [0.025, 0.975])
-    return {"value": value, "lo": float(lo), "hi": float(hi)}
+    paired percentile-bootstrap interval over seeds (the package's)."""
+    return beyond.paired(a, b, kind)  # type: ignore[arg-type]
 
 
 def summarise(results: list[dict[str, dict]]) -> dict[str, dict]:

@@ -135,10 +135,11 @@ def spikes(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
         i = int(rng.integers(1, n))
         if all(abs(i - j) > 1 for j in chosen):
             chosen.append(i)
+    idx = np.sort(np.array(chosen))
     out = np.array(z, dtype=float)
-    out[chosen] += math.radians(spec.spike_deg) * rng.choice([-1.0, 1.0], size=(k, 2))
+    out[idx] += math.radians(spec.spike_deg) * rng.choice([-1.0, 1.0], size=(k, 2))
     mask = np.zeros(n, dtype=bool)
-    mask[chosen] = True
+    mask[idx] = True
     return _clip(out), mask
 
 

@@ -17,8 +17,9 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
 from continuum_mhe.reproduce.experiments import (
@@ -36,6 +37,10 @@ from continuum_mhe.reproduce.experiments import (
 )
 from continuum_mhe.reproduce.runner import run_parallel
 from continuum_mhe.settings import MHESettings, NoiseSettings
+
+Part = Literal["paper", "beyond"]
+#: What ``reproduce`` can run: the paper's Sec. 3, and beyond the paper (issue #9).
+PARTS: tuple[Part, ...] = ("paper", "beyond")
 
 
 @dataclass(frozen=True)
@@ -95,13 +100,9 @@ def _strip_series(trial: dict[str, Any]) -> dict[str, Any]:
 
 
 def assemble(
-    cfg: ReproduceConfig,
-    trials: Sequence[dict[str, Any]],
-    rod: dict[str, Any],
-    beyond: Sequence[dict[str, Any]] = (),
+    cfg: ReproduceConfig, trials: Sequence[dict[str, Any]], rod: dict[str, Any]
 ) -> dict[str, dict[str, Any]]:
-    """Group trial results into the per-experiment data files (``beyond``: the
-    :class:`BeyondSpec` results; none: no ``exp7_beyond``)."""
+    """Group the paper's trial results into the per-experiment data files."""
     by: dict[str, list[dict[str, Any]]] = {}
     for tr in trials:
         by.setdefault(tr["spec"]["experiment"], []).append(tr)
@@ -171,7 +172,7 @@ def assemble(
                 "late_srmse": mean_ci([x["late"]["srmse"] for x in e]),
                 "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in e]),
             }
-    files: dict[str, dict[str, Any]] = {
+    return {
         "exp1_synthetic3d": {
             **common,
             "example": example("exp1_synthetic3d"),
@@ -203,13 +204,11 @@ def assemble(
             "trials": [_strip_series(tr) for tr in win],
         },
     }
-    if beyond:
-        files["exp7_beyond"] = {
-            **common,
-            "summary": summarise_beyond(beyond),
-            "trials": list(beyond),
-        }
-    return files
+
+
+def assemble_beyond(cfg: ReproduceConfig, trials: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The ``exp7_beyond`` data file from the :class:`BeyondSpec` results."""
+    return {"config": asdict(cfg), "summary": summarise_beyond(trials), "trials": list(trials)}
 
 
 def reproduce(
@@ -221,20 +220,26 @@ def reproduce(
     rod_path: str | None = None,
     progress: bool | None = None,
     command: str = "",
+    parts: Sequence[Part] = PARTS,
 ) -> list[Path]:
-    """Run every experiment into ``out`` and write data, figures and ``report.md``.
+    """Run every experiment of ``parts`` into ``out`` and write data, figures and
+    ``report.md`` (from every experiment's data in ``out``).
 
     Returns the files written.
     """
+    if not parts or not set(parts) <= set(PARTS):
+        raise UserError(f"parts must be some of {PARTS}, got {tuple(parts)}")
     from continuum_mhe import __version__
     from continuum_mhe.reproduce.figures import render_all
     from continuum_mhe.reproduce.report import write_report
 
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    specs = plan_trials(cfg)
-    beyond = plan_beyond_trials(cfg)
-    tasks: list[TrialSpec | RodTask | BeyondSpec] = [RodTask(cfg, rod_path), *specs, *beyond]
+    paper = "paper" in parts
+    specs = plan_trials(cfg) if paper else []
+    beyond = plan_beyond_trials(cfg) if "beyond" in parts else []
+    rod: list[TrialSpec | RodTask | BeyondSpec] = [RodTask(cfg, rod_path)] if paper else []
+    tasks: list[TrialSpec | RodTask | BeyondSpec] = [*rod, *specs, *beyond]
     start = time.perf_counter()
     results = run_parallel(
         run_task,
@@ -245,8 +250,10 @@ def reproduce(
         progress=progress,
     )
     wall = time.perf_counter() - start
-    n = 1 + len(specs)
-    data = assemble(cfg, results[1:n], results[0], results[n:])
+    n = len(rod) + len(specs)
+    data = assemble(cfg, results[1:n], results[0]) if paper else {}
+    if beyond:
+        data["exp7_beyond"] = assemble_beyond(cfg, results[n:])
     written: list[Path] = []
     for name, d in data.items():
         p = folder / f"{name}.json"
@@ -259,6 +266,7 @@ def reproduce(
     manifest = {
         "command": command,
         "config": asdict(cfg),
+        "parts": list(parts),
         "n_trials": len(specs),
         "n_beyond_trials": len(beyond),
         "wall_s_trials": wall,

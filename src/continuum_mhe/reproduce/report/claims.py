@@ -324,6 +324,8 @@ def claims(r: Results) -> list[Claim]:
 
 def _claims(r: Results) -> list[str]:
     rows = [[c.paper, c.measured, f"**{c.verdict}**", c.rule] for c in claims(r)]
+    if not rows:  # a run beyond the paper only
+        return []
     return [
         "## Paper vs. ours",
         "",

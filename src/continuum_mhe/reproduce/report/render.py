@@ -99,6 +99,16 @@ def _few_seeds_line(cfg: dict[str, Any]) -> list[str]:
     ]
 
 
+def _counts(man: dict[str, Any]) -> str:
+    """What the run ran, from its manifest."""
+    parts = []
+    if man.get("n_trials", 1):
+        parts.append(f"{man.get('n_trials', '?')} synthetic trials + 1 rod run")
+    if man.get("n_beyond_trials"):
+        parts.append(f"{man['n_beyond_trials']} runs beyond the paper")
+    return " + ".join(parts)
+
+
 def render_report(r: Results) -> str:
     """The report's Markdown text."""
     man = r.get("manifest", {})
@@ -108,10 +118,7 @@ def render_report(r: Results) -> str:
         "Moving Horizon Approach' (Sec. 3)",
         "",
         *_few_seeds_line(cfg),
-        f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; "
-        f"{man.get('n_trials', '?')} synthetic trials + 1 rod run"
-        + (f" + {man['n_beyond_trials']} beyond the paper" if man.get("n_beyond_trials") else "")
-        + " in "
+        f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; " + _counts(man) + " in "
         f"{_f(man.get('wall_s_trials'), 0)} s "
         + (
             f"(Dask scheduler {man['scheduler']})."
