@@ -25,6 +25,7 @@ Status = Literal[
     "solver-failed",  # solver error; projected prediction is used
     "no-estimate",  # --paper-start: fewer than N samples so far
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
+    "branch-restart",  # MHE: a restart found a lower window cost (estimators/branch.py)
     "reset",  # diverged, failed numerically or lost all certainty: restarted from this sample
 ]
 
@@ -36,6 +37,9 @@ STATUS_MEANINGS: dict[str, str] = {
     "solver-failed": "solver error; the projected prediction is used",
     "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",
     "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
+    "branch-restart": "the MHE's window fit was implausible (chi-square test of its "
+    "measurement cost) and a restart from another start found a lower window cost: "
+    "this answer replaced the warm-started one",
     "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
     "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
     "from this sample's measurement, and this is the restarted estimate",

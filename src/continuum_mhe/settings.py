@@ -90,6 +90,10 @@ class MHESettings:
         solver: ``"fast"`` (default), the structure-exploiting Gauss-Newton SQP that
             falls back to IPOPT when it cannot certify convergence; ``"ipopt"``, the
             reference.
+        branch_check: after each window, test its measurement cost against a
+            chi-square quantile and, where implausible, solve the same window from
+            other starts and keep the lowest cost (status ``branch-restart``; see
+            :mod:`continuum_mhe.estimators.branch`).
     """
 
     horizon: int = 30
@@ -97,6 +101,7 @@ class MHESettings:
     max_iter: int = 100
     tol: float = 1e-8
     solver: MHESolver = "fast"
+    branch_check: bool = False
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:

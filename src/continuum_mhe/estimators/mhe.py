@@ -42,6 +42,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.branch import BranchCheck
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -215,6 +216,8 @@ class MovingHorizonEstimator(Estimator):
             self._nlp_built = self._nlp
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
+        #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
+        self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self.reset()
 
     @property
@@ -359,7 +362,10 @@ class MovingHorizonEstimator(Estimator):
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
             return None, None, "no-estimate"
-        X, status = self._solve(self.window_problem(copy=False), X0)
+        problem = self.window_problem(copy=False)
+        X, status = self._solve(problem, X0)
+        if self.branch is not None:
+            X, status = self._check_branch(problem, X, status)
         self._X = X
         if status == "ok" and not valid:
             status = "dropout"
@@ -383,6 +389,23 @@ class MovingHorizonEstimator(Estimator):
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
         return X, "fallback-ipopt" if status == "ok" else status
+
+    def _check_branch(
+        self, problem: WindowProblem, X: FloatArray, status: Status
+    ) -> tuple[FloatArray, Status]:
+        """The branch check's answer (:mod:`.branch`); restarts start without the
+        previous window's multipliers, and the winner's become the warm start."""
+        assert self.branch is not None
+        kept = self._lam
+
+        def solve(p: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status, object]:
+            self._lam = None
+            Xc, st = self._solve(p, X0)
+            return Xc, st, self._lam
+
+        X, status, lam = self.branch.check(problem, X, status, solve, self.window_cost)
+        self._lam = kept if status != "branch-restart" else lam  # type: ignore[assignment]
+        return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         nlp, n, nx = self._nlp, self.settings.horizon, self.formulation.nx
