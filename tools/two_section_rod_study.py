@@ -148,6 +148,7 @@ def main() -> None:
     if args.theta_max is not None:
         sections = tuple(replace(sec, theta_max=args.theta_max) for sec in robot.sections)
         robot = replace(robot, sections=sections)
+    mhe = MHESettings(horizon=args.horizon, solver=args.solver, branch_check=args.branch_check)
     for info_path in sorted(args.folder.glob("*_info.json")):
         name = info_path.name[: -len("_info.json")]
         if args.only and name not in args.only:
@@ -170,7 +171,7 @@ def main() -> None:
             res = evaluate(
                 robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
-                MHESettings(horizon=args.horizon, solver=args.solver, branch_check=args.branch_check),
+                mhe,
                 tuple(args.fit_cost) if args.fit_cost else None,
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():

@@ -91,7 +91,6 @@ class BranchCheck:
     # --- restart ------------------------------------------------------------------
     def candidates(self, problem: WindowProblem) -> dict[str, FloatArray]:
         """Starting trajectories ``(N, nx)`` for the window, by name."""
-        f = self.formulation
         p = problem
         z, zmask, dt = p.z, p.zmask, p.dt
         active = np.flatnonzero(zmask.any(axis=1))
@@ -204,4 +203,3 @@ def mirror_bends(f: Formulation, x: FloatArray, section: int) -> FloatArray:
 
 
 __all__ = ["QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats", "mirror_bends"]
-
