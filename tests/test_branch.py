@@ -83,3 +83,14 @@ def test_fast_and_ipopt_agree_with_the_check_on(clean_recording) -> None:  # typ
     names = [o.name for o in f.outputs]
     angles = [i for i, n in enumerate(names) if n.startswith("theta")]
     assert_allclose(out["fast"].output[:, angles], out["ipopt"].output[:, angles], atol=1e-6)
+
+
+def test_cli_flag_turns_the_check_on() -> None:
+    import argparse
+
+    from continuum_mhe.cli_options import add_mhe_options, mhe_settings_from_args
+
+    p = argparse.ArgumentParser()
+    add_mhe_options(p)
+    assert mhe_settings_from_args(p.parse_args(["--branch-check"])).branch_check
+    assert not mhe_settings_from_args(p.parse_args([])).branch_check

@@ -86,6 +86,12 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         default="fast",
         help="MHE backend: fast (structure-exploiting, default) or ipopt (the paper's)",
     )
+    g.add_argument(
+        "--branch-check",
+        action="store_true",
+        help="multi-section robots: when a window's fit is implausible (chi-square), "
+        "re-solve it from other starts and keep the lowest cost (status branch-restart)",
+    )
 
 
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
@@ -102,7 +108,12 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
 
 
 def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
-    return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
+    return MHESettings(
+        horizon=args.horizon,
+        paper_start=args.paper_start,
+        solver=args.solver,
+        branch_check=getattr(args, "branch_check", False),
+    )
 
 
 def add_serial_options(p: argparse.ArgumentParser) -> None:
