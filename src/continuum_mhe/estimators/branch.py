@@ -102,7 +102,7 @@ class BranchCheck:
         return out
 
     def _from_measurements(
-        self, z: FloatArray, zmask: FloatArray, dt: FloatArray, active: FloatArray
+        self, z: FloatArray, zmask: FloatArray, dt: FloatArray, active: np.ndarray
     ) -> FloatArray:
         """Each valid sample's state from its tilt inverse; samples without a
         measurement hold their neighbour; rates by finite differences."""
