@@ -28,7 +28,7 @@ the wrong branch it can stay there for seconds. The check:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -47,6 +47,12 @@ QUANTILE = 0.999
 #: more than this fraction (equal minima reached from two starts differ by ~1e-12).
 REL_MARGIN = 1e-6
 
+#: Stage 2: the arrival weight on the window's first node is divided by this (the
+#: prior's covariance multiplied) when no restart of the same problem helps.
+FORGET = 100.0
+#: Stage 2 is kept when its measurement cost is below this fraction of the warm answer's.
+FIT_GAIN = 0.5
+
 #: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.
 SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status, object]]
 #: ``cost(problem, X) -> window cost`` (the NLP objective).
@@ -56,19 +62,22 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 @dataclass
 class BranchStats:
     """Counts over a run: windows checked, windows found implausible (``fired``),
-    restarts that changed the answer (``restarted``)."""
+    restarts that changed the answer (``restarted``), of which with the arrival prior
+    forgotten (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
 
     checked: int = 0
     fired: int = 0
     restarted: int = 0
+    prior_forgotten: int = 0
     sources: dict[str, int] = field(default_factory=dict)
 
 
 class BranchCheck:
     """The branch check for one formulation and horizon (see the module docstring)."""
 
-    def __init__(self, formulation: Formulation, horizon: int) -> None:
+    def __init__(self, formulation: Formulation, horizon: int, forget_prior: bool = True) -> None:
         self.formulation = formulation
+        self.forget_prior = forget_prior
         self.horizon = horizon
         self._innovate = formulation.functions.innovate.map(horizon)
         self._rinv = np.linalg.inv(formulation.meas_cov())
@@ -158,15 +167,32 @@ class BranchCheck:
     # --- keep the best ----------------------------------------------------------------
     def check(
         self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
-    ) -> tuple[FloatArray, Status, object | None]:
-        """The answer to keep: ``(X, status, backend state of the winner or None)``.
+    ) -> tuple[FloatArray, Status, object | None, bool]:
+        """The answer to keep: ``(X, status, backend state, forget_prior)``.
 
-        ``X`` is the warm-started answer; ``None`` as the third item means it stays.
+        ``X`` is the warm-started answer; ``None`` as the backend state means it stays.
+        ``forget_prior`` is True when the answer comes from the window with the arrival
+        weight divided by ``FORGET`` (stage 2): the caller then re-anchors its arrival
+        prior on the answer's first node with its covariance times ``FORGET``.
         """
         self.stats.checked += 1
         if status not in ("ok", "fallback-ipopt") or not self.implausible(problem, X):
-            return X, status, None
+            return X, status, None, False
         self.stats.fired += 1
+        won = self._best_restart(problem, X, solve, cost)
+        if won is not None:
+            self.stats.restarted += 1
+            self.stats.sources[won[3]] = self.stats.sources.get(won[3], 0) + 1
+            return won[0], "branch-restart", won[2], False
+        if not self.forget_prior:
+            return X, status, None, False
+        return self._forget_prior(problem, X, status, solve, cost)
+
+    def _best_restart(
+        self, problem: WindowProblem, X: FloatArray, solve: SolveFn, cost: CostFn
+    ) -> tuple[FloatArray, Status, object, str] | None:
+        """Stage 1: the restart of the same problem with the lowest cost, if lower than
+        ``X``'s by more than ``REL_MARGIN``."""
         best_cost = cost(problem, X)
         bar = best_cost - REL_MARGIN * max(abs(best_cost), 1.0)
         best: tuple[FloatArray, Status, object, str] | None = None
@@ -177,11 +203,32 @@ class BranchCheck:
             c = cost(problem, Xc)
             if c < bar and (best is None or c < best_cost):
                 best, best_cost = (Xc, st, state, name), c
-        if best is None:
-            return X, status, None
+        return best
+
+    def _forget_prior(
+        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+    ) -> tuple[FloatArray, Status, object | None, bool]:
+        """Stage 2: the same window with the arrival weight on its first node divided by
+        ``FORGET``, solved from ``X`` and from every candidate; its lowest-cost answer is
+        kept when it explains the measurements better by at least ``1/FIT_GAIN``."""
+        full = problem.arrival.copy()
+        if not np.array_equal(full[1:], np.zeros_like(full[1:])):
+            return X, status, None, False  # a growing window: its prior is the first reading
+        full[0] = full[0] / FORGET
+        relaxed = replace(problem, arrival=full)
+        best: tuple[float, FloatArray, object] | None = None
+        for X0 in (X, *self.candidates(relaxed).values()):
+            Xc, st, state = solve(relaxed, X0)
+            if st in ("ok", "fallback-ipopt"):
+                c = cost(relaxed, Xc)
+                if best is None or c < best[0]:
+                    best = (c, Xc, state)
+        fit, _ = self.measurement_cost(problem, X)
+        if best is None or self.measurement_cost(problem, best[1])[0] >= FIT_GAIN * fit:
+            return X, status, None, False
         self.stats.restarted += 1
-        self.stats.sources[best[3]] = self.stats.sources.get(best[3], 0) + 1
-        return best[0], "branch-restart", best[2]
+        self.stats.prior_forgotten += 1
+        return best[1], "branch-restart", best[2], True
 
 
 def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:
@@ -194,12 +241,4 @@ def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:
             X[0, j] = X[1, j] if len(X) > 1 else 0.0
 
 
-def mirror_bends(f: Formulation, x: FloatArray, section: int) -> FloatArray:
-    """``x`` with section ``section`` (0-based) bent the other way: ``u -> -u``
-    (tests and studies build a wrong-branch start with it)."""
-    x = np.array(x, dtype=float)
-    x[2 * section : 2 * section + 2] *= -1.0
-    return x
-
-
-__all__ = ["QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats", "mirror_bends"]
+__all__ = ["FIT_GAIN", "FORGET", "QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats"]

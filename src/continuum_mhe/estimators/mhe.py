@@ -42,7 +42,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
-from continuum_mhe.estimators.branch import BranchCheck
+from continuum_mhe.estimators.branch import FORGET, BranchCheck
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -394,7 +394,9 @@ class MovingHorizonEstimator(Estimator):
         self, problem: WindowProblem, X: FloatArray, status: Status
     ) -> tuple[FloatArray, Status]:
         """The branch check's answer (:mod:`.branch`); restarts start without the
-        previous window's multipliers, and the winner's become the warm start."""
+        previous window's multipliers, and the winner's become the warm start. When the
+        answer needed the arrival prior forgotten (stage 2), the prior is re-anchored
+        on the answer's first node with its covariance times ``FORGET``."""
         assert self.branch is not None
         kept = self._lam
 
@@ -403,8 +405,13 @@ class MovingHorizonEstimator(Estimator):
             Xc, st = self._solve(p, X0)
             return Xc, st, self._lam
 
-        X, status, lam = self.branch.check(problem, X, status, solve, self.window_cost)
+        X, status, lam, forget = self.branch.check(problem, X, status, solve, self.window_cost)
         self._lam = kept if status != "branch-restart" else lam  # type: ignore[assignment]
+        if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
+            assert self._P is not None
+            self._xbar = self.formulation.project(X[0])
+            self._P = self._P * FORGET
+            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
         return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
