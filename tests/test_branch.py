@@ -8,6 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.branch import FORGET
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
@@ -49,6 +50,28 @@ def test_branch_check_leaves_a_wrong_local_minimum(solver: str) -> None:
     err = np.abs(X[-1, :4] - TRUTH[:4]).max()
     assert err < 1e-4 < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
     assert est.branch.stats.restarted == 1
+
+
+@pytest.mark.parametrize("solver", ["fast", "ipopt"])
+def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -> None:
+    f = make_formulation("bend", TWO)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver=solver, branch_check=True))
+    z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
+    for i in range(N + 3):  # a full, sliding window
+        est.step(Measurement(0.05 * i, z))
+    est._xbar, est._P = WRONG.copy(), np.eye(f.nx) * 0.01**2  # a confident wrong prior
+    est._Pinv = np.linalg.inv(est._P)
+    problem = est.window_problem()
+    X_wrong, status = est._solve(problem, np.tile(WRONG, (N, 1)))
+    assert est.branch is not None and est.branch.implausible(problem, X_wrong)
+    fit_wrong, _ = est.branch.measurement_cost(problem, X_wrong)
+    X, status = est._check_branch(problem, X_wrong, status)
+    assert status == "branch-restart" and est.branch.stats.prior_forgotten == 1
+    fit, _ = est.branch.measurement_cost(problem, X)
+    assert fit < 0.5 * fit_wrong
+    assert np.abs(X[-1, :4] - TRUTH[:4]).max() < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
+    assert_allclose(est._xbar, f.project(X[0]))  # the prior re-anchored on the answer
+    assert_allclose(est._P, np.eye(f.nx) * 0.01**2 * FORGET)
 
 
 def test_branch_restart_is_a_documented_status() -> None:
