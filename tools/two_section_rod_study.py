@@ -69,7 +69,8 @@ def evaluate(
             b = branch.stats
             print(
                 f"   branch check ({f.name}): {b.checked} windows, {b.fired} implausible, "
-                f"{b.restarted} restarted {b.sources}"
+                f"{b.restarted} restarted (stage 1 by start: {b.sources}; stage 2, prior "
+                f"forgotten: {b.prior_forgotten})"
             )
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
         end1 = met.section_end_mean_mm.get("1", float("nan"))
