@@ -23,6 +23,15 @@ the wrong branch it can stay there for seconds. The check:
    than ``REL_MARGIN`` of it; the sample's status is then ``branch-restart``. Every
    answer is a KKT point of the same problem, so both backends keep agreeing wherever
    no restart happens.
+4. **Forget the prior** (stage 2, only for a full window). When no restart of the same
+   problem wins, the arrival prior itself may hold the wrong branch (it is an EKF
+   lagging the window, and every start then falls into the basin it pulls towards).
+   The window is solved once more with the arrival weight divided by ``FORGET``, from
+   the warm answer and every candidate; its lowest-cost answer is kept when its
+   measurement cost is below ``FIT_GAIN`` times the warm answer's (status
+   ``branch-restart``), and the estimator re-anchors its arrival prior on that answer's
+   first node with the covariance times ``FORGET``. This answer is a KKT point of the
+   relaxed problem, not of the original one.
 """
 
 from __future__ import annotations
