@@ -47,7 +47,7 @@ def rod(name: str, case: str) -> None:
     print(f"rod {name} {case}: " + " / ".join(row), flush=True)
 
 
-def trace(name: str, first: int = 100, stop: int = 200, step: int = 8) -> None:
+def trace(name: str, first: int = 100, stop: int = 520, step: int = 12) -> None:
     """Tilt only, one rod recording: the fast MHE's solve time per sample (``solve_ms``,
     including building the cost function once) without and with the check, the samples
     where a restart won, and the tip error of MHE, MHE + check and EKF every ``step``
