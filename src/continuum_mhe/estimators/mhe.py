@@ -51,6 +51,7 @@ from continuum_mhe.estimators.fast import (
     Workspace,
     build_window_model,
     solve_window,
+    window_cost,
 )
 from continuum_mhe.estimators.fast.warmup import (
     FirstRun,
@@ -396,7 +397,8 @@ class MovingHorizonEstimator(Estimator):
         """The branch check's answer (:mod:`.branch`); restarts start without the
         previous window's multipliers, and the winner's become the warm start. When the
         answer needed the arrival prior forgotten (stage 2), the prior is re-anchored
-        on the answer's first node with its covariance times ``FORGET``."""
+        on the answer's first node with its covariance times ``FORGET``. The fast
+        backend compares costs with its compiled model (no IPOPT NLP is built)."""
         assert self.branch is not None
         kept = self._lam
 
@@ -405,7 +407,9 @@ class MovingHorizonEstimator(Estimator):
             Xc, st = self._solve(p, X0)
             return Xc, st, self._lam
 
-        X, status, lam, forget = self.branch.check(problem, X, status, solve, self.window_cost)
+        fast = self._fast
+        cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
+        X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
         self._lam = kept if status != "branch-restart" else lam  # type: ignore[assignment]
         if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
             assert self._P is not None
