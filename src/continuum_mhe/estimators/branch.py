@@ -70,7 +70,7 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 
 @dataclass
 class BranchStats:
-    """Counts over a run: windows checked, windows found implausible (``fired``),
+    """Counts since construction: windows checked, found implausible (``fired``),
     restarts that changed the answer (``restarted``), of which with the arrival prior
     forgotten (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
 
