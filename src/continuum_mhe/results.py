@@ -38,8 +38,9 @@ STATUS_MEANINGS: dict[str, str] = {
     "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",
     "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
     "branch-restart": "the MHE's window fit was implausible (chi-square test of its "
-    "measurement cost) and a restart from another start found a lower window cost: "
-    "this answer replaced the warm-started one",
+    "measurement cost) and a restart from another start found a lower window cost, or, "
+    "with the arrival prior forgotten, a fit at least twice as good: this answer "
+    "replaced the warm-started one (--branch-check)",
     "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
     "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
     "from this sample's measurement, and this is the restarted estimate",

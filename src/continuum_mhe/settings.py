@@ -92,8 +92,10 @@ class MHESettings:
             reference.
         branch_check: after each window, test its measurement cost against a
             chi-square quantile and, where implausible, solve the same window from
-            other starts and keep the lowest cost (status ``branch-restart``; see
-            :mod:`continuum_mhe.estimators.branch`).
+            other starts and keep the lowest cost, then, if none wins, with the arrival
+            prior forgotten (status ``branch-restart``; see
+            :mod:`continuum_mhe.estimators.branch`). Off by default: measured in
+            docs/model.md.
     """
 
     horizon: int = 30
@@ -108,6 +110,8 @@ class MHESettings:
             raise UserError(f"solver must be one of {MHE_SOLVERS}, got {self.solver!r}")
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
             raise UserError(f"horizon must be an integer >= 2, got {self.horizon!r}")
+        if not isinstance(self.branch_check, bool):
+            raise UserError(f"branch_check must be True or False, got {self.branch_check!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)
