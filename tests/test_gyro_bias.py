@@ -190,7 +190,9 @@ def test_estimate_cli_with_bias_keeps_the_columns(tmp_path, capsys) -> None:  # 
     out = tmp_path / "est.csv"
     args = ["estimate", str(raw), "-o", str(out), "--imu-model", "direct", "--method", "ukf"]
     assert main([*args, "--estimate-gyro-bias"]) == 0
-    assert out.read_text().splitlines()[0] == "t,x,y,z,theta,phi,status,solve_ms"
+    assert out.read_text().splitlines()[0] == (
+        "t,x,y,z,theta,phi,std_x,std_y,std_z,std_theta,std_phi,status,solve_ms"
+    )  # the bias is a state, not an output: the columns are those of any estimate
     tilt = tmp_path / "tilt.csv"
     tilt.write_text("t,roll,pitch\n0,0.1,0.2\n0.05,0.1,0.2\n")
     out2 = tmp_path / "est2.csv"

@@ -62,7 +62,16 @@ def evaluate(
     out = {}
     costs = {}
     for m in methods:
-        s = make_estimator(m, f, mhe or MHESettings(horizon=30)).run(data.t, data.z)  # type: ignore[arg-type]
+        est = make_estimator(m, f, mhe or MHESettings(horizon=30))  # type: ignore[arg-type]
+        s = est.run(data.t, data.z)
+        branch = getattr(est, "branch", None)
+        if branch is not None:
+            b = branch.stats
+            print(
+                f"   branch check ({f.name}): {b.checked} windows, {b.fired} implausible, "
+                f"{b.restarted} restarted (stage 1 by start: {b.sources}; stage 2, prior "
+                f"forgotten: {b.prior_forgotten})"
+            )
         met = compute_metrics(s.output, truth.values, robot.length, names, truth.names)
         end1 = met.section_end_mean_mm.get("1", float("nan"))
         out[m] = (met.tip_mean_mm, met.tip_max_mm, end1)
@@ -118,6 +127,9 @@ def main() -> None:
     )
     p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"])
     p.add_argument("--solver", default="fast", choices=["fast", "ipopt"], help="the MHE's")
+    p.add_argument(
+        "--branch-check", action="store_true", help="the MHE's branch check (estimators/branch.py)"
+    )
     p.add_argument("--horizon", type=int, default=30, help="the MHE's N (default 30)")
     p.add_argument(
         "--fit-cost",
@@ -137,6 +149,7 @@ def main() -> None:
     if args.theta_max is not None:
         sections = tuple(replace(sec, theta_max=args.theta_max) for sec in robot.sections)
         robot = replace(robot, sections=sections)
+    mhe = MHESettings(horizon=args.horizon, solver=args.solver, branch_check=args.branch_check)
     for info_path in sorted(args.folder.glob("*_info.json")):
         name = info_path.name[: -len("_info.json")]
         if args.only and name not in args.only:
@@ -159,7 +172,7 @@ def main() -> None:
             res = evaluate(
                 robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
-                MHESettings(horizon=args.horizon, solver=args.solver),
+                mhe,
                 tuple(args.fit_cost) if args.fit_cost else None,
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():

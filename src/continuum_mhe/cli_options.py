@@ -117,6 +117,12 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         f"measurement noise (default: huber {DEFAULT_LOSS_SCALE['huber']:g}, "
         f"cauchy {DEFAULT_LOSS_SCALE['cauchy']:g})",
     )
+    g.add_argument(
+        "--branch-check",
+        action="store_true",
+        help="multi-section robots: when a window's fit is implausible (chi-square), "
+        "re-solve it from other starts and keep the lowest cost (status branch-restart)",
+    )
 
 
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
@@ -153,6 +159,7 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
             solver=args.solver,
             loss=loss,
             loss_scale=scale,
+            branch_check=getattr(args, "branch_check", False),
         )
     except ValueError as exc:
         raise InputError(str(exc)) from None

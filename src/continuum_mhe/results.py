@@ -25,6 +25,7 @@ Status = Literal[
     "solver-failed",  # solver error; projected prediction is used
     "no-estimate",  # --paper-start: fewer than N samples so far
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
+    "branch-restart",  # MHE: a restart found a lower window cost (estimators/branch.py)
     "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
     "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
 ]
@@ -37,6 +38,10 @@ STATUS_MEANINGS: dict[str, str] = {
     "solver-failed": "solver error; the projected prediction is used",
     "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",
     "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
+    "branch-restart": "the MHE's window fit was implausible (chi-square test of its "
+    "measurement cost) and a restart from another start found a lower window cost, or, "
+    "with the arrival prior forgotten, a fit at least twice as good: this answer "
+    "replaced the warm-started one (--branch-check)",
     "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
     "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
     "from this sample's measurement, and this is the restarted estimate; also after a gap "

@@ -105,6 +105,12 @@ class MHESettings:
         loss_scale: where the robust loss departs from l2, in standard deviations of
             the measurement noise (whitened norm of one block); None takes
             :data:`DEFAULT_LOSS_SCALE` of the loss. Ignored for ``"l2"``.
+        branch_check: after each window, test its measurement cost against a
+            chi-square quantile and, where implausible, solve the same window from
+            other starts and keep the lowest cost, then, if none wins, with the arrival
+            prior forgotten (status ``branch-restart``; see
+            :mod:`continuum_mhe.estimators.branch`). Off by default: measured in
+            docs/model.md.
     """
 
     horizon: int = 30
@@ -114,6 +120,7 @@ class MHESettings:
     solver: MHESolver = "fast"
     loss: MHELoss = "l2"
     loss_scale: float | None = None
+    branch_check: bool = False
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
@@ -124,6 +131,8 @@ class MHESettings:
             _positive("loss_scale", self.loss_scale)
         if not (isinstance(self.horizon, int) and self.horizon >= 2):
             raise UserError(f"horizon must be an integer >= 2, got {self.horizon!r}")
+        if not isinstance(self.branch_check, bool):
+            raise UserError(f"branch_check must be True or False, got {self.branch_check!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         _positive("tol", self.tol)

@@ -49,6 +49,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.branch import FORGET, BranchCheck
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -57,6 +58,7 @@ from continuum_mhe.estimators.fast import (
     Workspace,
     build_window_model,
     solve_window,
+    window_cost,
 )
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
@@ -255,6 +257,8 @@ class MovingHorizonEstimator(Estimator):
         self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
+        #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
+        self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self.reset()
 
     @property
@@ -419,6 +423,8 @@ class MovingHorizonEstimator(Estimator):
             return None, None, "no-estimate"
         problem = self.window_problem(copy=False)
         X, status = self._solve(problem, X0)
+        if self.branch is not None:
+            X, status = self._check_branch(problem, X, status)
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
@@ -474,6 +480,33 @@ class MovingHorizonEstimator(Estimator):
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
         return X, "fallback-ipopt" if status == "ok" else status
+
+    def _check_branch(
+        self, problem: WindowProblem, X: FloatArray, status: Status
+    ) -> tuple[FloatArray, Status]:
+        """The branch check's answer (:mod:`.branch`); restarts start without the
+        previous window's multipliers, and the winner's become the warm start. When the
+        answer needed the arrival prior forgotten (stage 2), the prior is re-anchored
+        on the answer's first node with its covariance times ``FORGET``. The fast
+        backend compares costs with its compiled model (no IPOPT NLP is built)."""
+        assert self.branch is not None
+        kept = self._lam
+
+        def solve(p: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status, object]:
+            self._lam = None
+            Xc, st = self._solve(p, X0)
+            return Xc, st, self._lam
+
+        fast = self._fast
+        cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
+        X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
+        self._lam = kept if status != "branch-restart" else lam  # type: ignore[assignment]
+        if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
+            assert self._P is not None
+            self._xbar = self.formulation.project(X[0])
+            self._P = self._P * FORGET
+            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
+        return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         nlp, n, nx = self._nlp, self.settings.horizon, self.formulation.nx

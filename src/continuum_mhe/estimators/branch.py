@@ -1,0 +1,253 @@
+"""Branch check of the MHE window: detect an implausible fit, restart, keep the best.
+
+With tilt only, a multi-section robot's window problem has several local minima (the
+branches of the tilt inverse: a section bent one way or far the other way, often at
+its bound). A warm-started solver stays in the basin it was in, so once the MHE is on
+the wrong branch it can stay there for seconds. The check:
+
+1. **Detect.** After the window is solved, its normalised measurement cost
+   ``c = sum_i r_i^T R^-1 r_i`` (valid components only) is compared with the
+   ``QUANTILE`` quantile of a chi-square with ``dof`` = the number of valid measurement
+   components in the window. Below it, nothing else happens (the check costs one
+   residual evaluation of the window).
+2. **Restart.** Above it, the SAME window problem is solved again from other starting
+   trajectories (:meth:`BranchCheck.candidates`): a re-initialisation from the
+   window's measurements (each sample's state from the formulation's tilt inverse,
+   :meth:`Formulation.initial_state`, which sets each section's bend from the tilt of
+   its IMU relative to the frame below; rates by finite differences), the same with
+   each sample's state taken nearest to its neighbour (one continuous branch), the
+   arrival prior propagated through the window, and an EKF run over the window from
+   the arrival prior.
+3. **Keep the best.** Of the converged answers, the one with the lowest window cost
+   (the full NLP objective) replaces the warm-started answer when it is lower by more
+   than ``REL_MARGIN`` of it; the sample's status is then ``branch-restart``. Every
+   answer is a KKT point of the same problem, so both backends keep agreeing wherever
+   no restart happens.
+4. **Forget the prior** (stage 2, only for a full window). When no restart of the same
+   problem wins, the arrival prior itself may hold the wrong branch (it is an EKF
+   lagging the window, and every start then falls into the basin it pulls towards).
+   The window is solved once more with the arrival weight divided by ``FORGET``, from
+   the warm answer and every candidate; its lowest-cost answer is kept when its
+   measurement cost is below ``FIT_GAIN`` times the warm answer's (status
+   ``branch-restart``), and the estimator re-anchors its arrival prior on that answer's
+   first node with the covariance times ``FORGET``. This answer is a KKT point of the
+   relaxed problem, not of the original one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.stats import chi2
+
+from continuum_mhe.estimators.base import FloatArray, Status
+from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
+from continuum_mhe.model.formulations import Formulation
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators.mhe import WindowProblem
+
+#: Chi-square quantile above which a window's measurement cost is implausible.
+QUANTILE = 0.999
+#: A restarted answer replaces the warm-started one when its window cost is lower by
+#: more than this fraction (equal minima reached from two starts differ by ~1e-12).
+REL_MARGIN = 1e-6
+
+#: Stage 2: the arrival weight on the window's first node is divided by this (the
+#: prior's covariance multiplied) when no restart of the same problem helps.
+FORGET = 100.0
+#: Stage 2 is kept when its measurement cost is below this fraction of the warm answer's.
+FIT_GAIN = 0.5
+
+#: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.
+SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status, object]]
+#: ``cost(problem, X) -> window cost`` (the NLP objective).
+CostFn = Callable[["WindowProblem", FloatArray], float]
+
+
+@dataclass
+class BranchStats:
+    """Counts since construction: windows checked, found implausible (``fired``),
+    restarts that changed the answer (``restarted``), of which with the arrival prior
+    forgotten (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
+
+    checked: int = 0
+    fired: int = 0
+    restarted: int = 0
+    prior_forgotten: int = 0
+    sources: dict[str, int] = field(default_factory=dict)
+
+
+class BranchCheck:
+    """The branch check for one formulation and horizon (see the module docstring)."""
+
+    def __init__(self, formulation: Formulation, horizon: int, forget_prior: bool = True) -> None:
+        self.formulation = formulation
+        self.forget_prior = forget_prior
+        self.horizon = horizon
+        self._innovate = formulation.functions.innovate.map(horizon)
+        self._rinv = np.linalg.inv(formulation.meas_cov())
+        self.stats = BranchStats()
+        self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
+
+    # --- detect -----------------------------------------------------------------
+    def measurement_cost(self, problem: WindowProblem, X: FloatArray) -> tuple[float, int]:
+        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2)."""
+        z, zmask = problem.z, problem.zmask
+        r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
+        cost = float(np.einsum("ij,jk,ik->", r, self._rinv, r))
+        return cost, int(zmask.sum())
+
+    def implausible(self, problem: WindowProblem, X: FloatArray) -> bool:
+        """True when the window's measurement cost exceeds the chi-square quantile."""
+        cost, dof = self.measurement_cost(problem, X)
+        return dof > 0 and cost > float(chi2.ppf(QUANTILE, dof))
+
+    # --- restart ------------------------------------------------------------------
+    def candidates(self, problem: WindowProblem) -> dict[str, FloatArray]:
+        """Starting trajectories ``(N, nx)`` for the window, by name."""
+        p = problem
+        z, zmask, dt = p.z, p.zmask, p.dt
+        active = np.flatnonzero(zmask.any(axis=1))
+        out: dict[str, FloatArray] = {}
+        if len(active):
+            out["measurements"] = self._from_measurements(z, zmask, dt, active)
+        out["prior"] = self._propagate_prior(p)
+        out["ekf"] = self._ekf_window(p)
+        return out
+
+    def _from_measurements(
+        self, z: FloatArray, zmask: FloatArray, dt: FloatArray, active: np.ndarray
+    ) -> FloatArray:
+        """Each valid sample's state from its tilt inverse; samples without a
+        measurement hold their neighbour; rates by finite differences."""
+        f, n = self.formulation, self.horizon
+        X = np.zeros((n, f.nx))
+        prev: FloatArray | None = None
+        for i in range(n):
+            if i in active:
+                prev = self._tilt_inverse(np.where(zmask[i] > 0, z[i], np.nan))
+            X[i] = X[max(i - 1, 0)] if prev is None or i not in active else prev
+        first = int(active[0])
+        X[:first] = X[first]
+        _fill_rates(f, X, dt)
+        return np.array([f.project(x) for x in X])
+
+    def _tilt_inverse(self, z: FloatArray) -> FloatArray:
+        """``initial_state(z)``, remembered for the samples of the last few windows (a
+        sample stays in the window for ``horizon`` solves)."""
+        key = z.tobytes()
+        x = self._inverse.get(key)
+        if x is None:
+            if len(self._inverse) >= 4 * self.horizon:
+                del self._inverse[next(iter(self._inverse))]
+            x = self._inverse[key] = self.formulation.initial_state(z)
+        return x
+
+    def _propagate_prior(self, p: WindowProblem) -> FloatArray:
+        f, n = self.formulation, self.horizon
+        fn = f.functions.transition
+        X = np.empty((n, f.nx))
+        X[0] = p.xbar
+        for i in range(n - 1):
+            xn = np.asarray(fn(X[i], p.u[i], p.dt[i]), float).ravel()
+            X[i + 1] = f.project(xn)
+        return X
+
+    def _ekf_window(self, p: WindowProblem) -> FloatArray:
+        f, n = self.formulation, self.horizon
+        arrival, zmask = p.arrival, p.zmask
+        off = int(np.flatnonzero(np.abs(arrival).sum(axis=(1, 2)) > 0)[-1])  # prior node
+        x = np.array(p.xbar, dtype=float)
+        P = np.linalg.inv(arrival[off])
+        R = f.meas_cov()
+        X = np.tile(x, (n, 1))
+        for i in range(off, n):
+            if zmask[i].any():
+                x, P = ekf_update(f, x, P, p.z[i], R, zmask[i])
+            X[i] = f.project(x)
+            if i < n - 1:
+                x, P = ekf_predict(f.functions, X[i], P, p.u[i], float(p.dt[i]))
+        return X
+
+    # --- keep the best ----------------------------------------------------------------
+    def check(
+        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+    ) -> tuple[FloatArray, Status, object | None, bool]:
+        """The answer to keep: ``(X, status, backend state, forget_prior)``.
+
+        ``X`` is the warm-started answer; ``None`` as the backend state means it stays.
+        ``forget_prior`` is True when the answer comes from the window with the arrival
+        weight divided by ``FORGET`` (stage 2): the caller then re-anchors its arrival
+        prior on the answer's first node with its covariance times ``FORGET``.
+        """
+        self.stats.checked += 1
+        if status not in ("ok", "fallback-ipopt") or not self.implausible(problem, X):
+            return X, status, None, False
+        self.stats.fired += 1
+        won = self._best_restart(problem, X, solve, cost)
+        if won is not None:
+            self.stats.restarted += 1
+            self.stats.sources[won[3]] = self.stats.sources.get(won[3], 0) + 1
+            return won[0], "branch-restart", won[2], False
+        if not self.forget_prior:
+            return X, status, None, False
+        return self._forget_prior(problem, X, status, solve, cost)
+
+    def _best_restart(
+        self, problem: WindowProblem, X: FloatArray, solve: SolveFn, cost: CostFn
+    ) -> tuple[FloatArray, Status, object, str] | None:
+        """Stage 1: the restart of the same problem with the lowest cost, if lower than
+        ``X``'s by more than ``REL_MARGIN``."""
+        best_cost = cost(problem, X)
+        bar = best_cost - REL_MARGIN * max(abs(best_cost), 1.0)
+        best: tuple[FloatArray, Status, object, str] | None = None
+        for name, X0 in self.candidates(problem).items():
+            Xc, st, state = solve(problem, X0)
+            if st not in ("ok", "fallback-ipopt"):
+                continue
+            c = cost(problem, Xc)
+            if c < bar and (best is None or c < best_cost):
+                best, best_cost = (Xc, st, state, name), c
+        return best
+
+    def _forget_prior(
+        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+    ) -> tuple[FloatArray, Status, object | None, bool]:
+        """Stage 2: the same window with the arrival weight on its first node divided by
+        ``FORGET``, solved from ``X`` and from every candidate; its lowest-cost answer is
+        kept when it explains the measurements better by at least ``1/FIT_GAIN``."""
+        full = problem.arrival.copy()
+        if not np.array_equal(full[1:], np.zeros_like(full[1:])):
+            return X, status, None, False  # a growing window: its prior is the first reading
+        full[0] = full[0] / FORGET
+        relaxed = replace(problem, arrival=full)
+        best: tuple[float, FloatArray, object] | None = None
+        for X0 in (X, *self.candidates(relaxed).values()):
+            Xc, st, state = solve(relaxed, X0)
+            if st in ("ok", "fallback-ipopt"):
+                c = cost(relaxed, Xc)
+                if best is None or c < best[0]:
+                    best = (c, Xc, state)
+        fit, _ = self.measurement_cost(problem, X)
+        if best is None or self.measurement_cost(problem, best[1])[0] >= FIT_GAIN * fit:
+            return X, status, None, False
+        self.stats.restarted += 1
+        self.stats.prior_forgotten += 1
+        return best[1], "branch-restart", best[2], True
+
+
+def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:
+    """Set the rate states (named ``*_dot``) to finite differences of their coordinates."""
+    names = f.state_names
+    for j, name in enumerate(names):
+        if name.endswith("_dot") and name[: -len("_dot")] in names:
+            k = names.index(name[: -len("_dot")])
+            X[1:, j] = np.diff(X[:, k]) / dt
+            X[0, j] = X[1, j] if len(X) > 1 else 0.0
+
+
+__all__ = ["FIT_GAIN", "FORGET", "QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats"]

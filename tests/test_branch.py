@@ -1,0 +1,119 @@
+"""The MHE's branch check (estimators/branch.py): a window stuck on the wrong branch is
+restarted to a strictly lower cost, clean data is left alone, and both backends agree."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.branch import FORGET
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.results import STATUS_MEANINGS
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate_robot
+
+TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+N = 10
+#: a still robot, both sections bent far (section 1 at 85 deg, section 2 at 100 deg)
+TRUTH = np.array([-1.115, -0.972, 1.615, 0.706, 0.0, 0.0, 0.0, 0.0])
+#: a start on the far branch of section 2, at its bound: the warm-started solver stays
+#: in that basin (a local minimum at the bound, found by a scan of random starts)
+WRONG = np.array([-1.57, -1.485, -2.979, -0.355, 0.0, 0.0, 0.0, 0.0])
+
+
+def _filled_window(solver: str) -> MovingHorizonEstimator:
+    f = make_formulation("bend", TWO)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver=solver, branch_check=True))
+    z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
+    for i in range(N):
+        est.step(Measurement(0.05 * i, z))
+    return est
+
+
+@pytest.mark.parametrize("solver", ["fast", "ipopt"])
+def test_branch_check_leaves_a_wrong_local_minimum(solver: str) -> None:
+    est = _filled_window(solver)
+    assert est.branch is not None
+    problem = est.window_problem()
+    X_wrong, status = est._solve(problem, np.tile(WRONG, (N, 1)))
+    assert status == "ok"  # a KKT point of the window problem ...
+    wrong_cost = est.window_cost(problem, X_wrong)
+    assert est.branch.implausible(problem, X_wrong)  # ... whose fit is implausible
+    X, status = est._check_branch(problem, X_wrong, status)
+    assert status == "branch-restart"
+    cost = est.window_cost(problem, X)
+    assert cost < wrong_cost - 1.0
+    err = np.abs(X[-1, :4] - TRUTH[:4]).max()
+    assert err < 1e-4 < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
+    assert est.branch.stats.restarted == 1
+
+
+@pytest.mark.parametrize("solver", ["fast", "ipopt"])
+def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -> None:
+    f = make_formulation("bend", TWO)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver=solver, branch_check=True))
+    z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
+    for i in range(N + 3):  # a full, sliding window
+        est.step(Measurement(0.05 * i, z))
+    est._xbar, est._P = WRONG.copy(), np.eye(f.nx) * 0.01**2  # a confident wrong prior
+    est._Pinv = np.linalg.inv(est._P)
+    problem = est.window_problem()
+    X_wrong, status = est._solve(problem, np.tile(WRONG, (N, 1)))
+    assert est.branch is not None and est.branch.implausible(problem, X_wrong)
+    fit_wrong, _ = est.branch.measurement_cost(problem, X_wrong)
+    X, status = est._check_branch(problem, X_wrong, status)
+    assert status == "branch-restart" and est.branch.stats.prior_forgotten == 1
+    fit, _ = est.branch.measurement_cost(problem, X)
+    assert fit < 0.5 * fit_wrong
+    assert np.abs(X[-1, :4] - TRUTH[:4]).max() < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
+    assert_allclose(est._xbar, f.project(X[0]))  # the prior re-anchored on the answer
+    assert_allclose(est._P, np.eye(f.nx) * 0.01**2 * FORGET)
+
+
+def test_branch_restart_is_a_documented_status() -> None:
+    assert "branch-restart" in STATUS_MEANINGS
+
+
+@pytest.fixture(scope="module")
+def clean_recording():  # type: ignore[no-untyped-def]
+    return simulate_robot("spatial", TWO, duration=4.0, dt=0.05, seed=3)
+
+
+def test_no_restart_on_clean_model_consistent_data(clean_recording) -> None:  # type: ignore[no-untyped-def]
+    rec = clean_recording
+    f = make_formulation("bend", TWO)
+    runs = {}
+    for check in (False, True):
+        est = MovingHorizonEstimator(f, MHESettings(horizon=N, branch_check=check))
+        runs[check] = est.run(rec.t, rec.z)
+    assert "branch-restart" not in set(runs[True].status)
+    assert np.array_equal(runs[True].output, runs[False].output)
+
+
+def test_fast_and_ipopt_agree_with_the_check_on(clean_recording) -> None:  # type: ignore[no-untyped-def]
+    rec = clean_recording
+    f = make_formulation("bend", TWO)
+    out = {}
+    for solver in ("fast", "ipopt"):
+        est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver=solver, branch_check=True))
+        s = est.run(rec.t[:30], rec.z[:30])
+        out[solver] = s
+    assert list(out["fast"].status) == list(out["ipopt"].status)
+    names = [o.name for o in f.outputs]
+    angles = [i for i, n in enumerate(names) if n.startswith("theta")]
+    assert_allclose(out["fast"].output[:, angles], out["ipopt"].output[:, angles], atol=1e-6)
+
+
+def test_cli_flag_turns_the_check_on() -> None:
+    import argparse
+
+    from continuum_mhe.cli_options import add_mhe_options, mhe_settings_from_args
+
+    p = argparse.ArgumentParser()
+    add_mhe_options(p)
+    assert mhe_settings_from_args(p.parse_args(["--branch-check"])).branch_check
+    assert not mhe_settings_from_args(p.parse_args([])).branch_check
