@@ -26,6 +26,7 @@ from continuum_mhe.cli_options import (
     add_mhe_options,
     add_model_options,
     add_robot_option,
+    check_option_ranges,
     formulation_from_args,
     mhe_settings_from_args,
     robot_from_args,
@@ -58,7 +59,17 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 # --- commands --------------------------------------------------------------------------
+#: Most samples ``simulate`` writes (``--duration / --dt``).
+MAX_SIMULATED_SAMPLES = 10_000_000
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    n = args.duration / args.dt
+    if n > MAX_SIMULATED_SAMPLES:
+        raise InputError(
+            f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
+            f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
+        )
     robot = robot_from_args(args)
     rec = simulate_robot(
         args.scenario,
@@ -132,21 +143,42 @@ def _align(
     lo = np.clip(idx - 1, 0, len(t_truth) - 1)
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
     match = np.abs(t_truth[nearest] - t_est) <= 1e-6 * np.maximum(1.0, np.abs(t_est))
-    if not match.any():
-        raise InputError(f"{path_est}: no timestamp matches one in {path_truth}")
+    n, k = len(t_est), int(match.sum())
+    if k < MIN_MATCHED * n:
+        raise InputError(
+            f"{path_est}: only {k} of {n} rows have a row at the same t in {path_truth} "
+            "(within 1 us): the files' times do not match (another --dt or duration, "
+            "t in milliseconds, or the wrong truth file?)"
+        )
     return np.flatnonzero(match), nearest[match]
+
+
+#: ``evaluate`` refuses files whose times match on fewer than this share of rows.
+MIN_MATCHED = 0.5
+
+
+def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, length: float) -> str:
+    """A hint when the estimate's tip distances from the base are a constant multiple of
+    the truth's (made with another length), else ``""``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.linalg.norm(est_xyz, axis=1) / np.linalg.norm(truth_xyz, axis=1)
+    ratio = ratio[np.isfinite(ratio)]
+    if tip_mean < 0.1 * length or not len(ratio):
+        return ""
+    r = float(np.median(ratio))
+    if 0.8 < r < 1.25:
+        return ""
+    return (
+        f"the estimate's tip is {r:.2f} times as far from the base as the truth's: "
+        "was it made with another --length (or robot file) than the truth?"
+    )
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     est = read_state_table(args.estimates)
     truth = read_state_table(args.truth)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
-    if args.robot:
-        length = robot_from_args(args).length
-    elif not (math.isfinite(args.length) and args.length > 0):
-        raise InputError(f"--length must be positive, got {args.length}")
-    else:
-        length = args.length
+    length = robot_from_args(args).length if args.robot else args.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
     try:
@@ -156,6 +188,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
     unmatched = int(len(est.t) - len(i_e))
+    xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
+    hint = _length_hint(
+        est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
+    )
+    if hint:
+        print(f"{PROG}: warning: {hint}", file=sys.stderr)
     if args.json:
         print(json.dumps({**m.as_dict(), "unmatched": unmatched}, indent=2))
     else:
@@ -405,6 +443,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_option_ranges(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
         # a signal raised inside a C extension (CasADi, numpy) can surface as any

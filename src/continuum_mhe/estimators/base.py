@@ -33,6 +33,10 @@ def _reraise_interrupt(exc: BaseException) -> None:
         seen = seen.__cause__ or seen.__context__
 
 
+#: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
+DEGREES_LIKE = 2 * math.pi
+
+
 class Estimator(ABC):
     """Base class of every estimator. Subclasses implement ``reset`` and ``_step``."""
 
@@ -45,6 +49,10 @@ class Estimator(ABC):
         self.restarts = 0
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
+        self._tilt = [
+            i for b in formulation.measurement_blocks if b.kind == "tilt" for i in range(
+                b.start, b.start + b.size)
+        ]  # fmt: skip
 
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
@@ -73,7 +81,8 @@ class Estimator(ABC):
         that estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
 
         Raises:
-            ValueError: if ``measurement.z`` does not have the formulation's size, or
+            UserError: if ``measurement.z`` does not have the formulation's size, holds
+                a tilt angle beyond 2 pi (degrees given for radians), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -89,6 +98,15 @@ class Estimator(ABC):
                 f"sample time t={t!r} s must be finite and later than the previous "
                 f"sample's t={self._last_t!r} s"
             )
+        if self._tilt:
+            zl = measurement.z.tolist()
+            if any(abs(zl[i]) > DEGREES_LIKE for i in self._tilt):  # NaN compares False
+                names = self.formulation.measurement_names
+                shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in self._tilt)
+                raise UserError(
+                    f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
+                    "degrees; measurements are in radians (numpy.radians converts)"
+                )
         self._last_t = t
         start = time.perf_counter()
         try:
