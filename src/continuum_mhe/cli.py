@@ -35,6 +35,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
 from continuum_mhe.io.csv_files import (
     InputError,
+    check_output_target,
     read_state_table,
     write_estimates,
     write_measurements,
@@ -92,8 +93,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
     from continuum_mhe.live import input_options
 
-    out = Path(args.output)
-    check_output_path(out, args.measurements)
+    check_output_path(args.output, args.measurements)
+    out = args.output
     counts: dict[str, int] = {}
     with open_estimate_input(
         args.measurements, input_options(args), formulation_from_args(args)
@@ -129,8 +130,10 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_output_path(out: Path, source: str) -> None:
-    """The output must be a file name in an existing folder, not the input itself."""
+def check_output_path(output: str, source: str) -> None:
+    """The output must be a writable file name in an existing folder (see
+    :func:`check_output_target`), not the input itself; checked before any work."""
+    out = check_output_target(output)
     if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
 
@@ -435,6 +438,11 @@ def _signal_exit() -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     warnings.formatwarning = _one_line_warning
+    # numerical trouble is flagged in each row's status; numpy's own notes would only
+    # surround the summary or the one-line error
+    warnings.filterwarnings(
+        "ignore", r"(invalid value|overflow|divide by zero|underflow) encountered", RuntimeWarning
+    )
     try:
         signal.signal(signal.SIGTERM, _on_signal)
         signal.signal(signal.SIGINT, _on_signal)

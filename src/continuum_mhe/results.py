@@ -26,6 +26,7 @@ Status = Literal[
     "no-estimate",  # --paper-start: fewer than N samples so far
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
     "reset",  # diverged, failed numerically or lost all certainty: restarted from this sample
+    "drifted",  # position state inconsistent with its own angles (paper formulation)
 ]
 
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
@@ -39,6 +40,9 @@ STATUS_MEANINGS: dict[str, str] = {
     "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
     "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
     "from this sample's measurement, and this is the restarted estimate",
+    "drifted": "the position state is more than DRIFT_FRACTION (10 %) of the length from "
+    "the forward kinematics of the row's own theta and phi (the paper formulation's "
+    "separate x, y, z): the row is not one consistent shape",
 }
 
 

@@ -132,6 +132,8 @@ class Estimator(ABC):
                 state, cov, status = None, None, "no-estimate"
             if state is not None:
                 status = "reset"
+        if status == "ok" and state is not None and self.formulation.drifted(state):
+            status = "drifted"
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         return Estimate(measurement.t, state, output, cov, status, ms)
