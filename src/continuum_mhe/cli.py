@@ -147,17 +147,22 @@ def _align(
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
     match = np.abs(t_truth[nearest] - t_est) <= 1e-6 * np.maximum(1.0, np.abs(t_est))
     n, k = len(t_est), int(match.sum())
-    if k < MIN_MATCHED * n:
-        raise InputError(
-            f"{path_est}: only {k} of {n} rows have a row at the same t in {path_truth} "
-            "(within 1 us): the files' times do not match (another --dt or duration, "
-            "t in milliseconds, or the wrong truth file?)"
-        )
+    what = (
+        f"only {k} of {n} rows have a row at the same t in {path_truth} (within 1 us): "
+        "the files' times do not match (another --dt or duration, t in milliseconds, "
+        "or the wrong truth file?)"
+    )
+    if k < max(2, MIN_MATCHED * n):
+        raise InputError(f"{path_est}: {what}")
+    if k < WARN_MATCHED * n:
+        print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
     return np.flatnonzero(match), nearest[match]
 
 
-#: ``evaluate`` refuses files whose times match on fewer than this share of rows.
-MIN_MATCHED = 0.5
+#: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
+#: fewer than 2), and warns below :data:`WARN_MATCHED`.
+MIN_MATCHED = 0.1
+WARN_MATCHED = 0.5
 
 
 def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, length: float) -> str:
