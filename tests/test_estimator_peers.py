@@ -533,7 +533,8 @@ def test_straight_configuration_gives_finite_estimates(name: str, kind: str, str
     assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
     series = make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
     assert np.all(np.isfinite(series.output))
-    assert np.all(np.isin(series.status, SOLVED))
+    # the paper formulation's separate position may drift from its angles: flagged
+    assert np.all(np.isin(series.status, SOLVED + (["drifted"] if name == "paper" else [])))
 
 
 @pytest.mark.parametrize("kind", ESTIMATORS)

@@ -188,3 +188,10 @@ def test_t_in_milliseconds_warns_with_the_cause(tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_measurements(_write(tmp_path / "s.csv", _csv()))  # seconds: no warning
+
+
+def test_not_utf8_names_its_line(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n\xff\xfe,0.1,0.1\n")
+    with pytest.raises(InputError, match=r"m.csv: line 3: not UTF-8 text"):
+        read_measurements(path)

@@ -226,7 +226,7 @@ def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool
     i = int(np.argmax(over))
     roll, pitch = z[i]
     where = f"{path}: line {lines[i]}: roll={roll:.4g}, pitch={pitch:.4g}"
-    if degrees:
+    if degrees or max(abs(roll), abs(pitch)) > 360:
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     raise InputError(
         f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); "
