@@ -77,8 +77,9 @@ def main() -> int:
                 if code != 0:
                     print(f"{method} {rows}: exit {code}: {err}", file=sys.stderr)
                     return 1
+                size = meas.stat().st_size / 2**20
                 results.append({"method": method, "rows": rows, "peak_mib": kb / 1024,
-                                "wall_s": wall, "input_mib": meas.stat().st_size / 2**20})  # fmt: skip
+                                "wall_s": wall, "input_mib": size})  # fmt: skip
                 print(f"{method:4s} {rows:>9,d} rows: peak {kb / 1024:7.1f} MiB, {wall:7.1f} s",
                       file=sys.stderr)  # fmt: skip
     print("| method | rows | input MiB | peak RSS MiB | over the smallest | wall s |")

@@ -17,8 +17,9 @@ import os
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -101,7 +102,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     ) as stream:
         est = make_estimator(args.method, stream.formulation, mhe_settings_from_args(args))
         est.reset()
-        ticks = interruptible(progress_bar(f"{args.method} estimate"))(itertools.count())
+        wrap = interruptible(progress_bar(f"{args.method} estimate"))
+        ticks = cast(Generator[int, None, None], wrap(itertools.count()))
         with EstimateSink(out, stream.formulation, stream.t0_ns) as sink:
             try:
                 for t, z in stream.samples:

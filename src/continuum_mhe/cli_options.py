@@ -105,8 +105,6 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
     return MHESettings(horizon=args.horizon, paper_start=args.paper_start, solver=args.solver)
 
 
-
-
 # --- valid ranges of every numeric option ------------------------------------------
 @dataclass(frozen=True)
 class OptionRange:

@@ -218,7 +218,7 @@ def _check_imu_count(path: str, header: list[str], n_imus: int) -> None:
 _IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
 
 
-def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool) -> None:
+def _check_angle_units(path: str, z: FloatArray, lines: Sequence[int], degrees: bool) -> None:
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
     if not over.any():

@@ -263,7 +263,7 @@ def raw_blocks(
             zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
         if n_imus == 1:
             for j in np.flatnonzero(zero):
-                msg = f"line {lines[j]}: acceleration is zero (no gravity direction)"
+                msg = f"line {lines[int(j)]}: acceleration is zero (no gravity direction)"
                 if not skip_bad:
                     raise InputError(f"{name}: {msg}")
                 if isinstance(skipped, RowProblems):
