@@ -134,3 +134,14 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
     assert "warning" not in capsys.readouterr().err  # same length: no hint
+
+
+def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:
+    m, t = _simulated(tmp_path, "a")  # 101 rows
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    t.write_text("\n".join(t.read_text().splitlines()[:31]) + "\n")  # 30 of 101 rows
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("continuum-mhe: warning: ") and "only 30 of 101 rows" in err
