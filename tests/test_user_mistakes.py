@@ -57,6 +57,7 @@ def test_a_user_error_is_exit_2(monkeypatch, capsys) -> None:
         (["--theta-max", "90"], "degrees?"),
         (["--horizon", "1"], "--horizon 1 is outside its valid range [2, 1000]"),
         (["--noise-deg", "nan"], "--noise-deg nan is outside"),
+        (["--mount-rpy", "1e300,0,0"], "three angles in degrees within +-360"),
     ],
 )
 def test_numeric_options_out_of_range_are_one_line(tmp_path, capsys, argv, needle) -> None:

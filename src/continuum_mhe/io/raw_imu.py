@@ -89,8 +89,10 @@ def parse_mount_rpy(text: str) -> tuple[float, float, float]:
         values = tuple(float(p) for p in parts)
     except ValueError:
         values = ()
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise InputError(f"--mount-rpy must be three angles in degrees, e.g. 0,0,90; got {text!r}")
+    if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= 360 for v in values):
+        raise InputError(
+            f"--mount-rpy must be three angles in degrees within +-360, e.g. 0,0,90; got {text!r}"
+        )
     return values[0], values[1], values[2]
 
 
