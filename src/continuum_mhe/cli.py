@@ -9,6 +9,7 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import itertools
 import json
@@ -102,13 +103,14 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     ) as stream:
         est = make_estimator(args.method, stream.formulation, mhe_settings_from_args(args))
         est.reset()
-        wrap = interruptible(progress_bar(f"{args.method} estimate"))
-        ticks = cast(Generator[int, None, None], wrap(itertools.count()))
+        bar = progress_bar(f"{args.method} estimate")
+        ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
         with EstimateSink(out, stream.formulation, stream.t0_ns) as sink:
             try:
-                for t, z in stream.samples:
+                for t, z in stream.samples:  # a signal while waiting for input ends it at once
                     next(ticks)
-                    e = est.step(Measurement(t, z))
+                    with signals_deferred():  # inside C code: stop after this sample
+                        e = est.step(Measurement(t, z))
                     counts[e.status] = counts.get(e.status, 0) + 1
                     sink.write(e)
             finally:
@@ -130,6 +132,10 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
     print(msg, file=sys.stderr)
     return 0
+
+
+def _passthrough(it: Iterable[int]) -> Iterator[int]:
+    yield from it
 
 
 def check_output_path(output: str, source: str) -> None:
@@ -432,6 +438,18 @@ def interruptible(
             _DEFER.clear()
 
     return wrap
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
+    _DEFER.append(True)
+    try:
+        yield
+    finally:
+        _DEFER.pop()
+    if _SIGNALS_SEEN:
+        _raise_for_signal()
 
 
 def _signal_exit() -> int:
