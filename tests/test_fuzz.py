@@ -88,3 +88,27 @@ def test_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_b
     assert set(series.status) <= set(STATUS_MEANINGS)
     has = series.has_estimate
     assert np.isfinite(series.output[has]).all()
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    header=st.sampled_from(["t,ax,ay,az", "t_ms,ax,ay,az,gx,gy,gz", "t\tax\tay\taz"]),
+    lines=st.lists(_LINE, max_size=12),
+    skip_bad=st.booleans(),
+)
+def test_raw_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_bad: bool):
+    """Any raw text: samples with increasing t, or one-line InputError."""
+    from continuum_mhe.io.raw_imu import read_raw_imu
+
+    path = tmp_path_factory.mktemp("fz") / "raw.csv"
+    path.write_text("\n".join([header, *lines]) + "\n", encoding="utf-8")
+    try:
+        table = read_raw_imu(path, skip_bad=skip_bad)
+    except InputError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        return
+    assert len(table.t) >= 1 and np.all(np.diff(table.t) > 0) and np.isfinite(table.t).all()
+    ok = np.isfinite(table.acc).all(axis=1)
+    assert np.all(np.linalg.norm(table.acc[ok], axis=1) > 0)
