@@ -226,3 +226,14 @@ def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> N
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
+
+
+def test_raw_t_in_milliseconds_warns(tmp_path: Path) -> None:
+    rows = [f"{1000 + 10 * i},0.1,0.0,9.8" for i in range(5)]
+    path = _write(tmp_path / "raw.csv", "\n".join(["t,ax,ay,az", *rows]) + "\n")
+    with pytest.warns(UnitWarning, match="name the column t_ms"):
+        read_raw_imu(path)
+    ms = _write(tmp_path / "raw_ms.csv", "\n".join(["t_ms,ax,ay,az", *rows]) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_allclose(read_raw_imu(ms).t, [1.0, 1.01, 1.02, 1.03, 1.04])

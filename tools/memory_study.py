@@ -6,6 +6,7 @@ memory (``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss`` of a child that runs o
 that command). Prints a Markdown table and writes JSON.
 
     python tools/memory_study.py --rows 1000 1000000 --methods ekf mhe --json mem.json
+    python tools/memory_study.py --rows 1000 200000 --methods ekf --suffix .mcap
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rows", type=int, nargs="+", default=[1000, 1_000_000])
     ap.add_argument("--methods", nargs="+", default=["ekf", "mhe"])
+    ap.add_argument("--suffix", default=".csv", choices=(".csv", ".mcap"), help="output kind")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()
     cli = [sys.executable, "-m", "continuum_mhe.cli"]
@@ -70,7 +72,7 @@ def main() -> int:
             for method in args.methods:
                 start = time.perf_counter()
                 code, kb, err = peak_kib(
-                    [*cli, "estimate", str(meas), "-o", str(Path(tmp) / "e.csv"),
+                    [*cli, "estimate", str(meas), "-o", str(Path(tmp) / f"e{args.suffix}"),
                      "--method", method]
                 )  # fmt: skip
                 wall = time.perf_counter() - start

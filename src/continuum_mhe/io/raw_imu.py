@@ -31,7 +31,7 @@ from typing import Any, Literal
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import FloatArray, read_sample_rows
+from continuum_mhe.io.csv_files import FloatArray, check_time_units, read_sample_rows
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -286,6 +286,7 @@ def read_raw_imus(
     with open_rows(path) as rows:
         cols, has_gyro = raw_layout(rows, n_imus)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
+    check_time_units(rows, got.t)
     skipped = list(got.skipped)
     blocks = raw_blocks(rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped)
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
@@ -310,6 +311,7 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     with open_rows(path) as rows:
         cols, has_gyro = raw_layout(rows, 1)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad)
+    check_time_units(rows, got.t)
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped)
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
