@@ -263,9 +263,9 @@ def test_skip_count_is_per_row_not_per_field(tmp_path, capsys):
 def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):
     out = str(tmp_path / "s.csv")
     assert main(["simulate", "paper3d", "-o", out, "--dt", "1e-9"]) == 2
-    assert "more than" in capsys.readouterr().err
+    assert "--dt 1e-09 is outside its valid range [0.0001, 10] s" in capsys.readouterr().err
     assert main(["simulate", "paper3d", "-o", out, "--seed", "-1"]) == 2
-    assert "seed must be a non-negative integer" in capsys.readouterr().err
+    assert "--seed -1 is outside its valid range" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -527,13 +527,20 @@ ESTIMATORS = ("ekf", "ukf", "mhe", "mhe-ipopt")
 SOLVED = ["ok", "fallback-ipopt"]
 
 
+def solved(name: str) -> list[str]:
+    """Statuses of a solved sample: the paper formulation's may be ``drifted`` (its
+    separate position state away from its own angles' kinematics)."""
+    return SOLVED + (["drifted"] if name == "paper" else [])
+
+
 @pytest.mark.parametrize("kind", ESTIMATORS)
 @pytest.mark.parametrize("name", FORMULATIONS)
 def test_straight_configuration_gives_finite_estimates(name: str, kind: str, straight) -> None:
     assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
     series = make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
     assert np.all(np.isfinite(series.output))
-    assert np.all(np.isin(series.status, SOLVED))
+    # the paper formulation's separate position may drift from its angles: flagged
+    assert np.all(np.isin(series.status, solved(name)))
 
 
 @pytest.mark.parametrize("kind", ESTIMATORS)
@@ -605,7 +612,7 @@ def test_mhe_injected_solver_failures_are_flagged_and_finite(name: str, paper3d)
     status = np.array([e.status for e in estimates])
     assert np.all(np.isfinite([e.output for e in estimates]))
     assert list(status[FAILING]) == ["solver-failed"] * 3
-    assert np.all(np.delete(status, FAILING) == "ok")
+    assert np.all(np.isin(np.delete(status, FAILING), ["ok", *solved(name)[2:]]))
 
 
 @pytest.mark.parametrize("name", FORMULATIONS)
@@ -636,7 +643,8 @@ def test_mhe_survives_wildly_inconsistent_measurements(name: str, paper3d) -> No
     series = MovingHorizonEstimator(f, ipopt_settings(horizon=10)).run(paper3d.t[:40], z)
     assert np.all(np.isfinite(series.output))
     assert np.all(series.output[:, 3] <= f.robot.theta_max + 1e-6)
-    assert np.all(series.status[-10:] == "ok")  # recovers once the burst leaves the window
+    # recovers once the burst leaves the window
+    assert np.all(np.isin(series.status[-10:], ["ok", *solved(name)[2:]]))
 
 
 # --- dropouts ---------------------------------------------------------------------------------
@@ -653,7 +661,7 @@ def test_dropouts_are_flagged_and_finite(name: str, kind: str, paper3d) -> None:
     dropped = np.zeros(40, dtype=bool)
     dropped[[*DROPOUTS, 25]] = True
     assert np.all(series.status[dropped] == "dropout")
-    assert np.all(np.isin(series.status[~dropped], SOLVED))
+    assert np.all(np.isin(series.status[~dropped], solved(name)))
     assert np.all(np.isfinite(series.output))
 
 

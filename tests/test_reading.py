@@ -16,6 +16,7 @@ import pytest
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
 from continuum_mhe.io.raw_imu import read_raw_imu
+from continuum_mhe.io.sample_stream import CHUNK
 from continuum_mhe.io.text_rows import MAX_LINE_CHARS, InputError
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -188,3 +189,51 @@ def test_t_in_milliseconds_warns_with_the_cause(tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_measurements(_write(tmp_path / "s.csv", _csv()))  # seconds: no warning
+
+
+def test_not_utf8_names_its_line(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"t,roll,pitch\n0,0.1,0.1\n\xff\xfe,0.1,0.1\n")
+    with pytest.raises(InputError, match=r"m.csv: line 3: not UTF-8 text"):
+        read_measurements(path)
+
+
+def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> None:
+    import signal
+    import time
+
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    out = tmp_path / "e.csv"
+    proc = subprocess.Popen(
+        [*CLI, "estimate", str(fifo), "-o", str(out), "--method", "ekf"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    with open(fifo, "w") as writer:  # returns once the command has opened the FIFO
+        writer.write(_csv(CHUNK + 10))  # one chunk is estimated, then it waits for more
+        writer.flush()
+        deadline, last, stable = time.monotonic() + 120, -1, 0
+        while stable < 10:  # the output has stopped growing for 1 s: waiting for input
+            assert time.monotonic() < deadline and proc.poll() is None
+            tmp = [p for p in tmp_path.iterdir() if p.name.startswith(".e.csv.")]
+            size = tmp[0].stat().st_size if tmp else -1
+            stable = stable + 1 if size == last and size > 100_000 else 0
+            last = size
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)  # the writer is still open: no EOF
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
+
+
+def test_raw_t_in_milliseconds_warns(tmp_path: Path) -> None:
+    rows = [f"{1000 + 10 * i},0.1,0.0,9.8" for i in range(5)]
+    path = _write(tmp_path / "raw.csv", "\n".join(["t,ax,ay,az", *rows]) + "\n")
+    with pytest.warns(UnitWarning, match="name the column t_ms"):
+        read_raw_imu(path)
+    ms = _write(tmp_path / "raw_ms.csv", "\n".join(["t_ms,ax,ay,az", *rows]) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_allclose(read_raw_imu(ms).t, [1.0, 1.01, 1.02, 1.03, 1.04])

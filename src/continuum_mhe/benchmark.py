@@ -624,8 +624,8 @@ def _horizons(text: str) -> list[int]:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
-    if not values or min(values) < 2:
-        raise argparse.ArgumentTypeError("horizons must be integers >= 2")
+    if not values or min(values) < 2 or max(values) > 1000:
+        raise argparse.ArgumentTypeError("horizons must be integers in [2, 1000]")
     return values
 
 

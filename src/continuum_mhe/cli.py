@@ -9,6 +9,7 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import itertools
 import json
@@ -17,8 +18,9 @@ import os
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -27,6 +29,7 @@ from continuum_mhe.cli_options import (
     add_model_options,
     add_recovery_options,
     add_robot_option,
+    check_option_ranges,
     formulation_from_args,
     mhe_settings_from_args,
     recovery_settings_from_args,
@@ -37,6 +40,7 @@ from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_
 from continuum_mhe.estimators.fast.warmup import CompileNotice, FirstRun, first_run_mode
 from continuum_mhe.io.csv_files import (
     InputError,
+    check_output_target,
     read_state_table,
     write_estimates,
     write_measurements,
@@ -62,7 +66,17 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 # --- commands --------------------------------------------------------------------------
+#: Most samples ``simulate`` writes (``--duration / --dt``).
+MAX_SIMULATED_SAMPLES = 10_000_000
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    n = args.duration / args.dt
+    if n > MAX_SIMULATED_SAMPLES:
+        raise InputError(
+            f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
+            f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
+        )
     robot = robot_from_args(args)
     rec = simulate_robot(
         args.scenario,
@@ -85,8 +99,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
     from continuum_mhe.live import input_options
 
-    out = Path(args.output)
-    check_output_path(out, args.measurements)
+    check_output_path(args.output, args.measurements)
+    out = args.output
     counts: dict[str, int] = {}
     with open_estimate_input(
         args.measurements, input_options(args), formulation_from_args(args)
@@ -95,18 +109,20 @@ def cmd_estimate(args: argparse.Namespace) -> int:
             args.method,
             stream.formulation,
             mhe_settings_from_args(args),
+            recovery_settings_from_args(args),
             first_run=first_run_mode(_first_run_default(args.measurements)),
-            recovery=recovery_settings_from_args(args),
         )
         est.reset()
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         outliers = 0
-        ticks = interruptible(progress_bar(f"{args.method} estimate"))(itertools.count())
+        bar = progress_bar(f"{args.method} estimate")
+        ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
         with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers) as sink:
             try:
-                for t, z in stream.samples:
+                for t, z in stream.samples:  # a signal while waiting for input ends it at once
                     next(ticks)
-                    e = est.step(Measurement(t, z))
+                    with signals_deferred():  # inside C code: stop after this sample
+                        e = est.step(Measurement(t, z))
                     counts[e.status] = counts.get(e.status, 0) + 1
                     outliers += e.outlier
                     sink.write(e)
@@ -142,6 +158,10 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _passthrough(it: Iterable[int]) -> Iterator[int]:
+    yield from it
+
+
 #: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
 #: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, the
 #: fast MHE 0.3 ms after 15 to 60 s of compiling, so beyond about 5,000 samples (about
@@ -165,8 +185,10 @@ def _first_run_default(source: str | int) -> FirstRun:
     return "background" if small else "foreground"
 
 
-def check_output_path(out: Path, source: str) -> None:
-    """The output must be a file name in an existing folder, not the input itself."""
+def check_output_path(output: str, source: str) -> None:
+    """The output must be a writable file name in an existing folder (see
+    :func:`check_output_target`), not the input itself; checked before any work."""
+    out = check_output_target(output)
     if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
 
@@ -179,21 +201,47 @@ def _align(
     lo = np.clip(idx - 1, 0, len(t_truth) - 1)
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
     match = np.abs(t_truth[nearest] - t_est) <= 1e-6 * np.maximum(1.0, np.abs(t_est))
-    if not match.any():
-        raise InputError(f"{path_est}: no timestamp matches one in {path_truth}")
+    n, k = len(t_est), int(match.sum())
+    what = (
+        f"only {k} of {n} rows have a row at the same t in {path_truth} (within 1 us): "
+        "the files' times do not match (another --dt or duration, t in milliseconds, "
+        "or the wrong truth file?)"
+    )
+    if k < max(2, MIN_MATCHED * n):
+        raise InputError(f"{path_est}: {what}")
+    if k < WARN_MATCHED * n:
+        print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
     return np.flatnonzero(match), nearest[match]
+
+
+#: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
+#: fewer than 2), and warns below :data:`WARN_MATCHED`.
+MIN_MATCHED = 0.1
+WARN_MATCHED = 0.5
+
+
+def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, length: float) -> str:
+    """A hint when the estimate's tip distances from the base are a constant multiple of
+    the truth's (made with another length), else ``""``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.linalg.norm(est_xyz, axis=1) / np.linalg.norm(truth_xyz, axis=1)
+    ratio = ratio[np.isfinite(ratio)]
+    if tip_mean < 0.1 * length or not len(ratio):
+        return ""
+    r = float(np.median(ratio))
+    if 0.8 < r < 1.25:
+        return ""
+    return (
+        f"the estimate's tip is {r:.2f} times as far from the base as the truth's: "
+        "was it made with another --length (or robot file) than the truth?"
+    )
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     est = read_state_table(args.estimates)
     truth = read_state_table(args.truth)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
-    if args.robot:
-        length = robot_from_args(args).length
-    elif not (math.isfinite(args.length) and args.length > 0):
-        raise InputError(f"--length must be positive, got {args.length}")
-    else:
-        length = args.length
+    length = robot_from_args(args).length if args.robot else args.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
     try:
@@ -209,6 +257,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             est.values[i_e][:, cols], std, truth.values[i_t], out_names, truth.names
         )
     unmatched = int(len(est.t) - len(i_e))
+    xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
+    hint = _length_hint(
+        est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
+    )
+    if hint:
+        print(f"{PROG}: warning: {hint}", file=sys.stderr)
     if args.json:
         extra = {"calibration": None if cal is None else cal.as_dict()}
         print(json.dumps({**m.as_dict(), **extra, "unmatched": unmatched}, indent=2))
@@ -459,6 +513,18 @@ def interruptible(
     return wrap
 
 
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
+    _DEFER.append(True)
+    try:
+        yield
+    finally:
+        _DEFER.pop()
+    if _SIGNALS_SEEN:
+        _raise_for_signal()
+
+
 def _signal_exit() -> int:
     """``continuum-mhe: terminated`` (143) or ``interrupted`` (130)."""
     if signal.SIGTERM in _SIGNALS_SEEN:
@@ -470,6 +536,11 @@ def _signal_exit() -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     warnings.formatwarning = _one_line_warning
+    # numerical trouble is flagged in each row's status; numpy's own notes would only
+    # surround the summary or the one-line error
+    warnings.filterwarnings(
+        "ignore", r"(invalid value|overflow|divide by zero|underflow) encountered", RuntimeWarning
+    )
     try:
         signal.signal(signal.SIGTERM, _on_signal)
         signal.signal(signal.SIGINT, _on_signal)
@@ -478,6 +549,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_option_ranges(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
         # a signal raised inside a C extension (CasADi, numpy) can surface as any

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from continuum_mhe.io.csv_files import InputError
@@ -303,3 +304,78 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
     return RecoverySettings(
         gap_reset=args.gap_reset or None, freeze=args.freeze or None, uncertain_fraction=f
     )
+
+# --- valid ranges of every numeric option ------------------------------------------
+@dataclass(frozen=True)
+class OptionRange:
+    """The valid values of a numeric option: ``lo <= v <= hi`` (``lo < v`` where
+    ``lo_open``), in ``unit``; ``above`` names the likely cause of a value over ``hi``."""
+
+    lo: float
+    hi: float
+    unit: str = ""
+    lo_open: bool = False
+    hi_open: bool = False
+    above: str = ""
+    integer: bool = False
+
+    def describe(self) -> str:
+        lo = "(" if self.lo_open else "["
+        hi = ")" if self.hi_open else "]"
+        return f"{lo}{self.lo:g}, {self.hi:g}{hi}" + (f" {self.unit}" if self.unit else "")
+
+    def contains(self, v: float) -> bool:
+        if not math.isfinite(v):
+            return False
+        above_lo = v > self.lo if self.lo_open else v >= self.lo
+        below_hi = v < self.hi if self.hi_open else v <= self.hi
+        return above_lo and below_hi
+
+
+#: Every numeric command-line option (by its ``argparse`` destination) and its valid
+#: range: the one place they are stated; docs/reliability.md lists them (a test checks).
+OPTION_RANGES: dict[str, OptionRange] = {
+    "length": OptionRange(0.005, 5.0, "m", above="millimetres? --length is in metres, e.g. 0.2"),
+    "theta_max": OptionRange(
+        0.0, math.pi, "rad", lo_open=True, hi_open=True,
+        above="degrees? --theta-max is in radians, e.g. 1.5708 for 90 degrees",
+    ),
+    "noise_deg": OptionRange(0.0, 90.0, "deg", above="--noise-deg is in degrees"),
+    "accel_psd": OptionRange(1e-9, 1e4, "rad^2/s^3"),
+    "gyro_std": OptionRange(1e-6, 10.0, "rad/s", above="degrees? --gyro-std is in rad/s"),
+    "horizon": OptionRange(2, 1000, "samples", integer=True),
+    "duration": OptionRange(0.0, 1e6, "s", lo_open=True),
+    "dt": OptionRange(1e-4, 10.0, "s", above="milliseconds? --dt is in seconds"),
+    "seed": OptionRange(0, 2**32 - 1, integer=True),
+    "samples": OptionRange(10, 1_000_000, integer=True),
+    "baud": OptionRange(50, 10_000_000, "baud", integer=True),
+    "status_every": OptionRange(0.0, 3600.0, "s", lo_open=True),
+    "retry_max": OptionRange(0.0, 3600.0, "s", lo_open=True),
+    "memory_samples": OptionRange(0, 10_000_000, "samples", integer=True),
+    "jobs": OptionRange(1, 1024, integer=True),
+    "loss_scale": OptionRange(0.0, 100.0, "std", lo_open=True),
+    "gap_reset": OptionRange(0.0, 1e6, "s"),
+    "freeze": OptionRange(0.0, 1e6, "s"),
+    "uncertain_fraction": OptionRange(0.0, 100.0, lo_open=True),
+    "model_error_deg": OptionRange(0.0, 90.0, "deg", above="--model-error-deg is in degrees"),
+    "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
+                                  above="milliseconds? --pair-tolerance is in seconds"),
+    "view_hz": OptionRange(0.0, 10_000.0, "Hz"),
+    "trail": OptionRange(0.0, 1e6, "s", lo_open=True),
+    "points": OptionRange(1, 10_000, integer=True),
+    "web_port": OptionRange(1, 65535, integer=True),
+    "grpc_port": OptionRange(1, 65535, integer=True),
+}  # fmt: skip
+
+
+def check_option_ranges(args: argparse.Namespace) -> None:
+    """Raise a one-line :class:`InputError` for the first numeric option outside its
+    :data:`OPTION_RANGES` entry (options a command does not have, or left unset, pass)."""
+    for dest, rng in OPTION_RANGES.items():
+        v = getattr(args, dest, None)
+        if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
+            continue
+        if not rng.contains(float(v)):
+            flag = "--" + dest.replace("_", "-")
+            why = f": {rng.above}" if rng.above and math.isfinite(v) and v > rng.hi else ""
+            raise InputError(f"{flag} {v!r} is outside its valid range {rng.describe()}{why}")

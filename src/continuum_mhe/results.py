@@ -28,6 +28,7 @@ Status = Literal[
     "branch-restart",  # MHE: a restart found a lower window cost (estimators/branch.py)
     "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
     "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
+    "drifted",  # position state inconsistent with its own angles (paper formulation)
 ]
 
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
@@ -48,6 +49,9 @@ STATUS_MEANINGS: dict[str, str] = {
     "in the data longer than --gap-reset",
     "uncertain": "an estimate was made, but the tip position's standard deviation exceeds "
     "the stated fraction of the robot's length (--uncertain-fraction): do not trust it",
+    "drifted": "the position state is more than DRIFT_FRACTION (10 %) of the length from "
+    "the forward kinematics of the row's own theta and phi (the paper formulation's "
+    "separate x, y, z): the row is not one consistent shape",
 }
 
 

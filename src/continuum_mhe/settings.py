@@ -47,7 +47,8 @@ class RobotSettings:
     def __post_init__(self) -> None:
         _positive("length", self.length)
         if not (0 < self.theta_max < math.pi):
-            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}")
+            hint = " (degrees? give radians)" if self.theta_max >= math.pi else ""
+            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 

@@ -34,6 +34,10 @@ def _reraise_interrupt(exc: BaseException) -> None:
         seen = seen.__cause__ or seen.__context__
 
 
+#: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
+DEGREES_LIKE = 2 * math.pi
+
+
 class Estimator(ABC):
     """Base class of every estimator. Subclasses implement ``reset`` and ``_step``."""
 
@@ -60,6 +64,10 @@ class Estimator(ABC):
         self._freeze_value: list[FloatArray | None] = []
         self._freeze_since: list[float] = []
         self._last_valid_t = -math.inf
+        self._tilt = [
+            i for b in formulation.measurement_blocks if b.kind == "tilt" for i in range(
+                b.start, b.start + b.size)
+        ]  # fmt: skip
 
     def reset(self) -> None:
         """Forget all samples; the next ``step`` starts a new recording."""
@@ -131,7 +139,8 @@ class Estimator(ABC):
         carries ``output_std`` wherever the method has a covariance.
 
         Raises:
-            ValueError: if ``measurement.z`` does not have the formulation's size, or
+            UserError: if ``measurement.z`` does not have the formulation's size, holds
+                a tilt angle beyond 2 pi (degrees given for radians), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -153,6 +162,15 @@ class Estimator(ABC):
                 f"sample's t={self._last_t!r} s{hint}"
             )
         self._ran = False
+        if self._tilt:
+            zl = measurement.z.tolist()
+            if any(abs(zl[i]) > DEGREES_LIKE for i in self._tilt):  # NaN compares False
+                names = self.formulation.measurement_names
+                shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in self._tilt)
+                raise UserError(
+                    f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
+                    "degrees; measurements are in radians (numpy.radians converts)"
+                )
         self._last_t = t
         start = time.perf_counter()
         measurement = self._unfreeze(measurement)
@@ -189,6 +207,8 @@ class Estimator(ABC):
                 status = "reset"
         if gap_reset and state is not None:
             status = "reset"
+        if status == "ok" and state is not None and self.formulation.drifted(state):
+            status = "drifted"
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None

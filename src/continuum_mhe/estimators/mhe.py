@@ -40,6 +40,7 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
@@ -103,6 +104,26 @@ class _Nlp:
     cost: ca.Function
 
 
+#: Largest window weight (an entry of ``Q(dt)^-1``, ``P^-1`` or ``R^-1``) at which IPOPT's
+#: objective is left unscaled; above it the objective is divided by a power of ten.
+WEIGHT_REFERENCE = 1e6
+
+
+def objective_scale_exponent(problem: WindowProblem, rinv_max: float) -> int:
+    """``e`` such that the window objective divided by ``10**e`` has its largest weight
+    at most :data:`WEIGHT_REFERENCE` (0 when it already has).
+
+    IPOPT's tolerance is absolute on the gradient; at a high sample rate ``Q(dt)^-1``
+    grows as ``dt^-3`` (2.4e10 at 1 kHz), rounding alone exceeds the tolerance and IPOPT
+    stopped with ``Search_Direction_Becomes_Too_Small`` on accurate answers. Scaling
+    the objective makes the test relative to the problem's own weights.
+    """
+    w = max(float(np.abs(problem.qinv).max()), float(np.abs(problem.arrival).max()), rinv_max)
+    if not (math.isfinite(w) and w > WEIGHT_REFERENCE):
+        return 0
+    return int(math.ceil(math.log10(w / WEIGHT_REFERENCE)))
+
+
 @lru_cache(maxsize=32)
 def _build_nlp(
     formulation: Formulation,
@@ -111,6 +132,7 @@ def _build_nlp(
     tol: float,
     loss: str = "l2",
     scale: float = float("inf"),
+    scale_exp: int = 0,
 ) -> _Nlp:
     f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
     X = ca.SX.sym("X", nx, n)
@@ -144,12 +166,16 @@ def _build_nlp(
     nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {
         "print_time": False,
+        "show_eval_warnings": False,  # a NaN in an evaluation is a failed solve: flagged
+        "calc_lam_p": False,  # not used; its failure was printed as a warning
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",
         "ipopt.max_iter": max_iter,
         "ipopt.tol": tol,
         "ipopt.acceptable_tol": 1e-6,
     }
+    if scale_exp:
+        opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
     solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
     lo, hi = f.state_bounds()
     _, glo, ghi = f.constraint_sym(ca.SX.sym("x", nx))
@@ -259,6 +285,7 @@ class MovingHorizonEstimator(Estimator):
         self.flags_outliers = self.settings.loss != "l2"
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
         self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
+        self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
         self.reset()
 
     @property
@@ -509,7 +536,10 @@ class MovingHorizonEstimator(Estimator):
         return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
-        nlp, n, nx = self._nlp, self.settings.horizon, self.formulation.nx
+        n, nx, s = self.settings.horizon, self.formulation.nx, self.settings
+        exp = objective_scale_exponent(problem, self._rinv_max)
+        nlp = self._nlp if exp == 0 else _build_nlp(
+            self.formulation, n, s.max_iter, s.tol, s.loss, s.scale, exp)  # fmt: skip
         try:
             sol = nlp.solver(
                 x0=X0.ravel(),

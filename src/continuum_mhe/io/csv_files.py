@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import math
 import os
+import stat
 import sys
 import tempfile
 import warnings
@@ -231,7 +233,7 @@ def _check_imu_count(path: str, header: list[str], n_imus: int) -> None:
 _IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
 
 
-def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool) -> None:
+def _check_angle_units(path: str, z: FloatArray, lines: Sequence[int], degrees: bool) -> None:
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
     if not over.any():
@@ -239,7 +241,7 @@ def _check_angle_units(path: str, z: FloatArray, lines: list[int], degrees: bool
     i = int(np.argmax(over))
     roll, pitch = z[i]
     where = f"{path}: line {lines[i]}: roll={roll:.4g}, pitch={pitch:.4g}"
-    if degrees:
+    if degrees or max(abs(roll), abs(pitch)) > 360:
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     raise InputError(
         f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); "
@@ -357,11 +359,23 @@ def _current_umask() -> int:
 _UMASK = _current_umask()
 
 
-@contextlib.contextmanager
-def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
-    target = Path(path)
-    if str(path) == "-":
+#: Errors of writing that belong to the output file when they carry no file name.
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
+
+
+def check_output_target(path: str | os.PathLike[str]) -> Path:
+    """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
+    ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
+    file, or a read-only file (never silently replaced)."""
+    text = os.fspath(path)
+    target = Path(text)
+    if text == "-":
         raise InputError("-: writing to standard output is not supported; give a file name")
+    if text.endswith(("/", os.sep)):
+        raise InputError(
+            f"{text}: names a folder; give a file name, e.g. {text.rstrip('/' + os.sep)}/"
+            "estimates.csv"
+        )
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{target}: folder {folder} does not exist")
@@ -369,17 +383,37 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
         raise InputError(f"{target}: is a directory, expected a file name")
     if target.exists() and not target.is_file():
         raise InputError(f"{target}: not a regular file; give a file name")
+    if target.exists() and not target.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
+        raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
+                         "or remove it)")  # fmt: skip
+    return target
+
+
+@contextlib.contextmanager
+def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
+    target = check_output_target(path)
+    folder = target.parent if str(target.parent) else Path(".")
     _remove_stale_temporaries(folder, target.name)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder
+        )
+    except OSError as exc:  # name the output, not the temporary file
+        raise InputError(f"{target}: cannot write in folder {folder} ({exc.strerror})") from None
     os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
     try:
-        if binary:
-            with os.fdopen(fd, "wb") as fb:
-                yield fb
-        else:
-            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-                yield fh
-        os.replace(tmp, target)
+        try:
+            if binary:
+                with os.fdopen(fd, "wb") as fb:
+                    yield fb
+            else:
+                with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+                    yield fh
+            os.replace(tmp, target)
+        except OSError as exc:
+            if exc.errno in _WRITE_ERRNOS and exc.filename in (None, tmp):
+                raise OSError(exc.errno, f"{exc.strerror} (nothing written)", str(target)) from None
+            raise
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)

@@ -31,7 +31,7 @@ from typing import Any, Literal
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import FloatArray, read_sample_rows
+from continuum_mhe.io.csv_files import FloatArray, check_time_units, read_sample_rows
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -89,8 +89,10 @@ def parse_mount_rpy(text: str) -> tuple[float, float, float]:
         values = tuple(float(p) for p in parts)
     except ValueError:
         values = ()
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise InputError(f"--mount-rpy must be three angles in degrees, e.g. 0,0,90; got {text!r}")
+    if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= 360 for v in values):
+        raise InputError(
+            f"--mount-rpy must be three angles in degrees within +-360, e.g. 0,0,90; got {text!r}"
+        )
     return values[0], values[1], values[2]
 
 
@@ -263,7 +265,7 @@ def raw_blocks(
             zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
         if n_imus == 1:
             for j in np.flatnonzero(zero):
-                msg = f"line {lines[j]}: acceleration is zero (no gravity direction)"
+                msg = f"line {lines[int(j)]}: acceleration is zero (no gravity direction)"
                 if not skip_bad:
                     raise InputError(f"{name}: {msg}")
                 if isinstance(skipped, RowProblems):
@@ -284,6 +286,7 @@ def read_raw_imus(
     with open_rows(path) as rows:
         cols, has_gyro = raw_layout(rows, n_imus)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
+    check_time_units(rows, got.t)
     skipped = list(got.skipped)
     blocks = raw_blocks(rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped)
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
@@ -308,6 +311,7 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     with open_rows(path) as rows:
         cols, has_gyro = raw_layout(rows, 1)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad)
+    check_time_units(rows, got.t)
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped)
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)

@@ -41,21 +41,21 @@ class InputError(UserError):
     and line (a :class:`~continuum_mhe.errors.UserError`)."""
 
 
-def _open(path: str | os.PathLike[str]) -> tuple[str, IO[str]]:
-    """``(name shown in messages, text stream)``; ``-`` is standard input."""
+def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
+    """``(name shown in messages, binary stream)``; ``-`` is standard input."""
     if str(path) == "-":
         try:
             fd = os.dup(sys.stdin.fileno())
         except (OSError, ValueError, io.UnsupportedOperation):
             raise InputError("-: standard input is not readable") from None
-        return "<stdin>", open(fd, encoding="utf-8-sig", newline="")  # noqa: SIM115
+        return "<stdin>", open(fd, "rb")  # noqa: SIM115
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file")
     if p.is_dir():
         raise InputError(f"{p}: is a directory, expected a CSV file")
     try:
-        return str(p), p.open(encoding="utf-8-sig", newline="")  # a BOM (Excel) is fine
+        return str(p), p.open("rb")  # decoded line by line: errors name their line
     except OSError as exc:
         raise InputError(f"{p}: cannot open ({exc.strerror})") from None
 
@@ -80,7 +80,7 @@ class TextRows:
     separator: str = ","
     time_scale: float = 1.0
     comments: list[str] = field(default_factory=list)
-    _stream: IO[str] | None = None
+    _stream: IO[bytes] | None = None
 
     def close(self) -> None:
         if self._stream is not None:
@@ -93,17 +93,20 @@ class TextRows:
         self.close()
 
 
-def _lines(name: str, fh: IO[str]) -> Iterator[tuple[int, str]]:
+def _lines(name: str, fh: IO[bytes]) -> Iterator[tuple[int, str]]:
     """``(line_number, text)`` of every line, without its end; bounded in length."""
     n = 0
     while True:
-        try:
-            line = fh.readline(MAX_LINE_CHARS + 1)
-        except UnicodeDecodeError:
-            raise InputError(f"{name}: line {n + 1}: not a UTF-8 text file") from None
-        if not line:
+        raw = fh.readline(MAX_LINE_CHARS + 1)
+        if not raw:
             return
         n += 1
+        if n == 1 and raw.startswith(b"\xef\xbb\xbf"):  # a BOM (Excel) is fine
+            raw = raw[3:]
+        try:
+            line = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
         if "\x00" in line:
             raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
         if len(line) > MAX_LINE_CHARS:

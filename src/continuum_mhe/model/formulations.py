@@ -200,6 +200,11 @@ class Formulation:
             return True
         return P is not None and not np.isfinite(P).all()
 
+    def drifted(self, x: FloatArray) -> bool:
+        """True when a state is not one consistent shape (only formulations with
+        redundant states can drift; see :class:`PaperFormulation`)."""
+        return False
+
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
@@ -440,6 +445,9 @@ class BendFormulation(Formulation):
 
 #: Divergence test (:meth:`BendFormulation.is_diverged`): rad beyond ``theta_max``.
 DIVERGED_MARGIN = 1.0
+#: Status ``drifted`` (paper formulation): position state this share of the length away
+#: from the forward kinematics of the state's theta and phi.
+DRIFT_FRACTION = 0.1
 #: Divergence test: largest plausible bend rate, rad/s.
 DIVERGED_RATE = 50.0
 
@@ -529,6 +537,16 @@ class PaperFormulation(Formulation):
             return True
         theta_out = x[3] < -DIVERGED_MARGIN or x[3] > self.robot.theta_max + DIVERGED_MARGIN
         return bool(theta_out or np.linalg.norm(x[:3]) > 3 * self.length)
+
+    def drift(self, x: FloatArray) -> float:
+        """Distance, m, from the position state to the tip of the state's own theta, phi."""
+        tip = tip_position(float(x[3]), float(x[4]), self.length)
+        return float(np.linalg.norm(np.asarray(x[:3], dtype=float) - tip))
+
+    def drifted(self, x: FloatArray) -> bool:
+        """The position state is more than :data:`DRIFT_FRACTION` of the length from the
+        forward kinematics of its own theta and phi (status ``drifted``)."""
+        return self.drift(x) > DRIFT_FRACTION * self.length
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         th, ph = shape_from_tilt(z0[0], z0[1], self.robot.mounting)

@@ -184,9 +184,7 @@ def simulate(
     ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
     """
     if scenario in MULTI_SECTION_SCENARIOS:
-        raise UserError(
-            f"scenario {scenario!r} needs a robot with two or more sections (--robot)"
-        )
+        raise UserError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
     if scenario not in _SHAPES:
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if not (math.isfinite(length) and length > 0):

@@ -1,0 +1,148 @@
+"""The usual user mistakes get one line with the likely cause; bugs are not shown as
+user errors (issue #11)."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import continuum_mhe.cli as cli
+from continuum_mhe import Measurement, make_estimator, make_formulation
+from continuum_mhe.cli import main
+from continuum_mhe.cli_options import OPTION_RANGES
+from continuum_mhe.errors import UserError
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.settings import RobotSettings
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
+
+
+def test_input_error_is_a_user_error_and_a_value_error() -> None:
+    assert issubclass(InputError, UserError) and issubclass(UserError, ValueError)
+
+
+def test_a_bug_is_not_shown_as_a_user_error(monkeypatch, capsys) -> None:
+    def broken(args: object) -> int:
+        raise ValueError("index 3 is out of bounds")  # a library bug, not the user's
+
+    monkeypatch.setattr(cli, "cmd_check_robot", broken)
+    code = main(["check-robot", "robot.toml"])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_BUG == 70
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "internal error (a bug in continuum-mhe): ValueError: index 3" in err
+    assert "please report it" in err and "test_user_mistakes.py" in err
+
+
+def test_a_user_error_is_exit_2(monkeypatch, capsys) -> None:
+    def user(args: object) -> int:
+        raise UserError("robot.toml: line 3: bad")
+
+    monkeypatch.setattr(cli, "cmd_check_robot", user)
+    assert main(["check-robot", "robot.toml"]) == 2
+    assert capsys.readouterr().err == "continuum-mhe: error: robot.toml: line 3: bad\n"
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--noise-deg", "1e300"], "--noise-deg 1e+300 is outside its valid range [0, 90] deg"),
+        (["--gyro-std", "1e300"], "--gyro-std 1e+300 is outside"),
+        (["--accel-psd", "1e300", "--method", "ukf"], "--accel-psd 1e+300 is outside"),
+        (["--length", "200"], "millimetres?"),
+        (["--theta-max", "90"], "degrees?"),
+        (["--horizon", "1"], "--horizon 1 is outside its valid range [2, 1000]"),
+        (["--noise-deg", "nan"], "--noise-deg nan is outside"),
+        (["--mount-rpy", "1e300,0,0"], "three angles in degrees within +-360"),
+    ],
+)
+def test_numeric_options_out_of_range_are_one_line(tmp_path, capsys, argv, needle) -> None:
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n")
+    code = main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and needle in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--dt", "50"], "milliseconds?"),
+        (["--duration", "1e6", "--dt", "1e-4"], "1e+10 samples; at most"),
+        (["--seed", "-1"], "--seed -1 is outside"),
+    ],
+)
+def test_simulate_ranges(tmp_path, capsys, argv, needle) -> None:
+    assert main(["simulate", "paper3d", "-o", str(tmp_path / "m.csv"), *argv]) == 2
+    assert needle in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_every_option_range_is_documented() -> None:
+    text = DOCS.read_text()
+    for dest, rng in OPTION_RANGES.items():
+        flag = "--" + dest.replace("_", "-")
+        row = re.search(rf"^\| `{flag}` \| (.*?) \|", text, re.MULTILINE)
+        assert row is not None, f"{flag} missing from docs/reliability.md"
+        assert row.group(1) == rng.describe(), flag
+
+
+def test_library_call_given_degrees_says_so() -> None:
+    est = make_estimator("ekf", make_formulation("bend", RobotSettings()))
+    with pytest.raises(UserError, match="look like degrees"):
+        est.step(Measurement(0.0, np.array([30.0, 20.0])))
+    est.reset()  # radians, even the largest: accepted
+    est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
+
+
+def test_theta_max_in_degrees_in_the_library() -> None:
+    with pytest.raises(UserError, match="degrees"):
+        RobotSettings(theta_max=90)
+
+
+def _simulated(tmp_path: Path, name: str, *extra: str) -> tuple[Path, Path]:
+    m, t = tmp_path / f"{name}_m.csv", tmp_path / f"{name}_t.csv"
+    args = ["simulate", "paper3d", "-o", str(m), "--truth", str(t), "--duration", "5"]
+    assert main([*args, *extra]) == 0
+    return m, t
+
+
+def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
+    m, _ = _simulated(tmp_path, "a")
+    _, t2 = _simulated(tmp_path, "b", "--dt", "0.0493")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t2)]) == 2
+    err = capsys.readouterr().err
+    assert "only 1 of 101 rows" in err and "times do not match" in err
+
+
+def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf", "--length", "0.5"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t)]) == 0
+    err = capsys.readouterr().err
+    assert "2.50 times as far from the base" in err and "another --length" in err
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t)]) == 0
+    assert "warning" not in capsys.readouterr().err  # same length: no hint
+
+
+def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:
+    m, t = _simulated(tmp_path, "a")  # 101 rows
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    t.write_text("\n".join(t.read_text().splitlines()[:31]) + "\n")  # 30 of 101 rows
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("continuum-mhe: warning: ") and "only 30 of 101 rows" in err
