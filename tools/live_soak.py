@@ -96,6 +96,8 @@ class Device(threading.Thread):
         self.faults: dict[str, int] = {"garbage": 0, "partial": 0, "mb_line": 0, "port_gone": 0}
         self.late_max_s = 0.0
         self.rng = random.Random(1)
+        self.t0 = time.monotonic()
+        self.timeline: list[tuple[float, str]] = []  # (s since start, fault)
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)
@@ -106,6 +108,7 @@ class Device(threading.Thread):
     def _fault(self, k: int) -> None:
         kind = ("garbage", "partial", "mb_line", "port_gone")[k % 4]
         self.faults[kind] += 1
+        self.timeline.append((round(time.monotonic() - self.t0, 2), kind))
         if kind == "garbage":
             burst = bytes(self.rng.randrange(256) for _ in range(2000))
             self._write(b"\n" + burst + b"\n")
@@ -125,7 +128,7 @@ class Device(threading.Thread):
             time.sleep(0.3)  # live reopens within its backoff (0.1 s, then 0.2 s)
 
     def run(self) -> None:
-        start = time.monotonic()
+        start = self.t0 = time.monotonic()
         next_fault = start + self.faults_every
         n_fault = 0
         i = 0
@@ -217,6 +220,8 @@ def run_soak(
         "writer_late_max_s": round(device.late_max_s, 3),
         "rss_kb_after_warmup_first_last_max": [warm[0], warm[-1], max(warm)] if warm else None,
         "latency_ms_median_p99": [float(lat.group(1)), float(lat.group(2))] if lat else None,
+        "fault_timeline_s": device.timeline,
+        "behind": [ln.strip() for ln in err if "falling behind" in ln or "caught up" in ln],
         "summary": summary.strip(),
         "folder": str(tmp),
     }
