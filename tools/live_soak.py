@@ -2,9 +2,10 @@
 
 A simulated device streams two raw IMUs (the shipped ``two-section`` robot) at
 ``--rate`` Hz for ``--seconds`` s into a pty, with faults at intervals: garbage bursts,
-partial lines, 1 MB lines without a line end, and the port disappearing for a second
-and coming back (a new pty behind the same path). ``live`` runs with ``-o`` and
-``--record`` and is stopped with SIGINT or SIGTERM. Reported (JSON on stdout):
+lines cut short, lines arriving in pieces, 1 MB lines without a line end, and the
+port disappearing for a second and coming back (a new pty behind the same path).
+``live`` runs with ``-o`` and ``--record`` and is stopped with SIGINT or SIGTERM.
+Reported (JSON on stdout):
 
 * valid samples sent (complete lines, not sent while the port was gone) against rows
   in the recording and in the estimate file, and whether every recorded row reads
@@ -98,6 +99,7 @@ class Device(threading.Thread):
         self.rng = random.Random(1)
         self.t0 = time.monotonic()
         self.timeline: list[tuple[float, str]] = []  # (s since start, fault)
+        self.next_index = 0  # the next sample's index (device time = index / rate)
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)
@@ -112,8 +114,15 @@ class Device(threading.Thread):
         if kind == "garbage":
             burst = bytes(self.rng.randrange(256) for _ in range(2000))
             self._write(b"\n" + burst + b"\n")
-        elif kind == "partial":
+        elif kind == "partial":  # a line cut short (garbled), then one sent in pieces
             self._write(_line(0)[:25].encode() + b"\n")
+            t_ms = int(round(self.next_index * 1000 / self.rate))
+            whole = _line(t_ms).encode()
+            for a, b in ((0, 7), (7, 40), (40, len(whole))):
+                self._write(whole[a:b])
+                time.sleep(0.02)  # the reader sees each piece alone
+            self.sent += 1
+            self.next_index += 1
         elif kind == "mb_line":
             self._write(b"z" * 1_000_000 + b"\n")
         else:
@@ -131,13 +140,15 @@ class Device(threading.Thread):
         start = self.t0 = time.monotonic()
         next_fault = start + self.faults_every
         n_fault = 0
-        i = 0
+        i = self.next_index = 0
         while True:
             now = time.monotonic()
             if now - start >= self.seconds:
                 break
             if now >= next_fault:
+                self.next_index = i
                 self._fault(n_fault)
+                i = self.next_index
                 n_fault += 1
                 next_fault = time.monotonic() + self.faults_every
                 # the device's clock ran on while the port was gone: skip those samples
@@ -168,10 +179,17 @@ def run_soak(
     device = Device(port, rate, seconds, faults_every, lambda: _rows(raw))
     cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
     cmd += ["--robot", "two-section", "--method", method, "-o", str(est), "--record", str(raw)]
-    cmd += ["--status-every", "5", "--retry-max", "0.2"]
+    cmd += ["--status-every", "1", "--retry-max", "0.2"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     err: list[str] = []
-    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")))  # type: ignore[union-attr]
+    stamps: list[float] = []  # monotonic arrival of each stderr line
+
+    def drain() -> None:
+        for ln in iter(proc.stderr.readline, ""):  # type: ignore[union-attr]
+            err.append(ln)
+            stamps.append(time.monotonic())
+
+    reader = threading.Thread(target=drain)
     reader.daemon = True
     reader.start()
     while not any("reading " in ln for ln in err):
@@ -206,6 +224,12 @@ def run_soak(
     except Exception as exc:  # report, do not hide
         readable = f"{type(exc).__name__}: {exc}"  # type: ignore[assignment]
     warm = [kb for t, kb in rss if t >= min(20.0, seconds / 4)]
+    worst = []  # the status lines whose window saw the largest latencies
+    for ts, ln in zip(stamps, err):
+        m = re.search(r"line to estimate max ([\d.]+) ms", ln)
+        if m:
+            worst.append((float(m.group(1)), round(ts - t0, 1)))
+    worst.sort(reverse=True)
     return {
         "seconds": seconds,
         "rate_hz": rate,
@@ -221,6 +245,7 @@ def run_soak(
         "rss_kb_after_warmup_first_last_max": [warm[0], warm[-1], max(warm)] if warm else None,
         "latency_ms_median_p99": [float(lat.group(1)), float(lat.group(2))] if lat else None,
         "fault_timeline_s": device.timeline,
+        "worst_latency_ms_at_s": worst[:8],
         "behind": [ln.strip() for ln in err if "falling behind" in ln or "caught up" in ln],
         "summary": summary.strip(),
         "folder": str(tmp),

@@ -23,6 +23,7 @@ This module also adds the raw-IMU and robot-log options to ``estimate``, and the
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import os
 import queue
@@ -331,7 +332,6 @@ def cmd_live(args: argparse.Namespace) -> int:
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None
     estimator = make_estimator(args.method, formulation, mhe_settings_from_args(args))
-    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
@@ -340,6 +340,9 @@ def cmd_live(args: argparse.Namespace) -> int:
         conn = open_port(settings.port, settings.baud)
     except Exception as exc:
         raise InputError(port_hint(settings.port, exc)) from None
+    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
+    gc.collect()
+    gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
     say = stderr_say("live")
     plot = open_plot(robot.lengths, say) if args.plot else None
     columns = value_columns(settings.fmt, robot.n_imus)
