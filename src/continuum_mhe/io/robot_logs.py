@@ -330,7 +330,8 @@ def load_estimate_input(
             )
             return EstimateInput("raw-csv", multi.t, z, f, 0, multi.skipped)
         table = read_raw_imu(p, skip_bad=options.skip_bad)
-        z = _convert(p, table.t, table.acc, table.gyr, options.raw)
+        raw = _imu_settings(options.raw, formulation.robot.imus[0])  # as live does
+        z = _convert(p, table.t, table.acc, table.gyr, raw)
         return EstimateInput("raw-csv", table.t, z, f, 0, table.skipped)
     if n_imus > 1 and options.raw.imu_model == "direct":
         raise InputError(f"{p}: --imu-model direct needs raw accelerometer and gyro input")
