@@ -192,27 +192,32 @@ def run_soak(
     reader = threading.Thread(target=drain)
     reader.daemon = True
     reader.start()
-    while not any("reading " in ln for ln in err):
-        if proc.poll() is not None:
-            raise RuntimeError("live ended at start: " + "".join(err))
-        time.sleep(0.05)
-    t0 = time.monotonic()
-    device.start()
-    rss: list[tuple[float, int]] = []
-    while device.is_alive():
-        kb = _rss_kb(proc.pid)
-        if kb is not None:
-            rss.append((time.monotonic() - t0, kb))
-        device.join(timeout=1.0)
-    # all sent: wait until live has written every sample (or stops making progress)
-    last, still = -1, time.monotonic()
-    while _rows(est) < device.sent and time.monotonic() - still < 30:
-        if _rows(est) != last:
-            last, still = _rows(est), time.monotonic()
-        time.sleep(0.2)
-    proc.send_signal(signal.SIGINT if stop_signal == "INT" else signal.SIGTERM)
-    code = proc.wait(timeout=120)
-    reader.join(timeout=5)
+    try:
+        while not any("reading " in ln for ln in err):
+            if proc.poll() is not None:
+                raise RuntimeError("live ended at start: " + "".join(err))
+            time.sleep(0.05)
+        t0 = time.monotonic()
+        device.start()
+        rss: list[tuple[float, int]] = []
+        while device.is_alive():
+            kb = _rss_kb(proc.pid)
+            if kb is not None:
+                rss.append((time.monotonic() - t0, kb))
+            device.join(timeout=1.0)
+        # all sent: wait until live has written every sample (or stops making progress),
+        # then stop it: any difference between sent and written is then a loss
+        last, still = -1, time.monotonic()
+        while _rows(est) < device.sent and time.monotonic() - still < 30:
+            if _rows(est) != last:
+                last, still = _rows(est), time.monotonic()
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT if stop_signal == "INT" else signal.SIGTERM)
+        code = proc.wait(timeout=120)
+        reader.join(timeout=5)
+    finally:
+        if proc.poll() is None:  # the soak itself failed: never leave live running
+            proc.kill()
     os.close(device.master)
     summary = next((ln for ln in reversed(err) if "samples," in ln), "")
     lat = re.search(r"median ([\d.]+) ms, p99 ([\d.]+) ms", summary)
