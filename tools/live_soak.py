@@ -87,13 +87,21 @@ class Device(threading.Thread):
     """Writes the stream and its faults into the pty, paced by the wall clock."""
 
     def __init__(
-        self, port: Path, rate: float, seconds: float, faults_every: float, received: Any
+        self,
+        port: Path,
+        rate: float,
+        seconds: float,
+        faults_every: float,
+        received: Any,
+        reopened: Any,
     ) -> None:
         super().__init__(daemon=True)
         self.received = received  # () -> samples live has recorded so far
+        self.reopened = reopened  # () -> times live said the port is back
         self.port, self.rate, self.seconds, self.faults_every = port, rate, seconds, faults_every
         self.master = _new_pty(port)
         self.sent = 0
+        self.sent_ranges: list[tuple[int, int, float]] = []  # [first, last) index, time
         self.faults: dict[str, int] = {"garbage": 0, "partial": 0, "mb_line": 0, "port_gone": 0}
         self.late_max_s = 0.0
         self.rng = random.Random(1)
@@ -122,6 +130,7 @@ class Device(threading.Thread):
                 self._write(whole[a:b])
                 time.sleep(0.02)  # the reader sees each piece alone
             self.sent += 1
+            self.sent_ranges.append((self.next_index, self.next_index + 1, time.monotonic()))
             self.next_index += 1
         elif kind == "mb_line":
             self._write(b"z" * 1_000_000 + b"\n")
@@ -134,7 +143,11 @@ class Device(threading.Thread):
             os.close(self.master)
             time.sleep(1.0)
             self.master = _new_pty(self.port)
-            time.sleep(0.3)  # live reopens within its backoff (0.1 s, then 0.2 s)
+            # pyserial flushes what waits in the port when it opens it (as it would with a
+            # real device): send nothing until live has reopened the port
+            end = time.monotonic() + 30
+            while self.reopened() < self.faults["port_gone"] and time.monotonic() < end:
+                time.sleep(0.01)
 
     def run(self) -> None:
         start = self.t0 = time.monotonic()
@@ -162,7 +175,28 @@ class Device(threading.Thread):
             chunk = "".join(_line(int(round(j * 1000 / self.rate))) for j in range(i, due))
             self._write(chunk.encode())
             self.sent += due - i
+            self.sent_ranges.append((i, due, time.monotonic()))
             i = due
+
+
+def _lost(
+    raw: Path, rate: float, sent: list[tuple[int, int, float]], t0: float
+) -> list[tuple[int, int, float]]:
+    """Runs of samples sent but not in the recording: (first index, count, sent at s)."""
+    import numpy as np
+
+    t = np.loadtxt(raw, delimiter=",", skiprows=1, usecols=0, ndmin=1)
+    got = set(np.rint(t * rate).astype(int).tolist())
+    runs: list[tuple[int, int, float]] = []
+    for a, b, when in sent:
+        for j in range(a, b):
+            if j in got:
+                continue
+            if runs and runs[-1][0] + runs[-1][1] == j:
+                runs[-1] = (runs[-1][0], runs[-1][1] + 1, runs[-1][2])
+            else:
+                runs.append((j, 1, round(when - t0, 2)))
+    return runs
 
 
 def run_soak(
@@ -176,12 +210,19 @@ def run_soak(
     """Run the soak; return the measurements (see the module docstring)."""
     tmp = Path(folder or tempfile.mkdtemp(prefix="live_soak_"))
     port, est, raw = tmp / "ttySOAK", tmp / "est.csv", tmp / "raw.csv"
-    device = Device(port, rate, seconds, faults_every, lambda: _rows(raw))
+    err: list[str] = []
+    device = Device(
+        port,
+        rate,
+        seconds,
+        faults_every,
+        lambda: _rows(raw),
+        lambda: sum("is back after" in ln for ln in err),
+    )
     cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
     cmd += ["--robot", "two-section", "--method", method, "-o", str(est), "--record", str(raw)]
     cmd += ["--status-every", "1", "--retry-max", "0.2"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
-    err: list[str] = []
     stamps: list[float] = []  # monotonic arrival of each stderr line
 
     def drain() -> None:
@@ -229,6 +270,7 @@ def run_soak(
     except Exception as exc:  # report, do not hide
         readable = f"{type(exc).__name__}: {exc}"  # type: ignore[assignment]
     warm = [kb for t, kb in rss if t >= min(20.0, seconds / 4)]
+    lost = _lost(raw, rate, device.sent_ranges, t0)
     worst = []  # the status lines whose window saw the largest latencies
     for ts, ln in zip(stamps, err):
         m = re.search(r"line to estimate max ([\d.]+) ms", ln)
@@ -250,6 +292,7 @@ def run_soak(
         "rss_kb_after_warmup_first_last_max": [warm[0], warm[-1], max(warm)] if warm else None,
         "latency_ms_median_p99": [float(lat.group(1)), float(lat.group(2))] if lat else None,
         "fault_timeline_s": device.timeline,
+        "lost_runs_first_count_sent_at_s": lost[:10],
         "worst_latency_ms_at_s": worst[:8],
         "behind": [ln.strip() for ln in err if "falling behind" in ln or "caught up" in ln],
         "summary": summary.strip(),
