@@ -117,6 +117,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
         second = _raw_lines(0, 25)
+        os.write(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
         for line in second:
             os.write(master, line.encode())
             time.sleep(0.002)

@@ -51,6 +51,18 @@ def test_line_splitter_accepts_lf_cr_crlf_and_drops_long_lines() -> None:
     assert sp.feed(b"g,7") == [] and sp.pending() == b"g,7"
 
 
+def test_line_splitter_drops_the_line_in_progress_after_a_reopen() -> None:
+    """A reopened port may start mid-line (pyserial empties the buffer on open): a
+    tail such as '35,0.1,...' must not pass as a sample with a tiny t_ms."""
+    sp = LineSplitter()
+    sp.resync()
+    assert sp.feed(b"35,0.1,0.2\n1000,0.1,0.2\n") == [b"1000,0.1,0.2"] and sp.fragments == 1
+    sp.resync()
+    assert sp.feed(b"# continuum_imu 1.1.0\n2,3\n") == [b"# continuum_imu 1.1.0", b"2,3"]
+    sp.resync()
+    assert sp.feed(b"\n7,8\n") == [b"7,8"] and sp.fragments == 1  # it began at a line end
+
+
 def test_header_fields() -> None:
     assert header_fields("# fields: t_ms,ax_1,ay_1") == ("t_ms", "ax_1", "ay_1")
     assert header_fields("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)") == (

@@ -148,6 +148,9 @@ class Device(threading.Thread):
             end = time.monotonic() + 30
             while self.reopened() < self.faults["port_gone"] and time.monotonic() < end:
                 time.sleep(0.01)
+            # the device was unplugged mid-stream: its first bytes end a line in
+            # progress (live drops that first line after a reopen)
+            self._write(b"\n")
 
     def run(self) -> None:
         start = self.t0 = time.monotonic()
