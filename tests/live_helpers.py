@@ -45,11 +45,13 @@ def data_rows(path: Path) -> int:
 
 
 class LiveProcess:
-    """``continuum-mhe live ...`` in a subprocess, its stderr collected by a thread."""
+    """``continuum-mhe live ...`` (or another ``command``) in a subprocess, its stderr
+    collected by a thread (stdout too, with ``stdout=True``)."""
 
-    def __init__(self, args: list[str]) -> None:
-        cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", *args]
-        self.proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    def __init__(self, args: list[str], command: str = "live", stdout: bool = False) -> None:
+        cmd = [sys.executable, "-m", "continuum_mhe.cli", command, *args]
+        pipe = subprocess.PIPE if stdout else None
+        self.proc = subprocess.Popen(cmd, stdout=pipe, stderr=subprocess.PIPE, text=True)
         self.lines: list[str] = []
         self._thread = threading.Thread(target=self._drain, daemon=True)
         self._thread.start()

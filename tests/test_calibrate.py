@@ -60,3 +60,35 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
     assert "IMU 1: mounting with the robot straight: --mount-rpy 12.00,-7.00,0" in res.stdout
     assert "IMU 2: mounting with the robot straight: --mount-rpy -3.00,25.00,0" in res.stdout
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in res.stdout
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port(tmp_path: Path) -> None:
+    """A device at rest, tilted by a known mounting, through a pseudo-terminal: the
+    device's messages are shown and the mounting comes back."""
+    import os
+
+    from live_helpers import LiveProcess, new_pty, raw_line
+
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    acc = mount_rotation((8.0, 4.0, 0.0)).T @ [0, 0, G]
+    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
+    lines += [
+        raw_line(1000 + 10 * i, acc[None], np.array([[0.002, 0.0, -0.001]])) for i in range(400)
+    ]
+    cal = LiveProcess(["--port", str(port), "--seconds", "2"], command="calibrate", stdout=True)
+    try:
+        cal.wait_ready()
+        os.write(master, ("\n".join(lines) + "\n").encode())
+        code = cal.finish()
+    finally:
+        if cal.proc.poll() is None:
+            cal.proc.kill()
+        os.close(master)
+    assert cal.proc.stdout is not None
+    out = cal.proc.stdout.read()
+    assert code == 0, cal.err
+    assert "device says: # continuum_imu 1.1.0 imus=1" in cal.err
+    assert "201 samples over 2.000 s of device time: 100.0 Hz" in out
+    assert "--mount-rpy 8.00,4.00,0" in out

@@ -117,6 +117,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
         second = _raw_lines(0, 25)
+        os.write(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
         for line in second:
             os.write(master, line.encode())
             time.sleep(0.002)
@@ -226,7 +227,7 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
         if i == 200:
             stream.append(lines[i].split(",", 8)[0] + ",1,2\n")  # a line of the wrong length
     live = LiveProcess(
-        ["--port", str(port), "--robot", "two-section", "--method", "ekf", "-o", str(est)]
+        ["--port", str(port), "--robot", "two-section", "--method", "mhe", "-o", str(est)]
         + ["--record", str(raw), "--status-every", "0.5"]
     )
     try:
@@ -249,7 +250,7 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     replay = tmp_path / "replay.csv"
     res = subprocess.run(
         [sys.executable, "-m", "continuum_mhe.cli", "estimate", str(raw), "-o", str(replay)]
-        + ["--robot", "two-section", "--method", "ekf"],
+        + ["--robot", "two-section", "--method", "mhe"],
         capture_output=True,
         text=True,
         timeout=SAFETY_S,

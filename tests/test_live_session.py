@@ -51,6 +51,18 @@ def test_line_splitter_accepts_lf_cr_crlf_and_drops_long_lines() -> None:
     assert sp.feed(b"g,7") == [] and sp.pending() == b"g,7"
 
 
+def test_line_splitter_drops_the_line_in_progress_after_a_reopen() -> None:
+    """A reopened port may start mid-line (pyserial empties the buffer on open): a
+    tail such as '35,0.1,...' must not pass as a sample with a tiny t_ms."""
+    sp = LineSplitter()
+    sp.resync()
+    assert sp.feed(b"35,0.1,0.2\n1000,0.1,0.2\n") == [b"1000,0.1,0.2"] and sp.fragments == 1
+    sp.resync()
+    assert sp.feed(b"# continuum_imu 1.1.0\n2,3\n") == [b"# continuum_imu 1.1.0", b"2,3"]
+    sp.resync()
+    assert sp.feed(b"\n7,8\n") == [b"7,8"] and sp.fragments == 1  # it began at a line end
+
+
 def test_header_fields() -> None:
     assert header_fields("# fields: t_ms,ax_1,ay_1") == ("t_ms", "ax_1", "ay_1")
     assert header_fields("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)") == (
@@ -211,3 +223,28 @@ def test_row_file_full_disk_keeps_whole_rows_and_names_the_file(
     monkeypatch.undo()
     f.close()
     assert path.read_text() == "t,x\n0.1,1\n"
+
+
+def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: Path) -> None:
+    """A one-IMU robot file's mount_rpy: live applied it and estimate did not, so a
+    recording did not replay to the same estimates."""
+    from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.robot_logs import InputOptions, load_estimate_input
+    from continuum_mhe.stream.session import imu_converters
+
+    robot_file = tmp_path / "tilted.toml"
+    robot_file.write_text(
+        "[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\nmount_rpy = [10, -5, 0]\n"
+    )
+    robot = read_robot(robot_file)
+    acc = [float(v) for v in mount_rotation((10.0, -5.0, 0.0)).T @ [0.0, 0.0, 9.80665]]
+    raw = tmp_path / "raw.csv"
+    rows = "\n".join(f"{0.01 * i!r},{acc[0]!r},{acc[1]!r},{acc[2]!r},0.0,0.0,0.0" for i in range(5))
+    raw.write_text("t,ax,ay,az,gx,gy,gz\n" + rows + "\n")
+    f = make_formulation("bend", robot, NoiseSettings())
+    z_batch = load_estimate_input(raw, InputOptions(raw=RawImuSettings()), f).z
+    (conv,) = imu_converters(RawImuSettings(), robot)
+    z_live = conv.convert(0.0, acc, np.zeros(3))
+    np.testing.assert_allclose(z_batch[0], z_live, atol=1e-15)
+    np.testing.assert_allclose(z_live, [0.0, 0.0], atol=1e-12)  # the mounting undone

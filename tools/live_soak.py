@@ -2,9 +2,10 @@
 
 A simulated device streams two raw IMUs (the shipped ``two-section`` robot) at
 ``--rate`` Hz for ``--seconds`` s into a pty, with faults at intervals: garbage bursts,
-partial lines, 1 MB lines without a line end, and the port disappearing for a second
-and coming back (a new pty behind the same path). ``live`` runs with ``-o`` and
-``--record`` and is stopped with SIGINT or SIGTERM. Reported (JSON on stdout):
+lines cut short, lines arriving in pieces, 1 MB lines without a line end, and the
+port disappearing for a second and coming back (a new pty behind the same path).
+``live`` runs with ``-o`` and ``--record`` and is stopped with SIGINT or SIGTERM.
+Reported (JSON on stdout):
 
 * valid samples sent (complete lines, not sent while the port was gone) against rows
   in the recording and in the estimate file, and whether every recorded row reads
@@ -86,16 +87,27 @@ class Device(threading.Thread):
     """Writes the stream and its faults into the pty, paced by the wall clock."""
 
     def __init__(
-        self, port: Path, rate: float, seconds: float, faults_every: float, received: Any
+        self,
+        port: Path,
+        rate: float,
+        seconds: float,
+        faults_every: float,
+        received: Any,
+        reopened: Any,
     ) -> None:
         super().__init__(daemon=True)
         self.received = received  # () -> samples live has recorded so far
+        self.reopened = reopened  # () -> times live said the port is back
         self.port, self.rate, self.seconds, self.faults_every = port, rate, seconds, faults_every
         self.master = _new_pty(port)
         self.sent = 0
+        self.sent_ranges: list[tuple[int, int, float]] = []  # [first, last) index, time
         self.faults: dict[str, int] = {"garbage": 0, "partial": 0, "mb_line": 0, "port_gone": 0}
         self.late_max_s = 0.0
         self.rng = random.Random(1)
+        self.t0 = time.monotonic()
+        self.timeline: list[tuple[float, str]] = []  # (s since start, fault)
+        self.next_index = 0  # the next sample's index (device time = index / rate)
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)
@@ -106,11 +118,20 @@ class Device(threading.Thread):
     def _fault(self, k: int) -> None:
         kind = ("garbage", "partial", "mb_line", "port_gone")[k % 4]
         self.faults[kind] += 1
+        self.timeline.append((round(time.monotonic() - self.t0, 2), kind))
         if kind == "garbage":
             burst = bytes(self.rng.randrange(256) for _ in range(2000))
             self._write(b"\n" + burst + b"\n")
-        elif kind == "partial":
+        elif kind == "partial":  # a line cut short (garbled), then one sent in pieces
             self._write(_line(0)[:25].encode() + b"\n")
+            t_ms = int(round(self.next_index * 1000 / self.rate))
+            whole = _line(t_ms).encode()
+            for a, b in ((0, 7), (7, 40), (40, len(whole))):
+                self._write(whole[a:b])
+                time.sleep(0.02)  # the reader sees each piece alone
+            self.sent += 1
+            self.sent_ranges.append((self.next_index, self.next_index + 1, time.monotonic()))
+            self.next_index += 1
         elif kind == "mb_line":
             self._write(b"z" * 1_000_000 + b"\n")
         else:
@@ -122,19 +143,28 @@ class Device(threading.Thread):
             os.close(self.master)
             time.sleep(1.0)
             self.master = _new_pty(self.port)
-            time.sleep(0.3)  # live reopens within its backoff (0.1 s, then 0.2 s)
+            # pyserial flushes what waits in the port when it opens it (as it would with a
+            # real device): send nothing until live has reopened the port
+            end = time.monotonic() + 30
+            while self.reopened() < self.faults["port_gone"] and time.monotonic() < end:
+                time.sleep(0.01)
+            # the device was unplugged mid-stream: its first bytes end a line in
+            # progress (live drops that first line after a reopen)
+            self._write(b"\n")
 
     def run(self) -> None:
-        start = time.monotonic()
+        start = self.t0 = time.monotonic()
         next_fault = start + self.faults_every
         n_fault = 0
-        i = 0
+        i = self.next_index = 0
         while True:
             now = time.monotonic()
             if now - start >= self.seconds:
                 break
             if now >= next_fault:
+                self.next_index = i
                 self._fault(n_fault)
+                i = self.next_index
                 n_fault += 1
                 next_fault = time.monotonic() + self.faults_every
                 # the device's clock ran on while the port was gone: skip those samples
@@ -148,7 +178,28 @@ class Device(threading.Thread):
             chunk = "".join(_line(int(round(j * 1000 / self.rate))) for j in range(i, due))
             self._write(chunk.encode())
             self.sent += due - i
+            self.sent_ranges.append((i, due, time.monotonic()))
             i = due
+
+
+def _lost(
+    raw: Path, rate: float, sent: list[tuple[int, int, float]], t0: float
+) -> list[tuple[int, int, float]]:
+    """Runs of samples sent but not in the recording: (first index, count, sent at s)."""
+    import numpy as np
+
+    t = np.loadtxt(raw, delimiter=",", skiprows=1, usecols=0, ndmin=1)
+    got = set(np.rint(t * rate).astype(int).tolist())
+    runs: list[tuple[int, int, float]] = []
+    for a, b, when in sent:
+        for j in range(a, b):
+            if j in got:
+                continue
+            if runs and runs[-1][0] + runs[-1][1] == j:
+                runs[-1] = (runs[-1][0], runs[-1][1] + 1, runs[-1][2])
+            else:
+                runs.append((j, 1, round(when - t0, 2)))
+    return runs
 
 
 def run_soak(
@@ -162,36 +213,55 @@ def run_soak(
     """Run the soak; return the measurements (see the module docstring)."""
     tmp = Path(folder or tempfile.mkdtemp(prefix="live_soak_"))
     port, est, raw = tmp / "ttySOAK", tmp / "est.csv", tmp / "raw.csv"
-    device = Device(port, rate, seconds, faults_every, lambda: _rows(raw))
+    err: list[str] = []
+    device = Device(
+        port,
+        rate,
+        seconds,
+        faults_every,
+        lambda: _rows(raw),
+        lambda: sum("is back after" in ln for ln in err),
+    )
     cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
     cmd += ["--robot", "two-section", "--method", method, "-o", str(est), "--record", str(raw)]
-    cmd += ["--status-every", "5", "--retry-max", "0.2"]
+    cmd += ["--status-every", "1", "--retry-max", "0.2"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
-    err: list[str] = []
-    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")))  # type: ignore[union-attr]
+    stamps: list[float] = []  # monotonic arrival of each stderr line
+
+    def drain() -> None:
+        for ln in iter(proc.stderr.readline, ""):  # type: ignore[union-attr]
+            err.append(ln)
+            stamps.append(time.monotonic())
+
+    reader = threading.Thread(target=drain)
     reader.daemon = True
     reader.start()
-    while not any("reading " in ln for ln in err):
-        if proc.poll() is not None:
-            raise RuntimeError("live ended at start: " + "".join(err))
-        time.sleep(0.05)
-    t0 = time.monotonic()
-    device.start()
-    rss: list[tuple[float, int]] = []
-    while device.is_alive():
-        kb = _rss_kb(proc.pid)
-        if kb is not None:
-            rss.append((time.monotonic() - t0, kb))
-        device.join(timeout=1.0)
-    # all sent: wait until live has written every sample (or stops making progress)
-    last, still = -1, time.monotonic()
-    while _rows(est) < device.sent and time.monotonic() - still < 30:
-        if _rows(est) != last:
-            last, still = _rows(est), time.monotonic()
-        time.sleep(0.2)
-    proc.send_signal(signal.SIGINT if stop_signal == "INT" else signal.SIGTERM)
-    code = proc.wait(timeout=120)
-    reader.join(timeout=5)
+    try:
+        while not any("reading " in ln for ln in err):
+            if proc.poll() is not None:
+                raise RuntimeError("live ended at start: " + "".join(err))
+            time.sleep(0.05)
+        t0 = time.monotonic()
+        device.start()
+        rss: list[tuple[float, int]] = []
+        while device.is_alive():
+            kb = _rss_kb(proc.pid)
+            if kb is not None:
+                rss.append((time.monotonic() - t0, kb))
+            device.join(timeout=1.0)
+        # all sent: wait until live has written every sample (or stops making progress),
+        # then stop it: any difference between sent and written is then a loss
+        last, still = -1, time.monotonic()
+        while _rows(est) < device.sent and time.monotonic() - still < 30:
+            if _rows(est) != last:
+                last, still = _rows(est), time.monotonic()
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT if stop_signal == "INT" else signal.SIGTERM)
+        code = proc.wait(timeout=120)
+        reader.join(timeout=5)
+    finally:
+        if proc.poll() is None:  # the soak itself failed: never leave live running
+            proc.kill()
     os.close(device.master)
     summary = next((ln for ln in reversed(err) if "samples," in ln), "")
     lat = re.search(r"median ([\d.]+) ms, p99 ([\d.]+) ms", summary)
@@ -203,6 +273,13 @@ def run_soak(
     except Exception as exc:  # report, do not hide
         readable = f"{type(exc).__name__}: {exc}"  # type: ignore[assignment]
     warm = [kb for t, kb in rss if t >= min(20.0, seconds / 4)]
+    lost = _lost(raw, rate, device.sent_ranges, t0)
+    worst = []  # the status lines whose window saw the largest latencies
+    for ts, ln in zip(stamps, err):
+        m = re.search(r"line to estimate max ([\d.]+) ms", ln)
+        if m:
+            worst.append((float(m.group(1)), round(ts - t0, 1)))
+    worst.sort(reverse=True)
     return {
         "seconds": seconds,
         "rate_hz": rate,
@@ -217,6 +294,10 @@ def run_soak(
         "writer_late_max_s": round(device.late_max_s, 3),
         "rss_kb_after_warmup_first_last_max": [warm[0], warm[-1], max(warm)] if warm else None,
         "latency_ms_median_p99": [float(lat.group(1)), float(lat.group(2))] if lat else None,
+        "fault_timeline_s": device.timeline,
+        "lost_runs_first_count_sent_at_s": lost[:10],
+        "worst_latency_ms_at_s": worst[:8],
+        "behind": [ln.strip() for ln in err if "falling behind" in ln or "caught up" in ln],
         "summary": summary.strip(),
         "folder": str(tmp),
     }

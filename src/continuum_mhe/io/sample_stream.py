@@ -116,10 +116,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
             what = "--imu-model direct" if options.raw.imu_model == "direct" else (
                 f"--attitude {options.raw.attitude}")  # fmt: skip
             raise InputError(f"{name}: {what} needs gyro columns gx, gy, gz")
-        settings = [
-            _imu_settings(options.raw, place) if n_imus > 1 else options.raw
-            for place in base.robot.imus
-        ]
+        settings = [_imu_settings(options.raw, place) for place in base.robot.imus]  # as live
         convs = [RawImuConverter(s) for s in settings]
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:

@@ -129,7 +129,9 @@ class LineSplitter:
         self._buf = bytearray()
         self._skipping = 0  # bytes of an over-long line dropped so far (0: not dropping)
         self._after_cr = False
+        self._resync = False  # drop the first line (see resync)
         self.too_long: list[int] = []
+        self.fragments = 0  # first lines dropped after a resync
 
     def feed(self, chunk: bytes) -> list[bytes]:
         """The non-empty lines completed by ``chunk`` (without their line ends)."""
@@ -159,8 +161,22 @@ class LineSplitter:
             self.too_long.append(self._skipping)
             self._skipping = 0
         elif self._buf:
-            lines.append(bytes(self._buf))
+            if self._resync and not self._buf.startswith(b"#"):
+                self.fragments += 1
+            else:
+                lines.append(bytes(self._buf))
             self._buf.clear()
+        self._resync = False
+
+    def resync(self) -> None:
+        """The port was (re)opened mid-stream: the first line may be the tail of one
+        cut short (pyserial empties the input buffer on open), so it is dropped, and
+        counted in :attr:`fragments`, unless it is a ``#`` message (a restarted device
+        prints its banner first)."""
+        self._buf.clear()
+        self._skipping = 0
+        self._after_cr = False
+        self._resync = True
 
     def pending(self) -> bytes:
         """Take the unfinished line (when the device goes away mid-line)."""

@@ -81,8 +81,11 @@ class SerialReader(threading.Thread):
             if not chunk:
                 continue
             now = time.monotonic()
+            before = self.splitter.fragments
             for line in self.splitter.feed(chunk):
                 self.events.put(("line", line, now))
+            if self.splitter.fragments > before:
+                self.events.put(("partial", b"", now))  # the line in progress at a reopen
             for n in self.splitter.too_long:
                 self.events.put(("too-long", n, now))
         self._close()
@@ -102,6 +105,7 @@ class SerialReader(threading.Thread):
             except Exception:
                 delay = min(2 * delay, self.retry_max_s)
                 continue
+            self.splitter.resync()
             self.events.put(("back", time.monotonic() - lost, time.monotonic()))
             return
 

@@ -33,6 +33,8 @@ def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> 
         raise InputError(f"{p}: folder {folder} does not exist")
     if p.is_dir():
         raise InputError(f"{p}: is a directory, expected a file name")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{p}: folder {folder} is not writable")
     if os.path.lexists(p):
         if not overwrite:
             raise InputError(f"{p}: exists; give --overwrite to replace it, or another {option}")

@@ -219,6 +219,7 @@ class LiveSession:
         self.messages = DeviceMessages(self.say, settings.repeat_every_s)
         self.clock = DeviceClock(settings.restart_jump_s)
         self.latency = LatencyHistogram()
+        self.latency_max_window = 0.0  # largest latency since the last status line, ms
         self.last: Estimate | None = None
         self.solve_ms: deque[float] = deque(maxlen=200)
         self._periods: deque[float] = deque(maxlen=50)
@@ -329,7 +330,9 @@ class LiveSession:
             self._restart(t)
         est = self._estimate(t, self._measurement(t, s.values))
         self._write(est)
-        self.latency.add((time.monotonic() - arrival) * 1e3)
+        ms = (time.monotonic() - arrival) * 1e3
+        self.latency.add(ms)
+        self.latency_max_window = max(self.latency_max_window, ms)
         return est
 
     def _measurement(self, t: float, values: FloatArray) -> FloatArray:
@@ -403,7 +406,11 @@ class LiveSession:
         parts = ["WAITING for the device" if waiting else f"{rate_hz:5.1f} Hz"]
         if self.solve_ms:
             ms = np.asarray(self.solve_ms)
-            parts.append(f"solve {np.median(ms):.1f} ms (max {ms.max():.1f})")
+            parts.append(
+                f"solve {np.median(ms):.1f} ms (max {ms.max():.1f}), line to estimate max "
+                f"{self.latency_max_window:.1f} ms"
+            )
+        self.latency_max_window = 0.0
         if self.last is not None and self.last.output is not None:
             parts.append(self._describe(self.last))
         parts.append(
