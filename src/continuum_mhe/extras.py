@@ -21,6 +21,7 @@ test      all of the above, pytest, hypothesis,        the test suite
 from __future__ import annotations
 
 import importlib
+import warnings
 from types import ModuleType
 
 from continuum_mhe.errors import UserError
@@ -65,7 +66,7 @@ def require(module: str, extra: str, feature: str, package: str | None = None) -
         package: the package's name on PyPI when it differs from ``module``.
     """
     try:
-        return importlib.import_module(module)
+        return _quiet_import(module)
     except ImportError:
         raise missing(package or module, extra, feature) from None
 
@@ -73,7 +74,15 @@ def require(module: str, extra: str, feature: str, package: str | None = None) -
 def available(module: str) -> bool:
     """True if ``module`` can be imported (the import is attempted)."""
     try:
-        importlib.import_module(module)
+        _quiet_import(module)
     except ImportError:
         return False
     return True
+
+
+def _quiet_import(module: str) -> ModuleType:
+    """Import ``module`` without the warnings some packages print on import (do-mpc
+    announces each of its own optional features it lacks)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return importlib.import_module(module)
