@@ -58,6 +58,8 @@ def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
     assert set(c["status"]) == {"fallback-ipopt"} and set(w["status"]) == {"ok"}
     for col in ("x", "y", "z", "theta"):
         np.testing.assert_allclose(c[col].astype(float), w[col].astype(float), atol=1e-6)
+    assert set(c["std_x"]) == {""} and "" not in set(w["std_x"])  # said in the note
+    assert "without the MHE's standard deviations" in notes[0]
     pid_files = list((tmp_path / "numba").glob("continuum-mhe-kernels-*.pid"))
     assert len(pid_files) == 1
     pid = int(pid_files[0].read_text())
@@ -113,6 +115,7 @@ def test_background_mode_without_kernels_picks_the_uncompiled_paths(tmp_path, mo
         mhe = make_estimator("mhe", f, first_run="background")
         ekf = make_estimator("ekf", f, first_run="background")
     assert mhe._fast is None and "first run only" in (mhe.backend_note or "")
+    assert not mhe.reports_covariance
     assert type(ekf) is ExtendedKalmanFilter and not isinstance(ekf, CompiledExtendedKalmanFilter)
     est = mhe.step(__import__("continuum_mhe").Measurement(0.0, np.zeros(2)))
     assert est.status == "fallback-ipopt"

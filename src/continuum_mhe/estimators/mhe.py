@@ -220,8 +220,9 @@ class MovingHorizonEstimator(Estimator):
         first_run: when the fast backend's kernels are not compiled yet (the first
             run of an install): ``"foreground"`` compiles them now (said once),
             ``"background"`` compiles them in another process while IPOPT solves this
-            estimator's windows (status ``fallback-ipopt``; said once), None does not
-            check (see :mod:`continuum_mhe.estimators.fast.warmup`).
+            estimator's windows (status ``fallback-ipopt``) without the covariance
+            (whose kernels are among them; said once), None does not check (see
+            :mod:`continuum_mhe.estimators.fast.warmup`).
     """
 
     name = "mhe"
@@ -240,16 +241,24 @@ class MovingHorizonEstimator(Estimator):
         self.fast_options = fast_options or FastOptions()
         s = self.settings
         self._fast: WindowModel | None = None
-        deferred = False
-        if s.solver == "fast" and first_run is not None and not kernels_ready():
+        deferred = False  # the kernels compile in the background: none is used here
+        if first_run is not None and not kernels_ready():  # the covariance needs them too
             if first_run == "background":
                 deferred = True
-                self.backend_note = defer_compiling(
+                what = (
                     "IPOPT for the MHE (the same window problem, slower; rows flagged "
                     "fallback-ipopt)"
+                    if s.solver == "fast"
+                    else "IPOPT for the MHE"
+                )
+                self.backend_note = defer_compiling(
+                    f"{what}, without the MHE's standard deviations (the std_ columns "
+                    "stay empty)"
                 )
             else:
                 ensure_compiled()
+        #: whether estimates carry the window covariance (not while the kernels compile)
+        self.reports_covariance = not deferred
         if s.solver == "fast" and not deferred:
             try:
                 self._fast = build_window_model(
@@ -465,8 +474,11 @@ class MovingHorizonEstimator(Estimator):
         """Covariance of the estimate ``X[-1]`` (nx, nx): the last block of the inverse
         of the window's Gauss-Newton Hessian at ``X`` (N, nx), conditioned on the active
         bounds (:mod:`continuum_mhe.estimators.fast.covariance`); from the compiled
-        model on the fast backend, from CasADi on IPOPT. None if not positive definite.
+        model on the fast backend, from CasADi on IPOPT. None if not positive definite,
+        or on a first run whose kernels compile in the background (``first_run``).
         """
+        if not self.reports_covariance:
+            return None
         if self._fast is not None:
             return window_covariance(self._fast, problem, X, self._workspace)
         loss = LossKernel(self._blocks, LOSS_CODES[self.settings.loss], float(self.settings.scale))
