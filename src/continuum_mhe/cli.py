@@ -9,7 +9,6 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import itertools
 import json
@@ -18,7 +17,7 @@ import os
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
+from collections.abc import Generator, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import cast
 
@@ -52,6 +51,9 @@ from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.settings import MHESettings, NoiseSettings
+from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
+from continuum_mhe.signals import interruptible, signals_deferred
+from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.simulation.scenarios import SCENARIOS, ScenarioName, simulate_robot
 
 PROG = "continuum-mhe"
@@ -469,60 +471,6 @@ def _one_line_warning(
 ) -> str:
     kind = "note" if issubclass(category, CompileNotice) else "warning"
     return f"{PROG}: {kind}: {message}\n"
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, handled like Ctrl-C (drain, write, clean up), then exit 143."""
-
-
-#: signals received (a command such as ``live`` drains and returns normally)
-_SIGNALS_SEEN: list[int] = []
-
-
-#: non-empty while an estimation loop polls for signals between samples
-_DEFER: list[bool] = []
-
-
-def _on_signal(signum: int, frame: object) -> None:
-    _SIGNALS_SEEN.append(signum)
-    if not _DEFER:  # else the loop stops at the next sample, outside any C code
-        _raise_for_signal()
-
-
-def _raise_for_signal() -> None:
-    raise Terminated() if signal.SIGTERM in _SIGNALS_SEEN else KeyboardInterrupt()
-
-
-def interruptible(
-    progress: Callable[[Iterable[int]], Iterator[int]] | None,
-) -> Callable[[Iterable[int]], Iterator[int]]:
-    """Wrap an estimation loop's sample iterator so that SIGINT/SIGTERM stop it between
-    two samples (a signal raised inside CasADi or numpy code can surface as another
-    exception, or be caught as a numerical failure)."""
-
-    def wrap(idx: Iterable[int]) -> Iterator[int]:
-        _DEFER.append(True)
-        try:
-            for i in progress(idx) if progress is not None else idx:
-                if _SIGNALS_SEEN:
-                    _raise_for_signal()
-                yield i
-        finally:
-            _DEFER.clear()
-
-    return wrap
-
-
-@contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
-    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
-    _DEFER.append(True)
-    try:
-        yield
-    finally:
-        _DEFER.pop()
-    if _SIGNALS_SEEN:
-        _raise_for_signal()
 
 
 def _signal_exit() -> int:

@@ -44,6 +44,7 @@ from continuum_mhe.io.raw_imu import (
     parse_mount_rpy,
 )
 from continuum_mhe.model.descriptions import OutputSpec
+from continuum_mhe.signals import SIGNALS_SEEN, defer, stop_deferring
 from continuum_mhe.stream.protocol import (
     GarbledLine,
     Sample,
@@ -80,13 +81,11 @@ def run_live(
     stopping = waiting = False
     # Under the CLI, SIGINT/SIGTERM only set a flag while this loop runs; the loop stops
     # between two lines, so a sample is never in the recording without its estimate.
-    from continuum_mhe.cli import _DEFER, _SIGNALS_SEEN
-
-    _DEFER.append(True)
+    defer()
     reader.start()
     try:
         while True:
-            if _SIGNALS_SEEN:
+            if SIGNALS_SEEN:
                 raise KeyboardInterrupt
             now = time.monotonic()
             if not stopping and deadline is not None and now >= deadline:
@@ -145,7 +144,7 @@ def run_live(
                 if plot is not None and session.last is not None:
                     plot.update(session.last, session.formulation.outputs)
     except KeyboardInterrupt:
-        _DEFER.clear()  # a second signal abandons the queue at once
+        stop_deferring()  # a second signal abandons the queue at once
         reader.stop.set()
         left = events.qsize()
         say(f"stopping; estimating {left} queued line(s), Ctrl-C again to abandon them")
@@ -160,7 +159,7 @@ def run_live(
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")
     finally:
-        _DEFER.clear()
+        stop_deferring()
         reader.stop.set()
     say(session.summary())
     return 0

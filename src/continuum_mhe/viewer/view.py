@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.extras import require
+from continuum_mhe.extras import install_hint, require
 from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.robot import Robot
@@ -24,7 +24,7 @@ from continuum_mhe.results import Estimate
 from continuum_mhe.viewer.geometry import BackboneGeometry, backbone_geometry
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
 
-INSTALL_HINT = "pip install 'continuum-mhe[view]'"
+INSTALL_HINT = install_hint("view")
 APPLICATION_ID = "continuum-mhe"
 #: colours of successive sections (RGB), repeated beyond four sections
 SECTION_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40))

@@ -1,0 +1,78 @@
+"""SIGINT and SIGTERM for every command: one flag list and one deferral, shared by the
+command line (:mod:`continuum_mhe.cli`) and ``live`` (a neutral module, so that ``live``
+needs nothing private from the CLI).
+
+A signal raises at once (``KeyboardInterrupt``, or :class:`Terminated` for SIGTERM)
+unless a loop defers it; a deferring loop polls :data:`SIGNALS_SEEN` between two
+samples, so a signal never surfaces inside CasADi or numpy code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+from collections.abc import Callable, Iterable, Iterator
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C (drain, write, clean up), then exit 143."""
+
+
+#: signals received (a command such as ``live`` drains and returns normally)
+SIGNALS_SEEN: list[int] = []
+
+#: non-empty while a loop polls for signals between samples
+_DEFER: list[bool] = []
+
+
+def on_signal(signum: int, frame: object) -> None:
+    """The handler of SIGINT and SIGTERM."""
+    SIGNALS_SEEN.append(signum)
+    if not _DEFER:  # else the loop stops at the next sample, outside any C code
+        raise_for_signal()
+
+
+def raise_for_signal() -> None:
+    raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
+
+
+def defer() -> None:
+    """From now on, a signal only sets :data:`SIGNALS_SEEN` (the caller polls it)."""
+    _DEFER.append(True)
+
+
+def stop_deferring() -> None:
+    """A signal raises at once again (e.g. a second Ctrl-C while draining)."""
+    _DEFER.clear()
+
+
+def interruptible(
+    progress: Callable[[Iterable[int]], Iterator[int]] | None,
+) -> Callable[[Iterable[int]], Iterator[int]]:
+    """Wrap an estimation loop's sample iterator so that SIGINT/SIGTERM stop it between
+    two samples (a signal raised inside CasADi or numpy code can surface as another
+    exception, or be caught as a numerical failure)."""
+
+    def wrap(idx: Iterable[int]) -> Iterator[int]:
+        defer()
+        try:
+            for i in progress(idx) if progress is not None else idx:
+                if SIGNALS_SEEN:
+                    raise_for_signal()
+                yield i
+        finally:
+            stop_deferring()
+
+    return wrap
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
+    _DEFER.append(True)
+    try:
+        yield
+    finally:
+        _DEFER.pop()
+    if SIGNALS_SEEN:
+        raise_for_signal()
