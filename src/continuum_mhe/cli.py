@@ -54,7 +54,12 @@ from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
 from continuum_mhe.signals import interruptible, signals_deferred
 from continuum_mhe.signals import on_signal as _on_signal
-from continuum_mhe.simulation.scenarios import SCENARIOS, ScenarioName, simulate_robot
+from continuum_mhe.simulation.scenarios import (
+    NOISE_MODELS,
+    SCENARIOS,
+    ScenarioName,
+    simulate_robot,
+)
 
 PROG = "continuum-mhe"
 
@@ -87,6 +92,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         dt=args.dt,
         noise_deg=args.noise_deg,
         seed=args.seed,
+        noise_model=args.noise_model,
     )
     write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     if args.truth:
@@ -365,7 +371,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
         out / "demo_trajectory_3d",
     ) + plotting.save(
         plotting.states_vs_time(
-            rec.t, rec.truth, all_series, f"Tip error, position and bend over time ({where})",
+            rec.t,
+            rec.truth,
+            all_series,
+            f"Tip error, position and bend over time ({where})",
             bounds,
         ),  # fmt: skip
         out / "demo_states",
@@ -373,7 +382,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if not robot.is_single:
         figs += plotting.save(
             plotting.backbone_snapshots(
-                rec.t, rec.truth, all_series, robot.lengths,
+                rec.t,
+                rec.truth,
+                all_series,
+                robot.lengths,
                 f"Backbone at four instants: truth and estimates ({where})",
             ),  # fmt: skip
             out / "demo_backbone",
@@ -413,6 +425,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--truth", help="truth CSV to write")
     p.add_argument("--noise-deg", type=float, default=2.0, help="noise std in degrees")
+    p.add_argument(
+        "--noise-model",
+        choices=NOISE_MODELS,
+        default="tilt",
+        help="tilt: on roll and pitch independently (default, the paper's); tangent: "
+        "isotropic on the tangent plane of gravity (what the estimators' R assumes)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")

@@ -2,7 +2,12 @@
 
 Truth comes from the same kinematics the estimators use (``model.kinematics``,
 ``model.pcc``); the IMU readings from the measurement model plus Gaussian noise of
-``noise_deg``. One-section scenarios: ``paper3d``, ``planar-overbend``, ``straight``.
+``noise_deg``, either on roll and pitch independently (``noise_model="tilt"``, the
+paper's and the default) or isotropic on the tangent plane of the measured gravity
+direction (``"tangent"``: what the estimators' ``R`` assumes, so the data are
+model-consistent for the measurement; the two differ where pitch is large, since
+roll noise moves the gravity direction by only ``cos(pitch)`` of it).
+One-section scenarios: ``paper3d``, ``planar-overbend``, ``straight``.
 Multi-section scenarios (a robot with two or more sections, one tilt IMU per entry of
 the robot's IMU list): ``s-curve`` (planar, neighbouring sections bend in opposite
 senses) and ``spatial`` (bending planes turning at different rates, bends up to
@@ -28,6 +33,9 @@ from continuum_mhe.model.kinematics import (
     tip_position,
 )
 from continuum_mhe.model.robot import Robot
+
+NoiseModel = Literal["tilt", "tangent"]
+NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
 
 ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial"]
 SCENARIOS: tuple[ScenarioName, ...] = (
@@ -66,6 +74,44 @@ class Recording:
     length: float
     outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
     measurement_names: tuple[str, ...] = ("roll", "pitch")
+
+
+def tangent_plane_noise(z: FloatArray, std: float, rng: np.random.Generator) -> FloatArray:
+    """``(roll, pitch)`` readings ``z`` (n, 2), rad, with their gravity direction turned
+    by an isotropic Gaussian rotation of ``std`` rad per axis about the tangent plane
+    (the noise the estimators' tangent-plane residual models)."""
+    from scipy.spatial.transform import Rotation
+
+    roll, pitch = z[:, 0], z[:, 1]
+    g = np.stack([-np.sin(pitch), np.cos(pitch) * np.sin(roll), np.cos(pitch) * np.cos(roll)], 1)
+    helper = np.where(np.abs(g[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(g, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(g, e1)
+    v = rng.normal(size=(len(z), 2)) * std
+    turned = Rotation.from_rotvec(v[:, :1] * e1 + v[:, 1:] * e2).apply(g)
+    out = np.stack(
+        [np.arctan2(turned[:, 1], turned[:, 2]),
+         np.arctan2(-turned[:, 0], np.hypot(turned[:, 1], turned[:, 2]))], axis=1,
+    )  # fmt: skip
+    return np.asarray(out, dtype=float)
+
+
+def _noisy(
+    h: FloatArray, std: FloatArray, rng: np.random.Generator, noise_model: NoiseModel
+) -> FloatArray:
+    """Readings ``h`` (n, 2 m) of m IMUs with noise ``std`` (2,) rad as ``noise_model``."""
+    if noise_model == "tilt":
+        return wrap_angle(h + rng.normal(size=h.shape) * np.tile(std, h.shape[1] // 2))
+    if noise_model != "tangent":
+        choices = ", ".join(NOISE_MODELS)
+        raise UserError(f"noise model must be one of {choices}, got {noise_model!r}")
+    if std[0] != std[1]:
+        raise UserError("tangent-plane noise is isotropic: give one standard deviation")
+    cols = [
+        tangent_plane_noise(h[:, j : j + 2], float(std[0]), rng) for j in range(0, h.shape[1], 2)
+    ]
+    return np.concatenate(cols, axis=1)
 
 
 def _paper3d(t: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -121,6 +167,7 @@ def simulate_robot(
     dt: float = 0.05,
     noise_deg: float = 2.0,
     seed: int = 0,
+    noise_model: NoiseModel = "tilt",
 ) -> Recording:
     """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed)."""
     from continuum_mhe.model.formulations import BendFormulation
@@ -130,6 +177,7 @@ def simulate_robot(
             return simulate(
                 scenario, duration=duration, dt=dt, noise_deg=noise_deg,
                 length=robot.length, seed=seed, mounting=robot.mounting,
+                noise_model=noise_model,
             )  # fmt: skip
         raise UserError(
             f"scenario {scenario!r} is for one section with a tip IMU; for this robot "
@@ -144,7 +192,7 @@ def simulate_robot(
     truth = f.output(x)
     h = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
     rng = np.random.default_rng(seed)
-    z = wrap_angle(h + rng.normal(size=h.shape) * math.radians(noise_deg))
+    z = _noisy(h, np.radians([noise_deg, noise_deg]), rng, noise_model)
     return Recording(
         t=t, z=z, truth=truth, length=robot.length, outputs=f.outputs,
         measurement_names=f.measurement_names,
@@ -178,10 +226,12 @@ def simulate(
     seed: int = 0,
     mounting: Mounting = "z-up",
     noise_std: tuple[float, float] | None = None,
+    noise_model: NoiseModel = "tilt",
 ) -> Recording:
     """Simulate ``scenario`` for ``duration`` s at sample time ``dt`` s.
 
-    ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1).
+    ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1);
+    ``noise_model``: see the module docstring.
     """
     if scenario in MULTI_SECTION_SCENARIOS:
         raise UserError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
@@ -190,13 +240,11 @@ def simulate(
     if not (math.isfinite(length) and length > 0):
         raise UserError(f"length must be positive, got {length}")
     t = _time_axis(duration, dt, noise_deg, seed)
-    n = len(t)
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
     truth = np.column_stack([tip_position(theta, phi, length), theta, phi])
     std = np.radians([noise_deg, noise_deg]) if noise_std is None else np.abs(noise_std)
     rng = np.random.default_rng(seed)
-    z = tilt(theta, phi, mounting) + rng.normal(size=(n, 2)) * std
-    z = wrap_angle(z)
+    z = _noisy(tilt(theta, phi, mounting), std, rng, noise_model)
     return Recording(t=t, z=z, truth=truth, length=length)
