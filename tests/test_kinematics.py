@@ -464,3 +464,23 @@ def test_series_switch_constant_is_where_the_branch_changes() -> None:
     value, d5 = (float(v) for v in f(below))
     assert value == series and d5 == 0.0
     assert float(f(kinematics.SERIES_SWITCH_Q)[1]) != 0.0
+
+
+@pytest.mark.parametrize(
+    "bends", [[[0.3, 0.2], [0.5, -0.1], [0.0, 0.0]], [[0.0, 0.0]], [[1.2, -0.4], [-0.7, 0.9]]]
+)
+def test_backbone_in_one_call_equals_pose_at_one_pose_at_a_time(bends: list[list[float]]) -> None:
+    from continuum_mhe.model.pcc import backbone_frames, pose_at
+
+    lengths = [0.16, 0.14, 0.1][: len(bends)]
+    rots, points = backbone_frames(np.array(bends), lengths, per_section=4)
+    assert rots.shape == (1 + 4 * len(bends), 3, 3)
+    assert_allclose(rots[0], np.eye(3))
+    assert_allclose(points[0], 0.0)
+    i = 1
+    for k in range(len(bends)):
+        for j in range(1, 5):
+            r, p = pose_at(np.array(bends), lengths, k, j / 4)
+            assert_allclose(rots[i], r, atol=1e-14)
+            assert_allclose(points[i], p, atol=1e-14)
+            i += 1

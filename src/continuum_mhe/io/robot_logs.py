@@ -49,7 +49,7 @@ from continuum_mhe.io.raw_imu import (
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import tilt_from_accelerometer
-from continuum_mhe.model.pcc import pose_at
+from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.model.robot import ImuPlacement
 from continuum_mhe.results import EstimateSeries
 
@@ -445,26 +445,22 @@ TOPICS = {
 }
 
 
-def _quaternion(rot: FloatArray) -> dict[str, float]:
-    from scipy.spatial.transform import Rotation
-
-    x, y, z, w = Rotation.from_matrix(rot).as_quat()
-    return {"x": float(x), "y": float(y), "z": float(z), "w": float(w)}
-
-
 def backbone_poses(
     bends: FloatArray, lengths: Sequence[float], per_section: int = 10
 ) -> list[dict[str, Any]]:
     """Poses along the PCC backbone from base to tip (bends (n_sections, 2) rad,
     lengths m), Foxglove JSON: the base, then ``per_section`` poses per section."""
-    poses = [{"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": _quaternion(np.eye(3))}]
-    for k in range(len(lengths)):
-        for j in range(1, per_section + 1):
-            r, p = pose_at(bends, lengths, k, j / per_section)
-            poses.append(
-                {"position": dict(zip("xyz", map(float, p))), "orientation": _quaternion(r)}
-            )
-    return poses
+    from scipy.spatial.transform import Rotation
+
+    rots, positions = backbone_frames(bends, lengths, per_section)
+    quats = Rotation.from_matrix(rots).as_quat()  # (x, y, z, w)
+    return [
+        {
+            "position": dict(zip("xyz", map(float, p))),
+            "orientation": dict(zip("xyzw", map(float, q))),
+        }
+        for p, q in zip(positions, quats)
+    ]
 
 
 def estimate_messages(

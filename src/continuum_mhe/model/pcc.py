@@ -159,3 +159,33 @@ def section_frames_from_bends(bends: ArrayLike, lengths: Sequence[float]) -> Flo
 def up_vector(mounting: Mounting) -> FloatArray:
     """The world's up direction in the base frame."""
     return np.array([0.0, 0.0, _up_sign(mounting)])
+
+
+@cache
+def _backbone_function(lengths: tuple[float, ...], per_section: int) -> ca.Function:
+    u = ca.SX.sym("u", 2 * len(lengths))
+    bends = [(u[2 * k], u[2 * k + 1]) for k in range(len(lengths))]
+    poses = [
+        pose_at_sym(bends, lengths, k, j / per_section)
+        for k in range(len(lengths))
+        for j in range(1, per_section + 1)
+    ]
+    rots = ca.horzcat(*[ca.reshape(r, 9, 1) for r, _ in poses])
+    return ca.Function("backbone", [u], [rots, ca.horzcat(*[p for _, p in poses])])
+
+
+def backbone_frames(
+    bends: ArrayLike, lengths: Sequence[float], per_section: int = 10
+) -> tuple[FloatArray, FloatArray]:
+    """Poses along the backbone of one shape in one call: ``bends`` (n_sections, 2)
+    rad; returns ``R`` (m, 3, 3) and ``p`` (m, 3) m for the base, then ``per_section``
+    evenly spaced poses per section (``m = 1 + per_section n_sections``; the last is
+    the tip), as :func:`pose_at` gives them one at a time."""
+    u = np.asarray(bends, dtype=float).reshape(-1)
+    fn = _backbone_function(tuple(float(v) for v in lengths), int(per_section))
+    r, p = (np.asarray(v, dtype=float) for v in fn(u))
+    rots = r.T.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major
+    return (
+        np.concatenate([np.eye(3)[None], rots]),
+        np.concatenate([np.zeros((1, 3)), p.T]),
+    )
