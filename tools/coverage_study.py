@@ -30,7 +30,7 @@ import numpy as np
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import tip_calibration
 from continuum_mhe.settings import NoiseSettings
-from continuum_mhe.simulation.scenarios import simulate
+from continuum_mhe.simulation.scenarios import NOISE_MODELS, simulate
 
 
 def summarise(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:
@@ -58,7 +58,10 @@ def monte_carlo(args: argparse.Namespace) -> dict[str, object]:
     f = make_formulation("bend", noise=noise(args, 0.0))
     per: dict[str, list[dict[str, float]]] = {m: [] for m in args.methods}
     for seed in range(args.seeds):
-        rec = simulate(args.scenario, duration=args.duration, seed=seed, noise_deg=args.noise_deg)
+        rec = simulate(
+            args.scenario, duration=args.duration, seed=seed, noise_deg=args.noise_deg,
+            noise_model=args.noise_model,
+        )  # fmt: skip
         for m in args.methods:
             per[m].append(tip_calibration(f, m, rec.t, rec.z, rec.truth[:, :3]))
         print(f"seed {seed} done", file=sys.stderr)
@@ -89,6 +92,13 @@ def main() -> int:
     p.add_argument("--duration", type=float, default=20.0)
     p.add_argument("--noise-deg", type=float, default=2.0)
     p.add_argument("--accel-psd", type=float, default=NoiseSettings.bend_accel_psd)
+    p.add_argument(
+        "--noise-model",
+        choices=NOISE_MODELS,
+        default="tangent",
+        help="tangent: isotropic on the tangent plane, as R models it (default); tilt: "
+        "the paper's, independent on roll and pitch",
+    )
     p.add_argument("--methods", type=lambda s: s.split(","), default=["mhe", "ekf", "ukf"])
     p.add_argument("--rod", action="store_true", help="the Cosserat-rod recording instead")
     p.add_argument(
