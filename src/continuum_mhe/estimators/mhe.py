@@ -70,6 +70,7 @@ from continuum_mhe.estimators.fast.warmup import (
     kernels_ready,
 )
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
+from continuum_mhe.estimators.second_start import REL_MARGIN, SecondStart
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
     OUTLIER_WEIGHT,
@@ -292,6 +293,8 @@ class MovingHorizonEstimator(Estimator):
         self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
+        #: the robust loss's second start (:mod:`.second_start`), with its counts
+        self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
         self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
@@ -334,6 +337,8 @@ class MovingHorizonEstimator(Estimator):
         # robust weights rho'(s_b) per block of the first and last node of the last solve
         self._w_first = np.ones(len(self._blocks))
         self._w_last = np.ones(len(self._blocks))
+        if self.second_start is not None:
+            self.second_start.clear()
 
     # --- window bookkeeping -------------------------------------------------
     def _push(self, m: Measurement, mask: FloatArray) -> None:
@@ -423,13 +428,16 @@ class MovingHorizonEstimator(Estimator):
         X = np.empty_like(self._X)
         X[:-1] = self._X[1:]
         dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
-        u = self._uw[-1]
-        if self._node is not None:
-            xn = self._node.evaluate(self._X[-1], u, dt)[0]
-        else:
-            xn = np.asarray(f.functions.transition(self._X[-1], u, dt), float).ravel()
-        X[-1] = f.project(xn)
+        X[-1] = self._predict(self._X[-1], self._uw[-1], dt)
         return X
+
+    def _predict(self, x: FloatArray, u: FloatArray, dt: float) -> FloatArray:
+        """The model's next state from ``x`` after ``dt`` s, projected on the bounds."""
+        if self._node is not None:
+            xn = self._node.evaluate(x, u, dt)[0]
+        else:
+            xn = np.asarray(self.formulation.functions.transition(x, u, dt), float).ravel()
+        return self.formulation.project(xn)
 
     # --- solve ----------------------------------------------------------------
     def _output(self, state: FloatArray) -> FloatArray:
@@ -461,6 +469,8 @@ class MovingHorizonEstimator(Estimator):
         X, status = self._solve(problem, X0)
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
+        if self.second_start is not None:
+            X, status = self._try_second_start(problem, X, status)
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
@@ -519,6 +529,38 @@ class MovingHorizonEstimator(Estimator):
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
         return X, "fallback-ipopt" if status == "ok" else status
+
+    def _try_second_start(
+        self, problem: WindowProblem, X: FloatArray, status: Status
+    ) -> tuple[FloatArray, Status]:
+        """When ``X`` rejects the newest sample, solve the window again from the
+        solution of ``LAG`` samples ago and keep the lower cost (:mod:`.second_start`).
+        Only full windows take part."""
+        second = self.second_start
+        assert second is not None
+        if self._k < self.settings.horizon:
+            second.clear()
+            return X, status
+        start = None
+        if status in ("ok", "fallback-ipopt"):
+            w = self._node_weights(-1, X[-1])
+            if float(np.min(w)) < OUTLIER_WEIGHT:
+                start = second.start(problem.u, problem.dt, self._predict)
+        if start is not None:
+            second.tried += 1
+            kept = self._lam
+            self._lam = None
+            X2, status2 = self._solve(problem, start)
+            fast = self._fast
+            cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
+            c1 = cost(problem, X)
+            if status2 in ("ok", "fallback-ipopt") and cost(problem, X2) < c1 - REL_MARGIN * abs(c1):
+                second.kept += 1
+                X, status = X2, status2
+            else:
+                self._lam = kept
+        second.remember(X.copy())
+        return X, status
 
     def _check_branch(
         self, problem: WindowProblem, X: FloatArray, status: Status
