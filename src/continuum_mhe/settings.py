@@ -158,6 +158,11 @@ class RecoverySettings:
         freeze: a sensor (measurement block) whose reading repeats exactly for longer
             than this (s) is treated as dropped out until its reading changes; None:
             never (command line ``--freeze``, default 1 s).
+        bad_start: for this long (s) after each (re)start, ``SAMPLES`` consecutive readings
+            inconsistent with the estimate (normalised innovation beyond a chi-square
+            quantile; :mod:`continuum_mhe.estimators.start_check`) restart the
+            estimator from the current reading (status ``reset``); None: never (the
+            library's default; command line ``--bad-start``, default 2 s).
         uncertain_fraction: an estimate whose tip position standard deviation
             (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
             length gets status ``uncertain`` instead of ``ok``.
@@ -166,9 +171,10 @@ class RecoverySettings:
     gap_reset: float | None = None
     freeze: float | None = None
     uncertain_fraction: float = 0.1
+    bad_start: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("gap_reset", "freeze"):
+        for name in ("gap_reset", "freeze", "bad_start"):
             value = getattr(self, name)
             if value is not None:
                 _positive(name, value)
