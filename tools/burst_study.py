@@ -10,8 +10,14 @@ window into the arrival prior). At every sample near a burst the same window pro
 is also solved from the clean run's trajectory (a start that never saw the burst):
 when that reaches a lower window cost, the estimator sat in a local minimum.
 
+With ``--mc`` it runs instead the outlier groups (clean, spikes, bursts) of
+``reproduce``'s beyond-the-paper section exactly as ``reproduce`` does
+(``plan_beyond``/``run_beyond``/``summarise_beyond``, the full configuration's seeds),
+with the Cauchy scale and the second start as given, and prints the targets:
+
     python tools/burst_study.py                       # 10 seeds, Cauchy, default scale
     python tools/burst_study.py --seeds 5 --scale 1.0 --no-second-start
+    python tools/burst_study.py --mc --seeds 50 --scale 2.0 --no-second-start
 """
 
 from __future__ import annotations
@@ -72,6 +78,32 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
     return {"eb": eb, "ec": ec, "rel": rel, "lower": lower}
 
 
+def monte_carlo(args: argparse.Namespace) -> None:
+    """The outlier groups of ``reproduce``'s beyond section; prints the targets."""
+    from continuum_mhe import settings
+    from continuum_mhe.estimators import mhe
+    from continuum_mhe.reproduce.experiments import FULL
+
+    if args.scale is not None:
+        settings.DEFAULT_LOSS_SCALE["cauchy"] = args.scale
+    if args.no_second_start:
+        mhe.SecondStart = lambda *a, **k: None  # type: ignore[assignment,misc]
+    c = FULL
+    specs = beyond.plan_beyond(args.seeds, c.beyond_duration, dt=c.dt, length=c.length,
+                               noise_deg=c.noise_deg, horizon=c.horizon,
+                               recovery_duration=c.beyond_recovery_duration,
+                               gap_s=c.beyond_gap_s)  # fmt: skip
+    trials = [beyond.run_beyond(s) for s in specs if s.group in beyond.OUTLIER_GROUPS]
+    s = beyond.summarise_beyond(trials)
+    print(f"seeds {args.seeds}  cauchy scale {settings.DEFAULT_LOSS_SCALE['cauchy']}  "
+          f"second start {'off' if args.no_second_start else 'on'}")  # fmt: skip
+    for g, by in s["outliers"].items():
+        print(f"  {g:7s} " + "  ".join(f"{m} {v['mean']:.3f}" for m, v in by.items()) + " mm")
+    for g, targets in s["targets"].items():
+        for k, v in targets.items():
+            print(f"  {g:7s} {k:22s} {v['value']:.4f} [{v['lo']:.4f}, {v['hi']:.4f}]")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=10)
@@ -79,7 +111,11 @@ def main() -> None:
     p.add_argument("--loss", default="cauchy")
     p.add_argument("--scale", type=float, default=None)
     p.add_argument("--no-second-start", action="store_true")
+    p.add_argument("--mc", action="store_true", help="the reproduce outlier groups")
     args = p.parse_args()
+    if args.mc:
+        monte_carlo(args)
+        return
     runs = [run_seed(s, args) for s in range(args.seeds)]
     eb = np.concatenate([r["eb"] for r in runs])
     ec = np.concatenate([r["ec"] for r in runs])
