@@ -1,4 +1,4 @@
-"""The bad-start check (``RecoverySettings.bad_start``, :mod:`continuum_mhe.estimators.start_check`).
+"""The bad-start check (``RecoverySettings.bad_start``, :mod:`.estimators.start_check`).
 
 Known answers on ``paper3d``: the first 0.5 s of readings 60 deg off on roll and pitch
 (samples 0-9), right from sample 10: every estimator (compiled and CasADi EKF, UKF, MHE

@@ -135,7 +135,8 @@ def main() -> None:
     for k in range(0, 36):
         sel = rel == k
         if sel.any():
-            print(f"  {k:4d} {eb[sel].mean():8.2f} {ec[sel].mean():6.2f}   {lower[sel].mean():5.2f}")
+            low = lower[sel].mean()
+            print(f"  {k:4d} {eb[sel].mean():8.2f} {ec[sel].mean():6.2f}   {low:5.2f}")
 
 
 if __name__ == "__main__":

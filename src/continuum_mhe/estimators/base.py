@@ -144,8 +144,9 @@ class Estimator(ABC):
         frozen longer than ``freeze`` s counts as dropped out; the first valid sample
         after more than ``gap_reset`` s without one restarts the estimator the same
         way (``reset``), and so do readings inconsistent with the estimate within
-        ``bad_start`` s of a (re)start (:mod:`.start_check`); an ``ok`` estimate whose tip standard deviation exceeds
-        ``uncertain_fraction`` of the robot's length is ``uncertain``. The estimate
+        ``bad_start`` s of a (re)start (:mod:`.start_check`); an ``ok`` estimate whose
+        tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
+        ``uncertain``. The estimate
         carries ``output_std`` wherever the method has a covariance.
 
         Raises:

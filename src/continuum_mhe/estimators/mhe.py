@@ -70,7 +70,6 @@ from continuum_mhe.estimators.fast.warmup import (
     kernels_ready,
 )
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
-from continuum_mhe.estimators.second_start import REL_MARGIN, SecondStart
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
     OUTLIER_WEIGHT,
@@ -78,6 +77,7 @@ from continuum_mhe.estimators.loss import (
     block_weights,
     rho_sym,
 )
+from continuum_mhe.estimators.second_start import REL_MARGIN, SecondStart
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 
@@ -421,7 +421,7 @@ class MovingHorizonEstimator(Estimator):
         )
 
     def _initial_guess(self) -> FloatArray:
-        f, n = self.formulation, self.settings.horizon
+        n = self.settings.horizon
         assert self._xbar is not None
         if self._X is None:
             return np.tile(self._xbar, (n, 1))
@@ -554,7 +554,8 @@ class MovingHorizonEstimator(Estimator):
             fast = self._fast
             cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
             c1 = cost(problem, X)
-            if status2 in ("ok", "fallback-ipopt") and cost(problem, X2) < c1 - REL_MARGIN * abs(c1):
+            lower = cost(problem, X2) < c1 - REL_MARGIN * abs(c1)
+            if status2 in ("ok", "fallback-ipopt") and lower:
                 second.kept += 1
                 X, status = X2, status2
             else:

@@ -12,11 +12,11 @@ lower cost and the clean error in 5 to 10 samples after each burst.
 
 :class:`SecondStart` keeps the last solutions. When the warm-started answer rejects
 the newest sample (its weight ``rho'(s) < OUTLIER_WEIGHT``), the same window problem is
-solved once more from the solution of ``LAG`` samples ago (at most ``N - 1``), shifted by ``LAG`` nodes and
-its newest nodes predicted by the model; the answer with the lower window cost (the
-NLP objective, lower by more than ``REL_MARGIN``) is kept. Both answers are KKT points
-of the same problem, so both backends choose alike. On data where no newest sample is
-rejected nothing changes.
+solved once more from the solution of ``LAG`` samples ago (at most ``N - 1``), shifted
+by ``LAG`` nodes and its newest nodes predicted by the model; the answer with the lower
+window cost (the NLP objective, lower by more than ``REL_MARGIN``) is kept. Both
+answers are KKT points of the same problem, so both backends choose alike. On data
+where no newest sample is rejected nothing changes.
 """
 
 from __future__ import annotations

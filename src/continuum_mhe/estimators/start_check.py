@@ -66,7 +66,9 @@ class StartCheck:
         xn = xn.ravel()
         Pn = F.reshape(nx, nx) @ P @ F.reshape(nx, nx).T + Q.reshape(nx, nx)
         rows = np.flatnonzero(mask)
-        r, Jr = (np.asarray(v, dtype=float) for v in f.functions.innovate(np.where(mask > 0, z, 0.0), xn))
+        r, Jr = (
+            np.asarray(v, dtype=float) for v in f.functions.innovate(np.where(mask > 0, z, 0.0), xn)
+        )
         H = Jr.reshape(len(z), nx)[rows]
         r = r.ravel()[rows]
         S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
@@ -84,7 +86,9 @@ class StartCheck:
         self._run = self._run + 1 if value > self._limit[dof] else 0
         return self._run >= SAMPLES
 
-    def remember(self, t: float, z: FloatArray, state: FloatArray | None, cov: FloatArray | None) -> None:
+    def remember(
+        self, t: float, z: FloatArray, state: FloatArray | None, cov: FloatArray | None
+    ) -> None:
         """Keep this sample's estimate for the next reading's check."""
         if state is None:
             return
@@ -93,4 +97,9 @@ class StartCheck:
         if cov is None:
             self._prev = None
             return
-        self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), np.array(z, dtype=float))
+        self._prev = (
+            t,
+            np.array(state, dtype=float),
+            np.array(cov, dtype=float),
+            np.array(z, dtype=float),
+        )
