@@ -325,11 +325,11 @@ def test_second_start_shifts_the_old_solution_and_predicts_the_rest() -> None:
 
 
 def burst_recording():
-    """``paper3d`` seed 3 with one 5-sample burst of -30 deg on roll and pitch at sample 74,
-    where the warm-started Cauchy MHE stays on the burst after it ended."""
+    """``paper3d`` seed 3 with one 5-sample burst of +30 deg on roll and pitch at sample 74,
+    where the warm-started Cauchy MHE (default scale) stays on the burst after it ended."""
     rec = simulate("paper3d", duration=5.0, seed=3)
     z = np.array(rec.z, dtype=float)
-    z[74:79] -= math.radians(30.0)
+    z[74:79] += math.radians(30.0)
     z[:, 1] = np.clip(z[:, 1], -math.pi / 2, math.pi / 2)
     return rec, z
 
