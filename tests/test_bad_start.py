@@ -93,3 +93,19 @@ def test_bad_start_option(tmp_path, capsys) -> None:
     assert "error: --bad-start -1.0 is outside its valid range" in capsys.readouterr().err
     assert not est.exists()
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0  # default on
+
+
+def test_not_checked_where_the_covariance_is_a_weight(monkeypatch) -> None:
+    """The paper formulation's W is a weight, not a noise model: its NIS is not a test."""
+    from continuum_mhe.estimators.start_check import StartCheck
+    from continuum_mhe.model.registry import make_formulation
+
+    def never(*args, **kwargs):
+        raise AssertionError("the bad-start check ran")
+
+    monkeypatch.setattr(StartCheck, "inconsistent", never)
+    rec, z = bad_start_recording()
+    est = make_estimator("ekf", make_formulation("paper"), recovery=RecoverySettings(bad_start=2))
+    assert "reset" not in set(est.run(rec.t, z).status) and est.bad_starts == 0
+    with pytest.raises(AssertionError, match="check ran"):  # the bend formulation is checked
+        estimators(RecoverySettings(bad_start=2))[0].run(rec.t, z)

@@ -61,6 +61,8 @@ class Estimator(ABC):
         #: times it restarted after a bad start (``recovery.bad_start``)
         self.bad_starts = 0
         self._start_check = StartCheck(formulation)
+        # the bad-start check needs a covariance that is one (not the paper's weight W)
+        self._checks_start = formulation.calibrated_covariance
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
         outs = formulation.outputs
@@ -194,7 +196,9 @@ class Estimator(ABC):
             self.gap_resets += 1
             self._restart()
         bad_start = False
-        if self.recovery.bad_start is not None:
+        check_start = self.recovery.bad_start is not None and self._checks_start
+        if check_start:
+            assert self.recovery.bad_start is not None
             mask = self.formulation.measurement_mask(measurement.z)
             window = self.recovery.bad_start
             bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
@@ -226,7 +230,7 @@ class Estimator(ABC):
                 status = "reset"
         if (gap_reset or bad_start) and state is not None:
             status = "reset"
-        if self.recovery.bad_start is not None:
+        if check_start:
             self._start_check.remember(t, measurement.z, state, cov)
         if status == "ok" and state is not None and self.formulation.drifted(state):
             status = "drifted"

@@ -11,7 +11,9 @@ with the ``QUANTILE`` quantile of a chi-square with as many degrees of freedom a
 components. ``SAMPLES`` consecutive readings above it restart the estimator from the
 current reading (status ``reset``). It uses only the estimates' states and covariances
 and the formulation's model, so MHE, EKF and UKF are checked alike; an estimate
-without a covariance is not checked. On data that agree with the model the chance of
+without a covariance is not checked, nor a formulation whose covariance is not one
+(``Formulation.calibrated_covariance`` False: the paper formulation's ``W`` is a
+weight). On data that agree with the model the chance of
 ``SAMPLES`` consecutive exceedances is about ``(1 - QUANTILE)^SAMPLES`` (1e-6): the
 check never fired on clean ``paper3d`` data (``reproduce``'s ``bad-start`` group).
 A burst of consistent bad readings inside the probation time restarts the estimator
