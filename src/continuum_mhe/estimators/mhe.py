@@ -25,7 +25,8 @@ With a robust loss the prior stays Gaussian, and the leaving sample's update use
 ``R_b / w_b`` per block, ``w_b = rho'(s_b)`` its weight in the last solve (the
 quadratic model of the robust cost at that solution, as iteratively reweighted least
 squares uses it): a rejected outlier does not enter the prior at full weight when it
-leaves the window.
+leaves the window. When a robust answer rejects the newest sample, the window is solved
+again from the answer of a few samples ago and the lower cost kept (:mod:`.second_start`).
 
 Growing window: before ``N`` samples exist, the active nodes are the last ``n`` ones;
 the inactive leading nodes are pinned to the prior and carry no other cost, so they
@@ -77,7 +78,7 @@ from continuum_mhe.estimators.loss import (
     block_weights,
     rho_sym,
 )
-from continuum_mhe.estimators.second_start import REL_MARGIN, SecondStart
+from continuum_mhe.estimators.second_start import SecondStart
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 
@@ -337,6 +338,7 @@ class MovingHorizonEstimator(Estimator):
         # robust weights rho'(s_b) per block of the first and last node of the last solve
         self._w_first = np.ones(len(self._blocks))
         self._w_last = np.ones(len(self._blocks))
+        self._w_new: FloatArray | None = None  # robust weights of the newest node, if known
         if self.second_start is not None:
             self.second_start.clear()
 
@@ -474,7 +476,8 @@ class MovingHorizonEstimator(Estimator):
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
-            self._w_last = self._node_weights(-1, X[-1])
+            w_new, self._w_new = self._w_new, None  # the newest node's, if computed
+            self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
         if status == "ok" and not valid:
             status = "dropout"
         cov = None if status == "solver-failed" else self.covariance(problem, X)
@@ -533,35 +536,27 @@ class MovingHorizonEstimator(Estimator):
     def _try_second_start(
         self, problem: WindowProblem, X: FloatArray, status: Status
     ) -> tuple[FloatArray, Status]:
-        """When ``X`` rejects the newest sample, solve the window again from the
-        solution of ``LAG`` samples ago and keep the lower cost (:mod:`.second_start`).
-        Only full windows take part."""
+        """:meth:`.second_start.SecondStart.check` on this window (full windows only);
+        the second solve starts without multipliers, the kept answer's warm-start."""
         second = self.second_start
         assert second is not None
         if self._k < self.settings.horizon:
             second.clear()
             return X, status
-        start = None
-        if status in ("ok", "fallback-ipopt"):
-            w = self._node_weights(-1, X[-1])
-            if float(np.min(w)) < OUTLIER_WEIGHT:
-                start = second.start(problem.u, problem.dt, self._predict)
-        if start is not None:
-            second.tried += 1
-            kept = self._lam
+        kept = self._lam
+
+        def solve(p: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
             self._lam = None
-            X2, status2 = self._solve(problem, start)
-            fast = self._fast
-            cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
-            c1 = cost(problem, X)
-            lower = cost(problem, X2) < c1 - REL_MARGIN * abs(c1)
-            if status2 in ("ok", "fallback-ipopt") and lower:
-                second.kept += 1
-                X, status = X2, status2
-            else:
-                self._lam = kept
-        second.remember(X.copy())
-        return X, status
+            return self._solve(p, X0)
+
+        fast = self._fast
+        cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
+        X2, status2, self._w_new = second.check(
+            problem, X, status, lambda x: self._node_weights(-1, x), solve, cost, self._predict
+        )
+        if X2 is X:
+            self._lam = kept
+        return X2, status2
 
     def _check_branch(
         self, problem: WindowProblem, X: FloatArray, status: Status

@@ -23,10 +23,15 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray
+from continuum_mhe.estimators.base import FloatArray, Status
+from continuum_mhe.estimators.loss import OUTLIER_WEIGHT
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators.mhe import WindowProblem
 
 #: Age of the solution the second start comes from, samples (longer than the bursts
 #: it must undo: the warm start follows a burst for its length plus the samples after
@@ -38,6 +43,14 @@ REL_MARGIN = 1e-6
 
 #: ``predict(x, u, dt) -> next state``.
 PredictFn = Callable[[FloatArray, FloatArray, float], FloatArray]
+#: ``weights(x) -> rho'(s_b)`` per block of the newest node at state ``x``.
+WeightsFn = Callable[[FloatArray], FloatArray]
+#: ``solve(problem, X0) -> (X, status)``: one solve of the window from a start.
+SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status]]
+#: ``cost(problem, X) -> window cost`` (the NLP objective).
+CostFn = Callable[["WindowProblem", FloatArray], float]
+#: Statuses of a usable answer.
+USABLE = ("ok", "fallback-ipopt")
 
 
 class SecondStart:
@@ -75,3 +88,33 @@ class SecondStart:
         for i in range(keep, len(old)):
             X[i] = predict(X[i - 1], u[i - 1], float(dt[i - 1]))
         return X
+
+    def check(
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        status: Status,
+        weights: WeightsFn,
+        solve: SolveFn,
+        cost: CostFn,
+        predict: PredictFn,
+    ) -> tuple[FloatArray, Status, FloatArray | None]:
+        """The answer to keep for this full window: ``(X, status, newest weights)``.
+
+        ``X`` is returned itself (same object) unless the second start won; the
+        newest node's weights are returned when computed for the answer returned
+        (None otherwise). The kept answer is remembered for later second starts.
+        """
+        w = weights(X[-1]) if status in USABLE else None
+        start = None
+        if w is not None and float(np.min(w)) < OUTLIER_WEIGHT:
+            start = self.start(problem.u, problem.dt, predict)
+        if start is not None:
+            self.tried += 1
+            X2, status2 = solve(problem, start)
+            c1 = cost(problem, X)
+            if status2 in USABLE and cost(problem, X2) < c1 - REL_MARGIN * abs(c1):
+                self.kept += 1
+                X, status, w = X2, status2, None
+        self.remember(X.copy())
+        return X, status, w
