@@ -528,6 +528,14 @@ def test_beyond_verdicts_follow_their_rules(quick_run: Path) -> None:
     for e in frz.values():
         e["ok_wrong"]["on_minus_off"] = _p(0.0, 0.0, 0.0)
     assert rp.claim_freeze(d).verdict == "does not hold"
+    bad = d["summary"]["recovery"]["bad-start"]
+    for e in bad.values():
+        e["tip_mean_mm"]["on_minus_off"] = _p(-2.0, -2.5, -1.5)
+        e["clean_fired"], e["clean_diff_mm"] = 0, 0.0
+    assert rp.claim_bad_start(d).verdict == "holds"
+    bad["mhe"]["clean_fired"] = 1  # fired on clean data
+    bad["ukf"]["tip_mean_mm"]["on_minus_off"] = _p(-0.1, -0.5, 0.1)  # crosses zero
+    assert rp.claim_bad_start(d).verdict == "partly holds (EKF)"
 
 
 def test_quick_report_has_the_beyond_section(quick_run: Path) -> None:
@@ -537,7 +545,7 @@ def test_quick_report_has_the_beyond_section(quick_run: Path) -> None:
     section = report.split("## Beyond the paper\n", 1)[1]
     d = load_results(quick_run)["exp7_beyond"]
     claims = rp.beyond_claims(d)
-    assert len(claims) == 6
+    assert len(claims) == 7
     for c in claims:
         assert f"| **{c.verdict}** |" in section and c.rule.startswith("holds")
     assert (quick_run / "exp7_beyond.png").stat().st_size > 1000

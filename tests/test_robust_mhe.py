@@ -51,9 +51,9 @@ def recording():
     return simulate("paper3d", duration=1.5, seed=3)
 
 
-def robust(solver: str, loss: str, **kwargs) -> MHESettings:
+def robust(solver: str, loss: str, horizon: int = HORIZON, **kwargs) -> MHESettings:
     tol = {"tol": 1e-10} if solver == "ipopt" else {}
-    return MHESettings(horizon=HORIZON, solver=solver, loss=loss, **tol, **kwargs)  # type: ignore[arg-type]
+    return MHESettings(horizon=horizon, solver=solver, loss=loss, **tol, **kwargs)  # type: ignore[arg-type]
 
 
 # --- the loss itself ----------------------------------------------------------------------------
@@ -304,3 +304,64 @@ def test_one_weight_per_imu_block_on_two_sections() -> None:
         weights = mhe._w_last
         assert weights[1] < 0.05 and weights[0] > 0.5, weights
     assert_allclose(ests["fast"].state, ests["ipopt"].state, rtol=0, atol=1e-6)
+
+
+# --- the second start after a burst ---------------------------------------------------------------
+def test_second_start_shifts_the_old_solution_and_predicts_the_rest() -> None:
+    from continuum_mhe.estimators.second_start import SecondStart
+
+    ss = SecondStart(horizon=5, lag=2)
+    u, dt = np.zeros((4, 0)), np.full(4, 0.5)
+
+    def predict(x, u_, dt_):
+        return x + dt_
+
+    ss.remember(np.arange(5.0).reshape(5, 1))
+    assert ss.start(u, dt, predict) is None  # one solution, lag 2
+    ss.remember(np.full((5, 1), 99.0))
+    # node i now is node i + 2 of the oldest; the last two nodes predicted from it
+    assert_allclose(ss.start(u, dt, predict).ravel(), [2.0, 3.0, 4.0, 4.5, 5.0])
+    assert SecondStart(horizon=6, lag=12).lag == 5  # at most N - 1
+
+
+def burst_recording():
+    """``paper3d`` seed 3 with one 5-sample burst of +30 deg on roll and pitch at sample 74,
+    where the warm-started Cauchy MHE (default scale) stays on the burst after it ended."""
+    rec = simulate("paper3d", duration=5.0, seed=3)
+    z = np.array(rec.z, dtype=float)
+    z[74:79] += math.radians(30.0)
+    z[:, 1] = np.clip(z[:, 1], -math.pi / 2, math.pi / 2)
+    return rec, z
+
+
+def test_second_start_leaves_a_burst_that_the_warm_start_follows() -> None:
+    rec, z = burst_recording()
+    f = BendFormulation()
+    errors = {}
+    for on in (True, False):
+        mhe = MovingHorizonEstimator(f, MHESettings(horizon=30, loss="cauchy"))
+        if not on:
+            mhe.second_start = None
+        out = mhe.run(rec.t, z).output
+        errors[on] = np.linalg.norm(out[80:84, :3] - rec.truth[80:84, :3], axis=1)
+        if on:
+            assert mhe.second_start is not None and mhe.second_start.kept >= 1
+    assert errors[False].min() > 0.05  # m: the warm start stays on the burst
+    assert errors[True].max() < 0.01  # back on the clean trajectory
+
+
+def test_second_start_chooses_alike_on_both_backends() -> None:
+    """Through the burst and after it, the fast backend and IPOPT take the same second
+    starts and give the same states (rad, rad/s) to 1e-6."""
+    rec, z = burst_recording()
+    f = BendFormulation()
+    states = []
+    for solver in SOLVERS:
+        mhe = MovingHorizonEstimator(f, robust(solver, "cauchy", horizon=30))
+        mhe.reset()
+        for k in range(86):
+            est = mhe.step(Measurement(float(rec.t[k]), z[k]))
+            assert est.status == "ok"
+            states.append(est.state)
+        assert mhe.second_start is not None and mhe.second_start.kept >= 1
+    assert_allclose(states[:86], states[86:], rtol=0, atol=1e-6)

@@ -260,9 +260,10 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
         return ViewerSink("save", Path(args.save), **ports)
     return ViewerSink("web" if args.serve_web else "spawn", **ports)
 
-#: ``--gap-reset`` and ``--freeze`` defaults, s.
+#: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s.
 GAP_RESET_S = 1.0
 FREEZE_S = 1.0
+BAD_START_S = 2.0
 
 
 def add_recovery_options(p: argparse.ArgumentParser) -> None:
@@ -284,6 +285,16 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         f"dropped out until it changes; 0: never (default {FREEZE_S:g})",
     )
     g.add_argument(
+        "--bad-start",
+        type=float,
+        default=BAD_START_S,
+        metavar="SECONDS",
+        help="for this long after each (re)start, two consecutive readings inconsistent "
+        "with the estimate (normalised innovation beyond the chi-square 99.9 %% quantile) "
+        f"restart the estimator from the reading (status reset); 0: never "
+        f"(default {BAD_START_S:g})",
+    )
+    g.add_argument(
         "--uncertain-fraction",
         type=float,
         default=RecoverySettings.uncertain_fraction,
@@ -294,7 +305,7 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
-    for name in ("gap_reset", "freeze"):
+    for name in ("gap_reset", "freeze", "bad_start"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v >= 0):
             raise InputError(f"--{name.replace('_', '-')} must be >= 0 seconds, got {v}")
@@ -302,7 +313,10 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
     if not (math.isfinite(f) and f > 0):
         raise InputError(f"--uncertain-fraction must be positive, got {f}")
     return RecoverySettings(
-        gap_reset=args.gap_reset or None, freeze=args.freeze or None, uncertain_fraction=f
+        gap_reset=args.gap_reset or None,
+        freeze=args.freeze or None,
+        uncertain_fraction=f,
+        bad_start=args.bad_start or None,
     )
 
 # --- valid ranges of every numeric option ------------------------------------------
@@ -356,6 +370,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "loss_scale": OptionRange(0.0, 100.0, "std", lo_open=True),
     "gap_reset": OptionRange(0.0, 1e6, "s"),
     "freeze": OptionRange(0.0, 1e6, "s"),
+    "bad_start": OptionRange(0.0, 1e6, "s"),
     "uncertain_fraction": OptionRange(0.0, 100.0, lo_open=True),
     "model_error_deg": OptionRange(0.0, 90.0, "deg", above="--model-error-deg is in degrees"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,

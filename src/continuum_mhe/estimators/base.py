@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
+from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
@@ -57,6 +58,11 @@ class Estimator(ABC):
         self.gap_resets = 0
         #: samples with at least one sensor treated as frozen (``recovery.freeze``)
         self.frozen_samples = 0
+        #: times it restarted after a bad start (``recovery.bad_start``)
+        self.bad_starts = 0
+        self._start_check = StartCheck(formulation)
+        # the bad-start check needs a covariance that is one (not the paper's weight W)
+        self._checks_start = formulation.calibrated_covariance
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
         outs = formulation.outputs
@@ -76,6 +82,11 @@ class Estimator(ABC):
         self._last_valid_t = -math.inf
         self._freeze_value = [None] * len(self.formulation.measurement_blocks)
         self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._restart()
+
+    def _restart(self) -> None:
+        """Clear the estimator's state and the bad-start check's (a (re)start)."""
+        self._start_check.clear()
         self._reset()
 
     @abstractmethod
@@ -134,8 +145,10 @@ class Estimator(ABC):
         ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor
         frozen longer than ``freeze`` s counts as dropped out; the first valid sample
         after more than ``gap_reset`` s without one restarts the estimator the same
-        way (``reset``); an ``ok`` estimate whose tip standard deviation exceeds
-        ``uncertain_fraction`` of the robot's length is ``uncertain``. The estimate
+        way (``reset``), and so do readings inconsistent with the estimate within
+        ``bad_start`` s of a (re)start (:mod:`.start_check`); an ``ok`` estimate whose
+        tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
+        ``uncertain``. The estimate
         carries ``output_std`` wherever the method has a covariance.
 
         Raises:
@@ -181,7 +194,17 @@ class Estimator(ABC):
             self._last_valid_t = t
         if gap_reset:  # restart from this sample instead of a blind prediction
             self.gap_resets += 1
-            self._reset()
+            self._restart()
+        bad_start = False
+        check_start = self.recovery.bad_start is not None and self._checks_start
+        if check_start:
+            assert self.recovery.bad_start is not None
+            mask = self.formulation.measurement_mask(measurement.z)
+            window = self.recovery.bad_start
+            bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
+            if bad_start:  # the start was wrong: restart from this reading
+                self.bad_starts += 1
+                self._restart()
         try:
             with np.errstate(all="ignore"):  # non-finite results are caught below
                 state, cov, status = self._step(measurement)
@@ -192,7 +215,7 @@ class Estimator(ABC):
             healthy = False
         if not healthy:  # flag it and restart from this sample's measurement
             self.restarts += 1
-            self._reset()
+            self._restart()
             try:
                 with np.errstate(all="ignore"):
                     state, cov, status = self._step(measurement)
@@ -201,12 +224,14 @@ class Estimator(ABC):
                 self.last_failure = f"{type(exc).__name__}: {exc}"
                 state, cov, status = None, None, "no-estimate"
             if state is not None and self.formulation.is_diverged(state, cov):
-                self._reset()
+                self._restart()
                 state, cov, status = None, None, "no-estimate"
             if state is not None:
                 status = "reset"
-        if gap_reset and state is not None:
+        if (gap_reset or bad_start) and state is not None:
             status = "reset"
+        if check_start:
+            self._start_check.remember(t, measurement.z, state, cov)
         if status == "ok" and state is not None and self.formulation.drifted(state):
             status = "drifted"
         ms = (time.perf_counter() - start) * 1e3

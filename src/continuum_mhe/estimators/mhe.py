@@ -25,7 +25,8 @@ With a robust loss the prior stays Gaussian, and the leaving sample's update use
 ``R_b / w_b`` per block, ``w_b = rho'(s_b)`` its weight in the last solve (the
 quadratic model of the robust cost at that solution, as iteratively reweighted least
 squares uses it): a rejected outlier does not enter the prior at full weight when it
-leaves the window.
+leaves the window. When a robust answer rejects the newest sample, the window is solved
+again from the answer of a few samples ago and the lower cost kept (:mod:`.second_start`).
 
 Growing window: before ``N`` samples exist, the active nodes are the last ``n`` ones;
 the inactive leading nodes are pinned to the prior and carry no other cost, so they
@@ -77,6 +78,7 @@ from continuum_mhe.estimators.loss import (
     block_weights,
     rho_sym,
 )
+from continuum_mhe.estimators.second_start import SecondStart
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 
@@ -292,6 +294,8 @@ class MovingHorizonEstimator(Estimator):
         self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
+        #: the robust loss's second start (:mod:`.second_start`), with its counts
+        self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
         self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
@@ -334,6 +338,9 @@ class MovingHorizonEstimator(Estimator):
         # robust weights rho'(s_b) per block of the first and last node of the last solve
         self._w_first = np.ones(len(self._blocks))
         self._w_last = np.ones(len(self._blocks))
+        self._w_new: FloatArray | None = None  # robust weights of the newest node, if known
+        if self.second_start is not None:
+            self.second_start.clear()
 
     # --- window bookkeeping -------------------------------------------------
     def _push(self, m: Measurement, mask: FloatArray) -> None:
@@ -416,20 +423,23 @@ class MovingHorizonEstimator(Estimator):
         )
 
     def _initial_guess(self) -> FloatArray:
-        f, n = self.formulation, self.settings.horizon
+        n = self.settings.horizon
         assert self._xbar is not None
         if self._X is None:
             return np.tile(self._xbar, (n, 1))
         X = np.empty_like(self._X)
         X[:-1] = self._X[1:]
         dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
-        u = self._uw[-1]
-        if self._node is not None:
-            xn = self._node.evaluate(self._X[-1], u, dt)[0]
-        else:
-            xn = np.asarray(f.functions.transition(self._X[-1], u, dt), float).ravel()
-        X[-1] = f.project(xn)
+        X[-1] = self._predict(self._X[-1], self._uw[-1], dt)
         return X
+
+    def _predict(self, x: FloatArray, u: FloatArray, dt: float) -> FloatArray:
+        """The model's next state from ``x`` after ``dt`` s, projected on the bounds."""
+        if self._node is not None:
+            xn = self._node.evaluate(x, u, dt)[0]
+        else:
+            xn = np.asarray(self.formulation.functions.transition(x, u, dt), float).ravel()
+        return self.formulation.project(xn)
 
     # --- solve ----------------------------------------------------------------
     def _output(self, state: FloatArray) -> FloatArray:
@@ -461,10 +471,13 @@ class MovingHorizonEstimator(Estimator):
         X, status = self._solve(problem, X0)
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
+        if self.second_start is not None:
+            X, status = self._try_second_start(problem, X, status)
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
-            self._w_last = self._node_weights(-1, X[-1])
+            w_new, self._w_new = self._w_new, None  # the newest node's, if computed
+            self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
         if status == "ok" and not valid:
             status = "dropout"
         cov = None if status == "solver-failed" else self.covariance(problem, X)
@@ -519,6 +532,31 @@ class MovingHorizonEstimator(Estimator):
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
         return X, "fallback-ipopt" if status == "ok" else status
+
+    def _try_second_start(
+        self, problem: WindowProblem, X: FloatArray, status: Status
+    ) -> tuple[FloatArray, Status]:
+        """:meth:`.second_start.SecondStart.check` on this window (full windows only);
+        the second solve starts without multipliers, the kept answer's warm-start."""
+        second = self.second_start
+        assert second is not None
+        if self._k < self.settings.horizon:
+            second.clear()
+            return X, status
+        kept = self._lam
+
+        def solve(p: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
+            self._lam = None
+            return self._solve(p, X0)
+
+        fast = self._fast
+        cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
+        X2, status2, self._w_new = second.check(
+            problem, X, status, lambda x: self._node_weights(-1, x), solve, cost, self._predict
+        )
+        if X2 is X:
+            self._lam = kept
+        return X2, status2
 
     def _check_branch(
         self, problem: WindowProblem, X: FloatArray, status: Status

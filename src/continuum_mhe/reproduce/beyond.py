@@ -17,11 +17,14 @@ returns plain data; :func:`summarise_beyond` turns the trials into means with 95
   data are model-consistent for the measurement (noise isotropic on the tangent plane
   of gravity, ``noise_model="tangent"``, which is what ``R`` models); the same seeds
   with the paper's roll/pitch noise are scored too (``methods_tilt_noise``).
-* ``gap``, ``freeze``: MHE, EKF, UKF with :data:`RECOVERY_ON` (the command line's
-  defaults) and without (the library's). ``gap``: no data for ``gap_s`` from
-  :data:`EVENT_T0`; ``freeze``: the IMU repeats its reading for ``freeze_s`` from
-  :data:`EVENT_T0`. Scored over the event and :data:`AFTER_S` after it (gap: the
-  2 s after).
+* ``gap``, ``freeze``, ``bad-start``: MHE, EKF, UKF with :data:`RECOVERY_ON` (the
+  command line's defaults) and without (the library's). ``gap``: no data for ``gap_s``
+  from :data:`EVENT_T0`; ``freeze``: the IMU repeats its reading for ``freeze_s`` from
+  :data:`EVENT_T0`; ``bad-start``: the readings of the first ``bad_s`` are ``bad_deg``
+  off on roll and pitch, then right. Scored over the event and :data:`AFTER_S` after
+  it (gap and bad start: the 2 s after). ``bad-start`` also runs each estimator with
+  the settings on over the clean recording: ``clean_fired`` (bad-start restarts, must
+  be 0) and ``clean_diff_mm`` (largest tip difference from the run with them off).
 
 Units: s, rad, m; errors in mm where a key says so.
 """
@@ -53,16 +56,17 @@ from continuum_mhe.settings import (
 from continuum_mhe.simulation.scenarios import simulate
 
 FloatArray = NDArray[np.float64]
-BeyondGroup = Literal["clean", "spikes", "bursts", "coverage", "gap", "freeze"]
-BEYOND_GROUPS: tuple[BeyondGroup, ...] = ("clean", "spikes", "bursts", "coverage", "gap", "freeze")
+BeyondGroup = Literal["clean", "spikes", "bursts", "coverage", "gap", "freeze", "bad-start"]
+BEYOND_GROUPS: tuple[BeyondGroup, ...] = (
+    "clean", "spikes", "bursts", "coverage", "gap", "freeze", "bad-start")  # fmt: skip
 OUTLIER_GROUPS = ("clean", "spikes", "bursts")
-RECOVERY_GROUPS = ("gap", "freeze")
+RECOVERY_GROUPS = ("gap", "freeze", "bad-start")
 #: Estimators of the outlier groups: quadratic MHE, robust MHE, EKF.
 OUTLIER_METHODS = ("mhe-l2", "mhe-robust", "ekf")
 #: Estimators of the coverage and recovery groups.
 ALL_METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
-#: The command line's recovery defaults (``--gap-reset 1 --freeze 1``), s.
-RECOVERY_ON = RecoverySettings(gap_reset=1.0, freeze=1.0)
+#: The command line's recovery defaults (``--gap-reset 1 --freeze 1 --bad-start 2``), s.
+RECOVERY_ON = RecoverySettings(gap_reset=1.0, freeze=1.0, bad_start=2.0)
 RECOVERY_OFF = RecoverySettings()
 #: Start of the gap and of the freeze, s; the score window's extra time after, s.
 EVENT_T0 = 5.0
@@ -85,6 +89,7 @@ class BeyondSpec:
         spike_deg, spike_fraction: size and share of isolated spikes.
         burst_fraction, burst_length: bursts per sample and their length (samples).
         gap_s, freeze_s: length of the gap and of the freeze, s.
+        bad_s, bad_deg: length (s) and offset (deg, roll and pitch) of the bad start.
     """
 
     group: BeyondGroup
@@ -101,6 +106,8 @@ class BeyondSpec:
     burst_length: int = 5
     gap_s: float = 3.0
     freeze_s: float = 3.0
+    bad_s: float = 0.5
+    bad_deg: float = 60.0
     experiment: str = "exp7_beyond"
 
     def __post_init__(self) -> None:
@@ -162,6 +169,13 @@ def bursts(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
         out[s : s + b] += math.radians(spec.spike_deg) * rng.choice([-1.0, 1.0], size=2)
         mask[s : s + b] = True
     return _clip(out), mask
+
+
+def bad_start(z: FloatArray, t: FloatArray, spec: BeyondSpec) -> FloatArray:
+    """The readings before ``spec.bad_s`` s offset by ``spec.bad_deg`` on roll and pitch."""
+    out = np.array(z, dtype=float)
+    out[t < spec.bad_s] += math.radians(spec.bad_deg)
+    return _clip(out)
 
 
 # --- scores -------------------------------------------------------------------------
@@ -246,6 +260,10 @@ def _recovery(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
         t, z, truth = t[keep], z[keep], truth[keep]
         start = t[np.flatnonzero(t >= EVENT_T0)[0]]
         window = (t >= start) & (t < start + AFTER_S)
+    elif spec.group == "bad-start":
+        clean = z
+        z = bad_start(z, t, spec)
+        window = (t >= spec.bad_s) & (t < spec.bad_s + AFTER_S)
     else:
         z = z.copy()
         frozen = (t >= EVENT_T0) & (t < EVENT_T0 + spec.freeze_s)
@@ -253,8 +271,10 @@ def _recovery(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
         window = (t >= EVENT_T0) & (t < EVENT_T0 + spec.freeze_s + AFTER_S)
     out: dict[str, Any] = {}
     for m in ALL_METHODS:
+        clean_out: dict[str, FloatArray] = {}
         for label, rs in (("off", RECOVERY_OFF), ("on", RECOVERY_ON)):
-            s = make_estimator(m, f, MHESettings(horizon=spec.horizon), rs).run(t, z)
+            est = make_estimator(m, f, MHESettings(horizon=spec.horizon), rs)
+            s = est.run(t, z)
             err = _tip_err(s.output, truth)
             wrong = (s.status == "ok") & (err > WRONG_SHARE * spec.length)
             out[f"{m} {label}"] = {
@@ -262,6 +282,13 @@ def _recovery(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
                 "tip_max_mm": float(np.nanmax(err[window]) * 1e3),
                 "ok_wrong": int(wrong.sum()),
             }
+            if spec.group == "bad-start":  # the same settings on the clean recording
+                before = est.bad_starts  # counted since construction
+                clean_out[label] = est.run(t, clean).output
+                out[f"{m} {label}"]["clean_fired"] = est.bad_starts - before
+        if clean_out:
+            diff = np.abs(clean_out["on"][:, :3] - clean_out["off"][:, :3])
+            out[f"{m} on"]["clean_diff_mm"] = float(np.nanmax(diff) * 1e3)
     return out
 
 
@@ -413,6 +440,9 @@ def summarise_beyond(trials: Sequence[dict[str, Any]]) -> dict[str, Any]:
                     "on": mean_ci(on),
                     "on_minus_off": paired(on, off, "diff"),
                 }
+            if g == "bad-start":
+                entry["clean_fired"] = int(sum(col(g, f"{m} on", "clean_fired")))
+                entry["clean_diff_mm"] = max(col(g, f"{m} on", "clean_diff_mm"))
             rec[g][m] = entry
     if rec:
         out["recovery"] = rec

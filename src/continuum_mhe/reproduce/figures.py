@@ -277,7 +277,7 @@ def exp7_figures(d: dict[str, Any]) -> dict[str, Figure]:
         labels, blocks = [], []
         for g in rec:
             for side in ("off", "on"):
-                labels.append(f"{g} {side}")
+                labels.append(f"{g}\n{side}")
                 blocks.append({m: {"v": rec[g][m]["tip_mean_mm"][side]} for m in rec[g]})
         _bars(axes[2], labels, blocks, tuple(next(iter(rec.values()))), "v")
         axes[2].set_ylabel("mean tip error over the event (mm)")

@@ -10,6 +10,7 @@ experiment), :mod:`.claims` (the paper's claims), :mod:`.beyond` (beyond the pap
 from continuum_mhe.reproduce.report.beyond import (
     beyond_claims,
     beyond_section,
+    claim_bad_start,
     claim_clean,
     claim_coverage,
     claim_freeze,
@@ -47,6 +48,7 @@ __all__ = [
     "_few_seeds_line",
     "beyond_claims",
     "beyond_section",
+    "claim_bad_start",
     "claim_clean",
     "claim_coverage",
     "claim_freeze",
