@@ -1,4 +1,6 @@
-"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs.
+"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs,
+and the bare compiled kernels of the fast MHE and the EKF
+(:mod:`continuum_mhe.benchmark_kernels`).
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
@@ -44,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
@@ -56,11 +59,14 @@ from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
-METHODS = ("fast", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
+METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
 
 #: What each method's time covers.
 METHOD_NOTES: dict[str, str] = {
     "fast": "fast MHE (structure-exploiting SQP): the whole estimator step",
+    "mhe-kernel": "the fast MHE's two compiled calls alone (arrival slide, shift, guess "
+    "and SQP; covariance, outputs and their std), no estimator interface; inputs "
+    "prepared outside, as for ekf-kernel (fallbk: windows not certified)",
     "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
     "make_step plus our EKF arrival step; its first N estimates differ (no growing "
@@ -69,7 +75,7 @@ METHOD_NOTES: dict[str, str] = {
     "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "
     "returns): the whole estimator step",
     "ekf-kernel": "the compiled EKF step and output alone, no estimator interface "
-    "(validation, masks, divergence check)",
+    "(validation, masks, divergence check); inputs prepared outside",
 }
 
 
@@ -131,42 +137,6 @@ def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, 
             out[i] = e.output
         status.append(e.status)
     return out, sec, status
-
-
-def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
-    """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
-    and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
-    alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
-    part. The first sample (prior, then its update) is the EKF's own and not timed.
-    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
-    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
-    from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
-
-    f = formulation
-    node = NodeEvaluator(build_window_model(f, 2))
-    noise = ProcessNoiseCache(f)
-    R = f.meas_cov()
-    n = len(rec.t)
-    out = np.full((n, f.ny), np.nan)
-    sec = np.zeros(n)
-    mask = f.measurement_mask(rec.z[0])
-    x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
-    out[0] = node.output(x)
-    z_prev = rec.z[0]
-    for i in range(1, n):
-        z = rec.z[i]
-        dt = float(rec.t[i] - rec.t[i - 1])
-        u = f.inputs(z_prev, z, dt)
-        mask = f.measurement_mask(z)
-        Q = noise(dt)[0]
-        t0 = time.perf_counter()
-        x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
-        y = node.output(x)
-        sec[i] = time.perf_counter() - t0
-        out[i] = y
-        if mask.any():
-            z_prev = z
-    return out, sec
 
 
 def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> tuple[Any, Any, Any]:
@@ -468,7 +438,7 @@ def run_benchmark(
     env = environment(f)
     skipped = {
         m: "no compiled model (no C compiler): there is no compiled EKF to time"
-        for m in ("ekf-compiled", "ekf-kernel")
+        for m in ("ekf-compiled", "ekf-kernel", "mhe-kernel")
         if m in methods and not env["compiled"]
     }
     methods = tuple(m for m in methods if m not in skipped)
@@ -497,6 +467,9 @@ def run_benchmark(
             _run_timed(est, rec)  # compile and warm up (numba, C model)
             out, sec, status = _run_timed(est, rec)
             rows["fast"] = (out, sec, status.count("fallback-ipopt"))
+        if "mhe-kernel" in methods:
+            run_mhe_kernel(f, rec, n)  # warm up
+            rows["mhe-kernel"] = run_mhe_kernel(f, rec, n)
         if "do-mpc" in methods:
             out, sec = _run_dompc(f, n, rec)
             rows["do-mpc"] = (out, sec, 0)
@@ -600,6 +573,12 @@ def print_report(report: dict[str, Any]) -> None:
             f"{_times(r['over_ekf_compiled'])}x the compiled EKF, "
             f"{_times(r['over_ekf_kernel'])}x the bare EKF kernel"
         )
+    for r in report["results"]:
+        if r["method"] == "mhe-kernel":
+            console.print(
+                f"bare MHE kernel at N = {r['horizon']}: {_times(r['over_ekf_kernel'])}x "
+                "the bare EKF kernel"
+            )
     ns = sorted(fast)
     if len(ns) > 1:
         growth = fast[ns[-1]]["median_us"] / fast[ns[0]]["median_us"]
@@ -688,7 +667,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--skip",
         action="append",
-        choices=("fast", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
+        choices=("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
         help="leave out a method",
     )
     p.add_argument(

@@ -208,7 +208,7 @@ class StepBuffers:
     ``dt`` are the window's), and the node evaluator's inputs and outputs."""
 
     def __init__(self, model: WindowModel, node: NodeEvaluator) -> None:
-        n, nx, nz, nu = model.horizon, model.nx, model.nz, model.nu
+        n, nx, nu = model.horizon, model.nx, model.nu
         fs = model.feasible
         self.workspace = ws = Workspace(model)
         self.tw, self.z, self.m, self.u, self.dt = np.zeros(n), ws.z, ws.m, ws.u, ws.dt
