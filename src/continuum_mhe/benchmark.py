@@ -4,7 +4,10 @@ and the bare compiled kernels of the fast MHE and the EKF
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
-the median and 99th-percentile wall time per sample once the window is full, the ratio
+the median and 99th-percentile wall time per sample once the window is full (the
+methods that take microseconds, the fast MHE, its bare kernel and the EKFs, run
+``--repeats`` rounds in turn, and each sample's time is its median over the rounds, so
+that a change of the shared machine's load affects them alike), the ratio
 of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
@@ -40,6 +43,7 @@ import subprocess
 import time
 import tracemalloc
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -85,7 +89,7 @@ class Timing:
 
     Attributes:
         method: one of :data:`METHODS`.
-        horizon: N (the EKFs run once and are repeated at every N).
+        horizon: N (the EKFs are timed again at every N, beside the fast MHE).
         median_us, p99_us: wall time per sample from sample ``N`` on (the window is
             full), us.
         max_diff_vs_ipopt: largest ``|output - IPOPT's output|`` (m and rad, phi
@@ -417,6 +421,57 @@ def environment_line(report: dict[str, Any]) -> str:
     )
 
 
+#: Rounds of the fast MHE, its kernel and the EKFs per horizon (:func:`_interleaved`).
+REPEATS = 3
+
+Run = Callable[[], tuple[FloatArray, FloatArray, int]]
+
+
+def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]) -> dict[str, Run]:
+    """The methods that take microseconds per sample, each as a run of the recording
+    returning ``(output, seconds per sample, fallbacks)``."""
+    runs: dict[str, Run] = {}
+    if "fast" in methods:
+        est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
+
+        def fast() -> tuple[FloatArray, FloatArray, int]:
+            out, sec, status = _run_timed(est, rec)
+            return out, sec, status.count("fallback-ipopt")
+
+        runs["fast"] = fast
+    if "mhe-kernel" in methods:
+        runs["mhe-kernel"] = lambda: run_mhe_kernel(f, rec, n)
+    filters: list[tuple[str, Estimator]] = []
+    if "ekf" in methods:
+        filters.append(("ekf", ExtendedKalmanFilter(f)))
+    if "ekf-compiled" in methods:
+        filters.append(("ekf-compiled", CompiledExtendedKalmanFilter(f)))
+    for name, ekf in filters:
+        runs[name] = lambda ekf=ekf: (*_run_timed(ekf, rec)[:2], 0)  # type: ignore[misc]
+    if "ekf-kernel" in methods:
+        runs["ekf-kernel"] = lambda: (*run_ekf_kernel(f, rec), 0)
+    return runs
+
+
+def _interleaved(
+    runs: dict[str, Run], repeats: int
+) -> dict[str, tuple[FloatArray, FloatArray, int]]:
+    """Each run once (compiling, warming caches), then ``repeats`` rounds of all of them
+    in turn, so that a change of the shared machine's load affects them alike. Returns
+    per method the last round's outputs and fallbacks and each sample's median time
+    over the rounds."""
+    for run in runs.values():
+        run()
+    got: dict[str, list[tuple[FloatArray, FloatArray, int]]] = {name: [] for name in runs}
+    for _ in range(repeats):
+        for name, run in runs.items():
+            got[name].append(run())
+    return {
+        name: (r[-1][0], np.median(np.array([x[1] for x in r]), axis=0), r[-1][2])
+        for name, r in got.items()
+    }
+
+
 def _ratio(a: float, b: float | None) -> float:
     return a / b if b else math.nan
 
@@ -427,10 +482,12 @@ def run_benchmark(
     methods: tuple[str, ...] = METHODS,
     memory_samples: int = 20000,
     loss_horizons: tuple[int, ...] | None = None,
+    repeats: int = REPEATS,
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
-    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); see
-    the module docstring."""
+    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); the
+    fast MHE, its kernel and the EKFs ``repeats`` times in turn (:func:`_interleaved`);
+    see the module docstring."""
     from continuum_mhe.benchmark_losses import run_loss_benchmark
 
     f = make_formulation("bend")
@@ -442,39 +499,16 @@ def run_benchmark(
         if m in methods and not env["compiled"]
     }
     methods = tuple(m for m in methods if m not in skipped)
-    filters: list[tuple[str, FloatArray, FloatArray]] = []
-    if "ekf" in methods:
-        _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
-        out, sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
-        filters.append(("ekf", out, sec))
-    if "ekf-compiled" in methods:
-        ekfc = CompiledExtendedKalmanFilter(f)
-        _run_timed(ekfc, rec)  # compile and warm up
-        out, sec, _ = _run_timed(ekfc, rec)
-        filters.append(("ekf-compiled", out, sec))
-    if "ekf-kernel" in methods:
-        run_ekf_kernel(f, rec)  # warm up
-        out, sec = run_ekf_kernel(f, rec)
-        filters.append(("ekf-kernel", out, sec))
     results: list[Timing] = []
     for n in horizons:
         ipopt_out, ipopt_sec, _ = _run_timed(
             MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
         )
         rows: dict[str, tuple[FloatArray, FloatArray, int]] = {"ipopt": (ipopt_out, ipopt_sec, 0)}
-        if "fast" in methods:
-            est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
-            _run_timed(est, rec)  # compile and warm up (numba, C model)
-            out, sec, status = _run_timed(est, rec)
-            rows["fast"] = (out, sec, status.count("fallback-ipopt"))
-        if "mhe-kernel" in methods:
-            run_mhe_kernel(f, rec, n)  # warm up
-            rows["mhe-kernel"] = run_mhe_kernel(f, rec, n)
+        rows.update(_interleaved(_cheap_runs(f, rec, n, methods), repeats))
         if "do-mpc" in methods:
             out, sec = _run_dompc(f, n, rec)
             rows["do-mpc"] = (out, sec, 0)
-        for name, out, sec in filters:
-            rows[name] = (out, sec, 0)
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
             out, sec, fb = rows[name]
@@ -499,6 +533,7 @@ def run_benchmark(
         "noise_deg": 2.0,
         "samples": len(rec.t),
         "dt_s": float(rec.t[1] - rec.t[0]),
+        "repeats": repeats,
         **env,
         "methods": {m: METHOD_NOTES[m] for m in METHODS if m in methods or m == "ipopt"},
         "skipped": skipped,
@@ -620,6 +655,8 @@ def _write_json(path: str, report: dict[str, Any]) -> None:
 def cmd_benchmark(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be positive, got {args.duration}")
+    if args.repeats < 1:
+        raise UserError(f"--repeats must be at least 1, got {args.repeats}")
     if args.robot:
         from continuum_mhe.io.robot_file import read_robot
 
@@ -637,6 +674,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         methods,
         args.memory_samples,
         None if args.loss_horizons is None else tuple(args.loss_horizons),
+        args.repeats,
     )
     print_report(report)
     if args.json:
@@ -676,6 +714,13 @@ def register(subparsers: Any) -> None:
         default=None,
         help="horizons at which each MHE loss (l2, huber, cauchy) is timed on both "
         "backends (default: 30 if among --horizons, else the first; none: skip)",
+    )
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=REPEATS,
+        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
+        f"sample's time is the median over the rounds (default {REPEATS})",
     )
     p.add_argument(
         "--memory-samples",
