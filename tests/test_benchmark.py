@@ -13,7 +13,6 @@ import pytest
 from numpy.testing import assert_allclose
 
 from continuum_mhe import benchmark as bm
-from continuum_mhe.benchmark_kernels import run_ekf_kernel
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation
@@ -29,7 +28,7 @@ def test_ekf_kernel_gives_the_casadi_ekf_answers(name: str) -> None:
     z = rec.z.copy()
     z[12:18] = np.nan  # the IMU drops out: prediction only
     rec = replace(rec, z=z)
-    out, sec = run_ekf_kernel(f, rec)
+    out, sec = bm.run_ekf_kernel(f, rec)
     ref = ExtendedKalmanFilter(f).run(rec.t, z)
     assert_allclose(out, ref.output, rtol=0, atol=1e-9)
     assert sec[0] == 0.0 and np.all(sec[1:] > 0)

@@ -5,10 +5,9 @@ and the bare compiled kernels of the fast MHE and the EKF
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
 the median and 99th-percentile wall time per sample once the window is full (the
-methods that take microseconds, the fast MHE, its bare kernel and the EKFs, step
-through the recording in lockstep, one sample each in turn, in ``--repeats`` rounds,
-and each sample's time is its median over the rounds, so that the shared machine's
-load affects both sides of a ratio alike), the ratio
+methods that take microseconds, the fast MHE, its bare kernel and the EKFs, run
+``--repeats`` rounds in turn, and each sample's time is its median over the rounds, so
+that a change of the shared machine's load affects them alike), the ratio
 of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
@@ -44,18 +43,14 @@ import subprocess
 import time
 import tracemalloc
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from continuum_mhe.benchmark_kernels import (
-    Sample,
-    ekf_kernel_steps,
-    mhe_kernel_steps,
-)
+from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
@@ -426,68 +421,51 @@ def environment_line(report: dict[str, Any]) -> str:
     )
 
 
-#: Rounds of the fast MHE, its kernel and the EKFs per horizon (:func:`_lockstep`).
+#: Rounds of the fast MHE, its kernel and the EKFs per horizon (:func:`_interleaved`).
 REPEATS = 3
 
-Steps = Callable[[], Iterator[Sample]]
+Run = Callable[[], tuple[FloatArray, FloatArray, int]]
 
 
-def _estimator_steps(est: Estimator, rec: Recording) -> Iterator[Sample]:
-    """``est.step`` timed on each sample of ``rec``, from a reset."""
-    est.reset()
-    for t, z in zip(rec.t, rec.z):
-        t0 = time.perf_counter()
-        e = est.step(Measurement(float(t), z))
-        sec = time.perf_counter() - t0
-        yield e.output, sec, e.status == "fallback-ipopt"
-
-
-def _cheap_runs(
-    f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]
-) -> dict[str, Steps]:
-    """The methods that take microseconds per sample, each as a timed run of ``rec``."""
-    runs: dict[str, Steps] = {}
+def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]) -> dict[str, Run]:
+    """The methods that take microseconds per sample, each as a run of the recording
+    returning ``(output, seconds per sample, fallbacks)``."""
+    runs: dict[str, Run] = {}
     if "fast" in methods:
         est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
-        runs["fast"] = lambda: _estimator_steps(est, rec)
+
+        def fast() -> tuple[FloatArray, FloatArray, int]:
+            out, sec, status = _run_timed(est, rec)
+            return out, sec, status.count("fallback-ipopt")
+
+        runs["fast"] = fast
     if "mhe-kernel" in methods:
-        runs["mhe-kernel"] = lambda: mhe_kernel_steps(f, rec, n)
+        runs["mhe-kernel"] = lambda: run_mhe_kernel(f, rec, n)
     filters: list[tuple[str, Estimator]] = []
     if "ekf" in methods:
         filters.append(("ekf", ExtendedKalmanFilter(f)))
     if "ekf-compiled" in methods:
         filters.append(("ekf-compiled", CompiledExtendedKalmanFilter(f)))
     for name, ekf in filters:
-        runs[name] = lambda ekf=ekf: _estimator_steps(ekf, rec)  # type: ignore[misc]
+        runs[name] = lambda ekf=ekf: (*_run_timed(ekf, rec)[:2], 0)  # type: ignore[misc]
     if "ekf-kernel" in methods:
-        runs["ekf-kernel"] = lambda: ekf_kernel_steps(f, rec)
+        runs["ekf-kernel"] = lambda: (*run_ekf_kernel(f, rec), 0)
     return runs
 
 
-def _lockstep(
-    runs: dict[str, Steps], samples: int, ny: int, repeats: int
+def _interleaved(
+    runs: dict[str, Run], repeats: int
 ) -> dict[str, tuple[FloatArray, FloatArray, int]]:
-    """A warm-up round (compiling, warming caches), then ``repeats`` rounds. In a round
-    every method steps through the recording in lockstep, one sample each in turn, so
-    the methods' times of one sample are taken microseconds apart, under the same load
-    of the shared machine. Returns per method the last round's outputs and handed-on
-    windows, and each sample's median time over the rounds."""
+    """Each run once (compiling, warming caches), then ``repeats`` rounds of all of them
+    in turn, so that a change of the shared machine's load affects them alike. Returns
+    per method the last round's outputs and fallbacks and each sample's median time
+    over the rounds."""
+    for run in runs.values():
+        run()
     got: dict[str, list[tuple[FloatArray, FloatArray, int]]] = {name: [] for name in runs}
-    for round_ in range(repeats + 1):
-        gens = {name: make() for name, make in runs.items()}
-        out = {name: np.full((samples, ny), np.nan) for name in runs}
-        sec = {name: np.zeros(samples) for name in runs}
-        handed = dict.fromkeys(runs, 0)
-        for i in range(samples):
-            for name, gen in gens.items():
-                y, s, h = next(gen)
-                if y is not None:
-                    out[name][i] = y
-                sec[name][i] = s
-                handed[name] += h
-        if round_:
-            for name in runs:
-                got[name].append((out[name], sec[name], handed[name]))
+    for _ in range(repeats):
+        for name, run in runs.items():
+            got[name].append(run())
     return {
         name: (r[-1][0], np.median(np.array([x[1] for x in r]), axis=0), r[-1][2])
         for name, r in got.items()
@@ -508,7 +486,7 @@ def run_benchmark(
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
     ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); the
-    fast MHE, its kernel and the EKFs ``repeats`` times in lockstep (:func:`_lockstep`);
+    fast MHE, its kernel and the EKFs ``repeats`` times in turn (:func:`_interleaved`);
     see the module docstring."""
     from continuum_mhe.benchmark_losses import run_loss_benchmark
 
@@ -527,7 +505,7 @@ def run_benchmark(
             MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
         )
         rows: dict[str, tuple[FloatArray, FloatArray, int]] = {"ipopt": (ipopt_out, ipopt_sec, 0)}
-        rows.update(_lockstep(_cheap_runs(f, rec, n, methods), len(rec.t), f.ny, repeats))
+        rows.update(_interleaved(_cheap_runs(f, rec, n, methods), repeats))
         if "do-mpc" in methods:
             out, sec = _run_dompc(f, n, rec)
             rows["do-mpc"] = (out, sec, 0)
@@ -741,8 +719,8 @@ def register(subparsers: Any) -> None:
         "--repeats",
         type=int,
         default=REPEATS,
-        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in lockstep; "
-        f"each sample's time is the median over the rounds (default {REPEATS})",
+        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
+        f"sample's time is the median over the rounds (default {REPEATS})",
     )
     p.add_argument(
         "--memory-samples",

@@ -11,7 +11,6 @@ the interface both share (:mod:`continuum_mhe.benchmark`'s rows ``ekf-kernel`` a
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 
 import numpy as np
 
@@ -19,36 +18,13 @@ from continuum_mhe.estimators.base import FloatArray
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.simulation.scenarios import Recording
 
-#: One sample of a timed run: its outputs (None: no estimate), seconds (0: not timed)
-#: and whether the window was handed on (not certified).
-Sample = tuple[FloatArray | None, float, bool]
-
-
-def collect(steps: Iterator[Sample], n: int, ny: int) -> tuple[FloatArray, FloatArray, int]:
-    """``(output (n, ny), seconds per sample (n,), handed-on samples)`` of a run."""
-    out = np.full((n, ny), np.nan)
-    sec = np.zeros(n)
-    handed = 0
-    for i, (y, s, h) in enumerate(steps):
-        if y is not None:
-            out[i] = y
-        sec[i] = s
-        handed += h
-    return out, sec, handed
-
 
 def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
-    """:func:`ekf_kernel_steps` collected: ``(output (n, ny), seconds per sample (n,))``."""
-    out, sec, _ = collect(ekf_kernel_steps(formulation, rec), len(rec.t), formulation.ny)
-    return out, sec
-
-
-def ekf_kernel_steps(formulation: Formulation, rec: Recording) -> Iterator[Sample]:
     """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
     and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
     alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
     part. The first sample (prior, then its update) is the EKF's own and not timed.
-    One :data:`Sample` per sample of ``rec``; the outputs are the EKF's."""
+    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
     from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
 
@@ -56,11 +32,14 @@ def ekf_kernel_steps(formulation: Formulation, rec: Recording) -> Iterator[Sampl
     node = NodeEvaluator(build_window_model(f, 2))
     noise = ProcessNoiseCache(f)
     R = f.meas_cov()
+    n = len(rec.t)
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
     mask = f.measurement_mask(rec.z[0])
     x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
-    yield node.output(x), 0.0, False
+    out[0] = node.output(x)
     z_prev = rec.z[0]
-    for i in range(1, len(rec.t)):
+    for i in range(1, n):
         z = rec.z[i]
         dt = float(rec.t[i] - rec.t[i - 1])
         u = f.inputs(z_prev, z, dt)
@@ -69,31 +48,26 @@ def ekf_kernel_steps(formulation: Formulation, rec: Recording) -> Iterator[Sampl
         t0 = time.perf_counter()
         x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
         y = node.output(x)
-        sec = time.perf_counter() - t0
-        yield y, sec, False
+        sec[i] = time.perf_counter() - t0
+        out[i] = y
         if mask.any():
             z_prev = z
+    return out, sec
 
 
 def run_mhe_kernel(
     formulation: Formulation, rec: Recording, horizon: int
 ) -> tuple[FloatArray, FloatArray, int]:
-    """:func:`mhe_kernel_steps` collected: ``(output (n, ny), seconds per sample (n,),
-    uncertified windows)``."""
-    return collect(mhe_kernel_steps(formulation, rec, horizon), len(rec.t), formulation.ny)
-
-
-def mhe_kernel_steps(formulation: Formulation, rec: Recording, horizon: int) -> Iterator[Sample]:
     """The fast MHE (quadratic loss, default :class:`FastOptions`) as its bare compiled
     kernels: per sample the two compiled calls of
     :mod:`continuum_mhe.estimators.fast.step` (arrival slide, window shift, initial
     guess and SQP; then the covariance, the outputs and their standard deviations) and
     the copy of the answer kept for the next warm start, timed alone; the sensor mask,
     ``u`` and ``Q(dt)`` are computed outside the timed part, as for
-    :func:`ekf_kernel_steps`. Every sample from the first valid one is timed. A window
-    the SQP does not certify is flagged (the estimator would hand it to IPOPT); its
-    output is the kernel's. One :data:`Sample` per sample of ``rec``; the outputs are
-    the fast MHE's."""
+    :func:`run_ekf_kernel`. Every sample is timed (the first too). A window the SQP
+    does not certify is counted (the estimator would hand it to IPOPT); its output is
+    the kernel's. Returns ``(output (n, ny), seconds per sample (n,), uncertified
+    windows)``; the outputs are the fast MHE's."""
     from continuum_mhe.estimators.fast import FastOptions, NodeEvaluator, build_window_model
     from continuum_mhe.estimators.fast.qp import CONVERGED
     from continuum_mhe.estimators.fast.step import StepBuffers
@@ -107,16 +81,15 @@ def mhe_kernel_steps(formulation: Formulation, rec: Recording, horizon: int) -> 
     o = FastOptions()
     options = (True, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton)
     n = len(rec.t)
-    first = next((i for i in range(n) if f.measurement_mask(rec.z[i]).any()), n)
-    for _ in range(first):
-        yield None, 0.0, False
-    if first == n:
-        return
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
+    first = next(i for i in range(n) if f.measurement_mask(rec.z[i]).any())
     xbar = np.array(f.project(f.initial_state(rec.z[first])), dtype=np.float64)
     P = np.array(f.initial_cov(), dtype=np.float64)
     prior = (xbar, P, np.linalg.inv(P))
     X = np.empty((horizon, f.nx))
     lam = np.zeros_like(steps.lam)
+    uncertified = 0
     z_prev: FloatArray | None = None
     for i in range(first, n):
         z = rec.z[i]
@@ -130,7 +103,9 @@ def mhe_kernel_steps(formulation: Formulation, rec: Recording, horizon: int) -> 
         outcome, _, _, _, cur = steps.advance(prior, new, R, X if k else None, lam, options)
         X[:] = steps.workspace.Xb[cur]
         y, _, _ = steps.finish(X, xbar)
-        sec = time.perf_counter() - t0
-        yield y, sec, outcome != CONVERGED
+        sec[i] = time.perf_counter() - t0
+        out[i] = y
+        uncertified += outcome != CONVERGED
         if mask.any():
             z_prev = z
+    return out, sec, uncertified
