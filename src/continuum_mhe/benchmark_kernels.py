@@ -86,7 +86,7 @@ def run_mhe_kernel(
     first = next(i for i in range(n) if f.measurement_mask(rec.z[i]).any())
     xbar = np.array(f.project(f.initial_state(rec.z[first])), dtype=np.float64)
     P = np.array(f.initial_cov(), dtype=np.float64)
-    prior = (xbar, P, np.linalg.inv(P))
+    prior = (xbar, P, np.asarray(np.linalg.inv(P), dtype=np.float64))
     X = np.empty((horizon, f.nx))
     lam = np.zeros_like(steps.lam)
     uncertified = 0

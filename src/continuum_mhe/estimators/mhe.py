@@ -280,7 +280,10 @@ class MovingHorizonEstimator(Estimator):
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
         #: the fast backend's compiled step (its own window buffers; see :mod:`.fast.step`)
-        self._steps = None if self._node is None else StepBuffers(self._fast, self._node)
+        self._steps = (
+            None if self._fast is None or self._node is None
+            else StepBuffers(self._fast, self._node)
+        )  # fmt: skip
         self._nlp_built: _Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
@@ -487,14 +490,18 @@ class MovingHorizonEstimator(Estimator):
         X, status = self._solve(problem, X0)
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
+        status = self._keep(X, status, valid)
+        cov = None if status == "solver-failed" else self.covariance(problem, X)
+        return X[-1].copy(), cov, status
+
+    def _keep(self, X: FloatArray, status: Status, valid: bool) -> Status:
+        """Keep the answer ``X`` (N, nx) as the next warm start, with its robust weights;
+        returns the sample's status (``dropout`` for an ``ok`` one without a sensor)."""
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
             self._w_last = self._node_weights(-1, X[-1])
-        if status == "ok" and not valid:
-            status = "dropout"
-        cov = None if status == "solver-failed" else self.covariance(problem, X)
-        return X[-1].copy(), cov, status
+        return "dropout" if status == "ok" and not valid else status
 
     def _fast_step(
         self, m: Measurement, mask: FloatArray, valid: bool
@@ -540,12 +547,7 @@ class MovingHorizonEstimator(Estimator):
             status = "fallback-ipopt" if status == "ok" else status
         if self.branch is not None:
             X, status = self._check_branch(problem or self.window_problem(copy=False), X, status)
-        self._X = X
-        if self.flags_outliers:
-            self._w_first = self._node_weights(0, X[0])
-            self._w_last = self._node_weights(-1, X[-1])
-        if status == "ok" and not valid:
-            status = "dropout"
+        status = self._keep(X, status, valid)
         state = X[-1].copy()
         if status == "solver-failed":
             return state, None, status

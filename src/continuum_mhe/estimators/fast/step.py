@@ -261,7 +261,7 @@ class StepBuffers:
         A failed model evaluation raises ``RuntimeError`` with the model's message."""
         node = self.node
         try:
-            return advance(  # type: ignore[no-any-return]
+            return advance(
                 node._addr, node._ptrs, node._out, self.nin, self.window_fn,
                 self.workspace.ptrs, (*prior, self.k), self.window, new, R,
                 self.X0 if X is None else X, X is not None,
