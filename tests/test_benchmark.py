@@ -64,6 +64,8 @@ def test_benchmark_command_records_ratios_and_environment(tmp_path: Path) -> Non
     fast = rows["fast"]
     assert fast["max_diff_vs_ipopt"] < 1e-6 and fast["fallbacks"] == 0
     assert rows["do-mpc"]["max_diff_from_n"] < 1e-6
+    assert rows["mhe-kernel"]["max_diff_vs_ipopt"] < 1e-6  # the fast MHE, bare
+    assert rows["mhe-kernel"]["fallbacks"] == 0
     for m in ("ekf-compiled", "ekf-kernel"):  # the same EKF, three ways
         assert rows[m]["max_diff_vs_ipopt"] == pytest.approx(
             rows["ekf"]["max_diff_vs_ipopt"], abs=1e-9
@@ -84,7 +86,8 @@ def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> 
     out = tmp_path / "bench.json"
     report = bm.run_benchmark([3], 0.4, tuple(m for m in bm.METHODS if m != "do-mpc"
                                                   and m != "ekf-kernel"), 0)  # fmt: skip
-    assert {r["method"] for r in report["results"]} == {"fast", "ipopt", "ekf", "ekf-compiled"}
+    assert {r["method"] for r in report["results"]} == {
+        "fast", "mhe-kernel", "ipopt", "ekf", "ekf-compiled"}  # fmt: skip
     assert all(np.isnan(r["over_ekf_kernel"]) for r in report["results"])
     bm._write_json(str(out), report)
     assert json.loads(out.read_text())["results"][0]["over_ekf_kernel"] is None

@@ -1,8 +1,13 @@
-"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs.
+"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs,
+and the bare compiled kernels of the fast MHE and the EKF
+(:mod:`continuum_mhe.benchmark_kernels`).
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
-the median and 99th-percentile wall time per sample once the window is full, the ratio
+the median and 99th-percentile wall time per sample once the window is full (the
+methods that take microseconds, the fast MHE, its bare kernel and the EKFs, run
+``--repeats`` rounds in turn, and each sample's time is its median over the rounds, so
+that a change of the shared machine's load affects them alike), the ratio
 of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
@@ -38,12 +43,14 @@ import subprocess
 import time
 import tracemalloc
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
@@ -56,11 +63,14 @@ from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
 
-METHODS = ("fast", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
+METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
 
 #: What each method's time covers.
 METHOD_NOTES: dict[str, str] = {
     "fast": "fast MHE (structure-exploiting SQP): the whole estimator step",
+    "mhe-kernel": "the fast MHE's two compiled calls alone (arrival slide, shift, guess "
+    "and SQP; covariance, outputs and their std), no estimator interface; inputs "
+    "prepared outside, as for ekf-kernel (fallbk: windows not certified)",
     "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
     "make_step plus our EKF arrival step; its first N estimates differ (no growing "
@@ -69,7 +79,7 @@ METHOD_NOTES: dict[str, str] = {
     "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "
     "returns): the whole estimator step",
     "ekf-kernel": "the compiled EKF step and output alone, no estimator interface "
-    "(validation, masks, divergence check)",
+    "(validation, masks, divergence check); inputs prepared outside",
 }
 
 
@@ -79,7 +89,7 @@ class Timing:
 
     Attributes:
         method: one of :data:`METHODS`.
-        horizon: N (the EKFs run once and are repeated at every N).
+        horizon: N (the EKFs are timed again at every N, beside the fast MHE).
         median_us, p99_us: wall time per sample from sample ``N`` on (the window is
             full), us.
         max_diff_vs_ipopt: largest ``|output - IPOPT's output|`` (m and rad, phi
@@ -131,42 +141,6 @@ def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, 
             out[i] = e.output
         status.append(e.status)
     return out, sec, status
-
-
-def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
-    """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
-    and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
-    alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
-    part. The first sample (prior, then its update) is the EKF's own and not timed.
-    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
-    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
-    from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
-
-    f = formulation
-    node = NodeEvaluator(build_window_model(f, 2))
-    noise = ProcessNoiseCache(f)
-    R = f.meas_cov()
-    n = len(rec.t)
-    out = np.full((n, f.ny), np.nan)
-    sec = np.zeros(n)
-    mask = f.measurement_mask(rec.z[0])
-    x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
-    out[0] = node.output(x)
-    z_prev = rec.z[0]
-    for i in range(1, n):
-        z = rec.z[i]
-        dt = float(rec.t[i] - rec.t[i - 1])
-        u = f.inputs(z_prev, z, dt)
-        mask = f.measurement_mask(z)
-        Q = noise(dt)[0]
-        t0 = time.perf_counter()
-        x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
-        y = node.output(x)
-        sec[i] = time.perf_counter() - t0
-        out[i] = y
-        if mask.any():
-            z_prev = z
-    return out, sec
 
 
 def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> tuple[Any, Any, Any]:
@@ -447,6 +421,57 @@ def environment_line(report: dict[str, Any]) -> str:
     )
 
 
+#: Rounds of the fast MHE, its kernel and the EKFs per horizon (:func:`_interleaved`).
+REPEATS = 3
+
+Run = Callable[[], tuple[FloatArray, FloatArray, int]]
+
+
+def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]) -> dict[str, Run]:
+    """The methods that take microseconds per sample, each as a run of the recording
+    returning ``(output, seconds per sample, fallbacks)``."""
+    runs: dict[str, Run] = {}
+    if "fast" in methods:
+        est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
+
+        def fast() -> tuple[FloatArray, FloatArray, int]:
+            out, sec, status = _run_timed(est, rec)
+            return out, sec, status.count("fallback-ipopt")
+
+        runs["fast"] = fast
+    if "mhe-kernel" in methods:
+        runs["mhe-kernel"] = lambda: run_mhe_kernel(f, rec, n)
+    filters: list[tuple[str, Estimator]] = []
+    if "ekf" in methods:
+        filters.append(("ekf", ExtendedKalmanFilter(f)))
+    if "ekf-compiled" in methods:
+        filters.append(("ekf-compiled", CompiledExtendedKalmanFilter(f)))
+    for name, ekf in filters:
+        runs[name] = lambda ekf=ekf: (*_run_timed(ekf, rec)[:2], 0)  # type: ignore[misc]
+    if "ekf-kernel" in methods:
+        runs["ekf-kernel"] = lambda: (*run_ekf_kernel(f, rec), 0)
+    return runs
+
+
+def _interleaved(
+    runs: dict[str, Run], repeats: int
+) -> dict[str, tuple[FloatArray, FloatArray, int]]:
+    """Each run once (compiling, warming caches), then ``repeats`` rounds of all of them
+    in turn, so that a change of the shared machine's load affects them alike. Returns
+    per method the last round's outputs and fallbacks and each sample's median time
+    over the rounds."""
+    for run in runs.values():
+        run()
+    got: dict[str, list[tuple[FloatArray, FloatArray, int]]] = {name: [] for name in runs}
+    for _ in range(repeats):
+        for name, run in runs.items():
+            got[name].append(run())
+    return {
+        name: (r[-1][0], np.median(np.array([x[1] for x in r]), axis=0), r[-1][2])
+        for name, r in got.items()
+    }
+
+
 def _ratio(a: float, b: float | None) -> float:
     return a / b if b else math.nan
 
@@ -457,10 +482,12 @@ def run_benchmark(
     methods: tuple[str, ...] = METHODS,
     memory_samples: int = 20000,
     loss_horizons: tuple[int, ...] | None = None,
+    repeats: int = REPEATS,
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
-    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); see
-    the module docstring."""
+    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); the
+    fast MHE, its kernel and the EKFs ``repeats`` times in turn (:func:`_interleaved`);
+    see the module docstring."""
     from continuum_mhe.benchmark_losses import run_loss_benchmark
 
     f = make_formulation("bend")
@@ -468,40 +495,20 @@ def run_benchmark(
     env = environment(f)
     skipped = {
         m: "no compiled model (no C compiler): there is no compiled EKF to time"
-        for m in ("ekf-compiled", "ekf-kernel")
+        for m in ("ekf-compiled", "ekf-kernel", "mhe-kernel")
         if m in methods and not env["compiled"]
     }
     methods = tuple(m for m in methods if m not in skipped)
-    filters: list[tuple[str, FloatArray, FloatArray]] = []
-    if "ekf" in methods:
-        _run_timed(ExtendedKalmanFilter(f), rec)  # warm caches
-        out, sec, _ = _run_timed(ExtendedKalmanFilter(f), rec)
-        filters.append(("ekf", out, sec))
-    if "ekf-compiled" in methods:
-        ekfc = CompiledExtendedKalmanFilter(f)
-        _run_timed(ekfc, rec)  # compile and warm up
-        out, sec, _ = _run_timed(ekfc, rec)
-        filters.append(("ekf-compiled", out, sec))
-    if "ekf-kernel" in methods:
-        run_ekf_kernel(f, rec)  # warm up
-        out, sec = run_ekf_kernel(f, rec)
-        filters.append(("ekf-kernel", out, sec))
     results: list[Timing] = []
     for n in horizons:
         ipopt_out, ipopt_sec, _ = _run_timed(
             MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
         )
         rows: dict[str, tuple[FloatArray, FloatArray, int]] = {"ipopt": (ipopt_out, ipopt_sec, 0)}
-        if "fast" in methods:
-            est = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="fast"))
-            _run_timed(est, rec)  # compile and warm up (numba, C model)
-            out, sec, status = _run_timed(est, rec)
-            rows["fast"] = (out, sec, status.count("fallback-ipopt"))
+        rows.update(_interleaved(_cheap_runs(f, rec, n, methods), repeats))
         if "do-mpc" in methods:
             out, sec = _run_dompc(f, n, rec)
             rows["do-mpc"] = (out, sec, 0)
-        for name, out, sec in filters:
-            rows[name] = (out, sec, 0)
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
             out, sec, fb = rows[name]
@@ -526,6 +533,7 @@ def run_benchmark(
         "noise_deg": 2.0,
         "samples": len(rec.t),
         "dt_s": float(rec.t[1] - rec.t[0]),
+        "repeats": repeats,
         **env,
         "methods": {m: METHOD_NOTES[m] for m in METHODS if m in methods or m == "ipopt"},
         "skipped": skipped,
@@ -600,6 +608,12 @@ def print_report(report: dict[str, Any]) -> None:
             f"{_times(r['over_ekf_compiled'])}x the compiled EKF, "
             f"{_times(r['over_ekf_kernel'])}x the bare EKF kernel"
         )
+    for r in report["results"]:
+        if r["method"] == "mhe-kernel":
+            console.print(
+                f"bare MHE kernel at N = {r['horizon']}: {_times(r['over_ekf_kernel'])}x "
+                "the bare EKF kernel"
+            )
     ns = sorted(fast)
     if len(ns) > 1:
         growth = fast[ns[-1]]["median_us"] / fast[ns[0]]["median_us"]
@@ -641,6 +655,8 @@ def _write_json(path: str, report: dict[str, Any]) -> None:
 def cmd_benchmark(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be positive, got {args.duration}")
+    if args.repeats < 1:
+        raise UserError(f"--repeats must be at least 1, got {args.repeats}")
     if args.robot:
         from continuum_mhe.io.robot_file import read_robot
 
@@ -658,6 +674,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         methods,
         args.memory_samples,
         None if args.loss_horizons is None else tuple(args.loss_horizons),
+        args.repeats,
     )
     print_report(report)
     if args.json:
@@ -688,7 +705,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--skip",
         action="append",
-        choices=("fast", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
+        choices=("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
         help="leave out a method",
     )
     p.add_argument(
@@ -697,6 +714,13 @@ def register(subparsers: Any) -> None:
         default=None,
         help="horizons at which each MHE loss (l2, huber, cauchy) is timed on both "
         "backends (default: 30 if among --horizons, else the first; none: skip)",
+    )
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=REPEATS,
+        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
+        f"sample's time is the median over the rounds (default {REPEATS})",
     )
     p.add_argument(
         "--memory-samples",

@@ -64,6 +64,8 @@ from continuum_mhe.estimators.fast import (
 )
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
+from continuum_mhe.estimators.fast.qp import CONVERGED
+from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers
 from continuum_mhe.estimators.fast.warmup import (
     FirstRun,
     defer_compiling,
@@ -279,6 +281,11 @@ class MovingHorizonEstimator(Estimator):
         self.compiled: bool | None = None if self._fast is None else self._fast.compiled
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
+        #: the fast backend's compiled step (its own window buffers; see :mod:`.fast.step`)
+        self._steps = (
+            None if self._fast is None or self._node is None
+            else StepBuffers(self._fast, self._node)
+        )  # fmt: skip
         self._nlp_built: _Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
@@ -319,14 +326,22 @@ class MovingHorizonEstimator(Estimator):
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
         # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
         self._k = 0  # samples in the window
-        self._tw = np.zeros(n)
-        self._zw = np.zeros((n, f.nz))  # 0 where masked
-        self._zmask = np.zeros((n, f.nz))
-        self._dt = np.ones(n - 1)  # 1 s on inactive stages
-        self._uw = np.zeros((n - 1, f.nu))
-        self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
-        self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
-        self._arrival = np.zeros((n, nx, nx))  # see window_problem
+        if self._steps is not None:  # the compiled step's buffers (the same layout)
+            s = self._steps
+            s.reset()
+            self._tw, self._zw, self._zmask, self._dt, self._uw = s.tw, s.z, s.m, s.dt, s.u
+            self._qw, self._qinvw, self._arrival = s.qw, s.qinvw, s.arrival
+        else:
+            self._tw = np.zeros(n)
+            self._zw = np.zeros((n, f.nz))  # 0 where masked
+            self._zmask = np.zeros((n, f.nz))
+            self._dt = np.ones(n - 1)  # 1 s on inactive stages
+            self._uw = np.zeros((n - 1, f.nu))
+            self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
+            self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
+            self._arrival = np.zeros((n, nx, nx))  # see window_problem
+        # (state, outputs, output std) of the last estimate, from the compiled step
+        self._outputs_of: tuple[FloatArray, FloatArray, FloatArray | None] | None = None
         self._z_prev_valid: FloatArray | None = None
         self._xbar: FloatArray | None = None
         self._P: FloatArray | None = None
@@ -368,6 +383,17 @@ class MovingHorizonEstimator(Estimator):
         if valid:
             self._z_prev_valid = m.z
 
+    def _leaving_R(self) -> FloatArray:
+        """Covariance of the leaving sample's update: ``R``, or with a robust loss
+        ``R_b / w_b`` per block at its weight in the last solve."""
+        R = self._R
+        if self.flags_outliers:  # the leaving sample at its weight in the last solve
+            scale = np.ones(self.formulation.nz)
+            for (start, size), w in zip(self._blocks, self._w_first):
+                scale[start : start + size] = 1.0 / max(float(w), 1e-12)
+            R = R * np.sqrt(np.outer(scale, scale))
+        return R
+
     def _slide_arrival(self) -> None:
         """Move the arrival prior from window sample 0 to window sample 1.
 
@@ -380,12 +406,7 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None and self._P is not None
         f, x, P = self.formulation, self._xbar, self._P
         u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
-        R = self._R
-        if self.flags_outliers:  # the leaving sample at its weight in the last solve
-            scale = np.ones(f.nz)
-            for (start, size), w in zip(self._blocks, self._w_first):
-                scale[start : start + size] = 1.0 / max(float(w), 1e-12)
-            R = R * np.sqrt(np.outer(scale, scale))
+        R = self._leaving_R()
         if self._node is not None:  # the same EKF step, on the compiled model
             xn, self._P, self._Pinv = self._node.arrival_step(
                 x, P, u, dt, z, self._zmask[0], R, self._qw[0]
@@ -443,11 +464,17 @@ class MovingHorizonEstimator(Estimator):
 
     # --- solve ----------------------------------------------------------------
     def _output(self, state: FloatArray) -> FloatArray:
+        kept = self._outputs_of
+        if kept is not None and kept[0] is state:  # computed with the covariance
+            return kept[1]
         if self._node is not None:
             return self._node.output(state)
         return self.formulation.output(state)
 
     def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        kept = self._outputs_of
+        if kept is not None and kept[0] is state and kept[2] is not None:
+            return kept[2]
         if self._node is not None:
             return self._node.output_std(state, cov)
         return self.formulation.output_std(state, cov)
@@ -459,9 +486,11 @@ class MovingHorizonEstimator(Estimator):
         if self._xbar is None:
             if not valid:
                 return None, None, "no-estimate"
-            self._xbar = f.project(f.initial_state(m.z))
-            self._P = f.initial_cov()
+            self._xbar = np.array(f.project(f.initial_state(m.z)), dtype=np.float64)
+            self._P = np.array(f.initial_cov(), dtype=np.float64)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
+        if self._steps is not None:
+            return self._fast_step(m, mask, valid)
         self._push(m, mask)
         X0 = self._initial_guess()
         if self.settings.paper_start and self._k < self.settings.horizon:
@@ -473,15 +502,74 @@ class MovingHorizonEstimator(Estimator):
             X, status = self._check_branch(problem, X, status)
         if self.second_start is not None:
             X, status = self._try_second_start(problem, X, status)
+        status = self._keep(X, status, valid)
+        cov = None if status == "solver-failed" else self.covariance(problem, X)
+        return X[-1].copy(), cov, status
+
+    def _keep(self, X: FloatArray, status: Status, valid: bool) -> Status:
+        """Keep the answer ``X`` (N, nx) as the next warm start, with its robust weights;
+        returns the sample's status (``dropout`` for an ``ok`` one without a sensor)."""
         self._X = X
         if self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
             w_new, self._w_new = self._w_new, None  # the newest node's, if computed
             self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
-        if status == "ok" and not valid:
-            status = "dropout"
-        cov = None if status == "solver-failed" else self.covariance(problem, X)
-        return X[-1].copy(), cov, status
+        return "dropout" if status == "ok" and not valid else status
+
+    def _fast_step(
+        self, m: Measurement, mask: FloatArray, valid: bool
+    ) -> tuple[FloatArray | None, FloatArray | None, Status]:
+        """:meth:`_step` on the fast backend: the window's bookkeeping and the SQP in one
+        compiled call, the covariance and the outputs in another (:mod:`.fast.step`);
+        the same equations as ``_push``, ``_initial_guess``, ``_solve`` and
+        :meth:`covariance`."""
+        f, s, n = self.formulation, self._steps, self.settings.horizon
+        assert s is not None and self._xbar is not None
+        assert self._P is not None and self._Pinv is not None
+        k = self._k
+        if k:
+            dt = m.t - float(s.tw[-1])
+            u = f.inputs(self._z_prev_valid, m.z, dt) if f.nu else s.u0
+            Q, Qinv = self._process_weight(dt)
+        else:
+            dt, u, Q, Qinv = 1.0, s.u0, s.zeros, s.zeros
+        R = self._leaving_R() if k == n else self._R
+        solve = not (self.settings.paper_start and k + 1 < n)
+        o = self.fast_options
+        xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
+        outcome, it, _, _, cur = s.advance(
+            (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R, self._X,
+            self._lam, (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton),
+        )  # fmt: skip
+        self._k = int(s.k[0])
+        if valid:
+            self._z_prev_valid = m.z
+        if outcome == NOT_SOLVED:
+            self._X = s.X0.copy()
+            return None, None, "no-estimate"
+        self.sqp_iterations = int(it)
+        problem: WindowProblem | None = None
+        if outcome == CONVERGED:
+            X: FloatArray = s.workspace.Xb[cur].copy()
+            self._lam = s.lam if self._lam is None else self._lam
+            status: Status = "ok"
+        else:
+            self._lam = None
+            problem = self.window_problem(copy=False)
+            X, status = self._solve_ipopt(problem, s.X0.copy())
+            status = "fallback-ipopt" if status == "ok" else status
+        if self.branch is not None:
+            X, status = self._check_branch(problem or self.window_problem(copy=False), X, status)
+        if self.second_start is not None:
+            problem = problem or self.window_problem(copy=False)
+            X, status = self._try_second_start(problem, X, status)
+        status = self._keep(X, status, valid)
+        state = X[-1].copy()
+        if status == "solver-failed":
+            return state, None, status
+        y, cov, std = s.finish(X, xbar)
+        self._outputs_of = (state, y, std)
+        return state, cov, status
 
     def covariance(self, problem: WindowProblem, X: FloatArray) -> FloatArray | None:
         """Covariance of the estimate ``X[-1]`` (nx, nx): the last block of the inverse

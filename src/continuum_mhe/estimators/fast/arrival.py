@@ -14,6 +14,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from continuum_mhe.estimators.fast.ccall import call_model
+
 
 @numba.njit(cache=True)
 def arrival_update(x, P, r, H, R):
@@ -45,13 +47,13 @@ def arrival_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
     k = nx + nx * nx
     if valid:
         xin[:] = x
-        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
         H = out[k : k + nz * nx].copy().reshape(nz, nx)
         r = out[k + nz * nx : k + nz * nx + nz].copy()
         x, P = arrival_update(x, P, r, H, R)
     xin[:] = x
-    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+    if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         raise RuntimeError("model evaluation failed")
     xn = out[:nx].copy()
     F = out[nx:k].copy().reshape(nx, nx)
@@ -66,14 +68,14 @@ def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
     nz = R.shape[0]
     k = nx + nx * nx
     xin[:] = x
-    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+    if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         raise RuntimeError("model evaluation failed")
     xn = out[:nx].copy()
     F = out[nx:k].copy().reshape(nx, nx)
     P = F @ P @ F.T + Q
     if valid:
         xin[:] = xn
-        if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+        if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
             raise RuntimeError("model evaluation failed")
         H = out[k : k + nz * nx].copy().reshape(nz, nx)
         r = out[k + nz * nx : k + nz * nx + nz].copy()

@@ -146,7 +146,7 @@ def window_covariance(
     node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)
     D, E, g = ws.D[0], ws.E[0], ws.g[0]
     cost = _evaluate(
-        model.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
+        ws.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, np.zeros((n, len(fs.ball_r2))), fs.ball_idx, D, E, g,
         model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
     )  # fmt: skip

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.fast import arrival
+from continuum_mhe.estimators.fast.ccall import address
 from continuum_mhe.estimators.fast.codegen import (
     Library,
     announce_vm_fallback,
@@ -170,7 +171,7 @@ class NodeEvaluator:
 
     def __init__(self, model: WindowModel) -> None:
         nx, nz = model.nx, model.nz
-        self._fn = model.node
+        self._fn = model.node  # and its address, for the kernels
         self._x = np.zeros(nx)
         self._u = np.zeros(model.nu)
         self._dt = np.zeros(1)
@@ -201,6 +202,16 @@ class NodeEvaluator:
             self._out[k : k + nz * nx].reshape(nz, nx),
             self._out[k + nz * nx :],
         )
+
+    @property
+    def _fn(self) -> Any:
+        """The node function (a ctypes :data:`~.codegen.CFunction`)."""
+        return self._node_fn
+
+    @_fn.setter
+    def _fn(self, fn: Any) -> None:
+        self._node_fn = fn
+        self._addr = address(fn)
 
     def evaluate(
         self,
@@ -245,7 +256,7 @@ class NodeEvaluator:
         valid = bool(np.any(mask))
         try:
             return arrival.arrival_step(
-                self._fn, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
+                self._addr, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
             )
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             if str(exc) != "model evaluation failed":
@@ -272,7 +283,7 @@ class NodeEvaluator:
         self._m[:] = mask
         try:
             return arrival.ekf_step(
-                self._fn, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
+                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
             )
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             if str(exc) != "model evaluation failed":

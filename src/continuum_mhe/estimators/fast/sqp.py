@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
+from continuum_mhe.estimators.fast.ccall import address, call_model
 from continuum_mhe.estimators.fast.model import WindowModel
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
@@ -181,10 +182,11 @@ def _assemble(
 @numba.njit(cache=True)
 def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g, loss, wgt,
               extra, gb):  # fmt: skip
-    """Evaluate the model at ``X`` (one C call) and assemble; inf cost on failure."""
+    """Evaluate the model at ``X`` (one C call of the function at address ``fn``) and
+    assemble; inf cost on failure."""
     n, nx = X.shape
     nz = rinv.shape[0]
-    if fn(ptrs.ctypes.data, out.ctypes.data) != 0:
+    if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         return np.inf
     o1, o2, o3 = nz * n, nz * n + nz * nx * n, nz * n + nz * nx * n + nx * (n - 1)
     o4 = o3 + nx * nx * (n - 1)
@@ -391,6 +393,7 @@ class Workspace:
         self.extra = np.empty((2, n, nblk))
         self.gb = np.empty((2, n, nblk, nx))
         self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
+        self.window = address(model.window)  # of the window function (the model keeps it)
 
 
 def solve_window(
@@ -420,7 +423,7 @@ def solve_window(
     lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
     node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)  # the residuals are masked
     outcome, it, step, cost, cur = _sqp(
-        model.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
+        ws.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb,
@@ -447,7 +450,7 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
     nb, nblk = len(model.feasible.ball_r2), len(model.loss.blocks)
     return float(
         _evaluate(
-            model.window, _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
+            address(model.window), _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
             node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
             np.zeros((n, nb)), model.feasible.ball_idx, np.empty((n, nx, nx)),
             np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),

@@ -34,7 +34,9 @@ from continuum_mhe.numba_cache import writable
 FirstRun = Literal["foreground", "background"]
 
 _FAST = Path(__file__).resolve().parent
-_KERNEL_MODULES = ("arrival.py", "linalg.py", "qp.py", "sqp.py")
+_KERNEL_MODULES = (
+    "arrival.py", "ccall.py", "covariance.py", "linalg.py", "qp.py", "sqp.py", "step.py",
+)  # fmt: skip
 _announced: set[str] = set()
 
 

@@ -1,0 +1,111 @@
+"""The bare compiled kernels of one EKF step and one fast-MHE step, timed alone.
+
+``continuum-mhe benchmark`` times every estimator through its ``step`` (input checks,
+sensor masks, divergence check, the ``Estimate``). These two runners time only the
+compiled calls of one step, the inputs (sensor mask, ``u``, ``Q(dt)``) computed
+outside the timed part, so that the two methods' arithmetic can be compared without
+the interface both share (:mod:`continuum_mhe.benchmark`'s rows ``ekf-kernel`` and
+``mhe-kernel``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from continuum_mhe.estimators.base import FloatArray
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.simulation.scenarios import Recording
+
+
+def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
+    """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
+    and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
+    alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
+    part. The first sample (prior, then its update) is the EKF's own and not timed.
+    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
+    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+    from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
+
+    f = formulation
+    node = NodeEvaluator(build_window_model(f, 2))
+    noise = ProcessNoiseCache(f)
+    R = f.meas_cov()
+    n = len(rec.t)
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
+    mask = f.measurement_mask(rec.z[0])
+    x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
+    out[0] = node.output(x)
+    z_prev = rec.z[0]
+    for i in range(1, n):
+        z = rec.z[i]
+        dt = float(rec.t[i] - rec.t[i - 1])
+        u = f.inputs(z_prev, z, dt)
+        mask = f.measurement_mask(z)
+        Q = noise(dt)[0]
+        t0 = time.perf_counter()
+        x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
+        y = node.output(x)
+        sec[i] = time.perf_counter() - t0
+        out[i] = y
+        if mask.any():
+            z_prev = z
+    return out, sec
+
+
+def run_mhe_kernel(
+    formulation: Formulation, rec: Recording, horizon: int
+) -> tuple[FloatArray, FloatArray, int]:
+    """The fast MHE (quadratic loss, default :class:`FastOptions`) as its bare compiled
+    kernels: per sample the two compiled calls of
+    :mod:`continuum_mhe.estimators.fast.step` (arrival slide, window shift, initial
+    guess and SQP; then the covariance, the outputs and their standard deviations) and
+    the copy of the answer kept for the next warm start, timed alone; the sensor mask,
+    ``u`` and ``Q(dt)`` are computed outside the timed part, as for
+    :func:`run_ekf_kernel`. Every sample is timed (the first too). A window the SQP
+    does not certify is counted (the estimator would hand it to IPOPT); its output is
+    the kernel's. Returns ``(output (n, ny), seconds per sample (n,), uncertified
+    windows)``; the outputs are the fast MHE's."""
+    from continuum_mhe.estimators.fast import FastOptions, NodeEvaluator, build_window_model
+    from continuum_mhe.estimators.fast.qp import CONVERGED
+    from continuum_mhe.estimators.fast.step import StepBuffers
+    from continuum_mhe.estimators.kalman import ProcessNoiseCache
+
+    f = formulation
+    model = build_window_model(f, horizon)
+    steps = StepBuffers(model, NodeEvaluator(model))
+    noise = ProcessNoiseCache(f)
+    R = f.meas_cov()
+    o = FastOptions()
+    options = (True, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton)
+    n = len(rec.t)
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
+    first = next(i for i in range(n) if f.measurement_mask(rec.z[i]).any())
+    xbar = np.array(f.project(f.initial_state(rec.z[first])), dtype=np.float64)
+    P = np.array(f.initial_cov(), dtype=np.float64)
+    prior = (xbar, P, np.asarray(np.linalg.inv(P), dtype=np.float64))
+    X = np.empty((horizon, f.nx))
+    lam = np.zeros_like(steps.lam)
+    uncertified = 0
+    z_prev: FloatArray | None = None
+    for i in range(first, n):
+        z = rec.z[i]
+        mask = f.measurement_mask(z)
+        k = int(steps.k[0])
+        dt = float(rec.t[i] - rec.t[i - 1]) if k else 1.0
+        u = f.inputs(z_prev, z, dt) if k and f.nu else steps.u0
+        Q, Qinv = noise(dt) if k else (steps.zeros, steps.zeros)
+        new = (float(rec.t[i]), z, mask, u, dt, Q, Qinv)
+        t0 = time.perf_counter()
+        outcome, _, _, _, cur = steps.advance(prior, new, R, X if k else None, lam, options)
+        X[:] = steps.workspace.Xb[cur]
+        y, _, _ = steps.finish(X, xbar)
+        sec[i] = time.perf_counter() - t0
+        out[i] = y
+        uncertified += outcome != CONVERGED
+        if mask.any():
+            z_prev = z
+    return out, sec, uncertified

@@ -1,0 +1,294 @@
+"""One MHE step of the fast backend in two compiled calls (numba kernels).
+
+The estimator's per-sample work around the SQP (sliding the arrival prior, shifting the
+window's buffers, the initial guess, the arrival weights, the covariance and the
+outputs) is small arithmetic; done in Python it cost more than the SQP itself (about
+150 of 255 us per sample at N = 30, measured with cProfile). :func:`advance` does it
+up to and including the SQP, :func:`finish` the covariance and the outputs, on
+buffers that :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its
+window buffers are the :class:`~continuum_mhe.estimators.fast.sqp.Workspace`'s, so
+the C model's argument pointers never change). The equations are those of the
+estimator's Python path: :meth:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator._push`,
+``_slide_arrival``, ``_initial_guess`` and ``window_problem``, then
+:func:`~continuum_mhe.estimators.fast.sqp.solve_window`,
+:func:`~continuum_mhe.estimators.fast.covariance.window_covariance` and
+:class:`~continuum_mhe.estimators.fast.model.NodeEvaluator`'s ``output`` and
+``output_std``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.estimators.fast.arrival import arrival_step
+from continuum_mhe.estimators.fast.ccall import address, call_model
+from continuum_mhe.estimators.fast.codegen import failure_message
+from continuum_mhe.estimators.fast.covariance import last_block_covariance
+from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
+from continuum_mhe.estimators.fast.qp import project
+from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp
+
+FloatArray = NDArray[np.float64]
+
+#: :func:`advance` did not solve (``paper_start`` before ``N`` samples).
+NOT_SOLVED = -1
+
+
+@numba.njit(cache=True)
+def _shift(a):
+    """``a[:-1] = a[1:]`` along the first axis, in place."""
+    for i in range(a.shape[0] - 1):
+        a[i] = a[i + 1]
+
+
+@numba.njit(cache=True)
+def advance(
+    node, nptrs, nout, nin, win, wptrs, prior, window, new, Rs, X, has_X, lam, has_lam, X0,
+    feasible, options, ws, loss,
+):  # fmt: skip
+    """Take one sample into the window and solve it.
+
+    ``node``/``win``: addresses of the node and window functions; ``nptrs``, ``nout``
+    and ``nin = (x, u, dt, z, m)`` the node function's argument pointers, output and
+    inputs. ``prior = (xbar, P, Pinv, k)`` (``k`` (1,) int: samples in the window,
+    updated); ``window = (tw, z, m, nodemask, u, dt, qw, qinvw, arrival)``;
+    ``new = (t, z, mask, u, dt, Q, Qinv)`` the sample (``z`` masked, ``dt`` from the
+    previous sample, ``Q`` and ``Qinv`` at ``dt``; ignored on the first sample);
+    ``Rs`` the measurement covariance of the leaving sample's update. ``X``: the
+    previous solution (if ``has_X``), ``lam`` its ball multipliers (if ``has_lam``;
+    shifted here, the answer's on return); ``X0`` receives the initial guess.
+    ``options = (solve, max_iter, step_tol, err_tol, max_qp, newton)``; ``loss = (R^-1,
+    LossKernel)``; ``ws``: the workspace's SQP buffers (:meth:`Workspace.buffers`).
+    Returns ``(outcome, iterations, step, cost, buffer of the answer)``; ``outcome``
+    :data:`NOT_SOLVED` when ``solve`` is 0.
+    """
+    xbar, P, Pinv, kk = prior
+    tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
+    t, znew, mask, unew, dtnew, Qn, Qinvn = new
+    lo, hi, bidx, r2 = feasible
+    solve, max_iter, step_tol, err_tol, max_qp, newton = options
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb = ws
+    xin, uin, dtin, zin, min_ = nin
+    rinv, lossk = loss
+    n, nx = X0.shape
+    k = kk[0]
+    if k == n:  # slide the arrival prior: the EKF step on the sample that leaves
+        uin[:] = u[0]
+        dtin[0] = dt[0]
+        zin[:] = z[0]
+        min_[:] = m[0]
+        valid = False
+        for c in range(m.shape[1]):
+            if m[0, c] != 0.0:
+                valid = True
+        xn, Pn, Pinvn = arrival_step(node, nptrs, nout, xin, xbar, P, valid, Rs, qw[0], nx)
+        xbar[:] = xn
+        project(xbar.reshape((1, nx)), lo, hi, bidx, r2)
+        P[:] = Pn
+        Pinv[:] = Pinvn
+    _shift(z)
+    _shift(m)
+    _shift(qw)
+    _shift(qinvw)
+    _shift(tw)
+    _shift(dt)
+    _shift(u)
+    tw[n - 1] = t
+    for c in range(znew.shape[0]):
+        m[n - 1, c] = mask[c]
+        z[n - 1, c] = znew[c] if mask[c] > 0 else 0.0
+    if k:
+        dt[n - 2] = dtnew
+        u[n - 2] = unew
+        qw[n - 2] = Qn
+        qinvw[n - 2] = Qinvn
+    elif n > 1:
+        dt[n - 2] = 1.0
+        u[n - 2] = 0.0
+        qw[n - 2] = 0.0
+        qinvw[n - 2] = 0.0
+    k = min(k + 1, n)
+    kk[0] = k
+    for i in range(n):
+        nodemask[i] = 0.0
+        for c in range(m.shape[1]):
+            if m[i, c] != 0.0:
+                nodemask[i] = 1.0
+    # initial guess: the previous solution shifted, its last node predicted
+    if has_X:
+        for i in range(n - 1):
+            X0[i] = X[i + 1]
+        xin[:] = X[n - 1]
+        if n > 1:
+            uin[:] = u[n - 2]
+        dtin[0] = tw[n - 1] - tw[n - 2] if k > 1 else 0.0
+        zin[:] = 0.0
+        min_[:] = 1.0
+        if call_model(node, nptrs.ctypes.data, nout.ctypes.data) != 0:
+            raise RuntimeError("model evaluation failed")
+        X0[n - 1] = nout[:nx]
+        project(X0[n - 1 :], lo, hi, bidx, r2)
+    else:
+        for i in range(n):
+            X0[i] = xbar
+    if not solve:
+        return NOT_SOLVED, 0, np.inf, np.inf, 0
+    # arrival weights: pinned identity before the first active node, P^-1 on it
+    off = n - k
+    for i in range(off):
+        arrival[i] = 0.0
+        for j in range(nx):
+            arrival[i, j, j] = 1.0
+    for i in range(off, min(off + 2, n)):
+        arrival[i] = 0.0
+    arrival[off] = Pinv
+    if has_lam:
+        _shift(lam)
+        lam[n - 1] = 0.0
+    else:
+        lam[:] = 0.0
+    Xb[0] = X0
+    return _sqp(
+        win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
+        lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
+        wgt, extra, gb,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def finish(
+    win, wptrs, X, xbar, window, feasible, ws, loss, lam0, tol, cov, outputs, y, std
+):  # fmt: skip
+    """Covariance of ``X[-1]`` (into ``cov``) and its outputs ``y`` and standard
+    deviations ``std``, as :func:`~.covariance.window_covariance` and
+    :class:`~.model.NodeEvaluator` compute them. ``outputs = (output, jacobian, optrs,
+    ox, oout, jout, wrapped)``: the output functions' addresses, argument pointers
+    (to ``ox``), outputs and the indices of wrapped angles. ``lam0``: zeros (n, nb).
+    Returns 0, or 1 when the covariance is not available (``cov`` and ``std`` then
+    unset); raises when the output functions fail."""
+    tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
+    lo, hi, bidx, r2 = feasible
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb = ws
+    ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
+    rinv, lossk = loss
+    n, nx = X.shape
+    ny = y.shape[0]
+    ox[:] = X[n - 1]
+    if call_model(ofn, optrs.ctypes.data, oout.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    y[:] = oout
+    for i in wrapped:
+        y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
+    Xb[0] = X
+    c = _evaluate(
+        win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, lam0, bidx,
+        D[0], E[0], g[0], lossk, wgt[0], extra[0], gb[0],
+    )  # fmt: skip
+    if not np.isfinite(c):
+        return 1
+    if not last_block_covariance(X, D[0], E[0], lo, hi, bidx, r2, tol, cov):
+        return 1
+    if call_model(jfn, optrs.ctypes.data, jout.ctypes.data) != 0:
+        raise RuntimeError("model evaluation failed")
+    for i in range(ny):
+        s = 0.0
+        for j in range(nx):
+            for k in range(nx):
+                s += jout[i + ny * j] * cov[j, k] * jout[i + ny * k]
+        std[i] = np.sqrt(max(s, 0.0))
+    return 0
+
+
+class StepBuffers:
+    """The buffers of :func:`advance` and :func:`finish` for one estimator: its window
+    (``tw``, ``z``, ``m``, ``u``, ``dt``, ``qw``, ``qinvw``, ``arrival``, aligned at
+    the end as the estimator's), the SQP's workspace (whose ``z``, ``m``, ``u`` and
+    ``dt`` are the window's), and the node evaluator's inputs and outputs."""
+
+    def __init__(self, model: WindowModel, node: NodeEvaluator) -> None:
+        n, nx, nu = model.horizon, model.nx, model.nu
+        fs = model.feasible
+        self.workspace = ws = Workspace(model)
+        self.tw, self.z, self.m, self.u, self.dt = np.zeros(n), ws.z, ws.m, ws.u, ws.dt
+        self.nodemask = np.zeros(n)
+        self.qw = np.zeros((n - 1, nx, nx))  # Q(dt)
+        self.qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
+        self.arrival = np.zeros((n, nx, nx))
+        self.k = np.zeros(1, dtype=np.int64)  # samples in the window
+        self.X0 = np.zeros((n, nx))  # initial guess
+        self.lam = np.zeros((n, len(fs.ball_r2)))  # multipliers when none are kept
+        self.lam0 = np.zeros((n, len(fs.ball_r2)))
+        self.cov = np.empty((nx, nx))
+        self.y = np.empty(model.ny)
+        self.std = np.empty(model.ny)
+        self.u0 = np.zeros(nu)
+        self.zeros = np.zeros((nx, nx))
+        self.node = node
+        self.nin = (node._x, node._u, node._dt, node._z, node._m)
+        self.window_fn = address(model.window)
+        self.output_fn = model.output
+        self.outputs = (
+            address(model.output), address(model.output_jacobian), node._optrs, node._ox,
+            node._oout, node._jout, np.array(model.wrapped, dtype=np.int64),
+        )  # fmt: skip
+        self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
+        self.loss = (model.rinv, model.loss)
+        self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb)
+        self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
+                       self.qinvw, self.arrival)  # fmt: skip
+        self.reset()
+
+    def reset(self) -> None:
+        """Empty the window."""
+        for a in (self.tw, self.z, self.m, self.u, self.qw, self.qinvw, self.arrival):
+            a[:] = 0.0
+        self.dt[:] = 1.0  # 1 s on inactive stages
+        self.k[0] = 0
+
+    def advance(
+        self,
+        prior: tuple[FloatArray, FloatArray, FloatArray],
+        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
+        R: FloatArray,
+        X: FloatArray | None,
+        lam: FloatArray | None,
+        options: tuple[bool, int, float, float, int, bool],
+    ) -> tuple[int, int, float, float, int]:
+        """:func:`advance` on these buffers; ``prior = (xbar, P, Pinv)`` (updated in
+        place), ``X`` and ``lam`` the previous solution and multipliers (None: none).
+        A failed model evaluation raises ``RuntimeError`` with the model's message."""
+        node = self.node
+        try:
+            return advance(
+                node._addr, node._ptrs, node._out, self.nin, self.window_fn,
+                self.workspace.ptrs, (*prior, self.k), self.window, new, R,
+                self.X0 if X is None else X, X is not None,
+                self.lam if lam is None else lam, lam is not None, self.X0, self.feasible,
+                options, self.sqp, self.loss,
+            )  # fmt: skip
+        except RuntimeError as exc:  # the kernel cannot format the model's own message
+            if str(exc) != "model evaluation failed":
+                raise
+            raise RuntimeError(failure_message(node._fn)) from exc
+
+    def finish(
+        self, X: FloatArray, xbar: FloatArray, tol: float = 1e-6
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+        """``(outputs, covariance, output standard deviations)`` of ``X[-1]`` for the
+        window solved at ``X`` (N, nx) with prior ``xbar`` (copies; None: the
+        covariance is not positive definite)."""
+        try:
+            failed = finish(
+                self.window_fn, self.workspace.ptrs, np.ascontiguousarray(X, dtype=float),
+                xbar, self.window, self.feasible, self.sqp, self.loss, self.lam0, tol,
+                self.cov, self.outputs, self.y, self.std,
+            )  # fmt: skip
+        except RuntimeError as exc:
+            if str(exc) != "model evaluation failed":
+                raise
+            raise RuntimeError(failure_message(self.output_fn)) from exc
+        if failed:
+            return self.y.copy(), None, None
+        return self.y.copy(), self.cov.copy(), self.std.copy()

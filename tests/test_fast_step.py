@@ -1,0 +1,131 @@
+"""The fast MHE's compiled step (:mod:`continuum_mhe.estimators.fast.step`) against the
+estimator's Python path on identical inputs.
+
+The Python path (``_push``, ``_slide_arrival``, ``_initial_guess``, ``solve_window``,
+``window_covariance`` and the node evaluator's outputs) is an independent
+implementation of the same bookkeeping; an estimator without its compiled step takes
+it. Both must give the same estimates, covariances, standard deviations and statuses
+on recordings that exercise dropouts, spikes, the growing window, ``paper_start``,
+robust losses, the branch check, the box bounds of the paper formulation and two
+sections.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from continuum_mhe.benchmark_kernels import run_mhe_kernel
+from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate, simulate_robot
+
+TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+
+
+def _python_path(est: MovingHorizonEstimator) -> MovingHorizonEstimator:
+    """``est`` without its compiled step (the Python bookkeeping around the SQP)."""
+    est._steps = None
+    est.reset()
+    return est
+
+
+def _damaged(z: np.ndarray) -> np.ndarray:
+    """Dropouts of every sensor, of one component, and spikes."""
+    z = np.array(z, dtype=float)
+    z[40:46] = np.nan
+    z[70, 0] = np.nan
+    z[90:93] += 0.4
+    return z
+
+
+CASES = [
+    ("bend", None, {}),
+    ("bend", None, {"loss": "huber"}),
+    ("bend", None, {"loss": "cauchy", "horizon": 6}),
+    ("bend", None, {"paper_start": True}),
+    ("bend", None, {"branch_check": True}),
+    ("paper", None, {}),
+    ("bend", TWO, {}),
+]
+
+
+@pytest.mark.parametrize(("name", "robot", "options"), CASES)
+def test_compiled_step_equals_the_python_path(name, robot, options) -> None:
+    if robot is None:
+        f = make_formulation(name)
+        rec = simulate("paper3d", duration=6.0, noise_deg=2.0, seed=3)
+    else:
+        f = make_formulation(name, robot)
+        rec = simulate_robot("s-curve", robot, duration=6.0, dt=0.05, seed=0)
+    z = _damaged(rec.z)
+    settings = MHESettings(**{"horizon": 12, **options})
+    compiled = MovingHorizonEstimator(f, settings)
+    assert compiled._steps is not None
+    a = compiled.run(rec.t, z)
+    b = _python_path(MovingHorizonEstimator(f, settings)).run(rec.t, z)
+    assert list(a.status) == list(b.status)
+    assert_allclose(a.output, b.output, rtol=0, atol=1e-12)
+    assert a.output_std is not None and b.output_std is not None
+    assert_allclose(a.output_std, b.output_std, rtol=1e-9, atol=1e-12)
+    if a.outlier is not None:
+        assert b.outlier is not None and np.array_equal(a.outlier, b.outlier)
+
+
+def test_compiled_step_keeps_the_window_problem() -> None:
+    """After each compiled step the estimator's window problem (what IPOPT, the branch
+    check and the tests read) is the Python path's."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=5.0, seed=1)
+    z = _damaged(rec.z)
+    a = MovingHorizonEstimator(f, MHESettings(horizon=8))
+    b = _python_path(MovingHorizonEstimator(f, MHESettings(horizon=8)))
+    for t, zi in zip(rec.t, z):
+        a.step(Measurement(float(t), zi))
+        b.step(Measurement(float(t), zi))
+        if a._xbar is None:
+            continue
+        pa, pb = a.window_problem(), b.window_problem()
+        for key, va in vars(pa).items():
+            assert_allclose(va, getattr(pb, key), rtol=1e-12, atol=1e-14, err_msg=key)
+
+
+def test_mhe_kernel_gives_the_fast_mhe_answers() -> None:
+    """The bare kernel the benchmark times is the fast MHE (dropouts too), every window
+    certified."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=3.0, seed=4)
+    z = rec.z.copy()
+    z[12:18] = np.nan
+    rec = replace(rec, z=z)
+    out, sec, uncertified = run_mhe_kernel(f, rec, 10)
+    ref = MovingHorizonEstimator(f, MHESettings(horizon=10)).run(rec.t, z)
+    assert uncertified == 0
+    assert_allclose(out, ref.output, rtol=0, atol=1e-12)
+    assert np.all(sec > 0)
+
+
+def test_compiled_step_takes_the_second_start_as_the_python_path_does() -> None:
+    # a +30 deg burst at sample 74 of seed 3 (the one tests/test_robust_mhe.py leaves)
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=8.0, noise_deg=2.0, seed=3)
+    z = np.array(rec.z, dtype=float)
+    z[74:79] += np.radians(30.0)
+    settings = MHESettings(horizon=30, loss="cauchy")
+    compiled = MovingHorizonEstimator(f, settings)
+    python = _python_path(MovingHorizonEstimator(f, settings))
+    a, b = compiled.run(rec.t, z), python.run(rec.t, z)
+    assert compiled.second_start is not None and python.second_start is not None
+    assert compiled.second_start.kept > 0
+    assert (compiled.second_start.tried, compiled.second_start.kept) == (
+        python.second_start.tried,
+        python.second_start.kept,
+    )
+    assert list(a.status) == list(b.status)
+    assert_allclose(a.output, b.output, rtol=0, atol=1e-10)
