@@ -272,6 +272,12 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
         "IMU) instead of counting it as gyro noise",
     )
+    g.add_argument(
+        "--estimate-accel-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
+        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md)",
+    )
 
 
 def raw_settings(args: argparse.Namespace) -> RawImuSettings:
@@ -299,6 +305,7 @@ def input_options(args: argparse.Namespace) -> Any:
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
         estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+        estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
         degrees=bool(getattr(args, "degrees", False)),
         skip_bad=bool(getattr(args, "skip_bad", False)),
     )
@@ -338,8 +345,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     )
     raw = raw_settings(args)
     formulation = formulation_from_args(args)
-    if getattr(args, "estimate_gyro_bias", False) and raw.imu_model != "direct":
-        raise InputError("--estimate-gyro-bias needs --imu-model direct (raw gyros)")
+    for flag in ("gyro", "accel"):
+        if getattr(args, f"estimate_{flag}_bias", False) and raw.imu_model != "direct":
+            raise InputError(f"--estimate-{flag}-bias needs --imu-model direct (raw gyros)")
     if raw.imu_model == "direct":
         if settings.fmt != "raw":
             raise InputError("--imu-model direct needs --format raw")
@@ -352,6 +360,7 @@ def cmd_live(args: argparse.Namespace) -> int:
             noise=formulation.noise,
             gyro_std=args.gyro_std,
             estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+            estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
         )
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None

@@ -24,6 +24,18 @@ bias is a random walk, ``b+ = b + w``, ``w ~ N(0, gyro_bias_psd dt I_3)``, with 
 standard deviation ``initial_gyro_bias_std``. It is observable because the
 accelerometers pin the bends and hence their rates; the estimates settle over seconds
 (a few mrad/s after 12 s in the tests). It is a state, not an output.
+
+Accelerometer bias (``estimate_accel_bias=True``): the state gains a bias ``c_i``
+(m/s^2, IMU frame) per IMU, after the gyro biases if any, and the accelerometer model
+becomes ``f/|f| = (g R^T u + c_i) / |g R^T u + c_i|`` with ``g`` standard gravity (the
+model stays unit-free: the bias counts in units of ``|f|`` at rest). Each bias is a
+random walk like the gyro's (``accel_bias_psd``, ``initial_accel_bias_std``).
+Observability: at one pose the bias component along gravity only changes ``|f|``,
+which the model does not read, and the two components across it are a tilt; so a
+robot held in one pose cannot tell bias from bend. As the IMU turns through several
+orientations the gyro ties the successive gravity directions together and a bias fixed
+in the sensor frame separates from the bend; a board misalignment about x or y looks
+the same as a bias at a pose and is partly absorbed by it.
 """
 
 from __future__ import annotations
@@ -44,6 +56,8 @@ from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym
 from continuum_mhe.settings import FormulationName
 
+#: Standard gravity, m/s^2 (converts the accelerometer-bias state to units of |f|).
+STANDARD_GRAVITY = 9.80665
 #: Measurement names of one IMU, in order.
 DIRECT_MEASUREMENTS = ("fx", "fy", "fz", "wx", "wy", "wz")
 
@@ -83,6 +97,11 @@ class DirectFormulation(BendFormulation):
         estimate_gyro_bias: add a gyro bias per IMU to the state.
         gyro_bias_psd: the bias random walk's spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: prior standard deviation of each bias, rad/s.
+        estimate_accel_bias: add an accelerometer bias per IMU to the state.
+        accel_bias_psd: its random walk's spectral density, (m/s^2)^2/s.
+        initial_accel_bias_std: prior standard deviation of each accelerometer bias
+            component, m/s^2 (an MPU9250-class board after its factory trim: about
+            10 mg, as the rod recordings' IMU model).
     """
 
     name: FormulationName = "direct"
@@ -91,6 +110,9 @@ class DirectFormulation(BendFormulation):
     estimate_gyro_bias: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
+    estimate_accel_bias: bool = False
+    accel_bias_psd: float = 1e-6
+    initial_accel_bias_std: float = 0.1
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -99,6 +121,8 @@ class DirectFormulation(BendFormulation):
             ("accel_direction_std", self.accel_direction_std),
             ("gyro_bias_psd", self.gyro_bias_psd),
             ("initial_gyro_bias_std", self.initial_gyro_bias_std),
+            ("accel_bias_psd", self.accel_bias_psd),
+            ("initial_accel_bias_std", self.initial_accel_bias_std),
         ):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
@@ -107,42 +131,81 @@ class DirectFormulation(BendFormulation):
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
         return direct_blocks(self.robot.n_imus)
 
-    # --- the gyro-bias states (after the bends and their rates) ---------------------
+    # --- the bias states (after the bends and their rates: gyro, then accelerometer) --
     @property
-    def n_bias(self) -> int:
-        """Number of bias states: 3 per IMU when estimated, else 0."""
+    def n_gyro_bias(self) -> int:
+        """Number of gyro-bias states: 3 per IMU when estimated, else 0."""
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
     @property
-    def state_names(self) -> tuple[str, ...]:
-        base = super().state_names
-        if not self.estimate_gyro_bias:
-            return base
+    def n_accel_bias(self) -> int:
+        """Number of accelerometer-bias states: 3 per IMU when estimated, else 0."""
+        return 3 * self.robot.n_imus if self.estimate_accel_bias else 0
+
+    @property
+    def n_bias(self) -> int:
+        """Number of bias states (gyro and accelerometer)."""
+        return self.n_gyro_bias + self.n_accel_bias
+
+    def _bias_names(self, prefix: str) -> tuple[str, ...]:
         single = self.robot.n_imus == 1
-        return base + tuple(
-            f"bg{c}" if single else f"bg{c}_{i}"
+        return tuple(
+            f"{prefix}{c}" if single else f"{prefix}{c}_{i}"
             for i in range(1, self.robot.n_imus + 1)
             for c in "xyz"
         )
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        names = super().state_names
+        if self.estimate_gyro_bias:
+            names += self._bias_names("bg")
+        if self.estimate_accel_bias:
+            names += self._bias_names("ba")
+        return names
 
     def gyro_biases_sym(self, x: Sym) -> list[Sym]:
         """Gyro bias of each IMU, rad/s (call only when estimated)."""
         n4 = 4 * self.robot.n_sections
         return [x[n4 + 3 * i : n4 + 3 * i + 3] for i in range(self.robot.n_imus)]
 
+    def accel_biases_sym(self, x: Sym) -> list[Sym]:
+        """Accelerometer bias of each IMU, m/s^2 (call only when estimated)."""
+        n0 = 4 * self.robot.n_sections + self.n_gyro_bias
+        return [x[n0 + 3 * i : n0 + 3 * i + 3] for i in range(self.robot.n_imus)]
+
     def process_cov_sym(self, dt: Sym) -> Sym:
         """The bends' white-noise acceleration; each bias a random walk."""
         q = super().process_cov_sym(dt)
-        if not self.estimate_gyro_bias:
-            return q
-        return ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_bias))
+        if self.estimate_gyro_bias:
+            q = ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
+        if self.estimate_accel_bias:
+            q = ca.diagcat(q, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
+        return q
 
     def initial_cov(self) -> FloatArray:
+        var = np.concatenate(
+            [
+                np.full(self.n_gyro_bias, self.initial_gyro_bias_std**2),
+                np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
+            ]
+        )
         base = super().initial_cov()
-        if not self.estimate_gyro_bias:
+        if not len(var):
             return base
-        bias = np.full(self.n_bias, self.initial_gyro_bias_std**2)
-        return np.asarray(block_diag(base, np.diag(bias)), dtype=np.float64)
+        return np.asarray(block_diag(base, np.diag(var)), dtype=np.float64)
+
+    def gravity_directions_sym(self, x: Sym) -> list[Sym]:
+        """Unit specific-force direction at rest in each IMU's frame, with the
+        accelerometer bias when estimated (see the module docstring)."""
+        g = super().gravity_directions_sym(x)
+        if not self.estimate_accel_bias:
+            return g
+        out = []
+        for gi, ci in zip(g, self.accel_biases_sym(x)):
+            f = STANDARD_GRAVITY * gi + ci
+            out.append(f / ca.sqrt(ca.sumsqr(f)))
+        return out
 
     def angular_velocities_sym(self, x: Sym) -> list[Sym]:
         """Angular velocity in each IMU's frame, rad/s."""
