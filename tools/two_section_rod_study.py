@@ -207,7 +207,8 @@ def main() -> None:
                 print(f"   {label:8s} skipped: no {rest.name}")
                 continue
             res = evaluate(
-                calibrated_robot(robot, rest) if cal else robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias, accel_bias,
+                calibrated_robot(robot, rest) if cal else robot,
+                args.folder / f"{name}_{suffix}.csv", imu_model, bias, accel_bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
                 mhe,
                 tuple(args.fit_cost) if args.fit_cost else None,
