@@ -6,6 +6,8 @@ generator's rest recording (the same IMU errors, fresh noise)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -209,3 +211,19 @@ def test_rest_recording_has_the_recordings_imu_errors() -> None:
     d, e = imu_samples(rest, noisy, seed=4), imu_samples(rest, noisy, seed=4, noise_seed=9)
     assert np.max(np.abs(d[1] - e[1])) > 1e-3  # fresh noise
     assert_allclose(d[1].mean(axis=0), a[1].mean(axis=0), atol=0.02)  # same errors
+
+
+@pytest.mark.parametrize("name", ["planar-s", "spatial-tendon", "spatial-stiff-torsion", "spatial"])
+def test_shipped_rest_recordings_carry_the_recordings_imu_errors(name: str) -> None:
+    """Each shipped ``NAME_rest.csv`` reads what the recording's first sample (the rod
+    straight and still, before the couples act) read, up to noise: its mean lies within
+    0.06 m/s^2 (three noise sigmas) of that sample on the accelerometers' x and y axes,
+    where the two IMUs' own errors differ by up to 0.25 m/s^2."""
+    from continuum_mhe.io.raw_imu import read_raw_imus
+
+    folder = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
+    rest = read_raw_imus(folder / f"{name}_rest.csv", 2).imus
+    rec = read_raw_imus(folder / f"{name}_raw.csv", 2).imus
+    for r, m in zip(rest, rec):
+        assert_allclose(r.acc.mean(axis=0)[:2], m.acc[0, :2], atol=0.06)
+    assert abs(rest[0].acc[:, 0].mean() - rest[1].acc[:, 0].mean()) > 0.1  # errors differ
