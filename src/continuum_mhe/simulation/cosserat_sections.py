@@ -298,14 +298,20 @@ def one_section_tip(traj: SectionTrajectory, total: float) -> FloatArray:
 
 
 def imu_samples(
-    traj: SectionTrajectory, imu: ImuSettings, seed: int = 0, noise_seed: int | None = None
+    traj: SectionTrajectory,
+    imu: ImuSettings,
+    seed: int = 0,
+    noise_seed: int | None = None,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
     """Both IMUs every ``imu.sample_dt``: times (n,), specific force (n, 2, 3) m/s^2,
     gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices.
 
     ``seed`` draws the IMUs' constant errors (misalignment, biases) and, unless
     ``noise_seed`` is given, their noise; with ``noise_seed`` the same constant errors
-    come with fresh noise (the rest recording of the same IMUs)."""
+    come with fresh noise (the rest recording of the same IMUs). ``misalignment_axes``:
+    the board axes (0 x, 1 y, 2 z) whose misalignment angle is kept (the others are
+    drawn and zeroed, so the other errors stay the same; for studies)."""
     rng = np.random.default_rng(seed)
     noise_rng = rng if noise_seed is None else np.random.default_rng(noise_seed)
 
@@ -324,7 +330,8 @@ def imu_samples(
     for k in range(2):
         acc = (traj.velocities[idx, k] - traj.velocities[prev, k]) / span[:, None]
         spec_base = acc - np.array([0.0, 0.0, -GRAVITY])
-        mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3))
+        keep = np.isin(np.arange(3), misalignment_axes)
+        mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3) * keep)
         spec = np.einsum("nij,nj->ni", traj.directors[idx, k], spec_base) @ mis
         spec = (
             spec
@@ -355,13 +362,20 @@ def at_rest(traj: SectionTrajectory) -> SectionTrajectory:
 
 
 def write_rest_recording(
-    out: Path, name: str, traj: SectionTrajectory, imu: ImuSettings, seed: int = 0
+    out: Path,
+    name: str,
+    traj: SectionTrajectory,
+    imu: ImuSettings,
+    seed: int = 0,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
 ) -> Path:
     """``NAME_rest.csv``: the recording's IMUs (the same misalignments and biases, fresh
     noise) with the rod straight and still, for ``continuum-mhe calibrate --from``."""
     from continuum_mhe.io.csv_files import write_table
 
-    t, f, w, _ = imu_samples(at_rest(traj), imu, seed, noise_seed=seed + 1_000_003)
+    t, f, w, _ = imu_samples(
+        at_rest(traj), imu, seed, noise_seed=seed + 1_000_003, misalignment_axes=misalignment_axes
+    )
     cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
     path = out / f"{name}_rest.csv"
     rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
@@ -392,15 +406,17 @@ def write_trajectory_recording(
     scenario: str,
     imu: ImuSettings | None = None,
     seed: int = 0,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
 ) -> dict[str, object]:
-    """The four files of :func:`write_section_recording` from a simulated trajectory
-    (so that one simulation can be sampled by several IMUs)."""
+    """The files of :func:`write_section_recording` from a simulated trajectory (so
+    that one simulation can be sampled by several IMUs; ``misalignment_axes`` as in
+    :func:`imu_samples`)."""
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
 
     imu = imu or DEFAULT_IMU
-    write_rest_recording(out, name, traj, imu, seed)
-    t, f, w, idx = imu_samples(traj, imu, seed)
+    write_rest_recording(out, name, traj, imu, seed, misalignment_axes)
+    t, f, w, idx = imu_samples(traj, imu, seed, misalignment_axes=misalignment_axes)
     t = t - t[0]
     bends, fk_tip = pcc_truth(traj, settings.lengths)
     nodes = traj.nodes[idx]
