@@ -31,18 +31,25 @@ from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 #: (label, input file suffix, imu model, estimate gyro bias, estimate accelerometer
-#: bias, mounting from the rest recording). ``cal`` cases: the robot file's ``mount_rpy``
-#: from ``continuum-mhe calibrate --from NAME_rest.csv`` (the recommended workflow).
+#: bias, mounting from the rest recording, own acceleration). ``cal`` cases: the robot
+#: file's ``mount_rpy`` from ``continuum-mhe calibrate --from NAME_rest.csv`` (the
+#: recommended workflow); ``+own``: ``--own-acceleration``.
 CASES = (
-    ("raw", "raw", "direct", False, False, False),
-    ("raw+bias", "raw", "direct", True, False, False),
-    ("raw+acc", "raw", "direct", True, True, False),
-    ("cal+bias", "raw", "direct", True, False, True),
-    ("cal+acc", "raw", "direct", True, True, True),
-    ("tilt", "tilt", "tilt", False, False, False),
-    ("cal+tilt", "raw", "tilt", False, False, True),
+    ("raw", "raw", "direct", False, False, False, False),
+    ("raw+bias", "raw", "direct", True, False, False, False),
+    ("raw+acc", "raw", "direct", True, True, False, False),
+    ("cal+bias", "raw", "direct", True, False, True, False),
+    ("cal+acc", "raw", "direct", True, True, True, False),
+    ("raw+bias+own", "raw", "direct", True, False, False, True),
+    ("cal+bias+own", "raw", "direct", True, False, True, True),
+    ("cal+acc+own", "raw", "direct", True, True, True, True),
+    ("tilt", "tilt", "tilt", False, False, False, False),
+    ("cal+tilt", "raw", "tilt", False, False, True, False),
 )
-DEFAULT_CASES = ("raw", "raw+bias", "raw+acc", "cal+bias", "cal+acc", "tilt")
+DEFAULT_CASES = (
+    "raw", "raw+bias", "raw+acc", "cal+bias", "cal+acc", "raw+bias+own", "cal+bias+own",
+    "cal+acc+own", "tilt",
+)  # fmt: skip
 
 
 def calibrated_robot(robot: Robot, rest: Path) -> Robot:
@@ -70,6 +77,7 @@ def evaluate(
     methods: tuple[str, ...] = ("mhe", "ekf", "ukf"),
     mhe: MHESettings | None = None,
     fit: tuple[int, int] | None = None,
+    own: bool = False,
 ) -> dict[str, tuple[float, float, float]]:
     """``method -> (tip mean, tip max, section 1 end mean)``, mm (MHE: N = 30 unless
     ``mhe`` says otherwise). With ``fit`` (tilt only), also prints the measurement cost
@@ -80,6 +88,7 @@ def evaluate(
         raw=RawImuSettings(imu_model=imu_model),  # type: ignore[arg-type]
         estimate_gyro_bias=bias,
         estimate_accel_bias=accel_bias,
+        own_acceleration=own,
     )
     data = load_estimate_input(path, opts, make_formulation("bend", robot))
     if bias:
@@ -199,23 +208,23 @@ def main() -> None:
             f"tangent up to {twist[0]:.1f} deg (section 1 end), {twist[1]:.1f} deg (tip); "
             f"material twist up to {info['twist_max_deg']:.1f} deg"
         )
-        for label, suffix, imu_model, bias, accel_bias, cal in CASES:
+        for label, suffix, imu_model, bias, accel_bias, cal, own in CASES:
             if label not in args.cases:
                 continue
             rest = args.folder / f"{name}_rest.csv"
             if cal and not rest.exists():
-                print(f"   {label:8s} skipped: no {rest.name}")
+                print(f"   {label:12s} skipped: no {rest.name}")
                 continue
             res = evaluate(
                 calibrated_robot(robot, rest) if cal else robot,
                 args.folder / f"{name}_{suffix}.csv", imu_model, bias, accel_bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
                 mhe,
-                tuple(args.fit_cost) if args.fit_cost else None,
+                tuple(args.fit_cost) if args.fit_cost else None, own,
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
-                    f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.1f}x floor), "
+                    f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
         if "mhe" in args.methods:

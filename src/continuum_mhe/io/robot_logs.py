@@ -263,6 +263,8 @@ class InputOptions:
         gyro_std: gyro noise, rad/s, for the direct model.
         estimate_gyro_bias: the direct model estimates each gyro's bias.
         estimate_accel_bias: the direct model estimates each accelerometer's bias.
+        own_acceleration: the direct model includes each IMU's own acceleration
+            (bend accelerations as states).
         degrees: a tilt CSV is in degrees.
         skip_bad: skip bad samples instead of stopping.
     """
@@ -275,6 +277,7 @@ class InputOptions:
     gyro_std: float = 0.05
     estimate_gyro_bias: bool = False
     estimate_accel_bias: bool = False
+    own_acceleration: bool = False
     degrees: bool = False
     skip_bad: bool = False
 
@@ -307,6 +310,7 @@ def _formulation_for(
         for flag, on in (
             ("--estimate-gyro-bias", options.estimate_gyro_bias),
             ("--estimate-accel-bias", options.estimate_accel_bias),
+            ("--own-acceleration", options.own_acceleration),
         ):
             if on:
                 raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
@@ -325,6 +329,7 @@ def _formulation_for(
         gyro_std=options.gyro_std,
         estimate_gyro_bias=options.estimate_gyro_bias,
         estimate_accel_bias=options.estimate_accel_bias,
+        own_acceleration=options.own_acceleration,
     )
 
 
