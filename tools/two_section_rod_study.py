@@ -224,7 +224,7 @@ def main() -> None:
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
-                    f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
+                    f"   {label:12s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
         if "mhe" in args.methods:
