@@ -135,9 +135,9 @@ def test_one_pose_leaves_the_bias_along_gravity_unknown() -> None:
 
 
 def test_fast_mhe_agrees_with_ipopt_with_the_accel_bias_states() -> None:
-    """Two sections, two raw IMUs with both biases, 3 s: the fast MHE (VM) and IPOPT
+    """Two sections, two raw IMUs with both biases, 2 s: the fast MHE (VM) and IPOPT
     give the same states (bends, rates, gyro and accelerometer biases) to 1e-6."""
-    t, z, _ = _recording("two-section", 3.0, seed=2)
+    t, z, _ = _recording("two-section", 2.0, seed=2)
     f = DirectFormulation(
         robot=read_robot("two-section"), estimate_gyro_bias=True, estimate_accel_bias=True
     )

@@ -12,7 +12,7 @@ accelerometer bias, no board misalignment), ``accel-bias`` (bias only of the two
 ``misalignment-z`` (about the backbone only), ``noise-only`` (no gyro bias either),
 ``noise-only-no-own-acceleration`` (as ``noise-only``, but the accelerometers do not
 feel the IMU's own acceleration). Each is estimated with raw IMUs and the gyro bias
-estimated (the study's ``raw+bias`` case).
+estimated (the study's ``raw+bias`` case; with ``--own-acceleration``, ``raw+bias+own``).
 """
 
 from __future__ import annotations
@@ -66,6 +66,9 @@ def main() -> None:
     )
     p.add_argument("--out", type=Path, help="folder for the variants (default: a temporary one)")
     p.add_argument("--method", default="ekf", choices=["mhe", "ekf", "ukf"])
+    p.add_argument(
+        "--own-acceleration", action="store_true", help="the model includes it (--own-acceleration)"
+    )
     args = p.parse_args()
     warnings.simplefilter("ignore")
     names = args.only or ["planar-s", "spatial-tendon", "spatial-stiff-torsion"]
@@ -77,7 +80,8 @@ def main() -> None:
             settings = rod_settings(info)
             traj = simulate_sections(settings, str(info["scenario"]), 12.0)
             floor = info["pcc_floor_mean_mm"]
-            print(f"== {name}: PCC floor {floor:.2f} mm ({args.method}, raw IMUs + gyro bias)")
+            what = " + own acceleration" if args.own_acceleration else ""
+            print(f"== {name}: PCC floor {floor:.2f} mm ({args.method}, raw IMUs + gyro bias{what})")
             for variant, (imu, axes, felt) in VARIANTS.items():
                 out = root / variant
                 out.mkdir(parents=True, exist_ok=True)
@@ -87,7 +91,7 @@ def main() -> None:
                 )
                 mean = evaluate(
                     robot, out / f"{name}_raw.csv", "direct", True, False,
-                    out / f"{name}_truth.csv", 1e-6, (args.method,),
+                    out / f"{name}_truth.csv", 1e-6, (args.method,), own=args.own_acceleration,
                 )[args.method][0]  # fmt: skip
                 print(f"   {variant:32s} tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor)")
 
