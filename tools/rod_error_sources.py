@@ -81,7 +81,7 @@ def main() -> None:
             traj = simulate_sections(settings, str(info["scenario"]), 12.0)
             floor = info["pcc_floor_mean_mm"]
             what = " + own acceleration" if args.own_acceleration else ""
-            print(f"== {name}: PCC floor {floor:.2f} mm ({args.method}, raw IMUs + gyro bias{what})")
+            print(f"== {name}: PCC floor {floor:.2f} mm ({args.method}, raw+bias{what})")
             for variant, (imu, axes, felt) in VARIANTS.items():
                 out = root / variant
                 out.mkdir(parents=True, exist_ok=True)
