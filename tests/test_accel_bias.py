@@ -153,7 +153,7 @@ def test_fast_mhe_agrees_with_ipopt_with_the_accel_bias_states() -> None:
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 
 
-def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:
     from continuum_mhe.cli import main
 
     raw = tmp_path / "raw.csv"
@@ -204,7 +204,7 @@ def test_rest_recording_has_the_recordings_imu_errors() -> None:
     quiet = replace(DEFAULT_IMU, sample_dt=0.002, accel_noise=0.0, gyro_noise=0.0)
     a = imu_samples(rest, quiet, seed=4)
     b = imu_samples(rest, quiet, seed=4, noise_seed=9)
-    assert_allclose(a[1], b[1], atol=0) and assert_allclose(a[2], b[2], atol=0)  # type: ignore[func-returns-value]
+    assert_allclose(a[1], b[1], atol=0) and assert_allclose(a[2], b[2], atol=0)
     c = imu_samples(rest, quiet, seed=5)
     assert np.max(np.abs(a[1] - c[1])) > 1e-3  # another seed: other errors
     noisy = replace(DEFAULT_IMU, sample_dt=0.002)

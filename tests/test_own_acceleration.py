@@ -93,8 +93,8 @@ def test_constant_acceleration_motion_and_layout() -> None:
     assert_allclose(xn[4:8], x[4:8] + dt * x[8:12], atol=1e-15)
     assert_allclose(xn[8:], x[8:], atol=0)
     j = f.bend_jerk_psd
-    assert_allclose(q[0, 0], j * dt**5 / 20) and assert_allclose(q[0, 8], j * dt**3 / 6)  # type: ignore[func-returns-value]
-    assert_allclose(q[8, 8], j * dt) and assert_allclose(q[0, 1], 0.0)  # type: ignore[func-returns-value]
+    assert_allclose(q[0, 0], j * dt**5 / 20) and assert_allclose(q[0, 8], j * dt**3 / 6)
+    assert_allclose(q[8, 8], j * dt) and assert_allclose(q[0, 1], 0.0)
     assert_allclose(q[18:, 18:], np.eye(6) * f.accel_bias_psd * dt, atol=1e-20)
     assert np.all(np.linalg.eigvalsh(q[:12, :12]) > 0)
     p0 = np.diag(f.initial_cov())
@@ -127,7 +127,7 @@ def test_fast_mhe_agrees_with_ipopt_with_own_acceleration() -> None:
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 
 
-def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:
     from continuum_mhe.cli import main
 
     raw = tmp_path / "raw.csv"
