@@ -202,6 +202,18 @@ class DirectFormulation(BendFormulation):
         n0 = self.n_motion + self.n_gyro_bias
         return [x[n0 + 3 * i : n0 + 3 * i + 3] for i in range(self.robot.n_imus)]
 
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """As ``bend``'s; the bend accelerations (``own_acceleration``) are not held to
+        the rate limit (a vibrating rod's can be hundreds of rad/s^2)."""
+        if not self.own_acceleration:
+            return super().is_diverged(x, P)
+        n2 = 2 * self.robot.n_sections
+        xc = np.array(x, dtype=float)
+        if not np.all(np.isfinite(xc[2 * n2 : 3 * n2])):
+            return True
+        xc[2 * n2 : 3 * n2] = 0.0
+        return super().is_diverged(xc, P)
+
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         if not self.own_acceleration:
             return super().transition_sym(x, u, dt)
