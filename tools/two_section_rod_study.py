@@ -1,9 +1,11 @@
 """Estimators on the two-section Cosserat-rod recordings (data the PCC model did not
-generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``,
-with and without gyro-bias estimation, and ``raw+acc``: gyro and accelerometer biases
-estimated) and with tilt only (``bend``), beside the
-PCC-model floor, a one-section model of the whole robot driven by the tip IMU, and the
-rod's twist about the tangent at each section end.
+generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``)
+and with tilt only (``bend``), beside the PCC-model floor, a one-section model of the
+whole robot driven by the tip IMU, and the rod's twist about the tangent at each
+section end. Raw-IMU cases (``CASES``): with and without the gyro bias estimated
+(``raw``, ``raw+bias``), the accelerometer bias too (``+acc``), each IMU's mounting
+from the recording's rest recording (``cal``, as ``continuum-mhe calibrate --from
+NAME_rest.csv`` prints it) and the IMUs' own acceleration modelled (``+own``).
 
     python tools/two_section_rod_study.py [FOLDER] [--only NAME ...]
     # FOLDER default: the shipped src/continuum_mhe/data/rod2
