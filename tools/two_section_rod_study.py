@@ -1,8 +1,11 @@
 """Estimators on the two-section Cosserat-rod recordings (data the PCC model did not
-generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``,
-with and without gyro-bias estimation) and with tilt only (``bend``), beside the
-PCC-model floor, a one-section model of the whole robot driven by the tip IMU, and the
-rod's twist about the tangent at each section end.
+generate): tip and section-end errors of MHE, EKF and UKF with raw IMUs (``direct``)
+and with tilt only (``bend``), beside the PCC-model floor, a one-section model of the
+whole robot driven by the tip IMU, and the rod's twist about the tangent at each
+section end. Raw-IMU cases (``CASES``): with and without the gyro bias estimated
+(``raw``, ``raw+bias``), the accelerometer bias too (``+acc``), each IMU's mounting
+from the recording's rest recording (``cal``, as ``continuum-mhe calibrate --from
+NAME_rest.csv`` prints it) and the IMUs' own acceleration modelled (``+own``).
 
     python tools/two_section_rod_study.py [FOLDER] [--only NAME ...]
     # FOLDER default: the shipped src/continuum_mhe/data/rod2
@@ -29,12 +32,40 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
-#: (label, input file suffix, imu model, estimate gyro bias)
+#: (label, input file suffix, imu model, estimate gyro bias, estimate accelerometer
+#: bias, mounting from the rest recording, own acceleration). ``cal`` cases: the robot
+#: file's ``mount_rpy`` from ``continuum-mhe calibrate --from NAME_rest.csv`` (the
+#: recommended workflow); ``+own``: ``--own-acceleration``.
 CASES = (
-    ("raw", "raw", "direct", False),
-    ("raw+bias", "raw", "direct", True),
-    ("tilt", "tilt", "tilt", False),
+    ("raw", "raw", "direct", False, False, False, False),
+    ("raw+bias", "raw", "direct", True, False, False, False),
+    ("raw+acc", "raw", "direct", True, True, False, False),
+    ("cal+bias", "raw", "direct", True, False, True, False),
+    ("cal+acc", "raw", "direct", True, True, True, False),
+    ("raw+bias+own", "raw", "direct", True, False, False, True),
+    ("cal+bias+own", "raw", "direct", True, False, True, True),
+    ("cal+acc+own", "raw", "direct", True, True, True, True),
+    ("tilt", "tilt", "tilt", False, False, False, False),
+    ("cal+tilt", "raw", "tilt", False, False, True, False),
 )
+DEFAULT_CASES = (
+    "raw", "raw+bias", "raw+acc", "cal+bias", "cal+acc", "raw+bias+own", "cal+bias+own",
+    "cal+acc+own", "tilt",
+)  # fmt: skip
+
+
+def calibrated_robot(robot: Robot, rest: Path) -> Robot:
+    """``robot`` with each IMU's ``mount_rpy`` from a rest recording, as ``continuum-mhe
+    calibrate --from REST --robot ...`` prints it (rounded to 0.01 degree as printed)."""
+    from continuum_mhe.stream.calibrate import calibrate, read_recording
+
+    fmt, t, values = read_recording(str(rest), robot.n_imus)
+    cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    imus = tuple(
+        replace(imu, mount_rpy=tuple(round(v, 2) for v in c.mount_rpy))  # type: ignore[arg-type, union-attr]
+        for imu, c in zip(robot.imus, cal.imus)
+    )
+    return replace(robot, imus=imus)
 
 
 def evaluate(
@@ -42,18 +73,25 @@ def evaluate(
     path: Path,
     imu_model: str,
     bias: bool,
+    accel_bias: bool,
     truth_path: Path,
     bias_psd: float,
     methods: tuple[str, ...] = ("mhe", "ekf", "ukf"),
     mhe: MHESettings | None = None,
     fit: tuple[int, int] | None = None,
+    own: bool = False,
 ) -> dict[str, tuple[float, float, float]]:
     """``method -> (tip mean, tip max, section 1 end mean)``, mm (MHE: N = 30 unless
     ``mhe`` says otherwise). With ``fit`` (tilt only), also prints the measurement cost
     ``sum r^T R^-1 r`` over samples ``fit[0]:fit[1]`` of each method's bends and of the
     rod's true PCC bends."""
     truth = read_state_table(truth_path)
-    opts = InputOptions(raw=RawImuSettings(imu_model=imu_model), estimate_gyro_bias=bias)  # type: ignore[arg-type]
+    opts = InputOptions(
+        raw=RawImuSettings(imu_model=imu_model),  # type: ignore[arg-type]
+        estimate_gyro_bias=bias,
+        estimate_accel_bias=accel_bias,
+        own_acceleration=own,
+    )
     data = load_estimate_input(path, opts, make_formulation("bend", robot))
     if bias:
         data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
@@ -142,7 +180,13 @@ def main() -> None:
     p.add_argument(
         "--theta-max", type=float, help="every section's bend bound, rad (default: the robot's)"
     )
-    p.add_argument("--cases", nargs="+", default=[c[0] for c in CASES], help="raw raw+bias tilt")
+    p.add_argument(
+        "--cases",
+        nargs="+",
+        default=list(DEFAULT_CASES),
+        choices=[c[0] for c in CASES],
+        help=f"default: {' '.join(DEFAULT_CASES)}",
+    )
     args = p.parse_args()
     warnings.simplefilter("ignore")
     robot = read_robot("two-section")
@@ -166,18 +210,23 @@ def main() -> None:
             f"tangent up to {twist[0]:.1f} deg (section 1 end), {twist[1]:.1f} deg (tip); "
             f"material twist up to {info['twist_max_deg']:.1f} deg"
         )
-        for label, suffix, imu_model, bias in CASES:
+        for label, suffix, imu_model, bias, accel_bias, cal, own in CASES:
             if label not in args.cases:
                 continue
+            rest = args.folder / f"{name}_rest.csv"
+            if cal and not rest.exists():
+                print(f"   {label:12s} skipped: no {rest.name}")
+                continue
             res = evaluate(
-                robot, args.folder / f"{name}_{suffix}.csv", imu_model, bias,
+                calibrated_robot(robot, rest) if cal else robot,
+                args.folder / f"{name}_{suffix}.csv", imu_model, bias, accel_bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
                 mhe,
-                tuple(args.fit_cost) if args.fit_cost else None,
+                tuple(args.fit_cost) if args.fit_cost else None, own,
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
-                    f"   {label:8s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.1f}x floor), "
+                    f"   {label:12s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
         if "mhe" in args.methods:

@@ -272,6 +272,18 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
         "IMU) instead of counting it as gyro noise",
     )
+    g.add_argument(
+        "--estimate-accel-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
+        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md)",
+    )
+    g.add_argument(
+        "--own-acceleration",
+        action="store_true",
+        help="for --imu-model direct: model each IMU's own acceleration (the bend "
+        "accelerations become states; docs/model.md)",
+    )
 
 
 def raw_settings(args: argparse.Namespace) -> RawImuSettings:
@@ -299,6 +311,8 @@ def input_options(args: argparse.Namespace) -> Any:
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
         estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+        estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
+        own_acceleration=bool(getattr(args, "own_acceleration", False)),
         degrees=bool(getattr(args, "degrees", False)),
         skip_bad=bool(getattr(args, "skip_bad", False)),
     )
@@ -338,8 +352,10 @@ def cmd_live(args: argparse.Namespace) -> int:
     )
     raw = raw_settings(args)
     formulation = formulation_from_args(args)
-    if getattr(args, "estimate_gyro_bias", False) and raw.imu_model != "direct":
-        raise InputError("--estimate-gyro-bias needs --imu-model direct (raw gyros)")
+    for dest in ("estimate_gyro_bias", "estimate_accel_bias", "own_acceleration"):
+        if getattr(args, dest, False) and raw.imu_model != "direct":
+            flag = "--" + dest.replace("_", "-")
+            raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
     if raw.imu_model == "direct":
         if settings.fmt != "raw":
             raise InputError("--imu-model direct needs --format raw")
@@ -352,6 +368,8 @@ def cmd_live(args: argparse.Namespace) -> int:
             noise=formulation.noise,
             gyro_std=args.gyro_std,
             estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+            estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
+            own_acceleration=bool(getattr(args, "own_acceleration", False)),
         )
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None

@@ -262,6 +262,9 @@ class InputOptions:
             its raw accelerometer and gyro.
         gyro_std: gyro noise, rad/s, for the direct model.
         estimate_gyro_bias: the direct model estimates each gyro's bias.
+        estimate_accel_bias: the direct model estimates each accelerometer's bias.
+        own_acceleration: the direct model includes each IMU's own acceleration
+            (bend accelerations as states).
         degrees: a tilt CSV is in degrees.
         skip_bad: skip bad samples instead of stopping.
     """
@@ -273,6 +276,8 @@ class InputOptions:
     use_orientation: bool = False
     gyro_std: float = 0.05
     estimate_gyro_bias: bool = False
+    estimate_accel_bias: bool = False
+    own_acceleration: bool = False
     degrees: bool = False
     skip_bad: bool = False
 
@@ -302,8 +307,13 @@ def _formulation_for(
     options: InputOptions, base: Formulation, raw_input: bool, path: Path
 ) -> Formulation:
     if options.raw.imu_model != "direct":
-        if options.estimate_gyro_bias:
-            raise InputError("--estimate-gyro-bias needs --imu-model direct (raw gyros)")
+        for flag, on in (
+            ("--estimate-gyro-bias", options.estimate_gyro_bias),
+            ("--estimate-accel-bias", options.estimate_accel_bias),
+            ("--own-acceleration", options.own_acceleration),
+        ):
+            if on:
+                raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
         return base
     if not raw_input or options.use_orientation:
         raise InputError(f"{path}: --imu-model direct needs raw accelerometer and gyro input")
@@ -318,6 +328,8 @@ def _formulation_for(
         noise=base.noise,
         gyro_std=options.gyro_std,
         estimate_gyro_bias=options.estimate_gyro_bias,
+        estimate_accel_bias=options.estimate_accel_bias,
+        own_acceleration=options.own_acceleration,
     )
 
 

@@ -24,6 +24,27 @@ bias is a random walk, ``b+ = b + w``, ``w ~ N(0, gyro_bias_psd dt I_3)``, with 
 standard deviation ``initial_gyro_bias_std``. It is observable because the
 accelerometers pin the bends and hence their rates; the estimates settle over seconds
 (a few mrad/s after 12 s in the tests). It is a state, not an output.
+
+Own acceleration (``own_acceleration=True``): the accelerometer reads the specific
+force ``f = R^T (a + g u)``, where ``a = d^2p/dt^2`` is the IMU's acceleration. By
+default ``a`` is left out (it acts as noise). With the option the motion model becomes
+constant acceleration: the state gains the bend accelerations ``q''`` (rad/s^2) after
+the rates, ``q+ = q + dt q' + dt^2/2 q''``, ``q'+ = q' + dt q''``, ``q''+ = q''`` with
+white jerk of density ``bend_jerk_psd`` (replacing the white-noise acceleration of
+``bend``), and ``a = J q'' + (dJ/dt) q'`` with ``J = dp/dq`` (CasADi's chain rule on the
+composed position of each IMU).
+
+Accelerometer bias (``estimate_accel_bias=True``): the state gains a bias ``c_i``
+(m/s^2, IMU frame) per IMU, after the gyro biases if any, and the accelerometer model
+becomes ``f/|f| = (g R^T u + c_i) / |g R^T u + c_i|`` with ``g`` standard gravity (the
+model stays unit-free: the bias counts in units of ``|f|`` at rest). Each bias is a
+random walk like the gyro's (``accel_bias_psd``, ``initial_accel_bias_std``).
+Observability: at one pose the bias component along gravity only changes ``|f|``,
+which the model does not read, and the two components across it are a tilt; so a
+robot held in one pose cannot tell bias from bend. As the IMU turns through several
+orientations the gyro ties the successive gravity directions together and a bias fixed
+in the sensor frame separates from the bend; a board misalignment about x or y looks
+the same as a bias at a pose and is partly absorbed by it.
 """
 
 from __future__ import annotations
@@ -41,9 +62,11 @@ from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
 from continuum_mhe.model.formulations import BendFormulation, FloatArray
 from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
-from continuum_mhe.model.pcc import angular_velocity_at_sym
+from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
 from continuum_mhe.settings import FormulationName
 
+#: Standard gravity, m/s^2 (converts the accelerometer-bias state to units of |f|).
+STANDARD_GRAVITY = 9.80665
 #: Measurement names of one IMU, in order.
 DIRECT_MEASUREMENTS = ("fx", "fy", "fz", "wx", "wy", "wz")
 
@@ -83,6 +106,17 @@ class DirectFormulation(BendFormulation):
         estimate_gyro_bias: add a gyro bias per IMU to the state.
         gyro_bias_psd: the bias random walk's spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: prior standard deviation of each bias, rad/s.
+        estimate_accel_bias: add an accelerometer bias per IMU to the state.
+        accel_bias_psd: its random walk's spectral density, (m/s^2)^2/s.
+        initial_accel_bias_std: prior standard deviation of each accelerometer bias
+            component, m/s^2 (an MPU9250-class board after its factory trim: about
+            10 mg, as the rod recordings' IMU model).
+        own_acceleration: model each IMU's own acceleration in its specific force;
+            the state gains the bend accelerations (constant acceleration, white jerk).
+        bend_jerk_psd: the white jerk's spectral density per bend coordinate,
+            rad^2/s^5 (used with ``own_acceleration``).
+        initial_bend_accel_std: prior standard deviation of each bend acceleration,
+            rad/s^2.
     """
 
     name: FormulationName = "direct"
@@ -91,6 +125,12 @@ class DirectFormulation(BendFormulation):
     estimate_gyro_bias: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
+    estimate_accel_bias: bool = False
+    accel_bias_psd: float = 1e-6
+    initial_accel_bias_std: float = 0.1
+    own_acceleration: bool = False
+    bend_jerk_psd: float = 4.0
+    initial_bend_accel_std: float = 1.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -99,6 +139,10 @@ class DirectFormulation(BendFormulation):
             ("accel_direction_std", self.accel_direction_std),
             ("gyro_bias_psd", self.gyro_bias_psd),
             ("initial_gyro_bias_std", self.initial_gyro_bias_std),
+            ("accel_bias_psd", self.accel_bias_psd),
+            ("initial_accel_bias_std", self.initial_accel_bias_std),
+            ("bend_jerk_psd", self.bend_jerk_psd),
+            ("initial_bend_accel_std", self.initial_bend_accel_std),
         ):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
@@ -107,42 +151,149 @@ class DirectFormulation(BendFormulation):
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
         return direct_blocks(self.robot.n_imus)
 
-    # --- the gyro-bias states (after the bends and their rates) ---------------------
+    # --- the bias states (after the bends and their rates: gyro, then accelerometer) --
     @property
-    def n_bias(self) -> int:
-        """Number of bias states: 3 per IMU when estimated, else 0."""
+    def n_gyro_bias(self) -> int:
+        """Number of gyro-bias states: 3 per IMU when estimated, else 0."""
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
     @property
-    def state_names(self) -> tuple[str, ...]:
-        base = super().state_names
-        if not self.estimate_gyro_bias:
-            return base
+    def n_motion(self) -> int:
+        """Number of motion states: bends and rates, and bend accelerations with
+        ``own_acceleration``."""
+        return (6 if self.own_acceleration else 4) * self.robot.n_sections
+
+    @property
+    def n_accel_bias(self) -> int:
+        """Number of accelerometer-bias states: 3 per IMU when estimated, else 0."""
+        return 3 * self.robot.n_imus if self.estimate_accel_bias else 0
+
+    @property
+    def n_bias(self) -> int:
+        """Number of bias states (gyro and accelerometer)."""
+        return self.n_gyro_bias + self.n_accel_bias
+
+    def _bias_names(self, prefix: str) -> tuple[str, ...]:
         single = self.robot.n_imus == 1
-        return base + tuple(
-            f"bg{c}" if single else f"bg{c}_{i}"
+        return tuple(
+            f"{prefix}{c}" if single else f"{prefix}{c}_{i}"
             for i in range(1, self.robot.n_imus + 1)
             for c in "xyz"
         )
 
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        names = super().state_names
+        if self.own_acceleration:
+            names += tuple(f"{c}_ddot" for c in names[: 2 * self.robot.n_sections])
+        if self.estimate_gyro_bias:
+            names += self._bias_names("bg")
+        if self.estimate_accel_bias:
+            names += self._bias_names("ba")
+        return names
+
     def gyro_biases_sym(self, x: Sym) -> list[Sym]:
         """Gyro bias of each IMU, rad/s (call only when estimated)."""
-        n4 = 4 * self.robot.n_sections
+        n4 = self.n_motion
         return [x[n4 + 3 * i : n4 + 3 * i + 3] for i in range(self.robot.n_imus)]
 
+    def accel_biases_sym(self, x: Sym) -> list[Sym]:
+        """Accelerometer bias of each IMU, m/s^2 (call only when estimated)."""
+        n0 = self.n_motion + self.n_gyro_bias
+        return [x[n0 + 3 * i : n0 + 3 * i + 3] for i in range(self.robot.n_imus)]
+
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """As ``bend``'s; the bend accelerations (``own_acceleration``) are not held to
+        the rate limit (a vibrating rod's can be hundreds of rad/s^2)."""
+        if not self.own_acceleration:
+            return super().is_diverged(x, P)
+        n2 = 2 * self.robot.n_sections
+        xc = np.array(x, dtype=float)
+        if not np.all(np.isfinite(xc[2 * n2 : 3 * n2])):
+            return True
+        xc[2 * n2 : 3 * n2] = 0.0
+        return super().is_diverged(xc, P)
+
+    def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
+        if not self.own_acceleration:
+            return super().transition_sym(x, u, dt)
+        n2 = 2 * self.robot.n_sections
+        q, qd, qdd = x[:n2], x[n2 : 2 * n2], x[2 * n2 : 3 * n2]
+        return ca.vertcat(q + dt * qd + dt**2 / 2 * qdd, qd + dt * qdd, x[2 * n2 :])
+
+    def _motion_cov_sym(self, dt: Sym) -> Sym:
+        if not self.own_acceleration:
+            return super().process_cov_sym(dt)
+        j, n2 = self.bend_jerk_psd, 2 * self.robot.n_sections
+        blk = j * ca.blockcat(
+            [
+                [dt**5 / 20, dt**4 / 8, dt**3 / 6],
+                [dt**4 / 8, dt**3 / 3, dt**2 / 2],
+                [dt**3 / 6, dt**2 / 2, dt],
+            ]
+        )
+        return ca.kron(blk, ca.SX.eye(n2))
+
     def process_cov_sym(self, dt: Sym) -> Sym:
-        """The bends' white-noise acceleration; each bias a random walk."""
-        q = super().process_cov_sym(dt)
-        if not self.estimate_gyro_bias:
-            return q
-        return ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_bias))
+        """The bends' white-noise acceleration (white jerk with ``own_acceleration``);
+        each bias a random walk."""
+        q = self._motion_cov_sym(dt)
+        if self.estimate_gyro_bias:
+            q = ca.diagcat(q, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
+        if self.estimate_accel_bias:
+            q = ca.diagcat(q, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
+        return q
 
     def initial_cov(self) -> FloatArray:
+        var = np.concatenate(
+            [
+                np.full(self.n_gyro_bias, self.initial_gyro_bias_std**2),
+                np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
+            ]
+        )
         base = super().initial_cov()
-        if not self.estimate_gyro_bias:
+        if self.own_acceleration:
+            n2 = 2 * self.robot.n_sections
+            base = block_diag(base, np.eye(n2) * self.initial_bend_accel_std**2)
+        if not len(var):
             return base
-        bias = np.full(self.n_bias, self.initial_gyro_bias_std**2)
-        return np.asarray(block_diag(base, np.diag(bias)), dtype=np.float64)
+        return np.asarray(block_diag(base, np.diag(var)), dtype=np.float64)
+
+    def gravity_directions_sym(self, x: Sym) -> list[Sym]:
+        """Unit specific-force direction at rest in each IMU's frame, with the
+        accelerometer bias when estimated (see the module docstring)."""
+        g = super().gravity_directions_sym(x)
+        if not (self.estimate_accel_bias or self.own_acceleration):
+            return g
+        n = self.robot.n_imus
+        c = self.accel_biases_sym(x) if self.estimate_accel_bias else [0.0] * n
+        if self.own_acceleration:
+            n2 = 2 * self.robot.n_sections
+            acc = self._imu_acceleration(x[:n2], x[n2 : 2 * n2], x[2 * n2 : 3 * n2])
+            a = [acc[3 * i : 3 * i + 3] for i in range(n)]
+        else:
+            a = [0.0] * n
+        out = []
+        for gi, ci, ai in zip(g, c, a):
+            f = STANDARD_GRAVITY * gi + ai + ci
+            out.append(f / ca.sqrt(ca.sumsqr(f)))
+        return out
+
+    @cached_property
+    def _imu_acceleration(self) -> ca.Function:
+        """``(bends, rates, bend accelerations) -> R^T d^2p/dt^2`` per IMU (3 m),
+        m/s^2, ``d^2p/dt^2 = J qdd + (dJ/dt) qd`` with ``J = dp/dq``."""
+        n2 = 2 * self.robot.n_sections
+        q, qd, qdd = ca.SX.sym("q", n2), ca.SX.sym("qd", n2), ca.SX.sym("qdd", n2)
+        bends = [(q[2 * k], q[2 * k + 1]) for k in range(self.robot.n_sections)]
+        parts = []
+        for imu in self.robot.imus:
+            R, p = pose_at_sym(bends, self.robot.lengths, imu.section, imu.at)
+            jac = ca.jacobian(p, q)
+            v = ca.mtimes(jac, qd)
+            a = ca.mtimes(jac, qdd) + ca.mtimes(ca.jacobian(v, q), qd)
+            parts.append(ca.mtimes(R.T, a))
+        return ca.Function("imu_acc", [q, qd, qdd], [ca.vertcat(*parts)])
 
     def angular_velocities_sym(self, x: Sym) -> list[Sym]:
         """Angular velocity in each IMU's frame, rad/s."""
@@ -198,7 +349,7 @@ class DirectFormulation(BendFormulation):
         else:
             bends = self._initial_bends(gravity)
         n2 = bends.size
-        x = np.concatenate([bends.ravel(), np.zeros(n2 + self.n_bias)])
+        x = np.concatenate([bends.ravel(), np.zeros(self.nx - n2)])
         if gyro_rows:
             m = np.asarray(self._rate_map(x), dtype=float).reshape(self.nz // 2, n2, order="F")
             rows = [3 * (r // 6) + (r % 6 - 3) for r in gyro_rows]

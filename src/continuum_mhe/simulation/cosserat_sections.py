@@ -41,7 +41,11 @@ Outputs, per recording (``write_section_recording``):
   arc through the tip tangent), the rod's total material twist, and the twist about
   the tangent at each section end (the angle about the tangent between the rod's true
   frame there and the torsion-free PCC frame of the same tangents: what an IMU there
-  sees and the PCC model cannot explain).
+  sees and the PCC model cannot explain);
+* ``NAME_rest.csv``: the same two IMUs (the same misalignments and biases, fresh noise)
+  with the rod straight and still, as long as the recording: the rest period a user
+  records before a run, for ``continuum-mhe calibrate --from NAME_rest.csv --robot
+  two-section`` (the mounting ``mount_rpy`` of each IMU for the robot file).
 
 Regenerate (needs the ``rod`` extra)::
 
@@ -294,11 +298,27 @@ def one_section_tip(traj: SectionTrajectory, total: float) -> FloatArray:
 
 
 def imu_samples(
-    traj: SectionTrajectory, imu: ImuSettings, seed: int = 0
+    traj: SectionTrajectory,
+    imu: ImuSettings,
+    seed: int = 0,
+    noise_seed: int | None = None,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
     """Both IMUs every ``imu.sample_dt``: times (n,), specific force (n, 2, 3) m/s^2,
-    gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices."""
+    gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices.
+
+    ``seed`` draws the IMUs' constant errors (misalignment, biases) and, unless
+    ``noise_seed`` is given, their noise; with ``noise_seed`` the same constant errors
+    come with fresh noise (the rest recording of the same IMUs). ``misalignment_axes``:
+    the board axes (0 x, 1 y, 2 z) whose misalignment angle is kept (the others are
+    drawn and zeroed, so the other errors stay the same; for studies)."""
     rng = np.random.default_rng(seed)
+    noise_rng = rng if noise_seed is None else np.random.default_rng(noise_seed)
+
+    def noise(shape: tuple[int, ...]) -> FloatArray:
+        n = rng.normal(size=shape)  # keeps the constant errors' draws in place
+        return n if noise_seed is None else noise_rng.normal(size=shape)
+
     dt_rec = float(traj.t[1] - traj.t[0])
     step = max(1, int(round(imu.sample_dt / dt_rec)))
     lag = max(1, int(round(imu.dlpf_window / dt_rec)))
@@ -310,18 +330,57 @@ def imu_samples(
     for k in range(2):
         acc = (traj.velocities[idx, k] - traj.velocities[prev, k]) / span[:, None]
         spec_base = acc - np.array([0.0, 0.0, -GRAVITY])
-        mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3))
+        keep = np.isin(np.arange(3), misalignment_axes)
+        mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3) * keep)
         spec = np.einsum("nij,nj->ni", traj.directors[idx, k], spec_base) @ mis
         spec = (
             spec
             + imu.accel_bias * rng.normal(size=3)
-            + imu.accel_noise * rng.normal(size=spec.shape)
+            + imu.accel_noise * noise(spec.shape)
         )
         f[:, k] = _quantise(spec, imu.accel_range, imu.bits)
         om = traj.omegas[idx, k] @ mis
-        om = om + imu.gyro_bias * rng.normal(size=3) + imu.gyro_noise * rng.normal(size=om.shape)
+        om = om + imu.gyro_bias * rng.normal(size=3) + imu.gyro_noise * noise(om.shape)
         w[:, k] = _quantise(om, imu.gyro_range, imu.bits)
     return traj.t[idx], f, w, idx
+
+
+def at_rest(traj: SectionTrajectory) -> SectionTrajectory:
+    """The rod held in its first recorded state (straight and still, before the
+    couples act) for as long as ``traj``: what a rest recording of the same IMUs
+    measures."""
+    n = len(traj.t)
+
+    def held(a: FloatArray) -> FloatArray:
+        return np.repeat(a[:1], n, axis=0)
+
+    still = np.zeros_like(traj.velocities)
+    return SectionTrajectory(
+        traj.t, held(traj.nodes), held(traj.directors), still, still.copy(), held(traj.twist),
+        traj.end_nodes,
+    )  # fmt: skip
+
+
+def write_rest_recording(
+    out: Path,
+    name: str,
+    traj: SectionTrajectory,
+    imu: ImuSettings,
+    seed: int = 0,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
+) -> Path:
+    """``NAME_rest.csv``: the recording's IMUs (the same misalignments and biases, fresh
+    noise) with the rod straight and still, for ``continuum-mhe calibrate --from``."""
+    from continuum_mhe.io.csv_files import write_table
+
+    t, f, w, _ = imu_samples(
+        at_rest(traj), imu, seed, noise_seed=seed + 1_000_003, misalignment_axes=misalignment_axes
+    )
+    cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    path = out / f"{name}_rest.csv"
+    rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
+    write_table(path, cols, rows.tolist())
+    return path
 
 
 def write_section_recording(
@@ -335,12 +394,29 @@ def write_section_recording(
 ) -> dict[str, object]:
     """Simulate, sample and write the four files (see the module docstring); returns
     the info (floor, one-section error, twist)."""
+    traj = simulate_sections(settings, scenario, duration)
+    return write_trajectory_recording(out, name, traj, settings, scenario, imu, seed)
+
+
+def write_trajectory_recording(
+    out: Path,
+    name: str,
+    traj: SectionTrajectory,
+    settings: SectionRodSettings,
+    scenario: str,
+    imu: ImuSettings | None = None,
+    seed: int = 0,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
+) -> dict[str, object]:
+    """The files of :func:`write_section_recording` from a simulated trajectory (so
+    that one simulation can be sampled by several IMUs; ``misalignment_axes`` as in
+    :func:`imu_samples`)."""
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
 
     imu = imu or DEFAULT_IMU
-    traj = simulate_sections(settings, scenario, duration)
-    t, f, w, idx = imu_samples(traj, imu, seed)
+    write_rest_recording(out, name, traj, imu, seed, misalignment_axes)
+    t, f, w, idx = imu_samples(traj, imu, seed, misalignment_axes=misalignment_axes)
     t = t - t[0]
     bends, fk_tip = pcc_truth(traj, settings.lengths)
     nodes = traj.nodes[idx]
