@@ -54,7 +54,8 @@ def advance(
     and ``nin = (x, u, dt, z, m)`` the node function's argument pointers, output and
     inputs. ``prior = (xbar, P, Pinv, k)`` (``k`` (1,) int: samples in the window,
     updated); ``window = (tw, z, m, nodemask, u, dt, qw, qinvw, arrival)``;
-    ``new = (t, z, mask, u, dt, Q, Qinv)`` the sample (``z`` masked, ``dt`` from the
+    ``new = (t, z, mask, u, dt, Q, Qinv)`` the sample (``z`` as read: its components
+    with ``mask`` 0 are stored as 0 here; ``dt`` from the
     previous sample, ``Q`` and ``Qinv`` at ``dt``; ignored on the first sample);
     ``Rs`` the measurement covariance of the leaving sample's update. ``X``: the
     previous solution (if ``has_X``), ``lam`` its ball multipliers (if ``has_lam``;
