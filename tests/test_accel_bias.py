@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
 from continuum_mhe.estimators.base import Measurement
@@ -141,14 +142,7 @@ def test_fast_mhe_agrees_with_ipopt_with_the_accel_bias_states() -> None:
     f = DirectFormulation(
         robot=read_robot("two-section"), estimate_gyro_bias=True, estimate_accel_bias=True
     )
-    states = {}
-    for solver in ("fast", "ipopt"):
-        est = MovingHorizonEstimator(
-            f, MHESettings(horizon=15, solver=solver), FastOptions(compile=False)
-        )
-        res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
-        assert {r.status for r in res} == {"ok"}
-        states[solver] = np.array([r.state for r in res])
+    states = fast_and_ipopt_states(f, t, z, horizon=15)
     assert states["fast"].shape[1] == 20
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 

@@ -14,33 +14,21 @@ import math
 
 import numpy as np
 import pytest
+from estimator_helpers import recovery_estimators
 from numpy.testing import assert_array_equal
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Estimator
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.start_check import SAMPLES
-from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
-from continuum_mhe.settings import MHESettings, RecoverySettings
+from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate
 
 IDS = ["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"]
 FIRST_GOOD = 10  # samples 0-9 (t < 0.5 s at 20 Hz) are off
 
 
-def estimators(recovery: RecoverySettings) -> list[Estimator]:
-    f = BendFormulation()
-    out: list[Estimator] = [
-        make_estimator("ekf", f, recovery=recovery),
-        ExtendedKalmanFilter(f),
-        make_estimator("ukf", f, recovery=recovery),
-        make_estimator("mhe", f, MHESettings(horizon=10), recovery),
-        make_estimator("mhe", f, MHESettings(horizon=10, solver="ipopt"), recovery),
-    ]
-    out[1].recovery = recovery  # the CasADi EKF too
-    return out
+estimators = recovery_estimators
 
 
 def bad_start_recording(duration: float = 3.0):

@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from estimator_helpers import fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
-from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.estimators.fast import FastOptions
-from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
@@ -20,7 +18,6 @@ from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-from continuum_mhe.settings import MHESettings
 
 #: a two-section robot with an IMU inside section 2 and one at the tip
 ROBOT = Robot(
@@ -116,14 +113,7 @@ def test_fast_mhe_agrees_with_ipopt_with_own_acceleration() -> None:
     x = np.concatenate([q, qd, np.gradient(qd, t, axis=0), np.zeros((len(t), 6))], axis=1)
     z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
     z += np.random.default_rng(3).normal(scale=0.005, size=z.shape)
-    states = {}
-    for solver in ("fast", "ipopt"):
-        est = MovingHorizonEstimator(
-            f, MHESettings(horizon=10, solver=solver), FastOptions(compile=False)
-        )
-        res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
-        assert {r.status for r in res} == {"ok"}
-        states[solver] = np.array([r.state for r in res])
+    states = fast_and_ipopt_states(f, t, z, horizon=10)
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 
 

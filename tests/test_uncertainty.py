@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from estimator_helpers import recovery_estimators
 from numpy.testing import assert_allclose
 from test_estimator_peers import (
     LIN_DT,
@@ -29,7 +30,7 @@ from test_estimator_peers import (
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Estimator, Measurement
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import read_state_table, write_estimates
@@ -262,17 +263,7 @@ def test_calibration_on_a_hand_made_case() -> None:
 
 
 # --- recovery ---------------------------------------------------------------------------------
-def estimators(recovery: RecoverySettings) -> list[Estimator]:
-    f = BendFormulation()
-    out: list[Estimator] = [
-        make_estimator("ekf", f, recovery=recovery),
-        ExtendedKalmanFilter(f),
-        make_estimator("ukf", f, recovery=recovery),
-        make_estimator("mhe", f, MHESettings(horizon=10), recovery),
-        make_estimator("mhe", f, MHESettings(horizon=10, solver="ipopt"), recovery),
-    ]
-    out[1].recovery = recovery  # the CasADi EKF too
-    return out
+estimators = recovery_estimators
 
 
 @pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
