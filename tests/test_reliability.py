@@ -14,7 +14,7 @@ import pytest
 import continuum_mhe.io.csv_files as csv_files
 from continuum_mhe import MHESettings, RobotSettings, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
-from continuum_mhe.estimators.mhe import objective_scale_exponent
+from continuum_mhe.estimators.window_nlp import objective_scale_exponent
 from continuum_mhe.model.formulations import DRIFT_FRACTION
 from continuum_mhe.model.kinematics import tip_position
 

@@ -48,7 +48,7 @@ from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation
 
 if TYPE_CHECKING:
-    from continuum_mhe.estimators.mhe import WindowProblem
+    from continuum_mhe.estimators.window_nlp import WindowProblem
 
 #: Chi-square quantile above which a window's measurement cost is implausible.
 QUANTILE = 0.999

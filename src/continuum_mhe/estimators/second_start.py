@@ -31,7 +31,7 @@ from continuum_mhe.estimators.base import FloatArray, Status
 from continuum_mhe.estimators.loss import OUTLIER_WEIGHT
 
 if TYPE_CHECKING:
-    from continuum_mhe.estimators.mhe import WindowProblem
+    from continuum_mhe.estimators.window_nlp import WindowProblem
 
 #: Age of the solution the second start comes from, samples (longer than the bursts
 #: it must undo: the warm start follows a burst for its length plus the samples after

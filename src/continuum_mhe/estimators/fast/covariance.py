@@ -31,7 +31,7 @@ from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
 if TYPE_CHECKING:
-    from continuum_mhe.estimators.mhe import WindowProblem as WindowProblemLike
+    from continuum_mhe.estimators.window_nlp import WindowProblem as WindowProblemLike
 
 FloatArray = NDArray[np.float64]
 

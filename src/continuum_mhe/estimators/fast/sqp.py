@@ -33,7 +33,7 @@ from continuum_mhe.estimators.fast.qp import (
 from continuum_mhe.estimators.loss import rho_derivatives
 
 if TYPE_CHECKING:
-    from continuum_mhe.estimators.mhe import WindowProblem as WindowProblemLike
+    from continuum_mhe.estimators.window_nlp import WindowProblem as WindowProblemLike
 
 FloatArray = NDArray[np.float64]
 
