@@ -196,11 +196,15 @@ class Estimator(ABC):
             self.gap_resets += 1
             self._restart()
         bad_start = False
-        check_start = self.recovery.bad_start is not None and self._checks_start
+        window = self.recovery.bad_start
+        check_start = (
+            window is not None
+            and self._checks_start
+            and self._start_check.watching(t, window)
+        )
         if check_start:
-            assert self.recovery.bad_start is not None
+            assert window is not None
             mask = self.formulation.measurement_mask(measurement.z)
-            window = self.recovery.bad_start
             bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
             if bad_start:  # the start was wrong: restart from this reading
                 self.bad_starts += 1

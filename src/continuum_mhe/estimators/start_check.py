@@ -54,6 +54,11 @@ class StartCheck:
         self._prev: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._run = 0  # consecutive inconsistent readings
 
+    def watching(self, t: float, window: float) -> bool:
+        """True before the first estimate after a (re)start and for ``window`` s after
+        it; outside, the check costs nothing per sample."""
+        return math.isnan(self._since) or t - self._since <= window
+
     def nis(self, t: float, z: FloatArray, mask: FloatArray) -> tuple[float, int] | None:
         """``(NIS, dof)`` of reading ``z`` at ``t`` s against the previous estimate
         predicted to ``t``; None without a previous estimate with a covariance."""

@@ -25,7 +25,13 @@ import numpy as np
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
-from continuum_mhe.model.imu import Mounting, shape_from_tilt, tilt, wrap_angle
+from continuum_mhe.model.imu import (
+    Mounting,
+    shape_from_tilt,
+    tilt,
+    tilt_from_accelerometer,
+    wrap_angle,
+)
 from continuum_mhe.model.kinematics import (
     FloatArray,
     bend_from_shape,
@@ -90,11 +96,7 @@ def tangent_plane_noise(z: FloatArray, std: float, rng: np.random.Generator) -> 
     e2 = np.cross(g, e1)
     v = rng.normal(size=(len(z), 2)) * std
     turned = Rotation.from_rotvec(v[:, :1] * e1 + v[:, 1:] * e2).apply(g)
-    out = np.stack(
-        [np.arctan2(turned[:, 1], turned[:, 2]),
-         np.arctan2(-turned[:, 0], np.hypot(turned[:, 1], turned[:, 2]))], axis=1,
-    )  # fmt: skip
-    return np.asarray(out, dtype=float)
+    return tilt_from_accelerometer(turned)
 
 
 def _noisy(
