@@ -225,6 +225,8 @@ class MovingHorizonEstimator(Estimator):
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
+        #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
+        self._last_hessian: tuple[FloatArray, FloatArray] | None = None
         #: SQP iterations of the last fast solve (0 before one)
         self.sqp_iterations = 0
         # robust weights rho'(s_b) per block of the first and last node of the last solve
@@ -375,12 +377,14 @@ class MovingHorizonEstimator(Estimator):
             return None, None, "no-estimate"
         problem = self.window_problem(copy=False)
         X, status = self._solve(problem, X0)
+        solved, hessian = X, self._last_hessian
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
         if self.second_start is not None:
             X, status = self._try_second_start(problem, X, status)
         status = self._keep(X, status, valid)
-        cov = None if status == "solver-failed" else self.covariance(problem, X)
+        hessian = hessian if X is solved else None  # the SQP's, if its answer is kept
+        cov = None if status == "solver-failed" else self.covariance(problem, X, hessian)
         return X[-1].copy(), cov, status
 
     def _keep(self, X: FloatArray, status: Status, valid: bool) -> Status:
@@ -426,8 +430,10 @@ class MovingHorizonEstimator(Estimator):
             return None, None, "no-estimate"
         self.sqp_iterations = int(it)
         problem: WindowProblem | None = None
+        solved: FloatArray | None = None
         if outcome == CONVERGED:
             X: FloatArray = s.workspace.Xb[cur].copy()
+            solved = X
             self._lam = s.lam if self._lam is None else self._lam
             status: Status = "ok"
         else:
@@ -444,21 +450,29 @@ class MovingHorizonEstimator(Estimator):
         state = X[-1].copy()
         if status == "solver-failed":
             return state, None, status
-        y, cov, std = s.finish(X, xbar)
+        y, cov, std = s.finish(X, xbar, answer=cur if X is solved else -1)
         self._outputs_of = (state, y, std)
         return state, cov, status
 
-    def covariance(self, problem: WindowProblem, X: FloatArray) -> FloatArray | None:
+    def covariance(
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        hessian: tuple[FloatArray, FloatArray] | None = None,
+    ) -> FloatArray | None:
         """Covariance of the estimate ``X[-1]`` (nx, nx): the last block of the inverse
         of the window's Gauss-Newton Hessian at ``X`` (N, nx), conditioned on the active
         bounds (:mod:`continuum_mhe.estimators.fast.covariance`); from the compiled
-        model on the fast backend, from CasADi on IPOPT. None if not positive definite,
-        or on a first run whose kernels compile in the background (``first_run``).
+        model on the fast backend, from CasADi on IPOPT. ``hessian``: the fast SQP's
+        blocks at its last evaluated iterate when ``X`` is its certified answer (that
+        iterate is within the convergence tolerance of ``X``; no evaluation then). None
+        if not positive definite, or on a first run whose kernels compile in the
+        background (``first_run``).
         """
         if not self.reports_covariance:
             return None
         if self._fast is not None:
-            return window_covariance(self._fast, problem, X, self._workspace)
+            return window_covariance(self._fast, problem, X, self._workspace, hessian=hessian)
         loss = LossKernel(self._blocks, LOSS_CODES[self.settings.loss], float(self.settings.scale))
         return casadi_window_covariance(self.formulation, problem, X, self._feasible, loss=loss)
 
@@ -479,6 +493,7 @@ class MovingHorizonEstimator(Estimator):
         return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
+        self._last_hessian = None
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
             if self.settings.solver == "fast" and status == "ok":
@@ -491,6 +506,7 @@ class MovingHorizonEstimator(Estimator):
             lam0[-1] = 0.0
         res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
         self.sqp_iterations = res.iterations
+        self._last_hessian = res.hessian
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"

@@ -131,12 +131,19 @@ def window_covariance(
     X: FloatArray,
     workspace: Workspace | None = None,
     tol: float = 1e-6,
+    hessian: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray | None:
     """Covariance (nx, nx) of the last node of ``X`` (N, nx), the window's solution:
     the Gauss-Newton Hessian from one call of the compiled window model, then
-    :func:`last_block_covariance`. None if the reduced Hessian is not positive definite.
+    :func:`last_block_covariance`. ``hessian``: its blocks ``(D, E)`` already at hand
+    (the SQP's at its last evaluated iterate, :attr:`FastResult.hessian`), so no
+    evaluation. None if the reduced Hessian is not positive definite.
     """
-    fs, n, nx = model.feasible, model.horizon, model.nx
+    fs, nx = model.feasible, model.nx
+    out = np.empty((nx, nx))
+    if hessian is not None:
+        ok = last_block_covariance(X, *hessian, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, tol, out)
+        return out if ok else None
     ws = workspace or Workspace(model)
     ws.z[:] = problem.z
     ws.m[:] = problem.zmask
@@ -147,12 +154,10 @@ def window_covariance(
     D, E, g = ws.D[0], ws.E[0], ws.g[0]
     cost = _evaluate(
         ws.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
-        problem.xbar, problem.arrival, np.zeros((n, len(fs.ball_r2))), fs.ball_idx, D, E, g,
-        model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
+        problem.xbar, problem.arrival, D, E, g, model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
     )  # fmt: skip
     if not np.isfinite(cost):
         return None
-    out = np.empty((nx, nx))
     ok = last_block_covariance(X, D, E, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, tol, out)
     return out if ok else None
 
@@ -191,15 +196,14 @@ def casadi_window_covariance(
         lo, hi, ball_idx, ball_r2 = feasible.lo, feasible.hi, feasible.ball_idx, feasible.ball_r2
     D, E, g = _blocks(n, nx)
     rinv = np.asarray(np.linalg.inv(f.meas_cov()), dtype=np.float64)
-    lam = np.zeros((n, len(ball_r2)))
     Xc = np.ascontiguousarray(X, dtype=float)
     if loss is None:
         loss = LossKernel(block_array(f.measurement_blocks), LOSS_CODES["l2"], np.inf)
     nblk = loss.blocks.shape[0]
     _assemble(
         Xc, R, JR, W, FJ, node_mask, rinv, np.ascontiguousarray(problem.qinv, float),
-        np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), lam,
-        ball_idx, D, E, g, loss, np.empty((n, nblk)), np.empty((n, nblk)),
+        np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), D, E, g,
+        loss, np.empty((n, nblk)), np.empty((n, nblk)),
         np.empty((n, nblk, nx)),
     )  # fmt: skip
     out = np.empty((nx, nx))

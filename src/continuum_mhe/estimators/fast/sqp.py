@@ -74,12 +74,9 @@ class FastOptions:
 
 
 @numba.njit(cache=True)
-def _assemble(
-    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, ball_idx, D, E, g, loss, wgt, extra, gb
-):
+def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb):
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
-    gradient ``g`` and the cost; ``lam`` (n, nb) adds each ball's curvature
-    ``2 lam_b I_{S_b}``.
+    gradient ``g`` and the cost (the balls' curvature: :func:`_add_balls`).
 
     Measurement block ``b`` of node ``i`` (``loss.blocks``; ``R`` block-diagonal)
     costs ``1/2 rho(s)``, ``s = r_b^T R_b^-1 r_b``: gradient ``rho' J_b^T R_b^-1 r_b``
@@ -171,19 +168,25 @@ def _assemble(
                     D[i, j, k] += s
                     D[i + 1, j, k] += qinv[i, j, k]
                     E[i, j, k] = -qf[k, j]
-    for i in range(n):
-        for bb in range(ball_idx.shape[0]):
-            if lam[i, bb] > 0.0:
-                for s_ in ball_idx[bb]:
-                    D[i, s_, s_] += 2.0 * lam[i, bb]
     return cost
 
 
 @numba.njit(cache=True)
-def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g, loss, wgt,
-              extra, gb):  # fmt: skip
+def _add_balls(D, Dgn, lam, ball_idx):
+    """``Dgn = D`` (the Gauss-Newton blocks, kept for the covariance), then ``D_i +=
+    2 lam_ib I_{S_b}``: each ball's curvature with its multiplier (n, nb) where positive."""
+    Dgn[:] = D
+    for i in range(D.shape[0]):
+        for bb in range(ball_idx.shape[0]):
+            if lam[i, bb] > 0.0:
+                for s_ in ball_idx[bb]:
+                    D[i, s_, s_] += 2.0 * lam[i, bb]
+
+
+@numba.njit(cache=True)
+def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb):
     """Evaluate the model at ``X`` (one C call of the function at address ``fn``) and
-    assemble; inf cost on failure."""
+    assemble the Gauss-Newton blocks; inf cost on failure."""
     n, nx = X.shape
     nz = rinv.shape[0]
     if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
@@ -195,7 +198,7 @@ def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, 
     W = out[o2:o3].reshape(n - 1, nx)
     FJ = out[o3:o4].reshape(n - 1, nx, nx)
     return _assemble(
-        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, lam, bidx, D, E, g, loss, wgt, extra, gb
+        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb
     )
 
 
@@ -245,9 +248,13 @@ def _sqp(
     wgt,
     extra,
     gb,
+    Dgn,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
+    ``Dgn[b]`` keeps the Gauss-Newton diagonal blocks of buffer ``b``'s iterate
+    (``E[b]`` are its off-diagonal ones): on certification the other buffer holds the
+    last evaluated iterate ``X_k``, whose blocks give the answer's covariance.
 
     Certified when the QP step ``d`` is below ``step_tol``, or, with no constraint
     active, when the observed contraction ``rho = |d_k| / |d_k-1| <= 1/2`` of two
@@ -258,9 +265,10 @@ def _sqp(
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)
     cost = _evaluate(
-        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, lam, bidx, D[0], E[0],
-        g[0], loss, wgt[0], extra[0], gb[0],
+        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss,
+        wgt[0], extra[0], gb[0],
     )  # fmt: skip
+    _add_balls(D[0], Dgn[0], lam, bidx)
     exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
     if exact:
         _add_curvature(out[0], D[0], 1.0, wgt[0], extra[0], gb[0])
@@ -295,25 +303,10 @@ def _sqp(
             Xb[tr] = Xb[cur] + alpha * d
             project(Xb[tr], lo, hi, bidx, r2)
             ct = _evaluate(
-                fn,
-                ptrs[tr],
-                out[tr],
-                Xb[tr],
-                zmask,
-                rinv,
-                qinv,
-                xbar,
-                arrival,
-                lam_qp,
-                bidx,
-                D[tr],
-                E[tr],
-                g[tr],
-                loss,
-                wgt[tr],
-                extra[tr],
-                gb[tr],
-            )
+                fn, ptrs[tr], out[tr], Xb[tr], zmask, rinv, qinv, xbar, arrival, D[tr], E[tr],
+                g[tr], loss, wgt[tr], extra[tr], gb[tr],
+            )  # fmt: skip
+            _add_balls(D[tr], Dgn[tr], lam_qp, bidx)
             if ct <= cost + 1e-4 * np.sum(g[cur] * (Xb[tr] - Xb[cur])) + slack:
                 accepted = True
                 exact = newton
@@ -342,6 +335,9 @@ class FastResult:
         cost: the window cost at the last evaluated iterate (the answer minus the last
             step when certified).
         lam: (N, nb) multipliers of the ball constraints at ``X``.
+        hessian: when certified, the Gauss-Newton blocks ``(D, E)`` at the last
+            evaluated iterate (within the convergence tolerance of ``X``), for
+            :func:`~continuum_mhe.estimators.fast.covariance.window_covariance`; else None.
     """
 
     X: FloatArray
@@ -351,6 +347,7 @@ class FastResult:
     step: float
     cost: float
     lam: FloatArray
+    hessian: tuple[FloatArray, FloatArray] | None = None
 
 
 def _pointers(
@@ -392,6 +389,7 @@ class Workspace:
         self.wgt = np.empty((2, n, nblk))
         self.extra = np.empty((2, n, nblk))
         self.gb = np.empty((2, n, nblk, nx))
+        self.Dgn = np.empty((2, n, nx, nx))  # Gauss-Newton diagonal blocks per iterate
         self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
         self.window = address(model.window)  # of the window function (the model keeps it)
 
@@ -426,16 +424,18 @@ def solve_window(
         ws.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
-        ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb,
+        ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
     )  # fmt: skip
+    converged = outcome == CONVERGED
     return FastResult(
         X=ws.Xb[cur].copy(),
-        converged=outcome == CONVERGED,
+        converged=converged,
         outcome=OUTCOMES[outcome],
         iterations=int(it),
         step=float(step),
         cost=float(cost),
         lam=lam,
+        hessian=(ws.Dgn[1 - cur].copy(), ws.E[1 - cur].copy()) if converged else None,
     )
 
 
@@ -447,12 +447,12 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
     dt = np.ascontiguousarray(problem.dt, float)
     m = np.ascontiguousarray(problem.zmask, float)
     node_mask = np.any(m != 0.0, axis=1).astype(np.float64)
-    nb, nblk = len(model.feasible.ball_r2), len(model.loss.blocks)
+    nblk = len(model.loss.blocks)
     return float(
         _evaluate(
             address(model.window), _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
             node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
-            np.zeros((n, nb)), model.feasible.ball_idx, np.empty((n, nx, nx)),
+            np.empty((n, nx, nx)),
             np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),
             np.empty((n, nblk)), np.empty((n, nblk, nx)),
         )

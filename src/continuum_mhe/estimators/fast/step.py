@@ -70,7 +70,7 @@ def advance(
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
     solve, max_iter, step_tol, err_tol, max_qp, newton = options
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
     n, nx = X0.shape
@@ -154,24 +154,24 @@ def advance(
     return _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
         lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb,
+        wgt, extra, gb, Dgn,
     )  # fmt: skip
 
 
 @numba.njit(cache=True)
-def finish(
-    win, wptrs, X, xbar, window, feasible, ws, loss, lam0, tol, cov, outputs, y, std
-):  # fmt: skip
+def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, outputs, y, std):
     """Covariance of ``X[-1]`` (into ``cov``) and its outputs ``y`` and standard
     deviations ``std``, as :func:`~.covariance.window_covariance` and
     :class:`~.model.NodeEvaluator` compute them. ``outputs = (output, jacobian, optrs,
     ox, oout, jout, wrapped)``: the output functions' addresses, argument pointers
-    (to ``ox``), outputs and the indices of wrapped angles. ``lam0``: zeros (n, nb).
+    (to ``ox``), outputs and the indices of wrapped angles. ``hb``: the workspace
+    buffer whose Gauss-Newton blocks to use (the SQP's last evaluated iterate, when
+    ``X`` is its certified answer), or -1 to evaluate them at ``X``.
     Returns 0, or 1 when the covariance is not available (``cov`` and ``std`` then
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn = ws
     ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
     rinv, lossk = loss
     n, nx = X.shape
@@ -182,14 +182,18 @@ def finish(
     y[:] = oout
     for i in wrapped:
         y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
-    Xb[0] = X
-    c = _evaluate(
-        win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, lam0, bidx,
-        D[0], E[0], g[0], lossk, wgt[0], extra[0], gb[0],
-    )  # fmt: skip
-    if not np.isfinite(c):
-        return 1
-    if not last_block_covariance(X, D[0], E[0], lo, hi, bidx, r2, tol, cov):
+    if hb >= 0:
+        Dh, Eh = Dgn[hb], E[hb]
+    else:
+        Xb[0] = X
+        c = _evaluate(
+            win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],
+            g[0], lossk, wgt[0], extra[0], gb[0],
+        )  # fmt: skip
+        if not np.isfinite(c):
+            return 1
+        Dh, Eh = D[0], E[0]
+    if not last_block_covariance(X, Dh, Eh, lo, hi, bidx, r2, tol, cov):
         return 1
     if call_model(jfn, optrs.ctypes.data, jout.ctypes.data) != 0:
         raise RuntimeError("model evaluation failed")
@@ -220,7 +224,6 @@ class StepBuffers:
         self.k = np.zeros(1, dtype=np.int64)  # samples in the window
         self.X0 = np.zeros((n, nx))  # initial guess
         self.lam = np.zeros((n, len(fs.ball_r2)))  # multipliers when none are kept
-        self.lam0 = np.zeros((n, len(fs.ball_r2)))
         self.cov = np.empty((nx, nx))
         self.y = np.empty(model.ny)
         self.std = np.empty(model.ny)
@@ -236,7 +239,8 @@ class StepBuffers:
         )  # fmt: skip
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
-        self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb)
+        self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,
+                    ws.Dgn)  # fmt: skip
         self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
                        self.qinvw, self.arrival)  # fmt: skip
         self.reset()
@@ -275,15 +279,18 @@ class StepBuffers:
             raise RuntimeError(failure_message(node._fn)) from exc
 
     def finish(
-        self, X: FloatArray, xbar: FloatArray, tol: float = 1e-6
+        self, X: FloatArray, xbar: FloatArray, tol: float = 1e-6, answer: int = -1
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
         """``(outputs, covariance, output standard deviations)`` of ``X[-1]`` for the
         window solved at ``X`` (N, nx) with prior ``xbar`` (copies; None: the
-        covariance is not positive definite)."""
+        covariance is not positive definite). ``answer``: the buffer index that
+        :meth:`advance` returned when ``X`` is its certified answer (the Hessian of its
+        last evaluated iterate is then used, as :attr:`FastResult.hessian`), else -1."""
         try:
             failed = finish(
                 self.window_fn, self.workspace.ptrs, np.ascontiguousarray(X, dtype=float),
-                xbar, self.window, self.feasible, self.sqp, self.loss, self.lam0, tol,
+                xbar, self.window, self.feasible, self.sqp, self.loss,
+                1 - answer if answer >= 0 else -1, tol,
                 self.cov, self.outputs, self.y, self.std,
             )  # fmt: skip
         except RuntimeError as exc:
