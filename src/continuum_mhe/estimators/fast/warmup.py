@@ -34,9 +34,16 @@ from continuum_mhe.numba_cache import writable
 FirstRun = Literal["foreground", "background"]
 
 _FAST = Path(__file__).resolve().parent
+#: the modules with numba kernels, callees before their callers
 _KERNEL_MODULES = (
-    "arrival.py", "ccall.py", "covariance.py", "linalg.py", "qp.py", "sqp.py", "step.py",
+    "continuum_mhe.estimators.loss",
+    *(f"continuum_mhe.estimators.fast.{m}"
+      for m in ("ccall", "linalg", "qp", "arrival", "sqp", "covariance", "step")),
 )  # fmt: skip
+
+
+def _source(module: str) -> Path:
+    return Path(__file__).resolve().parents[2].joinpath(*module.split(".")[1:]).with_suffix(".py")
 _announced: set[str] = set()
 
 
@@ -49,7 +56,7 @@ def kernels_key() -> str:
     """A key of everything that decides whether numba's cached kernels can be used."""
     h = hashlib.sha256()
     for name in _KERNEL_MODULES:
-        h.update((_FAST / name).read_bytes())
+        h.update(_source(name).read_bytes())
     try:
         h.update(metadata.version("numba").encode())
     except metadata.PackageNotFoundError:  # pragma: no cover - numba is a dependency
@@ -101,10 +108,34 @@ def _say_once(message: str) -> None:
         warnings.warn(message, CompileNotice, stacklevel=3)
 
 
+def flush_kernel_caches() -> None:
+    """Empty numba's cache index of every kernel of this package, and compile again any
+    kernel already loaded in this process (callees first).
+
+    numba checks a cached kernel only against its own source file, so a kernel whose
+    callee in another file changed (an edited checkout, an upgrade that keeps a file's
+    time stamp) would load stale machine code. :func:`kernels_key` hashes every kernel
+    module, so a new key means: forget them all."""
+    import importlib
+
+    from numba.core.dispatcher import Dispatcher
+
+    for name in _KERNEL_MODULES:  # in dependency order: callees first
+        module = importlib.import_module(name)
+        for obj in vars(module).values():
+            if isinstance(obj, Dispatcher) and obj.__module__ == module.__name__:
+                obj._cache.flush()
+                if obj.overloads:
+                    obj.recompile()
+
+
 def warm_up() -> None:
     """Compile every kernel (by running the fast MHE and the compiled EKF on a short
-    recording of a one-section and a two-section robot), then write the marker."""
+    recording of a one-section and a two-section robot), then write the marker. The
+    cached kernels of an earlier source are flushed first (:func:`flush_kernel_caches`)."""
     import numpy as np
+
+    flush_kernel_caches()
 
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
     from continuum_mhe.estimators.mhe import MovingHorizonEstimator
