@@ -124,7 +124,7 @@ def flush_kernel_caches() -> None:
         module = importlib.import_module(name)
         for obj in vars(module).values():
             if isinstance(obj, Dispatcher) and obj.__module__ == module.__name__:
-                obj._cache.flush()
+                obj._cache.flush()  # type: ignore[attr-defined]
                 if obj.overloads:
                     obj.recompile()
 
