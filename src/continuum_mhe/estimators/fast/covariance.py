@@ -23,7 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.estimators.fast.linalg import householder
+from continuum_mhe.estimators.fast.linalg import btd_factor, householder
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, WindowModel
 from continuum_mhe.estimators.fast.qp import _eqp
 from continuum_mhe.estimators.fast.sqp import Workspace, _assemble, _evaluate
@@ -72,16 +72,18 @@ def last_block_covariance(X, D, E, lo, hi, ball_idx, ball_r2, tol, out):
     wball = np.zeros((n, max(nb, 1)), dtype=np.int8)
     nrm = np.zeros((n, max(nb, 1), nx))
     active_constraints(X, lo, hi, ball_idx, ball_r2, tol, wbox, wball, nrm)
-    grad = np.zeros((n, nx))
-    p = np.empty((n, nx))
-    Dt = np.empty_like(D)
-    Et = np.empty_like(E)
-    b = np.empty((n, nx))
     L = np.empty_like(D)
     M = np.empty_like(E)
-    T = np.empty_like(D)
-    if not _eqp(D, E, grad, wbox, wball, nrm, ball_idx, p, Dt, Et, b, L, M, T):
-        return False
+    if np.count_nonzero(wbox) + np.count_nonzero(wball) == 0:  # the factor alone
+        if not btd_factor(D, E, L, M):
+            return False
+    else:  # the reduced Hessian, factored as the QP's equality-constrained step does
+        p = np.empty((n, nx))
+        b = np.empty((n, nx))
+        T = np.empty_like(D)
+        if not _eqp(D, E, np.zeros((n, nx)), wbox, wball, nrm, ball_idx, p, np.empty_like(D),
+                    np.empty_like(E), b, L, M, T):  # fmt: skip
+            return False
     # (L_n L_n^T)^-1 = L_n^-T L_n^-1, from the inverse of the lower-triangular L_n
     Ln = L[n - 1]
     Li = np.zeros((nx, nx))

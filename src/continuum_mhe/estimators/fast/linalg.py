@@ -29,13 +29,13 @@ def matvec(D, E, v, out):
 
 
 @numba.njit(cache=True)
-def btd_solve(D, E, b, L, M, y):
-    """Solve ``H y = b`` by block-tridiagonal Cholesky ``H = L L^T``; False if not PD.
+def btd_factor(D, E, L, M):
+    """Block-tridiagonal Cholesky ``H = L L^T`` of ``H = (D, E)``; False if not PD.
 
-    ``L`` (n, nx, nx) holds the diagonal factors, ``M`` (n-1, nx, nx) the sub-diagonal
-    blocks ``M_i = E_i^T L_i^-T``.
+    ``L`` (n, nx, nx) receives the diagonal factors, ``M`` (n-1, nx, nx) the
+    sub-diagonal blocks ``M_i = E_i^T L_i^-T``.
     """
-    n, nx = b.shape
+    n, nx = D.shape[0], D.shape[1]
     a = np.empty((nx, nx))
     for i in range(n):
         for j in range(nx):
@@ -66,6 +66,16 @@ def btd_solve(D, E, b, L, M, y):
                     for c in range(j):
                         t -= M[i, r, c] * L[i, j, c]
                     M[i, r, j] = t / L[i, j, j]
+    return True
+
+
+@numba.njit(cache=True)
+def btd_solve(D, E, b, L, M, y):
+    """Solve ``H y = b`` by block-tridiagonal Cholesky ``H = L L^T`` (:func:`btd_factor`,
+    into ``L`` and ``M``); False if not PD."""
+    n, nx = b.shape
+    if not btd_factor(D, E, L, M):
+        return False
     for i in range(n):  # L z = b
         for j in range(nx):
             t = b[i, j]

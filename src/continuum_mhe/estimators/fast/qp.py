@@ -163,14 +163,18 @@ def solve_qp(X, D, E, g, lo, hi, ball_idx, ball_r2, max_it, d, lam):
     d[:] = 0.0
     p = np.empty((n, nx))
     grad = np.empty((n, nx))
-    Dt = np.empty_like(D)
-    Et = np.empty_like(E)
     b = np.empty((n, nx))
     L = np.empty_like(D)
     M = np.empty_like(E)
-    T = np.empty_like(D)
+    Dt = np.empty((0, nx, nx))  # the equality-constrained step's, allocated when needed
+    Et = np.empty((0, nx, nx))
+    T = np.empty((0, nx, nx))
     for it in range(max_it):
         nfix = np.count_nonzero(wbox) + np.count_nonzero(wball)
+        if nfix and Dt.shape[0] == 0:
+            Dt = np.empty_like(D)
+            Et = np.empty_like(E)
+            T = np.empty_like(D)
         if it == 0:  # d = 0
             grad[:] = g
         else:

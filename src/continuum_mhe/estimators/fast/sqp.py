@@ -101,6 +101,7 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
     blocks, code, scale = loss.blocks, loss.code, loss.scale
     nblk = blocks.shape[0]
     wr = np.empty(R.shape[1])
+    wj = np.empty((R.shape[1], nx))
     qw = np.empty(nx)
     qf = np.empty((nx, nx))
     e = np.empty(nx)
@@ -120,6 +121,11 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                         t += rinv[b0 + a, b0 + c] * R[i, b0 + c]
                     wr[a] = t
                     ssq += R[i, b0 + a] * t
+                    for k in range(nx):  # (R_b^-1 J_b)[a, k]
+                        t = 0.0
+                        for c in range(nb_):
+                            t += rinv[b0 + a, b0 + c] * JR[i, b0 + c, k]
+                        wj[a, k] = t
                 rho, rho1, rho2 = rho_derivatives(code, scale, ssq)
                 cost += 0.5 * m * rho
                 a2 = 2.0 * rho2
@@ -133,12 +139,11 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                         t += JR[i, b0 + a, j] * wr[a]
                     gb[i, bk, j] = t
                     g[i, j] += m * rho1 * t
-                for j in range(nx):
-                    for k in range(nx):
+                for j in range(nx):  # J_b^T (rho' R_b^-1 + a2 ...) J_b, upper triangle
+                    for k in range(j, nx):
                         t = 0.0
                         for a in range(nb_):
-                            for c in range(nb_):
-                                t += JR[i, b0 + a, j] * rinv[b0 + a, b0 + c] * JR[i, b0 + c, k]
+                            t += JR[i, b0 + a, j] * wj[a, k]
                         D[i, j, k] += m * (rho1 * t + a2 * gb[i, bk, j] * gb[i, bk, k])
         for j in range(nx):
             e[j] = X[i, j] - xbar[j]
@@ -146,9 +151,10 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
             s = 0.0
             for k in range(nx):
                 s += arrival[i, j, k] * e[k]
-                D[i, j, k] += arrival[i, j, k]
             g[i, j] += s
             cost += 0.5 * e[j] * s
+            for k in range(j, nx):
+                D[i, j, k] += arrival[i, j, k]
         if i < n - 1:
             for j in range(nx):
                 s = 0.0
@@ -169,12 +175,16 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                 g[i, j] -= s
                 g[i + 1, j] += qw[j]
                 for k in range(nx):
+                    E[i, j, k] = -qf[k, j]
+                for k in range(j, nx):
                     s = 0.0
                     for a in range(nx):
                         s += FJ[i, a, j] * qf[a, k]
                     D[i, j, k] += s
                     D[i + 1, j, k] += qinv[i, j, k]
-                    E[i, j, k] = -qf[k, j]
+        for j in range(nx):  # D[i] is complete: mirror its upper triangle
+            for k in range(j):
+                D[i, j, k] = D[i, k, j]
     return cost
 
 
