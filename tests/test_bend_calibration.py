@@ -154,6 +154,13 @@ def test_a_bend_in_two_planes_is_one_line(tmp_path: Path) -> None:
     assert "IMU 2: rates across the bending axis are" in line and "not a bend in one plane" in line
 
 
+def test_bend_phi_without_bend_is_one_line(tmp_path: Path) -> None:
+    rest_csv = _write(tmp_path / "rest.csv", _bend_readings(_planar_bend(0.0), MOUNTS)[0])
+    res = _cli("--from", str(rest_csv), "--bend-phi", "30")
+    assert res.returncode == 2 and res.stdout == ""
+    assert res.stderr.strip() == "continuum-mhe: error: --bend-phi needs --bend BEND.csv"
+
+
 def test_a_bend_held_still_is_one_line(tmp_path: Path) -> None:
     """Recorded after the bend: tilted, but the gyro never turned."""
     bend = _bend_readings(_planar_bend(0.0), MOUNTS)[1][-60:]

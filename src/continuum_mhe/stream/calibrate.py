@@ -4,6 +4,9 @@ the gyro's bias (what remains after the firmware's start-up bias) and noise, the
 sample rate achieved, and the sensor mounting that makes the straight robot read
 ``theta = 0`` (``--mount-rpy`` / the robot file's ``mount_rpy``). From the port
 (``--port``) or a recording (``--from RAW.csv``, e.g. written by ``live --record``).
+With ``--bend BEND.csv``, a raw recording of the robot bent slowly in a known plane,
+also each IMU's yaw about the tangent (:mod:`continuum_mhe.stream.bend_calibration`)
+and so the full ``mount_rpy``.
 """
 
 from __future__ import annotations
@@ -209,6 +212,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from continuum_mhe.cli_options import robot_from_args
 
     robot = robot_from_args(args)
+    if args.bend_phi is not None and not args.bend:
+        raise InputError("--bend-phi needs --bend BEND.csv")
     say = stderr_say("calibrate")
     if args.source:
         fmt, t, values = read_recording(args.source, robot.n_imus)
@@ -224,7 +229,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     bend = None
     if args.bend:
-        bend = (args.bend, args.bend_phi, bend_yaws(args.bend, args.bend_phi, cal, robot))
+        phi = 0.0 if args.bend_phi is None else args.bend_phi
+        bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
     print(format_report(cal, source, bend))
     return 0
 
@@ -252,7 +258,8 @@ def register_calibrate(subparsers: Any) -> None:
         help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
         description="With the robot straight and still: per IMU, the accelerometer's mean "
         "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
-        "mounting (--mount-rpy) that makes the straight robot read theta = 0.",
+        "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
+        "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
     )
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
@@ -266,7 +273,6 @@ def register_calibrate(subparsers: Any) -> None:
     p.add_argument(
         "--bend-phi",
         type=float,
-        default=0.0,
         metavar="DEG",
         help="the plane of --bend: the direction the robot bends towards, degrees "
         "(default 0: towards base -x)",
