@@ -425,12 +425,14 @@ def write_bend_recording(
     seed: int,
     samples_like: int,
     misalignment_axes: tuple[int, ...] = (0, 1, 2),
+    duration: float = BEND_DURATION_S,
 ) -> Path:
     """``NAME_bend.csv``: the recording's IMUs (the constant errors of a recording of
     ``samples_like`` samples drawn from ``seed``; fresh noise) on the rod bent slowly in
     the base x-z plane towards ``-x`` (``phi = 0``; base-frame couples, whatever the
-    recording's drive), for ``continuum-mhe calibrate --bend``. Simulates the rod."""
-    traj = simulate_sections(replace(settings, drive="base"), BEND, BEND_DURATION_S)
+    recording's drive), for ``continuum-mhe calibrate --bend``. Simulates the rod for
+    ``duration`` s."""
+    traj = simulate_sections(replace(settings, drive="base"), BEND, duration)
     t, f, w, _ = imu_samples(
         traj, imu, seed, noise_seed=seed + 2_000_003, misalignment_axes=misalignment_axes,
         errors_like=samples_like,
@@ -446,13 +448,15 @@ def write_section_recording(
     duration: float,
     imu: ImuSettings | None = None,
     seed: int = 0,
+    bend_duration: float = BEND_DURATION_S,
 ) -> dict[str, object]:
     """Simulate, sample and write the files (see the module docstring; the bend
-    recording is a second simulation); returns the info (floor, one-section error,
-    twist)."""
+    recording is a second simulation, ``bend_duration`` s); returns the info (floor,
+    one-section error, twist)."""
     traj = simulate_sections(settings, scenario, duration)
     info = write_trajectory_recording(out, name, traj, settings, scenario, imu, seed)
-    write_bend_recording(out, name, settings, imu or DEFAULT_IMU, seed, int(info["samples"]))  # type: ignore[call-overload]
+    n = int(info["samples"])  # type: ignore[call-overload]
+    write_bend_recording(out, name, settings, imu or DEFAULT_IMU, seed, n, duration=bend_duration)
     return info
 
 
