@@ -32,22 +32,23 @@ def _ramp(n: int, start: int, stop: int) -> np.ndarray:
 
 
 def _bend_readings(
-    bends: np.ndarray, mounts: list[tuple[float, float, float]]
+    bends: np.ndarray, mounts: list[tuple[float, float, float]], up: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free ``(rest values, bend values)`` (n, 12) of the IMUs at both section
-    ends, z up, for the bend sequence ``bends`` (n, 2, 2) rad."""
+    ends, base z up (``up = 1``) or down (-1), for the bend sequence ``bends`` (n, 2, 2)
+    rad."""
     rest, bend = [], []
     for k, rpy in enumerate(mounts):
         m = mount_rotation(rpy)  # sensor to backbone frame
         R = pose_at(bends, LENGTHS, k)[0]  # (n, 3, 3) backbone to base
-        acc = G * np.einsum("nji,j->ni", R, [0.0, 0.0, 1.0]) @ m  # m^T (R^T u g)
+        acc = G * np.einsum("nji,j->ni", R, [0.0, 0.0, up]) @ m  # m^T (R^T u g)
         d = np.einsum("nji,njl->nil", R[1:-1], (R[2:] - R[:-2]) / (2 * DT))  # R^T dR/dt
         w = 0.5 * np.stack(
             [d[:, 2, 1] - d[:, 1, 2], d[:, 0, 2] - d[:, 2, 0], d[:, 1, 0] - d[:, 0, 1]], 1
         )
         gyr = w @ m + BIAS[k]
         bend.append(np.hstack([acc[1:-1], gyr]))
-        rest.append(np.tile(np.hstack([m.T @ [0.0, 0.0, G], BIAS[k]]), (len(w), 1)))
+        rest.append(np.tile(np.hstack([m.T @ [0.0, 0.0, up * G], BIAS[k]]), (len(w), 1)))
     return np.hstack(rest), np.hstack(bend)
 
 
@@ -77,27 +78,30 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def _rest_inputs(
-    rest: np.ndarray,
+    rest: np.ndarray, mounting: str = "z-up"
 ) -> list[tuple[tuple[float, float, float], np.ndarray, np.ndarray]]:
     t = DT * np.arange(len(rest))
-    cal = calibrate(t, rest, "raw", 2, "z-up")
+    cal = calibrate(t, rest, "raw", 2, mounting)  # type: ignore[arg-type]
     return [(imu.mount_rpy, imu.mean[3:], np.full(3, 1e-3)) for imu in cal.imus]  # type: ignore[misc]
 
 
-@pytest.mark.parametrize("phi_deg", [0.0, 60.0, -150.0])
-def test_yaw_round_trip_through_the_pcc_model(phi_deg: float) -> None:
+@pytest.mark.parametrize(
+    ("phi_deg", "mounting"), [(0.0, "z-up"), (60.0, "z-up"), (-150.0, "z-up"), (60.0, "z-down")]
+)
+def test_yaw_round_trip_through_the_pcc_model(phi_deg: float, mounting: str) -> None:
     """A bend towards ``phi`` (the two sections in the same plane, so IMU 2 sees section
     1's bend too) read by IMUs with known mountings: roll and pitch from rest, yaw from
     the bend, together the mounting itself; the wrong plane shifts the yaw by the
     difference."""
-    rest, bend = _bend_readings(_planar_bend(np.radians(phi_deg)), MOUNTS)
-    inputs = _rest_inputs(rest)
-    yaws = yaws_from_bend("bend.csv", bend, inputs, phi_deg, "z-up")
+    up = 1.0 if mounting == "z-up" else -1.0
+    rest, bend = _bend_readings(_planar_bend(np.radians(phi_deg)), MOUNTS, up)
+    inputs = _rest_inputs(rest, mounting)
+    yaws = yaws_from_bend("bend.csv", bend, inputs, phi_deg, mounting)  # type: ignore[arg-type]
     for (rpy, _, _), y, true in zip(inputs, yaws, MOUNTS):
         np.testing.assert_allclose([rpy[0], rpy[1], y.yaw_deg], true, atol=1e-7)
         assert abs(y.gravity_yaw_deg - true[2]) < 1e-7  # noise- and bias-free: exact too
         assert y.off_axis < 1e-6
-    shifted = yaws_from_bend("bend.csv", bend, inputs, phi_deg + 10.0, "z-up")
+    shifted = yaws_from_bend("bend.csv", bend, inputs, phi_deg + 10.0, mounting)  # type: ignore[arg-type]
     for y, true in zip(shifted, MOUNTS):
         assert (y.yaw_deg - true[2] - 10.0 + 180) % 360 - 180 == pytest.approx(0.0, abs=1e-7)
 
