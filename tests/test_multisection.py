@@ -404,7 +404,10 @@ def test_two_section_rod_generator_short_run(tmp_path: Path) -> None:
         write_section_recording,
     )
 
-    info = write_section_recording(tmp_path, "r", SectionRodSettings(), "planar-s", 0.6)
+    info = write_section_recording(
+        tmp_path, "r", SectionRodSettings(), "planar-s", 0.6, bend_duration=0.2
+    )
+    assert (tmp_path / "r_bend.csv").read_text().startswith("t,ax_1,ay_1,az_1,gx_1,")
     assert float(info["pcc_floor_mean_mm"]) < 0.2 * float(info["one_section_mean_mm"])  # type: ignore[arg-type]
     assert json.loads((tmp_path / "r_info.json").read_text())["samples"] == info["samples"]
     truth = read_state_table(tmp_path / "r_truth.csv")

@@ -5,7 +5,9 @@ whole robot driven by the tip IMU, and the rod's twist about the tangent at each
 section end. Raw-IMU cases (``CASES``): with and without the gyro bias estimated
 (``raw``, ``raw+bias``), the accelerometer bias too (``+acc``), each IMU's mounting
 from the recording's rest recording (``cal``, as ``continuum-mhe calibrate --from
-NAME_rest.csv`` prints it) and the IMUs' own acceleration modelled (``+own``).
+NAME_rest.csv`` prints it; ``cal3``: with each IMU's yaw from the bend recording too,
+``calibrate --from NAME_rest.csv --bend NAME_bend.csv``) and the IMUs' own acceleration
+modelled (``+own``).
 
     python tools/two_section_rod_study.py [FOLDER] [--only NAME ...]
     # FOLDER default: the shipped src/continuum_mhe/data/rod2
@@ -33,20 +35,24 @@ from continuum_mhe.model.robot import Robot
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 #: (label, input file suffix, imu model, estimate gyro bias, estimate accelerometer
-#: bias, mounting from the rest recording, own acceleration). ``cal`` cases: the robot
-#: file's ``mount_rpy`` from ``continuum-mhe calibrate --from NAME_rest.csv`` (the
-#: recommended workflow); ``+own``: ``--own-acceleration``.
+#: bias, mounting, own acceleration). Mounting: ``""`` none; ``"rest"`` (``cal``
+#: cases): the robot file's ``mount_rpy`` roll and pitch from ``continuum-mhe calibrate
+#: --from NAME_rest.csv`` (the recommended workflow); ``"bend"`` (``cal3``): with the
+#: yaw from ``--bend NAME_bend.csv`` too. ``+own``: ``--own-acceleration``.
 CASES = (
-    ("raw", "raw", "direct", False, False, False, False),
-    ("raw+bias", "raw", "direct", True, False, False, False),
-    ("raw+acc", "raw", "direct", True, True, False, False),
-    ("cal+bias", "raw", "direct", True, False, True, False),
-    ("cal+acc", "raw", "direct", True, True, True, False),
-    ("raw+bias+own", "raw", "direct", True, False, False, True),
-    ("cal+bias+own", "raw", "direct", True, False, True, True),
-    ("cal+acc+own", "raw", "direct", True, True, True, True),
-    ("tilt", "tilt", "tilt", False, False, False, False),
-    ("cal+tilt", "raw", "tilt", False, False, True, False),
+    ("raw", "raw", "direct", False, False, "", False),
+    ("raw+bias", "raw", "direct", True, False, "", False),
+    ("raw+acc", "raw", "direct", True, True, "", False),
+    ("cal+bias", "raw", "direct", True, False, "rest", False),
+    ("cal+acc", "raw", "direct", True, True, "rest", False),
+    ("raw+bias+own", "raw", "direct", True, False, "", True),
+    ("cal+bias+own", "raw", "direct", True, False, "rest", True),
+    ("cal+acc+own", "raw", "direct", True, True, "rest", True),
+    ("cal3+bias", "raw", "direct", True, False, "bend", False),
+    ("cal3+bias+own", "raw", "direct", True, False, "bend", True),
+    ("cal3+acc+own", "raw", "direct", True, True, "bend", True),
+    ("tilt", "tilt", "tilt", False, False, "", False),
+    ("cal+tilt", "raw", "tilt", False, False, "rest", False),
 )
 DEFAULT_CASES = (
     "raw", "raw+bias", "raw+acc", "cal+bias", "cal+acc", "raw+bias+own", "cal+bias+own",
@@ -54,16 +60,22 @@ DEFAULT_CASES = (
 )  # fmt: skip
 
 
-def calibrated_robot(robot: Robot, rest: Path) -> Robot:
+def calibrated_robot(robot: Robot, rest: Path, bend: Path | None = None) -> Robot:
     """``robot`` with each IMU's ``mount_rpy`` from a rest recording, as ``continuum-mhe
-    calibrate --from REST --robot ...`` prints it (rounded to 0.01 degree as printed)."""
-    from continuum_mhe.stream.calibrate import calibrate, read_recording
+    calibrate --from REST --robot ...`` prints it (rounded to 0.01 degree as printed);
+    with ``bend``, the yaw from that recording of a bend towards ``phi = 0`` too
+    (``--bend BEND``)."""
+    from continuum_mhe.stream.calibrate import bend_yaws, calibrate, read_recording
 
     fmt, t, values = read_recording(str(rest), robot.n_imus)
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    rpys = [c.mount_rpy for c in cal.imus]
+    if bend is not None:
+        yaws = bend_yaws(str(bend), 0.0, cal, robot)
+        rpys = [(r[0], r[1], y.yaw_deg) for r, y in zip(rpys, yaws)]  # type: ignore[index]
     imus = tuple(
-        replace(imu, mount_rpy=tuple(round(v, 2) for v in c.mount_rpy))  # type: ignore[arg-type, union-attr]
-        for imu, c in zip(robot.imus, cal.imus)
+        replace(imu, mount_rpy=tuple(round(v, 2) for v in rpy))  # type: ignore[arg-type, union-attr]
+        for imu, rpy in zip(robot.imus, rpys)
     )
     return replace(robot, imus=imus)
 
@@ -214,11 +226,13 @@ def main() -> None:
             if label not in args.cases:
                 continue
             rest = args.folder / f"{name}_rest.csv"
-            if cal and not rest.exists():
-                print(f"   {label:12s} skipped: no {rest.name}")
+            bend = args.folder / f"{name}_bend.csv"
+            missing = [p.name for p in (rest, bend)[: ("", "rest", "bend").index(cal)]]
+            if any(not (args.folder / m).exists() for m in missing):
+                print(f"   {label:13s} skipped: no {' or '.join(missing)}")
                 continue
             res = evaluate(
-                calibrated_robot(robot, rest) if cal else robot,
+                calibrated_robot(robot, rest, bend if cal == "bend" else None) if cal else robot,
                 args.folder / f"{name}_{suffix}.csv", imu_model, bias, accel_bias,
                 args.folder / f"{name}_truth.csv", args.bias_psd, tuple(args.methods),
                 mhe,
@@ -226,7 +240,7 @@ def main() -> None:
             )  # fmt: skip
             for m, (mean, mx, end1) in res.items():
                 print(
-                    f"   {label:12s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
+                    f"   {label:13s} {m}: tip {mean:6.2f} mm mean ({mean / floor:.2f}x floor), "
                     f"max {mx:6.1f} mm; section 1 end {end1:5.2f} mm"
                 )
         if "mhe" in args.methods:

@@ -45,7 +45,12 @@ Outputs, per recording (``write_section_recording``):
 * ``NAME_rest.csv``: the same two IMUs (the same misalignments and biases, fresh noise)
   with the rod straight and still, as long as the recording: the rest period a user
   records before a run, for ``continuum-mhe calibrate --from NAME_rest.csv --robot
-  two-section`` (the mounting ``mount_rpy`` of each IMU for the robot file).
+  two-section`` (the mounting ``mount_rpy`` of each IMU for the robot file);
+* ``NAME_bend.csv``: the same two IMUs (the same misalignments and biases, fresh noise)
+  with the rod bent slowly in the base x-z plane towards ``-x`` (``phi = 0``): a
+  base-frame couple about ``-y`` at each section's end, ramped up over 2 s and held
+  (5 s; no twist), for ``continuum-mhe calibrate --from NAME_rest.csv --bend
+  NAME_bend.csv`` (each IMU's yaw about the tangent).
 
 Regenerate (needs the ``rod`` extra)::
 
@@ -56,6 +61,8 @@ Regenerate (needs the ``rod`` extra)::
     python -m continuum_mhe.simulation.cosserat_sections --scenario spatial -o DIR \
         --drive tendon --name spatial-tendon
 
+``--bend-only`` writes only ``NAME_bend.csv`` (the same options as the recording: the
+IMUs' constant errors are drawn as for it, without simulating it).
 ``--calibrated`` gives the IMUs no accelerometer bias and no board misalignment (noise,
 quantisation and gyro bias stay), to separate the sensors' errors from the model's.
 """
@@ -67,7 +74,7 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -88,6 +95,11 @@ from continuum_mhe.simulation.cosserat import (
 
 FloatArray = NDArray[np.float64]
 SCENARIOS = ("planar-s", "spatial")
+#: the bend calibration's rod motion (``NAME_bend.csv``; not a recording's scenario)
+BEND = "bend-xz"
+#: each section end's couple in the bend recording, in units of ``max_moment``, its
+#: ramp time and duration, s
+BEND_MOMENT, BEND_RAMP_S, BEND_DURATION_S = 1.0 / 3.0, 2.0, 5.0
 DRIVES = ("base", "tendon")
 #: the recordings' IMU (50 Hz) and the same IMU calibrated (no accelerometer bias, no
 #: board misalignment; noise, quantisation and gyro bias stay)
@@ -155,6 +167,10 @@ def couples(scenario: str, t: float, s: SectionRodSettings) -> tuple[FloatArray,
     Section 1 carries both couples, section 2 only its own; ``planar-s`` gives section 1
     the net moment ``+m`` and section 2 ``-m`` about base x.
     """
+    if scenario == BEND:  # about -y: both sections bend towards -x (phi = 0)
+        ramp = 0.5 * (1 - math.cos(math.pi * min(t / BEND_RAMP_S, 1.0)))
+        c = np.array([0.0, -BEND_MOMENT * s.max_moment * ramp, 0.0])
+        return c, c.copy()
     m = s.max_moment * float(servo_profile(t, s.period))
     if s.drive == "tendon":
         return tendon_couples(scenario, t, m, s)
@@ -189,7 +205,7 @@ def simulate_sections(
 ) -> SectionTrajectory:
     """Integrate the rod for ``duration`` s and record every ``record_dt`` s."""
     ea: Any = require("elastica", "rod", "the rod simulation", package="pyelastica")
-    if scenario not in SCENARIOS:
+    if scenario not in (*SCENARIOS, BEND):
         raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
     s = settings
     total = sum(s.lengths)
@@ -303,6 +319,7 @@ def imu_samples(
     seed: int = 0,
     noise_seed: int | None = None,
     misalignment_axes: tuple[int, ...] = (0, 1, 2),
+    errors_like: int | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp]]:
     """Both IMUs every ``imu.sample_dt``: times (n,), specific force (n, 2, 3) m/s^2,
     gyro (n, 2, 3) rad/s (each in its own frame), and the trajectory indices.
@@ -311,12 +328,16 @@ def imu_samples(
     ``noise_seed`` is given, their noise; with ``noise_seed`` the same constant errors
     come with fresh noise (the rest recording of the same IMUs). ``misalignment_axes``:
     the board axes (0 x, 1 y, 2 z) whose misalignment angle is kept (the others are
-    drawn and zeroed, so the other errors stay the same; for studies)."""
+    drawn and zeroed, so the other errors stay the same; for studies).
+    ``errors_like`` (with ``noise_seed``): the sample count of the recording whose
+    constant errors to reproduce, when this trajectory has another (its noise draws lie
+    between the constant errors' draws); default this trajectory's count."""
     rng = np.random.default_rng(seed)
     noise_rng = rng if noise_seed is None else np.random.default_rng(noise_seed)
 
     def noise(shape: tuple[int, ...]) -> FloatArray:
-        n = rng.normal(size=shape)  # keeps the constant errors' draws in place
+        # keeps the constant errors' draws in place
+        n = rng.normal(size=shape if errors_like is None else (errors_like, *shape[1:]))
         return n if noise_seed is None else noise_rng.normal(size=shape)
 
     dt_rec = float(traj.t[1] - traj.t[0])
@@ -371,16 +392,52 @@ def write_rest_recording(
 ) -> Path:
     """``NAME_rest.csv``: the recording's IMUs (the same misalignments and biases, fresh
     noise) with the rod straight and still, for ``continuum-mhe calibrate --from``."""
-    from continuum_mhe.io.csv_files import write_table
-
     t, f, w, _ = imu_samples(
         at_rest(traj), imu, seed, noise_seed=seed + 1_000_003, misalignment_axes=misalignment_axes
     )
+    return _write_imu_table(out / f"{name}_rest.csv", t, f, w)
+
+
+def _write_imu_table(path: Path, t: FloatArray, f: FloatArray, w: FloatArray) -> Path:
+    """``t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...`` (t from 0)."""
+    from continuum_mhe.io.csv_files import write_table
+
     cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
-    path = out / f"{name}_rest.csv"
     rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
     write_table(path, cols, rows.tolist())
     return path
+
+
+def recording_samples(settings: SectionRodSettings, duration: float, imu: ImuSettings) -> int:
+    """The IMU sample count of a recording of ``duration`` s (as :func:`imu_samples`
+    takes it from :func:`simulate_sections`' records, every 1 ms), without simulating."""
+    per_record = max(1, int(round(1e-3 / settings.sim_dt)))
+    n_rec = int(round(duration / (per_record * settings.sim_dt))) + 1
+    step = max(1, int(round(imu.sample_dt / (per_record * settings.sim_dt))))
+    return len(range(0, n_rec, step))
+
+
+def write_bend_recording(
+    out: Path,
+    name: str,
+    settings: SectionRodSettings,
+    imu: ImuSettings,
+    seed: int,
+    samples_like: int,
+    misalignment_axes: tuple[int, ...] = (0, 1, 2),
+    duration: float = BEND_DURATION_S,
+) -> Path:
+    """``NAME_bend.csv``: the recording's IMUs (the constant errors of a recording of
+    ``samples_like`` samples drawn from ``seed``; fresh noise) on the rod bent slowly in
+    the base x-z plane towards ``-x`` (``phi = 0``; base-frame couples, whatever the
+    recording's drive), for ``continuum-mhe calibrate --bend``. Simulates the rod for
+    ``duration`` s."""
+    traj = simulate_sections(replace(settings, drive="base"), BEND, duration)
+    t, f, w, _ = imu_samples(
+        traj, imu, seed, noise_seed=seed + 2_000_003, misalignment_axes=misalignment_axes,
+        errors_like=samples_like,
+    )  # fmt: skip
+    return _write_imu_table(out / f"{name}_bend.csv", t, f, w)
 
 
 def write_section_recording(
@@ -391,11 +448,16 @@ def write_section_recording(
     duration: float,
     imu: ImuSettings | None = None,
     seed: int = 0,
+    bend_duration: float = BEND_DURATION_S,
 ) -> dict[str, object]:
-    """Simulate, sample and write the four files (see the module docstring); returns
-    the info (floor, one-section error, twist)."""
+    """Simulate, sample and write the files (see the module docstring; the bend
+    recording is a second simulation, ``bend_duration`` s); returns the info (floor,
+    one-section error, twist)."""
     traj = simulate_sections(settings, scenario, duration)
-    return write_trajectory_recording(out, name, traj, settings, scenario, imu, seed)
+    info = write_trajectory_recording(out, name, traj, settings, scenario, imu, seed)
+    n = int(info["samples"])  # type: ignore[call-overload]
+    write_bend_recording(out, name, settings, imu or DEFAULT_IMU, seed, n, duration=bend_duration)
+    return info
 
 
 def write_trajectory_recording(
@@ -422,9 +484,7 @@ def write_trajectory_recording(
     nodes = traj.nodes[idx]
     tip = nodes[:, :, -1] - nodes[:, :, 0]
     ends = [nodes[:, :, traj.end_nodes[k]] - nodes[:, :, 0] for k in range(2)]
-    raw_cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
-    raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
-    write_table(out / f"{name}_raw.csv", raw_cols, raw.tolist())
+    _write_imu_table(out / f"{name}_raw.csv", t, f, w)
     tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(2)])
     write_table(
         out / f"{name}_tilt.csv",
@@ -488,6 +548,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "calibration); noise, quantisation and gyro bias stay",
     )
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--bend-only",
+        action="store_true",
+        help="write only NAME_bend.csv (the bend calibration recording of the IMUs that "
+        "these options give the recording)",
+    )
     args = p.parse_args(argv)
     if not available("elastica"):  # one line, before anything is written
         print(f"{p.prog}: error: {missing('pyelastica', 'rod', 'the rod simulation')}",
@@ -497,14 +563,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not out.is_dir():
         print(f"{p.prog}: error: {out}: no such folder", file=sys.stderr)
         return 2
+    name = args.name or args.scenario
+    settings = SectionRodSettings(
+        shear_ratio=args.shear_ratio, sim_dt=args.sim_dt, drive=args.drive
+    )
+    imu = CALIBRATED_IMU if args.calibrated else DEFAULT_IMU
+    if args.bend_only:
+        n = recording_samples(settings, args.duration, imu)
+        print(write_bend_recording(out, name, settings, imu, args.seed, n), file=sys.stderr)
+        return 0
     info = write_section_recording(
-        out,
-        args.name or args.scenario,
-        SectionRodSettings(shear_ratio=args.shear_ratio, sim_dt=args.sim_dt, drive=args.drive),
-        args.scenario,
-        args.duration,
-        imu=CALIBRATED_IMU if args.calibrated else None,
-        seed=args.seed,
+        out, name, settings, args.scenario, args.duration, imu=imu, seed=args.seed
     )
     print(json.dumps(info), file=sys.stderr)
     return 0

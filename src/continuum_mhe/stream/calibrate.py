@@ -4,6 +4,9 @@ the gyro's bias (what remains after the firmware's start-up bias) and noise, the
 sample rate achieved, and the sensor mounting that makes the straight robot read
 ``theta = 0`` (``--mount-rpy`` / the robot file's ``mount_rpy``). From the port
 (``--port``) or a recording (``--from RAW.csv``, e.g. written by ``live --record``).
+With ``--bend BEND.csv``, a raw recording of the robot bent slowly in a known plane,
+also each IMU's yaw about the tangent (:mod:`continuum_mhe.stream.bend_calibration`)
+and so the full ``mount_rpy``.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ import numpy as np
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
 from continuum_mhe.io.raw_imu import csv_input_kind, read_raw_imu, read_raw_imus
 from continuum_mhe.model.imu import Mounting
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.stream.bend_calibration import YawCalibration, yaws_from_bend
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, LineFormat, parse_line
 from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
@@ -88,8 +93,11 @@ def calibrate(
     )
 
 
-def format_report(cal: Calibration, source: str) -> str:
-    """The calibration as text for the terminal."""
+def format_report(
+    cal: Calibration, source: str, bend: tuple[str, float, list[YawCalibration]] | None = None
+) -> str:
+    """The calibration as text for the terminal; ``bend``: ``(file, phi deg, yaws)``
+    from a bend in a known plane (each IMU's yaw, and the full mounting)."""
     lines = [
         f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
         f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
@@ -108,11 +116,23 @@ def format_report(cal: Calibration, source: str) -> str:
             assert imu.mount_rpy is not None
             r, p, _ = imu.mount_rpy
             tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
+            yaw_hint = "from --bend below" if bend else "see docs/hardware.md"
             lines.append(
                 f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},0 "
-                f"(robot file: mount_rpy = [{r:.2f}, {p:.2f}, 0]); yaw: see docs/hardware.md; "
+                f"(robot file: mount_rpy = [{r:.2f}, {p:.2f}, 0]); yaw: {yaw_hint}; "
                 f"accelerometer noise as tilt: {tilt_noise:.2f} deg"
             )
+            if bend:
+                y = bend[2][i - 1]
+                lines += [
+                    f"IMU {i}: yaw from the bend towards phi = {bend[1]:g} deg in {bend[0]}: "
+                    f"{y.yaw_deg:.2f} deg (gyro rate axis, standard error "
+                    f"{y.yaw_std_deg:.3f} deg; the gravity direction gives "
+                    f"{y.gravity_yaw_deg:.2f} deg); tilt up to {y.tilt_deg:.0f} deg, rates "
+                    f"across the bending axis {100 * y.off_axis:.1f} %",
+                    f"IMU {i}: mounting: --mount-rpy {r:.2f},{p:.2f},{y.yaw_deg:.2f} (robot "
+                    f"file: mount_rpy = [{r:.2f}, {p:.2f}, {y.yaw_deg:.2f}])",
+                ]
         else:
             lines.append(
                 f"IMU {i}: roll mean {math.degrees(m[0]):.3f} deg (std {math.degrees(s[0]):.3f}),"
@@ -192,6 +212,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from continuum_mhe.cli_options import robot_from_args
 
     robot = robot_from_args(args)
+    if args.bend_phi is not None and not args.bend:
+        raise InputError("--bend-phi needs --bend BEND.csv")
     say = stderr_say("calibrate")
     if args.source:
         fmt, t, values = read_recording(args.source, robot.n_imus)
@@ -204,8 +226,25 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         fmt = args.format
         t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
         source = args.port
-    print(format_report(calibrate(t, values, fmt, robot.n_imus, robot.mounting), source))
+    cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    bend = None
+    if args.bend:
+        phi = 0.0 if args.bend_phi is None else args.bend_phi
+        bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
+    print(format_report(cal, source, bend))
     return 0
+
+
+def bend_yaws(path: str, phi_deg: float, cal: Calibration, robot: Robot) -> list[YawCalibration]:
+    """Each IMU's yaw from the raw recording ``path`` of a bend towards ``phi_deg``,
+    with the rest calibration ``cal``'s roll, pitch and gyro bias."""
+    if cal.fmt != "raw":
+        raise InputError("--bend needs a raw rest recording (ax, ..., gz columns)")
+    if csv_input_kind(path) != "raw":
+        raise InputError(f"{path}: line 1: --bend needs a raw recording (ax, ..., gz columns)")
+    _, _, values = read_recording(path, robot.n_imus)
+    rest = [(imu.mount_rpy, imu.mean[3:], imu.std[3:]) for imu in cal.imus]
+    return yaws_from_bend(path, values, rest, phi_deg, robot.mounting)  # type: ignore[arg-type]
 
 
 def register_calibrate(subparsers: Any) -> None:
@@ -219,11 +258,25 @@ def register_calibrate(subparsers: Any) -> None:
         help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
         description="With the robot straight and still: per IMU, the accelerometer's mean "
         "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
-        "mounting (--mount-rpy) that makes the straight robot read theta = 0.",
+        "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
+        "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
     )
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
     src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
+    p.add_argument(
+        "--bend",
+        metavar="BEND.csv",
+        help="a raw recording of the robot bent slowly in one known plane (--bend-phi): "
+        "each IMU's yaw about the tangent, and the full mount_rpy",
+    )
+    p.add_argument(
+        "--bend-phi",
+        type=float,
+        metavar="DEG",
+        help="the plane of --bend: the direction the robot bends towards, degrees "
+        "(default 0: towards base -x)",
+    )
     p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
