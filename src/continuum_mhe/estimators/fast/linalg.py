@@ -33,13 +33,16 @@ def btd_factor(D, E, L, M):
     """Block-tridiagonal Cholesky ``H = L L^T`` of ``H = (D, E)``; False if not PD.
 
     ``L`` (n, nx, nx) receives the diagonal factors, ``M`` (n-1, nx, nx) the
-    sub-diagonal blocks ``M_i = E_i^T L_i^-T``.
+    sub-diagonal blocks ``M_i = E_i^T L_i^-T``. (Divisions by the pivots are
+    multiplications by their reciprocals, computed once: they are the factor's
+    critical path.)
     """
     n, nx = D.shape[0], D.shape[1]
     a = np.empty((nx, nx))
+    rd = np.empty(nx)
     for i in range(n):
         for j in range(nx):
-            for k in range(nx):
+            for k in range(j + 1):  # the Schur complement's lower triangle
                 s = D[i, j, k]
                 if i > 0:
                     for c in range(nx):
@@ -51,12 +54,14 @@ def btd_factor(D, E, L, M):
                 s -= L[i, j, c] * L[i, j, c]
             if not s > 0.0:
                 return False
-            L[i, j, j] = np.sqrt(s)
+            ljj = np.sqrt(s)
+            L[i, j, j] = ljj
+            rd[j] = 1.0 / ljj
             for k in range(j + 1, nx):
                 t = a[k, j]
                 for c in range(j):
                     t -= L[i, k, c] * L[i, j, c]
-                L[i, k, j] = t / L[i, j, j]
+                L[i, k, j] = t * rd[j]
             for k in range(j):
                 L[i, k, j] = 0.0
         if i < n - 1:  # M_i L_i^T = E_i^T, row by row (forward substitution)
@@ -65,7 +70,7 @@ def btd_factor(D, E, L, M):
                     t = E[i, j, r]
                     for c in range(j):
                         t -= M[i, r, c] * L[i, j, c]
-                    M[i, r, j] = t / L[i, j, j]
+                    M[i, r, j] = t * rd[j]
     return True
 
 
@@ -76,6 +81,10 @@ def btd_solve(D, E, b, L, M, y):
     n, nx = b.shape
     if not btd_factor(D, E, L, M):
         return False
+    rd = np.empty((n, nx))
+    for i in range(n):
+        for j in range(nx):
+            rd[i, j] = 1.0 / L[i, j, j]
     for i in range(n):  # L z = b
         for j in range(nx):
             t = b[i, j]
@@ -84,7 +93,7 @@ def btd_solve(D, E, b, L, M, y):
                     t -= M[i - 1, j, c] * y[i - 1, c]
             for c in range(j):
                 t -= L[i, j, c] * y[i, c]
-            y[i, j] = t / L[i, j, j]
+            y[i, j] = t * rd[i, j]
     for i in range(n - 1, -1, -1):  # L^T y = z
         for j in range(nx - 1, -1, -1):
             t = y[i, j]
@@ -93,7 +102,7 @@ def btd_solve(D, E, b, L, M, y):
                     t -= M[i, c, j] * y[i + 1, c]
             for c in range(j + 1, nx):
                 t -= L[i, c, j] * y[i, c]
-            y[i, j] = t / L[i, j, j]
+            y[i, j] = t * rd[i, j]
     return True
 
 

@@ -189,6 +189,34 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
 
 
 @numba.njit(cache=True)
+def _step_to(out, X, alpha, d):
+    """``out = X + alpha d`` (no temporaries)."""
+    for i in range(X.shape[0]):
+        for j in range(X.shape[1]):
+            out[i, j] = X[i, j] + alpha * d[i, j]
+
+
+@numba.njit(cache=True)
+def _dot_diff(g, a, b):
+    """``sum(g * (a - b))``."""
+    s = 0.0
+    for i in range(g.shape[0]):
+        for j in range(g.shape[1]):
+            s += g[i, j] * (a[i, j] - b[i, j])
+    return s
+
+
+@numba.njit(cache=True)
+def _max_abs(d):
+    """``max |d|``."""
+    m = 0.0
+    for i in range(d.shape[0]):
+        for j in range(d.shape[1]):
+            m = max(m, abs(d[i, j]))
+    return m
+
+
+@numba.njit(cache=True)
 def _add_balls(D, Dgn, lam, ball_idx):
     """``Dgn = D`` (the Gauss-Newton blocks, kept for the covariance), then ``D_i +=
     2 lam_ib I_{S_b}``: each ball's curvature with its multiplier (n, nb) where positive."""
@@ -310,7 +338,7 @@ def _sqp(
         if status != CONVERGED:
             return status, it, step, cost, cur
         step_exact = exact  # d is an exact Newton step
-        step = np.max(np.abs(d))
+        step = _max_abs(d)
         tr = 1 - cur
         contracted = active == 0 and prev < np.inf and step <= 0.5 * prev
         err = np.inf  # the estimated error of X_k + d_k
@@ -320,21 +348,21 @@ def _sqp(
                 err = min(err, QUADRATIC_SAFETY * step**3 / prev**2)
         if step <= step_tol or err <= err_tol:
             lam[:] = lam_qp
-            Xb[tr] = Xb[cur] + d
+            _step_to(Xb[tr], Xb[cur], 1.0, d)
             project(Xb[tr], lo, hi, bidx, r2)
             return CONVERGED, it, step, cost, tr
         alpha = 1.0
         slack = 1e-13 * (1.0 + abs(cost))
         accepted = False
         for _ in range(30):
-            Xb[tr] = Xb[cur] + alpha * d
+            _step_to(Xb[tr], Xb[cur], alpha, d)
             project(Xb[tr], lo, hi, bidx, r2)
             ct = _evaluate(
                 fn, ptrs[tr], out[tr], Xb[tr], zmask, rinv, qinv, xbar, arrival, D[tr], E[tr],
                 g[tr], loss, wgt[tr], extra[tr], gb[tr],
             )  # fmt: skip
             _add_balls(D[tr], Dgn[tr], lam_qp, bidx)
-            if ct <= cost + 1e-4 * np.sum(g[cur] * (Xb[tr] - Xb[cur])) + slack:
+            if ct <= cost + 1e-4 * _dot_diff(g[cur], Xb[tr], Xb[cur]) + slack:
                 accepted = True
                 exact = newton
                 if exact:
