@@ -159,6 +159,9 @@ def _callee(value: int) -> str:
     return f"import numba\n\n\n@numba.njit(cache=True)\ndef f():\n    return {value}\n"
 
 
+@pytest.mark.skipif(
+    os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="no compiled kernels without numba's JIT"
+)
 def test_flushing_the_kernel_caches_drops_a_caller_compiled_against_an_old_callee(
     tmp_path: Path,
 ) -> None:

@@ -70,6 +70,7 @@ def run_mhe_kernel(
     windows)``; the outputs are the fast MHE's."""
     from continuum_mhe.estimators.fast import FastOptions, NodeEvaluator, build_window_model
     from continuum_mhe.estimators.fast.qp import CONVERGED
+    from continuum_mhe.estimators.fast.sqp import quadratic_rate
     from continuum_mhe.estimators.fast.step import StepBuffers
     from continuum_mhe.estimators.kalman import ProcessNoiseCache
 
@@ -79,7 +80,8 @@ def run_mhe_kernel(
     noise = ProcessNoiseCache(f)
     R = f.meas_cov()
     o = FastOptions()
-    options = (True, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton)
+    options = (True, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
+               quadratic_rate(model, o))  # fmt: skip
     n = len(rec.t)
     out = np.full((n, f.ny), np.nan)
     sec = np.zeros(n)

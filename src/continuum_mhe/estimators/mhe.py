@@ -60,6 +60,7 @@ from continuum_mhe.estimators.fast import (
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
 from continuum_mhe.estimators.fast.qp import CONVERGED
+from continuum_mhe.estimators.fast.sqp import quadratic_rate
 from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers
 from continuum_mhe.estimators.fast.warmup import (
     FirstRun,
@@ -405,7 +406,7 @@ class MovingHorizonEstimator(Estimator):
         the same equations as ``_push``, ``_initial_guess``, ``_solve`` and
         :meth:`covariance`."""
         f, s, n = self.formulation, self._steps, self.settings.horizon
-        assert s is not None and self._xbar is not None
+        assert s is not None and self._xbar is not None and self._fast is not None
         assert self._P is not None and self._Pinv is not None
         k = self._k
         if k:
@@ -420,7 +421,8 @@ class MovingHorizonEstimator(Estimator):
         xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
         outcome, it, _, _, cur = s.advance(
             (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R, self._X,
-            self._lam, (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton),
+            self._lam, (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
+                        quadratic_rate(self._fast, o)),
         )  # fmt: skip
         self._k = int(s.k[0])
         if valid:

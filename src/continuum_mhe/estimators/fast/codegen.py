@@ -34,6 +34,16 @@ import numpy as np
 from continuum_mhe.model.formulations import Formulation
 
 
+def transition_is_linear(formulation: Formulation) -> bool:
+    """True if the formulation's transition is affine in the state (its Jacobian
+    ``df/dx`` does not depend on ``x``): then the window's exact Hessian is the
+    measurement terms' Newton Hessian the fast backend forms, and Newton's quadratic rate
+    applies (:func:`~continuum_mhe.estimators.fast.sqp.quadratic_rate`)."""
+    f = formulation
+    x, u, dt = ca.SX.sym("x", f.nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+    return not ca.depends_on(ca.jacobian(f.transition_sym(x, u, dt), x), x)
+
+
 def window_function(formulation: Formulation, horizon: int) -> ca.Function:
     """``(X, Z, M, U, DT) -> (R, JR, W, FJ, SR)`` for the whole window, in one call.
 

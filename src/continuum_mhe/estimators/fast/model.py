@@ -30,6 +30,7 @@ from continuum_mhe.estimators.fast.codegen import (
     node_function,
     output_function,
     output_jacobian_function,
+    transition_is_linear,
     window_function,
 )
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
@@ -131,6 +132,8 @@ class WindowModel:
         compiled: True if the model runs as compiled C (else through CasADi's VM).
         backend_note: why the model is not compiled (the notice said on stderr), or None.
         loss: the measurement loss (:class:`LossKernel`).
+        linear_transition: the transition is affine in the state
+            (:func:`~continuum_mhe.estimators.fast.codegen.transition_is_linear`).
     """
 
     nx: int
@@ -148,6 +151,7 @@ class WindowModel:
     wrapped: tuple[int, ...] = (4,)
     backend_note: str | None = None
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
+    linear_transition: bool = False
 
     @property
     def window_size(self) -> int:
@@ -357,4 +361,5 @@ def build_window_model(
         wrapped=wrapped,
         backend_note=note,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
+        linear_transition=transition_is_linear(formulation),
     )

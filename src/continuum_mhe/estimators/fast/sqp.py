@@ -78,6 +78,17 @@ class FastOptions:
 #: iteration under the contraction bound alone, the true next step was at most 4.8
 #: times the estimate ``|d_1|^3 / |d_0|^2`` (median 0.7).
 QUADRATIC_SAFETY = 10.0
+
+
+def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
+    """Whether the SQP may certify by Newton's quadratic rate: exact Newton steps
+    (``options.newton``), a transition affine in the state (else the Hessian the
+    backend forms lacks the process model's second-order term), and not the Huber
+    loss, whose second derivative jumps at its scale (with the estimate, Huber's worst
+    certified window was 4.3e-8 from the converged answer)."""
+    return options.newton and model.linear_transition and model.loss.code != HUBER
+
+
 #: :data:`~continuum_mhe.estimators.loss.LOSS_CODES`'s code of the Huber loss
 HUBER = LOSS_CODES["huber"]
 
@@ -296,6 +307,7 @@ def _sqp(
     extra,
     gb,
     Dgn,
+    quadratic,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
@@ -308,9 +320,8 @@ def _sqp(
     full steps bounds the error of ``X_k + d_k`` by ``rho / (1 - rho) |d_k| <= err_tol``;
     when both steps were exact Newton steps, by the smaller quadratic-rate estimate
     ``QUADRATIC_SAFETY |d_k|^3 / |d_k-1|^2`` (the error ``K |d_k|^2`` with the rate
-    ``K = |d_k| / |d_k-1|^2`` observed on the previous step); not with the Huber loss,
-    whose second derivative jumps at its scale (no quadratic rate there: the estimate
-    let answers 4.3e-8 from the converged ones through).
+    ``K = |d_k| / |d_k-1|^2`` observed on the previous step), if ``quadratic``
+    (:func:`quadratic_rate`) and neither QP had an active constraint.
     The answer is then the projection of ``X_k + d_k`` (not evaluated again);
     ``cost`` is at ``X_k``.
     """
@@ -327,6 +338,7 @@ def _sqp(
     step = np.inf
     prev = np.inf  # previous full step (inf after a shortened one)
     prev_exact = False  # ... and whether it was an exact Newton step
+    prev_active = 1  # ... and its QP's number of active constraints
     for it in range(1, max_iter + 1):
         if not np.isfinite(cost):
             return LINE_SEARCH_FAILED, it, step, cost, cur
@@ -348,7 +360,7 @@ def _sqp(
         err = np.inf  # the estimated error of X_k + d_k
         if contracted:
             err = step * step / (prev - step)
-            if exact and prev_exact and loss.code != HUBER:  # two Newton steps: quadratic
+            if quadratic and exact and prev_exact and prev_active == 0:  # two Newton steps
                 err = min(err, QUADRATIC_SAFETY * step**3 / prev**2)
         if step <= step_tol or err <= err_tol:
             lam[:] = lam_qp
@@ -377,6 +389,7 @@ def _sqp(
             return LINE_SEARCH_FAILED, it, step, cost, cur
         prev = step if alpha == 1.0 else np.inf
         prev_exact = step_exact
+        prev_active = active
         cur, cost = tr, ct
         lam[:] = lam_qp
     return MAX_ITER, max_iter, step, cost, cur
@@ -485,6 +498,7 @@ def solve_window(
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
+        quadratic_rate(model, opt),
     )  # fmt: skip
     converged = outcome == CONVERGED
     return FastResult(

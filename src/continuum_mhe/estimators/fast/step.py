@@ -60,8 +60,9 @@ def advance(
     ``Rs`` the measurement covariance of the leaving sample's update. ``X``: the
     previous solution (if ``has_X``), ``lam`` its ball multipliers (if ``has_lam``;
     shifted here, the answer's on return); ``X0`` receives the initial guess.
-    ``options = (solve, max_iter, step_tol, err_tol, max_qp, newton)``; ``loss = (R^-1,
-    LossKernel)``; ``ws``: the workspace's SQP buffers (:meth:`Workspace.buffers`).
+    ``options = (solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic)``
+    (``quadratic``: :func:`~continuum_mhe.estimators.fast.sqp.quadratic_rate`); ``loss = (R^-1,
+    LossKernel)``; ``ws``: the workspace's SQP buffers (``StepBuffers.sqp``).
     Returns ``(outcome, iterations, step, cost, buffer of the answer)``; ``outcome``
     :data:`NOT_SOLVED` when ``solve`` is 0.
     """
@@ -69,7 +70,7 @@ def advance(
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
-    solve, max_iter, step_tol, err_tol, max_qp, newton = options
+    solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic = options
     Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
@@ -154,7 +155,7 @@ def advance(
     return _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
         lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb, Dgn,
+        wgt, extra, gb, Dgn, quadratic,
     )  # fmt: skip
 
 
@@ -259,7 +260,7 @@ class StepBuffers:
         R: FloatArray,
         X: FloatArray | None,
         lam: FloatArray | None,
-        options: tuple[bool, int, float, float, int, bool],
+        options: tuple[bool, int, float, float, int, bool, bool],
     ) -> tuple[int, int, float, float, int]:
         """:func:`advance` on these buffers; ``prior = (xbar, P, Pinv)`` (updated in
         place), ``X`` and ``lam`` the previous solution and multipliers (None: none).

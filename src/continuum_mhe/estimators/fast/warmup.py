@@ -44,6 +44,8 @@ _KERNEL_MODULES = (
 
 def _source(module: str) -> Path:
     return Path(__file__).resolve().parents[2].joinpath(*module.split(".")[1:]).with_suffix(".py")
+
+
 _announced: set[str] = set()
 
 
@@ -124,7 +126,10 @@ def flush_kernel_caches() -> None:
         module = importlib.import_module(name)
         for obj in vars(module).values():
             if isinstance(obj, Dispatcher) and obj.__module__ == module.__name__:
-                obj._cache.flush()  # type: ignore[attr-defined]
+                try:
+                    obj._cache.flush()  # type: ignore[attr-defined]
+                except OSError:  # an unwritable cache: numba then compiles in memory
+                    pass
                 if obj.overloads:
                     obj.recompile()
 
