@@ -1,5 +1,5 @@
-"""Shared test helpers: the five estimators of the recovery tests, and the fast MHE
-against IPOPT on the same samples."""
+"""Shared test helpers: the five estimators of the recovery tests, the fast MHE
+against IPOPT on the same samples, and the windows a fast MHE solves."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import numpy as np
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Estimator, Measurement
 from continuum_mhe.estimators.fast import FastOptions
+from continuum_mhe.estimators.fast.sqp import FastResult
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
-from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
@@ -43,3 +44,28 @@ def fast_and_ipopt_states(
         assert {r.status for r in res} == {"ok"}
         states[solver] = np.array([r.state for r in res])
     return states
+
+
+def fast_windows(
+    est: MovingHorizonEstimator, t: np.ndarray, z: np.ndarray
+) -> list[tuple[WindowProblem, np.ndarray, np.ndarray | None, FastResult]]:
+    """Run the fast MHE ``est`` on its Python path over ``(t, z)`` and return every
+    window it solved: ``(problem copy, initial guess, multipliers given, result)``."""
+    import continuum_mhe.estimators.mhe as mhe_module
+
+    windows = []
+    solve_window = mhe_module.solve_window
+
+    def keep(model, problem, X0, options=None, lam0=None, workspace=None):  # type: ignore[no-untyped-def]
+        res = solve_window(model, problem, X0, options, lam0, workspace)
+        copy = WindowProblem(**{k: np.copy(v) for k, v in vars(problem).items()})
+        windows.append((copy, X0.copy(), None if lam0 is None else lam0.copy(), res))
+        return res
+
+    est._steps = None  # the Python path, whose windows can be kept
+    mhe_module.solve_window = keep  # type: ignore[assignment]
+    try:
+        est.run(t, z)
+    finally:
+        mhe_module.solve_window = solve_window  # type: ignore[assignment]
+    return windows

@@ -15,6 +15,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from estimator_helpers import fast_windows
 from numpy.testing import assert_allclose
 from test_estimator_peers import bend_process_cov, tilt_tangent_basis
 
@@ -377,26 +378,11 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     z = rec.z
     f = BendFormulation()
     est = MovingHorizonEstimator(f, robust("fast", loss, horizon=30))
-    est._steps = None  # the Python path, whose windows can be kept
-    windows: list[tuple[WindowProblem, np.ndarray, np.ndarray | None]] = []
-    solve_window = fm.solve_window
-
-    def keep(model, problem, X0, options=None, lam0=None, workspace=None):
-        kept = WindowProblem(**{k: np.copy(v) for k, v in vars(problem).items()})
-        windows.append((kept, X0.copy(), None if lam0 is None else lam0.copy()))
-        return solve_window(model, problem, X0, options, lam0, workspace)
-
-    import continuum_mhe.estimators.mhe as mhe_module
-
-    mhe_module.solve_window = keep  # type: ignore[assignment]
-    try:
-        est.run(rec.t, z)
-    finally:
-        mhe_module.solve_window = solve_window  # type: ignore[assignment]
+    windows = fast_windows(est, rec.t, z)
     model = fm.build_window_model(f, 30, True, loss, est.settings.scale)
     tight = fm.FastOptions(step_tol=1e-13, err_tol=1e-13, max_iter=60)
     worst = 0.0
-    for problem, X0, lam0 in windows:
+    for problem, X0, lam0, _ in windows:
         res = fm.solve_window(model, problem, X0, lam0=lam0)
         ref = fm.solve_window(model, problem, X0, tight, lam0=lam0)
         assert res.converged and ref.converged

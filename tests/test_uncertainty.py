@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from estimator_helpers import recovery_estimators
+from estimator_helpers import fast_windows, recovery_estimators
 from numpy.testing import assert_allclose
 from test_estimator_peers import (
     LIN_DT,
@@ -342,7 +342,6 @@ def test_compiled_and_casadi_covariance_agree_at_the_same_window_solution(case: 
     (the fast SQP's last iterate against IPOPT's answer, compared to 1e-4 above): at the
     same window and the same ``X``, the compiled model's Gauss-Newton Hessian
     (``window_covariance`` without ``hessian``) and the CasADi one agree to 1e-9."""
-    import continuum_mhe.estimators.mhe as mhe_module
     from continuum_mhe.estimators.fast.covariance import (
         casadi_window_covariance,
         window_covariance,
@@ -367,25 +366,14 @@ def test_compiled_and_casadi_covariance_agree_at_the_same_window_solution(case: 
         z[10:20, 2:4] = np.nan
         settings = Settings(horizon=8)
     est = MovingHorizonEstimator(f, settings)
-    est._steps = None  # the Python path, whose windows can be kept
-    kept: list = []
-    solve_window = mhe_module.solve_window
-
-    def keep(model, problem, X0, options=None, lam0=None, workspace=None):
-        res = solve_window(model, problem, X0, options, lam0, workspace)
-        copy = type(problem)(**{k: np.copy(v) for k, v in vars(problem).items()})
-        kept.append((model, copy, res.X))
-        return res
-
-    mhe_module.solve_window = keep  # type: ignore[assignment]
-    try:
-        est.run(rec.t, z)
-    finally:
-        mhe_module.solve_window = solve_window  # type: ignore[assignment]
+    windows = fast_windows(est, rec.t, z)
     s = est.settings
     loss = LossKernel(block_array(f.measurement_blocks), LOSS_CODES[s.loss], float(s.scale))
     compared = 0
-    for model, problem, X in kept:
+    model = est._fast
+    assert model is not None
+    for problem, _, _, res in windows:
+        X = res.X
         a = window_covariance(model, problem, X)
         b = casadi_window_covariance(f, problem, X, model.feasible, loss=loss)
         assert (a is None) == (b is None)

@@ -86,11 +86,8 @@ def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
     backend forms lacks the process model's second-order term), and not the Huber
     loss, whose second derivative jumps at its scale (with the estimate, Huber's worst
     certified window was 4.3e-8 from the converged answer)."""
-    return options.newton and model.linear_transition and model.loss.code != HUBER
-
-
-#: :data:`~continuum_mhe.estimators.loss.LOSS_CODES`'s code of the Huber loss
-HUBER = LOSS_CODES["huber"]
+    huber = model.loss.code == LOSS_CODES["huber"]
+    return options.newton and model.linear_transition and not huber
 
 
 @numba.njit(cache=True)
