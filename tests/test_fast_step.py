@@ -129,3 +129,28 @@ def test_compiled_step_takes_the_second_start_as_the_python_path_does() -> None:
     )
     assert list(a.status) == list(b.status)
     assert_allclose(a.output, b.output, rtol=0, atol=1e-10)
+
+
+def test_stage_products_carried_across_windows_equal_fresh_ones() -> None:
+    """With an affine transition the compiled step keeps each stage's ``-(Q^-1 F)^T``
+    and ``F^T Q^-1 F`` from window to window (only the new stage's are formed): after
+    every sample they equal numpy's, from the window's ``Q^-1`` and CasADi's ``F``."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=6.0, seed=2)
+    z = _damaged(rec.z)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=8))
+    assert est._steps is not None
+    done, eq, fqf = est._steps.workspace.stage
+    assert done.shape == (7,)
+    checked = 0
+    for t, zi in zip(rec.t, z):
+        est.step(Measurement(float(t), zi))
+        s = est._steps
+        for i in np.flatnonzero(done):
+            F = np.asarray(f.functions.predict(np.zeros(f.nx), s.u[i], float(s.dt[i]))[1])
+            F = F.reshape(f.nx, f.nx)
+            qf = s.qinvw[i] @ F
+            assert_allclose(eq[i], -qf.T, rtol=1e-13, atol=1e-12)
+            assert_allclose(np.triu(fqf[i]), np.triu(F.T @ qf), rtol=1e-13, atol=1e-9)
+            checked += 1
+    assert checked > 7 * (len(rec.t) - 20)

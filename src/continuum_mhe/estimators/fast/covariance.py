@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from continuum_mhe.estimators.fast.linalg import btd_factor, householder
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, WindowModel
 from continuum_mhe.estimators.fast.qp import _eqp
-from continuum_mhe.estimators.fast.sqp import Workspace, _assemble, _evaluate
+from continuum_mhe.estimators.fast.sqp import Workspace, _assemble, _evaluate, stage_buffers
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
@@ -152,11 +152,13 @@ def window_covariance(
     ws.u[:] = problem.u
     ws.dt[:] = problem.dt
     ws.Xb[0] = X
+    ws.stage[0][:] = 0  # this problem's Q^-1: form the stage products anew
     node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)
     D, E, g = ws.D[0], ws.E[0], ws.g[0]
     cost = _evaluate(
         ws.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, D, E, g, model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
+        ws.stage,
     )  # fmt: skip
     if not np.isfinite(cost):
         return None
@@ -206,7 +208,7 @@ def casadi_window_covariance(
         Xc, R, JR, W, FJ, node_mask, rinv, np.ascontiguousarray(problem.qinv, float),
         np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), D, E, g,
         loss, np.empty((n, nblk)), np.empty((n, nblk)),
-        np.empty((n, nblk, nx)),
+        np.empty((n, nblk, nx)), stage_buffers(n, nx, False),
     )  # fmt: skip
     out = np.empty((nx, nx))
     ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out)

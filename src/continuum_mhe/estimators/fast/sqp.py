@@ -91,9 +91,60 @@ def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
 
 
 @numba.njit(cache=True)
-def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb):
+def _stage_product(qinv, F, eq, fqf, qf):
+    """One process stage's constant products: ``eq = -(Q^-1 F)^T`` (the Hessian's
+    off-diagonal block) and the upper triangle of ``fqf = F^T Q^-1 F``; ``qf`` scratch."""
+    nx = F.shape[0]
+    for j in range(nx):
+        for k in range(nx):
+            s = 0.0
+            for a in range(nx):
+                s += qinv[j, a] * F[a, k]
+            qf[j, k] = s
+    for j in range(nx):
+        for k in range(nx):
+            eq[j, k] = -qf[k, j]
+        for k in range(j, nx):
+            s = 0.0
+            for a in range(nx):
+                s += F[a, j] * qf[a, k]
+            fqf[j, k] = s
+
+
+@numba.njit(cache=True)
+def _stage_products(FJ, qinv, stage):
+    """:func:`_stage_product` of every stage not yet done (``stage = (done, eq, fqf)``;
+    ``done`` (N-1,) 0/1, set here). Valid across iterations and windows only for a
+    transition affine in the state (``F`` then does not depend on the iterate)."""
+    done, eq, fqf = stage
+    qf = np.empty((FJ.shape[1], FJ.shape[1]))
+    for i in range(done.shape[0]):
+        if done[i] == 0:
+            _stage_product(qinv[i], FJ[i], eq[i], fqf[i], qf)
+            done[i] = 1
+
+
+def stage_buffers(
+    n: int, nx: int, linear: bool
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """``(done, eq, fqf)`` for :func:`_stage_products` of a window of ``n`` nodes: empty
+    (products formed in each assembly) unless the transition is ``linear`` (affine in
+    the state, :attr:`WindowModel.linear_transition`)."""
+    m = n - 1 if linear and n > 1 else 0
+    return np.zeros(m, dtype=np.int64), np.zeros((m, nx, nx)), np.zeros((m, nx, nx))
+
+
+@numba.njit(cache=True)
+def _assemble(
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
+):
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
     gradient ``g`` and the cost (the balls' curvature: :func:`_add_balls`).
+
+    ``stage``: the process stages' constant products (:func:`stage_buffers`), used when
+    present (an affine transition); else they are formed here. An arrival block whose
+    diagonal is zero is skipped: the arrival weights are positive semidefinite, so the
+    whole block is zero.
 
     Measurement block ``b`` of node ``i`` (``loss.blocks``; ``R`` block-diagonal)
     costs ``1/2 rho(s)``, ``s = r_b^T R_b^-1 r_b``: gradient ``rho' J_b^T R_b^-1 r_b``
@@ -115,6 +166,10 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
     qw = np.empty(nx)
     qf = np.empty((nx, nx))
     e = np.empty(nx)
+    done, eq, fqf = stage
+    pre = done.shape[0] > 0
+    eql = np.empty((nx, nx))
+    fqfl = np.empty((nx, nx))
     for i in range(n):
         m = zmask[i]
         for bk in range(nblk):
@@ -155,16 +210,19 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                         for a in range(nb_):
                             t += JR[i, b0 + a, j] * wj[a, k]
                         D[i, j, k] += m * (rho1 * t + a2 * gb[i, bk, j] * gb[i, bk, k])
+        weighted = False
         for j in range(nx):
             e[j] = X[i, j] - xbar[j]
-        for j in range(nx):
-            s = 0.0
-            for k in range(nx):
-                s += arrival[i, j, k] * e[k]
-            g[i, j] += s
-            cost += 0.5 * e[j] * s
-            for k in range(j, nx):
-                D[i, j, k] += arrival[i, j, k]
+            weighted = weighted or arrival[i, j, j] != 0.0
+        if weighted:
+            for j in range(nx):
+                s = 0.0
+                for k in range(nx):
+                    s += arrival[i, j, k] * e[k]
+                g[i, j] += s
+                cost += 0.5 * e[j] * s
+                for k in range(j, nx):
+                    D[i, j, k] += arrival[i, j, k]
         if i < n - 1:
             for j in range(nx):
                 s = 0.0
@@ -172,12 +230,11 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                     s += qinv[i, j, k] * W[i, k]
                 qw[j] = s
                 cost += 0.5 * W[i, j] * s
-            for j in range(nx):
-                for k in range(nx):
-                    s = 0.0
-                    for a in range(nx):
-                        s += qinv[i, j, a] * FJ[i, a, k]
-                    qf[j, k] = s
+            if pre:
+                eqi, fqfi = eq[i], fqf[i]
+            else:
+                eqi, fqfi = eql, fqfl
+                _stage_product(qinv[i], FJ[i], eqi, fqfi, qf)
             for j in range(nx):
                 s = 0.0
                 for a in range(nx):
@@ -185,12 +242,9 @@ def _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, 
                 g[i, j] -= s
                 g[i + 1, j] += qw[j]
                 for k in range(nx):
-                    E[i, j, k] = -qf[k, j]
+                    E[i, j, k] = eqi[j, k]
                 for k in range(j, nx):
-                    s = 0.0
-                    for a in range(nx):
-                        s += FJ[i, a, j] * qf[a, k]
-                    D[i, j, k] += s
+                    D[i, j, k] += fqfi[j, k]
                     D[i + 1, j, k] += qinv[i, j, k]
         for j in range(nx):  # D[i] is complete: mirror its upper triangle
             for k in range(j):
@@ -239,9 +293,12 @@ def _add_balls(D, Dgn, lam, ball_idx):
 
 
 @numba.njit(cache=True)
-def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb):
+def _evaluate(
+    fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
+):
     """Evaluate the model at ``X`` (one C call of the function at address ``fn``) and
-    assemble the Gauss-Newton blocks; inf cost on failure."""
+    assemble the Gauss-Newton blocks; inf cost on failure. ``stage``: the stages'
+    constant products (:func:`stage_buffers`; those not done yet are formed here)."""
     n, nx = X.shape
     nz = rinv.shape[0]
     if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
@@ -252,8 +309,10 @@ def _evaluate(fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
     JR = out[o1:o2].reshape(n, nz, nx)
     W = out[o2:o3].reshape(n - 1, nx)
     FJ = out[o3:o4].reshape(n - 1, nx, nx)
+    if stage[0].shape[0] > 0:
+        _stage_products(FJ, qinv, stage)
     return _assemble(
-        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb
+        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
     )
 
 
@@ -305,6 +364,7 @@ def _sqp(
     gb,
     Dgn,
     quadratic,
+    stage,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
@@ -326,7 +386,7 @@ def _sqp(
     project(Xb[0], lo, hi, bidx, r2)
     cost = _evaluate(
         fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss,
-        wgt[0], extra[0], gb[0],
+        wgt[0], extra[0], gb[0], stage,
     )  # fmt: skip
     _add_balls(D[0], Dgn[0], lam, bidx)
     exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
@@ -372,7 +432,7 @@ def _sqp(
             project(Xb[tr], lo, hi, bidx, r2)
             ct = _evaluate(
                 fn, ptrs[tr], out[tr], Xb[tr], zmask, rinv, qinv, xbar, arrival, D[tr], E[tr],
-                g[tr], loss, wgt[tr], extra[tr], gb[tr],
+                g[tr], loss, wgt[tr], extra[tr], gb[tr], stage,
             )  # fmt: skip
             _add_balls(D[tr], Dgn[tr], lam_qp, bidx)
             if ct <= cost + 1e-4 * _dot_diff(g[cur], Xb[tr], Xb[cur]) + slack:
@@ -460,6 +520,7 @@ class Workspace:
         self.extra = np.empty((2, n, nblk))
         self.gb = np.empty((2, n, nblk, nx))
         self.Dgn = np.empty((2, n, nx, nx))  # Gauss-Newton diagonal blocks per iterate
+        self.stage = stage_buffers(n, nx, model.linear_transition)
         self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
         self.window = address(model.window)  # of the window function (the model keeps it)
 
@@ -487,6 +548,7 @@ def solve_window(
     ws.u[:] = problem.u
     ws.dt[:] = problem.dt
     ws.Xb[0] = X0
+    ws.stage[0][:] = 0  # this problem's Q^-1: form the stage products anew
     nb = len(fs.ball_r2)
     lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
     node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)  # the residuals are masked
@@ -495,7 +557,7 @@ def solve_window(
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
-        quadratic_rate(model, opt),
+        quadratic_rate(model, opt), ws.stage,
     )  # fmt: skip
     converged = outcome == CONVERGED
     return FastResult(
@@ -525,6 +587,6 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
             node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
             np.empty((n, nx, nx)),
             np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),
-            np.empty((n, nblk)), np.empty((n, nblk, nx)),
+            np.empty((n, nblk)), np.empty((n, nblk, nx)), stage_buffers(n, nx, False),
         )
     )  # fmt: skip

@@ -71,7 +71,7 @@ def advance(
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
     solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic = options
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
     n, nx = X0.shape
@@ -94,6 +94,12 @@ def advance(
     _shift(m)
     _shift(qw)
     _shift(qinvw)
+    done, eq, fqf = stage
+    if done.shape[0] > 0:  # the stage products move with Q^-1; the new stage's are formed
+        _shift(done)
+        _shift(eq)
+        _shift(fqf)
+        done[n - 2] = 0
     _shift(tw)
     _shift(dt)
     _shift(u)
@@ -155,7 +161,7 @@ def advance(
     return _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
         lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb, Dgn, quadratic,
+        wgt, extra, gb, Dgn, quadratic, stage,
     )  # fmt: skip
 
 
@@ -172,7 +178,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws
     ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
     rinv, lossk = loss
     n, nx = X.shape
@@ -189,7 +195,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
         Xb[0] = X
         c = _evaluate(
             win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],
-            g[0], lossk, wgt[0], extra[0], gb[0],
+            g[0], lossk, wgt[0], extra[0], gb[0], stage,
         )  # fmt: skip
         if not np.isfinite(c):
             return 1
@@ -241,7 +247,7 @@ class StepBuffers:
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
         self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,
-                    ws.Dgn)  # fmt: skip
+                    ws.Dgn, ws.stage)  # fmt: skip
         self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
                        self.qinvw, self.arrival)  # fmt: skip
         self.reset()
@@ -251,6 +257,7 @@ class StepBuffers:
         for a in (self.tw, self.z, self.m, self.u, self.qw, self.qinvw, self.arrival):
             a[:] = 0.0
         self.dt[:] = 1.0  # 1 s on inactive stages
+        self.workspace.stage[0][:] = 0
         self.k[0] = 0
 
     def advance(
