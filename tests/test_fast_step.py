@@ -154,3 +154,33 @@ def test_stage_products_carried_across_windows_equal_fresh_ones() -> None:
             assert_allclose(np.triu(fqf[i]), np.triu(F.T @ qf), rtol=1e-13, atol=1e-9)
             checked += 1
     assert checked > 7 * (len(rec.t) - 20)
+
+
+def test_a_failing_output_function_names_itself_through_the_fused_call() -> None:
+    """The outputs computed in the same compiled call as the SQP
+    (:meth:`StepBuffers.advance_finish`): a failure there carries the output function's
+    own text, not the node model's."""
+    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model, codegen
+    from continuum_mhe.estimators.fast.step import StepBuffers
+
+    class Broken:
+        def __init__(self, fn):
+            self._fn = fn
+
+        def __getattr__(self, name):
+            return getattr(self._fn, name)
+
+        def call(self, args):
+            raise ValueError("broken outputs")
+
+    f = make_formulation("bend")
+    model = build_window_model(f, 4, compile=False)
+    model = replace(model, output=codegen._vm_function(Broken(codegen.output_function(f))))
+    steps = StepBuffers(model, NodeEvaluator(model))
+    rec = simulate("paper3d", duration=0.5, seed=1)
+    prior = (np.asarray(f.initial_state(rec.z[0]), float), np.eye(f.nx), np.eye(f.nx))
+    X = np.zeros((4, f.nx))
+    options = (True, 30, 1e-8, 1e-8, 500, True, False)
+    new = (float(rec.t[0]), rec.z[0], np.ones(f.nz), steps.u0, 1.0, steps.zeros, steps.zeros)
+    with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
+        steps.advance_finish(prior, new, f.meas_cov(), None, None, options, X)

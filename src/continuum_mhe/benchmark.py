@@ -68,8 +68,8 @@ METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-
 #: What each method's time covers.
 METHOD_NOTES: dict[str, str] = {
     "fast": "fast MHE (structure-exploiting SQP): the whole estimator step",
-    "mhe-kernel": "the fast MHE's two compiled calls alone (arrival slide, shift, guess "
-    "and SQP; covariance, outputs and their std), no estimator interface; inputs "
+    "mhe-kernel": "the fast MHE's compiled call alone (arrival slide, shift, guess, "
+    "SQP, covariance, outputs and their std), no estimator interface; inputs "
     "prepared outside, as for ekf-kernel (fallbk: windows not certified)",
     "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "

@@ -59,10 +59,12 @@ def run_mhe_kernel(
     formulation: Formulation, rec: Recording, horizon: int
 ) -> tuple[FloatArray, FloatArray, int]:
     """The fast MHE (quadratic loss, default :class:`FastOptions`) as its bare compiled
-    kernels: per sample the two compiled calls of
-    :mod:`continuum_mhe.estimators.fast.step` (arrival slide, window shift, initial
-    guess and SQP; then the covariance, the outputs and their standard deviations) and
-    the copy of the answer kept for the next warm start, timed alone; the sensor mask,
+    kernel: per sample the compiled call of
+    :mod:`continuum_mhe.estimators.fast.step` that slides the arrival prior, shifts
+    the window, forms the initial guess, solves the window and, once certified, keeps
+    the answer for the next warm start and computes the covariance, the outputs and
+    their standard deviations (:func:`~continuum_mhe.estimators.fast.step.advance_finish`),
+    timed alone; the sensor mask,
     ``u`` and ``Q(dt)`` are computed outside the timed part, as for
     :func:`run_ekf_kernel`. Every sample is timed (the first too). A window the SQP
     does not certify is counted (the estimator would hand it to IPOPT); its output is
@@ -102,11 +104,14 @@ def run_mhe_kernel(
         Q, Qinv = noise(dt) if k else (steps.zeros, steps.zeros)
         new = (float(rec.t[i]), z, mask, u, dt, Q, Qinv)
         t0 = time.perf_counter()
-        outcome, _, _, _, cur = steps.advance(prior, new, R, X if k else None, lam, options)
-        X[:] = steps.workspace.Xb[cur]
-        y, _, _ = steps.finish(X, xbar, answer=cur if outcome == CONVERGED else -1)
+        (outcome, _, _, _, cur), done = steps.advance_finish(
+            prior, new, R, X if k else None, lam, options, X
+        )
+        if done is None:  # not certified: the kernel's own last iterate
+            X[:] = steps.workspace.Xb[cur]
+            done = steps.finish(X, xbar)
         sec[i] = time.perf_counter() - t0
-        out[i] = y
+        out[i] = done[0]
         uncertified += outcome != CONVERGED
         if mask.any():
             z_prev = z

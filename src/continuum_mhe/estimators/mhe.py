@@ -402,8 +402,9 @@ class MovingHorizonEstimator(Estimator):
         self, m: Measurement, mask: FloatArray, valid: bool
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """:meth:`_step` on the fast backend: the window's bookkeeping and the SQP in one
-        compiled call, the covariance and the outputs in another (:mod:`.fast.step`);
-        the same equations as ``_push``, ``_initial_guess``, ``_solve`` and
+        compiled call, the covariance and the outputs in the same call when the answer
+        is final (certified, no branch check or second start), else in another
+        (:mod:`.fast.step`); the same equations as ``_push``, ``_initial_guess``, ``_solve`` and
         :meth:`covariance`."""
         f, s, n = self.formulation, self._steps, self.settings.horizon
         assert s is not None and self._xbar is not None and self._fast is not None
@@ -419,11 +420,17 @@ class MovingHorizonEstimator(Estimator):
         solve = not (self.settings.paper_start and k + 1 < n)
         o = self.fast_options
         xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
-        outcome, it, _, _, cur = s.advance(
+        args = (
             (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R, self._X,
             self._lam, (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
                         quadratic_rate(self._fast, o)),
         )  # fmt: skip
+        finished = None
+        answer = np.empty((n, f.nx))
+        if self.branch is None and self.second_start is None:  # a certified answer is final
+            (outcome, it, _, _, cur), finished = s.advance_finish(*args, answer)
+        else:
+            outcome, it, _, _, cur = s.advance(*args)
         self._k = int(s.k[0])
         if valid:
             self._z_prev_valid = m.z
@@ -431,13 +438,19 @@ class MovingHorizonEstimator(Estimator):
             self._X = s.X0.copy()
             return None, None, "no-estimate"
         self.sqp_iterations = int(it)
+        if finished is not None:  # certified, outputs and covariance in the same call
+            self._lam = s.lam if self._lam is None else self._lam
+            y, cov, std = finished
+            status = self._keep(answer, "ok", valid)
+            self._outputs_of = (answer[-1].copy(), y, std)
+            return answer[-1].copy(), cov, status
         problem: WindowProblem | None = None
         solved: FloatArray | None = None
         if outcome == CONVERGED:
             X: FloatArray = s.workspace.Xb[cur].copy()
             solved = X
             self._lam = s.lam if self._lam is None else self._lam
-            status: Status = "ok"
+            status = "ok"
         else:
             self._lam = None
             problem = self.window_problem(copy=False)

@@ -1,11 +1,13 @@
-"""One MHE step of the fast backend in two compiled calls (numba kernels).
+"""One MHE step of the fast backend in one compiled call (numba kernels).
 
 The estimator's per-sample work around the SQP (sliding the arrival prior, shifting the
 window's buffers, the initial guess, the arrival weights, the covariance and the
 outputs) is small arithmetic; done in Python it cost more than the SQP itself (about
 150 of 255 us per sample at N = 30, measured with cProfile). :func:`advance` does it
-up to and including the SQP, :func:`finish` the covariance and the outputs, on
-buffers that :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its
+up to and including the SQP, :func:`finish` the covariance and the outputs, and
+:func:`advance_finish` both in one call when the SQP's answer is final (certified,
+no branch check or second start to follow; a call costs about 85 ns per array it
+passes, about 5 us here), on buffers that :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its
 window buffers are the :class:`~continuum_mhe.estimators.fast.sqp.Workspace`'s, so
 the C model's argument pointers never change). The equations are those of the
 estimator's Python path: :meth:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator._push`,
@@ -27,13 +29,18 @@ from continuum_mhe.estimators.fast.ccall import address, call_model
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
-from continuum_mhe.estimators.fast.qp import project
+from continuum_mhe.estimators.fast.qp import CONVERGED, project
 from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp
 
 FloatArray = NDArray[np.float64]
 
 #: :func:`advance` did not solve (``paper_start`` before ``N`` samples).
 NOT_SOLVED = -1
+
+#: The kernels' errors when a compiled function fails: the window's or node's model, or
+#: the outputs (the kernels cannot format the model's own message; the wrappers do).
+MODEL_FAILED = "model evaluation failed"
+OUTPUT_FAILED = "output evaluation failed"
 
 
 @numba.njit(cache=True)
@@ -135,7 +142,7 @@ def advance(
         zin[:] = 0.0
         min_[:] = 1.0
         if call_model(node, nptrs.ctypes.data, nout.ctypes.data) != 0:
-            raise RuntimeError("model evaluation failed")
+            raise RuntimeError(MODEL_FAILED)
         X0[n - 1] = nout[:nx]
         project(X0[n - 1 :], lo, hi, bidx, r2)
     else:
@@ -185,7 +192,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     ny = y.shape[0]
     ox[:] = X[n - 1]
     if call_model(ofn, optrs.ctypes.data, oout.ctypes.data) != 0:
-        raise RuntimeError("model evaluation failed")
+        raise RuntimeError(OUTPUT_FAILED)
     y[:] = oout
     for i in wrapped:
         y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
@@ -203,7 +210,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     if not last_block_covariance(X, Dh, Eh, lo, hi, bidx, r2, tol, cov):
         return 1
     if call_model(jfn, optrs.ctypes.data, jout.ctypes.data) != 0:
-        raise RuntimeError("model evaluation failed")
+        raise RuntimeError(OUTPUT_FAILED)
     for i in range(ny):
         s = 0.0
         for j in range(nx):
@@ -211,6 +218,31 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
                 s += jout[i + ny * j] * cov[j, k] * jout[i + ny * k]
         std[i] = np.sqrt(max(s, 0.0))
     return 0
+
+
+@numba.njit(cache=True)
+def advance_finish(
+    node, nptrs, nout, nin, win, wptrs, prior, window, new, Rs, X, has_X, lam, has_lam, X0,
+    feasible, options, ws, loss, tol, outputs, answer, cov, y, std,
+):  # fmt: skip
+    """:func:`advance`, then, if its SQP certified the window, the answer into ``answer``
+    (N, nx) and :func:`finish` on it with the SQP's last Gauss-Newton blocks: one
+    compiled call per sample where nothing (IPOPT, the branch check, a second start)
+    may change the answer in between. Returns ``(advance's result, finish's result)``,
+    the second -1 when the window was not certified (then nothing was finished)."""
+    res = advance(
+        node, nptrs, nout, nin, win, wptrs, prior, window, new, Rs, X, has_X, lam, has_lam,
+        X0, feasible, options, ws, loss,
+    )  # fmt: skip
+    if res[0] != CONVERGED:
+        return res, -1
+    cur = res[4]
+    answer[:] = ws[0][cur]
+    failed = finish(
+        win, wptrs, answer, prior[0], window, feasible, ws, loss, 1 - cur, tol, cov, outputs, y,
+        std,
+    )  # fmt: skip
+    return res, failed
 
 
 class StepBuffers:
@@ -260,6 +292,31 @@ class StepBuffers:
         self.workspace.stage[0][:] = 0
         self.k[0] = 0
 
+    def _advance_args(
+        self,
+        prior: tuple[FloatArray, FloatArray, FloatArray],
+        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
+        R: FloatArray,
+        X: FloatArray | None,
+        lam: FloatArray | None,
+        options: tuple[bool, int, float, float, int, bool, bool],
+    ) -> tuple[object, ...]:
+        node = self.node
+        return (
+            node._addr, node._ptrs, node._out, self.nin, self.window_fn, self.workspace.ptrs,
+            (*prior, self.k), self.window, new, R, self.X0 if X is None else X, X is not None,
+            self.lam if lam is None else lam, lam is not None, self.X0, self.feasible, options,
+            self.sqp, self.loss,
+        )  # fmt: skip
+
+    def _failure(self, exc: RuntimeError) -> RuntimeError:
+        """The kernel's error ``exc`` with the failed compiled function's own message."""
+        if str(exc) == MODEL_FAILED:
+            return RuntimeError(failure_message(self.node._fn))
+        if str(exc) == OUTPUT_FAILED:
+            return RuntimeError(failure_message(self.output_fn))
+        return exc
+
     def advance(
         self,
         prior: tuple[FloatArray, FloatArray, FloatArray],
@@ -272,19 +329,42 @@ class StepBuffers:
         """:func:`advance` on these buffers; ``prior = (xbar, P, Pinv)`` (updated in
         place), ``X`` and ``lam`` the previous solution and multipliers (None: none).
         A failed model evaluation raises ``RuntimeError`` with the model's message."""
-        node = self.node
         try:
-            return advance(
-                node._addr, node._ptrs, node._out, self.nin, self.window_fn,
-                self.workspace.ptrs, (*prior, self.k), self.window, new, R,
-                self.X0 if X is None else X, X is not None,
-                self.lam if lam is None else lam, lam is not None, self.X0, self.feasible,
-                options, self.sqp, self.loss,
+            return advance(*self._advance_args(prior, new, R, X, lam, options))
+        except RuntimeError as exc:
+            raise self._failure(exc) from exc
+
+    def advance_finish(
+        self,
+        prior: tuple[FloatArray, FloatArray, FloatArray],
+        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
+        R: FloatArray,
+        X: FloatArray | None,
+        lam: FloatArray | None,
+        options: tuple[bool, int, float, float, int, bool, bool],
+        answer: FloatArray,
+        tol: float = 1e-6,
+    ) -> tuple[
+        tuple[int, int, float, float, int],
+        tuple[FloatArray, FloatArray | None, FloatArray | None] | None,
+    ]:
+        """:meth:`advance`, then, if the window was certified, its answer into ``answer``
+        (N, nx) and :meth:`finish`'s result for it, in one compiled call
+        (:func:`advance_finish`); the second item is None when the window was not
+        certified (call :meth:`finish` once the answer is settled)."""
+        try:
+            args = (
+                *self._advance_args(prior, new, R, X, lam, options), tol, self.outputs, answer,
+                self.cov, self.y, self.std,
             )  # fmt: skip
-        except RuntimeError as exc:  # the kernel cannot format the model's own message
-            if str(exc) != "model evaluation failed":
-                raise
-            raise RuntimeError(failure_message(node._fn)) from exc
+            res, failed = advance_finish(*args)
+        except RuntimeError as exc:
+            raise self._failure(exc) from exc
+        if failed < 0:
+            return res, None
+        if failed:
+            return res, (self.y.copy(), None, None)
+        return res, (self.y.copy(), self.cov.copy(), self.std.copy())
 
     def finish(
         self, X: FloatArray, xbar: FloatArray, tol: float = 1e-6, answer: int = -1
@@ -302,9 +382,7 @@ class StepBuffers:
                 self.cov, self.outputs, self.y, self.std,
             )  # fmt: skip
         except RuntimeError as exc:
-            if str(exc) != "model evaluation failed":
-                raise
-            raise RuntimeError(failure_message(self.output_fn)) from exc
+            raise self._failure(exc) from exc
         if failed:
             return self.y.copy(), None, None
         return self.y.copy(), self.cov.copy(), self.std.copy()
