@@ -69,3 +69,18 @@ def fast_windows(
     finally:
         mhe_module.solve_window = solve_window  # type: ignore[assignment]
     return windows
+
+
+class RaisingFunction:
+    """A CasADi function whose evaluation raises ``ValueError(message)`` (for
+    :func:`continuum_mhe.estimators.fast.codegen._vm_function`); otherwise ``fn``."""
+
+    def __init__(self, fn: object, message: str) -> None:
+        self._fn = fn
+        self._message = message
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._fn, name)
+
+    def call(self, args: object) -> object:
+        raise ValueError(self._message)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import RaisingFunction
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
@@ -636,19 +637,11 @@ def test_vm_failure_keeps_its_text_and_step_does_not_raise() -> None:
     from continuum_mhe.estimators.base import Measurement
     from continuum_mhe.estimators.fast import codegen
 
-    class Broken:
-        def __init__(self, fn):
-            self._fn = fn
-
-        def __getattr__(self, name):
-            return getattr(self._fn, name)
-
-        def call(self, args):
-            raise ValueError("broken model\nsecond line")
-
     f = make_formulation("bend")
     model = fm.build_window_model(f, 4, compile=False)
-    broken = codegen._vm_function(Broken(codegen.node_function(f)))
+    broken = codegen._vm_function(
+        RaisingFunction(codegen.node_function(f), "broken model\nsecond line")
+    )
     node = fm.NodeEvaluator(model)
     node._fn = broken
     with pytest.raises(RuntimeError, match="ValueError: broken model second line"):

@@ -16,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from estimator_helpers import RaisingFunction
 from numpy.testing import assert_allclose
 
 from continuum_mhe.benchmark_kernels import run_mhe_kernel
@@ -163,19 +164,11 @@ def test_a_failing_output_function_names_itself_through_the_fused_call() -> None
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model, codegen
     from continuum_mhe.estimators.fast.step import StepBuffers
 
-    class Broken:
-        def __init__(self, fn):
-            self._fn = fn
-
-        def __getattr__(self, name):
-            return getattr(self._fn, name)
-
-        def call(self, args):
-            raise ValueError("broken outputs")
-
     f = make_formulation("bend")
     model = build_window_model(f, 4, compile=False)
-    model = replace(model, output=codegen._vm_function(Broken(codegen.output_function(f))))
+    model = replace(model, output=codegen._vm_function(
+        RaisingFunction(codegen.output_function(f), "broken outputs")
+    ))
     steps = StepBuffers(model, NodeEvaluator(model))
     rec = simulate("paper3d", duration=0.5, seed=1)
     prior = (np.asarray(f.initial_state(rec.z[0]), float), np.eye(f.nx), np.eye(f.nx))

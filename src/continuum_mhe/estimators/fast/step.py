@@ -7,8 +7,9 @@ outputs) is small arithmetic; done in Python it cost more than the SQP itself (a
 up to and including the SQP, :func:`finish` the covariance and the outputs, and
 :func:`advance_finish` both in one call when the SQP's answer is final (certified,
 no branch check or second start to follow; a call costs about 85 ns per array it
-passes, about 5 us here), on buffers that :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its
-window buffers are the :class:`~continuum_mhe.estimators.fast.sqp.Workspace`'s, so
+passes, about 5 us here), on buffers that
+:class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its window
+buffers are the :class:`~continuum_mhe.estimators.fast.sqp.Workspace`'s, so
 the C model's argument pointers never change). The equations are those of the
 estimator's Python path: :meth:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator._push`,
 ``_slide_arrival``, ``_initial_guess`` and ``window_problem``, then
@@ -33,6 +34,17 @@ from continuum_mhe.estimators.fast.qp import CONVERGED, project
 from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp
 
 FloatArray = NDArray[np.float64]
+OptArray = FloatArray | None
+#: ``(xbar, P, P^-1)`` of the arrival prior.
+Prior = tuple[FloatArray, FloatArray, FloatArray]
+#: ``(t, z, mask, u, dt, Q, Q^-1)``: the new sample (see :func:`advance`).
+Sample = tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray]
+#: ``(solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic)``.
+StepOptions = tuple[bool, int, float, float, int, bool, bool]
+#: ``(outcome, iterations, step, cost, buffer of the answer)``.
+Outcome = tuple[int, int, float, float, int]
+#: ``(outputs, covariance, output standard deviations)``; None: not positive definite.
+Finished = tuple[FloatArray, FloatArray | None, FloatArray | None]
 
 #: :func:`advance` did not solve (``paper_start`` before ``N`` samples).
 NOT_SOLVED = -1
@@ -293,14 +305,9 @@ class StepBuffers:
         self.k[0] = 0
 
     def _advance_args(
-        self,
-        prior: tuple[FloatArray, FloatArray, FloatArray],
-        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
-        R: FloatArray,
-        X: FloatArray | None,
-        lam: FloatArray | None,
-        options: tuple[bool, int, float, float, int, bool, bool],
-    ) -> tuple[object, ...]:
+        self, prior: Prior, new: Sample, R: FloatArray, X: OptArray, lam: OptArray,
+        options: StepOptions,
+    ) -> tuple[object, ...]:  # fmt: skip
         node = self.node
         return (
             node._addr, node._ptrs, node._out, self.nin, self.window_fn, self.workspace.ptrs,
@@ -318,14 +325,9 @@ class StepBuffers:
         return exc
 
     def advance(
-        self,
-        prior: tuple[FloatArray, FloatArray, FloatArray],
-        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
-        R: FloatArray,
-        X: FloatArray | None,
-        lam: FloatArray | None,
-        options: tuple[bool, int, float, float, int, bool, bool],
-    ) -> tuple[int, int, float, float, int]:
+        self, prior: Prior, new: Sample, R: FloatArray, X: OptArray, lam: OptArray,
+        options: StepOptions,
+    ) -> Outcome:  # fmt: skip
         """:func:`advance` on these buffers; ``prior = (xbar, P, Pinv)`` (updated in
         place), ``X`` and ``lam`` the previous solution and multipliers (None: none).
         A failed model evaluation raises ``RuntimeError`` with the model's message."""
@@ -335,19 +337,9 @@ class StepBuffers:
             raise self._failure(exc) from exc
 
     def advance_finish(
-        self,
-        prior: tuple[FloatArray, FloatArray, FloatArray],
-        new: tuple[float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray],
-        R: FloatArray,
-        X: FloatArray | None,
-        lam: FloatArray | None,
-        options: tuple[bool, int, float, float, int, bool, bool],
-        answer: FloatArray,
-        tol: float = 1e-6,
-    ) -> tuple[
-        tuple[int, int, float, float, int],
-        tuple[FloatArray, FloatArray | None, FloatArray | None] | None,
-    ]:
+        self, prior: Prior, new: Sample, R: FloatArray, X: OptArray, lam: OptArray,
+        options: StepOptions, answer: FloatArray, tol: float = 1e-6,
+    ) -> tuple[Outcome, Finished | None]:  # fmt: skip
         """:meth:`advance`, then, if the window was certified, its answer into ``answer``
         (N, nx) and :meth:`finish`'s result for it, in one compiled call
         (:func:`advance_finish`); the second item is None when the window was not
@@ -368,7 +360,7 @@ class StepBuffers:
 
     def finish(
         self, X: FloatArray, xbar: FloatArray, tol: float = 1e-6, answer: int = -1
-    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+    ) -> Finished:
         """``(outputs, covariance, output standard deviations)`` of ``X[-1]`` for the
         window solved at ``X`` (N, nx) with prior ``xbar`` (copies; None: the
         covariance is not positive definite). ``answer``: the buffer index that
