@@ -177,3 +177,57 @@ def test_a_failing_output_function_names_itself_through_the_fused_call() -> None
     new = (float(rec.t[0]), rec.z[0], np.ones(f.nz), steps.u0, 1.0, steps.zeros, steps.zeros)
     with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
         steps.advance_finish(prior, new, f.meas_cov(), None, None, options, X)
+
+
+@pytest.mark.parametrize("in_place", [False, True])
+def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place) -> None:
+    """:func:`shift_outputs` (the previous window's model outputs moved by one node, the
+    tail function for the new node and stage) gives exactly what the window function
+    gives at the shifted iterate, dropouts and two sections included."""
+    from continuum_mhe.estimators.fast import build_window_model
+    from continuum_mhe.estimators.fast.sqp import Workspace, shift_outputs
+
+    f = make_formulation("bend", TWO)
+    n, nx, nz = 7, f.nx, f.nz
+    model = build_window_model(f, n)
+    ws = Workspace(model)
+    rng = np.random.default_rng(5)
+    X = rng.normal(scale=0.5, size=(n + 1, nx))
+    z = rng.normal(scale=0.3, size=(n + 1, nz))
+    m = (rng.random((n + 1, nz)) > 0.2).astype(float)
+    u = rng.normal(size=(n, f.nu))
+    dt = rng.uniform(0.01, 0.1, size=n)
+
+    def window(lo: int, b: int) -> np.ndarray:
+        ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
+        ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
+        assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
+        return ws.out[b].copy()
+
+    src = 0 if in_place else 1
+    window(0, src)
+    fresh = window(1, 0 if not in_place else 1)  # buffer 0 now holds the shifted iterate
+    ws.Xb[0] = X[1:]
+    nblk = len(model.loss.blocks)
+    assert shift_outputs(ws.tail, ws.tail_ptrs, ws.tail_out, ws.out[src], ws.out[0], n, nx, nz,
+                         nblk)  # fmt: skip
+    assert_allclose(ws.out[0], fresh, rtol=1e-14, atol=1e-15)
+
+
+@pytest.mark.parametrize(("options", "reused"), [({}, True), ({"branch_check": True}, False)])
+def test_the_next_window_starts_from_the_kept_linearisation_only_when_final(
+    options, reused
+) -> None:
+    """After a certified window whose answer is final, the compiled step keeps the
+    buffer of the SQP's last evaluated iterate for the next window (its model outputs
+    shift, :func:`shift_outputs`); with a branch check, which may change the answer,
+    it keeps none."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=4.0, seed=6)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=8, **options))
+    assert est._steps is not None
+    kept = []
+    for t, zi in zip(rec.t, rec.z):
+        status = est.step(Measurement(float(t), zi)).status
+        kept.append(status == "ok" and est._steps.last[0] >= 0)
+    assert (sum(kept) > 0.9 * len(kept)) if reused else not any(kept)

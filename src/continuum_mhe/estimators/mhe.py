@@ -225,9 +225,14 @@ class MovingHorizonEstimator(Estimator):
         self._P: FloatArray | None = None
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
+        #: the fast SQP's last evaluated iterate when its certified answer is ``_X`` and
+        #: final (no branch check or second start): the next warm start (see
+        #: :func:`~continuum_mhe.estimators.fast.step.advance`)
+        self._X_last: FloatArray | None = None
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
         #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
         self._last_hessian: tuple[FloatArray, FloatArray] | None = None
+        self._last_iterate: FloatArray | None = None  # and FastResult.X_last
         #: SQP iterations of the last fast solve (0 before one)
         self.sqp_iterations = 0
         # robust weights rho'(s_b) per block of the first and last node of the last solve
@@ -328,10 +333,11 @@ class MovingHorizonEstimator(Estimator):
         assert self._xbar is not None
         if self._X is None:
             return np.tile(self._xbar, (n, 1))
-        X = np.empty_like(self._X)
-        X[:-1] = self._X[1:]
+        prev = self._X if self._X_last is None else self._X_last
+        X = np.empty_like(prev)
+        X[:-1] = prev[1:]
         dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
-        X[-1] = self._predict(self._X[-1], self._uw[-1], dt)
+        X[-1] = self._predict(prev[-1], self._uw[-1], dt)
         return X
 
     def _predict(self, x: FloatArray, u: FloatArray, dt: float) -> FloatArray:
@@ -373,17 +379,20 @@ class MovingHorizonEstimator(Estimator):
             return self._fast_step(m, mask, valid)
         self._push(m, mask)
         X0 = self._initial_guess()
+        self._X_last = None
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
             return None, None, "no-estimate"
         problem = self.window_problem(copy=False)
         X, status = self._solve(problem, X0)
-        solved, hessian = X, self._last_hessian
+        solved, hessian, last_iterate = X, self._last_hessian, self._last_iterate
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
         if self.second_start is not None:
             X, status = self._try_second_start(problem, X, status)
         status = self._keep(X, status, valid)
+        if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
+            self._X_last = last_iterate
         hessian = hessian if X is solved else None  # the SQP's, if its answer is kept
         cov = None if status == "solver-failed" else self.covariance(problem, X, hessian)
         return X[-1].copy(), cov, status
@@ -421,9 +430,10 @@ class MovingHorizonEstimator(Estimator):
         o = self.fast_options
         xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
         args = (
-            (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R, self._X,
-            self._lam, (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
-                        quadratic_rate(self._fast, o)),
+            (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R,
+            self._X if self._X_last is None else self._X_last, self._lam,
+            (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
+             quadratic_rate(self._fast, o)),
         )  # fmt: skip
         finished = None
         answer = np.empty((n, f.nx))
@@ -431,6 +441,8 @@ class MovingHorizonEstimator(Estimator):
             (outcome, it, _, _, cur), finished = s.advance_finish(*args, answer)
         else:
             outcome, it, _, _, cur = s.advance(*args)
+            s.last[0] = -1  # the checks solve in these buffers: no outputs to shift
+        self._X_last = None
         self._k = int(s.k[0])
         if valid:
             self._z_prev_valid = m.z
@@ -446,9 +458,10 @@ class MovingHorizonEstimator(Estimator):
             return answer[-1].copy(), cov, status
         problem: WindowProblem | None = None
         solved: FloatArray | None = None
+        last_iterate = None
         if outcome == CONVERGED:
             X: FloatArray = s.workspace.Xb[cur].copy()
-            solved = X
+            solved, last_iterate = X, s.workspace.Xb[1 - cur].copy()
             self._lam = s.lam if self._lam is None else self._lam
             status = "ok"
         else:
@@ -462,6 +475,8 @@ class MovingHorizonEstimator(Estimator):
             problem = problem or self.window_problem(copy=False)
             X, status = self._try_second_start(problem, X, status)
         status = self._keep(X, status, valid)
+        if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
+            self._X_last = last_iterate
         state = X[-1].copy()
         if status == "solver-failed":
             return state, None, status
@@ -508,7 +523,7 @@ class MovingHorizonEstimator(Estimator):
         return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
-        self._last_hessian = None
+        self._last_hessian = self._last_iterate = None
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
             if self.settings.solver == "fast" and status == "ok":
@@ -521,7 +536,7 @@ class MovingHorizonEstimator(Estimator):
             lam0[-1] = 0.0
         res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
         self.sqp_iterations = res.iterations
-        self._last_hessian = res.hessian
+        self._last_hessian, self._last_iterate = res.hessian, res.X_last
         if res.converged:
             self._lam = res.lam
             return res.X, "ok"

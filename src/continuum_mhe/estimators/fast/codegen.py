@@ -44,7 +44,34 @@ def transition_is_linear(formulation: Formulation) -> bool:
     return not ca.depends_on(ca.jacobian(f.transition_sym(x, u, dt), x), x)
 
 
-def window_function(formulation: Formulation, horizon: int) -> ca.Function:
+def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
+    """``meas: (x, z, m) -> (r, JR, SR)`` and ``proc: (x, xn, u, dt) -> (W, FJ)``: one
+    node's and one stage's part of :func:`window_function` (the layout described
+    there); given to both :func:`window_function` and :func:`tail_function`, they
+    compute each node with the same code."""
+    f, nx, nu, nz = formulation, formulation.nx, formulation.nu, formulation.nz
+    x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
+    u, dt, mk = ca.SX.sym("u", nu), ca.SX.sym("dt"), ca.SX.sym("m", nz)
+    r = mk * f.measurement_residual_sym(z, x)
+    jr = ca.jacobian(r, x)
+    rinv = np.linalg.inv(f.meas_cov())
+    # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2
+    curv = []
+    for b in f.measurement_blocks:
+        rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
+        curv.append(ca.vec(ca.hessian(0.5 * ca.bilin(wb, rb, rb), x)[0] - jb.T @ wb @ jb))
+    meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
+    xf = f.transition_sym(x, u, dt)
+    proc = ca.Function("mhe_proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
+    return meas, proc
+
+
+NodePieces = tuple[ca.Function, ca.Function]
+
+
+def window_function(
+    formulation: Formulation, horizon: int, pieces: NodePieces | None = None
+) -> ca.Function:
     """``(X, Z, M, U, DT) -> (R, JR, W, FJ, SR)`` for the whole window, in one call.
 
     Inputs (CasADi column-major): ``X`` (nx, N), ``Z`` (nz, N), ``M`` (nz, N) the 0/1
@@ -56,22 +83,10 @@ def window_function(formulation: Formulation, horizon: int) -> ca.Function:
     the row-major ``df/dx_i``; ``SR`` (nblocks nx^2, N), the second-order part of each
     measurement block's quadratic cost Hessian ``sum_a (R_b^-1 r_b)_a d2r_a/dx2`` per
     node (one per block, so that a robust loss can weight each block; ``R`` is
-    block-diagonal).
+    block-diagonal). ``pieces``: :func:`node_pieces` (built here if None).
     """
     f, nx, nu, nz, n = formulation, formulation.nx, formulation.nu, formulation.nz, horizon
-    x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
-    u, dt, mk = ca.SX.sym("u", nu), ca.SX.sym("dt"), ca.SX.sym("m", nz)
-    r = mk * f.measurement_residual_sym(z, x)
-    jr = ca.jacobian(r, x)
-    rinv = np.linalg.inv(f.meas_cov())
-    # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2
-    curv = []
-    for b in f.measurement_blocks:
-        rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
-        curv.append(ca.vec(ca.hessian(0.5 * ca.bilin(wb, rb, rb), x)[0] - jb.T @ wb @ jb))
-    meas = ca.Function("meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
-    xf = f.transition_sym(x, u, dt)
-    proc = ca.Function("proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
+    meas, proc = pieces or node_pieces(f)
     # MX, so that the maps stay loops in the generated code (SX would unroll them)
     X, Z, M = ca.MX.sym("X", nx, n), ca.MX.sym("Z", nz, n), ca.MX.sym("M", nz, n)
     U, DT = ca.MX.sym("U", nu, n - 1), ca.MX.sym("DT", 1, n - 1)
@@ -79,6 +94,21 @@ def window_function(formulation: Formulation, horizon: int) -> ca.Function:
     W, FJ = proc.map(n - 1, "serial")(X[:, : n - 1], X[:, 1:], U, DT)
     outs = [ca.densify(v) for v in (R, JR, W, FJ, SR)]
     return ca.Function("mhe_window", [X, Z, M, U, DT], outs)
+
+
+def tail_function(formulation: Formulation, pieces: NodePieces | None = None) -> ca.Function:
+    """``(x_prev, x, z, m, u, dt) -> (r, JR, W, FJ, SR)``: :func:`window_function`'s
+    outputs of one last node ``x`` and of the stage into it from ``x_prev`` (the same
+    layout, one column each): what a window shifted by one sample lacks. ``pieces``:
+    :func:`node_pieces`, the same as the window function's (built here if None)."""
+    f, nx, nu, nz = formulation, formulation.nx, formulation.nu, formulation.nz
+    meas, proc = pieces or node_pieces(f)
+    xp, x, z = ca.MX.sym("xp", nx), ca.MX.sym("x", nx), ca.MX.sym("z", nz)
+    mk, u, dt = ca.MX.sym("m", nz), ca.MX.sym("u", nu), ca.MX.sym("dt")
+    r, jr, sr = meas(x, z, mk)
+    w, fj = proc(xp, x, u, dt)
+    outs = [ca.densify(v) for v in (r, jr, w, fj, sr)]
+    return ca.Function("mhe_tail", [xp, x, z, mk, u, dt], outs)
 
 
 def node_function(formulation: Formulation) -> ca.Function:

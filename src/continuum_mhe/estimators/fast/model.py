@@ -28,8 +28,10 @@ from continuum_mhe.estimators.fast.codegen import (
     compile_library,
     failure_message,
     node_function,
+    node_pieces,
     output_function,
     output_jacobian_function,
+    tail_function,
     transition_is_linear,
     window_function,
 )
@@ -125,6 +127,7 @@ class WindowModel:
         feasible: the node feasible set.
         rinv: (nz, nz) inverse measurement covariance (rad^-2 for tilt).
         window: C function of :func:`~continuum_mhe.estimators.fast.codegen.window_function`.
+        tail: C function of :func:`~continuum_mhe.estimators.fast.codegen.tail_function`.
         node: C function of :func:`~continuum_mhe.estimators.fast.codegen.node_function`.
         output: C function of the formulation's ``output_sym``.
         output_jacobian: C function of its Jacobian (ny, nx), column-major.
@@ -152,6 +155,7 @@ class WindowModel:
     backend_note: str | None = None
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
     linear_transition: bool = False
+    tail: Any = None  # the last node and stage of a window shifted by one sample
 
     @property
     def window_size(self) -> int:
@@ -340,9 +344,12 @@ def build_window_model(
         inside[start : start + size, start : start + size] = True
     if np.any(rinv[~inside] != 0.0):
         raise NotImplementedError("the measurement covariance is not block-diagonal")
-    win, node = window_function(formulation, horizon), node_function(formulation)
+    pieces = node_pieces(formulation)
+    win, tail = window_function(formulation, horizon, pieces), tail_function(formulation, pieces)
+    node = node_function(formulation)
     out, jac = output_function(formulation), output_jacobian_function(formulation)
-    library = compile_library(c_source((win, node, out, jac))) if compile else Library(None)
+    fns = (win, tail, node, out, jac)
+    library = compile_library(c_source(fns)) if compile else Library(None)
     note = announce_vm_fallback(library) if library.reason else None
     wrapped = tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False))
     return WindowModel(
@@ -353,6 +360,7 @@ def build_window_model(
         feasible=feasible,
         rinv=rinv,
         window=c_function(win, library.lib),
+        tail=c_function(tail, library.lib),
         node=c_function(node, library.lib),
         output=c_function(out, library.lib),
         output_jacobian=c_function(jac, library.lib),

@@ -299,10 +299,42 @@ def _evaluate(
     """Evaluate the model at ``X`` (one C call of the function at address ``fn``) and
     assemble the Gauss-Newton blocks; inf cost on failure. ``stage``: the stages'
     constant products (:func:`stage_buffers`; those not done yet are formed here)."""
-    n, nx = X.shape
-    nz = rinv.shape[0]
     if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         return np.inf
+    return _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
+                             extra, gb, stage)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def shift_outputs(tail, tptrs, tout, src, dst, n, nx, nz, nblk):
+    """``dst``: the window model's outputs (:func:`~.codegen.window_function`'s
+    layout) at the iterate shifted by one node: ``src``'s (the outputs at the previous
+    window's iterate; may be ``dst``) without its first node and stage, then the
+    tail function's (address ``tail``, argument pointers ``tptrs``, output ``tout``;
+    :func:`~.codegen.tail_function`) for the new last node and stage. Returns False
+    if the tail function failed."""
+    if call_model(tail, tptrs.ctypes.data, tout.ctypes.data) != 0:
+        return False
+    off = 0  # section start in the window's outputs
+    toff = 0  # ... and in the tail's
+    sections = ((n, nz), (n, nz * nx), (n - 1, nx), (n - 1, nx * nx), (n, nblk * nx * nx))
+    for count, chunk in sections:
+        for a in range(off, off + (count - 1) * chunk):  # forward: dst may be src
+            dst[a] = src[a + chunk]
+        last = off + (count - 1) * chunk
+        for a in range(chunk):
+            dst[last + a] = tout[toff + a]
+        off += count * chunk
+        toff += chunk
+    return True
+
+
+@numba.njit(cache=True)
+def _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb,
+                      stage):  # fmt: skip
+    """:func:`_assemble` from the window model's outputs ``out`` at ``X``."""
+    n, nx = X.shape
+    nz = rinv.shape[0]
     o1, o2, o3 = nz * n, nz * n + nz * nx * n, nz * n + nz * nx * n + nx * (n - 1)
     o4 = o3 + nx * nx * (n - 1)
     R = out[:o1].reshape(n, nz)
@@ -365,6 +397,7 @@ def _sqp(
     Dgn,
     quadratic,
     stage,
+    evaluated,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
@@ -379,15 +412,22 @@ def _sqp(
     ``QUADRATIC_SAFETY |d_k|^3 / |d_k-1|^2`` (the error ``K |d_k|^2`` with the rate
     ``K = |d_k| / |d_k-1|^2`` observed on the previous step), if ``quadratic``
     (:func:`quadratic_rate`) and neither QP had an active constraint.
+    ``evaluated``: ``out[0]`` already holds the model's outputs at ``Xb[0]``.
     The answer is then the projection of ``X_k + d_k`` (not evaluated again);
     ``cost`` is at ``X_k``.
     """
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)
-    cost = _evaluate(
-        fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss,
-        wgt[0], extra[0], gb[0], stage,
-    )  # fmt: skip
+    if evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
+        cost = _assemble_outputs(
+            out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
+            extra[0], gb[0], stage,
+        )  # fmt: skip
+    else:
+        cost = _evaluate(
+            fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0],
+            loss, wgt[0], extra[0], gb[0], stage,
+        )  # fmt: skip
     _add_balls(D[0], Dgn[0], lam, bidx)
     exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
     if exact:
@@ -468,6 +508,8 @@ class FastResult:
         hessian: when certified, the Gauss-Newton blocks ``(D, E)`` at the last
             evaluated iterate (within the convergence tolerance of ``X``), for
             :func:`~continuum_mhe.estimators.fast.covariance.window_covariance`; else None.
+        X_last: when certified, that last evaluated iterate (N, nx), the next window's
+            warm start (its model outputs are then known: :func:`shift_outputs`).
     """
 
     X: FloatArray
@@ -478,6 +520,7 @@ class FastResult:
     cost: float
     lam: FloatArray
     hessian: tuple[FloatArray, FloatArray] | None = None
+    X_last: FloatArray | None = None
 
 
 def _pointers(
@@ -521,6 +564,16 @@ class Workspace:
         self.gb = np.empty((2, n, nblk, nx))
         self.Dgn = np.empty((2, n, nx, nx))  # Gauss-Newton diagonal blocks per iterate
         self.stage = stage_buffers(n, nx, model.linear_transition)
+        # the tail function's arguments (:func:`shift_outputs`): buffer 0's last stage
+        self.tail_out = np.empty(nz + nz * nx + nx + nx * nx + nblk * nx * nx)
+        self.tail_ptrs = np.array(
+            [self.Xb[0, max(n - 2, 0)].ctypes.data, self.Xb[0, n - 1].ctypes.data,
+             self.z[n - 1].ctypes.data, self.m[n - 1].ctypes.data,
+             self.u[max(n - 2, 0)].ctypes.data if nu and n > 1 else 0,
+             self.dt[max(n - 2, 0) :].ctypes.data if n > 1 else 0],
+            dtype=np.uintp,
+        )  # fmt: skip
+        self.tail = address(model.tail) if model.tail is not None else 0
         self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
         self.window = address(model.window)  # of the window function (the model keeps it)
 
@@ -557,7 +610,7 @@ def solve_window(
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
-        quadratic_rate(model, opt), ws.stage,
+        quadratic_rate(model, opt), ws.stage, False,
     )  # fmt: skip
     converged = outcome == CONVERGED
     return FastResult(
@@ -569,6 +622,7 @@ def solve_window(
         cost=float(cost),
         lam=lam,
         hessian=(ws.Dgn[1 - cur].copy(), ws.E[1 - cur].copy()) if converged else None,
+        X_last=ws.Xb[1 - cur].copy() if converged else None,
     )
 
 

@@ -31,7 +31,7 @@ from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
 from continuum_mhe.estimators.fast.qp import CONVERGED, project
-from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp
+from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp, shift_outputs
 
 FloatArray = NDArray[np.float64]
 OptArray = FloatArray | None
@@ -90,7 +90,7 @@ def advance(
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
     solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic = options
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage, tail, tptrs, tout, last = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
     n, nx = X0.shape
@@ -143,7 +143,14 @@ def advance(
         for c in range(m.shape[1]):
             if m[i, c] != 0.0:
                 nodemask[i] = 1.0
-    # initial guess: the previous solution shifted, its last node predicted
+    # initial guess: the previous solution shifted, its last node predicted; the SQP's
+    # last evaluated iterate when the previous answer is its certified one (``last``:
+    # that buffer, whose model outputs then shift with it), so that only the new node
+    # and stage need the model
+    b = last[0] if has_X and n > 1 and tail != 0 else -1
+    last[0] = -1
+    if b >= 0:
+        X = Xb[b]
     if has_X:
         for i in range(n - 1):
             X0[i] = X[i + 1]
@@ -177,11 +184,18 @@ def advance(
     else:
         lam[:] = 0.0
     Xb[0] = X0
-    return _sqp(
+    nblk = wgt.shape[2]
+    evaluated = b >= 0 and shift_outputs(
+        tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk
+    )
+    res = _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
         lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb, Dgn, quadratic, stage,
+        wgt, extra, gb, Dgn, quadratic, stage, evaluated,
     )  # fmt: skip
+    if res[0] == CONVERGED:
+        last[0] = 1 - res[4]
+    return res
 
 
 @numba.njit(cache=True)
@@ -197,7 +211,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws[:12]
     ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
     rinv, lossk = loss
     n, nx = X.shape
@@ -273,6 +287,9 @@ class StepBuffers:
         self.qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
         self.arrival = np.zeros((n, nx, nx))
         self.k = np.zeros(1, dtype=np.int64)  # samples in the window
+        #: the workspace buffer holding the SQP's last evaluated iterate of the previous
+        #: window, when its certified answer was kept (:func:`advance`); -1: none
+        self.last = np.full(1, -1, dtype=np.int64)
         self.X0 = np.zeros((n, nx))  # initial guess
         self.lam = np.zeros((n, len(fs.ball_r2)))  # multipliers when none are kept
         self.cov = np.empty((nx, nx))
@@ -291,7 +308,7 @@ class StepBuffers:
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
         self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,
-                    ws.Dgn, ws.stage)  # fmt: skip
+                    ws.Dgn, ws.stage, ws.tail, ws.tail_ptrs, ws.tail_out, self.last)  # fmt: skip
         self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
                        self.qinvw, self.arrival)  # fmt: skip
         self.reset()
@@ -302,6 +319,7 @@ class StepBuffers:
             a[:] = 0.0
         self.dt[:] = 1.0  # 1 s on inactive stages
         self.workspace.stage[0][:] = 0
+        self.last[0] = -1
         self.k[0] = 0
 
     def _advance_args(
