@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.fast import arrival
-from continuum_mhe.estimators.fast.ccall import address
+from continuum_mhe.estimators.fast.ccall import CompiledCall, address
 from continuum_mhe.estimators.fast.codegen import (
     Library,
     announce_vm_fallback,
@@ -196,6 +196,7 @@ class NodeEvaluator:
             ],
             dtype=np.uintp,
         )
+        self._ekf_step = CompiledCall(arrival.ekf_step)  # see ccall.CompiledCall
         self._ofn = model.output
         self._ox = np.zeros(nx)
         self._oout = np.empty(model.ny)
@@ -289,8 +290,9 @@ class NodeEvaluator:
         self._dt[0] = dt
         self._z[:] = np.where(mask > 0, z, 0.0)
         self._m[:] = mask
+        x, P = np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(P, dtype=np.float64)
         try:
-            return arrival.ekf_step(
+            return self._ekf_step(
                 self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
             )
         except RuntimeError as exc:  # the kernel cannot format the model's own message

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.estimators.fast.arrival import arrival_step
-from continuum_mhe.estimators.fast.ccall import address, call_model
+from continuum_mhe.estimators.fast.ccall import CompiledCall, address, call_model
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
@@ -298,6 +298,10 @@ class StepBuffers:
         self.u0 = np.zeros(nu)
         self.zeros = np.zeros((nx, nx))
         self.node = node
+        # the fused kernel through the overload its first call selects: its arguments
+        # are these buffers, the estimator's own (kept, never replaced, on the path
+        # that uses it) and the sample, normalised (_advance_args)
+        self._advance_finish = CompiledCall(advance_finish)
         self.nin = (node._x, node._u, node._dt, node._z, node._m)
         self.window_fn = address(model.window)
         self.output_fn = model.output
@@ -327,6 +331,8 @@ class StepBuffers:
         options: StepOptions,
     ) -> tuple[object, ...]:  # fmt: skip
         node = self.node
+        t, z, mask, u, dt, Q, Qinv = new  # the sample's values as the kernel's types
+        new = (float(t), np.ascontiguousarray(z, dtype=np.float64), mask, u, float(dt), Q, Qinv)
         return (
             node._addr, node._ptrs, node._out, self.nin, self.window_fn, self.workspace.ptrs,
             (*prior, self.k), self.window, new, R, self.X0 if X is None else X, X is not None,
@@ -367,7 +373,7 @@ class StepBuffers:
                 *self._advance_args(prior, new, R, X, lam, options), tol, self.outputs, answer,
                 self.cov, self.y, self.std,
             )  # fmt: skip
-            res, failed = advance_finish(*args)
+            res, failed = self._advance_finish(*args)
         except RuntimeError as exc:
             raise self._failure(exc) from exc
         if failed < 0:
