@@ -81,7 +81,12 @@ def advance(
     shifted here, the answer's on return); ``X0`` receives the initial guess.
     ``options = (solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic)``
     (``quadratic``: :func:`~continuum_mhe.estimators.fast.sqp.quadratic_rate`); ``loss = (R^-1,
-    LossKernel)``; ``ws``: the workspace's SQP buffers (``StepBuffers.sqp``).
+    LossKernel)``; ``ws``: the workspace's SQP buffers, the stage products, the tail
+    function's address, pointers and output, and ``last`` (``StepBuffers.sqp``).
+    With ``last[0] = b >= 0`` (set here when the previous window was certified; the
+    caller resets it to -1 when it replaced that answer or solved in these buffers), the
+    warm start is buffer ``b``'s iterate (the SQP's last evaluated one) shifted, not
+    ``X``, and its model outputs shift with it (:func:`~.sqp.shift_outputs`).
     Returns ``(outcome, iterations, step, cost, buffer of the answer)``; ``outcome``
     :data:`NOT_SOLVED` when ``solve`` is 0.
     """
