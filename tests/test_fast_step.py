@@ -271,3 +271,23 @@ def test_measurements_from_a_column_major_array_give_the_same_estimates() -> Non
         rows = [zc[i] if i < 5 else zf[i] for i in range(len(rec.t))]  # C first
         out = np.array([b.step(Measurement(float(t), z)).output for t, z in zip(rec.t, rows)])
         assert_allclose(out, a.output, rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_the_fused_step_outputs_are_not_computed_again() -> None:
+    """The outputs and their standard deviations come from the fused compiled call; the
+    estimator does not evaluate them again for the estimate (the node evaluator's
+    output functions are not called on certified samples)."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=2.0, seed=8)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=8))
+    assert est._node is not None
+    for t, z in zip(rec.t[:5], rec.z[:5]):
+        est.step(Measurement(float(t), z))
+
+    def refuse(*args: object) -> None:
+        raise AssertionError("outputs evaluated again")
+
+    est._node.output = refuse  # type: ignore[method-assign]
+    est._node.output_std = refuse  # type: ignore[method-assign]
+    statuses = [est.step(Measurement(float(t), z)).status for t, z in zip(rec.t[5:], rec.z[5:])]
+    assert statuses == ["ok"] * len(statuses)

@@ -454,8 +454,9 @@ class MovingHorizonEstimator(Estimator):
             self._lam = s.lam if self._lam is None else self._lam
             y, cov, std = finished
             status = self._keep(answer, "ok", valid)
-            self._outputs_of = (answer[-1].copy(), y, std)
-            return answer[-1].copy(), cov, status
+            state = answer[-1].copy()
+            self._outputs_of = (state, y, std)  # the outputs of this very state object
+            return state, cov, status
         problem: WindowProblem | None = None
         solved: FloatArray | None = None
         last_iterate = None
