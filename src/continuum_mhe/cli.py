@@ -172,7 +172,7 @@ def _passthrough(it: Iterable[int]) -> Iterator[int]:
 
 #: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
 #: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, the
-#: fast MHE 0.3 ms after 15 to 60 s of compiling, so beyond about 5,000 samples (about
+#: fast MHE 0.3 ms after 15 to 75 s of compiling, so beyond about 5,000 samples (about
 #: 250 kB of tilt CSV) compiling first is quicker
 FIRST_RUN_BACKGROUND_MAX_BYTES = 250_000
 #: samples up to which ``demo`` (which knows its length) does the same

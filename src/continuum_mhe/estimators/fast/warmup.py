@@ -1,7 +1,8 @@
 """The first run: compiling the fast backend's numba kernels, in the background.
 
 numba compiles the fast MHE's and the compiled EKF's kernels on their first call and
-caches them on disk; on 2 cores that takes 15 to 60 s, once per install. A command that
+caches them on disk; on 2 cores that takes 15 to 75 s (70 s measured on the development
+machine), once per install. A command that
 finds them not yet compiled can
 
 * compile them now, in this process (``"foreground"``, the library's way: it says
@@ -174,7 +175,7 @@ def ensure_compiled() -> None:
     """Compile the kernels now if they are not cached, saying so once (library use)."""
     if kernels_ready():
         return
-    _say_once("compiling the fast solver's kernels (first run only; 15 to 60 s on 2 cores)")
+    _say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
     warm_up()
 
 
