@@ -225,9 +225,10 @@ class MovingHorizonEstimator(Estimator):
         self._P: FloatArray | None = None
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
-        #: the fast SQP's last evaluated iterate when its certified answer is ``_X`` and
-        #: final (no branch check or second start): the next warm start (see
-        #: :func:`~continuum_mhe.estimators.fast.step.advance`)
+        #: the fast SQP's last evaluated iterate when its certified answer was kept as
+        #: ``_X``: the next warm start (see :func:`~.fast.step.advance`). Set by the
+        #: Python path and the compiled step's two-call path; the fused call keeps it in
+        #: the step's own buffers (``StepBuffers.last``)
         self._X_last: FloatArray | None = None
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
         #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
@@ -436,12 +437,15 @@ class MovingHorizonEstimator(Estimator):
              quadratic_rate(self._fast, o)),
         )  # fmt: skip
         finished = None
-        answer = np.empty((n, f.nx))
+        answer = s.X0  # (the fused call's answer, a new array below)
         if self.branch is None and self.second_start is None:  # a certified answer is final
+            answer = np.empty((n, f.nx))
             (outcome, it, _, _, cur), finished = s.advance_finish(*args, answer)
         else:
             outcome, it, _, _, cur = s.advance(*args)
-            s.last[0] = -1  # the checks solve in these buffers: no outputs to shift
+            # the answer may still change, and finish() then evaluates in these buffers:
+            # the next window starts from _X_last (below) without shifted outputs
+            s.last[0] = -1
         self._X_last = None
         self._k = int(s.k[0])
         if valid:

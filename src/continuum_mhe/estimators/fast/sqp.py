@@ -412,9 +412,9 @@ def _sqp(
     ``QUADRATIC_SAFETY |d_k|^3 / |d_k-1|^2`` (the error ``K |d_k|^2`` with the rate
     ``K = |d_k| / |d_k-1|^2`` observed on the previous step), if ``quadratic``
     (:func:`quadratic_rate`) and neither QP had an active constraint.
-    ``evaluated``: ``out[0]`` already holds the model's outputs at ``Xb[0]``.
     The answer is then the projection of ``X_k + d_k`` (not evaluated again);
-    ``cost`` is at ``X_k``.
+    ``cost`` is at ``X_k``. ``evaluated``: ``out[0]`` already holds the model's
+    outputs at ``Xb[0]`` (:func:`shift_outputs`), so the first iterate is not evaluated.
     """
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)

@@ -6,8 +6,8 @@ outputs) is small arithmetic; done in Python it cost more than the SQP itself (a
 150 of 255 us per sample at N = 30, measured with cProfile). :func:`advance` does it
 up to and including the SQP, :func:`finish` the covariance and the outputs, and
 :func:`advance_finish` both in one call when the SQP's answer is final (certified,
-no branch check or second start to follow; a call costs about 85 ns per array it
-passes, about 5 us here), on buffers that
+no branch check or second start to follow; made through :class:`~.ccall.CompiledCall`,
+which skips the dispatcher's typing of its 60 arrays on every call), on buffers that
 :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator` owns (its window
 buffers are the :class:`~continuum_mhe.estimators.fast.sqp.Workspace`'s, so
 the C model's argument pointers never change). The equations are those of the
@@ -229,7 +229,8 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
         y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
     if hb >= 0:
         Dh, Eh = Dgn[hb], E[hb]
-    else:
+    else:  # evaluated in buffer 0: no window's outputs are kept for the next shift
+        ws[13][0] = -1
         Xb[0] = X
         c = _evaluate(
             win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],
@@ -337,7 +338,9 @@ class StepBuffers:
     ) -> tuple[object, ...]:  # fmt: skip
         node = self.node
         t, z, mask, u, dt, Q, Qinv = new  # the sample's values as the kernel's types
-        new = (float(t), np.ascontiguousarray(z, dtype=np.float64), mask, u, float(dt), Q, Qinv)
+        f64 = np.float64
+        new = (float(t), np.ascontiguousarray(z, dtype=f64), np.ascontiguousarray(mask, dtype=f64),
+               np.ascontiguousarray(u, dtype=f64).reshape(-1), float(dt), Q, Qinv)  # fmt: skip
         return (
             node._addr, node._ptrs, node._out, self.nin, self.window_fn, self.workspace.ptrs,
             (*prior, self.k), self.window, new, R, self.X0 if X is None else X, X is not None,

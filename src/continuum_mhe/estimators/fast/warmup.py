@@ -136,8 +136,8 @@ def flush_kernel_caches() -> None:
 
 
 def warm_up() -> None:
-    """Compile every kernel (by running the fast MHE and the compiled EKF on a short
-    recording of a one-section and a two-section robot), then write the marker. The
+    """Compile every kernel (by running the fast MHE, with the quadratic and a robust
+    loss, and the compiled EKF on a short recording), then write the marker. The
     cached kernels of an earlier source are flushed first (:func:`flush_kernel_caches`)."""
     import numpy as np
 
@@ -155,9 +155,10 @@ def warm_up() -> None:
     f = make_formulation("bend", robot)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said, where it matters, by the estimators
-        MovingHorizonEstimator(f, MHESettings(horizon=5), first_run=None).run(
-            rec.t, np.asarray(rec.z)
-        )
+        for settings in (MHESettings(horizon=5), MHESettings(horizon=5, loss="cauchy")):
+            # the one-call step (l2), then the two-call step and the Python path's
+            # window solve (a robust loss's second start)
+            MovingHorizonEstimator(f, settings, first_run=None).run(rec.t, np.asarray(rec.z))
         try:
             ekf = CompiledExtendedKalmanFilter(f, first_run=None)
         except NotImplementedError:  # no compiled model (no C compiler): no EKF kernel
