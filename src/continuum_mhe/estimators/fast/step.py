@@ -216,7 +216,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage = ws[:12]
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage, _, _, _, last = ws
     ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
     rinv, lossk = loss
     n, nx = X.shape
@@ -230,7 +230,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     if hb >= 0:
         Dh, Eh = Dgn[hb], E[hb]
     else:  # evaluated in buffer 0: no window's outputs are kept for the next shift
-        ws[13][0] = -1
+        last[0] = -1
         Xb[0] = X
         c = _evaluate(
             win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],

@@ -1,7 +1,7 @@
 """The first run: compiling the fast backend's numba kernels, in the background.
 
 numba compiles the fast MHE's and the compiled EKF's kernels on their first call and
-caches them on disk; on 2 cores that takes 15 to 75 s (70 s measured on the development
+caches them on disk; on 2 cores that takes 15 to 75 s (74 s measured on the development
 machine), once per install. A command that
 finds them not yet compiled can
 
