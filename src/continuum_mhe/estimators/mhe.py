@@ -436,10 +436,10 @@ class MovingHorizonEstimator(Estimator):
             (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
              quadratic_rate(self._fast, o)),
         )  # fmt: skip
+        fused = self.branch is None and self.second_start is None  # certified is final
+        answer = np.empty((n, f.nx)) if fused else s.X0  # the fused call writes it
         finished = None
-        answer = s.X0  # (the fused call's answer, a new array below)
-        if self.branch is None and self.second_start is None:  # a certified answer is final
-            answer = np.empty((n, f.nx))
+        if fused:
             (outcome, it, _, _, cur), finished = s.advance_finish(*args, answer)
         else:
             outcome, it, _, _, cur = s.advance(*args)
