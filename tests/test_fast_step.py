@@ -179,6 +179,61 @@ def test_a_failing_output_function_names_itself_through_the_fused_call() -> None
         steps.advance_finish(prior, new, f.meas_cov(), None, None, options, X)
 
 
+@pytest.mark.parametrize("robot", [None, TWO], ids=["one-section", "two-sections"])
+def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
+    """:meth:`NodeEvaluator.ekf_step_outputs` (the compiled EKF's one call per sample)
+    gives the state and covariance of :meth:`ekf_step` and the outputs and standard
+    deviations of :meth:`output` and :meth:`output_std` on that state, on samples with
+    every sensor, one sensor masked and none; and the EKF estimator reports them."""
+    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ProcessNoiseCache
+
+    f = make_formulation("bend", robot) if robot else make_formulation("bend")
+    node = NodeEvaluator(build_window_model(f, 2))
+    noise = ProcessNoiseCache(f)
+    rng = np.random.default_rng(2)
+    x = np.asarray(f.initial_state(np.full(f.nz, 0.3)), float) + rng.normal(scale=0.1, size=f.nx)
+    P = f.initial_cov()
+    masks = [np.ones(f.nz), np.r_[np.zeros(2), np.ones(f.nz - 2)], np.zeros(f.nz)]
+    for k, mask in enumerate(masks * 2):
+        z = rng.normal(scale=0.4, size=f.nz)
+        u, dt = np.zeros(f.nu), 0.05
+        Q = noise(dt)[0]
+        x1, P1 = node.ekf_step(x, P, u, dt, z, mask, f.meas_cov(), Q)
+        x2, P2, y, std = node.ekf_step_outputs(x, P, u, dt, z, mask, f.meas_cov(), Q)
+        assert_allclose(x2, x1, rtol=1e-14, atol=1e-15)
+        assert_allclose(P2, P1, rtol=1e-14, atol=1e-18)
+        assert_allclose(y, node.output(x1), rtol=1e-14, atol=1e-15)
+        assert_allclose(std, node.output_std(x1, P1), rtol=1e-12, atol=1e-15)
+        assert std.min() > 0 or k % 3 != 0  # a real spread, not zeros
+        x, P = x2, P2
+    rec = simulate_robot("s-curve", robot, duration=0.5, seed=4) if robot else simulate(
+        "paper3d", duration=0.5, seed=4)  # fmt: skip
+    ekf = CompiledExtendedKalmanFilter(f)
+    ekf.reset()
+    for i in range(len(rec.t)):
+        e = ekf.step(Measurement(float(rec.t[i]), rec.z[i]))
+        assert e.state is not None and e.covariance is not None and e.output_std is not None
+        assert_allclose(e.output, node.output(e.state), rtol=1e-13, atol=1e-15)
+        assert_allclose(e.output_std, node.output_std(e.state, e.covariance), rtol=1e-12,
+                        atol=1e-15)  # fmt: skip
+
+
+def test_a_failing_output_function_names_itself_through_the_fused_ekf_step() -> None:
+    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model, codegen
+
+    f = make_formulation("bend")
+    model = build_window_model(f, 2, compile=False)
+    model = replace(model, output=codegen._vm_function(
+        RaisingFunction(codegen.output_function(f), "broken outputs")
+    ))
+    node = NodeEvaluator(model)
+    x, P, R = f.initial_state(np.array([0.3, -0.2])), f.initial_cov(), f.meas_cov()
+    with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
+        node.ekf_step_outputs(x, P, np.zeros(f.nu), 0.05, np.zeros(f.nz), np.ones(f.nz), R,
+                              0.01 * np.eye(f.nx))  # fmt: skip
+
+
 @pytest.mark.parametrize("in_place", [False, True])
 def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place) -> None:
     """:func:`shift_outputs` (the previous window's model outputs moved by one node, the

@@ -20,11 +20,13 @@ from continuum_mhe.simulation.scenarios import Recording
 
 
 def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray, FloatArray]:
-    """The EKF as the bare compiled kernel: per sample one compiled EKF step (prediction
-    and masked update, :meth:`NodeEvaluator.ekf_step`) and the compiled output, timed
-    alone; the inputs, the sensor mask and ``Q(dt)`` are computed outside the timed
-    part. The first sample (prior, then its update) is the EKF's own and not timed.
-    Returns ``(output (n, ny), seconds per sample (n,))``; the outputs are the EKF's."""
+    """The EKF as the bare compiled kernel: per sample one compiled call of the EKF step
+    (prediction and masked update) with the new state's outputs and their standard
+    deviations (:meth:`NodeEvaluator.ekf_step_outputs`: the products
+    :func:`run_mhe_kernel`'s call hands back too), timed alone; the inputs, the sensor
+    mask and ``Q(dt)`` are computed outside the timed part. The first sample (prior,
+    then its update) is the EKF's own and not timed. Returns ``(output (n, ny), seconds
+    per sample (n,))``; the outputs are the EKF's."""
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
     from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_update
 
@@ -46,8 +48,7 @@ def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray
         mask = f.measurement_mask(z)
         Q = noise(dt)[0]
         t0 = time.perf_counter()
-        x, P = node.ekf_step(x, P, u, dt, z, mask, R, Q)
-        y = node.output(x)
+        x, P, y, _ = node.ekf_step_outputs(x, P, u, dt, z, mask, R, Q)
         sec[i] = time.perf_counter() - t0
         out[i] = y
         if mask.any():

@@ -176,6 +176,8 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
             raise NotImplementedError(model.backend_note or "the model is not compiled")
         self._node = NodeEvaluator(model)
         self._q = ProcessNoiseCache(formulation)
+        #: ``(state, outputs, standard deviations)`` of the last fused step
+        self._outputs_of: tuple[FloatArray, FloatArray, FloatArray] | None = None
         super().__init__(formulation)
 
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
@@ -185,17 +187,27 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         mask = f.measurement_mask(m.z)
         dt = m.t - self._t_prev
         u = f.inputs(self._z_prev, m.z, dt)
-        x, P = self._node.ekf_step(self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt)[0])
+        x, P, y, std = self._node.ekf_step_outputs(
+            self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt)[0]
+        )
         status: Status = "ok" if mask.any() else "dropout"
         if mask.any():
             self._z_prev = m.z
         self._x, self._P, self._t_prev = x, P, m.t
-        return x.copy(), P.copy(), status
+        state = x.copy()
+        self._outputs_of = (state, y, std)
+        return state, P.copy(), status
 
     def _output(self, state: FloatArray) -> FloatArray:
+        kept = self._outputs_of
+        if kept is not None and kept[0] is state:  # computed in the same compiled call
+            return kept[1]
         return self._node.output(state)
 
     def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        kept = self._outputs_of
+        if kept is not None and kept[0] is state:
+            return kept[2]
         return self._node.output_std(state, cov)
 
 

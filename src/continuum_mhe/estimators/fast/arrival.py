@@ -4,8 +4,10 @@ When the window slides, the arrival prior ``(xbar, P)`` takes one EKF step: an u
 with the sample that leaves the window (its valid components only: the node function's
 residual and Jacobian are masked) and a prediction to the new first sample. These
 kernels call the compiled node model (:func:`~continuum_mhe.estimators.fast.codegen.node_function`)
-directly, so one step is one call from Python. A failed model evaluation raises
-``RuntimeError("model evaluation failed")``; the caller adds the model's own message
+directly, so one step is one call from Python; the compiled EKF's step with its outputs
+and their standard deviations is one call too (:func:`ekf_step_outputs`). A failed
+model evaluation raises ``RuntimeError("model evaluation failed")``; the caller adds
+the model's own message
 (:meth:`~continuum_mhe.estimators.fast.model.NodeEvaluator.arrival_step`).
 """
 
@@ -15,6 +17,7 @@ import numba
 import numpy as np
 
 from continuum_mhe.estimators.fast.ccall import call_model
+from continuum_mhe.estimators.fast.outputs import output_std, output_values
 
 
 @numba.njit(cache=True)
@@ -81,3 +84,14 @@ def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
         r = out[k + nz * nx : k + nz * nx + nz].copy()
         xn, P = arrival_update(xn, P, r, H, R)
     return xn, P
+
+
+@numba.njit(cache=True)
+def ekf_step_outputs(fn, ptrs, out, xin, x, P, valid, R, Q, nx, outputs, y, std):
+    """:func:`ekf_step`, then the new state's outputs ``y`` and their standard
+    deviations ``std`` (:mod:`.outputs`): everything the EKF reports for a sample, in
+    one compiled call, as the fused MHE step hands back its own. Returns ``(x, P)``."""
+    xn, Pn = ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx)
+    output_values(outputs, xn, y)
+    output_std(outputs, Pn, std)
+    return xn, Pn

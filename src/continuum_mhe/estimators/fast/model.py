@@ -35,6 +35,7 @@ from continuum_mhe.estimators.fast.codegen import (
     transition_is_linear,
     window_function,
 )
+from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
@@ -204,6 +205,14 @@ class NodeEvaluator:
         self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
         self._jfn = model.output_jacobian
         self._jout = np.empty(model.ny * nx)
+        #: the output functions and their buffers for the kernels (:mod:`.outputs`)
+        self.outputs = (
+            address(model.output), address(model.output_jacobian), self._optrs, self._ox,
+            self._oout, self._jout, np.array(model.wrapped, dtype=np.int64),
+        )  # fmt: skip
+        self._ekf_step_outputs = CompiledCall(arrival.ekf_step_outputs)
+        self._y = np.empty(model.ny)
+        self._std = np.empty(model.ny)
         k = nx + nx * nx
         self._views = (
             self._out[:nx],
@@ -268,9 +277,7 @@ class NodeEvaluator:
                 self._addr, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
             )
         except RuntimeError as exc:  # the kernel cannot format the model's own message
-            if str(exc) != "model evaluation failed":
-                raise
-            raise RuntimeError(failure_message(self._fn)) from exc
+            raise self._failure(exc) from exc
 
     def ekf_step(
         self,
@@ -286,19 +293,56 @@ class NodeEvaluator:
         """One EKF step in one compiled call: predict with ``(u, dt)``, then update with
         the valid components of ``z`` (``mask``); the equations of
         :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``."""
-        self._u[:] = u
-        self._dt[0] = dt
-        self._z[:] = np.where(mask > 0, z, 0.0)
-        self._m[:] = mask
-        x, P = np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(P, dtype=np.float64)
+        x, P = self._ekf_inputs(x, P, u, dt, z, mask)
         try:
             return self._ekf_step(
                 self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
             )
         except RuntimeError as exc:  # the kernel cannot format the model's own message
-            if str(exc) != "model evaluation failed":
-                raise
-            raise RuntimeError(failure_message(self._fn)) from exc
+            raise self._failure(exc) from exc
+
+    def ekf_step_outputs(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        u: FloatArray,
+        dt: float,
+        z: FloatArray,
+        mask: FloatArray,
+        R: FloatArray,
+        Q: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`ekf_step`, then :meth:`output` and :meth:`output_std` of its answer, in
+        one compiled call: ``(x+, P+, outputs, output standard deviations)``."""
+        x, P = self._ekf_inputs(x, P, u, dt, z, mask)
+        try:
+            xn, Pn = self._ekf_step_outputs(
+                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q,
+                len(x), self.outputs, self._y, self._std,
+            )  # fmt: skip
+        except RuntimeError as exc:  # the kernel cannot format the model's own message
+            raise self._failure(exc) from exc
+        return xn, Pn, self._y.copy(), self._std.copy()
+
+    def _ekf_inputs(
+        self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float, z: FloatArray,
+        mask: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+        """The sample into the node model's inputs (masked readings zeroed); ``(x, P)``
+        contiguous float64, as the compiled EKF step takes them."""
+        self._u[:] = u
+        self._dt[0] = dt
+        self._z[:] = np.where(mask > 0, z, 0.0)
+        self._m[:] = mask
+        return np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(P, dtype=np.float64)
+
+    def _failure(self, exc: RuntimeError) -> RuntimeError:
+        """A kernel's error ``exc`` with the failed compiled function's own message."""
+        if str(exc) == "model evaluation failed":
+            return RuntimeError(failure_message(self._fn))
+        if str(exc) == OUTPUT_FAILED:
+            return RuntimeError(failure_message(self._ofn))
+        return exc
 
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
         """``sqrt(diag(J P J^T))`` with the compiled output Jacobian ``J`` at ``x``: the

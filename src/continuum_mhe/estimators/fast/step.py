@@ -30,6 +30,7 @@ from continuum_mhe.estimators.fast.ccall import CompiledCall, address, call_mode
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
+from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED, output_std, output_values
 from continuum_mhe.estimators.fast.qp import CONVERGED, project
 from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp, shift_outputs
 
@@ -49,10 +50,9 @@ Finished = tuple[FloatArray, FloatArray | None, FloatArray | None]
 #: :func:`advance` did not solve (``paper_start`` before ``N`` samples).
 NOT_SOLVED = -1
 
-#: The kernels' errors when a compiled function fails: the window's or node's model, or
-#: the outputs (the kernels cannot format the model's own message; the wrappers do).
+#: The kernels' error when the window's or node's model fails (the kernels cannot format
+#: the model's own message; the wrappers do; the outputs': :data:`.outputs.OUTPUT_FAILED`).
 MODEL_FAILED = "model evaluation failed"
-OUTPUT_FAILED = "output evaluation failed"
 
 
 @numba.njit(cache=True)
@@ -207,26 +207,18 @@ def advance(
 def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, outputs, y, std):
     """Covariance of ``X[-1]`` (into ``cov``) and its outputs ``y`` and standard
     deviations ``std``, as :func:`~.covariance.window_covariance` and
-    :class:`~.model.NodeEvaluator` compute them. ``outputs = (output, jacobian, optrs,
-    ox, oout, jout, wrapped)``: the output functions' addresses, argument pointers
-    (to ``ox``), outputs and the indices of wrapped angles. ``hb``: the workspace
-    buffer whose Gauss-Newton blocks to use (the SQP's last evaluated iterate, when
-    ``X`` is its certified answer), or -1 to evaluate them at ``X``.
+    :class:`~.model.NodeEvaluator` compute them (``outputs``: see :mod:`.outputs`).
+    ``hb``: the workspace buffer whose Gauss-Newton blocks to use (the SQP's last
+    evaluated iterate, when ``X`` is its certified answer), or -1 to evaluate them at
+    ``X``.
     Returns 0, or 1 when the covariance is not available (``cov`` and ``std`` then
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
     Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage, _, _, _, last = ws
-    ofn, jfn, optrs, ox, oout, jout, wrapped = outputs
     rinv, lossk = loss
-    n, nx = X.shape
-    ny = y.shape[0]
-    ox[:] = X[n - 1]
-    if call_model(ofn, optrs.ctypes.data, oout.ctypes.data) != 0:
-        raise RuntimeError(OUTPUT_FAILED)
-    y[:] = oout
-    for i in wrapped:
-        y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
+    n = X.shape[0]
+    output_values(outputs, X[n - 1], y)
     if hb >= 0:
         Dh, Eh = Dgn[hb], E[hb]
     else:  # evaluated in buffer 0: no window's outputs are kept for the next shift
@@ -241,14 +233,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
         Dh, Eh = D[0], E[0]
     if not last_block_covariance(X, Dh, Eh, lo, hi, bidx, r2, tol, cov):
         return 1
-    if call_model(jfn, optrs.ctypes.data, jout.ctypes.data) != 0:
-        raise RuntimeError(OUTPUT_FAILED)
-    for i in range(ny):
-        s = 0.0
-        for j in range(nx):
-            for k in range(nx):
-                s += jout[i + ny * j] * cov[j, k] * jout[i + ny * k]
-        std[i] = np.sqrt(max(s, 0.0))
+    output_std(outputs, cov, std)
     return 0
 
 
@@ -311,10 +296,7 @@ class StepBuffers:
         self.nin = (node._x, node._u, node._dt, node._z, node._m)
         self.window_fn = address(model.window)
         self.output_fn = model.output
-        self.outputs = (
-            address(model.output), address(model.output_jacobian), node._optrs, node._ox,
-            node._oout, node._jout, np.array(model.wrapped, dtype=np.int64),
-        )  # fmt: skip
+        self.outputs = node.outputs
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
         self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,

@@ -39,7 +39,8 @@ _FAST = Path(__file__).resolve().parent
 _KERNEL_MODULES = (
     "continuum_mhe.estimators.loss",
     *(f"continuum_mhe.estimators.fast.{m}"
-      for m in ("ccall", "linalg", "qp", "arrival", "sqp", "covariance", "step")),
+      for m in ("ccall", "linalg", "qp", "outputs", "arrival", "sqp", "covariance",
+                "step")),
 )  # fmt: skip
 
 
