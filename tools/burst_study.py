@@ -85,17 +85,17 @@ def monte_carlo(args: argparse.Namespace) -> None:
     from continuum_mhe.reproduce.experiments import FULL
 
     if args.scale is not None:
-        settings.DEFAULT_LOSS_SCALE["cauchy"] = args.scale
+        settings.DEFAULT_LOSS_SCALE[args.loss] = args.scale
     if args.no_second_start:
         mhe.SecondStart = lambda *a, **k: None  # type: ignore[assignment,misc]
     c = FULL
     specs = beyond.plan_beyond(args.seeds, c.beyond_duration, dt=c.dt, length=c.length,
                                noise_deg=c.noise_deg, horizon=c.horizon,
                                recovery_duration=c.beyond_recovery_duration,
-                               gap_s=c.beyond_gap_s)  # fmt: skip
+                               gap_s=c.beyond_gap_s, robust_loss=args.loss)  # fmt: skip
     trials = [beyond.run_beyond(s) for s in specs if s.group in beyond.OUTLIER_GROUPS]
     s = beyond.summarise_beyond(trials)
-    print(f"seeds {args.seeds}  cauchy scale {settings.DEFAULT_LOSS_SCALE['cauchy']}  "
+    print(f"seeds {args.seeds}  {args.loss} scale {settings.DEFAULT_LOSS_SCALE[args.loss]}  "
           f"second start {'off' if args.no_second_start else 'on'}")  # fmt: skip
     for g, by in s["outliers"].items():
         print(f"  {g:7s} " + "  ".join(f"{m} {v['mean']:.3f}" for m, v in by.items()) + " mm")

@@ -712,7 +712,7 @@ def register(subparsers: Any) -> None:
         "--loss-horizons",
         type=lambda text: [] if text == "none" else _horizons(text),
         default=None,
-        help="horizons at which each MHE loss (l2, huber, cauchy) is timed on both "
+        help="horizons at which each MHE loss (l2, huber, cauchy, welsch) is timed on both "
         "backends (default: 30 if among --horizons, else the first; none: skip)",
     )
     p.add_argument(

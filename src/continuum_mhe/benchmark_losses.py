@@ -2,7 +2,7 @@
 
 On the benchmark's recording, clean and with 2 % of the samples hit by +-30 deg spikes
 on roll and pitch (pitch clipped to +-90 deg), the fast MHE and IPOPT run with the
-``l2``, ``huber`` and ``cauchy`` losses (default scales). Per loss: the median time per
+``l2``, ``huber``, ``cauchy`` and ``welsch`` losses (default scales). Per loss: the median time per
 sample from sample ``N`` on (the smallest of three interleaved runs), its ratio to the
 same backend's ``l2`` time on the same data, the fast backend's mean SQP iterations per
 sample (a cost that does not depend on the machine's load), the largest output

@@ -106,8 +106,9 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         "--loss",
         choices=MHE_LOSSES,
         default="l2",
-        help="MHE measurement cost per IMU: l2 (quadratic, default), or huber or cauchy "
-        "(robust to outliers; flags the samples they down-weight)",
+        help="MHE measurement cost per IMU: l2 (quadratic, default), or huber, cauchy or "
+        "welsch (robust to outliers; flags the samples they down-weight; welsch also "
+        "rejects bursts of consistent wrong readings, docs/robust.md)",
     )
     g.add_argument(
         "--loss-scale",
@@ -116,7 +117,7 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         metavar="K",
         help="where the robust loss departs from l2, in standard deviations of the "
         f"measurement noise (default: huber {DEFAULT_LOSS_SCALE['huber']:g}, "
-        f"cauchy {DEFAULT_LOSS_SCALE['cauchy']:g})",
+        f"cauchy {DEFAULT_LOSS_SCALE['cauchy']:g}, welsch {DEFAULT_LOSS_SCALE['welsch']:g})",
     )
     g.add_argument(
         "--branch-check",
@@ -149,7 +150,7 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"--loss-scale must be a positive number of stds, got {scale}")
     if scale is not None and loss == "l2":
-        raise InputError("--loss-scale needs a robust --loss (huber or cauchy)")
+        raise InputError("--loss-scale needs a robust --loss (huber, cauchy or welsch)")
     method = getattr(args, "method", "mhe")
     if loss != "l2" and method != "mhe":
         raise InputError(f"--loss {loss} is an MHE option; the {method} keeps the l2 cost")
@@ -295,6 +296,15 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         f"(default {BAD_START_S:g})",
     )
     g.add_argument(
+        "--reject-reset",
+        type=float,
+        default=RecoverySettings.reject_reset,
+        metavar="SECONDS",
+        help="robust MHE: after every reading was rejected as an outlier for longer than "
+        "this, restart from the next reading (status reset; the estimate, not the "
+        f"sensor, is taken as lost); 0: never (default {RecoverySettings.reject_reset:g})",
+    )
+    g.add_argument(
         "--uncertain-fraction",
         type=float,
         default=RecoverySettings.uncertain_fraction,
@@ -305,7 +315,7 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
-    for name in ("gap_reset", "freeze", "bad_start"):
+    for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v >= 0):
             raise InputError(f"--{name.replace('_', '-')} must be >= 0 seconds, got {v}")
@@ -317,6 +327,7 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         freeze=args.freeze or None,
         uncertain_fraction=f,
         bad_start=args.bad_start or None,
+        reject_reset=args.reject_reset or None,
     )
 
 # --- valid ranges of every numeric option ------------------------------------------
@@ -371,6 +382,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "gap_reset": OptionRange(0.0, 1e6, "s"),
     "freeze": OptionRange(0.0, 1e6, "s"),
     "bad_start": OptionRange(0.0, 1e6, "s"),
+    "reject_reset": OptionRange(0.0, 1e6, "s"),
     "uncertain_fraction": OptionRange(0.0, 100.0, lo_open=True),
     "model_error_deg": OptionRange(0.0, 90.0, "deg", above="--model-error-deg is in degrees"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,

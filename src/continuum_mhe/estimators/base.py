@@ -60,6 +60,10 @@ class Estimator(ABC):
         self.frozen_samples = 0
         #: times it restarted after a bad start (``recovery.bad_start``)
         self.bad_starts = 0
+        #: times a robust MHE restarted after rejecting every reading for longer than
+        #: ``recovery.reject_reset``
+        self.reject_resets = 0
+        self._rejecting_since: float | None = None  # t of the first of the run
         self._start_check = StartCheck(formulation)
         # the bad-start check needs a covariance that is one (not the paper's weight W)
         self._checks_start = formulation.calibrated_covariance
@@ -85,8 +89,10 @@ class Estimator(ABC):
         self._restart()
 
     def _restart(self) -> None:
-        """Clear the estimator's state and the bad-start check's (a (re)start)."""
+        """Clear the estimator's state and the bad-start and rejection checks' (a
+        (re)start)."""
         self._start_check.clear()
+        self._rejecting_since = None
         self._reset()
 
     @abstractmethod
@@ -146,7 +152,9 @@ class Estimator(ABC):
         frozen longer than ``freeze`` s counts as dropped out; the first valid sample
         after more than ``gap_reset`` s without one restarts the estimator the same
         way (``reset``), and so do readings inconsistent with the estimate within
-        ``bad_start`` s of a (re)start (:mod:`.start_check`); an ``ok`` estimate whose
+        ``bad_start`` s of a (re)start (:mod:`.start_check`) and, for a robust MHE, a
+        valid reading after every reading of more than ``reject_reset`` s was rejected
+        as an outlier (the estimate, not the sensor, is taken as lost); an ``ok`` estimate whose
         tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
         ``uncertain``. The estimate
         carries ``output_std`` wherever the method has a covariance.
@@ -209,6 +217,13 @@ class Estimator(ABC):
             if bad_start:  # the start was wrong: restart from this reading
                 self.bad_starts += 1
                 self._restart()
+        reject_reset = False
+        since, limit = self._rejecting_since, self.recovery.reject_reset
+        if since is not None and limit is not None and t - since > limit:
+            if self.formulation.measurement_mask(measurement.z).any():
+                reject_reset = True  # restart from this reading
+                self.reject_resets += 1
+                self._restart()
         try:
             with np.errstate(all="ignore"):  # non-finite results are caught below
                 state, cov, status = self._step(measurement)
@@ -232,7 +247,7 @@ class Estimator(ABC):
                 state, cov, status = None, None, "no-estimate"
             if state is not None:
                 status = "reset"
-        if (gap_reset or bad_start) and state is not None:
+        if (gap_reset or bad_start or reject_reset) and state is not None:
             status = "reset"
         if check_start:
             self._start_check.remember(t, measurement.z, state, cov)
@@ -248,6 +263,10 @@ class Estimator(ABC):
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
         outlier = state is not None and self._outlier()
+        if not outlier:
+            self._rejecting_since = None
+        elif self._rejecting_since is None:
+            self._rejecting_since = t
         return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
 
     def run(

@@ -7,11 +7,14 @@ standard deviations of the measurement noise). The block's cost is ``1/2 rho(s)`
 * ``l2``:     ``rho(s) = s``;
 * ``huber``:  ``rho(s) = s`` for ``s <= c^2``, else ``2 c sqrt(s) - c^2``;
 * ``cauchy``: ``rho(s) = c^2 log(1 + s / c^2)``;
+* ``welsch``: ``rho(s) = c^2 (1 - exp(-s / c^2))`` (redescending: the cost of a block
+  is bounded by ``c^2 / 2``, so no number of far-off readings outweighs the model);
 
 with ``c`` the loss scale (``MHESettings.scale``). Each is ``s`` to first order at 0,
 so a block well inside the scale counts as in the quadratic cost. ``rho'(s)`` is the
 block's weight in iteratively reweighted least squares (1 for an inlier, about
-``c / sqrt(s)`` for Huber and ``c^2 / s`` for Cauchy far out).
+``c / sqrt(s)`` for Huber, ``c^2 / s`` for Cauchy and ``exp(-s / c^2)`` for Welsch far
+out).
 
 :func:`rho_sym` is the CasADi expression (IPOPT's cost), :func:`rho_derivatives` the
 numba kernel (the fast backend and the weights), :func:`block_weights` the weights of
@@ -32,11 +35,11 @@ from continuum_mhe.model.descriptions import MeasurementBlock
 FloatArray = NDArray[np.float64]
 
 #: Integer codes of the losses in the numba kernels.
-LOSS_CODES: dict[str, int] = {"l2": 0, "huber": 1, "cauchy": 2}
+LOSS_CODES: dict[str, int] = {"l2": 0, "huber": 1, "cauchy": 2, "welsch": 3}
 
 #: A block is flagged as an outlier when its weight ``rho'(s)`` falls below this:
 #: it counts less than a quarter of a quadratic-cost sample (Huber: residual norm
-#: beyond 4 c; Cauchy: beyond sqrt(3) c).
+#: beyond 4 c; Cauchy: beyond sqrt(3) c; Welsch: beyond sqrt(ln 4) c = 1.18 c).
 OUTLIER_WEIGHT = 0.25
 
 
@@ -50,6 +53,8 @@ def rho_sym(loss: str, scale: float, s: ca.SX) -> ca.SX:
         return ca.if_else(s <= c2, s, 2.0 * scale * ca.sqrt(ca.fmax(s, c2)) - c2)
     if loss == "cauchy":
         return c2 * ca.log1p(s / c2)
+    if loss == "welsch":
+        return c2 * (1.0 - ca.exp(-s / c2))
     raise ValueError(f"unknown loss {loss!r}")
 
 
@@ -66,6 +71,10 @@ def rho_derivatives(code: int, scale: float, s: float) -> tuple[float, float, fl
         c2 = scale * scale
         q = 1.0 + s / c2
         return c2 * math.log1p(s / c2), 1.0 / q, -1.0 / (c2 * q * q)
+    if code == 3:
+        c2 = scale * scale
+        w = math.exp(-s / c2)
+        return c2 * (1.0 - w), w, -w / c2
     return s, 1.0, 0.0
 
 

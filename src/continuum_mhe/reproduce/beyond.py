@@ -99,7 +99,7 @@ class BeyondSpec:
     length: float = 0.2
     noise_deg: float = 2.0
     horizon: int = 30
-    robust_loss: MHELoss = "cauchy"
+    robust_loss: MHELoss = "welsch"
     spike_deg: float = 30.0
     spike_fraction: float = 0.02
     burst_fraction: float = 0.01
@@ -114,7 +114,7 @@ class BeyondSpec:
         if self.group not in BEYOND_GROUPS:
             raise UserError(f"group must be one of {BEYOND_GROUPS}, got {self.group!r}")
         if self.robust_loss == "l2":
-            raise UserError("robust_loss must be a robust loss (huber or cauchy)")
+            raise UserError("robust_loss must be a robust loss (huber, cauchy or welsch)")
         end = EVENT_T0 + max(self.gap_s, self.freeze_s) + AFTER_S
         if self.group in RECOVERY_GROUPS and self.duration < end:
             raise UserError(f"duration must be at least {end:g} s for the {self.group} group")
@@ -332,7 +332,7 @@ def plan_beyond(
     horizon: int,
     recovery_duration: float,
     gap_s: float,
-    robust_loss: MHELoss = "cauchy",
+    robust_loss: MHELoss = "welsch",
 ) -> list[BeyondSpec]:
     """Every run of every group, ``seeds`` seeds each, the same seeds in every group
     (so the outlier groups pair with ``clean`` seed by seed)."""
