@@ -18,6 +18,12 @@ with the Cauchy scale and the second start as given, and prints the targets:
     python tools/burst_study.py                       # 10 seeds, Cauchy, default scale
     python tools/burst_study.py --seeds 5 --scale 1.0 --no-second-start
     python tools/burst_study.py --mc --seeds 50 --scale 2.0 --no-second-start
+    python tools/burst_study.py --mc --seeds 50 --loss welsch --scale 3.0
+    python tools/burst_study.py --oracle --seeds 50   # burst readings dropped, l2 MHE
+
+With ``--oracle`` it runs the quadratic MHE on each seed's clean data and on the same
+data with the burst readings dropped (NaN): what an estimator that knew which readings
+were corrupted would lose.
 """
 
 from __future__ import annotations
@@ -104,6 +110,35 @@ def monte_carlo(args: argparse.Namespace) -> None:
             print(f"  {g:7s} {k:22s} {v['value']:.4f} [{v['lo']:.4f}, {v['hi']:.4f}]")
 
 
+def oracle(args: argparse.Namespace) -> None:
+    """The quadratic MHE told which readings the bursts corrupted (set to NaN, i.e.
+    dropped out): the floor a robust cost can at best approach on these data."""
+    runs = []
+    for seed in range(args.seeds):
+        spec = beyond.BeyondSpec("bursts", 110_000 + seed, args.duration)
+        rec = simulate("paper3d", duration=spec.duration, dt=spec.dt, length=spec.length,
+                       seed=spec.seed, noise_deg=spec.noise_deg)  # fmt: skip
+        z, truth = np.asarray(rec.z, float), np.asarray(rec.truth, float)
+        _, mask = beyond.bursts(z, spec)
+        dropped = z.copy()
+        dropped[mask] = np.nan
+        f = beyond._formulation(spec)
+        errs = []
+        for data in (z, dropped):
+            s = make_estimator("mhe", f, MHESettings(horizon=spec.horizon)).run(rec.t, data)
+            errs.append(np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1) * 1e3)
+        runs.append((errs[0], errs[1], offsets(mask, 40)))
+    ec = np.concatenate([r[0] for r in runs])
+    eo = np.concatenate([r[1] for r in runs])
+    rel = np.concatenate([r[2] for r in runs])
+    print(f"seeds {args.seeds}: quadratic MHE, burst readings dropped (the oracle)")
+    print(f"mean tip error: clean {ec.mean():.3f} mm, bursts dropped {eo.mean():.3f} mm, "
+          f"ratio {eo.mean() / ec.mean():.3f}")  # fmt: skip
+    for k in range(12):
+        sel = rel == k
+        print(f"  offset {k:2d}  dropped {eo[sel].mean():6.2f}  clean {ec[sel].mean():6.2f} mm")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=10)
@@ -112,7 +147,11 @@ def main() -> None:
     p.add_argument("--scale", type=float, default=None)
     p.add_argument("--no-second-start", action="store_true")
     p.add_argument("--mc", action="store_true", help="the reproduce outlier groups")
+    p.add_argument("--oracle", action="store_true", help="the l2 MHE, burst readings dropped")
     args = p.parse_args()
+    if args.oracle:
+        oracle(args)
+        return
     if args.mc:
         monte_carlo(args)
         return

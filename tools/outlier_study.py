@@ -35,6 +35,7 @@ from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.reproduce import beyond
+from continuum_mhe.settings import DEFAULT_LOSS_SCALE
 from continuum_mhe.simulation.scenarios import simulate
 
 METHODS = ("ekf", "mhe-l2", "mhe-huber", "mhe-cauchy")
@@ -201,9 +202,12 @@ def efficiency(loss: str, scale: float, p: int) -> float:
 
 def print_efficiency() -> None:
     for p in (1, 2):
-        for loss in ("huber", "cauchy"):
+        for loss in ("huber", "cauchy", "welsch"):
             k95 = optimize.brentq(lambda c, ls=loss, k=p: efficiency(ls, c, k) - 0.95, 0.5, 10)
             print(f"{loss:6s} p={p}: 95 % efficiency at scale {k95:.3f}")
+    for loss, scale in DEFAULT_LOSS_SCALE.items():
+        if loss != "l2":
+            print(f"{loss:6s} default {scale:g}: efficiency {efficiency(loss, scale, 2):.3f} (p=2)")
 
 
 def main() -> None:
