@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
 from continuum_mhe.io.raw_imu import csv_input_kind, read_raw_imu, read_raw_imus
 from continuum_mhe.model.imu import Mounting
@@ -160,7 +161,9 @@ def collect(
 ) -> tuple[FloatArray, FloatArray]:
     """Samples from the port over ``seconds`` of device time (device messages shown)."""
     try:
-        conn = open_port(port, baud)
+        conn = open_port(port, baud, "calibrate")
+    except MissingExtraError:
+        raise
     except Exception as exc:
         raise InputError(port_hint(port, exc)) from None
     events: queue.Queue[Event] = queue.Queue()
