@@ -278,3 +278,14 @@ def test_evaluate_reports_unmatched_rows(tmp_path, capsys):
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth)]) == 0
     assert "unmatched rows       31 of 41" in capsys.readouterr().out
+
+
+def test_table_console_is_wide_when_piped_unless_columns_is_set(monkeypatch):
+    """Tables printed into a pipe or a log are not cut at rich's default 80 columns; an
+    explicit COLUMNS still wins."""
+    from continuum_mhe.progress import PIPED_WIDTH, table_console
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    assert table_console().width == PIPED_WIDTH  # pytest's stdout is not a terminal
+    monkeypatch.setenv("COLUMNS", "90")
+    assert table_console().width == 90

@@ -195,6 +195,35 @@ def test_a_background_compile_waits_for_a_foreground_one(tmp_path, monkeypatch):
     assert started == [True]
 
 
+def test_cold_demo_names_the_paths_it_timed_and_its_table_is_not_cut_when_piped(
+    tmp_path, monkeypatch, capsys
+):
+    """The first ``demo`` (kernels compiling in the background) marks the rows that ran
+    IPOPT and the CasADi EKF, whose times are theirs, and says why under the table; its
+    output, captured as through a pipe (not a terminal, no COLUMNS), keeps whole headers
+    instead of rich's 80-column cut (``theta…``)."""
+    from continuum_mhe import cli
+    from continuum_mhe.estimators import mhe
+
+    monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", "background")
+    monkeypatch.delenv("COLUMNS", raising=False)
+    for module in (cli, mhe, warmup):
+        monkeypatch.setattr(module, "kernels_ready", lambda: False)
+    monkeypatch.setattr(warmup, "start_background_warmup", lambda: True)
+    monkeypatch.setattr(warmup, "_announced", set())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", warmup.CompileNotice)
+        assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "…" not in out
+    header = next(ln for ln in out.splitlines() if "method" in ln)
+    for column in ("tip mean mm", "theta RMSE deg", "phi RMSE deg", "median solve ms"):
+        assert column in header
+    rows = [ln.split("│")[1].strip() for ln in out.splitlines() if ln.startswith("│")]
+    assert rows == ["MHE (IPOPT)", "EKF (CasADi)", "UKF"]
+    assert "while the fast solver's kernels compile in the background" in " ".join(out.split())
+
+
 @pytest.mark.parametrize(
     ("mode", "expected"),
     [("foreground", "foreground"), ("background", "background"), ("other", "foreground")],
