@@ -289,3 +289,19 @@ def test_table_console_is_wide_when_piped_unless_columns_is_set(monkeypatch):
     assert table_console().width == PIPED_WIDTH  # pytest's stdout is not a terminal
     monkeypatch.setenv("COLUMNS", "90")
     assert table_console().width == 90
+
+
+def test_every_commands_help_is_plain_text():
+    """``--help`` of every command has no reStructuredText from a docstring (roles such
+    as ``:mod:`` or double backticks)."""
+    import argparse
+
+    from continuum_mhe.cli import build_parser
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert len(commands.choices) >= 11
+    for name, sub in [("continuum-mhe", parser), *commands.choices.items()]:
+        text = sub.format_help()
+        for markup in (":mod:", ":func:", ":class:", ":meth:", ":data:", "``"):
+            assert markup not in text, f"{name} --help shows {markup}"

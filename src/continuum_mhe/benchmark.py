@@ -689,7 +689,8 @@ def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "benchmark",
         help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
-        description=__doc__.split("\n\n")[0] if __doc__ else None,
+        description="Time the fast MHE beside IPOPT, do-mpc's MHE and three EKFs, and the "
+        "bare compiled kernels of the fast MHE and the EKF, on one simulated recording.",
     )
     p.add_argument(
         "--horizons",
