@@ -305,3 +305,28 @@ def test_every_commands_help_is_plain_text():
         text = sub.format_help()
         for markup in (":mod:", ":func:", ":class:", ":meth:", ":data:", "``"):
             assert markup not in text, f"{name} --help shows {markup}"
+
+
+def test_robot_option_names_only_options_its_command_has():
+    """``--robot``'s help says which one-section options it replaces; each is an option
+    of that command (view and calibrate have no --theta-max)."""
+    import argparse
+    import re
+
+    from continuum_mhe.cli import build_parser
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    checked = 0
+    for name, sub in commands.choices.items():
+        robot = sub._option_string_actions.get("--robot")
+        if robot is None:
+            continue
+        replaced = re.findall(r"--[a-z-]+", (robot.help or "").split("replaces", 1)[-1])
+        if "replaces" in (robot.help or ""):
+            assert replaced, name
+        for option in replaced:
+            action = sub._option_string_actions.get(option)
+            assert action is not None and action.help != argparse.SUPPRESS, (name, option)
+        checked += 1
+    assert checked >= 6

@@ -439,7 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="simulate paper3d, run MHE, EKF and UKF, print errors, plot")
     p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    add_robot_option(p)
+    add_robot_option(p, replaces=())
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="write a synthetic measurement CSV and its truth")
@@ -459,7 +459,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up")
-    add_robot_option(p)
+    add_robot_option(p, replaces=("--length", "--mounting"))
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("estimate", help="estimate shape and tip from a measurement CSV")
@@ -484,7 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("estimates")
     p.add_argument("truth")
     p.add_argument("--length", type=float, default=0.2, help="section length in m")
-    add_robot_option(p)
+    add_robot_option(p, replaces=("--length",))
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_evaluate)
 

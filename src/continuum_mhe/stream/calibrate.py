@@ -283,7 +283,7 @@ def register_calibrate(subparsers: Any) -> None:
     p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
-    add_robot_option(p)
+    add_robot_option(p, replaces=("--mounting",))
     p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     p.set_defaults(func=cmd_calibrate)
