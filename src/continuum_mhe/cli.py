@@ -280,7 +280,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         extra = {"calibration": None if cal is None else cal.as_dict()}
         print(json.dumps({**m.as_dict(), **extra, "unmatched": unmatched}, indent=2))
     else:
-        print(format_metrics(m))
+        print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal))
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
@@ -301,7 +301,9 @@ def format_calibration(c: Calibration | None) -> str:
     )
 
 
-def format_metrics(m: Metrics) -> str:
+def format_metrics(m: Metrics, comparable: bool = True) -> str:
+    """``evaluate``'s error lines; no SRMSE unless the estimate and the truth are
+    ``comparable`` (not of different lengths or robots)."""
     r = m.rmse
     lines = [
         f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
@@ -324,7 +326,13 @@ def format_metrics(m: Metrics) -> str:
             f"{math.degrees(r[f'phi_{k}']):.2f} deg"
         )
         k += 1
-    lines.append(f"SRMSE                {m.srmse:.4f} (sum of RMSEs, m + rad)")
+    if comparable:
+        summed = ", ".join(r)
+        lines.append(f"SRMSE                {m.srmse:.4f} (sum of the RMSEs of {summed}, m + rad)")
+    else:  # a score of two different robots would read as a real one
+        lines.append(
+            "SRMSE                not given: the estimate and the truth differ (see the warning)"
+        )
     return "\n".join(lines)
 
 
@@ -536,7 +544,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError:  # not the main thread (e.g. called from a test runner's thread)
         pass
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # said by the command's parser, so the usage shown is the command's
+        (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        commands.choices[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         check_option_ranges(args)
         code = int(args.func(args))
