@@ -278,3 +278,55 @@ def test_evaluate_reports_unmatched_rows(tmp_path, capsys):
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth)]) == 0
     assert "unmatched rows       31 of 41" in capsys.readouterr().out
+
+
+def test_table_console_is_wide_when_piped_unless_columns_is_set(monkeypatch):
+    """Tables printed into a pipe or a log are not cut at rich's default 80 columns; an
+    explicit COLUMNS still wins."""
+    from continuum_mhe.progress import PIPED_WIDTH, table_console
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    assert table_console().width == PIPED_WIDTH  # pytest's stdout is not a terminal
+    monkeypatch.setenv("COLUMNS", "90")
+    assert table_console().width == 90
+
+
+def test_every_commands_help_is_plain_text():
+    """``--help`` of every command has no reStructuredText from a docstring (roles such
+    as ``:mod:`` or double backticks)."""
+    import argparse
+
+    from continuum_mhe.cli import build_parser
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert len(commands.choices) >= 11
+    for name, sub in [("continuum-mhe", parser), *commands.choices.items()]:
+        text = sub.format_help()
+        for markup in (":mod:", ":func:", ":class:", ":meth:", ":data:", "``"):
+            assert markup not in text, f"{name} --help shows {markup}"
+
+
+def test_robot_option_names_only_options_its_command_has():
+    """``--robot``'s help says which one-section options it replaces; each is an option
+    of that command (view and calibrate have no --theta-max)."""
+    import argparse
+    import re
+
+    from continuum_mhe.cli import build_parser
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    checked = 0
+    for name, sub in commands.choices.items():
+        robot = sub._option_string_actions.get("--robot")
+        if robot is None:
+            continue
+        replaced = re.findall(r"--[a-z-]+", (robot.help or "").split("replaces", 1)[-1])
+        if "replaces" in (robot.help or ""):
+            assert replaced, name
+        for option in replaced:
+            action = sub._option_string_actions.get(option)
+            assert action is not None and action.help != argparse.SUPPRESS, (name, option)
+        checked += 1
+    assert checked >= 6

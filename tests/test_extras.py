@@ -82,6 +82,17 @@ def test_live_without_pyserial(monkeypatch):
         open_port("/dev/ttyACM0", 115200)
 
 
+def test_calibrate_without_pyserial(monkeypatch, capsys):
+    """The missing package, not the board: one line naming ``calibrate`` and the pip
+    install, exit 2."""
+    _block(monkeypatch, "serial")
+    assert main(["calibrate", "--port", "/dev/ttyACM0"]) == 2
+    err = capsys.readouterr().err
+    _one_error_line(err, "robot")
+    assert "calibrate needs pyserial" in err
+    assert "live" not in err and "board" not in err and "serial ports" not in err
+
+
 def test_bag_without_rosbags(monkeypatch, tmp_path, capsys):
     bag = tmp_path / "run.bag"
     bag.write_bytes(b"#ROSBAG V2.0\n")

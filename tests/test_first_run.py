@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -120,6 +121,107 @@ def test_background_mode_without_kernels_picks_the_uncompiled_paths(tmp_path, mo
     est = mhe.step(__import__("continuum_mhe").Measurement(0.0, np.zeros(2)))
     assert est.status == "fallback-ipopt"
     assert len(started) == 2  # each asks; start_background_warmup runs one process
+
+
+def _no_compiling_here() -> None:
+    raise AssertionError("compiled beside the running background compile")
+
+
+def test_library_waits_for_a_running_background_compile(tmp_path, monkeypatch):
+    """A foreground ``ensure_compiled`` that finds a background compile running (a live
+    pid in the pid file: this test's own) says once that it waits, does not compile or
+    flush numba's cache beside it, and returns when the marker appears."""
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "_announced", set())
+    monkeypatch.setattr(warmup, "_POLL_S", 0.01)
+    monkeypatch.setattr(warmup, "warm_up", _no_compiling_here)
+    warmup.pid_path().write_text(f"{os.getpid()}\n")
+    done = threading.Timer(0.3, (tmp_path / "k.ready").write_text, args=("compiled\n",))
+    done.start()
+    try:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            warmup.ensure_compiled()
+            warmup.ensure_compiled()
+    finally:
+        done.cancel()
+    notices = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
+    assert notices == [
+        "waiting for the background compile of the fast solver's kernels (first run only)"
+    ]
+    assert warmup.kernels_ready()
+
+
+def test_library_compiles_when_the_background_compile_dies(tmp_path, monkeypatch):
+    """The background compile ends without the marker (killed, crashed): the waiting
+    ``ensure_compiled`` compiles in the foreground, holding the pid file meanwhile."""
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "_announced", set())
+    monkeypatch.setattr(warmup, "_POLL_S", 0.01)
+    held: list[str] = []
+
+    def compile_here() -> None:
+        held.append(warmup.pid_path().read_text().strip())
+        (tmp_path / "k.ready").write_text("compiled\n")
+
+    monkeypatch.setattr(warmup, "warm_up", compile_here)
+    dying = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(0.3)"])
+    reaper = threading.Thread(target=dying.wait)  # a reaped pid is gone, not a zombie
+    reaper.start()
+    warmup.pid_path().write_text(f"{dying.pid}\n")
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        warmup.ensure_compiled()
+    reaper.join()
+    notices = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
+    assert len(notices) == 2
+    assert notices[0].startswith("waiting for the background compile")
+    assert notices[1].startswith("compiling the fast solver's kernels")
+    assert held == [str(os.getpid())] and warmup.kernels_ready()
+    assert not warmup.pid_path().exists()
+
+
+def test_a_background_compile_waits_for_a_foreground_one(tmp_path, monkeypatch):
+    """While ``ensure_compiled`` compiles, the pid file names its process, so the command
+    line's background start finds a compile running and starts none."""
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "_announced", set())
+    monkeypatch.setattr(subprocess, "Popen", lambda *a, **k: _no_compiling_here())
+    started: list[bool] = []
+    monkeypatch.setattr(warmup, "warm_up", lambda: started.append(warmup.start_background_warmup()))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", warmup.CompileNotice)
+        warmup.ensure_compiled()
+    assert started == [True]
+
+
+def test_cold_demo_names_the_paths_it_timed_and_its_table_is_not_cut_when_piped(
+    tmp_path, monkeypatch, capsys
+):
+    """The first ``demo`` (kernels compiling in the background) marks the rows that ran
+    IPOPT and the CasADi EKF, whose times are theirs, and says why under the table; its
+    output, captured as through a pipe (not a terminal, no COLUMNS), keeps whole headers
+    instead of rich's 80-column cut (``theta…``)."""
+    from continuum_mhe import cli
+    from continuum_mhe.estimators import mhe
+
+    monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", "background")
+    monkeypatch.delenv("COLUMNS", raising=False)
+    for module in (cli, mhe, warmup):
+        monkeypatch.setattr(module, "kernels_ready", lambda: False)
+    monkeypatch.setattr(warmup, "start_background_warmup", lambda: True)
+    monkeypatch.setattr(warmup, "_announced", set())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", warmup.CompileNotice)
+        assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "…" not in out
+    header = next(ln for ln in out.splitlines() if "method" in ln)
+    for column in ("tip mean mm", "theta RMSE deg", "phi RMSE deg", "median solve ms"):
+        assert column in header
+    rows = [ln.split("│")[1].strip() for ln in out.splitlines() if ln.startswith("│")]
+    assert rows == ["MHE (IPOPT)", "EKF (CasADi)", "UKF"]
+    assert "while the fast solver's kernels compile in the background" in " ".join(out.split())
 
 
 @pytest.mark.parametrize(

@@ -129,12 +129,47 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf", "--length", "0.5"]) == 0
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
-    err = capsys.readouterr().err
+    out, err = capsys.readouterr()
     assert "2.50 times as far from the base" in err and "another --length" in err
+    assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
-    assert "warning" not in capsys.readouterr().err  # same length: no hint
+    out, err = capsys.readouterr()
+    assert "warning" not in err  # same length: no hint
+    summed = r"SRMSE\s+\d\.\d{4} \(sum of the RMSEs of x, y, z, theta, phi, m \+ rad\)"
+    assert re.search(summed, out)
+
+
+def test_evaluate_against_another_robots_truth_gives_no_srmse(tmp_path, capsys) -> None:
+    """A two-section truth for a one-section estimate: the warning, and no SRMSE summed
+    over the x, y, z they share that would read as a score."""
+    m, _ = _simulated(tmp_path, "a")
+    two = tmp_path / "two.csv"
+    args = ["simulate", "spatial", "--robot", "two-section", "--duration", "5"]
+    assert main([*args, "-o", str(tmp_path / "m2.csv"), "--truth", str(two)]) == 0
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(two)]) == 0
+    out, err = capsys.readouterr()
+    assert "warning" in err and "SRMSE                not given" in out
+
+
+def test_estimate_of_a_folder_that_is_not_a_bag(tmp_path, capsys) -> None:
+    assert main(["estimate", str(tmp_path), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "is a directory without metadata.yaml, expected a CSV file or a ROS 2 bag folder" in err
+
+
+def test_a_mistyped_option_shows_the_commands_usage(tmp_path, capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["estimate", "m.csv", "-o", str(tmp_path / "e.csv"), "--methd", "ekf"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: continuum-mhe estimate ")
+    assert "continuum-mhe estimate: error: unrecognized arguments: --methd ekf" in err
 
 
 def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:

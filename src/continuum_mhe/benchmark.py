@@ -296,8 +296,9 @@ def run_robot_benchmark(robot: Robot, horizons: list[int], duration: float) -> d
 
 
 def print_robot_report(report: dict[str, Any]) -> None:
-    from rich.console import Console
     from rich.table import Table
+
+    from continuum_mhe.progress import table_console
 
     table = Table(
         title=f"fast MHE vs IPOPT on the same windows: {report['robot']}, raw IMUs "
@@ -315,7 +316,7 @@ def print_robot_report(report: dict[str, Any]) -> None:
             f"{r['max_diff_vs_ipopt']:.1e}",
             str(r["fallbacks"]),
         )
-    console = Console()
+    console = table_console()
     console.print(table)
     console.print(environment_line(report))
 
@@ -568,8 +569,9 @@ def _times(x: float) -> str:
 
 def print_report(report: dict[str, Any]) -> None:
     """Rich table of :func:`run_benchmark`'s report."""
-    from rich.console import Console
     from rich.table import Table
+
+    from continuum_mhe.progress import table_console
 
     table = Table(
         title=f"Time per sample: bend, {report['scenario']}, {report['samples']} samples "
@@ -594,7 +596,7 @@ def print_report(report: dict[str, Any]) -> None:
             f"{r['max_diff_from_n']:.1e}",
             str(r["fallbacks"]),
         )
-    console = Console()
+    console = table_console()
     console.width = max(console.width, 110)
     console.print(table)
     for name, note in report["methods"].items():
@@ -687,7 +689,8 @@ def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "benchmark",
         help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
-        description=__doc__.split("\n\n")[0] if __doc__ else None,
+        description="Time the fast MHE beside IPOPT, do-mpc's MHE and three EKFs, and the "
+        "bare compiled kernels of the fast MHE and the EKF, on one simulated recording.",
     )
     p.add_argument(
         "--horizons",

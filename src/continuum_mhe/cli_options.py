@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,13 +26,17 @@ from continuum_mhe.settings import (
 )
 
 
-def add_robot_option(g: argparse._ActionsContainer) -> None:
-    g.add_argument(
-        "--robot",
-        metavar="ROBOT.toml",
-        help="robot file (sections, IMUs, mounting; see README); replaces --length, "
-        "--theta-max and --mounting",
-    )
+def add_robot_option(
+    g: argparse._ActionsContainer,
+    replaces: Sequence[str] = ("--length", "--theta-max", "--mounting"),
+) -> None:
+    """``--robot ROBOT.toml``; its help names ``replaces``, the command's one-section
+    options that a robot file overrides."""
+    text = "robot file (sections, IMUs, mounting; see README)"
+    if replaces:
+        *first, last = replaces
+        text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
+    g.add_argument("--robot", metavar="ROBOT.toml", help=text)
 
 
 def robot_from_args(args: argparse.Namespace) -> Robot:

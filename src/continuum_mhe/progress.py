@@ -1,7 +1,9 @@
-"""Progress bars (rich), shown only when stderr is a terminal."""
+"""rich output: progress bars (shown only when stderr is a terminal) and the console
+that prints tables."""
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from typing import TypeVar
@@ -35,3 +37,17 @@ def progress_bar(
         )
 
     return wrap
+
+
+#: the width of printed tables when stdout is not a terminal and COLUMNS is not set
+#: (rich's default there is 80, which cuts headers of wide tables to ``theta…``)
+PIPED_WIDTH = 1000
+
+
+def table_console() -> Console:
+    """A console on stdout for tables: the terminal's width, ``$COLUMNS`` where set, else
+    (piped, logged) wide enough that no column is cut."""
+    console = Console()
+    if not console.is_terminal and not os.environ.get("COLUMNS"):
+        console.width = PIPED_WIDTH
+    return console

@@ -97,6 +97,11 @@ def open_estimate_input(
             str(path), data.kind, data.formulation, pairs, problems, data.t0_ns,
             notes=tuple(data.notes),
         )  # fmt: skip
+    if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
+        raise InputError(
+            f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
+            "bag folder"
+        )
     rows = open_rows(path)
     try:
         return _csv_stream(rows, options, formulation)

@@ -72,7 +72,7 @@ def register(subparsers: Any) -> None:
         "Writes one JSON per experiment, figures (PNG, PDF) and report.md.",
     )
     p.add_argument("--out", required=True, help="results folder (created)")
-    p.add_argument("--quick", action="store_true", help="small sizes (about a minute)")
+    p.add_argument("--quick", action="store_true", help="small sizes (about 25 s on 2 cores)")
     p.add_argument(
         "--jobs", type=int, default=None, help="local worker processes (default: all CPUs)"
     )

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
 from continuum_mhe.io.raw_imu import csv_input_kind, read_raw_imu, read_raw_imus
 from continuum_mhe.model.imu import Mounting
@@ -160,7 +161,9 @@ def collect(
 ) -> tuple[FloatArray, FloatArray]:
     """Samples from the port over ``seconds`` of device time (device messages shown)."""
     try:
-        conn = open_port(port, baud)
+        conn = open_port(port, baud, "calibrate")
+    except MissingExtraError:
+        raise
     except Exception as exc:
         raise InputError(port_hint(port, exc)) from None
     events: queue.Queue[Event] = queue.Queue()
@@ -280,7 +283,7 @@ def register_calibrate(subparsers: Any) -> None:
     p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
-    add_robot_option(p)
+    add_robot_option(p, replaces=("--mounting",))
     p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     p.set_defaults(func=cmd_calibrate)

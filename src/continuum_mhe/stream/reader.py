@@ -16,9 +16,10 @@ from continuum_mhe.stream.protocol import MAX_LINE_BYTES, LineSplitter
 Event = tuple[str, Any, float]  # (kind, payload, monotonic arrival time)
 
 
-def open_port(port: str, baud: int) -> Any:
-    """Open a serial device or pyserial URL with a short read timeout."""
-    serial = require("serial", "robot", "live on a serial port", package="pyserial")
+def open_port(port: str, baud: int, feature: str = "live on a serial port") -> Any:
+    """Open a serial device or pyserial URL with a short read timeout; without pyserial,
+    a :class:`~continuum_mhe.extras.MissingExtraError` naming ``feature``."""
+    serial = require("serial", "robot", feature, package="pyserial")
     return serial.serial_for_url(port, baudrate=baud, timeout=0.05)
 
 

@@ -106,7 +106,7 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("estimates", metavar="EST.csv", help="estimate CSV (from estimate or live)")
     p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV, drawn in grey")
-    add_robot_option(p)
+    add_robot_option(p, replaces=("--length", "--mounting"))
     p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     add_viewer_options(p)

@@ -17,6 +17,11 @@ finds them not yet compiled can
 versions and the package's place; it lies in numba's cache folder, so a changed kernel,
 a new numba or a removed cache compiles again. ``CONTINUUM_MHE_FIRST_RUN=foreground``
 makes the command line wait too.
+
+The process compiling (in the background or the foreground) holds a pid file beside the
+marker. A foreground compile that finds another process compiling waits for it (said
+once) instead of compiling beside it and flushing the cache it writes; if that process
+ends without the marker, the foreground compiles after all.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import time
 import warnings
 from importlib import metadata
 from pathlib import Path
@@ -49,6 +55,13 @@ def _source(module: str) -> Path:
 
 
 _announced: set[str] = set()
+#: the background compile this process started (its pid stays alive as a zombie until
+#: reaped, so this process asks the Popen whether it ended)
+_child: subprocess.Popen[bytes] | None = None
+#: seconds between checks while waiting for another process's compile
+_POLL_S = 0.5
+#: the longest wait for another process's compile (a recycled pid is not a compile)
+_WAIT_LIMIT_S = 900.0
 
 
 class CompileNotice(UserWarning):
@@ -174,25 +187,63 @@ def warm_up() -> None:
 
 
 def ensure_compiled() -> None:
-    """Compile the kernels now if they are not cached, saying so once (library use)."""
-    if kernels_ready():
+    """Compile the kernels now if they are not cached, saying so once (library use); if
+    another process is compiling them, wait for it instead."""
+    if kernels_ready() or _wait_for_other_compile():
         return
     _say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
-    warm_up()
+    pid_file = pid_path()
+    try:  # a background compile started meanwhile waits for this one
+        pid_file.parent.mkdir(parents=True, exist_ok=True)
+        pid_file.write_text(f"{os.getpid()}\n")
+    except OSError:
+        pass
+    try:
+        warm_up()
+    finally:
+        _release(pid_file)
+
+
+def _wait_for_other_compile() -> bool:
+    """Wait while another process compiles the kernels; True if they are compiled now."""
+    pid_file = pid_path()
+    if not _running(pid_file):
+        return False
+    _say_once("waiting for the background compile of the fast solver's kernels (first run only)")
+    give_up = time.monotonic() + _WAIT_LIMIT_S
+    while _running(pid_file) and not kernels_ready() and time.monotonic() < give_up:
+        time.sleep(_POLL_S)
+    return kernels_ready()
 
 
 def _running(pid_file: Path) -> bool:
+    """True if the process named in ``pid_file`` is alive."""
     try:
         pid = int(pid_file.read_text().strip())
-        os.kill(pid, 0)
     except (OSError, ValueError):
         return False
+    if _child is not None and _child.pid == pid:
+        return _child.poll() is None
+    try:
+        os.kill(pid, 0)
+    except OSError:
+        return False
     return True
+
+
+def _release(pid_file: Path) -> None:
+    """Remove ``pid_file`` if it names this process."""
+    try:
+        if pid_file.read_text().strip() == str(os.getpid()):
+            pid_file.unlink()
+    except OSError:
+        pass
 
 
 def start_background_warmup() -> bool:
     """Start :func:`warm_up` in a detached process unless one is running already;
     returns True if one is running now."""
+    global _child
     pid_file = pid_path()
     if _running(pid_file):
         return True
@@ -206,6 +257,7 @@ def start_background_warmup() -> bool:
             start_new_session=True,  # survives this command and its Ctrl-C
         )
         pid_file.write_text(f"{proc.pid}\n")
+        _child = proc
     except OSError:
         return False
     return True
@@ -228,11 +280,7 @@ def _main() -> int:
     try:
         warm_up()
     finally:
-        try:
-            if pid_path().read_text().strip() == str(os.getpid()):
-                pid_path().unlink()
-        except OSError:
-            pass
+        _release(pid_path())
     return 0
 
 
