@@ -116,8 +116,9 @@ def run_loss_benchmark(
 
 def print_loss_report(rows: list[dict[str, Any]]) -> None:
     """Rich table of :func:`run_loss_benchmark`'s rows."""
-    from rich.console import Console
     from rich.table import Table
+
+    from continuum_mhe.progress import table_console
 
     table = Table(
         title="Cost of each MHE loss (median us per sample from sample N on; / l2: over "
@@ -140,6 +141,6 @@ def print_loss_report(rows: list[dict[str, Any]]) -> None:
             f"{r['max_diff_vs_ipopt']:.1e}",
             str(r["fallbacks"]),
         )
-    console = Console()
+    console = table_console()
     console.width = max(console.width, 110)
     console.print(table)
