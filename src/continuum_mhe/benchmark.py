@@ -78,8 +78,9 @@ METHOD_NOTES: dict[str, str] = {
     "ekf": "EKF through three CasADi calls per step: the whole estimator step",
     "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "
     "returns): the whole estimator step",
-    "ekf-kernel": "the compiled EKF step and output alone, no estimator interface "
-    "(validation, masks, divergence check); inputs prepared outside",
+    "ekf-kernel": "the compiled EKF step with its outputs and their std (what "
+    "mhe-kernel hands back) in one call alone, no estimator interface (validation, "
+    "masks, divergence check); inputs prepared outside",
 }
 
 
