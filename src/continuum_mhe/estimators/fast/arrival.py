@@ -87,11 +87,23 @@ def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
 
 
 @numba.njit(cache=True)
-def ekf_step_outputs(fn, ptrs, out, xin, x, P, valid, R, Q, nx, outputs, y, std):
-    """:func:`ekf_step`, then the new state's outputs ``y`` and their standard
-    deviations ``std`` (:mod:`.outputs`): everything the EKF reports for a sample, in
-    one compiled call, as the fused MHE step hands back its own. Returns ``(x, P)``."""
-    xn, Pn = ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx)
+def ekf_step_outputs(fn, ptrs, out, inputs, x, P, sample, R, Q, outputs, y, std):
+    """:func:`ekf_step` on ``sample = (z, mask, u, dt)`` (the node model's input
+    buffers ``inputs = (x, u, dt, z, mask)`` filled here, masked readings zeroed), then
+    the new state's outputs ``y`` and their standard deviations ``std``
+    (:mod:`.outputs`): everything the EKF reports for a sample, in one compiled call,
+    as the fused MHE step hands back its own. Returns ``(x, P)``."""
+    xin, uin, dtin, zin, min_ = inputs
+    z, mask, u, dt = sample
+    valid = False
+    for i in range(z.shape[0]):
+        on = mask[i] > 0.0
+        zin[i] = z[i] if on else 0.0
+        min_[i] = mask[i]
+        valid = valid or on
+    uin[:] = u
+    dtin[0] = dt
+    xn, Pn = ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, x.shape[0])
     output_values(outputs, xn, y)
     output_std(outputs, Pn, std)
     return xn, Pn

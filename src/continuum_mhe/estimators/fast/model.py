@@ -211,6 +211,7 @@ class NodeEvaluator:
             self._oout, self._jout, np.array(model.wrapped, dtype=np.int64),
         )  # fmt: skip
         self._ekf_step_outputs = CompiledCall(arrival.ekf_step_outputs)
+        self._inputs = (self._x, self._u, self._dt, self._z, self._m)
         self._y = np.empty(model.ny)
         self._std = np.empty(model.ny)
         k = nx + nx * nx
@@ -314,11 +315,11 @@ class NodeEvaluator:
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """:meth:`ekf_step`, then :meth:`output` and :meth:`output_std` of its answer, in
         one compiled call: ``(x+, P+, outputs, output standard deviations)``."""
-        x, P = self._ekf_inputs(x, P, u, dt, z, mask)
         try:
             xn, Pn = self._ekf_step_outputs(
-                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q,
-                len(x), self.outputs, self._y, self._std,
+                self._addr, self._ptrs, self._out, self._inputs, _f64(x), _f64(P),
+                (_f64(z), _f64(mask), _f64(u), float(dt)), R, Q, self.outputs, self._y,
+                self._std,
             )  # fmt: skip
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             raise self._failure(exc) from exc
@@ -363,6 +364,12 @@ class NodeEvaluator:
         for i in self._wrapped:
             y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
         return y
+
+
+def _f64(a: FloatArray) -> FloatArray:
+    """``a`` as a C-contiguous float64 array (no copy when it is one already): the
+    compiled calls' argument types are fixed on their first call."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 @lru_cache(maxsize=32)
