@@ -147,7 +147,7 @@ class DirectFormulation(BendFormulation):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
 
-    @property
+    @cached_property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
         return direct_blocks(self.robot.n_imus)
 

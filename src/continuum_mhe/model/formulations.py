@@ -113,26 +113,28 @@ class Formulation:
     def nu(self) -> int:
         return 0
 
-    @property
+    # The descriptions below are fixed by the (frozen) formulation and read on every
+    # sample by the estimators: computed once.
+    @cached_property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
         """One block per IMU, in the robot's IMU order."""
         return tilt_blocks(self.robot.n_imus)
 
-    @property
+    @cached_property
     def nz(self) -> int:
         """Size of the measurement vector z."""
         return sum(b.size for b in self.measurement_blocks)
 
-    @property
+    @cached_property
     def measurement_names(self) -> tuple[str, ...]:
         return tuple(n for b in self.measurement_blocks for n in b.names)
 
-    @property
+    @cached_property
     def outputs(self) -> tuple[OutputSpec, ...]:
         """The outputs, in order (see :func:`~continuum_mhe.model.descriptions.pcc_outputs`)."""
         return pcc_outputs(self.robot.n_sections)
 
-    @property
+    @cached_property
     def ny(self) -> int:
         return len(self.outputs)
 
