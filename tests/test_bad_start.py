@@ -20,6 +20,7 @@ from numpy.testing import assert_array_equal
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.start_check import SAMPLES
+from continuum_mhe.io.csv_files import write_measurements
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate
@@ -81,6 +82,13 @@ def test_bad_start_option(tmp_path, capsys) -> None:
     assert "error: --bad-start -1.0 is outside its valid range" in capsys.readouterr().err
     assert not est.exists()
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0  # default on
+    capsys.readouterr()
+    rec, z = bad_start_recording()  # the restart is said in the summary line
+    write_measurements(meas, rec.t, z)
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    assert "restarted 1 time(s) after readings inconsistent with the start" in (
+        capsys.readouterr().err
+    )
 
 
 def test_not_checked_where_the_covariance_is_a_weight(monkeypatch) -> None:

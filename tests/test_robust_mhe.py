@@ -24,7 +24,12 @@ from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives, rho_sym
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
-from continuum_mhe.io.csv_files import InputError, read_state_table, write_estimates
+from continuum_mhe.io.csv_files import (
+    InputError,
+    read_state_table,
+    write_estimates,
+    write_measurements,
+)
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.kinematics import rotation_bend_sym
 from continuum_mhe.settings import MHESettings, RecoverySettings
@@ -291,6 +296,13 @@ def test_reject_reset_option(tmp_path: Path, capsys) -> None:
     assert "error: --reject-reset -1.0 is outside its valid range" in capsys.readouterr().err
     assert not est.exists()
     assert main([*args, "--reject-reset", "0"]) == 0
+    capsys.readouterr()
+    rec, z = lost_after_burst()  # restarts once with the default, and says so
+    write_measurements(meas, rec.t, z)
+    assert main(["estimate", str(meas), "-o", str(est), "--loss", "welsch"]) == 0
+    assert "restarted 1 time(s) after rejecting every reading for over 0.5 s" in (
+        capsys.readouterr().err
+    )
 
 
 # --- CLI ----------------------------------------------------------------------------------------

@@ -160,6 +160,13 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
+    if est.bad_starts:
+        msg += f"; restarted {est.bad_starts} time(s) after readings inconsistent with the start"
+    if est.reject_resets:
+        msg += (
+            f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "
+            f"{args.reject_reset:g} s"
+        )
     if est.frozen_samples:
         msg += (
             f"; {est.frozen_samples} sample(s) with a frozen IMU (same reading for over "
