@@ -227,11 +227,15 @@ def test_a_failing_output_function_names_itself_through_the_fused_ekf_step() -> 
     model = replace(model, output=codegen._vm_function(
         RaisingFunction(codegen.output_function(f), "broken outputs")
     ))
-    node = NodeEvaluator(model)
     x, P, R = f.initial_state(np.array([0.3, -0.2])), f.initial_cov(), f.meas_cov()
+    sample = (np.zeros(f.nu), 0.05, np.zeros(f.nz), np.ones(f.nz), R, 0.01 * np.eye(f.nx))
     with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
-        node.ekf_step_outputs(x, P, np.zeros(f.nu), 0.05, np.zeros(f.nz), np.ones(f.nz), R,
-                              0.01 * np.eye(f.nx))  # fmt: skip
+        NodeEvaluator(model).ekf_step_outputs(x, P, *sample)
+    model = replace(build_window_model(f, 2, compile=False), output_jacobian=codegen._vm_function(
+        RaisingFunction(codegen.output_jacobian_function(f), "broken Jacobian")
+    ))  # fmt: skip
+    with pytest.raises(RuntimeError, match="ValueError: broken Jacobian"):
+        NodeEvaluator(model).ekf_step_outputs(x, P, *sample)
 
 
 @pytest.mark.parametrize("in_place", [False, True])

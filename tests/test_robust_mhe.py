@@ -32,14 +32,18 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.kinematics import rotation_bend_sym
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import MHESettings, RecoverySettings
-from continuum_mhe.simulation.scenarios import simulate
+from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 SOLVERS = ("fast", "ipopt")
 ROBUST = ("huber", "cauchy", "welsch")
 HORIZON = 12
 #: samples of the short recording that get a +-30 deg spike on roll and pitch
 SPIKES = (9, 17, 25)
+#: two sections with an IMU at the tip of each
+TWO_IMUS = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
 
 
 def spiked(z: np.ndarray, at: tuple[int, ...] = SPIKES, deg: float = 30.0) -> np.ndarray:
@@ -258,31 +262,57 @@ def lost_after_burst():
     return rec, z
 
 
-@pytest.mark.parametrize("reject_reset", [None, 0.5])
-def test_a_robust_mhe_that_rejects_every_reading_restarts(reject_reset) -> None:
+@pytest.mark.parametrize(
+    ("reject_reset", "dropouts"), [(None, False), (0.52, False), (0.52, True)],
+    ids=["off", "on", "on-with-dropouts"],
+)  # fmt: skip
+def test_a_robust_mhe_that_rejects_every_reading_restarts(reject_reset, dropouts) -> None:
+    """Known sample: rejected from sample 61 (t = 3.05 s), the first valid reading more
+    than 0.52 s later is sample 72 (0.55 s). Readings dropped out in between (66-68)
+    neither end nor extend the run."""
     rec, z = lost_after_burst()
+    if dropouts:
+        z[66:69] = np.nan
     est = MovingHorizonEstimator(BendFormulation(), robust("fast", "welsch", horizon=30))
     est.recovery = RecoverySettings(reject_reset=reject_reset)
     s = est.run(rec.t, z)
     err = np.linalg.norm(s.output[:, :3] - np.asarray(rec.truth)[:, :3], axis=1)
+    valid = np.isfinite(z[:, 0])
     assert s.outlier is not None and not s.outlier[56:61].any()  # it followed the burst
-    assert s.outlier[61:72].all()  # then rejected every reading: 0.5 s from sample 61
+    assert s.outlier[61:72][valid[61:72]].all()  # then rejected every reading
     if reject_reset is None:  # lost for good, ok then uncertain, never reset
         assert err[72:].min() > 0.05 and est.reject_resets == 0
         assert "reset" not in set(s.status)
-    else:  # the first valid reading after 0.5 s of rejections restarts it
+    else:  # the first valid reading after 0.52 s of rejections restarts it
         assert list(np.flatnonzero(s.status == "reset")) == [72] and est.reject_resets == 1
         assert err[72] < 0.005 and err[75:].max() < 0.015
 
 
-def test_no_restart_while_the_readings_are_accepted_or_for_a_quadratic_cost() -> None:
-    """A 5-sample burst that the estimate does not follow is rejected for 0.25 s only;
-    the quadratic MHE flags nothing, so the rule never acts on it."""
+def test_no_restart_for_a_burst_rejected_briefly_or_one_faulty_imu_of_two() -> None:
+    """A 5-sample burst that the Welsch MHE rejects (not follows) is rejected for 0.25 s
+    only; Cauchy follows the burst of the lost recording without losing the readings
+    after it; and on a two-IMU robot one IMU that stays 60 deg off from sample 20 is
+    rejected on every sample, but the other's readings are accepted: the estimate is
+    not lost, and a restart would only take the faulty readings in."""
     rec, z = lost_after_burst()
-    for loss in ("cauchy", "l2"):
-        est = MovingHorizonEstimator(BendFormulation(), robust("fast", loss, horizon=30))
-        s = est.run(rec.t, z)
-        assert est.reject_resets == 0 and "reset" not in set(s.status), loss
+    z_low = np.array(rec.z, dtype=float)
+    z_low[20:25] += np.radians(30.0) * np.array([-1.0, 1.0])  # pitch 17-60 deg there
+    z_low[:, 1] = np.clip(z_low[:, 1], -math.pi / 2, math.pi / 2)
+    est = MovingHorizonEstimator(BendFormulation(), robust("fast", "welsch", horizon=30))
+    s = est.run(rec.t, z_low)
+    assert s.outlier is not None and list(np.flatnonzero(s.outlier)) == [20, 21, 22, 23, 24]
+    assert est.reject_resets == 0 and "reset" not in set(s.status)
+    est = MovingHorizonEstimator(BendFormulation(), robust("fast", "cauchy", horizon=30))
+    s = est.run(rec.t, z)
+    assert est.reject_resets == 0 and "reset" not in set(s.status)
+    f = make_formulation("bend", TWO_IMUS)
+    rec2 = simulate_robot("s-curve", TWO_IMUS, duration=6.0, seed=1)
+    z2 = np.array(rec2.z, dtype=float)
+    z2[20:, 2] += np.radians(60.0)  # roll of the second IMU
+    est = MovingHorizonEstimator(f, robust("fast", "welsch", horizon=10))
+    s = est.run(rec2.t, z2)
+    assert s.outlier is not None and s.outlier[20:].sum() > 60  # the fault is rejected
+    assert est.reject_resets == 0  # (the divergence check may restart it: not this rule)
 
 
 def test_reject_reset_option(tmp_path: Path, capsys) -> None:
@@ -295,14 +325,18 @@ def test_reject_reset_option(tmp_path: Path, capsys) -> None:
     assert main([*args, "--reject-reset", "-1"]) == 2
     assert "error: --reject-reset -1.0 is outside its valid range" in capsys.readouterr().err
     assert not est.exists()
-    assert main([*args, "--reject-reset", "0"]) == 0
     capsys.readouterr()
     rec, z = lost_after_burst()  # restarts once with the default, and says so
     write_measurements(meas, rec.t, z)
-    assert main(["estimate", str(meas), "-o", str(est), "--loss", "welsch"]) == 0
+    args = ["estimate", str(meas), "-o", str(est), "--loss", "welsch"]
+    assert main(args) == 0
     assert "restarted 1 time(s) after rejecting every reading for over 0.5 s" in (
         capsys.readouterr().err
     )
+    assert "reset" in read_state_table(est).status
+    assert main([*args, "--reject-reset", "0"]) == 0  # off
+    assert "after rejecting every reading" not in capsys.readouterr().err
+    assert "reset" not in read_state_table(est).status
 
 
 # --- CLI ----------------------------------------------------------------------------------------

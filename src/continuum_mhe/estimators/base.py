@@ -109,6 +109,11 @@ class Estimator(ABC):
         """Whether the last step down-weighted its measurement (robust MHE only)."""
         return False
 
+    def _rejected_every_reading(self) -> bool | None:
+        """Whether the last step down-weighted every valid reading of its sample (robust
+        MHE only; the reject reset counts these); None when the sample had none."""
+        return False
+
     def _output(self, state: FloatArray) -> FloatArray:
         """The outputs of a state (a backend may use a compiled copy)."""
         return self.formulation.output(state)
@@ -263,7 +268,10 @@ class Estimator(ABC):
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
         outlier = state is not None and self._outlier()
-        if not outlier:
+        rejected = state is not None and self._rejected_every_reading()
+        if rejected is None:  # no reading: a dropout neither extends nor ends the run
+            pass
+        elif not rejected:
             self._rejecting_since = None
         elif self._rejecting_since is None:
             self._rejecting_since = t

@@ -527,6 +527,17 @@ class MovingHorizonEstimator(Estimator):
         :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT`."""
         return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
 
+    def _rejected_every_reading(self) -> bool | None:
+        """True when the last solve down-weighted every valid block of the newest sample
+        below :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT` (one faulty IMU of
+        several is not a lost estimate); None when the sample had no valid block."""
+        if not self.flags_outliers:
+            return False
+        valid = self._zmask[-1][self._blocks[:, 0]] > 0.0
+        if not valid.any():
+            return None
+        return bool(np.all(self._w_last[valid] < OUTLIER_WEIGHT))
+
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
         self._last_hessian = self._last_iterate = None
         if self._fast is None:

@@ -67,6 +67,8 @@ OUTLIER_METHODS = ("mhe-l2", "mhe-robust", "ekf")
 ALL_METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
 #: The command line's recovery defaults (``--gap-reset 1 --freeze 1 --bad-start 2``), s.
 RECOVERY_ON = RecoverySettings(gap_reset=1.0, freeze=1.0, bad_start=2.0)
+#: The library's defaults: gap, freeze and bad-start off (the reject reset, on there, acts
+#: only on a robust MHE, which the recovery groups do not run).
 RECOVERY_OFF = RecoverySettings()
 #: Start of the gap and of the freeze, s; the score window's extra time after, s.
 EVENT_T0 = 5.0

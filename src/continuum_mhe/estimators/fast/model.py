@@ -35,7 +35,7 @@ from continuum_mhe.estimators.fast.codegen import (
     transition_is_linear,
     window_function,
 )
-from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED
+from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED, OUTPUT_JACOBIAN_FAILED
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
@@ -297,8 +297,9 @@ class NodeEvaluator:
         x, P = self._ekf_inputs(x, P, u, dt, z, mask)
         try:
             return self._ekf_step(
-                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), R, Q, len(x)
-            )
+                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), _f64(R),
+                _f64(Q), len(x),
+            )  # fmt: skip
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             raise self._failure(exc) from exc
 
@@ -318,8 +319,8 @@ class NodeEvaluator:
         try:
             xn, Pn = self._ekf_step_outputs(
                 self._addr, self._ptrs, self._out, self._inputs, _f64(x), _f64(P),
-                (_f64(z), _f64(mask), _f64(u), float(dt)), R, Q, self.outputs, self._y,
-                self._std,
+                (_f64(z), _f64(mask), _f64(u), float(dt)), _f64(R), _f64(Q), self.outputs,
+                self._y, self._std,
             )  # fmt: skip
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             raise self._failure(exc) from exc
@@ -343,6 +344,8 @@ class NodeEvaluator:
             return RuntimeError(failure_message(self._fn))
         if str(exc) == OUTPUT_FAILED:
             return RuntimeError(failure_message(self._ofn))
+        if str(exc) == OUTPUT_JACOBIAN_FAILED:
+            return RuntimeError(failure_message(self._jfn))
         return exc
 
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:

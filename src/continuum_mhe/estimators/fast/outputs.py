@@ -17,9 +17,10 @@ import numpy as np
 
 from continuum_mhe.estimators.fast.ccall import call_model
 
-#: The kernels' error when the compiled output function fails (they cannot format its
-#: own message; the wrappers do).
+#: The kernels' errors when the compiled output function or its Jacobian fails (they
+#: cannot format the function's own message; the wrappers do).
 OUTPUT_FAILED = "output evaluation failed"
+OUTPUT_JACOBIAN_FAILED = "output Jacobian evaluation failed"
 
 
 @numba.njit(cache=True)
@@ -38,10 +39,11 @@ def output_values(outputs, x, y):
 @numba.njit(cache=True)
 def output_std(outputs, cov, std):
     """``std = sqrt(diag(J cov J^T))`` (ny,), ``J`` the output Jacobian at the state
-    that :func:`output_values` was last given. Raises ``RuntimeError(OUTPUT_FAILED)``."""
+    that :func:`output_values` was last given. Raises
+    ``RuntimeError(OUTPUT_JACOBIAN_FAILED)``."""
     _, jfn, optrs, _, _, jout, _ = outputs
     if call_model(jfn, optrs.ctypes.data, jout.ctypes.data) != 0:
-        raise RuntimeError(OUTPUT_FAILED)
+        raise RuntimeError(OUTPUT_JACOBIAN_FAILED)
     ny, nx = std.shape[0], cov.shape[0]
     for i in range(ny):
         s = 0.0

@@ -30,7 +30,12 @@ from continuum_mhe.estimators.fast.ccall import CompiledCall, address, call_mode
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
-from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED, output_std, output_values
+from continuum_mhe.estimators.fast.outputs import (
+    OUTPUT_FAILED,
+    OUTPUT_JACOBIAN_FAILED,
+    output_std,
+    output_values,
+)
 from continuum_mhe.estimators.fast.qp import CONVERGED, project
 from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp, shift_outputs
 
@@ -296,6 +301,7 @@ class StepBuffers:
         self.nin = (node._x, node._u, node._dt, node._z, node._m)
         self.window_fn = address(model.window)
         self.output_fn = model.output
+        self.output_jacobian_fn = model.output_jacobian
         self.outputs = node.outputs
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
@@ -336,6 +342,8 @@ class StepBuffers:
             return RuntimeError(failure_message(self.node._fn))
         if str(exc) == OUTPUT_FAILED:
             return RuntimeError(failure_message(self.output_fn))
+        if str(exc) == OUTPUT_JACOBIAN_FAILED:
+            return RuntimeError(failure_message(self.output_jacobian_fn))
         return exc
 
     def advance(
