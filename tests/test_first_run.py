@@ -181,6 +181,25 @@ def test_library_compiles_when_the_background_compile_dies(tmp_path, monkeypatch
     assert not warmup.pid_path().exists()
 
 
+def test_the_pid_file_is_claimed_atomically(tmp_path, monkeypatch):
+    """``_claim`` creates the pid file with O_EXCL: it fails while a live process holds
+    it (leaving it as it is) and replaces a stale one (its process gone)."""
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    pid_file = warmup.pid_path()
+    assert warmup._claim(pid_file) and pid_file.read_text() == f"{os.getpid()}\n"
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        pid_file.write_text(f"{holder.pid}\n")
+        assert not warmup._claim(pid_file)
+        assert pid_file.read_text() == f"{holder.pid}\n"
+        assert warmup.start_background_warmup()  # one is running: none started
+        assert pid_file.read_text() == f"{holder.pid}\n"
+    finally:
+        holder.kill()
+        holder.wait()
+    assert warmup._claim(pid_file) and pid_file.read_text() == f"{os.getpid()}\n"
+
+
 def test_a_background_compile_waits_for_a_foreground_one(tmp_path, monkeypatch):
     """While ``ensure_compiled`` compiles, the pid file names its process, so the command
     line's background start finds a compile running and starts none."""

@@ -189,15 +189,13 @@ def warm_up() -> None:
 def ensure_compiled() -> None:
     """Compile the kernels now if they are not cached, saying so once (library use); if
     another process is compiling them, wait for it instead."""
-    if kernels_ready() or _wait_for_other_compile():
-        return
-    _say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
     pid_file = pid_path()
-    try:  # a background compile started meanwhile waits for this one
-        pid_file.parent.mkdir(parents=True, exist_ok=True)
-        pid_file.write_text(f"{os.getpid()}\n")
-    except OSError:
-        pass
+    for _ in range(2):  # a compile that starts between the wait and the claim: wait again
+        if kernels_ready() or _wait_for_other_compile():
+            return
+        if _claim(pid_file):  # a background compile started from now on waits for this one
+            break
+    _say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
     try:
         warm_up()
     finally:
@@ -231,6 +229,30 @@ def _running(pid_file: Path) -> bool:
     return True
 
 
+def _claim(pid_file: Path) -> bool:
+    """Create ``pid_file`` holding this process's pid, atomically, unless a live process
+    holds it (False); a stale one is replaced. True too when it cannot be written (a
+    read-only cache folder: nothing to coordinate with)."""
+    for _ in range(2):
+        try:
+            pid_file.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(pid_file, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            if _running(pid_file):
+                return False
+            try:  # stale: its process ended without removing it
+                pid_file.unlink()
+            except OSError:
+                pass
+            continue
+        except OSError:
+            return True
+        with os.fdopen(fd, "w") as fh:
+            fh.write(f"{os.getpid()}\n")
+        return True
+    return False
+
+
 def _release(pid_file: Path) -> None:
     """Remove ``pid_file`` if it names this process."""
     try:
@@ -245,10 +267,9 @@ def start_background_warmup() -> bool:
     returns True if one is running now."""
     global _child
     pid_file = pid_path()
-    if _running(pid_file):
+    if not _claim(pid_file):  # held by a live compile, here or in the foreground
         return True
     try:
-        pid_file.parent.mkdir(parents=True, exist_ok=True)
         proc = subprocess.Popen(  # noqa: S603 - our own module, same interpreter
             [sys.executable, "-m", "continuum_mhe.estimators.fast.warmup"],
             stdin=subprocess.DEVNULL,
@@ -256,9 +277,10 @@ def start_background_warmup() -> bool:
             stderr=subprocess.DEVNULL,
             start_new_session=True,  # survives this command and its Ctrl-C
         )
-        pid_file.write_text(f"{proc.pid}\n")
+        pid_file.write_text(f"{proc.pid}\n")  # the claim passes to the child
         _child = proc
     except OSError:
+        _release(pid_file)
         return False
     return True
 
