@@ -474,6 +474,11 @@ def _interleaved(
     }
 
 
+def _us(x: float) -> str:
+    """Microseconds as printed: one decimal below 10 (the EKF kernel), else whole."""
+    return f"{x:.1f}" if x < 10 else f"{x:.0f}"
+
+
 def _ratio(a: float, b: float | None) -> float:
     return a / b if b else math.nan
 
@@ -588,8 +593,8 @@ def print_report(report: dict[str, Any]) -> None:
         table.add_row(
             str(r["horizon"]),
             r["method"],
-            f"{r['median_us']:.0f}",
-            f"{r['p99_us']:.0f}",
+            _us(r["median_us"]),
+            _us(r["p99_us"]),
             _times(r["over_ipopt"]),
             _times(r["over_ekf_compiled"]),
             _times(r["over_ekf_kernel"]),
