@@ -264,7 +264,8 @@ class Estimator(ABC):
         if state is not None and cov is not None:
             std = self._output_std(state, cov)
             if status == "ok" and self._tip and self.formulation.calibrated_covariance:
-                tip_std = math.sqrt(float(np.sum(std[self._tip] ** 2)))
+                sl = std.tolist()  # a few floats: plain Python is faster than numpy here
+                tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
         outlier = state is not None and self._outlier()
