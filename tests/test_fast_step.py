@@ -182,10 +182,13 @@ def test_a_failing_output_function_names_itself_through_the_fused_call() -> None
 @pytest.mark.parametrize("robot", [None, TWO], ids=["one-section", "two-sections"])
 def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     """:meth:`NodeEvaluator.ekf_step_outputs` (the compiled EKF's one call per sample)
-    gives the state and covariance of :meth:`ekf_step` and the outputs and standard
-    deviations of :meth:`output` and :meth:`output_std` on that state, on samples with
-    every sensor, one sensor masked and none; and the EKF estimator reports them."""
+    gives the state and covariance of the EKF step composed here from the node model
+    (prediction, then :func:`arrival_update` on the masked residual) and the outputs and
+    standard deviations of :meth:`output` and :meth:`output_std` on that state, on
+    samples with every sensor, one sensor masked and none; and the EKF estimator
+    reports them."""
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+    from continuum_mhe.estimators.fast.arrival import arrival_update
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ProcessNoiseCache
 
     f = make_formulation("bend", robot) if robot else make_formulation("bend")
@@ -199,7 +202,12 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
         z = rng.normal(scale=0.4, size=f.nz)
         u, dt = np.zeros(f.nu), 0.05
         Q = noise(dt)[0]
-        x1, P1 = node.ekf_step(x, P, u, dt, z, mask, f.meas_cov(), Q)
+        zm = np.where(mask > 0, z, 0.0)
+        x1, F, _, _ = node.evaluate(x, u, dt, zm, mask)
+        P1 = F @ P @ F.T + Q
+        if mask.any():
+            _, _, H, r = node.evaluate(x1, u, dt, zm, mask)
+            x1, P1 = arrival_update(x1, P1, r, H, f.meas_cov())
         x2, P2, y, std = node.ekf_step_outputs(x, P, u, dt, z, mask, f.meas_cov(), Q)
         assert_allclose(x2, x1, rtol=1e-14, atol=1e-15)
         assert_allclose(P2, P1, rtol=1e-14, atol=1e-18)

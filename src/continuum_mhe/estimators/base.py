@@ -269,12 +269,11 @@ class Estimator(ABC):
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = "uncertain"
         outlier = state is not None and self._outlier()
+        # the reject reset's run; a sample without readings (None) neither ends nor extends it
         rejected = state is not None and self._rejected_every_reading()
-        if rejected is None:  # no reading: a dropout neither extends nor ends the run
-            pass
-        elif not rejected:
+        if rejected is False:
             self._rejecting_since = None
-        elif self._rejecting_since is None:
+        elif rejected and self._rejecting_since is None:
             self._rejecting_since = t
         return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
 

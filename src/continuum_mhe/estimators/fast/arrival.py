@@ -66,8 +66,8 @@ def arrival_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
 
 @numba.njit(cache=True)
 def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
-    """:meth:`NodeEvaluator.ekf_step`: EKF prediction, then (if ``valid``) the update on
-    the masked residual, in one compiled call (two model calls)."""
+    """The EKF step of :func:`ekf_step_outputs`: EKF prediction, then (if ``valid``)
+    the update on the masked residual (two model calls)."""
     nz = R.shape[0]
     k = nx + nx * nx
     xin[:] = x

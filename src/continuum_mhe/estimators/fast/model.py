@@ -197,7 +197,6 @@ class NodeEvaluator:
             ],
             dtype=np.uintp,
         )
-        self._ekf_step = CompiledCall(arrival.ekf_step)  # see ccall.CompiledCall
         self._ofn = model.output
         self._ox = np.zeros(nx)
         self._oout = np.empty(model.ny)
@@ -210,7 +209,7 @@ class NodeEvaluator:
             address(model.output), address(model.output_jacobian), self._optrs, self._ox,
             self._oout, self._jout, np.array(model.wrapped, dtype=np.int64),
         )  # fmt: skip
-        self._ekf_step_outputs = CompiledCall(arrival.ekf_step_outputs)
+        self._ekf_step_outputs = CompiledCall(arrival.ekf_step_outputs)  # see ccall
         self._inputs = (self._x, self._u, self._dt, self._z, self._m)
         self._y = np.empty(model.ny)
         self._std = np.empty(model.ny)
@@ -280,29 +279,6 @@ class NodeEvaluator:
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             raise self._failure(exc) from exc
 
-    def ekf_step(
-        self,
-        x: FloatArray,
-        P: FloatArray,
-        u: FloatArray,
-        dt: float,
-        z: FloatArray,
-        mask: FloatArray,
-        R: FloatArray,
-        Q: FloatArray,
-    ) -> tuple[FloatArray, FloatArray]:
-        """One EKF step in one compiled call: predict with ``(u, dt)``, then update with
-        the valid components of ``z`` (``mask``); the equations of
-        :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``."""
-        x, P = self._ekf_inputs(x, P, u, dt, z, mask)
-        try:
-            return self._ekf_step(
-                self._addr, self._ptrs, self._out, self._x, x, P, bool(np.any(mask)), _f64(R),
-                _f64(Q), len(x),
-            )  # fmt: skip
-        except RuntimeError as exc:  # the kernel cannot format the model's own message
-            raise self._failure(exc) from exc
-
     def ekf_step_outputs(
         self,
         x: FloatArray,
@@ -314,8 +290,11 @@ class NodeEvaluator:
         R: FloatArray,
         Q: FloatArray,
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """:meth:`ekf_step`, then :meth:`output` and :meth:`output_std` of its answer, in
-        one compiled call: ``(x+, P+, outputs, output standard deviations)``."""
+        """One EKF step (predict with ``(u, dt)``, then update with the valid components
+        of ``z``, ``mask``; the equations of
+        :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``), then
+        :meth:`output` and :meth:`output_std` of its answer, in one compiled call:
+        ``(x+, P+, outputs, output standard deviations)``."""
         try:
             xn, Pn = self._ekf_step_outputs(
                 self._addr, self._ptrs, self._out, self._inputs, _f64(x), _f64(P),
@@ -325,18 +304,6 @@ class NodeEvaluator:
         except RuntimeError as exc:  # the kernel cannot format the model's own message
             raise self._failure(exc) from exc
         return xn, Pn, self._y.copy(), self._std.copy()
-
-    def _ekf_inputs(
-        self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float, z: FloatArray,
-        mask: FloatArray,
-    ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
-        """The sample into the node model's inputs (masked readings zeroed); ``(x, P)``
-        contiguous float64, as the compiled EKF step takes them."""
-        self._u[:] = u
-        self._dt[0] = dt
-        self._z[:] = np.where(mask > 0, z, 0.0)
-        self._m[:] = mask
-        return np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(P, dtype=np.float64)
 
     def _failure(self, exc: RuntimeError) -> RuntimeError:
         """A kernel's error ``exc`` with the failed compiled function's own message."""
