@@ -54,6 +54,7 @@ CASES = [
     ("bend", None, {"branch_check": True}),
     ("paper", None, {}),
     ("bend", TWO, {}),
+    ("bend", TWO, {"loss": "welsch"}),
 ]
 
 
@@ -130,6 +131,35 @@ def test_compiled_step_takes_the_second_start_as_the_python_path_does() -> None:
     )
     assert list(a.status) == list(b.status)
     assert_allclose(a.output, b.output, rtol=0, atol=1e-10)
+
+
+def test_robust_weights_come_from_the_fused_call_unless_the_newest_is_rejected(
+    monkeypatch,
+) -> None:
+    """The robust MHE's weights come from its one compiled call per sample; the Python
+    path's weights (and the second start behind them) run only for the samples whose
+    answer rejects the newest reading."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=8.0, noise_deg=2.0, seed=3)
+    z = np.array(rec.z, dtype=float)
+    z[74:79] += np.radians(30.0)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=30, loss="welsch"))
+    calls: list[int] = []
+    original = MovingHorizonEstimator._node_weights
+
+    def counted(self, i, x):
+        calls.append(i)
+        return original(self, i, x)
+
+    monkeypatch.setattr(MovingHorizonEstimator, "_node_weights", counted)
+    res = est.run(rec.t, z)
+    assert res.outlier is not None
+    rejected = int(np.count_nonzero(res.outlier))
+    assert rejected >= 5  # the burst's samples, at least
+    assert est.second_start is not None and est.second_start.tried > 0
+    # each rejecting sample: the newest's weights once for the second start's check and
+    # the first and last node's kept weights; no call on any other sample
+    assert 0 < len(calls) <= 3 * rejected
 
 
 def test_stage_products_carried_across_windows_equal_fresh_ones() -> None:

@@ -176,6 +176,10 @@ class MovingHorizonEstimator(Estimator):
             except NotImplementedError:  # a feasible set the kernel cannot read
                 self._feasible = None  # the covariance then ignores the bounds
         self._blocks = block_array(formulation.measurement_blocks)
+        #: per measurement component, its block's index (nblocks: in no block)
+        self._block_of = np.full(formulation.nz, len(self._blocks))
+        for b, (start, size) in enumerate(self._blocks):
+            self._block_of[start : start + size] = b
         self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
@@ -274,9 +278,7 @@ class MovingHorizonEstimator(Estimator):
         ``R_b / w_b`` per block at its weight in the last solve."""
         R = self._R
         if self.flags_outliers:  # the leaving sample at its weight in the last solve
-            scale = np.ones(self.formulation.nz)
-            for (start, size), w in zip(self._blocks, self._w_first):
-                scale[start : start + size] = 1.0 / max(float(w), 1e-12)
+            scale = np.append(1.0 / np.maximum(self._w_first, 1e-12), 1.0)[self._block_of]
             R = R * np.sqrt(np.outer(scale, scale))
         return R
 
@@ -398,11 +400,17 @@ class MovingHorizonEstimator(Estimator):
         cov = None if status == "solver-failed" else self.covariance(problem, X, hessian)
         return X[-1].copy(), cov, status
 
-    def _keep(self, X: FloatArray, status: Status, valid: bool) -> Status:
-        """Keep the answer ``X`` (N, nx) as the next warm start, with its robust weights;
-        returns the sample's status (``dropout`` for an ``ok`` one without a sensor)."""
+    def _keep(
+        self, X: FloatArray, status: Status, valid: bool, weights: FloatArray | None = None
+    ) -> Status:
+        """Keep the answer ``X`` (N, nx) as the next warm start, with its robust weights
+        (``weights``: those of its first and last node (2, nblocks) if known); returns the
+        sample's status (``dropout`` for an ``ok`` one without a sensor)."""
         self._X = X
-        if self.flags_outliers:
+        if weights is not None:
+            self._w_first, self._w_last = weights[0].copy(), weights[1].copy()
+            self._w_new = None
+        elif self.flags_outliers:
             self._w_first = self._node_weights(0, X[0])
             w_new, self._w_new = self._w_new, None  # the newest node's, if computed
             self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
@@ -436,13 +444,18 @@ class MovingHorizonEstimator(Estimator):
             (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
              quadratic_rate(self._fast, o)),
         )  # fmt: skip
-        fused = self.branch is None and self.second_start is None  # certified is final
+        # certified is final, unless a robust answer rejects the newest sample (a second
+        # start may then replace it; the fused call says so and does not finish)
+        fused = self.branch is None
         answer = np.empty((n, f.nx)) if fused else s.X0  # the fused call writes it
         finished = None
         if fused:
-            (outcome, it, _, _, cur), finished = s.advance_finish(*args, answer)
+            (outcome, it, _, _, cur), finished = s.advance_finish(
+                *args, answer, self.flags_outliers
+            )
         else:
             outcome, it, _, _, cur = s.advance(*args)
+        if finished is None:
             # the answer may still change, and finish() then evaluates in these buffers:
             # the next window starts from _X_last (below) without shifted outputs
             s.last[0] = -1
@@ -457,7 +470,12 @@ class MovingHorizonEstimator(Estimator):
         if finished is not None:  # certified, outputs and covariance in the same call
             self._lam = s.lam if self._lam is None else self._lam
             y, cov, std = finished
-            status = self._keep(answer, "ok", valid)
+            status = self._keep(answer, "ok", valid, s.weights if self.flags_outliers else None)
+            if self.second_start is not None:  # as _try_second_start when nothing is tried
+                if self._k < n:
+                    self.second_start.clear()
+                else:
+                    self.second_start.remember(answer.copy())
             state = answer[-1].copy()
             self._outputs_of = (state, y, std)  # the outputs of this very state object
             return state, cov, status

@@ -38,6 +38,7 @@ from continuum_mhe.estimators.fast.outputs import (
 )
 from continuum_mhe.estimators.fast.qp import CONVERGED, project
 from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp, shift_outputs
+from continuum_mhe.estimators.loss import OUTLIER_WEIGHT, _block_weights
 
 FloatArray = NDArray[np.float64]
 OptArray = FloatArray | None
@@ -54,6 +55,10 @@ Finished = tuple[FloatArray, FloatArray | None, FloatArray | None]
 
 #: :func:`advance` did not solve (``paper_start`` before ``N`` samples).
 NOT_SOLVED = -1
+#: :func:`advance_finish` did not finish: the window was not certified ...
+UNCERTIFIED = -1
+#: ... or its answer rejects the newest sample, so a second start may replace it.
+NEWEST_REJECTED = -2
 
 #: The kernels' error when the window's or node's model fails (the kernels cannot format
 #: the model's own message; the wrappers do; the outputs': :data:`.outputs.OUTPUT_FAILED`).
@@ -243,23 +248,58 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
 
 
 @numba.njit(cache=True)
+def node_weights(node, nptrs, nout, nin, x, z, m, u, rinv, lossk, w):
+    """Into ``w`` (nblocks,): the robust weights ``rho'(s_b)`` of one window node at state
+    ``x`` with reading ``z`` and mask ``m`` (its residual from the node function at
+    ``u``, ``dt = 0``), as the estimator's Python path computes them
+    (:meth:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator._node_weights`)."""
+    xin, uin, dtin, zin, min_ = nin
+    xin[:] = x
+    uin[:] = u
+    dtin[0] = 0.0
+    zin[:] = z
+    min_[:] = m
+    if call_model(node, nptrs.ctypes.data, nout.ctypes.data) != 0:
+        raise RuntimeError(MODEL_FAILED)
+    nx, nz = x.shape[0], z.shape[0]
+    r0 = nx + nx * nx + nz * nx  # the node function's outputs: f, df/dx, -dr/dx, r
+    w[:] = _block_weights(lossk.code, lossk.scale, nout[r0 : r0 + nz], rinv, lossk.blocks)
+
+
+@numba.njit(cache=True)
 def advance_finish(
     node, nptrs, nout, nin, win, wptrs, prior, window, new, Rs, X, has_X, lam, has_lam, X0,
-    feasible, options, ws, loss, tol, outputs, answer, cov, y, std,
+    feasible, options, ws, loss, tol, outputs, answer, cov, y, std, robust, weights,
 ):  # fmt: skip
     """:func:`advance`, then, if its SQP certified the window, the answer into ``answer``
     (N, nx) and :func:`finish` on it with the SQP's last Gauss-Newton blocks: one
     compiled call per sample where nothing (IPOPT, the branch check, a second start)
-    may change the answer in between. Returns ``(advance's result, finish's result)``,
-    the second -1 when the window was not certified (then nothing was finished)."""
+    may change the answer in between. With a ``robust`` loss, first the robust weights
+    of the answer's first and last node into ``weights`` (2, nblocks;
+    :func:`node_weights`); when the window is full and the last node's lowest weight is
+    below :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT` (the estimator then
+    tries a second start, which may change the answer), nothing is finished. Returns
+    ``(advance's result, finish's result)``, the second :data:`UNCERTIFIED` or
+    :data:`NEWEST_REJECTED` when nothing was finished."""
     res = advance(
         node, nptrs, nout, nin, win, wptrs, prior, window, new, Rs, X, has_X, lam, has_lam,
         X0, feasible, options, ws, loss,
     )  # fmt: skip
     if res[0] != CONVERGED:
-        return res, -1
+        return res, UNCERTIFIED
     cur = res[4]
     answer[:] = ws[0][cur]
+    if robust:
+        z, m, u = window[1], window[2], window[4]
+        n = answer.shape[0]
+        rinv, lossk = loss
+        node_weights(node, nptrs, nout, nin, answer[0], z[0], m[0], u[0], rinv, lossk, weights[0])
+        node_weights(
+            node, nptrs, nout, nin, answer[n - 1], z[n - 1], m[n - 1], u[0], rinv, lossk,
+            weights[1],
+        )  # fmt: skip
+        if prior[3][0] == n and np.min(weights[1]) < OUTLIER_WEIGHT:
+            return res, NEWEST_REJECTED
     failed = finish(
         win, wptrs, answer, prior[0], window, feasible, ws, loss, 1 - cur, tol, cov, outputs, y,
         std,
@@ -291,6 +331,8 @@ class StepBuffers:
         self.cov = np.empty((nx, nx))
         self.y = np.empty(model.ny)
         self.std = np.empty(model.ny)
+        #: robust weights of the fused call's answer's first and last node (its ``robust``)
+        self.weights = np.ones((2, len(model.loss.blocks)))
         self.u0 = np.zeros(nu)
         self.zeros = np.zeros((nx, nx))
         self.node = node
@@ -360,16 +402,18 @@ class StepBuffers:
 
     def advance_finish(
         self, prior: Prior, new: Sample, R: FloatArray, X: OptArray, lam: OptArray,
-        options: StepOptions, answer: FloatArray, tol: float = 1e-6,
+        options: StepOptions, answer: FloatArray, robust: bool = False, tol: float = 1e-6,
     ) -> tuple[Outcome, Finished | None]:  # fmt: skip
         """:meth:`advance`, then, if the window was certified, its answer into ``answer``
         (N, nx) and :meth:`finish`'s result for it, in one compiled call
-        (:func:`advance_finish`); the second item is None when the window was not
-        certified (call :meth:`finish` once the answer is settled)."""
+        (:func:`advance_finish`); the second item is None when nothing was finished: the
+        window was not certified, or (``robust``: the robust weights of the answer's first
+        and last node, into :attr:`weights`) the window is full and its answer rejects
+        the newest sample. Call :meth:`finish` once the answer is settled."""
         try:
             args = (
                 *self._advance_args(prior, new, R, X, lam, options), tol, self.outputs, answer,
-                self.cov, self.y, self.std,
+                self.cov, self.y, self.std, robust, self.weights,
             )  # fmt: skip
             res, failed = self._advance_finish(*args)
         except RuntimeError as exc:
