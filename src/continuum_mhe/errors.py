@@ -15,3 +15,8 @@ class UserError(ValueError):
 
     A subclass of :class:`ValueError`, so library callers that catch ``ValueError``
     keep working."""
+
+
+class UnobservableShapeWarning(UserWarning):
+    """The robot's IMUs cannot determine its shape (fewer independent tilt readings
+    than bend coordinates): every estimate of it is ``uncertain``."""

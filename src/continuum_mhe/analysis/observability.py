@@ -11,11 +11,13 @@ estimators use:
 * ``with gyros``: the same two-sample Jacobian of the ``direct`` formulation (gravity
   direction and gyro of every IMU).
 
-A Jacobian is rank-deficient at a shape when its smallest singular value is below
-``RANK_TOL`` times its largest. Tilt cannot see a rotation about the vertical, so a
-section whose bending only turns the IMU about the vertical (for example section 2
-bending in the horizontal plane while section 1 points sideways) is unobservable from
-tilt at that instant.
+A Jacobian has full rank at a shape when its rank equals its number of columns (the
+unknowns it should determine), counting the singular values above ``RANK_TOL`` times
+the largest: a Jacobian with fewer rows than columns (one IMU on two sections) never
+has. The verdict (:func:`verdict`) follows from the one-sample tilt Jacobian. Tilt
+cannot see a rotation about the vertical, so a section whose bending only turns the IMU
+about the vertical (for example section 2 bending in the horizontal plane while section
+1 points sideways) is unobservable from tilt at that instant.
 """
 
 from __future__ import annotations
@@ -42,8 +44,9 @@ class JacobianSummary:
 
     rows: int
     cols: int
-    full_rank_fraction: float
+    full_rank_fraction: float  # rank == cols: the unknowns are determined
     min_rank: int
+    max_rank: int
     sigma_min_percentiles: dict[str, float]  # relative smallest singular value
 
 
@@ -57,14 +60,43 @@ class ObservabilityReport:
     known_case: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, object]:
-        return asdict(self)
+        return {**asdict(self), "verdict": verdict(self)}
+
+
+#: Fraction of sampled shapes at which the one-sample tilt Jacobian must have full rank
+#: for the verdict "observable".
+OBSERVABLE_FRACTION = 0.99
+
+
+def verdict(r: ObservabilityReport) -> str:
+    """One line from the one-sample tilt Jacobian: ``observable`` when it has full rank
+    at ``OBSERVABLE_FRACTION`` of the sampled shapes or more, ``not observable`` when
+    at none, else ``observable except near some shapes``."""
+    t = r.tilt
+    if t.full_rank_fraction >= OBSERVABLE_FRACTION:
+        return (
+            f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
+            f"{100 * t.full_rank_fraction:.1f} % of shapes"
+        )
+    if t.full_rank_fraction == 0.0:
+        return (
+            f"NOT observable: tilt determines at most {t.max_rank} of the {t.cols} bend "
+            "coordinates at every sampled shape; estimates of this robot are all marked "
+            "uncertain (put an IMU on every section)"
+        )
+    return (
+        f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
+        "of shapes (the least observable are listed above)"
+    )
 
 
 def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
     sv = np.linalg.svd(jacs, compute_uv=False)
     rel = sv[:, -1] / np.maximum(sv[:, 0], 1e-300)
+    if jacs.shape[1] < jacs.shape[2]:  # fewer rows than unknowns: a zero singular value
+        rel = np.zeros(len(jacs))
     ranks = np.sum(sv > RANK_TOL * sv[:, :1], axis=1)
-    full = min(jacs.shape[1:])
+    full = jacs.shape[2]  # the unknowns: full column rank
     pct = {f"p{q}": float(np.percentile(rel, q)) for q in (0, 1, 5, 50)}
     return (
         JacobianSummary(
@@ -72,6 +104,7 @@ def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
             cols=jacs.shape[2],
             full_rank_fraction=float(np.mean(ranks == full)),
             min_rank=int(ranks.min()),
+            max_rank=int(ranks.max()),
             sigma_min_percentiles=pct,
         ),
         rel,
@@ -154,12 +187,14 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     ):
         p = s.sigma_min_percentiles
         lines.append(
-            f"{label}: {s.rows}x{s.cols}, full rank at {100 * s.full_rank_fraction:.1f} % of "
-            f"shapes (min rank {s.min_rank}); relative smallest singular value "
+            f"{label}: {s.rows}x{s.cols}, rank {s.cols} (all unknowns) at "
+            f"{100 * s.full_rank_fraction:.1f} % of shapes (min rank {s.min_rank}); "
+            "relative smallest singular value "
             f"p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
-    lines.append("least observable shapes (tilt, one sample):")
-    for e in r.deficient_examples:
+    if r.tilt.full_rank_fraction > 0.0:
+        lines.append("least observable shapes (tilt, one sample):")
+    for e in r.deficient_examples if r.tilt.full_rank_fraction > 0.0 else []:
         th = ", ".join(f"{v:.0f}" for v in e["theta_deg"])
         ph = ", ".join(f"{v:.0f}" for v in e["phi_deg"])
         lines.append(f"  theta = [{th}] deg, phi = [{ph}] deg: {e['relative_sigma_min'][0]:.1e}")
@@ -170,4 +205,5 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"
         )
+    lines.append(f"verdict: {verdict(r)}")
     return "\n".join(lines)

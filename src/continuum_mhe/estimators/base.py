@@ -8,15 +8,17 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UnobservableShapeWarning, UserError
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
 
@@ -71,6 +73,20 @@ class Estimator(ABC):
         self.last_failure: str | None = None
         outs = formulation.outputs
         self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
+        robot = formulation.robot
+        rank, bends = shape_rank(robot), 2 * robot.n_sections
+        #: whether the IMUs determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`
+        #: equals the number of bend coordinates); if not, no estimate is ``ok``
+        self.shape_observable = rank == bends
+        if not self.shape_observable:
+            warnings.warn(
+                f"the IMUs of this robot ({robot.describe()}) determine {rank} of its "
+                f"{bends} bend coordinates: its shape is not observable, so every estimate "
+                "is marked uncertain (one IMU per section makes it observable; "
+                "`continuum-mhe check-robot` tells)",
+                UnobservableShapeWarning,
+                stacklevel=3,
+            )
         self._freeze_value: list[FloatArray | None] = []
         self._freeze_since: list[float] = []
         self._last_valid_t = -math.inf
@@ -161,7 +177,8 @@ class Estimator(ABC):
         valid reading after every reading of more than ``reject_reset`` s was rejected
         as an outlier (the estimate, not the sensor, is taken as lost); an ``ok`` estimate whose
         tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
-        ``uncertain``. The estimate
+        ``uncertain``, and so is every ``ok`` estimate of a robot whose IMUs do not
+        determine its shape (:attr:`shape_observable`). The estimate
         carries ``output_std`` wherever the method has a covariance.
 
         Raises:
@@ -258,6 +275,8 @@ class Estimator(ABC):
             self._start_check.remember(t, measurement.z, state, cov)
         if status == "ok" and state is not None and self.formulation.drifted(state):
             status = "drifted"
+        if status == "ok" and not self.shape_observable:
+            status = "uncertain"  # the data do not determine the shape
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None

@@ -32,6 +32,7 @@ from continuum_mhe.model.kinematics import (
     rotation_bend_sym,
     tip_position_bend_sym,
 )
+from continuum_mhe.model.robot import Robot
 
 
 def pose_at_sym(
@@ -189,3 +190,31 @@ def backbone_frames(
         np.concatenate([np.eye(3)[None], rots]),
         np.concatenate([np.zeros((1, 3)), p.T]),
     )
+
+
+#: Relative singular value below which :func:`shape_rank` counts a direction as unseen.
+SHAPE_RANK_TOL = 1e-8
+
+
+@cache
+def shape_rank(robot: Robot) -> int:
+    """How many of the robot's ``2 n`` bend coordinates one sample of its IMUs' gravity
+    directions (what tilt and the accelerometers at rest measure) determines: the rank
+    of their Jacobian with respect to the bends, the largest over three random shapes
+    (generic shapes; the singular ones are a set of measure zero). Below ``2 n`` the
+    shape is not observable anywhere, for example with one IMU on two sections."""
+    n = robot.n_sections
+    b = ca.SX.sym("b", 2 * n)
+    bends = [(b[2 * k], b[2 * k + 1]) for k in range(n)]
+    g = ca.vertcat(
+        *[gravity_direction_at_sym(bends, i.section, i.at, robot.mounting) for i in robot.imus]
+    )
+    jac = ca.Function("shape_jacobian", [b], [ca.jacobian(g, b)])
+    rng = np.random.default_rng(0)
+    reach = np.repeat([s.theta_max for s in robot.sections], 2)
+    rank = 0
+    for _ in range(3):
+        x = reach * rng.uniform(0.15, 0.45, 2 * n) * rng.choice((-1.0, 1.0), 2 * n)
+        sv = np.linalg.svd(np.asarray(jac(x), dtype=float), compute_uv=False)
+        rank = max(rank, int(np.sum(sv > SHAPE_RANK_TOL * sv[0])))
+    return rank

@@ -1,0 +1,82 @@
+"""A robot whose IMUs cannot determine its shape: the rank that says so, the verdict of
+``check-robot``, and estimates that are never ``ok``."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.analysis.observability import observability_report, verdict
+from continuum_mhe.cli import main
+from continuum_mhe.errors import UnobservableShapeWarning
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.model.pcc import shape_rank
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate_robot
+
+TWO = (Section(0.16, 3.0), Section(0.14, 3.0))
+TIP_ONLY = Robot(TWO, (ImuPlacement(1),))
+
+
+@pytest.mark.parametrize(
+    ("robot", "rank"),
+    [
+        (Robot.single(), 2),
+        (TIP_ONLY, 2),  # the tip's tilt: two readings for four bend coordinates
+        (Robot(TWO, (ImuPlacement(0), ImuPlacement(1))), 4),
+        (Robot(TWO, (ImuPlacement(1, 0.5), ImuPlacement(1))), 4),  # two along section 2
+        (Robot(TWO, (ImuPlacement(1), ImuPlacement(1))), 2),  # two IMUs, one place
+        (Robot(TWO, (ImuPlacement(0, 0.5), ImuPlacement(0))), 2),  # none on section 2
+        (Robot((Section(0.1),) * 3, (ImuPlacement(0), ImuPlacement(2))), 4),
+    ],
+)
+def test_shape_rank_counts_the_bend_coordinates_the_imus_determine(robot, rank) -> None:
+    assert shape_rank(robot) == rank
+
+
+def test_check_robot_calls_an_under_instrumented_robot_not_observable(
+    tmp_path: Path, capsys
+) -> None:
+    r = observability_report(TIP_ONLY, samples=100)
+    assert (r.tilt.rows, r.tilt.cols, r.tilt.max_rank) == (2, 4, 2)
+    assert r.tilt.full_rank_fraction == 0.0 and r.tilt_window.full_rank_fraction == 0.0
+    assert verdict(r).startswith("NOT observable: tilt determines at most 2 of the 4")
+    two = observability_report(Robot(TWO, (ImuPlacement(0), ImuPlacement(1))), samples=100)
+    assert two.tilt.full_rank_fraction == 1.0 and verdict(two).startswith("observable:")
+    path = tmp_path / "tip_only.toml"
+    path.write_text(
+        "[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n[[imu]]\nsection = 2\n"
+    )
+    assert main(["check-robot", str(path), "--samples", "50", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["verdict"].startswith("NOT observable")
+    assert report["tilt"]["full_rank_fraction"] == 0.0
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_no_estimate_of_an_unobservable_shape_is_ok(method) -> None:
+    f = make_formulation("bend", TIP_ONLY)
+    rec = simulate_robot("spatial", TIP_ONLY, duration=4.0, dt=0.05, seed=0)
+    with pytest.warns(UnobservableShapeWarning, match="determine 2 of its 4 bend coordinates"):
+        est = make_estimator(method, f, MHESettings(horizon=10))
+    assert not est.shape_observable
+    statuses = Counter(est.run(rec.t, rec.z).status.tolist())
+    assert "ok" not in statuses and statuses["uncertain"] > 0.9 * len(rec.t)
+
+
+def test_an_observable_robot_warns_nothing_and_is_ok() -> None:
+    robot = Robot(TWO, (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=3.0, dt=0.05, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnobservableShapeWarning)
+        est = make_estimator("ekf", f)
+    statuses = est.run(rec.t, rec.z).status
+    assert est.shape_observable and np.mean(statuses == "ok") > 0.9
