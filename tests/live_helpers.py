@@ -1,4 +1,5 @@
-"""Helpers for the pseudo-terminal tests of ``continuum-mhe live``."""
+"""Helpers for the tests that run the command line in a subprocess: ``live`` on a
+pseudo-terminal, and what a running command is doing (writing, waiting for input)."""
 
 from __future__ import annotations
 
@@ -36,6 +37,34 @@ def wait_for(pred: Callable[[], bool], what: str) -> None:
         if time.monotonic() > end:
             raise AssertionError(f"timed out waiting for {what}")
         time.sleep(0.02)
+
+
+def temporary_bytes(folder: Path, name: str) -> int:
+    """The size of the atomic writer's temporary file for ``folder / name`` (0 while
+    there is none): a running command's output so far."""
+    for p in folder.glob(f".{name}.*.tmp"):
+        try:
+            return p.stat().st_size
+        except FileNotFoundError:  # renamed or removed meanwhile
+            pass
+    return 0
+
+
+def blocked_reading(pid: int, path: Path) -> bool | None:
+    """Whether process ``pid`` is blocked in ``read`` on its open file ``path``, from
+    Linux's ``/proc/PID/syscall``; None where the system cannot tell (no ``/proc``)."""
+    try:
+        # read while the kernel writes this file: it shows the read call's number
+        read_call = Path("/proc/self/syscall").read_text().split()[0]
+        call = Path(f"/proc/{pid}/syscall").read_text().split()
+    except OSError:
+        return None
+    if call[0] != read_call:  # another call, or "running"
+        return False
+    try:
+        return os.readlink(f"/proc/{pid}/fd/{int(call[1], 16)}") == str(path.resolve())
+    except OSError:
+        return False
 
 
 def data_rows(path: Path) -> int:
