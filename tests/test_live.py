@@ -307,16 +307,43 @@ def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) ->
     assert f"no sample arrived: {out} not written" in res.stderr
 
 
-def test_short_soak_two_imus_500_hz_with_faults(tmp_path: Path) -> None:
-    """tools/live_soak.py for a few seconds: garbage, a partial line, a 1 MB line and
-    the port disappearing and returning; every valid sample recorded and estimated."""
+def test_short_soak_two_imus_500_hz_with_faults(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """tools/live_soak.py with its device driven by sample count, not by the clock: 400
+    samples, then garbage, a partial line, a 1 MB line and the port disappearing and
+    returning, each after another 400 samples, and 400 more; every valid sample recorded
+    and estimated."""
     sys.path.insert(0, str(Path(__file__).parents[1] / "tools"))
-    from live_soak import run_soak
+    import live_soak
 
-    res = run_soak(6.0, 500.0, "ekf", "TERM", faults_every=0.8, folder=tmp_path)
+    between = 400
+
+    class CountedDevice(live_soak.Device):
+        def run(self) -> None:
+            self.t0 = time.monotonic()
+            for kind in range(4):  # garbage, partial, mb_line, port_gone
+                self._send(self.next_index, self.next_index + between)
+                self._fault(kind)  # partial: sends one sample, in pieces
+            self._send(self.next_index, self.next_index + between)
+
+        def _send(self, first: int, end: int) -> None:
+            """Samples ``first`` to ``end``, 10 ms of them at a time at about the rate."""
+            step = max(1, round(self.rate / 100))
+            for a in range(first, end, step):
+                b = min(a + step, end)
+                ms = [round(j * 1000 / self.rate) for j in range(a, b)]
+                self._write("".join(map(live_soak._line, ms)).encode())
+                self.sent += b - a
+                self.sent_ranges.append((a, b, time.monotonic()))
+                time.sleep(0.01)
+            self.next_index = end
+
+    monkeypatch.setattr(live_soak, "Device", CountedDevice)
+    res = live_soak.run_soak(0.0, 500.0, "ekf", "TERM", folder=tmp_path)
     assert res["exit_status"] == 143, res["summary"]
-    assert min(res["faults"].values()) >= 1, res["faults"]  # each kind of fault at least once
-    assert res["sent"] > 1000
+    assert res["faults"] == {"garbage": 1, "partial": 1, "mb_line": 1, "port_gone": 1}
+    assert res["sent"] == 5 * between + 1, res["summary"]
     assert res["sent"] == res["recorded_rows"] == res["estimate_rows"], res["summary"]
     assert res["recording_reads_back"] is True
     assert f"{res['faults']['mb_line']} over-long" in res["summary"]
