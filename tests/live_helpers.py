@@ -15,6 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from continuum_mhe.model.direct import raw_imu_readings
+from continuum_mhe.simulation.scenarios import simulate
+
 SAFETY_S = 120.0  # a hung test fails after this long instead of blocking the suite
 
 
@@ -121,3 +124,15 @@ def specific_force(roll: float, pitch: float, g: float = 9.80665) -> np.ndarray:
     return g * np.array(
         [-math.sin(pitch), math.sin(roll) * math.cos(pitch), math.cos(roll) * math.cos(pitch)]
     )
+
+
+def raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
+    """``n`` lines of one raw IMU (the paper3d scenario, noise-free, 0.2 m) from
+    ``t0_ms`` every ``dt_ms``, leaving out the samples in ``skip``."""
+    rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
+    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
+    return [
+        raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
+        for i, (a, g) in enumerate(zip(acc, gyr))
+        if i not in skip
+    ]

@@ -20,26 +20,15 @@ from live_helpers import (
     data_rows,
     new_pty,
     raw_line,
+    raw_lines,
     specific_force,
     wait_for,
 )
 
 from continuum_mhe.io.csv_files import read_state_table, read_states
 from continuum_mhe.live import GarbledLine, parse_line
-from continuum_mhe.model.direct import raw_imu_readings
-from continuum_mhe.simulation.scenarios import simulate
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
-
-
-def _raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
-    rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
-    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
-    return [
-        raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
-        for i, (a, g) in enumerate(zip(acc, gyr))
-        if i not in skip
-    ]
 
 
 def test_parse_line_protocol() -> None:
@@ -72,7 +61,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     out = tmp_path / "live.csv"
     master = new_pty(port)
     # session 1: 60 samples, gap of 10 samples after sample 40 (device lost them)
-    first = _raw_lines(0, 70, skip=range(40, 50))
+    first = raw_lines(0, 70, skip=range(40, 50))
     garbage = [
         "#continuum_imu 1.0 accel=+-4g gyro=+-500dps rate=50Hz\n",
         "\x00\xff\xfe garbage\n",
@@ -116,7 +105,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         # session 2: the device comes back and restarts its clock at 0
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
-        second = _raw_lines(0, 25)
+        second = raw_lines(0, 25)
         os.write(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
         for line in second:
             os.write(master, line.encode())

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_log_helpers import IMU, T0_NS, imu_msg
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.cli import main
@@ -18,9 +19,6 @@ from continuum_mhe.io.robot_logs import read_estimates_mcap, read_imu_log, tilt_
 from continuum_mhe.model.direct import raw_imu_readings
 from continuum_mhe.model.imu import tilt, tilt_from_accelerometer
 from continuum_mhe.simulation.scenarios import simulate
-
-IMU = "sensor_msgs/msg/Imu"
-T0_NS = 1_700_000_000_123_456_789  # an absolute ROS time, as a real bag has
 
 
 @pytest.fixture(scope="module")
@@ -32,36 +30,6 @@ def recording() -> dict[str, Any]:
     gyr = gyr + rng.normal(size=gyr.shape) * 0.01
     stamps = T0_NS + np.round(rec.t * 1e9).astype(np.int64)
     return {"stamps": stamps, "acc": acc, "gyr": gyr, "truth": rec.truth}
-
-
-def _imu_msg(
-    store: Any,
-    ns: int,
-    acc: np.ndarray,
-    gyr: np.ndarray,
-    ros1: bool = False,
-    quat: np.ndarray | None = None,
-) -> Any:
-    """An Imu message; ``quat`` ``(w, x, y, z)`` the orientation (None: none, REP 145)."""
-    T = store.types
-    stamp = T["builtin_interfaces/msg/Time"](sec=int(ns // 10**9), nanosec=int(ns % 10**9))
-    header = (
-        T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id="imu")
-        if ros1
-        else T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu")
-    )
-    vec = T["geometry_msgs/msg/Vector3"]
-    cov = np.zeros(9)
-    w, x, y, z = (1.0, 0.0, 0.0, 0.0) if quat is None else map(float, quat)
-    return T[IMU](
-        header=header,
-        orientation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
-        orientation_covariance=np.array([-1.0] + [0.0] * 8) if quat is None else cov,
-        angular_velocity=vec(x=gyr[0], y=gyr[1], z=gyr[2]),
-        angular_velocity_covariance=cov,
-        linear_acceleration=vec(x=acc[0], y=acc[1], z=acc[2]),
-        linear_acceleration_covariance=cov,
-    )
 
 
 def write_ros2_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path:
@@ -81,7 +49,7 @@ def write_ros2_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
         )
         quats = rec.get("quat", [None] * len(rec["stamps"]))
         for ns, a, g, q in zip(rec["stamps"], rec["acc"], rec["gyr"], quats):
-            msg = _imu_msg(store, int(ns), a, g, quat=q)
+            msg = imu_msg(store, int(ns), a, g, quat=q)
             w.write(conn, int(ns), store.serialize_cdr(msg, IMU))
     return path
 
@@ -94,7 +62,7 @@ def write_ros1_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
     with Writer(path) as w:
         conn = w.add_connection(topic, IMU, typestore=store)
         for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            w.write(conn, int(ns), store.serialize_ros1(_imu_msg(store, int(ns), a, g, True), IMU))
+            w.write(conn, int(ns), store.serialize_ros1(imu_msg(store, int(ns), a, g, True), IMU))
     return path
 
 
@@ -110,7 +78,7 @@ def write_mcap(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path
         sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
         cid = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
         for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            data = bytes(store.serialize_cdr(_imu_msg(store, int(ns), a, g), IMU))
+            data = bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU))
             w.add_message(cid, log_time=int(ns), data=data, publish_time=int(ns))
         w.finish()
     return path
