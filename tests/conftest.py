@@ -5,8 +5,29 @@ IPOPT while the kernels compile in the background (``estimators/fast/warmup.py``
 suite makes every command compile in the foreground instead, so that the statuses and
 timings of the CLI tests do not depend on which test ran first. ``test_first_run.py``
 tests the background path itself.
+
+Fixtures shared by several test modules live here too.
 """
+
+from __future__ import annotations
 
 import os
 
+import numpy as np
+import pytest
+from estimator_helpers import LIN_DT, LIN_H, LIN_N, LinearBend, bend_process_cov, lin_transition
+
 os.environ.setdefault("CONTINUUM_MHE_FIRST_RUN", "foreground")
+
+
+@pytest.fixture(scope="module")
+def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
+    f = LinearBend()
+    rng = np.random.default_rng(7)
+    F, Q, R = lin_transition(LIN_DT), bend_process_cov(f.noise.bend_accel_psd, LIN_DT), f.meas_cov()
+    x = np.array([0.3, -0.2, 0.5, 0.4])
+    z = []
+    for _ in range(LIN_N):
+        z.append(LIN_H @ x + rng.multivariate_normal(np.zeros(2), R))
+        x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
+    return f, np.arange(LIN_N) * LIN_DT, np.array(z)

@@ -1,8 +1,16 @@
 """Shared test helpers: the five estimators of the recovery tests, the fast MHE
-against IPOPT on the same samples, and the windows a fast MHE solves."""
+against IPOPT on the same samples, the windows a fast MHE solves, the MHE backends and
+settings, the tilt measurement and process noise written independently for the peers,
+and the linear Gaussian model (its recording is the ``linear_recording`` fixture of
+``conftest.py``)."""
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators import make_estimator
@@ -84,3 +92,78 @@ class RaisingFunction:
 
     def call(self, args: object) -> object:
         raise ValueError(self._message)
+
+
+# --- MHE backends and settings ---------------------------------------------------------
+def ipopt_settings(**kwargs: Any) -> MHESettings:
+    """MHESettings that select the IPOPT backend."""
+    return MHESettings(solver="ipopt", **kwargs)
+
+
+SOLVERS = ("fast", "ipopt")  # every MHE behaviour below holds for both backends
+
+
+def solver_settings(solver: str, **kwargs: Any) -> MHESettings:
+    """MHESettings for backend ``solver`` ("fast" is the default)."""
+    return ipopt_settings(**kwargs) if solver == "ipopt" else MHESettings(**kwargs)
+
+
+def step_all(estimator: Estimator, t: np.ndarray, z: np.ndarray) -> list:
+    estimator.reset()
+    return [estimator.step(Measurement(float(ti), np.asarray(zi, float))) for ti, zi in zip(t, z)]
+
+
+# --- the measurement and the process noise, written independently for the peers ---------
+def tilt_tangent_basis(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Measured gravity direction f(z) and the tangent basis E = [e_roll, e_pitch] (3x2)."""
+    g, b = float(z[0]), float(z[1])
+    f_z = np.array([-math.sin(b), math.cos(b) * math.sin(g), math.cos(b) * math.cos(g)])
+    e_roll = np.array([0.0, math.cos(g), -math.sin(g)])
+    e_pitch = np.array(
+        [-math.cos(b), -math.sin(b) * math.sin(g), -math.sin(b) * math.cos(g)]
+    )  # d f_z / d pitch
+    return f_z, np.column_stack([e_roll, e_pitch])
+
+
+def bend_process_cov(q: float, dt: float) -> np.ndarray:
+    """White-noise-acceleration covariance for state (a, b, a_dot, b_dot)."""
+    block = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    Q = np.zeros((4, 4))
+    Q[np.ix_([0, 2], [0, 2])] = block
+    Q[np.ix_([1, 3], [1, 3])] = block
+    return Q
+
+
+# --- linear Gaussian model: MHE == batch least squares == Kalman filter -----------------
+@dataclass(frozen=True)
+class LinearBend(BendFormulation):
+    """Constant-velocity model with a linear measurement ``z = x[:2]`` and no bounds."""
+
+    def measurement_sym(self, x):
+        return x[:2]
+
+    def measurement_residual_sym(self, z, x):
+        return z - x[:2]
+
+    def constraint_sym(self, x):
+        return ca.SX(0, 1), -np.inf, np.inf
+
+    def initial_state(self, z0):
+        return np.array([z0[0], z0[1], 0.0, 0.0])
+
+    def project(self, x):
+        return np.array(x, dtype=float)
+
+    def is_feasible(self, x, tol=1e-7):
+        return True
+
+
+LIN_DT = 0.05
+LIN_N = 15
+LIN_H = np.hstack([np.eye(2), np.zeros((2, 2))])
+
+
+def lin_transition(dt: float) -> np.ndarray:
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    return F

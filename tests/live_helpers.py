@@ -1,4 +1,5 @@
-"""Helpers for the pseudo-terminal tests of ``continuum-mhe live``."""
+"""Helpers for the tests that run the command line in a subprocess: ``live`` on a
+pseudo-terminal, and what a running command is doing (writing, waiting for input)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from continuum_mhe.model.direct import raw_imu_readings
+from continuum_mhe.simulation.scenarios import simulate
 
 SAFETY_S = 120.0  # a hung test fails after this long instead of blocking the suite
 
@@ -36,6 +40,34 @@ def wait_for(pred: Callable[[], bool], what: str) -> None:
         if time.monotonic() > end:
             raise AssertionError(f"timed out waiting for {what}")
         time.sleep(0.02)
+
+
+def temporary_bytes(folder: Path, name: str) -> int:
+    """The size of the atomic writer's temporary file for ``folder / name`` (0 while
+    there is none): a running command's output so far."""
+    for p in folder.glob(f".{name}.*.tmp"):
+        try:
+            return p.stat().st_size
+        except FileNotFoundError:  # renamed or removed meanwhile
+            pass
+    return 0
+
+
+def blocked_reading(pid: int, path: Path) -> bool | None:
+    """Whether process ``pid`` is blocked in ``read`` on its open file ``path``, from
+    Linux's ``/proc/PID/syscall``; None where the system cannot tell (no ``/proc``)."""
+    try:
+        # read while the kernel writes this file: it shows the read call's number
+        read_call = Path("/proc/self/syscall").read_text().split()[0]
+        call = Path(f"/proc/{pid}/syscall").read_text().split()
+    except OSError:
+        return None
+    if call[0] != read_call:  # another call, or "running"
+        return False
+    try:
+        return os.readlink(f"/proc/{pid}/fd/{int(call[1], 16)}") == str(path.resolve())
+    except OSError:
+        return False
 
 
 def data_rows(path: Path) -> int:
@@ -92,3 +124,15 @@ def specific_force(roll: float, pitch: float, g: float = 9.80665) -> np.ndarray:
     return g * np.array(
         [-math.sin(pitch), math.sin(roll) * math.cos(pitch), math.cos(roll) * math.cos(pitch)]
     )
+
+
+def raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
+    """``n`` lines of one raw IMU (the paper3d scenario, noise-free, 0.2 m) from
+    ``t0_ms`` every ``dt_ms``, leaving out the samples in ``skip``."""
+    rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
+    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
+    return [
+        raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
+        for i, (a, g) in enumerate(zip(acc, gyr))
+        if i not in skip
+    ]

@@ -198,7 +198,8 @@ def test_rest_recording_has_the_recordings_imu_errors() -> None:
     quiet = replace(DEFAULT_IMU, sample_dt=0.002, accel_noise=0.0, gyro_noise=0.0)
     a = imu_samples(rest, quiet, seed=4)
     b = imu_samples(rest, quiet, seed=4, noise_seed=9)
-    assert_allclose(a[1], b[1], atol=0) and assert_allclose(a[2], b[2], atol=0)
+    assert_allclose(a[1], b[1], atol=0)
+    assert_allclose(a[2], b[2], atol=0)
     c = imu_samples(rest, quiet, seed=5)
     assert np.max(np.abs(a[1] - c[1])) > 1e-3  # another seed: other errors
     noisy = replace(DEFAULT_IMU, sample_dt=0.002)

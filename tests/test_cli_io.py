@@ -75,7 +75,7 @@ def test_simulate_estimate_evaluate_round_trip(tmp_path, capsys, method):
 
 def test_estimate_positions_match_forward_kinematics(tmp_path):
     meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
-    main(["simulate", "straight", "-o", str(meas), "--duration", "12"])
+    assert main(["simulate", "straight", "-o", str(meas), "--duration", "12"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "mhe"]) == 0
     t, out, status = read_states(est)
     assert np.all(np.isfinite(out))
@@ -84,7 +84,7 @@ def test_estimate_positions_match_forward_kinematics(tmp_path):
 
 def test_paper_start_leaves_first_rows_empty(tmp_path):
     meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
-    main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"])
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--horizon", "10", "--paper-start"]) == 0
     header, *rows = list(csv.reader(est.open()))
     st = header.index("status")
@@ -95,7 +95,7 @@ def test_paper_start_leaves_first_rows_empty(tmp_path):
 
 def test_theta_max_option_bounds_and_releases(tmp_path):
     meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
-    main(["simulate", "planar-overbend", "-o", str(meas)])
+    assert main(["simulate", "planar-overbend", "-o", str(meas)]) == 0
     assert main(["estimate", str(meas), "-o", str(est)]) == 0
     _, out, _ = read_states(est)
     assert out[:, 3].max() <= math.pi / 2 + 1e-7
@@ -115,9 +115,11 @@ def test_degrees_flag_matches_radians(tmp_path):
 
 
 def test_extra_columns_and_column_order_are_accepted(tmp_path):
-    rows = [f"{r.split(',')[2]},x,{r.split(',')[0]},{r.split(',')[1]}" for r in _good_rows(10)]
+    source = [[float(v) for v in r.split(",")] for r in _good_rows(10)]  # t, roll, pitch
+    rows = [f"{p!r},x,{t!r},{r!r}" for t, r, p in source]
     table = read_measurements(_meas(tmp_path, rows, header="pitch,note,t,roll"))
-    assert table.t.shape == (10,) and table.z.shape == (10, 2)
+    np.testing.assert_array_equal(table.t, [t for t, _, _ in source])
+    np.testing.assert_array_equal(table.z, [[r, p] for _, r, p in source])
 
 
 # --- bad input: one line, file and line named, exit 2, no output ---------------------------
@@ -271,8 +273,9 @@ def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):
 
 def test_evaluate_reports_unmatched_rows(tmp_path, capsys):
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
-    main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"])
-    main(["estimate", str(meas), "-o", str(est), "--method", "ekf"])
+    args = ["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"]
+    assert main(args) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
     lines = truth.read_text().splitlines()
     _write(truth, "\n".join(lines[:11]) + "\n")
     capsys.readouterr()

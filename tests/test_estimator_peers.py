@@ -16,12 +16,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
 import numpy as np
 import pytest
+from estimator_helpers import (
+    LIN_DT,
+    LIN_H,
+    LIN_N,
+    SOLVERS,
+    LinearBend,
+    bend_process_cov,
+    ipopt_settings,
+    lin_transition,
+    solver_settings,
+    step_all,
+    tilt_tangent_basis,
+)
 from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
 from filterpy.kalman import MerweScaledSigmaPoints
 from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
@@ -39,24 +51,6 @@ from continuum_mhe.simulation.scenarios import Recording, simulate
 
 FORMULATIONS = ("bend", "paper")
 MOUNTINGS = ("z-up", "z-down")  # z-down puts roll near +-pi: the angle wrap is active
-
-
-def ipopt_settings(**kwargs: Any) -> MHESettings:
-    """MHESettings that select the IPOPT backend."""
-    return MHESettings(solver="ipopt", **kwargs)
-
-
-SOLVERS = ("fast", "ipopt")  # every MHE behaviour below holds for both backends
-
-
-def solver_settings(solver: str, **kwargs: Any) -> MHESettings:
-    """MHESettings for backend ``solver`` ("fast" is the default)."""
-    return ipopt_settings(**kwargs) if solver == "ipopt" else MHESettings(**kwargs)
-
-
-def step_all(estimator: Estimator, t: np.ndarray, z: np.ndarray) -> list:
-    estimator.reset()
-    return [estimator.step(Measurement(float(ti), np.asarray(zi, float))) for ti, zi in zip(t, z)]
 
 
 def window_states(mhe: MovingHorizonEstimator) -> np.ndarray:
@@ -81,17 +75,6 @@ def recording_for(mounting: str, up: Recording, down: Recording) -> Recording:
 
 
 # --- the measurement, written independently for the peers ---------------------------------
-def tilt_tangent_basis(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Measured gravity direction f(z) and the tangent basis E = [e_roll, e_pitch] (3x2)."""
-    g, b = float(z[0]), float(z[1])
-    f_z = np.array([-math.sin(b), math.cos(b) * math.sin(g), math.cos(b) * math.cos(g)])
-    e_roll = np.array([0.0, math.cos(g), -math.sin(g)])
-    e_pitch = np.array(
-        [-math.cos(b), -math.sin(b) * math.sin(g), -math.sin(b) * math.cos(g)]
-    )  # d f_z / d pitch
-    return f_z, np.column_stack([e_roll, e_pitch])
-
-
 def _gravity_jacobian_fn(mounting: str) -> ca.Function:
     x = ca.SX.sym("x", 4)
     up = 1.0 if mounting == "z-up" else -1.0
@@ -260,15 +243,6 @@ def test_z_down_recording_exercises_the_angle_wrap(paper3d_down) -> None:
 
 
 # --- MHE vs an independent Opti formulation ---------------------------------------------------
-def bend_process_cov(q: float, dt: float) -> np.ndarray:
-    """White-noise-acceleration covariance for state (a, b, a_dot, b_dot)."""
-    block = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
-    Q = np.zeros((4, 4))
-    Q[np.ix_([0, 2], [0, 2])] = block
-    Q[np.ix_([1, 3], [1, 3])] = block
-    return Q
-
-
 def solve_bend_window_independently(
     f: BendFormulation, problem: WindowProblem, active: int
 ) -> np.ndarray:
@@ -351,53 +325,6 @@ def test_mhe_window_process_weight_is_inverse_white_noise_acceleration_cov(paper
 
 
 # --- linear Gaussian model: MHE == batch least squares == Kalman filter -----------------------
-@dataclass(frozen=True)
-class LinearBend(BendFormulation):
-    """Constant-velocity model with a linear measurement ``z = x[:2]`` and no bounds."""
-
-    def measurement_sym(self, x):
-        return x[:2]
-
-    def measurement_residual_sym(self, z, x):
-        return z - x[:2]
-
-    def constraint_sym(self, x):
-        return ca.SX(0, 1), -np.inf, np.inf
-
-    def initial_state(self, z0):
-        return np.array([z0[0], z0[1], 0.0, 0.0])
-
-    def project(self, x):
-        return np.array(x, dtype=float)
-
-    def is_feasible(self, x, tol=1e-7):
-        return True
-
-
-LIN_DT = 0.05
-LIN_N = 15
-LIN_H = np.hstack([np.eye(2), np.zeros((2, 2))])
-
-
-def lin_transition(dt: float) -> np.ndarray:
-    F = np.eye(4)
-    F[0, 2] = F[1, 3] = dt
-    return F
-
-
-@pytest.fixture(scope="module")
-def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
-    f = LinearBend()
-    rng = np.random.default_rng(7)
-    F, Q, R = lin_transition(LIN_DT), bend_process_cov(f.noise.bend_accel_psd, LIN_DT), f.meas_cov()
-    x = np.array([0.3, -0.2, 0.5, 0.4])
-    z = []
-    for _ in range(LIN_N):
-        z.append(LIN_H @ x + rng.multivariate_normal(np.zeros(2), R))
-        x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
-    return f, np.arange(LIN_N) * LIN_DT, np.array(z)
-
-
 def batch_least_squares(f: LinearBend, z: np.ndarray) -> np.ndarray:
     """Dense weighted least squares over all states: prior on x0, process, measurements."""
     n = len(z)

@@ -8,10 +8,10 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -136,15 +136,19 @@ def test_library_waits_for_a_running_background_compile(tmp_path, monkeypatch):
     monkeypatch.setattr(warmup, "_POLL_S", 0.01)
     monkeypatch.setattr(warmup, "warm_up", _no_compiling_here)
     warmup.pid_path().write_text(f"{os.getpid()}\n")
-    done = threading.Timer(0.3, (tmp_path / "k.ready").write_text, args=("compiled\n",))
-    done.start()
-    try:
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
-            warmup.ensure_compiled()
-            warmup.ensure_compiled()
-    finally:
-        done.cancel()
+    waits: list[float] = []
+
+    def compile_finishes(seconds: float) -> None:  # while the library waits
+        waits.append(seconds)
+        (tmp_path / "k.ready").write_text("compiled\n")
+
+    clock = SimpleNamespace(sleep=compile_finishes, monotonic=time.monotonic)
+    monkeypatch.setattr(warmup, "time", clock)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        warmup.ensure_compiled()
+        warmup.ensure_compiled()
+    assert waits == [0.01]  # it waited once, then found the marker
     notices = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
     assert notices == [
         "waiting for the background compile of the fast solver's kernels (first run only)"
@@ -165,14 +169,28 @@ def test_library_compiles_when_the_background_compile_dies(tmp_path, monkeypatch
         (tmp_path / "k.ready").write_text("compiled\n")
 
     monkeypatch.setattr(warmup, "warm_up", compile_here)
-    dying = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(0.3)"])
-    reaper = threading.Thread(target=dying.wait)  # a reaped pid is gone, not a zombie
-    reaper.start()
+    # the background compile: alive until its stdin closes, which happens while the
+    # library waits for it
+    dying = subprocess.Popen(
+        [sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE
+    )
+
+    def compile_dies(seconds: float) -> None:
+        assert dying.stdin is not None
+        dying.stdin.close()
+        dying.wait(timeout=60)  # reaped: its pid is gone, not a zombie
+
+    clock = SimpleNamespace(sleep=compile_dies, monotonic=time.monotonic)
+    monkeypatch.setattr(warmup, "time", clock)
     warmup.pid_path().write_text(f"{dying.pid}\n")
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        warmup.ensure_compiled()
-    reaper.join()
+    try:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            warmup.ensure_compiled()
+    finally:
+        if dying.poll() is None:
+            dying.kill()
+            dying.wait()
     notices = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
     assert len(notices) == 2
     assert notices[0].startswith("waiting for the background compile")

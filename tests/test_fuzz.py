@@ -25,6 +25,24 @@ from continuum_mhe.io.text_rows import InputError
 from continuum_mhe.results import STATUS_MEANINGS
 
 CORPUS = sorted((Path(__file__).parent / "data" / "fuzz").iterdir())
+#: each seed's outcome, the same for every estimator: exit status and a fragment of
+#: its one line (the error, or the summary with the estimate count and its notes)
+SEED_OUTCOMES = {
+    "accel_in_g.csv": (2, "accelerometer magnitude is about 1.01: the values look like g"),
+    "bom_crlf.csv": (0, "wrote 2 estimates"),
+    "decimal_comma.csv": (2, "line 2: column roll: '0,1' is not a number (a decimal comma?"),
+    "gimbal_flip.csv": (0, "wrote 2 estimates"),
+    "huge.csv": (2, "line 2: roll=1e+308, pitch=0.1 is out of range even in degrees"),
+    "huge_t.csv": (0, "1 sample(s) with a frozen IMU (same reading for over 1 s)"),
+    "inf_angle.csv": (2, "line 3: column roll is inf (a dropout; --skip-bad keeps it)"),
+    "long_gap.csv": (0, "restarted after 1 gap(s) longer than 1 s"),
+    "mhe_stops.csv": (0, "wrote 33 estimates"),
+    "negative_t.csv": (0, "wrote 2 estimates"),
+    "not_utf8.csv": (2, "line 3: not UTF-8 text"),
+    "quoted_truncated.csv": (2, "line 3: expected 3 fields, found 2 (truncated row?)"),
+    "serial_capture_zero_acc.txt": (2, "line 5: acceleration is zero (no gravity direction)"),
+    "tabs.csv": (0, "wrote 2 estimates"),
+}
 
 
 def _check_outcome(code: int, err: str, out: Path, inp: Path) -> None:
@@ -37,6 +55,7 @@ def _check_outcome(code: int, err: str, out: Path, inp: Path) -> None:
     assert code == 0 and lines[0].startswith("wrote "), err
     rows = list(csv.DictReader(out.open()))
     assert rows and {r["status"] for r in rows} <= set(STATUS_MEANINGS)
+    assert lines[0].startswith(f"wrote {len(rows)} estimates to "), err
     for r in rows:
         if r["status"] != "no-estimate":
             assert all(math.isfinite(float(r[k])) for k in ("x", "y", "z", "theta", "phi"))
@@ -47,7 +66,15 @@ def _check_outcome(code: int, err: str, out: Path, inp: Path) -> None:
 def test_seed_corpus(tmp_path: Path, capfd: pytest.CaptureFixture[str], path: Path, method: str):
     out = tmp_path / "e.csv"
     code = main(["estimate", str(path), "-o", str(out), "--method", method])
-    _check_outcome(code, capfd.readouterr().err, out, path)
+    err = capfd.readouterr().err
+    _check_outcome(code, err, out, path)
+    expected_code, needle = SEED_OUTCOMES[path.name]
+    assert code == expected_code, err
+    assert needle in err, err
+
+
+def test_every_seed_has_its_outcome() -> None:
+    assert sorted(SEED_OUTCOMES) == [p.name for p in CORPUS]
 
 
 _NUMBER = st.one_of(

@@ -122,15 +122,29 @@ def test_every_estimator_converges_to_a_constant_bias() -> None:
     """One section, tip IMU, 12 s of the paper3d scenario with the gyro offset by a
     constant ``BIAS_1`` (2 deg/s on its largest axis): every estimator's last bias
     estimate lies within 3 mrad/s (0.17 deg/s) of it, and its bend rates are better
-    than without bias estimation."""
+    than without bias estimation: the same estimator without the bias state on the same
+    samples has over twice the RMS bend-rate error (measured 0.0315 against 0.0116
+    rad/s for every estimator)."""
     t, z, x_true = _recording("one", 12.0)
-    f = DirectFormulation(estimate_gyro_bias=True)
-    for name, est in _estimators(f).items():
-        est.reset()  # type: ignore[attr-defined]
-        res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]  # type: ignore[attr-defined]
+    with_bias = _estimators(DirectFormulation(estimate_gyro_bias=True))
+    without = _estimators(DirectFormulation())
+    for name, est in with_bias.items():
+        res = _run(est, t, z)
         assert {r.status for r in res} == {"ok"}, name
         b_last = res[-1].state[4:7]
         assert np.max(np.abs(b_last - BIAS_1)) < 3e-3, (name, b_last)
+        plain = _run(without[name], t, z)
+        assert {r.status for r in plain} == {"ok"}, name
+        rate_rms = [
+            np.sqrt(np.mean((np.array([r.state[2:4] for r in rs]) - x_true[:, 2:4]) ** 2))
+            for rs in (res, plain)
+        ]
+        assert rate_rms[0] < 0.5 * rate_rms[1], (name, rate_rms)
+
+
+def _run(est: object, t: np.ndarray, z: np.ndarray) -> list:  # type: ignore[type-arg]
+    est.reset()  # type: ignore[attr-defined]
+    return [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]  # type: ignore[attr-defined]
 
 
 def test_fast_mhe_agrees_with_ipopt_with_the_bias_state() -> None:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_robot_logs import IMU, T0_NS, _imu_msg  # the Imu message builder
+from robot_log_helpers import IMU, T0_NS, imu_msg
 
 from continuum_mhe.benchmark import raw_imu_recording
 from continuum_mhe.cli import main
@@ -72,7 +72,7 @@ def streams() -> dict[str, Any]:
 
 def _messages(store: Any, imu: dict[str, Any]) -> list[tuple[int, bytes]]:
     return [
-        (int(ns), bytes(store.serialize_cdr(_imu_msg(store, int(ns), a, g), IMU)))
+        (int(ns), bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU)))
         for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
     ]
 
@@ -98,7 +98,7 @@ def write_ros1_topics(path: Path, imus: list[dict[str, Any]]) -> Path:
     with Writer(path) as w:
         conns = [w.add_connection(t, IMU, typestore=store) for t in TOPICS]
         msgs = [
-            (int(ns), c, store.serialize_ros1(_imu_msg(store, int(ns), a, g, True), IMU))
+            (int(ns), c, store.serialize_ros1(imu_msg(store, int(ns), a, g, True), IMU))
             for c, imu in zip(conns, imus)
             for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
         ]

@@ -9,6 +9,7 @@ corrected equations (erratum 1: rotation entry (2,2); erratum 2: roll/pitch labe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
@@ -290,32 +291,84 @@ def _assert_all_finite(fun: ca.Function, point: list[float]) -> None:
         assert np.all(np.isfinite(arr)), f"{name} not finite at {point}: {arr}"
 
 
+def _assert_finite_differences(
+    fun: ca.Function,
+    point: list[float],
+    reference: Callable[[np.ndarray], np.ndarray] | None = None,
+    angles: bool = False,
+) -> None:
+    """The Jacobian against central differences of ``reference`` (an independent value;
+    default: the value itself), and the Hessians against central differences of the
+    Jacobian. ``angles``: value differences wrapped to ``[-pi, pi)``, for roll beside
+    its +-pi seam."""
+    x = np.asarray(point, dtype=float)
+    value, jac, hess = (np.asarray(out, dtype=float) for out in fun(x))
+    if reference is None:
+        reference = lambda y: np.asarray(fun(y)[0], dtype=float)  # noqa: E731
+    else:
+        diff = value.ravel() - np.ravel(reference(x))
+        assert_allclose(wrap_angle(diff) if angles else diff, 0.0, rtol=0, atol=1e-12)
+    h = 1e-6
+    fd_jac, fd_hess = np.zeros_like(jac), np.zeros_like(hess)
+    for j in range(x.size):
+        e = np.zeros(x.size)
+        e[j] = h
+        dv = np.ravel(reference(x + e)) - np.ravel(reference(x - e))
+        fd_jac[:, j] = (wrap_angle(dv) if angles else dv) / (2 * h)
+        jp, jm = (np.asarray(fun(x + s * e)[1], dtype=float) for s in (1, -1))
+        fd_hess[:, j] = ((jp - jm) / (2 * h)).ravel()  # row i*n+k: d2 value_i / dx_k dx_j
+    scale = max(1.0, float(np.max(np.abs(jac))))
+    assert_allclose(jac, fd_jac, rtol=0, atol=1e-7 * scale, err_msg=f"Jacobian at {point}")
+    scale = max(1.0, float(np.max(np.abs(hess))))
+    assert_allclose(hess, fd_hess, rtol=0, atol=1e-5 * scale, err_msg=f"Hessian at {point}")
+
+
+def _bend_rotation_reference(x: np.ndarray) -> np.ndarray:
+    """The tip rotation from the bend vector ``(a, b) = theta (cos phi, sin phi)``."""
+    return rotation_reference(math.hypot(x[0], x[1]), math.atan2(x[1], x[0]))
+
+
+def _tilt_reference(mounting: imu.Mounting) -> Callable[[np.ndarray], np.ndarray]:
+    """Accelerometer tilt of world up seen in the tip frame, from the bend vector."""
+    up = np.array([0.0, 0.0, 1.0 if mounting == "z-up" else -1.0])
+    return lambda x: tilt_from_accelerometer(_bend_rotation_reference(x).T @ up)
+
+
 SHAPE_POINTS = [(t, p) for t in (0.0, 1e-8, HALF_PI) for p in (-math.pi, -1.0, 0.0, 0.7, HALF_PI)]
 BEND_POINTS = [(0.0, 0.0), (1e-8, 0.0), (0.0, -1e-8), (HALF_PI, 0.0), (0.0, HALF_PI), (-1.0, 1.2)]
 
 
 @pytest.mark.parametrize("theta, phi", SHAPE_POINTS)
-def test_tip_position_sym_derivatives_finite(theta: float, phi: float) -> None:
+def test_tip_position_sym_derivatives_finite_and_match_fd(theta: float, phi: float) -> None:
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(tip_position_sym(v[0], v[1], LENGTH), v), [theta, phi])
+    fun = _value_jac_hess(tip_position_sym(v[0], v[1], LENGTH), v)
+    _assert_all_finite(fun, [theta, phi])
+    _assert_finite_differences(fun, [theta, phi])  # smooth in (theta, phi) everywhere
 
 
 @pytest.mark.parametrize("theta, phi", SHAPE_POINTS)
-def test_rotation_sym_derivatives_finite(theta: float, phi: float) -> None:
+def test_rotation_sym_derivatives_finite_and_match_fd(theta: float, phi: float) -> None:
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(rotation_sym(v[0], v[1]), v), [theta, phi])
+    fun = _value_jac_hess(rotation_sym(v[0], v[1]), v)
+    _assert_all_finite(fun, [theta, phi])
+    # smooth everywhere: differences of the elementary rotations' product
+    _assert_finite_differences(fun, [theta, phi], lambda x: rotation_reference(*x).T)
 
 
 @pytest.mark.parametrize("a, b", BEND_POINTS)
-def test_tip_position_bend_sym_derivatives_finite(a: float, b: float) -> None:
+def test_tip_position_bend_sym_derivatives_finite_and_match_fd(a: float, b: float) -> None:
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(tip_position_bend_sym(v[0], v[1], LENGTH), v), [a, b])
+    fun = _value_jac_hess(tip_position_bend_sym(v[0], v[1], LENGTH), v)
+    _assert_all_finite(fun, [a, b])
+    _assert_finite_differences(fun, [a, b])  # smooth everywhere: the series branch
 
 
 @pytest.mark.parametrize("a, b", BEND_POINTS)
-def test_rotation_bend_sym_derivatives_finite(a: float, b: float) -> None:
+def test_rotation_bend_sym_derivatives_finite_and_match_fd(a: float, b: float) -> None:
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(rotation_bend_sym(v[0], v[1]), v), [a, b])
+    fun = _value_jac_hess(rotation_bend_sym(v[0], v[1]), v)
+    _assert_all_finite(fun, [a, b])
+    _assert_finite_differences(fun, [a, b], lambda x: _bend_rotation_reference(x).T)
 
 
 # Roll/pitch is a Z-Y-X Euler measurement with a gimbal lock at pitch = +-pi/2, i.e.
@@ -327,19 +380,65 @@ TILT_BEND_POINTS = [(0.0, 0.0), (1e-8, 0.0), (0.0, 1e-8), (-1e-8, 1e-8), (0.0, H
                     (HALF_PI, 0.0), (-HALF_PI, 0.0)]  # fmt: skip
 
 
+GIMBAL_LOCK_BENDS = {(HALF_PI, 0.0), (-HALF_PI, 0.0)}
+# beside the gimbal lock, where roll and pitch are smooth but steep (hypot(f_y, f_z)
+# 0.01 to 0.05), and the straight rod's neighbours
+NEAR_SINGULAR_BENDS = [(HALF_PI - 0.05, 0.0), (-HALF_PI + 0.05, 0.0), (HALF_PI, 0.01),
+                       (-HALF_PI, -0.02), (HALF_PI + 0.03, 0.0), (1e-4, -1e-4)]  # fmt: skip
+
+
 @pytest.mark.parametrize("mounting", imu.MOUNTINGS)
 @pytest.mark.parametrize("a, b", TILT_BEND_POINTS)
 def test_tilt_bend_sym_derivatives_finite(a: float, b: float, mounting: imu.Mounting) -> None:
+    """Finite everywhere; equal to finite differences except at the gimbal lock itself,
+    where roll is undefined (z-down's straight rod reads roll = +-pi: differences are
+    wrapped)."""
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(tilt_bend_sym(v[0], v[1], mounting), v), [a, b])
+    fun = _value_jac_hess(tilt_bend_sym(v[0], v[1], mounting), v)
+    _assert_all_finite(fun, [a, b])
+    if (a, b) not in GIMBAL_LOCK_BENDS:
+        _assert_finite_differences(fun, [a, b], _tilt_reference(mounting), angles=True)
+
+
+@pytest.mark.parametrize("mounting", imu.MOUNTINGS)
+@pytest.mark.parametrize("a, b", NEAR_SINGULAR_BENDS)
+def test_tilt_bend_sym_derivatives_near_the_singular_points(
+    a: float, b: float, mounting: imu.Mounting
+) -> None:
+    v = ca.SX.sym("v", 2)
+    fun = _value_jac_hess(tilt_bend_sym(v[0], v[1], mounting), v)
+    _assert_finite_differences(fun, [a, b], _tilt_reference(mounting), angles=True)
+
+
+@pytest.mark.parametrize("mounting", imu.MOUNTINGS)
+def test_tilt_bend_sym_at_straight_known_values(mounting: imu.Mounting) -> None:
+    """Near straight the tip is rotated by the vector ``(b, -a, 0)``, ``R = I + [k]x``
+    to first order, so the specific force ``R^T u`` is ``s (a, b, 1)`` with ``s = +1``
+    (z-up) or ``-1`` (z-down). z-up: roll = atan2(b, 1) = b, pitch = atan2(-a, 1) = -a, so
+    d(roll, pitch)/d(a, b) = [[0, 1], [-1, 0]]. z-down: roll = atan2(-b, -1) = +-pi + b,
+    pitch = atan2(a, 1) = a: [[0, 1], [1, 0]]."""
+    v = ca.SX.sym("v", 2)
+    value, jac, _ = (np.asarray(x, float) for x in _value_jac_hess(
+        tilt_bend_sym(v[0], v[1], mounting), v)([0.0, 0.0]))  # fmt: skip
+    if mounting == "z-up":
+        assert_allclose(value.ravel(), [0.0, 0.0], rtol=0, atol=1e-16)
+        assert_allclose(jac, [[0.0, 1.0], [-1.0, 0.0]], rtol=0, atol=1e-15)
+    else:
+        assert_allclose([abs(value[0, 0]), value[1, 0]], [math.pi, 0.0], rtol=0, atol=1e-15)
+        assert_allclose(jac, [[0.0, 1.0], [1.0, 0.0]], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize(
     "theta, phi", [(0.0, 0.0), (1e-8, 2.0), (HALF_PI, HALF_PI), (HALF_PI, 0.0), (HALF_PI, math.pi)]
 )
 def test_tilt_sym_derivatives_finite(theta: float, phi: float) -> None:
+    """Finite everywhere; equal to finite differences except at the gimbal lock
+    (theta = pi/2 with phi = 0 or pi)."""
     v = ca.SX.sym("v", 2)
-    _assert_all_finite(_value_jac_hess(tilt_sym(v[0], v[1]), v), [theta, phi])
+    fun = _value_jac_hess(tilt_sym(v[0], v[1]), v)
+    _assert_all_finite(fun, [theta, phi])
+    if not (theta == HALF_PI and math.sin(phi) ** 2 < 1e-20):
+        _assert_finite_differences(fun, [theta, phi], angles=True)
 
 
 def test_tip_position_bend_sym_derivatives_at_straight_known_values() -> None:

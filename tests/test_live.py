@@ -20,26 +20,15 @@ from live_helpers import (
     data_rows,
     new_pty,
     raw_line,
+    raw_lines,
     specific_force,
     wait_for,
 )
 
 from continuum_mhe.io.csv_files import read_state_table, read_states
 from continuum_mhe.live import GarbledLine, parse_line
-from continuum_mhe.model.direct import raw_imu_readings
-from continuum_mhe.simulation.scenarios import simulate
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
-
-
-def _raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
-    rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
-    acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
-    return [
-        raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
-        for i, (a, g) in enumerate(zip(acc, gyr))
-        if i not in skip
-    ]
 
 
 def test_parse_line_protocol() -> None:
@@ -72,7 +61,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     out = tmp_path / "live.csv"
     master = new_pty(port)
     # session 1: 60 samples, gap of 10 samples after sample 40 (device lost them)
-    first = _raw_lines(0, 70, skip=range(40, 50))
+    first = raw_lines(0, 70, skip=range(40, 50))
     garbage = [
         "#continuum_imu 1.0 accel=+-4g gyro=+-500dps rate=50Hz\n",
         "\x00\xff\xfe garbage\n",
@@ -116,7 +105,7 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         # session 2: the device comes back and restarts its clock at 0
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
-        second = _raw_lines(0, 25)
+        second = raw_lines(0, 25)
         os.write(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
         for line in second:
             os.write(master, line.encode())
@@ -307,16 +296,43 @@ def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) ->
     assert f"no sample arrived: {out} not written" in res.stderr
 
 
-def test_short_soak_two_imus_500_hz_with_faults(tmp_path: Path) -> None:
-    """tools/live_soak.py for a few seconds: garbage, a partial line, a 1 MB line and
-    the port disappearing and returning; every valid sample recorded and estimated."""
+def test_short_soak_two_imus_500_hz_with_faults(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """tools/live_soak.py with its device driven by sample count, not by the clock: 400
+    samples, then garbage, a partial line, a 1 MB line and the port disappearing and
+    returning, each after another 400 samples, and 400 more; every valid sample recorded
+    and estimated."""
     sys.path.insert(0, str(Path(__file__).parents[1] / "tools"))
-    from live_soak import run_soak
+    import live_soak
 
-    res = run_soak(6.0, 500.0, "ekf", "TERM", faults_every=0.8, folder=tmp_path)
+    between = 400
+
+    class CountedDevice(live_soak.Device):
+        def run(self) -> None:
+            self.t0 = time.monotonic()
+            for kind in range(4):  # garbage, partial, mb_line, port_gone
+                self._send(self.next_index, self.next_index + between)
+                self._fault(kind)  # partial: sends one sample, in pieces
+            self._send(self.next_index, self.next_index + between)
+
+        def _send(self, first: int, end: int) -> None:
+            """Samples ``first`` to ``end``, 10 ms of them at a time at about the rate."""
+            step = max(1, round(self.rate / 100))
+            for a in range(first, end, step):
+                b = min(a + step, end)
+                ms = [round(j * 1000 / self.rate) for j in range(a, b)]
+                self._write("".join(map(live_soak._line, ms)).encode())
+                self.sent += b - a
+                self.sent_ranges.append((a, b, time.monotonic()))
+                time.sleep(0.01)
+            self.next_index = end
+
+    monkeypatch.setattr(live_soak, "Device", CountedDevice)
+    res = live_soak.run_soak(0.0, 500.0, "ekf", "TERM", folder=tmp_path)
     assert res["exit_status"] == 143, res["summary"]
-    assert min(res["faults"].values()) >= 1, res["faults"]  # each kind of fault at least once
-    assert res["sent"] > 1000
+    assert res["faults"] == {"garbage": 1, "partial": 1, "mb_line": 1, "port_gone": 1}
+    assert res["sent"] == 5 * between + 1, res["summary"]
     assert res["sent"] == res["recorded_rows"] == res["estimate_rows"], res["summary"]
     assert res["recording_reads_back"] is True
     assert f"{res['faults']['mb_line']} over-long" in res["summary"]

@@ -249,10 +249,19 @@ def test_check_robot_finds_the_unobservable_case_and_the_gyro_fixes_it() -> None
 
 
 # --- the robot file -----------------------------------------------------------------------
-def test_robot_file_round_trip() -> None:
+def test_robot_file_round_trip(tmp_path: Path) -> None:
     robot = read_robot(ROBOT_FILE)
     assert robot == TWO
-    assert robot_toml(robot) and read_robot(ROBOT_FILE).describe().startswith("2 sections")
+    assert robot.describe().startswith("2 sections")
+    hanging = Robot(
+        (Section(0.1 + 0.2, 1.25), Section(0.07, math.pi / 3), Section(0.123456789012345)),
+        (ImuPlacement(0, 0.5, (1.5, -30.0, 90.0)), ImuPlacement(2), ImuPlacement(1, 1 / 3)),
+        "z-down",
+    )
+    for k, original in enumerate((robot, hanging, Robot.single(0.2))):
+        path = tmp_path / f"robot{k}.toml"
+        path.write_text(robot_toml(original), encoding="utf-8")
+        assert read_robot(path) == original, path.read_text()
 
 
 @pytest.mark.parametrize(

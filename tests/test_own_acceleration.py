@@ -90,8 +90,10 @@ def test_constant_acceleration_motion_and_layout() -> None:
     assert_allclose(xn[4:8], x[4:8] + dt * x[8:12], atol=1e-15)
     assert_allclose(xn[8:], x[8:], atol=0)
     j = f.bend_jerk_psd
-    assert_allclose(q[0, 0], j * dt**5 / 20) and assert_allclose(q[0, 8], j * dt**3 / 6)
-    assert_allclose(q[8, 8], j * dt) and assert_allclose(q[0, 1], 0.0)
+    assert_allclose(q[0, 0], j * dt**5 / 20)
+    assert_allclose(q[0, 8], j * dt**3 / 6)
+    assert_allclose(q[8, 8], j * dt)
+    assert_allclose(q[0, 1], 0.0)
     assert_allclose(q[18:, 18:], np.eye(6) * f.accel_bias_psd * dt, atol=1e-20)
     assert np.all(np.linalg.eigvalsh(q[:12, :12]) > 0)
     p0 = np.diag(f.initial_cov())

@@ -141,8 +141,10 @@ def test_gyro_fusion_tracks_tilt(moving_tip: dict[str, np.ndarray]) -> None:
     for att in ("accel", "madgwick", "mahony"):
         z = raw_to_measurements(t, acc, gyr, RawImuSettings(attitude=att))
         err[att] = float(np.sqrt(np.mean((z - truth)[50:] ** 2)))
-    assert err["madgwick"] < err["accel"]  # the gyro smooths the accelerometer noise
-    assert err["mahony"] < 2 * err["accel"]
+    # the gyro smooths the accelerometer noise (measured: accel 0.070, madgwick 0.017,
+    # mahony 0.013 rad RMS)
+    assert err["madgwick"] < 0.5 * err["accel"], err
+    assert err["mahony"] < 0.5 * err["accel"], err
 
 
 def _bend(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,16 +10,15 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_log_helpers import IMU, T0_NS, imu_msg
+from scipy.spatial.transform import Rotation
 
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import read_states
 from continuum_mhe.io.robot_logs import read_estimates_mcap, read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.direct import raw_imu_readings
-from continuum_mhe.model.imu import tilt
+from continuum_mhe.model.imu import tilt, tilt_from_accelerometer
 from continuum_mhe.simulation.scenarios import simulate
-
-IMU = "sensor_msgs/msg/Imu"
-T0_NS = 1_700_000_000_123_456_789  # an absolute ROS time, as a real bag has
 
 
 @pytest.fixture(scope="module")
@@ -31,28 +30,6 @@ def recording() -> dict[str, Any]:
     gyr = gyr + rng.normal(size=gyr.shape) * 0.01
     stamps = T0_NS + np.round(rec.t * 1e9).astype(np.int64)
     return {"stamps": stamps, "acc": acc, "gyr": gyr, "truth": rec.truth}
-
-
-def _imu_msg(store: Any, ns: int, acc: np.ndarray, gyr: np.ndarray, ros1: bool = False) -> Any:
-    T = store.types
-    stamp = T["builtin_interfaces/msg/Time"](sec=int(ns // 10**9), nanosec=int(ns % 10**9))
-    header = (
-        T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id="imu")
-        if ros1
-        else T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu")
-    )
-    vec = T["geometry_msgs/msg/Vector3"]
-    cov = np.zeros(9)
-    no_orientation = np.array([-1.0] + [0.0] * 8)
-    return T[IMU](
-        header=header,
-        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-        orientation_covariance=no_orientation,
-        angular_velocity=vec(x=gyr[0], y=gyr[1], z=gyr[2]),
-        angular_velocity_covariance=cov,
-        linear_acceleration=vec(x=acc[0], y=acc[1], z=acc[2]),
-        linear_acceleration_covariance=cov,
-    )
 
 
 def write_ros2_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path:
@@ -70,8 +47,10 @@ def write_ros2_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
                 store.types["std_msgs/msg/String"](data="hello"), "std_msgs/msg/String"
             ),
         )
-        for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            w.write(conn, int(ns), store.serialize_cdr(_imu_msg(store, int(ns), a, g), IMU))
+        quats = rec.get("quat", [None] * len(rec["stamps"]))
+        for ns, a, g, q in zip(rec["stamps"], rec["acc"], rec["gyr"], quats):
+            msg = imu_msg(store, int(ns), a, g, quat=q)
+            w.write(conn, int(ns), store.serialize_cdr(msg, IMU))
     return path
 
 
@@ -83,7 +62,7 @@ def write_ros1_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
     with Writer(path) as w:
         conn = w.add_connection(topic, IMU, typestore=store)
         for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            w.write(conn, int(ns), store.serialize_ros1(_imu_msg(store, int(ns), a, g, True), IMU))
+            w.write(conn, int(ns), store.serialize_ros1(imu_msg(store, int(ns), a, g, True), IMU))
     return path
 
 
@@ -99,7 +78,7 @@ def write_mcap(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path
         sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
         cid = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
         for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            data = bytes(store.serialize_cdr(_imu_msg(store, int(ns), a, g), IMU))
+            data = bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU))
             w.add_message(cid, log_time=int(ns), data=data, publish_time=int(ns))
         w.finish()
     return path
@@ -189,10 +168,67 @@ def test_estimate_writes_mcap_matching_csv(tmp_path: Path, recording: dict[str, 
     np.testing.assert_allclose([pose["pose"]["position"][k] for k in "xyz"], x_c[-1, :3], atol=1e-9)
 
 
+def _wxyz(r: Rotation) -> np.ndarray:
+    """scipy's quaternions are ``(x, y, z, w)``; the Imu message's order is ``(w, x, y, z)``."""
+    return np.roll(r.as_quat(), 1, axis=-1)
+
+
 def test_tilt_from_quaternion_matches_imu_model() -> None:
     q = np.array([[np.cos(0.2), np.sin(0.2), 0.0, 0.0]])  # roll 0.4 rad about x
     np.testing.assert_allclose(tilt_from_quaternion(q), [[0.4, 0.0]], atol=1e-12)
     np.testing.assert_allclose(tilt(0.4, np.pi / 2), [0.4, 0.0], atol=1e-12)
+
+
+def test_tilt_from_quaternion_with_roll_pitch_and_yaw() -> None:
+    """Known answers: the sensor-to-world rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` gives
+    back ``(roll, pitch)`` whatever the yaw; and for any rotation the tilt is that of the
+    accelerometer at rest, which reads world up (+z) in the sensor frame."""
+    rng = np.random.default_rng(11)
+    n = 200
+    roll = rng.uniform(-3.0, 3.0, n)
+    pitch = rng.uniform(-1.5, 1.5, n)
+    yaw = rng.uniform(-np.pi, np.pi, n)
+    r = Rotation.from_euler("ZYX", np.stack([yaw, pitch, roll], -1))
+    q = _wxyz(r)
+    np.testing.assert_allclose(tilt_from_quaternion(q), np.stack([roll, pitch], -1), atol=1e-12)
+    # a quaternion and its negative are the same rotation
+    np.testing.assert_allclose(tilt_from_quaternion(-q), tilt_from_quaternion(q), atol=1e-12)
+    r = Rotation.random(n, random_state=12)
+    up_in_sensor = r.inv().apply([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(
+        tilt_from_quaternion(_wxyz(r)), tilt_from_accelerometer(up_in_sensor), atol=1e-12
+    )
+
+
+def test_estimate_orientation_equals_the_tilt_csv(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """``estimate --orientation`` on a bag whose orientation has the truth's roll and
+    pitch (and a yaw) gives the estimates of the tilt CSV of those angles; the bag's
+    noisy accelerometer is not used."""
+    truth = recording["truth"]
+    rp = tilt(truth[:, 3], truth[:, 4])
+    yaw = np.linspace(-2.0, 2.0, len(rp))
+    r = Rotation.from_euler("ZYX", np.stack([yaw, rp[:, 1], rp[:, 0]], -1))
+    bag = write_ros2_bag(tmp_path / "bag2", {**recording, "quat": _wxyz(r)})
+    t = (recording["stamps"] - recording["stamps"][0]) / 1e9
+    tilt_csv = tmp_path / "tilt.csv"
+    with tilt_csv.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", "roll", "pitch"])
+        w.writerows([repr(float(a)), repr(float(b)), repr(float(c))] for a, (b, c) in zip(t, rp))
+    _estimate(tilt_csv, tmp_path / "from_csv.csv", "--method", "ekf")
+    _estimate(bag, tmp_path / "from_bag.csv", "--method", "ekf", "--orientation")
+    _estimate(bag, tmp_path / "from_acc.csv", "--method", "ekf")
+    t_c, x_c, s_c = _states(tmp_path / "from_csv.csv")
+    t_b, x_b, s_b = _states(tmp_path / "from_bag.csv")
+    assert len(t_c) == len(t)
+    np.testing.assert_array_equal(t_b, t_c)
+    np.testing.assert_allclose(x_b, x_c, rtol=0, atol=1e-9)
+    assert list(s_b) == list(s_c)
+    # the accelerometer's noise gives other estimates: the orientation was the input
+    _, x_a, _ = _states(tmp_path / "from_acc.csv")
+    assert np.max(np.abs(x_a - x_c)) > 1e-4
 
 
 @pytest.mark.parametrize(

@@ -15,9 +15,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
-from estimator_helpers import fast_windows
+from estimator_helpers import SOLVERS, bend_process_cov, fast_windows, tilt_tangent_basis
 from numpy.testing import assert_allclose
-from test_estimator_peers import bend_process_cov, tilt_tangent_basis
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import fast as fm
@@ -37,7 +36,6 @@ from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
-SOLVERS = ("fast", "ipopt")
 ROBUST = ("huber", "cauchy", "welsch")
 HORIZON = 12
 #: samples of the short recording that get a +-30 deg spike on roll and pitch

@@ -7,8 +7,9 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from live_helpers import temporary_bytes, wait_for
 
 from continuum_mhe.io.csv_files import atomic_writer
 
@@ -28,7 +29,13 @@ def test_sigterm_during_estimate_leaves_nothing_and_exits_143(tmp_path: Path) ->
         stderr=subprocess.PIPE,
         text=True,
     )
-    time.sleep(4.0)  # well into the estimation (60,001 samples)
+    # well into the estimation loop (60,001 samples, about 9 MB of rows): its estimates
+    # are being written to the temporary file
+    wait_for(
+        lambda: temporary_bytes(tmp_path, "e.csv") > 100_000 or proc.poll() is not None,
+        "the first estimates",
+    )
+    assert proc.poll() is None, proc.communicate()[1]
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err

@@ -14,19 +14,20 @@ import math
 
 import numpy as np
 import pytest
-from estimator_helpers import fast_windows, recovery_estimators
-from numpy.testing import assert_allclose
-from test_estimator_peers import (
+from estimator_helpers import (
     LIN_DT,
     LIN_H,
     LIN_N,
+    SOLVERS,
     LinearBend,
     bend_process_cov,
+    fast_windows,
     lin_transition,
-    linear_recording,  # noqa: F401  (fixture)
+    recovery_estimators,
     solver_settings,
     step_all,
 )
+from numpy.testing import assert_allclose
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
@@ -40,8 +41,6 @@ from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import EstimateSeries
 from continuum_mhe.settings import MHESettings, RecoverySettings, RobotSettings
 from continuum_mhe.simulation.scenarios import simulate
-
-SOLVERS = ("fast", "ipopt")
 
 
 def kalman_covariances(f: LinearBend, n: int) -> list[np.ndarray]:
@@ -76,7 +75,7 @@ def batch_covariance(f: LinearBend, n: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_linear_mhe_covariance_equals_kalman_p_at_every_sample(linear_recording, solver) -> None:  # noqa: F811
+def test_linear_mhe_covariance_equals_kalman_p_at_every_sample(linear_recording, solver) -> None:
     f, t, z = linear_recording
     mhe = step_all(MovingHorizonEstimator(f, solver_settings(solver, horizon=4)), t, z)
     kf = kalman_covariances(f, len(t))
@@ -88,7 +87,7 @@ def test_linear_mhe_covariance_equals_kalman_p_at_every_sample(linear_recording,
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_full_horizon_mhe_covariance_equals_batch_covariance(linear_recording, solver) -> None:  # noqa: F811
+def test_full_horizon_mhe_covariance_equals_batch_covariance(linear_recording, solver) -> None:
     f, t, z = linear_recording
     mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=LIN_N + 5))
     last = step_all(mhe, t, z)[-1]

@@ -97,7 +97,14 @@ def test_library_call_given_degrees_says_so() -> None:
     with pytest.raises(UserError, match="look like degrees"):
         est.step(Measurement(0.0, np.array([30.0, 20.0])))
     est.reset()  # radians, even the largest: accepted
-    est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
+    e = est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
+    # pitch pi/2 (the gimbal lock): a quarter-circle bend, theta = pi/2, phi = +-pi, the
+    # tip at (r, 0, r) with the radius r = 2 L / pi
+    assert e.status == "ok"
+    x, y, z, theta, phi = e.output
+    r = 2 * RobotSettings().length / math.pi
+    np.testing.assert_allclose([x, y, z], [r, 0.0, r], rtol=0, atol=1e-9)
+    np.testing.assert_allclose([theta, abs(phi)], [math.pi / 2, math.pi], rtol=0, atol=1e-9)
 
 
 def test_theta_max_in_degrees_in_the_library() -> None:

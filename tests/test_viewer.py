@@ -276,15 +276,14 @@ def test_live_view_through_a_pty(tmp_path: Path) -> None:
     import signal
     import subprocess
 
-    from live_helpers import SAFETY_S, data_rows, new_pty, wait_for
-    from test_live import _raw_lines
+    from live_helpers import SAFETY_S, data_rows, new_pty, raw_lines, wait_for
 
     port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
     master = new_pty(port)
     cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port),
            "--method", "ekf", "-o", str(out), "--view", str(rrd), "--view-hz", "0"]  # fmt: skip
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
-    lines = _raw_lines(0, 30)
+    lines = raw_lines(0, 30)
     try:
         wait_for(lambda: "reading " in (proc.stderr.readline() or ""), "live to start")
         for line in lines:
