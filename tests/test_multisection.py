@@ -19,7 +19,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
-from continuum_mhe.io.csv_files import InputError, read_state_table
+from continuum_mhe.io.csv_files import InputError, read_measurements, read_state_table
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
@@ -286,13 +286,45 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
     assert not out.exists()
 
 
-def test_measurement_file_with_the_wrong_imu_count(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize(
+    ("header", "robot", "needle"),
+    [
+        ("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", True,
+         "tilt columns for 3 IMU(s) (roll_1 ... roll_3) but the robot describes 2; "
+         "pass --robot FILE with a robot file of 3 IMU(s)"),
+        # before: --robot forgotten, IMU 1's columns estimated as a one-section robot
+        ("t,roll_1,pitch_1,roll_2,pitch_2", False,
+         "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "
+         "pass --robot FILE with a robot file of 2 IMU(s)"),
+        ("t,roll,pitch", True, "tilt columns for 1 IMU(s) (roll, pitch) but the robot "
+         "describes 2"),
+        ("t,ax_1,ay_1,az_1,ax_2,ay_2,az_2", False,
+         "raw columns for 2 IMU(s) (ax_1 ... ax_2) but the robot describes 1; pass --robot"),
+    ],
+)  # fmt: skip
+def test_measurement_file_with_the_wrong_imu_count(  # type: ignore[no-untyped-def]
+    tmp_path: Path, capsys, header: str, robot: bool, needle: str
+) -> None:
     meas = tmp_path / "m.csv"
-    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3\n0,0,0,0,0,0,0\n")
+    row = ",".join(["0"] + ["0.1"] * header.count(","))
+    meas.write_text(f"{header}\n{row}\n")
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(meas), "-o", str(out), "--robot", str(ROBOT_FILE)]) == 2
-    assert "3 IMU(s) but the robot file describes 2" in capsys.readouterr().err
+    argv = ["estimate", str(meas), "-o", str(out), "--method", "ekf"]
+    assert main([*argv, *(["--robot", str(ROBOT_FILE)] if robot else [])]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{meas}: line 1: the file has {needle}" in err
     assert not out.exists()
+
+
+def test_read_measurements_refuses_another_imu_count(tmp_path: Path) -> None:
+    """Before: read_measurements of a two-IMU file returned IMU 1's columns."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.2,0.3,0.4\n")
+    with pytest.raises(InputError, match=r"for 2 IMU\(s\).*describes 1; .*n_imus=2 in Python"):
+        read_measurements(meas)
+    assert_allclose(read_measurements(meas, n_imus=2).z, [[0.1, 0.2, 0.3, 0.4]])
+    meas.write_text("t,roll_1,pitch_1\n0,0.1,0.2\n")  # one numbered IMU is one IMU
+    assert_allclose(read_measurements(meas).z, [[0.1, 0.2]])
 
 
 def test_truth_without_a_tip_is_refused(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

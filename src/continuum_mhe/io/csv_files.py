@@ -149,6 +149,12 @@ def tilt_columns(n_imus: int) -> tuple[str, ...]:
     return tuple(f"{c}_{i}" for i in range(1, n_imus + 1) for c in ("roll", "pitch"))
 
 
+#: The fix named when a file's IMU count is not the robot's (``{found}``: the file's).
+ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"
+#: The same for :func:`read_measurements`, called from Python and from ``calibrate``.
+READER_FIX = "pass the robot of {found} IMU(s) (--robot FILE; n_imus={found} in Python)"
+
+
 def read_measurements(
     path: str | os.PathLike[str],
     *,
@@ -162,24 +168,32 @@ def read_measurements(
     With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
     dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
-    With several IMUs an empty field is a dropout of that IMU only.
+    With several IMUs an empty field is a dropout of that IMU only. A file with columns
+    for another number of IMUs than ``n_imus`` (``roll_1 ... roll_2`` for one) is an
+    error, never read in part.
     """
     with open_rows(path) as rows:
-        columns = tilt_sample_columns(rows, n_imus)
+        columns = tilt_sample_columns(rows, n_imus, fix=READER_FIX)
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
     check_time_units(rows, got.t)
     z = tilt_values(rows.name, got.values, got.lines, degrees, n_imus)
     return MeasurementTable(t=got.t, z=z, skipped=got.skipped)
 
 
-def tilt_sample_columns(rows: TextRows, n_imus: int) -> tuple[str, ...]:
-    """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch."""
-    columns = ("t", *tilt_columns(n_imus))
-    if n_imus == 1 and "roll" not in rows.header and "roll_1" in rows.header:
-        columns = ("t", "roll_1", "pitch_1")
-    if n_imus > 1:
-        _check_imu_count(rows.name, rows.header, n_imus)
-    return columns
+def tilt_sample_columns(
+    rows: TextRows, n_imus: int, fix: str = ROBOT_FIX
+) -> tuple[str, ...]:
+    """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch. A header
+    with columns for another number of IMUs is a one-line error ending in ``fix``
+    (``{found}`` replaced by the file's IMU count)."""
+    found = numbered_imus(rows.header, ("roll", "pitch"))
+    if found and found != n_imus:
+        raise imu_count_error(rows.name, "tilt", numbered_span("roll", found), found, n_imus, fix)
+    if not found and n_imus > 1 and "roll" in rows.header:
+        raise imu_count_error(rows.name, "tilt", "roll, pitch", 1, n_imus, fix)
+    if n_imus == 1 and "roll" not in rows.header and found == 1:
+        return ("t", "roll_1", "pitch_1")
+    return ("t", *tilt_columns(n_imus))
 
 
 def tilt_values(
@@ -215,22 +229,31 @@ class UnitWarning(UserWarning):
     """A value whose unit looks wrong (milliseconds for seconds, mm for m...)."""
 
 
-def _check_imu_count(path: str, header: list[str], n_imus: int) -> None:
-    """The file's numbered IMU columns must match the robot's IMU count."""
-    have = sorted(
-        int(h.rsplit("_", 1)[1])
+def numbered_imus(header: Sequence[str], fields: Sequence[str]) -> int:
+    """The highest IMU number ``k`` of a ``<field>_k`` column in ``header`` (0: none)."""
+    numbers = [
+        int(number)
         for h in header
-        if "_" in h and h.rsplit("_", 1)[1].isdigit() and h.rsplit("_", 1)[0] in _IMU_FIELDS
+        for base, _, number in [h.rpartition("_")]
+        if base in fields and number.isdigit()
+    ]
+    return max(numbers, default=0)
+
+
+def numbered_span(first: str, found: int) -> str:
+    """``roll_1 ... roll_3`` (``roll_1`` for one IMU)."""
+    return f"{first}_1" + (f" ... {first}_{found}" if found > 1 else "")
+
+
+def imu_count_error(
+    name: str, kind: str, columns: str, found: int, n_imus: int, fix: str = ROBOT_FIX
+) -> InputError:
+    """The one-line error of a file whose ``kind`` columns (``columns``, as shown) are
+    for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it."""
+    return InputError(
+        f"{name}: line 1: the file has {kind} columns for {found} IMU(s) ({columns}) "
+        f"but the robot describes {n_imus}; {fix.format(found=found)}"
     )
-    found = max(have, default=0)
-    if found and found != n_imus:
-        raise InputError(
-            f"{path}: line 1: the file has columns for {found} IMU(s) but the robot file "
-            f"describes {n_imus}"
-        )
-
-
-_IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
 
 
 def _check_angle_units(path: str, z: FloatArray, lines: Sequence[int], degrees: bool) -> None:

@@ -31,7 +31,13 @@ from typing import Any, Literal
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import FloatArray, check_time_units, read_sample_rows
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    check_time_units,
+    imu_count_error,
+    numbered_span,
+    read_sample_rows,
+)
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -232,10 +238,8 @@ def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     while all(f"{c}_{found + 1}" in rows.header for c in ACC_COLUMNS):
         found += 1
     if found != n_imus:
-        raise InputError(
-            f"{rows.name}: line 1: the file has raw columns for {found} IMU(s) (ax_1 ... "
-            f"ax_{found}) but the robot describes {n_imus}"
-        )
+        shown = numbered_span("ax", found) if found else "ax, ay, az"
+        raise imu_count_error(rows.name, "raw", shown, max(found, 1), n_imus)
     has_gyro = all(f"gx_{i + 1}" in rows.header for i in range(n_imus))
     cols = [c for i in range(n_imus) for c in raw_columns(i, n_imus, has_gyro)]
     return ("t", *cols), has_gyro
