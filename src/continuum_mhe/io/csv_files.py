@@ -46,6 +46,7 @@ from continuum_mhe.io.text_rows import (
     RowProblems,
     TextRows,
     column_indices,
+    has_extra_fields,
     iter_samples,
     open_rows,
     parse_float,
@@ -180,9 +181,7 @@ def read_measurements(
     return MeasurementTable(t=got.t, z=z, skipped=got.skipped)
 
 
-def tilt_sample_columns(
-    rows: TextRows, n_imus: int, fix: str = ROBOT_FIX
-) -> tuple[str, ...]:
+def tilt_sample_columns(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[str, ...]:
     """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch. A header
     with columns for another number of IMUs is a one-line error ending in ``fix``
     (``{found}`` replaced by the file's IMU count)."""
@@ -326,6 +325,11 @@ def read_state_table(
         if len(row) < len(header):
             raise InputError(
                 f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (truncated?)"
+            )
+        if has_extra_fields(row, len(header)):
+            raise InputError(
+                f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (an extra "
+                "field or separator?)"
             )
         st = row[s_idx] if s_idx is not None else "ok"
         tv = parse_float(p, line, "t", row[t_idx]) * table.time_scale

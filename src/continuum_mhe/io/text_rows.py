@@ -252,6 +252,12 @@ class RowProblems:
             self.first.append(what)
 
 
+def has_extra_fields(row: Sequence[str], width: int) -> bool:
+    """The row has a non-empty field beyond the header's ``width`` columns (empty
+    trailing fields, from a separator at the end of the line, are no data)."""
+    return any(f != "" for f in row[width:])
+
+
 def iter_samples(
     rows: TextRows,
     columns: Sequence[str],
@@ -264,8 +270,10 @@ def iter_samples(
     time ``t`` (converted to s), one row at a time.
 
     A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
-    dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
-    ``skip_bad`` the row is dropped; each skip is counted in ``problems``. With
+    dropout (NaN, row kept); so is a row with fewer or more fields than the header
+    (every value of a row with an extra field is a dropout: which one is extra is
+    unknown); a bad, duplicate or decreasing ``t`` is an error, or with ``skip_bad`` the
+    row is dropped; each skip is counted in ``problems``. With
     ``empty_is_dropout`` an empty value is a dropout without complaint.
     """
     idx = column_indices(rows, columns)
@@ -287,6 +295,9 @@ def iter_samples(
     n_rows = 0
     for line, row in rows.rows:
         n_rows += 1
+        extra = has_extra_fields(row, width)
+        if extra:  # which field is extra is unknown: no value of the row is trusted
+            bad(line, f"expected {width} fields, found {len(row)} (an extra field or separator?)")
         if len(row) <= idx[0]:
             bad(line, truncated.format(width, len(row)))
             continue
@@ -304,6 +315,9 @@ def iter_samples(
             continue
         vals: list[float] = []
         for col, j in zip(columns[1:], idx[1:]):
+            if extra:
+                vals = [math.nan] * (len(columns) - 1)
+                break
             if j >= len(row):
                 bad(line, truncated.format(width, len(row)))
                 vals = [math.nan] * (len(columns) - 1)
