@@ -105,6 +105,57 @@ def test_theta_max_in_degrees_in_the_library() -> None:
         RobotSettings(theta_max=90)
 
 
+@pytest.mark.parametrize(
+    ("value", "hint"),
+    [
+        ("3.1416", "a bend of pi folds the section back onto itself; give a bound below pi"),
+        ("6", "a bend of pi folds the section back onto itself"),  # radians, past the fold
+        ("6.3", "degrees? give radians, e.g. 1.5708 for 90 degrees"),  # over 2 pi: degrees
+        ("90", "degrees? give radians"),
+        ("0", ""),
+    ],
+)
+def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
+    tmp_path, capsys, value: str, hint: str
+) -> None:
+    """Before: theta_max = 3.1416 (pi, rounded up) was told 'degrees? give radians'."""
+    robot = tmp_path / "robot.toml"
+    robot.write_text(f"[[section]]\nlength = 0.16\ntheta_max = {value}\n[[imu]]\nsection = 1\n")
+    assert main(["check-robot", str(robot), "--samples", "10"]) == 2
+    err = capsys.readouterr().err
+    line = f"section 1: theta_max must lie in (0, pi) rad, got {float(value)!r}"
+    assert err.startswith(f"continuum-mhe: error: {robot}: {line}") and err.count("\n") == 1
+    assert hint in err and ("degrees" in err) == ("degrees" in hint)
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n")
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--theta-max", value]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and (hint in err) and ("degrees" in err) == ("degrees" in hint)
+    with pytest.raises(UserError) as info:
+        RobotSettings(theta_max=float(value))
+    assert ("degrees" in str(info.value)) == ("degrees" in hint)
+
+
+@pytest.mark.parametrize(
+    ("header", "row", "column"),
+    [
+        ("t,roll_0,pitch_0,roll_1,pitch_1", "0,0.1,0.1,0.2,0.2", "roll_0"),
+        ("t,ax_0,ay_0,az_0,gx_0,gy_0,gz_0", "0,0,0,9.8,0,0,0", "ax_0"),
+    ],
+)
+def test_imu_columns_numbered_from_zero_are_named(tmp_path, capsys, header, row, column) -> None:
+    """Before: roll_0 ... roll_1 read as 'the file has columns for 1 IMU(s)'."""
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"{header}\n{row}\n")
+    for robot in ([], ["--robot", "two-section"]):
+        assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *robot]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and (
+            f"{meas}: line 1: column {column}: IMU columns are numbered from 1 ("
+        ) in err and "renumber the file's columns" in err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
 def _simulated(tmp_path: Path, name: str, *extra: str) -> tuple[Path, Path]:
     m, t = tmp_path / f"{name}_m.csv", tmp_path / f"{name}_t.csv"
     args = ["simulate", "paper3d", "-o", str(m), "--truth", str(t), "--duration", "5"]

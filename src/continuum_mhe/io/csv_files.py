@@ -185,7 +185,7 @@ def tilt_sample_columns(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tu
     """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch. A header
     with columns for another number of IMUs is a one-line error ending in ``fix``
     (``{found}`` replaced by the file's IMU count)."""
-    found = numbered_imus(rows.header, ("roll", "pitch"))
+    found = numbered_imus(rows, ("roll", "pitch"))
     if found and found != n_imus:
         raise imu_count_error(rows.name, "tilt", numbered_span("roll", found), found, n_imus, fix)
     if not found and n_imus > 1 and "roll" in rows.header:
@@ -228,15 +228,24 @@ class UnitWarning(UserWarning):
     """A value whose unit looks wrong (milliseconds for seconds, mm for m...)."""
 
 
-def numbered_imus(header: Sequence[str], fields: Sequence[str]) -> int:
-    """The highest IMU number ``k`` of a ``<field>_k`` column in ``header`` (0: none)."""
-    numbers = [
-        int(number)
-        for h in header
+def numbered_imus(rows: TextRows, fields: Sequence[str]) -> int:
+    """The highest IMU number ``k`` of a ``<field>_k`` column in the header (0: none).
+    IMUs are numbered from 1, as in the robot file: a ``<field>_0`` column is a one-line
+    error saying so (never read as another IMU count)."""
+    numbers = {
+        h: int(number)
+        for h in rows.header
         for base, _, number in [h.rpartition("_")]
         if base in fields and number.isdigit()
-    ]
-    return max(numbers, default=0)
+    }
+    zero = [h for h, k in numbers.items() if k == 0]
+    if zero:
+        first = "_1, ".join(fields[:2]) + "_1"
+        raise InputError(
+            f"{rows.name}: line 1: column {zero[0]}: IMU columns are numbered from 1 "
+            f"({first} ... for the robot file's first IMU); renumber the file's columns"
+        )
+    return max(numbers.values(), default=0)
 
 
 def numbered_span(first: str, found: int) -> str:

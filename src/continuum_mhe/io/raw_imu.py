@@ -35,6 +35,7 @@ from continuum_mhe.io.csv_files import (
     FloatArray,
     check_time_units,
     imu_count_error,
+    numbered_imus,
     numbered_span,
     read_sample_rows,
 )
@@ -203,8 +204,11 @@ class RawImuTable:
 
 def is_raw_header(header: list[str]) -> bool:
     """True when a (lower-case) CSV header names the accelerometer columns (``ax,ay,az``,
-    or ``ax_1,ay_1,az_1`` for several IMUs)."""
-    return all(c in header for c in ACC_COLUMNS) or all(f"{c}_1" in header for c in ACC_COLUMNS)
+    or ``ax_1,ay_1,az_1`` for several IMUs; ``ax_0...``, numbered from 0, too, so that
+    :func:`raw_layout` can say IMUs are numbered from 1)."""
+    return any(
+        all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0")
+    )
 
 
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
@@ -231,6 +235,7 @@ class MultiRawImuTable:
 
 def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     """The columns to read from a raw table (``t`` first) and whether it has gyros."""
+    numbered_imus(rows, (*ACC_COLUMNS, *GYRO_COLUMNS))  # numbered from 1
     if n_imus == 1 and "ax_1" not in rows.header:
         has_gyro = any(c in rows.header for c in GYRO_COLUMNS)
         return (RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]), has_gyro
