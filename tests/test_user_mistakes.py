@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.cli_options import OPTION_RANGES
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.robot_logs import OptionWarning
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
@@ -232,3 +234,84 @@ def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:
     assert main(["evaluate", str(est), str(t)]) == 0
     err = capsys.readouterr().err
     assert err.startswith("continuum-mhe: warning: ") and "only 30 of 101 rows" in err
+
+
+def _two_imu_robot(path: Path, mounts: tuple[str, str] = ("", "")) -> Path:
+    imus = "".join(f"[[imu]]\nsection = {k}\n{m}\n" for k, m in zip((1, 2), mounts))
+    sections = "[[section]]\nlength = 0.16\ntheta_max = 3.0\n" * 2
+    path.write_text(sections + imus)
+    return path
+
+
+def _raw_two_imus(path: Path, n: int = 20) -> Path:
+    rows = [f"{0.05 * i:.2f},0,0,9.8,0,0,0,0.1,0,9.8,0,0,0" for i in range(n)]
+    cols = ",".join(f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))
+    path.write_text("\n".join([f"t,{cols}", *rows]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("kind", "argv", "needle"),
+    [
+        ("tilt", ["--mount-rpy", "0,0,90"], "--mount-rpy does not apply to tilt input: it "
+         "rotates raw accelerometer and gyro vectors, and roll and pitch are used as they are"),
+        ("tilt", ["--attitude", "madgwick"], "--attitude madgwick does not apply to tilt input"),
+        ("raw", ["--degrees"], "--degrees does not apply to this input: it is for roll and "
+         "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
+        ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
+         "file gives every IMU its own mount_rpy"),
+    ],
+)  # fmt: skip
+def test_an_option_that_does_nothing_on_this_input_is_refused(
+    tmp_path, capsys, kind: str, argv: list[str], needle: str
+) -> None:
+    """Before: --mount-rpy on a tilt CSV, --degrees on a raw CSV did nothing, silently."""
+    every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
+    robot = _two_imu_robot(tmp_path / "robot.toml", every if kind == "raw-mounted" else ("", ""))
+    if kind == "tilt":
+        meas = tmp_path / "m.csv"
+        meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
+    else:
+        meas = _raw_two_imus(tmp_path / "m.csv")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot), *argv]
+    assert main([*argv, "--method", "ekf"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {meas}: {needle}")
+    assert err.count("\n") == 1 and sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
+    tmp_path, capsys
+) -> None:
+    """docs/hardware.md: mount_rpy rotates raw vectors; tilt readings are used as they are.
+    Before: silently ignored. Now one warning, and the estimates equal those without it."""
+    args = ["simulate", "spatial", "--robot", "two-section", "--duration", "2"]
+    meas = tmp_path / "m.csv"
+    assert main([*args, "-o", str(meas)]) == 0
+    plain = _two_imu_robot(tmp_path / "plain.toml")
+    mounted = _two_imu_robot(tmp_path / "mounted.toml", ("", "mount_rpy = [0, 0, 90]"))
+    outs = []
+    for robot in (plain, mounted):
+        out = tmp_path / f"e_{robot.stem}.csv"
+        argv = ["estimate", str(meas), "-o", str(out), "--robot", str(robot), "--method", "ekf"]
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert main(argv) == 0
+        said = [str(w.message) for w in seen if w.category is OptionWarning]
+        outs.append((out.read_text(), said))
+    assert outs[0][1] == [] and outs[1][1] == [
+        f"{meas}: the robot file's mount_rpy of IMU 2 is not applied to tilt input: it "
+        "rotates raw readings, and roll and pitch are used as they are, taken as already in "
+        "the backbone's frame"
+    ]
+    rows = [[r.rsplit(",", 1)[0] for r in text.splitlines()] for text, _ in outs]
+    assert len(rows[0]) == 42 and rows[0] == rows[1]  # the same estimates (solve_ms aside)
+
+
+def test_mount_rpy_still_applies_to_raw_imus_without_their_own(tmp_path, capsys) -> None:
+    robot = _two_imu_robot(tmp_path / "robot.toml", ("mount_rpy = [0, 0, 30]", ""))
+    meas = _raw_two_imus(tmp_path / "m.csv")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot)]
+    assert main([*argv, "--method", "ekf", "--mount-rpy", "0,0,90"]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -35,6 +35,7 @@ from continuum_mhe.io.robot_logs import (
     InputOptions,
     _formulation_for,
     _imu_settings,
+    check_options_apply,
     is_robot_log,
     load_estimate_input,
     mcap_estimate_writer,
@@ -116,6 +117,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     convert: Convert
     if is_raw_header(rows.header):
         f = _formulation_for(options, base, True, Path(name))
+        check_options_apply(name, "raw-csv", options, base.robot)
         cols, has_gyro = raw_layout(rows, n_imus)
         if options.raw.needs_gyro and not has_gyro:
             what = "--imu-model direct" if options.raw.imu_model == "direct" else (
@@ -140,6 +142,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
             raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
         cols = tilt_sample_columns(rows, n_imus)
         f = _formulation_for(options, base, False, Path(name))
+        check_options_apply(name, "tilt-csv", options, base.robot)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             return tilt_values(name, values, lines, options.degrees, n_imus)
