@@ -3,6 +3,7 @@ user errors (issue #11)."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import warnings
@@ -315,3 +316,67 @@ def test_mount_rpy_still_applies_to_raw_imus_without_their_own(tmp_path, capsys)
     argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot)]
     assert main([*argv, "--method", "ekf", "--mount-rpy", "0,0,90"]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+THREE_SECTIONS = "".join(
+    f"[[section]]\nlength = {v}\ntheta_max = 2.0\n" for v in (0.12, 0.1, 0.08)
+) + "".join(f"[[imu]]\nsection = {k}\n" for k in (1, 2, 3))
+
+
+@pytest.fixture(scope="module")
+def two_and_three(tmp_path_factory) -> dict[str, Path]:
+    """A two-section EKF estimate, its truth, and a three-section truth at the same t."""
+    tmp = tmp_path_factory.mktemp("robots")
+    (tmp / "robot3.toml").write_text(THREE_SECTIONS)
+    paths = {k: tmp / f"{k}.csv" for k in ("m2", "t2", "e2", "m3", "t3")}
+    sim = ["simulate", "spatial", "--duration", "2"]
+    assert main([*sim, "--robot", "two-section", "-o", str(paths["m2"]),
+                 "--truth", str(paths["t2"])]) == 0  # fmt: skip
+    assert main([*sim, "--robot", str(tmp / "robot3.toml"), "-o", str(paths["m3"]),
+                 "--truth", str(paths["t3"])]) == 0  # fmt: skip
+    argv = ["estimate", str(paths["m2"]), "-o", str(paths["e2"]), "--robot", "two-section"]
+    assert main([*argv, "--method", "ekf"]) == 0
+    return paths
+
+
+def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
+    two_and_three, capsys
+) -> None:
+    """Before: a two-section estimate against a three-section truth printed an SRMSE."""
+    e2, t2, t3 = two_and_three["e2"], two_and_three["t2"], two_and_three["t3"]
+    capsys.readouterr()
+    assert main(["evaluate", str(e2), str(t2), "--robot", "two-section"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and re.search(r"SRMSE\s+\d", out)
+    assert main(["evaluate", str(e2), str(t3), "--robot", "two-section"]) == 0
+    out, err = capsys.readouterr()
+    assert err == (
+        f"continuum-mhe: warning: {t3}: its columns (theta_1, theta_2, theta_3) do not fit the "
+        "robot (2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up): extra theta_3: the truth "
+        "is of another robot (pass --robot with its robot)\n"
+    )
+    assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
+    assert main(["evaluate", str(e2), str(t3), "--robot", "two-section", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["srmse"] is None
+
+
+def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
+    two_and_three, tmp_path, capsys
+) -> None:
+    """Before: evaluate e2.csv t2.csv took the one-section 0.2 m robot, silently."""
+    e2, t2 = two_and_three["e2"], two_and_three["t2"]
+    capsys.readouterr()
+    assert main(["evaluate", str(e2), str(t2)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {e2}: its columns (theta_1, theta_2) do not fit the robot "
+        "(1 section (0.2 m), IMUs at 1@1, z-up): missing theta; extra theta_1, theta_2; pass "
+        "--robot with the robot it was estimated on\n"
+    )
+    robot3 = two_and_three["m2"].parent / "robot3.toml"
+    assert main(["evaluate", str(e2), str(two_and_three["t3"]), "--robot", str(robot3)]) == 2
+    assert "missing theta_3; pass --robot" in capsys.readouterr().err
+    tip = tmp_path / "tip.csv"  # an estimate of the tip only: no robot to check against
+    rows = e2.read_text().splitlines()
+    tip.write_text("\n".join(",".join(r.split(",")[:4]) for r in rows) + "\n")
+    assert main(["evaluate", str(tip), str(t2), "--robot", "two-section"]) == 0
+    assert "tip error mean" in capsys.readouterr().out

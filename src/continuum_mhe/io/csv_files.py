@@ -52,6 +52,7 @@ from continuum_mhe.io.text_rows import (
     parse_float,
 )
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import EstimateSeries
 
 FloatArray = NDArray[np.float64]
@@ -368,6 +369,61 @@ def read_state_table(
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
         None if o_idx is None else np.array(flags, dtype=bool),
     )  # fmt: skip
+
+
+#: The per-section columns of a state table: ``theta, phi`` (one section), or
+#: ``theta_k, phi_k, x_k, y_k, z_k``.
+_SECTION_FIELDS = ("theta", "phi", "x", "y", "z")
+
+
+def _is_section_column(name: str) -> bool:
+    base, _, k = name.rpartition("_")
+    return name in ("theta", "phi") or (base in _SECTION_FIELDS and k.isdigit())
+
+
+def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
+    """``""`` when a state table's per-section columns fit ``robot``'s outputs, else
+    what does not (``missing theta_3; extra theta``). ``complete``: every output must be
+    there (an estimate, as ``estimate`` writes it); else any subset (a truth)."""
+    outputs = output_names(pcc_outputs(robot.n_sections))
+    extra = [n for n in names if _is_section_column(n) and n not in outputs]
+    missing = [n for n in outputs if n not in names] if complete else []
+    if not (extra or missing):
+        return ""
+    parts = [
+        f"{what} {', '.join([n for n in cols if n.startswith('theta')] or cols)}"
+        for what, cols in (("missing", missing), ("extra", extra))
+        if cols
+    ]  # a section named by its theta column, where there is one
+    has = [n for n in names if n.startswith("theta")]
+    return (
+        f"its columns ({', '.join(has) or 'no theta'}) do not fit the robot "
+        f"({robot.describe()}): {'; '.join(parts)}"
+    )
+
+
+def check_estimate_fits(path: str | os.PathLike[str], names: Sequence[str], robot: Robot) -> None:
+    """A one-line :class:`InputError` unless an estimate CSV's columns are ``robot``'s
+    outputs (estimated on another robot, or ``--robot`` forgotten)."""
+    misfit = robot_misfit(names, robot, complete=True)
+    if misfit:
+        raise InputError(f"{path}: {misfit}; pass --robot with the robot it was estimated on")
+
+
+def check_same_robot(
+    estimates: str | os.PathLike[str], estimate: StateTable,
+    truth: str | os.PathLike[str], truth_table: StateTable, robot: Robot,
+) -> str:  # fmt: skip
+    """``evaluate``'s check that the estimate and the truth are of ``robot``: an estimate
+    with section columns of another robot is a one-line :class:`InputError` (one with the
+    tip only passes); a truth with columns of another robot gives the warning returned
+    (``""`` when it fits: any subset of the robot's columns does)."""
+    if any(_is_section_column(n) for n in estimate.names):
+        check_estimate_fits(estimates, estimate.names, robot)
+    misfit = robot_misfit(truth_table.names, robot, complete=False)
+    if not misfit:
+        return ""
+    return f"{truth}: {misfit}: the truth is of another robot (pass --robot with its robot)"
 
 
 def _parse_std(path: str, line: int, name: str, text: str) -> float:
