@@ -183,7 +183,8 @@ def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
     meas, est = _meas(tmp_path, rows), tmp_path / "est.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "skipped 3 bad sample(s)" in err
+    assert "--skip-bad: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) " \
+        "dropped (bad or non-increasing t); first: line 12: column roll is nan" in err
     t, out, status = read_states(est)
     assert len(t) == 40 and np.all(np.isfinite(out))
     assert list(np.flatnonzero(status == "dropout")) == [10, 20]
@@ -198,7 +199,8 @@ def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, 
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "skipped 1 bad sample(s), first: line 9: expected 3 fields, found 4" in err
+    assert "--skip-bad: 1 sample(s) with a bad value, read as a dropout of its IMU; first: " \
+        "line 9: expected 3 fields, found 4" in err
     t, out, status = read_states(est)
     assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7]
     table = read_measurements(meas, skip_bad=True)
@@ -290,7 +292,7 @@ def test_skip_count_is_per_row_not_per_field(tmp_path, capsys):
     rows[4] = rows[4].split(",")[0] + ",nan,nan"
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
-    assert "skipped 1 bad sample(s)" in capsys.readouterr().err
+    assert "--skip-bad: 1 sample(s) with a bad value" in capsys.readouterr().err
 
 
 def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):

@@ -157,8 +157,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
-    if stream.problems.count:
-        msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
+    for clause in (stream.readings.summary() if stream.readings else "", stream.problems.summary()):
+        msg += f"; {clause}" if clause else ""
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
     if est.bad_starts:

@@ -51,7 +51,7 @@ from continuum_mhe.io.text_rows import (
     open_rows,
     parse_float,
 )
-from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs
+from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import EstimateSeries
 
@@ -170,7 +170,8 @@ def read_measurements(
     With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
     dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
-    With several IMUs an empty field is a dropout of that IMU only. A file with columns
+    With several IMUs an empty field is a dropout of that IMU only (an IMU without any
+    valid reading gives a :class:`DropoutWarning`). A file with columns
     for another number of IMUs than ``n_imus`` (``roll_1 ... roll_2`` for one) is an
     error, never read in part.
     """
@@ -179,6 +180,9 @@ def read_measurements(
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
     check_time_units(rows, got.t)
     z = tilt_values(rows.name, got.values, got.lines, degrees, n_imus)
+    readings = ReadingCounts(tuple(b.slice for b in tilt_blocks(n_imus)))
+    readings.add(z)
+    readings.warn_silent(rows.name)
     return MeasurementTable(t=got.t, z=z, skipped=got.skipped)
 
 
@@ -204,6 +208,56 @@ def tilt_values(
     for i in range(n_imus):
         _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees)
     return z
+
+
+class DropoutWarning(UserWarning):
+    """An IMU of several that gave no valid reading in a whole recording."""
+
+
+@dataclass
+class ReadingCounts:
+    """Which IMUs reported, over the samples read: ``missing[i]`` samples without a
+    valid reading of IMU ``i + 1`` (a NaN in its block), ``partial`` samples with some
+    IMUs missing and at least one reporting: estimated from those (their status is the
+    update's, e.g. ``ok``; ``dropout`` is a sample without any reading)."""
+
+    blocks: tuple[slice, ...]
+    samples: int = 0
+    partial: int = 0
+    missing: list[int] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.missing = self.missing or [0] * len(self.blocks)
+
+    def add(self, z: FloatArray) -> None:
+        """Count the samples ``z`` (n, nz)."""
+        finite = np.isfinite(np.asarray(z, dtype=float).reshape(-1, self.blocks[-1].stop))
+        gone = np.column_stack([~finite[:, b].all(axis=1) for b in self.blocks])
+        self.samples += len(gone)
+        self.partial += int((gone.any(axis=1) & ~gone.all(axis=1)).sum())
+        self.missing = [m + int(g) for m, g in zip(self.missing, gone.sum(axis=0))]
+
+    def summary(self) -> str:
+        """One clause for a run's summary line (``""`` when every sample had every IMU
+        or none)."""
+        if not self.partial:
+            return ""
+        per = ", ".join(f"IMU {i} on {m}" for i, m in enumerate(self.missing, start=1) if m)
+        return f"{self.partial} sample(s) estimated without every IMU (missing: {per})"
+
+    def warn_silent(self, name: str) -> None:
+        """Warn once when some, not all, IMUs never reported (all: no estimate at all,
+        said as an error by ``estimate``)."""
+        silent = [i for i, m in enumerate(self.missing, start=1) if m == self.samples]
+        if self.samples and silent and len(silent) < len(self.blocks):
+            others = [i for i in range(1, len(self.blocks) + 1) if i not in silent]
+            warnings.warn(
+                f"{name}: IMU {', '.join(map(str, silent))} never reported (no valid reading in "
+                f"{self.samples} samples): estimated from IMU {', '.join(map(str, others))} "
+                "only; check its wiring or the file's columns",
+                DropoutWarning,
+                stacklevel=3,
+            )
 
 
 #: ``t`` read in seconds whose median step exceeds this looks like milliseconds.

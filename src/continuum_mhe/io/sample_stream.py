@@ -21,6 +21,7 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import (
     FloatArray,
+    ReadingCounts,
     atomic_binary_writer,
     atomic_writer,
     check_time_units,
@@ -64,6 +65,8 @@ class SampleStream:
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
         notes: lines for the user about how the input was read (e.g. how the samples
             of several IMU topics paired).
+        readings: which IMUs reported, counted as the samples are read (once they are
+            all read, a :class:`DropoutWarning` names an IMU that never reported).
     """
 
     name: str
@@ -74,6 +77,7 @@ class SampleStream:
     t0_ns: int = 0
     _rows: TextRows | None = None
     notes: tuple[str, ...] = ()
+    readings: ReadingCounts | None = None
 
     def close(self) -> None:
         if self._rows is not None:
@@ -92,11 +96,14 @@ def open_estimate_input(
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream."""
     if str(path) != "-" and is_robot_log(Path(path)):
         data = load_estimate_input(path, options, formulation)
-        problems = RowProblems(count=len(data.skipped), first=data.skipped[:20])
+        problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
+        readings = _readings(data.formulation)
+        readings.add(data.z)
+        readings.warn_silent(str(path))
         pairs = zip(data.t.tolist(), data.z)
         return SampleStream(
             str(path), data.kind, data.formulation, pairs, problems, data.t0_ns,
-            notes=tuple(data.notes),
+            notes=tuple(data.notes), readings=readings,
         )  # fmt: skip
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         raise InputError(
@@ -151,17 +158,29 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     found = iter_samples(
         rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
     )
-    return SampleStream(name, kind, f, _chunked(rows, found, convert), problems, 0, rows)
+    readings = _readings(f)
+    samples = _chunked(rows, found, convert, readings)
+    return SampleStream(name, kind, f, samples, problems, 0, rows, readings=readings)
+
+
+def _readings(formulation: Formulation) -> ReadingCounts:
+    return ReadingCounts(tuple(b.slice for b in formulation.measurement_blocks))
 
 
 def _chunked(
-    rows: TextRows, found: Iterator[tuple[int, float, list[float]]], convert: Convert
+    rows: TextRows,
+    found: Iterator[tuple[int, float, list[float]]],
+    convert: Convert,
+    readings: ReadingCounts,
 ) -> Iterator[tuple[float, FloatArray]]:
-    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time."""
+    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time.
+    Counts which IMUs reported in ``readings``, and warns at the end for one that never
+    did."""
     first = True
     while True:
         chunk = [r for _, r in zip(range(CHUNK), found)]
         if not chunk:
+            readings.warn_silent(rows.name)
             return
         lines = [c[0] for c in chunk]
         t = np.array([c[1] for c in chunk], dtype=float)
@@ -171,6 +190,7 @@ def _chunked(
             check_time_units(rows, t)
             first = False
         z = convert(t, values, lines)
+        readings.add(z)
         for i, tv in enumerate(t.tolist()):
             yield tv, z[i]
 
