@@ -136,6 +136,10 @@ BAD_INPUTS = {
     "duplicate-t": ("t,roll,pitch\n0,0.1,0.1\n0,0.1,0.1\n", "line 3: duplicate timestamp"),
     "degrees": ("t,roll,pitch\n0,10,20\n0.05,11,21\n", "look like degrees: pass --degrees"),
     "truncated-row": ("t,roll,pitch\n0,0.1,0.1\n0.05\n", "line 3: expected 3 fields"),
+    "extra-field": (
+        "t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1,0.2\n",
+        "line 3: expected 3 fields, found 4 (an extra field or separator?)",
+    ),
     "binary": ("t,roll,pitch\n0,0.1,\x000.1\n", "line 2"),
 }
 
@@ -181,10 +185,41 @@ def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
     meas, est = _meas(tmp_path, rows), tmp_path / "est.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "skipped 3 bad sample(s)" in err
+    assert "--skip-bad: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) " \
+        "dropped (bad or non-increasing t); first: line 12: column roll is nan" in err
     t, out, status = read_states(est)
     assert len(t) == 40 and np.all(np.isfinite(out))
     assert list(np.flatnonzero(status == "dropout")) == [10, 20]
+
+
+def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, capsys):
+    """Before: the sixth field of a row under a five-column header was ignored (ok)."""
+    rows = _good_rows(20)
+    good = read_measurements(_meas(tmp_path, rows)).z
+    rows[7] += ",0.3"  # which field is extra is unknown: the whole sample is a dropout
+    rows[12] += ","  # an empty trailing field is no data: read as it is
+    meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--skip-bad"]) == 0
+    err = capsys.readouterr().err
+    assert "--skip-bad: 1 sample(s) with a bad value, read as a dropout of its IMU; first: " \
+        "line 9: expected 3 fields, found 4" in err
+    t, out, status = read_states(est)
+    assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7]
+    table = read_measurements(meas, skip_bad=True)
+    assert np.isnan(table.z[7]).all() and table.skipped == [
+        "line 9: expected 3 fields, found 4 (an extra field or separator?)"
+    ]
+    np.testing.assert_array_equal(np.delete(table.z, 7, 0), np.delete(good, 7, 0))
+
+
+def test_estimate_or_truth_row_with_an_extra_field_is_refused(tmp_path, capsys):
+    est = _write(tmp_path / "est.csv", "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n")
+    truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2,0.1\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {truth}: line 2: expected 4 fields, found 5 (an extra field or "
+        "separator?)\n"
+    )
 
 
 def test_evaluate_rejects_bad_truth(tmp_path, capsys):
@@ -259,7 +294,7 @@ def test_skip_count_is_per_row_not_per_field(tmp_path, capsys):
     rows[4] = rows[4].split(",")[0] + ",nan,nan"
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
-    assert "skipped 1 bad sample(s)" in capsys.readouterr().err
+    assert "--skip-bad: 1 sample(s) with a bad value" in capsys.readouterr().err
 
 
 def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):

@@ -19,7 +19,12 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
-from continuum_mhe.io.csv_files import InputError, read_state_table
+from continuum_mhe.io.csv_files import (
+    DropoutWarning,
+    InputError,
+    read_measurements,
+    read_state_table,
+)
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
@@ -172,6 +177,65 @@ def test_one_imu_dropout_keeps_the_other(method: str, solver: str) -> None:
     assert m.tip_mean_mm < 25.0
 
 
+def _two_imu_file(path: Path, edit: dict[int, str]) -> tuple[Path, list[str]]:
+    """A simulated two-IMU tilt CSV (41 rows) with rows ``edit`` replaced (0-based)."""
+    rec = simulate_robot("s-curve", TWO, duration=2.0, dt=0.05, seed=2)
+    rows = [",".join(f"{v:.6f}" for v in (t, *z)) for t, z in zip(rec.t, rec.z)]
+    for i, fields in edit.items():
+        rows[i] = f"{rec.t[i]:.6f},{fields}"
+    path.write_text("\n".join(["t,roll_1,pitch_1,roll_2,pitch_2", *rows]) + "\n")
+    return path, rows
+
+
+def test_partial_dropouts_are_counted_and_the_status_says_dropout_only_without_any_imu(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: 'ok: 41 ...; skipped 1 bad sample(s)' with IMU 2 missing on two rows and
+    IMU 1 on one: no word of the partial samples, and 'skipped' for kept rows."""
+    meas, _ = _two_imu_file(tmp_path / "m.csv", {
+        5: "0.1,0.1,,", 6: "0.1,0.1,,",  # IMU 2 empty: its dropout, IMU 1 used
+        10: "nan,0.1,0.2,0.2",  # IMU 1 bad: with --skip-bad its dropout, IMU 2 used
+        20: ",,,",  # no IMU: a dropout of the sample
+    })  # fmt: skip
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "-o", str(out), "--robot", str(ROBOT_FILE), "--method", "ekf"]
+    assert main([*argv, "--skip-bad"]) == 0
+    err = capsys.readouterr().err
+    status = read_state_table(out).status
+    assert list(np.flatnonzero(status == "dropout")) == [20]
+    assert "dropout" not in {status[5], status[6], status[10]}
+    assert err.endswith(
+        "; 3 sample(s) estimated without every IMU (missing: IMU 1 on 2, IMU 2 on 3); "
+        "--skip-bad: 1 sample(s) with a bad value, read as a dropout of its IMU; first: "
+        "line 12: column roll_1 is nan (a dropout; --skip-bad keeps it)\n"
+    )
+    assert "dropout: 1," in err and "skipped" not in err
+
+
+def test_an_imu_that_never_reports_warns_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: IMU 2 empty on every row gave estimates and no word of it."""
+    meas, _ = _two_imu_file(tmp_path / "m.csv", {})
+    meas.write_text("\n".join(
+        ",".join([*r.split(",")[:3], "", ""]) for r in meas.read_text().splitlines()
+    ).replace("t,roll_1,pitch_1,,", "t,roll_1,pitch_1,roll_2,pitch_2") + "\n")  # fmt: skip
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "-o", str(out), "--robot", str(ROBOT_FILE), "--method", "ekf"]
+    said = (
+        f"{meas}: IMU 2 never reported (no valid reading in 41 samples): estimated from IMU 1 "
+        "only; check its wiring or the file's columns"
+    )
+    with pytest.warns(DropoutWarning) as seen:
+        assert main(argv) == 0
+    assert [str(w.message) for w in seen if w.category is DropoutWarning] == [said]
+    assert "41 sample(s) estimated without every IMU (missing: IMU 2 on 41)" in (
+        capsys.readouterr().err
+    )
+    with pytest.warns(DropoutWarning, match="IMU 2 never reported"):
+        assert np.isnan(read_measurements(meas, n_imus=2).z[:, 2:]).all()
+
+
 # --- filters against filterpy on the two-section model -----------------------------------
 def test_ekf_matches_filterpy_on_two_sections() -> None:
     f = make_formulation("direct", TWO)
@@ -295,13 +359,45 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
     assert not out.exists()
 
 
-def test_measurement_file_with_the_wrong_imu_count(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize(
+    ("header", "robot", "needle"),
+    [
+        ("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", True,
+         "tilt columns for 3 IMU(s) (roll_1 ... roll_3) but the robot describes 2; "
+         "pass --robot FILE with a robot file of 3 IMU(s)"),
+        # before: --robot forgotten, IMU 1's columns estimated as a one-section robot
+        ("t,roll_1,pitch_1,roll_2,pitch_2", False,
+         "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "
+         "pass --robot FILE with a robot file of 2 IMU(s)"),
+        ("t,roll,pitch", True, "tilt columns for 1 IMU(s) (roll, pitch) but the robot "
+         "describes 2"),
+        ("t,ax_1,ay_1,az_1,ax_2,ay_2,az_2", False,
+         "raw columns for 2 IMU(s) (ax_1 ... ax_2) but the robot describes 1; pass --robot"),
+    ],
+)  # fmt: skip
+def test_measurement_file_with_the_wrong_imu_count(  # type: ignore[no-untyped-def]
+    tmp_path: Path, capsys, header: str, robot: bool, needle: str
+) -> None:
     meas = tmp_path / "m.csv"
-    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3\n0,0,0,0,0,0,0\n")
+    row = ",".join(["0"] + ["0.1"] * header.count(","))
+    meas.write_text(f"{header}\n{row}\n")
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(meas), "-o", str(out), "--robot", str(ROBOT_FILE)]) == 2
-    assert "3 IMU(s) but the robot file describes 2" in capsys.readouterr().err
+    argv = ["estimate", str(meas), "-o", str(out), "--method", "ekf"]
+    assert main([*argv, *(["--robot", str(ROBOT_FILE)] if robot else [])]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{meas}: line 1: the file has {needle}" in err
     assert not out.exists()
+
+
+def test_read_measurements_refuses_another_imu_count(tmp_path: Path) -> None:
+    """Before: read_measurements of a two-IMU file returned IMU 1's columns."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.2,0.3,0.4\n")
+    with pytest.raises(InputError, match=r"for 2 IMU\(s\).*describes 1; .*n_imus=2 in Python"):
+        read_measurements(meas)
+    assert_allclose(read_measurements(meas, n_imus=2).z, [[0.1, 0.2, 0.3, 0.4]])
+    meas.write_text("t,roll_1,pitch_1\n0,0.1,0.2\n")  # one numbered IMU is one IMU
+    assert_allclose(read_measurements(meas).z, [[0.1, 0.2]])
 
 
 def test_truth_without_a_tip_is_refused(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -3,8 +3,10 @@ user errors (issue #11)."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.cli_options import OPTION_RANGES
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.robot_logs import OptionWarning
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
@@ -112,6 +115,57 @@ def test_theta_max_in_degrees_in_the_library() -> None:
         RobotSettings(theta_max=90)
 
 
+@pytest.mark.parametrize(
+    ("value", "hint"),
+    [
+        ("3.1416", "a bend of pi folds the section back onto itself; give a bound below pi"),
+        ("6", "a bend of pi folds the section back onto itself"),  # radians, past the fold
+        ("6.3", "degrees? give radians, e.g. 1.5708 for 90 degrees"),  # over 2 pi: degrees
+        ("90", "degrees? give radians"),
+        ("0", ""),
+    ],
+)
+def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
+    tmp_path, capsys, value: str, hint: str
+) -> None:
+    """Before: theta_max = 3.1416 (pi, rounded up) was told 'degrees? give radians'."""
+    robot = tmp_path / "robot.toml"
+    robot.write_text(f"[[section]]\nlength = 0.16\ntheta_max = {value}\n[[imu]]\nsection = 1\n")
+    assert main(["check-robot", str(robot), "--samples", "10"]) == 2
+    err = capsys.readouterr().err
+    line = f"section 1: theta_max must lie in (0, pi) rad, got {float(value)!r}"
+    assert err.startswith(f"continuum-mhe: error: {robot}: {line}") and err.count("\n") == 1
+    assert hint in err and ("degrees" in err) == ("degrees" in hint)
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n")
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--theta-max", value]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and (hint in err) and ("degrees" in err) == ("degrees" in hint)
+    with pytest.raises(UserError) as info:
+        RobotSettings(theta_max=float(value))
+    assert ("degrees" in str(info.value)) == ("degrees" in hint)
+
+
+@pytest.mark.parametrize(
+    ("header", "row", "column"),
+    [
+        ("t,roll_0,pitch_0,roll_1,pitch_1", "0,0.1,0.1,0.2,0.2", "roll_0"),
+        ("t,ax_0,ay_0,az_0,gx_0,gy_0,gz_0", "0,0,0,9.8,0,0,0", "ax_0"),
+    ],
+)
+def test_imu_columns_numbered_from_zero_are_named(tmp_path, capsys, header, row, column) -> None:
+    """Before: roll_0 ... roll_1 read as 'the file has columns for 1 IMU(s)'."""
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"{header}\n{row}\n")
+    for robot in ([], ["--robot", "two-section"]):
+        assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *robot]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and (
+            f"{meas}: line 1: column {column}: IMU columns are numbered from 1 ("
+        ) in err and "renumber the file's columns" in err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
 def _simulated(tmp_path: Path, name: str, *extra: str) -> tuple[Path, Path]:
     m, t = tmp_path / f"{name}_m.csv", tmp_path / f"{name}_t.csv"
     args = ["simulate", "paper3d", "-o", str(m), "--truth", str(t), "--duration", "5"]
@@ -188,3 +242,148 @@ def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:
     assert main(["evaluate", str(est), str(t)]) == 0
     err = capsys.readouterr().err
     assert err.startswith("continuum-mhe: warning: ") and "only 30 of 101 rows" in err
+
+
+def _two_imu_robot(path: Path, mounts: tuple[str, str] = ("", "")) -> Path:
+    imus = "".join(f"[[imu]]\nsection = {k}\n{m}\n" for k, m in zip((1, 2), mounts))
+    sections = "[[section]]\nlength = 0.16\ntheta_max = 3.0\n" * 2
+    path.write_text(sections + imus)
+    return path
+
+
+def _raw_two_imus(path: Path, n: int = 20) -> Path:
+    rows = [f"{0.05 * i:.2f},0,0,9.8,0,0,0,0.1,0,9.8,0,0,0" for i in range(n)]
+    cols = ",".join(f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))
+    path.write_text("\n".join([f"t,{cols}", *rows]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("kind", "argv", "needle"),
+    [
+        ("tilt", ["--mount-rpy", "0,0,90"], "--mount-rpy does not apply to tilt input: it "
+         "rotates raw accelerometer and gyro vectors, and roll and pitch are used as they are"),
+        ("tilt", ["--attitude", "madgwick"], "--attitude madgwick does not apply to tilt input"),
+        ("raw", ["--degrees"], "--degrees does not apply to this input: it is for roll and "
+         "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
+        ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
+         "file gives every IMU its own mount_rpy"),
+    ],
+)  # fmt: skip
+def test_an_option_that_does_nothing_on_this_input_is_refused(
+    tmp_path, capsys, kind: str, argv: list[str], needle: str
+) -> None:
+    """Before: --mount-rpy on a tilt CSV, --degrees on a raw CSV did nothing, silently."""
+    every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
+    robot = _two_imu_robot(tmp_path / "robot.toml", every if kind == "raw-mounted" else ("", ""))
+    if kind == "tilt":
+        meas = tmp_path / "m.csv"
+        meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
+    else:
+        meas = _raw_two_imus(tmp_path / "m.csv")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot), *argv]
+    assert main([*argv, "--method", "ekf"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {meas}: {needle}")
+    assert err.count("\n") == 1 and sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
+    tmp_path, capsys
+) -> None:
+    """docs/hardware.md: mount_rpy rotates raw vectors; tilt readings are used as they are.
+    Before: silently ignored. Now one warning, and the estimates equal those without it."""
+    args = ["simulate", "spatial", "--robot", "two-section", "--duration", "2"]
+    meas = tmp_path / "m.csv"
+    assert main([*args, "-o", str(meas)]) == 0
+    plain = _two_imu_robot(tmp_path / "plain.toml")
+    mounted = _two_imu_robot(tmp_path / "mounted.toml", ("", "mount_rpy = [0, 0, 90]"))
+    outs = []
+    for robot in (plain, mounted):
+        out = tmp_path / f"e_{robot.stem}.csv"
+        argv = ["estimate", str(meas), "-o", str(out), "--robot", str(robot), "--method", "ekf"]
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert main(argv) == 0
+        said = [str(w.message) for w in seen if w.category is OptionWarning]
+        outs.append((out.read_text(), said))
+    assert outs[0][1] == [] and outs[1][1] == [
+        f"{meas}: the robot file's mount_rpy of IMU 2 is not applied to tilt input: it "
+        "rotates raw readings, and roll and pitch are used as they are, taken as already in "
+        "the backbone's frame"
+    ]
+    rows = [[r.rsplit(",", 1)[0] for r in text.splitlines()] for text, _ in outs]
+    assert len(rows[0]) == 42 and rows[0] == rows[1]  # the same estimates (solve_ms aside)
+
+
+def test_mount_rpy_still_applies_to_raw_imus_without_their_own(tmp_path, capsys) -> None:
+    robot = _two_imu_robot(tmp_path / "robot.toml", ("mount_rpy = [0, 0, 30]", ""))
+    meas = _raw_two_imus(tmp_path / "m.csv")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot)]
+    assert main([*argv, "--method", "ekf", "--mount-rpy", "0,0,90"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+THREE_SECTIONS = "".join(
+    f"[[section]]\nlength = {v}\ntheta_max = 2.0\n" for v in (0.12, 0.1, 0.08)
+) + "".join(f"[[imu]]\nsection = {k}\n" for k in (1, 2, 3))
+
+
+@pytest.fixture(scope="module")
+def two_and_three(tmp_path_factory) -> dict[str, Path]:
+    """A two-section EKF estimate, its truth, and a three-section truth at the same t."""
+    tmp = tmp_path_factory.mktemp("robots")
+    (tmp / "robot3.toml").write_text(THREE_SECTIONS)
+    paths = {k: tmp / f"{k}.csv" for k in ("m2", "t2", "e2", "m3", "t3")}
+    sim = ["simulate", "spatial", "--duration", "2"]
+    assert main([*sim, "--robot", "two-section", "-o", str(paths["m2"]),
+                 "--truth", str(paths["t2"])]) == 0  # fmt: skip
+    assert main([*sim, "--robot", str(tmp / "robot3.toml"), "-o", str(paths["m3"]),
+                 "--truth", str(paths["t3"])]) == 0  # fmt: skip
+    argv = ["estimate", str(paths["m2"]), "-o", str(paths["e2"]), "--robot", "two-section"]
+    assert main([*argv, "--method", "ekf"]) == 0
+    return paths
+
+
+def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
+    two_and_three, capsys
+) -> None:
+    """Before: a two-section estimate against a three-section truth printed an SRMSE."""
+    e2, t2, t3 = two_and_three["e2"], two_and_three["t2"], two_and_three["t3"]
+    capsys.readouterr()
+    assert main(["evaluate", str(e2), str(t2), "--robot", "two-section"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and re.search(r"SRMSE\s+\d", out)
+    assert main(["evaluate", str(e2), str(t3), "--robot", "two-section"]) == 0
+    out, err = capsys.readouterr()
+    assert err == (
+        f"continuum-mhe: warning: {t3}: its columns (theta_1, theta_2, theta_3) do not fit the "
+        "robot (2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up): extra theta_3: the truth "
+        "is of another robot (pass --robot with its robot)\n"
+    )
+    assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
+    assert main(["evaluate", str(e2), str(t3), "--robot", "two-section", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["srmse"] is None
+
+
+def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
+    two_and_three, tmp_path, capsys
+) -> None:
+    """Before: evaluate e2.csv t2.csv took the one-section 0.2 m robot, silently."""
+    e2, t2 = two_and_three["e2"], two_and_three["t2"]
+    capsys.readouterr()
+    assert main(["evaluate", str(e2), str(t2)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {e2}: its columns (theta_1, theta_2) do not fit the robot "
+        "(1 section (0.2 m), IMUs at 1@1, z-up): missing theta; extra theta_1, theta_2; pass "
+        "--robot with the robot it was estimated on\n"
+    )
+    robot3 = two_and_three["m2"].parent / "robot3.toml"
+    assert main(["evaluate", str(e2), str(two_and_three["t3"]), "--robot", str(robot3)]) == 2
+    assert "missing theta_3; pass --robot" in capsys.readouterr().err
+    tip = tmp_path / "tip.csv"  # an estimate of the tip only: no robot to check against
+    rows = e2.read_text().splitlines()
+    tip.write_text("\n".join(",".join(r.split(",")[:4]) for r in rows) + "\n")
+    assert main(["evaluate", str(tip), str(t2), "--robot", "two-section"]) == 0
+    assert "tip error mean" in capsys.readouterr().out

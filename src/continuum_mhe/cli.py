@@ -45,6 +45,7 @@ from continuum_mhe.estimators.fast.warmup import (
 from continuum_mhe.io.csv_files import (
     InputError,
     check_output_target,
+    check_same_robot,
     read_state_table,
     write_estimates,
     write_measurements,
@@ -156,8 +157,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
-    if stream.problems.count:
-        msg += f"; skipped {stream.problems.count} bad sample(s), first: {stream.problems.first[0]}"
+    for clause in (stream.readings.summary() if stream.readings else "", stream.problems.summary()):
+        msg += f"; {clause}" if clause else ""
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
     if est.bad_starts:
@@ -260,8 +261,10 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
 def cmd_evaluate(args: argparse.Namespace) -> int:
     est = read_state_table(args.estimates)
     truth = read_state_table(args.truth)
+    robot = robot_from_args(args)  # without --robot: one section of --length
+    other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
-    length = robot_from_args(args).length if args.robot else args.length
+    length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
     try:
@@ -278,14 +281,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         )
     unmatched = int(len(est.t) - len(i_e))
     xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
-    hint = _length_hint(
+    hint = other_robot or _length_hint(
         est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
     )
     if hint:
         print(f"{PROG}: warning: {hint}", file=sys.stderr)
     if args.json:
         extra = {"calibration": None if cal is None else cal.as_dict()}
-        print(json.dumps({**m.as_dict(), **extra, "unmatched": unmatched}, indent=2))
+        srmse = {"srmse": None} if hint else {}  # not a score of two different robots
+        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal))

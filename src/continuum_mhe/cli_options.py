@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,7 +14,7 @@ from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, theta_max_hint
 from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
@@ -348,6 +348,8 @@ class OptionRange:
     hi_open: bool = False
     above: str = ""
     integer: bool = False
+    #: the likely cause of a value outside the range, where ``above`` is too coarse
+    hint: Callable[[float], str] | None = None
 
     def describe(self) -> str:
         lo = "(" if self.lo_open else "["
@@ -366,10 +368,7 @@ class OptionRange:
 #: range: the one place they are stated; docs/reliability.md lists them (a test checks).
 OPTION_RANGES: dict[str, OptionRange] = {
     "length": OptionRange(0.005, 5.0, "m", above="millimetres? --length is in metres, e.g. 0.2"),
-    "theta_max": OptionRange(
-        0.0, math.pi, "rad", lo_open=True, hi_open=True,
-        above="degrees? --theta-max is in radians, e.g. 1.5708 for 90 degrees",
-    ),
+    "theta_max": OptionRange(0.0, math.pi, "rad", lo_open=True, hi_open=True, hint=theta_max_hint),
     "noise_deg": OptionRange(0.0, 90.0, "deg", above="--noise-deg is in degrees"),
     "accel_psd": OptionRange(1e-9, 1e4, "rad^2/s^3"),
     "gyro_std": OptionRange(1e-6, 10.0, "rad/s", above="degrees? --gyro-std is in rad/s"),
@@ -410,4 +409,6 @@ def check_option_ranges(args: argparse.Namespace) -> None:
         if not rng.contains(float(v)):
             flag = "--" + dest.replace("_", "-")
             why = f": {rng.above}" if rng.above and math.isfinite(v) and v > rng.hi else ""
+            if rng.hint is not None and rng.hint(float(v)):
+                why = f": {rng.hint(float(v))}"
             raise InputError(f"{flag} {v!r} is outside its valid range {rng.describe()}{why}")

@@ -20,7 +20,7 @@ FloatArray = NDArray[np.float64]
 
 Status = Literal[
     "ok",  # converged (or a filter update)
-    "dropout",  # no valid measurement at this sample: prediction only
+    "dropout",  # no valid measurement of any sensor at this sample: prediction only
     "not-converged",  # solver stopped early; its last feasible iterate is used
     "solver-failed",  # solver error; projected prediction is used
     "no-estimate",  # --paper-start: fewer than N samples so far
@@ -34,7 +34,8 @@ Status = Literal[
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
 STATUS_MEANINGS: dict[str, str] = {
     "ok": "converged (MHE) or updated with a measurement (filters)",
-    "dropout": "no valid measurement at this sample: prediction only",
+    "dropout": "no valid measurement of any sensor at this sample: prediction only (a "
+    "sample where some IMUs reported is updated with those and keeps that update's status)",
     "not-converged": "solver stopped early; its last feasible iterate is used",
     "solver-failed": "solver error; the projected prediction is used",
     "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",

@@ -8,6 +8,7 @@ from typing import Literal
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
+from continuum_mhe.model.robot import check_theta_max
 
 FormulationName = Literal["bend", "paper", "direct"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
@@ -55,9 +56,7 @@ class RobotSettings:
 
     def __post_init__(self) -> None:
         _positive("length", self.length)
-        if not (0 < self.theta_max < math.pi):
-            hint = " (degrees? give radians)" if self.theta_max >= math.pi else ""
-            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
+        check_theta_max(self.theta_max)
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 

@@ -46,11 +46,13 @@ from continuum_mhe.io.text_rows import (
     RowProblems,
     TextRows,
     column_indices,
+    has_extra_fields,
     iter_samples,
     open_rows,
     parse_float,
 )
-from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs
+from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import EstimateSeries
 
 FloatArray = NDArray[np.float64]
@@ -149,6 +151,12 @@ def tilt_columns(n_imus: int) -> tuple[str, ...]:
     return tuple(f"{c}_{i}" for i in range(1, n_imus + 1) for c in ("roll", "pitch"))
 
 
+#: The fix named when a file's IMU count is not the robot's (``{found}``: the file's).
+ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"
+#: The same for :func:`read_measurements`, called from Python and from ``calibrate``.
+READER_FIX = "pass the robot of {found} IMU(s) (--robot FILE; n_imus={found} in Python)"
+
+
 def read_measurements(
     path: str | os.PathLike[str],
     *,
@@ -162,24 +170,34 @@ def read_measurements(
     With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
     dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
-    With several IMUs an empty field is a dropout of that IMU only.
+    With several IMUs an empty field is a dropout of that IMU only (an IMU without any
+    valid reading gives a :class:`DropoutWarning`). A file with columns
+    for another number of IMUs than ``n_imus`` (``roll_1 ... roll_2`` for one) is an
+    error, never read in part.
     """
     with open_rows(path) as rows:
-        columns = tilt_sample_columns(rows, n_imus)
+        columns = tilt_sample_columns(rows, n_imus, fix=READER_FIX)
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
     check_time_units(rows, got.t)
     z = tilt_values(rows.name, got.values, got.lines, degrees, n_imus)
+    readings = ReadingCounts(tuple(b.slice for b in tilt_blocks(n_imus)))
+    readings.add(z)
+    readings.warn_silent(rows.name)
     return MeasurementTable(t=got.t, z=z, skipped=got.skipped)
 
 
-def tilt_sample_columns(rows: TextRows, n_imus: int) -> tuple[str, ...]:
-    """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch."""
-    columns = ("t", *tilt_columns(n_imus))
-    if n_imus == 1 and "roll" not in rows.header and "roll_1" in rows.header:
-        columns = ("t", "roll_1", "pitch_1")
-    if n_imus > 1:
-        _check_imu_count(rows.name, rows.header, n_imus)
-    return columns
+def tilt_sample_columns(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[str, ...]:
+    """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch. A header
+    with columns for another number of IMUs is a one-line error ending in ``fix``
+    (``{found}`` replaced by the file's IMU count)."""
+    found = numbered_imus(rows, ("roll", "pitch"))
+    if found and found != n_imus:
+        raise imu_count_error(rows.name, "tilt", numbered_span("roll", found), found, n_imus, fix)
+    if not found and n_imus > 1 and "roll" in rows.header:
+        raise imu_count_error(rows.name, "tilt", "roll, pitch", 1, n_imus, fix)
+    if n_imus == 1 and "roll" not in rows.header and found == 1:
+        return ("t", "roll_1", "pitch_1")
+    return ("t", *tilt_columns(n_imus))
 
 
 def tilt_values(
@@ -190,6 +208,56 @@ def tilt_values(
     for i in range(n_imus):
         _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees)
     return z
+
+
+class DropoutWarning(UserWarning):
+    """An IMU of several that gave no valid reading in a whole recording."""
+
+
+@dataclass
+class ReadingCounts:
+    """Which IMUs reported, over the samples read: ``missing[i]`` samples without a
+    valid reading of IMU ``i + 1`` (a NaN in its block), ``partial`` samples with some
+    IMUs missing and at least one reporting: estimated from those (their status is the
+    update's, e.g. ``ok``; ``dropout`` is a sample without any reading)."""
+
+    blocks: tuple[slice, ...]
+    samples: int = 0
+    partial: int = 0
+    missing: list[int] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.missing = self.missing or [0] * len(self.blocks)
+
+    def add(self, z: FloatArray) -> None:
+        """Count the samples ``z`` (n, nz)."""
+        finite = np.isfinite(np.asarray(z, dtype=float).reshape(-1, self.blocks[-1].stop))
+        gone = np.column_stack([~finite[:, b].all(axis=1) for b in self.blocks])
+        self.samples += len(gone)
+        self.partial += int((gone.any(axis=1) & ~gone.all(axis=1)).sum())
+        self.missing = [m + int(g) for m, g in zip(self.missing, gone.sum(axis=0))]
+
+    def summary(self) -> str:
+        """One clause for a run's summary line (``""`` when every sample had every IMU
+        or none)."""
+        if not self.partial:
+            return ""
+        per = ", ".join(f"IMU {i} on {m}" for i, m in enumerate(self.missing, start=1) if m)
+        return f"{self.partial} sample(s) estimated without every IMU (missing: {per})"
+
+    def warn_silent(self, name: str) -> None:
+        """Warn once when some, not all, IMUs never reported (all: no estimate at all,
+        said as an error by ``estimate``)."""
+        silent = [i for i, m in enumerate(self.missing, start=1) if m == self.samples]
+        if self.samples and silent and len(silent) < len(self.blocks):
+            others = [i for i in range(1, len(self.blocks) + 1) if i not in silent]
+            warnings.warn(
+                f"{name}: IMU {', '.join(map(str, silent))} never reported (no valid reading in "
+                f"{self.samples} samples): estimated from IMU {', '.join(map(str, others))} "
+                "only; check its wiring or the file's columns",
+                DropoutWarning,
+                stacklevel=3,
+            )
 
 
 #: ``t`` read in seconds whose median step exceeds this looks like milliseconds.
@@ -215,22 +283,40 @@ class UnitWarning(UserWarning):
     """A value whose unit looks wrong (milliseconds for seconds, mm for m...)."""
 
 
-def _check_imu_count(path: str, header: list[str], n_imus: int) -> None:
-    """The file's numbered IMU columns must match the robot's IMU count."""
-    have = sorted(
-        int(h.rsplit("_", 1)[1])
-        for h in header
-        if "_" in h and h.rsplit("_", 1)[1].isdigit() and h.rsplit("_", 1)[0] in _IMU_FIELDS
-    )
-    found = max(have, default=0)
-    if found and found != n_imus:
+def numbered_imus(rows: TextRows, fields: Sequence[str]) -> int:
+    """The highest IMU number ``k`` of a ``<field>_k`` column in the header (0: none).
+    IMUs are numbered from 1, as in the robot file: a ``<field>_0`` column is a one-line
+    error saying so (never read as another IMU count)."""
+    numbers = {
+        h: int(number)
+        for h in rows.header
+        for base, _, number in [h.rpartition("_")]
+        if base in fields and number.isdigit()
+    }
+    zero = [h for h, k in numbers.items() if k == 0]
+    if zero:
+        first = "_1, ".join(fields[:2]) + "_1"
         raise InputError(
-            f"{path}: line 1: the file has columns for {found} IMU(s) but the robot file "
-            f"describes {n_imus}"
+            f"{rows.name}: line 1: column {zero[0]}: IMU columns are numbered from 1 "
+            f"({first} ... for the robot file's first IMU); renumber the file's columns"
         )
+    return max(numbers.values(), default=0)
 
 
-_IMU_FIELDS = {"roll", "pitch", "ax", "ay", "az", "gx", "gy", "gz"}
+def numbered_span(first: str, found: int) -> str:
+    """``roll_1 ... roll_3`` (``roll_1`` for one IMU)."""
+    return f"{first}_1" + (f" ... {first}_{found}" if found > 1 else "")
+
+
+def imu_count_error(
+    name: str, kind: str, columns: str, found: int, n_imus: int, fix: str = ROBOT_FIX
+) -> InputError:
+    """The one-line error of a file whose ``kind`` columns (``columns``, as shown) are
+    for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it."""
+    return InputError(
+        f"{name}: line 1: the file has {kind} columns for {found} IMU(s) ({columns}) "
+        f"but the robot describes {n_imus}; {fix.format(found=found)}"
+    )
 
 
 def _check_angle_units(path: str, z: FloatArray, lines: Sequence[int], degrees: bool) -> None:
@@ -304,6 +390,11 @@ def read_state_table(
             raise InputError(
                 f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (truncated?)"
             )
+        if has_extra_fields(row, len(header)):
+            raise InputError(
+                f"{p}: line {line}: expected {len(header)} fields, found {len(row)} (an extra "
+                "field or separator?)"
+            )
         st = row[s_idx] if s_idx is not None else "ok"
         tv = parse_float(p, line, "t", row[t_idx]) * table.time_scale
         vals = [
@@ -332,6 +423,61 @@ def read_state_table(
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
         None if o_idx is None else np.array(flags, dtype=bool),
     )  # fmt: skip
+
+
+#: The per-section columns of a state table: ``theta, phi`` (one section), or
+#: ``theta_k, phi_k, x_k, y_k, z_k``.
+_SECTION_FIELDS = ("theta", "phi", "x", "y", "z")
+
+
+def _is_section_column(name: str) -> bool:
+    base, _, k = name.rpartition("_")
+    return name in ("theta", "phi") or (base in _SECTION_FIELDS and k.isdigit())
+
+
+def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
+    """``""`` when a state table's per-section columns fit ``robot``'s outputs, else
+    what does not (``missing theta_3; extra theta``). ``complete``: every output must be
+    there (an estimate, as ``estimate`` writes it); else any subset (a truth)."""
+    outputs = output_names(pcc_outputs(robot.n_sections))
+    extra = [n for n in names if _is_section_column(n) and n not in outputs]
+    missing = [n for n in outputs if n not in names] if complete else []
+    if not (extra or missing):
+        return ""
+    parts = [
+        f"{what} {', '.join([n for n in cols if n.startswith('theta')] or cols)}"
+        for what, cols in (("missing", missing), ("extra", extra))
+        if cols
+    ]  # a section named by its theta column, where there is one
+    has = [n for n in names if n.startswith("theta")]
+    return (
+        f"its columns ({', '.join(has) or 'no theta'}) do not fit the robot "
+        f"({robot.describe()}): {'; '.join(parts)}"
+    )
+
+
+def check_estimate_fits(path: str | os.PathLike[str], names: Sequence[str], robot: Robot) -> None:
+    """A one-line :class:`InputError` unless an estimate CSV's columns are ``robot``'s
+    outputs (estimated on another robot, or ``--robot`` forgotten)."""
+    misfit = robot_misfit(names, robot, complete=True)
+    if misfit:
+        raise InputError(f"{path}: {misfit}; pass --robot with the robot it was estimated on")
+
+
+def check_same_robot(
+    estimates: str | os.PathLike[str], estimate: StateTable,
+    truth: str | os.PathLike[str], truth_table: StateTable, robot: Robot,
+) -> str:  # fmt: skip
+    """``evaluate``'s check that the estimate and the truth are of ``robot``: an estimate
+    with section columns of another robot is a one-line :class:`InputError` (one with the
+    tip only passes); a truth with columns of another robot gives the warning returned
+    (``""`` when it fits: any subset of the robot's columns does)."""
+    if any(_is_section_column(n) for n in estimate.names):
+        check_estimate_fits(estimates, estimate.names, robot)
+    misfit = robot_misfit(truth_table.names, robot, complete=False)
+    if not misfit:
+        return ""
+    return f"{truth}: {misfit}: the truth is of another robot (pass --robot with its robot)"
 
 
 def _parse_std(path: str, line: int, name: str, text: str) -> float:

@@ -31,7 +31,14 @@ from typing import Any, Literal
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import FloatArray, check_time_units, read_sample_rows
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    check_time_units,
+    imu_count_error,
+    numbered_imus,
+    numbered_span,
+    read_sample_rows,
+)
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -197,8 +204,11 @@ class RawImuTable:
 
 def is_raw_header(header: list[str]) -> bool:
     """True when a (lower-case) CSV header names the accelerometer columns (``ax,ay,az``,
-    or ``ax_1,ay_1,az_1`` for several IMUs)."""
-    return all(c in header for c in ACC_COLUMNS) or all(f"{c}_1" in header for c in ACC_COLUMNS)
+    or ``ax_1,ay_1,az_1`` for several IMUs; ``ax_0...``, numbered from 0, too, so that
+    :func:`raw_layout` can say IMUs are numbered from 1)."""
+    return any(
+        all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0")
+    )
 
 
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
@@ -225,6 +235,7 @@ class MultiRawImuTable:
 
 def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     """The columns to read from a raw table (``t`` first) and whether it has gyros."""
+    numbered_imus(rows, (*ACC_COLUMNS, *GYRO_COLUMNS))  # numbered from 1
     if n_imus == 1 and "ax_1" not in rows.header:
         has_gyro = any(c in rows.header for c in GYRO_COLUMNS)
         return (RAW_COLUMNS if has_gyro else RAW_COLUMNS[:4]), has_gyro
@@ -232,10 +243,8 @@ def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     while all(f"{c}_{found + 1}" in rows.header for c in ACC_COLUMNS):
         found += 1
     if found != n_imus:
-        raise InputError(
-            f"{rows.name}: line 1: the file has raw columns for {found} IMU(s) (ax_1 ... "
-            f"ax_{found}) but the robot describes {n_imus}"
-        )
+        shown = numbered_span("ax", found) if found else "ax, ay, az"
+        raise imu_count_error(rows.name, "raw", shown, max(found, 1), n_imus)
     has_gyro = all(f"gx_{i + 1}" in rows.header for i in range(n_imus))
     cols = [c for i in range(n_imus) for c in raw_columns(i, n_imus, has_gyro)]
     return ("t", *cols), has_gyro

@@ -12,6 +12,7 @@ Format (every key but ``length`` is optional)::
     section = 1                # 1-based, from the base
     at = 1.0                   # fraction of the section's length, default 1.0 (its end)
     mount_rpy = [0, 0, 0]      # sensor mounting roll, pitch, yaw in degrees, default 0
+                               # (rotates raw readings; tilt input is used as it is)
     [[imu]]
     section = 2
 

@@ -26,6 +26,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -50,7 +51,7 @@ from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.pcc import backbone_frames
-from continuum_mhe.model.robot import ImuPlacement
+from continuum_mhe.model.robot import ImuPlacement, Robot
 from continuum_mhe.results import EstimateSeries
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
@@ -333,11 +334,65 @@ def _formulation_for(
     )
 
 
+class OptionWarning(UserWarning):
+    """A robot-file entry or option that has no effect on this input."""
+
+
+def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robot) -> None:
+    """Refuse an option that would do nothing on this input, in one line naming it and
+    why; warn, once, where a robot file's ``mount_rpy`` is not applied.
+
+    ``kind``: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"`` (a bag or MCAP: raw vectors,
+    or roll and pitch from its orientation with ``use_orientation``). Roll and pitch
+    are taken as already in the backbone's frame at each IMU; ``mount_rpy`` rotates raw
+    accelerometer and gyro vectors only (docs/hardware.md)."""
+    raw = options.raw
+    tilt_input = kind == "tilt-csv" or (kind == "log" and options.use_orientation)
+    if options.degrees and kind != "tilt-csv":
+        units = (
+            "the orientation is a quaternion"
+            if tilt_input
+            else "accelerations are read in m/s^2 and gyro rates in rad/s"
+        )
+        raise InputError(
+            f"{name}: --degrees does not apply to this input: it is for roll and pitch in "
+            f"tilt CSV files; {units}"
+        )
+    mounted = [str(i) for i, imu in enumerate(robot.imus, start=1) if any(imu.mount_rpy)]
+    if not tilt_input:
+        if any(raw.mount_rpy) and len(mounted) == robot.n_imus:
+            raise InputError(
+                f"{name}: --mount-rpy applies to no IMU: the robot file gives every IMU its "
+                "own mount_rpy, which wins (leave --mount-rpy out, or edit the robot file)"
+            )
+        return
+    why = "roll and pitch are used as they are, taken as already in the backbone's frame"
+    if any(raw.mount_rpy):
+        raise InputError(
+            f"{name}: --mount-rpy does not apply to tilt input: it rotates raw "
+            f"accelerometer and gyro vectors, and {why}"
+        )
+    if raw.attitude != "accel":
+        raise InputError(
+            f"{name}: --attitude {raw.attitude} does not apply to tilt input: it fuses raw "
+            f"accelerometer and gyro readings, and {why}"
+        )
+    if mounted:
+        warnings.warn(
+            f"{name}: the robot file's mount_rpy of IMU {', '.join(mounted)} is not applied "
+            f"to tilt input: it rotates raw readings, and {why}",
+            OptionWarning,
+            stacklevel=3,
+        )
+
+
 def load_estimate_input(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> EstimateInput:
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) as measurements."""
     p = Path(path)
+    if is_robot_log(p):
+        check_options_apply(str(p), "log", options, formulation.robot)
     if is_robot_log(p) and (formulation.robot.n_imus > 1 or len(options.topics) > 1):
         return _load_topics(p, options, formulation)
     if is_robot_log(p):

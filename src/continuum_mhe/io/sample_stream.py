@@ -21,6 +21,7 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import (
     FloatArray,
+    ReadingCounts,
     atomic_binary_writer,
     atomic_writer,
     check_time_units,
@@ -35,6 +36,7 @@ from continuum_mhe.io.robot_logs import (
     InputOptions,
     _formulation_for,
     _imu_settings,
+    check_options_apply,
     is_robot_log,
     load_estimate_input,
     mcap_estimate_writer,
@@ -63,6 +65,8 @@ class SampleStream:
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
         notes: lines for the user about how the input was read (e.g. how the samples
             of several IMU topics paired).
+        readings: which IMUs reported, counted as the samples are read (once they are
+            all read, a :class:`DropoutWarning` names an IMU that never reported).
     """
 
     name: str
@@ -73,6 +77,7 @@ class SampleStream:
     t0_ns: int = 0
     _rows: TextRows | None = None
     notes: tuple[str, ...] = ()
+    readings: ReadingCounts | None = None
 
     def close(self) -> None:
         if self._rows is not None:
@@ -91,11 +96,14 @@ def open_estimate_input(
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream."""
     if str(path) != "-" and is_robot_log(Path(path)):
         data = load_estimate_input(path, options, formulation)
-        problems = RowProblems(count=len(data.skipped), first=data.skipped[:20])
+        problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
+        readings = _readings(data.formulation)
+        readings.add(data.z)
+        readings.warn_silent(str(path))
         pairs = zip(data.t.tolist(), data.z)
         return SampleStream(
             str(path), data.kind, data.formulation, pairs, problems, data.t0_ns,
-            notes=tuple(data.notes),
+            notes=tuple(data.notes), readings=readings,
         )  # fmt: skip
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         raise InputError(
@@ -116,6 +124,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     convert: Convert
     if is_raw_header(rows.header):
         f = _formulation_for(options, base, True, Path(name))
+        check_options_apply(name, "raw-csv", options, base.robot)
         cols, has_gyro = raw_layout(rows, n_imus)
         if options.raw.needs_gyro and not has_gyro:
             what = "--imu-model direct" if options.raw.imu_model == "direct" else (
@@ -140,6 +149,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
             raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
         cols = tilt_sample_columns(rows, n_imus)
         f = _formulation_for(options, base, False, Path(name))
+        check_options_apply(name, "tilt-csv", options, base.robot)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             return tilt_values(name, values, lines, options.degrees, n_imus)
@@ -148,17 +158,29 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     found = iter_samples(
         rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
     )
-    return SampleStream(name, kind, f, _chunked(rows, found, convert), problems, 0, rows)
+    readings = _readings(f)
+    samples = _chunked(rows, found, convert, readings)
+    return SampleStream(name, kind, f, samples, problems, 0, rows, readings=readings)
+
+
+def _readings(formulation: Formulation) -> ReadingCounts:
+    return ReadingCounts(tuple(b.slice for b in formulation.measurement_blocks))
 
 
 def _chunked(
-    rows: TextRows, found: Iterator[tuple[int, float, list[float]]], convert: Convert
+    rows: TextRows,
+    found: Iterator[tuple[int, float, list[float]]],
+    convert: Convert,
+    readings: ReadingCounts,
 ) -> Iterator[tuple[float, FloatArray]]:
-    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time."""
+    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time.
+    Counts which IMUs reported in ``readings``, and warns at the end for one that never
+    did."""
     first = True
     while True:
         chunk = [r for _, r in zip(range(CHUNK), found)]
         if not chunk:
+            readings.warn_silent(rows.name)
             return
         lines = [c[0] for c in chunk]
         t = np.array([c[1] for c in chunk], dtype=float)
@@ -168,6 +190,7 @@ def _chunked(
             check_time_units(rows, t)
             first = False
         z = convert(t, values, lines)
+        readings.add(z)
         for i, tv in enumerate(t.tolist()):
             yield tv, z[i]
 

@@ -240,16 +240,35 @@ def parse_float(name: str, line: int, column: str, text: str) -> float:
 
 @dataclass
 class RowProblems:
-    """Bad rows met while reading with ``skip_bad``: a count and the first few."""
+    """Bad rows met while reading with ``skip_bad``: a count, the first few, and how
+    many of them were dropped (a bad or non-increasing ``t``); the others were kept,
+    their bad values read as dropouts of their IMU."""
 
     count: int = 0
     first: list[str] = field(default_factory=list)
     keep: int = 20
+    dropped: int = 0
 
     def add(self, what: str) -> None:
         self.count += 1
         if len(self.first) < self.keep:
             self.first.append(what)
+
+    def summary(self) -> str:
+        """One clause for a run's summary line (``""`` when nothing was bad)."""
+        if not self.count:
+            return ""
+        kept = self.count - self.dropped
+        parts = [f"{kept} sample(s) with a bad value, read as a dropout of its IMU"] if kept else []
+        if self.dropped:
+            parts.append(f"{self.dropped} sample(s) dropped (bad or non-increasing t)")
+        return f"--skip-bad: {'; '.join(parts)}; first: {self.first[0]}"
+
+
+def has_extra_fields(row: Sequence[str], width: int) -> bool:
+    """The row has a non-empty field beyond the header's ``width`` columns (empty
+    trailing fields, from a separator at the end of the line, are no data)."""
+    return any(f != "" for f in row[width:])
 
 
 def iter_samples(
@@ -264,8 +283,10 @@ def iter_samples(
     time ``t`` (converted to s), one row at a time.
 
     A missing, non-numeric or non-finite value is an error, or with ``skip_bad`` a
-    dropout (NaN, row kept); a bad, duplicate or decreasing ``t`` is an error, or with
-    ``skip_bad`` the row is dropped; each skip is counted in ``problems``. With
+    dropout (NaN, row kept); so is a row with fewer or more fields than the header
+    (every value of a row with an extra field is a dropout: which one is extra is
+    unknown); a bad, duplicate or decreasing ``t`` is an error, or with ``skip_bad`` the
+    row is dropped; each skip is counted in ``problems``. With
     ``empty_is_dropout`` an empty value is a dropout without complaint.
     """
     idx = column_indices(rows, columns)
@@ -275,35 +296,43 @@ def iter_samples(
     last_bad = -1
     n_out = 0
 
-    def bad(line: int, msg: str) -> None:
+    def bad(line: int, msg: str, dropped: bool = False) -> None:
         nonlocal last_bad
         if not skip_bad:
             raise InputError(f"{name}: line {line}: {msg}")
         if last_bad != line:  # one per row
             problems.add(f"line {line}: {msg}")
             last_bad = line
+        problems.dropped += dropped  # the row's last word: its t is bad, it is dropped
 
     truncated = "expected {} fields, found {} (truncated row?)"
     n_rows = 0
     for line, row in rows.rows:
         n_rows += 1
+        extra = has_extra_fields(row, width)
+        if extra:  # which field is extra is unknown: no value of the row is trusted
+            bad(line, f"expected {width} fields, found {len(row)} (an extra field or separator?)")
         if len(row) <= idx[0]:
-            bad(line, truncated.format(width, len(row)))
+            bad(line, truncated.format(width, len(row)), dropped=True)
             continue
         try:
             t = parse_float(name, line, columns[0], row[idx[0]]) * scale
         except InputError as exc:
-            bad(line, str(exc).split(": ", 2)[-1])
+            bad(line, str(exc).split(": ", 2)[-1], dropped=True)
             continue
         if not math.isfinite(t):
-            bad(line, f"t is {row[idx[0]]}")
+            bad(line, f"t is {row[idx[0]]}", dropped=True)
             continue
         if t <= last_t:
             kind = "duplicate" if t == last_t else "decreasing"
-            bad(line, f"{kind} timestamp t={t:g} after t={last_t:g} (t must strictly increase)")
+            msg = f"{kind} timestamp t={t:g} after t={last_t:g} (t must strictly increase)"
+            bad(line, msg, dropped=True)
             continue
         vals: list[float] = []
         for col, j in zip(columns[1:], idx[1:]):
+            if extra:
+                vals = [math.nan] * (len(columns) - 1)
+                break
             if j >= len(row):
                 bad(line, truncated.format(width, len(row)))
                 vals = [math.nan] * (len(columns) - 1)

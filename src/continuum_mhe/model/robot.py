@@ -15,12 +15,36 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from numbers import Real
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
 MAX_SECTION_LENGTH = 5.0
+
+
+def theta_max_hint(value: float) -> str:
+    """The likely cause of a bending bound outside ``(0, pi)`` rad, or ``""``: degrees
+    only where the value cannot be radians (over 2 pi: 90, 180); from pi to 2 pi a
+    radian value at or past the fold (3.1416 is pi rounded up)."""
+    if not math.isfinite(value) or value < math.pi:
+        return ""
+    if value > 2 * math.pi:
+        return "degrees? give radians, e.g. 1.5708 for 90 degrees"
+    return "a bend of pi folds the section back onto itself; give a bound below pi, e.g. 3.1"
+
+
+def check_theta_max(value: object) -> None:
+    """A :class:`UserError` unless ``value`` is a bending bound in ``(0, pi)`` rad."""
+    hint = ""
+    if isinstance(value, Real) and not isinstance(value, bool):
+        if 0 < float(value) < math.pi:
+            return
+        hint = theta_max_hint(float(value))
+    raise UserError(
+        f"theta_max must lie in (0, pi) rad, got {value!r}" + (f" ({hint})" if hint else "")
+    )
 
 
 @dataclass(frozen=True)
@@ -45,9 +69,7 @@ class Section:
                 f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
                 "lengths are in metres (millimetres?)"
             )
-        if not (isinstance(self.theta_max, (int, float)) and 0 < self.theta_max < math.pi):
-            hint = " (degrees? give radians)" if self.theta_max >= math.pi else ""
-            raise UserError(f"theta_max must lie in (0, pi) rad, got {self.theta_max!r}{hint}")
+        check_theta_max(self.theta_max)
 
 
 @dataclass(frozen=True)

@@ -4,36 +4,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import InputError, read_state_table
-from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
+from continuum_mhe.io.csv_files import (
+    InputError,
+    check_estimate_fits,
+    read_state_table,
+    robot_misfit,
+)
+from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView
-
-
-def _columns(
-    path: str, names: Sequence[str], outputs: Sequence[OutputSpec], robot: Robot
-) -> list[int]:
-    """Indices of ``outputs`` in a CSV's columns; one line when they do not fit the robot."""
-    missing = [o.name for o in outputs if o.name not in names]
-    extra_sections = [
-        n for n in names if n.startswith("theta_") and n not in {o.name for o in outputs}
-    ]
-    if missing or extra_sections:
-        has = [n for n in names if n.startswith("theta")]
-        raise InputError(
-            f"{path}: its columns ({', '.join(has) or 'no theta'}) do not fit the robot "
-            f"({robot.describe()}): missing {', '.join(missing) or 'none'}"
-            f"{'; extra ' + ', '.join(extra_sections) if extra_sections else ''}; "
-            "pass --robot with the robot it was estimated on"
-        )
-    return [list(names).index(o.name) for o in outputs]
 
 
 def replay(
@@ -44,16 +29,14 @@ def replay(
     estimates drawn."""
     outputs = pcc_outputs(robot.n_sections)
     est = read_state_table(estimates, ())
-    cols = _columns(estimates, est.names, outputs, robot)
+    check_estimate_fits(estimates, est.names, robot)
+    cols = [est.names.index(o.name) for o in outputs]
     truth_table = None
     if truth is not None:
         truth_table = read_state_table(truth)  # t, x, y, z and any per-section columns
-        extra = [n for n in truth_table.names if n.startswith("theta_")]
-        if len(extra) > (robot.n_sections if robot.n_sections > 1 else 0):
-            raise InputError(
-                f"{truth}: its columns ({', '.join(extra)}) do not fit the robot "
-                f"({robot.describe()}); pass --robot with its robot"
-            )
+        misfit = robot_misfit(truth_table.names, robot, complete=False)
+        if misfit:
+            raise InputError(f"{truth}: {misfit}; pass --robot with its robot")
     view = BackboneView(
         robot, outputs, sink, trail_s=trail_s, points_per_section=points_per_section,
         name=Path(estimates).name,
