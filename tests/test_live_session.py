@@ -248,3 +248,19 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     z_live = conv.convert(0.0, acc, np.zeros(3))
     np.testing.assert_allclose(z_batch[0], z_live, atol=1e-15)
     np.testing.assert_allclose(z_live, [0.0, 0.0], atol=1e-12)  # the mounting undone
+
+
+def test_a_frozen_sensor_is_said_once_in_live() -> None:
+    """Before: live treated a repeating reading as a dropout without a word."""
+    from continuum_mhe.settings import RecoverySettings
+
+    said: list[str] = []
+    f = make_formulation("bend", Robot.single(), NoiseSettings())
+    est = make_estimator("ekf", f, recovery=RecoverySettings(freeze=1.0))
+    s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, None, say=said.append)
+    _feed(s, list(range(0, 3000, 50)))  # the same reading for 3 s
+    notes = [m for m in said if "repeated the same reading" in m]
+    assert notes == [
+        "IMU 1 repeated the same reading for more than 1 s from t=0 s: treated as frozen "
+        "(a dropout) while it repeats; --freeze 0 turns this off"
+    ]

@@ -14,6 +14,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
+from continuum_mhe.cli_options import freeze_notice
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
@@ -355,12 +356,21 @@ class LiveSession:
         self.estimator.reset()
         self._restarted = True  # the next estimate says so (status reset)
 
+    def _say_freezes(self, before: int) -> None:
+        """Say once (one line) which sensors the estimator began to treat as frozen."""
+        seen = self.estimator.first_freezes
+        freeze = self.estimator.recovery.freeze
+        if len(seen) > before and freeze is not None:
+            self.say(freeze_notice(dict(list(seen.items())[before:]), freeze))
+
     def _estimate(self, t: float, z: FloatArray) -> Estimate:
         """One estimator step that never ends the session: an exception or a non-finite
         estimate restarts the estimator and flags the sample ``no-estimate``."""
         start = time.perf_counter()
+        freezes = len(self.estimator.first_freezes)
         try:
             est = self.estimator.step(Measurement(t, z))
+            self._say_freezes(freezes)
             problem = None
             if est.output is not None and not np.all(np.isfinite(est.output)):
                 problem = "a non-finite estimate"
