@@ -62,31 +62,27 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in res.stdout
 
 
-def _calibrate_port(tmp_path: Path, acc: np.ndarray) -> tuple[int, str, str]:
-    """``calibrate --port`` for 2 s on a pseudo-terminal streaming the accelerometer rows
-    ``acc`` (400, 3) at 100 Hz with a small gyro bias: ``(exit status, stdout, stderr)``."""
-    import os
-
-    from live_helpers import LiveProcess, new_pty, raw_line
+def _calibrate_port(tmp_path: Path, lines: list[str], seconds: str = "2") -> tuple[int, str, str]:
+    """``calibrate --port`` for ``seconds`` on a pseudo-terminal that sends ``lines``:
+    ``(exit status, stdout, stderr)``."""
+    from live_helpers import LiveProcess, new_pty, send_and_finish
 
     port = tmp_path / "ttyIMU"
     master = new_pty(port)
-    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
-    lines += [
-        raw_line(1000 + 10 * i, a[None], np.array([[0.002, 0.0, -0.001]]))
-        for i, a in enumerate(acc)
-    ]
-    cal = LiveProcess(["--port", str(port), "--seconds", "2"], command="calibrate", stdout=True)
-    try:
-        cal.wait_ready()
-        os.write(master, ("\n".join(lines) + "\n").encode())
-        code = cal.finish()
-    finally:
-        if cal.proc.poll() is None:
-            cal.proc.kill()
-        os.close(master)
+    cal = LiveProcess(["--port", str(port), "--seconds", seconds], command="calibrate", stdout=True)
+    code = send_and_finish(cal, master, lines)
     assert cal.proc.stdout is not None
     return code, cal.proc.stdout.read(), cal.err
+
+
+def _device_lines(acc: np.ndarray) -> list[str]:
+    """The banner and a line per accelerometer row of ``acc`` (n, 3), 100 Hz, one IMU
+    with a small gyro bias."""
+    from live_helpers import raw_line
+
+    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
+    gyr = np.array([[0.002, 0.0, -0.001]])
+    return lines + [raw_line(1000 + 10 * i, a[None], gyr) for i, a in enumerate(acc)]
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
@@ -94,7 +90,7 @@ def test_calibrate_from_the_port(tmp_path: Path) -> None:
     """A device at rest, tilted by a known mounting, through a pseudo-terminal: the
     device's messages are shown and the mounting comes back."""
     acc = mount_rotation((8.0, 4.0, 0.0)).T @ [0, 0, G]
-    code, out, err = _calibrate_port(tmp_path, np.tile(acc, (400, 1)))
+    code, out, err = _calibrate_port(tmp_path, _device_lines(np.tile(acc, (400, 1))))
     assert code == 0, err
     assert "device says: # continuum_imu 1.1.0 imus=1" in err
     assert "201 samples over 2.000 s of device time: 100.0 Hz" in out
@@ -106,11 +102,29 @@ def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
     """The device tilts from 0 to 30 deg about x while calibrate reads it: exit 2."""
     a = np.radians(np.linspace(0.0, 30.0, 400))
     acc = np.column_stack([np.zeros_like(a), G * np.sin(a), G * np.cos(a)])
-    code, out, err = _calibrate_port(tmp_path, acc)
+    code, out, err = _calibrate_port(tmp_path, _device_lines(acc))
     assert code == 2, err
     assert out == ""
     assert "the robot moved: IMU 1's accelerometer spread (std of ay) is" in err
     assert "above the 0.2 m/s^2 of a still robot" in err
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None:
+    """Two IMUs' lines to a one-IMU calibrate: it said 'is it streaming?'; now the first
+    garbled line's cause (it waits its 15 s for the board's start-up first)."""
+    from live_helpers import raw_line
+
+    acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
+    lines = [raw_line(1000 + 10 * i, acc, gyr) for i in range(50)]
+    code, _, err = _calibrate_port(tmp_path, lines, seconds="0.1")
+    port = tmp_path / "ttyIMU"
+    assert code == 2, err
+    assert err.splitlines()[-1] == (
+        f"continuum-mhe: error: {port}: 0 valid sample(s) in 15.1 s; 50 garbled line(s), the "
+        "first: expected 7 fields, found 13: a line of 2 IMU(s) in --format raw; --robot with "
+        "2 IMU(s)?; check --format, --robot and --baud"
+    )
 
 
 def _rest_values(n: int, acc_swing: float, gyro_swing: float, tilt_deg: float = 0.0) -> np.ndarray:

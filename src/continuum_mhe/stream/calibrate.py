@@ -27,7 +27,13 @@ from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.bend_calibration import YawCalibration, yaws_from_bend
 from continuum_mhe.stream.clock import DeviceClock
-from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, LineFormat, parse_line
+from continuum_mhe.stream.protocol import (
+    VALUES_PER_IMU,
+    GarbledLine,
+    LineFormat,
+    field_count_hint,
+    parse_line,
+)
 from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
 
 #: stillness bounds of a rest recording, per axis, on the standard deviation of the
@@ -222,7 +228,7 @@ def collect(
     clock = DeviceClock()
     t: list[float] = []
     rows: list[FloatArray] = []
-    garbled = 0
+    garbled, first_garbled = 0, ""
     give_up = time.monotonic() + seconds + 15.0  # the board resets and calibrates first
     reader.start()
     say(f"reading {port} for {seconds:g} s: keep the robot straight and still")
@@ -237,8 +243,13 @@ def collect(
             try:
                 text = payload.decode("ascii")
                 sample = parse_line(text, fmt, n_imus)
-            except (UnicodeDecodeError, GarbledLine):
+            except UnicodeDecodeError:
                 garbled += 1
+                first_garbled = first_garbled or "not ASCII"
+                continue
+            except GarbledLine as exc:
+                garbled += 1
+                first_garbled = first_garbled or str(exc) + field_count_hint(text, fmt, n_imus)
                 continue
             if sample is None:
                 if text.strip().startswith("#"):
@@ -256,9 +267,13 @@ def collect(
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
     if len(t) < 2:
-        raise InputError(
-            f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; is it streaming?"
+        why = (
+            f"{garbled} garbled line(s), the first: {first_garbled}; check --format, --robot "
+            "and --baud"
+            if garbled
+            else "is it streaming?"
         )
+        raise InputError(f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; {why}")
     return np.asarray(t), np.asarray(rows)
 
 
