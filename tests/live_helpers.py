@@ -113,6 +113,20 @@ class LiveProcess:
         return code
 
 
+def send_and_finish(proc: LiveProcess, master: int, lines: list[str]) -> int:
+    """Once ``proc`` reads its port, write ``lines`` to the pty's ``master`` and wait for
+    ``proc`` to end on its own (``--duration``, ``--seconds``); returns its exit status.
+    The process is killed and ``master`` closed whatever happens."""
+    try:
+        proc.wait_ready()
+        os.write(master, ("\n".join(lines) + "\n").encode())
+        return proc.finish()
+    finally:
+        if proc.proc.poll() is None:
+            proc.proc.kill()
+        os.close(master)
+
+
 def raw_line(t_ms: int, acc: np.ndarray, gyr: np.ndarray) -> str:
     """``t_ms`` then ``ax,ay,az,gx,gy,gz`` per IMU (``acc``, ``gyr``: (n_imus, 3))."""
     vals = [f"{v:.4f}" for a, g in zip(acc, gyr) for v in (*a, *g)]

@@ -62,33 +62,127 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in res.stdout
 
 
+def _calibrate_port(tmp_path: Path, lines: list[str], seconds: str = "2") -> tuple[int, str, str]:
+    """``calibrate --port`` for ``seconds`` on a pseudo-terminal that sends ``lines``:
+    ``(exit status, stdout, stderr)``."""
+    from live_helpers import LiveProcess, new_pty, send_and_finish
+
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    cal = LiveProcess(["--port", str(port), "--seconds", seconds], command="calibrate", stdout=True)
+    code = send_and_finish(cal, master, lines)
+    assert cal.proc.stdout is not None
+    return code, cal.proc.stdout.read(), cal.err
+
+
+def _device_lines(acc: np.ndarray) -> list[str]:
+    """The banner and a line per accelerometer row of ``acc`` (n, 3), 100 Hz, one IMU
+    with a small gyro bias."""
+    from live_helpers import raw_line
+
+    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
+    gyr = np.array([[0.002, 0.0, -0.001]])
+    return lines + [raw_line(1000 + 10 * i, a[None], gyr) for i, a in enumerate(acc)]
+
+
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port(tmp_path: Path) -> None:
     """A device at rest, tilted by a known mounting, through a pseudo-terminal: the
     device's messages are shown and the mounting comes back."""
-    import os
-
-    from live_helpers import LiveProcess, new_pty, raw_line
-
-    port = tmp_path / "ttyIMU"
-    master = new_pty(port)
     acc = mount_rotation((8.0, 4.0, 0.0)).T @ [0, 0, G]
-    lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
-    lines += [
-        raw_line(1000 + 10 * i, acc[None], np.array([[0.002, 0.0, -0.001]])) for i in range(400)
-    ]
-    cal = LiveProcess(["--port", str(port), "--seconds", "2"], command="calibrate", stdout=True)
-    try:
-        cal.wait_ready()
-        os.write(master, ("\n".join(lines) + "\n").encode())
-        code = cal.finish()
-    finally:
-        if cal.proc.poll() is None:
-            cal.proc.kill()
-        os.close(master)
-    assert cal.proc.stdout is not None
-    out = cal.proc.stdout.read()
-    assert code == 0, cal.err
-    assert "device says: # continuum_imu 1.1.0 imus=1" in cal.err
+    code, out, err = _calibrate_port(tmp_path, _device_lines(np.tile(acc, (400, 1))))
+    assert code == 0, err
+    assert "device says: # continuum_imu 1.1.0 imus=1" in err
     assert "201 samples over 2.000 s of device time: 100.0 Hz" in out
     assert "--mount-rpy 8.00,4.00,0" in out
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
+    """The device tilts from 0 to 30 deg about x while calibrate reads it: exit 2."""
+    a = np.radians(np.linspace(0.0, 30.0, 400))
+    acc = np.column_stack([np.zeros_like(a), G * np.sin(a), G * np.cos(a)])
+    code, out, err = _calibrate_port(tmp_path, _device_lines(acc))
+    assert code == 2, err
+    assert out == ""
+    assert "the robot moved: IMU 1's accelerometer spread (std of ay) is" in err
+    assert "above the 0.2 m/s^2 of a still robot" in err
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None:
+    """Two IMUs' lines to a one-IMU calibrate: it said 'is it streaming?'; now the first
+    garbled line's cause (it waits its 15 s for the board's start-up first)."""
+    from live_helpers import raw_line
+
+    acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
+    lines = [raw_line(1000 + 10 * i, acc, gyr) for i in range(50)]
+    code, _, err = _calibrate_port(tmp_path, lines, seconds="0.1")
+    port = tmp_path / "ttyIMU"
+    assert code == 2, err
+    assert err.splitlines()[-1] == (
+        f"continuum-mhe: error: {port}: 0 valid sample(s) in 15.1 s; 50 garbled line(s), the "
+        "first: expected 7 fields, found 13: a line of 2 IMU(s) in --format raw; --robot with "
+        "2 IMU(s)?; check --format, --robot and --baud"
+    )
+
+
+def _rest_values(n: int, acc_swing: float, gyro_swing: float, tilt_deg: float = 0.0) -> np.ndarray:
+    """(n, 6) raw samples of one IMU: gravity tilted by ``tilt_deg`` about x, with ``+-acc_swing``
+    on ay and ``+-gyro_swing`` on gx around a gyro bias of 0.1 rad/s per axis."""
+    sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    a = np.radians(tilt_deg)
+    acc = np.tile([0.0, G * math.sin(a), G * math.cos(a)], (n, 1))
+    acc[:, 1] += acc_swing * sign
+    gyr = np.full((n, 3), 0.1)  # a large bias is no motion
+    gyr[:, 0] += gyro_swing * sign
+    return np.hstack([acc, gyr])
+
+
+def test_motion_at_rest_names_the_largest_spread_against_its_bound() -> None:
+    from continuum_mhe.stream.calibrate import STILL_ACC_STD, STILL_GYRO_STD, motion_at_rest
+
+    n = 400  # +-d has std d * sqrt(n / (n - 1))
+    d_in = 0.99 * STILL_ACC_STD * math.sqrt((n - 1) / n)
+    assert motion_at_rest(_rest_values(n, d_in, 0.99 * STILL_GYRO_STD), "raw", 1) is None
+    moved = motion_at_rest(_rest_values(n, 1.02 * STILL_ACC_STD, 0.0), "raw", 1)
+    assert moved is not None and "IMU 1's accelerometer spread (std of ay) is 0.204 m/s^2" in moved
+    assert "above the 0.2 m/s^2 of a still robot" in moved
+    # IMU 2 turns (gyro), IMU 1 is still
+    two = np.hstack([_rest_values(n, 0.0, 0.0), _rest_values(n, 0.0, 0.5)])
+    moved = motion_at_rest(two, "raw", 2)
+    assert moved is not None and "IMU 2's gyro spread (std of gx) is 0.501 rad/s" in moved
+    # tilt: a hanging robot's roll around +-pi is still; a swinging pitch is not
+    roll = np.where(np.arange(n) % 2 == 0, math.pi - 0.001, -math.pi + 0.001)
+    tilt = np.column_stack([roll, np.full(n, 0.2)])
+    assert motion_at_rest(tilt, "tilt", 1) is None
+    tilt[:, 1] += np.linspace(-0.5, 0.5, n)
+    moved = motion_at_rest(tilt, "tilt", 1)
+    assert moved is not None and "IMU 1's tilt spread (std of pitch) is 0.29 rad" in moved
+
+
+def _calibrate_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def test_calibrate_refuses_a_moving_recording() -> None:
+    """The shipped planar-S run bends to 87 deg: it gave mount_rpy = [43.85, -0.60, 0]."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    res = _calibrate_cli("--from", str(data / "planar-s_raw.csv"), "--robot", "two-section")
+    assert res.returncode == 2
+    assert res.stdout == ""
+    assert res.stderr.count("\n") == 1
+    assert (
+        "planar-s_raw.csv: the robot moved: IMU 1's accelerometer spread (std of ay) is "
+        "4.15 m/s^2, above the 0.2 m/s^2 of a still robot" in res.stderr
+    )
+    # its rest recording passes, and a bend belongs to --bend, not --from
+    rest = _calibrate_cli("--from", str(data / "planar-s_rest.csv"), "--robot", "two-section")
+    assert rest.returncode == 0, rest.stderr
+    bend = _calibrate_cli("--from", str(data / "planar-s_bend.csv"), "--robot", "two-section")
+    assert bend.returncode == 2 and "--bend BEND.csv" in bend.stderr

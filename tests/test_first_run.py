@@ -94,9 +94,37 @@ def test_library_compiles_in_the_foreground_and_says_so_once(tmp_path, monkeypat
         warnings.simplefilter("always")
         make_estimator("mhe", f)
         make_estimator("ekf", f)
-    notices = [w for w in seen if issubclass(w.category, warmup.CompileNotice)]
+    notices = [
+        w
+        for w in seen
+        if issubclass(w.category, warmup.CompileNotice) and "kernels" in str(w.message)
+    ]  # (a C model not in the model cache yet says so too: test_new_c_model_is_announced...)
     assert len(notices) == 1 and "first run only" in str(notices[0].message)
     assert warmup.kernels_ready()
+
+
+def test_new_c_model_is_announced_once_before_it_compiles(tmp_path):
+    """A robot or option set whose C model is not in the model cache yet (here an empty
+    ``CONTINUUM_MHE_CACHE``) says so in one line on the run that builds it, and not on
+    the next run, which loads it from the cache."""
+    from continuum_mhe.estimators.fast.codegen import COMPILING_MODEL
+
+    meas = tmp_path / "m.csv"
+    subprocess.run([EXE, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
+    errs = []
+    for name in ("first.csv", "second.csv"):
+        r = subprocess.run(
+            [EXE, "estimate", str(meas), "-o", str(tmp_path / name)],
+            env=env,
+            capture_output=True,
+            text=True,
+        )
+        assert r.returncode == 0, r.stderr
+        errs.append(r.stderr)
+    assert errs[0].splitlines().count(f"continuum-mhe: note: {COMPILING_MODEL}") == 1, errs[0]
+    assert "compiling" not in errs[1], errs[1]
+    assert len(list((tmp_path / "cache").glob("mhe_*.so"))) == 1
 
 
 def test_background_mode_without_kernels_picks_the_uncompiled_paths(tmp_path, monkeypatch):

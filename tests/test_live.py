@@ -21,6 +21,7 @@ from live_helpers import (
     new_pty,
     raw_line,
     raw_lines,
+    send_and_finish,
     specific_force,
     wait_for,
 )
@@ -336,3 +337,26 @@ def test_short_soak_two_imus_500_hz_with_faults(
     assert res["sent"] == res["recorded_rows"] == res["estimate_rows"], res["summary"]
     assert res["recording_reads_back"] is True
     assert f"{res['faults']['mb_line']} over-long" in res["summary"]
+
+
+def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> None:
+    """Before: live opened after the device's '# fields' banner, without --robot, on two
+    IMUs: 'garbled 219' in every status line, the cause only in the summary, exit 0."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    master = new_pty(port)
+    acc, gyr = np.tile(specific_force(0.1, 0.2), (2, 1)), np.zeros((2, 3))
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--duration", "2", "-o", str(out)])
+    lines = [raw_line(1000 + 20 * i, acc, gyr) for i in range(40)]
+    code = send_and_finish(live, master, lines)
+    first = (
+        "expected 7 fields, found 13: a line of 2 IMU(s) in --format raw; --robot with 2 IMU(s)?"
+    )
+    err = live.err.splitlines()
+    assert code == 2, live.err
+    said = f"live: garbled line skipped: {first} (said for the first only; all are counted)"
+    assert err.count(said) == 1
+    assert err[-1] == (
+        f"continuum-mhe: error: {port}: no valid sample, 40 garbled line(s) (the first: {first}); "
+        "check --format, --robot and --baud"
+    )
+    assert not out.exists()

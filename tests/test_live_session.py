@@ -248,3 +248,57 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     z_live = conv.convert(0.0, acc, np.zeros(3))
     np.testing.assert_allclose(z_batch[0], z_live, atol=1e-15)
     np.testing.assert_allclose(z_live, [0.0, 0.0], atol=1e-12)  # the mounting undone
+
+
+def test_a_frozen_sensor_is_said_once_in_live() -> None:
+    """Before: live treated a repeating reading as a dropout without a word."""
+    from continuum_mhe.settings import RecoverySettings
+
+    said: list[str] = []
+    f = make_formulation("bend", Robot.single(), NoiseSettings())
+    est = make_estimator("ekf", f, recovery=RecoverySettings(freeze=1.0))
+    s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, None, say=said.append)
+    _feed(s, list(range(0, 3000, 50)))  # the same reading for 3 s
+    notes = [m for m in said if "repeated the same reading" in m]
+    assert notes == [
+        "IMU 1 repeated the same reading for more than 1 s from t=0 s: treated as frozen "
+        "(a dropout) while it repeats; --freeze 0 turns this off"
+    ]
+
+
+def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
+    """Before: a missed '# fields' banner left only 'garbled N' in the status lines, the
+    cause in the summary, and exit 0. A two-IMU tilt line to a one-IMU session:"""
+    s, said = _session()
+    now = time.monotonic()
+    for i in range(10):
+        s.handle_line(f"{10 * i},0.1,0.1,0.2,0.2".encode(), now)
+    s.handle_line(b"100,0.1,abc", now)
+    garbled = [m for m in said if "garbled" in m]
+    assert garbled == [
+        "garbled line skipped: expected 3 fields, found 5: a line of 2 IMU(s) in --format "
+        "tilt; --robot with 2 IMU(s)? (said for the first only; all are counted)"
+    ]
+    assert s.only_garbled() == (
+        "x: no valid sample, 11 garbled line(s) (the first: expected 3 fields, found 5: a line "
+        "of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?); check --format, --robot and --baud"
+    )
+    _feed(s, [200])  # one valid sample: the session is not a failure
+    assert s.only_garbled() is None
+
+
+@pytest.mark.parametrize(
+    ("line", "fmt", "n_imus", "hint"),
+    [
+        ("1,2,3,4,5,6,7,8,9,10,11,12,13", "raw", 1, "2 IMU(s) in --format raw; --robot with 2"),
+        ("1,2,3", "raw", 1, "1 IMU(s) in --format tilt; --format tilt with 1 IMU(s)?"),
+        ("1,2,3,4,5,6,7", "raw", 2, "1 IMU(s) in --format raw; --robot with 1 IMU(s)?"),
+        ("1,2,3,4", "raw", 1, ""),  # no whole number of IMUs in either format
+        ("1,2,x,4,5,6,7", "raw", 1, ""),  # the right count: garbled otherwise
+    ],
+)
+def test_field_count_hint(line: str, fmt: str, n_imus: int, hint: str) -> None:
+    from continuum_mhe.stream.protocol import field_count_hint
+
+    got = field_count_hint(line, fmt, n_imus)  # type: ignore[arg-type]
+    assert (hint in got) if hint else got == ""

@@ -15,6 +15,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.io.csv_files import InputError, read_states
 from continuum_mhe.io.raw_imu import (
+    GYRO_MEDIAN_MAX,
     RawImuSettings,
     mount_rotation,
     raw_to_measurements,
@@ -266,3 +267,53 @@ def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
         read_raw_imu(p)
     table = read_raw_imu(p, skip_bad=True)
     assert np.isnan(table.acc[1]).all() and len(table.skipped) == 1
+
+
+@pytest.mark.parametrize(
+    ("rate", "fails"), [(0.99 * GYRO_MEDIAN_MAX, False), (1.01 * GYRO_MEDIAN_MAX, True)]
+)
+def test_gyro_rates_implausible_in_rad_s_are_an_error(
+    tmp_path: Path, rate: float, fails: bool
+) -> None:
+    """Median |omega| against the documented bound: above it the gyro is in deg/s."""
+    body = "t,ax,ay,az,gx,gy,gz\n" + "".join(
+        f"{0.02 * i},0,0,9.8,0,{rate * 0.6},{rate * 0.8}\n" for i in range(5)
+    )
+    path = _write(tmp_path / "raw.csv", body)
+    if not fails:
+        np.testing.assert_allclose(np.linalg.norm(read_raw_imu(path).gyr, axis=1), rate)
+        return
+    with pytest.raises(InputError) as info:
+        read_raw_imu(path)
+    assert str(info.value) == (
+        f"{path}: gyro magnitude is about {rate:.3g} (median), implausible in rad/s "
+        "(above 5): deg/s? give rad/s (gx, gy, gz times pi/180 = 0.0174533)"
+    )
+
+
+def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The shipped planar-S recording with its gyros in deg/s: estimated, it gave
+    'no-estimate: 54, ok: 78, reset: 68' and no hint; now one line naming IMU 1, exit 2,
+    nothing written."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2/planar-s_raw.csv"
+    lines = data.read_text().splitlines()
+    header = lines[0].split(",")
+    gyro = [i for i, c in enumerate(header) if c[:2] in ("gx", "gy", "gz")]
+    rows = [[float(v) for v in ln.split(",")] for ln in lines[1:]]
+    for r in rows:
+        for i in gyro:
+            r[i] = math.degrees(r[i])
+    text = "\n".join([lines[0], *(",".join(map(repr, r)) for r in rows)]) + "\n"
+    degs = _write(tmp_path / "degs.csv", text)
+    out = tmp_path / "est.csv"
+    for method in ("mhe", "ekf"):
+        code = main(
+            ["estimate", str(degs), "-o", str(out), "--robot", "two-section",
+             "--imu-model", "direct", "--method", method]
+        )  # fmt: skip
+        err = capsys.readouterr().err
+        assert code == 2
+        assert err.count("\n") == 1
+        assert f"{degs}: IMU 1: gyro magnitude is about 27.4 (median)" in err
+        assert "deg/s? give rad/s" in err
+        assert not out.exists()

@@ -260,3 +260,16 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["estimate", str(bad), "-o", str(tmp_path / "e.csv")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("continuum-mhe: error: ") and "\n" not in err
+
+
+def test_log_gyro_in_deg_s_is_one_line(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """sensor_msgs/Imu's angular velocity is rad/s: a log in deg/s is named as such."""
+    degs = {**recording, "gyr": np.degrees(recording["gyr"]) + 6.0}  # and an uncalibrated bias
+    bag = write_ros2_bag(tmp_path / "bag2", degs)
+    assert main(["estimate", str(bag), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "topic /tip/imu: gyro magnitude is about" in err and "deg/s? give rad/s" in err
+    assert "\n" not in err
+    assert not (tmp_path / "e.csv").exists()

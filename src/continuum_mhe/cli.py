@@ -30,6 +30,7 @@ from continuum_mhe.cli_options import (
     add_robot_option,
     check_option_ranges,
     formulation_from_args,
+    freeze_notice,
     mhe_settings_from_args,
     recovery_settings_from_args,
     robot_from_args,
@@ -129,15 +130,23 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         est.reset()
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         outliers = 0
+        frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
         with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers) as sink:
             try:
                 for t, z in stream.samples:  # a signal while waiting for input ends it at once
                     next(ticks)
+                    frozen_before, freezes_before = est.frozen_samples, len(est.first_freezes)
                     with signals_deferred():  # inside C code: stop after this sample
                         e = est.step(Measurement(t, z))
                     counts[e.status] = counts.get(e.status, 0) + 1
+                    if est.frozen_samples > frozen_before:
+                        frozen[e.status] = frozen.get(e.status, 0) + 1
+                        if len(est.first_freezes) > freezes_before:  # said once per IMU
+                            new = dict(list(est.first_freezes.items())[freezes_before:])
+                            print(f"{PROG}: note: {freeze_notice(new, args.freeze)}",
+                                  file=sys.stderr)  # fmt: skip
                     outliers += e.outlier
                     sink.write(e)
             finally:
@@ -159,6 +168,17 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     msg = f"wrote {n} estimates to {out} ({summary})"
     for clause in (stream.readings.summary() if stream.readings else "", stream.problems.summary()):
         msg += f"; {clause}" if clause else ""
+    if est.frozen_samples:
+        of = ", ".join(f"{k}: {v}" for k, v in sorted(frozen.items()))
+        msg += (
+            f"; {est.frozen_samples} of them had a frozen IMU (the same reading for over "
+            f"{args.freeze:g} s, treated as a dropout): {of}"
+        )
+    if est.restarts:
+        msg += (
+            f"; restarted {est.restarts} time(s) after the estimate diverged, failed or its "
+            "uncertainty outgrew the workspace (no-estimate until the next valid reading)"
+        )
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
     if est.bad_starts:
@@ -167,11 +187,6 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         msg += (
             f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "
             f"{args.reject_reset:g} s"
-        )
-    if est.frozen_samples:
-        msg += (
-            f"; {est.frozen_samples} sample(s) with a frozen IMU (same reading for over "
-            f"{args.freeze:g} s) treated as dropouts"
         )
     for note in stream.notes:  # e.g. how the samples of several Imu topics paired
         print(note, file=sys.stderr)

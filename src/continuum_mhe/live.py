@@ -69,7 +69,8 @@ def run_live(
     """Read ``conn`` until the duration ends or Ctrl-C / SIGTERM; every queued line is
     processed before returning. ``plot``: anything with ``update(estimate, outputs)``,
     called at each status line; ``view.log_estimate(est)`` (``--view``) sees every
-    estimate. Returns the exit status (0)."""
+    estimate. Returns the exit status (0); a run that read lines but not one valid
+    sample (every line garbled) raises :class:`InputError` naming the first one's cause."""
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
@@ -162,6 +163,9 @@ def run_live(
         stop_deferring()
         reader.stop.set()
     say(session.summary())
+    failed = session.only_garbled()
+    if failed:
+        raise InputError(failed)
     return 0
 
 

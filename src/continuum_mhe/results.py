@@ -23,7 +23,7 @@ Status = Literal[
     "dropout",  # no valid measurement of any sensor at this sample: prediction only
     "not-converged",  # solver stopped early; its last feasible iterate is used
     "solver-failed",  # solver error; projected prediction is used
-    "no-estimate",  # --paper-start: fewer than N samples so far
+    "no-estimate",  # nothing to estimate from (see STATUS_MEANINGS), or --paper-start
     "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
     "branch-restart",  # MHE: a restart found a lower window cost (estimators/branch.py)
     "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
@@ -38,7 +38,10 @@ STATUS_MEANINGS: dict[str, str] = {
     "sample where some IMUs reported is updated with those and keeps that update's status)",
     "not-converged": "solver stopped early; its last feasible iterate is used",
     "solver-failed": "solver error; the projected prediction is used",
-    "no-estimate": "no estimate yet (before the first valid reading, or --paper-start)",
+    "no-estimate": "no estimate: before the first valid reading; the first N-1 samples "
+    "with --paper-start; after a restart (divergence, failure, an uncertainty beyond the "
+    "workspace) at a sample without a valid reading, until the next valid reading; a "
+    "restart that failed even from the reading; live: an estimator step that raised",
     "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
     "branch-restart": "the MHE's window fit was implausible (chi-square test of its "
     "measurement cost) and a restart from another start found a lower window cost, or, "

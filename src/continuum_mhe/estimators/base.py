@@ -60,6 +60,9 @@ class Estimator(ABC):
         self.gap_resets = 0
         #: samples with at least one sensor treated as frozen (``recovery.freeze``)
         self.frozen_samples = 0
+        #: the first freeze of each sensor, in the order they happened: measurement
+        #: block index -> ``t`` (s) of the first of its repeated readings
+        self.first_freezes: dict[int, float] = {}
         #: times it restarted after a bad start (``recovery.bad_start``)
         self.bad_starts = 0
         #: times a robust MHE restarted after rejecting every reading for longer than
@@ -158,6 +161,7 @@ class Estimator(ABC):
                 if z is None:
                     z = m.z.copy()
                 z[b.slice] = np.nan
+                self.first_freezes.setdefault(k, self._freeze_since[k])
         if z is None:
             return m
         self.frozen_samples += 1

@@ -55,6 +55,11 @@ RAW_COLUMNS = ("t", *ACC_COLUMNS, *GYRO_COLUMNS)
 STANDARD_GRAVITY = 9.80665  # m/s^2
 #: Median |a| in this band (in the file's unit) means the file is in g, not m/s^2.
 _LOOKS_LIKE_G = (0.5, 2.0)
+#: Median |omega| above this (rad/s, 286 deg/s: turning most of the time faster than
+#: most continuum robots ever do; the shipped rod recordings' largest median is 2.7)
+#: means the gyro is in deg/s, not rad/s. A deg/s file whose median rate stays below
+#: 5 deg/s is not caught (its rates are small either way).
+GYRO_MEDIAN_MAX = 5.0
 
 
 @dataclass(frozen=True)
@@ -283,6 +288,8 @@ def raw_blocks(
                     skipped.append(msg)
         acc[zero] = np.nan
         _check_accel_units(name, acc)
+        if has_gyro:
+            _check_gyro_units(name if n_imus == 1 else f"{name}: IMU {i + 1}", block[:, 3:6])
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -333,4 +340,15 @@ def _check_accel_units(path: Path | str, acc: FloatArray) -> None:
         raise InputError(
             f"{path}: accelerometer magnitude is about {float(np.median(norm)):.2f}: the "
             f"values look like g; ax, ay, az must be in m/s^2 (multiply by {STANDARD_GRAVITY})"
+        )
+
+
+def _check_gyro_units(path: Path | str, gyr: FloatArray) -> None:
+    norm = np.linalg.norm(gyr, axis=1)
+    norm = norm[np.isfinite(norm)]
+    if len(norm) and float(np.median(norm)) > GYRO_MEDIAN_MAX:
+        raise InputError(
+            f"{path}: gyro magnitude is about {float(np.median(norm)):.3g} (median), "
+            f"implausible in rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s (gx, gy, gz "
+            f"times pi/180 = {math.pi / 180:.7f})"
         )

@@ -45,6 +45,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.raw_imu import (
     RawImuSettings,
     _check_accel_units,
+    _check_gyro_units,
     raw_to_measurements,
 )
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
@@ -228,6 +229,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     t0 = stamps[0]
     arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
     _check_accel_units(f"{p}: topic {name}", arr[0])
+    _check_gyro_units(f"{p}: topic {name}", arr[1])
     return ImuLog(
         topic=name,
         t=(np.array(stamps, dtype=np.int64) - t0) / 1e9,

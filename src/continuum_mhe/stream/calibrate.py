@@ -1,12 +1,12 @@
 """``continuum-mhe calibrate``: what docs/hardware.md asks the user to measure, with
-the robot straight and still, per IMU: the accelerometer's mean and noise per axis,
-the gyro's bias (what remains after the firmware's start-up bias) and noise, the
-sample rate achieved, and the sensor mounting that makes the straight robot read
-``theta = 0`` (``--mount-rpy`` / the robot file's ``mount_rpy``). From the port
-(``--port``) or a recording (``--from RAW.csv``, e.g. written by ``live --record``).
-With ``--bend BEND.csv``, a raw recording of the robot bent slowly in a known plane,
-also each IMU's yaw about the tangent (:mod:`continuum_mhe.stream.bend_calibration`)
-and so the full ``mount_rpy``.
+the robot straight and still (checked: :func:`motion_at_rest`), per IMU: the
+accelerometer's mean and noise per axis, the gyro's bias (what remains after the
+firmware's start-up bias) and noise, the sample rate achieved, and the sensor mounting
+that makes the straight robot read ``theta = 0`` (``--mount-rpy`` / the robot file's
+``mount_rpy``). From the port (``--port``) or a recording (``--from RAW.csv``, e.g.
+written by ``live --record``). With ``--bend BEND.csv``, a raw recording of the robot
+bent slowly in a known plane, also each IMU's yaw about the tangent
+(:mod:`continuum_mhe.stream.bend_calibration`) and so the full ``mount_rpy``.
 """
 
 from __future__ import annotations
@@ -27,8 +27,24 @@ from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.bend_calibration import YawCalibration, yaws_from_bend
 from continuum_mhe.stream.clock import DeviceClock
-from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, LineFormat, parse_line
+from continuum_mhe.stream.protocol import (
+    VALUES_PER_IMU,
+    GarbledLine,
+    LineFormat,
+    field_count_hint,
+    parse_line,
+)
 from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
+
+#: stillness bounds of a rest recording, per axis, on the standard deviation of the
+#: samples (the spread). The firmware's MPU9250 (accelerometer low-pass 44.8 Hz, gyro
+#: 41 Hz) is within about 0.025 m/s^2 and 0.0015 rad/s at rest (the shipped rest
+#: recordings: 0.02 m/s^2 and 0.0018 rad/s); the bounds are 8 and 30 times that, and a
+#: robot moving by a degree (rms) reaches the accelerometer's. The gyro's mean is not
+#: a sign of motion: it is the bias that calibrate measures.
+STILL_ACC_STD = 0.2  # m/s^2 (0.2 / 9.81 rad = 1.2 deg of tilt)
+STILL_GYRO_STD = 0.05  # rad/s (2.9 deg/s)
+STILL_TILT_STD = STILL_ACC_STD / 9.80665  # rad, for tilt (roll, pitch) recordings
 
 
 @dataclass(frozen=True)
@@ -91,6 +107,47 @@ def calibrate(
         imus.append(ImuCalibration(mean, std, rpy))
     return Calibration(
         fmt, len(t), float(t[-1] - t[0]), float(np.median(steps)), float(steps.max()), imus
+    )
+
+
+def motion_at_rest(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | None:
+    """Why the samples ``values`` (n, k * n_imus) are not of a still robot, or None:
+    the largest spread (standard deviation of one axis over the recording) beyond its
+    bound (:data:`STILL_ACC_STD`, :data:`STILL_GYRO_STD`, :data:`STILL_TILT_STD`),
+    named with the IMU and axis. Tilt angles are compared on the circle (a hanging
+    robot's roll near +-pi is still)."""
+    k = VALUES_PER_IMU[fmt]
+    checks: list[tuple[str, int, str, float, tuple[str, ...]]]
+    if fmt == "raw":
+        checks = [("accelerometer", 0, "m/s^2", STILL_ACC_STD, ("ax", "ay", "az")),
+                  ("gyro", 3, "rad/s", STILL_GYRO_STD, ("gx", "gy", "gz"))]  # fmt: skip
+    else:
+        checks = [("tilt", 0, "rad", STILL_TILT_STD, ("roll", "pitch"))]
+    worst: tuple[float, str] | None = None
+    for i in range(n_imus):
+        block = values[:, k * i : k * (i + 1)]
+        block = block[np.all(np.isfinite(block), axis=1)]
+        if len(block) < 2:
+            continue
+        for what, first, unit, bound, names in checks:
+            part = block[:, first : first + len(names)]
+            if fmt == "tilt":  # deviations from the circular mean, wrapped
+                mean = np.arctan2(np.sin(part).mean(axis=0), np.cos(part).mean(axis=0))
+                part = np.angle(np.exp(1j * (part - mean)))
+            spread = part.std(axis=0, ddof=1)
+            j = int(np.argmax(spread))
+            ratio = float(spread[j]) / bound
+            if ratio > 1.0 and (worst is None or ratio > worst[0]):
+                worst = (
+                    ratio,
+                    f"IMU {i + 1}'s {what} spread (std of {names[j]}) is "
+                    f"{spread[j]:.3g} {unit}, above the {bound:.3g} {unit} of a still robot",
+                )
+    if worst is None:
+        return None
+    return (
+        f"the robot moved: {worst[1]}; calibrate needs it straight and still "
+        "(a bend in a known plane goes to --bend BEND.csv)"
     )
 
 
@@ -171,7 +228,7 @@ def collect(
     clock = DeviceClock()
     t: list[float] = []
     rows: list[FloatArray] = []
-    garbled = 0
+    garbled, first_garbled = 0, ""
     give_up = time.monotonic() + seconds + 15.0  # the board resets and calibrates first
     reader.start()
     say(f"reading {port} for {seconds:g} s: keep the robot straight and still")
@@ -186,8 +243,13 @@ def collect(
             try:
                 text = payload.decode("ascii")
                 sample = parse_line(text, fmt, n_imus)
-            except (UnicodeDecodeError, GarbledLine):
+            except UnicodeDecodeError:
                 garbled += 1
+                first_garbled = first_garbled or "not ASCII"
+                continue
+            except GarbledLine as exc:
+                garbled += 1
+                first_garbled = first_garbled or str(exc) + field_count_hint(text, fmt, n_imus)
                 continue
             if sample is None:
                 if text.strip().startswith("#"):
@@ -205,9 +267,13 @@ def collect(
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
     if len(t) < 2:
-        raise InputError(
-            f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; is it streaming?"
+        why = (
+            f"{garbled} garbled line(s), the first: {first_garbled}; check --format, --robot "
+            "and --baud"
+            if garbled
+            else "is it streaming?"
         )
+        raise InputError(f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; {why}")
     return np.asarray(t), np.asarray(rows)
 
 
@@ -229,6 +295,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         fmt = args.format
         t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
         source = args.port
+    moved = motion_at_rest(values, fmt, robot.n_imus)
+    if moved:
+        raise InputError(f"{source}: {moved}")
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     bend = None
     if args.bend:
@@ -259,7 +328,9 @@ def register_calibrate(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "calibrate",
         help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
-        description="With the robot straight and still: per IMU, the accelerometer's mean "
+        description="With the robot straight and still (a recording whose accelerometer "
+        "spreads over 0.2 m/s^2 or gyro over 0.05 rad/s, standard deviation per axis, is "
+        "refused): per IMU, the accelerometer's mean "
         "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
         "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
         "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",

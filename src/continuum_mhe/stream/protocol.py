@@ -104,6 +104,21 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
     return Sample(nums[0], np.array(nums[1:]))
 
 
+def field_count_hint(text: str, fmt: LineFormat, n_imus: int) -> str:
+    """A likely cause of a line with the wrong number of fields, or "": the IMU count of
+    ``--robot`` (another whole number of IMUs in this format), then ``--format``."""
+    found = len(text.strip().split(","))
+    if found == 1 + VALUES_PER_IMU[fmt] * n_imus:  # garbled otherwise
+        return ""
+    for f in (fmt, *(g for g in LINE_FORMATS if g != fmt)):
+        k = VALUES_PER_IMU[f]
+        m, rest = divmod(found - 1, k)
+        if m >= 1 and not rest and (f, m) != (fmt, n_imus):
+            option = f"--robot with {m} IMU(s)" if f == fmt else f"--format {f} with {m} IMU(s)"
+            return f": a line of {m} IMU(s) in --format {f}; {option}?"
+    return ""
+
+
 def header_fields(comment: str) -> tuple[str, ...] | None:
     """The field names of a ``# fields: t_ms,ax,...`` (or ``# format: ...``) comment,
     or None for any other comment."""

@@ -14,6 +14,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
+from continuum_mhe.cli_options import freeze_notice
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
@@ -24,6 +25,7 @@ from continuum_mhe.stream.protocol import (
     GarbledLine,
     LineFormat,
     Sample,
+    field_count_hint,
     header_fields,
     line_fields,
     parse_line,
@@ -107,6 +109,7 @@ class LiveCounts:
     first_restart_t: float | None = None
     header: str = ""
     reasons: dict[str, int] = field(default_factory=dict)
+    first_garbled: str | None = None  # why the first garbled line was, with a likely cause
 
 
 class DeviceMessages:
@@ -238,9 +241,29 @@ class LiveSession:
         """The device was reopened: its clock may have restarted."""
         self.clock.expect_restart()
 
-    def _bad(self, reason: str) -> None:
-        self.counts.garbled += 1
-        self.counts.reasons[reason] = self.counts.reasons.get(reason, 0) + 1
+    def _bad(self, reason: str, text: str = "") -> None:
+        c = self.counts
+        c.garbled += 1
+        c.reasons[reason] = c.reasons.get(reason, 0) + 1
+        if c.first_garbled is None:  # said once, as it happens (the rest are counted)
+            c.first_garbled = reason + field_count_hint(text, self.settings.fmt, self.n_imus)
+            self.say(
+                f"garbled line skipped: {c.first_garbled} (said for the first only; all are "
+                "counted)"
+            )
+
+    def only_garbled(self) -> str | None:
+        """Why the session failed if it read lines but not one valid sample (every line
+        garbled: the wrong --format, --robot or --baud), else None."""
+        c = self.counts
+        bad = c.garbled + c.partial + c.too_long
+        if c.samples or not bad:
+            return None
+        first = f" (the first: {c.first_garbled})" if c.first_garbled else ""
+        return (
+            f"{self.settings.port}: no valid sample, {bad} garbled line(s){first}; check "
+            "--format, --robot and --baud"
+        )
 
     def handle_line(self, raw: bytes, arrival: float) -> Estimate | None:
         """Process one line from the device; return its estimate, if it made one."""
@@ -254,7 +277,7 @@ class LiveSession:
         try:
             sample = parse_line(text, self.settings.fmt, self.n_imus)
         except GarbledLine as exc:
-            self._bad(str(exc))
+            self._bad(str(exc), text)
             return None
         if sample is None:
             if text.strip().startswith("#"):
@@ -355,12 +378,21 @@ class LiveSession:
         self.estimator.reset()
         self._restarted = True  # the next estimate says so (status reset)
 
+    def _say_freezes(self, before: int) -> None:
+        """Say once (one line) which sensors the estimator began to treat as frozen."""
+        seen = self.estimator.first_freezes
+        freeze = self.estimator.recovery.freeze
+        if len(seen) > before and freeze is not None:
+            self.say(freeze_notice(dict(list(seen.items())[before:]), freeze))
+
     def _estimate(self, t: float, z: FloatArray) -> Estimate:
         """One estimator step that never ends the session: an exception or a non-finite
         estimate restarts the estimator and flags the sample ``no-estimate``."""
         start = time.perf_counter()
+        freezes = len(self.estimator.first_freezes)
         try:
             est = self.estimator.step(Measurement(t, z))
+            self._say_freezes(freezes)
             problem = None
             if est.output is not None and not np.all(np.isfinite(est.output)):
                 problem = "a non-finite estimate"

@@ -119,7 +119,9 @@ def first_run_mode(default: FirstRun) -> FirstRun:
     return mode if mode in ("foreground", "background") else default  # type: ignore[return-value]
 
 
-def _say_once(message: str) -> None:
+def say_once(message: str) -> None:
+    """Warn ``message`` as a :class:`CompileNotice` (one line under the command line),
+    once per process."""
     if message not in _announced:
         _announced.add(message)
         warnings.warn(message, CompileNotice, stacklevel=3)
@@ -195,7 +197,7 @@ def ensure_compiled() -> None:
             return
         if _claim(pid_file):  # a background compile started from now on waits for this one
             break
-    _say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
+    say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
     try:
         warm_up()
     finally:
@@ -207,7 +209,7 @@ def _wait_for_other_compile() -> bool:
     pid_file = pid_path()
     if not _running(pid_file):
         return False
-    _say_once("waiting for the background compile of the fast solver's kernels (first run only)")
+    say_once("waiting for the background compile of the fast solver's kernels (first run only)")
     give_up = time.monotonic() + _WAIT_LIMIT_S
     while _running(pid_file) and not kernels_ready() and time.monotonic() < give_up:
         time.sleep(_POLL_S)
@@ -294,7 +296,7 @@ def defer_compiling(what: str) -> str:
         f"the fast solver's kernels are not compiled yet: compiling them {where} "
         f"(first run only); this run uses {what}"
     )
-    _say_once(note)
+    say_once(note)
     return note
 
 
