@@ -287,6 +287,29 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     assert s.only_garbled() is None
 
 
+def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() -> None:
+    """Before: live opened mid-line reported the cut line's cause ('found 12') as the
+    first garbled line's, hiding the real one ('found 13: ... --robot with 2 IMU(s)?')."""
+    s, said = _session()
+    now = time.monotonic()
+    s.handle_line(b".2,0.1", now)  # the tail of a line the device was sending at the open
+    _feed(s, [100, 120])
+    assert (s.counts.partial, s.counts.garbled) == (1, 0)
+    assert not [m for m in said if "garbled" in m]
+    s.handle_line(b"140,0.1", now)  # mid-stream: garbled, said with its cause
+    assert (s.counts.partial, s.counts.garbled) == (1, 1)
+    assert s.counts.first_garbled == "expected 3 fields, found 2"
+    s.device_back()  # reopened: its first line may be cut again
+    s.handle_line(b"1,0.2", now)
+    _feed(s, [160])
+    s.handle_line(b"180,0.1", now)
+    assert (s.counts.partial, s.counts.garbled) == (2, 2)
+    s.device_back()  # a whole first line after a reopen is a sample, and ends the grace
+    _feed(s, [200])
+    s.handle_line(b"220,0.1", now)
+    assert (s.counts.partial, s.counts.garbled, s.counts.samples) == (2, 3, 4)
+
+
 @pytest.mark.parametrize(
     ("line", "fmt", "n_imus", "hint"),
     [

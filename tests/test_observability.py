@@ -80,3 +80,43 @@ def test_an_observable_robot_warns_nothing_and_is_ok() -> None:
         est = make_estimator("ekf", f)
     statuses = est.run(rec.t, rec.z).status
     assert est.shape_observable and np.mean(statuses == "ok") > 0.9
+
+
+def test_fallback_answers_of_an_unobservable_robot_are_uncertain_too(monkeypatch) -> None:
+    """Before: on a first run (IPOPT answering every window) the warning said 'uncertain'
+    but every row said fallback-ipopt."""
+    f = make_formulation("bend", TIP_ONLY)
+    rec = simulate_robot("spatial", TIP_ONLY, duration=2.0, dt=0.05, seed=1)
+    with pytest.warns(UnobservableShapeWarning):
+        est = make_estimator("mhe", f, MHESettings(horizon=8, solver="ipopt"))
+    original = type(est)._step
+
+    def fallback(self, m):
+        state, cov, status = original(self, m)
+        return state, cov, "fallback-ipopt" if status == "ok" else status
+
+    monkeypatch.setattr(type(est), "_step", fallback)
+    statuses = Counter(est.run(rec.t, rec.z).status.tolist())
+    assert "fallback-ipopt" not in statuses and statuses["uncertain"] > 0.9 * len(rec.t)
+
+
+def test_a_silent_imu_that_the_shape_needs_makes_the_estimates_uncertain() -> None:
+    """Before: a two-section robot whose tip IMU never reported gave ok rows after each
+    restart (its second section predicted blindly); an IMU whose silence leaves the shape
+    determined (two along section 2 and one on section 1) does not."""
+    robot = Robot(TWO, (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=6.0, dt=0.05, seed=0)
+    z = np.array(rec.z, dtype=float)
+    z[40:, 2:] = np.nan  # IMU 2 silent from t = 2 s
+    est = make_estimator("ekf", f)
+    status = est.run(rec.t, z).status
+    assert np.all(status[:40] != "uncertain") and np.mean(status[:40] == "ok") > 0.9
+    assert "ok" in status[40:48].tolist()  # silent for less than the 1 s gap reset: trusted
+    assert set(status[61:].tolist()) <= {"uncertain", "reset"}  # silent for longer: never ok
+    three = Robot(TWO, (ImuPlacement(0), ImuPlacement(1, 0.5), ImuPlacement(1)))
+    rec3 = simulate_robot("spatial", three, duration=4.0, dt=0.05, seed=0)
+    z3 = np.array(rec3.z, dtype=float)
+    z3[20:, 4:] = np.nan  # the tip IMU silent: sections 1 and 2 still seen
+    est3 = make_estimator("ekf", make_formulation("bend", three))
+    assert "uncertain" not in est3.run(rec3.t, z3).status[20:].tolist()

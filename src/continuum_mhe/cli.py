@@ -177,7 +177,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     if est.restarts:
         msg += (
             f"; restarted {est.restarts} time(s) after the estimate diverged, failed or its "
-            "uncertainty outgrew the workspace (no-estimate until the next valid reading)"
+            "uncertainty outgrew the workspace (status reset, or no-estimate on a sample without "
+            "a valid reading)"
         )
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"

@@ -52,7 +52,8 @@ STATUS_MEANINGS: dict[str, str] = {
     "from this sample's measurement, and this is the restarted estimate; also after a gap "
     "in the data longer than --gap-reset",
     "uncertain": "an estimate was made, but the tip position's standard deviation exceeds "
-    "the stated fraction of the robot's length (--uncertain-fraction): do not trust it",
+    "the stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
+    "that reported within --gap-reset) do not determine the robot's shape: do not trust it",
     "drifted": "the position state is more than DRIFT_FRACTION (10 %) of the length from "
     "the forward kinematics of the row's own theta and phi (the paper formulation's "
     "separate x, y, z): the row is not one consistent shape",

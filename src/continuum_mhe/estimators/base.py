@@ -19,8 +19,16 @@ from continuum_mhe.errors import UnobservableShapeWarning, UserError
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
+
+#: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
+#: data do not determine the shape (the others already say more).
+TRUSTED = ("ok", "fallback-ipopt", "branch-restart")
+#: An IMU silent for longer than this (s) no longer observes its part of the shape when
+#: the gap reset is off (else the gap reset's time).
+UNOBSERVED_AFTER = 1.0
 
 FloatArray = NDArray[np.float64]
 
@@ -81,6 +89,10 @@ class Estimator(ABC):
         #: whether the IMUs determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`
         #: equals the number of bend coordinates); if not, no estimate is ``ok``
         self.shape_observable = rank == bends
+        #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
+        #: gap reset no longer observe their part of the shape
+        self._imu_last_valid: list[float] = []
+        self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
                 f"the IMUs of this robot ({robot.describe()}) determine {rank} of its "
@@ -105,6 +117,7 @@ class Estimator(ABC):
         self._last_valid_t = -math.inf
         self._freeze_value = [None] * len(self.formulation.measurement_blocks)
         self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
         self._restart()
 
     def _restart(self) -> None:
@@ -181,8 +194,11 @@ class Estimator(ABC):
         valid reading after every reading of more than ``reject_reset`` s was rejected
         as an outlier (the estimate, not the sensor, is taken as lost); an ``ok`` estimate whose
         tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
-        ``uncertain``, and so is every ``ok`` estimate of a robot whose IMUs do not
-        determine its shape (:attr:`shape_observable`). The estimate
+        ``uncertain``, and so is every ``ok``, ``fallback-ipopt`` or ``branch-restart``
+        estimate (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
+        (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
+        not (an IMU silent for longer: its part of the shape is predicted blindly). The
+        estimate
         carries ``output_std`` wherever the method has a covariance.
 
         Raises:
@@ -223,9 +239,11 @@ class Estimator(ABC):
         measurement = self._unfreeze(measurement)
         gap_reset = False
         gap = self.recovery.gap_reset
-        if gap is not None and self.formulation.measurement_mask(measurement.z).any():
+        mask = self.formulation.measurement_mask(measurement.z)
+        if gap is not None and mask.any():
             gap_reset = -math.inf < self._last_valid_t < t - gap
             self._last_valid_t = t
+        observed = self._observed_now(t, mask)
         if gap_reset:  # restart from this sample instead of a blind prediction
             self.gap_resets += 1
             self._restart()
@@ -238,7 +256,6 @@ class Estimator(ABC):
         )
         if check_start:
             assert window is not None
-            mask = self.formulation.measurement_mask(measurement.z)
             bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
             if bad_start:  # the start was wrong: restart from this reading
                 self.bad_starts += 1
@@ -246,7 +263,7 @@ class Estimator(ABC):
         reject_reset = False
         since, limit = self._rejecting_since, self.recovery.reject_reset
         if since is not None and limit is not None and t - since > limit:
-            if self.formulation.measurement_mask(measurement.z).any():
+            if mask.any():
                 reject_reset = True  # restart from this reading
                 self.reject_resets += 1
                 self._restart()
@@ -279,7 +296,7 @@ class Estimator(ABC):
             self._start_check.remember(t, measurement.z, state, cov)
         if status == "ok" and state is not None and self.formulation.drifted(state):
             status = "drifted"
-        if status == "ok" and not self.shape_observable:
+        if status in TRUSTED and not observed:
             status = "uncertain"  # the data do not determine the shape
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
@@ -299,6 +316,31 @@ class Estimator(ABC):
         elif rejected and self._rejecting_since is None:
             self._rejecting_since = t
         return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
+
+    def _observed_now(self, t: float, mask: FloatArray) -> bool:
+        """Whether the IMUs that reported within the gap reset (1 s when it is off) up to
+        ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`); updates
+        each IMU's last valid time from ``mask`` (nz,)."""
+        if not self.shape_observable:
+            return False
+        blocks = self.formulation.measurement_blocks
+        if len(blocks) == 1:
+            return True  # its silence is the whole robot's gap
+        last = self._imu_last_valid
+        for k, b in enumerate(blocks):
+            if mask[b.start] > 0.0:
+                last[k] = t
+        window = self.recovery.gap_reset or UNOBSERVED_AFTER
+        recent = tuple(k for k in range(len(blocks)) if t - last[k] <= window)
+        if len(recent) == len(blocks) or not recent:
+            return True  # all reporting, or none (the gap's dropout rows say it)
+        known = self._observable_subsets.get(recent)
+        if known is None:
+            robot = self.formulation.robot
+            sub = Robot(robot.sections, tuple(robot.imus[k] for k in recent), robot.mounting)
+            known = shape_rank(sub) == 2 * robot.n_sections
+            self._observable_subsets[recent] = known
+        return known
 
     def run(
         self,

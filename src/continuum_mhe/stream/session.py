@@ -229,6 +229,9 @@ class LiveSession:
         self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
         self._restarted = False  # the estimator was restarted: flag its next estimate
+        #: the next line is the first since the port opened (or reopened): the device may
+        #: have been mid-line then, so if it does not parse it counts as partial
+        self._joined = True
         estimator.reset()
 
     def period(self) -> float | None:
@@ -238,11 +241,17 @@ class LiveSession:
         return self._period
 
     def device_back(self) -> None:
-        """The device was reopened: its clock may have restarted."""
+        """The device was reopened: its clock may have restarted, and its first line may
+        be cut."""
         self.clock.expect_restart()
+        self._joined = True
 
     def _bad(self, reason: str, text: str = "") -> None:
         c = self.counts
+        if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
+            self._joined = False
+            c.partial += 1
+            return
         c.garbled += 1
         c.reasons[reason] = c.reasons.get(reason, 0) + 1
         if c.first_garbled is None:  # said once, as it happens (the rest are counted)
@@ -279,6 +288,7 @@ class LiveSession:
         except GarbledLine as exc:
             self._bad(str(exc), text)
             return None
+        self._joined = False
         if sample is None:
             if text.strip().startswith("#"):
                 self._comment(text.strip(), arrival)
