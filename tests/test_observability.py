@@ -120,3 +120,11 @@ def test_a_silent_imu_that_the_shape_needs_makes_the_estimates_uncertain() -> No
     z3[20:, 4:] = np.nan  # the tip IMU silent: sections 1 and 2 still seen
     est3 = make_estimator("ekf", make_formulation("bend", three))
     assert "uncertain" not in est3.run(rec3.t, z3).status[20:].tolist()
+
+
+def test_a_mounting_given_as_a_list_still_builds_an_estimator() -> None:
+    """The rank is cached per robot, so a robot must hash: a list mount_rpy (from library
+    code) raised TypeError when the estimator was built."""
+    robot = Robot(TWO, (ImuPlacement(0, 1.0, [0, 0, 0]), ImuPlacement(1)))  # type: ignore[arg-type]
+    assert robot.imus[0].mount_rpy == (0, 0, 0)
+    assert make_estimator("ekf", make_formulation("bend", robot)).shape_observable

@@ -88,6 +88,7 @@ class ImuPlacement:
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
         if not (isinstance(self.section, int) and self.section >= 0):
             raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
