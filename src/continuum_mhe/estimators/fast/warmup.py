@@ -178,7 +178,8 @@ def warm_up() -> None:
     announced = (set(_announced), set(codegen._announced))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said, where it matters, by the estimators
-        for settings, zs in ((MHESettings(horizon=5), z), (MHESettings(horizon=5, loss="cauchy"), spiked)):
+        runs = ((MHESettings(horizon=5), z), (MHESettings(horizon=5, loss="cauchy"), spiked))
+        for settings, zs in runs:
             # the one-call step (l2; a robust loss's too), then for the spike the
             # two-call step and the Python path's window solve (the second start)
             MovingHorizonEstimator(f, settings, first_run=None).run(rec.t, zs)
