@@ -13,7 +13,7 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.io.csv_files import InputError, read_states
+from continuum_mhe.io.csv_files import InputError, UnitWarning, read_states
 from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
     RawImuSettings,
@@ -317,3 +317,9 @@ def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFi
         assert f"{degs}: IMU 1: gyro magnitude is about 27.4 (median)" in err
         assert "deg/s? give rad/s" in err
         assert not out.exists()
+    # tilt from the accelerometer (the default) does not use the gyro: a warning per IMU
+    with pytest.warns(UnitWarning) as seen:
+        code = main(["estimate", str(degs), "-o", str(out), "--robot", "two-section"])
+    warned = [str(w.message) for w in seen if "deg/s?" in str(w.message)]
+    assert code == 0 and out.exists()
+    assert len(warned) == 2 and all(w.endswith("so the estimate is unaffected") for w in warned)

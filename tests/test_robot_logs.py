@@ -14,7 +14,7 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_states
+from continuum_mhe.io.csv_files import UnitWarning, read_states
 from continuum_mhe.io.robot_logs import read_estimates_mcap, read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.direct import raw_imu_readings
 from continuum_mhe.model.imu import tilt, tilt_from_accelerometer
@@ -265,11 +265,20 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
 def test_log_gyro_in_deg_s_is_one_line(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """sensor_msgs/Imu's angular velocity is rad/s: a log in deg/s is named as such."""
+    """sensor_msgs/Imu's angular velocity is rad/s: a log in deg/s is named as such, an
+    error where the estimate uses the gyro, a warning where it does not (tilt from the
+    accelerometer, the default)."""
     degs = {**recording, "gyr": np.degrees(recording["gyr"]) + 6.0}  # and an uncalibrated bias
     bag = write_ros2_bag(tmp_path / "bag2", degs)
-    assert main(["estimate", str(bag), "-o", str(tmp_path / "e.csv")]) == 2
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out), "--imu-model", "direct"]) == 2
     err = capsys.readouterr().err.strip()
     assert "topic /tip/imu: gyro magnitude is about" in err and "deg/s? give rad/s" in err
     assert "\n" not in err
-    assert not (tmp_path / "e.csv").exists()
+    assert not out.exists()
+    with pytest.warns(UnitWarning) as seen:
+        assert main(["estimate", str(bag), "-o", str(out)]) == 0
+    warned = [str(w.message) for w in seen if "deg/s?" in str(w.message)]
+    assert len(warned) == 1 and "topic /tip/imu: gyro magnitude is about" in warned[0]
+    assert warned[0].endswith("these options do not use the gyro, so the estimate is unaffected")
+    assert out.exists()

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ import numpy as np
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import (
     FloatArray,
+    UnitWarning,
     check_time_units,
     imu_count_error,
     numbered_imus,
@@ -263,8 +265,10 @@ def raw_blocks(
     has_gyro: bool,
     skip_bad: bool,
     skipped: list[str] | RowProblems,
+    gyro_used: bool = True,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
-    """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked.
+    """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
+    in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`).
 
     One IMU: a zero acceleration is an error, or with ``skip_bad`` a dropout (recorded);
     several: any bad value makes that IMU's sample a dropout (NaN)."""
@@ -289,7 +293,8 @@ def raw_blocks(
         acc[zero] = np.nan
         _check_accel_units(name, acc)
         if has_gyro:
-            _check_gyro_units(name if n_imus == 1 else f"{name}: IMU {i + 1}", block[:, 3:6])
+            label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
+            check_gyro_units(label, block[:, 3:6], gyro_used)
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -343,12 +348,21 @@ def _check_accel_units(path: Path | str, acc: FloatArray) -> None:
         )
 
 
-def _check_gyro_units(path: Path | str, gyr: FloatArray) -> None:
+def check_gyro_units(path: Path | str, gyr: FloatArray, used: bool = True) -> None:
+    """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s:
+    an error where the estimate uses it (``used``), else one warning (it is ignored)."""
     norm = np.linalg.norm(gyr, axis=1)
     norm = norm[np.isfinite(norm)]
     if len(norm) and float(np.median(norm)) > GYRO_MEDIAN_MAX:
-        raise InputError(
+        msg = (
             f"{path}: gyro magnitude is about {float(np.median(norm)):.3g} (median), "
             f"implausible in rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s (gx, gy, gz "
             f"times pi/180 = {math.pi / 180:.7f})"
+        )
+        if used:
+            raise InputError(msg)
+        warnings.warn(
+            f"{msg}; these options do not use the gyro, so the estimate is unaffected",
+            UnitWarning,
+            stacklevel=2,
         )

@@ -45,7 +45,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.raw_imu import (
     RawImuSettings,
     _check_accel_units,
-    _check_gyro_units,
+    check_gyro_units,
     raw_to_measurements,
 )
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
@@ -228,8 +228,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
     arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
-    _check_accel_units(f"{p}: topic {name}", arr[0])
-    _check_gyro_units(f"{p}: topic {name}", arr[1])
+    _check_accel_units(f"{p}: topic {name}", arr[0])  # the gyro's: where it is used
     return ImuLog(
         topic=name,
         t=(np.array(stamps, dtype=np.int64) - t0) / 1e9,
@@ -405,7 +404,7 @@ def load_estimate_input(
                 raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
             z = tilt_from_quaternion(log.orientation)
         else:
-            z = _convert(p, log.t, log.acc, log.gyr, options.raw)
+            z = _convert(p, log.t, log.acc, log.gyr, options.raw, log.topic)
         return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
     from continuum_mhe.io.sample_stream import open_estimate_input
 
@@ -432,7 +431,9 @@ def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> Es
             blocks.append(tilt_from_quaternion(log.orientation))
         else:
             blocks.append(
-                _convert(p, paired.t, log.acc, log.gyr, _imu_settings(options.raw, place))
+                _convert(
+                    p, paired.t, log.acc, log.gyr, _imu_settings(options.raw, place), log.topic
+                )
             )
     return EstimateInput(
         "log", paired.t, np.hstack(blocks), f, paired.t0_ns, paired.skipped, (paired.report(),)
@@ -448,11 +449,18 @@ def _imu_settings(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
 
 
 def _convert(
-    path: Path, t: FloatArray, acc: FloatArray, gyr: FloatArray | None, raw: RawImuSettings
+    path: Path,
+    t: FloatArray,
+    acc: FloatArray,
+    gyr: FloatArray | None,
+    raw: RawImuSettings,
+    topic: str,
 ) -> FloatArray:
     if raw.needs_gyro and gyr is None:
         what = "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
         raise InputError(f"{path}: {what} needs gyro columns gx, gy, gz")
+    if gyr is not None:
+        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
     return raw_to_measurements(t, acc, gyr, raw)
 
 

@@ -134,7 +134,10 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
         convs = [RawImuConverter(s) for s in settings]
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
-            blocks = raw_blocks(name, values, lines, n_imus, has_gyro, options.skip_bad, problems)
+            blocks = raw_blocks(
+                name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
+                options.raw.needs_gyro,
+            )  # fmt: skip
             parts = []
             for conv, (acc, gyr) in zip(convs, blocks):
                 parts.append(np.array([
