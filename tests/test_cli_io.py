@@ -185,7 +185,7 @@ def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
     meas, est = _meas(tmp_path, rows), tmp_path / "est.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "--skip-bad: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) " \
+    assert "bad rows: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) " \
         "dropped (bad or non-increasing t); first: line 12: column roll is nan" in err
     t, out, status = read_states(est)
     assert len(t) == 40 and np.all(np.isfinite(out))
@@ -201,7 +201,7 @@ def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, 
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "--skip-bad: 1 sample(s) with a bad value, read as a dropout of its IMU; first: " \
+    assert "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: " \
         "line 9: expected 3 fields, found 4" in err
     t, out, status = read_states(est)
     assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7]
@@ -294,7 +294,7 @@ def test_skip_count_is_per_row_not_per_field(tmp_path, capsys):
     rows[4] = rows[4].split(",")[0] + ",nan,nan"
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
-    assert "--skip-bad: 1 sample(s) with a bad value" in capsys.readouterr().err
+    assert "bad rows: 1 sample(s) with a bad value" in capsys.readouterr().err
 
 
 def test_simulate_rejects_absurd_sizes_and_seeds(tmp_path, capsys):

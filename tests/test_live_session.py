@@ -314,7 +314,9 @@ def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() ->
     ("line", "fmt", "n_imus", "hint"),
     [
         ("1,2,3,4,5,6,7,8,9,10,11,12,13", "raw", 1, "2 IMU(s) in --format raw; --robot with 2"),
-        ("1,2,3", "raw", 1, "1 IMU(s) in --format tilt; --format tilt with 1 IMU(s)?"),
+        ("1,2,3", "raw", 1, "1 IMU(s) in --format tilt; --format tilt?"),
+        # a raw line read as tilt: the format, not three tilt IMUs (said so before)
+        ("1,2,3,4,5,6,7", "tilt", 1, ": a line of 1 IMU(s) in --format raw; --format raw?"),
         ("1,2,3,4,5,6,7", "raw", 2, "1 IMU(s) in --format raw; --robot with 1 IMU(s)?"),
         ("1,2,3,4", "raw", 1, ""),  # no whole number of IMUs in either format
         ("1,2,x,4,5,6,7", "raw", 1, ""),  # the right count: garbled otherwise

@@ -30,13 +30,13 @@ from continuum_mhe.cli_options import (
     add_robot_option,
     check_option_ranges,
     formulation_from_args,
-    freeze_notice,
     mhe_settings_from_args,
     recovery_settings_from_args,
     robot_from_args,
 )
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
+from continuum_mhe.estimators.base import freeze_notice
 from continuum_mhe.estimators.fast.warmup import (
     CompileNotice,
     FirstRun,

@@ -335,19 +335,6 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         reject_reset=args.reject_reset or None,
     )
 
-def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
-    """One line for sensors newly treated as frozen (``--freeze``): ``new`` maps a
-    measurement block (an IMU) to the ``t`` of the first of its repeated readings."""
-    same = f"repeated the same reading for more than {freeze_s:g} s"
-    if len(new) == 1:
-        ((k, t),) = new.items()
-        who, repeats = f"IMU {k + 1} {same} from t={t:g} s", "it repeats"
-    else:
-        each = " and ".join(f"IMU {k + 1} (from t={t:g} s)" for k, t in new.items())
-        who, repeats = f"{each} {same}", "they repeat"
-    return f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off"
-
-
 # --- valid ranges of every numeric option ------------------------------------------
 @dataclass(frozen=True)
 class OptionRange:

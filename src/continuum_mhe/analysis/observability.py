@@ -82,7 +82,9 @@ def verdict(r: ObservabilityReport) -> str:
         return (
             f"NOT observable: tilt determines at most {t.max_rank} of the {t.cols} bend "
             "coordinates at every sampled shape; estimates of this robot are all marked "
-            "uncertain (put an IMU on every section)"
+            "uncertain (put an IMU on every section; the gyros' two-sample rank above needs "
+            "motion and is ill-conditioned: with them the tip stays tens of mm off, "
+            "docs/uncertainty.md)"
         )
     return (
         f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "

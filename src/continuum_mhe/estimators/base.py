@@ -7,6 +7,8 @@ Results are data (:mod:`continuum_mhe.results`): :class:`Estimate` for one sampl
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
 import warnings
 from abc import ABC, abstractmethod
@@ -47,6 +49,29 @@ def _reraise_interrupt(exc: BaseException) -> None:
 
 #: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
 DEGREES_LIKE = 2 * math.pi
+
+
+def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
+    """One line for sensors newly treated as frozen (``--freeze``): ``new`` maps a
+    measurement block (an IMU) to the ``t`` of the first of its repeated readings."""
+    same = f"repeated the same reading for more than {freeze_s:g} s"
+    if len(new) == 1:
+        ((k, t),) = new.items()
+        who, repeats = f"IMU {k + 1} {same} from t={t:g} s", "it repeats"
+    else:
+        each = " and ".join(f"IMU {k + 1} (from t={t:g} s)" for k, t in new.items())
+        who, repeats = f"{each} {same}", "they repeat"
+    return f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off"
+
+
+def _outside_stacklevel() -> int:
+    """The ``warnings.warn`` stacklevel of the first caller outside this package (a
+    warning of the library names the user's line, not ours)."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 class Estimator(ABC):
@@ -100,7 +125,7 @@ class Estimator(ABC):
                 "is marked uncertain (one IMU per section makes it observable; "
                 "`continuum-mhe check-robot` tells)",
                 UnobservableShapeWarning,
-                stacklevel=3,
+                stacklevel=_outside_stacklevel(),
             )
         self._freeze_value: list[FloatArray | None] = []
         self._freeze_since: list[float] = []

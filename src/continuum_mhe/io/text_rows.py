@@ -262,7 +262,7 @@ class RowProblems:
         parts = [f"{kept} sample(s) with a bad value, read as a dropout of its IMU"] if kept else []
         if self.dropped:
             parts.append(f"{self.dropped} sample(s) dropped (bad or non-increasing t)")
-        return f"--skip-bad: {'; '.join(parts)}; first: {self.first[0]}"
+        return f"bad rows: {'; '.join(parts)}; first: {self.first[0]}"
 
 
 def has_extra_fields(row: Sequence[str], width: int) -> bool:

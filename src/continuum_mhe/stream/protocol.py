@@ -105,14 +105,18 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
 
 
 def field_count_hint(text: str, fmt: LineFormat, n_imus: int) -> str:
-    """A likely cause of a line with the wrong number of fields, or "": the IMU count of
-    ``--robot`` (another whole number of IMUs in this format), then ``--format``."""
+    """A likely cause of a line with the wrong number of fields, or "": ``--format``
+    (another format with the robot's IMU count), then the IMU count of ``--robot``
+    (another whole number of IMUs in this format), then both."""
     found = len(text.strip().split(","))
     if found == 1 + VALUES_PER_IMU[fmt] * n_imus:  # garbled otherwise
         return ""
-    for f in (fmt, *(g for g in LINE_FORMATS if g != fmt)):
-        k = VALUES_PER_IMU[f]
-        m, rest = divmod(found - 1, k)
+    others = [g for g in LINE_FORMATS if g != fmt]
+    for g in others:
+        if found == 1 + VALUES_PER_IMU[g] * n_imus:
+            return f": a line of {n_imus} IMU(s) in --format {g}; --format {g}?"
+    for f in (fmt, *others):
+        m, rest = divmod(found - 1, VALUES_PER_IMU[f])
         if m >= 1 and not rest and (f, m) != (fmt, n_imus):
             option = f"--robot with {m} IMU(s)" if f == fmt else f"--format {f} with {m} IMU(s)"
             return f": a line of {m} IMU(s) in --format {f}; {option}?"

@@ -14,8 +14,13 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from continuum_mhe.cli_options import freeze_notice
-from continuum_mhe.estimators.base import Estimate, Estimator, Measurement, _reraise_interrupt
+from continuum_mhe.estimators.base import (
+    Estimate,
+    Estimator,
+    Measurement,
+    _reraise_interrupt,
+    freeze_notice,
+)
 from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
 from continuum_mhe.model.robot import Robot
