@@ -112,7 +112,8 @@ def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None:
     """Two IMUs' lines to a one-IMU calibrate: it said 'is it streaming?'; now the first
-    garbled line's cause (it waits its 15 s for the board's start-up first)."""
+    garbled line's cause, once garbled lines have come for 2 s beyond --seconds with no
+    valid one (it waited the board's 15 s start-up allowance before)."""
     from live_helpers import raw_line
 
     acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
@@ -121,7 +122,8 @@ def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None
     port = tmp_path / "ttyIMU"
     assert code == 2, err
     assert err.splitlines()[-1] == (
-        f"continuum-mhe: error: {port}: 0 valid sample(s) in 15.1 s; 50 garbled line(s), the "
+        f"continuum-mhe: error: {port}: 0 valid sample(s) in 2.1 s of garbled lines; 50 "
+        "garbled line(s), the "
         "first: expected 7 fields, found 13: a line of 2 IMU(s) in --format raw; --robot with "
         "2 IMU(s)?; check --format, --robot and --baud"
     )

@@ -213,6 +213,14 @@ def read_recording(path: str, n_imus: int) -> tuple[LineFormat, FloatArray, Floa
     return "raw", tables[0].t, values
 
 
+#: How long calibrate waits beyond its ``--seconds`` for the board's start-up (it resets
+#: and calibrates its gyro when the port opens), s.
+BOOT_S = 15.0
+#: ... and, once garbled lines arrive with no valid one, beyond ``--seconds`` from the
+#: first of them: a board streaming another format does not change it later, s.
+GARBLED_ONLY_S = 2.0
+
+
 def collect(
     port: str, baud: int, fmt: LineFormat, n_imus: int, seconds: float, say: Any
 ) -> tuple[FloatArray, FloatArray]:
@@ -229,11 +237,14 @@ def collect(
     t: list[float] = []
     rows: list[FloatArray] = []
     garbled, first_garbled = 0, ""
-    give_up = time.monotonic() + seconds + 15.0  # the board resets and calibrates first
+    give_up = time.monotonic() + seconds + BOOT_S  # the board resets and calibrates first
+    garbled_since = math.inf  # when the first garbled line came
     reader.start()
     say(f"reading {port} for {seconds:g} s: keep the robot straight and still")
     try:
         while time.monotonic() < give_up and not (t and t[-1] - t[0] >= seconds):
+            if not t and time.monotonic() - garbled_since > seconds + GARBLED_ONLY_S:
+                break  # streaming, but not one valid line: it will not start now
             try:
                 kind, payload, arrival = events.get(timeout=0.1)
             except queue.Empty:
@@ -246,10 +257,12 @@ def collect(
             except UnicodeDecodeError:
                 garbled += 1
                 first_garbled = first_garbled or "not ASCII"
+                garbled_since = min(garbled_since, arrival)
                 continue
             except GarbledLine as exc:
                 garbled += 1
                 first_garbled = first_garbled or str(exc) + field_count_hint(text, fmt, n_imus)
+                garbled_since = min(garbled_since, arrival)
                 continue
             if sample is None:
                 if text.strip().startswith("#"):
@@ -267,13 +280,15 @@ def collect(
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
     if len(t) < 2:
-        why = (
-            f"{garbled} garbled line(s), the first: {first_garbled}; check --format, --robot "
-            "and --baud"
-            if garbled
-            else "is it streaming?"
-        )
-        raise InputError(f"{port}: {len(t)} valid sample(s) in {seconds + 15:g} s; {why}")
+        if garbled:
+            why = (
+                f"{garbled} garbled line(s), the first: {first_garbled}; check --format, "
+                "--robot and --baud"
+            )
+            waited = f"{seconds + GARBLED_ONLY_S:g} s of garbled lines"
+        else:
+            why, waited = "is it streaming?", f"{seconds + BOOT_S:g} s"
+        raise InputError(f"{port}: {len(t)} valid sample(s) in {waited}; {why}")
     return np.asarray(t), np.asarray(rows)
 
 
