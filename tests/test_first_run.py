@@ -95,6 +95,9 @@ def test_library_compiles_in_the_foreground_and_says_so_once(tmp_path, monkeypat
     monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
     monkeypatch.setattr(warmup, "_announced", set())
     monkeypatch.setattr(codegen, "_announced", set())
+    # the kernels' recompile is the flush test's (below); here the wait, the notices and
+    # the marker (it took a minute of the suite)
+    monkeypatch.setattr(warmup, "flush_kernel_caches", lambda: None)
     monkeypatch.setenv("CONTINUUM_MHE_CACHE", str(tmp_path / "cache"))  # no C model cached
     assert not warmup.kernels_ready()
     robot = Robot((Section(0.16), Section(0.14)), (ImuPlacement(0), ImuPlacement(1)))
