@@ -36,7 +36,6 @@ from continuum_mhe.cli_options import (
 )
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
-from continuum_mhe.estimators.base import freeze_notice
 from continuum_mhe.estimators.fast.warmup import (
     CompileNotice,
     FirstRun,
@@ -143,10 +142,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     counts[e.status] = counts.get(e.status, 0) + 1
                     if est.frozen_samples > frozen_before:
                         frozen[e.status] = frozen.get(e.status, 0) + 1
-                        if len(est.first_freezes) > freezes_before:  # said once per IMU
-                            new = dict(list(est.first_freezes.items())[freezes_before:])
-                            print(f"{PROG}: note: {freeze_notice(new, args.freeze)}",
-                                  file=sys.stderr)  # fmt: skip
+                        note = est.freezes_notice(freezes_before)  # said once per IMU
+                        if note:
+                            print(f"{PROG}: note: {note}", file=sys.stderr)
                     outliers += e.outlier
                     sink.write(e)
             finally:

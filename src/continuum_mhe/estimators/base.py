@@ -342,6 +342,14 @@ class Estimator(ABC):
             self._rejecting_since = t
         return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
 
+    def freezes_notice(self, before: int) -> str | None:
+        """One line for the sensors first treated as frozen after the first ``before``
+        of :attr:`first_freezes` (:func:`freeze_notice`), or None when there are none."""
+        freeze = self.recovery.freeze
+        if len(self.first_freezes) <= before or freeze is None:
+            return None
+        return freeze_notice(dict(list(self.first_freezes.items())[before:]), freeze)
+
     def _observed_now(self, t: float, mask: FloatArray) -> bool:
         """Whether the IMUs that reported within the gap reset (1 s when it is off) up to
         ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`); updates

@@ -22,7 +22,12 @@ import numpy as np
 
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
-from continuum_mhe.io.raw_imu import csv_input_kind, read_raw_imu, read_raw_imus
+from continuum_mhe.io.raw_imu import (
+    STANDARD_GRAVITY,
+    csv_input_kind,
+    read_raw_imu,
+    read_raw_imus,
+)
 from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.bend_calibration import YawCalibration, yaws_from_bend
@@ -44,7 +49,7 @@ from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hin
 #: a sign of motion: it is the bias that calibrate measures.
 STILL_ACC_STD = 0.2  # m/s^2 (0.2 / 9.81 rad = 1.2 deg of tilt)
 STILL_GYRO_STD = 0.05  # rad/s (2.9 deg/s)
-STILL_TILT_STD = STILL_ACC_STD / 9.80665  # rad, for tilt (roll, pitch) recordings
+STILL_TILT_STD = STILL_ACC_STD / STANDARD_GRAVITY  # rad, for tilt (roll, pitch) recordings
 
 
 @dataclass(frozen=True)
@@ -254,15 +259,15 @@ def collect(
             try:
                 text = payload.decode("ascii")
                 sample = parse_line(text, fmt, n_imus)
-            except UnicodeDecodeError:
+            except (UnicodeDecodeError, GarbledLine) as exc:
                 garbled += 1
-                first_garbled = first_garbled or "not ASCII"
                 garbled_since = min(garbled_since, arrival)
-                continue
-            except GarbledLine as exc:
-                garbled += 1
-                first_garbled = first_garbled or str(exc) + field_count_hint(text, fmt, n_imus)
-                garbled_since = min(garbled_since, arrival)
+                if not first_garbled:
+                    first_garbled = (
+                        "not ASCII"
+                        if isinstance(exc, UnicodeDecodeError)
+                        else str(exc) + field_count_hint(text, fmt, n_imus)
+                    )
                 continue
             if sample is None:
                 if text.strip().startswith("#"):

@@ -19,7 +19,6 @@ from continuum_mhe.estimators.base import (
     Estimator,
     Measurement,
     _reraise_interrupt,
-    freeze_notice,
 )
 from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
@@ -395,10 +394,9 @@ class LiveSession:
 
     def _say_freezes(self, before: int) -> None:
         """Say once (one line) which sensors the estimator began to treat as frozen."""
-        seen = self.estimator.first_freezes
-        freeze = self.estimator.recovery.freeze
-        if len(seen) > before and freeze is not None:
-            self.say(freeze_notice(dict(list(seen.items())[before:]), freeze))
+        note = self.estimator.freezes_notice(before)
+        if note:
+            self.say(note)
 
     def _estimate(self, t: float, z: FloatArray) -> Estimate:
         """One estimator step that never ends the session: an exception or a non-finite
