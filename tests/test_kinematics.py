@@ -20,6 +20,8 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe.model import imu, kinematics
 from continuum_mhe.model.imu import (
+    as_sensor_reads,
+    gravity_direction_from_tilt,
     shape_from_tilt,
     tilt,
     tilt_bend_sym,
@@ -247,6 +249,23 @@ def test_tilt_from_accelerometer_known_values() -> None:
     assert_allclose(tilt_from_accelerometer([0.0, 0.0, G]), [0.0, 0.0], atol=1e-15)
     assert_allclose(tilt_from_accelerometer([0.0, G, 0.0]), [HALF_PI, 0.0], atol=1e-15)
     assert_allclose(tilt_from_accelerometer([-G, 0.0, 0.0]), [0.0, HALF_PI], atol=1e-15)
+
+
+def test_offset_readings_as_a_sensor_reports_them() -> None:
+    """Known answers: a pitch pushed past 90 deg comes back as 180 deg - pitch with roll
+    turned by 180 deg (the same gravity direction); in-range readings are unchanged;
+    two IMUs' pairs are converted independently."""
+    d = math.radians
+    z = np.array([[d(20.0), d(110.0), d(10.0), d(-100.0)], [d(190.0), d(30.0), 0.3, -0.2]])
+    got = as_sensor_reads(z)
+    want = np.array([[d(-160.0), d(70.0), d(-170.0), d(-80.0)], [d(-170.0), d(30.0), 0.3, -0.2]])
+    assert_allclose(got, want, rtol=0, atol=1e-12)
+    pairs = z.reshape(2, 2, 2)
+    assert_allclose(
+        gravity_direction_from_tilt(got.reshape(2, 2, 2)), gravity_direction_from_tilt(pairs),
+        rtol=0, atol=1e-15,
+    )  # fmt: skip
+    assert_allclose(np.linalg.norm(gravity_direction_from_tilt(pairs), axis=-1), 1.0, rtol=1e-15)
 
 
 def test_invalid_mounting_is_rejected() -> None:

@@ -15,6 +15,7 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import UserError
+from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.reproduce import beyond as by
 from continuum_mhe.reproduce import experiments as ex
 from continuum_mhe.reproduce import report as rp
@@ -469,8 +470,17 @@ def test_beyond_corruptions() -> None:
     zs, mask = by.spikes(z, spec)
     idx = np.flatnonzero(mask)
     assert len(idx) == round(spec.spike_fraction * n) and np.all(np.diff(idx) > 1)
-    assert np.all(np.abs(zs[idx, 0]) == pytest.approx(math.radians(spec.spike_deg)))
-    assert np.all(np.abs(zs[:, 1]) <= math.pi / 2)  # pitch clipped to the sensor's range
+    # each spike is the clean reading offset by +-spike_deg on roll and pitch, as a sensor
+    # reports it: pitch inside +-90 deg, and at 80 deg pitch a +30 deg offset comes back
+    # as 70 deg with roll turned by 180 deg (not clipped at 90 deg)
+    s = math.radians(spec.spike_deg)
+    signs = [(a, b) for a in (-1.0, 1.0) for b in (-1.0, 1.0)]
+    for i in idx:
+        options = [as_sensor_reads((z[i] + s * np.array(o))[None])[0] for o in signs]
+        assert min(np.abs(zs[i] - o).max() for o in options) < 1e-12
+    assert np.all(np.abs(zs[:, 1]) <= math.pi / 2)
+    pitch = np.round(np.degrees(zs[idx, 1]), 9)
+    assert set(pitch) == {50.0, 70.0}  # 80 - 30, and 80 + 30 reflected (never 90)
     assert np.array_equal(zs[~mask], z[~mask])
     zb, mask = by.bursts(z, by.BeyondSpec("bursts", 3, 20.0))
     runs = np.diff(np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0])))[::2]

@@ -19,6 +19,7 @@ with the Cauchy scale and the second start as given, and prints the targets:
     python tools/burst_study.py --seeds 5 --scale 1.0 --no-second-start
     python tools/burst_study.py --mc --seeds 50 --scale 2.0 --no-second-start
     python tools/burst_study.py --mc --seeds 50 --loss welsch --scale 3.0
+    python tools/burst_study.py --mc --seeds 50 --loss welsch --offset-deg 10
     python tools/burst_study.py --oracle --seeds 50   # burst readings dropped, l2 MHE
 
 With ``--oracle`` it runs the quadratic MHE on each seed's clean data and on the same
@@ -29,6 +30,7 @@ were corrupted would lose.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import numpy as np
 
@@ -99,10 +101,13 @@ def monte_carlo(args: argparse.Namespace) -> None:
                                noise_deg=c.noise_deg, horizon=c.horizon,
                                recovery_duration=c.beyond_recovery_duration,
                                gap_s=c.beyond_gap_s, robust_loss=args.loss)  # fmt: skip
+    if args.offset_deg is not None:
+        specs = [dataclasses.replace(s, spike_deg=args.offset_deg) for s in specs]
     trials = [beyond.run_beyond(s) for s in specs if s.group in beyond.OUTLIER_GROUPS]
     s = beyond.summarise_beyond(trials)
     print(f"seeds {args.seeds}  {args.loss} scale {settings.DEFAULT_LOSS_SCALE[args.loss]}  "
-          f"second start {'off' if args.no_second_start else 'on'}")  # fmt: skip
+          f"second start {'off' if args.no_second_start else 'on'}  "
+          f"offset {specs[0].spike_deg:g} deg")  # fmt: skip
     for g, by in s["outliers"].items():
         print(f"  {g:7s} " + "  ".join(f"{m} {v['mean']:.3f}" for m, v in by.items()) + " mm")
     for g, targets in s["targets"].items():
@@ -147,6 +152,12 @@ def main() -> None:
     p.add_argument("--scale", type=float, default=None)
     p.add_argument("--no-second-start", action="store_true")
     p.add_argument("--mc", action="store_true", help="the reproduce outlier groups")
+    p.add_argument(
+        "--offset-deg",
+        type=float,
+        default=None,
+        help="with --mc: spike and burst offset, deg (default: the config's 30)",
+    )
     p.add_argument("--oracle", action="store_true", help="the l2 MHE, burst readings dropped")
     args = p.parse_args()
     if args.oracle:
@@ -163,8 +174,10 @@ def main() -> None:
     excess = eb - ec
     print(f"seeds {args.seeds}  loss {args.loss} scale {args.scale or 'default'}  "
           f"second start {'off' if args.no_second_start else 'on'}")  # fmt: skip
-    print(f"mean tip error: clean {ec.mean():.3f} mm, bursts {eb.mean():.3f} mm, "
-          f"ratio {eb.mean() / ec.mean():.3f}; total excess {excess.sum():.0f} mm*samples")
+    print(
+        f"mean tip error: clean {ec.mean():.3f} mm, bursts {eb.mean():.3f} mm, "
+        f"ratio {eb.mean() / ec.mean():.3f}; total excess {excess.sum():.0f} mm*samples"
+    )
     for name, a, b in SEGMENTS:
         sel = (rel >= a) & (rel < b)
         print(f"  {name:14s} share of the excess {excess[sel].sum() / excess.sum():6.3f}")

@@ -26,9 +26,10 @@ MHE_LOSSES: tuple[MHELoss, ...] = ("l2", "huber", "cauchy", "welsch")
 #: +0.3 %), isolated spikes 1.016x (2.0: 1.017x); 1.5 was 2.0 % above on clean data.
 #: Welsch: 3.0, near its 95 % efficiency constant for one component (2.985; 93.5 % for a
 #: two-component block, whose 95 % value is 3.25, Cauchy 1.6: 87.3 %); on the same
-#: Monte Carlo (with ``RecoverySettings.reject_reset``) clean +0.26 %, bursts 1.14x,
-#: spikes 1.015x (without the reset, 10 seeds: 2.5, 2.75 and 3.0 all gave bursts
-#: 1.12x, clean +1.6 %, +0.8 % and +0.3 %; 2.0 lost one recording).
+#: Monte Carlo (with ``RecoverySettings.reject_reset``) clean +0.26 %, bursts 1.061x,
+#: spikes 1.012x (bursts 1.14x while the corruption clipped pitch at 90 deg; without
+#: the reset, on that data, 10 seeds: 2.5, 2.75 and 3.0 all gave bursts 1.12x, clean
+#: +1.6 %, +0.8 % and +0.3 %; 2.0 lost one recording).
 DEFAULT_LOSS_SCALE: dict[str, float] = {
     "l2": math.inf, "huber": 1.5, "cauchy": 1.6, "welsch": 3.0,
 }  # fmt: skip

@@ -148,9 +148,31 @@ def shape_from_tilt(
     return theta, phi
 
 
+def gravity_direction_from_tilt(z: ArrayLike) -> FloatArray:
+    """Unit specific-force direction (..., 3) in the tip frame from ``(roll, pitch)``
+    (..., 2) in radians; any angles, e.g. a pitch past +-pi/2 (numpy)."""
+    z_ = np.asarray(z, dtype=float)
+    roll, pitch = z_[..., 0], z_[..., 1]
+    cb = np.cos(pitch)
+    return np.stack([-np.sin(pitch), cb * np.sin(roll), cb * np.cos(roll)], axis=-1)
+
+
 def tilt_from_accelerometer(f: ArrayLike) -> FloatArray:
     """``(roll, pitch)`` from specific force ``f`` (..., 3) in the tip frame, any units."""
     f_ = np.asarray(f, dtype=float)
     roll = np.arctan2(f_[..., 1], f_[..., 2])
     pitch = np.arctan2(-f_[..., 0], np.hypot(f_[..., 1], f_[..., 2]))
     return np.stack([roll, pitch], axis=-1)
+
+
+def as_sensor_reads(z: ArrayLike) -> FloatArray:
+    """Offset readings ``(n, 2 m)`` (roll, pitch of ``m`` IMUs, rad) as a real sensor
+    reports the offset orientation: its gravity direction back into roll and pitch
+    (pitch inside +-90 deg, roll wrapped). A pitch pushed past 90 deg comes back as
+    ``180 deg - pitch`` with roll turned by 180 deg, the same direction, so every
+    corrupted reading is as far from the truth as its offset says. (Clipping the pitch
+    at 90 deg instead turns a +30 deg offset at 81 deg pitch into a 7-18 deg error at
+    gimbal lock: a different, smaller fault than the one stated.)"""
+    z = np.asarray(z, dtype=float)
+    pairs = z.reshape(len(z), -1, 2)
+    return tilt_from_accelerometer(gravity_direction_from_tilt(pairs)).reshape(z.shape)

@@ -10,8 +10,9 @@ returns plain data; :func:`summarise_beyond` turns the trials into means with 95
   ``spikes``: a share ``spike_fraction`` of the samples gets an isolated (never
   adjacent) +-``spike_deg`` spike on roll and pitch (independent signs); ``bursts``:
   ``round(burst_fraction n)`` non-touching runs of ``burst_length`` samples, each one
-  +-``spike_deg`` offset. Corrupted pitch is clipped to +-90 deg (a real sensor's
-  range), roll wrapped. Score: mean tip error (mm) over the recording.
+  +-``spike_deg`` offset. Corrupted readings are what a real sensor reports for the
+  offset orientation (:func:`as_sensor_reads`: pitch inside +-90 deg, roll wrapped).
+  Score: mean tip error (mm) over the recording.
 * ``coverage``: MHE, EKF, UKF on clean data; per sample the tip error against the
   tip's 95 % intervals (per axis, and the ellipsoid of ``J P J^T``) and its NEES. The
   data are model-consistent for the measurement (noise isotropic on the tangent plane
@@ -44,7 +45,7 @@ from continuum_mhe.estimators import Method, make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.metrics import Z95
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.imu import wrap_angle
+from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import (
     MHELoss,
@@ -130,13 +131,6 @@ class BeyondSpec:
 
 
 # --- corruption ---------------------------------------------------------------------
-def _clip(z: FloatArray) -> FloatArray:
-    z = np.array(z, dtype=float)
-    z[:, 0] = wrap_angle(z[:, 0])
-    z[:, 1] = np.clip(z[:, 1], -math.pi / 2, math.pi / 2)
-    return z
-
-
 def spikes(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
     """Isolated spikes on ``spike_fraction`` of the samples; ``(z, corrupted mask)``."""
     rng = np.random.default_rng(20_000 + spec.seed)
@@ -152,7 +146,7 @@ def spikes(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
     out[idx] += math.radians(spec.spike_deg) * rng.choice([-1.0, 1.0], size=(k, 2))
     mask = np.zeros(n, dtype=bool)
     mask[idx] = True
-    return _clip(out), mask
+    return as_sensor_reads(out), mask
 
 
 def bursts(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
@@ -170,14 +164,14 @@ def bursts(z: FloatArray, spec: BeyondSpec) -> tuple[FloatArray, FloatArray]:
     for s in sorted(starts):
         out[s : s + b] += math.radians(spec.spike_deg) * rng.choice([-1.0, 1.0], size=2)
         mask[s : s + b] = True
-    return _clip(out), mask
+    return as_sensor_reads(out), mask
 
 
 def bad_start(z: FloatArray, t: FloatArray, spec: BeyondSpec) -> FloatArray:
     """The readings before ``spec.bad_s`` s offset by ``spec.bad_deg`` on roll and pitch."""
     out = np.array(z, dtype=float)
     out[t < spec.bad_s] += math.radians(spec.bad_deg)
-    return _clip(out)
+    return as_sensor_reads(out)
 
 
 # --- scores -------------------------------------------------------------------------
