@@ -18,6 +18,7 @@ from continuum_mhe.model.robot import Robot, theta_max_hint
 from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
+    FREEZE_MIN_SAMPLES,
     MHE_LOSSES,
     MHELoss,
     MHESettings,
@@ -287,8 +288,9 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=FREEZE_S,
         metavar="SECONDS",
-        help="an IMU whose reading repeats exactly for longer than this is treated as "
-        f"dropped out until it changes; 0: never (default {FREEZE_S:g})",
+        help="an IMU whose reading repeats exactly for longer than this, over at least "
+        f"{FREEZE_MIN_SAMPLES} consecutive samples, is treated as dropped out until it "
+        f"changes; 0: never (default {FREEZE_S:g})",
     )
     g.add_argument(
         "--bad-start",
