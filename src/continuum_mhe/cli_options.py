@@ -398,6 +398,10 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "points": OptionRange(1, 10_000, integer=True),
     "web_port": OptionRange(1, 65535, integer=True),
     "grpc_port": OptionRange(1, 65535, integer=True),
+    "still_acc_std": OptionRange(0.0, 10.0, "m/s^2", lo_open=True,
+                                 above="a spread of 1 g is no robot at rest; it is in m/s^2"),
+    "still_gyro_std": OptionRange(0.0, 5.0, "rad/s", lo_open=True,
+                                  above="degrees? --still-gyro-std is in rad/s"),
 }  # fmt: skip
 
 
