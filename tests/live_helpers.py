@@ -140,11 +140,16 @@ def specific_force(roll: float, pitch: float, g: float = 9.80665) -> np.ndarray:
     )
 
 
-def raw_lines(t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0)) -> list[str]:
+def raw_lines(
+    t0_ms: int, n: int, dt_ms: int = 20, skip: range = range(0), gyro_scale: float = 1.0
+) -> list[str]:
     """``n`` lines of one raw IMU (the paper3d scenario, noise-free, 0.2 m) from
-    ``t0_ms`` every ``dt_ms``, leaving out the samples in ``skip``."""
+    ``t0_ms`` every ``dt_ms``, leaving out the samples in ``skip``; the gyro (rad/s)
+    times ``gyro_scale`` (``180 / pi``: a board that sends deg/s, median 41 over the
+    first 100 samples at 20 ms)."""
     rec = simulate("paper3d", duration=(n - 1) * dt_ms / 1e3, dt=dt_ms / 1e3, noise_deg=0.0)
     acc, gyr = raw_imu_readings(rec.t, rec.truth[:, 3], rec.truth[:, 4], 0.2)
+    gyr = gyr * gyro_scale
     return [
         raw_line(t0_ms + i * dt_ms, a[None], g[None]) + "\n"
         for i, (a, g) in enumerate(zip(acc, gyr))

@@ -188,3 +188,75 @@ def test_calibrate_refuses_a_moving_recording() -> None:
     assert rest.returncode == 0, rest.stderr
     bend = _calibrate_cli("--from", str(data / "planar-s_bend.csv"), "--robot", "two-section")
     assert bend.returncode == 2 and "--bend BEND.csv" in bend.stderr
+
+
+def _calibrate_main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    from continuum_mhe.cli import main
+
+    code = main(["calibrate", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_the_stillness_bounds_are_options_for_a_noisier_imu(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: STILL_ACC_STD and STILL_GYRO_STD were fixed, so a still robot with an IMU
+    noisier than the MPU9250 (here +-0.3 m/s^2 on ay, std 0.3; +-0.06 rad/s on gx) could
+    not be calibrated. The default still refuses it and says which option to raise;
+    --still-acc-std and --still-gyro-std let it pass, with the exact mounting."""
+    n = 400
+    values = _rest_values(n, 0.3, 0.06, tilt_deg=5.0)
+    t = 0.01 * np.arange(n)
+    path = tmp_path / "noisy_rest.csv"
+    rows = np.column_stack([t, values])
+    path.write_text(
+        "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
+    )
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 2 and out == ""
+    assert err == (
+        f"continuum-mhe: error: {path}: the robot moved: IMU 1's accelerometer spread (std of "
+        "ay) is 0.3 m/s^2, above the 0.2 m/s^2 of a still robot; calibrate needs it straight "
+        "and still (a bend in a known plane goes to --bend BEND.csv); if the robot was still, "
+        "raise --still-acc-std\n"
+    )
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--still-acc-std", "0.4")
+    assert code == 2 and out == ""  # now the gyro's spread is the one beyond its bound
+    assert "IMU 1's gyro spread (std of gx) is 0.0601 rad/s, above the 0.05 rad/s" in err
+    assert err.endswith("; if the robot was still, raise --still-gyro-std\n")
+    args = ["--from", str(path), "--still-acc-std", "0.4", "--still-gyro-std", "0.1"]
+    code, out, err = _calibrate_main(capsys, *args)
+    assert code == 0, err
+    assert "IMU 1: mounting with the robot straight: --mount-rpy 5.00," in out  # pitch 0
+
+
+def test_the_tilt_stillness_bound_follows_still_acc_std(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tilt recording's bound is --still-acc-std over g (default 0.2 / 9.81 = 0.0204 rad)."""
+    n = 200
+    sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    path = tmp_path / "tilt_rest.csv"
+    rows = [f"{0.01 * i!r},{0.1 + 0.03 * float(sign[i])!r},-0.2" for i in range(n)]
+    path.write_text("t,roll,pitch\n" + "\n".join(rows) + "\n")
+    code, _, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 2 and "above the 0.0204 rad of a still robot" in err
+    assert err.endswith("raise --still-acc-std\n")
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--still-acc-std", "0.4")
+    assert code == 0, err
+    assert "IMU 1: roll mean 5.730 deg" in out
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "needle"),
+    [
+        ("--still-acc-std", "0", "--still-acc-std 0.0 is outside its valid range (0, 10] m/s^2"),
+        ("--still-gyro-std", "50", "degrees? --still-gyro-std is in rad/s"),
+    ],
+)
+def test_the_stillness_options_are_range_checked(
+    capsys: pytest.CaptureFixture[str], option: str, value: str, needle: str
+) -> None:
+    code, out, err = _calibrate_main(capsys, "--from", "unread.csv", option, value)
+    assert code == 2 and out == "" and needle in err and err.count("\n") == 1

@@ -5,11 +5,15 @@ replayed by ``estimate``; and the session's parts (protocol, clock, files) alone
 
 from __future__ import annotations
 
+import contextlib
+import io
+import math
 import os
 import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -360,3 +364,71 @@ def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> No
         "check --format, --robot and --baud"
     )
     assert not out.exists()
+
+
+
+def _deg_s_stream(n: int) -> list[str]:
+    """``n`` raw lines at 50 Hz whose gyro is in deg/s (median 41 over the first 100)."""
+    return [ln.rstrip("\n") for ln in raw_lines(1000, n, gyro_scale=180 / math.pi)]
+
+
+def _estimate_says(tmp_path: Path, lines: list[str], options: list[str]) -> str:
+    """``estimate``'s stderr for ``lines`` as a raw CSV (``t`` in s), its warnings as
+    the command line prints them, the file's name replaced by ``PORT``."""
+    from continuum_mhe.cli import main
+
+    raw = tmp_path / "same.csv"
+    rows = [f"{int(ln.split(',', 1)[0]) / 1e3!r},{ln.split(',', 1)[1]}" for ln in lines]
+    raw.write_text("t,ax,ay,az,gx,gy,gz\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "same_est.csv"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        main(["estimate", str(raw), "-o", str(out), "--method", "ekf", *options])
+    said = "".join(f"continuum-mhe: warning: {w.message}\n" for w in caught) + err.getvalue()
+    return said.replace(str(raw), "PORT")
+
+
+def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Path) -> None:
+    """Before: live had no gyro-unit check: with --imu-model direct a deg/s gyro (57
+    times too fast) was estimated on for the whole session, exit 0. Now: the first 100
+    samples estimated as they arrive, then the summary, estimate's one line for the same
+    samples (naming the port) and exit 2, the lines queued after them left."""
+    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    master = new_pty(port)
+    lines = _deg_s_stream(GYRO_CHECK_SAMPLES + 100)
+    args = ["--port", str(port), "--method", "ekf", "--imu-model", "direct"]
+    live = LiveProcess([*args, "--duration", "30", "-o", str(out)])
+    start = time.monotonic()
+    code = send_and_finish(live, master, lines)
+    assert code == 2, live.err
+    assert time.monotonic() - start < 25  # stopped at the check, not at --duration
+    err = live.err.splitlines()
+    said = _estimate_says(tmp_path, lines[:GYRO_CHECK_SAMPLES], ["--imu-model", "direct"])
+    (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
+    assert expected.startswith("continuum-mhe: error: PORT: gyro magnitude is about 41 ")
+    assert err[-1] == expected.replace("PORT", str(port))
+    summary = f"live: {GYRO_CHECK_SAMPLES} samples, {GYRO_CHECK_SAMPLES - 1} estimates; "
+    assert sum(ln.startswith(summary) for ln in err) == 1, live.err
+    assert data_rows(out) == GYRO_CHECK_SAMPLES - 1  # those estimated before the check
+    assert sum("gyro magnitude" in ln for ln in err) == 1
+
+
+def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) -> None:
+    """Tilt from the accelerometer (the default): estimate's warning, once, and the
+    session goes on to estimate every sample (exit 0)."""
+    port = tmp_path / "ttyIMU"
+    master = new_pty(port)
+    lines = _deg_s_stream(300)
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--duration", "3"])
+    code = send_and_finish(live, master, lines)
+    assert code == 0, live.err
+    said = _estimate_says(tmp_path, lines[:100], [])
+    (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
+    assert expected.startswith("continuum-mhe: warning: PORT: gyro magnitude is about 41 ")
+    assert expected.endswith("these options do not use the gyro, so the estimate is unaffected")
+    err = live.err.splitlines()
+    assert [ln for ln in err if "gyro magnitude" in ln] == [expected.replace("PORT", str(port))]
+    assert any(ln.startswith("live: 300 samples, 300 estimates; ") for ln in err), live.err

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import io
+import math
 import os
 import time
 from pathlib import Path
@@ -16,6 +17,7 @@ import pytest
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Estimate
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings, NoiseSettings
@@ -327,3 +329,101 @@ def test_field_count_hint(line: str, fmt: str, n_imus: int, hint: str) -> None:
 
     got = field_count_hint(line, fmt, n_imus)  # type: ignore[arg-type]
     assert (hint in got) if hint else got == ""
+
+
+def _deg_s_lines(n: int, degrees: bool = True) -> list[str]:
+    """``n`` raw lines at 50 Hz whose gyro is in deg/s (median 41 over the first 100), as
+    a board that skips the conversion sends; rad/s with ``degrees=False``."""
+    from live_helpers import raw_lines
+
+    scale = 180 / math.pi if degrees else 1.0
+    return [ln.rstrip("\n") for ln in raw_lines(0, n, gyro_scale=scale)]
+
+
+def _raw_session(raw: RawImuSettings) -> tuple[LiveSession, list[str], io.StringIO]:
+    from continuum_mhe.model.direct import DirectFormulation
+    from continuum_mhe.stream.session import imu_converters
+
+    said: list[str] = []
+    robot = Robot.single()
+    f = (
+        DirectFormulation(robot=robot)
+        if raw.imu_model == "direct"
+        else make_formulation("bend", robot, NoiseSettings())
+    )
+    out = io.StringIO()
+    s = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"),
+        make_estimator("ekf", f),
+        imu_converters(raw, robot),
+        out,
+        say=said.append,
+    )
+    return s, said, out
+
+
+def _handle(s: LiveSession, lines: list[str]) -> None:
+    now = time.monotonic()
+    for i, line in enumerate(lines):
+        s.handle_line(line.encode(), now + 0.001 * i)
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [RawImuSettings(imu_model="direct"), RawImuSettings(attitude="madgwick")],
+    ids=["direct", "madgwick"],
+)
+def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSettings) -> None:
+    """Before: live had no gyro-unit check (estimate has one for raw files): a deg/s gyro
+    streamed on with estimates 57 times too fast. Now the first GYRO_CHECK_SAMPLES
+    samples are estimated while they arrive, and at the last of them the session stops
+    (fatal: run_live says the summary and raises it), later lines ignored."""
+    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+
+    s, said, out = _raw_session(raw)
+    lines = _deg_s_lines(GYRO_CHECK_SAMPLES + 20)
+    _handle(s, lines[: GYRO_CHECK_SAMPLES - 1])
+    assert s.fatal is None and s.counts.estimates == GYRO_CHECK_SAMPLES - 1  # not held back
+    _handle(s, lines[GYRO_CHECK_SAMPLES - 1 :])
+    assert s.fatal is not None and s.fatal.startswith(
+        "/dev/ttyIMU: gyro magnitude is about 41 (median), implausible in rad/s (above 5): "
+        "deg/s? give rad/s (gx, gy, gz times pi/180 = 0.0174533)"
+    )
+    assert s.counts.estimates == GYRO_CHECK_SAMPLES - 1  # the last checked one: not estimated
+    assert s.counts.samples == GYRO_CHECK_SAMPLES  # the lines after it: ignored
+    assert len(out.getvalue().splitlines()) == GYRO_CHECK_SAMPLES  # header + estimates
+    s.check_gyro_units()  # once: a second call neither says nor changes anything
+    assert s.fatal.startswith("/dev/ttyIMU: gyro magnitude")
+
+
+def test_live_warns_once_about_a_deg_s_gyro_it_does_not_use() -> None:
+    """Tilt from the accelerometer (the default): one UnitWarning, as estimate gives for
+    a raw file, and every sample is estimated."""
+    from continuum_mhe.io.csv_files import UnitWarning
+
+    s, said, _ = _raw_session(RawImuSettings())
+    lines = _deg_s_lines(250)
+    with pytest.warns(UnitWarning) as caught:
+        _handle(s, lines)
+    assert [str(w.message) for w in caught] == [
+        "/dev/ttyIMU: gyro magnitude is about 41 (median), implausible in rad/s (above 5): "
+        "deg/s? give rad/s (gx, gy, gz times pi/180 = 0.0174533); these options do not use "
+        "the gyro, so the estimate is unaffected"
+    ]
+    assert s.fatal is None and s.counts.estimates == 250
+
+
+def test_live_gyro_in_rad_s_passes_and_a_short_session_is_checked_at_its_end() -> None:
+    import warnings
+
+    s, _, _ = _raw_session(RawImuSettings(imu_model="direct"))
+    rad = _deg_s_lines(150, degrees=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _handle(s, rad)
+    assert s.fatal is None and s.counts.estimates == 150
+    short, _, _ = _raw_session(RawImuSettings(imu_model="direct"))
+    _handle(short, _deg_s_lines(30))
+    assert short.fatal is None and short.counts.estimates == 30  # too few yet
+    short.check_gyro_units()  # run_live at the session's end
+    assert short.fatal is not None and "deg/s? give rad/s" in short.fatal

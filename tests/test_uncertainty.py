@@ -40,7 +40,12 @@ from continuum_mhe.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import EstimateSeries
-from continuum_mhe.settings import MHESettings, RecoverySettings, RobotSettings
+from continuum_mhe.settings import (
+    FREEZE_MIN_SAMPLES,
+    MHESettings,
+    RecoverySettings,
+    RobotSettings,
+)
 from continuum_mhe.simulation.scenarios import simulate
 
 
@@ -302,6 +307,56 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
     assert set(s.status[frozen & ~late]) <= {"ok"}
     assert est.frozen_samples == int(late.sum())
     assert set(s.status[rec.t >= 4]) <= {"ok", "uncertain"}  # the reading changes: used again
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str) -> None:
+    """Before: the freeze rule looked only at how long a reading stayed the same, so the
+    second of two equal readings 60 s apart (tests/data/fuzz/long_gap.csv) was taken
+    as frozen and dropped. A gap is not a sensor seen stuck: both readings are used
+    (the gap reset restarts from the second)."""
+    est = make_estimator(
+        method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
+    )
+    s = est.run(np.array([0.0, 60.0, 60.05]), np.array([[0.1, 0.1], [0.1, 0.1], [0.5, -0.2]]))
+    assert est.frozen_samples == 0 and est.first_freezes == {}
+    assert "dropout" not in set(s.status) and "no-estimate" not in set(s.status)
+    assert s.status[1] == "reset" and est.gap_resets == 1
+
+
+@pytest.mark.parametrize(("dt", "first"), [(0.05, 21), (0.5, 4), (20.0, 4)])
+def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(dt: float, first: int) -> None:
+    """The same reading at FREEZE_MIN_SAMPLES consecutive samples spanning more than
+    ``freeze`` s is a freeze from the sample at which both hold (index ``first``; the
+    duration alone said 3 at 2 Hz and 1 at 0.05 Hz); one sample fewer, however long it
+    spans, is not; at 20 Hz the duration decides, as before the count."""
+    n = FREEZE_MIN_SAMPLES
+    assert n == 5  # the documented minimum (settings.FREEZE_MIN_SAMPLES, docs/uncertainty.md)
+    k = 30
+    t = dt * np.arange(k)
+    z = np.tile([0.1, -0.2], (k, 1))
+    est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
+    s = est.run(t, z)
+    assert set(s.status[:first]) <= {"ok"} and set(s.status[first:]) <= {"dropout", "no-estimate"}
+    assert est.frozen_samples == k - first and est.first_freezes == {0: 0.0}
+    # n - 1 equal readings, then a change: never a freeze, however long they span
+    est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
+    z2 = z[: n + 1].copy()
+    z2[n - 1 :] = [0.3, 0.0]
+    est.run(t[: n + 1], z2)
+    assert est.frozen_samples == 0
+
+
+def test_freeze_samples_are_validated() -> None:
+    assert RecoverySettings().freeze_samples == FREEZE_MIN_SAMPLES
+    for bad in (1, 0, 2.5, True):
+        with pytest.raises(ValueError, match="freeze_samples"):
+            RecoverySettings(freeze_samples=bad)  # type: ignore[arg-type]
+    est = make_estimator(
+        "ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, freeze_samples=2)
+    )
+    est.run(np.array([0.0, 60.0]), np.array([[0.1, 0.1], [0.1, 0.1]]))
+    assert est.frozen_samples == 1  # a caller may ask for the duration alone
 
 
 def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:

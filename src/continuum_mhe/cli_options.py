@@ -18,6 +18,7 @@ from continuum_mhe.model.robot import Robot, theta_max_hint
 from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
+    FREEZE_MIN_SAMPLES,
     MHE_LOSSES,
     MHELoss,
     MHESettings,
@@ -287,8 +288,9 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=FREEZE_S,
         metavar="SECONDS",
-        help="an IMU whose reading repeats exactly for longer than this is treated as "
-        f"dropped out until it changes; 0: never (default {FREEZE_S:g})",
+        help="an IMU whose reading repeats exactly for longer than this, over at least "
+        f"{FREEZE_MIN_SAMPLES} consecutive samples, is treated as dropped out until it "
+        f"changes; 0: never (default {FREEZE_S:g})",
     )
     g.add_argument(
         "--bad-start",
@@ -396,6 +398,10 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "points": OptionRange(1, 10_000, integer=True),
     "web_port": OptionRange(1, 65535, integer=True),
     "grpc_port": OptionRange(1, 65535, integer=True),
+    "still_acc_std": OptionRange(0.0, 10.0, "m/s^2", lo_open=True,
+                                 above="a spread of 1 g is no robot at rest; it is in m/s^2"),
+    "still_gyro_std": OptionRange(0.0, 5.0, "rad/s", lo_open=True,
+                                  above="degrees? --still-gyro-std is in rad/s"),
 }  # fmt: skip
 
 

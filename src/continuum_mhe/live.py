@@ -70,7 +70,10 @@ def run_live(
     processed before returning. ``plot``: anything with ``update(estimate, outputs)``,
     called at each status line; ``view.log_estimate(est)`` (``--view``) sees every
     estimate. Returns the exit status (0); a run that read lines but not one valid
-    sample (every line garbled) raises :class:`InputError` naming the first one's cause."""
+    sample (every line garbled) raises :class:`InputError` naming the first one's cause,
+    and so does a gyro in deg/s where the estimate uses it (checked once on the first
+    raw samples, :meth:`LiveSession.check_gyro_units`): the run stops there, the lines
+    still queued are left, and the summary is said before the error."""
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
@@ -102,6 +105,8 @@ def run_live(
             now = time.monotonic()
             if kind == "line":
                 est = session.handle_line(payload, arrival)
+                if session.fatal is not None:
+                    break
                 if est is not None:
                     window_n += 1
                     if view is not None:
@@ -157,13 +162,18 @@ def run_live(
                     break
                 if kind == "line":
                     session.handle_line(payload, arrival)
+                    if session.fatal is not None:
+                        break
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")
     finally:
         stop_deferring()
         reader.stop.set()
+    if session.fatal is not None:
+        reader.join(timeout=1.0)  # it closes the port (reads time out after 0.05 s)
+    session.check_gyro_units()  # a session shorter than the check's samples: on them all
     say(session.summary())
-    failed = session.only_garbled()
+    failed = session.fatal or session.only_garbled()
     if failed:
         raise InputError(failed)
     return 0

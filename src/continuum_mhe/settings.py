@@ -154,6 +154,18 @@ class MHESettings:
             return math.inf
         return DEFAULT_LOSS_SCALE[self.loss] if self.loss_scale is None else self.loss_scale
 
+
+#: The fewest consecutive samples with one same reading that can be a frozen sensor
+#: (``RecoverySettings.freeze_samples``). The duration alone cannot tell a stuck sensor
+#: from a gap in the data: two equal readings 60 s apart say nothing about the time
+#: between them. Five in a row is a sensor seen stuck at five instants (a live IMU's
+#: noise makes even two exact repeats uncommon), and a reading repeated for more than
+#: 1 s (the command line's ``--freeze``) at 3 Hz or more already spans five samples, so
+#: at the usual rates the duration decides as before and only slow or gappy data feel
+#: the count.
+FREEZE_MIN_SAMPLES = 5
+
+
 @dataclass(frozen=True)
 class RecoverySettings:
     """How every estimator recovers from gaps and frozen sensors, and when it says its
@@ -165,8 +177,13 @@ class RecoverySettings:
             instead of continuing from a blind prediction; None: never (the library's
             default; the command line's ``--gap-reset`` default is 1 s).
         freeze: a sensor (measurement block) whose reading repeats exactly for longer
-            than this (s) is treated as dropped out until its reading changes; None:
-            never (command line ``--freeze``, default 1 s).
+            than this (s), over at least ``freeze_samples`` consecutive samples, is
+            treated as dropped out until its reading changes; None: never (command line
+            ``--freeze``, default 1 s).
+        freeze_samples: the fewest consecutive samples with the same reading (the first
+            one included) that can be a freeze (default :data:`FREEZE_MIN_SAMPLES`);
+            the duration alone is not enough: two equal readings 60 s apart are a gap in
+            the data, not a sensor seen to be stuck.
         bad_start: for this long (s) after each (re)start, ``SAMPLES`` consecutive readings
             inconsistent with the estimate (normalised innovation beyond a chi-square
             quantile; :mod:`continuum_mhe.estimators.start_check`) restart the
@@ -189,6 +206,8 @@ class RecoverySettings:
     uncertain_fraction: float = 0.1
     bad_start: float | None = None
     reject_reset: float | None = 0.5
+    # last, so that the fields before it keep their positions
+    freeze_samples: int = FREEZE_MIN_SAMPLES
 
     def __post_init__(self) -> None:
         for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
@@ -196,3 +215,6 @@ class RecoverySettings:
             if value is not None:
                 _positive(name, value)
         _positive("uncertain_fraction", self.uncertain_fraction)
+        n = self.freeze_samples
+        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 2):
+            raise UserError(f"freeze_samples must be an integer >= 2, got {n!r}")

@@ -129,6 +129,7 @@ class Estimator(ABC):
             )
         self._freeze_value: list[FloatArray | None] = []
         self._freeze_since: list[float] = []
+        self._freeze_count: list[int] = []  # consecutive samples with that reading
         self._last_valid_t = -math.inf
         self._tilt = [
             i for b in formulation.measurement_blocks if b.kind == "tilt" for i in range(
@@ -142,6 +143,7 @@ class Estimator(ABC):
         self._last_valid_t = -math.inf
         self._freeze_value = [None] * len(self.formulation.measurement_blocks)
         self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._freeze_count = [0] * len(self.formulation.measurement_blocks)
         self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
         self._restart()
 
@@ -182,20 +184,28 @@ class Estimator(ABC):
 
     def _unfreeze(self, m: Measurement) -> Measurement:
         """``m`` with every sensor whose reading has repeated exactly for longer than
-        ``recovery.freeze`` seconds marked as dropped out (NaN)."""
+        ``recovery.freeze`` seconds, over at least ``recovery.freeze_samples``
+        consecutive samples, marked as dropped out (NaN)."""
         freeze = self.recovery.freeze
         if freeze is None:
             return m
-        if len(self._freeze_value) != len(self.formulation.measurement_blocks):
-            self._freeze_value = [None] * len(self.formulation.measurement_blocks)
-            self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
+        n_blocks = len(self.formulation.measurement_blocks)
+        if len(self._freeze_value) != n_blocks or len(self._freeze_count) != n_blocks:
+            self._freeze_value = [None] * n_blocks
+            self._freeze_since = [-math.inf] * n_blocks
+            self._freeze_count = [0] * n_blocks
+        min_samples = self.recovery.freeze_samples
         z: FloatArray | None = None
         for k, b in enumerate(self.formulation.measurement_blocks):
             zb = m.z[b.slice]
             last = self._freeze_value[k]
             if last is None or not np.array_equal(zb, last):  # NaN never repeats
                 self._freeze_value[k], self._freeze_since[k] = zb.copy(), m.t
-            elif m.t - self._freeze_since[k] > freeze:
+                self._freeze_count[k] = 1
+                continue
+            self._freeze_count[k] += 1
+            # both: two equal readings with a long gap between them are not a freeze
+            if self._freeze_count[k] >= min_samples and m.t - self._freeze_since[k] > freeze:
                 if z is None:
                     z = m.z.copy()
                 z[b.slice] = np.nan
@@ -212,19 +222,19 @@ class Estimator(ABC):
         numerically failed step restarts the estimator from this sample's measurement;
         that estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
         ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor
-        frozen longer than ``freeze`` s counts as dropped out; the first valid sample
-        after more than ``gap_reset`` s without one restarts the estimator the same
-        way (``reset``), and so do readings inconsistent with the estimate within
-        ``bad_start`` s of a (re)start (:mod:`.start_check`) and, for a robust MHE, a
-        valid reading after every reading of more than ``reject_reset`` s was rejected
-        as an outlier (the estimate, not the sensor, is taken as lost); an ``ok`` estimate whose
-        tip standard deviation exceeds ``uncertain_fraction`` of the robot's length is
-        ``uncertain``, and so is every ``ok``, ``fallback-ipopt`` or ``branch-restart``
-        estimate (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
+        frozen longer than ``freeze`` s (over ``freeze_samples`` samples or more) counts
+        as dropped out; the first valid sample after more than ``gap_reset`` s without
+        one restarts the estimator the same way (``reset``), and so do readings
+        inconsistent with the estimate within ``bad_start`` s of a (re)start
+        (:mod:`.start_check`) and, for a robust MHE, a valid reading after every reading
+        of more than ``reject_reset`` s was rejected as an outlier (the estimate, not
+        the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
+        exceeds ``uncertain_fraction`` of the robot's length is ``uncertain``, and so is
+        every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
+        (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
         not (an IMU silent for longer: its part of the shape is predicted blindly). The
-        estimate
-        carries ``output_std`` wherever the method has a covariance.
+        estimate carries ``output_std`` wherever the method has a covariance.
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds

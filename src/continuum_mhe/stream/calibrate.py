@@ -46,7 +46,8 @@ from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hin
 #: 41 Hz) is within about 0.025 m/s^2 and 0.0015 rad/s at rest (the shipped rest
 #: recordings: 0.02 m/s^2 and 0.0018 rad/s); the bounds are 8 and 30 times that, and a
 #: robot moving by a degree (rms) reaches the accelerometer's. The gyro's mean is not
-#: a sign of motion: it is the bias that calibrate measures.
+#: a sign of motion: it is the bias that calibrate measures. The defaults of
+#: ``--still-acc-std`` and ``--still-gyro-std``: a noisier IMU raises them.
 STILL_ACC_STD = 0.2  # m/s^2 (0.2 / 9.81 rad = 1.2 deg of tilt)
 STILL_GYRO_STD = 0.05  # rad/s (2.9 deg/s)
 STILL_TILT_STD = STILL_ACC_STD / STANDARD_GRAVITY  # rad, for tilt (roll, pitch) recordings
@@ -115,26 +116,36 @@ def calibrate(
     )
 
 
-def motion_at_rest(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | None:
+def motion_at_rest(
+    values: FloatArray,
+    fmt: LineFormat,
+    n_imus: int,
+    acc_std: float = STILL_ACC_STD,
+    gyro_std: float = STILL_GYRO_STD,
+) -> str | None:
     """Why the samples ``values`` (n, k * n_imus) are not of a still robot, or None:
     the largest spread (standard deviation of one axis over the recording) beyond its
-    bound (:data:`STILL_ACC_STD`, :data:`STILL_GYRO_STD`, :data:`STILL_TILT_STD`),
-    named with the IMU and axis. Tilt angles are compared on the circle (a hanging
-    robot's roll near +-pi is still)."""
+    bound (``acc_std`` m/s^2, ``gyro_std`` rad/s, and for tilt ``acc_std`` / g rad:
+    :data:`STILL_ACC_STD`, :data:`STILL_GYRO_STD`, :data:`STILL_TILT_STD` by default),
+    named with the IMU and axis, and the option that raises that bound. Tilt angles
+    are compared on the circle (a hanging robot's roll near +-pi is still)."""
     k = VALUES_PER_IMU[fmt]
-    checks: list[tuple[str, int, str, float, tuple[str, ...]]]
+    checks: list[tuple[str, int, str, float, tuple[str, ...], str]]
     if fmt == "raw":
-        checks = [("accelerometer", 0, "m/s^2", STILL_ACC_STD, ("ax", "ay", "az")),
-                  ("gyro", 3, "rad/s", STILL_GYRO_STD, ("gx", "gy", "gz"))]  # fmt: skip
+        checks = [
+            ("accelerometer", 0, "m/s^2", acc_std, ("ax", "ay", "az"), "--still-acc-std"),
+            ("gyro", 3, "rad/s", gyro_std, ("gx", "gy", "gz"), "--still-gyro-std"),
+        ]
     else:
-        checks = [("tilt", 0, "rad", STILL_TILT_STD, ("roll", "pitch"))]
-    worst: tuple[float, str] | None = None
+        tilt_std = acc_std / STANDARD_GRAVITY
+        checks = [("tilt", 0, "rad", tilt_std, ("roll", "pitch"), "--still-acc-std")]
+    worst: tuple[float, str, str] | None = None
     for i in range(n_imus):
         block = values[:, k * i : k * (i + 1)]
         block = block[np.all(np.isfinite(block), axis=1)]
         if len(block) < 2:
             continue
-        for what, first, unit, bound, names in checks:
+        for what, first, unit, bound, names, option in checks:
             part = block[:, first : first + len(names)]
             if fmt == "tilt":  # deviations from the circular mean, wrapped
                 mean = np.arctan2(np.sin(part).mean(axis=0), np.cos(part).mean(axis=0))
@@ -147,12 +158,14 @@ def motion_at_rest(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | No
                     ratio,
                     f"IMU {i + 1}'s {what} spread (std of {names[j]}) is "
                     f"{spread[j]:.3g} {unit}, above the {bound:.3g} {unit} of a still robot",
+                    option,
                 )
     if worst is None:
         return None
     return (
         f"the robot moved: {worst[1]}; calibrate needs it straight and still "
-        "(a bend in a known plane goes to --bend BEND.csv)"
+        f"(a bend in a known plane goes to --bend BEND.csv); if the robot was still, raise "
+        f"{worst[2]}"
     )
 
 
@@ -315,7 +328,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         fmt = args.format
         t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
         source = args.port
-    moved = motion_at_rest(values, fmt, robot.n_imus)
+    moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, args.still_gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
@@ -349,8 +362,9 @@ def register_calibrate(subparsers: Any) -> None:
         "calibrate",
         help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
         description="With the robot straight and still (a recording whose accelerometer "
-        "spreads over 0.2 m/s^2 or gyro over 0.05 rad/s, standard deviation per axis, is "
-        "refused): per IMU, the accelerometer's mean "
+        f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
+        "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
+        "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
         "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
         "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
         "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
@@ -377,4 +391,21 @@ def register_calibrate(subparsers: Any) -> None:
     add_robot_option(p, replaces=("--mounting",))
     p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    p.add_argument(
+        "--still-acc-std",
+        type=float,
+        default=STILL_ACC_STD,
+        metavar="M/S2",
+        help="largest accelerometer spread (standard deviation per axis, m/s^2) of a still "
+        "robot; for a tilt recording, this over g in rad (default "
+        f"{STILL_ACC_STD:g} m/s^2: 8 times the firmware's MPU9250 at rest)",
+    )
+    p.add_argument(
+        "--still-gyro-std",
+        type=float,
+        default=STILL_GYRO_STD,
+        metavar="RAD/S",
+        help="largest gyro spread (standard deviation per axis, rad/s) of a still robot "
+        f"(default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's MPU9250 at rest)",
+    )
     p.set_defaults(func=cmd_calibrate)

@@ -20,8 +20,8 @@ from continuum_mhe.estimators.base import (
     Measurement,
     _reraise_interrupt,
 )
-from continuum_mhe.io.csv_files import FloatArray, estimate_columns, estimate_row
-from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
+from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
+from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings, check_gyro_units
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
@@ -36,6 +36,12 @@ from continuum_mhe.stream.protocol import (
 )
 from continuum_mhe.stream.reader import stderr_say
 from continuum_mhe.stream.recording import csv_cell
+
+#: Raw lines: the gyro's unit is checked once (``check_gyro_units``, as ``estimate``
+#: checks a raw file), on the median of this many first samples (1 s at the firmware's
+#: 100 Hz), or of all the samples of a shorter session at its end. The samples are
+#: estimated meanwhile: the check never holds the stream back.
+GYRO_CHECK_SAMPLES = 100
 
 
 @dataclass(frozen=True)
@@ -232,6 +238,12 @@ class LiveSession:
         self._periods: deque[float] = deque(maxlen=50)
         self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
+        #: the first raw samples' values, until the gyro's unit is checked (None: checked,
+        #: or tilt lines without a gyro)
+        self._gyro_unchecked: list[FloatArray] | None = None if self.converters is None else []
+        #: why the session must stop (a gyro in deg/s where the estimate uses it): one
+        #: line, raised by :func:`~continuum_mhe.live.run_live`; no line is handled after
+        self.fatal: str | None = None
         self._restarted = False  # the estimator was restarted: flag its next estimate
         #: the next line is the first since the port opened (or reopened): the device may
         #: have been mid-line then, so if it does not parse it counts as partial
@@ -279,7 +291,10 @@ class LiveSession:
         )
 
     def handle_line(self, raw: bytes, arrival: float) -> Estimate | None:
-        """Process one line from the device; return its estimate, if it made one."""
+        """Process one line from the device; return its estimate, if it made one.
+        Once :attr:`fatal` is set, lines are ignored."""
+        if self.fatal is not None:
+            return None
         c = self.counts
         c.lines += 1
         try:
@@ -329,6 +344,12 @@ class LiveSession:
             c.out_of_order += 1
             return None
         c.samples += 1
+        if self._gyro_unchecked is not None:
+            self._gyro_unchecked.append(s.values)
+            if len(self._gyro_unchecked) >= GYRO_CHECK_SAMPLES:
+                self.check_gyro_units()
+                if self.fatal is not None:
+                    return None  # neither recorded nor estimated: the session stops
         restart = False
         if placed.event == "wrap":
             c.clock_wraps += 1
@@ -371,6 +392,25 @@ class LiveSession:
         self.latency.add(ms)
         self.latency_max_window = max(self.latency_max_window, ms)
         return est
+
+    def check_gyro_units(self) -> None:
+        """Check the gyro's unit on the raw samples so far, once (later calls do
+        nothing): each IMU's median rate above ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
+        deg/s, and sets :attr:`fatal` where the estimate uses the gyro, else warns
+        (``UnitWarning``) that it is ignored; the wording is ``estimate``'s for a raw
+        file, naming the port."""
+        seen, self._gyro_unchecked = self._gyro_unchecked, None
+        if not seen or self.converters is None:
+            return
+        values = np.asarray(seen, dtype=float).reshape(len(seen), -1)
+        used = self.converters[0].settings.needs_gyro
+        port = self.settings.port
+        try:
+            for i in range(self.n_imus):
+                label = port if self.n_imus == 1 else f"{port}: IMU {i + 1}"
+                check_gyro_units(label, values[:, 6 * i + 3 : 6 * i + 6], used)
+        except InputError as exc:
+            self.fatal = str(exc)
 
     def _measurement(self, t: float, values: FloatArray) -> FloatArray:
         if self.converters is None:
