@@ -242,10 +242,17 @@ def test_the_tilt_stillness_bound_follows_still_acc_std(
     path.write_text("t,roll,pitch\n" + "\n".join(rows) + "\n")
     code, _, err = _calibrate_main(capsys, "--from", str(path))
     assert code == 2 and "above the 0.0204 rad of a still robot" in err
-    assert err.endswith("raise --still-acc-std\n")
+    assert err.endswith("raise --still-acc-std (bound: it / g)\n")
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--still-acc-std", "0.4")
     assert code == 0, err
     assert "IMU 1: roll mean 5.730 deg" in out
+    # a tilt recording has no gyro: the gyro bound would do nothing, so it is refused
+    code, out, err = _calibrate_main(
+        capsys, "--from", str(path), "--still-acc-std", "0.4", "--still-gyro-std", "0.1"
+    )
+    assert (code, out) == (2, "") and err.endswith(
+        "tilt_rest.csv: --still-gyro-std needs a raw recording (this one is tilt)\n"
+    )
 
 
 @pytest.mark.parametrize(

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from continuum_mhe.benchmark_losses import with_spikes
 from continuum_mhe.cli import main
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import as_sensor_reads
@@ -23,6 +24,7 @@ from continuum_mhe.reproduce.figures import RENDERERS
 from continuum_mhe.reproduce.pipeline import RodTask, load_results, run_task
 from continuum_mhe.reproduce.runner import run_parallel
 from continuum_mhe.simulation import cosserat
+from continuum_mhe.simulation.scenarios import Recording
 
 FIGURES = (
     "exp1_synthetic3d_trajectory",
@@ -485,6 +487,15 @@ def test_beyond_corruptions() -> None:
     zb, mask = by.bursts(z, by.BeyondSpec("bursts", 3, 20.0))
     runs = np.diff(np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0])))[::2]
     assert list(runs) == [spec.burst_length] * round(spec.burst_fraction * n)
+    assert set(np.round(np.degrees(zb[mask, 1]), 9)) <= {50.0, 70.0}  # as the spikes
+    assert np.array_equal(zb[~mask], z[~mask])
+    bad = by.bad_start(z, np.arange(n) * 0.05, by.BeyondSpec("bad-start", 3, 20.0))
+    assert set(np.round(np.degrees(bad[:10, 1]), 9)) == {40.0}  # 80 + 60 reflected
+    # the loss benchmark's spikes are made the same way
+    rec = Recording(t=np.arange(n) * 0.05, z=z, truth=np.zeros((n, 5)), length=0.2)
+    zl = with_spikes(rec).z
+    hit = np.any(zl != z, axis=1)
+    assert hit.sum() == 8 and set(np.round(np.degrees(zl[hit, 1]), 9)) <= {50.0, 70.0}
     with pytest.raises(UserError):
         by.BeyondSpec("gap", 0, 5.0)  # too short for the gap and the 2 s after
 

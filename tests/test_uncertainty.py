@@ -324,12 +324,15 @@ def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str
     assert s.status[1] == "reset" and est.gap_resets == 1
 
 
-@pytest.mark.parametrize(("dt", "first"), [(0.05, 21), (0.5, 4), (20.0, 4)])
-def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(dt: float, first: int) -> None:
+@pytest.mark.parametrize(("dt", "first"), [(0.05, 21), (0.5, 4), (0.9, 4), (20.0, None)])
+def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
+    dt: float, first: int | None
+) -> None:
     """The same reading at FREEZE_MIN_SAMPLES consecutive samples spanning more than
-    ``freeze`` s is a freeze from the sample at which both hold (index ``first``; the
-    duration alone said 3 at 2 Hz and 1 at 0.05 Hz); one sample fewer, however long it
-    spans, is not; at 20 Hz the duration decides, as before the count."""
+    ``freeze`` s, none more than ``freeze`` s after the one before, is a freeze from the
+    sample at which all hold (index ``first``; the duration alone said 3 at 2 Hz and 1
+    at 0.05 Hz); one sample fewer, however long it spans, is not; at 20 Hz the duration
+    decides, as before the count; samples 20 s apart (each a gap) are never one."""
     n = FREEZE_MIN_SAMPLES
     assert n == 5  # the documented minimum (settings.FREEZE_MIN_SAMPLES, docs/uncertainty.md)
     k = 30
@@ -337,26 +340,47 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(dt: float, fi
     z = np.tile([0.1, -0.2], (k, 1))
     est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
     s = est.run(t, z)
-    assert set(s.status[:first]) <= {"ok"} and set(s.status[first:]) <= {"dropout", "no-estimate"}
-    assert est.frozen_samples == k - first and est.first_freezes == {0: 0.0}
-    # n - 1 equal readings, then a change: never a freeze, however long they span
+    if first is None:
+        assert est.frozen_samples == 0 and est.first_freezes == {}
+    else:
+        assert set(s.status[:first]) <= {"ok"}
+        assert set(s.status[first:]) <= {"dropout", "no-estimate"}
+        assert est.frozen_samples == k - first and est.first_freezes == {0: 0.0}
+    # n - 1 equal readings 0.5 s apart (2 s in all, longer than the freeze), then a
+    # change: never a freeze
     est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
     z2 = z[: n + 1].copy()
     z2[n - 1 :] = [0.3, 0.0]
-    est.run(t[: n + 1], z2)
+    est.run(0.5 * np.arange(n + 1), z2)
     assert est.frozen_samples == 0
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_equal_readings_on_both_sides_of_a_gap_are_not_a_freeze(method: str) -> None:
+    """Five equal readings in 0.2 s, a 60 s gap, the same reading again: the count is
+    reached and the span is 60 s, but nobody saw the sensor stuck through the gap, so
+    it is not a freeze (the gap reset restarts from the reading after it)."""
+    t = np.r_[0.05 * np.arange(5), 60.0, 60.05]
+    z = np.r_[np.tile([0.1, 0.1], (6, 1)), [[0.5, -0.2]]]
+    est = make_estimator(
+        method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
+    )
+    s = est.run(t, z)
+    assert est.frozen_samples == 0 and est.first_freezes == {}
+    assert s.status[5] == "reset" and "dropout" not in set(s.status)
 
 
 def test_freeze_samples_are_validated() -> None:
     assert RecoverySettings().freeze_samples == FREEZE_MIN_SAMPLES
-    for bad in (1, 0, 2.5, True):
+    assert RecoverySettings(freeze_samples=np.int64(3)).freeze_samples == 3
+    for bad in (1, 0, 2.5, True, np.int64(1)):
         with pytest.raises(ValueError, match="freeze_samples"):
             RecoverySettings(freeze_samples=bad)  # type: ignore[arg-type]
     est = make_estimator(
         "ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, freeze_samples=2)
     )
-    est.run(np.array([0.0, 60.0]), np.array([[0.1, 0.1], [0.1, 0.1]]))
-    assert est.frozen_samples == 1  # a caller may ask for the duration alone
+    est.run(np.array([0.0, 0.6, 1.2]), np.tile([0.1, 0.1], (3, 1)))
+    assert est.frozen_samples == 1  # a caller may ask for fewer repeats (the default sees none)
 
 
 def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:

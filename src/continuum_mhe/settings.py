@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Literal
 
@@ -177,8 +178,9 @@ class RecoverySettings:
             instead of continuing from a blind prediction; None: never (the library's
             default; the command line's ``--gap-reset`` default is 1 s).
         freeze: a sensor (measurement block) whose reading repeats exactly for longer
-            than this (s), over at least ``freeze_samples`` consecutive samples, is
-            treated as dropped out until its reading changes; None: never (command line
+            than this (s), over at least ``freeze_samples`` consecutive samples none more
+            than ``freeze`` s after the one before (a gap is not a freeze), is treated as
+            dropped out until its reading changes; None: never (command line
             ``--freeze``, default 1 s).
         freeze_samples: the fewest consecutive samples with the same reading (the first
             one included) that can be a freeze (default :data:`FREEZE_MIN_SAMPLES`);
@@ -216,5 +218,6 @@ class RecoverySettings:
                 _positive(name, value)
         _positive("uncertain_fraction", self.uncertain_fraction)
         n = self.freeze_samples
-        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 2):
+        if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2):
             raise UserError(f"freeze_samples must be an integer >= 2, got {n!r}")
+        object.__setattr__(self, "freeze_samples", int(n))

@@ -130,6 +130,7 @@ class Estimator(ABC):
         self._freeze_value: list[FloatArray | None] = []
         self._freeze_since: list[float] = []
         self._freeze_count: list[int] = []  # consecutive samples with that reading
+        self._freeze_last_t: list[float] = []  # t of each block's previous sample, s
         self._last_valid_t = -math.inf
         self._tilt = [
             i for b in formulation.measurement_blocks if b.kind == "tilt" for i in range(
@@ -144,6 +145,7 @@ class Estimator(ABC):
         self._freeze_value = [None] * len(self.formulation.measurement_blocks)
         self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
         self._freeze_count = [0] * len(self.formulation.measurement_blocks)
+        self._freeze_last_t = [-math.inf] * len(self.formulation.measurement_blocks)
         self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
         self._restart()
 
@@ -185,7 +187,8 @@ class Estimator(ABC):
     def _unfreeze(self, m: Measurement) -> Measurement:
         """``m`` with every sensor whose reading has repeated exactly for longer than
         ``recovery.freeze`` seconds, over at least ``recovery.freeze_samples``
-        consecutive samples, marked as dropped out (NaN)."""
+        consecutive samples none more than ``recovery.freeze`` s after the one before
+        (a gap in the data is not a freeze), marked as dropped out (NaN)."""
         freeze = self.recovery.freeze
         if freeze is None:
             return m
@@ -194,12 +197,15 @@ class Estimator(ABC):
             self._freeze_value = [None] * n_blocks
             self._freeze_since = [-math.inf] * n_blocks
             self._freeze_count = [0] * n_blocks
+            self._freeze_last_t = [-math.inf] * n_blocks
         min_samples = self.recovery.freeze_samples
         z: FloatArray | None = None
         for k, b in enumerate(self.formulation.measurement_blocks):
             zb = m.z[b.slice]
             last = self._freeze_value[k]
-            if last is None or not np.array_equal(zb, last):  # NaN never repeats
+            gap = m.t - self._freeze_last_t[k] > freeze
+            self._freeze_last_t[k] = m.t
+            if last is None or gap or not np.array_equal(zb, last):  # NaN never repeats
                 self._freeze_value[k], self._freeze_since[k] = zb.copy(), m.t
                 self._freeze_count[k] = 1
                 continue

@@ -169,8 +169,8 @@ def as_sensor_reads(z: ArrayLike) -> FloatArray:
     """Offset readings ``(n, 2 m)`` (roll, pitch of ``m`` IMUs, rad) as a real sensor
     reports the offset orientation: its gravity direction back into roll and pitch
     (pitch inside +-90 deg, roll wrapped). A pitch pushed past 90 deg comes back as
-    ``180 deg - pitch`` with roll turned by 180 deg, the same direction, so every
-    corrupted reading is as far from the truth as its offset says. (Clipping the pitch
+    ``180 deg - pitch`` with roll turned by 180 deg, the same direction, so the pitch
+    offset stays a full turn of the gravity direction. (Clipping the pitch
     at 90 deg instead turns a +30 deg offset at 81 deg pitch into a 7-18 deg error at
     gimbal lock: a different, smaller fault than the one stated.)"""
     z = np.asarray(z, dtype=float)

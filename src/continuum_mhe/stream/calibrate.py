@@ -138,7 +138,9 @@ def motion_at_rest(
         ]
     else:
         tilt_std = acc_std / STANDARD_GRAVITY
-        checks = [("tilt", 0, "rad", tilt_std, ("roll", "pitch"), "--still-acc-std")]
+        checks = [
+            ("tilt", 0, "rad", tilt_std, ("roll", "pitch"), "--still-acc-std (bound: it / g)")
+        ]
     worst: tuple[float, str, str] | None = None
     for i in range(n_imus):
         block = values[:, k * i : k * (i + 1)]
@@ -328,7 +330,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         fmt = args.format
         t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
         source = args.port
-    moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, args.still_gyro_std)
+    gyro_std = args.still_gyro_std
+    if gyro_std is not None and fmt != "raw":
+        raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
+    gyro_std = STILL_GYRO_STD if gyro_std is None else gyro_std
+    moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
@@ -403,9 +409,10 @@ def register_calibrate(subparsers: Any) -> None:
     p.add_argument(
         "--still-gyro-std",
         type=float,
-        default=STILL_GYRO_STD,
+        default=None,
         metavar="RAD/S",
-        help="largest gyro spread (standard deviation per axis, rad/s) of a still robot "
-        f"(default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's MPU9250 at rest)",
+        help="largest gyro spread (standard deviation per axis, rad/s) of a still robot, "
+        f"raw recordings only (default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's "
+        "MPU9250 at rest)",
     )
     p.set_defaults(func=cmd_calibrate)
