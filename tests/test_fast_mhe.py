@@ -726,9 +726,11 @@ def test_missing_c_compiler_is_announced_once(tmp_path: Path) -> None:
     import subprocess
     import sys
 
+    from continuum_mhe.cli import main
+
     meas = tmp_path / "m.csv"
     exe = str(Path(sys.executable).with_name("continuum-mhe"))
-    subprocess.run([exe, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0  # the input
     env = {**os.environ, "CC": "false", "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
     r = subprocess.run(
         [exe, "estimate", str(meas), "-o", str(tmp_path / "e.csv")],

@@ -120,10 +120,11 @@ def test_new_c_model_is_announced_once_before_it_compiles(tmp_path):
     """A robot or option set whose C model is not in the model cache yet (here an empty
     ``CONTINUUM_MHE_CACHE``) says so in one line on the run that builds it, and not on
     the next run, which loads it from the cache."""
+    from continuum_mhe.cli import main
     from continuum_mhe.estimators.fast.codegen import COMPILING_MODEL
 
     meas = tmp_path / "m.csv"
-    subprocess.run([EXE, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0  # the input
     env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
     errs = []
     for name in ("first.csv", "second.csv"):
