@@ -8,6 +8,9 @@ compared with IPOPT's answer: states, cost, active bounds, exact feasibility.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -461,32 +464,51 @@ def test_compiled_arrival_step_and_output_match_the_python_model(compile_model: 
             np.testing.assert_allclose(node.output(s), f.output(s), rtol=1e-13, atol=1e-15)
 
 
+_BUILD_BEND_MODEL = (
+    "from continuum_mhe.model.registry import make_formulation\n"
+    "from continuum_mhe.estimators import fast as fm\n"
+    "m = fm.build_window_model(make_formulation('bend'), 5)\n"
+    "print('compiled' if m.compiled else 'vm')\n"
+)
+
+
+def _build_in_a_fresh_process(cache: Path) -> subprocess.CompletedProcess[str]:
+    """:data:`_BUILD_BEND_MODEL` in a fresh interpreter with ``cache`` as the model cache."""
+    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(cache)}
+    return subprocess.run(
+        [sys.executable, "-c", _BUILD_BEND_MODEL], env=env, capture_output=True, text=True
+    )
+
+
+@pytest.fixture(scope="module")
+def fresh_model_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A model cache that a fresh process filled with the bend model (N = 5): built once
+    for both kinds of damage below (the same first build; a C compile each before)."""
+    cache = tmp_path_factory.mktemp("model-cache")
+    first = _build_in_a_fresh_process(cache)
+    assert first.stdout.strip() == "compiled", first.stderr
+    return cache
+
+
 @pytest.mark.parametrize("damage", ["truncate", "flip"])
-def test_corrupted_cached_model_is_rebuilt_not_loaded(tmp_path: Path, damage: str) -> None:
+def test_corrupted_cached_model_is_rebuilt_not_loaded(
+    tmp_path: Path, damage: str, fresh_model_cache: Path
+) -> None:
     """A truncated or bit-flipped cached library must not be loaded (it would crash
     the process with SIGBUS or SIGSEGV): its stored sha256 no longer matches."""
     import hashlib
-    import os
-    import subprocess
-    import sys
+    import shutil
 
-    code = (
-        "from continuum_mhe.model.registry import make_formulation\n"
-        "from continuum_mhe.estimators import fast as fm\n"
-        "m = fm.build_window_model(make_formulation('bend'), 5)\n"
-        "print('compiled' if m.compiled else 'vm')\n"
-    )
-    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path)}
-    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
-    assert first.stdout.strip() == "compiled", first.stderr
-    (lib,) = tmp_path.glob("mhe_*.so")
+    cache = tmp_path / "cache"
+    shutil.copytree(fresh_model_cache, cache)
+    (lib,) = cache.glob("mhe_*.so")
     data = lib.read_bytes()
     if damage == "truncate":
         lib.write_bytes(data[: len(data) // 3])
     else:
         mid = len(data) // 2
         lib.write_bytes(data[:mid] + bytes([data[mid] ^ 0xFF]) + data[mid + 1 :])
-    again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    again = _build_in_a_fresh_process(cache)
     assert again.returncode == 0, again.stderr  # no SIGBUS / SIGSEGV
     assert again.stdout.strip() == "compiled"
     digest = lib.with_name(lib.name + ".sha256").read_text().strip()
@@ -665,10 +687,6 @@ def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
     """With a compiler that fails: one warning per process, naming the compiler and the
     fix, for every estimator built on the model; the model, the estimator and the
     benchmark record it; the compiled EKF steps aside; the answers are the compiled ones."""
-    import os
-    import subprocess
-    import sys
-
     code = (
         "import warnings\n"
         "import numpy as np\n"
@@ -722,13 +740,11 @@ def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
 
 def test_missing_c_compiler_is_announced_once(tmp_path: Path) -> None:
     """No C compiler: the fast MHE runs through CasADi's VM and says so in one line."""
-    import os
-    import subprocess
-    import sys
+    from continuum_mhe.cli import main
 
     meas = tmp_path / "m.csv"
     exe = str(Path(sys.executable).with_name("continuum-mhe"))
-    subprocess.run([exe, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0  # the input
     env = {**os.environ, "CC": "false", "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
     r = subprocess.run(
         [exe, "estimate", str(meas), "-o", str(tmp_path / "e.csv")],

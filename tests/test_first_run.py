@@ -43,9 +43,12 @@ def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
     """With nothing compiled (a fresh numba cache), ``estimate`` says once that it
     compiles in the background, answers with IPOPT (rows ``fallback-ipopt``, the same
     estimates as the fast backend), and the next run finds the kernels compiled."""
+    from continuum_mhe.cli import main
+
     meas, warm, cold, again = (tmp_path / n for n in ("m.csv", "w.csv", "c.csv", "a.csv"))
-    subprocess.run([EXE, "simulate", "paper3d", "--duration", "3", "-o", str(meas)], check=True)
-    subprocess.run([EXE, "estimate", str(meas), "-o", str(warm)], check=True)  # suite's cache
+    # the recording and the reference estimates (the suite's kernels) in this process
+    assert main(["simulate", "paper3d", "--duration", "3", "-o", str(meas)]) == 0
+    assert main(["estimate", str(meas), "-o", str(warm)]) == 0
     env = {k: v for k, v in os.environ.items() if k != "CONTINUUM_MHE_FIRST_RUN"}
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")  # nothing compiled there
     r = subprocess.run(
@@ -117,10 +120,11 @@ def test_new_c_model_is_announced_once_before_it_compiles(tmp_path):
     """A robot or option set whose C model is not in the model cache yet (here an empty
     ``CONTINUUM_MHE_CACHE``) says so in one line on the run that builds it, and not on
     the next run, which loads it from the cache."""
+    from continuum_mhe.cli import main
     from continuum_mhe.estimators.fast.codegen import COMPILING_MODEL
 
     meas = tmp_path / "m.csv"
-    subprocess.run([EXE, "simulate", "paper3d", "--duration", "1", "-o", str(meas)], check=True)
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0  # the input
     env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
     errs = []
     for name in ("first.csv", "second.csv"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -9,11 +10,18 @@ import pytest
 from continuum_mhe import numba_cache
 
 
-def test_no_writable_folder_uses_a_temporary_one(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+def test_no_writable_folder_uses_a_temporary_one(monkeypatch, capsys, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # set first, so that the variable is restored (removed) after the test: a bare
+    # ``delenv(..., raising=False)`` of an unset variable records nothing, and the
+    # folder set below outlived the test (every later test then looked for the kernels
+    # there: the next fast estimator compiled them all again, 70 s of the suite, and
+    # the CLI tests' subprocesses compiled theirs on first call)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # not a folder left in /tmp
     monkeypatch.setattr(numba_cache, "writable", lambda folder: False)
     folder = numba_cache.ensure_numba_cache_dir()
-    assert folder is not None and Path(folder).is_dir()
+    assert folder is not None and Path(folder).is_dir() and Path(folder).parent == tmp_path
     import os
 
     assert os.environ["NUMBA_CACHE_DIR"] == folder

@@ -306,7 +306,15 @@ def test_dask_local_cluster_matches_local_processes() -> None:
     np.testing.assert_allclose(_errors(remote), _errors(local), rtol=1e-9)
 
 
-def test_unreachable_scheduler_is_a_user_error() -> None:
+def test_unreachable_scheduler_is_a_user_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    import dask.distributed as distributed
+
+    client = distributed.Client
+    # the runner's Client gives a refused address 10 s of retries (10 s of the suite);
+    # the same Client and the same error after 0.5 s
+    monkeypatch.setattr(
+        distributed, "Client", lambda address, **kw: client(address, **{**kw, "timeout": "0.5s"})
+    )
     with pytest.raises(ValueError, match="Dask scheduler"):
         run_parallel(run_task, _tiny_specs(), scheduler="tcp://127.0.0.1:9", progress=False)
 

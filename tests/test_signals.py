@@ -17,12 +17,10 @@ EXE = str(Path(sys.executable).with_name("continuum-mhe"))
 
 
 def test_sigterm_during_estimate_leaves_nothing_and_exits_143(tmp_path: Path) -> None:
+    from continuum_mhe.cli import main
+
     meas = tmp_path / "m.csv"
-    subprocess.run(
-        [EXE, "simulate", "paper3d", "--duration", "3000", "-o", str(meas)],
-        check=True,
-        capture_output=True,
-    )
+    assert main(["simulate", "paper3d", "--duration", "3000", "-o", str(meas)]) == 0
     out = tmp_path / "e.csv"
     proc = subprocess.Popen(
         [EXE, "estimate", str(meas), "-o", str(out), "--method", "ukf"],
