@@ -193,7 +193,7 @@ class Estimator(ABC):
         if freeze is None:
             return m
         n_blocks = len(self.formulation.measurement_blocks)
-        if len(self._freeze_value) != n_blocks or len(self._freeze_count) != n_blocks:
+        if len(self._freeze_value) != n_blocks:  # the four lists are set together
             self._freeze_value = [None] * n_blocks
             self._freeze_since = [-math.inf] * n_blocks
             self._freeze_count = [0] * n_blocks

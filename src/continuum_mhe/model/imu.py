@@ -141,7 +141,7 @@ def shape_from_tilt(
     g = np.asarray(roll, dtype=float)
     bt = np.asarray(pitch, dtype=float)
     sign = _up_sign(mounting)
-    r3 = sign * np.stack([-np.sin(bt), np.cos(bt) * np.sin(g), np.cos(bt) * np.cos(g)])
+    r3 = sign * np.moveaxis(gravity_direction_from_tilt(np.stack([g, bt], axis=-1)), -1, 0)
     theta = np.arccos(np.clip(r3[2], -1.0, 1.0))
     phi = np.arctan2(r3[1], r3[0])
     phi = np.where(theta == 0.0, 0.0, phi)

@@ -312,6 +312,12 @@ def collect(
     return np.asarray(t), np.asarray(rows)
 
 
+def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source: str) -> None:
+    """Refuse ``--still-gyro-std`` on a recording without a gyro (it would do nothing)."""
+    if args.still_gyro_std is not None and fmt != "raw":
+        raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from continuum_mhe.cli_options import robot_from_args
 
@@ -322,18 +328,16 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.source:
         fmt, t, values = read_recording(args.source, robot.n_imus)
         source = args.source
+        _check_gyro_bound_applies(args, fmt, source)
     else:
         if args.port is None:
             raise InputError("give --port DEVICE or --from RAW.csv")
         if not (math.isfinite(args.seconds) and args.seconds > 0):
             raise InputError(f"--seconds must be positive, got {args.seconds}")
-        fmt = args.format
+        fmt, source = args.format, args.port
+        _check_gyro_bound_applies(args, fmt, source)  # before recording for --seconds
         t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
-        source = args.port
-    gyro_std = args.still_gyro_std
-    if gyro_std is not None and fmt != "raw":
-        raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
-    gyro_std = STILL_GYRO_STD if gyro_std is None else gyro_std
+    gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
