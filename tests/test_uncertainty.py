@@ -33,6 +33,7 @@ from numpy.testing import assert_allclose
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import read_state_table, write_estimates
@@ -307,6 +308,40 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
     assert set(s.status[frozen & ~late]) <= {"ok"}
     assert est.frozen_samples == int(late.sum())
     assert set(s.status[rec.t >= 4]) <= {"ok", "uncertain"}  # the reading changes: used again
+
+
+@pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
+def test_each_run_counts_its_own_recording(index: int) -> None:
+    """Before: the counts (gap resets, frozen samples, first freezes) ran on from the
+    estimator's construction, so a second ``run`` reported the totals over both runs."""
+    rec = simulate("paper3d", duration=6, seed=2)
+    z = rec.z.copy()
+    frozen = (rec.t >= 4) & (rec.t < 5)
+    z[frozen] = z[np.flatnonzero(frozen)[0]]
+    keep = (rec.t < 1) | (rec.t >= 3)  # a 2 s gap
+    t, z = rec.t[keep], z[keep]
+    est = estimators(RecoverySettings(gap_reset=1.0, freeze=0.5))[index]
+    est.run(t, z)
+    first = (est.gap_resets, est.frozen_samples, dict(est.first_freezes))
+    assert first[0] == 1 and first[1] > 0 and list(first[2]) == [0]
+    est.run(t, z)
+    assert (est.gap_resets, est.frozen_samples, dict(est.first_freezes)) == first
+    est.reset()  # so does a reset before stepping by hand
+    assert (est.gap_resets, est.frozen_samples, est.first_freezes) == (0, 0, {})
+    assert (est.restarts, est.bad_starts, est.reject_resets, est.last_failure) == (0, 0, 0, None)
+
+
+def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
+    rec = simulate("paper3d", duration=4, seed=3)
+    est = MovingHorizonEstimator(
+        BendFormulation(), MHESettings(horizon=10, loss="welsch", branch_check=True)
+    )
+    est.run(rec.t, rec.z)
+    assert est.second_start is not None and est.branch is not None
+    assert est.branch.stats.checked > 0
+    est.reset()
+    assert (est.second_start.tried, est.second_start.kept) == (0, 0)
+    assert est.branch.stats == BranchStats()
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])

@@ -343,8 +343,7 @@ def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> No
     z = np.asarray(h, dtype=float).reshape(-1)
     for i in range(steps):
         estimator.step(Measurement(i * period_s, z))
-    estimator.reset()
-    estimator.restarts, estimator.last_failure = 0, None
+    estimator.reset()  # zeroes its counts too
 
 
 def cmd_live(args: argparse.Namespace) -> int:

@@ -87,26 +87,11 @@ class Estimator(ABC):
         self.recovery = RecoverySettings()
         self._last_t = -math.inf
         self._ran = False  # the last call was run(): a later step needs reset()
-        #: times the estimator restarted after a divergence or numerical failure
-        self.restarts = 0
-        #: times it restarted after a gap longer than ``recovery.gap_reset``
-        self.gap_resets = 0
-        #: samples with at least one sensor treated as frozen (``recovery.freeze``)
-        self.frozen_samples = 0
-        #: the first freeze of each sensor, in the order they happened: measurement
-        #: block index -> ``t`` (s) of the first of its repeated readings
-        self.first_freezes: dict[int, float] = {}
-        #: times it restarted after a bad start (``recovery.bad_start``)
-        self.bad_starts = 0
-        #: times a robust MHE restarted after rejecting every reading for longer than
-        #: ``recovery.reject_reset``
-        self.reject_resets = 0
+        self._clear_counts()
         self._rejecting_since: float | None = None  # t of the first of the run
         self._start_check = StartCheck(formulation)
         # the bad-start check needs a covariance that is one (not the paper's weight W)
         self._checks_start = formulation.calibrated_covariance
-        #: the last numerical failure's message, if any
-        self.last_failure: str | None = None
         outs = formulation.outputs
         self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
         robot = formulation.robot
@@ -137,8 +122,32 @@ class Estimator(ABC):
                 b.start, b.start + b.size)
         ]  # fmt: skip
 
+    def _clear_counts(self) -> None:
+        """Zero the counts of the recording (the estimator's own restarts keep them)."""
+        # Each counts the recording since the last reset() (run() starts with one).
+        #: times the estimator restarted after a divergence or numerical failure
+        self.restarts = 0
+        #: times it restarted after a gap longer than ``recovery.gap_reset``
+        self.gap_resets = 0
+        #: samples with at least one sensor treated as frozen (``recovery.freeze``)
+        self.frozen_samples = 0
+        #: the first freeze of each sensor, in the order they happened: measurement
+        #: block index -> ``t`` (s) of the first of its repeated readings
+        self.first_freezes: dict[int, float] = {}
+        #: times it restarted after a bad start (``recovery.bad_start``)
+        self.bad_starts = 0
+        #: times a robust MHE restarted after rejecting every reading for longer than
+        #: ``recovery.reject_reset``
+        self.reject_resets = 0
+        #: the last numerical failure's message, if any
+        self.last_failure: str | None = None
+
     def reset(self) -> None:
-        """Forget all samples; the next ``step`` starts a new recording."""
+        """Forget all samples and zero the counts (:attr:`restarts`, :attr:`gap_resets`,
+        :attr:`frozen_samples`, :attr:`first_freezes`, ...); the next ``step`` starts a
+        new recording. (The estimator's own restarts, within a recording, keep the
+        counts.)"""
+        self._clear_counts()
         self._last_t = -math.inf
         self._ran = False
         self._last_valid_t = -math.inf

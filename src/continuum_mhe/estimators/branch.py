@@ -70,9 +70,10 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 
 @dataclass
 class BranchStats:
-    """Counts since construction: windows checked, found implausible (``fired``),
-    restarts that changed the answer (``restarted``), of which with the arrival prior
-    forgotten (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
+    """Counts since the estimator's last ``reset()``: windows checked, found implausible
+    (``fired``), restarts that changed the answer (``restarted``), of which with the
+    arrival prior forgotten (``prior_forgotten``), and the winning starts of stage 1
+    (``sources``)."""
 
     checked: int = 0
     fired: int = 0

@@ -46,7 +46,7 @@ import warnings
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
-from continuum_mhe.estimators.branch import FORGET, BranchCheck
+from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -203,6 +203,15 @@ class MovingHorizonEstimator(Estimator):
     @_nlp.setter
     def _nlp(self, nlp: Nlp) -> None:
         self._nlp_built = nlp
+
+    def reset(self) -> None:
+        """:meth:`Estimator.reset`, and zero the second start's and the branch check's
+        counts too."""
+        super().reset()
+        if self.second_start is not None:
+            self.second_start.tried = self.second_start.kept = 0
+        if self.branch is not None:
+            self.branch.stats = BranchStats()
 
     def _reset(self) -> None:
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx

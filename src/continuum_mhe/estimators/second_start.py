@@ -60,7 +60,8 @@ class SecondStart:
         #: the age of the solution a second start comes from (at most ``horizon - 1``)
         self.lag = max(1, min(lag, horizon - 1))
         self._past: deque[FloatArray] = deque(maxlen=lag)
-        #: second starts tried and those whose answer was kept, since construction
+        #: second starts tried and those whose answer was kept, since the estimator's
+        #: last ``reset()``
         self.tried = 0
         self.kept = 0
 
