@@ -326,6 +326,8 @@ def test_each_run_counts_its_own_recording(index: int) -> None:
     assert first[0] == 1 and first[1] > 0 and list(first[2]) == [0]
     est.run(t, z)
     assert (est.gap_resets, est.frozen_samples, dict(est.first_freezes)) == first
+    est.reset(keep_counts=True)  # a restart within the recording (as live's)
+    assert (est.gap_resets, est.frozen_samples, dict(est.first_freezes)) == first
     est.reset()  # so does a reset before stepping by hand
     assert (est.gap_resets, est.frozen_samples, est.first_freezes) == (0, 0, {})
     assert (est.restarts, est.bad_starts, est.reject_resets, est.last_failure) == (0, 0, 0, None)
@@ -338,7 +340,10 @@ def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
     )
     est.run(rec.t, rec.z)
     assert est.second_start is not None and est.branch is not None
-    assert est.branch.stats.checked > 0
+    checked = est.branch.stats.checked
+    assert checked > 0
+    est.reset(keep_counts=True)
+    assert est.branch.stats.checked == checked
     est.reset()
     assert (est.second_start.tried, est.second_start.kept) == (0, 0)
     assert est.branch.stats == BranchStats()

@@ -142,12 +142,14 @@ class Estimator(ABC):
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
 
-    def reset(self) -> None:
-        """Forget all samples and zero the counts (:attr:`restarts`, :attr:`gap_resets`,
-        :attr:`frozen_samples`, :attr:`first_freezes`, ...); the next ``step`` starts a
-        new recording. (The estimator's own restarts, within a recording, keep the
-        counts.)"""
-        self._clear_counts()
+    def reset(self, keep_counts: bool = False) -> None:
+        """Forget all samples and, unless ``keep_counts``, zero the counts
+        (:attr:`restarts`, :attr:`gap_resets`, :attr:`frozen_samples`,
+        :attr:`first_freezes`, ...); the next ``step`` starts a new recording. (The
+        estimator's own restarts, within a recording, keep the counts; so does a caller
+        that restarts it within one, as ``live`` does.)"""
+        if not keep_counts:
+            self._clear_counts()
         self._last_t = -math.inf
         self._ran = False
         self._last_valid_t = -math.inf

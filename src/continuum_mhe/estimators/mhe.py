@@ -204,10 +204,12 @@ class MovingHorizonEstimator(Estimator):
     def _nlp(self, nlp: Nlp) -> None:
         self._nlp_built = nlp
 
-    def reset(self) -> None:
-        """:meth:`Estimator.reset`, and zero the second start's and the branch check's
-        counts too."""
-        super().reset()
+    def reset(self, keep_counts: bool = False) -> None:
+        """:meth:`Estimator.reset`; the second start's and the branch check's counts are
+        zeroed with the others."""
+        super().reset(keep_counts)
+        if keep_counts:
+            return
         if self.second_start is not None:
             self.second_start.tried = self.second_start.kept = 0
         if self.branch is not None:

@@ -429,7 +429,7 @@ class LiveSession:
             c.first_restart_t = t
         for conv in self.converters or ():
             conv.reset()
-        self.estimator.reset()
+        self.estimator.reset(keep_counts=True)  # the same session: its freezes said once
         self._restarted = True  # the next estimate says so (status reset)
 
     def _say_freezes(self, before: int) -> None:
