@@ -396,6 +396,23 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
     assert s.fatal.startswith("/dev/ttyIMU: gyro magnitude")
 
 
+def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
+    """Before: the gyro's unit was checked on the session's first samples only, so a
+    board reset into firmware that sends deg/s went on unchecked. A device clock restart
+    re-arms the check on the samples after it."""
+    from live_helpers import raw_lines
+
+    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+
+    s, said, _ = _raw_session(RawImuSettings(imu_model="direct"))
+    before = [ln.rstrip("\n") for ln in raw_lines(60_000, GYRO_CHECK_SAMPLES + 10)]
+    _handle(s, before)  # checked: rad/s
+    assert s.fatal is None and s.counts.clock_restarts == 0
+    _handle(s, _deg_s_lines(GYRO_CHECK_SAMPLES + 5))  # restarted (clock from 0), deg/s
+    assert s.counts.clock_restarts == 1
+    assert s.fatal is not None and "deg/s? give rad/s" in s.fatal
+
+
 def test_live_warns_once_about_a_deg_s_gyro_it_does_not_use() -> None:
     """Tilt from the accelerometer (the default): one UnitWarning, as estimate gives for
     a raw file, and every sample is estimated."""

@@ -39,7 +39,8 @@ from continuum_mhe.stream.recording import csv_cell
 
 #: Raw lines: the gyro's unit is checked once (``check_gyro_units``, as ``estimate``
 #: checks a raw file), on the median of this many first samples (1 s at the firmware's
-#: 100 Hz), or of all the samples of a shorter session at its end. The samples are
+#: 100 Hz), or of all the samples of a shorter session at its end; again after a board
+#: reset (the device clock restarting). The samples are
 #: estimated meanwhile: the check never holds the stream back.
 GYRO_CHECK_SAMPLES = 100
 
@@ -344,6 +345,9 @@ class LiveSession:
             c.out_of_order += 1
             return None
         c.samples += 1
+        if placed.event == "restart" and self.converters is not None and self.fatal is None:
+            # a board reset: it may run other firmware now, so its gyro is checked again
+            self._gyro_unchecked = []
         if self._gyro_unchecked is not None:
             self._gyro_unchecked.append(s.values)
             if len(self._gyro_unchecked) >= GYRO_CHECK_SAMPLES:
