@@ -76,11 +76,25 @@ def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
             pass
     assert list((tmp_path / "numba").glob("continuum-mhe-kernels-*.ready"))
     assert not list((tmp_path / "numba").glob("continuum-mhe-kernels-*.pid"))
-    r = subprocess.run(
-        [EXE, "estimate", str(meas), "-o", str(again)], env=env, capture_output=True, text=True
+    # the next run loads the kernels from the cache: no kernel it ran missed it (before,
+    # only the absent note was checked, which a silent compile would pass)
+    check = (
+        "import sys, importlib; from continuum_mhe.cli import main; "
+        "from continuum_mhe.estimators.fast.warmup import _KERNEL_MODULES as M; "
+        "rc = main(sys.argv[1:]); "
+        "ks = [k for m in M for k in vars(importlib.import_module(m)).values() "
+        "if hasattr(k, 'stats') and hasattr(k.stats, 'cache_hits')]; "
+        "print(rc, sum(sum(k.stats.cache_hits.values()) for k in ks), "
+        "sum(sum(k.stats.cache_misses.values()) for k in ks))"
     )
+    r = subprocess.run(
+        [sys.executable, "-c", check, "estimate", str(meas), "-o", str(again)],
+        env=env, capture_output=True, text=True,
+    )  # fmt: skip
     assert r.returncode == 0 and "first run only" not in r.stderr, r.stderr
     assert set(_columns(again)["status"]) == {"ok"}
+    rc, hits, misses = map(int, r.stdout.split()[-3:])
+    assert rc == 0 and hits >= 1 and misses == 0, r.stdout
 
 
 def test_library_compiles_in_the_foreground_and_says_so_once(tmp_path, monkeypatch):
