@@ -368,3 +368,69 @@ def test_robot_option_names_only_options_its_command_has():
             assert action is not None and action.help != argparse.SUPPRESS, (name, option)
         checked += 1
     assert checked >= 6
+
+
+def test_simulate_writes_both_files_or_neither(tmp_path, capsys):
+    """Before: a --truth path in a missing folder failed after the measurements were
+    written (they stayed), and --truth naming -o's file replaced the measurements with
+    the truth, exit 0."""
+    meas, lost = tmp_path / "g.csv", tmp_path / "no" / "t.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(lost)]) == 2
+    assert "folder" in capsys.readouterr().err and not meas.exists()
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(meas)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("--truth names the measurement file -o too; give two files")
+    assert len(err.splitlines()) == 1 and not meas.exists()
+
+
+def test_benchmark_checks_its_json_path_before_the_run(tmp_path, capsys, monkeypatch):
+    from continuum_mhe import benchmark
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the benchmark ran before its --json path was checked")
+
+    monkeypatch.setattr(benchmark, "run_benchmark", no_run)
+    monkeypatch.setattr(benchmark, "run_robot_benchmark", no_run)
+    json_path = str(tmp_path / "no" / "b.json")
+    assert main(["benchmark", "--skip", "do-mpc", "--json", json_path]) == 2
+    assert capsys.readouterr().err.strip().endswith("does not exist")
+
+
+def test_demo_refuses_a_file_as_its_folder(tmp_path, capsys):
+    target = tmp_path / "afile"
+    target.write_text("mine\n")
+    assert main(["demo", "--out", str(target)]) == 2
+    assert capsys.readouterr().err.strip().endswith("afile: exists and is not a folder")
+    assert target.read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "existing-folder"])
+def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypatch, existing):
+    """Before: Ctrl-C during ``demo`` left a folder with the estimates written so far.
+    Now the files are written after the estimates, and an interruption while writing
+    (here: while saving the second figure) removes what was written, and the folder if
+    the demo created it; a user's own files in an existing folder stay."""
+    from continuum_mhe import plotting
+
+    out = tmp_path / "demo"
+    if existing:
+        out.mkdir()
+        (out / "mine.txt").write_text("mine\n")
+    saved = []
+    real_save = plotting.save
+
+    def save_then_interrupt(fig, path, formats=("png",)):
+        saved.append(path)
+        if len(saved) == 2:
+            path.with_suffix(".png").write_bytes(b"half")  # a half-written file
+            raise KeyboardInterrupt
+        return real_save(fig, path, formats)
+
+    monkeypatch.setattr(plotting, "save", save_then_interrupt)
+    assert main(["demo", "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip().endswith("interrupted")
+    assert len(saved) == 2
+    if existing:
+        assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+    else:
+        assert not out.exists()

@@ -665,6 +665,10 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         raise UserError(f"--duration must be positive, got {args.duration}")
     if args.repeats < 1:
         raise UserError(f"--repeats must be at least 1, got {args.repeats}")
+    if args.json:  # before the run, not after minutes of it
+        from continuum_mhe.io.csv_files import check_output_target
+
+        check_output_target(args.json)
     if args.robot:
         from continuum_mhe.io.robot_file import read_robot
 

@@ -9,6 +9,7 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import itertools
 import json
@@ -19,7 +20,7 @@ import sys
 import warnings
 from collections.abc import Generator, Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -63,9 +64,13 @@ from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
     SCENARIOS,
+    Recording,
     ScenarioName,
     simulate_robot,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 PROG = "continuum-mhe"
 
@@ -90,6 +95,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
             f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
         )
+    check_output_target(args.output)  # both before writing either
+    if args.truth:
+        truth = check_output_target(args.truth)
+        if truth.resolve() == Path(args.output).resolve():
+            raise InputError(
+                f"{args.truth}: --truth names the measurement file -o too; give two files"
+            )
     robot = robot_from_args(args)
     rec = simulate_robot(
         args.scenario,
@@ -102,7 +114,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     if args.truth:
-        write_truth(args.truth, rec.t, rec.truth, rec.outputs)
+        try:
+            write_truth(args.truth, rec.t, rec.truth, rec.outputs)
+        except BaseException:  # (a full disk, a signal): no measurements without truth
+            Path(args.output).unlink(missing_ok=True)
+            raise
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
     return 0
 
@@ -364,15 +380,15 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
 def cmd_demo(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    from continuum_mhe import plotting
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
 
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
     formulation = make_formulation("bend", robot, NoiseSettings())
-    out.mkdir(parents=True, exist_ok=True)
     names = [o.name for o in rec.outputs]
     results: list[tuple[EstimateSeries, Metrics]] = []
     labels: list[str] = []  # the method, and the backend where it is not the compiled one
@@ -388,9 +404,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
             labels.append(f"{method.upper()} (CasADi)")
         else:
             labels.append(method.upper())
-        write_estimates(out / f"estimates_{method}.csv", series)
-    write_measurements(out / "measurements.csv", rec.t, rec.z, rec.measurement_names)
-    write_truth(out / "truth.csv", rec.t, rec.truth, rec.outputs)
     what = "0.2 m" if robot.is_single else robot.describe()
     marked = compiling and labels != [m.upper() for m in METHODS]
     table = Table(
@@ -419,34 +432,66 @@ def cmd_demo(args: argparse.Namespace) -> int:
         )
     table_console().print(table)
     all_series = [s for s, _ in results]
-    bounds = [sec.theta_max for sec in robot.sections]
-    where = f"simulated {scenario} recording, {what}"
-    figs = plotting.save(
-        plotting.trajectory_3d(rec.truth, all_series, f"Tip path: truth and estimates ({where})"),
-        out / "demo_trajectory_3d",
-    ) + plotting.save(
-        plotting.states_vs_time(
-            rec.t,
-            rec.truth,
-            all_series,
-            f"Tip error, position and bend over time ({where})",
-            bounds,
-        ),  # fmt: skip
-        out / "demo_states",
-    )
-    if not robot.is_single:
-        figs += plotting.save(
-            plotting.backbone_snapshots(
-                rec.t,
-                rec.truth,
-                all_series,
-                robot.lengths,
-                f"Backbone at four instants: truth and estimates ({where})",
-            ),  # fmt: skip
-            out / "demo_backbone",
-        )
+    csvs = [out / f"estimates_{m}.csv" for m in METHODS] + [
+        out / "measurements.csv", out / "truth.csv"]  # fmt: skip
+    with _new_files(out) as written:  # all or nothing: after the estimates, not during
+        for path, (series, _) in zip(csvs, results):
+            written.append(path)
+            write_estimates(path, series)
+        written.append(csvs[-2])
+        write_measurements(csvs[-2], rec.t, rec.z, rec.measurement_names)
+        written.append(csvs[-1])
+        write_truth(csvs[-1], rec.t, rec.truth, rec.outputs)
+        _demo_figures(out, rec, all_series, robot, scenario, what, written)
+    figs = written[len(csvs) :]
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
+
+
+@contextlib.contextmanager
+def _new_files(folder: Path) -> Iterator[list[Path]]:
+    """Create ``folder`` if missing; on any exception (Ctrl-C too) remove the files put
+    in the yielded list, and the folder if it was created here, then re-raise."""
+    created = not folder.exists()
+    folder.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        yield written
+    except BaseException:
+        for path in written:
+            Path(path).unlink(missing_ok=True)
+        if created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
+
+
+def _demo_figures(
+    out: Path, rec: Recording, all_series: list[EstimateSeries], robot: Robot, scenario: str,
+    what: str, written: list[Path],
+) -> None:  # fmt: skip
+    """The demo's figures in ``out`` (PNG), each file into ``written`` before it is
+    saved (an interrupted save leaves no half-written file behind)."""
+    from continuum_mhe import plotting
+
+    def save(fig: Figure, name: str) -> None:
+        written.append(out / f"{name}.png")
+        plotting.save(fig, out / name, ("png",))
+
+    where = f"simulated {scenario} recording, {what}"
+    save(
+        plotting.trajectory_3d(rec.truth, all_series, f"Tip path: truth and estimates ({where})"),
+        "demo_trajectory_3d",
+    )
+    bounds = [sec.theta_max for sec in robot.sections]
+    title = f"Tip error, position and bend over time ({where})"
+    save(plotting.states_vs_time(rec.t, rec.truth, all_series, title, bounds), "demo_states")
+    if not robot.is_single:
+        title = f"Backbone at four instants: truth and estimates ({where})"
+        save(
+            plotting.backbone_snapshots(rec.t, rec.truth, all_series, robot.lengths, title),
+            "demo_backbone",
+        )
 
 
 def cmd_check_robot(args: argparse.Namespace) -> int:
