@@ -387,3 +387,21 @@ def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
     tip.write_text("\n".join(",".join(r.split(",")[:4]) for r in rows) + "\n")
     assert main(["evaluate", str(tip), str(t2), "--robot", "two-section"]) == 0
     assert "tip error mean" in capsys.readouterr().out
+
+
+def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, capsys) -> None:
+    """Before: ``--seed -1`` said ``valid range [0, 4.29497e+09]``, and ``estimate
+    --noise-deg 0`` said ``must be positive`` where ``-1`` said ``valid range [0, 90]``."""
+    assert main(["demo", "--seed", "-1", "--out", str(tmp_path / "d")]) == 2
+    assert "valid range [0, 4294967295]" in capsys.readouterr().err
+    meas = tmp_path / "m.csv"
+    argv = ["simulate", "paper3d", "--duration", "1", "--noise-deg", "0", "-o", str(meas)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--noise-deg", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(
+        "--noise-deg 0.0: the estimators need a positive measurement noise, valid range "
+        "(0, 90] deg here (simulate takes 0: noise-free data)"
+    )
+    assert not (tmp_path / "e.csv").exists()

@@ -135,7 +135,10 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
 
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
-        raise InputError(f"--noise-deg must be positive, got {args.noise_deg}")
+        raise InputError(
+            f"--noise-deg {args.noise_deg!r}: the estimators need a positive measurement noise, "
+            "valid range (0, 90] deg here (simulate takes 0: noise-free data)"
+        )
     model_error = getattr(args, "model_error_deg", 0.0)
     if not (math.isfinite(model_error) and model_error >= 0):
         raise InputError(f"--model-error-deg must be >= 0, got {model_error}")
@@ -356,7 +359,9 @@ class OptionRange:
     def describe(self) -> str:
         lo = "(" if self.lo_open else "["
         hi = ")" if self.hi_open else "]"
-        return f"{lo}{self.lo:g}, {self.hi:g}{hi}" + (f" {self.unit}" if self.unit else "")
+        fmt = "d" if self.integer else "g"
+        a, b = (format(int(v) if self.integer else v, fmt) for v in (self.lo, self.hi))
+        return f"{lo}{a}, {b}{hi}" + (f" {self.unit}" if self.unit else "")
 
     def contains(self, v: float) -> bool:
         if not math.isfinite(v):
