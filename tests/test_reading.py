@@ -243,3 +243,29 @@ def test_raw_t_in_milliseconds_warns(tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         np.testing.assert_allclose(read_raw_imu(ms).t, [1.0, 1.01, 1.02, 1.03, 1.04])
+
+
+def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: the warning came, then a file whose every row after the first was a
+    restart (``reset``), exit 0. Now one line naming the fix, exit 2, nothing written."""
+    from continuum_mhe.cli import main
+
+    lines = _csv().splitlines()
+    ms = [lines[0]] + [
+        ",".join([f"{float(r.split(',')[0]) * 1e3:.0f}", *r.split(",")[1:]]) for r in lines[1:]
+    ]
+    path = _write(tmp_path / "m.csv", "\n".join(ms) + "\n")
+    out = tmp_path / "e.csv"
+    with pytest.warns(UnitWarning, match="name the column t_ms"):
+        code = main(["estimate", str(path), "-o", str(out)])
+    n = len(lines) - 1
+    assert code == 2 and not out.exists()
+    assert capsys.readouterr().err.strip().endswith(
+        f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
+        "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
+        "--gap-reset, or 0: never); nothing written"
+    )
+    with pytest.warns(UnitWarning):  # told to: the estimate is written
+        assert main(["estimate", str(path), "-o", str(out), "--gap-reset", "0"]) == 0

@@ -176,6 +176,13 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
                     "nothing written"
                 )
+            if n >= 3 and est.gap_resets > n // 2:  # t in ms read as s, most often
+                raise InputError(
+                    f"{stream.name}: {est.gap_resets} of {n} samples restarted the estimator "
+                    f"after a gap longer than --gap-reset {args.gap_reset:g} s: if t is in "
+                    "milliseconds, name the column t_ms (else raise --gap-reset, or 0: never); "
+                    "nothing written"
+                )
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
