@@ -51,6 +51,8 @@ def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
     assert main(["estimate", str(meas), "-o", str(warm)]) == 0
     env = {k: v for k, v in os.environ.items() if k != "CONTINUUM_MHE_FIRST_RUN"}
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")  # nothing compiled there
+    env["CONTINUUM_MHE_CACHE"] = str(tmp_path / "models")  # no C model either: the
+    # background compile caches the defaults' too, so the next run compiles nothing
     r = subprocess.run(
         [EXE, "estimate", str(meas), "-o", str(cold)], env=env, capture_output=True, text=True
     )

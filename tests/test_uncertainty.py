@@ -238,6 +238,14 @@ def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
     assert not plain.has_std and np.isnan(plain.std).all()
     assert main(["evaluate", str(tmp_path / "plain.csv"), str(truth_path)]) == 0
     assert "no std_ columns" in capsys.readouterr().out
+    # std_ columns, all empty (a first run's MHE file): said as such
+    std = [i for i, c in enumerate(lines[0].split(",")) if c.startswith("std_")]
+    rows = [r.split(",") for r in lines[1:]]
+    empty = [lines[0]] + [",".join("" if i in std else v for i, v in enumerate(r)) for r in rows]
+    (tmp_path / "empty.csv").write_text("\n".join(empty) + "\n")
+    assert read_state_table(tmp_path / "empty.csv").std_columns and not plain.std_columns
+    assert main(["evaluate", str(tmp_path / "empty.csv"), str(truth_path)]) == 0
+    assert "the std_ columns of the estimate file are empty" in capsys.readouterr().out
 
 
 def test_unknown_std_is_written_empty_and_read_as_nan(tmp_path) -> None:

@@ -329,15 +329,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m, comparable=not hint))
-        print(format_calibration(cal))
+        print(format_calibration(cal, est.std_columns))
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
 
 
-def format_calibration(c: Calibration | None) -> str:
-    """Coverage of the 95 % intervals per output, and the tip NEES with its band."""
+def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
+    """Coverage of the 95 % intervals per output, and the tip NEES with its band; without
+    them, why (``std_columns``: the file has ``std_`` columns, all empty)."""
     if c is None:
+        if std_columns:
+            return (
+                "calibration          the std_ columns of the estimate file are empty (made "
+                "without standard deviations, e.g. on a first run while the kernels compiled)"
+            )
         return "calibration          no std_ columns in the estimate file"
     cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
     lo, hi = c.tip_nees_band

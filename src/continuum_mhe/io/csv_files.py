@@ -349,6 +349,8 @@ class StateTable:
     status: NDArray[np.str_]
     std: FloatArray | None = None
     outlier: NDArray[np.bool_] | None = None
+    #: the file has ``std_`` columns (perhaps all empty)
+    std_columns: bool = False
 
     @property
     def has_std(self) -> bool:
@@ -421,7 +423,7 @@ def read_state_table(
     return StateTable(
         np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
-        None if o_idx is None else np.array(flags, dtype=bool),
+        None if o_idx is None else np.array(flags, dtype=bool), any(j >= 0 for j in sd_idx),
     )  # fmt: skip
 
 
