@@ -408,13 +408,13 @@ def test_demo_refuses_a_file_as_its_folder(tmp_path, capsys):
 def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypatch, existing):
     """Before: Ctrl-C during ``demo`` left a folder with the estimates written so far.
     Now the files are written after the estimates, and an interruption while writing
-    (here: while saving the second figure) removes what was written, and the folder if
-    the demo created it; a user's own files in an existing folder stay."""
+    (here: while saving the second figure) removes the files it created, and the folders
+    it created; a user's own files in an existing folder stay."""
     from continuum_mhe import plotting
 
-    out = tmp_path / "demo"
+    out = tmp_path / "new" / "demo"
     if existing:
-        out.mkdir()
+        out.mkdir(parents=True)
         (out / "mine.txt").write_text("mine\n")
     saved = []
     real_save = plotting.save
@@ -422,7 +422,6 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypat
     def save_then_interrupt(fig, path, formats=("png",)):
         saved.append(path)
         if len(saved) == 2:
-            path.with_suffix(".png").write_bytes(b"half")  # a half-written file
             raise KeyboardInterrupt
         return real_save(fig, path, formats)
 
@@ -433,4 +432,32 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypat
     if existing:
         assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
     else:
-        assert not out.exists()
+        assert not (tmp_path / "new").exists()  # the folders it made too
+
+
+def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys):
+    """A demo that fails writing (a read-only truth.csv) removes only what it created:
+    the read-only file, never replaced, stays as it was (the first review of the
+    all-or-nothing writing deleted it), and so does a replaced estimates file."""
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / "estimates_mhe.csv").write_text("old\n")
+    (out / "truth.csv").write_text("mine\n")
+    (out / "truth.csv").chmod(0o444)
+    assert main(["demo", "--out", str(out)]) == 2
+    assert "truth.csv: the file is read-only; not replaced" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["estimates_mhe.csv", "truth.csv"]
+    assert (out / "truth.csv").read_text() == "mine\n"
+    assert (out / "estimates_mhe.csv").read_text().startswith("t,")  # replaced, kept
+
+
+def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch):
+    from continuum_mhe import cli
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the demo simulated before checking its --out")
+
+    monkeypatch.setattr(cli, "simulate_robot", no_run)
+    (tmp_path / "afile").write_text("x\n")
+    assert main(["demo", "--out", str(tmp_path / "afile" / "sub")]) == 2
+    assert capsys.readouterr().err.strip().endswith("afile is not a folder")

@@ -343,15 +343,17 @@ def test_each_run_counts_its_own_recording(index: int) -> None:
 
 def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
     rec = simulate("paper3d", duration=4, seed=3)
+    z = rec.z.copy()
+    z[30:33] += 0.5  # rejected readings: second starts are tried
     est = MovingHorizonEstimator(
         BendFormulation(), MHESettings(horizon=10, loss="welsch", branch_check=True)
     )
-    est.run(rec.t, rec.z)
+    est.run(rec.t, z)
     assert est.second_start is not None and est.branch is not None
-    checked = est.branch.stats.checked
-    assert checked > 0
+    counts = (est.branch.stats.checked, est.second_start.tried, est.second_start.kept)
+    assert counts[0] > 0 and counts[1] > 0
     est.reset(keep_counts=True)
-    assert est.branch.stats.checked == checked
+    assert (est.branch.stats.checked, est.second_start.tried, est.second_start.kept) == counts
     est.reset()
     assert (est.second_start.tried, est.second_start.kept) == (0, 0)
     assert est.branch.stats == BranchStats()

@@ -401,7 +401,7 @@ def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, c
     assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--noise-deg", "0"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.endswith(
-        "--noise-deg 0.0: the estimators need a positive measurement noise, valid range "
+        "--noise-deg 0: the estimators need a positive measurement noise, valid range "
         "(0, 90] deg here (simulate takes 0: noise-free data)"
     )
     assert not (tmp_path / "e.csv").exists()

@@ -177,10 +177,12 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     "nothing written"
                 )
             if n >= 3 and est.gap_resets > n // 2:  # t in ms read as s, most often
+                fix = "raise --gap-reset, or 0: never"
+                if stream.kind != "log":  # a log's t comes from its own timestamps
+                    fix = f"if t is in milliseconds, name the column t_ms (else {fix})"
                 raise InputError(
                     f"{stream.name}: {est.gap_resets} of {n} samples restarted the estimator "
-                    f"after a gap longer than --gap-reset {args.gap_reset:g} s: if t is in "
-                    "milliseconds, name the column t_ms (else raise --gap-reset, or 0: never); "
+                    f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
@@ -396,8 +398,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
 
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
+    _check_new_folder(out)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
@@ -447,35 +448,51 @@ def cmd_demo(args: argparse.Namespace) -> int:
     all_series = [s for s, _ in results]
     csvs = [out / f"estimates_{m}.csv" for m in METHODS] + [
         out / "measurements.csv", out / "truth.csv"]  # fmt: skip
-    with _new_files(out) as written:  # all or nothing: after the estimates, not during
+    with _new_files(out) as written:  # after the estimates, not during them
         for path, (series, _) in zip(csvs, results):
-            written.append(path)
             write_estimates(path, series)
-        written.append(csvs[-2])
+            written.append(path)
         write_measurements(csvs[-2], rec.t, rec.z, rec.measurement_names)
-        written.append(csvs[-1])
+        written.append(csvs[-2])
         write_truth(csvs[-1], rec.t, rec.truth, rec.outputs)
+        written.append(csvs[-1])
         _demo_figures(out, rec, all_series, robot, scenario, what, written)
     figs = written[len(csvs) :]
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
 
 
+def _check_new_folder(folder: Path) -> None:
+    """A one-line error, before any work, unless ``folder`` is, or can be made, a
+    writable folder (its nearest existing ancestor a writable folder)."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: exists and is not a folder")
+    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"{folder}: {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{folder}: {existing} is not writable")
+
+
 @contextlib.contextmanager
 def _new_files(folder: Path) -> Iterator[list[Path]]:
-    """Create ``folder`` if missing; on any exception (Ctrl-C too) remove the files put
-    in the yielded list, and the folder if it was created here, then re-raise."""
-    created = not folder.exists()
+    """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
+    the files put in the yielded list that did not exist before (each is put there once
+    written, atomically), then the folders created here, and re-raise. A file that
+    existed keeps its new content if it was replaced, else its old one."""
+    created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
+    before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
     folder.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     try:
         yield written
     except BaseException:
         for path in written:
-            Path(path).unlink(missing_ok=True)
-        if created:
+            if path.name not in before:
+                path.unlink(missing_ok=True)
+        for made in created:  # innermost first
             with contextlib.suppress(OSError):
-                folder.rmdir()
+                made.rmdir()
         raise
 
 
@@ -483,13 +500,11 @@ def _demo_figures(
     out: Path, rec: Recording, all_series: list[EstimateSeries], robot: Robot, scenario: str,
     what: str, written: list[Path],
 ) -> None:  # fmt: skip
-    """The demo's figures in ``out`` (PNG), each file into ``written`` before it is
-    saved (an interrupted save leaves no half-written file behind)."""
+    """The demo's figures in ``out`` (PNG), each file into ``written`` once saved."""
     from continuum_mhe import plotting
 
     def save(fig: Figure, name: str) -> None:
-        written.append(out / f"{name}.png")
-        plotting.save(fig, out / name, ("png",))
+        written.extend(plotting.save(fig, out / name, ("png",)))  # atomic: saved or not
 
     where = f"simulated {scenario} recording, {what}"
     save(

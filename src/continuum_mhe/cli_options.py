@@ -136,7 +136,7 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
 def formulation_from_args(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(args.noise_deg) and args.noise_deg > 0):
         raise InputError(
-            f"--noise-deg {args.noise_deg!r}: the estimators need a positive measurement noise, "
+            f"--noise-deg {args.noise_deg:g}: the estimators need a positive measurement noise, "
             "valid range (0, 90] deg here (simulate takes 0: noise-free data)"
         )
     model_error = getattr(args, "model_error_deg", 0.0)

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from continuum_mhe.io.csv_files import atomic_binary_writer  # noqa: E402
 from continuum_mhe.results import EstimateSeries  # noqa: E402
 
 _STYLE = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}
@@ -210,11 +211,16 @@ def backbone_snapshots(
 
 
 def save(fig: Figure, path: Path, formats: Sequence[str] = ("png",)) -> list[Path]:
-    """Save ``fig`` as ``path`` with each suffix in ``formats``; closes the figure."""
+    """Save ``fig`` as ``path`` with each suffix in ``formats``, each file atomically (an
+    interrupted save leaves no partial file and an existing one untouched); closes the
+    figure."""
     out = []
-    for fmt in formats:
-        p = path.with_suffix(f".{fmt}")
-        fig.savefig(p, dpi=130)
-        out.append(p)
-    plt.close(fig)
+    try:
+        for fmt in formats:
+            p = path.with_suffix(f".{fmt}")
+            with atomic_binary_writer(p) as fh:
+                fig.savefig(fh, format=fmt, dpi=130)
+            out.append(p)
+    finally:
+        plt.close(fig)
     return out

@@ -345,8 +345,12 @@ class LiveSession:
             c.out_of_order += 1
             return None
         c.samples += 1
-        if placed.event == "restart" and self.converters is not None and self.fatal is None:
-            # a board reset: it may run other firmware now, so its gyro is checked again
+        if (
+            placed.event == "restart" and self.converters is not None and self.fatal is None
+            and self.converters[0].settings.needs_gyro
+        ):  # fmt: skip
+            # a board reset: it may run other firmware now, so the gyro the estimate uses
+            # is checked again (an unused one was warned about once: enough)
             self._gyro_unchecked = []
         if self._gyro_unchecked is not None:
             self._gyro_unchecked.append(s.values)
@@ -399,7 +403,8 @@ class LiveSession:
 
     def check_gyro_units(self) -> None:
         """Check the gyro's unit on the raw samples so far, once (later calls do
-        nothing): each IMU's median rate above ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
+        nothing, until a board reset re-arms the check of a gyro the estimate uses):
+        each IMU's median rate above ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
         deg/s, and sets :attr:`fatal` where the estimate uses the gyro, else warns
         (``UnitWarning``) that it is ignored; the wording is ``estimate``'s for a raw
         file, naming the port."""
