@@ -359,8 +359,7 @@ class OptionRange:
     def describe(self) -> str:
         lo = "(" if self.lo_open else "["
         hi = ")" if self.hi_open else "]"
-        fmt = "d" if self.integer else "g"
-        a, b = (format(int(v) if self.integer else v, fmt) for v in (self.lo, self.hi))
+        a, b = (f"{int(v)}" if self.integer else f"{v:g}" for v in (self.lo, self.hi))
         return f"{lo}{a}, {b}{hi}" + (f" {self.unit}" if self.unit else "")
 
     def contains(self, v: float) -> bool:
