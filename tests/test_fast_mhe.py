@@ -407,9 +407,17 @@ class _NonBall(BendFormulation):
 def test_unsupported_constraint_uses_ipopt_and_says_so() -> None:
     with pytest.raises(NotImplementedError):
         fm.feasible_set(_NonBall())
-    with pytest.warns(BackendFallbackWarning, match="cannot take this problem"):
+    with pytest.warns(BackendFallbackWarning) as seen:
         est = MovingHorizonEstimator(_NonBall(), MHESettings(horizon=4))
-    assert est._fast is None and est.backend_note
+    said = [str(w.message) for w in seen]
+    assert any("cannot take this problem" in m for m in said), said
+    # the covariance cannot use the constraint either: said, and recorded
+    assert any("leaves this problem's constraints out" in m for m in said), said
+    assert est._fast is None and est.backend_note and est.covariance_note
+    with pytest.warns(BackendFallbackWarning, match="leaves this problem's constraints out"):
+        by_ipopt = MovingHorizonEstimator(_NonBall(), MHESettings(horizon=4, solver="ipopt"))
+    assert by_ipopt.covariance_note and by_ipopt.backend_note is None
+    assert MovingHorizonEstimator(BendFormulation(), MHESettings(horizon=4)).covariance_note is None
     rec = simulate("paper3d", duration=0.3)
     assert set(est.run(rec.t, rec.z).status) == {"fallback-ipopt"}  # never a silent "ok"
 

@@ -228,7 +228,7 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     x = np.asarray(f.initial_state(np.full(f.nz, 0.3)), float) + rng.normal(scale=0.1, size=f.nx)
     P = f.initial_cov()
     masks = [np.ones(f.nz), np.r_[np.zeros(2), np.ones(f.nz - 2)], np.zeros(f.nz)]
-    for k, mask in enumerate(masks * 2):
+    for mask in masks * 2:
         z = rng.normal(scale=0.4, size=f.nz)
         u, dt = np.zeros(f.nu), 0.05
         Q = noise(dt)[0]
@@ -243,7 +243,7 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
         assert_allclose(P2, P1, rtol=1e-14, atol=1e-18)
         assert_allclose(y, node.output(x1), rtol=1e-14, atol=1e-15)
         assert_allclose(std, node.output_std(x1, P1), rtol=1e-12, atol=1e-15)
-        assert std.min() > 0 or k % 3 != 0  # a real spread, not zeros
+        assert std.min() > 0  # a real spread, not zeros (P stays positive definite)
         x, P = x2, P2
     rec = simulate_robot("s-curve", robot, duration=0.5, seed=4) if robot else simulate(
         "paper3d", duration=0.5, seed=4)  # fmt: skip

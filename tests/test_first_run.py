@@ -113,7 +113,6 @@ def test_library_compiles_in_the_foreground_and_says_so_once(tmp_path, monkeypat
 
     monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
     monkeypatch.setattr(warmup, "_announced", set())
-    monkeypatch.setattr(codegen, "_announced", set())
     # the kernels' recompile is the flush test's (below); here the wait, the notices and
     # the marker (it took a minute of the suite)
     monkeypatch.setattr(warmup, "flush_kernel_caches", lambda: None)
@@ -179,6 +178,36 @@ def test_background_mode_without_kernels_picks_the_uncompiled_paths(tmp_path, mo
     est = mhe.step(__import__("continuum_mhe").Measurement(0.0, np.zeros(2)))
     assert est.status == "fallback-ipopt"
     assert len(started) == 2  # each asks; start_background_warmup runs one process
+
+
+def test_a_failed_background_compile_is_said_with_its_log(tmp_path, monkeypatch):
+    """A background compile that failed left its traceback in the log: the next run
+    says so, with the error's last line and the log's path, before it tries again; a
+    log of a compile that succeeded, or is still running, is not a failure."""
+    monkeypatch.setattr(warmup, "marker_path", lambda: tmp_path / "k.ready")
+    monkeypatch.setattr(warmup, "start_background_warmup", lambda: True)
+    log = warmup.log_path()
+    log.write_text("Traceback (most recent call last):\n  ...\nOSError: [Errno 28] No space left\n")
+    cases = ((False, False, True), (True, False, False), (False, True, False))
+    for running, ready, failed in cases:  # (a compile running, kernels compiled, said)
+        monkeypatch.setattr(warmup, "_announced", set())
+        monkeypatch.setattr(warmup, "_running", lambda _pid, running=running: running)
+        marker = tmp_path / "k.ready"
+        marker.unlink(missing_ok=True)
+        if ready:
+            marker.write_text("compiled\n")
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            warmup.defer_compiling("IPOPT")
+        said = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
+        told = [m for m in said if "failed" in m]
+        if failed:
+            assert told == [
+                "the last background compile of the kernels failed "
+                f"(OSError: [Errno 28] No space left); see {log}"
+            ]
+        else:
+            assert told == []
 
 
 def _no_compiling_here() -> None:
@@ -325,8 +354,20 @@ def test_cold_demo_names_the_paths_it_timed_and_its_table_is_not_cut_when_piped(
 )
 def test_first_run_mode_from_the_environment(monkeypatch, mode, expected):
     monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", mode)
-    assert warmup.first_run_mode("foreground") == expected
-    assert warmup.first_run_mode("background") == ("background" if mode == "other" else expected)
+    monkeypatch.setattr(warmup, "_announced", set())
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert warmup.first_run_mode("foreground") == expected
+        assert warmup.first_run_mode("background") == (
+            "background" if mode == "other" else expected
+        )
+    said = [str(w.message) for w in seen if issubclass(w.category, warmup.CompileNotice)]
+    if mode == "other":  # a typo is said, once, not ignored in silence
+        assert said == [
+            "CONTINUUM_MHE_FIRST_RUN='other' is neither 'foreground' nor 'background': ignored"
+        ]
+    else:
+        assert said == []
 
 
 _CALLER = '''

@@ -29,6 +29,30 @@ def test_mypy_clean():
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+def test_import_layers_kept():
+    """The contracts of pyproject.toml's ``[tool.importlinter]`` (import-linter)."""
+    r = _run(sys.executable, "-c", "import sys; from importlinter.cli import lint_imports; "
+             "sys.exit(lint_imports(config_filename='pyproject.toml'))")  # fmt: skip
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_no_import_cycles():
+    """No module imports itself through others, at import time or inside a function
+    (grimp's import graph, ordered by graphlib)."""
+    import graphlib
+
+    import grimp
+
+    graph = grimp.build_graph("continuum_mhe")
+    order = graphlib.TopologicalSorter(
+        {m: graph.find_modules_directly_imported_by(m) for m in graph.modules}
+    )
+    try:
+        order.prepare()
+    except graphlib.CycleError as exc:
+        raise AssertionError(f"import cycle: {' -> '.join(exc.args[1])}") from None
+
+
 def test_ci_runs_exactly_the_readme_test_command():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()

@@ -401,10 +401,8 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     lines = _deg_s_stream(GYRO_CHECK_SAMPLES + 100)
     args = ["--port", str(port), "--method", "ekf", "--imu-model", "direct"]
     live = LiveProcess([*args, "--duration", "30", "-o", str(out)])
-    start = time.monotonic()
     code = send_and_finish(live, master, lines)
-    assert code == 2, live.err
-    assert time.monotonic() - start < 25  # stopped at the check, not at --duration
+    assert code == 2, live.err  # stopped at the check (the summary below: its samples only)
     err = live.err.splitlines()
     said = _estimate_says(tmp_path, lines[:GYRO_CHECK_SAMPLES], ["--imu-model", "direct"])
     (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]

@@ -232,7 +232,7 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     recording did not replay to the same estimates."""
     from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.robot_logs import InputOptions, load_estimate_input
+    from continuum_mhe.io.sample_stream import InputOptions, load_estimate_input
     from continuum_mhe.stream.session import imu_converters
 
     robot_file = tmp_path / "tilted.toml"

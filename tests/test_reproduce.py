@@ -18,6 +18,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.reproduce import beyond as by
+from continuum_mhe.reproduce import bootstrap
 from continuum_mhe.reproduce import experiments as ex
 from continuum_mhe.reproduce import report as rp
 from continuum_mhe.reproduce.figures import RENDERERS
@@ -352,21 +353,21 @@ def test_corruptions() -> None:
 def test_mean_ci_known_answers() -> None:
     """Percentile bootstrap of the mean: exact quantiles of the resampled means."""
     # two values: means 0, 1/2, 1 with probabilities 1/4, 1/2, 1/4
-    two = ex.mean_ci([0.0, 1.0])
+    two = bootstrap.mean_ci([0.0, 1.0])
     assert (two["mean"], two["lo"], two["hi"]) == (0.5, 0.0, 1.0)
     # [0, 0, 0, 10]: the mean is 2.5 k, k ~ Binomial(4, 1/4); P(k = 0) = 0.32 > 2.5 %,
     # P(k >= 3) = 0.051 > 2.5 % > P(k = 4) = 0.004: the interval is [0, 7.5] (a
     # Student-t interval would be 2.5 +- 7.96, below zero for a non-negative error)
-    skew = ex.mean_ci([0.0, 0.0, 0.0, 10.0])
+    skew = bootstrap.mean_ci([0.0, 0.0, 0.0, 10.0])
     assert (skew["lo"], skew["hi"]) == (0.0, 7.5)
-    assert ex.mean_ci([3.0] * 6)["lo"] == ex.mean_ci([3.0] * 6)["hi"] == 3.0
-    assert math.isnan(ex.mean_ci([1.0])["lo"]) and ex.mean_ci([])["n"] == 0
+    assert bootstrap.mean_ci([3.0] * 6)["lo"] == bootstrap.mean_ci([3.0] * 6)["hi"] == 3.0
+    assert math.isnan(bootstrap.mean_ci([1.0])["lo"]) and bootstrap.mean_ci([])["n"] == 0
     # many normal values: close to the Student-t interval
     from scipy.stats import t as student_t
 
     v = np.random.default_rng(5).normal(2.0, 1.0, 400)
     half = student_t.ppf(0.975, 399) * v.std(ddof=1) / math.sqrt(400)
-    ci = ex.mean_ci(v.tolist())
+    ci = bootstrap.mean_ci(v.tolist())
     assert ci["lo"] == pytest.approx(v.mean() - half, abs=0.1 * half)
     assert ci["hi"] == pytest.approx(v.mean() + half, abs=0.1 * half)
 
@@ -510,11 +511,11 @@ def test_beyond_corruptions() -> None:
 
 def test_paired_bootstrap_known_answers() -> None:
     b = np.array([1.0, 2.0, 3.0, 5.0])
-    r = by.paired(2 * b, b, "ratio")  # every resample: ratio exactly 2
+    r = bootstrap.paired(2 * b, b, "ratio")  # every resample: ratio exactly 2
     assert (r["value"], r["lo"], r["hi"]) == pytest.approx((2.0, 2.0, 2.0))
-    d = by.paired(b + 0.5, b, "diff")
+    d = bootstrap.paired(b + 0.5, b, "diff")
     assert (d["value"], d["lo"], d["hi"]) == pytest.approx((0.5, 0.5, 0.5))
-    assert math.isnan(by.paired([1.0], [2.0], "diff")["hi"])
+    assert math.isnan(bootstrap.paired([1.0], [2.0], "diff")["hi"])
 
 
 def _p(value: float, lo: float, hi: float) -> dict[str, float]:

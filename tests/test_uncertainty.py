@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.stats
 from estimator_helpers import (
     LIN_DT,
     LIN_H,
@@ -277,7 +278,7 @@ def test_calibration_on_a_hand_made_case() -> None:
     assert c.tip_nees == pytest.approx((7.25 + 7.22 + 4.0) / 3)
     lo, hi = nees_band(3, 3)
     assert c.tip_nees_band == (lo, hi) and lo < 3 < hi
-    assert Z95 == pytest.approx(1.959964, abs=1e-6)
+    assert Z95 == pytest.approx(scipy.stats.norm.ppf(0.975), abs=1e-6)
 
 
 # --- recovery ---------------------------------------------------------------------------------

@@ -18,7 +18,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.cli_options import OPTION_RANGES
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
-from continuum_mhe.io.robot_logs import OptionWarning
+from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"

@@ -56,6 +56,7 @@ from continuum_mhe.metrics import Calibration, Metrics, compute_calibration, com
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.program import DESCRIPTION, PROG, version
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
@@ -72,14 +73,13 @@ from continuum_mhe.simulation.scenarios import (
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-PROG = "continuum-mhe"
 
 #: Modules that add subcommands through ``register(subparsers)``.
 COMMAND_MODULES: tuple[str, ...] = (
     "continuum_mhe.live",
     "continuum_mhe.reproduce.cli",
     "continuum_mhe.benchmark",
-    "continuum_mhe.viewer",
+    "continuum_mhe.cli_view",
 )
 
 
@@ -536,8 +536,6 @@ def cmd_check_robot(args: argparse.Namespace) -> int:
 
 # --- parser ---------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    from continuum_mhe.entry import DESCRIPTION, version
-
     parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -630,17 +628,37 @@ def _signal_exit() -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    warnings.formatwarning = _one_line_warning
-    # numerical trouble is flagged in each row's status; numpy's own notes would only
-    # surround the summary or the one-line error
-    warnings.filterwarnings(
-        "ignore", r"(invalid value|overflow|divide by zero|underflow) encountered", RuntimeWarning
-    )
+    """Run one command; returns its exit status. The one-line warnings, the numpy
+    filter and the signal handlers it sets last as long as the command: a caller (a
+    script, a test) gets its own back."""
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
+    formatwarning = warnings.formatwarning
     try:
-        signal.signal(signal.SIGTERM, _on_signal)
-        signal.signal(signal.SIGINT, _on_signal)
-    except ValueError:  # not the main thread (e.g. called from a test runner's thread)
-        pass
+        with warnings.catch_warnings():
+            warnings.formatwarning = _one_line_warning
+            # numerical trouble is flagged in each row's status; numpy's own notes would
+            # only surround the summary or the one-line error
+            warnings.filterwarnings(
+                "ignore",
+                r"(invalid value|overflow|divide by zero|underflow) encountered",
+                RuntimeWarning,
+            )
+            try:
+                signal.signal(signal.SIGTERM, _on_signal)
+                signal.signal(signal.SIGINT, _on_signal)
+            except ValueError:  # not the main thread (e.g. called from a test runner's thread)
+                pass
+            return _run_command(argv)
+    finally:
+        warnings.formatwarning = formatwarning
+        for sig, handler in handlers.items():
+            try:
+                signal.signal(sig, handler)
+            except (ValueError, TypeError):  # not the main thread; a handler not set from Python
+                pass
+
+
+def _run_command(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # said by the command's parser, so the usage shown is the command's

@@ -310,8 +310,8 @@ def raw_settings(args: argparse.Namespace) -> RawImuSettings:
 
 
 def input_options(args: argparse.Namespace) -> Any:
-    """``robot_logs.InputOptions`` for ``estimate`` from parsed options."""
-    from continuum_mhe.io.robot_logs import InputOptions
+    """``input_options.InputOptions`` for ``estimate`` from parsed options."""
+    from continuum_mhe.io.input_options import InputOptions
 
     topics = tuple(getattr(args, "topic", None) or ())
     gyro_std = float(getattr(args, "gyro_std", 0.05))

@@ -10,17 +10,14 @@ MHE's arrival cost.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.fast.warmup import FirstRun, register_recipe
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
-
-if TYPE_CHECKING:
-    from continuum_mhe.estimators.fast.warmup import FirstRun
 
 
 def ekf_predict(
@@ -280,3 +277,16 @@ class UnscentedKalmanFilter(_KalmanBase):
         C = -(wc[:, None] * (pts - x)).T @ dr
         K = np.linalg.solve(S, C.T).T
         return x + K @ rm, P - K @ S @ K.T
+
+
+def _compile_ekf_kernels(f: Formulation, t: FloatArray, z: FloatArray, spiked: FloatArray) -> None:
+    """The compiled EKF's kernel recipe (:func:`~.fast.warmup.register_recipe`); none
+    without a compiled model (no C compiler)."""
+    try:
+        ekf = CompiledExtendedKalmanFilter(f, first_run=None)
+    except NotImplementedError:
+        return
+    ekf.run(t, z)
+
+
+register_recipe("ekf", _compile_ekf_kernels)

@@ -67,6 +67,7 @@ from continuum_mhe.estimators.fast.warmup import (
     defer_compiling,
     ensure_compiled,
     kernels_ready,
+    register_recipe,
 )
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
@@ -170,11 +171,17 @@ class MovingHorizonEstimator(Estimator):
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
         self._feasible: Feasible | None = None if self._fast is None else self._fast.feasible
+        #: why the window covariance leaves the constraints out (None when it does not)
+        self.covariance_note: str | None = None
         if self._feasible is None:
             try:
                 self._feasible = feasible_set(formulation)
-            except NotImplementedError:  # a feasible set the kernel cannot read
-                self._feasible = None  # the covariance then ignores the bounds
+            except NotImplementedError as exc:  # a feasible set the kernel cannot read
+                self.covariance_note = (
+                    f"the window covariance leaves this problem's constraints out ({exc}): "
+                    "its standard deviations are too large where a bound is active"
+                )
+                warnings.warn(self.covariance_note, BackendFallbackWarning, stacklevel=2)
         self._blocks = block_array(formulation.measurement_blocks)
         #: per measurement component, its block's index (nblocks: in no block)
         self._block_of = np.full(formulation.nz, len(self._blocks))
@@ -673,3 +680,20 @@ class MovingHorizonEstimator(Estimator):
     def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
         """The NLP's objective for a trajectory ``X`` (N, nx)."""
         return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
+
+
+def _compile_mhe_kernels(f: Formulation, t: FloatArray, z: FloatArray, spiked: FloatArray) -> None:
+    """The fast MHE's kernel recipe (:func:`~.fast.warmup.register_recipe`): the one-call
+    step (l2, the default settings, whose C model is then cached; a robust loss's too),
+    then for the spike the two-call step and the Python path's window solve (the second
+    start)."""
+    runs = (
+        (MHESettings(), z),
+        (MHESettings(horizon=5), z),
+        (MHESettings(horizon=5, loss="cauchy"), spiked),
+    )
+    for settings, zs in runs:
+        MovingHorizonEstimator(f, settings, first_run=None).run(t, zs)
+
+
+register_recipe("mhe", _compile_mhe_kernels)

@@ -31,8 +31,8 @@ _EXPORTS: dict[str, str] = {
     "read_raw_imus": "continuum_mhe.io.raw_imu",
     "read_robot": "continuum_mhe.io.robot_file",
     "read_imu_log": "continuum_mhe.io.robot_logs",
-    "read_estimates_mcap": "continuum_mhe.io.robot_logs",
-    "write_estimates_mcap": "continuum_mhe.io.robot_logs",
+    "read_estimates_mcap": "continuum_mhe.io.mcap_estimates",
+    "write_estimates_mcap": "continuum_mhe.io.mcap_estimates",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -64,10 +64,7 @@ if TYPE_CHECKING:
         write_measurements,
         write_truth,
     )
+    from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.robot_logs import (
-        read_estimates_mcap,
-        read_imu_log,
-        write_estimates_mcap,
-    )
+    from continuum_mhe.io.robot_logs import read_imu_log

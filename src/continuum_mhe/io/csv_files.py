@@ -498,13 +498,20 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
     return table.t, values, table.status
 
 
-def _current_umask() -> int:
+def current_umask() -> int:
+    """The process's umask now (a new file's mode is ``0o666 & ~umask``): read from
+    ``/proc/self/status`` where there is one (it changes nothing), else by setting and
+    restoring it."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-_UMASK = _current_umask()
 
 
 #: Errors of writing that belong to the output file when they carry no file name.
@@ -548,7 +555,7 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
         )
     except OSError as exc:  # name the output, not the temporary file
         raise InputError(f"{target}: cannot write in folder {folder} ({exc.strerror})") from None
-    os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
+    os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: the usual mode
     try:
         try:
             if binary:

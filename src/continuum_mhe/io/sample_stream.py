@@ -31,17 +31,17 @@ from continuum_mhe.io.csv_files import (
     tilt_sample_columns,
     tilt_values,
 )
-from continuum_mhe.io.raw_imu import RawImuConverter, is_raw_header, raw_blocks, raw_layout
-from continuum_mhe.io.robot_logs import (
+from continuum_mhe.io.input_options import (
+    EstimateInput,
     InputOptions,
-    _formulation_for,
-    _imu_settings,
     check_options_apply,
-    is_robot_log,
-    load_estimate_input,
-    mcap_estimate_writer,
-    sample_messages,
+    formulation_for,
+    imu_settings_for,
+    load_log_input,
 )
+from continuum_mhe.io.mcap_estimates import mcap_estimate_writer, sample_messages
+from continuum_mhe.io.raw_imu import RawImuConverter, is_raw_header, raw_blocks, raw_layout
+from continuum_mhe.io.robot_logs import is_robot_log
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate
@@ -95,7 +95,7 @@ def open_estimate_input(
 ) -> SampleStream:
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream."""
     if str(path) != "-" and is_robot_log(Path(path)):
-        data = load_estimate_input(path, options, formulation)
+        data = load_log_input(Path(path), options, formulation)
         problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
         readings = _readings(data.formulation)
         readings.add(data.z)
@@ -118,19 +118,33 @@ def open_estimate_input(
         raise
 
 
+def load_estimate_input(
+    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+) -> EstimateInput:
+    """Read any supported input (tilt CSV, raw CSV, bag, MCAP) whole, as measurements."""
+    p = Path(path)
+    if is_robot_log(p):
+        return load_log_input(p, options, formulation)
+    with open_estimate_input(path, options, formulation) as stream:
+        stream.problems.keep = sys.maxsize
+        pairs = list(stream.samples)
+    t = np.array([tv for tv, _ in pairs], dtype=float)
+    z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
+    return EstimateInput(stream.kind, t, z, stream.formulation, 0, stream.problems.first)
+
 def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> SampleStream:
     n_imus, name = base.robot.n_imus, rows.name
     problems = RowProblems()
     convert: Convert
     if is_raw_header(rows.header):
-        f = _formulation_for(options, base, True, Path(name))
+        f = formulation_for(options, base, True, Path(name))
         check_options_apply(name, "raw-csv", options, base.robot)
         cols, has_gyro = raw_layout(rows, n_imus)
         if options.raw.needs_gyro and not has_gyro:
             what = "--imu-model direct" if options.raw.imu_model == "direct" else (
                 f"--attitude {options.raw.attitude}")  # fmt: skip
             raise InputError(f"{name}: {what} needs gyro columns gx, gy, gz")
-        settings = [_imu_settings(options.raw, place) for place in base.robot.imus]  # as live
+        settings = [imu_settings_for(options.raw, place) for place in base.robot.imus]  # as live
         convs = [RawImuConverter(s) for s in settings]
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
@@ -151,7 +165,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
         if n_imus > 1 and options.raw.imu_model == "direct":
             raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
         cols = tilt_sample_columns(rows, n_imus)
-        f = _formulation_for(options, base, False, Path(name))
+        f = formulation_for(options, base, False, Path(name))
         check_options_apply(name, "tilt-csv", options, base.robot)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:

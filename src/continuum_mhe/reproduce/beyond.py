@@ -47,6 +47,7 @@ from continuum_mhe.metrics import Z95
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.reproduce.bootstrap import mean_ci, paired
 from continuum_mhe.settings import (
     MHELoss,
     MHESettings,
@@ -77,8 +78,6 @@ AFTER_S = 2.0
 #: A sample is "ok but wrong" if it says ``ok`` while its tip is more than this share
 #: of the length wrong.
 WRONG_SHARE = 0.1
-#: Paired bootstrap resamples (fixed seed: the same data give the same interval).
-RESAMPLES = 10_000
 
 
 @dataclass(frozen=True)
@@ -346,25 +345,6 @@ def plan_beyond(
     return specs
 
 
-def paired(
-    a: Sequence[float], b: Sequence[float], kind: Literal["ratio", "diff"]
-) -> dict[str, Any]:
-    """``mean(a) / mean(b)`` (``ratio``) or ``mean(a - b)`` (``diff``) over paired seeds
-    with a 95 % percentile-bootstrap interval (the same resampled seeds on both sides)."""
-    x, y = np.asarray(a, float), np.asarray(b, float)
-    n = len(x)
-    value = float(x.mean() / y.mean()) if kind == "ratio" else float((x - y).mean())
-    if n < 2:
-        return {"value": value, "lo": math.nan, "hi": math.nan, "n": n}
-    pick = np.random.default_rng(0).integers(0, n, size=(RESAMPLES, n))
-    if kind == "ratio":
-        boot = x[pick].mean(axis=1) / y[pick].mean(axis=1)
-    else:
-        boot = (x - y)[pick].mean(axis=1)
-    lo, hi = np.quantile(boot, [0.025, 0.975])
-    return {"value": value, "lo": float(lo), "hi": float(hi), "n": n}
-
-
 def summarise_beyond(trials: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """Per group and method: means with 95 % bootstrap intervals; the paired targets.
 
@@ -372,8 +352,6 @@ def summarise_beyond(trials: Sequence[dict[str, Any]]) -> dict[str, Any]:
     error (ratio), robust MHE - EKF (diff, mm), robust / quadratic MHE on clean data.
     ``coverage[method][key]``; ``recovery[group][method]``: off, on and ``on - off`` of
     the mean tip error and of the ok-but-wrong samples."""
-    from continuum_mhe.reproduce.experiments import mean_ci
-
     by: dict[str, list[dict[str, Any]]] = {}
     for tr in sorted(trials, key=lambda x: x["spec"]["seed"]):
         by.setdefault(tr["spec"]["group"], []).append(tr)

@@ -27,6 +27,7 @@ from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import tip_position
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, plan_beyond
+from continuum_mhe.reproduce.bootstrap import mean_ci
 from continuum_mhe.settings import FormulationName, MHESettings, NoiseSettings, RobotSettings
 from continuum_mhe.simulation.scenarios import ScenarioName, simulate
 
@@ -596,32 +597,6 @@ def run_rod(path: Path, cfg: ReproduceConfig) -> dict[str, Any]:
 
 
 # --- aggregation ---------------------------------------------------------------------------
-#: Resamples of :func:`mean_ci`'s bootstrap (fixed seed: the same data give the same
-#: interval in every run).
-BOOTSTRAP_RESAMPLES = 10_000
-
-
-def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
-    """Mean and a two-sided ``level`` percentile-bootstrap interval of the mean.
-
-    The interval is made of means of resampled data, so it never leaves the range of
-    the values: errors and times (non-negative) never get a negative bound, whatever
-    the number of seeds. With few seeds it is narrow and optimistic (two values give
-    their range); the report says so. Non-finite values are left out; fewer than two
-    values give no interval (nan)."""
-    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
-    n = len(v)
-    if n == 0:
-        return {"mean": math.nan, "lo": math.nan, "hi": math.nan, "n": 0}
-    mean = float(v.mean())
-    if n < 2:
-        return {"mean": mean, "lo": math.nan, "hi": math.nan, "n": n}
-    rng = np.random.default_rng(0)
-    means = v[rng.integers(0, n, size=(BOOTSTRAP_RESAMPLES, n))].mean(axis=1)
-    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
-    return {"mean": mean, "lo": float(lo), "hi": float(hi), "n": n}
-
-
 def _get(trial: dict[str, Any], method: str, part: str, key: str) -> float:
     block = trial["methods"].get(method, {}).get(part)
     if block is None:

@@ -22,12 +22,12 @@ from typing import Any, Literal
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
+from continuum_mhe.reproduce.bootstrap import mean_ci
 from continuum_mhe.reproduce.experiments import (
     EXPERIMENTS,
     TABLE1,
     ReproduceConfig,
     TrialSpec,
-    mean_ci,
     plan_beyond_trials,
     plan_trials,
     run_rod,

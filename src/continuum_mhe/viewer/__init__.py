@@ -1,5 +1,5 @@
 """A 3D view of the estimated backbone in Rerun: ``continuum-mhe view`` (replay of an
-estimate CSV) and the per-estimate hook of ``live --view``.
+estimate CSV, :mod:`continuum_mhe.cli_view`) and the per-estimate hook of ``live --view``.
 
 Every shape comes from the robot and the PCC model (:func:`~continuum_mhe.model.pcc.pose_at`
 at ``points_per_section`` arc lengths per section); nothing here knows a size.
@@ -27,7 +27,7 @@ breaks the trail. ``rerun-sdk`` is an optional dependency (``pip install
 from __future__ import annotations
 
 from continuum_mhe.viewer.geometry import BackboneGeometry, backbone_geometry
-from continuum_mhe.viewer.replay import cmd_view, register, replay
+from continuum_mhe.viewer.replay import replay
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView, require_rerun
 
@@ -37,8 +37,6 @@ __all__ = [
     "BackboneView",
     "ViewerSink",
     "backbone_geometry",
-    "cmd_view",
-    "register",
     "replay",
     "require_rerun",
 ]

@@ -1,11 +1,10 @@
-"""``continuum-mhe view``: an estimate CSV (and its truth) replayed as a 3D view."""
+"""An estimate CSV (and its truth) replayed as a 3D view (``continuum-mhe view``,
+:mod:`continuum_mhe.cli_view`)."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -18,7 +17,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer.sink import ViewerSink
-from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView
+from continuum_mhe.viewer.view import BackboneView
 
 
 def replay(
@@ -66,31 +65,3 @@ def replay(
     )
     view.close(wait=True)
     return drawn
-
-
-def cmd_view(args: argparse.Namespace) -> int:
-    from continuum_mhe.cli_options import robot_from_args, viewer_sink_from_args
-
-    sink = viewer_sink_from_args(args)
-    replay(args.estimates, robot_from_args(args), sink, args.truth, args.trail, args.points)
-    return 0
-
-
-def register(subparsers: Any) -> None:
-    """Add ``view``."""
-    from continuum_mhe.cli_options import add_robot_option, add_viewer_options
-    from continuum_mhe.model.imu import MOUNTINGS
-
-    p = subparsers.add_parser(
-        "view",
-        help="3D view of an estimate CSV in Rerun (backbone, IMU frames, tip trail)",
-        description="Replay an estimate CSV as a 3D view in Rerun: every section of the "
-        f"backbone, the IMU frames and the tip trail. Needs rerun-sdk ({INSTALL_HINT}).",
-    )
-    p.add_argument("estimates", metavar="EST.csv", help="estimate CSV (from estimate or live)")
-    p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV, drawn in grey")
-    add_robot_option(p, replaces=("--length", "--mounting"))
-    p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
-    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
-    add_viewer_options(p)
-    p.set_defaults(func=cmd_view)

@@ -23,7 +23,6 @@ import os
 import signal
 import subprocess
 import tempfile
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -291,9 +290,6 @@ class BackendFallbackWarning(UserWarning):
     """The requested MHE backend or compiled model is not what runs (said once)."""
 
 
-_announced: set[str] = set()
-
-
 def announce_vm_fallback(library: Library) -> str:
     """Warn (:class:`BackendFallbackWarning`, one line under the CLI) that the model runs
     in CasADi's VM, once per process and reason; returns the notice (for the
@@ -303,9 +299,7 @@ def announce_vm_fallback(library: Library) -> str:
         f"{what} ({library.reason}): the fast MHE runs through CasADi's VM, "
         f"about 10x slower; {library.fix}"
     )
-    if note not in _announced:
-        _announced.add(note)
-        warnings.warn(note, BackendFallbackWarning, stacklevel=4)
+    say_once(note, BackendFallbackWarning, stacklevel=4)
     return note
 
 

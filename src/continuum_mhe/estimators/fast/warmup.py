@@ -32,9 +32,10 @@ import subprocess
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from continuum_mhe.numba_cache import writable
 
@@ -108,23 +109,52 @@ def pid_path() -> Path:
     return marker_path().with_suffix(".pid")
 
 
+def log_path() -> Path:
+    """The background compiler's error output (kept where it failed: removed by a
+    compile that succeeds)."""
+    return marker_path().with_suffix(".log")
+
+
+def _last_failure() -> str | None:
+    """The last line of a background compile's error output, where one failed (its log
+    is not empty, no compile is running and the kernels are not compiled); else None."""
+    if kernels_ready() or _running(pid_path()):
+        return None
+    try:
+        lines = [ln.strip() for ln in log_path().read_text(errors="replace").splitlines()]
+    except OSError:
+        return None
+    lines = [ln for ln in lines if ln]
+    return lines[-1] if lines else None
+
+
 def kernels_ready() -> bool:
     """True when :func:`warm_up` has compiled and cached every kernel of this install."""
     return marker_path().is_file()
 
 
 def first_run_mode(default: FirstRun) -> FirstRun:
-    """``$CONTINUUM_MHE_FIRST_RUN`` (``foreground`` or ``background``), else ``default``."""
-    mode = os.environ.get("CONTINUUM_MHE_FIRST_RUN", default)
-    return mode if mode in ("foreground", "background") else default  # type: ignore[return-value]
+    """``$CONTINUUM_MHE_FIRST_RUN`` (``foreground`` or ``background``), else ``default``;
+    another value is said once (a :class:`CompileNotice`) and ``default`` used."""
+    mode = os.environ.get("CONTINUUM_MHE_FIRST_RUN", "")
+    if mode in ("foreground", "background"):
+        return mode  # type: ignore[return-value]
+    if mode:
+        say_once(
+            f"CONTINUUM_MHE_FIRST_RUN={mode!r} is neither 'foreground' nor 'background': "
+            "ignored"
+        )
+    return default
 
 
-def say_once(message: str) -> None:
-    """Warn ``message`` as a :class:`CompileNotice` (one line under the command line),
-    once per process."""
+def say_once(
+    message: str, category: type[Warning] = CompileNotice, stacklevel: int = 3
+) -> None:
+    """Warn ``message`` as a ``category`` (default :class:`CompileNotice`; one line under
+    the command line), once per process."""
     if message not in _announced:
         _announced.add(message)
-        warnings.warn(message, CompileNotice, stacklevel=3)
+        warnings.warn(message, category, stacklevel=stacklevel)
 
 
 def flush_kernel_caches() -> None:
@@ -151,20 +181,41 @@ def flush_kernel_caches() -> None:
                     obj.recompile()
 
 
+#: How to compile one estimator's kernels: a function of a formulation of the 0.2 m
+#: robot, the sample times (s) of a short ``paper3d`` recording, its measurements and the
+#: same with a spike on the last sample (rejected by a robust loss), that runs the
+#: estimator on them. Registered by the estimator's own module (:func:`register_recipe`),
+#: so that this module, below the estimators, imports none of them.
+Recipe = Callable[[Any, Any, Any, Any], None]
+_RECIPES: dict[str, Recipe] = {}
+#: the recipes :func:`warm_up` needs: every estimator with kernels
+RECIPE_NAMES = ("mhe", "ekf")
+
+
+def register_recipe(name: str, recipe: Recipe) -> None:
+    """Register how to compile the kernels of the estimator ``name`` (one of
+    :data:`RECIPE_NAMES`; its module does this on import)."""
+    _RECIPES[name] = recipe
+
+
 def warm_up() -> None:
-    """Compile every kernel (by running the fast MHE, with the quadratic and a robust
-    loss, and the compiled EKF on a short recording; with the default settings too, whose
-    C model of the 0.2 m robot is then cached), then write the marker. The
-    cached kernels of an earlier source are flushed first (:func:`flush_kernel_caches`)."""
+    """Compile every kernel (by running each estimator's :data:`Recipe` on a short
+    recording: the fast MHE with the quadratic and a robust loss, the default settings
+    too, whose C model of the 0.2 m robot is then cached, and the compiled EKF), then
+    write the marker. The cached kernels of an earlier source are flushed first
+    (:func:`flush_kernel_caches`)."""
     import numpy as np
 
+    missing = [name for name in RECIPE_NAMES if name not in _RECIPES]
+    if missing:  # a caller that imported this module alone: continuum_mhe.estimators registers them
+        raise RuntimeError(
+            f"no kernel recipe registered for {', '.join(missing)}: import "
+            "continuum_mhe.estimators before compiling"
+        )
     flush_kernel_caches()
 
-    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
-    from continuum_mhe.estimators.mhe import MovingHorizonEstimator
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.robot import Robot
-    from continuum_mhe.settings import MHESettings
     from continuum_mhe.simulation.scenarios import simulate_robot
 
     robot = Robot.single(0.2)
@@ -173,32 +224,15 @@ def warm_up() -> None:
     z = np.asarray(rec.z)
     spiked = z.copy()
     spiked[-1] += 0.8  # rejected by a robust loss: its second start and two-call step
-    from continuum_mhe.estimators.fast import codegen
 
     # what is silenced here (a compile, a VM fallback) is still said, once, later
-    announced = (set(_announced), set(codegen._announced))
+    announced = set(_announced)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said, where it matters, by the estimators
-        # the defaults' C model too (N = 30), so that the first default run after this
-        # compile does not compile it (the kernels do not depend on N)
-        runs = (
-            (MHESettings(), z),
-            (MHESettings(horizon=5), z),
-            (MHESettings(horizon=5, loss="cauchy"), spiked),
-        )
-        for settings, zs in runs:
-            # the one-call step (l2; a robust loss's too), then for the spike the
-            # two-call step and the Python path's window solve (the second start)
-            MovingHorizonEstimator(f, settings, first_run=None).run(rec.t, zs)
-        try:
-            ekf = CompiledExtendedKalmanFilter(f, first_run=None)
-        except NotImplementedError:  # no compiled model (no C compiler): no EKF kernel
-            pass
-        else:
-            ekf.run(rec.t, z)
-    for said, before in zip((_announced, codegen._announced), announced):
-        said.clear()
-        said.update(before)
+        for name in RECIPE_NAMES:
+            _RECIPES[name](f, rec.t, z, spiked)
+    _announced.clear()
+    _announced.update(announced)
     path = marker_path()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -290,13 +324,14 @@ def start_background_warmup() -> bool:
     if not _claim(pid_file):  # held by a live compile, here or in the foreground
         return True
     try:
-        proc = subprocess.Popen(  # noqa: S603 - our own module, same interpreter
-            [sys.executable, "-m", "continuum_mhe.estimators.fast.warmup"],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,  # survives this command and its Ctrl-C
-        )
+        with open(log_path(), "wb") as log:  # the child's traceback, if it fails
+            proc = subprocess.Popen(  # noqa: S603 - our own module, same interpreter
+                [sys.executable, "-m", "continuum_mhe.estimators"],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                start_new_session=True,  # survives this command and its Ctrl-C
+            )
         pid_file.write_text(f"{proc.pid}\n")  # the claim passes to the child
         _child = proc
     except OSError:
@@ -308,6 +343,9 @@ def start_background_warmup() -> bool:
 def defer_compiling(what: str) -> str:
     """Start the background compile and say once what this run does meanwhile; returns
     the note (for the estimator's ``backend_note``)."""
+    failed = _last_failure()
+    if failed is not None:  # said before this run tries again, with where to read why
+        say_once(f"the last background compile of the kernels failed ({failed}); see {log_path()}")
     started = start_background_warmup()
     where = "in the background" if started else "on the next run"
     note = (
@@ -318,13 +356,15 @@ def defer_compiling(what: str) -> str:
     return note
 
 
-def _main() -> int:
+def main() -> int:
+    """The background compile's process (``python -m continuum_mhe.estimators``, which
+    registers the recipes first): :func:`warm_up`, then release the pid file."""
     try:
         warm_up()
     finally:
         _release(pid_path())
+    try:  # compiled: no failure to report
+        log_path().unlink()
+    except OSError:
+        pass
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(_main())

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from continuum_mhe.io.csv_files import atomic_writer
-from continuum_mhe.reproduce.experiments import BOOTSTRAP_RESAMPLES
+from continuum_mhe.reproduce.bootstrap import BOOTSTRAP_RESAMPLES
 from continuum_mhe.reproduce.report.beyond import beyond_section
 from continuum_mhe.reproduce.report.claims import PAPER, _claims
 from continuum_mhe.reproduce.report.format import (

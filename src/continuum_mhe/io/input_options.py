@@ -1,0 +1,229 @@
+"""How ``estimate`` reads its input: the options, their checks, and robot logs as
+measurements.
+
+:class:`InputOptions` holds the command-line options; :func:`check_options_apply`
+refuses one that would do nothing on an input; :func:`load_log_input` reads a bag or
+MCAP file (one topic, or one per IMU paired by header stamp) as measurements. CSV
+input is streamed (:mod:`continuum_mhe.io.sample_stream`).
+"""
+
+import warnings
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    InputError,
+)
+from continuum_mhe.io.imu_topics import read_imu_topics
+from continuum_mhe.io.raw_imu import (
+    RawImuSettings,
+    check_gyro_units,
+    raw_to_measurements,
+)
+from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.robot import ImuPlacement, Robot
+
+
+@dataclass(frozen=True)
+class InputOptions:
+    """How ``estimate`` reads its input (command-line options).
+
+    Attributes:
+        raw: raw-IMU conversion (raw CSV, bags, MCAP).
+        topic: Imu topic in a bag or MCAP file (None: the only one).
+        topics: one Imu topic per IMU, in the robot file's order, for a robot with
+            several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
+        pair_tolerance: largest header-stamp difference of paired samples, s (None:
+            half of IMU 1's median sample period).
+        use_orientation: use the Imu message's orientation (roll, pitch) instead of
+            its raw accelerometer and gyro.
+        gyro_std: gyro noise, rad/s, for the direct model.
+        estimate_gyro_bias: the direct model estimates each gyro's bias.
+        estimate_accel_bias: the direct model estimates each accelerometer's bias.
+        own_acceleration: the direct model includes each IMU's own acceleration
+            (bend accelerations as states).
+        degrees: a tilt CSV is in degrees.
+        skip_bad: skip bad samples instead of stopping.
+    """
+
+    raw: RawImuSettings = field(default_factory=RawImuSettings)
+    topic: str | None = None
+    topics: tuple[str, ...] = ()
+    pair_tolerance: float | None = None
+    use_orientation: bool = False
+    gyro_std: float = 0.05
+    estimate_gyro_bias: bool = False
+    estimate_accel_bias: bool = False
+    own_acceleration: bool = False
+    degrees: bool = False
+    skip_bad: bool = False
+
+
+@dataclass(frozen=True)
+class EstimateInput:
+    """Measurements ready for an estimator.
+
+    Attributes:
+        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
+        t: (n,) s; z: (n, nz) measurements for ``formulation``.
+        t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
+        skipped: descriptions of skipped samples.
+        notes: one-line reports for the user (e.g. how samples of several topics paired).
+    """
+
+    kind: str
+    t: FloatArray
+    z: FloatArray
+    formulation: Formulation
+    t0_ns: int = 0
+    skipped: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
+
+
+def formulation_for(
+    options: InputOptions, base: Formulation, raw_input: bool, path: Path
+) -> Formulation:
+    if options.raw.imu_model != "direct":
+        for flag, on in (
+            ("--estimate-gyro-bias", options.estimate_gyro_bias),
+            ("--estimate-accel-bias", options.estimate_accel_bias),
+            ("--own-acceleration", options.own_acceleration),
+        ):
+            if on:
+                raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
+        return base
+    if not raw_input or options.use_orientation:
+        raise InputError(f"{path}: --imu-model direct needs raw accelerometer and gyro input")
+    if base.name not in ("bend", "direct"):
+        raise InputError(
+            f"--imu-model direct uses the bend state; --formulation {base.name} does not apply"
+        )
+    from continuum_mhe.model.direct import DirectFormulation
+
+    return DirectFormulation(
+        robot=base.robot,
+        noise=base.noise,
+        gyro_std=options.gyro_std,
+        estimate_gyro_bias=options.estimate_gyro_bias,
+        estimate_accel_bias=options.estimate_accel_bias,
+        own_acceleration=options.own_acceleration,
+    )
+
+
+class OptionWarning(UserWarning):
+    """A robot-file entry or option that has no effect on this input."""
+
+
+def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robot) -> None:
+    """Refuse an option that would do nothing on this input, in one line naming it and
+    why; warn, once, where a robot file's ``mount_rpy`` is not applied.
+
+    ``kind``: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"`` (a bag or MCAP: raw vectors,
+    or roll and pitch from its orientation with ``use_orientation``). Roll and pitch
+    are taken as already in the backbone's frame at each IMU; ``mount_rpy`` rotates raw
+    accelerometer and gyro vectors only (docs/hardware.md)."""
+    raw = options.raw
+    tilt_input = kind == "tilt-csv" or (kind == "log" and options.use_orientation)
+    if options.degrees and kind != "tilt-csv":
+        units = (
+            "the orientation is a quaternion"
+            if tilt_input
+            else "accelerations are read in m/s^2 and gyro rates in rad/s"
+        )
+        raise InputError(
+            f"{name}: --degrees does not apply to this input: it is for roll and pitch in "
+            f"tilt CSV files; {units}"
+        )
+    mounted = [str(i) for i, imu in enumerate(robot.imus, start=1) if any(imu.mount_rpy)]
+    if not tilt_input:
+        if any(raw.mount_rpy) and len(mounted) == robot.n_imus:
+            raise InputError(
+                f"{name}: --mount-rpy applies to no IMU: the robot file gives every IMU its "
+                "own mount_rpy, which wins (leave --mount-rpy out, or edit the robot file)"
+            )
+        return
+    why = "roll and pitch are used as they are, taken as already in the backbone's frame"
+    if any(raw.mount_rpy):
+        raise InputError(
+            f"{name}: --mount-rpy does not apply to tilt input: it rotates raw "
+            f"accelerometer and gyro vectors, and {why}"
+        )
+    if raw.attitude != "accel":
+        raise InputError(
+            f"{name}: --attitude {raw.attitude} does not apply to tilt input: it fuses raw "
+            f"accelerometer and gyro readings, and {why}"
+        )
+    if mounted:
+        warnings.warn(
+            f"{name}: the robot file's mount_rpy of IMU {', '.join(mounted)} is not applied "
+            f"to tilt input: it rotates raw readings, and {why}",
+            OptionWarning,
+            stacklevel=3,
+        )
+
+
+def load_log_input(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
+    """A ROS bag or MCAP file (:func:`~continuum_mhe.io.robot_logs.is_robot_log`) as
+    measurements: one Imu topic, or one per IMU paired by header stamp."""
+    check_options_apply(str(p), "log", options, formulation.robot)
+    if formulation.robot.n_imus > 1 or len(options.topics) > 1:
+        return _load_topics(p, options, formulation)
+    log = read_imu_log(p, options.topic)
+    f = formulation_for(options, formulation, True, p)
+    if options.use_orientation:
+        if not np.all(np.isfinite(log.orientation)):
+            raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+        z = tilt_from_quaternion(log.orientation)
+    else:
+        z = convert_raw(p, log.t, log.acc, log.gyr, options.raw, log.topic)
+    return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
+
+
+def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
+    """One Imu topic per IMU, paired by header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
+    robot = formulation.robot
+    paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+    f = formulation_for(options, formulation, True, p)
+    blocks = []
+    for log, place in zip(paired.logs, robot.imus):
+        if options.use_orientation:
+            if not np.all(np.isfinite(log.orientation)):
+                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+            blocks.append(tilt_from_quaternion(log.orientation))
+        else:
+            blocks.append(
+                convert_raw(
+                    p, paired.t, log.acc, log.gyr, imu_settings_for(options.raw, place), log.topic
+                )
+            )
+    return EstimateInput(
+        "log", paired.t, np.hstack(blocks), f, paired.t0_ns, paired.skipped, (paired.report(),)
+    )
+
+
+def imu_settings_for(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
+    """The conversion settings of one IMU: the robot file's mounting where it gives one,
+    else ``--mount-rpy``."""
+    if any(place.mount_rpy):
+        return replace(raw, mount_rpy=place.mount_rpy)
+    return raw
+
+
+def convert_raw(
+    path: Path,
+    t: FloatArray,
+    acc: FloatArray,
+    gyr: FloatArray | None,
+    raw: RawImuSettings,
+    topic: str,
+) -> FloatArray:
+    if raw.needs_gyro and gyr is None:
+        what = "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
+        raise InputError(f"{path}: {what} needs gyro columns gx, gy, gz")
+    if gyr is not None:
+        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
+    return raw_to_measurements(t, acc, gyr, raw)

@@ -1,0 +1,212 @@
+"""Estimates as MCAP, next to the robot's other topics in Foxglove.
+
+``write_estimates_mcap`` writes JSON-encoded channels: ``/continuum/tip``
+(``foxglove.PoseInFrame``, frame ``continuum_base``), ``/continuum/backbone``
+(``foxglove.PosesInFrame``, poses along the arc) and ``/continuum/estimate`` (the
+estimate CSV's fields); ``read_estimates_mcap`` reads them back.
+"""
+
+import json
+import math
+import os
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.extras import require
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    atomic_binary_writer,
+)
+from continuum_mhe.model.descriptions import OutputSpec, section_bends
+from continuum_mhe.model.pcc import backbone_frames
+from continuum_mhe.results import EstimateSeries
+
+BASE_FRAME = "continuum_base"
+
+
+_TIME = {
+    "type": "object",
+    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+}
+_VEC = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z")},
+}
+_QUAT = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
+}
+_POSE = {"type": "object", "properties": {"position": _VEC, "orientation": _QUAT}}
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "foxglove.PoseInFrame": {
+        "title": "foxglove.PoseInFrame",
+        "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "pose": _POSE},
+    },
+    "foxglove.PosesInFrame": {
+        "title": "foxglove.PosesInFrame",
+        "type": "object",
+        "properties": {
+            "timestamp": _TIME,
+            "frame_id": {"type": "string"},
+            "poses": {"type": "array", "items": _POSE},
+        },
+    },
+    "continuum_mhe.Estimate": {
+        "title": "continuum_mhe.Estimate",
+        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate, "
+        "std_ fields (one standard deviation) null where unknown",
+        "type": "object",
+        "properties": {
+            **{k: {"type": ["number", "null"]} for k in ("t", "x", "y", "z", "theta", "phi")},
+            "status": {"type": "string"},
+            "solve_ms": {"type": "number"},
+        },
+    },
+}
+TOPICS = {
+    "/continuum/tip": "foxglove.PoseInFrame",
+    "/continuum/backbone": "foxglove.PosesInFrame",
+    "/continuum/estimate": "continuum_mhe.Estimate",
+}
+
+
+def backbone_poses(
+    bends: FloatArray, lengths: Sequence[float], per_section: int = 10
+) -> list[dict[str, Any]]:
+    """Poses along the PCC backbone from base to tip (bends (n_sections, 2) rad,
+    lengths m), Foxglove JSON: the base, then ``per_section`` poses per section."""
+    from scipy.spatial.transform import Rotation
+
+    rots, positions = backbone_frames(bends, lengths, per_section)
+    quats = Rotation.from_matrix(rots).as_quat()  # (x, y, z, w)
+    return [
+        {
+            "position": dict(zip("xyz", map(float, p))),
+            "orientation": dict(zip("xyzw", map(float, q))),
+        }
+        for p, q in zip(positions, quats)
+    ]
+
+
+def estimate_messages(
+    series: EstimateSeries, lengths: Sequence[float], t0_ns: int = 0
+) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """``(topic, log_time_ns, message)`` for every estimate (no pose without one)."""
+    names = [o.name for o in series.outputs]
+    rows = zip(series.t, series.output, series.std, series.status, series.solve_ms)
+    for t, out, sd, st, ms in rows:
+        yield from sample_messages(series.outputs, names, float(t), out, str(st), float(ms),
+                                   lengths, t0_ns, sd)  # fmt: skip
+
+
+def sample_messages(
+    outputs: Sequence[OutputSpec],
+    names: Sequence[str],
+    t: float,
+    out: FloatArray | None,
+    st: str,
+    ms: float,
+    lengths: Sequence[float],
+    t0_ns: int = 0,
+    std: Sequence[float] | FloatArray | None = None,
+) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """The messages of one estimate (``out`` None or NaN: no pose; ``std``: one standard
+    deviation per output, NaN or None where unknown)."""
+    ns = t0_ns + int(round(t * 1e9))
+    stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+    has = out is not None and st != "no-estimate" and bool(np.all(np.isfinite(out)))
+    row: dict[str, Any] = {"t": t}
+    row.update({k: (float(v) if has else None) for k, v in zip(names, out)}
+               if out is not None else dict.fromkeys(names))  # fmt: skip
+    sd = [math.nan] * len(names) if std is None else std
+    row.update({f"std_{k}": (float(v) if has and math.isfinite(v) else None)
+                for k, v in zip(names, sd)})  # fmt: skip
+    row.update(status=st, solve_ms=ms)
+    yield "/continuum/estimate", ns, row
+    if not has:
+        return
+    assert out is not None
+    poses = backbone_poses(section_bends(outputs, out), lengths)
+    yield "/continuum/tip", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "pose": poses[-1]}
+    yield "/continuum/backbone", ns, {"timestamp": stamp, "frame_id": BASE_FRAME, "poses": poses}
+
+
+def write_estimates_mcap(
+    path: str | os.PathLike[str],
+    series: EstimateSeries,
+    lengths: Sequence[float],
+    t0_ns: int = 0,
+) -> None:
+    """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
+    with atomic_binary_writer(path) as fh:
+        writer = mcap_estimate_writer(fh)
+        for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
+            writer.add(topic, ns, msg, seq)
+        writer.finish()
+
+
+class McapEstimateWriter:
+    """An MCAP writer with the estimate channels registered (see the module doc)."""
+
+    def __init__(self, fh: IO[bytes]) -> None:
+        require("mcap", "robot", "writing MCAP")
+        from mcap.writer import CompressionType, Writer
+
+        self._writer = Writer(fh, compression=CompressionType.NONE)
+        self._writer.start(profile="", library="continuum-mhe")
+        self._channels: dict[str, int] = {}
+        for topic, schema in TOPICS.items():
+            sid = self._writer.register_schema(
+                name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
+            )
+            self._channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=sid
+            )
+
+    def add(self, topic: str, ns: int, msg: dict[str, Any], seq: int) -> None:
+        self._writer.add_message(
+            self._channels[topic], log_time=ns, data=json.dumps(msg).encode(),
+            publish_time=ns, sequence=seq,
+        )  # fmt: skip
+
+    def finish(self) -> None:
+        self._writer.finish()
+
+
+def mcap_estimate_writer(fh: IO[bytes]) -> McapEstimateWriter:
+    """Start an estimate MCAP on an open binary file."""
+    return McapEstimateWriter(fh)
+
+
+def read_estimates_mcap(
+    path: str | os.PathLike[str],
+) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
+    """``t`` (n,), outputs (n, k) in the file's column order with NaN where empty, and
+    status (n,) from an estimate MCAP."""
+    require("mcap", "robot", f"reading the MCAP file {path}")
+    from mcap.reader import make_reader
+
+    t, out, status = [], [], []
+    names: list[str] = []
+    with Path(path).open("rb") as fh:
+        for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
+            row = json.loads(message.data)
+            if not names:
+                names = [
+                    k
+                    for k in row
+                    if k not in ("t", "status", "solve_ms") and not k.startswith("std_")
+                ]
+            t.append(row["t"])
+            out.append([math.nan if row[k] is None else row[k] for k in names])
+            status.append(row["status"])
+    return (
+        np.array(t, dtype=float),
+        np.array(out, dtype=float).reshape(len(t), len(names)),
+        np.array(status, dtype=str),
+    )
