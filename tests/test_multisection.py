@@ -3,6 +3,7 @@ against filterpy, the estimators on two sections, and bad robot files."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -425,6 +426,18 @@ def test_cli_round_trip_two_sections(tmp_path: Path, capsys) -> None:  # type: i
     assert main(["evaluate", str(est), str(truth), *robot]) == 0
     out = capsys.readouterr().out
     assert "section 1 end error" in out and "section 2 end error" in out
+    # the numbers: each section end's mean distance, computed here from the two files
+    assert main(["evaluate", str(est), str(truth), *robot, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    true = read_state_table(truth)
+    for k in ("1", "2"):
+        cols = [f"x_{k}", f"y_{k}", f"z_{k}"]
+        e = np.column_stack([table.column(c) for c in cols])
+        tr = np.column_stack([true.column(c) for c in cols])
+        distance_mm = 1e3 * np.linalg.norm(e - tr, axis=1)
+        assert report["section_end_mean_mm"][k] == pytest.approx(distance_mm.mean(), rel=1e-9)
+        assert report["section_end_max_mm"][k] == pytest.approx(distance_mm.max(), rel=1e-9)
+    assert report["tip_mean_mm"] == pytest.approx(report["section_end_mean_mm"]["2"], rel=1e-12)
     assert_allclose(table.column("x"), table.column("x_2"))
     assert math.isfinite(float(table.column("theta_2").max()))
 
