@@ -268,12 +268,17 @@ def _raw_two_imus(path: Path, n: int = 20) -> Path:
          "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
         ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
          "file gives every IMU its own mount_rpy"),
+        ("tilt", ["--topic", "/imu"], "--topic does not apply to this input: it is for ROS "
+         "bags and MCAP files (sensor_msgs/Imu topics), and this is a CSV file"),
+        ("raw", ["--orientation"], "--orientation does not apply to this input: it is for ROS"),
+        ("raw", ["--pair-tolerance", "0.01"], "--pair-tolerance does not apply to this input"),
     ],
 )  # fmt: skip
 def test_an_option_that_does_nothing_on_this_input_is_refused(
     tmp_path, capsys, kind: str, argv: list[str], needle: str
 ) -> None:
-    """Before: --mount-rpy on a tilt CSV, --degrees on a raw CSV did nothing, silently."""
+    """Before: --mount-rpy on a tilt CSV, --degrees on a raw CSV, and a bag's --topic,
+    --orientation or --pair-tolerance on a CSV did nothing, silently."""
     every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
     robot = _two_imu_robot(tmp_path / "robot.toml", every if kind == "raw-mounted" else ("", ""))
     if kind == "tilt":

@@ -127,6 +127,17 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
     are taken as already in the backbone's frame at each IMU; ``mount_rpy`` rotates raw
     accelerometer and gyro vectors only (docs/hardware.md)."""
     raw = options.raw
+    if kind != "log":  # a bag's or MCAP's options
+        for flag, given in (
+            ("--topic", bool(options.topics) or options.topic is not None),
+            ("--orientation", options.use_orientation),
+            ("--pair-tolerance", options.pair_tolerance is not None),
+        ):
+            if given:
+                raise InputError(
+                    f"{name}: {flag} does not apply to this input: it is for ROS bags and "
+                    "MCAP files (sensor_msgs/Imu topics), and this is a CSV file"
+                )
     tilt_input = kind == "tilt-csv" or (kind == "log" and options.use_orientation)
     if options.degrees and kind != "tilt-csv":
         units = (
