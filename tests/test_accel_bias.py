@@ -18,9 +18,10 @@ from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import InputOptions, load_estimate_input
+from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings

@@ -230,9 +230,10 @@ def test_row_file_full_disk_keeps_whole_rows_and_names_the_file(
 def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: Path) -> None:
     """A one-IMU robot file's mount_rpy: live applied it and estimate did not, so a
     recording did not replay to the same estimates."""
+    from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.sample_stream import InputOptions, load_estimate_input
+    from continuum_mhe.io.sample_stream import load_estimate_input
     from continuum_mhe.stream.session import imu_converters
 
     robot_file = tmp_path / "tilted.toml"

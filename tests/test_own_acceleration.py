@@ -11,9 +11,10 @@ from estimator_helpers import fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import InputOptions, load_estimate_input
+from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.registry import make_formulation

@@ -7,22 +7,17 @@ MCAP file (one topic, or one per IMU paired by header stamp) as measurements. CS
 input is streamed (:mod:`continuum_mhe.io.sample_stream`).
 """
 
+from __future__ import annotations
+
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import (
-    FloatArray,
-    InputError,
-)
+from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.io.imu_topics import read_imu_topics
-from continuum_mhe.io.raw_imu import (
-    RawImuSettings,
-    check_gyro_units,
-    raw_to_measurements,
-)
+from continuum_mhe.io.raw_imu import RawImuSettings, check_gyro_units, raw_to_measurements
 from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot

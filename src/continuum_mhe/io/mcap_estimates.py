@@ -6,6 +6,8 @@
 estimate CSV's fields); ``read_estimates_mcap`` reads them back.
 """
 
+from __future__ import annotations
+
 import json
 import math
 import os
@@ -17,10 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import (
-    FloatArray,
-    atomic_binary_writer,
-)
+from continuum_mhe.io.csv_files import FloatArray, atomic_binary_writer
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.results import EstimateSeries

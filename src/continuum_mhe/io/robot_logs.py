@@ -17,6 +17,8 @@ header stamp (:mod:`continuum_mhe.io.imu_topics`).
 Estimates written as MCAP: :mod:`continuum_mhe.io.mcap_estimates`.
 """
 
+from __future__ import annotations
+
 import json
 import math
 import os
@@ -28,18 +30,12 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import (
-    FloatArray,
-    InputError,
-)
-from continuum_mhe.io.raw_imu import (
-    _check_accel_units,
-)
+from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.io.raw_imu import _check_accel_units
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 LOG_SUFFIXES = (".bag", ".mcap", ".db3")
-BASE_FRAME = "continuum_base"
 
 
 @dataclass(frozen=True)

@@ -132,6 +132,7 @@ def load_estimate_input(
     z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
     return EstimateInput(stream.kind, t, z, stream.formulation, 0, stream.problems.first)
 
+
 def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> SampleStream:
     n_imus, name = base.robot.n_imus, rows.name
     problems = RowProblems()

@@ -35,9 +35,13 @@ import warnings
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from continuum_mhe.numba_cache import writable
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators.base import FloatArray
+    from continuum_mhe.model.formulations import Formulation
 
 FirstRun = Literal["foreground", "background"]
 
@@ -186,7 +190,7 @@ def flush_kernel_caches() -> None:
 #: same with a spike on the last sample (rejected by a robust loss), that runs the
 #: estimator on them. Registered by the estimator's own module (:func:`register_recipe`),
 #: so that this module, below the estimators, imports none of them.
-Recipe = Callable[[Any, Any, Any, Any], None]
+Recipe = Callable[["Formulation", "FloatArray", "FloatArray", "FloatArray"], None]
 _RECIPES: dict[str, Recipe] = {}
 #: the recipes :func:`warm_up` needs: every estimator with kernels
 RECIPE_NAMES = ("mhe", "ekf")
