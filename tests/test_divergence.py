@@ -24,6 +24,7 @@ REPRO = Path(__file__).parent / "data" / "repro"
 FLAGGED = {
     ("gimbal_flip.csv", "mhe"): "not-converged",
     ("gimbal_flip.csv", "ekf"): "reset",
+    ("gimbal_flip.csv", "ukf"): "reset",
     ("mhe_stops.csv", "mhe"): "reset",
     ("mhe_stops.csv", "ekf"): "reset",
     ("mhe_stops.csv", "ukf"): "reset",
@@ -46,6 +47,31 @@ def test_ekf_gimbal_flip_is_flagged_not_ok() -> None:
     series = make_estimator("ekf", make_formulation("bend")).run(data.t, data.z)
     assert np.all(np.isfinite(series.output))
     assert series.status[-1] == "reset"
+
+
+def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
+    # its sigma points' tangent-plane residuals straddled the singularity at a half turn
+    # (-1414 against +130): the update kept x = +0.127 m where the reading says -0.127,
+    # status ok, with std y 1e-6 m
+    data = read_measurements(REPRO / "gimbal_flip.csv")
+    est = make_estimator("ukf", make_formulation("bend"))
+    series = est.run(data.t, data.z)
+    assert list(series.status) == ["ok", "reset"]
+    assert est.restarts == 1 and "half turn" in str(est.last_failure)
+    assert series.output[1, 0] < 0  # restarted from the second reading
+    assert series.output_std[1, 1] > 1e-3
+
+
+def test_ukf_chart_check_knows_a_singularity_from_a_wrap() -> None:
+    # the bend formulation's tangent-plane residual does not wrap: a jump is its singularity
+    far = np.array([[0.0, -1414.2], [0.0, 129.8], [0.0, -8.7]])
+    with pytest.raises(ArithmeticError, match="pitch residuals span 1.54e"):
+        make_estimator("ukf", make_formulation("bend"))._check_tilt_chart(far, np.arange(2))
+    near = np.array([[0.0, 0.05], [0.0, 0.3], [0.0, -0.2]])
+    make_estimator("ukf", make_formulation("bend"))._check_tilt_chart(near, np.arange(2))
+    # the paper formulation's Euler angles wrap: residuals straddling +-pi are no singularity
+    wrapped = np.array([[3.10, 0.1], [-3.12, 0.2], [3.13, 0.0]])
+    make_estimator("ukf", make_formulation("paper"))._check_tilt_chart(wrapped, np.arange(2))
 
 
 def test_mhe_survives_the_rows_that_stopped_it() -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -96,6 +97,11 @@ class Formulation:
     noise: NoiseSettings = field(default_factory=NoiseSettings)
 
     name: FormulationName = "bend"
+    #: whether each tilt residual is an angle difference wrapped to (-pi, pi]
+    #: (:meth:`measurement_residual_sym`), or a smooth chart that never wraps (the bend
+    #: formulation's tangent plane): the UKF takes a jump of more than pi in a chart's
+    #: residuals across its sigma points for a reading about a half turn away
+    tilt_residual_wraps: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))
@@ -276,6 +282,7 @@ class BendFormulation(Formulation):
     roll and pitch of every IMU."""
 
     name: FormulationName = "bend"
+    tilt_residual_wraps: ClassVar[bool] = False
 
     # --- the state ----------------------------------------------------------------
     @property
