@@ -202,6 +202,23 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     assert re.search(summed, out)
 
 
+def test_evaluate_of_an_unknown_status_is_an_error(tmp_path, capsys) -> None:
+    # a status outside the vocabulary (edited by hand, another tool's "OK") was read as a
+    # row like any other; evaluate and view then gave it no meaning
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    lines = est.read_text().splitlines(keepends=True)
+    row = next(i for i, line in enumerate(lines) if ",ok," in line)
+    lines[row] = lines[row].replace(",ok,", ",OK,")
+    est.write_text("".join(lines))
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert f"line {row + 1}: status 'OK' is not one of ok, dropout," in err
+
+
 def test_evaluate_against_another_robots_truth_gives_no_srmse(tmp_path, capsys) -> None:
     """A two-section truth for a one-section estimate: the warning, and no SRMSE summed
     over the x, y, z they share that would read as a score."""

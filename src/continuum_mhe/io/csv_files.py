@@ -53,7 +53,7 @@ from continuum_mhe.io.text_rows import (
 )
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.results import EstimateSeries
+from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
 
 FloatArray = NDArray[np.float64]
 
@@ -398,6 +398,9 @@ def read_state_table(
                 "field or separator?)"
             )
         st = row[s_idx] if s_idx is not None else "ok"
+        if st not in STATUS_MEANINGS:
+            known = ", ".join(STATUS_MEANINGS)
+            raise InputError(f"{p}: line {line}: status {st!r} is not one of {known}")
         tv = parse_float(p, line, "t", row[t_idx]) * table.time_scale
         vals = [
             math.nan if (row[j] == "" and st == "no-estimate") else parse_float(p, line, c, row[j])
