@@ -430,3 +430,39 @@ def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) 
     err = live.err.splitlines()
     assert [ln for ln in err if "gyro magnitude" in ln] == [expected.replace("PORT", str(port))]
     assert any(ln.startswith("live: 300 samples, 300 estimates; ") for ln in err), live.err
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "last"), [(signal.SIGINT, 2, None), (signal.SIGTERM, 143, "terminated")]
+)
+def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
+    tmp_path: Path, sig: int, code: int, last: str | None
+) -> None:
+    """Before: a session shorter than the gyro check's samples, stopped by Ctrl-C,
+    ended with 'interrupted' (exit 130): the end-of-session check's deg/s error, which
+    the same run stopped by --duration gives (exit 2), was not said. Now the summary,
+    then that error line; exit 2 after Ctrl-C (143 after SIGTERM, as a service manager
+    expects, the error said first); the rows written stay."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    master = new_pty(port)
+    lines = _deg_s_stream(50)
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--imu-model", "direct",
+                        "-o", str(out)])  # fmt: skip
+    try:
+        live.wait_ready()
+        os.write(master, ("\n".join(lines) + "\n").encode())
+        wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
+        got = live.finish(sig)
+    finally:
+        if live.proc.poll() is None:
+            live.proc.kill()
+        os.close(master)
+    assert got == code, live.err
+    err = live.err.splitlines()
+    if last is not None:
+        assert err.pop() == f"continuum-mhe: {last}"
+    said = _estimate_says(tmp_path, lines, ["--imu-model", "direct"])  # the same samples
+    (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
+    assert err[-1] == expected.replace("PORT", str(port)) and "interrupted" not in live.err
+    assert any(ln.startswith("live: 50 samples, 50 estimates; ") for ln in err), live.err
+    assert data_rows(out) == len(lines)

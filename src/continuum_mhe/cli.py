@@ -60,7 +60,7 @@ from continuum_mhe.program import DESCRIPTION, PROG, version
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
-from continuum_mhe.signals import interruptible, signals_deferred
+from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
 from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
@@ -668,6 +668,11 @@ def _run_command(argv: Sequence[str] | None) -> int:
         check_option_ranges(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
+        if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:
+            # a command that stopped cleanly on the signal and then found a problem with
+            # its input (``live``'s end-of-session unit check) says it, as without one
+            code = _user_error(exc)
+            return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
         # a signal raised inside a C extension (CasADi, numpy) can surface as any
         # exception type: once a signal arrived, the run ends as interrupted
         if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):
