@@ -445,3 +445,28 @@ def test_live_gyro_in_rad_s_passes_and_a_short_session_is_checked_at_its_end() -
     assert short.fatal is None and short.counts.estimates == 30  # too few yet
     short.check_gyro_units()  # run_live at the session's end
     assert short.fatal is not None and "deg/s? give rad/s" in short.fatal
+
+
+def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
+    """Before: a gyro in deg/s beyond the sensor's range (|g| > 52 rad/s) was only
+    'garbled line skipped: value beyond the sensor's range', naming no field or unit."""
+    from live_helpers import raw_line, specific_force
+
+    from continuum_mhe.stream.protocol import GarbledLine, parse_line
+
+    acc = np.tile(specific_force(0.1, 0.2), (2, 1))
+    gyr = np.array([[0.1, 0.2, 0.3], [0.1, 0.2, 120.0]])  # IMU 2's gz: 120 deg/s
+    with pytest.raises(GarbledLine) as caught:
+        parse_line(raw_line(20, acc, gyr), "raw", n_imus=2)
+    assert str(caught.value) == (
+        "gz_2 beyond the gyro's range (|gz_2| > 52.4 rad/s, 2000 deg/s and a margin): deg/s "
+        "given for rad/s?"
+    )
+    s, said, _ = _raw_session(RawImuSettings())
+    _handle(s, ["0,0.1,0.2,9.8,0.01,0.02,0.03", "20,0.1,0.2,9.8,-90.0,0.02,0.03"])
+    assert [m for m in said if "garbled" in m] == [
+        "garbled line skipped: gx beyond the gyro's range (|gx| > 52.4 rad/s, 2000 deg/s and "
+        "a margin): deg/s given for rad/s? (said for the first only; all are counted)"
+    ]
+    with pytest.raises(GarbledLine, match=r"^ay beyond the accelerometer's range \(\|ay\| > 235 "):
+        parse_line("20,0.1,981.0,9.8,0.01,0.02,0.03", "raw")
