@@ -283,3 +283,24 @@ def test_log_gyro_in_deg_s_is_one_line(
     assert len(warned) == 1 and "topic /tip/imu: gyro magnitude is about" in warned[0]
     assert warned[0].endswith("these options do not use the gyro, so the estimate is unaffected")
     assert out.exists()
+
+
+def test_orientation_skips_the_accelerometer_unit_check(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: estimate --orientation refused a log whose accelerations are in g ('the
+    values look like g'), though it reads only the orientation (docs/hardware.md says the
+    check is skipped there). The raw readings are still checked where they are used."""
+    rp = tilt(recording["truth"][:, 3], recording["truth"][:, 4])
+    quat = _wxyz(Rotation.from_euler("ZYX", np.stack([0 * rp[:, 0], rp[:, 1], rp[:, 0]], -1)))
+    in_g = {**recording, "acc": recording["acc"] / 9.80665, "quat": quat}
+    bag = write_ros2_bag(tmp_path / "bag2", in_g)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf", "--orientation"]) == 0
+    assert out.exists()
+    out.unlink()
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    said = "topic /tip/imu: accelerometer magnitude is about 1.00: the values look like g"
+    assert said in err[-1]
+    assert not out.exists()
