@@ -304,3 +304,27 @@ def test_orientation_skips_the_accelerometer_unit_check(
     said = "topic /tip/imu: accelerometer magnitude is about 1.00: the values look like g"
     assert said in err[-1]
     assert not out.exists()
+
+
+def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: 'pass --topic; sensor_msgs/msg/Imu topics in this log: none', though no
+    --topic can help. Now one line saying the log has no Imu topic, listing its topics."""
+    from mcap.writer import CompressionType, Writer
+
+    log = tmp_path / "odd.mcap"
+    with log.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start()
+        sid = w.register_schema(name="std_msgs/msg/String", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/chatter", message_encoding="json", schema_id=sid)
+        w.add_message(cid, log_time=T0_NS, data=b'{"data": "hi"}', publish_time=T0_NS)
+        w.finish()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(log), "-o", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"continuum-mhe: error: {log}: the log has no sensor_msgs/msg/Imu topic; its topics: "
+        "/chatter (std_msgs/msg/String)"
+    )
+    assert not out.exists()

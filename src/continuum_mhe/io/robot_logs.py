@@ -100,14 +100,19 @@ def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
 
 def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
     imu = sorted(t for t, typ in topics.items() if typ in IMU_TYPES)
+    every = ", ".join(f"{t} ({typ or 'no schema'})" for t, typ in sorted(topics.items()))
     if topic is None:
         if len(imu) == 1:
             return imu[0]
-        listing = ", ".join(imu) or "none"
-        raise InputError(f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {listing}")
+        if not imu:  # no --topic can help
+            raise InputError(
+                f"{path}: the log has no sensor_msgs/msg/Imu topic; its topics: {every or 'none'}"
+            )
+        raise InputError(
+            f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
+        )
     if topic not in topics:
-        listing = ", ".join(f"{t} ({typ})" for t, typ in sorted(topics.items())) or "none"
-        raise InputError(f"{path}: no topic {topic!r}; topics: {listing}")
+        raise InputError(f"{path}: no topic {topic!r}; topics: {every or 'none'}")
     if topics[topic] not in IMU_TYPES:
         raise InputError(f"{path}: topic {topic} is {topics[topic]}, expected sensor_msgs/msg/Imu")
     return topic
