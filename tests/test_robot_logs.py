@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -328,3 +329,27 @@ def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
         "/chatter (std_msgs/msg/String)"
     )
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("scale", "says"),
+    [
+        (1e-3, "advance by a median of 2e-05 s per sample (5e+04 samples per second); "
+               "header.stamp must be ROS time (sec, and nanosec in ns): microseconds in nanosec?"),
+        (1e3, "advance by a median of 20 s per sample; header.stamp must be ROS time (sec, and "
+              "nanosec in ns): milliseconds in sec?"),
+    ],
+)  # fmt: skip
+def test_log_stamps_in_another_unit_warn_as_a_csv_t_does(
+    tmp_path: Path, recording: dict[str, Any], scale: float, says: str
+) -> None:
+    """Before: header stamps 1000 times too small (or too large) gave no warning, while a
+    CSV t in milliseconds does. The same rule (check_time_steps) now warns for a log."""
+    stamps = T0_NS + np.round((recording["stamps"] - T0_NS) * scale).astype(np.int64)
+    log = write_mcap(tmp_path / "x.mcap", {**recording, "stamps": stamps})
+    with pytest.warns(UnitWarning) as seen:
+        read_imu_log(log)
+    assert [str(w.message) for w in seen] == [f"{log}: topic /tip/imu: header stamps {says}"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_imu_log(write_mcap(tmp_path / "ok.mcap", recording))  # 50 Hz: no warning

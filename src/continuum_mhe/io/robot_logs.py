@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.io.csv_files import FloatArray, InputError, check_time_steps
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
@@ -209,10 +209,16 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
+    t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
+    stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
+    check_time_steps(
+        f"{p}: topic {name}", "header stamps advance", t,
+        f"{stamp}: milliseconds in sec?", f"{stamp}: microseconds in nanosec?",
+    )  # fmt: skip
     arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
     return ImuLog(
         topic=name,
-        t=(np.array(stamps, dtype=np.int64) - t0) / 1e9,
+        t=t,
         t0_ns=t0,
         acc=arr[0],
         gyr=arr[1],
