@@ -126,6 +126,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_estimate(args: argparse.Namespace) -> int:
     # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5;
     # streamed: the input is read once and memory stays flat (issue #12)
+    from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
     from continuum_mhe.live import input_options
 
@@ -185,6 +186,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
+    if stream.kind == "log":  # several topics in the wrong order, most often
+        warn_topic_order(stream.name, args.topic or (), n, est.restarts + est.bad_starts)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
