@@ -52,7 +52,13 @@ from continuum_mhe.io.csv_files import (
     write_measurements,
     write_truth,
 )
-from continuum_mhe.metrics import Calibration, Metrics, compute_calibration, compute_metrics
+from continuum_mhe.metrics import (
+    Calibration,
+    Metrics,
+    compute_calibration,
+    compute_metrics,
+    length_misfit,
+)
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
@@ -328,6 +334,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     if hint:
         print(f"{PROG}: warning: {hint}", file=sys.stderr)
+    for path, table in ((args.estimates, est), (args.truth, truth)):
+        misfit = length_misfit(table.names, table.values, robot.lengths)
+        if misfit:  # tip errors in % of the length are then of another robot's length
+            fix = "pass the --length (or --robot) it was made with"
+            print(f"{PROG}: warning: {path}: {misfit}; {fix}", file=sys.stderr)
     if args.json:
         extra = {"calibration": None if cal is None else cal.as_dict()}
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
