@@ -480,3 +480,33 @@ def test_main_gives_the_caller_its_warnings_and_signal_handlers_back(tmp_path):
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == handlers
     with pytest.warns(RuntimeWarning, match="divide by zero"):
         np.float64(1.0) / np.float64(0.0)
+
+
+def test_evaluate_warns_when_the_length_does_not_fit_the_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: evaluate --length 0.3 on files made for a 0.2 m robot said nothing (tip
+    errors in % of the wrong length). Now each file whose tip is not where its own angles
+    put it on the given robot is named, with the length it was made for; a truth without
+    angles whose tip is farther from the base than the length is named too."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "2"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--length", "0.2"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["evaluate", str(est), str(truth), "--length", "0.3"]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
+    assert said == [
+        f"continuum-mhe: warning: {path}: its tip is 0.67 times as far from the base as its own "
+        "angles put it on a robot of 0.3 m: it was made for a robot of about 0.2 m; pass the "
+        "--length (or --robot) it was made with"
+        for path in (est, truth)
+    ]
+    tip_only = tmp_path / "tip.csv"
+    rows = [ln.split(",")[:4] for ln in truth.read_text().splitlines()]
+    tip_only.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    assert main(["evaluate", str(est), str(tip_only), "--length", "0.1"]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if str(tip_only) in ln]
+    assert len(said) == 1 and "m from the base, beyond the robot's length 0.1 m" in said[0]

@@ -216,3 +216,44 @@ def test_wrong_topics_are_one_line(
     # a one-IMU robot given two topics
     assert main(["estimate", str(log), "-o", str(out), "--topic", "/imu1", "--topic", "/imu2"]) == 2
     assert "2 --topic for a robot with 1 IMU:" in capsys.readouterr().err
+
+
+def test_topics_in_the_wrong_order_warn_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a two-IMU robot whose --topic order was swapped ran to exit 0 with many
+    resets and no hint. Now more than ORDER_RESTART_SHARE of the samples restarting the
+    estimator warns once that the topic order may not be the robot's; the right order
+    (no restart) does not."""
+    import warnings
+
+    from continuum_mhe.io.imu_topics import TopicOrderWarning
+
+    rec = raw_imu_recording(read_robot("two-section"), 10.0)
+    n = len(rec.t)
+    stamps = T0_NS + np.arange(n, dtype=np.int64) * DT_NS
+    imus = [
+        {
+            "stamps": stamps,
+            "acc": G * rec.z[:, 6 * k : 6 * k + 3],
+            "gyr": rec.z[:, 6 * k + 3 : 6 * k + 6],
+        }
+        for k in range(2)
+    ]
+    log = write_mcap_topics(tmp_path / "x.mcap", imus)
+    out = tmp_path / "e.csv"
+    args = ["estimate", str(log), "-o", str(out), "--robot", "two-section", "--method", "ekf",
+            "--imu-model", "direct"]  # fmt: skip
+    with pytest.warns(TopicOrderWarning) as seen:
+        assert main([*args, "--topic", "/imu2", "--topic", "/imu1"]) == 0
+    (said,) = [str(w.message) for w in seen if w.category is TopicOrderWarning]
+    assert said.startswith(f"{log}: ") and " samples (" in said
+    assert said.endswith(
+        "restarted the estimator (readings inconsistent with its estimate): the readings do "
+        "not fit the robot; check that the --topic order (/imu2, /imu1) is the robot file's "
+        "IMU order (IMU 1 nearest the base)"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TopicOrderWarning)
+        assert main([*args, "--topic", "/imu1", "--topic", "/imu2"]) == 0
+    assert "reset" not in capsys.readouterr().err.splitlines()[-1]

@@ -394,23 +394,23 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     times too fast) was estimated on for the whole session, exit 0. Now: the first 100
     samples estimated as they arrive, then the summary, estimate's one line for the same
     samples (naming the port) and exit 2, the lines queued after them left."""
-    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
 
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
-    lines = _deg_s_stream(GYRO_CHECK_SAMPLES + 100)
+    lines = _deg_s_stream(UNIT_CHECK_SAMPLES + 100)
     args = ["--port", str(port), "--method", "ekf", "--imu-model", "direct"]
     live = LiveProcess([*args, "--duration", "30", "-o", str(out)])
     code = send_and_finish(live, master, lines)
     assert code == 2, live.err  # stopped at the check (the summary below: its samples only)
     err = live.err.splitlines()
-    said = _estimate_says(tmp_path, lines[:GYRO_CHECK_SAMPLES], ["--imu-model", "direct"])
+    said = _estimate_says(tmp_path, lines[:UNIT_CHECK_SAMPLES], ["--imu-model", "direct"])
     (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
     assert expected.startswith("continuum-mhe: error: PORT: gyro magnitude is about 41 ")
     assert err[-1] == expected.replace("PORT", str(port))
-    summary = f"live: {GYRO_CHECK_SAMPLES} samples, {GYRO_CHECK_SAMPLES - 1} estimates; "
+    summary = f"live: {UNIT_CHECK_SAMPLES} samples, {UNIT_CHECK_SAMPLES - 1} estimates; "
     assert sum(ln.startswith(summary) for ln in err) == 1, live.err
-    assert data_rows(out) == GYRO_CHECK_SAMPLES - 1  # those estimated before the check
+    assert data_rows(out) == UNIT_CHECK_SAMPLES - 1  # those estimated before the check
     assert sum("gyro magnitude" in ln for ln in err) == 1
 
 
@@ -430,3 +430,39 @@ def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) 
     err = live.err.splitlines()
     assert [ln for ln in err if "gyro magnitude" in ln] == [expected.replace("PORT", str(port))]
     assert any(ln.startswith("live: 300 samples, 300 estimates; ") for ln in err), live.err
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "last"), [(signal.SIGINT, 2, None), (signal.SIGTERM, 143, "terminated")]
+)
+def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
+    tmp_path: Path, sig: int, code: int, last: str | None
+) -> None:
+    """Before: a session shorter than the gyro check's samples, stopped by Ctrl-C,
+    ended with 'interrupted' (exit 130): the end-of-session check's deg/s error, which
+    the same run stopped by --duration gives (exit 2), was not said. Now the summary,
+    then that error line; exit 2 after Ctrl-C (143 after SIGTERM, as a service manager
+    expects, the error said first); the rows written stay."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    master = new_pty(port)
+    lines = _deg_s_stream(50)
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--imu-model", "direct",
+                        "-o", str(out)])  # fmt: skip
+    try:
+        live.wait_ready()
+        os.write(master, ("\n".join(lines) + "\n").encode())
+        wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
+        got = live.finish(sig)
+    finally:
+        if live.proc.poll() is None:
+            live.proc.kill()
+        os.close(master)
+    assert got == code, live.err
+    err = live.err.splitlines()
+    if last is not None:
+        assert err.pop() == f"continuum-mhe: {last}"
+    said = _estimate_says(tmp_path, lines, ["--imu-model", "direct"])  # the same samples
+    (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
+    assert err[-1] == expected.replace("PORT", str(port)) and "interrupted" not in live.err
+    assert any(ln.startswith("live: 50 samples, 50 estimates; ") for ln in err), live.err
+    assert data_rows(out) == len(lines)

@@ -376,24 +376,24 @@ def _handle(s: LiveSession, lines: list[str]) -> None:
 )
 def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSettings) -> None:
     """Before: live had no gyro-unit check (estimate has one for raw files): a deg/s gyro
-    streamed on with estimates 57 times too fast. Now the first GYRO_CHECK_SAMPLES
+    streamed on with estimates 57 times too fast. Now the first UNIT_CHECK_SAMPLES
     samples are estimated while they arrive, and at the last of them the session stops
     (fatal: run_live says the summary and raises it), later lines ignored."""
-    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
 
     s, said, out = _raw_session(raw)
-    lines = _deg_s_lines(GYRO_CHECK_SAMPLES + 20)
-    _handle(s, lines[: GYRO_CHECK_SAMPLES - 1])
-    assert s.fatal is None and s.counts.estimates == GYRO_CHECK_SAMPLES - 1  # not held back
-    _handle(s, lines[GYRO_CHECK_SAMPLES - 1 :])
+    lines = _deg_s_lines(UNIT_CHECK_SAMPLES + 20)
+    _handle(s, lines[: UNIT_CHECK_SAMPLES - 1])
+    assert s.fatal is None and s.counts.estimates == UNIT_CHECK_SAMPLES - 1  # not held back
+    _handle(s, lines[UNIT_CHECK_SAMPLES - 1 :])
     assert s.fatal is not None and s.fatal.startswith(
         "/dev/ttyIMU: gyro magnitude is about 41 (median), implausible in rad/s (above 5): "
         "deg/s? give rad/s (gx, gy, gz times pi/180 = 0.0174533)"
     )
-    assert s.counts.estimates == GYRO_CHECK_SAMPLES - 1  # the last checked one: not estimated
-    assert s.counts.samples == GYRO_CHECK_SAMPLES  # the lines after it: ignored
-    assert len(out.getvalue().splitlines()) == GYRO_CHECK_SAMPLES  # header + estimates
-    s.check_gyro_units()  # once: a second call neither says nor changes anything
+    assert s.counts.estimates == UNIT_CHECK_SAMPLES - 1  # the last checked one: not estimated
+    assert s.counts.samples == UNIT_CHECK_SAMPLES  # the lines after it: ignored
+    assert len(out.getvalue().splitlines()) == UNIT_CHECK_SAMPLES  # header + estimates
+    s.check_units()  # once: a second call neither says nor changes anything
     assert s.fatal.startswith("/dev/ttyIMU: gyro magnitude")
 
 
@@ -403,13 +403,13 @@ def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     re-arms the check on the samples after it."""
     from live_helpers import raw_lines
 
-    from continuum_mhe.stream.session import GYRO_CHECK_SAMPLES
+    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
 
     s, said, _ = _raw_session(RawImuSettings(imu_model="direct"))
-    before = [ln.rstrip("\n") for ln in raw_lines(60_000, GYRO_CHECK_SAMPLES + 10)]
+    before = [ln.rstrip("\n") for ln in raw_lines(60_000, UNIT_CHECK_SAMPLES + 10)]
     _handle(s, before)  # checked: rad/s
     assert s.fatal is None and s.counts.clock_restarts == 0
-    _handle(s, _deg_s_lines(GYRO_CHECK_SAMPLES + 5))  # restarted (clock from 0), deg/s
+    _handle(s, _deg_s_lines(UNIT_CHECK_SAMPLES + 5))  # restarted (clock from 0), deg/s
     assert s.counts.clock_restarts == 1
     assert s.fatal is not None and "deg/s? give rad/s" in s.fatal
 
@@ -443,5 +443,56 @@ def test_live_gyro_in_rad_s_passes_and_a_short_session_is_checked_at_its_end() -
     short, _, _ = _raw_session(RawImuSettings(imu_model="direct"))
     _handle(short, _deg_s_lines(30))
     assert short.fatal is None and short.counts.estimates == 30  # too few yet
-    short.check_gyro_units()  # run_live at the session's end
+    short.check_units()  # run_live at the session's end
     assert short.fatal is not None and "deg/s? give rad/s" in short.fatal
+
+
+def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
+    """Before: a gyro in deg/s beyond the sensor's range (|g| > 52 rad/s) was only
+    'garbled line skipped: value beyond the sensor's range', naming no field or unit."""
+    from live_helpers import raw_line, specific_force
+
+    from continuum_mhe.stream.protocol import GarbledLine, parse_line
+
+    acc = np.tile(specific_force(0.1, 0.2), (2, 1))
+    gyr = np.array([[0.1, 0.2, 0.3], [0.1, 0.2, 120.0]])  # IMU 2's gz: 120 deg/s
+    with pytest.raises(GarbledLine) as caught:
+        parse_line(raw_line(20, acc, gyr), "raw", n_imus=2)
+    assert str(caught.value) == (
+        "gz_2 beyond the gyro's range (|gz_2| > 52.4 rad/s, 2000 deg/s and a margin): deg/s "
+        "given for rad/s?"
+    )
+    s, said, _ = _raw_session(RawImuSettings())
+    _handle(s, ["0,0.1,0.2,9.8,0.01,0.02,0.03", "20,0.1,0.2,9.8,-90.0,0.02,0.03"])
+    assert [m for m in said if "garbled" in m] == [
+        "garbled line skipped: gx beyond the gyro's range (|gx| > 52.4 rad/s, 2000 deg/s and "
+        "a margin): deg/s given for rad/s? (said for the first only; all are counted)"
+    ]
+    with pytest.raises(GarbledLine, match=r"^ay beyond the accelerometer's range \(\|ay\| > 235 "):
+        parse_line("20,0.1,981.0,9.8,0.01,0.02,0.03", "raw")
+
+
+def test_live_stops_early_on_an_accelerometer_in_g() -> None:
+    """Before: live took an accelerometer in g (|a| about 1) for the whole session and
+    recorded it, and estimate then refused the recording ('the values look like g'), so
+    it could not be replayed. Now estimate's check, on the first UNIT_CHECK_SAMPLES
+    samples: one line naming the port, the session stops (fatal), even with tilt from the
+    accelerometer alone (the default), later lines ignored."""
+    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
+
+    rows = [ln.split(",") for ln in _deg_s_lines(UNIT_CHECK_SAMPLES + 20, degrees=False)]
+    in_g = [
+        ",".join([r[0], *(f"{float(v) / 9.80665:.5f}" for v in r[1:4]), *r[4:]]) for r in rows
+    ]
+    s, said, out = _raw_session(RawImuSettings())
+    _handle(s, in_g[: UNIT_CHECK_SAMPLES - 1])
+    assert s.fatal is None and s.counts.estimates == UNIT_CHECK_SAMPLES - 1
+    _handle(s, in_g[UNIT_CHECK_SAMPLES - 1 :])
+    assert s.fatal == (
+        "/dev/ttyIMU: accelerometer magnitude is about 1.00: the values look like g; ax, ay, "
+        "az must be in m/s^2 (multiply by 9.80665)"
+    )
+    assert s.counts.samples == UNIT_CHECK_SAMPLES and s.counts.estimates == UNIT_CHECK_SAMPLES - 1
+    rad, _, _ = _raw_session(RawImuSettings())  # the same stream in m/s^2 goes on
+    _handle(rad, [",".join(r) for r in rows])
+    assert rad.fatal is None and rad.counts.estimates == len(rows)

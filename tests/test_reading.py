@@ -269,3 +269,13 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
     )
     with pytest.warns(UnitWarning):  # told to: the estimate is written
         assert main(["estimate", str(path), "-o", str(out), "--gap-reset", "0"]) == 0
+
+
+def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
+    """The log's rule (check_time_steps), in a CSV: steps under 0.1 ms are another unit."""
+    lines = _csv().splitlines()
+    us = [lines[0]] + [
+        ",".join([f"{float(r.split(',')[0]) * 1e-6!r}", *r.split(",")[1:]]) for r in lines[1:]
+    ]
+    with pytest.warns(UnitWarning, match=r"samples per second\); t must be in seconds$"):
+        read_measurements(_write(tmp_path / "m.csv", "\n".join(us) + "\n"))

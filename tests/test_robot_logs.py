@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -283,3 +284,72 @@ def test_log_gyro_in_deg_s_is_one_line(
     assert len(warned) == 1 and "topic /tip/imu: gyro magnitude is about" in warned[0]
     assert warned[0].endswith("these options do not use the gyro, so the estimate is unaffected")
     assert out.exists()
+
+
+def test_orientation_skips_the_accelerometer_unit_check(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: estimate --orientation refused a log whose accelerations are in g ('the
+    values look like g'), though it reads only the orientation (docs/hardware.md says the
+    check is skipped there). The raw readings are still checked where they are used."""
+    rp = tilt(recording["truth"][:, 3], recording["truth"][:, 4])
+    quat = _wxyz(Rotation.from_euler("ZYX", np.stack([0 * rp[:, 0], rp[:, 1], rp[:, 0]], -1)))
+    in_g = {**recording, "acc": recording["acc"] / 9.80665, "quat": quat}
+    bag = write_ros2_bag(tmp_path / "bag2", in_g)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf", "--orientation"]) == 0
+    assert out.exists()
+    out.unlink()
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    said = "topic /tip/imu: accelerometer magnitude is about 1.00: the values look like g"
+    assert said in err[-1]
+    assert not out.exists()
+
+
+def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: 'pass --topic; sensor_msgs/msg/Imu topics in this log: none', though no
+    --topic can help. Now one line saying the log has no Imu topic, listing its topics."""
+    from mcap.writer import CompressionType, Writer
+
+    log = tmp_path / "odd.mcap"
+    with log.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start()
+        sid = w.register_schema(name="std_msgs/msg/String", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/chatter", message_encoding="json", schema_id=sid)
+        w.add_message(cid, log_time=T0_NS, data=b'{"data": "hi"}', publish_time=T0_NS)
+        w.finish()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(log), "-o", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"continuum-mhe: error: {log}: the log has no sensor_msgs/msg/Imu topic; its topics: "
+        "/chatter (std_msgs/msg/String)"
+    )
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("scale", "says"),
+    [
+        (1e-3, "advance by a median of 2e-05 s per sample (5e+04 samples per second); "
+               "header.stamp must be ROS time (sec, and nanosec in ns): microseconds in nanosec?"),
+        (1e3, "advance by a median of 20 s per sample; header.stamp must be ROS time (sec, and "
+              "nanosec in ns): milliseconds in sec?"),
+    ],
+)  # fmt: skip
+def test_log_stamps_in_another_unit_warn_as_a_csv_t_does(
+    tmp_path: Path, recording: dict[str, Any], scale: float, says: str
+) -> None:
+    """Before: header stamps 1000 times too small (or too large) gave no warning, while a
+    CSV t in milliseconds does. The same rule (check_time_steps) now warns for a log."""
+    stamps = T0_NS + np.round((recording["stamps"] - T0_NS) * scale).astype(np.int64)
+    log = write_mcap(tmp_path / "x.mcap", {**recording, "stamps": stamps})
+    with pytest.warns(UnitWarning) as seen:
+        read_imu_log(log)
+    assert [str(w.message) for w in seen] == [f"{log}: topic /tip/imu: header stamps {says}"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_imu_log(write_mcap(tmp_path / "ok.mcap", recording))  # 50 Hz: no warning

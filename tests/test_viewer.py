@@ -403,3 +403,45 @@ def test_serve_web_on_loopback_until_ctrl_c(
     assert "stopped serving the view" in err
     with socket.socket() as s:
         assert s.connect_ex(("127.0.0.1", web)) != 0
+
+
+def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
+    tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: view on an .mcap estimate said 'not UTF-8 text'; on a measurement CSV it
+    suggested --robot. Now the MCAP is drawn as its CSV is, and a measurement file (tilt
+    or raw) is one line saying to run estimate first."""
+    meas, _, _ = _two_section_run(tmp_path)
+    est_mcap = tmp_path / "e.mcap"
+    robot = ["--robot", "two-section"]
+    assert main(["estimate", str(meas), "-o", str(est_mcap), "--method", "ekf", *robot]) == 0
+    rrd = tmp_path / "m.rrd"
+    capsys.readouterr()
+    assert main(["view", str(est_mcap), *robot, "--save", str(rrd), "--points", str(POINTS)]) == 0
+    n = len(read_state_table(two_section["est"], ()).t)
+    assert capsys.readouterr().err.strip() == (
+        f"wrote {rrd}: {n} of {n} estimate(s) of {read_robot('two-section').describe()}"
+    )
+    from_csv = tmp_path / "c.rrd"
+    assert main(["view", str(tmp_path / "e.csv"), *robot, "--save", str(from_csv),
+                 "--points", str(POINTS)]) == 0  # fmt: skip
+    a, b = read_rrd(rrd), read_rrd(from_csv)
+    (backbone,) = [e for e in a if e.endswith("/backbone")]
+    assert [t for t, _ in a[backbone]] == [t for t, _ in b[backbone]]
+    for (_, ra), (_, rb) in zip(a[backbone], b[backbone]):  # the CSV has 10 digits
+        for k in (k for k in ra if k.endswith((":strips", ":positions"))):
+            np.testing.assert_allclose(
+                np.asarray(ra[k], float), np.asarray(rb[k], float), atol=1e-8
+            )
+    capsys.readouterr()
+    raw = tmp_path / "raw.csv"
+    raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.01,0,0,9.8,0,0,0\n")
+    for path in (meas, raw):
+        assert main(["view", str(path), "--save", str(tmp_path / "v.rrd")]) == 2
+        said = _one_error_line(capsys)
+        assert said.startswith(f"continuum-mhe: error: {path}: a measurement file (columns ")
+        assert said.endswith(
+            f"not an estimate: run continuum-mhe estimate {path} -o EST.csv first, then view "
+            "EST.csv"
+        )
+    assert not (tmp_path / "v.rrd").exists()

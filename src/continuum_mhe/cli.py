@@ -52,7 +52,13 @@ from continuum_mhe.io.csv_files import (
     write_measurements,
     write_truth,
 )
-from continuum_mhe.metrics import Calibration, Metrics, compute_calibration, compute_metrics
+from continuum_mhe.metrics import (
+    Calibration,
+    Metrics,
+    compute_calibration,
+    compute_metrics,
+    length_misfit,
+)
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
@@ -60,7 +66,7 @@ from continuum_mhe.program import DESCRIPTION, PROG, version
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
-from continuum_mhe.signals import interruptible, signals_deferred
+from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
 from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
@@ -126,6 +132,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_estimate(args: argparse.Namespace) -> int:
     # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5;
     # streamed: the input is read once and memory stays flat (issue #12)
+    from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
     from continuum_mhe.live import input_options
 
@@ -185,6 +192,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
+    if stream.kind == "log":  # several topics in the wrong order, most often
+        warn_topic_order(stream.name, args.topic or (), n, est.restarts + est.bad_starts)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
@@ -325,6 +334,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     if hint:
         print(f"{PROG}: warning: {hint}", file=sys.stderr)
+    for path, table in ((args.estimates, est), (args.truth, truth)):
+        misfit = length_misfit(table.names, table.values, robot.lengths)
+        if misfit:  # tip errors in % of the length are then of another robot's length
+            fix = "pass the --length (or --robot) it was made with"
+            print(f"{PROG}: warning: {path}: {misfit}; {fix}", file=sys.stderr)
     if args.json:
         extra = {"calibration": None if cal is None else cal.as_dict()}
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
@@ -668,6 +682,11 @@ def _run_command(argv: Sequence[str] | None) -> int:
         check_option_ranges(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
+        if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:
+            # a command that stopped cleanly on the signal and then found a problem with
+            # its input (``live``'s end-of-session unit check) says it, as without one
+            code = _user_error(exc)
+            return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
         # a signal raised inside a C extension (CasADi, numpy) can surface as any
         # exception type: once a signal arrived, the run ends as interrupted
         if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):

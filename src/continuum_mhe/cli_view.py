@@ -1,4 +1,4 @@
-"""``continuum-mhe view``: the command that replays an estimate CSV as a 3D view in
+"""``continuum-mhe view``: the command that replays an estimate CSV (or MCAP) as a 3D view in
 Rerun (:func:`continuum_mhe.viewer.replay`)."""
 
 from __future__ import annotations
@@ -30,7 +30,9 @@ def register(subparsers: Any) -> None:
         description="Replay an estimate CSV as a 3D view in Rerun: every section of the "
         f"backbone, the IMU frames and the tip trail. Needs rerun-sdk ({INSTALL_HINT}).",
     )
-    p.add_argument("estimates", metavar="EST.csv", help="estimate CSV (from estimate or live)")
+    p.add_argument(
+        "estimates", metavar="EST.csv", help="estimate CSV (from estimate or live), or MCAP"
+    )
     p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV, drawn in grey")
     add_robot_option(p, replaces=("--length", "--mounting"))
     p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")

@@ -71,9 +71,10 @@ def run_live(
     called at each status line; ``view.log_estimate(est)`` (``--view``) sees every
     estimate. Returns the exit status (0); a run that read lines but not one valid
     sample (every line garbled) raises :class:`InputError` naming the first one's cause,
-    and so does a gyro in deg/s where the estimate uses it (checked once on the first
-    raw samples, :meth:`LiveSession.check_gyro_units`): the run stops there, the lines
-    still queued are left, and the summary is said before the error."""
+    and so does an accelerometer in g, or a gyro in deg/s where the estimate uses it
+    (checked once on the first raw samples, :meth:`LiveSession.check_units`): the run
+    stops there, the lines still queued are left, and the summary is said before the
+    error."""
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
@@ -171,7 +172,7 @@ def run_live(
         reader.stop.set()
     if session.fatal is not None:
         reader.join(timeout=1.0)  # it closes the port (reads time out after 0.05 s)
-    session.check_gyro_units()  # a session shorter than the check's samples: on them all
+    session.check_units()  # a session shorter than the check's samples: on them all
     say(session.summary())
     failed = session.fatal or session.only_garbled()
     if failed:

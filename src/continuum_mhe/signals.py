@@ -36,6 +36,17 @@ def raise_for_signal() -> None:
     raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
 
 
+def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM behind ``exc`` (itself, or its cause or context: a signal
+    raised inside C code can surface as another exception), or None."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
 def defer() -> None:
     """From now on, a signal only sets :data:`SIGNALS_SEEN` (the caller polls it)."""
     _DEFER.append(True)

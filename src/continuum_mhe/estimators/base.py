@@ -24,6 +24,7 @@ from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
+from continuum_mhe.signals import interrupt_in_chain
 
 #: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
 #: data do not determine the shape (the others already say more).
@@ -40,11 +41,9 @@ __all__ = ["Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
 def _reraise_interrupt(exc: BaseException) -> None:
     """A Ctrl-C or SIGTERM that surfaced inside C code as another exception is not a
     numerical failure: raise it again."""
-    seen: BaseException | None = exc
-    while seen is not None:
-        if isinstance(seen, KeyboardInterrupt):
-            raise seen
-        seen = seen.__cause__ or seen.__context__
+    seen = interrupt_in_chain(exc)
+    if seen is not None:
+        raise seen
 
 
 #: A tilt measurement beyond this (rad) cannot be radians: degrees were given.

@@ -262,21 +262,41 @@ class ReadingCounts:
 
 #: ``t`` read in seconds whose median step exceeds this looks like milliseconds.
 MS_LIKE_STEP_S = 2.0
+#: Times whose median step is below this (s: over 10 kHz, faster than any IMU stream
+#: read here) are in a unit too small (microseconds stamped as nanoseconds).
+TOO_FAST_STEP_S = 1e-4
 
 
-def check_time_units(rows: TextRows, t: FloatArray) -> None:
-    """Warn once when a ``t`` column in seconds steps like milliseconds (median step
-    over :data:`MS_LIKE_STEP_S`), naming the likely cause and the fix."""
-    if rows.time_scale != 1.0 or len(t) < 3:
+def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fix: str) -> None:
+    """Warn once (:class:`UnitWarning`) when times ``t`` (s, increasing) step like another
+    unit: a median step over :data:`MS_LIKE_STEP_S` (milliseconds read as seconds) or
+    under :data:`TOO_FAST_STEP_S`; ``name: what by a median of ... s per sample; fix``."""
+    if len(t) < 3:
         return
     step = float(np.median(np.diff(t)))
     if step > MS_LIKE_STEP_S:
-        warnings.warn(
-            f"{rows.name}: t advances by a median of {step:g} s per sample; if t is in "
-            "milliseconds, name the column t_ms (it is read in seconds)",
-            UnitWarning,
-            stacklevel=3,
-        )
+        rate, fix = "", slow_fix
+    elif 0 < step < TOO_FAST_STEP_S:
+        rate, fix = f" ({1 / step:.3g} samples per second)", fast_fix
+    else:
+        return
+    warnings.warn(
+        f"{name}: {what} by a median of {step:g} s per sample{rate}; {fix}",
+        UnitWarning,
+        stacklevel=3,
+    )
+
+
+def check_time_units(rows: TextRows, t: FloatArray) -> None:
+    """Warn once when a ``t`` column in seconds steps like another unit
+    (:func:`check_time_steps`), naming the likely cause and the fix."""
+    if rows.time_scale != 1.0:
+        return
+    check_time_steps(
+        rows.name, "t advances", t,
+        "if t is in milliseconds, name the column t_ms (it is read in seconds)",
+        "t must be in seconds",
+    )  # fmt: skip
 
 
 class UnitWarning(UserWarning):

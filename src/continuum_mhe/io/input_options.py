@@ -17,7 +17,12 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.io.imu_topics import read_imu_topics
-from continuum_mhe.io.raw_imu import RawImuSettings, check_gyro_units, raw_to_measurements
+from continuum_mhe.io.raw_imu import (
+    RawImuSettings,
+    check_accel_units,
+    check_gyro_units,
+    raw_to_measurements,
+)
 from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
@@ -230,6 +235,8 @@ def convert_raw(
     if raw.needs_gyro and gyr is None:
         what = "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
         raise InputError(f"{path}: {what} needs gyro columns gx, gy, gz")
+    # the units of the raw vectors, where they are used (not with --orientation)
+    check_accel_units(f"{path}: topic {topic}", acc)
     if gyr is not None:
         check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
     return raw_to_measurements(t, acc, gyr, raw)

@@ -3,7 +3,8 @@
 ``write_estimates_mcap`` writes JSON-encoded channels: ``/continuum/tip``
 (``foxglove.PoseInFrame``, frame ``continuum_base``), ``/continuum/backbone``
 (``foxglove.PosesInFrame``, poses along the arc) and ``/continuum/estimate`` (the
-estimate CSV's fields); ``read_estimates_mcap`` reads them back.
+estimate CSV's fields); ``read_estimates_mcap`` and ``read_estimate_table_mcap`` read
+them back.
 """
 
 from __future__ import annotations
@@ -19,7 +20,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import FloatArray, atomic_binary_writer
+from continuum_mhe.io.csv_files import (
+    STD_PREFIX,
+    FloatArray,
+    InputError,
+    StateTable,
+    atomic_binary_writer,
+)
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.results import EstimateSeries
@@ -187,25 +194,49 @@ def read_estimates_mcap(
 ) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
     """``t`` (n,), outputs (n, k) in the file's column order with NaN where empty, and
     status (n,) from an estimate MCAP."""
+    table = read_estimate_table_mcap(path)
+    return table.t, table.values, table.status
+
+
+def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
+    """An estimate MCAP's ``/continuum/estimate`` messages as the estimate CSV's table
+    (its outputs named as in the file, their ``std_`` fields, the status). A one-line
+    :class:`InputError` for an MCAP without them (a robot log, say)."""
     require("mcap", "robot", f"reading the MCAP file {path}")
     from mcap.reader import make_reader
 
-    t, out, status = [], [], []
+    t, out, sd, status = [], [], [], []
     names: list[str] = []
-    with Path(path).open("rb") as fh:
-        for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
-            row = json.loads(message.data)
-            if not names:
-                names = [
-                    k
-                    for k in row
-                    if k not in ("t", "status", "solve_ms") and not k.startswith("std_")
-                ]
-            t.append(row["t"])
-            out.append([math.nan if row[k] is None else row[k] for k in names])
-            status.append(row["status"])
-    return (
-        np.array(t, dtype=float),
-        np.array(out, dtype=float).reshape(len(t), len(names)),
-        np.array(status, dtype=str),
-    )
+    try:
+        with Path(path).open("rb") as fh:
+            for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
+                row = json.loads(message.data)
+                if not names:
+                    names = [
+                        k
+                        for k in row
+                        if k not in ("t", "status", "solve_ms") and not k.startswith(STD_PREFIX)
+                    ]
+                t.append(row["t"])
+                out.append([math.nan if row[k] is None else row[k] for k in names])
+                sd.append([_number(row.get(STD_PREFIX + k)) for k in names])
+                status.append(row["status"])
+    except (InputError, OSError):
+        raise
+    except Exception as exc:  # not an MCAP, or not written by continuum-mhe
+        raise InputError(f"{path}: cannot read it as an estimate MCAP ({exc})") from None
+    if not t:
+        raise InputError(
+            f"{path}: no /continuum/estimate messages: not an estimate MCAP (a robot log? "
+            "run continuum-mhe estimate on it first)"
+        )
+    k = len(names)
+    std = np.array(sd, dtype=float).reshape(len(t), k)
+    return StateTable(
+        np.array(t, dtype=float), tuple(names), np.array(out, dtype=float).reshape(len(t), k),
+        np.array(status, dtype=str), std, None, bool(np.isfinite(std).any()),
+    )  # fmt: skip
+
+
+def _number(v: Any) -> float:
+    return math.nan if v is None else float(v)

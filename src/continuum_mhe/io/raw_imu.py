@@ -291,7 +291,7 @@ def raw_blocks(
                 else:
                     skipped.append(msg)
         acc[zero] = np.nan
-        _check_accel_units(name, acc)
+        check_accel_units(name, acc)
         if has_gyro:
             label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
             check_gyro_units(label, block[:, 3:6], gyro_used)
@@ -338,7 +338,9 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
 
 
-def _check_accel_units(path: Path | str, acc: FloatArray) -> None:
+def check_accel_units(path: Path | str, acc: FloatArray) -> None:
+    """An accelerometer whose median magnitude is about 1 (within :data:`_LOOKS_LIKE_G`)
+    is in g, not m/s^2: a one-line :class:`InputError` naming ``path``."""
     norm = np.linalg.norm(acc, axis=1)
     norm = norm[np.isfinite(norm)]
     if len(norm) and _LOOKS_LIKE_G[0] < float(np.median(norm)) < _LOOKS_LIKE_G[1]:

@@ -30,8 +30,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import FloatArray, InputError
-from continuum_mhe.io.raw_imu import _check_accel_units
+from continuum_mhe.io.csv_files import FloatArray, InputError, check_time_steps
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
@@ -101,14 +100,19 @@ def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
 
 def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
     imu = sorted(t for t, typ in topics.items() if typ in IMU_TYPES)
+    every = ", ".join(f"{t} ({typ or 'no schema'})" for t, typ in sorted(topics.items()))
     if topic is None:
         if len(imu) == 1:
             return imu[0]
-        listing = ", ".join(imu) or "none"
-        raise InputError(f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {listing}")
+        if not imu:  # no --topic can help
+            raise InputError(
+                f"{path}: the log has no sensor_msgs/msg/Imu topic; its topics: {every or 'none'}"
+            )
+        raise InputError(
+            f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
+        )
     if topic not in topics:
-        listing = ", ".join(f"{t} ({typ})" for t, typ in sorted(topics.items())) or "none"
-        raise InputError(f"{path}: no topic {topic!r}; topics: {listing}")
+        raise InputError(f"{path}: no topic {topic!r}; topics: {every or 'none'}")
     if topics[topic] not in IMU_TYPES:
         raise InputError(f"{path}: topic {topic} is {topics[topic]}, expected sensor_msgs/msg/Imu")
     return topic
@@ -205,11 +209,16 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
+    t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
+    stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
+    check_time_steps(
+        f"{p}: topic {name}", "header stamps advance", t,
+        f"{stamp}: milliseconds in sec?", f"{stamp}: microseconds in nanosec?",
+    )  # fmt: skip
     arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
-    _check_accel_units(f"{p}: topic {name}", arr[0])  # the gyro's: where it is used
     return ImuLog(
         topic=name,
-        t=(np.array(stamps, dtype=np.int64) - t0) / 1e9,
+        t=t,
         t0_ns=t0,
         acc=arr[0],
         gyr=arr[1],

@@ -91,10 +91,11 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
     if fmt == "raw":
         for i in range(1, len(nums), k):  # plain floats: a few microseconds per line
             ax, ay, az, gx, gy, gz = nums[i : i + 6]
-            if max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT:
-                raise GarbledLine("value beyond the sensor's range")
-            if max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT:
-                raise GarbledLine("value beyond the sensor's range")
+            if (
+                max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT
+                or max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT
+            ):
+                raise GarbledLine(beyond_range(nums[i : i + 6], (i - 1) // k, n_imus))
             if ax == 0.0 and ay == 0.0 and az == 0.0:
                 raise GarbledLine("accelerometer reads exactly zero")
     else:
@@ -102,6 +103,23 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
             if abs(nums[i]) > TILT_LIMITS[0] or abs(nums[i + 1]) > TILT_LIMITS[1]:
                 raise GarbledLine("angle out of range (radians expected)")
     return Sample(nums[0], np.array(nums[1:]))
+
+
+def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
+    """Why raw ``values`` (one IMU's six, ``imu`` 0-based) are beyond the sensor's range:
+    the first field out of range, the limit and the likely unit mistake."""
+    for name, v in zip(raw_columns(imu, n_imus), values):
+        if name.startswith("g") and abs(v) > GYRO_LIMIT:
+            return (
+                f"{name} beyond the gyro's range (|{name}| > {GYRO_LIMIT:.1f} rad/s, 2000 deg/s "
+                "and a margin): deg/s given for rad/s?"
+            )
+        if name.startswith("a") and abs(v) > ACC_LIMIT:
+            return (
+                f"{name} beyond the accelerometer's range (|{name}| > {ACC_LIMIT:.0f} m/s^2, "
+                "16 g and a margin): raw counts or mg given for m/s^2?"
+            )
+    return "value beyond the sensor's range"
 
 
 def field_count_hint(text: str, fmt: LineFormat, n_imus: int) -> str:

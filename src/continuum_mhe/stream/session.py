@@ -21,7 +21,12 @@ from continuum_mhe.estimators.base import (
     _reraise_interrupt,
 )
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
-from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings, check_gyro_units
+from continuum_mhe.io.raw_imu import (
+    RawImuConverter,
+    RawImuSettings,
+    check_accel_units,
+    check_gyro_units,
+)
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
@@ -37,12 +42,12 @@ from continuum_mhe.stream.protocol import (
 from continuum_mhe.stream.reader import stderr_say
 from continuum_mhe.stream.recording import csv_cell
 
-#: Raw lines: the gyro's unit is checked once (``check_gyro_units``, as ``estimate``
-#: checks a raw file), on the median of this many first samples (1 s at the firmware's
-#: 100 Hz), or of all the samples of a shorter session at its end; again after a board
-#: reset (the device clock restarting). The samples are
-#: estimated meanwhile: the check never holds the stream back.
-GYRO_CHECK_SAMPLES = 100
+#: Raw lines: the units are checked once, as ``estimate`` checks a raw file (an
+#: accelerometer in g, ``check_accel_units``; a gyro in deg/s, ``check_gyro_units``), on
+#: the medians of this many first samples (1 s at the firmware's 100 Hz), or of all the
+#: samples of a shorter session at its end; again after a board reset (the device clock
+#: restarting). The samples are estimated meanwhile: the check never holds the stream back.
+UNIT_CHECK_SAMPLES = 100
 
 
 @dataclass(frozen=True)
@@ -239,11 +244,13 @@ class LiveSession:
         self._periods: deque[float] = deque(maxlen=50)
         self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
-        #: the first raw samples' values, until the gyro's unit is checked (None: checked,
-        #: or tilt lines without a gyro)
-        self._gyro_unchecked: list[FloatArray] | None = None if self.converters is None else []
-        #: why the session must stop (a gyro in deg/s where the estimate uses it): one
-        #: line, raised by :func:`~continuum_mhe.live.run_live`; no line is handled after
+        #: the first raw samples' values, until their units are checked (None: checked,
+        #: or tilt lines)
+        self._units_unchecked: list[FloatArray] | None = None if self.converters is None else []
+        self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
+        #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
+        #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
+        #: line is handled after
         self.fatal: str | None = None
         self._restarted = False  # the estimator was restarted: flag its next estimate
         #: the next line is the first since the port opened (or reopened): the device may
@@ -345,17 +352,14 @@ class LiveSession:
             c.out_of_order += 1
             return None
         c.samples += 1
-        if (
-            placed.event == "restart" and self.converters is not None and self.fatal is None
-            and self.converters[0].settings.needs_gyro
-        ):  # fmt: skip
-            # a board reset: it may run other firmware now, so the gyro the estimate uses
-            # is checked again (an unused one was warned about once: enough)
-            self._gyro_unchecked = []
-        if self._gyro_unchecked is not None:
-            self._gyro_unchecked.append(s.values)
-            if len(self._gyro_unchecked) >= GYRO_CHECK_SAMPLES:
-                self.check_gyro_units()
+        if placed.event == "restart" and self.converters is not None and self.fatal is None:
+            # a board reset: it may run other firmware now, so the units are checked again
+            # (a gyro the estimate ignores was warned about once: enough)
+            self._units_unchecked = []
+        if self._units_unchecked is not None:
+            self._units_unchecked.append(s.values)
+            if len(self._units_unchecked) >= UNIT_CHECK_SAMPLES:
+                self.check_units()
                 if self.fatal is not None:
                     return None  # neither recorded nor estimated: the session stops
         restart = False
@@ -401,23 +405,28 @@ class LiveSession:
         self.latency_max_window = max(self.latency_max_window, ms)
         return est
 
-    def check_gyro_units(self) -> None:
-        """Check the gyro's unit on the raw samples so far, once (later calls do
-        nothing, until a board reset re-arms the check of a gyro the estimate uses):
-        each IMU's median rate above ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
-        deg/s, and sets :attr:`fatal` where the estimate uses the gyro, else warns
-        (``UnitWarning``) that it is ignored; the wording is ``estimate``'s for a raw
-        file, naming the port."""
-        seen, self._gyro_unchecked = self._gyro_unchecked, None
+    def check_units(self) -> None:
+        """Check the units of the raw samples so far, once (later calls do nothing,
+        until a board reset re-arms the check), with ``estimate``'s rules and wording
+        for a raw file, naming the port: an accelerometer whose median magnitude is
+        about 1 is in g and sets :attr:`fatal` (``estimate`` refuses the recording);
+        a gyro whose median rate exceeds ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
+        deg/s, and sets :attr:`fatal` where the estimate uses it, else warns
+        (``UnitWarning``) that it is ignored."""
+        seen, self._units_unchecked = self._units_unchecked, None
         if not seen or self.converters is None:
             return
         values = np.asarray(seen, dtype=float).reshape(len(seen), -1)
         used = self.converters[0].settings.needs_gyro
+        gyro = used or not self._unused_gyro_checked
+        self._unused_gyro_checked = True
         port = self.settings.port
         try:
             for i in range(self.n_imus):
                 label = port if self.n_imus == 1 else f"{port}: IMU {i + 1}"
-                check_gyro_units(label, values[:, 6 * i + 3 : 6 * i + 6], used)
+                check_accel_units(label, values[:, 6 * i : 6 * i + 3])
+                if gyro:
+                    check_gyro_units(label, values[:, 6 * i + 3 : 6 * i + 6], used)
         except InputError as exc:
             self.fatal = str(exc)
 

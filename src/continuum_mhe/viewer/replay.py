@@ -1,4 +1,4 @@
-"""An estimate CSV (and its truth) replayed as a 3D view (``continuum-mhe view``,
+"""An estimate CSV or MCAP (and its truth) replayed as a 3D view (``continuum-mhe view``,
 :mod:`continuum_mhe.cli_view`)."""
 
 from __future__ import annotations
@@ -9,15 +9,37 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.io.csv_files import (
+    TIP_COLUMNS,
     InputError,
+    StateTable,
     check_estimate_fits,
     read_state_table,
     robot_misfit,
+    tilt_columns,
 )
+from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
+from continuum_mhe.io.raw_imu import is_raw_header
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import BackboneView
+
+
+def read_estimates(path: str) -> StateTable:
+    """An estimate CSV, or an estimate MCAP (``estimate -o EST.mcap``); a measurement
+    CSV (tilt or raw, no tip columns) is a one-line error saying to estimate it first."""
+    if Path(path).suffix.lower() == ".mcap":
+        return read_estimate_table_mcap(path)
+    table = read_state_table(path, ())
+    tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
+    if not set(TIP_COLUMNS) <= set(table.names) and (
+        is_raw_header(list(table.names)) or any(c in table.names for c in tilt)
+    ):
+        raise InputError(
+            f"{path}: a measurement file (columns {', '.join(table.names)}), not an estimate: "
+            f"run continuum-mhe estimate {path} -o EST.csv first, then view EST.csv"
+        )
+    return table
 
 
 def replay(
@@ -27,7 +49,7 @@ def replay(
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
     estimates drawn."""
     outputs = pcc_outputs(robot.n_sections)
-    est = read_state_table(estimates, ())
+    est = read_estimates(estimates)
     check_estimate_fits(estimates, est.names, robot)
     cols = [est.names.index(o.name) for o in outputs]
     truth_table = None
