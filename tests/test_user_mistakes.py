@@ -232,6 +232,8 @@ def test_evaluate_against_another_robots_truth_gives_no_srmse(tmp_path, capsys) 
     assert main(["evaluate", str(est), str(two)]) == 0
     out, err = capsys.readouterr()
     assert "warning" in err and "SRMSE                not given" in out
+    # one warning: the truth's length is not checked against a robot it is not of
+    assert err.count("warning") == 1 and "another robot" in err, err
 
 
 def test_estimate_of_a_folder_that_is_not_a_bag(tmp_path, capsys) -> None:

@@ -428,15 +428,20 @@ def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
     a, b = read_rrd(rrd), read_rrd(from_csv)
     (backbone,) = [e for e in a if e.endswith("/backbone")]
     assert [t for t, _ in a[backbone]] == [t for t, _ in b[backbone]]
+    compared = 0
     for (_, ra), (_, rb) in zip(a[backbone], b[backbone]):  # the CSV has 10 digits
         for k in (k for k in ra if k.endswith((":strips", ":positions"))):
             np.testing.assert_allclose(
                 np.asarray(ra[k], float), np.asarray(rb[k], float), atol=1e-8
             )
+            compared += 1
+    assert compared >= len(a[backbone])
     capsys.readouterr()
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.01,0,0,9.8,0,0,0\n")
-    for path in (meas, raw):
+    dropouts = tmp_path / "dropouts.csv"  # valid input: said before its rows are parsed
+    dropouts.write_text("t,roll,pitch\n0,0.1,0.2\n0.05,,\n0.1,nan,0.2\n")
+    for path in (meas, raw, dropouts):
         assert main(["view", str(path), "--save", str(tmp_path / "v.rrd")]) == 2
         said = _one_error_line(capsys)
         assert said.startswith(f"continuum-mhe: error: {path}: a measurement file (columns ")

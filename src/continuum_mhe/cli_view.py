@@ -26,8 +26,8 @@ def register(subparsers: Any) -> None:
     """Add ``view``."""
     p = subparsers.add_parser(
         "view",
-        help="3D view of an estimate CSV in Rerun (backbone, IMU frames, tip trail)",
-        description="Replay an estimate CSV as a 3D view in Rerun: every section of the "
+        help="3D view of an estimate CSV or MCAP in Rerun (backbone, IMU frames, tip trail)",
+        description="Replay an estimate CSV or MCAP as a 3D view in Rerun: every section of the "
         f"backbone, the IMU frames and the tip trail. Needs rerun-sdk ({INSTALL_HINT}).",
     )
     p.add_argument(

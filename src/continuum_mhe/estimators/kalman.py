@@ -246,7 +246,8 @@ class UnscentedKalmanFilter(_KalmanBase):
     def __init__(self, formulation: Formulation, sigma: SigmaPointSettings | None = None):
         self.sigma = sigma or SigmaPointSettings()
         super().__init__(formulation)
-        self._tilt_set = frozenset(self._tilt)
+        self._tilt_mask = np.zeros(formulation.nz, dtype=bool)
+        self._tilt_mask[self._tilt] = True
 
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
@@ -284,30 +285,33 @@ class UnscentedKalmanFilter(_KalmanBase):
 
     def _check_tilt_chart(self, rs: FloatArray, rows: NDArray[np.intp]) -> None:
         """Raise ``ArithmeticError`` where a valid tilt component's residuals ``rs``
-        ((2n+1, len(rows)), one row per sigma point) jump by more than pi from the
+        ((2n+1, len(rows)), one row per sigma point) differ by more than pi from the
         central point's, in a residual that does not wrap
         (:attr:`~continuum_mhe.model.formulations.Formulation.tilt_residual_wraps`
-        False: the bend formulation's tangent plane, ``2 tan(error / 2)``). It jumps only
-        where the reading is about a half turn from the sigma points' tilts, across its
-        singularity; there the transform's mean and covariance mean nothing (on
-        ``gimbal_flip.csv`` they kept the old estimate, ``ok``, with a standard deviation
-        of 1e-6 m). :meth:`~continuum_mhe.estimators.base.Estimator.step` then restarts
-        the filter from the reading (status ``reset``), as for a diverged EKF. Wrapped
-        residuals (the paper formulation's Euler angles) are averaged as they are."""
-        if self.formulation.tilt_residual_wraps:
+        False: the bend formulation's tangent plane, ``2 tan(error / 2)``). Its values
+        differ that much only near its singularity, where the reading is about a half turn
+        from the sigma points' tilts (from about 130 degrees on); there the transform's
+        mean and covariance mean nothing (on ``gimbal_flip.csv`` they kept the old
+        estimate, ``ok``, with a standard deviation of 1e-6 m).
+        :meth:`~continuum_mhe.estimators.base.Estimator.step` then restarts the filter
+        from the reading (status ``reset``), as for a diverged EKF. Not checked in the
+        first update of a (re)start, whose prior comes from the reading itself, nor for
+        wrapped residuals (the paper formulation's Euler angles, averaged as they are)."""
+        if self.formulation.tilt_residual_wraps or self._x is None:
             return
-        tilt = self._tilt_set
-        for j, row in enumerate(rows.tolist()):
-            if row not in tilt:
-                continue
-            col = rs[:, j]
-            if np.abs(col - col[0]).max() > math.pi:
-                name = self.formulation.measurement_names[row]
-                raise ArithmeticError(
-                    f"the unscented transform's {name} residuals span "
-                    f"{float(col.max() - col.min()):.3g} across the sigma points: the "
-                    "reading is about a half turn from the predicted tilt"
-                )
+        tilt = self._tilt_mask[rows]
+        if not tilt.any():
+            return
+        jump = np.abs(rs[:, tilt] - rs[0, tilt]).max(axis=0)
+        if jump.max() > math.pi:
+            j = int(np.argmax(jump))
+            name = self.formulation.measurement_names[int(rows[tilt][j])]
+            col = rs[:, tilt][:, j]
+            raise ArithmeticError(
+                f"the unscented transform's {name} residuals span "
+                f"{float(col.max() - col.min()):.3g} across the sigma points: the "
+                "reading is about a half turn from the predicted tilt"
+            )
 
 
 def _compile_ekf_kernels(f: Formulation, t: FloatArray, z: FloatArray, spiked: FloatArray) -> None:

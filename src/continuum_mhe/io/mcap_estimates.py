@@ -29,7 +29,7 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
-from continuum_mhe.results import EstimateSeries
+from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
 
 BASE_FRAME = "continuum_base"
 
@@ -193,7 +193,8 @@ def read_estimates_mcap(
     path: str | os.PathLike[str],
 ) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
     """``t`` (n,), outputs (n, k) in the file's column order with NaN where empty, and
-    status (n,) from an estimate MCAP."""
+    status (n,) from an estimate MCAP (:func:`read_estimate_table_mcap`, whose
+    :class:`InputError` it raises)."""
     table = read_estimate_table_mcap(path)
     return table.t, table.values, table.status
 
@@ -201,12 +202,15 @@ def read_estimates_mcap(
 def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     """An estimate MCAP's ``/continuum/estimate`` messages as the estimate CSV's table
     (its outputs named as in the file, their ``std_`` fields, the status). A one-line
-    :class:`InputError` for an MCAP without them (a robot log, say)."""
+    :class:`InputError` for an MCAP without them (a robot log, say), one that is not an
+    MCAP or not written by continuum-mhe, or a status outside the vocabulary."""
     require("mcap", "robot", f"reading the MCAP file {path}")
+    from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
     t, out, sd, status = [], [], [], []
     names: list[str] = []
+    has_std = False
     try:
         with Path(path).open("rb") as fh:
             for _, _, message in make_reader(fh).iter_messages(topics=["/continuum/estimate"]):
@@ -217,14 +221,20 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
                         for k in row
                         if k not in ("t", "status", "solve_ms") and not k.startswith(STD_PREFIX)
                     ]
+                    has_std = any(k.startswith(STD_PREFIX) for k in row)
                 t.append(row["t"])
                 out.append([math.nan if row[k] is None else row[k] for k in names])
                 sd.append([_number(row.get(STD_PREFIX + k)) for k in names])
+                if row["status"] not in STATUS_MEANINGS:
+                    raise InputError(
+                        f"{path}: message {len(t)}: status {row['status']!r} is not one of "
+                        f"{', '.join(STATUS_MEANINGS)}"
+                    )
                 status.append(row["status"])
     except (InputError, OSError):
         raise
-    except Exception as exc:  # not an MCAP, or not written by continuum-mhe
-        raise InputError(f"{path}: cannot read it as an estimate MCAP ({exc})") from None
+    except (McapError, ValueError, KeyError, TypeError) as exc:  # not ours, or not an MCAP
+        raise InputError(f"{path}: cannot read it as an estimate MCAP ({exc!r})") from None
     if not t:
         raise InputError(
             f"{path}: no /continuum/estimate messages: not an estimate MCAP (a robot log? "
@@ -233,8 +243,9 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     k = len(names)
     std = np.array(sd, dtype=float).reshape(len(t), k)
     return StateTable(
-        np.array(t, dtype=float), tuple(names), np.array(out, dtype=float).reshape(len(t), k),
-        np.array(status, dtype=str), std, None, bool(np.isfinite(std).any()),
+        t=np.array(t, dtype=float), names=tuple(names),
+        values=np.array(out, dtype=float).reshape(len(t), k),
+        status=np.array(status, dtype=str), std=std, std_columns=has_std,
     )  # fmt: skip
 
 

@@ -97,10 +97,10 @@ class Formulation:
     noise: NoiseSettings = field(default_factory=NoiseSettings)
 
     name: FormulationName = "bend"
-    #: whether each tilt residual is an angle difference wrapped to (-pi, pi]
+    #: whether each tilt block's residual is an angle difference wrapped to (-pi, pi]
     #: (:meth:`measurement_residual_sym`), or a smooth chart that never wraps (the bend
-    #: formulation's tangent plane): the UKF takes a jump of more than pi in a chart's
-    #: residuals across its sigma points for a reading about a half turn away
+    #: formulation's tangent plane, singular at a half turn; formulations without tilt
+    #: blocks inherit theirs unused)
     tilt_residual_wraps: ClassVar[bool] = True
 
     def __post_init__(self) -> None:

@@ -19,6 +19,7 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
+from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer.sink import ViewerSink
@@ -30,16 +31,17 @@ def read_estimates(path: str) -> StateTable:
     CSV (tilt or raw, no tip columns) is a one-line error saying to estimate it first."""
     if Path(path).suffix.lower() == ".mcap":
         return read_estimate_table_mcap(path)
-    table = read_state_table(path, ())
+    with open_rows(path) as rows:  # the header first: a measurement file's rows may
+        header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
     tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
-    if not set(TIP_COLUMNS) <= set(table.names) and (
-        is_raw_header(list(table.names)) or any(c in table.names for c in tilt)
+    if not set(TIP_COLUMNS) <= set(header) and (
+        is_raw_header(header) or any(c in header for c in tilt)
     ):
         raise InputError(
-            f"{path}: a measurement file (columns {', '.join(table.names)}), not an estimate: "
+            f"{path}: a measurement file (columns {', '.join(header)}), not an estimate: "
             f"run continuum-mhe estimate {path} -o EST.csv first, then view EST.csv"
         )
-    return table
+    return read_state_table(path, ())
 
 
 def replay(
