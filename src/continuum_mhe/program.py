@@ -27,7 +27,7 @@ COMMANDS: tuple[tuple[str, str], ...] = (
     ("reproduce", "run every experiment of the paper: data, figures and report.md"),
     ("plot", "re-render the reproduction's figures from its saved data"),
     ("benchmark", "time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)"),
-    ("view", "3D view of an estimate CSV in Rerun (backbone, IMU frames, tip trail)"),
+    ("view", "3D view of an estimate CSV or MCAP in Rerun (backbone, IMU frames, tip trail)"),
 )
 
 
