@@ -15,7 +15,7 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 
 from continuum_mhe.benchmark import raw_imu_recording
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.csv_files import InputError, read_state_table
 from continuum_mhe.io.imu_topics import pair_stamps, read_imu_topics
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.robot_file import read_robot
@@ -133,6 +133,22 @@ WRITERS = {
 
 
 @pytest.mark.parametrize("kind", sorted(WRITERS))
+def test_a_wrong_topic_count_lists_the_logs_imu_topics(
+    kind: str, streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """Every log kind's topics are read for the message (ROS 1 bags type Imu without
+    ``msg/``)."""
+    write, name = WRITERS[kind]
+    log = write(tmp_path / name, streams["imu"])
+    with pytest.raises(InputError) as info:
+        read_imu_topics(log, [], 2)
+    assert str(info.value) == (
+        f"{log}: no --topic for a robot with 2 IMUs: pass one --topic per IMU, in the robot "
+        "file's order; sensor_msgs/msg/Imu topics in this log: /imu1, /imu2"
+    )
+
+
+@pytest.mark.parametrize("kind", sorted(WRITERS))
 def test_topics_pair_by_stamp_and_count_the_rest(
     kind: str, streams: dict[str, Any], tmp_path: Path
 ) -> None:
@@ -212,6 +228,8 @@ def test_wrong_topics_are_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("continuum-mhe: error: "), err
     assert says in err[0]
+    if "for a robot with" in says:  # a wrong count lists the log's Imu topics
+        assert err[0].endswith("sensor_msgs/msg/Imu topics in this log: /imu1, /imu2"), err
     assert not out.exists()
     # a one-IMU robot given two topics
     assert main(["estimate", str(log), "-o", str(out), "--topic", "/imu1", "--topic", "/imu2"]) == 2

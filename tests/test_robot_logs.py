@@ -15,7 +15,7 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import UnitWarning, read_states
+from continuum_mhe.io.csv_files import InputError, UnitWarning, read_states
 from continuum_mhe.io.mcap_estimates import read_estimates_mcap
 from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.direct import raw_imu_readings
@@ -170,6 +170,41 @@ def test_estimate_writes_mcap_matching_csv(tmp_path: Path, recording: dict[str, 
     np.testing.assert_allclose([pose["pose"]["position"][k] for k in "xyz"], x_c[-1, :3], atol=1e-9)
 
 
+def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An estimate MCAP whose third estimate says 'OK' (another tool's, or edited), as the
+    CSV reader does: one line naming the file, the message and the vocabulary, exit 2."""
+    from mcap.reader import make_reader
+
+    from continuum_mhe.io.mcap_estimates import mcap_estimate_writer
+
+    est, edited = tmp_path / "est.mcap", tmp_path / "edited.mcap"
+    _estimate(write_mcap(tmp_path / "in.mcap", recording), est, "--method", "ekf")
+    with est.open("rb") as src, edited.open("wb") as dst:
+        writer = mcap_estimate_writer(dst)
+        seen = 0
+        for seq, (_, channel, message) in enumerate(make_reader(src).iter_messages()):
+            msg = json.loads(message.data)
+            if channel.topic == "/continuum/estimate":
+                seen += 1
+                if seen == 3:
+                    assert msg["status"] == "ok"
+                    msg["status"] = "OK"
+            writer.add(channel.topic, message.log_time, msg, seq)
+        writer.finish()
+    assert len(read_estimates_mcap(est)[0]) == len(recording["stamps"])  # unedited: read
+    with pytest.raises(InputError) as info:
+        read_estimates_mcap(edited)
+    assert str(info.value).startswith(f"{edited}: message 3: status 'OK' is not one of ok, ")
+    out = tmp_path / "v.rrd"
+    capsys.readouterr()
+    assert main(["view", str(edited), "--save", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "message 3: status 'OK'" in err, err
+    assert not out.exists()
+
+
 def _wxyz(r: Rotation) -> np.ndarray:
     """scipy's quaternions are ``(x, y, z, w)``; the Imu message's order is ``(w, x, y, z)``."""
     return np.roll(r.as_quat(), 1, axis=-1)
@@ -307,11 +342,16 @@ def test_orientation_skips_the_accelerometer_unit_check(
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("robot", "needs"),
+    [((), ""), (("--robot", "two-section"), " (a robot with 2 IMUs needs one per IMU)")],
+)
 def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    robot: tuple[str, ...], needs: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Before: 'pass --topic; sensor_msgs/msg/Imu topics in this log: none', though no
-    --topic can help. Now one line saying the log has no Imu topic, listing its topics."""
+    --topic can help (and for a two-IMU robot 'no --topic ...: pass one --topic per
+    IMU'). Now one line saying the log has no Imu topic, listing its topics."""
     from mcap.writer import CompressionType, Writer
 
     log = tmp_path / "odd.mcap"
@@ -323,10 +363,10 @@ def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
         w.add_message(cid, log_time=T0_NS, data=b'{"data": "hi"}', publish_time=T0_NS)
         w.finish()
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(log), "-o", str(out)]) == 2
+    assert main(["estimate", str(log), "-o", str(out), *robot]) == 2
     assert capsys.readouterr().err.strip() == (
         f"continuum-mhe: error: {log}: the log has no sensor_msgs/msg/Imu topic; its topics: "
-        "/chatter (std_msgs/msg/String)"
+        f"/chatter (std_msgs/msg/String){needs}"
     )
     assert not out.exists()
 

@@ -191,7 +191,11 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
     out, err = capsys.readouterr()
-    assert "2.50 times as far from the base" in err and "another --length" in err
+    # one warning (before: a second, est against truth, for the same mistake), naming the
+    # file and the length it was made for
+    assert err.count("warning") == 1, err
+    assert f"warning: {est}: its tip is 2.50 times as far from the base" in err
+    assert "made for a robot of about 0.5 m; pass the --length" in err
     assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
     capsys.readouterr()

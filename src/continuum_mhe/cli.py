@@ -332,13 +332,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     hint = other_robot or _length_hint(
         est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
     )
-    if hint:
-        print(f"{PROG}: warning: {hint}", file=sys.stderr)
-    for path, table in ((args.estimates, est), (args.truth, truth)):
-        misfit = length_misfit(table.names, table.values, robot.lengths)
-        if misfit:  # tip errors in % of the length are then of another robot's length
-            fix = "pass the --length (or --robot) it was made with"
-            print(f"{PROG}: warning: {path}: {misfit}; {fix}", file=sys.stderr)
+    misfits = [
+        f"{path}: {misfit}; pass the --length (or --robot) it was made with"
+        for path, table in ((args.estimates, est), (args.truth, truth))
+        if (misfit := length_misfit(table.names, table.values, robot.lengths))
+    ]  # tip errors in % of the length are then of another robot's length
+    # a file made for another length explains the estimate-truth ratio too: say it once
+    warned = [hint] if other_robot or not misfits else misfits
+    for line in filter(None, warned):
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:
         extra = {"calibration": None if cal is None else cal.as_dict()}
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots

@@ -25,7 +25,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.io.csv_files import FloatArray, InputError
-from continuum_mhe.io.robot_logs import ImuLog, read_imu_log
+from continuum_mhe.io.robot_logs import (
+    IMU_TYPES,
+    ImuLog,
+    log_topics,
+    read_imu_log,
+    topics_line,
+)
 
 IntArray = NDArray[np.int64]
 
@@ -106,10 +112,13 @@ def read_imu_topics(
     p = Path(path)
     if len(topics) != n_imus:
         given = f"{len(topics)} --topic" if topics else "no --topic"
+        imus = f"{n_imus} IMU{'s' if n_imus > 1 else ''}"
+        held = log_topics(p)
+        if not any(typ in IMU_TYPES for typ in held.values()):  # no --topic can help
+            raise InputError(f"{p}: {topics_line(held)} (a robot with {imus} needs one per IMU)")
         raise InputError(
-            f"{p}: {given} for a robot with {n_imus} IMU{'s' if n_imus > 1 else ''}: pass one "
-            "--topic per IMU, "
-            "in the robot file's order"
+            f"{p}: {given} for a robot with {imus}: pass one --topic per IMU, in the robot "
+            f"file's order; {topics_line(held)}"
         )
     if len(set(topics)) != len(topics):
         raise InputError(f"{p}: a --topic is given twice ({', '.join(topics)})")

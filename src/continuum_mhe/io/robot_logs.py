@@ -98,6 +98,16 @@ def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
     return acc, gyr, quat
 
 
+def topics_line(topics: dict[str, str]) -> str:
+    """What a log holds, for an error: its Imu topics, or that it has none and every
+    topic with its type (``topics``: topic -> message type)."""
+    imu = sorted(t for t, typ in topics.items() if typ in IMU_TYPES)
+    if imu:
+        return f"sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
+    every = ", ".join(f"{t} ({typ or 'no schema'})" for t, typ in sorted(topics.items()))
+    return f"the log has no sensor_msgs/msg/Imu topic; its topics: {every or 'none'}"
+
+
 def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
     imu = sorted(t for t, typ in topics.items() if typ in IMU_TYPES)
     every = ", ".join(f"{t} ({typ or 'no schema'})" for t, typ in sorted(topics.items()))
@@ -105,9 +115,7 @@ def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
         if len(imu) == 1:
             return imu[0]
         if not imu:  # no --topic can help
-            raise InputError(
-                f"{path}: the log has no sensor_msgs/msg/Imu topic; its topics: {every or 'none'}"
-            )
+            raise InputError(f"{path}: {topics_line(topics)}")
         raise InputError(
             f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
         )
@@ -178,6 +186,41 @@ def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, 
             fh.close()
 
     return name, gen()
+
+
+def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
+    """The topics of a bag or MCAP file: topic -> message type ("" when an MCAP
+    channel has no schema)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file or folder")
+    try:
+        if p.suffix.lower() == ".mcap":
+            require("mcap", "robot", f"reading the MCAP file {p}")
+            from mcap.reader import make_reader
+
+            with p.open("rb") as fh:
+                summary = make_reader(fh).get_summary()
+            if summary is None:
+                raise InputError(f"{p}: MCAP file has no summary section (unfinished recording?)")
+            return {
+                ch.topic: (
+                    summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else ""
+                )
+                for ch in summary.channels.values()
+            }
+        require("rosbags", "robot", f"reading the ROS bag {p}")
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        bag = p.parent if p.suffix.lower() == ".db3" else p
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except InputError:
+        raise
+    except Exception as exc:  # a corrupt or foreign file: one line, no traceback
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{p}: cannot read robot log ({msg})") from None
 
 
 def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuLog:
