@@ -31,6 +31,7 @@ from continuum_mhe.cli_options import (
     add_robot_option,
     check_option_ranges,
     formulation_from_args,
+    input_options,
     mhe_settings_from_args,
     recovery_settings_from_args,
     robot_from_args,
@@ -82,7 +83,8 @@ if TYPE_CHECKING:
 
 #: Modules that add subcommands through ``register(subparsers)``.
 COMMAND_MODULES: tuple[str, ...] = (
-    "continuum_mhe.live",
+    "continuum_mhe.cli_live",
+    "continuum_mhe.cli_calibrate",
     "continuum_mhe.reproduce.cli",
     "continuum_mhe.benchmark",
     "continuum_mhe.cli_view",
@@ -134,7 +136,6 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     # streamed: the input is read once and memory stays flat (issue #12)
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
-    from continuum_mhe.live import input_options
 
     check_output_path(args.output, args.measurements)
     out = args.output

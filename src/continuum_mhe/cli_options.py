@@ -1,6 +1,6 @@
 """Command-line options shared by every command that estimates (``estimate``, ``live``,
 ``simulate``, ``evaluate``, ``demo``): the robot, the model and the MHE. One place, used
-by the CLI and by ``live``."""
+by every command module (``cli``, ``cli_live``, ``cli_calibrate``, ...)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
@@ -422,3 +423,84 @@ def check_option_ranges(args: argparse.Namespace) -> None:
             if rng.hint is not None and rng.hint(float(v)):
                 why = f": {rng.hint(float(v))}"
             raise InputError(f"{flag} {v!r} is outside its valid range {rng.describe()}{why}")
+
+
+def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
+    """Options that turn raw IMU samples into measurements (estimate and live)."""
+    g = p.add_argument_group("raw IMU input (accelerometer m/s^2, gyro rad/s)")
+    g.add_argument(
+        "--imu-model",
+        choices=IMU_MODELS,
+        default="tilt",
+        help="tilt: roll/pitch from the accelerometer (default); direct: gravity "
+        "direction and gyro rates in the model (needs the gyro)",
+    )
+    g.add_argument(
+        "--attitude",
+        choices=ATTITUDES,
+        default="accel",
+        help="for --imu-model tilt: accel (accelerometer only, default), or madgwick / "
+        "mahony gyro fusion from the ahrs package",
+    )
+    g.add_argument(
+        "--mount-rpy",
+        default="0,0,0",
+        metavar="R,P,Y",
+        help="sensor mounting roll,pitch,yaw in degrees: v_tip = Rz(Y) Ry(P) Rx(R) v_sensor",
+    )
+    g.add_argument(
+        "--gyro-std",
+        type=float,
+        default=0.05,
+        help="gyro noise std in rad/s for --imu-model direct (default 0.05)",
+    )
+    g.add_argument(
+        "--estimate-gyro-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
+        "IMU) instead of counting it as gyro noise",
+    )
+    g.add_argument(
+        "--estimate-accel-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
+        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md)",
+    )
+    g.add_argument(
+        "--own-acceleration",
+        action="store_true",
+        help="for --imu-model direct: model each IMU's own acceleration (the bend "
+        "accelerations become states; docs/model.md)",
+    )
+
+
+def raw_settings(args: argparse.Namespace) -> RawImuSettings:
+    """:class:`RawImuSettings` from parsed options (defaults where absent)."""
+    return RawImuSettings(
+        imu_model=getattr(args, "imu_model", "tilt"),
+        attitude=getattr(args, "attitude", "accel"),
+        mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", "0,0,0")),
+    )
+
+
+def input_options(args: argparse.Namespace) -> Any:
+    """``input_options.InputOptions`` for ``estimate`` from parsed options."""
+    from continuum_mhe.io.input_options import InputOptions
+
+    topics = tuple(getattr(args, "topic", None) or ())
+    gyro_std = float(getattr(args, "gyro_std", 0.05))
+    if not (math.isfinite(gyro_std) and gyro_std > 0):
+        raise InputError(f"--gyro-std must be positive, got {gyro_std}")
+    return InputOptions(
+        raw=raw_settings(args),
+        topic=topics[0] if len(topics) == 1 else None,
+        topics=topics,
+        pair_tolerance=getattr(args, "pair_tolerance", None),
+        use_orientation=bool(getattr(args, "orientation", False)),
+        gyro_std=gyro_std,
+        estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+        estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
+        own_acceleration=bool(getattr(args, "own_acceleration", False)),
+        degrees=bool(getattr(args, "degrees", False)),
+        skip_bad=bool(getattr(args, "skip_bad", False)),
+    )

@@ -16,15 +16,11 @@ When the device disappears the reader reopens it with backoff. A reader thread d
 the port into an unbounded queue: a slow estimator falls behind (and says so) but
 never loses a sample.
 
-This module also adds the raw-IMU and robot-log options to ``estimate``, and the
-``calibrate`` command.
+The command itself (its options, the estimator and the files): :mod:`continuum_mhe.cli_live`.
 """
 
 from __future__ import annotations
 
-import argparse
-import gc
-import math
 import os
 import queue
 import sys
@@ -35,26 +31,16 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
-from continuum_mhe.extras import MissingExtraError
-from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns
-from continuum_mhe.io.raw_imu import (
-    ATTITUDES,
-    IMU_MODELS,
-    RawImuSettings,
-    parse_mount_rpy,
-)
+from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.model.descriptions import OutputSpec
 from continuum_mhe.signals import SIGNALS_SEEN, defer, stop_deferring
 from continuum_mhe.stream.protocol import (
     GarbledLine,
     Sample,
-    line_fields,
     parse_line,
-    value_columns,
 )
-from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint, stderr_say
-from continuum_mhe.stream.recording import RowFile, check_target
-from continuum_mhe.stream.session import LiveSession, LiveSettings, imu_converters
+from continuum_mhe.stream.reader import Event, SerialReader
+from continuum_mhe.stream.session import LiveSession, LiveSettings
 
 __all__ = ["GarbledLine", "LiveSession", "LiveSettings", "Sample", "parse_line", "run_live"]
 
@@ -251,88 +237,6 @@ def open_plot(lengths: tuple[float, ...], say: Any) -> LivePlot | None:
     return None
 
 
-# --- command line ---------------------------------------------------------------------------
-def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
-    """Options that turn raw IMU samples into measurements (estimate and live)."""
-    g = p.add_argument_group("raw IMU input (accelerometer m/s^2, gyro rad/s)")
-    g.add_argument(
-        "--imu-model",
-        choices=IMU_MODELS,
-        default="tilt",
-        help="tilt: roll/pitch from the accelerometer (default); direct: gravity "
-        "direction and gyro rates in the model (needs the gyro)",
-    )
-    g.add_argument(
-        "--attitude",
-        choices=ATTITUDES,
-        default="accel",
-        help="for --imu-model tilt: accel (accelerometer only, default), or madgwick / "
-        "mahony gyro fusion from the ahrs package",
-    )
-    g.add_argument(
-        "--mount-rpy",
-        default="0,0,0",
-        metavar="R,P,Y",
-        help="sensor mounting roll,pitch,yaw in degrees: v_tip = Rz(Y) Ry(P) Rx(R) v_sensor",
-    )
-    g.add_argument(
-        "--gyro-std",
-        type=float,
-        default=0.05,
-        help="gyro noise std in rad/s for --imu-model direct (default 0.05)",
-    )
-    g.add_argument(
-        "--estimate-gyro-bias",
-        action="store_true",
-        help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
-        "IMU) instead of counting it as gyro noise",
-    )
-    g.add_argument(
-        "--estimate-accel-bias",
-        action="store_true",
-        help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
-        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md)",
-    )
-    g.add_argument(
-        "--own-acceleration",
-        action="store_true",
-        help="for --imu-model direct: model each IMU's own acceleration (the bend "
-        "accelerations become states; docs/model.md)",
-    )
-
-
-def raw_settings(args: argparse.Namespace) -> RawImuSettings:
-    """:class:`RawImuSettings` from parsed options (defaults where absent)."""
-    return RawImuSettings(
-        imu_model=getattr(args, "imu_model", "tilt"),
-        attitude=getattr(args, "attitude", "accel"),
-        mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", "0,0,0")),
-    )
-
-
-def input_options(args: argparse.Namespace) -> Any:
-    """``input_options.InputOptions`` for ``estimate`` from parsed options."""
-    from continuum_mhe.io.input_options import InputOptions
-
-    topics = tuple(getattr(args, "topic", None) or ())
-    gyro_std = float(getattr(args, "gyro_std", 0.05))
-    if not (math.isfinite(gyro_std) and gyro_std > 0):
-        raise InputError(f"--gyro-std must be positive, got {gyro_std}")
-    return InputOptions(
-        raw=raw_settings(args),
-        topic=topics[0] if len(topics) == 1 else None,
-        topics=topics,
-        pair_tolerance=getattr(args, "pair_tolerance", None),
-        use_orientation=bool(getattr(args, "orientation", False)),
-        gyro_std=gyro_std,
-        estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
-        estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
-        own_acceleration=bool(getattr(args, "own_acceleration", False)),
-        degrees=bool(getattr(args, "degrees", False)),
-        skip_bad=bool(getattr(args, "skip_bad", False)),
-    )
-
-
 def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> None:
     """Run ``steps`` samples of the straight robot through ``estimator``, then reset
     it: compilation and first-call costs (shared by every estimator of the same kind)
@@ -345,177 +249,3 @@ def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> No
     for i in range(steps):
         estimator.step(Measurement(i * period_s, z))
     estimator.reset()  # zeroes its counts too
-
-
-def cmd_live(args: argparse.Namespace) -> int:
-    from continuum_mhe.cli_options import (
-        formulation_from_args,
-        mhe_settings_from_args,
-        recovery_settings_from_args,
-    )
-    from continuum_mhe.estimators import make_estimator
-    from continuum_mhe.model.direct import DirectFormulation
-
-    settings = LiveSettings(
-        port=args.port,
-        baud=args.baud,
-        fmt=args.format,
-        duration=args.duration,
-        status_every=args.status_every,
-        retry_max_s=args.retry_max,
-    )
-    raw = raw_settings(args)
-    formulation = formulation_from_args(args)
-    for dest in ("estimate_gyro_bias", "estimate_accel_bias", "own_acceleration"):
-        if getattr(args, dest, False) and raw.imu_model != "direct":
-            flag = "--" + dest.replace("_", "-")
-            raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
-    if raw.imu_model == "direct":
-        if settings.fmt != "raw":
-            raise InputError("--imu-model direct needs --format raw")
-        if formulation.name != "bend":
-            raise InputError(f"--imu-model direct uses the bend state, not {formulation.name}")
-        if not (math.isfinite(args.gyro_std) and args.gyro_std > 0):
-            raise InputError(f"--gyro-std must be positive, got {args.gyro_std}")
-        formulation = DirectFormulation(
-            robot=formulation.robot,
-            noise=formulation.noise,
-            gyro_std=args.gyro_std,
-            estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
-            estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
-            own_acceleration=bool(getattr(args, "own_acceleration", False)),
-        )
-    robot = formulation.robot
-    converters = imu_converters(raw, robot) if settings.fmt == "raw" else None
-    out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
-    rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
-    if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
-        raise InputError(f"{out_path}: -o and --record name the same file")
-    sink = None
-    if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
-        from continuum_mhe.cli_options import viewer_sink_from_args
-        from continuum_mhe.viewer import BackboneView, require_rerun
-
-        require_rerun()
-        sink = viewer_sink_from_args(args)
-    try:
-        conn = open_port(settings.port, settings.baud)
-    except MissingExtraError:
-        raise
-    except Exception as exc:
-        raise InputError(port_hint(settings.port, exc)) from None
-    # after the port opened: a first run compiles here (said once) before any line is
-    # read; a throwaway estimator pays the first-call costs (warm_up)
-    estimator = make_estimator(
-        args.method,
-        formulation,
-        mhe_settings_from_args(args),
-        recovery=recovery_settings_from_args(args),
-    )
-    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
-    gc.collect()
-    gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
-    say = stderr_say("live")
-    plot = open_plot(robot.lengths, say) if args.plot else None
-    columns = value_columns(settings.fmt, robot.n_imus)
-    out = (
-        None
-        if out_path is None
-        else RowFile(
-            out_path,
-            estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
-            args.overwrite,
-        )
-    )
-    record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
-    view = None if sink is None else BackboneView(
-        robot, formulation.outputs, sink, trail_s=args.trail,
-        points_per_section=args.points, max_hz=args.view_hz,
-    )  # fmt: skip
-    try:
-        session = LiveSession(settings, estimator, converters, out, say, record)
-        say(
-            f"reading {settings.port} at {settings.baud} baud "
-            f"({','.join(line_fields(settings.fmt, robot.n_imus))}); {args.method} estimates"
-            f"{' to ' + str(out_path) if out_path else ''}"
-            f"{'; recording to ' + str(rec_path) if rec_path else ''}; Ctrl-C stops"
-        )
-        if out is None and record is None:
-            say(
-                "nothing is saved: give -o EST.csv for the estimates, "
-                "--record RAW.csv for the samples"
-            )
-        return run_live(settings, session, conn, plot, view)
-    finally:
-        if view is not None:
-            view.close()
-        for sink, what in ((out, "estimates"), (record, "samples")):
-            if sink is None:
-                continue
-            sink.close()
-            if sink.rows:
-                say(f"{sink.rows} {what} in {sink.path}")
-            else:
-                say(f"no sample arrived: {sink.path} not written")
-
-
-def register(subparsers: Any) -> None:
-    """Add ``live``, ``calibrate`` and the raw-IMU / robot-log options of ``estimate``."""
-    from continuum_mhe.cli_options import (
-        add_live_view_option,
-        add_mhe_options,
-        add_model_options,
-        add_recording_options,
-        add_recovery_options,
-        add_serial_options,
-    )
-    from continuum_mhe.estimators import METHODS
-    from continuum_mhe.stream.calibrate import register_calibrate
-
-    est = subparsers.choices.get("estimate")
-    if est is not None:
-        add_raw_imu_options(est)
-        g = est.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
-        g.add_argument(
-            "--topic",
-            action="append",
-            help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
-            "once per IMU in the robot file's order",
-        )
-        g.add_argument(
-            "--pair-tolerance",
-            type=float,
-            metavar="SECONDS",
-            help="several topics: largest header-stamp difference of paired samples "
-            "(default: half of the first topic's median sample period)",
-        )
-        g.add_argument(
-            "--orientation",
-            action="store_true",
-            help="use the Imu message's orientation (roll, pitch) instead of its raw readings",
-        )
-
-    p = subparsers.add_parser(
-        "live",
-        help="estimate in real time from a serial IMU stream",
-        description="Estimate in real time from a serial IMU stream (line protocol: "
-        "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order; "
-        "'#' lines are the device's messages).",
-    )
-    add_serial_options(p)
-    p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
-    add_recording_options(p)
-    p.add_argument("--duration", type=float, help="stop after this many seconds")
-    p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
-    p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
-    p.add_argument("--status-every", type=float, default=1.0, help="seconds between status lines")
-    p.add_argument(
-        "--retry-max", type=float, default=5.0, help="longest wait between reopen attempts, s"
-    )
-    add_model_options(p)
-    add_mhe_options(p)
-    add_recovery_options(p)
-    add_raw_imu_options(p)
-    add_live_view_option(p)
-    p.set_defaults(func=cmd_live)
-    register_calibrate(subparsers)

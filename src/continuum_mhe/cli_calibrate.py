@@ -1,0 +1,117 @@
+"""The ``calibrate`` command (:mod:`continuum_mhe.stream.calibrate` measures; registered
+through ``COMMAND_MODULES``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+from continuum_mhe.cli_options import add_robot_option, robot_from_args
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.stream.calibrate import (
+    STILL_ACC_STD,
+    STILL_GYRO_STD,
+    bend_yaws,
+    calibrate,
+    collect,
+    format_report,
+    motion_at_rest,
+    read_recording,
+)
+from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
+from continuum_mhe.stream.reader import stderr_say
+
+
+def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source: str) -> None:
+    """Refuse ``--still-gyro-std`` on a recording without a gyro (it would do nothing)."""
+    if args.still_gyro_std is not None and fmt != "raw":
+        raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    robot = robot_from_args(args)
+    if args.bend_phi is not None and not args.bend:
+        raise InputError("--bend-phi needs --bend BEND.csv")
+    say = stderr_say("calibrate")
+    if args.source:
+        fmt, t, values = read_recording(args.source, robot.n_imus)
+        source = args.source
+        _check_gyro_bound_applies(args, fmt, source)
+    else:
+        if args.port is None:
+            raise InputError("give --port DEVICE or --from RAW.csv")
+        if not (math.isfinite(args.seconds) and args.seconds > 0):
+            raise InputError(f"--seconds must be positive, got {args.seconds}")
+        fmt, source = args.format, args.port
+        _check_gyro_bound_applies(args, fmt, source)  # before recording for --seconds
+        t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
+    gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
+    moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
+    if moved:
+        raise InputError(f"{source}: {moved}")
+    cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    bend = None
+    if args.bend:
+        phi = 0.0 if args.bend_phi is None else args.bend_phi
+        bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
+    print(format_report(cal, source, bend))
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``calibrate`` command."""
+
+    p = subparsers.add_parser(
+        "calibrate",
+        help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
+        description="With the robot straight and still (a recording whose accelerometer "
+        f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
+        "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
+        "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
+        "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
+        "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
+        "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
+    src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
+    p.add_argument(
+        "--bend",
+        metavar="BEND.csv",
+        help="a raw recording of the robot bent slowly in one known plane (--bend-phi): "
+        "each IMU's yaw about the tangent, and the full mount_rpy",
+    )
+    p.add_argument(
+        "--bend-phi",
+        type=float,
+        metavar="DEG",
+        help="the plane of --bend: the direction the robot bends towards, degrees "
+        "(default 0: towards base -x)",
+    )
+    p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
+    p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
+    p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
+    add_robot_option(p, replaces=("--mounting",))
+    p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
+    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    p.add_argument(
+        "--still-acc-std",
+        type=float,
+        default=STILL_ACC_STD,
+        metavar="M/S2",
+        help="largest accelerometer spread (standard deviation per axis, m/s^2) of a still "
+        "robot; for a tilt recording, this over g in rad (default "
+        f"{STILL_ACC_STD:g} m/s^2: 8 times the firmware's MPU9250 at rest)",
+    )
+    p.add_argument(
+        "--still-gyro-std",
+        type=float,
+        default=None,
+        metavar="RAD/S",
+        help="largest gyro spread (standard deviation per axis, rad/s) of a still robot, "
+        f"raw recordings only (default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's "
+        "MPU9250 at rest)",
+    )
+    p.set_defaults(func=cmd_calibrate)

@@ -1,0 +1,190 @@
+"""The ``live`` command (:mod:`continuum_mhe.live` runs it) and the raw-IMU and
+robot-log options of ``estimate`` (registered through ``COMMAND_MODULES``)."""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import math
+import os
+from typing import Any
+
+from continuum_mhe.cli_options import (
+    add_live_view_option,
+    add_mhe_options,
+    add_model_options,
+    add_raw_imu_options,
+    add_recording_options,
+    add_recovery_options,
+    add_serial_options,
+    formulation_from_args,
+    mhe_settings_from_args,
+    raw_settings,
+    recovery_settings_from_args,
+    viewer_sink_from_args,
+)
+from continuum_mhe.extras import MissingExtraError
+from continuum_mhe.io.csv_files import InputError, estimate_columns
+from continuum_mhe.live import open_plot, run_live, warm_up
+from continuum_mhe.stream.protocol import line_fields, value_columns
+from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
+from continuum_mhe.stream.recording import RowFile, check_target
+from continuum_mhe.stream.session import LiveSession, LiveSettings, imu_converters
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.model.direct import DirectFormulation
+
+    settings = LiveSettings(
+        port=args.port,
+        baud=args.baud,
+        fmt=args.format,
+        duration=args.duration,
+        status_every=args.status_every,
+        retry_max_s=args.retry_max,
+    )
+    raw = raw_settings(args)
+    formulation = formulation_from_args(args)
+    for dest in ("estimate_gyro_bias", "estimate_accel_bias", "own_acceleration"):
+        if getattr(args, dest, False) and raw.imu_model != "direct":
+            flag = "--" + dest.replace("_", "-")
+            raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
+    if raw.imu_model == "direct":
+        if settings.fmt != "raw":
+            raise InputError("--imu-model direct needs --format raw")
+        if formulation.name != "bend":
+            raise InputError(f"--imu-model direct uses the bend state, not {formulation.name}")
+        if not (math.isfinite(args.gyro_std) and args.gyro_std > 0):
+            raise InputError(f"--gyro-std must be positive, got {args.gyro_std}")
+        formulation = DirectFormulation(
+            robot=formulation.robot,
+            noise=formulation.noise,
+            gyro_std=args.gyro_std,
+            estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
+            estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
+            own_acceleration=bool(getattr(args, "own_acceleration", False)),
+        )
+    robot = formulation.robot
+    converters = imu_converters(raw, robot) if settings.fmt == "raw" else None
+    out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
+    rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
+    if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
+        raise InputError(f"{out_path}: -o and --record name the same file")
+    sink = None
+    if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
+        from continuum_mhe.viewer import BackboneView, require_rerun
+
+        require_rerun()
+        sink = viewer_sink_from_args(args)
+    try:
+        conn = open_port(settings.port, settings.baud)
+    except MissingExtraError:
+        raise
+    except Exception as exc:
+        raise InputError(port_hint(settings.port, exc)) from None
+    # after the port opened: a first run compiles here (said once) before any line is
+    # read; a throwaway estimator pays the first-call costs (warm_up)
+    estimator = make_estimator(
+        args.method,
+        formulation,
+        mhe_settings_from_args(args),
+        recovery=recovery_settings_from_args(args),
+    )
+    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
+    gc.collect()
+    gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
+    say = stderr_say("live")
+    plot = open_plot(robot.lengths, say) if args.plot else None
+    columns = value_columns(settings.fmt, robot.n_imus)
+    out = (
+        None
+        if out_path is None
+        else RowFile(
+            out_path,
+            estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
+            args.overwrite,
+        )
+    )
+    record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
+    view = None if sink is None else BackboneView(
+        robot, formulation.outputs, sink, trail_s=args.trail,
+        points_per_section=args.points, max_hz=args.view_hz,
+    )  # fmt: skip
+    try:
+        session = LiveSession(settings, estimator, converters, out, say, record)
+        say(
+            f"reading {settings.port} at {settings.baud} baud "
+            f"({','.join(line_fields(settings.fmt, robot.n_imus))}); {args.method} estimates"
+            f"{' to ' + str(out_path) if out_path else ''}"
+            f"{'; recording to ' + str(rec_path) if rec_path else ''}; Ctrl-C stops"
+        )
+        if out is None and record is None:
+            say(
+                "nothing is saved: give -o EST.csv for the estimates, "
+                "--record RAW.csv for the samples"
+            )
+        return run_live(settings, session, conn, plot, view)
+    finally:
+        if view is not None:
+            view.close()
+        for sink, what in ((out, "estimates"), (record, "samples")):
+            if sink is None:
+                continue
+            sink.close()
+            if sink.rows:
+                say(f"{sink.rows} {what} in {sink.path}")
+            else:
+                say(f"no sample arrived: {sink.path} not written")
+
+
+def register(subparsers: Any) -> None:
+    """Add ``live`` and the raw-IMU / robot-log options of ``estimate``."""
+    from continuum_mhe.estimators import METHODS
+
+    est = subparsers.choices.get("estimate")
+    if est is not None:
+        add_raw_imu_options(est)
+        g = est.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
+        g.add_argument(
+            "--topic",
+            action="append",
+            help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
+            "once per IMU in the robot file's order",
+        )
+        g.add_argument(
+            "--pair-tolerance",
+            type=float,
+            metavar="SECONDS",
+            help="several topics: largest header-stamp difference of paired samples "
+            "(default: half of the first topic's median sample period)",
+        )
+        g.add_argument(
+            "--orientation",
+            action="store_true",
+            help="use the Imu message's orientation (roll, pitch) instead of its raw readings",
+        )
+
+    p = subparsers.add_parser(
+        "live",
+        help="estimate in real time from a serial IMU stream",
+        description="Estimate in real time from a serial IMU stream (line protocol: "
+        "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order; "
+        "'#' lines are the device's messages).",
+    )
+    add_serial_options(p)
+    p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
+    add_recording_options(p)
+    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
+    p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
+    p.add_argument("--status-every", type=float, default=1.0, help="seconds between status lines")
+    p.add_argument(
+        "--retry-max", type=float, default=5.0, help="longest wait between reopen attempts, s"
+    )
+    add_model_options(p)
+    add_mhe_options(p)
+    add_recovery_options(p)
+    add_raw_imu_options(p)
+    add_live_view_option(p)
+    p.set_defaults(func=cmd_live)
