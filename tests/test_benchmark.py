@@ -48,7 +48,9 @@ def test_dompc_with_our_cost_solves_our_problem_once_the_window_is_full() -> Non
     assert bm._max_diff(out[:n], ref.output[:n]) > 1e-4  # the start-up is not the same
 
 
-def test_benchmark_command_records_ratios_and_environment(tmp_path: Path) -> None:
+def test_benchmark_command_records_ratios_and_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``continuum-mhe benchmark`` on a tiny recording: every method, the ratios, the
     agreement with IPOPT, the compiled EKF's answers, where the numbers come from."""
     import casadi
@@ -56,6 +58,7 @@ def test_benchmark_command_records_ratios_and_environment(tmp_path: Path) -> Non
 
     from continuum_mhe.cli import main
 
+    monkeypatch.setattr(bm, "_cpu_model", lambda: "Test CPU 9000")
     out = tmp_path / "bench.json"
     args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "200"]
     assert main([*args, "--json", str(out)]) == 0
@@ -80,13 +83,50 @@ def test_benchmark_command_records_ratios_and_environment(tmp_path: Path) -> Non
     assert report["versions"]["casadi"] == casadi.__version__
     assert report["versions"]["numba"] == numba.__version__
     assert report["machine"]["cores"] == os.cpu_count()
-    cpuinfo = Path("/proc/cpuinfo")
-    names = [
-        line.split(":", 1)[1].strip()
-        for line in (cpuinfo.read_text().splitlines() if cpuinfo.exists() else [])
-        if line.startswith("model name")
-    ]
-    assert report["machine"]["cpu"] in (names or [platform.processor() or platform.machine()])
+    assert report["machine"]["cpu"] == "Test CPU 9000"  # (known answers below)
+
+
+#: /proc/cpuinfo of a two-core machine (abridged); the model name is each core's third
+#: line (cores of two kinds: the first is named)
+_CPUINFO = """processor\t: 0
+vendor_id\t: GenuineIntel
+model name\t: Intel(R) Xeon(R) Test CPU @ 2.10GHz
+flags\t\t: fpu vme de pse
+
+processor\t: 1
+vendor_id\t: GenuineIntel
+model name\t: Intel(R) Atom(TM) Other CPU
+"""
+
+
+@pytest.mark.parametrize(
+    ("cpuinfo", "processor", "expected"),
+    [
+        (_CPUINFO, "test-processor", "Intel(R) Xeon(R) Test CPU @ 2.10GHz"),  # the first one
+        ("processor\t: 0\nBogoMIPS\t: 48.00\n", "test-processor", "test-processor"),  # ARM
+        (None, "test-processor", "test-processor"),  # no /proc/cpuinfo (not Linux)
+        (None, "", "test-machine"),  # and a platform that names no processor
+    ],
+)
+def test_environment_records_the_cpu_model(
+    monkeypatch: pytest.MonkeyPatch, cpuinfo: str | None, processor: str, expected: str
+) -> None:
+    """The benchmark's machine record names the CPU: /proc/cpuinfo's first model name,
+    else the platform's processor, else its machine type (a given cpuinfo and platform,
+    not this machine's)."""
+    import io
+
+    def fake_open(file, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if str(file) != "/proc/cpuinfo":
+            return open(file, *args, **kwargs)
+        if cpuinfo is None:
+            raise FileNotFoundError(file)
+        return io.StringIO(cpuinfo)
+
+    monkeypatch.setattr(bm, "open", fake_open, raising=False)  # the module's open only
+    monkeypatch.setattr(platform, "processor", lambda: processor)
+    monkeypatch.setattr(platform, "machine", lambda: "test-machine")
+    assert bm.environment(make_formulation("bend"))["machine"]["cpu"] == expected
 
 
 def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> None:

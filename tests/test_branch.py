@@ -3,6 +3,8 @@ restarted to a strictly lower cost, clean data is left alone, and both backends 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -10,9 +12,10 @@ from numpy.testing import assert_allclose
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.branch import FORGET
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.io.csv_files import read_state_table, write_estimates
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-from continuum_mhe.results import STATUS_MEANINGS
+from continuum_mhe.results import EstimateSeries
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import simulate_robot
 
@@ -74,8 +77,29 @@ def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -
     assert_allclose(est._P, np.eye(f.nx) * 0.01**2 * FORGET)
 
 
-def test_branch_restart_is_a_documented_status() -> None:
-    assert "branch-restart" in STATUS_MEANINGS
+def test_a_branch_restart_reaches_the_estimate_file(tmp_path: Path) -> None:
+    """The status reaches the user: a step warm-started on the wrong branch returns an
+    estimate with status ``branch-restart`` near the truth, trusted (not turned
+    ``uncertain``, standard deviations given), and the estimate file writes it and reads
+    it back (its reader accepts only the statuses of ``STATUS_MEANINGS``)."""
+    f = make_formulation("bend", TWO)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, branch_check=True))
+    z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
+    estimates = []
+    for i in range(N + 2):
+        if i == N - 1:  # the full window's warm start on the far branch
+            est._X, est._X_last = np.tile(WRONG, (N, 1)), None
+        estimates.append(est.step(Measurement(0.05 * i, z)))
+    assert [e.status for e in estimates] == ["ok"] * (N - 1) + ["branch-restart", "ok", "ok"]
+    restarted = estimates[N - 1]
+    assert restarted.state is not None and np.abs(restarted.state[:4] - TRUTH[:4]).max() < 1e-4
+    assert restarted.output_std is not None and np.all(np.isfinite(restarted.output_std))
+    series = EstimateSeries.from_estimates("mhe", estimates, f.outputs)
+    write_estimates(tmp_path / "e.csv", series)
+    table = read_state_table(tmp_path / "e.csv")
+    assert list(table.status) == list(series.status)
+    assert table.names == tuple(o.name for o in f.outputs)
+    assert_allclose(table.values, series.output, rtol=1e-9, atol=1e-12)
 
 
 @pytest.fixture(scope="module")

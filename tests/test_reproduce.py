@@ -470,7 +470,33 @@ def test_quick_plan_has_every_beyond_group_on_the_same_seeds() -> None:
         seeds = {g: sorted(s.seed for s in specs if s.group == g) for g in by.BEYOND_GROUPS}
         assert len({tuple(v) for v in seeds.values()}) == 1  # paired: the same seeds
         assert len(seeds["spikes"]) == cfg.beyond_seeds
-    assert ex.FULL.beyond_seeds == 50 and ex.QUICK.beyond_seeds <= 3
+
+
+def test_reproduce_beyond_plans_the_documented_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``reproduce --only beyond`` hands the runner the runs docs/reproduction.md's tables
+    were measured on: the same 50 seeds in every group, 20 s each; ``--quick`` 2 seeds,
+    5 s (10 s for the recovery groups). The tasks are caught before anything runs."""
+    from continuum_mhe.reproduce import pipeline
+
+    class Planned(BaseException):  # not an Exception: main() lets it through
+        pass
+
+    def planned(run: Any, tasks: list[Any], **kwargs: Any) -> list[Any]:
+        raise Planned(tasks)
+
+    monkeypatch.setattr(pipeline, "run_parallel", planned)
+    for quick, n, outlier_s, recovery_s in ((False, 50, 20.0, 20.0), (True, 2, 5.0, 10.0)):
+        args = ["reproduce", "--only", "beyond", "--out", str(tmp_path / f"q{quick}")]
+        with pytest.raises(Planned) as caught:
+            main([*args, "--quick"] if quick else args)
+        (tasks,) = caught.value.args
+        assert {t.group for t in tasks} == set(by.BEYOND_GROUPS)
+        seeds = {g: sorted(t.seed for t in tasks if t.group == g) for g in by.BEYOND_GROUPS}
+        assert {tuple(v) for v in seeds.values()} == {tuple(range(110_000, 110_000 + n))}
+        for t in tasks:
+            assert t.duration == (recovery_s if t.group in by.RECOVERY_GROUPS else outlier_s)
 
 
 def test_beyond_corruptions() -> None:

@@ -316,7 +316,6 @@ def test_no_restart_for_a_burst_rejected_briefly_or_one_faulty_imu_of_two() -> N
 def test_reject_reset_option(tmp_path: Path, capsys) -> None:
     with pytest.raises(ValueError, match="reject_reset"):
         RecoverySettings(reject_reset=-1.0)
-    assert RecoverySettings().reject_reset == 0.5  # on in the library: robust MHE only
     meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "1"]) == 0
     args = ["estimate", str(meas), "-o", str(est), "--horizon", "8", "--loss", "welsch"]

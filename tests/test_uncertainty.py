@@ -390,8 +390,7 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
     sample at which all hold (index ``first``; the duration alone said 3 at 2 Hz and 1
     at 0.05 Hz); one sample fewer, however long it spans, is not; at 20 Hz the duration
     decides, as before the count; samples 20 s apart (each a gap) are never one."""
-    n = FREEZE_MIN_SAMPLES
-    assert n == 5  # the documented minimum (settings.FREEZE_MIN_SAMPLES, docs/uncertainty.md)
+    n = FREEZE_MIN_SAMPLES  # 5, as documented: (0.5, 4) fails for any other default
     k = 30
     t = dt * np.arange(k)
     z = np.tile([0.1, -0.2], (k, 1))
@@ -428,16 +427,16 @@ def test_equal_readings_on_both_sides_of_a_gap_are_not_a_freeze(method: str) -> 
 
 
 def test_freeze_samples_are_validated() -> None:
-    assert RecoverySettings().freeze_samples == FREEZE_MIN_SAMPLES
     assert RecoverySettings(freeze_samples=np.int64(3)).freeze_samples == 3
     for bad in (1, 0, 2.5, True, np.int64(1)):
         with pytest.raises(ValueError, match="freeze_samples"):
             RecoverySettings(freeze_samples=bad)  # type: ignore[arg-type]
-    est = make_estimator(
-        "ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, freeze_samples=2)
-    )
-    est.run(np.array([0.0, 0.6, 1.2]), np.tile([0.1, 0.1], (3, 1)))
-    assert est.frozen_samples == 1  # a caller may ask for fewer repeats (the default sees none)
+    t, z = np.array([0.0, 0.6, 1.2]), np.tile([0.1, 0.1], (3, 1))
+    for samples, frozen in ((2, 1), (None, 0)):  # a caller may ask for fewer repeats
+        kw = {} if samples is None else {"freeze_samples": samples}
+        est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, **kw))
+        est.run(t, z)
+        assert est.frozen_samples == frozen, samples  # (the default sees none)
 
 
 def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
