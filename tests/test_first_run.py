@@ -422,3 +422,30 @@ def test_flushing_the_kernel_caches_drops_a_caller_compiled_against_an_old_calle
     (tmp_path / "callee.py").write_text(_callee(2))
     assert run("flush") == ["11", "12"]  # stale from the cache, then recompiled
     assert run("plain") == ["12"]  # and the fresh code is what the cache holds now
+
+
+def test_going_back_to_an_earlier_source_finds_no_marker(tmp_path, monkeypatch):
+    """Before: each source's marker stayed. Compiling source A, then B (which flushes
+    and refills numba's cache with B's kernels), then going back to A (a checkout, a
+    downgrade) found A's marker: nothing was flushed, and numba loaded callers compiled
+    against B's callees, silently (seen with a deliberately broken qp.py reverted). Now
+    writing B's marker removes A's, so A compiles again; another install's is kept."""
+    monkeypatch.setattr(warmup, "_numba_cache_folder", lambda: tmp_path)
+    other_install = tmp_path / "continuum-mhe-kernels-otherplace.ready"
+    other_install.write_text("compiled\n/elsewhere/continuum_mhe/estimators/fast\n")
+    old_format = tmp_path / "continuum-mhe-kernels-oldformat.ready"
+    old_format.write_text("compiled\n")  # no place: may be this install's, so removed
+    key = {"now": "A"}
+    monkeypatch.setattr(warmup, "kernels_key", lambda: key["now"])
+    warmup.write_marker()
+    assert warmup.kernels_ready()
+    key["now"] = "B"
+    assert not warmup.kernels_ready()
+    warmup.write_marker()
+    key["now"] = "A"
+    assert not warmup.kernels_ready()  # A must compile (and flush) again
+    key["now"] = "B"
+    assert warmup.kernels_ready()
+    left = sorted(p.name for p in tmp_path.glob("continuum-mhe-kernels-*.ready"))
+    assert left == ["continuum-mhe-kernels-B.ready", other_install.name]
+    assert not list(tmp_path.glob(".*.tmp"))

@@ -15,7 +15,9 @@ finds them not yet compiled can
 "Compiled" is a marker file written after every kernel was compiled by
 :func:`warm_up`. Its name carries a key of the kernels' source, numba's and Python's
 versions and the package's place; it lies in numba's cache folder, so a changed kernel,
-a new numba or a removed cache compiles again. ``CONTINUUM_MHE_FIRST_RUN=foreground``
+a new numba or a removed cache compiles again; writing it removes this install's
+markers of other sources, so going back to one (a checkout, a downgrade) compiles again
+too (:func:`write_marker`). ``CONTINUUM_MHE_FIRST_RUN=foreground``
 makes the command line wait too.
 
 The process compiling (in the background or the foreground) holds a pid file beside the
@@ -237,11 +239,34 @@ def warm_up() -> None:
             _RECIPES[name](f, rec.t, z, spiked)
     _announced.clear()
     _announced.update(announced)
+    write_marker()
+
+
+def write_marker() -> None:
+    """Write this source's marker (its second line: the package's place), and remove the
+    markers of this install's other sources (and those without a place): numba's cache
+    now holds this source's kernels, so a marker of an earlier source, found again after
+    going back to it (a checkout, a downgrade), would load callers compiled against
+    this source's callees without a flush (numba checks a kernel only against its own
+    file). Markers of other installs sharing the cache folder are kept."""
     path = marker_path()
     path.parent.mkdir(parents=True, exist_ok=True)
+    place = str(_FAST)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text("compiled\n")
+    tmp.write_text(f"compiled\n{place}\n")
     os.replace(tmp, path)
+    for other in path.parent.glob("continuum-mhe-kernels-*.ready"):
+        if other != path and _marker_place(other) in (place, None):
+            other.unlink(missing_ok=True)
+
+
+def _marker_place(marker: Path) -> str | None:
+    """The package place a marker was written for (None: not recorded, or unreadable)."""
+    try:
+        lines = marker.read_text(errors="replace").splitlines()
+    except OSError:
+        return None
+    return lines[1] if len(lines) > 1 and lines[1] else None
 
 
 def ensure_compiled() -> None:
