@@ -173,6 +173,31 @@ def _simulated(tmp_path: Path, name: str, *extra: str) -> tuple[Path, Path]:
     return m, t
 
 
+def test_evaluate_of_a_cut_estimate_warns_that_it_scores_a_part(tmp_path, capsys) -> None:
+    """Before: an estimate of the first 30 % of a recording (interrupted, cut with head)
+    was scored on that part with no word. Now a warning with the span it covers; a truth
+    sampled twice as densely as the estimate is no mistake and gets none."""
+    m, t = _simulated(tmp_path, "a")
+    est, cut = tmp_path / "e.csv", tmp_path / "cut.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    cut.write_text("".join(est.read_text().splitlines(keepends=True)[:31]))  # 30 rows
+    capsys.readouterr()
+    assert main(["evaluate", str(cut), str(t)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"continuum-mhe: warning: {cut}: its rows cover t = 0 to 1.45 s of {t}'s 0 to 5 s "
+        "(29 %): the scores are of that part only (an interrupted or cut estimate?)"
+    ]
+    dense_m, dense_t = _simulated(tmp_path, "d", "--dt", "0.025")
+    sparse = tmp_path / "sparse.csv"  # every second row of a 0.025 s estimate
+    assert main(["estimate", str(dense_m), "-o", str(sparse), "--method", "ekf"]) == 0
+    rows = sparse.read_text().splitlines(keepends=True)
+    sparse.write_text("".join(rows[:1] + rows[1::2]))
+    capsys.readouterr()
+    assert main(["evaluate", str(sparse), str(dense_t)]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
     m, _ = _simulated(tmp_path, "a")
     _, t2 = _simulated(tmp_path, "b", "--dt", "0.0493")
@@ -433,3 +458,17 @@ def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, c
         "(0, 90] deg here (simulate takes 0: noise-free data)"
     )
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_a_multi_section_scenario_from_simulate_names_simulate_robot() -> None:
+    """Before: ``simulate("spatial")`` pointed a library user at the command line's
+    --robot, and ``simulate_robot`` was not exported. Now the error names the call, which
+    ``continuum_mhe`` exports and which simulates the scenario."""
+    import continuum_mhe
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_robot
+
+    with pytest.raises(UserError, match=r"simulate_robot\('spatial', robot\)"):
+        continuum_mhe.simulate("spatial")
+    rec = continuum_mhe.simulate_robot("spatial", read_robot("two-section"), duration=1.0)
+    assert rec.z.shape == (21, 4) and np.all(np.isfinite(rec.z))

@@ -3,7 +3,8 @@
 Public surface::
 
     from continuum_mhe import (Robot, Section, ImuPlacement, NoiseSettings, MHESettings,
-                               make_formulation, make_estimator, simulate, Measurement)
+                               make_formulation, make_estimator, simulate, simulate_robot,
+                               Measurement)
     from continuum_mhe.io import read_measurements, write_estimates
 
 The names are imported on first use (PEP 562), so that ``continuum-mhe --help`` and
@@ -48,6 +49,7 @@ _EXPORTS: dict[str, str] = {
     "RobotSettings": "continuum_mhe.settings",
     "Recording": "continuum_mhe.simulation.scenarios",
     "simulate": "continuum_mhe.simulation.scenarios",
+    "simulate_robot": "continuum_mhe.simulation.scenarios",
 }
 
 __all__ = sorted([*_EXPORTS, "__version__"])
@@ -84,4 +86,4 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
     from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
-    from continuum_mhe.simulation.scenarios import Recording, simulate
+    from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot

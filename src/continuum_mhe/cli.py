@@ -281,11 +281,22 @@ def _align(
         raise InputError(f"{path_est}: {what}")
     if k < WARN_MATCHED * n:
         print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
+    covered = t_est[match]
+    t0, t1 = float(t_truth[0]), float(t_truth[-1])
+    share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
+    if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
+        print(
+            f"{PROG}: warning: {path_est}: its rows cover t = {covered[0]:g} to "
+            f"{covered[-1]:g} s of {path_truth}'s {t0:g} to {t1:g} s ({100 * share:.0f} %): "
+            "the scores are of that part only (an interrupted or cut estimate?)",
+            file=sys.stderr,
+        )
     return np.flatnonzero(match), nearest[match]
 
 
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
-#: fewer than 2), and warns below :data:`WARN_MATCHED`.
+#: fewer than 2), and warns below :data:`WARN_MATCHED`, and when the matched rows span
+#: less than that share of the truth's time span.
 MIN_MATCHED = 0.1
 WARN_MATCHED = 0.5
 

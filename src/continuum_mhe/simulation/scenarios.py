@@ -236,7 +236,10 @@ def simulate(
     ``noise_model``: see the module docstring.
     """
     if scenario in MULTI_SECTION_SCENARIOS:
-        raise UserError(f"scenario {scenario!r} needs a robot with two or more sections (--robot)")
+        raise UserError(
+            f"scenario {scenario!r} needs a robot with two or more sections: "
+            f"simulate_robot({scenario!r}, robot) (on the command line: --robot)"
+        )
     if scenario not in _SHAPES:
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     if not (math.isfinite(length) and length > 0):
