@@ -239,6 +239,14 @@ def test_quick_run_numbers_are_sane(quick_run: Path) -> None:
     assert win["growing"]["first_estimate_s"]["mean"] == 0.0
     n, dt = ex.QUICK.horizon, ex.QUICK.dt
     assert win["paper-start"]["first_estimate_s"]["mean"] == pytest.approx((n - 1) * dt)
+    # the "first N" errors are over N estimates for the growing window and the EKF, over
+    # one for the paper start, and the report's table says so (before, it did not: the
+    # paper start's one-sample error read as better than the growing window's N)
+    counts = {g: win[g]["early_estimates"]["mean"] for g in ("growing", "paper-start", "ekf")}
+    assert counts == {"growing": n, "paper-start": 1, "ekf": n}
+    report = (quick_run / "report.md").read_text()
+    row = next(ln for ln in report.splitlines() if ln.startswith("| MHE, paper start"))
+    assert row.split("|")[4].strip() == "1", row
 
 
 def test_plot_rerenders_from_data_without_estimating(

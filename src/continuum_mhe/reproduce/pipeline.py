@@ -159,6 +159,8 @@ def assemble(
             "early_tip_mm": mean_ci(
                 [x["early"]["tip_mean_mm"] if x["early"] else math.nan for x in m]
             ),
+            # how many of the first N samples that error is over (the paper start: 1)
+            "early_estimates": mean_ci([x["early"]["n"] if x["early"] else 0 for x in m]),
             "late_srmse": mean_ci([x["late"]["srmse"] for x in m]),
             "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in m]),
             "solve_ms_mean": mean_ci([x["solve_ms_mean"] for x in m]),
@@ -169,6 +171,7 @@ def assemble(
                 "first_estimate_s": mean_ci([x["first_estimate_index"] * dt for x in e]),
                 "early_srmse": mean_ci([x["early"]["srmse"] for x in e]),
                 "early_tip_mm": mean_ci([x["early"]["tip_mean_mm"] for x in e]),
+                "early_estimates": mean_ci([x["early"]["n"] for x in e]),
                 "late_srmse": mean_ci([x["late"]["srmse"] for x in e]),
                 "late_tip_mm": mean_ci([x["late"]["tip_mean_mm"] for x in e]),
             }

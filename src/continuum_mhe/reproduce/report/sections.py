@@ -398,6 +398,7 @@ def _exp6(d: dict[str, Any]) -> list[str]:
                 name,
                 _ci(b["first_estimate_s"], 2),
                 _ci(b["early_tip_mm"], 2),
+                f"{b['early_estimates']['mean']:.0f}" if "early_estimates" in b else "",
                 _ci(b["late_tip_mm"], 2),
             ]
         )
@@ -414,6 +415,7 @@ def _exp6(d: dict[str, Any]) -> list[str]:
                 "estimator",
                 "first estimate (s)",
                 "tip error, first N samples (mm)",
+                f"estimates in the first N = {sp['horizon']} (the error's samples)",
                 "tip error after N (mm)",
             ),
             rows,
