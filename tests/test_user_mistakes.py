@@ -472,3 +472,19 @@ def test_a_multi_section_scenario_from_simulate_names_simulate_robot() -> None:
         continuum_mhe.simulate("spatial")
     rec = continuum_mhe.simulate_robot("spatial", read_robot("two-section"), duration=1.0)
     assert rec.z.shape == (21, 4) and np.all(np.isfinite(rec.z))
+
+
+def test_an_imu_on_a_missing_section_in_code_says_the_index_is_0_based() -> None:
+    """Before: ``ImuPlacement(section=2)`` on a two-section robot said 'IMU 2 is on
+    section 3', a number the user never wrote (robot files are 1-based, code 0-based)."""
+    from continuum_mhe import ImuPlacement, Robot, Section
+    from continuum_mhe.errors import UserError
+
+    sections = (Section(0.1), Section(0.1))
+    with pytest.raises(UserError) as info:
+        Robot(sections, (ImuPlacement(section=0), ImuPlacement(section=2)))
+    assert str(info.value) == (
+        "IMU 2: ImuPlacement.section=2 is a 0-based section index, but the robot has 2 "
+        "section(s) (indices 0 to 1; robot files number sections from 1)"
+    )
+    assert Robot(sections, (ImuPlacement(section=0), ImuPlacement(section=1))).n_imus == 2

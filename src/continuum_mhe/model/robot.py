@@ -121,8 +121,9 @@ class Robot:
         for i, imu in enumerate(self.imus):
             if imu.section >= len(self.sections):
                 raise UserError(
-                    f"IMU {i + 1} is on section {imu.section + 1}, but the robot has "
-                    f"{len(self.sections)} section(s)"
+                    f"IMU {i + 1}: ImuPlacement.section={imu.section} is a 0-based section "
+                    f"index, but the robot has {len(self.sections)} section(s) (indices 0 to "
+                    f"{len(self.sections) - 1}; robot files number sections from 1)"
                 )
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
