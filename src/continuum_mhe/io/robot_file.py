@@ -18,6 +18,10 @@ Format (every key but ``length`` is optional)::
 
 Without ``[[imu]]`` entries a robot file is refused (a robot needs a sensor). Every
 problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file and key.
+The IMUs are numbered in the file's order, and the measurement columns follow it
+(``roll_1, pitch_1`` are the first ``[[imu]]``'s): IMUs listed out of base-to-tip order
+(by section, then ``at``), or one place listed twice, give a
+:class:`RobotFileWarning`.
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ from __future__ import annotations
 import math
 import os
 import sys
+import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +46,44 @@ else:  # pragma: no cover - Python 3.10
 _TOP_KEYS = {"mounting", "section", "imu"}
 _SECTION_KEYS = {"length", "theta_max"}
 _IMU_KEYS = {"section", "at", "mount_rpy"}
+
+
+class RobotFileWarning(UserWarning):
+    """A robot-file entry that is valid but likely a slip (IMUs out of base order, two
+    IMUs at one place)."""
+
+
+def _place(imu: ImuPlacement) -> str:
+    return f"section {imu.section + 1}, at {imu.at:g}"
+
+
+def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
+    """Warn (:class:`RobotFileWarning`, one line each) where the IMUs are not listed from
+    the base to the tip (by section, then ``at``), and where two are at one place: the
+    measurement columns follow the file's order, so such a file usually pairs the
+    columns with the wrong IMUs."""
+    key = [(imu.section, imu.at) for imu in imus]
+    later = next((i for i in range(1, len(key)) if key[i] < key[i - 1]), None)
+    if later is not None:
+        warnings.warn(
+            f"{path}: imu {later + 1} ({_place(imus[later])}) is nearer the base than imu "
+            f"{later} ({_place(imus[later - 1])}) but listed after it: the measurement "
+            "columns follow the file's order, and IMU 1 is expected nearest the base; list "
+            "the [[imu]] entries from base to tip (or check that the columns follow this order)",
+            RobotFileWarning,
+            stacklevel=4,
+        )
+    first: dict[tuple[int, float], int] = {}
+    for i, k in enumerate(key, start=1):
+        if k in first:
+            warnings.warn(
+                f"{path}: imu {i} is at the same place as imu {first[k]} "
+                f"({_place(imus[i - 1])}): two IMUs listed at one place (a copied entry?)",
+                RobotFileWarning,
+                stacklevel=4,
+            )
+            break
+        first[k] = i
 
 
 def _number(path: Path, where: str, value: Any) -> float:
@@ -109,6 +153,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
     if not imus:
         raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
+    warn_imu_order(path, imus)
     return Robot(tuple(sections), tuple(imus), mounting)
 
 

@@ -1,0 +1,78 @@
+"""Robot files that read but are likely slips: IMUs out of base-to-tip order or listed
+twice. Each is one warning, given once by every command that reads the file."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
+
+SECTIONS = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.16, 0.14))
+
+
+def _robot(path: Path, *imus: str) -> Path:
+    path.write_text(SECTIONS + "".join(f"[[imu]]\n{imu}\n" for imu in imus))
+    return path
+
+
+def _said(path: Path) -> list[str]:
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        read_robot(path)
+    return [str(w.message) for w in seen]
+
+
+def test_imus_out_of_base_order_warn(tmp_path: Path) -> None:
+    """Before: section 2 listed before section 1 was read silently (IMUs at 2@1, 1@1),
+    and estimate paired roll_1 with the tip IMU: ok rows 64 mm off."""
+    robot = _robot(tmp_path / "r.toml", "section = 2", "section = 1")
+    assert _said(robot) == [
+        f"{robot}: imu 2 (section 1, at 1) is nearer the base than imu 1 (section 2, at 1) "
+        "but listed after it: the measurement columns follow the file's order, and IMU 1 is "
+        "expected nearest the base; list the [[imu]] entries from base to tip (or check that "
+        "the columns follow this order)"
+    ]
+    within = _robot(tmp_path / "w.toml", "section = 1\nat = 1.0", "section = 1\nat = 0.5")
+    assert [m.split(":")[1] for m in _said(within)] == [
+        " imu 2 (section 1, at 0.5) is nearer the base than imu 1 (section 1, at 1) but listed "
+        "after it"
+    ]
+
+
+@pytest.mark.parametrize(
+    "imus",
+    [
+        ("section = 1", "section = 2"),
+        ("section = 1\nat = 0.5", "section = 1", "section = 2\nat = 0.25", "section = 2"),
+        ("section = 2",),
+    ],
+)
+def test_imus_from_base_to_tip_read_silently(tmp_path: Path, imus: tuple[str, ...]) -> None:
+    assert _said(_robot(tmp_path / "r.toml", *imus)) == []
+
+
+def test_one_place_listed_twice_warns(tmp_path: Path) -> None:
+    robot = _robot(tmp_path / "r.toml", "section = 1", "section = 2", "section = 2\nat = 1.0")
+    assert _said(robot) == [
+        f"{robot}: imu 3 is at the same place as imu 2 (section 2, at 1): two IMUs listed at "
+        "one place (a copied entry?)"
+    ]
+
+
+def test_the_order_warning_is_given_once_per_command(tmp_path: Path, capsys) -> None:
+    """estimate reads the robot file more than once; the warning is said once."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
+                 "-o", str(meas)]) == 0  # fmt: skip
+    robot = _robot(tmp_path / "r.toml", "section = 2", "section = 1")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot)]
+    for command in (["check-robot", str(robot), "--samples", "20"], [*argv, "--method", "ekf"]):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("default")
+            assert main(command) == 0
+        said = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        assert len(said) == 1 and "is nearer the base than imu 1" in said[0], command
