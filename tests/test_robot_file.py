@@ -1,5 +1,6 @@
 """Robot files that read but are likely slips: IMUs out of base-to-tip order or listed
-twice. Each is one warning, given once by every command that reads the file."""
+twice, an ``at`` written in metres. Each is one warning, given once by every command
+that reads the file."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
 
 SECTIONS = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.16, 0.14))
@@ -76,3 +78,27 @@ def test_the_order_warning_is_given_once_per_command(tmp_path: Path, capsys) -> 
             assert main(command) == 0
         said = [str(w.message) for w in seen if w.category is RobotFileWarning]
         assert len(said) == 1 and "is nearer the base than imu 1" in said[0], command
+
+
+@pytest.mark.parametrize(("length", "at"), [(0.18, 0.18), (0.12, 0.12), (0.16, 0.1604)])
+def test_at_written_in_metres_warns(tmp_path: Path, length: float, at: float) -> None:
+    """Before: ``at = 0.18`` on a 0.18 m section was read as 18 % of it, silently."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\nat = {at}\n")
+    with pytest.warns(UnitWarning) as seen:
+        assert read_robot(robot).imus[0].at == at  # read as written
+    assert [str(w.message) for w in seen] == [
+        f"{robot}: imu 1: at is a fraction of the section's length; {at:g} equals section "
+        "1's length in m: metres? (at = 1 is its end, 0.5 its middle)"
+    ]
+
+
+@pytest.mark.parametrize(
+    ("length", "at"), [(1.0, 1.0), (0.16, 0.5), (0.16, 0.15), (0.2, 0.25), (0.16, None)]
+)
+def test_at_as_a_fraction_reads_silently(tmp_path: Path, length: float, at: float | None) -> None:
+    """A 1 m section's end is at = 1 either way; the default at = 1 is no slip."""
+    robot = tmp_path / "r.toml"
+    given = "" if at is None else f"at = {at}\n"
+    robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\n{given}")
+    assert _said(robot) == []

@@ -21,7 +21,8 @@ problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file an
 The IMUs are numbered in the file's order, and the measurement columns follow it
 (``roll_1, pitch_1`` are the first ``[[imu]]``'s): IMUs listed out of base-to-tip order
 (by section, then ``at``), or one place listed twice, give a
-:class:`RobotFileWarning`.
+:class:`RobotFileWarning`; an ``at`` that equals its section's length in m (``at =
+0.18`` on a 0.18 m section: metres?) a :class:`~continuum_mhe.io.csv_files.UnitWarning`.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 
@@ -46,11 +47,19 @@ else:  # pragma: no cover - Python 3.10
 _TOP_KEYS = {"mounting", "section", "imu"}
 _SECTION_KEYS = {"length", "theta_max"}
 _IMU_KEYS = {"section", "at", "mount_rpy"}
+MM = 1e-3  # m
 
 
 class RobotFileWarning(UserWarning):
     """A robot-file entry that is valid but likely a slip (IMUs out of base order, two
     IMUs at one place)."""
+
+
+def at_in_metres(at: float, length: float) -> bool:
+    """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
+    written in metres: it equals the section's length to the millimetre, and that length
+    is not 1 m (where the end is ``at = 1`` either way)."""
+    return abs(at - length) <= MM / 2 and abs(length - 1.0) > MM / 2
 
 
 def _place(imu: ImuPlacement) -> str:
@@ -145,6 +154,13 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if not 0 < at <= 1:
             raise InputError(
                 f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}"
+            )
+        if "at" in table and at_in_metres(at, sections[sec - 1].length):
+            warnings.warn(
+                f"{path}: {where}: at is a fraction of the section's length; {at:g} equals "
+                f"section {sec}'s length in m: metres? (at = 1 is its end, 0.5 its middle)",
+                UnitWarning,
+                stacklevel=3,
             )
         rpy = table.get("mount_rpy", [0.0, 0.0, 0.0])
         if not isinstance(rpy, list) or len(rpy) != 3:
