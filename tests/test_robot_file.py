@@ -1,6 +1,6 @@
 """Robot files that read but are likely slips: IMUs out of base-to-tip order or listed
-twice, an ``at`` written in metres. Each is one warning, given once by every command
-that reads the file."""
+twice, an ``at`` written in metres, a ``mount_rpy`` in radians. Each is one warning,
+given once by every command that reads the file."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pytest
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
+from continuum_mhe.model.robot import mount_rpy_hint
 
 SECTIONS = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.16, 0.14))
 
@@ -102,3 +103,53 @@ def test_at_as_a_fraction_reads_silently(tmp_path: Path, length: float, at: floa
     given = "" if at is None else f"at = {at}\n"
     robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\n{given}")
     assert _said(robot) == []
+
+
+@pytest.mark.parametrize(
+    ("rpy", "degrees"),
+    [
+        ((0, 1.5708, 3.14159), "[0, 90, 180]"),
+        ((0, 0, 0.7854), "[0, 0, 45]"),
+        ((6.2832, 0, 0), "[360, 0, 0]"),
+        ((0, -4.7124, 0), "[0, -270, 0]"),
+        ((1.57, 0.3, 0), "[90, 17.2, 0]"),  # a right angle to two decimals
+    ],
+)
+def test_mount_rpy_in_radians_gets_a_hint(rpy: tuple[float, ...], degrees: str) -> None:
+    assert mount_rpy_hint(rpy) == (
+        f"radians? mount_rpy is in degrees ({degrees} if these are radians)"
+    )
+
+
+@pytest.mark.parametrize(
+    "rpy",
+    [(0, 0, 0), (0, 90, 180), (3, 6, 0), (0, 0, 3), (30.5, 0, 0), (1, 2, 4), (0.5, -1.5, 2.5),
+     (0, 0, 45), (3.14, 0, 0), (90, 0, 1.5708)],
+)  # fmt: skip
+def test_mount_rpy_in_degrees_gets_no_hint(rpy: tuple[float, ...]) -> None:
+    """Whole degrees are never within 1e-3 of a multiple of pi/4; beside a value over
+    2 pi (90) the others are degrees too."""
+    assert mount_rpy_hint(rpy) == ""
+
+
+def test_mount_rpy_in_radians_warns(tmp_path: Path, capsys) -> None:
+    """Before: mount_rpy = [0, 1.5708, 3.14159] rotated raw readings by 1.6 and 3.1
+    degrees, silently; --mount-rpy 0,1.5708,0 likewise."""
+    robot = _robot(tmp_path / "r.toml", "section = 1\nmount_rpy = [0, 1.5708, 3.14159]",
+                   "section = 2")  # fmt: skip
+    with pytest.warns(UnitWarning) as seen:
+        assert read_robot(robot).imus[0].mount_rpy == (0, 1.5708, 3.14159)  # as written
+    assert [str(w.message) for w in seen] == [
+        f"{robot}: imu 1: mount_rpy = [0, 1.5708, 3.14159] is read in degrees: radians? "
+        "mount_rpy is in degrees ([0, 90, 180] if these are radians)"
+    ]
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,ax,ay,az\n0,0,0,9.81\n0.05,0,0,9.81\n")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("default")
+        assert main([*argv, "--mount-rpy", "0,1.5708,0"]) == 0
+    assert [str(w.message) for w in said if w.category is UnitWarning] == [
+        "--mount-rpy 0,1.5708,0 is read in degrees: radians? --mount-rpy is in degrees "
+        "([0, 90, 0] if these are radians)"
+    ]

@@ -22,7 +22,9 @@ The IMUs are numbered in the file's order, and the measurement columns follow it
 (``roll_1, pitch_1`` are the first ``[[imu]]``'s): IMUs listed out of base-to-tip order
 (by section, then ``at``), or one place listed twice, give a
 :class:`RobotFileWarning`; an ``at`` that equals its section's length in m (``at =
-0.18`` on a 0.18 m section: metres?) a :class:`~continuum_mhe.io.csv_files.UnitWarning`.
+0.18`` on a 0.18 m section: metres?) or a ``mount_rpy`` that looks like radians
+(:func:`~continuum_mhe.model.robot.mount_rpy_hint`) a
+:class:`~continuum_mhe.io.csv_files.UnitWarning`.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from typing import Any
 
 from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section, mount_rpy_hint
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -166,6 +168,14 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if not isinstance(rpy, list) or len(rpy) != 3:
             raise InputError(f"{path}: {where}: mount_rpy must be [roll, pitch, yaw] in degrees")
         mount = tuple(_number(path, f"{where}: mount_rpy", v) for v in rpy)
+        hint = mount_rpy_hint(mount)
+        if hint:
+            shown = ", ".join(f"{v:g}" for v in mount)
+            warnings.warn(
+                f"{path}: {where}: mount_rpy = [{shown}] is read in degrees: {hint}",
+                UnitWarning,
+                stacklevel=3,
+            )
         imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
     if not imus:
         raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
