@@ -291,6 +291,11 @@ def _raw_two_imus(path: Path, n: int = 20) -> Path:
          "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
         ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
          "file gives every IMU its own mount_rpy"),
+        # before: given as 0,0,0 (the default's value) it was taken as not given
+        ("raw-mounted", ["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU: the robot "
+         "file gives every IMU its own mount_rpy, which wins (leave --mount-rpy out, or "
+         "edit the robot file)"),
+        ("tilt", ["--mount-rpy", "0,0,0"], "--mount-rpy does not apply to tilt input"),
         ("tilt", ["--topic", "/imu"], "--topic does not apply to this input: it is for ROS "
          "bags and MCAP files (sensor_msgs/Imu topics), and this is a CSV file"),
         ("raw", ["--orientation"], "--orientation does not apply to this input: it is for ROS"),
@@ -315,6 +320,34 @@ def test_an_option_that_does_nothing_on_this_input_is_refused(
     err = capsys.readouterr().err
     assert err.startswith(f"continuum-mhe: error: {meas}: {needle}")
     assert err.count("\n") == 1 and sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot file gives "
+         "every IMU its own mount_rpy, which wins"),
+        (["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU"),
+        (["--format", "tilt", "--mount-rpy", "0,0,90"], "--mount-rpy does not apply to tilt "
+         "input: it rotates raw accelerometer and gyro vectors"),
+        (["--format", "tilt", "--attitude", "madgwick"], "--attitude madgwick does not apply "
+         "to tilt input"),
+    ],
+)  # fmt: skip
+def test_live_refuses_an_option_that_does_nothing_before_the_port(
+    tmp_path, capsys, argv: list[str], needle: str
+) -> None:
+    """Before: live read every IMU's robot-file mount_rpy and dropped --mount-rpy (and
+    on tilt lines --mount-rpy and --attitude), silently. Now refused as estimate does,
+    naming the port, before it is opened; nothing written."""
+    every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
+    robot = _two_imu_robot(tmp_path / "robot.toml", every)
+    port = tmp_path / "ttyACM9"  # no such device: a check after opening it is not reached
+    out = ["-o", str(tmp_path / "e.csv"), "--record", str(tmp_path / "r.csv")]
+    assert main(["live", "--port", str(port), "--robot", str(robot), *out, *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {port}: {needle}") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["robot.toml"]
 
 
 def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
