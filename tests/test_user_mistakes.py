@@ -466,3 +466,18 @@ def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, c
         "(0, 90] deg here (simulate takes 0: noise-free data)"
     )
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path, capsys) -> None:
+    """Before: ``use --formulation bend or direct``, and ``--formulation direct`` is no
+    choice (direct is ``--imu-model direct``)."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", "two-section"]
+    assert main([*argv, "--formulation", "paper"]) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: the paper formulation models one section with one tip IMU; "
+        "this robot has 2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up: use "
+        "--formulation bend (the default), or --imu-model direct with raw IMU input\n"
+    )
+    assert main([*argv, "--formulation", "bend", "--method", "ekf"]) == 0
