@@ -374,8 +374,13 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
         ("t,roll_1,pitch_1,roll_2,pitch_2", False,
          "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "
          "pass --robot FILE with a robot file of 2 IMU(s)"),
+        # before: only "pass --robot FILE with a robot file of 1 IMU(s)"
         ("t,roll,pitch", True, "tilt columns for 1 IMU(s) (roll, pitch) but the robot "
-         "describes 2"),
+         "describes 2; pass --robot FILE with a robot file of 1 IMU(s), or leave --robot "
+         "out: one section with its IMU at the tip needs no robot file"),
+        ("t,ax,ay,az", True, "raw columns for 1 IMU(s) (ax, ay, az) but the robot describes "
+         "2; pass --robot FILE with a robot file of 1 IMU(s), or leave --robot out: one "
+         "section with its IMU at the tip needs no robot file"),
         ("t,ax_1,ay_1,az_1,ax_2,ay_2,az_2", False,
          "raw columns for 2 IMU(s) (ax_1 ... ax_2) but the robot describes 1; pass --robot"),
     ],
