@@ -153,3 +153,41 @@ def test_compiler_line_is_the_first_line_of_cc_version(monkeypatch: pytest.Monke
     assert env["compiler"] == first.splitlines()[0].strip()
     monkeypatch.setenv("CC", "false")  # a compiler that fails: recorded as none
     assert bm.environment(make_formulation("bend"))["compiler"] is None
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--horizons", "100", "--duration", "2", "--skip", "do-mpc", "--loss-horizons", "none",
+          "--repeats", "1", "--memory-samples", "0"],
+         "horizon 100 needs more than 100 samples: --duration 2 s gives only 41 (one every "
+         "0.05 s); raise --duration (to at least 5 s)"),
+        (["--robot", "two-section", "--horizons", "10,200", "--duration", "2"],
+         "horizon 200 needs more than 200 samples: --duration 2 s gives only 101 (one every "
+         "0.02 s); raise --duration (to at least 4 s)"),
+        (["--horizons", "10", "--loss-horizons", "41", "--duration", "2"],
+         "horizon 41 needs more than 41 samples: --duration 2 s gives only 41"),
+        (["--duration", "10"], "horizon 300 needs more than 300 samples: --duration 10 s "
+         "gives only 201"),  # the default horizons 10,30,100,300
+    ],
+)  # fmt: skip
+def test_a_horizon_longer_than_the_recording_is_one_line_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
+) -> None:
+    """Before: internal error (exit 70, IndexError after "Mean of empty slice") once
+    the horizon's runs were done: no window was ever full."""
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "bench.json"
+    assert main(["benchmark", *argv, "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {needle}") and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_benchmark_help_gives_the_default_duration(capsys: pytest.CaptureFixture[str]) -> None:
+    from continuum_mhe.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["benchmark", "--help"])
+    assert "recording length in s (default 20;" in " ".join(capsys.readouterr().out.split())

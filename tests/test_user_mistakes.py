@@ -316,6 +316,11 @@ def _raw_two_imus(path: Path, n: int = 20) -> Path:
          "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
         ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
          "file gives every IMU its own mount_rpy"),
+        # before: given as 0,0,0 (the default's value) it was taken as not given
+        ("raw-mounted", ["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU: the robot "
+         "file gives every IMU its own mount_rpy, which wins (leave --mount-rpy out, or "
+         "edit the robot file)"),
+        ("tilt", ["--mount-rpy", "0,0,0"], "--mount-rpy does not apply to tilt input"),
         ("tilt", ["--topic", "/imu"], "--topic does not apply to this input: it is for ROS "
          "bags and MCAP files (sensor_msgs/Imu topics), and this is a CSV file"),
         ("raw", ["--orientation"], "--orientation does not apply to this input: it is for ROS"),
@@ -340,6 +345,34 @@ def test_an_option_that_does_nothing_on_this_input_is_refused(
     err = capsys.readouterr().err
     assert err.startswith(f"continuum-mhe: error: {meas}: {needle}")
     assert err.count("\n") == 1 and sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot file gives "
+         "every IMU its own mount_rpy, which wins"),
+        (["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU"),
+        (["--format", "tilt", "--mount-rpy", "0,0,90"], "--mount-rpy does not apply to tilt "
+         "input: it rotates raw accelerometer and gyro vectors"),
+        (["--format", "tilt", "--attitude", "madgwick"], "--attitude madgwick does not apply "
+         "to tilt input"),
+    ],
+)  # fmt: skip
+def test_live_refuses_an_option_that_does_nothing_before_the_port(
+    tmp_path, capsys, argv: list[str], needle: str
+) -> None:
+    """Before: live read every IMU's robot-file mount_rpy and dropped --mount-rpy (and
+    on tilt lines --mount-rpy and --attitude), silently. Now refused as estimate does,
+    naming the port, before it is opened; nothing written."""
+    every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
+    robot = _two_imu_robot(tmp_path / "robot.toml", every)
+    port = tmp_path / "ttyACM9"  # no such device: a check after opening it is not reached
+    out = ["-o", str(tmp_path / "e.csv"), "--record", str(tmp_path / "r.csv")]
+    assert main(["live", "--port", str(port), "--robot", str(robot), *out, *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {port}: {needle}") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["robot.toml"]
 
 
 def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
@@ -488,3 +521,18 @@ def test_an_imu_on_a_missing_section_in_code_says_the_index_is_0_based() -> None
         "section(s) (indices 0 to 1; robot files number sections from 1)"
     )
     assert Robot(sections, (ImuPlacement(section=0), ImuPlacement(section=1))).n_imus == 2
+
+
+def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path, capsys) -> None:
+    """Before: ``use --formulation bend or direct``, and ``--formulation direct`` is no
+    choice (direct is ``--imu-model direct``)."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", "two-section"]
+    assert main([*argv, "--formulation", "paper"]) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: the paper formulation models one section with one tip IMU; "
+        "this robot has 2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up: use "
+        "--formulation bend (the default), or --imu-model direct with raw IMU input\n"
+    )
+    assert main([*argv, "--formulation", "bend", "--method", "ekf"]) == 0

@@ -61,7 +61,12 @@ from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
+from continuum_mhe.simulation.scenarios import (
+    Recording,
+    sample_count,
+    simulate,
+    simulate_robot,
+)
 
 METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
 
@@ -246,7 +251,28 @@ def _max_diff(a: FloatArray, b: FloatArray, wrapped: tuple[int, ...] = (4,)) -> 
     return float(np.nanmax(d))
 
 
-def raw_imu_recording(robot: Robot, duration: float, dt: float = 0.02, seed: int = 0) -> Recording:
+#: Sample time of the recordings timed, s: ``paper3d`` (tilt), and a robot's raw IMUs.
+DT = 0.05
+ROBOT_DT = 0.02
+
+
+def check_horizons(horizons: list[int], duration: float, dt: float) -> None:
+    """A one-line :class:`UserError` unless the recording of ``duration`` s at ``dt`` s
+    has more samples than every horizon (each is timed once its window is full)."""
+    samples = sample_count(duration, dt)
+    short = [n for n in horizons if n >= samples]
+    if short:
+        n = max(short)
+        raise UserError(
+            f"horizon {n} needs more than {n} samples: --duration {duration:g} s gives "
+            f"only {samples} (one every {dt:g} s); raise --duration (to at least "
+            f"{n * dt:g} s)"
+        )
+
+
+def raw_imu_recording(
+    robot: Robot, duration: float, dt: float = ROBOT_DT, seed: int = 0
+) -> Recording:
     """The ``spatial`` scenario on ``robot`` measured by its IMUs as raw accelerometer
     direction and gyro (the ``direct`` model, noise 0.03), for timing."""
     from continuum_mhe.model.descriptions import section_bends
@@ -498,7 +524,7 @@ def run_benchmark(
     from continuum_mhe.benchmark_losses import run_loss_benchmark
 
     f = make_formulation("bend")
-    rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
+    rec = simulate("paper3d", duration=duration, dt=DT, noise_deg=2.0, seed=0)
     env = environment(f)
     skipped = {
         m: "no compiled model (no C compiler): there is no compiled EKF to time"
@@ -665,6 +691,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         raise UserError(f"--duration must be positive, got {args.duration}")
     if args.repeats < 1:
         raise UserError(f"--repeats must be at least 1, got {args.repeats}")
+    timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
+    check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
     if args.json:  # before the run, not after minutes of it
         from continuum_mhe.io.csv_files import check_output_target
 
@@ -708,7 +736,12 @@ def register(subparsers: Any) -> None:
         default=[10, 30, 100, 300],
         help="comma-separated horizons (default 10,30,100,300)",
     )
-    p.add_argument("--duration", type=float, default=20.0, help="recording length in s")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=20.0,
+        help="recording length in s (default 20; more samples than the largest horizon)",
+    )
     p.add_argument("--json", help="write the report as JSON to this file")
     p.add_argument(
         "--robot",

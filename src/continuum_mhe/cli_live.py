@@ -18,13 +18,14 @@ from continuum_mhe.cli_options import (
     add_recovery_options,
     add_serial_options,
     formulation_from_args,
+    input_options,
     mhe_settings_from_args,
-    raw_settings,
     recovery_settings_from_args,
     viewer_sink_from_args,
 )
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
+from continuum_mhe.io.input_options import check_options_apply
 from continuum_mhe.live import open_plot, run_live, warm_up
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
@@ -44,8 +45,12 @@ def cmd_live(args: argparse.Namespace) -> int:
         status_every=args.status_every,
         retry_max_s=args.retry_max,
     )
-    raw = raw_settings(args)
+    options = input_options(args)
+    raw = options.raw
     formulation = formulation_from_args(args)
+    # an option that would do nothing on this stream is refused, as estimate does
+    kind = "raw-csv" if settings.fmt == "raw" else "tilt-csv"
+    check_options_apply(settings.port, kind, options, formulation.robot)
     for dest in ("estimate_gyro_bias", "estimate_accel_bias", "own_acceleration"):
         if getattr(args, dest, False) and raw.imu_model != "direct":
             flag = "--" + dest.replace("_", "-")

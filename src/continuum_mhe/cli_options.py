@@ -444,9 +444,10 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--mount-rpy",
-        default="0,0,0",
+        default=None,  # None: not given (0,0,0); given, it must apply to some IMU
         metavar="R,P,Y",
-        help="sensor mounting roll,pitch,yaw in degrees: v_tip = Rz(Y) Ry(P) Rx(R) v_sensor",
+        help="sensor mounting roll,pitch,yaw in degrees: v_tip = Rz(Y) Ry(P) Rx(R) v_sensor "
+        "(default 0,0,0); for the IMUs without a robot-file mount_rpy",
     )
     g.add_argument(
         "--gyro-std",
@@ -479,12 +480,12 @@ def raw_settings(args: argparse.Namespace) -> RawImuSettings:
     return RawImuSettings(
         imu_model=getattr(args, "imu_model", "tilt"),
         attitude=getattr(args, "attitude", "accel"),
-        mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", "0,0,0")),
+        mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", None) or "0,0,0"),
     )
 
 
 def input_options(args: argparse.Namespace) -> Any:
-    """``input_options.InputOptions`` for ``estimate`` from parsed options."""
+    """``input_options.InputOptions`` for ``estimate`` (and ``live``) from parsed options."""
     from continuum_mhe.io.input_options import InputOptions
 
     topics = tuple(getattr(args, "topic", None) or ())
@@ -493,6 +494,7 @@ def input_options(args: argparse.Namespace) -> Any:
         raise InputError(f"--gyro-std must be positive, got {gyro_std}")
     return InputOptions(
         raw=raw_settings(args),
+        mount_rpy_given=getattr(args, "mount_rpy", None) is not None,
         topic=topics[0] if len(topics) == 1 else None,
         topics=topics,
         pair_tolerance=getattr(args, "pair_tolerance", None),

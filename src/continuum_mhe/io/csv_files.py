@@ -155,6 +155,8 @@ def tilt_columns(n_imus: int) -> tuple[str, ...]:
 ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"
 #: The same for :func:`read_measurements`, called from Python and from ``calibrate``.
 READER_FIX = "pass the robot of {found} IMU(s) (--robot FILE; n_imus={found} in Python)"
+#: Added to a fix naming ``--robot`` when the file has one IMU.
+ONE_IMU_FIX = ", or leave --robot out: one section with its IMU at the tip needs no robot file"
 
 
 def read_measurements(
@@ -332,10 +334,12 @@ def imu_count_error(
     name: str, kind: str, columns: str, found: int, n_imus: int, fix: str = ROBOT_FIX
 ) -> InputError:
     """The one-line error of a file whose ``kind`` columns (``columns``, as shown) are
-    for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it."""
+    for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it (for one IMU with
+    :data:`ONE_IMU_FIX` where it names ``--robot``)."""
+    more = ONE_IMU_FIX if found == 1 and "--robot" in fix else ""
     return InputError(
         f"{name}: line 1: the file has {kind} columns for {found} IMU(s) ({columns}) "
-        f"but the robot describes {n_imus}; {fix.format(found=found)}"
+        f"but the robot describes {n_imus}; {fix.format(found=found)}{more}"
     )
 
 

@@ -34,6 +34,8 @@ class InputOptions:
 
     Attributes:
         raw: raw-IMU conversion (raw CSV, bags, MCAP).
+        mount_rpy_given: ``--mount-rpy`` was given (even as 0,0,0): refused where it
+            applies to no IMU (:func:`check_options_apply`).
         topic: Imu topic in a bag or MCAP file (None: the only one).
         topics: one Imu topic per IMU, in the robot file's order, for a robot with
             several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
@@ -51,6 +53,7 @@ class InputOptions:
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
+    mount_rpy_given: bool = False
     topic: str | None = None
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
@@ -123,10 +126,13 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
     why; warn, once, where a robot file's ``mount_rpy`` is not applied.
 
     ``kind``: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"`` (a bag or MCAP: raw vectors,
-    or roll and pitch from its orientation with ``use_orientation``). Roll and pitch
-    are taken as already in the backbone's frame at each IMU; ``mount_rpy`` rotates raw
-    accelerometer and gyro vectors only (docs/hardware.md)."""
+    or roll and pitch from its orientation with ``use_orientation``); ``live`` passes
+    the CSV kinds of its line formats. Roll and pitch are taken as already in the
+    backbone's frame at each IMU; ``mount_rpy`` rotates raw accelerometer and gyro
+    vectors only (docs/hardware.md). ``--mount-rpy`` counts as given where it is not
+    zero or :attr:`InputOptions.mount_rpy_given` says so."""
     raw = options.raw
+    mount_given = options.mount_rpy_given or any(raw.mount_rpy)
     if kind != "log":  # a bag's or MCAP's options
         for flag, given in (
             ("--topic", bool(options.topics) or options.topic is not None),
@@ -151,14 +157,14 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
         )
     mounted = [str(i) for i, imu in enumerate(robot.imus, start=1) if any(imu.mount_rpy)]
     if not tilt_input:
-        if any(raw.mount_rpy) and len(mounted) == robot.n_imus:
+        if mount_given and len(mounted) == robot.n_imus:
             raise InputError(
                 f"{name}: --mount-rpy applies to no IMU: the robot file gives every IMU its "
                 "own mount_rpy, which wins (leave --mount-rpy out, or edit the robot file)"
             )
         return
     why = "roll and pitch are used as they are, taken as already in the backbone's frame"
-    if any(raw.mount_rpy):
+    if mount_given:
         raise InputError(
             f"{name}: --mount-rpy does not apply to tilt input: it rotates raw "
             f"accelerometer and gyro vectors, and {why}"

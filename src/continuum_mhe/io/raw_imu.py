@@ -44,6 +44,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
+from continuum_mhe.model.robot import mount_rpy_hint
 
 ImuModel = Literal["tilt", "direct"]
 IMU_MODELS: tuple[ImuModel, ...] = ("tilt", "direct")
@@ -97,7 +98,9 @@ class RawImuSettings:
 
 
 def parse_mount_rpy(text: str) -> tuple[float, float, float]:
-    """``"roll,pitch,yaw"`` in degrees (e.g. ``"0,0,90"``) to a tuple."""
+    """``"roll,pitch,yaw"`` in degrees (e.g. ``"0,0,90"``) to a tuple; a
+    :class:`~continuum_mhe.io.csv_files.UnitWarning` where they look like radians
+    (:func:`~continuum_mhe.model.robot.mount_rpy_hint`)."""
     parts = [p.strip() for p in text.split(",")]
     try:
         values = tuple(float(p) for p in parts)
@@ -107,6 +110,9 @@ def parse_mount_rpy(text: str) -> tuple[float, float, float]:
         raise InputError(
             f"--mount-rpy must be three angles in degrees within +-360, e.g. 0,0,90; got {text!r}"
         )
+    hint = mount_rpy_hint(values, "--mount-rpy")
+    if hint:
+        warnings.warn(f"--mount-rpy {text} is read in degrees: {hint}", UnitWarning, stacklevel=2)
     return values[0], values[1], values[2]
 
 

@@ -18,6 +18,13 @@ Format (every key but ``length`` is optional)::
 
 Without ``[[imu]]`` entries a robot file is refused (a robot needs a sensor). Every
 problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file and key.
+The IMUs are numbered in the file's order, and the measurement columns follow it
+(``roll_1, pitch_1`` are the first ``[[imu]]``'s): IMUs listed out of base-to-tip order
+(by section, then ``at``), or one place listed twice, give a
+:class:`RobotFileWarning`; an ``at`` that equals its section's length in m (``at =
+0.18`` on a 0.18 m section: metres?) or a ``mount_rpy`` that looks like radians
+(:func:`~continuum_mhe.model.robot.mount_rpy_hint`) a
+:class:`~continuum_mhe.io.csv_files.UnitWarning`.
 """
 
 from __future__ import annotations
@@ -25,12 +32,14 @@ from __future__ import annotations
 import math
 import os
 import sys
+import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section, mount_rpy_hint
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -40,6 +49,52 @@ else:  # pragma: no cover - Python 3.10
 _TOP_KEYS = {"mounting", "section", "imu"}
 _SECTION_KEYS = {"length", "theta_max"}
 _IMU_KEYS = {"section", "at", "mount_rpy"}
+MM = 1e-3  # m
+
+
+class RobotFileWarning(UserWarning):
+    """A robot-file entry that is valid but likely a slip (IMUs out of base order, two
+    IMUs at one place)."""
+
+
+def at_in_metres(at: float, length: float) -> bool:
+    """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
+    written in metres: it equals the section's length to the millimetre, and that length
+    is not 1 m (where the end is ``at = 1`` either way)."""
+    return abs(at - length) <= MM / 2 and abs(length - 1.0) > MM / 2
+
+
+def _place(imu: ImuPlacement) -> str:
+    return f"section {imu.section + 1}, at {imu.at:g}"
+
+
+def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
+    """Warn (:class:`RobotFileWarning`, one line each) where the IMUs are not listed from
+    the base to the tip (by section, then ``at``), and where two are at one place: the
+    measurement columns follow the file's order, so such a file usually pairs the
+    columns with the wrong IMUs."""
+    key = [(imu.section, imu.at) for imu in imus]
+    later = next((i for i in range(1, len(key)) if key[i] < key[i - 1]), None)
+    if later is not None:
+        warnings.warn(
+            f"{path}: imu {later + 1} ({_place(imus[later])}) is nearer the base than imu "
+            f"{later} ({_place(imus[later - 1])}) but listed after it: the measurement "
+            "columns follow the file's order, and IMU 1 is expected nearest the base; list "
+            "the [[imu]] entries from base to tip (or check that the columns follow this order)",
+            RobotFileWarning,
+            stacklevel=4,
+        )
+    first: dict[tuple[int, float], int] = {}
+    for i, k in enumerate(key, start=1):
+        if k in first:
+            warnings.warn(
+                f"{path}: imu {i} is at the same place as imu {first[k]} "
+                f"({_place(imus[i - 1])}): two IMUs listed at one place (a copied entry?)",
+                RobotFileWarning,
+                stacklevel=4,
+            )
+            break
+        first[k] = i
 
 
 def _number(path: Path, where: str, value: Any) -> float:
@@ -102,13 +157,29 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             raise InputError(
                 f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}"
             )
+        if "at" in table and at_in_metres(at, sections[sec - 1].length):
+            warnings.warn(
+                f"{path}: {where}: at is a fraction of the section's length; {at:g} equals "
+                f"section {sec}'s length in m: metres? (at = 1 is its end, 0.5 its middle)",
+                UnitWarning,
+                stacklevel=3,
+            )
         rpy = table.get("mount_rpy", [0.0, 0.0, 0.0])
         if not isinstance(rpy, list) or len(rpy) != 3:
             raise InputError(f"{path}: {where}: mount_rpy must be [roll, pitch, yaw] in degrees")
         mount = tuple(_number(path, f"{where}: mount_rpy", v) for v in rpy)
+        hint = mount_rpy_hint(mount)
+        if hint:
+            shown = ", ".join(f"{v:g}" for v in mount)
+            warnings.warn(
+                f"{path}: {where}: mount_rpy = [{shown}] is read in degrees: {hint}",
+                UnitWarning,
+                stacklevel=3,
+            )
         imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
     if not imus:
         raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
+    warn_imu_order(path, imus)
     return Robot(tuple(sections), tuple(imus), mounting)
 
 

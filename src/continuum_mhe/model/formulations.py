@@ -503,7 +503,8 @@ class PaperFormulation(Formulation):
         if not self.robot.is_single:
             raise UserError(
                 "the paper formulation models one section with one tip IMU; "
-                f"this robot has {self.robot.describe()}: use --formulation bend or direct"
+                f"this robot has {self.robot.describe()}: use --formulation bend (the "
+                "default), or --imu-model direct with raw IMU input"
             )
 
     @property

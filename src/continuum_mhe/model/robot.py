@@ -14,6 +14,7 @@ section's base; ``at = 1`` is the section's end.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from numbers import Real
 
@@ -33,6 +34,30 @@ def theta_max_hint(value: float) -> str:
     if value > 2 * math.pi:
         return "degrees? give radians, e.g. 1.5708 for 90 degrees"
     return "a bend of pi folds the section back onto itself; give a bound below pi, e.g. 3.1"
+
+
+#: How close (rad) to a multiple of pi/4 a mounting angle in radians is written.
+RADIAN_TOLERANCE = 1e-3
+
+
+def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
+    """The likely cause of a mounting ``(roll, pitch, yaw)`` in degrees that looks like
+    radians, or ``""``.
+
+    Radians when every value is within 2 pi in magnitude and at least one non-zero
+    value lies within :data:`RADIAN_TOLERANCE` (1e-3) of a non-zero multiple of pi/4
+    (0.7854, 1.5708, 3.1416, 4.7124, 6.2832, ... and 1.57, written to two decimals): a
+    quarter or eighth turn in radians. No whole number of degrees is that close to one
+    (the nearest, 4 to 5pi/4, is 0.07 off), so ordinary degree values (0, 3, 6, 90,
+    180, 30.5) never match, and a value over 2 pi (90, 180) means degrees."""
+    if not all(math.isfinite(v) and abs(v) <= 2 * math.pi + RADIAN_TOLERANCE for v in rpy):
+        return ""
+    quarter = math.pi / 4
+    turns = [v for v in rpy if v and abs(v - round(v / quarter) * quarter) <= RADIAN_TOLERANCE]
+    if not turns:
+        return ""
+    degrees = ", ".join(f"{round(math.degrees(v), 1):g}" for v in rpy)
+    return f"radians? {name} is in degrees ([{degrees}] if these are radians)"
 
 
 def check_theta_max(value: object) -> None:

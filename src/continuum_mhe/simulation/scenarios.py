@@ -201,6 +201,12 @@ def simulate_robot(
     )  # fmt: skip
 
 
+def sample_count(duration: float, dt: float) -> int:
+    """The number of samples of a simulated recording of ``duration`` s at ``dt`` s
+    (``t = 0, dt, ...``, the last within half a step of ``duration``)."""
+    return int(round(duration / dt)) + 1
+
+
 def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
     for name, v in (("duration", duration), ("dt", dt)):
         if not (math.isfinite(v) and v > 0):
@@ -209,7 +215,7 @@ def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> Float
         raise UserError(f"noise-deg must be >= 0, got {noise_deg}")
     if not (isinstance(seed, int) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
-    n = int(round(duration / dt)) + 1
+    n = sample_count(duration, dt)
     if n > MAX_SAMPLES:
         raise UserError(
             f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "

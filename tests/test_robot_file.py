@@ -1,0 +1,155 @@
+"""Robot files that read but are likely slips: IMUs out of base-to-tip order or listed
+twice, an ``at`` written in metres, a ``mount_rpy`` in radians. Each is one warning,
+given once by every command that reads the file."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import UnitWarning
+from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
+from continuum_mhe.model.robot import mount_rpy_hint
+
+SECTIONS = "".join(f"[[section]]\nlength = {v}\ntheta_max = 3.0\n" for v in (0.16, 0.14))
+
+
+def _robot(path: Path, *imus: str) -> Path:
+    path.write_text(SECTIONS + "".join(f"[[imu]]\n{imu}\n" for imu in imus))
+    return path
+
+
+def _said(path: Path) -> list[str]:
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        read_robot(path)
+    return [str(w.message) for w in seen]
+
+
+def test_imus_out_of_base_order_warn(tmp_path: Path) -> None:
+    """Before: section 2 listed before section 1 was read silently (IMUs at 2@1, 1@1),
+    and estimate paired roll_1 with the tip IMU: ok rows 64 mm off."""
+    robot = _robot(tmp_path / "r.toml", "section = 2", "section = 1")
+    assert _said(robot) == [
+        f"{robot}: imu 2 (section 1, at 1) is nearer the base than imu 1 (section 2, at 1) "
+        "but listed after it: the measurement columns follow the file's order, and IMU 1 is "
+        "expected nearest the base; list the [[imu]] entries from base to tip (or check that "
+        "the columns follow this order)"
+    ]
+    within = _robot(tmp_path / "w.toml", "section = 1\nat = 1.0", "section = 1\nat = 0.5")
+    assert [m.split(":")[1] for m in _said(within)] == [
+        " imu 2 (section 1, at 0.5) is nearer the base than imu 1 (section 1, at 1) but listed "
+        "after it"
+    ]
+
+
+@pytest.mark.parametrize(
+    "imus",
+    [
+        ("section = 1", "section = 2"),
+        ("section = 1\nat = 0.5", "section = 1", "section = 2\nat = 0.25", "section = 2"),
+        ("section = 2",),
+    ],
+)
+def test_imus_from_base_to_tip_read_silently(tmp_path: Path, imus: tuple[str, ...]) -> None:
+    assert _said(_robot(tmp_path / "r.toml", *imus)) == []
+
+
+def test_one_place_listed_twice_warns(tmp_path: Path) -> None:
+    robot = _robot(tmp_path / "r.toml", "section = 1", "section = 2", "section = 2\nat = 1.0")
+    assert _said(robot) == [
+        f"{robot}: imu 3 is at the same place as imu 2 (section 2, at 1): two IMUs listed at "
+        "one place (a copied entry?)"
+    ]
+
+
+def test_the_order_warning_is_given_once_per_command(tmp_path: Path, capsys) -> None:
+    """estimate reads the robot file more than once; the warning is said once."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
+                 "-o", str(meas)]) == 0  # fmt: skip
+    robot = _robot(tmp_path / "r.toml", "section = 2", "section = 1")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(robot)]
+    for command in (["check-robot", str(robot), "--samples", "20"], [*argv, "--method", "ekf"]):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("default")
+            assert main(command) == 0
+        said = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        assert len(said) == 1 and "is nearer the base than imu 1" in said[0], command
+
+
+@pytest.mark.parametrize(("length", "at"), [(0.18, 0.18), (0.12, 0.12), (0.16, 0.1604)])
+def test_at_written_in_metres_warns(tmp_path: Path, length: float, at: float) -> None:
+    """Before: ``at = 0.18`` on a 0.18 m section was read as 18 % of it, silently."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\nat = {at}\n")
+    with pytest.warns(UnitWarning) as seen:
+        assert read_robot(robot).imus[0].at == at  # read as written
+    assert [str(w.message) for w in seen] == [
+        f"{robot}: imu 1: at is a fraction of the section's length; {at:g} equals section "
+        "1's length in m: metres? (at = 1 is its end, 0.5 its middle)"
+    ]
+
+
+@pytest.mark.parametrize(
+    ("length", "at"), [(1.0, 1.0), (0.16, 0.5), (0.16, 0.15), (0.2, 0.25), (0.16, None)]
+)
+def test_at_as_a_fraction_reads_silently(tmp_path: Path, length: float, at: float | None) -> None:
+    """A 1 m section's end is at = 1 either way; the default at = 1 is no slip."""
+    robot = tmp_path / "r.toml"
+    given = "" if at is None else f"at = {at}\n"
+    robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\n{given}")
+    assert _said(robot) == []
+
+
+@pytest.mark.parametrize(
+    ("rpy", "degrees"),
+    [
+        ((0, 1.5708, 3.14159), "[0, 90, 180]"),
+        ((0, 0, 0.7854), "[0, 0, 45]"),
+        ((6.2832, 0, 0), "[360, 0, 0]"),
+        ((0, -4.7124, 0), "[0, -270, 0]"),
+        ((1.57, 0.3, 0), "[90, 17.2, 0]"),  # a right angle to two decimals
+    ],
+)
+def test_mount_rpy_in_radians_gets_a_hint(rpy: tuple[float, ...], degrees: str) -> None:
+    assert mount_rpy_hint(rpy) == (
+        f"radians? mount_rpy is in degrees ({degrees} if these are radians)"
+    )
+
+
+@pytest.mark.parametrize(
+    "rpy",
+    [(0, 0, 0), (0, 90, 180), (3, 6, 0), (0, 0, 3), (30.5, 0, 0), (1, 2, 4), (0.5, -1.5, 2.5),
+     (0, 0, 45), (3.14, 0, 0), (90, 0, 1.5708)],
+)  # fmt: skip
+def test_mount_rpy_in_degrees_gets_no_hint(rpy: tuple[float, ...]) -> None:
+    """Whole degrees are never within 1e-3 of a multiple of pi/4; beside a value over
+    2 pi (90) the others are degrees too."""
+    assert mount_rpy_hint(rpy) == ""
+
+
+def test_mount_rpy_in_radians_warns(tmp_path: Path, capsys) -> None:
+    """Before: mount_rpy = [0, 1.5708, 3.14159] rotated raw readings by 1.6 and 3.1
+    degrees, silently; --mount-rpy 0,1.5708,0 likewise."""
+    robot = _robot(tmp_path / "r.toml", "section = 1\nmount_rpy = [0, 1.5708, 3.14159]",
+                   "section = 2")  # fmt: skip
+    with pytest.warns(UnitWarning) as seen:
+        assert read_robot(robot).imus[0].mount_rpy == (0, 1.5708, 3.14159)  # as written
+    assert [str(w.message) for w in seen] == [
+        f"{robot}: imu 1: mount_rpy = [0, 1.5708, 3.14159] is read in degrees: radians? "
+        "mount_rpy is in degrees ([0, 90, 180] if these are radians)"
+    ]
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,ax,ay,az\n0,0,0,9.81\n0.05,0,0,9.81\n")
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("default")
+        assert main([*argv, "--mount-rpy", "0,1.5708,0"]) == 0
+    assert [str(w.message) for w in said if w.category is UnitWarning] == [
+        "--mount-rpy 0,1.5708,0 is read in degrees: radians? --mount-rpy is in degrees "
+        "([0, 90, 0] if these are radians)"
+    ]
