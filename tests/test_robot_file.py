@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import UnitWarning
+from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
 from continuum_mhe.model.robot import mount_rpy_hint
 
@@ -153,3 +153,11 @@ def test_mount_rpy_in_radians_warns(tmp_path: Path, capsys) -> None:
         "--mount-rpy 0,1.5708,0 is read in degrees: radians? --mount-rpy is in degrees "
         "([0, 90, 0] if these are radians)"
     ]
+
+
+def test_a_folder_given_as_robot_file_is_named_a_folder(tmp_path: Path) -> None:
+    """Before: ``check-robot /tmp`` said 'no such robot file' of a folder that exists."""
+    with pytest.raises(InputError, match=r": a folder, not a robot file \(shipped robots"):
+        read_robot(tmp_path)
+    with pytest.raises(InputError, match=r": no such robot file \(shipped robots"):
+        read_robot(tmp_path / "missing.toml")

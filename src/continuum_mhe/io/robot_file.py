@@ -197,7 +197,8 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
         p = shipped_robots()[str(path)]
     if not p.is_file():
         names = ", ".join(shipped_robots())
-        raise InputError(f"{p}: no such robot file (shipped robots by name: {names})")
+        what = "a folder, not a robot file" if p.is_dir() else "no such robot file"
+        raise InputError(f"{p}: {what} (shipped robots by name: {names})")
     try:
         doc = tomllib.loads(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError:
