@@ -748,7 +748,7 @@ def _report_bug(exc: Exception) -> int:
         traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
     print(
         f"{PROG}: internal error (a bug in continuum-mhe): {type(exc).__name__}: {text}"
-        f"{where}; please report it with the command {_issues_hint()}"
+        f"{where}; please report it with the command {_issues_hint()} "
         "(CONTINUUM_MHE_TRACEBACK=1 shows the traceback)",
         file=sys.stderr,
     )
