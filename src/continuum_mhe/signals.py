@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 from collections.abc import Callable, Iterable, Iterator
+
+from continuum_mhe.program import PROG
 
 
 class Terminated(KeyboardInterrupt):
@@ -34,6 +37,16 @@ def on_signal(signum: int, frame: object) -> None:
 
 def raise_for_signal() -> None:
     raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
+
+
+def signal_exit() -> int:
+    """``continuum-mhe: terminated`` (exit status 143) after SIGTERM, else
+    ``continuum-mhe: interrupted`` (130), on stderr; returns the status."""
+    if signal.SIGTERM in SIGNALS_SEEN:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return 143
+    print(f"{PROG}: interrupted", file=sys.stderr)
+    return 130
 
 
 def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
