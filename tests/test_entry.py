@@ -4,6 +4,7 @@ and their table of commands is the full command line's."""
 from __future__ import annotations
 
 import argparse
+import signal
 import subprocess
 import sys
 
@@ -77,3 +78,41 @@ def test_step_after_run_suggests_reset():
         est.step(Measurement(0.0, np.zeros(2)))
     est.reset()
     assert est.step(Measurement(0.0, np.zeros(2))).status == "ok"
+
+
+@pytest.mark.parametrize(
+    ("module", "sig", "said", "code"),
+    [
+        # Ctrl-C while the entry point imports the full command line (about 1 s)
+        ("continuum_mhe.settings", "SIGINT", "continuum-mhe: interrupted\n", 130),
+        # SIGTERM before the command line sets its handlers: killed, quietly
+        ("continuum_mhe.settings", "SIGTERM", "", -signal.SIGTERM),
+        # SIGTERM while the parser imports the commands, the handlers set
+        ("continuum_mhe.cli_view", "SIGTERM", "continuum-mhe: terminated\n", 143),
+        ("continuum_mhe.cli_view", "SIGINT", "continuum-mhe: interrupted\n", 130),
+    ],
+    ids=["import-sigint", "import-sigterm", "parser-sigterm", "parser-sigint"],
+)
+def test_a_signal_during_start_up_says_one_line(tmp_path, module, sig, said, code):
+    """Before: Ctrl-C while the modules were still importing printed a 30-line
+    KeyboardInterrupt traceback (entry.py, cli.py, settings.py ...), and so did a signal
+    while the parser imported the commands. Now one line and 130 (SIGTERM: 143). The
+    signal is sent by an import hook when ``module`` is first looked for."""
+    code_text = (
+        "import os, signal, sys\n"
+        "class Hook:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        f"        if name == {module!r}:\n"
+        f"            os.kill(os.getpid(), signal.{sig})\n"
+        "        return None\n"
+        "sys.meta_path.insert(0, Hook())\n"
+        "from continuum_mhe.entry import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(tmp_path / "m.csv"), "-o", str(out)]
+    r = subprocess.run(
+        [sys.executable, "-c", code_text, *argv], capture_output=True, text=True, timeout=300
+    )
+    assert (r.returncode, r.stderr) == (code, said)
+    assert not out.exists()

@@ -39,6 +39,12 @@ def test_a_bug_is_not_shown_as_a_user_error(monkeypatch, capsys) -> None:
     assert err.count("\n") == 1 and "Traceback" not in err
     assert "internal error (a bug in continuum-mhe): ValueError: index 3" in err
     assert "please report it" in err and "test_user_mistakes.py" in err
+    # before: "maintainers(CONTINUUM_MHE_TRACEBACK=1 ...", no space before the parenthesis
+    assert re.search(
+        r"please report it with the command (at \S+|to the maintainers) "
+        r"\(CONTINUUM_MHE_TRACEBACK=1 shows the traceback\)\n$",
+        err,
+    ), err
 
 
 def test_a_user_error_is_exit_2(monkeypatch, capsys) -> None:

@@ -61,6 +61,7 @@ from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings
+from continuum_mhe.signals import between_samples
 from continuum_mhe.simulation.scenarios import (
     Recording,
     sample_count,
@@ -139,7 +140,9 @@ def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, 
     out = np.full((len(rec.t), est.formulation.ny), np.nan)
     sec = np.empty(len(rec.t))
     status: list[str] = []
-    for i, (t, z) in enumerate(zip(rec.t, rec.z)):
+    # a signal stops the run between two samples, never a solve (IPOPT would count it
+    # as a failed solve, and the run would go on): as estimate's loop
+    for i, (t, z) in between_samples(enumerate(zip(rec.t, rec.z))):
         t0 = time.perf_counter()
         e = est.step(Measurement(float(t), z))
         sec[i] = time.perf_counter() - t0
@@ -222,7 +225,7 @@ def _run_dompc(
         mhe.x0 = x0
         mhe.set_initial_guess()
         zero = np.zeros((nz, 1))
-        for j in range(n):
+        for j in between_samples(range(n)):  # (see _run_timed)
             t0 = time.perf_counter()
             for k in range(horizon):
                 s = j - horizon + 1 + k

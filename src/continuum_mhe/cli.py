@@ -69,6 +69,7 @@ from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
 from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
 from continuum_mhe.signals import on_signal as _on_signal
+from continuum_mhe.signals import signal_exit as _signal_exit
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
     SCENARIOS,
@@ -646,15 +647,6 @@ def _one_line_warning(
     return f"{PROG}: {kind}: {message}\n"
 
 
-def _signal_exit() -> int:
-    """``continuum-mhe: terminated`` (143) or ``interrupted`` (130)."""
-    if signal.SIGTERM in _SIGNALS_SEEN:
-        print(f"{PROG}: terminated", file=sys.stderr)
-        return 143
-    print(f"{PROG}: interrupted", file=sys.stderr)
-    return 130
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns its exit status. The one-line warnings, the numpy
     filter and the signal handlers it sets last as long as the command: a caller (a
@@ -686,13 +678,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                 pass
 
 
-def _run_command(argv: Sequence[str] | None) -> int:
-    parser = build_parser()
+def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
+    parser = build_parser()  # imports the command modules: seconds on a small machine
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # said by the command's parser, so the usage shown is the command's
         (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
         commands.choices[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
-    try:
+    return args
+
+
+def _run_command(argv: Sequence[str] | None) -> int:
+    try:  # a signal while the parser imports the commands ends the run as one too
+        args = _parse(argv)
         check_option_ranges(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
@@ -759,7 +756,7 @@ def _report_bug(exc: Exception) -> int:
         traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
     print(
         f"{PROG}: internal error (a bug in continuum-mhe): {type(exc).__name__}: {text}"
-        f"{where}; please report it with the command {_issues_hint()}"
+        f"{where}; please report it with the command {_issues_hint()} "
         "(CONTINUUM_MHE_TRACEBACK=1 shows the traceback)",
         file=sys.stderr,
     )

@@ -14,6 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from continuum_mhe.program import COMMANDS, DESCRIPTION, PROG, version
+from continuum_mhe.signals import signal_exit
 
 __all__ = ["COMMANDS", "DESCRIPTION", "PROG", "main", "overview_parser", "version"]
 
@@ -39,9 +40,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if _light(args):
         overview_parser().parse_args(args)  # prints help or version and exits
         return 0  # pragma: no cover - argparse exits before
-    from continuum_mhe.cli import main as full_main
+    try:  # Ctrl-C while the full command line imports (seconds): one line, not a traceback
+        from continuum_mhe.cli import main as full_main
 
-    return full_main(args)
+        return full_main(args)
+    except KeyboardInterrupt:  # (SIGTERM before cli.main's handler: killed, quietly)
+        return signal_exit()
 
 
 if __name__ == "__main__":

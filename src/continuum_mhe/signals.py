@@ -11,7 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 from collections.abc import Callable, Iterable, Iterator
+from typing import TypeVar
+
+from continuum_mhe.program import PROG
+
+T = TypeVar("T")
 
 
 class Terminated(KeyboardInterrupt):
@@ -36,6 +42,31 @@ def raise_for_signal() -> None:
     raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
 
 
+#: IPOPT's return statuses (``stats()["return_status"]`` through CasADi) of a solve that a
+#: signal stopped: CasADi runs the Python signal handler inside IPOPT's callbacks; when it
+#: raises, CasADi prints only ``WARNING("KeyboardInterruptException")``, drops the
+#: exception and stops IPOPT (``NonIpopt_Exception_Thrown`` from an evaluation,
+#: ``User_Requested_Stop`` from the iteration callback), which returns as if it had failed
+INTERRUPTED_SOLVE = frozenset({"NonIpopt_Exception_Thrown", "User_Requested_Stop"})
+
+
+def raise_if_solve_interrupted(return_status: str) -> None:
+    """Raise the Ctrl-C (:class:`Terminated` after SIGTERM) that stopped an IPOPT solve,
+    instead of counting its answer as a failed or unconverged solve."""
+    if return_status in INTERRUPTED_SOLVE:
+        raise_for_signal()
+
+
+def signal_exit() -> int:
+    """``continuum-mhe: terminated`` (exit status 143) after SIGTERM, else
+    ``continuum-mhe: interrupted`` (130), on stderr; returns the status."""
+    if signal.SIGTERM in SIGNALS_SEEN:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return 143
+    print(f"{PROG}: interrupted", file=sys.stderr)
+    return 130
+
+
 def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
     """The Ctrl-C or SIGTERM behind ``exc`` (itself, or its cause or context: a signal
     raised inside C code can surface as another exception), or None."""
@@ -57,22 +88,29 @@ def stop_deferring() -> None:
     _DEFER.clear()
 
 
+def between_samples(samples: Iterable[T]) -> Iterator[T]:
+    """``samples``, with SIGINT/SIGTERM deferred while the loop works on one and raised
+    before the next: a signal never stops CasADi, IPOPT or numpy code halfway (raised
+    there, it can surface as another exception, be caught as a numerical failure, or
+    be swallowed by IPOPT as a failed solve)."""
+    defer()
+    try:
+        for sample in samples:
+            if SIGNALS_SEEN:
+                raise_for_signal()
+            yield sample
+    finally:
+        stop_deferring()
+
+
 def interruptible(
     progress: Callable[[Iterable[int]], Iterator[int]] | None,
 ) -> Callable[[Iterable[int]], Iterator[int]]:
-    """Wrap an estimation loop's sample iterator so that SIGINT/SIGTERM stop it between
-    two samples (a signal raised inside CasADi or numpy code can surface as another
-    exception, or be caught as a numerical failure)."""
+    """Wrap an estimation loop's sample iterator (and its progress bar) so that
+    SIGINT/SIGTERM stop it between two samples (:func:`between_samples`)."""
 
     def wrap(idx: Iterable[int]) -> Iterator[int]:
-        defer()
-        try:
-            for i in progress(idx) if progress is not None else idx:
-                if SIGNALS_SEEN:
-                    raise_for_signal()
-                yield i
-        finally:
-            stop_deferring()
+        return between_samples(progress(idx) if progress is not None else idx)
 
     return wrap
 

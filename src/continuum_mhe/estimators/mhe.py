@@ -86,6 +86,7 @@ from continuum_mhe.estimators.window_nlp import (
 )
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
+from continuum_mhe.signals import raise_if_solve_interrupted
 
 
 class MovingHorizonEstimator(Estimator):
@@ -666,6 +667,9 @@ class MovingHorizonEstimator(Estimator):
             X = np.asarray(sol["x"], dtype=float).reshape(n, nx)
         except RuntimeError:
             return self._fallback(X0), "solver-failed"
+        # a Ctrl-C inside IPOPT (a caller that does not defer signals: a script, a
+        # reproduce trial run in this process) ends the run, not just this solve
+        raise_if_solve_interrupted(stats["return_status"])
         if not np.all(np.isfinite(X)):
             return self._fallback(X0), "solver-failed"
         if stats["success"]:
