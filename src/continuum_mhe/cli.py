@@ -64,12 +64,12 @@ from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.program import DESCRIPTION, PROG, version
+from continuum_mhe.program import signal_exit as _signal_exit
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
 from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
 from continuum_mhe.signals import on_signal as _on_signal
-from continuum_mhe.signals import signal_exit as _signal_exit
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
     SCENARIOS,

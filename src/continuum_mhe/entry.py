@@ -13,8 +13,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from continuum_mhe.program import COMMANDS, DESCRIPTION, PROG, version
-from continuum_mhe.signals import signal_exit
+from continuum_mhe.program import COMMANDS, DESCRIPTION, PROG, signal_exit, version
 
 __all__ = ["COMMANDS", "DESCRIPTION", "PROG", "main", "overview_parser", "version"]
 

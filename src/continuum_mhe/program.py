@@ -42,3 +42,18 @@ def version() -> str:
         from continuum_mhe import __version__
 
         return __version__
+
+
+def signal_exit() -> int:
+    """``continuum-mhe: terminated`` (exit status 143) after SIGTERM, else
+    ``continuum-mhe: interrupted`` (130), on stderr; returns the status."""
+    import signal
+    import sys
+
+    from continuum_mhe.signals import SIGNALS_SEEN
+
+    if signal.SIGTERM in SIGNALS_SEEN:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return 143
+    print(f"{PROG}: interrupted", file=sys.stderr)
+    return 130

@@ -11,11 +11,8 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import sys
 from collections.abc import Callable, Iterable, Iterator
 from typing import TypeVar
-
-from continuum_mhe.program import PROG
 
 T = TypeVar("T")
 
@@ -55,16 +52,6 @@ def raise_if_solve_interrupted(return_status: str) -> None:
     instead of counting its answer as a failed or unconverged solve."""
     if return_status in INTERRUPTED_SOLVE:
         raise_for_signal()
-
-
-def signal_exit() -> int:
-    """``continuum-mhe: terminated`` (exit status 143) after SIGTERM, else
-    ``continuum-mhe: interrupted`` (130), on stderr; returns the status."""
-    if signal.SIGTERM in SIGNALS_SEEN:
-        print(f"{PROG}: terminated", file=sys.stderr)
-        return 143
-    print(f"{PROG}: interrupted", file=sys.stderr)
-    return 130
 
 
 def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
