@@ -42,6 +42,15 @@ def raise_for_signal() -> None:
     raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
 
 
+def raise_if_signalled() -> None:
+    """Raise the signal received so far, if any: a loop's poll between two steps. It also
+    catches a signal whose exception was dropped: CasADi's argument checks (SWIG trying
+    one overload after another) drop any exception raised inside them, the handler's
+    KeyboardInterrupt included."""
+    if SIGNALS_SEEN:
+        raise_for_signal()
+
+
 #: IPOPT's return statuses (``stats()["return_status"]`` through CasADi) of a solve that a
 #: signal stopped: CasADi runs the Python signal handler inside IPOPT's callbacks; when it
 #: raises, CasADi prints only ``WARNING("KeyboardInterruptException")``, drops the
@@ -96,8 +105,7 @@ def between_samples(samples: Iterable[T]) -> Iterator[T]:
     defer()
     try:
         for sample in samples:
-            if SIGNALS_SEEN:
-                raise_for_signal()
+            raise_if_signalled()
             yield sample
     finally:
         stop_deferring()
@@ -123,5 +131,4 @@ def signals_deferred() -> Iterator[None]:
         yield
     finally:
         _DEFER.pop()
-    if SIGNALS_SEEN:
-        raise_for_signal()
+    raise_if_signalled()
