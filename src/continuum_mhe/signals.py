@@ -125,10 +125,13 @@ def interruptible(
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
+    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code); in
+    a loop that defers them already (``live`` drains on the first), at its next poll."""
     _DEFER.append(True)
     try:
         yield
     finally:
-        _DEFER.pop()
-    raise_if_signalled()
+        if _DEFER:  # (stop_deferring() empties it)
+            _DEFER.pop()
+    if not _DEFER:
+        raise_if_signalled()
