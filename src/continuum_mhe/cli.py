@@ -68,7 +68,12 @@ from continuum_mhe.program import DESCRIPTION, PROG, version
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
-from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
+from continuum_mhe.signals import (
+    interrupt_in_chain,
+    interruptible,
+    quiet_unraisable,
+    signals_deferred,
+)
 from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.signals import signal_exit as _signal_exit
 from continuum_mhe.simulation.scenarios import (
@@ -605,11 +610,13 @@ def _one_line_warning(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns its exit status. The one-line warnings, the numpy
-    filter and the signal handlers it sets last as long as the command: a caller (a
-    script, a test) gets its own back."""
+    filter, the signal handlers and the unraisable hook it sets last as long as the
+    command: a caller (a script, a test) gets its own back."""
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
     _SIGNALS_SEEN.clear()  # those of an earlier command run in this process are done
     formatwarning = warnings.formatwarning
+    unraisablehook = sys.unraisablehook
+    sys.unraisablehook = quiet_unraisable(unraisablehook)
     try:
         with warnings.catch_warnings():
             warnings.formatwarning = _one_line_warning
@@ -628,6 +635,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run_command(argv)
     finally:
         warnings.formatwarning = formatwarning
+        sys.unraisablehook = unraisablehook
         for sig, handler in handlers.items():
             try:
                 signal.signal(sig, handler)

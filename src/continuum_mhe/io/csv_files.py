@@ -54,6 +54,7 @@ from continuum_mhe.io.text_rows import (
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
+from continuum_mhe.signals import raise_if_signalled
 
 FloatArray = NDArray[np.float64]
 
@@ -645,13 +646,16 @@ def new_files(folder: Path) -> Iterator[list[Path]]:
     """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
     the files put in the yielded list that did not exist before (each is put there once
     written, atomically), then the folders created here, and re-raise. A file that
-    existed keeps its new content if it was replaced, else its old one."""
+    existed keeps its new content if it was replaced, else its old one. A signal whose
+    exception a library dropped while the block ran (:func:`.signals.raise_if_signalled`)
+    is raised at its end, with the same clean-up."""
     created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
     before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
     folder.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     try:
         yield written
+        raise_if_signalled()
     except BaseException:
         for path in written:
             if path.name not in before:
