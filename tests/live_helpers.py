@@ -155,3 +155,18 @@ def raw_lines(
         for i, (a, g) in enumerate(zip(acc, gyr))
         if i not in skip
     ]
+
+
+def stubborn_trial(spec: object) -> dict[str, object]:
+    """A reproduce task that marks its start (a file named by its PID in
+    ``$STUBBORN_MARKS``), then runs for an hour, dropping every KeyboardInterrupt (and
+    so SIGTERM's :class:`~continuum_mhe.signals.Terminated`) as IPOPT drops a Ctrl-C:
+    a parent that waits for its workers waits for it."""
+    Path(os.environ["STUBBORN_MARKS"], str(os.getpid())).touch()
+    end = time.monotonic() + 3600
+    while time.monotonic() < end:
+        try:
+            time.sleep(0.01)
+        except KeyboardInterrupt:
+            pass
+    return {}

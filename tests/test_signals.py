@@ -97,14 +97,27 @@ def test_an_ipopt_solve_stopped_by_a_signal_raises_it(
     assert caught.type is (Terminated if sig == signal.SIGTERM else KeyboardInterrupt)
 
 
+#: Script lines that send SIGINT from inside IPOPT once ``signal.setitimer(signal.ITIMER_REAL,
+#: 2e-4, 2e-4)`` has started the ticks: CasADi runs Python's signal handlers in IPOPT's
+#: callbacks, where the Python frame is CasADi's ``Function.call``; the handler of a
+#: tick sends SIGINT there, and CasADi's next check runs the SIGINT handler.
+SIGINT_INSIDE_IPOPT = (
+    "def tick(signum, frame):\n"
+    "    code = frame.f_code if frame is not None else None\n"
+    "    if code and code.co_name == 'call' and code.co_filename.endswith('casadi.py'):\n"
+    "        signal.setitimer(signal.ITIMER_REAL, 0)\n"
+    "        os.kill(os.getpid(), signal.SIGINT)\n"
+    "signal.signal(signal.SIGALRM, tick)\n"
+)
+
+
 def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
     """Before: Ctrl-C during ``benchmark``'s IPOPT run printed only CasADi's
     ``WARNING("KeyboardInterruptException")``, the interrupted solve counted as a
     timing sample, and the benchmark ran on to exit 0 and wrote its JSON. Now the
     timing loop defers the signal to the end of the sample (as ``estimate``'s does):
-    one line, exit 130, nothing written. The SIGINT comes from a timer of 2 ms of CPU
-    time set as the 30th window's solve starts (IPOPT takes about 8 ms of it), so it
-    lands inside IPOPT."""
+    one line, exit 130, nothing written. The SIGINT is sent from inside IPOPT during
+    the 30th window's solve (:data:`SIGINT_INSIDE_IPOPT`)."""
     script = (
         "import os, signal, sys\n"
         "from continuum_mhe import cli\n"
@@ -113,11 +126,11 @@ def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
         "def solve(self, problem, X0):\n"
         "    solves.append(1)\n"
         "    if len(solves) == 30:\n"
-        "        signal.setitimer(signal.ITIMER_PROF, 0.002)\n"
+        "        signal.setitimer(signal.ITIMER_REAL, 2e-4, 2e-4)\n"
         "    return real(self, problem, X0)\n"
         "MovingHorizonEstimator._solve_ipopt = solve\n"
-        "signal.signal(signal.SIGPROF, lambda *a: os.kill(os.getpid(), signal.SIGINT))\n"
-        "sys.exit(cli.main(sys.argv[1:]))\n"
+        + SIGINT_INSIDE_IPOPT
+        + "sys.exit(cli.main(sys.argv[1:]))\n"
     )
     out = tmp_path / "b.json"
     skip = [a for m in ("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
@@ -129,3 +142,42 @@ def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
     )
     assert (r.returncode, r.stderr) == (130, "continuum-mhe: interrupted\n")
     assert not out.exists()
+
+
+def test_a_signal_inside_ipopt_waits_for_the_solve() -> None:
+    """Before: with the command line's handlers and no deferring loop (a ``reproduce
+    --jobs 1`` trial), a Ctrl-C inside IPOPT stopped it: CasADi printed
+    ``WARNING("KeyboardInterruptException")`` beside our one line. Now the MHE defers
+    the signal while IPOPT solves: the solve ends normally, then the signal is raised,
+    and nothing else is printed. The SIGINT is sent from inside IPOPT during the 30th
+    solve (:data:`SIGINT_INSIDE_IPOPT`)."""
+    script = (
+        "import dataclasses, os, signal, sys\n"
+        "from continuum_mhe.estimators.mhe import MovingHorizonEstimator\n"
+        "from continuum_mhe.model.registry import make_formulation\n"
+        "from continuum_mhe.settings import MHESettings\n"
+        "from continuum_mhe.signals import on_signal\n"
+        "from continuum_mhe.simulation.scenarios import simulate\n"
+        "est = MovingHorizonEstimator(make_formulation('bend'),\n"
+        "                             MHESettings(horizon=100, solver='ipopt'))\n"
+        "nlp, solves = est._nlp, []\n"
+        "def solver(**kwargs):\n"
+        "    solves.append(1)\n"
+        "    if len(solves) == 30:\n"
+        "        signal.setitimer(signal.ITIMER_REAL, 2e-4, 2e-4)\n"
+        "    return nlp.solver(**kwargs)\n"
+        "solver.stats = nlp.solver.stats\n"
+        "est._nlp = dataclasses.replace(nlp, solver=solver)\n"
+        "signal.signal(signal.SIGINT, on_signal)\n"
+        + SIGINT_INSIDE_IPOPT
+        + "rec = simulate('paper3d', duration=20, seed=0)\n"
+        "try:\n"
+        "    est.run(rec.t, rec.z)\n"
+        "except KeyboardInterrupt:\n"
+        "    print(len(solves), nlp.solver.stats()['return_status'])\n"
+        "    sys.exit(130)\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=SAFETY_S
+    )
+    assert (r.returncode, r.stdout, r.stderr) == (130, "30 Solve_Succeeded\n", "")

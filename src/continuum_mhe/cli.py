@@ -9,7 +9,6 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import itertools
 import json
@@ -46,8 +45,10 @@ from continuum_mhe.estimators.fast.warmup import (
 )
 from continuum_mhe.io.csv_files import (
     InputError,
+    check_new_folder,
     check_output_target,
     check_same_robot,
+    new_files,
     read_state_table,
     write_estimates,
     write_measurements,
@@ -68,7 +69,12 @@ from continuum_mhe.program import signal_exit as _signal_exit
 from continuum_mhe.progress import progress_bar, table_console
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
-from continuum_mhe.signals import interrupt_in_chain, interruptible, signals_deferred
+from continuum_mhe.signals import (
+    interrupt_in_chain,
+    interruptible,
+    quiet_unraisable,
+    signals_deferred,
+)
 from continuum_mhe.signals import on_signal as _on_signal
 from continuum_mhe.simulation.scenarios import (
     NOISE_MODELS,
@@ -427,7 +433,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
 
     out = Path(args.out)
-    _check_new_folder(out)
+    check_new_folder(out)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
@@ -477,7 +483,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     all_series = [s for s, _ in results]
     csvs = [out / f"estimates_{m}.csv" for m in METHODS] + [
         out / "measurements.csv", out / "truth.csv"]  # fmt: skip
-    with _new_files(out) as written:  # after the estimates, not during them
+    with new_files(out) as written:  # after the estimates, not during them
         for path, (series, _) in zip(csvs, results):
             write_estimates(path, series)
             written.append(path)
@@ -489,40 +495,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
     figs = written[len(csvs) :]
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
-
-
-def _check_new_folder(folder: Path) -> None:
-    """A one-line error, before any work, unless ``folder`` is, or can be made, a
-    writable folder (its nearest existing ancestor a writable folder)."""
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{folder}: exists and is not a folder")
-    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
-    if not existing.is_dir():
-        raise InputError(f"{folder}: {existing} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(f"{folder}: {existing} is not writable")
-
-
-@contextlib.contextmanager
-def _new_files(folder: Path) -> Iterator[list[Path]]:
-    """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
-    the files put in the yielded list that did not exist before (each is put there once
-    written, atomically), then the folders created here, and re-raise. A file that
-    existed keeps its new content if it was replaced, else its old one."""
-    created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
-    before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
-    folder.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    try:
-        yield written
-    except BaseException:
-        for path in written:
-            if path.name not in before:
-                path.unlink(missing_ok=True)
-        for made in created:  # innermost first
-            with contextlib.suppress(OSError):
-                made.rmdir()
-        raise
 
 
 def _demo_figures(
@@ -649,10 +621,13 @@ def _one_line_warning(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns its exit status. The one-line warnings, the numpy
-    filter and the signal handlers it sets last as long as the command: a caller (a
-    script, a test) gets its own back."""
+    filter, the signal handlers and the unraisable hook it sets last as long as the
+    command: a caller (a script, a test) gets its own back."""
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
+    _SIGNALS_SEEN.clear()  # those of an earlier command run in this process are done
     formatwarning = warnings.formatwarning
+    unraisablehook = sys.unraisablehook
+    sys.unraisablehook = quiet_unraisable(unraisablehook)
     try:
         with warnings.catch_warnings():
             warnings.formatwarning = _one_line_warning
@@ -671,6 +646,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run_command(argv)
     finally:
         warnings.formatwarning = formatwarning
+        sys.unraisablehook = unraisablehook
         for sig, handler in handlers.items():
             try:
                 signal.signal(sig, handler)

@@ -210,17 +210,22 @@ def backbone_snapshots(
     return fig
 
 
-def save(fig: Figure, path: Path, formats: Sequence[str] = ("png",)) -> list[Path]:
+def save(
+    fig: Figure, path: Path, formats: Sequence[str] = ("png",), into: list[Path] | None = None
+) -> list[Path]:
     """Save ``fig`` as ``path`` with each suffix in ``formats``, each file atomically (an
     interrupted save leaves no partial file and an existing one untouched); closes the
-    figure."""
-    out = []
+    figure. Returns the files; each is also put in ``into`` as soon as it is saved (so
+    that a caller's clean-up knows the first format of a save interrupted at the next)."""
+    out: list[Path] = []
     try:
         for fmt in formats:
             p = path.with_suffix(f".{fmt}")
             with atomic_binary_writer(p) as fh:
                 fig.savefig(fh, format=fmt, dpi=130)
             out.append(p)
+            if into is not None:
+                into.append(p)
     finally:
         plt.close(fig)
     return out

@@ -39,6 +39,33 @@ def raise_for_signal() -> None:
     raise Terminated() if signal.SIGTERM in SIGNALS_SEEN else KeyboardInterrupt()
 
 
+def quiet_unraisable(
+    previous: Callable[[sys.UnraisableHookArgs], object],
+) -> Callable[[sys.UnraisableHookArgs], object]:
+    """A ``sys.unraisablehook`` for the command line. The handler's KeyboardInterrupt
+    raised where Python cannot pass it on (a weakref callback or ``__del__`` that the
+    garbage collector runs) would be printed as ``Exception ignored in ...`` with a
+    traceback; it is dropped quietly instead: the signal stays in :data:`SIGNALS_SEEN`,
+    where the next poll (:func:`raise_if_signalled`) finds it. (Sending the signal again
+    from here would only run the handler here.) Anything else goes to ``previous``."""
+
+    def hook(unraisable: sys.UnraisableHookArgs) -> None:
+        if not (isinstance(unraisable.exc_value, KeyboardInterrupt) and SIGNALS_SEEN):
+            previous(unraisable)
+
+    return hook
+
+
+def raise_if_signalled() -> None:
+    """Raise the signal received so far, if any: a loop's poll between two steps. It also
+    catches a signal whose exception was dropped: CasADi's argument checks (SWIG trying
+    one overload after another) drop any exception raised inside them, the handler's
+    KeyboardInterrupt included, and so does the garbage collector
+    (:func:`quiet_unraisable`)."""
+    if SIGNALS_SEEN:
+        raise_for_signal()
+
+
 #: IPOPT's return statuses (``stats()["return_status"]`` through CasADi) of a solve that a
 #: signal stopped: CasADi runs the Python signal handler inside IPOPT's callbacks; when it
 #: raises, CasADi prints only ``WARNING("KeyboardInterruptException")``, drops the
@@ -83,8 +110,7 @@ def between_samples(samples: Iterable[T]) -> Iterator[T]:
     defer()
     try:
         for sample in samples:
-            if SIGNALS_SEEN:
-                raise_for_signal()
+            raise_if_signalled()
             yield sample
     finally:
         stop_deferring()
@@ -104,11 +130,13 @@ def interruptible(
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code)."""
+    """SIGINT/SIGTERM inside the block are raised when it ends (not inside C code); in
+    a loop that defers them already (``live`` drains on the first), at its next poll."""
     _DEFER.append(True)
     try:
         yield
     finally:
-        _DEFER.pop()
-    if SIGNALS_SEEN:
-        raise_for_signal()
+        if _DEFER:  # (stop_deferring() empties it)
+            _DEFER.pop()
+    if not _DEFER:
+        raise_if_signalled()

@@ -86,7 +86,7 @@ from continuum_mhe.estimators.window_nlp import (
 )
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
-from continuum_mhe.signals import raise_if_solve_interrupted
+from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
 
 
 class MovingHorizonEstimator(Estimator):
@@ -655,20 +655,21 @@ class MovingHorizonEstimator(Estimator):
         nlp = self._nlp if exp == 0 else build_nlp(
             self.formulation, n, s.max_iter, s.tol, s.loss, s.scale, exp)  # fmt: skip
         try:
-            sol = nlp.solver(
-                x0=X0.ravel(),
-                p=pack_parameters(problem),
-                lbx=nlp.lbx,
-                ubx=nlp.ubx,
-                lbg=nlp.lbg,
-                ubg=nlp.ubg,
-            )
+            with signals_deferred():  # IPOPT would stop on a signal as if it had failed
+                sol = nlp.solver(
+                    x0=X0.ravel(),
+                    p=pack_parameters(problem),
+                    lbx=nlp.lbx,
+                    ubx=nlp.ubx,
+                    lbg=nlp.lbg,
+                    ubg=nlp.ubg,
+                )
             stats = nlp.solver.stats()
             X = np.asarray(sol["x"], dtype=float).reshape(n, nx)
         except RuntimeError:
             return self._fallback(X0), "solver-failed"
-        # a Ctrl-C inside IPOPT (a caller that does not defer signals: a script, a
-        # reproduce trial run in this process) ends the run, not just this solve
+        # a Ctrl-C inside IPOPT under Python's own handler (a script: not deferred)
+        # ends the run, not just this solve
         raise_if_solve_interrupted(stats["return_status"])
         if not np.all(np.isfinite(X)):
             return self._fallback(X0), "solver-failed"

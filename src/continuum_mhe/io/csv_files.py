@@ -54,6 +54,7 @@ from continuum_mhe.io.text_rows import (
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
+from continuum_mhe.signals import raise_if_signalled
 
 FloatArray = NDArray[np.float64]
 
@@ -630,6 +631,43 @@ def atomic_binary_writer(
 ) -> contextlib.AbstractContextManager[IO[bytes]]:
     """Binary counterpart of :func:`atomic_writer`."""
     return _atomic(path, binary=True)
+
+
+def check_new_folder(folder: Path) -> None:
+    """A one-line error, before any work, unless ``folder`` is, or can be made, a
+    writable folder (its nearest existing ancestor a writable folder)."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: exists and is not a folder")
+    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"{folder}: {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{folder}: {existing} is not writable")
+
+
+@contextlib.contextmanager
+def new_files(folder: Path) -> Iterator[list[Path]]:
+    """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
+    the files put in the yielded list that did not exist before (each is put there once
+    written, atomically), then the folders created here, and re-raise. A file that
+    existed keeps its new content if it was replaced, else its old one. A signal whose
+    exception a library dropped while the block ran (:func:`.signals.raise_if_signalled`)
+    is raised at its end, with the same clean-up."""
+    created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
+    before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
+    folder.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        yield written
+        raise_if_signalled()
+    except BaseException:
+        for path in written:
+            if path.name not in before:
+                path.unlink(missing_ok=True)
+        for made in created:  # innermost first
+            with contextlib.suppress(OSError):
+                made.rmdir()
+        raise
 
 
 def _fmt(v: float) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import InputError, check_new_folder
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
@@ -24,8 +24,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.rod_csv is not None and not Path(args.rod_csv).is_file():
         raise InputError(f"{args.rod_csv}: no such file")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
+    check_new_folder(out)  # before the trials; the folder is made after them
     cfg = QUICK if args.quick else FULL
     command = "continuum-mhe " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     start = time.perf_counter()
@@ -49,13 +48,14 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from continuum_mhe.io.csv_files import new_files
     from continuum_mhe.reproduce.figures import render_all
     from continuum_mhe.reproduce.pipeline import load_results
 
     results = load_results(args.results)
     out = Path(args.out) if args.out else Path(args.results)
-    out.mkdir(parents=True, exist_ok=True)
-    files = render_all(results, out)
+    with new_files(out) as files:  # Ctrl-C: none of the new figures, no new folder
+        render_all(results, out, files)
     print(f"rendered {len(files)} figure files into {out}", file=sys.stderr)
     return 0
 

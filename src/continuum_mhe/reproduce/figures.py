@@ -299,12 +299,15 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
 }
 
 
-def render_all(results: dict[str, dict[str, Any]], folder: str | Path) -> list[Path]:
-    """Render the figures of every experiment present in ``results`` into ``folder``."""
+def render_all(
+    results: dict[str, dict[str, Any]], folder: str | Path, into: list[Path] | None = None
+) -> list[Path]:
+    """Render the figures of every experiment present in ``results`` into ``folder``;
+    returns the files, each also put in ``into`` as soon as it is saved."""
     Path(folder).mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
     for name, render in RENDERERS.items():
         if name in results:
             for fname, fig in render(results[name]).items():
-                out += plotting.save(fig, Path(folder) / fname, FORMATS)
+                out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
     return out

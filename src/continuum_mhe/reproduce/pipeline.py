@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import InputError, new_files
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
 from continuum_mhe.reproduce.bootstrap import mean_ci
 from continuum_mhe.reproduce.experiments import (
@@ -225,8 +225,8 @@ def reproduce(
     command: str = "",
     parts: Sequence[Part] = PARTS,
 ) -> list[Path]:
-    """Run every experiment of ``parts`` into ``out`` and write data, figures and
-    ``report.md`` (from every experiment's data in ``out``).
+    """Run every experiment of ``parts``, then write their data, figures and
+    ``report.md`` (from every experiment's data in ``out``) into ``out``, created then.
 
     Returns the files written.
     """
@@ -237,7 +237,6 @@ def reproduce(
     from continuum_mhe.reproduce.report import write_report
 
     folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
     paper = "paper" in parts
     specs = plan_trials(cfg) if paper else []
     beyond = plan_beyond_trials(cfg) if "beyond" in parts else []
@@ -257,11 +256,6 @@ def reproduce(
     data = assemble(cfg, results[1:n], results[0]) if paper else {}
     if beyond:
         data["exp7_beyond"] = assemble_beyond(cfg, results[n:])
-    written: list[Path] = []
-    for name, d in data.items():
-        p = folder / f"{name}.json"
-        save_json(p, d)
-        written.append(p)
     from importlib import metadata
 
     import numpy
@@ -285,9 +279,16 @@ def reproduce(
         },
         "machine": platform.platform(),
     }
-    save_json(folder / "manifest.json", manifest)
-    written.append(folder / "manifest.json")
-    loaded = load_results(folder)
-    written += render_all(loaded, folder)
-    written.append(write_report(loaded, folder))
+    # the folder and the files once the trials are done; an interruption or an error
+    # while writing leaves none of the new files, nor the folders it created
+    with new_files(folder) as written:
+        for name, d in data.items():
+            p = folder / f"{name}.json"
+            save_json(p, d)
+            written.append(p)
+        save_json(folder / "manifest.json", manifest)
+        written.append(folder / "manifest.json")
+        loaded = load_results(folder)
+        render_all(loaded, folder, written)
+        written.append(write_report(loaded, folder))
     return written

@@ -1,19 +1,28 @@
 """Run independent trials in parallel: local processes or a Dask distributed cluster.
 
 Results come back in the order of the specs, whatever order they finish in.
+
+Ctrl-C and SIGTERM (a terminal sends Ctrl-C to the whole process group) are the parent's
+to handle: a local worker ignores SIGINT and dies quietly on SIGTERM, and the parent,
+once interrupted (or when a trial fails), kills its workers instead of waiting for
+them, since a worker inside IPOPT, or one that died holding the task queue's lock, may
+never come back.
 """
 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import require
+from continuum_mhe.signals import raise_if_signalled
 
 S = TypeVar("S")
 R = TypeVar("R")
@@ -77,13 +86,67 @@ def run_parallel(
             for i, s in enumerate(specs):
                 results[i] = fn(s)
                 advance()
+                raise_if_signalled()  # a Ctrl-C that CasADi dropped inside the trial
             return results
-        with ProcessPoolExecutor(max_workers=min(n_jobs, len(specs))) as pool:
-            futures: dict[Future[R], int] = {pool.submit(fn, s): i for i, s in enumerate(specs)}
+        pool = ProcessPoolExecutor(max_workers=min(n_jobs, len(specs)), initializer=_worker_start)
+        try:
+            with _signals_blocked():  # the workers are forked here, with our handlers
+                futures: dict[Future[R], int] = {pool.submit(fn, s): i for i, s in enumerate(specs)}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
                 advance()
+        except BrokenProcessPool:  # not a signal of ours: a worker was killed
+            _stop_workers(pool)
+            raise UserError(
+                "a worker process ended abruptly (killed, or out of memory); nothing written"
+            ) from None
+        except BaseException:
+            _stop_workers(pool)
+            raise
+        pool.shutdown()
     return results
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def _signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM wait while the block runs (the pool forks its workers and
+    starts its threads), then arrive: a worker would otherwise start with the parent's
+    handlers until :func:`_worker_start` runs, and the pool's threads, which inherit
+    the blocked set, leave every signal to the main thread."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _worker_start() -> None:
+    """A worker ignores SIGINT (the parent stops it; inside IPOPT, a handler's
+    KeyboardInterrupt would only be dropped) and dies at once and quietly on SIGTERM (no
+    traceback, no waiting for a trial to end)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's workers and return without waiting for their trials (what
+    ``shutdown(wait=True)`` and a ``with`` block do: a worker may be inside a long IPOPT
+    solve, or blocked for ever on a lock a killed one held)."""
+    workers = list((pool._processes or {}).values())
+    results = getattr(pool._result_queue, "_writer", None)  # the workers' end
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in workers:
+        p.kill()
+    for p in workers:
+        p.join()
+    # the pool's thread may be reading a result a killed worker was sending: with every
+    # writer closed (ours is never used) it gets end-of-file instead of waiting for ever
+    if results is not None:
+        results.close()
 
 
 def _run_dask(
