@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import argparse
 import gc
-import math
 import os
+from pathlib import Path
 from typing import Any
 
 from continuum_mhe.cli_options import (
@@ -25,7 +25,7 @@ from continuum_mhe.cli_options import (
 )
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
-from continuum_mhe.io.input_options import check_options_apply
+from continuum_mhe.io.input_options import check_options_apply, formulation_for
 from continuum_mhe.live import open_plot, run_live, warm_up
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
@@ -35,7 +35,6 @@ from continuum_mhe.stream.session import LiveSession, LiveSettings, imu_converte
 
 def cmd_live(args: argparse.Namespace) -> int:
     from continuum_mhe.estimators import make_estimator
-    from continuum_mhe.model.direct import DirectFormulation
 
     settings = LiveSettings(
         port=args.port,
@@ -51,25 +50,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     # an option that would do nothing on this stream is refused, as estimate does
     kind = "raw-csv" if settings.fmt == "raw" else "tilt-csv"
     check_options_apply(settings.port, kind, options, formulation.robot)
-    for dest in ("estimate_gyro_bias", "estimate_accel_bias", "own_acceleration"):
-        if getattr(args, dest, False) and raw.imu_model != "direct":
-            flag = "--" + dest.replace("_", "-")
-            raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
-    if raw.imu_model == "direct":
-        if settings.fmt != "raw":
-            raise InputError("--imu-model direct needs --format raw")
-        if formulation.name != "bend":
-            raise InputError(f"--imu-model direct uses the bend state, not {formulation.name}")
-        if not (math.isfinite(args.gyro_std) and args.gyro_std > 0):
-            raise InputError(f"--gyro-std must be positive, got {args.gyro_std}")
-        formulation = DirectFormulation(
-            robot=formulation.robot,
-            noise=formulation.noise,
-            gyro_std=args.gyro_std,
-            estimate_gyro_bias=bool(getattr(args, "estimate_gyro_bias", False)),
-            estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
-            own_acceleration=bool(getattr(args, "own_acceleration", False)),
-        )
+    if raw.imu_model == "direct" and settings.fmt != "raw":
+        raise InputError("--imu-model direct needs --format raw")
+    formulation = formulation_for(options, formulation, settings.fmt == "raw", Path(settings.port))
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None

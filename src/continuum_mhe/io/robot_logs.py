@@ -148,6 +148,14 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
     return name, gen()
 
 
+def _mcap_topics(summary: Any) -> dict[str, str]:
+    """An MCAP summary's topics: topic -> schema name ("" for a channel without one)."""
+    return {
+        ch.topic: (summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "")
+        for ch in summary.channels.values()
+    }
+
+
 def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
     require("mcap", "robot", f"reading the MCAP file {path}")
     require("rosbags", "robot", f"reading the MCAP file {path}")
@@ -160,11 +168,7 @@ def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, 
     if summary is None:
         fh.close()
         raise InputError(f"{path}: MCAP file has no summary section (unfinished recording?)")
-    topics = {
-        ch.topic: (summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "")
-        for ch in summary.channels.values()
-    }
-    name = _pick_topic(path, topics, topic)
+    name = _pick_topic(path, _mcap_topics(summary), topic)
     store = get_typestore(Stores.ROS2_HUMBLE)
 
     def gen() -> Iterator[tuple[int, Any]]:
@@ -203,12 +207,7 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
                 summary = make_reader(fh).get_summary()
             if summary is None:
                 raise InputError(f"{p}: MCAP file has no summary section (unfinished recording?)")
-            return {
-                ch.topic: (
-                    summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else ""
-                )
-                for ch in summary.channels.values()
-            }
+            return _mcap_topics(summary)
         require("rosbags", "robot", f"reading the ROS bag {p}")
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
