@@ -36,11 +36,80 @@ def arrival_update(x, P, r, H, R):
 
 
 @numba.njit(cache=True)
+def predict_covariance(P, F, Q):
+    """``F P F^T + Q`` (nx, nx), written out: for matrices this small an ``nx x nx``
+    product through BLAS costs more in its call than in its arithmetic. The EKF's and
+    the arrival prior's prediction."""
+    nx = P.shape[0]
+    fp = np.empty((nx, nx))
+    for j in range(nx):
+        for k in range(nx):
+            s = 0.0
+            for a in range(nx):
+                s += F[j, a] * P[a, k]
+            fp[j, k] = s
+    Pn = np.empty((nx, nx))
+    for j in range(nx):
+        for k in range(nx):
+            s = 0.0
+            for a in range(nx):
+                s += fp[j, a] * F[k, a]
+            Pn[j, k] = s + Q[j, k]
+    return Pn
+
+
+@numba.njit(cache=True)
 def arrival_predict(P, F, Q):
-    """EKF covariance prediction of the arrival prior: ``(P, P^-1)``."""
-    P = F @ P @ F.T + Q
-    P = 0.5 * (P + P.T)
-    return P, np.linalg.inv(P)
+    """EKF covariance prediction of the arrival prior: ``(P, P^-1)``, ``P = F P F^T + Q``
+    symmetrised; the inverse from the Cholesky factor (:func:`spd_inverse`), or LAPACK's
+    where ``P`` is not positive definite."""
+    Pn = predict_covariance(P, F, Q)
+    nx = Pn.shape[0]
+    for j in range(nx):
+        for k in range(j):
+            m = 0.5 * (Pn[j, k] + Pn[k, j])
+            Pn[j, k] = m
+            Pn[k, j] = m
+    Pinv = spd_inverse(Pn)
+    if Pinv.shape[0] == 0:
+        Pinv = np.linalg.inv(Pn)
+    return Pn, Pinv
+
+
+@numba.njit(cache=True)
+def spd_inverse(A):
+    """``A^-1`` of a symmetric positive definite ``A`` (n, n) by Cholesky, symmetric; an
+    empty (0, 0) array if ``A`` is not positive definite."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        s = A[j, j]
+        for c in range(j):
+            s -= L[j, c] * L[j, c]
+        if not s > 0.0:
+            return np.empty((0, 0))
+        L[j, j] = np.sqrt(s)
+        for k in range(j + 1, n):
+            t = A[k, j]
+            for c in range(j):
+                t -= L[k, c] * L[j, c]
+            L[k, j] = t / L[j, j]
+    Li = np.zeros((n, n))  # L^-1, lower triangular
+    for c in range(n):
+        for j in range(c, n):
+            t = 1.0 if j == c else 0.0
+            for k in range(c, j):
+                t -= L[j, k] * Li[k, c]
+            Li[j, c] = t / L[j, j]
+    out = np.empty((n, n))  # L^-T L^-1
+    for j in range(n):
+        for k in range(j, n):
+            s = 0.0
+            for a in range(k, n):
+                s += Li[a, j] * Li[a, k]
+            out[j, k] = s
+            out[k, j] = s
+    return out
 
 
 @numba.njit(cache=True)
@@ -75,7 +144,7 @@ def ekf_step(fn, ptrs, out, xin, x, P, valid, R, Q, nx):
         raise RuntimeError("model evaluation failed")
     xn = out[:nx].copy()
     F = out[nx:k].copy().reshape(nx, nx)
-    P = F @ P @ F.T + Q
+    P = predict_covariance(P, F, Q)
     if valid:
         xin[:] = xn
         if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:

@@ -93,7 +93,14 @@ def last_block_covariance(X, D, E, lo, hi, ball_idx, ball_r2, tol, out):
             for k in range(j):
                 t -= Ln[j, k] * Li[k, c]
             Li[j, c] = t / Ln[j, j]
-    C = Li.T @ Li
+    C = np.empty((nx, nx))  # Li^T Li, written out (BLAS costs more in its call here)
+    for j in range(nx):
+        for k in range(j, nx):
+            s = 0.0
+            for a in range(k, nx):
+                s += Li[a, j] * Li[a, k]
+            C[j, k] = s
+            C[k, j] = s
     # fixed coordinates of the last node carry no variance (in the rotated frame)
     fixed = np.zeros(nx, dtype=np.bool_)
     Tn = np.eye(nx)

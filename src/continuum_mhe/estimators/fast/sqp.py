@@ -154,7 +154,24 @@ def _assemble(
     exact Newton term (:func:`_add_curvature`): ``wgt = m rho'``, ``extra = m (2 rho''
     - a)`` and ``gb = J_b^T R_b^-1 r_b``.
     """
-    n, nx = X.shape
+    nx = X.shape[1]
+    if nx == 4:
+        return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g,
+                               loss, wgt, extra, gb, stage, 4)  # fmt: skip
+    if nx == 8:
+        return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g,
+                               loss, wgt, extra, gb, stage, 8)  # fmt: skip
+    return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
+                           wgt, extra, gb, stage, nx)  # fmt: skip
+
+
+@numba.njit(cache=True, inline="always")
+def _assemble_sized(
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage, nx
+):
+    """:func:`_assemble` for state size ``nx`` (a constant where inlined with one: see
+    :data:`~.linalg.UNROLLED_SIZES`)."""
+    n = X.shape[0]
     D[:] = 0.0
     E[:] = 0.0
     g[:] = 0.0
