@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from continuum_mhe.estimators.fast.ccall import call_model
+from continuum_mhe.estimators.fast.linalg import cholesky, inverse_gram, mul, mul_t
 from continuum_mhe.estimators.fast.outputs import output_std, output_values
 
 
@@ -26,43 +27,47 @@ def arrival_update(x, P, r, H, R):
 
     Same equations as :func:`continuum_mhe.estimators.kalman.ekf_update`, with the
     residual ``r`` (nz,) and ``H = -dr/dx`` (nz, nx) from
-    :meth:`WindowModel.evaluate_node`.
+    :meth:`WindowModel.evaluate_node`. The gain from the Cholesky factor of the
+    innovation covariance ``S`` (LAPACK's solve where ``S`` is not positive definite);
+    the products written out (:func:`~.linalg.mul`).
     """
-    nx = P.shape[0]
-    S = H @ P @ H.T + R
-    K = np.linalg.solve(S, H @ P).T
-    ikh = np.eye(nx) - K @ H
-    return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
+    nx, nz = P.shape[0], R.shape[0]
+    HP = mul(H, P)
+    S = mul_t(HP, H)
+    for a in range(nz):
+        for b in range(nz):
+            S[a, b] += R[a, b]
+    Ls = cholesky(S)
+    if Ls.shape[0] == 0:
+        Kt = np.linalg.solve(S, HP)
+    else:
+        Kt = mul(inverse_gram(Ls), HP)  # S^-1 H P (nz, nx)
+    xn = x.copy()
+    ikh = np.empty((nx, nx))
+    for j in range(nx):
+        for a in range(nz):
+            xn[j] += Kt[a, j] * r[a]
+        for k in range(nx):
+            s = 1.0 if j == k else 0.0
+            for a in range(nz):
+                s -= Kt[a, j] * H[a, k]
+            ikh[j, k] = s
+    K = Kt.T.copy()
+    return xn, mul_t(mul(ikh, P), ikh) + mul_t(mul(K, R), K)
 
 
 @numba.njit(cache=True)
 def predict_covariance(P, F, Q):
-    """``F P F^T + Q`` (nx, nx), written out: for matrices this small an ``nx x nx``
-    product through BLAS costs more in its call than in its arithmetic. The EKF's and
-    the arrival prior's prediction."""
-    nx = P.shape[0]
-    fp = np.empty((nx, nx))
-    for j in range(nx):
-        for k in range(nx):
-            s = 0.0
-            for a in range(nx):
-                s += F[j, a] * P[a, k]
-            fp[j, k] = s
-    Pn = np.empty((nx, nx))
-    for j in range(nx):
-        for k in range(nx):
-            s = 0.0
-            for a in range(nx):
-                s += fp[j, a] * F[k, a]
-            Pn[j, k] = s + Q[j, k]
-    return Pn
+    """``F P F^T + Q`` (nx, nx), the products written out (:func:`~.linalg.mul`): the
+    EKF's and the arrival prior's prediction."""
+    return mul_t(mul(F, P), F) + Q
 
 
 @numba.njit(cache=True)
 def arrival_predict(P, F, Q):
     """EKF covariance prediction of the arrival prior: ``(P, P^-1)``, ``P = F P F^T + Q``
-    symmetrised; the inverse from the Cholesky factor (:func:`spd_inverse`), or LAPACK's
-    where ``P`` is not positive definite."""
+    symmetrised; the inverse from the Cholesky factor, or LAPACK's where ``P`` is not
+    positive definite."""
     Pn = predict_covariance(P, F, Q)
     nx = Pn.shape[0]
     for j in range(nx):
@@ -70,46 +75,10 @@ def arrival_predict(P, F, Q):
             m = 0.5 * (Pn[j, k] + Pn[k, j])
             Pn[j, k] = m
             Pn[k, j] = m
-    Pinv = spd_inverse(Pn)
-    if Pinv.shape[0] == 0:
-        Pinv = np.linalg.inv(Pn)
-    return Pn, Pinv
-
-
-@numba.njit(cache=True)
-def spd_inverse(A):
-    """``A^-1`` of a symmetric positive definite ``A`` (n, n) by Cholesky, symmetric; an
-    empty (0, 0) array if ``A`` is not positive definite."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        s = A[j, j]
-        for c in range(j):
-            s -= L[j, c] * L[j, c]
-        if not s > 0.0:
-            return np.empty((0, 0))
-        L[j, j] = np.sqrt(s)
-        for k in range(j + 1, n):
-            t = A[k, j]
-            for c in range(j):
-                t -= L[k, c] * L[j, c]
-            L[k, j] = t / L[j, j]
-    Li = np.zeros((n, n))  # L^-1, lower triangular
-    for c in range(n):
-        for j in range(c, n):
-            t = 1.0 if j == c else 0.0
-            for k in range(c, j):
-                t -= L[j, k] * Li[k, c]
-            Li[j, c] = t / L[j, j]
-    out = np.empty((n, n))  # L^-T L^-1
-    for j in range(n):
-        for k in range(j, n):
-            s = 0.0
-            for a in range(k, n):
-                s += Li[a, j] * Li[a, k]
-            out[j, k] = s
-            out[k, j] = s
-    return out
+    L = cholesky(Pn)
+    if L.shape[0] == 0:
+        return Pn, np.linalg.inv(Pn)
+    return Pn, inverse_gram(L)
 
 
 @numba.njit(cache=True)

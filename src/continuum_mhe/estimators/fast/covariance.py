@@ -23,7 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.estimators.fast.linalg import btd_factor, householder
+from continuum_mhe.estimators.fast.linalg import btd_factor, householder, inverse_gram, mul
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, WindowModel
 from continuum_mhe.estimators.fast.qp import _eqp
 from continuum_mhe.estimators.fast.sqp import Workspace, _assemble, _evaluate, stage_buffers
@@ -84,23 +84,7 @@ def last_block_covariance(X, D, E, lo, hi, ball_idx, ball_r2, tol, out):
         if not _eqp(D, E, np.zeros((n, nx)), wbox, wball, nrm, ball_idx, p, np.empty_like(D),
                     np.empty_like(E), b, L, M, T):  # fmt: skip
             return False
-    # (L_n L_n^T)^-1 = L_n^-T L_n^-1, from the inverse of the lower-triangular L_n
-    Ln = L[n - 1]
-    Li = np.zeros((nx, nx))
-    for c in range(nx):
-        for j in range(nx):
-            t = 1.0 if j == c else 0.0
-            for k in range(j):
-                t -= Ln[j, k] * Li[k, c]
-            Li[j, c] = t / Ln[j, j]
-    C = np.empty((nx, nx))  # Li^T Li, written out (BLAS costs more in its call here)
-    for j in range(nx):
-        for k in range(j, nx):
-            s = 0.0
-            for a in range(k, nx):
-                s += Li[a, j] * Li[a, k]
-            C[j, k] = s
-            C[k, j] = s
+    C = inverse_gram(L[n - 1])  # (L_n L_n^T)^-1
     # fixed coordinates of the last node carry no variance (in the rotated frame)
     fixed = np.zeros(nx, dtype=np.bool_)
     Tn = np.eye(nx)
@@ -123,7 +107,7 @@ def last_block_covariance(X, D, E, lo, hi, ball_idx, ball_r2, tol, out):
                 C[j, k] = 0.0
                 C[k, j] = 0.0
     if any_ball:  # x = T y with T symmetric and orthogonal
-        C = Tn @ C @ Tn
+        C = mul(mul(Tn, C), Tn)
     for j in range(nx):
         for k in range(nx):
             out[j, k] = 0.5 * (C[j, k] + C[k, j])

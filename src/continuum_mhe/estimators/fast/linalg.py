@@ -168,3 +168,77 @@ def householder(nrm, ball_idx, T):
         for k in range(nx):
             T[j, k] -= 2.0 * v[j] * v[k] / vv
     return piv
+
+
+@numba.njit(cache=True)
+def mul(A, B):
+    """``A @ B`` written out: for the few-by-few matrices of one node a BLAS call costs
+    more in the call than in its arithmetic (and its code evicts the caller's from the
+    caches)."""
+    m, k, n = A.shape[0], A.shape[1], B.shape[1]
+    out = np.empty((m, n))
+    for i in range(m):
+        for j in range(n):
+            s = 0.0
+            for a in range(k):
+                s += A[i, a] * B[a, j]
+            out[i, j] = s
+    return out
+
+
+@numba.njit(cache=True)
+def mul_t(A, B):
+    """``A @ B.T`` written out (see :func:`mul`)."""
+    m, k, n = A.shape[0], A.shape[1], B.shape[0]
+    out = np.empty((m, n))
+    for i in range(m):
+        for j in range(n):
+            s = 0.0
+            for a in range(k):
+                s += A[i, a] * B[j, a]
+            out[i, j] = s
+    return out
+
+
+@numba.njit(cache=True)
+def cholesky(A):
+    """Lower Cholesky factor of a symmetric positive definite ``A`` (n, n); an empty
+    (0, 0) array if ``A`` is not positive definite."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        s = A[j, j]
+        for c in range(j):
+            s -= L[j, c] * L[j, c]
+        if not s > 0.0:
+            return np.empty((0, 0))
+        L[j, j] = np.sqrt(s)
+        for k in range(j + 1, n):
+            t = A[k, j]
+            for c in range(j):
+                t -= L[k, c] * L[j, c]
+            L[k, j] = t / L[j, j]
+    return L
+
+
+@numba.njit(cache=True)
+def inverse_gram(L):
+    """``(L L^T)^-1 = L^-T L^-1`` (n, n), symmetric, for a lower-triangular ``L`` with a
+    nonzero diagonal."""
+    n = L.shape[0]
+    Li = np.zeros((n, n))  # L^-1, lower triangular
+    for c in range(n):
+        for j in range(c, n):
+            t = 1.0 if j == c else 0.0
+            for k in range(c, j):
+                t -= L[j, k] * Li[k, c]
+            Li[j, c] = t / L[j, j]
+    out = np.empty((n, n))
+    for j in range(n):
+        for k in range(j, n):
+            s = 0.0
+            for a in range(k, n):
+                s += Li[a, j] * Li[a, k]
+            out[j, k] = s
+            out[k, j] = s
+    return out
