@@ -1,0 +1,39 @@
+"""The fast MHE's estimator step against the compiled EKF's, in one process.
+
+The two ``continuum-mhe benchmark`` rows that issue 11's target compares (``fast`` and
+``ekf-compiled``, with ``mhe-kernel`` and ``ekf-kernel`` beside them), timed as the
+benchmark times them (:func:`~continuum_mhe.benchmark._cheap_runs`, rounds in turn,
+each sample's median over the rounds) on its 40 s ``paper3d`` recording, without IPOPT
+and do-mpc, so that the ratio can be measured again in a few seconds::
+
+    python tools/estimator_ratio.py          # N = 30, 5 rounds
+    python tools/estimator_ratio.py 30 9
+
+Prints the medians from sample N on (us) and ``fast / ekf-compiled``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from continuum_mhe.benchmark import _cheap_runs, _interleaved
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.simulation.scenarios import simulate
+
+
+def main() -> None:
+    horizon = int(sys.argv[1]) if len(sys.argv) > 1 else 30
+    rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 5
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=40, noise_deg=2.0, seed=0)
+    runs = _cheap_runs(f, rec, horizon, ("fast", "mhe-kernel", "ekf-compiled", "ekf-kernel"))
+    got = _interleaved(runs, rounds)
+    med = {name: float(np.median(r[1][horizon:])) * 1e6 for name, r in got.items()}
+    shown = ", ".join(f"{name} {us:.1f} us" for name, us in med.items())
+    print(f"N = {horizon}: {shown}; fast / ekf-compiled {med['fast'] / med['ekf-compiled']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
