@@ -23,10 +23,12 @@ from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
 
-def recovery_estimators(recovery: RecoverySettings) -> list[Estimator]:
-    """Compiled EKF, CasADi EKF, UKF, fast MHE and IPOPT MHE (N = 10) on the default
-    bend formulation, all with ``recovery``."""
-    f = BendFormulation()
+def recovery_estimators(
+    recovery: RecoverySettings, f: Formulation | None = None
+) -> list[Estimator]:
+    """Compiled EKF, CasADi EKF, UKF, fast MHE and IPOPT MHE (N = 10) on ``f`` (the
+    default bend formulation when None), all with ``recovery``."""
+    f = BendFormulation() if f is None else f
     out: list[Estimator] = [
         make_estimator("ekf", f, recovery=recovery),
         ExtendedKalmanFilter(f),

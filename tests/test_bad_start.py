@@ -6,11 +6,17 @@ on both backends) restarts exactly once, at sample 11 (the second inconsistent r
 and is within 1 cm from there on, while without the check the filters overshoot for
 several samples. On clean data the check never fires and every estimate is bit-for-bit
 the one without it.
+
+An IMU back after a silence (two-section robot, ``spatial``): no estimate after its
+return is ``ok`` more than 5 of its own standard deviations off, with the check off (the
+estimate is held ``uncertain`` until the returned readings agree with it) and on (it
+also restarts the EKF from the returned reading).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,9 +27,11 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.start_check import SAMPLES
 from continuum_mhe.io.csv_files import write_measurements
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
 from continuum_mhe.settings import RecoverySettings
-from continuum_mhe.simulation.scenarios import simulate
+from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 IDS = ["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"]
 FIRST_GOOD = 10  # samples 0-9 (t < 0.5 s at 20 Hz) are off
@@ -94,7 +102,6 @@ def test_bad_start_option(tmp_path, capsys) -> None:
 def test_not_checked_where_the_covariance_is_a_weight(monkeypatch) -> None:
     """The paper formulation's W is a weight, not a noise model: its NIS is not a test."""
     from continuum_mhe.estimators.start_check import StartCheck
-    from continuum_mhe.model.registry import make_formulation
 
     def never(*args, **kwargs):
         raise AssertionError("the bad-start check ran")
@@ -105,3 +112,77 @@ def test_not_checked_where_the_covariance_is_a_weight(monkeypatch) -> None:
     assert "reset" not in set(est.run(rec.t, z).status) and est.bad_starts == 0
     with pytest.raises(AssertionError, match="check ran"):  # the bend formulation is checked
         estimators(RecoverySettings(bad_start=2))[0].run(rec.t, z)
+
+
+# --- an IMU back after a silence --------------------------------------------------------
+TWO_SECTIONS = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
+#: ``(seed, silent IMU, from t s, for s)`` on the two-section ``spatial`` scenario. Before,
+#: after the return, ``ok`` estimates were up to (tip error / its own standard deviation):
+#: tip IMU 3 s: EKF 33 (119 mm); middle IMU 3 s: EKF 9.7, UKF 15; tip IMU 2 s: MHE 41.
+SILENCES = [(1, 1, 8.0, 3.0), (0, 0, 6.0, 3.0), (5, 1, 10.0, 2.0)]
+SIGMAS = 5.0  # no "ok" estimate may be further off than this many of its own std
+
+
+def silent_imu_recording(seed: int, imu: int, t0: float, seconds: float):
+    """Two-section ``spatial`` recording, one IMU NaN from ``t0`` for ``seconds``, cut
+    2 s after its return; returns ``(formulation, t, z, truth)``."""
+    robot = read_robot(TWO_SECTIONS)
+    rec = simulate_robot("spatial", robot, duration=20.0, dt=0.05, seed=seed)
+    keep = rec.t < t0 + seconds + 2.0
+    t, z, truth = rec.t[keep], rec.z[keep].copy(), rec.truth[keep]
+    z[(t >= t0) & (t < t0 + seconds), 2 * imu : 2 * imu + 2] = np.nan
+    return make_formulation("bend", robot), t, z, truth
+
+
+def sigmas_off(s, truth) -> np.ndarray:
+    """Tip error of each estimate in units of its own tip standard deviation."""
+    err = np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1)
+    return err / np.linalg.norm(s.output_std[:, :3], axis=1)
+
+
+@pytest.mark.parametrize("silence", SILENCES, ids=["tip-3s", "middle-3s", "tip-2s"])
+@pytest.mark.parametrize("index", range(5), ids=IDS)
+def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> None:
+    """Before: an IMU back after more than the gap reset (1 s, also when it is off)
+    without a reading gave ``ok`` estimates up to 143 standard deviations off (EKF; UKF
+    30, MHE 41; 120 returns, tools/imu_return_study.py): the EKF's first update with it
+    can land far off with a small covariance. Now the estimate is ``uncertain`` until
+    the returned IMU's readings have agreed with it for as long (library default:
+    flagged, no restart)."""
+    f, t, z, truth = silent_imu_recording(*silence)
+    est = recovery_estimators(RecoverySettings(), f)[index]
+    s = est.run(t, z)
+    assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
+    back = t >= silence[2] + silence[3]
+    assert s.status[back][0] in ("uncertain", "reset") and est.bad_starts == 0
+    if index < 3:  # the filters are confirmed within the 2 s; the MHE (N = 10) is not
+        assert s.status[-1] == "ok"  # after tip-2s: 38 mm, 6.6 std off, readings disagree
+
+
+@pytest.mark.parametrize("index", range(5), ids=IDS)
+def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) -> None:
+    """With ``bad_start`` the check reopens when the IMU returns: the EKF, 33 standard
+    deviations off, restarts from the reading two samples later (0.4 s earlier than
+    its own divergence check did) and is within 1.5 cm from there on; the same
+    recording without the silence gets no status but ``ok``."""
+    f, t, z, truth = silent_imu_recording(*SILENCES[0])
+    est = recovery_estimators(RecoverySettings(gap_reset=1.0, bad_start=2.0), f)[index]
+    s = est.run(t, z)
+    assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
+    back = np.flatnonzero(t >= 11.0)[0]
+    if index < 2:  # the EKFs: inconsistent at back + 1 and back + 2
+        assert list(np.flatnonzero(s.status == "reset")) == [back + SAMPLES] and est.bad_starts == 1
+        tip = np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1)
+        assert tip[back + SAMPLES :].max() < 0.015
+    _, t, z, _ = silent_imu_recording(1, 1, 11.0, 0.0)  # the same, without the silence
+    assert set(est.run(t, z).status) == {"ok"}
+
+
+def test_an_imu_that_reports_only_later_is_confirmed_as_one_back() -> None:
+    """An IMU that never reported before counts from the recording's first reading: the
+    tip IMU first reporting at 3 s is held ``uncertain`` until its readings agreed."""
+    f, t, z, truth = silent_imu_recording(1, 1, 0.0, 3.0)
+    s = make_estimator("ekf", f).run(t, z)
+    first = np.flatnonzero(t >= 3.0)[0]
+    assert set(s.status[: first + 1]) == {"uncertain"}
+    assert s.status[-1] == "ok" and sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS

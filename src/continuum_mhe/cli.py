@@ -223,7 +223,10 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     if est.gap_resets:
         msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
     if est.bad_starts:
-        msg += f"; restarted {est.bad_starts} time(s) after readings inconsistent with the start"
+        msg += (
+            f"; restarted {est.bad_starts} time(s) after readings inconsistent with the "
+            "start or an IMU's return"
+        )
     if est.reject_resets:
         msg += (
             f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "

@@ -186,11 +186,15 @@ class RecoverySettings:
             one included) that can be a freeze (default :data:`FREEZE_MIN_SAMPLES`);
             the duration alone is not enough: two equal readings 60 s apart are a gap in
             the data, not a sensor seen to be stuck.
-        bad_start: for this long (s) after each (re)start, ``SAMPLES`` consecutive readings
-            inconsistent with the estimate (normalised innovation beyond a chi-square
-            quantile; :mod:`continuum_mhe.estimators.start_check`) restart the
-            estimator from the current reading (status ``reset``); None: never (the
-            library's default; command line ``--bad-start``, default 2 s).
+        bad_start: for this long (s) after each (re)start, and after each return of an
+            IMU silent for longer than ``gap_reset`` (1 s when it is off), ``SAMPLES``
+            consecutive readings inconsistent with the estimate (normalised innovation
+            beyond a chi-square quantile; :mod:`continuum_mhe.estimators.start_check`)
+            restart the estimator from the current reading (status ``reset``); None:
+            never (the library's default; command line ``--bad-start``, default 2 s).
+            Either way an estimate after such a return is ``uncertain`` until the
+            returned IMU's readings have agreed with it for as long as that silence
+            threshold.
         reject_reset: a robust MHE (``MHESettings.loss`` not ``l2``) whose newest reading
             was rejected as an outlier at every sample for longer than this (s)
             restarts from the next valid reading (status ``reset``): readings that

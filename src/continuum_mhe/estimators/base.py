@@ -101,6 +101,7 @@ class Estimator(ABC):
         #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
         #: gap reset no longer observe their part of the shape
         self._imu_last_valid: list[float] = []
+        self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
         self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
@@ -133,7 +134,8 @@ class Estimator(ABC):
         #: the first freeze of each sensor, in the order they happened: measurement
         #: block index -> ``t`` (s) of the first of its repeated readings
         self.first_freezes: dict[int, float] = {}
-        #: times it restarted after a bad start (``recovery.bad_start``)
+        #: times it restarted after a bad start (``recovery.bad_start``), the start of
+        #: an IMU back from a silence included
         self.bad_starts = 0
         #: times a robust MHE restarted after rejecting every reading for longer than
         #: ``recovery.reject_reset``
@@ -157,6 +159,8 @@ class Estimator(ABC):
         self._freeze_count = [0] * len(self.formulation.measurement_blocks)
         self._freeze_last_t = [-math.inf] * len(self.formulation.measurement_blocks)
         self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._first_valid_t = -math.inf
+        self._start_check.reset()
         self._restart()
 
     def _restart(self) -> None:
@@ -241,7 +245,8 @@ class Estimator(ABC):
         frozen longer than ``freeze`` s (over ``freeze_samples`` samples or more) counts
         as dropped out; the first valid sample after more than ``gap_reset`` s without
         one restarts the estimator the same way (``reset``), and so do readings
-        inconsistent with the estimate within ``bad_start`` s of a (re)start
+        inconsistent with the estimate within ``bad_start`` s of a (re)start or of an
+        IMU's return after a silence of more than ``gap_reset`` (1 s when it is off)
         (:mod:`.start_check`) and, for a robust MHE, a valid reading after every reading
         of more than ``reject_reset`` s was rejected as an outlier (the estimate, not
         the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
@@ -249,8 +254,10 @@ class Estimator(ABC):
         every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
         (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
-        not (an IMU silent for longer: its part of the shape is predicted blindly). The
-        estimate carries ``output_std`` wherever the method has a covariance.
+        not (an IMU silent for longer: its part of the shape is predicted blindly), or
+        after such an IMU's return until its readings have agreed with the estimate for
+        as long (whether ``bad_start`` is set or not). The estimate carries
+        ``output_std`` wherever the method has a covariance.
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
@@ -294,19 +301,18 @@ class Estimator(ABC):
         if gap is not None and mask.any():
             gap_reset = -math.inf < self._last_valid_t < t - gap
             self._last_valid_t = t
-        observed = self._observed_now(t, mask)
+        back = self._note_imus(t, mask)
+        observed = self._observed_now(t)
         if gap_reset:  # restart from this sample instead of a blind prediction
             self.gap_resets += 1
             self._restart()
+        elif back is not None and self._checks_start:
+            # their part of the shape was predicted blindly: check it as after a start
+            self._start_check.reopen(back, self.recovery.gap_reset or UNOBSERVED_AFTER)
         bad_start = False
         window = self.recovery.bad_start
-        check_start = (
-            window is not None
-            and self._checks_start
-            and self._start_check.watching(t, window)
-        )
+        check_start = self._checks_start and self._start_check.watching(t, window)
         if check_start:
-            assert window is not None
             bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
             if bad_start:  # the start was wrong: restart from this reading
                 self.bad_starts += 1
@@ -349,6 +355,8 @@ class Estimator(ABC):
             status = "drifted"
         if status in TRUSTED and not observed:
             status = "uncertain"  # the data do not determine the shape
+        elif status in TRUSTED and self._start_check.unconfirmed:
+            status = "uncertain"  # an IMU is back and no reading has confirmed the estimate
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None
@@ -376,19 +384,33 @@ class Estimator(ABC):
             return None
         return freeze_notice(dict(list(self.first_freezes.items())[before:]), freeze)
 
-    def _observed_now(self, t: float, mask: FloatArray) -> bool:
+    def _note_imus(self, t: float, mask: FloatArray) -> NDArray[np.intp] | None:
+        """Update each IMU's last valid time from ``mask`` (nz,) and return the
+        measurement rows of the IMUs back at ``t`` after more than the gap reset (1 s
+        when it is off) without a valid reading (never having reported counts from the
+        recording's first valid reading), or None if none is."""
+        if self._first_valid_t == -math.inf and mask.any():
+            self._first_valid_t = t
+        window = self.recovery.gap_reset or UNOBSERVED_AFTER
+        last, back = self._imu_last_valid, None
+        for k, b in enumerate(self.formulation.measurement_blocks):
+            if mask[b.start] > 0.0:
+                if t - max(last[k], self._first_valid_t) > window:
+                    rows = np.arange(b.start, b.start + b.size)
+                    back = rows if back is None else np.concatenate([back, rows])
+                last[k] = t
+        return back
+
+    def _observed_now(self, t: float) -> bool:
         """Whether the IMUs that reported within the gap reset (1 s when it is off) up to
-        ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`); updates
-        each IMU's last valid time from ``mask`` (nz,)."""
+        ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`), from
+        each IMU's last valid time (:meth:`_note_imus`)."""
         if not self.shape_observable:
             return False
         blocks = self.formulation.measurement_blocks
         if len(blocks) == 1:
             return True  # its silence is the whole robot's gap
         last = self._imu_last_valid
-        for k, b in enumerate(blocks):
-            if mask[b.start] > 0.0:
-                last[k] = t
         window = self.recovery.gap_reset or UNOBSERVED_AFTER
         recent = tuple(k for k in range(len(blocks)) if t - last[k] <= window)
         if len(recent) == len(blocks) or not recent:
