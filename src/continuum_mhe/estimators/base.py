@@ -102,6 +102,10 @@ class Estimator(ABC):
         #: gap reset no longer observe their part of the shape
         self._imu_last_valid: list[float] = []
         self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
+        #: per IMU ``k``, ``(k, start, stop)`` of its measurement rows
+        self._imu_rows = [
+            (k, b.start, b.start + b.size) for k, b in enumerate(formulation.measurement_blocks)
+        ]
         self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
@@ -389,14 +393,17 @@ class Estimator(ABC):
         measurement rows of the IMUs back at ``t`` after more than the gap reset (1 s
         when it is off) without a valid reading (never having reported counts from the
         recording's first valid reading), or None if none is."""
-        if self._first_valid_t == -math.inf and mask.any():
-            self._first_valid_t = t
+        first = self._first_valid_t
+        if first == -math.inf:
+            if not mask.any():
+                return None
+            first = self._first_valid_t = t
         window = self.recovery.gap_reset or UNOBSERVED_AFTER
         last, back = self._imu_last_valid, None
-        for k, b in enumerate(self.formulation.measurement_blocks):
-            if mask[b.start] > 0.0:
-                if t - max(last[k], self._first_valid_t) > window:
-                    rows = np.arange(b.start, b.start + b.size)
+        for k, start, stop in self._imu_rows:  # plain Python: this runs on every sample
+            if mask[start] > 0.0:
+                if t - last[k] > window and t - first > window:
+                    rows = np.arange(start, stop)
                     back = rows if back is None else np.concatenate([back, rows])
                 last[k] = t
         return back
