@@ -412,9 +412,10 @@ def test_arrival_step_is_the_ekf_step() -> None:
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
 
 
-def test_block_tridiagonal_solve_matches_dense() -> None:
+@pytest.mark.parametrize("nx", [3, 4, 8])  # 4 and 8 run their own unrolled copies
+def test_block_tridiagonal_solve_matches_dense(nx: int) -> None:
     rng = np.random.default_rng(0)
-    n, nx = 7, 3
+    n = 7
     A = rng.normal(size=(n * nx + 5, n * nx)) * (np.abs(np.subtract.outer(
         np.arange(n * nx + 5) // nx, np.arange(n * nx) // nx)) <= 1)  # fmt: skip
     H = A.T @ A + np.eye(n * nx)
@@ -428,6 +429,34 @@ def test_block_tridiagonal_solve_matches_dense() -> None:
     np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-10)
     D[2] = -np.eye(nx)
     assert not linalg.btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
+
+
+def test_small_dense_kernels_match_numpy() -> None:
+    """The written-out products, Cholesky and inverse against numpy, and the EKF update
+    and prediction on the LAPACK path where the matrix is not positive definite."""
+    rng = np.random.default_rng(3)
+    A, B = rng.normal(size=(3, 5)), rng.normal(size=(5, 4))
+    np.testing.assert_allclose(linalg.mul(A, B), A @ B, rtol=1e-13)
+    np.testing.assert_allclose(linalg.mul_t(A, B.T), A @ B, rtol=1e-13)
+    G = rng.normal(size=(5, 5))
+    S = G @ G.T + np.eye(5)
+    L = linalg.cholesky(S)
+    np.testing.assert_allclose(L, np.linalg.cholesky(S), rtol=1e-12)
+    np.testing.assert_allclose(linalg.inverse_gram(L), np.linalg.inv(S), rtol=1e-10)
+    assert linalg.cholesky(-S).shape == (0, 0)
+    nx, nz = 4, 2
+    P, H = np.diag([1.0, 2.0, 3.0, 4.0]), rng.normal(size=(nz, nx))
+    R, r, x = -10.0 * np.eye(nz), rng.normal(size=nz), rng.normal(size=nx)  # S indefinite
+    xu, Pu = fm.arrival_update(x, P, r, H, R)
+    K = np.linalg.solve(H @ P @ H.T + R, H @ P).T
+    ikh = np.eye(nx) - K @ H
+    np.testing.assert_allclose(xu, x + K @ r, rtol=1e-10)
+    np.testing.assert_allclose(Pu, ikh @ P @ ikh.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
+    F, Q = rng.normal(size=(nx, nx)), -100.0 * np.eye(nx)  # F P F^T + Q not PD
+    Pn, Pinv = fm.arrival_predict(P, F, Q)
+    ref = F @ P @ F.T + Q
+    np.testing.assert_allclose(Pn, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(Pinv, np.linalg.inv(Pn), rtol=1e-10)
 
 
 def test_box_qp_matches_bounded_least_squares() -> None:

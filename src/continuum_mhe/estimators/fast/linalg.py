@@ -4,6 +4,15 @@ The window Hessian is symmetric block-tridiagonal, ``H = (D, E)`` with diagonal 
 ``D`` (n, nx, nx) and super-diagonal blocks ``E`` (n-1, nx, nx) (``E_i`` couples node
 ``i`` with node ``i+1``): its product with a vector, its Cholesky solve in
 ``O(n nx^3)``, and the Householder reflection that eliminates one linearised ball.
+
+The factorisation and its substitutions (and :func:`~.sqp._assemble`) are compiled
+once more for each of the block sizes 4 and 8 (one and two sections of the ``bend``
+model): their bodies are inlined with ``nx`` a constant, so the compiler unrolls the
+``nx``-loops (about 1.5x faster at 4); any other size runs the same code with ``nx``
+read from the arrays. Small dense products (:func:`mul`, :func:`mul_t`,
+:func:`cholesky`, :func:`inverse_gram`) are written out: on few-by-few matrices a BLAS
+or LAPACK call costs more than its arithmetic, and its code evicts the caller's from
+the caches.
 """
 
 from __future__ import annotations
@@ -26,13 +35,6 @@ def matvec(D, E, v, out):
                 if i > 0:
                     s += E[i - 1, k, j] * v[i - 1, k]
             out[i, j] = s
-
-
-#: Block sizes ``nx`` with their own compiled copy of the block-tridiagonal Cholesky:
-#: with the size a constant the compiler unrolls the ``nx``-loops (one robot section,
-#: ``bend``: 4, about 1.5x faster; two sections: 8); any other size runs the same code
-#: with the size read from the arrays.
-UNROLLED_SIZES = (4, 8)
 
 
 @numba.njit(cache=True, inline="always")
@@ -125,23 +127,25 @@ def btd_factor(D, E, L, M):
 
 
 @numba.njit(cache=True)
+def substitute(L, M, rd, b, y):
+    """``y = H^-1 b`` from :func:`factor_into`'s ``L``, ``M`` and ``rd``."""
+    nx = b.shape[1]
+    if nx == 4:
+        _substitute(L, M, rd, b, y, 4)
+    elif nx == 8:
+        _substitute(L, M, rd, b, y, 8)
+    else:
+        _substitute(L, M, rd, b, y, nx)
+
+
+@numba.njit(cache=True)
 def btd_solve(D, E, b, L, M, y):
     """Solve ``H y = b`` by block-tridiagonal Cholesky ``H = L L^T`` (:func:`factor_into`,
     into ``L`` and ``M``); False if not PD."""
-    n, nx = b.shape
-    rd = np.empty((n, nx))
-    if nx == 4:
-        if not _factor(D, E, L, M, rd, 4):
-            return False
-        _substitute(L, M, rd, b, y, 4)
-    elif nx == 8:
-        if not _factor(D, E, L, M, rd, 8):
-            return False
-        _substitute(L, M, rd, b, y, 8)
-    else:
-        if not _factor(D, E, L, M, rd, nx):
-            return False
-        _substitute(L, M, rd, b, y, nx)
+    rd = np.empty(b.shape)
+    if not factor_into(D, E, L, M, rd):
+        return False
+    substitute(L, M, rd, b, y)
     return True
 
 

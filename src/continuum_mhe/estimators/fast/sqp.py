@@ -170,7 +170,7 @@ def _assemble_sized(
     X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage, nx
 ):
     """:func:`_assemble` for state size ``nx`` (a constant where inlined with one: see
-    :data:`~.linalg.UNROLLED_SIZES`)."""
+    :mod:`.linalg`)."""
     n = X.shape[0]
     D[:] = 0.0
     E[:] = 0.0
