@@ -311,6 +311,114 @@ def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place)
     assert_allclose(ws.out[0], fresh, rtol=1e-14, atol=1e-15)
 
 
+def test_rows_move_as_numpy_moves_them() -> None:
+    """:func:`~continuum_mhe.estimators.fast.memory.shift_rows` (one ``memmove``) moves
+    rows as numpy's slice assignment does, within one array in either direction (the
+    ranges overlap), between two, for other dtypes, and refuses rows out of range."""
+    import numba
+
+    from continuum_mhe.estimators.fast.memory import move, shift_rows
+
+    @numba.njit
+    def moved(dst, at, src, src_at, count):
+        move(dst, at, src, src_at, count)
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(9, 3, 2))
+    want = a.copy()
+    want[1:7] = a[2:8].copy()
+    shift_rows(a, a, 1, 7)
+    assert np.array_equal(a, want)
+    b, c = rng.normal(size=(5, 4)), rng.normal(size=(6, 4))
+    want = b.copy()
+    want[0:5] = c[1:6]
+    shift_rows(b, c, 0, 5)
+    assert np.array_equal(b, want)
+    k = np.arange(12, dtype=np.int64).reshape(6, 2)
+    shift_rows(k, k, 0, 5)
+    assert k.ravel().tolist() == [*range(2, 12), 10, 11]
+    x = np.arange(10.0)
+    moved(x, 2, x, 0, 7)  # towards the end: overlapping the other way
+    assert x.tolist() == [0, 1, *range(0, 7), 9]
+    with pytest.raises(IndexError):
+        shift_rows(b, c, 0, 6)
+
+
+@pytest.mark.parametrize(
+    ("robot", "loss", "linear", "in_place", "arrival_at"),
+    [
+        (None, "l2", True, True, 0),
+        (None, "cauchy", False, False, 0),
+        (TWO, "huber", True, False, 0),
+        (TWO, "l2", False, True, 0),
+        (None, "l2", True, False, 1),  # a window not yet full: the whole assembly runs
+    ],
+)
+def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arrival_at) -> None:
+    """:func:`_assemble_shifted` (the previous window's assembly moved by one node, node
+    0, the last stage and the last node formed) gives the same bits as the whole
+    assembly at the shifted iterate: blocks, gradient, robust weights, node costs and
+    cost, dropouts, robust losses, two sections and stage products carried or formed
+    included."""
+    from continuum_mhe.estimators.fast import build_window_model
+    from continuum_mhe.estimators.fast.sqp import (
+        Workspace,
+        _assemble_outputs,
+        _assemble_shifted_outputs,
+        stage_buffers,
+    )
+    from continuum_mhe.estimators.loss import LOSS_CODES
+
+    f = make_formulation("bend") if robot is None else make_formulation("bend", robot)
+    n, nx, nz = 7, f.nx, f.nz
+    model = build_window_model(f, n)
+    lossk = model.loss._replace(code=LOSS_CODES[loss], scale=1.5)
+    ws = Workspace(model)
+    rng = np.random.default_rng(11)
+    X = rng.normal(scale=0.3, size=(n + 1, nx))
+    z = rng.normal(scale=0.3, size=(n + 1, nz))
+    m = (rng.random((n + 1, nz)) > 0.2).astype(float)
+    m[3] = 0.0  # a node without any reading
+    u = rng.normal(size=(n, f.nu))
+    dt = rng.uniform(0.01, 0.1, size=n)
+    A = rng.normal(size=(n, nx, nx))
+    qinv = np.einsum("sij,skj->sik", A, A) + np.eye(nx)
+
+    def assembled(lo: int, b: int, stage, shift_from=None) -> tuple:
+        ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
+        ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
+        assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
+        arrival = np.zeros((n, nx, nx))
+        arrival[arrival_at] = qinv[lo] + lo * np.eye(nx)  # each window its own prior
+        xbar = X[lo] + 0.1 * (lo + 1)
+        nodes = np.any(ws.m != 0.0, axis=1).astype(float)
+        args = (ws.out[b], ws.Xb[b], nodes, model.rinv, np.ascontiguousarray(qinv[lo : lo + n - 1]),
+                xbar, arrival, ws.D[b], ws.E[b], ws.g[b], lossk, ws.wgt[b], ws.extra[b],
+                ws.gb[b], ws.ncost[b], stage)  # fmt: skip
+        if shift_from is None:
+            cost = _assemble_outputs(*args)
+        else:
+            a = shift_from
+            prev = (ws.Dgn[a], ws.E[a], ws.g[a], ws.wgt[a], ws.extra[a], ws.gb[a], ws.ncost[a])
+            cost = _assemble_shifted_outputs(*args, prev)
+        return (cost, ws.D[b].copy(), ws.E[b].copy(), ws.g[b].copy(), ws.wgt[b].copy(),
+                ws.extra[b].copy(), ws.gb[b].copy(), ws.ncost[b].copy())  # fmt: skip
+
+    full = assembled(1, 0, stage_buffers(n, nx, linear))
+    src = 0 if in_place else 1
+    stage = stage_buffers(n, nx, linear)
+    assembled(0, src, stage)
+    ws.Dgn[src] = ws.D[src]  # the SQP keeps the Gauss-Newton blocks there
+    if linear:  # the stage products move with the window, the new one is formed
+        for a in stage:
+            a[:-1] = a[1:].copy()
+        stage[0][-1] = 0
+    shifted = assembled(1, 0, stage, shift_from=src)
+    assert shifted[0] == full[0] and np.isfinite(full[0])
+    for got, want in zip(shifted[1:], full[1:]):
+        assert np.array_equal(got, want)
+
+
 @pytest.mark.parametrize(("options", "reused"), [({}, True), ({"branch_check": True}, False)])
 def test_the_next_window_starts_from_the_kept_linearisation_only_when_final(
     options, reused

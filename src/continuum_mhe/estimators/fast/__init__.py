@@ -43,6 +43,7 @@ Modules (one responsibility each):
 * :mod:`~continuum_mhe.estimators.fast.qp`: the active-set QP and the projection.
 * :mod:`~continuum_mhe.estimators.fast.sqp`: assembly, SQP, :func:`solve_window`.
 * :mod:`~continuum_mhe.estimators.fast.arrival`: the EKF step of the arrival prior.
+* :mod:`~continuum_mhe.estimators.fast.memory`: moving a window's rows (one ``memmove``).
 """
 
 from __future__ import annotations

@@ -149,7 +149,7 @@ def window_covariance(
     cost = _evaluate(
         ws.window, ws.ptrs[0], ws.out[0], ws.Xb[0], node_mask, model.rinv, problem.qinv,
         problem.xbar, problem.arrival, D, E, g, model.loss, ws.wgt[0], ws.extra[0], ws.gb[0],
-        ws.stage,
+        ws.ncost[0], ws.stage,
     )  # fmt: skip
     if not np.isfinite(cost):
         return None
@@ -199,7 +199,7 @@ def casadi_window_covariance(
         Xc, R, JR, W, FJ, node_mask, rinv, np.ascontiguousarray(problem.qinv, float),
         np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), D, E, g,
         loss, np.empty((n, nblk)), np.empty((n, nblk)),
-        np.empty((n, nblk, nx)), stage_buffers(n, nx, False),
+        np.empty((n, nblk, nx)), np.empty(n), stage_buffers(n, nx, False),
     )  # fmt: skip
     out = np.empty((nx, nx))
     ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out)

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.fast.ccall import address, call_model
+from continuum_mhe.estimators.fast.memory import move, shift_rows
 from continuum_mhe.estimators.fast.model import WindowModel
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
@@ -136,15 +137,18 @@ def stage_buffers(
 
 @numba.njit(cache=True)
 def _assemble(
-    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
-):
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
+    stage,
+):  # fmt: skip
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
     gradient ``g`` and the cost (the balls' curvature: :func:`_add_balls`).
 
     ``stage``: the process stages' constant products (:func:`stage_buffers`), used when
     present (an affine transition); else they are formed here. An arrival block whose
     diagonal is zero is skipped: the arrival weights are positive semidefinite, so the
-    whole block is zero.
+    whole block is zero. ``ncost`` (n,) receives each node's cost (its measurement,
+    arrival and outgoing stage terms, in that order); the cost is their sum in node
+    order, so that :func:`_assemble_shifted` gives the same bits.
 
     Measurement block ``b`` of node ``i`` (``loss.blocks``; ``R`` block-diagonal)
     costs ``1/2 rho(s)``, ``s = r_b^T R_b^-1 r_b``: gradient ``rho' J_b^T R_b^-1 r_b``
@@ -154,28 +158,50 @@ def _assemble(
     exact Newton term (:func:`_add_curvature`): ``wgt = m rho'``, ``extra = m (2 rho''
     - a)`` and ``gb = J_b^T R_b^-1 r_b``.
     """
+    return _assemble_nodes(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
+                           wgt, extra, gb, ncost, stage, False)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _assemble_nodes(
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
+    stage, shifted,
+):  # fmt: skip
+    """:func:`_assemble_sized` at the state size of ``X``."""
     nx = X.shape[1]
     if nx == 4:
         return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g,
-                               loss, wgt, extra, gb, stage, 4)  # fmt: skip
+                               loss, wgt, extra, gb, ncost, stage, 4, shifted)  # fmt: skip
     if nx == 8:
         return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g,
-                               loss, wgt, extra, gb, stage, 8)  # fmt: skip
+                               loss, wgt, extra, gb, ncost, stage, 8, shifted)  # fmt: skip
     return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
-                           wgt, extra, gb, stage, nx)  # fmt: skip
+                           wgt, extra, gb, ncost, stage, nx, shifted)  # fmt: skip
 
 
 @numba.njit(cache=True, inline="always")
 def _assemble_sized(
-    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage, nx
-):
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
+    stage, nx, shifted,
+):  # fmt: skip
     """:func:`_assemble` for state size ``nx`` (a constant where inlined with one: see
-    :mod:`.linalg`)."""
+    :mod:`.linalg`); with ``shifted``, only what :func:`_assemble_shifted` forms: node
+    0 without its stage's terms of node 1, the last stage, then the last node.
+
+    One body for both, in one order of additions (the helpers a loop would call cost
+    more than the shift saves: their arguments' reference counts): node ``i``'s block
+    is its incoming stage's, then its measurement's, arrival's and outgoing stage's
+    terms, and its cost the sum of its measurement's, arrival's and outgoing stage's.
+    """
     n = X.shape[0]
-    D[:] = 0.0
-    E[:] = 0.0
-    g[:] = 0.0
-    cost = 0.0
+    if shifted:
+        for i in (0, n - 1):
+            D[i] = 0.0
+            g[i] = 0.0
+    else:
+        D[:] = 0.0
+        E[:] = 0.0
+        g[:] = 0.0
     blocks, code, scale = loss.blocks, loss.code, loss.scale
     nblk = blocks.shape[0]
     wr = np.empty(R.shape[1])
@@ -187,12 +213,24 @@ def _assemble_sized(
     pre = done.shape[0] > 0
     eql = np.empty((nx, nx))
     fqfl = np.empty((nx, nx))
-    for i in range(n):
+    for node in range(3 if shifted else n):
+        i = node
+        measured = True  # node i's measurement and arrival terms are formed
+        push = True  # stage i's terms of node i + 1 are added
+        if shifted:
+            i = (0, n - 2, n - 1)[node]
+            measured = i != n - 2  # node N-2 is the previous window's node N-1
+            push = i != 0  # node 1 came with them
         m = zmask[i]
-        for bk in range(nblk):
-            wgt[i, bk] = 0.0
-            extra[i, bk] = 0.0
-            gb[i, bk, :] = 0.0
+        cost = 0.0
+        if not measured:
+            cost = ncost[i]
+            m = 0.0
+        else:
+            for bk in range(nblk):
+                wgt[i, bk] = 0.0
+                extra[i, bk] = 0.0
+                gb[i, bk, :] = 0.0
         if m != 0.0:
             for bk in range(nblk):
                 b0, nb_ = blocks[bk, 0], blocks[bk, 1]
@@ -230,7 +268,7 @@ def _assemble_sized(
         weighted = False
         for j in range(nx):
             e[j] = X[i, j] - xbar[j]
-            weighted = weighted or arrival[i, j, j] != 0.0
+            weighted = weighted or (measured and arrival[i, j, j] != 0.0)
         if weighted:
             for j in range(nx):
                 s = 0.0
@@ -257,16 +295,55 @@ def _assemble_sized(
                 for a in range(nx):
                     s += FJ[i, a, j] * qw[a]
                 g[i, j] -= s
-                g[i + 1, j] += qw[j]
                 for k in range(nx):
                     E[i, j, k] = eqi[j, k]
                 for k in range(j, nx):
                     D[i, j, k] += fqfi[j, k]
-                    D[i + 1, j, k] += qinv[i, j, k]
+                if push:
+                    g[i + 1, j] += qw[j]
+                    for k in range(j, nx):
+                        D[i + 1, j, k] += qinv[i, j, k]
         for j in range(nx):  # D[i] is complete: mirror its upper triangle
             for k in range(j):
                 D[i, j, k] = D[i, k, j]
-    return cost
+        ncost[i] = cost
+    total = 0.0
+    for i in range(n):
+        total += ncost[i]
+    return total
+
+
+@numba.njit(cache=True)
+def _assemble_shifted(
+    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
+    stage, prev,
+):  # fmt: skip
+    """:func:`_assemble` at the previous window's iterate shifted by one node, from that
+    iterate's assembly ``prev = (D, E, g, wgt, extra, gb, ncost)`` (its Gauss-Newton
+    ``D``; the arrays may be these): its nodes 2 to N-1 become nodes 1 to N-2, and only
+    node 0 (the new arrival term), the new last stage and the new last node are formed.
+    The same bits as :func:`_assemble` where the previous window's arrival weighted only
+    its node 0 and this one's weights only node 0 (else, or below 3 nodes, that is what
+    runs): node N-2's incoming stage and measurement are the previous window's node
+    N-1, whose block, gradient and cost had nothing else."""
+    n, nx = X.shape
+    shiftable = n >= 3
+    for i in range(1, n):
+        for j in range(nx):
+            shiftable = shiftable and arrival[i, j, j] == 0.0
+    if not shiftable:
+        return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
+                         wgt, extra, gb, ncost, stage)  # fmt: skip
+    Dp, Ep, gp, wgtp, extrap, gbp, ncostp = prev
+    shift_rows(D, Dp, 1, n - 1)
+    shift_rows(g, gp, 1, n - 1)
+    shift_rows(ncost, ncostp, 1, n - 1)
+    shift_rows(E, Ep, 1, n - 2)
+    shift_rows(wgt, wgtp, 0, n - 1)
+    shift_rows(extra, extrap, 0, n - 1)
+    shift_rows(gb, gbp, 0, n - 1)
+    return _assemble_nodes(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
+                           wgt, extra, gb, ncost, stage, True)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -311,15 +388,16 @@ def _add_balls(D, Dgn, lam, ball_idx):
 
 @numba.njit(cache=True)
 def _evaluate(
-    fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
-):
+    fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
+    stage,
+):  # fmt: skip
     """Evaluate the model at ``X`` (one C call of the function at address ``fn``) and
     assemble the Gauss-Newton blocks; inf cost on failure. ``stage``: the stages'
     constant products (:func:`stage_buffers`; those not done yet are formed here)."""
     if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         return np.inf
     return _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
-                             extra, gb, stage)  # fmt: skip
+                             extra, gb, ncost, stage)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -336,33 +414,46 @@ def shift_outputs(tail, tptrs, tout, src, dst, n, nx, nz, nblk):
     toff = 0  # ... and in the tail's
     sections = ((n, nz), (n, nz * nx), (n - 1, nx), (n - 1, nx * nx), (n, nblk * nx * nx))
     for count, chunk in sections:
-        for a in range(off, off + (count - 1) * chunk):  # forward: dst may be src
-            dst[a] = src[a + chunk]
-        last = off + (count - 1) * chunk
-        for a in range(chunk):
-            dst[last + a] = tout[toff + a]
+        move(dst, off, src, off + chunk, (count - 1) * chunk)  # dst may be src
+        move(dst, off + (count - 1) * chunk, tout, toff, chunk)
         off += count * chunk
         toff += chunk
     return True
 
 
 @numba.njit(cache=True)
-def _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb,
-                      stage):  # fmt: skip
-    """:func:`_assemble` from the window model's outputs ``out`` at ``X``."""
-    n, nx = X.shape
-    nz = rinv.shape[0]
+def _split_outputs(out, n, nx, nz):
+    """``(R, JR, W, FJ)``: views of the window model's outputs (measurement residuals and
+    their Jacobians, process residuals and their Jacobians)."""
     o1, o2, o3 = nz * n, nz * n + nz * nx * n, nz * n + nz * nx * n + nx * (n - 1)
     o4 = o3 + nx * nx * (n - 1)
     R = out[:o1].reshape(n, nz)
     JR = out[o1:o2].reshape(n, nz, nx)
     W = out[o2:o3].reshape(n - 1, nx)
     FJ = out[o3:o4].reshape(n - 1, nx, nx)
+    return R, JR, W, FJ
+
+
+@numba.njit(cache=True)
+def _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb,
+                      ncost, stage):  # fmt: skip
+    """:func:`_assemble` from the window model's outputs ``out`` at ``X``."""
+    R, JR, W, FJ = _split_outputs(out, X.shape[0], X.shape[1], rinv.shape[0])
     if stage[0].shape[0] > 0:
         _stage_products(FJ, qinv, stage)
-    return _assemble(
-        X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, stage
-    )
+    return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
+                     extra, gb, ncost, stage)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _assemble_shifted_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
+                              extra, gb, ncost, stage, prev):  # fmt: skip
+    """:func:`_assemble_shifted` from the window model's outputs ``out`` at ``X``."""
+    R, JR, W, FJ = _split_outputs(out, X.shape[0], X.shape[1], rinv.shape[0])
+    if stage[0].shape[0] > 0:
+        _stage_products(FJ, qinv, stage)
+    return _assemble_shifted(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
+                             wgt, extra, gb, ncost, stage, prev)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -415,6 +506,8 @@ def _sqp(
     quadratic,
     stage,
     evaluated,
+    ncost,
+    shifted,
 ):
     """Newton-type SQP on two buffers (current, trial); returns
     ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
@@ -431,19 +524,30 @@ def _sqp(
     (:func:`quadratic_rate`) and neither QP had an active constraint.
     The answer is then the projection of ``X_k + d_k`` (not evaluated again);
     ``cost`` is at ``X_k``. ``evaluated``: ``out[0]`` already holds the model's
-    outputs at ``Xb[0]`` (:func:`shift_outputs`), so the first iterate is not evaluated.
+    outputs at ``Xb[0]`` (:func:`shift_outputs`), so the first iterate is not evaluated;
+    ``shifted >= 0`` (with ``evaluated``): ``Xb[0]`` is buffer ``shifted``'s iterate of
+    the previous window (with the same data, a node later) shifted by one node, whose
+    assembly (``Dgn``, ``E``, ``g``, ... of that buffer) shifts with it
+    (:func:`_assemble_shifted`). ``ncost`` (2, N): each buffer's node costs.
     """
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)
-    if evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
+    if evaluated and shifted >= 0:  # the previous window's assembly shifts too
+        b = shifted
+        prev = (Dgn[b], E[b], g[b], wgt[b], extra[b], gb[b], ncost[b])
+        cost = _assemble_shifted_outputs(
+            out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
+            extra[0], gb[0], ncost[0], stage, prev,
+        )  # fmt: skip
+    elif evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
         cost = _assemble_outputs(
             out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
-            extra[0], gb[0], stage,
+            extra[0], gb[0], ncost[0], stage,
         )  # fmt: skip
     else:
         cost = _evaluate(
             fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0],
-            loss, wgt[0], extra[0], gb[0], stage,
+            loss, wgt[0], extra[0], gb[0], ncost[0], stage,
         )  # fmt: skip
     _add_balls(D[0], Dgn[0], lam, bidx)
     exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
@@ -489,7 +593,7 @@ def _sqp(
             project(Xb[tr], lo, hi, bidx, r2)
             ct = _evaluate(
                 fn, ptrs[tr], out[tr], Xb[tr], zmask, rinv, qinv, xbar, arrival, D[tr], E[tr],
-                g[tr], loss, wgt[tr], extra[tr], gb[tr], stage,
+                g[tr], loss, wgt[tr], extra[tr], gb[tr], ncost[tr], stage,
             )  # fmt: skip
             _add_balls(D[tr], Dgn[tr], lam_qp, bidx)
             if ct <= cost + 1e-4 * _dot_diff(g[cur], Xb[tr], Xb[cur]) + slack:
@@ -580,6 +684,7 @@ class Workspace:
         self.extra = np.empty((2, n, nblk))
         self.gb = np.empty((2, n, nblk, nx))
         self.Dgn = np.empty((2, n, nx, nx))  # Gauss-Newton diagonal blocks per iterate
+        self.ncost = np.empty((2, n))  # each node's cost per iterate
         self.stage = stage_buffers(n, nx, model.linear_transition)
         # the tail function's arguments (:func:`shift_outputs`): buffer 0's last stage
         self.tail_out = np.empty(nz + nz * nx + nx + nx * nx + nblk * nx * nx)
@@ -627,7 +732,7 @@ def solve_window(
         problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
         opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
         ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
-        quadratic_rate(model, opt), ws.stage, False,
+        quadratic_rate(model, opt), ws.stage, False, ws.ncost, -1,
     )  # fmt: skip
     converged = outcome == CONVERGED
     return FastResult(
@@ -658,6 +763,7 @@ def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -
             node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
             np.empty((n, nx, nx)),
             np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),
-            np.empty((n, nblk)), np.empty((n, nblk, nx)), stage_buffers(n, nx, False),
+            np.empty((n, nblk)), np.empty((n, nblk, nx)), np.empty(n),
+            stage_buffers(n, nx, False),
         )
     )  # fmt: skip

@@ -29,6 +29,7 @@ from continuum_mhe.estimators.fast.arrival import arrival_step
 from continuum_mhe.estimators.fast.ccall import CompiledCall, address, call_model
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
+from continuum_mhe.estimators.fast.memory import shift_rows
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
 from continuum_mhe.estimators.fast.outputs import (
     OUTPUT_FAILED,
@@ -67,9 +68,8 @@ MODEL_FAILED = "model evaluation failed"
 
 @numba.njit(cache=True)
 def _shift(a):
-    """``a[:-1] = a[1:]`` along the first axis, in place."""
-    for i in range(a.shape[0] - 1):
-        a[i] = a[i + 1]
+    """``a[:-1] = a[1:]`` along the first axis, in place (C-contiguous)."""
+    shift_rows(a, a, 0, a.shape[0] - 1)
 
 
 @numba.njit(cache=True)
@@ -105,12 +105,13 @@ def advance(
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
     solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic = options
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage, tail, tptrs, tout, last = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, tail, tptrs, tout, last = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
     n, nx = X0.shape
     k = kk[0]
-    if k == n:  # slide the arrival prior: the EKF step on the sample that leaves
+    full = k == n  # the previous window was full: its arrival weighted only its node 0
+    if full:  # slide the arrival prior: the EKF step on the sample that leaves
         uin[:] = u[0]
         dtin[0] = dt[0]
         zin[:] = z[0]
@@ -203,10 +204,11 @@ def advance(
     evaluated = b >= 0 and shift_outputs(
         tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk
     )
+    shifted = b if full else -1  # the buffer whose assembly shifts with its outputs
     res = _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
         lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb, Dgn, quadratic, stage, evaluated,
+        wgt, extra, gb, Dgn, quadratic, stage, evaluated, ncost, shifted,
     )  # fmt: skip
     if res[0] == CONVERGED:
         last[0] = 1 - res[4]
@@ -225,7 +227,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, stage, _, _, _, last = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, _, _, _, last = ws
     rinv, lossk = loss
     n = X.shape[0]
     output_values(outputs, X[n - 1], y)
@@ -236,7 +238,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
         Xb[0] = X
         c = _evaluate(
             win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],
-            g[0], lossk, wgt[0], extra[0], gb[0], stage,
+            g[0], lossk, wgt[0], extra[0], gb[0], ncost[0], stage,
         )  # fmt: skip
         if not np.isfinite(c):
             return 1
@@ -348,7 +350,8 @@ class StepBuffers:
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
         self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,
-                    ws.Dgn, ws.stage, ws.tail, ws.tail_ptrs, ws.tail_out, self.last)  # fmt: skip
+                    ws.Dgn, ws.ncost, ws.stage, ws.tail, ws.tail_ptrs, ws.tail_out,
+                    self.last)  # fmt: skip
         self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
                        self.qinvw, self.arrival)  # fmt: skip
         self.reset()

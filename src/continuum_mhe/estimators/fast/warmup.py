@@ -52,7 +52,7 @@ _FAST = Path(__file__).resolve().parent
 _KERNEL_MODULES = (
     "continuum_mhe.estimators.loss",
     *(f"continuum_mhe.estimators.fast.{m}"
-      for m in ("ccall", "linalg", "qp", "outputs", "arrival", "sqp", "covariance",
+      for m in ("ccall", "memory", "linalg", "qp", "outputs", "arrival", "sqp", "covariance",
                 "step")),
 )  # fmt: skip
 
