@@ -61,7 +61,7 @@ from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, w
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
 from continuum_mhe.estimators.fast.qp import CONVERGED
 from continuum_mhe.estimators.fast.sqp import quadratic_rate
-from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers
+from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers, StepOptions
 from continuum_mhe.estimators.fast.warmup import (
     FirstRun,
     defer_compiling,
@@ -123,6 +123,10 @@ class MovingHorizonEstimator(Estimator):
         #: why the requested backend is not the one that runs (None when it is)
         self.backend_note: str | None = None
         self.fast_options = fast_options or FastOptions()
+        #: ``(fast_options, the step options they give)``, see :meth:`_step_options`
+        self._options_of: tuple[FastOptions, tuple[int, float, float, int, bool, bool]] | None = (
+            None
+        )
         s = self.settings
         self._fast: WindowModel | None = None
         deferred = False  # the kernels compile in the background: none is used here
@@ -455,13 +459,11 @@ class MovingHorizonEstimator(Estimator):
             dt, u, Q, Qinv = 1.0, s.u0, s.zeros, s.zeros
         R = self._leaving_R() if k == n else self._R
         solve = not (self.settings.paper_start and k + 1 < n)
-        o = self.fast_options
         xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
         args = (
             (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R,
             self._X if self._X_last is None else self._X_last, self._lam,
-            (solve, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
-             quadratic_rate(self._fast, o)),
+            self._step_options(solve),
         )  # fmt: skip
         # certified is final, unless a robust answer rejects the newest sample (a second
         # start may then replace it; the fused call says so and does not finish)
@@ -525,6 +527,17 @@ class MovingHorizonEstimator(Estimator):
         y, cov, std = s.finish(X, xbar, answer=cur if X is solved else -1)
         self._outputs_of = (state, y, std)
         return state, cov, status
+
+    def _step_options(self, solve: bool) -> StepOptions:
+        """The compiled step's options from :attr:`fast_options` (formed again only when
+        that object is replaced)."""
+        o, kept = self.fast_options, self._options_of
+        if kept is None or kept[0] is not o:
+            assert self._fast is not None
+            rest = (o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
+                    quadratic_rate(self._fast, o))  # fmt: skip
+            kept = self._options_of = (o, rest)
+        return (solve, *kept[1])
 
     def covariance(
         self,

@@ -64,3 +64,12 @@ def shift_rows(dst, src, start, stop):
     ):
         raise IndexError("shift_rows: rows out of range")
     move(dst, start * chunk, src, (start + 1) * chunk, (stop - start) * chunk)
+
+
+@numba.njit(cache=True)
+def copy_into(dst, src):
+    """``dst[...] = src`` for C-contiguous arrays of one size: one :func:`move` (numba's
+    slice assignment of a 30 x 4 x 4 array takes 10 times as long)."""
+    if dst.size != src.size:
+        raise IndexError("copy_into: sizes differ")
+    move(dst, 0, src, 0, src.size)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.fast.ccall import address, call_model
-from continuum_mhe.estimators.fast.memory import move, shift_rows
+from continuum_mhe.estimators.fast.memory import copy_into, move, shift_rows
 from continuum_mhe.estimators.fast.model import WindowModel
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
@@ -378,7 +378,7 @@ def _max_abs(d):
 def _add_balls(D, Dgn, lam, ball_idx):
     """``Dgn = D`` (the Gauss-Newton blocks, kept for the covariance), then ``D_i +=
     2 lam_ib I_{S_b}``: each ball's curvature with its multiplier (n, nb) where positive."""
-    Dgn[:] = D
+    copy_into(Dgn, D)
     for i in range(D.shape[0]):
         for bb in range(ball_idx.shape[0]):
             if lam[i, bb] > 0.0:

@@ -29,7 +29,7 @@ from continuum_mhe.estimators.fast.arrival import arrival_step
 from continuum_mhe.estimators.fast.ccall import CompiledCall, address, call_model
 from continuum_mhe.estimators.fast.codegen import failure_message
 from continuum_mhe.estimators.fast.covariance import last_block_covariance
-from continuum_mhe.estimators.fast.memory import shift_rows
+from continuum_mhe.estimators.fast.memory import copy_into, shift_rows
 from continuum_mhe.estimators.fast.model import NodeEvaluator, WindowModel
 from continuum_mhe.estimators.fast.outputs import (
     OUTPUT_FAILED,
@@ -199,7 +199,7 @@ def advance(
         lam[n - 1] = 0.0
     else:
         lam[:] = 0.0
-    Xb[0] = X0
+    copy_into(Xb[0], X0)
     nblk = wgt.shape[2]
     evaluated = b >= 0 and shift_outputs(
         tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk
@@ -290,7 +290,7 @@ def advance_finish(
     if res[0] != CONVERGED:
         return res, UNCERTIFIED
     cur = res[4]
-    answer[:] = ws[0][cur]
+    copy_into(answer, ws[0][cur])
     if robust:
         z, m, u = window[1], window[2], window[4]
         n = answer.shape[0]
@@ -372,8 +372,10 @@ class StepBuffers:
         node = self.node
         t, z, mask, u, dt, Q, Qinv = new  # the sample's values as the kernel's types
         f64 = np.float64
+        if u is not self.u0:  # (the estimator's own zeros need no normalising)
+            u = np.ascontiguousarray(u, dtype=f64).reshape(-1)
         new = (float(t), np.ascontiguousarray(z, dtype=f64), np.ascontiguousarray(mask, dtype=f64),
-               np.ascontiguousarray(u, dtype=f64).reshape(-1), float(dt), Q, Qinv)  # fmt: skip
+               u, float(dt), Q, Qinv)  # fmt: skip
         return (
             node._addr, node._ptrs, node._out, self.nin, self.window_fn, self.workspace.ptrs,
             (*prior, self.k), self.window, new, R, self.X0 if X is None else X, X is not None,
