@@ -311,6 +311,30 @@ def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place)
     assert_allclose(ws.out[0], fresh, rtol=1e-14, atol=1e-15)
 
 
+def test_the_next_window_starts_from_the_kept_assembly() -> None:
+    """In the estimator, a full window whose predecessor's answer was kept starts from
+    that window's assembly shifted (:func:`_assemble` with ``shifted``): spoiling the kept
+    gradient of a node that the shift carries changes the next estimate; an estimator
+    given the same samples without it does not move."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=3.0, seed=4)
+    n = 8
+    a = MovingHorizonEstimator(f, MHESettings(horizon=n))
+    b = MovingHorizonEstimator(f, MHESettings(horizon=n))
+    assert a._steps is not None and b._steps is not None
+    k = 3 * n
+    for t, zi in zip(rec.t[:k], rec.z[:k]):
+        ea, eb = a.step(Measurement(float(t), zi)), b.step(Measurement(float(t), zi))
+        assert ea.state is not None and np.array_equal(ea.state, eb.state)
+    kept = int(a._steps.last[0])
+    assert kept >= 0 and int(a._steps.k[0]) == n
+    a._steps.workspace.g[kept, 3] += 1.0  # node 3 of the kept iterate: the next one's node 2
+    m = Measurement(float(rec.t[k]), rec.z[k])
+    ea, eb = a.step(m), b.step(m)
+    assert ea.state is not None and eb.state is not None
+    assert not np.array_equal(ea.state, eb.state)
+
+
 def test_rows_move_as_numpy_moves_them() -> None:
     """:func:`~continuum_mhe.estimators.fast.memory.shift_rows` (one ``memmove``) moves
     rows as numpy's slice assignment does, within one array in either direction (the
@@ -345,32 +369,36 @@ def test_rows_move_as_numpy_moves_them() -> None:
 
 
 @pytest.mark.parametrize(
-    ("robot", "loss", "linear", "in_place", "arrival_at"),
+    ("robot", "loss", "linear", "in_place", "arrival_at", "n"),
     [
-        (None, "l2", True, True, 0),
-        (None, "cauchy", False, False, 0),
-        (TWO, "huber", True, False, 0),
-        (TWO, "l2", False, True, 0),
-        (None, "l2", True, False, 1),  # a window not yet full: the whole assembly runs
+        (None, "l2", True, True, 0, 7),
+        (None, "cauchy", False, False, 0, 7),
+        (TWO, "huber", True, False, 0, 7),
+        (TWO, "l2", False, True, 0, 7),
+        (None, "l2", True, False, 0, 3),  # the smallest window that shifts
+        (None, "l2", True, False, 1, 7),  # a window not yet full: the whole assembly runs
     ],
 )
-def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arrival_at) -> None:
-    """:func:`_assemble_shifted` (the previous window's assembly moved by one node, node
+def test_shifted_assembly_equals_the_full_one(
+    robot, loss, linear, in_place, arrival_at, n
+) -> None:
+    """The shifted assembly (:func:`_assemble` with ``shifted``: the previous window's
+    assembly moved by one node, node
     0, the last stage and the last node formed) gives the same bits as the whole
     assembly at the shifted iterate: blocks, gradient, robust weights, node costs and
-    cost, dropouts, robust losses, two sections and stage products carried or formed
-    included."""
+    cost, dropouts (on a carried node, the carried last node and the new one), robust
+    losses, two sections and stage products carried or formed included; and the
+    carried nodes are carried (their model outputs are not read again)."""
     from continuum_mhe.estimators.fast import build_window_model
     from continuum_mhe.estimators.fast.sqp import (
         Workspace,
         _assemble_outputs,
-        _assemble_shifted_outputs,
         stage_buffers,
     )
     from continuum_mhe.estimators.loss import LOSS_CODES
 
     f = make_formulation("bend") if robot is None else make_formulation("bend", robot)
-    n, nx, nz = 7, f.nx, f.nz
+    nx, nz = f.nx, f.nz
     model = build_window_model(f, n)
     lossk = model.loss._replace(code=LOSS_CODES[loss], scale=1.5)
     ws = Workspace(model)
@@ -378,16 +406,20 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
     X = rng.normal(scale=0.3, size=(n + 1, nx))
     z = rng.normal(scale=0.3, size=(n + 1, nz))
     m = (rng.random((n + 1, nz)) > 0.2).astype(float)
-    m[3] = 0.0  # a node without any reading
+    # nodes without any reading (the second window's): one carried from the previous
+    # window (node N-3; node 0 for N = 3), its node N-2 (the previous last) and the new last
+    m[[n - 2, n - 1, n]] = 0.0
     u = rng.normal(size=(n, f.nu))
     dt = rng.uniform(0.01, 0.1, size=n)
     A = rng.normal(size=(n, nx, nx))
     qinv = np.einsum("sij,skj->sik", A, A) + np.eye(nx)
 
-    def assembled(lo: int, b: int, stage, shift_from=None) -> tuple:
+    def assembled(lo: int, b: int, stage, shift_from=None, spoil=False) -> tuple:
         ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
         ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
         assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
+        if spoil:  # the carried nodes' measurement outputs: a shifted assembly ignores them
+            ws.out[b, nz : (n - 2) * nz] = np.nan
         arrival = np.zeros((n, nx, nx))
         arrival[arrival_at] = qinv[lo] + lo * np.eye(nx)  # each window its own prior
         xbar = X[lo] + 0.1 * (lo + 1)
@@ -395,12 +427,9 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
         args = (ws.out[b], ws.Xb[b], nodes, model.rinv, np.ascontiguousarray(qinv[lo : lo + n - 1]),
                 xbar, arrival, ws.D[b], ws.E[b], ws.g[b], lossk, ws.wgt[b], ws.extra[b],
                 ws.gb[b], ws.ncost[b], stage)  # fmt: skip
-        if shift_from is None:
-            cost = _assemble_outputs(*args)
-        else:
-            a = shift_from
-            prev = (ws.Dgn[a], ws.E[a], ws.g[a], ws.wgt[a], ws.extra[a], ws.gb[a], ws.ncost[a])
-            cost = _assemble_shifted_outputs(*args, prev)
+        a = 0 if shift_from is None else shift_from
+        prev = (ws.Dgn[a], ws.E[a], ws.g[a], ws.wgt[a], ws.extra[a], ws.gb[a], ws.ncost[a])
+        cost = _assemble_outputs(*args, prev, shift_from is not None)
         return (cost, ws.D[b].copy(), ws.E[b].copy(), ws.g[b].copy(), ws.wgt[b].copy(),
                 ws.extra[b].copy(), ws.gb[b].copy(), ws.ncost[b].copy())  # fmt: skip
 
@@ -413,10 +442,19 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
         for a in stage:
             a[:-1] = a[1:].copy()
         stage[0][-1] = 0
-    shifted = assembled(1, 0, stage, shift_from=src)
+    kept = [a.copy() for a in (ws.Dgn[src], ws.E[src], ws.g[src], ws.wgt[src], ws.extra[src],
+                               ws.gb[src], ws.ncost[src])]  # fmt: skip
+    carried = arrival_at == 0 and n > 3
+    shifted = assembled(1, 0, stage, shift_from=src, spoil=carried)
     assert shifted[0] == full[0] and np.isfinite(full[0])
     for got, want in zip(shifted[1:], full[1:]):
         assert np.array_equal(got, want)
+    if carried:  # the carried nodes come from the previous window's assembly
+        for a, was in zip((ws.Dgn[src], ws.E[src], ws.g[src], ws.wgt[src], ws.extra[src],
+                           ws.gb[src], ws.ncost[src]), kept):  # fmt: skip
+            a[:] = was
+        ws.g[src, 2] += 1.0
+        assert not np.array_equal(assembled(1, 0, stage, shift_from=src)[3], full[3])
 
 
 @pytest.mark.parametrize(("options", "reused"), [({}, True), ({"branch_check": True}, False)])

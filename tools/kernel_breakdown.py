@@ -120,7 +120,7 @@ def instrumented() -> Any:
     t = {p: _timed(p) for p in PARTS}  # (start, end) per part
     whole = {p: (a.replace("_t ", "_t0 "), b.replace("_t\n", "_t0\n")) for p, (a, b) in t.items()}
     sqp = _instrument(sqp_module._sqp, [
-        _before("    if evaluated and shifted >= 0:", t[3][0]),
+        _before("    if evaluated:  # out[0]", t[3][0]),
         _before("    _add_balls(D[0], Dgn[0], lam, bidx)\n", t[3][1]),
         _before("        status, _, active = solve_qp(\n", t[1][0], 4),
         _before("        if status == NOT_PD and exact:", t[1][1], 4),

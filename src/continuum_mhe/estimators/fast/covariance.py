@@ -195,11 +195,13 @@ def casadi_window_covariance(
     if loss is None:
         loss = LossKernel(block_array(f.measurement_blocks), LOSS_CODES["l2"], np.inf)
     nblk = loss.blocks.shape[0]
+    wgt, extra, gb = np.empty((n, nblk)), np.empty((n, nblk)), np.empty((n, nblk, nx))
+    ncost = np.empty(n)
     _assemble(
         Xc, R, JR, W, FJ, node_mask, rinv, np.ascontiguousarray(problem.qinv, float),
         np.asarray(problem.xbar, float), np.ascontiguousarray(problem.arrival, float), D, E, g,
-        loss, np.empty((n, nblk)), np.empty((n, nblk)),
-        np.empty((n, nblk, nx)), np.empty(n), stage_buffers(n, nx, False),
+        loss, wgt, extra, gb, ncost, stage_buffers(n, nx, False),
+        (D, E, g, wgt, extra, gb, ncost), False,
     )  # fmt: skip
     out = np.empty((nx, nx))
     ok = last_block_covariance(Xc, D, E, lo, hi, ball_idx, ball_r2, tol, out)

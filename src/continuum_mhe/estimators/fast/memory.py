@@ -55,14 +55,11 @@ def shift_rows(dst, src, start, stop):
     ``dst``): one :func:`move`. C-contiguous arrays of the same row size."""
     if stop <= start:
         return
-    chunk = dst.size // dst.shape[0]
-    if (
-        start < 0
-        or stop > dst.shape[0]
-        or stop + 1 > src.shape[0]
-        or src.size // src.shape[0] != chunk
-    ):
+    if start < 0 or stop > dst.shape[0] or stop + 1 > src.shape[0]:
         raise IndexError("shift_rows: rows out of range")
+    chunk = dst.size // dst.shape[0]
+    if src.size // src.shape[0] != chunk:
+        raise IndexError("shift_rows: rows of different sizes")
     move(dst, start * chunk, src, (start + 1) * chunk, (stop - start) * chunk)
 
 

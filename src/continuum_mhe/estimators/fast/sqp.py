@@ -138,7 +138,7 @@ def stage_buffers(
 @numba.njit(cache=True)
 def _assemble(
     X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
-    stage,
+    stage, prev, shifted,
 ):  # fmt: skip
     """Gauss-Newton Hessian blocks ``D`` (diagonal), ``E`` (``(i, i+1)``), exact
     gradient ``g`` and the cost (the balls' curvature: :func:`_add_balls`).
@@ -148,7 +148,18 @@ def _assemble(
     diagonal is zero is skipped: the arrival weights are positive semidefinite, so the
     whole block is zero. ``ncost`` (n,) receives each node's cost (its measurement,
     arrival and outgoing stage terms, in that order); the cost is their sum in node
-    order, so that :func:`_assemble_shifted` gives the same bits.
+    order.
+
+    ``shifted``: ``X`` is the previous window's iterate shifted by one node, and
+    ``prev = (D, E, g, wgt, extra, gb, ncost)`` that iterate's assembly (its
+    Gauss-Newton ``D``; the arrays may be these): its nodes 2 to N-1 become nodes 1 to
+    N-2, and only node 0 (the new arrival term), the new last stage and the new last
+    node are formed. The same bits as the whole assembly where the previous window's
+    arrival weighted only its node 0 and this one's weights only node 0 (else, or below
+    3 nodes, the whole assembly runs): node N-2's incoming stage and measurement are the
+    previous window's node N-1, whose block, gradient and cost had nothing else. (One
+    function for both: each function that holds the unrolled bodies adds to the first
+    run's compile.)
 
     Measurement block ``b`` of node ``i`` (``loss.blocks``; ``R`` block-diagonal)
     costs ``1/2 rho(s)``, ``s = r_b^T R_b^-1 r_b``: gradient ``rho' J_b^T R_b^-1 r_b``
@@ -158,17 +169,21 @@ def _assemble(
     exact Newton term (:func:`_add_curvature`): ``wgt = m rho'``, ``extra = m (2 rho''
     - a)`` and ``gb = J_b^T R_b^-1 r_b``.
     """
-    return _assemble_nodes(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
-                           wgt, extra, gb, ncost, stage, False)  # fmt: skip
-
-
-@numba.njit(cache=True)
-def _assemble_nodes(
-    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
-    stage, shifted,
-):  # fmt: skip
-    """:func:`_assemble_sized` at the state size of ``X``."""
-    nx = X.shape[1]
+    n, nx = X.shape
+    if shifted:
+        for i in range(1, n):
+            for j in range(nx):
+                shifted = shifted and arrival[i, j, j] == 0.0
+        shifted = shifted and n >= 3
+    if shifted:
+        Dp, Ep, gp, wgtp, extrap, gbp, ncostp = prev
+        shift_rows(D, Dp, 1, n - 1)
+        shift_rows(g, gp, 1, n - 1)
+        shift_rows(ncost, ncostp, 1, n - 1)
+        shift_rows(E, Ep, 1, n - 2)
+        shift_rows(wgt, wgtp, 0, n - 1)
+        shift_rows(extra, extrap, 0, n - 1)
+        shift_rows(gb, gbp, 0, n - 1)
     if nx == 4:
         return _assemble_sized(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g,
                                loss, wgt, extra, gb, ncost, stage, 4, shifted)  # fmt: skip
@@ -185,7 +200,7 @@ def _assemble_sized(
     stage, nx, shifted,
 ):  # fmt: skip
     """:func:`_assemble` for state size ``nx`` (a constant where inlined with one: see
-    :mod:`.linalg`); with ``shifted``, only what :func:`_assemble_shifted` forms: node
+    :mod:`.linalg`); with ``shifted``, only what the shifted assembly forms: node
     0 without its stage's terms of node 1, the last stage, then the last node.
 
     One body for both, in one order of additions (the helpers a loop would call cost
@@ -314,39 +329,6 @@ def _assemble_sized(
 
 
 @numba.njit(cache=True)
-def _assemble_shifted(
-    X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
-    stage, prev,
-):  # fmt: skip
-    """:func:`_assemble` at the previous window's iterate shifted by one node, from that
-    iterate's assembly ``prev = (D, E, g, wgt, extra, gb, ncost)`` (its Gauss-Newton
-    ``D``; the arrays may be these): its nodes 2 to N-1 become nodes 1 to N-2, and only
-    node 0 (the new arrival term), the new last stage and the new last node are formed.
-    The same bits as :func:`_assemble` where the previous window's arrival weighted only
-    its node 0 and this one's weights only node 0 (else, or below 3 nodes, that is what
-    runs): node N-2's incoming stage and measurement are the previous window's node
-    N-1, whose block, gradient and cost had nothing else."""
-    n, nx = X.shape
-    shiftable = n >= 3
-    for i in range(1, n):
-        for j in range(nx):
-            shiftable = shiftable and arrival[i, j, j] == 0.0
-    if not shiftable:
-        return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
-                         wgt, extra, gb, ncost, stage)  # fmt: skip
-    Dp, Ep, gp, wgtp, extrap, gbp, ncostp = prev
-    shift_rows(D, Dp, 1, n - 1)
-    shift_rows(g, gp, 1, n - 1)
-    shift_rows(ncost, ncostp, 1, n - 1)
-    shift_rows(E, Ep, 1, n - 2)
-    shift_rows(wgt, wgtp, 0, n - 1)
-    shift_rows(extra, extrap, 0, n - 1)
-    shift_rows(gb, gbp, 0, n - 1)
-    return _assemble_nodes(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
-                           wgt, extra, gb, ncost, stage, True)  # fmt: skip
-
-
-@numba.njit(cache=True)
 def _step_to(out, X, alpha, d):
     """``out = X + alpha d`` (no temporaries)."""
     for i in range(X.shape[0]):
@@ -396,8 +378,9 @@ def _evaluate(
     constant products (:func:`stage_buffers`; those not done yet are formed here)."""
     if call_model(fn, ptrs.ctypes.data, out.ctypes.data) != 0:
         return np.inf
+    prev = (D, E, g, wgt, extra, gb, ncost)  # (not read: nothing shifts)
     return _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
-                             extra, gb, ncost, stage)  # fmt: skip
+                             extra, gb, ncost, stage, prev, False)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -436,24 +419,13 @@ def _split_outputs(out, n, nx, nz):
 
 @numba.njit(cache=True)
 def _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb,
-                      ncost, stage):  # fmt: skip
+                      ncost, stage, prev, shifted):  # fmt: skip
     """:func:`_assemble` from the window model's outputs ``out`` at ``X``."""
     R, JR, W, FJ = _split_outputs(out, X.shape[0], X.shape[1], rinv.shape[0])
     if stage[0].shape[0] > 0:
         _stage_products(FJ, qinv, stage)
     return _assemble(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
-                     extra, gb, ncost, stage)  # fmt: skip
-
-
-@numba.njit(cache=True)
-def _assemble_shifted_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
-                              extra, gb, ncost, stage, prev):  # fmt: skip
-    """:func:`_assemble_shifted` from the window model's outputs ``out`` at ``X``."""
-    R, JR, W, FJ = _split_outputs(out, X.shape[0], X.shape[1], rinv.shape[0])
-    if stage[0].shape[0] > 0:
-        _stage_products(FJ, qinv, stage)
-    return _assemble_shifted(X, R, JR, W, FJ, zmask, rinv, qinv, xbar, arrival, D, E, g, loss,
-                             wgt, extra, gb, ncost, stage, prev)  # fmt: skip
+                     extra, gb, ncost, stage, prev, shifted)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -528,21 +500,16 @@ def _sqp(
     ``shifted >= 0`` (with ``evaluated``): ``Xb[0]`` is buffer ``shifted``'s iterate of
     the previous window (with the same data, a node later) shifted by one node, whose
     assembly (``Dgn``, ``E``, ``g``, ... of that buffer) shifts with it
-    (:func:`_assemble_shifted`). ``ncost`` (2, N): each buffer's node costs.
+    (:func:`_assemble` with ``shifted``). ``ncost`` (2, N): each buffer's node costs.
     """
     cur = 0
     project(Xb[0], lo, hi, bidx, r2)
-    if evaluated and shifted >= 0:  # the previous window's assembly shifts too
-        b = shifted
+    if evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
+        b = shifted if shifted >= 0 else 0  # ... and buffer b the assembly that shifts
         prev = (Dgn[b], E[b], g[b], wgt[b], extra[b], gb[b], ncost[b])
-        cost = _assemble_shifted_outputs(
-            out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
-            extra[0], gb[0], ncost[0], stage, prev,
-        )  # fmt: skip
-    elif evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
         cost = _assemble_outputs(
             out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
-            extra[0], gb[0], ncost[0], stage,
+            extra[0], gb[0], ncost[0], stage, prev, shifted >= 0,
         )  # fmt: skip
     else:
         cost = _evaluate(
