@@ -69,7 +69,7 @@ def test_cold_cli_run_uses_ipopt_and_compiles_in_the_background(tmp_path):
     pid_files = list((tmp_path / "numba").glob("continuum-mhe-kernels-*.pid"))
     assert len(pid_files) == 1
     pid = int(pid_files[0].read_text())
-    try:  # compiling every kernel from nothing: 15 to 75 s on 2 cores
+    try:  # compiling every kernel from nothing: one to two minutes on 2 cores
         assert _wait_for_exit(pid, 600), "the background compile did not end"
     finally:
         try:

@@ -243,9 +243,11 @@ def _passthrough(it: Iterable[int]) -> Iterator[int]:
 
 
 #: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
-#: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, the
-#: fast MHE 0.3 ms after 15 to 75 s of compiling, so beyond about 5,000 samples (about
-#: 250 kB of tilt CSV) compiling first is quicker
+#: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, so
+#: up to about 5,000 samples (about 250 kB of tilt CSV) that run ends within about 25 s
+#: instead of after the one to two minutes of compiling. (Beyond it the command compiles
+#: first; with the 108 s measured in session 27, IPOPT would still be the quicker path up
+#: to about 20,000 samples, but that run would take over a minute on the slower solver.)
 FIRST_RUN_BACKGROUND_MAX_BYTES = 250_000
 #: samples up to which ``demo`` (which knows its length) does the same
 FIRST_RUN_BACKGROUND_MAX_SAMPLES = 5000

@@ -1,8 +1,9 @@
 """The first run: compiling the fast backend's numba kernels, in the background.
 
 numba compiles the fast MHE's and the compiled EKF's kernels on their first call and
-caches them on disk; on 2 cores that takes 15 to 75 s (74 s measured on the development
-machine), once per install. A command that
+caches them on disk; on 2 cores that takes one to two minutes (108 s measured on the
+development machine in session 27, `python -m continuum_mhe.estimators` with an empty
+cache), once per install. A command that
 finds them not yet compiled can
 
 * compile them now, in this process (``"foreground"``, the library's way: it says
@@ -278,7 +279,7 @@ def ensure_compiled() -> None:
             return
         if _claim(pid_file):  # a background compile started from now on waits for this one
             break
-    say_once("compiling the fast solver's kernels (first run only; 15 to 75 s on 2 cores)")
+    say_once("compiling the fast solver's kernels (first run only; 1 to 2 minutes on 2 cores)")
     try:
         warm_up()
     finally:
