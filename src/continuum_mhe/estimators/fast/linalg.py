@@ -192,16 +192,8 @@ def mul(A, B):
 
 @numba.njit(cache=True)
 def mul_t(A, B):
-    """``A @ B.T`` written out (see :func:`mul`)."""
-    m, k, n = A.shape[0], A.shape[1], B.shape[0]
-    out = np.empty((m, n))
-    for i in range(m):
-        for j in range(n):
-            s = 0.0
-            for a in range(k):
-                s += A[i, a] * B[j, a]
-            out[i, j] = s
-    return out
+    """``A @ B.T`` written out: :func:`mul` on the transposed view (no copy)."""
+    return mul(A, B.T)
 
 
 @numba.njit(cache=True)
