@@ -48,7 +48,7 @@ def fast_and_ipopt_states(
     states = {}
     for solver in ("fast", "ipopt"):
         est = MovingHorizonEstimator(
-            f, MHESettings(horizon=horizon, solver=solver), FastOptions(compile=False)
+            f, MHESettings(horizon=horizon, solver=solver), FastOptions()
         )
         res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
         assert {r.status for r in res} == {"ok"}
@@ -79,21 +79,6 @@ def fast_windows(
     finally:
         mhe_module.solve_window = solve_window  # type: ignore[assignment]
     return windows
-
-
-class RaisingFunction:
-    """A CasADi function whose evaluation raises ``ValueError(message)`` (for
-    :func:`continuum_mhe.estimators.fast.codegen._vm_function`); otherwise ``fn``."""
-
-    def __init__(self, fn: object, message: str) -> None:
-        self._fn = fn
-        self._message = message
-
-    def __getattr__(self, name: str) -> object:
-        return getattr(self._fn, name)
-
-    def call(self, args: object) -> object:
-        raise ValueError(self._message)
 
 
 # --- MHE backends and settings ---------------------------------------------------------

@@ -108,7 +108,7 @@ def test_every_estimator_recovers_a_constant_accel_bias_with_motion() -> None:
     f = DirectFormulation(
         accel_direction_std=0.01, gyro_std=0.01, estimate_gyro_bias=True, estimate_accel_bias=True
     )  # noise settings near the recording's 0.003 (the default 2 deg tilt noise: slower)
-    no_c = FastOptions(compile=False)
+    no_c = FastOptions()
     estimators = {
         "ekf": ExtendedKalmanFilter(f),
         "ukf": UnscentedKalmanFilter(f),

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from estimator_helpers import RaisingFunction
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
@@ -367,18 +366,6 @@ def test_default_backend_is_fast_and_settings_validate() -> None:
         fm.FastOptions(step_tol=1.0)
 
 
-def test_virtual_machine_matches_compiled_code() -> None:
-    f = make_formulation("bend")
-    rec = simulate("paper3d", duration=1.5, seed=7)
-    recd = record_ipopt(f, 6, rec.t, rec.z)
-    compiled, vm = fm.build_window_model(f, 6), fm.build_window_model(f, 6, compile=False)
-    assert not vm.compiled
-    for w in recd.windows[::7]:
-        a = fm.solve_window(compiled, w.problem, w.X0)
-        b = fm.solve_window(vm, w.problem, w.X0)
-        np.testing.assert_array_equal(a.X, b.X)
-
-
 def test_cost_matches_the_ipopt_objective() -> None:
     f = make_formulation("paper")
     rec = simulate("paper3d", duration=1.5, seed=8)
@@ -545,11 +532,10 @@ def test_direct_formulation_agrees() -> None:
     np.testing.assert_allclose(out["fast"].output, out["ipopt"].output, atol=1e-6, rtol=0)
 
 
-@pytest.mark.parametrize("compile_model", [True, False])
-def test_compiled_arrival_step_and_output_match_the_python_model(compile_model: bool) -> None:
+def test_compiled_arrival_step_and_output_match_the_python_model() -> None:
     for name in ("bend", "paper"):
         f = make_formulation(name)
-        node = fm.NodeEvaluator(fm.build_window_model(f, 4, compile_model))
+        node = fm.NodeEvaluator(fm.build_window_model(f, 4))
         x = f.initial_state(np.array([0.3, -0.2]))
         P, R = f.initial_cov(), f.meas_cov()
         u, dt, z = np.full(f.nu, 0.1), 0.05, np.array([0.31, -0.19])
@@ -566,57 +552,6 @@ def test_compiled_arrival_step_and_output_match_the_python_model(compile_model: 
             states.append(np.array([-0.5, 0.0, 0.0, 0.0]))  # phi = pi: wrapped to -pi
         for s in states:
             np.testing.assert_allclose(node.output(s), f.output(s), rtol=1e-13, atol=1e-15)
-
-
-_BUILD_BEND_MODEL = (
-    "from continuum_mhe.model.registry import make_formulation\n"
-    "from continuum_mhe.estimators import fast as fm\n"
-    "m = fm.build_window_model(make_formulation('bend'), 5)\n"
-    "print('compiled' if m.compiled else 'vm')\n"
-)
-
-
-def _build_in_a_fresh_process(cache: Path) -> subprocess.CompletedProcess[str]:
-    """:data:`_BUILD_BEND_MODEL` in a fresh interpreter with ``cache`` as the model cache."""
-    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(cache)}
-    return subprocess.run(
-        [sys.executable, "-c", _BUILD_BEND_MODEL], env=env, capture_output=True, text=True
-    )
-
-
-@pytest.fixture(scope="module")
-def fresh_model_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A model cache that a fresh process filled with the bend model (N = 5): built once
-    for both kinds of damage below (the same first build; a C compile each before)."""
-    cache = tmp_path_factory.mktemp("model-cache")
-    first = _build_in_a_fresh_process(cache)
-    assert first.stdout.strip() == "compiled", first.stderr
-    return cache
-
-
-@pytest.mark.parametrize("damage", ["truncate", "flip"])
-def test_corrupted_cached_model_is_rebuilt_not_loaded(
-    tmp_path: Path, damage: str, fresh_model_cache: Path
-) -> None:
-    """A truncated or bit-flipped cached library must not be loaded (it would crash
-    the process with SIGBUS or SIGSEGV): its stored sha256 no longer matches."""
-    import hashlib
-    import shutil
-
-    cache = tmp_path / "cache"
-    shutil.copytree(fresh_model_cache, cache)
-    (lib,) = cache.glob("mhe_*.so")
-    data = lib.read_bytes()
-    if damage == "truncate":
-        lib.write_bytes(data[: len(data) // 3])
-    else:
-        mid = len(data) // 2
-        lib.write_bytes(data[:mid] + bytes([data[mid] ^ 0xFF]) + data[mid + 1 :])
-    again = _build_in_a_fresh_process(cache)
-    assert again.returncode == 0, again.stderr  # no SIGBUS / SIGSEGV
-    assert again.stdout.strip() == "compiled"
-    digest = lib.with_name(lib.name + ".sha256").read_text().strip()
-    assert hashlib.sha256(lib.read_bytes()).hexdigest() == digest  # rebuilt, checked
 
 
 # --- several sections: one ball per section, per-IMU masks -------------------------------
@@ -757,105 +692,3 @@ def test_feasible_set_accepts_the_scalar_constraint_form() -> None:
     assert fs.ball_idx.tolist() == [[0, 1]] and fs.ball_r2.tolist() == [1.0]
 
 
-def test_vm_failure_keeps_its_text_and_step_does_not_raise() -> None:
-    """A model evaluation that fails inside CasADi's VM: the exception's text reaches
-    the error, and ``step`` flags the sample and restarts instead of raising."""
-    from continuum_mhe.estimators.base import Measurement
-    from continuum_mhe.estimators.fast import codegen
-
-    f = make_formulation("bend")
-    model = fm.build_window_model(f, 4, compile=False)
-    broken = codegen._vm_function(
-        RaisingFunction(codegen.node_function(f), "broken model\nsecond line")
-    )
-    node = fm.NodeEvaluator(model)
-    node._fn = broken
-    with pytest.raises(RuntimeError, match="ValueError: broken model second line"):
-        node.evaluate(np.zeros(4), np.zeros(0), 0.05)
-    with pytest.raises(RuntimeError, match="broken model"):
-        node.arrival_step(np.zeros(4), np.eye(4), np.zeros(0), 0.05, np.zeros(2), np.ones(2),
-                          f.meas_cov(), np.eye(4))  # fmt: skip
-    est = MovingHorizonEstimator(f, MHESettings(horizon=4), fm.FastOptions(compile=False))
-    rec = simulate("paper3d", duration=0.5, seed=1)
-    statuses = [est.step(Measurement(float(t), z)).status for t, z in zip(rec.t[:6], rec.z[:6])]
-    assert est._node is not None
-    est._node._fn = broken  # the arrival step and the initial guess now fail
-    for t, z in zip(rec.t[6:], rec.z[6:]):
-        statuses.append(est.step(Measurement(float(t), z)).status)
-    assert statuses[:6] == ["ok"] * 6
-    assert "reset" in statuses[6:]  # flagged, restarted from the sample, never raised
-    assert est.last_failure is not None and "broken model" in est.last_failure
-
-
-def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
-    """With a compiler that fails: one warning per process, naming the compiler and the
-    fix, for every estimator built on the model; the model, the estimator and the
-    benchmark record it; the compiled EKF steps aside; the answers are the compiled ones."""
-    code = (
-        "import warnings\n"
-        "import numpy as np\n"
-        "from continuum_mhe.estimators import make_estimator\n"
-        "from continuum_mhe.model.registry import make_formulation\n"
-        "from continuum_mhe.settings import MHESettings\n"
-        "from continuum_mhe.simulation.scenarios import simulate\n"
-        "from continuum_mhe.benchmark import environment\n"
-        "f = make_formulation('bend')\n"
-        "rec = simulate('paper3d', duration=1.0, seed=2)\n"
-        "with warnings.catch_warnings(record=True) as seen:\n"
-        "    warnings.simplefilter('always')\n"
-        "    a = make_estimator('mhe', f, MHESettings(horizon=6))\n"
-        "    b = make_estimator('mhe', f, MHESettings(horizon=7))\n"
-        "    e = make_estimator('ekf', f)\n"
-        "out = a.run(rec.t, rec.z)\n"
-        "print(a.compiled, b.compiled, type(e).__name__, environment(f)['compiled'])\n"
-        "print(a.backend_note)\n"
-        "for w in seen:\n"
-        "    if type(w.message).__name__ != 'CompileNotice':  # the first run's, if any\n"
-        "        print(type(w.message).__name__, w.message)\n"
-        "np.save('out.npy', out.output)\n"
-    )
-    env = {**os.environ, "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
-    runs = {}
-    for cc in ("false", "cc"):
-        work = tmp_path / cc
-        work.mkdir()
-        runs[cc] = subprocess.run(
-            [sys.executable, "-c", code], env={**env, "CC": cc}, cwd=work,
-            capture_output=True, text=True,
-        )  # fmt: skip
-        assert runs[cc].returncode == 0, runs[cc].stderr
-    note = (
-        "no working C compiler (false failed): the fast MHE runs through CasADi's VM, "
-        "about 10x slower; install gcc"
-    )
-    assert runs["false"].stdout.splitlines() == [  # one warning for three estimators
-        "False False ExtendedKalmanFilter False",
-        note,
-        f"BackendFallbackWarning {note}",
-    ]
-    assert runs["cc"].stdout.splitlines() == [
-        "True True CompiledExtendedKalmanFilter True",
-        "None",
-    ]
-    np.testing.assert_array_equal(
-        np.load(tmp_path / "false" / "out.npy"), np.load(tmp_path / "cc" / "out.npy")
-    )
-
-
-def test_missing_c_compiler_is_announced_once(tmp_path: Path) -> None:
-    """No C compiler: the fast MHE runs through CasADi's VM and says so in one line."""
-    from continuum_mhe.cli import main
-
-    meas = tmp_path / "m.csv"
-    exe = str(Path(sys.executable).with_name("continuum-mhe"))
-    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0  # the input
-    env = {**os.environ, "CC": "false", "CONTINUUM_MHE_CACHE": str(tmp_path / "cache")}
-    r = subprocess.run(
-        [exe, "estimate", str(meas), "-o", str(tmp_path / "e.csv")],
-        env=env,
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 0, r.stderr
-    notes = [ln for ln in r.stderr.splitlines() if "no working C compiler" in ln]
-    assert len(notes) == 1 and notes[0].startswith("continuum-mhe: warning: ")

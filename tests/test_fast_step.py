@@ -16,7 +16,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from estimator_helpers import RaisingFunction
 from numpy.testing import assert_allclose
 
 from continuum_mhe.benchmark_kernels import run_mhe_kernel
@@ -187,28 +186,6 @@ def test_stage_products_carried_across_windows_equal_fresh_ones() -> None:
     assert checked > 7 * (len(rec.t) - 20)
 
 
-def test_a_failing_output_function_names_itself_through_the_fused_call() -> None:
-    """The outputs computed in the same compiled call as the SQP
-    (:meth:`StepBuffers.advance_finish`): a failure there carries the output function's
-    own text, not the node model's."""
-    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model, codegen
-    from continuum_mhe.estimators.fast.step import StepBuffers
-
-    f = make_formulation("bend")
-    model = build_window_model(f, 4, compile=False)
-    model = replace(model, output=codegen._vm_function(
-        RaisingFunction(codegen.output_function(f), "broken outputs")
-    ))
-    steps = StepBuffers(model, NodeEvaluator(model))
-    rec = simulate("paper3d", duration=0.5, seed=1)
-    prior = (np.asarray(f.initial_state(rec.z[0]), float), np.eye(f.nx), np.eye(f.nx))
-    X = np.zeros((4, f.nx))
-    options = (True, 30, 1e-8, 1e-8, 500, True, False)
-    new = (float(rec.t[0]), rec.z[0], np.ones(f.nz), steps.u0, 1.0, steps.zeros, steps.zeros)
-    with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
-        steps.advance_finish(prior, new, f.meas_cov(), None, None, options, X)
-
-
 @pytest.mark.parametrize("robot", [None, TWO], ids=["one-section", "two-sections"])
 def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     """:meth:`NodeEvaluator.ekf_step_outputs` (the compiled EKF's one call per sample)
@@ -255,25 +232,6 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
         assert_allclose(e.output, node.output(e.state), rtol=1e-13, atol=1e-15)
         assert_allclose(e.output_std, node.output_std(e.state, e.covariance), rtol=1e-12,
                         atol=1e-15)  # fmt: skip
-
-
-def test_a_failing_output_function_names_itself_through_the_fused_ekf_step() -> None:
-    from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model, codegen
-
-    f = make_formulation("bend")
-    model = build_window_model(f, 2, compile=False)
-    model = replace(model, output=codegen._vm_function(
-        RaisingFunction(codegen.output_function(f), "broken outputs")
-    ))
-    x, P, R = f.initial_state(np.array([0.3, -0.2])), f.initial_cov(), f.meas_cov()
-    sample = (np.zeros(f.nu), 0.05, np.zeros(f.nz), np.ones(f.nz), R, 0.01 * np.eye(f.nx))
-    with pytest.raises(RuntimeError, match="ValueError: broken outputs"):
-        NodeEvaluator(model).ekf_step_outputs(x, P, *sample)
-    model = replace(build_window_model(f, 2, compile=False), output_jacobian=codegen._vm_function(
-        RaisingFunction(codegen.output_jacobian_function(f), "broken Jacobian")
-    ))  # fmt: skip
-    with pytest.raises(RuntimeError, match="ValueError: broken Jacobian"):
-        NodeEvaluator(model).ekf_step_outputs(x, P, *sample)
 
 
 @pytest.mark.parametrize("in_place", [False, True])

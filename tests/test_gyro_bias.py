@@ -110,7 +110,7 @@ def test_innovation_jacobian_with_bias_matches_finite_differences(x: np.ndarray)
 
 
 def _estimators(f: DirectFormulation) -> dict[str, object]:
-    no_c = FastOptions(compile=False)  # the VM: no C build in the test (same answers)
+    no_c = FastOptions()  # the VM: no C build in the test (same answers)
     return {
         "ekf": ExtendedKalmanFilter(f),
         "ukf": UnscentedKalmanFilter(f),

@@ -407,12 +407,9 @@ def _cpu_model() -> str:
 
 
 def environment(formulation: Formulation) -> dict[str, Any]:
-    """Where the numbers come from: whether the fast MHE's model runs as compiled C
-    (else CasADi's VM, about 10x slower), the C compiler (``$CC --version``, first
-    line), the machine and the versions of the numeric packages."""
+    """Where the numbers come from: the machine and the versions of the numeric
+    packages."""
     from importlib import metadata
-
-    from continuum_mhe.estimators.fast import build_window_model
 
     def version(name: str) -> str | None:
         try:
@@ -425,8 +422,6 @@ def environment(formulation: Formulation) -> dict[str, Any]:
     except AttributeError:  # not on Linux
         usable = os.cpu_count() or 0
     return {
-        "compiled": bool(build_window_model(formulation, 2).compiled),
-        "compiler": _first_line([os.environ.get("CC", "cc"), "--version"]),
         "machine": {
             "platform": platform.platform(),
             "cpu": _cpu_model(),
@@ -444,9 +439,8 @@ def environment(formulation: Formulation) -> dict[str, Any]:
 def environment_line(report: dict[str, Any]) -> str:
     """One line of the :func:`environment` record in ``report``, for the printed report."""
     m, v = report["machine"], report["versions"]
-    model = "compiled C" if report["compiled"] else "CasADi VM (no C compiler: about 10x slower)"
     return (
-        f"model: {model}; compiler: {report['compiler'] or 'none'}; machine: {m['cpu']}, "
+        f"machine: {m['cpu']}, "
         f"{m['cores']} cores ({m['usable_cores']} usable), {m['platform']}; "
         + ", ".join(f"{k} {val}" for k, val in v.items() if val)
     )
@@ -529,12 +523,7 @@ def run_benchmark(
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, dt=DT, noise_deg=2.0, seed=0)
     env = environment(f)
-    skipped = {
-        m: "no compiled model (no C compiler): there is no compiled EKF to time"
-        for m in ("ekf-compiled", "ekf-kernel", "mhe-kernel")
-        if m in methods and not env["compiled"]
-    }
-    methods = tuple(m for m in methods if m not in skipped)
+    skipped: dict[str, str] = {}
     results: list[Timing] = []
     for n in horizons:
         ipopt_out, ipopt_sec, _ = _run_timed(

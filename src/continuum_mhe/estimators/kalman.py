@@ -170,8 +170,6 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
                 )
             ensure_compiled()
         model = build_window_model(formulation, 2)
-        if not model.compiled:  # the VM is slower than the CasADi EKF: use that instead
-            raise NotImplementedError(model.backend_note or "the model is not compiled")
         self._node = NodeEvaluator(model)
         self._q = ProcessNoiseCache(formulation)
         #: ``(state, outputs, standard deviations)`` of the last fused step

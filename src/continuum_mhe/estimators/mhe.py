@@ -149,9 +149,7 @@ class MovingHorizonEstimator(Estimator):
         self.reports_covariance = not deferred
         if s.solver == "fast" and not deferred:
             try:
-                self._fast = build_window_model(
-                    formulation, s.horizon, self.fast_options.compile, s.loss, s.scale
-                )
+                self._fast = build_window_model(formulation, s.horizon, s.loss, s.scale)
             except NotImplementedError as exc:  # feasible set the fast backend cannot take
                 self._fast = None
                 self.backend_note = (
@@ -159,10 +157,6 @@ class MovingHorizonEstimator(Estimator):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-            else:  # without a C compiler: said once by build_window_model
-                self.backend_note = self._fast.backend_note
-        #: whether the fast backend's model runs as compiled C (None: no fast backend)
-        self.compiled: bool | None = None if self._fast is None else self._fast.compiled
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
         #: the fast backend's compiled step (its own window buffers; see :mod:`.fast.step`)

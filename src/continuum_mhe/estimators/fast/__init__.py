@@ -6,12 +6,11 @@ constraints) and reaches the same KKT point as the IPOPT backend.
 
 Algorithm (see ``docs/fast-solver.md``):
 
-* **Model.** Residuals and Jacobians of the whole window come from one call of a
-  CasADi function built from the formulation's symbolic methods
-  (``measurement_residual_sym``, ``transition_sym``) and ``map``-ped over the
-  window. It is compiled to C with CasADi's code generator when a C compiler is
-  available (cached on disk) and evaluated by CasADi's virtual machine otherwise.
-  The model is never written a second time by hand.
+* **Model.** Residuals and Jacobians of the whole window come from one call into the
+  compiled core, which evaluates the CasADi functions built from the formulation's
+  symbolic methods (``measurement_residual_sym``, ``transition_sym``) node by node from
+  their instruction lists (:mod:`~continuum_mhe.estimators.fast.tape`). The model is
+  never written a second time by hand, and a new robot compiles nothing.
 * **Step.** The Hessian of the window cost is block-tridiagonal (blocks
   ``nx x nx``): Gauss-Newton ``J^T W J`` plus the measurement residuals' exact
   second-order term (Newton; dropped for an iterate where it is not positive
@@ -35,7 +34,7 @@ Algorithm (see ``docs/fast-solver.md``):
 Modules (one responsibility each):
 
 * :mod:`~continuum_mhe.estimators.fast.codegen`: CasADi functions of the window, node and
-  outputs, C code generation, compile and on-disk cache (sha256-checked), VM fallback.
+  outputs, evaluated by the compiled core.
 * :mod:`~continuum_mhe.estimators.fast.model`: the feasible set read from the
   formulation, :class:`WindowModel`, :class:`NodeEvaluator`, :func:`build_window_model`.
 * :mod:`~continuum_mhe.estimators.fast.linalg`: block-tridiagonal Cholesky, product,
@@ -49,7 +48,7 @@ Modules (one responsibility each):
 from __future__ import annotations
 
 from continuum_mhe.estimators.fast.arrival import arrival_predict, arrival_update
-from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction, Library
+from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction
 from continuum_mhe.estimators.fast.model import (
     Feasible,
     LossKernel,
@@ -83,7 +82,6 @@ __all__ = [
     "FastResult",
     "LINE_SEARCH_FAILED",
     "LossKernel",
-    "Library",
     "MAX_ITER",
     "NOT_PD",
     "NodeEvaluator",

@@ -21,19 +21,13 @@ from numpy.typing import NDArray
 from continuum_mhe.estimators.fast import arrival
 from continuum_mhe.estimators.fast.ccall import CompiledCall, address
 from continuum_mhe.estimators.fast.codegen import (
-    Library,
-    announce_vm_fallback,
     c_function,
-    c_source,
-    compile_library,
     failure_message,
     node_function,
-    node_pieces,
     output_function,
     output_jacobian_function,
-    tail_function,
     transition_is_linear,
-    window_function,
+    window_c_functions,
 )
 from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED, OUTPUT_JACOBIAN_FAILED
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
@@ -121,7 +115,7 @@ class LossKernel(NamedTuple):
 
 @dataclass(frozen=True)
 class WindowModel:
-    """Compiled window model of one (formulation, horizon).
+    """The window model of one (formulation, horizon), evaluated by the compiled core.
 
     Attributes:
         nx, nu, nz, horizon: sizes.
@@ -133,8 +127,6 @@ class WindowModel:
         output: C function of the formulation's ``output_sym``.
         output_jacobian: C function of its Jacobian (ny, nx), column-major.
         ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
-        compiled: True if the model runs as compiled C (else through CasADi's VM).
-        backend_note: why the model is not compiled (the notice said on stderr), or None.
         loss: the measurement loss (:class:`LossKernel`).
         linear_transition: the transition is affine in the state
             (:func:`~continuum_mhe.estimators.fast.codegen.transition_is_linear`).
@@ -149,11 +141,9 @@ class WindowModel:
     window: Any  # ctypes function pointer (CFunction)
     node: Any
     output: Any  # formulation.output_sym: state -> the formulation's outputs
-    compiled: bool
     output_jacobian: Any = None  # state -> d outputs / d state (ny, nx), column-major
     ny: int = 5
     wrapped: tuple[int, ...] = (4,)
-    backend_note: str | None = None
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
     linear_transition: bool = False
     tail: Any = None  # the last node and stage of a window shifted by one sample
@@ -346,18 +336,16 @@ def _f64(a: FloatArray) -> FloatArray:
 def build_window_model(
     formulation: Formulation,
     horizon: int,
-    compile: bool = True,
     loss: str = "l2",
     scale: float = math.inf,
 ) -> WindowModel:
-    """Build (and compile, if possible) the window model. Cached per arguments.
+    """Build the window model (the formulation's functions, evaluated by the compiled
+    core; nothing is compiled). Cached per arguments.
 
     ``loss`` and ``scale`` (standard deviations) choose the measurement loss
-    (:mod:`continuum_mhe.estimators.loss`); the compiled code does not depend on them.
+    (:mod:`continuum_mhe.estimators.loss`); the model functions do not depend on them.
     Raises ``NotImplementedError`` (with the reason) if the feasible set is not a box
-    and disjoint balls, or the measurement covariance is not block-diagonal. Without a
-    working C compiler the model runs in CasADi's VM, said once on stderr and recorded
-    in ``compiled`` and ``backend_note``.
+    and disjoint balls, or the measurement covariance is not block-diagonal.
     """
     feasible = feasible_set(formulation)
     rinv = np.asarray(np.linalg.inv(formulation.meas_cov()), dtype=np.float64)
@@ -367,13 +355,8 @@ def build_window_model(
         inside[start : start + size, start : start + size] = True
     if np.any(rinv[~inside] != 0.0):
         raise NotImplementedError("the measurement covariance is not block-diagonal")
-    pieces = node_pieces(formulation)
-    win, tail = window_function(formulation, horizon, pieces), tail_function(formulation, pieces)
-    node = node_function(formulation)
-    out, jac = output_function(formulation), output_jacobian_function(formulation)
-    fns = (win, tail, node, out, jac)
-    library = compile_library(c_source(fns)) if compile else Library(None)
-    note = announce_vm_fallback(library) if library.reason else None
+    window, tail = window_c_functions(formulation, horizon)
+    out = output_function(formulation)
     wrapped = tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False))
     return WindowModel(
         nx=formulation.nx,
@@ -382,15 +365,13 @@ def build_window_model(
         horizon=horizon,
         feasible=feasible,
         rinv=rinv,
-        window=c_function(win, library.lib),
-        tail=c_function(tail, library.lib),
-        node=c_function(node, library.lib),
-        output=c_function(out, library.lib),
-        output_jacobian=c_function(jac, library.lib),
-        compiled=library.lib is not None,
+        window=window,
+        tail=tail,
+        node=c_function(node_function(formulation)),
+        output=c_function(out),
+        output_jacobian=c_function(output_jacobian_function(formulation)),
         ny=int(out.nnz_out(0)),
         wrapped=wrapped,
-        backend_note=note,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
     )

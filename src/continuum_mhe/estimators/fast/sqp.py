@@ -52,8 +52,6 @@ class FastOptions:
         max_qp_iter: active-set changes allowed per QP subproblem.
         newton: add the measurement residuals' second-order term to the Hessian
             (exact Newton; Gauss-Newton where that is not positive definite).
-        compile: compile the CasADi model to C (cached on disk) when a C compiler is
-            available; otherwise, or if False, CasADi's virtual machine evaluates it.
     """
 
     max_iter: int = 30
@@ -61,7 +59,6 @@ class FastOptions:
     err_tol: float = 1e-8
     newton: bool = True
     max_qp_iter: int = 500
-    compile: bool = True
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):

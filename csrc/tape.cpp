@@ -1,0 +1,134 @@
+#include "tape.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace cmhe {
+
+Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
+           std::vector<int64_t> input_sizes, std::vector<int64_t> output_sizes,
+           int64_t work_size)
+    : code_(std::move(code)),
+      constants_(std::move(constants)),
+      input_sizes_(std::move(input_sizes)),
+      output_sizes_(std::move(output_sizes)),
+      work_size_(work_size) {
+  for (int64_t s : output_sizes_) output_size_ += s;
+  const int64_t n_in = static_cast<int64_t>(input_sizes_.size());
+  // every index is checked once here, so that evaluation needs no checks
+  for (size_t k = 0; k < code_.size(); ++k) {
+    const Instruction& I = code_[k];
+    auto bad = [&](const char* what) {
+      throw std::invalid_argument("tape instruction " + std::to_string(k) + ": " + what);
+    };
+    if (I.op < 0 || I.op >= OP_COUNT) bad("unknown operation");
+    auto work = [&](int32_t i) { if (i < 0 || i >= work_size_) bad("work index out of range"); };
+    switch (I.op) {
+      case OP_INPUT:
+        work(I.res);
+        if (I.a < 0 || I.a >= n_in || I.b < 0 || I.b >= input_sizes_[I.a]) bad("input out of range");
+        break;
+      case OP_OUTPUT:
+        work(I.a);
+        if (I.b < 0 || I.b >= static_cast<int32_t>(output_sizes_.size()) || I.res < 0 ||
+            I.res >= output_sizes_[I.b])
+          bad("output out of range");
+        break;
+      case OP_CONST:
+        work(I.res);
+        if (I.a < 0 || I.a >= static_cast<int32_t>(constants_.size())) bad("constant out of range");
+        break;
+      default:
+        work(I.res);
+        work(I.a);
+        work(I.b);  // unary operations carry b = a
+    }
+  }
+}
+
+namespace {
+inline double sign(double x) { return x < 0 ? -1.0 : (x > 0 ? 1.0 : x); }
+}  // namespace
+
+void Tape::evaluate_flat(const double* const* in, double* out) const {
+  thread_local std::vector<double*> res;
+  res.resize(output_sizes_.size());
+  for (size_t k = 0; k < output_sizes_.size(); ++k) {
+    res[k] = out;
+    out += output_sizes_[k];
+  }
+  evaluate(in, res.data());
+}
+
+void Tape::evaluate(const double* const* in, double* const* out) const {
+  thread_local std::vector<double> work;
+  if (static_cast<int64_t>(work.size()) < work_size_) work.resize(work_size_);
+  double* w = work.data();
+  const double* c = constants_.data();
+  for (const Instruction& I : code_) {
+// operands are read inside each case: for INPUT, OUTPUT and CONST, a and res are not
+// work indices
+#define x (w[I.a])
+#define y (w[I.b])
+#define r (w[I.res])
+    switch (I.op) {
+      case OP_INPUT: r = in[I.a] ? in[I.a][I.b] : 0.0; break;
+      case OP_OUTPUT: if (out[I.b]) out[I.b][I.res] = x; break;
+      case OP_CONST: r = c[I.a]; break;
+      case OP_ASSIGN: r = x; break;
+      case OP_ADD: r = x + y; break;
+      case OP_SUB: r = x - y; break;
+      case OP_MUL: r = x * y; break;
+      case OP_DIV: r = x / y; break;
+      case OP_NEG: r = -x; break;
+      case OP_EXP: r = std::exp(x); break;
+      case OP_LOG: r = std::log(x); break;
+      case OP_POW: case OP_CONSTPOW: r = std::pow(x, y); break;
+      case OP_SQRT: r = std::sqrt(x); break;
+      case OP_SQ: r = x * x; break;
+      case OP_TWICE: r = 2.0 * x; break;
+      case OP_SIN: r = std::sin(x); break;
+      case OP_COS: r = std::cos(x); break;
+      case OP_TAN: r = std::tan(x); break;
+      case OP_ASIN: r = std::asin(x); break;
+      case OP_ACOS: r = std::acos(x); break;
+      case OP_ATAN: r = std::atan(x); break;
+      case OP_LT: r = x < y; break;
+      case OP_LE: r = x <= y; break;
+      case OP_EQ: r = x == y; break;
+      case OP_NE: r = x != y; break;
+      case OP_NOT: r = !x; break;
+      case OP_AND: r = x && y; break;
+      case OP_OR: r = x || y; break;
+      case OP_FLOOR: r = std::floor(x); break;
+      case OP_CEIL: r = std::ceil(x); break;
+      case OP_FMOD: r = std::fmod(x, y); break;
+      case OP_FABS: r = std::fabs(x); break;
+      case OP_SIGN: r = sign(x); break;
+      case OP_COPYSIGN: r = std::copysign(x, y); break;
+      case OP_IF_ELSE_ZERO: r = x == 0 ? 0.0 : y; break;
+      case OP_ERF: r = std::erf(x); break;
+      case OP_FMIN: r = std::fmin(x, y); break;
+      case OP_FMAX: r = std::fmax(x, y); break;
+      case OP_INV: r = 1.0 / x; break;
+      case OP_SINH: r = std::sinh(x); break;
+      case OP_COSH: r = std::cosh(x); break;
+      case OP_TANH: r = std::tanh(x); break;
+      case OP_ASINH: r = std::asinh(x); break;
+      case OP_ACOSH: r = std::acosh(x); break;
+      case OP_ATANH: r = std::atanh(x); break;
+      case OP_ATAN2: r = std::atan2(x, y); break;
+      case OP_HYPOT: r = std::hypot(x, y); break;
+      case OP_LOG1P: r = std::log1p(x); break;
+      case OP_EXPM1: r = std::expm1(x); break;
+      case OP_REMAINDER: r = std::remainder(x, y); break;
+      default: break;
+    }
+#undef x
+#undef y
+#undef r
+  }
+}
+
+}  // namespace cmhe

@@ -1,0 +1,78 @@
+"""CasADi SX functions as data for the compiled core: their instruction lists ("tapes").
+
+The model of a robot is written once, symbolically (:mod:`continuum_mhe.model`); the
+compiled core (:mod:`continuum_mhe._core`) evaluates its functions from the algorithm
+that CasADi keeps for every SX function (``instruction_id``, ``instruction_input``,
+``instruction_output``, ``instruction_constant``). A new robot or option set is new
+data: nothing is compiled when it is first used.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from continuum_mhe import _core
+
+#: CasADi's operation numbers (``casadi.OP_<NAME>``) to the core's, by name.
+_OPCODES = {
+    int(getattr(ca, "OP_" + name)): code
+    for code, name in enumerate(_core.OPERATIONS)
+    if hasattr(ca, "OP_" + name)
+}
+_INPUT, _OUTPUT, _CONST = (_core.OPERATIONS.index(n) for n in ("INPUT", "OUTPUT", "CONST"))
+
+
+def _sx(fn: ca.Function) -> ca.Function:
+    """``fn`` as an SX function with dense inputs and outputs."""
+    if not fn.is_a("SXFunction"):
+        fn = fn.expand()
+    for i in range(fn.n_in()):
+        if not fn.sparsity_in(i).is_dense():
+            raise ValueError(f"{fn.name()}: input {i} is not dense")
+    if any(not fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
+        sym = [ca.SX.sym(f"i{i}", fn.sparsity_in(i)) for i in range(fn.n_in())]
+        fn = ca.Function(fn.name(), sym, [ca.densify(v) for v in fn.call(sym)])
+    return fn
+
+
+def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
+    """``(code, constants)`` of an SX function: ``code`` (n, 4) int32 rows
+    ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``)."""
+    n = fn.n_instructions()
+    code = np.zeros((n, 4), dtype=np.int32)
+    constants: list[float] = []
+    for k in range(n):
+        op = fn.instruction_id(k)
+        try:
+            core_op = _OPCODES[op]
+        except KeyError:
+            names = [m for m in dir(ca) if m.startswith("OP_") and getattr(ca, m) == op]
+            raise NotImplementedError(
+                f"{fn.name()}: the compiled core has no operation {names or op}"
+            ) from None
+        args, res = fn.instruction_input(k), fn.instruction_output(k)
+        if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
+            code[k] = (core_op, res[0], args[0], args[1])
+        elif core_op == _OUTPUT:  # output res[0], nonzero res[1] <- work args[0]
+            code[k] = (core_op, res[1], args[0], res[0])
+        elif core_op == _CONST:
+            code[k] = (core_op, res[0], len(constants), 0)
+            constants.append(float(fn.instruction_constant(k)))
+        else:
+            a = args[0]
+            code[k] = (core_op, res[0], a, args[1] if len(args) > 1 else a)
+    return code, np.asarray(constants, dtype=np.float64)
+
+
+def tape_function(fn: ca.Function) -> _core.TapeFunction:
+    """The core's evaluation of ``fn`` (an SX function, or one that expands to one)."""
+    fn = _sx(fn)
+    code, constants = tape_arrays(fn)
+    return _core.TapeFunction(
+        code,
+        constants,
+        [int(fn.nnz_in(i)) for i in range(fn.n_in())],
+        [int(fn.nnz_out(i)) for i in range(fn.n_out())],
+        max(int(fn.sz_w()), 1),
+    )
