@@ -1,0 +1,3 @@
+#include "bindings.hpp"
+
+void cmhe::bind_filter(nanobind::module_& m) { (void)m; }

@@ -1,0 +1,105 @@
+// Python bindings of the model functions (tapes, window, tail).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/vector.h>
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bindings.hpp"
+#include "model_function.hpp"
+#include "tape.hpp"
+
+namespace nb = nanobind;
+using namespace cmhe;
+
+using CodeArray = nb::ndarray<const int32_t, nb::shape<-1, 4>, nb::c_contig, nb::device::cpu>;
+using ConstArray = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using InArray = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using OutArray = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+
+namespace {
+
+Tape make_tape(CodeArray code, ConstArray constants, std::vector<int64_t> input_sizes,
+               std::vector<int64_t> output_sizes, int64_t work_size) {
+  std::vector<Instruction> instructions(code.shape(0));
+  if (code.shape(0) > 0)
+    std::memcpy(instructions.data(), code.data(), code.shape(0) * sizeof(Instruction));
+  std::vector<double> c(constants.data(), constants.data() + constants.shape(0));
+  return Tape(std::move(instructions), std::move(c), std::move(input_sizes),
+              std::move(output_sizes), work_size);
+}
+
+// evaluate any model function from Python (tests, one-off calls): inputs flat,
+// column-major; the outputs concatenated into ``out``
+void evaluate(const ModelFunction& f, std::vector<InArray> inputs, OutArray out) {
+  if (static_cast<int64_t>(out.shape(0)) != f.output_size())
+    throw std::invalid_argument("out has " + std::to_string(out.shape(0)) +
+                                " values; the function writes " +
+                                std::to_string(f.output_size()));
+  std::vector<const double*> ptrs;
+  for (auto& a : inputs) ptrs.push_back(a.shape(0) ? a.data() : nullptr);
+  int status;
+  {
+    nb::gil_scoped_release release;
+    status = f.evaluate(ptrs.data(), out.data());
+  }
+  if (status != 0) throw std::runtime_error("model evaluation failed");
+}
+
+}  // namespace
+
+static_assert(sizeof(Instruction) == 4 * sizeof(int32_t), "Instruction is four int32");
+
+void cmhe::bind_model(nb::module_& m) {
+  nb::class_<ModelFunction>(m, "ModelFunction",
+                            "A model evaluation with a C entry point "
+                            "``int f(const double** inputs, double* out)``.")
+      .def_prop_ro("address", &ModelFunction::address,
+                   "Address of the C entry point (valid while this object lives).")
+      .def_prop_ro("output_size", &ModelFunction::output_size,
+                   "Number of values written (all outputs concatenated).")
+      .def("evaluate", &evaluate, nb::arg("inputs"), nb::arg("out"),
+           "Evaluate on flat column-major ``inputs``; all outputs into ``out``.");
+
+  nb::class_<TapeFunction, ModelFunction>(m, "TapeFunction",
+                                          "One CasADi SX function read as a tape.")
+      .def(
+          "__init__",
+          [](TapeFunction* self, CodeArray code, ConstArray constants,
+             std::vector<int64_t> input_sizes, std::vector<int64_t> output_sizes,
+             int64_t work_size) {
+            new (self) TapeFunction(
+                make_tape(code, constants, std::move(input_sizes), std::move(output_sizes),
+                          work_size));
+          },
+          nb::arg("code"), nb::arg("constants"), nb::arg("input_sizes"),
+          nb::arg("output_sizes"), nb::arg("work_size"))
+      .def_prop_ro("instructions", [](const TapeFunction& f) { return f.tape().instructions(); });
+
+  nb::class_<WindowFunction, ModelFunction>(m, "WindowFunction",
+                                            "The MHE window's residuals and Jacobians.")
+      .def(
+          "__init__",
+          [](WindowFunction* self, const TapeFunction& meas, const TapeFunction& proc,
+             int64_t horizon) { new (self) WindowFunction(meas.tape(), proc.tape(), horizon); },
+          nb::arg("meas"), nb::arg("proc"), nb::arg("horizon"));
+
+  nb::class_<TailFunction, ModelFunction>(m, "TailFunction",
+                                          "A window's last node and its incoming stage.")
+      .def(
+          "__init__",
+          [](TailFunction* self, const TapeFunction& meas, const TapeFunction& proc) {
+            new (self) TailFunction(meas.tape(), proc.tape());
+          },
+          nb::arg("meas"), nb::arg("proc"));
+
+  m.attr("OPERATIONS") = nb::make_tuple(
+      "INPUT", "OUTPUT", "CONST", "ASSIGN", "ADD", "SUB", "MUL", "DIV", "NEG", "EXP", "LOG",
+      "POW", "CONSTPOW", "SQRT", "SQ", "TWICE", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN",
+      "LT", "LE", "EQ", "NE", "NOT", "AND", "OR", "FLOOR", "CEIL", "FMOD", "FABS", "SIGN",
+      "COPYSIGN", "IF_ELSE_ZERO", "ERF", "FMIN", "FMAX", "INV", "SINH", "COSH", "TANH",
+      "ASINH", "ACOSH", "ATANH", "ATAN2", "HYPOT", "LOG1P", "EXPM1", "REMAINDER");
+}

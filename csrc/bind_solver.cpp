@@ -1,0 +1,3 @@
+#include "bindings.hpp"
+
+void cmhe::bind_solver(nanobind::module_& m) { (void)m; }

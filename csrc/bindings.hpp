@@ -1,0 +1,10 @@
+// Each part of the core binds its own names into continuum_mhe._core (module.cpp).
+#pragma once
+
+#include <nanobind/nanobind.h>
+
+namespace cmhe {
+void bind_model(nanobind::module_& m);   // bind_model.cpp: tapes, window and tail functions
+void bind_solver(nanobind::module_& m);  // bind_solver.cpp: the MHE window solve and step
+void bind_filter(nanobind::module_& m);  // bind_filter.cpp: EKF step, arrival prior, outputs
+}  // namespace cmhe

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Rebuild the compiled core of an editable install after a change in csrc/ (pip install
+# -e . builds it once; this reruns only the C++ build and copies the module in place).
+# Usage: tools/build_core.sh BUILD_DIR  (the folder given to pip as -C build-dir=...)
+set -euo pipefail
+build="${1:?usage: tools/build_core.sh BUILD_DIR}"
+cmake --build "$build"
+site="$(python -c 'import sysconfig; print(sysconfig.get_paths()["platlib"])')"
+cp "$build"/_core*.so "$site/continuum_mhe/"
