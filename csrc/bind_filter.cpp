@@ -1,3 +1,161 @@
-#include "bindings.hpp"
+// Python bindings of the node model's EKF step, arrival prior and outputs.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/vector.h>
 
-void cmhe::bind_filter(nanobind::module_& m) { (void)m; }
+#include <cstring>
+#include <initializer_list>
+#include <stdexcept>
+#include <string>
+
+#include "bindings.hpp"
+#include "filter.hpp"
+
+namespace nb = nanobind;
+using namespace cmhe;
+
+namespace {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<nb::numpy, double>;
+
+Out new_array(std::initializer_list<size_t> shape) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  double* data = new double[n > 0 ? n : 1];
+  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  return Out(data, shape.size(), shape.begin(), owner);
+}
+
+Out copy_of(const double* data, std::initializer_list<size_t> shape) {
+  Out a = new_array(shape);
+  std::memcpy(a.data(), data, a.size() * sizeof(double));
+  return a;
+}
+
+void check(const In& a, size_t size, const char* name) {
+  if (a.size() != size)
+    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
+                                " values, expected " + std::to_string(size));
+}
+
+struct Sample {
+  const double* u;
+  const double* z;
+  const double* mask;
+};
+
+Sample sample(const NodeModel& m, const In& u, const In& z, const In& mask, size_t nu) {
+  check(u, nu, "u");
+  check(z, m.nz(), "z");
+  check(mask, m.nz(), "mask");
+  return {u.size() ? u.data() : nullptr, z.data(), mask.data()};
+}
+
+}  // namespace
+
+void cmhe::bind_filter(nb::module_& m) {
+  nb::class_<NodeModel>(m, "NodeModel",
+                        "One node of a model: its EKF step, the arrival prior's step, and "
+                        "the outputs with their standard deviations. Matrices row-major.")
+      .def(
+          "__init__",
+          [](NodeModel* self, const ModelFunction& node, const ModelFunction& output,
+             const ModelFunction& jacobian, int nx, int nu, int nz, int ny,
+             std::vector<int64_t> wrapped) {
+            new (self) NodeModel(node, output, jacobian, nx, nu, nz, ny, std::move(wrapped));
+          },
+          nb::arg("node"), nb::arg("output"), nb::arg("output_jacobian"), nb::arg("nx"),
+          nb::arg("nu"), nb::arg("nz"), nb::arg("ny"), nb::arg("wrapped"),
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>())
+      .def(
+          "evaluate",
+          [](NodeModel& n, In x, In u, double dt, In z, In mask) {
+            const int nx = n.nx(), nz = n.nz();
+            check(x, nx, "x");
+            Sample s = sample(n, u, z, mask, u.size());
+            n.evaluate(x.data(), s.u, dt, s.z, s.mask);
+            const double* o = n.node_out();
+            const size_t k = nx + nx * nx;
+            return nb::make_tuple(copy_of(o, {size_t(nx)}), copy_of(o + nx, {size_t(nx), size_t(nx)}),
+                                  copy_of(o + k, {size_t(nz), size_t(nx)}),
+                                  copy_of(o + k + nz * nx, {size_t(nz)}));
+          },
+          nb::arg("x"), nb::arg("u"), nb::arg("dt"), nb::arg("z"), nb::arg("mask"),
+          "``(f, F, H, r)`` at one node: the transition, its Jacobian, ``H = -dr/dx`` and "
+          "the masked residual.")
+      .def(
+          "arrival_step",
+          [](NodeModel& n, In x, In P, In u, double dt, In z, In mask, In R, In Q) {
+            const size_t nx = n.nx(), nz = n.nz();
+            check(x, nx, "x");
+            check(P, nx * nx, "P");
+            check(R, nz * nz, "R");
+            check(Q, nx * nx, "Q");
+            Sample s = sample(n, u, z, mask, u.size());
+            Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+            Out Pinv = new_array({nx, nx});
+            if (!n.arrival_step(xn.data(), Pn.data(), Pinv.data(), s.u, dt, s.z, s.mask,
+                                R.data(), Q.data()))
+              throw std::runtime_error("singular matrix in the arrival prior's step");
+            return nb::make_tuple(xn, Pn, Pinv);
+          },
+          nb::arg("x"), nb::arg("P"), nb::arg("u"), nb::arg("dt"), nb::arg("z"),
+          nb::arg("mask"), nb::arg("R"), nb::arg("Q"),
+          "The arrival prior's EKF step: ``(x+, P+, P+^-1)``.")
+      .def(
+          "ekf_step_outputs",
+          [](NodeModel& n, In x, In P, In u, double dt, In z, In mask, In R, In Q) {
+            const size_t nx = n.nx(), nz = n.nz(), ny = n.ny();
+            check(x, nx, "x");
+            check(P, nx * nx, "P");
+            check(R, nz * nz, "R");
+            check(Q, nx * nx, "Q");
+            Sample s = sample(n, u, z, mask, u.size());
+            Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+            if (!n.ekf_step(xn.data(), Pn.data(), s.u, dt, s.z, s.mask, R.data(), Q.data()))
+              throw std::runtime_error("singular innovation covariance in the EKF update");
+            Out y = new_array({ny}), sd = new_array({ny});
+            n.output(xn.data(), y.data());
+            n.output_std(xn.data(), Pn.data(), sd.data());
+            return nb::make_tuple(xn, Pn, y, sd);
+          },
+          nb::arg("x"), nb::arg("P"), nb::arg("u"), nb::arg("dt"), nb::arg("z"),
+          nb::arg("mask"), nb::arg("R"), nb::arg("Q"),
+          "One EKF step, then the outputs and their standard deviations: "
+          "``(x+, P+, y, std)``.")
+      .def(
+          "output",
+          [](NodeModel& n, In x) {
+            check(x, n.nx(), "x");
+            Out y = new_array({size_t(n.ny())});
+            n.output(x.data(), y.data());
+            return y;
+          },
+          nb::arg("x"), "The outputs of state ``x`` (wrapped angles in [-pi, pi)).")
+      .def(
+          "output_std",
+          [](NodeModel& n, In x, In P) {
+            check(x, n.nx(), "x");
+            check(P, size_t(n.nx()) * n.nx(), "P");
+            Out sd = new_array({size_t(n.ny())});
+            n.output_std(x.data(), P.data(), sd.data());
+            return sd;
+          },
+          nb::arg("x"), nb::arg("P"), "``sqrt(diag(J P J^T))``, J the output Jacobian at x.");
+
+  m.def(
+      "ekf_update",
+      [](In x, In P, In r, In H, In R) {
+        const size_t nx = x.size(), nz = r.size();
+        check(P, nx * nx, "P");
+        check(H, nz * nx, "H");
+        check(R, nz * nz, "R");
+        Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+        if (!ekf_update(xn.data(), Pn.data(), r.data(), H.data(), R.data(), int(nx), int(nz)))
+          throw std::runtime_error("singular innovation covariance in the EKF update");
+        return nb::make_tuple(xn, Pn);
+      },
+      nb::arg("x"), nb::arg("P"), nb::arg("r"), nb::arg("H"), nb::arg("R"),
+      "EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``.");
+}

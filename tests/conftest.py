@@ -1,23 +1,10 @@
-"""Suite-wide settings.
-
-The command line's first run (fast kernels not compiled yet) runs short recordings on
-IPOPT while the kernels compile in the background (``estimators/fast/warmup.py``); the
-suite makes every command compile in the foreground instead, so that the statuses and
-timings of the CLI tests do not depend on which test ran first. ``test_first_run.py``
-tests the background path itself.
-
-Fixtures shared by several test modules live here too.
-"""
+"""Fixtures shared by several test modules."""
 
 from __future__ import annotations
-
-import os
 
 import numpy as np
 import pytest
 from estimator_helpers import LIN_DT, LIN_H, LIN_N, LinearBend, bend_process_cov, lin_transition
-
-os.environ.setdefault("CONTINUUM_MHE_FIRST_RUN", "foreground")
 
 
 @pytest.fixture(scope="module")

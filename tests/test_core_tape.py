@@ -80,7 +80,9 @@ def _formulations():
     yield "direct", make_formulation("direct")
 
 
-@pytest.mark.parametrize("name, f", list(_formulations()), ids=lambda v: v if isinstance(v, str) else "")
+@pytest.mark.parametrize(
+    "name, f", list(_formulations()), ids=lambda v: v if isinstance(v, str) else ""
+)
 def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     """The window built node by node in the core equals CasADi's mapped window function
     to the last bit; the tail, node and output functions likewise."""
@@ -96,8 +98,12 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     expected = casadi_flat(codegen.window_function(f, n), args)
     np.testing.assert_allclose(core_flat(window.core, args), expected, rtol=1e-14, atol=1e-14)
     targs = [X[:, 0], X[:, 1], Z[:, 1], M[:, 1], U[:, 0], DT[:, 0]]
-    np.testing.assert_allclose(core_flat(tail.core, targs),
-                               casadi_flat(codegen.tail_function(f), targs), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(
+        core_flat(tail.core, targs),
+        casadi_flat(codegen.tail_function(f), targs),
+        rtol=1e-14,
+        atol=1e-14,
+    )
     node = codegen.node_function(f)
     nargs = [X[:, 0], U[:, 0], DT[:, 0], Z[:, 0], M[:, 0]]
     np.testing.assert_array_equal(core_flat(tape_function(node), nargs), casadi_flat(node, nargs))

@@ -8,11 +8,7 @@ compared with IPOPT's answer: states, cost, active bounds, exact feasibility.
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pytest

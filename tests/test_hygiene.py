@@ -113,8 +113,7 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
     They run in this process, through the executable's own entry point
     (``continuum_mhe.entry.main``, what the ``continuum-mhe`` script calls): a fresh
     interpreter per line spent over a second importing each time (20 s of the suite);
-    the executable itself is run by the demo test above, ``test_signals`` and
-    ``test_first_run``."""
+    the executable itself is run by the demo test above and ``test_signals``."""
     from continuum_mhe.entry import main
 
     lines = _readme_examples()

@@ -16,11 +16,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-# isort: off
-from continuum_mhe import numba_cache  # noqa: F401  (first: a cache folder before numba)
-
-# isort: on
-
 __version__ = "0.1.0"
 
 #: public name -> the module that defines it

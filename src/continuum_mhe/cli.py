@@ -37,12 +37,6 @@ from continuum_mhe.cli_options import (
 )
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
-from continuum_mhe.estimators.fast.warmup import (
-    CompileNotice,
-    FirstRun,
-    first_run_mode,
-    kernels_ready,
-)
 from continuum_mhe.io.csv_files import (
     InputError,
     check_new_folder,
@@ -155,7 +149,6 @@ def cmd_estimate(args: argparse.Namespace) -> int:
             stream.formulation,
             mhe_settings_from_args(args),
             recovery_settings_from_args(args),
-            first_run=first_run_mode(_first_run_default(args.measurements)),
         )
         est.reset()
         flags_outliers = bool(getattr(est, "flags_outliers", False))
@@ -242,29 +235,6 @@ def _passthrough(it: Iterable[int]) -> Iterator[int]:
     yield from it
 
 
-#: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
-#: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, so
-#: up to about 5,000 samples (about 250 kB of tilt CSV) that run ends within about 25 s
-#: instead of after the one to two minutes of compiling. (Beyond it the command compiles
-#: first; with the 108 s measured in session 27, IPOPT would still be the quicker path up
-#: to about 20,000 samples, but that run would take over a minute on the slower solver.)
-FIRST_RUN_BACKGROUND_MAX_BYTES = 250_000
-#: samples up to which ``demo`` (which knows its length) does the same
-FIRST_RUN_BACKGROUND_MAX_SAMPLES = 5000
-
-
-def _first_run_default(source: str | int) -> FirstRun:
-    """``background`` for a short recording (a file of at most
-    ``FIRST_RUN_BACKGROUND_MAX_BYTES``, or at most ``FIRST_RUN_BACKGROUND_MAX_SAMPLES``
-    samples), ``foreground`` (compile, then run fast) for a long one or a stream."""
-    if isinstance(source, int):
-        return "background" if source <= FIRST_RUN_BACKGROUND_MAX_SAMPLES else "foreground"
-    try:
-        path = Path(source)
-        small = path.is_file() and path.stat().st_size <= FIRST_RUN_BACKGROUND_MAX_BYTES
-    except OSError:
-        small = False
-    return "background" if small else "foreground"
 
 
 def check_output_path(output: str, source: str) -> None:
@@ -435,7 +405,6 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
 def cmd_demo(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
 
     out = Path(args.out)
     check_new_folder(out)
@@ -445,30 +414,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     formulation = make_formulation("bend", robot, NoiseSettings())
     names = [o.name for o in rec.outputs]
     results: list[tuple[EstimateSeries, Metrics]] = []
-    labels: list[str] = []  # the method, and the backend where it is not the compiled one
-    first_run = first_run_mode(_first_run_default(len(rec.t)))
-    compiling = first_run == "background" and not kernels_ready()  # before the first start
+    labels: list[str] = []
     for method in METHODS:
-        est = make_estimator(method, formulation, MHESettings(), first_run=first_run)
+        est = make_estimator(method, formulation, MHESettings())
         series = est.run(rec.t, rec.z, progress=interruptible(progress_bar(f"demo: {method}")))
         results.append((series, compute_metrics(series.output, rec.truth, robot.length, names)))
-        if "fallback-ipopt" in set(series.status):
-            labels.append(f"{method.upper()} (IPOPT)")
-        elif method == "ekf" and not isinstance(est, CompiledExtendedKalmanFilter):
-            labels.append(f"{method.upper()} (CasADi)")
-        else:
-            labels.append(method.upper())
+        labels.append(method.upper())
     what = "0.2 m" if robot.is_single else robot.describe()
-    marked = compiling and labels != [m.upper() for m in METHODS]
-    table = Table(
-        title=f"{scenario}, {what}, 2 deg noise, N = 30 (continuum-mhe demo)",
-        caption=(
-            "(IPOPT), (CasADi): the paths that ran, and their times, while the fast "
-            "solver's kernels compile in the background (first run only)"
-            if marked
-            else None
-        ),
-    )
+    table = Table(title=f"{scenario}, {what}, 2 deg noise, N = 30 (continuum-mhe demo)")
     angles = [n for n in names if n.startswith(("theta", "phi"))]
     for col in ("method", "tip mean mm", "tip mean %", "tip max mm"):
         table.add_column(col, justify="right")
@@ -620,8 +573,7 @@ def _one_line_warning(
     lineno: int,
     line: str | None = None,
 ) -> str:
-    kind = "note" if issubclass(category, CompileNotice) else "warning"
-    return f"{PROG}: {kind}: {message}\n"
+    return f"{PROG}: warning: {message}\n"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

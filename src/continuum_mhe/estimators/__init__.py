@@ -12,7 +12,6 @@ from continuum_mhe.estimators.base import (
     Measurement,
     Status,
 )
-from continuum_mhe.estimators.fast.warmup import FirstRun
 from continuum_mhe.estimators.kalman import (
     CompiledExtendedKalmanFilter,
     ExtendedKalmanFilter,
@@ -31,33 +30,21 @@ def make_estimator(
     formulation: Formulation,
     mhe: MHESettings | None = None,
     recovery: RecoverySettings | None = None,
-    *,
-    first_run: FirstRun = "foreground",
 ) -> Estimator:
     """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only,
     ``recovery`` (gap reset, frozen sensors, ``uncertain``) to every method.
-
-    ``first_run``: what to do when the fast kernels are not compiled yet (the first run
-    of an install): ``"foreground"`` compiles them now, ``"background"`` compiles them
-    in another process and runs this estimator without them (IPOPT for the MHE, the
-    CasADi EKF), said once; see :mod:`continuum_mhe.estimators.fast.warmup`.
     """
-    est = _make(method, formulation, mhe, first_run)
+    est = _make(method, formulation, mhe)
     if recovery is not None:
         est.recovery = recovery
     return est
 
 
-def _make(
-    method: Method, formulation: Formulation, mhe: MHESettings | None, first_run: FirstRun
-) -> Estimator:
+def _make(method: Method, formulation: Formulation, mhe: MHESettings | None) -> Estimator:
     if method == "mhe":
-        return MovingHorizonEstimator(formulation, mhe, first_run=first_run)
-    if method == "ekf":  # the compiled step where the model compiles (same answers)
-        try:
-            return CompiledExtendedKalmanFilter(formulation, first_run=first_run)
-        except NotImplementedError:
-            return ExtendedKalmanFilter(formulation)
+        return MovingHorizonEstimator(formulation, mhe)
+    if method == "ekf":
+        return CompiledExtendedKalmanFilter(formulation)
     if method == "ukf":
         return UnscentedKalmanFilter(formulation)
     raise UserError(f"method must be one of {METHODS}, got {method!r}")

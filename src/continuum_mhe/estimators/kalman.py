@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
-from continuum_mhe.estimators.fast.warmup import FirstRun, register_recipe
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
 
 
@@ -144,31 +143,15 @@ class ExtendedKalmanFilter(_KalmanBase):
 
 
 class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
-    """The same EKF, each step one compiled call (the fast MHE's C model and numba
-    kernels): the strongest EKF baseline for timing. Same equations and answers as
-    :class:`ExtendedKalmanFilter` (to rounding). Without a C compiler (said once by
-    :func:`~continuum_mhe.estimators.fast.build_window_model`) it raises
-    ``NotImplementedError`` and :func:`~continuum_mhe.estimators.make_estimator` uses the
-    CasADi EKF. ``first_run`` is as for
-    :class:`~continuum_mhe.estimators.mhe.MovingHorizonEstimator`; with ``"background"``
-    and the kernels not compiled yet it raises ``NotImplementedError`` too."""
+    """The same EKF, each step one call into the compiled core (the node model and the
+    EKF step in C++): the strongest EKF baseline for timing. Same equations and answers
+    as :class:`ExtendedKalmanFilter` (to rounding)."""
 
     name = "ekf"
 
-    def __init__(self, formulation: Formulation, first_run: FirstRun | None = "foreground") -> None:
+    def __init__(self, formulation: Formulation) -> None:
         from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
-        from continuum_mhe.estimators.fast.warmup import (
-            defer_compiling,
-            ensure_compiled,
-            kernels_ready,
-        )
 
-        if first_run is not None and not kernels_ready():  # the first run of an install
-            if first_run == "background":
-                raise NotImplementedError(
-                    defer_compiling("the CasADi EKF for the EKF (the same equations, slower)")
-                )
-            ensure_compiled()
         model = build_window_model(formulation, 2)
         self._node = NodeEvaluator(model)
         self._q = ProcessNoiseCache(formulation)
@@ -311,15 +294,3 @@ class UnscentedKalmanFilter(_KalmanBase):
                 "reading is about a half turn from the predicted tilt"
             )
 
-
-def _compile_ekf_kernels(f: Formulation, t: FloatArray, z: FloatArray, spiked: FloatArray) -> None:
-    """The compiled EKF's kernel recipe (:func:`~.fast.warmup.register_recipe`); none
-    without a compiled model (no C compiler)."""
-    try:
-        ekf = CompiledExtendedKalmanFilter(f, first_run=None)
-    except NotImplementedError:
-        return
-    ekf.run(t, z)
-
-
-register_recipe("ekf", _compile_ekf_kernels)

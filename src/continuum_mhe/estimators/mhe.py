@@ -62,13 +62,6 @@ from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_s
 from continuum_mhe.estimators.fast.qp import CONVERGED
 from continuum_mhe.estimators.fast.sqp import quadratic_rate
 from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers, StepOptions
-from continuum_mhe.estimators.fast.warmup import (
-    FirstRun,
-    defer_compiling,
-    ensure_compiled,
-    kernels_ready,
-    register_recipe,
-)
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
@@ -101,12 +94,6 @@ class MovingHorizonEstimator(Estimator):
         formulation: the model.
         settings: horizon, solver and IPOPT options.
         fast_options: options of the fast backend (iterations, tolerance).
-        first_run: when the fast backend's kernels are not compiled yet (the first
-            run of an install): ``"foreground"`` compiles them now (said once),
-            ``"background"`` compiles them in another process while IPOPT solves this
-            estimator's windows (status ``fallback-ipopt``) without the covariance
-            (whose kernels are among them; said once), None does not check (see
-            :mod:`continuum_mhe.estimators.fast.warmup`).
     """
 
     name = "mhe"
@@ -116,7 +103,6 @@ class MovingHorizonEstimator(Estimator):
         formulation: Formulation,
         settings: MHESettings | None = None,
         fast_options: FastOptions | None = None,
-        first_run: FirstRun | None = "foreground",
     ) -> None:
         super().__init__(formulation)
         self.settings = settings or MHESettings()
@@ -129,25 +115,7 @@ class MovingHorizonEstimator(Estimator):
         )
         s = self.settings
         self._fast: WindowModel | None = None
-        deferred = False  # the kernels compile in the background: none is used here
-        if first_run is not None and not kernels_ready():  # the covariance needs them too
-            if first_run == "background":
-                deferred = True
-                what = (
-                    "IPOPT for the MHE (the same window problem, slower; rows flagged "
-                    "fallback-ipopt)"
-                    if s.solver == "fast"
-                    else "IPOPT for the MHE"
-                )
-                self.backend_note = defer_compiling(
-                    f"{what}, without the MHE's standard deviations (the std_ columns "
-                    "stay empty)"
-                )
-            else:
-                ensure_compiled()
-        #: whether estimates carry the window covariance (not while the kernels compile)
-        self.reports_covariance = not deferred
-        if s.solver == "fast" and not deferred:
+        if s.solver == "fast":
             try:
                 self._fast = build_window_model(formulation, s.horizon, s.loss, s.scale)
             except NotImplementedError as exc:  # feasible set the fast backend cannot take
@@ -545,11 +513,8 @@ class MovingHorizonEstimator(Estimator):
         model on the fast backend, from CasADi on IPOPT. ``hessian``: the fast SQP's
         blocks at its last evaluated iterate when ``X`` is its certified answer (that
         iterate is within the convergence tolerance of ``X``; no evaluation then). None
-        if not positive definite, or on a first run whose kernels compile in the
-        background (``first_run``).
+        if not positive definite.
         """
-        if not self.reports_covariance:
-            return None
         if self._fast is not None:
             return window_covariance(self._fast, problem, X, self._workspace, hessian=hessian)
         loss = LossKernel(self._blocks, LOSS_CODES[self.settings.loss], float(self.settings.scale))
@@ -693,19 +658,3 @@ class MovingHorizonEstimator(Estimator):
         """The NLP's objective for a trajectory ``X`` (N, nx)."""
         return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
 
-
-def _compile_mhe_kernels(f: Formulation, t: FloatArray, z: FloatArray, spiked: FloatArray) -> None:
-    """The fast MHE's kernel recipe (:func:`~.fast.warmup.register_recipe`): the one-call
-    step (l2, the default settings, whose C model is then cached; a robust loss's too),
-    then for the spike the two-call step and the Python path's window solve (the second
-    start)."""
-    runs = (
-        (MHESettings(), z),
-        (MHESettings(horizon=5), z),
-        (MHESettings(horizon=5, loss="cauchy"), spiked),
-    )
-    for settings, zs in runs:
-        MovingHorizonEstimator(f, settings, first_run=None).run(t, zs)
-
-
-register_recipe("mhe", _compile_mhe_kernels)

@@ -18,18 +18,16 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.estimators.fast import arrival
-from continuum_mhe.estimators.fast.ccall import CompiledCall, address
+from continuum_mhe import _core
+from continuum_mhe.estimators.fast.ccall import address
 from continuum_mhe.estimators.fast.codegen import (
     c_function,
-    failure_message,
     node_function,
     output_function,
     output_jacobian_function,
     transition_is_linear,
     window_c_functions,
 )
-from continuum_mhe.estimators.fast.outputs import OUTPUT_FAILED, OUTPUT_JACOBIAN_FAILED
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 
@@ -190,7 +188,6 @@ class NodeEvaluator:
         self._ofn = model.output
         self._ox = np.zeros(nx)
         self._oout = np.empty(model.ny)
-        self._wrapped = list(model.wrapped)
         self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
         self._jfn = model.output_jacobian
         self._jout = np.empty(model.ny * nx)
@@ -199,17 +196,11 @@ class NodeEvaluator:
             address(model.output), address(model.output_jacobian), self._optrs, self._ox,
             self._oout, self._jout, np.array(model.wrapped, dtype=np.int64),
         )  # fmt: skip
-        self._ekf_step_outputs = CompiledCall(arrival.ekf_step_outputs)  # see ccall
-        self._inputs = (self._x, self._u, self._dt, self._z, self._m)
-        self._y = np.empty(model.ny)
-        self._std = np.empty(model.ny)
-        k = nx + nx * nx
-        self._views = (
-            self._out[:nx],
-            self._out[nx:k].reshape(nx, nx),
-            self._out[k : k + nz * nx].reshape(nz, nx),
-            self._out[k + nz * nx :],
-        )
+        self._core = _core.NodeModel(
+            model.node.core, model.output.core, model.output_jacobian.core,
+            nx, model.nu, nz, model.ny, list(model.wrapped),
+        )  # fmt: skip
+        self._zeros, self._ones = np.zeros(nz), np.ones(nz)
 
     @property
     def _fn(self) -> Any:
@@ -229,18 +220,12 @@ class NodeEvaluator:
         z: FloatArray | None = None,
         mask: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))``, copies: (nx,), (nx, nx),
-        (nz, nx), (nz,). ``z`` matters for the last two only (zeros when omitted);
-        ``mask`` (nz,) zeroes the components of sensors that dropped out."""
-        self._x[:] = x
-        self._u[:] = u
-        self._dt[0] = dt
-        self._z[:] = 0.0 if z is None else z
-        self._m[:] = 1.0 if mask is None else mask
-        if self._fn(self._ptrs.ctypes.data, self._out.ctypes.data) != 0:
-            raise RuntimeError(failure_message(self._fn))
-        f, F, H, r = self._views
-        return f.copy(), F.copy(), H.copy(), r.copy()
+        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))``: (nx,), (nx, nx), (nz, nx),
+        (nz,). ``z`` matters for the last two only (zeros when omitted); ``mask`` (nz,)
+        zeroes the components of sensors that dropped out."""
+        z = self._zeros if z is None else z
+        mask = self._ones if mask is None else mask
+        return self._core.evaluate(_f64(x), _f64(u), float(dt), _f64(z), _f64(mask))  # type: ignore[no-any-return]
 
     def arrival_step(
         self,
@@ -253,21 +238,12 @@ class NodeEvaluator:
         R: FloatArray,
         Q: FloatArray,
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """One EKF step of the arrival prior in one compiled call: update with ``z``
-        (its valid components, ``mask``; none: prediction only), predict with
-        ``(u, dt)``. Returns ``(x+, P+, P+^-1)``; the same
-        equations as :func:`arrival_update` then :func:`arrival_predict`."""
-        self._u[:] = u
-        self._dt[0] = dt
-        self._z[:] = z
-        self._m[:] = mask
-        valid = bool(np.any(mask))
-        try:
-            return arrival.arrival_step(
-                self._addr, self._ptrs, self._out, self._x, x, P, valid, R, Q, self._x.shape[0]
-            )
-        except RuntimeError as exc:  # the kernel cannot format the model's own message
-            raise self._failure(exc) from exc
+        """One EKF step of the arrival prior: update with ``z`` (its valid components,
+        ``mask``; none: prediction only), predict with ``(u, dt)``. Returns
+        ``(x+, P+, P+^-1)``, ``P+`` symmetrised."""
+        return self._core.arrival_step(  # type: ignore[no-any-return]
+            _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
+        )
 
     def ekf_step_outputs(
         self,
@@ -283,47 +259,21 @@ class NodeEvaluator:
         """One EKF step (predict with ``(u, dt)``, then update with the valid components
         of ``z``, ``mask``; the equations of
         :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``), then
-        :meth:`output` and :meth:`output_std` of its answer, in one compiled call:
+        :meth:`output` and :meth:`output_std` of its answer, in one call into the core:
         ``(x+, P+, outputs, output standard deviations)``."""
-        try:
-            xn, Pn = self._ekf_step_outputs(
-                self._addr, self._ptrs, self._out, self._inputs, _f64(x), _f64(P),
-                (_f64(z), _f64(mask), _f64(u), float(dt)), _f64(R), _f64(Q), self.outputs,
-                self._y, self._std,
-            )  # fmt: skip
-        except RuntimeError as exc:  # the kernel cannot format the model's own message
-            raise self._failure(exc) from exc
-        return xn, Pn, self._y.copy(), self._std.copy()
-
-    def _failure(self, exc: RuntimeError) -> RuntimeError:
-        """A kernel's error ``exc`` with the failed compiled function's own message."""
-        if str(exc) == "model evaluation failed":
-            return RuntimeError(failure_message(self._fn))
-        if str(exc) == OUTPUT_FAILED:
-            return RuntimeError(failure_message(self._ofn))
-        if str(exc) == OUTPUT_JACOBIAN_FAILED:
-            return RuntimeError(failure_message(self._jfn))
-        return exc
+        return self._core.ekf_step_outputs(  # type: ignore[no-any-return]
+            _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
+        )
 
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
-        """``sqrt(diag(J P J^T))`` with the compiled output Jacobian ``J`` at ``x``: the
-        same as :meth:`Formulation.output_std`, one C call."""
-        self._ox[:] = x
-        if self._jfn(self._optrs.ctypes.data, self._jout.ctypes.data) != 0:
-            raise RuntimeError(failure_message(self._jfn))
-        J = self._jout.reshape(-1, len(x), order="F")
-        return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, P, J), 0.0))
+        """``sqrt(diag(J P J^T))`` with the output Jacobian ``J`` at ``x``: the same as
+        :meth:`Formulation.output_std`."""
+        return self._core.output_std(_f64(x), _f64(P))  # type: ignore[no-any-return]
 
     def output(self, x: FloatArray) -> FloatArray:
-        """The outputs of state ``x`` (compiled ``output_sym``; wrapped angles in
-        ``[-pi, pi)`` as :meth:`Formulation.output` does)."""
-        self._ox[:] = x
-        if self._ofn(self._optrs.ctypes.data, self._oout.ctypes.data) != 0:
-            raise RuntimeError(failure_message(self._ofn))
-        y = self._oout.copy()
-        for i in self._wrapped:
-            y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
-        return y
+        """The outputs of state ``x`` (``output_sym``; wrapped angles in ``[-pi, pi)``
+        as :meth:`Formulation.output` does)."""
+        return self._core.output(_f64(x))  # type: ignore[no-any-return]
 
 
 def _f64(a: FloatArray) -> FloatArray:

@@ -1,0 +1,241 @@
+#include "filter.hpp"
+
+#include <cmath>
+#include <utility>
+
+namespace cmhe {
+
+namespace small {
+
+void mul(const double* A, const double* B, double* C, int m, int k, int n) {
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < n; ++j) {
+      double s = 0.0;
+      for (int a = 0; a < k; ++a) s += A[i * k + a] * B[a * n + j];
+      C[i * n + j] = s;
+    }
+}
+
+void mul_t(const double* A, const double* B, double* C, int m, int k, int n) {
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < n; ++j) {
+      double s = 0.0;
+      for (int a = 0; a < k; ++a) s += A[i * k + a] * B[j * k + a];
+      C[i * n + j] = s;
+    }
+}
+
+bool cholesky(const double* A, double* L, int n) {
+  for (int i = 0; i < n * n; ++i) L[i] = 0.0;
+  for (int j = 0; j < n; ++j) {
+    double s = A[j * n + j];
+    for (int c = 0; c < j; ++c) s -= L[j * n + c] * L[j * n + c];
+    if (!(s > 0.0)) return false;
+    L[j * n + j] = std::sqrt(s);
+    for (int k = j + 1; k < n; ++k) {
+      double t = A[k * n + j];
+      for (int c = 0; c < j; ++c) t -= L[k * n + c] * L[j * n + c];
+      L[k * n + j] = t / L[j * n + j];
+    }
+  }
+  return true;
+}
+
+void inverse_gram(const double* L, double* out, int n) {
+  std::vector<double> Li(static_cast<size_t>(n) * n, 0.0);  // L^-1, lower triangular
+  for (int c = 0; c < n; ++c)
+    for (int j = c; j < n; ++j) {
+      double t = j == c ? 1.0 : 0.0;
+      for (int k = c; k < j; ++k) t -= L[j * n + k] * Li[k * n + c];
+      Li[j * n + c] = t / L[j * n + j];
+    }
+  for (int j = 0; j < n; ++j)
+    for (int k = j; k < n; ++k) {
+      double s = 0.0;
+      for (int a = k; a < n; ++a) s += Li[a * n + j] * Li[a * n + k];
+      out[j * n + k] = s;
+      out[k * n + j] = s;
+    }
+}
+
+bool solve(const double* A, const double* B, double* X, int n, int m) {
+  std::vector<double> a(A, A + static_cast<size_t>(n) * n);
+  for (int i = 0; i < n * m; ++i) X[i] = B[i];
+  for (int c = 0; c < n; ++c) {
+    int p = c;
+    for (int i = c + 1; i < n; ++i)
+      if (std::fabs(a[i * n + c]) > std::fabs(a[p * n + c])) p = i;
+    if (a[p * n + c] == 0.0) return false;
+    if (p != c) {
+      for (int k = 0; k < n; ++k) std::swap(a[p * n + k], a[c * n + k]);
+      for (int k = 0; k < m; ++k) std::swap(X[p * m + k], X[c * m + k]);
+    }
+    for (int i = c + 1; i < n; ++i) {
+      const double f = a[i * n + c] / a[c * n + c];
+      for (int k = c; k < n; ++k) a[i * n + k] -= f * a[c * n + k];
+      for (int k = 0; k < m; ++k) X[i * m + k] -= f * X[c * m + k];
+    }
+  }
+  for (int c = n - 1; c >= 0; --c)
+    for (int k = 0; k < m; ++k) {
+      double t = X[c * m + k];
+      for (int j = c + 1; j < n; ++j) t -= a[c * n + j] * X[j * m + k];
+      X[c * m + k] = t / a[c * n + c];
+    }
+  return true;
+}
+
+}  // namespace small
+
+bool ekf_update(double* x, double* P, const double* r, const double* H, const double* R,
+                int nx, int nz) {
+  std::vector<double> HP(nz * nx), S(nz * nz), Ls(nz * nz), Si(nz * nz), Kt(nz * nx);
+  small::mul(H, P, HP.data(), nz, nx, nx);
+  small::mul_t(HP.data(), H, S.data(), nz, nx, nz);
+  for (int i = 0; i < nz * nz; ++i) S[i] += R[i];
+  if (small::cholesky(S.data(), Ls.data(), nz)) {
+    small::inverse_gram(Ls.data(), Si.data(), nz);
+    small::mul(Si.data(), HP.data(), Kt.data(), nz, nz, nx);  // S^-1 H P
+  } else if (!small::solve(S.data(), HP.data(), Kt.data(), nz, nx)) {
+    return false;
+  }
+  std::vector<double> ikh(nx * nx), K(nx * nz), A(nx * nx), B(nx * nx), KR(nx * nz);
+  for (int j = 0; j < nx; ++j) {
+    for (int a = 0; a < nz; ++a) x[j] += Kt[a * nx + j] * r[a];
+    for (int k = 0; k < nx; ++k) {
+      double s = j == k ? 1.0 : 0.0;
+      for (int a = 0; a < nz; ++a) s -= Kt[a * nx + j] * H[a * nx + k];
+      ikh[j * nx + k] = s;
+    }
+  }
+  for (int j = 0; j < nx; ++j)
+    for (int a = 0; a < nz; ++a) K[j * nz + a] = Kt[a * nx + j];
+  small::mul(ikh.data(), P, A.data(), nx, nx, nx);
+  small::mul_t(A.data(), ikh.data(), B.data(), nx, nx, nx);  // (I - KH) P (I - KH)^T
+  small::mul(K.data(), R, KR.data(), nx, nz, nz);
+  small::mul_t(KR.data(), K.data(), A.data(), nx, nz, nx);  // K R K^T
+  for (int i = 0; i < nx * nx; ++i) P[i] = B[i] + A[i];
+  return true;
+}
+
+void predict_covariance(double* P, const double* F, const double* Q, int nx) {
+  std::vector<double> FP(nx * nx);
+  small::mul(F, P, FP.data(), nx, nx, nx);
+  small::mul_t(FP.data(), F, P, nx, nx, nx);
+  for (int i = 0; i < nx * nx; ++i) P[i] += Q[i];
+}
+
+NodeModel::NodeModel(const ModelFunction& node, const ModelFunction& output,
+                     const ModelFunction& output_jacobian, int nx, int nu, int nz, int ny,
+                     std::vector<int64_t> wrapped)
+    : node_(node),
+      output_(output),
+      jacobian_(output_jacobian),
+      nx_(nx),
+      nu_(nu),
+      nz_(nz),
+      ny_(ny),
+      wrapped_(std::move(wrapped)),
+      x_(nx),
+      u_(nu),
+      dt_(1),
+      z_(nz),
+      m_(nz),
+      out_(nx + nx * nx + nz * nx + nz),
+      oout_(ny),
+      jout_(static_cast<size_t>(ny) * nx),
+      r_(nz),
+      H_(nz * nx) {}
+
+void NodeModel::set_sample(const double* u, double dt, const double* z, const double* mask) {
+  for (int i = 0; i < nu_; ++i) u_[i] = u[i];
+  dt_[0] = dt;
+  for (int i = 0; i < nz_; ++i) {
+    m_[i] = mask ? mask[i] : 1.0;
+    z_[i] = z && m_[i] > 0.0 ? z[i] : 0.0;
+  }
+}
+
+void NodeModel::evaluate(const double* x, const double* u, double dt, const double* z,
+                         const double* mask) {
+  set_sample(u, dt, z, mask);
+  for (int i = 0; i < nx_; ++i) x_[i] = x[i];
+  const double* in[5] = {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(),
+                         m_.data()};
+  node_.evaluate(in, out_.data());
+}
+
+namespace {
+bool any_valid(const double* mask, int nz) {
+  for (int i = 0; i < nz; ++i)
+    if (mask[i] > 0.0) return true;
+  return false;
+}
+}  // namespace
+
+bool NodeModel::arrival_step(double* x, double* P, double* Pinv, const double* u, double dt,
+                             const double* z, const double* mask, const double* R,
+                             const double* Q) {
+  const int nx = nx_, nz = nz_, k = nx + nx * nx;
+  if (any_valid(mask, nz)) {
+    evaluate(x, u, dt, z, mask);
+    if (!ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz)) return false;
+  }
+  evaluate(x, u, dt, z, mask);
+  for (int i = 0; i < nx; ++i) x[i] = out_[i];
+  predict_covariance(P, out_.data() + nx, Q, nx);
+  for (int j = 0; j < nx; ++j)
+    for (int c = 0; c < j; ++c) {
+      const double m = 0.5 * (P[j * nx + c] + P[c * nx + j]);
+      P[j * nx + c] = m;
+      P[c * nx + j] = m;
+    }
+  std::vector<double> L(nx * nx);
+  if (small::cholesky(P, L.data(), nx)) {
+    small::inverse_gram(L.data(), Pinv, nx);
+    return true;
+  }
+  std::vector<double> I(nx * nx, 0.0);
+  for (int i = 0; i < nx; ++i) I[i * nx + i] = 1.0;
+  return small::solve(P, I.data(), Pinv, nx, nx);
+}
+
+bool NodeModel::ekf_step(double* x, double* P, const double* u, double dt, const double* z,
+                         const double* mask, const double* R, const double* Q) {
+  const int nx = nx_, nz = nz_, k = nx + nx * nx;
+  evaluate(x, u, dt, z, mask);
+  for (int i = 0; i < nx; ++i) x[i] = out_[i];
+  predict_covariance(P, out_.data() + nx, Q, nx);
+  if (!any_valid(mask, nz)) return true;
+  evaluate(x, u, dt, z, mask);
+  return ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz);
+}
+
+void NodeModel::output(const double* x, double* y) {
+  const double* in[1] = {x};
+  output_.evaluate(in, y);
+  const double period = 2.0 * M_PI;
+  for (int64_t i : wrapped_) {  // Python's (y + pi) % (2 pi) - pi
+    double m = std::fmod(y[i] + M_PI, period);
+    if (m != 0.0) {
+      if (m < 0.0) m += period;
+    } else {
+      m = 0.0;
+    }
+    y[i] = m - M_PI;
+  }
+}
+
+void NodeModel::output_std(const double* x, const double* P, double* std) {
+  const double* in[1] = {x};
+  jacobian_.evaluate(in, jout_.data());
+  const int ny = ny_, nx = nx_;
+  for (int i = 0; i < ny; ++i) {
+    double s = 0.0;
+    for (int j = 0; j < nx; ++j)
+      for (int k = 0; k < nx; ++k) s += jout_[i + ny * j] * P[j * nx + k] * jout_[i + ny * k];
+    std[i] = std::sqrt(s > 0.0 ? s : 0.0);
+  }
+}
+
+}  // namespace cmhe

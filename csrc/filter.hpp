@@ -1,0 +1,75 @@
+// The EKF step of one node model: the compiled EKF's step and the MHE's arrival prior.
+//
+// Matrices are row-major (numpy's C order). The node function is
+// ``(x, u, dt, z, m) -> (f, F, H, r)``: the transition, its Jacobian (row-major), the
+// measurement Jacobian ``H = -dr/dx`` (nz x nx, row-major) and the masked residual
+// (continuum_mhe.estimators.fast.codegen.node_function).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "model_function.hpp"
+
+namespace cmhe {
+
+// Small dense kernels on row-major matrices, written out: for the few-by-few matrices
+// of one node a BLAS or LAPACK call costs more than its arithmetic.
+namespace small {
+// C (m x n) = A (m x k) B (k x n)
+void mul(const double* A, const double* B, double* C, int m, int k, int n);
+// C (m x n) = A (m x k) B^T, B (n x k)
+void mul_t(const double* A, const double* B, double* C, int m, int k, int n);
+// lower Cholesky factor of A (n x n); false if A is not positive definite
+bool cholesky(const double* A, double* L, int n);
+// (L L^T)^-1 for a lower-triangular L with a nonzero diagonal
+void inverse_gram(const double* L, double* out, int n);
+// X (n x m) = A^-1 B by Gaussian elimination with partial pivoting; false if singular
+bool solve(const double* A, const double* B, double* X, int n, int m);
+}  // namespace small
+
+// EKF measurement update, Joseph form, in place: ``x`` (nx), ``P`` (nx x nx) with the
+// residual ``r`` (nz) and ``H = -dr/dx`` (nz x nx); false if ``S`` is singular.
+bool ekf_update(double* x, double* P, const double* r, const double* H, const double* R,
+                int nx, int nz);
+// ``P = F P F^T + Q``, in place
+void predict_covariance(double* P, const double* F, const double* Q, int nx);
+
+class NodeModel {
+ public:
+  NodeModel(const ModelFunction& node, const ModelFunction& output,
+            const ModelFunction& output_jacobian, int nx, int nu, int nz, int ny,
+            std::vector<int64_t> wrapped);
+
+  int nx() const { return nx_; }
+  int nz() const { return nz_; }
+  int ny() const { return ny_; }
+
+  // the node function at (x, u, dt, z, mask); its outputs stay in ``node_out()``
+  void evaluate(const double* x, const double* u, double dt, const double* z,
+                const double* mask);
+  const double* node_out() const { return out_.data(); }
+
+  // the arrival prior's EKF step: update with the valid components of z (none:
+  // prediction only), then predict; ``P`` symmetrised, ``Pinv`` its inverse.
+  bool arrival_step(double* x, double* P, double* Pinv, const double* u, double dt,
+                    const double* z, const double* mask, const double* R, const double* Q);
+  // the EKF's step: predict, then update with the valid components of z
+  bool ekf_step(double* x, double* P, const double* u, double dt, const double* z,
+                const double* mask, const double* R, const double* Q);
+  // outputs of x (wrapped angles in [-pi, pi))
+  void output(const double* x, double* y);
+  // sqrt(diag(J P J^T)) with the output Jacobian J at x
+  void output_std(const double* x, const double* P, double* std);
+
+ private:
+  void set_sample(const double* u, double dt, const double* z, const double* mask);
+  const ModelFunction& node_;
+  const ModelFunction& output_;
+  const ModelFunction& jacobian_;
+  int nx_, nu_, nz_, ny_;
+  std::vector<int64_t> wrapped_;
+  std::vector<double> x_, u_, dt_, z_, m_, out_, oout_, jout_, r_, H_;
+};
+
+}  // namespace cmhe
