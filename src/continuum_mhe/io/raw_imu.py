@@ -224,6 +224,21 @@ def is_raw_header(header: list[str]) -> bool:
     )
 
 
+def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
+    """``"raw"`` if the header names the accelerometer columns (:func:`is_raw_header`),
+    else ``"tilt"``; a header with both tilt (``roll``, ``pitch``, ``roll_1``...) and raw
+    columns is a one-line error (which ones should be estimated from?)."""
+    if not is_raw_header(rows.header):
+        return "tilt"
+    tilt = [h for h in rows.header if h.split("_")[0] in ("roll", "pitch")]
+    if tilt:
+        raise InputError(
+            f"{rows.name}: line 1: the header has both tilt ({', '.join(tilt[:2])}) and raw "
+            "IMU columns (ax, ay, az); give one kind: remove the tilt or the raw columns"
+        )
+    return "raw"
+
+
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
     """Raw columns of IMU ``i`` (0-based): ``ax..gz`` for one IMU, ``ax_1..gz_1``..."""
     names = (*ACC_COLUMNS, *GYRO_COLUMNS) if gyro else ACC_COLUMNS
@@ -323,9 +338,9 @@ def read_raw_imus(
 def csv_input_kind(path: str | os.PathLike[str]) -> Literal["tilt", "raw"]:
     """``"raw"`` if the CSV header has ``ax,ay,az``, else ``"tilt"`` (``t,roll,pitch``).
     Reads the input: for a pipe, open it once with :func:`open_rows` and use
-    :func:`is_raw_header` instead."""
+    :func:`sample_kind` instead."""
     with open_rows(path) as rows:
-        return "raw" if is_raw_header(rows.header) else "tilt"
+        return sample_kind(rows)
 
 
 def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> RawImuTable:
