@@ -61,7 +61,9 @@ def test_a_line_over_the_limit_is_one_line_naming_it(tmp_path: Path) -> None:
     path.write_bytes(HEAD + b"# " + b"x" * MAX_LINE_BYTES + b"\n0.05,0.1,0.1\n")
     with pytest.raises(InputError) as info:
         read_measurements(path)
-    assert str(info.value) == f"{path}: line 3: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)"
+    assert (
+        str(info.value) == f"{path}: line 3: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)"
+    )
     path.write_bytes(HEAD + b"# " + b"x" * (MAX_LINE_BYTES - 2) + b"\r\n0.05,0.1,0.1\n")
     assert len(read_measurements(path).t) == 2  # at the limit (its line end not counted)
 
@@ -186,8 +188,7 @@ def test_deeply_nested_robot_file_is_one_line(
     path = REPRO / "deep_nesting.toml"
     assert main(["check-robot", str(path)]) == 2
     assert capsys.readouterr().err == (
-        f"continuum-mhe: error: {path}: not a robot file (nested too deeply for TOML's "
-        "parser)\n"
+        f"continuum-mhe: error: {path}: not a robot file (nested too deeply for TOML's parser)\n"
     )
 
 
