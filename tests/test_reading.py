@@ -262,14 +262,10 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
         code = main(["estimate", str(path), "-o", str(out)])
     n = len(lines) - 1
     assert code == 2 and not out.exists()
-    assert (
-        capsys.readouterr()
-        .err.strip()
-        .endswith(
-            f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
-            "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
-            "--gap-reset, or 0: never); nothing written"
-        )
+    assert capsys.readouterr().err.strip().endswith(
+        f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
+        "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
+        "--gap-reset, or 0: never); nothing written"
     )
     with pytest.warns(UnitWarning):  # told to: the estimate is written
         assert main(["estimate", str(path), "-o", str(out), "--gap-reset", "0"]) == 0
