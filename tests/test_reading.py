@@ -17,7 +17,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
 from continuum_mhe.io.raw_imu import read_raw_imu
 from continuum_mhe.io.sample_stream import CHUNK
-from continuum_mhe.io.text_rows import MAX_LINE_CHARS, InputError
+from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError
 from continuum_mhe.simulation.scenarios import simulate
 
 CLI = [sys.executable, "-m", "continuum_mhe.cli"]
@@ -156,7 +156,7 @@ def test_states_table_with_t_ms(tmp_path: Path) -> None:
         ("t;roll;pitch\n0;0,1;0,1\n", "a decimal comma?"),
         ("0,0.1,0.1\n0.05,0.1,0.1\n", "no header line"),
         ("# only a comment\n", "only comments"),
-        ("x" * (MAX_LINE_CHARS + 10), f"longer than {MAX_LINE_CHARS}"),
+        ("x" * (MAX_LINE_BYTES + 10), f"longer than {MAX_LINE_BYTES}"),
     ],
 )
 def test_dialect_errors_are_one_line(tmp_path: Path, text: str, needle: str) -> None:

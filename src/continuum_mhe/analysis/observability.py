@@ -97,7 +97,10 @@ def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
     rel = sv[:, -1] / np.maximum(sv[:, 0], 1e-300)
     if jacs.shape[1] < jacs.shape[2]:  # fewer rows than unknowns: a zero singular value
         rel = np.zeros(len(jacs))
-    ranks = np.sum(sv > RANK_TOL * sv[:, :1], axis=1)
+    # relative to the largest, and at least RANK_TOL absolute: the tilt Jacobian is in rad
+    # per rad (about 1 for an IMU at a section's end), so an IMU that barely moves with
+    # the bend (at = 1e-300) sees nothing, whatever the ratio of its singular values
+    ranks = np.sum(sv > RANK_TOL * np.maximum(sv[:, :1], 1.0), axis=1)
     full = jacs.shape[2]  # the unknowns: full column rank
     pct = {f"p{q}": float(np.percentile(rel, q)) for q in (0, 1, 5, 50)}
     return (

@@ -219,9 +219,22 @@ def is_raw_header(header: list[str]) -> bool:
     """True when a (lower-case) CSV header names the accelerometer columns (``ax,ay,az``,
     or ``ax_1,ay_1,az_1`` for several IMUs; ``ax_0...``, numbered from 0, too, so that
     :func:`raw_layout` can say IMUs are numbered from 1)."""
-    return any(
-        all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0")
-    )
+    return any(all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0"))
+
+
+def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
+    """``"raw"`` if the header names the accelerometer columns (:func:`is_raw_header`),
+    else ``"tilt"``; a header with both tilt (``roll``, ``pitch``, ``roll_1``...) and raw
+    columns is a one-line error (which ones should be estimated from?)."""
+    if not is_raw_header(rows.header):
+        return "tilt"
+    tilt = [h for h in rows.header if h.split("_")[0] in ("roll", "pitch")]
+    if tilt:
+        raise InputError(
+            f"{rows.name}: line 1: the header has both tilt ({', '.join(tilt[:2])}) and raw "
+            "IMU columns (ax, ay, az); give one kind: remove the tilt or the raw columns"
+        )
+    return "raw"
 
 
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
@@ -323,9 +336,9 @@ def read_raw_imus(
 def csv_input_kind(path: str | os.PathLike[str]) -> Literal["tilt", "raw"]:
     """``"raw"`` if the CSV header has ``ax,ay,az``, else ``"tilt"`` (``t,roll,pitch``).
     Reads the input: for a pipe, open it once with :func:`open_rows` and use
-    :func:`is_raw_header` instead."""
+    :func:`sample_kind` instead."""
     with open_rows(path) as rows:
-        return "raw" if is_raw_header(rows.header) else "tilt"
+        return sample_kind(rows)
 
 
 def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> RawImuTable:

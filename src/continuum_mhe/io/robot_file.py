@@ -38,8 +38,15 @@ from pathlib import Path
 from typing import Any
 
 from continuum_mhe.io.csv_files import InputError, UnitWarning
+from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section, mount_rpy_hint
+from continuum_mhe.model.robot import (
+    MAX_MOUNT_DEG,
+    ImuPlacement,
+    Robot,
+    Section,
+    mount_rpy_hint,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -168,6 +175,11 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if not isinstance(rpy, list) or len(rpy) != 3:
             raise InputError(f"{path}: {where}: mount_rpy must be [roll, pitch, yaw] in degrees")
         mount = tuple(_number(path, f"{where}: mount_rpy", v) for v in rpy)
+        if any(abs(v) > MAX_MOUNT_DEG for v in mount):
+            raise InputError(
+                f"{path}: {where}: mount_rpy must be angles in degrees within "
+                f"+-{MAX_MOUNT_DEG:g}, got {rpy!r}"
+            )
         hint = mount_rpy_hint(mount)
         if hint:
             shown = ", ".join(f"{v:g}" for v in mount)
@@ -176,7 +188,10 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
                 UnitWarning,
                 stacklevel=3,
             )
-        imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
+        try:
+            imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
+        except ValueError as exc:
+            raise InputError(f"{path}: {where}: {exc}") from None
     if not imus:
         raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
     warn_imu_order(path, imus)
@@ -200,11 +215,16 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
         what = "a folder, not a robot file" if p.is_dir() else "no such robot file"
         raise InputError(f"{p}: {what} (shipped robots by name: {names})")
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark is read, as in a CSV
+        doc = tomllib.loads(text)
     except UnicodeDecodeError:
         raise InputError(f"{p}: not a UTF-8 text file") from None
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: not valid TOML ({exc})") from None
+        raise InputError(f"{p}: not valid TOML ({shorten(str(exc), 200)})") from None
+    except RecursionError:  # the parser recurses into nested arrays and tables
+        raise InputError(f"{p}: not a robot file (nested too deeply for TOML's parser)") from None
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read ({exc.strerror})") from None
     return parse_robot(doc, p)
 
 

@@ -40,7 +40,7 @@ from continuum_mhe.io.input_options import (
     load_log_input,
 )
 from continuum_mhe.io.mcap_estimates import mcap_estimate_writer, sample_messages
-from continuum_mhe.io.raw_imu import RawImuConverter, is_raw_header, raw_blocks, raw_layout
+from continuum_mhe.io.raw_imu import RawImuConverter, raw_blocks, raw_layout, sample_kind
 from continuum_mhe.io.robot_logs import is_robot_log
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
@@ -137,7 +137,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     n_imus, name = base.robot.n_imus, rows.name
     problems = RowProblems()
     convert: Convert
-    if is_raw_header(rows.header):
+    if sample_kind(rows) == "raw":
         f = formulation_for(options, base, True, Path(name))
         check_options_apply(name, "raw-csv", options, base.robot)
         cols, has_gyro = raw_layout(rows, n_imus)

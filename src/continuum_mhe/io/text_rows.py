@@ -8,8 +8,13 @@ Dialects read (the same for every CSV reader of the package):
   ``continuum_imu`` firmware prints) uses that header, so a plain capture of the
   serial line reads as it is;
 * a ``t_ms`` column (milliseconds) instead of ``t`` (seconds) is converted;
-* a UTF-8 byte-order mark is tolerated; a line longer than :data:`MAX_LINE_CHARS` or
-  with a NUL byte is refused (a binary file, or ``/dev/zero``).
+* a UTF-8 byte-order mark is tolerated (as in robot files); lines end in LF or CRLF,
+  and a file whose lines end in CR alone is refused in one line;
+* lines are read whole; a line longer than :data:`MAX_LINE_BYTES` or with a NUL byte
+  is refused (a binary file, or ``/dev/zero``);
+* a header that names a column twice is refused (which one holds the data?);
+* numbers are ASCII, as CSV tools write them: what Python's ``float`` reads beyond
+  that (``1_0`` as 10, fullwidth digits, Unicode spaces) is not a number.
 
 The input is opened once and read front to back once, so pipes, ``<(...)`` process
 substitution and named FIFOs work, and rows stream without being held in memory.
@@ -21,6 +26,7 @@ import csv
 import io
 import math
 import os
+import re
 import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -29,8 +35,11 @@ from typing import IO
 
 from continuum_mhe.errors import UserError
 
-#: Longest line accepted, characters (a sample row is well under 1 kB).
-MAX_LINE_CHARS = 65536
+#: Longest line accepted, bytes (a sample row is well under 1 kB; a comment line may be
+#: long, so the limit is generous: it stops a binary file, not a wide table).
+MAX_LINE_BYTES = 1 << 20
+#: Longest piece of an input quoted in a message, characters.
+SHOWN_CHARS = 40
 #: Separators recognised in the header line, in order of preference.
 SEPARATORS = (",", ";", "\t")
 _SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
@@ -93,27 +102,40 @@ class TextRows:
         self.close()
 
 
+def shorten(text: str, limit: int = SHOWN_CHARS) -> str:
+    """``text`` cut to ``limit`` characters (``...`` marks the cut), for messages."""
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _lines(name: str, fh: IO[bytes]) -> Iterator[tuple[int, str]]:
-    """``(line_number, text)`` of every line, without its end; bounded in length."""
+    """``(line_number, text)`` of every line, whole and without its end; a line over
+    :data:`MAX_LINE_BYTES`, a CR-only line end, a NUL byte or bytes that are not UTF-8
+    are one-line errors naming the line."""
     n = 0
     while True:
-        raw = fh.readline(MAX_LINE_CHARS + 1)
+        raw = fh.readline(MAX_LINE_BYTES + 2)  # and its CRLF
         if not raw:
             return
         n += 1
         if n == 1 and raw.startswith(b"\xef\xbb\xbf"):  # a BOM (Excel) is fine
             raw = raw[3:]
+        body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
+        if b"\r" in body.rstrip(b"\r"):
+            raise InputError(
+                f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
+                "the file with LF or CRLF line ends"
+            )
+        if b"\x00" in body:
+            raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
+        if len(body) > MAX_LINE_BYTES:
+            raise InputError(
+                f"{name}: line {n}: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)"
+            )
         try:
-            line = raw.decode("utf-8")
+            line = body.decode("utf-8")
         except UnicodeDecodeError:
             raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
-        if "\x00" in line:
-            raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
-        if len(line) > MAX_LINE_CHARS:
-            raise InputError(
-                f"{name}: line {n}: longer than {MAX_LINE_CHARS} characters (not a CSV file?)"
-            )
-        yield n, line.rstrip("\r\n")
+        yield n, line.rstrip("\r")
 
 
 def split_fields(text: str, separator: str) -> list[str]:
@@ -130,21 +152,61 @@ def _separator(header: str) -> str:
     return ","
 
 
+def to_float(text: str) -> float:
+    """``float(text)`` for ASCII text without ``_``: Python's extensions that ``float``
+    reads (``1_0`` as 10, fullwidth or other Unicode digits, Unicode spaces) raise
+    ``ValueError``, as any other text that is not a number."""
+    if not text.isascii() or "_" in text:
+        raise ValueError(f"not a number: {text!r}")
+    return float(text)
+
+
 def _is_number(text: str) -> bool:
     try:
-        float(text)
+        to_float(text)
     except ValueError:
         return False
     return True
 
 
+#: A comment that declares the columns: ``# fields: t_ms,ax,ay,az,gx,gy,gz (units...)``
+#: as the ``continuum_imu`` firmware prints it (``format`` and ``columns`` work too).
+_DECLARED = re.compile(
+    r"#?\s*(?:fields|format|columns)\s*:\s*([A-Za-z0-9_,;\t ]+?)\s*(?:\(.*)?$", re.IGNORECASE
+)
+
+
+def declared_fields(comment: str) -> tuple[str, ...] | None:
+    """The field names a header comment declares (``# fields: t_ms,ax,... (units)``,
+    with or without its ``#``), or None for any other comment. The one reading of the
+    firmware's header line: files (:func:`open_rows`) and ``live`` use it."""
+    m = _DECLARED.match(comment.strip())
+    if m is None:
+        return None
+    text = m.group(1)
+    names = tuple(f.strip() for f in text.split(_separator(text)) if f.strip())
+    return names or None
+
+
 def _header_from_comments(comments: list[str]) -> str | None:
-    """The column list of a ``# format: a,b,c (units...)`` comment, if any."""
+    """The header a comment declares (:func:`declared_fields`), comma-separated, if any."""
     for c in comments:
-        key, _, rest = c.strip().partition(":")
-        if key.strip().lower() in ("format", "columns") and rest.strip():
-            return rest.strip().split()[0]
+        names = declared_fields(c)
+        if names is not None:
+            return ",".join(names)
     return None
+
+
+def _check_names(name: str, line: int, header: list[str]) -> None:
+    """One line for a header that names a column twice (which holds the data?)."""
+    seen: set[str] = set()
+    for h in header:
+        if h and h in seen:
+            raise InputError(
+                f"{name}: line {line}: column {shorten(h)!r} appears twice in the header "
+                "(which one holds the data?); rename or remove one"
+            )
+        seen.add(h)
 
 
 def open_rows(path: str | os.PathLike[str]) -> TextRows:
@@ -174,16 +236,16 @@ def open_rows(path: str | os.PathLike[str]) -> TextRows:
         fields0 = split_fields(text0, sep)
         if declared is not None and fields0 and _is_number(fields0[0]):
             header_text = declared  # a serial capture: the header is in a comment
-            sep = _separator(declared)
             pending.append(first)
         else:
             header_text = text0
-        header = [h.lower() for h in split_fields(header_text, sep)]
+        header = [h.lower() for h in split_fields(header_text, _separator(header_text))]
         if header and _is_number(header[0]) and len(header) > 1:
             raise InputError(
                 f"{name}: line {n0}: no header line; the first line is data. Add a header "
                 "such as t,roll,pitch (or t_ms,ax,ay,az,gx,gy,gz)"
             )
+        _check_names(name, n0, header)
         scale = 1.0
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
@@ -212,7 +274,7 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
     what the header has (and the separator, when it is likely the problem)."""
     missing = [c for c in required if c not in rows.header]
     if missing:
-        has = ", ".join(rows.header) or "nothing"
+        has = shorten(", ".join(rows.header), 200) or "nothing"
         hint = ""
         if len(rows.header) == 1:
             hint = (
@@ -227,9 +289,9 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
 def parse_float(name: str, line: int, column: str, text: str) -> float:
     """``float(text)`` or a one-line error naming file, line and column."""
     try:
-        return float(text)
+        return to_float(text)
     except ValueError:
-        shown = text if len(text) <= 20 else text[:20] + "..."
+        shown = shorten(text, 20)
         hint = ""
         if "," in text and _is_number(text.replace(",", ".", 1)):
             hint = " (a decimal comma? use a point, e.g. 0.5)"

@@ -216,5 +216,6 @@ def shape_rank(robot: Robot) -> int:
     for _ in range(3):
         x = reach * rng.uniform(0.15, 0.45, 2 * n) * rng.choice((-1.0, 1.0), 2 * n)
         sv = np.linalg.svd(np.asarray(jac(x), dtype=float), compute_uv=False)
-        rank = max(rank, int(np.sum(sv > SHAPE_RANK_TOL * sv[0])))
+        floor = SHAPE_RANK_TOL * max(sv[0], 1.0)  # rad per rad: an IMU at at = 1e-300 sees
+        rank = max(rank, int(np.sum(sv > floor)))  # nothing, whatever the ratio
     return rank

@@ -14,6 +14,7 @@ section's base; ``at = 1`` is the section's end.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 from numbers import Real
@@ -23,6 +24,10 @@ from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
 MAX_SECTION_LENGTH = 5.0
+#: Shortest section accepted, m (a shorter one is a unit slip, not a robot).
+MIN_SECTION_LENGTH = 1e-3
+#: Largest mounting angle accepted, degrees (as ``--mount-rpy``).
+MAX_MOUNT_DEG = 360.0
 
 
 def theta_max_hint(value: float) -> str:
@@ -77,7 +82,7 @@ class Section:
     """One constant-curvature section.
 
     Attributes:
-        length: arc length, m, in ``(0, 5]``.
+        length: arc length, m, in ``[0.001, 5]``.
         theta_max: bound on the section's bending angle, rad, in ``(0, pi)``.
     """
 
@@ -89,6 +94,11 @@ class Section:
             raise UserError(f"section length must be a finite number in m, got {self.length!r}")
         if not self.length > 0:
             raise UserError(f"section length must be positive, got {self.length!r} m")
+        if self.length < MIN_SECTION_LENGTH:
+            raise UserError(
+                f"section length {self.length!r} m is under {MIN_SECTION_LENGTH * 1e3:g} mm, "
+                "too short for a section (lengths are in metres, e.g. 0.2)"
+            )
         if self.length > MAX_SECTION_LENGTH:
             raise UserError(
                 f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
@@ -118,8 +128,13 @@ class ImuPlacement:
             raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
             raise UserError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
-        if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
-            raise UserError(f"IMU mount_rpy must be three finite angles, got {self.mount_rpy!r}")
+        if len(self.mount_rpy) != 3 or not all(
+            isinstance(v, numbers.Real) and abs(v) <= MAX_MOUNT_DEG for v in self.mount_rpy
+        ):
+            raise UserError(
+                f"IMU mount_rpy must be three angles in degrees within +-{MAX_MOUNT_DEG:g}, "
+                f"got {self.mount_rpy!r}"
+            )
 
 
 @dataclass(frozen=True)

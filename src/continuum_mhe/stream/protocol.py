@@ -22,6 +22,7 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, tilt_columns
 from continuum_mhe.io.raw_imu import raw_columns
+from continuum_mhe.io.text_rows import declared_fields
 
 LineFormat = Literal["raw", "tilt"]
 LINE_FORMATS: tuple[LineFormat, ...] = ("raw", "tilt")
@@ -81,6 +82,8 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
     if len(parts) != 1 + k * n_imus:
         raise GarbledLine(f"expected {1 + k * n_imus} fields, found {len(parts)}")
     try:
+        if not line.isascii() or "_" in line:  # what float reads beyond CSV's numbers
+            raise ValueError
         nums = [float(p) for p in parts]
     except ValueError:
         raise GarbledLine("non-numeric field") from None
@@ -142,12 +145,12 @@ def field_count_hint(text: str, fmt: LineFormat, n_imus: int) -> str:
 
 
 def header_fields(comment: str) -> tuple[str, ...] | None:
-    """The field names of a ``# fields: t_ms,ax,...`` (or ``# format: ...``) comment,
-    or None for any other comment."""
-    m = re.match(r"#\s*(?:fields|format)\s*:\s*([A-Za-z0-9_,\s]+?)(?:\s*\(|\s*$)", comment)
-    if m is None:
+    """The field names of a ``# fields: t_ms,ax,... (units)`` comment (or ``# format:``,
+    ``# columns:``), or None for any other line: the same reading as a file's
+    (:func:`~continuum_mhe.io.text_rows.declared_fields`)."""
+    if not comment.lstrip().startswith("#"):
         return None
-    return tuple(f.strip() for f in m.group(1).split(",") if f.strip())
+    return declared_fields(comment)
 
 
 _EOL = re.compile(rb"\r\n|\r|\n")

@@ -1,0 +1,242 @@
+"""The input rules (docs/reliability.md, "Input rules"): lines read whole, one line and
+exit 2 for every bad input, ambiguous input refused, the firmware's capture read as it
+is. The inputs of tests/data/repro/ that exposed each defect are read here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.analysis.observability import observability_report, verdict
+from continuum_mhe.cli import main
+from continuum_mhe.errors import UserError
+from continuum_mhe.io.csv_files import read_measurements
+from continuum_mhe.io.raw_imu import read_raw_imu
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError, declared_fields
+from continuum_mhe.model.pcc import shape_rank
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.stream.protocol import GarbledLine, header_fields, parse_line
+
+REPRO = Path(__file__).parent / "data" / "repro"
+HEAD = b"t,roll,pitch\n0,0.1,0.1\n"
+E_ACUTE = "\u00e9".encode()  # two bytes in UTF-8
+
+
+def _one_line_error(capsys: pytest.CaptureFixture[str], code: int, out: Path) -> str:
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if not ln.startswith("continuum-mhe: note: ")]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("continuum-mhe: error: "), err
+    assert not out.exists()
+    return lines[0]
+
+
+# --- lines read whole -------------------------------------------------------------------------
+def test_a_long_utf8_comment_line_is_read_whole(tmp_path: Path) -> None:
+    """utf8_long_comment.csv (generated here): a 65,538-byte comment of two-byte
+    characters. Read 65,537 bytes at a time, the line was cut inside a character and
+    refused as 'not UTF-8'."""
+    path = tmp_path / "utf8_long_comment.csv"
+    path.write_bytes(HEAD + b"# " + E_ACUTE * 32768 + b"\n0.05,0.1,0.1\n")
+    assert path.stat().st_size == 65575  # the reproducer's size
+    table = read_measurements(path)
+    np.testing.assert_allclose(table.t, [0, 0.05])
+
+
+def test_text_inside_a_long_comment_never_becomes_a_sample(tmp_path: Path) -> None:
+    """utf8_injected_row.csv (generated here): a comment whose text after 65,537 bytes
+    reads as a row. Cut there, it gave three estimates from two samples."""
+    path = tmp_path / "utf8_injected_row.csv"
+    path.write_bytes(HEAD + b"#" + E_ACUTE * 32768 + b"0.025,1.2,-0.9\n0.05,0.1,0.1\n")
+    assert path.stat().st_size == 65588
+    table = read_measurements(path)
+    np.testing.assert_allclose(table.t, [0, 0.05])
+    np.testing.assert_allclose(table.z, [[0.1, 0.1], [0.1, 0.1]])
+
+
+def test_a_line_over_the_limit_is_one_line_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(HEAD + b"# " + b"x" * MAX_LINE_BYTES + b"\n0.05,0.1,0.1\n")
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert (
+        str(info.value) == f"{path}: line 3: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)"
+    )
+    path.write_bytes(HEAD + b"# " + b"x" * (MAX_LINE_BYTES - 2) + b"\r\n0.05,0.1,0.1\n")
+    assert len(read_measurements(path).t) == 2  # at the limit (its line end not counted)
+
+
+def test_cr_only_line_ends_are_one_short_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """cr_only.csv: the whole file was one line, quoted whole in the message (3.4 kB)."""
+    out = tmp_path / "e.csv"
+    path = REPRO / "cr_only.csv"
+    line = _one_line_error(capsys, main(["estimate", str(path), "-o", str(out)]), out)
+    assert line == (
+        f"continuum-mhe: error: {path}: line 1: lines end in CR alone (classic Mac OS line "
+        "ends); save the file with LF or CRLF line ends"
+    )
+
+
+def test_a_long_header_is_cut_in_messages(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text("t," + ",".join(f"c{i}" for i in range(2000)) + "\n0,1\n")
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert len(str(info.value)) < 400 and "..." in str(info.value)
+
+
+# --- ambiguous headers and numbers ----------------------------------------------------------
+def test_a_column_named_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    """dup_header.csv: two roll columns; the first was used."""
+    out = tmp_path / "e.csv"
+    path = REPRO / "dup_header.csv"
+    code = main(["estimate", str(path), "-o", str(out), "--method", "ekf"])
+    assert _one_line_error(capsys, code, out).endswith(
+        f"{path}: line 1: column 'roll' appears twice in the header (which one holds the "
+        "data?); rename or remove one"
+    )
+
+
+def test_tilt_and_raw_columns_in_one_header_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """both_tilt_raw.csv: read as raw, silently."""
+    out = tmp_path / "e.csv"
+    path = REPRO / "both_tilt_raw.csv"
+    code = main(["estimate", str(path), "-o", str(out), "--method", "ekf"])
+    assert _one_line_error(capsys, code, out).endswith(
+        f"{path}: line 1: the header has both tilt (roll, pitch) and raw IMU columns (ax, ay, "
+        "az); give one kind: remove the tilt or the raw columns"
+    )
+
+
+@pytest.mark.parametrize("text", ["1_0", "0.1_5", "\uff10.1", "\u0661"])
+def test_python_only_numbers_are_not_numbers(tmp_path: Path, text: str) -> None:
+    """float() reads 1_0 as 10 and fullwidth or Arabic-Indic digits as numbers."""
+    path = tmp_path / "m.csv"
+    path.write_text(f"t,roll,pitch\n0,{text},0.1\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"line 2: column roll: .* is not a number"):
+        read_measurements(path)
+    with pytest.raises(GarbledLine, match="non-numeric"):
+        parse_line(f"10,{text},0.1", "tilt")
+
+
+def test_ordinary_number_spellings_still_read(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text("t,roll,pitch\n0, 1e-1 ,+.1\n1E-2,-0.,1.\n", encoding="utf-8")
+    np.testing.assert_allclose(read_measurements(path).z, [[0.1, 0.1], [0.0, 1.0]])
+
+
+# --- the firmware's own capture --------------------------------------------------------------
+FIRMWARE_CAPTURE = (
+    "# continuum_imu 1.2.0 mpu9250 imus=1 who_am_i=0x71 accel_range=+-4g "
+    "gyro_range=+-500dps rate_hz=100 baud=115200\n"
+    "# fields: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s; sensor frames)\n"
+    "# calibrating gyro bias: keep the robot still\n"
+    "# gyro bias rad/s, IMU 1: 0.00100,-0.00200,0.00050\n"
+    "1532,0.123,-0.045,9.811,0.001,0.002,0.003\n"
+    "1542,0.125,-0.044,9.810,0.001,0.002,0.003\n"
+)
+
+
+def test_the_firmware_capture_is_read_by_estimate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """'line 5: no header line; the first line is data': only '# format:' and
+    '# columns:' were read as a header, not the firmware's '# fields:'."""
+    path = tmp_path / "capture.txt"
+    path.write_text(FIRMWARE_CAPTURE)
+    table = read_raw_imu(path)
+    np.testing.assert_allclose(table.t, [1.532, 1.542])
+    np.testing.assert_allclose(table.acc[0], [0.123, -0.045, 9.811])
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(path), "-o", str(out), "--method", "ekf"]) == 0
+    assert len(out.read_text().splitlines()) == 3
+
+
+@pytest.mark.parametrize(
+    ("comment", "fields"),
+    [
+        ("# fields: t_ms,ax,ay,az (ms, m/s^2)", ("t_ms", "ax", "ay", "az")),
+        ("#fields:t_ms,roll_1,pitch_1", ("t_ms", "roll_1", "pitch_1")),
+        ("# format: t_ms,roll,pitch", ("t_ms", "roll", "pitch")),
+        ("# columns: t;roll;pitch", ("t", "roll", "pitch")),
+        ("# gyro bias rad/s, IMU 1: 0.001,0.002,0.003", None),
+        ("# fields:", None),
+    ],
+)
+def test_one_reading_of_the_header_comment_for_files_and_live(
+    comment: str, fields: tuple[str, ...] | None
+) -> None:
+    assert declared_fields(comment) == fields
+    assert header_fields(comment) == fields
+    assert header_fields(comment.lstrip("#")) is None  # live: only a comment declares
+
+
+# --- robot files --------------------------------------------------------------------------
+ROBOT = "[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n"
+
+
+def test_deeply_nested_robot_file_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """deep_nesting.toml: RecursionError in the TOML parser, exit 70."""
+    path = REPRO / "deep_nesting.toml"
+    assert main(["check-robot", str(path)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {path}: not a robot file (nested too deeply for TOML's parser)\n"
+    )
+
+
+def test_a_byte_order_mark_is_read_in_robot_files_as_in_csvs(tmp_path: Path) -> None:
+    """A BOM was refused in robot files ('not valid TOML') and accepted in CSVs."""
+    path = tmp_path / "r.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + ROBOT.encode())
+    assert read_robot(path).sections[0].length == 0.2
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_bytes(b"\xef\xbb\xbf" + HEAD)
+    assert len(read_measurements(csv_path).t) == 1
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("length = 1e-300", "section 1: section length 1e-300 m is under 1 mm, too short"),
+        ("length = 0.0005", "section 1: section length 0.0005 m is under 1 mm"),
+        ("mount_rpy = [1e300, 0, 0]", "imu 1: mount_rpy must be angles in degrees within +-360"),
+        ("mount_rpy = [0, -361, 0]", "imu 1: mount_rpy must be angles in degrees within +-360"),
+    ],
+)
+def test_absurd_robot_values_are_refused_naming_the_file(
+    tmp_path: Path, entry: str, message: str
+) -> None:
+    text = ROBOT.replace("length = 0.2", entry) if "length" in entry else ROBOT + entry + "\n"
+    path = tmp_path / "r.toml"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        read_robot(path)
+    assert str(info.value).startswith(f"{path}: {message}")
+
+
+def test_library_robot_values_have_the_same_limits() -> None:
+    with pytest.raises(UserError, match="under 1 mm"):
+        Section(1e-300)
+    with pytest.raises(UserError, match=r"within \+-360"):
+        ImuPlacement(0, 1.0, (1e300, 0.0, 0.0))
+    assert ImuPlacement(0, 1.0, (np.float64(90.0), 0, -360)).mount_rpy[0] == 90.0
+
+
+def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> None:
+    """at = 1e-300: the IMU does not move with the bend, yet check-robot said
+    'observable' (the singular values' ratio is 1 when all are 1e-300)."""
+    robot = Robot((Section(0.2),), (ImuPlacement(0, 1e-300),))
+    report = observability_report(robot, samples=20)
+    assert report.tilt.full_rank_fraction == 0.0 and verdict(report).startswith("NOT")
+    assert shape_rank(robot) == 0
+    well = Robot((Section(0.2),), (ImuPlacement(0, 0.05),))  # 1 cm up: it sees the bend
+    assert observability_report(well, samples=20).tilt.full_rank_fraction == 1.0
+    assert shape_rank(well) == 2
