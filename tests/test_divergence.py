@@ -109,10 +109,14 @@ def test_filters_restart_after_a_long_gap(method: str) -> None:
     assert np.mean(err) < 0.01  # m: tracking again, not 58 rad off
 
 
-def test_status_vocabulary_is_documented_in_the_readme() -> None:
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
+def test_status_vocabulary_is_documented() -> None:
+    """Every status is named in the README and explained in the estimate file's format."""
+    root = Path(__file__).parents[1]
+    readme = (root / "README.md").read_text()
+    formats = (root / "docs" / "formats.md").read_text().split("## Estimate CSV", 1)[1]
     for status in STATUS_MEANINGS:
         assert f"`{status}`" in readme, status
+        assert f"`{status}`" in formats, status
 
 
 def test_reset_rows_round_trip_through_the_csv(tmp_path: Path) -> None:

@@ -98,13 +98,31 @@ def test_readme_demo_command_runs_and_prints_the_readme_numbers(tmp_path):
 
 
 def _readme_examples() -> list[str]:
-    """README lines that are plain CLI examples on files they create themselves."""
+    """README lines that are plain CLI examples (a serial port, the long ``reproduce``
+    and ``benchmark`` runs and the demo, run by its own test, aside)."""
     skip = ("--port", "reproduce", "benchmark", " demo", "--topic", "live ", " plot ")
     return [
         ln.strip()
         for ln in (ROOT / "README.md").read_text().splitlines()
         if ln.startswith("continuum-mhe ") and not any(k in ln for k in skip)
     ]
+
+
+def _readme_inputs(folder: Path) -> None:
+    """The files the README's "five steps" start from, as a user would have them: the
+    README's robot file as ``my_robot.toml``, and the shipped two-section rod recording
+    copied to the names the README gives (``rest.csv``, ``run.csv``, ``run_truth.csv``)."""
+    readme = (ROOT / "README.md").read_text()
+    (robot,) = re.findall(r"```toml\n(.*?)```", readme, re.S)
+    (folder / "my_robot.toml").write_text(robot)
+    rod = ROOT / "src/continuum_mhe/data/rod2"
+    copies = re.search(r"copy `src/continuum_mhe/data/rod2/(.*?) to (.*?)\.\s", readme, re.S)
+    assert copies, "the README says which shipped recordings the five steps copy"
+    sources = re.findall(r"(spatial-tendon_\w+\.csv)", copies.group(1))
+    targets = re.findall(r"`(\w+\.csv)`", copies.group(2))
+    assert len(sources) == len(targets) == 3, (sources, targets)
+    for source, target in zip(sources, targets):
+        shutil.copyfile(rod / source, folder / target)
 
 
 def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
@@ -118,6 +136,7 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
 
     lines = _readme_examples()
     assert len(lines) >= 4
+    _readme_inputs(tmp_path)
     monkeypatch.chdir(tmp_path)
     for line in lines:
         capsys.readouterr()  # a failure shows this line's output only
@@ -128,17 +147,19 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
         assert code == 0, f"{line}: {capsys.readouterr().err}"
 
 
-def test_readme_python_examples_run(tmp_path, monkeypatch):
-    """Every ```python block of the README runs as written (in a scratch folder)."""
-    import re
+LIBRARY_GUIDE = ROOT / "docs" / "guide" / "library.md"
 
-    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+
+def test_library_guide_python_examples_run(tmp_path, monkeypatch):
+    """Every ```python block of the library guide (docs/guide/library.md) runs as
+    written (in a scratch folder)."""
+    blocks = re.findall(r"```python\n(.*?)```", LIBRARY_GUIDE.read_text(), re.S)
     assert len(blocks) >= 2
     monkeypatch.chdir(tmp_path)
     spaces = []
     for code in blocks:
         namespace: dict[str, Any] = {}
-        exec(compile(code, "README.md", "exec"), namespace)
+        exec(compile(code, str(LIBRARY_GUIDE), "exec"), namespace)
         spaces.append(namespace)
     # the first example's batch run estimates its recording: finite, within 1 cm of the tip
     first = spaces[0]
@@ -155,5 +176,5 @@ def test_readme_python_examples_run(tmp_path, monkeypatch):
     np.testing.assert_array_equal(tip[:, 0], csv_example["table"].t)
     assert np.mean(np.linalg.norm(tip[:, 1:] - truth[:, :3], axis=1)) < 0.01
     header = (tmp_path / "estimates.csv").read_text().splitlines()[0]
-    documented = re.search(r"# estimates\.csv: (\S+)", (ROOT / "README.md").read_text())
-    assert documented and documented.group(1) == header  # the README's comment is the header
+    documented = re.search(r"# estimates\.csv: (\S+)", LIBRARY_GUIDE.read_text())
+    assert documented and documented.group(1) == header  # the guide's comment is the header
