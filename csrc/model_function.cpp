@@ -88,17 +88,17 @@ int WindowFunction::evaluate(const double* const* in, double* out) const {
   double* W = JR + n_ * njr_;
   double* FJ = W + (n_ - 1) * nw_;
   double* SR = FJ + (n_ - 1) * nfj_;
-  for (int64_t i = 0; i < n_; ++i) {
-    const double* args[3] = {X + i * nx_, Z + i * nz_, M + i * nz_};
-    double* res[3] = {R + i * nr_, JR + i * njr_, SR + i * nsr_};
-    meas_.evaluate(args, res);
-  }
-  for (int64_t i = 0; i + 1 < n_; ++i) {
-    const double* args[4] = {X + i * nx_, X + (i + 1) * nx_, U ? U + i * nu_ : nullptr,
-                             DT + i};
-    double* res[2] = {W + i * nw_, FJ + i * nfj_};
-    proc_.evaluate(args, res);
-  }
+  // every node's measurement terms, then every stage's process terms, each as one batch
+  const double* margs[3] = {X, Z, M};
+  const int64_t mstride[3] = {nx_, nz_, nz_};
+  double* mres[3] = {R, JR, SR};
+  const int64_t mres_stride[3] = {nr_, njr_, nsr_};
+  meas_.evaluate_batch(margs, mstride, mres, mres_stride, n_);
+  const double* pargs[4] = {X, X + nx_, nu_ ? U : nullptr, DT};
+  const int64_t pstride[4] = {nx_, nx_, nu_, 1};
+  double* pres[2] = {W, FJ};
+  const int64_t pres_stride[2] = {nw_, nfj_};
+  proc_.evaluate_batch(pargs, pstride, pres, pres_stride, n_ - 1);
   return 0;
 }
 

@@ -131,4 +131,98 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   }
 }
 
+void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
+                          const int64_t* out_stride, int64_t count) const {
+  thread_local std::vector<double> work;
+  const size_t need = static_cast<size_t>(work_size_ * count);
+  if (work.size() < need) work.resize(need);
+  double* w = work.data();
+  const double* c = constants_.data();
+  const int64_t n = count;
+  for (const Instruction& I : code_) {
+    double* r = w + static_cast<int64_t>(I.res) * n;
+    const double* x = w + static_cast<int64_t>(I.a) * n;
+    const double* y = w + static_cast<int64_t>(I.b) * n;
+#define EACH(expr)                          \
+  for (int64_t k = 0; k < n; ++k) r[k] = (expr); \
+  break
+    switch (I.op) {
+      case OP_INPUT: {
+        const double* src = in[I.a];
+        const int64_t s = in_stride[I.a];
+        if (src) {
+          src += I.b;
+          for (int64_t k = 0; k < n; ++k) r[k] = src[k * s];
+        } else {
+          for (int64_t k = 0; k < n; ++k) r[k] = 0.0;
+        }
+        break;
+      }
+      case OP_OUTPUT: {
+        double* dst = out[I.b];
+        if (dst) {
+          const int64_t s = out_stride[I.b];
+          dst += I.res;
+          const double* v = w + static_cast<int64_t>(I.a) * n;
+          for (int64_t k = 0; k < n; ++k) dst[k * s] = v[k];
+        }
+        break;
+      }
+      case OP_CONST: {
+        const double v = c[I.a];
+        EACH(v);
+      }
+      case OP_ASSIGN: EACH(x[k]);
+      case OP_ADD: EACH(x[k] + y[k]);
+      case OP_SUB: EACH(x[k] - y[k]);
+      case OP_MUL: EACH(x[k] * y[k]);
+      case OP_DIV: EACH(x[k] / y[k]);
+      case OP_NEG: EACH(-x[k]);
+      case OP_EXP: EACH(std::exp(x[k]));
+      case OP_LOG: EACH(std::log(x[k]));
+      case OP_POW: case OP_CONSTPOW: EACH(std::pow(x[k], y[k]));
+      case OP_SQRT: EACH(std::sqrt(x[k]));
+      case OP_SQ: EACH(x[k] * x[k]);
+      case OP_TWICE: EACH(2.0 * x[k]);
+      case OP_SIN: EACH(std::sin(x[k]));
+      case OP_COS: EACH(std::cos(x[k]));
+      case OP_TAN: EACH(std::tan(x[k]));
+      case OP_ASIN: EACH(std::asin(x[k]));
+      case OP_ACOS: EACH(std::acos(x[k]));
+      case OP_ATAN: EACH(std::atan(x[k]));
+      case OP_LT: EACH(x[k] < y[k]);
+      case OP_LE: EACH(x[k] <= y[k]);
+      case OP_EQ: EACH(x[k] == y[k]);
+      case OP_NE: EACH(x[k] != y[k]);
+      case OP_NOT: EACH(!x[k]);
+      case OP_AND: EACH(x[k] && y[k]);
+      case OP_OR: EACH(x[k] || y[k]);
+      case OP_FLOOR: EACH(std::floor(x[k]));
+      case OP_CEIL: EACH(std::ceil(x[k]));
+      case OP_FMOD: EACH(std::fmod(x[k], y[k]));
+      case OP_FABS: EACH(std::fabs(x[k]));
+      case OP_SIGN: EACH(sign(x[k]));
+      case OP_COPYSIGN: EACH(std::copysign(x[k], y[k]));
+      case OP_IF_ELSE_ZERO: EACH(x[k] == 0 ? 0.0 : y[k]);
+      case OP_ERF: EACH(std::erf(x[k]));
+      case OP_FMIN: EACH(std::fmin(x[k], y[k]));
+      case OP_FMAX: EACH(std::fmax(x[k], y[k]));
+      case OP_INV: EACH(1.0 / x[k]);
+      case OP_SINH: EACH(std::sinh(x[k]));
+      case OP_COSH: EACH(std::cosh(x[k]));
+      case OP_TANH: EACH(std::tanh(x[k]));
+      case OP_ASINH: EACH(std::asinh(x[k]));
+      case OP_ACOSH: EACH(std::acosh(x[k]));
+      case OP_ATANH: EACH(std::atanh(x[k]));
+      case OP_ATAN2: EACH(std::atan2(x[k], y[k]));
+      case OP_HYPOT: EACH(std::hypot(x[k], y[k]));
+      case OP_LOG1P: EACH(std::log1p(x[k]));
+      case OP_EXPM1: EACH(std::expm1(x[k]));
+      case OP_REMAINDER: EACH(std::remainder(x[k], y[k]));
+      default: break;
+    }
+#undef EACH
+  }
+}
+
 }  // namespace cmhe

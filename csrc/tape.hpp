@@ -44,6 +44,12 @@ class Tape {
   void evaluate(const double* const* in, double* const* out) const;
   // all outputs concatenated into ``out``
   void evaluate_flat(const double* const* in, double* out) const;
+  // ``count`` evaluations at once, instruction by instruction over all of them (the
+  // dispatch of each instruction is paid once per batch, and its loop vectorises):
+  // evaluation ``k`` reads input ``i`` at ``in[i] + k * in_stride[i]`` and writes output
+  // ``j`` at ``out[j] + k * out_stride[j]``.
+  void evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
+                      const int64_t* out_stride, int64_t count) const;
 
   const std::vector<int64_t>& input_sizes() const { return input_sizes_; }
   const std::vector<int64_t>& output_sizes() const { return output_sizes_; }
