@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.estimators.base import (
     Estimate,
     EstimateSeries,
@@ -42,6 +42,11 @@ def make_estimator(
     in another process and runs this estimator without them (IPOPT for the MHE, the
     CasADi EKF), said once; see :mod:`continuum_mhe.estimators.fast.warmup`.
     """
+    if method not in METHODS:
+        raise UserError(f"method must be one of {METHODS}, got {method!r}")
+    expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
+    expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")
+    expect_type("recovery", recovery, (RecoverySettings, type(None)), "RecoverySettings or None")
     est = _make(method, formulation, mhe, first_run)
     if recovery is not None:
         est.recovery = recovery
