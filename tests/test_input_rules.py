@@ -4,11 +4,25 @@ is. The inputs of tests/data/repro/ that exposed each defect are read here."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from continuum_mhe import (
+    Formulation,
+    Measurement,
+    MHESettings,
+    NoiseSettings,
+    RobotSettings,
+    make_estimator,
+    make_formulation,
+    simulate,
+)
 from continuum_mhe.analysis.observability import observability_report, verdict
 from continuum_mhe.cli import main
 from continuum_mhe.errors import UserError
@@ -240,3 +254,100 @@ def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> Non
     well = Robot((Section(0.2),), (ImuPlacement(0, 0.05),))  # 1 cm up: it sees the bend
     assert observability_report(well, samples=20).tilt.full_rank_fraction == 1.0
     assert shape_rank(well) == 2
+
+
+# --- one line and exit 2, never exit 70 or a usage dump ------------------------------------
+@pytest.mark.parametrize(
+    ("option", "value", "expected"),
+    [
+        ("--horizon", "3.5", "--horizon '3.5': expected a whole number"),
+        ("--noise-deg", "two", "--noise-deg 'two': expected a number"),
+        ("--method", "kf", "argument --method: invalid choice: 'kf' (choose from"),
+    ],
+)
+def test_an_option_of_the_wrong_type_is_one_line_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str, expected: str
+) -> None:
+    """Was argparse's 22-line usage, then the error."""
+    out = tmp_path / "e.csv"
+    with pytest.raises(SystemExit) as exit_:
+        main(["estimate", str(REPRO / "gimbal_flip.csv"), "-o", str(out), option, value])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"continuum-mhe estimate: error: {expected}"), err
+    assert err.endswith("(continuum-mhe estimate --help lists the options)\n")
+
+
+@pytest.mark.parametrize("method", ["ekf", "mhe"])
+def test_a_vanishing_noise_is_one_line_not_a_singular_matrix(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], method: str
+) -> None:
+    """--noise-deg 1e-300: 'LinAlgError: Singular matrix', exit 70."""
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(REPRO / "gimbal_flip.csv"), "-o", str(out), "--method", method]
+    line = _one_line_error(capsys, main([*argv, "--noise-deg", "1e-300"]), out)
+    assert line.startswith(
+        "continuum-mhe: error: --noise-deg 1e-300: below the smallest measurement noise the "
+        "estimators take, 5.7e-05 deg"
+    )
+    with pytest.raises(UserError, match="measurement_std 1e-300 rad is below 1e-06 rad"):
+        NoiseSettings(measurement_std=1e-300)
+
+
+def test_estimate_from_a_closed_standard_input_is_one_line(tmp_path: Path) -> None:
+    """`estimate - <&-`: AttributeError ('NoneType' has no 'fileno'), exit 70."""
+    out = tmp_path / "e.csv"
+    proc = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "estimate", "-", "-o", str(out)],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=lambda: os.close(0),
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == (
+        "continuum-mhe: error: -: standard input is closed; pipe the CSV in or name a file\n"
+    )
+    assert not out.exists()
+
+
+def test_a_huge_horizon_is_a_user_error_in_the_library() -> None:
+    """horizon=10**9: CasADi's std::bad_alloc."""
+    for horizon in (10**9, 1001, 2.5, True):
+        with pytest.raises(UserError, match="horizon must be an integer from 2 to 1000"):
+            MHESettings(horizon=horizon)
+    assert MHESettings(horizon=1000).horizon == 1000
+
+
+# --- library calls with arguments of the wrong type ---------------------------------------
+def _bend() -> Formulation:
+    return make_formulation("bend", RobotSettings())
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: make_formulation("bend", "0.2"), "robot must be a Robot, RobotSettings or None"),
+        (lambda: make_formulation("bend", None, 2.0), "noise must be NoiseSettings or None"),
+        (lambda: make_estimator("ekf", "bend"), "formulation must be a Formulation"),
+        (lambda: make_estimator("mhe", _bend(), {"horizon": 10}), "mhe must be MHESettings"),
+        (lambda: make_estimator("ekf", _bend()).step((0.0, [0, 0])), "must be a Measurement"),
+        (lambda: Measurement("0.1", np.zeros(2)), "measurement t must be a number, got '0.1'"),
+        (lambda: Measurement(0.1, "ab"), "measurement z must be numbers"),
+        (lambda: make_estimator("ekf", _bend()).run("abc", "def"), "arrays of numbers"),
+        (lambda: make_estimator("ekf", _bend()).run(None, None), "t must be (n,) and z (n, m)"),
+        (lambda: simulate("paper3d", dt="0.05"), "dt must be a number, got '0.05'"),
+        (lambda: simulate("paper3d", noise_deg=None), "noise_deg must be a number"),
+        (lambda: read_measurements(5), "path must be a file name"),  # type: ignore[arg-type]
+        (lambda: read_robot(None), "path must be a file name"),  # type: ignore[arg-type]
+        (lambda: Robot(Section(0.2), ()), "Robot sections must be a sequence of Section"),
+        (lambda: Robot((Section(0.2),), ("imu",)), "Robot imus item must be ImuPlacement"),
+        (lambda: ImuPlacement(0, 1.0, 5), "mount_rpy must be three angles"),  # type: ignore
+    ],
+)
+def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: str) -> None:
+    """Each raised a plain TypeError, ValueError or AttributeError."""
+    with pytest.raises(UserError) as info:
+        call()
+    assert message in str(info.value) and "\n" not in str(info.value)

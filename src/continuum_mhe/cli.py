@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from continuum_mhe.cli_options import (
+    OneLineParser,
     add_mhe_options,
     add_model_options,
     add_recovery_options,
@@ -495,7 +496,7 @@ def cmd_check_robot(args: argparse.Namespace) -> int:
 
 # --- parser ---------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION)
+    parser = OneLineParser(prog=PROG, description=DESCRIPTION)  # errors: one line
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 

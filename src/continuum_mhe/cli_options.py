@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
@@ -20,7 +21,9 @@ from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
     FREEZE_MIN_SAMPLES,
+    MAX_HORIZON,
     MHE_LOSSES,
+    MIN_MEASUREMENT_STD,
     MHELoss,
     MHESettings,
     NoiseSettings,
@@ -55,6 +58,21 @@ def robot_from_args(args: argparse.Namespace) -> Robot:
         )
     except ValueError as exc:
         raise InputError(f"robot: {exc}") from None
+
+
+_INVALID_VALUE = re.compile(r"argument (\S+?)(?:/\S+)?: invalid (int|float) value: (.*)")
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line naming the option and the problem
+    (``--horizon 3.5: expected a whole number``), exit 2, instead of the usage."""
+
+    def error(self, message: str) -> NoReturn:
+        m = _INVALID_VALUE.fullmatch(message)
+        if m is not None:
+            what = "a whole number" if m.group(2) == "int" else "a number"
+            message = f"{m.group(1)} {m.group(3)}: expected {what}"
+        self.exit(2, f"{self.prog}: error: {message} ({self.prog} --help lists the options)\n")
 
 
 def add_model_options(p: argparse.ArgumentParser) -> None:
@@ -140,6 +158,12 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
             f"--noise-deg {args.noise_deg:g}: the estimators need a positive measurement noise, "
             "valid range (0, 90] deg here (simulate takes 0: noise-free data)"
         )
+    if math.radians(args.noise_deg) < MIN_MEASUREMENT_STD:
+        raise InputError(
+            f"--noise-deg {args.noise_deg:g}: below the smallest measurement noise the "
+            f"estimators take, {math.degrees(MIN_MEASUREMENT_STD):.2g} deg (no IMU is that "
+            "precise; --noise-deg is the std of roll and pitch in degrees, e.g. 2)"
+        )
     model_error = getattr(args, "model_error_deg", 0.0)
     if not (math.isfinite(model_error) and model_error >= 0):
         raise InputError(f"--model-error-deg must be >= 0, got {model_error}")
@@ -207,6 +231,7 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         help="replace an existing -o or --record file (else refused)",
     )
 
+
 def _add_port_options(g: argparse._ActionsContainer) -> None:
     g.add_argument("--web-port", type=int, default=9090, help="web viewer HTTP port (9090)")
     g.add_argument("--grpc-port", type=int, default=9876, help="Rerun server port (9876)")
@@ -270,6 +295,7 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     if args.save:
         return ViewerSink("save", Path(args.save), **ports)
     return ViewerSink("web" if args.serve_web else "spawn", **ports)
+
 
 #: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s.
 GAP_RESET_S = 1.0
@@ -341,6 +367,7 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         reject_reset=args.reject_reset or None,
     )
 
+
 # --- valid ranges of every numeric option ------------------------------------------
 @dataclass(frozen=True)
 class OptionRange:
@@ -379,7 +406,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "noise_deg": OptionRange(0.0, 90.0, "deg", above="--noise-deg is in degrees"),
     "accel_psd": OptionRange(1e-9, 1e4, "rad^2/s^3"),
     "gyro_std": OptionRange(1e-6, 10.0, "rad/s", above="degrees? --gyro-std is in rad/s"),
-    "horizon": OptionRange(2, 1000, "samples", integer=True),
+    "horizon": OptionRange(2, MAX_HORIZON, "samples", integer=True),
     "duration": OptionRange(0.0, 1e6, "s", lo_open=True),
     "dt": OptionRange(1e-4, 10.0, "s", above="milliseconds? --dt is in seconds"),
     "seed": OptionRange(0, 2**32 - 1, integer=True),

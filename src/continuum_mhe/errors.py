@@ -8,6 +8,8 @@ it says so and exits with status 70 (``EX_SOFTWARE``).
 
 from __future__ import annotations
 
+import numbers
+
 
 class UserError(ValueError):
     """A problem with user input or settings; the message is one line saying what is
@@ -20,3 +22,18 @@ class UserError(ValueError):
 class UnobservableShapeWarning(UserWarning):
     """The robot's IMUs cannot determine its shape (fewer independent tilt readings
     than bend coordinates): every estimate of it is ``uncertain``."""
+
+
+def real_number(name: str, value: object) -> float:
+    """``value`` as a float, or a :class:`UserError` naming the argument ``name`` when it
+    is not a real number (a string, None, a bool, a list)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise UserError(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
+def expect_type(name: str, value: object, kind: type | tuple[type, ...], what: str) -> None:
+    """A :class:`UserError` naming the argument ``name`` unless ``value`` is a ``kind``
+    (``what`` says what is expected, e.g. ``"a Formulation (make_formulation)"``)."""
+    if not isinstance(value, kind):
+        raise UserError(f"{name} must be {what}, got {type(value).__name__} {value!r:.60}")

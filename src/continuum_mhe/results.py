@@ -14,6 +14,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 
 FloatArray = NDArray[np.float64]
@@ -72,7 +73,12 @@ class Measurement:
     z: FloatArray
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "z", np.asarray(self.z, dtype=float))
+        object.__setattr__(self, "t", real_number("measurement t", self.t))
+        try:
+            z = np.asarray(self.z, dtype=float)
+        except (TypeError, ValueError):
+            raise UserError(f"measurement z must be numbers, got {self.z!r:.60}") from None
+        object.__setattr__(self, "z", z)
 
     @property
     def valid(self) -> bool:

@@ -63,6 +63,13 @@ class RobotSettings:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 
 
+#: Longest MHE window, samples (the command line's ``--horizon`` range: a window of
+#: 10^9 samples is a memory error in CasADi, not an estimator).
+MAX_HORIZON = 1000
+#: Smallest measurement standard deviation accepted, rad (0.2 arcseconds).
+MIN_MEASUREMENT_STD = 1e-6
+
+
 @dataclass(frozen=True)
 class NoiseSettings:
     """Noise model shared by every estimator (same Q and R for MHE, EKF and UKF).
@@ -87,6 +94,15 @@ class NoiseSettings:
     initial_rate_std: float = 0.5
 
     def __post_init__(self) -> None:
+        if (
+            isinstance(self.measurement_std, (int, float))
+            and 0 < self.measurement_std < MIN_MEASUREMENT_STD
+        ):
+            raise UserError(
+                f"measurement_std {self.measurement_std!r} rad is below "
+                f"{MIN_MEASUREMENT_STD:g} rad ({math.degrees(MIN_MEASUREMENT_STD):.2g} deg), "
+                "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
+            )
         for name in (
             "measurement_std",
             "bend_accel_psd",
@@ -140,8 +156,14 @@ class MHESettings:
             raise UserError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
         if self.loss_scale is not None:
             _positive("loss_scale", self.loss_scale)
-        if not (isinstance(self.horizon, int) and self.horizon >= 2):
-            raise UserError(f"horizon must be an integer >= 2, got {self.horizon!r}")
+        if not (
+            isinstance(self.horizon, int)
+            and not isinstance(self.horizon, bool)
+            and 2 <= self.horizon <= MAX_HORIZON
+        ):
+            raise UserError(
+                f"horizon must be an integer from 2 to {MAX_HORIZON} samples, got {self.horizon!r}"
+            )
         if not isinstance(self.branch_check, bool):
             raise UserError(f"branch_check must be True or False, got {self.branch_check!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):

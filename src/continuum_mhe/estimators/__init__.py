@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.estimators.base import (
     Estimate,
     EstimateSeries,
@@ -34,6 +34,11 @@ def make_estimator(
     """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only,
     ``recovery`` (gap reset, frozen sensors, ``uncertain``) to every method.
     """
+    if method not in METHODS:
+        raise UserError(f"method must be one of {METHODS}, got {method!r}")
+    expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
+    expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")
+    expect_type("recovery", recovery, (RecoverySettings, type(None)), "RecoverySettings or None")
     est = _make(method, formulation, mhe)
     if recovery is not None:
         est.recovery = recovery

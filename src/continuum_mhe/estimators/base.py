@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.errors import UnobservableShapeWarning, UserError
+from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
@@ -269,6 +269,7 @@ class Estimator(ABC):
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
+        expect_type("measurement", measurement, Measurement, "a Measurement(t, z)")
         t = measurement.t
         nz = self.formulation.nz
         if np.shape(measurement.z) != (nz,):
@@ -437,6 +438,12 @@ class Estimator(ABC):
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset."""
+        try:
+            t, z = np.asarray(t, dtype=float), np.asarray(z, dtype=float)
+        except (TypeError, ValueError):
+            raise UserError("t and z must be arrays of numbers (t (n,) s, z (n, m))") from None
+        if t.ndim != 1 or z.ndim != 2:
+            raise UserError(f"t must be (n,) and z (n, m); got shapes {t.shape} and {z.shape}")
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()

@@ -37,6 +37,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from continuum_mhe.errors import expect_type
 from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
@@ -207,6 +208,7 @@ def shipped_robots() -> dict[str, Path]:
 def read_robot(path: str | os.PathLike[str]) -> Robot:
     """Read and validate a robot file (TOML), or a shipped robot by name
     (:func:`shipped_robots`, e.g. ``two-section``)."""
+    expect_type("path", path, (str, os.PathLike), "a file name (str or pathlib.Path)")
     p = Path(path)
     if not p.exists() and str(path) in shipped_robots():
         p = shipped_robots()[str(path)]

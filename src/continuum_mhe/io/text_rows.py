@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 
 #: Longest line accepted, bytes (a sample row is well under 1 kB; a comment line may be
 #: long, so the limit is generous: it stops a binary file, not a wide table).
@@ -52,7 +52,10 @@ class InputError(UserError):
 
 def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
     """``(name shown in messages, binary stream)``; ``-`` is standard input."""
+    expect_type("path", path, (str, os.PathLike), "a file name (str or pathlib.Path)")
     if str(path) == "-":
+        if sys.stdin is None:  # Python's stand-in for a closed descriptor 0 (`<&-`)
+            raise InputError("-: standard input is closed; pipe the CSV in or name a file")
         try:
             fd = os.dup(sys.stdin.fileno())
         except (OSError, ValueError, io.UnsupportedOperation):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
 from continuum_mhe.model.robot import Robot
@@ -36,4 +36,7 @@ def make_formulation(
     cls = REGISTRY.get(name)
     if cls is None:
         raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
+    robots = (Robot, RobotSettings, type(None))
+    expect_type("robot", robot, robots, "a Robot, RobotSettings or None")
+    expect_type("noise", noise, (NoiseSettings, type(None)), "NoiseSettings or None")
     return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]

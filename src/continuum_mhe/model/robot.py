@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from numbers import Real
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -123,6 +123,10 @@ class ImuPlacement:
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        if isinstance(self.mount_rpy, (str, bytes)) or not hasattr(self.mount_rpy, "__iter__"):
+            raise UserError(
+                f"IMU mount_rpy must be three angles in degrees, got {self.mount_rpy!r}"
+            )
         object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
         if not (isinstance(self.section, int) and self.section >= 0):
             raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
@@ -152,8 +156,16 @@ class Robot:
     mounting: Mounting = "z-up"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sections", tuple(self.sections))
-        object.__setattr__(self, "imus", tuple(self.imus))
+        for name, kind in (("sections", Section), ("imus", ImuPlacement)):
+            items = getattr(self, name)
+            if isinstance(items, (str, bytes)) or not hasattr(items, "__iter__"):
+                raise UserError(
+                    f"Robot {name} must be a sequence of {kind.__name__}, got {items!r}"
+                )
+            items = tuple(items)
+            for item in items:
+                expect_type(f"Robot {name} item", item, kind, kind.__name__)
+            object.__setattr__(self, name, items)
         if not self.sections:
             raise UserError("a robot needs at least one section")
         if not self.imus:

@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import (
     Mounting,
@@ -208,6 +208,8 @@ def sample_count(duration: float, dt: float) -> int:
 
 
 def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
+    for name, v in (("duration", duration), ("dt", dt), ("noise_deg", noise_deg)):
+        real_number(name, v)
     for name, v in (("duration", duration), ("dt", dt)):
         if not (math.isfinite(v) and v > 0):
             raise UserError(f"{name} must be positive, got {v}")
@@ -248,7 +250,7 @@ def simulate(
         )
     if scenario not in _SHAPES:
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    if not (math.isfinite(length) and length > 0):
+    if not (math.isfinite(real_number("length", length)) and length > 0):
         raise UserError(f"length must be positive, got {length}")
     t = _time_axis(duration, dt, noise_deg, seed)
     theta, phi = _SHAPES[scenario](t)
