@@ -139,8 +139,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
-    # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5;
-    # streamed: the input is read once and memory stays flat (issue #12)
+    # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) to .csv or .mcap, streamed:
+    # the input is read once and memory does not grow with the recording
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
 
@@ -243,11 +243,10 @@ def _passthrough(it: Iterable[int]) -> Iterator[int]:
 
 
 #: input size up to which a first run (kernels not compiled) uses IPOPT while the kernels
-#: compile in the background: IPOPT takes about 5 ms a sample at N = 30 on 2 cores, so
-#: up to about 5,000 samples (about 250 kB of tilt CSV) that run ends within about 25 s
-#: instead of after the one to two minutes of compiling. (Beyond it the command compiles
-#: first; with the 108 s measured in session 27, IPOPT would still be the quicker path up
-#: to about 20,000 samples, but that run would take over a minute on the slower solver.)
+#: compile in the background: about 5,000 samples (about 250 kB of tilt CSV), a run that
+#: IPOPT finishes well before the kernels' compile would. Beyond it the command compiles
+#: first, so that a long recording runs on the fast solver (docs/benchmarks.md gives
+#: both solvers' time per sample and the compile's duration).
 FIRST_RUN_BACKGROUND_MAX_BYTES = 250_000
 #: samples up to which ``demo`` (which knows its length) does the same
 FIRST_RUN_BACKGROUND_MAX_SAMPLES = 5000

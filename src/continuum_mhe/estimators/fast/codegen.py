@@ -219,16 +219,14 @@ def _compiler() -> str:
     return os.environ.get("CC") or "cc"
 
 
-#: the C compiler's options for a model. ``-O3`` against ``-O2``: 6.8 to 6.3 us per
-#: evaluation of the ``N = 30`` window, the same compile time (0.4 s for one tilt IMU,
-#: 30 s for two raw IMUs with gyro biases and their own acceleration, on 2 cores) and the
-#: same numbers. Part of the cache key.
+#: the C compiler's options for a model: ``-O3`` evaluates a window faster than ``-O2``
+#: at the same compile time and gives the same numbers. Part of the cache key.
 CFLAGS = ("-O3", "-fPIC", "-shared")
 
 
 #: said once, before the C compiler builds a model that is not in the cache (a new
-#: robot, option set or horizon): on 2 cores 1 s for one tilt IMU, 34 s for two raw IMUs
-#: with the gyro biases and the own acceleration
+#: robot, option set or horizon); the build takes from about a second (one tilt IMU) to
+#: about half a minute (two raw IMUs with their biases and own acceleration)
 COMPILING_MODEL = (
     "compiling the C model of this robot and these options (first run only for them; "
     "up to a minute on 2 cores)"

@@ -1,9 +1,8 @@
 """The first run: compiling the fast backend's numba kernels, in the background.
 
 numba compiles the fast MHE's and the compiled EKF's kernels on their first call and
-caches them on disk; on 2 cores that takes one to two minutes (108 s measured on the
-development machine in session 27, `python -m continuum_mhe.estimators` with an empty
-cache), once per install. A command that
+caches them on disk, once per install (one to two minutes on 2 cores; the measured
+duration is in docs/benchmarks.md, "The first run"). A command that
 finds them not yet compiled can
 
 * compile them now, in this process (``"foreground"``, the library's way: it says
