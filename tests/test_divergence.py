@@ -1,5 +1,6 @@
 """Never ``ok`` when wrong: every estimator detects divergence or a numerical failure,
-flags the sample ``reset`` and restarts from the measurement (issue 12 reproducers)."""
+flags the sample ``reset`` and restarts from the measurement (on the reproducers in
+tests/data/repro)."""
 
 from __future__ import annotations
 

@@ -178,3 +178,24 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     header = (tmp_path / "estimates.csv").read_text().splitlines()[0]
     documented = re.search(r"# estimates\.csv: (\S+)", LIBRARY_GUIDE.read_text())
     assert documented and documented.group(1) == header  # the guide's comment is the header
+
+
+#: development history that belongs in CHANGELOG.md, not in pages or code
+HISTORY = re.compile(
+    r"\b(this|previous|earlier|last|next) session\b|\bsessions? \d+\b|\bbefore session\b"
+    r"|\bissue ?#?\d+\b",
+    re.IGNORECASE,
+)
+
+
+def test_no_development_history_in_docs_or_source():
+    """The README, the documentation site and the code state what is true now: no
+    "session N", "this session" or "issue #N" (the history is CHANGELOG.md's)."""
+    paths = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md"), *(ROOT / "src").rglob("*.py")]
+    found = [
+        f"{path.relative_to(ROOT)}:{number}: {line.strip()}"
+        for path in paths
+        for number, line in enumerate(path.read_text().splitlines(), 1)
+        if HISTORY.search(line)
+    ]
+    assert not found, "\n".join(found)

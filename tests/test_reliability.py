@@ -1,5 +1,4 @@
-"""Never ``ok`` when wrong, output errors that name the output, one line on stderr
-(issue #12)."""
+"""Never ``ok`` when wrong, output errors that name the output, one line on stderr."""
 
 from __future__ import annotations
 

@@ -637,7 +637,7 @@ def test_settings_reject_bad_values() -> None:
         cosserat.RodSettings(n_elements=2)
 
 
-# --- beyond the paper (issue #9) -------------------------------------------------------
+# --- beyond the paper ------------------------------------------------------------------
 def test_quick_plan_has_every_beyond_group_on_the_same_seeds() -> None:
     for cfg in (ex.QUICK, ex.FULL):
         specs = ex.plan_beyond_trials(cfg)

@@ -1,4 +1,4 @@
-"""The simulator's noise models against the estimators' own residual (issue #9)."""
+"""The simulator's noise models against the estimators' own residual."""
 
 from __future__ import annotations
 

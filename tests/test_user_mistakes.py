@@ -1,5 +1,5 @@
 """The usual user mistakes get one line with the likely cause; bugs are not shown as
-user errors (issue #11)."""
+user errors."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The fast MHE's estimator step against the compiled EKF's, in one process.
 
-The two ``continuum-mhe benchmark`` rows that issue 11's target compares (``fast`` and
+The two ``continuum-mhe benchmark`` rows whose ratio the speed target compares (``fast`` and
 ``ekf-compiled``, with ``mhe-kernel`` and ``ekf-kernel`` beside them), timed as the
 benchmark times them (:func:`~continuum_mhe.benchmark._cheap_runs`, rounds in turn,
 each sample's median over the rounds) on its 40 s ``paper3d`` recording, without IPOPT

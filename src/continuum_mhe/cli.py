@@ -134,8 +134,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
-    # input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv/.mcap): issue #5;
-    # streamed: the input is read once and memory stays flat (issue #12)
+    # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) to .csv or .mcap, streamed:
+    # the input is read once and memory does not grow with the recording
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
 

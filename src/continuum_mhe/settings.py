@@ -20,17 +20,12 @@ MHE_LOSSES: tuple[MHELoss, ...] = ("l2", "huber", "cauchy", "welsch")
 #: Default ``loss_scale`` per robust loss, in standard deviations of the whitened
 #: residual norm of one IMU's (roll, pitch) block (docs/robust.md). Huber: 1.5, its 95 %
 #: asymptotic efficiency on Gaussian noise for a two-component block (1.345 is the
-#: one-component value). Cauchy: 1.6, chosen by the 50-seed Monte Carlo of
-#: ``reproduce``'s outlier groups with the second start (docs/robust.md): at 1.6 the
-#: clean-data error is 1.3 % above the quadratic cost's (paired 95 % interval up to
-#: 1.9 %, inside the 2 % target), bursts cost 1.30x the clean error (2.0: 1.61x, clean
-#: +0.3 %), isolated spikes 1.016x (2.0: 1.017x); 1.5 was 2.0 % above on clean data.
-#: Welsch: 3.0, near its 95 % efficiency constant for one component (2.985; 93.5 % for a
-#: two-component block, whose 95 % value is 3.25, Cauchy 1.6: 87.3 %); on the same
-#: Monte Carlo (with ``RecoverySettings.reject_reset``) clean +0.26 %, bursts 1.061x,
-#: spikes 1.012x (bursts 1.14x while the corruption clipped pitch at 90 deg; without
-#: the reset, on that data, 10 seeds: 2.5, 2.75 and 3.0 all gave bursts 1.12x, clean
-#: +1.6 %, +0.8 % and +0.3 %; 2.0 lost one recording).
+#: one-component value). Cauchy: 1.6, the smallest scale whose clean-data cost stays
+#: inside the 2 % target on the 50-seed Monte Carlo of ``reproduce``'s outlier groups
+#: with the second start (a smaller scale rejects bursts better and costs more on clean
+#: data). Welsch: 3.0, near its 95 % efficiency constant for one component (2.985; a
+#: two-component block's is 3.25), which meets every outlier target of that Monte Carlo
+#: with ``RecoverySettings.reject_reset``. The measurements: docs/robust.md.
 DEFAULT_LOSS_SCALE: dict[str, float] = {
     "l2": math.inf, "huber": 1.5, "cauchy": 1.6, "welsch": 3.0,
 }  # fmt: skip

@@ -1,6 +1,6 @@
 """CSV files: measurements in, estimates and truth out.
 
-Formats (see README "File formats"):
+Formats (docs/formats.md):
 
 * Measurement CSV: a header with at least ``t,roll,pitch`` (one IMU) or
   ``t,roll_1,pitch_1,roll_2,pitch_2,...`` (IMUs numbered from the base in the robot

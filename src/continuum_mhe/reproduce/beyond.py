@@ -1,4 +1,4 @@
-"""Beyond the paper (issue #9): outliers, calibrated uncertainty and recovery.
+"""Beyond the paper: outliers, calibrated uncertainty and recovery.
 
 Every run is a :class:`BeyondSpec` (one group, one seed) on ``paper3d``;
 :func:`run_beyond` simulates it, corrupts it as its group says, runs the estimators and

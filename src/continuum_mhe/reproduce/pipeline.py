@@ -39,7 +39,7 @@ from continuum_mhe.reproduce.runner import run_parallel
 from continuum_mhe.settings import MHESettings, NoiseSettings
 
 Part = Literal["paper", "beyond"]
-#: What ``reproduce`` can run: the paper's Sec. 3, and beyond the paper (issue #9).
+#: What ``reproduce`` can run: the paper's Sec. 3, and beyond the paper.
 PARTS: tuple[Part, ...] = ("paper", "beyond")
 
 

@@ -1,14 +1,15 @@
 """Calling a model evaluation (:data:`~continuum_mhe.estimators.fast.codegen.CFunction`)
 from numba kernels by its address.
 
-A ctypes function passed to a numba kernel is typed on every call (about 3 us, a
-``ctypes.cast`` each time); its address, an integer, costs nothing to pass. The
+A ctypes function passed to a numba kernel is typed on every call (a ``ctypes.cast``
+each time); its address, an integer, costs nothing to pass. The
 kernels call ``int f(const double** inputs, double* out)`` through :func:`call_model`;
 the caller keeps the ctypes function (and so its code, compiled or a VM callback) alive.
 
-A numba dispatcher types every argument on each call to pick the compiled overload
-(about 85 ns per array, 5 us for the fast MHE's step); :class:`CompiledCall` picks it
-once and then calls that overload's entry point directly.
+A numba dispatcher types every argument on each call to pick the compiled overload, a
+cost that grows with the number of arrays (the fast MHE's step passes about 60);
+:class:`CompiledCall` picks it once and then calls that overload's entry point
+directly.
 """
 
 from __future__ import annotations

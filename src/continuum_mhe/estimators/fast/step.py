@@ -2,8 +2,8 @@
 
 The estimator's per-sample work around the SQP (sliding the arrival prior, shifting the
 window's buffers, the initial guess, the arrival weights, the covariance and the
-outputs) is small arithmetic; done in Python it cost more than the SQP itself (about
-150 of 255 us per sample at N = 30, measured with cProfile). :func:`advance` does it
+outputs) is small arithmetic, which costs more than the SQP itself when done in Python
+(the interpreter's overhead per operation). :func:`advance` does it
 up to and including the SQP, :func:`finish` the covariance and the outputs, and
 :func:`advance_finish` both in one call when the SQP's answer is final (certified,
 no branch check or second start to follow; made through :class:`~.ccall.CompiledCall`,

@@ -1,4 +1,4 @@
-"""The "Beyond the paper" section: issue #9's targets as claims with computed verdicts.
+"""The "Beyond the paper" section: its targets as claims with computed verdicts.
 
 Every verdict comes from the saved summary (:func:`continuum_mhe.reproduce.beyond.
 summarise_beyond`) by the rule printed beside it; the thresholds are module constants.
@@ -56,7 +56,7 @@ def _robust_name(d: dict[str, Any]) -> str:
 
 
 def claim_outliers(d: dict[str, Any], group: str) -> Claim:
-    """Issue #9: under spikes or bursts, the robust MHE stays near its clean error and
+    """Target: under spikes or bursts, the robust MHE stays near its clean error and
     below the EKF."""
     s = d["summary"]
     t = s["targets"][group]
@@ -74,7 +74,7 @@ def claim_outliers(d: dict[str, Any], group: str) -> Claim:
     ]
     out = s["outliers"]
     return Claim(
-        paper=f"issue #9 target ({what}): the robust MHE's tip error at most "
+        paper=f"target ({what}): the robust MHE's tip error at most "
         f"{OUTLIER_RATIO:g}x its own on the same data without outliers, and below the EKF's "
         "with a paired 95 % interval that excludes zero",
         measured=f"robust MHE {_robust_name(d)} {_ci(out[group]['mhe-robust'], 2)} mm, "
@@ -88,12 +88,12 @@ def claim_outliers(d: dict[str, Any], group: str) -> Claim:
 
 
 def claim_clean(d: dict[str, Any]) -> Claim:
-    """Issue #9: without outliers the robust MHE costs at most 2 %."""
+    """Target: without outliers the robust MHE costs at most 2 %."""
     s = d["summary"]
     r = s["targets"]["clean"]["robust_over_l2"]
     out = s["outliers"]["clean"]
     return Claim(
-        paper="issue #9 target (no outliers): the robust MHE within "
+        paper="target (no outliers): the robust MHE within "
         f"{CLEAN_RATIO - 1:.0%} of the quadratic MHE",
         measured=f"robust MHE {_robust_name(d)} {_ci(out['mhe-robust'], 2)} mm, MHE l2 "
         f"{_ci(out['mhe-l2'], 2)} mm, EKF {_ci(out['ekf'], 2)} mm; robust / l2 {_pair(r, 4)}",
@@ -104,7 +104,7 @@ def claim_clean(d: dict[str, Any]) -> Claim:
 
 
 def claim_coverage(d: dict[str, Any]) -> Claim:
-    """Issue #9: the tip's 95 % intervals cover 0.90 to 0.98 of the samples."""
+    """Target: the tip's 95 % intervals cover 0.90 to 0.98 of the samples."""
     cov = d["summary"]["coverage"]
     lo, hi = COVERAGE_RANGE
     checks = [(m.upper(), lo <= float(c["coverage_3d"]["mean"]) <= hi) for m, c in cov.items()]
@@ -120,7 +120,7 @@ def claim_coverage(d: dict[str, Any]) -> Claim:
         else ""
     )
     return Claim(
-        paper=f"issue #9 target: on model-consistent data the coverage of the tip's 95 % "
+        paper=f"target: on model-consistent data the coverage of the tip's 95 % "
         f"intervals lies between {lo:g} and {hi:g} for MHE, EKF and UKF",
         measured=f"share of samples whose tip error lies inside the 95 % ellipsoid of "
         f"J P J^T, noise isotropic on the tangent plane as R models it: {measured}; "
@@ -132,7 +132,7 @@ def claim_coverage(d: dict[str, Any]) -> Claim:
 
 
 def claim_gap(d: dict[str, Any]) -> Claim:
-    """Issue #9: after a gap every estimator restarts from the measurements."""
+    """Target: after a gap every estimator restarts from the measurements."""
     rec = d["summary"]["recovery"]["gap"]
     gap_s = d["trials"][0]["spec"]["gap_s"]
     checks = []
@@ -147,7 +147,7 @@ def claim_gap(d: dict[str, Any]) -> Claim:
             f"{_f(wrong['off']['mean'], 1)} -> {_f(wrong['on']['mean'], 1)})"
         )
     return Claim(
-        paper=f"issue #9: after a gap in the data ({gap_s:g} s here) every estimator "
+        paper=f"target: after a gap in the data ({gap_s:g} s here) every estimator "
         "re-initialises from the measurements instead of predicting blindly",
         measured="mean tip error over the 2 s after the gap, recovery off / on "
         "(`--gap-reset 1 --freeze 1 --bad-start 2`): " + "; ".join(parts),
@@ -159,7 +159,7 @@ def claim_gap(d: dict[str, Any]) -> Claim:
 
 
 def claim_freeze(d: dict[str, Any]) -> Claim:
-    """Issue #9: a frozen sensor no longer gives ``ok`` estimates that are far off."""
+    """Target: a frozen sensor no longer gives ``ok`` estimates that are far off."""
     rec = d["summary"]["recovery"]["freeze"]
     freeze_s = d["trials"][0]["spec"]["freeze_s"]
     checks = []
@@ -173,7 +173,7 @@ def claim_freeze(d: dict[str, Any]) -> Claim:
             f"{_f(e['tip_mean_mm']['off']['mean'])} -> {_f(e['tip_mean_mm']['on']['mean'])} mm)"
         )
     return Claim(
-        paper=f"issue #9: a sensor that freezes ({freeze_s:g} s here) is handled: the "
+        paper=f"target: a sensor that freezes ({freeze_s:g} s here) is handled: the "
         "estimate stops saying ok while it is far off",
         measured="samples per run that say ok while the tip is more than 10 % of the length "
         "wrong, recovery off -> on: " + "; ".join(parts),
@@ -184,7 +184,7 @@ def claim_freeze(d: dict[str, Any]) -> Claim:
 
 
 def claim_bad_start(d: dict[str, Any]) -> Claim:
-    """Issue #9: a bad start is handled: every estimator notices it and restarts, and the
+    """Target: a bad start is handled: every estimator notices it and restarts, and the
     check never fires on clean data."""
     rec = d["summary"]["recovery"]["bad-start"]
     sp = d["trials"][0]["spec"]
@@ -200,7 +200,7 @@ def claim_bad_start(d: dict[str, Any]) -> Claim:
             f"{e.get('clean_fired')}, largest change there {_f(e.get('clean_diff_mm'), 3)} mm)"
         )
     return Claim(
-        paper=f"issue #9: a bad start (here the first {sp.get('bad_s', 0.5):g} s of readings "
+        paper=f"target: a bad start (here the first {sp.get('bad_s', 0.5):g} s of readings "
         f"{sp.get('bad_deg', 60.0):g} deg off on roll and pitch) is handled, for MHE, EKF "
         "and UKF",
         measured="mean tip error over the 2 s after the bad readings, bad-start check off "
@@ -326,7 +326,7 @@ def beyond_section(d: dict[str, Any]) -> list[str]:
     lines = [
         "## Beyond the paper",
         "",
-        "Where the MHE can do more than a filter (issue #9): a robust measurement cost "
+        "Where the MHE can do more than a filter: a robust measurement cost "
         "against outliers, calibrated uncertainty, recovery after gaps and frozen sensors. "
         f"`paper3d`, {_f(sp.get('noise_deg'), 1)} deg noise and R, N = {sp.get('horizon')}, "
         f"{_f(sp.get('length'), 3)} m; every group runs the same seeds "
