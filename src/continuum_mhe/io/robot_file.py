@@ -5,7 +5,7 @@ Format (every key but ``length`` is optional)::
     mounting = "z-up"          # base mounting: "z-up" (default) or "z-down"
     [[section]]
     length = 0.16              # m
-    theta_max = 3.0            # rad, default pi/2
+    theta_max = 3.0            # rad, default 3.0 (172 deg: a bound the robot never reaches)
     [[section]]
     length = 0.14
     [[imu]]
@@ -39,7 +39,13 @@ from typing import Any
 
 from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.model.robot import ImuPlacement, Robot, Section, mount_rpy_hint
+from continuum_mhe.model.robot import (
+    DEFAULT_THETA_MAX,
+    ImuPlacement,
+    Robot,
+    Section,
+    mount_rpy_hint,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -133,7 +139,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if "length" not in table:
             raise InputError(f"{path}: {where}: missing key 'length' (m)")
         length = _number(path, f"{where}: length", table["length"])
-        theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", math.pi / 2))
+        theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", DEFAULT_THETA_MAX))
         try:
             sections.append(Section(length, theta_max))
         except ValueError as exc:
