@@ -140,7 +140,8 @@ class MovingHorizonEstimator(Estimator):
                     else "IPOPT for the MHE"
                 )
                 self.backend_note = defer_compiling(
-                    f"{what}, without the MHE's standard deviations (the std_ columns stay empty)"
+                    f"{what}, without the MHE's standard deviations (the std_ columns "
+                    "stay empty)"
                 )
             else:
                 ensure_compiled()

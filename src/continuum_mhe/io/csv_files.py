@@ -397,7 +397,9 @@ def read_state_table(
     table, body = _read_rows(path)
     p, header = table.name, table.header
     column_indices(table, ("t", *required))
-    names = tuple(h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX))
+    names = tuple(
+        h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX)
+    )
     idx = [header.index(c) for c in names]
     sd_idx = [header.index(STD_PREFIX + c) if STD_PREFIX + c in header else -1 for c in names]
     sd: list[list[float]] = []

@@ -219,7 +219,9 @@ def is_raw_header(header: list[str]) -> bool:
     """True when a (lower-case) CSV header names the accelerometer columns (``ax,ay,az``,
     or ``ax_1,ay_1,az_1`` for several IMUs; ``ax_0...``, numbered from 0, too, so that
     :func:`raw_layout` can say IMUs are numbered from 1)."""
-    return any(all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0"))
+    return any(
+        all(f"{c}{suffix}" in header for c in ACC_COLUMNS) for suffix in ("", "_1", "_0")
+    )
 
 
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:

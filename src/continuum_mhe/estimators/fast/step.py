@@ -201,7 +201,9 @@ def advance(
         lam[:] = 0.0
     copy_into(Xb[0], X0)
     nblk = wgt.shape[2]
-    evaluated = b >= 0 and shift_outputs(tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk)
+    evaluated = b >= 0 and shift_outputs(
+        tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk
+    )
     shifted = b if full else -1  # the buffer whose assembly shifts with its outputs
     res = _sqp(
         win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,

@@ -148,12 +148,15 @@ def first_run_mode(default: FirstRun) -> FirstRun:
         return mode  # type: ignore[return-value]
     if mode:
         say_once(
-            f"CONTINUUM_MHE_FIRST_RUN={mode!r} is neither 'foreground' nor 'background': ignored"
+            f"CONTINUUM_MHE_FIRST_RUN={mode!r} is neither 'foreground' nor 'background': "
+            "ignored"
         )
     return default
 
 
-def say_once(message: str, category: type[Warning] = CompileNotice, stacklevel: int = 3) -> None:
+def say_once(
+    message: str, category: type[Warning] = CompileNotice, stacklevel: int = 3
+) -> None:
     """Warn ``message`` as a ``category`` (default :class:`CompileNotice`; one line under
     the command line), once per process."""
     if message not in _announced:
