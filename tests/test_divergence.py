@@ -40,7 +40,9 @@ def test_reproducers_give_finite_flagged_estimates(tmp_path: Path, method: str, 
     assert np.all(np.isfinite(x))
     assert set(status) <= set(STATUS_MEANINGS)
     assert FLAGGED[name, method] in set(status), list(status)
-    assert status[0] == "ok"  # the first reading alone contradicts nothing
+    # the first reading alone contradicts nothing (gimbal_flip's is a bend of exactly
+    # theta_max = pi/2: on the bound)
+    assert status[0] in (("ok", "at-bound") if name == "gimbal_flip.csv" else ("ok",))
 
 
 def test_ekf_gimbal_flip_is_flagged_not_ok() -> None:

@@ -38,6 +38,7 @@ from continuum_mhe.cli_options import (
 )
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, Measurement, make_estimator
+from continuum_mhe.estimators.base import bound_notice
 from continuum_mhe.io.csv_files import (
     InputError,
     check_new_folder,
@@ -221,6 +222,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
             f"; restarted {est.bad_starts} time(s) after readings inconsistent with the "
             "start or an IMU's return"
         )
+    if est.bound_samples:
+        note = bound_notice(est.bound_samples, n, est.formulation.robot)
+        print(f"{PROG}: warning: {note}", file=sys.stderr)
     if est.reject_resets:
         msg += (
             f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "

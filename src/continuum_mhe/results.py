@@ -30,6 +30,7 @@ Status = Literal[
     "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
     "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
     "drifted",  # position state inconsistent with its own angles (paper formulation)
+    "at-bound",  # a section's bend sits on its theta_max: the robot may bend further
 ]
 
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
@@ -58,6 +59,9 @@ STATUS_MEANINGS: dict[str, str] = {
     "drifted": "the position state is more than DRIFT_FRACTION (10 %) of the length from "
     "the forward kinematics of the row's own theta and phi (the paper formulation's "
     "separate x, y, z): the row is not one consistent shape",
+    "at-bound": "an estimate was made, but a section's bend sits on (or beyond) its "
+    "theta_max: the robot may bend further than the robot file (or --theta-max) allows, "
+    "and the bound clipped the shape; raise theta_max if the robot really bends so far",
 }
 
 

@@ -63,6 +63,18 @@ def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
     return f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off"
 
 
+def bound_notice(count: int, n: int, robot: Robot) -> str:
+    """One line for ``count`` of ``n`` estimates on a section's ``theta_max`` (status
+    ``at-bound``)."""
+    bounds = ", ".join(f"{s.theta_max:.4g}" for s in robot.sections)
+    return (
+        f"{count} of {n} estimates sat on a section's bending bound theta_max ({bounds} rad; "
+        "status at-bound): the robot may bend further than that bound allows, and the "
+        "bound, not the data, set those shapes; raise theta_max in the robot file (or "
+        "--theta-max) if the robot bends so far"
+    )
+
+
 def _outside_stacklevel() -> int:
     """The ``warnings.warn`` stacklevel of the first caller outside this package (a
     warning of the library names the user's line, not ours)."""
@@ -146,6 +158,8 @@ class Estimator(ABC):
         self.reject_resets = 0
         #: the last numerical failure's message, if any
         self.last_failure: str | None = None
+        #: samples whose estimate sat on a section's ``theta_max`` (status ``at-bound``)
+        self.bound_samples = 0
 
     def reset(self, keep_counts: bool = False) -> None:
         """Forget all samples and, unless ``keep_counts``, zero the counts
@@ -362,6 +376,9 @@ class Estimator(ABC):
             status = "uncertain"  # the data do not determine the shape
         elif status in TRUSTED and self._start_check.unconfirmed:
             status = "uncertain"  # an IMU is back and no reading has confirmed the estimate
+        elif status in TRUSTED and state is not None and self.formulation.at_bound(state):
+            status = "at-bound"  # the bound, not the data, may have set the shape
+            self.bound_samples += 1
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None

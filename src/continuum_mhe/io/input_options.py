@@ -9,6 +9,7 @@ input is streamed (:mod:`continuum_mhe.io.sample_stream`).
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -246,3 +247,53 @@ def convert_raw(
     if gyr is not None:
         check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
     return raw_to_measurements(t, acc, gyr, raw)
+
+
+#: Valid readings of the IMU nearest the base whose median the mounting check uses
+#: (half a second at 50 Hz).
+MOUNTING_START_SAMPLES = 25
+#: A start further than this from the straight pose of the stated mounting (and so
+#: within 45 degrees of the opposite mounting's straight pose) is refused, rad.
+MOUNTING_FLIPPED = math.radians(135.0)
+
+
+def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, float] | None:
+    """``(imu, angle)``: the IMU nearest the base (0-based) and the median angle, rad,
+    between its tangent and the base axis over its first
+    :data:`MOUNTING_START_SAMPLES` valid readings in ``z`` (n, nz), with the robot's
+    stated mounting (``z-up``: the base axis points up; ``z-down``: down); None
+    without a valid reading. A robot that starts near straight reads about 0; one
+    whose mounting is stated upside down reads about pi."""
+    robot = formulation.robot
+    k = min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+    block = formulation.measurement_blocks[k]
+    zb = np.asarray(z, dtype=float)[:, block.slice]
+    zb = zb[np.all(np.isfinite(zb), axis=1)][:MOUNTING_START_SAMPLES]
+    if not len(zb):
+        return None
+    if block.kind == "tilt":  # the up direction in the IMU frame is f = R^T u
+        f_axis = np.cos(zb[:, 0]) * np.cos(zb[:, 1])
+    else:
+        f_axis = zb[:, 2] / np.linalg.norm(zb[:, :3], axis=1)
+    up = 1.0 if robot.mounting == "z-up" else -1.0
+    return k, float(np.median(np.arccos(np.clip(up * f_axis, -1.0, 1.0))))
+
+
+def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
+    """Refuse, in one line naming ``mounting``, a recording whose first readings put
+    the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
+    of the robot's stated mounting: gravity says the robot is mounted the other way
+    (a hanging robot described as ``z-up``, or the reverse)."""
+    got = start_bend_angle(z, formulation)
+    if got is None or got[1] <= MOUNTING_FLIPPED:
+        return
+    k, angle = got
+    mounting = formulation.robot.mounting
+    other = "z-down" if mounting == "z-up" else "z-up"
+    pose = "hangs from its base" if other == "z-down" else "stands on its base"
+    raise InputError(
+        f"{name}: mounting: the robot is described as {mounting}, but at the start gravity "
+        f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "
+        f"pose ({180 - math.degrees(angle):.0f} from {other}'s): the robot {pose}? set "
+        f'mounting = "{other}" in the robot file (or --mounting {other})'
+    )

@@ -5,7 +5,7 @@ Format (every key but ``length`` is optional)::
     mounting = "z-up"          # base mounting: "z-up" (default) or "z-down"
     [[section]]
     length = 0.16              # m
-    theta_max = 3.0            # rad, default pi/2
+    theta_max = 3.0            # rad, default 3.0 (172 deg: a bound the robot never reaches)
     [[section]]
     length = 0.14
     [[imu]]
@@ -42,6 +42,7 @@ from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (
+    DEFAULT_THETA_MAX,
     MAX_MOUNT_DEG,
     ImuPlacement,
     Robot,
@@ -141,7 +142,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if "length" not in table:
             raise InputError(f"{path}: {where}: missing key 'length' (m)")
         length = _number(path, f"{where}: length", table["length"])
-        theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", math.pi / 2))
+        theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", DEFAULT_THETA_MAX))
         try:
             sections.append(Section(length, theta_max))
         except ValueError as exc:

@@ -34,6 +34,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.input_options import (
     EstimateInput,
     InputOptions,
+    check_mounting,
     check_options_apply,
     formulation_for,
     imu_settings_for,
@@ -97,6 +98,7 @@ def open_estimate_input(
     if str(path) != "-" and is_robot_log(Path(path)):
         data = load_log_input(Path(path), options, formulation)
         problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
+        check_mounting(str(path), data.z, data.formulation)
         readings = _readings(data.formulation)
         readings.add(data.z)
         readings.warn_silent(str(path))
@@ -177,7 +179,7 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
         rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
     )
     readings = _readings(f)
-    samples = _chunked(rows, found, convert, readings)
+    samples = _chunked(rows, found, convert, readings, f)
     return SampleStream(name, kind, f, samples, problems, 0, rows, readings=readings)
 
 
@@ -190,11 +192,13 @@ def _chunked(
     found: Iterator[tuple[int, float, list[float]]],
     convert: Convert,
     readings: ReadingCounts,
+    formulation: Formulation,
 ) -> Iterator[tuple[float, FloatArray]]:
     """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time.
     Counts which IMUs reported in ``readings``, and warns at the end for one that never
-    did."""
-    first = True
+    did. The first chunk's readings are checked against the robot's mounting
+    (:func:`~continuum_mhe.io.input_options.check_mounting`)."""
+    first = first_z = True
     while True:
         chunk = [r for _, r in zip(range(CHUNK), found)]
         if not chunk:
@@ -208,6 +212,9 @@ def _chunked(
             check_time_units(rows, t)
             first = False
         z = convert(t, values, lines)
+        if first_z:
+            check_mounting(rows.name, z, formulation)
+            first_z = False
         readings.add(z)
         for i, tv in enumerate(t.tolist()):
             yield tv, z[i]

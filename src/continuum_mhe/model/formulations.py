@@ -213,6 +213,12 @@ class Formulation:
         redundant states can drift; see :class:`PaperFormulation`)."""
         return False
 
+    def at_bound(self, x: FloatArray) -> bool:
+        """True when a section's bending angle sits within :data:`AT_BOUND_TOL` of its
+        ``theta_max`` or beyond it (status ``at-bound``: the bound, not the data, may
+        have set the shape)."""
+        return False
+
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
@@ -427,6 +433,13 @@ class BendFormulation(Formulation):
             for k, sec in enumerate(self.robot.sections)
         )
 
+    def at_bound(self, x: FloatArray) -> bool:
+        v = x.tolist()  # a few floats: plain Python is faster than numpy here
+        return any(
+            math.hypot(v[2 * k], v[2 * k + 1]) >= sec.theta_max - AT_BOUND_TOL
+            for k, sec in enumerate(self.robot.sections)
+        )
+
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
         """Non-finite; a section bent more than ``DIVERGED_MARGIN`` rad beyond its bound
         (the filters are unconstrained, but not that far); a bend rate over
@@ -454,6 +467,10 @@ class BendFormulation(Formulation):
 
 #: Divergence test (:meth:`BendFormulation.is_diverged`): rad beyond ``theta_max``.
 DIVERGED_MARGIN = 1.0
+#: Status ``at-bound`` (:meth:`Formulation.at_bound`): a bend within this many rad of
+#: its ``theta_max`` (a constrained solver's answer on the bound is within its
+#: tolerance of it, far below this; a free bend is that close about once in a thousand).
+AT_BOUND_TOL = 1e-3
 #: Status ``drifted`` (paper formulation): position state this share of the length away
 #: from the forward kinematics of the state's theta and phi.
 DRIFT_FRACTION = 0.1
@@ -547,6 +564,9 @@ class PaperFormulation(Formulation):
             return True
         theta_out = x[3] < -DIVERGED_MARGIN or x[3] > self.robot.theta_max + DIVERGED_MARGIN
         return bool(theta_out or np.linalg.norm(x[:3]) > 3 * self.length)
+
+    def at_bound(self, x: FloatArray) -> bool:
+        return bool(x[3] >= self.robot.theta_max - AT_BOUND_TOL)
 
     def drift(self, x: FloatArray) -> float:
         """Distance, m, from the position state to the tip of the state's own theta, phi."""

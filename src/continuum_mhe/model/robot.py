@@ -28,6 +28,11 @@ MAX_SECTION_LENGTH = 5.0
 MIN_SECTION_LENGTH = 1e-3
 #: Largest mounting angle accepted, degrees (as ``--mount-rpy``).
 MAX_MOUNT_DEG = 360.0
+#: A section's bending bound where none is given, rad (172 degrees): one that a real
+#: robot does not reach, just short of the fold at pi, so that the bound never sets a
+#: shape the data do not. A robot that bends less is described more tightly with its own
+#: ``theta_max``; an estimate on a bound says so (status ``at-bound``).
+DEFAULT_THETA_MAX = 3.0
 
 
 def theta_max_hint(value: float) -> str:
@@ -83,11 +88,12 @@ class Section:
 
     Attributes:
         length: arc length, m, in ``[0.001, 5]``.
-        theta_max: bound on the section's bending angle, rad, in ``(0, pi)``.
+        theta_max: bound on the section's bending angle, rad, in ``(0, pi)``
+            (default :data:`DEFAULT_THETA_MAX`).
     """
 
     length: float
-    theta_max: float = math.pi / 2
+    theta_max: float = DEFAULT_THETA_MAX
 
     def __post_init__(self) -> None:
         if not (isinstance(self.length, (int, float)) and math.isfinite(self.length)):

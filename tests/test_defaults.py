@@ -1,0 +1,98 @@
+"""Right by default: the bound a robot file leaves out, estimates on a bound, raw IMUs
+with their gyros, the mounting against gravity (known answers on the shipped
+two-section rod recordings and on data made here)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.robot_file import read_robot
+
+DATA = Path(__file__).parents[1] / "src/continuum_mhe/data"
+ROD = DATA / "rod2"
+
+TWO_SECTIONS = """mounting = "{mounting}"
+[[section]]
+length = 0.16{bound}
+[[section]]
+length = 0.14{bound}
+[[imu]]
+section = 1
+[[imu]]
+section = 2
+"""
+
+
+def _robot(tmp_path: Path, bound: str = "", mounting: str = "z-up") -> Path:
+    p = tmp_path / f"robot{len(bound)}{mounting}.toml"
+    p.write_text(TWO_SECTIONS.format(bound=bound, mounting=mounting), encoding="utf-8")
+    return p
+
+
+def _tip_errors_mm(est: Path, truth: Path) -> tuple[np.ndarray, np.ndarray]:
+    e, t = read_state_table(est), read_state_table(truth)
+    err = np.linalg.norm([e.column(c) - t.column(c) for c in ("x", "y", "z")], axis=0) * 1e3
+    return err, e.status
+
+
+def test_a_robot_file_without_theta_max_does_not_bound_the_bend_at_90_degrees(tmp_path):
+    """The spatial rod's first section bends to 110 degrees: a robot file that leaves
+    theta_max out gets a bound the rod never reaches, not 90 degrees."""
+    robot = read_robot(_robot(tmp_path))
+    assert all(s.theta_max > math.radians(150) for s in robot.sections)
+
+
+def test_estimates_on_a_given_bound_are_at_bound_and_counted(tmp_path, capsys):
+    """theta_max = pi/2 on a rod that bends to 110 degrees: the rows the bound clips say
+    ``at-bound``, never ``ok``, and one warning counts them."""
+    robot = _robot(tmp_path, "\ntheta_max = 1.5707963")
+    est = tmp_path / "e.csv"
+    args = ["estimate", str(ROD / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(est)]
+    assert main([*args, "--method", "ekf"]) == 0
+    table = read_state_table(est)
+    theta = np.column_stack([table.column("theta_1"), table.column("theta_2")])
+    on_bound = (theta >= math.pi / 2 - 1e-3).any(axis=1)
+    assert on_bound.sum() > 20
+    assert not np.any(table.status[on_bound] == "ok")
+    assert not np.any(table.status[~on_bound] == "at-bound")
+    count = int(np.sum(table.status == "at-bound"))
+    assert count > 20
+    err = capsys.readouterr().err
+    assert f"{count} of 601 estimates sat on a section's bending bound" in err
+
+
+def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tmp_path, capsys):
+    """A robot hanging from its base (simulated z-down) estimated as z-up: one line
+    naming ``mounting``, exit 2, nothing written; as z-down it runs."""
+    meas, est = tmp_path / "hang.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--mounting", "z-down", "-o", str(meas)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(est)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "mounting" in err[0] and "z-down" in err[0]
+    assert not est.exists()
+    args = ["estimate", str(meas), "--method", "ekf", "--mounting", "z-down", "-o", str(est)]
+    assert main(args) == 0
+
+
+def test_raw_readings_of_a_hanging_rod_are_checked_against_the_robot_files_mounting(tmp_path):
+    """The two-section rod's raw recording turned upside down (the specific force
+    reversed: the rod hangs): refused with a z-up robot file, run with z-down."""
+    text = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines()
+    header = text[0].split(",")
+    flip = [i for i, h in enumerate(header) if h.startswith(("ax", "ay", "az"))]
+    rows = []
+    for line in text[1:]:
+        v = line.split(",")
+        rows.append(",".join(f"{-float(x)!r}" if i in flip else x for i, x in enumerate(v)))
+    meas, est = tmp_path / "hang_raw.csv", tmp_path / "e.csv"
+    meas.write_text("\n".join([text[0], *rows]) + "\n", encoding="utf-8")
+    args = ["estimate", str(meas), "--method", "ekf", "-o", str(est)]
+    assert main([*args, "--robot", str(_robot(tmp_path))]) == 2
+    assert not est.exists()
+    assert main([*args, "--robot", str(_robot(tmp_path, mounting="z-down"))]) == 0
