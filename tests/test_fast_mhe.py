@@ -16,8 +16,9 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
+from continuum_mhe import _core
 from continuum_mhe.estimators import fast as fm
-from continuum_mhe.estimators.fast import linalg, qp
+from continuum_mhe.estimators.fast import linalg
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.mhe import (
     BackendFallbackWarning,
@@ -395,7 +396,7 @@ def test_arrival_step_is_the_ekf_step() -> None:
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
 
 
-@pytest.mark.parametrize("nx", [3, 4, 8])  # 4 and 8 run their own unrolled copies
+@pytest.mark.parametrize("nx", [3, 4, 8, 12])  # 4, 8 and 12 run their own unrolled copies
 def test_block_tridiagonal_solve_matches_dense(nx: int) -> None:
     rng = np.random.default_rng(0)
     n = 7
@@ -408,10 +409,13 @@ def test_block_tridiagonal_solve_matches_dense(nx: int) -> None:
     E = np.array([H[i * nx : (i + 1) * nx, (i + 1) * nx : (i + 2) * nx] for i in range(n - 1)])
     b = rng.normal(size=(n, nx))
     y = np.empty_like(b)
-    assert linalg.btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
+    assert _core.btd_solve(D, E, b, y)
     np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-10)
+    Hb = np.empty_like(b)
+    _core.btd_matvec(D, E, b, Hb)
+    np.testing.assert_allclose(Hb.ravel(), H @ b.ravel(), rtol=1e-13)
     D[2] = -np.eye(nx)
-    assert not linalg.btd_solve(D, E, b, np.empty_like(D), np.empty_like(E), y)
+    assert not _core.btd_solve(D, E, b, y)
 
 
 def test_small_dense_kernels_match_numpy() -> None:
@@ -427,6 +431,15 @@ def test_small_dense_kernels_match_numpy() -> None:
     np.testing.assert_allclose(L, np.linalg.cholesky(S), rtol=1e-12)
     np.testing.assert_allclose(linalg.inverse_gram(L), np.linalg.inv(S), rtol=1e-10)
     assert linalg.cholesky(-S).shape == (0, 0)
+    out, Lc = np.empty((3, 4)), np.empty((5, 5))
+    _core.dense_mul(A, B, out)
+    np.testing.assert_allclose(out, A @ B, rtol=1e-13)
+    assert _core.dense_cholesky(S, Lc)
+    np.testing.assert_allclose(Lc, np.linalg.cholesky(S), rtol=1e-12)
+    inv = np.empty((5, 5))
+    _core.dense_inverse_gram(Lc, inv)
+    np.testing.assert_allclose(inv, np.linalg.inv(S), rtol=1e-10)
+    assert not _core.dense_cholesky(-S, Lc)
     nx, nz = 4, 2
     P, H = np.diag([1.0, 2.0, 3.0, 4.0]), rng.normal(size=(nz, nx))
     R, r, x = -10.0 * np.eye(nz), rng.normal(size=nz), rng.normal(size=nx)  # S indefinite
@@ -440,6 +453,33 @@ def test_small_dense_kernels_match_numpy() -> None:
     ref = F @ P @ F.T + Q
     np.testing.assert_allclose(Pn, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(Pinv, np.linalg.inv(Pn), rtol=1e-10)
+
+
+def test_householder_reflection_and_projection() -> None:
+    """The reflection that eliminates a linearised ball is symmetric, orthogonal and
+    maps the ball's unit normal to -+ a unit vector on its largest coordinate; the
+    projection puts every node inside the box and exactly inside each ball."""
+    rng = np.random.default_rng(4)
+    nrm = np.zeros(6)
+    nrm[[1, 2, 4]] = rng.normal(size=3)
+    nrm /= np.linalg.norm(nrm)
+    T = np.empty((6, 6))
+    piv = _core.householder(nrm, np.array([1, 2, 4]), T)
+    assert piv == [1, 2, 4][int(np.argmax(np.abs(nrm[[1, 2, 4]])))]
+    np.testing.assert_allclose(T, T.T, atol=1e-15)
+    np.testing.assert_allclose(T @ T, np.eye(6), atol=1e-14)
+    want = np.zeros(6)
+    want[piv] = -np.sign(nrm[piv])
+    np.testing.assert_allclose(T @ nrm, want, atol=1e-14)
+    X = rng.normal(scale=2.0, size=(50, 6))
+    lo, hi = np.array([-1.0, -np.inf, -np.inf, 0.0, -np.inf, -0.5]), np.array([1.0] * 5 + [0.5])
+    ball, r2 = np.array([[1, 2], [4, 3]]), np.array([0.3, 0.7])
+    lo[3], hi[3] = -np.inf, np.inf  # ball coordinates carry no box bounds
+    _core.project(X, lo, hi, ball, r2)
+    assert np.all(X >= lo) and np.all(X <= hi)
+    for idx, rr in zip(ball, r2):
+        assert np.all(np.sum(X[:, idx] ** 2, axis=1) <= rr)
+        assert np.any(np.sum(X[:, idx] ** 2, axis=1) > rr * (1 - 1e-12))  # some on the sphere
 
 
 def test_box_qp_matches_bounded_least_squares() -> None:
@@ -459,19 +499,9 @@ def test_box_qp_matches_bounded_least_squares() -> None:
     lo, hi = np.array([-0.5, -np.inf]), np.array([0.4, 0.6])
     X = np.zeros((n, nx))
     d = np.empty((n, nx))
-    status, _, _ = qp.solve_qp(
-        X,
-        D,
-        E,
-        g.reshape(n, nx),
-        lo,
-        hi,
-        np.zeros((0, 1), np.int64),
-        np.zeros(0),
-        200,
-        d,
-        np.zeros((n, 0)),
-    )
+    no_balls = np.zeros((0, 1), np.int64), np.zeros(0)
+    status, _, _ = _core.solve_qp(X, D, E, g.reshape(n, nx), lo, hi, *no_balls, 200, d,
+                                  np.zeros((n, 0)))  # fmt: skip
     assert status == fm.CONVERGED
     ref = lsq_linear(A, c, bounds=(np.tile(lo, n), np.tile(hi, n)), tol=1e-14, method="bvls")
     np.testing.assert_allclose(d.ravel(), ref.x, atol=1e-10)
@@ -686,5 +716,3 @@ class _ScalarBall(BendFormulation):
 def test_feasible_set_accepts_the_scalar_constraint_form() -> None:
     fs = fm.feasible_set(_ScalarBall())
     assert fs.ball_idx.tolist() == [[0, 1]] and fs.ball_r2.tolist() == [1.0]
-
-

@@ -236,11 +236,11 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
 
 @pytest.mark.parametrize("in_place", [False, True])
 def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place) -> None:
-    """:func:`shift_outputs` (the previous window's model outputs moved by one node, the
+    """``shift_outputs`` (the previous window's model outputs moved by one node, the
     tail function for the new node and stage) gives exactly what the window function
     gives at the shifted iterate, dropouts and two sections included."""
     from continuum_mhe.estimators.fast import build_window_model
-    from continuum_mhe.estimators.fast.sqp import Workspace, shift_outputs
+    from continuum_mhe.estimators.fast.sqp import Workspace
 
     f = make_formulation("bend", TWO)
     n, nx, nz = 7, f.nx, f.nz
@@ -263,9 +263,7 @@ def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place)
     window(0, src)
     fresh = window(1, 0 if not in_place else 1)  # buffer 0 now holds the shifted iterate
     ws.Xb[0] = X[1:]
-    nblk = len(model.loss.blocks)
-    assert shift_outputs(ws.tail, ws.tail_ptrs, ws.tail_out, ws.out[src], ws.out[0], n, nx, nz,
-                         nblk)  # fmt: skip
+    assert ws.core.shift_outputs(src, 0)
     assert_allclose(ws.out[0], fresh, rtol=1e-14, atol=1e-15)
 
 
@@ -337,10 +335,8 @@ def test_rows_move_as_numpy_moves_them() -> None:
         (None, "l2", True, False, 1, 7),  # a window not yet full: the whole assembly runs
     ],
 )
-def test_shifted_assembly_equals_the_full_one(
-    robot, loss, linear, in_place, arrival_at, n
-) -> None:
-    """The shifted assembly (:func:`_assemble` with ``shifted``: the previous window's
+def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arrival_at, n) -> None:
+    """The shifted assembly (``WindowSolver.assemble`` with ``shifted_from``: the previous window's
     assembly moved by one node, node
     0, the last stage and the last node formed) gives the same bits as the whole
     assembly at the shifted iterate: blocks, gradient, robust weights, node costs and
@@ -348,18 +344,14 @@ def test_shifted_assembly_equals_the_full_one(
     losses, two sections and stage products carried or formed included; and the
     carried nodes are carried (their model outputs are not read again)."""
     from continuum_mhe.estimators.fast import build_window_model
-    from continuum_mhe.estimators.fast.sqp import (
-        Workspace,
-        _assemble_outputs,
-        stage_buffers,
-    )
+    from continuum_mhe.estimators.fast.sqp import Workspace
     from continuum_mhe.estimators.loss import LOSS_CODES
 
     f = make_formulation("bend") if robot is None else make_formulation("bend", robot)
     nx, nz = f.nx, f.nz
     model = build_window_model(f, n)
     lossk = model.loss._replace(code=LOSS_CODES[loss], scale=1.5)
-    ws = Workspace(model)
+    ws = Workspace(model, loss=lossk, linear=linear)
     rng = np.random.default_rng(11)
     X = rng.normal(scale=0.3, size=(n + 1, nx))
     z = rng.normal(scale=0.3, size=(n + 1, nz))
@@ -372,7 +364,7 @@ def test_shifted_assembly_equals_the_full_one(
     A = rng.normal(size=(n, nx, nx))
     qinv = np.einsum("sij,skj->sik", A, A) + np.eye(nx)
 
-    def assembled(lo: int, b: int, stage, shift_from=None, spoil=False) -> tuple:
+    def assembled(lo: int, b: int, shift_from: int = -1, spoil: bool = False) -> tuple:
         ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
         ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
         assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
@@ -381,29 +373,24 @@ def test_shifted_assembly_equals_the_full_one(
         arrival = np.zeros((n, nx, nx))
         arrival[arrival_at] = qinv[lo] + lo * np.eye(nx)  # each window its own prior
         xbar = X[lo] + 0.1 * (lo + 1)
-        nodes = np.any(ws.m != 0.0, axis=1).astype(float)
-        args = (ws.out[b], ws.Xb[b], nodes, model.rinv, np.ascontiguousarray(qinv[lo : lo + n - 1]),
-                xbar, arrival, ws.D[b], ws.E[b], ws.g[b], lossk, ws.wgt[b], ws.extra[b],
-                ws.gb[b], ws.ncost[b], stage)  # fmt: skip
-        a = 0 if shift_from is None else shift_from
-        prev = (ws.Dgn[a], ws.E[a], ws.g[a], ws.wgt[a], ws.extra[a], ws.gb[a], ws.ncost[a])
-        cost = _assemble_outputs(*args, prev, shift_from is not None)
+        cost = ws.core.assemble(b, np.ascontiguousarray(qinv[lo : lo + n - 1]), xbar, arrival,
+                                shift_from)  # fmt: skip
         return (cost, ws.D[b].copy(), ws.E[b].copy(), ws.g[b].copy(), ws.wgt[b].copy(),
                 ws.extra[b].copy(), ws.gb[b].copy(), ws.ncost[b].copy())  # fmt: skip
 
-    full = assembled(1, 0, stage_buffers(n, nx, linear))
+    full = assembled(1, 0)
     src = 0 if in_place else 1
-    stage = stage_buffers(n, nx, linear)
-    assembled(0, src, stage)
+    ws.stage[0][:] = 0  # the previous window's stage products are its own
+    assembled(0, src)
     ws.Dgn[src] = ws.D[src]  # the SQP keeps the Gauss-Newton blocks there
     if linear:  # the stage products move with the window, the new one is formed
-        for a in stage:
+        for a in ws.stage:
             a[:-1] = a[1:].copy()
-        stage[0][-1] = 0
+        ws.stage[0][-1] = 0
     kept = [a.copy() for a in (ws.Dgn[src], ws.E[src], ws.g[src], ws.wgt[src], ws.extra[src],
                                ws.gb[src], ws.ncost[src])]  # fmt: skip
     carried = arrival_at == 0 and n > 3
-    shifted = assembled(1, 0, stage, shift_from=src, spoil=carried)
+    shifted = assembled(1, 0, shift_from=src, spoil=carried)
     assert shifted[0] == full[0] and np.isfinite(full[0])
     for got, want in zip(shifted[1:], full[1:]):
         assert np.array_equal(got, want)
@@ -412,7 +399,7 @@ def test_shifted_assembly_equals_the_full_one(
                            ws.gb[src], ws.ncost[src]), kept):  # fmt: skip
             a[:] = was
         ws.g[src, 2] += 1.0
-        assert not np.array_equal(assembled(1, 0, stage, shift_from=src)[3], full[3])
+        assert not np.array_equal(assembled(1, 0, shift_from=src)[3], full[3])
 
 
 @pytest.mark.parametrize(("options", "reused"), [({}, True), ({"branch_check": True}, False)])

@@ -37,10 +37,13 @@ Modules (one responsibility each):
   outputs, evaluated by the compiled core.
 * :mod:`~continuum_mhe.estimators.fast.model`: the feasible set read from the
   formulation, :class:`WindowModel`, :class:`NodeEvaluator`, :func:`build_window_model`.
-* :mod:`~continuum_mhe.estimators.fast.linalg`: block-tridiagonal Cholesky, product,
-  Householder reflection.
-* :mod:`~continuum_mhe.estimators.fast.qp`: the active-set QP and the projection.
-* :mod:`~continuum_mhe.estimators.fast.sqp`: assembly, SQP, :func:`solve_window`.
+* :mod:`~continuum_mhe.estimators.fast.sqp`: :func:`solve_window` and its
+  :class:`Workspace`, over the compiled core's window solver (assembly, active-set QP
+  with block-tridiagonal Cholesky, SQP; ``csrc/sqp.cpp``, ``csrc/qp.hpp``,
+  ``csrc/btd.hpp``).
+* :mod:`~continuum_mhe.estimators.fast.qp`: the solver outcomes.
+* :mod:`~continuum_mhe.estimators.fast.linalg`: the small dense and block kernels of
+  the arrival prior and the covariance.
 * :mod:`~continuum_mhe.estimators.fast.arrival`: the EKF step of the arrival prior.
 * :mod:`~continuum_mhe.estimators.fast.memory`: moving a window's rows (one ``memmove``).
 """

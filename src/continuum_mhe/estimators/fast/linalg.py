@@ -1,40 +1,23 @@
-"""Dense and block-tridiagonal linear algebra of the fast backend (numba kernels).
+"""Dense and block-tridiagonal linear algebra (numba kernels) of the arrival prior and
+the covariance.
 
 The window Hessian is symmetric block-tridiagonal, ``H = (D, E)`` with diagonal blocks
 ``D`` (n, nx, nx) and super-diagonal blocks ``E`` (n-1, nx, nx) (``E_i`` couples node
-``i`` with node ``i+1``): its product with a vector, its Cholesky solve in
-``O(n nx^3)``, and the Householder reflection that eliminates one linearised ball.
-
-The factorisation and its substitutions (and :func:`~.sqp._assemble`) are compiled
-once more for each of the block sizes 4 and 8 (one and two sections of the ``bend``
-model): their bodies are inlined with ``nx`` a constant, so the compiler unrolls the
-``nx``-loops (about 1.5x faster at 4); any other size runs the same code with ``nx``
-read from the arrays. Small dense products (:func:`mul`, :func:`mul_t`,
-:func:`cholesky`, :func:`inverse_gram`) are written out: on few-by-few matrices a BLAS
-or LAPACK call costs more than its arithmetic, and its code evicts the caller's from
-the caches.
+``i`` with node ``i+1``). The window solve's copies of these kernels are the compiled
+core's (``csrc/btd.hpp``: :func:`continuum_mhe._core.btd_solve` and its siblings); the
+ones here serve :mod:`.arrival` and :mod:`.covariance`: the block Cholesky and its
+substitutions (compiled once more for the block sizes 4 and 8: their bodies are inlined
+with ``nx`` a constant, so the compiler unrolls the ``nx``-loops), the Householder
+reflection that eliminates one linearised ball, and small dense products
+(:func:`mul`, :func:`mul_t`, :func:`cholesky`, :func:`inverse_gram`) written out: on
+few-by-few matrices a BLAS or LAPACK call costs more than its arithmetic, and its code
+evicts the caller's from the caches.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
-
-
-@numba.njit(cache=True)
-def matvec(D, E, v, out):
-    """``out = H v`` for the symmetric block-tridiagonal ``H = (D, E)``."""
-    n, nx = v.shape
-    for i in range(n):
-        for j in range(nx):
-            s = 0.0
-            for k in range(nx):
-                s += D[i, j, k] * v[i, k]
-                if i < n - 1:
-                    s += E[i, j, k] * v[i + 1, k]
-                if i > 0:
-                    s += E[i - 1, k, j] * v[i - 1, k]
-            out[i, j] = s
 
 
 @numba.njit(cache=True, inline="always")

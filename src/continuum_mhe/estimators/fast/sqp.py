@@ -1,12 +1,17 @@
-"""The window solve: Newton-type SQP with a projected line search (numba kernels).
+"""The window solve: Newton-type SQP with a projected line search, in the compiled core.
 
 Each iteration evaluates the whole window's model in one call (residuals, Jacobians and
 the measurement residuals' second-order term), assembles the block-tridiagonal Hessian
-of the Lagrangian (:func:`_assemble`: Gauss-Newton ``J^T W J``, plus the exact
-second-order term where that keeps it positive definite, plus ``2 lam_b I`` on the
-coordinates of each ball ``b`` with a positive multiplier), and solves the QP subproblem
-(:func:`~continuum_mhe.estimators.fast.qp.solve_qp`). Iterates stay exactly feasible
-(projection). See ``docs/fast-solver.md``.
+of the Lagrangian (Gauss-Newton ``J^T W J``, plus the exact second-order term where
+that keeps it positive definite, plus ``2 lam_b I`` on the coordinates of each ball
+``b`` with a positive multiplier), and solves the QP subproblem by a primal active-set
+method. Iterates stay exactly feasible (projection). The core's
+:class:`~continuum_mhe._core.WindowSolver` does all of it (``csrc/sqp.cpp``, ``csrc/qp.hpp``,
+``csrc/btd.hpp``); :func:`solve_window` and :func:`window_cost` call it, and
+:class:`Workspace` holds its buffers. See ``docs/fast-solver.md``.
+
+The numba kernels :func:`_assemble` and :func:`_evaluate` (the same assembly as the
+core's) remain for :mod:`.covariance`.
 """
 
 from __future__ import annotations
@@ -18,19 +23,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.fast.ccall import address, call_model
-from continuum_mhe.estimators.fast.memory import copy_into, move, shift_rows
-from continuum_mhe.estimators.fast.model import WindowModel
-from continuum_mhe.estimators.fast.qp import (
-    CONVERGED,
-    LINE_SEARCH_FAILED,
-    MAX_ITER,
-    NOT_PD,
-    OUTCOMES,
-    project,
-    solve_qp,
-)
+from continuum_mhe.estimators.fast.memory import shift_rows
+from continuum_mhe.estimators.fast.model import LossKernel, WindowModel
+from continuum_mhe.estimators.fast.qp import CONVERGED, OUTCOMES
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
 
 if TYPE_CHECKING:
@@ -69,13 +67,6 @@ class FastOptions:
             raise UserError(f"step_tol must lie in (0, 1e-3), got {self.step_tol!r}")
         if not (isinstance(self.err_tol, float) and 0 < self.err_tol < 1e-3):
             raise UserError(f"err_tol must lie in (0, 1e-3), got {self.err_tol!r}")
-
-
-#: Safety factor on the quadratic-rate error estimate of :func:`_sqp`. On the 494
-#: windows of the benchmark's recording (``paper3d``, N = 30) that needed a third
-#: iteration under the contraction bound alone, the true next step was at most 4.8
-#: times the estimate ``|d_1|^3 / |d_0|^2`` (median 0.7).
-QUADRATIC_SAFETY = 10.0
 
 
 def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
@@ -326,46 +317,6 @@ def _assemble_sized(
 
 
 @numba.njit(cache=True)
-def _step_to(out, X, alpha, d):
-    """``out = X + alpha d`` (no temporaries)."""
-    for i in range(X.shape[0]):
-        for j in range(X.shape[1]):
-            out[i, j] = X[i, j] + alpha * d[i, j]
-
-
-@numba.njit(cache=True)
-def _dot_diff(g, a, b):
-    """``sum(g * (a - b))``."""
-    s = 0.0
-    for i in range(g.shape[0]):
-        for j in range(g.shape[1]):
-            s += g[i, j] * (a[i, j] - b[i, j])
-    return s
-
-
-@numba.njit(cache=True)
-def _max_abs(d):
-    """``max |d|``."""
-    m = 0.0
-    for i in range(d.shape[0]):
-        for j in range(d.shape[1]):
-            m = max(m, abs(d[i, j]))
-    return m
-
-
-@numba.njit(cache=True)
-def _add_balls(D, Dgn, lam, ball_idx):
-    """``Dgn = D`` (the Gauss-Newton blocks, kept for the covariance), then ``D_i +=
-    2 lam_ib I_{S_b}``: each ball's curvature with its multiplier (n, nb) where positive."""
-    copy_into(Dgn, D)
-    for i in range(D.shape[0]):
-        for bb in range(ball_idx.shape[0]):
-            if lam[i, bb] > 0.0:
-                for s_ in ball_idx[bb]:
-                    D[i, s_, s_] += 2.0 * lam[i, bb]
-
-
-@numba.njit(cache=True)
 def _evaluate(
     fn, ptrs, out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt, extra, gb, ncost,
     stage,
@@ -378,27 +329,6 @@ def _evaluate(
     prev = (D, E, g, wgt, extra, gb, ncost)  # (not read: nothing shifts)
     return _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, wgt,
                              extra, gb, ncost, stage, prev, False)  # fmt: skip
-
-
-@numba.njit(cache=True)
-def shift_outputs(tail, tptrs, tout, src, dst, n, nx, nz, nblk):
-    """``dst``: the window model's outputs (:func:`~.codegen.window_function`'s
-    layout) at the iterate shifted by one node: ``src``'s (the outputs at the previous
-    window's iterate; may be ``dst``) without its first node and stage, then the
-    tail function's (address ``tail``, argument pointers ``tptrs``, output ``tout``;
-    :func:`~.codegen.tail_function`) for the new last node and stage. Returns False
-    if the tail function failed."""
-    if call_model(tail, tptrs.ctypes.data, tout.ctypes.data) != 0:
-        return False
-    off = 0  # section start in the window's outputs
-    toff = 0  # ... and in the tail's
-    sections = ((n, nz), (n, nz * nx), (n - 1, nx), (n - 1, nx * nx), (n, nblk * nx * nx))
-    for count, chunk in sections:
-        move(dst, off, src, off + chunk, (count - 1) * chunk)  # dst may be src
-        move(dst, off + (count - 1) * chunk, tout, toff, chunk)
-        off += count * chunk
-        toff += chunk
-    return True
 
 
 @numba.njit(cache=True)
@@ -425,164 +355,12 @@ def _assemble_outputs(out, X, zmask, rinv, qinv, xbar, arrival, D, E, g, loss, w
                      extra, gb, ncost, stage, prev, shifted)  # fmt: skip
 
 
-@numba.njit(cache=True)
-def _add_curvature(out, D, sign, wgt, extra, gb):
-    """``D_i += sign * sum_b (wgt_ib S_ib + extra_ib gb_ib gb_ib^T)``: the exact Hessian's
-    terms that Gauss-Newton leaves out (see :func:`_assemble`); ``S`` (n, nblocks, nx,
-    nx) is the model's last output, the residuals' second-order term per block."""
-    n, nx, nblk = D.shape[0], D.shape[1], wgt.shape[1]
-    S = out[out.shape[0] - n * nblk * nx * nx :].reshape(n, nblk, nx, nx)
-    for i in range(n):
-        for bk in range(nblk):
-            w, x2 = wgt[i, bk], extra[i, bk]
-            if w != 0.0 or x2 != 0.0:
-                for j in range(nx):
-                    for k in range(nx):
-                        D[i, j, k] += sign * (w * S[i, bk, j, k] + x2 * gb[i, bk, j] * gb[i, bk, k])
-
-
-@numba.njit(cache=True)
-def _sqp(
-    fn,
-    ptrs,
-    Xb,
-    out,
-    zmask,
-    rinv,
-    qinv,
-    xbar,
-    arrival,
-    lo,
-    hi,
-    bidx,
-    r2,
-    lam,
-    max_iter,
-    step_tol,
-    err_tol,
-    max_qp,
-    newton,
-    D,
-    E,
-    g,
-    d,
-    lam_qp,
-    loss,
-    wgt,
-    extra,
-    gb,
-    Dgn,
-    quadratic,
-    stage,
-    evaluated,
-    ncost,
-    shifted,
-):
-    """Newton-type SQP on two buffers (current, trial); returns
-    ``(outcome, iterations, step, cost, index of the buffer with the answer)``.
-    ``Dgn[b]`` keeps the Gauss-Newton diagonal blocks of buffer ``b``'s iterate
-    (``E[b]`` are its off-diagonal ones): on certification the other buffer holds the
-    last evaluated iterate ``X_k``, whose blocks give the answer's covariance.
-
-    Certified when the QP step ``d`` is below ``step_tol``, or, with no constraint
-    active, when the observed contraction ``rho = |d_k| / |d_k-1| <= 1/2`` of two
-    full steps bounds the error of ``X_k + d_k`` by ``rho / (1 - rho) |d_k| <= err_tol``;
-    when both steps were exact Newton steps, by the smaller quadratic-rate estimate
-    ``QUADRATIC_SAFETY |d_k|^3 / |d_k-1|^2`` (the error ``K |d_k|^2`` with the rate
-    ``K = |d_k| / |d_k-1|^2`` observed on the previous step), if ``quadratic``
-    (:func:`quadratic_rate`) and neither QP had an active constraint.
-    The answer is then the projection of ``X_k + d_k`` (not evaluated again);
-    ``cost`` is at ``X_k``. ``evaluated``: ``out[0]`` already holds the model's
-    outputs at ``Xb[0]`` (:func:`shift_outputs`), so the first iterate is not evaluated;
-    ``shifted >= 0`` (with ``evaluated``): ``Xb[0]`` is buffer ``shifted``'s iterate of
-    the previous window (with the same data, a node later) shifted by one node, whose
-    assembly (``Dgn``, ``E``, ``g``, ... of that buffer) shifts with it
-    (:func:`_assemble` with ``shifted``). ``ncost`` (2, N): each buffer's node costs.
-    """
-    cur = 0
-    project(Xb[0], lo, hi, bidx, r2)
-    if evaluated:  # out[0] holds the model's outputs at Xb[0] (:func:`shift_outputs`)
-        b = shifted if shifted >= 0 else 0  # ... and buffer b the assembly that shifts
-        prev = (Dgn[b], E[b], g[b], wgt[b], extra[b], gb[b], ncost[b])
-        cost = _assemble_outputs(
-            out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0], loss, wgt[0],
-            extra[0], gb[0], ncost[0], stage, prev, shifted >= 0,
-        )  # fmt: skip
-    else:
-        cost = _evaluate(
-            fn, ptrs[0], out[0], Xb[0], zmask, rinv, qinv, xbar, arrival, D[0], E[0], g[0],
-            loss, wgt[0], extra[0], gb[0], ncost[0], stage,
-        )  # fmt: skip
-    _add_balls(D[0], Dgn[0], lam, bidx)
-    exact = newton  # exact Hessian at the current iterate (else Gauss-Newton)
-    if exact:
-        _add_curvature(out[0], D[0], 1.0, wgt[0], extra[0], gb[0])
-    step = np.inf
-    prev = np.inf  # previous full step (inf after a shortened one)
-    prev_exact = False  # ... and whether it was an exact Newton step
-    prev_active = 1  # ... and its QP's number of active constraints
-    for it in range(1, max_iter + 1):
-        if not np.isfinite(cost):
-            return LINE_SEARCH_FAILED, it, step, cost, cur
-        status, _, active = solve_qp(
-            Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
-        )
-        if status == NOT_PD and exact:  # indefinite: fall back to Gauss-Newton here
-            _add_curvature(out[cur], D[cur], -1.0, wgt[cur], extra[cur], gb[cur])
-            exact = False
-            status, _, active = solve_qp(
-                Xb[cur], D[cur], E[cur], g[cur], lo, hi, bidx, r2, max_qp, d, lam_qp
-            )
-        if status != CONVERGED:
-            return status, it, step, cost, cur
-        step_exact = exact  # d is an exact Newton step
-        step = _max_abs(d)
-        tr = 1 - cur
-        contracted = active == 0 and prev < np.inf and step <= 0.5 * prev
-        err = np.inf  # the estimated error of X_k + d_k
-        if contracted:
-            err = step * step / (prev - step)
-            if quadratic and exact and prev_exact and prev_active == 0:  # two Newton steps
-                err = min(err, QUADRATIC_SAFETY * step**3 / prev**2)
-        if step <= step_tol or err <= err_tol:
-            lam[:] = lam_qp
-            _step_to(Xb[tr], Xb[cur], 1.0, d)
-            project(Xb[tr], lo, hi, bidx, r2)
-            return CONVERGED, it, step, cost, tr
-        alpha = 1.0
-        slack = 1e-13 * (1.0 + abs(cost))
-        accepted = False
-        for _ in range(30):
-            _step_to(Xb[tr], Xb[cur], alpha, d)
-            project(Xb[tr], lo, hi, bidx, r2)
-            ct = _evaluate(
-                fn, ptrs[tr], out[tr], Xb[tr], zmask, rinv, qinv, xbar, arrival, D[tr], E[tr],
-                g[tr], loss, wgt[tr], extra[tr], gb[tr], ncost[tr], stage,
-            )  # fmt: skip
-            _add_balls(D[tr], Dgn[tr], lam_qp, bidx)
-            if ct <= cost + 1e-4 * _dot_diff(g[cur], Xb[tr], Xb[cur]) + slack:
-                accepted = True
-                exact = newton
-                if exact:
-                    _add_curvature(out[tr], D[tr], 1.0, wgt[tr], extra[tr], gb[tr])
-                break
-            alpha *= 0.5
-        if not accepted:
-            return LINE_SEARCH_FAILED, it, step, cost, cur
-        prev = step if alpha == 1.0 else np.inf
-        prev_exact = step_exact
-        prev_active = active
-        cur, cost = tr, ct
-        lam[:] = lam_qp
-    return MAX_ITER, max_iter, step, cost, cur
-
-
 @dataclass(frozen=True)
 class FastResult:
     """Outcome of :func:`solve_window`.
 
     Attributes:
-        X: (N, nx) the answer (see :func:`_sqp`); feasible exactly.
+        X: (N, nx) the answer; feasible exactly.
         converged: True if the KKT certificate holds at ``X``.
         outcome: one of :data:`OUTCOMES`.
         iterations: SQP iterations (QP solves).
@@ -594,7 +372,7 @@ class FastResult:
             evaluated iterate (within the convergence tolerance of ``X``), for
             :func:`~continuum_mhe.estimators.fast.covariance.window_covariance`; else None.
         X_last: when certified, that last evaluated iterate (N, nx), the next window's
-            warm start (its model outputs are then known: :func:`shift_outputs`).
+            warm start (its model outputs are then known: ``WindowSolver.shift_outputs``).
     """
 
     X: FloatArray
@@ -608,60 +386,56 @@ class FastResult:
     X_last: FloatArray | None = None
 
 
-def _pointers(
-    X: FloatArray, z: FloatArray, m: FloatArray, u: FloatArray, dt: FloatArray
-) -> NDArray[np.uintp]:
-    return np.array(
-        [
-            X.ctypes.data,
-            z.ctypes.data,
-            m.ctypes.data,
-            u.ctypes.data if u.size else 0,
-            dt.ctypes.data,
-        ],
-        dtype=np.uintp,
-    )
-
-
 class Workspace:
-    """Buffers of :func:`solve_window`, reusable across windows of one model.
+    """Buffers of :func:`solve_window`, reusable across windows of one model: those of
+    the compiled core's :class:`~continuum_mhe._core.WindowSolver` (NumPy views of its
+    memory, so the model's argument pointers are fixed and the core solves in place).
 
-    The window data are copied into fixed buffers, so the C model's argument
-    pointers are computed once.
+    ``loss`` and ``linear`` replace the model's measurement loss and its
+    :attr:`~.model.WindowModel.linear_transition` (whether the stage products are kept
+    across iterations and windows).
     """
 
-    def __init__(self, model: WindowModel) -> None:
-        n, nx, nz, nu = model.horizon, model.nx, model.nz, model.nu
-        self.z = np.zeros((n, nz))
-        self.m = np.zeros((n, nz))
-        self.u = np.zeros((n - 1, nu))
-        self.dt = np.zeros(n - 1)
-        self.Xb = np.empty((2, n, nx))
-        self.out = np.empty((2, model.window_size))
-        self.D = np.empty((2, n, nx, nx))
-        self.E = np.empty((2, n - 1, nx, nx))
-        self.g = np.empty((2, n, nx))
-        self.d = np.empty((n, nx))
-        self.lam_qp = np.zeros((n, len(model.feasible.ball_r2)))
-        nblk = len(model.loss.blocks)
-        self.wgt = np.empty((2, n, nblk))
-        self.extra = np.empty((2, n, nblk))
-        self.gb = np.empty((2, n, nblk, nx))
-        self.Dgn = np.empty((2, n, nx, nx))  # Gauss-Newton diagonal blocks per iterate
-        self.ncost = np.empty((2, n))  # each node's cost per iterate
-        self.stage = stage_buffers(n, nx, model.linear_transition)
-        # the tail function's arguments (:func:`shift_outputs`): buffer 0's last stage
-        self.tail_out = np.empty(nz + nz * nx + nx + nx * nx + nblk * nx * nx)
-        self.tail_ptrs = np.array(
-            [self.Xb[0, max(n - 2, 0)].ctypes.data, self.Xb[0, n - 1].ctypes.data,
-             self.z[n - 1].ctypes.data, self.m[n - 1].ctypes.data,
-             self.u[max(n - 2, 0)].ctypes.data if nu and n > 1 else 0,
-             self.dt[max(n - 2, 0) :].ctypes.data if n > 1 else 0],
-            dtype=np.uintp,
-        )  # fmt: skip
+    def __init__(
+        self, model: WindowModel, loss: LossKernel | None = None, linear: bool | None = None
+    ) -> None:
+        fs, lossk = model.feasible, loss or model.loss
         self.tail = address(model.tail) if model.tail is not None else 0
-        self.ptrs = np.stack([_pointers(x, self.z, self.m, self.u, self.dt) for x in self.Xb])
         self.window = address(model.window)  # of the window function (the model keeps it)
+        self.core = core = _core.WindowSolver(
+            model.horizon, model.nx, model.nz, model.nu, self.window, self.tail, fs.lo, fs.hi,
+            np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2, model.rinv,
+            np.ascontiguousarray(lossk.blocks, dtype=np.int64), lossk.code, lossk.scale,
+            model.linear_transition if linear is None else linear,
+        )  # fmt: skip
+        self.z, self.m, self.u, self.dt = core.z, core.m, core.u, core.dt
+        self.Xb, self.out, self.D, self.E, self.g = core.Xb, core.out, core.D, core.E, core.g
+        self.d, self.lam_qp, self.wgt, self.extra = core.d, core.lam_qp, core.wgt, core.extra
+        self.gb = core.gb
+        self.Dgn = core.Dgn  # Gauss-Newton diagonal blocks per iterate
+        self.ncost = core.ncost  # each node's cost per iterate
+        self.stage = (core.stage_done, core.stage_eq, core.stage_fqf)
+        # the tail function's arguments (``WindowSolver.shift_outputs``): buffer 0's last stage
+        self.tail_out, self.tail_ptrs, self.ptrs = core.tail_out, core.tail_ptrs, core.ptrs
+
+    def load(self, problem: WindowProblemLike, X: FloatArray) -> None:
+        """Copy ``problem``'s data and the iterate ``X`` (N, nx) into buffer 0, and mark
+        the stage products to be formed anew (for this problem's ``Q^-1``)."""
+        self.z[:] = problem.z
+        self.m[:] = problem.zmask
+        self.u[:] = problem.u
+        self.dt[:] = problem.dt
+        self.Xb[0] = X
+        self.stage[0][:] = 0
+
+
+def _weights(problem: WindowProblemLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(qinv, xbar, arrival)`` of ``problem`` as the core takes them."""
+    return (
+        np.ascontiguousarray(problem.qinv, dtype=np.float64),
+        np.ascontiguousarray(problem.xbar, dtype=np.float64),
+        np.ascontiguousarray(problem.arrival, dtype=np.float64),
+    )
 
 
 def solve_window(
@@ -680,23 +454,13 @@ def solve_window(
     allocations. See the module docstring for the method.
     """
     opt = options or FastOptions()
-    fs, n = model.feasible, model.horizon
+    n, nb = model.horizon, len(model.feasible.ball_r2)
     ws = workspace or Workspace(model)
-    ws.z[:] = problem.z
-    ws.m[:] = problem.zmask
-    ws.u[:] = problem.u
-    ws.dt[:] = problem.dt
-    ws.Xb[0] = X0
-    ws.stage[0][:] = 0  # this problem's Q^-1: form the stage products anew
-    nb = len(fs.ball_r2)
+    ws.load(problem, X0)
     lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
-    node_mask = np.any(ws.m != 0.0, axis=1).astype(np.float64)  # the residuals are masked
-    outcome, it, step, cost, cur = _sqp(
-        ws.window, ws.ptrs, ws.Xb, ws.out, node_mask, model.rinv, problem.qinv,
-        problem.xbar, problem.arrival, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, lam,
-        opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter, opt.newton, ws.D, ws.E,
-        ws.g, ws.d, ws.lam_qp, model.loss, ws.wgt, ws.extra, ws.gb, ws.Dgn,
-        quadratic_rate(model, opt), ws.stage, False, ws.ncost, -1,
+    outcome, it, step, cost, cur = ws.core.solve(
+        *_weights(problem), lam, opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter,
+        opt.newton, quadratic_rate(model, opt),
     )  # fmt: skip
     converged = outcome == CONVERGED
     return FastResult(
@@ -714,20 +478,6 @@ def solve_window(
 
 def window_cost(model: WindowModel, problem: WindowProblemLike, X: FloatArray) -> float:
     """The window cost at ``X`` (N, nx), from the compiled model."""
-    n, nx = model.horizon, model.nx
-    Xc = np.array(X, dtype=float)
-    z, u = np.ascontiguousarray(problem.z, float), np.ascontiguousarray(problem.u, float)
-    dt = np.ascontiguousarray(problem.dt, float)
-    m = np.ascontiguousarray(problem.zmask, float)
-    node_mask = np.any(m != 0.0, axis=1).astype(np.float64)
-    nblk = len(model.loss.blocks)
-    return float(
-        _evaluate(
-            address(model.window), _pointers(Xc, z, m, u, dt), np.empty(model.window_size), Xc,
-            node_mask, model.rinv, problem.qinv, problem.xbar, problem.arrival,
-            np.empty((n, nx, nx)),
-            np.empty((n - 1, nx, nx)), np.empty((n, nx)), model.loss, np.empty((n, nblk)),
-            np.empty((n, nblk)), np.empty((n, nblk, nx)), np.empty(n),
-            stage_buffers(n, nx, False),
-        )
-    )  # fmt: skip
+    ws = Workspace(model)
+    ws.load(problem, np.asarray(X, dtype=np.float64))
+    return float(ws.core.evaluate(0, *_weights(problem)))

@@ -37,8 +37,8 @@ from continuum_mhe.estimators.fast.outputs import (
     output_std,
     output_values,
 )
-from continuum_mhe.estimators.fast.qp import CONVERGED, project
-from continuum_mhe.estimators.fast.sqp import Workspace, _evaluate, _sqp, shift_outputs
+from continuum_mhe.estimators.fast.qp import CONVERGED
+from continuum_mhe.estimators.fast.sqp import Workspace
 from continuum_mhe.estimators.loss import OUTLIER_WEIGHT, _block_weights
 
 FloatArray = NDArray[np.float64]
@@ -64,6 +64,64 @@ NEWEST_REJECTED = -2
 #: The kernels' error when the window's or node's model fails (the kernels cannot format
 #: the model's own message; the wrappers do; the outputs': :data:`.outputs.OUTPUT_FAILED`).
 MODEL_FAILED = "model evaluation failed"
+
+
+@numba.njit(cache=True)
+def _core_solve(core, qinv, xbar, arrival, zmask, lam, options, result):
+    """The compiled core's SQP (``WindowSolver.solve``) through its C entry point;
+    ``core``: :attr:`StepBuffers.core`; ``options`` (8,) and ``result`` (5,) as
+    ``csrc/sqp.hpp`` lays them out. Returns ``(outcome, iterations, step, cost, buffer
+    of the answer)``."""
+    args = np.empty(7, dtype=np.uintp)
+    args[0] = core[0]
+    args[1] = qinv.ctypes.data
+    args[2] = xbar.ctypes.data
+    args[3] = arrival.ctypes.data
+    args[4] = zmask.ctypes.data
+    args[5] = lam.ctypes.data
+    args[6] = options.ctypes.data
+    if call_model(core[1], args.ctypes.data, result.ctypes.data) != 0:
+        raise RuntimeError(MODEL_FAILED)
+    return int(result[0]), int(result[1]), result[2], result[3], int(result[4])
+
+
+@numba.njit(cache=True)
+def _core_evaluate(core, buf, qinv, xbar, arrival, zmask):
+    """The core's model evaluation and assembly of workspace buffer ``buf``; the cost
+    (inf if the model failed)."""
+    args = np.empty(6, dtype=np.uintp)
+    which = np.full(1, float(buf))
+    cost = np.empty(1)
+    args[0] = core[0]
+    args[1] = qinv.ctypes.data
+    args[2] = xbar.ctypes.data
+    args[3] = arrival.ctypes.data
+    args[4] = zmask.ctypes.data
+    args[5] = which.ctypes.data
+    if call_model(core[2], args.ctypes.data, cost.ctypes.data) != 0:
+        return np.inf
+    return cost[0]
+
+
+@numba.njit(cache=True)
+def _core_shift(core, src, dst):
+    """The core's ``shift_outputs(src, dst)``; False if the tail function failed."""
+    args = np.empty(2, dtype=np.uintp)
+    which = np.array([float(src), float(dst)])
+    args[0] = core[0]
+    args[1] = which.ctypes.data
+    return call_model(core[3], args.ctypes.data, which.ctypes.data) == 0
+
+
+@numba.njit(cache=True)
+def _core_project(core, X, rows):
+    """Project ``rows`` nodes of ``X`` (C-contiguous, from its start) in place."""
+    args = np.empty(3, dtype=np.uintp)
+    count = np.full(1, float(rows))
+    args[0] = core[0]
+    args[1] = X.ctypes.data
+    args[2] = count.ctypes.data
+    call_model(core[4], args.ctypes.data, count.ctypes.data)
 
 
 @numba.njit(cache=True)
@@ -105,7 +163,7 @@ def advance(
     t, znew, mask, unew, dtnew, Qn, Qinvn = new
     lo, hi, bidx, r2 = feasible
     solve, max_iter, step_tol, err_tol, max_qp, newton, quadratic = options
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, tail, tptrs, tout, last = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, core, last = ws
     xin, uin, dtin, zin, min_ = nin
     rinv, lossk = loss
     n, nx = X0.shape
@@ -122,7 +180,7 @@ def advance(
                 valid = True
         xn, Pn, Pinvn = arrival_step(node, nptrs, nout, xin, xbar, P, valid, Rs, qw[0], nx)
         xbar[:] = xn
-        project(xbar.reshape((1, nx)), lo, hi, bidx, r2)
+        _core_project(core, xbar, 1)
         P[:] = Pn
         Pinv[:] = Pinvn
     _shift(z)
@@ -163,7 +221,7 @@ def advance(
     # last evaluated iterate when the previous answer is its certified one (``last``:
     # that buffer, whose model outputs then shift with it), so that only the new node
     # and stage need the model
-    b = last[0] if has_X and n > 1 and tail != 0 else -1
+    b = last[0] if has_X and n > 1 and core[5] != 0 else -1
     last[0] = -1
     if b >= 0:
         X = Xb[b]
@@ -179,7 +237,7 @@ def advance(
         if call_model(node, nptrs.ctypes.data, nout.ctypes.data) != 0:
             raise RuntimeError(MODEL_FAILED)
         X0[n - 1] = nout[:nx]
-        project(X0[n - 1 :], lo, hi, bidx, r2)
+        _core_project(core, X0[n - 1], 1)
     else:
         for i in range(n):
             X0[i] = xbar
@@ -200,16 +258,11 @@ def advance(
     else:
         lam[:] = 0.0
     copy_into(Xb[0], X0)
-    nblk = wgt.shape[2]
-    evaluated = b >= 0 and shift_outputs(
-        tail, tptrs, tout, out[b], out[0], n, nx, z.shape[1], nblk
-    )
+    evaluated = b >= 0 and _core_shift(core, b, 0)
     shifted = b if full else -1  # the buffer whose assembly shifts with its outputs
-    res = _sqp(
-        win, wptrs, Xb, out, nodemask, rinv, qinvw, xbar, arrival, lo, hi, bidx, r2,
-        lam, max_iter, step_tol, err_tol, max_qp, newton, D, E, g, d, lam_qp, lossk,
-        wgt, extra, gb, Dgn, quadratic, stage, evaluated, ncost, shifted,
-    )  # fmt: skip
+    opts = np.array([max_iter, step_tol, err_tol, max_qp, newton, quadratic, evaluated, shifted],
+                    dtype=np.float64)  # fmt: skip
+    res = _core_solve(core, qinvw, xbar, arrival, nodemask, lam, opts, np.empty(5))
     if res[0] == CONVERGED:
         last[0] = 1 - res[4]
     return res
@@ -227,7 +280,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     unset); raises when the output functions fail."""
     tw, z, m, nodemask, u, dt, qw, qinvw, arrival = window
     lo, hi, bidx, r2 = feasible
-    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, _, _, _, last = ws
+    Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost, stage, core, last = ws
     rinv, lossk = loss
     n = X.shape[0]
     output_values(outputs, X[n - 1], y)
@@ -236,10 +289,7 @@ def finish(win, wptrs, X, xbar, window, feasible, ws, loss, hb, tol, cov, output
     else:  # evaluated in buffer 0: no window's outputs are kept for the next shift
         last[0] = -1
         Xb[0] = X
-        c = _evaluate(
-            win, wptrs[0], out[0], Xb[0], nodemask, rinv, qinvw, xbar, arrival, D[0], E[0],
-            g[0], lossk, wgt[0], extra[0], gb[0], ncost[0], stage,
-        )  # fmt: skip
+        c = _core_evaluate(core, 0, qinvw, xbar, arrival, nodemask)
         if not np.isfinite(c):
             return 1
         Dh, Eh = D[0], E[0]
@@ -349,9 +399,11 @@ class StepBuffers:
         self.outputs = node.outputs
         self.feasible = (fs.lo, fs.hi, fs.ball_idx, fs.ball_r2)
         self.loss = (model.rinv, model.loss)
+        #: the core's window solver and its C entry points, then the tail function's
+        #: address (0: none): ``_core_solve`` and its siblings
+        self.core = np.array([*ws.core.entries, ws.tail], dtype=np.uintp)
         self.sqp = (ws.Xb, ws.out, ws.D, ws.E, ws.g, ws.d, ws.lam_qp, ws.wgt, ws.extra, ws.gb,
-                    ws.Dgn, ws.ncost, ws.stage, ws.tail, ws.tail_ptrs, ws.tail_out,
-                    self.last)  # fmt: skip
+                    ws.Dgn, ws.ncost, ws.stage, self.core, self.last)  # fmt: skip
         self.window = (self.tw, self.z, self.m, self.nodemask, self.u, self.dt, self.qw,
                        self.qinvw, self.arrival)  # fmt: skip
         self.reset()

@@ -1,0 +1,244 @@
+// Dense and block-tridiagonal linear algebra of the MHE window solve.
+//
+// The window Hessian is symmetric block-tridiagonal, H = (D, E), with diagonal blocks D
+// (n, nx, nx) and super-diagonal blocks E (n-1, nx, nx) (E_i couples node i with node
+// i+1); every array is row-major and contiguous. The kernels are templates on the
+// block size NX: a positive NX is the size as a constant (the compiler unrolls the
+// nx-loops), NX = 0 reads it at run time (with_block_size picks one).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+
+namespace cmhe {
+
+using Index = int64_t;
+
+// NX where positive (a compile-time size), else the run-time ``nx``
+template <int NX>
+constexpr Index block_size(Index nx) {
+  return NX > 0 ? NX : nx;
+}
+
+// ``f(std::integral_constant<int, NX>{})`` with NX = nx for the specialised sizes
+// (one to three sections of the bend model), else NX = 0
+template <class F>
+decltype(auto) with_block_size(Index nx, F&& f) {
+  switch (nx) {
+    case 4:
+      return f(std::integral_constant<int, 4>{});
+    case 8:
+      return f(std::integral_constant<int, 8>{});
+    case 12:
+      return f(std::integral_constant<int, 12>{});
+    default:
+      return f(std::integral_constant<int, 0>{});
+  }
+}
+
+// An nx x nx scratch block: on the stack for a constant size, else on the heap.
+template <int NX>
+struct Block {
+  double a[NX * NX];
+  explicit Block(Index) {}
+  double* data() { return a; }
+};
+template <>
+struct Block<0> {
+  std::vector<double> a;
+  explicit Block(Index nx) : a(nx * nx) {}
+  double* data() { return a.data(); }
+};
+
+// ``out = A B`` for nx x nx blocks (out distinct from A and B)
+template <int NX>
+inline void block_product(Index nx_, const double* A, const double* B, double* out) {
+  const Index nx = block_size<NX>(nx_);
+  for (Index j = 0; j < nx; ++j)
+    for (Index k = 0; k < nx; ++k) {
+      double t = 0.0;
+      for (Index a = 0; a < nx; ++a) t += A[j * nx + a] * B[a * nx + k];
+      out[j * nx + k] = t;
+    }
+}
+
+// ``out = H v`` for the symmetric block-tridiagonal H = (D, E); v, out (n, nx)
+template <int NX>
+void btd_matvec(Index n, Index nx_, const double* D, const double* E, const double* v,
+                double* out) {
+  const Index nx = block_size<NX>(nx_);
+  for (Index i = 0; i < n; ++i) {
+    const double* Di = D + i * nx * nx;
+    for (Index j = 0; j < nx; ++j) {
+      double s = 0.0;
+      for (Index k = 0; k < nx; ++k) {
+        s += Di[j * nx + k] * v[i * nx + k];
+        if (i < n - 1) s += E[(i * nx + j) * nx + k] * v[(i + 1) * nx + k];
+        if (i > 0) s += E[((i - 1) * nx + k) * nx + j] * v[(i - 1) * nx + k];
+      }
+      out[i * nx + j] = s;
+    }
+  }
+}
+
+// Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
+// L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
+// M_i = E_i^T L_i^-T, rd (n, nx) the reciprocals of L's diagonal (divisions by the
+// pivots are multiplications by their reciprocals, computed once: they are the
+// factor's critical path).
+template <int NX>
+bool btd_factor(Index n, Index nx_, const double* D, const double* E, double* L, double* M,
+                double* rd) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx;
+  Block<NX> ablock(nx);
+  double* a = ablock.data();
+  for (Index i = 0; i < n; ++i) {
+    double* Li = L + i * bs;
+    for (Index j = 0; j < nx; ++j) {
+      for (Index k = 0; k <= j; ++k) {  // the Schur complement's lower triangle
+        double s = D[i * bs + j * nx + k];
+        if (i > 0) {
+          const double* Mp = M + (i - 1) * bs;
+          for (Index c = 0; c < nx; ++c) s -= Mp[j * nx + c] * Mp[k * nx + c];
+        }
+        a[j * nx + k] = s;
+      }
+    }
+    for (Index j = 0; j < nx; ++j) {  // dense Cholesky of the nx x nx block
+      double s = a[j * nx + j];
+      for (Index c = 0; c < j; ++c) s -= Li[j * nx + c] * Li[j * nx + c];
+      if (!(s > 0.0)) return false;
+      const double ljj = std::sqrt(s);
+      Li[j * nx + j] = ljj;
+      const double r = 1.0 / ljj;
+      rd[i * nx + j] = r;
+      for (Index k = j + 1; k < nx; ++k) {
+        double t = a[k * nx + j];
+        for (Index c = 0; c < j; ++c) t -= Li[k * nx + c] * Li[j * nx + c];
+        Li[k * nx + j] = t * r;
+      }
+      for (Index k = 0; k < j; ++k) Li[k * nx + j] = 0.0;
+    }
+    if (i < n - 1) {  // M_i L_i^T = E_i^T, row by row (forward substitution)
+      double* Mi = M + i * bs;
+      const double* Ei = E + i * bs;
+      for (Index r_ = 0; r_ < nx; ++r_) {
+        for (Index j = 0; j < nx; ++j) {
+          double t = Ei[j * nx + r_];
+          for (Index c = 0; c < j; ++c) t -= Mi[r_ * nx + c] * Li[j * nx + c];
+          Mi[r_ * nx + j] = t * rd[i * nx + j];
+        }
+      }
+    }
+  }
+  return true;
+}
+
+// ``y = (L L^T)^-1 b`` from btd_factor's L, M and rd; b, y (n, nx), y may be b
+template <int NX>
+void btd_substitute(Index n, Index nx_, const double* L, const double* M, const double* rd,
+                    const double* b, double* y) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx;
+  for (Index i = 0; i < n; ++i) {  // L z = b
+    for (Index j = 0; j < nx; ++j) {
+      double t = b[i * nx + j];
+      if (i > 0)
+        for (Index c = 0; c < nx; ++c) t -= M[(i - 1) * bs + j * nx + c] * y[(i - 1) * nx + c];
+      for (Index c = 0; c < j; ++c) t -= L[i * bs + j * nx + c] * y[i * nx + c];
+      y[i * nx + j] = t * rd[i * nx + j];
+    }
+  }
+  for (Index i = n - 1; i >= 0; --i) {  // L^T y = z
+    for (Index j = nx - 1; j >= 0; --j) {
+      double t = y[i * nx + j];
+      if (i < n - 1)
+        for (Index c = 0; c < nx; ++c) t -= M[i * bs + c * nx + j] * y[(i + 1) * nx + c];
+      for (Index c = j + 1; c < nx; ++c) t -= L[i * bs + c * nx + j] * y[i * nx + c];
+      y[i * nx + j] = t * rd[i * nx + j];
+    }
+  }
+}
+
+// Solve H y = b by block-tridiagonal Cholesky (into L, M, rd); false if not PD
+template <int NX>
+bool btd_solve(Index n, Index nx, const double* D, const double* E, const double* b,
+               double* L, double* M, double* rd, double* y) {
+  if (!btd_factor<NX>(n, nx, D, E, L, M, rd)) return false;
+  btd_substitute<NX>(n, nx, L, M, rd, b, y);
+  return true;
+}
+
+// Symmetric orthogonal T (nx, nx) with T n = -+e_c for the unit normal ``nrm`` (nx) of
+// a ball on the coordinates ``idx`` (k of them); returns the pivot coordinate c
+inline Index householder(Index nx, const double* nrm, const int64_t* idx, Index k, double* T,
+                         double* v) {
+  for (Index j = 0; j < nx; ++j)
+    for (Index c = 0; c < nx; ++c) T[j * nx + c] = j == c ? 1.0 : 0.0;
+  Index piv = idx[0];
+  for (Index a = 0; a < k; ++a)
+    if (std::fabs(nrm[idx[a]]) > std::fabs(nrm[piv])) piv = idx[a];
+  const double sg = nrm[piv] >= 0.0 ? 1.0 : -1.0;
+  for (Index j = 0; j < nx; ++j) v[j] = 0.0;
+  for (Index a = 0; a < k; ++a) v[idx[a]] = nrm[idx[a]];
+  v[piv] += sg;
+  double vv = 0.0;
+  for (Index j = 0; j < nx; ++j) vv += v[j] * v[j];
+  for (Index j = 0; j < nx; ++j)
+    for (Index c = 0; c < nx; ++c) T[j * nx + c] -= 2.0 * v[j] * v[c] / vv;
+  return piv;
+}
+
+// ``out = A B`` for A (m, k) and B (k, p), written out: on few-by-few matrices a BLAS
+// call costs more than its arithmetic
+inline void dense_mul(Index m, Index k, Index p, const double* A, const double* B,
+                      double* out) {
+  for (Index i = 0; i < m; ++i)
+    for (Index j = 0; j < p; ++j) {
+      double s = 0.0;
+      for (Index a = 0; a < k; ++a) s += A[i * k + a] * B[a * p + j];
+      out[i * p + j] = s;
+    }
+}
+
+// Lower Cholesky factor L (n, n) of a symmetric positive definite A; false if A is
+// not positive definite
+inline bool dense_cholesky(Index n, const double* A, double* L) {
+  for (Index j = 0; j < n * n; ++j) L[j] = 0.0;
+  for (Index j = 0; j < n; ++j) {
+    double s = A[j * n + j];
+    for (Index c = 0; c < j; ++c) s -= L[j * n + c] * L[j * n + c];
+    if (!(s > 0.0)) return false;
+    L[j * n + j] = std::sqrt(s);
+    for (Index k = j + 1; k < n; ++k) {
+      double t = A[k * n + j];
+      for (Index c = 0; c < j; ++c) t -= L[k * n + c] * L[j * n + c];
+      L[k * n + j] = t / L[j * n + j];
+    }
+  }
+  return true;
+}
+
+// ``out = (L L^T)^-1 = L^-T L^-1`` (n, n), symmetric, for a lower-triangular L with a
+// nonzero diagonal; Li (n, n) scratch
+inline void dense_inverse_gram(Index n, const double* L, double* out, double* Li) {
+  for (Index j = 0; j < n * n; ++j) Li[j] = 0.0;
+  for (Index c = 0; c < n; ++c)
+    for (Index j = c; j < n; ++j) {
+      double t = j == c ? 1.0 : 0.0;
+      for (Index k = c; k < j; ++k) t -= L[j * n + k] * Li[k * n + c];
+      Li[j * n + c] = t / L[j * n + j];
+    }
+  for (Index j = 0; j < n; ++j)
+    for (Index k = j; k < n; ++k) {
+      double s = 0.0;
+      for (Index a = k; a < n; ++a) s += Li[a * n + j] * Li[a * n + k];
+      out[j * n + k] = s;
+      out[k * n + j] = s;
+    }
+}
+
+}  // namespace cmhe

@@ -1,0 +1,594 @@
+// The MHE window solve (sqp.hpp): assembly, curvature, line search, certificates.
+#include "sqp.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#include "model_function.hpp"
+
+namespace cmhe {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Safety factor on the quadratic-rate error estimate of the SQP: on the 494 windows of
+// the benchmark's recording (paper3d, N = 30) that needed a third iteration under the
+// contraction bound alone, the true next step was at most 4.8 times the estimate
+// |d_1|^3 / |d_0|^2 (median 0.7)
+constexpr double kQuadraticSafety = 10.0;
+
+// dst[start:stop] = src[start + 1:stop + 1] along the first axis (rows of ``row``
+// values; src may be dst)
+void shift_rows(double* dst, const double* src, Index start, Index stop, Index row) {
+  if (stop <= start) return;
+  std::memmove(dst + start * row, src + (start + 1) * row, (stop - start) * row * sizeof(double));
+}
+
+// One process stage's constant products: eq = -(Q^-1 F)^T (the Hessian's off-diagonal
+// block) and the upper triangle of fqf = F^T Q^-1 F; qf scratch
+template <int NX>
+void stage_product(Index nx_, const double* qinv, const double* F, double* eq, double* fqf,
+                   double* qf) {
+  const Index nx = block_size<NX>(nx_);
+  block_product<NX>(nx, qinv, F, qf);
+  for (Index j = 0; j < nx; ++j) {
+    for (Index k = 0; k < nx; ++k) eq[j * nx + k] = -qf[k * nx + j];
+    for (Index k = j; k < nx; ++k) {
+      double s = 0.0;
+      for (Index a = 0; a < nx; ++a) s += F[a * nx + j] * qf[a * nx + k];
+      fqf[j * nx + k] = s;
+    }
+  }
+}
+
+// Views of one buffer's model outputs: measurement residuals R (n, nz) and their
+// Jacobians JR (n, nz, nx), process residuals W (n-1, nx) and their Jacobians FJ (n-1,
+// nx, nx), the residuals' second-order term S (n, nblk, nx, nx)
+struct Outputs {
+  const double *R, *JR, *W, *FJ, *S;
+};
+
+Outputs split_outputs(const WindowSolver& w, const double* out) {
+  const Index n = w.n, nx = w.nx, nz = w.nz;
+  const Index o1 = nz * n, o2 = o1 + nz * nx * n, o3 = o2 + nx * (n - 1);
+  const Index o4 = o3 + nx * nx * (n - 1);
+  return {out, out + o1, out + o2, out + o3, out + o4};
+}
+
+// Gauss-Newton Hessian blocks D[buf] (diagonal), E[buf], exact gradient g[buf] and the
+// cost at X (n, nx) from the model outputs ``out`` (the balls' curvature: add_balls).
+//
+// The process stages' constant products are taken from the solver's stage buffers when
+// present (an affine transition; those not done yet are formed first), else formed
+// here. An arrival block whose diagonal is zero is skipped: the arrival weights are
+// positive semidefinite, so the whole block is zero. ncost[buf] (n,) receives each
+// node's cost (its measurement, arrival and outgoing stage terms, in that order); the
+// cost is their sum in node order.
+//
+// ``prev >= 0``: X is buffer prev's iterate of the previous window shifted by one node,
+// and that buffer's assembly (its Gauss-Newton Dgn, E, g, wgt, extra, gb, ncost; it may
+// be buf) shifts with it: its nodes 2 to N-1 become nodes 1 to N-2, and only node 0 (the
+// new arrival term), the new last stage and the new last node are formed. The same bits
+// as the whole assembly where the previous window's arrival weighted only its node 0 and
+// this one's weights only node 0 (else, or below 3 nodes, the whole assembly runs): node
+// N-2's incoming stage and measurement are the previous window's node N-1, whose block,
+// gradient and cost had nothing else.
+//
+// Measurement block b of node i (R block-diagonal) costs 1/2 rho(s), s = r_b^T R_b^-1
+// r_b: gradient rho' J_b^T R_b^-1 r_b and Hessian J_b^T (rho' R_b^-1 + a R_b^-1 r_b r_b^T
+// R_b^-1) J_b with a the exact 2 rho'' clipped at -rho'/s so that the block stays
+// positive semidefinite (a Triggs-type correction; Cauchy beyond its scale). Kept for
+// the exact Newton term (add_curvature): wgt = m rho', extra = m (2 rho'' - a) and gb =
+// J_b^T R_b^-1 r_b.
+template <int NX>
+double assemble(WindowSolver& w, int buf, const double* X, const double* out,
+                const double* zmask, const WindowData& data, int prev) {
+  const Index n = w.n, nx = block_size<NX>(w.nx), nz = w.nz, nblk = w.nblk;
+  const Index bs = nx * nx;
+  const Outputs o = split_outputs(w, out);
+  const double* qinv = data.qinv;
+  const double* arrival = data.arrival;
+  const double* rinv = w.rinv.data();
+  const bool pre = !w.stage_done.empty();
+  if (pre) {
+    for (Index i = 0; i < n - 1; ++i)
+      if (w.stage_done[i] == 0) {
+        stage_product<NX>(nx, qinv + i * bs, o.FJ + i * bs, w.stage_eq.data() + i * bs,
+                          w.stage_fqf.data() + i * bs, w.qf.data());
+        w.stage_done[i] = 1;
+      }
+  }
+  double* D = w.D.data() + buf * n * bs;
+  double* E = w.E.data() + buf * (n - 1) * bs;
+  double* g = w.g.data() + buf * n * nx;
+  double* wgt = w.wgt.data() + buf * n * nblk;
+  double* extra = w.extra.data() + buf * n * nblk;
+  double* gb = w.gb.data() + buf * n * nblk * nx;
+  double* ncost = w.ncost.data() + buf * n;
+  bool shifted = prev >= 0;
+  if (shifted) {
+    for (Index i = 1; i < n; ++i)
+      for (Index j = 0; j < nx; ++j) shifted = shifted && arrival[i * bs + j * nx + j] == 0.0;
+    shifted = shifted && n >= 3;
+  }
+  if (shifted) {
+    shift_rows(D, w.Dgn.data() + prev * n * bs, 1, n - 1, bs);
+    shift_rows(g, w.g.data() + prev * n * nx, 1, n - 1, nx);
+    shift_rows(ncost, w.ncost.data() + prev * n, 1, n - 1, 1);
+    shift_rows(E, w.E.data() + prev * (n - 1) * bs, 1, n - 2, bs);
+    shift_rows(wgt, w.wgt.data() + prev * n * nblk, 0, n - 1, nblk);
+    shift_rows(extra, w.extra.data() + prev * n * nblk, 0, n - 1, nblk);
+    shift_rows(gb, w.gb.data() + prev * n * nblk * nx, 0, n - 1, nblk * nx);
+    for (Index i : {Index(0), n - 1}) {
+      std::fill(D + i * bs, D + (i + 1) * bs, 0.0);
+      std::fill(g + i * nx, g + (i + 1) * nx, 0.0);
+    }
+  } else {
+    std::fill(D, D + n * bs, 0.0);
+    std::fill(E, E + (n - 1) * bs, 0.0);
+    std::fill(g, g + n * nx, 0.0);
+  }
+  const int64_t* blocks = w.blocks.data();
+  double *wr = w.wr.data(), *wj = w.wj.data(), *qw = w.qw.data(), *qf = w.qf.data();
+  double* e = w.e.data();
+  const Index nodes = shifted ? 3 : n;
+  for (Index node = 0; node < nodes; ++node) {
+    Index i = node;
+    bool measured = true;  // node i's measurement and arrival terms are formed
+    bool push = true;      // stage i's terms of node i + 1 are added
+    if (shifted) {
+      i = node == 0 ? 0 : (node == 1 ? n - 2 : n - 1);
+      measured = i != n - 2;  // node N-2 is the previous window's node N-1
+      push = i != 0;          // node 1 came with them
+    }
+    double* Di = D + i * bs;
+    double* gi = g + i * nx;
+    double mk = zmask[i];
+    double cost = 0.0;
+    if (!measured) {
+      cost = ncost[i];
+      mk = 0.0;
+    } else {
+      for (Index bk_ = 0; bk_ < nblk; ++bk_) {
+        wgt[i * nblk + bk_] = 0.0;
+        extra[i * nblk + bk_] = 0.0;
+        std::fill(gb + (i * nblk + bk_) * nx, gb + (i * nblk + bk_ + 1) * nx, 0.0);
+      }
+    }
+    if (mk != 0.0) {
+      const double* Ri = o.R + i * nz;
+      const double* JRi = o.JR + i * nz * nx;
+      for (Index bk_ = 0; bk_ < nblk; ++bk_) {
+        const Index b0 = blocks[2 * bk_], nb_ = blocks[2 * bk_ + 1];
+        double ssq = 0.0;
+        for (Index a = 0; a < nb_; ++a) {
+          double t = 0.0;
+          for (Index c = 0; c < nb_; ++c) t += rinv[(b0 + a) * nz + b0 + c] * Ri[b0 + c];
+          wr[a] = t;
+          ssq += Ri[b0 + a] * t;
+          for (Index k = 0; k < nx; ++k) {  // (R_b^-1 J_b)[a, k]
+            double t2 = 0.0;
+            for (Index c = 0; c < nb_; ++c)
+              t2 += rinv[(b0 + a) * nz + b0 + c] * JRi[(b0 + c) * nx + k];
+            wj[a * nx + k] = t2;
+          }
+        }
+        double rho, rho1, rho2;
+        rho_derivatives(w.loss_code, w.loss_scale, ssq, rho, rho1, rho2);
+        cost += 0.5 * mk * rho;
+        double a2 = 2.0 * rho2;
+        if (ssq > 0.0 && a2 < -rho1 / ssq) a2 = -rho1 / ssq;
+        wgt[i * nblk + bk_] = mk * rho1;
+        extra[i * nblk + bk_] = mk * (2.0 * rho2 - a2);
+        double* gbi = gb + (i * nblk + bk_) * nx;
+        for (Index j = 0; j < nx; ++j) {
+          double t = 0.0;
+          for (Index a = 0; a < nb_; ++a) t += JRi[(b0 + a) * nx + j] * wr[a];
+          gbi[j] = t;
+          gi[j] += mk * rho1 * t;
+        }
+        for (Index j = 0; j < nx; ++j)  // J_b^T (rho' R_b^-1 + a2 ...) J_b, upper triangle
+          for (Index k = j; k < nx; ++k) {
+            double t = 0.0;
+            for (Index a = 0; a < nb_; ++a) t += JRi[(b0 + a) * nx + j] * wj[a * nx + k];
+            Di[j * nx + k] += mk * (rho1 * t + a2 * gbi[j] * gbi[k]);
+          }
+      }
+    }
+    bool weighted = false;
+    const double* Ai = arrival + i * bs;
+    for (Index j = 0; j < nx; ++j) {
+      e[j] = X[i * nx + j] - data.xbar[j];
+      weighted = weighted || (measured && Ai[j * nx + j] != 0.0);
+    }
+    if (weighted) {
+      for (Index j = 0; j < nx; ++j) {
+        double s = 0.0;
+        for (Index k = 0; k < nx; ++k) s += Ai[j * nx + k] * e[k];
+        gi[j] += s;
+        cost += 0.5 * e[j] * s;
+        for (Index k = j; k < nx; ++k) Di[j * nx + k] += Ai[j * nx + k];
+      }
+    }
+    if (i < n - 1) {
+      const double* Qi = qinv + i * bs;
+      const double* Wi = o.W + i * nx;
+      const double* Fi = o.FJ + i * bs;
+      for (Index j = 0; j < nx; ++j) {
+        double s = 0.0;
+        for (Index k = 0; k < nx; ++k) s += Qi[j * nx + k] * Wi[k];
+        qw[j] = s;
+        cost += 0.5 * Wi[j] * s;
+      }
+      const double *eqi, *fqfi;
+      if (pre) {
+        eqi = w.stage_eq.data() + i * bs;
+        fqfi = w.stage_fqf.data() + i * bs;
+      } else {
+        stage_product<NX>(nx, Qi, Fi, w.eql.data(), w.fqfl.data(), qf);
+        eqi = w.eql.data();
+        fqfi = w.fqfl.data();
+      }
+      double* Ei = E + i * bs;
+      double* Dn = D + (i + 1) * bs;
+      for (Index j = 0; j < nx; ++j) {
+        double s = 0.0;
+        for (Index a = 0; a < nx; ++a) s += Fi[a * nx + j] * qw[a];
+        gi[j] -= s;
+        for (Index k = 0; k < nx; ++k) Ei[j * nx + k] = eqi[j * nx + k];
+        for (Index k = j; k < nx; ++k) Di[j * nx + k] += fqfi[j * nx + k];
+        if (push) {
+          g[(i + 1) * nx + j] += qw[j];
+          for (Index k = j; k < nx; ++k) Dn[j * nx + k] += Qi[j * nx + k];
+        }
+      }
+    }
+    for (Index j = 0; j < nx; ++j)  // D[i] is complete: mirror its upper triangle
+      for (Index k = 0; k < j; ++k) Di[j * nx + k] = Di[k * nx + j];
+    ncost[i] = cost;
+  }
+  double total = 0.0;
+  for (Index i = 0; i < n; ++i) total += ncost[i];
+  return total;
+}
+
+// Dgn[buf] = D[buf] (the Gauss-Newton blocks, kept for the covariance), then D_i += 2
+// lam_ib I_{S_b}: each ball's curvature with its multiplier (n, nb) where positive
+void add_balls(WindowSolver& w, int buf, const double* lam) {
+  const Index n = w.n, nx = w.nx, bs = nx * nx;
+  double* D = w.D.data() + buf * n * bs;
+  std::memcpy(w.Dgn.data() + buf * n * bs, D, n * bs * sizeof(double));
+  for (Index i = 0; i < n; ++i)
+    for (Index bb = 0; bb < w.nb; ++bb)
+      if (lam[i * w.nb + bb] > 0.0)
+        for (Index a = 0; a < w.bk; ++a) {
+          const Index s = w.ball[bb * w.bk + a];
+          D[i * bs + s * nx + s] += 2.0 * lam[i * w.nb + bb];
+        }
+}
+
+// D_i += sign * sum_b (wgt_ib S_ib + extra_ib gb_ib gb_ib^T): the exact Hessian's terms
+// that Gauss-Newton leaves out (see assemble)
+template <int NX>
+void add_curvature(WindowSolver& w, int buf, double sign) {
+  const Index n = w.n, nx = block_size<NX>(w.nx), nblk = w.nblk, bs = nx * nx;
+  const double* S = w.out.data() + (buf + 1) * w.window_size - n * nblk * bs;
+  double* D = w.D.data() + buf * n * bs;
+  const double* wgt = w.wgt.data() + buf * n * nblk;
+  const double* extra = w.extra.data() + buf * n * nblk;
+  const double* gb = w.gb.data() + buf * n * nblk * nx;
+  for (Index i = 0; i < n; ++i)
+    for (Index b = 0; b < nblk; ++b) {
+      const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
+      if (wb != 0.0 || x2 != 0.0) {
+        const double* Sb = S + (i * nblk + b) * bs;
+        const double* g = gb + (i * nblk + b) * nx;
+        for (Index j = 0; j < nx; ++j)
+          for (Index k = 0; k < nx; ++k)
+            D[i * bs + j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
+      }
+    }
+}
+
+template <int NX>
+double evaluate_sized(WindowSolver& w, int buf, const WindowData& data, const double* zmask) {
+  double* out = w.out.data() + buf * w.window_size;
+  const auto fn = reinterpret_cast<Entry>(w.window);
+  if (!fn) return kInf;
+  if (fn(reinterpret_cast<const double* const*>(w.ptrs.data() + 5 * buf), out) != 0) return kInf;
+  return assemble<NX>(w, buf, w.Xb.data() + buf * w.n * w.nx, out, zmask, data, -1);
+}
+
+template <int NX>
+SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, double* lam,
+              const SqpOptions& opt, bool evaluated, int shifted) {
+  const Index n = w.n, nx = block_size<NX>(w.nx), nb = w.nb, size = n * nx;
+  const Feasible fs = w.feasible();
+  double* d = w.d.data();
+  double* lam_qp = w.lam_qp.data();
+  auto X = [&](int b) { return w.Xb.data() + b * size; };
+  auto Dp = [&](int b) { return w.D.data() + b * n * nx * nx; };
+  auto Ep = [&](int b) { return w.E.data() + b * (n - 1) * nx * nx; };
+  auto gp = [&](int b) { return w.g.data() + b * size; };
+  int cur = 0;
+  project(n, nx, X(0), fs);
+  double cost;
+  if (evaluated)  // out[0] holds the model's outputs at Xb[0] (shift_outputs)
+    cost = assemble<NX>(w, 0, X(0), w.out.data(), zmask, data, shifted >= 0 ? shifted : -1);
+  else
+    cost = evaluate_sized<NX>(w, 0, data, zmask);
+  add_balls(w, 0, lam);
+  bool exact = opt.newton;  // exact Hessian at the current iterate (else Gauss-Newton)
+  if (exact) add_curvature<NX>(w, 0, 1.0);
+  double step = kInf;
+  double prev = kInf;       // previous full step (inf after a shortened one)
+  bool prev_exact = false;  // ... and whether it was an exact Newton step
+  Index prev_active = 1;    // ... and its QP's number of active constraints
+  for (Index it = 1; it <= opt.max_iter; ++it) {
+    if (!std::isfinite(cost)) return {LINE_SEARCH_FAILED, it, step, cost, cur};
+    QPResult qp = solve_qp<NX>(n, nx, X(cur), Dp(cur), Ep(cur), gp(cur), fs, opt.max_qp_iter,
+                               d, lam_qp, w.qp);
+    if (qp.status == NOT_PD && exact) {  // indefinite: fall back to Gauss-Newton here
+      add_curvature<NX>(w, cur, -1.0);
+      exact = false;
+      qp = solve_qp<NX>(n, nx, X(cur), Dp(cur), Ep(cur), gp(cur), fs, opt.max_qp_iter, d,
+                        lam_qp, w.qp);
+    }
+    if (qp.status != CONVERGED) return {qp.status, it, step, cost, cur};
+    const bool step_exact = exact;  // d is an exact Newton step
+    step = 0.0;
+    for (Index i = 0; i < size; ++i) step = std::max(step, std::fabs(d[i]));
+    const int tr = 1 - cur;
+    const bool contracted = qp.active == 0 && prev < kInf && step <= 0.5 * prev;
+    double err = kInf;  // the estimated error of X_k + d_k
+    if (contracted) {
+      err = step * step / (prev - step);
+      if (opt.quadratic && exact && prev_exact && prev_active == 0)  // two Newton steps
+        err = std::min(err, kQuadraticSafety * (step * (step * step)) / (prev * prev));
+    }
+    if (step <= opt.step_tol || err <= opt.err_tol) {
+      std::copy(lam_qp, lam_qp + n * nb, lam);
+      for (Index i = 0; i < size; ++i) X(tr)[i] = X(cur)[i] + 1.0 * d[i];
+      project(n, nx, X(tr), fs);
+      return {CONVERGED, it, step, cost, tr};
+    }
+    double alpha = 1.0;
+    const double slack = 1e-13 * (1.0 + std::fabs(cost));
+    bool accepted = false;
+    double ct = kInf;
+    for (int ls = 0; ls < 30; ++ls) {
+      double* xt = X(tr);
+      const double* xc = X(cur);
+      for (Index i = 0; i < size; ++i) xt[i] = xc[i] + alpha * d[i];
+      project(n, nx, xt, fs);
+      ct = evaluate_sized<NX>(w, tr, data, zmask);
+      add_balls(w, tr, lam_qp);
+      double dd = 0.0;
+      const double* gc = gp(cur);
+      for (Index i = 0; i < size; ++i) dd += gc[i] * (xt[i] - xc[i]);
+      if (ct <= cost + 1e-4 * dd + slack) {
+        accepted = true;
+        exact = opt.newton;
+        if (exact) add_curvature<NX>(w, tr, 1.0);
+        break;
+      }
+      alpha *= 0.5;
+    }
+    if (!accepted) return {LINE_SEARCH_FAILED, it, step, cost, cur};
+    prev = alpha == 1.0 ? step : kInf;
+    prev_exact = step_exact;
+    prev_active = qp.active;
+    cur = tr;
+    cost = ct;
+    std::copy(lam_qp, lam_qp + n * nb, lam);
+  }
+  return {MAX_ITER, opt.max_iter, step, cost, cur};
+}
+
+}  // namespace
+
+void rho_derivatives(int code, double scale, double s, double& rho, double& rho1,
+                     double& rho2) {
+  if (code == 1) {  // huber
+    const double c2 = scale * scale;
+    if (s <= c2) {
+      rho = s, rho1 = 1.0, rho2 = 0.0;
+      return;
+    }
+    const double r = std::sqrt(s);
+    rho = 2.0 * scale * r - c2, rho1 = scale / r, rho2 = -0.5 * scale / (s * r);
+    return;
+  }
+  if (code == 2) {  // cauchy
+    const double c2 = scale * scale;
+    const double q = 1.0 + s / c2;
+    rho = c2 * std::log1p(s / c2), rho1 = 1.0 / q, rho2 = -1.0 / (c2 * q * q);
+    return;
+  }
+  if (code == 3) {  // welsch
+    const double c2 = scale * scale;
+    const double wv = std::exp(-s / c2);
+    rho = c2 * (1.0 - wv), rho1 = wv, rho2 = -wv / c2;
+    return;
+  }
+  rho = s, rho1 = 1.0, rho2 = 0.0;  // l2
+}
+
+WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
+                           std::uintptr_t window_, std::uintptr_t tail_,
+                           std::vector<double> lo_, std::vector<double> hi_,
+                           std::vector<int64_t> ball_, Index ball_size,
+                           std::vector<double> ball_r2_, std::vector<double> rinv_,
+                           std::vector<int64_t> blocks_, int loss_code_, double loss_scale_,
+                           bool linear_transition)
+    : n(horizon), nx(nx_), nz(nz_), nu(nu_), nblk(Index(blocks_.size() / 2)),
+      nb(Index(ball_r2_.size())), bk(ball_size), window(window_), tail(tail_),
+      lo(std::move(lo_)), hi(std::move(hi_)), ball_r2(std::move(ball_r2_)),
+      rinv(std::move(rinv_)), ball(std::move(ball_)), blocks(std::move(blocks_)),
+      loss_code(loss_code_), loss_scale(loss_scale_), linear(linear_transition) {
+  if (n < 2) throw std::invalid_argument("a window needs at least 2 nodes");
+  if (Index(lo.size()) != nx || Index(hi.size()) != nx)
+    throw std::invalid_argument("lo and hi need nx values");
+  if (Index(ball.size()) != nb * bk) throw std::invalid_argument("ball is not (nb, ball_size)");
+  for (int64_t s : ball)
+    if (s < 0 || s >= nx) throw std::invalid_argument("a ball coordinate is out of range");
+  if (Index(rinv.size()) != nz * nz) throw std::invalid_argument("rinv is not (nz, nz)");
+  for (Index b = 0; b < nblk; ++b)
+    if (blocks[2 * b] < 0 || blocks[2 * b + 1] < 0 || blocks[2 * b] + blocks[2 * b + 1] > nz)
+      throw std::invalid_argument("a measurement block is out of range");
+  const Index bs = nx * nx;
+  window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + nblk * bs * n;
+  z.assign(n * nz, 0.0);
+  m.assign(n * nz, 0.0);
+  u.assign((n - 1) * nu, 0.0);
+  dt.assign(n - 1, 0.0);
+  Xb.assign(2 * n * nx, 0.0);
+  out.assign(2 * window_size, 0.0);
+  D.assign(2 * n * bs, 0.0);
+  E.assign(2 * (n - 1) * bs, 0.0);
+  g.assign(2 * n * nx, 0.0);
+  d.assign(n * nx, 0.0);
+  lam_qp.assign(n * nb, 0.0);
+  wgt.assign(2 * n * nblk, 0.0);
+  extra.assign(2 * n * nblk, 0.0);
+  gb.assign(2 * n * nblk * nx, 0.0);
+  Dgn.assign(2 * n * bs, 0.0);
+  ncost.assign(2 * n, 0.0);
+  const Index ns = linear ? n - 1 : 0;
+  stage_done.assign(ns, 0);
+  stage_eq.assign(ns * bs, 0.0);
+  stage_fqf.assign(ns * bs, 0.0);
+  tail_out.assign(nz + nz * nx + nx + bs + nblk * bs, 0.0);
+  auto addr = [](const double* p) { return reinterpret_cast<std::uintptr_t>(p); };
+  ptrs.resize(10);
+  for (int b = 0; b < 2; ++b) {
+    ptrs[5 * b] = addr(Xb.data() + b * n * nx);
+    ptrs[5 * b + 1] = addr(z.data());
+    ptrs[5 * b + 2] = addr(m.data());
+    ptrs[5 * b + 3] = nu ? addr(u.data()) : 0;
+    ptrs[5 * b + 4] = addr(dt.data());
+  }
+  tail_ptrs = {addr(Xb.data() + (n - 2) * nx), addr(Xb.data() + (n - 1) * nx),
+               addr(z.data() + (n - 1) * nz), addr(m.data() + (n - 1) * nz),
+               nu ? addr(u.data() + (n - 2) * nu) : 0, addr(dt.data() + (n - 2))};
+  wr.resize(nz);
+  wj.resize(nz * nx);
+  qw.resize(nx);
+  qf.resize(bs);
+  e.resize(nx);
+  eql.resize(bs);
+  fqfl.resize(bs);
+  qp.resize(n, nx, nb);
+}
+
+SqpResult WindowSolver::solve(const WindowData& data, const double* zmask, double* lam,
+                              const SqpOptions& opt, bool evaluated, int shifted) {
+  return with_block_size(nx, [&](auto k) {
+    return sqp<decltype(k)::value>(*this, data, zmask, lam, opt, evaluated, shifted);
+  });
+}
+
+double WindowSolver::evaluate(int buf, const WindowData& data, const double* zmask) {
+  return with_block_size(
+      nx, [&](auto k) { return evaluate_sized<decltype(k)::value>(*this, buf, data, zmask); });
+}
+
+double WindowSolver::assemble(int buf, const WindowData& data, const double* zmask, int prev) {
+  return with_block_size(nx, [&](auto k) {
+    return cmhe::assemble<decltype(k)::value>(*this, buf, Xb.data() + buf * n * nx,
+                                              out.data() + buf * window_size, zmask, data, prev);
+  });
+}
+
+bool WindowSolver::shift_outputs(int src, int dst) {
+  const auto fn = reinterpret_cast<Entry>(tail);
+  if (!fn) throw std::invalid_argument("the window model has no tail function");
+  if (fn(reinterpret_cast<const double* const*>(tail_ptrs.data()), tail_out.data()) != 0)
+    return false;
+  double* to = out.data() + dst * window_size;
+  const double* from = out.data() + src * window_size;
+  const Index counts[5] = {n, n, n - 1, n - 1, n};
+  const Index chunks[5] = {nz, nz * nx, nx, nx * nx, nblk * nx * nx};
+  Index off = 0, toff = 0;  // section start in the window's outputs and in the tail's
+  for (int s = 0; s < 5; ++s) {
+    const Index count = counts[s], chunk = chunks[s];
+    std::memmove(to + off, from + off + chunk, (count - 1) * chunk * sizeof(double));
+    std::memcpy(to + off + (count - 1) * chunk, tail_out.data() + toff, chunk * sizeof(double));
+    off += count * chunk;
+    toff += chunk;
+  }
+  return true;
+}
+
+namespace {
+
+WindowSolver* solver_of(const double* const* in) {
+  return reinterpret_cast<WindowSolver*>(const_cast<double*>(in[0]));
+}
+
+int solve_entry(const double* const* in, double* out) {
+  try {
+    const double* o = in[6];
+    SqpOptions opt;
+    opt.max_iter = Index(o[0]);
+    opt.step_tol = o[1];
+    opt.err_tol = o[2];
+    opt.max_qp_iter = Index(o[3]);
+    opt.newton = o[4] != 0.0;
+    opt.quadratic = o[5] != 0.0;
+    const SqpResult r = solver_of(in)->solve({in[1], in[2], in[3]}, in[4], const_cast<double*>(in[5]),
+                                             opt, o[6] != 0.0, int(o[7]));
+    out[0] = r.outcome;
+    out[1] = double(r.iterations);
+    out[2] = r.step;
+    out[3] = r.cost;
+    out[4] = r.buffer;
+    return 0;
+  } catch (...) {
+    return 1;
+  }
+}
+
+int evaluate_entry(const double* const* in, double* out) {
+  try {
+    out[0] = solver_of(in)->evaluate(int(in[5][0]), {in[1], in[2], in[3]}, in[4]);
+    return 0;
+  } catch (...) {
+    return 1;
+  }
+}
+
+int shift_entry(const double* const* in, double*) {
+  try {
+    return solver_of(in)->shift_outputs(int(in[1][0]), int(in[1][1])) ? 0 : 1;
+  } catch (...) {
+    return 1;
+  }
+}
+
+int project_entry(const double* const* in, double*) {
+  const WindowSolver* w = solver_of(in);
+  project(Index(in[2][0]), w->nx, const_cast<double*>(in[1]), w->feasible());
+  return 0;
+}
+
+}  // namespace
+
+WindowSolver::Entries WindowSolver::entries() {
+  auto addr = [](Entry f) { return reinterpret_cast<std::uintptr_t>(f); };
+  return {addr(&solve_entry), addr(&evaluate_entry), addr(&shift_entry), addr(&project_entry)};
+}
+
+void WindowSolver::node_mask(double* zmask) const {
+  for (Index i = 0; i < n; ++i) {
+    bool any = false;
+    for (Index j = 0; j < nz; ++j) any = any || m[i * nz + j] != 0.0;
+    zmask[i] = any ? 1.0 : 0.0;
+  }
+}
+
+}  // namespace cmhe

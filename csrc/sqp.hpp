@@ -1,0 +1,124 @@
+// The MHE window solve: Newton-type SQP with a projected line search (sqp.cpp).
+//
+// Each iteration evaluates the whole window's model in one call of its C entry point
+// (residuals, Jacobians and the measurement residuals' second-order term; layout of
+// continuum_mhe.estimators.fast.codegen.window_function), assembles the block-tridiagonal
+// Hessian of the Lagrangian (Gauss-Newton J^T W J, plus the exact second-order term
+// where that keeps it positive definite, plus 2 lam_b I on the coordinates of each ball
+// b with a positive multiplier), and solves the QP subproblem (qp.hpp). Iterates stay
+// exactly feasible (projection). See docs/fast-solver.md.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "qp.hpp"
+
+namespace cmhe {
+
+// Robust losses (continuum_mhe.estimators.loss.LOSS_CODES): (rho, rho', rho'') at s
+void rho_derivatives(int code, double scale, double s, double& rho, double& rho1,
+                     double& rho2);
+
+struct SqpOptions {
+  Index max_iter = 30;
+  double step_tol = 1e-8;
+  double err_tol = 1e-8;
+  Index max_qp_iter = 500;
+  bool newton = true;     // add the measurement residuals' second-order term
+  bool quadratic = false; // certify by Newton's quadratic rate (sqp.py's quadratic_rate)
+};
+
+struct SqpResult {
+  int outcome;
+  Index iterations;
+  double step, cost;
+  int buffer;  // the buffer holding the answer
+};
+
+// The per-window problem data: the process weights, the arrival prior
+struct WindowData {
+  const double* qinv;     // (n-1, nx, nx)
+  const double* xbar;     // (nx,)
+  const double* arrival;  // (n, nx, nx)
+};
+
+// Buffers and fixed data of the window solve of one window model. Two iterate buffers
+// (current and trial): Xb (2, n, nx), the model outputs ``out`` (2, window_size), the
+// Hessian blocks D, E with the Gauss-Newton diagonal blocks Dgn and gradient g, the
+// robust-loss weights (wgt, extra, gb; see assemble) and node costs of each.
+class WindowSolver {
+ public:
+  WindowSolver(Index horizon, Index nx, Index nz, Index nu, std::uintptr_t window,
+               std::uintptr_t tail, std::vector<double> lo, std::vector<double> hi,
+               std::vector<int64_t> ball, Index ball_size, std::vector<double> ball_r2,
+               std::vector<double> rinv, std::vector<int64_t> blocks, int loss_code,
+               double loss_scale, bool linear_transition);
+
+  // The SQP from Xb[0] on the two buffers (current, trial); lam (n, nb) in: the
+  // multipliers of the ball curvature, out: at the answer. Dgn[b] keeps the Gauss-Newton
+  // diagonal blocks of buffer b's iterate (E[b] are its off-diagonal ones): on
+  // certification the other buffer holds the last evaluated iterate X_k, whose blocks
+  // give the answer's covariance.
+  //
+  // Certified when the QP step d is below step_tol, or, with no constraint active, when
+  // the observed contraction rho = |d_k| / |d_k-1| <= 1/2 of two full steps bounds the
+  // error of X_k + d_k by rho / (1 - rho) |d_k| <= err_tol; when both steps were exact
+  // Newton steps, by the smaller quadratic-rate estimate safety |d_k|^3 / |d_k-1|^2 (the
+  // error K |d_k|^2 with the rate K = |d_k| / |d_k-1|^2 observed on the previous step),
+  // if ``quadratic`` and neither QP had an active constraint. The answer is then the
+  // projection of X_k + d_k (not evaluated again); the cost is at X_k. ``evaluated``: out[0] already holds the model's outputs at Xb[0]
+  // (shift_outputs); ``shifted >= 0`` (with ``evaluated``): Xb[0] is buffer
+  // ``shifted``'s iterate of the previous window shifted by one node, whose assembly
+  // shifts with it. ``zmask`` (n,): 0 where a node has no measurement.
+  SqpResult solve(const WindowData& data, const double* zmask, double* lam,
+                  const SqpOptions& opt, bool evaluated, int shifted);
+  // Evaluate the model at Xb[buf] and assemble; the cost (inf if the model failed)
+  double evaluate(int buf, const WindowData& data, const double* zmask);
+  // Assemble buffer buf's blocks from out[buf] at Xb[buf] (shifted from buffer ``prev``'s
+  // assembly where prev >= 0, see sqp.cpp's assemble); the cost
+  double assemble(int buf, const WindowData& data, const double* zmask, int prev);
+  // out[dst]: the outputs at Xb[0]'s iterate shifted by one node from out[src] (the
+  // previous window's, may be dst) and the tail function at Xb[0]'s last stage
+  bool shift_outputs(int src, int dst);
+  // 1 where the node's measurement mask m has a nonzero entry
+  void node_mask(double* zmask) const;
+
+  // C entry points ``int f(const double** in, double* out)`` (0 on success) of solve,
+  // evaluate, shift_outputs and project, for compiled callers that hold this solver's
+  // address (``in[0]``, cast to a pointer):
+  //   solve:    in = (solver, qinv, xbar, arrival, zmask, lam, options), options = (max_iter,
+  //             step_tol, err_tol, max_qp_iter, newton, quadratic, evaluated, shifted);
+  //             out = (outcome, iterations, step, cost, buffer)
+  //   evaluate: in = (solver, qinv, xbar, arrival, zmask, (buf,)); out = (cost,)
+  //   shift:    in = (solver, (src, dst)); 1 if the tail function failed
+  //   project:  in = (solver, X, (rows,)): project ``rows`` nodes of X in place
+  struct Entries {
+    std::uintptr_t solve, evaluate, shift, project;
+  };
+  static Entries entries();
+
+  Index n, nx, nz, nu, nblk, nb, bk, window_size;
+  std::uintptr_t window, tail;
+  std::vector<double> lo, hi, ball_r2, rinv;
+  std::vector<int64_t> ball, blocks;
+  int loss_code;
+  double loss_scale;
+  bool linear;
+
+  // window data and the solve's buffers (shapes in bind_solver.cpp)
+  std::vector<double> z, m, u, dt, Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost;
+  std::vector<int64_t> stage_done;  // (n-1,) for an affine transition, else empty
+  std::vector<double> stage_eq, stage_fqf, tail_out;
+  std::vector<std::uintptr_t> ptrs, tail_ptrs;  // the model's argument pointers
+
+  Feasible feasible() const {
+    return {lo.data(), hi.data(), ball.data(), ball_r2.data(), nb, bk};
+  }
+
+  // scratch
+  QPScratch qp;
+  std::vector<double> wr, wj, qw, qf, e, eql, fqfl;
+};
+
+}  // namespace cmhe
