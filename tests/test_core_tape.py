@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast import codegen
 from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.registry import make_formulation
@@ -107,3 +107,22 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     node = codegen.node_function(f)
     nargs = [X[:, 0], U[:, 0], DT[:, 0], Z[:, 0], M[:, 0]]
     np.testing.assert_array_equal(core_flat(tape_function(node), nargs), casadi_flat(node, nargs))
+
+
+def test_the_typing_stub_is_the_built_module(tmp_path) -> None:
+    """``src/continuum_mhe/_core.pyi`` (what type checkers read) is what nanobind's stub
+    generator writes for the built module: regenerate it after changing a binding
+    (``python -m nanobind.stubgen -m continuum_mhe._core -o src/continuum_mhe/_core.pyi``)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "_core.pyi"
+    r = subprocess.run(
+        [sys.executable, "-m", "nanobind.stubgen", "-q", "-m", "continuum_mhe._core",
+         "-o", str(out)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    committed = Path(__file__).resolve().parents[1] / "src/continuum_mhe/_core.pyi"
+    assert out.read_text() == committed.read_text()

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.fast import linalg
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update

@@ -18,7 +18,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.formulations import Formulation
 

@@ -18,7 +18,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.ccall import address
 from continuum_mhe.estimators.fast.codegen import (
     c_function,
@@ -225,7 +225,7 @@ class NodeEvaluator:
         zeroes the components of sensors that dropped out."""
         z = self._zeros if z is None else z
         mask = self._ones if mask is None else mask
-        return self._core.evaluate(_f64(x), _f64(u), float(dt), _f64(z), _f64(mask))  # type: ignore[no-any-return]
+        return self._core.evaluate(_f64(x), _f64(u), float(dt), _f64(z), _f64(mask))
 
     def arrival_step(
         self,
@@ -241,7 +241,7 @@ class NodeEvaluator:
         """One EKF step of the arrival prior: update with ``z`` (its valid components,
         ``mask``; none: prediction only), predict with ``(u, dt)``. Returns
         ``(x+, P+, P+^-1)``, ``P+`` symmetrised."""
-        return self._core.arrival_step(  # type: ignore[no-any-return]
+        return self._core.arrival_step(
             _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
         )
 
@@ -261,19 +261,19 @@ class NodeEvaluator:
         :func:`~continuum_mhe.estimators.kalman.ekf_predict` and ``ekf_update``), then
         :meth:`output` and :meth:`output_std` of its answer, in one call into the core:
         ``(x+, P+, outputs, output standard deviations)``."""
-        return self._core.ekf_step_outputs(  # type: ignore[no-any-return]
+        return self._core.ekf_step_outputs(
             _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
         )
 
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
         """``sqrt(diag(J P J^T))`` with the output Jacobian ``J`` at ``x``: the same as
         :meth:`Formulation.output_std`."""
-        return self._core.output_std(_f64(x), _f64(P))  # type: ignore[no-any-return]
+        return self._core.output_std(_f64(x), _f64(P))
 
     def output(self, x: FloatArray) -> FloatArray:
         """The outputs of state ``x`` (``output_sym``; wrapped angles in ``[-pi, pi)``
         as :meth:`Formulation.output` does)."""
-        return self._core.output(_f64(x))  # type: ignore[no-any-return]
+        return self._core.output(_f64(x))
 
 
 def _f64(a: FloatArray) -> FloatArray:

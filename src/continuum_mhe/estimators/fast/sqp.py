@@ -23,7 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.fast.ccall import address, call_model
 from continuum_mhe.estimators.fast.memory import shift_rows

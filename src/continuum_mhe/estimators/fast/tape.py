@@ -12,7 +12,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from continuum_mhe import _core
+import continuum_mhe._core as _core
 
 #: CasADi's operation numbers (``casadi.OP_<NAME>``) to the core's, by name.
 _OPCODES = {

@@ -1,0 +1,216 @@
+"""
+The compiled core of continuum-mhe: model evaluation, MHE solver, filters.
+"""
+
+from collections.abc import Sequence
+from typing import Annotated
+
+import numpy
+from numpy.typing import NDArray
+
+
+class ModelFunction:
+    """
+    A model evaluation with a C entry point ``int f(const double** inputs, double* out)``.
+    """
+
+    @property
+    def address(self) -> int:
+        """Address of the C entry point (valid while this object lives)."""
+
+    @property
+    def output_size(self) -> int:
+        """Number of values written (all outputs concatenated)."""
+
+    def evaluate(self, inputs: Sequence[Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu', writable=False)]], out: Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu')]) -> None:
+        """Evaluate on flat column-major ``inputs``; all outputs into ``out``."""
+
+class TapeFunction(ModelFunction):
+    """One CasADi SX function read as a tape."""
+
+    def __init__(self, code: Annotated[NDArray[numpy.int32], dict(shape=(None, 4), order='C', device='cpu', writable=False)], constants: Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu', writable=False)], input_sizes: Sequence[int], output_sizes: Sequence[int], work_size: int) -> None: ...
+
+    @property
+    def instructions(self) -> int: ...
+
+class WindowFunction(ModelFunction):
+    """The MHE window's residuals and Jacobians."""
+
+    def __init__(self, meas: TapeFunction, proc: TapeFunction, horizon: int) -> None: ...
+
+class TailFunction(ModelFunction):
+    """A window's last node and its incoming stage."""
+
+    def __init__(self, meas: TapeFunction, proc: TapeFunction) -> None: ...
+
+OPERATIONS: tuple = ...
+
+class WindowSolver:
+    """
+    The fast MHE's window solve for one window model: its buffers (NumPy views, row-major) and the SQP over them (continuum_mhe.estimators.fast.sqp).
+    """
+
+    def __init__(self, horizon: int, nx: int, nz: int, nu: int, window: int, tail: int, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], blocks: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], loss_code: int, loss_scale: float, linear_transition: bool) -> None: ...
+
+    def solve(self, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool, evaluated: bool = False, shifted: int = -1) -> tuple[int, int, float, float, int]:
+        """
+        The SQP from Xb[0] with the window data in z, m, u, dt: (outcome, iterations, step, cost, buffer of the answer); lam (N, nb) in and out.
+        """
+
+    def evaluate(self, buf: int, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> float:
+        """
+        Evaluate the model at Xb[buf] and assemble its blocks: the window cost (inf if the model failed).
+        """
+
+    def assemble(self, buf: int, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shifted_from: int = -1) -> float:
+        """
+        Assemble buffer buf's Gauss-Newton blocks, gradient, robust weights and node costs from out[buf] at Xb[buf]; with shifted_from >= 0, from that buffer's assembly shifted by one node (Dgn, E, g, ...) where the shift applies. The cost.
+        """
+
+    def shift_outputs(self, src: int, dst: int) -> bool:
+        """
+        out[dst]: out[src] without its first node and stage, then the tail function's outputs at Xb[0]'s last stage; False if the tail function failed.
+        """
+
+    @property
+    def z(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def m(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def u(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def dt(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def Xb(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def out(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def D(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def E(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def Dgn(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def g(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def d(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def lam_qp(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def wgt(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def extra(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def gb(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def ncost(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def stage_done(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def stage_eq(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def stage_fqf(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def tail_out(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def ptrs(self) -> NDArray[numpy.uint64]: ...
+
+    @property
+    def tail_ptrs(self) -> NDArray[numpy.uint64]: ...
+
+    @property
+    def window_size(self) -> int: ...
+
+    @property
+    def entries(self) -> tuple[int, int, int, int, int]:
+        """
+        (this solver's address, then the addresses of its C entry points solve, evaluate, shift_outputs and project; argument layouts in csrc/sqp.hpp), for compiled callers.
+        """
+
+def btd_solve(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
+    """
+    Solve H y = b for the symmetric block-tridiagonal H = (D, E) (diagonal blocks D (n, nx, nx), super-diagonal E (n-1, nx, nx)) by block Cholesky; False if H is not positive definite.
+    """
+
+def btd_matvec(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
+    """out = H v for the symmetric block-tridiagonal H = (D, E)."""
+
+def householder(nrm: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], T: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> int:
+    """
+    Symmetric orthogonal T with T nrm = -+e_c for a unit normal on the coordinates idx; returns the pivot c.
+    """
+
+def solve_qp(X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], g: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], max_it: int, d: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> tuple[int, int, int]:
+    """
+    Active-set solution d of min 1/2 d^T H d + g^T d s.t. lo <= X + d <= hi and the balls linearised at X: (status, iterations, active constraints); lam (n, nb) the ball multipliers.
+    """
+
+def project(X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None:
+    """
+    Project each row of X onto the box and the balls, in place (the bounds hold exactly).
+    """
+
+def rho_derivatives(code: int, scale: float, s: float) -> tuple[float, float, float]:
+    """
+    (rho(s), rho'(s), rho''(s)) of the robust loss ``code`` (loss.LOSS_CODES).
+    """
+
+def dense_mul(A: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], B: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
+    """out = A B, written out."""
+
+def dense_cholesky(A: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], L: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
+    """
+    Lower Cholesky factor L of a symmetric A; False if A is not positive definite.
+    """
+
+def dense_inverse_gram(L: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
+    """out = (L L^T)^-1 for a lower-triangular L."""
+
+class NodeModel:
+    """
+    One node of a model: its EKF step, the arrival prior's step, and the outputs with their standard deviations. Matrices row-major.
+    """
+
+    def __init__(self, node: ModelFunction, output: ModelFunction, output_jacobian: ModelFunction, nx: int, nu: int, nz: int, ny: int, wrapped: Sequence[int]) -> None: ...
+
+    def evaluate(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+        """
+        ``(f, F, H, r)`` at one node: the transition, its Jacobian, ``H = -dr/dx`` and the masked residual.
+        """
+
+    def arrival_step(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+        """The arrival prior's EKF step: ``(x+, P+, P+^-1)``."""
+
+    def ekf_step_outputs(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+        """
+        One EKF step, then the outputs and their standard deviations: ``(x+, P+, y, std)``.
+        """
+
+    def output(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+        """The outputs of state ``x`` (wrapped angles in [-pi, pi))."""
+
+    def output_std(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+        """``sqrt(diag(J P J^T))``, J the output Jacobian at x."""
+
+def ekf_update(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], r: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], H: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+    """EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``."""
