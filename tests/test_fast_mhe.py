@@ -798,7 +798,7 @@ def test_no_c_compiler_is_said_once_and_recorded(tmp_path: Path) -> None:
         "from continuum_mhe.model.registry import make_formulation\n"
         "from continuum_mhe.settings import MHESettings\n"
         "from continuum_mhe.simulation.scenarios import simulate\n"
-        "from continuum_mhe.benchmark import environment\n"
+        "from continuum_mhe.benchmark.harness import environment\n"
         "f = make_formulation('bend')\n"
         "rec = simulate('paper3d', duration=1.0, seed=2)\n"
         "with warnings.catch_warnings(record=True) as seen:\n"

@@ -326,18 +326,18 @@ def test_cold_demo_names_the_paths_it_timed_and_its_table_is_not_cut_when_piped(
     IPOPT and the CasADi EKF, whose times are theirs, and says why under the table; its
     output, captured as through a pipe (not a terminal, no COLUMNS), keeps whole headers
     instead of rich's 80-column cut (``theta…``)."""
-    from continuum_mhe import cli
+    from continuum_mhe.cli import app, demo
     from continuum_mhe.estimators import mhe
 
     monkeypatch.setenv("CONTINUUM_MHE_FIRST_RUN", "background")
     monkeypatch.delenv("COLUMNS", raising=False)
-    for module in (cli, mhe, warmup):
+    for module in (demo, mhe, warmup):
         monkeypatch.setattr(module, "kernels_ready", lambda: False)
     monkeypatch.setattr(warmup, "start_background_warmup", lambda: True)
     monkeypatch.setattr(warmup, "_announced", set())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", warmup.CompileNotice)
-        assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+        assert app.main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "…" not in out
     header = next(ln for ln in out.splitlines() if "method" in ln)

@@ -34,8 +34,8 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
-    "Metrics": "continuum_mhe.metrics",
-    "compute_metrics": "continuum_mhe.metrics",
+    "Metrics": "continuum_mhe.evaluation.metrics",
+    "compute_metrics": "continuum_mhe.evaluation.metrics",
     "DirectFormulation": "continuum_mhe.model.direct",
     "BendFormulation": "continuum_mhe.model.formulations",
     "Formulation": "continuum_mhe.model.formulations",
@@ -80,7 +80,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         UnscentedKalmanFilter,
         make_estimator,
     )
-    from continuum_mhe.metrics import Metrics, compute_metrics
+    from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
     from continuum_mhe.model.direct import DirectFormulation
     from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
     from continuum_mhe.model.registry import make_formulation

@@ -1,16 +1,12 @@
-"""The ``calibrate`` command (:mod:`continuum_mhe.stream.calibrate` measures; registered
-through ``COMMAND_MODULES``)."""
+"""``continuum-mhe calibrate``: each IMU's statistics at rest and its mounting
+(:mod:`continuum_mhe.calibration.at_rest` measures)."""
 
 from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
 
-from continuum_mhe.cli_options import add_robot_option, robot_from_args
-from continuum_mhe.io.csv_files import InputError
-from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.stream.calibrate import (
+from continuum_mhe.calibration.at_rest import (
     STILL_ACC_STD,
     STILL_GYRO_STD,
     bend_yaws,
@@ -20,6 +16,9 @@ from continuum_mhe.stream.calibrate import (
     motion_at_rest,
     read_recording,
 )
+from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
 from continuum_mhe.stream.reader import stderr_say
 
@@ -30,7 +29,7 @@ def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source:
         raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
 
 
-def cmd_calibrate(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     if args.bend_phi is not None and not args.bend:
         raise InputError("--bend-phi needs --bend BEND.csv")
@@ -60,20 +59,18 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: Any) -> None:
-    """Add the ``calibrate`` command."""
+DESCRIPTION = (
+    "With the robot straight and still (a recording whose accelerometer "
+    f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
+    "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
+    "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
+    "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
+    "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
+    "--bend, each IMU's yaw about the tangent from a bend in a known plane too."
+)
 
-    p = subparsers.add_parser(
-        "calibrate",
-        help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
-        description="With the robot straight and still (a recording whose accelerometer "
-        f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
-        "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
-        "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
-        "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
-        "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
-        "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
     src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
@@ -114,4 +111,3 @@ def register(subparsers: Any) -> None:
         f"raw recordings only (default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's "
         "MPU9250 at rest)",
     )
-    p.set_defaults(func=cmd_calibrate)

@@ -207,6 +207,7 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         help="replace an existing -o or --record file (else refused)",
     )
 
+
 def _add_port_options(g: argparse._ActionsContainer) -> None:
     g.add_argument("--web-port", type=int, default=9090, help="web viewer HTTP port (9090)")
     g.add_argument("--grpc-port", type=int, default=9876, help="Rerun server port (9876)")
@@ -270,6 +271,7 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     if args.save:
         return ViewerSink("save", Path(args.save), **ports)
     return ViewerSink("web" if args.serve_web else "spawn", **ports)
+
 
 #: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s.
 GAP_RESET_S = 1.0
@@ -340,6 +342,7 @@ def recovery_settings_from_args(args: argparse.Namespace) -> RecoverySettings:
         bad_start=args.bad_start or None,
         reject_reset=args.reject_reset or None,
     )
+
 
 # --- valid ranges of every numeric option ------------------------------------------
 @dataclass(frozen=True)
