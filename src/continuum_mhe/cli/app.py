@@ -18,6 +18,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
+from continuum_mhe.cli.config import apply_config, options_record
 from continuum_mhe.cli.options import (
     check_option_ranges,
 )
@@ -99,9 +100,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = build_parser()  # imports the command modules: seconds on a small machine
     args, unknown = parser.parse_known_args(argv)
+    (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command = commands.choices[args.command]
     if unknown:  # said by the command's parser, so the usage shown is the command's
-        (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        commands.choices[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
+        command.error(f"unrecognized arguments: {' '.join(unknown)}")
+    if getattr(args, "config", None):  # the file's options, then the command line's again
+        apply_config(command, args.command, args.config)
+        args = parser.parse_args(argv)
+    if hasattr(args, "config"):
+        args.options_record = options_record(command, args)
     return args
 
 

@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 import sys
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 from typing import cast
 
+from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
     add_mhe_options,
     add_model_options,
+    add_overwrite_option,
     add_raw_imu_options,
     add_recovery_options,
     formulation_from_args,
@@ -20,12 +23,15 @@ from continuum_mhe.cli.options import (
     mhe_settings_from_args,
     recovery_settings_from_args,
 )
-from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.estimators import METHODS, Measurement, make_estimator
 from continuum_mhe.estimators.fast.warmup import FirstRun, first_run_mode
 from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
-from continuum_mhe.signals import signals_deferred
+from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
+
+#: the comment key that marks an estimate file cut short by a signal (Ctrl-C, SIGTERM)
+PARTIAL = "partial"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
 
-    check_output_path(args.output, args.measurements)
+    check_output_path(args.output, args.measurements, args.overwrite)
     out = args.output
     counts: dict[str, int] = {}
     with open_estimate_input(
@@ -53,7 +59,10 @@ def run(args: argparse.Namespace) -> int:
         frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
-        with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers) as sink:
+        made = f"{version()} estimate {Path(args.measurements).name}"
+        notes = [("continuum-mhe", json.dumps(made)), (OPTIONS_LINE, args.options_record)]
+        interrupted: BaseException | None = None
+        with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers, notes) as sink:
             try:
                 for t, z in stream.samples:  # a signal while waiting for input ends it at once
                     next(ticks)
@@ -68,6 +77,12 @@ def run(args: argparse.Namespace) -> int:
                             print(f"{PROG}: note: {note}", file=sys.stderr)
                     outliers += e.outlier
                     sink.write(e)
+            except BaseException as exc:  # a signal (in C code: any type): keep what is done
+                if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
+                    raise
+                interrupted = exc
+                cut = f"interrupted after {sink.rows} samples, at t = {e.t:g} s"
+                sink.note(PARTIAL, json.dumps(cut))
             finally:
                 ticks.close()
             n = sum(counts.values())
@@ -90,6 +105,13 @@ def run(args: argparse.Namespace) -> int:
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
+    if interrupted is not None:
+        print(
+            f"{PROG}: kept the {n} estimates made before the interruption in {out}, marked "
+            f"'# {PARTIAL} = ...'",
+            file=sys.stderr,
+        )
+        raise interrupted
     if stream.kind == "log":  # several topics in the wrong order, most often
         warn_topic_order(stream.name, args.topic or (), n, est.restarts + est.bad_starts)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
@@ -157,12 +179,14 @@ def first_run_default(source: str | int) -> FirstRun:
     return "background" if small else "foreground"
 
 
-def check_output_path(output: str, source: str) -> None:
+def check_output_path(output: str, source: str, overwrite: bool = False) -> None:
     """The output must be a writable file name in an existing folder (see
-    :func:`check_output_target`), not the input itself; checked before any work."""
+    :func:`check_output_target`), not the input itself, and new unless ``overwrite``;
+    checked before any work."""
     out = check_output_target(output)
     if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
+    check_output_target(output, overwrite)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -170,6 +194,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "measurements", help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap"
     )
     p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
+    add_overwrite_option(p)
+    add_config_option(p)
     p.add_argument("--method", choices=METHODS, default="mhe")
     p.add_argument("--degrees", action="store_true", help="roll and pitch are in degrees")
     p.add_argument(

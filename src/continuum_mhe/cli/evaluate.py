@@ -17,6 +17,7 @@ from continuum_mhe.evaluation.metrics import (
     compute_calibration,
     compute_metrics,
     length_misfit,
+    match_rows,
 )
 from continuum_mhe.io.csv_files import InputError, check_same_robot, read_state_table
 
@@ -24,12 +25,8 @@ from continuum_mhe.io.csv_files import InputError, check_same_robot, read_state_
 def _align(
     path_est: str, t_est: np.ndarray, path_truth: str, t_truth: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    idx = np.searchsorted(t_truth, t_est)
-    idx = np.clip(idx, 0, len(t_truth) - 1)
-    lo = np.clip(idx - 1, 0, len(t_truth) - 1)
-    nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
-    match = np.abs(t_truth[nearest] - t_est) <= 1e-6 * np.maximum(1.0, np.abs(t_est))
-    n, k = len(t_est), int(match.sum())
+    i_est, i_truth = match_rows(t_est, t_truth)
+    n, k = len(t_est), len(i_est)
     what = (
         f"only {k} of {n} rows have a row at the same t in {path_truth} (within 1 us): "
         "the files' times do not match (another --dt or duration, t in milliseconds, "
@@ -39,7 +36,7 @@ def _align(
         raise InputError(f"{path_est}: {what}")
     if k < WARN_MATCHED * n:
         print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
-    covered = t_est[match]
+    covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
     share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
     if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
@@ -49,7 +46,7 @@ def _align(
             "the scores are of that part only (an interrupted or cut estimate?)",
             file=sys.stderr,
         )
-    return np.flatnonzero(match), nearest[match]
+    return i_est, i_truth
 
 
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or

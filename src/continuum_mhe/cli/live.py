@@ -8,6 +8,7 @@ import gc
 import os
 from pathlib import Path
 
+from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
     add_live_view_option,
     add_mhe_options,
@@ -22,6 +23,7 @@ from continuum_mhe.cli.options import (
     recovery_settings_from_args,
     viewer_sink_from_args,
 )
+from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
 from continuum_mhe.io.input_options import check_options_apply, formulation_for
@@ -91,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
             out_path,
             estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
             args.overwrite,
+            (f'continuum-mhe = "{version()} live"', f"{OPTIONS_LINE} = {args.options_record}"),
         )
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
@@ -138,6 +141,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_serial_options(p)
     p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
     add_recording_options(p)
+    add_config_option(p)
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
     p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
 from continuum_mhe.io.csv_files import (
     InputError,
     check_output_target,
@@ -27,9 +27,9 @@ def run(args: argparse.Namespace) -> int:
             f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
             f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
         )
-    check_output_target(args.output)  # both before writing either
+    check_output_target(args.output, args.overwrite)  # both before writing either
     if args.truth:
-        truth = check_output_target(args.truth)
+        truth = check_output_target(args.truth, args.overwrite, "--truth")
         if truth.resolve() == Path(args.output).resolve():
             raise InputError(
                 f"{args.truth}: --truth names the measurement file -o too; give two files"
@@ -59,6 +59,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", choices=SCENARIOS)
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--truth", help="truth CSV to write")
+    add_overwrite_option(p, "-o or --truth")
     p.add_argument("--noise-deg", type=float, default=2.0, help="noise std in degrees")
     p.add_argument(
         "--noise-model",

@@ -22,6 +22,7 @@ from continuum_mhe.estimators.base import (
     _reraise_interrupt,
 )
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
+from continuum_mhe.io.input_options import imu_settings_for
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
@@ -190,10 +191,7 @@ class _TextSink:
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
     """One converter per IMU of ``robot``: its robot-file mounting where it gives one,
     else ``raw.mount_rpy`` (as ``estimate`` does)."""
-    return [
-        RawImuConverter(replace(raw, mount_rpy=imu.mount_rpy) if any(imu.mount_rpy) else raw)
-        for imu in robot.imus
-    ]
+    return [RawImuConverter(imu_settings_for(raw, imu)) for imu in robot.imus]
 
 
 # --- session ----------------------------------------------------------------------------------
