@@ -23,7 +23,7 @@ EXE = str(Path(sys.executable).with_name("continuum-mhe"))
 
 def _columns(path: Path) -> dict[str, np.ndarray]:
     with path.open() as fh:
-        rows = list(csv.DictReader(fh))
+        rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
     out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
     return out
 
