@@ -1,7 +1,7 @@
-// The compiled core of continuum-mhe (continuum_mhe._core).
+// The compiled core of continuum-mhe (continuum_mhe._core._ext).
 #include "bindings.hpp"
 
-NB_MODULE(_core, m) {
+NB_MODULE(_ext, m) {
   m.doc() = "The compiled core of continuum-mhe: model evaluation, MHE solver, filters.";
   cmhe::bind_model(m);
   cmhe::bind_solver(m);

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from continuum_mhe import benchmark as bm
+from continuum_mhe.benchmark import harness as bm
+from continuum_mhe.cli import benchmark as cli_benchmark
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation
@@ -136,7 +137,7 @@ def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> 
     assert {r["method"] for r in report["results"]} == {
         "fast", "mhe-kernel", "ipopt", "ekf", "ekf-compiled"}  # fmt: skip
     assert all(np.isnan(r["over_ekf_kernel"]) for r in report["results"])
-    bm._write_json(str(out), report)
+    cli_benchmark._write_json(str(out), report)
     assert json.loads(out.read_text())["results"][0]["over_ekf_kernel"] is None
 
 

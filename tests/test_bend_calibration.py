@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from continuum_mhe.calibration.at_rest import calibrate
+from continuum_mhe.calibration.bend import yaws_from_bend
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.model.pcc import pose_at
-from continuum_mhe.stream.bend_calibration import yaws_from_bend
-from continuum_mhe.stream.calibrate import calibrate
 
 G = 9.80665
 LENGTHS = (0.16, 0.14)  # the shipped two-section robot
@@ -205,8 +205,8 @@ def test_shipped_bend_recordings_give_the_drawn_yaws() -> None:
     drew (``imu_samples``: per IMU, misalignment, accelerometer bias, its noise, gyro
     bias, its noise, from seed 0, 601 samples; ``_rotation_xyz`` is Z-Y-X as
     ``mount_rpy``)."""
+    from continuum_mhe.calibration.at_rest import bend_yaws, read_recording
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.stream.calibrate import bend_yaws, read_recording
 
     rng = np.random.default_rng(0)
     drawn = []

@@ -135,7 +135,7 @@ def test_fast_and_ipopt_agree_with_the_check_on(clean_recording) -> None:  # typ
 def test_cli_flag_turns_the_check_on() -> None:
     import argparse
 
-    from continuum_mhe.cli_options import add_mhe_options, mhe_settings_from_args
+    from continuum_mhe.cli.options import add_mhe_options, mhe_settings_from_args
 
     p = argparse.ArgumentParser()
     add_mhe_options(p)

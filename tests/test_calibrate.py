@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
 from continuum_mhe.io.raw_imu import mount_rotation
-from continuum_mhe.stream.calibrate import calibrate, mounting_from_gravity
 
 G = 9.80665
 
@@ -142,7 +142,7 @@ def _rest_values(n: int, acc_swing: float, gyro_swing: float, tilt_deg: float = 
 
 
 def test_motion_at_rest_names_the_largest_spread_against_its_bound() -> None:
-    from continuum_mhe.stream.calibrate import STILL_ACC_STD, STILL_GYRO_STD, motion_at_rest
+    from continuum_mhe.calibration.at_rest import STILL_ACC_STD, STILL_GYRO_STD, motion_at_rest
 
     n = 400  # +-d has std d * sqrt(n / (n - 1))
     d_in = 0.99 * STILL_ACC_STD * math.sqrt((n - 1) / n)

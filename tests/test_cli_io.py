@@ -386,7 +386,7 @@ def test_simulate_writes_both_files_or_neither(tmp_path, capsys):
 
 
 def test_benchmark_checks_its_json_path_before_the_run(tmp_path, capsys, monkeypatch):
-    from continuum_mhe import benchmark
+    from continuum_mhe.cli import benchmark
 
     def no_run(*args, **kwargs):
         raise AssertionError("the benchmark ran before its --json path was checked")
@@ -412,7 +412,7 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypat
     Now the files are written after the estimates, and an interruption while writing
     (here: while saving the second figure) removes the files it created, and the folders
     it created; a user's own files in an existing folder stay."""
-    from continuum_mhe import plotting
+    from continuum_mhe.evaluation import plotting
 
     out = tmp_path / "new" / "demo"
     if existing:
@@ -454,12 +454,12 @@ def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys):
 
 
 def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch):
-    from continuum_mhe import cli
+    from continuum_mhe.cli import demo
 
     def no_run(*args, **kwargs):
         raise AssertionError("the demo simulated before checking its --out")
 
-    monkeypatch.setattr(cli, "simulate_robot", no_run)
+    monkeypatch.setattr(demo, "simulate_robot", no_run)
     (tmp_path / "afile").write_text("x\n")
     assert main(["demo", "--out", str(tmp_path / "afile" / "sub")]) == 2
     assert capsys.readouterr().err.strip().endswith("afile is not a folder")

@@ -110,19 +110,20 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
 
 
 def test_the_typing_stub_is_the_built_module(tmp_path) -> None:
-    """``src/continuum_mhe/_core.pyi`` (what type checkers read) is what nanobind's stub
-    generator writes for the built module: regenerate it after changing a binding
-    (``python -m nanobind.stubgen -m continuum_mhe._core -o src/continuum_mhe/_core.pyi``)."""
+    """``src/continuum_mhe/_core/_ext.pyi`` (what type checkers read) is what nanobind's
+    stub generator writes for the built module: regenerate it after changing a binding
+    (``python -m nanobind.stubgen -m continuum_mhe._core._ext -o
+    src/continuum_mhe/_core/_ext.pyi``)."""
     import subprocess
     import sys
     from pathlib import Path
 
     out = tmp_path / "_core.pyi"
     r = subprocess.run(
-        [sys.executable, "-m", "nanobind.stubgen", "-q", "-m", "continuum_mhe._core",
+        [sys.executable, "-m", "nanobind.stubgen", "-q", "-m", "continuum_mhe._core._ext",
          "-o", str(out)],
         capture_output=True, text=True,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
-    committed = Path(__file__).resolve().parents[1] / "src/continuum_mhe/_core.pyi"
+    committed = Path(__file__).resolve().parents[1] / "src/continuum_mhe/_core/_ext.pyi"
     assert out.read_text() == committed.read_text()

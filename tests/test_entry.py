@@ -1,5 +1,5 @@
 """``continuum-mhe --help`` and ``--version`` answer without importing the estimators,
-and their table of commands is the full command line's."""
+and both parsers are built from the one table of commands."""
 
 from __future__ import annotations
 
@@ -10,16 +10,16 @@ import sys
 
 import pytest
 
-from continuum_mhe import entry
+from continuum_mhe.cli import entry
 
-HEAVY = ("continuum_mhe.estimators", "continuum_mhe.cli", "numpy", "casadi", "numba", "scipy")
+HEAVY = ("continuum_mhe.estimators", "continuum_mhe.cli.app", "numpy", "casadi", "numba", "scipy")
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["--version"], ["-h"]])
 def test_help_and_version_import_nothing_heavy(argv):
     code = (
         "import sys\n"
-        "from continuum_mhe.entry import main\n"
+        "from continuum_mhe.cli.entry import main\n"
         "try:\n"
         f"    main({argv!r})\n"
         "except SystemExit as e:\n"
@@ -41,12 +41,26 @@ def _commands(parser: argparse.ArgumentParser) -> list[tuple[str, str]]:
     return [(a.dest, str(a.help)) for a in sub._choices_actions]
 
 
-def test_the_table_is_the_full_command_line():
-    from continuum_mhe.cli import build_parser
+def test_both_parsers_list_the_table_s_commands():
+    from continuum_mhe.cli.app import build_parser
+    from continuum_mhe.cli.program import COMMANDS
 
+    table = [(c.name, c.help) for c in COMMANDS]
     full = build_parser()
-    assert _commands(entry.overview_parser()) == _commands(full)
+    assert _commands(entry.overview_parser()) == table
+    assert _commands(full) == table
     assert full.description == entry.DESCRIPTION
+
+
+def test_each_command_module_defines_its_arguments_and_run():
+    import importlib
+
+    from continuum_mhe.cli.program import COMMANDS
+
+    assert len({c.name for c in COMMANDS}) == len({c.module for c in COMMANDS}) == len(COMMANDS)
+    for command in COMMANDS:
+        module = importlib.import_module(f"continuum_mhe.cli.{command.module}")
+        assert callable(module.add_arguments) and callable(module.run), command.name
 
 
 def test_a_command_goes_to_the_full_command_line(capsys):
@@ -88,8 +102,8 @@ def test_step_after_run_suggests_reset():
         # SIGTERM before the command line sets its handlers: killed, quietly
         ("continuum_mhe.settings", "SIGTERM", "", -signal.SIGTERM),
         # SIGTERM while the parser imports the commands, the handlers set
-        ("continuum_mhe.cli_view", "SIGTERM", "continuum-mhe: terminated\n", 143),
-        ("continuum_mhe.cli_view", "SIGINT", "continuum-mhe: interrupted\n", 130),
+        ("continuum_mhe.cli.view", "SIGTERM", "continuum-mhe: terminated\n", 143),
+        ("continuum_mhe.cli.view", "SIGINT", "continuum-mhe: interrupted\n", 130),
     ],
     ids=["import-sigint", "import-sigterm", "parser-sigterm", "parser-sigint"],
 )
@@ -106,7 +120,7 @@ def test_a_signal_during_start_up_says_one_line(tmp_path, module, sig, said, cod
         f"            os.kill(os.getpid(), signal.{sig})\n"
         "        return None\n"
         "sys.meta_path.insert(0, Hook())\n"
-        "from continuum_mhe.entry import main\n"
+        "from continuum_mhe.cli.entry import main\n"
         "sys.exit(main(sys.argv[1:]))\n"
     )
     out = tmp_path / "e.csv"

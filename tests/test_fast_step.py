@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from continuum_mhe.benchmark_kernels import run_mhe_kernel
+from continuum_mhe.benchmark.kernels import run_mhe_kernel
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation

@@ -31,6 +31,11 @@ BIAS_1 = np.array([0.03, -0.02, 0.025])
 BIAS_2 = np.array([-0.035, 0.015, 0.02])
 
 
+def _header(path) -> str:
+    """The column line of an estimate CSV (after its ``#`` lines: the options)."""
+    return next(ln for ln in path.read_text().splitlines() if not ln.startswith("#"))
+
+
 def _recording(robot_name: str, duration: float, seed: int = 1) -> tuple[np.ndarray, ...]:
     """The ``spatial`` scenario measured by the robot's raw IMUs (noise-free model
     values plus noise 0.01), the gyros offset by ``BIAS_1``, ``BIAS_2``."""
@@ -199,7 +204,7 @@ def test_estimate_cli_with_bias_keeps_the_columns(tmp_path, capsys) -> None:  # 
     out = tmp_path / "est.csv"
     args = ["estimate", str(raw), "-o", str(out), "--imu-model", "direct", "--method", "ukf"]
     assert main([*args, "--estimate-gyro-bias"]) == 0
-    assert out.read_text().splitlines()[0] == (
+    assert _header(out) == (
         "t,x,y,z,theta,phi,std_x,std_y,std_z,std_theta,std_phi,status,solve_ms"
     )  # the bias is a state, not an output: the columns are those of any estimate
     tilt = tmp_path / "tilt.csv"

@@ -129,10 +129,10 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
     """Every plain CLI example line of the README runs, in order, in one folder.
 
     They run in this process, through the executable's own entry point
-    (``continuum_mhe.entry.main``, what the ``continuum-mhe`` script calls): a fresh
+    (``continuum_mhe.cli.entry.main``, what the ``continuum-mhe`` script calls): a fresh
     interpreter per line spent over a second importing each time (20 s of the suite);
     the executable itself is run by the demo test above and ``test_signals``."""
-    from continuum_mhe.entry import main
+    from continuum_mhe.cli.entry import main
 
     lines = _readme_examples()
     assert len(lines) >= 4

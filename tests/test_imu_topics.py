@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from robot_log_helpers import IMU, T0_NS, imu_msg
 
-from continuum_mhe.benchmark import raw_imu_recording
+from continuum_mhe.benchmark.harness import raw_imu_recording
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import InputError, read_state_table
 from continuum_mhe.io.imu_topics import pair_stamps, read_imu_topics

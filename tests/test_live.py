@@ -31,7 +31,7 @@ from live_helpers import (
 )
 
 from continuum_mhe.io.csv_files import read_state_table, read_states
-from continuum_mhe.live import GarbledLine, parse_line
+from continuum_mhe.live.run import GarbledLine, parse_line
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 
@@ -394,7 +394,7 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     times too fast) was estimated on for the whole session, exit 0. Now: the first 100
     samples estimated as they arrive, then the summary, estimate's one line for the same
     samples (naming the port) and exit 2, the lines queued after them left."""
-    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
+    from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)

@@ -18,13 +18,13 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Estimate
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
+from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.stream.clock import MILLIS_WRAP
 from continuum_mhe.stream.protocol import LineSplitter, header_fields
 from continuum_mhe.stream.recording import RowFile, check_target
-from continuum_mhe.stream.session import LiveSession, LiveSettings
 
 
 def _session(method: str = "ekf", out: io.StringIO | None = None) -> tuple[LiveSession, list[str]]:
@@ -234,7 +234,7 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.sample_stream import load_estimate_input
-    from continuum_mhe.stream.session import imu_converters
+    from continuum_mhe.live.session import imu_converters
 
     robot_file = tmp_path / "tilted.toml"
     robot_file.write_text(
@@ -342,8 +342,8 @@ def _deg_s_lines(n: int, degrees: bool = True) -> list[str]:
 
 
 def _raw_session(raw: RawImuSettings) -> tuple[LiveSession, list[str], io.StringIO]:
+    from continuum_mhe.live.session import imu_converters
     from continuum_mhe.model.direct import DirectFormulation
-    from continuum_mhe.stream.session import imu_converters
 
     said: list[str] = []
     robot = Robot.single()
@@ -379,7 +379,7 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
     streamed on with estimates 57 times too fast. Now the first UNIT_CHECK_SAMPLES
     samples are estimated while they arrive, and at the last of them the session stops
     (fatal: run_live says the summary and raises it), later lines ignored."""
-    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
+    from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     s, said, out = _raw_session(raw)
     lines = _deg_s_lines(UNIT_CHECK_SAMPLES + 20)
@@ -403,7 +403,7 @@ def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     re-arms the check on the samples after it."""
     from live_helpers import raw_lines
 
-    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
+    from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     s, said, _ = _raw_session(RawImuSettings(imu_model="direct"))
     before = [ln.rstrip("\n") for ln in raw_lines(60_000, UNIT_CHECK_SAMPLES + 10)]
@@ -478,7 +478,7 @@ def test_live_stops_early_on_an_accelerometer_in_g() -> None:
     it could not be replayed. Now estimate's check, on the first UNIT_CHECK_SAMPLES
     samples: one line naming the port, the session stops (fatal), even with tilt from the
     accelerometer alone (the default), later lines ignored."""
-    from continuum_mhe.stream.session import UNIT_CHECK_SAMPLES
+    from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     rows = [ln.split(",") for ln in _deg_s_lines(UNIT_CHECK_SAMPLES + 20, degrees=False)]
     in_g = [

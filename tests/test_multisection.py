@@ -20,6 +20,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import (
     DropoutWarning,
     InputError,
@@ -27,7 +28,6 @@ from continuum_mhe.io.csv_files import (
     read_state_table,
 )
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot, robot_toml
-from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
@@ -492,7 +492,7 @@ def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name:
 
 
 def test_robot_benchmark_reports_fast_against_ipopt_on_the_same_windows() -> None:
-    from continuum_mhe.benchmark import run_robot_benchmark
+    from continuum_mhe.benchmark.harness import run_robot_benchmark
 
     report = run_robot_benchmark(TWO, [6], 1.0)
     (row,) = report["rows"]
@@ -503,7 +503,7 @@ def test_robot_benchmark_reports_fast_against_ipopt_on_the_same_windows() -> Non
 
 @pytest.mark.parametrize("name", ["bend", "paper", "direct"])
 def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
-    from continuum_mhe.benchmark import raw_imu_recording
+    from continuum_mhe.benchmark.harness import raw_imu_recording
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 
     robot = TWO if name == "direct" else Robot.single(0.2)

@@ -13,6 +13,7 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import InputError, UnitWarning, read_states
 from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
@@ -21,7 +22,6 @@ from continuum_mhe.io.raw_imu import (
     raw_to_measurements,
     read_raw_imu,
 )
-from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.direct import (
     DirectFormulation,
     raw_imu_readings,

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from live_helpers import SAFETY_S, wait_for
 
-from continuum_mhe.benchmark_losses import with_spikes
+from continuum_mhe.benchmark.losses import with_spikes
 from continuum_mhe.cli import main
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import as_sensor_reads
@@ -284,7 +284,7 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
     """Before: Ctrl-C during ``plot --out NEW`` left NEW with the figures saved so far
     (``reproduce`` renders its figures the same way). Now the new figures and the
     folders made for them are removed."""
-    from continuum_mhe import plotting
+    from continuum_mhe.evaluation import plotting
 
     saved: list[Path] = []
     real_save = plotting.save
@@ -315,7 +315,8 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     folders removed. Here the signal lands in a callback during the second save."""
     import weakref
 
-    from continuum_mhe import plotting, signals
+    from continuum_mhe import signals
+    from continuum_mhe.evaluation import plotting
 
     class Thing:
         pass

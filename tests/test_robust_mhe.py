@@ -354,7 +354,7 @@ def test_cli_loss_option(tmp_path: Path, capsys) -> None:
 
 
 def test_benchmark_reports_each_loss_as_a_ratio_to_l2() -> None:
-    from continuum_mhe.benchmark_losses import run_loss_benchmark
+    from continuum_mhe.benchmark.losses import run_loss_benchmark
 
     rec = simulate("paper3d", duration=0.6, seed=0)
     rows = run_loss_benchmark(BendFormulation(), rec, [4], repeats=1)

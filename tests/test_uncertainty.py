@@ -37,8 +37,8 @@ from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.io.csv_files import read_state_table, write_estimates
-from continuum_mhe.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import EstimateSeries

@@ -12,10 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import continuum_mhe.cli as cli
+import continuum_mhe.cli.app as cli
+import continuum_mhe.cli.check_robot as check_robot
 from continuum_mhe import Measurement, make_estimator, make_formulation
 from continuum_mhe.cli import main
-from continuum_mhe.cli_options import OPTION_RANGES
+from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import OptionWarning
@@ -32,7 +33,7 @@ def test_a_bug_is_not_shown_as_a_user_error(monkeypatch, capsys) -> None:
     def broken(args: object) -> int:
         raise ValueError("index 3 is out of bounds")  # a library bug, not the user's
 
-    monkeypatch.setattr(cli, "cmd_check_robot", broken)
+    monkeypatch.setattr(check_robot, "run", broken)
     code = main(["check-robot", "robot.toml"])
     err = capsys.readouterr().err
     assert code == cli.EXIT_BUG == 70
@@ -51,7 +52,7 @@ def test_a_user_error_is_exit_2(monkeypatch, capsys) -> None:
     def user(args: object) -> int:
         raise UserError("robot.toml: line 3: bad")
 
-    monkeypatch.setattr(cli, "cmd_check_robot", user)
+    monkeypatch.setattr(check_robot, "run", user)
     assert main(["check-robot", "robot.toml"]) == 2
     assert capsys.readouterr().err == "continuum-mhe: error: robot.toml: line 3: bad\n"
 

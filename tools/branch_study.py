@@ -19,12 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.sample_stream import load_estimate_input
-from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.simulation.scenarios import simulate_robot
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -6,7 +6,7 @@ set -euo pipefail
 build="${1:?usage: tools/build_core.sh BUILD_DIR}"
 cmake --build "$build"
 site="$(python -c 'import sysconfig; print(sysconfig.get_paths()["platlib"])')"
-for so in "$build"/_core*.so; do  # a new file, renamed over the old: a running process keeps its copy
-    cp "$so" "$site/continuum_mhe/.$(basename "$so").tmp"
-    mv -f "$site/continuum_mhe/.$(basename "$so").tmp" "$site/continuum_mhe/$(basename "$so")"
+for so in "$build"/_ext*.so; do  # a new file, renamed over the old: a running process keeps its copy
+    cp "$so" "$site/continuum_mhe/_core/.$(basename "$so").tmp"
+    mv -f "$site/continuum_mhe/_core/.$(basename "$so").tmp" "$site/continuum_mhe/_core/$(basename "$so")"
 done

@@ -2,7 +2,7 @@
 
 The two ``continuum-mhe benchmark`` rows whose ratio the speed target compares (``fast`` and
 ``ekf-compiled``, with ``mhe-kernel`` and ``ekf-kernel`` beside them), timed as the
-benchmark times them (:func:`~continuum_mhe.benchmark._cheap_runs`, rounds in turn,
+benchmark times them (:func:`~continuum_mhe.benchmark.harness._cheap_runs`, rounds in turn,
 each sample's median over the rounds) on its 40 s ``paper3d`` recording, without IPOPT
 and do-mpc, so that the ratio can be measured again in a few seconds::
 
@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-from continuum_mhe.benchmark import _cheap_runs, _interleaved
+from continuum_mhe.benchmark.harness import _cheap_runs, _interleaved
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.simulation.scenarios import simulate
 

@@ -1,6 +1,6 @@
 """Where the bare MHE kernel's time goes, part by part, from the CPU's cycle counter.
 
-Runs :func:`~continuum_mhe.benchmark_kernels.run_mhe_kernel` (N = 30 unless given) on
+Runs :func:`~continuum_mhe.benchmark.kernels.run_mhe_kernel` (N = 30 unless given) on
 the 20 s ``paper3d`` recording of ``tools/kernel_timing.py``, with instrumented copies
 of :func:`~continuum_mhe.estimators.fast.step.advance_finish`, ``advance`` and
 :func:`~continuum_mhe.estimators.fast.sqp._sqp`: the same source with cycle-counter
@@ -33,7 +33,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
+from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.estimators.fast import sqp as sqp_module
 from continuum_mhe.estimators.fast import step as step_module
 from continuum_mhe.model.registry import make_formulation

@@ -1,7 +1,7 @@
 """The bare MHE kernel against the bare EKF kernel, timed alone in one process.
 
-Runs :func:`~continuum_mhe.benchmark_kernels.run_mhe_kernel` and
-:func:`~continuum_mhe.benchmark_kernels.run_ekf_kernel` (the compiled calls of one step,
+Runs :func:`~continuum_mhe.benchmark.kernels.run_mhe_kernel` and
+:func:`~continuum_mhe.benchmark.kernels.run_ekf_kernel` (the compiled calls of one step,
 inputs prepared outside the timed part) on a 20 s ``paper3d`` recording, three rounds
 after a warm-up, and prints each round's medians (us per sample) and their ratio:
 
@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
+from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.simulation.scenarios import simulate
 

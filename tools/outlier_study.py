@@ -35,7 +35,7 @@ from scipy import integrate, optimize, stats
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
-from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.reproduce import beyond
 from continuum_mhe.settings import DEFAULT_LOSS_SCALE
 from continuum_mhe.simulation.scenarios import simulate

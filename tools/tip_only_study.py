@@ -13,7 +13,7 @@ from collections import Counter
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.benchmark import raw_imu_recording
+from continuum_mhe.benchmark.harness import raw_imu_recording
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.simulation.scenarios import simulate_robot
 

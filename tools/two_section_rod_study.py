@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import read_measurements, read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.sample_stream import load_estimate_input
-from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
@@ -66,7 +66,7 @@ def calibrated_robot(robot: Robot, rest: Path, bend: Path | None = None) -> Robo
     calibrate --from REST --robot ...`` prints it (rounded to 0.01 degree as printed);
     with ``bend``, the yaw from that recording of a bend towards ``phi = 0`` too
     (``--bend BEND``)."""
-    from continuum_mhe.stream.calibrate import bend_yaws, calibrate, read_recording
+    from continuum_mhe.calibration.at_rest import bend_yaws, calibrate, read_recording
 
     fmt, t, values = read_recording(str(rest), robot.n_imus)
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)

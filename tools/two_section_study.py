@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.benchmark import raw_imu_recording
+from continuum_mhe.benchmark.harness import raw_imu_recording
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.metrics import compute_metrics
 from continuum_mhe.simulation.scenarios import simulate_robot
 
 ROBOT = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"

@@ -4,7 +4,7 @@ Public surface::
 
     from continuum_mhe import (Robot, Section, ImuPlacement, NoiseSettings, MHESettings,
                                make_formulation, make_estimator, simulate, simulate_robot,
-                               Measurement)
+                               Measurement, backbone_points)
     from continuum_mhe.io import read_measurements, write_estimates
 
 The names are imported on first use (PEP 562), so that ``continuum-mhe --help`` and
@@ -29,13 +29,14 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
-    "Metrics": "continuum_mhe.metrics",
-    "compute_metrics": "continuum_mhe.metrics",
+    "Metrics": "continuum_mhe.evaluation.metrics",
+    "compute_metrics": "continuum_mhe.evaluation.metrics",
     "DirectFormulation": "continuum_mhe.model.direct",
     "BendFormulation": "continuum_mhe.model.formulations",
     "Formulation": "continuum_mhe.model.formulations",
     "PaperFormulation": "continuum_mhe.model.formulations",
     "make_formulation": "continuum_mhe.model.registry",
+    "backbone_points": "continuum_mhe.model.pcc",
     "ImuPlacement": "continuum_mhe.model.robot",
     "Robot": "continuum_mhe.model.robot",
     "Section": "continuum_mhe.model.robot",
@@ -75,9 +76,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         UnscentedKalmanFilter,
         make_estimator,
     )
-    from continuum_mhe.metrics import Metrics, compute_metrics
+    from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
     from continuum_mhe.model.direct import DirectFormulation
     from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+    from continuum_mhe.model.pcc import backbone_points
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
     from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings

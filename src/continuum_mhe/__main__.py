@@ -2,6 +2,6 @@
 
 import sys
 
-from continuum_mhe.entry import main
+from continuum_mhe.cli.entry import main
 
 sys.exit(main())

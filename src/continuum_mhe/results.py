@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Literal
+from enum import Enum
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,50 +19,86 @@ from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 
 FloatArray = NDArray[np.float64]
 
-Status = Literal[
-    "ok",  # converged (or a filter update)
-    "dropout",  # no valid measurement of any sensor at this sample: prediction only
-    "not-converged",  # solver stopped early; its last feasible iterate is used
-    "solver-failed",  # solver error; projected prediction is used
-    "no-estimate",  # nothing to estimate from (see STATUS_MEANINGS), or --paper-start
-    "fallback-ipopt",  # fast backend could not certify convergence; IPOPT answered
-    "branch-restart",  # MHE: a restart found a lower window cost (estimators/branch.py)
-    "reset",  # diverged, failed numerically, lost all certainty or a long gap: restarted here
-    "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
-    "drifted",  # position state inconsistent with its own angles (paper formulation)
-    "at-bound",  # a section's bend sits on its theta_max: the robot may bend further
-]
 
-#: Every status, with its meaning (the one vocabulary of every estimator and output).
-STATUS_MEANINGS: dict[str, str] = {
-    "ok": "converged (MHE) or updated with a measurement (filters)",
-    "dropout": "no valid measurement of any sensor at this sample: prediction only (a "
-    "sample where some IMUs reported is updated with those and keeps that update's status)",
-    "not-converged": "solver stopped early; its last feasible iterate is used",
-    "solver-failed": "solver error; the projected prediction is used",
-    "no-estimate": "no estimate: before the first valid reading; the first N-1 samples "
-    "with --paper-start; after a restart (divergence, failure, an uncertainty beyond the "
-    "workspace) at a sample without a valid reading, until the next valid reading; a "
-    "restart that failed even from the reading; live: an estimator step that raised",
-    "fallback-ipopt": "the fast MHE backend did not answer; IPOPT solved this window",
-    "branch-restart": "the MHE's window fit was implausible (chi-square test of its "
-    "measurement cost) and a restart from another start found a lower window cost, or, "
-    "with the arrival prior forgotten, a fit at least twice as good: this answer "
-    "replaced the warm-started one (--branch-check)",
-    "reset": "the estimator diverged (non-finite or far outside the workspace), failed "
-    "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
-    "from this sample's measurement, and this is the restarted estimate; also after a gap "
-    "in the data longer than --gap-reset",
-    "uncertain": "an estimate was made, but the tip position's standard deviation exceeds "
-    "the stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
-    "that reported within --gap-reset) do not determine the robot's shape: do not trust it",
-    "drifted": "the position state is more than DRIFT_FRACTION (10 %) of the length from "
-    "the forward kinematics of the row's own theta and phi (the paper formulation's "
-    "separate x, y, z): the row is not one consistent shape",
-    "at-bound": "an estimate was made, but a section's bend sits on (or beyond) its "
-    "theta_max: the robot may bend further than the robot file (or --theta-max) allows, "
-    "and the bound clipped the shape; raise theta_max if the robot really bends so far",
-}
+class Status(str, Enum):
+    """What became of one sample: the one vocabulary of every estimator and output file.
+
+    Each member is its string (``Status.OK == "ok"``, written as ``ok`` in a CSV) and
+    carries its :attr:`meaning`.
+    """
+
+    meaning: str
+
+    def __new__(cls, value: str, meaning: str) -> Status:
+        member = str.__new__(cls, value)
+        member._value_ = value
+        member.meaning = meaning
+        return member
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, spec: str) -> str:
+        return format(str(self.value), spec)
+
+    __hash__ = str.__hash__
+
+    OK = "ok", "converged (MHE) or updated with a measurement (filters)"
+    DROPOUT = (
+        "dropout",
+        "no valid measurement of any sensor at this sample: prediction only (a sample "
+        "where some IMUs reported is updated with those and keeps that update's status)",
+    )
+    NOT_CONVERGED = "not-converged", "solver stopped early; its last feasible iterate is used"
+    SOLVER_FAILED = "solver-failed", "solver error; the projected prediction is used"
+    NO_ESTIMATE = (
+        "no-estimate",
+        "no estimate: before the first valid reading; the first N-1 samples with "
+        "--paper-start; after a restart (divergence, failure, an uncertainty beyond the "
+        "workspace) at a sample without a valid reading, until the next valid reading; a "
+        "restart that failed even from the reading; live: an estimator step that raised",
+    )
+    FALLBACK_IPOPT = (
+        "fallback-ipopt",
+        "the fast MHE backend did not answer; IPOPT solved this window",
+    )
+    BRANCH_RESTART = (
+        "branch-restart",
+        "the MHE's window fit was implausible (chi-square test of its measurement cost) "
+        "and a restart from another start found a lower window cost, or, with the arrival "
+        "prior forgotten, a fit at least twice as good: this answer replaced the "
+        "warm-started one (--branch-check)",
+    )
+    RESET = (
+        "reset",
+        "the estimator diverged (non-finite or far outside the workspace), failed "
+        "numerically, or its uncertainty exceeded the workspace (a long gap): it restarted "
+        "from this sample's measurement, and this is the restarted estimate; also after a "
+        "gap in the data longer than --gap-reset",
+    )
+    UNCERTAIN = (
+        "uncertain",
+        "an estimate was made, but the tip position's standard deviation exceeds the "
+        "stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
+        "that reported within --gap-reset) do not determine the robot's shape: do not "
+        "trust it",
+    )
+    DRIFTED = (
+        "drifted",
+        "the position state is more than DRIFT_FRACTION (10 %) of the length from the "
+        "forward kinematics of the row's own theta and phi (the paper formulation's "
+        "separate x, y, z): the row is not one consistent shape",
+    )
+    AT_BOUND = (
+        "at-bound",
+        "an estimate was made, but a section's bend sits on (or beyond) its theta_max: the "
+        "robot may bend further than the robot file (or --theta-max) allows, and the bound "
+        "clipped the shape; raise theta_max if the robot really bends so far",
+    )
+
+
+#: Every status's meaning by its string (read from :class:`Status`).
+STATUS_MEANINGS: dict[str, str] = {status.value: status.meaning for status in Status}
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,8 @@
-"""Typed, frozen settings. Every field is validated on construction."""
+"""Typed, frozen settings of the estimators (:class:`MHESettings`) and of the sensor-health
+policy around them (:class:`RecoverySettings`). Every field is validated on
+construction. The model's settings (:class:`RobotSettings`, :class:`NoiseSettings`,
+:data:`FormulationName`) live in :mod:`continuum_mhe.model.settings` and are
+re-exported here."""
 
 from __future__ import annotations
 
@@ -8,11 +12,32 @@ from dataclasses import dataclass
 from typing import Literal
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.model.imu import MOUNTINGS, Mounting
-from continuum_mhe.model.robot import check_theta_max
+from continuum_mhe.model.settings import (
+    FORMULATIONS,
+    MIN_MEASUREMENT_STD,
+    FormulationName,
+    NoiseSettings,
+    RobotSettings,
+    check_positive,
+)
 
-FormulationName = Literal["bend", "paper", "direct"]
-FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
+__all__ = [
+    "DEFAULT_LOSS_SCALE",
+    "MAX_HORIZON",
+    "MIN_MEASUREMENT_STD",
+    "FORMULATIONS",
+    "FREEZE_MIN_SAMPLES",
+    "MHE_LOSSES",
+    "MHE_SOLVERS",
+    "FormulationName",
+    "MHELoss",
+    "MHESettings",
+    "MHESolver",
+    "NoiseSettings",
+    "RecoverySettings",
+    "RobotSettings",
+]
+
 MHESolver = Literal["fast", "ipopt"]
 MHE_SOLVERS: tuple[MHESolver, ...] = ("fast", "ipopt")
 MHELoss = Literal["l2", "huber", "cauchy", "welsch"]
@@ -31,81 +56,9 @@ DEFAULT_LOSS_SCALE: dict[str, float] = {
 }  # fmt: skip
 
 
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise UserError(f"{name} must be a positive finite number, got {value!r}")
-
-
-@dataclass(frozen=True)
-class RobotSettings:
-    """One inextensible constant-curvature section with an IMU at its tip.
-
-    Attributes:
-        length: section length ``s`` in metres.
-        theta_max: upper bound on the bending angle ``theta`` in radians (eq. 11 uses
-            ``pi/2``). Must lie in ``(0, pi)``.
-        mounting: ``"z-up"`` (base z against gravity) or ``"z-down"`` (hanging).
-    """
-
-    length: float = 0.2
-    theta_max: float = math.pi / 2
-    mounting: Mounting = "z-up"
-
-    def __post_init__(self) -> None:
-        _positive("length", self.length)
-        check_theta_max(self.theta_max)
-        if self.mounting not in MOUNTINGS:
-            raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
-
-
 #: Longest MHE window, samples (the command line's ``--horizon`` range: a window of
 #: 10^9 samples is a memory error in CasADi, not an estimator).
 MAX_HORIZON = 1000
-#: Smallest measurement standard deviation accepted, rad (0.2 arcseconds).
-MIN_MEASUREMENT_STD = 1e-6
-
-
-@dataclass(frozen=True)
-class NoiseSettings:
-    """Noise model shared by every estimator (same Q and R for MHE, EKF and UKF).
-
-    Attributes:
-        measurement_std: standard deviation of roll and pitch, rad. The paper's
-            ``V = diag(2, 2)`` "degrees" is read as 2 degrees; weights are 1/std^2.
-        bend_accel_psd: white-noise acceleration spectral density of the bend vector
-            ``(a, b)`` in the default formulation, rad^2/s^3. The default came from a
-            sweep of the EKF's tip error over simulated recordings (docs/model.md).
-        paper_process_weight: the paper's ``W = w I`` (weight, i.e. inverse
-            covariance per step) for the five-state formulation.
-        initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
-            ``(theta, phi)``, rad.
-        initial_rate_std: prior standard deviation of the initial bend rates, rad/s.
-    """
-
-    measurement_std: float = math.radians(2.0)
-    bend_accel_psd: float = 0.5
-    paper_process_weight: float = 10.0
-    initial_bend_std: float = 0.1
-    initial_rate_std: float = 0.5
-
-    def __post_init__(self) -> None:
-        if (
-            isinstance(self.measurement_std, (int, float))
-            and 0 < self.measurement_std < MIN_MEASUREMENT_STD
-        ):
-            raise UserError(
-                f"measurement_std {self.measurement_std!r} rad is below "
-                f"{MIN_MEASUREMENT_STD:g} rad ({math.degrees(MIN_MEASUREMENT_STD):.2g} deg), "
-                "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
-            )
-        for name in (
-            "measurement_std",
-            "bend_accel_psd",
-            "paper_process_weight",
-            "initial_bend_std",
-            "initial_rate_std",
-        ):
-            _positive(name, getattr(self, name))
 
 
 @dataclass(frozen=True)
@@ -150,7 +103,7 @@ class MHESettings:
         if self.loss not in MHE_LOSSES:
             raise UserError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
         if self.loss_scale is not None:
-            _positive("loss_scale", self.loss_scale)
+            check_positive("loss_scale", self.loss_scale)
         if not (
             isinstance(self.horizon, int)
             and not isinstance(self.horizon, bool)
@@ -163,7 +116,7 @@ class MHESettings:
             raise UserError(f"branch_check must be True or False, got {self.branch_check!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
-        _positive("tol", self.tol)
+        check_positive("tol", self.tol)
 
     @property
     def scale(self) -> float:
@@ -236,8 +189,8 @@ class RecoverySettings:
         for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
             value = getattr(self, name)
             if value is not None:
-                _positive(name, value)
-        _positive("uncertain_fraction", self.uncertain_fraction)
+                check_positive(name, value)
+        check_positive("uncertain_fraction", self.uncertain_fraction)
         n = self.freeze_samples
         if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2):
             raise UserError(f"freeze_samples must be an integer >= 2, got {n!r}")

@@ -28,7 +28,7 @@ from continuum_mhe.signals import interrupt_in_chain
 
 #: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
 #: data do not determine the shape (the others already say more).
-TRUSTED = ("ok", "fallback-ipopt", "branch-restart")
+TRUSTED = (Status.OK, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART)
 #: An IMU silent for longer than this (s) no longer observes its part of the shape when
 #: the gap reset is off (else the gap reset's time).
 UNOBSERVED_AFTER = 1.0
@@ -360,35 +360,35 @@ class Estimator(ABC):
             except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
                 _reraise_interrupt(exc)
                 self.last_failure = f"{type(exc).__name__}: {exc}"
-                state, cov, status = None, None, "no-estimate"
+                state, cov, status = None, None, Status.NO_ESTIMATE
             if state is not None and self.formulation.is_diverged(state, cov):
                 self._restart()
-                state, cov, status = None, None, "no-estimate"
+                state, cov, status = None, None, Status.NO_ESTIMATE
             if state is not None:
-                status = "reset"
+                status = Status.RESET
         if (gap_reset or bad_start or reject_reset) and state is not None:
-            status = "reset"
+            status = Status.RESET
         if check_start:
             self._start_check.remember(t, measurement.z, state, cov)
-        if status == "ok" and state is not None and self.formulation.drifted(state):
-            status = "drifted"
+        if status == Status.OK and state is not None and self.formulation.drifted(state):
+            status = Status.DRIFTED
         if status in TRUSTED and not observed:
-            status = "uncertain"  # the data do not determine the shape
+            status = Status.UNCERTAIN  # the data do not determine the shape
         elif status in TRUSTED and self._start_check.unconfirmed:
-            status = "uncertain"  # an IMU is back and no reading has confirmed the estimate
+            status = Status.UNCERTAIN  # an IMU is back and no reading has confirmed the estimate
         elif status in TRUSTED and state is not None and self.formulation.at_bound(state):
-            status = "at-bound"  # the bound, not the data, may have set the shape
+            status = Status.AT_BOUND  # the bound, not the data, may have set the shape
             self.bound_samples += 1
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None
         if state is not None and cov is not None:
             std = self._output_std(state, cov)
-            if status == "ok" and self._tip and self.formulation.calibrated_covariance:
+            if status == Status.OK and self._tip and self.formulation.calibrated_covariance:
                 sl = std.tolist()  # a few floats: plain Python is faster than numpy here
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
-                    status = "uncertain"
+                    status = Status.UNCERTAIN
         outlier = state is not None and self._outlier()
         # the reject reset's run; a sample without readings (None) neither ends nor extends it
         rejected = state is not None and self._rejected_every_reading()

@@ -186,14 +186,14 @@ class BranchCheck:
         prior on the answer's first node with its covariance times ``FORGET``.
         """
         self.stats.checked += 1
-        if status not in ("ok", "fallback-ipopt") or not self.implausible(problem, X):
+        if status not in (Status.OK, Status.FALLBACK_IPOPT) or not self.implausible(problem, X):
             return X, status, None, False
         self.stats.fired += 1
         won = self._best_restart(problem, X, solve, cost)
         if won is not None:
             self.stats.restarted += 1
             self.stats.sources[won[3]] = self.stats.sources.get(won[3], 0) + 1
-            return won[0], "branch-restart", won[2], False
+            return won[0], Status.BRANCH_RESTART, won[2], False
         if not self.forget_prior:
             return X, status, None, False
         return self._forget_prior(problem, X, status, solve, cost)
@@ -208,7 +208,7 @@ class BranchCheck:
         best: tuple[FloatArray, Status, object, str] | None = None
         for name, X0 in self.candidates(problem).items():
             Xc, st, state = solve(problem, X0)
-            if st not in ("ok", "fallback-ipopt"):
+            if st not in (Status.OK, Status.FALLBACK_IPOPT):
                 continue
             c = cost(problem, Xc)
             if c < bar and (best is None or c < best_cost):
@@ -229,7 +229,7 @@ class BranchCheck:
         best: tuple[float, FloatArray, object] | None = None
         for X0 in (X, *self.candidates(relaxed).values()):
             Xc, st, state = solve(relaxed, X0)
-            if st in ("ok", "fallback-ipopt"):
+            if st in (Status.OK, Status.FALLBACK_IPOPT):
                 c = cost(relaxed, Xc)
                 if best is None or c < best[0]:
                     best = (c, Xc, state)
@@ -238,7 +238,7 @@ class BranchCheck:
             return X, status, None, False
         self.stats.restarted += 1
         self.stats.prior_forgotten += 1
-        return best[1], "branch-restart", best[2], True
+        return best[1], Status.BRANCH_RESTART, best[2], True
 
 
 def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:

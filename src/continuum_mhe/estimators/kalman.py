@@ -98,19 +98,19 @@ class _KalmanBase(Estimator):
         mask = f.measurement_mask(m.z)
         if self._x is None or self._P is None:
             if not mask.any():  # nothing to start from yet
-                return None, None, "no-estimate"
+                return None, None, Status.NO_ESTIMATE
             # prior from the first reading's inverse, then updated with that reading:
             # the same convention as the MHE (arrival prior plus the first measurement)
             self._x, self._P = self._update(f.initial_state(m.z), f.initial_cov(), m.z, mask)
             self._t_prev, self._z_prev = m.t, m.z
-            return self._x.copy(), self._P.copy(), "ok"
+            return self._x.copy(), self._P.copy(), Status.OK
         dt = m.t - self._t_prev
         u = f.inputs(self._z_prev, m.z, dt)
         x, P = self._predict(self._x, self._P, u, dt)
-        status: Status = "dropout"
+        status: Status = Status.DROPOUT
         if mask.any():
             x, P = self._update(x, P, m.z, mask)
-            status = "ok"
+            status = Status.OK
             self._z_prev = m.z
         self._x, self._P, self._t_prev = x, P, m.t
         return x.copy(), P.copy(), status
@@ -169,7 +169,7 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         x, P, y, std = self._node.ekf_step_outputs(
             self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt)[0]
         )
-        status: Status = "ok" if mask.any() else "dropout"
+        status: Status = Status.OK if mask.any() else Status.DROPOUT
         if mask.any():
             self._z_prev = m.z
         self._x, self._P, self._t_prev = x, P, m.t

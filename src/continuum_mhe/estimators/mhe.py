@@ -359,7 +359,7 @@ class MovingHorizonEstimator(Estimator):
         valid = bool(mask.any())
         if self._xbar is None:
             if not valid:
-                return None, None, "no-estimate"
+                return None, None, Status.NO_ESTIMATE
             self._xbar = np.array(f.project(f.initial_state(m.z)), dtype=np.float64)
             self._P = np.array(f.initial_cov(), dtype=np.float64)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
@@ -370,7 +370,7 @@ class MovingHorizonEstimator(Estimator):
         self._X_last = None
         if self.settings.paper_start and self._k < self.settings.horizon:
             self._X = X0
-            return None, None, "no-estimate"
+            return None, None, Status.NO_ESTIMATE
         problem = self.window_problem(copy=False)
         X, status = self._solve(problem, X0)
         solved, hessian, last_iterate = X, self._last_hessian, self._last_iterate
@@ -382,7 +382,7 @@ class MovingHorizonEstimator(Estimator):
         if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
             self._X_last = last_iterate
         hessian = hessian if X is solved else None  # the SQP's, if its answer is kept
-        cov = None if status == "solver-failed" else self.covariance(problem, X, hessian)
+        cov = None if status == Status.SOLVER_FAILED else self.covariance(problem, X, hessian)
         return X[-1].copy(), cov, status
 
     def _keep(
@@ -399,7 +399,7 @@ class MovingHorizonEstimator(Estimator):
             self._w_first = self._node_weights(0, X[0])
             w_new, self._w_new = self._w_new, None  # the newest node's, if computed
             self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
-        return "dropout" if status == "ok" and not valid else status
+        return Status.DROPOUT if status == Status.OK and not valid else status
 
     def _fast_step(
         self, m: Measurement, mask: FloatArray, valid: bool
@@ -448,12 +448,13 @@ class MovingHorizonEstimator(Estimator):
             self._z_prev_valid = m.z
         if outcome == NOT_SOLVED:
             self._X = s.X0.copy()
-            return None, None, "no-estimate"
+            return None, None, Status.NO_ESTIMATE
         self.sqp_iterations = int(it)
         if finished is not None:  # certified, outputs and covariance in the same call
             self._lam = s.lam if self._lam is None else self._lam
             y, cov, std = finished
-            status = self._keep(answer, "ok", valid, s.weights if self.flags_outliers else None)
+            weights = s.weights if self.flags_outliers else None
+            status = self._keep(answer, Status.OK, valid, weights)
             if self.second_start is not None:  # as _try_second_start when nothing is tried
                 if self._k < n:
                     self.second_start.clear()
@@ -469,12 +470,12 @@ class MovingHorizonEstimator(Estimator):
             X: FloatArray = s.workspace.Xb[cur].copy()
             solved, last_iterate = X, s.workspace.Xb[1 - cur].copy()
             self._lam = s.lam if self._lam is None else self._lam
-            status = "ok"
+            status = Status.OK
         else:
             self._lam = None
             problem = self.window_problem(copy=False)
             X, status = self._solve_ipopt(problem, s.X0.copy())
-            status = "fallback-ipopt" if status == "ok" else status
+            status = Status.FALLBACK_IPOPT if status == Status.OK else status
         if self.branch is not None:
             X, status = self._check_branch(problem or self.window_problem(copy=False), X, status)
         if self.second_start is not None:
@@ -484,7 +485,7 @@ class MovingHorizonEstimator(Estimator):
         if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
             self._X_last = last_iterate
         state = X[-1].copy()
-        if status == "solver-failed":
+        if status == Status.SOLVER_FAILED:
             return state, None, status
         y, cov, std = s.finish(X, xbar, answer=cur if X is solved else -1)
         self._outputs_of = (state, y, std)
@@ -551,8 +552,8 @@ class MovingHorizonEstimator(Estimator):
         self._last_hessian = self._last_iterate = None
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
-            if self.settings.solver == "fast" and status == "ok":
-                status = "fallback-ipopt"  # announced once at construction
+            if self.settings.solver == "fast" and status == Status.OK:
+                status = Status.FALLBACK_IPOPT  # announced once at construction
             return X, status
         lam0 = None
         if self._lam is not None:
@@ -564,10 +565,10 @@ class MovingHorizonEstimator(Estimator):
         self._last_hessian, self._last_iterate = res.hessian, res.X_last
         if res.converged:
             self._lam = res.lam
-            return res.X, "ok"
+            return res.X, Status.OK
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
-        return X, "fallback-ipopt" if status == "ok" else status
+        return X, Status.FALLBACK_IPOPT if status == Status.OK else status
 
     def _try_second_start(
         self, problem: WindowProblem, X: FloatArray, status: Status
@@ -613,7 +614,7 @@ class MovingHorizonEstimator(Estimator):
         fast = self._fast
         cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
         X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
-        self._lam = kept if status != "branch-restart" else lam  # type: ignore[assignment]
+        self._lam = kept if status != Status.BRANCH_RESTART else lam  # type: ignore[assignment]
         if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
             assert self._P is not None
             self._xbar = self.formulation.project(X[0])
@@ -639,17 +640,17 @@ class MovingHorizonEstimator(Estimator):
             stats = nlp.solver.stats()
             X = np.asarray(sol["x"], dtype=float).reshape(n, nx)
         except RuntimeError:
-            return self._fallback(X0), "solver-failed"
+            return self._fallback(X0), Status.SOLVER_FAILED
         # a Ctrl-C inside IPOPT under Python's own handler (a script: not deferred)
         # ends the run, not just this solve
         raise_if_solve_interrupted(stats["return_status"])
         if not np.all(np.isfinite(X)):
-            return self._fallback(X0), "solver-failed"
+            return self._fallback(X0), Status.SOLVER_FAILED
         if stats["success"]:
-            return X, "ok"
+            return X, Status.OK
         if all(self.formulation.is_feasible(x, 1e-6) for x in X):
-            return X, "not-converged"
-        return self._fallback(X0), "solver-failed"
+            return X, Status.NOT_CONVERGED
+        return self._fallback(X0), Status.SOLVER_FAILED
 
     def _fallback(self, X0: FloatArray) -> FloatArray:
         return np.array([self.formulation.project(x) for x in X0])

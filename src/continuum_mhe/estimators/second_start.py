@@ -50,7 +50,7 @@ SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status]]
 #: ``cost(problem, X) -> window cost`` (the NLP objective).
 CostFn = Callable[["WindowProblem", FloatArray], float]
 #: Statuses of a usable answer.
-USABLE = ("ok", "fallback-ipopt")
+USABLE = (Status.OK, Status.FALLBACK_IPOPT)
 
 
 class SecondStart:

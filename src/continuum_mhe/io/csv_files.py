@@ -389,12 +389,31 @@ class StateTable:
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
 
 
+#: the suffix of a truth column kept beside the measurements of a recording
+TRUE_SUFFIX = "_true"
+
+
+def truth_named(header: list[str], required: Sequence[str]) -> list[str]:
+    """``header`` with each ``NAME_true`` column renamed ``NAME`` when the ``required``
+    columns are absent and their ``_true`` columns present (a recording with its truth
+    beside the measurements); else ``header`` itself."""
+    if all(c in header for c in required) or not all(
+        c + TRUE_SUFFIX in header for c in required
+    ):
+        return header
+    return [h[: -len(TRUE_SUFFIX)] if h.endswith(TRUE_SUFFIX) else h for h in header]
+
+
 def read_state_table(
     path: str | os.PathLike[str], required: Sequence[str] = TIP_COLUMNS
 ) -> StateTable:
     """Read an estimate or truth CSV with at least ``t`` and ``required`` columns; every
-    other numeric output column (``theta``, ``phi_2``, ``std_x``...) is kept."""
+    other numeric output column (``theta``, ``phi_2``, ``std_x``...) is kept. A
+    recording that carries its truth beside the measurements (``x_true, y_true, z_true``,
+    as the shipped ``rod_planar.csv``) is read as that truth: each ``NAME_true`` column
+    is the output ``NAME``."""
     table, body = _read_rows(path)
+    table.header = truth_named(table.header, required)
     p, header = table.name, table.header
     column_indices(table, ("t", *required))
     names = tuple(
@@ -546,10 +565,13 @@ def current_umask() -> int:
 _WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
 
 
-def check_output_target(path: str | os.PathLike[str]) -> Path:
+def check_output_target(
+    path: str | os.PathLike[str], overwrite: bool = True, option: str = "-o"
+) -> Path:
     """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
     ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
-    file, or a read-only file (never silently replaced)."""
+    file, a read-only file (never silently replaced), or, unless ``overwrite``, an
+    existing file (the error names ``--overwrite`` and the command's ``option``)."""
     text = os.fspath(path)
     target = Path(text)
     if text == "-":
@@ -566,6 +588,8 @@ def check_output_target(path: str | os.PathLike[str]) -> Path:
         raise InputError(f"{target}: is a directory, expected a file name")
     if target.exists() and not target.is_file():
         raise InputError(f"{target}: not a regular file; give a file name")
+    if target.exists() and not overwrite:
+        raise InputError(f"{target}: exists; give --overwrite to replace it, or another {option}")
     if target.exists() and not target.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
         raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
                          "or remove it)")  # fmt: skip

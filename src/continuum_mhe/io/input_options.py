@@ -225,10 +225,10 @@ def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> Es
 
 def imu_settings_for(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
     """The conversion settings of one IMU: the robot file's mounting where it gives one,
-    else ``--mount-rpy``."""
+    else ``--mount-rpy``; the robot file's gyro bias."""
     if any(place.mount_rpy):
-        return replace(raw, mount_rpy=place.mount_rpy)
-    return raw
+        raw = replace(raw, mount_rpy=place.mount_rpy)
+    return replace(raw, gyro_bias=place.gyro_bias) if any(place.gyro_bias) else raw
 
 
 def convert_raw(

@@ -180,6 +180,10 @@ class McapEstimateWriter:
             publish_time=ns, sequence=seq,
         )  # fmt: skip
 
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        """A metadata record ``name`` (e.g. the options the estimates were made with)."""
+        self._writer.add_metadata(name, data)
+
     def finish(self) -> None:
         self._writer.finish()
 

@@ -76,11 +76,15 @@ class RawImuSettings:
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X:
             ``v_tip = Rz(yaw) Ry(pitch) Rx(roll) v_sensor``. Zero when the sensor
             axes already match the tip frame.
+        gyro_bias: the gyro's bias at rest ``(gx, gy, gz)`` in rad/s, sensor frame
+            (``continuum-mhe calibrate`` measures it), subtracted from every reading
+            before the mounting; an estimated bias then starts from it.
     """
 
     imu_model: ImuModel = "tilt"
     attitude: Attitude = "accel"
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if self.imu_model not in IMU_MODELS:
@@ -90,6 +94,10 @@ class RawImuSettings:
         if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
             raise UserError(
                 f"mount_rpy must be three finite angles in degrees, got {self.mount_rpy!r}"
+            )
+        if len(self.gyro_bias) != 3 or not all(math.isfinite(v) for v in self.gyro_bias):
+            raise UserError(
+                f"gyro_bias must be three finite rates in rad/s, got {self.gyro_bias!r}"
             )
 
     @property
@@ -140,6 +148,7 @@ class RawImuConverter:
     def __init__(self, settings: RawImuSettings) -> None:
         self.settings = settings
         self._mount = mount_rotation(settings.mount_rpy)
+        self._bias = np.asarray(settings.gyro_bias, dtype=float)
         self._filter: Any = None
         if settings.imu_model == "tilt" and settings.attitude != "accel":
             from ahrs.filters import Madgwick, Mahony
@@ -161,7 +170,7 @@ class RawImuConverter:
         ``acc`` specific force (3,) in any unit, ``gyr`` (3,) rad/s or None.
         """
         acc = self._mount @ np.asarray(acc, dtype=float)
-        gyro = None if gyr is None else self._mount @ np.asarray(gyr, dtype=float)
+        gyro = None if gyr is None else self._mount @ (np.asarray(gyr, dtype=float) - self._bias)
         if self.settings.imu_model == "direct":
             if gyro is None:
                 raise UserError("the direct IMU model needs gyro readings (gx, gy, gz)")

@@ -13,6 +13,8 @@ Format (every key but ``length`` is optional)::
     at = 1.0                   # fraction of the section's length, default 1.0 (its end)
     mount_rpy = [0, 0, 0]      # sensor mounting roll, pitch, yaw in degrees, default 0
                                # (rotates raw readings; tilt input is used as it is)
+    gyro_bias = [0, 0, 0]      # gyro bias at rest, rad/s, sensor frame, default 0
+                               # (subtracted from raw gyro readings)
     [[imu]]
     section = 2
 
@@ -57,7 +59,7 @@ else:  # pragma: no cover - Python 3.10
 
 _TOP_KEYS = {"mounting", "section", "imu"}
 _SECTION_KEYS = {"length", "theta_max"}
-_IMU_KEYS = {"section", "at", "mount_rpy"}
+_IMU_KEYS = {"section", "at", "mount_rpy", "gyro_bias"}
 MM = 1e-3  # m
 
 
@@ -190,8 +192,14 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
                 UnitWarning,
                 stacklevel=3,
             )
+        bias = table.get("gyro_bias", [0.0, 0.0, 0.0])
+        if not isinstance(bias, list) or len(bias) != 3:
+            raise InputError(f"{path}: {where}: gyro_bias must be [gx, gy, gz] in rad/s")
+        gb = tuple(_number(path, f"{where}: gyro_bias", v) for v in bias)
         try:
-            imus.append(ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2])))
+            imus.append(
+                ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2]), (gb[0], gb[1], gb[2]))
+            )
         except ValueError as exc:
             raise InputError(f"{path}: {where}: {exc}") from None
     if not imus:
@@ -240,4 +248,42 @@ def robot_toml(robot: Robot) -> str:
         lines += ["", "[[imu]]", f"section = {imu.section + 1}", f"at = {imu.at!r}"]
         if any(imu.mount_rpy):
             lines.append(f"mount_rpy = {list(imu.mount_rpy)!r}")
+        if any(imu.gyro_bias):
+            lines.append(f"gyro_bias = {list(imu.gyro_bias)!r}")
     return "\n".join(lines) + "\n"
+
+
+def robot_source_text(name: str | None, robot: Robot) -> str:
+    """The text of the robot file ``name`` (a path or a shipped robot's name), or, without
+    one, the file of ``robot`` (:func:`robot_toml`)."""
+    if not name:
+        return robot_toml(robot)
+    p = Path(name)
+    if not p.exists() and name in shipped_robots():
+        p = shipped_robots()[name]
+    return p.read_text(encoding="utf-8")
+
+
+def with_imu_calibration(
+    text: str,
+    mount_rpy: Sequence[Sequence[float]],
+    gyro_bias: Sequence[Sequence[float]] | None,
+    path: str | os.PathLike[str],
+) -> str:
+    """The robot file ``text`` with each ``[[imu]]``'s ``mount_rpy`` (degrees) and, where
+    given, ``gyro_bias`` (rad/s) set, in the file's IMU order; its comments and layout
+    kept (tomlkit). The result is checked as :func:`read_robot` would (``path`` names it
+    in messages)."""
+    import tomlkit
+
+    doc = tomlkit.parse(text)
+    imus = doc.get("imu", [])
+    if len(imus) != len(mount_rpy):
+        raise InputError(f"{path}: {len(imus)} [[imu]] tables, calibrated {len(mount_rpy)} IMUs")
+    for i, table in enumerate(imus):
+        table["mount_rpy"] = [round(float(v), 3) for v in mount_rpy[i]]
+        if gyro_bias is not None:
+            table["gyro_bias"] = [round(float(v), 6) for v in gyro_bias[i]]
+    out = tomlkit.dumps(doc)
+    parse_robot(tomllib.loads(out), Path(path))
+    return out

@@ -220,9 +220,19 @@ def _chunked(
             yield tv, z[i]
 
 
+#: the MCAP metadata record of an estimate file's notes (options, partial)
+NOTES_RECORD = "continuum-mhe"
+
+
 class EstimateSink:
     """Estimates written one at a time to a CSV (or an MCAP for ``.mcap``), atomically:
-    use as a context manager; the output appears only when the block completes."""
+    use as a context manager; the output appears only when the block completes.
+
+    ``notes`` (``(key, value)`` pairs, each value a TOML value, such as the options the
+    estimates are made with) are written before the rows: ``# key = value`` lines above
+    the CSV header (the comment block is a TOML document), or the MCAP's
+    ``continuum-mhe`` metadata record; :meth:`note` adds one after the rows written so
+    far (``partial`` of an interrupted run)."""
 
     def __init__(
         self,
@@ -230,8 +240,11 @@ class EstimateSink:
         formulation: Formulation,
         t0_ns: int = 0,
         outlier: bool = False,
+        notes: Sequence[tuple[str, str]] = (),
     ) -> None:
         self.path = path
+        self.notes = tuple(notes)
+        self.rows = 0  # estimates written
         self.outlier = outlier  # an ``outlier`` column (a robust MHE's flags)
         self.outputs = formulation.outputs
         self.lengths = formulation.robot.lengths
@@ -245,6 +258,13 @@ class EstimateSink:
             self._cm = atomic_binary_writer(self.path)
             fb: IO[bytes] = self._cm.__enter__()
             writer = mcap_estimate_writer(fb)
+            if self.notes:
+                writer.metadata(NOTES_RECORD, dict(self.notes))
+
+            def note_mcap(key: str, value: str) -> None:
+                writer.metadata(NOTES_RECORD, {key: value})
+
+            self._note: Callable[[str, str], None] = note_mcap
             names = [o.name for o in self.outputs]
             seq = iter(range(sys.maxsize))
 
@@ -261,7 +281,14 @@ class EstimateSink:
             self._cm = atomic_writer(self.path)
             fh: IO[str] = self._cm.__enter__()
             w = csv.writer(fh, lineterminator="\n")
+            for key, value in self.notes:
+                fh.write(f"# {key} = {value}\n")
             w.writerow(estimate_columns(self.outputs, outlier=self.outlier))
+
+            def note_csv(key: str, value: str) -> None:
+                fh.write(f"# {key} = {value}\n")
+
+            self._note = note_csv
             ny = len(self.outputs)
 
             def write_csv(e: Estimate) -> None:
@@ -276,6 +303,12 @@ class EstimateSink:
     def write(self, estimate: Estimate) -> None:
         assert self._write is not None, "use EstimateSink as a context manager"
         self._write(estimate)
+        self.rows += 1
+
+    def note(self, key: str, value: str) -> None:
+        """A ``# key = value`` line (``value`` a TOML value) after the rows written so
+        far (MCAP: a metadata record)."""
+        self._note(key, value)
 
     def __exit__(self, typ: Any, exc: Any, tb: Any) -> bool | None:
         if typ is None:

@@ -63,7 +63,7 @@ from continuum_mhe.model.formulations import BendFormulation, FloatArray
 from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
-from continuum_mhe.settings import FormulationName
+from continuum_mhe.model.settings import FormulationName
 
 #: Standard gravity, m/s^2 (converts the accelerometer-bias state to units of |f|).
 STANDARD_GRAVITY = 9.80665

@@ -53,7 +53,7 @@ from continuum_mhe.model.imu import (
 from continuum_mhe.model.kinematics import Sym, rotation_bend, tip_position, tip_position_sym
 from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, up_vector
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.settings import FormulationName, NoiseSettings, RobotSettings
+from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
 
 FloatArray = NDArray[np.float64]
 

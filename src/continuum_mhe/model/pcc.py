@@ -19,7 +19,7 @@ compiled from the same expressions.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import cache
+from functools import cache, lru_cache
 
 import casadi as ca
 import numpy as np
@@ -132,6 +132,67 @@ def backbone(
         for j in range(1, points_per_section + 1):
             pts.append(pose_at(u, lengths, k, j / points_per_section)[1])
     return np.stack(pts, axis=-2)
+
+
+@lru_cache(maxsize=64)
+def _points_function(
+    lengths: tuple[float, ...], places: tuple[tuple[int, float], ...]
+) -> ca.Function:
+    """bends (2 n_sections,) -> the points (3, len(places)) at (section, fraction)."""
+    u = ca.SX.sym("u", 2 * len(lengths))
+    bends = [(u[2 * k], u[2 * k + 1]) for k in range(len(lengths))]
+    return ca.Function(
+        "points", [u], [ca.horzcat(*[pose_at_sym(bends, lengths, k, f)[1] for k, f in places])]
+    )
+
+
+def arc_places(lengths: Sequence[float], s: ArrayLike) -> tuple[tuple[int, float], ...]:
+    """Each arc length ``s`` (m from the base, ``0 <= s <= sum(lengths)``) as ``(section,
+    fraction of that section)``; a section's end belongs to that section. Raises
+    ``ValueError`` for an ``s`` outside the backbone."""
+    total = float(sum(lengths))
+    ends = np.cumsum(lengths)
+    places = []
+    for v in np.atleast_1d(np.asarray(s, dtype=float)):
+        if not (0.0 <= v <= total * (1 + 1e-12)):
+            raise ValueError(f"arc length {v:g} m is outside the backbone (0 to {total:g} m)")
+        k = min(int(np.searchsorted(ends, v, side="left")), len(lengths) - 1)
+        start = float(ends[k] - lengths[k])
+        places.append((k, min(1.0, (float(v) - start) / float(lengths[k]))))
+    return tuple(places)
+
+
+def backbone_points(
+    robot: Robot | Sequence[float], theta: ArrayLike, phi: ArrayLike, s: ArrayLike
+) -> FloatArray:
+    """Points of the backbone at arc lengths ``s`` (m from the base along the backbone,
+    from 0 to ``robot.length``) of a ``robot`` (or of sections of these lengths, m), for
+    shapes given by each section's bending angle
+    ``theta`` and bending-plane direction ``phi`` (rad, shape (..., n_sections), as the
+    ``theta_k``, ``phi_k`` columns of an estimate; one section: (...) or (..., 1)).
+
+    Returns (..., len(s), 3) in metres, in the robot's base frame (z along the straight
+    robot). ``s = robot.length`` is the tip; a section boundary is that section's end.
+    """
+    lengths = tuple(float(v) for v in (robot.lengths if isinstance(robot, Robot) else robot))
+    th = np.asarray(theta, dtype=float)
+    ph = np.asarray(phi, dtype=float)
+    n = len(lengths)
+    if n == 1 and (th.ndim == 0 or th.shape[-1] != 1):
+        th, ph = th[..., None], ph[..., None]
+    if th.shape != ph.shape or th.shape[-1] != n:
+        raise ValueError(
+            f"theta and phi must both be (..., {n}) for a {n}-section robot, got "
+            f"{th.shape} and {ph.shape}"
+        )
+    a, b = th * np.cos(ph), th * np.sin(ph)
+    lead = th.shape[:-1]
+    u = np.stack([a, b], axis=-1).reshape(-1, 2 * n)  # (m, 2 n): a_1, b_1, a_2, ...
+    places = arc_places(lengths, s)
+    fn = _points_function(lengths, places)
+    pts = np.asarray(fn.map(u.shape[0])(u.T), dtype=float)  # (3, len(s) m), per shape
+    pts = pts.reshape(3, u.shape[0], len(places)).transpose(1, 2, 0)
+    return pts.reshape(*lead, len(places), 3)
 
 
 def bend_from_tangent_frames(R_prev: FloatArray, R_next: FloatArray) -> FloatArray:

@@ -13,7 +13,7 @@ from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.settings import FormulationName, NoiseSettings, RobotSettings
+from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
 
 #: Formulation classes by name.
 REGISTRY: dict[str, type[Formulation]] = {

@@ -122,11 +122,14 @@ class ImuPlacement:
         at: fraction of that section's length from its base, in ``(0, 1]``.
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
             sensor-frame vectors into the local backbone frame (applied to raw data).
+        gyro_bias: the gyro's bias at rest ``(gx, gy, gz)``, rad/s, sensor frame
+            (subtracted from raw gyro readings).
     """
 
     section: int
     at: float = 1.0
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if isinstance(self.mount_rpy, (str, bytes)) or not hasattr(self.mount_rpy, "__iter__"):
@@ -134,6 +137,9 @@ class ImuPlacement:
                 f"IMU mount_rpy must be three angles in degrees, got {self.mount_rpy!r}"
             )
         object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
+        object.__setattr__(self, "gyro_bias", tuple(self.gyro_bias))
+        if len(self.gyro_bias) != 3 or not all(math.isfinite(v) for v in self.gyro_bias):
+            raise UserError(f"IMU gyro_bias must be three finite rates, got {self.gyro_bias!r}")
         if not (isinstance(self.section, int) and self.section >= 0):
             raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):

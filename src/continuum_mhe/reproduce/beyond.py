@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import Method, make_estimator
 from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.metrics import Z95
+from continuum_mhe.evaluation.metrics import Z95
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.model.registry import make_formulation

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import EstimateSeries, Method, make_estimator
-from continuum_mhe.metrics import compute_metrics
+from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import tip_position

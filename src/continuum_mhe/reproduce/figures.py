@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe import plotting
 from continuum_mhe.estimators.base import EstimateSeries
+from continuum_mhe.evaluation import plotting
 
 plt = plotting.plt
 Figure = plotting.Figure

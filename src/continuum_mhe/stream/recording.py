@@ -59,11 +59,14 @@ class RowFile:
     Attributes:
         path: the target file.
         rows: data rows written.
+        comments: ``#`` lines written above the header (e.g. the options).
     """
 
-    def __init__(self, path: Path, header: Sequence[str], overwrite: bool) -> None:
+    def __init__(
+        self, path: Path, header: Sequence[str], overwrite: bool, comments: Sequence[str] = ()
+    ) -> None:
         self.path = path
-        self.header = ",".join(header) + "\n"
+        self.header = "".join(f"# {c}\n" for c in comments) + ",".join(header) + "\n"
         self.overwrite = overwrite
         self.rows = 0
         self._fd: int | None = None

@@ -1,5 +1,5 @@
 """A 3D view of the estimated backbone in Rerun: ``continuum-mhe view`` (replay of an
-estimate CSV, :mod:`continuum_mhe.cli_view`) and the per-estimate hook of ``live --view``.
+estimate CSV, :mod:`continuum_mhe.cli.view`) and the per-estimate hook of ``live --view``.
 
 Every shape comes from the robot and the PCC model (:func:`~continuum_mhe.model.pcc.pose_at`
 at ``points_per_section`` arc lengths per section); nothing here knows a size.

@@ -1,5 +1,5 @@
 """An estimate CSV or MCAP (and its truth) replayed as a 3D view (``continuum-mhe view``,
-:mod:`continuum_mhe.cli_view`)."""
+:mod:`continuum_mhe.cli.view`)."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 sensor masks, divergence check, the ``Estimate``). These two runners time only the
 compiled calls of one step, the inputs (sensor mask, ``u``, ``Q(dt)``) computed
 outside the timed part, so that the two methods' arithmetic can be compared without
-the interface both share (:mod:`continuum_mhe.benchmark`'s rows ``ekf-kernel`` and
+the interface both share (:mod:`continuum_mhe.benchmark.harness`'s rows ``ekf-kernel`` and
 ``mhe-kernel``).
 """
 

@@ -1,4 +1,5 @@
-"""Subcommands ``reproduce`` and ``plot`` (registered through ``COMMAND_MODULES``)."""
+"""``continuum-mhe reproduce``: every experiment of the paper, its data, figures and
+report."""
 
 from __future__ import annotations
 
@@ -7,13 +8,12 @@ import shlex
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import InputError, check_new_folder
 
 
-def cmd_reproduce(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     from continuum_mhe.reproduce.experiments import FULL, QUICK
     from continuum_mhe.reproduce.pipeline import PARTS, reproduce
 
@@ -47,30 +47,16 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_plot(args: argparse.Namespace) -> int:
-    from continuum_mhe.io.csv_files import new_files
-    from continuum_mhe.reproduce.figures import render_all
-    from continuum_mhe.reproduce.pipeline import load_results
-
-    results = load_results(args.results)
-    out = Path(args.out) if args.out else Path(args.results)
-    with new_files(out) as files:  # Ctrl-C: none of the new figures, no new folder
-        render_all(results, out, files)
-    print(f"rendered {len(files)} figure files into {out}", file=sys.stderr)
-    return 0
+DESCRIPTION = (
+    "Run the paper's Sec. 3 experiments (synthetic 3D, constraints, rod "
+    "recording, EKF comparison with Monte Carlo, horizon sweep, growing window) and "
+    "beyond the paper (robust cost against outliers, coverage of the uncertainty, gap "
+    "and freeze recovery). "
+    "Writes one JSON per experiment, figures (PNG, PDF) and report.md."
+)
 
 
-def register(subparsers: Any) -> None:
-    """Add ``reproduce`` and ``plot`` to the main parser's subcommands."""
-    p = subparsers.add_parser(
-        "reproduce",
-        help="run every experiment of the paper: data, figures and report.md",
-        description="Run the paper's Sec. 3 experiments (synthetic 3D, constraints, rod "
-        "recording, EKF comparison with Monte Carlo, horizon sweep, growing window) and "
-        "beyond the paper (robust cost against outliers, coverage of the uncertainty, gap "
-        "and freeze recovery). "
-        "Writes one JSON per experiment, figures (PNG, PDF) and report.md.",
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="results folder (created)")
     p.add_argument("--quick", action="store_true", help="small sizes (about 25 s on 2 cores)")
     p.add_argument(
@@ -95,11 +81,3 @@ def register(subparsers: Any) -> None:
         default=None,
         help="rod recording for Sec. 3.3 (default: the shipped rod_planar.csv)",
     )
-    p.set_defaults(func=cmd_reproduce)
-
-    p = subparsers.add_parser(
-        "plot", help="re-render the reproduction's figures from its saved data"
-    )
-    p.add_argument("results", help="folder written by 'continuum-mhe reproduce'")
-    p.add_argument("--out", default=None, help="folder for the figures (default: RESULTS)")
-    p.set_defaults(func=cmd_plot)

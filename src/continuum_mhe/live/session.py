@@ -1,5 +1,5 @@
 """A live session: protocol lines in; the device clock, conversion, estimation, the
-recording and the estimate rows out (no threads, no port: :mod:`continuum_mhe.live`
+recording and the estimate rows out (no threads, no port: :mod:`continuum_mhe.live.run`
 drives it)."""
 
 from __future__ import annotations
@@ -18,9 +18,11 @@ from continuum_mhe.estimators.base import (
     Estimate,
     Estimator,
     Measurement,
+    Status,
     _reraise_interrupt,
 )
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
+from continuum_mhe.io.input_options import imu_settings_for
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
@@ -189,10 +191,7 @@ class _TextSink:
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
     """One converter per IMU of ``robot``: its robot-file mounting where it gives one,
     else ``raw.mount_rpy`` (as ``estimate`` does)."""
-    return [
-        RawImuConverter(replace(raw, mount_rpy=imu.mount_rpy) if any(imu.mount_rpy) else raw)
-        for imu in robot.imus
-    ]
+    return [RawImuConverter(imu_settings_for(raw, imu)) for imu in robot.imus]
 
 
 # --- session ----------------------------------------------------------------------------------
@@ -474,14 +473,15 @@ class LiveSession:
             if self._restarted and est.state is not None:
                 self._restarted = False
                 if est.status == "ok":  # restarted where the time base broke
-                    est = replace(est, status="reset")
+                    est = replace(est, status=Status.RESET)
             return est
         self.counts.estimator_failures += 1
         self.messages.show(
             f"estimator failed ({problem}); sample flagged, estimator restarts", time.monotonic()
         )
         self._restart(t)
-        return Estimate(t, None, None, None, "no-estimate", (time.perf_counter() - start) * 1e3)
+        solve_ms = (time.perf_counter() - start) * 1e3
+        return Estimate(t, None, None, None, Status.NO_ESTIMATE, solve_ms)
 
     def _write(self, est: Estimate) -> None:
         self.counts.estimates += 1

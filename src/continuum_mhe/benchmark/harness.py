@@ -1,6 +1,6 @@
-"""``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's MHE and three EKFs,
-and the bare compiled kernels of the fast MHE and the EKF
-(:mod:`continuum_mhe.benchmark_kernels`).
+"""The timing harness of ``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's
+MHE and three EKFs, and the bare compiled kernels of the fast MHE and the EKF
+(:mod:`continuum_mhe.benchmark.kernels`).
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
@@ -13,7 +13,7 @@ of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF ke
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
 ``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed
 on both backends, clean and with spikes, as a ratio to ``l2``
-(:mod:`continuum_mhe.benchmark_losses`). A long recording then shows that the fast
+(:mod:`continuum_mhe.benchmark.losses`). A long recording then shows that the fast
 MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report records
 where the numbers come from: whether the model ran compiled, the C compiler, the
 machine and the versions.
@@ -33,9 +33,7 @@ the newest; the disk is not reached in this recording.
 
 from __future__ import annotations
 
-import argparse
 import gc
-import json
 import math
 import os
 import platform
@@ -45,17 +43,15 @@ import tracemalloc
 import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from continuum_mhe.benchmark_kernels import run_ekf_kernel, run_mhe_kernel
+from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.extras import available, missing
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation
@@ -518,7 +514,7 @@ def run_benchmark(
     ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); the
     fast MHE, its kernel and the EKFs ``repeats`` times in turn (:func:`_interleaved`);
     see the module docstring."""
-    from continuum_mhe.benchmark_losses import run_loss_benchmark
+    from continuum_mhe.benchmark.losses import run_loss_benchmark
 
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, dt=DT, noise_deg=2.0, seed=0)
@@ -645,7 +641,7 @@ def print_report(report: dict[str, Any]) -> None:
         growth = fast[ns[-1]]["median_us"] / fast[ns[0]]["median_us"]
         console.print(f"fast: time(N={ns[-1]}) / time(N={ns[0]}) = {growth:.2f}")
     if report.get("losses"):
-        from continuum_mhe.benchmark_losses import print_loss_report
+        from continuum_mhe.benchmark.losses import print_loss_report
 
         print_loss_report(report["losses"])
     mem = report.get("memory")
@@ -657,113 +653,3 @@ def print_report(report: dict[str, Any]) -> None:
             f"RSS slope {mem['rss_slope_bytes_per_sample']:.2f} B/sample"
         )
     console.print(environment_line(report))
-
-
-def _horizons(text: str) -> list[int]:
-    try:
-        values = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
-    if not values or min(values) < 2 or max(values) > 1000:
-        raise argparse.ArgumentTypeError("horizons must be integers in [2, 1000]")
-    return values
-
-
-def _write_json(path: str, report: dict[str, Any]) -> None:
-    """The report as JSON (NaN as null), written atomically."""
-    from continuum_mhe.io.csv_files import atomic_writer
-    from continuum_mhe.reproduce.experiments import to_jsonable
-
-    with atomic_writer(Path(path)) as fh:
-        fh.write(json.dumps(to_jsonable(report), indent=2, allow_nan=False) + "\n")
-
-
-def cmd_benchmark(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise UserError(f"--duration must be positive, got {args.duration}")
-    if args.repeats < 1:
-        raise UserError(f"--repeats must be at least 1, got {args.repeats}")
-    timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
-    check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
-    if args.json:  # before the run, not after minutes of it
-        from continuum_mhe.io.csv_files import check_output_target
-
-        check_output_target(args.json)
-    if args.robot:
-        from continuum_mhe.io.robot_file import read_robot
-
-        robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
-        print_robot_report(robot_report)
-        if args.json:
-            _write_json(args.json, robot_report)
-        return 0
-    methods = tuple(m for m in METHODS if m not in set(args.skip or []))
-    if "do-mpc" in methods and not available("do_mpc"):
-        raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
-    report = run_benchmark(
-        args.horizons,
-        args.duration,
-        methods,
-        args.memory_samples,
-        None if args.loss_horizons is None else tuple(args.loss_horizons),
-        args.repeats,
-    )
-    print_report(report)
-    if args.json:
-        _write_json(args.json, report)
-    return 0
-
-
-def register(subparsers: Any) -> None:
-    """Add ``benchmark`` to the CLI."""
-    p = subparsers.add_parser(
-        "benchmark",
-        help="time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
-        description="Time the fast MHE beside IPOPT, do-mpc's MHE and three EKFs, and the "
-        "bare compiled kernels of the fast MHE and the EKF, on one simulated recording.",
-    )
-    p.add_argument(
-        "--horizons",
-        type=_horizons,
-        default=[10, 30, 100, 300],
-        help="comma-separated horizons (default 10,30,100,300)",
-    )
-    p.add_argument(
-        "--duration",
-        type=float,
-        default=20.0,
-        help="recording length in s (default 20; more samples than the largest horizon)",
-    )
-    p.add_argument("--json", help="write the report as JSON to this file")
-    p.add_argument(
-        "--robot",
-        metavar="ROBOT.toml",
-        help="instead: fast MHE against IPOPT on this robot with raw IMUs (direct model)",
-    )
-    p.add_argument(
-        "--skip",
-        action="append",
-        choices=("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
-        help="leave out a method",
-    )
-    p.add_argument(
-        "--loss-horizons",
-        type=lambda text: [] if text == "none" else _horizons(text),
-        default=None,
-        help="horizons at which each MHE loss (l2, huber, cauchy, welsch) is timed on both "
-        "backends (default: 30 if among --horizons, else the first; none: skip)",
-    )
-    p.add_argument(
-        "--repeats",
-        type=int,
-        default=REPEATS,
-        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
-        f"sample's time is the median over the rounds (default {REPEATS})",
-    )
-    p.add_argument(
-        "--memory-samples",
-        type=int,
-        default=20000,
-        help="length of the memory run of the fast MHE (0: skip)",
-    )
-    p.set_defaults(func=cmd_benchmark)

@@ -6,7 +6,7 @@ that makes the straight robot read ``theta = 0`` (``--mount-rpy`` / the robot fi
 ``mount_rpy``). From the port (``--port``) or a recording (``--from RAW.csv``, e.g.
 written by ``live --record``). With ``--bend BEND.csv``, a raw recording of the robot
 bent slowly in a known plane, also each IMU's yaw about the tangent
-(:mod:`continuum_mhe.stream.bend_calibration`) and so the full ``mount_rpy``.
+(:mod:`continuum_mhe.calibration.bend`) and so the full ``mount_rpy``.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
 from continuum_mhe.io.raw_imu import (
@@ -29,7 +30,6 @@ from continuum_mhe.io.raw_imu import (
 )
 from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.stream.bend_calibration import YawCalibration, yaws_from_bend
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
     VALUES_PER_IMU,

@@ -1,18 +1,17 @@
-"""The ``calibrate`` command (:mod:`continuum_mhe.stream.calibrate` measures; registered
-through ``COMMAND_MODULES``)."""
+"""``continuum-mhe calibrate``: each IMU's statistics at rest and its mounting
+(:mod:`continuum_mhe.calibration.at_rest` measures)."""
 
 from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
+import sys
+from pathlib import Path
 
-from continuum_mhe.cli_options import add_robot_option, robot_from_args
-from continuum_mhe.io.csv_files import InputError
-from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.stream.calibrate import (
+from continuum_mhe.calibration.at_rest import (
     STILL_ACC_STD,
     STILL_GYRO_STD,
+    Calibration,
     bend_yaws,
     calibrate,
     collect,
@@ -20,6 +19,13 @@ from continuum_mhe.stream.calibrate import (
     motion_at_rest,
     read_recording,
 )
+from continuum_mhe.calibration.bend import YawCalibration
+from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
+from continuum_mhe.cli.program import PROG
+from continuum_mhe.io.csv_files import InputError, atomic_writer, check_output_target
+from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
+from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
 from continuum_mhe.stream.reader import stderr_say
 
@@ -30,8 +36,12 @@ def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source:
         raise InputError(f"{source}: --still-gyro-std needs a raw recording (this one is {fmt})")
 
 
-def cmd_calibrate(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
+    if args.write_robot:  # before recording or reading
+        check_output_target(args.write_robot, args.overwrite, "--write-robot")
+        if not args.source and args.format != "raw":
+            raise InputError("--write-robot needs raw readings (--format raw)")
     if args.bend_phi is not None and not args.bend:
         raise InputError("--bend-phi needs --bend BEND.csv")
     say = stderr_say("calibrate")
@@ -51,29 +61,59 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
+    if args.write_robot and fmt != "raw":
+        raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
         bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
     print(format_report(cal, source, bend))
+    if args.write_robot:
+        _write_robot(args, robot, cal, bend)
     return 0
 
 
-def register(subparsers: Any) -> None:
-    """Add the ``calibrate`` command."""
-
-    p = subparsers.add_parser(
-        "calibrate",
-        help="accelerometer mean and noise, gyro bias, sample rate and mounting, at rest",
-        description="With the robot straight and still (a recording whose accelerometer "
-        f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
-        "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
-        "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
-        "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
-        "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
-        "--bend, each IMU's yaw about the tangent from a bend in a known plane too.",
+def _write_robot(
+    args: argparse.Namespace,
+    robot: Robot,
+    cal: Calibration,
+    bend: tuple[str, float, list[YawCalibration]] | None,
+) -> None:
+    """The robot file (``--robot``'s, comments kept) with each IMU's measured mounting
+    (the yaw from ``--bend``, else the file's own) and gyro bias, to ``--write-robot``."""
+    mounts = []
+    for i, imu in enumerate(cal.imus):
+        assert imu.mount_rpy is not None  # a raw recording (checked before)
+        roll, pitch, _ = imu.mount_rpy
+        yaw = bend[2][i].yaw_deg if bend else robot.imus[i].mount_rpy[2]
+        mounts.append((roll, pitch, yaw))
+    biases = [tuple(float(v) for v in imu.mean[3:6]) for imu in cal.imus]
+    text = with_imu_calibration(
+        robot_source_text(args.robot, robot), mounts, biases, args.write_robot
     )
+    with atomic_writer(Path(args.write_robot)) as fh:
+        fh.write(text)
+    whence = "from --bend" if bend else "kept from the robot file (gravity does not show it)"
+    print(
+        f"{PROG}: wrote {args.write_robot}: each IMU's mount_rpy (roll and pitch measured, yaw "
+        f"{whence}) and gyro_bias",
+        file=sys.stderr,
+    )
+
+
+DESCRIPTION = (
+    "With the robot straight and still (a recording whose accelerometer "
+    f"spreads over {STILL_ACC_STD:g} m/s^2 or gyro over {STILL_GYRO_STD:g} rad/s, "
+    "standard deviation per axis, is refused; --still-acc-std and --still-gyro-std "
+    "raise the bounds for a noisier IMU): per IMU, the accelerometer's mean "
+    "and noise per axis, the gyro bias and noise, the sample rate achieved and the "
+    "mounting (--mount-rpy) that makes the straight robot read theta = 0; with "
+    "--bend, each IMU's yaw about the tangent from a bend in a known plane too."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--port", help="serial device, e.g. /dev/ttyACM0")
     src.add_argument("--from", dest="source", metavar="RAW.csv", help="a recording instead")
@@ -94,6 +134,13 @@ def register(subparsers: Any) -> None:
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
     add_robot_option(p, replaces=("--mounting",))
+    p.add_argument(
+        "--write-robot",
+        metavar="OUT.toml",
+        help="write the robot file (--robot's, its comments kept) with each IMU's measured "
+        "mount_rpy and gyro_bias",
+    )
+    add_overwrite_option(p, "--write-robot")
     p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     p.add_argument(
@@ -114,4 +161,3 @@ def register(subparsers: Any) -> None:
         f"raw recordings only (default {STILL_GYRO_STD:g} rad/s: 30 times the firmware's "
         "MPU9250 at rest)",
     )
-    p.set_defaults(func=cmd_calibrate)

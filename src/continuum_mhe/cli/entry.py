@@ -2,9 +2,9 @@
 
 ``continuum-mhe --help``, ``--version`` and a bare ``continuum-mhe`` are answered here
 from a table of the commands, without importing numpy, CasADi, numba or the estimators
-(the full command line, :mod:`continuum_mhe.cli`, takes seconds to import on a small
-machine); everything else goes to :func:`continuum_mhe.cli.main`. The table is checked
-against the full parser by the tests.
+(the full command line, :mod:`continuum_mhe.cli.app`, takes seconds to import on a small
+machine); everything else goes to :func:`continuum_mhe.cli.app.main`. Both parsers list
+the commands of :data:`continuum_mhe.cli.program.COMMANDS`.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from continuum_mhe.program import COMMANDS, DESCRIPTION, PROG, signal_exit, version
+from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, signal_exit, version
 
 __all__ = ["COMMANDS", "DESCRIPTION", "PROG", "main", "overview_parser", "version"]
 
@@ -23,8 +23,8 @@ def overview_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name, text in COMMANDS:
-        sub.add_parser(name, help=text)
+    for command in COMMANDS:
+        sub.add_parser(command.name, help=command.help)
     return parser
 
 
@@ -40,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         overview_parser().parse_args(args)  # prints help or version and exits
         return 0  # pragma: no cover - argparse exits before
     try:  # Ctrl-C while the full command line imports (seconds): one line, not a traceback
-        from continuum_mhe.cli import main as full_main
+        from continuum_mhe.cli.app import main as full_main
 
         return full_main(args)
     except KeyboardInterrupt:  # (SIGTERM before cli.main's handler: killed, quietly)

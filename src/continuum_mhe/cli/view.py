@@ -4,9 +4,8 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
-from continuum_mhe.cli_options import (
+from continuum_mhe.cli.options import (
     add_robot_option,
     add_viewer_options,
     robot_from_args,
@@ -16,20 +15,19 @@ from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.viewer import INSTALL_HINT, replay
 
 
-def cmd_view(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     replay(args.estimates, robot_from_args(args), sink, args.truth, args.trail, args.points)
     return 0
 
 
-def register(subparsers: Any) -> None:
-    """Add ``view``."""
-    p = subparsers.add_parser(
-        "view",
-        help="3D view of an estimate CSV or MCAP in Rerun (backbone, IMU frames, tip trail)",
-        description="Replay an estimate CSV or MCAP as a 3D view in Rerun: every section of the "
-        f"backbone, the IMU frames and the tip trail. Needs rerun-sdk ({INSTALL_HINT}).",
-    )
+DESCRIPTION = (
+    "Replay an estimate CSV or MCAP as a 3D view in Rerun: every section of the "
+    f"backbone, the IMU frames and the tip trail. Needs rerun-sdk ({INSTALL_HINT})."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "estimates", metavar="EST.csv", help="estimate CSV (from estimate or live), or MCAP"
     )
@@ -38,4 +36,3 @@ def register(subparsers: Any) -> None:
     p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     add_viewer_options(p)
-    p.set_defaults(func=cmd_view)

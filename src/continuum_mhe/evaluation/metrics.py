@@ -243,3 +243,20 @@ def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[fl
         f"its tip is up to {far:.3g} m from the base, beyond the robot's length {length:g} m, "
         "which no shape reaches: it was made for a longer robot"
     )
+
+
+#: a truth row is an estimate row's when their times agree to this relative tolerance
+#: (at least 1 us; ``evaluate`` and ``plot`` match rows so)
+TIME_MATCH = 1e-6
+
+IndexArray = NDArray[np.intp]
+
+
+def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, IndexArray]:
+    """Indices ``(i_est, i_truth)`` of the estimate rows that have a truth row at the same
+    time (within :data:`TIME_MATCH`, relative, at least 1 us), and of those truth rows."""
+    idx = np.clip(np.searchsorted(t_truth, t_est), 0, len(t_truth) - 1)
+    lo = np.clip(idx - 1, 0, len(t_truth) - 1)
+    nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
+    match = np.abs(t_truth[nearest] - t_est) <= TIME_MATCH * np.maximum(1.0, np.abs(t_est))
+    return np.flatnonzero(match), nearest[match]

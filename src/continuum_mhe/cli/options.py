@@ -225,10 +225,16 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         help="write every valid sample as received (the raw or tilt CSV that 'estimate' "
         "reads, t in s of the device clock), row by row",
     )
+    add_overwrite_option(p, "-o or --record")
+
+
+def add_overwrite_option(p: argparse.ArgumentParser, what: str = "output") -> None:
+    """``--overwrite``: every command that writes files refuses an existing one without
+    it (checked before any work)."""
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace an existing -o or --record file (else refused)",
+        help=f"replace an existing {what} file (else refused)",
     )
 
 

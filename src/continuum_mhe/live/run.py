@@ -16,7 +16,7 @@ When the device disappears the reader reopens it with backoff. A reader thread d
 the port into an unbounded queue: a slow estimator falls behind (and says so) but
 never loses a sample.
 
-The command itself (its options, the estimator and the files): :mod:`continuum_mhe.cli_live`.
+The command itself (its options, the estimator and the files): :mod:`continuum_mhe.cli.live`.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import numpy as np
 
 from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
 from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.descriptions import OutputSpec
 from continuum_mhe.signals import SIGNALS_SEEN, defer, stop_deferring
 from continuum_mhe.stream.protocol import (
@@ -40,7 +41,6 @@ from continuum_mhe.stream.protocol import (
     parse_line,
 )
 from continuum_mhe.stream.reader import Event, SerialReader
-from continuum_mhe.stream.session import LiveSession, LiveSettings
 
 __all__ = ["GarbledLine", "LiveSession", "LiveSettings", "Sample", "parse_line", "run_live"]
 

@@ -1,5 +1,5 @@
-"""The ``live`` command (:mod:`continuum_mhe.live` runs it) and the raw-IMU and
-robot-log options of ``estimate`` (registered through ``COMMAND_MODULES``)."""
+"""``continuum-mhe live``: estimate in real time from a serial IMU stream
+(:mod:`continuum_mhe.live.run` runs it)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import argparse
 import gc
 import os
 from pathlib import Path
-from typing import Any
 
-from continuum_mhe.cli_options import (
+from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
+from continuum_mhe.cli.options import (
     add_live_view_option,
     add_mhe_options,
     add_model_options,
@@ -23,17 +23,18 @@ from continuum_mhe.cli_options import (
     recovery_settings_from_args,
     viewer_sink_from_args,
 )
+from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
 from continuum_mhe.io.input_options import check_options_apply, formulation_for
-from continuum_mhe.live import open_plot, run_live, warm_up
+from continuum_mhe.live.run import open_plot, run_live, warm_up
+from continuum_mhe.live.session import LiveSession, LiveSettings, imu_converters
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
 from continuum_mhe.stream.recording import RowFile, check_target
-from continuum_mhe.stream.session import LiveSession, LiveSettings, imu_converters
 
 
-def cmd_live(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     from continuum_mhe.estimators import make_estimator
 
     settings = LiveSettings(
@@ -92,6 +93,7 @@ def cmd_live(args: argparse.Namespace) -> int:
             out_path,
             estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
             args.overwrite,
+            (f'continuum-mhe = "{version()} live"', f"{OPTIONS_LINE} = {args.options_record}"),
         )
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
@@ -126,43 +128,20 @@ def cmd_live(args: argparse.Namespace) -> int:
                 say(f"no sample arrived: {sink.path} not written")
 
 
-def register(subparsers: Any) -> None:
-    """Add ``live`` and the raw-IMU / robot-log options of ``estimate``."""
+DESCRIPTION = (
+    "Estimate in real time from a serial IMU stream (line protocol: "
+    "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order; "
+    "'#' lines are the device's messages)."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     from continuum_mhe.estimators import METHODS
 
-    est = subparsers.choices.get("estimate")
-    if est is not None:
-        add_raw_imu_options(est)
-        g = est.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
-        g.add_argument(
-            "--topic",
-            action="append",
-            help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
-            "once per IMU in the robot file's order",
-        )
-        g.add_argument(
-            "--pair-tolerance",
-            type=float,
-            metavar="SECONDS",
-            help="several topics: largest header-stamp difference of paired samples "
-            "(default: half of the first topic's median sample period)",
-        )
-        g.add_argument(
-            "--orientation",
-            action="store_true",
-            help="use the Imu message's orientation (roll, pitch) instead of its raw readings",
-        )
-
-    p = subparsers.add_parser(
-        "live",
-        help="estimate in real time from a serial IMU stream",
-        description="Estimate in real time from a serial IMU stream (line protocol: "
-        "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order; "
-        "'#' lines are the device's messages).",
-    )
     add_serial_options(p)
     p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
     add_recording_options(p)
+    add_config_option(p)
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
     p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
@@ -175,4 +154,3 @@ def register(subparsers: Any) -> None:
     add_recovery_options(p)
     add_raw_imu_options(p)
     add_live_view_option(p)
-    p.set_defaults(func=cmd_live)

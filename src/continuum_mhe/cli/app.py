@@ -1,0 +1,189 @@
+"""The full command line: the parser built from the table of commands
+(:data:`continuum_mhe.cli.program.COMMANDS`), and :func:`main`, which runs one command.
+
+User errors (:class:`~continuum_mhe.errors.UserError`, unreadable or unwritable files)
+print one line, ``continuum-mhe: error: ...``, and exit with status 2. Anything else is
+a bug: one line that says so, with where it happened and where to report it, and exit
+status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import signal
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+from continuum_mhe.cli.config import apply_config, options_record
+from continuum_mhe.cli.options import (
+    OneLineParser,
+    check_option_ranges,
+)
+from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
+from continuum_mhe.cli.program import signal_exit as _signal_exit
+from continuum_mhe.errors import UserError
+from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
+from continuum_mhe.signals import (
+    interrupt_in_chain,
+    quiet_unraisable,
+)
+from continuum_mhe.signals import on_signal as _on_signal
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of every command in :data:`COMMANDS` (imports each command's module)."""
+    parser = OneLineParser(prog=PROG, description=DESCRIPTION)  # errors: one line
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        module = importlib.import_module(f"continuum_mhe.cli.{command.module}")
+        p = sub.add_parser(
+            command.name, help=command.help, description=getattr(module, "DESCRIPTION", None)
+        )
+        module.add_arguments(p)
+        p.set_defaults(func=module.run)
+    return parser
+
+
+def _one_line_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    line: str | None = None,
+) -> str:
+    return f"{PROG}: warning: {message}\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; returns its exit status. The one-line warnings, the numpy
+    filter, the signal handlers and the unraisable hook it sets last as long as the
+    command: a caller (a script, a test) gets its own back."""
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
+    _SIGNALS_SEEN.clear()  # those of an earlier command run in this process are done
+    formatwarning = warnings.formatwarning
+    unraisablehook = sys.unraisablehook
+    sys.unraisablehook = quiet_unraisable(unraisablehook)
+    try:
+        with warnings.catch_warnings():
+            warnings.formatwarning = _one_line_warning
+            # numerical trouble is flagged in each row's status; numpy's own notes would
+            # only surround the summary or the one-line error
+            warnings.filterwarnings(
+                "ignore",
+                r"(invalid value|overflow|divide by zero|underflow) encountered",
+                RuntimeWarning,
+            )
+            try:
+                signal.signal(signal.SIGTERM, _on_signal)
+                signal.signal(signal.SIGINT, _on_signal)
+            except ValueError:  # not the main thread (e.g. called from a test runner's thread)
+                pass
+            return _run_command(argv)
+    finally:
+        warnings.formatwarning = formatwarning
+        sys.unraisablehook = unraisablehook
+        for sig, handler in handlers.items():
+            try:
+                signal.signal(sig, handler)
+            except (ValueError, TypeError):  # not the main thread; a handler not set from Python
+                pass
+
+
+def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
+    parser = build_parser()  # imports the command modules: seconds on a small machine
+    args, unknown = parser.parse_known_args(argv)
+    (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command = commands.choices[args.command]
+    if unknown:  # said by the command's parser, so the usage shown is the command's
+        command.error(f"unrecognized arguments: {' '.join(unknown)}")
+    if getattr(args, "config", None):  # the file's options, then the command line's again
+        apply_config(command, args.command, args.config)
+        args = parser.parse_args(argv)
+    if hasattr(args, "config"):
+        args.options_record = options_record(command, args)
+    return args
+
+
+def _run_command(argv: Sequence[str] | None) -> int:
+    try:  # a signal while the parser imports the commands ends the run as one too
+        args = _parse(argv)
+        check_option_ranges(args)
+        code = int(args.func(args))
+    except BaseException as exc:  # noqa: BLE001 - sorted out just below
+        if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:
+            # a command that stopped cleanly on the signal and then found a problem with
+            # its input (``live``'s end-of-session unit check) says it, as without one
+            code = _user_error(exc)
+            return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
+        # a signal raised inside a C extension (CasADi, numpy) can surface as any
+        # exception type: once a signal arrived, the run ends as interrupted
+        if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):
+            return _signal_exit()
+        return _user_error(exc)
+    # a command that drained and finished on its own (``live`` after Ctrl-C) keeps its
+    # exit status; after SIGTERM the status is 143, as a service manager expects
+    return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
+
+
+#: exit status of a bug (sysexits.h EX_SOFTWARE)
+EXIT_BUG = 70
+
+
+def _user_error(exc: BaseException) -> int:
+    """One line and exit 2 for user errors and file-system errors; anything else is
+    a bug: one line saying so (exit 70), the traceback with ``CONTINUUM_MHE_TRACEBACK=1``."""
+    if isinstance(exc, UserError):
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    if isinstance(exc, BrokenPipeError):  # e.g. `... | head`: the reader left; stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 1
+    if isinstance(exc, OSError) and exc.strerror:
+        print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        return 2
+    if not isinstance(exc, Exception):  # SystemExit and the like: not ours to report
+        raise exc
+    return _report_bug(exc)
+
+
+def _issues_hint() -> str:
+    """``at URL`` from the package's ``Project-URL`` metadata, else ``to the maintainers``."""
+    from importlib import metadata
+
+    try:
+        urls = metadata.metadata("continuum-mhe").get_all("Project-URL") or []
+    except metadata.PackageNotFoundError:
+        urls = []
+    for entry in urls:
+        label, _, url = entry.partition(",")
+        if label.strip().lower() in ("issues", "bug tracker", "bugs", "tracker"):
+            return f"at {url.strip()}"
+    return "to the maintainers"
+
+
+def _report_bug(exc: Exception) -> int:
+    """``continuum-mhe: internal error (a bug): TYPE: message (at FILE:LINE)`` and 70."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" (at {Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    if os.environ.get("CONTINUUM_MHE_TRACEBACK"):
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    print(
+        f"{PROG}: internal error (a bug in continuum-mhe): {type(exc).__name__}: {text}"
+        f"{where}; please report it with the command {_issues_hint()} "
+        "(CONTINUUM_MHE_TRACEBACK=1 shows the traceback)",
+        file=sys.stderr,
+    )
+    return EXIT_BUG
+
+
+if __name__ == "__main__":
+    sys.exit(main())

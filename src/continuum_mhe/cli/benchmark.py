@@ -1,0 +1,132 @@
+"""``continuum-mhe benchmark``: the command line of the timing harness
+(:mod:`continuum_mhe.benchmark.harness`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from continuum_mhe.benchmark.harness import (
+    DT,
+    METHODS,
+    REPEATS,
+    ROBOT_DT,
+    check_horizons,
+    print_report,
+    print_robot_report,
+    run_benchmark,
+    run_robot_benchmark,
+)
+from continuum_mhe.errors import UserError
+from continuum_mhe.extras import available, missing
+
+
+def _horizons(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
+    if not values or min(values) < 2 or max(values) > 1000:
+        raise argparse.ArgumentTypeError("horizons must be integers in [2, 1000]")
+    return values
+
+
+def _write_json(path: str, report: dict[str, Any]) -> None:
+    """The report as JSON (NaN as null), written atomically."""
+    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.reproduce.experiments import to_jsonable
+
+    with atomic_writer(Path(path)) as fh:
+        fh.write(json.dumps(to_jsonable(report), indent=2, allow_nan=False) + "\n")
+
+
+def run(args: argparse.Namespace) -> int:
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise UserError(f"--duration must be positive, got {args.duration}")
+    if args.repeats < 1:
+        raise UserError(f"--repeats must be at least 1, got {args.repeats}")
+    timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
+    check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
+    if args.json:  # before the run, not after minutes of it
+        from continuum_mhe.io.csv_files import check_output_target
+
+        check_output_target(args.json)
+    if args.robot:
+        from continuum_mhe.io.robot_file import read_robot
+
+        robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
+        print_robot_report(robot_report)
+        if args.json:
+            _write_json(args.json, robot_report)
+        return 0
+    methods = tuple(m for m in METHODS if m not in set(args.skip or []))
+    if "do-mpc" in methods and not available("do_mpc"):
+        raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
+    report = run_benchmark(
+        args.horizons,
+        args.duration,
+        methods,
+        args.memory_samples,
+        None if args.loss_horizons is None else tuple(args.loss_horizons),
+        args.repeats,
+    )
+    print_report(report)
+    if args.json:
+        _write_json(args.json, report)
+    return 0
+
+
+DESCRIPTION = (
+    "Time the fast MHE beside IPOPT, do-mpc's MHE and three EKFs, and the "
+    "bare compiled kernels of the fast MHE and the EKF, on one simulated recording."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--horizons",
+        type=_horizons,
+        default=[10, 30, 100, 300],
+        help="comma-separated horizons (default 10,30,100,300)",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=20.0,
+        help="recording length in s (default 20; more samples than the largest horizon)",
+    )
+    p.add_argument("--json", help="write the report as JSON to this file")
+    p.add_argument(
+        "--robot",
+        metavar="ROBOT.toml",
+        help="instead: fast MHE against IPOPT on this robot with raw IMUs (direct model)",
+    )
+    p.add_argument(
+        "--skip",
+        action="append",
+        choices=("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
+        help="leave out a method",
+    )
+    p.add_argument(
+        "--loss-horizons",
+        type=lambda text: [] if text == "none" else _horizons(text),
+        default=None,
+        help="horizons at which each MHE loss (l2, huber, cauchy, welsch) is timed on both "
+        "backends (default: 30 if among --horizons, else the first; none: skip)",
+    )
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=REPEATS,
+        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
+        f"sample's time is the median over the rounds (default {REPEATS})",
+    )
+    p.add_argument(
+        "--memory-samples",
+        type=int,
+        default=20000,
+        help="length of the memory run of the fast MHE (0: skip)",
+    )

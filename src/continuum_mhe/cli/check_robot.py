@@ -1,0 +1,27 @@
+"""``continuum-mhe check-robot``: the observability of a robot file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from continuum_mhe.cli.options import robot_from_args
+
+
+def run(args: argparse.Namespace) -> int:
+    from continuum_mhe.analysis.observability import format_report, observability_report
+
+    robot = robot_from_args(args)
+    report = observability_report(robot, samples=args.samples, seed=args.seed)
+    if args.json:
+        print(json.dumps(report.as_dict(), indent=2))
+    else:
+        print(format_report(robot, report))
+    return 0
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("robot", metavar="ROBOT.toml", help="robot file")
+    p.add_argument("--samples", type=int, default=2000, help="random shapes (default 2000)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON")

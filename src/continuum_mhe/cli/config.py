@@ -1,0 +1,157 @@
+"""Options files: ``--config FILE.toml`` holds any option of ``estimate`` and ``live``
+(the command line overrides it), and every estimate file records the options it was
+made with, as one line a later ``--config`` reads back.
+
+An options file is TOML: each key is an option's long name, with dashes or underscores
+(``gap-reset = 2.0``, ``method = "ekf"``, ``skip-bad = true``, ``topic = ["/a", "/b"]``);
+keys at the top apply to every command that takes ``--config``, keys under ``[estimate]``
+or ``[live]`` to that command only. An estimate CSV made by ``estimate`` is an options
+file too: its ``# options = {...}`` line holds the options it was made with.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from continuum_mhe.io.csv_files import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+#: the comment line of an estimate CSV that records its options (a TOML line)
+OPTIONS_LINE = "options"
+#: options that are never read from a file or recorded: they name files or say how to
+#: treat them, not how to estimate
+NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "func", "command"})
+
+
+def add_config_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--config",
+        metavar="FILE.toml",
+        help="read options from this TOML file (an estimate CSV's recorded options too); "
+        "the command line overrides it",
+    )
+
+
+def _options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
+    """The parser's options that a file may set, by destination."""
+    return {
+        a.dest: a
+        for a in parser._actions
+        if a.option_strings and not a.required and a.dest not in NOT_OPTIONS
+    }
+
+
+def _read(path: str) -> tuple[dict[str, Any], str]:
+    """The options of a TOML file or of an estimate CSV's ``# options = {...}`` line, and
+    the text they were read from (for line numbers)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
+        raise InputError(f"{path}: cannot read the options file ({why})") from None
+    if p.suffix.lower() == ".csv":
+        lines = [ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")]
+        found = [ln for ln in lines if re.match(rf"{OPTIONS_LINE}\s*=", ln)]
+        if not found:
+            raise InputError(
+                f"{path}: no '# {OPTIONS_LINE} = {{...}}' line (not an estimate file?)"
+            )
+        text = found[0]
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    if p.suffix.lower() == ".csv":
+        data = data[OPTIONS_LINE]
+    return data, text
+
+
+def _line(text: str, key: str) -> str:
+    """``line N: `` of ``key``'s first assignment in ``text``, else ``""``."""
+    for n, ln in enumerate(text.splitlines(), start=1):
+        if re.match(rf"\s*{re.escape(key)}\s*=", ln) or re.search(
+            rf"[{{,]\s*{re.escape(key)}\s*=", ln
+        ):
+            return f"line {n}: "
+    return ""
+
+
+def _value(path: str, where: str, key: str, action: argparse.Action, value: Any) -> Any:
+    """``value`` checked against ``action`` and converted as the command line would."""
+    flag = action.option_strings[-1]
+    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+        if not isinstance(value, bool):
+            raise InputError(f"{path}: {where}{key} must be true or false ({flag} is a switch)")
+        return value if isinstance(action, argparse._StoreTrueAction) else not value
+    if isinstance(action, argparse._AppendAction):
+        items = value if isinstance(value, list) else [value]
+        return [_one(path, where, key, action, v) for v in items]
+    if isinstance(value, (list, dict)):
+        raise InputError(f"{path}: {where}{key} takes one value, got {value!r}")
+    return _one(path, where, key, action, value)
+
+
+def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -> Any:
+    convert = action.type if callable(action.type) else None
+    if isinstance(value, bool) or isinstance(value, (dict, list)):
+        raise InputError(
+            f"{path}: {where}{key} = {value!r} is not a value of {action.option_strings[-1]}"
+        )
+    try:
+        converted = convert(str(value)) if convert is not None else str(value)
+    except (ValueError, TypeError, argparse.ArgumentTypeError) as exc:
+        raise InputError(f"{path}: {where}{key} = {value!r}: {exc}") from None
+    if action.choices is not None and converted not in action.choices:
+        known = ", ".join(map(str, action.choices))
+        raise InputError(f"{path}: {where}{key} = {value!r} is not one of {known}")
+    return converted
+
+
+def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> None:
+    """Set the defaults of ``parser`` (the ``command``'s) from the options file ``path``:
+    its top-level keys and those of its ``[command]`` table. A key that is no option of
+    the command, or a value the option would refuse, is a one-line error naming the file
+    and the line."""
+    data, text = _read(path)
+    options = _options(parser)
+    tables = {"estimate", "live"}
+    flat = {k: v for k, v in data.items() if k not in tables}
+    own = data.get(command, {})
+    defaults: dict[str, Any] = {}
+    for key, value in [*flat.items(), *own.items()]:
+        dest = key.replace("-", "_")
+        where = _line(text, key)
+        if dest in NOT_OPTIONS:
+            raise InputError(f"{path}: {where}{key} is given on the command line, not in a file")
+        action = options.get(dest)
+        if action is None:
+            raise InputError(f"{path}: {where}{key} is not an option of {command}")
+        defaults[dest] = _value(path, where, key, action, value)
+    parser.set_defaults(**defaults)
+
+
+def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str:
+    """The options ``args`` holds, as the TOML inline table an estimate file records
+    (``{method = "mhe", horizon = 30, ...}``; options left unset are left out)."""
+    import tomlkit
+
+    table = tomlkit.inline_table()
+    for dest, action in _options(parser).items():
+        value = getattr(args, dest, None)
+        if value is None or dest in NOT_OPTIONS:
+            continue
+        if isinstance(action, argparse._StoreFalseAction):
+            value = not value  # recorded as the switch's own sense
+        if not isinstance(value, (bool, int, float, str, list)):
+            value = str(value)
+        table[action.option_strings[-1].lstrip("-")] = value
+    return table.as_string()

@@ -1,0 +1,115 @@
+"""``continuum-mhe demo``: simulate, run MHE, EKF and UKF, print their errors, plot."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
+from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
+from continuum_mhe.io.csv_files import (
+    check_new_folder,
+    new_files,
+    write_estimates,
+    write_measurements,
+    write_truth,
+)
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.progress import progress_bar, table_console
+from continuum_mhe.settings import MHESettings, NoiseSettings
+from continuum_mhe.signals import interruptible
+from continuum_mhe.simulation.scenarios import Recording, ScenarioName, simulate_robot
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    out = Path(args.out)
+    check_new_folder(out)
+    robot = robot_from_args(args) if args.robot else Robot.single(0.2)
+    scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
+    rec = simulate_robot(scenario, robot, seed=args.seed)
+    formulation = make_formulation("bend", robot, NoiseSettings())
+    names = [o.name for o in rec.outputs]
+    results: list[tuple[EstimateSeries, Metrics]] = []
+    labels: list[str] = []
+    for method in METHODS:
+        est = make_estimator(method, formulation, MHESettings())
+        series = est.run(rec.t, rec.z, progress=interruptible(progress_bar(f"demo: {method}")))
+        results.append((series, compute_metrics(series.output, rec.truth, robot.length, names)))
+        labels.append(method.upper())
+    what = "0.2 m" if robot.is_single else robot.describe()
+    table = Table(title=f"{scenario}, {what}, 2 deg noise, N = 30 (continuum-mhe demo)")
+    angles = [n for n in names if n.startswith(("theta", "phi"))]
+    for col in ("method", "tip mean mm", "tip mean %", "tip max mm"):
+        table.add_column(col, justify="right")
+    for n in angles:
+        table.add_column(f"{n} RMSE deg", justify="right")
+    table.add_column("median solve ms", justify="right")
+    for label, (s, m) in zip(labels, results):
+        table.add_row(
+            label,
+            f"{m.tip_mean_mm:.2f}",
+            f"{m.tip_mean_pct:.2f}",
+            f"{m.tip_max_mm:.2f}",
+            *(f"{math.degrees(m.rmse[n]):.2f}" for n in angles),
+            f"{float(np.median(s.solve_ms)):.3f}",
+        )
+    table_console().print(table)
+    all_series = [s for s, _ in results]
+    csvs = [out / f"estimates_{m}.csv" for m in METHODS] + [
+        out / "measurements.csv", out / "truth.csv"]  # fmt: skip
+    with new_files(out) as written:  # after the estimates, not during them
+        for path, (series, _) in zip(csvs, results):
+            write_estimates(path, series)
+            written.append(path)
+        write_measurements(csvs[-2], rec.t, rec.z, rec.measurement_names)
+        written.append(csvs[-2])
+        write_truth(csvs[-1], rec.t, rec.truth, rec.outputs)
+        written.append(csvs[-1])
+        _demo_figures(out, rec, all_series, robot, scenario, what, written)
+    figs = written[len(csvs) :]
+    print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
+    return 0
+
+
+def _demo_figures(
+    out: Path, rec: Recording, all_series: list[EstimateSeries], robot: Robot, scenario: str,
+    what: str, written: list[Path],
+) -> None:  # fmt: skip
+    """The demo's figures in ``out`` (PNG), each file into ``written`` once saved."""
+    from continuum_mhe.evaluation import plotting
+
+    def save(fig: Figure, name: str) -> None:
+        written.extend(plotting.save(fig, out / name, ("png",)))  # atomic: saved or not
+
+    where = f"simulated {scenario} recording, {what}"
+    save(
+        plotting.trajectory_3d(rec.truth, all_series, f"Tip path: truth and estimates ({where})"),
+        "demo_trajectory_3d",
+    )
+    bounds = [sec.theta_max for sec in robot.sections]
+    title = f"Tip error, position and bend over time ({where})"
+    save(plotting.states_vs_time(rec.t, rec.truth, all_series, title, bounds), "demo_states")
+    if not robot.is_single:
+        title = f"Backbone at four instants: truth and estimates ({where})"
+        save(
+            plotting.backbone_snapshots(rec.t, rec.truth, all_series, robot.lengths, title),
+            "demo_backbone",
+        )
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    add_robot_option(p, replaces=())

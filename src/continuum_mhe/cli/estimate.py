@@ -1,0 +1,205 @@
+"""``continuum-mhe estimate``: shape and tip from a recording (tilt or raw CSV, ROS bag,
+MCAP), written as an estimate CSV or MCAP."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+from collections.abc import Generator, Iterable, Iterator
+from pathlib import Path
+from typing import cast
+
+from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
+from continuum_mhe.cli.options import (
+    add_mhe_options,
+    add_model_options,
+    add_overwrite_option,
+    add_raw_imu_options,
+    add_recovery_options,
+    formulation_from_args,
+    input_options,
+    mhe_settings_from_args,
+    recovery_settings_from_args,
+)
+from continuum_mhe.cli.program import PROG, version
+from continuum_mhe.estimators import METHODS, Measurement, make_estimator
+from continuum_mhe.estimators.base import bound_notice
+from continuum_mhe.io.csv_files import InputError, check_output_target
+from continuum_mhe.progress import progress_bar
+from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
+
+#: the comment key that marks an estimate file cut short by a signal (Ctrl-C, SIGTERM)
+PARTIAL = "partial"
+
+
+def run(args: argparse.Namespace) -> int:
+    # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv, .mcap),
+    # streamed: the input is read once and memory stays flat
+    from continuum_mhe.io.imu_topics import warn_topic_order
+    from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
+
+    check_output_path(args.output, args.measurements, args.overwrite)
+    out = args.output
+    counts: dict[str, int] = {}
+    with open_estimate_input(
+        args.measurements, input_options(args), formulation_from_args(args)
+    ) as stream:
+        est = make_estimator(
+            args.method,
+            stream.formulation,
+            mhe_settings_from_args(args),
+            recovery_settings_from_args(args),
+        )
+        est.reset()
+        flags_outliers = bool(getattr(est, "flags_outliers", False))
+        outliers = 0
+        frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
+        bar = progress_bar(f"{args.method} estimate")
+        ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
+        made = f"{version()} estimate {Path(args.measurements).name}"
+        notes = [("continuum-mhe", json.dumps(made)), (OPTIONS_LINE, args.options_record)]
+        interrupted: BaseException | None = None
+        with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers, notes) as sink:
+            try:
+                for t, z in stream.samples:  # a signal while waiting for input ends it at once
+                    next(ticks)
+                    frozen_before, freezes_before = est.frozen_samples, len(est.first_freezes)
+                    with signals_deferred():  # inside C code: stop after this sample
+                        e = est.step(Measurement(t, z))
+                    counts[e.status] = counts.get(e.status, 0) + 1
+                    if est.frozen_samples > frozen_before:
+                        frozen[e.status] = frozen.get(e.status, 0) + 1
+                        note = est.freezes_notice(freezes_before)  # said once per IMU
+                        if note:
+                            print(f"{PROG}: note: {note}", file=sys.stderr)
+                    outliers += e.outlier
+                    sink.write(e)
+            except BaseException as exc:  # a signal (in C code: any type): keep what is done
+                if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
+                    raise
+                interrupted = exc
+                cut = f"interrupted after {sink.rows} samples, at t = {e.t:g} s"
+                sink.note(PARTIAL, json.dumps(cut))
+            finally:
+                ticks.close()
+            n = sum(counts.values())
+            if n == counts.get("no-estimate", 0):
+                why = (
+                    "every sample is a dropout"
+                    if not args.paper_start
+                    else (f"--paper-start needs at least --horizon {args.horizon} samples")
+                )
+                raise InputError(
+                    f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
+                    "nothing written"
+                )
+            if n >= 3 and est.gap_resets > n // 2:  # t in ms read as s, most often
+                fix = "raise --gap-reset, or 0: never"
+                if stream.kind != "log":  # a log's t comes from its own timestamps
+                    fix = f"if t is in milliseconds, name the column t_ms (else {fix})"
+                raise InputError(
+                    f"{stream.name}: {est.gap_resets} of {n} samples restarted the estimator "
+                    f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
+                    "nothing written"
+                )
+    if interrupted is not None:
+        print(
+            f"{PROG}: kept the {n} estimates made before the interruption in {out}, marked "
+            f"'# {PARTIAL} = ...'",
+            file=sys.stderr,
+        )
+        raise interrupted
+    if stream.kind == "log":  # several topics in the wrong order, most often
+        warn_topic_order(stream.name, args.topic or (), n, est.restarts + est.bad_starts)
+    summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    if flags_outliers:
+        summary += f"; outliers flagged: {outliers}"
+    msg = f"wrote {n} estimates to {out} ({summary})"
+    for clause in (stream.readings.summary() if stream.readings else "", stream.problems.summary()):
+        msg += f"; {clause}" if clause else ""
+    if est.frozen_samples:
+        of = ", ".join(f"{k}: {v}" for k, v in sorted(frozen.items()))
+        msg += (
+            f"; {est.frozen_samples} of them had a frozen IMU (the same reading for over "
+            f"{args.freeze:g} s, treated as a dropout): {of}"
+        )
+    if est.restarts:
+        msg += (
+            f"; restarted {est.restarts} time(s) after the estimate diverged, failed or its "
+            "uncertainty outgrew the workspace (status reset, or no-estimate on a sample without "
+            "a valid reading)"
+        )
+    if est.gap_resets:
+        msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
+    if est.bad_starts:
+        msg += (
+            f"; restarted {est.bad_starts} time(s) after readings inconsistent with the "
+            "start or an IMU's return"
+        )
+    if est.bound_samples:
+        note = bound_notice(est.bound_samples, n, est.formulation.robot)
+        print(f"{PROG}: warning: {note}", file=sys.stderr)
+    if est.reject_resets:
+        msg += (
+            f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "
+            f"{args.reject_reset:g} s"
+        )
+    for note in stream.notes:  # e.g. how the samples of several Imu topics paired
+        print(note, file=sys.stderr)
+    print(msg, file=sys.stderr)
+    return 0
+
+
+def _passthrough(it: Iterable[int]) -> Iterator[int]:
+    yield from it
+
+
+def check_output_path(output: str, source: str, overwrite: bool = False) -> None:
+    """The output must be a writable file name in an existing folder (see
+    :func:`check_output_target`), not the input itself, and new unless ``overwrite``;
+    checked before any work."""
+    out = check_output_target(output)
+    if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
+        raise InputError(f"{out}: refusing to overwrite the input file")
+    check_output_target(output, overwrite)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "measurements", help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap"
+    )
+    p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
+    add_overwrite_option(p)
+    add_config_option(p)
+    p.add_argument("--method", choices=METHODS, default="mhe")
+    p.add_argument("--degrees", action="store_true", help="roll and pitch are in degrees")
+    p.add_argument(
+        "--skip-bad",
+        action="store_true",
+        help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
+    )
+    add_model_options(p)
+    add_mhe_options(p)
+    add_recovery_options(p)
+    add_raw_imu_options(p)
+    g = p.add_argument_group("robot logs (ROS 1/2 bags, MCAP)")
+    g.add_argument(
+        "--topic",
+        action="append",
+        help="sensor_msgs/msg/Imu topic (default: the only one); with several IMUs, "
+        "once per IMU in the robot file's order",
+    )
+    g.add_argument(
+        "--pair-tolerance",
+        type=float,
+        metavar="SECONDS",
+        help="several topics: largest header-stamp difference of paired samples "
+        "(default: half of the first topic's median sample period)",
+    )
+    g.add_argument(
+        "--orientation",
+        action="store_true",
+        help="use the Imu message's orientation (roll, pitch) instead of its raw readings",
+    )

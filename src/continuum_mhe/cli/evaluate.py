@@ -1,0 +1,183 @@
+"""``continuum-mhe evaluate``: the errors of an estimate CSV against a truth CSV."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.cli.program import PROG
+from continuum_mhe.evaluation.metrics import (
+    Calibration,
+    Metrics,
+    compute_calibration,
+    compute_metrics,
+    length_misfit,
+    match_rows,
+)
+from continuum_mhe.io.csv_files import InputError, check_same_robot, read_state_table
+
+
+def _align(
+    path_est: str, t_est: np.ndarray, path_truth: str, t_truth: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    i_est, i_truth = match_rows(t_est, t_truth)
+    n, k = len(t_est), len(i_est)
+    what = (
+        f"only {k} of {n} rows have a row at the same t in {path_truth} (within 1 us): "
+        "the files' times do not match (another --dt or duration, t in milliseconds, "
+        "or the wrong truth file?)"
+    )
+    if k < max(2, MIN_MATCHED * n):
+        raise InputError(f"{path_est}: {what}")
+    if k < WARN_MATCHED * n:
+        print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
+    covered = t_est[i_est]
+    t0, t1 = float(t_truth[0]), float(t_truth[-1])
+    share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
+    if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
+        print(
+            f"{PROG}: warning: {path_est}: its rows cover t = {covered[0]:g} to "
+            f"{covered[-1]:g} s of {path_truth}'s {t0:g} to {t1:g} s ({100 * share:.0f} %): "
+            "the scores are of that part only (an interrupted or cut estimate?)",
+            file=sys.stderr,
+        )
+    return i_est, i_truth
+
+
+#: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
+#: fewer than 2), and warns below :data:`WARN_MATCHED`, and when the matched rows span
+#: less than that share of the truth's time span.
+MIN_MATCHED = 0.1
+WARN_MATCHED = 0.5
+
+
+def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, length: float) -> str:
+    """A hint when the estimate's tip distances from the base are a constant multiple of
+    the truth's (made with another length), else ``""``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.linalg.norm(est_xyz, axis=1) / np.linalg.norm(truth_xyz, axis=1)
+    ratio = ratio[np.isfinite(ratio)]
+    if tip_mean < 0.1 * length or not len(ratio):
+        return ""
+    r = float(np.median(ratio))
+    if 0.8 < r < 1.25:
+        return ""
+    return (
+        f"the estimate's tip is {r:.2f} times as far from the base as the truth's: "
+        "was it made with another --length (or robot file) than the truth?"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    est = read_state_table(args.estimates)
+    truth = read_state_table(args.truth)
+    robot = robot_from_args(args)  # without --robot: one section of --length
+    other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
+    i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
+    length = robot.length
+    out_names = [n for n in est.names if not n.startswith("std_")]
+    cols = [est.names.index(n) for n in out_names]
+    try:
+        m = compute_metrics(
+            est.values[i_e][:, cols], truth.values[i_t], length, out_names, truth.names
+        )
+    except ValueError as exc:
+        raise InputError(f"{args.estimates}: {exc}") from None
+    cal = None
+    if est.has_std and est.std is not None:
+        std = est.std[i_e][:, cols]
+        cal = compute_calibration(
+            est.values[i_e][:, cols], std, truth.values[i_t], out_names, truth.names
+        )
+    unmatched = int(len(est.t) - len(i_e))
+    xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
+    hint = other_robot or _length_hint(
+        est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
+    )
+    misfits = [
+        f"{path}: {misfit}; pass the --length (or --robot) it was made with"
+        for path, table in ((args.estimates, est), (args.truth, truth))
+        if (misfit := length_misfit(table.names, table.values, robot.lengths))
+    ]  # tip errors in % of the length are then of another robot's length
+    # a file made for another length explains the estimate-truth ratio too: say it once
+    warned = [hint] if other_robot or not misfits else misfits
+    for line in filter(None, warned):
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
+    if args.json:
+        extra = {"calibration": None if cal is None else cal.as_dict()}
+        srmse = {"srmse": None} if hint else {}  # not a score of two different robots
+        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched}, indent=2))
+    else:
+        print(format_metrics(m, comparable=not hint))
+        print(format_calibration(cal, est.std_columns))
+        if unmatched:
+            print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
+    return 0
+
+
+def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
+    """Coverage of the 95 % intervals per output, and the tip NEES with its band; without
+    them, why (``std_columns``: the file has ``std_`` columns, all empty)."""
+    if c is None:
+        if std_columns:
+            return (
+                "calibration          the std_ columns of the estimate file are empty (made "
+                "without standard deviations, e.g. on a first run while the kernels compiled)"
+            )
+        return "calibration          no std_ columns in the estimate file"
+    cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
+    lo, hi = c.tip_nees_band
+    inside = "inside" if lo <= c.tip_nees <= hi else "outside"
+    return (
+        f"95% interval coverage {cover} (0.95 when calibrated)\n"
+        f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 when calibrated; "
+        f"95% band {lo:.2f} to {hi:.2f}: {inside})"
+    )
+
+
+def format_metrics(m: Metrics, comparable: bool = True) -> str:
+    """``evaluate``'s error lines; no SRMSE unless the estimate and the truth are
+    ``comparable`` (not of different lengths or robots)."""
+    r = m.rmse
+    lines = [
+        f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
+        f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
+        f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
+        f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",
+    ]
+    if "theta" in r and "phi" in r:
+        lines.append(
+            f"RMSE theta, phi      {math.degrees(r['theta']):.2f}, {math.degrees(r['phi']):.2f} deg"
+        )
+    for sec, mean in m.section_end_mean_mm.items():
+        lines.append(
+            f"section {sec} end error  mean {mean:.2f} mm, max {m.section_end_max_mm[sec]:.2f} mm"
+        )
+    k = 1
+    while f"theta_{k}" in r:
+        lines.append(
+            f"RMSE theta_{k}, phi_{k}  {math.degrees(r[f'theta_{k}']):.2f}, "
+            f"{math.degrees(r[f'phi_{k}']):.2f} deg"
+        )
+        k += 1
+    if comparable:
+        summed = ", ".join(r)
+        lines.append(f"SRMSE                {m.srmse:.4f} (sum of the RMSEs of {summed}, m + rad)")
+    else:  # a score of two different robots would read as a real one
+        lines.append(
+            "SRMSE                not given: the estimate and the truth differ (see the warning)"
+        )
+    return "\n".join(lines)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("estimates")
+    p.add_argument("truth")
+    p.add_argument("--length", type=float, default=0.2, help="section length in m")
+    add_robot_option(p, replaces=("--length",))
+    p.add_argument("--json", action="store_true", help="print JSON")

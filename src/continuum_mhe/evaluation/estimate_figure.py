@@ -1,0 +1,236 @@
+"""The figure of one estimate file (``continuum-mhe plot EST.csv``): each section end and
+the tip over time with their 95 % bands, the error against a truth, the statuses, and
+the backbone in 3D. It reads the file's table (:class:`~continuum_mhe.io.csv_files.StateTable`)
+and never an estimator; any number of sections, with or without a truth or a robot."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
+from continuum_mhe.evaluation.plotting import Figure, plt
+from continuum_mhe.io.csv_files import FloatArray, StateTable
+from continuum_mhe.model.pcc import backbone_points
+from continuum_mhe.results import Status
+
+#: backbones drawn in the 3D view
+SNAPSHOTS = 4
+#: points drawn per section of a backbone
+POINTS_PER_SECTION = 16
+
+
+@dataclass(frozen=True)
+class TrackedPoint:
+    """One point of the backbone that an estimate file tracks: its label and its
+    position columns (``x_k, y_k, z_k`` for section ``k``'s end, ``x, y, z`` for the
+    tip of a one-section file)."""
+
+    label: str
+    columns: tuple[str, str, str]
+
+
+def section_count(names: Sequence[str]) -> int:
+    """Sections of the robot an estimate was made for, from its bend columns (``theta``:
+    one; ``theta_1 ... theta_n``: n); 0 when the file has none."""
+    if "theta" in names:
+        return 1
+    n = 0
+    while f"theta_{n + 1}" in names:
+        n += 1
+    return n
+
+
+def tracked_points(names: Sequence[str]) -> tuple[TrackedPoint, ...]:
+    """Every section end the file has positions of (``x_k, y_k, z_k``), the last being
+    the tip; just the tip (``x, y, z``) when it has none."""
+    ends = []
+    k = 1
+    while all(f"{c}_{k}" in names for c in "xyz"):
+        ends.append(TrackedPoint(f"section {k} end", (f"x_{k}", f"y_{k}", f"z_{k}")))
+        k += 1
+    if not ends:
+        return (TrackedPoint("tip", ("x", "y", "z")),)
+    last = ends[-1]
+    return (*ends[:-1], TrackedPoint(f"tip (section {len(ends)} end)", last.columns))
+
+
+def section_shapes(table: StateTable, n_sections: int) -> tuple[FloatArray, FloatArray]:
+    """Each row's ``theta`` and ``phi`` per section (n_rows, n_sections), rad."""
+    if n_sections == 1:
+        return table.column("theta")[:, None], table.column("phi")[:, None]
+    theta = np.stack([table.column(f"theta_{k}") for k in range(1, n_sections + 1)], axis=1)
+    phi = np.stack([table.column(f"phi_{k}") for k in range(1, n_sections + 1)], axis=1)
+    return theta, phi
+
+
+def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
+    """The section lengths (m) an estimate was made with, from its own rows: a section
+    of length ``L`` bent by ``theta`` has a chord ``2 L sin(theta/2) / theta`` from its
+    base to its end, so each row gives ``L``; the median over the rows. None when the
+    file lacks the bend or end columns."""
+    n = section_count(table.names)
+    points = tracked_points(table.names)
+    if n == 0 or len(points) != n:
+        return None
+    theta, _ = section_shapes(table, n)
+    ends = np.stack([np.stack([table.column(c) for c in p.columns], axis=1) for p in points], 1)
+    starts = np.concatenate([np.zeros_like(ends[:, :1]), ends[:, :-1]], axis=1)
+    chord = np.linalg.norm(ends - starts, axis=2)
+    half = np.abs(theta) / 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(half > 1e-9, half / np.sin(half), 1.0)  # L / chord
+    lengths = np.nanmedian(np.where(np.isfinite(chord * ratio), chord * ratio, np.nan), axis=0)
+    if not np.all(np.isfinite(lengths) & (lengths > 0)):
+        return None
+    return tuple(float(v) for v in lengths)
+
+
+def _positions(table: StateTable, point: TrackedPoint) -> FloatArray:
+    return np.stack([table.column(c) for c in point.columns], axis=1)
+
+
+def _stds(table: StateTable, point: TrackedPoint) -> FloatArray | None:
+    if not table.has_std or table.std is None:
+        return None
+    return np.stack([table.std[:, table.names.index(c)] for c in point.columns], axis=1)
+
+
+def estimate_figure(
+    est: StateTable,
+    truth: StateTable | None = None,
+    lengths: Sequence[float] | None = None,
+    title: str = "",
+) -> Figure:
+    """The figure of an estimate table ``est``: per axis, the position of each section
+    end and of the tip over time (mm) with its 95 % band where the file has standard
+    deviations; the distance of each from the ``truth``'s (mm) when one is given; the
+    status of each row; and the backbone (every section, from ``lengths`` in m, else
+    from the file's own rows) at :data:`SNAPSHOTS` instants, the truth's dashed.
+
+    Raises ``ValueError`` when the truth lacks a tracked point's columns or shares no
+    time with the estimate."""
+    points = tracked_points(est.names)
+    matched = None
+    if truth is not None:
+        for p in points:
+            missing = [c for c in p.columns if c not in truth.names]
+            if missing:
+                raise ValueError(f"the truth has no {', '.join(missing)} column(s)")
+        matched = match_rows(est.t, truth.t)
+        if len(matched[0]) < 2:
+            raise ValueError(
+                f"only {len(matched[0])} of the estimate's {len(est.t)} rows have a truth row "
+                "at the same t (another recording, or t in milliseconds?)"
+            )
+    rows = 3 + (truth is not None) + 1
+    fig = plt.figure(figsize=(14, 2.3 * rows + 0.6))
+    grid = fig.add_gridspec(rows, 2, width_ratios=(1.7, 1.0))
+    first = fig.add_subplot(grid[0, 0])
+    axes = [first] + [fig.add_subplot(grid[r, 0], sharex=first) for r in range(1, rows)]
+    for j, axis in enumerate("xyz"):
+        ax = axes[j]
+        for i, p in enumerate(points):
+            color = f"C{i}"
+            v = _positions(est, p)[:, j] * 1e3
+            ax.plot(est.t, v, color=color, lw=1.3, label=p.label)
+            sd = _stds(est, p)
+            if sd is not None:
+                half = Z95 * sd[:, j] * 1e3
+                ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0,
+                                label="95 % band" if i == 0 else None)  # fmt: skip
+            if truth is not None:
+                ax.plot(truth.t, _positions(truth, p)[:, j] * 1e3, color=color, ls="--",
+                        lw=1.0, label="truth" if i == 0 else None)  # fmt: skip
+        ax.set_ylabel(f"{axis} (mm)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize="small", ncol=min(4, len(points) + 2))
+    if truth is not None and matched is not None:
+        ax = axes[3]
+        i_e, i_t = matched
+        for i, p in enumerate(points):
+            err = np.linalg.norm(_positions(est, p)[i_e] - _positions(truth, p)[i_t], axis=1)
+            ax.plot(est.t[i_e], err * 1e3, color=f"C{i}", lw=1.2, label=p.label)
+        ax.set_ylabel("error (mm)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+    _status_strip(axes[-1], est)
+    axes[-1].set_xlabel("t (s)")
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    view = fig.add_subplot(grid[:, 1], projection="3d")
+    _backbones(view, est, truth, matched, lengths)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def _status_strip(ax: plt.Axes, est: StateTable) -> None:
+    """One row of marks per status the file has, at the times it has it."""
+    present = [s for s in Status if np.any(est.status == s.value)]
+    for k, s in enumerate(present):
+        at = est.t[est.status == s.value]
+        ax.plot(at, np.full(len(at), k), "|", ms=9, color="C2" if s is Status.OK else f"C{k + 3}")
+    ax.set_yticks(range(len(present)), [s.value for s in present], fontsize="small")
+    ax.set_ylim(-0.7, len(present) - 0.3)
+    ax.set_ylabel("status")
+    ax.grid(alpha=0.3, axis="x")
+
+
+def _backbones(
+    ax: Any,
+    est: StateTable,
+    truth: StateTable | None,
+    matched: tuple[IndexArray, IndexArray] | None,
+    lengths: Sequence[float] | None,
+) -> None:
+    """The backbone at a few instants with an estimate (and the truth's at the same
+    instants, dashed): the curve from ``lengths`` and the bend columns when both are
+    known, else straight lines through the section ends."""
+    n = section_count(est.names)
+    points = tracked_points(est.names)
+    lengths = lengths if lengths is not None else lengths_from_estimate(est)
+    has = np.flatnonzero(np.all(np.isfinite(est.values), axis=1))
+    if not len(has):
+        ax.set_title("no row has an estimate")
+        return
+    picks = has[np.linspace(0, len(has) - 1, min(SNAPSHOTS, len(has))).astype(int)]
+    truth_row = dict(zip(*matched)) if matched is not None else {}
+    curve = lengths is not None and n == len(lengths)
+    s = None
+    if curve:
+        assert lengths is not None
+        ends = np.cumsum([0.0, *lengths])
+        s = np.concatenate(
+            [np.linspace(a, b, POINTS_PER_SECTION + 1)[int(k > 0):]
+             for k, (a, b) in enumerate(zip(ends[:-1], ends[1:]))]
+        )  # fmt: skip
+    reach = float(sum(lengths)) if lengths is not None else 0.0
+    for j, i in enumerate(picks):
+        color = plt.get_cmap("viridis")(j / max(1, len(picks) - 1))
+        for table, row, style in ((est, i, "-"), (truth, truth_row.get(i), "--")):
+            if table is None or row is None:
+                continue
+            ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in points])
+            if curve and s is not None and lengths is not None:
+                theta, phi = section_shapes(table, n)
+                line = backbone_points(lengths, theta[row], phi[row], s)
+            else:
+                line = np.concatenate([np.zeros((1, 3)), ends_xyz])
+            label = f"t = {est.t[i]:.2f} s" if style == "-" else None
+            ax.plot(*(line * 1e3).T, style, color=color, lw=2.0 if style == "-" else 1.2,
+                    label=label)  # fmt: skip
+            ax.plot(*(ends_xyz * 1e3).T, "o", color=color, ms=3)
+            reach = max(reach, float(np.max(np.linalg.norm(line, axis=1))))
+    r = reach * 1e3
+    ax.set_xlim(-r, r)
+    ax.set_ylim(-r, r)
+    ax.set_zlim(-r, r)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+    ax.set_title("backbone" + (" (truth dashed)" if truth is not None else ""))
+    ax.legend(loc="upper left", fontsize="small")

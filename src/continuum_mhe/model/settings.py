@@ -1,0 +1,91 @@
+"""Typed, frozen settings of the model: the one-section robot of the paper's
+formulations (:class:`RobotSettings`) and the noise model every estimator shares
+(:class:`NoiseSettings`). Every field is validated on construction."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from continuum_mhe.errors import UserError
+from continuum_mhe.model.imu import MOUNTINGS, Mounting
+from continuum_mhe.model.robot import check_theta_max
+
+FormulationName = Literal["bend", "paper", "direct"]
+FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
+
+
+def check_positive(name: str, value: float) -> None:
+    """Raise a :class:`UserError` unless ``value`` is a positive finite number."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise UserError(f"{name} must be a positive finite number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """One inextensible constant-curvature section with an IMU at its tip.
+
+    Attributes:
+        length: section length ``s`` in metres.
+        theta_max: upper bound on the bending angle ``theta`` in radians (eq. 11 uses
+            ``pi/2``). Must lie in ``(0, pi)``.
+        mounting: ``"z-up"`` (base z against gravity) or ``"z-down"`` (hanging).
+    """
+
+    length: float = 0.2
+    theta_max: float = math.pi / 2
+    mounting: Mounting = "z-up"
+
+    def __post_init__(self) -> None:
+        check_positive("length", self.length)
+        check_theta_max(self.theta_max)
+        if self.mounting not in MOUNTINGS:
+            raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+
+
+#: Smallest measurement standard deviation accepted, rad (0.2 arcseconds).
+MIN_MEASUREMENT_STD = 1e-6
+
+
+@dataclass(frozen=True)
+class NoiseSettings:
+    """Noise model shared by every estimator (same Q and R for MHE, EKF and UKF).
+
+    Attributes:
+        measurement_std: standard deviation of roll and pitch, rad. The paper's
+            ``V = diag(2, 2)`` "degrees" is read as 2 degrees; weights are 1/std^2.
+        bend_accel_psd: white-noise acceleration spectral density of the bend vector
+            ``(a, b)`` in the default formulation, rad^2/s^3. The default came from a
+            sweep of the EKF's tip error over simulated recordings (docs/model.md).
+        paper_process_weight: the paper's ``W = w I`` (weight, i.e. inverse
+            covariance per step) for the five-state formulation.
+        initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
+            ``(theta, phi)``, rad.
+        initial_rate_std: prior standard deviation of the initial bend rates, rad/s.
+    """
+
+    measurement_std: float = math.radians(2.0)
+    bend_accel_psd: float = 0.5
+    paper_process_weight: float = 10.0
+    initial_bend_std: float = 0.1
+    initial_rate_std: float = 0.5
+
+    def __post_init__(self) -> None:
+        if (
+            isinstance(self.measurement_std, (int, float))
+            and 0 < self.measurement_std < MIN_MEASUREMENT_STD
+        ):
+            raise UserError(
+                f"measurement_std {self.measurement_std!r} rad is below "
+                f"{MIN_MEASUREMENT_STD:g} rad ({math.degrees(MIN_MEASUREMENT_STD):.2g} deg), "
+                "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
+            )
+        for name in (
+            "measurement_std",
+            "bend_accel_psd",
+            "paper_process_weight",
+            "initial_bend_std",
+            "initial_rate_std",
+        ):
+            check_positive(name, getattr(self, name))

@@ -1,0 +1,304 @@
+"""The user's walk from a recording to a figure: ``plot`` of any estimate file, the
+backbone's points, ``calibrate --write-robot``, options files, outputs that are never
+silently replaced, an interrupted ``estimate`` that keeps its rows, and the shipped rod
+recording evaluated as shipped."""
+
+from __future__ import annotations
+
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.model.pcc import backbone_points
+from continuum_mhe.model.robot import Robot
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data"
+TWO_SECTION = DATA / "robots" / "two_section.toml"
+
+
+# --- the backbone's points --------------------------------------------------------------
+def _arc_point(theta: float, phi: float, s: float, length: float) -> np.ndarray:
+    """A point at arc length s of one constant-curvature section (written out here)."""
+    k = theta / length  # curvature
+    if abs(k) < 1e-12:
+        return np.array([0.0, 0.0, s])
+    r = (1 - math.cos(k * s)) / k
+    return np.array([-r * math.cos(phi), -r * math.sin(phi), math.sin(k * s) / k])
+
+
+def test_backbone_points_of_one_section_lie_on_its_arc() -> None:
+    robot = Robot.single(0.2)
+    s = np.array([0.0, 0.05, 0.1234, 0.2])
+    for theta, phi in ((0.0, 0.0), (0.7, 0.3), (2.0, -2.5)):
+        pts = backbone_points(robot, theta, phi, s)
+        expected = np.array([_arc_point(theta, phi, v, 0.2) for v in s])
+        np.testing.assert_allclose(pts, expected, atol=1e-12)
+
+
+def test_backbone_points_move_at_unit_speed_and_end_at_the_tip() -> None:
+    """|dp/ds| = 1 along an inextensible backbone (central differences), and the last
+    point of each section is its end column in an estimate's sense (pose_at)."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.pcc import pose_at
+
+    robot = read_robot(TWO_SECTION)
+    theta, phi = np.array([1.1, 0.6]), np.array([0.4, -1.9])
+    s = np.linspace(0.01, robot.length - 0.01, 23)
+    h = 1e-6
+    speed = np.linalg.norm(
+        backbone_points(robot, theta, phi, s + h) - backbone_points(robot, theta, phi, s - h),
+        axis=1,
+    ) / (2 * h)
+    np.testing.assert_allclose(speed, 1.0, atol=1e-6)
+    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
+    ends = backbone_points(robot, theta, phi, np.cumsum(robot.lengths))
+    for k in range(2):
+        np.testing.assert_allclose(ends[k], pose_at(bends, robot.lengths, k)[1], atol=1e-12)
+    # a batch of shapes gives each shape's points
+    batch = backbone_points(robot, np.stack([theta, 0 * theta]), np.stack([phi, phi]), s[:3])
+    assert batch.shape == (2, 3, 3)
+    np.testing.assert_allclose(batch[1], [[0, 0, v] for v in s[:3]], atol=1e-12)
+    with pytest.raises(ValueError, match="outside the backbone"):
+        backbone_points(robot, theta, phi, [robot.length + 0.01])
+
+
+# --- plot ---------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def two_section_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A two-section recording, its truth and an EKF estimate."""
+    d = tmp_path_factory.mktemp("two")
+    assert main(["simulate", "spatial", "--robot", str(TWO_SECTION), "--duration", "3",
+                 "-o", str(d / "m.csv"), "--truth", str(d / "t.csv")]) == 0  # fmt: skip
+    assert main(["estimate", str(d / "m.csv"), "--robot", str(TWO_SECTION), "--method", "ekf",
+                 "-o", str(d / "e.csv")]) == 0  # fmt: skip
+    return d
+
+
+def test_lengths_from_an_estimate_are_its_robot_s(two_section_run: Path) -> None:
+    from continuum_mhe.evaluation.estimate_figure import lengths_from_estimate, tracked_points
+
+    truth = read_state_table(two_section_run / "t.csv")
+    np.testing.assert_allclose(lengths_from_estimate(truth), (0.16, 0.14), rtol=1e-9)
+    labels = [p.label for p in tracked_points(truth.names)]
+    assert labels == ["section 1 end", "tip (section 2 end)"]
+
+
+@pytest.mark.parametrize("extra", [[], ["--truth", "t.csv"], ["--robot", str(TWO_SECTION)]])
+def test_plot_draws_a_two_section_estimate(two_section_run: Path, extra, capsys) -> None:
+    out = two_section_run / f"fig{len(extra)}{extra[0][2:] if extra else ''}.png"
+    argv = [a if a != "t.csv" else str(two_section_run / "t.csv") for a in extra]
+    assert main(["plot", str(two_section_run / "e.csv"), *argv, "-o", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert capsys.readouterr().err.strip() == f"wrote {out}"
+
+
+def test_plot_draws_a_one_section_estimate_as_pdf(tmp_path: Path) -> None:
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(tmp_path / "m.csv"),
+                 "--truth", str(tmp_path / "t.csv")]) == 0  # fmt: skip
+    assert main(["estimate", str(tmp_path / "m.csv"), "--method", "ekf",
+                 "-o", str(tmp_path / "e.csv")]) == 0  # fmt: skip
+    out = tmp_path / "e.pdf"
+    assert main(["plot", str(tmp_path / "e.csv"), "--truth", str(tmp_path / "t.csv"),
+                 "-o", str(out)]) == 0  # fmt: skip
+    assert out.read_bytes()[:5] == b"%PDF-"
+
+
+def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(
+    two_section_run: Path, tmp_path: Path, capsys
+) -> None:
+    one = tmp_path / "t1.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(tmp_path / "m1.csv"),
+                 "--truth", str(one)]) == 0  # fmt: skip
+    capsys.readouterr()
+    fig = tmp_path / "f.png"
+    assert main(["plot", str(two_section_run / "e.csv"), "--truth", str(one), "-o", str(fig)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "has no x_1, y_1, z_1 column" in err and not fig.exists()
+    fig.write_text("mine")
+    assert main(["plot", str(two_section_run / "e.csv"), "-o", str(fig)]) == 2
+    assert "exists; give --overwrite" in capsys.readouterr().err
+    assert fig.read_text() == "mine"
+    assert main(["plot", str(two_section_run / "e.csv"), "-o", str(fig), "--overwrite"]) == 0
+    assert fig.read_bytes()[:4] == b"\x89PNG"
+
+
+# --- calibrate --write-robot --------------------------------------------------------------
+def _rest_recording(path: Path, rpy_deg: tuple[float, float, float], bias: np.ndarray) -> None:
+    """A straight, still robot seen by an IMU mounted at ``rpy_deg`` (Z-Y-X: v_tip =
+    Rz Ry Rx v_sensor, built with scipy), with noise and a gyro bias."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(3)
+    n = 400
+    tip_to_sensor = Rotation.from_euler("ZYX", rpy_deg[::-1], degrees=True).inv()
+    acc = tip_to_sensor.apply([0.0, 0.0, 9.81]) + rng.normal(0, 0.02, (n, 3))
+    gyr = bias + rng.normal(0, 0.001, (n, 3))
+    t = np.arange(n) * 0.01
+    rows = ["t,ax,ay,az,gx,gy,gz"] + [
+        ",".join(f"{v:.6f}" for v in (t[i], *acc[i], *gyr[i])) for i in range(n)
+    ]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_calibrate_writes_a_robot_file_with_the_known_mounting(tmp_path: Path, capsys) -> None:
+    robot = tmp_path / "robot.toml"
+    robot.write_text(
+        '# my rod: one section\nmounting = "z-up"\n\n[[section]]\nlength = 0.25  # m\n\n'
+        "[[imu]]\nsection = 1\nmount_rpy = [0, 0, 30]  # yaw measured by hand\n"
+    )
+    bias = np.array([0.012, -0.021, 0.004])
+    _rest_recording(tmp_path / "rest.csv", (7.0, -12.0, 0.0), bias)
+    out = tmp_path / "out.toml"
+    assert main(["calibrate", "--from", str(tmp_path / "rest.csv"), "--robot", str(robot),
+                 "--write-robot", str(out)]) == 0  # fmt: skip
+    assert f"wrote {out}" in capsys.readouterr().err
+    from continuum_mhe.io.robot_file import read_robot
+
+    placed = read_robot(out).imus[0]
+    assert abs(placed.mount_rpy[0] - 7.0) < 0.3 and abs(placed.mount_rpy[1] + 12.0) < 0.3
+    assert placed.mount_rpy[2] == 30.0  # gravity does not show yaw: the file's is kept
+    np.testing.assert_allclose(placed.gyro_bias, bias, atol=3e-4)  # 0.001 / sqrt(400) noise
+    text = out.read_text()
+    assert "# my rod: one section" in text and "length = 0.25  # m" in text
+    assert main(["calibrate", "--from", str(tmp_path / "rest.csv"), "--robot", str(robot),
+                 "--write-robot", str(out)]) == 2  # fmt: skip
+    assert "exists; give --overwrite" in capsys.readouterr().err
+
+
+def test_a_robot_file_gyro_bias_is_subtracted_from_the_readings() -> None:
+    from continuum_mhe.io.input_options import imu_settings_for
+    from continuum_mhe.io.raw_imu import RawImuConverter, RawImuSettings
+    from continuum_mhe.model.robot import ImuPlacement
+
+    bias = (0.01, -0.02, 0.03)
+    raw = RawImuSettings(imu_model="direct")
+    conv = RawImuConverter(imu_settings_for(raw, ImuPlacement(0, 1.0, (0, 0, 0), bias)))
+    z = conv.convert(0.0, np.array([0.0, 0.0, 9.81]), np.array(bias) + [0.1, 0.0, 0.0])
+    np.testing.assert_allclose(z[3:6], [0.1, 0.0, 0.0], atol=1e-15)
+
+
+# --- options files ------------------------------------------------------------------------
+def _options_of(path: Path) -> dict[str, object]:
+    line = next(ln for ln in path.read_text().splitlines() if ln.startswith("# options ="))
+    return dict(tomllib.loads(line[2:])["options"])
+
+
+def test_config_file_sets_options_and_the_command_line_overrides(tmp_path: Path) -> None:
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(tmp_path / "m.csv")]) == 0
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text(
+        'method = "ukf"\nhorizon = 12\n[estimate]\ngap-reset = 3.5\n[live]\nbaud = 9600\n'
+    )
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(tmp_path / "m.csv"), "--config", str(cfg), "--method", "ekf",
+                 "-o", str(out)]) == 0  # fmt: skip
+    rec = _options_of(out)
+    assert rec["method"] == "ekf" and rec["horizon"] == 12 and rec["gap-reset"] == 3.5
+    assert "baud" not in rec and "output" not in rec and "config" not in rec
+    # the estimate file is an options file: the same options again
+    again = tmp_path / "e2.csv"
+    assert main(["estimate", str(tmp_path / "m.csv"), "--config", str(out), "-o", str(again)]) == 0
+    assert _options_of(again) == rec
+    np.testing.assert_array_equal(read_state_table(again).values, read_state_table(out).values)
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ('method = "ekf"\nhorizn = 12\n', "line 2: horizn is not an option of estimate"),
+        ('method = "kalman"\n', "line 1: method = 'kalman' is not one of mhe, ekf, ukf"),
+        ("skip-bad = 1\n", "line 1: skip-bad must be true or false"),
+        ('output = "x.csv"\n', "line 1: output is given on the command line"),
+        ("method = \n", "opts.toml: "),
+    ],
+)
+def test_a_bad_options_file_is_one_line_naming_it(tmp_path: Path, capsys, text, needle) -> None:
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text(text)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", "m.csv", "--config", str(cfg), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(cfg) in err and needle in err, err
+    assert not out.exists()
+
+
+# --- outputs that exist, and an interrupted estimate --------------------------------------
+@pytest.mark.parametrize("command", ["estimate", "simulate"])
+def test_an_existing_output_is_refused_without_overwrite(tmp_path: Path, capsys, command) -> None:
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    out = tmp_path / "out.csv"
+    out.write_text("mine\n")
+    argv = {
+        "estimate": ["estimate", str(meas), "--method", "ekf", "-o", str(out)],
+        "simulate": ["simulate", "paper3d", "--duration", "1", "-o", str(out)],
+    }[command]
+    capsys.readouterr()
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {out}: exists; give --overwrite to replace it, or another -o\n"
+    )
+    assert out.read_text() == "mine\n"
+    assert main([*argv, "--overwrite"]) == 0
+    assert out.read_text() != "mine\n"
+
+
+def test_an_interrupted_estimate_keeps_its_rows_marked_partial(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    from continuum_mhe.cli import estimate as estimate_command
+
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
+    real = estimate_command.make_estimator
+
+    def interrupted_at_sample_15(*args, **kwargs):
+        est = real(*args, **kwargs)
+        step, calls = est.step, []
+
+        def step_then_interrupt(m):
+            calls.append(1)
+            if len(calls) == 15:
+                raise KeyboardInterrupt
+            return step(m)
+
+        est.step = step_then_interrupt
+        return est
+
+    monkeypatch.setattr(estimate_command, "make_estimator", interrupted_at_sample_15)
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "kept the 14 estimates made before the interruption" in err
+    assert err.endswith("continuum-mhe: interrupted\n")
+    table = read_state_table(out)
+    assert len(table.t) == 14 and table.t[-1] == pytest.approx(13 * 0.05)
+    assert re.search(r"^# partial = \"interrupted after 14 samples", out.read_text(), re.M)
+
+
+# --- the shipped rod recording ------------------------------------------------------------
+def test_the_shipped_rod_recording_is_its_own_truth(capsys) -> None:
+    """``rod_planar.csv`` carries its truth as ``x_true, y_true, z_true``: evaluate reads
+    them as the truth's ``x, y, z`` (against itself: no error at all)."""
+    rod = DATA / "rod_planar.csv"
+    table = read_state_table(rod)
+    raw = np.genfromtxt(rod, delimiter=",", names=True)
+    np.testing.assert_array_equal(table.column("x"), raw["x_true"])
+    np.testing.assert_array_equal(table.column("z"), raw["z_true"])
+    assert main(["evaluate", str(rod), str(rod), "--json"]) == 0
+    import json
+
+    scores = json.loads(capsys.readouterr().out)
+    assert scores["tip_mean_mm"] == 0.0 and scores["n"] == len(table.t)
