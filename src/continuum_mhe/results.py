@@ -30,6 +30,7 @@ Status = Literal[
     "uncertain",  # converged / updated, but the tip's standard deviation is too large to trust
     "drifted",  # position state inconsistent with its own angles (paper formulation)
     "at-bound",  # a section's bend sits on its theta_max: the robot may bend further
+    "inconsistent",  # the readings disagree with the estimate beyond their noise
 ]
 
 #: Every status, with its meaning (the one vocabulary of every estimator and output).
@@ -61,6 +62,10 @@ STATUS_MEANINGS: dict[str, str] = {
     "at-bound": "an estimate was made, but a section's bend sits on (or beyond) its "
     "theta_max: the robot may bend further than the robot file (or --theta-max) allows, "
     "and the bound clipped the shape; raise theta_max if the robot really bends so far",
+    "inconsistent": "an estimate was made, but the readings disagree with it beyond their "
+    "noise (this sample's normalised residual, or its recent average, beyond the "
+    "chi-square 99.9 % quantile): the model does not follow the data here; the standard "
+    "deviations are widened by the estimated model error (noise_scale)",
 }
 
 
