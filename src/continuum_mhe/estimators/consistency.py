@@ -33,7 +33,9 @@ covariance.
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
@@ -48,36 +50,6 @@ QUANTILE = 0.999
 SAMPLE_QUANTILE = 0.99
 #: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
 MEMORY = 20
-
-
-def predicted_nis(
-    formulation: Formulation,
-    R: FloatArray,
-    prev: tuple[float, FloatArray, FloatArray, FloatArray],
-    t: float,
-    z: FloatArray,
-    mask: FloatArray,
-) -> tuple[float, int]:
-    """``(NIS, dof)`` of reading ``z`` at ``t`` s against the estimate
-    ``prev = (t0, x, P, z0)`` predicted to ``t`` (valid components of ``mask`` only;
-    ``mask`` must have one)."""
-    t0, x, P, z0 = prev
-    f = formulation
-    dt = t - t0
-    u = f.inputs(z0, z, dt) if f.nu else np.zeros(0)
-    xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(x, u, dt))
-    nx = len(x)
-    F = F.reshape(nx, nx)
-    Pn = F @ P @ F.T + Q.reshape(nx, nx)
-    rows = np.flatnonzero(mask)
-    r, Jr = (
-        np.asarray(v, dtype=float)
-        for v in f.functions.innovate(np.where(mask > 0, z, 0.0), xn.ravel())
-    )
-    H = Jr.reshape(len(z), nx)[rows]
-    r = r.ravel()[rows]
-    S = H @ Pn @ H.T + R[np.ix_(rows, rows)]
-    return float(r @ np.linalg.solve(S, r)), len(rows)
 
 
 class ConsistencyCheck:
@@ -118,24 +90,56 @@ class ConsistencyCheck:
         if state is None or cov is None:
             self._prev = None
             return False
-        f = self.formulation
         if valid:
             rows = np.flatnonzero(mask)
-            r = np.asarray(f.functions.innovate(np.where(mask > 0, z, 0.0), state)[0])
-            r = r.ravel()[rows]
             dof = len(rows)
-            fit_bad = float(np.sum(r * r * self._r_inv[rows])) > self._limit[dof]
-            if prev is not None:
-                nis, dof = predicted_nis(f, self._R, prev, t, z, mask)
+            zv = np.where(mask > 0, z, 0.0)
+            if prev is None:
+                r = np.asarray(self.formulation.functions.innovate(zv, state)[0]).ravel()
+            else:
+                t0, x0, P0, z0 = prev
+                dt = t - t0
+                f = self.formulation
+                u = f.inputs(z0, z, dt) if f.nu else np.zeros(0)
+                out = self._judge(x0, P0, u, dt, zv, state)
+                r, r_pred, H, Pn = (np.asarray(v, dtype=float) for v in out)
+                r = r.ravel()
+                H = H[rows]
+                rp = r_pred.ravel()[rows]
+                S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
+                nis = float(rp @ np.linalg.solve(S, rp))
                 nis_bad = nis > self._limit[dof]
                 # covariance matching: the average factor of the innovations over their
                 # predicted size (a wrong reading counts at most the limit)
                 value = min(nis, self._limit[dof]) / dof
                 self.noise_scale += (value - self.noise_scale) / MEMORY
                 self._dof = dof
+            r = r[rows]
+            fit_bad = float(np.sum(r * r * self._r_inv[rows])) > self._limit[dof]
         self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), z.copy())
         avg_bad = self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]
         return valid and (fit_bad or nis_bad or avg_bad)
+
+    @cached_property
+    def _judge(self) -> ca.Function:
+        """``(x0, P0, u, dt, z, x) -> (r(z, x), r(z, x+), H, P+)``: this estimate's
+        residual and the previous estimate's prediction to this sample, in one call
+        (``x+ = f(x0, u, dt)``, ``P+ = F P0 F^T + Q``, ``H = -dr/dx`` at ``x+``)."""
+        f = self.formulation
+        nx = f.nx
+        x0, x = ca.SX.sym("x0", nx), ca.SX.sym("x", nx)
+        P0 = ca.SX.sym("P0", nx, nx)
+        u, dt, z = ca.SX.sym("u", f.nu), ca.SX.sym("dt"), ca.SX.sym("z", f.nz)
+        xn = f.transition_sym(x0, u, dt)
+        F = ca.jacobian(xn, x0)
+        Pn = F @ P0 @ F.T + f.process_cov_sym(dt)
+        xs = ca.SX.sym("xs", nx)  # the predicted state, for the residual's Jacobian
+        r_of = ca.Function("r", [z, xs], [f.measurement_residual_sym(z, xs)])
+        r_pred = r_of(z, xn)
+        H = -ca.substitute(ca.jacobian(f.measurement_residual_sym(z, xs), xs), xs, xn)
+        return ca.Function(
+            "judge", [x0, P0, u, dt, z, x], [f.measurement_residual_sym(z, x), r_pred, H, Pn]
+        )
 
     @property
     def std_factor(self) -> float:
