@@ -95,6 +95,13 @@ class Status(str, Enum):
         "robot may bend further than the robot file (or --theta-max) allows, and the bound "
         "clipped the shape; raise theta_max if the robot really bends so far",
     )
+    INCONSISTENT = (
+        "inconsistent",
+        "an estimate was made, but the readings disagree with it beyond their noise (this "
+        "sample's normalised residual, or its recent average, beyond the chi-square 99.9 % "
+        "quantile): the model does not follow the data here; the standard deviations are "
+        "widened by the estimated model error (noise_scale)",
+    )
 
 
 #: Every status's meaning by its string (read from :class:`Status`).

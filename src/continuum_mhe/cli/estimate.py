@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import math
 import sys
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
@@ -137,6 +138,12 @@ def run(args: argparse.Namespace) -> int:
         msg += (
             f"; restarted {est.bad_starts} time(s) after readings inconsistent with the "
             "start or an IMU's return"
+        )
+    if counts.get("inconsistent") or est.max_noise_scale > 1.5:
+        msg += (
+            f"; model error: the readings scattered up to {math.sqrt(est.max_noise_scale):.2g} "
+            "times their noise model's std (standard deviations widened by it; status "
+            "inconsistent where they disagree beyond the noise)"
         )
     if est.bound_samples:
         note = bound_notice(est.bound_samples, n, est.formulation.robot)

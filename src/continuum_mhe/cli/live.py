@@ -26,7 +26,11 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
-from continuum_mhe.io.input_options import check_options_apply, formulation_for
+from continuum_mhe.io.input_options import (
+    check_options_apply,
+    formulation_for,
+    with_imu_model,
+)
 from continuum_mhe.live.run import open_plot, run_live, warm_up
 from continuum_mhe.live.session import LiveSession, LiveSettings, imu_converters
 from continuum_mhe.stream.protocol import line_fields, value_columns
@@ -53,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
     check_options_apply(settings.port, kind, options, formulation.robot)
     if raw.imu_model == "direct" and settings.fmt != "raw":
         raise InputError("--imu-model direct needs --format raw")
+    raw_lines = settings.fmt == "raw"  # every raw line carries the gyros
+    options = with_imu_model(options, formulation, raw_lines, raw_lines)
+    raw = options.raw
     formulation = formulation_for(options, formulation, settings.fmt == "raw", Path(settings.port))
     robot = formulation.robot
     converters = imu_converters(raw, robot) if settings.fmt == "raw" else None

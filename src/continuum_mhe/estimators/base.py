@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type
+from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
@@ -101,6 +102,7 @@ class Estimator(ABC):
         self._clear_counts()
         self._rejecting_since: float | None = None  # t of the first of the run
         self._start_check = StartCheck(formulation)
+        self._consistency = ConsistencyCheck(formulation)
         # the bad-start check needs a covariance that is one (not the paper's weight W)
         self._checks_start = formulation.calibrated_covariance
         outs = formulation.outputs
@@ -160,6 +162,9 @@ class Estimator(ABC):
         self.last_failure: str | None = None
         #: samples whose estimate sat on a section's ``theta_max`` (status ``at-bound``)
         self.bound_samples = 0
+        #: the largest model-error factor seen (:attr:`ConsistencyCheck.noise_scale`:
+        #: the innovations' variance over the one the noise model predicts)
+        self.max_noise_scale = 1.0
 
     def reset(self, keep_counts: bool = False) -> None:
         """Forget all samples and, unless ``keep_counts``, zero the counts
@@ -185,6 +190,7 @@ class Estimator(ABC):
         """Clear the estimator's state and the bad-start and rejection checks' (a
         (re)start)."""
         self._start_check.clear()
+        self._consistency.reset()
         self._rejecting_since = None
         self._reset()
 
@@ -274,8 +280,13 @@ class Estimator(ABC):
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
         not (an IMU silent for longer: its part of the shape is predicted blindly), or
         after such an IMU's return until its readings have agreed with the estimate for
-        as long (whether ``bad_start`` is set or not). The estimate carries
-        ``output_std`` wherever the method has a covariance.
+        as long (whether ``bad_start`` is set or not); a trusted estimate with a
+        section's bend on its ``theta_max`` is ``at-bound``
+        (:meth:`~continuum_mhe.model.formulations.Formulation.at_bound`), and one whose
+        readings disagree with it beyond their noise is ``inconsistent``
+        (:mod:`.consistency`, which also widens ``output_std`` by the model error the
+        readings show). The estimate carries ``output_std`` wherever the method has a
+        covariance.
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
@@ -379,11 +390,20 @@ class Estimator(ABC):
         elif status in TRUSTED and state is not None and self.formulation.at_bound(state):
             status = Status.AT_BOUND  # the bound, not the data, may have set the shape
             self.bound_samples += 1
+        factor = 1.0
+        if self._checks_start:  # the readings against the estimates (.consistency)
+            disagree = self._consistency.check(t, measurement.z, mask, state, cov)
+            if disagree and status in TRUSTED:
+                status = Status.INCONSISTENT
+            factor = self._consistency.std_factor
+            self.max_noise_scale = max(self.max_noise_scale, self._consistency.noise_scale)
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None
         if state is not None and cov is not None:
             std = self._output_std(state, cov)
+            if factor != 1.0:  # the model error the readings show (covariance matching)
+                std = std * factor
             if status == Status.OK and self._tip and self.formulation.calibrated_covariance:
                 sl = std.tolist()  # a few floats: plain Python is faster than numpy here
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))

@@ -28,6 +28,11 @@ from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
 
+#: Gyro white noise of the direct model, rad/s: a MEMS gyro's (MPU-9250 class: 0.01
+#: deg/s/sqrt(Hz), 0.0012 rad/s at 50 Hz; the shipped rod recordings' IMUs 0.0018) with
+#: room for the PCC model's own error in the rates (docs/options.md).
+DEFAULT_GYRO_STD = 0.01
+
 
 @dataclass(frozen=True)
 class InputOptions:
@@ -44,8 +49,12 @@ class InputOptions:
             half of IMU 1's median sample period).
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
-        gyro_std: gyro noise, rad/s, for the direct model.
-        estimate_gyro_bias: the direct model estimates each gyro's bias.
+        imu_model_given: ``raw.imu_model`` was chosen (``--imu-model``); else raw
+            input with gyro columns uses the direct model (:func:`with_imu_model`).
+        gyro_std: gyro white noise, rad/s, for the direct model (default
+            :data:`DEFAULT_GYRO_STD`).
+        estimate_gyro_bias: the direct model estimates each gyro's bias (None: yes,
+            the default; False: the bias counts as gyro noise).
         estimate_accel_bias: the direct model estimates each accelerometer's bias.
         own_acceleration: the direct model includes each IMU's own acceleration
             (bend accelerations as states).
@@ -59,8 +68,9 @@ class InputOptions:
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
     use_orientation: bool = False
-    gyro_std: float = 0.05
-    estimate_gyro_bias: bool = False
+    imu_model_given: bool = False
+    gyro_std: float = DEFAULT_GYRO_STD
+    estimate_gyro_bias: bool | None = None
     estimate_accel_bias: bool = False
     own_acceleration: bool = False
     degrees: bool = False
@@ -88,6 +98,24 @@ class EstimateInput:
     notes: tuple[str, ...] = ()
 
 
+def with_imu_model(
+    options: InputOptions, base: Formulation, raw_input: bool, has_gyro: bool
+) -> InputOptions:
+    """``options`` with the IMU model decided: where ``--imu-model`` was not given, raw
+    input with gyro columns (and the ``bend`` formulation, accelerometer attitude, no
+    ``--orientation``) uses the direct model, which fuses the gyros (with their bias
+    estimated unless ``estimate_gyro_bias`` is False); other input keeps ``tilt``."""
+    if (
+        options.imu_model_given
+        or not (raw_input and has_gyro)
+        or options.use_orientation
+        or options.raw.attitude != "accel"
+        or base.name not in ("bend", "direct")
+    ):
+        return options
+    return replace(options, raw=replace(options.raw, imu_model="direct"))
+
+
 def formulation_for(
     options: InputOptions, base: Formulation, raw_input: bool, path: Path
 ) -> Formulation:
@@ -112,7 +140,7 @@ def formulation_for(
         robot=base.robot,
         noise=base.noise,
         gyro_std=options.gyro_std,
-        estimate_gyro_bias=options.estimate_gyro_bias,
+        estimate_gyro_bias=options.estimate_gyro_bias is not False,
         estimate_accel_bias=options.estimate_accel_bias,
         own_acceleration=options.own_acceleration,
     )
@@ -191,6 +219,7 @@ def load_log_input(p: Path, options: InputOptions, formulation: Formulation) -> 
     if formulation.robot.n_imus > 1 or len(options.topics) > 1:
         return _load_topics(p, options, formulation)
     log = read_imu_log(p, options.topic)
+    options = with_imu_model(options, formulation, True, log.gyr is not None)
     f = formulation_for(options, formulation, True, p)
     if options.use_orientation:
         if not np.all(np.isfinite(log.orientation)):
@@ -205,6 +234,8 @@ def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> Es
     """One Imu topic per IMU, paired by header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
     robot = formulation.robot
     paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+    has_gyro = all(log.gyr is not None for log in paired.logs)
+    options = with_imu_model(options, formulation, True, has_gyro)
     f = formulation_for(options, formulation, True, p)
     blocks = []
     for log, place in zip(paired.logs, robot.imus):

@@ -39,6 +39,7 @@ from continuum_mhe.io.input_options import (
     formulation_for,
     imu_settings_for,
     load_log_input,
+    with_imu_model,
 )
 from continuum_mhe.io.mcap_estimates import mcap_estimate_writer, sample_messages
 from continuum_mhe.io.raw_imu import RawImuConverter, raw_blocks, raw_layout, sample_kind
@@ -140,9 +141,10 @@ def _csv_stream(rows: TextRows, options: InputOptions, base: Formulation) -> Sam
     problems = RowProblems()
     convert: Convert
     if sample_kind(rows) == "raw":
+        cols, has_gyro = raw_layout(rows, n_imus)
+        options = with_imu_model(options, base, True, has_gyro)
         f = formulation_for(options, base, True, Path(name))
         check_options_apply(name, "raw-csv", options, base.robot)
-        cols, has_gyro = raw_layout(rows, n_imus)
         if options.raw.needs_gyro and not has_gyro:
             what = "--imu-model direct" if options.raw.imu_model == "direct" else (
                 f"--attitude {options.raw.attitude}")  # fmt: skip

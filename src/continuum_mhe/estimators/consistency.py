@@ -1,0 +1,148 @@
+"""Whether the readings agree with the estimates, every sample, in every estimator
+(status ``inconsistent``), and the model error they show (the ``noise_scale`` that
+widens the standard deviations).
+
+An estimate is only worth ``ok`` when the readings around it agree with its model and
+noise. Two tests, on the formulation's own residual ``r(z, x)`` (the one every
+estimator weights with ``R^-1``), valid components only:
+
+* **this reading against the previous estimate** (innovation): the previous
+  ``(x, P)`` predicted to this sample (``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``),
+  ``NIS = r^T (H P+ H^T + R)^-1 r`` with ``r = r(z, x+)``; a covariance collapsed on a
+  wrong shape gives a huge NIS at the next reading;
+* **this reading against this estimate** (fit): ``r(z, x)^T R^-1 r(z, x)``, never
+  larger than the NIS for a consistent estimator (the update only shrinks the
+  residual); a window dragged by a wrong reading, or a shape the model cannot reach,
+  leaves it large.
+
+Either beyond the ``SAMPLE_QUANTILE`` (99 %) chi-square quantile marks this sample
+``inconsistent``. Model error that no single reading shows is caught by the average:
+an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
+(covariance matching: the factor by which the innovations exceed what ``R`` and ``P``
+predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 %)
+quantile of its own distribution (a chi-square of ``dof * (2 MEMORY - 1)`` degrees of
+freedom, scaled) the sample is ``inconsistent`` too, and every output standard
+deviation is widened by ``sqrt(noise_scale)`` where it exceeds 1 (the covariances are
+scaled as the noise is).
+
+A formulation whose covariance is not one (``Formulation.calibrated_covariance``
+False: the paper formulation's weight ``W``) is not checked, nor an estimate without a
+covariance.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from continuum_mhe.model.formulations import Formulation
+
+FloatArray = NDArray[np.float64]
+
+#: Chi-square quantile beyond which the average of NIS / dof is inconsistent.
+QUANTILE = 0.999
+#: Chi-square quantile beyond which one reading is inconsistent with the estimate.
+SAMPLE_QUANTILE = 0.99
+#: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
+MEMORY = 20
+
+
+class ConsistencyCheck:
+    """The consistency of one estimator's estimates with its readings (module doc)."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        self.formulation = formulation
+        self._R = formulation.meas_cov()
+        self._r_inv = 1.0 / np.diag(self._R)
+        nz = formulation.nz
+        self._limit = [math.inf] + [float(chi2.ppf(SAMPLE_QUANTILE, k)) for k in range(1, nz + 1)]
+        n_avg = 2 * MEMORY - 1  # the effective samples of the exponential average
+        self._avg_limit = [math.inf] + [
+            float(chi2.ppf(QUANTILE, k * n_avg)) / (k * n_avg) for k in range(1, nz + 1)
+        ]
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous estimate and the average (a (re)start)."""
+        self._prev: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
+        #: exponentially weighted mean of NIS / dof (1 where nothing was seen yet)
+        self.noise_scale = 1.0
+        self._dof = 0
+
+    def check(
+        self,
+        t: float,
+        z: FloatArray,
+        mask: FloatArray,
+        state: FloatArray | None,
+        cov: FloatArray | None,
+    ) -> bool:
+        """Whether this sample's estimate disagrees with its readings (status
+        ``inconsistent``); remembers the estimate for the next sample. A sample
+        without a valid reading, an estimate or a covariance is not judged (False)."""
+        prev, fit_bad, nis_bad = self._prev, False, False
+        valid = bool(mask.any())
+        if state is None or cov is None:
+            self._prev = None
+            return False
+        if valid:
+            rows = np.flatnonzero(mask)
+            dof = len(rows)
+            zv = np.where(mask > 0, z, 0.0)
+            if prev is None:
+                r = np.asarray(self.formulation.functions.innovate(zv, state)[0]).ravel()
+            else:
+                t0, x0, P0, z0 = prev
+                dt = t - t0
+                f = self.formulation
+                u = f.inputs(z0, z, dt) if f.nu else np.zeros(0)
+                out = self._judge(x0, P0, u, dt, zv, state)
+                r, r_pred, H, Pn = (np.asarray(v, dtype=float) for v in out)
+                r = r.ravel()
+                H = H[rows]
+                rp = r_pred.ravel()[rows]
+                S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
+                nis = float(rp @ np.linalg.solve(S, rp))
+                nis_bad = nis > self._limit[dof]
+                # covariance matching: the average factor of the innovations over their
+                # predicted size (a wrong reading counts at most the limit)
+                value = min(nis, self._limit[dof]) / dof
+                self.noise_scale += (value - self.noise_scale) / MEMORY
+                self._dof = dof
+            r = r[rows]
+            fit_bad = float(np.sum(r * r * self._r_inv[rows])) > self._limit[dof]
+        self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), z.copy())
+        avg_bad = self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]
+        return valid and (fit_bad or nis_bad or avg_bad)
+
+    @cached_property
+    def _judge(self) -> ca.Function:
+        """``(x0, P0, u, dt, z, x) -> (r(z, x), r(z, x+), H, P+)``: this estimate's
+        residual and the previous estimate's prediction to this sample, in one call
+        (``x+ = f(x0, u, dt)``, ``P+ = F P0 F^T + Q``, ``H = -dr/dx`` at ``x+``)."""
+        f = self.formulation
+        nx = f.nx
+        x0, x = ca.SX.sym("x0", nx), ca.SX.sym("x", nx)
+        P0 = ca.SX.sym("P0", nx, nx)
+        u, dt, z = ca.SX.sym("u", f.nu), ca.SX.sym("dt"), ca.SX.sym("z", f.nz)
+        xn = f.transition_sym(x0, u, dt)
+        F = ca.jacobian(xn, x0)
+        Pn = F @ P0 @ F.T + f.process_cov_sym(dt)
+        xs = ca.SX.sym("xs", nx)  # the predicted state, for the residual's Jacobian
+        r_of = ca.Function("r", [z, xs], [f.measurement_residual_sym(z, xs)])
+        r_pred = r_of(z, xn)
+        H = -ca.substitute(ca.jacobian(f.measurement_residual_sym(z, xs), xs), xs, xn)
+        return ca.Function(
+            "judge", [x0, P0, u, dt, z, x], [f.measurement_residual_sym(z, x), r_pred, H, Pn]
+        )
+
+    @property
+    def std_factor(self) -> float:
+        """The factor (>= 1) the output standard deviations are widened by:
+        ``sqrt(noise_scale)`` where the readings scatter more than predicted."""
+        return math.sqrt(self.noise_scale) if self.noise_scale > 1.0 else 1.0
