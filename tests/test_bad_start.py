@@ -93,7 +93,7 @@ def test_bad_start_option(tmp_path, capsys) -> None:
     capsys.readouterr()
     rec, z = bad_start_recording()  # the restart is said in the summary line
     write_measurements(meas, rec.t, z)
-    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--overwrite"]) == 0
     assert "restarted 1 time(s) after readings inconsistent with the start" in (
         capsys.readouterr().err
     )

@@ -59,7 +59,7 @@ def test_simulate_estimate_evaluate_round_trip(tmp_path, capsys, method):
     )
     assert main(["estimate", str(meas), "-o", str(est), "--method", method]) == 0
     with est.open() as fh:
-        rows = list(csv.reader(fh))
+        rows = list(csv.reader(ln for ln in fh if not ln.startswith("#")))
     assert tuple(rows[0][: len(ESTIMATE_COLUMNS)]) == ESTIMATE_COLUMNS
     t_m = [r[0] for r in list(csv.reader(meas.open()))[1:]]
     assert [r[0] for r in rows[1:]] == [f"{float(t):.10g}" for t in t_m]  # one row per input row
@@ -86,7 +86,7 @@ def test_paper_start_leaves_first_rows_empty(tmp_path):
     meas, est = tmp_path / "m.csv", tmp_path / "est.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "2"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--horizon", "10", "--paper-start"]) == 0
-    header, *rows = list(csv.reader(est.open()))
+    header, *rows = list(csv.reader(ln for ln in est.open() if not ln.startswith("#")))
     st = header.index("status")
     assert all(r[1:st] == [""] * 10 and r[st] == "no-estimate" for r in rows[:9])
     assert rows[9][st] == "ok" and all(r[1:6] != [""] * 5 for r in rows[9:])
@@ -99,7 +99,7 @@ def test_theta_max_option_bounds_and_releases(tmp_path):
     assert main(["estimate", str(meas), "-o", str(est)]) == 0
     _, out, _ = read_states(est)
     assert out[:, 3].max() <= math.pi / 2 + 1e-7
-    assert main(["estimate", str(meas), "-o", str(est), "--theta-max", "3"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--theta-max", "3", "--overwrite"]) == 0
     _, out3, _ = read_states(est)
     assert out3[:, 3].max() > 2.0
 

@@ -335,7 +335,7 @@ def test_orientation_skips_the_accelerometer_unit_check(
     assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf", "--orientation"]) == 0
     assert out.exists()
     out.unlink()
-    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf"]) == 2
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf", "--overwrite"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     said = "topic /tip/imu: accelerometer magnitude is about 1.00: the values look like g"
     assert said in err[-1]

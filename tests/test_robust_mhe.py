@@ -331,7 +331,7 @@ def test_reject_reset_option(tmp_path: Path, capsys) -> None:
         capsys.readouterr().err
     )
     assert "reset" in read_state_table(est).status
-    assert main([*args, "--reject-reset", "0"]) == 0  # off
+    assert main([*args, "--reject-reset", "0", "--overwrite"]) == 0  # off
     assert "after rejecting every reading" not in capsys.readouterr().err
     assert "reset" not in read_state_table(est).status
 

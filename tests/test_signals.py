@@ -1,4 +1,5 @@
-"""SIGTERM is handled like Ctrl-C: nothing partial is left, exit 143; stale temporary
+"""SIGTERM is handled like Ctrl-C: an interrupted estimate keeps its rows, marked
+partial, and nothing else is left half-written, exit 143; stale temporary
 files of a killed writer are removed by the next write into the same folder; a signal
 that lands inside IPOPT (which stops on it and returns a status) ends the run."""
 
@@ -21,7 +22,7 @@ from continuum_mhe.signals import Terminated
 EXE = str(Path(sys.executable).with_name("continuum-mhe"))
 
 
-def test_sigterm_during_estimate_leaves_nothing_and_exits_143(tmp_path: Path) -> None:
+def test_sigterm_during_estimate_keeps_its_rows_marked_partial_exit_143(tmp_path: Path) -> None:
     from continuum_mhe.cli import main
 
     meas = tmp_path / "m.csv"
@@ -43,7 +44,14 @@ def test_sigterm_during_estimate_leaves_nothing_and_exits_143(tmp_path: Path) ->
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]  # no output, no temp
+    assert "kept the" in err and "marked '# partial = ...'" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "m.csv"]  # no temp
+    from continuum_mhe.io.csv_files import read_state_table
+
+    rows = len(read_state_table(out).t)
+    assert 0 < rows < 60_001
+    last = out.read_text().rstrip("\n").rsplit("\n", 1)[-1]
+    assert last.startswith(f'# partial = "interrupted after {rows} samples'), last
 
 
 def test_stale_temporary_of_a_dead_writer_is_removed(tmp_path: Path) -> None:

@@ -229,7 +229,7 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     assert f"warning: {est}: its tip is 2.50 times as far from the base" in err
     assert "made for a robot of about 0.5 m; pass the --length" in err
     assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
-    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf", "--overwrite"]) == 0
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
     out, err = capsys.readouterr()

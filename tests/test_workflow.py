@@ -302,3 +302,15 @@ def test_the_shipped_rod_recording_is_its_own_truth(capsys) -> None:
 
     scores = json.loads(capsys.readouterr().out)
     assert scores["tip_mean_mm"] == 0.0 and scores["n"] == len(table.t)
+
+
+def test_live_reads_its_table_of_an_options_file(tmp_path: Path) -> None:
+    from continuum_mhe.cli.app import _parse
+
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text('method = "ekf"\n[estimate]\nskip-bad = true\n[live]\nbaud = 9600\n')
+    args = _parse(["live", "--port", "/dev/null", "--config", str(cfg), "--method", "ukf"])
+    assert (args.baud, args.method) == (9600, "ukf")
+    assert "baud = 9600" in args.options_record and "skip-bad" not in args.options_record
+    est = _parse(["estimate", "m.csv", "-o", "e.csv", "--config", str(cfg)])
+    assert (est.method, est.skip_bad) == ("ekf", True)

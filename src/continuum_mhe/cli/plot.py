@@ -12,7 +12,7 @@ from continuum_mhe.io.csv_files import InputError
 
 DESCRIPTION = (
     "Draw an estimate file (CSV or MCAP from estimate or live): each section end and the "
-    "tip over time with their 95 %% bands, the error against --truth, the statuses, and "
+    "tip over time with their 95 % bands, the error against --truth, the statuses, and "
     "the backbone in 3D (its curve from --robot, else from the file's own rows). Given a "
     "folder written by 'continuum-mhe reproduce', render its figures again instead."
 )

@@ -50,7 +50,11 @@ COMMANDS: tuple[Command, ...] = (
         "run every experiment of the paper: data, figures and report.md",
         "reproduce",
     ),
-    Command("plot", "re-render the reproduction's figures from its saved data", "plot"),
+    Command(
+        "plot",
+        "figure of an estimate file (against a truth), or of a reproduce folder's data",
+        "plot",
+    ),
     Command(
         "benchmark",
         "time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
