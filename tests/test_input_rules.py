@@ -351,3 +351,57 @@ def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: 
     with pytest.raises(UserError) as info:
         call()
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+# --- messages that said the wrong cause ------------------------------------------------------
+def test_an_infinite_angle_is_not_called_degrees() -> None:
+    """step() with roll = inf said 'the angles look like degrees'."""
+    est = make_estimator("ekf", _bend())
+    with pytest.raises(UserError, match=r"roll=inf, pitch=0\.1: an infinite angle; a sensor"):
+        est.step(Measurement(0.0, np.array([np.inf, 0.1])))
+    with pytest.raises(UserError, match="the angles look like degrees"):
+        est.step(Measurement(0.0, np.array([45.0, 0.1])))
+
+
+def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """'no sample gave an estimate (...; every sample is a dropout)' when the robust loss
+    had rejected every sample, none a dropout."""
+    from continuum_mhe.estimators.base import Estimate, Estimator
+
+    def rejected(self: Estimator, m: Measurement) -> Estimate:
+        return Estimate(m.t, None, None, None, "no-estimate", 0.0, outlier=True)
+
+    monkeypatch.setattr(Estimator, "step", rejected)
+    out = tmp_path / "e.csv"
+    path = REPRO / "gimbal_flip.csv"
+    argv = ["estimate", str(path), "-o", str(out), "--solver", "ipopt", "--loss", "huber"]
+    assert _one_line_error(capsys, main(argv), out).endswith(
+        f"{path}: no sample gave an estimate (2 samples; the robust loss rejected 2 sample(s) "
+        "as outliers (--loss huber; a larger --loss-scale, or --loss l2)); nothing written"
+    )
+    path = tmp_path / "dropouts.csv"
+    path.write_text("t,roll,pitch\n0,nan,nan\n0.1,,\n")
+    argv = ["estimate", str(path), "-o", str(out), "--method", "ekf", "--skip-bad"]
+    assert "every sample is a dropout" in _one_line_error(capsys, main(argv), out)
+
+
+def test_a_damaged_model_cache_entry_is_not_called_an_unwritable_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A cache entry that is a folder, in a writable cache: 'set CONTINUUM_MHE_CACHE to
+    a writable folder', which it was."""
+    import hashlib
+
+    from continuum_mhe.estimators.fast import codegen
+
+    monkeypatch.setenv("CONTINUUM_MHE_CACHE", str(tmp_path))
+    src = "double twice(double x) { return 2 * x; }\n"
+    key = hashlib.sha256((" ".join(codegen.CFLAGS) + "\n" + src).encode()).hexdigest()[:20]
+    (tmp_path / f"mhe_{key}.so").mkdir()
+    with pytest.warns(UserWarning):  # the compiling notice
+        lib = codegen.compile_library(src)
+    assert lib.lib is None and lib.fix == (
+        f"a damaged cache entry: remove {tmp_path / f'mhe_{key}.so'}*"
+    )

@@ -32,6 +32,7 @@ import numpy as np
 
 from continuum_mhe.estimators.fast.warmup import say_once
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.numba_cache import writable
 
 
 def transition_is_linear(formulation: Formulation) -> bool:
@@ -286,10 +287,14 @@ def compile_library(src: str) -> Library:
         return Library(ctypes.CDLL(str(lib)))
     except OSError as exc:
         where = os.environ.get("CONTINUUM_MHE_CACHE") or "the model cache"
+        folder = _cache_dir()
+        fix = "set CONTINUUM_MHE_CACHE to a writable folder"
+        if writable(folder):  # the folder is fine: one of its entries is damaged
+            fix = f"a damaged cache entry: remove {folder / ('mhe_' + key + '.so')}*"
         return Library(
             None,
             f"cannot build or load the compiled model in {where}: {exc.strerror or exc}",
-            "set CONTINUUM_MHE_CACHE to a writable folder",
+            fix,
         )
 
 
