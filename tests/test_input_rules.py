@@ -405,3 +405,12 @@ def test_a_damaged_model_cache_entry_is_not_called_an_unwritable_folder(
     assert lib.lib is None and lib.fix == (
         f"a damaged cache entry: remove {tmp_path / f'mhe_{key}.so'}*"
     )
+
+
+def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
+    path = tmp_path / "r.toml"
+    path.write_text(ROBOT.replace("0.2", "[" + ", ".join(["1"] * 5000) + "]"))
+    with pytest.raises(InputError) as info:
+        read_robot(path)
+    assert str(info.value).startswith(f"{path}: section 1: length: expected a finite number")
+    assert len(str(info.value)) < 200 + len(str(path))
