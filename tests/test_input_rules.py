@@ -414,3 +414,22 @@ def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
         read_robot(path)
     assert str(info.value).startswith(f"{path}: section 1: length: expected a finite number")
     assert len(str(info.value)) < 200 + len(str(path))
+
+
+def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path: Path) -> None:
+    """SIGTERM while the interpreter shut down after a complete command killed it (status
+    -15, the output complete). An exit handler sends it here, at that very moment."""
+    script = tmp_path / "late_signal.py"
+    script.write_text(
+        "import atexit, os, signal, sys, time\n"
+        f"sys.argv = ['continuum-mhe', 'simulate', 'paper3d', '-o', {str(tmp_path / 's.csv')!r},"
+        " '--duration', '1']\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGTERM), time.sleep(0.2)))\n"
+        "from continuum_mhe.entry import main\n"
+        "sys.exit(main())\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, (proc.returncode, proc.stderr)
+    assert (tmp_path / "s.csv").exists()
