@@ -31,6 +31,11 @@ CORPUS = sorted((Path(__file__).parent / "data" / "fuzz").iterdir())
 SEED_OUTCOMES = {
     "accel_in_g.csv": (2, "accelerometer magnitude is about 1.01: the values look like g"),
     "bom_crlf.csv": (0, "wrote 2 estimates"),
+    "both_tilt_raw.csv": (2, "line 1: the header has both tilt (roll, pitch) and raw IMU columns"),
+    "cr_only.csv": (2, "line 1: lines end in CR alone (classic Mac OS line ends)"),
+    "dup_header.csv": (2, "line 1: column 'roll' appears twice in the header"),
+    "firmware_capture.txt": (0, "wrote 2 estimates"),
+    "underscore_number.csv": (2, "line 3: column roll: '1_0' is not a number"),
     "decimal_comma.csv": (2, "line 2: column roll: '0,1' is not a number (a decimal comma?"),
     "gimbal_flip.csv": (0, "wrote 2 estimates"),
     "huge.csv": (2, "line 2: roll=1e+308, pitch=0.1 is out of range even in degrees"),
