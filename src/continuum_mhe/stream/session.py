@@ -54,7 +54,7 @@ UNIT_CHECK_SAMPLES = 100
 #: whenever the device clock is past 1 s.
 FIRST_STEP_MAX_S = 0.25
 #: A stream of nothing but garbled lines for this long (s, arrival time) with at least
-#: ``GARBAGE_STOP_LINES`` of them stops the session with the first one's cause.
+#: ``GARBAGE_STOP_LINES`` of them stops the session with the last one's cause.
 GARBAGE_STOP_S = 3.0
 GARBAGE_STOP_LINES = 20
 
