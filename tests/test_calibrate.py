@@ -148,7 +148,8 @@ def test_calibrate_from_the_port_leaves_out_lines_with_one_bad_imu(tmp_path: Pat
     code, out, err = _calibrate_port(tmp_path, lines, more=("--robot", "two-section"))
     assert code == 0, err
     assert "nan" not in out
-    assert "181 samples over 2.000 s of device time" in out, out  # 201, less every tenth
+    # lines 1 to 202 (the 200th is bad: 2 s end at 202), less every tenth: 182
+    assert "182 samples over 2.010 s of device time" in out, out
     assert "garbled line(s) skipped" in err
 
 
