@@ -62,14 +62,17 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
     assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in res.stdout
 
 
-def _calibrate_port(tmp_path: Path, lines: list[str], seconds: str = "2") -> tuple[int, str, str]:
-    """``calibrate --port`` for ``seconds`` on a pseudo-terminal that sends ``lines``:
-    ``(exit status, stdout, stderr)``."""
+def _calibrate_port(
+    tmp_path: Path, lines: list[str], seconds: str = "2", more: tuple[str, ...] = ()
+) -> tuple[int, str, str]:
+    """``calibrate --port`` for ``seconds`` (and the options ``more``) on a
+    pseudo-terminal that sends ``lines``: ``(exit status, stdout, stderr)``."""
     from live_helpers import LiveProcess, new_pty, send_and_finish
 
     port = tmp_path / "ttyIMU"
     master = new_pty(port)
-    cal = LiveProcess(["--port", str(port), "--seconds", seconds], command="calibrate", stdout=True)
+    argv = ["--port", str(port), "--seconds", seconds, *more]
+    cal = LiveProcess(argv, command="calibrate", stdout=True)
     code = send_and_finish(cal, master, lines)
     assert cal.proc.stdout is not None
     return code, cal.proc.stdout.read(), cal.err
@@ -127,6 +130,27 @@ def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None
         "first: expected 7 fields, found 13: a line of 2 IMU(s) in --format raw; --robot with "
         "2 IMU(s)?; check --format, --robot and --baud"
     )
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_leaves_out_lines_with_one_bad_imu(tmp_path: Path) -> None:
+    """Live keeps the good IMU of a line with one bad field (a dropout of the other);
+    calibrate needs every IMU of a sample, so it counts such a line as garbled instead of
+    averaging a NaN into the calibration."""
+    from live_helpers import raw_line
+
+    acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
+    lines = [raw_line(1000 + 10 * i, acc, gyr) for i in range(400)]
+    for i in range(0, 400, 10):  # IMU 2's az unreadable on every tenth line
+        fields = lines[i].split(",")
+        fields[9] = "x"
+        lines[i] = ",".join(fields)
+    code, out, err = _calibrate_port(tmp_path, lines, more=("--robot", "two-section"))
+    assert code == 0, err
+    assert "nan" not in out
+    # lines 1 to 202 (the 200th is bad: 2 s end at 202), less every tenth: 182
+    assert "182 samples over 2.010 s of device time" in out, out
+    assert "garbled line(s) skipped" in err
 
 
 def _rest_values(n: int, acc_swing: float, gyro_swing: float, tilt_deg: float = 0.0) -> np.ndarray:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,11 @@ CORPUS = sorted((Path(__file__).parent / "data" / "fuzz").iterdir())
 SEED_OUTCOMES = {
     "accel_in_g.csv": (2, "accelerometer magnitude is about 1.01: the values look like g"),
     "bom_crlf.csv": (0, "wrote 2 estimates"),
+    "both_tilt_raw.csv": (2, "line 1: the header has both tilt (roll, pitch) and raw IMU columns"),
+    "cr_only.csv": (2, "line 1: lines end in CR alone (classic Mac OS line ends)"),
+    "dup_header.csv": (2, "line 1: column 'roll' appears twice in the header"),
+    "firmware_capture.txt": (0, "wrote 2 estimates"),
+    "underscore_number.csv": (2, "line 3: column roll: '1_0' is not a number"),
     "decimal_comma.csv": (2, "line 2: column roll: '0,1' is not a number (a decimal comma?"),
     "gimbal_flip.csv": (0, "wrote 2 estimates"),
     "huge.csv": (2, "line 2: roll=1e+308, pitch=0.1 is out of range even in degrees"),
@@ -91,12 +97,17 @@ _NUMBER = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.floats(-4, 4).map(lambda v: f"{v:.4f}"),
     st.sampled_from(["", "nan", "-inf", "1e308", "0x10", "1,5", "abc", '"0.1"', " 0.2 "]),
+    # what Python's float reads beyond CSV's numbers: refused, never read as 10 or 0.1
+    st.sampled_from(["1_0", "0.1_5", "\uff10.1", "\u0661", "\u00a00.1"]),
 )
 _ROW = st.lists(_NUMBER, min_size=0, max_size=5)
 _LINE = st.one_of(
     _ROW.map(",".join),
     st.sampled_from(["", "# comment", "#", "t,roll,pitch", "\x00", "\t", ";;"]),
     st.text(st.characters(exclude_categories=("Cs",)), max_size=12),  # any encodable text
+    # long lines (read whole: a comment's text never becomes a row), a CR inside a line
+    st.integers(1, 40_000).map(lambda n: "#" + "\u00e9" * n + "0.025,1.2,-0.9"),
+    _ROW.map(lambda r: "\r".join([",".join(r), "0.3,0.1,0.1"])),
 )
 
 
@@ -104,19 +115,32 @@ _LINE = st.one_of(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    header=st.sampled_from(["t,roll,pitch", "t_ms,roll,pitch", "t;roll;pitch", "roll,t,pitch,x"]),
+    header=st.sampled_from(
+        [
+            "t,roll,pitch",
+            "t_ms,roll,pitch",
+            "t;roll;pitch",
+            "roll,t,pitch,x",
+            "t,roll,pitch,roll",  # a column named twice: refused
+            "\ufefft,roll,pitch",  # a byte-order mark: read
+            "# fields: t_ms,roll,pitch (ms, rad)",  # the firmware's header comment
+        ]
+    ),
     lines=st.lists(_LINE, max_size=12),
     skip_bad=st.booleans(),
 )
 def test_reader_is_total(tmp_path_factory, header: str, lines: list[str], skip_bad: bool) -> None:
-    """Any text: measurements whose t strictly increases, or one-line InputError."""
+    """Any text: measurements whose t strictly increases, or one-line InputError of at
+    most a few hundred characters (never the input quoted whole)."""
     path = tmp_path_factory.mktemp("fz") / "m.csv"
     path.write_text("\n".join([header, *lines]) + "\n", encoding="utf-8")
     try:
         table = read_measurements(path, skip_bad=skip_bad)
     except InputError as exc:
         assert "\n" not in str(exc) and str(path) in str(exc)
+        assert len(str(exc)) < 400 + len(str(path)), str(exc)
         return
+    assert "roll,pitch,roll" not in header
     assert len(table.t) >= 1 and np.all(np.diff(table.t) > 0) and np.isfinite(table.t).all()
     ok = np.isfinite(table.z).all(axis=1)
     assert np.all(np.abs(table.z[ok]) <= math.pi + 0.05)
@@ -149,3 +173,79 @@ def test_raw_reader_is_total(tmp_path_factory, header: str, lines: list[str], sk
     assert len(table.t) >= 1 and np.all(np.diff(table.t) > 0) and np.isfinite(table.t).all()
     ok = np.isfinite(table.acc).all(axis=1)
     assert np.all(np.linalg.norm(table.acc[ok], axis=1) > 0)
+
+
+# --- robot files ------------------------------------------------------------------------------
+_VALUE = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),
+    st.sampled_from(["1e-300", "1e300", "-0.2", "0", "nan", "inf", "0.2", "1.0", "1_0", '"0.2"']),
+    st.sampled_from(["true", "[1, 2, 3]", "[1e300, 0, 0]", "[0, 0]", "{}", "2024-01-01"]),
+)
+_KEY = st.sampled_from(["length", "theta_max", "section", "at", "mount_rpy", "mounting", "x"])
+_ENTRY = st.tuples(_KEY, _VALUE).map(lambda kv: f"{kv[0]} = {kv[1]}")
+_TABLE = st.tuples(
+    st.sampled_from(["[[section]]", "[[imu]]", "[section]", "[[imu"]), st.lists(_ENTRY, max_size=4)
+).map(lambda t: "\n".join([t[0], *t[1]]))
+_VALID = "[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n"
+_ROBOT_TEXT = st.one_of(
+    st.lists(_TABLE, max_size=5).map("\n".join),
+    st.lists(_ENTRY, max_size=3).map(lambda e: _VALID + "\n".join(e)),  # a valid robot's IMU
+    st.lists(_ENTRY, max_size=3).map(
+        lambda e: _VALID.replace("[[imu]]", "\n".join([*e, "[[imu]]"]))
+    ),
+    st.integers(1, 3000).map(lambda n: "a = " + "[" * n + "]" * n),  # nesting
+    st.text(st.characters(exclude_categories=("Cs",)), max_size=40),
+)
+
+
+@settings(
+    max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(text=_ROBOT_TEXT, bom=st.booleans())
+def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
+    """Any robot-file text: a robot within the documented limits, or one InputError line
+    naming the file (never a RecursionError, TypeError or a traceback)."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.robot import MAX_MOUNT_DEG, MAX_SECTION_LENGTH, MIN_SECTION_LENGTH
+
+    path = tmp_path_factory.mktemp("fz") / "r.toml"
+    path.write_bytes((b"\xef\xbb\xbf" if bom else b"") + text.encode())
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # unit and order hints are warnings, not errors
+            robot = read_robot(path)
+    except InputError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith(str(path))
+        assert len(str(exc)) < 600, str(exc)
+        return
+    assert all(MIN_SECTION_LENGTH <= s.length <= MAX_SECTION_LENGTH for s in robot.sections)
+    assert all(0 < s.theta_max < math.pi for s in robot.sections)
+    for imu in robot.imus:
+        assert 0 < imu.at <= 1 and 0 <= imu.section < robot.n_sections
+        assert all(abs(v) <= MAX_MOUNT_DEG for v in imu.mount_rpy)
+
+
+# --- the live protocol --------------------------------------------------------------------------
+@settings(max_examples=200, deadline=None)
+@given(
+    fields=st.lists(_NUMBER, min_size=0, max_size=9),
+    fmt=st.sampled_from(["tilt", "raw"]),
+    n_imus=st.integers(1, 2),
+)
+def test_protocol_parser_is_total(fields: list[str], fmt: str, n_imus: int) -> None:
+    """Any line: a sample with a finite, non-negative time and each IMU either wholly
+    finite or wholly a dropout (NaN, with its problem said), at least one IMU good; or
+    GarbledLine."""
+    from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, parse_line
+
+    try:
+        sample = parse_line(",".join(fields), fmt, n_imus)  # type: ignore[arg-type]
+    except GarbledLine:
+        return
+    if sample is None:
+        return
+    assert math.isfinite(sample.t_ms) and sample.t_ms >= 0
+    blocks = sample.values.reshape(n_imus, VALUES_PER_IMU[fmt])
+    bad = [i for i, b in enumerate(blocks) if not np.isfinite(b).all()]
+    assert all(np.isnan(blocks[i]).all() for i in bad) and len(bad) == len(sample.problems)
+    assert len(bad) < n_imus

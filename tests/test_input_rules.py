@@ -351,3 +351,85 @@ def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: 
     with pytest.raises(UserError) as info:
         call()
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+# --- messages that said the wrong cause ------------------------------------------------------
+def test_an_infinite_angle_is_not_called_degrees() -> None:
+    """step() with roll = inf said 'the angles look like degrees'."""
+    est = make_estimator("ekf", _bend())
+    with pytest.raises(UserError, match=r"roll=inf, pitch=0\.1: an infinite angle; a sensor"):
+        est.step(Measurement(0.0, np.array([np.inf, 0.1])))
+    with pytest.raises(UserError, match="the angles look like degrees"):
+        est.step(Measurement(0.0, np.array([45.0, 0.1])))
+
+
+def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """'no sample gave an estimate (...; every sample is a dropout)' when the robust loss
+    had rejected every sample, none a dropout."""
+    from continuum_mhe.estimators.base import Estimate, Estimator
+
+    def rejected(self: Estimator, m: Measurement) -> Estimate:
+        return Estimate(m.t, None, None, None, "no-estimate", 0.0, outlier=True)
+
+    monkeypatch.setattr(Estimator, "step", rejected)
+    out = tmp_path / "e.csv"
+    path = REPRO / "gimbal_flip.csv"
+    argv = ["estimate", str(path), "-o", str(out), "--solver", "ipopt", "--loss", "huber"]
+    assert _one_line_error(capsys, main(argv), out).endswith(
+        f"{path}: no sample gave an estimate (2 samples; the robust loss rejected 2 sample(s) "
+        "as outliers (--loss huber; a larger --loss-scale, or --loss l2)); nothing written"
+    )
+    path = tmp_path / "dropouts.csv"
+    path.write_text("t,roll,pitch\n0,nan,nan\n0.1,,\n")
+    argv = ["estimate", str(path), "-o", str(out), "--method", "ekf", "--skip-bad"]
+    assert "every sample is a dropout" in _one_line_error(capsys, main(argv), out)
+
+
+def test_a_damaged_model_cache_entry_is_not_called_an_unwritable_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A cache entry that is a folder, in a writable cache: 'set CONTINUUM_MHE_CACHE to
+    a writable folder', which it was."""
+    import hashlib
+
+    from continuum_mhe.estimators.fast import codegen
+
+    monkeypatch.setenv("CONTINUUM_MHE_CACHE", str(tmp_path))
+    src = "double twice(double x) { return 2 * x; }\n"
+    key = hashlib.sha256((" ".join(codegen.CFLAGS) + "\n" + src).encode()).hexdigest()[:20]
+    (tmp_path / f"mhe_{key}.so").mkdir()
+    with pytest.warns(UserWarning):  # the compiling notice
+        lib = codegen.compile_library(src)
+    assert lib.lib is None and lib.fix == (
+        f"a damaged cache entry: remove {tmp_path / f'mhe_{key}.so'}*"
+    )
+
+
+def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
+    path = tmp_path / "r.toml"
+    path.write_text(ROBOT.replace("0.2", "[" + ", ".join(["1"] * 5000) + "]"))
+    with pytest.raises(InputError) as info:
+        read_robot(path)
+    assert str(info.value).startswith(f"{path}: section 1: length: expected a finite number")
+    assert len(str(info.value)) < 200 + len(str(path))
+
+
+def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path: Path) -> None:
+    """SIGTERM while the interpreter shut down after a complete command killed it (status
+    -15, the output complete). An exit handler sends it here, at that very moment."""
+    script = tmp_path / "late_signal.py"
+    script.write_text(
+        "import atexit, os, signal, sys, time\n"
+        f"sys.argv = ['continuum-mhe', 'simulate', 'paper3d', '-o', {str(tmp_path / 's.csv')!r},"
+        " '--duration', '1']\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGTERM), time.sleep(0.2)))\n"
+        "from continuum_mhe.entry import main\n"
+        "sys.exit(main())\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, (proc.returncode, proc.stderr)
+    assert (tmp_path / "s.csv").exists()

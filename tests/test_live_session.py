@@ -53,16 +53,37 @@ def test_line_splitter_accepts_lf_cr_crlf_and_drops_long_lines() -> None:
     assert sp.feed(b"g,7") == [] and sp.pending() == b"g,7"
 
 
-def test_line_splitter_drops_the_line_in_progress_after_a_reopen() -> None:
+def test_the_tail_of_a_line_cut_at_a_reopen_is_not_a_sample() -> None:
     """A reopened port may start mid-line (pyserial empties the buffer on open): a
-    tail such as '35,0.1,...' must not pass as a sample with a tiny t_ms."""
-    sp = LineSplitter()
-    sp.resync()
-    assert sp.feed(b"35,0.1,0.2\n1000,0.1,0.2\n") == [b"1000,0.1,0.2"] and sp.fragments == 1
-    sp.resync()
-    assert sp.feed(b"# continuum_imu 1.1.0\n2,3\n") == [b"# continuum_imu 1.1.0", b"2,3"]
-    sp.resync()
-    assert sp.feed(b"\n7,8\n") == [b"7,8"] and sp.fragments == 1  # it began at a line end
+    tail such as '35,0.1,...' (of '1035,...') must not pass as a sample with a tiny
+    t_ms; the next sample shows it (1000 ms later, where 10 ms is usual)."""
+    s, _ = _session()
+    _feed(s, [1000 + 10 * i for i in range(20)])
+    s.device_back()
+    now = time.monotonic()
+    s.handle_line(b"35,0.1,0.2", now)
+    _feed(s, [1400, 1410])
+    assert (s.counts.partial, s.counts.samples, s.counts.clock_restarts) == (1, 22, 0)
+
+
+def test_the_first_whole_line_after_a_reopen_is_kept() -> None:
+    """Was dropped whatever it was: 399 of 400 samples estimated across a replug."""
+    s, _ = _session()
+    splitter = LineSplitter()  # as the reader thread splits the port's bytes
+    now = time.monotonic()
+    for t0 in (0, 2000):  # plugged in, then unplugged and plugged in again at 2 s
+        splitter.resync()
+        s.device_back()
+        data = "".join(f"{t0 + 10 * i},0.1,0.1\n" for i in range(200)).encode()
+        for line in splitter.feed(data):
+            s.handle_line(line, now)
+    s.finish()
+    assert (s.counts.samples, s.counts.estimates, s.counts.partial) == (400, 400, 0)
+    s2, _ = _session()  # the first line of a session, and a session of one line
+    _feed(s2, [500])
+    assert s2.counts.samples == 0
+    s2.finish()
+    assert (s2.counts.samples, s2.counts.estimates) == (1, 1)
 
 
 def test_header_fields() -> None:
@@ -310,7 +331,9 @@ def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() ->
     s.device_back()  # a whole first line after a reopen is a sample, and ends the grace
     _feed(s, [200])
     s.handle_line(b"220,0.1", now)
-    assert (s.counts.partial, s.counts.garbled, s.counts.samples) == (2, 3, 4)
+    assert (s.counts.partial, s.counts.garbled, s.counts.samples) == (2, 3, 3)
+    _feed(s, [240])  # the next sample follows it: it was whole, and is kept
+    assert (s.counts.partial, s.counts.garbled, s.counts.samples) == (2, 3, 5)
 
 
 @pytest.mark.parametrize(
@@ -456,11 +479,10 @@ def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
 
     acc = np.tile(specific_force(0.1, 0.2), (2, 1))
     gyr = np.array([[0.1, 0.2, 0.3], [0.1, 0.2, 120.0]])  # IMU 2's gz: 120 deg/s
-    with pytest.raises(GarbledLine) as caught:
-        parse_line(raw_line(20, acc, gyr), "raw", n_imus=2)
-    assert str(caught.value) == (
-        "gz_2 beyond the gyro's range (|gz_2| > 52.4 rad/s, 2000 deg/s and a margin): deg/s "
-        "given for rad/s?"
+    sample = parse_line(raw_line(20, acc, gyr), "raw", n_imus=2)  # IMU 1 is kept
+    assert sample is not None and sample.problems == (
+        "IMU 2: gz_2 beyond the gyro's range (|gz_2| > 52.4 rad/s, 2000 deg/s and a margin): "
+        "deg/s given for rad/s?",
     )
     s, said, _ = _raw_session(RawImuSettings())
     _handle(s, ["0,0.1,0.2,9.8,0.01,0.02,0.03", "20,0.1,0.2,9.8,-90.0,0.02,0.03"])

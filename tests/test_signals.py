@@ -61,12 +61,16 @@ def test_stale_temporary_of_a_dead_writer_is_removed(tmp_path: Path) -> None:
     stale.write_text("partial")
     alive = tmp_path / f".e.csv.{os.getpid()}.def456.tmp"  # ours: still running
     alive.write_text("in progress")
-    other = tmp_path / f".other.csv.{dead.pid}.x.tmp"  # another target: not ours to judge
+    other = tmp_path / f".other.csv.{dead.pid}.x.tmp"  # another output's, its writer dead
     other.write_text("x")
+    mine = tmp_path / f".notes.{dead.pid}.tmp"  # not the writer's pattern: left alone
+    mine.write_text("x")
     with atomic_writer(tmp_path / "e.csv") as fh:
         fh.write("t\n")
     assert not stale.exists()
-    assert alive.exists() and other.exists()
+    assert not other.exists()  # any write into the folder removes it (was: left for ever
+    # unless that same output was written again)
+    assert alive.exists() and mine.exists()
     assert (tmp_path / "e.csv").read_text() == "t\n"
 
 

@@ -273,6 +273,8 @@ def collect(
             try:
                 text = payload.decode("ascii")
                 sample = parse_line(text, fmt, n_imus)
+                if sample is not None and sample.problems:  # calibration needs every IMU
+                    raise GarbledLine(sample.problems[0])
             except (UnicodeDecodeError, GarbledLine) as exc:
                 garbled += 1
                 garbled_since = min(garbled_since, arrival)

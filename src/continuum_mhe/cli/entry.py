@@ -42,9 +42,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # Ctrl-C while the full command line imports (seconds): one line, not a traceback
         from continuum_mhe.cli.app import main as full_main
 
-        return full_main(args)
+        code = full_main(args)
     except KeyboardInterrupt:  # (SIGTERM before cli.main's handler: killed, quietly)
         return signal_exit()
+    if argv is None:  # the executable: its command is done, its output complete
+        _ignore_late_signals()
+    return code
+
+
+def _ignore_late_signals() -> None:
+    """Ignore SIGTERM and SIGINT from here to the end of the process: the command has
+    finished and its status stands. The interpreter's shutdown (freeing CasADi's
+    objects) takes a moment, and a signal then killed the process (status -15 after
+    complete output) instead of its status."""
+    import signal
+
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        try:
+            signal.signal(sig, signal.SIG_IGN)
+        except (ValueError, OSError):  # not the main thread: nothing to change
+            pass
 
 
 if __name__ == "__main__":

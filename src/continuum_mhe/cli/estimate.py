@@ -12,6 +12,8 @@ from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 from typing import cast
 
+import numpy as np
+
 from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
     add_mhe_options,
@@ -55,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         )
         est.reset()
         flags_outliers = bool(getattr(est, "flags_outliers", False))
-        outliers = 0
+        outliers = readings = 0  # samples flagged as outliers; samples with a reading
         frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
@@ -76,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
                         if note:
                             print(f"{PROG}: note: {note}", file=sys.stderr)
                     outliers += e.outlier
+                    readings += bool(np.isfinite(z).any())
                     sink.write(e)
             except BaseException as exc:  # a signal (in C code: any type): keep what is done
                 if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
@@ -87,11 +90,7 @@ def run(args: argparse.Namespace) -> int:
                 ticks.close()
             n = sum(counts.values())
             if n == counts.get("no-estimate", 0):
-                why = (
-                    "every sample is a dropout"
-                    if not args.paper_start
-                    else (f"--paper-start needs at least --horizon {args.horizon} samples")
-                )
+                why = no_estimate_cause(args, readings, outliers)
                 raise InputError(
                     f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
                     "nothing written"
@@ -161,6 +160,21 @@ def run(args: argparse.Namespace) -> int:
 
 def _passthrough(it: Iterable[int]) -> Iterator[int]:
     yield from it
+
+
+def no_estimate_cause(args: argparse.Namespace, readings: int, outliers: int) -> str:
+    """Why no sample of ``estimate`` gave an estimate: ``readings`` samples had a
+    reading (the others were dropouts), ``outliers`` were rejected by the robust loss."""
+    if args.paper_start:
+        return f"--paper-start needs at least --horizon {args.horizon} samples"
+    if readings == 0:
+        return "every sample is a dropout"
+    if outliers:
+        return (
+            f"the robust loss rejected {outliers} sample(s) as outliers (--loss "
+            f"{getattr(args, 'loss', 'l2')}; a larger --loss-scale, or --loss l2)"
+        )
+    return "the estimator failed on every sample (see the statuses in docs/formats.md)"
 
 
 def check_output_path(output: str, source: str, overwrite: bool = False) -> None:

@@ -318,6 +318,11 @@ class Estimator(ABC):
             if any(abs(zl[i]) > DEGREES_LIKE for i in self._tilt):  # NaN compares False
                 names = self.formulation.measurement_names
                 shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in self._tilt)
+                if any(math.isinf(zl[i]) for i in self._tilt):
+                    raise UserError(
+                        f"measurement at t={t!r} s: {shown}: an infinite angle; a sensor "
+                        "that dropped out is NaN"
+                    )
                 raise UserError(
                     f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
                     "degrees; measurements are in radians (numpy.radians converts)"

@@ -28,13 +28,13 @@ import csv
 import errno
 import math
 import os
+import re
 import stat
 import sys
 import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from glob import escape as glob_escape
 from pathlib import Path
 from typing import IO, Any
 
@@ -416,9 +416,7 @@ def read_state_table(
     table.header = truth_named(table.header, required)
     p, header = table.name, table.header
     column_indices(table, ("t", *required))
-    names = tuple(
-        h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX)
-    )
+    names = tuple(h for h in header if h not in _NOT_STATES and h and not h.startswith(STD_PREFIX))
     idx = [header.index(c) for c in names]
     sd_idx = [header.index(STD_PREFIX + c) if STD_PREFIX + c in header else -1 for c in names]
     sd: list[list[float]] = []
@@ -600,7 +598,7 @@ def check_output_target(
 def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
     target = check_output_target(path)
     folder = target.parent if str(target.parent) else Path(".")
-    _remove_stale_temporaries(folder, target.name)
+    _remove_stale_temporaries(folder)
     try:
         fd, tmp = tempfile.mkstemp(
             prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder
@@ -627,14 +625,18 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
         raise
 
 
-def _remove_stale_temporaries(folder: Path, name: str) -> None:
-    """Remove ``.NAME.PID.*.tmp`` files left by a killed writer (SIGKILL) of the same
-    target, once their process is gone."""
-    for stale in folder.glob(f".{glob_escape(name)}.*.tmp"):
-        parts = stale.name[len(name) + 2 :].split(".")
-        if not parts or not parts[0].isdigit():
+#: The temporary file of :func:`_atomic`: ``.NAME.PID.XXXXXXXX.tmp`` (mkstemp's suffix).
+_TEMPORARY = re.compile(r"\..+\.(\d+)\.[A-Za-z0-9_]+\.tmp")
+
+
+def _remove_stale_temporaries(folder: Path) -> None:
+    """Remove the ``.NAME.PID.XXXXXXXX.tmp`` files that killed writers (SIGKILL) of any
+    output in ``folder`` left, once their process is gone."""
+    for stale in folder.glob(".*.tmp"):
+        m = _TEMPORARY.fullmatch(stale.name)
+        if m is None:
             continue
-        pid = int(parts[0])
+        pid = int(m.group(1))
         try:
             os.kill(pid, 0)
         except ProcessLookupError:

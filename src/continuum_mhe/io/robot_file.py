@@ -108,9 +108,14 @@ def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
         first[k] = i
 
 
+def _shown(value: object) -> str:
+    """``repr(value)`` for a message, cut short (a value may be a list of thousands)."""
+    return shorten(repr(value), 60)
+
+
 def _number(path: Path, where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{path}: {where}: expected a finite number, got {value!r}")
+        raise InputError(f"{path}: {where}: expected a finite number, got {_shown(value)}")
     return float(value)
 
 
@@ -118,7 +123,8 @@ def _unknown(path: Path, where: str, table: dict[str, Any], allowed: set[str]) -
     extra = sorted(set(table) - allowed)
     if extra:
         raise InputError(
-            f"{path}: {where}: unknown key {extra[0]!r} (allowed: {', '.join(sorted(allowed))})"
+            f"{path}: {where}: unknown key {_shown(extra[0])} "
+            f"(allowed: {', '.join(sorted(allowed))})"
         )
 
 
@@ -135,7 +141,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     mounting = doc.get("mounting", "z-up")
     if mounting not in MOUNTINGS:
         raise InputError(
-            f"{path}: mounting: must be one of {', '.join(MOUNTINGS)}, got {mounting!r}"
+            f"{path}: mounting: must be one of {', '.join(MOUNTINGS)}, got {_shown(mounting)}"
         )
     sections: list[Section] = []
     for k, table in enumerate(_tables(path, doc, "section"), start=1):
@@ -161,7 +167,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= len(sections):
             raise InputError(
                 f"{path}: {where}: section must be a section number from 1 to "
-                f"{len(sections)}, got {sec!r}"
+                f"{len(sections)}, got {_shown(sec)}"
             )
         at = _number(path, f"{where}: at", table.get("at", 1.0))
         if not 0 < at <= 1:
@@ -182,7 +188,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if any(abs(v) > MAX_MOUNT_DEG for v in mount):
             raise InputError(
                 f"{path}: {where}: mount_rpy must be angles in degrees within "
-                f"+-{MAX_MOUNT_DEG:g}, got {rpy!r}"
+                f"+-{MAX_MOUNT_DEG:g}, got {_shown(rpy)}"
             )
         hint = mount_rpy_hint(mount)
         if hint:

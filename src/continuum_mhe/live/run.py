@@ -109,12 +109,9 @@ def run_live(
                     say(f"caught up with real time after {now - behind_since:.1f} s")
                     behind_since = None
             elif kind == "too-long":
-                session.counts.too_long += 1
-                session.messages.show(
-                    f"dropped a line longer than {reader.splitter.max_bytes} bytes "
-                    "(no line end: wrong baud rate or not this protocol?)",
-                    now,
-                )
+                session.too_long_line(payload, reader.splitter.max_bytes, arrival)
+                if session.fatal is not None:
+                    break
             elif kind == "partial":
                 session.counts.partial += 1
             elif kind == "lost":
@@ -158,6 +155,7 @@ def run_live(
         reader.stop.set()
     if session.fatal is not None:
         reader.join(timeout=1.0)  # it closes the port (reads time out after 0.05 s)
+    session.finish()  # a first sample still waiting for the next one
     session.check_units()  # a session shorter than the check's samples: on them all
     say(session.summary())
     failed = session.fatal or session.only_garbled()

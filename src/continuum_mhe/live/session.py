@@ -50,6 +50,15 @@ from continuum_mhe.stream.recording import csv_cell
 #: samples of a shorter session at its end; again after a board reset (the device clock
 #: restarting). The samples are estimated meanwhile: the check never holds the stream back.
 UNIT_CHECK_SAMPLES = 100
+#: The first sample after the port opened is kept when the next one follows it within
+#: ``gap_factor`` usual periods, or this many seconds before the period is known: a line
+#: cut inside its ``t_ms`` (``1234,...`` read as ``34,...``) lies 1 s or more before it
+#: whenever the device clock is past 1 s.
+FIRST_STEP_MAX_S = 0.25
+#: A stream of nothing but garbled lines for this long (s, arrival time) with at least
+#: ``GARBAGE_STOP_LINES`` of them stops the session with the last one's cause.
+GARBAGE_STOP_S = 3.0
+GARBAGE_STOP_LINES = 20
 
 
 @dataclass(frozen=True)
@@ -114,6 +123,7 @@ class LiveCounts:
     estimates: int = 0
     comments: int = 0
     garbled: int = 0
+    imu_dropouts: int = 0  # IMU readings unreadable on a line whose other IMUs' were kept
     partial: int = 0
     too_long: int = 0
     out_of_order: int = 0
@@ -138,13 +148,15 @@ class DeviceMessages:
         self.say, self.every = say, every
         self._shown: dict[str, tuple[float, int]] = {}  # text -> (last shown, hidden since)
 
-    def show(self, text: str, now: float) -> None:
+    def show(self, text: str, now: float, source: str = "device says: ") -> None:
+        """Say ``source`` and ``text`` (``source=""``: a note of the host's own, such as
+        an estimator failure, rate-limited the same way)."""
         last, hidden = self._shown.get(text, (-math.inf, 0))
         if now - last < self.every:
             self._shown[text] = (last, hidden + 1)
             return
         more = f" (and {hidden} more time(s) since)" if hidden else ""
-        self.say(f"device says: {text}{more}")
+        self.say(f"{source}{text}{more}")
         if len(self._shown) > 1000:  # a device that never repeats itself: forget the oldest
             self._shown.pop(next(iter(self._shown)))
         self._shown[text] = (now, 0)
@@ -255,6 +267,12 @@ class LiveSession:
         #: the next line is the first since the port opened (or reopened): the device may
         #: have been mid-line then, so if it does not parse it counts as partial
         self._joined = True
+        #: that first line, parsed, until the next sample shows whether it was whole
+        self._held: tuple[Sample, float] | None = None
+        #: arrival of the first of the garbled lines since the last valid sample, and
+        #: their count
+        self._garbage_since: float | None = None
+        self._garbage_lines = 0
         estimator.reset()
 
     def period(self) -> float | None:
@@ -269,7 +287,7 @@ class LiveSession:
         self.clock.expect_restart()
         self._joined = True
 
-    def _bad(self, reason: str, text: str = "") -> None:
+    def _bad(self, reason: str, arrival: float, text: str = "") -> None:
         c = self.counts
         if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
             self._joined = False
@@ -282,6 +300,23 @@ class LiveSession:
             self.say(
                 f"garbled line skipped: {c.first_garbled} (said for the first only; all are "
                 "counted)"
+            )
+        self._garbage(arrival, reason + field_count_hint(text, self.settings.fmt, self.n_imus))
+
+    def _garbage(self, arrival: float, why: str) -> None:
+        """One more garbled line in the run of them since the last valid sample: a run
+        over ``GARBAGE_STOP_S`` s of ``GARBAGE_STOP_LINES`` lines or more sets
+        :attr:`fatal` with the cause of its last line."""
+        if self._garbage_since is None:
+            self._garbage_since = arrival
+        self._garbage_lines += 1
+        span = arrival - self._garbage_since
+        if span >= GARBAGE_STOP_S and self._garbage_lines >= GARBAGE_STOP_LINES:
+            after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
+            self.fatal = (
+                f"{self.settings.port}: nothing but garbled lines for {span:.1f} s{after} "
+                f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
+                "and --baud"
             )
 
     def only_garbled(self) -> str | None:
@@ -307,19 +342,44 @@ class LiveSession:
         try:
             text = raw.decode("ascii")
         except UnicodeDecodeError:
-            self._bad("not ASCII")
+            self._bad("not ASCII", arrival)
             return None
         try:
             sample = parse_line(text, self.settings.fmt, self.n_imus)
         except GarbledLine as exc:
-            self._bad(str(exc), text)
+            self._bad(str(exc), arrival, text)
             return None
-        self._joined = False
+        joined, self._joined = self._joined, False
         if sample is None:
             if text.strip().startswith("#"):
                 self._comment(text.strip(), arrival)
             return None
+        self._garbage_since, self._garbage_lines = None, 0
+        if joined:  # the first line since the port opened: whole, or the tail of a line?
+            self._held = (sample, arrival)
+            return None
+        if self._held is not None:
+            self._release_held(sample)
         return self._handle_sample(sample, arrival)
+
+    def _release_held(self, following: Sample | None) -> None:
+        """Keep the first sample after an open when ``following`` (the next sample)
+        comes within ``gap_factor`` usual periods of it (``FIRST_STEP_MAX_S`` before the
+        period is known), or when nothing follows (the end); else it was the tail of a
+        line cut at the open (a partial line)."""
+        assert self._held is not None
+        (held, arrival), self._held = self._held, None
+        p = self.period()
+        limit_ms = 1e3 * (self.settings.gap_factor * p if p is not None else FIRST_STEP_MAX_S)
+        if following is None or 0 <= following.t_ms - held.t_ms <= limit_ms:
+            self._handle_sample(held, arrival)
+        else:
+            self.counts.partial += 1
+
+    def finish(self) -> None:
+        """The stream ended: a first sample still waiting for the next is kept."""
+        if self._held is not None and self.fatal is None:
+            self._release_held(None)
 
     def _comment(self, text: str, arrival: float) -> None:
         c = self.counts
@@ -340,8 +400,29 @@ class LiveSession:
                     f"{len(want)} ({','.join(want)}); check --format and --robot"
                 )
 
+    def too_long_line(self, n_bytes: int, max_bytes: int, arrival: float) -> None:
+        """The reader dropped a line longer than ``max_bytes`` (no line end: the wrong
+        baud rate, or not this protocol): counted, said (rate-limited) as the host's own
+        note, and part of a run of garbage (:data:`GARBAGE_STOP_S`)."""
+        self.counts.too_long += 1
+        self.messages.show(
+            f"dropped a line longer than {max_bytes} bytes (no line end: wrong baud rate or "
+            "not this protocol?)",
+            arrival,
+            source="",
+        )
+        self._garbage(arrival, f"a line longer than {max_bytes} bytes")
+
     def _handle_sample(self, s: Sample, arrival: float) -> Estimate | None:
         c = self.counts
+        if s.problems:
+            if c.imu_dropouts == 0:
+                self.say(
+                    f"a line with unreadable values of one IMU ({s.problems[0]}): read as a "
+                    "dropout of that IMU, the others kept (said for the first only; all are "
+                    "counted)"
+                )
+            c.imu_dropouts += len(s.problems)
         t_prev = self.clock.t_last
         dev_prev = self.clock.last_ms
         p = self.period()
@@ -394,7 +475,8 @@ class LiveSession:
                 self._periods.append(dt)
                 self._period = None
         if self.record is not None:
-            self.record.write_row([csv_cell(t), *(csv_cell(float(v)) for v in s.values)])
+            cells = (csv_cell(float(v)) if math.isfinite(v) else "" for v in s.values)
+            self.record.write_row([csv_cell(t), *cells])  # "": a dropout, as estimate reads
         if restart:
             self._restart(t)
         est = self._estimate(t, self._measurement(t, s.values))
@@ -423,9 +505,11 @@ class LiveSession:
         try:
             for i in range(self.n_imus):
                 label = port if self.n_imus == 1 else f"{port}: IMU {i + 1}"
-                check_accel_units(label, values[:, 6 * i : 6 * i + 3])
+                block = values[:, 6 * i : 6 * i + 6]
+                block = block[np.isfinite(block).all(axis=1)]  # an IMU's dropouts left out
+                check_accel_units(label, block[:, :3])
                 if gyro:
-                    check_gyro_units(label, values[:, 6 * i + 3 : 6 * i + 6], used)
+                    check_gyro_units(label, block[:, 3:], used)
         except InputError as exc:
             self.fatal = str(exc)
 
@@ -477,7 +561,9 @@ class LiveSession:
             return est
         self.counts.estimator_failures += 1
         self.messages.show(
-            f"estimator failed ({problem}); sample flagged, estimator restarts", time.monotonic()
+            f"estimator failed ({problem}); sample flagged, estimator restarts",
+            time.monotonic(),
+            source="",
         )
         self._restart(t)
         solve_ms = (time.perf_counter() - start) * 1e3
@@ -528,6 +614,7 @@ class LiveSession:
         c = self.counts
         msg = (
             f"{c.samples} samples, {c.estimates} estimates; {c.garbled} garbled, "
+            f"{c.imu_dropouts} unreadable IMU reading(s) on kept lines, "
             f"{c.partial} partial and {c.too_long} over-long line(s), {c.out_of_order} out of "
             f"order, {c.gaps} gap(s) (~{c.missing} samples missing), {c.disconnects} "
             f"disconnect(s), {c.comments} device message(s), {c.clock_restarts} clock "

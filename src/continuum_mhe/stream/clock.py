@@ -8,6 +8,12 @@
   axis continues after the wall-clock time the device was silent, and the caller
   restarts the estimator.
 * A smaller backwards step is an out-of-order sample, dropped by the caller.
+* Samples that share a whole-millisecond stamp (a device faster than 1 kHz stamping
+  with ``millis()``: 2 kHz gives pairs of equal ``t_ms``) are spread evenly over that
+  millisecond, by the number of samples the previous stamp had: the protocol carries
+  no finer time, so such a sample's time is known to within 1 ms. This holds while the
+  usual period is under :data:`SUB_MS_PERIOD_S` (or not known yet); at slower rates an
+  equal stamp is a repeated line, out of order.
 """
 
 from __future__ import annotations
@@ -20,6 +26,9 @@ MILLIS_WRAP = 2**32
 #: A step back from the last ``WRAP_WINDOW_MS`` before the wrap into the first ones
 #: after it is a wrap, not a restart.
 WRAP_WINDOW_MS = 60_000.0
+
+#: Equal stamps are samples of one millisecond while the usual period is below this, s.
+SUB_MS_PERIOD_S = 1.5e-3
 
 ClockEvent = Literal["first", "next", "wrap", "restart", "out-of-order"]
 
@@ -47,6 +56,8 @@ class DeviceClock:
         self._t_last: float | None = None  # axis time of the last accepted sample, s
         self._arrival_last = 0.0
         self._restart_armed = False
+        self._repeat = 0  # samples before this one with the same stamp
+        self._per_stamp = 1  # samples the previous stamp had
 
     @property
     def t_last(self) -> float | None:
@@ -82,8 +93,15 @@ class DeviceClock:
             else:
                 return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
         t = (t_ms + self._epoch_ms) / 1e3 + self._offset_s
+        repeat = 0
+        if event == "next" and t_ms == last and (period_s is None or period_s < SUB_MS_PERIOD_S):
+            repeat = self._repeat + 1  # within the millisecond the stamp names
+            t += 1e-3 * repeat / max(self._per_stamp, repeat + 1)
         if self._t_last is not None and t <= self._t_last:
             return Placed(t, "out-of-order")
+        if repeat == 0:
+            self._per_stamp = self._repeat + 1
+        self._repeat = repeat
         self._restart_armed = False
         self._last_ms, self._t_last, self._arrival_last = t_ms, t, arrival
         return Placed(t, event)

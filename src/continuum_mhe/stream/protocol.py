@@ -43,10 +43,13 @@ class GarbledLine(ValueError):
 @dataclass(frozen=True)
 class Sample:
     """One parsed line: device time ``t_ms`` in ms and the values, IMU after IMU
-    (raw: 6 per IMU, tilt: 2 per IMU)."""
+    (raw: 6 per IMU, tilt: 2 per IMU); an IMU whose fields were not a valid reading
+    (on a line whose other IMUs' were) has NaN values, a dropout, and ``problems``
+    says why (``"IMU 2: non-numeric field"``)."""
 
     t_ms: float
     values: FloatArray
+    problems: tuple[str, ...] = ()
 
     @property
     def t(self) -> float:
@@ -67,12 +70,44 @@ def line_fields(fmt: LineFormat, n_imus: int) -> tuple[str, ...]:
     return ("t_ms", *value_columns(fmt, n_imus))
 
 
+def _number(text: str) -> float:
+    """A finite field value, or :class:`GarbledLine`."""
+    if not text.isascii() or "_" in text:  # what float reads beyond CSV's numbers
+        raise GarbledLine("non-numeric field")
+    try:
+        v = float(text)
+    except ValueError:
+        raise GarbledLine("non-numeric field") from None
+    if not math.isfinite(v):
+        raise GarbledLine("non-finite value")
+    return v
+
+
+def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> list[float]:
+    """One IMU's values of a line, checked (plausible, finite), or :class:`GarbledLine`."""
+    v = [_number(f) for f in fields]
+    if fmt == "raw":
+        ax, ay, az, gx, gy, gz = v
+        if (
+            max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT
+            or max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT
+        ):
+            raise GarbledLine(beyond_range(v, imu, n_imus))
+        if ax == 0.0 and ay == 0.0 and az == 0.0:
+            raise GarbledLine("accelerometer reads exactly zero")
+    elif abs(v[0]) > TILT_LIMITS[0] or abs(v[1]) > TILT_LIMITS[1]:
+        raise GarbledLine("angle out of range (radians expected)")
+    return v
+
+
 def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
     """Parse one protocol line; None for comments and blank lines.
 
     Raises :class:`GarbledLine` for anything else that is not a complete, plausible
-    sample (wrong field count, non-numbers, non-finite or out-of-range values, an
-    accelerometer that reads exactly zero).
+    sample (wrong field count, a bad time, non-numbers, non-finite or out-of-range
+    values, an accelerometer that reads exactly zero). On a line of several IMUs, an
+    IMU whose values are bad is a dropout (NaN, said in :attr:`Sample.problems`) and
+    the others are kept; a line with no good IMU is garbled.
     """
     line = text.strip()
     if not line or line.startswith("#"):
@@ -81,31 +116,22 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
     k = VALUES_PER_IMU[fmt]
     if len(parts) != 1 + k * n_imus:
         raise GarbledLine(f"expected {1 + k * n_imus} fields, found {len(parts)}")
-    try:
-        if not line.isascii() or "_" in line:  # what float reads beyond CSV's numbers
-            raise ValueError
-        nums = [float(p) for p in parts]
-    except ValueError:
-        raise GarbledLine("non-numeric field") from None
-    if not all(math.isfinite(v) for v in nums):
-        raise GarbledLine("non-finite value")
-    if nums[0] < 0:
+    t_ms = _number(parts[0])
+    if t_ms < 0:
         raise GarbledLine("negative time")
-    if fmt == "raw":
-        for i in range(1, len(nums), k):  # plain floats: a few microseconds per line
-            ax, ay, az, gx, gy, gz = nums[i : i + 6]
-            if (
-                max(abs(ax), abs(ay), abs(az)) > ACC_LIMIT
-                or max(abs(gx), abs(gy), abs(gz)) > GYRO_LIMIT
-            ):
-                raise GarbledLine(beyond_range(nums[i : i + 6], (i - 1) // k, n_imus))
-            if ax == 0.0 and ay == 0.0 and az == 0.0:
-                raise GarbledLine("accelerometer reads exactly zero")
-    else:
-        for i in range(1, len(nums), k):
-            if abs(nums[i]) > TILT_LIMITS[0] or abs(nums[i + 1]) > TILT_LIMITS[1]:
-                raise GarbledLine("angle out of range (radians expected)")
-    return Sample(nums[0], np.array(nums[1:]))
+    values: list[float] = []
+    problems: list[str] = []
+    for i in range(n_imus):
+        try:
+            values += _imu_values(parts[1 + k * i : 1 + k * (i + 1)], fmt, i, n_imus)
+        except GarbledLine as exc:
+            if n_imus == 1:
+                raise
+            problems.append(f"IMU {i + 1}: {exc}")
+            values += [math.nan] * k
+    if len(problems) == n_imus:
+        raise GarbledLine(problems[0])
+    return Sample(t_ms, np.array(values), tuple(problems))
 
 
 def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
@@ -159,6 +185,8 @@ _EOL = re.compile(rb"\r\n|\r|\n")
 class LineSplitter:
     """Bytes in, whole lines out: LF, CR and CRLF end a line; a line longer than
     ``max_bytes`` is dropped (its length is reported) up to its end, never buffered.
+    The first line after a (re)open may be the tail of a cut one: the session decides
+    (:class:`~continuum_mhe.stream.session.LiveSession` checks it against the next).
 
     Attributes:
         too_long: lengths (bytes) of the lines dropped since the last :meth:`feed`.
@@ -169,9 +197,7 @@ class LineSplitter:
         self._buf = bytearray()
         self._skipping = 0  # bytes of an over-long line dropped so far (0: not dropping)
         self._after_cr = False
-        self._resync = False  # drop the first line (see resync)
         self.too_long: list[int] = []
-        self.fragments = 0  # first lines dropped after a resync
 
     def feed(self, chunk: bytes) -> list[bytes]:
         """The non-empty lines completed by ``chunk`` (without their line ends)."""
@@ -201,22 +227,15 @@ class LineSplitter:
             self.too_long.append(self._skipping)
             self._skipping = 0
         elif self._buf:
-            if self._resync and not self._buf.startswith(b"#"):
-                self.fragments += 1
-            else:
-                lines.append(bytes(self._buf))
+            lines.append(bytes(self._buf))
             self._buf.clear()
-        self._resync = False
 
     def resync(self) -> None:
-        """The port was (re)opened mid-stream: the first line may be the tail of one
-        cut short (pyserial empties the input buffer on open), so it is dropped, and
-        counted in :attr:`fragments`, unless it is a ``#`` message (a restarted device
-        prints its banner first)."""
+        """The port was (re)opened mid-stream: what was buffered belongs to the old
+        connection and is forgotten."""
         self._buf.clear()
         self._skipping = 0
         self._after_cr = False
-        self._resync = True
 
     def pending(self) -> bytes:
         """Take the unfinished line (when the device goes away mid-line)."""

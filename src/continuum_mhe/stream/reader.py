@@ -81,15 +81,31 @@ class SerialReader(threading.Thread):
                 continue
             if not chunk:
                 continue
-            now = time.monotonic()
-            before = self.splitter.fragments
-            for line in self.splitter.feed(chunk):
-                self.events.put(("line", line, now))
-            if self.splitter.fragments > before:
-                self.events.put(("partial", b"", now))  # the line in progress at a reopen
-            for n in self.splitter.too_long:
-                self.events.put(("too-long", n, now))
+            self._feed(chunk)
+        self._drain()
         self._close()
+
+    def _feed(self, chunk: bytes) -> None:
+        now = time.monotonic()
+        for line in self.splitter.feed(chunk):
+            self.events.put(("line", line, now))
+        for n in self.splitter.too_long:
+            self.events.put(("too-long", n, now))
+
+    def _drain(self, limit_s: float = 1.0) -> None:
+        """Read what the port holds when told to stop: lines the device sent before the
+        end arrive late when this thread was slow (a busy machine), and are estimated
+        too. At most ``limit_s`` s, for a device that keeps sending."""
+        end = time.monotonic() + limit_s
+        try:
+            while time.monotonic() < end:
+                waiting = self.conn.in_waiting
+                chunk = self.conn.read(min(waiting, 1 << 16)) if waiting else b""
+                if not chunk:
+                    return
+                self._feed(chunk)
+        except Exception:  # noqa: S110 - the device went away meanwhile: nothing more to read
+            pass
 
     def _close(self) -> None:
         try:
