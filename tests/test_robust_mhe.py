@@ -18,6 +18,7 @@ import pytest
 from estimator_helpers import SOLVERS, bend_process_cov, fast_windows, tilt_tangent_basis
 from numpy.testing import assert_allclose
 
+from continuum_mhe import _core
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.base import Measurement
@@ -65,23 +66,25 @@ def robust(solver: str, loss: str, horizon: int = HORIZON, **kwargs) -> MHESetti
 
 
 # --- the loss itself ----------------------------------------------------------------------------
+@pytest.mark.parametrize("kernel", [rho_derivatives, _core.rho_derivatives])
 @pytest.mark.parametrize("loss", ["l2", *ROBUST])
-def test_loss_kernel_matches_casadi_and_finite_differences(loss: str) -> None:
+def test_loss_kernel_matches_casadi_and_finite_differences(loss: str, kernel) -> None:
+    """The numba kernel and the compiled core's (the window solve's assembly)."""
     scale = 1.7
     s = ca.SX.sym("s")
     fn = ca.Function("rho", [s], [rho_sym(loss, scale, s)])
     for v in (0.0, 0.3, 2.0, 2.89, 4.0, 50.0):
-        rho, d1, d2 = rho_derivatives(LOSS_CODES[loss], scale, v)
+        rho, d1, d2 = kernel(LOSS_CODES[loss], scale, v)
         assert float(fn(v)) == pytest.approx(rho, rel=1e-14, abs=1e-14)
         h = 1e-6
         if abs(v - scale**2) > 10 * h and v > h:  # Huber: rho'' jumps at the scale
             lo, hi = (
-                rho_derivatives(LOSS_CODES[loss], scale, v - h),
-                rho_derivatives(LOSS_CODES[loss], scale, v + h),
+                kernel(LOSS_CODES[loss], scale, v - h),
+                kernel(LOSS_CODES[loss], scale, v + h),
             )
             assert (hi[0] - lo[0]) / (2 * h) == pytest.approx(d1, rel=1e-7, abs=1e-9)
             assert (hi[1] - lo[1]) / (2 * h) == pytest.approx(d2, rel=1e-5, abs=1e-9)
-    assert rho_derivatives(LOSS_CODES[loss], scale, 0.0)[1] == 1.0  # l2 near zero
+    assert kernel(LOSS_CODES[loss], scale, 0.0)[1] == 1.0  # l2 near zero
 
 
 def test_settings_validate_the_loss() -> None:
@@ -166,7 +169,7 @@ def test_fast_backend_agrees_with_ipopt_window_by_window(recording, loss: str) -
 
     est._solve = recording_solve  # type: ignore[method-assign]
     est.run(recording.t, z)
-    model = fm.build_window_model(f, HORIZON, True, loss, est.settings.scale)
+    model = fm.build_window_model(f, HORIZON, loss, est.settings.scale)
     for problem, X0, X_ipopt in windows:
         res = fm.solve_window(model, problem, X0)
         assert res.converged, res.outcome
@@ -478,7 +481,7 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     f = BendFormulation()
     est = MovingHorizonEstimator(f, robust("fast", loss, horizon=30))
     windows = fast_windows(est, rec.t, z)
-    model = fm.build_window_model(f, 30, True, loss, est.settings.scale)
+    model = fm.build_window_model(f, 30, loss, est.settings.scale)
     tight = fm.FastOptions(step_tol=1e-13, err_tol=1e-13, max_iter=60)
     worst = 0.0
     for problem, X0, lam0, _ in windows:
