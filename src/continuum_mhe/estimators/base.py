@@ -21,7 +21,6 @@ from continuum_mhe.errors import UnobservableShapeWarning, UserError
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
-from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
@@ -82,6 +81,8 @@ class Estimator(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
+        #: the IMUs' measurement blocks (the sensor-health checks watch only these)
+        self._imu_blocks = tuple(b for b in formulation.measurement_blocks if b.is_imu)
         #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
         self.recovery = RecoverySettings()
         self._last_t = -math.inf
@@ -95,17 +96,16 @@ class Estimator(ABC):
         self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
         robot = formulation.robot
         rank, bends = shape_rank(robot), 2 * robot.n_sections
-        #: whether the IMUs determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`
-        #: equals the number of bend coordinates); if not, no estimate is ``ok``
-        self.shape_observable = rank == bends
+        #: whether the IMUs determine the shape (:meth:`Formulation.imus_determine_shape`;
+        #: for PCC robots :func:`~continuum_mhe.model.pcc.shape_rank` equals the number of
+        #: bend coordinates); if not, no estimate is ``ok``
+        self.shape_observable = formulation.imus_determine_shape(tuple(range(robot.n_imus)))
         #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
         #: gap reset no longer observe their part of the shape
         self._imu_last_valid: list[float] = []
         self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
         #: per IMU ``k``, ``(k, start, stop)`` of its measurement rows
-        self._imu_rows = [
-            (k, b.start, b.start + b.size) for k, b in enumerate(formulation.measurement_blocks)
-        ]
+        self._imu_rows = [(k, b.start, b.start + b.size) for k, b in enumerate(self._imu_blocks)]
         self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
@@ -158,11 +158,11 @@ class Estimator(ABC):
         self._last_t = -math.inf
         self._ran = False
         self._last_valid_t = -math.inf
-        self._freeze_value = [None] * len(self.formulation.measurement_blocks)
-        self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
-        self._freeze_count = [0] * len(self.formulation.measurement_blocks)
-        self._freeze_last_t = [-math.inf] * len(self.formulation.measurement_blocks)
-        self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._freeze_value = [None] * len(self._imu_blocks)
+        self._freeze_since = [-math.inf] * len(self._imu_blocks)
+        self._freeze_count = [0] * len(self._imu_blocks)
+        self._freeze_last_t = [-math.inf] * len(self._imu_blocks)
+        self._imu_last_valid = [-math.inf] * len(self._imu_blocks)
         self._first_valid_t = -math.inf
         self._start_check.reset()
         self._restart()
@@ -210,7 +210,7 @@ class Estimator(ABC):
         freeze = self.recovery.freeze
         if freeze is None:
             return m
-        n_blocks = len(self.formulation.measurement_blocks)
+        n_blocks = len(self._imu_blocks)
         if len(self._freeze_value) != n_blocks:  # the four lists are set together
             self._freeze_value = [None] * n_blocks
             self._freeze_since = [-math.inf] * n_blocks
@@ -218,7 +218,7 @@ class Estimator(ABC):
             self._freeze_last_t = [-math.inf] * n_blocks
         min_samples = self.recovery.freeze_samples
         z: FloatArray | None = None
-        for k, b in enumerate(self.formulation.measurement_blocks):
+        for k, b in enumerate(self._imu_blocks):
             zb = m.z[b.slice]
             last = self._freeze_value[k]
             gap = m.t - self._freeze_last_t[k] > freeze
@@ -414,7 +414,7 @@ class Estimator(ABC):
         each IMU's last valid time (:meth:`_note_imus`)."""
         if not self.shape_observable:
             return False
-        blocks = self.formulation.measurement_blocks
+        blocks = self._imu_blocks
         if len(blocks) == 1:
             return True  # its silence is the whole robot's gap
         last = self._imu_last_valid
@@ -424,9 +424,7 @@ class Estimator(ABC):
             return True  # all reporting, or none (the gap's dropout rows say it)
         known = self._observable_subsets.get(recent)
         if known is None:
-            robot = self.formulation.robot
-            sub = Robot(robot.sections, tuple(robot.imus[k] for k in recent), robot.mounting)
-            known = shape_rank(sub) == 2 * robot.n_sections
+            known = self.formulation.imus_determine_shape(recent)
             self._observable_subsets[recent] = known
         return known
 
