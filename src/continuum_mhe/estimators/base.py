@@ -109,8 +109,9 @@ class Estimator(ABC):
         self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
-                f"the IMUs of this robot ({robot.describe()}) determine {rank} of its "
-                f"{bends} bend coordinates: its shape is not observable, so every estimate "
+                f"the IMUs of this robot ({robot.describe()}) "
+                f"{formulation.unobservable_detail(rank, bends)}: its shape is not "
+                "observable, so every estimate "
                 "is marked uncertain (one IMU per section makes it observable; "
                 "`continuum-mhe check-robot` tells)",
                 UnobservableShapeWarning,

@@ -193,6 +193,12 @@ class Formulation:
             sub = replace(robot, imus=tuple(robot.imus[k] for k in imus))
         return shape_rank(sub) == 2 * robot.n_sections
 
+    def unobservable_detail(self, rank: int, bends: int) -> str:
+        """What the IMUs miss, for the warning of a robot whose shape they do not
+        determine (``rank`` of ``bends`` bend coordinates by
+        :func:`~continuum_mhe.model.pcc.shape_rank`)."""
+        return f"determine {rank} of its {bends} bend coordinates"
+
     def initial_state(self, z0: FloatArray) -> FloatArray:
         raise NotImplementedError
 

@@ -485,7 +485,7 @@ class TendonFormulation(Formulation):
         else:
             f_std = self.accel_direction_std or self.noise.measurement_std
             one = np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
-            imu = np.kron(np.eye(self.robot.n_imus), one)
+            imu = np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
         k = self.robot.n_tendons
         # the rates' rows are zero residuals: any weight
         tension = np.diag([self.tension_std**2] * k + [1.0] * k)
@@ -511,6 +511,12 @@ class TendonFormulation(Formulation):
         (two per tilt IMU, three per raw IMU with its gyro)."""
         per = 2 if self.imu_model == "tilt" else 3
         return per * len(imus) >= 3
+
+    def unobservable_detail(self, rank: int, bends: int) -> str:
+        return (
+            "read fewer than the three components of the tip force that set its shape "
+            "with the tensions (two per tilt IMU, three per raw IMU)"
+        )
 
     @cached_property
     def _residual_function(self) -> ca.Function:

@@ -179,8 +179,8 @@ def simulate_tendon_robot(
             unit = seg / np.linalg.norm(seg, axis=0)
             f = -tau[i] * unit  # each point pulled back towards the one before
             f[:, :-1] += tau[i] * unit[:, 1:]  # and on towards the one after
-            np.add.at(forces, (slice(None), elems), 0.5 * f)
-            np.add.at(forces, (slice(None), elems + 1), 0.5 * f)
+            forces[:, elems] += 0.5 * f  # a tendon passes an element once
+            forces[:, elems + 1] += 0.5 * f
             couple = np.cross(arms[:, i, elems].T, f.T).T  # base frame
             torques[:, elems] += np.einsum("ijk,jk->ik", q[:, :, elems], couple)
         return forces, torques
@@ -405,9 +405,9 @@ def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
     w = ca.SX.sym("w", 3, n_seg)
     tau = ca.SX.sym("tau", robot.n_tendons)
     force = ca.SX.sym("F", 3)
-    R = ca.SX.eye(3)
-    p = ca.SX.zeros(3)
-    energy = 0
+    R: Any = ca.SX.eye(3)
+    p: Any = ca.SX.zeros(3)
+    energy: Any = ca.SX(0)
     frames = []  # (R, p) at every segment end
     seg = 0
     for sec in robot.sections:
@@ -426,9 +426,9 @@ def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
     energy += -ca.dot(force, p)
     for i, td in enumerate(robot.tendons):
         r = ca.DM([*td.offset, 0.0])
-        prev = r
+        prev: Any = r
         last = per * sum(s.disks for s in robot.sections[: td.section + 1])
-        length = 0
+        length: Any = ca.SX(0)
         for j in range(per - 1 if route == "disks" else 0, last, per if route == "disks" else 1):
             Rj, pj = frames[j]
             pt = pj + ca.mtimes(Rj, r)
@@ -436,8 +436,13 @@ def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
             prev = pt
         energy += ca.fmax(tau[i], 0) * length
     outs = ca.horzcat(*[ca.vertcat(ca.vec(Rj), pj) for Rj, pj in frames])
-    nlp = {"x": ca.vec(w), "p": ca.vertcat(tau, force), "f": energy}
-    opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-12}
+    nlp: dict[str, Any] = {"x": ca.vec(w), "p": ca.vertcat(tau, force), "f": energy}
+    opts: dict[str, Any] = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.tol": 1e-12,
+    }
     solver = ca.nlpsol("rod_energy", "ipopt", nlp, opts)
     frames_fn = ca.Function("frames", [ca.vec(w)], [outs])
     _SOLVERS[key] = (solver, frames_fn, n_seg)
@@ -468,15 +473,15 @@ def quasi_static_trajectory(
     scenario: str,
     duration: float,
     settings: TendonRodSettings | None = None,
-    record_dt: float = 1e-2,
-    segments_per_disk: int = 3,
+    record_dt: float = 2e-2,
+    segments_per_disk: int = 2,
 ) -> TendonTrajectory:
     """The robot's equilibria (:func:`energy_equilibrium`) every ``record_dt`` s, warm
     started; velocities and angular velocities by central differences."""
     s = settings or TendonRodSettings()
     disks = [sec.disks for sec in robot.sections]
     n_rec = int(round(duration / record_dt)) + 1
-    t = np.arange(n_rec) * record_dt
+    t = np.arange(n_rec, dtype=np.float64) * record_dt
     end_seg = (segments_per_disk * disks[0] - 1, segments_per_disk * sum(disks) - 1)
     n_nodes = segments_per_disk * sum(disks) + 1
     nodes = np.zeros((n_rec, 3, n_nodes))
