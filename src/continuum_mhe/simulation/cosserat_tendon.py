@@ -317,7 +317,7 @@ def write_tendon_recording(
         truth.append(row)
     tr = np.column_stack([t, np.array(truth)])
     write_table(out / f"{name}_truth.csv", truth_columns(2), np.round(tr, 7).tolist())
-    psi = tr[:, [11, 17]]
+    psi = tr[:, [9, 15]]
     info: dict[str, object] = {
         "scenario": scenario,
         "robot": "tendon-two-section",
