@@ -4,7 +4,7 @@ prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms er
 ms per sample).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
-        [--horizon N] [--skip S]
+        [--horizon N] [--skip S] [--force-psd Q]
 """
 
 from __future__ import annotations
@@ -38,9 +38,10 @@ def main() -> None:
     p.add_argument("--horizon", type=int, default=10)
     p.add_argument("--skip", type=float, default=1.0)
     p.add_argument("--robot", default="tendon-two-section")
+    p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
     a = p.parse_args()
     robot = read_robot(a.robot)
-    f = TendonFormulation(robot=robot, imu_model=a.imu)
+    f = TendonFormulation(robot=robot, imu_model=a.imu, force_accel_psd=a.force_psd)
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":
         _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
@@ -78,7 +79,7 @@ def main() -> None:
         statuses[str(s)] = statuses.get(str(s), 0) + 1
     print(json.dumps({
         "scenario": a.scenario, "method": a.method, "imu": a.imu,
-        "horizon": a.horizon if a.method == "mhe" else None,
+        "horizon": a.horizon if a.method == "mhe" else None, "force_psd": a.force_psd,
         "tip_mean_mm": round(float(err(("x", "y", "z")).mean() * 1e3), 2),
         "mid_mean_mm": round(float(err(("x_1", "y_1", "z_1")).mean() * 1e3), 2),
         "force_rms_n": round(float(np.sqrt(np.mean(err(("fx", "fy", "fz")) ** 2))), 4),
