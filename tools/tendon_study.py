@@ -4,7 +4,7 @@ prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms er
 ms per sample).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
-        [--horizon N] [--skip S] [--force-psd Q]
+        [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only]
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -39,20 +40,24 @@ def main() -> None:
     p.add_argument("--skip", type=float, default=1.0)
     p.add_argument("--robot", default="tendon-two-section")
     p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
+    p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
     a = p.parse_args()
     robot = read_robot(a.robot)
+    used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
+    robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
     f = TendonFormulation(robot=robot, imu_model=a.imu, force_accel_psd=a.force_psd)
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":
         _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
-        t, z_imu = tilt[:, 0], tilt[:, 1:]
+        t = tilt[:, 0]
+        z_imu = np.hstack([tilt[:, 1 + 2 * k : 3 + 2 * k] for k in used])
     else:
         _, raw = _table(a.folder / f"{a.scenario}_raw.csv")
         t = raw[:, 0]
         settings = RawImuSettings(imu_model="direct")
         z_imu = np.hstack(
             [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
-                                 settings) for k in range(robot.n_imus)]
+                                 settings) for k in used]
         )  # fmt: skip
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
     if a.method == "ekf":
@@ -80,6 +85,7 @@ def main() -> None:
     print(json.dumps({
         "scenario": a.scenario, "method": a.method, "imu": a.imu,
         "horizon": a.horizon if a.method == "mhe" else None, "force_psd": a.force_psd,
+        "imus": [k + 1 for k in used],
         "tip_mean_mm": round(float(err(("x", "y", "z")).mean() * 1e3), 2),
         "mid_mean_mm": round(float(err(("x_1", "y_1", "z_1")).mean() * 1e3), 2),
         "force_rms_n": round(float(np.sqrt(np.mean(err(("fx", "fy", "fz")) ** 2))), 4),

@@ -38,24 +38,28 @@ tendons: every tension is clipped at zero (a tendon cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [q, q']`` with ``q = [k0, F, tau]``: the base curvature ``k0 = R0^T M(0) /
-EI`` (rad/m, 3: the total base moment scaled to a curvature), the tip force ``F`` (N,
-base frame, 3) and the tendon tensions ``tau`` (N, one per tendon), each driven by
-white-noise acceleration (constant velocity, as the ``bend`` formulation). The
-measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro, as
-``bend`` and ``direct``), then the tensions (``tension_k``, the input given for that
-sample, kind ``"tension"``), then six zeros (kind ``"equilibrium"``): the tip condition
-``R(L)^T M(L) / EI = 0`` and its time derivative, as a pseudo-measurement with the tiny
+State ``x = [k0, F, tau, k0', F']`` (and a gyro bias per IMU with
+``estimate_gyro_bias``): the base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3: the total
+base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3), each with
+constant velocity driven by white-noise acceleration (as the ``bend`` formulation), and
+the tendon tensions ``tau`` (N, one per tendon), a random walk held to the given ones.
+The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
+as ``bend`` and ``direct``), then the given tensions and their rates (kind
+``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
+:attr:`TendonFormulation.tension_std`; the rates enter the gyros' model and have a zero
+residual), then zeros (kind ``"equilibrium"``): the tip condition ``R(L)^T M(L) / EI =
+0``, and with raw IMUs its time derivative, as a pseudo-measurement with the tiny
 standard deviation :attr:`TendonFormulation.equilibrium_std`.
 
 Why a pseudo-measurement rather than a constraint: every estimator then runs the model
 unchanged (the filters have no constraints, and the fast MHE handles only box and ball
 constraints); its weight makes the equilibrium exact to about 1e-4 rad/m of tip
-curvature in the estimate, a few micrometres at the tip. Why tensions as a measurement
-block rather than the transition's input ``u``: the estimators form ``u`` from the
-measurements alone, so a tension given with the sample reaches the model in ``z``
-either way; as a measurement the start (:meth:`TendonFormulation.initial_state`) sees
-the tensions, and a missing tension sample is a dropout like an IMU's.
+curvature in the estimate, a few micrometres at the tip. Why tensions in the
+measurement rather than as the transition's input ``u``: the estimators form ``u`` from
+the measurements alone, so a tension given with the sample reaches the model in ``z``
+either way; there the start (:meth:`TendonFormulation.initial_state`) sees the
+tensions, and a sample without them is a dropout as a whole. Why the tensions are
+states: the outputs (the shape) are functions of the state alone in every estimator.
 """
 
 from __future__ import annotations
