@@ -321,3 +321,20 @@ def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
     tau, rate = tensions.at(0.25)
     np.testing.assert_allclose(tau, [1.5, 0.0])
     np.testing.assert_allclose(rate, [2.0, 0.0])
+
+
+def test_one_imu_does_not_determine_the_tip_force() -> None:
+    """Two of the tip force's three components per IMU (its gravity direction): one IMU,
+    raw or tilt, leaves the shape unobservable; two determine it."""
+    from continuum_mhe.errors import UnobservableShapeWarning
+    from continuum_mhe.estimators import ExtendedKalmanFilter
+
+    one = _one_section(Tendon(0, 0.0, 0.01))
+    two = Robot(one.sections, (ImuPlacement(0, 0.5), ImuPlacement(0, 1.0)), "z-up", BACKBONE,
+                one.tendons)  # fmt: skip
+    for model in ("tilt", "direct"):
+        f1 = TendonFormulation(robot=one, imu_model=model)  # type: ignore[arg-type]
+        assert not f1.imus_determine_shape((0,))
+        assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
+    with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
+        ExtendedKalmanFilter(TendonFormulation(robot=one))

@@ -510,16 +510,17 @@ class TendonFormulation(Formulation):
 
     # --- numeric helpers ----------------------------------------------------------
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
-        """With the tensions given, the shape follows from the tip force: three unknowns,
-        which the IMUs determine when they give three or more orientation components
-        (two per tilt IMU, three per raw IMU with its gyro)."""
-        per = 2 if self.imu_model == "tilt" else 3
-        return per * len(imus) >= 3
+        """With the tensions given, the shape follows from the tip force: three unknowns.
+        Each IMU pins two of them through its gravity direction; a gyro adds the rate
+        of the twist about the vertical but not its value (it drifts with the gyro's
+        bias: one raw IMU at the tip was 100 mm off on the unloaded recording), so the
+        IMUs determine the shape when there are at least two."""
+        return 2 * len(imus) >= 3
 
     def unobservable_detail(self, rank: int, bends: int) -> str:
         return (
             "read fewer than the three components of the tip force that set its shape "
-            "with the tensions (two per tilt IMU, three per raw IMU)"
+            "with the tensions (two per IMU: its gravity direction)"
         )
 
     @cached_property
