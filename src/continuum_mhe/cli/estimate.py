@@ -10,7 +10,7 @@ import math
 import sys
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -33,6 +33,11 @@ from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
+if TYPE_CHECKING:
+    from continuum_mhe.io.sample_stream import SampleStream
+    from continuum_mhe.io.tensions import Tensions
+    from continuum_mhe.model.formulations import Formulation
+
 #: the comment key that marks an estimate file cut short by a signal (Ctrl-C, SIGTERM)
 PARTIAL = "partial"
 
@@ -46,12 +51,15 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.output, args.measurements, args.overwrite)
     out = args.output
     counts: dict[str, int] = {}
-    with open_estimate_input(
-        args.measurements, input_options(args), formulation_from_args(args)
-    ) as stream:
+    base = formulation_from_args(args)
+    tensions = _tensions_of(args, base)
+    with open_estimate_input(args.measurements, input_options(args), base) as stream:
+        formulation, samples = stream.formulation, stream.samples
+        if base.robot.has_mechanics:
+            formulation, samples = _with_tensions(args, stream, tensions)
         est = make_estimator(
             args.method,
-            stream.formulation,
+            formulation,
             mhe_settings_from_args(args),
             recovery_settings_from_args(args),
         )
@@ -64,9 +72,9 @@ def run(args: argparse.Namespace) -> int:
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [("continuum-mhe", json.dumps(made)), (OPTIONS_LINE, args.options_record)]
         interrupted: BaseException | None = None
-        with EstimateSink(out, stream.formulation, stream.t0_ns, flags_outliers, notes) as sink:
+        with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
             try:
-                for t, z in stream.samples:  # a signal while waiting for input ends it at once
+                for t, z in samples:  # a signal while waiting for input ends it at once
                     next(ticks)
                     frozen_before, freezes_before = est.frozen_samples, len(est.first_freezes)
                     with signals_deferred():  # inside C code: stop after this sample
@@ -158,6 +166,44 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tensions_of(args: argparse.Namespace, base: Formulation) -> Tensions | None:
+    """The ``--inputs`` tensions file, read and checked for the robot's tendons."""
+    from continuum_mhe.io.tensions import read_tensions
+
+    robot = base.robot
+    given = getattr(args, "inputs", None)
+    if not robot.n_tendons:
+        if given:
+            raise InputError(
+                f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
+            )
+        return None
+    if not given:
+        raise InputError(
+            f"{args.robot}: the robot has {robot.n_tendons} tendons: give their tensions "
+            "with --inputs TENSIONS.csv (t,tension_1,...)"
+        )
+    return read_tensions(given, robot.n_tendons)
+
+
+def _with_tensions(
+    args: argparse.Namespace, stream: SampleStream, tensions: Tensions | None
+) -> tuple[Formulation, Iterator[tuple[float, np.ndarray]]]:
+    """The tendon formulation of the stream's robot and its samples with the tensions
+    (interpolated at each sample's time) appended."""
+    from continuum_mhe.io.tensions import tendon_formulation_for
+
+    f = tendon_formulation_for(stream.formulation, input_options(args))
+    k = f.robot.n_tendons
+
+    def rows() -> Iterator[tuple[float, np.ndarray]]:
+        for t, z in stream.samples:
+            tau, rate = tensions.at(t) if tensions is not None else (np.zeros(k), np.zeros(k))
+            yield t, f.measurement_row(z, tau, rate)
+
+    return f, rows()
+
+
 def _passthrough(it: Iterable[int]) -> Iterator[int]:
     yield from it
 
@@ -200,6 +246,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--skip-bad",
         action="store_true",
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
+    )
+    p.add_argument(
+        "--inputs",
+        metavar="TENSIONS.csv",
+        help="tendon tensions t,tension_1,...,tension_k (N, the robot file's [[tendon]] "
+        "order), interpolated linearly to the measurement times (docs/tendon.md)",
     )
     add_model_options(p)
     add_mhe_options(p)

@@ -95,6 +95,8 @@ class Estimator(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
+        #: the IMUs' measurement blocks (the sensor-health checks watch only these)
+        self._imu_blocks = tuple(b for b in formulation.measurement_blocks if b.is_imu)
         #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
         self.recovery = RecoverySettings()
         self._last_t = -math.inf
@@ -109,22 +111,22 @@ class Estimator(ABC):
         self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
         robot = formulation.robot
         rank, bends = shape_rank(robot), 2 * robot.n_sections
-        #: whether the IMUs determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`
-        #: equals the number of bend coordinates); if not, no estimate is ``ok``
-        self.shape_observable = rank == bends
+        #: whether the IMUs determine the shape (:meth:`Formulation.imus_determine_shape`;
+        #: for PCC robots :func:`~continuum_mhe.model.pcc.shape_rank` equals the number of
+        #: bend coordinates); if not, no estimate is ``ok``
+        self.shape_observable = formulation.imus_determine_shape(tuple(range(robot.n_imus)))
         #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
         #: gap reset no longer observe their part of the shape
         self._imu_last_valid: list[float] = []
         self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
         #: per IMU ``k``, ``(k, start, stop)`` of its measurement rows
-        self._imu_rows = [
-            (k, b.start, b.start + b.size) for k, b in enumerate(formulation.measurement_blocks)
-        ]
+        self._imu_rows = [(k, b.start, b.start + b.size) for k, b in enumerate(self._imu_blocks)]
         self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
-                f"the IMUs of this robot ({robot.describe()}) determine {rank} of its "
-                f"{bends} bend coordinates: its shape is not observable, so every estimate "
+                f"the IMUs of this robot ({robot.describe()}) "
+                f"{formulation.unobservable_detail(rank, bends)}: its shape is not "
+                "observable, so every estimate "
                 "is marked uncertain (one IMU per section makes it observable; "
                 "`continuum-mhe check-robot` tells)",
                 UnobservableShapeWarning,
@@ -177,11 +179,11 @@ class Estimator(ABC):
         self._last_t = -math.inf
         self._ran = False
         self._last_valid_t = -math.inf
-        self._freeze_value = [None] * len(self.formulation.measurement_blocks)
-        self._freeze_since = [-math.inf] * len(self.formulation.measurement_blocks)
-        self._freeze_count = [0] * len(self.formulation.measurement_blocks)
-        self._freeze_last_t = [-math.inf] * len(self.formulation.measurement_blocks)
-        self._imu_last_valid = [-math.inf] * len(self.formulation.measurement_blocks)
+        self._freeze_value = [None] * len(self._imu_blocks)
+        self._freeze_since = [-math.inf] * len(self._imu_blocks)
+        self._freeze_count = [0] * len(self._imu_blocks)
+        self._freeze_last_t = [-math.inf] * len(self._imu_blocks)
+        self._imu_last_valid = [-math.inf] * len(self._imu_blocks)
         self._first_valid_t = -math.inf
         self._start_check.reset()
         self._restart()
@@ -230,7 +232,7 @@ class Estimator(ABC):
         freeze = self.recovery.freeze
         if freeze is None:
             return m
-        n_blocks = len(self.formulation.measurement_blocks)
+        n_blocks = len(self._imu_blocks)
         if len(self._freeze_value) != n_blocks:  # the four lists are set together
             self._freeze_value = [None] * n_blocks
             self._freeze_since = [-math.inf] * n_blocks
@@ -238,7 +240,7 @@ class Estimator(ABC):
             self._freeze_last_t = [-math.inf] * n_blocks
         min_samples = self.recovery.freeze_samples
         z: FloatArray | None = None
-        for k, b in enumerate(self.formulation.measurement_blocks):
+        for k, b in enumerate(self._imu_blocks):
             zb = m.z[b.slice]
             last = self._freeze_value[k]
             gap = m.t - self._freeze_last_t[k] > freeze
@@ -457,7 +459,7 @@ class Estimator(ABC):
         each IMU's last valid time (:meth:`_note_imus`)."""
         if not self.shape_observable:
             return False
-        blocks = self.formulation.measurement_blocks
+        blocks = self._imu_blocks
         if len(blocks) == 1:
             return True  # its silence is the whole robot's gap
         last = self._imu_last_valid
@@ -467,9 +469,7 @@ class Estimator(ABC):
             return True  # all reporting, or none (the gap's dropout rows say it)
         known = self._observable_subsets.get(recent)
         if known is None:
-            robot = self.formulation.robot
-            sub = Robot(robot.sections, tuple(robot.imus[k] for k in recent), robot.mounting)
-            known = shape_rank(sub) == 2 * robot.n_sections
+            known = self.formulation.imus_determine_shape(recent)
             self._observable_subsets[recent] = known
         return known
 

@@ -18,6 +18,28 @@ Format (every key but ``length`` is optional)::
     [[imu]]
     section = 2
 
+A tendon-driven robot adds its backbone's material, the spacer disks of each section
+and its tendons (:mod:`continuum_mhe.model.tendon`)::
+
+    [backbone]
+    youngs_modulus = 54e9      # Pa
+    shear_modulus = 20.77e9    # Pa
+    radius = 0.0007            # m, a solid round rod
+    density = 6450             # kg/m^3, optional (without it the robot is weightless)
+    [[section]]
+    length = 0.2
+    disks = 10                 # evenly spaced, the last one at the section's end
+    [[tendon]]
+    section = 1                # anchored at the end of this section
+    angle = 90                 # deg, around the backbone from the disk frame's x axis
+    radius = 0.01              # m from the backbone
+    [[imu]]
+    section = 1
+    disk = 5                   # at a disk instead of ``at`` (at = disk / disks)
+
+The tensions file's columns follow the ``[[tendon]]`` order. Tendons without a
+``[backbone]`` are refused.
+
 Without ``[[imu]]`` entries a robot file is refused (a robot needs a sensor). Every
 problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file and key.
 The IMUs are numbered in the file's order, and the measurement columns follow it
@@ -39,16 +61,18 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.errors import expect_type
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.io.csv_files import InputError, UnitWarning
 from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
     MAX_MOUNT_DEG,
+    Backbone,
     ImuPlacement,
     Robot,
     Section,
+    Tendon,
     mount_rpy_hint,
 )
 
@@ -57,9 +81,11 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-_TOP_KEYS = {"mounting", "section", "imu"}
-_SECTION_KEYS = {"length", "theta_max"}
-_IMU_KEYS = {"section", "at", "mount_rpy", "gyro_bias"}
+_TOP_KEYS = {"mounting", "section", "imu", "backbone", "tendon"}
+_SECTION_KEYS = {"length", "theta_max", "disks"}
+_IMU_KEYS = {"section", "at", "disk", "mount_rpy", "gyro_bias"}
+_BACKBONE_KEYS = {"youngs_modulus", "shear_modulus", "radius", "density"}
+_TENDON_KEYS = {"section", "angle", "radius"}
 MM = 1e-3  # m
 
 
@@ -151,8 +177,13 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             raise InputError(f"{path}: {where}: missing key 'length' (m)")
         length = _number(path, f"{where}: length", table["length"])
         theta_max = _number(path, f"{where}: theta_max", table.get("theta_max", DEFAULT_THETA_MAX))
+        disks = table.get("disks", 0)
+        if isinstance(disks, bool) or not isinstance(disks, int) or disks < 0:
+            raise InputError(
+                f"{path}: {where}: disks must be a whole number of spacer disks >= 0, got {disks!r}"
+            )
         try:
-            sections.append(Section(length, theta_max))
+            sections.append(Section(length, theta_max, disks))
         except ValueError as exc:
             raise InputError(f"{path}: {where}: {exc}") from None
     if not sections:
@@ -170,6 +201,8 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
                 f"{len(sections)}, got {_shown(sec)}"
             )
         at = _number(path, f"{where}: at", table.get("at", 1.0))
+        if "disk" in table:
+            at = _disk_place(path, where, table, sections[sec - 1], sec)
         if not 0 < at <= 1:
             raise InputError(
                 f"{path}: {where}: at must lie in (0, 1] (fraction of the section), got {at!r}"
@@ -211,7 +244,74 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     if not imus:
         raise InputError(f"{path}: no [[imu]]: a robot needs at least one IMU")
     warn_imu_order(path, imus)
-    return Robot(tuple(sections), tuple(imus), mounting)
+    backbone = _backbone(path, doc)
+    tendons = _tendons(path, doc, len(sections))
+    if tendons and backbone is None:
+        raise InputError(
+            f"{path}: {len(tendons)} [[tendon]] but no [backbone]: a tendon-driven robot needs "
+            "its backbone's material (youngs_modulus, shear_modulus, radius)"
+        )
+    return Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
+
+
+def _disk_place(path: Path, where: str, table: dict[str, Any], section: Section, sec: int) -> float:
+    """``at`` of an IMU placed at a disk (``disk = d``: ``d / disks``)."""
+    if "at" in table:
+        raise InputError(f"{path}: {where}: give at or disk, not both")
+    disk = table["disk"]
+    if section.disks == 0:
+        raise InputError(f"{path}: {where}: disk given, but section {sec} has no disks")
+    if isinstance(disk, bool) or not isinstance(disk, int) or not 1 <= disk <= section.disks:
+        raise InputError(
+            f"{path}: {where}: disk must be a disk number from 1 to {section.disks} "
+            f"(section {sec}'s disks), got {disk!r}"
+        )
+    return disk / section.disks
+
+
+def _backbone(path: Path, doc: dict[str, Any]) -> Backbone | None:
+    table = doc.get("backbone")
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise InputError(f"{path}: 'backbone' must be a table, written [backbone]")
+    _unknown(path, "backbone", table, _BACKBONE_KEYS)
+    for key in ("youngs_modulus", "shear_modulus", "radius"):
+        if key not in table:
+            raise InputError(f"{path}: backbone: missing key {key!r}")
+    values = {k: _number(path, f"backbone: {k}", v) for k, v in table.items()}
+    try:
+        return Backbone(
+            values["youngs_modulus"],
+            values["shear_modulus"],
+            values["radius"],
+            values.get("density"),
+        )
+    except UserError as exc:
+        raise InputError(f"{path}: {exc}") from None
+
+
+def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
+    tendons = []
+    for i, table in enumerate(_tables(path, doc, "tendon"), start=1):
+        where = f"tendon {i}"
+        _unknown(path, where, table, _TENDON_KEYS)
+        for key in ("section", "angle", "radius"):
+            if key not in table:
+                raise InputError(f"{path}: {where}: missing key {key!r}")
+        sec = table["section"]
+        if isinstance(sec, bool) or not isinstance(sec, int) or not 1 <= sec <= n_sections:
+            raise InputError(
+                f"{path}: {where}: section must be a section number from 1 to "
+                f"{n_sections}, got {sec!r}"
+            )
+        angle = _number(path, f"{where}: angle", table["angle"])
+        radius = _number(path, f"{where}: radius", table["radius"])
+        try:
+            tendons.append(Tendon(sec - 1, math.radians(angle), radius))
+        except UserError as exc:
+            raise InputError(f"{path}: {where}: {exc}") from None
+    return tendons
 
 
 def shipped_robots() -> dict[str, Path]:
@@ -248,8 +348,19 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
 def robot_toml(robot: Robot) -> str:
     """The robot file text of ``robot`` (round-trips through :func:`read_robot`)."""
     lines = [f'mounting = "{robot.mounting}"']
+    bb = robot.backbone
+    if bb is not None:
+        lines += ["", "[backbone]", f"youngs_modulus = {bb.youngs_modulus!r}"]
+        lines += [f"shear_modulus = {bb.shear_modulus!r}", f"radius = {bb.radius!r}"]
+        if bb.density is not None:
+            lines.append(f"density = {bb.density!r}")
     for s in robot.sections:
         lines += ["", "[[section]]", f"length = {s.length!r}", f"theta_max = {s.theta_max!r}"]
+        if s.disks:
+            lines.append(f"disks = {s.disks}")
+    for td in robot.tendons:
+        lines += ["", "[[tendon]]", f"section = {td.section + 1}"]
+        lines += [f"angle = {math.degrees(td.angle)!r}", f"radius = {td.radius!r}"]
     for imu in robot.imus:
         lines += ["", "[[imu]]", f"section = {imu.section + 1}", f"at = {imu.at!r}"]
         if any(imu.mount_rpy):

@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-Unit = Literal["m", "rad", "rad/s", "1"]
+Unit = Literal["m", "rad", "rad/s", "1", "N"]
 
 
 @dataclass(frozen=True)
@@ -45,13 +45,20 @@ class MeasurementBlock:
         names: one name per component, e.g. ``("roll_1", "pitch_1")``.
         start: index of the first component in the measurement vector.
         kind: ``"tilt"`` (roll, pitch; rad) or ``"direct"`` (unit specific force and
-            gyro, rad/s).
+            gyro, rad/s) for an IMU; ``"tension"`` (tendon tensions, N, given with the
+            sample) or ``"equilibrium"`` (a model's pseudo-measurement, always zero) for
+            the blocks of :mod:`continuum_mhe.model.tendon` that are not IMUs.
     """
 
     name: str
     names: tuple[str, ...]
     start: int
-    kind: Literal["tilt", "direct"] = "tilt"
+    kind: Literal["tilt", "direct", "tension", "equilibrium"] = "tilt"
+
+    @property
+    def is_imu(self) -> bool:
+        """Whether the block is an IMU's (the sensor-health checks watch only these)."""
+        return self.kind in ("tilt", "direct")
 
     @property
     def size(self) -> int:
@@ -73,14 +80,20 @@ def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
         return (*TIP_OUTPUTS, OutputSpec("theta", "rad"), OutputSpec("phi", "rad", True))
     out = list(TIP_OUTPUTS)
     for k in range(1, n_sections + 1):
-        out += [
-            OutputSpec(f"theta_{k}", "rad", section=k),
-            OutputSpec(f"phi_{k}", "rad", True, section=k),
-            OutputSpec(f"x_{k}", "m", section=k),
-            OutputSpec(f"y_{k}", "m", section=k),
-            OutputSpec(f"z_{k}", "m", section=k),
-        ]
+        out += section_outputs(k)
     return tuple(out)
+
+
+def section_outputs(k: int) -> list[OutputSpec]:
+    """Section ``k``'s (1-based) bend ``theta_k, phi_k`` and end position ``x_k, y_k,
+    z_k``."""
+    return [
+        OutputSpec(f"theta_{k}", "rad", section=k),
+        OutputSpec(f"phi_{k}", "rad", True, section=k),
+        OutputSpec(f"x_{k}", "m", section=k),
+        OutputSpec(f"y_{k}", "m", section=k),
+        OutputSpec(f"z_{k}", "m", section=k),
+    ]
 
 
 def output_names(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:

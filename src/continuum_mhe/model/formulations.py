@@ -26,7 +26,7 @@ Formulations are looked up by name in :mod:`continuum_mhe.model.registry`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import ClassVar
 
@@ -51,7 +51,7 @@ from continuum_mhe.model.imu import (
     wrap_angle,
 )
 from continuum_mhe.model.kinematics import Sym, rotation_bend, tip_position, tip_position_sym
-from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, up_vector
+from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, shape_rank, up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
 
@@ -182,6 +182,23 @@ class Formulation:
         return np.full(self.nx, -np.inf), np.full(self.nx, np.inf)
 
     # --- numeric helpers (override) ----------------------------------------------
+    def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
+        """Whether the IMUs ``imus`` (0-based) alone determine the shape: their
+        independent tilt readings (:func:`~continuum_mhe.model.pcc.shape_rank`) match
+        the bend coordinates."""
+        robot = self.robot
+        if len(imus) == robot.n_imus:
+            sub = robot
+        else:
+            sub = replace(robot, imus=tuple(robot.imus[k] for k in imus))
+        return shape_rank(sub) == 2 * robot.n_sections
+
+    def unobservable_detail(self, rank: int, bends: int) -> str:
+        """What the IMUs miss, for the warning of a robot whose shape they do not
+        determine (``rank`` of ``bends`` bend coordinates by
+        :func:`~continuum_mhe.model.pcc.shape_rank`)."""
+        return f"determine {rank} of its {bends} bend coordinates"
+
     def initial_state(self, z0: FloatArray) -> FloatArray:
         raise NotImplementedError
 

@@ -1,6 +1,6 @@
 """Formulations by name: the one place that knows them all (no import cycles).
 
-``make_formulation("bend" | "paper" | "direct", robot, noise)``. A robot is a
+``make_formulation("bend" | "paper" | "direct" | "tendon", robot, noise)``. A robot is a
 :class:`~continuum_mhe.model.robot.Robot` or, for one section, a
 :class:`~continuum_mhe.settings.RobotSettings`.
 """
@@ -14,12 +14,14 @@ from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
+from continuum_mhe.model.tendon import TendonFormulation
 
 #: Formulation classes by name.
 REGISTRY: dict[str, type[Formulation]] = {
     "bend": BendFormulation,
     "paper": PaperFormulation,
     "direct": DirectFormulation,
+    "tendon": TendonFormulation,
 }
 
 

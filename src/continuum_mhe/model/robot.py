@@ -1,7 +1,8 @@
 """The robot as data: sections, IMUs and base mounting.
 
-A :class:`Robot` is a chain of inextensible constant-curvature sections, numbered from
-the base, with IMUs placed on them. It says nothing about the motion model or the
+A :class:`Robot` is a chain of inextensible sections, numbered from the base, with IMUs
+placed on them; optionally with a backbone material and tendons (a tendon-driven robot,
+:mod:`continuum_mhe.model.tendon`). It says nothing about the motion model or the
 estimator (that is the formulation's job), so one robot description serves every
 formulation and every estimator.
 
@@ -90,12 +91,17 @@ class Section:
         length: arc length, m, in ``[0.001, 5]``.
         theta_max: bound on the section's bending angle, rad, in ``(0, pi)``
             (default :data:`DEFAULT_THETA_MAX`).
+        disks: spacer disks, evenly spaced, the last one at the section's end (0: none
+            given; the tendon model routes tendons continuously either way).
     """
 
     length: float
     theta_max: float = DEFAULT_THETA_MAX
+    disks: int = 0
 
     def __post_init__(self) -> None:
+        if isinstance(self.disks, bool) or not isinstance(self.disks, int) or self.disks < 0:
+            raise UserError(f"section disks must be a whole number >= 0, got {self.disks!r}")
         if not (isinstance(self.length, (int, float)) and math.isfinite(self.length)):
             raise UserError(f"section length must be a finite number in m, got {self.length!r}")
         if not self.length > 0:
@@ -153,6 +159,106 @@ class ImuPlacement:
             )
 
 
+def _positive(label: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UserError(f"{label} must be a positive finite number, got {value!r}")
+    if not (math.isfinite(value) and value > 0):
+        raise UserError(f"{label} must be a positive finite number, got {value!r}")
+    return float(value)
+
+
+#: Largest plausible backbone radius and tendon pitch radius, m; larger is almost surely
+#: millimetres.
+MAX_RADIUS = 0.1
+
+
+@dataclass(frozen=True)
+class Backbone:
+    """The backbone's material and cross-section: a solid round elastic rod.
+
+    Attributes:
+        youngs_modulus: E, Pa.
+        shear_modulus: G, Pa.
+        radius: m.
+        density: kg/m^3; None: the backbone's weight is left out.
+    """
+
+    youngs_modulus: float
+    shear_modulus: float
+    radius: float
+    density: float | None = None
+
+    def __post_init__(self) -> None:
+        _positive("backbone youngs_modulus (Pa)", self.youngs_modulus)
+        _positive("backbone shear_modulus (Pa)", self.shear_modulus)
+        _positive("backbone radius (m)", self.radius)
+        if self.density is not None:
+            _positive("backbone density (kg/m^3)", self.density)
+        if self.radius > MAX_RADIUS:
+            raise UserError(
+                f"backbone radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
+                "metres (millimetres?)"
+            )
+        if self.youngs_modulus < 1e5:
+            raise UserError(
+                f"backbone youngs_modulus {self.youngs_modulus!r} Pa is below 1e5 Pa: "
+                "moduli are in Pa (GPa? 54 GPa is 54e9)"
+            )
+        if self.shear_modulus < 1e4:
+            raise UserError(
+                f"backbone shear_modulus {self.shear_modulus!r} Pa is below 1e4 Pa: "
+                "moduli are in Pa (GPa? 20 GPa is 20e9)"
+            )
+
+    @property
+    def area(self) -> float:
+        """Cross-section area, m^2."""
+        return math.pi * self.radius**2
+
+    @property
+    def bending_stiffness(self) -> float:
+        """EI, N m^2 (``I = pi r^4 / 4``)."""
+        return self.youngs_modulus * math.pi * self.radius**4 / 4
+
+    @property
+    def torsional_stiffness(self) -> float:
+        """GJ, N m^2 (``J = pi r^4 / 2``)."""
+        return self.shear_modulus * math.pi * self.radius**4 / 2
+
+
+@dataclass(frozen=True)
+class Tendon:
+    """One tendon, routed parallel to the backbone through every disk from the base to
+    its anchor.
+
+    Attributes:
+        section: 0-based index of the section at whose end it is anchored.
+        angle: rad, around the backbone from the disk frame's x axis.
+        radius: distance from the backbone (pitch radius), m.
+    """
+
+    section: int
+    angle: float
+    radius: float
+
+    def __post_init__(self) -> None:
+        if isinstance(self.section, bool) or not isinstance(self.section, int) or self.section < 0:
+            raise UserError(f"tendon section must be a non-negative index, got {self.section!r}")
+        if not (isinstance(self.angle, (int, float)) and math.isfinite(self.angle)):
+            raise UserError(f"tendon angle must be a finite number, got {self.angle!r}")
+        _positive("tendon radius (m)", self.radius)
+        if self.radius > MAX_RADIUS:
+            raise UserError(
+                f"tendon radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
+                "metres (millimetres?)"
+            )
+
+    @property
+    def offset(self) -> tuple[float, float]:
+        """The tendon's place in the disk frame, ``(x, y)`` m."""
+        return self.radius * math.cos(self.angle), self.radius * math.sin(self.angle)
+
+
 @dataclass(frozen=True)
 class Robot:
     """A piecewise-constant-curvature robot with IMUs.
@@ -161,11 +267,15 @@ class Robot:
         sections: from the base to the tip (at least one).
         imus: the IMUs, in measurement order (at least one).
         mounting: base orientation, ``"z-up"`` (base z against gravity) or ``"z-down"``.
+        backbone: the backbone's material (None: a kinematic, constant-curvature robot).
+        tendons: the tendons, in the tensions' order (needs a backbone).
     """
 
     sections: tuple[Section, ...]
     imus: tuple[ImuPlacement, ...]
     mounting: Mounting = "z-up"
+    backbone: Backbone | None = None
+    tendons: tuple[Tendon, ...] = ()
 
     def __post_init__(self) -> None:
         for name, kind in (("sections", Section), ("imus", ImuPlacement)):
@@ -191,6 +301,27 @@ class Robot:
                 )
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+        object.__setattr__(self, "tendons", tuple(self.tendons))
+        if self.tendons and self.backbone is None:
+            raise UserError(
+                "a robot with tendons needs its backbone's material ([backbone] "
+                "youngs_modulus, shear_modulus, radius)"
+            )
+        for i, tendon in enumerate(self.tendons):
+            if tendon.section >= len(self.sections):
+                raise UserError(
+                    f"tendon {i + 1}: section index {tendon.section} is past the robot's "
+                    f"{len(self.sections)} section(s)"
+                )
+
+    @property
+    def has_mechanics(self) -> bool:
+        """Whether the robot has a backbone material (a mechanics model applies)."""
+        return self.backbone is not None
+
+    @property
+    def n_tendons(self) -> int:
+        return len(self.tendons)
 
     @classmethod
     def single(
@@ -238,4 +369,7 @@ class Robot:
         secs = ", ".join(f"{s.length:g} m" for s in self.sections)
         imus = ", ".join(f"{i.section + 1}@{i.at:g}" for i in self.imus)
         n = len(self.sections)
-        return f"{n} section{'s' if n > 1 else ''} ({secs}), IMUs at {imus}, {self.mounting}"
+        text = f"{n} section{'s' if n > 1 else ''} ({secs}), IMUs at {imus}, {self.mounting}"
+        if self.tendons:
+            text += f", {len(self.tendons)} tendons"
+        return text

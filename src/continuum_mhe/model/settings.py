@@ -12,7 +12,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 from continuum_mhe.model.robot import check_theta_max
 
-FormulationName = Literal["bend", "paper", "direct"]
+FormulationName = Literal["bend", "paper", "direct", "tendon"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
 
 

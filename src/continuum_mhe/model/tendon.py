@@ -1,0 +1,590 @@
+"""Tendon-driven robots: a Cosserat-rod backbone loaded by its tendons and a tip force.
+
+The mechanics (:func:`shoot_sym`)
+---------------------------------
+The backbone is a Cosserat rod that bends and twists; it is taken as inextensible and
+unshearable (``p' = R e3``): a 0.7 mm nitinol rod under a few newtons stretches by
+about ``T / (E A) = 5e-5`` and shears less, far below the IMUs' resolution. Its
+material law is ``m = R K u`` with ``K = diag(EI, EI, GJ)`` and ``u`` the curvature and
+twist rate in the body frame (straight and untwisted at rest).
+
+Tendon loads follow Rucker and Webster (2011) for frictionless tendons routed parallel
+to the backbone at a fixed place ``r_i = (x_i, y_i, 0)`` in the disk frame (the disks
+are taken as continuous: a tendon follows the backbone between disks instead of
+running straight from disk to disk). Rather than the distributed tendon loads and the
+point force and moment at each anchor, the equations are written for the *total*
+internal wrench of a cross-section, backbone plus the tendons it cuts::
+
+    N = n + sum_i tau_i t_i,            M = m + sum_i (R r_i) x (tau_i t_i)
+
+with ``t_i`` the unit tangent of tendon ``i``'s path and the sums over the tendons
+anchored beyond the cut. The distal part's equilibrium gives ``N(s) = F + w (L - s)``
+(``F`` the tip force, ``w`` the weight per length when a density is given) and
+``M' = -p' x N``, with ``M(L) = 0`` at the tip: the anchors' point loads are
+internal to this balance and need no special step. This is Rucker and Webster's model
+integrated once; it is exact for their assumptions. At each arc length ``u`` solves
+``K u + sum_i tau_i r_i x t_i(u) = R^T M`` with ``t_i = (e3 + u x r_i)/|e3 + u x r_i|``
+in the body frame. Its exact solution differs from the one with ``t_i = e3`` (closed
+form, :meth:`TendonStatics.curvature_sym`) by a relative ``(u_z |r_i|)^2 / 2`` in the
+tendon moments (a twisted backbone makes a tendon a helix): 2.4e-4 at 50 degrees of
+twist over 0.4 m with tendons at 10 mm, so the closed form is used; the tendons'
+stiffening of the twist, ``sum tau |r_i|^2``, is kept.
+
+Statics are solved by shooting: the rod ODE in ``(p, R, M)`` is integrated from the
+base with RK4 on a fixed number of steps per section (:data:`STEPS_PER_SECTION`, plus a
+step boundary at every IMU), symbolically in CasADi SX, from the unknown base moment;
+the tip condition ``M(L) = 0`` is a residual (:func:`TendonStatics.residual`). Slack
+tendons: every tension is clipped at zero (a tendon cannot push).
+
+The formulation (:class:`TendonFormulation`)
+---------------------------------------------
+State ``x = [k0, F, tau, k0', F']`` (and a gyro bias per IMU with
+``estimate_gyro_bias``): the base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3: the total
+base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3), each with
+constant velocity driven by white-noise acceleration (as the ``bend`` formulation), and
+the tendon tensions ``tau`` (N, one per tendon), a random walk held to the given ones.
+The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
+as ``bend`` and ``direct``), then the given tensions and their rates (kind
+``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
+:attr:`TendonFormulation.tension_std`; the rates enter the gyros' model and have a zero
+residual), then zeros (kind ``"equilibrium"``): the tip condition ``R(L)^T M(L) / EI =
+0``, and with raw IMUs its time derivative, as a pseudo-measurement with the tiny
+standard deviation :attr:`TendonFormulation.equilibrium_std`.
+
+Why a pseudo-measurement rather than a constraint: every estimator then runs the model
+unchanged (the filters have no constraints, and the fast MHE handles only box and ball
+constraints); its weight makes the equilibrium exact to about 1e-4 rad/m of tip
+curvature in the estimate, a few micrometres at the tip. Why tensions in the
+measurement rather than as the transition's input ``u``: the estimators form ``u`` from
+the measurements alone, so a tension given with the sample reaches the model in ``z``
+either way; there the start (:meth:`TendonFormulation.initial_state`) sees the
+tensions, and a sample without them is a dropout as a whole. Why the tensions are
+states: the outputs (the shape) are functions of the state alone in every estimator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import ClassVar, Literal
+
+import casadi as ca
+import numpy as np
+from scipy.linalg import block_diag
+from scipy.optimize import least_squares
+
+from continuum_mhe.errors import UserError
+from continuum_mhe.model.descriptions import (
+    TIP_OUTPUTS,
+    MeasurementBlock,
+    OutputSpec,
+    direct_blocks,
+    section_outputs,
+    tilt_blocks,
+)
+from continuum_mhe.model.formulations import FloatArray, Formulation
+from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
+from continuum_mhe.model.kinematics import Sym
+from continuum_mhe.model.pcc import up_vector
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.settings import FormulationName
+
+#: RK4 steps per section (more where an IMU splits one).
+STEPS_PER_SECTION = 6
+#: Standard gravity, m/s^2 (the backbone's weight with a density).
+GRAVITY = 9.80665
+#: Equilibrium pseudo-measurement names: the tip curvature and its rate.
+EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
+
+
+def _hat(v: Sym) -> Sym:
+    return ca.vertcat(
+        ca.horzcat(0, -v[2], v[1]), ca.horzcat(v[2], 0, -v[0]), ca.horzcat(-v[1], v[0], 0)
+    )
+
+
+@dataclass(frozen=True)
+class Station:
+    """A place on the backbone where the statics report a pose.
+
+    Attributes:
+        section: 0-based section.
+        at: fraction of that section's length from its base, in ``(0, 1]``.
+    """
+
+    section: int
+    at: float
+
+
+@dataclass(frozen=True)
+class TendonStatics:
+    """The symbolic statics of one robot (needs ``robot.backbone``).
+
+    :meth:`shoot` integrates from the base curvature ``k0`` (rad/m, 3), the tip force
+    ``F`` (N, 3, base frame) and the tensions ``tau`` (N, clipped at zero) and returns
+    the poses at the requested stations and the tip residual.
+    """
+
+    robot: Robot
+    steps_per_section: int = STEPS_PER_SECTION
+
+    def __post_init__(self) -> None:
+        if self.robot.backbone is None:
+            raise UserError("the tendon model needs the backbone's material ([backbone])")
+
+    @property
+    def stiffness(self) -> tuple[float, float]:
+        """``(EI, GJ)``, N m^2."""
+        bb = self.robot.backbone
+        assert bb is not None
+        return bb.bending_stiffness, bb.torsional_stiffness
+
+    def _weight_per_length(self) -> FloatArray:
+        """The backbone's weight per length in the base frame, N/m (zero without a
+        density)."""
+        bb = self.robot.backbone
+        assert bb is not None
+        if bb.density is None:
+            return np.zeros(3)
+        return -bb.density * bb.area * GRAVITY * up_vector(self.robot.mounting)
+
+    def curvature_sym(self, m_body: Sym, tensions: list[tuple[Sym, float, float]]) -> Sym:
+        """Body curvature and twist rate ``u`` (rad/m) from the body-frame total moment
+        (N m) and the active tendons ``(tau, x, y)`` (N, m, m), with the tendons taken
+        along ``e3`` (see the module docstring): ``EI u_x = m_x - sum tau y``,
+        ``EI u_y = m_y + sum tau x``, ``(GJ + sum tau |r|^2) u_z = m_z``."""
+        ei, gj = self.stiffness
+        ux = (m_body[0] - sum(tau * y for tau, _, y in tensions)) / ei
+        uy = (m_body[1] + sum(tau * x for tau, x, _ in tensions)) / ei
+        uz = m_body[2] / (gj + sum(tau * (x**2 + y**2) for tau, x, y in tensions))
+        return ca.vertcat(ux, uy, uz)
+
+    def _rhs(
+        self, s: float, R: Sym, M: Sym, force: Sym, active: list[tuple[Sym, float, float]]
+    ) -> tuple[Sym, Sym, Sym]:
+        """``(p', R', M')`` at arc length ``s`` (m) with the tendons ``active``."""
+        u = self.curvature_sym(ca.mtimes(R.T, M), active)
+        t = R[:, 2]
+        n_total = force + self._weight_per_length() * (self.robot.length - s)
+        return t, ca.mtimes(R, _hat(u)), -ca.cross(t, n_total)
+
+    def stations(self) -> tuple[Station, ...]:
+        """Every section's end and every IMU's place, base to tip."""
+        places = {Station(k, 1.0) for k in range(self.robot.n_sections)}
+        places |= {Station(i.section, i.at) for i in self.robot.imus}
+        return tuple(sorted(places, key=lambda s: (s.section, s.at)))
+
+    def shoot(
+        self, k0: Sym, force: Sym, tension: Sym
+    ) -> tuple[dict[Station, tuple[Sym, Sym]], Sym]:
+        """``({station: (R, p)}, residual)``: the pose (3x3 body-to-base rotation, m) at
+        every :meth:`stations` and the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
+        robot = self.robot
+        ei, _ = self.stiffness
+        taus = [ca.fmax(tension[i], 0.0) for i in range(robot.n_tendons)]
+        p: Sym = ca.SX.zeros(3)
+        R: Sym = ca.SX.eye(3)
+        M: Sym = ei * k0  # R(0) = I: body and base frames agree
+        s0 = 0.0
+        poses: dict[Station, tuple[Sym, Sym]] = {}
+        stations = self.stations()
+        for k, sec in enumerate(robot.sections):
+            active = [
+                (taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k
+            ]
+            cuts = sorted(
+                {j / self.steps_per_section for j in range(1, self.steps_per_section + 1)}
+                | {st.at for st in stations if st.section == k}
+            )
+            prev = 0.0
+            for at in cuts:
+                h = (at - prev) * sec.length
+                s_start = s0 + prev * sec.length
+
+                k1 = self._rhs(s_start, R, M, force, active)
+                k2 = self._rhs(s_start + h / 2, R + h / 2 * k1[1], M + h / 2 * k1[2], force, active)
+                k3 = self._rhs(s_start + h / 2, R + h / 2 * k2[1], M + h / 2 * k2[2], force, active)
+                k4 = self._rhs(s_start + h, R + h * k3[1], M + h * k3[2], force, active)
+                p = p + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+                R = R + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+                M = M + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+                st = Station(k, at)
+                if st in stations:
+                    poses[st] = (R, p)
+                prev = at
+            s0 += sec.length
+        return poses, ca.mtimes(R.T, M) / ei
+
+    @cached_property
+    def function(self) -> ca.Function:
+        """``(k0, F, tau) -> (residual, [vec R, p] per station)`` as a CasADi Function."""
+        k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
+        tau = ca.SX.sym("tau", self.robot.n_tendons)
+        poses, res = self.shoot(k0, force, tau)
+        outs = [ca.vertcat(ca.vec(R), p) for R, p in (poses[s] for s in self.stations())]
+        return ca.Function("tendon_statics", [k0, force, tau], [res, ca.horzcat(*outs)])
+
+    def solve(
+        self, force: FloatArray, tension: FloatArray, k0: FloatArray | None = None
+    ) -> tuple[FloatArray, dict[Station, tuple[FloatArray, FloatArray]]]:
+        """Numeric statics: the base curvature ``k0`` (rad/m) that meets the tip
+        condition (Newton on the residual) and the poses ``{station: (R, p)}``."""
+        k = ca.SX.sym("k", 3)
+        res, _ = self.function(k, ca.DM(force), ca.DM(tension))
+        fn = ca.Function("r", [k], [res, ca.jacobian(res, k)])
+        x = np.zeros(3) if k0 is None else np.asarray(k0, dtype=float)
+        for _ in range(50):
+            r, J = (np.asarray(v, dtype=float) for v in fn(x))
+            r = r.ravel()
+            if np.linalg.norm(r) < 1e-12:
+                break
+            x = x - np.linalg.solve(J, r)
+        _, out = self.function(x, force, tension)
+        arr = np.asarray(out, dtype=float)
+        poses = {
+            st: (arr[:9, j].reshape(3, 3, order="F"), arr[9:, j])
+            for j, st in enumerate(self.stations())
+        }
+        return x, poses
+
+
+def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
+    """``(theta, phi, psi)`` of a relative rotation ``Q``: the bend (the tangent
+    ``Q e3 = (-cos phi sin theta, -sin phi sin theta, cos theta)``, the PCC
+    convention) and the twist ``psi`` about the tangent, rad (``Q = R(theta, phi)
+    Rz(psi)`` with ``R(theta, phi)`` the twist-free PCC rotation)."""
+    t = Q[:, 2]
+    theta = ca.atan2(ca.sqrt(t[0] ** 2 + t[1] ** 2), t[2])
+    phi = ca.atan2(-t[1], -t[0])
+    psi = 2 * ca.atan2(Q[1, 0] - Q[0, 1], 1 + Q[0, 0] + Q[1, 1] + Q[2, 2])
+    return theta, phi, psi
+
+
+ImuModel = Literal["tilt", "direct"]
+
+
+def tendon_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
+    """The tip ``x, y, z``; per section ``k`` its equivalent bend ``theta_k, phi_k``
+    (between its end tangents), end position ``x_k, y_k, z_k`` and twist ``psi_k``;
+    then the tip force ``fx, fy, fz`` (N, base frame)."""
+    out = list(TIP_OUTPUTS)
+    for k in range(1, n_sections + 1):
+        out += [*section_outputs(k), OutputSpec(f"psi_{k}", "rad", True, section=k)]
+    out += [OutputSpec(f"f{c}", "N") for c in "xyz"]
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class TendonFormulation(Formulation):
+    """A tendon-driven robot's mechanics with the base curvature and the tip force as
+    states, the tensions given with every sample; the IMUs as tilt or raw (see the
+    module docstring).
+
+    Attributes:
+        imu_model: ``"tilt"`` (roll, pitch per IMU) or ``"direct"`` (``f/|f|`` and gyro).
+        gyro_std: gyro noise, rad/s (``direct``).
+        accel_direction_std: standard deviation of each component of ``f/|f|``
+            (``direct``; None: ``noise.measurement_std``).
+        estimate_gyro_bias: a gyro bias per IMU as states (``direct``), random walk.
+        gyro_bias_psd: its spectral density, (rad/s)^2/s.
+        initial_gyro_bias_std: its prior standard deviation, rad/s.
+        tension_std: the given tensions' standard deviation, N.
+        tension_psd: the tension states' random walk, N^2/s (large: the given
+            tensions, not the motion model, set them).
+        equilibrium_std: the tip condition's pseudo-measurement standard deviation, rad/m
+            (and rad/m/s for its rate).
+        curvature_accel_psd: white-noise acceleration of the base curvature,
+            (rad/m)^2/s^3 (large: the equilibrium, not the motion model, sets it).
+        force_accel_psd: white-noise acceleration of the tip force, N^2/s^3.
+        initial_force_std: the tip force's prior standard deviation, N.
+        max_force: a tip force estimate beyond this, N, has diverged.
+    """
+
+    name: FormulationName = "tendon"
+    tilt_residual_wraps: ClassVar[bool] = False
+    imu_model: ImuModel = "tilt"
+    gyro_std: float = 0.05
+    accel_direction_std: float | None = None
+    estimate_gyro_bias: bool = False
+    gyro_bias_psd: float = 1e-6
+    initial_gyro_bias_std: float = 0.05
+    tension_std: float = 1e-3
+    tension_psd: float = 1e3
+    equilibrium_std: float = 1e-4
+    curvature_accel_psd: float = 1e4
+    force_accel_psd: float = 1.0
+    initial_force_std: float = 0.5
+    max_force: float = 50.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.robot.has_mechanics:
+            raise UserError("the tendon formulation needs a robot file with a [backbone]")
+        if self.imu_model not in ("tilt", "direct"):
+            raise UserError(f"imu_model must be tilt or direct, got {self.imu_model!r}")
+        if self.estimate_gyro_bias and self.imu_model != "direct":
+            raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
+        for label in (
+            "gyro_std",
+            "gyro_bias_psd",
+            "initial_gyro_bias_std",
+            "tension_std",
+            "tension_psd",
+            "equilibrium_std",
+            "curvature_accel_psd",
+            "force_accel_psd",
+            "initial_force_std",
+            "max_force",
+        ):
+            v = getattr(self, label)
+            if not (math.isfinite(v) and v > 0):
+                raise UserError(f"{label} must be a positive finite number, got {v!r}")
+
+    @cached_property
+    def statics(self) -> TendonStatics:
+        return TendonStatics(self.robot)
+
+    # --- the state ----------------------------------------------------------------
+    @property
+    def n_gyro_bias(self) -> int:
+        return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
+        then the gyro biases."""
+        q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
+        tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
+        bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        return (*q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias])
+
+    def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
+        """``(q = [k0, F], tau, q')`` of a state."""
+        k = self.robot.n_tendons
+        return x[:6], x[6 : 6 + k], x[6 + k : 12 + k]
+
+    # --- measurement blocks -----------------------------------------------------------
+    @cached_property
+    def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:
+        n = self.robot.n_imus
+        imu = tilt_blocks(n) if self.imu_model == "tilt" else direct_blocks(n)
+        start = sum(b.size for b in imu)
+        extra = []
+        k = self.robot.n_tendons
+        if k:
+            names = tuple(f"tension_{i}" for i in range(1, k + 1))
+            names += tuple(f"tension_{i}_dot" for i in range(1, k + 1))
+            extra.append(MeasurementBlock("tensions", names, start, "tension"))
+            start += len(names)
+        eq = EQUILIBRIUM_NAMES if self.imu_model == "direct" else EQUILIBRIUM_NAMES[:3]
+        extra.append(MeasurementBlock("equilibrium", eq, start, "equilibrium"))
+        return (*imu, *extra)
+
+    @cached_property
+    def n_imu_measurements(self) -> int:
+        """Size of the IMUs' part of ``z`` (the rest: tensions, their rates, then the
+        equilibrium's zeros)."""
+        return sum(b.size for b in self.measurement_blocks if b.is_imu)
+
+    def measurement_row(
+        self, imu: FloatArray, tensions: FloatArray, tension_rates: FloatArray
+    ) -> FloatArray:
+        """The measurement vector ``z`` (nz,) from the IMUs' part, the tensions (N) and
+        their rates (N/s)."""
+        n_eq = self.measurement_blocks[-1].size
+        return np.concatenate([imu, tensions, tension_rates, np.zeros(n_eq)])
+
+    def measurement_mask(self, z: FloatArray) -> FloatArray:
+        """As the base class's; a sample without its tensions is a dropout as a whole
+        (the model cannot predict its IMUs)."""
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        if not np.isfinite(z[n : n + 2 * k]).all():
+            return np.zeros(len(z))
+        return super().measurement_mask(z)
+
+    @cached_property
+    def outputs(self) -> tuple[OutputSpec, ...]:
+        return tendon_outputs(self.robot.n_sections)
+
+    # --- model ----------------------------------------------------------------------
+    def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
+        """``[k0, F]`` constant velocity, the tensions and biases random walks."""
+        q, tau, qd = self._split(x)
+        return ca.vertcat(q + dt * qd, tau, x[6 + self.robot.n_tendons :])
+
+    def process_cov_sym(self, dt: Sym) -> Sym:
+        psd = [self.curvature_accel_psd] * 3 + [self.force_accel_psd] * 3
+        q = ca.diag(ca.DM(psd))
+        k = self.robot.n_tendons
+        t = self.tension_psd * dt * ca.SX.eye(k)
+        z6k = ca.SX.zeros(6, k)
+        cov = ca.blockcat(
+            [
+                [q * dt**3 / 3, z6k, q * dt**2 / 2],
+                [z6k.T, t, z6k.T],
+                [q * dt**2 / 2, z6k, q * dt],
+            ]
+        )
+
+        if self.estimate_gyro_bias:
+            cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
+        return cov
+
+    def _model(self, x: Sym, z: Sym | None) -> tuple[list[Sym], list[Sym], Sym]:
+        """``(gravity directions, IMU blocks, equilibrium block)`` at the state ``x``,
+        with the sample's tension rates from ``z`` (zero without ``z``)."""
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        q, tau, qd = self._split(x)
+        tau_dot = ca.SX.zeros(k) if z is None else z[n + k : n + 2 * k]
+        poses, res = self.statics.shoot(q[:3], q[3:6], tau)
+        up = up_vector(self.robot.mounting)
+        rots = [poses[Station(i.section, i.at)][0] for i in self.robot.imus]
+        gravity = [ca.mtimes(R.T, up) for R in rots]
+        if self.imu_model == "tilt":
+            return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
+        v = ca.vertcat(q, tau)
+        v_dot = ca.vertcat(qd, tau_dot)
+        eq = ca.vertcat(res, ca.jtimes(res, v, v_dot))
+        imu = []
+        for i, R in enumerate(rots):
+            dR = ca.reshape(ca.jtimes(ca.vec(R), v, v_dot), 3, 3)
+            w = ca.mtimes(R.T, dR)
+            rate = 0.5 * ca.vertcat(w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1])
+            if self.estimate_gyro_bias:
+                n0 = 12 + k
+                rate = rate + x[n0 + 3 * i : n0 + 3 + 3 * i]
+            imu.append(ca.vertcat(gravity[i], rate))
+        return gravity, imu, eq
+
+    def measurement_sym(self, x: Sym) -> Sym:
+        """The model's measurement with no tension (use
+        :meth:`measurement_residual_sym`, which reads the sample's tensions)."""
+        _, imu, eq = self._model(x, None)
+        k = self.robot.n_tendons
+        return ca.vertcat(*imu, x[6 : 6 + k], ca.SX.zeros(k), eq)
+
+    def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
+        """Tilt blocks on the tangent plane of the measured gravity direction (as
+        ``bend``), raw blocks and the tensions as plain differences (the tension rates
+        are the model's inputs: their rows are zero), the equilibrium ``0 -
+        residual``."""
+        gravity, imu, eq = self._model(x, z)
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        if self.imu_model == "direct":
+            r_imu = z[:n] - ca.vertcat(*imu)
+        else:
+            r_imu = ca.vertcat(
+                *[
+                    tilt_tangent_residual_sym(z[b.slice], g)
+                    for b, g in zip(self.measurement_blocks, gravity)
+                ]
+            )
+        r_tau = z[n : n + k] - x[6 : 6 + k]
+        return ca.vertcat(r_imu, r_tau, ca.SX.zeros(k), -eq)
+
+    def meas_cov(self) -> FloatArray:
+        if self.imu_model == "tilt":
+            imu = np.eye(self.n_imu_measurements) * self.noise.measurement_std**2
+        else:
+            f_std = self.accel_direction_std or self.noise.measurement_std
+            one = np.diag([f_std**2] * 3 + [self.gyro_std**2] * 3)
+            imu = np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
+        k = self.robot.n_tendons
+        # the rates' rows are zero residuals: any weight
+        tension = np.diag([self.tension_std**2] * k + [1.0] * k)
+        eq = np.eye(self.measurement_blocks[-1].size) * self.equilibrium_std**2
+        return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
+
+    def output_sym(self, x: Sym) -> Sym:
+        q, tau, _ = self._split(x)
+        poses, _ = self.statics.shoot(q[:3], q[3:6], tau)
+        ends = [poses[Station(k, 1.0)] for k in range(self.robot.n_sections)]
+        parts = [ends[-1][1]]
+        R_prev: Sym = ca.SX.eye(3)
+        for R, p in ends:
+            theta, phi, psi = swing_twist_sym(ca.mtimes(R_prev.T, R))
+            parts += [theta, phi, p, psi]
+            R_prev = R
+        return ca.vertcat(*parts, x[3:6])
+
+    # --- numeric helpers ----------------------------------------------------------
+    def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
+        """With the tensions given, the shape follows from the tip force: three unknowns.
+        Each IMU pins two of them through its gravity direction; a gyro adds the rate
+        of the twist about the vertical but not its value (it drifts with the gyro's
+        bias: one raw IMU at the tip was 100 mm off on the unloaded recording), so the
+        IMUs determine the shape when there are at least two."""
+        return 2 * len(imus) >= 3
+
+    def unobservable_detail(self, rank: int, bends: int) -> str:
+        return (
+            "read fewer than the three components of the tip force that set its shape "
+            "with the tensions (two per IMU: its gravity direction)"
+        )
+
+    @cached_property
+    def _residual_function(self) -> ca.Function:
+        x, z = ca.SX.sym("x", self.nx), ca.SX.sym("z", self.nz)
+        r = self.measurement_residual_sym(z, x)
+        return ca.Function("res", [z, x], [r, ca.jacobian(r, x[:6])])
+
+    def initial_state(self, z0: FloatArray) -> FloatArray:
+        """The base curvature and the tip force that fit the IMUs best in equilibrium
+        with the sample's tensions (least squares from the unloaded equilibrium); rates
+        and biases zero."""
+        z0 = np.asarray(z0, dtype=float)
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
+        k0, _ = self.statics.solve(np.zeros(3), tau)
+        x = np.zeros(self.nx)
+        x[:3], x[6 : 6 + k] = k0, tau
+        z = np.nan_to_num(z0, nan=0.0)
+        z[n : n + k] = tau
+        valid = np.isfinite(z0[:n])
+        if not valid.any():
+            return x
+        w = np.sqrt(1.0 / np.diag(self.meas_cov()))
+        rows = np.r_[np.flatnonzero(valid), n + 2 * k : n + 2 * k + 3]
+
+        def resid(v: FloatArray) -> FloatArray:
+            xx = np.r_[v, x[6:]]
+            r = np.asarray(self._residual_function(z, xx)[0], dtype=float).ravel()
+            return np.asarray((w * r)[rows], dtype=float)
+
+        def jac(v: FloatArray) -> FloatArray:
+            xx = np.r_[v, x[6:]]
+            J = np.asarray(self._residual_function(z, xx)[1], dtype=float)
+            return np.asarray((w[:, None] * J)[rows], dtype=float)
+
+        fit = least_squares(resid, x[:6], jac=jac, x_scale=np.r_[[1.0] * 3, [0.1] * 3])
+        if np.all(np.isfinite(fit.x)):
+            x[:6] = fit.x
+        return x
+
+    def initial_cov(self) -> FloatArray:
+        f = self.initial_force_std**2
+        diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
+        diag += [50.0**2] * 3 + [f] * 3
+        diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
+        return np.diag(diag)
+
+    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+        """Non-finite, or a tip force over :attr:`max_force`, or its standard deviation
+        over it."""
+        if super().is_diverged(x, P):
+            return True
+        if float(np.linalg.norm(x[3:6])) > self.max_force:
+            return True
+        return P is not None and float(np.trace(P[3:6, 3:6])) > self.max_force**2
+
+
+def check_tensions(values: FloatArray, where: str) -> None:
+    """A :class:`UserError` naming ``where`` for a negative or non-finite tension."""
+    bad = ~np.isfinite(values) | (values < 0)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise UserError(
+            f"{where}: row {i + 1}: tension_{j + 1} = {values[i, j]!r}: tensions are "
+            "non-negative finite newtons (a tendon cannot push)"
+        )

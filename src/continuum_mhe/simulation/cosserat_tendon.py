@@ -1,0 +1,513 @@
+"""Recordings of a tendon-driven robot that its estimator's model did not generate.
+
+The robot of ``tendon-two-section`` (docs/tendon.md): a nitinol-like rod (0.2 m +
+0.2 m, E = 54 GPa, G = 20.77 GPa, radius 0.7 mm, density 6450 kg/m^3, under gravity,
+base clamped, z up), three tendons per section at 10 mm (section 1's at 0, 120 and
+240 degrees, section 2's at 60, 180 and 300), an IMU at each section's end, 50 Hz.
+
+PyElastica integrates the rod's dynamics (extensible, shearable), slowly driven and
+damped so that it stays quasi-static. A tendon is a polyline through one point per
+spacer disk (the element ending at each disk, offset by the tendon's radius in that
+element's frame) from a fixed point on the base to its anchor disk: its tension pulls
+each point towards its two neighbours (the anchor towards its one), a force and a
+couple on the element, so the loads are the discrete tendon's own, not the continuous
+model of :mod:`continuum_mhe.model.tendon`. A tip force acts on the last node, in the
+base frame.
+
+Scenarios (``SCENARIOS``):
+
+* ``unloaded``: each section's tendons pull ``T_k (1 + cos(alpha_i - beta_k))`` (so the
+  tendon opposite the bend goes slack), with the bending directions ``beta_k`` turning
+  at different rates; bends past 90 degrees; no tip force.
+* ``force-08`` and ``force-29``: moderate tendon bends and a tip force turning in the
+  horizontal plane with a vertical part, up to 0.08 N and 0.29 N in magnitude.
+* ``static``: constant tensions and a 0.05 N tip force along x after the ramp (the
+  static equilibrium the tests compare with).
+
+Files, per recording (``write_tendon_recording``): ``NAME_raw.csv`` (as the rod
+generators', IMU noise and biases as theirs), ``NAME_tilt.csv``, ``NAME_tensions.csv``
+(``t,tension_1..6``, N), ``NAME_truth.csv`` (``t,x,y,z``, per section ``theta_k,
+phi_k, x_k, y_k, z_k, psi_k``, then ``fx,fy,fz``: the columns of the tendon
+formulation's estimates) and ``NAME_info.json`` (the largest bends, twist and force).
+
+Regenerate (needs the ``rod`` extra)::
+
+    python -m continuum_mhe.simulation.cosserat_tendon --scenario unloaded -o DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from continuum_mhe.errors import UserError
+from continuum_mhe.extras import require
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.simulation.cosserat import GRAVITY, FloatArray
+from continuum_mhe.simulation.cosserat_sections import (
+    DEFAULT_IMU,
+    SectionTrajectory,
+    imu_samples,
+)
+
+SCENARIOS = ("unloaded", "force-08", "force-29", "static")
+
+
+@dataclass(frozen=True)
+class TendonRodSettings:
+    """The simulated robot and its numerics.
+
+    Attributes:
+        elements_per_disk: Cosserat elements between two disks.
+        damping: uniform linear damping constant, 1/s; sim_dt: integration step, s.
+        refresh: integration steps between two evaluations of the tendon loads.
+        rotational_inertia_scale: factor on the elements' rotational inertia (see
+            :func:`simulate_tendon_robot`).
+        tension: largest ``T_k`` per section, N (``unloaded``).
+        loaded_tension: ``T_k`` on the loaded recordings, N.
+        ramp: s over which the tendons and the force come up from zero.
+    """
+
+    elements_per_disk: int = 1
+    damping: float = 10.0
+    sim_dt: float = 2.0e-6
+    refresh: int = 20
+    rotational_inertia_scale: float = 1e4
+    tension: tuple[float, float] = (1.0, 6.0)
+    loaded_tension: tuple[float, float] = (1.0, 1.5)
+    ramp: float = 3.0
+
+
+def tension_profile(robot: Robot, scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
+    """The tendons' tensions at ``t`` (N, in the robot's tendon order)."""
+    ramp = 0.5 * (1 - math.cos(math.pi * min(t / s.ramp, 1.0)))
+    amp = s.tension if scenario == "unloaded" else s.loaded_tension
+    betas = (2 * math.pi * t / 11.0, -2 * math.pi * t / 7.0 + 1.0)
+    if scenario == "static":
+        betas = (0.0, 1.0)
+    out = np.zeros(robot.n_tendons)
+    for i, td in enumerate(robot.tendons):
+        k = td.section
+        out[i] = ramp * amp[k] * (1 + math.cos(td.angle - betas[k]))
+    return out
+
+
+def tip_force(scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
+    """The tip force at ``t``, N, base frame."""
+    if scenario == "unloaded":
+        return np.zeros(3)
+    peak = 0.08 if scenario == "force-08" else 0.29
+    ramp = 0.5 * (1 - math.cos(math.pi * min(t / s.ramp, 1.0)))
+    if scenario == "static":
+        return ramp * np.array([0.05, 0.0, 0.0])
+    a = 2 * math.pi * t / 9.0
+    return ramp * peak * np.array([0.8 * math.cos(a), 0.8 * math.sin(a), 0.6])
+
+
+@dataclass(frozen=True)
+class TendonTrajectory:
+    """The rod every ``record_dt``: the section trajectory (for the IMUs), all
+    directors (n, 3, 3, k) and the tensions (n, m) and tip force (n, 3) applied."""
+
+    sections: SectionTrajectory
+    directors: FloatArray
+    tensions: FloatArray
+    force: FloatArray
+
+
+def simulate_tendon_robot(
+    robot: Robot,
+    scenario: str,
+    duration: float,
+    settings: TendonRodSettings | None = None,
+    record_dt: float = 1e-3,
+) -> TendonTrajectory:
+    """Integrate the robot (PyElastica) for ``duration`` s; record every ``record_dt``."""
+    ea: Any = require("elastica", "rod", "the tendon-robot simulation", package="pyelastica")
+    if scenario not in SCENARIOS:
+        raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
+    s = settings or TendonRodSettings()
+    bb = robot.backbone
+    if bb is None or bb.density is None:
+        raise UserError("the simulated robot needs a backbone with a density")
+    disks = [sec.disks for sec in robot.sections]
+    if any(d < 1 for d in disks):
+        raise UserError("every section needs disks for the tendon simulation")
+    per = s.elements_per_disk
+    n_el = per * sum(disks)
+    # element index ending at every disk, per section; and the section-end nodes
+    disk_elements: list[list[int]] = []
+    first = 0
+    for d in disks:
+        disk_elements.append([first + per * (j + 1) - 1 for j in range(d)])
+        first += per * d
+    ends = (disk_elements[0][-1] + 1, n_el)
+    lengths = robot.lengths
+    if len(lengths) != 2 or abs(lengths[0] / disks[0] - lengths[1] / disks[1]) > 1e-12:
+        raise UserError("the simulation takes two sections with equally spaced disks")
+
+    class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
+        pass
+
+    offsets = np.array([[*td.offset, 0.0] for td in robot.tendons]).T  # (3, m)
+    # per tendon, the elements it passes (the disks up to its anchor)
+    routes = [
+        np.array([e for k in range(td.section + 1) for e in disk_elements[k]])
+        for td in robot.tendons
+    ]
+    cache: dict[str, Any] = {"step": 0}
+
+    def tendon_loads(x: FloatArray, q: FloatArray, tau: FloatArray) -> tuple[FloatArray, ...]:
+        """Node forces (3, n+1) and element couples (3, n, their frames) of the tendons."""
+        forces = np.zeros((3, n_el + 1))
+        torques = np.zeros((3, n_el))
+        centre = 0.5 * (x[:, :-1] + x[:, 1:])
+        arms = np.einsum("jik,jm->imk", q, offsets)  # (3, m, n): Q^T r per element
+        for i, elems in enumerate(routes):
+            if tau[i] <= 0.0:
+                continue
+            pts = np.column_stack([offsets[:, i], centre[:, elems] + arms[:, i, elems]])
+            seg = np.diff(pts, axis=1)
+            unit = seg / np.linalg.norm(seg, axis=0)
+            f = -tau[i] * unit  # each point pulled back towards the one before
+            f[:, :-1] += tau[i] * unit[:, 1:]  # and on towards the one after
+            forces[:, elems] += 0.5 * f  # a tendon passes an element once
+            forces[:, elems + 1] += 0.5 * f
+            couple = np.cross(arms[:, i, elems].T, f.T).T  # base frame
+            torques[:, elems] += np.einsum("ijk,jk->ik", q[:, :, elems], couple)
+        return forces, torques
+
+    class _Tendons(ea.NoForces):
+        def apply_forces(self, system: Any, time: float = 0.0) -> None:
+            # the loads change slowly: recomputed every ``s.refresh`` steps
+            if cache["step"] % s.refresh == 0:
+                tau = tension_profile(robot, scenario, float(time), s)
+                f, c = tendon_loads(system.position_collection, system.director_collection, tau)
+                f[:, -1] += tip_force(scenario, float(time), s)
+                cache["loads"] = (f, c)
+            cache["step"] += 1
+            f, c = cache["loads"]
+            system.external_forces[...] += f
+            system.external_torques[...] += c
+
+    sim = _Sim()
+    rod = ea.CosseratRod.straight_rod(
+        n_el,
+        np.zeros(3),
+        np.array([0.0, 0.0, 1.0]),
+        np.array([1.0, 0.0, 0.0]),
+        robot.length,
+        bb.radius,
+        bb.density,
+        youngs_modulus=bb.youngs_modulus,
+        shear_modulus=bb.shear_modulus,
+    )
+    # a thin stiff rod's shear-rotation mode has the period 2 pi r / sqrt(4 G / rho)
+    # (0.9 us here): the elements' rotational inertia is scaled up so that the step is
+    # set by the axial waves instead (quasi-static motion: their inertia does not show)
+    rod.mass_second_moment_of_inertia *= s.rotational_inertia_scale
+    rod.inv_mass_second_moment_of_inertia /= s.rotational_inertia_scale
+    sim.append(rod)
+    sim.constrain(rod).using(
+        ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
+    )
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+    sim.add_forcing_to(rod).using(_Tendons)
+    sim.dampen(rod).using(
+        ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
+    )
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    per_record = max(1, int(round(record_dt / s.sim_dt)))
+    n_rec = int(round(duration / (per_record * s.sim_dt))) + 1
+    t_rec = np.zeros(n_rec)
+    nodes = np.zeros((n_rec, 3, n_el + 1))
+    dirs = np.zeros((n_rec, 3, 3, n_el))
+    vel = np.zeros((n_rec, 2, 3))
+    omega = np.zeros((n_rec, 2, 3))
+    twist = np.zeros(n_rec)
+    tensions = np.zeros((n_rec, robot.n_tendons))
+    force = np.zeros((n_rec, 3))
+    time = np.float64(0.0)
+    for i in range(n_rec):
+        if i > 0:
+            for _ in range(per_record):
+                time = stepper.step(sim, time, np.float64(s.sim_dt))
+        if not np.all(np.isfinite(rod.position_collection)):
+            raise RuntimeError(f"rod simulation diverged at t = {float(time):.4f} s")
+        t_rec[i] = time
+        nodes[i] = rod.position_collection
+        dirs[i] = rod.director_collection
+        for k, node in enumerate(ends):
+            vel[i, k] = rod.velocity_collection[:, node]
+            omega[i, k] = rod.omega_collection[:, node - 1]
+        twist[i] = float(np.sum(rod.kappa[2] * rod.rest_voronoi_lengths))
+        tensions[i] = tension_profile(robot, scenario, float(time), s)
+        force[i] = tip_force(scenario, float(time), s)
+    end_dirs = np.stack([dirs[:, :, :, ends[0] - 1], dirs[:, :, :, -1]], axis=1)
+    sections = SectionTrajectory(t_rec, nodes, end_dirs, vel, omega, twist, ends)
+    return TendonTrajectory(sections, dirs, tensions, force)
+
+
+def truth_columns(n_sections: int) -> list[str]:
+    """The truth file's columns: those of the tendon formulation's outputs."""
+    from continuum_mhe.model.tendon import tendon_outputs
+
+    return ["t", *(o.name for o in tendon_outputs(n_sections))]
+
+
+def write_tendon_recording(
+    out: Path,
+    name: str,
+    robot: Robot,
+    scenario: str,
+    duration: float,
+    settings: TendonRodSettings | None = None,
+    seed: int = 0,
+) -> dict[str, object]:
+    """Simulate, sample and write the files (see the module docstring); returns the
+    info."""
+    import casadi as ca
+
+    from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.model.imu import tilt_from_accelerometer
+    from continuum_mhe.model.tendon import swing_twist_sym
+
+    traj = quasi_static_trajectory(robot, scenario, duration, settings)
+    sec = traj.sections
+    t, f, w, idx = imu_samples(sec, DEFAULT_IMU, seed)
+    t = t - t[0]
+    out.mkdir(parents=True, exist_ok=True)
+    cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
+    write_table(out / f"{name}_raw.csv", cols, np.round(raw, 6).tolist())
+    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(2)])
+    write_table(
+        out / f"{name}_tilt.csv",
+        ["t", "roll_1", "pitch_1", "roll_2", "pitch_2"],
+        np.round(np.column_stack([t, tilt]), 6).tolist(),
+    )
+    tcols = ["t"] + [f"tension_{i}" for i in range(1, robot.n_tendons + 1)]
+    write_table(
+        out / f"{name}_tensions.csv",
+        tcols,
+        np.round(np.column_stack([t, traj.tensions[idx]]), 6).tolist(),
+    )
+    Q = ca.SX.sym("Q", 3, 3)
+    swing = ca.Function("swing", [Q], [ca.vertcat(*swing_twist_sym(Q))])
+    truth = []
+    for j in idx:
+        row: list[float] = list(sec.nodes[j, :, -1] - sec.nodes[j, :, 0])
+        R_prev = np.eye(3)
+        for k in range(2):
+            R = sec.directors[j, k].T  # local-to-base
+            th, ph, ps = np.asarray(swing(R_prev.T @ R), dtype=float).ravel()
+            p = sec.nodes[j, :, sec.end_nodes[k]] - sec.nodes[j, :, 0]
+            row += [th, ph, *p, ps]
+            R_prev = R
+        row += list(traj.force[j])
+        truth.append(row)
+    tr = np.column_stack([t, np.array(truth)])
+    write_table(out / f"{name}_truth.csv", truth_columns(2), np.round(tr, 7).tolist())
+    psi = tr[:, [9, 15]]
+    info: dict[str, object] = {
+        "scenario": scenario,
+        "robot": "tendon-two-section",
+        "samples": len(t),
+        "theta_max_deg": [float(np.degrees(tr[:, c].max())) for c in (4, 10)],
+        "twist_max_deg": [float(np.degrees(np.abs(psi[:, k]).max())) for k in range(2)],
+        "force_max_n": float(np.linalg.norm(traj.force, axis=1).max()),
+        "tension_max_n": float(traj.tensions.max()),
+    }
+    (out / f"{name}_info.json").write_text(json.dumps(info, indent=2) + "\n")
+    return info
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from continuum_mhe.io.robot_file import read_robot
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--scenario", choices=SCENARIOS, default="unloaded")
+    p.add_argument("--duration", type=float, default=16.0)
+    p.add_argument("--robot", default="tendon-two-section")
+    p.add_argument("--name", default=None)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sim-dt", type=float, default=TendonRodSettings.sim_dt)
+    p.add_argument("-o", "--output", type=Path, required=True)
+    a = p.parse_args(argv)
+    robot = read_robot(a.robot)
+    info = write_tendon_recording(
+        a.output, a.name or a.scenario, robot, a.scenario, a.duration,
+        TendonRodSettings(sim_dt=a.sim_dt), a.seed,
+    )  # fmt: skip
+    print(json.dumps(info), file=sys.stderr)
+    return 0
+
+
+# --- the quasi-static peer: a discrete rod's energy minimised -----------------------------
+def _rotvec_sym(w: Any) -> Any:
+    """Rotation matrix of a rotation vector (CasADi SX), Rodrigues' formula with a
+    smooth series near zero."""
+    import casadi as ca
+
+    th2 = ca.sumsqr(w) + 1e-30
+    th = ca.sqrt(th2)
+    a = ca.if_else(th2 < 1e-8, 1 - th2 / 6, ca.sin(th) / th)
+    b = ca.if_else(th2 < 1e-8, 0.5 - th2 / 24, (1 - ca.cos(th)) / th2)
+    K = ca.vertcat(
+        ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0)
+    )
+    return ca.SX.eye(3) + a * K + b * ca.mtimes(K, K)
+
+
+@dataclass(frozen=True)
+class EnergyRod:
+    """A discrete inextensible rod whose total energy is minimised (IPOPT): each of
+    ``segments_per_disk`` segments per disk turns by a rotation vector ``w_j`` from the
+    one before (bending energy ``EI/2 (w_x^2 + w_y^2)/ds``, torsion ``GJ/2 w_z^2/ds``);
+    each tendon a polyline at its offset in the frames it passes (every segment's end:
+    ``route="continuous"``, Rucker and Webster's routing in the limit; or only the
+    disks' with ``"disks"``, straight from disk to disk), whose tension's potential is
+    ``tau * length``; the tip force's ``-F . p_tip``; the weight's ``rho A g z`` per
+    segment. Independent of the shooting model: energy, not forces, on a discrete
+    rod."""
+
+    robot: Robot
+    segments_per_disk: int = 2
+
+    @property
+    def solver(self) -> Any:
+        return _energy_solver(self.robot, self.segments_per_disk)
+
+
+_SOLVERS: dict[tuple[Robot, int, str], Any] = {}
+
+
+def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
+    import casadi as ca
+
+    key = (robot, per, route)
+    if key in _SOLVERS:
+        return _SOLVERS[key]
+    bb = robot.backbone
+    assert bb is not None
+    ei, gj = bb.bending_stiffness, bb.torsional_stiffness
+    rho_a_g = (bb.density or 0.0) * bb.area * GRAVITY
+    n_seg = per * sum(s.disks for s in robot.sections)
+    w = ca.SX.sym("w", 3, n_seg)
+    tau = ca.SX.sym("tau", robot.n_tendons)
+    force = ca.SX.sym("F", 3)
+    R: Any = ca.SX.eye(3)
+    p: Any = ca.SX.zeros(3)
+    energy: Any = ca.SX(0)
+    frames = []  # (R, p) at every segment end
+    seg = 0
+    for sec in robot.sections:
+        ds = sec.length / (per * sec.disks)
+        for _ in range(per * sec.disks):
+            wj = w[:, seg]
+            energy += (ei * (wj[0] ** 2 + wj[1] ** 2) + gj * wj[2] ** 2) / (2 * ds)
+            # the segment turns by half at its start and half at its end (midpoint)
+            Rm = ca.mtimes(R, _rotvec_sym(wj / 2))
+            p_new = p + ds * Rm[:, 2]
+            energy += rho_a_g * ds * 0.5 * (p[2] + p_new[2])
+            R = ca.mtimes(R, _rotvec_sym(wj))
+            p = p_new
+            frames.append((R, p))
+            seg += 1
+    energy += -ca.dot(force, p)
+    for i, td in enumerate(robot.tendons):
+        r = ca.DM([*td.offset, 0.0])
+        prev: Any = r
+        last = per * sum(s.disks for s in robot.sections[: td.section + 1])
+        length: Any = ca.SX(0)
+        for j in range(per - 1 if route == "disks" else 0, last, per if route == "disks" else 1):
+            Rj, pj = frames[j]
+            pt = pj + ca.mtimes(Rj, r)
+            length += ca.norm_2(pt - prev)
+            prev = pt
+        energy += ca.fmax(tau[i], 0) * length
+    outs = ca.horzcat(*[ca.vertcat(ca.vec(Rj), pj) for Rj, pj in frames])
+    nlp: dict[str, Any] = {"x": ca.vec(w), "p": ca.vertcat(tau, force), "f": energy}
+    opts: dict[str, Any] = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.tol": 1e-12,
+    }
+    solver = ca.nlpsol("rod_energy", "ipopt", nlp, opts)
+    frames_fn = ca.Function("frames", [ca.vec(w)], [outs])
+    _SOLVERS[key] = (solver, frames_fn, n_seg)
+    return _SOLVERS[key]
+
+
+def energy_equilibrium(
+    robot: Robot,
+    tensions: FloatArray,
+    force: FloatArray,
+    start: FloatArray | None = None,
+    segments_per_disk: int = 3,
+    route: str = "continuous",
+) -> tuple[FloatArray, FloatArray]:
+    """The discrete rod's equilibrium (:class:`EnergyRod`): ``(w, frames)`` with the
+    rotation vectors (3 n) and every segment end's ``[vec R, p]`` (12, n)."""
+    solver, frames_fn, n_seg = _energy_solver(robot, segments_per_disk, route)
+    x0 = np.zeros(3 * n_seg) if start is None else start
+    sol = solver(x0=x0, p=np.r_[tensions, force])
+    if not solver.stats()["success"]:
+        raise RuntimeError("the rod's energy minimisation did not converge")
+    w = np.asarray(sol["x"], dtype=float).ravel()
+    return w, np.asarray(frames_fn(w), dtype=float)
+
+
+def quasi_static_trajectory(
+    robot: Robot,
+    scenario: str,
+    duration: float,
+    settings: TendonRodSettings | None = None,
+    record_dt: float = 2e-2,
+    segments_per_disk: int = 2,
+) -> TendonTrajectory:
+    """The robot's equilibria (:func:`energy_equilibrium`) every ``record_dt`` s, warm
+    started; velocities and angular velocities by central differences."""
+    s = settings or TendonRodSettings()
+    disks = [sec.disks for sec in robot.sections]
+    n_rec = int(round(duration / record_dt)) + 1
+    t = np.arange(n_rec, dtype=np.float64) * record_dt
+    end_seg = (segments_per_disk * disks[0] - 1, segments_per_disk * sum(disks) - 1)
+    n_nodes = segments_per_disk * sum(disks) + 1
+    nodes = np.zeros((n_rec, 3, n_nodes))
+    dirs = np.zeros((n_rec, 2, 3, 3))
+    tensions = np.array([tension_profile(robot, scenario, float(tk), s) for tk in t])
+    force = np.array([tip_force(scenario, float(tk), s) for tk in t])
+    w = None
+    for i in range(n_rec):
+        w, fr = energy_equilibrium(robot, tensions[i], force[i], w, segments_per_disk)
+        nodes[i, :, 1:] = fr[9:]
+        for k, e in enumerate(end_seg):
+            dirs[i, k] = fr[:9, e].reshape(3, 3, order="F").T  # rows: the frame's axes
+    vel = np.gradient(nodes[:, :, [end_seg[0] + 1, end_seg[1] + 1]], t, axis=0).transpose(0, 2, 1)
+    omega = np.zeros((n_rec, 2, 3))
+    for k in range(2):
+        R = np.transpose(dirs[:, k], (0, 2, 1))
+        dR = np.gradient(R, t, axis=0)
+        wh = np.einsum("nji,njk->nik", R, dR)
+        omega[:, k] = 0.5 * np.stack(
+            [wh[:, 2, 1] - wh[:, 1, 2], wh[:, 0, 2] - wh[:, 2, 0], wh[:, 1, 0] - wh[:, 0, 1]],
+            axis=-1,
+        )
+    ends = (end_seg[0] + 1, end_seg[1] + 1)
+    sections = SectionTrajectory(t, nodes, dirs, vel, omega, np.zeros(n_rec), ends)
+    return TendonTrajectory(sections, dirs, tensions, force)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,340 @@
+"""Tendon-driven robots: the robot file, the statics against known answers and an
+independent peer, the formulation's Jacobians, slack tendons, the tensions input."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.io.csv_files import InputError, write_table
+from continuum_mhe.io.robot_file import read_robot, robot_toml
+from continuum_mhe.io.tensions import read_tensions
+from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
+from continuum_mhe.model.tendon import Station, TendonFormulation, TendonStatics
+
+BACKBONE = Backbone(54e9, 20.77e9, 0.0007)
+EI = BACKBONE.bending_stiffness
+GJ = BACKBONE.torsional_stiffness
+
+
+def _one_section(*tendons: Tendon, backbone: Backbone = BACKBONE) -> Robot:
+    return Robot((Section(0.2, 3.0, 10),), (ImuPlacement(0, 1.0),), "z-up", backbone, tendons)
+
+
+# --- the robot file --------------------------------------------------------------------
+TENDON_FILE = """
+[backbone]
+youngs_modulus = 54e9
+shear_modulus = 20.77e9
+radius = 0.0007
+[[section]]
+length = 0.2
+disks = 10
+[[tendon]]
+section = 1
+angle = 90
+radius = 0.01
+[[imu]]
+section = 1
+disk = 5
+"""
+
+
+def test_the_tendon_robot_file_is_read(tmp_path: Path) -> None:
+    path = tmp_path / "r.toml"
+    path.write_text(TENDON_FILE)
+    robot = read_robot(path)
+    assert robot.backbone == BACKBONE
+    assert robot.sections[0].disks == 10
+    (td,) = robot.tendons
+    assert td.section == 0 and td.radius == 0.01
+    assert td.offset == pytest.approx((0.0, 0.01), abs=1e-15)
+    assert robot.imus[0].at == 0.5  # disk 5 of 10
+    again = tmp_path / "again.toml"
+    again.write_text(robot_toml(robot))
+    assert read_robot(again) == robot
+
+
+def test_a_pcc_robot_file_reads_as_before() -> None:
+    robot = read_robot("two-section")
+    assert robot.backbone is None and robot.tendons == ()
+    assert robot == Robot(
+        (Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1))
+    )
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (("[backbone]\nyoungs_modulus = 54e9\nshear_modulus = 20.77e9\nradius = 0.0007\n", ""),
+         "1 [[tendon]] but no [backbone]"),
+        (("youngs_modulus = 54e9", "youngs_modulus = -1"), "youngs_modulus (Pa) must be"),
+        (("youngs_modulus = 54e9", "youngs_modulus = 54"), "moduli are in Pa"),
+        (("radius = 0.0007", "radius = 0.7"), "radii are in metres"),
+        (("shear_modulus = 20.77e9\n", ""), "backbone: missing key 'shear_modulus'"),
+        (("angle = 90", "angle = 90\npitch = 1"), "tendon 1: unknown key 'pitch'"),
+        (("section = 1\nangle", "section = 2\nangle"), "tendon 1: section must be"),
+        (("radius = 0.01", "radius = 0"), "tendon 1: tendon radius (m) must be a positive"),
+        (("disk = 5", "disk = 11"), "imu 1: disk must be a disk number from 1 to 10"),
+        (("disks = 10", "disks = 2.5"), "section 1: disks must be a whole number"),
+    ],
+)  # fmt: skip
+def test_bad_tendon_robot_files_are_one_line_errors(
+    tmp_path: Path, edit: tuple[str, str], message: str
+) -> None:
+    path = tmp_path / "r.toml"
+    path.write_text(TENDON_FILE.replace(*edit))
+    with pytest.raises(InputError) as err:
+        read_robot(path)
+    text = str(err.value)
+    assert text.startswith(f"{path}: ") and message in text and "\n" not in text
+
+
+# --- the statics against known answers ------------------------------------------------------
+def test_one_tendon_on_a_straight_rod_gives_a_circular_arc() -> None:
+    """Curvature ``tension * radius / EI`` towards the tendon, no twist."""
+    for angle in (0.0, 2.0):
+        robot = _one_section(Tendon(0, angle, 0.01))
+        tau = 1.5
+        _, poses = TendonStatics(robot).solve(np.zeros(3), np.array([tau]))
+        R, p = poses[Station(0, 1.0)]
+        kappa = tau * 0.01 / EI
+        theta = kappa * 0.2
+        towards = np.array([math.cos(angle), math.sin(angle), 0.0])
+        expected = (1 - math.cos(theta)) / kappa * towards + [0, 0, math.sin(theta) / kappa]
+        np.testing.assert_allclose(p, expected, atol=1e-8)
+        tangent = math.sin(theta) * towards + [0, 0, math.cos(theta)]
+        np.testing.assert_allclose(R[:, 2], tangent, atol=1e-8)
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-7)
+
+
+def test_a_small_tip_force_gives_the_cantilever_deflection() -> None:
+    """``F L^3 / (3 EI)`` for a force across the straight rod, to first order."""
+    robot = _one_section()
+    force = 1e-4
+    _, poses = TendonStatics(robot).solve(np.array([0.0, force, 0.0]), np.zeros(0))
+    _, p = poses[Station(0, 1.0)]
+    assert p[1] == pytest.approx(force * 0.2**3 / (3 * EI), rel=1e-4)
+
+
+def test_the_base_moment_balances_the_tip_force_and_twists_a_bent_rod() -> None:
+    """With no weight the base carries ``p_tip x F`` (exact), its twist part is resisted
+    by ``GJ + tau r^2``; a force across a rod bent towards +x twists it positively about
+    its tangent."""
+    tau = 8.0  # bends the 0.2 m rod by about 90 degrees towards +x
+    robot = _one_section(Tendon(0, 0.0, 0.01))
+    force = np.array([0.0, 0.01, 0.0])
+    statics = TendonStatics(robot)
+    k0, poses = statics.solve(force, np.array([tau]))
+    R_tip, p_tip = poses[Station(0, 1.0)]
+    np.testing.assert_allclose(k0 * EI, np.cross(p_tip, force), rtol=1e-9, atol=1e-14)
+    u = np.asarray(statics.curvature_sym(ca.DM(k0 * EI), [(tau, 0.01, 0.0)]), float).ravel()
+    assert u[2] == pytest.approx(p_tip[0] * force[1] / (GJ + tau * 1e-4), rel=1e-12)
+    f = TendonFormulation(robot=robot)
+    x = np.zeros(f.nx)
+    x[:3], x[3:6], x[6] = k0, force, tau
+    names = [o.name for o in f.outputs]
+    psi = f.output(x)[names.index("psi_1")]
+    assert psi > 0.005
+    # the mirror image (force along -y) twists the other way by as much
+    k0m, _ = statics.solve(-force, np.array([tau]))
+    x[:3], x[3:6] = k0m, -force
+    assert f.output(x)[names.index("psi_1")] == pytest.approx(-psi, rel=1e-9)
+
+
+def test_the_shooting_converges_with_its_steps() -> None:
+    """The default steps agree with twenty times as many to 0.05 mm on a large bend with
+    a tip force."""
+    robot = Robot(
+        (Section(0.2, 3.0, 10), Section(0.2, 3.0, 10)),
+        (ImuPlacement(0), ImuPlacement(1)),
+        "z-up",
+        Backbone(54e9, 20.77e9, 0.0007, density=6450),
+        (Tendon(0, 0.0, 0.01), Tendon(1, 2.0, 0.01)),
+    )
+    args = (np.array([0.05, -0.03, 0.02]), np.array([4.0, 6.0]))
+    _, coarse = TendonStatics(robot).solve(*args)
+    _, fine = TendonStatics(robot, steps_per_section=120).solve(*args)
+    tip = Station(1, 1.0)
+    assert np.linalg.norm(coarse[tip][1] - fine[tip][1]) < 5e-5
+
+
+def test_the_shooting_agrees_with_an_independent_energy_minimisation() -> None:
+    """The discrete rod of :class:`~continuum_mhe.simulation.cosserat_tendon.EnergyRod`
+    (energy minimised, tendons as polylines through every segment's end): the section
+    ends agree to 0.1 mm on a loaded spatial bend."""
+    from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
+
+    robot = read_robot("tendon-two-section")
+    tau = np.array([2.0, 0.5, 0.5, 3.0, 0.7, 0.8])
+    force = np.array([0.05, 0.0, 0.0])
+    _, poses = TendonStatics(robot).solve(force, tau)
+    _, frames = energy_equilibrium(robot, tau, force, segments_per_disk=3)
+    assert np.linalg.norm(frames[9:, -1] - poses[Station(1, 1.0)][1]) < 1e-4
+    assert np.linalg.norm(frames[9:, 29] - poses[Station(0, 1.0)][1]) < 1e-4
+
+
+def test_a_slack_tendon_pulls_nothing() -> None:
+    """A negative tension (a state can stray there) acts as zero."""
+    robot = _one_section(Tendon(0, 0.0, 0.01), Tendon(0, math.pi, 0.01))
+    f = TendonFormulation(robot=robot)
+    x = np.zeros(f.nx)
+    x[3:6] = [0.02, 0.0, 0.0]
+    x[6:8] = [1.0, -3.0]
+    slack = x.copy()
+    slack[7] = 0.0
+    np.testing.assert_array_equal(f.output(x)[:9], f.output(slack)[:9])
+
+
+# --- the formulation -------------------------------------------------------------------
+@pytest.mark.parametrize("imu_model", ["tilt", "direct"])
+def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> None:
+    robot = Robot(
+        (Section(0.15, 3.0, 5),),
+        (ImuPlacement(0, 0.6), ImuPlacement(0, 1.0)),
+        "z-up",
+        BACKBONE,
+        (Tendon(0, 0.3, 0.01), Tendon(0, 2.5, 0.008)),
+    )
+    f = TendonFormulation(robot=robot, imu_model=imu_model)  # type: ignore[arg-type]
+    rng = np.random.default_rng(3)
+    x = np.zeros(f.nx)
+    x[:3] = rng.normal(0, 1.0, 3)
+    x[3:6] = rng.normal(0, 0.02, 3)
+    x[6:8] = [2.0, 1.0]
+    x[8:] = rng.normal(0, 0.5, f.nx - 8)
+    imu = rng.normal(0, 0.3, f.n_imu_measurements)
+    z = f.measurement_row(imu, np.array([2.1, 0.9]), np.array([0.3, -0.2]))
+    r, J = (np.asarray(v, float) for v in f.functions.innovate(z, x))
+    for i in range(f.nx):
+        h = 1e-6 * max(1.0, abs(x[i]))
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        fd = (np.asarray(f.functions.innovate(z, up)[0], float)
+              - np.asarray(f.functions.innovate(z, down)[0], float)) / (2 * h)  # fmt: skip
+        np.testing.assert_allclose(
+            J[:, i], fd.ravel(), rtol=1e-5, atol=1e-6 * max(1.0, np.abs(fd).max())
+        )
+
+
+def test_the_start_recovers_the_tip_force_from_noise_free_tilts() -> None:
+    """Tilts of a known tip force and tensions (two IMUs): the start's least squares
+    finds the force."""
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(robot=robot)
+    tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
+    force = np.array([0.03, -0.02, 0.01])
+    k0, _ = f.statics.solve(force, tau)
+    x = np.zeros(f.nx)
+    x[:3], x[3:6], x[6:12] = k0, force, tau
+    h = np.asarray(f.functions.observe(x), float).ravel()
+    z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
+    x0 = f.initial_state(z)
+    np.testing.assert_allclose(x0[3:6], force, atol=1e-6)
+
+
+# --- the tensions input ----------------------------------------------------------------
+def _small_robot(tmp_path: Path) -> Path:
+    path = tmp_path / "robot.toml"
+    path.write_text(TENDON_FILE.replace("disk = 5", "disk = 10"))
+    return path
+
+
+def _recording(tmp_path: Path) -> tuple[Path, Path]:
+    """A few tilt samples of the one-section robot with its tendon pulled."""
+    robot = read_robot(_small_robot(tmp_path))
+    f = TendonFormulation(robot=robot)
+    t = np.arange(6) * 0.02
+    tau = 1.0 + 5 * t
+    rows = []
+    for tk, tauk in zip(t, tau):
+        k0, _ = f.statics.solve(np.zeros(3), np.array([tauk]))
+        x = np.zeros(f.nx)
+        x[:3], x[6] = k0, tauk
+        h = np.asarray(f.functions.observe(x), float).ravel()
+        rows.append([tk, *h[:2]])
+    meas = tmp_path / "m.csv"
+    write_table(meas, ["t", "roll", "pitch"], rows)
+    tensions = tmp_path / "tensions.csv"
+    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.1, 1.5]])
+    return meas, tensions
+
+
+def test_estimate_reads_tensions_and_writes_the_tip_force(tmp_path: Path) -> None:
+    meas, tensions = _recording(tmp_path)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 0
+    header = out.read_text().splitlines()[0].split(",")
+    for col in ("fx", "fy", "fz", "std_fx", "psi_1", "x_1", "theta_1"):
+        assert col in header
+    data = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert np.all(np.abs(data["fx"]) < 0.01)
+
+
+@pytest.mark.parametrize(
+    ("rows", "columns", "message"),
+    [
+        ([[0.0, 1.0], [0.1, -0.5]], ["t", "tension_1"], "tension_1 = -0.5 N is negative"),
+        ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
+         "expected the columns t,tension_1"),
+        ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
+    ],
+)  # fmt: skip
+def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: list[list[float]],
+    columns: list[str], message: str,
+) -> None:  # fmt: skip
+    meas, tensions = _recording(tmp_path)
+    write_table(tensions, columns, rows)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
+    assert not out.exists()
+
+
+def test_a_tendon_robot_needs_its_tensions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    meas, _ = _recording(tmp_path)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "-o", str(out)]
+    assert main(argv) == 2
+    assert "give their tensions with --inputs" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
+    path = tmp_path / "t.csv"
+    write_table(path, ["t", "tension_1", "tension_2"], [[0.0, 1.0, 0.0], [1.0, 3.0, 0.0]])
+    tensions = read_tensions(path, 2)
+    tau, rate = tensions.at(0.25)
+    np.testing.assert_allclose(tau, [1.5, 0.0])
+    np.testing.assert_allclose(rate, [2.0, 0.0])
+
+
+def test_one_imu_does_not_determine_the_tip_force() -> None:
+    """Two of the tip force's three components per IMU (its gravity direction): one IMU,
+    raw or tilt, leaves the shape unobservable; two determine it."""
+    from continuum_mhe.errors import UnobservableShapeWarning
+    from continuum_mhe.estimators import ExtendedKalmanFilter
+
+    one = _one_section(Tendon(0, 0.0, 0.01))
+    two = Robot(one.sections, (ImuPlacement(0, 0.5), ImuPlacement(0, 1.0)), "z-up", BACKBONE,
+                one.tendons)  # fmt: skip
+    for model in ("tilt", "direct"):
+        f1 = TendonFormulation(robot=one, imu_model=model)  # type: ignore[arg-type]
+        assert not f1.imus_determine_shape((0,))
+        assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
+    with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
+        ExtendedKalmanFilter(TendonFormulation(robot=one))

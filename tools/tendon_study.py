@@ -1,0 +1,98 @@
+"""Tendon-robot estimates on the generator's recordings (docs/tendon.md): the EKF
+(CasADi) and the MHE on IPOPT, tilt and raw IMUs, with the recording's tensions;
+prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms error, N;
+ms per sample).
+
+    python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
+        [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe.estimators import ExtendedKalmanFilter, MovingHorizonEstimator
+from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.tensions import read_tensions
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.settings import MHESettings
+
+
+def _table(path: Path) -> tuple[list[str], np.ndarray]:
+    names = path.read_text().splitlines()[0].split(",")
+    return names, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("folder", type=Path)
+    p.add_argument("scenario")
+    p.add_argument("--method", choices=("ekf", "mhe"), default="ekf")
+    p.add_argument("--imu", choices=("tilt", "direct"), default="tilt")
+    p.add_argument("--horizon", type=int, default=10)
+    p.add_argument("--skip", type=float, default=1.0)
+    p.add_argument("--robot", default="tendon-two-section")
+    p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
+    p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
+    a = p.parse_args()
+    robot = read_robot(a.robot)
+    used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
+    robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
+    f = TendonFormulation(robot=robot, imu_model=a.imu, force_accel_psd=a.force_psd)
+    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
+    if a.imu == "tilt":
+        _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
+        t = tilt[:, 0]
+        z_imu = np.hstack([tilt[:, 1 + 2 * k : 3 + 2 * k] for k in used])
+    else:
+        _, raw = _table(a.folder / f"{a.scenario}_raw.csv")
+        t = raw[:, 0]
+        settings = RawImuSettings(imu_model="direct")
+        z_imu = np.hstack(
+            [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
+                                 settings) for k in used]
+        )  # fmt: skip
+    z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
+    if a.method == "ekf":
+        est = ExtendedKalmanFilter(f)
+    else:
+        est = MovingHorizonEstimator(f, MHESettings(horizon=a.horizon, solver="ipopt"))
+    start = time.perf_counter()
+    series = est.run(t, z)
+    ms = (time.perf_counter() - start) / len(t) * 1e3
+    names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
+    out = np.asarray(series.output, dtype=float)
+    std = np.asarray(series.std, dtype=float)
+    cols = [o.name for o in f.outputs]
+    keep = (t >= a.skip) & np.all(np.isfinite(out), axis=1)
+
+    def err(c: tuple[str, ...]) -> np.ndarray:
+        e = out[keep][:, [cols.index(n) for n in c]]
+        tr = truth[keep][:, [names.index(n) for n in c]]
+        return np.asarray(np.linalg.norm(e - tr, axis=1), dtype=float)
+
+    force = [cols.index(n) for n in ("fx", "fy", "fz")]
+    statuses: dict[str, int] = {}
+    for s in series.status:
+        statuses[str(s)] = statuses.get(str(s), 0) + 1
+    print(json.dumps({
+        "scenario": a.scenario, "method": a.method, "imu": a.imu,
+        "horizon": a.horizon if a.method == "mhe" else None, "force_psd": a.force_psd,
+        "imus": [k + 1 for k in used],
+        "tip_mean_mm": round(float(err(("x", "y", "z")).mean() * 1e3), 2),
+        "mid_mean_mm": round(float(err(("x_1", "y_1", "z_1")).mean() * 1e3), 2),
+        "force_rms_n": round(float(np.sqrt(np.mean(err(("fx", "fy", "fz")) ** 2))), 4),
+        "force_std_mean_n": round(float(np.mean(np.linalg.norm(std[keep][:, force], axis=1))), 4),
+        "ms_per_sample": round(ms, 1), "statuses": statuses,
+    }))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
