@@ -102,6 +102,11 @@ class Formulation:
     #: formulation's tangent plane, singular at a half turn; formulations without tilt
     #: blocks inherit theirs unused)
     tilt_residual_wraps: ClassVar[bool] = True
+    #: whether the fast MHE adds the measurement residuals' second derivatives to its
+    #: Hessian (exact Newton steps); False for a model whose second derivatives are too
+    #: large to form symbolically (a shooting model): Gauss-Newton steps, the same
+    #: minimum, a slower final convergence
+    second_order_residuals: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))

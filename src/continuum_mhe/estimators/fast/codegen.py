@@ -47,6 +47,9 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2
     curv = []
     for b in f.measurement_blocks:
+        if not f.second_order_residuals:  # Gauss-Newton: the term is zero
+            curv.append(ca.SX.zeros(nx * nx))
+            continue
         rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
         curv.append(ca.vec(ca.hessian(0.5 * ca.bilin(wb, rb, rb), x)[0] - jb.T @ wb @ jb))
     meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])

@@ -144,6 +144,9 @@ class WindowModel:
     wrapped: tuple[int, ...] = (4,)
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
     linear_transition: bool = False
+    #: the measurement terms' second-order part is formed (exact Newton steps); see
+    #: :attr:`~continuum_mhe.model.formulations.Formulation.second_order_residuals`
+    second_order_residuals: bool = True
     tail: Any = None  # the last node and stage of a window shifted by one sample
 
     @property
@@ -324,4 +327,5 @@ def build_window_model(
         wrapped=wrapped,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
+        second_order_residuals=formulation.second_order_residuals,
     )

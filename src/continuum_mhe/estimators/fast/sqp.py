@@ -76,7 +76,8 @@ def quadratic_rate(model: WindowModel, options: FastOptions) -> bool:
     loss, whose second derivative jumps at its scale (with the estimate, Huber's worst
     certified window was 4.3e-8 from the converged answer)."""
     huber = model.loss.code == LOSS_CODES["huber"]
-    return options.newton and model.linear_transition and not huber
+    exact = options.newton and model.second_order_residuals
+    return exact and model.linear_transition and not huber
 
 
 @numba.njit(cache=True)
