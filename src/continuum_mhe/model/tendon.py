@@ -302,6 +302,7 @@ class TendonFormulation(Formulation):
     """
 
     name: FormulationName = "tendon"
+    observable_hint: ClassVar[str] = "a second IMU makes it observable"
     tilt_residual_wraps: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
     gyro_std: float = 0.05
