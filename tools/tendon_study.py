@@ -4,7 +4,7 @@ prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms er
 ms per sample).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
-        [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only]
+        [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only] [--samples N]
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ def main() -> None:
     p.add_argument("--robot", default="tendon-two-section")
     p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
+    p.add_argument("--samples", type=int, default=None, help="only the first N samples")
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
@@ -59,6 +60,8 @@ def main() -> None:
             [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
                                  settings) for k in used]
         )  # fmt: skip
+    n = len(t) if a.samples is None else a.samples
+    t, z_imu = t[:n], z_imu[:n]
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
     if a.method == "ekf":
         est = ExtendedKalmanFilter(f)
@@ -68,6 +71,7 @@ def main() -> None:
     series = est.run(t, z)
     ms = (time.perf_counter() - start) / len(t) * 1e3
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
+    truth = truth[:n]
     out = np.asarray(series.output, dtype=float)
     std = np.asarray(series.std, dtype=float)
     cols = [o.name for o in f.outputs]

@@ -126,9 +126,8 @@ class Estimator(ABC):
             warnings.warn(
                 f"the IMUs of this robot ({robot.describe()}) "
                 f"{formulation.unobservable_detail(rank, bends)}: its shape is not "
-                "observable, so every estimate "
-                "is marked uncertain (one IMU per section makes it observable; "
-                "`continuum-mhe check-robot` tells)",
+                f"observable, so every estimate is marked uncertain "
+                f"({formulation.observable_hint})",
                 UnobservableShapeWarning,
                 stacklevel=_outside_stacklevel(),
             )

@@ -198,6 +198,11 @@ class Formulation:
             sub = replace(robot, imus=tuple(robot.imus[k] for k in imus))
         return shape_rank(sub) == 2 * robot.n_sections
 
+    #: what makes an unobservable robot observable (the warning's hint)
+    observable_hint: ClassVar[str] = (
+        "one IMU per section makes it observable; `continuum-mhe check-robot` tells"
+    )
+
     def unobservable_detail(self, rank: int, bends: int) -> str:
         """What the IMUs miss, for the warning of a robot whose shape they do not
         determine (``rank`` of ``bends`` bend coordinates by

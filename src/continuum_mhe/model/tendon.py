@@ -304,6 +304,7 @@ class TendonFormulation(Formulation):
     name: FormulationName = "tendon"
     #: the shooting model's second derivatives are too large to form (Gauss-Newton)
     second_order_residuals: ClassVar[bool] = False
+    observable_hint: ClassVar[str] = "a second IMU makes it observable"
     tilt_residual_wraps: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
     gyro_std: float = 0.05
