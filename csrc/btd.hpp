@@ -46,10 +46,14 @@ struct Block {
   double* data() { return a; }
 };
 template <>
-struct Block<0> {
-  std::vector<double> a;
-  explicit Block(Index nx) : a(nx * nx) {}
-  double* data() { return a.data(); }
+struct Block<0> {  // one buffer per thread, grown once (no allocation per call)
+  double* p;
+  explicit Block(Index nx) {
+    thread_local std::vector<double> a;
+    if (Index(a.size()) < nx * nx) a.resize(nx * nx);
+    p = a.data();
+  }
+  double* data() { return p; }
 };
 
 // ``out = A B`` for nx x nx blocks (out distinct from A and B)
