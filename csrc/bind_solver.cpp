@@ -11,6 +11,7 @@
 
 #include "bindings.hpp"
 #include "btd.hpp"
+#include "covariance.hpp"
 #include "qp.hpp"
 #include "sqp.hpp"
 
@@ -222,6 +223,22 @@ void cmhe::bind_solver(nb::module_& m) {
           "shift_outputs and project; argument layouts in csrc/sqp.hpp), for compiled "
           "callers.");
 
+  m.def(
+      "last_block_covariance",
+      [](In X, In D, In E, In lo, In hi, IndexIn ball_idx, In ball_r2, double tol, Out out) {
+        if (X.ndim() != 2) throw std::invalid_argument("X must be (n, nx)");
+        const Index n = X.shape(0), nx = X.shape(1);
+        check_shape(D, {n, nx, nx}, "D");
+        check_shape(E, {n - 1, nx, nx}, "E");
+        check_shape(out, {nx, nx}, "out");
+        const Feasible fs = feasible_of(lo, hi, ball_idx, ball_r2, nx);
+        return last_block_covariance(n, nx, X.data(), D.data(), E.data(), fs, tol, out.data());
+      },
+      nb::arg("X"), nb::arg("D"), nb::arg("E"), nb::arg("lo"), nb::arg("hi"),
+      nb::arg("ball_idx"), nb::arg("ball_r2"), nb::arg("tol"), nb::arg("out"),
+      "Into out (nx, nx): the last diagonal block of H^-1 for H = (D, E), conditioned on "
+      "the bounds active at X (n, nx) within tol; False if the reduced Hessian is not "
+      "positive definite.");
   m.def(
       "btd_solve",
       [](In D, In E, In b, Out y) {

@@ -425,7 +425,7 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
         f"sys.argv = ['continuum-mhe', 'simulate', 'paper3d', '-o', {str(tmp_path / 's.csv')!r},"
         " '--duration', '1']\n"
         "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGTERM), time.sleep(0.2)))\n"
-        "from continuum_mhe.entry import main\n"
+        "from continuum_mhe.cli.entry import main\n"
         "sys.exit(main())\n"
     )
     proc = subprocess.run(

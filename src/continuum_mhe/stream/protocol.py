@@ -186,7 +186,7 @@ class LineSplitter:
     """Bytes in, whole lines out: LF, CR and CRLF end a line; a line longer than
     ``max_bytes`` is dropped (its length is reported) up to its end, never buffered.
     The first line after a (re)open may be the tail of a cut one: the session decides
-    (:class:`~continuum_mhe.stream.session.LiveSession` checks it against the next).
+    (:class:`~continuum_mhe.live.session.LiveSession` checks it against the next).
 
     Attributes:
         too_long: lengths (bytes) of the lines dropped since the last :meth:`feed`.

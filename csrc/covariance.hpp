@@ -1,0 +1,17 @@
+// Covariance of the MHE's estimate: the last block of the window Hessian's inverse,
+// conditioned on the bounds active at the answer (continuum_mhe.estimators.fast.covariance
+// describes the method).
+#pragma once
+
+#include "qp.hpp"
+
+namespace cmhe {
+
+// ``out`` (nx, nx): the last diagonal block of H^-1 for H = (D, E) (n blocks), with the
+// coordinates on a box bound (within ``tol`` relative to 1 + |bound|) and the normal of
+// each ball active at X (within ``tol`` of r^2) carrying no variance; false if the
+// reduced Hessian is not positive definite.
+bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
+                           const double* E, const Feasible& fs, double tol, double* out);
+
+}  // namespace cmhe
