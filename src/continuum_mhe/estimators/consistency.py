@@ -17,7 +17,8 @@ estimator weights with ``R^-1``), valid components only:
 
 Either beyond the ``SAMPLE_QUANTILE`` (99.99 %) chi-square quantile, or beyond the
 ``RUN_QUANTILE`` (99 %) at this reading and the one before, marks this sample
-``inconsistent`` (on data that agree with the model about 2 rows in 10,000). Model error that no single reading shows is caught by the average:
+``inconsistent`` (on data that agree with the model about 2 rows in 10,000). Model
+error that no single reading shows is caught by the average:
 an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
 (covariance matching: the factor by which the innovations exceed what ``R`` and ``P``
 predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 %)
