@@ -18,7 +18,8 @@ estimator weights with ``R^-1``), valid components only:
 Either beyond the ``SAMPLE_QUANTILE`` (99.99 %) chi-square quantile, or beyond the
 ``RUN_QUANTILE`` (99 %) at this reading and the one before, marks this sample
 ``inconsistent`` (on data that agree with the model about 2 rows in 10,000). Model
-error that no single reading shows is caught by the average:
+error that no single reading shows is caught by the average (of the readings not
+flagged on their own):
 an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
 (covariance matching: the factor by which the innovations exceed what ``R`` and ``P``
 predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 %)
@@ -115,10 +116,10 @@ class ConsistencyCheck:
                 S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
                 nis = float(rp @ np.linalg.solve(S, rp))
                 # covariance matching: the average factor of the innovations over their
-                # predicted size (a wrong reading counts at most the limit)
-                value = min(nis, self._limit[dof]) / dof
-                self.noise_scale += (value - self.noise_scale) / MEMORY
-                self._dof = dof
+                # predicted size; a reading flagged on its own (an outlier) stays out of it
+                if nis <= self._limit[dof]:
+                    self.noise_scale += (nis / dof - self.noise_scale) / MEMORY
+                    self._dof = dof
             r = r[rows]
             fit = float(np.sum(r * r * self._r_inv[rows]))
         self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), z.copy())
