@@ -222,7 +222,7 @@ def test_live_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:  # typ
 
     out = tmp_path / "live.csv"
     args = ["live", "--port", str(tmp_path / "none"), "--format", "raw", "-o", str(out)]
-    assert main([*args, "--estimate-gyro-bias"]) == 2
+    assert main([*args, "--imu-model", "tilt", "--estimate-gyro-bias"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [
         "continuum-mhe: error: --estimate-gyro-bias needs --imu-model direct (raw gyros)"

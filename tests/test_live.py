@@ -415,15 +415,16 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
 
 
 def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) -> None:
-    """Tilt from the accelerometer (the default): estimate's warning, once, and the
-    session goes on to estimate every sample (exit 0)."""
+    """Tilt from the accelerometer (``--imu-model tilt``): estimate's warning, once, and
+    the session goes on to estimate every sample (exit 0)."""
     port = tmp_path / "ttyIMU"
     master = new_pty(port)
     lines = _deg_s_stream(300)
-    live = LiveProcess(["--port", str(port), "--method", "ekf", "--duration", "3"])
+    tilt = ["--imu-model", "tilt"]
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--duration", "3", *tilt])
     code = send_and_finish(live, master, lines)
     assert code == 0, live.err
-    said = _estimate_says(tmp_path, lines[:100], [])
+    said = _estimate_says(tmp_path, lines[:100], tilt)
     (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
     assert expected.startswith("continuum-mhe: warning: PORT: gyro magnitude is about 41 ")
     assert expected.endswith("these options do not use the gyro, so the estimate is unaffected")

@@ -306,10 +306,11 @@ def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFi
     text = "\n".join([lines[0], *(",".join(map(repr, r)) for r in rows)]) + "\n"
     degs = _write(tmp_path / "degs.csv", text)
     out = tmp_path / "est.csv"
-    for method in ("mhe", "ekf"):
+    # the direct model (the default with gyro columns) uses the gyros: refused
+    for method, model in (("mhe", ["--imu-model", "direct"]), ("ekf", [])):
         code = main(
-            ["estimate", str(degs), "-o", str(out), "--robot", "two-section",
-             "--imu-model", "direct", "--method", method]
+            ["estimate", str(degs), "-o", str(out), "--robot", "two-section", *model,
+             "--method", method]
         )  # fmt: skip
         err = capsys.readouterr().err
         assert code == 2
@@ -317,9 +318,11 @@ def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFi
         assert f"{degs}: IMU 1: gyro magnitude is about 27.4 (median)" in err
         assert "deg/s? give rad/s" in err
         assert not out.exists()
-    # tilt from the accelerometer (the default) does not use the gyro: a warning per IMU
+    # tilt from the accelerometer does not use the gyro: a warning per IMU
     with pytest.warns(UnitWarning) as seen:
-        code = main(["estimate", str(degs), "-o", str(out), "--robot", "two-section"])
+        code = main(
+            ["estimate", str(degs), "-o", str(out), "--robot", "two-section", "--imu-model", "tilt"]
+        )
     warned = [str(w.message) for w in seen if "deg/s?" in str(w.message)]
     assert code == 0 and out.exists()
     assert len(warned) == 2 and all(w.endswith("so the estimate is unaffected") for w in warned)

@@ -464,7 +464,8 @@ def test_second_start_chooses_alike_on_both_backends() -> None:
         mhe.reset()
         for k in range(86):
             est = mhe.step(Measurement(float(rec.t[k]), z[k]))
-            assert est.status == "ok"
+            # the burst's readings that were not down-weighted disagree with the estimate
+            assert est.status in ("ok", "inconsistent")
             states.append(est.state)
         assert mhe.second_start is not None and mhe.second_start.kept >= 1
     assert_allclose(states[:86], states[86:], rtol=0, atol=1e-6)

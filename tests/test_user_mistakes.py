@@ -109,8 +109,8 @@ def test_library_call_given_degrees_says_so() -> None:
     est.reset()  # radians, even the largest: accepted
     e = est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
     # pitch pi/2 (the gimbal lock): a quarter-circle bend, theta = pi/2, phi = +-pi, the
-    # tip at (r, 0, r) with the radius r = 2 L / pi
-    assert e.status == "ok"
+    # tip at (r, 0, r) with the radius r = 2 L / pi, on the bound theta_max = pi/2
+    assert e.status == "at-bound"
     x, y, z, theta, phi = e.output
     r = 2 * RobotSettings().length / math.pi
     np.testing.assert_allclose([x, y, z], [r, 0.0, r], rtol=0, atol=1e-9)

@@ -398,7 +398,10 @@ class Estimator(ABC):
             self.bound_samples += 1
         factor = 1.0
         if self._checks_start:  # the readings against the estimates (.consistency)
-            disagree = self._consistency.check(t, measurement.z, mask, state, cov)
+            # a reading the robust MHE rejected as an outlier is flagged as one, and
+            # says nothing about the estimate
+            judged = mask if state is None or not self._outlier() else np.zeros_like(mask)
+            disagree = self._consistency.check(t, measurement.z, judged, state, cov)
             if disagree and status in TRUSTED:
                 status = Status.INCONSISTENT
             factor = self._consistency.std_factor

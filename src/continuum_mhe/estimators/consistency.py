@@ -15,8 +15,11 @@ estimator weights with ``R^-1``), valid components only:
   residual); a window dragged by a wrong reading, or a shape the model cannot reach,
   leaves it large.
 
-Either beyond the ``SAMPLE_QUANTILE`` (99 %) chi-square quantile marks this sample
-``inconsistent``. Model error that no single reading shows is caught by the average:
+Either beyond the ``SAMPLE_QUANTILE`` (99.99 %) chi-square quantile, or beyond the
+``RUN_QUANTILE`` (99 %) at this reading and the one before, marks this sample
+``inconsistent`` (on data that agree with the model about 2 rows in 10,000). Model
+error that no single reading shows is caught by the average (of the readings not
+flagged on their own):
 an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
 (covariance matching: the factor by which the innovations exceed what ``R`` and ``P``
 predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 %)
@@ -47,7 +50,9 @@ FloatArray = NDArray[np.float64]
 #: Chi-square quantile beyond which the average of NIS / dof is inconsistent.
 QUANTILE = 0.999
 #: Chi-square quantile beyond which one reading is inconsistent with the estimate.
-SAMPLE_QUANTILE = 0.99
+SAMPLE_QUANTILE = 0.9999
+#: Chi-square quantile beyond which two readings in a row are inconsistent.
+RUN_QUANTILE = 0.99
 #: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
 MEMORY = 20
 
@@ -61,6 +66,7 @@ class ConsistencyCheck:
         self._r_inv = 1.0 / np.diag(self._R)
         nz = formulation.nz
         self._limit = [math.inf] + [float(chi2.ppf(SAMPLE_QUANTILE, k)) for k in range(1, nz + 1)]
+        self._run_limit = [math.inf] + [float(chi2.ppf(RUN_QUANTILE, k)) for k in range(1, nz + 1)]
         n_avg = 2 * MEMORY - 1  # the effective samples of the exponential average
         self._avg_limit = [math.inf] + [
             float(chi2.ppf(QUANTILE, k * n_avg)) / (k * n_avg) for k in range(1, nz + 1)
@@ -73,6 +79,7 @@ class ConsistencyCheck:
         #: exponentially weighted mean of NIS / dof (1 where nothing was seen yet)
         self.noise_scale = 1.0
         self._dof = 0
+        self._high = False  # the previous reading was beyond RUN_QUANTILE
 
     def check(
         self,
@@ -85,7 +92,7 @@ class ConsistencyCheck:
         """Whether this sample's estimate disagrees with its readings (status
         ``inconsistent``); remembers the estimate for the next sample. A sample
         without a valid reading, an estimate or a covariance is not judged (False)."""
-        prev, fit_bad, nis_bad = self._prev, False, False
+        prev, fit, nis = self._prev, 0.0, 0.0
         valid = bool(mask.any())
         if state is None or cov is None:
             self._prev = None
@@ -108,17 +115,20 @@ class ConsistencyCheck:
                 rp = r_pred.ravel()[rows]
                 S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
                 nis = float(rp @ np.linalg.solve(S, rp))
-                nis_bad = nis > self._limit[dof]
                 # covariance matching: the average factor of the innovations over their
-                # predicted size (a wrong reading counts at most the limit)
-                value = min(nis, self._limit[dof]) / dof
-                self.noise_scale += (value - self.noise_scale) / MEMORY
-                self._dof = dof
+                # predicted size; a reading flagged on its own (an outlier) stays out of it
+                if nis <= self._limit[dof]:
+                    self.noise_scale += (nis / dof - self.noise_scale) / MEMORY
+                    self._dof = dof
             r = r[rows]
-            fit_bad = float(np.sum(r * r * self._r_inv[rows])) > self._limit[dof]
+            fit = float(np.sum(r * r * self._r_inv[rows]))
         self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), z.copy())
+        if not valid:
+            return False
+        worst = max(fit, nis)
+        high, self._high = self._high, worst > self._run_limit[dof]
         avg_bad = self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]
-        return valid and (fit_bad or nis_bad or avg_bad)
+        return worst > self._limit[dof] or (high and self._high) or avg_bad
 
     @cached_property
     def _judge(self) -> ca.Function:
