@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from continuum_mhe.live.session import GARBAGE_STOP_S, LiveSession, LiveSettings
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.io.csv_files import InputError, read_measurements
 from continuum_mhe.live.run import run_live
+from continuum_mhe.live.session import GARBAGE_STOP_S, LiveSession, LiveSettings
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import NoiseSettings
