@@ -72,7 +72,6 @@ def fast_windows(
         windows.append((copy, X0.copy(), None if lam0 is None else lam0.copy(), res))
         return res
 
-    est._steps = None  # the Python path, whose windows can be kept
     mhe_module.solve_window = keep  # type: ignore[assignment]
     try:
         est.run(t, z)

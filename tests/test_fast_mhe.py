@@ -18,7 +18,6 @@ from scipy.optimize import lsq_linear
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators import fast as fm
-from continuum_mhe.estimators.fast import linalg
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.mhe import (
     BackendFallbackWarning,
@@ -376,61 +375,30 @@ def test_cost_matches_the_ipopt_objective() -> None:
 
 
 def test_arrival_step_is_the_ekf_step() -> None:
+    """The core's arrival-prior step (update with the leaving sample, then predict)
+    against the CasADi EKF's update and prediction."""
     for name in ("bend", "paper"):
         f = make_formulation(name)
-        model = fm.build_window_model(f, 4)
+        node = fm.NodeEvaluator(fm.build_window_model(f, 4))
         x = f.initial_state(np.array([0.3, -0.2]))
         P = f.initial_cov()
         u, dt = np.full(f.nu, 0.1), 0.05
         z = np.array([0.31, -0.19])
-        _, _, H, r = model.evaluate_node(x, u, dt, z)
-        xu, Pu = fm.arrival_update(x, P, r, H, f.meas_cov())
-        xn, F, _, _ = model.evaluate_node(xu, u, dt, z)
         Q = np.asarray(f.functions.predict(x, u, dt)[2], float).reshape(f.nx, f.nx)
-        got, got_inv = fm.arrival_predict(Pu, F, Q)
+        xn, got, got_inv = node.arrival_step(x, P, u, dt, z, np.ones(2), f.meas_cov(), Q)
         np.testing.assert_allclose(got @ got_inv, np.eye(f.nx), atol=1e-9)
         x_ref, ref = ekf_update(f, x, P, z, f.meas_cov())
-        np.testing.assert_allclose(xu, x_ref, rtol=1e-12, atol=1e-15)
         xn_ref, ref = ekf_predict(f.functions, x_ref, ref, u, dt)
         np.testing.assert_allclose(xn, xn_ref, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
-
-
-@pytest.mark.parametrize("nx", [3, 4, 8, 12])  # 4, 8 and 12 run their own unrolled copies
-def test_block_tridiagonal_solve_matches_dense(nx: int) -> None:
-    rng = np.random.default_rng(0)
-    n = 7
-    A = rng.normal(size=(n * nx + 5, n * nx)) * (np.abs(np.subtract.outer(
-        np.arange(n * nx + 5) // nx, np.arange(n * nx) // nx)) <= 1)  # fmt: skip
-    H = A.T @ A + np.eye(n * nx)
-    H[np.abs(np.subtract.outer(np.arange(n * nx) // nx, np.arange(n * nx) // nx)) > 1] = 0
-    H += n * nx * np.eye(n * nx)  # diagonally dominant: SPD after the band cut
-    D = np.array([H[i * nx : (i + 1) * nx, i * nx : (i + 1) * nx] for i in range(n)])
-    E = np.array([H[i * nx : (i + 1) * nx, (i + 1) * nx : (i + 2) * nx] for i in range(n - 1)])
-    b = rng.normal(size=(n, nx))
-    y = np.empty_like(b)
-    assert _core.btd_solve(D, E, b, y)
-    np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-10)
-    Hb = np.empty_like(b)
-    _core.btd_matvec(D, E, b, Hb)
-    np.testing.assert_allclose(Hb.ravel(), H @ b.ravel(), rtol=1e-13)
-    D[2] = -np.eye(nx)
-    assert not _core.btd_solve(D, E, b, y)
-
 
 def test_small_dense_kernels_match_numpy() -> None:
     """The written-out products, Cholesky and inverse against numpy, and the EKF update
     and prediction on the LAPACK path where the matrix is not positive definite."""
     rng = np.random.default_rng(3)
     A, B = rng.normal(size=(3, 5)), rng.normal(size=(5, 4))
-    np.testing.assert_allclose(linalg.mul(A, B), A @ B, rtol=1e-13)
-    np.testing.assert_allclose(linalg.mul_t(A, B.T), A @ B, rtol=1e-13)
     G = rng.normal(size=(5, 5))
     S = G @ G.T + np.eye(5)
-    L = linalg.cholesky(S)
-    np.testing.assert_allclose(L, np.linalg.cholesky(S), rtol=1e-12)
-    np.testing.assert_allclose(linalg.inverse_gram(L), np.linalg.inv(S), rtol=1e-10)
-    assert linalg.cholesky(-S).shape == (0, 0)
     out, Lc = np.empty((3, 4)), np.empty((5, 5))
     _core.dense_mul(A, B, out)
     np.testing.assert_allclose(out, A @ B, rtol=1e-13)
@@ -443,16 +411,11 @@ def test_small_dense_kernels_match_numpy() -> None:
     nx, nz = 4, 2
     P, H = np.diag([1.0, 2.0, 3.0, 4.0]), rng.normal(size=(nz, nx))
     R, r, x = -10.0 * np.eye(nz), rng.normal(size=nz), rng.normal(size=nx)  # S indefinite
-    xu, Pu = fm.arrival_update(x, P, r, H, R)
+    xu, Pu = _core.ekf_update(x, P, r, H, R)
     K = np.linalg.solve(H @ P @ H.T + R, H @ P).T
     ikh = np.eye(nx) - K @ H
     np.testing.assert_allclose(xu, x + K @ r, rtol=1e-10)
     np.testing.assert_allclose(Pu, ikh @ P @ ikh.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
-    F, Q = rng.normal(size=(nx, nx)), -100.0 * np.eye(nx)  # F P F^T + Q not PD
-    Pn, Pinv = fm.arrival_predict(P, F, Q)
-    ref = F @ P @ F.T + Q
-    np.testing.assert_allclose(Pn, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(Pinv, np.linalg.inv(Pn), rtol=1e-10)
 
 
 def test_householder_reflection_and_projection() -> None:

@@ -427,7 +427,7 @@ def environment(formulation: Formulation) -> dict[str, Any]:
         },
         "versions": {
             "python": platform.python_version(),
-            **{k: version(k) for k in ("continuum-mhe", "numpy", "casadi", "numba", "do-mpc")},
+            **{k: version(k) for k in ("continuum-mhe", "numpy", "casadi", "nanobind", "do-mpc")},
         },
     }
 

@@ -59,61 +59,39 @@ def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray
 def run_mhe_kernel(
     formulation: Formulation, rec: Recording, horizon: int
 ) -> tuple[FloatArray, FloatArray, int]:
-    """The fast MHE (quadratic loss, default :class:`FastOptions`) as its bare compiled
-    kernel: per sample the compiled call of
-    :mod:`continuum_mhe.estimators.fast.step` that slides the arrival prior, shifts
-    the window, forms the initial guess, solves the window and, once certified, keeps
-    the answer for the next warm start and computes the covariance, the outputs and
-    their standard deviations (:func:`~continuum_mhe.estimators.fast.step.advance_finish`),
-    timed alone; the sensor mask,
-    ``u`` and ``Q(dt)`` are computed outside the timed part, as for
-    :func:`run_ekf_kernel`. Every sample is timed (the first too). A window the SQP
-    does not certify is counted (the estimator would hand it to IPOPT); its output is
-    the kernel's. Returns ``(output (n, ny), seconds per sample (n,), uncertified
-    windows)``; the outputs are the fast MHE's."""
-    from continuum_mhe.estimators.fast import FastOptions, NodeEvaluator, build_window_model
-    from continuum_mhe.estimators.fast.qp import CONVERGED
-    from continuum_mhe.estimators.fast.sqp import quadratic_rate
-    from continuum_mhe.estimators.fast.step import StepBuffers
-    from continuum_mhe.estimators.kalman import ProcessNoiseCache
+    """The fast MHE (quadratic loss, default :class:`FastOptions`) with only its window
+    solve timed: per sample the compiled core's SQP on the window the estimator forms
+    (warm-started from the previous answer as the estimator does), without the
+    estimator's bookkeeping, covariance and outputs around it. A window the SQP does not
+    certify is counted (the estimator hands it to IPOPT, whose time is not counted).
+    Returns ``(output (n, ny), seconds per sample (n,), uncertified windows)``; the
+    outputs are the fast MHE's."""
+    from continuum_mhe.estimators.fast import FastResult
+    from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
+    from continuum_mhe.results import Measurement
+    from continuum_mhe.settings import MHESettings
 
-    f = formulation
-    model = build_window_model(f, horizon)
-    steps = StepBuffers(model, NodeEvaluator(model))
-    noise = ProcessNoiseCache(f)
-    R = f.meas_cov()
-    o = FastOptions()
-    options = (True, o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
-               quadratic_rate(model, o))  # fmt: skip
+    est = MovingHorizonEstimator(formulation, MHESettings(horizon=horizon))
+    est.reset()
     n = len(rec.t)
-    out = np.full((n, f.ny), np.nan)
+    out = np.full((n, formulation.ny), np.nan)
     sec = np.zeros(n)
-    first = next(i for i in range(n) if f.measurement_mask(rec.z[i]).any())
-    xbar = np.array(f.project(f.initial_state(rec.z[first])), dtype=np.float64)
-    P = np.array(f.initial_cov(), dtype=np.float64)
-    prior = (xbar, P, np.asarray(np.linalg.inv(P), dtype=np.float64))
-    X = np.empty((horizon, f.nx))
-    lam = np.zeros_like(steps.lam)
-    uncertified = 0
-    z_prev: FloatArray | None = None
-    for i in range(first, n):
-        z = rec.z[i]
-        mask = f.measurement_mask(z)
-        k = int(steps.k[0])
-        dt = float(rec.t[i] - rec.t[i - 1]) if k else 1.0
-        u = f.inputs(z_prev, z, dt) if k and f.nu else steps.u0
-        Q, Qinv = noise(dt) if k else (steps.zeros, steps.zeros)
-        new = (float(rec.t[i]), z, mask, u, dt, Q, Qinv)
+    solve_fast = est._solve_fast
+    spent: list[float] = []
+
+    def timed(problem: WindowProblem, X0: FloatArray, lam0: FloatArray | None) -> FastResult:
         t0 = time.perf_counter()
-        (outcome, _, _, _, cur), done = steps.advance_finish(
-            prior, new, R, X if k else None, lam, options, X
-        )
-        if done is None:  # not certified: the kernel's own last iterate
-            X[:] = steps.workspace.Xb[cur]
-            done = steps.finish(X, xbar)
-        sec[i] = time.perf_counter() - t0
-        out[i] = done[0]
-        uncertified += outcome != CONVERGED
-        if mask.any():
-            z_prev = z
+        result = solve_fast(problem, X0, lam0)
+        spent.append(time.perf_counter() - t0)
+        return result
+
+    est._solve_fast = timed  # type: ignore[method-assign]
+    uncertified = 0
+    for i in range(n):
+        spent.clear()
+        e = est.step(Measurement(float(rec.t[i]), rec.z[i]))
+        sec[i] = sum(spent)
+        if e.output is not None:
+            out[i] = e.output
+        uncertified += e.status == "fallback-ipopt"
     return out, sec, uncertified

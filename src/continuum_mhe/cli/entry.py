@@ -1,7 +1,7 @@
 """The ``continuum-mhe`` executable's entry point, light on purpose.
 
 ``continuum-mhe --help``, ``--version`` and a bare ``continuum-mhe`` are answered here
-from a table of the commands, without importing numpy, CasADi, numba or the estimators
+from a table of the commands, without importing numpy, CasADi or the estimators
 (the full command line, :mod:`continuum_mhe.cli.app`, takes seconds to import on a small
 machine); everything else goes to :func:`continuum_mhe.cli.app.main`. Both parsers list
 the commands of :data:`continuum_mhe.cli.program.COMMANDS`.

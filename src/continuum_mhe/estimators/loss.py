@@ -16,9 +16,9 @@ block's weight in iteratively reweighted least squares (1 for an inlier, about
 ``c / sqrt(s)`` for Huber, ``c^2 / s`` for Cauchy and ``exp(-s / c^2)`` for Welsch far
 out).
 
-:func:`rho_sym` is the CasADi expression (IPOPT's cost), :func:`rho_derivatives` the
-numba kernel (the fast backend and the weights), :func:`block_weights` the weights of
-one node's blocks for a residual vector.
+:func:`rho_sym` is the CasADi expression (IPOPT's cost), :func:`rho_derivatives` its
+value and derivatives at one point (the compiled core has the same), :func:`block_weights`
+the weights of one node's blocks for a residual vector.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 
 import casadi as ca
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -34,7 +33,7 @@ from continuum_mhe.model.descriptions import MeasurementBlock
 
 FloatArray = NDArray[np.float64]
 
-#: Integer codes of the losses in the numba kernels.
+#: Integer codes of the losses in the compiled core.
 LOSS_CODES: dict[str, int] = {"l2": 0, "huber": 1, "cauchy": 2, "welsch": 3}
 
 #: A block is flagged as an outlier when its weight ``rho'(s)`` falls below this:
@@ -58,7 +57,6 @@ def rho_sym(loss: str, scale: float, s: ca.SX) -> ca.SX:
     raise ValueError(f"unknown loss {loss!r}")
 
 
-@numba.njit(cache=True)
 def rho_derivatives(code: int, scale: float, s: float) -> tuple[float, float, float]:
     """``(rho(s), rho'(s), rho''(s))`` of loss ``code`` (:data:`LOSS_CODES`)."""
     if code == 1:
@@ -94,7 +92,6 @@ def block_weights(
     return _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
 
 
-@numba.njit(cache=True)
 def _block_weights(code, scale, r, rinv, blocks):
     out = np.ones(blocks.shape[0])
     for k in range(blocks.shape[0]):

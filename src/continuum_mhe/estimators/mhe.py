@@ -50,6 +50,7 @@ from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
+    FastResult,
     NodeEvaluator,
     WindowModel,
     Workspace,
@@ -59,9 +60,6 @@ from continuum_mhe.estimators.fast import (
 )
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
-from continuum_mhe.estimators.fast.qp import CONVERGED
-from continuum_mhe.estimators.fast.sqp import quadratic_rate
-from continuum_mhe.estimators.fast.step import NOT_SOLVED, StepBuffers, StepOptions
 from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
@@ -109,10 +107,6 @@ class MovingHorizonEstimator(Estimator):
         #: why the requested backend is not the one that runs (None when it is)
         self.backend_note: str | None = None
         self.fast_options = fast_options or FastOptions()
-        #: ``(fast_options, the step options they give)``, see :meth:`_step_options`
-        self._options_of: tuple[FastOptions, tuple[int, float, float, int, bool, bool]] | None = (
-            None
-        )
         s = self.settings
         self._fast: WindowModel | None = None
         if s.solver == "fast":
@@ -127,11 +121,6 @@ class MovingHorizonEstimator(Estimator):
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
         self._node = None if self._fast is None else NodeEvaluator(self._fast)
         self._workspace = None if self._fast is None else Workspace(self._fast)
-        #: the fast backend's compiled step (its own window buffers; see :mod:`.fast.step`)
-        self._steps = (
-            None if self._fast is None or self._node is None
-            else StepBuffers(self._fast, self._node)
-        )  # fmt: skip
         self._nlp_built: Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
@@ -193,31 +182,21 @@ class MovingHorizonEstimator(Estimator):
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
         # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
         self._k = 0  # samples in the window
-        if self._steps is not None:  # the compiled step's buffers (the same layout)
-            s = self._steps
-            s.reset()
-            self._tw, self._zw, self._zmask, self._dt, self._uw = s.tw, s.z, s.m, s.dt, s.u
-            self._qw, self._qinvw, self._arrival = s.qw, s.qinvw, s.arrival
-        else:
-            self._tw = np.zeros(n)
-            self._zw = np.zeros((n, f.nz))  # 0 where masked
-            self._zmask = np.zeros((n, f.nz))
-            self._dt = np.ones(n - 1)  # 1 s on inactive stages
-            self._uw = np.zeros((n - 1, f.nu))
-            self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
-            self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
-            self._arrival = np.zeros((n, nx, nx))  # see window_problem
-        # (state, outputs, output std) of the last estimate, from the compiled step
-        self._outputs_of: tuple[FloatArray, FloatArray, FloatArray | None] | None = None
+        self._tw = np.zeros(n)
+        self._zw = np.zeros((n, f.nz))  # 0 where masked
+        self._zmask = np.zeros((n, f.nz))
+        self._dt = np.ones(n - 1)  # 1 s on inactive stages
+        self._uw = np.zeros((n - 1, f.nu))
+        self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
+        self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
+        self._arrival = np.zeros((n, nx, nx))  # see window_problem
         self._z_prev_valid: FloatArray | None = None
         self._xbar: FloatArray | None = None
         self._P: FloatArray | None = None
         self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
         self._X: FloatArray | None = None  # (N, nx) previous solution
         #: the fast SQP's last evaluated iterate when its certified answer was kept as
-        #: ``_X``: the next warm start (see :func:`~.fast.step.advance`). Set by the
-        #: Python path and the compiled step's two-call path; the fused call keeps it in
-        #: the step's own buffers (``StepBuffers.last``)
+        #: ``_X``: the next warm start
         self._X_last: FloatArray | None = None
         self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
         #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
@@ -338,17 +317,11 @@ class MovingHorizonEstimator(Estimator):
 
     # --- solve ----------------------------------------------------------------
     def _output(self, state: FloatArray) -> FloatArray:
-        kept = self._outputs_of
-        if kept is not None and kept[0] is state:  # computed with the covariance
-            return kept[1]
         if self._node is not None:
             return self._node.output(state)
         return self.formulation.output(state)
 
     def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
-        kept = self._outputs_of
-        if kept is not None and kept[0] is state and kept[2] is not None:
-            return kept[2]
         if self._node is not None:
             return self._node.output_std(state, cov)
         return self.formulation.output_std(state, cov)
@@ -363,8 +336,6 @@ class MovingHorizonEstimator(Estimator):
             self._xbar = np.array(f.project(f.initial_state(m.z)), dtype=np.float64)
             self._P = np.array(f.initial_cov(), dtype=np.float64)
             self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
-        if self._steps is not None:
-            return self._fast_step(m, mask, valid)
         self._push(m, mask)
         X0 = self._initial_guess()
         self._X_last = None
@@ -400,107 +371,6 @@ class MovingHorizonEstimator(Estimator):
             w_new, self._w_new = self._w_new, None  # the newest node's, if computed
             self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
         return Status.DROPOUT if status == Status.OK and not valid else status
-
-    def _fast_step(
-        self, m: Measurement, mask: FloatArray, valid: bool
-    ) -> tuple[FloatArray | None, FloatArray | None, Status]:
-        """:meth:`_step` on the fast backend: the window's bookkeeping and the SQP in one
-        compiled call, the covariance and the outputs in the same call when the answer
-        is final (certified, no branch check or second start), else in another
-        (:mod:`.fast.step`); the same equations as ``_push``, ``_initial_guess``, ``_solve`` and
-        :meth:`covariance`."""
-        f, s, n = self.formulation, self._steps, self.settings.horizon
-        assert s is not None and self._xbar is not None and self._fast is not None
-        assert self._P is not None and self._Pinv is not None
-        k = self._k
-        if k:
-            dt = m.t - float(s.tw[-1])
-            u = f.inputs(self._z_prev_valid, m.z, dt) if f.nu else s.u0
-            Q, Qinv = self._process_weight(dt)
-        else:
-            dt, u, Q, Qinv = 1.0, s.u0, s.zeros, s.zeros
-        R = self._leaving_R() if k == n else self._R
-        solve = not (self.settings.paper_start and k + 1 < n)
-        xbar = self._xbar  # the window's prior (the branch check may re-anchor the next)
-        args = (
-            (xbar, self._P, self._Pinv), (m.t, m.z, mask, u, dt, Q, Qinv), R,
-            self._X if self._X_last is None else self._X_last, self._lam,
-            self._step_options(solve),
-        )  # fmt: skip
-        # certified is final, unless a robust answer rejects the newest sample (a second
-        # start may then replace it; the fused call says so and does not finish)
-        fused = self.branch is None
-        answer = np.empty((n, f.nx)) if fused else s.X0  # the fused call writes it
-        finished = None
-        if fused:
-            (outcome, it, _, _, cur), finished = s.advance_finish(
-                *args, answer, self.flags_outliers
-            )
-        else:
-            outcome, it, _, _, cur = s.advance(*args)
-        if finished is None:
-            # the answer may still change, and finish() then evaluates in these buffers:
-            # the next window starts from _X_last (below) without shifted outputs
-            s.last[0] = -1
-        self._X_last = None
-        self._k = int(s.k[0])
-        if valid:
-            self._z_prev_valid = m.z
-        if outcome == NOT_SOLVED:
-            self._X = s.X0.copy()
-            return None, None, Status.NO_ESTIMATE
-        self.sqp_iterations = int(it)
-        if finished is not None:  # certified, outputs and covariance in the same call
-            self._lam = s.lam if self._lam is None else self._lam
-            y, cov, std = finished
-            weights = s.weights if self.flags_outliers else None
-            status = self._keep(answer, Status.OK, valid, weights)
-            if self.second_start is not None:  # as _try_second_start when nothing is tried
-                if self._k < n:
-                    self.second_start.clear()
-                else:
-                    self.second_start.remember(answer.copy())
-            state = answer[-1].copy()
-            self._outputs_of = (state, y, std)  # the outputs of this very state object
-            return state, cov, status
-        problem: WindowProblem | None = None
-        solved: FloatArray | None = None
-        last_iterate = None
-        if outcome == CONVERGED:
-            X: FloatArray = s.workspace.Xb[cur].copy()
-            solved, last_iterate = X, s.workspace.Xb[1 - cur].copy()
-            self._lam = s.lam if self._lam is None else self._lam
-            status = Status.OK
-        else:
-            self._lam = None
-            problem = self.window_problem(copy=False)
-            X, status = self._solve_ipopt(problem, s.X0.copy())
-            status = Status.FALLBACK_IPOPT if status == Status.OK else status
-        if self.branch is not None:
-            X, status = self._check_branch(problem or self.window_problem(copy=False), X, status)
-        if self.second_start is not None:
-            problem = problem or self.window_problem(copy=False)
-            X, status = self._try_second_start(problem, X, status)
-        status = self._keep(X, status, valid)
-        if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
-            self._X_last = last_iterate
-        state = X[-1].copy()
-        if status == Status.SOLVER_FAILED:
-            return state, None, status
-        y, cov, std = s.finish(X, xbar, answer=cur if X is solved else -1)
-        self._outputs_of = (state, y, std)
-        return state, cov, status
-
-    def _step_options(self, solve: bool) -> StepOptions:
-        """The compiled step's options from :attr:`fast_options` (formed again only when
-        that object is replaced)."""
-        o, kept = self.fast_options, self._options_of
-        if kept is None or kept[0] is not o:
-            assert self._fast is not None
-            rest = (o.max_iter, o.step_tol, o.err_tol, o.max_qp_iter, o.newton,
-                    quadratic_rate(self._fast, o))  # fmt: skip
-            kept = self._options_of = (o, rest)
-        return (solve, *kept[1])
 
     def covariance(
         self,
@@ -560,7 +430,7 @@ class MovingHorizonEstimator(Estimator):
             lam0 = np.empty_like(self._lam)
             lam0[:-1] = self._lam[1:]
             lam0[-1] = 0.0
-        res = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
+        res = self._solve_fast(problem, X0, lam0)
         self.sqp_iterations = res.iterations
         self._last_hessian, self._last_iterate = res.hessian, res.X_last
         if res.converged:
@@ -569,6 +439,13 @@ class MovingHorizonEstimator(Estimator):
         self._lam = None
         X, status = self._solve_ipopt(problem, X0)
         return X, Status.FALLBACK_IPOPT if status == Status.OK else status
+
+    def _solve_fast(
+        self, problem: WindowProblem, X0: FloatArray, lam0: FloatArray | None
+    ) -> FastResult:
+        """The compiled core's SQP on ``problem`` from ``X0`` (the window solve alone)."""
+        assert self._fast is not None
+        return solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
 
     def _try_second_start(
         self, problem: WindowProblem, X: FloatArray, status: Status

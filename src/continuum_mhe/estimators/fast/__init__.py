@@ -42,15 +42,18 @@ Modules (one responsibility each):
   with block-tridiagonal Cholesky, SQP; ``csrc/sqp.cpp``, ``csrc/qp.hpp``,
   ``csrc/btd.hpp``).
 * :mod:`~continuum_mhe.estimators.fast.qp`: the solver outcomes.
-* :mod:`~continuum_mhe.estimators.fast.linalg`: the small dense and block kernels of
-  the arrival prior and the covariance.
-* :mod:`~continuum_mhe.estimators.fast.arrival`: the EKF step of the arrival prior.
-* :mod:`~continuum_mhe.estimators.fast.memory`: moving a window's rows (one ``memmove``).
+* :mod:`~continuum_mhe.estimators.fast.covariance`: the covariance of the estimate (the
+  core's ``last_block_covariance``).
+* :mod:`~continuum_mhe.estimators.fast.tape`: CasADi functions as instruction lists for
+  the core.
+
+The arrival prior's EKF step, the compiled EKF's step and the outputs with their
+standard deviations are the core's :class:`~continuum_mhe._core.NodeModel`
+(``csrc/filter.cpp``), used through :class:`NodeEvaluator`.
 """
 
 from __future__ import annotations
 
-from continuum_mhe.estimators.fast.arrival import arrival_predict, arrival_update
 from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction
 from continuum_mhe.estimators.fast.model import (
     Feasible,
@@ -92,8 +95,6 @@ __all__ = [
     "QP_FAILED",
     "WindowModel",
     "Workspace",
-    "arrival_predict",
-    "arrival_update",
     "build_window_model",
     "feasible_set",
     "solve_window",

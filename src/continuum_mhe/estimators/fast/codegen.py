@@ -152,6 +152,14 @@ def window_c_functions(formulation: Formulation, horizon: int) -> tuple[Any, Any
     return window, c_function(_core.TailFunction(meas, proc))
 
 
+def address(fn: Any) -> int:
+    """The address of a ctypes function (a :data:`CFunction`)."""
+    value = ctypes.cast(fn, ctypes.c_void_p).value
+    if not value:
+        raise ValueError("a model function without an address")
+    return int(value)
+
+
 def failure_message(fn: Any) -> str:
     """The message of a failed evaluation of ``fn`` (a :data:`CFunction`)."""
     return "model evaluation failed"

@@ -7,7 +7,7 @@ linearised model (a Laplace approximation). Its inverse's last block is the
 covariance of the estimate. Active bounds are conditioned on: a coordinate on its box
 bound, and the normal of an active ball, carry no variance (the reduced Hessian on
 the active constraints' null space, the same elimination as the QP's
-:func:`~continuum_mhe.estimators.fast.qp._eqp`).
+equality-constrained step, ``csrc/qp.hpp``).
 
 The last block needs no full inverse: with ``H = L L^T`` block-bidiagonal, ``L^-1`` is
 lower triangular and its last block column is ``(0, ..., L_n^-1)``, so

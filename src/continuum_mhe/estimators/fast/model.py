@@ -2,9 +2,10 @@
 
 :func:`build_window_model` turns a formulation and a horizon into a :class:`WindowModel`:
 the node feasible set read from ``constraint_sym`` (:func:`feasible_set`), and the
-window, node and output functions compiled to C (or CasADi's VM,
-:mod:`continuum_mhe.estimators.fast.codegen`). :class:`NodeEvaluator` evaluates one node
-and runs the arrival prior's EKF step (:mod:`continuum_mhe.estimators.fast.arrival`).
+window, node and output functions evaluated by the compiled core
+(:mod:`continuum_mhe.estimators.fast.codegen`). :class:`NodeEvaluator` evaluates one node
+and runs the EKF step of the arrival prior and of the compiled EKF (the core's
+``NodeModel``).
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
-from continuum_mhe.estimators.fast.ccall import address
 from continuum_mhe.estimators.fast.codegen import (
+    address,
     c_function,
     node_function,
     output_function,
@@ -98,7 +99,7 @@ def feasible_set(formulation: Formulation) -> Feasible:
 
 
 class LossKernel(NamedTuple):
-    """The measurement loss as the numba kernels take it.
+    """The measurement loss as the compiled core takes it.
 
     Attributes:
         blocks: (nblocks, 2) start and size of each measurement block.
