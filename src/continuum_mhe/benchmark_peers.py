@@ -445,6 +445,15 @@ class AcadosPeer:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
+def acados_version(acados: ModuleType) -> str | None:
+    """The version of the ``comma-deps-acados`` that holds ``acados`` (from its
+    ``.dist-info`` folder beside the package); None if it names none."""
+    site = Path(str(acados.__file__)).parent.parent
+    for info in sorted(site.glob("comma_deps_acados-*.dist-info")):
+        return info.name[len("comma_deps_acados-") : -len(".dist-info")]
+    return None
+
+
 def make_peer(
     name: str, formulation: Formulation, horizon: int, acados: ModuleType | None = None
 ) -> WindowSolver:
