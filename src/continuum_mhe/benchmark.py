@@ -536,7 +536,7 @@ def _runs(
     from continuum_mhe.benchmark_peers import make_peer, record_windows, run_peer
 
     runs = _cheap_runs(f, rec, n, methods)
-    ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"))
+    ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"), first_run=None)
     runs["ipopt"] = lambda: (*_run_timed(ipopt, rec)[:2], 0)
     if "do-mpc" in methods:
         runs["do-mpc"] = lambda: (*_run_dompc(f, n, rec), 0)
