@@ -1,14 +1,15 @@
 """The timing harness of ``continuum-mhe benchmark``: the fast MHE beside IPOPT, do-mpc's
-MHE and three EKFs, and the bare compiled kernels of the fast MHE and the EKF
-(:mod:`continuum_mhe.benchmark.kernels`).
+MHE, the strongest peers on the same windows (acados, CasADi's fatrop and sqpmethod with
+HPIPM: :mod:`continuum_mhe.benchmark.peers`) and three EKFs, and the bare compiled
+kernels of the fast MHE and the EKF (:mod:`continuum_mhe.benchmark.kernels`).
 
 Every method runs in this one process on the same simulated recording (bend
 formulation, ``paper3d`` scenario, 2 degrees of noise). Per horizon ``N`` it reports
-the median and 99th-percentile wall time per sample once the window is full (the
-methods that take microseconds, the fast MHE, its bare kernel and the EKFs, run
-``--repeats`` rounds in turn, and each sample's time is its median over the rounds, so
-that a change of the shared machine's load affects them alike), the ratio
-of each median to IPOPT's, to the compiled EKF's and to the bare compiled EKF kernel's
+the median and 99th-percentile wall time per sample once the window is full (every
+method runs once to warm up, then ``--repeats`` rounds of all of them in turn, and each
+sample's time is its median over the rounds, so that a change of the shared machine's
+load affects them alike), the ratio of each median to the fast MHE's, to IPOPT's, to
+the compiled EKF's and to the bare compiled EKF kernel's
 (:data:`METHOD_NOTES` says what each method times), and the largest difference of the
 outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from sample
 ``N`` on. Each MHE measurement loss (``l2``, ``huber``, ``cauchy``) is then timed
@@ -48,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
+from continuum_mhe.benchmark.peers import PEER_NOTES, PEERS
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
@@ -65,7 +67,7 @@ from continuum_mhe.simulation.scenarios import (
     simulate_robot,
 )
 
-METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel")
+METHODS = ("fast", "mhe-kernel", "ipopt", "do-mpc", *PEERS, "ekf", "ekf-compiled", "ekf-kernel")
 
 #: What each method's time covers.
 METHOD_NOTES: dict[str, str] = {
@@ -77,6 +79,7 @@ METHOD_NOTES: dict[str, str] = {
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
     "make_step plus our EKF arrival step; its first N estimates differ (no growing "
     "window)",
+    **PEER_NOTES,
     "ekf": "EKF through three CasADi calls per step: the whole estimator step",
     "ekf-compiled": "the same EKF as one compiled call (the EKF make_estimator "
     "returns): the whole estimator step",
@@ -99,7 +102,11 @@ class Timing:
             wrapped) over the recording.
         max_diff_from_n: the same from sample ``N`` on (do-mpc has no growing window,
             so its first ``N`` estimates differ).
-        fallbacks: samples the fast backend handed to IPOPT.
+        fallbacks: samples the fast backend handed to IPOPT; for a peer
+            (:data:`~continuum_mhe.benchmark.peers.PEERS`), windows it did not converge on.
+        solver_median_us: the median of the time the method reports for its own solver
+            per sample (acados' ``time_tot``, without the Python interface), us; nan
+            for the others.
     """
 
     method: str
@@ -109,6 +116,7 @@ class Timing:
     max_diff_vs_ipopt: float
     max_diff_from_n: float
     fallbacks: int
+    solver_median_us: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -442,10 +450,12 @@ def environment_line(report: dict[str, Any]) -> str:
     )
 
 
-#: Rounds of the fast MHE, its kernel and the EKFs per horizon (:func:`_interleaved`).
+#: Rounds of every method per horizon (:func:`_interleaved`).
 REPEATS = 3
 
-Run = Callable[[], tuple[FloatArray, FloatArray, int]]
+#: A run of the recording: ``(output, seconds per sample, fallbacks)``, and for a peer
+#: the seconds its solver reports per sample after them.
+Run = Callable[[], tuple[Any, ...]]
 
 
 def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]) -> dict[str, Run]:
@@ -476,19 +486,24 @@ def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]
 
 def _interleaved(
     runs: dict[str, Run], repeats: int
-) -> dict[str, tuple[FloatArray, FloatArray, int]]:
+) -> dict[str, tuple[FloatArray, FloatArray, int, FloatArray | None]]:
     """Each run once (compiling, warming caches), then ``repeats`` rounds of all of them
-    in turn, so that a change of the shared machine's load affects them alike. Returns
-    per method the last round's outputs and fallbacks and each sample's median time
-    over the rounds."""
+    in turn (round-robin, in the order of ``runs``), so that a change of the shared
+    machine's load affects them alike. Returns per method the last round's outputs and
+    fallbacks, each sample's median time over the rounds, and the median of the
+    solver's own times where the run reports them (else None)."""
     for run in runs.values():
         run()
-    got: dict[str, list[tuple[FloatArray, FloatArray, int]]] = {name: [] for name in runs}
+    got: dict[str, list[tuple[Any, ...]]] = {name: [] for name in runs}
     for _ in range(repeats):
         for name, run in runs.items():
             got[name].append(run())
+
+    def median(r: list[tuple[Any, ...]], i: int) -> FloatArray:
+        return np.median(np.array([x[i] for x in r]), axis=0)
+
     return {
-        name: (r[-1][0], np.median(np.array([x[1] for x in r]), axis=0), r[-1][2])
+        name: (r[-1][0], median(r, 1), r[-1][2], median(r, 3) if len(r[-1]) > 3 else None)
         for name, r in got.items()
     }
 
@@ -502,6 +517,37 @@ def _ratio(a: float, b: float | None) -> float:
     return a / b if b else math.nan
 
 
+def _runs(
+    f: Formulation,
+    rec: Recording,
+    n: int,
+    methods: tuple[str, ...],
+    acados: Any = None,
+    closing: list[Callable[[], None]] | None = None,
+) -> dict[str, Run]:
+    """Every method of ``methods`` at horizon ``n`` as a :data:`Run`, in the order of
+    :data:`METHODS` (IPOPT, do-mpc and the peers beside the cheap ones). The peers'
+    windows are recorded here, once, and their solvers built (acados' generated C
+    compiled); what must be removed after the runs goes into ``closing``."""
+    from continuum_mhe.benchmark.peers import make_peer, record_windows, run_peer
+
+    runs = _cheap_runs(f, rec, n, methods)
+    ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"))
+    runs["ipopt"] = lambda: (*_run_timed(ipopt, rec)[:2], 0)
+    if "do-mpc" in methods:
+        runs["do-mpc"] = lambda: (*_run_dompc(f, n, rec), 0)
+    peers = [p for p in PEERS if p in methods]
+    if peers:
+        windows = record_windows(f, rec, n)
+        for name in peers:
+            solver = make_peer(name, f, n, acados)
+            close = getattr(solver, "close", None)
+            if close is not None and closing is not None:
+                closing.append(close)
+            runs[name] = lambda solver=solver: run_peer(f, solver, windows)  # type: ignore[misc]
+    return {m: runs[m] for m in METHODS if m in runs}
+
+
 def run_benchmark(
     horizons: list[int],
     duration: float = 20.0,
@@ -509,30 +555,37 @@ def run_benchmark(
     memory_samples: int = 20000,
     loss_horizons: tuple[int, ...] | None = None,
     repeats: int = REPEATS,
+    acados_folder: str | None = None,
 ) -> dict[str, Any]:
     """Time every method at every horizon on one recording, and each MHE loss at
-    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); the
-    fast MHE, its kernel and the EKFs ``repeats`` times in turn (:func:`_interleaved`);
-    see the module docstring."""
+    ``loss_horizons`` (empty: skipped; None: 30 if timed, else the first horizon); every
+    method ``repeats`` times in turn (:func:`_interleaved`); a peer that cannot run here
+    is skipped with the line that says what to install (``acados_folder``: where
+    ``comma-deps-acados`` was installed apart, see :mod:`.peers`); see the
+    module docstring."""
     from continuum_mhe.benchmark.losses import run_loss_benchmark
+    from continuum_mhe.benchmark.peers import acados_version, find_acados, missing_peers
 
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, dt=DT, noise_deg=2.0, seed=0)
     env = environment(f)
-    skipped: dict[str, str] = {}
+    skipped = {k: v for k, v in missing_peers(acados_folder).items() if k in methods}
+    methods = tuple(m for m in methods if m not in skipped)
+    acados = find_acados(acados_folder) if "acados" in methods else None
+    if acados is not None:
+        env["versions"]["comma-deps-acados"] = acados_version(acados)
     results: list[Timing] = []
     for n in horizons:
-        ipopt_out, ipopt_sec, _ = _run_timed(
-            MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")), rec
-        )
-        rows: dict[str, tuple[FloatArray, FloatArray, int]] = {"ipopt": (ipopt_out, ipopt_sec, 0)}
-        rows.update(_interleaved(_cheap_runs(f, rec, n, methods), repeats))
-        if "do-mpc" in methods:
-            out, sec = _run_dompc(f, n, rec)
-            rows["do-mpc"] = (out, sec, 0)
+        closing: list[Callable[[], None]] = []
+        try:
+            rows = _interleaved(_runs(f, rec, n, methods, acados, closing), repeats)
+        finally:
+            for close in closing:
+                close()
+        ipopt_out = rows["ipopt"][0]
         full = slice(n, None)
         for name in (m for m in METHODS if m in rows):
-            out, sec, fb = rows[name]
+            out, sec, fb, own = rows[name]
             results.append(
                 Timing(
                     method=name,
@@ -542,6 +595,9 @@ def run_benchmark(
                     max_diff_vs_ipopt=_max_diff(out, ipopt_out),
                     max_diff_from_n=_max_diff(out[full], ipopt_out[full]),
                     fallbacks=fb,
+                    solver_median_us=math.nan
+                    if own is None or np.isnan(own[full]).all()
+                    else float(np.nanmedian(own[full]) * 1e6),
                 )
             )
     if loss_horizons is None:
@@ -565,13 +621,14 @@ def run_benchmark(
 
 
 def with_ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Each row with its median over IPOPT's, the compiled EKF's and the EKF kernel's
-    at the same horizon (``over_ipopt``, ``over_ekf_compiled``, ``over_ekf_kernel``;
-    nan where that method did not run)."""
+    """Each row with its median over the fast MHE's, IPOPT's, the compiled EKF's and
+    the EKF kernel's at the same horizon (``over_fast``, ``over_ipopt``,
+    ``over_ekf_compiled``, ``over_ekf_kernel``; nan where that method did not run)."""
     ref = {(r["method"], r["horizon"]): r["median_us"] for r in rows}
     return [
         {
             **r,
+            "over_fast": _ratio(r["median_us"], ref.get(("fast", r["horizon"]))),
             "over_ipopt": _ratio(r["median_us"], ref.get(("ipopt", r["horizon"]))),
             "over_ekf_compiled": _ratio(r["median_us"], ref.get(("ekf-compiled", r["horizon"]))),
             "over_ekf_kernel": _ratio(r["median_us"], ref.get(("ekf-kernel", r["horizon"]))),
@@ -595,12 +652,15 @@ def print_report(report: dict[str, Any]) -> None:
 
     table = Table(
         title=f"Time per sample: bend, {report['scenario']}, {report['samples']} samples "
-        "(median and p99 from sample N on; /IPOPT, /EKFc, /kernel: median over IPOPT's, "
-        "the compiled EKF's and the bare compiled EKF kernel's; max|d|: largest output "
-        "difference from IPOPT's, m and rad, over the run and from sample N on)"
+        f"(median and p99 from sample N on, each sample's median over {report['repeats']} "
+        "interleaved rounds; /fast, /IPOPT, /EKFc, /kernel: median over the fast MHE's, "
+        "IPOPT's, the compiled EKF's and the bare compiled EKF kernel's; max|d|: largest "
+        "output difference from IPOPT's, m and rad, over the run and from sample N on; "
+        "fallbk: windows handed to IPOPT, or a peer did not converge on; solver us: the "
+        "peer's own reported time)"
     )
-    cols = ("N", "method", "median us", "p99 us", "/IPOPT", "/EKFc", "/kernel", "max|d|",
-            "from N", "fallbk")  # fmt: skip
+    cols = ("N", "method", "median us", "p99 us", "/fast", "/IPOPT", "/EKFc", "/kernel",
+            "max|d|", "from N", "fallbk", "solver us")  # fmt: skip
     for col in cols:
         table.add_column(col, justify="right", no_wrap=True)
     for r in report["results"]:
@@ -609,15 +669,19 @@ def print_report(report: dict[str, Any]) -> None:
             r["method"],
             _us(r["median_us"]),
             _us(r["p99_us"]),
+            _times(r["over_fast"]),
             _times(r["over_ipopt"]),
             _times(r["over_ekf_compiled"]),
             _times(r["over_ekf_kernel"]),
             f"{r['max_diff_vs_ipopt']:.1e}",
             f"{r['max_diff_from_n']:.1e}",
             str(r["fallbacks"]),
+            "-"
+            if r.get("solver_median_us") is None or math.isnan(r["solver_median_us"])
+            else _us(r["solver_median_us"]),
         )
     console = table_console()
-    console.width = max(console.width, 110)
+    console.width = max(console.width, 130)
     console.print(table)
     for name, note in report["methods"].items():
         console.print(f"  {name}: {note}")
@@ -635,6 +699,18 @@ def print_report(report: dict[str, Any]) -> None:
             console.print(
                 f"bare MHE kernel at N = {r['horizon']}: {_times(r['over_ekf_kernel'])}x "
                 "the bare EKF kernel"
+            )
+    for r in report["results"]:
+        if r["method"] in PEERS:
+            own = r.get("solver_median_us")
+            alone = (
+                ""
+                if own is None or math.isnan(own) or r["horizon"] not in fast
+                else f" (its own solver time alone {own / fast[r['horizon']]['median_us']:.2f}x)"
+            )
+            console.print(
+                f"{r['method']} at N = {r['horizon']}: {_times(r['over_fast'])}x the fast "
+                f"MHE's time per sample{alone}, {r['max_diff_from_n']:.1e} from IPOPT"
             )
     ns = sorted(fast)
     if len(ns) > 1:

@@ -65,6 +65,11 @@ def run(args: argparse.Namespace) -> int:
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     if "do-mpc" in methods and not available("do_mpc"):
         raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
+    if args.acados is not None and not Path(args.acados, "acados", "__init__.py").is_file():
+        raise UserError(
+            f"--acados {args.acados}: no acados package there (pip install --no-deps "
+            f"--target {args.acados} comma-deps-acados)"
+        )
     report = run_benchmark(
         args.horizons,
         args.duration,
@@ -72,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         args.memory_samples,
         None if args.loss_horizons is None else tuple(args.loss_horizons),
         args.repeats,
+        args.acados,
     )
     print_report(report)
     if args.json:
@@ -80,8 +86,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 DESCRIPTION = (
-    "Time the fast MHE beside IPOPT, do-mpc's MHE and three EKFs, and the "
-    "bare compiled kernels of the fast MHE and the EKF, on one simulated recording."
+    "Time the fast MHE beside IPOPT, do-mpc's MHE, acados, CasADi's fatrop and sqpmethod "
+    "with HPIPM on the same windows, three EKFs, and the bare compiled kernels of the fast "
+    "MHE and the EKF, on one simulated recording, every method repeated in turn."
 )
 
 
@@ -107,7 +114,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--skip",
         action="append",
-        choices=("fast", "mhe-kernel", "do-mpc", "ekf", "ekf-compiled", "ekf-kernel"),
+        choices=tuple(m for m in METHODS if m != "ipopt"),
         help="leave out a method",
     )
     p.add_argument(
@@ -123,6 +130,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=REPEATS,
         help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
         f"sample's time is the median over the rounds (default {REPEATS})",
+    )
+    p.add_argument(
+        "--acados",
+        metavar="DIR",
+        help="where comma-deps-acados was installed apart from CasADi (pip install "
+        "--no-deps --target DIR comma-deps-acados; it ships a CasADi without IPOPT); "
+        "without it, acados is looked for among the installed packages",
     )
     p.add_argument(
         "--memory-samples",

@@ -57,7 +57,7 @@ COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "benchmark",
-        "time the fast MHE beside IPOPT, do-mpc's MHE and the EKF (compiled too)",
+        "time the fast MHE beside IPOPT, do-mpc, acados, fatrop, sqpmethod+HPIPM and the EKF",
         "benchmark",
     ),
     Command(

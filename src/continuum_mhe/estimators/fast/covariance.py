@@ -49,10 +49,12 @@ def last_block_covariance(
     conditioned on the bounds active at ``X`` (see the module doc; the compiled core's
     ``last_block_covariance``). False if the reduced Hessian is not positive definite."""
     f64 = np.ascontiguousarray
+    balls = f64(ball_idx, dtype=np.int64)
+    balls = balls.reshape(len(ball_r2), -1) if len(ball_r2) else np.zeros((0, 1), np.int64)
     return bool(
         _core.last_block_covariance(
             f64(X, dtype=float), f64(D, dtype=float), f64(E, dtype=float), f64(lo, dtype=float),
-            f64(hi, dtype=float), f64(ball_idx, dtype=np.int64).reshape(len(ball_r2), -1),
+            f64(hi, dtype=float), balls,
             f64(ball_r2, dtype=float), float(tol), out,
         )
     )  # fmt: skip

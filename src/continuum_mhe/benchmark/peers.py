@@ -1,0 +1,483 @@
+"""The strongest peers of the fast MHE, on the very window problems it solves:
+acados (SQP with HPIPM, generated C), CasADi's fatrop, and CasADi's sqpmethod with
+HPIPM as its QP solver (``continuum-mhe benchmark``'s rows ``acados``, ``fatrop``,
+``sqp-hpipm``).
+
+The windows are the MHE's own (:class:`~continuum_mhe.estimators.window_nlp.WindowProblem`,
+recorded from the IPOPT-backend estimator over the recording: the same measurements,
+masks, time steps, inputs, ``Q(dt)^-1`` and arrival prior, growing windows included).
+Each peer solves them in order, warm-started as the MHE is: from its own previous
+answer shifted by one sample, the new node predicted by the model and projected on
+the bounds (:func:`shifted_guess`). The peers need the structure of an optimal control
+problem, so the window is written with the process noise as the control:
+``x_{i+1} = f(x_i, u_i, dt_i) + w_i`` as equality constraints and
+``1/2 ||w_i||^2_{Q_i^-1}`` as the stage cost, the measurement and arrival terms on
+the nodes. Its states at the optimum are the window's (the noise is determined by
+them), so the answers are comparable with IPOPT's node by node.
+
+Each peer is timed on its solve alone, from the problem data and the warm start
+formed outside the timed part (the fast MHE's row times its whole estimator step:
+the arrival update, the covariance and the outputs too). acados reports its own
+time without the Python interface beside it (``solver_us``).
+
+acados comes from the registry package ``comma-deps-acados`` (its prebuilt libraries,
+``acados_template`` and the template renderer ``t_renderer``). That wheel also
+installs a slimmed CasADi of its own into the ``casadi`` folder, without IPOPT, over
+the real one, so it is installed apart (``pip install --no-deps --target DIR
+comma-deps-acados``) and found there (:func:`find_acados`); acados' code generation
+uses the real CasADi. Its solver is generated and compiled in a temporary folder
+when the benchmark starts (a C compiler and ``make`` are needed).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib.util
+import io
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Protocol
+
+import casadi as ca
+import numpy as np
+
+from continuum_mhe.estimators.base import FloatArray, Measurement
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.estimators.window_nlp import WindowProblem, pack_parameters
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import Recording
+
+PEERS = ("acados", "fatrop", "sqp-hpipm")
+
+#: What each peer's time covers.
+PEER_NOTES: dict[str, str] = {
+    "acados": "acados SQP (Gauss-Newton) with HPIPM, generated C, on the same windows "
+    "(noise as control), warm-started from its shifted answer: parameters, weights, "
+    "guess, solve and read-back through acados_template; solver us: acados' own time",
+    "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
+    "(noise as control), warm-started from its shifted answer: the nlpsol call",
+    "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
+    "windows (noise as control), warm-started from its shifted answer: the nlpsol call",
+}
+
+#: Convergence tolerance of every peer (the fast MHE's step and error tolerances and
+#: IPOPT's ``tol`` are 1e-8).
+PEER_TOL = 1e-8
+
+#: SQP iterations (and fatrop's) allowed per window.
+PEER_MAX_ITER = 100
+
+#: Stands for an absent bound where a solver takes no infinity (acados).
+INFINITE_BOUND = 1e9
+
+#: acados' complementarity tolerance (see :class:`AcadosPeer`); its stationarity,
+#: equality and inequality tolerances are :data:`PEER_TOL`.
+ACADOS_TOL_COMP = 1e-6
+
+#: The registry package of acados, and how it is installed apart from CasADi.
+ACADOS_PACKAGE = "comma-deps-acados"
+ACADOS_HINT = (
+    f"pip install --no-deps --target DIR {ACADOS_PACKAGE} (apart: it ships a CasADi "
+    "without IPOPT into the casadi folder), then --acados DIR"
+)
+
+
+class WindowSolver(Protocol):
+    """A peer: solves one window from a guess; returns ``(X (N, nx), converged,
+    the solver's own seconds or nan)``."""
+
+    def solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, bool, float]: ...
+
+
+def record_windows(
+    formulation: Formulation, rec: Recording, horizon: int
+) -> list[WindowProblem | None]:
+    """The MHE's window problem at each sample of ``rec`` (None where it made no
+    estimate), from the IPOPT-backend estimator (the problems do not depend on the
+    backend: with the quadratic loss the arrival prior slides on the data alone)."""
+    est = MovingHorizonEstimator(formulation, MHESettings(horizon=horizon, solver="ipopt"))
+    windows: list[WindowProblem | None] = []
+    for t, z in zip(rec.t, rec.z):
+        e = est.step(Measurement(float(t), z))
+        windows.append(None if e.state is None else est.window_problem(copy=True))
+    return windows
+
+
+def shifted_guess(
+    formulation: Formulation, problem: WindowProblem, previous: FloatArray | None
+) -> FloatArray:
+    """The MHE's warm start: the previous answer (N, nx) shifted by one sample, its last
+    node carried to the new sample by the model and projected on the bounds; the
+    arrival prior at every node for the first window."""
+    n = len(problem.zmask)
+    if previous is None:
+        return np.tile(problem.xbar, (n, 1))
+    X = np.empty_like(previous)
+    X[:-1] = previous[1:]
+    xn = formulation.functions.transition(previous[-1], problem.u[-1], problem.dt[-1])
+    X[-1] = formulation.project(np.asarray(xn, dtype=float).ravel())
+    return X
+
+
+def run_peer(
+    formulation: Formulation, solver: WindowSolver, windows: list[WindowProblem | None]
+) -> tuple[FloatArray, FloatArray, int, FloatArray]:
+    """The peer over the recorded windows in order, each warm-started from its own
+    shifted answer. Returns ``(output (n, ny), seconds per sample (n,), windows not
+    converged, the solver's own seconds per sample (n,), nan where it reports none)``;
+    only the solve is timed."""
+    f = formulation
+    n = len(windows)
+    out = np.full((n, f.ny), np.nan)
+    sec = np.zeros(n)
+    own = np.full(n, np.nan)
+    failed = 0
+    X: FloatArray | None = None
+    for i, problem in enumerate(windows):
+        if problem is None:
+            continue
+        X0 = shifted_guess(f, problem, X)
+        t0 = time.perf_counter()
+        X, converged, own[i] = solver.solve(problem, X0)
+        sec[i] = time.perf_counter() - t0
+        failed += not converged
+        out[i] = f.output(X[-1])
+    return out, sec, failed, own
+
+
+# --- CasADi: the window with the noise as control --------------------------------
+
+
+@dataclass(frozen=True)
+class OcpNlp:
+    """The window NLP in optimal-control form for CasADi's structure-exploiting
+    solvers: decision vector ``[x_0, w_0, x_1, w_1, ..., x_{N-1}]``, constraints per
+    stage the dynamics gap then the formulation's constraints, parameters as
+    :func:`~continuum_mhe.estimators.window_nlp.pack_parameters` packs them."""
+
+    nlp: dict[str, Any]
+    lbx: FloatArray
+    ubx: FloatArray
+    lbg: FloatArray
+    ubg: FloatArray
+    ng: int  # constraints per node (the formulation's)
+
+
+def ocp_nlp(formulation: Formulation, horizon: int) -> OcpNlp:
+    """:class:`OcpNlp` of the window cost (quadratic loss) at ``horizon``."""
+    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
+    Z = ca.SX.sym("Z", m, n)
+    zmask = ca.SX.sym("zmask", m, n)
+    DT = ca.SX.sym("DT", n - 1)
+    U = ca.SX.sym("U", nu, n - 1)
+    QI = ca.SX.sym("QI", nx * nx, n - 1)
+    xbar = ca.SX.sym("xbar", nx)
+    AR = ca.SX.sym("AR", nx * nx, n)
+    X = [ca.SX.sym(f"x{i}", nx) for i in range(n)]
+    W = [ca.SX.sym(f"w{i}", nx) for i in range(n - 1)]
+    rinv = np.linalg.inv(f.meas_cov())
+    cost = ca.SX(0)
+    g = []
+    for i in range(n):
+        r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[i])
+        e = X[i] - xbar
+        cost += 0.5 * ca.bilin(rinv, r, r) + 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
+        if i < n - 1:
+            cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), W[i], W[i])
+            g.append(X[i + 1] - f.transition_sym(X[i], U[:, i], DT[i]) - W[i])
+        g.append(f.constraint_sym(X[i])[0])
+    w = ca.vertcat(*[v for i in range(n) for v in ((X[i], W[i]) if i < n - 1 else (X[i],))])
+    params = ca.vertcat(ca.vec(Z), ca.vec(zmask), DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
+    lo, hi = f.state_bounds()
+    cg, clo, chi = f.constraint_sym(ca.SX.sym("x", nx))
+    clo, chi = (np.asarray(b, dtype=float).ravel() for b in (clo, chi))
+    free = np.full(nx, np.inf)
+    gap = np.zeros(nx)
+    return OcpNlp(
+        nlp={"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)},
+        lbx=np.concatenate([*[np.concatenate([lo, -free])] * (n - 1), lo]),
+        ubx=np.concatenate([*[np.concatenate([hi, free])] * (n - 1), hi]),
+        lbg=np.concatenate([*[np.concatenate([gap, clo])] * (n - 1), clo]),
+        ubg=np.concatenate([*[np.concatenate([gap, chi])] * (n - 1), chi]),
+        ng=int(cg.numel()),
+    )
+
+
+def ocp_guess(formulation: Formulation, problem: WindowProblem, X0: FloatArray) -> FloatArray:
+    """The decision vector of :class:`OcpNlp` for states ``X0`` (N, nx): the noise of
+    each stage the gap the states leave (a guess that satisfies the dynamics)."""
+    f = formulation
+    parts = []
+    for i in range(len(X0) - 1):
+        xn = np.asarray(f.functions.transition(X0[i], problem.u[i], problem.dt[i]), float)
+        parts += [X0[i], X0[i + 1] - xn.ravel()]
+    parts.append(X0[-1])
+    return np.concatenate(parts)
+
+
+def ocp_states(w: FloatArray, nx: int, horizon: int) -> FloatArray:
+    """The states (N, nx) of an :class:`OcpNlp` decision vector."""
+    full = np.append(w, np.zeros(nx)).reshape(horizon, 2 * nx)
+    return full[:, :nx].copy()
+
+
+class CasadiPeer:
+    """A CasADi ``nlpsol`` on :class:`OcpNlp`: ``"fatrop"`` (its structure detected) or
+    ``"sqp-hpipm"`` (sqpmethod, exact Hessian, HPIPM with the stage sizes given)."""
+
+    def __init__(self, formulation: Formulation, horizon: int, name: str) -> None:
+        self.formulation, self.horizon = formulation, horizon
+        self.ocp = o = ocp_nlp(formulation, horizon)
+        nx, n = formulation.nx, horizon
+        common: dict[str, Any] = {"print_time": False, "error_on_fail": False}
+        if name == "fatrop":
+            opts = {
+                **common,
+                "structure_detection": "auto",
+                "equality": [bool(e) for e in o.lbg == o.ubg],
+                "fatrop": {"tol": PEER_TOL, "max_iter": PEER_MAX_ITER, "print_level": 0},
+            }
+            with _quiet():
+                self.solver = ca.nlpsol("peer", "fatrop", o.nlp, opts)
+        elif name == "sqp-hpipm":
+            opts = {
+                **common,
+                "qpsol": "hpipm",
+                "qpsol_options": {
+                    "N": n - 1,
+                    "nx": [nx] * n,
+                    "nu": [nx] * (n - 1) + [0],
+                    "ng": [o.ng] * n,
+                    "print_problem": False,
+                    "error_on_fail": False,
+                },
+                "tol_pr": PEER_TOL,
+                "tol_du": PEER_TOL,
+                "max_iter": PEER_MAX_ITER,
+                "print_header": False,
+                "print_iteration": False,
+                "print_status": False,
+            }
+            with _quiet():
+                self.solver = ca.nlpsol("peer", "sqpmethod", o.nlp, opts)
+        else:
+            raise ValueError(f"no CasADi peer named {name!r}")
+
+    def solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, bool, float]:
+        o = self.ocp
+        sol = self.solver(
+            x0=ocp_guess(self.formulation, problem, X0),
+            p=pack_parameters(problem),
+            lbx=o.lbx,
+            ubx=o.ubx,
+            lbg=o.lbg,
+            ubg=o.ubg,
+        )
+        X = ocp_states(np.asarray(sol["x"], dtype=float).ravel(), self.formulation.nx, self.horizon)
+        return X, bool(self.solver.stats()["success"]), math.nan
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """Silence what a solver's construction prints on the process's own stdout (C
+    code writes there, past Python's ``sys.stdout``)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            with contextlib.redirect_stdout(io.StringIO()):
+                yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+# --- acados ----------------------------------------------------------------------
+
+
+def find_acados(folder: str | None = None) -> ModuleType | None:
+    """The ``acados`` package of ``comma-deps-acados``: from ``folder`` (where ``pip
+    install --target`` put it) when given, else as installed; None when absent. Only
+    the package is loaded, never its CasADi (``acados_template`` uses the real one)."""
+    if folder is None:
+        spec = importlib.util.find_spec("acados")
+        if spec is None or spec.origin is None:
+            return None
+        init = Path(spec.origin)
+    else:
+        init = Path(folder) / "acados" / "__init__.py"
+        if not init.is_file():
+            return None
+    if "acados" in sys.modules:
+        return sys.modules["acados"]
+    spec = importlib.util.spec_from_file_location(
+        "acados", init, submodule_search_locations=[str(init.parent)]
+    )
+    if spec is None or spec.loader is None:
+        return None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["acados"] = module
+    spec.loader.exec_module(module)
+    if not hasattr(module, "TERA_PATH"):  # an unrelated package of that name
+        del sys.modules["acados"]
+        return None
+    return module
+
+
+class AcadosPeer:
+    """acados' SQP (Gauss-Newton, nonlinear least squares cost) with HPIPM on the
+    window with the noise as control (see the module docstring), generated and built in
+    a temporary folder, removed by :meth:`close`."""
+
+    def __init__(self, formulation: Formulation, horizon: int, acados: ModuleType) -> None:
+        f, n, nx, m = formulation, horizon, formulation.nx, formulation.nz
+        self.formulation, self.horizon = f, n
+        os.environ["ACADOS_SOURCE_DIR"] = acados.DIR
+        os.environ["TERA_PATH"] = acados.TERA_PATH  # never the renderer's download prompt
+        os.environ["ACADOS_PYTHON_INTERFACE_PATH"] = acados.TEMPLATE_DIR
+        for lib in ("libblasfeo", "libhpipm", "libqpOASES_e", "libacados"):
+            ctypes.CDLL(os.path.join(acados.LIB_DIR, lib + ".so"), mode=ctypes.RTLD_GLOBAL)
+        from acados.acados_template import AcadosModel, AcadosOcp, AcadosOcpSolver
+
+        x = ca.SX.sym("x", nx)
+        w = ca.SX.sym("w", nx)
+        z, mask = ca.SX.sym("z", m), ca.SX.sym("mask", m)
+        u, dt = ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+        model = AcadosModel()
+        model.name = f"continuum_mhe_window_{n}"
+        model.x, model.u, model.p = x, w, ca.vertcat(z, mask, u, dt)
+        model.disc_dyn_expr = f.transition_sym(x, u, dt) + w
+        r = mask * f.measurement_residual_sym(z, x)
+        model.cost_y_expr = ca.vertcat(r, w, x)
+        model.cost_y_expr_e = ca.vertcat(r, x)
+        cg, clo, chi = f.constraint_sym(x)
+        ocp = AcadosOcp()
+        ocp.model = model
+        ocp.dims.N = n - 1
+        ocp.solver_options.tf = float(n - 1)  # unit steps: acados scales stage costs by them
+        ocp.cost.cost_type = ocp.cost.cost_type_e = "NONLINEAR_LS"
+        self.rinv = np.linalg.inv(f.meas_cov())
+        ocp.cost.W = np.eye(m + 2 * nx)
+        ocp.cost.W_e = np.eye(m + nx)
+        ocp.cost.yref = np.zeros(m + 2 * nx)
+        ocp.cost.yref_e = np.zeros(m + nx)
+        ocp.parameter_values = np.zeros(2 * m + f.nu + 1)
+        lo, hi = f.state_bounds()
+        bounded = np.flatnonzero(np.isfinite(lo) | np.isfinite(hi))
+        if len(bounded):
+            clip = np.clip
+            blo = clip(lo[bounded], -INFINITE_BOUND, INFINITE_BOUND)
+            bhi = clip(hi[bounded], -INFINITE_BOUND, INFINITE_BOUND)
+            c = ocp.constraints
+            c.idxbx_0 = c.idxbx = c.idxbx_e = bounded
+            c.lbx_0 = c.lbx = c.lbx_e = blo
+            c.ubx_0 = c.ubx = c.ubx_e = bhi
+        if cg.numel():
+            hlo = np.clip(np.asarray(clo, float).ravel(), -INFINITE_BOUND, INFINITE_BOUND)
+            hhi = np.clip(np.asarray(chi, float).ravel(), -INFINITE_BOUND, INFINITE_BOUND)
+            model.con_h_expr_0 = model.con_h_expr = model.con_h_expr_e = cg
+            c = ocp.constraints
+            c.lh_0 = c.lh = c.lh_e = hlo
+            c.uh_0 = c.uh = c.uh_e = hhi
+        s = ocp.solver_options
+        s.integrator_type = "DISCRETE"
+        s.nlp_solver_type = "SQP"
+        s.hessian_approx = "GAUSS_NEWTON"
+        s.qp_solver = "PARTIAL_CONDENSING_HPIPM"
+        s.nlp_solver_max_iter = PEER_MAX_ITER
+        s.tol = PEER_TOL
+        # complementarity: an absent bound stands at INFINITE_BOUND, and its slack times
+        # its multiplier stays near 1e-7 however well the window is solved
+        s.nlp_solver_tol_comp = ACADOS_TOL_COMP
+        s.print_level = 0
+        self.folder = tempfile.mkdtemp(prefix="continuum-mhe-acados-")
+        ocp.code_export_directory = os.path.join(self.folder, "c_generated_code")
+        json_file = os.path.join(self.folder, "ocp.json")
+        with _quiet():
+            self.solver = AcadosOcpSolver(ocp, json_file=json_file, verbose=False)
+        self._W = np.zeros((m + 2 * nx, m + 2 * nx))
+        self._W[:m, :m] = self.rinv
+        self._W_e = np.zeros((m + nx, m + nx))
+        self._W_e[:m, :m] = self.rinv
+
+    def solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, bool, float]:
+        f, n, nx, m = self.formulation, self.horizon, self.formulation.nx, self.formulation.nz
+        s, W = self.solver, self._W
+        yref = np.zeros(m + 2 * nx)
+        yref[m + nx :] = problem.xbar
+        guess = ocp_guess(f, problem, X0)
+        for i in range(n - 1):
+            s.set(i, "p", np.concatenate([problem.z[i], problem.zmask[i], problem.u[i],
+                                          problem.dt[i : i + 1]]))  # fmt: skip
+            W[m : m + nx, m : m + nx] = problem.qinv[i]
+            W[m + nx :, m + nx :] = problem.arrival[i]
+            s.cost_set(i, "W", W, api="new")
+            s.cost_set(i, "yref", yref)
+            s.set(i, "x", X0[i])
+            s.set(i, "u", guess[2 * nx * i + nx : 2 * nx * (i + 1)])
+        last = n - 1
+        s.set(last, "p", np.concatenate([problem.z[last], problem.zmask[last],
+                                         np.zeros(f.nu), [1.0]]))  # fmt: skip
+        self._W_e[m:, m:] = problem.arrival[last]
+        s.cost_set(last, "W", self._W_e, api="new")
+        s.cost_set(last, "yref", np.concatenate([np.zeros(m), problem.xbar]))
+        s.set(last, "x", X0[last])
+        status = s.solve()
+        X = np.array([s.get(i, "x") for i in range(n)])
+        return X, status == 0, float(np.asarray(s.get_stats("time_tot")).ravel()[0])
+
+    def close(self) -> None:
+        """Remove the generated solver's folder."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def acados_version(acados: ModuleType) -> str | None:
+    """The version of the ``comma-deps-acados`` that holds ``acados`` (from its
+    ``.dist-info`` folder beside the package); None if it names none."""
+    site = Path(str(acados.__file__)).parent.parent
+    for info in sorted(site.glob("comma_deps_acados-*.dist-info")):
+        return info.name[len("comma_deps_acados-") : -len(".dist-info")]
+    return None
+
+
+def make_peer(
+    name: str, formulation: Formulation, horizon: int, acados: ModuleType | None = None
+) -> WindowSolver:
+    """The peer ``name`` of :data:`PEERS` at ``horizon`` (``acados``: the package
+    :func:`find_acados` found)."""
+    if name == "acados":
+        if acados is None:
+            raise ValueError("the acados peer needs the acados package (find_acados)")
+        return AcadosPeer(formulation, horizon, acados)
+    return CasadiPeer(formulation, horizon, name)
+
+
+def missing_peers(acados_folder: str | None = None) -> dict[str, str]:
+    """The peers that cannot run here, each with the one line that says what to
+    install."""
+    why: dict[str, str] = {}
+    if find_acados(acados_folder) is None:
+        where = f" (not in {acados_folder})" if acados_folder else ""
+        why["acados"] = f"needs {ACADOS_PACKAGE}{where}: {ACADOS_HINT}"
+    elif shutil.which("make") is None or shutil.which("cc") is None:
+        why["acados"] = "needs a C compiler (cc) and make to build its generated solver"
+    if not ca.has_nlpsol("fatrop"):
+        why["fatrop"] = "this CasADi has no fatrop: pip install 'casadi>=3.6.5'"
+    if not ca.has_conic("hpipm"):
+        why["sqp-hpipm"] = "this CasADi has no HPIPM: pip install 'casadi>=3.6.5'"
+    return why
+
+
+PeerRun = Callable[[], tuple[FloatArray, FloatArray, int, FloatArray]]
