@@ -517,7 +517,9 @@ def test_direct_formulation_agrees() -> None:
         s: MovingHorizonEstimator(f, MHESettings(horizon=12, solver=s)).run(rec.t, z)
         for s in ("ipopt", "fast")
     }
-    assert set(out["fast"].status) == {"ok"}
+    # the overbend sits on theta_max part of the time: those rows say so (at-bound)
+    assert set(out["fast"].status) <= {"ok", "at-bound"}
+    assert list(out["fast"].status) == list(out["ipopt"].status)
     np.testing.assert_allclose(out["fast"].output, out["ipopt"].output, atol=1e-6, rtol=0)
 
 

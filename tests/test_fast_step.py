@@ -81,8 +81,11 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
         e = ekf.step(Measurement(float(rec.t[i]), rec.z[i]))
         assert e.state is not None and e.covariance is not None and e.output_std is not None
         assert_allclose(e.output, node.output(e.state), rtol=1e-13, atol=1e-15)
-        assert_allclose(e.output_std, node.output_std(e.state, e.covariance), rtol=1e-12,
-                        atol=1e-15)  # fmt: skip
+        # the estimator widens every standard deviation by one factor >= 1, the model
+        # error its consistency check estimates (1 while the readings fit their noise)
+        ratio = e.output_std / node.output_std(e.state, e.covariance)
+        assert ratio.min() >= 1.0 - 1e-12
+        assert_allclose(ratio, ratio[0], rtol=1e-12)
 
 
 @pytest.mark.parametrize("in_place", [False, True])
