@@ -1,20 +1,13 @@
 #include "filter.hpp"
 
+#include "btd.hpp"
+
 #include <cmath>
 #include <utility>
 
 namespace cmhe {
 
 namespace small {
-
-void mul(const double* A, const double* B, double* C, int m, int k, int n) {
-  for (int i = 0; i < m; ++i)
-    for (int j = 0; j < n; ++j) {
-      double s = 0.0;
-      for (int a = 0; a < k; ++a) s += A[i * k + a] * B[a * n + j];
-      C[i * n + j] = s;
-    }
-}
 
 void mul_t(const double* A, const double* B, double* C, int m, int k, int n) {
   for (int i = 0; i < m; ++i)
@@ -25,37 +18,15 @@ void mul_t(const double* A, const double* B, double* C, int m, int k, int n) {
     }
 }
 
-bool cholesky(const double* A, double* L, int n) {
-  for (int i = 0; i < n * n; ++i) L[i] = 0.0;
-  for (int j = 0; j < n; ++j) {
-    double s = A[j * n + j];
-    for (int c = 0; c < j; ++c) s -= L[j * n + c] * L[j * n + c];
-    if (!(s > 0.0)) return false;
-    L[j * n + j] = std::sqrt(s);
-    for (int k = j + 1; k < n; ++k) {
-      double t = A[k * n + j];
-      for (int c = 0; c < j; ++c) t -= L[k * n + c] * L[j * n + c];
-      L[k * n + j] = t / L[j * n + j];
-    }
-  }
-  return true;
+void mul(const double* A, const double* B, double* C, int m, int k, int n) {
+  dense_mul(m, k, n, A, B, C);
 }
 
+bool cholesky(const double* A, double* L, int n) { return dense_cholesky(n, A, L); }
+
 void inverse_gram(const double* L, double* out, int n) {
-  std::vector<double> Li(static_cast<size_t>(n) * n, 0.0);  // L^-1, lower triangular
-  for (int c = 0; c < n; ++c)
-    for (int j = c; j < n; ++j) {
-      double t = j == c ? 1.0 : 0.0;
-      for (int k = c; k < j; ++k) t -= L[j * n + k] * Li[k * n + c];
-      Li[j * n + c] = t / L[j * n + j];
-    }
-  for (int j = 0; j < n; ++j)
-    for (int k = j; k < n; ++k) {
-      double s = 0.0;
-      for (int a = k; a < n; ++a) s += Li[a * n + j] * Li[a * n + k];
-      out[j * n + k] = s;
-      out[k * n + j] = s;
-    }
+  std::vector<double> Li(static_cast<size_t>(n) * n);
+  dense_inverse_gram(n, L, out, Li.data());
 }
 
 bool solve(const double* A, const double* B, double* X, int n, int m) {

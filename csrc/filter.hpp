@@ -13,8 +13,9 @@
 
 namespace cmhe {
 
-// Small dense kernels on row-major matrices, written out: for the few-by-few matrices
-// of one node a BLAS or LAPACK call costs more than its arithmetic.
+// Small dense kernels on row-major matrices (btd.hpp's, in this file's argument order,
+// and the two it lacks): for the few-by-few matrices of one node a BLAS or LAPACK call
+// costs more than its arithmetic.
 namespace small {
 // C (m x n) = A (m x k) B (k x n)
 void mul(const double* A, const double* B, double* C, int m, int k, int n);
