@@ -43,6 +43,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
+import continuum_mhe._core as _core
+from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -108,11 +110,9 @@ class ConsistencyCheck:
                 dt = t - t0
                 f = self.formulation
                 u = f.inputs(z0, z, dt) if f.nu else np.zeros(0)
-                out = self._judge(x0, P0, u, dt, zv, state)
-                r, r_pred, H, Pn = (np.asarray(v, dtype=float) for v in out)
-                r = r.ravel()
+                r, r_pred, H, Pn = self._judged(x0, P0, u, dt, zv, state)
                 H = H[rows]
-                rp = r_pred.ravel()[rows]
+                rp = r_pred[rows]
                 S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
                 nis = float(rp @ np.linalg.solve(S, rp))
                 # covariance matching: the average factor of the innovations over their
@@ -150,6 +150,26 @@ class ConsistencyCheck:
         return ca.Function(
             "judge", [x0, P0, u, dt, z, x], [f.measurement_residual_sym(z, x), r_pred, H, Pn]
         )
+
+    @cached_property
+    def _judge_core(self) -> _core.TapeFunction:
+        """:attr:`_judge` evaluated by the compiled core (no CasADi call per sample)."""
+        return tape_function(self._judge)
+
+    def _judged(
+        self, x0: FloatArray, P0: FloatArray, u: FloatArray, dt: float, z: FloatArray,
+        x: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
+        """:attr:`_judge` at these arguments: ``(r (nz,), r_pred (nz,), H (nz, nx),
+        P+ (nx, nx))``."""
+        f, core = self.formulation, self._judge_core
+        nx, nz = f.nx, f.nz
+        out = np.empty(core.output_size)
+        flat = [x0, np.asarray(P0).ravel(order="F"), u, np.array([dt]), z, x]
+        core.evaluate([np.ascontiguousarray(v, dtype=float).ravel() for v in flat], out)
+        H = out[2 * nz : 2 * nz + nz * nx].reshape(nx, nz).T
+        Pn = out[2 * nz + nz * nx :].reshape(nx, nx).T
+        return out[:nz], out[nz : 2 * nz], H, Pn
 
     @property
     def std_factor(self) -> float:
