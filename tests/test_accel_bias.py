@@ -169,10 +169,12 @@ def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:
     opts = InputOptions(raw=RawImuSettings(imu_model="direct"), estimate_accel_bias=True)
     data = load_estimate_input(raw, opts, make_formulation("bend"))
     assert isinstance(data.formulation, DirectFormulation)
-    assert data.formulation.nx == 7 and data.formulation.state_names[4:] == ("bax", "bay", "baz")
+    # the gyro biases are estimated by default with raw gyros, then the accelerometer's
+    assert data.formulation.nx == 10 and data.formulation.state_names[-3:] == ("bax", "bay", "baz")
     out = tmp_path / "est.csv"
     capsys.readouterr()
-    assert main(["estimate", str(raw), "-o", str(out), "--estimate-accel-bias"]) == 2
+    tilt = ["--imu-model", "tilt"]  # raw gyros take the direct model unless told
+    assert main(["estimate", str(raw), "-o", str(out), *tilt, "--estimate-accel-bias"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [
         "continuum-mhe: error: --estimate-accel-bias needs --imu-model direct (raw gyros)"
