@@ -169,7 +169,8 @@ def test_the_firmware_capture_is_read_by_estimate(
     np.testing.assert_allclose(table.acc[0], [0.123, -0.045, 9.811])
     out = tmp_path / "e.csv"
     assert main(["estimate", str(path), "-o", str(out), "--method", "ekf"]) == 0
-    assert len(out.read_text().splitlines()) == 3
+    rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+    assert len(rows) == 3  # the column line and the two samples
 
 
 @pytest.mark.parametrize(
@@ -385,26 +386,6 @@ def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
     path.write_text("t,roll,pitch\n0,nan,nan\n0.1,,\n")
     argv = ["estimate", str(path), "-o", str(out), "--method", "ekf", "--skip-bad"]
     assert "every sample is a dropout" in _one_line_error(capsys, main(argv), out)
-
-
-def test_a_damaged_model_cache_entry_is_not_called_an_unwritable_folder(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A cache entry that is a folder, in a writable cache: 'set CONTINUUM_MHE_CACHE to
-    a writable folder', which it was."""
-    import hashlib
-
-    from continuum_mhe.estimators.fast import codegen
-
-    monkeypatch.setenv("CONTINUUM_MHE_CACHE", str(tmp_path))
-    src = "double twice(double x) { return 2 * x; }\n"
-    key = hashlib.sha256((" ".join(codegen.CFLAGS) + "\n" + src).encode()).hexdigest()[:20]
-    (tmp_path / f"mhe_{key}.so").mkdir()
-    with pytest.warns(UserWarning):  # the compiling notice
-        lib = codegen.compile_library(src)
-    assert lib.lib is None and lib.fix == (
-        f"a damaged cache entry: remove {tmp_path / f'mhe_{key}.so'}*"
-    )
 
 
 def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
