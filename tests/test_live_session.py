@@ -267,7 +267,9 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     rows = "\n".join(f"{0.01 * i!r},{acc[0]!r},{acc[1]!r},{acc[2]!r},0.0,0.0,0.0" for i in range(5))
     raw.write_text("t,ax,ay,az,gx,gy,gz\n" + rows + "\n")
     f = make_formulation("bend", robot, NoiseSettings())
-    z_batch = load_estimate_input(raw, InputOptions(raw=RawImuSettings()), f).z
+    z_batch = load_estimate_input(
+        raw, InputOptions(raw=RawImuSettings(), imu_model_given=True), f
+    ).z
     (conv,) = imu_converters(RawImuSettings(), robot)
     z_live = conv.convert(0.0, acc, np.zeros(3))
     np.testing.assert_allclose(z_batch[0], z_live, atol=1e-15)
@@ -503,9 +505,7 @@ def test_live_stops_early_on_an_accelerometer_in_g() -> None:
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     rows = [ln.split(",") for ln in _deg_s_lines(UNIT_CHECK_SAMPLES + 20, degrees=False)]
-    in_g = [
-        ",".join([r[0], *(f"{float(v) / 9.80665:.5f}" for v in r[1:4]), *r[4:]]) for r in rows
-    ]
+    in_g = [",".join([r[0], *(f"{float(v) / 9.80665:.5f}" for v in r[1:4]), *r[4:]]) for r in rows]
     s, said, out = _raw_session(RawImuSettings())
     _handle(s, in_g[: UNIT_CHECK_SAMPLES - 1])
     assert s.fatal is None and s.counts.estimates == UNIT_CHECK_SAMPLES - 1
