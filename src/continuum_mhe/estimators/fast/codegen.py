@@ -158,8 +158,3 @@ def address(fn: Any) -> int:
     if not value:
         raise ValueError("a model function without an address")
     return int(value)
-
-
-def failure_message(fn: Any) -> str:
-    """The message of a failed evaluation of ``fn`` (a :data:`CFunction`)."""
-    return "model evaluation failed"

@@ -21,7 +21,6 @@ from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.codegen import (
-    address,
     c_function,
     node_function,
     output_function,
@@ -168,53 +167,15 @@ class WindowModel:
 
 
 class NodeEvaluator:
-    """Reusable buffers for :meth:`WindowModel.evaluate_node` (one per estimator)."""
+    """One node of the window model in the compiled core (its ``NodeModel``): the node
+    function, the EKF and arrival-prior steps, the outputs (one per estimator)."""
 
     def __init__(self, model: WindowModel) -> None:
-        nx, nz = model.nx, model.nz
-        self._fn = model.node  # and its address, for the kernels
-        self._x = np.zeros(nx)
-        self._u = np.zeros(model.nu)
-        self._dt = np.zeros(1)
-        self._z = np.zeros(nz)
-        self._m = np.ones(nz)
-        self._out = np.empty(nx + nx * nx + nz * nx + nz)
-        self._ptrs = np.array(
-            [
-                self._x.ctypes.data,
-                self._u.ctypes.data if model.nu else 0,
-                self._dt.ctypes.data,
-                self._z.ctypes.data,
-                self._m.ctypes.data,
-            ],
-            dtype=np.uintp,
-        )
-        self._ofn = model.output
-        self._ox = np.zeros(nx)
-        self._oout = np.empty(model.ny)
-        self._optrs = np.array([self._ox.ctypes.data], dtype=np.uintp)
-        self._jfn = model.output_jacobian
-        self._jout = np.empty(model.ny * nx)
-        #: the output functions and their buffers for the kernels (:mod:`.outputs`)
-        self.outputs = (
-            address(model.output), address(model.output_jacobian), self._optrs, self._ox,
-            self._oout, self._jout, np.array(model.wrapped, dtype=np.int64),
-        )  # fmt: skip
         self._core = _core.NodeModel(
             model.node.core, model.output.core, model.output_jacobian.core,
-            nx, model.nu, nz, model.ny, list(model.wrapped),
+            model.nx, model.nu, model.nz, model.ny, list(model.wrapped),
         )  # fmt: skip
-        self._zeros, self._ones = np.zeros(nz), np.ones(nz)
-
-    @property
-    def _fn(self) -> Any:
-        """The node function (a ctypes :data:`~.codegen.CFunction`)."""
-        return self._node_fn
-
-    @_fn.setter
-    def _fn(self, fn: Any) -> None:
-        self._node_fn = fn
-        self._addr = address(fn)
+        self._zeros, self._ones = np.zeros(model.nz), np.ones(model.nz)
 
     def evaluate(
         self,
