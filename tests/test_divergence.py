@@ -15,6 +15,7 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.io.csv_files import read_measurements, read_states
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import STATUS_MEANINGS
+from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import simulate
 
 REPRO = Path(__file__).parent / "data" / "repro"
@@ -23,10 +24,10 @@ REPRO = Path(__file__).parent / "data" / "repro"
 #: the flag each reproducer's contradictory readings must raise somewhere (a sample
 #: not "ok"): pitch +90 then -90 deg 10 ms apart, and roll 180 deg with pitch 93 deg
 FLAGGED = {
-    ("gimbal_flip.csv", "mhe"): "not-converged",
+    ("gimbal_flip.csv", "mhe"): "reset",
     ("gimbal_flip.csv", "ekf"): "reset",
     ("gimbal_flip.csv", "ukf"): "reset",
-    ("mhe_stops.csv", "mhe"): "not-converged",
+    ("mhe_stops.csv", "mhe"): "reset",
     ("mhe_stops.csv", "ekf"): "reset",
     ("mhe_stops.csv", "ukf"): "reset",
 }
@@ -85,8 +86,26 @@ def test_mhe_survives_the_rows_that_stopped_it() -> None:
     est = make_estimator("mhe", make_formulation("bend"))
     series = est.run(data.t, data.z)
     assert np.all(np.isfinite(series.output))
-    # every row after the flip on the bound is flagged (IPOPT reaches the same point)
-    assert "ok" not in set(series.status[2:])
+    # the flip onto the bound (t = 0.02 s) leaves the window's model non-finite at its
+    # start: the MHE restarts from that reading, as the EKF and UKF do, instead of
+    # keeping the start as its answer (not-converged) on every later row
+    assert est.restarts >= 1 and series.status[2] == "reset", list(series.status)
+    assert "Invalid_Number_Detected" in str(est.last_failure)
+    assert "not-converged" not in set(series.status)
+    # and it follows the readings again: the bend leaves the bound where they do
+    assert np.min(series.output[3:, 3]) < 1.2
+
+
+@pytest.mark.parametrize("solver", ["fast", "ipopt"])
+def test_mhe_restarts_after_the_flip_on_both_backends(solver: str) -> None:
+    data = read_measurements(REPRO / "mhe_stops.csv")
+    est = make_estimator("mhe", make_formulation("bend"), MHESettings(solver=solver))
+    series = est.run(data.t, data.z)
+    assert est.restarts >= 1 and "reset" in set(series.status)
+    # not the flip's answer kept on every later row (not-converged, 1.571 rad throughout)
+    after = series.status[3:]
+    assert np.mean(after == "not-converged") < 0.25, list(series.status)
+    assert np.min(series.output[3:, 3]) < 1.4
 
 
 def test_slow_sampling_ekf_never_reports_absurd_bends_as_ok() -> None:

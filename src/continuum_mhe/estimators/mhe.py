@@ -521,6 +521,14 @@ class MovingHorizonEstimator(Estimator):
         # a Ctrl-C inside IPOPT under Python's own handler (a script: not deferred)
         # ends the run, not just this solve
         raise_if_solve_interrupted(stats["return_status"])
+        if stats["return_status"] == "Invalid_Number_Detected":
+            # the window's model is not finite where IPOPT stands (readings at a
+            # singularity of the estimate, such as a flip onto the bound): its answer is
+            # the start, which no later window moves from; the estimator restarts
+            raise ArithmeticError(
+                "IPOPT stopped on a non-finite value of the window's model "
+                "(Invalid_Number_Detected): the readings are at a singularity of the estimate"
+            )
         if not np.all(np.isfinite(X)):
             return self._fallback(X0), Status.SOLVER_FAILED
         if stats["success"]:
@@ -535,4 +543,3 @@ class MovingHorizonEstimator(Estimator):
     def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
         """The NLP's objective for a trajectory ``X`` (N, nx)."""
         return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
-
