@@ -199,7 +199,6 @@ def test_not_utf8_names_its_line(tmp_path: Path) -> None:
         read_measurements(path)
 
 
-@pytest.mark.xfail(reason='an interrupted estimate now keeps its file (partial); the test expects none when no row was written', strict=False)  # noqa: E501
 def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> None:
     import signal
 
@@ -232,8 +231,21 @@ def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> N
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=30)  # the writer is still open: no EOF
     assert proc.returncode == 143, err
-    assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
+    # the rows estimated before the signal are kept, the file marked partial
+    *_, kept, last = err.strip().splitlines()
+    assert last == "continuum-mhe: terminated"
+    t, _, status = read_states(out)
+    n = len(t)
+    assert n >= 1 and set(status) == {"ok"}
+    np.testing.assert_allclose(t, read_measurements(_write(tmp_path / "m.csv", _csv(n))).t)
+    assert kept == (
+        f"continuum-mhe: kept the {n} estimates made before the interruption in {out}, "
+        "marked '# partial = ...'"
+    )
+    assert out.read_text().splitlines()[-1] == (
+        f'# partial = "interrupted after {n} samples, at t = {t[-1]:g} s"'
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "in.fifo", "m.csv"]
 
 
 def test_raw_t_in_milliseconds_warns(tmp_path: Path) -> None:
@@ -264,10 +276,14 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
         code = main(["estimate", str(path), "-o", str(out)])
     n = len(lines) - 1
     assert code == 2 and not out.exists()
-    assert capsys.readouterr().err.strip().endswith(
-        f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
-        "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
-        "--gap-reset, or 0: never); nothing written"
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(
+            f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
+            "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
+            "--gap-reset, or 0: never); nothing written"
+        )
     )
     with pytest.warns(UnitWarning):  # told to: the estimate is written
         assert main(["estimate", str(path), "-o", str(out), "--gap-reset", "0"]) == 0
