@@ -125,23 +125,33 @@ def test_fast_mhe_agrees_with_ipopt_with_own_acceleration() -> None:
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 
 
-@pytest.mark.xfail(reason="raw gyros now take the direct model by default; the test's options and expectations predate that default", strict=False)  # noqa: E501
 def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:
+    """Refused with the tilt model (chosen: raw gyros otherwise take the direct model);
+    taken by the default model of raw input with gyros, and by the direct model."""
     from continuum_mhe.cli import main
 
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
-    opts = InputOptions(raw=RawImuSettings(imu_model="tilt"), own_acceleration=True)
+    opts = InputOptions(
+        raw=RawImuSettings(imu_model="tilt"), imu_model_given=True, own_acceleration=True
+    )
     with pytest.raises(InputError, match="--own-acceleration needs --imu-model direct"):
         load_estimate_input(raw, opts, make_formulation("bend"))
     out = tmp_path / "est.csv"
     capsys.readouterr()
-    assert main(["estimate", str(raw), "-o", str(out), "--own-acceleration"]) == 2
+    tilt = ["estimate", str(raw), "-o", str(out), "--imu-model", "tilt"]
+    assert main([*tilt, "--own-acceleration"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["continuum-mhe: error: --own-acceleration needs --imu-model direct (raw gyros)"]
     assert not out.exists()
-    args = ["estimate", str(raw), "-o", str(out), "--imu-model", "direct", "--method", "ukf"]
-    assert main([*args, "--own-acceleration"]) == 0
+    default = load_estimate_input(
+        raw, InputOptions(own_acceleration=True), make_formulation("bend")
+    ).formulation
+    assert isinstance(default, DirectFormulation) and default.own_acceleration
+    args = ["estimate", str(raw), "-o", str(out), "--method", "ukf", "--own-acceleration"]
+    assert main(args) == 0
+    assert _header(out).startswith("t,x,y,z,theta,phi,")
+    assert main([*args, "--imu-model", "direct", "--overwrite"]) == 0
     assert _header(out).startswith("t,x,y,z,theta,phi,")
 
 
