@@ -26,8 +26,8 @@ from continuum_mhe.settings import MHESettings
 
 
 def _table(path: Path) -> tuple[list[str], np.ndarray]:
-    names = path.read_text().splitlines()[0].split(",")
-    return names, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
+    return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
 
 
 def main() -> None:
