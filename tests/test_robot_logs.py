@@ -299,23 +299,24 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert err.startswith("continuum-mhe: error: ") and "\n" not in err
 
 
-@pytest.mark.xfail(reason="raw gyros now take the direct model by default; the test's options and expectations predate that default", strict=False)  # noqa: E501
 def test_log_gyro_in_deg_s_is_one_line(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """sensor_msgs/Imu's angular velocity is rad/s: a log in deg/s is named as such, an
-    error where the estimate uses the gyro, a warning where it does not (tilt from the
-    accelerometer, the default)."""
+    error where the estimate uses the gyro (the direct model: the default for a log with
+    gyros, or chosen), a warning where it does not (``--imu-model tilt``: tilt from the
+    accelerometer)."""
     degs = {**recording, "gyr": np.degrees(recording["gyr"]) + 6.0}  # and an uncalibrated bias
     bag = write_ros2_bag(tmp_path / "bag2", degs)
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(bag), "-o", str(out), "--imu-model", "direct"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "topic /tip/imu: gyro magnitude is about" in err and "deg/s? give rad/s" in err
-    assert "\n" not in err
-    assert not out.exists()
+    for model in ([], ["--imu-model", "direct"]):
+        assert main(["estimate", str(bag), "-o", str(out), *model]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "topic /tip/imu: gyro magnitude is about" in err and "deg/s? give rad/s" in err
+        assert "\n" not in err
+        assert not out.exists()
     with pytest.warns(UnitWarning) as seen:
-        assert main(["estimate", str(bag), "-o", str(out)]) == 0
+        assert main(["estimate", str(bag), "-o", str(out), "--imu-model", "tilt"]) == 0
     warned = [str(w.message) for w in seen if "deg/s?" in str(w.message)]
     assert len(warned) == 1 and "topic /tip/imu: gyro magnitude is about" in warned[0]
     assert warned[0].endswith("these options do not use the gyro, so the estimate is unaffected")
