@@ -71,9 +71,11 @@ def blocked_reading(pid: int, path: Path) -> bool | None:
 
 
 def data_rows(path: Path) -> int:
+    """The rows of a CSV written so far: its lines after the column line, without the
+    ``#`` lines (an estimate file's options and notes)."""
     if not path.exists():
         return 0
-    return max(sum(1 for _ in path.open()) - 1, 0)
+    return max(sum(1 for ln in path.open() if not ln.startswith("#")) - 1, 0)
 
 
 class LiveProcess:

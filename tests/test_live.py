@@ -194,7 +194,6 @@ def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:
     return lines
 
 
-@pytest.mark.xfail(reason="the merged branches changed this behaviour (the first line after a port opens is kept; estimate files start with comment lines); the test's expected counts are not updated yet", strict=False)  # noqa: E501
 def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     """Two raw IMUs through a pty with CR, LF and CRLF line ends, garbage, a 1 MB line
     without a line end, device messages and a millis() wrap; then SIGTERM. The
@@ -302,7 +301,6 @@ def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) ->
     assert f"no sample arrived: {out} not written" in res.stderr
 
 
-@pytest.mark.xfail(reason="the merged branches changed this behaviour (the first line after a port opens is kept; estimate files start with comment lines); the test's expected counts are not updated yet", strict=False)  # noqa: E501
 def test_short_soak_two_imus_500_hz_with_faults(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -368,7 +366,6 @@ def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> No
     assert not out.exists()
 
 
-
 def _deg_s_stream(n: int) -> list[str]:
     """``n`` raw lines at 50 Hz whose gyro is in deg/s (median 41 over the first 100)."""
     return [ln.rstrip("\n") for ln in raw_lines(1000, n, gyro_scale=180 / math.pi)]
@@ -391,7 +388,6 @@ def _estimate_says(tmp_path: Path, lines: list[str], options: list[str]) -> str:
     return said.replace(str(raw), "PORT")
 
 
-@pytest.mark.xfail(reason="the merged branches changed this behaviour (the first line after a port opens is kept; estimate files start with comment lines); the test's expected counts are not updated yet", strict=False)  # noqa: E501
 def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Path) -> None:
     """Before: live had no gyro-unit check: with --imu-model direct a deg/s gyro (57
     times too fast) was estimated on for the whole session, exit 0. Now: the first 100
@@ -436,7 +432,6 @@ def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) 
     assert any(ln.startswith("live: 300 samples, 300 estimates; ") for ln in err), live.err
 
 
-@pytest.mark.xfail(reason='not yet checked against the merged live changes', strict=False)  # noqa: E501
 @pytest.mark.parametrize(
     ("sig", "code", "last"), [(signal.SIGINT, 2, None), (signal.SIGTERM, 143, "terminated")]
 )

@@ -86,6 +86,22 @@ def test_the_first_whole_line_after_a_reopen_is_kept() -> None:
     assert (s2.counts.samples, s2.counts.estimates) == (1, 1)
 
 
+def test_the_view_sees_every_estimate_the_first_after_an_open_included() -> None:
+    """``live --view`` drew the estimates handle_line returned: not the first sample
+    after an open (estimated when the next one shows it whole) nor one still held at
+    the end. The hook sees every estimate written, in time order."""
+    out = io.StringIO()
+    s, _ = _session(out=out)
+    seen: list[float] = []
+    s.on_estimate = lambda e: seen.append(e.t)
+    _feed(s, [1000 + 10 * i for i in range(5)])
+    s.device_back()
+    _feed(s, [2000])  # held until the end: nothing follows it
+    s.finish()
+    rows = [float(r.split(",")[0]) for r in out.getvalue().splitlines()[1:]]
+    assert s.counts.estimates == 6 and seen == rows and rows == sorted(rows)
+
+
 def test_header_fields() -> None:
     assert header_fields("# fields: t_ms,ax_1,ay_1") == ("t_ms", "ax_1", "ay_1")
     assert header_fields("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)") == (

@@ -268,7 +268,6 @@ def test_imu_frame_includes_its_mounting(tmp_path: Path) -> None:
     np.testing.assert_allclose(g.sections[0, 1, :, 2], np.linspace(0.1, 0.3, 5), atol=1e-12)
 
 
-@pytest.mark.xfail(reason="the merged branches changed this behaviour (the first line after a port opens is kept; estimate files start with comment lines); the test's expected counts are not updated yet", strict=False)  # noqa: E501
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_live_view_through_a_pty(tmp_path: Path) -> None:
     """``live --view FILE.rrd --view-hz 0`` on a pseudo-terminal: the file holds one

@@ -77,10 +77,12 @@ def _rss_kb(pid: int) -> int | None:
 
 
 def _rows(path: Path) -> int:
+    """Rows of a CSV so far: its lines after the column line, without the ``#`` lines
+    (an estimate file's options and notes)."""
     if not path.exists():
         return 0
     with path.open("rb") as fh:
-        return max(sum(1 for _ in fh) - 1, 0)
+        return max(sum(1 for ln in fh if not ln.startswith(b"#")) - 1, 0)
 
 
 class Device(threading.Thread):

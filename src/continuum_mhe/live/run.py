@@ -72,6 +72,8 @@ def run_live(
     stopping = waiting = False
     # Under the CLI, SIGINT/SIGTERM only set a flag while this loop runs; the loop stops
     # between two lines, so a sample is never in the recording without its estimate.
+    if view is not None:  # every estimate, as it is written
+        session.on_estimate = view.log_estimate
     defer()
     reader.start()
     try:
@@ -96,8 +98,6 @@ def run_live(
                     break
                 if est is not None:
                     window_n += 1
-                    if view is not None:
-                        view.log_estimate(est)
                 lag = now - arrival
                 if lag > settings.behind_s and behind_since is None:
                     behind_since = now

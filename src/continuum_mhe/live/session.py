@@ -8,7 +8,7 @@ import math
 import statistics
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import IO, Any, Protocol
 
@@ -244,6 +244,9 @@ class LiveSession:
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
         )
         self.record = record
+        #: called with every estimate as it is made (``live --view``'s hook), the first
+        #: sample after an open included, which is estimated when the next one arrives
+        self.on_estimate: Callable[[Estimate], None] | None = None
         self.say = say or stderr_say("live")
         self.counts = LiveCounts()
         self.messages = DeviceMessages(self.say, settings.repeat_every_s)
@@ -573,6 +576,8 @@ class LiveSession:
         self.counts.estimates += 1
         self.last = est
         self.solve_ms.append(est.solve_ms)
+        if self.on_estimate is not None:
+            self.on_estimate(est)
         if self.out is None:
             return
         ny = self.formulation.ny
