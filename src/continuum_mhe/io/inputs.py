@@ -91,8 +91,9 @@ class InputDescription:
         columns: the columns read (``t`` first), or for a log the Imu topics read.
         units: the units the values are read in (one phrase, e.g. ``t in s; roll,
             pitch in deg``).
-        imu_model: the formulation the measurements are for (``bend``: tilt
-            measurements; ``direct``: raw accelerometer and gyro vectors; ``tendon``).
+        imu_model: how the IMUs are measured: ``tilt`` (roll and pitch, read or
+            computed from raw vectors) or ``direct`` (raw accelerometer and gyro
+            vectors, :mod:`continuum_mhe.model.direct`).
         tensions: the tendon tensions file appended to each sample, if any.
         problems: rows skipped or read as dropouts with ``skip_bad`` (count and the
             first few), filled as the samples are read.
@@ -323,7 +324,6 @@ def _append_tensions(
             yield t, f.measurement_row(z, tau, rate)
 
     stream.formulation, stream.samples = f, rows()
-    stream.description.imu_model = f.name
     stream.description.tensions = None if tensions is None else tensions.name
 
 
@@ -374,11 +374,15 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
     )
     readings = _readings(f)
     description = InputDescription(
-        name, kind, tuple(cols), _table_units(rows, kind, options), f.name,
+        name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
         problems=problems, readings=readings,
     )  # fmt: skip
     samples = _chunked(rows, found, convert, readings, f)
     return MeasurementStream(description, f, samples, 0, rows)
+
+
+def _imu_model(formulation: Formulation) -> str:
+    return "direct" if formulation.name == "direct" else "tilt"
 
 
 def _readings(formulation: Formulation) -> ReadingCounts:
@@ -432,7 +436,7 @@ def _log_stream(p: Path, options: InputOptions, formulation: Formulation) -> Mea
     )
     description = InputDescription(
         str(p), "log", options.topics or ((options.topic,) if options.topic else ()),
-        f"t from the header stamps, s; {units}", data.formulation.name,
+        f"t from the header stamps, s; {units}", _imu_model(data.formulation),
         problems=problems, readings=readings, notes=data.notes,
     )  # fmt: skip
     pairs = zip(data.t.tolist(), data.z)
