@@ -465,7 +465,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
                 raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
             blocks.append(tilt_from_quaternion(log.orientation))
         else:
-            raw = imu_settings_for(options.raw, place) if len(logs) > 1 else options.raw
+            raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
     return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes)
 
