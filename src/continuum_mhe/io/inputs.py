@@ -183,19 +183,26 @@ class EstimateInput:
 def resolve(
     name: str, kind: InputKind, has_gyro: bool, options: InputOptions, base: Formulation
 ) -> tuple[InputOptions, Formulation]:
-    """The options and formulation for a table (or ``live``'s lines) of ``kind`` (raw
-    vectors with gyros where ``has_gyro``): an option that does nothing on it is refused
-    (:func:`~continuum_mhe.io.input_options.check_options_apply`), the IMU model decided
-    (:func:`~continuum_mhe.io.input_options.with_imu_model`), the formulation made
-    (:func:`~continuum_mhe.io.input_options.formulation_for`), and an IMU model or
-    attitude filter that needs gyros refused without them. One line naming ``name`` and
-    the problem for each. A robot log decides the same with the same functions once
-    its topics are read (:func:`_load_log`)."""
+    """The options and formulation for an input of ``kind`` (raw vectors with gyros
+    where ``has_gyro``): an option that does nothing on it is refused
+    (:func:`~continuum_mhe.io.input_options.check_options_apply`), then
+    :func:`decide_model`. One line naming ``name`` and the problem for each. A robot
+    log runs the two apart: the first before its topics are read, the second after."""
     check_options_apply(name, kind, options, base.robot)
+    return decide_model(name, kind, has_gyro, options, base)
+
+
+def decide_model(
+    name: str, kind: InputKind, has_gyro: bool, options: InputOptions, base: Formulation
+) -> tuple[InputOptions, Formulation]:
+    """The IMU model decided (:func:`~continuum_mhe.io.input_options.with_imu_model`:
+    raw vectors with gyros take the direct model unless ``--imu-model`` says otherwise),
+    the formulation made (:func:`~continuum_mhe.io.input_options.formulation_for`), and
+    an IMU model or attitude filter that needs gyros refused without them."""
     raw_input = kind != "tilt-csv"
     options = with_imu_model(options, base, raw_input, has_gyro)
     f = formulation_for(options, base, raw_input, Path(name))
-    if raw_input and options.raw.needs_gyro and not has_gyro:
+    if raw_input and not options.use_orientation and options.raw.needs_gyro and not has_gyro:
         raise InputError(f"{name}: {_gyro_user(options.raw)} needs gyro columns gx, gy, gz")
     return options, f
 
@@ -456,8 +463,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         log = read_imu_log(p, options.topic)
         logs, t, t0_ns, skipped, notes = (log,), log.t, log.t0_ns, log.skipped, ()
     has_gyro = all(log.gyr is not None for log in logs)
-    options = with_imu_model(options, formulation, True, has_gyro)
-    f = formulation_for(options, formulation, True, p)
+    options, f = decide_model(str(p), "log", has_gyro, options, formulation)
     blocks = []
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
