@@ -19,9 +19,9 @@ from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalma
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
@@ -165,9 +165,9 @@ def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:
         raw=RawImuSettings(imu_model="tilt"), estimate_accel_bias=True, imu_model_given=True
     )
     with pytest.raises(InputError, match="--estimate-accel-bias needs --imu-model direct"):
-        load_estimate_input(raw, opts, make_formulation("bend"))
+        load_input(raw, opts, make_formulation("bend"))
     opts = InputOptions(raw=RawImuSettings(imu_model="direct"), estimate_accel_bias=True)
-    data = load_estimate_input(raw, opts, make_formulation("bend"))
+    data = load_input(raw, opts, make_formulation("bend"))
     assert isinstance(data.formulation, DirectFormulation)
     # the gyro biases are estimated by default with raw gyros, then the accelerometer's
     assert data.formulation.nx == 10 and data.formulation.state_names[-3:] == ("bax", "bay", "baz")

@@ -205,7 +205,8 @@ def test_shipped_bend_recordings_give_the_drawn_yaws() -> None:
     drew (``imu_samples``: per IMU, misalignment, accelerometer bias, its noise, gyro
     bias, its noise, from seed 0, 601 samples; ``_rotation_xyz`` is Z-Y-X as
     ``mount_rpy``)."""
-    from continuum_mhe.calibration.at_rest import bend_yaws, read_recording
+    from continuum_mhe.calibration.at_rest import bend_yaws
+    from continuum_mhe.io.inputs import read_recording
     from continuum_mhe.io.robot_file import read_robot
 
     rng = np.random.default_rng(0)

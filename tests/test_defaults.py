@@ -103,12 +103,12 @@ def test_raw_imus_use_their_gyros_by_default() -> None:
     """A raw file with gyro columns and only a robot file: the direct model with each
     gyro's bias estimated and a MEMS gyro's noise; without gyro columns, tilt."""
     from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
-    from continuum_mhe.io.sample_stream import open_estimate_input
+    from continuum_mhe.io.inputs import open_input
     from continuum_mhe.model.direct import DirectFormulation
 
     robot = read_robot(DATA / "robots/two_section.toml")
     base = make_formulation("bend", robot)
-    with open_estimate_input(ROD / "planar-s_raw.csv", InputOptions(), base) as stream:
+    with open_input(ROD / "planar-s_raw.csv", InputOptions(), base) as stream:
         f = stream.formulation
     assert isinstance(f, DirectFormulation) and f.estimate_gyro_bias
     assert f.gyro_std == DEFAULT_GYRO_STD <= 0.02

@@ -18,9 +18,9 @@ from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalma
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
@@ -180,11 +180,11 @@ def test_bias_flag_needs_the_direct_model(tmp_path) -> None:  # type: ignore[no-
     path.write_text("t,roll,pitch\n0,0.1,0.2\n0.05,0.1,0.2\n")
     opts = InputOptions(raw=RawImuSettings(imu_model="tilt"), estimate_gyro_bias=True)
     with pytest.raises(InputError, match="--estimate-gyro-bias needs --imu-model direct"):
-        load_estimate_input(path, opts, make_formulation("bend"))
+        load_input(path, opts, make_formulation("bend"))
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
     opts = InputOptions(raw=RawImuSettings(imu_model="direct"), estimate_gyro_bias=True)
-    data = load_estimate_input(raw, opts, make_formulation("bend"))
+    data = load_input(raw, opts, make_formulation("bend"))
     assert isinstance(data.formulation, DirectFormulation)
     assert data.formulation.estimate_gyro_bias and data.formulation.nx == 7
 

@@ -268,10 +268,9 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     """A one-IMU robot file's mount_rpy: live applied it and estimate did not, so a
     recording did not replay to the same estimates."""
     from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import imu_converters, load_input
     from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.sample_stream import load_estimate_input
-    from continuum_mhe.live.session import imu_converters
 
     robot_file = tmp_path / "tilted.toml"
     robot_file.write_text(
@@ -283,7 +282,7 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     rows = "\n".join(f"{0.01 * i!r},{acc[0]!r},{acc[1]!r},{acc[2]!r},0.0,0.0,0.0" for i in range(5))
     raw.write_text("t,ax,ay,az,gx,gy,gz\n" + rows + "\n")
     f = make_formulation("bend", robot, NoiseSettings())
-    z_batch = load_estimate_input(
+    z_batch = load_input(
         raw, InputOptions(raw=RawImuSettings(), imu_model_given=True), f
     ).z
     (conv,) = imu_converters(RawImuSettings(), robot)
@@ -383,7 +382,7 @@ def _deg_s_lines(n: int, degrees: bool = True) -> list[str]:
 
 
 def _raw_session(raw: RawImuSettings) -> tuple[LiveSession, list[str], io.StringIO]:
-    from continuum_mhe.live.session import imu_converters
+    from continuum_mhe.io.inputs import imu_converters
     from continuum_mhe.model.direct import DirectFormulation
 
     said: list[str] = []

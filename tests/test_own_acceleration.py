@@ -12,9 +12,9 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.registry import make_formulation
@@ -136,7 +136,7 @@ def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:
         raw=RawImuSettings(imu_model="tilt"), imu_model_given=True, own_acceleration=True
     )
     with pytest.raises(InputError, match="--own-acceleration needs --imu-model direct"):
-        load_estimate_input(raw, opts, make_formulation("bend"))
+        load_input(raw, opts, make_formulation("bend"))
     out = tmp_path / "est.csv"
     capsys.readouterr()
     tilt = ["estimate", str(raw), "-o", str(out), "--imu-model", "tilt"]

@@ -15,8 +15,8 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
+from continuum_mhe.io.inputs import CHUNK
 from continuum_mhe.io.raw_imu import read_raw_imu
-from continuum_mhe.io.sample_stream import CHUNK
 from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError
 from continuum_mhe.simulation.scenarios import simulate
 

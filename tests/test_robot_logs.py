@@ -395,3 +395,27 @@ def test_log_stamps_in_another_unit_warn_as_a_csv_t_does(
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_imu_log(write_mcap(tmp_path / "ok.mcap", recording))  # 50 Hz: no warning
+
+
+@pytest.mark.parametrize("model", ["tilt", "direct"])
+def test_a_one_imu_log_takes_the_robot_file_s_mounting_and_gyro_bias(
+    tmp_path: Path, recording: dict[str, Any], model: str
+) -> None:
+    """The robot file's ``mount_rpy`` and ``gyro_bias`` apply to a bag's single Imu
+    topic as to the same readings in a CSV."""
+    robot = tmp_path / "robot.toml"
+    robot.write_text(
+        "[[section]]\nlength = 0.2\n\n[[imu]]\nsection = 1\nat = 1.0\n"
+        "mount_rpy = [4.0, -3.0, 0.0]\ngyro_bias = [0.01, -0.02, 0.005]\n"
+    )
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    csv_in = write_raw_csv(tmp_path / "raw.csv", recording)
+    opts = ["--method", "ekf", "--imu-model", model, "--robot", str(robot)]
+    _estimate(csv_in, tmp_path / "from_csv.csv", *opts)
+    _estimate(log, tmp_path / "from_log.csv", *opts)
+    _estimate(log, tmp_path / "unmounted.csv", "--method", "ekf", "--imu-model", model)
+    _, x_c, _ = _states(tmp_path / "from_csv.csv")
+    _, x_l, _ = _states(tmp_path / "from_log.csv")
+    _, x_u, _ = _states(tmp_path / "unmounted.csv")
+    np.testing.assert_allclose(x_l, x_c, rtol=0, atol=1e-12)
+    assert np.abs(x_u - x_c).max() > 1e-3  # the mounting changes the estimate

@@ -22,9 +22,9 @@ from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.simulation.scenarios import simulate_robot
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -56,7 +56,7 @@ def trace(name: str, first: int = 100, stop: int = 520, step: int = 12) -> None:
     samples over ``first:stop``."""
     robot = read_robot("two-section")
     opts = InputOptions(raw=RawImuSettings(imu_model="tilt"))
-    data = load_estimate_input(DATA / f"{name}_tilt.csv", opts, make_formulation("bend", robot))
+    data = load_input(DATA / f"{name}_tilt.csv", opts, make_formulation("bend", robot))
     truth = read_state_table(DATA / f"{name}_truth.csv").values[:, :3]
     err = {}
     for label, check in METHODS[:3]:

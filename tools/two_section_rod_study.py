@@ -27,9 +27,9 @@ from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import read_measurements, read_state_table
 from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
@@ -66,7 +66,8 @@ def calibrated_robot(robot: Robot, rest: Path, bend: Path | None = None) -> Robo
     calibrate --from REST --robot ...`` prints it (rounded to 0.01 degree as printed);
     with ``bend``, the yaw from that recording of a bend towards ``phi = 0`` too
     (``--bend BEND``)."""
-    from continuum_mhe.calibration.at_rest import bend_yaws, calibrate, read_recording
+    from continuum_mhe.calibration.at_rest import bend_yaws, calibrate
+    from continuum_mhe.io.inputs import read_recording
 
     fmt, t, values = read_recording(str(rest), robot.n_imus)
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
@@ -105,7 +106,7 @@ def evaluate(
         estimate_accel_bias=accel_bias,
         own_acceleration=own,
     )
-    data = load_estimate_input(path, opts, make_formulation("bend", robot))
+    data = load_input(path, opts, make_formulation("bend", robot))
     if bias:
         data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
     f = data.formulation

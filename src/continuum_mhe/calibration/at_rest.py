@@ -21,13 +21,9 @@ import numpy as np
 
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
 from continuum_mhe.extras import MissingExtraError
-from continuum_mhe.io.csv_files import FloatArray, InputError, read_measurements
-from continuum_mhe.io.raw_imu import (
-    STANDARD_GRAVITY,
-    csv_input_kind,
-    read_raw_imu,
-    read_raw_imus,
-)
+from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.io.inputs import read_recording
+from continuum_mhe.io.raw_imu import STANDARD_GRAVITY, csv_input_kind
 from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.clock import DeviceClock
@@ -217,19 +213,6 @@ def format_report(
                 "straight robot should read 0, 0"
             )
     return "\n".join(lines)
-
-
-def read_recording(path: str, n_imus: int) -> tuple[LineFormat, FloatArray, FloatArray]:
-    """``(format, t, values)`` of a raw or tilt CSV (as ``live --record`` writes)."""
-    if csv_input_kind(path) == "tilt":
-        tilt = read_measurements(path, n_imus=n_imus)
-        return "tilt", tilt.t, tilt.z
-    tables = read_raw_imus(path, n_imus).imus if n_imus > 1 else [read_raw_imu(path)]
-    for i, tab in enumerate(tables, start=1):
-        if tab.gyr is None:
-            raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")
-    values = np.hstack([np.hstack([tab.acc, tab.gyr]) for tab in tables])  # type: ignore[list-item]
-    return "raw", tables[0].t, values
 
 
 #: How long calibrate waits beyond its ``--seconds`` for the board's start-up (it resets

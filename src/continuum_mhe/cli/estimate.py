@@ -10,7 +10,7 @@ import math
 import sys
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 
@@ -33,30 +33,23 @@ from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
-if TYPE_CHECKING:
-    from continuum_mhe.io.sample_stream import SampleStream
-    from continuum_mhe.io.tensions import Tensions
-    from continuum_mhe.model.formulations import Formulation
-
 #: the comment key that marks an estimate file cut short by a signal (Ctrl-C, SIGTERM)
 PARTIAL = "partial"
 
 
 def run(args: argparse.Namespace) -> int:
-    # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP) and output (.csv, .mcap),
-    # streamed: the input is read once and memory stays flat
+    # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP; io.inputs reads it) and
+    # output (.csv, .mcap), streamed: the input is read once and memory stays flat
+    from continuum_mhe.io.estimate_sink import EstimateSink
     from continuum_mhe.io.imu_topics import warn_topic_order
-    from continuum_mhe.io.sample_stream import EstimateSink, open_estimate_input
+    from continuum_mhe.io.inputs import open_input
 
     check_output_path(args.output, args.measurements, args.overwrite)
     out = args.output
     counts: dict[str, int] = {}
     base = formulation_from_args(args)
-    tensions = _tensions_of(args, base)
-    with open_estimate_input(args.measurements, input_options(args), base) as stream:
+    with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation, samples = stream.formulation, stream.samples
-        if base.robot.has_mechanics:
-            formulation, samples = _with_tensions(args, stream, tensions)
         est = make_estimator(
             args.method,
             formulation,
@@ -125,8 +118,8 @@ def run(args: argparse.Namespace) -> int:
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
-    for clause in (stream.readings.summary() if stream.readings else "", stream.problems.summary()):
-        msg += f"; {clause}" if clause else ""
+    for clause in stream.description.summary():
+        msg += f"; {clause}"
     if est.frozen_samples:
         of = ", ".join(f"{k}: {v}" for k, v in sorted(frozen.items()))
         msg += (
@@ -160,48 +153,10 @@ def run(args: argparse.Namespace) -> int:
             f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "
             f"{args.reject_reset:g} s"
         )
-    for note in stream.notes:  # e.g. how the samples of several Imu topics paired
+    for note in stream.description.notes:  # e.g. how the samples of several Imu topics paired
         print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
-
-
-def _tensions_of(args: argparse.Namespace, base: Formulation) -> Tensions | None:
-    """The ``--inputs`` tensions file, read and checked for the robot's tendons."""
-    from continuum_mhe.io.tensions import read_tensions
-
-    robot = base.robot
-    given = getattr(args, "inputs", None)
-    if not robot.n_tendons:
-        if given:
-            raise InputError(
-                f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
-            )
-        return None
-    if not given:
-        raise InputError(
-            f"{args.robot}: the robot has {robot.n_tendons} tendons: give their tensions "
-            "with --inputs TENSIONS.csv (t,tension_1,...)"
-        )
-    return read_tensions(given, robot.n_tendons)
-
-
-def _with_tensions(
-    args: argparse.Namespace, stream: SampleStream, tensions: Tensions | None
-) -> tuple[Formulation, Iterator[tuple[float, np.ndarray]]]:
-    """The tendon formulation of the stream's robot and its samples with the tensions
-    (interpolated at each sample's time) appended."""
-    from continuum_mhe.io.tensions import tendon_formulation_for
-
-    f = tendon_formulation_for(stream.formulation, input_options(args))
-    k = f.robot.n_tendons
-
-    def rows() -> Iterator[tuple[float, np.ndarray]]:
-        for t, z in stream.samples:
-            tau, rate = tensions.at(t) if tensions is not None else (np.zeros(k), np.zeros(k))
-            yield t, f.measurement_row(z, tau, rate)
-
-    return f, rows()
 
 
 def _passthrough(it: Iterable[int]) -> Iterator[int]:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import gc
 import os
-from pathlib import Path
 
 from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
@@ -26,13 +25,9 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
-from continuum_mhe.io.input_options import (
-    check_options_apply,
-    formulation_for,
-    with_imu_model,
-)
+from continuum_mhe.io.inputs import serial_input
 from continuum_mhe.live.run import open_plot, run_live, warm_up
-from continuum_mhe.live.session import LiveSession, LiveSettings, imu_converters
+from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
 from continuum_mhe.stream.recording import RowFile, check_target
@@ -49,20 +44,11 @@ def run(args: argparse.Namespace) -> int:
         status_every=args.status_every,
         retry_max_s=args.retry_max,
     )
-    options = input_options(args)
-    raw = options.raw
-    formulation = formulation_from_args(args)
-    # an option that would do nothing on this stream is refused, as estimate does
-    kind = "raw-csv" if settings.fmt == "raw" else "tilt-csv"
-    check_options_apply(settings.port, kind, options, formulation.robot)
-    if raw.imu_model == "direct" and settings.fmt != "raw":
-        raise InputError("--imu-model direct needs --format raw")
-    raw_lines = settings.fmt == "raw"  # every raw line carries the gyros
-    options = with_imu_model(options, formulation, raw_lines, raw_lines)
-    raw = options.raw
-    formulation = formulation_for(options, formulation, settings.fmt == "raw", Path(settings.port))
+    # the options checked and the IMU model decided as estimate does (io.inputs)
+    formulation, converters = serial_input(
+        settings.port, settings.fmt, input_options(args), formulation_from_args(args)
+    )
     robot = formulation.robot
-    converters = imu_converters(raw, robot) if settings.fmt == "raw" else None
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):

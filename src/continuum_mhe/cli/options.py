@@ -545,4 +545,5 @@ def input_options(args: argparse.Namespace) -> Any:
         own_acceleration=bool(getattr(args, "own_acceleration", False)),
         degrees=bool(getattr(args, "degrees", False)),
         skip_bad=bool(getattr(args, "skip_bad", False)),
+        tensions=getattr(args, "inputs", None),
     )

@@ -6,6 +6,10 @@ The common readers and writers, importable from here::
                                   read_robot, read_imu_log, write_estimates,
                                   write_measurements, write_truth, InputError)
 
+Any input ``estimate`` reads (tilt or raw CSV, ROS bag, MCAP) as measurements for an
+estimator, with the command line's input options: :func:`open_input` (a stream) or
+:func:`load_input` (whole), :class:`InputOptions` (:mod:`continuum_mhe.io.inputs`).
+
 Every reader raises :class:`InputError` (a ``ValueError``) with one line naming the
 file and line. Names are imported on first use.
 """
@@ -26,6 +30,11 @@ _EXPORTS: dict[str, str] = {
     "write_estimates": "continuum_mhe.io.csv_files",
     "write_measurements": "continuum_mhe.io.csv_files",
     "write_truth": "continuum_mhe.io.csv_files",
+    "InputOptions": "continuum_mhe.io.input_options",
+    "InputDescription": "continuum_mhe.io.inputs",
+    "MeasurementStream": "continuum_mhe.io.inputs",
+    "load_input": "continuum_mhe.io.inputs",
+    "open_input": "continuum_mhe.io.inputs",
     "RawImuSettings": "continuum_mhe.io.raw_imu",
     "read_raw_imu": "continuum_mhe.io.raw_imu",
     "read_raw_imus": "continuum_mhe.io.raw_imu",
@@ -64,6 +73,8 @@ if TYPE_CHECKING:
         write_measurements,
         write_truth,
     )
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import InputDescription, MeasurementStream, load_input, open_input
     from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot

@@ -1,10 +1,9 @@
-"""How ``estimate`` reads its input: the options, their checks, and robot logs as
-measurements.
-
-:class:`InputOptions` holds the command-line options; :func:`check_options_apply`
-refuses one that would do nothing on an input; :func:`load_log_input` reads a bag or
-MCAP file (one topic, or one per IMU paired by header stamp) as measurements. CSV
-input is streamed (:mod:`continuum_mhe.io.sample_stream`).
+"""The input options and the decisions made from them: :class:`InputOptions` holds
+the command-line options of reading an input; :func:`check_options_apply` refuses one
+that would do nothing on an input; :func:`with_imu_model` and :func:`formulation_for`
+decide the IMU model and formulation; :func:`imu_settings_for` gives one IMU's raw
+conversion; :func:`check_mounting` checks the first readings against the robot's
+mounting. The pipeline that applies them, in order, is :mod:`continuum_mhe.io.inputs`.
 """
 
 from __future__ import annotations
@@ -17,14 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, InputError
-from continuum_mhe.io.imu_topics import read_imu_topics
-from continuum_mhe.io.raw_imu import (
-    RawImuSettings,
-    check_accel_units,
-    check_gyro_units,
-    raw_to_measurements,
-)
-from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
+from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
 
@@ -60,6 +52,7 @@ class InputOptions:
             (bend accelerations as states).
         degrees: a tilt CSV is in degrees.
         skip_bad: skip bad samples instead of stopping.
+        tensions: a tendon tensions file (``--inputs``) for a robot with tendons.
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
@@ -75,27 +68,7 @@ class InputOptions:
     own_acceleration: bool = False
     degrees: bool = False
     skip_bad: bool = False
-
-
-@dataclass(frozen=True)
-class EstimateInput:
-    """Measurements ready for an estimator.
-
-    Attributes:
-        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
-        t: (n,) s; z: (n, nz) measurements for ``formulation``.
-        t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
-        skipped: descriptions of skipped samples.
-        notes: one-line reports for the user (e.g. how samples of several topics paired).
-    """
-
-    kind: str
-    t: FloatArray
-    z: FloatArray
-    formulation: Formulation
-    t0_ns: int = 0
-    skipped: list[str] = field(default_factory=list)
-    notes: tuple[str, ...] = ()
+    tensions: str | None = None
 
 
 def with_imu_model(
@@ -212,72 +185,12 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
         )
 
 
-def load_log_input(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
-    """A ROS bag or MCAP file (:func:`~continuum_mhe.io.robot_logs.is_robot_log`) as
-    measurements: one Imu topic, or one per IMU paired by header stamp."""
-    check_options_apply(str(p), "log", options, formulation.robot)
-    if formulation.robot.n_imus > 1 or len(options.topics) > 1:
-        return _load_topics(p, options, formulation)
-    log = read_imu_log(p, options.topic)
-    options = with_imu_model(options, formulation, True, log.gyr is not None)
-    f = formulation_for(options, formulation, True, p)
-    if options.use_orientation:
-        if not np.all(np.isfinite(log.orientation)):
-            raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
-        z = tilt_from_quaternion(log.orientation)
-    else:
-        z = convert_raw(p, log.t, log.acc, log.gyr, options.raw, log.topic)
-    return EstimateInput("log", log.t, z, f, log.t0_ns, log.skipped)
-
-
-def _load_topics(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
-    """One Imu topic per IMU, paired by header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
-    robot = formulation.robot
-    paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
-    has_gyro = all(log.gyr is not None for log in paired.logs)
-    options = with_imu_model(options, formulation, True, has_gyro)
-    f = formulation_for(options, formulation, True, p)
-    blocks = []
-    for log, place in zip(paired.logs, robot.imus):
-        if options.use_orientation:
-            if not np.all(np.isfinite(log.orientation)):
-                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
-            blocks.append(tilt_from_quaternion(log.orientation))
-        else:
-            blocks.append(
-                convert_raw(
-                    p, paired.t, log.acc, log.gyr, imu_settings_for(options.raw, place), log.topic
-                )
-            )
-    return EstimateInput(
-        "log", paired.t, np.hstack(blocks), f, paired.t0_ns, paired.skipped, (paired.report(),)
-    )
-
-
 def imu_settings_for(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings:
     """The conversion settings of one IMU: the robot file's mounting where it gives one,
     else ``--mount-rpy``; the robot file's gyro bias."""
     if any(place.mount_rpy):
         raw = replace(raw, mount_rpy=place.mount_rpy)
     return replace(raw, gyro_bias=place.gyro_bias) if any(place.gyro_bias) else raw
-
-
-def convert_raw(
-    path: Path,
-    t: FloatArray,
-    acc: FloatArray,
-    gyr: FloatArray | None,
-    raw: RawImuSettings,
-    topic: str,
-) -> FloatArray:
-    if raw.needs_gyro and gyr is None:
-        what = "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
-        raise InputError(f"{path}: {what} needs gyro columns gx, gy, gz")
-    # the units of the raw vectors, where they are used (not with --orientation)
-    check_accel_units(f"{path}: topic {topic}", acc)
-    if gyr is not None:
-        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
-    return raw_to_measurements(t, acc, gyr, raw)
 
 
 #: Valid readings of the IMU nearest the base whose median the mounting check uses

@@ -22,14 +22,11 @@ from continuum_mhe.estimators.base import (
     _reraise_interrupt,
 )
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
-from continuum_mhe.io.input_options import imu_settings_for
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
-    RawImuSettings,
     check_accel_units,
     check_gyro_units,
 )
-from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
     LINE_FORMATS,
@@ -198,12 +195,6 @@ class _TextSink:
     def write_row(self, cells: Sequence[str]) -> None:
         self.out.write(",".join(cells) + "\n")
         self.out.flush()
-
-
-def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
-    """One converter per IMU of ``robot``: its robot-file mounting where it gives one,
-    else ``raw.mount_rpy`` (as ``estimate`` does)."""
-    return [RawImuConverter(imu_settings_for(raw, imu)) for imu in robot.imus]
 
 
 # --- session ----------------------------------------------------------------------------------

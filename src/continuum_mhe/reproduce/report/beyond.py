@@ -159,7 +159,7 @@ def claim_gap(d: dict[str, Any]) -> Claim:
 
 
 def claim_freeze(d: dict[str, Any]) -> Claim:
-    """Target: a frozen sensor no longer gives ``ok`` estimates that are far off."""
+    """Target: a frozen sensor gives no ``ok`` estimates that are far off."""
     rec = d["summary"]["recovery"]["freeze"]
     freeze_s = d["trials"][0]["spec"]["freeze_s"]
     checks = []

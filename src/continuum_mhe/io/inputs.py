@@ -1,0 +1,493 @@
+"""Reading an input for an estimator: one pipeline from a path and the input options
+to estimator-ready measurements and the input's own description.
+
+Every command that estimates from a recording reads it here (``estimate``; ``live``'s
+serial line formats through :func:`serial_input`; ``calibrate``'s recordings through
+:func:`read_recording`). The steps, in order:
+
+1. **which input**: a ROS bag or MCAP file (:func:`~continuum_mhe.io.robot_logs.is_robot_log`),
+   else a text table (a file, ``-``, a pipe or a FIFO), tilt or raw by its header;
+2. **how it is read** (:func:`resolve`, the one place the options meet the input): an
+   option that would do nothing on this input is refused, the IMU model is decided
+   (raw input with gyros takes the direct model unless ``--imu-model`` says otherwise),
+   and the formulation the measurements are for is made;
+3. **the samples**: a text table is read once, front to back, :data:`CHUNK` rows at a
+   time, validated (units, time steps, ranges) and converted (raw vectors per IMU, with
+   the robot file's mounting and gyro bias); the first readings are checked against the
+   robot's stated mounting; which IMUs reported is counted. Bags and MCAP files are read
+   whole (their readers index the file). Memory stays flat in a table's length;
+4. **tendon tensions** (``InputOptions.tensions``): where the robot has a backbone, the
+   tensions file is read and checked before the recording, and each sample gets the
+   tensions at its time appended (:mod:`continuum_mhe.io.tensions`).
+
+:func:`open_input` gives a :class:`MeasurementStream` (one sample at a time, with its
+:class:`InputDescription`); :func:`load_input` reads an input whole.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    ReadingCounts,
+    check_time_units,
+    read_measurements,
+    tilt_sample_columns,
+    tilt_values,
+)
+from continuum_mhe.io.imu_topics import read_imu_topics
+from continuum_mhe.io.input_options import (
+    InputOptions,
+    check_mounting,
+    check_options_apply,
+    formulation_for,
+    imu_settings_for,
+    with_imu_model,
+)
+from continuum_mhe.io.raw_imu import (
+    RawImuConverter,
+    RawImuSettings,
+    check_accel_units,
+    check_gyro_units,
+    csv_input_kind,
+    raw_blocks,
+    raw_layout,
+    raw_to_measurements,
+    read_raw_imu,
+    read_raw_imus,
+    sample_kind,
+)
+from continuum_mhe.io.robot_logs import is_robot_log, read_imu_log, tilt_from_quaternion
+from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
+from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.robot import Robot
+
+#: Rows validated and converted together (bounds the memory of a streamed input).
+CHUNK = 4096
+
+#: What an input is: a tilt table, a raw table, or a robot log (bag, MCAP). ``live``'s
+#: line formats are the table kinds.
+InputKind = Literal["tilt-csv", "raw-csv", "log"]
+
+Convert = Callable[[FloatArray, FloatArray, Sequence[int]], FloatArray]
+
+
+@dataclass
+class InputDescription:
+    """What an input is and how it was read.
+
+    Attributes:
+        name: the input as shown in messages (``<stdin>`` for ``-``).
+        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
+        columns: the columns read (``t`` first), or for a log the Imu topics read.
+        units: the units the values are read in (one phrase, e.g. ``t in s; roll,
+            pitch in deg``).
+        imu_model: how the IMUs are measured: ``tilt`` (roll and pitch, read or
+            computed from raw vectors) or ``direct`` (raw accelerometer and gyro
+            vectors, :mod:`continuum_mhe.model.direct`).
+        tensions: the tendon tensions file appended to each sample, if any.
+        problems: rows skipped or read as dropouts with ``skip_bad`` (count and the
+            first few), filled as the samples are read.
+        readings: which IMUs reported, counted as the samples are read (once they are
+            all read, a :class:`~continuum_mhe.io.csv_files.DropoutWarning` names an
+            IMU that never reported).
+        notes: lines for the user about how the input was read (e.g. how the samples
+            of several IMU topics paired).
+    """
+
+    name: str
+    kind: InputKind
+    columns: tuple[str, ...]
+    units: str
+    imu_model: str
+    tensions: str | None = None
+    problems: RowProblems = field(default_factory=RowProblems)
+    readings: ReadingCounts | None = None
+    notes: tuple[str, ...] = ()
+
+    def summary(self) -> tuple[str, ...]:
+        """Clauses for a run's summary line: the IMUs' readings and the bad rows (none
+        where there is nothing to say)."""
+        clauses = (self.readings.summary() if self.readings else "", self.problems.summary())
+        return tuple(c for c in clauses if c)
+
+
+@dataclass
+class MeasurementStream:
+    """Measurements of one input, produced one at a time; a context manager.
+
+    Attributes:
+        description: what the input is and how it was read (its skip counts are
+            complete once ``samples`` is exhausted).
+        formulation: the formulation the measurements are for.
+        samples: ``(t, z)``: s, (nz,) measurement; read once.
+        t0_ns: absolute time of ``t = 0``, ns (0 for a text table).
+    """
+
+    description: InputDescription
+    formulation: Formulation
+    samples: Iterator[tuple[float, FloatArray]]
+    t0_ns: int = 0
+    _rows: TextRows | None = None
+
+    @property
+    def name(self) -> str:
+        return self.description.name
+
+    @property
+    def kind(self) -> InputKind:
+        return self.description.kind
+
+    def close(self) -> None:
+        if self._rows is not None:
+            self._rows.close()
+
+    def __enter__(self) -> MeasurementStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass(frozen=True)
+class EstimateInput:
+    """An input read whole: measurements ready for an estimator.
+
+    Attributes:
+        kind: ``"tilt-csv"``, ``"raw-csv"`` or ``"log"``.
+        t: (n,) s; z: (n, nz) measurements for ``formulation``.
+        t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
+        skipped: descriptions of skipped samples.
+        notes: one-line reports for the user (e.g. how samples of several topics paired).
+    """
+
+    kind: str
+    t: FloatArray
+    z: FloatArray
+    formulation: Formulation
+    t0_ns: int = 0
+    skipped: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
+
+
+# --- step 2: the options against this input ----------------------------------------------
+def resolve(
+    name: str, kind: InputKind, has_gyro: bool, options: InputOptions, base: Formulation
+) -> tuple[InputOptions, Formulation]:
+    """The options and formulation for an input of ``kind`` (raw vectors with gyros
+    where ``has_gyro``): an option that does nothing on it is refused
+    (:func:`~continuum_mhe.io.input_options.check_options_apply`), then
+    :func:`decide_model`. One line naming ``name`` and the problem for each. A robot
+    log runs the two apart: the first before its topics are read, the second after."""
+    check_options_apply(name, kind, options, base.robot)
+    return decide_model(name, kind, has_gyro, options, base)
+
+
+def decide_model(
+    name: str, kind: InputKind, has_gyro: bool, options: InputOptions, base: Formulation
+) -> tuple[InputOptions, Formulation]:
+    """The IMU model decided (:func:`~continuum_mhe.io.input_options.with_imu_model`:
+    raw vectors with gyros take the direct model unless ``--imu-model`` says otherwise),
+    the formulation made (:func:`~continuum_mhe.io.input_options.formulation_for`), and
+    an IMU model or attitude filter that needs gyros refused without them."""
+    raw_input = kind != "tilt-csv"
+    options = with_imu_model(options, base, raw_input, has_gyro)
+    f = formulation_for(options, base, raw_input, Path(name))
+    if raw_input and not options.use_orientation and options.raw.needs_gyro and not has_gyro:
+        raise InputError(f"{name}: {_gyro_user(options.raw)} needs gyro columns gx, gy, gz")
+    return options, f
+
+
+def _gyro_user(raw: RawImuSettings) -> str:
+    return "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
+
+
+def serial_input(
+    port: str, fmt: Literal["raw", "tilt"], options: InputOptions, base: Formulation
+) -> tuple[Formulation, list[RawImuConverter] | None]:
+    """``live``'s stream of ``fmt`` lines (every raw line carries the gyros): the
+    formulation (:func:`resolve`, as for a table of that kind) and one raw converter per
+    IMU (None for tilt lines)."""
+    if options.raw.imu_model == "direct" and fmt != "raw":
+        check_options_apply(port, "tilt-csv", options, base.robot)
+        raise InputError("--imu-model direct needs --format raw")
+    kind: InputKind = "raw-csv" if fmt == "raw" else "tilt-csv"
+    options, f = resolve(port, kind, fmt == "raw", options, base)
+    return f, (imu_converters(options.raw, base.robot) if fmt == "raw" else None)
+
+
+def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
+    """One converter per IMU of ``robot``: its robot-file mounting and gyro bias where it
+    gives them, else ``raw``'s (:func:`~continuum_mhe.io.input_options.imu_settings_for`)."""
+    return [RawImuConverter(imu_settings_for(raw, imu)) for imu in robot.imus]
+
+
+# --- the pipeline ----------------------------------------------------------------------------
+def open_input(
+    path: str | os.PathLike[str],
+    options: InputOptions,
+    formulation: Formulation,
+    robot_name: str | None = None,
+) -> MeasurementStream:
+    """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream of
+    measurements for ``formulation``'s robot, tendon tensions appended where it has a
+    backbone (``robot_name``: the robot file as named in messages)."""
+    tensions = _tensions(options, formulation.robot, robot_name)
+    stream = _open_measurements(path, options, formulation)
+    if formulation.robot.has_mechanics:
+        _append_tensions(stream, tensions, options)
+    return stream
+
+
+def load_input(
+    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+) -> EstimateInput:
+    """Read any supported input (tilt CSV, raw CSV, bag, MCAP) whole, as measurements
+    (without tendon tensions)."""
+    p = Path(path)
+    if is_robot_log(p):
+        return _load_log(p, options, formulation)
+    with _open_measurements(path, options, formulation) as stream:
+        problems = stream.description.problems
+        problems.keep = sys.maxsize
+        pairs = list(stream.samples)
+    t = np.array([tv for tv, _ in pairs], dtype=float)
+    z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
+    return EstimateInput(stream.kind, t, z, stream.formulation, 0, problems.first)
+
+
+def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], FloatArray, FloatArray]:
+    """``(format, t, values)`` of a raw or tilt CSV as recorded (``live --record``),
+    unconverted: tilt values in rad, raw ``ax, ay, az, gx, gy, gz`` per IMU (m/s^2,
+    rad/s); the raw form needs every IMU's gyro columns."""
+    if csv_input_kind(path) == "tilt":
+        tilt = read_measurements(path, n_imus=n_imus)
+        return "tilt", tilt.t, tilt.z
+    tables = read_raw_imus(path, n_imus).imus if n_imus > 1 else [read_raw_imu(path)]
+    for i, tab in enumerate(tables, start=1):
+        if tab.gyr is None:
+            raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")
+    values = np.hstack([np.hstack([tab.acc, tab.gyr]) for tab in tables])  # type: ignore[list-item]
+    return "raw", tables[0].t, values
+
+
+def _open_measurements(
+    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+) -> MeasurementStream:
+    if str(path) != "-" and is_robot_log(Path(path)):
+        return _log_stream(Path(path), options, formulation)
+    if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
+        raise InputError(
+            f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
+            "bag folder"
+        )
+    rows = open_rows(path)
+    try:
+        return _table_stream(rows, options, formulation)
+    except BaseException:
+        rows.close()
+        raise
+
+
+# --- step 4: tendon tensions -----------------------------------------------------------------
+def _tensions(options: InputOptions, robot: Robot, robot_name: str | None) -> Tensions | None:
+    """The tensions file, read and checked for the robot's tendons (before the input)."""
+    given = options.tensions
+    if not robot.n_tendons:
+        if given:
+            raise InputError(
+                f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
+            )
+        return None
+    if not given:
+        raise InputError(
+            f"{robot_name}: the robot has {robot.n_tendons} tendons: give their tensions "
+            "with --inputs TENSIONS.csv (t,tension_1,...)"
+        )
+    return read_tensions(given, robot.n_tendons)
+
+
+def _append_tensions(
+    stream: MeasurementStream, tensions: Tensions | None, options: InputOptions
+) -> None:
+    """Switch ``stream`` to the tendon formulation of its robot, each sample with the
+    tensions (interpolated at its time) and their rates appended."""
+    f = tendon_formulation_for(stream.formulation, options)
+    k = f.robot.n_tendons
+    samples = stream.samples
+
+    def rows() -> Iterator[tuple[float, FloatArray]]:
+        for t, z in samples:
+            tau, rate = tensions.at(t) if tensions is not None else (np.zeros(k), np.zeros(k))
+            yield t, f.measurement_row(z, tau, rate)
+
+    stream.formulation, stream.samples = f, rows()
+    stream.description.tensions = None if tensions is None else tensions.name
+
+
+# --- step 3: the samples of a text table -----------------------------------------------------
+def _table_units(rows: TextRows, kind: InputKind, options: InputOptions) -> str:
+    t_unit = "ms" if rows.time_scale == 1e-3 else "s"
+    if kind == "tilt-csv":
+        return f"t in {t_unit}; roll, pitch in {'deg' if options.degrees else 'rad'}"
+    return f"t in {t_unit}; acceleration in m/s^2, gyro in rad/s"
+
+
+def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> MeasurementStream:
+    n_imus, name = base.robot.n_imus, rows.name
+    problems = RowProblems()
+    convert: Convert
+    kind: InputKind
+    if sample_kind(rows) == "raw":
+        kind = "raw-csv"
+        cols, has_gyro = raw_layout(rows, n_imus)
+        options, f = resolve(name, kind, has_gyro, options, base)
+        convs = imu_converters(options.raw, base.robot)
+
+        def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
+            blocks = raw_blocks(
+                name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
+                options.raw.needs_gyro,
+            )  # fmt: skip
+            parts = []
+            for conv, (acc, gyr) in zip(convs, blocks):
+                parts.append(np.array([
+                    conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i])
+                    for i in range(len(t))
+                ]).reshape(len(t), conv.nz))  # fmt: skip
+            return np.hstack(parts)
+
+    else:
+        kind = "tilt-csv"
+        if n_imus > 1 and options.raw.imu_model == "direct":  # before the column checks
+            raise InputError(f"{name}: --imu-model direct needs raw accelerometer and gyro input")
+        cols = tilt_sample_columns(rows, n_imus)
+        options, f = resolve(name, kind, False, options, base)
+
+        def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
+            return tilt_values(name, values, lines, options.degrees, n_imus)
+
+    found = iter_samples(
+        rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
+    )
+    readings = _readings(f)
+    description = InputDescription(
+        name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
+        problems=problems, readings=readings,
+    )  # fmt: skip
+    samples = _chunked(rows, found, convert, readings, f)
+    return MeasurementStream(description, f, samples, 0, rows)
+
+
+def _imu_model(formulation: Formulation) -> str:
+    return "direct" if formulation.name == "direct" else "tilt"
+
+
+def _readings(formulation: Formulation) -> ReadingCounts:
+    return ReadingCounts(tuple(b.slice for b in formulation.measurement_blocks))
+
+
+def _chunked(
+    rows: TextRows,
+    found: Iterator[tuple[int, float, list[float]]],
+    convert: Convert,
+    readings: ReadingCounts,
+    formulation: Formulation,
+) -> Iterator[tuple[float, FloatArray]]:
+    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time.
+    Counts which IMUs reported in ``readings``, and warns at the end for one that never
+    did. The first chunk's readings are checked against the robot's mounting
+    (:func:`~continuum_mhe.io.input_options.check_mounting`)."""
+    first = True
+    while True:
+        chunk = [r for _, r in zip(range(CHUNK), found)]
+        if not chunk:
+            readings.warn_silent(rows.name)
+            return
+        lines = [c[0] for c in chunk]
+        t = np.array([c[1] for c in chunk], dtype=float)
+        values = np.array([c[2] for c in chunk], dtype=float).reshape(len(chunk), -1)
+        del chunk
+        if first:
+            check_time_units(rows, t)
+        z = convert(t, values, lines)
+        if first:
+            check_mounting(rows.name, z, formulation)
+            first = False
+        readings.add(z)
+        for i, tv in enumerate(t.tolist()):
+            yield tv, z[i]
+
+
+# --- step 3: the samples of a robot log ------------------------------------------------------
+def _log_stream(p: Path, options: InputOptions, formulation: Formulation) -> MeasurementStream:
+    data = _load_log(p, options, formulation)
+    problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
+    check_mounting(str(p), data.z, data.formulation)
+    readings = _readings(data.formulation)
+    readings.add(data.z)
+    readings.warn_silent(str(p))
+    units = (
+        "roll, pitch from the orientation quaternion"
+        if options.use_orientation
+        else "linear_acceleration in m/s^2, angular_velocity in rad/s"
+    )
+    description = InputDescription(
+        str(p), "log", options.topics or ((options.topic,) if options.topic else ()),
+        f"t from the header stamps, s; {units}", _imu_model(data.formulation),
+        problems=problems, readings=readings, notes=data.notes,
+    )  # fmt: skip
+    pairs = zip(data.t.tolist(), data.z)
+    return MeasurementStream(description, data.formulation, pairs, data.t0_ns)
+
+
+def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:
+    """A ROS bag or MCAP file as measurements: one Imu topic, or one per IMU paired by
+    header stamp (:mod:`~continuum_mhe.io.imu_topics`)."""
+    check_options_apply(str(p), "log", options, formulation.robot)
+    robot = formulation.robot
+    if robot.n_imus > 1 or len(options.topics) > 1:
+        paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+        logs, t, t0_ns, skipped = paired.logs, paired.t, paired.t0_ns, paired.skipped
+        notes: tuple[str, ...] = (paired.report(),)
+    else:
+        log = read_imu_log(p, options.topic)
+        logs, t, t0_ns, skipped, notes = (log,), log.t, log.t0_ns, log.skipped, ()
+    has_gyro = all(log.gyr is not None for log in logs)
+    options, f = decide_model(str(p), "log", has_gyro, options, formulation)
+    blocks = []
+    for log, place in zip(logs, robot.imus):
+        if options.use_orientation:
+            if not np.all(np.isfinite(log.orientation)):
+                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
+            blocks.append(tilt_from_quaternion(log.orientation))
+        else:
+            raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
+            blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
+    return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes)
+
+
+def _convert_log(
+    path: Path,
+    t: FloatArray,
+    acc: FloatArray,
+    gyr: FloatArray | None,
+    raw: RawImuSettings,
+    topic: str,
+) -> FloatArray:
+    if raw.needs_gyro and gyr is None:
+        raise InputError(f"{path}: {_gyro_user(raw)} needs gyro columns gx, gy, gz")
+    # the units of the raw vectors, where they are used (not with --orientation)
+    check_accel_units(f"{path}: topic {topic}", acc)
+    if gyr is not None:
+        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
+    return raw_to_measurements(t, acc, gyr, raw)

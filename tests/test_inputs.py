@@ -1,0 +1,92 @@
+"""The input pipeline (``continuum_mhe.io.inputs``): what it says an input is, and that
+it gives the same measurements as reading the file by hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import load_input, open_input, serial_input
+from continuum_mhe.io.raw_imu import RawImuSettings
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.text_rows import InputError
+from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.registry import make_formulation
+
+DATA = Path(__file__).parents[1] / "src/continuum_mhe/data"
+
+
+def test_a_tilt_table_in_ms_and_degrees_is_described_and_converted(tmp_path: Path) -> None:
+    path = tmp_path / "tilt.csv"
+    path.write_text("t_ms,roll,pitch\n0,10,-20\n50,nan,5\n100,30,40\n")
+    options = InputOptions(degrees=True, skip_bad=True)
+    with open_input(path, options, make_formulation("bend")) as stream:
+        samples = list(stream.samples)
+        d = stream.description
+    assert (d.kind, d.columns, d.imu_model) == ("tilt-csv", ("t", "roll", "pitch"), "tilt")
+    assert d.units == "t in ms; roll, pitch in deg"
+    assert [t for t, _ in samples] == [0.0, 0.05, 0.1]
+    assert_allclose(samples[2][1], np.radians([30.0, 40.0]))
+    assert d.problems.count == 1 and "line 3" in d.problems.first[0]  # the NaN row
+    assert d.readings is not None and d.readings.samples == 3
+    assert any("bad rows" in c for c in d.summary())
+
+
+def test_raw_gyros_take_the_direct_model_and_say_so() -> None:
+    robot = read_robot(DATA / "robots/two_section.toml")
+    path = DATA / "rod2/planar-s_raw.csv"
+    with open_input(path, InputOptions(), make_formulation("bend", robot)) as stream:
+        d = stream.description
+        n = sum(1 for _ in stream.samples)
+    assert isinstance(stream.formulation, DirectFormulation)
+    assert (d.kind, d.imu_model) == ("raw-csv", "direct")
+    assert d.columns[:4] == ("t", "ax_1", "ay_1", "az_1") and "gz_2" in d.columns
+    assert d.units == "t in s; acceleration in m/s^2, gyro in rad/s"
+    assert d.problems.count == 0 and d.summary() == ()
+    assert n == len(load_input(path, InputOptions(), make_formulation("bend", robot)).t)
+
+
+def test_tensions_are_appended_at_each_sample_time() -> None:
+    """The tendon robot's samples carry the tensions file's rows interpolated at their
+    time: here the file's own times, so its rows come back exactly."""
+    from continuum_mhe.io.tensions import read_tensions
+
+    robot = read_robot(DATA / "robots/tendon_two_section.toml")
+    tensions = DATA / "tendon/force-08_tensions.csv"
+    options = InputOptions(tensions=str(tensions))
+    base = make_formulation("bend", robot)
+    with open_input(DATA / "tendon/force-08_tilt.csv", options, base) as stream:
+        samples = list(stream.samples)
+        d = stream.description
+    assert d.tensions == str(tensions) and stream.formulation.name == "tendon"
+    table = read_tensions(tensions, robot.n_tendons)
+    k = robot.n_tendons
+    for t, z in samples[:: len(samples) // 5]:
+        tau, _ = table.at(t)
+        assert_allclose(z[4 : 4 + k], tau)  # after the two IMUs' roll and pitch
+
+
+def test_tensions_are_checked_before_the_recording(tmp_path: Path) -> None:
+    robot = read_robot(DATA / "robots/tendon_two_section.toml")
+    missing = tmp_path / "none.csv"  # not even opened: the tensions error comes first
+    with pytest.raises(InputError, match="robot.toml: the robot has 6 tendons"):
+        open_input(missing, InputOptions(), make_formulation("bend", robot), "robot.toml")
+    with pytest.raises(InputError, match="the robot has no \\[\\[tendon\\]\\]"):
+        open_input(missing, InputOptions(tensions="t.csv"), make_formulation("bend"))
+
+
+def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
+    robot = read_robot(DATA / "robots/two_section.toml")
+    base = make_formulation("bend", robot)
+    f, converters = serial_input("/dev/x", "raw", InputOptions(), base)
+    assert isinstance(f, DirectFormulation) and converters is not None
+    assert len(converters) == robot.n_imus
+    f, converters = serial_input("/dev/x", "tilt", InputOptions(), base)
+    assert f.name == "bend" and converters is None
+    direct = InputOptions(raw=RawImuSettings(imu_model="direct"), imu_model_given=True)
+    with pytest.raises(InputError, match="--imu-model direct needs --format raw"):
+        serial_input("/dev/x", "tilt", direct, base)
