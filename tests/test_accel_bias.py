@@ -162,7 +162,7 @@ def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
     opts = InputOptions(
-        raw=RawImuSettings(imu_model="tilt"), estimate_accel_bias=True, imu_model_given=True
+        raw=RawImuSettings(imu_model="tilt"), estimate_accel_bias=True
     )
     with pytest.raises(InputError, match="--estimate-accel-bias needs --imu-model direct"):
         load_input(raw, opts, make_formulation("bend"))

@@ -87,6 +87,6 @@ def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
     assert len(converters) == robot.n_imus
     f, converters = serial_input("/dev/x", "tilt", InputOptions(), base)
     assert f.name == "bend" and converters is None
-    direct = InputOptions(raw=RawImuSettings(imu_model="direct"), imu_model_given=True)
+    direct = InputOptions(raw=RawImuSettings(imu_model="direct"))
     with pytest.raises(InputError, match="--imu-model direct needs --format raw"):
         serial_input("/dev/x", "tilt", direct, base)

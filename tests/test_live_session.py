@@ -283,7 +283,7 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     raw.write_text("t,ax,ay,az,gx,gy,gz\n" + rows + "\n")
     f = make_formulation("bend", robot, NoiseSettings())
     z_batch = load_input(
-        raw, InputOptions(raw=RawImuSettings(), imu_model_given=True), f
+        raw, InputOptions(raw=RawImuSettings(imu_model="tilt")), f
     ).z
     (conv,) = imu_converters(RawImuSettings(), robot)
     z_live = conv.convert(0.0, acc, np.zeros(3))

@@ -132,9 +132,7 @@ def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:
 
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
-    opts = InputOptions(
-        raw=RawImuSettings(imu_model="tilt"), imu_model_given=True, own_acceleration=True
-    )
+    opts = InputOptions(raw=RawImuSettings(imu_model="tilt"), own_acceleration=True)
     with pytest.raises(InputError, match="--own-acceleration needs --imu-model direct"):
         load_input(raw, opts, make_formulation("bend"))
     out = tmp_path / "est.csv"
@@ -144,7 +142,7 @@ def test_own_acceleration_needs_the_direct_model(tmp_path, capsys) -> None:
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["continuum-mhe: error: --own-acceleration needs --imu-model direct (raw gyros)"]
     assert not out.exists()
-    default = load_estimate_input(
+    default = load_input(
         raw, InputOptions(own_acceleration=True), make_formulation("bend")
     ).formulation
     assert isinstance(default, DirectFormulation) and default.own_acceleration

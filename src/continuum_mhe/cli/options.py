@@ -517,7 +517,7 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
 def raw_settings(args: argparse.Namespace) -> RawImuSettings:
     """:class:`RawImuSettings` from parsed options (defaults where absent)."""
     return RawImuSettings(
-        imu_model=getattr(args, "imu_model", None) or "tilt",
+        imu_model=getattr(args, "imu_model", None),
         attitude=getattr(args, "attitude", "accel"),
         mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", None) or "0,0,0"),
     )
@@ -539,7 +539,6 @@ def input_options(args: argparse.Namespace) -> Any:
         pair_tolerance=getattr(args, "pair_tolerance", None),
         use_orientation=bool(getattr(args, "orientation", False)),
         gyro_std=gyro_std,
-        imu_model_given=getattr(args, "imu_model", None) is not None,
         estimate_gyro_bias=getattr(args, "estimate_gyro_bias", None),
         estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
         own_acceleration=bool(getattr(args, "own_acceleration", False)),

@@ -397,9 +397,7 @@ def truth_named(header: list[str], required: Sequence[str]) -> list[str]:
     """``header`` with each ``NAME_true`` column renamed ``NAME`` when the ``required``
     columns are absent and their ``_true`` columns present (a recording with its truth
     beside the measurements); else ``header`` itself."""
-    if all(c in header for c in required) or not all(
-        c + TRUE_SUFFIX in header for c in required
-    ):
+    if all(c in header for c in required) or not all(c + TRUE_SUFFIX in header for c in required):
         return header
     return [h[: -len(TRUE_SUFFIX)] if h.endswith(TRUE_SUFFIX) else h for h in header]
 

@@ -41,8 +41,6 @@ class InputOptions:
             half of IMU 1's median sample period).
         use_orientation: use the Imu message's orientation (roll, pitch) instead of
             its raw accelerometer and gyro.
-        imu_model_given: ``raw.imu_model`` was chosen (``--imu-model``); else raw
-            input with gyro columns uses the direct model (:func:`with_imu_model`).
         gyro_std: gyro white noise, rad/s, for the direct model (default
             :data:`DEFAULT_GYRO_STD`).
         estimate_gyro_bias: the direct model estimates each gyro's bias (None: yes,
@@ -61,7 +59,6 @@ class InputOptions:
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
     use_orientation: bool = False
-    imu_model_given: bool = False
     gyro_std: float = DEFAULT_GYRO_STD
     estimate_gyro_bias: bool | None = None
     estimate_accel_bias: bool = False
@@ -74,19 +71,22 @@ class InputOptions:
 def with_imu_model(
     options: InputOptions, base: Formulation, raw_input: bool, has_gyro: bool
 ) -> InputOptions:
-    """``options`` with the IMU model decided: where ``--imu-model`` was not given, raw
+    """``options`` with the IMU model decided: where ``raw.imu_model`` is None (no
+    ``--imu-model``), raw
     input with gyro columns (and the ``bend`` formulation, accelerometer attitude, no
     ``--orientation``) uses the direct model, which fuses the gyros (with their bias
-    estimated unless ``estimate_gyro_bias`` is False); other input keeps ``tilt``."""
-    if (
-        options.imu_model_given
-        or not (raw_input and has_gyro)
-        or options.use_orientation
-        or options.raw.attitude != "accel"
-        or base.name not in ("bend", "direct")
-    ):
+    estimated unless ``estimate_gyro_bias`` is False); other input takes ``tilt``. A
+    model already chosen stays."""
+    if options.raw.imu_model is not None:
         return options
-    return replace(options, raw=replace(options.raw, imu_model="direct"))
+    direct = (
+        raw_input
+        and has_gyro
+        and not options.use_orientation
+        and options.raw.attitude == "accel"
+        and base.name in ("bend", "direct")
+    )
+    return replace(options, raw=replace(options.raw, imu_model="direct" if direct else "tilt"))
 
 
 def formulation_for(

@@ -70,7 +70,10 @@ class RawImuSettings:
     """How raw samples become measurements.
 
     Attributes:
-        imu_model: ``"tilt"`` (roll, pitch) or ``"direct"`` (gravity direction, gyro).
+        imu_model: ``"tilt"`` (roll, pitch) or ``"direct"`` (gravity direction, gyro);
+            None: decided by the input (raw input with gyros takes ``"direct"``, other
+            input ``"tilt"``; :func:`continuum_mhe.io.input_options.with_imu_model`).
+            A converter treats None as ``"tilt"``.
         attitude: for ``tilt``: ``"accel"`` (accelerometer only), ``"madgwick"`` or
             ``"mahony"`` (gyro fusion by the ``ahrs`` package; needs the gyro).
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X:
@@ -81,13 +84,13 @@ class RawImuSettings:
             before the mounting; an estimated bias then starts from it.
     """
 
-    imu_model: ImuModel = "tilt"
+    imu_model: ImuModel | None = None
     attitude: Attitude = "accel"
     mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        if self.imu_model not in IMU_MODELS:
+        if self.imu_model is not None and self.imu_model not in IMU_MODELS:
             raise UserError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
         if self.attitude not in ATTITUDES:
             raise UserError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
@@ -150,7 +153,7 @@ class RawImuConverter:
         self._mount = mount_rotation(settings.mount_rpy)
         self._bias = np.asarray(settings.gyro_bias, dtype=float)
         self._filter: Any = None
-        if settings.imu_model == "tilt" and settings.attitude != "accel":
+        if settings.imu_model != "direct" and settings.attitude != "accel":
             from ahrs.filters import Madgwick, Mahony
 
             self._filter = Madgwick() if settings.attitude == "madgwick" else Mahony()
