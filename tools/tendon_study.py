@@ -42,11 +42,17 @@ def main() -> None:
     p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
+    p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
     robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
-    f = TendonFormulation(robot=robot, imu_model=a.imu, force_accel_psd=a.force_psd)
+    f = TendonFormulation(
+        robot=robot,
+        imu_model=a.imu,
+        force_accel_psd=a.force_psd,
+        estimate_gyro_bias=a.imu == "direct" and not a.no_gyro_bias,
+    )
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":
         _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")

@@ -198,8 +198,8 @@ def _with_tensions(
 
     def rows() -> Iterator[tuple[float, np.ndarray]]:
         for t, z in stream.samples:
-            tau, rate = tensions.at(t) if tensions is not None else (np.zeros(k), np.zeros(k))
-            yield t, f.measurement_row(z, tau, rate)
+            given = tensions.at(t) if tensions is not None else (np.zeros(k),) * 3
+            yield t, f.measurement_row(z, *given)
 
     return f, rows()
 
