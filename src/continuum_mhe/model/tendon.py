@@ -295,6 +295,10 @@ class TendonFormulation(Formulation):
             equilibria); without it the accelerometers are taken to read gravity alone.
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
+        estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
+            from disk frame, about the disk frame's axes) as states, a random walk.
+        initial_misalignment_std: its prior standard deviation, rad.
+        misalignment_psd: its spectral density, rad^2/s.
         tension_std: the given tensions' standard deviation, N.
         tension_psd: the tension states' random walk, N^2/s (large: the given
             tensions, not the motion model, set them).
@@ -319,6 +323,9 @@ class TendonFormulation(Formulation):
     own_acceleration: bool = True
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
+    estimate_misalignment: bool = False
+    initial_misalignment_std: float = 0.03
+    misalignment_psd: float = 1e-9
     tension_std: float = 1e-3
     tension_psd: float = 1e3
     equilibrium_std: float = 1e-4
@@ -339,6 +346,8 @@ class TendonFormulation(Formulation):
             "gyro_std",
             "gyro_bias_psd",
             "initial_gyro_bias_std",
+            "initial_misalignment_std",
+            "misalignment_psd",
             "tension_std",
             "tension_psd",
             "equilibrium_std",
@@ -357,6 +366,10 @@ class TendonFormulation(Formulation):
 
     # --- the state ----------------------------------------------------------------
     @property
+    def n_misalignment(self) -> int:
+        return 3 * self.robot.n_imus if self.estimate_misalignment else 0
+
+    @property
     def n_gyro_bias(self) -> int:
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
@@ -367,7 +380,11 @@ class TendonFormulation(Formulation):
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
-        return (*q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias])
+        mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        return (
+            *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
+            *mis[: self.n_misalignment],
+        )  # fmt: skip
 
     def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
         """``(q = [k0, F], tau, q')`` of a state."""
@@ -445,6 +462,8 @@ class TendonFormulation(Formulation):
 
         if self.estimate_gyro_bias:
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
+        if self.estimate_misalignment:
+            cov = ca.diagcat(cov, self.misalignment_psd * dt * ca.SX.eye(self.n_misalignment))
         return cov
 
     def _imu_accelerations(
@@ -504,6 +523,12 @@ class TendonFormulation(Formulation):
             specific = [ca.DM(up) + a / GRAVITY for a in accel]
         else:
             specific = [ca.DM(up) for _ in rots]
+        if self.estimate_misalignment:  # the board turned by a small rotation
+            n0 = 12 + k + self.n_gyro_bias
+            rots = [
+                ca.mtimes(R, ca.SX.eye(3) + _hat(x[n0 + 3 * i : n0 + 3 * i + 3]))
+                for i, R in enumerate(rots)
+            ]
         gravity = []
         for R, f in zip(rots, specific):
             fb = ca.mtimes(R.T, f)
@@ -632,6 +657,7 @@ class TendonFormulation(Formulation):
         diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
+        diag += [self.initial_misalignment_std**2] * self.n_misalignment
         return np.diag(diag)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
