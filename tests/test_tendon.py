@@ -381,11 +381,14 @@ def test_a_tendon_robot_needs_its_tensions(
 
 def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
     path = tmp_path / "t.csv"
-    write_table(path, ["t", "tension_1", "tension_2"], [[0.0, 1.0, 0.0], [1.0, 3.0, 0.0]])
+    rows = [[0.0, 1.0, 0.0], [1.0, 3.0, 0.0], [2.0, 7.0, 0.0]]
+    write_table(path, ["t", "tension_1", "tension_2"], rows)
     tensions = read_tensions(path, 2)
-    tau, rate = tensions.at(0.25)
+    tau, rate, acceleration = tensions.at(0.25)
     np.testing.assert_allclose(tau, [1.5, 0.0])
-    np.testing.assert_allclose(rate, [2.0, 0.0])
+    # central differences (one-sided at the ends): rates 2, 3, 4 N/s; their rate 1 N/s^2
+    np.testing.assert_allclose(rate, [2.25, 0.0])
+    np.testing.assert_allclose(acceleration, [1.0, 0.0])
 
 
 def test_one_imu_does_not_determine_the_tip_force() -> None:

@@ -293,6 +293,8 @@ class TendonFormulation(Formulation):
         own_acceleration: the IMUs' own acceleration in their specific force (from the
             tip force's rate and the tensions' first and second derivatives along the
             equilibria); without it the accelerometers are taken to read gravity alone.
+        acceleration_from_force_rate: the tip force's rate moves the IMUs too (False:
+            only the tensions' changes do).
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
         estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
@@ -321,6 +323,7 @@ class TendonFormulation(Formulation):
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
+    acceleration_from_force_rate: bool = True
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
     estimate_misalignment: bool = False
@@ -483,8 +486,10 @@ class TendonFormulation(Formulation):
         h = ACCELERATION_STEP
         j_k0 = ca.jacobian(res, v[:3])
         rest = ca.vertcat(ca.SX.zeros(3), v_dot[3:])
+        if not self.acceleration_from_force_rate:
+            rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
         k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
-        v_dot = ca.vertcat(k0_dot, v_dot[3:])
+        v_dot = ca.vertcat(k0_dot, rest[3:])
         v_ddot = ca.vertcat(ca.SX.zeros(6), tau_ddot)
         shifted = []
         for sign in (1.0, -1.0):
