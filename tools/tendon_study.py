@@ -67,7 +67,9 @@ def main() -> None:
     p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     p.add_argument("--floor-only", action="store_true", help="only the model floor")
     p.add_argument("--misalignment", action="store_true", help="misalignment states")
-    p.add_argument("--no-force-rate", action="store_true", help="acceleration: tensions only")
+    p.add_argument(
+        "--force-rate", action="store_true", help="the force rate in the IMU acceleration"
+    )
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
@@ -78,7 +80,7 @@ def main() -> None:
         force_accel_psd=a.force_psd,
         estimate_gyro_bias=a.imu == "direct" and not a.no_gyro_bias,
         estimate_misalignment=a.misalignment,
-        acceleration_from_force_rate=not a.no_force_rate,
+        acceleration_from_force_rate=a.force_rate,
     )
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":

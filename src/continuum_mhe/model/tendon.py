@@ -293,8 +293,9 @@ class TendonFormulation(Formulation):
         own_acceleration: the IMUs' own acceleration in their specific force (from the
             tip force's rate and the tensions' first and second derivatives along the
             equilibria); without it the accelerometers are taken to read gravity alone.
-        acceleration_from_force_rate: the tip force's rate moves the IMUs too (False:
-            only the tensions' changes do).
+        acceleration_from_force_rate: the tip force's rate moves the IMUs too (the
+            default False: only the tensions' changes do; the force's rate is a loosely
+            held state, and its square in the acceleration fed back into the force).
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
         estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
@@ -323,7 +324,7 @@ class TendonFormulation(Formulation):
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
-    acceleration_from_force_rate: bool = True
+    acceleration_from_force_rate: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
     estimate_misalignment: bool = False
