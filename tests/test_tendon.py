@@ -217,7 +217,7 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
     IMU acceleration matches the second central difference of the positions of the
     solved equilibria (a known answer the formulation does not compute itself)."""
     robot = read_robot("tendon-two-section")
-    f = TendonFormulation(robot=robot)
+    f = TendonFormulation(robot=robot, acceleration_from_force_rate=True)
     statics = f.statics
 
     def tau(t: float) -> np.ndarray:
