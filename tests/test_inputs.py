@@ -66,7 +66,7 @@ def test_tensions_are_appended_at_each_sample_time() -> None:
     table = read_tensions(tensions, robot.n_tendons)
     k = robot.n_tendons
     for t, z in samples[:: len(samples) // 5]:
-        tau, _ = table.at(t)
+        tau = table.at(t)[0]
         assert_allclose(z[4 : 4 + k], tau)  # after the two IMUs' roll and pitch
 
 

@@ -1,10 +1,13 @@
 """Tendon-robot estimates on the generator's recordings (docs/tendon.md): the EKF
 (CasADi) and the MHE on IPOPT, tilt and raw IMUs, with the recording's tensions;
 prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms error, N;
-ms per sample).
+ms per sample), with the recording's model floor: the mean tip and mid-robot error of
+the estimator's model itself, solved with the true tensions and the true tip force
+(``--floor-only``: that alone).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
         [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only] [--samples N]
+        [--no-gyro-bias] [--floor-only]
 """
 
 from __future__ import annotations
@@ -20,14 +23,33 @@ import numpy as np
 from continuum_mhe.estimators import ExtendedKalmanFilter, MovingHorizonEstimator
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.tensions import read_tensions
-from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.io.tensions import Tensions, read_tensions
+from continuum_mhe.model.tendon import Station, TendonFormulation
 from continuum_mhe.settings import MHESettings
 
 
 def _table(path: Path) -> tuple[list[str], np.ndarray]:
     lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
     return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+
+
+def model_floor(
+    f: TendonFormulation, t: np.ndarray, tensions: Tensions, names: list[str], truth: np.ndarray
+) -> tuple[float, float]:
+    """Mean tip and mid-robot (first section's end) error, mm, of the model's
+    equilibria with the true tensions and tip force at the times ``t``."""
+    tip, mid = Station(f.robot.n_sections - 1, 1.0), Station(0, 1.0)
+    cols = {c: [names.index(f"{a}{c}") for a in "xyz"] for c in ("", "_1")}
+    force = [names.index(n) for n in ("fx", "fy", "fz")]
+    k0 = None
+    errors = []
+    for tk, row in zip(t, truth):
+        k0, poses = f.statics.solve(row[force], tensions.at(tk)[0], k0)
+        errors.append(
+            [np.linalg.norm(poses[s][1] - row[cols[c]]) for s, c in ((tip, ""), (mid, "_1"))]
+        )
+    e = np.mean(errors, axis=0) * 1e3
+    return float(e[0]), float(e[1])
 
 
 def main() -> None:
@@ -42,11 +64,24 @@ def main() -> None:
     p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
+    p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
+    p.add_argument("--floor-only", action="store_true", help="only the model floor")
+    p.add_argument("--misalignment", action="store_true", help="misalignment states")
+    p.add_argument(
+        "--force-rate", action="store_true", help="the force rate in the IMU acceleration"
+    )
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
     robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
-    f = TendonFormulation(robot=robot, imu_model=a.imu, force_accel_psd=a.force_psd)
+    f = TendonFormulation(
+        robot=robot,
+        imu_model=a.imu,
+        force_accel_psd=a.force_psd,
+        estimate_gyro_bias=a.imu == "direct" and not a.no_gyro_bias,
+        estimate_misalignment=a.misalignment,
+        acceleration_from_force_rate=a.force_rate,
+    )
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":
         _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
@@ -62,6 +97,14 @@ def main() -> None:
         )  # fmt: skip
     n = len(t) if a.samples is None else a.samples
     t, z_imu = t[:n], z_imu[:n]
+    names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
+    truth = truth[:n]
+    after = t >= a.skip
+    floor = model_floor(f, t[after], tensions, names, truth[after])
+    if a.floor_only:
+        print(json.dumps({"scenario": a.scenario, "floor_tip_mm": round(floor[0], 3),
+                          "floor_mid_mm": round(floor[1], 3)}))  # fmt: skip
+        return
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
     if a.method == "ekf":
         est = ExtendedKalmanFilter(f)
@@ -70,8 +113,6 @@ def main() -> None:
     start = time.perf_counter()
     series = est.run(t, z)
     ms = (time.perf_counter() - start) / len(t) * 1e3
-    names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
-    truth = truth[:n]
     out = np.asarray(series.output, dtype=float)
     std = np.asarray(series.std, dtype=float)
     cols = [o.name for o in f.outputs]
@@ -94,6 +135,7 @@ def main() -> None:
         "mid_mean_mm": round(float(err(("x_1", "y_1", "z_1")).mean() * 1e3), 2),
         "force_rms_n": round(float(np.sqrt(np.mean(err(("fx", "fy", "fz")) ** 2))), 4),
         "force_std_mean_n": round(float(np.mean(np.linalg.norm(std[keep][:, force], axis=1))), 4),
+        "floor_tip_mm": round(floor[0], 3), "floor_mid_mm": round(floor[1], 3),
         "ms_per_sample": round(ms, 1), "statuses": statuses,
     }))  # fmt: skip
 

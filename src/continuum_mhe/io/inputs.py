@@ -327,8 +327,8 @@ def _append_tensions(
 
     def rows() -> Iterator[tuple[float, FloatArray]]:
         for t, z in samples:
-            tau, rate = tensions.at(t) if tensions is not None else (np.zeros(k), np.zeros(k))
-            yield t, f.measurement_row(z, tau, rate)
+            given = tensions.at(t) if tensions is not None else (np.zeros(k),) * 3
+            yield t, f.measurement_row(z, *given)
 
     stream.formulation, stream.samples = f, rows()
     stream.description.tensions = None if tensions is None else tensions.name

@@ -2,8 +2,10 @@
 ``[[tendon]]`` order, at any rate.
 
 The tensions at a measurement's time are interpolated linearly between the file's
-rows, and their rates are the central differences of the file's rows interpolated the
-same way (what the gyros of a raw-IMU model see of the tendons' pull). A tensions file
+rows; their rates are the central differences of the file's rows, and their second
+derivatives the central differences of those rates, both interpolated the same way
+(what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
+accelerometers read). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
 error, as are a negative or non-finite tension, a wrong number of tension columns and
 times that do not increase.
@@ -33,15 +35,17 @@ class Tensions:
         values: (n, k) N, non-negative.
         rates: (n, k) N/s, central differences (one-sided at the ends; zero with one
             row).
+        accelerations: (n, k) N/s^2, the rates' central differences (the same way).
     """
 
     name: str
     t: FloatArray
     values: FloatArray
     rates: FloatArray
+    accelerations: FloatArray
 
-    def at(self, t: float) -> tuple[FloatArray, FloatArray]:
-        """``(tensions, rates)`` at ``t`` s, linear between rows; an
+    def at(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
         :class:`InputError` outside the file's times."""
         if not self.t[0] <= t <= self.t[-1]:
             raise InputError(
@@ -49,8 +53,10 @@ class Tensions:
                 f"but a measurement is at t = {t:g} s: the tensions must cover the "
                 "recording; nothing written"
             )
-        tau = np.array([np.interp(t, self.t, v) for v in self.values.T])
-        return tau, np.array([np.interp(t, self.t, v) for v in self.rates.T])
+        return tuple(  # type: ignore[return-value]
+            np.array([np.interp(t, self.t, v) for v in a.T])
+            for a in (self.values, self.rates, self.accelerations)
+        )
 
 
 def read_tensions(path: str | os.PathLike[str], n_tendons: int) -> Tensions:
@@ -77,9 +83,11 @@ def read_tensions(path: str | os.PathLike[str], n_tendons: int) -> Tensions:
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
     rates = np.zeros_like(values)
+    accelerations = np.zeros_like(values)
     if len(t) > 1:
         rates = np.asarray(np.gradient(values, t, axis=0), dtype=float)
-    return Tensions(name, t, values, rates)
+        accelerations = np.asarray(np.gradient(rates, t, axis=0), dtype=float)
+    return Tensions(name, t, values, rates, accelerations)
 
 
 def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFormulation:

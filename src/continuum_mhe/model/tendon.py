@@ -92,6 +92,9 @@ from continuum_mhe.model.settings import FormulationName
 
 #: RK4 steps per section (more where an IMU splits one).
 STEPS_PER_SECTION = 6
+#: Time step, s, of the central differences that give the IMUs' own acceleration
+#: (:meth:`TendonFormulation._imu_accelerations`; their error is of order its square).
+ACCELERATION_STEP = 0.01
 #: Standard gravity, m/s^2 (the backbone's weight with a density).
 GRAVITY = 9.80665
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
@@ -287,8 +290,18 @@ class TendonFormulation(Formulation):
         accel_direction_std: standard deviation of each component of ``f/|f|``
             (``direct``; None: ``noise.measurement_std``).
         estimate_gyro_bias: a gyro bias per IMU as states (``direct``), random walk.
+        own_acceleration: the IMUs' own acceleration in their specific force (from the
+            tip force's rate and the tensions' first and second derivatives along the
+            equilibria); without it the accelerometers are taken to read gravity alone.
+        acceleration_from_force_rate: the tip force's rate moves the IMUs too (the
+            default False: only the tensions' changes do; the force's rate is a loosely
+            held state, and its square in the acceleration fed back into the force).
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
+        estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
+            from disk frame, about the disk frame's axes) as states, a random walk.
+        initial_misalignment_std: its prior standard deviation, rad.
+        misalignment_psd: its spectral density, rad^2/s.
         tension_std: the given tensions' standard deviation, N.
         tension_psd: the tension states' random walk, N^2/s (large: the given
             tensions, not the motion model, set them).
@@ -310,8 +323,13 @@ class TendonFormulation(Formulation):
     gyro_std: float = 0.05
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
+    own_acceleration: bool = True
+    acceleration_from_force_rate: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
+    estimate_misalignment: bool = False
+    initial_misalignment_std: float = 0.03
+    misalignment_psd: float = 1e-9
     tension_std: float = 1e-3
     tension_psd: float = 1e3
     equilibrium_std: float = 1e-4
@@ -332,6 +350,8 @@ class TendonFormulation(Formulation):
             "gyro_std",
             "gyro_bias_psd",
             "initial_gyro_bias_std",
+            "initial_misalignment_std",
+            "misalignment_psd",
             "tension_std",
             "tension_psd",
             "equilibrium_std",
@@ -350,6 +370,10 @@ class TendonFormulation(Formulation):
 
     # --- the state ----------------------------------------------------------------
     @property
+    def n_misalignment(self) -> int:
+        return 3 * self.robot.n_imus if self.estimate_misalignment else 0
+
+    @property
     def n_gyro_bias(self) -> int:
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
@@ -360,7 +384,11 @@ class TendonFormulation(Formulation):
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
-        return (*q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias])
+        mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        return (
+            *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
+            *mis[: self.n_misalignment],
+        )  # fmt: skip
 
     def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
         """``(q = [k0, F], tau, q')`` of a state."""
@@ -378,6 +406,7 @@ class TendonFormulation(Formulation):
         if k:
             names = tuple(f"tension_{i}" for i in range(1, k + 1))
             names += tuple(f"tension_{i}_dot" for i in range(1, k + 1))
+            names += tuple(f"tension_{i}_ddot" for i in range(1, k + 1))
             extra.append(MeasurementBlock("tensions", names, start, "tension"))
             start += len(names)
         eq = EQUILIBRIUM_NAMES if self.imu_model == "direct" else EQUILIBRIUM_NAMES[:3]
@@ -391,18 +420,23 @@ class TendonFormulation(Formulation):
         return sum(b.size for b in self.measurement_blocks if b.is_imu)
 
     def measurement_row(
-        self, imu: FloatArray, tensions: FloatArray, tension_rates: FloatArray
+        self,
+        imu: FloatArray,
+        tensions: FloatArray,
+        tension_rates: FloatArray,
+        tension_accelerations: FloatArray | None = None,
     ) -> FloatArray:
-        """The measurement vector ``z`` (nz,) from the IMUs' part, the tensions (N) and
-        their rates (N/s)."""
+        """The measurement vector ``z`` (nz,) from the IMUs' part, the tensions (N),
+        their rates (N/s) and their second derivatives (N/s^2; None: zero)."""
         n_eq = self.measurement_blocks[-1].size
-        return np.concatenate([imu, tensions, tension_rates, np.zeros(n_eq)])
+        acc = np.zeros(len(tensions)) if tension_accelerations is None else tension_accelerations
+        return np.concatenate([imu, tensions, tension_rates, acc, np.zeros(n_eq)])
 
     def measurement_mask(self, z: FloatArray) -> FloatArray:
         """As the base class's; a sample without its tensions is a dropout as a whole
         (the model cannot predict its IMUs)."""
         n, k = self.n_imu_measurements, self.robot.n_tendons
-        if not np.isfinite(z[n : n + 2 * k]).all():
+        if not np.isfinite(z[n : n + 3 * k]).all():
             return np.zeros(len(z))
         return super().measurement_mask(z)
 
@@ -432,22 +466,81 @@ class TendonFormulation(Formulation):
 
         if self.estimate_gyro_bias:
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
+        if self.estimate_misalignment:
+            cov = ca.diagcat(cov, self.misalignment_psd * dt * ca.SX.eye(self.n_misalignment))
         return cov
 
+    def _imu_accelerations(
+        self, v: Sym, v_dot: Sym, tau_ddot: Sym, res: Sym, poses: dict[Station, tuple[Sym, Sym]]
+    ) -> list[Sym]:
+        """Each IMU's own acceleration (m/s^2, base frame) along the equilibria, with
+        ``v = [k0, F, tau]``: the tip force at constant velocity (``F'' = 0``), the
+        tensions' second derivative given, and the base curvature's rate and
+        acceleration those that keep the tip condition (the first and second time
+        derivatives of the residual zero).
+
+        The second derivatives are central differences along the Taylor curve
+        ``v(t) = v + t v' + t^2 v''/2`` (``k0'' = 0`` on it) with the step
+        :data:`ACCELERATION_STEP`, corrected to first order for ``k0''``: two more
+        shootings instead of the nested derivatives of the whole shooting (which the
+        estimators differentiate again)."""
+        h = ACCELERATION_STEP
+        j_k0 = ca.jacobian(res, v[:3])
+        rest = ca.vertcat(ca.SX.zeros(3), v_dot[3:])
+        if not self.acceleration_from_force_rate:
+            rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
+        k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
+        v_dot = ca.vertcat(k0_dot, rest[3:])
+        v_ddot = ca.vertcat(ca.SX.zeros(6), tau_ddot)
+        shifted = []
+        for sign in (1.0, -1.0):
+            w = v + sign * h * v_dot + h**2 / 2 * v_ddot
+            there, r = self.statics.shoot(w[:3], w[3:6], w[6:])
+            shifted.append((r, [there[st][1] for st in self._imu_stations]))
+        res_ddot = (shifted[0][0] - 2 * res + shifted[1][0]) / h**2
+        k0_ddot = -ca.solve(j_k0, res_ddot)
+        along = ca.vertcat(k0_ddot, ca.SX.zeros(v.numel() - 3))
+        return [
+            (shifted[0][1][i] - 2 * poses[st][1] + shifted[1][1][i]) / h**2
+            + ca.jtimes(poses[st][1], v, along)
+            for i, st in enumerate(self._imu_stations)
+        ]
+
+    @cached_property
+    def _imu_stations(self) -> tuple[Station, ...]:
+        return tuple(Station(i.section, i.at) for i in self.robot.imus)
+
     def _model(self, x: Sym, z: Sym | None) -> tuple[list[Sym], list[Sym], Sym]:
-        """``(gravity directions, IMU blocks, equilibrium block)`` at the state ``x``,
-        with the sample's tension rates from ``z`` (zero without ``z``)."""
+        """``(specific-force directions, IMU blocks, equilibrium block)`` at the state
+        ``x``, with the sample's tension rates and their rates from ``z`` (zero without
+        ``z``). The specific force is ``R^T (a / g + up)``: gravity and, with
+        :attr:`own_acceleration`, the IMU's own acceleration ``a``."""
         n, k = self.n_imu_measurements, self.robot.n_tendons
         q, tau, qd = self._split(x)
         tau_dot = ca.SX.zeros(k) if z is None else z[n + k : n + 2 * k]
+        tau_ddot = ca.SX.zeros(k) if z is None else z[n + 2 * k : n + 3 * k]
         poses, res = self.statics.shoot(q[:3], q[3:6], tau)
         up = up_vector(self.robot.mounting)
-        rots = [poses[Station(i.section, i.at)][0] for i in self.robot.imus]
-        gravity = [ca.mtimes(R.T, up) for R in rots]
-        if self.imu_model == "tilt":
-            return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
+        rots = [poses[st][0] for st in self._imu_stations]
         v = ca.vertcat(q, tau)
         v_dot = ca.vertcat(qd, tau_dot)
+        if self.own_acceleration:
+            accel = self._imu_accelerations(v, v_dot, tau_ddot, res, poses)
+            specific = [ca.DM(up) + a / GRAVITY for a in accel]
+        else:
+            specific = [ca.DM(up) for _ in rots]
+        if self.estimate_misalignment:  # the board turned by a small rotation
+            n0 = 12 + k + self.n_gyro_bias
+            rots = [
+                ca.mtimes(R, ca.SX.eye(3) + _hat(x[n0 + 3 * i : n0 + 3 * i + 3]))
+                for i, R in enumerate(rots)
+            ]
+        gravity = []
+        for R, f in zip(rots, specific):
+            fb = ca.mtimes(R.T, f)
+            gravity.append(fb / ca.norm_2(fb))
+        if self.imu_model == "tilt":
+            return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
         eq = ca.vertcat(res, ca.jtimes(res, v, v_dot))
         imu = []
         for i, R in enumerate(rots):
@@ -465,7 +558,7 @@ class TendonFormulation(Formulation):
         :meth:`measurement_residual_sym`, which reads the sample's tensions)."""
         _, imu, eq = self._model(x, None)
         k = self.robot.n_tendons
-        return ca.vertcat(*imu, x[6 : 6 + k], ca.SX.zeros(k), eq)
+        return ca.vertcat(*imu, x[6 : 6 + k], ca.SX.zeros(2 * k), eq)
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Tilt blocks on the tangent plane of the measured gravity direction (as
@@ -484,7 +577,7 @@ class TendonFormulation(Formulation):
                 ]
             )
         r_tau = z[n : n + k] - x[6 : 6 + k]
-        return ca.vertcat(r_imu, r_tau, ca.SX.zeros(k), -eq)
+        return ca.vertcat(r_imu, r_tau, ca.SX.zeros(2 * k), -eq)
 
     def meas_cov(self) -> FloatArray:
         if self.imu_model == "tilt":
@@ -495,7 +588,7 @@ class TendonFormulation(Formulation):
             imu = np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
         k = self.robot.n_tendons
         # the rates' rows are zero residuals: any weight
-        tension = np.diag([self.tension_std**2] * k + [1.0] * k)
+        tension = np.diag([self.tension_std**2] * k + [1.0] * 2 * k)
         eq = np.eye(self.measurement_blocks[-1].size) * self.equilibrium_std**2
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
@@ -548,7 +641,7 @@ class TendonFormulation(Formulation):
         if not valid.any():
             return x
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
-        rows = np.r_[np.flatnonzero(valid), n + 2 * k : n + 2 * k + 3]
+        rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
 
         def resid(v: FloatArray) -> FloatArray:
             xx = np.r_[v, x[6:]]
@@ -570,6 +663,7 @@ class TendonFormulation(Formulation):
         diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
+        diag += [self.initial_misalignment_std**2] * self.n_misalignment
         return np.diag(diag)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
