@@ -1,6 +1,8 @@
 #include "tape.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -45,10 +47,31 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
         work(I.b);  // unary operations carry b = a
     }
   }
+  // an output with fewer writes than entries has structural zeros, written by the
+  // evaluation before the instructions run
+  std::vector<int64_t> written(output_sizes_.size(), 0);
+  for (const Instruction& I : code_)
+    if (I.op == OP_OUTPUT) ++written[I.b];
+  for (size_t j = 0; j < output_sizes_.size(); ++j)
+    if (written[j] < output_sizes_[j]) sparse_outputs_.push_back(static_cast<int64_t>(j));
 }
+
+#if defined(_OPENMP) || defined(__GNUC__) || defined(__clang__)
+#define CMHE_SIMD _Pragma("omp simd")
+#else
+#define CMHE_SIMD
+#endif
 
 namespace {
 inline double sign(double x) { return x < 0 ? -1.0 : (x > 0 ? 1.0 : x); }
+// x == 0 ? 0 : y without a branch (y is read either way), so that a loop of it vectorises
+inline double if_else_zero(double x, double y) {
+  uint64_t bits;
+  std::memcpy(&bits, &y, sizeof bits);
+  bits &= -static_cast<uint64_t>(x != 0.0);
+  std::memcpy(&y, &bits, sizeof bits);
+  return y;
+}
 }  // namespace
 
 void Tape::evaluate_flat(const double* const* in, double* out) const {
@@ -66,6 +89,8 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   if (static_cast<int64_t>(work.size()) < work_size_) work.resize(work_size_);
   double* w = work.data();
   const double* c = constants_.data();
+  for (int64_t j : sparse_outputs_)
+    if (out[j]) std::fill(out[j], out[j] + output_sizes_[j], 0.0);
   for (const Instruction& I : code_) {
 // operands are read inside each case: for INPUT, OUTPUT and CONST, a and res are not
 // work indices
@@ -133,17 +158,26 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
 
 void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
                           const int64_t* out_stride, int64_t count) const {
+  // work slot i of evaluation k at w[i * n + k]: the row of each slot padded to whole
+  // vectors, so that every instruction is one loop over n contiguous values. Rows are
+  // disjoint or the same (an instruction may overwrite its operand), never partly
+  // overlapping, so the loops carry no dependence (the simd pragmas say so).
+  const int64_t n = (count + kLanes - 1) / kLanes * kLanes;
   thread_local std::vector<double> work;
-  const size_t need = static_cast<size_t>(work_size_ * count);
+  const size_t need = static_cast<size_t>(work_size_ * n);
   if (work.size() < need) work.resize(need);
   double* w = work.data();
   const double* c = constants_.data();
-  const int64_t n = count;
+  for (int64_t j : sparse_outputs_)
+    if (out[j])
+      for (int64_t k = 0; k < count; ++k)
+        std::fill(out[j] + k * out_stride[j], out[j] + k * out_stride[j] + output_sizes_[j], 0.0);
   for (const Instruction& I : code_) {
     double* r = w + static_cast<int64_t>(I.res) * n;
     const double* x = w + static_cast<int64_t>(I.a) * n;
     const double* y = w + static_cast<int64_t>(I.b) * n;
-#define EACH(expr)                          \
+#define EACH(expr)                   \
+  CMHE_SIMD                          \
   for (int64_t k = 0; k < n; ++k) r[k] = (expr); \
   break
     switch (I.op) {
@@ -152,7 +186,8 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
         const int64_t s = in_stride[I.a];
         if (src) {
           src += I.b;
-          for (int64_t k = 0; k < n; ++k) r[k] = src[k * s];
+          for (int64_t k = 0; k < count; ++k) r[k] = src[k * s];
+          for (int64_t k = count; k < n; ++k) r[k] = r[count - 1];  // padding: a valid point
         } else {
           for (int64_t k = 0; k < n; ++k) r[k] = 0.0;
         }
@@ -164,7 +199,7 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
           const int64_t s = out_stride[I.b];
           dst += I.res;
           const double* v = w + static_cast<int64_t>(I.a) * n;
-          for (int64_t k = 0; k < n; ++k) dst[k * s] = v[k];
+          for (int64_t k = 0; k < count; ++k) dst[k * s] = v[k];
         }
         break;
       }
@@ -203,7 +238,7 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
       case OP_FABS: EACH(std::fabs(x[k]));
       case OP_SIGN: EACH(sign(x[k]));
       case OP_COPYSIGN: EACH(std::copysign(x[k], y[k]));
-      case OP_IF_ELSE_ZERO: EACH(x[k] == 0 ? 0.0 : y[k]);
+      case OP_IF_ELSE_ZERO: EACH(if_else_zero(x[k], y[k]));
       case OP_ERF: EACH(std::erf(x[k]));
       case OP_FMIN: EACH(std::fmin(x[k], y[k]));
       case OP_FMAX: EACH(std::fmax(x[k], y[k]));

@@ -24,24 +24,27 @@ _INPUT, _OUTPUT, _CONST = (_core.OPERATIONS.index(n) for n in ("INPUT", "OUTPUT"
 
 
 def _sx(fn: ca.Function) -> ca.Function:
-    """``fn`` as an SX function with dense inputs and outputs."""
+    """``fn`` as an SX function with dense inputs, its common subexpressions shared
+    (``casadi.cse``: an expression that occurs several times, as the derivatives of a
+    model repeat its terms, is evaluated once). Its outputs keep their sparsity: the
+    core writes an output's structural zeros itself."""
     if not fn.is_a("SXFunction"):
         fn = fn.expand()
     for i in range(fn.n_in()):
         if not fn.sparsity_in(i).is_dense():
             raise ValueError(f"{fn.name()}: input {i} is not dense")
-    if any(not fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
-        sym = [ca.SX.sym(f"i{i}", fn.sparsity_in(i)) for i in range(fn.n_in())]
-        fn = ca.Function(fn.name(), sym, [ca.densify(v) for v in fn.call(sym)])
-    return fn
+    sym = [ca.SX.sym(f"i{i}", fn.sparsity_in(i)) for i in range(fn.n_in())]
+    return ca.Function(fn.name(), sym, ca.cse(fn.call(sym)))
 
 
 def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     """``(code, constants)`` of an SX function: ``code`` (n, 4) int32 rows
-    ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``)."""
+    ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``); an output's
+    offsets are those of its dense column-major layout."""
     n = fn.n_instructions()
     code = np.zeros((n, 4), dtype=np.int32)
     constants: list[float] = []
+    dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
     for k in range(n):
         op = fn.instruction_id(k)
         try:
@@ -55,7 +58,7 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
         if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
             code[k] = (core_op, res[0], args[0], args[1])
         elif core_op == _OUTPUT:  # output res[0], nonzero res[1] <- work args[0]
-            code[k] = (core_op, res[1], args[0], res[0])
+            code[k] = (core_op, dense[res[0]][res[1]], args[0], res[0])
         elif core_op == _CONST:
             code[k] = (core_op, res[0], len(constants), 0)
             constants.append(float(fn.instruction_constant(k)))
@@ -63,6 +66,13 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
             a = args[0]
             code[k] = (core_op, res[0], a, args[1] if len(args) > 1 else a)
     return code, np.asarray(constants, dtype=np.float64)
+
+
+def _dense_offsets(sp: ca.Sparsity) -> np.ndarray:
+    """Each nonzero's offset in the dense column-major layout of ``sp``."""
+    return np.asarray(sp.row(), dtype=np.int64) + sp.size1() * np.asarray(
+        sp.get_col(), dtype=np.int64
+    )
 
 
 def tape_function(fn: ca.Function) -> _core.TapeFunction:
@@ -73,6 +83,6 @@ def tape_function(fn: ca.Function) -> _core.TapeFunction:
         code,
         constants,
         [int(fn.nnz_in(i)) for i in range(fn.n_in())],
-        [int(fn.nnz_out(i)) for i in range(fn.n_out())],
+        [int(fn.numel_out(i)) for i in range(fn.n_out())],
         max(int(fn.sz_w()), 1),
     )
