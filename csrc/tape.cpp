@@ -62,6 +62,14 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
 #define CMHE_SIMD
 #endif
 
+// The batched loops also in an AVX2 version where the compiler can choose at load time
+// (a function with target clones; each operation rounds the same either way)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMHE_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CMHE_CLONES
+#endif
+
 namespace {
 inline double sign(double x) { return x < 0 ? -1.0 : (x > 0 ? 1.0 : x); }
 // x == 0 ? 0 : y without a branch (y is read either way), so that a loop of it vectorises
@@ -156,7 +164,7 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   }
 }
 
-void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
+CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
                           const int64_t* out_stride, int64_t count) const {
   // work slot i of evaluation k at w[i * n + k]: the row of each slot padded to whole
   // vectors, so that every instruction is one loop over n contiguous values. Rows are
