@@ -64,6 +64,11 @@ class Tape {
   int64_t output_size_ = 0;
   int64_t work_size_ = 0;
   std::vector<int64_t> sparse_outputs_;  // outputs with structural zeros
+  // per instruction: the pair index p * kPairOps + q where it and the next run as a
+  // pair in evaluate_batch, else -1
+  std::vector<int16_t> pair_;
+  static constexpr int kPairOps = 9;
+  static int pair_index(int32_t op);  // its index among the paired operations, or -1
   static constexpr int64_t kLanes = 8;   // a batch's rows are padded to a multiple
 };
 
