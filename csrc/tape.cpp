@@ -1,6 +1,8 @@
 #include "tape.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -45,10 +47,91 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
         work(I.b);  // unary operations carry b = a
     }
   }
+  // an output with fewer writes than entries has structural zeros, written by the
+  // evaluation before the instructions run
+  std::vector<int64_t> written(output_sizes_.size(), 0);
+  for (const Instruction& I : code_)
+    if (I.op == OP_OUTPUT) ++written[I.b];
+  for (size_t j = 0; j < output_sizes_.size(); ++j)
+    if (written[j] < output_sizes_[j]) sparse_outputs_.push_back(static_cast<int64_t>(j));
+  // consecutive elementwise instructions run as pairs in the batched evaluation
+  pair_.assign(code_.size(), -1);
+  for (size_t k = 0; k + 1 < code_.size(); ++k) {
+    const int p = pair_index(code_[k].op), q = pair_index(code_[k + 1].op);
+    if (p >= 0 && q >= 0) pair_[k++] = static_cast<int16_t>(p * kPairOps + q);
+  }
+}
+
+#if defined(_OPENMP) || defined(__GNUC__) || defined(__clang__)
+#define CMHE_SIMD _Pragma("omp simd")
+#else
+#define CMHE_SIMD
+#endif
+
+// The batched loops also in an AVX2 version where the compiler can choose at load time
+// (a function with target clones; each operation rounds the same either way)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMHE_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CMHE_CLONES
+#endif
+
+namespace {
+// the operations that run in pairs, in the order of their pair index
+constexpr int32_t kPairOpcodes[] = {OP_ADD, OP_SUB, OP_MUL, OP_DIV, OP_NEG,
+                                     OP_TWICE, OP_SQ, OP_IF_ELSE_ZERO, OP_ASSIGN};
+}  // namespace
+
+int Tape::pair_index(int32_t op) {
+  for (int i = 0; i < kPairOps; ++i)
+    if (kPairOpcodes[i] == op) return i;
+  return -1;
 }
 
 namespace {
 inline double sign(double x) { return x < 0 ? -1.0 : (x > 0 ? 1.0 : x); }
+// x == 0 ? 0 : y without a branch (y is read either way), so that a loop of it vectorises
+inline double if_else_zero(double x, double y) {
+  uint64_t bits;
+  std::memcpy(&bits, &y, sizeof bits);
+  bits &= -static_cast<uint64_t>(x != 0.0);
+  std::memcpy(&y, &bits, sizeof bits);
+  return y;
+}
+
+// operation number P of kPairOpcodes
+template <int P>
+inline double pair_op(double x, double y) {
+  if constexpr (P == 0) return x + y;
+  if constexpr (P == 1) return x - y;
+  if constexpr (P == 2) return x * y;
+  if constexpr (P == 3) return x / y;
+  if constexpr (P == 4) return -x;
+  if constexpr (P == 5) return 2.0 * x;
+  if constexpr (P == 6) return x * x;
+  if constexpr (P == 7) return if_else_zero(x, y);
+  return x;
+}
+
+// two consecutive instructions in one loop over the batch: each node's values are its
+// own, so node k's second result may read its first
+template <int P, int Q>
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+inline void run_pair(const Instruction& I, const Instruction& J, double* w, int64_t n) {
+  double* r1 = w + static_cast<int64_t>(I.res) * n;
+  const double* x1 = w + static_cast<int64_t>(I.a) * n;
+  const double* y1 = w + static_cast<int64_t>(I.b) * n;
+  double* r2 = w + static_cast<int64_t>(J.res) * n;
+  const double* x2 = w + static_cast<int64_t>(J.a) * n;
+  const double* y2 = w + static_cast<int64_t>(J.b) * n;
+  CMHE_SIMD
+  for (int64_t k = 0; k < n; ++k) {
+    r1[k] = pair_op<P>(x1[k], y1[k]);
+    r2[k] = pair_op<Q>(x2[k], y2[k]);
+  }
+}
 }  // namespace
 
 void Tape::evaluate_flat(const double* const* in, double* out) const {
@@ -66,6 +149,8 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   if (static_cast<int64_t>(work.size()) < work_size_) work.resize(work_size_);
   double* w = work.data();
   const double* c = constants_.data();
+  for (int64_t j : sparse_outputs_)
+    if (out[j]) std::fill(out[j], out[j] + output_sizes_[j], 0.0);
   for (const Instruction& I : code_) {
 // operands are read inside each case: for INPUT, OUTPUT and CONST, a and res are not
 // work indices
@@ -131,19 +216,44 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   }
 }
 
-void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
+CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,
                           const int64_t* out_stride, int64_t count) const {
+  // work slot i of evaluation k at w[i * n + k]: the row of each slot padded to whole
+  // vectors, so that every instruction is one loop over n contiguous values. Rows are
+  // disjoint or the same (an instruction may overwrite its operand), never partly
+  // overlapping, so the loops carry no dependence (the simd pragmas say so).
+  const int64_t n = (count + kLanes - 1) / kLanes * kLanes;
   thread_local std::vector<double> work;
-  const size_t need = static_cast<size_t>(work_size_ * count);
+  const size_t need = static_cast<size_t>(work_size_ * n);
   if (work.size() < need) work.resize(need);
   double* w = work.data();
   const double* c = constants_.data();
-  const int64_t n = count;
-  for (const Instruction& I : code_) {
+  for (int64_t j : sparse_outputs_)
+    if (out[j])
+      for (int64_t k = 0; k < count; ++k)
+        std::fill(out[j] + k * out_stride[j], out[j] + k * out_stride[j] + output_sizes_[j], 0.0);
+  const size_t size = code_.size();
+  for (size_t pc = 0; pc < size; ++pc) {
+    const Instruction& I = code_[pc];
+    if (pair_[pc] >= 0) {
+      const Instruction& J = code_[++pc];
+      switch (pair_[pc - 1]) {
+#define CMHE_PAIR(P, Q) case P * kPairOps + Q: run_pair<P, Q>(I, J, w, n); break;
+#define CMHE_ROW(P) CMHE_PAIR(P, 0) CMHE_PAIR(P, 1) CMHE_PAIR(P, 2) CMHE_PAIR(P, 3) \
+  CMHE_PAIR(P, 4) CMHE_PAIR(P, 5) CMHE_PAIR(P, 6) CMHE_PAIR(P, 7) CMHE_PAIR(P, 8)
+        CMHE_ROW(0) CMHE_ROW(1) CMHE_ROW(2) CMHE_ROW(3) CMHE_ROW(4) CMHE_ROW(5) CMHE_ROW(6)
+        CMHE_ROW(7) CMHE_ROW(8)
+#undef CMHE_ROW
+#undef CMHE_PAIR
+        default: break;
+      }
+      continue;
+    }
     double* r = w + static_cast<int64_t>(I.res) * n;
     const double* x = w + static_cast<int64_t>(I.a) * n;
     const double* y = w + static_cast<int64_t>(I.b) * n;
-#define EACH(expr)                          \
+#define EACH(expr)                   \
+  CMHE_SIMD                          \
   for (int64_t k = 0; k < n; ++k) r[k] = (expr); \
   break
     switch (I.op) {
@@ -152,7 +262,8 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
         const int64_t s = in_stride[I.a];
         if (src) {
           src += I.b;
-          for (int64_t k = 0; k < n; ++k) r[k] = src[k * s];
+          for (int64_t k = 0; k < count; ++k) r[k] = src[k * s];
+          for (int64_t k = count; k < n; ++k) r[k] = r[count - 1];  // padding: a valid point
         } else {
           for (int64_t k = 0; k < n; ++k) r[k] = 0.0;
         }
@@ -164,7 +275,7 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
           const int64_t s = out_stride[I.b];
           dst += I.res;
           const double* v = w + static_cast<int64_t>(I.a) * n;
-          for (int64_t k = 0; k < n; ++k) dst[k * s] = v[k];
+          for (int64_t k = 0; k < count; ++k) dst[k * s] = v[k];
         }
         break;
       }
@@ -203,7 +314,7 @@ void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, dou
       case OP_FABS: EACH(std::fabs(x[k]));
       case OP_SIGN: EACH(sign(x[k]));
       case OP_COPYSIGN: EACH(std::copysign(x[k], y[k]));
-      case OP_IF_ELSE_ZERO: EACH(x[k] == 0 ? 0.0 : y[k]);
+      case OP_IF_ELSE_ZERO: EACH(if_else_zero(x[k], y[k]));
       case OP_ERF: EACH(std::erf(x[k]));
       case OP_FMIN: EACH(std::fmin(x[k], y[k]));
       case OP_FMAX: EACH(std::fmax(x[k], y[k]));

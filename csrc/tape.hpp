@@ -15,7 +15,7 @@ namespace cmhe {
 // CasADi's OP_* names onto these; an operation missing here is refused there).
 enum Op : int32_t {
   OP_INPUT = 0,   // w[res] = in[a][b]        (a: input index, b: nonzero offset)
-  OP_OUTPUT,      // out[b][res] = w[a]       (b: output index, res: nonzero offset)
+  OP_OUTPUT,      // out[b][res] = w[a]       (b: output index, res: dense offset)
   OP_CONST,       // w[res] = constants[a]
   OP_ASSIGN,      // w[res] = w[a]
   OP_ADD, OP_SUB, OP_MUL, OP_DIV, OP_NEG, OP_EXP, OP_LOG, OP_POW, OP_CONSTPOW,
@@ -31,7 +31,8 @@ struct Instruction {
   int32_t op, res, a, b;
 };
 
-// One SX function: inputs and outputs are dense column-major arrays. A null input
+// One SX function: inputs and outputs are dense column-major arrays (an output's
+// structural zeros are written too). A null input
 // pointer reads as zeros, a null output pointer is not written (CasADi's convention).
 class Tape {
  public:
@@ -62,6 +63,13 @@ class Tape {
   std::vector<int64_t> input_sizes_, output_sizes_;
   int64_t output_size_ = 0;
   int64_t work_size_ = 0;
+  std::vector<int64_t> sparse_outputs_;  // outputs with structural zeros
+  // per instruction: the pair index p * kPairOps + q where it and the next run as a
+  // pair in evaluate_batch, else -1
+  std::vector<int16_t> pair_;
+  static constexpr int kPairOps = 9;
+  static int pair_index(int32_t op);  // its index among the paired operations, or -1
+  static constexpr int64_t kLanes = 8;   // a batch's rows are padded to a multiple
 };
 
 }  // namespace cmhe

@@ -127,3 +127,20 @@ def test_the_typing_stub_is_the_built_module(tmp_path) -> None:
     assert r.returncode == 0, r.stderr
     committed = Path(__file__).resolve().parents[1] / "src/continuum_mhe/_core/_ext.pyi"
     assert out.read_text() == committed.read_text()
+
+
+def test_a_repeated_expression_is_evaluated_once() -> None:
+    """The tape computes a subexpression that occurs twice (as the derivatives of a model
+    repeat its terms) once, and the values stay CasADi's to the last bit."""
+    from continuum_mhe.estimators.fast.tape import shared_tape, tape_arrays
+
+    v = ca.SX.sym("v", 2)
+    # two separately built copies of sin(v0) * v1: CasADi keeps both
+    fn = ca.Function("g", [v], [ca.vertcat(ca.sin(v[0]) * v[1], v[1] * ca.sin(v[0]) + 1.0)])
+    code, constants = tape_arrays(fn)
+    shared, _, work = shared_tape(code, constants)
+    ops = [_core.OPERATIONS[op] for op in shared[:, 0]]
+    assert ops.count("SIN") == 1 and ops.count("MUL") == 1
+    assert len(shared) < len(code) and work <= fn.sz_w()
+    args = [np.array([0.7, -1.3])]
+    np.testing.assert_array_equal(core_flat(tape_function(fn), args), casadi_flat(fn, args))
