@@ -410,9 +410,12 @@ class Estimator(ABC):
         output = None if state is None else self._output(state)
         std = None
         if state is not None and cov is not None:
-            std = self._output_std(state, cov)
+            spread = cov
             if factor != 1.0:  # the model error the readings show (covariance matching)
-                std = std * factor
+                spread = spread * (factor * factor)
+            if self._checks_start:  # the readings' constant errors no residual shows
+                spread = spread + self._consistency.reading_bias_cov(measurement.z, mask, state)
+            std = self._output_std(state, spread)
             if status == Status.OK and self._tip and self.formulation.calibrated_covariance:
                 sl = std.tolist()  # a few floats: plain Python is faster than numpy here
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
