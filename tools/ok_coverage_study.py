@@ -67,7 +67,7 @@ def main() -> None:
                 r = study(args.folder, name, case, m)
                 print(
                     f"{name} {case} {m}: {r['mean']:.2f} / {r['max']:.1f}, ok {r['ok']:.2f}, "
-                    f"cov {r["cx"]:.3f} {r["cy"]:.3f} {r["cz"]:.3f}, ok>50 {r['ok50']}, "
+                    f"cov {r['cx']:.3f} {r['cy']:.3f} {r['cz']:.3f}, ok>50 {r['ok50']}, "
                     f"scale {r['scale']:.1f}",
                     flush=True,
                 )

@@ -202,7 +202,9 @@ class ConsistencyCheck:
         core = self._innovate_core
         out = np.empty(core.output_size)
         zv = np.where(mask > 0, z, 0.0)
-        core.evaluate([np.ascontiguousarray(zv, dtype=float), np.ascontiguousarray(state, dtype=float)], out)
+        core.evaluate(
+            [np.ascontiguousarray(zv, dtype=float), np.ascontiguousarray(state, dtype=float)], out
+        )
         valid = np.flatnonzero(mask > 0)
         H = out[nz:].reshape(nx, nz).T[valid]
         w = self._r_inv[valid]

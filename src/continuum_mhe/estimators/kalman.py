@@ -294,4 +294,3 @@ class UnscentedKalmanFilter(_KalmanBase):
                 f"{float(col.max() - col.min()):.3g} across the sigma points: the "
                 "reading is about a half turn from the predicted tilt"
             )
-
