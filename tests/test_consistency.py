@@ -147,3 +147,24 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod() -> None:
     assert ok.mean() > 0.9
     covered = np.abs(series.output[ok, :3] - truth[ok]) <= 1.96 * series.std[ok, :3]
     assert np.all(covered.mean(axis=0) >= COVERAGE[0]), covered.mean(axis=0)
+
+
+def test_loaded_tendon_robot_rows_far_off_are_not_ok() -> None:
+    """The shipped tendon robot under a 0.29 N tip force (PyElastica, 13 degrees of
+    twist), raw IMUs, estimated without tensions by the PCC model (defaults): the
+    model cannot follow, and at least 80 % of the rows more than 20 mm off are not
+    ``ok`` (all of them, measured)."""
+    from continuum_mhe.io.csv_files import read_state_table
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.sample_stream import load_estimate_input
+    from continuum_mhe.simulation.cosserat import default_data_path
+
+    folder = default_data_path().parent / "tendon"
+    f = make_formulation("bend", read_robot("tendon-two-section"))
+    data = load_estimate_input(folder / "force-29_raw.csv", InputOptions(), f)
+    truth = read_state_table(folder / "force-29_truth.csv").values[:, :3]
+    series = make_estimator("ekf", data.formulation).run(data.t, data.z)
+    far = np.linalg.norm(series.output[:, :3] - truth, axis=1) > 0.02
+    assert far.sum() > 100
+    assert np.mean(series.status[far] != "ok") >= 0.8
