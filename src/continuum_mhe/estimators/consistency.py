@@ -33,8 +33,9 @@ mounting misalignment, its accelerometer's bias) looks like a different shape.
 :meth:`ConsistencyCheck.reading_bias_cov` is the estimate's covariance from it, the
 readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
 ``NoiseSettings.reading_bias_std``) carried through the estimate's weighted
-least-squares sensitivity to the readings, ``A = (H^T R^-1 H)^+ H^T R^-1`` at the
-estimate: ``A B A^T``. It is added to the covariance the output standard deviations
+least-squares sensitivity to the readings that carry such an error (the gravity
+directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
+at the estimate: ``A B A^T``. It is added to the covariance the output standard deviations
 come from (a constant reading error shifts an estimate by ``A`` times it, as long as
 the window or the filter's memory is shorter than the motion).
 
@@ -194,24 +195,27 @@ class ConsistencyCheck:
     def reading_bias_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
         """The state covariance (nx, nx) from the readings' constant errors (module
         doc): ``A B A^T`` with ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid readings
-        (``mask``) at ``state``; zero where ``B`` is."""
+        that carry a constant error (``B > 0``: the gravity directions) and the states
+        they depend on (the bends: the readings that set the shape) at ``state``; zero
+        where ``B`` is."""
         nx, nz = self.formulation.nx, self.formulation.nz
         rows = np.flatnonzero((mask > 0) & (np.diag(self._bias) > 0))
+        out_cov = np.zeros((nx, nx))
         if len(rows) == 0:
-            return np.zeros((nx, nx))
+            return out_cov
         core = self._innovate_core
         out = np.empty(core.output_size)
         zv = np.where(mask > 0, z, 0.0)
-        core.evaluate(
-            [np.ascontiguousarray(zv, dtype=float), np.ascontiguousarray(state, dtype=float)], out
-        )
-        valid = np.flatnonzero(mask > 0)
-        H = out[nz:].reshape(nx, nz).T[valid]
-        w = self._r_inv[valid]
+        args = [np.ascontiguousarray(v, dtype=float) for v in (zv, state)]
+        core.evaluate(args, out)
+        H = out[nz:].reshape(nx, nz).T[rows]
+        cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+        H = H[:, cols]
+        w = self._r_inv[rows]
         info = H.T @ (H * w[:, None])
         A = np.linalg.pinv(info, rcond=1e-9, hermitian=True) @ (H.T * w)
-        B = self._bias[np.ix_(valid, valid)]
-        return np.asarray(A @ B @ A.T, dtype=float)
+        out_cov[np.ix_(cols, cols)] = A @ self._bias[np.ix_(rows, rows)] @ A.T
+        return out_cov
 
     @property
     def std_factor(self) -> float:
