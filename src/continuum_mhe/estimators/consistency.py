@@ -35,9 +35,10 @@ readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
 ``NoiseSettings.reading_bias_std``) carried through the estimate's weighted
 least-squares sensitivity to the readings that carry such an error (the gravity
 directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
-at the estimate: ``A B A^T``. It is added to the covariance the output standard deviations
-come from (a constant reading error shifts an estimate by ``A`` times it, as long as
-the window or the filter's memory is shorter than the motion).
+at the estimate: ``A B A^T``. Its output standard deviations are added in quadrature
+to the estimator's (a constant reading error shifts an estimate by ``A`` times it, as
+long as the window or the filter's memory is shorter than the motion); the status
+does not depend on it.
 
 A formulation whose covariance is not one (``Formulation.calibrated_covariance``
 False: the paper formulation's weight ``W``) is not checked, nor an estimate without a
