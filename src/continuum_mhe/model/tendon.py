@@ -504,11 +504,12 @@ class TendonFormulation(Formulation):
         (``noise.reading_bias_std``); tensions and the equilibrium rows none."""
         b2 = self.noise.reading_bias_std**2
         if self.imu_model == "tilt":
-            imu = np.eye(self.n_imu_measurements) * b2
+            per_reading = [b2] * self.n_imu_measurements
         else:
-            imu = np.kron(np.eye(self.robot.n_imus), np.diag([b2] * 3 + [0.0] * 3))
+            per_reading = ([b2] * 3 + [0.0] * 3) * self.robot.n_imus
         out = np.zeros((self.nz, self.nz))
-        out[: len(imu), : len(imu)] = imu
+        k = len(per_reading)
+        out[:k, :k] = np.diag(per_reading)
         return out
 
     def output_sym(self, x: Sym) -> Sym:
