@@ -16,7 +16,7 @@ from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-from continuum_mhe.settings import MHESettings
+from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
 TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
@@ -49,9 +49,11 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ProcessNoiseCache
 
-    f = make_formulation("bend", robot) if robot else make_formulation("bend")
+    # no constant reading error: the reported std is the covariance's, times one factor
+    noise = NoiseSettings(reading_bias_std=0.0)
+    f = make_formulation("bend", robot, noise) if robot else make_formulation("bend", noise=noise)
     node = NodeEvaluator(build_window_model(f, 2))
-    noise = ProcessNoiseCache(f)
+    process_noise = ProcessNoiseCache(f)
     rng = np.random.default_rng(2)
     x = np.asarray(f.initial_state(np.full(f.nz, 0.3)), float) + rng.normal(scale=0.1, size=f.nx)
     P = f.initial_cov()
@@ -59,7 +61,7 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     for mask in masks * 2:
         z = rng.normal(scale=0.4, size=f.nz)
         u, dt = np.zeros(f.nu), 0.05
-        Q = noise(dt)[0]
+        Q = process_noise(dt)[0]
         zm = np.where(mask > 0, z, 0.0)
         x1, F, _, _ = node.evaluate(x, u, dt, zm, mask)
         P1 = F @ P @ F.T + Q
@@ -217,4 +219,3 @@ def test_measurements_from_a_column_major_array_give_the_same_estimates() -> Non
         rows = [zc[i] if i < 5 else zf[i] for i in range(len(rec.t))]  # C first
         out = np.array([b.step(Measurement(float(t), z)).output for t, z in zip(rec.t, rows)])
         assert_allclose(out, a.output, rtol=0, atol=1e-12, err_msg=name)
-

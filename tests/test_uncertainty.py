@@ -45,6 +45,7 @@ from continuum_mhe.results import EstimateSeries
 from continuum_mhe.settings import (
     FREEZE_MIN_SAMPLES,
     MHESettings,
+    NoiseSettings,
     RecoverySettings,
     RobotSettings,
 )
@@ -113,8 +114,10 @@ def fd_output_jacobian(f: BendFormulation, x: np.ndarray, h: float = 1e-6) -> np
 
 @pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
 def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
+    """With no constant reading error (``reading_bias_std`` 0) the std is the
+    covariance through the output Jacobian (finite differences)."""
     rec = simulate("paper3d", duration=3)
-    f = BendFormulation()
+    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0))
     est = step_all(cls(f), rec.t, rec.z)
     checked = 0
     for e in est[5:]:
@@ -126,11 +129,45 @@ def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
     assert checked > 20
 
 
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
+    """With the default ``reading_bias_std`` the output variance is the covariance's
+    plus the estimate's least-squares sensitivity to a constant reading error,
+    ``J A B A^T J^T`` with ``A = (H^T R^-1 H)^-1 H^T R^-1`` (``H`` by finite
+    differences of the residual: one IMU, two readings, two bends, two rates)."""
+    rec = simulate("paper3d", duration=3)
+    f = BendFormulation()
+    est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
+    R, B = f.meas_cov(), np.eye(f.nz) * f.noise.reading_bias_std**2
+    checked = 0
+    for e, z in zip(est[10:], rec.z[10:]):
+        if abs(e.output[4]) > 3.0:  # phi near the wrap: finite differences would jump
+            continue
+        x = e.state
+        H = np.column_stack(
+            [
+                np.ravel(
+                    f.functions.innovate(z, x + 1e-7 * d)[0]
+                    - f.functions.innovate(z, x - 1e-7 * d)[0]
+                )
+                / 2e-7
+                for d in np.eye(f.nx)
+            ]
+        )
+        info = H.T @ np.linalg.inv(R) @ H
+        A = np.linalg.pinv(info, rcond=1e-9) @ H.T @ np.linalg.inv(R)
+        J = fd_output_jacobian(f, x)
+        var = np.diag(J @ (e.covariance + A @ B @ A.T) @ J.T)
+        assert_allclose(e.output_std, np.sqrt(var), rtol=1e-5, atol=1e-9)
+        checked += 1
+    assert checked > 20
+
+
 @pytest.mark.parametrize("method", ["ekf", "mhe"])
 def test_compiled_output_std_equals_the_casadi_one(method: str) -> None:
     """The compiled EKF and the fast MHE use the compiled output Jacobian."""
     rec = simulate("paper3d", duration=2)
-    f = BendFormulation()
+    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0))
     est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
     for e in est:
         assert_allclose(e.output_std, f.output_std(e.state, e.covariance), rtol=1e-12)
@@ -173,7 +210,8 @@ def test_robust_covariance_down_weights_an_outlier_alike_on_both_backends(loss: 
     runs = {
         (name, solver): step_all(
             MovingHorizonEstimator(f, MHESettings(horizon=10, solver=solver, loss=name)),
-            rec.t, z,
+            rec.t,
+            z,
         )  # fmt: skip
         for name in (loss, "l2")
         for solver in ("fast", "ipopt")

@@ -41,7 +41,7 @@ def rod(name: str, case: str) -> None:
     for label, check in METHODS:
         method = label.split("+")[0]
         res = evaluate(
-            robot, DATA / f"{name}_{case}.csv", model, False, DATA / f"{name}_truth.csv",
+            robot, DATA / f"{name}_{case}.csv", model, False, False, DATA / f"{name}_truth.csv",
             0.0, (method,), MHESettings(horizon=30, branch_check=check),
         )  # fmt: skip
         mean, mx, _ = res[method]

@@ -418,6 +418,9 @@ class Estimator(ABC):
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = Status.UNCERTAIN
+            if self._checks_start:  # the readings' constant errors, which no residual shows
+                bias = self._consistency.reading_bias_cov(measurement.z, mask, state)
+                std = np.hypot(std, self._output_std(state, bias))
         outlier = state is not None and self._outlier()
         # the reject reset's run; a sample without readings (None) neither ends nor extends it
         rejected = state is not None and self._rejected_every_reading()

@@ -28,6 +28,18 @@ freedom, scaled) the sample is ``inconsistent`` too, and every output standard
 deviation is widened by ``sqrt(noise_scale)`` where it exceeds 1 (the covariances are
 scaled as the noise is).
 
+Some error no residual shows: a constant error in every reading of an IMU (its
+mounting misalignment, its accelerometer's bias) looks like a different shape.
+:meth:`ConsistencyCheck.reading_bias_cov` is the estimate's covariance from it, the
+readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
+``NoiseSettings.reading_bias_std``) carried through the estimate's weighted
+least-squares sensitivity to the readings that carry such an error (the gravity
+directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
+at the estimate: ``A B A^T``. Its output standard deviations are added in quadrature
+to the estimator's (a constant reading error shifts an estimate by ``A`` times it, as
+long as the window or the filter's memory is shorter than the motion); the status
+does not depend on it.
+
 A formulation whose covariance is not one (``Formulation.calibrated_covariance``
 False: the paper formulation's weight ``W``) is not checked, nor an estimate without a
 covariance.
@@ -170,6 +182,41 @@ class ConsistencyCheck:
         H = out[2 * nz : 2 * nz + nz * nx].reshape(nx, nz).T
         Pn = out[2 * nz + nz * nx :].reshape(nx, nx).T
         return out[:nz], out[nz : 2 * nz], H, Pn
+
+    @cached_property
+    def _bias(self) -> FloatArray:
+        """``B`` (nz, nz), the readings' constant-error covariance."""
+        return np.asarray(self.formulation.reading_bias_cov(), dtype=float)
+
+    @cached_property
+    def _innovate_core(self) -> _core.TapeFunction:
+        """``(z, x) -> (r, dr/dx)`` evaluated by the compiled core."""
+        return tape_function(self.formulation.functions.innovate)
+
+    def reading_bias_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
+        """The state covariance (nx, nx) from the readings' constant errors (module
+        doc): ``A B A^T`` with ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid readings
+        that carry a constant error (``B > 0``: the gravity directions) and the states
+        they depend on (the bends: the readings that set the shape) at ``state``; zero
+        where ``B`` is."""
+        nx, nz = self.formulation.nx, self.formulation.nz
+        rows = np.flatnonzero((mask > 0) & (np.diag(self._bias) > 0))
+        out_cov = np.zeros((nx, nx))
+        if len(rows) == 0:
+            return out_cov
+        core = self._innovate_core
+        out = np.empty(core.output_size)
+        zv = np.where(mask > 0, z, 0.0)
+        args = [np.ascontiguousarray(v, dtype=float) for v in (zv, state)]
+        core.evaluate(args, out)
+        H = out[nz:].reshape(nx, nz).T[rows]
+        cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+        H = H[:, cols]
+        w = self._r_inv[rows]
+        info = H.T @ (H * w[:, None])
+        A = np.linalg.pinv(info, rcond=1e-9, hermitian=True) @ (H.T * w)
+        out_cov[np.ix_(cols, cols)] = A @ self._bias[np.ix_(rows, rows)] @ A.T
+        return out_cov
 
     @property
     def std_factor(self) -> float:

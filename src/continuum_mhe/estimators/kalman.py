@@ -156,7 +156,8 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         self._node = NodeEvaluator(model)
         self._q = ProcessNoiseCache(formulation)
         #: ``(state, outputs, standard deviations)`` of the last fused step
-        self._outputs_of: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        #: (state, outputs, output std, covariance) of the last compiled call
+        self._outputs_of: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
         super().__init__(formulation)
 
     def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
@@ -173,9 +174,9 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         if mask.any():
             self._z_prev = m.z
         self._x, self._P, self._t_prev = x, P, m.t
-        state = x.copy()
-        self._outputs_of = (state, y, std)
-        return state, P.copy(), status
+        state, cov = x.copy(), P.copy()
+        self._outputs_of = (state, y, std, cov)
+        return state, cov, status
 
     def _output(self, state: FloatArray) -> FloatArray:
         kept = self._outputs_of
@@ -185,7 +186,7 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
 
     def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         kept = self._outputs_of
-        if kept is not None and kept[0] is state:
+        if kept is not None and kept[0] is state and kept[3] is cov:
             return kept[2]
         return self._node.output_std(state, cov)
 
@@ -293,4 +294,3 @@ class UnscentedKalmanFilter(_KalmanBase):
                 f"{float(col.max() - col.min()):.3g} across the sigma points: the "
                 "reading is about a half turn from the predicted tilt"
             )
-

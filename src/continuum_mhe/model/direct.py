@@ -320,6 +320,12 @@ class DirectFormulation(BendFormulation):
         full = one if self.robot.n_imus == 1 else np.kron(np.eye(self.robot.n_imus), one)
         return np.asarray(full, dtype=np.float64)
 
+    def reading_bias_cov(self) -> FloatArray:
+        """The accelerometer directions' constant error (``noise.reading_bias_std``);
+        the gyro's bias is a state or counted in ``gyro_std``."""
+        one = np.diag([self.noise.reading_bias_std**2] * 3 + [0.0] * 3)
+        return np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
+
     @cached_property
     def _rate_map(self) -> ca.Function:
         """``bends -> d omega / d rates`` (3 m x 2 n; omega is linear in the rates)."""

@@ -251,6 +251,12 @@ class Formulation:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
         return np.eye(self.nz) * self.noise.measurement_std**2
 
+    def reading_bias_cov(self) -> FloatArray:
+        """The covariance (nz, nz) of the readings' constant errors, in the residual's
+        units: ``noise.reading_bias_std^2`` on each gravity-direction reading (here
+        every reading is one: roll and pitch)."""
+        return np.eye(self.nz) * self.noise.reading_bias_std**2
+
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Residual ``r(z, x)``, "measurement minus model", weighted by ``R^-1``.
 

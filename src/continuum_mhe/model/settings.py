@@ -63,6 +63,12 @@ class NoiseSettings:
         initial_bend_std: prior standard deviation of the initial ``(a, b)`` or
             ``(theta, phi)``, rad.
         initial_rate_std: prior standard deviation of the initial bend rates, rad/s.
+        reading_bias_std: the constant error of each gravity-direction reading, rad
+            (an IMU's mounting misalignment, about 1 degree by hand, and its
+            accelerometer bias, 0.1 m/s^2 or 0.6 degree, in quadrature): no residual
+            shows it, so it widens every output standard deviation by the estimate's
+            sensitivity to it (:mod:`continuum_mhe.estimators.consistency`); 0 for
+            data without it (simulated IMUs mounted exactly).
     """
 
     measurement_std: float = math.radians(2.0)
@@ -70,6 +76,7 @@ class NoiseSettings:
     paper_process_weight: float = 10.0
     initial_bend_std: float = 0.1
     initial_rate_std: float = 0.5
+    reading_bias_std: float = math.radians(1.2)
 
     def __post_init__(self) -> None:
         if (
@@ -89,3 +96,5 @@ class NoiseSettings:
             "initial_rate_std",
         ):
             check_positive(name, getattr(self, name))
+        if not (math.isfinite(self.reading_bias_std) and self.reading_bias_std >= 0):
+            raise UserError(f"reading_bias_std must be >= 0, got {self.reading_bias_std!r}")

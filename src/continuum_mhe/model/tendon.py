@@ -592,6 +592,19 @@ class TendonFormulation(Formulation):
         eq = np.eye(self.measurement_blocks[-1].size) * self.equilibrium_std**2
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
+    def reading_bias_cov(self) -> FloatArray:
+        """The IMUs' gravity-direction readings' constant error
+        (``noise.reading_bias_std``); tensions and the equilibrium rows none."""
+        b2 = self.noise.reading_bias_std**2
+        if self.imu_model == "tilt":
+            per_reading = [b2] * self.n_imu_measurements
+        else:
+            per_reading = ([b2] * 3 + [0.0] * 3) * self.robot.n_imus
+        out = np.zeros((self.nz, self.nz))
+        k = len(per_reading)
+        out[:k, :k] = np.diag(per_reading)
+        return out
+
     def output_sym(self, x: Sym) -> Sym:
         q, tau, _ = self._split(x)
         poses, _ = self.statics.shoot(q[:3], q[3:6], tau)

@@ -1,0 +1,77 @@
+"""How far ``ok`` and the standard deviations can be trusted on the two-section
+Cosserat-rod recordings (data the PCC model did not generate), with the defaults:
+per method and recording, the tip error (mean / max, mm), the share of rows ``ok``,
+the per-axis coverage of the 95 % interval (``|e_c| <= 1.96 std_c``) over the ``ok``
+rows, the rows more than 50 mm off that are ``ok``, and the largest model-error factor.
+
+    python tools/ok_coverage_study.py [--rod NAME ...] [--cases raw tilt] [--methods ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe import MHESettings, make_estimator, make_formulation
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.sample_stream import load_estimate_input
+
+DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
+Z95 = 1.959964
+
+
+def study(folder: Path, name: str, case: str, method: str) -> dict[str, float]:
+    """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method."""
+    robot = read_robot("two-section")
+    data = load_estimate_input(
+        folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
+    )
+    truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
+    est = make_estimator(method, data.formulation, MHESettings())  # type: ignore[arg-type]
+    s = est.run(data.t, data.z)
+    err = s.output[:, :3] - truth
+    dist = np.linalg.norm(err, axis=1) * 1e3
+    std = np.asarray(s.output_std, dtype=float)[:, :3]
+    ok = np.asarray(s.status) == "ok"
+    cover = (np.abs(err) <= Z95 * std)[ok].mean(axis=0) if ok.any() else np.full(3, np.nan)
+    return {
+        "mean": float(np.nanmean(dist)),
+        "max": float(np.nanmax(dist)),
+        "ok": float(ok.mean()),
+        "cx": float(cover[0]),
+        "cy": float(cover[1]),
+        "cz": float(cover[2]),
+        "ok50": int(np.sum(ok & (dist > 50))),
+        "scale": float(getattr(est, "max_noise_scale", np.nan)),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    names = sorted(q.name[: -len("_info.json")] for q in DATA.glob("*_info.json"))
+    p.add_argument("--folder", type=Path, default=DATA)
+    p.add_argument("--rod", nargs="+", default=names)
+    p.add_argument("--cases", nargs="+", default=["raw"])
+    p.add_argument("--methods", nargs="+", default=["ekf", "ukf", "mhe"])
+    args = p.parse_args()
+    warnings.simplefilter("ignore")
+    print("recording case method: tip mean/max mm, ok share, ok coverage x/y/z, ok >50 mm, scale")
+    for name in args.rod:
+        for case in args.cases:
+            for m in args.methods:
+                r = study(args.folder, name, case, m)
+                print(
+                    f"{name} {case} {m}: {r['mean']:.2f} / {r['max']:.1f}, ok {r['ok']:.2f}, "
+                    f"cov {r['cx']:.3f} {r['cy']:.3f} {r['cz']:.3f}, ok>50 {r['ok50']}, "
+                    f"scale {r['scale']:.1f}",
+                    flush=True,
+                )
+
+
+if __name__ == "__main__":
+    main()
