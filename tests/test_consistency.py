@@ -135,12 +135,12 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod() -> None:
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.sample_stream import load_estimate_input
+    from continuum_mhe.io.inputs import load_input
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "rod2"
     f = make_formulation("bend", read_robot("two-section"))
-    data = load_estimate_input(folder / "planar-s_raw.csv", InputOptions(), f)
+    data = load_input(folder / "planar-s_raw.csv", InputOptions(), f)
     truth = read_state_table(folder / "planar-s_truth.csv").values[:, :3]
     series = make_estimator("ekf", data.formulation).run(data.t, data.z)
     ok = series.status == "ok"
@@ -157,12 +157,12 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok() -> None:
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.io.sample_stream import load_estimate_input
+    from continuum_mhe.io.inputs import load_input
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "tendon"
     f = make_formulation("bend", read_robot("tendon-two-section"))
-    data = load_estimate_input(folder / "force-29_raw.csv", InputOptions(), f)
+    data = load_input(folder / "force-29_raw.csv", InputOptions(), f)
     truth = read_state_table(folder / "force-29_truth.csv").values[:, :3]
     series = make_estimator("ekf", data.formulation).run(data.t, data.z)
     far = np.linalg.norm(series.output[:, :3] - truth, axis=1) > 0.02

@@ -19,7 +19,7 @@ from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.sample_stream import load_estimate_input
+from continuum_mhe.io.inputs import load_input
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 Z95 = 1.959964
@@ -28,7 +28,7 @@ Z95 = 1.959964
 def study(folder: Path, name: str, case: str, method: str) -> dict[str, float]:
     """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method."""
     robot = read_robot("two-section")
-    data = load_estimate_input(
+    data = load_input(
         folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
     )
     truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
