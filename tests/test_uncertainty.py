@@ -467,8 +467,9 @@ def test_recovery_settings_are_validated() -> None:
 
 def test_measurement_passes_unchanged_without_freeze() -> None:
     est = make_estimator("ekf", BendFormulation())
-    m = Measurement(0.0, np.array([0.1, 0.1]))
-    assert est._unfreeze(m) is m
+    z = np.array([[0.1, 0.1], [0.1, 0.1], [0.1, 0.1]])
+    plan = est.health.plan(np.array([0.0, 1.0, 2.0]), z, est.recovery)
+    assert plan.z is z and not plan.frozen.any()
 
 
 @pytest.mark.parametrize("case", ["cauchy", "two-sections"])
