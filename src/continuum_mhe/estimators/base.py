@@ -33,7 +33,7 @@ from continuum_mhe.signals import interrupt_in_chain
 TRUSTED = (Status.OK, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART)
 FloatArray = NDArray[np.float64]
 
-__all__ = ["UNOBSERVED_AFTER", "Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
+__all__ = ["Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
 
 
 def _reraise_interrupt(exc: BaseException) -> None:
@@ -454,12 +454,12 @@ class Estimator(ABC):
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()
-        ticks = iter(progress(range(len(t)))) if progress is not None else None
+        ticks = iter(progress(range(len(t))) if progress is not None else ())
         estimates: list[Estimate] = []
         for lo in range(0, len(t), RUN_CHUNK):  # chunks: the progress moves between them
             hi = min(lo + RUN_CHUNK, len(t))
             estimates += self.run_span(t[lo:hi], z[lo:hi])[0]
-            for _ in range(hi - lo) if ticks is not None else ():
+            for _ in range(hi - lo):
                 next(ticks, None)
         series = EstimateSeries.from_estimates(
             self.name, estimates, self.formulation.outputs, self.flags_outliers

@@ -117,7 +117,7 @@ class SensorHealth:
         planned so far (validated: ``t`` strictly increasing)."""
         z, frozen = self._unfreeze(t, z, recovery)
         mask = self._masks(z)
-        valid = mask.any(axis=1)
+        valid: BoolArray = np.asarray(mask.any(axis=1))
         gap_reset = np.zeros(len(t), dtype=bool)
         gap = recovery.gap_reset
         if gap is not None:
@@ -135,7 +135,7 @@ class SensorHealth:
         every = finite.all(axis=1)
         mask = np.zeros(z.shape)
         for sl in self._slices:
-            mask[:, sl] = finite[:, sl].all(axis=1)[:, None]
+            mask[:, sl] = np.asarray(finite[:, sl].all(axis=1))[:, None]
         mask[every] = 1.0
         return mask
 

@@ -42,7 +42,8 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     # CasADi gives the algorithm one instruction per call: the loop is the cost of
     # reading a model (tens of thousands of instructions), so it stays lean
     op_id, op_in, op_out = fn.instruction_id, fn.instruction_input, fn.instruction_output
-    opcodes, rows = _OPCODES, []
+    opcodes = _OPCODES
+    rows: list[tuple[int, int, int, int]] = []
     append = rows.append
     constants: list[float] = []
     for k in range(fn.n_instructions()):
