@@ -80,10 +80,15 @@ class SensorHealth:
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
-        self._imu_blocks = tuple(b for b in formulation.measurement_blocks if b.is_imu)
+        imus = tuple(b for b in formulation.measurement_blocks if b.is_imu)
         self._slices = tuple(b.slice for b in formulation.measurement_blocks)
-        #: per IMU ``k``, ``(start, stop)`` of its measurement rows
-        self._imu_rows = [(b.start, b.start + b.size) for b in self._imu_blocks]
+        #: the IMUs' measurement columns, block after block, and where each block begins
+        #: among them; each IMU's first measurement row
+        self._imu_cols = np.array([c for b in imus for c in range(b.start, b.start + b.size)])
+        self._imu_offsets = np.cumsum([0] + [b.size for b in imus[:-1]]).astype(np.intp)
+        self._imu_sizes = np.array([b.size for b in imus], dtype=np.intp)
+        self._imu_starts = np.array([b.start for b in imus], dtype=np.intp)
+        self._imu_rows = [np.arange(b.start, b.start + b.size) for b in imus]
         #: whether every IMU together determines the shape
         self.shape_observable = formulation.imus_determine_shape(
             tuple(range(formulation.robot.n_imus))
@@ -94,15 +99,15 @@ class SensorHealth:
     def reset(self, keep_counts: bool = False) -> None:
         """Forget the samples planned so far (a new recording) and, unless
         ``keep_counts``, the counts (:attr:`frozen_samples`, :attr:`first_freezes`)."""
-        k = len(self._imu_blocks)
-        #: per IMU block: its last reading, the ``t`` of the first of its repeats, how
-        #: many samples repeated it, and the ``t`` of its last sample
-        self._freeze_value: list[FloatArray | None] = [None] * k
-        self._freeze_since = [-math.inf] * k
-        self._freeze_count = [0] * k
-        self._freeze_last_t = [-math.inf] * k
+        k = len(self._imu_starts)
+        #: per IMU block: its last reading (NaN before the first: NaN never repeats),
+        #: the ``t`` of the first of its repeats, how many samples repeated it
+        self._freeze_value = np.full(len(self._imu_cols), np.nan)
+        self._freeze_since = np.full(k, -math.inf)
+        self._freeze_count = np.zeros(k, dtype=np.intp)
+        self._freeze_last_t = -math.inf  # t of the last sample
         self._last_valid_t = -math.inf  # t of the last valid sample (gap reset on)
-        self._imu_last_valid = [-math.inf] * k  # per IMU, t of its last valid reading
+        self._imu_last_valid = np.full(k, -math.inf)  # per IMU, t of its last valid reading
         self._first_valid_t = -math.inf  # t of the recording's first valid reading
         if keep_counts:
             return
@@ -147,40 +152,34 @@ class SensorHealth:
         consecutive samples none more than ``recovery.freeze`` s after the one before
         (a gap in the data is not a freeze), set to NaN (a dropout); and per sample
         whether one was."""
-        n = len(t)
-        frozen_any = np.zeros(n, dtype=bool)
+        n, k = len(t), len(self._imu_starts)
         freeze = recovery.freeze
-        if freeze is None:
+        if freeze is None or not k:
+            return z, np.zeros(n, dtype=bool)
+        idx = np.arange(n)[:, None]
+        zi = z[:, self._imu_cols]  # (n, columns of the IMUs)
+        prev = np.empty_like(zi)
+        prev[0], prev[1:] = self._freeze_value, zi[:-1]
+        same = np.logical_and.reduceat(zi == prev, self._imu_offsets, axis=1)  # (n, k)
+        new = ~same | (t - _before(t, self._freeze_last_t) > freeze)[:, None]
+        start = np.where(new, idx, -1)
+        np.maximum.accumulate(start, axis=0, out=start)
+        carried = start < 0  # the run that the samples before this span began
+        count = np.where(carried, self._freeze_count + idx + 1, idx - start + 1)
+        since = np.where(carried, self._freeze_since, t[np.maximum(start, 0)])
+        frozen = ~new & (count >= recovery.freeze_samples) & (t[:, None] - since > freeze)
+        self._freeze_value, self._freeze_last_t = zi[-1].copy(), float(t[-1])
+        self._freeze_since, self._freeze_count = since[-1].copy(), count[-1].copy()
+        frozen_any: BoolArray = np.asarray(frozen.any(axis=1))
+        if not frozen_any.any():
             return z, frozen_any
-        out = z
-        firsts: list[tuple[int, int, float]] = []  # (sample, block, since)
-        idx = np.arange(n)
-        for k, b in enumerate(self._imu_blocks):
-            zb = z[:, b.slice]
-            last = self._freeze_value[k]
-            prev = np.empty_like(zb)
-            prev[0] = np.nan if last is None else last  # NaN never repeats
-            prev[1:] = zb[:-1]
-            prev_t = _before(t, self._freeze_last_t[k])
-            new = ~(zb == prev).all(axis=1) | (t - prev_t > freeze)
-            start = np.where(new, idx, -1)
-            np.maximum.accumulate(start, out=start)
-            carried = start < 0  # the run that the samples before this span began
-            count = np.where(carried, self._freeze_count[k] + idx + 1, idx - start + 1)
-            since = np.where(carried, self._freeze_since[k], t[np.maximum(start, 0)])
-            frozen = ~new & (count >= recovery.freeze_samples) & (t - since > freeze)
-            self._freeze_value[k] = zb[-1].copy()
-            self._freeze_since[k], self._freeze_count[k] = float(since[-1]), int(count[-1])
-            self._freeze_last_t[k] = float(t[-1])
-            if frozen.any():
-                if out is z:
-                    out = z.copy()
-                out[frozen, b.slice] = np.nan
-                frozen_any |= frozen
-                i = int(np.argmax(frozen))
-                firsts.append((i, k, float(since[i])))
-        for _, k, since_k in sorted(firsts):
-            self.first_freezes.setdefault(k, since_k)
+        out = z.copy()
+        cols = np.repeat(frozen, self._imu_sizes, axis=1)
+        out[:, self._imu_cols] = np.where(cols, np.nan, zi)
+        blocks = np.flatnonzero(frozen.any(axis=0))
+        first = frozen[:, blocks].argmax(axis=0)
+        for i, b in sorted(zip(first.tolist(), blocks.tolist())):
+            self.first_freezes.setdefault(b, float(since[i, b]))
         self.frozen_samples += int(frozen_any.sum())
         return out, frozen_any
 
@@ -195,17 +194,18 @@ class SensorHealth:
         first = self._first_valid_t
         if first == -math.inf and valid.any():
             first = self._first_valid_t = float(t[np.flatnonzero(valid)[0]])
+        hit = mask[:, self._imu_starts] > 0.0  # (n, n_imus)
+        at = np.where(hit, np.arange(n)[:, None], -1)
+        np.maximum.accumulate(at, axis=0, out=at)
+        last = np.where(at >= 0, t[np.maximum(at, 0)], self._imu_last_valid)
+        prev = np.empty_like(last)
+        prev[0], prev[1:] = self._imu_last_valid, last[:-1]
+        returns = hit & (t[:, None] - prev > window) & (t[:, None] - first > window)
         back: list[NDArray[np.intp] | None] = [None] * n
-        last = np.empty((n, len(self._imu_rows)))
-        for k, (start, stop) in enumerate(self._imu_rows):
-            hit = mask[:, start] > 0.0
-            last[:, k] = _last_time(t, hit, self._imu_last_valid[k])
-            prev = _before(last[:, k], self._imu_last_valid[k])
-            returns = hit & (t - prev > window) & (t - first > window)
-            for i in np.flatnonzero(returns):
-                rows = np.arange(start, stop)
-                back[i] = rows if back[i] is None else np.concatenate([back[i], rows])
-            self._imu_last_valid[k] = float(last[-1, k])
+        for i in np.flatnonzero(returns.any(axis=1)):
+            back[i] = np.concatenate([self._imu_rows[k] for k in np.flatnonzero(returns[i])])
+        if n:
+            self._imu_last_valid = last[-1].copy()
         return back, last
 
     def _observed(self, t: FloatArray, last: FloatArray, window: float) -> BoolArray:
