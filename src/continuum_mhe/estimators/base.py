@@ -46,7 +46,7 @@ def _reraise_interrupt(exc: BaseException) -> None:
 
 #: Samples :meth:`Estimator.run` hands to :meth:`Estimator.run_span` at a time (its
 #: progress moves between them).
-RUN_CHUNK = 1024
+RUN_CHUNK = 256
 
 #: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
 DEGREES_LIKE = 2 * math.pi
@@ -454,13 +454,17 @@ class Estimator(ABC):
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()
+        # the progress (and an interruptible() wrapper's signal check) moves before each
+        # chunk, and runs out after the last
         ticks = iter(progress(range(len(t))) if progress is not None else ())
         estimates: list[Estimate] = []
-        for lo in range(0, len(t), RUN_CHUNK):  # chunks: the progress moves between them
+        for lo in range(0, len(t), RUN_CHUNK):
             hi = min(lo + RUN_CHUNK, len(t))
-            estimates += self.run_span(t[lo:hi], z[lo:hi])[0]
             for _ in range(hi - lo):
                 next(ticks, None)
+            estimates += self.run_span(t[lo:hi], z[lo:hi])[0]
+        for _ in ticks:
+            pass
         series = EstimateSeries.from_estimates(
             self.name, estimates, self.formulation.outputs, self.flags_outliers
         )
