@@ -415,14 +415,14 @@ class Estimator(ABC):
             std = self._output_std(state, cov)
             if factor != 1.0:  # the model error the readings show (covariance matching)
                 std = std * factor
-            if self._checks_start:  # the readings' constant errors, which no residual shows
-                bias = self._consistency.reading_bias_cov(measurement.z, mask, state)
-                std = np.hypot(std, self._output_std(state, bias))
             if status == Status.OK and self._tip and self.formulation.calibrated_covariance:
                 sl = std.tolist()  # a few floats: plain Python is faster than numpy here
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = Status.UNCERTAIN
+            if self._checks_start:  # the readings' constant errors, which no residual shows
+                bias = self._consistency.reading_bias_cov(measurement.z, mask, state)
+                std = np.hypot(std, self._output_std(state, bias))
         ms = (time.perf_counter() - start + share) * 1e3
         outlier = state is not None and self._outlier()
         # the reject reset's run; a sample without readings (None) neither ends nor extends it
