@@ -174,7 +174,9 @@ class RecoverySettings:
             is on in the library too; None: never (command line ``--reject-reset``).
         uncertain_fraction: an estimate whose tip position standard deviation
             (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
-            length gets status ``uncertain`` instead of ``ok``.
+            length gets status ``uncertain`` instead of ``ok``; judged on the
+            estimator's own covariance, before the readings' constant errors
+            (``NoiseSettings.reading_bias_std``) widen the reported std.
     """
 
     gap_reset: float | None = None
