@@ -8,7 +8,6 @@ import itertools
 import json
 import math
 import sys
-import time
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 from typing import cast
@@ -28,7 +27,7 @@ from continuum_mhe.cli.options import (
     recovery_settings_from_args,
 )
 from continuum_mhe.cli.program import PROG, version
-from continuum_mhe.estimators import METHODS, make_estimator
+from continuum_mhe.estimators import METHODS, Measurement, make_estimator
 from continuum_mhe.estimators.base import bound_notice
 from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
@@ -67,30 +66,26 @@ def run(args: argparse.Namespace) -> int:
         notes = [("continuum-mhe", json.dumps(made)), (OPTIONS_LINE, args.options_record)]
         interrupted: BaseException | None = None
         with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
-            last_t = math.nan  # of the last estimate written
             try:
-                # spans of samples: a signal while waiting for input ends it at once
-                for t, z in sample_spans(samples, est.formulation.nz):
-                    freezes_before = len(est.first_freezes)
-                    with signals_deferred():  # inside C code: stop after this span
-                        span, frozen_at = est.run_span(t, z)
-                        sink.write_many(span)
-                    for e, was_frozen in zip(span, frozen_at.tolist()):
-                        counts[e.status] = counts.get(e.status, 0) + 1
-                        if was_frozen:
-                            frozen[e.status] = frozen.get(e.status, 0) + 1
-                        outliers += e.outlier
-                        next(ticks)
-                    note = est.freezes_notice(freezes_before)  # said once per IMU
-                    if note:
-                        print(f"{PROG}: note: {note}", file=sys.stderr)
-                    readings += int(np.isfinite(z).any(axis=1).sum())
-                    last_t = float(t[-1])
+                for t, z in samples:  # a signal while waiting for input ends it at once
+                    next(ticks)
+                    frozen_before, freezes_before = est.frozen_samples, len(est.first_freezes)
+                    with signals_deferred():  # inside C code: stop after this sample
+                        e = est.step(Measurement(t, z))
+                    counts[e.status] = counts.get(e.status, 0) + 1
+                    if est.frozen_samples > frozen_before:
+                        frozen[e.status] = frozen.get(e.status, 0) + 1
+                        note = est.freezes_notice(freezes_before)  # said once per IMU
+                        if note:
+                            print(f"{PROG}: note: {note}", file=sys.stderr)
+                    outliers += e.outlier
+                    readings += bool(np.isfinite(z).any())
+                    sink.write(e)
             except BaseException as exc:  # a signal (in C code: any type): keep what is done
                 if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
                     raise
                 interrupted = exc
-                cut = f"interrupted after {sink.rows} samples, at t = {last_t:g} s"
+                cut = f"interrupted after {sink.rows} samples, at t = {e.t:g} s"
                 sink.note(PARTIAL, json.dumps(cut))
             finally:
                 ticks.close()
@@ -162,44 +157,6 @@ def run(args: argparse.Namespace) -> int:
         print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
-
-
-#: the most samples estimated between two reads of the input (and two chances to stop)
-SPAN_MAX = 1024
-#: a span grows (doubles) while estimating one takes less than this, s
-SPAN_TIME_S = 0.05
-
-
-def sample_spans(
-    samples: Iterable[tuple[float, np.ndarray]], nz: int
-) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """The samples as spans ``(t (n,), z (n, nz))`` for
-    :meth:`~continuum_mhe.estimators.base.Estimator.run_span`: from one sample, doubling
-    up to :data:`SPAN_MAX` while the consumer takes less than :data:`SPAN_TIME_S` per span
-    (a Ctrl-C waits for one span at most). An error while reading comes after the span of
-    the samples read before it."""
-    it, size = iter(samples), 1
-    while True:
-        rows: list[tuple[float, np.ndarray]] = []
-        try:
-            rows.extend(itertools.islice(it, size))
-        except BaseException:
-            if rows:
-                yield _span(rows, nz)
-            raise
-        if not rows:
-            return
-        start = time.perf_counter()
-        yield _span(rows, nz)
-        if len(rows) < size:  # the input ended
-            return
-        if time.perf_counter() - start < SPAN_TIME_S:
-            size = min(2 * size, SPAN_MAX)
-
-
-def _span(rows: list[tuple[float, np.ndarray]], nz: int) -> tuple[np.ndarray, np.ndarray]:
-    t = np.array([r[0] for r in rows], dtype=float)
-    return t, np.array([r[1] for r in rows], dtype=float).reshape(len(rows), nz)
 
 
 def _passthrough(it: Iterable[int]) -> Iterator[int]:

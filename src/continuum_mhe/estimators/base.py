@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type
 from continuum_mhe.estimators.consistency import ConsistencyCheck
-from continuum_mhe.estimators.sensor_health import UNOBSERVED_AFTER, BoolArray, SensorHealth
 from continuum_mhe.estimators.start_check import StartCheck
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
@@ -31,6 +30,10 @@ from continuum_mhe.signals import interrupt_in_chain
 #: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
 #: data do not determine the shape (the others already say more).
 TRUSTED = (Status.OK, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART)
+#: An IMU silent for longer than this (s) no longer observes its part of the shape when
+#: the gap reset is off (else the gap reset's time).
+UNOBSERVED_AFTER = 1.0
+
 FloatArray = NDArray[np.float64]
 
 __all__ = ["Estimate", "EstimateSeries", "Estimator", "Measurement", "Status"]
@@ -43,10 +46,6 @@ def _reraise_interrupt(exc: BaseException) -> None:
     if seen is not None:
         raise seen
 
-
-#: Samples :meth:`Estimator.run` hands to :meth:`Estimator.run_span` at a time (its
-#: progress moves between them).
-RUN_CHUNK = 256
 
 #: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
 DEGREES_LIKE = 2 * math.pi
@@ -96,9 +95,8 @@ class Estimator(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
-        #: the input-only sensor-health policy: validity, frozen sensors, gaps, IMU
-        #: returns, observability (:mod:`.sensor_health`), planned a span at a time
-        self.health = SensorHealth(formulation)
+        #: the IMUs' measurement blocks (the sensor-health checks watch only these)
+        self._imu_blocks = tuple(b for b in formulation.measurement_blocks if b.is_imu)
         #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
         self.recovery = RecoverySettings()
         self._last_t = -math.inf
@@ -116,7 +114,14 @@ class Estimator(ABC):
         #: whether the IMUs determine the shape (:meth:`Formulation.imus_determine_shape`;
         #: for PCC robots :func:`~continuum_mhe.model.pcc.shape_rank` equals the number of
         #: bend coordinates); if not, no estimate is ``ok``
-        self.shape_observable = self.health.shape_observable
+        self.shape_observable = formulation.imus_determine_shape(tuple(range(robot.n_imus)))
+        #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
+        #: gap reset no longer observe their part of the shape
+        self._imu_last_valid: list[float] = []
+        self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
+        #: per IMU ``k``, ``(k, start, stop)`` of its measurement rows
+        self._imu_rows = [(k, b.start, b.start + b.size) for k, b in enumerate(self._imu_blocks)]
+        self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
                 f"the IMUs of this robot ({robot.describe()}) "
@@ -126,6 +131,11 @@ class Estimator(ABC):
                 UnobservableShapeWarning,
                 stacklevel=_outside_stacklevel(),
             )
+        self._freeze_value: list[FloatArray | None] = []
+        self._freeze_since: list[float] = []
+        self._freeze_count: list[int] = []  # consecutive samples with that reading
+        self._freeze_last_t: list[float] = []  # t of each block's previous sample, s
+        self._last_valid_t = -math.inf
         self._tilt = [
             i for b in formulation.measurement_blocks if b.kind == "tilt" for i in range(
                 b.start, b.start + b.size)
@@ -138,6 +148,11 @@ class Estimator(ABC):
         self.restarts = 0
         #: times it restarted after a gap longer than ``recovery.gap_reset``
         self.gap_resets = 0
+        #: samples with at least one sensor treated as frozen (``recovery.freeze``)
+        self.frozen_samples = 0
+        #: the first freeze of each sensor, in the order they happened: measurement
+        #: block index -> ``t`` (s) of the first of its repeated readings
+        self.first_freezes: dict[int, float] = {}
         #: times it restarted after a bad start (``recovery.bad_start``), the start of
         #: an IMU back from a silence included
         self.bad_starts = 0
@@ -160,22 +175,17 @@ class Estimator(ABC):
         that restarts it within one, as ``live`` does.)"""
         if not keep_counts:
             self._clear_counts()
-        self.health.reset(keep_counts)
         self._last_t = -math.inf
         self._ran = False
+        self._last_valid_t = -math.inf
+        self._freeze_value = [None] * len(self._imu_blocks)
+        self._freeze_since = [-math.inf] * len(self._imu_blocks)
+        self._freeze_count = [0] * len(self._imu_blocks)
+        self._freeze_last_t = [-math.inf] * len(self._imu_blocks)
+        self._imu_last_valid = [-math.inf] * len(self._imu_blocks)
+        self._first_valid_t = -math.inf
         self._start_check.reset()
         self._restart()
-
-    @property
-    def frozen_samples(self) -> int:
-        """Samples with at least one sensor treated as frozen (``recovery.freeze``)."""
-        return self.health.frozen_samples
-
-    @property
-    def first_freezes(self) -> dict[int, float]:
-        """The first freeze of each sensor, in the order they happened: measurement
-        block index -> ``t`` (s) of the first of its repeated readings."""
-        return self.health.first_freezes
 
     def _restart(self) -> None:
         """Clear the estimator's state and the bad-start and rejection checks' (a
@@ -213,6 +223,43 @@ class Estimator(ABC):
         compiled copy of the output Jacobian)."""
         return self.formulation.output_std(state, cov)
 
+    def _unfreeze(self, m: Measurement) -> Measurement:
+        """``m`` with every sensor whose reading has repeated exactly for longer than
+        ``recovery.freeze`` seconds, over at least ``recovery.freeze_samples``
+        consecutive samples none more than ``recovery.freeze`` s after the one before
+        (a gap in the data is not a freeze), marked as dropped out (NaN)."""
+        freeze = self.recovery.freeze
+        if freeze is None:
+            return m
+        n_blocks = len(self._imu_blocks)
+        if len(self._freeze_value) != n_blocks:  # the four lists are set together
+            self._freeze_value = [None] * n_blocks
+            self._freeze_since = [-math.inf] * n_blocks
+            self._freeze_count = [0] * n_blocks
+            self._freeze_last_t = [-math.inf] * n_blocks
+        min_samples = self.recovery.freeze_samples
+        z: FloatArray | None = None
+        for k, b in enumerate(self._imu_blocks):
+            zb = m.z[b.slice]
+            last = self._freeze_value[k]
+            gap = m.t - self._freeze_last_t[k] > freeze
+            self._freeze_last_t[k] = m.t
+            if last is None or gap or not np.array_equal(zb, last):  # NaN never repeats
+                self._freeze_value[k], self._freeze_since[k] = zb.copy(), m.t
+                self._freeze_count[k] = 1
+                continue
+            self._freeze_count[k] += 1
+            # both: two equal readings with a long gap between them are not a freeze
+            if self._freeze_count[k] >= min_samples and m.t - self._freeze_since[k] > freeze:
+                if z is None:
+                    z = m.z.copy()
+                z[b.slice] = np.nan
+                self.first_freezes.setdefault(k, self._freeze_since[k])
+        if z is None:
+            return m
+        self.frozen_samples += 1
+        return Measurement(m.t, z)
+
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
 
@@ -249,99 +296,49 @@ class Estimator(ABC):
                 sample's (time must strictly increase).
         """
         expect_type("measurement", measurement, Measurement, "a Measurement(t, z)")
+        t = measurement.t
         nz = self.formulation.nz
         if np.shape(measurement.z) != (nz,):
             raise UserError(
                 f"measurement z must have shape ({nz},) for the {self.formulation.name} "
                 f"formulation, got {np.shape(measurement.z)}"
             )
-        t, z = np.array([measurement.t], dtype=float), np.asarray(measurement.z, float)[None]
-        return self.run_span(t, z)[0][0]
-
-    def run_span(self, t: FloatArray, z: FloatArray) -> tuple[list[Estimate], BoolArray]:
-        """:meth:`step` over the samples ``t`` (n,) s, ``z`` (n, nz) that follow those
-        processed so far: the input-only sensor-health policy (:mod:`.sensor_health`) is
-        decided for the whole span at once, then each sample is estimated. Returns the
-        estimates and, per sample, whether a sensor was treated as frozen. Each
-        estimate's ``solve_ms`` includes its share of the span's policy. Raises as
-        :meth:`step` does, before estimating any sample of the span."""
-        t, z = self._checked(t, z)
-        if not len(t):
-            return [], np.zeros(0, dtype=bool)
-        start = time.perf_counter()
-        plan = self.health.plan(t, z, self.recovery)
-        share = (time.perf_counter() - start) / len(t)  # the policy's time per sample
-        self._last_t = float(t[-1])
-        self._ran = False
-        gaps, observed, back = plan.gap_reset.tolist(), plan.observed.tolist(), plan.back
-        estimates = [
-            self._infer(ti, plan.z[i], plan.mask[i], gaps[i], back[i], observed[i], share)
-            for i, ti in enumerate(t.tolist())
-        ]
-        return estimates, plan.frozen
-
-    def _checked(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``t`` (n,) and ``z`` (n, nz) as float arrays, checked as :meth:`step` checks
-        each sample (the first sample at fault is named)."""
-        t, z = np.asarray(t, dtype=float), np.asarray(z, dtype=float)
-        nz = self.formulation.nz
-        if z.ndim != 2 or z.shape[1] != nz:
-            raise UserError(
-                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
-                f"formulation, got {z.shape[1:]}"
-            )
-        prev = np.empty_like(t)
-        if len(t):
-            prev[0], prev[1:] = self._last_t, t[:-1]
-        bad_t = np.flatnonzero(~(np.isfinite(t) & (t > prev)))
-        bad_z = np.zeros(0, dtype=np.intp)
-        if self._tilt:  # NaN compares False
-            bad_z = np.flatnonzero((np.abs(z[:, self._tilt]) > DEGREES_LIKE).any(axis=1))
-        if len(bad_t) and (not len(bad_z) or bad_t[0] <= bad_z[0]):
-            i = int(bad_t[0])
-            ti, before = float(t[i]), float(prev[i])
+        if not (math.isfinite(t) and t > self._last_t):
             hint = ""
-            if math.isfinite(ti) and self._ran and i == 0:
+            if math.isfinite(t) and self._ran:
                 hint = "; run() left the estimator at its recording's end: call reset() first"
-            elif math.isfinite(ti):
+            elif math.isfinite(t):
                 hint = "; to start a new recording, call reset() first"
             raise UserError(
-                f"sample time t={ti!r} s must be finite and later than the previous "
-                f"sample's t={before!r} s{hint}"
+                f"sample time t={t!r} s must be finite and later than the previous "
+                f"sample's t={self._last_t!r} s{hint}"
             )
-        if len(bad_z):
-            i = int(bad_z[0])
-            ti, zl = float(t[i]), z[i].tolist()
-            names = self.formulation.measurement_names
-            shown = ", ".join(f"{names[j]}={zl[j]:g}" for j in self._tilt)
-            if any(math.isinf(zl[j]) for j in self._tilt):
+        self._ran = False
+        if self._tilt:
+            zl = measurement.z.tolist()
+            if any(abs(zl[i]) > DEGREES_LIKE for i in self._tilt):  # NaN compares False
+                names = self.formulation.measurement_names
+                shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in self._tilt)
+                if any(math.isinf(zl[i]) for i in self._tilt):
+                    raise UserError(
+                        f"measurement at t={t!r} s: {shown}: an infinite angle; a sensor "
+                        "that dropped out is NaN"
+                    )
                 raise UserError(
-                    f"measurement at t={ti!r} s: {shown}: an infinite angle; a sensor "
-                    "that dropped out is NaN"
+                    f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
+                    "degrees; measurements are in radians (numpy.radians converts)"
                 )
-            raise UserError(
-                f"measurement at t={ti!r} s: {shown}: beyond 2 pi, the angles look like "
-                "degrees; measurements are in radians (numpy.radians converts)"
-            )
-        return t, z
-
-    def _infer(
-        self,
-        t: float,
-        z: FloatArray,
-        mask: FloatArray,
-        gap_reset: bool,
-        back: NDArray[np.intp] | None,
-        observed: bool,
-        share: float,
-    ) -> Estimate:
-        """One sample's estimate after the input-only policy (:class:`.SensorPlan`'s row:
-        the readings with frozen sensors dropped, their mask, whether the gap reset
-        restarts here, the rows of IMUs back after a silence, whether the recent IMUs
-        determine the shape): the policy that needs the estimates around the
-        estimator's ``_step``. ``share``: the span policy's time per sample, s."""
+        self._last_t = t
         start = time.perf_counter()
-        measurement = Measurement(t, z)
+        measurement = self._unfreeze(measurement)
+        gap_reset = False
+        gap = self.recovery.gap_reset
+        mask = self.formulation.measurement_mask(measurement.z)
+        if gap is not None and mask.any():
+            gap_reset = -math.inf < self._last_valid_t < t - gap
+            self._last_valid_t = t
+        back = self._note_imus(t, mask)
+        observed = self._observed_now(t)
         if gap_reset:  # restart from this sample instead of a blind prediction
             self.gap_resets += 1
             self._restart()
@@ -409,6 +406,7 @@ class Estimator(ABC):
                 status = Status.INCONSISTENT
             factor = self._consistency.std_factor
             self.max_noise_scale = max(self.max_noise_scale, self._consistency.noise_scale)
+        ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None
         if state is not None and cov is not None:
@@ -423,7 +421,6 @@ class Estimator(ABC):
             if self._checks_start:  # the readings' constant errors, which no residual shows
                 bias = self._consistency.reading_bias_cov(measurement.z, mask, state)
                 std = np.hypot(std, self._output_std(state, bias))
-        ms = (time.perf_counter() - start + share) * 1e3
         outlier = state is not None and self._outlier()
         # the reject reset's run; a sample without readings (None) neither ends nor extends it
         rejected = state is not None and self._rejected_every_reading()
@@ -441,6 +438,46 @@ class Estimator(ABC):
             return None
         return freeze_notice(dict(list(self.first_freezes.items())[before:]), freeze)
 
+    def _note_imus(self, t: float, mask: FloatArray) -> NDArray[np.intp] | None:
+        """Update each IMU's last valid time from ``mask`` (nz,) and return the
+        measurement rows of the IMUs back at ``t`` after more than the gap reset (1 s
+        when it is off) without a valid reading (never having reported counts from the
+        recording's first valid reading), or None if none is."""
+        first = self._first_valid_t
+        if first == -math.inf:
+            if not mask.any():
+                return None
+            first = self._first_valid_t = t
+        window = self.recovery.gap_reset or UNOBSERVED_AFTER
+        last, back = self._imu_last_valid, None
+        for k, start, stop in self._imu_rows:  # plain Python: this runs on every sample
+            if mask[start] > 0.0:
+                if t - last[k] > window and t - first > window:
+                    rows = np.arange(start, stop)
+                    back = rows if back is None else np.concatenate([back, rows])
+                last[k] = t
+        return back
+
+    def _observed_now(self, t: float) -> bool:
+        """Whether the IMUs that reported within the gap reset (1 s when it is off) up to
+        ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`), from
+        each IMU's last valid time (:meth:`_note_imus`)."""
+        if not self.shape_observable:
+            return False
+        blocks = self._imu_blocks
+        if len(blocks) == 1:
+            return True  # its silence is the whole robot's gap
+        last = self._imu_last_valid
+        window = self.recovery.gap_reset or UNOBSERVED_AFTER
+        recent = tuple(k for k in range(len(blocks)) if t - last[k] <= window)
+        if len(recent) == len(blocks) or not recent:
+            return True  # all reporting, or none (the gap's dropout rows say it)
+        known = self._observable_subsets.get(recent)
+        if known is None:
+            known = self.formulation.imus_determine_shape(recent)
+            self._observable_subsets[recent] = known
+        return known
+
     def run(
         self,
         t: FloatArray,
@@ -457,19 +494,14 @@ class Estimator(ABC):
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
         self.reset()
-        # the progress (and an interruptible() wrapper's signal check) moves before each
-        # chunk, and runs out after the last
-        ticks = iter(progress(range(len(t))) if progress is not None else ())
-        estimates: list[Estimate] = []
-        for lo in range(0, len(t), RUN_CHUNK):
-            hi = min(lo + RUN_CHUNK, len(t))
-            for _ in range(hi - lo):
-                next(ticks, None)
-            estimates += self.run_span(t[lo:hi], z[lo:hi])[0]
-        for _ in ticks:
-            pass
+        idx: Iterable[int] = range(len(t))
+        if progress is not None:
+            idx = progress(idx)
         series = EstimateSeries.from_estimates(
-            self.name, estimates, self.formulation.outputs, self.flags_outliers
+            self.name,
+            [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx],
+            self.formulation.outputs,
+            self.flags_outliers,
         )
         self._ran = True
         return series

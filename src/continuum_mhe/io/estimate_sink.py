@@ -55,7 +55,7 @@ class EstimateSink:
         self.t0_ns = t0_ns
         self.mcap = Path(path).suffix.lower() == ".mcap"
         self._cm: Any = None
-        self._write: Callable[[Sequence[Estimate]], None] | None = None
+        self._write: Callable[[Estimate], None] | None = None
 
     def __enter__(self) -> EstimateSink:
         if self.mcap:
@@ -72,13 +72,12 @@ class EstimateSink:
             names = [o.name for o in self.outputs]
             seq = iter(range(sys.maxsize))
 
-            def write_mcap(estimates: Sequence[Estimate]) -> None:
-                for e in estimates:
-                    for topic, ns, msg in sample_messages(self.outputs, names, float(e.t),
-                                                          e.output, str(e.status),
-                                                          float(e.solve_ms), self.lengths,
-                                                          self.t0_ns, e.output_std):  # fmt: skip
-                        writer.add(topic, ns, msg, next(seq))
+            def write_mcap(e: Estimate) -> None:
+                for topic, ns, msg in sample_messages(self.outputs, names, float(e.t), e.output,
+                                                      str(e.status), float(e.solve_ms),
+                                                      self.lengths, self.t0_ns,
+                                                      e.output_std):  # fmt: skip
+                    writer.add(topic, ns, msg, next(seq))
 
             self._finish: Callable[[], None] = writer.finish
             self._write = write_mcap
@@ -96,28 +95,19 @@ class EstimateSink:
             self._note = note_csv
             ny = len(self.outputs)
 
-            def write_csv(estimates: Sequence[Estimate]) -> None:
-                outlier, path = self.outlier, self.path
-                w.writerows(
-                    format_cells(path, estimate_row(e.t, e.output, str(e.status), e.solve_ms,
-                                                    ny, e.output_std,
-                                                    e.outlier if outlier else None))
-                    for e in estimates
-                )  # fmt: skip
+            def write_csv(e: Estimate) -> None:
+                flag = e.outlier if self.outlier else None
+                row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny, e.output_std, flag)
+                w.writerow(format_cells(self.path, row))
 
             self._finish = lambda: None
             self._write = write_csv
         return self
 
     def write(self, estimate: Estimate) -> None:
-        """Write one estimate."""
-        self.write_many((estimate,))
-
-    def write_many(self, estimates: Sequence[Estimate]) -> None:
-        """Write estimates, in order."""
         assert self._write is not None, "use EstimateSink as a context manager"
-        self._write(estimates)
-        self.rows += len(estimates)
+        self._write(estimate)
+        self.rows += 1
 
     def note(self, key: str, value: str) -> None:
         """A ``# key = value`` line (``value`` a TOML value) after the rows written so

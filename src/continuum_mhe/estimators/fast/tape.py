@@ -38,35 +38,30 @@ def tape_arrays(fn: ca.Function) -> tuple[np.ndarray, np.ndarray]:
     """``(code, constants)`` of an SX function: ``code`` (n, 4) int32 rows
     ``(op, res, a, b)`` in the core's numbering (see ``csrc/tape.hpp``); an output's
     offsets are those of its dense column-major layout."""
-    # CasADi gives the algorithm one instruction per call: the loop is the cost of
-    # reading a model (tens of thousands of instructions), so it stays lean
-    op_id, op_in, op_out = fn.instruction_id, fn.instruction_input, fn.instruction_output
-    opcodes = _OPCODES
-    rows: list[tuple[int, int, int, int]] = []
-    append = rows.append
+    n = fn.n_instructions()
+    code = np.zeros((n, 4), dtype=np.int32)
     constants: list[float] = []
     dense = [_dense_offsets(fn.sparsity_out(i)) for i in range(fn.n_out())]
-    for k in range(fn.n_instructions()):
-        core_op = opcodes.get(op_id(k), -1)
-        args = op_in(k)
-        if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
-            append((core_op, op_out(k)[0], args[0], args[1]))
-        elif core_op == _OUTPUT:  # output res[0], nonzero res[1] <- work args[0]
-            res = op_out(k)
-            append((core_op, dense[res[0]][res[1]], args[0], res[0]))
-        elif core_op == _CONST:
-            append((core_op, op_out(k)[0], len(constants), 0))
-            constants.append(float(fn.instruction_constant(k)))
-        elif core_op < 0:
-            op = op_id(k)
+    for k in range(n):
+        op = fn.instruction_id(k)
+        try:
+            core_op = _OPCODES[op]
+        except KeyError:
             names = [m for m in dir(ca) if m.startswith("OP_") and getattr(ca, m) == op]
             raise NotImplementedError(
                 f"{fn.name()}: the compiled core has no operation {names or op}"
-            )
+            ) from None
+        args, res = fn.instruction_input(k), fn.instruction_output(k)
+        if core_op == _INPUT:  # res <- input args[0], nonzero args[1]
+            code[k] = (core_op, res[0], args[0], args[1])
+        elif core_op == _OUTPUT:  # output res[0], nonzero res[1] <- work args[0]
+            code[k] = (core_op, dense[res[0]][res[1]], args[0], res[0])
+        elif core_op == _CONST:
+            code[k] = (core_op, res[0], len(constants), 0)
+            constants.append(float(fn.instruction_constant(k)))
         else:
             a = args[0]
-            append((core_op, op_out(k)[0], a, args[1] if len(args) > 1 else a))
-    code = np.array(rows, dtype=np.int32).reshape(len(rows), 4)
+            code[k] = (core_op, res[0], a, args[1] if len(args) > 1 else a)
     return code, np.asarray(constants, dtype=np.float64)
 
 
