@@ -134,8 +134,8 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod() -> None:
     the IMUs' constant errors look like a different shape)."""
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
-    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "rod2"
@@ -156,8 +156,8 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok() -> None:
     ``ok`` (all of them, measured)."""
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
-    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "tendon"
