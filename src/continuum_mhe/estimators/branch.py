@@ -41,9 +41,9 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.stats import chi2
 
 from continuum_mhe.estimators.base import FloatArray, Status
+from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation
 
@@ -105,7 +105,7 @@ class BranchCheck:
     def implausible(self, problem: WindowProblem, X: FloatArray) -> bool:
         """True when the window's measurement cost exceeds the chi-square quantile."""
         cost, dof = self.measurement_cost(problem, X)
-        return dof > 0 and cost > float(chi2.ppf(QUANTILE, dof))
+        return dof > 0 and cost > chi2_quantile(QUANTILE, dof)
 
     # --- restart ------------------------------------------------------------------
     def candidates(self, problem: WindowProblem) -> dict[str, FloatArray]:

@@ -53,9 +53,9 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 import continuum_mhe._core as _core
+from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.formulations import Formulation
 
@@ -79,11 +79,11 @@ class ConsistencyCheck:
         self._R = formulation.meas_cov()
         self._r_inv = 1.0 / np.diag(self._R)
         nz = formulation.nz
-        self._limit = [math.inf] + [float(chi2.ppf(SAMPLE_QUANTILE, k)) for k in range(1, nz + 1)]
-        self._run_limit = [math.inf] + [float(chi2.ppf(RUN_QUANTILE, k)) for k in range(1, nz + 1)]
+        self._limit = [math.inf] + [chi2_quantile(SAMPLE_QUANTILE, k) for k in range(1, nz + 1)]
+        self._run_limit = [math.inf] + [chi2_quantile(RUN_QUANTILE, k) for k in range(1, nz + 1)]
         n_avg = 2 * MEMORY - 1  # the effective samples of the exponential average
         self._avg_limit = [math.inf] + [
-            float(chi2.ppf(QUANTILE, k * n_avg)) / (k * n_avg) for k in range(1, nz + 1)
+            chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg) for k in range(1, nz + 1)
         ]
         self.reset()
 

@@ -42,8 +42,8 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
+from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -60,7 +60,7 @@ class StartCheck:
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
         self._R = formulation.meas_cov()
-        self._limit = {k: float(chi2.ppf(QUANTILE, k)) for k in range(1, formulation.nz + 1)}
+        self._limit = {k: chi2_quantile(QUANTILE, k) for k in range(1, formulation.nz + 1)}
         self.reset()
 
     def reset(self) -> None:

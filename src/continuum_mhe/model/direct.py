@@ -55,7 +55,6 @@ from functools import cached_property
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import block_diag
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
@@ -251,6 +250,8 @@ class DirectFormulation(BendFormulation):
                 np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
             ]
         )
+        from scipy.linalg import block_diag  # imported on use: scipy.linalg is slow to import
+
         base = super().initial_cov()
         if self.own_acceleration:
             n2 = 2 * self.robot.n_sections

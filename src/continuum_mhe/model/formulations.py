@@ -33,7 +33,6 @@ from typing import ClassVar
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
@@ -529,6 +528,8 @@ def _bend_turning(v: FloatArray, f: FloatArray, at: float, theta_max: float) -> 
             np.array([math.cos(ang), math.sin(ang)])
             for ang in np.linspace(0, 2 * np.pi, 4, endpoint=False)
         ]
+        from scipy.optimize import least_squares  # a tilted mounting only: imported here
+
         best = min((least_squares(resid, s) for s in starts), key=lambda r: r.cost)
         w = best.x / at
     r = math.hypot(w[0], w[1])

@@ -71,8 +71,6 @@ from typing import ClassVar, Literal
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import block_diag
-from scipy.optimize import least_squares
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
@@ -590,6 +588,8 @@ class TendonFormulation(Formulation):
         # the rates' rows are zero residuals: any weight
         tension = np.diag([self.tension_std**2] * k + [1.0] * 2 * k)
         eq = np.eye(self.measurement_blocks[-1].size) * self.equilibrium_std**2
+        from scipy.linalg import block_diag  # imported on use: scipy.linalg is slow to import
+
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
     def reading_bias_cov(self) -> FloatArray:
@@ -665,6 +665,8 @@ class TendonFormulation(Formulation):
             xx = np.r_[v, x[6:]]
             J = np.asarray(self._residual_function(z, xx)[1], dtype=float)
             return np.asarray((w[:, None] * J)[rows], dtype=float)
+
+        from scipy.optimize import least_squares  # imported on use (slow to import)
 
         fit = least_squares(resid, x[:6], jac=jac, x_scale=np.r_[[1.0] * 3, [0.1] * 3])
         if np.all(np.isfinite(fit.x)):
