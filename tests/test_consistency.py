@@ -168,3 +168,16 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok() -> None:
     far = np.linalg.norm(series.output[:, :3] - truth, axis=1) > 0.02
     assert far.sum() > 100
     assert np.mean(series.status[far] != "ok") >= 0.8
+
+
+def test_chi_square_quantiles_match_scipy_stats() -> None:
+    """The consistency tests' quantiles (scipy.special) against scipy.stats and a known
+    table value (0.95 quantile, 2 degrees of freedom: 5.991)."""
+    from scipy.stats import chi2
+
+    from continuum_mhe.estimators.chi2 import chi2_quantile
+
+    assert chi2_quantile(0.95, 2) == pytest.approx(5.991464547, rel=1e-9)
+    for q in (0.5, 0.9, 0.99, 0.9999):
+        for dof in (1, 2, 3.5, 12, 60):
+            assert chi2_quantile(q, dof) == pytest.approx(chi2.ppf(q, dof), rel=1e-10)
