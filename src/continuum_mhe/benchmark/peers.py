@@ -52,7 +52,7 @@ import numpy as np
 
 from continuum_mhe.estimators.base import FloatArray, Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.estimators.window_nlp import WindowProblem, pack_parameters
+from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording
@@ -175,14 +175,9 @@ class OcpNlp:
 
 def ocp_nlp(formulation: Formulation, horizon: int) -> OcpNlp:
     """:class:`OcpNlp` of the window cost (quadratic loss) at ``horizon``."""
-    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
-    Z = ca.SX.sym("Z", m, n)
-    zmask = ca.SX.sym("zmask", m, n)
-    DT = ca.SX.sym("DT", n - 1)
-    U = ca.SX.sym("U", nu, n - 1)
-    QI = ca.SX.sym("QI", nx * nx, n - 1)
-    xbar = ca.SX.sym("xbar", nx)
-    AR = ca.SX.sym("AR", nx * nx, n)
+    f, n, nx = formulation, horizon, formulation.nx
+    par = WindowParameters.symbols(f, n)
+    Z, zmask, DT, U, QI, xbar, AR = par.Z, par.zmask, par.DT, par.U, par.QI, par.xbar, par.AR
     X = [ca.SX.sym(f"x{i}", nx) for i in range(n)]
     W = [ca.SX.sym(f"w{i}", nx) for i in range(n - 1)]
     rinv = np.linalg.inv(f.meas_cov())
@@ -197,14 +192,13 @@ def ocp_nlp(formulation: Formulation, horizon: int) -> OcpNlp:
             g.append(X[i + 1] - f.transition_sym(X[i], U[:, i], DT[i]) - W[i])
         g.append(f.constraint_sym(X[i])[0])
     w = ca.vertcat(*[v for i in range(n) for v in ((X[i], W[i]) if i < n - 1 else (X[i],))])
-    params = ca.vertcat(ca.vec(Z), ca.vec(zmask), DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
     lo, hi = f.state_bounds()
     cg, clo, chi = f.constraint_sym(ca.SX.sym("x", nx))
     clo, chi = (np.asarray(b, dtype=float).ravel() for b in (clo, chi))
     free = np.full(nx, np.inf)
     gap = np.zeros(nx)
     return OcpNlp(
-        nlp={"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)},
+        nlp={"x": w, "p": par.vector, "f": cost, "g": ca.vertcat(*g)},
         lbx=np.concatenate([*[np.concatenate([lo, -free])] * (n - 1), lo]),
         ubx=np.concatenate([*[np.concatenate([hi, free])] * (n - 1), hi]),
         lbg=np.concatenate([*[np.concatenate([gap, clo])] * (n - 1), clo]),

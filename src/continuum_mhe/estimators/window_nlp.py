@@ -33,6 +33,43 @@ class WindowProblem:
 
 
 @dataclass(frozen=True)
+class WindowParameters:
+    """The window's parameters as CasADi symbols, for the window NLP and its peers:
+    ``Z``, ``zmask`` (nz, N) the readings and their mask; ``DT`` (N - 1) s; ``U``
+    (nu, N - 1) inputs; ``QI`` (nx^2, N - 1) and ``AR`` (nx^2, N) the process-noise and
+    arrival weights, column-major; ``xbar`` (nx) the arrival state."""
+
+    Z: ca.SX
+    zmask: ca.SX
+    DT: ca.SX
+    U: ca.SX
+    QI: ca.SX
+    xbar: ca.SX
+    AR: ca.SX
+
+    @classmethod
+    def symbols(cls, formulation: Formulation, horizon: int) -> WindowParameters:
+        f, n, nx = formulation, horizon, formulation.nx
+        return cls(
+            Z=ca.SX.sym("Z", f.nz, n),
+            zmask=ca.SX.sym("zmask", f.nz, n),
+            DT=ca.SX.sym("DT", n - 1),
+            U=ca.SX.sym("U", f.nu, n - 1),
+            QI=ca.SX.sym("QI", nx * nx, n - 1),
+            xbar=ca.SX.sym("xbar", nx),
+            AR=ca.SX.sym("AR", nx * nx, n),
+        )
+
+    @property
+    def vector(self) -> ca.SX:
+        """The parameters in one vector, in the order :func:`pack_parameters` packs."""
+        return ca.vertcat(
+            ca.vec(self.Z), ca.vec(self.zmask), self.DT, ca.vec(self.U), ca.vec(self.QI),
+            self.xbar, ca.vec(self.AR),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class Nlp:
     """An IPOPT solver of the window NLP, its bounds and its cost function."""
 
@@ -77,15 +114,10 @@ def build_nlp(
     """The window NLP (decision variables the ``(nx, N)`` states, column-major; the
     parameters as :func:`pack_parameters` packs them), solved by IPOPT with ``max_iter``
     and ``tol``, the objective divided by ``10**scale_exp``."""
-    f, n, nx, nu, m = formulation, horizon, formulation.nx, formulation.nu, formulation.nz
+    f, n, nx = formulation, horizon, formulation.nx
     X = ca.SX.sym("X", nx, n)
-    Z = ca.SX.sym("Z", m, n)
-    zmask = ca.SX.sym("zmask", m, n)
-    DT = ca.SX.sym("DT", n - 1)
-    U = ca.SX.sym("U", nu, n - 1)
-    QI = ca.SX.sym("QI", nx * nx, n - 1)
-    xbar = ca.SX.sym("xbar", nx)
-    AR = ca.SX.sym("AR", nx * nx, n)
+    par = WindowParameters.symbols(f, n)
+    Z, zmask, DT, U, QI, xbar, AR = par.Z, par.zmask, par.DT, par.U, par.QI, par.xbar, par.AR
     rinv = np.linalg.inv(f.meas_cov())
     cost = ca.SX(0)
     g = []
@@ -104,8 +136,7 @@ def build_nlp(
             cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), w, w)
         gi, _, _ = f.constraint_sym(X[:, i])
         g.append(gi)
-    params = ca.vertcat(ca.vec(Z), ca.vec(zmask), DT, ca.vec(U), ca.vec(QI), xbar, ca.vec(AR))
-    w = ca.vec(X)
+    w, params = ca.vec(X), par.vector
     nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {
         "print_time": False,
