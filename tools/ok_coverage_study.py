@@ -2,9 +2,12 @@
 Cosserat-rod recordings (data the PCC model did not generate), with the defaults:
 per method and recording, the tip error (mean / max, mm), the share of rows ``ok``,
 the per-axis coverage of the 95 % interval (``|e_c| <= 1.96 std_c``) over the ``ok``
-rows, the rows more than 50 mm off that are ``ok``, and the largest model-error factor.
+rows, the rows more than 20 mm off that are not ``ok``, the rows more than 50 mm off that are
+``ok``, the largest model-error factor and the model error learned (in units of ``R``).
 
     python tools/ok_coverage_study.py [--rod NAME ...] [--cases raw tilt] [--methods ...]
+    python tools/ok_coverage_study.py --folder src/continuum_mhe/data/tendon \
+        --robot tendon-two-section --rod force-08 unloaded
 """
 
 from __future__ import annotations
@@ -25,9 +28,9 @@ DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 Z95 = 1.959964
 
 
-def study(folder: Path, name: str, case: str, method: str) -> dict[str, float]:
+def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> dict[str, float]:
     """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method."""
-    robot = read_robot("two-section")
+    robot = read_robot(robot_name)
     data = load_input(
         folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
     )
@@ -46,8 +49,10 @@ def study(folder: Path, name: str, case: str, method: str) -> dict[str, float]:
         "cx": float(cover[0]),
         "cy": float(cover[1]),
         "cz": float(cover[2]),
+        "far20": float(np.mean(~ok[dist > 20])) if np.any(dist > 20) else np.nan,
         "ok50": int(np.sum(ok & (dist > 50))),
         "scale": float(getattr(est, "max_noise_scale", np.nan)),
+        "model_error": float(getattr(est, "model_error", np.nan)),
     }
 
 
@@ -55,20 +60,25 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     names = sorted(q.name[: -len("_info.json")] for q in DATA.glob("*_info.json"))
     p.add_argument("--folder", type=Path, default=DATA)
+    p.add_argument("--robot", default="two-section", help="robot file or shipped name")
     p.add_argument("--rod", nargs="+", default=names)
     p.add_argument("--cases", nargs="+", default=["raw"])
     p.add_argument("--methods", nargs="+", default=["ekf", "ukf", "mhe"])
     args = p.parse_args()
     warnings.simplefilter("ignore")
-    print("recording case method: tip mean/max mm, ok share, ok coverage x/y/z, ok >50 mm, scale")
+    print(
+        "recording case method: tip mean/max mm, ok share, ok coverage x/y/z, "
+        ">20 mm not ok, ok >50 mm, scale, model error"
+    )
     for name in args.rod:
         for case in args.cases:
             for m in args.methods:
-                r = study(args.folder, name, case, m)
+                r = study(args.folder, name, case, m, args.robot)
                 print(
                     f"{name} {case} {m}: {r['mean']:.2f} / {r['max']:.1f}, ok {r['ok']:.2f}, "
-                    f"cov {r['cx']:.3f} {r['cy']:.3f} {r['cz']:.3f}, ok>50 {r['ok50']}, "
-                    f"scale {r['scale']:.1f}",
+                    f"cov {r['cx']:.3f} {r['cy']:.3f} {r['cz']:.3f}, "
+                    f">20 not ok {r['far20']:.2f}, ok>50 {r['ok50']}, "
+                    f"scale {r['scale']:.1f}, model error {r['model_error']:.2f}",
                     flush=True,
                 )
 

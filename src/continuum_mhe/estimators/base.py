@@ -166,6 +166,10 @@ class Estimator(ABC):
         #: the largest model-error factor seen (:attr:`ConsistencyCheck.noise_scale`:
         #: the innovations' variance over the one the noise model predicts)
         self.max_noise_scale = 1.0
+        #: the largest model error learned (:attr:`ConsistencyCheck.model_error`: the
+        #: excess of the innovations over the noise model, in units of ``R``, carried
+        #: in the standard deviations as a constant error of the gravity directions)
+        self.model_error = 0.0
 
     def reset(self, keep_counts: bool = False) -> None:
         """Forget all samples and, unless ``keep_counts``, zero the counts
@@ -406,6 +410,7 @@ class Estimator(ABC):
                 status = Status.INCONSISTENT
             factor = self._consistency.std_factor
             self.max_noise_scale = max(self.max_noise_scale, self._consistency.noise_scale)
+            self.model_error = max(self.model_error, self._consistency.model_error)
         ms = (time.perf_counter() - start) * 1e3
         output = None if state is None else self._output(state)
         std = None
@@ -418,8 +423,8 @@ class Estimator(ABC):
                 tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
                 if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
                     status = Status.UNCERTAIN
-            if self._checks_start:  # the readings' constant errors, which no residual shows
-                bias = self._consistency.reading_bias_cov(measurement.z, mask, state)
+            if self._checks_start:  # constant reading errors, model error: no residual shows them
+                bias = self._consistency.constant_error_cov(measurement.z, mask, state)
                 std = np.hypot(std, self._output_std(state, bias))
         outlier = state is not None and self._outlier()
         # the reject reset's run; a sample without readings (None) neither ends nor extends it

@@ -26,13 +26,26 @@ predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 
 quantile of its own distribution (a chi-square of ``dof * (2 MEMORY - 1)`` degrees of
 freedom, scaled) the sample is ``inconsistent`` too, and every output standard
 deviation is widened by ``sqrt(noise_scale)`` where it exceeds 1 (the covariances are
-scaled as the noise is).
+scaled as the noise is). Once beyond that quantile, the samples stay ``inconsistent``
+until the average is back at 1, what the noise model predicts (a model error does not
+end when the average merely drops below the quantile).
+
+A model error the readings showed does not go away when their residuals quieten: with
+one IMU per section the gravity directions determine the shape exactly, so a shape the
+model gets wrong (a curvature that is not constant, a twist) leaves no residual at all
+most of the time, and shows only while the robot moves in a way the model cannot
+follow. The excess the average showed at such a detection, ``noise_scale - 1`` in
+units of ``R``, is :attr:`ConsistencyCheck.model_error`: the largest since the
+(re)start, carried as a constant error of the gravity-direction readings (below), not
+as white noise (a slowly varying model error is not averaged away by the filter or the
+window).
 
 Some error no residual shows: a constant error in every reading of an IMU (its
 mounting misalignment, its accelerometer's bias) looks like a different shape.
-:meth:`ConsistencyCheck.reading_bias_cov` is the estimate's covariance from it, the
+:meth:`ConsistencyCheck.constant_error_cov` is the estimate's covariance from it, the
 readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
-``NoiseSettings.reading_bias_std``) carried through the estimate's weighted
+``NoiseSettings.reading_bias_std``, plus ``model_error`` times ``R`` on the
+gravity-direction readings) carried through the estimate's weighted
 least-squares sensitivity to the readings that carry such an error (the gravity
 directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
 at the estimate: ``A B A^T``. Its output standard deviations are added in quadrature
@@ -92,8 +105,12 @@ class ConsistencyCheck:
         self._prev: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         #: exponentially weighted mean of NIS / dof (1 where nothing was seen yet)
         self.noise_scale = 1.0
+        #: the model error the average showed (module doc): the largest
+        #: ``noise_scale - 1`` beyond its quantile since the (re)start, in units of ``R``
+        self.model_error = 0.0
         self._dof = 0
         self._high = False  # the previous reading was beyond RUN_QUANTILE
+        self._persists = False  # the average went beyond its quantile, and is not back at 1
 
     def check(
         self,
@@ -139,8 +156,12 @@ class ConsistencyCheck:
             return False
         worst = max(fit, nis)
         high, self._high = self._high, worst > self._run_limit[dof]
-        avg_bad = self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]
-        return worst > self._limit[dof] or (high and self._high) or avg_bad
+        if self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]:
+            self._persists = True
+            self.model_error = max(self.model_error, self.noise_scale - 1.0)
+        elif self.noise_scale <= 1.0:
+            self._persists = False
+        return worst > self._limit[dof] or (high and self._high) or self._persists
 
     @cached_property
     def _judge(self) -> ca.Function:
@@ -189,18 +210,27 @@ class ConsistencyCheck:
         return np.asarray(self.formulation.reading_bias_cov(), dtype=float)
 
     @cached_property
+    def _gravity_r(self) -> FloatArray:
+        """``R``'s diagonal (nz,) on the gravity-direction readings, 0 elsewhere: the
+        constant-error variance per unit of :attr:`model_error`."""
+        return np.where(self.formulation.gravity_direction_rows(), np.diag(self._R), 0.0)
+
+    @cached_property
     def _innovate_core(self) -> _core.TapeFunction:
         """``(z, x) -> (r, dr/dx)`` evaluated by the compiled core."""
         return tape_function(self.formulation.functions.innovate)
 
-    def reading_bias_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
-        """The state covariance (nx, nx) from the readings' constant errors (module
-        doc): ``A B A^T`` with ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid readings
-        that carry a constant error (``B > 0``: the gravity directions) and the states
-        they depend on (the bends: the readings that set the shape) at ``state``; zero
-        where ``B`` is."""
+    def constant_error_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
+        """The state covariance (nx, nx) from the readings' constant errors and the
+        model error learned so far (module doc): ``A B A^T`` with ``B`` the readings'
+        constant-error covariance plus :attr:`model_error` times ``R`` on the
+        gravity-direction readings and ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid
+        readings that carry a constant error (``B > 0``: the gravity directions) and the
+        states they depend on (the bends: the readings that set the shape) at
+        ``state``; zero where ``B`` is."""
         nx, nz = self.formulation.nx, self.formulation.nz
-        rows = np.flatnonzero((mask > 0) & (np.diag(self._bias) > 0))
+        bias = self._bias + np.diag(self.model_error * self._gravity_r)
+        rows = np.flatnonzero((mask > 0) & (np.diag(bias) > 0))
         out_cov = np.zeros((nx, nx))
         if len(rows) == 0:
             return out_cov
@@ -215,7 +245,7 @@ class ConsistencyCheck:
         w = self._r_inv[rows]
         info = H.T @ (H * w[:, None])
         A = np.linalg.pinv(info, rcond=1e-9, hermitian=True) @ (H.T * w)
-        out_cov[np.ix_(cols, cols)] = A @ self._bias[np.ix_(rows, rows)] @ A.T
+        out_cov[np.ix_(cols, cols)] = A @ bias[np.ix_(rows, rows)] @ A.T
         return out_cov
 
     @property

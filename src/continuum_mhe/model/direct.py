@@ -55,6 +55,7 @@ from functools import cached_property
 
 import casadi as ca
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
@@ -321,11 +322,10 @@ class DirectFormulation(BendFormulation):
         full = one if self.robot.n_imus == 1 else np.kron(np.eye(self.robot.n_imus), one)
         return np.asarray(full, dtype=np.float64)
 
-    def reading_bias_cov(self) -> FloatArray:
-        """The accelerometer directions' constant error (``noise.reading_bias_std``);
-        the gyro's bias is a state or counted in ``gyro_std``."""
-        one = np.diag([self.noise.reading_bias_std**2] * 3 + [0.0] * 3)
-        return np.asarray(np.kron(np.eye(self.robot.n_imus), one), dtype=np.float64)
+    def gravity_direction_rows(self) -> NDArray[np.bool_]:
+        """The accelerometer directions (the gyros' bias is a state or counted in
+        ``gyro_std``)."""
+        return np.tile([True] * 3 + [False] * 3, self.robot.n_imus)
 
     @cached_property
     def _rate_map(self) -> ca.Function:

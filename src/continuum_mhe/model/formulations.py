@@ -250,11 +250,17 @@ class Formulation:
         """``R``: block-diagonal, one block per IMU (roll, pitch: ``measurement_std``)."""
         return np.eye(self.nz) * self.noise.measurement_std**2
 
+    def gravity_direction_rows(self) -> NDArray[np.bool_]:
+        """Which readings (nz,) are gravity directions, the readings that set the shape
+        and carry an IMU's constant error (here every reading is one: roll and
+        pitch)."""
+        return np.ones(self.nz, dtype=bool)
+
     def reading_bias_cov(self) -> FloatArray:
         """The covariance (nz, nz) of the readings' constant errors, in the residual's
-        units: ``noise.reading_bias_std^2`` on each gravity-direction reading (here
-        every reading is one: roll and pitch)."""
-        return np.eye(self.nz) * self.noise.reading_bias_std**2
+        units: ``noise.reading_bias_std^2`` on each gravity-direction reading
+        (:meth:`gravity_direction_rows`)."""
+        return np.diag(self.gravity_direction_rows() * self.noise.reading_bias_std**2)
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Residual ``r(z, x)``, "measurement minus model", weighted by ``R^-1``.

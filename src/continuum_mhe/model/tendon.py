@@ -71,6 +71,7 @@ from typing import ClassVar, Literal
 
 import casadi as ca
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
@@ -592,17 +593,15 @@ class TendonFormulation(Formulation):
 
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
-    def reading_bias_cov(self) -> FloatArray:
-        """The IMUs' gravity-direction readings' constant error
-        (``noise.reading_bias_std``); tensions and the equilibrium rows none."""
-        b2 = self.noise.reading_bias_std**2
+    def gravity_direction_rows(self) -> NDArray[np.bool_]:
+        """The IMUs' gravity-direction readings (tilt, or the accelerometer
+        directions); not the tensions nor the equilibrium rows."""
         if self.imu_model == "tilt":
-            per_reading = [b2] * self.n_imu_measurements
+            per_reading = [True] * self.n_imu_measurements
         else:
-            per_reading = ([b2] * 3 + [0.0] * 3) * self.robot.n_imus
-        out = np.zeros((self.nz, self.nz))
-        k = len(per_reading)
-        out[:k, :k] = np.diag(per_reading)
+            per_reading = ([True] * 3 + [False] * 3) * self.robot.n_imus
+        out = np.zeros(self.nz, dtype=bool)
+        out[: len(per_reading)] = per_reading
         return out
 
     def output_sym(self, x: Sym) -> Sym:
