@@ -145,6 +145,12 @@ def run(args: argparse.Namespace) -> int:
             "times their noise model's std (standard deviations widened by it; status "
             "inconsistent where they disagree beyond the noise)"
         )
+        if est.model_error > 0:
+            msg += (
+                f"; a model error of {math.sqrt(est.model_error):.2g} times the readings' "
+                "noise std carried in the standard deviations as a constant error of the "
+                "gravity directions"
+            )
     if est.bound_samples:
         note = bound_notice(est.bound_samples, n, est.formulation.robot)
         print(f"{PROG}: warning: {note}", file=sys.stderr)
