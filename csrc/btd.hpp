@@ -22,17 +22,26 @@ constexpr Index block_size(Index nx) {
   return NX > 0 ? NX : nx;
 }
 
-// ``f(std::integral_constant<int, NX>{})`` with NX = nx for the specialised sizes
-// (one to three sections of the bend model), else NX = 0
+// ``f(std::integral_constant<int, NX>{})`` with NX = nx for the specialised sizes, else
+// NX = 0. The sizes are the bend model's state of one to four sections (4 per section),
+// and one to three sections with a gyro bias per section's IMU (7 per section).
 template <class F>
 decltype(auto) with_block_size(Index nx, F&& f) {
   switch (nx) {
     case 4:
       return f(std::integral_constant<int, 4>{});
+    case 7:
+      return f(std::integral_constant<int, 7>{});
     case 8:
       return f(std::integral_constant<int, 8>{});
     case 12:
       return f(std::integral_constant<int, 12>{});
+    case 14:
+      return f(std::integral_constant<int, 14>{});
+    case 16:
+      return f(std::integral_constant<int, 16>{});
+    case 21:
+      return f(std::integral_constant<int, 21>{});
     default:
       return f(std::integral_constant<int, 0>{});
   }

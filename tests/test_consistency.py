@@ -217,3 +217,25 @@ def test_learned_model_error_is_carried_as_a_constant_reading_error() -> None:
     got = check.constant_error_cov(z, mask, x)
     np.testing.assert_allclose(got[:2, :2], want, rtol=1e-6)
     assert not np.any(got[2:]) and not np.any(got[:, 2:])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(1, 8),
+    rank=st.integers(0, 8),
+    scale=st.floats(1e-6, 1e6),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_symmetric_pseudo_inverse_matches_numpy_pinv(n, rank, scale, seed) -> None:
+    """The pseudo-inverse behind the constant-error covariance equals numpy's
+    ``pinv(hermitian=True)``, on singular and nearly singular matrices too."""
+    from continuum_mhe.estimators.consistency import _pinv_symmetric
+
+    rng = np.random.default_rng(seed)
+    b = rng.normal(size=(n, min(rank, n))) * scale
+    a = b @ b.T
+    expected = np.linalg.pinv(a, rcond=1e-9, hermitian=True)
+    got = _pinv_symmetric(a, 1e-9)
+    np.testing.assert_allclose(
+        got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max(initial=1.0)
+    )

@@ -244,7 +244,7 @@ class ConsistencyCheck:
         H = H[:, cols]
         w = self._r_inv[rows]
         info = H.T @ (H * w[:, None])
-        A = np.linalg.pinv(info, rcond=1e-9, hermitian=True) @ (H.T * w)
+        A = _pinv_symmetric(info, 1e-9) @ (H.T * w)
         out_cov[np.ix_(cols, cols)] = A @ bias[np.ix_(rows, rows)] @ A.T
         return out_cov
 
@@ -253,3 +253,14 @@ class ConsistencyCheck:
         """The factor (>= 1) the output standard deviations are widened by:
         ``sqrt(noise_scale)`` where the readings scatter more than predicted."""
         return math.sqrt(self.noise_scale) if self.noise_scale > 1.0 else 1.0
+
+
+def _pinv_symmetric(a: FloatArray, rcond: float) -> FloatArray:
+    """The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition,
+    eigenvalues at most ``rcond`` times the largest in magnitude taken as zero (what
+    ``numpy.linalg.pinv(a, rcond, hermitian=True)`` computes, without its per-call
+    overhead, which dominates for the few-by-few matrices of a sample)."""
+    s, u = np.linalg.eigh(a)
+    big = np.abs(s) > rcond * np.max(np.abs(s), initial=0.0)
+    inv_s = np.divide(1.0, s, out=np.zeros_like(s), where=big)
+    return (u * inv_s) @ u.T
