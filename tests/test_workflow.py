@@ -314,3 +314,16 @@ def test_live_reads_its_table_of_an_options_file(tmp_path: Path) -> None:
     assert "baud = 9600" in args.options_record and "skip-bad" not in args.options_record
     est = _parse(["estimate", "m.csv", "-o", "e.csv", "--config", str(cfg)])
     assert (est.method, est.skip_bad) == ("ekf", True)
+
+
+def test_options_record_leaves_out_the_flags_a_robot_file_replaces() -> None:
+    """With ``--robot`` the section length, bend bound and mounting come from the robot
+    file, so the record does not carry the one-section flags' values."""
+    from continuum_mhe.cli.app import _parse
+
+    with_robot = _parse(["estimate", "m.csv", "-o", "e.csv", "--robot", "r.toml"])
+    assert "robot = " in with_robot.options_record
+    for key in ("theta-max", "length", "mounting"):
+        assert f"{key} = " not in with_robot.options_record
+    alone = _parse(["estimate", "m.csv", "-o", "e.csv", "--theta-max", "2.5"])
+    assert "theta-max = 2.5" in alone.options_record and "length = 0.2" in alone.options_record

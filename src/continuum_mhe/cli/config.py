@@ -141,13 +141,16 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
 
 def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str:
     """The options ``args`` holds, as the TOML inline table an estimate file records
-    (``{method = "mhe", horizon = 30, ...}``; options left unset are left out)."""
+    (``{method = "mhe", horizon = 30, ...}``; options left unset are left out, and so
+    are the one-section flags a ``--robot`` file replaces)."""
     import tomlkit
 
     table = tomlkit.inline_table()
+    # the one-section flags a robot file replaces did not make the estimate
+    replaced = getattr(args, "robot_replaces", ()) if getattr(args, "robot", None) else ()
     for dest, action in _options(parser).items():
         value = getattr(args, dest, None)
-        if value is None or dest in NOT_OPTIONS:
+        if value is None or dest in NOT_OPTIONS or dest in replaced:
             continue
         if isinstance(action, argparse._StoreFalseAction):
             value = not value  # recorded as the switch's own sense

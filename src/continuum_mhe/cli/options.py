@@ -43,6 +43,8 @@ def add_robot_option(
         *first, last = replaces
         text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
     g.add_argument("--robot", metavar="ROBOT.toml", help=text)
+    # read by the options record: what a robot file sets is not recorded from the flags
+    g.set_defaults(robot_replaces=tuple(o.lstrip("-").replace("-", "_") for o in replaces))
 
 
 def robot_from_args(args: argparse.Namespace) -> Robot:
