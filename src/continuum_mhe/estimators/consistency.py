@@ -206,8 +206,9 @@ class ConsistencyCheck:
 
     @cached_property
     def _bias(self) -> FloatArray:
-        """``B`` (nz, nz), the readings' constant-error covariance."""
-        return np.asarray(self.formulation.reading_bias_cov(), dtype=float)
+        """``B``'s diagonal (nz,): the readings' constant-error variances (``B`` is
+        diagonal: each reading's constant error is its own)."""
+        return np.diag(np.asarray(self.formulation.reading_bias_cov(), dtype=float)).copy()
 
     @cached_property
     def _gravity_r(self) -> FloatArray:
@@ -229,23 +230,21 @@ class ConsistencyCheck:
         states they depend on (the bends: the readings that set the shape) at
         ``state``; zero where ``B`` is."""
         nx, nz = self.formulation.nx, self.formulation.nz
-        bias = self._bias + np.diag(self.model_error * self._gravity_r)
-        rows = np.flatnonzero((mask > 0) & (np.diag(bias) > 0))
+        bias = self._bias + self.model_error * self._gravity_r if self.model_error else self._bias
+        rows = np.flatnonzero((mask > 0) & (bias > 0))
         out_cov = np.zeros((nx, nx))
         if len(rows) == 0:
             return out_cov
         core = self._innovate_core
         out = np.empty(core.output_size)
         zv = np.where(mask > 0, z, 0.0)
-        args = [np.ascontiguousarray(v, dtype=float) for v in (zv, state)]
-        core.evaluate(args, out)
+        core.evaluate([zv, np.ascontiguousarray(state, dtype=float)], out)
         H = out[nz:].reshape(nx, nz).T[rows]
-        cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+        cols = np.flatnonzero(H.any(axis=0))
         H = H[:, cols]
-        w = self._r_inv[rows]
-        info = H.T @ (H * w[:, None])
-        A = _pinv_symmetric(info, 1e-9) @ (H.T * w)
-        out_cov[np.ix_(cols, cols)] = A @ bias[np.ix_(rows, rows)] @ A.T
+        wh = H * self._r_inv[rows, None]  # R^-1 H
+        A = _pinv_symmetric(H.T @ wh, 1e-9) @ wh.T
+        out_cov[np.ix_(cols, cols)] = (A * bias[rows]) @ A.T
         return out_cov
 
     @property
