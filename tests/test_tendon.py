@@ -407,3 +407,45 @@ def test_one_imu_does_not_determine_the_tip_force() -> None:
         assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
     with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
         ExtendedKalmanFilter(TendonFormulation(robot=one))
+
+
+# --- the estimator a tendon robot gets --------------------------------------------------
+def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The fast MHE cannot take the mechanics model: the EKF is the default, said in one
+    line; a robot without a backbone keeps the MHE, silently; a chosen method is kept."""
+    import argparse
+
+    from continuum_mhe.cli.options import method_from_args
+    from continuum_mhe.estimators import default_method
+    from continuum_mhe.model.registry import make_formulation
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots"
+    tendon = TendonFormulation(robot=read_robot(shipped / "tendon_two_section.toml"))
+    pcc = make_formulation("bend", read_robot(shipped / "two_section.toml"))
+    assert default_method(tendon) == "ekf" and default_method(pcc) == "mhe"
+    args = argparse.Namespace(method=None)
+    assert method_from_args(args, tendon) == "ekf" and args.method == "ekf"
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the ekf estimates, the default for this robot" in err[0]
+    assert method_from_args(argparse.Namespace(method=None), pcc) == "mhe"
+    assert method_from_args(argparse.Namespace(method="ukf"), tendon) == "ukf"
+    assert capsys.readouterr().err == ""
+
+
+def test_the_mhe_on_a_tendon_robot_runs_ipopt_and_says_so(tmp_path: Path) -> None:
+    """``--method mhe`` solves every window with IPOPT (the fast backend's window model
+    is never built), with one warning line."""
+    meas, tensions = _recording(tmp_path)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out), "--method", "mhe", "--horizon", "3"]  # fmt: skip
+    from continuum_mhe.estimators.fast import BackendFallbackWarning
+
+    with pytest.warns(BackendFallbackWarning) as caught:
+        assert main(argv) == 0
+    (warning,) = (str(w.message) for w in caught if w.category is BackendFallbackWarning)
+    assert "IPOPT solves every window" in warning and "mechanics model is too large" in warning
+    table = read_state_table(out)
+    assert len(table.t) == 6 and "fx" in table.names

@@ -111,6 +111,8 @@ class MovingHorizonEstimator(Estimator):
         self._fast: WindowModel | None = None
         if s.solver == "fast":
             try:
+                if formulation.fast_mhe_obstacle is not None:
+                    raise NotImplementedError(formulation.fast_mhe_obstacle)
                 self._fast = build_window_model(formulation, s.horizon, s.loss, s.scale)
             except NotImplementedError as exc:  # feasible set the fast backend cannot take
                 self._fast = None
