@@ -68,6 +68,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.fast.codegen import node_tape
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -96,7 +97,7 @@ class ConsistencyCheck:
         self._avg_limit = [math.inf] + [
             chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg) for k in range(1, nz + 1)
         ]
-        self._q: dict[float, FloatArray] = {}  # Q(dt) per time step
+        self._q = ProcessNoiseCache(formulation)
         self.reset()
 
     def reset(self) -> None:
@@ -177,18 +178,6 @@ class ConsistencyCheck:
         H = out[nx + nx * nx : nx + nx * nx + nz * nx].reshape(nz, nx)
         return out[:nx], F, H, out[nx + nx * nx + nz * nx :]
 
-    def _process_cov(self, dt: float) -> FloatArray:
-        """``Q(dt)`` (nx, nx), cached per time step."""
-        key = round(dt, 9)
-        Q = self._q.get(key)
-        if Q is None:
-            f, nx = self.formulation, self.formulation.nx
-            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            Q = Q.reshape(nx, nx)
-            if len(self._q) < 4096:
-                self._q[key] = Q
-        return Q
-
     def _judged(
         self, x0: FloatArray, P0: FloatArray, u: FloatArray, dt: float, z: FloatArray,
         x: FloatArray,
@@ -199,7 +188,7 @@ class ConsistencyCheck:
         xn, F, _, _ = self._node(x0, u, dt, z)
         _, _, H, r_pred = self._node(xn, u, dt, z)
         r = self._node(x, u, dt, z)[3]
-        Pn = F @ np.asarray(P0, dtype=float) @ F.T + self._process_cov(dt)
+        Pn = F @ np.asarray(P0, dtype=float) @ F.T + self._q(dt)[0]
         return r, r_pred, H, Pn
 
     @cached_property
