@@ -449,3 +449,27 @@ def test_the_mhe_on_a_tendon_robot_runs_ipopt_and_says_so(tmp_path: Path) -> Non
     assert "IPOPT solves every window" in warning and "mechanics model is too large" in warning
     table = read_state_table(out)
     assert len(table.t) == 6 and "fx" in table.names
+
+
+def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> None:
+    """An estimate that fits its readings exactly but meets the tip condition only to
+    hundreds of its (pseudo-measurement) standard deviations, as after an EKF step's
+    linearised update, is not ``inconsistent``; a roll reading 10 standard deviations
+    off is."""
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+
+    f = TendonFormulation(robot=_one_section(Tendon(0, 0.0, 0.01)))
+    tension = np.array([2.0])
+    k0, _ = f.statics.solve(np.zeros(3), tension)
+    x = np.zeros(f.nx)
+    x[:3], x[6] = k0, tension[0]
+    x[0] += 0.05  # off the equilibrium of these tensions
+    z = np.asarray(f.functions.observe(x)).ravel()
+    (eq,) = (b.slice for b in f.measurement_blocks if b.kind == "equilibrium")
+    z[eq] = 0.0  # the pseudo-measurement reads zero
+    r = np.asarray(f.functions.innovate(z, x)[0]).ravel()
+    assert np.all(r[: eq.start] == 0.0) and np.max(np.abs(r[eq])) > 100 * f.equilibrium_std
+    cov = np.eye(f.nx) * 1e-4
+    assert not ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
+    z[0] += 10 * f.noise.measurement_std
+    assert ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)

@@ -4,7 +4,10 @@ widens the standard deviations).
 
 An estimate is only worth ``ok`` when the readings around it agree with its model and
 noise. Two tests, on the formulation's own residual ``r(z, x)`` (the one every
-estimator weights with ``R^-1``), valid components only:
+estimator weights with ``R^-1``), valid components only, and readings only: a model's
+pseudo-measurement (a tendon robot's tip condition, block kind ``"equilibrium"``) is
+met by an EKF step only to the step's linearisation, many of its tiny standard
+deviations off, and says nothing about the readings:
 
 * **this reading against the previous estimate** (innovation): the previous
   ``(x, P)`` predicted to this sample (``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``),
@@ -98,6 +101,11 @@ class ConsistencyCheck:
             chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg) for k in range(1, nz + 1)
         ]
         self._q = ProcessNoiseCache(formulation)
+        #: the rows (nz,) judged: the readings, not a model's pseudo-measurements (a
+        #: tendon robot's tip condition, met only to the linearisation of a step)
+        self._judged_rows = np.concatenate(
+            [np.full(b.size, b.kind != "equilibrium") for b in formulation.measurement_blocks]
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -124,12 +132,13 @@ class ConsistencyCheck:
         ``inconsistent``); remembers the estimate for the next sample. A sample
         without a valid reading, an estimate or a covariance is not judged (False)."""
         prev, fit, nis = self._prev, 0.0, 0.0
-        valid = bool(mask.any())
+        judged = np.where(self._judged_rows, mask, 0.0)
+        valid = bool(judged.any())
         if state is None or cov is None:
             self._prev = None
             return False
         if valid:
-            rows = np.flatnonzero(mask)
+            rows = np.flatnonzero(judged)
             dof = len(rows)
             zv = np.where(mask > 0, z, 0.0)
             if prev is None:
