@@ -434,21 +434,25 @@ def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
     assert capsys.readouterr().err == ""
 
 
-def test_the_mhe_on_a_tendon_robot_runs_ipopt_and_says_so(tmp_path: Path) -> None:
-    """``--method mhe`` solves every window with IPOPT (the fast backend's window model
-    is never built), with one warning line."""
-    meas, tensions = _recording(tmp_path)
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out), "--method", "mhe", "--horizon", "3"]  # fmt: skip
-    from continuum_mhe.estimators.fast import BackendFallbackWarning
+def test_the_fast_mhe_on_a_tendon_robot_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--method mhe`` (the fast MHE) on a tendon robot: one line naming the robot file
+    and the alternatives, exit 2, nothing written; the library refuses it too."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.estimators import MovingHorizonEstimator
 
-    with pytest.warns(BackendFallbackWarning) as caught:
-        assert main(argv) == 0
-    (warning,) = (str(w.message) for w in caught if w.category is BackendFallbackWarning)
-    assert "IPOPT solves every window" in warning and "mechanics model is too large" in warning
-    table = read_state_table(out)
-    assert len(table.t) == 6 and "fx" in table.names
+    meas, tensions = _recording(tmp_path)
+    out, robot = tmp_path / "e.csv", _small_robot(tmp_path)
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(out), "--method", "mhe"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{robot}: --method mhe:" in err[0]
+    assert "--method ekf" in err[0] and "--solver ipopt" in err[0]
+    assert not out.exists()
+    with pytest.raises(UserError, match="the fast MHE cannot take this formulation"):
+        MovingHorizonEstimator(TendonFormulation(robot=read_robot(robot)))
 
 
 def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> None:

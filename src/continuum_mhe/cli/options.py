@@ -200,7 +200,8 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
 def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:
     """The ``--method`` given, else ``formulation``'s default
     (:func:`~continuum_mhe.estimators.default_method`), said in one stderr line where it
-    is not the MHE; ``args.method`` is set to it."""
+    is not the MHE; ``args.method`` is set to it. The fast MHE on a formulation it
+    cannot take is refused (one line naming the alternatives)."""
     from continuum_mhe.estimators import default_method
 
     method: Method | None = getattr(args, "method", None)
@@ -209,9 +210,16 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         if method != "mhe":
             print(
                 f"{PROG}: note: the {method} estimates, the default for this robot: "
-                f"{formulation.fast_mhe_obstacle} (--method mhe runs it)",
+                f"{formulation.fast_mhe_obstacle}",
                 file=sys.stderr,
             )
+    obstacle = formulation.fast_mhe_obstacle
+    if method == "mhe" and obstacle is not None and getattr(args, "solver", "fast") == "fast":
+        robot = getattr(args, "robot", None) or "the robot"
+        raise InputError(
+            f"{robot}: --method mhe: {obstacle}; --method ekf (this robot's default) or ukf, "
+            "or --solver ipopt (the MHE on IPOPT: slow, its memory grows with --horizon)"
+        )
     args.method = method
     return method
 

@@ -319,7 +319,7 @@ class TendonFormulation(Formulation):
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
         "the robot's mechanics model is too large for the fast MHE's window "
-        "(millions of instructions per function); the MHE on IPOPT takes seconds a sample"
+        "(millions of instructions per function)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
