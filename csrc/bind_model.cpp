@@ -1,6 +1,7 @@
 // Python bindings of the model functions (tapes, window, tail).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/vector.h>
 
 #include <cstring>
@@ -63,6 +64,30 @@ void cmhe::bind_model(nb::module_& m) {
                    "Number of values written (all outputs concatenated).")
       .def("evaluate", &evaluate, nb::arg("inputs"), nb::arg("out"),
            "Evaluate on flat column-major ``inputs``; all outputs into ``out``.");
+
+  m.def(
+      "share_tape",
+      [](CodeArray code, ConstArray constants) {
+        std::vector<Instruction> in(code.shape(0));
+        if (code.shape(0) > 0)
+          std::memcpy(in.data(), code.data(), code.shape(0) * sizeof(Instruction));
+        std::vector<double> c(constants.data(), constants.data() + constants.shape(0));
+        int64_t work_size = 1;
+        std::vector<Instruction> rows;
+        {
+          nb::gil_scoped_release release;
+          rows = share_tape(in, c, work_size);
+        }
+        auto* data = new int32_t[rows.size() * 4 + 4];  // never empty
+        if (!rows.empty()) std::memcpy(data, rows.data(), rows.size() * sizeof(Instruction));
+        nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<int32_t*>(p); });
+        nb::ndarray<nb::numpy, int32_t, nb::shape<-1, 4>> out(data, {rows.size(), 4}, owner);
+        return std::make_pair(out, work_size);
+      },
+      nb::arg("code"), nb::arg("constants"),
+      "``(code, work_size)``: the tape ``code`` (rows ``(op, res, a, b)``) with every value "
+      "computed once and only the values an output needs, its work slots reassigned "
+      "(csrc/tape.hpp); the constants are unchanged.");
 
   nb::class_<TapeFunction, ModelFunction>(m, "TapeFunction",
                                           "One CasADi SX function read as a tape.")

@@ -5,6 +5,8 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
+#include <utility>
 
 namespace cmhe {
 
@@ -334,6 +336,124 @@ CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in
     }
 #undef EACH
   }
+}
+
+namespace {
+
+struct ValueKey {
+  int32_t op;
+  int64_t x, y;
+  bool operator==(const ValueKey& o) const { return op == o.op && x == o.x && y == o.y; }
+};
+
+struct ValueKeyHash {
+  size_t operator()(const ValueKey& k) const {
+    uint64_t h = static_cast<uint64_t>(k.op) * 0x9E3779B97F4A7C15ULL;
+    h ^= static_cast<uint64_t>(k.x) + 0x632BE59BD9B4E019ULL + (h << 6) + (h >> 2);
+    h ^= static_cast<uint64_t>(k.y) + 0x85EBCA77C2B2AE63ULL + (h << 6) + (h >> 2);
+    return static_cast<size_t>(h ^ (h >> 31));
+  }
+};
+
+}  // namespace
+
+std::vector<Instruction> share_tape(const std::vector<Instruction>& code,
+                                    const std::vector<double>& constants,
+                                    int64_t& work_size) {
+  int32_t slots = 0;  // the input tape's work slots
+  for (const Instruction& in : code)
+    if (in.op != OP_OUTPUT) slots = std::max(slots, in.res + 1);
+  std::vector<int32_t> slot_value(static_cast<size_t>(slots), -1);  // value in each slot
+  std::unordered_map<ValueKey, int32_t, ValueKeyHash> known;
+  known.reserve(code.size());
+  std::vector<Instruction> defs;  // per value: (op, res unused, a, b) over values or inputs
+  std::vector<Instruction> outputs;  // (value, dense offset, output index)
+  std::vector<int32_t> order;  // value v >= 0 defined, or output -(k + 1), in order
+  defs.reserve(code.size());
+  order.reserve(code.size());
+  for (const Instruction& in : code) {
+    if (in.op == OP_OUTPUT) {
+      order.push_back(-static_cast<int32_t>(outputs.size()) - 1);
+      outputs.push_back({slot_value.at(static_cast<size_t>(in.a)), in.res, in.b, 0});
+      continue;
+    }
+    ValueKey key{in.op, in.a, in.b};
+    Instruction row{in.op, 0, in.a, in.b};
+    if (in.op == OP_CONST) {
+      uint64_t bits;
+      std::memcpy(&bits, &constants.at(static_cast<size_t>(in.a)), sizeof bits);
+      key = {in.op, static_cast<int64_t>(bits), 0};
+      row.b = 0;
+    } else if (in.op != OP_INPUT) {
+      int32_t x = slot_value.at(static_cast<size_t>(in.a));
+      int32_t y = slot_value.at(static_cast<size_t>(in.b));
+      if ((in.op == OP_ADD || in.op == OP_MUL) && y < x) std::swap(x, y);
+      key = {in.op, x, y};
+      row.a = x;
+      row.b = y;
+    }
+    auto [it, added] = known.try_emplace(key, static_cast<int32_t>(defs.size()));
+    if (added) {
+      defs.push_back(row);
+      order.push_back(it->second);
+    }
+    slot_value[static_cast<size_t>(in.res)] = it->second;
+  }
+  auto operands = [](const Instruction& d) { return d.op != OP_INPUT && d.op != OP_CONST; };
+  // the values the outputs need, and each one's last use
+  std::vector<char> needed(defs.size(), 0);
+  for (const Instruction& o : outputs) needed[static_cast<size_t>(o.op)] = 1;
+  for (size_t v = defs.size(); v-- > 0;)
+    if (needed[v] && operands(defs[v]))
+      needed[static_cast<size_t>(defs[v].a)] = needed[static_cast<size_t>(defs[v].b)] = 1;
+  std::vector<int64_t> last(defs.size(), -1);
+  for (size_t step = 0; step < order.size(); ++step) {
+    int32_t k = order[step];
+    if (k < 0) {
+      last[static_cast<size_t>(outputs[static_cast<size_t>(-k - 1)].op)] =
+          static_cast<int64_t>(step);
+    } else if (needed[static_cast<size_t>(k)] && operands(defs[static_cast<size_t>(k)])) {
+      const Instruction& d = defs[static_cast<size_t>(k)];
+      last[static_cast<size_t>(d.a)] = last[static_cast<size_t>(d.b)] = static_cast<int64_t>(step);
+    }
+  }
+  std::vector<int32_t> slot(defs.size(), -1);
+  std::vector<int32_t> free;
+  int32_t size = 0;
+  std::vector<Instruction> rows;
+  rows.reserve(order.size());
+  for (size_t step = 0; step < order.size(); ++step) {
+    const auto now = static_cast<int64_t>(step);
+    int32_t k = order[step];
+    if (k < 0) {
+      const Instruction& o = outputs[static_cast<size_t>(-k - 1)];
+      const auto value = static_cast<size_t>(o.op);
+      rows.push_back({OP_OUTPUT, o.res, slot[value], o.a});
+      if (last[value] == now) free.push_back(slot[value]);
+      continue;
+    }
+    if (!needed[static_cast<size_t>(k)]) continue;
+    const Instruction& d = defs[static_cast<size_t>(k)];
+    int32_t a = d.a, b = d.b;
+    if (operands(d)) {
+      a = slot[static_cast<size_t>(d.a)];
+      b = slot[static_cast<size_t>(d.b)];
+      // an operand used here for the last time frees its slot
+      if (last[static_cast<size_t>(d.a)] == now) free.push_back(a);
+      if (d.b != d.a && last[static_cast<size_t>(d.b)] == now) free.push_back(b);
+    }
+    int32_t r;
+    if (!free.empty()) {
+      r = free.back();
+      free.pop_back();
+    } else {
+      r = size++;
+    }
+    slot[static_cast<size_t>(k)] = r;
+    rows.push_back({d.op, r, a, b});
+  }
+  work_size = std::max<int64_t>(size, 1);
+  return rows;
 }
 
 }  // namespace cmhe

@@ -72,4 +72,14 @@ class Tape {
   static constexpr int64_t kLanes = 8;   // a batch's rows are padded to a multiple
 };
 
+// ``code`` (a tape as Python reads it from CasADi) with every value computed once and
+// only the values an output needs: an instruction that applies the same operation to
+// the same inputs, constant (the same bits) or values as an earlier one is the earlier
+// value (value numbering; ADD and MUL operands in either order), instructions no output
+// needs are dropped, and work slots are reassigned (a slot is free after its value's
+// last use). The arithmetic of every value is unchanged. ``work_size``: the slots used.
+std::vector<Instruction> share_tape(const std::vector<Instruction>& code,
+                                    const std::vector<double>& constants,
+                                    int64_t& work_size);
+
 }  // namespace cmhe

@@ -239,3 +239,34 @@ def test_symmetric_pseudo_inverse_matches_numpy_pinv(n, rank, scale, seed) -> No
     np.testing.assert_allclose(
         got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max(initial=1.0)
     )
+
+
+def test_the_judged_prediction_matches_the_model_functions() -> None:
+    """The check's residuals, prediction and its covariance (from the node tape the EKF
+    shares) against the formulation's own CasADi functions: ``x+ = f(x0)``,
+    ``P+ = F P0 F^T + Q``, ``r(z, x)``, ``r(z, x+)`` and ``H = -dr/dx`` at ``x+`` by
+    central differences."""
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+
+    f = make_formulation("bend", Robot.single(0.2))
+    check = ConsistencyCheck(f)
+    rng = np.random.default_rng(3)
+    x0, x = rng.normal(0, 0.3, f.nx), rng.normal(0, 0.3, f.nx)
+    P0 = np.diag(rng.uniform(0.01, 0.1, f.nx))
+    u, dt = np.zeros(f.nu), 0.02
+    z = np.asarray(f.functions.measure(x)[0]).ravel() + [0.01, -0.02]
+    r, r_pred, H, Pn = check._judged(x0, P0, u, dt, z, x)
+    xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(x0, u, dt))
+    np.testing.assert_allclose(Pn, F @ P0 @ F.T + Q, rtol=1e-12, atol=1e-15)
+
+    def innovation(at: np.ndarray) -> np.ndarray:
+        return np.asarray(f.functions.innovate(z, at)[0]).ravel()
+
+    np.testing.assert_allclose(r, innovation(x), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(r_pred, innovation(xn.ravel()), rtol=1e-12, atol=1e-15)
+    want = np.zeros_like(H)
+    for j in range(f.nx):
+        dx = np.zeros(f.nx)
+        dx[j] = 1e-6
+        want[:, j] = -(innovation(xn.ravel() + dx) - innovation(xn.ravel() - dx)) / 2e-6
+    np.testing.assert_allclose(H, want, rtol=1e-6, atol=1e-8)

@@ -407,3 +407,73 @@ def test_one_imu_does_not_determine_the_tip_force() -> None:
         assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
     with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
         ExtendedKalmanFilter(TendonFormulation(robot=one))
+
+
+# --- the estimator a tendon robot gets --------------------------------------------------
+def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The fast MHE cannot take the mechanics model: the EKF is the default, said in one
+    line; a robot without a backbone keeps the MHE, silently; a chosen method is kept."""
+    import argparse
+
+    from continuum_mhe.cli.options import method_from_args
+    from continuum_mhe.estimators import default_method
+    from continuum_mhe.model.registry import make_formulation
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots"
+    tendon = TendonFormulation(robot=read_robot(shipped / "tendon_two_section.toml"))
+    pcc = make_formulation("bend", read_robot(shipped / "two_section.toml"))
+    assert default_method(tendon) == "ekf" and default_method(pcc) == "mhe"
+    args = argparse.Namespace(method=None)
+    assert method_from_args(args, tendon) == "ekf" and args.method == "ekf"
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the ekf estimates, the default for this robot" in err[0]
+    assert method_from_args(argparse.Namespace(method=None), pcc) == "mhe"
+    assert method_from_args(argparse.Namespace(method="ukf"), tendon) == "ukf"
+    assert capsys.readouterr().err == ""
+
+
+def test_the_fast_mhe_on_a_tendon_robot_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--method mhe`` (the fast MHE) on a tendon robot: one line naming the robot file
+    and the alternatives, exit 2, nothing written; the library refuses it too."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.estimators import MovingHorizonEstimator
+
+    meas, tensions = _recording(tmp_path)
+    out, robot = tmp_path / "e.csv", _small_robot(tmp_path)
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(out), "--method", "mhe"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{robot}: --method mhe:" in err[0]
+    assert "--method ekf" in err[0] and "--solver ipopt" in err[0]
+    assert not out.exists()
+    with pytest.raises(UserError, match="the fast MHE cannot take this formulation"):
+        MovingHorizonEstimator(TendonFormulation(robot=read_robot(robot)))
+
+
+def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> None:
+    """An estimate that fits its readings exactly but meets the tip condition only to
+    hundreds of its (pseudo-measurement) standard deviations, as after an EKF step's
+    linearised update, is not ``inconsistent``; a roll reading 10 standard deviations
+    off is."""
+    from continuum_mhe.estimators.consistency import ConsistencyCheck
+
+    f = TendonFormulation(robot=_one_section(Tendon(0, 0.0, 0.01)))
+    tension = np.array([2.0])
+    k0, _ = f.statics.solve(np.zeros(3), tension)
+    x = np.zeros(f.nx)
+    x[:3], x[6] = k0, tension[0]
+    x[0] += 0.05  # off the equilibrium of these tensions
+    z = np.asarray(f.functions.observe(x)).ravel()
+    (eq,) = (b.slice for b in f.measurement_blocks if b.kind == "equilibrium")
+    z[eq] = 0.0  # the pseudo-measurement reads zero
+    r = np.asarray(f.functions.innovate(z, x)[0]).ravel()
+    assert np.all(r[: eq.start] == 0.0) and np.max(np.abs(r[eq])) > 100 * f.equilibrium_std
+    cov = np.eye(f.nx) * 1e-4
+    assert not ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
+    z[0] += 10 * f.noise.measurement_std
+    assert ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)

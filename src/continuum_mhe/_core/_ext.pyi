@@ -25,6 +25,11 @@ class ModelFunction:
     def evaluate(self, inputs: Sequence[Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu', writable=False)]], out: Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu')]) -> None:
         """Evaluate on flat column-major ``inputs``; all outputs into ``out``."""
 
+def share_tape(code: Annotated[NDArray[numpy.int32], dict(shape=(None, 4), order='C', device='cpu', writable=False)], constants: Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu', writable=False)]) -> tuple[Annotated[NDArray[numpy.int32], dict(shape=(None, 4))], int]:
+    """
+    ``(code, work_size)``: the tape ``code`` (rows ``(op, res, a, b)``) with every value computed once and only the values an output needs, its work slots reassigned (csrc/tape.hpp); the constants are unchanged.
+    """
+
 class TapeFunction(ModelFunction):
     """One CasADi SX function read as a tape."""
 

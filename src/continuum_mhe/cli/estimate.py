@@ -16,6 +16,7 @@ import numpy as np
 
 from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
+    add_method_option,
     add_mhe_options,
     add_model_options,
     add_overwrite_option,
@@ -23,11 +24,12 @@ from continuum_mhe.cli.options import (
     add_recovery_options,
     formulation_from_args,
     input_options,
+    method_from_args,
     mhe_settings_from_args,
     recovery_settings_from_args,
 )
 from continuum_mhe.cli.program import PROG, version
-from continuum_mhe.estimators import METHODS, Measurement, make_estimator
+from continuum_mhe.estimators import Measurement, make_estimator
 from continuum_mhe.estimators.base import bound_notice
 from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
@@ -51,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation, samples = stream.formulation, stream.samples
         est = make_estimator(
-            args.method,
+            method_from_args(args, formulation),
             formulation,
             mhe_settings_from_args(args),
             recovery_settings_from_args(args),
@@ -201,7 +203,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
     add_overwrite_option(p)
     add_config_option(p)
-    p.add_argument("--method", choices=METHODS, default="mhe")
+    add_method_option(p)
     p.add_argument("--degrees", action="store_true", help="roll and pitch are in degrees")
     p.add_argument(
         "--skip-bad",

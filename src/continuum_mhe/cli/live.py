@@ -10,6 +10,7 @@ import os
 from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
 from continuum_mhe.cli.options import (
     add_live_view_option,
+    add_method_option,
     add_mhe_options,
     add_model_options,
     add_raw_imu_options,
@@ -18,6 +19,7 @@ from continuum_mhe.cli.options import (
     add_serial_options,
     formulation_from_args,
     input_options,
+    method_from_args,
     mhe_settings_from_args,
     recovery_settings_from_args,
     viewer_sink_from_args,
@@ -68,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     # after the port opened: a first run compiles here (said once) before any line is
     # read; a throwaway estimator pays the first-call costs (warm_up)
     estimator = make_estimator(
-        args.method,
+        method_from_args(args, formulation),
         formulation,
         mhe_settings_from_args(args),
         recovery=recovery_settings_from_args(args),
@@ -129,14 +131,12 @@ DESCRIPTION = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from continuum_mhe.estimators import METHODS
-
     add_serial_options(p)
     p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
     add_recording_options(p)
     add_config_option(p)
     p.add_argument("--duration", type=float, help="stop after this many seconds")
-    p.add_argument("--method", choices=METHODS, default="mhe", help="estimator (default mhe)")
+    add_method_option(p)
     p.add_argument("--plot", action="store_true", help="show the shape and tip trace live")
     p.add_argument("--status-every", type=float, default=1.0, help="seconds between status lines")
     p.add_argument(

@@ -7,10 +7,12 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
@@ -30,6 +32,9 @@ from continuum_mhe.settings import (
     NoiseSettings,
     RecoverySettings,
 )
+
+if TYPE_CHECKING:
+    from continuum_mhe.estimators import Method
 
 
 def add_robot_option(
@@ -179,6 +184,46 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
         return make_formulation(args.formulation, robot, noise)
     except ValueError as exc:
         raise InputError(str(exc)) from None
+
+
+def add_method_option(p: argparse.ArgumentParser) -> None:
+    """``--method``; left out, the robot's default (:func:`method_from_args`)."""
+    from continuum_mhe.estimators import METHODS
+
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        default=None,
+        help="estimator (default: mhe; ekf for a tendon robot, whose model the fast MHE "
+        "cannot take: docs/tendon.md)",
+    )
+
+
+def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:
+    """The ``--method`` given, else ``formulation``'s default
+    (:func:`~continuum_mhe.estimators.default_method`), said in one stderr line where it
+    is not the MHE; ``args.method`` is set to it. The fast MHE on a formulation it
+    cannot take is refused (one line naming the alternatives)."""
+    from continuum_mhe.estimators import default_method
+
+    method: Method | None = getattr(args, "method", None)
+    if method is None:
+        method = default_method(formulation)
+        if method != "mhe":
+            print(
+                f"{PROG}: note: the {method} estimates, the default for this robot: "
+                f"{formulation.fast_mhe_obstacle}",
+                file=sys.stderr,
+            )
+    obstacle = formulation.fast_mhe_obstacle
+    if method == "mhe" and obstacle is not None and getattr(args, "solver", "fast") == "fast":
+        robot = getattr(args, "robot", None) or "the robot"
+        raise InputError(
+            f"{robot}: --method mhe: {obstacle}; --method ekf (this robot's default) or ukf, "
+            "or --solver ipopt (the MHE on IPOPT: slow, its memory grows with --horizon)"
+        )
+    args.method = method
+    return method
 
 
 def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:

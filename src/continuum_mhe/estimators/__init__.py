@@ -25,6 +25,14 @@ Method = Literal["mhe", "ekf", "ukf"]
 METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
 
 
+def default_method(formulation: Formulation) -> Method:
+    """The estimator ``formulation`` gets when none is chosen: the MHE on its fast
+    backend, or the EKF where the fast backend cannot take the formulation
+    (:attr:`~continuum_mhe.model.formulations.Formulation.fast_mhe_obstacle`, a tendon
+    robot's mechanics model: its MHE solves every window with IPOPT, seconds a sample)."""
+    return "mhe" if formulation.fast_mhe_obstacle is None else "ekf"
+
+
 def make_estimator(
     method: Method,
     formulation: Formulation,
@@ -66,6 +74,7 @@ __all__ = [
     "Method",
     "MovingHorizonEstimator",
     "Status",
+    "default_method",
     "UnscentedKalmanFilter",
     "make_estimator",
 ]

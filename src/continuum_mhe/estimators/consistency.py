@@ -4,7 +4,10 @@ widens the standard deviations).
 
 An estimate is only worth ``ok`` when the readings around it agree with its model and
 noise. Two tests, on the formulation's own residual ``r(z, x)`` (the one every
-estimator weights with ``R^-1``), valid components only:
+estimator weights with ``R^-1``), valid components only, and readings only: a model's
+pseudo-measurement (a tendon robot's tip condition, block kind ``"equilibrium"``) is
+met by an EKF step only to the step's linearisation, many of its tiny standard
+deviations off, and says nothing about the readings:
 
 * **this reading against the previous estimate** (innovation): the previous
   ``(x, P)`` predicted to this sample (``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``),
@@ -63,13 +66,12 @@ from __future__ import annotations
 import math
 from functools import cached_property
 
-import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-import continuum_mhe._core as _core
 from continuum_mhe.estimators.chi2 import chi2_quantile
-from continuum_mhe.estimators.fast.tape import tape_function
+from continuum_mhe.estimators.fast.codegen import node_tape
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -98,6 +100,12 @@ class ConsistencyCheck:
         self._avg_limit = [math.inf] + [
             chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg) for k in range(1, nz + 1)
         ]
+        self._q = ProcessNoiseCache(formulation)
+        #: the rows (nz,) judged: the readings, not a model's pseudo-measurements (a
+        #: tendon robot's tip condition, met only to the linearisation of a step)
+        self._judged_rows = np.concatenate(
+            [np.full(b.size, b.kind != "equilibrium") for b in formulation.measurement_blocks]
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -124,12 +132,13 @@ class ConsistencyCheck:
         ``inconsistent``); remembers the estimate for the next sample. A sample
         without a valid reading, an estimate or a covariance is not judged (False)."""
         prev, fit, nis = self._prev, 0.0, 0.0
-        valid = bool(mask.any())
+        judged = np.where(self._judged_rows, mask, 0.0)
+        valid = bool(judged.any())
         if state is None or cov is None:
             self._prev = None
             return False
         if valid:
-            rows = np.flatnonzero(mask)
+            rows = np.flatnonzero(judged)
             dof = len(rows)
             zv = np.where(mask > 0, z, 0.0)
             if prev is None:
@@ -163,46 +172,33 @@ class ConsistencyCheck:
             self._persists = False
         return worst > self._limit[dof] or (high and self._high) or self._persists
 
-    @cached_property
-    def _judge(self) -> ca.Function:
-        """``(x0, P0, u, dt, z, x) -> (r(z, x), r(z, x+), H, P+)``: this estimate's
-        residual and the previous estimate's prediction to this sample, in one call
-        (``x+ = f(x0, u, dt)``, ``P+ = F P0 F^T + Q``, ``H = -dr/dx`` at ``x+``)."""
-        f = self.formulation
-        nx = f.nx
-        x0, x = ca.SX.sym("x0", nx), ca.SX.sym("x", nx)
-        P0 = ca.SX.sym("P0", nx, nx)
-        u, dt, z = ca.SX.sym("u", f.nu), ca.SX.sym("dt"), ca.SX.sym("z", f.nz)
-        xn = f.transition_sym(x0, u, dt)
-        F = ca.jacobian(xn, x0)
-        Pn = F @ P0 @ F.T + f.process_cov_sym(dt)
-        xs = ca.SX.sym("xs", nx)  # the predicted state, for the residual's Jacobian
-        r_of = ca.Function("r", [z, xs], [f.measurement_residual_sym(z, xs)])
-        r_pred = r_of(z, xn)
-        H = -ca.substitute(ca.jacobian(f.measurement_residual_sym(z, xs), xs), xs, xn)
-        return ca.Function(
-            "judge", [x0, P0, u, dt, z, x], [f.measurement_residual_sym(z, x), r_pred, H, Pn]
-        )
-
-    @cached_property
-    def _judge_core(self) -> _core.TapeFunction:
-        """:attr:`_judge` evaluated by the compiled core (no CasADi call per sample)."""
-        return tape_function(self._judge)
+    def _node(
+        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The model at one node, from the tape the EKF shares
+        (:func:`~continuum_mhe.estimators.fast.codegen.node_tape`): ``(f(x, u, dt) (nx,),
+        F = df/dx (nx, nx), H = -dr/dx (nz, nx), r(z, x) (nz,))``, no reading masked."""
+        f, core = self.formulation, node_tape(self.formulation)
+        nx, nz = f.nx, f.nz
+        out = np.empty(core.output_size)
+        flat = [x, u, np.array([dt]), z, np.ones(nz)]
+        core.evaluate([np.ascontiguousarray(v, dtype=float).ravel() for v in flat], out)
+        F = out[nx : nx + nx * nx].reshape(nx, nx)
+        H = out[nx + nx * nx : nx + nx * nx + nz * nx].reshape(nz, nx)
+        return out[:nx], F, H, out[nx + nx * nx + nz * nx :]
 
     def _judged(
         self, x0: FloatArray, P0: FloatArray, u: FloatArray, dt: float, z: FloatArray,
         x: FloatArray,
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
-        """:attr:`_judge` at these arguments: ``(r (nz,), r_pred (nz,), H (nz, nx),
-        P+ (nx, nx))``."""
-        f, core = self.formulation, self._judge_core
-        nx, nz = f.nx, f.nz
-        out = np.empty(core.output_size)
-        flat = [x0, np.asarray(P0).ravel(order="F"), u, np.array([dt]), z, x]
-        core.evaluate([np.ascontiguousarray(v, dtype=float).ravel() for v in flat], out)
-        H = out[2 * nz : 2 * nz + nz * nx].reshape(nx, nz).T
-        Pn = out[2 * nz + nz * nx :].reshape(nx, nx).T
-        return out[:nz], out[nz : 2 * nz], H, Pn
+        """This estimate's residual and the previous estimate's prediction to this
+        sample: ``(r(z, x) (nz,), r(z, x+) (nz,), H (nz, nx), P+ (nx, nx))`` with
+        ``x+ = f(x0, u, dt)``, ``P+ = F P0 F^T + Q``, ``H = -dr/dx`` at ``x+``."""
+        xn, F, _, _ = self._node(x0, u, dt, z)
+        _, _, H, r_pred = self._node(xn, u, dt, z)
+        r = self._node(x, u, dt, z)[3]
+        Pn = F @ np.asarray(P0, dtype=float) @ F.T + self._q(dt)[0]
+        return r, r_pred, H, Pn
 
     @cached_property
     def _bias(self) -> FloatArray:
@@ -216,11 +212,6 @@ class ConsistencyCheck:
         constant-error variance per unit of :attr:`model_error`."""
         return np.where(self.formulation.gravity_direction_rows(), np.diag(self._R), 0.0)
 
-    @cached_property
-    def _innovate_core(self) -> _core.TapeFunction:
-        """``(z, x) -> (r, dr/dx)`` evaluated by the compiled core."""
-        return tape_function(self.formulation.functions.innovate)
-
     def constant_error_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
         """The state covariance (nx, nx) from the readings' constant errors and the
         model error learned so far (module doc): ``A B A^T`` with ``B`` the readings'
@@ -229,17 +220,15 @@ class ConsistencyCheck:
         readings that carry a constant error (``B > 0``: the gravity directions) and the
         states they depend on (the bends: the readings that set the shape) at
         ``state``; zero where ``B`` is."""
-        nx, nz = self.formulation.nx, self.formulation.nz
+        nx = self.formulation.nx
         bias = self._bias + self.model_error * self._gravity_r if self.model_error else self._bias
         rows = np.flatnonzero((mask > 0) & (bias > 0))
         out_cov = np.zeros((nx, nx))
         if len(rows) == 0:
             return out_cov
-        core = self._innovate_core
-        out = np.empty(core.output_size)
         zv = np.where(mask > 0, z, 0.0)
-        core.evaluate([zv, np.ascontiguousarray(state, dtype=float)], out)
-        H = out[nz:].reshape(nx, nz).T[rows]
+        f = self.formulation
+        H = self._node(state, np.zeros(f.nu), 0.0, zv)[2][rows]
         cols = np.flatnonzero(H.any(axis=0))
         H = H[:, cols]
         wh = H * self._r_inv[rows, None]  # R^-1 H

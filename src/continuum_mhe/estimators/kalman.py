@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
 
 
@@ -58,27 +59,6 @@ def ekf_update(
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(len(x)) - K @ H
     return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
-
-
-class ProcessNoiseCache:
-    """``(Q(dt), Q(dt)^-1)`` of a formulation, cached per time step (Q depends on the
-    time step only; at most 4096 distinct steps are kept)."""
-
-    def __init__(self, formulation: Formulation) -> None:
-        self._f = formulation
-        self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
-
-    def __call__(self, dt: float) -> tuple[FloatArray, FloatArray]:
-        key = round(dt, 9)
-        w = self._cache.get(key)
-        if w is None:
-            f, nx = self._f, self._f.nx
-            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            Q = Q.reshape(nx, nx)
-            w = (Q, np.linalg.inv(Q))
-            if len(self._cache) < 4096:
-                self._cache[key] = w
-        return w
 
 
 class _KalmanBase(Estimator):

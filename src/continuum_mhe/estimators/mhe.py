@@ -45,6 +45,7 @@ import warnings
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
 from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
 from continuum_mhe.estimators.fast import (
@@ -109,6 +110,12 @@ class MovingHorizonEstimator(Estimator):
         self.fast_options = fast_options or FastOptions()
         s = self.settings
         self._fast: WindowModel | None = None
+        if s.solver == "fast" and formulation.fast_mhe_obstacle is not None:
+            raise UserError(
+                f"the fast MHE cannot take this formulation: {formulation.fast_mhe_obstacle}; "
+                "the EKF (default_method) runs it, or solver='ipopt' the MHE on IPOPT "
+                "(slow, its memory grows with the horizon)"
+            )
         if s.solver == "fast":
             try:
                 self._fast = build_window_model(formulation, s.horizon, s.loss, s.scale)

@@ -106,6 +106,10 @@ class Formulation:
     #: large to form symbolically (a shooting model): Gauss-Newton steps, the same
     #: minimum, a slower final convergence
     second_order_residuals: ClassVar[bool] = True
+    #: why the fast MHE cannot take this formulation (None: it can); where it cannot,
+    #: the MHE solves every window with IPOPT and the EKF is the default estimator
+    #: (:func:`continuum_mhe.estimators.default_method`)
+    fast_mhe_obstacle: ClassVar[str | None] = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))

@@ -317,6 +317,10 @@ class TendonFormulation(Formulation):
     #: the shooting model's second derivatives are too large to form (Gauss-Newton)
     second_order_residuals: ClassVar[bool] = False
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
+    fast_mhe_obstacle: ClassVar[str | None] = (
+        "the robot's mechanics model is too large for the fast MHE's window "
+        "(millions of instructions per function)"
+    )
     tilt_residual_wraps: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
     gyro_std: float = 0.05

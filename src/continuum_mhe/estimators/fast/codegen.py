@@ -13,6 +13,7 @@ Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`
 from __future__ import annotations
 
 import ctypes
+from functools import lru_cache
 from typing import Any
 
 import casadi as ca
@@ -113,6 +114,14 @@ def node_function(formulation: Formulation) -> ca.Function:
     xf, r = f.transition_sym(x, u, dt), mk * f.measurement_residual_sym(z, x)
     outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T), r]
     return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
+
+
+@lru_cache(maxsize=32)
+def node_tape(formulation: Formulation) -> _core.TapeFunction:
+    """:func:`node_function` of ``formulation`` as the core evaluates it: its
+    instructions read once per formulation, shared by the EKF's window model and the
+    consistency check (:mod:`continuum_mhe.estimators.consistency`)."""
+    return tape_function(node_function(formulation))
 
 
 def output_function(formulation: Formulation) -> ca.Function:

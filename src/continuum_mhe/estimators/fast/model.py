@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.codegen import (
     c_function,
-    node_function,
+    node_tape,
     output_function,
     output_jacobian_function,
     transition_is_linear,
@@ -282,7 +282,7 @@ def build_window_model(
         rinv=rinv,
         window=window,
         tail=tail,
-        node=c_function(node_function(formulation)),
+        node=c_function(node_tape(formulation)),
         output=c_function(out),
         output_jacobian=c_function(output_jacobian_function(formulation)),
         ny=int(out.nnz_out(0)),

@@ -72,91 +72,16 @@ def _dense_offsets(sp: ca.Sparsity) -> np.ndarray:
     )
 
 
-#: operations whose operands may be swapped (IEEE addition and multiplication commute)
-_COMMUTATIVE = frozenset(_core.OPERATIONS.index(n) for n in ("ADD", "MUL"))
-
-
 def shared_tape(code: np.ndarray, constants: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """``(code, constants, work_size)``: the tape ``(code, constants)`` (of
     :func:`tape_arrays`) with every value computed once and only the values an output
-    needs. The derivatives of a model repeat its terms: an instruction that reads the
-    same inputs, constant or values as an earlier one and applies the same operation is
-    the earlier value (value numbering), so each is evaluated once; work slots are then
-    reassigned (a slot is free after its value's last use). The arithmetic of every
-    value is unchanged."""
-    slot_value: dict[int, int] = {}  # the value each work slot holds
-    known: dict[tuple[object, ...], int] = {}  # (op, operands) -> value
-    defs: list[tuple[int, int, int]] = []  # per value: (op, a, b) over values or inputs
-    outputs: list[tuple[int, int, int]] = []  # (value, output index, dense offset)
-    order: list[tuple[int, int]] = []  # (0, value) definitions, (1, k) outputs, in order
-    for op, res, a, b in code.tolist():
-        if op == _OUTPUT:
-            order.append((1, len(outputs)))
-            outputs.append((slot_value[a], b, res))
-            continue
-        if op == _INPUT:
-            key: tuple[object, ...] = (op, a, b)
-            row = (op, a, b)
-        elif op == _CONST:
-            c = float(constants[a])
-            key = (op, c.hex())  # the same bits (0.0 and -0.0 differ)
-            row = (op, a, 0)
-        else:
-            x, y = slot_value[a], slot_value[b]
-            if op in _COMMUTATIVE and y < x:
-                x, y = y, x
-            key = (op, x, y)
-            row = (op, x, y)
-        value = known.get(key)
-        if value is None:
-            value = known[key] = len(defs)
-            defs.append(row)
-            order.append((0, value))
-        slot_value[res] = value
-    # the values the outputs need, and each one's last use
-    needed = [False] * len(defs)
-    for value, _, _ in outputs:
-        needed[value] = True
-    for value in range(len(defs) - 1, -1, -1):
-        op, x, y = defs[value]
-        if needed[value] and op not in (_INPUT, _CONST):
-            needed[x] = needed[y] = True
-    last = [-1] * len(defs)
-    for step, (kind, k) in enumerate(order):
-        if kind == 1:
-            last[outputs[k][0]] = step
-        elif needed[k]:
-            op, x, y = defs[k]
-            if op not in (_INPUT, _CONST):
-                last[x] = last[y] = step
-    slot: dict[int, int] = {}
-    free: list[int] = []
-    size = 0
-    rows: list[tuple[int, int, int, int]] = []
-    for step, (kind, k) in enumerate(order):
-        if kind == 1:
-            value, j, offset = outputs[k]
-            rows.append((_OUTPUT, offset, slot[value], j))
-            if last[value] == step:
-                free.append(slot.pop(value))
-            continue
-        if not needed[k]:
-            continue
-        op, x, y = defs[k]
-        if op in (_INPUT, _CONST):
-            a, b = x, y
-        else:
-            a, b = slot[x], slot[y]
-            for v in {x, y}:  # an operand used here for the last time frees its slot
-                if last[v] == step:
-                    free.append(slot.pop(v))
-        if free:
-            r = free.pop()
-        else:
-            r, size = size, size + 1
-        slot[k] = r
-        rows.append((op, r, a, b))
-    return np.asarray(rows, dtype=np.int32).reshape(-1, 4), constants, max(size, 1)
+    needs (the core's ``share_tape``). The derivatives of a model repeat its terms: an
+    instruction that reads the same inputs, constant or values as an earlier one and
+    applies the same operation is the earlier value (value numbering), so each is
+    evaluated once; work slots are then reassigned (a slot is free after its value's
+    last use). The arithmetic of every value is unchanged."""
+    shared, work_size = _core.share_tape(np.ascontiguousarray(code, dtype=np.int32), constants)
+    return shared, constants, int(work_size)
 
 
 def tape_function(fn: ca.Function) -> _core.TapeFunction:
