@@ -133,14 +133,14 @@ def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
     script = (
         "import os, signal, sys\n"
         "from continuum_mhe import cli\n"
-        "from continuum_mhe.estimators.mhe import MovingHorizonEstimator\n"
-        "real, solves = MovingHorizonEstimator._solve_ipopt, []\n"
+        "from continuum_mhe.estimators.mhe import MovingHorizonInference\n"
+        "real, solves = MovingHorizonInference._solve_ipopt, []\n"
         "def solve(self, problem, X0):\n"
         "    solves.append(1)\n"
         "    if len(solves) == 30:\n"
         "        signal.setitimer(signal.ITIMER_REAL, 2e-4, 2e-4)\n"
         "    return real(self, problem, X0)\n"
-        "MovingHorizonEstimator._solve_ipopt = solve\n"
+        "MovingHorizonInference._solve_ipopt = solve\n"
         + SIGINT_INSIDE_IPOPT
         + "sys.exit(cli.main(sys.argv[1:]))\n"
     )

@@ -5,6 +5,11 @@ weights with). Innovations use the formulation's residual ``r(z, x)``. Validity 
 measurement block: a sensor that dropped out is left out of the update, the others are
 used. The pure functions :func:`ekf_predict` and :func:`ekf_update` are shared with the
 MHE's arrival cost.
+
+The ``*Inference`` classes are the filters alone (inference objects);
+:class:`ExtendedKalmanFilter`, :class:`CompiledExtendedKalmanFilter` and
+:class:`UnscentedKalmanFilter` are the sensor-health policy
+(:mod:`~continuum_mhe.estimators.sensor_health`) around them.
 """
 
 from __future__ import annotations

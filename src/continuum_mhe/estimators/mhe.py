@@ -37,6 +37,10 @@ Backends (``MHESettings.solver``): ``"fast"`` solves the same window problem wit
 the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast` and hands the window
 to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 ``"ipopt"`` is the reference.
+
+:class:`MovingHorizonInference` is the window and its solve (the inference object);
+:class:`MovingHorizonEstimator` is the sensor-health policy
+(:mod:`~continuum_mhe.estimators.sensor_health`) around it.
 """
 
 from __future__ import annotations
