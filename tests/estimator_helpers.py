@@ -14,11 +14,12 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Estimator, Measurement
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.fast.sqp import FastResult
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
@@ -47,9 +48,7 @@ def fast_and_ipopt_states(
     fast one on CasADi's VM), every sample asserted ``ok``."""
     states = {}
     for solver in ("fast", "ipopt"):
-        est = MovingHorizonEstimator(
-            f, MHESettings(horizon=horizon, solver=solver), FastOptions()
-        )
+        est = MovingHorizonEstimator(f, MHESettings(horizon=horizon, solver=solver), FastOptions())
         res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
         assert {r.status for r in res} == {"ok"}
         states[solver] = np.array([r.state for r in res])

@@ -136,7 +136,7 @@ def test_one_pose_leaves_the_bias_along_gravity_unknown() -> None:
     ekf = ExtendedKalmanFilter(f)
     for i in range(200):
         ekf.step(Measurement(i * 0.05, z))
-    P = ekf._P
+    P = ekf.inference._P
     assert P is not None
     # exactly the prior plus 199 random-walk steps of 0.05 s, correlated with nothing
     expected = f.initial_accel_bias_std**2 + f.accel_bias_psd * 199 * 0.05
@@ -161,9 +161,7 @@ def test_accel_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:
 
     raw = tmp_path / "raw.csv"
     raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
-    opts = InputOptions(
-        raw=RawImuSettings(imu_model="tilt"), estimate_accel_bias=True
-    )
+    opts = InputOptions(raw=RawImuSettings(imu_model="tilt"), estimate_accel_bias=True)
     with pytest.raises(InputError, match="--estimate-accel-bias needs --imu-model direct"):
         load_input(raw, opts, make_formulation("bend"))
     opts = InputOptions(raw=RawImuSettings(imu_model="direct"), estimate_accel_bias=True)

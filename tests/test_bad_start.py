@@ -54,7 +54,7 @@ def test_a_bad_start_is_noticed_and_restarted_from_the_readings(index: int) -> N
     est = estimators(RecoverySettings(bad_start=2.0))[index]
     s = est.run(rec.t, z)
     at = FIRST_GOOD + SAMPLES - 1
-    assert list(np.flatnonzero(s.status == "reset")) == [at] and est.bad_starts == 1
+    assert list(np.flatnonzero(s.status == "reset")) == [at] and est.diagnostics.bad_starts == 1
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[:, :3], axis=1)
     assert tip[at:].max() < 0.01  # m: back on the robot from the restart on
     plain = estimators(RecoverySettings())[index].run(rec.t, z)
@@ -69,7 +69,7 @@ def test_clean_data_are_unchanged_by_the_check(index: int) -> None:
     on = estimators(RecoverySettings(bad_start=10.0))[index]
     s_on = on.run(rec.t, rec.z)
     s_off = estimators(RecoverySettings())[index].run(rec.t, rec.z)
-    assert on.bad_starts == 0
+    assert on.diagnostics.bad_starts == 0
     assert_array_equal(s_on.output, s_off.output)
     assert_array_equal(s_on.status, s_off.status)
 
@@ -109,7 +109,7 @@ def test_not_checked_where_the_covariance_is_a_weight(monkeypatch) -> None:
     monkeypatch.setattr(StartCheck, "inconsistent", never)
     rec, z = bad_start_recording()
     est = make_estimator("ekf", make_formulation("paper"), recovery=RecoverySettings(bad_start=2))
-    assert "reset" not in set(est.run(rec.t, z).status) and est.bad_starts == 0
+    assert "reset" not in set(est.run(rec.t, z).status) and est.diagnostics.bad_starts == 0
     with pytest.raises(AssertionError, match="check ran"):  # the bend formulation is checked
         estimators(RecoverySettings(bad_start=2))[0].run(rec.t, z)
 
@@ -154,7 +154,7 @@ def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> 
     s = est.run(t, z)
     assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
     back = t >= silence[2] + silence[3]
-    assert s.status[back][0] in ("uncertain", "reset") and est.bad_starts == 0
+    assert s.status[back][0] in ("uncertain", "reset") and est.diagnostics.bad_starts == 0
     if index < 3:  # the filters are confirmed within the 2 s; the MHE (N = 10) is not
         assert s.status[-1] == "ok"  # after tip-2s: 38 mm, 6.6 std off, readings disagree
 
@@ -171,7 +171,10 @@ def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) 
     assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
     back = np.flatnonzero(t >= 11.0)[0]
     if index < 2:  # the EKFs: inconsistent at back + 1 and back + 2
-        assert list(np.flatnonzero(s.status == "reset")) == [back + SAMPLES] and est.bad_starts == 1
+        assert (
+            list(np.flatnonzero(s.status == "reset")) == [back + SAMPLES]
+            and est.diagnostics.bad_starts == 1
+        )
         tip = np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1)
         assert tip[back + SAMPLES :].max() < 0.015
     _, t, z, _ = silent_imu_recording(1, 1, 11.0, 0.0)  # the same, without the silence

@@ -40,19 +40,19 @@ def _filled_window(solver: str) -> MovingHorizonEstimator:
 @pytest.mark.parametrize("solver", ["fast", "ipopt"])
 def test_branch_check_leaves_a_wrong_local_minimum(solver: str) -> None:
     est = _filled_window(solver)
-    assert est.branch is not None
-    problem = est.window_problem()
-    X_wrong, status = est._solve(problem, np.tile(WRONG, (N, 1)))
+    assert est.inference.branch is not None
+    problem = est.inference.window_problem()
+    X_wrong, status = est.inference._solve(problem, np.tile(WRONG, (N, 1)))
     assert status == "ok"  # a KKT point of the window problem ...
-    wrong_cost = est.window_cost(problem, X_wrong)
-    assert est.branch.implausible(problem, X_wrong)  # ... whose fit is implausible
-    X, status = est._check_branch(problem, X_wrong, status)
+    wrong_cost = est.inference.window_cost(problem, X_wrong)
+    assert est.inference.branch.implausible(problem, X_wrong)  # ... whose fit is implausible
+    X, status = est.inference._check_branch(problem, X_wrong, status)
     assert status == "branch-restart"
-    cost = est.window_cost(problem, X)
+    cost = est.inference.window_cost(problem, X)
     assert cost < wrong_cost - 1.0
     err = np.abs(X[-1, :4] - TRUTH[:4]).max()
     assert err < 1e-4 < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
-    assert est.branch.stats.restarted == 1
+    assert est.inference.branch.stats.restarted == 1
 
 
 @pytest.mark.parametrize("solver", ["fast", "ipopt"])
@@ -62,19 +62,22 @@ def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -
     z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
     for i in range(N + 3):  # a full, sliding window
         est.step(Measurement(0.05 * i, z))
-    est._xbar, est._P = WRONG.copy(), np.eye(f.nx) * 0.01**2  # a confident wrong prior
-    est._Pinv = np.linalg.inv(est._P)
-    problem = est.window_problem()
-    X_wrong, status = est._solve(problem, np.tile(WRONG, (N, 1)))
-    assert est.branch is not None and est.branch.implausible(problem, X_wrong)
-    fit_wrong, _ = est.branch.measurement_cost(problem, X_wrong)
-    X, status = est._check_branch(problem, X_wrong, status)
-    assert status == "branch-restart" and est.branch.stats.prior_forgotten == 1
-    fit, _ = est.branch.measurement_cost(problem, X)
+    est.inference._xbar, est.inference._P = (
+        WRONG.copy(),
+        np.eye(f.nx) * 0.01**2,
+    )  # a confident wrong prior
+    est.inference._Pinv = np.linalg.inv(est.inference._P)
+    problem = est.inference.window_problem()
+    X_wrong, status = est.inference._solve(problem, np.tile(WRONG, (N, 1)))
+    assert est.inference.branch is not None and est.inference.branch.implausible(problem, X_wrong)
+    fit_wrong, _ = est.inference.branch.measurement_cost(problem, X_wrong)
+    X, status = est.inference._check_branch(problem, X_wrong, status)
+    assert status == "branch-restart" and est.inference.branch.stats.prior_forgotten == 1
+    fit, _ = est.inference.branch.measurement_cost(problem, X)
     assert fit < 0.5 * fit_wrong
     assert np.abs(X[-1, :4] - TRUTH[:4]).max() < np.abs(X_wrong[-1, :4] - TRUTH[:4]).max()
-    assert_allclose(est._xbar, f.project(X[0]))  # the prior re-anchored on the answer
-    assert_allclose(est._P, np.eye(f.nx) * 0.01**2 * FORGET)
+    assert_allclose(est.inference._xbar, f.project(X[0]))  # the prior re-anchored on the answer
+    assert_allclose(est.inference._P, np.eye(f.nx) * 0.01**2 * FORGET)
 
 
 def test_a_branch_restart_reaches_the_estimate_file(tmp_path: Path) -> None:
@@ -88,7 +91,7 @@ def test_a_branch_restart_reaches_the_estimate_file(tmp_path: Path) -> None:
     estimates = []
     for i in range(N + 2):
         if i == N - 1:  # the full window's warm start on the far branch
-            est._X, est._X_last = np.tile(WRONG, (N, 1)), None
+            est.inference._X, est.inference._X_last = np.tile(WRONG, (N, 1)), None
         estimates.append(est.step(Measurement(0.05 * i, z)))
     assert [e.status for e in estimates] == ["ok"] * (N - 1) + ["branch-restart", "ok", "ok"]
     restarted = estimates[N - 1]

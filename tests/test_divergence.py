@@ -61,7 +61,7 @@ def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
     est = make_estimator("ukf", make_formulation("bend"))
     series = est.run(data.t, data.z)
     assert list(series.status) == ["ok", "reset"]
-    assert est.restarts == 1 and "half turn" in str(est.last_failure)
+    assert est.diagnostics.restarts == 1 and "half turn" in str(est.diagnostics.last_failure)
     assert series.output[1, 0] < 0  # restarted from the second reading
     assert series.output_std[1, 1] > 1e-3
 
@@ -70,15 +70,17 @@ def test_ukf_chart_check_knows_a_singularity_from_a_wrap() -> None:
     # the bend formulation's tangent-plane residual does not wrap: a jump is its singularity
     far = np.array([[0.0, -1414.2], [0.0, 129.8], [0.0, -8.7]])
     ukf = make_estimator("ukf", make_formulation("bend"))
-    ukf._check_tilt_chart(far, np.arange(2))  # a (re)start's first update: its prior is
-    ukf._x = np.zeros(4)  # the reading's own; a running filter's estimate is checked
+    ukf.inference._check_tilt_chart(far, np.arange(2))  # a (re)start's first update: its prior is
+    ukf.inference._x = np.zeros(4)  # the reading's own; a running filter's estimate is checked
     with pytest.raises(ArithmeticError, match="pitch residuals span 1.54e"):
-        ukf._check_tilt_chart(far, np.arange(2))
+        ukf.inference._check_tilt_chart(far, np.arange(2))
     near = np.array([[0.0, 0.05], [0.0, 0.3], [0.0, -0.2]])
-    ukf._check_tilt_chart(near, np.arange(2))
+    ukf.inference._check_tilt_chart(near, np.arange(2))
     # the paper formulation's Euler angles wrap: residuals straddling +-pi are no singularity
     wrapped = np.array([[3.10, 0.1], [-3.12, 0.2], [3.13, 0.0]])
-    make_estimator("ukf", make_formulation("paper"))._check_tilt_chart(wrapped, np.arange(2))
+    make_estimator("ukf", make_formulation("paper")).inference._check_tilt_chart(
+        wrapped, np.arange(2)
+    )
 
 
 def test_mhe_survives_the_rows_that_stopped_it() -> None:
@@ -89,8 +91,8 @@ def test_mhe_survives_the_rows_that_stopped_it() -> None:
     # the flip onto the bound (t = 0.02 s) leaves the window's model non-finite at its
     # start: the MHE restarts from that reading, as the EKF and UKF do, instead of
     # keeping the start as its answer (not-converged) on every later row
-    assert est.restarts >= 1 and series.status[2] == "reset", list(series.status)
-    assert "Invalid_Number_Detected" in str(est.last_failure)
+    assert est.diagnostics.restarts >= 1 and series.status[2] == "reset", list(series.status)
+    assert "Invalid_Number_Detected" in str(est.diagnostics.last_failure)
     assert "not-converged" not in set(series.status)
     # and it follows the readings again: the bend leaves the bound where they do
     assert np.min(series.output[3:, 3]) < 1.2
@@ -101,7 +103,7 @@ def test_mhe_restarts_after_the_flip_on_both_backends(solver: str) -> None:
     data = read_measurements(REPRO / "mhe_stops.csv")
     est = make_estimator("mhe", make_formulation("bend"), MHESettings(solver=solver))
     series = est.run(data.t, data.z)
-    assert est.restarts >= 1 and "reset" in set(series.status)
+    assert est.diagnostics.restarts >= 1 and "reset" in set(series.status)
     # not the flip's answer kept on every later row (not-converged, 1.571 rad throughout)
     after = series.status[3:]
     assert np.mean(after == "not-converged") < 0.25, list(series.status)

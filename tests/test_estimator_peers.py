@@ -39,9 +39,10 @@ from filterpy.kalman import MerweScaledSigmaPoints
 from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
 from numpy.testing import assert_allclose
 
-from continuum_mhe.estimators.base import Estimator, Measurement
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import rotation_bend_sym, tip_position
@@ -55,7 +56,7 @@ MOUNTINGS = ("z-up", "z-down")  # z-down puts roll near +-pi: the angle wrap is 
 
 def window_states(mhe: MovingHorizonEstimator) -> np.ndarray:
     """The last solved window, (N, nx) (private attribute; the last row is the estimate)."""
-    X = mhe._X
+    X = mhe.inference._X
     assert X is not None
     return np.asarray(X, dtype=float)
 
@@ -292,7 +293,7 @@ def run_mhe_and_compare_window(
     assert est.status == status
     active = min(upto + 1, horizon)
     ours = window_states(mhe)[-active:]
-    peer = solve_bend_window_independently(f, mhe.window_problem(), active)
+    peer = solve_bend_window_independently(f, mhe.inference.window_problem(), active)
     return est, ours, peer
 
 
@@ -320,7 +321,7 @@ def test_mhe_window_process_weight_is_inverse_white_noise_acceleration_cov(paper
     f = BendFormulation()
     mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=8))
     step_all(mhe, paper3d.t[:8], paper3d.z[:8])
-    problem = mhe.window_problem()
+    problem = mhe.inference.window_problem()
     for dt, qinv in zip(problem.dt, problem.qinv):
         expected = np.linalg.inv(bend_process_cov(f.noise.bend_accel_psd, float(dt)))
         assert_allclose(qinv, expected, rtol=1e-9)
@@ -526,8 +527,9 @@ def run_with_injected_failures(name: str, rec: Recording, n: int) -> tuple[list,
     f = make_formulation(name)
     clean = step_all(MovingHorizonEstimator(f, ipopt_settings(horizon=10)), rec.t[:n], rec.z[:n])
     mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=10))
-    mhe._nlp = dataclasses.replace(
-        mhe._nlp, solver=FlakySolver(mhe._nlp.solver, raise_on={12, 13}, nan_on={14})
+    mhe.inference._nlp = dataclasses.replace(
+        mhe.inference._nlp,
+        solver=FlakySolver(mhe.inference._nlp.solver, raise_on={12, 13}, nan_on={14}),
     )
     return step_all(mhe, rec.t[:n], rec.z[:n]), clean
 

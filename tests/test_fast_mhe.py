@@ -60,7 +60,7 @@ def record_ipopt(
     settings = MHESettings(horizon=horizon, solver="ipopt", tol=tol)
     est = MovingHorizonEstimator(formulation, settings)
     rec = Recorded(est)
-    solve = est._solve
+    solve = est.inference._solve
 
     def recording_solve(problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, str]:
         X, status = solve(problem, X0)
@@ -68,7 +68,7 @@ def record_ipopt(
         rec.windows.append(Window(kept, X0.copy(), X.copy(), status))
         return X, status
 
-    est._solve = recording_solve  # type: ignore[method-assign, assignment]
+    est.inference._solve = recording_solve  # type: ignore[method-assign, assignment]
     est.run(t, z)
     return rec
 
@@ -120,7 +120,7 @@ def check_window(formulation: Formulation, rec: Recorded, w: Window, res: fm.Fas
         assert np.all(fast_active[at_bounds(formulation, w.X_ipopt, 1e-9)])
         return True
     X_feasible = np.array([formulation.project(x) for x in w.X_ipopt])
-    ipopt_cost = rec.estimator.window_cost(w.problem, X_feasible)
+    ipopt_cost = rec.estimator.inference.window_cost(w.problem, X_feasible)
     if res.cost <= ipopt_cost + 1e-9:
         return False
     # the one documented exception (docs/fast-solver.md): the paper formulation has local
@@ -151,13 +151,13 @@ def assert_first_order_minimum(
     the box (a second-order one-sided difference). Box bounds only (no balls)."""
     assert fm.feasible_set(formulation).ball_idx.size == 0
     lo, hi = formulation.state_bounds()
-    c0 = rec.estimator.window_cost(w.problem, X)
+    c0 = rec.estimator.inference.window_cost(w.problem, X)
     h = KKT_STEP
 
     def cost(k: int, j: int, step: float) -> float:
         Y = X.copy()
         Y[k, j] += step
-        return rec.estimator.window_cost(w.problem, Y)
+        return rec.estimator.inference.window_cost(w.problem, Y)
 
     worst = 0.0
     for k, j in np.ndindex(*X.shape):
@@ -179,7 +179,7 @@ def compare_windows(
     Windows the fast solver does not certify (they go to IPOPT in the estimator)
     must be at most ``1 - min_certified`` of all; the others are checked.
     """
-    model = fm.build_window_model(formulation, rec.estimator.settings.horizon)
+    model = fm.build_window_model(formulation, rec.estimator.inference.settings.horizon)
     results = [fm.solve_window(model, w.problem, w.X0) for w in rec.windows]
     certified = [(w, r) for w, r in zip(rec.windows, results) if r.converged]
     assert len(certified) >= min_certified * len(rec.windows)
@@ -332,7 +332,7 @@ def test_a_paper_minimum_on_theta_zero_is_accepted_only_as_a_minimum() -> None:
     res = fm.solve_window(fm.build_window_model(f, 2), w.problem, w.X0)
     X_feasible = np.array([f.project(x) for x in w.X_ipopt])
     assert np.all(res.X[:, 3] == 0.0)
-    assert res.cost > recd.estimator.window_cost(w.problem, X_feasible) + 1.0
+    assert res.cost > recd.estimator.inference.window_cost(w.problem, X_feasible) + 1.0
     assert not check_window(f, recd, w, res)  # not the same answer, and no error
     turned = res.X.copy()
     turned[:, 4] += 0.05
@@ -370,7 +370,7 @@ def test_cost_matches_the_ipopt_objective() -> None:
     for w in recd.windows[::5]:
         for X in (w.X0, w.X_ipopt):
             assert fm.window_cost(model, w.problem, X) == pytest.approx(
-                recd.estimator.window_cost(w.problem, X), rel=1e-12, abs=1e-14
+                recd.estimator.inference.window_cost(w.problem, X), rel=1e-12, abs=1e-14
             )
 
 
@@ -391,6 +391,7 @@ def test_arrival_step_is_the_ekf_step() -> None:
         xn_ref, ref = ekf_predict(f.functions, x_ref, ref, u, dt)
         np.testing.assert_allclose(xn, xn_ref, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(got, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
+
 
 def test_small_dense_kernels_match_numpy() -> None:
     """The written-out products, Cholesky and inverse against numpy, and the EKF update
@@ -485,11 +486,16 @@ def test_unsupported_constraint_uses_ipopt_and_says_so() -> None:
     assert any("cannot take this problem" in m for m in said), said
     # the covariance cannot use the constraint either: said, and recorded
     assert any("leaves this problem's constraints out" in m for m in said), said
-    assert est._fast is None and est.backend_note and est.covariance_note
+    assert (
+        est.inference._fast is None and est.inference.backend_note and est.inference.covariance_note
+    )
     with pytest.warns(BackendFallbackWarning, match="leaves this problem's constraints out"):
         by_ipopt = MovingHorizonEstimator(_NonBall(), MHESettings(horizon=4, solver="ipopt"))
-    assert by_ipopt.covariance_note and by_ipopt.backend_note is None
-    assert MovingHorizonEstimator(BendFormulation(), MHESettings(horizon=4)).covariance_note is None
+    assert by_ipopt.inference.covariance_note and by_ipopt.inference.backend_note is None
+    assert (
+        MovingHorizonEstimator(BendFormulation(), MHESettings(horizon=4)).inference.covariance_note
+        is None
+    )
     rec = simulate("paper3d", duration=0.3)
     assert set(est.run(rec.t, rec.z).status) == {"fallback-ipopt"}  # never a silent "ok"
 
@@ -635,7 +641,7 @@ def test_masked_imu_block_is_dropped_from_the_window() -> None:
             fm.window_cost(m2, p, w.X0) - terms, rel=1e-12
         )
         assert fm.window_cost(m2, half, w.X0) == pytest.approx(
-            rec.estimator.window_cost(half, w.X0), rel=1e-12
+            rec.estimator.inference.window_cost(half, w.X0), rel=1e-12
         )  # the IPOPT NLP has the same masked residual
 
 

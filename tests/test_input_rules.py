@@ -369,7 +369,8 @@ def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
 ) -> None:
     """'no sample gave an estimate (...; every sample is a dropout)' when the robust loss
     had rejected every sample, none a dropout."""
-    from continuum_mhe.estimators.base import Estimate, Estimator
+    from continuum_mhe.estimators.base import Estimate
+    from continuum_mhe.estimators.sensor_health import Estimator
 
     def rejected(self: Estimator, m: Measurement) -> Estimate:
         return Estimate(m.t, None, None, None, "no-estimate", 0.0, outlier=True)

@@ -89,13 +89,13 @@ def test_fallback_answers_of_an_unobservable_robot_are_uncertain_too(monkeypatch
     rec = simulate_robot("spatial", TIP_ONLY, duration=2.0, dt=0.05, seed=1)
     with pytest.warns(UnobservableShapeWarning):
         est = make_estimator("mhe", f, MHESettings(horizon=8, solver="ipopt"))
-    original = type(est)._step
+    original = type(est.inference).infer
 
     def fallback(self, m):
         state, cov, status = original(self, m)
         return state, cov, "fallback-ipopt" if status == "ok" else status
 
-    monkeypatch.setattr(type(est), "_step", fallback)
+    monkeypatch.setattr(type(est.inference), "infer", fallback)
     statuses = Counter(est.run(rec.t, rec.z).status.tolist())
     assert "fallback-ipopt" not in statuses and statuses["uncertain"] > 0.9 * len(rec.t)
 

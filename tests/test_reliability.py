@@ -37,11 +37,11 @@ def test_objective_is_left_unscaled_at_20_hz() -> None:
     est = make_estimator("mhe", make_formulation("bend", RobotSettings()), MHESettings())
     est.run(rec.t, rec.z)
     rinv = 1 / est.formulation.noise.measurement_std**2
-    assert objective_scale_exponent(est.window_problem(), rinv) == 0
+    assert objective_scale_exponent(est.inference.window_problem(), rinv) == 0
     fast = make_estimator("mhe", make_formulation("bend", RobotSettings()), MHESettings())
     for t, z in zip(simulate("paper3d", duration=0.05, dt=0.001).t, rec.z):
         fast.step(__import__("continuum_mhe").Measurement(float(t), z))
-    assert objective_scale_exponent(fast.window_problem(), rinv) >= 3
+    assert objective_scale_exponent(fast.inference.window_problem(), rinv) >= 3
 
 
 # --- the paper formulation: rows that are not one shape are flagged ----------------------

@@ -145,9 +145,11 @@ def test_robust_mhe_matches_independent_opti_problem(recording, solver: str, los
     for k in range(upto + 1):
         est = mhe.step(Measurement(float(recording.t[k]), z[k]))
     assert est.status == "ok"
-    peer = solve_robust_window_independently(f, mhe.window_problem(), loss, mhe.settings.scale)
-    assert mhe._X is not None
-    assert_allclose(mhe._X, peer, rtol=0, atol=1e-6)
+    peer = solve_robust_window_independently(
+        f, mhe.inference.window_problem(), loss, mhe.inference.settings.scale
+    )
+    assert mhe.inference._X is not None
+    assert_allclose(mhe.inference._X, peer, rtol=0, atol=1e-6)
     assert_allclose(est.state, peer[-1], rtol=0, atol=1e-6)
 
 
@@ -158,7 +160,7 @@ def test_fast_backend_agrees_with_ipopt_window_by_window(recording, loss: str) -
     z = spiked(recording.z)
     est = MovingHorizonEstimator(f, robust("ipopt", loss))
     windows: list[tuple[WindowProblem, np.ndarray, np.ndarray]] = []
-    solve = est._solve
+    solve = est.inference._solve
 
     def recording_solve(problem, X0):
         X, status = solve(problem, X0)
@@ -167,15 +169,15 @@ def test_fast_backend_agrees_with_ipopt_window_by_window(recording, loss: str) -
         windows.append((kept, X0.copy(), X.copy()))
         return X, status
 
-    est._solve = recording_solve  # type: ignore[method-assign]
+    est.inference._solve = recording_solve  # type: ignore[method-assign]
     est.run(recording.t, z)
-    model = fm.build_window_model(f, HORIZON, loss, est.settings.scale)
+    model = fm.build_window_model(f, HORIZON, loss, est.inference.settings.scale)
     for problem, X0, X_ipopt in windows:
         res = fm.solve_window(model, problem, X0)
         assert res.converged, res.outcome
         assert_allclose(res.X, X_ipopt, rtol=0, atol=1e-6)
         assert fm.window_cost(model, problem, res.X) == pytest.approx(
-            est.window_cost(problem, X_ipopt), rel=1e-9
+            est.inference.window_cost(problem, X_ipopt), rel=1e-9
         )
 
 
@@ -282,10 +284,12 @@ def test_a_robust_mhe_that_rejects_every_reading_restarts(reject_reset, dropouts
     assert s.outlier is not None and not s.outlier[56:61].any()  # it followed the burst
     assert s.outlier[61:72][valid[61:72]].all()  # then rejected every reading
     if reject_reset is None:  # lost for good, ok then uncertain, never reset
-        assert err[72:].min() > 0.05 and est.reject_resets == 0
+        assert err[72:].min() > 0.05 and est.diagnostics.reject_resets == 0
         assert "reset" not in set(s.status)
     else:  # the first valid reading after 0.52 s of rejections restarts it
-        assert list(np.flatnonzero(s.status == "reset")) == [72] and est.reject_resets == 1
+        assert (
+            list(np.flatnonzero(s.status == "reset")) == [72] and est.diagnostics.reject_resets == 1
+        )
         assert err[72] < 0.005 and err[75:].max() < 0.015
 
 
@@ -302,10 +306,10 @@ def test_no_restart_for_a_burst_rejected_briefly_or_one_faulty_imu_of_two() -> N
     est = MovingHorizonEstimator(BendFormulation(), robust("fast", "welsch", horizon=30))
     s = est.run(rec.t, z_low)
     assert s.outlier is not None and list(np.flatnonzero(s.outlier)) == [20, 21, 22, 23, 24]
-    assert est.reject_resets == 0 and "reset" not in set(s.status)
+    assert est.diagnostics.reject_resets == 0 and "reset" not in set(s.status)
     est = MovingHorizonEstimator(BendFormulation(), robust("fast", "cauchy", horizon=30))
     s = est.run(rec.t, z)
-    assert est.reject_resets == 0 and "reset" not in set(s.status)
+    assert est.diagnostics.reject_resets == 0 and "reset" not in set(s.status)
     f = make_formulation("bend", TWO_IMUS)
     rec2 = simulate_robot("s-curve", TWO_IMUS, duration=6.0, seed=1)
     z2 = np.array(rec2.z, dtype=float)
@@ -313,7 +317,9 @@ def test_no_restart_for_a_burst_rejected_briefly_or_one_faulty_imu_of_two() -> N
     est = MovingHorizonEstimator(f, robust("fast", "welsch", horizon=10))
     s = est.run(rec2.t, z2)
     assert s.outlier is not None and s.outlier[20:].sum() > 60  # the fault is rejected
-    assert est.reject_resets == 0  # (the divergence check may restart it: not this rule)
+    assert (
+        est.diagnostics.reject_resets == 0
+    )  # (the divergence check may restart it: not this rule)
 
 
 def test_reject_reset_option(tmp_path: Path, capsys) -> None:
@@ -404,7 +410,7 @@ def test_one_weight_per_imu_block_on_two_sections() -> None:
         for i in range(k + 1):
             ests[solver] = mhe.step(Measurement(float(rec.t[i]), z[i]))
         assert ests[solver].outlier
-        weights = mhe._w_last
+        weights = mhe.inference._w_last
         assert weights[1] < 0.05 and weights[0] > 0.5, weights
     assert_allclose(ests["fast"].state, ests["ipopt"].state, rtol=0, atol=1e-6)
 
@@ -444,11 +450,11 @@ def test_second_start_leaves_a_burst_that_the_warm_start_follows() -> None:
     for on in (True, False):
         mhe = MovingHorizonEstimator(f, MHESettings(horizon=30, loss="cauchy"))
         if not on:
-            mhe.second_start = None
+            mhe.inference.second_start = None
         out = mhe.run(rec.t, z).output
         errors[on] = np.linalg.norm(out[80:84, :3] - rec.truth[80:84, :3], axis=1)
         if on:
-            assert mhe.second_start is not None and mhe.second_start.kept >= 1
+            assert mhe.inference.second_start is not None and mhe.inference.second_start.kept >= 1
     assert errors[False].min() > 0.05  # m: the warm start stays on the burst
     assert errors[True].max() < 0.01  # back on the clean trajectory
 
@@ -467,7 +473,7 @@ def test_second_start_chooses_alike_on_both_backends() -> None:
             # the burst's readings that were not down-weighted disagree with the estimate
             assert est.status in ("ok", "inconsistent")
             states.append(est.state)
-        assert mhe.second_start is not None and mhe.second_start.kept >= 1
+        assert mhe.inference.second_start is not None and mhe.inference.second_start.kept >= 1
     assert_allclose(states[:86], states[86:], rtol=0, atol=1e-6)
 
 
@@ -482,7 +488,7 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     f = BendFormulation()
     est = MovingHorizonEstimator(f, robust("fast", loss, horizon=30))
     windows = fast_windows(est, rec.t, z)
-    model = fm.build_window_model(f, 30, loss, est.settings.scale)
+    model = fm.build_window_model(f, 30, loss, est.inference.settings.scale)
     tight = fm.FastOptions(step_tol=1e-13, err_tol=1e-13, max_iter=60)
     worst = 0.0
     for problem, X0, lam0, _ in windows:

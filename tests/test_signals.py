@@ -92,7 +92,7 @@ def test_an_ipopt_solve_stopped_by_a_signal_raises_it(
     from continuum_mhe.settings import MHESettings
 
     est = MovingHorizonEstimator(make_formulation("bend"), MHESettings(horizon=5, solver="ipopt"))
-    real = est._nlp.solver
+    real = est.inference._nlp.solver
 
     class Stopped:  # the real solver; its stats as after a signal inside IPOPT
         def __call__(self, **kwargs: object) -> object:
@@ -101,7 +101,7 @@ def test_an_ipopt_solve_stopped_by_a_signal_raises_it(
         def stats(self) -> dict[str, object]:
             return {**real.stats(), "return_status": status, "success": False}
 
-    est._nlp = dataclasses.replace(est._nlp, solver=Stopped())
+    est.inference._nlp = dataclasses.replace(est.inference._nlp, solver=Stopped())
     monkeypatch.setattr(signals, "SIGNALS_SEEN", [sig])
     est.reset()
     with pytest.raises(KeyboardInterrupt) as caught:
@@ -133,14 +133,14 @@ def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
     script = (
         "import os, signal, sys\n"
         "from continuum_mhe import cli\n"
-        "from continuum_mhe.estimators.mhe import MovingHorizonEstimator\n"
-        "real, solves = MovingHorizonEstimator._solve_ipopt, []\n"
+        "from continuum_mhe.estimators.mhe import MovingHorizonInference\n"
+        "real, solves = MovingHorizonInference._solve_ipopt, []\n"
         "def solve(self, problem, X0):\n"
         "    solves.append(1)\n"
         "    if len(solves) == 30:\n"
         "        signal.setitimer(signal.ITIMER_REAL, 2e-4, 2e-4)\n"
         "    return real(self, problem, X0)\n"
-        "MovingHorizonEstimator._solve_ipopt = solve\n"
+        "MovingHorizonInference._solve_ipopt = solve\n"
         + SIGINT_INSIDE_IPOPT
         + "sys.exit(cli.main(sys.argv[1:]))\n"
     )
@@ -172,14 +172,14 @@ def test_a_signal_inside_ipopt_waits_for_the_solve() -> None:
         "from continuum_mhe.simulation.scenarios import simulate\n"
         "est = MovingHorizonEstimator(make_formulation('bend'),\n"
         "                             MHESettings(horizon=100, solver='ipopt'))\n"
-        "nlp, solves = est._nlp, []\n"
+        "nlp, solves = est.inference._nlp, []\n"
         "def solver(**kwargs):\n"
         "    solves.append(1)\n"
         "    if len(solves) == 30:\n"
         "        signal.setitimer(signal.ITIMER_REAL, 2e-4, 2e-4)\n"
         "    return nlp.solver(**kwargs)\n"
         "solver.stats = nlp.solver.stats\n"
-        "est._nlp = dataclasses.replace(nlp, solver=solver)\n"
+        "est.inference._nlp = dataclasses.replace(nlp, solver=solver)\n"
         "signal.signal(signal.SIGINT, on_signal)\n"
         + SIGINT_INSIDE_IPOPT
         + "rec = simulate('paper3d', duration=20, seed=0)\n"

@@ -41,7 +41,7 @@ from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.io.csv_files import read_state_table, write_estimates
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import EstimateSeries
+from continuum_mhe.results import Diagnostics, EstimateSeries
 from continuum_mhe.settings import (
     FREEZE_MIN_SAMPLES,
     MHESettings,
@@ -332,7 +332,7 @@ def test_gap_reset_restarts_every_estimator_from_the_measurements(index: int) ->
     est = estimators(RecoverySettings(gap_reset=1.0))[index]
     s = est.run(t, z)
     assert s.status[first_after] == "reset"
-    assert list(s.status).count("reset") == 1 and est.gap_resets == 1
+    assert list(s.status).count("reset") == 1 and est.diagnostics.gap_resets == 1
     # restarted from the reading: the shape the first reading gives, not a blind prediction
     x0 = est.formulation.initial_state(z[first_after])
     assert np.linalg.norm(s.output[first_after, :3] - est.formulation.output(x0)[:3]) < 0.01
@@ -340,10 +340,10 @@ def test_gap_reset_restarts_every_estimator_from_the_measurements(index: int) ->
     assert tip.mean() < 0.01
     plain_est = estimators(RecoverySettings())[index]
     plain = plain_est.run(t, z)
-    assert plain_est.gap_resets == 0  # off by default in the library
+    assert plain_est.diagnostics.gap_resets == 0  # off by default in the library
     if plain_est.name == "ukf":  # its sigma points span a half turn after 7 s blind
-        assert plain_est.restarts == list(plain.status).count("reset") == 1
-        assert "half turn" in str(plain_est.last_failure)
+        assert plain_est.diagnostics.restarts == list(plain.status).count("reset") == 1
+        assert "half turn" in str(plain_est.diagnostics.last_failure)
     else:
         assert "reset" not in set(plain.status)
 
@@ -359,7 +359,7 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
     late = frozen & (rec.t > 2 + 0.5 + 1e-9)
     assert set(s.status[late]) == {"dropout"}
     assert set(s.status[frozen & ~late]) <= {"ok"}
-    assert est.frozen_samples == int(late.sum())
+    assert est.diagnostics.frozen_samples == int(late.sum())
     assert set(s.status[rec.t >= 4]) <= {"ok", "uncertain"}  # the reading changes: used again
 
 
@@ -374,16 +374,15 @@ def test_each_run_counts_its_own_recording(index: int) -> None:
     keep = (rec.t < 1) | (rec.t >= 3)  # a 2 s gap
     t, z = rec.t[keep], z[keep]
     est = estimators(RecoverySettings(gap_reset=1.0, freeze=0.5))[index]
-    est.run(t, z)
-    first = (est.gap_resets, est.frozen_samples, dict(est.first_freezes))
-    assert first[0] == 1 and first[1] > 0 and list(first[2]) == [0]
-    est.run(t, z)
-    assert (est.gap_resets, est.frozen_samples, dict(est.first_freezes)) == first
+    first = est.run(t, z).diagnostics
+    assert first is not None and first == est.diagnostics  # returned with the estimates
+    assert first.gap_resets == 1 and first.frozen_samples > 0 and list(first.first_freezes) == [0]
+    assert est.run(t, z).diagnostics == first
     est.reset(keep_counts=True)  # a restart within the recording (as live's)
-    assert (est.gap_resets, est.frozen_samples, dict(est.first_freezes)) == first
+    assert est.diagnostics == first
     est.reset()  # so does a reset before stepping by hand
-    assert (est.gap_resets, est.frozen_samples, est.first_freezes) == (0, 0, {})
-    assert (est.restarts, est.bad_starts, est.reject_resets, est.last_failure) == (0, 0, 0, None)
+    assert est.diagnostics == Diagnostics()  # every count zero, no failure
+    assert first.gap_resets == 1 and list(first.first_freezes) == [0]  # the copy run gave
 
 
 def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
@@ -394,14 +393,22 @@ def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
         BendFormulation(), MHESettings(horizon=10, loss="welsch", branch_check=True)
     )
     est.run(rec.t, z)
-    assert est.second_start is not None and est.branch is not None
-    counts = (est.branch.stats.checked, est.second_start.tried, est.second_start.kept)
+    assert est.inference.second_start is not None and est.inference.branch is not None
+    counts = (
+        est.inference.branch.stats.checked,
+        est.inference.second_start.tried,
+        est.inference.second_start.kept,
+    )
     assert counts[0] > 0 and counts[1] > 0
     est.reset(keep_counts=True)
-    assert (est.branch.stats.checked, est.second_start.tried, est.second_start.kept) == counts
+    assert (
+        est.inference.branch.stats.checked,
+        est.inference.second_start.tried,
+        est.inference.second_start.kept,
+    ) == counts
     est.reset()
-    assert (est.second_start.tried, est.second_start.kept) == (0, 0)
-    assert est.branch.stats == BranchStats()
+    assert (est.inference.second_start.tried, est.inference.second_start.kept) == (0, 0)
+    assert est.inference.branch.stats == BranchStats()
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
@@ -414,9 +421,9 @@ def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str
         method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
     )
     s = est.run(np.array([0.0, 60.0, 60.05]), np.array([[0.1, 0.1], [0.1, 0.1], [0.5, -0.2]]))
-    assert est.frozen_samples == 0 and est.first_freezes == {}
+    assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
     assert "dropout" not in set(s.status) and "no-estimate" not in set(s.status)
-    assert s.status[1] == "reset" and est.gap_resets == 1
+    assert s.status[1] == "reset" and est.diagnostics.gap_resets == 1
 
 
 @pytest.mark.parametrize(("dt", "first"), [(0.05, 21), (0.5, 4), (0.9, 4), (20.0, None)])
@@ -435,18 +442,20 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
     est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
     s = est.run(t, z)
     if first is None:
-        assert est.frozen_samples == 0 and est.first_freezes == {}
+        assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
     else:
         assert set(s.status[:first]) <= {"ok"}
         assert set(s.status[first:]) <= {"dropout", "no-estimate"}
-        assert est.frozen_samples == k - first and est.first_freezes == {0: 0.0}
+        assert est.diagnostics.frozen_samples == k - first and est.diagnostics.first_freezes == {
+            0: 0.0
+        }
     # n - 1 equal readings 0.5 s apart (2 s in all, longer than the freeze), then a
     # change: never a freeze
     est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
     z2 = z[: n + 1].copy()
     z2[n - 1 :] = [0.3, 0.0]
     est.run(0.5 * np.arange(n + 1), z2)
-    assert est.frozen_samples == 0
+    assert est.diagnostics.frozen_samples == 0
 
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
@@ -460,7 +469,7 @@ def test_equal_readings_on_both_sides_of_a_gap_are_not_a_freeze(method: str) -> 
         method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
     )
     s = est.run(t, z)
-    assert est.frozen_samples == 0 and est.first_freezes == {}
+    assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
     assert s.status[5] == "reset" and "dropout" not in set(s.status)
 
 
@@ -474,7 +483,7 @@ def test_freeze_samples_are_validated() -> None:
         kw = {} if samples is None else {"freeze_samples": samples}
         est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, **kw))
         est.run(t, z)
-        assert est.frozen_samples == frozen, samples  # (the default sees none)
+        assert est.diagnostics.frozen_samples == frozen, samples  # (the default sees none)
 
 
 def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
@@ -541,10 +550,10 @@ def test_compiled_and_casadi_covariance_agree_at_the_same_window_solution(case: 
         settings = Settings(horizon=8)
     est = MovingHorizonEstimator(f, settings)
     windows = fast_windows(est, rec.t, z)
-    s = est.settings
+    s = est.inference.settings
     loss = LossKernel(block_array(f.measurement_blocks), LOSS_CODES[s.loss], float(s.scale))
     compared = 0
-    model = est._fast
+    model = est.inference._fast
     assert model is not None
     for problem, _, _, res in windows:
         X = res.X

@@ -62,8 +62,9 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
     f = beyond._formulation(spec)
     ms = MHESettings(horizon=spec.horizon, loss=args.loss, loss_scale=args.scale)
     on_burst, on_clean = make_estimator("mhe", f, ms), make_estimator("mhe", f, ms)
+    window, clean_window = on_burst.inference, on_clean.inference  # the MHEs' window solvers
     if args.no_second_start:
-        on_burst.second_start = on_clean.second_start = None  # type: ignore[attr-defined]
+        window.second_start = clean_window.second_start = None  # type: ignore[attr-defined]
     on_burst.reset()
     on_clean.reset()
     rel = offsets(mask, 40)
@@ -76,12 +77,12 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
         ec[i] = np.linalg.norm(c.output[:3] - truth[i, :3]) * 1e3
         if rel[i] < 0 or i < spec.horizon:
             continue
-        p = on_burst.window_problem()
-        kept = on_burst._lam, on_burst.sqp_iterations  # type: ignore[attr-defined]
-        X2, _ = on_burst._solve(p, on_clean._X.copy())  # type: ignore[attr-defined]
-        on_burst._lam, on_burst.sqp_iterations = kept  # type: ignore[attr-defined]
-        model = on_burst._fast  # type: ignore[attr-defined]
-        j1, j2 = window_cost(model, p, on_burst._X), window_cost(model, p, X2)  # type: ignore[attr-defined]
+        p = window.window_problem()  # type: ignore[attr-defined]
+        kept = window._lam, window.sqp_iterations  # type: ignore[attr-defined]
+        X2, _ = window._solve(p, clean_window._X.copy())  # type: ignore[attr-defined]
+        window._lam, window.sqp_iterations = kept  # type: ignore[attr-defined]
+        model = window._fast  # type: ignore[attr-defined]
+        j1, j2 = window_cost(model, p, window._X), window_cost(model, p, X2)  # type: ignore[attr-defined]
         lower[i] = j2 < j1 - 1e-6 * abs(j1)
     return {"eb": eb, "ec": ec, "rel": rel, "lower": lower}
 

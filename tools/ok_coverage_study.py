@@ -52,7 +52,7 @@ def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> d
         "far20": float(np.mean(~ok[dist > 20])) if np.any(dist > 20) else np.nan,
         "ok50": int(np.sum(ok & (dist > 50))),
         "scale": float(getattr(est, "max_noise_scale", np.nan)),
-        "model_error": float(getattr(est, "model_error", np.nan)),
+        "model_error": float(est.diagnostics.model_error),
     }
 
 

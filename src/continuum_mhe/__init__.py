@@ -21,6 +21,7 @@ __version__ = "0.1.0"
 #: public name -> the module that defines it
 _EXPORTS: dict[str, str] = {
     "METHODS": "continuum_mhe.estimators",
+    "Diagnostics": "continuum_mhe.estimators",
     "Estimate": "continuum_mhe.estimators",
     "EstimateSeries": "continuum_mhe.estimators",
     "Estimator": "continuum_mhe.estimators",
@@ -67,6 +68,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
     from continuum_mhe.estimators import (
         METHODS,
+        Diagnostics,
         Estimate,
         EstimateSeries,
         Estimator,

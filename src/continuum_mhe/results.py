@@ -1,14 +1,15 @@
 """Result types shared by estimators, io, metrics and plots (a neutral layer).
 
 :class:`Measurement` is one sample in; :class:`Estimate` one sample out;
-:class:`EstimateSeries` a recording's estimates, with a description of its columns.
+:class:`EstimateSeries` a recording's estimates, with a description of its columns;
+:class:`Diagnostics` what the sensor-health policy did over a recording.
 Plots, metrics, writers and the CLI read these and never touch an estimator.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -164,6 +165,54 @@ class Estimate:
     outlier: bool = False
 
 
+@dataclass
+class Diagnostics:
+    """What an estimator's sensor-health policy did over a recording (since its last
+    ``reset``): its restarts and their causes, the frozen sensors, the model error.
+
+    ``Estimator.run`` returns a copy with the estimates (:attr:`EstimateSeries.diagnostics`);
+    a step-by-step caller reads the live value from ``Estimator.diagnostics``.
+
+    Attributes:
+        restarts: restarts after a divergence or numerical failure.
+        gap_resets: restarts after a gap longer than ``recovery.gap_reset``.
+        frozen_samples: samples with at least one IMU treated as frozen
+            (``recovery.freeze``).
+        first_freezes: the first freeze of each IMU, in the order they happened: its
+            measurement block index among the IMUs -> ``t`` (s) of the first of its
+            repeated readings.
+        bad_starts: restarts after a bad start (``recovery.bad_start``), the start of an
+            IMU back from a silence included.
+        reject_resets: restarts of a robust MHE after it rejected every reading for longer
+            than ``recovery.reject_reset``.
+        last_failure: the last numerical failure's message, if any.
+        bound_samples: estimates that sat on a section's ``theta_max`` (status
+            ``at-bound``).
+        max_noise_scale: the largest model-error factor seen: the innovations' variance
+            over the one the noise model predicts (1 when the readings fit their noise).
+        model_error: the largest model error learned
+            (:attr:`~continuum_mhe.estimators.consistency.ConsistencyCheck.model_error`:
+            the excess of the innovations over the noise model, in units of ``R``,
+            carried in the standard deviations as a constant error of the gravity
+            directions); 0 when none showed.
+    """
+
+    restarts: int = 0
+    gap_resets: int = 0
+    frozen_samples: int = 0
+    first_freezes: dict[int, float] = field(default_factory=dict)
+    bad_starts: int = 0
+    reject_resets: int = 0
+    last_failure: str | None = None
+    bound_samples: int = 0
+    max_noise_scale: float = 1.0
+    model_error: float = 0.0
+
+    def copy(self) -> Diagnostics:
+        """An independent copy (later steps do not change it)."""
+        return replace(self, first_freezes=dict(self.first_freezes))
+
+
 @dataclass(frozen=True)
 class EstimateSeries:
     """Estimates over a recording. Rows without an estimate hold NaN in ``output``.
@@ -180,6 +229,8 @@ class EstimateSeries:
             unknown (default: all NaN).
         outlier: (n,) bool, the samples the robust MHE down-weighted (see
             :attr:`Estimate.outlier`); None when the estimator does not flag outliers.
+        diagnostics: what the estimator's sensor-health policy did over the recording
+            (:class:`Diagnostics`); None for a series not made by ``Estimator.run``.
     """
 
     method: str
@@ -190,6 +241,7 @@ class EstimateSeries:
     outputs: tuple[OutputSpec, ...] = pcc_outputs(1)
     output_std: FloatArray | None = None
     outlier: NDArray[np.bool_] | None = None
+    diagnostics: Diagnostics | None = None
 
     def __post_init__(self) -> None:
         if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
@@ -231,6 +283,7 @@ class EstimateSeries:
         estimates: Iterable[Estimate],
         outputs: tuple[OutputSpec, ...] = pcc_outputs(1),
         flags_outliers: bool = False,
+        diagnostics: Diagnostics | None = None,
     ) -> EstimateSeries:
         """The series of ``estimates``; with ``flags_outliers`` it keeps their outlier
         flags (a robust MHE's), else ``outlier`` is None."""
@@ -251,4 +304,5 @@ class EstimateSeries:
             outputs=outputs,
             output_std=std,
             outlier=np.array([e.outlier for e in est], dtype=bool) if flags_outliers else None,
+            diagnostics=diagnostics,
         )

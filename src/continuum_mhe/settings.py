@@ -140,7 +140,7 @@ FREEZE_MIN_SAMPLES = 5
 @dataclass(frozen=True)
 class RecoverySettings:
     """How every estimator recovers from gaps and frozen sensors, and when it says its
-    estimate should not be trusted (:meth:`~continuum_mhe.estimators.base.Estimator.step`).
+    estimate should not be trusted (:meth:`~continuum_mhe.estimators.sensor_health.Estimator.step`).
 
     Attributes:
         gap_reset: after no valid measurement for longer than this (s), the next valid

@@ -51,9 +51,10 @@ import numpy as np
 from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.benchmark.peers import PEER_NOTES, PEERS
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement
+from continuum_mhe.estimators.base import FloatArray, Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.model.registry import make_formulation

@@ -76,7 +76,8 @@ def run_mhe_kernel(
     n = len(rec.t)
     out = np.full((n, formulation.ny), np.nan)
     sec = np.zeros(n)
-    solve_fast = est._solve_fast
+    window = est.inference
+    solve_fast = window._solve_fast
     spent: list[float] = []
 
     def timed(problem: WindowProblem, X0: FloatArray, lam0: FloatArray | None) -> FastResult:
@@ -85,7 +86,7 @@ def run_mhe_kernel(
         spent.append(time.perf_counter() - t0)
         return result
 
-    est._solve_fast = timed  # type: ignore[method-assign]
+    window._solve_fast = timed  # type: ignore[method-assign]
     uncertified = 0
     for i in range(n):
         spent.clear()

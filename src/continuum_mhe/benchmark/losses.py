@@ -55,7 +55,7 @@ def _timed(
         if e.output is not None:
             out[i] = e.output
         fallbacks += e.status == "fallback-ipopt"
-        iterations += est.sqp_iterations
+        iterations += est.inference.sqp_iterations
     return out, sec, fallbacks, iterations / len(rec.t)
 
 
@@ -100,7 +100,7 @@ def run_loss_benchmark(
                         "horizon": n,
                         "data": data,
                         "loss": loss,
-                        "scale": fast[loss].settings.scale,
+                        "scale": fast[loss].inference.settings.scale,
                         "fast_median_us": med["fast", loss],
                         "ipopt_median_us": med["ipopt", loss],
                         "fast_over_l2": med["fast", loss] / med["fast", "l2"],

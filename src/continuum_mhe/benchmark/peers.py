@@ -109,7 +109,7 @@ def record_windows(
     windows: list[WindowProblem | None] = []
     for t, z in zip(rec.t, rec.z):
         e = est.step(Measurement(float(t), z))
-        windows.append(None if e.state is None else est.window_problem(copy=True))
+        windows.append(None if e.state is None else est.inference.window_problem(copy=True))
     return windows
 
 

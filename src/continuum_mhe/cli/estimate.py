@@ -30,7 +30,7 @@ from continuum_mhe.cli.options import (
 )
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.estimators import Measurement, make_estimator
-from continuum_mhe.estimators.base import bound_notice
+from continuum_mhe.estimators.sensor_health import bound_notice
 from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
             recovery_settings_from_args(args),
         )
         est.reset()
+        diag = est.diagnostics  # the sensor-health policy's counts, kept by each step
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         outliers = readings = 0  # samples flagged as outliers; samples with a reading
         frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
@@ -71,11 +72,12 @@ def run(args: argparse.Namespace) -> int:
             try:
                 for t, z in samples:  # a signal while waiting for input ends it at once
                     next(ticks)
-                    frozen_before, freezes_before = est.frozen_samples, len(est.first_freezes)
+                    frozen_before = diag.frozen_samples
+                    freezes_before = len(diag.first_freezes)
                     with signals_deferred():  # inside C code: stop after this sample
                         e = est.step(Measurement(t, z))
                     counts[e.status] = counts.get(e.status, 0) + 1
-                    if est.frozen_samples > frozen_before:
+                    if diag.frozen_samples > frozen_before:
                         frozen[e.status] = frozen.get(e.status, 0) + 1
                         note = est.freezes_notice(freezes_before)  # said once per IMU
                         if note:
@@ -98,12 +100,12 @@ def run(args: argparse.Namespace) -> int:
                     f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
                     "nothing written"
                 )
-            if n >= 3 and est.gap_resets > n // 2:  # t in ms read as s, most often
+            if n >= 3 and diag.gap_resets > n // 2:  # t in ms read as s, most often
                 fix = "raise --gap-reset, or 0: never"
                 if stream.kind != "log":  # a log's t comes from its own timestamps
                     fix = f"if t is in milliseconds, name the column t_ms (else {fix})"
                 raise InputError(
-                    f"{stream.name}: {est.gap_resets} of {n} samples restarted the estimator "
+                    f"{stream.name}: {diag.gap_resets} of {n} samples restarted the estimator "
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
@@ -115,50 +117,50 @@ def run(args: argparse.Namespace) -> int:
         )
         raise interrupted
     if stream.kind == "log":  # several topics in the wrong order, most often
-        warn_topic_order(stream.name, args.topic or (), n, est.restarts + est.bad_starts)
+        warn_topic_order(stream.name, args.topic or (), n, diag.restarts + diag.bad_starts)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
     for clause in stream.description.summary():
         msg += f"; {clause}"
-    if est.frozen_samples:
+    if diag.frozen_samples:
         of = ", ".join(f"{k}: {v}" for k, v in sorted(frozen.items()))
         msg += (
-            f"; {est.frozen_samples} of them had a frozen IMU (the same reading for over "
+            f"; {diag.frozen_samples} of them had a frozen IMU (the same reading for over "
             f"{args.freeze:g} s, treated as a dropout): {of}"
         )
-    if est.restarts:
+    if diag.restarts:
         msg += (
-            f"; restarted {est.restarts} time(s) after the estimate diverged, failed or its "
+            f"; restarted {diag.restarts} time(s) after the estimate diverged, failed or its "
             "uncertainty outgrew the workspace (status reset, or no-estimate on a sample without "
             "a valid reading)"
         )
-    if est.gap_resets:
-        msg += f"; restarted after {est.gap_resets} gap(s) longer than {args.gap_reset:g} s"
-    if est.bad_starts:
+    if diag.gap_resets:
+        msg += f"; restarted after {diag.gap_resets} gap(s) longer than {args.gap_reset:g} s"
+    if diag.bad_starts:
         msg += (
-            f"; restarted {est.bad_starts} time(s) after readings inconsistent with the "
+            f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
             "start or an IMU's return"
         )
-    if counts.get("inconsistent") or est.max_noise_scale > 1.5:
+    if counts.get("inconsistent") or diag.max_noise_scale > 1.5:
         msg += (
-            f"; model error: the readings scattered up to {math.sqrt(est.max_noise_scale):.2g} "
+            f"; model error: the readings scattered up to {math.sqrt(diag.max_noise_scale):.2g} "
             "times their noise model's std (standard deviations widened by it; status "
             "inconsistent where they disagree beyond the noise)"
         )
-        if est.model_error > 0:
+        if diag.model_error > 0:
             msg += (
-                f"; a model error of {math.sqrt(est.model_error):.2g} times the readings' "
+                f"; a model error of {math.sqrt(diag.model_error):.2g} times the readings' "
                 "noise std carried in the standard deviations as a constant error of the "
                 "gravity directions"
             )
-    if est.bound_samples:
-        note = bound_notice(est.bound_samples, n, est.formulation.robot)
+    if diag.bound_samples:
+        note = bound_notice(diag.bound_samples, n, est.formulation.robot)
         print(f"{PROG}: warning: {note}", file=sys.stderr)
-    if est.reject_resets:
+    if diag.reject_resets:
         msg += (
-            f"; restarted {est.reject_resets} time(s) after rejecting every reading for over "
+            f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "
             f"{args.reject_reset:g} s"
         )
     for note in stream.description.notes:  # e.g. how the samples of several Imu topics paired

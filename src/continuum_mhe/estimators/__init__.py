@@ -1,4 +1,9 @@
-"""Estimators with one interface: ``step(Measurement) -> Estimate`` and ``run``."""
+"""Estimators with one interface: ``step(Measurement) -> Estimate`` and ``run``.
+
+Each estimator is the sensor-health policy (:class:`Estimator`,
+:mod:`.sensor_health`) around an inference object (:class:`Inference`: the MHE's
+window solver, the EKF, the UKF); :class:`Diagnostics` says what the policy did.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +13,7 @@ from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.estimators.base import (
     Estimate,
     EstimateSeries,
-    Estimator,
+    Inference,
     Measurement,
     Status,
 )
@@ -18,6 +23,7 @@ from continuum_mhe.estimators.kalman import (
     UnscentedKalmanFilter,
 )
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.estimators.sensor_health import Diagnostics, Estimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
@@ -47,29 +53,33 @@ def make_estimator(
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")
     expect_type("recovery", recovery, (RecoverySettings, type(None)), "RecoverySettings or None")
-    est = _make(method, formulation, mhe)
-    if recovery is not None:
-        est.recovery = recovery
-    return est
+    return _make(method, formulation, mhe, recovery)
 
 
-def _make(method: Method, formulation: Formulation, mhe: MHESettings | None) -> Estimator:
+def _make(
+    method: Method,
+    formulation: Formulation,
+    mhe: MHESettings | None,
+    recovery: RecoverySettings | None,
+) -> Estimator:
     if method == "mhe":
-        return MovingHorizonEstimator(formulation, mhe)
+        return MovingHorizonEstimator(formulation, mhe, recovery=recovery)
     if method == "ekf":
-        return CompiledExtendedKalmanFilter(formulation)
+        return CompiledExtendedKalmanFilter(formulation, recovery)
     if method == "ukf":
-        return UnscentedKalmanFilter(formulation)
+        return UnscentedKalmanFilter(formulation, recovery=recovery)
     raise UserError(f"method must be one of {METHODS}, got {method!r}")
 
 
 __all__ = [
     "METHODS",
+    "Diagnostics",
     "Estimate",
     "EstimateSeries",
     "Estimator",
     "CompiledExtendedKalmanFilter",
     "ExtendedKalmanFilter",
+    "Inference",
     "Measurement",
     "Method",
     "MovingHorizonEstimator",

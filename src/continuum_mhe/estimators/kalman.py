@@ -5,6 +5,11 @@ weights with). Innovations use the formulation's residual ``r(z, x)``. Validity 
 measurement block: a sensor that dropped out is left out of the update, the others are
 used. The pure functions :func:`ekf_predict` and :func:`ekf_update` are shared with the
 MHE's arrival cost.
+
+The ``*Inference`` classes are the filters alone (inference objects);
+:class:`ExtendedKalmanFilter`, :class:`CompiledExtendedKalmanFilter` and
+:class:`UnscentedKalmanFilter` are the sensor-health policy
+(:mod:`~continuum_mhe.estimators.sensor_health`) around them.
 """
 
 from __future__ import annotations
@@ -16,9 +21,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status, tilt_rows
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
+from continuum_mhe.settings import RecoverySettings
 
 
 def ekf_predict(
@@ -61,19 +68,19 @@ def ekf_update(
     return x + K @ r, ikh @ P @ ikh.T + K @ R @ K.T
 
 
-class _KalmanBase(Estimator):
+class _KalmanBase(Inference):
     def __init__(self, formulation: Formulation) -> None:
         super().__init__(formulation)
         self._R = formulation.meas_cov()
-        self.reset()
+        self.restart()
 
-    def _reset(self) -> None:
+    def restart(self) -> None:
         self._x: FloatArray | None = None
         self._P: FloatArray | None = None
         self._t_prev = 0.0
         self._z_prev: FloatArray | None = None
 
-    def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+    def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
         mask = f.measurement_mask(m.z)
         if self._x is None or self._P is None:
@@ -106,8 +113,9 @@ class _KalmanBase(Estimator):
         raise NotImplementedError
 
 
-class ExtendedKalmanFilter(_KalmanBase):
-    """EKF with Jacobians from CasADi's automatic differentiation of the model."""
+class ExtendedKalmanInference(_KalmanBase):
+    """The EKF's inference, with Jacobians from CasADi's automatic differentiation of
+    the model (:class:`ExtendedKalmanFilter` steps it)."""
 
     name = "ekf"
 
@@ -122,10 +130,10 @@ class ExtendedKalmanFilter(_KalmanBase):
         return ekf_update(self.formulation, x, P, z, self._R, mask)
 
 
-class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
+class CompiledExtendedKalmanInference(ExtendedKalmanInference):
     """The same EKF, each step one call into the compiled core (the node model and the
     EKF step in C++): the strongest EKF baseline for timing. Same equations and answers
-    as :class:`ExtendedKalmanFilter` (to rounding)."""
+    as :class:`ExtendedKalmanInference` (to rounding)."""
 
     name = "ekf"
 
@@ -140,9 +148,9 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         self._outputs_of: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
         super().__init__(formulation)
 
-    def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+    def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._x is None or self._P is None:
-            return super()._step(m)  # the first sample: prior, then its update
+            return super().infer(m)  # the first sample: prior, then its update
         f = self.formulation
         mask = f.measurement_mask(m.z)
         dt = m.t - self._t_prev
@@ -158,13 +166,13 @@ class CompiledExtendedKalmanFilter(ExtendedKalmanFilter):
         self._outputs_of = (state, y, std, cov)
         return state, cov, status
 
-    def _output(self, state: FloatArray) -> FloatArray:
+    def output(self, state: FloatArray) -> FloatArray:
         kept = self._outputs_of
         if kept is not None and kept[0] is state:  # computed in the same compiled call
             return kept[1]
         return self._node.output(state)
 
-    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+    def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         kept = self._outputs_of
         if kept is not None and kept[0] is state and kept[3] is cov:
             return kept[2]
@@ -199,9 +207,11 @@ def merwe_sigma_points(
     return pts, wm, wc
 
 
-class UnscentedKalmanFilter(_KalmanBase):
-    """UKF with scaled sigma points; angle residuals are wrapped before averaging, and a
-    chart's residuals across its singularity restart it (:meth:`_check_tilt_chart`)."""
+class UnscentedKalmanInference(_KalmanBase):
+    """The UKF's inference, with scaled sigma points; angle residuals are wrapped before
+    averaging, and a chart's residuals across its singularity raise (the owning
+    estimator restarts it; :meth:`_check_tilt_chart`). :class:`UnscentedKalmanFilter`
+    steps it."""
 
     name = "ukf"
 
@@ -209,7 +219,7 @@ class UnscentedKalmanFilter(_KalmanBase):
         self.sigma = sigma or SigmaPointSettings()
         super().__init__(formulation)
         self._tilt_mask = np.zeros(formulation.nz, dtype=bool)
-        self._tilt_mask[self._tilt] = True
+        self._tilt_mask[tilt_rows(formulation)] = True
 
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
@@ -255,7 +265,7 @@ class UnscentedKalmanFilter(_KalmanBase):
         from the sigma points' tilts (from about 130 degrees on); there the transform's
         mean and covariance mean nothing (on ``gimbal_flip.csv`` they kept the old
         estimate, ``ok``, with a standard deviation of 1e-6 m).
-        :meth:`~continuum_mhe.estimators.base.Estimator.step` then restarts the filter
+        :meth:`~continuum_mhe.estimators.sensor_health.Estimator.step` then restarts the filter
         from the reading (status ``reset``), as for a diverged EKF. Not checked in the
         first update of a (re)start, whose prior comes from the reading itself, nor for
         wrapped residuals (the paper formulation's Euler angles, averaged as they are)."""
@@ -274,3 +284,35 @@ class UnscentedKalmanFilter(_KalmanBase):
                 f"{float(col.max() - col.min()):.3g} across the sigma points: the "
                 "reading is about a half turn from the predicted tilt"
             )
+
+
+class ExtendedKalmanFilter(Estimator[ExtendedKalmanInference]):
+    """EKF (CasADi Jacobians) with the sensor-health policy of
+    :class:`~continuum_mhe.estimators.sensor_health.Estimator`; the filter is
+    :attr:`inference` (:class:`ExtendedKalmanInference`)."""
+
+    def __init__(self, formulation: Formulation, recovery: RecoverySettings | None = None):
+        super().__init__(ExtendedKalmanInference(formulation), recovery)
+
+
+class CompiledExtendedKalmanFilter(Estimator[CompiledExtendedKalmanInference]):
+    """The EKF as one compiled call per step (:class:`CompiledExtendedKalmanInference`;
+    the EKF ``make_estimator`` gives), with the sensor-health policy of
+    :class:`~continuum_mhe.estimators.sensor_health.Estimator`."""
+
+    def __init__(self, formulation: Formulation, recovery: RecoverySettings | None = None):
+        super().__init__(CompiledExtendedKalmanInference(formulation), recovery)
+
+
+class UnscentedKalmanFilter(Estimator[UnscentedKalmanInference]):
+    """UKF with scaled sigma points and the sensor-health policy of
+    :class:`~continuum_mhe.estimators.sensor_health.Estimator`; the filter is
+    :attr:`inference` (:class:`UnscentedKalmanInference`)."""
+
+    def __init__(
+        self,
+        formulation: Formulation,
+        sigma: SigmaPointSettings | None = None,
+        recovery: RecoverySettings | None = None,
+    ):
+        super().__init__(UnscentedKalmanInference(formulation, sigma), recovery)

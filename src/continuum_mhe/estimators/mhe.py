@@ -37,6 +37,10 @@ Backends (``MHESettings.solver``): ``"fast"`` solves the same window problem wit
 the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast` and hands the window
 to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 ``"ipopt"`` is the reference.
+
+:class:`MovingHorizonInference` is the window and its solve (the inference object);
+:class:`MovingHorizonEstimator` is the sensor-health policy
+(:mod:`~continuum_mhe.estimators.sensor_health`) around it.
 """
 
 from __future__ import annotations
@@ -46,7 +50,7 @@ import warnings
 import numpy as np
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import Estimator, FloatArray, Measurement, Status
+from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status
 from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
@@ -61,14 +65,16 @@ from continuum_mhe.estimators.fast import (
 )
 from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
-from continuum_mhe.estimators.kalman import ProcessNoiseCache, ekf_predict, ekf_update
+from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
     OUTLIER_WEIGHT,
     block_array,
     block_weights,
 )
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.second_start import SecondStart
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.estimators.window_nlp import (
     Nlp,
     WindowProblem,
@@ -77,12 +83,13 @@ from continuum_mhe.estimators.window_nlp import (
     pack_parameters,
 )
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.settings import MHESettings
+from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
 
 
-class MovingHorizonEstimator(Estimator):
-    """MHE over the last ``N`` samples.
+class MovingHorizonInference(Inference):
+    """The MHE's inference: the window problem over the last ``N`` samples, solved
+    each sample, and its arrival prior (:class:`MovingHorizonEstimator` steps it).
 
     Backends (``settings.solver``): ``"fast"`` (default), the structure-exploiting
     Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast`, which falls back to
@@ -158,7 +165,7 @@ class MovingHorizonEstimator(Estimator):
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
         self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
-        self.reset()
+        self.restart()
 
     @property
     def _nlp(self) -> Nlp:
@@ -174,18 +181,14 @@ class MovingHorizonEstimator(Estimator):
     def _nlp(self, nlp: Nlp) -> None:
         self._nlp_built = nlp
 
-    def reset(self, keep_counts: bool = False) -> None:
-        """:meth:`Estimator.reset`; the second start's and the branch check's counts are
-        zeroed with the others."""
-        super().reset(keep_counts)
-        if keep_counts:
-            return
+    def clear_counts(self) -> None:
+        """Zero the second start's and the branch check's counts."""
         if self.second_start is not None:
             self.second_start.tried = self.second_start.kept = 0
         if self.branch is not None:
             self.branch.stats = BranchStats()
 
-    def _reset(self) -> None:
+    def restart(self) -> None:
         f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
         # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
         self._k = 0  # samples in the window
@@ -323,17 +326,17 @@ class MovingHorizonEstimator(Estimator):
         return self.formulation.project(xn)
 
     # --- solve ----------------------------------------------------------------
-    def _output(self, state: FloatArray) -> FloatArray:
+    def output(self, state: FloatArray) -> FloatArray:
         if self._node is not None:
             return self._node.output(state)
         return self.formulation.output(state)
 
-    def _output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+    def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         if self._node is not None:
             return self._node.output_std(state, cov)
         return self.formulation.output_std(state, cov)
 
-    def _step(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
+    def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         f = self.formulation
         mask = f.measurement_mask(m.z)
         valid = bool(mask.any())
@@ -409,12 +412,12 @@ class MovingHorizonEstimator(Estimator):
         s = self.settings
         return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks)
 
-    def _outlier(self) -> bool:
+    def outlier(self) -> bool:
         """True when the last solve down-weighted a block of the newest sample below
         :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT`."""
         return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
 
-    def _rejected_every_reading(self) -> bool | None:
+    def rejected_every_reading(self) -> bool | None:
         """True when the last solve down-weighted every valid block of the newest sample
         below :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT` (one faulty IMU of
         several is not a lost estimate); None when the sample had no valid block."""
@@ -550,3 +553,25 @@ class MovingHorizonEstimator(Estimator):
     def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
         """The NLP's objective for a trajectory ``X`` (N, nx)."""
         return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
+
+
+class MovingHorizonEstimator(Estimator[MovingHorizonInference]):
+    """MHE over the last ``N`` samples, with the sensor-health policy of
+    :class:`~continuum_mhe.estimators.sensor_health.Estimator`; the window solver is
+    :attr:`inference` (:class:`MovingHorizonInference`).
+
+    Args:
+        formulation: the model.
+        settings: horizon, solver and IPOPT options.
+        fast_options: options of the fast backend (iterations, tolerance).
+        recovery: the sensor-health policy's settings (default ``RecoverySettings()``).
+    """
+
+    def __init__(
+        self,
+        formulation: Formulation,
+        settings: MHESettings | None = None,
+        fast_options: FastOptions | None = None,
+        recovery: RecoverySettings | None = None,
+    ) -> None:
+        super().__init__(MovingHorizonInference(formulation, settings, fast_options), recovery)

@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.estimators.base import Estimate, Estimator, Measurement
+from continuum_mhe.estimators.base import Estimate, Measurement
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.descriptions import OutputSpec

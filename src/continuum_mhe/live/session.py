@@ -14,13 +14,8 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from continuum_mhe.estimators.base import (
-    Estimate,
-    Estimator,
-    Measurement,
-    Status,
-    _reraise_interrupt,
-)
+from continuum_mhe.estimators.base import Estimate, Measurement, Status
+from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
@@ -76,7 +71,7 @@ class LiveSettings:
 
     After a gap longer than the estimator's ``recovery.gap_reset`` (``--gap-reset``) the
     estimator itself restarts from the next sample (status ``reset``), as in
-    ``estimate``: one mechanism, :meth:`~continuum_mhe.estimators.base.Estimator.step`.
+    ``estimate``: one mechanism, :meth:`~continuum_mhe.estimators.sensor_health.Estimator.step`.
     """
 
     port: str
@@ -537,7 +532,7 @@ class LiveSession:
         """One estimator step that never ends the session: an exception or a non-finite
         estimate restarts the estimator and flags the sample ``no-estimate``."""
         start = time.perf_counter()
-        freezes = len(self.estimator.first_freezes)
+        freezes = len(self.estimator.diagnostics.first_freezes)
         try:
             est = self.estimator.step(Measurement(t, z))
             self._say_freezes(freezes)

@@ -279,7 +279,7 @@ def _recovery(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
             }
             if spec.group == "bad-start":  # the same settings on the clean recording
                 clean_out[label] = est.run(t, clean).output  # counts from its reset
-                out[f"{m} {label}"]["clean_fired"] = est.bad_starts
+                out[f"{m} {label}"]["clean_fired"] = est.diagnostics.bad_starts
         if clean_out:
             diff = np.abs(clean_out["on"][:, :3] - clean_out["off"][:, :3])
             out[f"{m} on"]["clean_diff_mm"] = float(np.nanmax(diff) * 1e3)
