@@ -17,6 +17,7 @@ from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import InputError, UnitWarning, read_states
 from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
+    RawImuConverter,
     RawImuSettings,
     mount_rotation,
     raw_to_measurements,
@@ -326,3 +327,27 @@ def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFi
     warned = [str(w.message) for w in seen if "deg/s?" in str(w.message)]
     assert code == 0 and out.exists()
     assert len(warned) == 2 and all(w.endswith("so the estimate is unaffected") for w in warned)
+
+
+@pytest.mark.parametrize("imu_model", ["direct", "tilt"])
+def test_whole_recording_conversion_equals_the_sample_by_sample_one(imu_model: str) -> None:
+    """``convert_many`` (one pass over the arrays) gives what ``convert`` gives sample by
+    sample, mounting rotation, gyro bias and unusable readings (NaN, zero) included."""
+    rng = np.random.default_rng(3)
+    n = 50
+    t = np.arange(n) * 0.02
+    acc = rng.normal(size=(n, 3)) * 5.0 + np.array([0.0, 0.0, 9.8])
+    gyr = rng.normal(size=(n, 3))
+    acc[7] = 0.0
+    acc[11, 1] = np.nan
+    gyr[13, 2] = np.inf
+    settings = RawImuSettings(
+        imu_model=imu_model, mount_rpy=(10.0, -20.0, 35.0), gyro_bias=(0.01, -0.02, 0.03)
+    )
+    one_by_one = RawImuConverter(settings)
+    expected = np.array([one_by_one.convert(t[i], acc[i], gyr[i]) for i in range(n)])
+    got = RawImuConverter(settings).convert_many(t, acc, gyr)
+    assert got.shape == expected.shape == (n, 6 if imu_model == "direct" else 2)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(expected))
+    assert np.isnan(got[7]).all() and np.isnan(got[11]).all()
+    np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-15)

@@ -197,17 +197,36 @@ class RawImuConverter:
         self._t = t
         return tilt_from_accelerometer(gravity_from_quaternion(self._q))
 
+    def convert_many(self, t: FloatArray, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
+        """Measurements (n, nz) for consecutive samples (``t`` (n,) s, ``acc`` (n, 3),
+        ``gyr`` (n, 3) rad/s or None), as :meth:`convert` gives them one at a time: in
+        one pass over the arrays where the conversion keeps no state (the direct model,
+        tilt from the accelerometer), sample by sample through an attitude filter."""
+        n = len(t)
+        if self._filter is not None:
+            rows = [
+                self.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(n)
+            ]
+            return np.array(rows, dtype=float).reshape(n, self.nz)
+        acc = np.asarray(acc, dtype=float).reshape(n, 3) @ self._mount.T
+        if self.settings.imu_model == "direct":
+            if gyr is None:
+                raise UserError("the direct IMU model needs gyro readings (gx, gy, gz)")
+            gyro = (np.asarray(gyr, dtype=float).reshape(n, 3) - self._bias) @ self._mount.T
+            return direct_measurements(acc, gyro).reshape(n, 6)
+        usable = np.all(np.isfinite(acc), axis=1) & (np.linalg.norm(acc, axis=1) > 0)
+        with np.errstate(invalid="ignore"):
+            tilt = tilt_from_accelerometer(acc).reshape(n, 2)
+        tilt[~usable] = np.nan
+        return tilt
+
 
 def raw_to_measurements(
     t: FloatArray, acc: FloatArray, gyr: FloatArray | None, settings: RawImuSettings
 ) -> FloatArray:
     """Measurements (n, nz) for a whole recording (``t`` s, ``acc`` (n, 3), ``gyr``
     (n, 3) rad/s or None)."""
-    conv = RawImuConverter(settings)
-    rows = [
-        conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(len(t))
-    ]
-    return np.array(rows, dtype=float).reshape(len(t), conv.nz)
+    return RawImuConverter(settings).convert_many(t, acc, gyr)
 
 
 @dataclass(frozen=True)
