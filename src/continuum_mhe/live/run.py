@@ -2,7 +2,8 @@
 
 The line protocol (one or more IMUs, :mod:`continuum_mhe.stream.protocol`):
 ``t_ms`` then ``ax,ay,az,gx,gy,gz`` (raw) or ``roll,pitch`` (tilt) per IMU, in the
-robot file's order; ``#`` lines are the device's messages, shown and counted.
+robot file's order, then a tendon robot's ``tension_1..k`` (N) unless a tensions file
+gives them; ``#`` lines are the device's messages, shown and counted.
 
 Every valid sample gives exactly one estimate row in ``-o`` and one row in
 ``--record`` (the raw or tilt CSV that ``estimate`` reads, ``t`` in seconds of the
