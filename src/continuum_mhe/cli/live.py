@@ -29,7 +29,7 @@ from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
 from continuum_mhe.io.inputs import serial_input
-from continuum_mhe.live.run import open_plot, run_live, warm_up
+from continuum_mhe.live.run import WARM_UP_STEPS, open_plot, run_live, warm_up
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
@@ -76,7 +76,10 @@ def run(args: argparse.Namespace) -> int:
         mhe_settings_from_args(args),
         recovery=recovery_settings_from_args(args),
     )
-    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
+    warm_up(
+        make_estimator(args.method, formulation, mhe_settings_from_args(args)),
+        WARM_UP_STEPS[args.method],
+    )
     gc.collect()
     gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
     say = stderr_say("live")
