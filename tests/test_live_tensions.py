@@ -120,7 +120,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Runs:
     est.reset()
     batch = [est.step(Measurement(t, z)) for t, z in samples]
 
-    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base, ROBOT)
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
     assert serial.formulation == formulation and serial.tensions_on_line == 6
     bad = [
         with_tensions[3].rsplit(",", 1)[0] + ",-0.5",  # a negative tension
@@ -133,7 +133,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Runs:
     record = RowFile(recording, ("t", *value_columns("raw", 2, 6)), overwrite=False)
     session, line, _ = _live(serial, est, lines, record)
     record.close()
-    with open_input(recording, InputOptions(), base, ROBOT) as stream:
+    with open_input(recording, InputOptions(), base) as stream:
         record_z = np.array([z for _, z in stream.samples])
 
     by_file = serial_input("/dev/ttyTEN", "raw", InputOptions(tensions=str(ten_path)), base)
@@ -189,7 +189,7 @@ def test_lines_without_the_tensions_are_garbled_and_say_how_to_send_them(runs: R
     """A tendon robot's stream without tensions (and no --inputs): no sample, one line
     naming the cause and the fix, as for any stream of garbled lines."""
     _, imus_only = _first_samples_lines()
-    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), runs.base, ROBOT)
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), runs.base)
     with pytest.raises(InputError, match="no valid sample") as err:
         _live(serial, runs.estimator, imus_only[:6])
     assert "a line without the robot's 6 tendon tensions" in str(err.value)

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     )
     # the options checked and the IMU model decided as estimate does (io.inputs)
     line = serial_input(
-        settings.port, settings.fmt, input_options(args), formulation_from_args(args), args.robot
+        settings.port, settings.fmt, input_options(args), formulation_from_args(args)
     )
     formulation, robot = line.formulation, line.formulation.robot
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None

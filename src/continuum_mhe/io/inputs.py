@@ -237,11 +237,7 @@ class SerialInput:
 
 
 def serial_input(
-    port: str,
-    fmt: Literal["raw", "tilt"],
-    options: InputOptions,
-    base: Formulation,
-    robot_name: str | None = None,
+    port: str, fmt: Literal["raw", "tilt"], options: InputOptions, base: Formulation
 ) -> SerialInput:
     """``live``'s stream of ``fmt`` lines (every raw line carries the gyros): the
     formulation (:func:`resolve`, as for a table of that kind), one raw converter per
@@ -255,10 +251,7 @@ def serial_input(
     resolved, f = resolve(port, kind, fmt == "raw", options, base)
     converters = imu_converters(resolved.raw, base.robot) if fmt == "raw" else None
     robot = base.robot
-    if not robot.n_tendons or options.tensions:
-        tensions = _tensions(options, robot, robot_name, None)
-    else:
-        tensions = None
+    tensions = _tensions(options, robot, None, None) if options.tensions else None
     if not robot.has_mechanics:
         return SerialInput(f, converters)
     on_line = 0 if tensions is not None else robot.n_tendons

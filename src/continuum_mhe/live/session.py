@@ -521,9 +521,9 @@ class LiveSession:
                 self._periods.append(dt)
                 self._period = None
         if self.record is not None:
+            # "": a dropout, as estimate reads
             cells = (csv_cell(float(v)) if math.isfinite(v) else "" for v in s.values)
             tensions = (csv_cell(float(v)) for v in s.tensions)
-            # "": a dropout, as estimate reads
             self.record.write_row([csv_cell(t), *cells, *tensions])
         if restart:  # the estimator restarts when this sample is estimated
             for conv in self.converters or ():
@@ -598,7 +598,7 @@ class LiveSession:
         c.restarts += 1
         if c.first_restart_t is None:
             c.first_restart_t = t
-        for conv in self.converters or () if converters else ():
+        for conv in (self.converters or ()) if converters else ():
             conv.reset()
         self.estimator.reset(keep_counts=True)  # the same session: its freezes said once
         self._restarted = True  # the next estimate says so (status reset)
