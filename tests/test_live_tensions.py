@@ -16,7 +16,7 @@ import pytest
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import Estimate, Measurement, make_estimator
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.io.csv_files import InputError, write_table
+from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import SerialInput, open_input, serial_input
 from continuum_mhe.io.robot_file import read_robot, shipped_robots
@@ -183,6 +183,41 @@ def test_the_recording_keeps_the_tensions_and_replays_to_the_same_measurements(
 
 def test_live_with_a_tensions_file_gives_estimates_estimate_gives(runs: Runs) -> None:
     _same_estimates(runs.file, runs.batch)
+
+
+def test_the_command_line_live_writes_the_tip_force_and_replays(
+    runs: Runs,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``continuum-mhe live --robot tendon-two-section -o --record`` (the port a
+    stand-in), then ``estimate`` on the recording: the estimate file's columns come from
+    the model (the tip force with its standard deviations), its rows are those of
+    ``estimate``'s pipeline, and the replay gives the same file. (The EKF's model
+    functions are those the module's runs built: the same formulation.)"""
+    with_tensions, _ = _first_samples_lines()
+    data = "".join(ln + "\n" for ln in [*with_tensions[:3], "20,1,2", *with_tensions[3:]])
+    monkeypatch.setattr("continuum_mhe.cli.live.open_port", lambda *a: _Port(data.encode()))
+    est, rec, replay = tmp_path / "est.csv", tmp_path / "rec.csv", tmp_path / "replay.csv"
+    argv = ["live", "--port", "/dev/ttyTEN", "--robot", ROBOT, "-o", str(est), "--record",
+            str(rec), "--duration", "0.5", "--status-every", "0.001"]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "(t_ms,ax_1," in err and ",gz_2,tension_1,tension_2," in err and "tip force=(" in err
+    assert f"{N} samples, {N} estimates; 1 garbled" in err
+    assert rec.read_text().splitlines()[0].endswith(",gz_2,tension_1,tension_2,tension_3,"
+                                                     "tension_4,tension_5,tension_6")  # fmt: skip
+    live = read_state_table(est)
+    assert live.names[-3:] == ("fx", "fy", "fz") and live.std is not None
+    batch_out = np.array([e.output for e in runs.batch])
+    np.testing.assert_allclose(live.values, batch_out, rtol=1e-9, atol=1e-12)
+    assert main(["estimate", str(rec), "--robot", ROBOT, "-o", str(replay)]) == 0
+    again = read_state_table(replay)
+    np.testing.assert_array_equal(again.t, live.t)
+    np.testing.assert_array_equal(again.values, live.values)
+    np.testing.assert_array_equal(again.std, live.std)
+    assert list(again.status) == list(live.status) == ["ok"] * N
 
 
 def test_lines_without_the_tensions_are_garbled_and_say_how_to_send_them(runs: Runs) -> None:
