@@ -228,23 +228,28 @@ def test_robot_reader_is_total(tmp_path_factory, text: str, bom: bool) -> None:
 # --- the live protocol --------------------------------------------------------------------------
 @settings(max_examples=200, deadline=None)
 @given(
-    fields=st.lists(_NUMBER, min_size=0, max_size=9),
+    fields=st.lists(_NUMBER, min_size=0, max_size=11),
     fmt=st.sampled_from(["tilt", "raw"]),
     n_imus=st.integers(1, 2),
+    n_tensions=st.integers(0, 2),
 )
-def test_protocol_parser_is_total(fields: list[str], fmt: str, n_imus: int) -> None:
-    """Any line: a sample with a finite, non-negative time and each IMU either wholly
-    finite or wholly a dropout (NaN, with its problem said), at least one IMU good; or
-    GarbledLine."""
+def test_protocol_parser_is_total(
+    fields: list[str], fmt: str, n_imus: int, n_tensions: int
+) -> None:
+    """Any line: a sample with a finite, non-negative time, its tensions finite and
+    non-negative, and each IMU either wholly finite or wholly a dropout (NaN, with its
+    problem said), at least one IMU good; or GarbledLine."""
     from continuum_mhe.stream.protocol import VALUES_PER_IMU, GarbledLine, parse_line
 
     try:
-        sample = parse_line(",".join(fields), fmt, n_imus)  # type: ignore[arg-type]
+        sample = parse_line(",".join(fields), fmt, n_imus, n_tensions)  # type: ignore[arg-type]
     except GarbledLine:
         return
     if sample is None:
         return
     assert math.isfinite(sample.t_ms) and sample.t_ms >= 0
+    assert sample.tensions.shape == (n_tensions,)
+    assert np.isfinite(sample.tensions).all() and (sample.tensions >= 0).all()
     blocks = sample.values.reshape(n_imus, VALUES_PER_IMU[fmt])
     bad = [i for i, b in enumerate(blocks) if not np.isfinite(b).all()]
     assert all(np.isnan(blocks[i]).all() for i in bad) and len(bad) == len(sample.problems)

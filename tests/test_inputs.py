@@ -82,11 +82,12 @@ def test_tensions_are_checked_before_the_recording(tmp_path: Path) -> None:
 def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
     robot = read_robot(DATA / "robots/two_section.toml")
     base = make_formulation("bend", robot)
-    f, converters = serial_input("/dev/x", "raw", InputOptions(), base)
-    assert isinstance(f, DirectFormulation) and converters is not None
-    assert len(converters) == robot.n_imus
-    f, converters = serial_input("/dev/x", "tilt", InputOptions(), base)
-    assert f.name == "bend" and converters is None
+    raw = serial_input("/dev/x", "raw", InputOptions(), base)
+    assert isinstance(raw.formulation, DirectFormulation) and raw.converters is not None
+    assert len(raw.converters) == robot.n_imus
+    assert raw.tensions is None and raw.tensions_on_line == 0  # no tendons
+    tilt = serial_input("/dev/x", "tilt", InputOptions(), base)
+    assert tilt.formulation.name == "bend" and tilt.converters is None
     direct = InputOptions(raw=RawImuSettings(imu_model="direct"))
     with pytest.raises(InputError, match="--imu-model direct needs --format raw"):
         serial_input("/dev/x", "tilt", direct, base)

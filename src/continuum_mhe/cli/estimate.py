@@ -22,6 +22,7 @@ from continuum_mhe.cli.options import (
     add_overwrite_option,
     add_raw_imu_options,
     add_recovery_options,
+    add_tensions_option,
     formulation_from_args,
     input_options,
     method_from_args,
@@ -212,12 +213,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
     )
-    p.add_argument(
-        "--inputs",
-        metavar="TENSIONS.csv",
-        help="tendon tensions t,tension_1,...,tension_k (N, the robot file's [[tendon]] "
-        "order), interpolated linearly to the measurement times (docs/tendon.md)",
-    )
+    add_tensions_option(p, "or the recording's own tension_1..k columns")
     add_model_options(p)
     add_mhe_options(p)
     add_recovery_options(p)

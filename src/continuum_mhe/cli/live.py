@@ -17,6 +17,7 @@ from continuum_mhe.cli.options import (
     add_recording_options,
     add_recovery_options,
     add_serial_options,
+    add_tensions_option,
     formulation_from_args,
     input_options,
     method_from_args,
@@ -28,7 +29,7 @@ from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
 from continuum_mhe.io.inputs import serial_input
-from continuum_mhe.live.run import open_plot, run_live, warm_up
+from continuum_mhe.live.run import WARM_UP_STEPS, open_plot, run_live, warm_up
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.stream.protocol import line_fields, value_columns
 from continuum_mhe.stream.reader import open_port, port_hint, stderr_say
@@ -47,10 +48,10 @@ def run(args: argparse.Namespace) -> int:
         retry_max_s=args.retry_max,
     )
     # the options checked and the IMU model decided as estimate does (io.inputs)
-    formulation, converters = serial_input(
+    line = serial_input(
         settings.port, settings.fmt, input_options(args), formulation_from_args(args)
     )
-    robot = formulation.robot
+    formulation, robot = line.formulation, line.formulation.robot
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
@@ -75,12 +76,15 @@ def run(args: argparse.Namespace) -> int:
         mhe_settings_from_args(args),
         recovery=recovery_settings_from_args(args),
     )
-    warm_up(make_estimator(args.method, formulation, mhe_settings_from_args(args)))
+    warm_up(
+        make_estimator(args.method, formulation, mhe_settings_from_args(args)),
+        WARM_UP_STEPS[args.method],
+    )
     gc.collect()
     gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
     say = stderr_say("live")
     plot = open_plot(robot.lengths, say) if args.plot else None
-    columns = value_columns(settings.fmt, robot.n_imus)
+    columns = value_columns(settings.fmt, robot.n_imus, line.tensions_on_line)
     out = (
         None
         if out_path is None
@@ -97,10 +101,12 @@ def run(args: argparse.Namespace) -> int:
         points_per_section=args.points, max_hz=args.view_hz,
     )  # fmt: skip
     try:
-        session = LiveSession(settings, estimator, converters, out, say, record)
+        session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
         say(
             f"reading {settings.port} at {settings.baud} baud "
-            f"({','.join(line_fields(settings.fmt, robot.n_imus))}); {args.method} estimates"
+            f"({','.join(line_fields(settings.fmt, robot.n_imus, line.tensions_on_line))}"
+            f"{'; tensions from ' + line.tensions.name if line.tensions else ''}); "
+            f"{args.method} estimates"
             f"{' to ' + str(out_path) if out_path else ''}"
             f"{'; recording to ' + str(rec_path) if rec_path else ''}; Ctrl-C stops"
         )
@@ -125,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
 
 DESCRIPTION = (
     "Estimate in real time from a serial IMU stream (line protocol: "
-    "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order; "
+    "t_ms, then ax,ay,az,gx,gy,gz or roll,pitch per IMU in the robot file's order, "
+    "then a tendon robot's tension_1..tension_k in N unless --inputs gives them; "
     "'#' lines are the device's messages)."
 )
 
@@ -133,6 +140,7 @@ DESCRIPTION = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_serial_options(p)
     p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
+    add_tensions_option(p, "instead of the tensions on every line")
     add_recording_options(p)
     add_config_option(p)
     p.add_argument("--duration", type=float, help="stop after this many seconds")

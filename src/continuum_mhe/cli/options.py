@@ -249,6 +249,17 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
         raise InputError(str(exc)) from None
 
 
+def add_tensions_option(p: argparse.ArgumentParser, otherwise: str) -> None:
+    """``--inputs TENSIONS.csv``: a tendon robot's tensions file (``otherwise``: where
+    the tensions come from without it)."""
+    p.add_argument(
+        "--inputs",
+        metavar="TENSIONS.csv",
+        help="tendon tensions t,tension_1,...,tension_k (N, the robot file's [[tendon]] "
+        f"order), interpolated linearly to the sample times ({otherwise}; docs/tendon.md)",
+    )
+
+
 def add_serial_options(p: argparse.ArgumentParser) -> None:
     """The serial stream of ``live`` and ``calibrate``: port, baud, line format."""
     from continuum_mhe.stream.protocol import LINE_FORMATS

@@ -16,9 +16,10 @@ serial line formats through :func:`serial_input`; ``calibrate``'s recordings thr
    the robot file's mounting and gyro bias); the first readings are checked against the
    robot's stated mounting; which IMUs reported is counted. Bags and MCAP files are read
    whole (their readers index the file). Memory stays flat in a table's length;
-4. **tendon tensions** (``InputOptions.tensions``): where the robot has a backbone, the
-   tensions file is read and checked before the recording, and each sample gets the
-   tensions at its time appended (:mod:`continuum_mhe.io.tensions`).
+4. **tendon tensions** (``InputOptions.tensions``, else the recording's own
+   ``tension_1..k`` columns, as ``live --record`` writes them): where the robot has a
+   backbone, the tensions are read and checked before the recording, and each sample
+   gets the tensions at its time appended (:mod:`continuum_mhe.io.tensions`).
 
 :func:`open_input` gives a :class:`MeasurementStream` (one sample at a time, with its
 :class:`InputDescription`); :func:`load_input` reads an input whole.
@@ -66,7 +67,12 @@ from continuum_mhe.io.raw_imu import (
     sample_kind,
 )
 from continuum_mhe.io.robot_logs import is_robot_log, read_imu_log, tilt_from_quaternion
-from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
+from continuum_mhe.io.tensions import (
+    Tensions,
+    has_tension_columns,
+    read_tensions,
+    tendon_formulation_for,
+)
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
@@ -211,18 +217,45 @@ def _gyro_user(raw: RawImuSettings) -> str:
     return "--imu-model direct" if raw.imu_model == "direct" else f"--attitude {raw.attitude}"
 
 
+@dataclass(frozen=True)
+class SerialInput:
+    """How ``live`` reads its stream of lines.
+
+    Attributes:
+        formulation: the formulation the measurements are for (a robot with a backbone:
+            its tendon formulation, as ``estimate`` makes it).
+        converters: one raw converter per IMU (None for tilt lines).
+        tensions: the tensions file (``--inputs``) of a tendon robot, if given.
+        tensions_on_line: the tendon tensions each line carries after the IMUs' values
+            (a tendon robot without a tensions file; else 0).
+    """
+
+    formulation: Formulation
+    converters: list[RawImuConverter] | None
+    tensions: Tensions | None = None
+    tensions_on_line: int = 0
+
+
 def serial_input(
     port: str, fmt: Literal["raw", "tilt"], options: InputOptions, base: Formulation
-) -> tuple[Formulation, list[RawImuConverter] | None]:
+) -> SerialInput:
     """``live``'s stream of ``fmt`` lines (every raw line carries the gyros): the
-    formulation (:func:`resolve`, as for a table of that kind) and one raw converter per
-    IMU (None for tilt lines)."""
+    formulation (:func:`resolve`, as for a table of that kind), one raw converter per
+    IMU (None for tilt lines) and, for a tendon robot, where its tensions come from:
+    the tensions file of ``options`` (read and checked here, as ``estimate`` reads it),
+    else every line's fields after the IMUs'."""
     if options.raw.imu_model == "direct" and fmt != "raw":
         check_options_apply(port, "tilt-csv", options, base.robot)
         raise InputError("--imu-model direct needs --format raw")
     kind: InputKind = "raw-csv" if fmt == "raw" else "tilt-csv"
-    options, f = resolve(port, kind, fmt == "raw", options, base)
-    return f, (imu_converters(options.raw, base.robot) if fmt == "raw" else None)
+    resolved, f = resolve(port, kind, fmt == "raw", options, base)
+    converters = imu_converters(resolved.raw, base.robot) if fmt == "raw" else None
+    robot = base.robot
+    tensions = _tensions(options, robot, None, None) if options.tensions else None
+    if not robot.has_mechanics:
+        return SerialInput(f, converters)
+    on_line = 0 if tensions is not None else robot.n_tendons
+    return SerialInput(tendon_formulation_for(f, options), converters, tensions, on_line)
 
 
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
@@ -241,7 +274,7 @@ def open_input(
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream of
     measurements for ``formulation``'s robot, tendon tensions appended where it has a
     backbone (``robot_name``: the robot file as named in messages)."""
-    tensions = _tensions(options, formulation.robot, robot_name)
+    tensions = _tensions(options, formulation.robot, robot_name, path)
     stream = _open_measurements(path, options, formulation)
     if formulation.robot.has_mechanics:
         _append_tensions(stream, tensions, options)
@@ -299,21 +332,35 @@ def _open_measurements(
 
 
 # --- step 4: tendon tensions -----------------------------------------------------------------
-def _tensions(options: InputOptions, robot: Robot, robot_name: str | None) -> Tensions | None:
-    """The tensions file, read and checked for the robot's tendons (before the input)."""
+def _tensions(
+    options: InputOptions,
+    robot: Robot,
+    robot_name: str | None,
+    recording: str | os.PathLike[str] | None,
+) -> Tensions | None:
+    """The tensions file, read and checked for the robot's tendons (before the input):
+    ``--inputs``, else the ``recording``'s own tension columns."""
     given = options.tensions
-    if not robot.n_tendons:
+    k = robot.n_tendons
+    if not k:
         if given:
             raise InputError(
                 f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
             )
         return None
-    if not given:
-        raise InputError(
-            f"{robot_name}: the robot has {robot.n_tendons} tendons: give their tensions "
-            "with --inputs TENSIONS.csv (t,tension_1,...)"
-        )
-    return read_tensions(given, robot.n_tendons)
+    if given:
+        return read_tensions(given, k)
+    if (
+        recording is not None
+        and not is_robot_log(Path(recording))
+        and has_tension_columns(recording, k)
+    ):
+        return read_tensions(recording, k, other_columns=True)
+    raise InputError(
+        f"{robot_name}: the robot has {k} tendons: give their tensions with --inputs "
+        f"TENSIONS.csv (t,tension_1,...), or as the recording's columns "
+        f"tension_1..tension_{k}"
+    )
 
 
 def _append_tensions(

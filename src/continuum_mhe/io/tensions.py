@@ -9,11 +9,16 @@ accelerometers read). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
 error, as are a negative or non-finite tension, a wrong number of tension columns and
 times that do not increase.
+
+The tensions may also come one sample at a time (``live``'s serial line:
+:class:`TensionStream`), with the same derivatives: those of a sample are known once
+the two samples after it have arrived.
 """
 
 from __future__ import annotations
 
 import os
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,10 +49,14 @@ class Tensions:
     rates: FloatArray
     accelerations: FloatArray
 
+    def covers(self, t: float) -> bool:
+        """Whether ``t`` s lies within the file's times."""
+        return bool(self.t[0] <= t <= self.t[-1])
+
     def at(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
         :class:`InputError` outside the file's times."""
-        if not self.t[0] <= t <= self.t[-1]:
+        if not self.covers(t):
             raise InputError(
                 f"{self.name}: the tensions cover t = {self.t[0]:g} to {self.t[-1]:g} s, "
                 f"but a measurement is at t = {t:g} s: the tensions must cover the "
@@ -59,12 +68,45 @@ class Tensions:
         )
 
 
-def read_tensions(path: str | os.PathLike[str], n_tendons: int) -> Tensions:
-    """Read and check a tensions file for a robot with ``n_tendons`` tendons."""
-    names = [f"tension_{i}" for i in range(1, n_tendons + 1)]
+def tension_columns(n_tendons: int) -> tuple[str, ...]:
+    """``tension_1, ..., tension_k``: the tensions' columns (and serial fields), in the
+    robot file's ``[[tendon]]`` order."""
+    return tuple(f"tension_{i}" for i in range(1, n_tendons + 1))
+
+
+def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
+    """The derivative of ``values`` (n, k) over ``t`` (n,) s at every row: the
+    second-order central difference on uneven steps inside, one-sided at the two ends,
+    zero with one row (numpy's ``gradient`` formulas). Written out because numpy's
+    switches to another formula when the steps of the whole array are equal: the
+    interior rows here depend on their neighbours alone, so a window of a stream gives
+    bit for bit the values of the whole file (:class:`TensionStream`)."""
+    out = np.zeros_like(values, dtype=float)
+    if len(t) < 2:
+        return out
+    h = np.diff(t)[:, None]
+    out[0] = (values[1] - values[0]) / h[0]
+    out[-1] = (values[-1] - values[-2]) / h[-1]
+    h1, h2 = h[:-1], h[1:]
+    a = -h2 / (h1 * (h1 + h2))
+    b = (h2 - h1) / (h1 * h2)
+    c = h1 / (h2 * (h1 + h2))
+    out[1:-1] = a * values[:-2] + b * values[1:-1] + c * values[2:]
+    return out
+
+
+def read_tensions(
+    path: str | os.PathLike[str], n_tendons: int, other_columns: bool = False
+) -> Tensions:
+    """Read and check a tensions file for a robot with ``n_tendons`` tendons
+    (``other_columns``: a recording that carries its tensions beside its IMUs' columns,
+    which are left out here)."""
+    names = list(tension_columns(n_tendons))
     with open_rows(path) as rows:
         name = rows.name
         found = [c for c in rows.header if c != "t"]
+        if other_columns:
+            found = [c for c in found if c.startswith("tension_")]
         if "t" not in rows.header or found != names:
             raise InputError(
                 f"{name}: expected the columns t,{','.join(names)} (one per [[tendon]] of "
@@ -82,12 +124,81 @@ def read_tensions(path: str | os.PathLike[str], n_tendons: int) -> Tensions:
             f"{name}: line {data[i][0]}: tension_{j + 1} = {values[i, j]:g} N is negative: "
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
-    rates = np.zeros_like(values)
-    accelerations = np.zeros_like(values)
-    if len(t) > 1:
-        rates = np.asarray(np.gradient(values, t, axis=0), dtype=float)
-        accelerations = np.asarray(np.gradient(rates, t, axis=0), dtype=float)
-    return Tensions(name, t, values, rates, accelerations)
+    rates = central_differences(t, values)
+    return Tensions(name, t, values, rates, central_differences(t, rates))
+
+
+def has_tension_columns(path: str | os.PathLike[str], n_tendons: int) -> bool:
+    """Whether the table ``path`` (not ``-``) has the columns ``tension_1..k`` of a robot
+    with ``n_tendons`` tendons (a ``live --record`` recording of tensions from the
+    serial line)."""
+    if str(path) == "-" or not n_tendons or not os.path.isfile(path):
+        return False
+    with open_rows(path) as rows:
+        return set(tension_columns(n_tendons)) <= set(rows.header)
+
+
+@dataclass(frozen=True)
+class TensionsAt:
+    """One sample's tensions (N), their rates (N/s) and second derivatives (N/s^2)."""
+
+    t: float
+    values: FloatArray
+    rates: FloatArray
+    accelerations: FloatArray
+
+
+class TensionStream:
+    """Tensions that come one sample at a time, with the derivatives a tensions file of
+    the same rows gives (:func:`central_differences`, of the values and then of the
+    rates): a sample's are known once the two samples after it are in, or at the
+    :meth:`end` of the stream (one-sided there, as at a file's last row)."""
+
+    def __init__(self) -> None:
+        #: the last samples: two before the oldest one not yet given out, that one, and
+        #: the ones after it (five at most)
+        self._t: deque[float] = deque(maxlen=5)
+        self._values: deque[FloatArray] = deque(maxlen=5)
+        self._done = 0  # samples given out so far
+        self._seen = 0  # samples pushed so far
+
+    def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
+        """Add a sample (``t`` s, increasing; ``values`` N); the samples whose
+        derivatives are now known, oldest first (none for the first two)."""
+        self._t.append(t)
+        self._values.append(np.asarray(values, dtype=float))
+        self._seen += 1
+        return self._ready(end=False)
+
+    def end(self) -> list[TensionsAt]:
+        """The stream ended: the samples still waiting, with one-sided derivatives at
+        the end; the stream starts afresh after."""
+        out = self._ready(end=True)
+        self._t.clear()
+        self._values.clear()
+        self._done = self._seen = 0
+        return out
+
+    @property
+    def waiting(self) -> int:
+        """Samples pushed whose derivatives are not known yet."""
+        return self._seen - self._done
+
+    def _ready(self, end: bool) -> list[TensionsAt]:
+        out = []
+        while self._done < self._seen and (end or self._seen - self._done > 2):
+            # the window: up to two samples each side of sample `done` (its derivatives'
+            # neighbours), cut where the stream starts or ends
+            first = self._seen - len(self._t)  # the index of the window's first sample
+            lo, hi = max(self._done - 2, first), min(self._done + 3, self._seen)
+            t = np.array(list(self._t)[lo - first : hi - first])
+            v = np.array(list(self._values)[lo - first : hi - first])
+            rates = central_differences(t, v)
+            acc = central_differences(t, rates)
+            i = self._done - lo
+            out.append(TensionsAt(float(t[i]), v[i], rates[i], acc[i]))
+            self._done += 1
+        return out
 
 
 def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFormulation:

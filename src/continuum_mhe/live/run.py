@@ -2,7 +2,8 @@
 
 The line protocol (one or more IMUs, :mod:`continuum_mhe.stream.protocol`):
 ``t_ms`` then ``ax,ay,az,gx,gy,gz`` (raw) or ``roll,pitch`` (tilt) per IMU, in the
-robot file's order; ``#`` lines are the device's messages, shown and counted.
+robot file's order, then a tendon robot's ``tension_1..k`` (N) unless a tensions file
+gives them; ``#`` lines are the device's messages, shown and counted.
 
 Every valid sample gives exactly one estimate row in ``-o`` and one row in
 ``--record`` (the raw or tilt CSV that ``estimate`` reads, ``t`` in seconds of the
@@ -104,7 +105,7 @@ def run_live(
                     behind_since = now
                     say(
                         f"falling behind real time: {lag:.1f} s, {events.qsize()} lines queued "
-                        "(all are kept; try --method ekf or a shorter --horizon)"
+                        f"(all are kept; {_faster(session)})"
                     )
                 elif lag < 0.5 * settings.behind_s and behind_since is not None:
                     say(f"caught up with real time after {now - behind_since:.1f} s")
@@ -163,6 +164,15 @@ def run_live(
     if failed:
         raise InputError(failed)
     return 0
+
+
+def _faster(session: LiveSession) -> str:
+    """What may make the estimator keep up with the stream."""
+    if session.estimator.name == "mhe":
+        return "try --method ekf or a shorter --horizon"
+    return (
+        f"the {session.estimator.name} is slower than the stream: a lower rate or a faster machine"
+    )
 
 
 # --- optional live plot -------------------------------------------------------------------
@@ -236,12 +246,19 @@ def open_plot(lengths: tuple[float, ...], say: Any) -> LivePlot | None:
     return None
 
 
+#: Warm-up samples per method: the MHE's fill its window (the default horizon, 30) and
+#: run full windows; a filter pays its first-call costs on its first steps (a tendon
+#: robot's EKF takes a good part of a second per step: 40 would hold the start back).
+WARM_UP_STEPS = {"mhe": 40, "ekf": 3, "ukf": 3}
+
+
 def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> None:
     """Run ``steps`` samples of the straight robot through ``estimator``, then reset
     it: compilation and first-call costs (shared by every estimator of the same kind)
-    are paid before the first real sample. Give it a throwaway estimator: after this
-    warm-up and ``reset()`` the fast MHE's estimates differed from a fresh one's by up
-    to 2e-8, enough to break the sample-for-sample replay of a recording."""
+    are paid before the first real sample (:data:`WARM_UP_STEPS`). Give it a throwaway
+    estimator: after this warm-up and ``reset()`` the fast MHE's estimates differed from
+    a fresh one's by up to 2e-8, enough to break the sample-for-sample replay of a
+    recording."""
     f = estimator.formulation
     h, _ = f.functions.measure(np.zeros(f.nx))
     z = np.asarray(h, dtype=float).reshape(-1)

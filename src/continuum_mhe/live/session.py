@@ -1,6 +1,6 @@
-"""A live session: protocol lines in; the device clock, conversion, estimation, the
-recording and the estimate rows out (no threads, no port: :mod:`continuum_mhe.live.run`
-drives it)."""
+"""A live session: protocol lines in; the device clock, conversion, the tendon tensions,
+estimation, the recording and the estimate rows out (no threads, no port:
+:mod:`continuum_mhe.live.run` drives it)."""
 
 from __future__ import annotations
 
@@ -22,6 +22,8 @@ from continuum_mhe.io.raw_imu import (
     check_accel_units,
     check_gyro_units,
 )
+from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream
+from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
     LINE_FORMATS,
@@ -175,6 +177,19 @@ class LatencyHistogram:
         return float(self.EDGES[min(i, len(self.EDGES) - 1)])
 
 
+@dataclass(frozen=True)
+class _Pending:
+    """A sample converted and recorded, waiting for its estimate: ``given`` its tendon
+    tensions, rates and second derivatives (None: not known yet, or a robot without a
+    mechanics model); ``restart``: the estimator restarts before it (a clock restart)."""
+
+    t: float
+    z: FloatArray
+    restart: bool
+    arrival: float
+    given: tuple[FloatArray, FloatArray, FloatArray] | None = None
+
+
 class RowSink(Protocol):
     def write_row(self, cells: Sequence[str]) -> None: ...
 
@@ -200,6 +215,15 @@ class LiveSession:
     ``converter``: None for tilt lines, else one converter per IMU (a single converter
     serves a one-IMU robot). ``out``: estimate rows (an open text stream or a
     :class:`RowFile`); ``record``: a :class:`RowFile` for the samples as received.
+
+    A robot with a mechanics model (a tendon formulation) takes its tendon tensions
+    from ``tensions``, a tensions file (each sample's at its time, as ``estimate``
+    reads it; a sample outside the file's times stops the session), else from every
+    line's fields after the IMUs' (``tension_1..k``, N; recorded as such columns).
+    Tensions from the line enter with the derivatives the same rows give in a file
+    (:class:`~continuum_mhe.io.tensions.TensionStream`): each sample is estimated once
+    the two samples after it have arrived (the last two at the end of the session), so
+    that ``estimate`` on the recording gives the same estimates.
     """
 
     def __init__(
@@ -210,11 +234,22 @@ class LiveSession:
         out: IO[str] | RowSink | None,
         say: Any = None,
         record: RowSink | None = None,
+        tensions: Tensions | None = None,
     ) -> None:
         self.settings = settings
         self.estimator = estimator
         self.formulation = estimator.formulation
         self.n_imus = self.formulation.robot.n_imus
+        f = self.formulation
+        #: the tendon formulation that takes the tensions (None: a robot without them)
+        self.tendon = f if isinstance(f, TendonFormulation) else None
+        if tensions is not None and self.tendon is None:
+            raise ValueError("tendon tensions given for a robot without a mechanics model")
+        self.tension_file = tensions
+        #: tendon tensions on every line, after the IMUs' values
+        self.n_tensions = f.robot.n_tendons if self.tendon is not None and tensions is None else 0
+        self._tension_stream = TensionStream() if self.n_tensions else None
+        self._pending: deque[_Pending] = deque()
         self.converters: list[RawImuConverter] | None = (
             None
             if converter is None
@@ -285,12 +320,15 @@ class LiveSession:
         c.garbled += 1
         c.reasons[reason] = c.reasons.get(reason, 0) + 1
         if c.first_garbled is None:  # said once, as it happens (the rest are counted)
-            c.first_garbled = reason + field_count_hint(text, self.settings.fmt, self.n_imus)
+            c.first_garbled = reason + self._hint(text)
             self.say(
                 f"garbled line skipped: {c.first_garbled} (said for the first only; all are "
                 "counted)"
             )
-        self._garbage(arrival, reason + field_count_hint(text, self.settings.fmt, self.n_imus))
+        self._garbage(arrival, reason + self._hint(text))
+
+    def _hint(self, text: str) -> str:
+        return field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
 
     def _garbage(self, arrival: float, why: str) -> None:
         """One more garbled line in the run of them since the last valid sample: a run
@@ -334,7 +372,7 @@ class LiveSession:
             self._bad("not ASCII", arrival)
             return None
         try:
-            sample = parse_line(text, self.settings.fmt, self.n_imus)
+            sample = parse_line(text, self.settings.fmt, self.n_imus, self.n_tensions)
         except GarbledLine as exc:
             self._bad(str(exc), arrival, text)
             return None
@@ -349,6 +387,8 @@ class LiveSession:
             return None
         if self._held is not None:
             self._release_held(sample)
+            if self.fatal is not None:  # the held sample stopped the session
+                return None
         return self._handle_sample(sample, arrival)
 
     def _release_held(self, following: Sample | None) -> None:
@@ -366,9 +406,12 @@ class LiveSession:
             self.counts.partial += 1
 
     def finish(self) -> None:
-        """The stream ended: a first sample still waiting for the next is kept."""
+        """The stream ended: a first sample still waiting for the next is kept, and the
+        samples waiting for the tensions of the ones after them are estimated."""
         if self._held is not None and self.fatal is None:
             self._release_held(None)
+        if self._tension_stream is not None:
+            self._estimate_pending(self._tension_stream.end())
 
     def _comment(self, text: str, arrival: float) -> None:
         c = self.counts
@@ -381,12 +424,13 @@ class LiveSession:
         names = header_fields(text)
         if names is not None and not self._fields_checked:
             self._fields_checked = True
-            want = line_fields(self.settings.fmt, self.n_imus)
+            want = line_fields(self.settings.fmt, self.n_imus, self.n_tensions)
             if names != want:
+                tensions = f" and {self.n_tensions} tensions" if self.n_tensions else ""
                 self.say(
                     f"the device names {len(names)} fields ({','.join(names)}) but "
-                    f"--format {self.settings.fmt} with {self.n_imus} IMU(s) expects "
-                    f"{len(want)} ({','.join(want)}); check --format and --robot"
+                    f"--format {self.settings.fmt} with {self.n_imus} IMU(s){tensions} "
+                    f"expects {len(want)} ({','.join(want)}); check --format and --robot"
                 )
 
     def too_long_line(self, n_bytes: int, max_bytes: int, arrival: float) -> None:
@@ -420,6 +464,19 @@ class LiveSession:
         if placed.event == "out-of-order":
             c.out_of_order += 1
             return None
+        given = None
+        if self.tension_file is not None:
+            if not self.tension_file.covers(t):
+                ts = self.tension_file.t
+                self.fatal = (
+                    f"{self.tension_file.name}: the tensions cover t = {ts[0]:g} to "
+                    f"{ts[-1]:g} s, but a sample of {self.settings.port} is at t = {t:g} s "
+                    "(the device clock): the tensions must cover the stream"
+                )
+                return None  # neither recorded nor estimated: the session stops
+            given = self.tension_file.at(t)
+        elif self.tendon is not None and not self.n_tensions:  # a backbone, no tendons
+            given = (np.zeros(0),) * 3
         c.samples += 1
         if placed.event == "restart" and self.converters is not None and self.fatal is None:
             # a board reset: it may run other firmware now, so the units are checked again
@@ -464,15 +521,37 @@ class LiveSession:
                 self._periods.append(dt)
                 self._period = None
         if self.record is not None:
+            # "": a dropout, as estimate reads
             cells = (csv_cell(float(v)) if math.isfinite(v) else "" for v in s.values)
-            self.record.write_row([csv_cell(t), *cells])  # "": a dropout, as estimate reads
-        if restart:
-            self._restart(t)
-        est = self._estimate(t, self._measurement(t, s.values))
-        self._write(est)
-        ms = (time.monotonic() - arrival) * 1e3
-        self.latency.add(ms)
-        self.latency_max_window = max(self.latency_max_window, ms)
+            tensions = (csv_cell(float(v)) for v in s.tensions)
+            self.record.write_row([csv_cell(t), *cells, *tensions])
+        if restart:  # the estimator restarts when this sample is estimated
+            for conv in self.converters or ():
+                conv.reset()
+        self._pending.append(_Pending(t, self._measurement(t, s.values), restart, arrival, given))
+        if self._tension_stream is None:
+            return self._estimate_pending([None])
+        return self._estimate_pending(self._tension_stream.push(t, s.tensions))
+
+    def _estimate_pending(self, ready: Sequence[TensionsAt | None]) -> Estimate | None:
+        """Estimate the oldest waiting samples, one per item of ``ready``: with the
+        tensions from the lines (:class:`TensionsAt`), or (None) with their own
+        ``given``; the last estimate made, if any."""
+        est = None
+        for g in ready:
+            p = self._pending.popleft()
+            if g is not None:
+                p = replace(p, given=(g.values, g.rates, g.accelerations))
+            z = p.z if p.given is None or self.tendon is None else (
+                self.tendon.measurement_row(p.z, *p.given)
+            )  # fmt: skip
+            if p.restart:
+                self._restart(p.t, converters=False)
+            est = self._estimate(p.t, z)
+            self._write(est)
+            ms = (time.monotonic() - p.arrival) * 1e3
+            self.latency.add(ms)
+            self.latency_max_window = max(self.latency_max_window, ms)
         return est
 
     def check_units(self) -> None:
@@ -512,12 +591,14 @@ class LiveSession:
             ]
         )
 
-    def _restart(self, t: float) -> None:
+    def _restart(self, t: float, converters: bool = True) -> None:
+        """Restart the estimator at the sample at ``t`` s (and the raw converters, unless
+        they were restarted when that sample arrived)."""
         c = self.counts
         c.restarts += 1
         if c.first_restart_t is None:
             c.first_restart_t = t
-        for conv in self.converters or ():
+        for conv in (self.converters or ()) if converters else ():
             conv.reset()
         self.estimator.reset(keep_counts=True)  # the same session: its freezes said once
         self._restarted = True  # the next estimate says so (status reset)
@@ -579,7 +660,9 @@ class LiveSession:
         angles = " ".join(
             f"{o.name}={math.degrees(v[o.name]):.1f}" for o in outputs if o.unit == "rad"
         )
-        return f"t={est.t:.2f} s tip=({tip}) mm {angles} deg [{est.status}]"
+        force = ",".join(f"{v[k]:.3f}" for k in ("fx", "fy", "fz") if k in v)
+        force = f" tip force=({force}) N" if force else ""
+        return f"t={est.t:.2f} s tip=({tip}) mm {angles} deg{force} [{est.status}]"
 
     def status(self, rate_hz: float, behind_s: float, queued: int, waiting: bool = False) -> str:
         c = self.counts

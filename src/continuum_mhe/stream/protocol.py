@@ -6,7 +6,9 @@ ASCII lines ending in LF, CR or CRLF, one sample per line:
   force in m/s^2 and angular rate in rad/s, each IMU in its own sensor frame;
 * ``tilt``: ``t_ms`` then ``roll,pitch`` per IMU, rad.
 
-IMUs come in the robot file's order. Lines starting with ``#`` are comments (the
+IMUs come in the robot file's order. A tendon robot's line carries the tendon
+tensions after the IMUs' values: ``tension_1,...,tension_k`` in N, in the robot file's
+``[[tendon]]`` order (unless they come from a file). Lines starting with ``#`` are comments (the
 firmware's banner, its ``# fields: ...`` line naming the fields, errors); blank lines
 are ignored. A line longer than :data:`MAX_LINE_BYTES` is dropped and counted.
 """
@@ -15,13 +17,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, tilt_columns
 from continuum_mhe.io.raw_imu import raw_columns
+from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields
 
 LineFormat = Literal["raw", "tilt"]
@@ -45,11 +48,13 @@ class Sample:
     """One parsed line: device time ``t_ms`` in ms and the values, IMU after IMU
     (raw: 6 per IMU, tilt: 2 per IMU); an IMU whose fields were not a valid reading
     (on a line whose other IMUs' were) has NaN values, a dropout, and ``problems``
-    says why (``"IMU 2: non-numeric field"``)."""
+    says why (``"IMU 2: non-numeric field"``). ``tensions``: the tendon tensions the
+    line carried, N (empty for a line without them)."""
 
     t_ms: float
     values: FloatArray
     problems: tuple[str, ...] = ()
+    tensions: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def t(self) -> float:
@@ -57,17 +62,21 @@ class Sample:
         return self.t_ms / 1e3
 
 
-def value_columns(fmt: LineFormat, n_imus: int) -> tuple[str, ...]:
+def value_columns(fmt: LineFormat, n_imus: int, n_tensions: int = 0) -> tuple[str, ...]:
     """The value names of ``n_imus`` IMUs, as the CSV files of ``estimate`` name them:
-    ``ax..gz`` or ``roll,pitch`` for one IMU, ``ax_1..gz_1,ax_2..`` for several."""
-    if fmt == "tilt":
-        return tilt_columns(n_imus)
-    return tuple(c for i in range(n_imus) for c in raw_columns(i, n_imus))
+    ``ax..gz`` or ``roll,pitch`` for one IMU, ``ax_1..gz_1,ax_2..`` for several; then
+    ``tension_1..tension_k`` for a line with ``n_tensions`` tensions."""
+    imus = (
+        tilt_columns(n_imus)
+        if fmt == "tilt"
+        else tuple(c for i in range(n_imus) for c in raw_columns(i, n_imus))
+    )
+    return (*imus, *tension_columns(n_tensions))
 
 
-def line_fields(fmt: LineFormat, n_imus: int) -> tuple[str, ...]:
+def line_fields(fmt: LineFormat, n_imus: int, n_tensions: int = 0) -> tuple[str, ...]:
     """The fields of a protocol line: ``t_ms`` and :func:`value_columns`."""
-    return ("t_ms", *value_columns(fmt, n_imus))
+    return ("t_ms", *value_columns(fmt, n_imus, n_tensions))
 
 
 def _number(text: str) -> float:
@@ -100,25 +109,30 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
     return v
 
 
-def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
-    """Parse one protocol line; None for comments and blank lines.
+def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0) -> Sample | None:
+    """Parse one protocol line (``n_tensions`` tendon tensions after the IMUs' values);
+    None for comments and blank lines.
 
     Raises :class:`GarbledLine` for anything else that is not a complete, plausible
     sample (wrong field count, a bad time, non-numbers, non-finite or out-of-range
-    values, an accelerometer that reads exactly zero). On a line of several IMUs, an
-    IMU whose values are bad is a dropout (NaN, said in :attr:`Sample.problems`) and
-    the others are kept; a line with no good IMU is garbled.
+    values, an accelerometer that reads exactly zero, a negative tension). On a line of
+    several IMUs, an IMU whose values are bad is a dropout (NaN, said in
+    :attr:`Sample.problems`) and the others are kept; a line with no good IMU is
+    garbled, and so is one with a bad tension (the model cannot predict the IMUs
+    without every tension).
     """
     line = text.strip()
     if not line or line.startswith("#"):
         return None
     parts = line.split(",")
     k = VALUES_PER_IMU[fmt]
-    if len(parts) != 1 + k * n_imus:
-        raise GarbledLine(f"expected {1 + k * n_imus} fields, found {len(parts)}")
+    n_fields = 1 + k * n_imus + n_tensions
+    if len(parts) != n_fields:
+        raise GarbledLine(f"expected {n_fields} fields, found {len(parts)}")
     t_ms = _number(parts[0])
     if t_ms < 0:
         raise GarbledLine("negative time")
+    tensions = _tensions(parts[1 + k * n_imus :])
     values: list[float] = []
     problems: list[str] = []
     for i in range(n_imus):
@@ -131,7 +145,18 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1) -> Sample | None:
             values += [math.nan] * k
     if len(problems) == n_imus:
         raise GarbledLine(problems[0])
-    return Sample(t_ms, np.array(values), tuple(problems))
+    return Sample(t_ms, np.array(values), tuple(problems), tensions)
+
+
+def _tensions(fields: list[str]) -> FloatArray:
+    """A line's tendon tensions, N: finite and non-negative, or :class:`GarbledLine`."""
+    try:
+        v = np.array([_number(f) for f in fields])
+    except GarbledLine as exc:
+        raise GarbledLine(f"a tension: {exc}") from None
+    if (v < 0).any():
+        raise GarbledLine("a negative tension (a tendon cannot push; a slack one's is 0)")
+    return v
 
 
 def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
@@ -151,13 +176,21 @@ def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
     return "value beyond the sensor's range"
 
 
-def field_count_hint(text: str, fmt: LineFormat, n_imus: int) -> str:
-    """A likely cause of a line with the wrong number of fields, or "": ``--format``
-    (another format with the robot's IMU count), then the IMU count of ``--robot``
-    (another whole number of IMUs in this format), then both."""
+def field_count_hint(text: str, fmt: LineFormat, n_imus: int, n_tensions: int = 0) -> str:
+    """A likely cause of a line with the wrong number of fields, or "": the tensions
+    left out (a line of the IMUs alone where ``n_tensions`` tensions follow them),
+    ``--format`` (another format with the robot's IMU count), then the IMU count of
+    ``--robot`` (another whole number of IMUs in this format), then both."""
     found = len(text.strip().split(","))
-    if found == 1 + VALUES_PER_IMU[fmt] * n_imus:  # garbled otherwise
+    if found == 1 + VALUES_PER_IMU[fmt] * n_imus + n_tensions:  # garbled otherwise
         return ""
+    if n_tensions and found == 1 + VALUES_PER_IMU[fmt] * n_imus:
+        return (
+            f": a line without the robot's {n_tensions} tendon tensions; send "
+            f"tension_1..tension_{n_tensions} (N) after the IMUs' fields, or give --inputs "
+            "TENSIONS.csv"
+        )
+    found -= n_tensions  # the IMUs' part of a line that carries the tensions
     others = [g for g in LINE_FORMATS if g != fmt]
     for g in others:
         if found == 1 + VALUES_PER_IMU[g] * n_imus:

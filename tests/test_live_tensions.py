@@ -1,0 +1,336 @@
+"""``live`` on a tendon robot: its tensions from the serial line (after the IMUs'
+fields) or from a tensions file, against ``estimate`` on the same samples (the first
+samples of the shipped ``unloaded`` recording); bad tensions skipped and counted; the
+recording replayed with its tensions. The tendon EKF's first step reads the model's
+tape (tens of seconds): every estimate here comes from one module fixture's runs."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import main
+from continuum_mhe.estimators import Estimate, Measurement, make_estimator
+from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
+from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.inputs import SerialInput, open_input, serial_input
+from continuum_mhe.io.robot_file import read_robot, shipped_robots
+from continuum_mhe.io.tensions import TensionStream, central_differences, read_tensions
+from continuum_mhe.live.run import run_live
+from continuum_mhe.live.session import LiveSession, LiveSettings
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.settings import MHESettings, NoiseSettings
+from continuum_mhe.stream.protocol import GarbledLine, field_count_hint, parse_line, value_columns
+from continuum_mhe.stream.recording import RowFile
+
+DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+ROBOT = "tendon-two-section"
+N = 20  # samples of the recording used
+
+
+def _rows(path: Path, n: int) -> tuple[list[str], list[list[str]]]:
+    lines = path.read_text().splitlines()
+    return lines[0].split(","), [ln.split(",") for ln in lines[1 : n + 1]]
+
+
+def _first_samples(tmp: Path) -> tuple[Path, Path, list[str], list[str]]:
+    """The first N samples of ``unloaded`` (raw IMUs, tensions) as files, and as serial
+    lines: ``t_ms``, the IMUs' fields as written in the file, then the tensions (and the
+    same lines without the tensions)."""
+    head, raw = _rows(DATA / "unloaded_raw.csv", N)
+    t_head, ten = _rows(DATA / "unloaded_tensions.csv", N)
+    assert [r[0] for r in raw] == [r[0] for r in ten]  # the same times
+    raw_path, ten_path = tmp / "raw.csv", tmp / "tensions.csv"
+    raw_path.write_text("\n".join(",".join(r) for r in [head, *raw]) + "\n")
+    ten_path.write_text("\n".join(",".join(r) for r in [t_head, *ten]) + "\n")
+    t_ms = [f"{round(float(r[0]) * 1000)}" for r in raw]
+    with_tensions = [",".join([t, *r[1:], *s[1:]]) for t, r, s in zip(t_ms, raw, ten)]
+    imus_only = [",".join([t, *r[1:]]) for t, r in zip(t_ms, raw)]
+    return raw_path, ten_path, with_tensions, imus_only
+
+
+class _Port:
+    """A serial port stand-in: ``data`` in one read, then reads time out."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data = bytearray(data)
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self.data)
+
+    def read(self, n: int) -> bytes:
+        if not self.data:
+            time.sleep(0.01)
+        chunk = bytes(self.data[:n])
+        del self.data[:n]
+        return chunk
+
+    def close(self) -> None:
+        pass
+
+
+@dataclass
+class Runs:
+    estimator: Estimator  # the one EKF of every run (reset between them)
+    batch: list[Estimate]  # estimate's pipeline on the files
+    batch_z: np.ndarray
+    line: list[Estimate]  # live, tensions on the line, with bad lines between
+    line_session: LiveSession
+    recording: Path
+    file: list[Estimate]  # live, tensions from the file
+    record_z: np.ndarray  # estimate's pipeline on live's recording
+    base: Formulation  # the robot's formulation before its tensions
+
+
+def _live(
+    serial: SerialInput,
+    estimator: Estimator,
+    lines: list[str],
+    record: RowFile | None = None,
+    duration: float = 0.5,
+) -> tuple[LiveSession, list[Estimate], list[str]]:
+    """``run_live`` on ``lines`` through a port stand-in, as the command line sets it
+    up from ``serial``: the session, its estimates and what it said."""
+    said: list[str] = []
+    made: list[Estimate] = []
+    settings = LiveSettings(port="/dev/ttyTEN", duration=duration)
+    s = LiveSession(
+        settings, estimator, serial.converters, None, said.append, record, serial.tensions
+    )
+    s.on_estimate = made.append
+    run_live(settings, s, _Port("".join(ln + "\n" for ln in lines).encode()))
+    return s, made, said
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> Runs:
+    tmp = tmp_path_factory.mktemp("tensions")
+    raw_path, ten_path, with_tensions, imus_only = _first_samples(tmp)
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    with open_input(raw_path, InputOptions(tensions=str(ten_path)), base, ROBOT) as stream:
+        formulation, samples = stream.formulation, list(stream.samples)
+    est = make_estimator("ekf", formulation, MHESettings())
+    est.reset()
+    batch = [est.step(Measurement(t, z)) for t, z in samples]
+
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    assert serial.formulation == formulation and serial.tensions_on_line == 6
+    bad = [
+        with_tensions[3].rsplit(",", 1)[0] + ",-0.5",  # a negative tension
+        with_tensions[3].rsplit(",", 1)[0] + ",nan",  # a non-finite one
+        with_tensions[3].rsplit(",", 1)[0],  # one tension short
+        with_tensions[3] + ",1.0",  # one too many
+    ]
+    lines = [*with_tensions[:5], *bad, *with_tensions[5:]]
+    recording = tmp / "recorded.csv"
+    record = RowFile(recording, ("t", *value_columns("raw", 2, 6)), overwrite=False)
+    session, line, _ = _live(serial, est, lines, record)
+    record.close()
+    with open_input(recording, InputOptions(), base) as stream:
+        record_z = np.array([z for _, z in stream.samples])
+
+    by_file = serial_input("/dev/ttyTEN", "raw", InputOptions(tensions=str(ten_path)), base)
+    assert by_file.tensions is not None and by_file.tensions_on_line == 0
+    _, file, _ = _live(by_file, est, imus_only)
+    batch_z = np.array([z for _, z in samples])
+    return Runs(est, batch, batch_z, line, session, recording, file, record_z, base)
+
+
+def _same_estimates(live: list[Estimate], batch: list[Estimate]) -> None:
+    assert [e.t for e in live] == [e.t for e in batch]
+    assert [e.status for e in live] == [e.status for e in batch]
+    for a, b in zip(live, batch):
+        assert a.output is not None and b.output is not None
+        assert a.output_std is not None and b.output_std is not None
+        np.testing.assert_allclose(a.output, b.output, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.output_std, b.output_std, rtol=0, atol=1e-9)
+
+
+def test_live_with_tensions_on_the_line_gives_estimates_estimate_gives(runs: Runs) -> None:
+    assert len(runs.batch) == N
+    _same_estimates(runs.line, runs.batch)
+    names = [o.name for o in runs.line_session.formulation.outputs]
+    for name in ("fx", "fy", "fz", "psi_1", "psi_2"):
+        assert name in names
+    assert {e.status for e in runs.batch} == {"ok"}
+
+
+def test_bad_tensions_on_the_line_are_skipped_counted_and_said(runs: Runs) -> None:
+    c = runs.line_session.counts
+    assert (c.samples, c.estimates, c.garbled) == (N, N, 4)
+    summary = runs.line_session.summary()
+    assert "4 garbled" in summary
+    assert "a negative tension" in summary and "a tension: non-finite value" in summary
+    assert "expected 19 fields, found 18" in summary and "found 20" in summary
+
+
+def test_the_recording_keeps_the_tensions_and_replays_to_the_same_measurements(
+    runs: Runs,
+) -> None:
+    header = runs.recording.read_text().splitlines()[0].split(",")
+    assert header[-6:] == [f"tension_{i}" for i in range(1, 7)]
+    # estimate reads the recording's own tension columns: the same measurements, bit
+    # for bit, as from the files, so the same estimates
+    np.testing.assert_array_equal(runs.record_z, runs.batch_z)
+
+
+def test_live_with_a_tensions_file_gives_estimates_estimate_gives(runs: Runs) -> None:
+    _same_estimates(runs.file, runs.batch)
+
+
+def test_the_command_line_live_writes_the_tip_force_and_replays(
+    runs: Runs,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``continuum-mhe live --robot tendon-two-section -o --record`` (the port a
+    stand-in), then ``estimate`` on the recording: the estimate file's columns come from
+    the model (the tip force with its standard deviations), its rows are those of
+    ``estimate``'s pipeline, and the replay gives the same file. (The EKF's model
+    functions are those the module's runs built: the same formulation.)"""
+    with_tensions, _ = _first_samples_lines()
+    data = "".join(ln + "\n" for ln in [*with_tensions[:3], "20,1,2", *with_tensions[3:]])
+    monkeypatch.setattr("continuum_mhe.cli.live.open_port", lambda *a: _Port(data.encode()))
+    est, rec, replay = tmp_path / "est.csv", tmp_path / "rec.csv", tmp_path / "replay.csv"
+    argv = ["live", "--port", "/dev/ttyTEN", "--robot", ROBOT, "-o", str(est), "--record",
+            str(rec), "--duration", "0.5", "--status-every", "0.001"]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "(t_ms,ax_1," in err and ",gz_2,tension_1,tension_2," in err and "tip force=(" in err
+    assert f"{N} samples, {N} estimates; 1 garbled" in err
+    assert rec.read_text().splitlines()[0].endswith(",gz_2,tension_1,tension_2,tension_3,"
+                                                     "tension_4,tension_5,tension_6")  # fmt: skip
+    live = read_state_table(est)
+    assert live.names[-3:] == ("fx", "fy", "fz") and live.std is not None
+    batch_out = np.array([e.output for e in runs.batch])
+    np.testing.assert_allclose(live.values, batch_out, rtol=1e-9, atol=1e-12)
+    assert main(["estimate", str(rec), "--robot", ROBOT, "-o", str(replay)]) == 0
+    again = read_state_table(replay)
+    np.testing.assert_array_equal(again.t, live.t)
+    np.testing.assert_array_equal(again.values, live.values)
+    np.testing.assert_array_equal(again.std, live.std)
+    assert list(again.status) == list(live.status) == ["ok"] * N
+
+
+def test_lines_without_the_tensions_are_garbled_and_say_how_to_send_them(runs: Runs) -> None:
+    """A tendon robot's stream without tensions (and no --inputs): no sample, one line
+    naming the cause and the fix, as for any stream of garbled lines."""
+    _, imus_only = _first_samples_lines()
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), runs.base)
+    with pytest.raises(InputError, match="no valid sample") as err:
+        _live(serial, runs.estimator, imus_only[:6])
+    assert "a line without the robot's 6 tendon tensions" in str(err.value)
+    assert "--inputs TENSIONS.csv" in str(err.value)
+
+
+def test_a_tensions_file_that_does_not_cover_the_stream_stops_it_before_writing(
+    runs: Runs, tmp_path: Path
+) -> None:
+    with_tensions, imus_only = _first_samples_lines()
+    short = tmp_path / "short.csv"
+    write_table(short, ["t", *(f"tension_{i}" for i in range(1, 7))], [[1.0, *[0.0] * 6]])
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(tensions=str(short)), runs.base)
+    recording = tmp_path / "rec.csv"
+    record = RowFile(recording, ("t", *value_columns("raw", 2)), overwrite=False)
+    with pytest.raises(InputError) as err:
+        _live(serial, runs.estimator, imus_only[:6], record)
+    assert str(err.value) == (
+        f"{short}: the tensions cover t = 1 to 1 s, but a sample of /dev/ttyTEN is at t = 0 s "
+        "(the device clock): the tensions must cover the stream"
+    )
+    assert not recording.exists()  # nothing written
+
+
+def _first_samples_lines() -> tuple[list[str], list[str]]:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        _, _, with_tensions, imus_only = _first_samples(Path(tmp))
+    return with_tensions, imus_only
+
+
+# --- the parts, without an estimator -----------------------------------------------------------
+def test_parse_line_reads_the_tensions_after_the_imus() -> None:
+    s = parse_line("20,0.1,-0.2,0.3,0.4,1.5,0,2.25", "tilt", n_imus=2, n_tensions=3)
+    assert s is not None
+    np.testing.assert_array_equal(s.values, [0.1, -0.2, 0.3, 0.4])
+    np.testing.assert_array_equal(s.tensions, [1.5, 0.0, 2.25])
+    assert parse_line("20,0.1,-0.2", "tilt").tensions.shape == (0,)  # type: ignore[union-attr]
+    for line, why in [
+        ("20,0.1,-0.2,1.5,-0.01", "a negative tension"),
+        ("20,0.1,-0.2,1.5,inf", "a tension: non-finite value"),
+        ("20,0.1,-0.2,1.5,x", "a tension: non-numeric field"),
+        ("20,0.1,-0.2,1.5", "expected 5 fields, found 4"),
+    ]:
+        with pytest.raises(GarbledLine, match=why):
+            parse_line(line, "tilt", n_tensions=2)
+
+
+def test_field_count_hint_names_the_missing_tensions() -> None:
+    imus_only = "20," + ",".join(["0.1"] * 12)
+    assert "a line without the robot's 6 tendon tensions" in field_count_hint(
+        imus_only, "raw", 2, n_tensions=6
+    )
+    # a line with its tensions, in --format raw, read as tilt: the format is named
+    tilt_read = "20," + ",".join(["0.1"] * 12) + ",1,1,1,1,1,1"
+    assert "--format raw" in field_count_hint(tilt_read, "tilt", 2, n_tensions=6)
+    assert field_count_hint(tilt_read, "raw", 2, n_tensions=6) == ""
+
+
+def test_central_differences_are_numpys_gradient() -> None:
+    """The written-out formulas against numpy's gradient (its uneven-step formulas
+    inside, first order at the ends), on uneven and even steps."""
+    rng = np.random.default_rng(3)
+    steps = (rng.uniform(0.005, 0.03, 40), np.full(40, 0.25))
+    for t in (np.cumsum(h) for h in steps):
+        v = rng.normal(size=(40, 3))
+        np.testing.assert_allclose(
+            central_differences(t, v), np.gradient(v, t, axis=0), rtol=1e-12, atol=1e-9
+        )
+    assert not central_differences(np.array([0.0]), np.ones((1, 2))).any()  # one row: zero
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 9])
+def test_a_stream_of_tensions_has_the_derivatives_of_the_same_rows_in_a_file(
+    tmp_path: Path, n: int
+) -> None:
+    """Bit for bit, so that a recording replays to the same estimates; each sample's
+    once the two after it are in."""
+    rng = np.random.default_rng(n)
+    t = np.cumsum(rng.uniform(0.01, 0.03, n))
+    v = rng.uniform(0.0, 3.0, (n, 2))
+    path = tmp_path / "t.csv"
+    write_table(path, ["t", "tension_1", "tension_2"], np.column_stack([t, v]).tolist())
+    file = read_tensions(path, 2)
+    stream = TensionStream()
+    got = []
+    for i in range(n):
+        ready = stream.push(float(file.t[i]), file.values[i])
+        assert len(ready) == (1 if i >= 2 else 0) and stream.waiting == min(i + 1, 2)
+        got += ready
+    got += stream.end()
+    assert [g.t for g in got] == file.t.tolist()
+    np.testing.assert_array_equal([g.values for g in got], file.values)
+    np.testing.assert_array_equal([g.rates for g in got], file.rates)
+    np.testing.assert_array_equal([g.accelerations for g in got], file.accelerations)
+
+
+def test_live_refuses_inputs_for_a_robot_without_tendons_before_the_port(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tensions = tmp_path / "tensions.csv"
+    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0]])
+    argv = ["live", "--port", str(tmp_path / "none"), "--robot", "two-section",
+            "--inputs", str(tensions), "-o", str(tmp_path / "e.csv")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the robot has no [[tendon]]" in err[0] and str(tensions) in err[0]
+    assert not (tmp_path / "e.csv").exists()
