@@ -40,23 +40,26 @@ void cmhe::bind_consistency(nb::module_& m) {
       "(continuum_mhe.estimators.consistency). Matrices row-major.")
       .def(
           "__init__",
-          [](ConsistencyCheck* self, const ModelFunction& node, int nx, int nu, int nz,
-             std::vector<double> R, std::vector<double> judged, std::vector<double> limit,
+          [](ConsistencyCheck* self, const ModelFunction& transition,
+             const ModelFunction& measurement, const ModelFunction& residual, int nx, int nu,
+             int nz, std::vector<double> R, std::vector<double> judged, std::vector<double> limit,
              std::vector<double> run_limit, std::vector<double> avg_limit,
              std::vector<double> bias, std::vector<double> gravity_r, int memory,
              double rcond) {
             new (self) ConsistencyCheck(
-                node, ConsistencySettings{nx, nu, nz, std::move(R), std::move(judged),
-                                          std::move(limit), std::move(run_limit),
-                                          std::move(avg_limit), std::move(bias),
-                                          std::move(gravity_r), memory, rcond});
+                transition, measurement, residual,
+                ConsistencySettings{nx, nu, nz, std::move(R), std::move(judged),
+                                    std::move(limit), std::move(run_limit),
+                                    std::move(avg_limit), std::move(bias),
+                                    std::move(gravity_r), memory, rcond});
           },
-          nb::arg("node"), nb::arg("nx"), nb::arg("nu"), nb::arg("nz"), nb::arg("R"),
-          nb::arg("judged"), nb::arg("limit"), nb::arg("run_limit"), nb::arg("avg_limit"),
+          nb::arg("transition"), nb::arg("measurement"), nb::arg("residual"), nb::arg("nx"),
+          nb::arg("nu"), nb::arg("nz"), nb::arg("R"), nb::arg("judged"), nb::arg("limit"), nb::arg("run_limit"), nb::arg("avg_limit"),
           nb::arg("bias"), nb::arg("gravity_r"), nb::arg("memory"), nb::arg("rcond"),
-          nb::keep_alive<1, 2>(),
-          "``node``: the node function ``(x, u, dt, z, m) -> (f, F, H, r)``; ``R`` (nz x "
-          "nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; "
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
+          "Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, "
+          "``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, "
+          "row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; "
           "``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the "
           "number of judged readings; ``bias`` (nz): the readings' constant-error "
           "variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; "

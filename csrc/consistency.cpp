@@ -23,8 +23,13 @@ RowMatrix pinv_symmetric(const RowMatrix& a, double rcond) {
   return u * inv_s.asDiagonal() * u.transpose();
 }
 
-ConsistencyCheck::ConsistencyCheck(const ModelFunction& node, ConsistencySettings settings)
-    : node_(node), s_(std::move(settings)) {
+ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
+                                   const ModelFunction& measurement,
+                                   const ModelFunction& residual, ConsistencySettings settings)
+    : transition_(transition),
+      measurement_(measurement),
+      residual_(residual),
+      s_(std::move(settings)) {
   const size_t nx = s_.nx, nz = s_.nz;
   const auto need = [](const std::vector<double>& v, size_t n, const char* name) {
     if (v.size() != n)
@@ -39,21 +44,24 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& node, ConsistencySetting
   need(s_.bias, nz, "bias");
   need(s_.gravity_r, nz, "gravity_r");
   if (s_.memory < 1) throw std::invalid_argument("memory must be at least 1");
-  const int64_t size = static_cast<int64_t>(nx + nx * nx + nz * nx + nz);
-  if (node_.output_size() != size)
-    throw std::invalid_argument("the node function writes " +
-                                std::to_string(node_.output_size()) + " values, expected " +
-                                std::to_string(size) + " (f, F, H, r)");
+  const auto writes = [](const ModelFunction& fn, size_t n, const char* name) {
+    if (fn.output_size() != static_cast<int64_t>(n))
+      throw std::invalid_argument(std::string("the ") + name + " function writes " +
+                                  std::to_string(fn.output_size()) + " values, expected " +
+                                  std::to_string(n));
+  };
+  writes(transition_, nx + nx * nx, "transition (f, F)");
+  writes(measurement_, nz * nx + nz, "measurement (H, r)");
+  writes(residual_, nz, "residual (r)");
   r_inv_.resize(nz);
   for (size_t i = 0; i < nz; ++i) r_inv_[i] = 1.0 / s_.R[i * nz + i];
   zv_.resize(nz);
   ones_.assign(nz, 1.0);
   zeros_u_.assign(s_.nu, 0.0);
   dt_.resize(1);
-  out_.resize(size);
-  xn_.resize(nx);
-  F_.resize(nx * nx);
-  r_pred_.resize(nz);
+  fF_.resize(nx + nx * nx);
+  Hr_.resize(nz * nx + nz);
+  r_.resize(nz);
   x0_.resize(nx);
   P0_.resize(nx * nx);
   rows_.reserve(nz);
@@ -83,11 +91,11 @@ void ConsistencyCheck::set_readings(const double* z, const double* mask) {
   for (int i = 0; i < s_.nz; ++i) zv_[i] = mask[i] > 0.0 ? z[i] : 0.0;
 }
 
-void ConsistencyCheck::evaluate(const double* x, const double* u, double dt) {
+void ConsistencyCheck::evaluate(const ModelFunction& fn, const double* x, const double* u,
+                                double dt, double* out) {
   dt_[0] = dt;
   const double* in[5] = {x, s_.nu ? u : nullptr, dt_.data(), zv_.data(), ones_.data()};
-  if (node_.evaluate(in, out_.data()) != 0)
-    throw std::runtime_error("the node function's evaluation failed");
+  if (fn.evaluate(in, out) != 0) throw std::runtime_error("the model's evaluation failed");
 }
 
 bool ConsistencyCheck::check(double t, const double* z, const double* mask, const double* x,
@@ -99,26 +107,23 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   const int dof = static_cast<int>(rows_.size());
   nis_ = fit_ = 0.0;
   dof_ = dof;
-  const double* r = out_.data() + nx + nx * nx + nz * nx;  // the node's r(z, x)
   if (dof > 0) {
     set_readings(z, mask);
     if (has_prev_) {
       if (!Q || (s_.nu && !u))
         throw std::invalid_argument("the prediction from the previous estimate needs u and Q");
       const double dt = t - t0_;
-      evaluate(x0_.data(), u, dt);  // x+ = f(x0, u, dt), F
-      std::copy(out_.begin(), out_.begin() + nx, xn_.begin());
-      std::copy(out_.begin() + nx, out_.begin() + nx + nx * nx, F_.begin());
-      evaluate(xn_.data(), u, dt);  // H and r at x+
-      ConstRowMap H(out_.data() + nx + nx * nx, nz, nx);
-      std::copy(r, r + nz, r_pred_.begin());
-      ConstRowMap F(F_.data(), nx, nx), P0(P0_.data(), nx, nx), Qm(Q, nx, nx);
+      evaluate(transition_, x0_.data(), u, dt, fF_.data());  // x+ = f(x0, u, dt), F
+      evaluate(measurement_, fF_.data(), u, dt, Hr_.data());  // H and r at x+
+      ConstRowMap F(fF_.data() + nx, nx, nx), P0(P0_.data(), nx, nx), Qm(Q, nx, nx);
+      ConstRowMap H(Hr_.data(), nz, nx);
+      const double* r_pred = Hr_.data() + nz * nx;
       const RowMatrix Pn = F * P0 * F.transpose() + Qm;
       RowMatrix Hj(dof, nx), S(dof, dof);
       Eigen::VectorXd rp(dof);
       for (int a = 0; a < dof; ++a) {
         Hj.row(a) = H.row(rows_[a]);
-        rp[a] = r_pred_[rows_[a]];
+        rp[a] = r_pred[rows_[a]];
       }
       S.noalias() = Hj * Pn * Hj.transpose();
       for (int a = 0; a < dof; ++a)
@@ -130,10 +135,11 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
         noise_scale_ += (nis_ / dof - noise_scale_) / s_.memory;
         avg_dof_ = dof;
       }
-      evaluate(x, u, dt);  // r at this estimate
+      evaluate(residual_, x, u, dt, r_.data());  // r at this estimate
     } else {
-      evaluate(x, zeros_u_.data(), 0.0);
+      evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());
     }
+    const double* r = r_.data();
     for (int i : rows_) fit_ += r[i] * r[i] * r_inv_[i];
   }
   t0_ = t;
@@ -166,8 +172,8 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   const int nr = static_cast<int>(rows_.size());
   if (nr == 0) return;
   set_readings(z, mask);
-  evaluate(x, zeros_u_.data(), 0.0);
-  ConstRowMap H(out_.data() + nx + nx * nx, nz, nx);
+  evaluate(measurement_, x, zeros_u_.data(), 0.0, Hr_.data());
+  ConstRowMap H(Hr_.data(), nz, nx);
   cols_.clear();  // the states the readings depend on
   for (int c = 0; c < nx; ++c)
     for (int i : rows_)

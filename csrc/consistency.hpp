@@ -4,10 +4,12 @@
 // this reading to this estimate, the exponential average of NIS / dof and the model
 // error it shows, and the estimate's covariance from the readings' constant errors.
 //
-// Matrices are row-major (numpy's C order). The node function is
-// ``(x, u, dt, z, m) -> (f, F, H, r)`` (continuum_mhe.estimators.fast.codegen.
-// node_function); it is evaluated with every reading's mask 1 and the invalid readings
-// zero.
+// Matrices are row-major (numpy's C order). The model comes as three functions of the
+// node's inputs ``(x, u, dt, z, m)`` (continuum_mhe.estimators.fast.codegen.
+// node_function's outputs, each evaluated only where it is needed): the transition
+// ``(f, F)``, the measurement ``(H, r)`` and the residual ``r``, with ``F = df/dx``,
+// ``H = -dr/dx``; they are evaluated with every reading's mask 1 and the invalid
+// readings zero.
 #pragma once
 
 #include <Eigen/Dense>
@@ -41,7 +43,8 @@ struct ConsistencySettings {
 
 class ConsistencyCheck {
  public:
-  ConsistencyCheck(const ModelFunction& node, ConsistencySettings settings);
+  ConsistencyCheck(const ModelFunction& transition, const ModelFunction& measurement,
+                   const ModelFunction& residual, ConsistencySettings settings);
 
   // forget the previous estimate and the average (a (re)start)
   void reset();
@@ -68,14 +71,16 @@ class ConsistencyCheck {
   bool has_previous() const { return has_prev_; }
 
  private:
-  // the node function at (x, u, dt, zv) with every mask 1; outputs in out_
-  void evaluate(const double* x, const double* u, double dt);
+  // ``fn`` at (x, u, dt, zv) with every mask 1 into ``out``
+  void evaluate(const ModelFunction& fn, const double* x, const double* u, double dt,
+                double* out);
   void set_readings(const double* z, const double* mask);
 
-  const ModelFunction& node_;
+  const ModelFunction &transition_, &measurement_, &residual_;
   ConsistencySettings s_;
   std::vector<double> r_inv_;
-  std::vector<double> zv_, ones_, zeros_u_, dt_, out_, xn_, F_, r_pred_;
+  std::vector<double> zv_, ones_, zeros_u_, dt_;
+  std::vector<double> fF_, Hr_, r_;  // the transition's, measurement's, residual's outputs
   std::vector<int> rows_, cols_;
   std::vector<double> x0_, P0_;
   double t0_ = 0.0;

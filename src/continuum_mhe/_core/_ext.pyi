@@ -230,9 +230,9 @@ class ConsistencyCheck:
     The consistency of one estimator's estimates with its readings, every sample (continuum_mhe.estimators.consistency). Matrices row-major.
     """
 
-    def __init__(self, node: ModelFunction, nx: int, nu: int, nz: int, R: Sequence[float], judged: Sequence[float], limit: Sequence[float], run_limit: Sequence[float], avg_limit: Sequence[float], bias: Sequence[float], gravity_r: Sequence[float], memory: int, rcond: float) -> None:
+    def __init__(self, transition: ModelFunction, measurement: ModelFunction, residual: ModelFunction, nx: int, nu: int, nz: int, R: Sequence[float], judged: Sequence[float], limit: Sequence[float], run_limit: Sequence[float], avg_limit: Sequence[float], bias: Sequence[float], gravity_r: Sequence[float], memory: int, rcond: float) -> None:
         """
-        ``node``: the node function ``(x, u, dt, z, m) -> (f, F, H, r)``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's cut-off.
+        Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, ``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's cut-off.
         """
 
     def reset(self) -> None:

@@ -57,10 +57,11 @@ long as the window or the filter's memory is shorter than the motion); the statu
 does not depend on it.
 
 The numerics run in the compiled core (``continuum_mhe._core.ConsistencyCheck``,
-``csrc/consistency.*``), which evaluates the node model the EKF shares
-(:func:`~continuum_mhe.estimators.fast.codegen.node_tape`) without Python in between;
-this class gives it the formulation's noise, limits and, per sample, the inputs and the
-process noise ``Q(dt)``.
+``csrc/consistency.*``), which evaluates the node model the EKF uses
+(:func:`~continuum_mhe.estimators.fast.codegen.node_function`, split into the parts
+each step needs: :func:`model_tapes`) without Python in between; this class gives it
+the formulation's noise, limits and, per sample, the inputs and the process noise
+``Q(dt)``.
 
 A formulation whose covariance is not one (``Formulation.calibrated_covariance``
 False: the paper formulation's weight ``W``) is not checked, nor an estimate without a
@@ -71,13 +72,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile
-from continuum_mhe.estimators.fast.codegen import node_tape
+from continuum_mhe.estimators.fast.codegen import node_function
+from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 
@@ -114,7 +118,7 @@ class ConsistencyCheck:
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
         self._core = _core.ConsistencyCheck(
-            node_tape(f),
+            *model_tapes(f),
             nx=f.nx,
             nu=f.nu,
             nz=nz,
@@ -195,6 +199,30 @@ class ConsistencyCheck:
         ``sqrt(noise_scale)`` where the readings scatter more than predicted."""
         scale = self._core.noise_scale
         return math.sqrt(scale) if scale > 1.0 else 1.0
+
+
+@lru_cache(maxsize=32)
+def model_tapes(
+    formulation: Formulation,
+) -> tuple[_core.TapeFunction, _core.TapeFunction, _core.TapeFunction]:
+    """The node function's outputs (:func:`~continuum_mhe.estimators.fast.codegen.
+    node_function`: ``(x, u, dt, z, m) -> (f, F, H, r)``) as three functions of its
+    inputs, each the core evaluates only where the check needs it: the transition
+    ``(f, F)`` (the prediction), the measurement ``(H, r)`` (at the prediction, and
+    the constant-error covariance) and the residual ``r`` (the fit, without the
+    Jacobian). The same expressions, so the same values as the node function's."""
+    node = node_function(formulation)
+    inputs = node.sx_in()
+    f, F, H, r = node.call(inputs)
+
+    def tape(name: str, outputs: list[ca.SX]) -> _core.TapeFunction:
+        return tape_function(ca.Function(name, inputs, outputs))
+
+    return (
+        tape("consistency_transition", [f, F]),
+        tape("consistency_measurement", [H, r]),
+        tape("consistency_residual", [r]),
+    )
 
 
 def _limits(limit: Callable[[int], float], nz: int) -> list[float]:
