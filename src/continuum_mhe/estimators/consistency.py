@@ -117,8 +117,11 @@ class ConsistencyCheck:
         )
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
+        transition, measurement, residual = model_tapes(f)
         self._core = _core.ConsistencyCheck(
-            *model_tapes(f),
+            transition,
+            measurement,
+            residual,
             nx=f.nx,
             nu=f.nu,
             nz=nz,
