@@ -227,46 +227,108 @@ def test_learned_model_error_is_carried_as_a_constant_reading_error() -> None:
     seed=st.integers(0, 2**32 - 1),
 )
 def test_symmetric_pseudo_inverse_matches_numpy_pinv(n, rank, scale, seed) -> None:
-    """The pseudo-inverse behind the constant-error covariance equals numpy's
-    ``pinv(hermitian=True)``, on singular and nearly singular matrices too."""
-    from continuum_mhe.estimators.consistency import _pinv_symmetric
+    """The compiled pseudo-inverse behind the constant-error covariance equals numpy's
+    ``pinv(hermitian=True)``, on singular and nearly singular matrices too, and on
+    symmetric matrices with negative eigenvalues."""
+    from continuum_mhe import _core
+    from continuum_mhe.estimators.consistency import PINV_RCOND
 
     rng = np.random.default_rng(seed)
     b = rng.normal(size=(n, min(rank, n))) * scale
-    a = b @ b.T
-    expected = np.linalg.pinv(a, rcond=1e-9, hermitian=True)
-    got = _pinv_symmetric(a, 1e-9)
+    signs = rng.choice([-1.0, 1.0], size=min(rank, n))
+    a = (b * signs) @ b.T
+    expected = np.linalg.pinv(a, rcond=PINV_RCOND, hermitian=True)
+    got = _core.pinv_symmetric(a, PINV_RCOND)
     np.testing.assert_allclose(
         got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max(initial=1.0)
     )
 
 
-def test_the_judged_prediction_matches_the_model_functions() -> None:
-    """The check's residuals, prediction and its covariance (from the node tape the EKF
-    shares) against the formulation's own CasADi functions: ``x+ = f(x0)``,
-    ``P+ = F P0 F^T + Q``, ``r(z, x)``, ``r(z, x+)`` and ``H = -dr/dx`` at ``x+`` by
-    central differences."""
-    from continuum_mhe.estimators.consistency import ConsistencyCheck
+def _consistent_sample(f, rng, x0=None):
+    """A state near ``x0`` (or near the straight robot), a covariance and readings
+    that agree with the state to half their noise (nz,)."""
+    x = (np.zeros(f.nx) if x0 is None else x0) + rng.normal(0, 0.05, f.nx)
+    a = rng.normal(0, 0.05, (f.nx, f.nx))
+    P = a @ a.T + 1e-3 * np.eye(f.nx)
+    z = np.asarray(f.functions.observe(x), dtype=float).ravel()
+    z = z + 0.5 * rng.normal(size=f.nz) * np.sqrt(np.diag(f.meas_cov()))
+    return x, P, z
 
-    f = make_formulation("bend", Robot.single(0.2))
+
+def _formulation(name: str):
+    robot = Robot((Section(0.11), Section(0.09)), (ImuPlacement(0), ImuPlacement(1)))
+    if name == "direct":
+        return make_formulation("direct", robot, estimate_gyro_bias=True)
+    return make_formulation(name, Robot.single(0.2) if name == "paper" else robot)
+
+
+@pytest.mark.parametrize("name", ["bend", "direct", "paper"])
+def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> None:
+    """On random consistent samples (two sections tilt, two raw IMUs with gyro bias, the
+    paper formulation with its inputs from the readings), the compiled check's fit,
+    NIS, average and constant-error covariance against numpy on the formulation's own
+    CasADi functions: ``x+, F, Q = predict(x0, u, dt)``, ``r, dr/dx = innovate(z, x)``,
+    ``S = H P+ H^T + R`` over the valid readings, ``A = pinv(H^T R^-1 H) H^T R^-1`` on
+    the states the readings depend on. A reading 30 standard deviations off is
+    ``inconsistent``."""
+    from continuum_mhe.estimators.consistency import MEMORY, ConsistencyCheck
+
+    f = _formulation(name)
     check = ConsistencyCheck(f)
-    rng = np.random.default_rng(3)
-    x0, x = rng.normal(0, 0.3, f.nx), rng.normal(0, 0.3, f.nx)
-    P0 = np.diag(rng.uniform(0.01, 0.1, f.nx))
-    u, dt = np.zeros(f.nu), 0.02
-    z = np.asarray(f.functions.measure(x)[0]).ravel() + [0.01, -0.02]
-    r, r_pred, H, Pn = check._judged(x0, P0, u, dt, z, x)
-    xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(x0, u, dt))
-    np.testing.assert_allclose(Pn, F @ P0 @ F.T + Q, rtol=1e-12, atol=1e-15)
+    R = np.asarray(f.meas_cov(), dtype=float)
+    rng = np.random.default_rng(7)
 
-    def innovation(at: np.ndarray) -> np.ndarray:
-        return np.asarray(f.functions.innovate(z, at)[0]).ravel()
+    def innovate(z, x):
+        r, J = f.functions.innovate(np.where(np.isfinite(z), z, 0.0), x)
+        return np.asarray(r, dtype=float).ravel(), -np.asarray(J, dtype=float)
 
-    np.testing.assert_allclose(r, innovation(x), rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(r_pred, innovation(xn.ravel()), rtol=1e-12, atol=1e-15)
-    want = np.zeros_like(H)
-    for j in range(f.nx):
-        dx = np.zeros(f.nx)
-        dx[j] = 1e-6
-        want[:, j] = -(innovation(xn.ravel() + dx) - innovation(xn.ravel() - dx)) / 2e-6
-    np.testing.assert_allclose(H, want, rtol=1e-6, atol=1e-8)
+    x0, P0, z0 = _consistent_sample(f, rng)
+    mask0 = f.measurement_mask(z0)
+    assert not check.check(0.0, z0, mask0, x0, P0)
+    r0, _ = innovate(z0, x0)
+    assert check._core.nis == 0.0  # nothing to predict from
+    assert check._core.fit == pytest.approx(np.sum(r0**2 / np.diag(R)), rel=1e-12)
+    t, dt, expected_scale = 0.0, 0.02, 1.0
+    for k in range(6):
+        x, P, z = _consistent_sample(f, rng, x0)
+        if k == 3:  # a dropout of the first IMU (the paper formulation's only one)
+            z[: f.measurement_blocks[0].size] = np.nan
+        mask = f.measurement_mask(z)
+        rows = np.flatnonzero(mask)
+        t += dt
+        assert not check.check(t, z, mask, x, P)
+        (x_prev, P_prev, z_prev), (x0, P0, z0) = (x0, P0, z0), (x, P, z)
+        if len(rows) == 0:  # nothing judged: only remembered
+            assert check._core.dof == 0 and check._core.nis == 0.0
+            continue
+        u = np.asarray(f.inputs(z_prev, z, dt), dtype=float) if f.nu else np.zeros(0)
+        xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(x_prev, u, dt))
+        r_pred, H = innovate(z, xn.ravel())
+        Pn = F @ P_prev @ F.T + Q
+        S = H[rows] @ Pn @ H[rows].T + R[np.ix_(rows, rows)]
+        nis = r_pred[rows] @ np.linalg.solve(S, r_pred[rows])
+        r, _ = innovate(z, x)
+        assert check._core.dof == len(rows)
+        assert check._core.nis == pytest.approx(nis, rel=1e-9)
+        assert check._core.fit == pytest.approx(np.sum(r[rows] ** 2 / np.diag(R)[rows]), rel=1e-9)
+        expected_scale += (nis / len(rows) - expected_scale) / MEMORY
+        assert check.noise_scale == pytest.approx(expected_scale, rel=1e-9)
+
+    check.model_error = 0.3
+    bias = np.diag(f.reading_bias_cov()) + 0.3 * np.where(
+        f.gravity_direction_rows(), np.diag(R), 0.0
+    )
+    rows = np.flatnonzero((f.measurement_mask(z0) > 0) & (bias > 0))
+    _, H = innovate(z0, x0)
+    cols = np.flatnonzero(np.any(H[rows] != 0, axis=0))
+    Hs = H[np.ix_(rows, cols)]
+    W = np.diag(1 / np.diag(R)[rows])
+    A = np.linalg.pinv(Hs.T @ W @ Hs, rcond=1e-9, hermitian=True) @ Hs.T @ W
+    want = np.zeros((f.nx, f.nx))
+    want[np.ix_(cols, cols)] = A @ np.diag(bias[rows]) @ A.T
+    got = check.constant_error_cov(z0, f.measurement_mask(z0), x0)
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-14 * np.abs(want).max())
+
+    x, P, z = _consistent_sample(f, rng, x0)
+    z[0] += 30 * np.sqrt(R[0, 0])
+    assert check.check(t + dt, z, f.measurement_mask(z), x, P)

@@ -224,3 +224,63 @@ class NodeModel:
 
 def ekf_update(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], r: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], H: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
     """EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``."""
+
+class ConsistencyCheck:
+    """
+    The consistency of one estimator's estimates with its readings, every sample (continuum_mhe.estimators.consistency). Matrices row-major.
+    """
+
+    def __init__(self, transition: ModelFunction, measurement: ModelFunction, residual: ModelFunction, nx: int, nu: int, nz: int, R: Sequence[float], judged: Sequence[float], limit: Sequence[float], run_limit: Sequence[float], avg_limit: Sequence[float], bias: Sequence[float], gravity_r: Sequence[float], memory: int, rcond: float) -> None:
+        """
+        Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, ``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's cut-off.
+        """
+
+    def reset(self) -> None:
+        """Forget the previous estimate and the average."""
+
+    def forget(self) -> None:
+        """A sample without an estimate: forget the previous estimate."""
+
+    def check(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
+        """
+        Whether this sample's estimate disagrees with its readings; remembers it. ``u`` (nu) and ``Q`` (nx x nx): the inputs and process noise from the previous sample, read only when there is one (else empty).
+        """
+
+    def constant_error_cov(self, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> Annotated[NDArray[numpy.float64], dict(shape=(None, None))]:
+        """
+        ``A B A^T`` (nx, nx) at ``x``: the covariance from the readings' constant errors and the model error learned so far.
+        """
+
+    @property
+    def noise_scale(self) -> float:
+        """The exponentially weighted mean of NIS / dof (1 before any)."""
+
+    @property
+    def model_error(self) -> float:
+        """
+        The largest noise_scale - 1 beyond its limit since the (re)start, in units of R (settable: a model error known beforehand).
+        """
+
+    @model_error.setter
+    def model_error(self, arg: float, /) -> None: ...
+
+    @property
+    def has_previous(self) -> bool:
+        """Whether the next sample is predicted from a previous estimate."""
+
+    @property
+    def nis(self) -> float:
+        """The last sample's NIS (0 if none)."""
+
+    @property
+    def fit(self) -> float:
+        """The last sample's fit (0 if not judged)."""
+
+    @property
+    def dof(self) -> int:
+        """The last sample's judged readings."""
+
+def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rcond: float) -> Annotated[NDArray[numpy.float64], dict(shape=(None, None))]:
+    """
+    The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.
+    """

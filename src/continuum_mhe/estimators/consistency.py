@@ -56,6 +56,13 @@ to the estimator's (a constant reading error shifts an estimate by ``A`` times i
 long as the window or the filter's memory is shorter than the motion); the status
 does not depend on it.
 
+The numerics run in the compiled core (``continuum_mhe._core.ConsistencyCheck``,
+``csrc/consistency.*``), which evaluates the node model the EKF uses
+(:func:`~continuum_mhe.estimators.fast.codegen.node_function`, split into the parts
+each step needs: :func:`model_tapes`) without Python in between; this class gives it
+the formulation's noise, limits and, per sample, the inputs and the process noise
+``Q(dt)``.
+
 A formulation whose covariance is not one (``Formulation.calibrated_covariance``
 False: the paper formulation's weight ``W``) is not checked, nor an estimate without a
 covariance.
@@ -64,13 +71,17 @@ covariance.
 from __future__ import annotations
 
 import math
-from functools import cached_property
+from collections.abc import Callable
+from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile
-from continuum_mhe.estimators.fast.codegen import node_tape
+from continuum_mhe.estimators.fast.codegen import node_function
+from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 
@@ -84,6 +95,11 @@ SAMPLE_QUANTILE = 0.9999
 RUN_QUANTILE = 0.99
 #: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
 MEMORY = 20
+#: Eigenvalues of ``H^T R^-1 H`` at most this times the largest are taken as zero in
+#: its pseudo-inverse (:meth:`ConsistencyCheck.constant_error_cov`).
+PINV_RCOND = 1e-9
+
+_EMPTY = np.zeros(0)
 
 
 class ConsistencyCheck:
@@ -91,34 +107,56 @@ class ConsistencyCheck:
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
-        self._R = formulation.meas_cov()
-        self._r_inv = 1.0 / np.diag(self._R)
-        nz = formulation.nz
-        self._limit = [math.inf] + [chi2_quantile(SAMPLE_QUANTILE, k) for k in range(1, nz + 1)]
-        self._run_limit = [math.inf] + [chi2_quantile(RUN_QUANTILE, k) for k in range(1, nz + 1)]
+        f, nz = formulation, formulation.nz
+        R = np.asarray(f.meas_cov(), dtype=float)
         n_avg = 2 * MEMORY - 1  # the effective samples of the exponential average
-        self._avg_limit = [math.inf] + [
-            chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg) for k in range(1, nz + 1)
-        ]
-        self._q = ProcessNoiseCache(formulation)
-        #: the rows (nz,) judged: the readings, not a model's pseudo-measurements (a
-        #: tendon robot's tip condition, met only to the linearisation of a step)
-        self._judged_rows = np.concatenate(
-            [np.full(b.size, b.kind != "equilibrium") for b in formulation.measurement_blocks]
+        # the rows judged: the readings, not a model's pseudo-measurements (a tendon
+        # robot's tip condition, met only to the linearisation of a step)
+        judged = np.concatenate(
+            [np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks]
         )
-        self.reset()
+        self._judged_rows = np.flatnonzero(judged)
+        gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
+        transition, measurement, residual = model_tapes(f)
+        self._core = _core.ConsistencyCheck(
+            transition,
+            measurement,
+            residual,
+            nx=f.nx,
+            nu=f.nu,
+            nz=nz,
+            R=R.ravel().tolist(),
+            judged=judged.astype(float).tolist(),
+            limit=_limits(lambda k: chi2_quantile(SAMPLE_QUANTILE, k), nz),
+            run_limit=_limits(lambda k: chi2_quantile(RUN_QUANTILE, k), nz),
+            avg_limit=_limits(lambda k: chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg), nz),
+            bias=np.diag(np.asarray(f.reading_bias_cov(), dtype=float)).tolist(),
+            gravity_r=gravity_r.tolist(),
+            memory=MEMORY,
+            rcond=PINV_RCOND,
+        )
+        self._q = ProcessNoiseCache(formulation)
+        self._prev: tuple[float, FloatArray] | None = None  # the previous (t, z)
 
     def reset(self) -> None:
         """Forget the previous estimate and the average (a (re)start)."""
-        self._prev: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
-        #: exponentially weighted mean of NIS / dof (1 where nothing was seen yet)
-        self.noise_scale = 1.0
-        #: the model error the average showed (module doc): the largest
-        #: ``noise_scale - 1`` beyond its quantile since the (re)start, in units of ``R``
-        self.model_error = 0.0
-        self._dof = 0
-        self._high = False  # the previous reading was beyond RUN_QUANTILE
-        self._persists = False  # the average went beyond its quantile, and is not back at 1
+        self._core.reset()
+        self._prev = None
+
+    @property
+    def noise_scale(self) -> float:
+        """The exponentially weighted mean of NIS / dof (1 where nothing was seen yet)."""
+        return self._core.noise_scale
+
+    @property
+    def model_error(self) -> float:
+        """The model error the average showed (module doc): the largest
+        ``noise_scale - 1`` beyond its quantile since the (re)start, in units of ``R``."""
+        return self._core.model_error
+
+    @model_error.setter
+    def model_error(self, value: float) -> None:
+        self._core.model_error = value
 
     def check(
         self,
@@ -131,86 +169,22 @@ class ConsistencyCheck:
         """Whether this sample's estimate disagrees with its readings (status
         ``inconsistent``); remembers the estimate for the next sample. A sample
         without a valid reading, an estimate or a covariance is not judged (False)."""
-        prev, fit, nis = self._prev, 0.0, 0.0
-        judged = np.where(self._judged_rows, mask, 0.0)
-        valid = bool(judged.any())
         if state is None or cov is None:
+            self._core.forget()
             self._prev = None
             return False
-        if valid:
-            rows = np.flatnonzero(judged)
-            dof = len(rows)
-            zv = np.where(mask > 0, z, 0.0)
-            if prev is None:
-                r = np.asarray(self.formulation.functions.innovate(zv, state)[0]).ravel()
-            else:
-                t0, x0, P0, z0 = prev
-                dt = t - t0
-                f = self.formulation
-                u = f.inputs(z0, z, dt) if f.nu else np.zeros(0)
-                r, r_pred, H, Pn = self._judged(x0, P0, u, dt, zv, state)
-                H = H[rows]
-                rp = r_pred[rows]
-                S = H @ Pn @ H.T + self._R[np.ix_(rows, rows)]
-                nis = float(rp @ np.linalg.solve(S, rp))
-                # covariance matching: the average factor of the innovations over their
-                # predicted size; a reading flagged on its own (an outlier) stays out of it
-                if nis <= self._limit[dof]:
-                    self.noise_scale += (nis / dof - self.noise_scale) / MEMORY
-                    self._dof = dof
-            r = r[rows]
-            fit = float(np.sum(r * r * self._r_inv[rows]))
-        self._prev = (t, np.array(state, dtype=float), np.array(cov, dtype=float), z.copy())
-        if not valid:
-            return False
-        worst = max(fit, nis)
-        high, self._high = self._high, worst > self._run_limit[dof]
-        if self._dof > 0 and self.noise_scale > self._avg_limit[self._dof]:
-            self._persists = True
-            self.model_error = max(self.model_error, self.noise_scale - 1.0)
-        elif self.noise_scale <= 1.0:
-            self._persists = False
-        return worst > self._limit[dof] or (high and self._high) or self._persists
-
-    def _node(
-        self, x: FloatArray, u: FloatArray, dt: float, z: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """The model at one node, from the tape the EKF shares
-        (:func:`~continuum_mhe.estimators.fast.codegen.node_tape`): ``(f(x, u, dt) (nx,),
-        F = df/dx (nx, nx), H = -dr/dx (nz, nx), r(z, x) (nz,))``, no reading masked."""
-        f, core = self.formulation, node_tape(self.formulation)
-        nx, nz = f.nx, f.nz
-        out = np.empty(core.output_size)
-        flat = [x, u, np.array([dt]), z, np.ones(nz)]
-        core.evaluate([np.ascontiguousarray(v, dtype=float).ravel() for v in flat], out)
-        F = out[nx : nx + nx * nx].reshape(nx, nx)
-        H = out[nx + nx * nx : nx + nx * nx + nz * nx].reshape(nz, nx)
-        return out[:nx], F, H, out[nx + nx * nx + nz * nx :]
-
-    def _judged(
-        self, x0: FloatArray, P0: FloatArray, u: FloatArray, dt: float, z: FloatArray,
-        x: FloatArray,
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
-        """This estimate's residual and the previous estimate's prediction to this
-        sample: ``(r(z, x) (nz,), r(z, x+) (nz,), H (nz, nx), P+ (nx, nx))`` with
-        ``x+ = f(x0, u, dt)``, ``P+ = F P0 F^T + Q``, ``H = -dr/dx`` at ``x+``."""
-        xn, F, _, _ = self._node(x0, u, dt, z)
-        _, _, H, r_pred = self._node(xn, u, dt, z)
-        r = self._node(x, u, dt, z)[3]
-        Pn = F @ np.asarray(P0, dtype=float) @ F.T + self._q(dt)[0]
-        return r, r_pred, H, Pn
-
-    @cached_property
-    def _bias(self) -> FloatArray:
-        """``B``'s diagonal (nz,): the readings' constant-error variances (``B`` is
-        diagonal: each reading's constant error is its own)."""
-        return np.diag(np.asarray(self.formulation.reading_bias_cov(), dtype=float)).copy()
-
-    @cached_property
-    def _gravity_r(self) -> FloatArray:
-        """``R``'s diagonal (nz,) on the gravity-direction readings, 0 elsewhere: the
-        constant-error variance per unit of :attr:`model_error`."""
-        return np.where(self.formulation.gravity_direction_rows(), np.diag(self._R), 0.0)
+        u = Q = _EMPTY
+        prev = self._prev
+        if prev is not None and mask[self._judged_rows].any():
+            # the prediction from the previous estimate: its inputs and process noise
+            t0, z0 = prev
+            dt = t - t0
+            f = self.formulation
+            if f.nu:
+                u = np.asarray(f.inputs(z0, z, dt), dtype=float)
+            Q = self._q(dt)[0]
+        self._prev = (t, z.copy())
+        return self._core.check(t, z, mask, state, cov, u, Q)
 
     def constant_error_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
         """The state covariance (nx, nx) from the readings' constant errors and the
@@ -220,35 +194,41 @@ class ConsistencyCheck:
         readings that carry a constant error (``B > 0``: the gravity directions) and the
         states they depend on (the bends: the readings that set the shape) at
         ``state``; zero where ``B`` is."""
-        nx = self.formulation.nx
-        bias = self._bias + self.model_error * self._gravity_r if self.model_error else self._bias
-        rows = np.flatnonzero((mask > 0) & (bias > 0))
-        out_cov = np.zeros((nx, nx))
-        if len(rows) == 0:
-            return out_cov
-        zv = np.where(mask > 0, z, 0.0)
-        f = self.formulation
-        H = self._node(state, np.zeros(f.nu), 0.0, zv)[2][rows]
-        cols = np.flatnonzero(H.any(axis=0))
-        H = H[:, cols]
-        wh = H * self._r_inv[rows, None]  # R^-1 H
-        A = _pinv_symmetric(H.T @ wh, 1e-9) @ wh.T
-        out_cov[np.ix_(cols, cols)] = (A * bias[rows]) @ A.T
-        return out_cov
+        return self._core.constant_error_cov(z, mask, state)
 
     @property
     def std_factor(self) -> float:
         """The factor (>= 1) the output standard deviations are widened by:
         ``sqrt(noise_scale)`` where the readings scatter more than predicted."""
-        return math.sqrt(self.noise_scale) if self.noise_scale > 1.0 else 1.0
+        scale = self._core.noise_scale
+        return math.sqrt(scale) if scale > 1.0 else 1.0
 
 
-def _pinv_symmetric(a: FloatArray, rcond: float) -> FloatArray:
-    """The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition,
-    eigenvalues at most ``rcond`` times the largest in magnitude taken as zero (what
-    ``numpy.linalg.pinv(a, rcond, hermitian=True)`` computes, without its per-call
-    overhead, which dominates for the few-by-few matrices of a sample)."""
-    s, u = np.linalg.eigh(a)
-    big = np.abs(s) > rcond * np.max(np.abs(s), initial=0.0)
-    inv_s = np.divide(1.0, s, out=np.zeros_like(s), where=big)
-    return (u * inv_s) @ u.T
+@lru_cache(maxsize=32)
+def model_tapes(
+    formulation: Formulation,
+) -> tuple[_core.TapeFunction, _core.TapeFunction, _core.TapeFunction]:
+    """The node function's outputs (:func:`~continuum_mhe.estimators.fast.codegen.
+    node_function`: ``(x, u, dt, z, m) -> (f, F, H, r)``) as three functions of its
+    inputs, each the core evaluates only where the check needs it: the transition
+    ``(f, F)`` (the prediction), the measurement ``(H, r)`` (at the prediction, and
+    the constant-error covariance) and the residual ``r`` (the fit, without the
+    Jacobian). The same expressions, so the same values as the node function's."""
+    node = node_function(formulation)
+    inputs = node.sx_in()
+    f, F, H, r = node.call(inputs)
+
+    def tape(name: str, outputs: list[ca.SX]) -> _core.TapeFunction:
+        return tape_function(ca.Function(name, inputs, outputs))
+
+    return (
+        tape("consistency_transition", [f, F]),
+        tape("consistency_measurement", [H, r]),
+        tape("consistency_residual", [r]),
+    )
+
+
+def _limits(limit: Callable[[int], float], nz: int) -> list[float]:
+    """``[inf, limit(1), ..., limit(nz)]``: a chi-square limit by the number of judged
+    readings (none: never beyond)."""
+    return [math.inf] + [limit(k) for k in range(1, nz + 1)]

@@ -1,0 +1,130 @@
+// Python bindings of the consistency check (continuum_mhe.estimators.consistency).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/vector.h>
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "bindings.hpp"
+#include "consistency.hpp"
+
+namespace nb = nanobind;
+using namespace cmhe;
+
+namespace {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<nb::numpy, double, nb::ndim<2>>;
+
+Out new_matrix(size_t rows, size_t cols) {
+  double* data = new double[rows * cols > 0 ? rows * cols : 1];
+  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  size_t shape[2] = {rows, cols};
+  return Out(data, 2, shape, owner);
+}
+
+void check_size(const In& a, size_t size, const char* name) {
+  if (a.size() != size)
+    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
+                                " values, expected " + std::to_string(size));
+}
+
+}  // namespace
+
+void cmhe::bind_consistency(nb::module_& m) {
+  nb::class_<ConsistencyCheck>(
+      m, "ConsistencyCheck",
+      "The consistency of one estimator's estimates with its readings, every sample "
+      "(continuum_mhe.estimators.consistency). Matrices row-major.")
+      .def(
+          "__init__",
+          [](ConsistencyCheck* self, const ModelFunction& transition,
+             const ModelFunction& measurement, const ModelFunction& residual, int nx, int nu,
+             int nz, std::vector<double> R, std::vector<double> judged, std::vector<double> limit,
+             std::vector<double> run_limit, std::vector<double> avg_limit,
+             std::vector<double> bias, std::vector<double> gravity_r, int memory,
+             double rcond) {
+            new (self) ConsistencyCheck(
+                transition, measurement, residual,
+                ConsistencySettings{nx, nu, nz, std::move(R), std::move(judged),
+                                    std::move(limit), std::move(run_limit),
+                                    std::move(avg_limit), std::move(bias),
+                                    std::move(gravity_r), memory, rcond});
+          },
+          nb::arg("transition"), nb::arg("measurement"), nb::arg("residual"), nb::arg("nx"),
+          nb::arg("nu"), nb::arg("nz"), nb::arg("R"), nb::arg("judged"), nb::arg("limit"), nb::arg("run_limit"), nb::arg("avg_limit"),
+          nb::arg("bias"), nb::arg("gravity_r"), nb::arg("memory"), nb::arg("rcond"),
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
+          "Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, "
+          "``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, "
+          "row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; "
+          "``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the "
+          "number of judged readings; ``bias`` (nz): the readings' constant-error "
+          "variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; "
+          "``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's "
+          "cut-off.")
+      .def("reset", &ConsistencyCheck::reset, "Forget the previous estimate and the average.")
+      .def("forget", &ConsistencyCheck::forget,
+           "A sample without an estimate: forget the previous estimate.")
+      .def(
+          "check",
+          [](ConsistencyCheck& c, double t, In z, In mask, In x, In P, In u, In Q) {
+            const ConsistencySettings& s = c.settings();
+            const size_t nx = s.nx, nz = s.nz;
+            check_size(z, nz, "z");
+            check_size(mask, nz, "mask");
+            check_size(x, nx, "x");
+            check_size(P, nx * nx, "P");
+            if (u.size()) check_size(u, s.nu, "u");
+            if (Q.size()) check_size(Q, nx * nx, "Q");
+            return c.check(t, z.data(), mask.data(), x.data(), P.data(),
+                           u.size() ? u.data() : nullptr, Q.size() ? Q.data() : nullptr);
+          },
+          nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("x"), nb::arg("P"),
+          nb::arg("u"), nb::arg("Q"),
+          "Whether this sample's estimate disagrees with its readings; remembers it. ``u`` "
+          "(nu) and ``Q`` (nx x nx): the inputs and process noise from the previous "
+          "sample, read only when there is one (else empty).")
+      .def(
+          "constant_error_cov",
+          [](ConsistencyCheck& c, In z, In mask, In x) {
+            const size_t nx = c.settings().nx, nz = c.settings().nz;
+            check_size(z, nz, "z");
+            check_size(mask, nz, "mask");
+            check_size(x, nx, "x");
+            Out out = new_matrix(nx, nx);
+            c.constant_error_cov(z.data(), mask.data(), x.data(), out.data());
+            return out;
+          },
+          nb::arg("z"), nb::arg("mask"), nb::arg("x"),
+          "``A B A^T`` (nx, nx) at ``x``: the covariance from the readings' constant errors "
+          "and the model error learned so far.")
+      .def_prop_ro("noise_scale", &ConsistencyCheck::noise_scale,
+                   "The exponentially weighted mean of NIS / dof (1 before any).")
+      .def_prop_rw("model_error", &ConsistencyCheck::model_error,
+                   &ConsistencyCheck::set_model_error,
+                   "The largest noise_scale - 1 beyond its limit since the (re)start, in "
+                   "units of R (settable: a model error known beforehand).")
+      .def_prop_ro("has_previous", &ConsistencyCheck::has_previous,
+                   "Whether the next sample is predicted from a previous estimate.")
+      .def_prop_ro("nis", &ConsistencyCheck::nis, "The last sample's NIS (0 if none).")
+      .def_prop_ro("fit", &ConsistencyCheck::fit, "The last sample's fit (0 if not judged).")
+      .def_prop_ro("dof", &ConsistencyCheck::dof, "The last sample's judged readings.");
+
+  m.def(
+      "pinv_symmetric",
+      [](In a, double rcond) {
+        if (a.ndim() != 2 || a.shape(0) != a.shape(1))
+          throw std::invalid_argument("a must be a square matrix");
+        const Eigen::Index n = static_cast<Eigen::Index>(a.shape(0));
+        const RowMatrix p = pinv_symmetric(Eigen::Map<const RowMatrix>(a.data(), n, n), rcond);
+        Out out = new_matrix(n, n);
+        std::memcpy(out.data(), p.data(), sizeof(double) * n * n);
+        return out;
+      },
+      nb::arg("a"), nb::arg("rcond"),
+      "The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, "
+      "eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.");
+}

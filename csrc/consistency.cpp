@@ -1,0 +1,200 @@
+#include "consistency.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace cmhe {
+
+using ConstRowMap = Eigen::Map<const RowMatrix>;
+using ConstVectorMap = Eigen::Map<const Eigen::VectorXd>;
+
+RowMatrix pinv_symmetric(const RowMatrix& a, double rcond) {
+  Eigen::SelfAdjointEigenSolver<RowMatrix> eig(a);
+  const Eigen::VectorXd& s = eig.eigenvalues();
+  const double cut = rcond * (s.size() ? s.cwiseAbs().maxCoeff() : 0.0);
+  Eigen::VectorXd inv_s(s.size());
+  for (Eigen::Index i = 0; i < s.size(); ++i)
+    inv_s[i] = std::fabs(s[i]) > cut ? 1.0 / s[i] : 0.0;
+  const RowMatrix& u = eig.eigenvectors();
+  return u * inv_s.asDiagonal() * u.transpose();
+}
+
+ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
+                                   const ModelFunction& measurement,
+                                   const ModelFunction& residual, ConsistencySettings settings)
+    : transition_(transition),
+      measurement_(measurement),
+      residual_(residual),
+      s_(std::move(settings)) {
+  const size_t nx = s_.nx, nz = s_.nz;
+  const auto need = [](const std::vector<double>& v, size_t n, const char* name) {
+    if (v.size() != n)
+      throw std::invalid_argument(std::string(name) + " has " + std::to_string(v.size()) +
+                                  " values, expected " + std::to_string(n));
+  };
+  need(s_.R, nz * nz, "R");
+  need(s_.judged, nz, "judged");
+  need(s_.limit, nz + 1, "limit");
+  need(s_.run_limit, nz + 1, "run_limit");
+  need(s_.avg_limit, nz + 1, "avg_limit");
+  need(s_.bias, nz, "bias");
+  need(s_.gravity_r, nz, "gravity_r");
+  if (s_.memory < 1) throw std::invalid_argument("memory must be at least 1");
+  const auto writes = [](const ModelFunction& fn, size_t n, const char* name) {
+    if (fn.output_size() != static_cast<int64_t>(n))
+      throw std::invalid_argument(std::string("the ") + name + " function writes " +
+                                  std::to_string(fn.output_size()) + " values, expected " +
+                                  std::to_string(n));
+  };
+  writes(transition_, nx + nx * nx, "transition (f, F)");
+  writes(measurement_, nz * nx + nz, "measurement (H, r)");
+  writes(residual_, nz, "residual (r)");
+  r_inv_.resize(nz);
+  for (size_t i = 0; i < nz; ++i) r_inv_[i] = 1.0 / s_.R[i * nz + i];
+  zv_.resize(nz);
+  ones_.assign(nz, 1.0);
+  zeros_u_.assign(s_.nu, 0.0);
+  dt_.resize(1);
+  fF_.resize(nx + nx * nx);
+  Hr_.resize(nz * nx + nz);
+  r_.resize(nz);
+  x0_.resize(nx);
+  P0_.resize(nx * nx);
+  rows_.reserve(nz);
+  cols_.reserve(nx);
+  reset();
+}
+
+void ConsistencyCheck::reset() {
+  has_prev_ = false;
+  noise_scale_ = 1.0;
+  model_error_ = 0.0;
+  avg_dof_ = 0;
+  high_ = false;
+  persists_ = false;
+  nis_ = fit_ = 0.0;
+  dof_ = 0;
+}
+
+void ConsistencyCheck::set_model_error(double value) {
+  if (!(value >= 0.0) || !std::isfinite(value))
+    throw std::invalid_argument("model_error must be finite and >= 0, got " +
+                                std::to_string(value));
+  model_error_ = value;
+}
+
+void ConsistencyCheck::set_readings(const double* z, const double* mask) {
+  for (int i = 0; i < s_.nz; ++i) zv_[i] = mask[i] > 0.0 ? z[i] : 0.0;
+}
+
+void ConsistencyCheck::evaluate(const ModelFunction& fn, const double* x, const double* u,
+                                double dt, double* out) {
+  dt_[0] = dt;
+  const double* in[5] = {x, s_.nu ? u : nullptr, dt_.data(), zv_.data(), ones_.data()};
+  if (fn.evaluate(in, out) != 0) throw std::runtime_error("the model's evaluation failed");
+}
+
+bool ConsistencyCheck::check(double t, const double* z, const double* mask, const double* x,
+                             const double* P, const double* u, const double* Q) {
+  const int nx = s_.nx, nz = s_.nz;
+  rows_.clear();
+  for (int i = 0; i < nz; ++i)
+    if (s_.judged[i] != 0.0 && mask[i] != 0.0) rows_.push_back(i);
+  const int dof = static_cast<int>(rows_.size());
+  nis_ = fit_ = 0.0;
+  dof_ = dof;
+  if (dof > 0) {
+    set_readings(z, mask);
+    if (has_prev_) {
+      if (!Q || (s_.nu && !u))
+        throw std::invalid_argument("the prediction from the previous estimate needs u and Q");
+      const double dt = t - t0_;
+      evaluate(transition_, x0_.data(), u, dt, fF_.data());  // x+ = f(x0, u, dt), F
+      evaluate(measurement_, fF_.data(), u, dt, Hr_.data());  // H and r at x+
+      ConstRowMap F(fF_.data() + nx, nx, nx), P0(P0_.data(), nx, nx), Qm(Q, nx, nx);
+      ConstRowMap H(Hr_.data(), nz, nx);
+      const double* r_pred = Hr_.data() + nz * nx;
+      const RowMatrix Pn = F * P0 * F.transpose() + Qm;
+      RowMatrix Hj(dof, nx), S(dof, dof);
+      Eigen::VectorXd rp(dof);
+      for (int a = 0; a < dof; ++a) {
+        Hj.row(a) = H.row(rows_[a]);
+        rp[a] = r_pred[rows_[a]];
+      }
+      S.noalias() = Hj * Pn * Hj.transpose();
+      for (int a = 0; a < dof; ++a)
+        for (int b = 0; b < dof; ++b) S(a, b) += s_.R[rows_[a] * nz + rows_[b]];
+      nis_ = rp.dot(S.partialPivLu().solve(rp));
+      // covariance matching: the average factor of the innovations over their predicted
+      // size; a reading flagged on its own (an outlier) stays out of it
+      if (nis_ <= s_.limit[dof]) {
+        noise_scale_ += (nis_ / dof - noise_scale_) / s_.memory;
+        avg_dof_ = dof;
+      }
+      evaluate(residual_, x, u, dt, r_.data());  // r at this estimate
+    } else {
+      evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());
+    }
+    const double* r = r_.data();
+    for (int i : rows_) fit_ += r[i] * r[i] * r_inv_[i];
+  }
+  t0_ = t;
+  std::copy(x, x + nx, x0_.begin());
+  std::copy(P, P + nx * nx, P0_.begin());
+  has_prev_ = true;
+  if (dof == 0) return false;
+  const double worst = std::max(fit_, nis_);
+  const bool high = high_;
+  high_ = worst > s_.run_limit[dof];
+  if (avg_dof_ > 0 && noise_scale_ > s_.avg_limit[avg_dof_]) {
+    persists_ = true;
+    model_error_ = std::max(model_error_, noise_scale_ - 1.0);
+  } else if (noise_scale_ <= 1.0) {
+    persists_ = false;
+  }
+  return worst > s_.limit[dof] || (high && high_) || persists_;
+}
+
+void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, const double* x,
+                                          double* out) {
+  const int nx = s_.nx, nz = s_.nz;
+  std::fill(out, out + nx * nx, 0.0);
+  std::vector<double> bias(s_.bias);
+  if (model_error_ != 0.0)
+    for (int i = 0; i < nz; ++i) bias[i] += model_error_ * s_.gravity_r[i];
+  rows_.clear();
+  for (int i = 0; i < nz; ++i)
+    if (mask[i] > 0.0 && bias[i] > 0.0) rows_.push_back(i);
+  const int nr = static_cast<int>(rows_.size());
+  if (nr == 0) return;
+  set_readings(z, mask);
+  evaluate(measurement_, x, zeros_u_.data(), 0.0, Hr_.data());
+  ConstRowMap H(Hr_.data(), nz, nx);
+  cols_.clear();  // the states the readings depend on
+  for (int c = 0; c < nx; ++c)
+    for (int i : rows_)
+      if (H(i, c) != 0.0) {
+        cols_.push_back(c);
+        break;
+      }
+  const int nc = static_cast<int>(cols_.size());
+  RowMatrix Hs(nr, nc), wh(nr, nc);
+  Eigen::VectorXd b(nr);
+  for (int a = 0; a < nr; ++a) {
+    b[a] = bias[rows_[a]];
+    for (int c = 0; c < nc; ++c) {
+      Hs(a, c) = H(rows_[a], cols_[c]);
+      wh(a, c) = Hs(a, c) * r_inv_[rows_[a]];  // R^-1 H
+    }
+  }
+  const RowMatrix A = pinv_symmetric(Hs.transpose() * wh, s_.rcond) * wh.transpose();
+  const RowMatrix C = A * b.asDiagonal() * A.transpose();
+  for (int i = 0; i < nc; ++i)
+    for (int j = 0; j < nc; ++j) out[cols_[i] * nx + cols_[j]] = C(i, j);
+}
+
+}  // namespace cmhe

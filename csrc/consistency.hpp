@@ -1,0 +1,93 @@
+// The consistency check of an estimator's estimates with its readings, every sample
+// (continuum_mhe.estimators.consistency, whose module doc states the tests): the
+// prediction of the previous estimate, the NIS of this reading against it, the fit of
+// this reading to this estimate, the exponential average of NIS / dof and the model
+// error it shows, and the estimate's covariance from the readings' constant errors.
+//
+// Matrices are row-major (numpy's C order). The model comes as three functions of the
+// node's inputs ``(x, u, dt, z, m)`` (continuum_mhe.estimators.fast.codegen.
+// node_function's outputs, each evaluated only where it is needed): the transition
+// ``(f, F)``, the measurement ``(H, r)`` and the residual ``r``, with ``F = df/dx``,
+// ``H = -dr/dx``; they are evaluated with every reading's mask 1 and the invalid
+// readings zero.
+#pragma once
+
+#include <Eigen/Dense>
+#include <vector>
+
+#include "model_function.hpp"
+
+namespace cmhe {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, the
+// eigenvalues at most ``rcond`` times the largest in magnitude taken as zero (what
+// ``numpy.linalg.pinv(a, rcond, hermitian=True)`` computes).
+RowMatrix pinv_symmetric(const RowMatrix& a, double rcond);
+
+// The fixed data of one formulation's check (sizes nz, or nz + 1 for a limit by the
+// number of judged readings, index 0 unused).
+struct ConsistencySettings {
+  int nx, nu, nz;
+  std::vector<double> R;          // nz x nz: the readings' noise covariance
+  std::vector<double> judged;     // nz: 1 for a reading, 0 for a model's pseudo-measurement
+  std::vector<double> limit;      // a reading beyond it is inconsistent on its own
+  std::vector<double> run_limit;  // two readings in a row beyond it are inconsistent
+  std::vector<double> avg_limit;  // the average of NIS / dof beyond it is inconsistent
+  std::vector<double> bias;       // nz: the readings' constant-error variances (B's diagonal)
+  std::vector<double> gravity_r;  // nz: R's diagonal on the gravity directions, 0 elsewhere
+  int memory;                     // samples the average of NIS / dof remembers
+  double rcond;                   // the pseudo-inverse's relative eigenvalue cut-off
+};
+
+class ConsistencyCheck {
+ public:
+  ConsistencyCheck(const ModelFunction& transition, const ModelFunction& measurement,
+                   const ModelFunction& residual, ConsistencySettings settings);
+
+  // forget the previous estimate and the average (a (re)start)
+  void reset();
+  // a sample without an estimate: the next one has no previous estimate to predict
+  void forget() { has_prev_ = false; }
+  // Whether this sample's estimate ``x`` (nx), ``P`` (nx x nx) disagrees with its
+  // readings ``z``, ``mask`` (nz); remembers the estimate for the next sample. ``u``
+  // (nu) and ``Q`` (nx x nx): the inputs and process noise from the previous sample to
+  // this one, read only when there is a previous estimate and a judged reading.
+  bool check(double t, const double* z, const double* mask, const double* x, const double* P,
+             const double* u, const double* Q);
+  // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
+  // constant errors and the model error learned so far
+  void constant_error_cov(const double* z, const double* mask, const double* x, double* out);
+
+  const ConsistencySettings& settings() const { return s_; }
+  double noise_scale() const { return noise_scale_; }
+  double model_error() const { return model_error_; }
+  // the model error carried from here on (the largest since a (re)start is kept); >= 0
+  void set_model_error(double value);
+  double nis() const { return nis_; }  // this sample's NIS (0 when not computed)
+  double fit() const { return fit_; }  // this sample's fit (0 when not judged)
+  int dof() const { return dof_; }     // this sample's judged readings
+  bool has_previous() const { return has_prev_; }
+
+ private:
+  // ``fn`` at (x, u, dt, zv) with every mask 1 into ``out``
+  void evaluate(const ModelFunction& fn, const double* x, const double* u, double dt,
+                double* out);
+  void set_readings(const double* z, const double* mask);
+
+  const ModelFunction &transition_, &measurement_, &residual_;
+  ConsistencySettings s_;
+  std::vector<double> r_inv_;
+  std::vector<double> zv_, ones_, zeros_u_, dt_;
+  std::vector<double> fF_, Hr_, r_;  // the transition's, measurement's, residual's outputs
+  std::vector<int> rows_, cols_;
+  std::vector<double> x0_, P0_;
+  double t0_ = 0.0;
+  bool has_prev_ = false;
+  double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0;
+  int avg_dof_ = 0, dof_ = 0;
+  bool high_ = false, persists_ = false;
+};
+
+}  // namespace cmhe
