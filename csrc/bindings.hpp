@@ -7,4 +7,5 @@ namespace cmhe {
 void bind_model(nanobind::module_& m);   // bind_model.cpp: tapes, window and tail functions
 void bind_solver(nanobind::module_& m);  // bind_solver.cpp: the MHE window solve and step
 void bind_filter(nanobind::module_& m);  // bind_filter.cpp: EKF step, arrival prior, outputs
+void bind_horizon(nanobind::module_& m); // bind_horizon.cpp: the fast MHE's per-sample step
 }  // namespace cmhe

@@ -9,4 +9,5 @@ NB_MODULE(_ext, m) {
   cmhe::bind_model(m);
   cmhe::bind_solver(m);
   cmhe::bind_filter(m);
+  cmhe::bind_horizon(m);
 }
