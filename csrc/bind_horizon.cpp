@@ -144,6 +144,7 @@ void cmhe::bind_horizon(nb::module_& m) {
                    "Whether the last step solved the window (from X0 and lam0).")
       .def_rw("has_prior", &MovingHorizon::has_prior)
       .def_rw("has_X", &MovingHorizon::has_X)
+      .def_rw("outputs_at_last", &MovingHorizon::outputs_at_last)
       .def_rw("has_X_last", &MovingHorizon::has_X_last)
       .def_rw("has_lam", &MovingHorizon::has_lam)
 #define CMHE_VIEW(name, ...) \

@@ -78,6 +78,7 @@ void MovingHorizon::restart() {
   std::fill(qinvw.begin(), qinvw.end(), 0.0);
   std::fill(arrival.begin(), arrival.end(), 0.0);
   has_prior = has_X = has_X_last = has_lam = solved = false;
+  outputs_at_last = -1;
   iterations = 0;
   solve_seconds = 0.0;
   std::fill(w_first.begin(), w_first.end(), 1.0);
@@ -187,6 +188,8 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   if (!has_prior) throw std::logic_error("the arrival prior is not set");
   solve_seconds = 0.0;
   solved = false;
+  const int reusable = has_X && has_X_last ? outputs_at_last : -1;
+  outputs_at_last = -1;
   push(t, z, mask, u, Q, Qinv);
   warm_start();
   has_X_last = false;
@@ -207,7 +210,11 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   solved = true;
   const WindowData data{qinvw.data(), xbar.data(), arrival.data()};
   const auto start = std::chrono::steady_clock::now();
-  const SqpResult r = solver.solve(data, zmask_nodes_.data(), lam.data(), options, false, -1);
+  // the warm start's nodes but the last are the last iterate's, shifted: so are their
+  // model outputs (each node's depend on its own state and data only)
+  const bool evaluated = reusable >= 0 && solver.tail != 0 && solver.shift_outputs(reusable, 0);
+  const SqpResult r =
+      solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated, -1);
   solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   iterations = r.iterations;
   if (r.outcome != CONVERGED) {
@@ -229,6 +236,7 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   }
   std::copy(Xl, Xl + n * nx, X_last.begin());
   has_X_last = true;
+  outputs_at_last = int(last);
   std::copy(Xa, Xa + n * nx, X.begin());
   has_X = true;
   keep_outputs(X.data(), D, E, false, nullptr);

@@ -68,6 +68,10 @@ class MovingHorizon {
   // (and the multipliers it started from)
   std::vector<double> X, X_last, lam, X0, lam0;
   bool has_X = false, has_X_last = false, has_lam = false;
+  // the solver's buffer whose model outputs are those at X_last and the window's data
+  // (the next step's warm start shifts them and evaluates only the new node: the
+  // window's tail function), -1 when none is
+  int outputs_at_last = -1;
   // robust weights of the first and last node of the last answer
   std::vector<double> w_first, w_last;
   // the last solve: SQP iterations; when certified, its answer, last iterate and that

@@ -405,6 +405,7 @@ class MovingHorizonInference(Inference):
 
     @_X.setter
     def _X(self, X: FloatArray | None) -> None:
+        self._forget_outputs()
         if X is not None:
             self._window.X[:] = X
         self._window.has_X = X is not None
@@ -417,9 +418,16 @@ class MovingHorizonInference(Inference):
 
     @_X_last.setter
     def _X_last(self, X: FloatArray | None) -> None:
+        self._forget_outputs()
         if X is not None:
             self._window.X_last[:] = X
         self._window.has_X_last = X is not None
+
+    def _forget_outputs(self) -> None:
+        """The compiled step's model outputs at the last iterate are not the next warm
+        start's (it was replaced)."""
+        if isinstance(self._window, _core.MovingHorizon):
+            self._window.outputs_at_last = -1
 
     @property
     def _lam(self) -> FloatArray | None:
