@@ -358,13 +358,9 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
                 options.raw.needs_gyro,
             )  # fmt: skip
-            parts = []
-            for conv, (acc, gyr) in zip(convs, blocks):
-                parts.append(np.array([
-                    conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i])
-                    for i in range(len(t))
-                ]).reshape(len(t), conv.nz))  # fmt: skip
-            return np.hstack(parts)
+            return np.hstack([
+                conv.convert_many(t, acc, gyr) for conv, (acc, gyr) in zip(convs, blocks)
+            ])  # fmt: skip
 
     else:
         kind = "tilt-csv"

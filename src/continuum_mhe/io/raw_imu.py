@@ -197,17 +197,27 @@ class RawImuConverter:
         self._t = t
         return tilt_from_accelerometer(gravity_from_quaternion(self._q))
 
+    def convert_many(self, t: FloatArray, acc: FloatArray, gyr: FloatArray | None) -> FloatArray:
+        """Measurements (n, nz) for consecutive samples (``t`` (n,) s, ``acc`` (n, 3),
+        ``gyr`` (n, 3) rad/s or None): :meth:`convert` of each, the direct IMU model's
+        (no state) in one pass over the arrays."""
+        n = len(t)
+        if self.settings.imu_model == "direct" and gyr is not None:
+            acc = np.asarray(acc, dtype=float).reshape(n, 3) @ self._mount.T
+            gyro = (np.asarray(gyr, dtype=float).reshape(n, 3) - self._bias) @ self._mount.T
+            return direct_measurements(acc, gyro).reshape(n, self.nz)
+        rows = [
+            self.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(n)
+        ]
+        return np.array(rows, dtype=float).reshape(n, self.nz)
+
 
 def raw_to_measurements(
     t: FloatArray, acc: FloatArray, gyr: FloatArray | None, settings: RawImuSettings
 ) -> FloatArray:
     """Measurements (n, nz) for a whole recording (``t`` s, ``acc`` (n, 3), ``gyr``
     (n, 3) rad/s or None)."""
-    conv = RawImuConverter(settings)
-    rows = [
-        conv.convert(float(t[i]), acc[i], None if gyr is None else gyr[i]) for i in range(len(t))
-    ]
-    return np.array(rows, dtype=float).reshape(len(t), conv.nz)
+    return RawImuConverter(settings).convert_many(t, acc, gyr)
 
 
 @dataclass(frozen=True)
