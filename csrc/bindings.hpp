@@ -8,4 +8,5 @@ void bind_model(nanobind::module_& m);   // bind_model.cpp: tapes, window and ta
 void bind_solver(nanobind::module_& m);  // bind_solver.cpp: the MHE window solve and step
 void bind_filter(nanobind::module_& m);  // bind_filter.cpp: EKF step, arrival prior, outputs
 void bind_consistency(nanobind::module_& m);  // bind_consistency.cpp: the consistency check
+void bind_horizon(nanobind::module_& m); // bind_horizon.cpp: the fast MHE's per-sample step
 }  // namespace cmhe

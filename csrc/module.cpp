@@ -10,4 +10,5 @@ NB_MODULE(_ext, m) {
   cmhe::bind_solver(m);
   cmhe::bind_filter(m);
   cmhe::bind_consistency(m);
+  cmhe::bind_horizon(m);
 }

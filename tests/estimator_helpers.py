@@ -13,6 +13,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+import continuum_mhe._core as _core
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
@@ -58,22 +59,37 @@ def fast_and_ipopt_states(
 def fast_windows(
     est: MovingHorizonEstimator, t: np.ndarray, z: np.ndarray
 ) -> list[tuple[WindowProblem, np.ndarray, np.ndarray | None, FastResult]]:
-    """Run the fast MHE ``est`` on its Python path over ``(t, z)`` and return every
-    window it solved: ``(problem copy, initial guess, multipliers given, result)``."""
+    """Run the fast MHE ``est`` over ``(t, z)`` and return every window it solved:
+    ``(problem copy, initial guess, multipliers given, result)``, each sample's own
+    window (solved again here from the compiled step's start, which gives the same
+    result) before those of its hooks (branch check, second start)."""
     import continuum_mhe.estimators.mhe as mhe_module
 
-    windows = []
+    windows: list[tuple[WindowProblem, np.ndarray, np.ndarray | None, FastResult]] = []
+    hooks: list[tuple[WindowProblem, np.ndarray, np.ndarray | None, FastResult]] = []
     solve_window = mhe_module.solve_window
 
     def keep(model, problem, X0, options=None, lam0=None, workspace=None):  # type: ignore[no-untyped-def]
         res = solve_window(model, problem, X0, options, lam0, workspace)
         copy = WindowProblem(**{k: np.copy(v) for k, v in vars(problem).items()})
-        windows.append((copy, X0.copy(), None if lam0 is None else lam0.copy(), res))
+        hooks.append((copy, X0.copy(), None if lam0 is None else lam0.copy(), res))
         return res
 
+    inference = est.inference
+    model, window = inference._fast, inference._window
+    assert model is not None and isinstance(window, _core.MovingHorizon)
     mhe_module.solve_window = keep  # type: ignore[assignment]
     try:
-        est.run(t, z)
+        est.reset()
+        for i in range(len(t)):
+            hooks.clear()
+            est.step(Measurement(float(t[i]), np.asarray(z[i], dtype=float)))
+            if window.solved:
+                problem = inference.window_problem()
+                X0, lam0 = np.array(window.X0), np.array(window.lam0)
+                res = solve_window(model, problem, X0, inference.fast_options, lam0)
+                windows.append((problem, X0, lam0, res))
+            windows.extend(hooks)
     finally:
         mhe_module.solve_window = solve_window  # type: ignore[assignment]
     return windows

@@ -62,11 +62,7 @@ def test_a_wrong_arrival_prior_is_forgotten_when_no_restart_helps(solver: str) -
     z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
     for i in range(N + 3):  # a full, sliding window
         est.step(Measurement(0.05 * i, z))
-    est.inference._xbar, est.inference._P = (
-        WRONG.copy(),
-        np.eye(f.nx) * 0.01**2,
-    )  # a confident wrong prior
-    est.inference._Pinv = np.linalg.inv(est.inference._P)
+    est.inference._set_prior(WRONG.copy(), np.eye(f.nx) * 0.01**2)  # a confident wrong prior
     problem = est.inference.window_problem()
     X_wrong, status = est.inference._solve(problem, np.tile(WRONG, (N, 1)))
     assert est.inference.branch is not None and est.inference.branch.implausible(problem, X_wrong)

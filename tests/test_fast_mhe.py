@@ -687,3 +687,54 @@ class _ScalarBall(BendFormulation):
 def test_feasible_set_accepts_the_scalar_constraint_form() -> None:
     fs = fm.feasible_set(_ScalarBall())
     assert fs.ball_idx.tolist() == [[0, 1]] and fs.ball_r2.tolist() == [1.0]
+
+
+def test_compiled_step_keeps_the_window_as_the_reference_does() -> None:
+    """The compiled per-sample step (``_core.MovingHorizon``) against the IPOPT backend's
+    Python window (``ReferenceWindow``, the prior's EKF step on CasADi's functions), fed
+    the same samples (two sections, a dropout of one IMU, then of both, the window growing
+    and sliding) and keeping the same answers: the same window data and arrival weights,
+    prior, warm start and outputs to 1e-12, the outputs' standard deviations those of
+    the step's covariance, and that covariance of the last node within
+    1e-4 of its largest entry (the step's Hessian is at the SQP's last evaluated
+    iterate, which differs from the answer by the certificate's last step)."""
+    from continuum_mhe.estimators.mhe import MovingHorizonInference, ReferenceWindow
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.results import Measurement
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=2.0, seed=0)
+    z = rec.z.copy()
+    z[15:19, :2] = np.nan  # the first IMU drops out
+    z[25:28] = np.nan  # both do
+    settings = MHESettings(horizon=8)
+    fast = MovingHorizonInference(f, settings)
+    ref = ReferenceWindow(f, settings, fm.feasible_set(f))
+    compiled = fast._window
+    for i in range(len(rec.t)):
+        m = Measurement(float(rec.t[i]), z[i])
+        first = not compiled.has_prior
+        state, cov, _ = fast.infer(m)
+        if first:
+            ref.set_prior(compiled.xbar, compiled.P, compiled.Pinv)
+        k = ref.k
+        dt = m.t - ref.tw[-1]
+        Q, Qinv = fast._process_weight(dt) if k else (np.zeros((f.nx, f.nx)),) * 2
+        ref.step(m.t, z[i], f.measurement_mask(z[i]), np.zeros(0), Q, Qinv, False)
+        for name in ("zw", "zmask", "dt", "qinvw", "arrival", "xbar", "P", "Pinv", "X0"):
+            got, want = getattr(compiled, name), getattr(ref, name)
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14, err_msg=name)
+        assert state is not None and cov is not None
+        ref_state, ref_cov, ref_y, ref_std = ref.finish(np.array(compiled.X), False, None, False)
+        np.testing.assert_array_equal(state, ref_state)
+        np.testing.assert_allclose(fast.output(state), ref_y, rtol=0, atol=1e-12)
+        assert ref_cov is not None and ref_std is not None
+        scale = np.abs(ref_cov).max()
+        np.testing.assert_allclose(cov, ref_cov, rtol=0, atol=1e-4 * scale)
+        assert fast._node is not None  # the step's standard deviations are the core's of cov
+        np.testing.assert_array_equal(
+            fast.output_std(state, cov), fast._node.output_std(state, cov)
+        )
+        ref.X_last[:], ref.has_X_last = compiled.X_last, compiled.has_X_last

@@ -284,3 +284,131 @@ def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='
     """
     The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.
     """
+class MovingHorizon:
+    """
+    The fast MHE's per-sample step over one WindowSolver and NodeModel: the window's buffers (NumPy views, row-major, aligned at the end), the arrival prior's slide, the warm start, the SQP, the last node's covariance and the outputs (csrc/horizon.hpp).
+    """
+
+    def __init__(self, solver: WindowSolver, node: NodeModel, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], robust: bool, paper_start: bool, max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool) -> None: ...
+
+    def restart(self) -> None:
+        """Forget the window, prior and answers."""
+
+    def set_prior(self, xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Pinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None:
+        """Set the arrival prior (xbar, P, P^-1)."""
+
+    def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], finish: bool) -> tuple:
+        """
+        One sample (push, slide, warm start, solve; keep when certified and finish): (outcome, (state, cov, y, std) when the answer was kept, else None); outcome 0 no estimate yet, 1 kept, 2 certified and not kept, 3 not certified.
+        """
+
+    def finish(self, X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], solved: bool, w_new: object | None, failed: bool) -> tuple:
+        """
+        Keep X (N, nx) as the answer (solved: the last step's certified one): (state, cov, y, std), cov and std None when failed or not positive definite.
+        """
+
+    def node_weights(self, i: int, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+        """Robust weights rho'(s_b) of window node i at state x."""
+
+    @property
+    def k(self) -> int:
+        """Samples in the window."""
+
+    @property
+    def iterations(self) -> int:
+        """SQP iterations of the last solve."""
+
+    @property
+    def solve_seconds(self) -> float:
+        """Wall time of the last step's window solve, s (0 when it solved none)."""
+
+    @property
+    def solved(self) -> bool:
+        """Whether the last step solved the window (from X0 and lam0)."""
+
+    @property
+    def has_prior(self) -> bool: ...
+
+    @has_prior.setter
+    def has_prior(self, arg: bool, /) -> None: ...
+
+    @property
+    def has_X(self) -> bool: ...
+
+    @has_X.setter
+    def has_X(self, arg: bool, /) -> None: ...
+
+    @property
+    def outputs_at_last(self) -> int: ...
+
+    @outputs_at_last.setter
+    def outputs_at_last(self, arg: int, /) -> None: ...
+
+    @property
+    def has_X_last(self) -> bool: ...
+
+    @has_X_last.setter
+    def has_X_last(self, arg: bool, /) -> None: ...
+
+    @property
+    def has_lam(self) -> bool: ...
+
+    @has_lam.setter
+    def has_lam(self, arg: bool, /) -> None: ...
+
+    @property
+    def tw(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def zw(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def zmask(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def dt(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def uw(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def qw(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def qinvw(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def arrival(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def xbar(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def P(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def Pinv(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def X(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def X_last(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def X0(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def X_sol(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def lam(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def lam0(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def w_first(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def w_last(self) -> NDArray[numpy.float64]: ...

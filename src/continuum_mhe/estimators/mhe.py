@@ -45,10 +45,13 @@ to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 
 from __future__ import annotations
 
+import time
 import warnings
 
 import numpy as np
+from numpy.typing import NDArray
 
+import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status
 from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
@@ -63,8 +66,9 @@ from continuum_mhe.estimators.fast import (
     solve_window,
     window_cost,
 )
-from continuum_mhe.estimators.fast.covariance import casadi_window_covariance, window_covariance
+from continuum_mhe.estimators.fast.covariance import casadi_window_covariance
 from continuum_mhe.estimators.fast.model import Feasible, LossKernel, feasible_set
+from continuum_mhe.estimators.fast.sqp import quadratic_rate
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.loss import (
     LOSS_CODES,
@@ -86,6 +90,165 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
 
+#: Outcomes of a window step (``csrc/horizon.hpp``): no estimate yet (``paper_start``);
+#: solved and kept with its covariance and outputs; solved and certified, not kept (the
+#: branch check or the second start follows); not certified (IPOPT solves the window).
+NO_ESTIMATE_YET, KEPT, CERTIFIED, UNCERTIFIED = 0, 1, 2, 3
+
+#: ``(state (nx,), covariance (nx, nx) or None, outputs (ny,), their std (ny,) or None)``
+Answer = tuple[FloatArray, FloatArray | None, FloatArray, FloatArray | None]
+
+
+class ReferenceWindow:
+    """The IPOPT backend's window: the same buffers and steps as the compiled
+    :class:`continuum_mhe._core.MovingHorizon` of the fast backend (its attribute names,
+    ``csrc/horizon.hpp``), on the formulation's CasADi functions, with no solve of its own
+    (its :meth:`step` leaves the window to the caller: :data:`UNCERTIFIED`).
+
+    Args:
+        formulation: the model.
+        settings: horizon, loss and ``paper_start``.
+        feasible: the node feasible set the covariance conditions on (None: none).
+    """
+
+    def __init__(
+        self, formulation: Formulation, settings: MHESettings, feasible: Feasible | None
+    ) -> None:
+        f, n, nx = formulation, settings.horizon, formulation.nx
+        self.formulation, self.settings, self.feasible = formulation, settings, feasible
+        self.n, self.nx = n, nx
+        self._R = np.asarray(f.meas_cov(), dtype=np.float64)
+        self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
+        self._blocks = block_array(f.measurement_blocks)
+        #: per measurement component, its block's index (nblocks: in no block)
+        self._block_of = np.full(f.nz, len(self._blocks))
+        for b, (start, size) in enumerate(self._blocks):
+            self._block_of[start : start + size] = b
+        self.robust = settings.loss != "l2"
+        self._loss = LossKernel(self._blocks, LOSS_CODES[settings.loss], float(settings.scale))
+        self.xbar, self.P, self.Pinv = np.zeros(nx), np.zeros((nx, nx)), np.zeros((nx, nx))
+        self.iterations = 0
+        self.restart()
+
+    def restart(self) -> None:
+        f, n, nx = self.formulation, self.n, self.nx
+        self.k = 0  # samples in the window
+        self.tw = np.zeros(n)
+        self.zw = np.zeros((n, f.nz))  # 0 where masked
+        self.zmask = np.zeros((n, f.nz))
+        self.dt = np.ones(n - 1)  # 1 s on inactive stages
+        self.uw = np.zeros((n - 1, f.nu))
+        self.qw = np.zeros((n - 1, nx, nx))  # Q(dt)
+        self.qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
+        self.arrival = np.zeros((n, nx, nx))
+        self.X = np.zeros((n, nx))
+        self.X0 = np.zeros((n, nx))
+        self.X_last = np.zeros((n, nx))
+        self.lam = np.zeros((n, 0))
+        self.X_sol = self.X  # never certified: IPOPT's caller solves every window
+        self.solved = False
+        self.solve_seconds = 0.0
+        self.has_prior = self.has_X = self.has_X_last = self.has_lam = False
+        self.w_first = np.ones(len(self._blocks))
+        self.w_last = np.ones(len(self._blocks))
+
+    def set_prior(self, xbar: FloatArray, P: FloatArray, Pinv: FloatArray) -> None:
+        self.xbar[:], self.P[:], self.Pinv[:] = xbar, P, Pinv
+        self.has_prior = True
+
+    def step(
+        self,
+        t: float,
+        z: FloatArray,
+        mask: FloatArray,
+        u: FloatArray,
+        Q: FloatArray,
+        Qinv: FloatArray,
+        finish: bool,
+    ) -> tuple[int, None]:
+        """Push the sample (sliding the prior when the window was full), form the warm
+        start :attr:`X0` and the arrival weights; :data:`UNCERTIFIED` (the caller
+        solves), or :data:`NO_ESTIMATE_YET` under ``paper_start``."""
+        n = self.n
+        if self.k == n:
+            self._slide()
+        for buf in (self.tw, self.zw, self.zmask, self.dt, self.uw, self.qw, self.qinvw):
+            buf[:-1] = buf[1:]
+        self.tw[-1] = t
+        self.zmask[-1] = mask
+        self.zw[-1] = np.where(mask > 0, z, 0.0)
+        if self.k:
+            self.dt[-1] = t - self.tw[-2]
+            self.uw[-1], self.qw[-1], self.qinvw[-1] = u, Q, Qinv
+        else:
+            self.dt[-1], self.uw[-1], self.qw[-1], self.qinvw[-1] = 1.0, 0.0, 0.0, 0.0
+        self.k = min(self.k + 1, n)
+        self._warm_start()
+        self.has_X_last = False
+        if self.settings.paper_start and self.k < n:
+            self.X[:], self.has_X = self.X0, True
+            return NO_ESTIMATE_YET, None
+        off = n - self.k  # pinned identity before off, P^-1 at off, 0 after
+        if off:
+            self.arrival[:off] = np.eye(self.nx)
+        self.arrival[off : off + 2] = 0.0  # off moves down by one per sample while growing
+        self.arrival[off] = self.Pinv
+        return UNCERTIFIED, None
+
+    def _slide(self) -> None:
+        """One EKF step of the prior: update with the leaving sample (with a robust loss
+        at its weight in the last solve, ``R_b / w_b`` per block), predict."""
+        f, x, P = self.formulation, self.xbar, self.P
+        R = self._R
+        if self.robust:
+            scale = np.append(1.0 / np.maximum(self.w_first, 1e-12), 1.0)[self._block_of]
+            R = R * np.sqrt(np.outer(scale, scale))
+        if self.zmask[0].any():
+            x, P = ekf_update(f, x, P, self.zw[0], R, self.zmask[0])
+        xn, P = ekf_predict(f.functions, x, P, self.uw[0], float(self.dt[0]))
+        self.P[:] = 0.5 * (P + P.T)
+        self.Pinv[:] = np.linalg.inv(self.P)
+        self.xbar[:] = f.project(xn)
+
+    def _warm_start(self) -> None:
+        if not self.has_X:
+            self.X0[:] = self.xbar
+            return
+        prev = self.X_last if self.has_X_last else self.X
+        self.X0[:-1] = prev[1:]
+        dt = float(self.tw[-1] - self.tw[-2]) if self.k > 1 else 0.0
+        self.X0[-1] = self.predict(prev[-1], self.uw[-1], dt)
+
+    def predict(self, x: FloatArray, u: FloatArray, dt: float) -> FloatArray:
+        """The model's next state from ``x`` after ``dt`` s, projected on the bounds."""
+        f = self.formulation
+        return f.project(np.asarray(f.functions.transition(x, u, dt), float).ravel())
+
+    def node_weights(self, i: int, x: FloatArray) -> FloatArray:
+        """Robust weights ``rho'(s_b)`` (nblocks,) of window node ``i`` at state ``x``."""
+        r = (
+            self.zmask[i]
+            * np.asarray(self.formulation.functions.innovate(self.zw[i], x)[0], float).ravel()
+        )
+        s = self.settings
+        return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks)
+
+    def finish(self, X: FloatArray, solved: bool, w_new: FloatArray | None, failed: bool) -> Answer:
+        """Keep ``X`` (N, nx) as the answer; its last node, covariance and outputs."""
+        self.X[:], self.has_X = X, True
+        if self.robust:
+            self.w_first = self.node_weights(0, X[0])
+            self.w_last = self.node_weights(-1, X[-1]) if w_new is None else w_new.copy()
+        f, x = self.formulation, X[-1].copy()
+        cov = None
+        if not failed:
+            problem = WindowProblem(
+                z=self.zw, zmask=self.zmask, dt=self.dt, u=self.uw, qinv=self.qinvw,
+                xbar=self.xbar, arrival=self.arrival,
+            )  # fmt: skip
+            cov = casadi_window_covariance(f, problem, X, self.feasible, loss=self._loss)
+        return x, cov, f.output(x), None if cov is None else f.output_std(x, cov)
+
 
 class MovingHorizonInference(Inference):
     """The MHE's inference: the window problem over the last ``N`` samples, solved
@@ -95,6 +258,12 @@ class MovingHorizonInference(Inference):
     Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast`, which falls back to
     IPOPT on the same window (status ``"fallback-ipopt"``) when it cannot certify
     convergence; ``"ipopt"``, the paper's solver and the reference.
+
+    On the fast backend one call into the compiled core
+    (:class:`continuum_mhe._core.MovingHorizon`) takes each sample: the window's
+    buffers, the prior's slide, the warm start, the solve, the last node's covariance and
+    the outputs; the branch check, the second start and IPOPT's fallback are Python hooks
+    around its solve. On IPOPT, :class:`ReferenceWindow` holds the same buffers.
 
     Args:
         formulation: the model.
@@ -133,31 +302,38 @@ class MovingHorizonInference(Inference):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-        self._node = None if self._fast is None else NodeEvaluator(self._fast)
-        self._workspace = None if self._fast is None else Workspace(self._fast)
         self._nlp_built: Nlp | None = None
         if self._fast is None:
             self._nlp_built = self._nlp
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
-        self._feasible: Feasible | None = None if self._fast is None else self._fast.feasible
         #: why the window covariance leaves the constraints out (None when it does not)
         self.covariance_note: str | None = None
-        if self._feasible is None:
+        self._window: ReferenceWindow | _core.MovingHorizon
+        if self._fast is not None:
+            self._workspace: Workspace | None = Workspace(self._fast)
+            self._node: NodeEvaluator | None = NodeEvaluator(self._fast)
+            opt = self.fast_options
+            self._window = _core.MovingHorizon(
+                self._workspace.core, self._node.core, np.ascontiguousarray(self._R, float),
+                s.loss != "l2", s.paper_start, opt.max_iter, opt.step_tol, opt.err_tol,
+                opt.max_qp_iter, opt.newton, quadratic_rate(self._fast, opt),
+            )  # fmt: skip
+        else:
+            self._workspace, self._node = None, None
+            feasible: Feasible | None = None
             try:
-                self._feasible = feasible_set(formulation)
+                feasible = feasible_set(formulation)
             except NotImplementedError as exc:  # a feasible set the kernel cannot read
                 self.covariance_note = (
                     f"the window covariance leaves this problem's constraints out ({exc}): "
                     "its standard deviations are too large where a bound is active"
                 )
                 warnings.warn(self.covariance_note, BackendFallbackWarning, stacklevel=2)
+            self._window = ReferenceWindow(formulation, s, feasible)
         self._blocks = block_array(formulation.measurement_blocks)
-        #: per measurement component, its block's index (nblocks: in no block)
-        self._block_of = np.full(formulation.nz, len(self._blocks))
-        for b, (start, size) in enumerate(self._blocks):
-            self._block_of[start : start + size] = b
-        self._Rinv = np.asarray(np.linalg.inv(self._R), dtype=np.float64)
+        self._no_input = np.zeros(formulation.nu)
+        self._no_weight = np.zeros((formulation.nx, formulation.nx))
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
         #: the robust loss's second start (:mod:`.second_start`), with its counts
@@ -165,6 +341,8 @@ class MovingHorizonInference(Inference):
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
         self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
+        #: the compiled window solves' time in the last sample, s (0 on IPOPT)
+        self.solve_seconds = 0.0
         self.restart()
 
     @property
@@ -189,233 +367,198 @@ class MovingHorizonInference(Inference):
             self.branch.stats = BranchStats()
 
     def restart(self) -> None:
-        f, n, nx = self.formulation, self.settings.horizon, self.formulation.nx
-        # window buffers, aligned at the end: sample i of N, stage i joins i and i+1
-        self._k = 0  # samples in the window
-        self._tw = np.zeros(n)
-        self._zw = np.zeros((n, f.nz))  # 0 where masked
-        self._zmask = np.zeros((n, f.nz))
-        self._dt = np.ones(n - 1)  # 1 s on inactive stages
-        self._uw = np.zeros((n - 1, f.nu))
-        self._qw = np.zeros((n - 1, nx, nx))  # Q(dt)
-        self._qinvw = np.zeros((n - 1, nx, nx))  # Q(dt)^-1 (0 on inactive stages)
-        self._arrival = np.zeros((n, nx, nx))  # see window_problem
+        self._window.restart()
+        self._t_last = 0.0  # the last sample's time, s
         self._z_prev_valid: FloatArray | None = None
-        self._xbar: FloatArray | None = None
-        self._P: FloatArray | None = None
-        self._Pinv: FloatArray | None = None  # P^-1, the arrival weight
-        self._X: FloatArray | None = None  # (N, nx) previous solution
-        #: the fast SQP's last evaluated iterate when its certified answer was kept as
-        #: ``_X``: the next warm start
-        self._X_last: FloatArray | None = None
-        self._lam: FloatArray | None = None  # (N,) its ball multipliers (fast backend)
-        #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
-        self._last_hessian: tuple[FloatArray, FloatArray] | None = None
-        self._last_iterate: FloatArray | None = None  # and FastResult.X_last
-        #: SQP iterations of the last fast solve (0 before one)
-        self.sqp_iterations = 0
-        # robust weights rho'(s_b) per block of the first and last node of the last solve
-        self._w_first = np.ones(len(self._blocks))
-        self._w_last = np.ones(len(self._blocks))
+        #: the outputs of the last answer, for :meth:`output` and :meth:`output_std`
+        self._answer: Answer | None = None
         self._w_new: FloatArray | None = None  # robust weights of the newest node, if known
         if self.second_start is not None:
             self.second_start.clear()
 
-    # --- window bookkeeping -------------------------------------------------
-    def _push(self, m: Measurement, mask: FloatArray) -> None:
-        f = self.formulation
-        valid = bool(mask.any())
-        n = self.settings.horizon
-        if self._k == n:
-            self._slide_arrival()
-        u = np.zeros(f.nu)
-        if self._k and f.nu:
-            u = f.inputs(self._z_prev_valid, m.z, m.t - self._tw[-1])
-        for buf in (self._tw, self._zw, self._zmask, self._dt, self._uw, self._qw, self._qinvw):
-            buf[:-1] = buf[1:]
-        self._tw[-1] = m.t
-        self._zmask[-1] = mask
-        self._zw[-1] = np.where(mask > 0, m.z, 0.0)
-        if self._k:
-            dt = m.t - self._tw[-2]
-            self._dt[-1] = dt
-            self._uw[-1] = u
-            self._qw[-1], self._qinvw[-1] = self._process_weight(dt)
-        else:
-            self._dt[-1], self._uw[-1], self._qw[-1], self._qinvw[-1] = 1.0, 0.0, 0.0, 0.0
-        self._k = min(self._k + 1, n)
-        if valid:
-            self._z_prev_valid = m.z
+    # --- the window's state (the compiled step's or the reference's buffers) -------
+    @property
+    def sqp_iterations(self) -> int:
+        """SQP iterations of the last fast solve (0 before one, and on IPOPT)."""
+        return int(self._window.iterations)
 
-    def _leaving_R(self) -> FloatArray:
-        """Covariance of the leaving sample's update: ``R``, or with a robust loss
-        ``R_b / w_b`` per block at its weight in the last solve."""
-        R = self._R
-        if self.flags_outliers:  # the leaving sample at its weight in the last solve
-            scale = np.append(1.0 / np.maximum(self._w_first, 1e-12), 1.0)[self._block_of]
-            R = R * np.sqrt(np.outer(scale, scale))
-        return R
+    @property
+    def _xbar(self) -> FloatArray | None:
+        """The arrival prior's state (a copy; None before a start)."""
+        return self._window.xbar.copy() if self._window.has_prior else None
 
-    def _slide_arrival(self) -> None:
-        """Move the arrival prior from window sample 0 to window sample 1.
+    @property
+    def _P(self) -> FloatArray | None:
+        """The arrival prior's covariance (a copy; None before a start)."""
+        return self._window.P.copy() if self._window.has_prior else None
 
-        One EKF step on the prior itself: update ``(xbar, P)`` with the sample that
-        leaves the window, then predict to the next sample. The prior therefore holds
-        only information from samples that have left the window (no measurement is
-        counted twice), and on a linear Gaussian model the MHE equals the Kalman
-        filter at every sample, sliding or not.
-        """
-        assert self._xbar is not None and self._P is not None
-        f, x, P = self.formulation, self._xbar, self._P
-        u, dt, z = self._uw[0], float(self._dt[0]), self._zw[0]
-        R = self._leaving_R()
-        if self._node is not None:  # the same EKF step, on the compiled model
-            xn, self._P, self._Pinv = self._node.arrival_step(
-                x, P, u, dt, z, self._zmask[0], R, self._qw[0]
-            )
-        else:
-            if self._zmask[0].any():
-                x, P = ekf_update(f, x, P, z, R, self._zmask[0])
-            xn, P = ekf_predict(f.functions, x, P, u, dt)
-            self._P = 0.5 * (P + P.T)
-            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
-        self._xbar = f.project(xn)
+    def _set_prior(self, xbar: FloatArray, P: FloatArray) -> None:
+        """Anchor the arrival prior at ``xbar`` with covariance ``P``."""
+        f64 = np.ascontiguousarray
+        P = f64(P, dtype=np.float64)
+        self._window.set_prior(f64(xbar, dtype=np.float64), P, f64(np.linalg.inv(P)))
+
+    @property
+    def _X(self) -> FloatArray | None:
+        """The last answer (N, nx), the next warm start (a copy; None before one)."""
+        return self._window.X.copy() if self._window.has_X else None
+
+    @_X.setter
+    def _X(self, X: FloatArray | None) -> None:
+        self._forget_outputs()
+        if X is not None:
+            self._window.X[:] = X
+        self._window.has_X = X is not None
+
+    @property
+    def _X_last(self) -> FloatArray | None:
+        """The fast SQP's last evaluated iterate when its answer was kept: the next warm
+        start instead of the answer (a copy; None when there is none)."""
+        return self._window.X_last.copy() if self._window.has_X_last else None
+
+    @_X_last.setter
+    def _X_last(self, X: FloatArray | None) -> None:
+        self._forget_outputs()
+        if X is not None:
+            self._window.X_last[:] = X
+        self._window.has_X_last = X is not None
+
+    def _forget_outputs(self) -> None:
+        """The compiled step's model outputs at the last iterate are not the next warm
+        start's (it was replaced)."""
+        if isinstance(self._window, _core.MovingHorizon):
+            self._window.outputs_at_last = -1
+
+    @property
+    def _lam(self) -> FloatArray | None:
+        """The ball multipliers (N, nb) of the last fast answer (a copy; None: none)."""
+        return self._window.lam.copy() if self._window.has_lam else None
+
+    @_lam.setter
+    def _lam(self, lam: FloatArray | None) -> None:
+        if lam is not None:
+            self._window.lam[:] = lam
+        self._window.has_lam = lam is not None
+
+    @property
+    def _w_last(self) -> FloatArray:
+        """Robust weights ``rho'(s_b)`` of the last answer's newest node."""
+        return np.asarray(self._window.w_last)
 
     def window_problem(self, copy: bool = True) -> WindowProblem:
         """The NLP data for the current window (for tests and other backends).
 
         With ``copy=False`` the arrays are views of the window buffers, valid until
-        the next sample.
+        the next sample (the arrival state is copied: a re-anchored prior does not
+        change this window's problem).
         """
-        off = self.settings.horizon - self._k  # leading inactive nodes
-        assert self._Pinv is not None and self._xbar is not None
-        arrival = self._arrival  # pinned identity before off, P^-1 at off, 0 after
-        if off:
-            arrival[:off] = np.eye(self.formulation.nx)
-        arrival[off : off + 2] = 0.0  # off moves down by one per sample while growing
-        arrival[off] = self._Pinv
+        w = self._window
         c = np.copy if copy else np.asarray
         return WindowProblem(
-            z=c(self._zw),
-            zmask=c(self._zmask),
-            dt=c(self._dt),
-            u=c(self._uw),
-            qinv=c(self._qinvw),
-            xbar=c(self._xbar),
-            arrival=c(arrival),
+            z=c(w.zw),
+            zmask=c(w.zmask),
+            dt=c(w.dt),
+            u=c(w.uw),
+            qinv=c(w.qinvw),
+            xbar=w.xbar.copy(),
+            arrival=c(w.arrival),
         )
-
-    def _initial_guess(self) -> FloatArray:
-        n = self.settings.horizon
-        assert self._xbar is not None
-        if self._X is None:
-            return np.tile(self._xbar, (n, 1))
-        prev = self._X if self._X_last is None else self._X_last
-        X = np.empty_like(prev)
-        X[:-1] = prev[1:]
-        dt = float(self._tw[-1] - self._tw[-2]) if self._k > 1 else 0.0
-        X[-1] = self._predict(prev[-1], self._uw[-1], dt)
-        return X
 
     def _predict(self, x: FloatArray, u: FloatArray, dt: float) -> FloatArray:
         """The model's next state from ``x`` after ``dt`` s, projected on the bounds."""
         if self._node is not None:
             xn = self._node.evaluate(x, u, dt)[0]
-        else:
-            xn = np.asarray(self.formulation.functions.transition(x, u, dt), float).ravel()
-        return self.formulation.project(xn)
+            out = np.array(xn[None, :])
+            _core.project(out, *self._fast_bounds())
+            return out[0]
+        assert isinstance(self._window, ReferenceWindow)
+        return self._window.predict(x, u, dt)
+
+    def _fast_bounds(self) -> tuple[FloatArray, FloatArray, NDArray[np.int64], FloatArray]:
+        assert self._fast is not None
+        fs = self._fast.feasible
+        return fs.lo, fs.hi, np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2
 
     # --- solve ----------------------------------------------------------------
     def output(self, state: FloatArray) -> FloatArray:
+        answer = self._answer
+        if answer is not None and state is answer[0]:
+            return answer[2]
         if self._node is not None:
             return self._node.output(state)
         return self.formulation.output(state)
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        answer = self._answer
+        if answer is not None and state is answer[0] and cov is answer[1]:
+            assert answer[3] is not None
+            return answer[3]
         if self._node is not None:
             return self._node.output_std(state, cov)
         return self.formulation.output_std(state, cov)
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
-        f = self.formulation
+        f, window = self.formulation, self._window
         mask = f.measurement_mask(m.z)
         valid = bool(mask.any())
-        if self._xbar is None:
+        self._answer = None
+        if not window.has_prior:
             if not valid:
                 return None, None, Status.NO_ESTIMATE
-            self._xbar = np.array(f.project(f.initial_state(m.z)), dtype=np.float64)
-            self._P = np.array(f.initial_cov(), dtype=np.float64)
-            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
-        self._push(m, mask)
-        X0 = self._initial_guess()
-        self._X_last = None
-        if self.settings.paper_start and self._k < self.settings.horizon:
-            self._X = X0
+            self._set_prior(f.project(f.initial_state(m.z)), f.initial_cov())
+        u, (Q, Qinv) = self._no_input, (self._no_weight, self._no_weight)
+        if window.k:
+            dt = m.t - self._t_last
+            Q, Qinv = self._process_weight(dt)
+            if f.nu:
+                u = f.inputs(self._z_prev_valid, m.z, dt)
+        self._t_last = m.t
+        if valid:
+            self._z_prev_valid = m.z
+        hooks = self.branch is not None or self.second_start is not None
+        outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not hooks)
+        self.solve_seconds = window.solve_seconds
+        if outcome == NO_ESTIMATE_YET:
             return None, None, Status.NO_ESTIMATE
+        if answer is not None:  # kept by the compiled step
+            return self._keep(answer, Status.OK, valid)
         problem = self.window_problem(copy=False)
-        X, status = self._solve(problem, X0)
-        solved, hessian, last_iterate = X, self._last_hessian, self._last_iterate
+        if outcome == CERTIFIED:
+            X, status = np.array(window.X_sol), Status.OK
+        elif self._fast is None:  # IPOPT's backend
+            X, status = self._solve(problem, np.array(window.X0))
+        else:  # the SQP did not certify its answer: IPOPT solves the window
+            X, status = self._solve_ipopt(problem, np.array(window.X0))
+            status = Status.FALLBACK_IPOPT if status == Status.OK else status
+        solved = X
         if self.branch is not None:
             X, status = self._check_branch(problem, X, status)
         if self.second_start is not None:
             X, status = self._try_second_start(problem, X, status)
-        status = self._keep(X, status, valid)
-        if X is solved:  # the SQP's answer is kept: warm-start from its last iterate
-            self._X_last = last_iterate
-        hessian = hessian if X is solved else None  # the SQP's, if its answer is kept
-        cov = None if status == Status.SOLVER_FAILED else self.covariance(problem, X, hessian)
-        return X[-1].copy(), cov, status
+        w_new, self._w_new = self._w_new, None
+        answer = window.finish(
+            np.ascontiguousarray(X, dtype=np.float64), X is solved and outcome == CERTIFIED,
+            w_new, status == Status.SOLVER_FAILED,
+        )  # fmt: skip
+        return self._keep(answer, status, valid)
 
     def _keep(
-        self, X: FloatArray, status: Status, valid: bool, weights: FloatArray | None = None
-    ) -> Status:
-        """Keep the answer ``X`` (N, nx) as the next warm start, with its robust weights
-        (``weights``: those of its first and last node (2, nblocks) if known); returns the
-        sample's status (``dropout`` for an ``ok`` one without a sensor)."""
-        self._X = X
-        if weights is not None:
-            self._w_first, self._w_last = weights[0].copy(), weights[1].copy()
-            self._w_new = None
-        elif self.flags_outliers:
-            self._w_first = self._node_weights(0, X[0])
-            w_new, self._w_new = self._w_new, None  # the newest node's, if computed
-            self._w_last = self._node_weights(-1, X[-1]) if w_new is None else w_new
-        return Status.DROPOUT if status == Status.OK and not valid else status
-
-    def covariance(
-        self,
-        problem: WindowProblem,
-        X: FloatArray,
-        hessian: tuple[FloatArray, FloatArray] | None = None,
-    ) -> FloatArray | None:
-        """Covariance of the estimate ``X[-1]`` (nx, nx): the last block of the inverse
-        of the window's Gauss-Newton Hessian at ``X`` (N, nx), conditioned on the active
-        bounds (:mod:`continuum_mhe.estimators.fast.covariance`); from the compiled
-        model on the fast backend, from CasADi on IPOPT. ``hessian``: the fast SQP's
-        blocks at its last evaluated iterate when ``X`` is its certified answer (that
-        iterate is within the convergence tolerance of ``X``; no evaluation then). None
-        if not positive definite.
-        """
-        if self._fast is not None:
-            return window_covariance(self._fast, problem, X, self._workspace, hessian=hessian)
-        loss = LossKernel(self._blocks, LOSS_CODES[self.settings.loss], float(self.settings.scale))
-        return casadi_window_covariance(self.formulation, problem, X, self._feasible, loss=loss)
+        self, answer: Answer, status: Status, valid: bool
+    ) -> tuple[FloatArray, FloatArray | None, Status]:
+        """The sample's ``(state, covariance, status)`` from the kept answer (its outputs
+        kept for :meth:`output`); ``dropout`` for an ``ok`` one without a sensor."""
+        self._answer = answer
+        status = Status.DROPOUT if status == Status.OK and not valid else status
+        return answer[0], answer[1], status
 
     def _node_weights(self, i: int, x: FloatArray) -> FloatArray:
         """Robust weights ``rho'(s_b)`` (nblocks,) of window node ``i`` at state ``x``."""
-        z, mask = self._zw[i], self._zmask[i]
-        if self._node is not None:
-            r = self._node.evaluate(x, self._uw[0], 0.0, z, mask)[3]
-        else:
-            fns = self.formulation.functions
-            r = mask * np.asarray(fns.innovate(z, x)[0], float).ravel()
-        s = self.settings
-        return block_weights(s.loss, s.scale, r, self._Rinv, self._blocks)
+        return np.asarray(self._window.node_weights(i, np.ascontiguousarray(x, dtype=np.float64)))
 
     def outlier(self) -> bool:
         """True when the last solve down-weighted a block of the newest sample below
         :data:`~continuum_mhe.estimators.loss.OUTLIER_WEIGHT`."""
-        return self.flags_outliers and bool(np.min(self._w_last) < OUTLIER_WEIGHT)
+        return self.flags_outliers and bool(np.min(self._window.w_last) < OUTLIER_WEIGHT)
 
     def rejected_every_reading(self) -> bool | None:
         """True when the last solve down-weighted every valid block of the newest sample
@@ -423,26 +566,25 @@ class MovingHorizonInference(Inference):
         several is not a lost estimate); None when the sample had no valid block."""
         if not self.flags_outliers:
             return False
-        valid = self._zmask[-1][self._blocks[:, 0]] > 0.0
+        valid = self._window.zmask[-1][self._blocks[:, 0]] > 0.0
         if not valid.any():
             return None
-        return bool(np.all(self._w_last[valid] < OUTLIER_WEIGHT))
+        return bool(np.all(np.asarray(self._window.w_last)[valid] < OUTLIER_WEIGHT))
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
-        self._last_hessian = self._last_iterate = None
+        """One solve of ``problem`` from ``X0`` (the hooks' and tests' solve): the fast
+        SQP (its multipliers :attr:`_lam`, shifted by one node, warm-start it), IPOPT
+        when it does not certify its answer; IPOPT alone on that backend."""
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
             if self.settings.solver == "fast" and status == Status.OK:
                 status = Status.FALLBACK_IPOPT  # announced once at construction
             return X, status
-        lam0 = None
-        if self._lam is not None:
-            lam0 = np.empty_like(self._lam)
-            lam0[:-1] = self._lam[1:]
+        lam0 = self._lam
+        if lam0 is not None:
+            lam0[:-1] = lam0[1:]
             lam0[-1] = 0.0
         res = self._solve_fast(problem, X0, lam0)
-        self.sqp_iterations = res.iterations
-        self._last_hessian, self._last_iterate = res.hessian, res.X_last
         if res.converged:
             self._lam = res.lam
             return res.X, Status.OK
@@ -455,7 +597,10 @@ class MovingHorizonInference(Inference):
     ) -> FastResult:
         """The compiled core's SQP on ``problem`` from ``X0`` (the window solve alone)."""
         assert self._fast is not None
-        return solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
+        start = time.perf_counter()
+        result = solve_window(self._fast, problem, X0, self.fast_options, lam0, self._workspace)
+        self.solve_seconds += time.perf_counter() - start
+        return result
 
     def _try_second_start(
         self, problem: WindowProblem, X: FloatArray, status: Status
@@ -464,7 +609,7 @@ class MovingHorizonInference(Inference):
         the second solve starts without multipliers, the kept answer's warm-start."""
         second = self.second_start
         assert second is not None
-        if self._k < self.settings.horizon:
+        if self._window.k < self.settings.horizon:
             second.clear()
             return X, status
         kept = self._lam
@@ -503,10 +648,9 @@ class MovingHorizonInference(Inference):
         X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
         self._lam = kept if status != Status.BRANCH_RESTART else lam  # type: ignore[assignment]
         if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
-            assert self._P is not None
-            self._xbar = self.formulation.project(X[0])
-            self._P = self._P * FORGET
-            self._Pinv = np.asarray(np.linalg.inv(self._P), dtype=np.float64)
+            P = self._P
+            assert P is not None
+            self._set_prior(self.formulation.project(X[0]), P * FORGET)
         return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:

@@ -66,19 +66,14 @@ def window_covariance(
     X: FloatArray,
     workspace: Workspace | None = None,
     tol: float = 1e-6,
-    hessian: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray | None:
     """Covariance (nx, nx) of the last node of ``X`` (N, nx), the window's solution:
     the Gauss-Newton Hessian from one call of the compiled window model, then
-    :func:`last_block_covariance`. ``hessian``: its blocks ``(D, E)`` already at hand
-    (the SQP's at its last evaluated iterate, :attr:`FastResult.hessian`), so no
-    evaluation. None if the reduced Hessian is not positive definite.
+    :func:`last_block_covariance` (the fast MHE's step does the same in the core,
+    ``csrc/horizon.cpp``). None if the reduced Hessian is not positive definite.
     """
     fs, nx = model.feasible, model.nx
     out = np.empty((nx, nx))
-    if hessian is not None:
-        ok = last_block_covariance(X, *hessian, fs.lo, fs.hi, fs.ball_idx, fs.ball_r2, tol, out)
-        return out if ok else None
     ws = workspace or Workspace(model)
     ws.load(problem, X)
     cost = ws.core.evaluate(

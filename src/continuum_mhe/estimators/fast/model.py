@@ -171,7 +171,8 @@ class NodeEvaluator:
     function, the EKF and arrival-prior steps, the outputs (one per estimator)."""
 
     def __init__(self, model: WindowModel) -> None:
-        self._core = _core.NodeModel(
+        #: the core's NodeModel
+        self.core = self._core = _core.NodeModel(
             model.node.core, model.output.core, model.output_jacobian.core,
             model.nx, model.nu, model.nz, model.ny, list(model.wrapped),
         )  # fmt: skip

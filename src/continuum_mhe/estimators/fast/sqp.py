@@ -88,11 +88,6 @@ class FastResult:
         cost: the window cost at the last evaluated iterate (the answer minus the last
             step when certified).
         lam: (N, nb) multipliers of the ball constraints at ``X``.
-        hessian: when certified, the Gauss-Newton blocks ``(D, E)`` at the last
-            evaluated iterate (within the convergence tolerance of ``X``), for
-            :func:`~continuum_mhe.estimators.fast.covariance.window_covariance`; else None.
-        X_last: when certified, that last evaluated iterate (N, nx), the next window's
-            warm start (its model outputs are then known: ``WindowSolver.shift_outputs``).
     """
 
     X: FloatArray
@@ -102,8 +97,6 @@ class FastResult:
     step: float
     cost: float
     lam: FloatArray
-    hessian: tuple[FloatArray, FloatArray] | None = None
-    X_last: FloatArray | None = None
 
 
 class Workspace:
@@ -191,8 +184,6 @@ def solve_window(
         step=float(step),
         cost=float(cost),
         lam=lam,
-        hessian=(ws.Dgn[1 - cur].copy(), ws.E[1 - cur].copy()) if converged else None,
-        X_last=ws.Xb[1 - cur].copy() if converged else None,
     )
 
 

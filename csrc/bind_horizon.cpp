@@ -1,0 +1,172 @@
+// Python bindings of the fast MHE's per-sample step (horizon.hpp).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/tuple.h>
+
+#include <cstring>
+#include <initializer_list>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bindings.hpp"
+#include "horizon.hpp"
+
+namespace nb = nanobind;
+using namespace cmhe;
+
+namespace {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Array = nb::ndarray<nb::numpy, double>;
+
+void check(const In& a, Index size, const char* name) {
+  if (Index(a.size()) != size)
+    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
+                                " values, expected " + std::to_string(size));
+}
+
+// a NumPy view of one of the step's buffers, keeping the step alive
+Array view(MovingHorizon& h, std::vector<double>& v, std::initializer_list<size_t> shape) {
+  return Array(v.data(), shape, nb::find(&h));
+}
+
+// a new NumPy array holding a copy of ``data``
+Array copy_of(const double* data, std::initializer_list<size_t> shape) {
+  size_t size = 1;
+  for (size_t s : shape) size *= s;
+  double* p = new double[size > 0 ? size : 1];
+  std::memcpy(p, data, size * sizeof(double));
+  nb::capsule owner(p, [](void* q) noexcept { delete[] static_cast<double*>(q); });
+  return Array(p, shape.size(), shape.begin(), owner);
+}
+
+// (state, covariance or None, outputs, their standard deviations or None): copies
+nb::tuple answer(const MovingHorizon& h) {
+  const size_t nx = h.nx, ny = h.ny;
+  nb::object cov = nb::none(), std = nb::none();
+  if (h.cov_ok) {
+    cov = nb::cast(copy_of(h.cov.data(), {nx, nx}));
+    std = nb::cast(copy_of(h.ystd.data(), {ny}));
+  }
+  return nb::make_tuple(copy_of(h.state.data(), {nx}), cov, copy_of(h.y.data(), {ny}), std);
+}
+
+}  // namespace
+
+void cmhe::bind_horizon(nb::module_& m) {
+  nb::class_<MovingHorizon>(
+      m, "MovingHorizon",
+      "The fast MHE's per-sample step over one WindowSolver and NodeModel: the window's "
+      "buffers (NumPy views, row-major, aligned at the end), the arrival prior's slide, the "
+      "warm start, the SQP, the last node's covariance and the outputs (csrc/horizon.hpp).")
+      .def(
+          "__init__",
+          [](MovingHorizon* self, WindowSolver& solver, NodeModel& node, In R, bool robust,
+             bool paper_start, Index max_iter, double step_tol, double err_tol,
+             Index max_qp_iter, bool newton, bool quadratic) {
+            SqpOptions opt;
+            opt.max_iter = max_iter;
+            opt.step_tol = step_tol;
+            opt.err_tol = err_tol;
+            opt.max_qp_iter = max_qp_iter;
+            opt.newton = newton;
+            opt.quadratic = quadratic;
+            new (self) MovingHorizon(solver, node, std::vector<double>(R.data(), R.data() + R.size()),
+                                     robust, paper_start, opt);
+          },
+          nb::arg("solver"), nb::arg("node"), nb::arg("R"), nb::arg("robust"),
+          nb::arg("paper_start"), nb::arg("max_iter"), nb::arg("step_tol"), nb::arg("err_tol"),
+          nb::arg("max_qp_iter"), nb::arg("newton"), nb::arg("quadratic"),
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>())
+      .def("restart", &MovingHorizon::restart, "Forget the window, prior and answers.")
+      .def(
+          "set_prior",
+          [](MovingHorizon& h, In xbar, In P, In Pinv) {
+            check(xbar, h.nx, "xbar");
+            check(P, h.nx * h.nx, "P");
+            check(Pinv, h.nx * h.nx, "Pinv");
+            h.set_prior(xbar.data(), P.data(), Pinv.data());
+          },
+          nb::arg("xbar"), nb::arg("P"), nb::arg("Pinv"),
+          "Set the arrival prior (xbar, P, P^-1).")
+      .def(
+          "step",
+          [](MovingHorizon& h, double t, In z, In mask, In u, In Q, In Qinv, bool finish) {
+            check(z, h.nz, "z");
+            check(mask, h.nz, "mask");
+            check(u, h.nu, "u");
+            check(Q, h.nx * h.nx, "Q");
+            check(Qinv, h.nx * h.nx, "Qinv");
+            const int outcome = h.step(t, z.data(), mask.data(), u.data(), Q.data(),
+                                       Qinv.data(), finish);
+            if (outcome != STEP_DONE) return nb::make_tuple(outcome, nb::none());
+            return nb::make_tuple(outcome, answer(h));
+          },
+          nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("u"), nb::arg("Q"),
+          nb::arg("Qinv"), nb::arg("finish"),
+          "One sample (push, slide, warm start, solve; keep when certified and finish): "
+          "(outcome, (state, cov, y, std) when the answer was kept, else None); outcome 0 "
+          "no estimate yet, 1 kept, 2 certified and not kept, 3 not certified.")
+      .def(
+          "finish",
+          [](MovingHorizon& h, In X, bool solved, nb::object w_new, bool failed) {
+            check(X, h.n * h.nx, "X");
+            std::vector<double> w;
+            if (!w_new.is_none()) {
+              In wa = nb::cast<In>(w_new);
+              check(wa, h.nblk, "w_new");
+              w.assign(wa.data(), wa.data() + wa.size());
+            }
+            h.finish(X.data(), solved, w.empty() ? nullptr : w.data(), failed);
+            return answer(h);
+          },
+          nb::arg("X"), nb::arg("solved"), nb::arg("w_new").none(), nb::arg("failed"),
+          "Keep X (N, nx) as the answer (solved: the last step's certified one): (state, "
+          "cov, y, std), cov and std None when failed or not positive definite.")
+      .def(
+          "node_weights",
+          [](MovingHorizon& h, Index i, In x) {
+            check(x, h.nx, "x");
+            if (i < 0) i += h.n;
+            if (i < 0 || i >= h.n) throw std::invalid_argument("node index out of range");
+            std::vector<double> w(h.nblk);
+            h.node_weights(i, x.data(), w.data());
+            return copy_of(w.data(), {size_t(h.nblk)});
+          },
+          nb::arg("i"), nb::arg("x"), "Robust weights rho'(s_b) of window node i at state x.")
+      .def_prop_ro("k", [](MovingHorizon& h) { return h.k; }, "Samples in the window.")
+      .def_prop_ro("iterations", [](MovingHorizon& h) { return h.iterations; },
+                   "SQP iterations of the last solve.")
+      .def_prop_ro("solve_seconds", [](MovingHorizon& h) { return h.solve_seconds; },
+                   "Wall time of the last step's window solve, s (0 when it solved none).")
+      .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },
+                   "Whether the last step solved the window (from X0 and lam0).")
+      .def_rw("has_prior", &MovingHorizon::has_prior)
+      .def_rw("has_X", &MovingHorizon::has_X)
+      .def_rw("outputs_at_last", &MovingHorizon::outputs_at_last)
+      .def_rw("has_X_last", &MovingHorizon::has_X_last)
+      .def_rw("has_lam", &MovingHorizon::has_lam)
+#define CMHE_VIEW(name, ...) \
+  .def_prop_ro(#name, [](MovingHorizon& h) { return view(h, h.name, {__VA_ARGS__}); })
+      CMHE_VIEW(tw, size_t(h.n))
+      CMHE_VIEW(zw, size_t(h.n), size_t(h.nz))
+      CMHE_VIEW(zmask, size_t(h.n), size_t(h.nz))
+      CMHE_VIEW(dt, size_t(h.n - 1))
+      CMHE_VIEW(uw, size_t(h.n - 1), size_t(h.nu))
+      CMHE_VIEW(qw, size_t(h.n - 1), size_t(h.nx), size_t(h.nx))
+      CMHE_VIEW(qinvw, size_t(h.n - 1), size_t(h.nx), size_t(h.nx))
+      CMHE_VIEW(arrival, size_t(h.n), size_t(h.nx), size_t(h.nx))
+      CMHE_VIEW(xbar, size_t(h.nx))
+      CMHE_VIEW(P, size_t(h.nx), size_t(h.nx))
+      CMHE_VIEW(Pinv, size_t(h.nx), size_t(h.nx))
+      CMHE_VIEW(X, size_t(h.n), size_t(h.nx))
+      CMHE_VIEW(X_last, size_t(h.n), size_t(h.nx))
+      CMHE_VIEW(X0, size_t(h.n), size_t(h.nx))
+      CMHE_VIEW(X_sol, size_t(h.n), size_t(h.nx))
+      CMHE_VIEW(lam, size_t(h.n), size_t(h.nb))
+      CMHE_VIEW(lam0, size_t(h.n), size_t(h.nb))
+      CMHE_VIEW(w_first, size_t(h.nblk))
+      CMHE_VIEW(w_last, size_t(h.nblk));
+#undef CMHE_VIEW
+}
