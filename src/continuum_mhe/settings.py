@@ -95,7 +95,7 @@ class MHESettings:
     solver: MHESolver = "fast"
     loss: MHELoss = "l2"
     loss_scale: float | None = None
-    branch_check: bool = False
+    branch_check: bool = True
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
