@@ -85,27 +85,58 @@ class BranchStats:
 class BranchCheck:
     """The branch check for one formulation and horizon (see the module docstring)."""
 
-    def __init__(self, formulation: Formulation, horizon: int, forget_prior: bool = True) -> None:
+    def __init__(
+        self,
+        formulation: Formulation,
+        horizon: int,
+        forget_prior: bool = True,
+        quadratic: bool = True,
+    ) -> None:
+        """``quadratic``: the window's measurement cost is the l2 one (no robust loss), so
+        :meth:`measurement_cost` can take it from the backend's window cost with the
+        arrival and process weights zeroed."""
         self.formulation = formulation
         self.forget_prior = forget_prior
+        self.quadratic = quadratic
         self.horizon = horizon
         self._innovate = formulation.functions.innovate.map(horizon)
         self._rinv = np.linalg.inv(formulation.meas_cov())
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
+        self._zero_weights: tuple[FloatArray, FloatArray] | None = None
 
     # --- detect -----------------------------------------------------------------
-    def measurement_cost(self, problem: WindowProblem, X: FloatArray) -> tuple[float, int]:
-        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2)."""
-        z, zmask = problem.z, problem.zmask
-        r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
-        cost = float(np.einsum("ij,jk,ik->", r, self._rinv, r))
-        return cost, int(zmask.sum())
+    def measurement_cost(
+        self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
+    ) -> tuple[float, int]:
+        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2).
 
-    def implausible(self, problem: WindowProblem, X: FloatArray) -> bool:
+        With ``cost`` (the backend's window cost, ``1/2`` of the weighted squares) and a
+        quadratic loss, twice that cost with the arrival and process weights zeroed;
+        otherwise from the formulation's residuals."""
+        z, zmask = problem.z, problem.zmask
+        dof = int(zmask.sum())
+        if cost is not None and self.quadratic:
+            return 2.0 * cost(self._measurements_only(problem), X), dof
+        r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
+        return float(np.einsum("ij,jk,ik->", r, self._rinv, r)), dof
+
+    def _measurements_only(self, problem: WindowProblem) -> WindowProblem:
+        """``problem`` with no arrival and no process weight (its cost: the measurements')."""
+        zeros = self._zero_weights
+        if zeros is None or zeros[0].shape != problem.arrival.shape:
+            zeros = self._zero_weights = (
+                np.zeros_like(problem.arrival),
+                np.zeros_like(problem.qinv),
+            )
+        return replace(problem, arrival=zeros[0], qinv=zeros[1])
+
+    def implausible(
+        self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
+    ) -> bool:
         """True when the window's measurement cost exceeds the chi-square quantile."""
-        cost, dof = self.measurement_cost(problem, X)
-        return dof > 0 and cost > chi2_quantile(QUANTILE, dof)
+        c, dof = self.measurement_cost(problem, X, cost)
+        return dof > 0 and c > chi2_quantile(QUANTILE, dof)
 
     # --- restart ------------------------------------------------------------------
     def candidates(self, problem: WindowProblem) -> dict[str, FloatArray]:
@@ -176,17 +207,31 @@ class BranchCheck:
 
     # --- keep the best ----------------------------------------------------------------
     def check(
-        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        status: Status,
+        solve: SolveFn,
+        cost: CostFn,
+        window_cost: float | None = None,
     ) -> tuple[FloatArray, Status, object | None, bool]:
         """The answer to keep: ``(X, status, backend state, forget_prior)``.
 
         ``X`` is the warm-started answer; ``None`` as the backend state means it stays.
+        ``window_cost``: its window cost if the solver knows it (the fast SQP's, at its
+        last iterate). With a quadratic loss the measurement cost is at most twice the
+        window cost, so a window cost below half the quantile needs no evaluation.
         ``forget_prior`` is True when the answer comes from the window with the arrival
         weight divided by ``FORGET`` (stage 2): the caller then re-anchors its arrival
         prior on the answer's first node with its covariance times ``FORGET``.
         """
         self.stats.checked += 1
-        if status not in (Status.OK, Status.FALLBACK_IPOPT) or not self.implausible(problem, X):
+        if status not in (Status.OK, Status.FALLBACK_IPOPT):
+            return X, status, None, False
+        if self.quadratic and window_cost is not None:
+            if 2.0 * window_cost <= chi2_quantile(QUANTILE, int(problem.zmask.sum())):
+                return X, status, None, False
+        if not self.implausible(problem, X, cost):
             return X, status, None, False
         self.stats.fired += 1
         won = self._best_restart(problem, X, solve, cost)
@@ -233,8 +278,8 @@ class BranchCheck:
                 c = cost(relaxed, Xc)
                 if best is None or c < best[0]:
                     best = (c, Xc, state)
-        fit, _ = self.measurement_cost(problem, X)
-        if best is None or self.measurement_cost(problem, best[1])[0] >= FIT_GAIN * fit:
+        fit, _ = self.measurement_cost(problem, X, cost)
+        if best is None or self.measurement_cost(problem, best[1], cost)[0] >= FIT_GAIN * fit:
             return X, status, None, False
         self.stats.restarted += 1
         self.stats.prior_forgotten += 1

@@ -163,7 +163,11 @@ class MovingHorizonInference(Inference):
         #: the robust loss's second start (:mod:`.second_start`), with its counts
         self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
         #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
-        self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
+        self.branch = (
+            BranchCheck(formulation, s.horizon, quadratic=s.loss == "l2")
+            if s.branch_check
+            else None
+        )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
         self.restart()
 
@@ -212,6 +216,8 @@ class MovingHorizonInference(Inference):
         #: the last fast SQP's Gauss-Newton blocks (FastResult.hessian) for the covariance
         self._last_hessian: tuple[FloatArray, FloatArray] | None = None
         self._last_iterate: FloatArray | None = None  # and FastResult.X_last
+        #: the last fast SQP's window cost at its last evaluated iterate (None on IPOPT)
+        self._last_cost: float | None = None
         #: SQP iterations of the last fast solve (0 before one)
         self.sqp_iterations = 0
         # robust weights rho'(s_b) per block of the first and last node of the last solve
@@ -429,7 +435,7 @@ class MovingHorizonInference(Inference):
         return bool(np.all(self._w_last[valid] < OUTLIER_WEIGHT))
 
     def _solve(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
-        self._last_hessian = self._last_iterate = None
+        self._last_hessian = self._last_iterate = self._last_cost = None
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
             if self.settings.solver == "fast" and status == Status.OK:
@@ -443,6 +449,7 @@ class MovingHorizonInference(Inference):
         res = self._solve_fast(problem, X0, lam0)
         self.sqp_iterations = res.iterations
         self._last_hessian, self._last_iterate = res.hessian, res.X_last
+        self._last_cost = res.cost if res.converged else None
         if res.converged:
             self._lam = res.lam
             return res.X, Status.OK
@@ -500,7 +507,9 @@ class MovingHorizonInference(Inference):
 
         fast = self._fast
         cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
-        X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
+        X, status, lam, forget = self.branch.check(
+            problem, X, status, solve, cost, window_cost=self._last_cost
+        )
         self._lam = kept if status != Status.BRANCH_RESTART else lam  # type: ignore[assignment]
         if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
             assert self._P is not None
