@@ -70,12 +70,14 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 
 @dataclass
 class BranchStats:
-    """Counts since the estimator's last ``reset()``: windows checked, found implausible
-    (``fired``), restarts that changed the answer (``restarted``), of which with the
-    arrival prior forgotten (``prior_forgotten``), and the winning starts of stage 1
-    (``sources``)."""
+    """Counts since the estimator's last ``reset()``: windows checked, of which those
+    whose measurement cost had to be evaluated (``evaluated``; the others passed on the
+    solver's window cost alone), found implausible (``fired``), restarts that changed the
+    answer (``restarted``), of which with the arrival prior forgotten
+    (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
 
     checked: int = 0
+    evaluated: int = 0
     fired: int = 0
     restarted: int = 0
     prior_forgotten: int = 0
@@ -231,6 +233,7 @@ class BranchCheck:
         if self.quadratic and window_cost is not None:
             if 2.0 * window_cost <= chi2_quantile(QUANTILE, int(problem.zmask.sum())):
                 return X, status, None, False
+        self.stats.evaluated += 1
         if not self.implausible(problem, X, cost):
             return X, status, None, False
         self.stats.fired += 1
