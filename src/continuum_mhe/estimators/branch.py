@@ -237,24 +237,31 @@ class BranchCheck:
         if not self.implausible(problem, X, cost):
             return X, status, None, False
         self.stats.fired += 1
-        won = self._best_restart(problem, X, solve, cost)
+        starts = self.candidates(problem)
+        won = self._best_restart(problem, X, solve, cost, starts)
         if won is not None:
             self.stats.restarted += 1
             self.stats.sources[won[3]] = self.stats.sources.get(won[3], 0) + 1
             return won[0], Status.BRANCH_RESTART, won[2], False
         if not self.forget_prior:
             return X, status, None, False
-        return self._forget_prior(problem, X, status, solve, cost)
+        return self._forget_prior(problem, X, status, solve, cost, starts)
 
     def _best_restart(
-        self, problem: WindowProblem, X: FloatArray, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        solve: SolveFn,
+        cost: CostFn,
+        starts: dict[str, FloatArray],
     ) -> tuple[FloatArray, Status, object, str] | None:
-        """Stage 1: the restart of the same problem with the lowest cost, if lower than
-        ``X``'s by more than ``REL_MARGIN``."""
+        """Stage 1: the restart of the same problem from each of ``starts``
+        (:meth:`candidates`) with the lowest cost, if lower than ``X``'s by more than
+        ``REL_MARGIN``."""
         best_cost = cost(problem, X)
         bar = best_cost - REL_MARGIN * max(abs(best_cost), 1.0)
         best: tuple[FloatArray, Status, object, str] | None = None
-        for name, X0 in self.candidates(problem).items():
+        for name, X0 in starts.items():
             Xc, st, state = solve(problem, X0)
             if st not in (Status.OK, Status.FALLBACK_IPOPT):
                 continue
@@ -264,18 +271,25 @@ class BranchCheck:
         return best
 
     def _forget_prior(
-        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        status: Status,
+        solve: SolveFn,
+        cost: CostFn,
+        starts: dict[str, FloatArray],
     ) -> tuple[FloatArray, Status, object | None, bool]:
         """Stage 2: the same window with the arrival weight on its first node divided by
-        ``FORGET``, solved from ``X`` and from every candidate; its lowest-cost answer is
-        kept when it explains the measurements better by at least ``1/FIT_GAIN``."""
+        ``FORGET``, solved from ``X`` and from every candidate (stage 1's ``starts``, the
+        EKF's run again from the weaker prior); its lowest-cost answer is kept when it
+        explains the measurements better by at least ``1/FIT_GAIN``."""
         full = problem.arrival.copy()
         if not np.array_equal(full[1:], np.zeros_like(full[1:])):
             return X, status, None, False  # a growing window: its prior is the first reading
         full[0] = full[0] / FORGET
         relaxed = replace(problem, arrival=full)
         best: tuple[float, FloatArray, object] | None = None
-        for X0 in (X, *self.candidates(relaxed).values()):
+        for X0 in (X, *{**starts, "ekf": self._ekf_window(relaxed)}.values()):
             Xc, st, state = solve(relaxed, X0)
             if st in (Status.OK, Status.FALLBACK_IPOPT):
                 c = cost(relaxed, Xc)
