@@ -136,17 +136,24 @@ def test_fast_and_ipopt_agree_with_the_check_on(clean_recording) -> None:  # typ
     assert_allclose(out["fast"].output[:, angles], out["ipopt"].output[:, angles], atol=1e-6)
 
 
-def test_the_check_is_on_by_default_and_the_cli_turns_it_off() -> None:
+def test_the_check_is_on_by_default_for_tilt_only_and_the_cli_sets_it() -> None:
     import argparse
 
     from continuum_mhe.cli.options import add_mhe_options, mhe_settings_from_args
 
     p = argparse.ArgumentParser()
     add_mhe_options(p)
-    assert mhe_settings_from_args(p.parse_args([])).branch_check
-    assert mhe_settings_from_args(p.parse_args(["--branch-check"])).branch_check
-    assert not mhe_settings_from_args(p.parse_args(["--no-branch-check"])).branch_check
-    assert MHESettings().branch_check
+    assert mhe_settings_from_args(p.parse_args([])).branch_check is None
+    assert mhe_settings_from_args(p.parse_args(["--branch-check"])).branch_check is True
+    assert mhe_settings_from_args(p.parse_args(["--no-branch-check"])).branch_check is False
+    assert MHESettings().branch_check is None
+    tilt, gyros = make_formulation("bend", TWO), make_formulation("direct", TWO)
+    assert MovingHorizonEstimator(tilt).inference.branch is not None  # tilt only: on
+    assert MovingHorizonEstimator(gyros).inference.branch is None  # the gyros hold it
+    on = MovingHorizonEstimator(gyros, MHESettings(branch_check=True))
+    assert on.inference.branch is not None
+    off = MovingHorizonEstimator(tilt, MHESettings(branch_check=False))
+    assert off.inference.branch is None
 
 
 ROD = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"

@@ -155,10 +155,11 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--branch-check",
         action=argparse.BooleanOptionalAction,
-        default=True,
+        default=None,
         help="when a window's fit is implausible (chi-square), re-solve it from other "
         "starts and, if none fits, with the arrival prior forgotten; keep the better fit "
-        "(status branch-restart). Default on; --no-branch-check turns it off",
+        "(status branch-restart). Default: on with tilt only (--imu-model tilt), off "
+        "with gyros (--imu-model direct, where it measured worse)",
     )
 
 
@@ -245,7 +246,7 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
             solver=args.solver,
             loss=loss,
             loss_scale=scale,
-            branch_check=getattr(args, "branch_check", True),
+            branch_check=getattr(args, "branch_check", None),
         )
     except ValueError as exc:
         raise InputError(str(exc)) from None

@@ -62,6 +62,18 @@ FORGET = 100.0
 #: Stage 2 is kept when its measurement cost is below this fraction of the warm answer's.
 FIT_GAIN = 0.5
 
+#: Formulations whose MHE checks its branch when ``MHESettings.branch_check`` is None:
+#: tilt only (a multi-section robot's window has far branches). With gyros
+#: (``direct``) the rates hold the branch and the check measured worse.
+CHECKED_BY_DEFAULT = ("bend",)
+
+
+def checks_branch(formulation: Formulation, setting: bool | None) -> bool:
+    """Whether the MHE runs the branch check: ``setting``, or by default (None) for
+    the formulations in :data:`CHECKED_BY_DEFAULT`."""
+    return formulation.name in CHECKED_BY_DEFAULT if setting is None else setting
+
+
 #: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.
 SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status, object]]
 #: ``cost(problem, X) -> window cost`` (the NLP objective).
@@ -313,4 +325,13 @@ def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:
             X[0, j] = X[1, j] if len(X) > 1 else 0.0
 
 
-__all__ = ["FIT_GAIN", "FORGET", "QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats"]
+__all__ = [
+    "CHECKED_BY_DEFAULT",
+    "FIT_GAIN",
+    "FORGET",
+    "QUANTILE",
+    "REL_MARGIN",
+    "BranchCheck",
+    "BranchStats",
+    "checks_branch",
+]

@@ -51,7 +51,7 @@ import numpy as np
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status
-from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
+from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats, checks_branch
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -162,10 +162,11 @@ class MovingHorizonInference(Inference):
         self.flags_outliers = self.settings.loss != "l2"
         #: the robust loss's second start (:mod:`.second_start`), with its counts
         self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
-        #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
+        #: the branch check (``settings.branch_check``, by default for tilt only; see
+        #: :mod:`.branch`), with its counts
         self.branch = (
             BranchCheck(formulation, s.horizon, quadratic=s.loss == "l2")
-            if s.branch_check
+            if checks_branch(formulation, s.branch_check)
             else None
         )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
