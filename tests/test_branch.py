@@ -150,6 +150,7 @@ def test_the_check_is_on_by_default_for_tilt_only_and_the_cli_sets_it() -> None:
     tilt, gyros = make_formulation("bend", TWO), make_formulation("direct", TWO)
     assert MovingHorizonEstimator(tilt).inference.branch is not None  # tilt only: on
     assert MovingHorizonEstimator(gyros).inference.branch is None  # the gyros hold it
+    assert MovingHorizonEstimator(make_formulation("bend")).inference.branch is None  # one
     on = MovingHorizonEstimator(gyros, MHESettings(branch_check=True))
     assert on.inference.branch is not None
     off = MovingHorizonEstimator(tilt, MHESettings(branch_check=False))

@@ -84,10 +84,11 @@ class MHESettings:
             chi-square quantile and, where implausible, solve the same window from
             other starts and keep the lowest cost, then, if none wins, with the arrival
             prior forgotten (status ``branch-restart``; see
-            :mod:`continuum_mhe.estimators.branch`). None (default): on for the tilt
-            formulation (``bend``), where a multi-section robot's window has far
-            branches, off where gyros hold the branch (``direct``: there it measured
-            worse) and for the other formulations (measured in docs/model.md).
+            :mod:`continuum_mhe.estimators.branch`). None (default): on for a robot of
+            several sections with the tilt formulation (``bend``), whose window has far
+            branches; off for one section, where gyros hold the branch (``direct``:
+            there it measured worse) and for the other formulations (measured in
+            docs/model.md).
     """
 
     horizon: int = 30

@@ -62,16 +62,19 @@ FORGET = 100.0
 #: Stage 2 is kept when its measurement cost is below this fraction of the warm answer's.
 FIT_GAIN = 0.5
 
-#: Formulations whose MHE checks its branch when ``MHESettings.branch_check`` is None:
-#: tilt only (a multi-section robot's window has far branches). With gyros
-#: (``direct``) the rates hold the branch and the check measured worse.
+#: Formulations whose MHE checks its branch when ``MHESettings.branch_check`` is None,
+#: for a robot of more than one section: tilt only (such a window has far branches).
+#: With gyros (``direct``) the rates hold the branch and the check measured worse; one
+#: section has no far branch within its bound.
 CHECKED_BY_DEFAULT = ("bend",)
 
 
 def checks_branch(formulation: Formulation, setting: bool | None) -> bool:
-    """Whether the MHE runs the branch check: ``setting``, or by default (None) for
-    the formulations in :data:`CHECKED_BY_DEFAULT`."""
-    return formulation.name in CHECKED_BY_DEFAULT if setting is None else setting
+    """Whether the MHE runs the branch check: ``setting``, or by default (None) for a
+    robot of several sections in one of the formulations of :data:`CHECKED_BY_DEFAULT`."""
+    if setting is not None:
+        return setting
+    return formulation.name in CHECKED_BY_DEFAULT and not formulation.robot.is_single
 
 
 #: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.
