@@ -140,6 +140,8 @@ void cmhe::bind_horizon(nb::module_& m) {
                    "SQP iterations of the last solve.")
       .def_prop_ro("solve_seconds", [](MovingHorizon& h) { return h.solve_seconds; },
                    "Wall time of the last step's window solve, s (0 when it solved none).")
+      .def_prop_ro("cost", [](MovingHorizon& h) { return h.cost; },
+                   "Window cost at the last certified solve's last iterate (NaN if none).")
       .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },
                    "Whether the last step solved the window (from X0 and lam0).")
       .def_rw("has_prior", &MovingHorizon::has_prior)

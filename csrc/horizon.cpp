@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include "covariance.hpp"
@@ -78,6 +79,7 @@ void MovingHorizon::restart() {
   std::fill(qinvw.begin(), qinvw.end(), 0.0);
   std::fill(arrival.begin(), arrival.end(), 0.0);
   has_prior = has_X = has_X_last = has_lam = solved = false;
+  cost = 0.0;
   outputs_at_last = -1;
   iterations = 0;
   solve_seconds = 0.0;
@@ -217,6 +219,7 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
       solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated, -1);
   solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   iterations = r.iterations;
+  cost = r.outcome == CONVERGED ? r.cost : std::numeric_limits<double>::quiet_NaN();
   if (r.outcome != CONVERGED) {
     has_lam = false;
     return STEP_UNCERTIFIED;

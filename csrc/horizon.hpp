@@ -79,6 +79,9 @@ class MovingHorizon {
   bool solved = false;  // the last step solved the window
   Index iterations = 0;
   double solve_seconds = 0.0;  // the last solve's wall time, s
+  // the window cost at the last solve's last evaluated iterate when it was certified
+  // (NaN otherwise): the branch check's measure of the window's fit
+  double cost = 0.0;
   std::vector<double> X_sol, X_last_sol, D_sol, E_sol;
   // the kept answer's last node, its covariance and outputs
   std::vector<double> state, cov, y, ystd;

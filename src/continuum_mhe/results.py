@@ -68,7 +68,7 @@ class Status(str, Enum):
         "the MHE's window fit was implausible (chi-square test of its measurement cost) "
         "and a restart from another start found a lower window cost, or, with the arrival "
         "prior forgotten, a fit at least twice as good: this answer replaced the "
-        "warm-started one (--branch-check)",
+        "warm-started one (the branch check: on by default with tilt only)",
     )
     RESET = (
         "reset",

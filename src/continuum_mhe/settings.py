@@ -84,8 +84,11 @@ class MHESettings:
             chi-square quantile and, where implausible, solve the same window from
             other starts and keep the lowest cost, then, if none wins, with the arrival
             prior forgotten (status ``branch-restart``; see
-            :mod:`continuum_mhe.estimators.branch`). Off by default: measured in
-            docs/model.md.
+            :mod:`continuum_mhe.estimators.branch`). None (default): on for a robot of
+            several sections with the tilt formulation (``bend``), whose window has far
+            branches; off for one section, where gyros hold the branch (``direct``:
+            there it measured worse) and for the other formulations (measured in
+            docs/model.md).
     """
 
     horizon: int = 30
@@ -95,7 +98,7 @@ class MHESettings:
     solver: MHESolver = "fast"
     loss: MHELoss = "l2"
     loss_scale: float | None = None
-    branch_check: bool = False
+    branch_check: bool | None = None
 
     def __post_init__(self) -> None:
         if self.solver not in MHE_SOLVERS:
@@ -112,8 +115,8 @@ class MHESettings:
             raise UserError(
                 f"horizon must be an integer from 2 to {MAX_HORIZON} samples, got {self.horizon!r}"
             )
-        if not isinstance(self.branch_check, bool):
-            raise UserError(f"branch_check must be True or False, got {self.branch_check!r}")
+        if not (self.branch_check is None or isinstance(self.branch_check, bool)):
+            raise UserError(f"branch_check must be True, False or None, got {self.branch_check!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         check_positive("tol", self.tol)

@@ -284,6 +284,7 @@ def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='
     """
     The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.
     """
+
 class MovingHorizon:
     """
     The fast MHE's per-sample step over one WindowSolver and NodeModel: the window's buffers (NumPy views, row-major, aligned at the end), the arrival prior's slide, the warm start, the SQP, the last node's covariance and the outputs (csrc/horizon.hpp).
@@ -321,6 +322,10 @@ class MovingHorizon:
     @property
     def solve_seconds(self) -> float:
         """Wall time of the last step's window solve, s (0 when it solved none)."""
+
+    @property
+    def cost(self) -> float:
+        """Window cost at the last certified solve's last iterate (NaN if none)."""
 
     @property
     def solved(self) -> bool:

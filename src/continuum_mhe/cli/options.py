@@ -154,9 +154,13 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--branch-check",
-        action="store_true",
-        help="multi-section robots: when a window's fit is implausible (chi-square), "
-        "re-solve it from other starts and keep the lowest cost (status branch-restart)",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="when a window's fit is implausible (chi-square), re-solve it from other "
+        "starts and, if none fits, with the arrival prior forgotten; keep the better fit "
+        "(status branch-restart). Default: on for several sections with tilt only "
+        "(--imu-model tilt), off with gyros (--imu-model direct, where it measured worse) "
+        "and for one section",
     )
 
 
@@ -243,7 +247,7 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
             solver=args.solver,
             loss=loss,
             loss_scale=scale,
-            branch_check=getattr(args, "branch_check", False),
+            branch_check=getattr(args, "branch_check", None),
         )
     except ValueError as exc:
         raise InputError(str(exc)) from None

@@ -62,6 +62,21 @@ FORGET = 100.0
 #: Stage 2 is kept when its measurement cost is below this fraction of the warm answer's.
 FIT_GAIN = 0.5
 
+#: Formulations whose MHE checks its branch when ``MHESettings.branch_check`` is None,
+#: for a robot of more than one section: tilt only (such a window has far branches).
+#: With gyros (``direct``) the rates hold the branch and the check measured worse; one
+#: section has no far branch within its bound.
+CHECKED_BY_DEFAULT = ("bend",)
+
+
+def checks_branch(formulation: Formulation, setting: bool | None) -> bool:
+    """Whether the MHE runs the branch check: ``setting``, or by default (None) for a
+    robot of several sections in one of the formulations of :data:`CHECKED_BY_DEFAULT`."""
+    if setting is not None:
+        return setting
+    return formulation.name in CHECKED_BY_DEFAULT and not formulation.robot.is_single
+
+
 #: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.
 SolveFn = Callable[["WindowProblem", FloatArray], tuple[FloatArray, Status, object]]
 #: ``cost(problem, X) -> window cost`` (the NLP objective).
@@ -70,12 +85,14 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 
 @dataclass
 class BranchStats:
-    """Counts since the estimator's last ``reset()``: windows checked, found implausible
-    (``fired``), restarts that changed the answer (``restarted``), of which with the
-    arrival prior forgotten (``prior_forgotten``), and the winning starts of stage 1
-    (``sources``)."""
+    """Counts since the estimator's last ``reset()``: windows checked, of which those
+    whose measurement cost had to be evaluated (``evaluated``; the others passed on the
+    solver's window cost alone), found implausible (``fired``), restarts that changed the
+    answer (``restarted``), of which with the arrival prior forgotten
+    (``prior_forgotten``), and the winning starts of stage 1 (``sources``)."""
 
     checked: int = 0
+    evaluated: int = 0
     fired: int = 0
     restarted: int = 0
     prior_forgotten: int = 0
@@ -85,27 +102,58 @@ class BranchStats:
 class BranchCheck:
     """The branch check for one formulation and horizon (see the module docstring)."""
 
-    def __init__(self, formulation: Formulation, horizon: int, forget_prior: bool = True) -> None:
+    def __init__(
+        self,
+        formulation: Formulation,
+        horizon: int,
+        forget_prior: bool = True,
+        quadratic: bool = True,
+    ) -> None:
+        """``quadratic``: the window's measurement cost is the l2 one (no robust loss), so
+        :meth:`measurement_cost` can take it from the backend's window cost with the
+        arrival and process weights zeroed."""
         self.formulation = formulation
         self.forget_prior = forget_prior
+        self.quadratic = quadratic
         self.horizon = horizon
         self._innovate = formulation.functions.innovate.map(horizon)
         self._rinv = np.linalg.inv(formulation.meas_cov())
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
+        self._zero_weights: tuple[FloatArray, FloatArray] | None = None
 
     # --- detect -----------------------------------------------------------------
-    def measurement_cost(self, problem: WindowProblem, X: FloatArray) -> tuple[float, int]:
-        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2)."""
-        z, zmask = problem.z, problem.zmask
-        r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
-        cost = float(np.einsum("ij,jk,ik->", r, self._rinv, r))
-        return cost, int(zmask.sum())
+    def measurement_cost(
+        self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
+    ) -> tuple[float, int]:
+        """``(sum r^T R^-1 r, dof)`` over the valid components of the window (rad^2/rad^2).
 
-    def implausible(self, problem: WindowProblem, X: FloatArray) -> bool:
+        With ``cost`` (the backend's window cost, ``1/2`` of the weighted squares) and a
+        quadratic loss, twice that cost with the arrival and process weights zeroed;
+        otherwise from the formulation's residuals."""
+        z, zmask = problem.z, problem.zmask
+        dof = int(zmask.sum())
+        if cost is not None and self.quadratic:
+            return 2.0 * cost(self._measurements_only(problem), X), dof
+        r = np.asarray(self._innovate(z.T, X.T)[0], dtype=float).T * zmask  # (N, nz)
+        return float(np.einsum("ij,jk,ik->", r, self._rinv, r)), dof
+
+    def _measurements_only(self, problem: WindowProblem) -> WindowProblem:
+        """``problem`` with no arrival and no process weight (its cost: the measurements')."""
+        zeros = self._zero_weights
+        if zeros is None or zeros[0].shape != problem.arrival.shape:
+            zeros = self._zero_weights = (
+                np.zeros_like(problem.arrival),
+                np.zeros_like(problem.qinv),
+            )
+        return replace(problem, arrival=zeros[0], qinv=zeros[1])
+
+    def implausible(
+        self, problem: WindowProblem, X: FloatArray, cost: CostFn | None = None
+    ) -> bool:
         """True when the window's measurement cost exceeds the chi-square quantile."""
-        cost, dof = self.measurement_cost(problem, X)
-        return dof > 0 and cost > chi2_quantile(QUANTILE, dof)
+        c, dof = self.measurement_cost(problem, X, cost)
+        return dof > 0 and c > chi2_quantile(QUANTILE, dof)
 
     # --- restart ------------------------------------------------------------------
     def candidates(self, problem: WindowProblem) -> dict[str, FloatArray]:
@@ -176,37 +224,59 @@ class BranchCheck:
 
     # --- keep the best ----------------------------------------------------------------
     def check(
-        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        status: Status,
+        solve: SolveFn,
+        cost: CostFn,
+        window_cost: float | None = None,
     ) -> tuple[FloatArray, Status, object | None, bool]:
         """The answer to keep: ``(X, status, backend state, forget_prior)``.
 
         ``X`` is the warm-started answer; ``None`` as the backend state means it stays.
+        ``window_cost``: its window cost if the solver knows it (the fast SQP's, at its
+        last iterate). With a quadratic loss the measurement cost is at most twice the
+        window cost, so a window cost below half the quantile needs no evaluation.
         ``forget_prior`` is True when the answer comes from the window with the arrival
         weight divided by ``FORGET`` (stage 2): the caller then re-anchors its arrival
         prior on the answer's first node with its covariance times ``FORGET``.
         """
         self.stats.checked += 1
-        if status not in (Status.OK, Status.FALLBACK_IPOPT) or not self.implausible(problem, X):
+        if status not in (Status.OK, Status.FALLBACK_IPOPT):
+            return X, status, None, False
+        if self.quadratic and window_cost is not None:
+            if 2.0 * window_cost <= chi2_quantile(QUANTILE, int(problem.zmask.sum())):
+                return X, status, None, False
+        self.stats.evaluated += 1
+        if not self.implausible(problem, X, cost):
             return X, status, None, False
         self.stats.fired += 1
-        won = self._best_restart(problem, X, solve, cost)
+        starts = self.candidates(problem)
+        won = self._best_restart(problem, X, solve, cost, starts)
         if won is not None:
             self.stats.restarted += 1
             self.stats.sources[won[3]] = self.stats.sources.get(won[3], 0) + 1
             return won[0], Status.BRANCH_RESTART, won[2], False
         if not self.forget_prior:
             return X, status, None, False
-        return self._forget_prior(problem, X, status, solve, cost)
+        return self._forget_prior(problem, X, status, solve, cost, starts)
 
     def _best_restart(
-        self, problem: WindowProblem, X: FloatArray, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        solve: SolveFn,
+        cost: CostFn,
+        starts: dict[str, FloatArray],
     ) -> tuple[FloatArray, Status, object, str] | None:
-        """Stage 1: the restart of the same problem with the lowest cost, if lower than
-        ``X``'s by more than ``REL_MARGIN``."""
+        """Stage 1: the restart of the same problem from each of ``starts``
+        (:meth:`candidates`) with the lowest cost, if lower than ``X``'s by more than
+        ``REL_MARGIN``."""
         best_cost = cost(problem, X)
         bar = best_cost - REL_MARGIN * max(abs(best_cost), 1.0)
         best: tuple[FloatArray, Status, object, str] | None = None
-        for name, X0 in self.candidates(problem).items():
+        for name, X0 in starts.items():
             Xc, st, state = solve(problem, X0)
             if st not in (Status.OK, Status.FALLBACK_IPOPT):
                 continue
@@ -216,25 +286,32 @@ class BranchCheck:
         return best
 
     def _forget_prior(
-        self, problem: WindowProblem, X: FloatArray, status: Status, solve: SolveFn, cost: CostFn
+        self,
+        problem: WindowProblem,
+        X: FloatArray,
+        status: Status,
+        solve: SolveFn,
+        cost: CostFn,
+        starts: dict[str, FloatArray],
     ) -> tuple[FloatArray, Status, object | None, bool]:
         """Stage 2: the same window with the arrival weight on its first node divided by
-        ``FORGET``, solved from ``X`` and from every candidate; its lowest-cost answer is
-        kept when it explains the measurements better by at least ``1/FIT_GAIN``."""
+        ``FORGET``, solved from ``X`` and from every candidate (stage 1's ``starts``, the
+        EKF's run again from the weaker prior); its lowest-cost answer is kept when it
+        explains the measurements better by at least ``1/FIT_GAIN``."""
         full = problem.arrival.copy()
         if not np.array_equal(full[1:], np.zeros_like(full[1:])):
             return X, status, None, False  # a growing window: its prior is the first reading
         full[0] = full[0] / FORGET
         relaxed = replace(problem, arrival=full)
         best: tuple[float, FloatArray, object] | None = None
-        for X0 in (X, *self.candidates(relaxed).values()):
+        for X0 in (X, *{**starts, "ekf": self._ekf_window(relaxed)}.values()):
             Xc, st, state = solve(relaxed, X0)
             if st in (Status.OK, Status.FALLBACK_IPOPT):
                 c = cost(relaxed, Xc)
                 if best is None or c < best[0]:
                     best = (c, Xc, state)
-        fit, _ = self.measurement_cost(problem, X)
-        if best is None or self.measurement_cost(problem, best[1])[0] >= FIT_GAIN * fit:
+        fit, _ = self.measurement_cost(problem, X, cost)
+        if best is None or self.measurement_cost(problem, best[1], cost)[0] >= FIT_GAIN * fit:
             return X, status, None, False
         self.stats.restarted += 1
         self.stats.prior_forgotten += 1
@@ -251,4 +328,13 @@ def _fill_rates(f: Formulation, X: FloatArray, dt: FloatArray) -> None:
             X[0, j] = X[1, j] if len(X) > 1 else 0.0
 
 
-__all__ = ["FIT_GAIN", "FORGET", "QUANTILE", "REL_MARGIN", "BranchCheck", "BranchStats"]
+__all__ = [
+    "CHECKED_BY_DEFAULT",
+    "FIT_GAIN",
+    "FORGET",
+    "QUANTILE",
+    "REL_MARGIN",
+    "BranchCheck",
+    "BranchStats",
+    "checks_branch",
+]

@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status
-from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats
+from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats, checks_branch
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,
     FastOptions,
@@ -338,8 +338,13 @@ class MovingHorizonInference(Inference):
         self.flags_outliers = self.settings.loss != "l2"
         #: the robust loss's second start (:mod:`.second_start`), with its counts
         self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
-        #: the branch check (``settings.branch_check``; see :mod:`.branch`), with its counts
-        self.branch = BranchCheck(formulation, s.horizon) if s.branch_check else None
+        #: the branch check (``settings.branch_check``, by default for tilt only; see
+        #: :mod:`.branch`), with its counts
+        self.branch = (
+            BranchCheck(formulation, s.horizon, quadratic=s.loss == "l2")
+            if checks_branch(formulation, s.branch_check)
+            else None
+        )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
         #: the compiled window solves' time in the last sample, s (0 on IPOPT)
         self.solve_seconds = 0.0
@@ -372,6 +377,9 @@ class MovingHorizonInference(Inference):
         self._z_prev_valid: FloatArray | None = None
         #: the outputs of the last answer, for :meth:`output` and :meth:`output_std`
         self._answer: Answer | None = None
+        #: the window cost of the last certified fast solve (None otherwise): the
+        #: branch check's measure of the window's fit
+        self._last_cost: float | None = None
         self._w_new: FloatArray | None = None  # robust weights of the newest node, if known
         if self.second_start is not None:
             self.second_start.clear()
@@ -523,8 +531,10 @@ class MovingHorizonInference(Inference):
         if answer is not None:  # kept by the compiled step
             return self._keep(answer, Status.OK, valid)
         problem = self.window_problem(copy=False)
+        self._last_cost = None
         if outcome == CERTIFIED:
             X, status = np.array(window.X_sol), Status.OK
+            self._last_cost = window.cost
         elif self._fast is None:  # IPOPT's backend
             X, status = self._solve(problem, np.array(window.X0))
         else:  # the SQP did not certify its answer: IPOPT solves the window
@@ -575,6 +585,7 @@ class MovingHorizonInference(Inference):
         """One solve of ``problem`` from ``X0`` (the hooks' and tests' solve): the fast
         SQP (its multipliers :attr:`_lam`, shifted by one node, warm-start it), IPOPT
         when it does not certify its answer; IPOPT alone on that backend."""
+        self._last_cost = None
         if self._fast is None:
             X, status = self._solve_ipopt(problem, X0)
             if self.settings.solver == "fast" and status == Status.OK:
@@ -585,6 +596,7 @@ class MovingHorizonInference(Inference):
             lam0[:-1] = lam0[1:]
             lam0[-1] = 0.0
         res = self._solve_fast(problem, X0, lam0)
+        self._last_cost = res.cost if res.converged else None
         if res.converged:
             self._lam = res.lam
             return res.X, Status.OK
@@ -645,7 +657,9 @@ class MovingHorizonInference(Inference):
 
         fast = self._fast
         cost = self.window_cost if fast is None else lambda p, Xc: window_cost(fast, p, Xc)
-        X, status, lam, forget = self.branch.check(problem, X, status, solve, cost)
+        X, status, lam, forget = self.branch.check(
+            problem, X, status, solve, cost, window_cost=self._last_cost
+        )
         self._lam = kept if status != Status.BRANCH_RESTART else lam  # type: ignore[assignment]
         if forget:  # the answer came with the arrival prior forgotten: re-anchor it there
             P = self._P

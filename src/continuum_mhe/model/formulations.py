@@ -521,24 +521,36 @@ DIVERGED_RATE = 50.0
 
 
 def _bend_turning(v: FloatArray, f: FloatArray, at: float, theta_max: float) -> FloatArray:
-    """Bend ``(a, b)`` of a section whose frame at fraction ``at`` sees the direction
-    ``v`` (in the section's base frame) as ``f``: ``R(at u)^T v = f``, least squares
-    from a few starts, clipped to ``theta_max``."""
+    """Bend ``(a, b)`` of a section whose frame at fraction ``at`` sees the unit direction
+    ``v`` (in the section's base frame) as ``f``: ``R(at u)^T v = f``, clipped to
+    ``theta_max``.
 
-    def resid(w: FloatArray) -> FloatArray:
-        return np.asarray(rotation_bend(w[0], w[1]).T @ v - f, dtype=float)
-
-    if abs(abs(v[2]) - 1.0) < 1e-12:  # v vertical: the closed form is exact
-        roll = math.atan2(f[1], f[2])
-        pitch = math.atan2(-f[0], math.hypot(f[1], f[2]))
-        th, ph = shape_from_tilt(roll, pitch, "z-up" if v[2] > 0 else "z-down")
-        w = np.array([th * math.cos(ph), th * math.sin(ph)]) / at
+    Closed form: a bend rotates about a horizontal axis ``n`` (its rotation vector is
+    ``(b, -a, 0)``), which keeps the component along ``n``, so ``n`` is perpendicular to
+    ``v - f`` and to ``z``; the angle is the one from ``f`` to ``v`` about ``n``, in
+    ``(-pi, pi]`` (the smallest bend). Where ``v - f`` is vertical and not zero (``f`` is
+    ``v`` mirrored in the horizontal plane: a half turn about any horizontal axis that
+    keeps both), least squares from a few starts picks one."""
+    d = np.asarray(v, dtype=float) - np.asarray(f, dtype=float)
+    horizontal = math.hypot(d[0], d[1])
+    if horizontal > 1e-9 or float(np.linalg.norm(d)) <= 1e-12:
+        if horizontal > 1e-9:
+            n = np.array([-d[1], d[0], 0.0]) / horizontal
+            fp, vp = f - (n @ f) * n, v - (n @ v) * n
+            angle = math.atan2(float(n @ np.cross(fp, vp)), float(fp @ vp))
+        else:  # v == f: no bend
+            n, angle = np.zeros(3), 0.0
+        w = np.array([-angle * n[1], angle * n[0]]) / at
     else:
+
+        def resid(w: FloatArray) -> FloatArray:
+            return np.asarray(rotation_bend(w[0], w[1]).T @ v - f, dtype=float)
+
         starts = [np.zeros(2)] + [
             np.array([math.cos(ang), math.sin(ang)])
             for ang in np.linspace(0, 2 * np.pi, 4, endpoint=False)
         ]
-        from scipy.optimize import least_squares  # a tilted mounting only: imported here
+        from scipy.optimize import least_squares  # the mirrored case only: imported here
 
         best = min((least_squares(resid, s) for s in starts), key=lambda r: r.cost)
         w = best.x / at
