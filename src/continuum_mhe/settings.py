@@ -86,9 +86,10 @@ class MHESettings:
             prior forgotten (status ``branch-restart``; see
             :mod:`continuum_mhe.estimators.branch`). None (default): on for a robot of
             several sections with the tilt formulation (``bend``), whose window has far
-            branches; off for one section, where gyros hold the branch (``direct``:
-            there it measured worse) and for the other formulations (measured in
-            docs/model.md).
+            branches, and the quadratic loss. Off with a robust loss (a restart would
+            follow the faulty IMU the loss rejects), with gyros (``direct``: the rates
+            hold the branch, and the check measured worse), for one section and for
+            the other formulations (measured in docs/model.md).
     """
 
     horizon: int = 30

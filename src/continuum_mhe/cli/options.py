@@ -159,8 +159,8 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         help="when a window's fit is implausible (chi-square), re-solve it from other "
         "starts and, if none fits, with the arrival prior forgotten; keep the better fit "
         "(status branch-restart). Default: on for several sections with tilt only "
-        "(--imu-model tilt), off with gyros (--imu-model direct, where it measured worse) "
-        "and for one section",
+        "(--imu-model tilt) and the l2 loss, off with gyros (--imu-model direct, where it "
+        "measured worse), with a robust --loss and for one section",
     )
 
 

@@ -69,12 +69,14 @@ FIT_GAIN = 0.5
 CHECKED_BY_DEFAULT = ("bend",)
 
 
-def checks_branch(formulation: Formulation, setting: bool | None) -> bool:
+def checks_branch(formulation: Formulation, setting: bool | None, robust: bool = False) -> bool:
     """Whether the MHE runs the branch check: ``setting``, or by default (None) for a
-    robot of several sections in one of the formulations of :data:`CHECKED_BY_DEFAULT`."""
+    robot of several sections in one of the formulations of :data:`CHECKED_BY_DEFAULT`,
+    with the quadratic loss (``robust`` False): a robust loss rejects a faulty IMU's
+    readings, and a restart from the readings' own shapes would follow that IMU."""
     if setting is not None:
         return setting
-    return formulation.name in CHECKED_BY_DEFAULT and not formulation.robot.is_single
+    return formulation.name in CHECKED_BY_DEFAULT and not formulation.robot.is_single and not robust
 
 
 #: ``solve(problem, X0) -> (X, status, backend state)``: one solve from a start.

@@ -128,6 +128,8 @@ class ReferenceWindow:
         self._loss = LossKernel(self._blocks, LOSS_CODES[settings.loss], float(settings.scale))
         self.xbar, self.P, self.Pinv = np.zeros(nx), np.zeros((nx, nx)), np.zeros((nx, nx))
         self.iterations = 0
+        #: the compiled step's certified window cost; this window certifies none (NaN)
+        self.cost = float("nan")
         self.restart()
 
     def restart(self) -> None:
@@ -342,7 +344,7 @@ class MovingHorizonInference(Inference):
         #: :mod:`.branch`), with its counts
         self.branch = (
             BranchCheck(formulation, s.horizon, quadratic=s.loss == "l2")
-            if checks_branch(formulation, s.branch_check)
+            if checks_branch(formulation, s.branch_check, robust=s.loss != "l2")
             else None
         )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
