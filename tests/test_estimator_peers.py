@@ -426,6 +426,11 @@ def test_linear_mhe_last_node_equals_library_filter(
 
 
 # --- bounds --------------------------------------------------------------------------------
+#: The window of the bound, straight-configuration and dropout tests below: what they check
+#: does not depend on its length, and the IPOPT MHE's time grows with it.
+HORIZON = 10
+
+
 @pytest.fixture(scope="module")
 def overbend() -> Recording:
     return simulate("planar-overbend", duration=10)
@@ -436,7 +441,7 @@ def overbend() -> Recording:
 def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
     assert overbend.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
     f = make_formulation(name)
-    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=HORIZON))
     series = mhe.run(overbend.t, overbend.z)
     assert np.all(np.isfinite(series.output))
     # IPOPT's default bound relaxation (1e-8 relative) allows ~1.6e-8 rad
@@ -448,7 +453,7 @@ def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_mhe_with_larger_theta_max_tracks_further_bending(solver: str, overbend) -> None:
     f = make_formulation("bend", robot=RobotSettings(theta_max=3.0))
-    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=HORIZON))
     series = mhe.run(overbend.t, overbend.z)
     assert series.output[:, 3].max() > 2.0
     assert series.output[:, 3].max() <= 3.0 + 1e-7
@@ -464,9 +469,9 @@ def straight() -> Recording:
 
 def make_estimator(kind: str, f: Formulation) -> Estimator:
     if kind == "mhe":
-        return MovingHorizonEstimator(f, MHESettings(horizon=20))
+        return MovingHorizonEstimator(f, MHESettings(horizon=HORIZON))
     if kind == "mhe-ipopt":
-        return MovingHorizonEstimator(f, ipopt_settings(horizon=20))
+        return MovingHorizonEstimator(f, ipopt_settings(horizon=HORIZON))
     return {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
 
 
