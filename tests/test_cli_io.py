@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 from pathlib import Path
@@ -185,8 +186,10 @@ def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
     meas, est = _meas(tmp_path, rows), tmp_path / "est.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "bad rows: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) " \
+    assert (
+        "bad rows: 2 sample(s) with a bad value, read as a dropout of its IMU; 1 sample(s) "
         "dropped (bad or non-increasing t); first: line 12: column roll is nan" in err
+    )
     t, out, status = read_states(est)
     assert len(t) == 40 and np.all(np.isfinite(out))
     assert list(np.flatnonzero(status == "dropout")) == [10, 20]
@@ -201,8 +204,10 @@ def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, 
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--skip-bad"]) == 0
     err = capsys.readouterr().err
-    assert "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: " \
+    assert (
+        "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: "
         "line 9: expected 3 fields, found 4" in err
+    )
     t, out, status = read_states(est)
     assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7]
     table = read_measurements(meas, skip_bad=True)
@@ -406,8 +411,21 @@ def test_demo_refuses_a_file_as_its_folder(tmp_path, capsys):
     assert target.read_text() == "mine\n"
 
 
+@pytest.fixture
+def short_demo(monkeypatch):
+    """``demo`` on a 2 s recording (its default is 20 s): the tests that use it check
+    the files the demo writes and removes, which the recording's length does not
+    change (the README's numbers are checked on the full demo in test_hygiene)."""
+    from continuum_mhe.cli import demo
+
+    short = functools.partial(demo.simulate_robot, duration=2.0)
+    monkeypatch.setattr(demo, "simulate_robot", short)
+
+
 @pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "existing-folder"])
-def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypatch, existing):
+def test_an_interrupted_demo_leaves_nothing_it_wrote(
+    tmp_path, capsys, monkeypatch, existing, short_demo
+):
     """Before: Ctrl-C during ``demo`` left a folder with the estimates written so far.
     Now the files are written after the estimates, and an interruption while writing
     (here: while saving the second figure) removes the files it created, and the folders
@@ -437,7 +455,7 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(tmp_path, capsys, monkeypat
         assert not (tmp_path / "new").exists()  # the folders it made too
 
 
-def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys):
+def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys, short_demo):
     """A demo that fails writing (a read-only truth.csv) removes only what it created:
     the read-only file, never replaced, stays as it was (the first review of the
     all-or-nothing writing deleted it), and so does a replaced estimates file."""

@@ -15,7 +15,9 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
@@ -39,6 +41,7 @@ from filterpy.kalman import MerweScaledSigmaPoints
 from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
 from numpy.testing import assert_allclose
 
+from continuum_mhe.estimators import EstimateSeries
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
@@ -379,35 +382,55 @@ def kalman_filter_with_prior(f: LinearBend, z: np.ndarray) -> np.ndarray:
     return x
 
 
-def full_horizon_mhe(f: LinearBend, t: np.ndarray, z: np.ndarray, solver: str = "ipopt"):
-    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=LIN_N + 5))  # growing only
-    estimates = step_all(mhe, t, z)
-    return estimates, window_states(mhe)[-len(z) :]
+@pytest.fixture(scope="module")
+def full_horizon_mhe(linear_recording) -> Callable[[str], tuple[list, np.ndarray]]:
+    """``run(solver)``: (estimates, last window) of the MHE whose window holds all of
+    ``linear_recording`` (it only grows), computed once for the module."""
+    f, t, z = linear_recording
+
+    @functools.cache
+    def run(solver: str) -> tuple[list, np.ndarray]:
+        mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=LIN_N + 5))
+        estimates = step_all(mhe, t, z)
+        return estimates, window_states(mhe)[-len(z) :]
+
+    return run
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_linear_full_horizon_mhe_equals_batch_least_squares(linear_recording, solver) -> None:
+def test_linear_full_horizon_mhe_equals_batch_least_squares(
+    linear_recording, full_horizon_mhe, solver
+) -> None:
     f, t, z = linear_recording
-    estimates, window = full_horizon_mhe(f, t, z, solver)
+    estimates, window = full_horizon_mhe(solver)
     assert all(e.status == "ok" for e in estimates)
     assert_allclose(window, batch_least_squares(f, z), rtol=0, atol=1e-8)
 
 
-def test_linear_mhe_last_node_equals_kalman_filter_with_same_prior(linear_recording) -> None:
+def test_linear_mhe_last_node_equals_kalman_filter_with_same_prior(
+    linear_recording, full_horizon_mhe
+) -> None:
     f, t, z = linear_recording
-    estimates, _ = full_horizon_mhe(f, t, z)
+    estimates, _ = full_horizon_mhe("ipopt")
     assert_allclose(estimates[-1].state, kalman_filter_with_prior(f, z), rtol=0, atol=1e-8)
 
 
 @pytest.mark.parametrize("filter_cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
-def test_linear_mhe_last_node_equals_library_filter(linear_recording, filter_cls) -> None:
+def test_linear_mhe_last_node_equals_library_filter(
+    linear_recording, full_horizon_mhe, filter_cls
+) -> None:
     f, t, z = linear_recording
-    estimates, _ = full_horizon_mhe(f, t, z)
+    estimates, _ = full_horizon_mhe("ipopt")
     filtered = step_all(filter_cls(f), t, z)
     assert_allclose(estimates[-1].state, filtered[-1].state, rtol=0, atol=1e-8)
 
 
 # --- bounds --------------------------------------------------------------------------------
+#: The window of the bound, straight-configuration and dropout tests below: what they check
+#: does not depend on its length, and the IPOPT MHE's time grows with it.
+HORIZON = 10
+
+
 @pytest.fixture(scope="module")
 def overbend() -> Recording:
     return simulate("planar-overbend", duration=10)
@@ -418,7 +441,7 @@ def overbend() -> Recording:
 def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
     assert overbend.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
     f = make_formulation(name)
-    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=HORIZON))
     series = mhe.run(overbend.t, overbend.z)
     assert np.all(np.isfinite(series.output))
     # IPOPT's default bound relaxation (1e-8 relative) allows ~1.6e-8 rad
@@ -430,7 +453,7 @@ def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_mhe_with_larger_theta_max_tracks_further_bending(solver: str, overbend) -> None:
     f = make_formulation("bend", robot=RobotSettings(theta_max=3.0))
-    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=20))
+    mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=HORIZON))
     series = mhe.run(overbend.t, overbend.z)
     assert series.output[:, 3].max() > 2.0
     assert series.output[:, 3].max() <= 3.0 + 1e-7
@@ -446,9 +469,9 @@ def straight() -> Recording:
 
 def make_estimator(kind: str, f: Formulation) -> Estimator:
     if kind == "mhe":
-        return MovingHorizonEstimator(f, MHESettings(horizon=20))
+        return MovingHorizonEstimator(f, MHESettings(horizon=HORIZON))
     if kind == "mhe-ipopt":
-        return MovingHorizonEstimator(f, ipopt_settings(horizon=20))
+        return MovingHorizonEstimator(f, ipopt_settings(horizon=HORIZON))
     return {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
 
 
@@ -463,28 +486,44 @@ def solved(name: str) -> list[str]:
     return SOLVED + (["drifted"] if name == "paper" else [])
 
 
+@pytest.fixture(scope="module")
+def straight_run(straight) -> Callable[[str, str], EstimateSeries]:
+    """``run(name, kind)``: estimator ``kind`` on formulation ``name`` over the
+    ``straight`` recording, computed once for the module (several tests read one run)."""
+
+    @functools.cache
+    def run(name: str, kind: str) -> EstimateSeries:
+        return make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
+
+    return run
+
+
 @pytest.mark.parametrize("kind", ESTIMATORS)
 @pytest.mark.parametrize("name", FORMULATIONS)
-def test_straight_configuration_gives_finite_estimates(name: str, kind: str, straight) -> None:
+def test_straight_configuration_gives_finite_estimates(
+    name: str, kind: str, straight, straight_run
+) -> None:
     assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
-    series = make_estimator(kind, make_formulation(name)).run(straight.t, straight.z)
+    series = straight_run(name, kind)
     assert np.all(np.isfinite(series.output))
     # the paper formulation's separate position may drift from its angles: flagged
     assert np.all(np.isin(series.status, solved(name)))
 
 
 @pytest.mark.parametrize("kind", ESTIMATORS)
-def test_straight_configuration_tip_error_is_small_for_bend(kind: str, straight) -> None:
-    series = make_estimator(kind, make_formulation("bend")).run(straight.t, straight.z)
+def test_straight_configuration_tip_error_is_small_for_bend(
+    kind: str, straight, straight_run
+) -> None:
+    series = straight_run("bend", kind)
     err = np.linalg.norm(series.output[:, :3] - straight.truth[:, :3], axis=1)
     assert err.mean() < 0.02 * straight.length
 
 
 # --- position consistency (bend formulation) ---------------------------------------------------
 @pytest.mark.parametrize("kind", ESTIMATORS)
-def test_bend_output_position_equals_kinematics_of_its_own_shape(kind: str, straight) -> None:
+def test_bend_output_position_equals_kinematics_of_its_own_shape(kind: str, straight_run) -> None:
     f = make_formulation("bend")
-    series = make_estimator(kind, f).run(straight.t, straight.z)
+    series = straight_run("bend", kind)
     theta, phi = series.output[:, 3], series.output[:, 4]
     assert_allclose(series.output[:, :3], tip_position(theta, phi, f.robot.length), atol=1e-12)
 
@@ -522,24 +561,35 @@ class FlakySolver:
         return self.solver.stats()
 
 
-def run_with_injected_failures(name: str, rec: Recording, n: int) -> tuple[list, list]:
-    """(estimates with IPOPT failing at samples 12-14, estimates of a clean run)."""
-    f = make_formulation(name)
-    clean = step_all(MovingHorizonEstimator(f, ipopt_settings(horizon=10)), rec.t[:n], rec.z[:n])
-    mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=10))
-    mhe.inference._nlp = dataclasses.replace(
-        mhe.inference._nlp,
-        solver=FlakySolver(mhe.inference._nlp.solver, raise_on={12, 13}, nan_on={14}),
-    )
-    return step_all(mhe, rec.t[:n], rec.z[:n]), clean
+@pytest.fixture(scope="module")
+def injected_failures(paper3d) -> Callable[[str], tuple[list, list]]:
+    """``run(name)``: (estimates of the IPOPT MHE on formulation ``name`` over the first
+    40 samples of ``paper3d`` with IPOPT failing at samples 12-14, estimates of a clean
+    run), computed once for the module."""
+    rec, n = paper3d, 40
+
+    @functools.cache
+    def run(name: str) -> tuple[list, list]:
+        f = make_formulation(name)
+        clean = step_all(
+            MovingHorizonEstimator(f, ipopt_settings(horizon=10)), rec.t[:n], rec.z[:n]
+        )
+        mhe = MovingHorizonEstimator(f, ipopt_settings(horizon=10))
+        mhe.inference._nlp = dataclasses.replace(
+            mhe.inference._nlp,
+            solver=FlakySolver(mhe.inference._nlp.solver, raise_on={12, 13}, nan_on={14}),
+        )
+        return step_all(mhe, rec.t[:n], rec.z[:n]), clean
+
+    return run
 
 
 FAILING = [12, 13, 14]
 
 
 @pytest.mark.parametrize("name", FORMULATIONS)
-def test_mhe_injected_solver_failures_are_flagged_and_finite(name: str, paper3d) -> None:
-    estimates, _ = run_with_injected_failures(name, paper3d, 40)
+def test_mhe_injected_solver_failures_are_flagged_and_finite(name: str, injected_failures) -> None:
+    estimates, _ = injected_failures(name)
     status = np.array([e.status for e in estimates])
     assert np.all(np.isfinite([e.output for e in estimates]))
     assert list(status[FAILING]) == ["solver-failed"] * 3
@@ -547,8 +597,8 @@ def test_mhe_injected_solver_failures_are_flagged_and_finite(name: str, paper3d)
 
 
 @pytest.mark.parametrize("name", FORMULATIONS)
-def test_mhe_shape_recovers_after_injected_solver_failures(name: str, paper3d) -> None:
-    estimates, clean = run_with_injected_failures(name, paper3d, 40)
+def test_mhe_shape_recovers_after_injected_solver_failures(name: str, injected_failures) -> None:
+    estimates, clean = injected_failures(name)
     later = slice(FAILING[-1] + 10, 40)  # once the failed samples have left the window
     out = np.array([e.output for e in estimates])[later]
     ref = np.array([e.output for e in clean])[later]
@@ -556,10 +606,10 @@ def test_mhe_shape_recovers_after_injected_solver_failures(name: str, paper3d) -
     assert_allclose(wrap_angle(out[:, 4] - ref[:, 4]), 0.0, rtol=0, atol=1e-6)
 
 
-def test_mhe_bend_position_recovers_after_injected_solver_failures(paper3d) -> None:
+def test_mhe_bend_position_recovers_after_injected_solver_failures(injected_failures) -> None:
     # (the paper formulation's x, y, z are unobservable integrator states: an offset
     # left by a failure persists, so only the bend formulation is checked here)
-    estimates, clean = run_with_injected_failures("bend", paper3d, 40)
+    estimates, clean = injected_failures("bend")
     later = slice(FAILING[-1] + 10, 40)
     out = np.array([e.output for e in estimates])[later]
     ref = np.array([e.output for e in clean])[later]

@@ -324,14 +324,14 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     saved: list[Path] = []
     real_save = plotting.save
 
-    def save(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
+    def save(fig: Any, path: Path, formats: Any, *args: Any, **kw: Any) -> list[Path]:
         saved.append(path)
         if len(saved) == 2:
             thing = Thing()
             ref = weakref.ref(thing, lambda r: os.kill(os.getpid(), signal.SIGINT))
             del thing  # the callback runs now, and the handler in it
             assert ref() is None
-        return real_save(fig, path, *args, **kw)
+        return real_save(fig, path, formats[:1], *args, **kw)  # one format is enough here
 
     monkeypatch.setattr(plotting, "save", save)
     out = tmp_path / "new" / "figs"
