@@ -125,8 +125,14 @@ def test_a_signal_during_start_up_says_one_line(tmp_path, module, sig, said, cod
     )
     out = tmp_path / "e.csv"
     argv = ["estimate", str(tmp_path / "m.csv"), "-o", str(out)]
+    # a child of a background job inherits SIGINT ignored, and Python then installs no
+    # handler of its own: the child starts with the default, as from a terminal
     r = subprocess.run(
-        [sys.executable, "-c", code_text, *argv], capture_output=True, text=True, timeout=300
+        [sys.executable, "-c", code_text, *argv],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     assert (r.returncode, r.stderr) == (code, said)
     assert not out.exists()
