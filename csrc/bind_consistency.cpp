@@ -3,10 +3,10 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/vector.h>
 
-#include <cstring>
 #include <stdexcept>
 #include <string>
 
+#include "bind_arrays.hpp"
 #include "bindings.hpp"
 #include "consistency.hpp"
 
@@ -15,21 +15,8 @@ using namespace cmhe;
 
 namespace {
 
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<nb::numpy, double, nb::ndim<2>>;
-
-Out new_matrix(size_t rows, size_t cols) {
-  double* data = new double[rows * cols > 0 ? rows * cols : 1];
-  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
-  size_t shape[2] = {rows, cols};
-  return Out(data, 2, shape, owner);
-}
-
-void check_size(const In& a, size_t size, const char* name) {
-  if (a.size() != size)
-    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
-                                " values, expected " + std::to_string(size));
-}
+using In = InArray;
+using Out = NewArray;
 
 }  // namespace
 
@@ -94,7 +81,7 @@ void cmhe::bind_consistency(nb::module_& m) {
             check_size(z, nz, "z");
             check_size(mask, nz, "mask");
             check_size(x, nx, "x");
-            Out out = new_matrix(nx, nx);
+            Out out = new_array({nx, nx});
             c.constant_error_cov(z.data(), mask.data(), x.data(), out.data());
             return out;
           },
@@ -120,9 +107,7 @@ void cmhe::bind_consistency(nb::module_& m) {
           throw std::invalid_argument("a must be a square matrix");
         const Eigen::Index n = static_cast<Eigen::Index>(a.shape(0));
         const RowMatrix p = pinv_symmetric(Eigen::Map<const RowMatrix>(a.data(), n, n), rcond);
-        Out out = new_matrix(n, n);
-        std::memcpy(out.data(), p.data(), sizeof(double) * n * n);
-        return out;
+        return copy_of(p.data(), {size_t(n), size_t(n)});
       },
       nb::arg("a"), nb::arg("rcond"),
       "The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, "

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bind_arrays.hpp"
 #include "bindings.hpp"
 #include "filter.hpp"
 
@@ -16,28 +17,8 @@ using namespace cmhe;
 
 namespace {
 
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<nb::numpy, double>;
-
-Out new_array(std::initializer_list<size_t> shape) {
-  size_t n = 1;
-  for (size_t s : shape) n *= s;
-  double* data = new double[n > 0 ? n : 1];
-  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
-  return Out(data, shape.size(), shape.begin(), owner);
-}
-
-Out copy_of(const double* data, std::initializer_list<size_t> shape) {
-  Out a = new_array(shape);
-  std::memcpy(a.data(), data, a.size() * sizeof(double));
-  return a;
-}
-
-void check(const In& a, size_t size, const char* name) {
-  if (a.size() != size)
-    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
-                                " values, expected " + std::to_string(size));
-}
+using In = InArray;
+using Out = NewArray;
 
 struct Sample {
   const double* u;
@@ -46,9 +27,9 @@ struct Sample {
 };
 
 Sample sample(const NodeModel& m, const In& u, const In& z, const In& mask, size_t nu) {
-  check(u, nu, "u");
-  check(z, m.nz(), "z");
-  check(mask, m.nz(), "mask");
+  check_size(u, nu, "u");
+  check_size(z, m.nz(), "z");
+  check_size(mask, m.nz(), "mask");
   return {u.size() ? u.data() : nullptr, z.data(), mask.data()};
 }
 
@@ -72,7 +53,7 @@ void cmhe::bind_filter(nb::module_& m) {
           "evaluate",
           [](NodeModel& n, In x, In u, double dt, In z, In mask) {
             const int nx = n.nx(), nz = n.nz();
-            check(x, nx, "x");
+            check_size(x, nx, "x");
             Sample s = sample(n, u, z, mask, u.size());
             n.evaluate(x.data(), s.u, dt, s.z, s.mask);
             const double* o = n.node_out();
@@ -88,10 +69,10 @@ void cmhe::bind_filter(nb::module_& m) {
           "arrival_step",
           [](NodeModel& n, In x, In P, In u, double dt, In z, In mask, In R, In Q) {
             const size_t nx = n.nx(), nz = n.nz();
-            check(x, nx, "x");
-            check(P, nx * nx, "P");
-            check(R, nz * nz, "R");
-            check(Q, nx * nx, "Q");
+            check_size(x, nx, "x");
+            check_size(P, nx * nx, "P");
+            check_size(R, nz * nz, "R");
+            check_size(Q, nx * nx, "Q");
             Sample s = sample(n, u, z, mask, u.size());
             Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
             Out Pinv = new_array({nx, nx});
@@ -107,10 +88,10 @@ void cmhe::bind_filter(nb::module_& m) {
           "ekf_step_outputs",
           [](NodeModel& n, In x, In P, In u, double dt, In z, In mask, In R, In Q) {
             const size_t nx = n.nx(), nz = n.nz(), ny = n.ny();
-            check(x, nx, "x");
-            check(P, nx * nx, "P");
-            check(R, nz * nz, "R");
-            check(Q, nx * nx, "Q");
+            check_size(x, nx, "x");
+            check_size(P, nx * nx, "P");
+            check_size(R, nz * nz, "R");
+            check_size(Q, nx * nx, "Q");
             Sample s = sample(n, u, z, mask, u.size());
             Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
             if (!n.ekf_step(xn.data(), Pn.data(), s.u, dt, s.z, s.mask, R.data(), Q.data()))
@@ -127,7 +108,7 @@ void cmhe::bind_filter(nb::module_& m) {
       .def(
           "output",
           [](NodeModel& n, In x) {
-            check(x, n.nx(), "x");
+            check_size(x, n.nx(), "x");
             Out y = new_array({size_t(n.ny())});
             n.output(x.data(), y.data());
             return y;
@@ -136,8 +117,8 @@ void cmhe::bind_filter(nb::module_& m) {
       .def(
           "output_std",
           [](NodeModel& n, In x, In P) {
-            check(x, n.nx(), "x");
-            check(P, size_t(n.nx()) * n.nx(), "P");
+            check_size(x, n.nx(), "x");
+            check_size(P, size_t(n.nx()) * n.nx(), "P");
             Out sd = new_array({size_t(n.ny())});
             n.output_std(x.data(), P.data(), sd.data());
             return sd;
@@ -148,9 +129,9 @@ void cmhe::bind_filter(nb::module_& m) {
       "ekf_update",
       [](In x, In P, In r, In H, In R) {
         const size_t nx = x.size(), nz = r.size();
-        check(P, nx * nx, "P");
-        check(H, nz * nx, "H");
-        check(R, nz * nz, "R");
+        check_size(P, nx * nx, "P");
+        check_size(H, nz * nx, "H");
+        check_size(R, nz * nz, "R");
         Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
         if (!ekf_update(xn.data(), Pn.data(), r.data(), H.data(), R.data(), int(nx), int(nz)))
           throw std::runtime_error("singular innovation covariance in the EKF update");

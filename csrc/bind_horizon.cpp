@@ -3,12 +3,12 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/tuple.h>
 
-#include <cstring>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "bind_arrays.hpp"
 #include "bindings.hpp"
 #include "horizon.hpp"
 
@@ -17,28 +17,12 @@ using namespace cmhe;
 
 namespace {
 
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Array = nb::ndarray<nb::numpy, double>;
-
-void check(const In& a, Index size, const char* name) {
-  if (Index(a.size()) != size)
-    throw std::invalid_argument(std::string(name) + " has " + std::to_string(a.size()) +
-                                " values, expected " + std::to_string(size));
-}
+using In = InArray;
+using Array = NewArray;
 
 // a NumPy view of one of the step's buffers, keeping the step alive
 Array view(MovingHorizon& h, std::vector<double>& v, std::initializer_list<size_t> shape) {
   return Array(v.data(), shape, nb::find(&h));
-}
-
-// a new NumPy array holding a copy of ``data``
-Array copy_of(const double* data, std::initializer_list<size_t> shape) {
-  size_t size = 1;
-  for (size_t s : shape) size *= s;
-  double* p = new double[size > 0 ? size : 1];
-  std::memcpy(p, data, size * sizeof(double));
-  nb::capsule owner(p, [](void* q) noexcept { delete[] static_cast<double*>(q); });
-  return Array(p, shape.size(), shape.begin(), owner);
 }
 
 // (state, covariance or None, outputs, their standard deviations or None): copies
@@ -65,13 +49,7 @@ void cmhe::bind_horizon(nb::module_& m) {
           [](MovingHorizon* self, WindowSolver& solver, NodeModel& node, In R, bool robust,
              bool paper_start, Index max_iter, double step_tol, double err_tol,
              Index max_qp_iter, bool newton, bool quadratic) {
-            SqpOptions opt;
-            opt.max_iter = max_iter;
-            opt.step_tol = step_tol;
-            opt.err_tol = err_tol;
-            opt.max_qp_iter = max_qp_iter;
-            opt.newton = newton;
-            opt.quadratic = quadratic;
+            const SqpOptions opt{max_iter, step_tol, err_tol, max_qp_iter, newton, quadratic};
             new (self) MovingHorizon(solver, node, std::vector<double>(R.data(), R.data() + R.size()),
                                      robust, paper_start, opt);
           },
@@ -83,9 +61,9 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def(
           "set_prior",
           [](MovingHorizon& h, In xbar, In P, In Pinv) {
-            check(xbar, h.nx, "xbar");
-            check(P, h.nx * h.nx, "P");
-            check(Pinv, h.nx * h.nx, "Pinv");
+            check_size(xbar, h.nx, "xbar");
+            check_size(P, h.nx * h.nx, "P");
+            check_size(Pinv, h.nx * h.nx, "Pinv");
             h.set_prior(xbar.data(), P.data(), Pinv.data());
           },
           nb::arg("xbar"), nb::arg("P"), nb::arg("Pinv"),
@@ -93,11 +71,11 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def(
           "step",
           [](MovingHorizon& h, double t, In z, In mask, In u, In Q, In Qinv, bool finish) {
-            check(z, h.nz, "z");
-            check(mask, h.nz, "mask");
-            check(u, h.nu, "u");
-            check(Q, h.nx * h.nx, "Q");
-            check(Qinv, h.nx * h.nx, "Qinv");
+            check_size(z, h.nz, "z");
+            check_size(mask, h.nz, "mask");
+            check_size(u, h.nu, "u");
+            check_size(Q, h.nx * h.nx, "Q");
+            check_size(Qinv, h.nx * h.nx, "Qinv");
             const int outcome = h.step(t, z.data(), mask.data(), u.data(), Q.data(),
                                        Qinv.data(), finish);
             if (outcome != STEP_DONE) return nb::make_tuple(outcome, nb::none());
@@ -111,11 +89,11 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def(
           "finish",
           [](MovingHorizon& h, In X, bool solved, nb::object w_new, bool failed) {
-            check(X, h.n * h.nx, "X");
+            check_size(X, h.n * h.nx, "X");
             std::vector<double> w;
             if (!w_new.is_none()) {
               In wa = nb::cast<In>(w_new);
-              check(wa, h.nblk, "w_new");
+              check_size(wa, h.nblk, "w_new");
               w.assign(wa.data(), wa.data() + wa.size());
             }
             h.finish(X.data(), solved, w.empty() ? nullptr : w.data(), failed);
@@ -127,7 +105,7 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def(
           "node_weights",
           [](MovingHorizon& h, Index i, In x) {
-            check(x, h.nx, "x");
+            check_size(x, h.nx, "x");
             if (i < 0) i += h.n;
             if (i < 0 || i >= h.n) throw std::invalid_argument("node index out of range");
             std::vector<double> w(h.nblk);

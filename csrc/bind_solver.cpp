@@ -77,13 +77,7 @@ std::tuple<int, Index, double, double, int> solve(WindowSolver& s, In qinv, In x
   const WindowData data = window_data(s, qinv, xbar, arrival);
   check_shape(lam, {s.n, s.nb}, "lam");
   if (shifted >= 2 || shifted < -1) throw std::invalid_argument("shifted must be -1, 0 or 1");
-  SqpOptions opt;
-  opt.max_iter = max_iter;
-  opt.step_tol = step_tol;
-  opt.err_tol = err_tol;
-  opt.max_qp_iter = max_qp_iter;
-  opt.newton = newton;
-  opt.quadratic = quadratic;
+  const SqpOptions opt{max_iter, step_tol, err_tol, max_qp_iter, newton, quadratic};
   std::vector<double> zmask(s.n);
   s.node_mask(zmask.data());
   SqpResult r;

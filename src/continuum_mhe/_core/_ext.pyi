@@ -246,7 +246,7 @@ class ConsistencyCheck:
         Whether this sample's estimate disagrees with its readings; remembers it. ``u`` (nu) and ``Q`` (nx x nx): the inputs and process noise from the previous sample, read only when there is one (else empty).
         """
 
-    def constant_error_cov(self, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> Annotated[NDArray[numpy.float64], dict(shape=(None, None))]:
+    def constant_error_cov(self, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """
         ``A B A^T`` (nx, nx) at ``x``: the covariance from the readings' constant errors and the model error learned so far.
         """
@@ -280,7 +280,7 @@ class ConsistencyCheck:
     def dof(self) -> int:
         """The last sample's judged readings."""
 
-def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rcond: float) -> Annotated[NDArray[numpy.float64], dict(shape=(None, None))]:
+def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rcond: float) -> NDArray[numpy.float64]:
     """
     The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.
     """
