@@ -291,3 +291,21 @@ def test_the_stillness_options_are_range_checked(
 ) -> None:
     code, out, err = _calibrate_main(capsys, "--from", "unread.csv", option, value)
     assert code == 2 and out == "" and needle in err and err.count("\n") == 1
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_takes_lines_with_tensions(tmp_path: Path) -> None:
+    """A tendon robot's board sends its tensions after the IMUs' fields (as ``live``
+    reads them): calibrate takes those lines as samples, and lines without the
+    tensions too, instead of counting either as garbled."""
+    from live_helpers import raw_line
+
+    acc = np.tile(mount_rotation((5.0, -3.0, 0.0)).T @ [0, 0, G], (2, 1))
+    gyr = np.zeros((2, 3))
+    tensions = ",0.0,1.5,0.25,0.0,2.0,0.0"  # the shipped robot's six tendons, N
+    lines = [raw_line(1000 + 10 * i, acc, gyr) + (tensions if i % 2 else "") for i in range(400)]
+    code, out, err = _calibrate_port(tmp_path, lines, more=("--robot", "tendon-two-section"))
+    assert code == 0, err
+    assert "garbled" not in err
+    assert "IMU 1: mounting with the robot straight: --mount-rpy 5.00,-3.00,0" in out
+    assert "IMU 2: mounting with the robot straight: --mount-rpy 5.00,-3.00,0" in out

@@ -32,6 +32,7 @@ from continuum_mhe.stream.protocol import (
     GarbledLine,
     LineFormat,
     field_count_hint,
+    line_fields,
     parse_line,
 )
 from continuum_mhe.stream.reader import Event, SerialReader, open_port, port_hint
@@ -224,9 +225,20 @@ GARBLED_ONLY_S = 2.0
 
 
 def collect(
-    port: str, baud: int, fmt: LineFormat, n_imus: int, seconds: float, say: Any
+    port: str,
+    baud: int,
+    fmt: LineFormat,
+    n_imus: int,
+    seconds: float,
+    say: Any,
+    n_tensions: int = 0,
 ) -> tuple[FloatArray, FloatArray]:
-    """Samples from the port over ``seconds`` of device time (device messages shown)."""
+    """Samples from the port over ``seconds`` of device time (device messages shown).
+
+    A robot with ``n_tensions`` tendons may send its tensions after the IMUs' fields
+    (as ``live`` reads them) or not: a line of either length is a sample, and its
+    tensions are not needed here."""
+    with_tensions = len(line_fields(fmt, n_imus, n_tensions)) if n_tensions else -1
     try:
         conn = open_port(port, baud, "calibrate")
     except MissingExtraError:
@@ -255,7 +267,8 @@ def collect(
                 continue
             try:
                 text = payload.decode("ascii")
-                sample = parse_line(text, fmt, n_imus)
+                carried = n_tensions if text.count(",") + 1 == with_tensions else 0
+                sample = parse_line(text, fmt, n_imus, carried)
                 if sample is not None and sample.problems:  # calibration needs every IMU
                     raise GarbledLine(sample.problems[0])
             except (UnicodeDecodeError, GarbledLine) as exc:

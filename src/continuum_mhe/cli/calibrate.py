@@ -56,7 +56,9 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--seconds must be positive, got {args.seconds}")
         fmt, source = args.format, args.port
         _check_gyro_bound_applies(args, fmt, source)  # before recording for --seconds
-        t, values = collect(args.port, args.baud, fmt, robot.n_imus, args.seconds, say)
+        t, values = collect(
+            args.port, args.baud, fmt, robot.n_imus, args.seconds, say, robot.n_tendons
+        )
     gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
