@@ -145,13 +145,13 @@ def test_one_pose_leaves_the_bias_along_gravity_unknown() -> None:
 
 
 def test_fast_mhe_agrees_with_ipopt_with_the_accel_bias_states() -> None:
-    """Two sections, two raw IMUs with both biases, 2 s: the fast MHE (VM) and IPOPT
+    """Two sections, two raw IMUs with both biases, 2 s, N = 8: the fast MHE (VM) and IPOPT
     give the same states (bends, rates, gyro and accelerometer biases) to 1e-6."""
     t, z, _ = _recording("two-section", 2.0, seed=2)
     f = DirectFormulation(
         robot=read_robot("two-section"), estimate_gyro_bias=True, estimate_accel_bias=True
     )
-    states = fast_and_ipopt_states(f, t, z, horizon=15)
+    states = fast_and_ipopt_states(f, t, z, horizon=8)
     assert states["fast"].shape[1] == 20
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 

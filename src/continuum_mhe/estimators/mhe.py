@@ -304,9 +304,11 @@ class MovingHorizonInference(Inference):
                     "IPOPT solves every window (status fallback-ipopt)"
                 )
                 warnings.warn(self.backend_note, BackendFallbackWarning, stacklevel=2)
-        self._nlp_built: Nlp | None = None
-        if self._fast is None:
-            self._nlp_built = self._nlp
+        #: the IPOPT window NLPs by objective scale exponent
+        #: (:func:`~.window_nlp.objective_scale_exponent`), each built when a window first
+        #: needs it: a window whose weights exceed the reference never builds the unscaled
+        #: one, and the fast backend builds one only to fall back
+        self._nlps: dict[int, Nlp] = {}
         self._process_weight = ProcessNoiseCache(formulation)
         self._R = formulation.meas_cov()
         #: why the window covariance leaves the constraints out (None when it does not)
@@ -352,19 +354,25 @@ class MovingHorizonInference(Inference):
         self.solve_seconds = 0.0
         self.restart()
 
+    def _window_nlp(self, scale_exp: int) -> Nlp:
+        """The IPOPT NLP with the objective divided by ``10**scale_exp``, built on first use."""
+        nlp = self._nlps.get(scale_exp)
+        if nlp is None:
+            s = self.settings
+            nlp = build_nlp(
+                self.formulation, s.horizon, s.max_iter, s.tol, s.loss, s.scale, scale_exp
+            )
+            self._nlps[scale_exp] = nlp
+        return nlp
+
     @property
     def _nlp(self) -> Nlp:
-        """The IPOPT NLP, built on first use (the fast backend needs it only to fall back)."""
-        if self._nlp_built is None:
-            s = self.settings
-            self._nlp_built = build_nlp(
-                self.formulation, s.horizon, s.max_iter, s.tol, s.loss, s.scale
-            )
-        return self._nlp_built
+        """The IPOPT NLP of the unscaled objective (:meth:`_window_nlp`)."""
+        return self._window_nlp(0)
 
     @_nlp.setter
     def _nlp(self, nlp: Nlp) -> None:
-        self._nlp_built = nlp
+        self._nlps[0] = nlp
 
     def clear_counts(self) -> None:
         """Zero the second start's and the branch check's counts."""
@@ -670,10 +678,8 @@ class MovingHorizonInference(Inference):
         return X, status
 
     def _solve_ipopt(self, problem: WindowProblem, X0: FloatArray) -> tuple[FloatArray, Status]:
-        n, nx, s = self.settings.horizon, self.formulation.nx, self.settings
-        exp = objective_scale_exponent(problem, self._rinv_max)
-        nlp = self._nlp if exp == 0 else build_nlp(
-            self.formulation, n, s.max_iter, s.tol, s.loss, s.scale, exp)  # fmt: skip
+        n, nx = self.settings.horizon, self.formulation.nx
+        nlp = self._window_nlp(objective_scale_exponent(problem, self._rinv_max))
         try:
             with signals_deferred():  # IPOPT would stop on a signal as if it had failed
                 sol = nlp.solver(
@@ -711,8 +717,10 @@ class MovingHorizonInference(Inference):
         return np.array([self.formulation.project(x) for x in X0])
 
     def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
-        """The NLP's objective for a trajectory ``X`` (N, nx)."""
-        return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
+        """The NLP's objective for a trajectory ``X`` (N, nx): the unscaled cost, which
+        every scale's NLP shares (the scale is IPOPT's option), so a built one serves."""
+        nlp = next(iter(self._nlps.values()), None) or self._nlp
+        return float(nlp.cost(X.ravel(), pack_parameters(problem)))
 
 
 class MovingHorizonEstimator(Estimator[MovingHorizonInference]):
