@@ -395,6 +395,7 @@ class TendonFormulation(Formulation):
         "(millions of instructions per function)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
+    forward_mode_jacobian: ClassVar[bool] = True
     imu_model: ImuModel = "tilt"
     gyro_std: float = 0.05
     accel_direction_std: float | None = None
