@@ -102,6 +102,9 @@ STEPS_PER_SECTION = 2
 ACCELERATION_STEP = 0.01
 #: Standard gravity, m/s^2 (the backbone's weight with a density).
 GRAVITY = 9.80665
+#: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
+#: to settle the directions the IMUs do not see, far too faint to move the others.
+START_PRIOR_WEIGHT = 1e-3
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -717,8 +720,11 @@ class TendonFormulation(Formulation):
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
-        with the sample's tensions (least squares from the unloaded equilibrium); rates
-        and biases zero."""
+        with the sample's tensions (least squares from the unloaded equilibrium), held
+        to it by a faint prior (:data:`START_PRIOR_WEIGHT` times that of
+        :meth:`initial_cov`) that keeps what the IMUs cannot see, such as the twist of
+        a straight rod, at the unloaded value instead of leaving the fit to wander
+        along it; rates and biases zero."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -732,20 +738,27 @@ class TendonFormulation(Formulation):
             return x
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
+        prior = x[:6].copy()
+        prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[:6])
+        last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
-        def resid(v: FloatArray) -> FloatArray:
-            xx = np.r_[v, x[6:]]
-            r = np.asarray(self._residual_function(z, xx)[0], dtype=float).ravel()
-            return np.asarray((w * r)[rows], dtype=float)
-
-        def jac(v: FloatArray) -> FloatArray:
-            xx = np.r_[v, x[6:]]
-            J = np.asarray(self._residual_function(z, xx)[1], dtype=float)
-            return np.asarray((w[:, None] * J)[rows], dtype=float)
+        def evaluate(v: FloatArray) -> tuple[FloatArray, FloatArray]:
+            """The weighted residual and its Jacobian at ``v``, evaluated once."""
+            key = v.tobytes()
+            if key not in last:
+                r, J = self._residual_function(z, np.r_[v, x[6:]])
+                r = (w * np.asarray(r, dtype=float).ravel())[rows]
+                J = (w[:, None] * np.asarray(J, dtype=float))[rows]
+                last.clear()
+                last[key] = (np.r_[r, prior_w * (v - prior)], np.vstack([J, np.diag(prior_w)]))
+            return last[key]
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
-        fit = least_squares(resid, x[:6], jac=jac, x_scale=np.r_[[1.0] * 3, [0.1] * 3])
+        fit = least_squares(
+            lambda v: evaluate(v)[0], x[:6], jac=lambda v: evaluate(v)[1], method="lm",
+            x_scale="jac",
+        )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
             x[:6] = fit.x
         return x
