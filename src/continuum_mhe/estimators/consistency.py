@@ -80,10 +80,10 @@ from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile
-from continuum_mhe.estimators.fast.codegen import node_function, residual_node_tapes
-from continuum_mhe.estimators.fast.tape import tape_function
+from continuum_mhe.estimators.fast.codegen import node_function
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import residual_node_tapes, tape_function
 
 FloatArray = NDArray[np.float64]
 

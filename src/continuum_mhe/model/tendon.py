@@ -77,6 +77,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     TIP_OUTPUTS,
@@ -92,6 +93,7 @@ from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName
+from continuum_mhe.model.tape import residual_node_tapes
 
 #: Steps per section of the shooting (more where an IMU splits one): with the
 #: fourth-order Lie-group steps of :meth:`TendonStatics.shoot`, two per section put every
@@ -105,6 +107,11 @@ GRAVITY = 9.80665
 #: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
 #: to settle the directions the IMUs do not see, far too faint to move the others.
 START_PRIOR_WEIGHT = 1e-3
+#: The start's most residual evaluations: on a nearly straight rod the axial tip force
+#: barely moves the IMUs and the fit would wander along it for hundreds of evaluations;
+#: it stops there, and the estimator's first update (with the prior of
+#: :meth:`TendonFormulation.initial_cov`) takes it on.
+START_EVALUATIONS = 100
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -140,8 +147,8 @@ def _arc(omega: Sym, length: float) -> tuple[Sym, Sym]:
                    (1 - cos) / t2s)  # fmt: skip
     c = ca.if_else(small, (1 - t2 / 20 * (1 - t2 / 42 * (1 - t2 / 72 * (1 - t2 / 110)))) / 6,
                    (t - sin) / (t2s * t))  # fmt: skip
-    H = _hat(omega)
-    H2 = ca.mtimes(H, H)
+    H: Sym = _hat(omega)
+    H2: Sym = ca.mtimes(H, H)
     # V e3 = e3 + b hat(omega) e3 + c hat(omega)^2 e3: the third columns
     return ca.SX.eye(3) + a * H + b * H2, length * (ca.DM([0, 0, 1]) + b * H[:, 2] + c * H2[:, 2])
 
@@ -712,12 +719,6 @@ class TendonFormulation(Formulation):
             "with the tensions (two per IMU: its gravity direction)"
         )
 
-    @cached_property
-    def _residual_function(self) -> ca.Function:
-        x, z = ca.SX.sym("x", self.nx), ca.SX.sym("z", self.nz)
-        r = self.measurement_residual_sym(z, x)
-        return ca.Function("res", [z, x], [r, ca.jacobian(r, x[:6])])
-
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
         with the sample's tensions (least squares from the unloaded equilibrium), held
@@ -740,24 +741,34 @@ class TendonFormulation(Formulation):
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
         prior = x[:6].copy()
         prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[:6])
+        # the residual and its Jacobian by the compiled core (forward mode), the same
+        # functions the compiled EKF evaluates
+        model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
+        nz, nx = self.nz, self.nx
+        inputs = [np.zeros(nx), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
+        out = np.empty(model.output_size)
         last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
         def evaluate(v: FloatArray) -> tuple[FloatArray, FloatArray]:
             """The weighted residual and its Jacobian at ``v``, evaluated once."""
             key = v.tobytes()
             if key not in last:
-                r, J = self._residual_function(z, np.r_[v, x[6:]])
-                r = (w * np.asarray(r, dtype=float).ravel())[rows]
-                J = (w[:, None] * np.asarray(J, dtype=float))[rows]
+                inputs[0] = np.r_[v, x[6:]]
+                model.evaluate(inputs, out)
+                J = -out[: nz * nx].reshape(nz, nx)[:, :6]  # H = -dr/dx, row-major
+                r = (w * out[nz * nx :])[rows]
                 last.clear()
-                last[key] = (np.r_[r, prior_w * (v - prior)], np.vstack([J, np.diag(prior_w)]))
+                last[key] = (
+                    np.r_[r, prior_w * (v - prior)],
+                    np.vstack([(w[:, None] * J)[rows], np.diag(prior_w)]),
+                )
             return last[key]
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
         fit = least_squares(
             lambda v: evaluate(v)[0], x[:6], jac=lambda v: evaluate(v)[1], method="lm",
-            x_scale="jac",
+            x_scale=np.r_[[1.0] * 3, [0.1] * 3], max_nfev=START_EVALUATIONS,
         )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
             x[:6] = fit.x

@@ -3,7 +3,7 @@
 Nothing of the model is written a second time: :func:`window_function`,
 :func:`node_pieces` and :func:`node_function` are built from the formulation's symbolic
 methods (``measurement_residual_sym``, ``transition_sym``, ``output_sym``). The compiled
-core evaluates them from their instruction lists (:mod:`~continuum_mhe.estimators.fast.tape`),
+core evaluates them from their instruction lists (:mod:`~continuum_mhe.model.tape`),
 so a new robot or option set compiles nothing.
 
 Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`CFunction`),
@@ -20,8 +20,8 @@ import casadi as ca
 import numpy as np
 
 import continuum_mhe._core as _core
-from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import residual_node_tapes, tape_function
 
 
 def transition_is_linear(formulation: Formulation) -> bool:
@@ -118,23 +118,6 @@ def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Functio
     return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
 
 
-def transition_function(formulation: Formulation) -> ca.Function:
-    """``(x, u, dt) -> (f, F)``: the transition and its Jacobian (row-major), the first
-    two outputs of :func:`node_function`."""
-    f, nx = formulation, formulation.nx
-    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    xf = f.transition_sym(x, u, dt)
-    return ca.Function("mhe_transition", [x, u, dt], [xf, ca.vec(ca.jacobian(xf, x).T)])
-
-
-def residual_function(formulation: Formulation) -> ca.Function:
-    """``(x, z) -> r(z, x)``: the measurement residual alone (its Jacobian by forward
-    mode in the core: :attr:`~continuum_mhe.model.formulations.Formulation.
-    forward_mode_jacobian`)."""
-    x, z = ca.SX.sym("x", formulation.nx), ca.SX.sym("z", formulation.nz)
-    return ca.Function("mhe_residual", [x, z], [formulation.measurement_residual_sym(z, x)])
-
-
 @lru_cache(maxsize=32)
 def node_model(formulation: Formulation) -> _core.ModelFunction:
     """:func:`node_function` of ``formulation`` as the core evaluates it, built once per
@@ -146,15 +129,6 @@ def node_model(formulation: Formulation) -> _core.ModelFunction:
     if formulation.forward_mode_jacobian:
         return _core.ResidualNodeFunction(*residual_node_tapes(formulation), with_transition=True)
     return tape_function(node_function(formulation))
-
-
-@lru_cache(maxsize=32)
-def residual_node_tapes(formulation: Formulation) -> tuple[_core.TapeFunction, _core.TapeFunction]:
-    """``(transition, residual)``: :func:`transition_function` and
-    :func:`residual_function` as the core evaluates them (read once per formulation)."""
-    return tape_function(transition_function(formulation)), tape_function(
-        residual_function(formulation)
-    )
 
 
 def output_function(formulation: Formulation) -> ca.Function:

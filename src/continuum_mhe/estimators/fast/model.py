@@ -28,9 +28,9 @@ from continuum_mhe.estimators.fast.codegen import (
     transition_is_linear,
     window_c_functions,
 )
-from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import tape_function
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
