@@ -401,8 +401,8 @@ class TendonFormulation(Formulation):
     second_order_residuals: ClassVar[bool] = False
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
-        "the robot's mechanics model is too large for the fast MHE's window "
-        "(millions of instructions per function)"
+        "the fast MHE has no window of the robot's mechanics model (its Jacobians "
+        "come from forward-mode derivatives, which only the EKF's node takes)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True
