@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
-from continuum_mhe.model.tape import tape_function
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.tape import tape_function
 from continuum_mhe.model.tendon import TendonFormulation
 
 _v = ca.SX.sym("v", 4)

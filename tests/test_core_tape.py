@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast import codegen
-from continuum_mhe.model.tape import tape_function
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.model.tape import tape_function
 
 
 def casadi_flat(fn: ca.Function, args: list[np.ndarray]) -> np.ndarray:
