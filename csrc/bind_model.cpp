@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bindings.hpp"
+#include "forward.hpp"
 #include "model_function.hpp"
 #include "tape.hpp"
 
@@ -120,6 +121,30 @@ void cmhe::bind_model(nb::module_& m) {
             new (self) TailFunction(meas.tape(), proc.tape());
           },
           nb::arg("meas"), nb::arg("proc"));
+
+  nb::class_<ResidualNodeFunction, ModelFunction>(
+      m, "ResidualNodeFunction",
+      "``(x, u, dt, z, m) -> (f, F, H, r)`` (or ``(H, r)`` without the transition) from the "
+      "transition's tape and the residual's, ``H`` by forward-mode derivatives "
+      "(csrc/forward.hpp).")
+      .def(
+          "__init__",
+          [](ResidualNodeFunction* self, const TapeFunction& transition,
+             const TapeFunction& residual, bool with_transition) {
+            new (self) ResidualNodeFunction(transition.tape(), residual.tape(), with_transition);
+          },
+          nb::arg("transition"), nb::arg("residual"), nb::arg("with_transition"));
+
+  nb::class_<ForwardJacobianFunction, ModelFunction>(
+      m, "ForwardJacobianFunction",
+      "``x -> dy/dx`` (ny, nx), column-major, of a tape ``x -> y``, by forward-mode "
+      "derivatives (csrc/forward.hpp).")
+      .def(
+          "__init__",
+          [](ForwardJacobianFunction* self, const TapeFunction& fn) {
+            new (self) ForwardJacobianFunction(fn.tape());
+          },
+          nb::arg("function"));
 
   m.attr("OPERATIONS") = nb::make_tuple(
       "INPUT", "OUTPUT", "CONST", "ASSIGN", "ADD", "SUB", "MUL", "DIV", "NEG", "EXP", "LOG",

@@ -56,6 +56,9 @@ class Tape {
   const std::vector<int64_t>& output_sizes() const { return output_sizes_; }
   int64_t output_size() const { return output_size_; }
   int64_t instructions() const { return static_cast<int64_t>(code_.size()); }
+  const std::vector<Instruction>& code() const { return code_; }
+  const std::vector<double>& constants() const { return constants_; }
+  int64_t work_size() const { return work_size_; }
 
  private:
   std::vector<Instruction> code_;

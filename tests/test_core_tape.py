@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast import codegen
-from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.model.tape import tape_function
 
 
 def casadi_flat(fn: ca.Function, args: list[np.ndarray]) -> np.ndarray:
@@ -132,7 +132,7 @@ def test_the_typing_stub_is_the_built_module(tmp_path) -> None:
 def test_a_repeated_expression_is_evaluated_once() -> None:
     """The tape computes a subexpression that occurs twice (as the derivatives of a model
     repeat its terms) once, and the values stay CasADi's to the last bit."""
-    from continuum_mhe.estimators.fast.tape import shared_tape, tape_arrays
+    from continuum_mhe.model.tape import shared_tape, tape_arrays
 
     v = ca.SX.sym("v", 2)
     # two separately built copies of sin(v0) * v1: CasADi keeps both

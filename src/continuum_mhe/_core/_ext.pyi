@@ -48,6 +48,20 @@ class TailFunction(ModelFunction):
 
     def __init__(self, meas: TapeFunction, proc: TapeFunction) -> None: ...
 
+class ResidualNodeFunction(ModelFunction):
+    """
+    ``(x, u, dt, z, m) -> (f, F, H, r)`` (or ``(H, r)`` without the transition) from the transition's tape and the residual's, ``H`` by forward-mode derivatives (csrc/forward.hpp).
+    """
+
+    def __init__(self, transition: TapeFunction, residual: TapeFunction, with_transition: bool) -> None: ...
+
+class ForwardJacobianFunction(ModelFunction):
+    """
+    ``x -> dy/dx`` (ny, nx), column-major, of a tape ``x -> y``, by forward-mode derivatives (csrc/forward.hpp).
+    """
+
+    def __init__(self, function: TapeFunction) -> None: ...
+
 OPERATIONS: tuple = ...
 
 class WindowSolver:

@@ -81,9 +81,9 @@ from numpy.typing import NDArray
 from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.fast.codegen import node_function
-from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import residual_node_tapes, tape_function
 
 FloatArray = NDArray[np.float64]
 
@@ -207,23 +207,31 @@ class ConsistencyCheck:
 @lru_cache(maxsize=32)
 def model_tapes(
     formulation: Formulation,
-) -> tuple[_core.TapeFunction, _core.TapeFunction, _core.TapeFunction]:
+) -> tuple[_core.TapeFunction, _core.ModelFunction, _core.TapeFunction]:
     """The node function's outputs (:func:`~continuum_mhe.estimators.fast.codegen.
     node_function`: ``(x, u, dt, z, m) -> (f, F, H, r)``) as three functions of its
     inputs, each the core evaluates only where the check needs it: the transition
     ``(f, F)`` (the prediction), the measurement ``(H, r)`` (at the prediction, and
     the constant-error covariance) and the residual ``r`` (the fit, without the
-    Jacobian). The same expressions, so the same values as the node function's."""
-    node = node_function(formulation)
+    Jacobian). The same expressions, so the same values as the node function's (with
+    :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, ``H``
+    by forward mode from the residual's instructions, as the EKF's node takes it)."""
+    node = node_function(formulation, jacobian=not formulation.forward_mode_jacobian)
     inputs = node.sx_in()
     f, F, H, r = node.call(inputs)
 
     def tape(name: str, outputs: list[ca.SX]) -> _core.TapeFunction:
         return tape_function(ca.Function(name, inputs, outputs))
 
+    if formulation.forward_mode_jacobian:
+        measurement: _core.ModelFunction = _core.ResidualNodeFunction(
+            *residual_node_tapes(formulation), with_transition=False
+        )
+    else:
+        measurement = tape("consistency_measurement", [H, r])
     return (
         tape("consistency_transition", [f, F]),
-        tape("consistency_measurement", [H, r]),
+        measurement,
         tape("consistency_residual", [r]),
     )
 

@@ -138,10 +138,9 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
     name = "ekf"
 
     def __init__(self, formulation: Formulation) -> None:
-        from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
+        from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 
-        model = build_window_model(formulation, 2)
-        self._node = NodeEvaluator(model)
+        self._node = NodeEvaluator(node_functions(formulation))
         self._q = ProcessNoiseCache(formulation)
         #: ``(state, outputs, standard deviations)`` of the last fused step
         #: (state, outputs, output std, covariance) of the last compiled call

@@ -110,6 +110,11 @@ class Formulation:
     #: the MHE solves every window with IPOPT and the EKF is the default estimator
     #: (:func:`continuum_mhe.estimators.default_method`)
     fast_mhe_obstacle: ClassVar[str | None] = None
+    #: whether the compiled core takes the measurement Jacobian by forward-mode
+    #: differentiation of the residual's instructions (``csrc/forward.hpp``) instead of
+    #: evaluating a symbolic Jacobian: True for a model whose symbolic Jacobian is far
+    #: larger than the model (a shooting model)
+    forward_mode_jacobian: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))

@@ -31,10 +31,14 @@ twist over 0.4 m with tendons at 10 mm, so the closed form is used; the tendons'
 stiffening of the twist, ``sum tau |r_i|^2``, is kept.
 
 Statics are solved by shooting: the rod ODE in ``(p, R, M)`` is integrated from the
-base with RK4 on a fixed number of steps per section (:data:`STEPS_PER_SECTION`, plus a
-step boundary at every IMU), symbolically in CasADi SX, from the unknown base moment;
-the tip condition ``M(L) = 0`` is a residual (:func:`TendonStatics.residual`). Slack
-tendons: every tension is clipped at zero (a tendon cannot push).
+base on a fixed number of steps per section (:data:`STEPS_PER_SECTION`, plus a step
+boundary at every IMU), symbolically in CasADi SX, from the unknown base moment; the tip
+condition ``M(L) = 0`` is a residual (:meth:`TendonStatics.shoot`). Each step is a
+fourth-order commutator-free Lie-group step (CF4): the frame moves along helical arcs
+of constant body curvature and twist (the exponential of SE(3)), which a bent, twisting
+rod follows closely, so that two steps per section do what RK4 on ``R`` needed six for
+(and ``R`` stays a rotation). Slack tendons: every tension is clipped at zero (a tendon
+cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
@@ -73,6 +77,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     TIP_OUTPUTS,
@@ -88,14 +93,25 @@ from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName
+from continuum_mhe.model.tape import residual_node_tapes
 
-#: RK4 steps per section (more where an IMU splits one).
-STEPS_PER_SECTION = 6
+#: Steps per section of the shooting (more where an IMU splits one): with the
+#: fourth-order Lie-group steps of :meth:`TendonStatics.shoot`, two per section put every
+#: station of the shipped recordings within 0.07 mm of a converged shooting.
+STEPS_PER_SECTION = 2
 #: Time step, s, of the central differences that give the IMUs' own acceleration
 #: (:meth:`TendonFormulation._imu_accelerations`; their error is of order its square).
 ACCELERATION_STEP = 0.01
 #: Standard gravity, m/s^2 (the backbone's weight with a density).
 GRAVITY = 9.80665
+#: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
+#: to settle the directions the IMUs do not see, far too faint to move the others.
+START_PRIOR_WEIGHT = 1e-3
+#: The start's most residual evaluations: on a nearly straight rod the axial tip force
+#: barely moves the IMUs and the fit would wander along it for hundreds of evaluations;
+#: it stops there, and the estimator's first update (with the prior of
+#: :meth:`TendonFormulation.initial_cov`) takes it on.
+START_EVALUATIONS = 100
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -104,6 +120,58 @@ def _hat(v: Sym) -> Sym:
     return ca.vertcat(
         ca.horzcat(0, -v[2], v[1]), ca.horzcat(v[2], 0, -v[0]), ca.horzcat(-v[1], v[0], 0)
     )
+
+
+#: The rod's state along the backbone: ``(p, R, M)``, position (m, base frame), frame
+#: (3x3, body to base) and total internal moment (N m, base frame).
+_RodState = tuple[Sym, Sym, Sym]
+#: The series branch of :func:`_arc` below this squared angle, rad^2 (its error there is
+#: under 1e-17).
+_ARC_SERIES_BELOW = 1e-2
+
+
+def _arc(omega: Sym, length: float) -> tuple[Sym, Sym]:
+    """``(exp(hat(omega)), V(omega) e3 length)``: the rotation and the displacement (m,
+    in the starting frame) of a helical arc of ``length`` whose frame turns by the body
+    rotation vector ``omega`` (rad), the exponential of SE(3). Its coefficients
+    ``sin t / t``, ``(1 - cos t) / t^2``, ``(t - sin t) / t^3`` come from their series
+    near ``t = 0``, with a safe argument on the other branch so that neither branch nor
+    its derivative meets ``0 / 0`` (jaxlie's pattern)."""
+    t2 = ca.dot(omega, omega)
+    small = t2 < _ARC_SERIES_BELOW
+    t2s = ca.if_else(small, 1.0, t2)
+    t = ca.sqrt(t2s)
+    sin, cos = ca.sin(t), ca.cos(t)
+    a = ca.if_else(small, 1 - t2 / 6 * (1 - t2 / 20 * (1 - t2 / 42 * (1 - t2 / 72))), sin / t)
+    b = ca.if_else(small, (1 - t2 / 12 * (1 - t2 / 30 * (1 - t2 / 56 * (1 - t2 / 90)))) / 2,
+                   (1 - cos) / t2s)  # fmt: skip
+    c = ca.if_else(small, (1 - t2 / 20 * (1 - t2 / 42 * (1 - t2 / 72 * (1 - t2 / 110)))) / 6,
+                   (t - sin) / (t2s * t))  # fmt: skip
+    H: Sym = _hat(omega)
+    H2: Sym = ca.mtimes(H, H)
+    # V e3 = e3 + b hat(omega) e3 + c hat(omega)^2 e3: the third columns
+    return ca.SX.eye(3) + a * H + b * H2, length * (ca.DM([0, 0, 1]) + b * H[:, 2] + c * H2[:, 2])
+
+
+def _move(
+    y: _RodState, weighted: list[tuple[float, tuple[Sym, Sym]]], h: float, n0: Sym
+) -> _RodState:
+    """``y`` moved by ``h`` (m) times the weighted sum of rod fields ``(u, g)``
+    (:meth:`TendonStatics._field`): the frame along the helical arc of body rotation
+    ``h sum w u`` and length ``h sum w``, the moment by ``-dp x n0`` for the arc's
+    displacement ``dp`` and the step's starting section force ``n0`` (N), and by ``h sum
+    w g``."""
+    p, R, M = y
+    rot, disp = _arc(h * sum(w * f[0] for w, f in weighted), h * sum(w for w, _ in weighted))
+    dp = ca.mtimes(R, disp)
+    return p + dp, ca.mtimes(R, rot), M - ca.cross(dp, n0) + h * sum(w * f[1] for w, f in weighted)
+
+
+def _tendon_sums(tensions: list[tuple[Sym, float, float]]) -> tuple[Sym, Sym, Sym]:
+    """``(sum tau y, sum tau x, sum tau |r|^2)`` of the tendons ``(tau, x, y)`` (N, m,
+    m) that a cross-section cuts: their moments and their stiffening of the twist."""
+    return (sum(tau * y for tau, _, y in tensions), sum(tau * x for tau, x, _ in tensions),
+            sum(tau * (x**2 + y**2) for tau, x, y in tensions))  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -156,26 +224,51 @@ class TendonStatics:
         (N m) and the active tendons ``(tau, x, y)`` (N, m, m), with the tendons taken
         along ``e3`` (see the module docstring): ``EI u_x = m_x - sum tau y``,
         ``EI u_y = m_y + sum tau x``, ``(GJ + sum tau |r|^2) u_z = m_z``."""
-        ei, gj = self.stiffness
-        ux = (m_body[0] - sum(tau * y for tau, _, y in tensions)) / ei
-        uy = (m_body[1] + sum(tau * x for tau, x, _ in tensions)) / ei
-        uz = m_body[2] / (gj + sum(tau * (x**2 + y**2) for tau, x, y in tensions))
-        return ca.vertcat(ux, uy, uz)
+        return self._curvature(m_body, _tendon_sums(tensions))
 
-    def _rhs(
-        self, s: float, R: Sym, M: Sym, force: Sym, active: list[tuple[Sym, float, float]]
-    ) -> tuple[Sym, Sym, Sym]:
-        """``(p', R', M')`` at arc length ``s`` (m) with the tendons ``active``."""
-        u = self.curvature_sym(ca.mtimes(R.T, M), active)
-        t = R[:, 2]
-        n_total = force + self._weight_per_length() * (self.robot.length - s)
-        return t, ca.mtimes(R, _hat(u)), -ca.cross(t, n_total)
+    def _curvature(self, m_body: Sym, sums: tuple[Sym, Sym, Sym]) -> Sym:
+        """:meth:`curvature_sym` from the tendons' sums ``(sum tau y, sum tau x, sum tau
+        |r|^2)`` (:func:`_tendon_sums`)."""
+        ei, gj = self.stiffness
+        return ca.vertcat((m_body[0] - sums[0]) / ei, (m_body[1] + sums[1]) / ei,
+                          m_body[2] / (gj + sums[2]))  # fmt: skip
+
+    def _field(self, y: _RodState, ds: float, sums: tuple[Sym, Sym, Sym]) -> tuple[Sym, Sym]:
+        """The rod equation ``ds`` (m) into a step as ``(u, g)``: the body curvature and
+        twist rate (rad/m) that turn the frame (``R' = R hat(u)``, ``p' = R e3``), with
+        the tendon sums ``sums`` of the section, and the weight's part of the moment's
+        rate, ``g = p' x w ds`` (N; ``M' = -p' x N(s)`` with ``N(s) = N(s0) - w ds``)."""
+        _, R, M = y
+        weight = ca.cross(R[:, 2], ca.DM(self._weight_per_length())) * ds
+        return self._curvature(ca.mtimes(R.T, M), sums), weight
 
     def stations(self) -> tuple[Station, ...]:
         """Every section's end and every IMU's place, base to tip."""
         places = {Station(k, 1.0) for k in range(self.robot.n_sections)}
         places |= {Station(i.section, i.at) for i in self.robot.imus}
         return tuple(sorted(places, key=lambda s: (s.section, s.at)))
+
+    def _step(
+        self, y: _RodState, s: float, h: float, force: Sym, sums: tuple[Sym, Sym, Sym]
+    ) -> _RodState:
+        """One step of length ``h`` (m) from arc length ``s``: the commutator-free
+        Lie-group method of order four (Celledoni, Marthinsen and Owren 2003, "CF4") on
+        the frame ``(R, p)`` in SE(3) and the moment ``M`` in R^3. Each of its five
+        moves is exact for a constant field: a helical arc of constant body curvature
+        and twist (:func:`_arc`); the moment follows the arc's displacement ``dp`` as
+        ``-dp x N(s)`` (exact for the tip force: the base then carries exactly
+        ``p_tip x F``) plus the weight's part (:meth:`_field`)."""
+        n0 = force + self._weight_per_length() * (self.robot.length - s)
+        f1 = self._field(y, 0.0, sums)
+        y2 = _move(y, [(0.5, f1)], h, n0)
+        f2 = self._field(y2, h / 2, sums)
+        y3 = _move(y, [(0.5, f2)], h, n0)
+        f3 = self._field(y3, h / 2, sums)
+        y4 = _move(y2, [(1.0, f3), (-0.5, f1)], h, n0)
+        f4 = self._field(y4, h, sums)
+        fs = (f1, f2, f3, f4)
+        half = _move(y, list(zip((3 / 12, 2 / 12, 2 / 12, -1 / 12), fs)), h, n0)
+        return _move(half, list(zip((-1 / 12, 2 / 12, 2 / 12, 3 / 12), fs)), h, n0)
 
     def shoot(
         self, k0: Sym, force: Sym, tension: Sym
@@ -185,38 +278,28 @@ class TendonStatics:
         robot = self.robot
         ei, _ = self.stiffness
         taus = [ca.fmax(tension[i], 0.0) for i in range(robot.n_tendons)]
-        p: Sym = ca.SX.zeros(3)
-        R: Sym = ca.SX.eye(3)
-        M: Sym = ei * k0  # R(0) = I: body and base frames agree
+        # R(0) = I: body and base frames agree
+        y: _RodState = (ca.SX.zeros(3), ca.SX.eye(3), ei * k0)
         s0 = 0.0
         poses: dict[Station, tuple[Sym, Sym]] = {}
         stations = self.stations()
         for k, sec in enumerate(robot.sections):
-            active = [
-                (taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k
-            ]
+            sums = _tendon_sums(
+                [(taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k]
+            )
             cuts = sorted(
                 {j / self.steps_per_section for j in range(1, self.steps_per_section + 1)}
                 | {st.at for st in stations if st.section == k}
             )
             prev = 0.0
             for at in cuts:
-                h = (at - prev) * sec.length
-                s_start = s0 + prev * sec.length
-
-                k1 = self._rhs(s_start, R, M, force, active)
-                k2 = self._rhs(s_start + h / 2, R + h / 2 * k1[1], M + h / 2 * k1[2], force, active)
-                k3 = self._rhs(s_start + h / 2, R + h / 2 * k2[1], M + h / 2 * k2[2], force, active)
-                k4 = self._rhs(s_start + h, R + h * k3[1], M + h * k3[2], force, active)
-                p = p + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-                R = R + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-                M = M + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+                y = self._step(y, s0 + prev * sec.length, (at - prev) * sec.length, force, sums)
                 st = Station(k, at)
                 if st in stations:
-                    poses[st] = (R, p)
+                    poses[st] = (y[1], y[0])
                 prev = at
             s0 += sec.length
-        return poses, ca.mtimes(R.T, M) / ei
+        return poses, ca.mtimes(y[1].T, y[2]) / ei
 
     @cached_property
     def function(self) -> ca.Function:
@@ -318,10 +401,11 @@ class TendonFormulation(Formulation):
     second_order_residuals: ClassVar[bool] = False
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
-        "the robot's mechanics model is too large for the fast MHE's window "
-        "(millions of instructions per function)"
+        "the fast MHE has no window of the robot's mechanics model (its Jacobians "
+        "come from forward-mode derivatives, which only the EKF's node takes)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
+    forward_mode_jacobian: ClassVar[bool] = True
     imu_model: ImuModel = "tilt"
     gyro_std: float = 0.05
     accel_direction_std: float | None = None
@@ -635,16 +719,13 @@ class TendonFormulation(Formulation):
             "with the tensions (two per IMU: its gravity direction)"
         )
 
-    @cached_property
-    def _residual_function(self) -> ca.Function:
-        x, z = ca.SX.sym("x", self.nx), ca.SX.sym("z", self.nz)
-        r = self.measurement_residual_sym(z, x)
-        return ca.Function("res", [z, x], [r, ca.jacobian(r, x[:6])])
-
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
-        with the sample's tensions (least squares from the unloaded equilibrium); rates
-        and biases zero."""
+        with the sample's tensions (least squares from the unloaded equilibrium), held
+        to it by a faint prior (:data:`START_PRIOR_WEIGHT` times that of
+        :meth:`initial_cov`) that keeps what the IMUs cannot see, such as the twist of
+        a straight rod, at the unloaded value instead of leaving the fit to wander
+        along it; rates and biases zero."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -658,20 +739,37 @@ class TendonFormulation(Formulation):
             return x
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
+        prior = x[:6].copy()
+        prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[:6])
+        # the residual and its Jacobian by the compiled core (forward mode), the same
+        # functions the compiled EKF evaluates
+        model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
+        nz, nx = self.nz, self.nx
+        inputs = [np.zeros(nx), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
+        out = np.empty(model.output_size)
+        last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
-        def resid(v: FloatArray) -> FloatArray:
-            xx = np.r_[v, x[6:]]
-            r = np.asarray(self._residual_function(z, xx)[0], dtype=float).ravel()
-            return np.asarray((w * r)[rows], dtype=float)
-
-        def jac(v: FloatArray) -> FloatArray:
-            xx = np.r_[v, x[6:]]
-            J = np.asarray(self._residual_function(z, xx)[1], dtype=float)
-            return np.asarray((w[:, None] * J)[rows], dtype=float)
+        def evaluate(v: FloatArray) -> tuple[FloatArray, FloatArray]:
+            """The weighted residual and its Jacobian at ``v``, evaluated once."""
+            key = v.tobytes()
+            if key not in last:
+                inputs[0] = np.r_[v, x[6:]]
+                model.evaluate(inputs, out)
+                J = -out[: nz * nx].reshape(nz, nx)[:, :6]  # H = -dr/dx, row-major
+                r = (w * out[nz * nx :])[rows]
+                last.clear()
+                last[key] = (
+                    np.r_[r, prior_w * (v - prior)],
+                    np.vstack([(w[:, None] * J)[rows], np.diag(prior_w)]),
+                )
+            return last[key]
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
-        fit = least_squares(resid, x[:6], jac=jac, x_scale=np.r_[[1.0] * 3, [0.1] * 3])
+        fit = least_squares(
+            lambda v: evaluate(v)[0], x[:6], jac=lambda v: evaluate(v)[1], method="lm",
+            x_scale=np.r_[[1.0] * 3, [0.1] * 3], max_nfev=START_EVALUATIONS,
+        )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
             x[:6] = fit.x
         return x

@@ -9,7 +9,7 @@ Algorithm (see ``docs/fast-solver.md``):
 * **Model.** Residuals and Jacobians of the whole window come from one call into the
   compiled core, which evaluates the CasADi functions built from the formulation's
   symbolic methods (``measurement_residual_sym``, ``transition_sym``) node by node from
-  their instruction lists (:mod:`~continuum_mhe.estimators.fast.tape`). The model is
+  their instruction lists (:mod:`~continuum_mhe.model.tape`). The model is
   never written a second time by hand, and a new robot compiles nothing.
 * **Step.** The Hessian of the window cost is block-tridiagonal (blocks
   ``nx x nx``): Gauss-Newton ``J^T W J`` plus the measurement residuals' exact
@@ -44,7 +44,7 @@ Modules (one responsibility each):
 * :mod:`~continuum_mhe.estimators.fast.qp`: the solver outcomes.
 * :mod:`~continuum_mhe.estimators.fast.covariance`: the covariance of the estimate (the
   core's ``last_block_covariance``).
-* :mod:`~continuum_mhe.estimators.fast.tape`: CasADi functions as instruction lists for
+* :mod:`~continuum_mhe.model.tape`: CasADi functions as instruction lists for
   the core.
 
 The arrival prior's EKF step, the compiled EKF's step and the outputs with their
@@ -59,9 +59,11 @@ from continuum_mhe.estimators.fast.model import (
     Feasible,
     LossKernel,
     NodeEvaluator,
+    NodeFunctions,
     WindowModel,
     build_window_model,
     feasible_set,
+    node_functions,
 )
 from continuum_mhe.estimators.fast.qp import (
     CONVERGED,
@@ -91,11 +93,13 @@ __all__ = [
     "MAX_ITER",
     "NOT_PD",
     "NodeEvaluator",
+    "NodeFunctions",
     "OUTCOMES",
     "QP_FAILED",
     "WindowModel",
     "Workspace",
     "build_window_model",
+    "node_functions",
     "feasible_set",
     "solve_window",
     "window_cost",

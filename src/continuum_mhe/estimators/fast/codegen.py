@@ -3,7 +3,7 @@
 Nothing of the model is written a second time: :func:`window_function`,
 :func:`node_pieces` and :func:`node_function` are built from the formulation's symbolic
 methods (``measurement_residual_sym``, ``transition_sym``, ``output_sym``). The compiled
-core evaluates them from their instruction lists (:mod:`~continuum_mhe.estimators.fast.tape`),
+core evaluates them from their instruction lists (:mod:`~continuum_mhe.model.tape`),
 so a new robot or option set compiles nothing.
 
 Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`CFunction`),
@@ -20,8 +20,8 @@ import casadi as ca
 import numpy as np
 
 import continuum_mhe._core as _core
-from continuum_mhe.estimators.fast.tape import tape_function
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import residual_node_tapes, tape_function
 
 
 def transition_is_linear(formulation: Formulation) -> bool:
@@ -104,23 +104,30 @@ def tail_function(formulation: Formulation, pieces: NodePieces | None = None) ->
     return ca.Function("mhe_tail", [xp, x, z, mk, u, dt], outs)
 
 
-def node_function(formulation: Formulation) -> ca.Function:
+def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Function:
     """``(x, u, dt, z, m) -> (f, F, H, r)``: transition, its Jacobian, the measurement
     Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``, with
-    the masked components (``m = 0``) zero."""
+    the masked components (``m = 0``) zero. ``jacobian`` False: ``H`` zero (the core
+    takes it by forward mode: :func:`node_model`)."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
     xf, r = f.transition_sym(x, u, dt), mk * f.measurement_residual_sym(z, x)
-    outs = [xf, ca.vec(ca.jacobian(xf, x).T), ca.vec(-ca.jacobian(r, x).T), r]
+    H = ca.vec(-ca.jacobian(r, x).T) if jacobian else ca.SX.zeros(f.nz * nx)
+    outs = [xf, ca.vec(ca.jacobian(xf, x).T), H, r]
     return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
 
 
 @lru_cache(maxsize=32)
-def node_tape(formulation: Formulation) -> _core.TapeFunction:
-    """:func:`node_function` of ``formulation`` as the core evaluates it: its
-    instructions read once per formulation, shared by the EKF's window model and the
-    consistency check (:mod:`continuum_mhe.estimators.consistency`)."""
+def node_model(formulation: Formulation) -> _core.ModelFunction:
+    """:func:`node_function` of ``formulation`` as the core evaluates it, built once per
+    formulation and shared by the EKF's node and the consistency check
+    (:mod:`continuum_mhe.estimators.consistency`): its instructions, or, with
+    :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
+    transition's and the residual's instructions with the measurement Jacobian by
+    forward mode (``csrc/forward.hpp``)."""
+    if formulation.forward_mode_jacobian:
+        return _core.ResidualNodeFunction(*residual_node_tapes(formulation), with_transition=True)
     return tape_function(node_function(formulation))
 
 

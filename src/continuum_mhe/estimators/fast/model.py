@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.codegen import (
     c_function,
-    node_tape,
+    node_model,
     output_function,
     output_jacobian_function,
     transition_is_linear,
@@ -30,6 +30,7 @@ from continuum_mhe.estimators.fast.codegen import (
 )
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.tape import tape_function
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -166,11 +167,46 @@ class WindowModel:
         return NodeEvaluator(self).evaluate(x, u, dt, z, mask)
 
 
+class NodeFunctions(NamedTuple):
+    """One node's functions in the compiled core, without a window (the EKF's):
+    the fields of :class:`WindowModel` of the same names."""
+
+    node: Any
+    output: Any
+    output_jacobian: Any
+    nx: int
+    nu: int
+    nz: int
+    ny: int
+    wrapped: tuple[int, ...]
+
+
+@lru_cache(maxsize=32)
+def node_functions(formulation: Formulation) -> NodeFunctions:
+    """The node, output and output-Jacobian functions of ``formulation`` as the core
+    evaluates them (nothing is compiled), built once per formulation."""
+    out = output_function(formulation)
+    return NodeFunctions(
+        node=c_function(node_model(formulation)),
+        output=c_function(out),
+        output_jacobian=c_function(
+            _core.ForwardJacobianFunction(tape_function(out))
+            if formulation.forward_mode_jacobian
+            else output_jacobian_function(formulation)
+        ),
+        nx=formulation.nx,
+        nu=formulation.nu,
+        nz=formulation.nz,
+        ny=int(out.nnz_out(0)),
+        wrapped=tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False)),
+    )
+
+
 class NodeEvaluator:
     """One node of the window model in the compiled core (its ``NodeModel``): the node
     function, the EKF and arrival-prior steps, the outputs (one per estimator)."""
 
-    def __init__(self, model: WindowModel) -> None:
+    def __init__(self, model: WindowModel | NodeFunctions) -> None:
         #: the core's NodeModel
         self.core = self._core = _core.NodeModel(
             model.node.core, model.output.core, model.output_jacobian.core,
@@ -272,8 +308,7 @@ def build_window_model(
     if np.any(rinv[~inside] != 0.0):
         raise NotImplementedError("the measurement covariance is not block-diagonal")
     window, tail = window_c_functions(formulation, horizon)
-    out = output_function(formulation)
-    wrapped = tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False))
+    node = node_functions(formulation)
     return WindowModel(
         nx=formulation.nx,
         nu=formulation.nu,
@@ -283,11 +318,11 @@ def build_window_model(
         rinv=rinv,
         window=window,
         tail=tail,
-        node=c_function(node_tape(formulation)),
-        output=c_function(out),
-        output_jacobian=c_function(output_jacobian_function(formulation)),
-        ny=int(out.nnz_out(0)),
-        wrapped=wrapped,
+        node=node.node,
+        output=node.output,
+        output_jacobian=node.output_jacobian,
+        ny=node.ny,
+        wrapped=node.wrapped,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
         second_order_residuals=formulation.second_order_residuals,

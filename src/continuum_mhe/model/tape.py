@@ -9,10 +9,13 @@ data: nothing is compiled when it is first used.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import casadi as ca
 import numpy as np
 
 import continuum_mhe._core as _core
+from continuum_mhe.model.formulations import Formulation
 
 #: CasADi's operation numbers (``casadi.OP_<NAME>``) to the core's, by name.
 _OPCODES = {
@@ -94,4 +97,30 @@ def tape_function(fn: ca.Function) -> _core.TapeFunction:
         [int(fn.nnz_in(i)) for i in range(fn.n_in())],
         [int(fn.numel_out(i)) for i in range(fn.n_out())],
         work_size,
+    )
+
+
+def transition_function(formulation: Formulation) -> ca.Function:
+    """``(x, u, dt) -> (f, F)``: the transition and its Jacobian (row-major), the first
+    two outputs of :func:`~continuum_mhe.estimators.fast.codegen.node_function`."""
+    f, nx = formulation, formulation.nx
+    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+    xf = f.transition_sym(x, u, dt)
+    return ca.Function("mhe_transition", [x, u, dt], [xf, ca.vec(ca.jacobian(xf, x).T)])
+
+
+def residual_function(formulation: Formulation) -> ca.Function:
+    """``(x, z) -> r(z, x)``: the measurement residual alone (its Jacobian by forward
+    mode in the core: :attr:`~continuum_mhe.model.formulations.Formulation.
+    forward_mode_jacobian`)."""
+    x, z = ca.SX.sym("x", formulation.nx), ca.SX.sym("z", formulation.nz)
+    return ca.Function("mhe_residual", [x, z], [formulation.measurement_residual_sym(z, x)])
+
+
+@lru_cache(maxsize=32)
+def residual_node_tapes(formulation: Formulation) -> tuple[_core.TapeFunction, _core.TapeFunction]:
+    """``(transition, residual)``: :func:`transition_function` and
+    :func:`residual_function` as the core evaluates them (read once per formulation)."""
+    return tape_function(transition_function(formulation)), tape_function(
+        residual_function(formulation)
     )

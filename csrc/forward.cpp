@@ -1,0 +1,216 @@
+#include "forward.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace cmhe {
+
+namespace {
+inline double sign(double v) { return v < 0 ? -1.0 : (v > 0 ? 1.0 : v); }
+}  // namespace
+
+void check_forward(const Tape& tape) {
+  for (const Instruction& I : tape.code())
+    if (I.op == OP_FMOD || I.op == OP_REMAINDER)
+      throw std::invalid_argument("forward derivatives: no derivative of FMOD or REMAINDER");
+}
+
+void evaluate_forward(const Tape& tape, int seed, const double* const* in,
+                      double* const* out, double* const* dout) {
+  const int64_t d = tape.input_sizes().at(static_cast<size_t>(seed));
+  const int64_t nw = tape.work_size();
+  thread_local std::vector<double> work, tangents;
+  if (static_cast<int64_t>(work.size()) < nw) work.resize(static_cast<size_t>(nw));
+  if (static_cast<int64_t>(tangents.size()) < nw * d)
+    tangents.resize(static_cast<size_t>(nw * d));
+  double* w = work.data();
+  double* t = tangents.data();
+  const double* c = tape.constants().data();
+  const auto& sizes = tape.output_sizes();
+  for (size_t j = 0; j < sizes.size(); ++j) {  // structural zeros are never written
+    if (out[j]) std::fill(out[j], out[j] + sizes[j], 0.0);
+    if (dout[j]) std::fill(dout[j], dout[j] + sizes[j] * d, 0.0);
+  }
+  for (const Instruction& I : tape.code()) {
+    double* dr = t + static_cast<int64_t>(I.res) * d;
+    if (I.op == OP_INPUT) {
+      w[I.res] = in[I.a] ? in[I.a][I.b] : 0.0;
+      std::fill(dr, dr + d, 0.0);
+      if (I.a == seed) dr[I.b] = 1.0;
+      continue;
+    }
+    if (I.op == OP_OUTPUT) {
+      if (out[I.b]) out[I.b][I.res] = w[I.a];
+      if (dout[I.b]) {
+        const double* src = t + static_cast<int64_t>(I.a) * d;
+        std::copy(src, src + d, dout[I.b] + static_cast<int64_t>(I.res) * d);
+      }
+      continue;
+    }
+    if (I.op == OP_CONST) {
+      w[I.res] = c[I.a];
+      std::fill(dr, dr + d, 0.0);
+      continue;
+    }
+    const double x = w[I.a], y = w[I.b];
+    const double* dx = t + static_cast<int64_t>(I.a) * d;
+    const double* dy = t + static_cast<int64_t>(I.b) * d;
+    // the value r and its partial derivatives px = dr/dx, py = dr/dy (CasADi's)
+    double r = 0.0, px = 0.0, py = 0.0;
+    switch (I.op) {
+      case OP_ASSIGN: r = x; px = 1; break;
+      case OP_ADD: r = x + y; px = 1; py = 1; break;
+      case OP_SUB: r = x - y; px = 1; py = -1; break;
+      case OP_MUL: r = x * y; px = y; py = x; break;
+      case OP_DIV: r = x / y; px = 1 / y; py = -r / y; break;
+      case OP_NEG: r = -x; px = -1; break;
+      case OP_EXP: r = std::exp(x); px = r; break;
+      case OP_LOG: r = std::log(x); px = 1 / x; break;
+      case OP_POW:
+        r = std::pow(x, y);
+        px = y * std::pow(x, y - 1);
+        py = x > 0 ? std::log(x) * r : 0.0;  // a constant exponent of a negative base
+        break;
+      case OP_CONSTPOW: r = std::pow(x, y); px = y * std::pow(x, y - 1); break;
+      case OP_SQRT: r = std::sqrt(x); px = 1 / (2 * r); break;
+      case OP_SQ: r = x * x; px = 2 * x; break;
+      case OP_TWICE: r = 2 * x; px = 2; break;
+      case OP_SIN: r = std::sin(x); px = std::cos(x); break;
+      case OP_COS: r = std::cos(x); px = -std::sin(x); break;
+      case OP_TAN: r = std::tan(x); px = 1 + r * r; break;
+      case OP_ASIN: r = std::asin(x); px = 1 / std::sqrt(1 - x * x); break;
+      case OP_ACOS: r = std::acos(x); px = -1 / std::sqrt(1 - x * x); break;
+      case OP_ATAN: r = std::atan(x); px = 1 / (1 + x * x); break;
+      case OP_LT: r = x < y; break;
+      case OP_LE: r = x <= y; break;
+      case OP_EQ: r = x == y; break;
+      case OP_NE: r = x != y; break;
+      case OP_NOT: r = !x; break;
+      case OP_AND: r = x && y; break;
+      case OP_OR: r = x || y; break;
+      case OP_FLOOR: r = std::floor(x); break;
+      case OP_CEIL: r = std::ceil(x); break;
+      case OP_FABS: r = std::fabs(x); px = sign(x); break;
+      case OP_SIGN: r = sign(x); break;
+      case OP_COPYSIGN:
+        r = std::copysign(x, y);
+        px = sign(x) * std::copysign(1.0, y);
+        break;
+      case OP_IF_ELSE_ZERO: r = x == 0 ? 0.0 : y; py = x == 0 ? 0.0 : 1.0; break;
+      case OP_ERF: r = std::erf(x); px = 2 / std::sqrt(M_PI) * std::exp(-x * x); break;
+      case OP_FMIN: {  // a tie splits the derivative in halves, as CasADi's
+        const double a = x <= y, b = y <= x;
+        r = std::fmin(x, y);
+        px = a / (a + b);
+        py = b / (a + b);
+        break;
+      }
+      case OP_FMAX: {
+        const double a = x >= y, b = y >= x;
+        r = std::fmax(x, y);
+        px = a / (a + b);
+        py = b / (a + b);
+        break;
+      }
+      case OP_INV: r = 1 / x; px = -r * r; break;
+      case OP_SINH: r = std::sinh(x); px = std::cosh(x); break;
+      case OP_COSH: r = std::cosh(x); px = std::sinh(x); break;
+      case OP_TANH: r = std::tanh(x); px = 1 - r * r; break;
+      case OP_ASINH: r = std::asinh(x); px = 1 / std::sqrt(1 + x * x); break;
+      case OP_ACOSH: r = std::acosh(x); px = 1 / std::sqrt((x - 1) * (x + 1)); break;
+      case OP_ATANH: r = std::atanh(x); px = 1 / (1 - x * x); break;
+      case OP_ATAN2: {
+        const double s = x * x + y * y;
+        r = std::atan2(x, y);
+        px = y / s;
+        py = -x / s;
+        break;
+      }
+      case OP_HYPOT: r = std::hypot(x, y); px = x / r; py = y / r; break;
+      case OP_LOG1P: r = std::log1p(x); px = 1 / (1 + x); break;
+      case OP_EXPM1: r = std::expm1(x); px = r + 1; break;
+      default: break;  // FMOD, REMAINDER: refused by check_forward
+    }
+    w[I.res] = r;
+    // a zero partial or a zero tangent contributes nothing, even against an infinite
+    // or undefined factor (a symbolic Jacobian has no term there: a structural zero)
+    if (py == 0.0) {
+      if (px == 0.0) {
+        std::fill(dr, dr + d, 0.0);
+      } else {
+        for (int64_t k = 0; k < d; ++k) dr[k] = dx[k] == 0.0 ? 0.0 : px * dx[k];
+      }
+    } else if (px == 0.0) {
+      for (int64_t k = 0; k < d; ++k) dr[k] = dy[k] == 0.0 ? 0.0 : py * dy[k];
+    } else {
+      for (int64_t k = 0; k < d; ++k)
+        dr[k] = (dx[k] == 0.0 ? 0.0 : px * dx[k]) + (dy[k] == 0.0 ? 0.0 : py * dy[k]);
+    }
+  }
+}
+
+ResidualNodeFunction::ResidualNodeFunction(const Tape& transition, const Tape& residual,
+                                           bool with_transition)
+    : transition_(transition), residual_(residual), with_transition_(with_transition) {
+  if (residual.input_sizes().size() != 2 || residual.output_sizes().size() != 1)
+    throw std::invalid_argument("the residual must map (x, z) to r");
+  nx_ = residual.input_sizes()[0];
+  nz_ = residual.input_sizes()[1];
+  if (residual.output_sizes()[0] != nz_)
+    throw std::invalid_argument("the residual must have one entry per measurement");
+  if (transition.input_sizes().size() != 3 || transition.output_sizes().size() != 2 ||
+      transition.input_sizes()[0] != nx_ || transition.output_sizes()[0] != nx_ ||
+      transition.output_sizes()[1] != nx_ * nx_)
+    throw std::invalid_argument("the transition must map (x, u, dt) to (f, F)");
+  check_forward(residual);
+}
+
+int64_t ResidualNodeFunction::output_size() const {
+  return (with_transition_ ? nx_ + nx_ * nx_ : 0) + nz_ * nx_ + nz_;
+}
+
+int ResidualNodeFunction::evaluate(const double* const* in, double* out) const {
+  // inputs (x, u, dt, z, m)
+  if (with_transition_) {
+    double* fout[2] = {out, out + nx_};
+    transition_.evaluate(in, fout);
+    out += nx_ + nx_ * nx_;
+  }
+  double* H = out;
+  double* r = out + nz_ * nx_;
+  const double* args[2] = {in[0], in[3]};
+  double* vals[1] = {r};
+  double* jac[1] = {H};
+  evaluate_forward(residual_, 0, args, vals, jac);
+  const double* m = in[4];
+  for (int64_t i = 0; i < nz_; ++i) {
+    const double mi = m ? m[i] : 0.0;
+    r[i] *= mi;
+    for (int64_t j = 0; j < nx_; ++j) H[i * nx_ + j] *= -mi;
+  }
+  return 0;
+}
+
+ForwardJacobianFunction::ForwardJacobianFunction(const Tape& tape) : tape_(tape) {
+  if (tape.input_sizes().size() != 1 || tape.output_sizes().size() != 1)
+    throw std::invalid_argument("the function must map x to y");
+  nx_ = tape.input_sizes()[0];
+  ny_ = tape.output_sizes()[0];
+  check_forward(tape);
+}
+
+int ForwardJacobianFunction::evaluate(const double* const* in, double* out) const {
+  thread_local std::vector<double> value, rows;
+  value.resize(static_cast<size_t>(ny_));
+  rows.resize(static_cast<size_t>(ny_ * nx_));
+  double* vals[1] = {value.data()};
+  double* jac[1] = {rows.data()};
+  evaluate_forward(tape_, 0, in, vals, jac);
+  for (int64_t i = 0; i < ny_; ++i)
+    for (int64_t j = 0; j < nx_; ++j) out[i + j * ny_] = rows[static_cast<size_t>(i * nx_ + j)];
+  return 0;
+}
+
+}  // namespace cmhe
