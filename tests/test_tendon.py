@@ -253,8 +253,11 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
 
 
 # --- the formulation -------------------------------------------------------------------
+@pytest.mark.parametrize("imu_errors", [False, True])
 @pytest.mark.parametrize("imu_model", ["tilt", "direct"])
-def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> None:
+def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:
+    """Also with the IMUs' own errors as states (misalignment, accelerometer bias, and
+    the gyro bias with raw IMUs)."""
     robot = Robot(
         (Section(0.15, 3.0, 5),),
         (ImuPlacement(0, 0.6), ImuPlacement(0, 1.0)),
@@ -262,7 +265,13 @@ def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> Non
         BACKBONE,
         (Tendon(0, 0.3, 0.01), Tendon(0, 2.5, 0.008)),
     )
-    f = TendonFormulation(robot=robot, imu_model=imu_model)  # type: ignore[arg-type]
+    f = TendonFormulation(
+        robot=robot,
+        imu_model=imu_model,  # type: ignore[arg-type]
+        estimate_misalignment=imu_errors,
+        estimate_accel_bias=imu_errors,
+        estimate_gyro_bias=imu_errors and imu_model == "direct",
+    )
     rng = np.random.default_rng(3)
     x = np.zeros(f.nx)
     x[:3] = rng.normal(0, 1.0, 3)

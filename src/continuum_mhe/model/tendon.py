@@ -301,6 +301,11 @@ class TendonFormulation(Formulation):
             from disk frame, about the disk frame's axes) as states, a random walk.
         initial_misalignment_std: its prior standard deviation, rad.
         misalignment_psd: its spectral density, rad^2/s.
+        estimate_accel_bias: each accelerometer's bias (m/s^2, 3, its board's frame) as
+            states, a random walk: the specific force read is ``R^T (g up + a) + c``
+            (tilt and raw IMUs alike: tilt is the accelerometer's direction).
+        initial_accel_bias_std: its prior standard deviation, m/s^2.
+        accel_bias_psd: its spectral density, (m/s^2)^2/s.
         tension_std: the given tensions' standard deviation, N.
         tension_psd: the tension states' random walk, N^2/s (large: the given
             tensions, not the motion model, set them).
@@ -333,6 +338,9 @@ class TendonFormulation(Formulation):
     estimate_misalignment: bool = False
     initial_misalignment_std: float = 0.03
     misalignment_psd: float = 1e-9
+    estimate_accel_bias: bool = False
+    initial_accel_bias_std: float = 0.1
+    accel_bias_psd: float = 1e-6
     tension_std: float = 1e-3
     tension_psd: float = 1e3
     equilibrium_std: float = 1e-4
@@ -355,6 +363,8 @@ class TendonFormulation(Formulation):
             "initial_gyro_bias_std",
             "initial_misalignment_std",
             "misalignment_psd",
+            "initial_accel_bias_std",
+            "accel_bias_psd",
             "tension_std",
             "tension_psd",
             "equilibrium_std",
@@ -377,20 +387,26 @@ class TendonFormulation(Formulation):
         return 3 * self.robot.n_imus if self.estimate_misalignment else 0
 
     @property
+    def n_accel_bias(self) -> int:
+        return 3 * self.robot.n_imus if self.estimate_accel_bias else 0
+
+    @property
     def n_gyro_bias(self) -> int:
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
     @property
     def state_names(self) -> tuple[str, ...]:
         """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
-        then the gyro biases."""
+        then the gyro biases, the misalignments and the accelerometer biases (each
+        where estimated)."""
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        acc = tuple(f"ba{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         return (
             *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
-            *mis[: self.n_misalignment],
+            *mis[: self.n_misalignment], *acc[: self.n_accel_bias],
         )  # fmt: skip
 
     def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
@@ -471,6 +487,8 @@ class TendonFormulation(Formulation):
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
         if self.estimate_misalignment:
             cov = ca.diagcat(cov, self.misalignment_psd * dt * ca.SX.eye(self.n_misalignment))
+        if self.estimate_accel_bias:
+            cov = ca.diagcat(cov, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
         return cov
 
     def _imu_accelerations(
@@ -539,8 +557,11 @@ class TendonFormulation(Formulation):
                 for i, R in enumerate(rots)
             ]
         gravity = []
-        for R, f in zip(rots, specific):
+        n0 = 12 + k + self.n_gyro_bias + self.n_misalignment
+        for i, (R, f) in enumerate(zip(rots, specific)):
             fb = ca.mtimes(R.T, f)
+            if self.estimate_accel_bias:  # in units of g, as the specific force here
+                fb = fb + x[n0 + 3 * i : n0 + 3 * i + 3] / GRAVITY
             gravity.append(fb / ca.norm_2(fb))
         if self.imu_model == "tilt":
             return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
@@ -682,6 +703,7 @@ class TendonFormulation(Formulation):
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
         diag += [self.initial_misalignment_std**2] * self.n_misalignment
+        diag += [self.initial_accel_bias_std**2] * self.n_accel_bias
         return np.diag(diag)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
