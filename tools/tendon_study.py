@@ -79,6 +79,7 @@ def main() -> None:
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
     p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     p.add_argument("--floor-only", action="store_true", help="only the model floor")
+    p.add_argument("--errors", type=Path, help="write t, tip and mid error (m) per sample here")
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
@@ -135,6 +136,9 @@ def main() -> None:
         return np.asarray(np.linalg.norm(e - tr, axis=1), dtype=float)
 
     force = [cols.index(n) for n in ("fx", "fy", "fz")]
+    if a.errors is not None:
+        rows = np.column_stack([t[keep], err(("x", "y", "z")), err(("x_1", "y_1", "z_1"))])
+        np.savetxt(a.errors, rows, delimiter=",", header="t,tip,mid", comments="")
     statuses: dict[str, int] = {}
     for s in series.status:
         statuses[str(s)] = statuses.get(str(s), 0) + 1

@@ -38,11 +38,17 @@ tendons: every tension is clipped at zero (a tendon cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [k0, F, tau, k0', F']`` (and a gyro bias per IMU with
-``estimate_gyro_bias``): the base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3: the total
-base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3), each with
-constant velocity driven by white-noise acceleration (as the ``bend`` formulation), and
-the tendon tensions ``tau`` (N, one per tendon), a random walk held to the given ones.
+State ``x = [k0, F, tau, k0', F']``, then the IMUs' own errors: a gyro bias per IMU
+with ``estimate_gyro_bias`` (raw IMUs), each board's misalignment with
+``estimate_misalignment`` and each accelerometer's bias with ``estimate_accel_bias``
+(both by default), random walks. The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
+the total base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3)
+each follow constant velocity driven by white-noise acceleration (as the ``bend``
+formulation), and the tendon tensions ``tau`` (N, one per tendon) a random walk held to
+the given ones. The IMUs' errors are states by default because they, not the model,
+are what is left: a degree of misalignment, or 0.17 m/s^2 of accelerometer bias, reads
+as a tip force that moves the tip of the shipped robot by about 5 mm; as the robot
+moves through several poses they separate from the force (docs/tendon.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
@@ -298,12 +304,14 @@ class TendonFormulation(Formulation):
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
         estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
-            from disk frame, about the disk frame's axes) as states, a random walk.
+            from disk frame, about the disk frame's axes) as states, a random walk
+            (default on).
         initial_misalignment_std: its prior standard deviation, rad.
         misalignment_psd: its spectral density, rad^2/s.
         estimate_accel_bias: each accelerometer's bias (m/s^2, 3, its board's frame) as
             states, a random walk: the specific force read is ``R^T (g up + a) + c``
-            (tilt and raw IMUs alike: tilt is the accelerometer's direction).
+            (tilt and raw IMUs alike: tilt is the accelerometer's direction; default
+            on).
         initial_accel_bias_std: its prior standard deviation, m/s^2.
         accel_bias_psd: its spectral density, (m/s^2)^2/s.
         tension_std: the given tensions' standard deviation, N.
@@ -335,10 +343,10 @@ class TendonFormulation(Formulation):
     acceleration_from_force_rate: bool = False
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
-    estimate_misalignment: bool = False
+    estimate_misalignment: bool = True
     initial_misalignment_std: float = 0.03
     misalignment_psd: float = 1e-9
-    estimate_accel_bias: bool = False
+    estimate_accel_bias: bool = True
     initial_accel_bias_std: float = 0.1
     accel_bias_psd: float = 1e-6
     tension_std: float = 1e-3
