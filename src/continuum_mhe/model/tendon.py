@@ -298,9 +298,10 @@ class TendonFormulation(Formulation):
         own_acceleration: the IMUs' own acceleration in their specific force (from the
             tip force's rate and the tensions' first and second derivatives along the
             equilibria); without it the accelerometers are taken to read gravity alone.
-        acceleration_from_force_rate: the tip force's rate moves the IMUs too (the
-            default False: only the tensions' changes do; the force's rate is a loosely
-            held state, and its square in the acceleration fed back into the force).
+        acceleration_from_force_rate: the tip force's rate moves the IMUs too (None,
+            the default: with raw IMUs, whose gyros hold the rate, yes; with tilt IMUs
+            no, only the tensions' changes do: there the force's rate is loosely held,
+            and its square in the acceleration fed back into the force).
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
         estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
@@ -340,7 +341,7 @@ class TendonFormulation(Formulation):
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
-    acceleration_from_force_rate: bool = False
+    acceleration_from_force_rate: bool | None = None
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
     estimate_misalignment: bool = True
@@ -384,6 +385,14 @@ class TendonFormulation(Formulation):
             v = getattr(self, label)
             if not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
+
+    @property
+    def force_rate_moves_imus(self) -> bool:
+        """Whether the tip force's rate enters the IMUs' own acceleration
+        (:attr:`acceleration_from_force_rate`, resolved)."""
+        if self.acceleration_from_force_rate is None:
+            return self.imu_model == "direct"
+        return self.acceleration_from_force_rate
 
     @cached_property
     def statics(self) -> TendonStatics:
@@ -516,7 +525,7 @@ class TendonFormulation(Formulation):
         h = ACCELERATION_STEP
         j_k0 = ca.jacobian(res, v[:3])
         rest = ca.vertcat(ca.SX.zeros(3), v_dot[3:])
-        if not self.acceleration_from_force_rate:
+        if not self.force_rate_moves_imus:
             rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
         k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
         v_dot = ca.vertcat(k0_dot, rest[3:])
