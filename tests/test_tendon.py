@@ -253,8 +253,11 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
 
 
 # --- the formulation -------------------------------------------------------------------
+@pytest.mark.parametrize("imu_errors", [False, True])
 @pytest.mark.parametrize("imu_model", ["tilt", "direct"])
-def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> None:
+def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:
+    """Also with the IMUs' own errors as states (misalignment, accelerometer bias, and
+    the gyro bias with raw IMUs)."""
     robot = Robot(
         (Section(0.15, 3.0, 5),),
         (ImuPlacement(0, 0.6), ImuPlacement(0, 1.0)),
@@ -262,7 +265,13 @@ def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> Non
         BACKBONE,
         (Tendon(0, 0.3, 0.01), Tendon(0, 2.5, 0.008)),
     )
-    f = TendonFormulation(robot=robot, imu_model=imu_model)  # type: ignore[arg-type]
+    f = TendonFormulation(
+        robot=robot,
+        imu_model=imu_model,  # type: ignore[arg-type]
+        estimate_misalignment=imu_errors,
+        estimate_accel_bias=imu_errors,
+        estimate_gyro_bias=imu_errors and imu_model == "direct",
+    )
     rng = np.random.default_rng(3)
     x = np.zeros(f.nx)
     x[:3] = rng.normal(0, 1.0, 3)
@@ -281,6 +290,36 @@ def test_the_residual_jacobian_matches_finite_differences(imu_model: str) -> Non
               - np.asarray(f.functions.innovate(z, down)[0], float)) / (2 * h)  # fmt: skip
         np.testing.assert_allclose(
             J[:, i], fd.ravel(), rtol=1e-5, atol=1e-6 * max(1.0, np.abs(fd).max())
+        )
+
+
+def test_the_imu_error_states_turn_and_shift_the_specific_force_as_a_board_would() -> None:
+    """Raw IMUs at rest (no own acceleration): with a misalignment ``m`` and an
+    accelerometer bias ``c`` (m/s^2, board frame) as states, each IMU's predicted
+    direction is ``(Rb^T g up + c) / |...|`` with the board's frame ``Rb = R (I +
+    [m]x)``, ``R`` the disk frame from the statics; known values, computed here apart."""
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(robot=robot, imu_model="direct", own_acceleration=False)
+    tau = np.array([2.0, 0.5, 0.0, 0.0, 1.5, 0.3])
+    force = np.array([0.02, -0.01, 0.01])
+    k0, poses = f.statics.solve(force, tau)
+    x = np.zeros(f.nx)
+    x[:3], x[3:6], x[6:12] = k0, force, tau
+    names = f.state_names
+    mis = np.array([[0.02, -0.01, 0.03], [-0.015, 0.01, -0.02]])
+    bias = np.array([[0.1, -0.2, 0.15], [-0.1, 0.05, 0.2]])
+    for i in range(2):
+        x[names.index(f"misx_{i + 1}") : names.index(f"misz_{i + 1}") + 1] = mis[i]
+        x[names.index(f"bax_{i + 1}") : names.index(f"baz_{i + 1}") + 1] = bias[i]
+    h = np.asarray(f.functions.observe(x), float).ravel()
+    for i, imu in enumerate(robot.imus):
+        R = poses[Station(imu.section, imu.at)][0]
+        m = mis[i]
+        skew = np.array([[0, -m[2], m[1]], [m[2], 0, -m[0]], [-m[1], m[0], 0]])
+        board = R @ (np.eye(3) + skew)
+        specific = board.T @ np.array([0.0, 0.0, 9.80665]) + bias[i]
+        np.testing.assert_allclose(
+            h[6 * i : 6 * i + 3], specific / np.linalg.norm(specific), atol=1e-9
         )
 
 

@@ -5,15 +5,22 @@ ms per sample), with the recording's model floor: the mean tip and mid-robot err
 the estimator's model itself, solved with the true tensions and the true tip force
 (``--floor-only``: that alone).
 
+The formulation is the command line's (``continuum-mhe estimate --robot ROBOT --inputs
+TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
+``--set NAME=VALUE`` changes a :class:`TendonFormulation` field (repeatable; a study,
+e.g. ``--set force_accel_psd=0.1``).
+
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
-        [--horizon N] [--skip S] [--force-psd Q] [--tip-imu-only] [--samples N]
+        [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N]
         [--no-gyro-bias] [--floor-only]
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import json
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -21,9 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.estimators import ExtendedKalmanFilter, MovingHorizonEstimator
+from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.tensions import Tensions, read_tensions
+from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.model.settings import NoiseSettings
 from continuum_mhe.model.tendon import Station, TendonFormulation
 from continuum_mhe.settings import MHESettings
 
@@ -61,27 +71,29 @@ def main() -> None:
     p.add_argument("--horizon", type=int, default=10)
     p.add_argument("--skip", type=float, default=1.0)
     p.add_argument("--robot", default="tendon-two-section")
-    p.add_argument("--force-psd", type=float, default=TendonFormulation.force_accel_psd)
+    p.add_argument("--noise-deg", type=float, default=2.0, help="as the command line's")
+    p.add_argument("--gyro-std", type=float, default=DEFAULT_GYRO_STD, help="as the command line's")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a TendonFormulation field (repeatable)")  # fmt: skip
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
     p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     p.add_argument("--floor-only", action="store_true", help="only the model floor")
-    p.add_argument("--misalignment", action="store_true", help="misalignment states")
-    p.add_argument(
-        "--force-rate", action="store_true", help="the force rate in the IMU acceleration"
-    )
+    p.add_argument("--errors", type=Path, help="write t, tip and mid error (m) per sample here")
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
     robot = replace(robot, imus=tuple(robot.imus[k] for k in used))
-    f = TendonFormulation(
-        robot=robot,
-        imu_model=a.imu,
-        force_accel_psd=a.force_psd,
-        estimate_gyro_bias=a.imu == "direct" and not a.no_gyro_bias,
-        estimate_misalignment=a.misalignment,
-        acceleration_from_force_rate=a.force_rate,
+    base = make_formulation(
+        a.imu if a.imu == "direct" else "bend",
+        robot,
+        NoiseSettings(measurement_std=math.radians(a.noise_deg)),
     )
+    options = InputOptions(
+        gyro_std=a.gyro_std, estimate_gyro_bias=False if a.no_gyro_bias else None
+    )
+    changes = {k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    f = replace(tendon_formulation_for(base, options), **changes)
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
     if a.imu == "tilt":
         _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
@@ -124,12 +136,15 @@ def main() -> None:
         return np.asarray(np.linalg.norm(e - tr, axis=1), dtype=float)
 
     force = [cols.index(n) for n in ("fx", "fy", "fz")]
+    if a.errors is not None:
+        rows = np.column_stack([t[keep], err(("x", "y", "z")), err(("x_1", "y_1", "z_1"))])
+        np.savetxt(a.errors, rows, delimiter=",", header="t,tip,mid", comments="")
     statuses: dict[str, int] = {}
     for s in series.status:
         statuses[str(s)] = statuses.get(str(s), 0) + 1
     print(json.dumps({
         "scenario": a.scenario, "method": a.method, "imu": a.imu,
-        "horizon": a.horizon if a.method == "mhe" else None, "force_psd": a.force_psd,
+        "horizon": a.horizon if a.method == "mhe" else None, "set": a.set,
         "imus": [k + 1 for k in used],
         "tip_mean_mm": round(float(err(("x", "y", "z")).mean() * 1e3), 2),
         "mid_mean_mm": round(float(err(("x_1", "y_1", "z_1")).mean() * 1e3), 2),

@@ -566,7 +566,8 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         "--estimate-accel-bias",
         action="store_true",
         help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
-        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md)",
+        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md; "
+        "a tendon robot estimates it by default: docs/tendon.md)",
     )
     g.add_argument(
         "--own-acceleration",

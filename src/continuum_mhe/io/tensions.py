@@ -203,10 +203,13 @@ class TensionStream:
 
 def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFormulation:
     """The tendon formulation of ``base``'s robot, with ``base``'s IMU model (tilt, or
-    raw with ``direct``) and noise."""
-    if options.estimate_accel_bias or options.own_acceleration:
-        flag = "--estimate-accel-bias" if options.estimate_accel_bias else "--own-acceleration"
-        raise InputError(f"{flag} is not available for a tendon robot (a [backbone] robot file)")
+    raw with ``direct``) and noise. Its IMU-error states are the formulation's defaults
+    (``--estimate-accel-bias`` asks for one of them)."""
+    if options.own_acceleration:
+        raise InputError(
+            "--own-acceleration is not available for a tendon robot (a [backbone] robot "
+            "file): its model includes each IMU's own acceleration already"
+        )
     direct = base.name == "direct"
     return TendonFormulation(
         robot=base.robot,
@@ -214,4 +217,5 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         imu_model="direct" if direct else "tilt",
         gyro_std=options.gyro_std,
         estimate_gyro_bias=direct and options.estimate_gyro_bias is not False,
+        estimate_accel_bias=options.estimate_accel_bias or TendonFormulation.estimate_accel_bias,
     )

@@ -42,11 +42,17 @@ cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [k0, F, tau, k0', F']`` (and a gyro bias per IMU with
-``estimate_gyro_bias``): the base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3: the total
-base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3), each with
-constant velocity driven by white-noise acceleration (as the ``bend`` formulation), and
-the tendon tensions ``tau`` (N, one per tendon), a random walk held to the given ones.
+State ``x = [k0, F, tau, k0', F']``, then the IMUs' own errors: a gyro bias per IMU
+with ``estimate_gyro_bias`` (raw IMUs), each board's misalignment with
+``estimate_misalignment`` and each accelerometer's bias with ``estimate_accel_bias``
+(both by default), random walks. The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
+the total base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3)
+each follow constant velocity driven by white-noise acceleration (as the ``bend``
+formulation), and the tendon tensions ``tau`` (N, one per tendon) a random walk held to
+the given ones. The IMUs' errors are states by default because they, not the model,
+are what is left: a degree of misalignment, or 0.17 m/s^2 of accelerometer bias, reads
+as a tip force that moves the tip of the shipped robot by about 5 mm; as the robot
+moves through several poses they separate from the force (docs/tendon.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
@@ -375,15 +381,23 @@ class TendonFormulation(Formulation):
         own_acceleration: the IMUs' own acceleration in their specific force (from the
             tip force's rate and the tensions' first and second derivatives along the
             equilibria); without it the accelerometers are taken to read gravity alone.
-        acceleration_from_force_rate: the tip force's rate moves the IMUs too (the
-            default False: only the tensions' changes do; the force's rate is a loosely
-            held state, and its square in the acceleration fed back into the force).
+        acceleration_from_force_rate: the tip force's rate moves the IMUs too (None,
+            the default: with raw IMUs, whose gyros hold the rate, yes; with tilt IMUs
+            no, only the tensions' changes do: there the force's rate is loosely held,
+            and its square in the acceleration fed back into the force).
         gyro_bias_psd: its spectral density, (rad/s)^2/s.
         initial_gyro_bias_std: its prior standard deviation, rad/s.
         estimate_misalignment: each IMU's small mounting rotation (rad, 3, board
-            from disk frame, about the disk frame's axes) as states, a random walk.
+            from disk frame, about the disk frame's axes) as states, a random walk
+            (default on).
         initial_misalignment_std: its prior standard deviation, rad.
         misalignment_psd: its spectral density, rad^2/s.
+        estimate_accel_bias: each accelerometer's bias (m/s^2, 3, its board's frame) as
+            states, a random walk: the specific force read is ``R^T (g up + a) + c``
+            (tilt and raw IMUs alike: tilt is the accelerometer's direction; default
+            on).
+        initial_accel_bias_std: its prior standard deviation, m/s^2.
+        accel_bias_psd: its spectral density, (m/s^2)^2/s.
         tension_std: the given tensions' standard deviation, N.
         tension_psd: the tension states' random walk, N^2/s (large: the given
             tensions, not the motion model, set them).
@@ -411,12 +425,15 @@ class TendonFormulation(Formulation):
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
-    acceleration_from_force_rate: bool = False
+    acceleration_from_force_rate: bool | None = None
     gyro_bias_psd: float = 1e-6
     initial_gyro_bias_std: float = 0.05
-    estimate_misalignment: bool = False
+    estimate_misalignment: bool = True
     initial_misalignment_std: float = 0.03
     misalignment_psd: float = 1e-9
+    estimate_accel_bias: bool = True
+    initial_accel_bias_std: float = 0.1
+    accel_bias_psd: float = 1e-6
     tension_std: float = 1e-3
     tension_psd: float = 1e3
     equilibrium_std: float = 1e-4
@@ -439,6 +456,8 @@ class TendonFormulation(Formulation):
             "initial_gyro_bias_std",
             "initial_misalignment_std",
             "misalignment_psd",
+            "initial_accel_bias_std",
+            "accel_bias_psd",
             "tension_std",
             "tension_psd",
             "equilibrium_std",
@@ -451,6 +470,14 @@ class TendonFormulation(Formulation):
             if not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
 
+    @property
+    def force_rate_moves_imus(self) -> bool:
+        """Whether the tip force's rate enters the IMUs' own acceleration
+        (:attr:`acceleration_from_force_rate`, resolved)."""
+        if self.acceleration_from_force_rate is None:
+            return self.imu_model == "direct"
+        return self.acceleration_from_force_rate
+
     @cached_property
     def statics(self) -> TendonStatics:
         return TendonStatics(self.robot)
@@ -461,20 +488,26 @@ class TendonFormulation(Formulation):
         return 3 * self.robot.n_imus if self.estimate_misalignment else 0
 
     @property
+    def n_accel_bias(self) -> int:
+        return 3 * self.robot.n_imus if self.estimate_accel_bias else 0
+
+    @property
     def n_gyro_bias(self) -> int:
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
     @property
     def state_names(self) -> tuple[str, ...]:
         """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
-        then the gyro biases."""
+        then the gyro biases, the misalignments and the accelerometer biases (each
+        where estimated)."""
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        acc = tuple(f"ba{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         return (
             *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
-            *mis[: self.n_misalignment],
+            *mis[: self.n_misalignment], *acc[: self.n_accel_bias],
         )  # fmt: skip
 
     def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
@@ -555,6 +588,8 @@ class TendonFormulation(Formulation):
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
         if self.estimate_misalignment:
             cov = ca.diagcat(cov, self.misalignment_psd * dt * ca.SX.eye(self.n_misalignment))
+        if self.estimate_accel_bias:
+            cov = ca.diagcat(cov, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
         return cov
 
     def _imu_accelerations(
@@ -574,7 +609,7 @@ class TendonFormulation(Formulation):
         h = ACCELERATION_STEP
         j_k0 = ca.jacobian(res, v[:3])
         rest = ca.vertcat(ca.SX.zeros(3), v_dot[3:])
-        if not self.acceleration_from_force_rate:
+        if not self.force_rate_moves_imus:
             rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
         k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
         v_dot = ca.vertcat(k0_dot, rest[3:])
@@ -623,8 +658,11 @@ class TendonFormulation(Formulation):
                 for i, R in enumerate(rots)
             ]
         gravity = []
-        for R, f in zip(rots, specific):
+        n0 = 12 + k + self.n_gyro_bias + self.n_misalignment
+        for i, (R, f) in enumerate(zip(rots, specific)):
             fb = ca.mtimes(R.T, f)
+            if self.estimate_accel_bias:  # in units of g, as the specific force here
+                fb = fb + x[n0 + 3 * i : n0 + 3 * i + 3] / GRAVITY
             gravity.append(fb / ca.norm_2(fb))
         if self.imu_model == "tilt":
             return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
@@ -780,6 +818,7 @@ class TendonFormulation(Formulation):
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
         diag += [self.initial_misalignment_std**2] * self.n_misalignment
+        diag += [self.initial_accel_bias_std**2] * self.n_accel_bias
         return np.diag(diag)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:

@@ -21,6 +21,10 @@ Scenarios (``SCENARIOS``):
   at different rates; bends past 90 degrees; no tip force.
 * ``force-08`` and ``force-29``: moderate tendon bends and a tip force turning in the
   horizontal plane with a vertical part, up to 0.08 N and 0.29 N in magnitude.
+* ``twist-08`` and ``twist-29``: both sections bent the same way (past 90 degrees in
+  section 1), the bending plane turning slowly, and a tip force across the bending plane
+  swinging from one side to the other, up to 0.08 N and 0.29 N: the backbone twists
+  about 21 and 50 degrees.
 * ``static``: constant tensions and a 0.05 N tip force along x after the ramp (the
   static equilibrium the tests compare with).
 
@@ -58,7 +62,7 @@ from continuum_mhe.simulation.cosserat_sections import (
     imu_samples,
 )
 
-SCENARIOS = ("unloaded", "force-08", "force-29", "static")
+SCENARIOS = ("unloaded", "force-08", "force-29", "twist-08", "twist-29", "static")
 #: The quasi-static peer's segments per disk: its section ends converge as ``ds^2``;
 #: at 2 the tip of a 120-degree bend is 0.3 to 0.7 mm from the converged rod's, at 4
 #: about 0.1 mm, at 8 a few hundredths.
@@ -77,6 +81,8 @@ class TendonRodSettings:
             :func:`simulate_tendon_robot`).
         tension: largest ``T_k`` per section, N (``unloaded``).
         loaded_tension: ``T_k`` on the loaded recordings, N.
+        twist_tension: ``T_k`` on the twisting recordings, N, per peak force
+            (``twist-08``, ``twist-29``).
         ramp: s over which the tendons and the force come up from zero.
     """
 
@@ -87,6 +93,7 @@ class TendonRodSettings:
     rotational_inertia_scale: float = 1e4
     tension: tuple[float, float] = (1.0, 6.0)
     loaded_tension: tuple[float, float] = (1.0, 1.5)
+    twist_tension: tuple[tuple[float, float], tuple[float, float]] = ((3.4, 1.5), (3.5, 1.8))
     ramp: float = 3.0
 
 
@@ -97,6 +104,9 @@ def tension_profile(robot: Robot, scenario: str, t: float, s: TendonRodSettings)
     betas = (2 * math.pi * t / 11.0, -2 * math.pi * t / 7.0 + 1.0)
     if scenario == "static":
         betas = (0.0, 1.0)
+    if scenario.startswith("twist-"):
+        amp = s.twist_tension[scenario == "twist-29"]
+        betas = (_twist_plane(t),) * 2
     out = np.zeros(robot.n_tendons)
     for i, td in enumerate(robot.tendons):
         k = td.section
@@ -104,12 +114,22 @@ def tension_profile(robot: Robot, scenario: str, t: float, s: TendonRodSettings)
     return out
 
 
+def _twist_plane(t: float) -> float:
+    """The bending plane's angle, rad from the base x axis, on the twisting recordings."""
+    return 0.3 + 2 * math.pi * t / 24.0
+
+
 def tip_force(scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
     """The tip force at ``t``, N, base frame."""
     if scenario == "unloaded":
         return np.zeros(3)
-    peak = 0.08 if scenario == "force-08" else 0.29
+    peak = 0.08 if scenario in ("force-08", "twist-08") else 0.29
     ramp = 0.5 * (1 - math.cos(math.pi * min(t / s.ramp, 1.0)))
+    if scenario.startswith("twist-"):
+        # across the bending plane, swinging from one side to the other
+        b = _twist_plane(t)
+        swing = math.sin(2 * math.pi * t / 5.0)
+        return ramp * peak * swing * np.array([-math.sin(b), math.cos(b), 0.0])
     if scenario == "static":
         return ramp * np.array([0.05, 0.0, 0.0])
     a = 2 * math.pi * t / 9.0
@@ -278,17 +298,19 @@ def write_tendon_recording(
     seed: int = 0,
     imu: ImuSettings = DEFAULT_IMU,
     segments_per_disk: int = SEGMENTS_PER_DISK,
+    trajectory: TendonTrajectory | None = None,
 ) -> dict[str, object]:
     """Simulate, sample and write the files (see the module docstring); returns the
-    info. ``imu``: the IMUs' errors; ``segments_per_disk``: the discrete rod's
-    resolution (:func:`quasi_static_trajectory`)."""
+    info. ``imu``: the IMUs' errors (``seed`` draws them); ``segments_per_disk``: the
+    discrete rod's resolution (:func:`quasi_static_trajectory`); ``trajectory``: that
+    trajectory, already computed (the same motion with the errors of another seed)."""
     import casadi as ca
 
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
     from continuum_mhe.model.tendon import swing_twist_sym
 
-    traj = quasi_static_trajectory(
+    traj = trajectory or quasi_static_trajectory(
         robot, scenario, duration, settings, segments_per_disk=segments_per_disk
     )
     sec = traj.sections
