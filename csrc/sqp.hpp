@@ -118,7 +118,7 @@ class WindowSolver {
 
   // scratch
   QPScratch qp;
-  std::vector<double> wr, wj, qw, qf, e, eql, fqfl;
+  std::vector<double> wr, wj, qw, qf, e, acc, eql, fqfl;
 };
 
 }  // namespace cmhe
