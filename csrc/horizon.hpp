@@ -93,7 +93,7 @@ class MovingHorizon {
   void slide();
   void warm_start();
   void form_arrival();
-  void load(const double* Xs);
+  void load(const double* Xs, bool slid);
   void keep_outputs(const double* X, const double* D, const double* E, bool failed,
                     const double* w_new);
   std::vector<double> R_, Rl_, scale_, zmask_nodes_;

@@ -601,6 +601,15 @@ WindowSolver::Entries WindowSolver::entries() {
   return {addr(&solve_entry), addr(&evaluate_entry), addr(&shift_entry), addr(&project_entry)};
 }
 
+void WindowSolver::shift_stages() {
+  const Index ns = Index(stage_done.size()), bs = nx * nx;
+  if (ns == 0) return;
+  std::memmove(stage_done.data(), stage_done.data() + 1, (ns - 1) * sizeof(int64_t));
+  stage_done[ns - 1] = 0;
+  shift_rows(stage_eq.data(), stage_eq.data(), 0, ns - 1, bs);
+  shift_rows(stage_fqf.data(), stage_fqf.data(), 0, ns - 1, bs);
+}
+
 void WindowSolver::node_mask(double* zmask) const {
   for (Index i = 0; i < n; ++i) {
     bool any = false;

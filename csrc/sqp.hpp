@@ -81,6 +81,9 @@ class WindowSolver {
   // out[dst]: the outputs at Xb[0]'s iterate shifted by one node from out[src] (the
   // previous window's, may be dst) and the tail function at Xb[0]'s last stage
   bool shift_outputs(int src, int dst);
+  // The stage products (affine transition) moved by one stage, as the window's data
+  // slide by one sample: stage i takes stage i + 1's, the new last stage is formed anew
+  void shift_stages();
   // 1 where the node's measurement mask m has a nonzero entry
   void node_mask(double* zmask) const;
 
