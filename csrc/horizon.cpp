@@ -238,6 +238,8 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   const double* D = solver.Dgn.data() + last * n * bs;
   const double* E = solver.E.data() + last * (n - 1) * bs;
   if (!finish_) {
+    solved_buffer = int(last);
+    solved_generation = solver.generation;
     std::copy(Xa, Xa + n * nx, X_sol.begin());
     std::copy(Xl, Xl + n * nx, X_last_sol.begin());
     std::copy(D, D + n * bs, D_sol.begin());
@@ -274,6 +276,9 @@ void MovingHorizon::finish(const double* Xk, bool solved, const double* w_new, b
   if (solved) {
     std::copy(X_last_sol.begin(), X_last_sol.end(), X_last.begin());
     has_X_last = true;
+    // nothing used the solver since this step's solve: its last iterate's model outputs
+    // and assembly are still at hand for the next step
+    if (solver.generation == solved_generation) outputs_at_last = solved_buffer;
   }
   keep_outputs(X.data(), solved ? D_sol.data() : nullptr, solved ? E_sol.data() : nullptr,
                failed, w_new);

@@ -505,17 +505,20 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
 
 SqpResult WindowSolver::solve(const WindowData& data, const double* zmask, double* lam,
                               const SqpOptions& opt, bool evaluated, int shifted) {
+  ++generation;
   return with_block_size(nx, [&](auto k) {
     return sqp<decltype(k)::value>(*this, data, zmask, lam, opt, evaluated, shifted);
   });
 }
 
 double WindowSolver::evaluate(int buf, const WindowData& data, const double* zmask) {
+  ++generation;
   return with_block_size(
       nx, [&](auto k) { return evaluate_sized<decltype(k)::value>(*this, buf, data, zmask); });
 }
 
 double WindowSolver::assemble(int buf, const WindowData& data, const double* zmask, int prev) {
+  ++generation;
   return with_block_size(nx, [&](auto k) {
     return cmhe::assemble<decltype(k)::value>(*this, buf, Xb.data() + buf * n * nx,
                                               out.data() + buf * window_size, zmask, data, prev);
@@ -523,6 +526,7 @@ double WindowSolver::assemble(int buf, const WindowData& data, const double* zma
 }
 
 bool WindowSolver::shift_outputs(int src, int dst) {
+  ++generation;
   const auto fn = reinterpret_cast<Entry>(tail);
   if (!fn) throw std::invalid_argument("the window model has no tail function");
   if (fn(reinterpret_cast<const double* const*>(tail_ptrs.data()), tail_out.data()) != 0)

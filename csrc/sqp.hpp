@@ -102,6 +102,10 @@ class WindowSolver {
   static Entries entries();
 
   Index n, nx, nz, nu, nblk, nb, bk, window_size;
+  // counts the calls that write the model outputs or the assembly (solve, evaluate,
+  // assemble, shift_outputs): a caller that kept a buffer's outputs knows whether they
+  // are still there
+  uint64_t generation = 0;
   std::uintptr_t window, tail;
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
