@@ -69,12 +69,15 @@ struct Block<0> {  // one buffer per thread, grown once (no allocation per call)
 template <int NX>
 inline void block_product(Index nx_, const double* A, const double* B, double* out) {
   const Index nx = block_size<NX>(nx_);
-  for (Index j = 0; j < nx; ++j)
-    for (Index k = 0; k < nx; ++k) {
-      double t = 0.0;
-      for (Index a = 0; a < nx; ++a) t += A[j * nx + a] * B[a * nx + k];
-      out[j * nx + k] = t;
+  for (Index j = 0; j < nx; ++j) {  // row j as a sum of B's rows, in the order of a
+    double* oj = out + j * nx;
+    for (Index k = 0; k < nx; ++k) oj[k] = 0.0;
+    for (Index a = 0; a < nx; ++a) {
+      const double t = A[j * nx + a];
+      const double* Ba = B + a * nx;
+      for (Index k = 0; k < nx; ++k) oj[k] += t * Ba[k];
     }
+  }
 }
 
 // ``out = H v`` for the symmetric block-tridiagonal H = (D, E); v, out (n, nx)
@@ -98,59 +101,70 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 
 // Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
 // L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
-// M_i = E_i^T L_i^-T, rd (n, nx) the reciprocals of L's diagonal (divisions by the
-// pivots are multiplications by their reciprocals, computed once: they are the
-// factor's critical path).
+// transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
+// reciprocals of L's diagonal (divisions by the pivots are multiplications by their
+// reciprocals, computed once: they are the factor's critical path). Every loop runs
+// along rows of nx contiguous values (independent updates the compiler vectorises, no
+// reduction chains); each entry's sum is formed in the same order as the textbook
+// row-by-row form, so the factor has the same bits.
 template <int NX>
 bool btd_factor(Index n, Index nx_, const double* D, const double* E, double* L, double* M,
                 double* rd) {
   const Index nx = block_size<NX>(nx_);
   const Index bs = nx * nx;
   Block<NX> ablock(nx);
-  double* a = ablock.data();
+  double* a = ablock.data();  // the Schur complement, then the factor's rows: U = L^T
   for (Index i = 0; i < n; ++i) {
     double* Li = L + i * bs;
-    for (Index j = 0; j < nx; ++j) {
-      for (Index k = 0; k <= j; ++k) {  // the Schur complement's lower triangle
-        double s = D[i * bs + j * nx + k];
-        if (i > 0) {
-          const double* Mp = M + (i - 1) * bs;
-          for (Index c = 0; c < nx; ++c) s -= Mp[j * nx + c] * Mp[k * nx + c];
+    // the upper triangle of the Schur complement D_i - M_{i-1} M_{i-1}^T (D is read
+    // below its diagonal)
+    for (Index j = 0; j < nx; ++j)
+      for (Index k = j; k < nx; ++k) a[j * nx + k] = D[i * bs + k * nx + j];
+    if (i > 0) {
+      const double* Mp = M + (i - 1) * bs;
+      for (Index c = 0; c < nx; ++c)
+        for (Index j = 0; j < nx; ++j) {
+          const double t = Mp[c * nx + j];
+          for (Index k = j; k < nx; ++k) a[j * nx + k] -= t * Mp[c * nx + k];
         }
-        a[j * nx + k] = s;
-      }
     }
-    for (Index j = 0; j < nx; ++j) {  // dense Cholesky of the nx x nx block
-      double s = a[j * nx + j];
-      for (Index c = 0; c < j; ++c) s -= Li[j * nx + c] * Li[j * nx + c];
+    // dense Cholesky of the block, by rows of U = L^T (right-looking)
+    for (Index j = 0; j < nx; ++j) {
+      const double s = a[j * nx + j];
       if (!(s > 0.0)) return false;
-      const double ljj = std::sqrt(s);
-      Li[j * nx + j] = ljj;
-      const double r = 1.0 / ljj;
+      const double ujj = std::sqrt(s);
+      const double r = 1.0 / ujj;
       rd[i * nx + j] = r;
-      for (Index k = j + 1; k < nx; ++k) {
-        double t = a[k * nx + j];
-        for (Index c = 0; c < j; ++c) t -= Li[k * nx + c] * Li[j * nx + c];
-        Li[k * nx + j] = t * r;
+      a[j * nx + j] = ujj;
+      for (Index k = j + 1; k < nx; ++k) a[j * nx + k] *= r;
+      for (Index m = j + 1; m < nx; ++m) {
+        const double t = a[j * nx + m];
+        for (Index k = m; k < nx; ++k) a[m * nx + k] -= t * a[j * nx + k];
       }
-      for (Index k = 0; k < j; ++k) Li[k * nx + j] = 0.0;
     }
-    if (i < n - 1) {  // M_i L_i^T = E_i^T, row by row (forward substitution)
+    for (Index j = 0; j < nx; ++j)
+      for (Index k = 0; k < nx; ++k) Li[j * nx + k] = k <= j ? a[k * nx + j] : 0.0;
+    if (i < n - 1) {  // L_i M_i^T = E_i, row by row (forward substitution on rows)
       double* Mi = M + i * bs;
       const double* Ei = E + i * bs;
-      for (Index r_ = 0; r_ < nx; ++r_) {
-        for (Index j = 0; j < nx; ++j) {
-          double t = Ei[j * nx + r_];
-          for (Index c = 0; c < j; ++c) t -= Mi[r_ * nx + c] * Li[j * nx + c];
-          Mi[r_ * nx + j] = t * rd[i * nx + j];
+      for (Index j = 0; j < nx; ++j) {
+        double* row = Mi + j * nx;
+        for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
+        for (Index c = 0; c < j; ++c) {
+          const double l = Li[j * nx + c];
+          const double* prev = Mi + c * nx;
+          for (Index k = 0; k < nx; ++k) row[k] -= l * prev[k];
         }
+        const double r = rd[i * nx + j];
+        for (Index k = 0; k < nx; ++k) row[k] *= r;
       }
     }
   }
   return true;
 }
 
-// ``y = (L L^T)^-1 b`` from btd_factor's L, M and rd; b, y (n, nx), y may be b
+// ``y = (L L^T)^-1 b`` from btd_factor's L, M (transposed blocks) and rd; b, y (n, nx),
+// y may be b
 template <int NX>
 void btd_substitute(Index n, Index nx_, const double* L, const double* M, const double* rd,
                     const double* b, double* y) {
@@ -160,7 +174,7 @@ void btd_substitute(Index n, Index nx_, const double* L, const double* M, const 
     for (Index j = 0; j < nx; ++j) {
       double t = b[i * nx + j];
       if (i > 0)
-        for (Index c = 0; c < nx; ++c) t -= M[(i - 1) * bs + j * nx + c] * y[(i - 1) * nx + c];
+        for (Index c = 0; c < nx; ++c) t -= M[(i - 1) * bs + c * nx + j] * y[(i - 1) * nx + c];
       for (Index c = 0; c < j; ++c) t -= L[i * bs + j * nx + c] * y[i * nx + c];
       y[i * nx + j] = t * rd[i * nx + j];
     }
@@ -169,7 +183,7 @@ void btd_substitute(Index n, Index nx_, const double* L, const double* M, const 
     for (Index j = nx - 1; j >= 0; --j) {
       double t = y[i * nx + j];
       if (i < n - 1)
-        for (Index c = 0; c < nx; ++c) t -= M[i * bs + c * nx + j] * y[(i + 1) * nx + c];
+        for (Index c = 0; c < nx; ++c) t -= M[i * bs + j * nx + c] * y[(i + 1) * nx + c];
       for (Index c = j + 1; c < nx; ++c) t -= L[i * bs + c * nx + j] * y[i * nx + c];
       y[i * nx + j] = t * rd[i * nx + j];
     }

@@ -174,14 +174,19 @@ void MovingHorizon::form_arrival() {
   std::copy(Pinv.begin(), Pinv.end(), arrival.begin() + off * bs);
 }
 
-// the window's data and the iterate Xs into the solver's buffer 0; stage products anew
-void MovingHorizon::load(const double* Xs) {
+// the window's data and the iterate Xs into the solver's buffer 0; stage products anew,
+// or (``slid``: the solver's stage products are those of the previous sample's window)
+// shifted by one stage with the window's data
+void MovingHorizon::load(const double* Xs, bool slid) {
   std::copy(zw.begin(), zw.end(), solver.z.begin());
   std::copy(zmask.begin(), zmask.end(), solver.m.begin());
   std::copy(uw.begin(), uw.end(), solver.u.begin());
   std::copy(dt.begin(), dt.end(), solver.dt.begin());
   std::copy(Xs, Xs + n * nx, solver.Xb.begin());
-  std::fill(solver.stage_done.begin(), solver.stage_done.end(), 0);
+  if (slid)
+    solver.shift_stages();
+  else
+    std::fill(solver.stage_done.begin(), solver.stage_done.end(), 0);
   solver.node_mask(zmask_nodes_.data());
 }
 
@@ -201,7 +206,9 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
     return STEP_NO_ESTIMATE;
   }
   form_arrival();
-  load(X0.data());
+  // the previous sample's solve was this solver's, kept as it was (STEP_DONE): its stage
+  // products, model outputs and assembly at its last iterate slide with the window
+  load(X0.data(), reusable >= 0);
   if (has_lam) {  // the previous multipliers, shifted by one node
     std::memmove(lam.data(), lam.data() + nb, (n - 1) * nb * sizeof(double));
     std::fill(lam.begin() + (n - 1) * nb, lam.end(), 0.0);
@@ -215,8 +222,8 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   // the warm start's nodes but the last are the last iterate's, shifted: so are their
   // model outputs (each node's depend on its own state and data only)
   const bool evaluated = reusable >= 0 && solver.tail != 0 && solver.shift_outputs(reusable, 0);
-  const SqpResult r =
-      solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated, -1);
+  const SqpResult r = solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated,
+                                   evaluated ? reusable : -1);
   solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   iterations = r.iterations;
   cost = r.outcome == CONVERGED ? r.cost : std::numeric_limits<double>::quiet_NaN();
@@ -231,6 +238,8 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   const double* D = solver.Dgn.data() + last * n * bs;
   const double* E = solver.E.data() + last * (n - 1) * bs;
   if (!finish_) {
+    solved_buffer = int(last);
+    solved_generation = solver.generation;
     std::copy(Xa, Xa + n * nx, X_sol.begin());
     std::copy(Xl, Xl + n * nx, X_last_sol.begin());
     std::copy(D, D + n * bs, D_sol.begin());
@@ -267,6 +276,9 @@ void MovingHorizon::finish(const double* Xk, bool solved, const double* w_new, b
   if (solved) {
     std::copy(X_last_sol.begin(), X_last_sol.end(), X_last.begin());
     has_X_last = true;
+    // nothing used the solver since this step's solve: its last iterate's model outputs
+    // and assembly are still at hand for the next step
+    if (solver.generation == solved_generation) outputs_at_last = solved_buffer;
   }
   keep_outputs(X.data(), solved ? D_sol.data() : nullptr, solved ? E_sol.data() : nullptr,
                failed, w_new);
@@ -288,7 +300,7 @@ void MovingHorizon::keep_outputs(const double* Xk, const double* D, const double
   cov_ok = false;
   if (!failed) {
     if (D == nullptr) {
-      load(Xk);
+      load(Xk, false);
       const WindowData data{qinvw.data(), xbar.data(), arrival.data()};
       if (std::isfinite(solver.evaluate(0, data, zmask_nodes_.data()))) {
         D = solver.D.data();

@@ -72,6 +72,11 @@ class MovingHorizon {
   // (the next step's warm start shifts them and evaluates only the new node: the
   // window's tail function), -1 when none is
   int outputs_at_last = -1;
+  // the buffer of the last step's last iterate when it stopped before finish
+  // (STEP_SOLVED), and the solver's generation then (finish keeps that buffer's outputs
+  // for the next step if the solver was not used in between)
+  int solved_buffer = -1;
+  uint64_t solved_generation = 0;
   // robust weights of the first and last node of the last answer
   std::vector<double> w_first, w_last;
   // the last solve: SQP iterations; when certified, its answer, last iterate and that
@@ -93,7 +98,7 @@ class MovingHorizon {
   void slide();
   void warm_start();
   void form_arrival();
-  void load(const double* Xs);
+  void load(const double* Xs, bool slid);
   void keep_outputs(const double* X, const double* D, const double* E, bool failed,
                     const double* w_new);
   std::vector<double> R_, Rl_, scale_, zmask_nodes_;

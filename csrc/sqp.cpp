@@ -37,10 +37,12 @@ void stage_product(Index nx_, const double* qinv, const double* F, double* eq, d
   block_product<NX>(nx, qinv, F, qf);
   for (Index j = 0; j < nx; ++j) {
     for (Index k = 0; k < nx; ++k) eq[j * nx + k] = -qf[k * nx + j];
-    for (Index k = j; k < nx; ++k) {
-      double s = 0.0;
-      for (Index a = 0; a < nx; ++a) s += F[a * nx + j] * qf[a * nx + k];
-      fqf[j * nx + k] = s;
+    double* fj = fqf + j * nx;
+    for (Index k = j; k < nx; ++k) fj[k] = 0.0;
+    for (Index a = 0; a < nx; ++a) {
+      const double f = F[a * nx + j];
+      const double* qa = qf + a * nx;
+      for (Index k = j; k < nx; ++k) fj[k] += f * qa[k];
     }
   }
 }
@@ -135,6 +137,7 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
   const int64_t* blocks = w.blocks.data();
   double *wr = w.wr.data(), *wj = w.wj.data(), *qw = w.qw.data(), *qf = w.qf.data();
   double* e = w.e.data();
+  double* acc = w.acc.data();
   const Index nodes = shifted ? 3 : n;
   for (Index node = 0; node < nodes; ++node) {
     Index i = node;
@@ -164,17 +167,21 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
       const double* JRi = o.JR + i * nz * nx;
       for (Index bk_ = 0; bk_ < nblk; ++bk_) {
         const Index b0 = blocks[2 * bk_], nb_ = blocks[2 * bk_ + 1];
+        // the products below run along rows of nx contiguous values (loops the compiler
+        // vectorises); each entry's sum is formed in the order of its index a or c
         double ssq = 0.0;
         for (Index a = 0; a < nb_; ++a) {
+          const double* ra = rinv + (b0 + a) * nz + b0;
           double t = 0.0;
-          for (Index c = 0; c < nb_; ++c) t += rinv[(b0 + a) * nz + b0 + c] * Ri[b0 + c];
+          for (Index c = 0; c < nb_; ++c) t += ra[c] * Ri[b0 + c];
           wr[a] = t;
           ssq += Ri[b0 + a] * t;
-          for (Index k = 0; k < nx; ++k) {  // (R_b^-1 J_b)[a, k]
-            double t2 = 0.0;
-            for (Index c = 0; c < nb_; ++c)
-              t2 += rinv[(b0 + a) * nz + b0 + c] * JRi[(b0 + c) * nx + k];
-            wj[a * nx + k] = t2;
+          double* wja = wj + a * nx;  // (R_b^-1 J_b)[a, :]
+          for (Index k = 0; k < nx; ++k) wja[k] = 0.0;
+          for (Index c = 0; c < nb_; ++c) {
+            const double rc = ra[c];
+            const double* jc = JRi + (b0 + c) * nx;
+            for (Index k = 0; k < nx; ++k) wja[k] += rc * jc[k];
           }
         }
         double rho, rho1, rho2;
@@ -185,18 +192,24 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         wgt[i * nblk + bk_] = mk * rho1;
         extra[i * nblk + bk_] = mk * (2.0 * rho2 - a2);
         double* gbi = gb + (i * nblk + bk_) * nx;
-        for (Index j = 0; j < nx; ++j) {
-          double t = 0.0;
-          for (Index a = 0; a < nb_; ++a) t += JRi[(b0 + a) * nx + j] * wr[a];
-          gbi[j] = t;
-          gi[j] += mk * rho1 * t;
+        for (Index j = 0; j < nx; ++j) gbi[j] = 0.0;
+        for (Index a = 0; a < nb_; ++a) {
+          const double ra = wr[a];
+          const double* ja = JRi + (b0 + a) * nx;
+          for (Index j = 0; j < nx; ++j) gbi[j] += ja[j] * ra;
         }
-        for (Index j = 0; j < nx; ++j)  // J_b^T (rho' R_b^-1 + a2 ...) J_b, upper triangle
-          for (Index k = j; k < nx; ++k) {
-            double t = 0.0;
-            for (Index a = 0; a < nb_; ++a) t += JRi[(b0 + a) * nx + j] * wj[a * nx + k];
-            Di[j * nx + k] += mk * (rho1 * t + a2 * gbi[j] * gbi[k]);
+        for (Index j = 0; j < nx; ++j) gi[j] += mk * rho1 * gbi[j];
+        for (Index j = 0; j < nx; ++j) {  // J_b^T (rho' R_b^-1 + a2 ...) J_b, upper triangle
+          for (Index k = j; k < nx; ++k) acc[k] = 0.0;
+          for (Index a = 0; a < nb_; ++a) {
+            const double ja = JRi[(b0 + a) * nx + j];
+            const double* wja = wj + a * nx;
+            for (Index k = j; k < nx; ++k) acc[k] += ja * wja[k];
           }
+          const double gj = gbi[j];
+          double* Dj = Di + j * nx;
+          for (Index k = j; k < nx; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
+        }
       }
     }
     bool weighted = false;
@@ -235,10 +248,14 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
       }
       double* Ei = E + i * bs;
       double* Dn = D + (i + 1) * bs;
+      for (Index j = 0; j < nx; ++j) acc[j] = 0.0;
+      for (Index a = 0; a < nx; ++a) {  // acc = F^T qw
+        const double qa = qw[a];
+        const double* Fa = Fi + a * nx;
+        for (Index j = 0; j < nx; ++j) acc[j] += Fa[j] * qa;
+      }
       for (Index j = 0; j < nx; ++j) {
-        double s = 0.0;
-        for (Index a = 0; a < nx; ++a) s += Fi[a * nx + j] * qw[a];
-        gi[j] -= s;
+        gi[j] -= acc[j];
         for (Index k = 0; k < nx; ++k) Ei[j * nx + k] = eqi[j * nx + k];
         for (Index k = j; k < nx; ++k) Di[j * nx + k] += fqfi[j * nx + k];
         if (push) {
@@ -480,6 +497,7 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   qw.resize(nx);
   qf.resize(bs);
   e.resize(nx);
+  acc.resize(nx);
   eql.resize(bs);
   fqfl.resize(bs);
   qp.resize(n, nx, nb);
@@ -487,17 +505,20 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
 
 SqpResult WindowSolver::solve(const WindowData& data, const double* zmask, double* lam,
                               const SqpOptions& opt, bool evaluated, int shifted) {
+  ++generation;
   return with_block_size(nx, [&](auto k) {
     return sqp<decltype(k)::value>(*this, data, zmask, lam, opt, evaluated, shifted);
   });
 }
 
 double WindowSolver::evaluate(int buf, const WindowData& data, const double* zmask) {
+  ++generation;
   return with_block_size(
       nx, [&](auto k) { return evaluate_sized<decltype(k)::value>(*this, buf, data, zmask); });
 }
 
 double WindowSolver::assemble(int buf, const WindowData& data, const double* zmask, int prev) {
+  ++generation;
   return with_block_size(nx, [&](auto k) {
     return cmhe::assemble<decltype(k)::value>(*this, buf, Xb.data() + buf * n * nx,
                                               out.data() + buf * window_size, zmask, data, prev);
@@ -505,6 +526,7 @@ double WindowSolver::assemble(int buf, const WindowData& data, const double* zma
 }
 
 bool WindowSolver::shift_outputs(int src, int dst) {
+  ++generation;
   const auto fn = reinterpret_cast<Entry>(tail);
   if (!fn) throw std::invalid_argument("the window model has no tail function");
   if (fn(reinterpret_cast<const double* const*>(tail_ptrs.data()), tail_out.data()) != 0)
@@ -581,6 +603,15 @@ int project_entry(const double* const* in, double*) {
 WindowSolver::Entries WindowSolver::entries() {
   auto addr = [](Entry f) { return reinterpret_cast<std::uintptr_t>(f); };
   return {addr(&solve_entry), addr(&evaluate_entry), addr(&shift_entry), addr(&project_entry)};
+}
+
+void WindowSolver::shift_stages() {
+  const Index ns = Index(stage_done.size()), bs = nx * nx;
+  if (ns == 0) return;
+  std::memmove(stage_done.data(), stage_done.data() + 1, (ns - 1) * sizeof(int64_t));
+  stage_done[ns - 1] = 0;
+  shift_rows(stage_eq.data(), stage_eq.data(), 0, ns - 1, bs);
+  shift_rows(stage_fqf.data(), stage_fqf.data(), 0, ns - 1, bs);
 }
 
 void WindowSolver::node_mask(double* zmask) const {

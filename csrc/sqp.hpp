@@ -81,6 +81,9 @@ class WindowSolver {
   // out[dst]: the outputs at Xb[0]'s iterate shifted by one node from out[src] (the
   // previous window's, may be dst) and the tail function at Xb[0]'s last stage
   bool shift_outputs(int src, int dst);
+  // The stage products (affine transition) moved by one stage, as the window's data
+  // slide by one sample: stage i takes stage i + 1's, the new last stage is formed anew
+  void shift_stages();
   // 1 where the node's measurement mask m has a nonzero entry
   void node_mask(double* zmask) const;
 
@@ -99,6 +102,10 @@ class WindowSolver {
   static Entries entries();
 
   Index n, nx, nz, nu, nblk, nb, bk, window_size;
+  // counts the calls that write the model outputs or the assembly (solve, evaluate,
+  // assemble, shift_outputs): a caller that kept a buffer's outputs knows whether they
+  // are still there
+  uint64_t generation = 0;
   std::uintptr_t window, tail;
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
@@ -118,7 +125,7 @@ class WindowSolver {
 
   // scratch
   QPScratch qp;
-  std::vector<double> wr, wj, qw, qf, e, eql, fqfl;
+  std::vector<double> wr, wj, qw, qf, e, acc, eql, fqfl;
 };
 
 }  // namespace cmhe

@@ -146,6 +146,23 @@ void Tape::evaluate_flat(const double* const* in, double* out) const {
   evaluate(in, res.data());
 }
 
+// The scalar operations as (name, value of r from x = w[a] and y = w[b]): one list for
+// both dispatches of Tape::evaluate
+#define CMHE_SCALAR_OPS(X)                                                                \
+  X(ASSIGN, x) X(ADD, x + y) X(SUB, x - y) X(MUL, x * y) X(DIV, x / y) X(NEG, -x)          \
+  X(EXP, std::exp(x)) X(LOG, std::log(x)) X(POW, std::pow(x, y))                           \
+  X(CONSTPOW, std::pow(x, y)) X(SQRT, std::sqrt(x)) X(SQ, x * x) X(TWICE, 2.0 * x)         \
+  X(SIN, std::sin(x)) X(COS, std::cos(x)) X(TAN, std::tan(x)) X(ASIN, std::asin(x))        \
+  X(ACOS, std::acos(x)) X(ATAN, std::atan(x)) X(LT, x < y) X(LE, x <= y) X(EQ, x == y)     \
+  X(NE, x != y) X(NOT, !x) X(AND, x && y) X(OR, x || y) X(FLOOR, std::floor(x))            \
+  X(CEIL, std::ceil(x)) X(FMOD, std::fmod(x, y)) X(FABS, std::fabs(x)) X(SIGN, sign(x))    \
+  X(COPYSIGN, std::copysign(x, y)) X(IF_ELSE_ZERO, x == 0 ? 0.0 : y) X(ERF, std::erf(x))   \
+  X(FMIN, std::fmin(x, y)) X(FMAX, std::fmax(x, y)) X(INV, 1.0 / x)                        \
+  X(SINH, std::sinh(x)) X(COSH, std::cosh(x)) X(TANH, std::tanh(x))                        \
+  X(ASINH, std::asinh(x)) X(ACOSH, std::acosh(x)) X(ATANH, std::atanh(x))                  \
+  X(ATAN2, std::atan2(x, y)) X(HYPOT, std::hypot(x, y)) X(LOG1P, std::log1p(x))            \
+  X(EXPM1, std::expm1(x)) X(REMAINDER, std::remainder(x, y))
+
 void Tape::evaluate(const double* const* in, double* const* out) const {
   thread_local std::vector<double> work;
   if (static_cast<int64_t>(work.size()) < work_size_) work.resize(work_size_);
@@ -153,69 +170,63 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   const double* c = constants_.data();
   for (int64_t j : sparse_outputs_)
     if (out[j]) std::fill(out[j], out[j] + output_sizes_[j], 0.0);
-  for (const Instruction& I : code_) {
+  const Instruction* I = code_.data();
+  const Instruction* const end = I + code_.size();
+  if (I == end) return;
 // operands are read inside each case: for INPUT, OUTPUT and CONST, a and res are not
 // work indices
-#define x (w[I.a])
-#define y (w[I.b])
-#define r (w[I.res])
-    switch (I.op) {
-      case OP_INPUT: r = in[I.a] ? in[I.a][I.b] : 0.0; break;
-      case OP_OUTPUT: if (out[I.b]) out[I.b][I.res] = x; break;
-      case OP_CONST: r = c[I.a]; break;
-      case OP_ASSIGN: r = x; break;
-      case OP_ADD: r = x + y; break;
-      case OP_SUB: r = x - y; break;
-      case OP_MUL: r = x * y; break;
-      case OP_DIV: r = x / y; break;
-      case OP_NEG: r = -x; break;
-      case OP_EXP: r = std::exp(x); break;
-      case OP_LOG: r = std::log(x); break;
-      case OP_POW: case OP_CONSTPOW: r = std::pow(x, y); break;
-      case OP_SQRT: r = std::sqrt(x); break;
-      case OP_SQ: r = x * x; break;
-      case OP_TWICE: r = 2.0 * x; break;
-      case OP_SIN: r = std::sin(x); break;
-      case OP_COS: r = std::cos(x); break;
-      case OP_TAN: r = std::tan(x); break;
-      case OP_ASIN: r = std::asin(x); break;
-      case OP_ACOS: r = std::acos(x); break;
-      case OP_ATAN: r = std::atan(x); break;
-      case OP_LT: r = x < y; break;
-      case OP_LE: r = x <= y; break;
-      case OP_EQ: r = x == y; break;
-      case OP_NE: r = x != y; break;
-      case OP_NOT: r = !x; break;
-      case OP_AND: r = x && y; break;
-      case OP_OR: r = x || y; break;
-      case OP_FLOOR: r = std::floor(x); break;
-      case OP_CEIL: r = std::ceil(x); break;
-      case OP_FMOD: r = std::fmod(x, y); break;
-      case OP_FABS: r = std::fabs(x); break;
-      case OP_SIGN: r = sign(x); break;
-      case OP_COPYSIGN: r = std::copysign(x, y); break;
-      case OP_IF_ELSE_ZERO: r = x == 0 ? 0.0 : y; break;
-      case OP_ERF: r = std::erf(x); break;
-      case OP_FMIN: r = std::fmin(x, y); break;
-      case OP_FMAX: r = std::fmax(x, y); break;
-      case OP_INV: r = 1.0 / x; break;
-      case OP_SINH: r = std::sinh(x); break;
-      case OP_COSH: r = std::cosh(x); break;
-      case OP_TANH: r = std::tanh(x); break;
-      case OP_ASINH: r = std::asinh(x); break;
-      case OP_ACOSH: r = std::acosh(x); break;
-      case OP_ATANH: r = std::atanh(x); break;
-      case OP_ATAN2: r = std::atan2(x, y); break;
-      case OP_HYPOT: r = std::hypot(x, y); break;
-      case OP_LOG1P: r = std::log1p(x); break;
-      case OP_EXPM1: r = std::expm1(x); break;
-      case OP_REMAINDER: r = std::remainder(x, y); break;
+#define x (w[I->a])
+#define y (w[I->b])
+#define r (w[I->res])
+#if defined(__GNUC__) || defined(__clang__)
+  // threaded dispatch (GNU labels as values): each operation jumps to the next one's
+  // code itself, so the processor predicts each jump from its own history, where one
+  // shared switch mispredicts at almost every instruction
+  const void* labels[OP_COUNT];
+  for (const void*& l : labels) l = &&done;  // the constructor refused any other code
+  labels[OP_INPUT] = &&op_INPUT;
+  labels[OP_OUTPUT] = &&op_OUTPUT;
+  labels[OP_CONST] = &&op_CONST;
+#define CMHE_LABEL(NAME, VALUE) labels[OP_##NAME] = &&op_##NAME;
+  CMHE_SCALAR_OPS(CMHE_LABEL)
+#undef CMHE_LABEL
+#define CMHE_NEXT             \
+  if (++I == end) goto done;  \
+  goto* labels[I->op]
+  goto* labels[I->op];
+op_INPUT:
+  r = in[I->a] ? in[I->a][I->b] : 0.0;
+  CMHE_NEXT;
+op_OUTPUT:
+  if (out[I->b]) out[I->b][I->res] = x;
+  CMHE_NEXT;
+op_CONST:
+  r = c[I->a];
+  CMHE_NEXT;
+#define CMHE_CASE(NAME, VALUE) \
+  op_##NAME : r = (VALUE);     \
+  CMHE_NEXT;
+  CMHE_SCALAR_OPS(CMHE_CASE)
+#undef CMHE_CASE
+#undef CMHE_NEXT
+done:
+  return;
+#else
+  for (; I != end; ++I) {
+    switch (I->op) {
+      case OP_INPUT: r = in[I->a] ? in[I->a][I->b] : 0.0; break;
+      case OP_OUTPUT: if (out[I->b]) out[I->b][I->res] = x; break;
+      case OP_CONST: r = c[I->a]; break;
+#define CMHE_CASE(NAME, VALUE) case OP_##NAME: r = (VALUE); break;
+      CMHE_SCALAR_OPS(CMHE_CASE)
+#undef CMHE_CASE
       default: break;
     }
+  }
+#endif
 #undef x
 #undef y
 #undef r
-  }
 }
 
 CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in_stride, double* const* out,

@@ -45,14 +45,18 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     r = mk * f.measurement_residual_sym(z, x)
     jr = ca.jacobian(r, x)
     rinv = np.linalg.inv(f.meas_cov())
-    # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2
+    # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2: the
+    # Jacobian of J_b^T lam at lam = R_b^-1 r_b, which differentiates the Jacobian's own
+    # expressions once more (half the instructions of the Hessian of the block's cost
+    # less J_b^T R_b^-1 J_b, and no cancellation)
     curv = []
     for b in f.measurement_blocks:
         if not f.second_order_residuals:  # Gauss-Newton: the term is zero
             curv.append(ca.SX.zeros(nx * nx))
             continue
         rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
-        curv.append(ca.vec(ca.hessian(0.5 * ca.bilin(wb, rb, rb), x)[0] - jb.T @ wb @ jb))
+        lam = ca.SX.sym("lam", rb.numel())
+        curv.append(ca.vec(ca.substitute(ca.jacobian(jb.T @ lam, x), lam, wb @ rb)))
     meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
     xf = f.transition_sym(x, u, dt)
     proc = ca.Function("mhe_proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
