@@ -78,7 +78,7 @@ from continuum_mhe.estimators.loss import (
 )
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.second_start import SecondStart
-from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.estimators.sensor_health import Estimator, status_code
 from continuum_mhe.estimators.window_nlp import (
     Nlp,
     WindowProblem,
@@ -525,13 +525,26 @@ class MovingHorizonInference(Inference):
         self._t_last = m.t
         if valid:
             self._z_prev_valid = m.z
-        hooks = self.branch is not None or self.second_start is not None
-        outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not hooks)
+        outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not self._hooks)
         self.solve_seconds = window.solve_seconds
         if outcome == NO_ESTIMATE_YET:
             return None, None, Status.NO_ESTIMATE
         if answer is not None:  # kept by the compiled step
             return self._keep(answer, Status.OK, valid)
+        answer, status = self._after_step(outcome)
+        return self._keep(answer, status, valid)
+
+    @property
+    def _hooks(self) -> bool:
+        """Whether Python hooks follow a certified solve (the branch check, the second
+        start): the compiled step then leaves its answer to :meth:`_after_step`."""
+        return self.branch is not None or self.second_start is not None
+
+    def _after_step(self, outcome: int) -> tuple[Answer, Status]:
+        """The window after a step that did not keep its answer (``outcome``): the
+        hooks on a certified answer, IPOPT's solve on another; the answer kept and its
+        status."""
+        window = self._window
         problem = self.window_problem(copy=False)
         self._last_cost = None
         if outcome == CERTIFIED:
@@ -552,7 +565,22 @@ class MovingHorizonInference(Inference):
             np.ascontiguousarray(X, dtype=np.float64), X is solved and outcome == CERTIFIED,
             w_new, status == Status.SOLVER_FAILED,
         )  # fmt: skip
-        return self._keep(answer, status, valid)
+        return answer, status
+
+    def policy_inference(self) -> _core.HorizonInference | None:
+        """The fast backend's inference for the compiled policy
+        (``_core.HorizonInference``: the window step in compiled code, this object only
+        for the prior's start, the hooks and IPOPT); None on the IPOPT backend (the
+        policy steps :meth:`infer`)."""
+        if not isinstance(self._window, _core.MovingHorizon) or type(self).infer is not (
+            MovingHorizonInference.infer
+        ):
+            return None
+        f = self.formulation
+        return _core.HorizonInference(
+            self._window, _HorizonHooks(self), not self._hooks, self.flags_outliers,
+            OUTLIER_WEIGHT, self._process_weight, f.inputs,
+        )  # fmt: skip
 
     def _keep(
         self, answer: Answer, status: Status, valid: bool
@@ -713,6 +741,33 @@ class MovingHorizonInference(Inference):
     def window_cost(self, problem: WindowProblem, X: FloatArray) -> float:
         """The NLP's objective for a trajectory ``X`` (N, nx)."""
         return float(self._nlp.cost(X.ravel(), pack_parameters(problem)))
+
+
+class _HorizonHooks:
+    """What ``_core.HorizonInference`` asks of a :class:`MovingHorizonInference`: its
+    restart, the prior's start from the first reading, the step's Python half when the
+    compiled step did not keep its answer, and the reject reset's test."""
+
+    def __init__(self, inference: MovingHorizonInference) -> None:
+        self.inference = inference
+        self.formulation = inference.formulation
+
+    def restart(self) -> None:
+        self.inference.restart()
+
+    def start(self, z: FloatArray) -> None:
+        f = self.formulation
+        self.inference._set_prior(f.project(f.initial_state(z)), f.initial_cov())
+
+    def after_step(self, outcome: int, valid: bool) -> tuple[int]:
+        """The status code of the kept answer (``dropout`` for an ``ok`` one without a
+        valid reading)."""
+        answer, status = self.inference._after_step(outcome)
+        return (status_code(self.inference._keep(answer, status, valid)[2]),)
+
+    def rejected(self) -> int:
+        rejected = self.inference.rejected_every_reading()
+        return -1 if rejected is None else int(rejected)
 
 
 class MovingHorizonEstimator(Estimator[MovingHorizonInference]):
