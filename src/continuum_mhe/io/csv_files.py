@@ -744,6 +744,39 @@ def estimate_row(
     return [float(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
 
 
+def estimate_lines(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    output: FloatArray,
+    output_std: FloatArray,
+    outlier: NDArray[np.bool_] | None,
+    status: Sequence[str],
+    solve_ms: FloatArray,
+) -> str:
+    """The estimate CSV lines of several samples, as :func:`estimate_row` and
+    :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
+    is none; ``outlier`` None: no such column); a non-finite output of an estimate is
+    refused (a bug)."""
+    ny = output.shape[1]
+    empty = "," * (2 * ny)
+    lines = []
+    for i, st in enumerate(status):
+        y, sd = output[i].tolist(), output_std[i].tolist()
+        flag = "" if outlier is None else f"{int(bool(outlier[i]))},"
+        t_i, ms = float(t[i]), float(solve_ms[i])
+        if not (math.isfinite(t_i) and math.isfinite(ms)):
+            raise ValueError(f"refusing to write non-finite value to {path}")
+        if st == "no-estimate" or all(v != v for v in y):
+            lines.append(f"{_fmt(t_i)}{empty},{flag}{st},{_fmt(ms)}\n")
+            continue
+        if not all(math.isfinite(v) for v in y):
+            raise ValueError(f"refusing to write non-finite value to {path}")
+        cells = ",".join(_fmt(v) for v in y)
+        stds = ",".join(_fmt(v) if math.isfinite(v) else "" for v in sd)
+        lines.append(f"{_fmt(t_i)},{cells},{stds},{flag}{st},{_fmt(ms)}\n")
+    return "".join(lines)
+
+
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
     ny = len(series.outputs)
