@@ -193,8 +193,7 @@ class Estimator(Generic[InferenceT]):
         self.name: str = inference.name
         #: whether estimates carry outlier flags (a robust MHE)
         self.flags_outliers: bool = inference.flags_outliers
-        #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
-        self.recovery = RecoverySettings() if recovery is None else recovery
+        self._recovery = RecoverySettings() if recovery is None else recovery
         #: what the policy did since the last :meth:`reset` (:class:`Diagnostics`)
         self.diagnostics = Diagnostics()
         self._ran = False  # the last call was run(): a later step needs reset()
@@ -214,6 +213,19 @@ class Estimator(Generic[InferenceT]):
                 stacklevel=_outside_stacklevel(),
             )
         self._consistency = ConsistencyCheck(formulation)
+        self._policy = self._compiled_policy()
+        self.reset()
+
+    @property
+    def recovery(self) -> RecoverySettings:
+        """Gap reset, frozen sensors, bad starts, reject resets and the ``uncertain``
+        threshold (see :meth:`step`); setting them starts a new recording (:meth:`reset`)."""
+        return self._recovery
+
+    @recovery.setter
+    def recovery(self, recovery: RecoverySettings) -> None:
+        expect_type("recovery", recovery, RecoverySettings, "a RecoverySettings")
+        self._recovery = recovery
         self._policy = self._compiled_policy()
         self.reset()
 
