@@ -2,6 +2,7 @@
 // an inference object, the compiled fast MHE's step or a Python one.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
@@ -221,6 +222,51 @@ void cmhe::bind_sensor_health(nb::module_& m) {
   for (const char* s : STATUS_NAMES) names.append(nb::str(s));
   m.attr("STATUS_NAMES") = nb::tuple(names);
 
+  nb::class_<StateChecks>(
+      m, "StateChecks",
+      "A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at "
+      "its bound.")
+      .def(
+          "__init__",
+          [](StateChecks* self, int nx, std::vector<std::pair<int, int>> pairs,
+             std::vector<double> diverged_r2, std::vector<double> at_bound_r,
+             std::vector<int> rate_rows, double rate_limit, std::vector<int> std_rows,
+             double std_limit2) {
+            if (diverged_r2.size() != pairs.size() || at_bound_r.size() != pairs.size())
+              throw std::invalid_argument("one diverged_r2 and at_bound_r per pair");
+            for (const auto& [i, j] : pairs)
+              if (i < 0 || j < 0 || i >= nx || j >= nx)
+                throw std::invalid_argument("a pair's row is outside the state");
+            for (const auto* rows : {&rate_rows, &std_rows})
+              for (int r : *rows)
+                if (r < 0 || r >= nx) throw std::invalid_argument("a row is outside the state");
+            new (self) StateChecks{nx, std::move(pairs), std::move(diverged_r2),
+                                   std::move(at_bound_r), std::move(rate_rows), rate_limit,
+                                   std::move(std_rows), std_limit2};
+          },
+          nb::arg("nx"), nb::arg("pairs"), nb::arg("diverged_r2"), nb::arg("at_bound_r"),
+          nb::arg("rate_rows"), nb::arg("rate_limit"), nb::arg("std_rows"),
+          nb::arg("std_limit2"),
+          "``pairs``: the bend coordinates (i, j) of each section, with the squared radius "
+          "beyond which it diverged and the radius at which it is at its bound; "
+          "``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance "
+          "beyond ``std_limit2`` is a divergence.")
+      .def(
+          "is_diverged",
+          [](const StateChecks& c, In x, std::optional<In> P) {
+            check_size(x, c.nx, "x");
+            if (P) check_size(*P, size_t(c.nx) * c.nx, "P");
+            return c.is_diverged(x.data(), P ? P->data() : nullptr);
+          },
+          nb::arg("x"), nb::arg("P").none(), "Whether the state (and covariance) diverged.")
+      .def(
+          "at_bound",
+          [](const StateChecks& c, In x) {
+            check_size(x, c.nx, "x");
+            return c.at_bound(x.data());
+          },
+          nb::arg("x"), "Whether a section's bend is at its bound.");
+
   nb::class_<HorizonInference>(
       m, "HorizonInference",
       "The fast MHE's inference for the compiled policy: the window step in compiled code, "
@@ -255,13 +301,14 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              double bad_start, double reject_reset, double uncertain_fraction, double length,
              bool checks_start, bool shape_observable, std::vector<double> start_limit,
              int start_samples, double unobserved_after, double degrees_like, nb::object process_noise,
-             nb::object inputs, nb::object observable) {
+             nb::object inputs, nb::object observable, const StateChecks* checks) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
                              uncertain_fraction, length, checks_start, shape_observable,
                              std::move(start_limit), start_samples, unobserved_after,
-                             degrees_like};
+                             degrees_like, std::nullopt};
+            if (checks) s.checks = *checks;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -284,12 +331,13 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("reject_reset"), nb::arg("uncertain_fraction"), nb::arg("length"),
           nb::arg("checks_start"), nb::arg("shape_observable"), nb::arg("start_limit"),
           nb::arg("start_samples"), nb::arg("unobserved_after"), nb::arg("degrees_like"), nb::arg("process_noise"),
-          nb::arg("inputs"), nb::arg("observable"), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
+          nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
           "block and of the IMUs'; settings in s and rad, NaN where off; "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, "
-          "``observable(imus) -> bool``.")
+          "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
+          "inference's is_diverged, drifted and at_bound).")
       .def(
           "reset", [](Policy& p, bool keep_counts) { p.health->reset(keep_counts); },
           nb::arg("keep_counts"), "A new recording (diagnostics zeroed unless keep_counts).")

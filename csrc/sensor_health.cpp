@@ -19,6 +19,31 @@ bool any_positive(const std::vector<double>& v) {
 }
 }  // namespace
 
+// --- StateChecks ------------------------------------------------------------------------
+
+bool StateChecks::is_diverged(const double* x, const double* P) const {
+  for (int i = 0; i < nx; ++i)
+    if (!std::isfinite(x[i])) return true;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const double a = x[pairs[k].first], b = x[pairs[k].second];
+    if (a * a + b * b > diverged_r2[k]) return true;
+  }
+  for (int r : rate_rows)
+    if (std::fabs(x[r]) > rate_limit) return true;
+  if (!P) return false;
+  for (int i = 0; i < nx * nx; ++i)
+    if (!std::isfinite(P[i])) return true;
+  for (int r : std_rows)
+    if (P[r * nx + r] > std_limit2) return true;
+  return false;
+}
+
+bool StateChecks::at_bound(const double* x) const {
+  for (size_t k = 0; k < pairs.size(); ++k)
+    if (std::hypot(x[pairs[k].first], x[pairs[k].second]) >= at_bound_r[k]) return true;
+  return false;
+}
+
 // --- ProcessModel -----------------------------------------------------------------------
 
 ProcessModel::ProcessModel(int nx_, int nu_, int nz_, QFunction compute, InputFunction inputs)
@@ -276,6 +301,10 @@ bool SensorHealth::consistency_check(double t, const double* z, const double* ju
   return consistency_.check(t, z, judged, x, P, u, Q);
 }
 
+bool SensorHealth::diverged(const double* x, const double* P) {
+  return s_.checks ? s_.checks->is_diverged(x, P) : inference_.is_diverged(x, P);
+}
+
 int SensorHealth::infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                              bool& has_cov, bool& failed) {
   failed = false;
@@ -341,12 +370,12 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   bool has_state = false, has_cov = false, failed = false;
   int status = infer_once(t, z, x, P, has_state, has_cov, failed);
-  bool healthy = !failed && (!has_state || !inference_.is_diverged(x, has_cov ? P : nullptr));
+  bool healthy = !failed && (!has_state || !diverged(x, has_cov ? P : nullptr));
   if (!healthy) {  // flag it and restart from this sample's measurement
     ++diagnostics.restarts;
     restart();
     status = infer_once(t, z, x, P, has_state, has_cov, failed);
-    if (has_state && inference_.is_diverged(x, has_cov ? P : nullptr)) {
+    if (has_state && diverged(x, has_cov ? P : nullptr)) {
       restart();
       has_state = has_cov = false;
       status = ST_NO_ESTIMATE;
@@ -355,12 +384,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
-  if (status == ST_OK && has_state && inference_.drifted(x)) status = ST_DRIFTED;
+  if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {
     status = ST_UNCERTAIN;  // the data do not determine the shape
   } else if (trusted(status) && !returned_.empty()) {
     status = ST_UNCERTAIN;  // an IMU is back and no reading has confirmed the estimate
-  } else if (trusted(status) && has_state && inference_.at_bound(x)) {
+  } else if (trusted(status) && has_state &&
+             (s_.checks ? s_.checks->at_bound(x) : inference_.at_bound(x))) {
     status = ST_AT_BOUND;  // the bound, not the data, may have set the shape
     ++diagnostics.bound_samples;
   }

@@ -102,6 +102,23 @@ class ProcessModel {
   std::vector<double> scratch_, u_;
 };
 
+// A formulation's checks of a state as data (continuum_mhe.model.formulations:
+// ``is_diverged``, ``at_bound``): not finite; a pair of bend coordinates (i, j) with
+// ``x_i^2 + x_j^2`` beyond its ``diverged_r2``, or a rate row beyond ``rate_limit`` in
+// magnitude; a covariance not finite or with a ``std_rows`` variance beyond
+// ``std_limit2``. At its bound: ``hypot(x_i, x_j) >= at_bound_r`` of a pair.
+struct StateChecks {
+  int nx = 0;
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<double> diverged_r2, at_bound_r;
+  std::vector<int> rate_rows;
+  double rate_limit = INFINITY;
+  std::vector<int> std_rows;
+  double std_limit2 = INFINITY;
+  bool is_diverged(const double* x, const double* P) const;  // P may be nullptr
+  bool at_bound(const double* x) const;
+};
+
 // The policy's fixed data (recovery settings: NaN where off)
 struct PolicySettings {
   int nx, nz, ny;
@@ -122,6 +139,9 @@ struct PolicySettings {
   int start_samples = 2;            // consecutive readings beyond it that restart
   double unobserved_after = 1.0;    // s, an IMU's silence that unobserves it (gap reset off)
   double degrees_like = 0.0;        // rad, a tilt reading beyond it is in degrees
+  // the formulation's checks of a state, when it states them as data (else the
+  // inference's is_diverged, drifted and at_bound; with them nothing drifts)
+  std::optional<StateChecks> checks;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -182,6 +202,7 @@ class SensorHealth {
                       bool has_state, bool has_cov);
   bool consistency_check(double t, const double* z, const double* judged, const double* x,
                          const double* P, bool has_state, bool has_cov);
+  bool diverged(const double* x, const double* P);
   int infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                  bool& has_cov, bool& failed);
 

@@ -33,7 +33,6 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator

@@ -321,7 +321,12 @@ class MovingHorizon:
 
     @property
     def solve_seconds(self) -> float:
-        """Wall time of the last step's window solve, s (0 when it solved none)."""
+        """
+        Wall time of the last step's window solve, s (0 when it solved none; the Python hooks add their solves' to it).
+        """
+
+    @solve_seconds.setter
+    def solve_seconds(self, arg: float, /) -> None: ...
 
     @property
     def cost(self) -> float:
@@ -420,6 +425,22 @@ class MovingHorizon:
 
 STATUS_NAMES: tuple = ...
 
+class StateChecks:
+    """
+    A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.
+    """
+
+    def __init__(self, nx: int, pairs: Sequence[tuple[int, int]], diverged_r2: Sequence[float], at_bound_r: Sequence[float], rate_rows: Sequence[int], rate_limit: float, std_rows: Sequence[int], std_limit2: float) -> None:
+        """
+        ``pairs``: the bend coordinates (i, j) of each section, with the squared radius beyond which it diverged and the radius at which it is at its bound; ``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance beyond ``std_limit2`` is a divergence.
+        """
+
+    def is_diverged(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)] | None) -> bool:
+        """Whether the state (and covariance) diverged."""
+
+    def at_bound(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
+        """Whether a section's bend is at its bound."""
+
 class HorizonInference:
     """
     The fast MHE's inference for the compiled policy: the window step in compiled code, the Python inference only for its hooks (csrc/bind_sensor_health.cpp).
@@ -435,9 +456,9 @@ class SensorHealth:
     The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): step one sample, or run a recording into arrays, in compiled code (csrc/sensor_health.hpp).
     """
 
-    def __init__(self, inference: object, consistency: ConsistencyCheck, nx: int, nu: int, nz: int, ny: int, blocks: Sequence[tuple[int, int]], imu_blocks: Sequence[tuple[int, int]], tilt_rows: Sequence[int], tip_rows: Sequence[int], freeze: float, freeze_samples: int, gap_reset: float, bad_start: float, reject_reset: float, uncertain_fraction: float, length: float, checks_start: bool, shape_observable: bool, start_limit: Sequence[float], start_samples: int, unobserved_after: float, degrees_like: float, process_noise: object, inputs: object, observable: object) -> None:
+    def __init__(self, inference: object, consistency: ConsistencyCheck, nx: int, nu: int, nz: int, ny: int, blocks: Sequence[tuple[int, int]], imu_blocks: Sequence[tuple[int, int]], tilt_rows: Sequence[int], tip_rows: Sequence[int], freeze: float, freeze_samples: int, gap_reset: float, bad_start: float, reject_reset: float, uncertain_fraction: float, length: float, checks_start: bool, shape_observable: bool, start_limit: Sequence[float], start_samples: int, unobserved_after: float, degrees_like: float, process_noise: object, inputs: object, observable: object, checks: StateChecks | None) -> None:
         """
-        ``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement block and of the IMUs'; settings in s and rad, NaN where off; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, ``observable(imus) -> bool``.
+        ``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement block and of the IMUs'; settings in s and rad, NaN where off; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, ``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the inference's is_diverged, drifted and at_bound).
         """
 
     def reset(self, keep_counts: bool) -> None:

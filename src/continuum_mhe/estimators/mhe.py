@@ -348,8 +348,6 @@ class MovingHorizonInference(Inference):
             else None
         )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
-        #: the compiled window solves' time in the last sample, s (0 on IPOPT)
-        self.solve_seconds = 0.0
         self.restart()
 
     @property
@@ -526,13 +524,21 @@ class MovingHorizonInference(Inference):
         if valid:
             self._z_prev_valid = m.z
         outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not self._hooks)
-        self.solve_seconds = window.solve_seconds
         if outcome == NO_ESTIMATE_YET:
             return None, None, Status.NO_ESTIMATE
         if answer is not None:  # kept by the compiled step
             return self._keep(answer, Status.OK, valid)
         answer, status = self._after_step(outcome)
         return self._keep(answer, status, valid)
+
+    @property
+    def solve_seconds(self) -> float:
+        """The compiled window solves' time in the last sample, s (0 on IPOPT)."""
+        return float(self._window.solve_seconds)
+
+    @solve_seconds.setter
+    def solve_seconds(self, seconds: float) -> None:
+        self._window.solve_seconds = seconds
 
     @property
     def _hooks(self) -> bool:

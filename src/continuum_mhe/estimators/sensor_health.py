@@ -268,6 +268,7 @@ class Estimator(Generic[InferenceT]):
             process_noise=ProcessNoiseCache(f),
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
+            checks=f.state_checks(),
         )
 
     def reset(self, keep_counts: bool = False) -> None:
