@@ -90,8 +90,8 @@ class PythonInference final : public PolicyInference {
 // The fast MHE's inference in compiled code: the window's process noise, inputs and
 // step (horizon.hpp) each sample; the Python inference object
 // (continuum_mhe.estimators.mhe.MovingHorizonInference) only where it is needed: its
-// ``restart()``, ``start(z)`` (the arrival prior from the first reading),
-// ``after_step(outcome, valid) -> (state, cov | None, status code)`` when the compiled
+// ``restart()``, ``start(z) -> failure | None`` (the arrival prior from the first
+// reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
 // step did not keep its answer (IPOPT's fallback, the branch check, the second start),
 // and the formulation's checks of a state.
 class HorizonInference final : public PolicyInference {
@@ -121,7 +121,8 @@ class HorizonInference final : public PolicyInference {
     for (size_t i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
     if (!h_.has_prior) {
       if (!valid) return ST_NO_ESTIMATE;
-      py_.attr("start")(copy_of(z, {nz}));
+      nb::object failure = py_.attr("start")(copy_of(z, {nz}));
+      if (!failure.is_none()) throw InferenceFailure(nb::cast<std::string>(failure));
     }
     const double* u = u0_.data();
     const double *Q = zero_.data(), *Qinv = zero_.data();
@@ -140,6 +141,7 @@ class HorizonInference final : public PolicyInference {
     int status = ST_OK;
     if (outcome != STEP_DONE) {  // the Python hooks, or IPOPT on the window
       nb::tuple r = nb::cast<nb::tuple>(py_.attr("after_step")(outcome, valid));
+      if (!r[1].is_none()) throw InferenceFailure(nb::cast<std::string>(r[1]));
       status = nb::cast<int>(r[0]);
     } else if (!valid) {
       status = ST_DROPOUT;

@@ -78,7 +78,12 @@ from continuum_mhe.estimators.loss import (
 )
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.second_start import SecondStart
-from continuum_mhe.estimators.sensor_health import Estimator, status_code
+from continuum_mhe.estimators.sensor_health import (
+    NUMERICAL_FAILURES,
+    Estimator,
+    numerical_failure,
+    status_code,
+)
 from continuum_mhe.estimators.window_nlp import (
     Nlp,
     WindowProblem,
@@ -761,15 +766,24 @@ class _HorizonHooks:
     def restart(self) -> None:
         self.inference.restart()
 
-    def start(self, z: FloatArray) -> None:
+    def start(self, z: FloatArray) -> str | None:
+        """Anchor the prior at the first reading ``z``; a numerical failure's message."""
         f = self.formulation
-        self.inference._set_prior(f.project(f.initial_state(z)), f.initial_cov())
+        try:
+            self.inference._set_prior(f.project(f.initial_state(z)), f.initial_cov())
+        except NUMERICAL_FAILURES as exc:
+            return numerical_failure(exc)
+        return None
 
-    def after_step(self, outcome: int, valid: bool) -> tuple[int]:
+    def after_step(self, outcome: int, valid: bool) -> tuple[int, str | None]:
         """The status code of the kept answer (``dropout`` for an ``ok`` one without a
-        valid reading)."""
-        answer, status = self.inference._after_step(outcome)
-        return (status_code(self.inference._keep(answer, status, valid)[2]),)
+        valid reading), or a numerical failure's message."""
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are the policy's to catch
+                answer, status = self.inference._after_step(outcome)
+        except NUMERICAL_FAILURES as exc:
+            return 0, numerical_failure(exc)
+        return status_code(self.inference._keep(answer, status, valid)[2]), None
 
     def rejected(self) -> int:
         rejected = self.inference.rejected_every_reading()

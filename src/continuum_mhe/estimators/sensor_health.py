@@ -77,6 +77,17 @@ def _reraise_interrupt(exc: BaseException) -> None:
         raise seen
 
 
+#: The exceptions of an inference step that are numerical failures (the policy restarts).
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, ArithmeticError, RuntimeError)
+
+
+def numerical_failure(exc: BaseException) -> str:
+    """The policy's message of a numerical failure of an inference step (a Ctrl-C that
+    surfaced as one is raised again)."""
+    _reraise_interrupt(exc)
+    return f"{type(exc).__name__}: {exc}"
+
+
 def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
     """One line for sensors newly treated as frozen (``--freeze``): ``new`` maps a
     measurement block (an IMU) to the ``t`` of the first of its repeated readings."""
@@ -136,10 +147,9 @@ class PythonInference:
         try:
             with np.errstate(all="ignore"):  # non-finite results are the policy's to catch
                 state, cov, status = self.inference.infer(Measurement(t, z))
-        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
-            _reraise_interrupt(exc)
+        except NUMERICAL_FAILURES as exc:
             self._state = self._cov = None
-            return None, None, 0, f"{type(exc).__name__}: {exc}"
+            return None, None, 0, numerical_failure(exc)
         self._state, self._cov = state, cov
         return state, cov, status_code(status), None
 
