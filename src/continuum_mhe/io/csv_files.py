@@ -756,24 +756,29 @@ def estimate_lines(
     """The estimate CSV lines of several samples, as :func:`estimate_row` and
     :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
     is none; ``outlier`` None: no such column); a non-finite output of an estimate is
-    refused (a bug)."""
-    ny = output.shape[1]
-    empty = "," * (2 * ny)
+    refused (a bug). A row with every value is one ``%`` format of the whole row."""
+    n, ny = output.shape
+    estimated = ~np.isnan(output).all(axis=1) & (np.asarray(status) != "no-estimate")
+    if not (
+        np.isfinite(t).all()
+        and np.isfinite(solve_ms).all()
+        and np.isfinite(output[estimated]).all()
+    ):
+        raise ValueError(f"refusing to write non-finite value to {path}")
+    whole = estimated & np.isfinite(output_std).all(axis=1)
+    flag = "" if outlier is None else "%d,"
+    line = "%.10g," * (1 + 2 * ny) + flag + "%s,%.10g\n"  # the same digits as _fmt
+    values = np.column_stack([t, output, output_std]).tolist()
+    flags = [()] * n if outlier is None else [(int(bool(f)),) for f in outlier.tolist()]
     lines = []
-    for i, st in enumerate(status):
-        y, sd = output[i].tolist(), output_std[i].tolist()
-        flag = "" if outlier is None else f"{int(bool(outlier[i]))},"
-        t_i, ms = float(t[i]), float(solve_ms[i])
-        if not (math.isfinite(t_i) and math.isfinite(ms)):
-            raise ValueError(f"refusing to write non-finite value to {path}")
-        if st == "no-estimate" or all(v != v for v in y):
-            lines.append(f"{_fmt(t_i)}{empty},{flag}{st},{_fmt(ms)}\n")
+    for i, (row, st, ms, fl) in enumerate(zip(values, status, solve_ms.tolist(), flags)):
+        if whole[i]:
+            lines.append(line % (*row, *fl, st, ms))
             continue
-        if not all(math.isfinite(v) for v in y):
-            raise ValueError(f"refusing to write non-finite value to {path}")
-        cells = ",".join(_fmt(v) for v in y)
-        stds = ",".join(_fmt(v) if math.isfinite(v) else "" for v in sd)
-        lines.append(f"{_fmt(t_i)},{cells},{stds},{flag}{st},{_fmt(ms)}\n")
+        y = output[i] if estimated[i] else None
+        sd = None if y is None else output_std[i]
+        cells = estimate_row(row[0], y, st, ms, ny, sd, None if outlier is None else bool(fl[0]))
+        lines.append(",".join(format_cells(path, cells)) + "\n")
     return "".join(lines)
 
 
