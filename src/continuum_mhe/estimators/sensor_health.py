@@ -57,13 +57,15 @@ DEGREES_LIKE = 2 * math.pi
 InferenceT = TypeVar("InferenceT", bound=Inference)
 
 #: The statuses by the compiled policy's codes (``_core.STATUS_NAMES``).
-STATUSES: tuple[Status, ...] = tuple(Status(name) for name in _core.STATUS_NAMES)
-_CODES = {status: code for code, status in enumerate(STATUSES)}
+STATUSES: tuple[Status, ...] = tuple(
+    next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
+)
+_CODES = {status.value: code for code, status in enumerate(STATUSES)}
 
 
 def status_code(status: Status | str) -> int:
     """The compiled policy's code of a status (its index in :data:`STATUSES`)."""
-    return _CODES[Status(status)]
+    return _CODES[str(status)]
 
 
 __all__ = ["Diagnostics", "Estimator", "PythonInference", "bound_notice", "freeze_notice"]

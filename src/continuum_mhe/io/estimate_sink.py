@@ -128,7 +128,7 @@ class EstimateSink:
         output: FloatArray,
         output_std: FloatArray,
         outlier: NDArray[np.bool_],
-        status: Sequence[str],
+        status: Sequence[Status],
         solve_ms: FloatArray,
     ) -> None:
         """Rows of several samples (``t`` (n,) s, ``output`` and ``output_std`` (n, ny),
@@ -141,7 +141,7 @@ class EstimateSink:
         for i, st in enumerate(status):
             y = None if st == "no-estimate" or np.isnan(output[i]).all() else output[i]
             s = None if y is None or np.isnan(output_std[i]).all() else output_std[i]
-            self.write(Estimate(float(t[i]), None, y, None, Status(st), float(solve_ms[i]), s,
+            self.write(Estimate(float(t[i]), None, y, None, st, float(solve_ms[i]), s,
                                 outlier=bool(outlier[i])))  # fmt: skip
 
     def write(self, estimate: Estimate) -> None:
