@@ -13,8 +13,10 @@ policy did over a recording is one :class:`~continuum_mhe.results.Diagnostics` v
 
 The policy runs in the compiled core (``continuum_mhe._core.SensorHealth``,
 ``csrc/sensor_health.*``), one implementation for ``step`` and ``run``: ``run`` steps a
-whole recording there into arrays. It reaches the inference and the formulation's checks
-of a state through :class:`PythonInference`.
+whole recording there into arrays. It steps the fast MHE's compiled window step directly
+(:meth:`~.base.Inference.policy_inference`), any other inference through
+:class:`PythonInference`, and the formulation's checks of a state as data where the
+formulation states them so (:meth:`~continuum_mhe.model.formulations.Formulation.state_checks`).
 """
 
 from __future__ import annotations
@@ -44,9 +46,6 @@ from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measure
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
 
-#: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
-#: data do not determine the shape (the others already say more).
-TRUSTED = (Status.OK, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART)
 #: An IMU silent for longer than this (s) no longer observes its part of the shape when
 #: the gap reset is off (else the gap reset's time).
 UNOBSERVED_AFTER = 1.0
@@ -322,7 +321,7 @@ class Estimator(Generic[InferenceT]):
         the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
         exceeds ``uncertain_fraction`` of the robot's length is ``uncertain``, and so is
         every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
-        (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
+        (a trusted status) of a robot whose IMUs do not determine its shape
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
         not (an IMU silent for longer: its part of the shape is predicted blindly), or
         after such an IMU's return until its readings have agreed with the estimate for

@@ -488,7 +488,7 @@ class BendFormulation(Formulation):
         """Non-finite; a section bent more than ``DIVERGED_MARGIN`` rad beyond its bound
         (the filters are unconstrained, but not that far); a bend rate over
         ``DIVERGED_RATE`` rad/s; or a bend standard deviation over pi rad (the estimate
-        knows nothing any more, e.g. after a long gap). (:attr:`state_checks`.)"""
+        knows nothing any more, e.g. after a long gap). (:meth:`state_checks`.)"""
         f64 = np.ascontiguousarray
         cov = None if P is None else f64(P, dtype=np.float64)
         return bool(self._checks.is_diverged(f64(x, dtype=np.float64), cov))
