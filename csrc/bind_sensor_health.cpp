@@ -194,6 +194,90 @@ class HorizonInference final : public PolicyInference {
   const double* cov_ = nullptr;
 };
 
+// The compiled EKF's inference for the policy: each sample's step, outputs and standard
+// deviations on the node model (filter.hpp); the Python inference object
+// (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
+// ``restart()`` and the first sample, ``first(t, z) -> (x | None, P | None, status
+// code, failure | None)`` (the prior from the reading, updated with it).
+class KalmanInference final : public PolicyInference {
+ public:
+  KalmanInference(NodeModel& node, nb::object py, std::vector<double> R,
+                  ProcessModel::QFunction q, ProcessModel::InputFunction inputs)
+      : node_(node),
+        py_(std::move(py)),
+        R_(std::move(R)),
+        process_(node.nx(), int(nb::cast<int>(py_.attr("nu"))), node.nz(), std::move(q),
+                 std::move(inputs)) {
+    x_.resize(node.nx());
+    P_.resize(size_t(node.nx()) * node.nx());
+    z_prev_.resize(node.nz());
+  }
+  void restart() override {
+    py_.attr("restart")();
+    has_x_ = false;
+  }
+  int infer(double t, const double* z, const double* mask, double* x, double* P,
+            bool& has_state, bool& has_cov) override {
+    const int nx = node_.nx(), nz = node_.nz();
+    bool valid = false;
+    for (int i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
+    int status = ST_OK;
+    if (!has_x_) {
+      nb::tuple r = nb::cast<nb::tuple>(py_.attr("first")(t, copy_of(z, {size_t(nz)})));
+      if (!r[3].is_none()) throw InferenceFailure(nb::cast<std::string>(r[3]));
+      if (r[0].is_none()) return nb::cast<int>(r[2]);
+      read_into(r[0], nx, x_.data(), "state");
+      read_into(r[1], size_t(nx) * nx, P_.data(), "covariance");
+      std::copy(z, z + nz, z_prev_.begin());
+      has_x_ = true;
+      status = nb::cast<int>(r[2]);
+    } else {
+      const double dt = t - t_prev_;
+      const double* u = process_.inputs(z_prev_.data(), z, dt);
+      const double* Q = process_.noise(dt).first;
+      if (!node_.ekf_step(x_.data(), P_.data(), process_.nu ? u : nullptr, dt, z, mask,
+                          R_.data(), Q))
+        throw std::runtime_error("singular innovation covariance in the EKF update");
+      status = valid ? ST_OK : ST_DROPOUT;
+      if (valid) std::copy(z, z + nz, z_prev_.begin());
+    }
+    t_prev_ = t;
+    std::copy(x_.begin(), x_.end(), x);
+    std::copy(P_.begin(), P_.end(), P);
+    has_state = has_cov = true;
+    return status;
+  }
+  void output(const double* x, double* y) override { node_.output(x, y); }
+  void output_std(const double* x, const double* P, double* s) override {
+    node_.output_std(x, P, s);
+  }
+  bool is_diverged(const double* x, const double* P) override {
+    return check("is_diverged", x, P);
+  }
+  bool drifted(const double* x) override { return check("drifted", x, nullptr); }
+  bool at_bound(const double* x) override { return check("at_bound", x, nullptr); }
+
+ private:
+  // the formulation's check ``name`` of a state, in Python (a formulation without
+  // StateChecks)
+  bool check(const char* name, const double* x, const double* P) {
+    const size_t nx = node_.nx();
+    nb::object f = py_.attr("formulation");
+    if (std::string(name) == "is_diverged") {
+      nb::object p = P ? nb::cast(copy_of(P, {nx, nx})) : nb::none();
+      return nb::cast<bool>(f.attr(name)(copy_of(x, {nx}), p));
+    }
+    return nb::cast<bool>(f.attr(name)(copy_of(x, {nx})));
+  }
+  NodeModel& node_;
+  nb::object py_;
+  std::vector<double> R_;
+  ProcessModel process_;
+  std::vector<double> x_, P_, z_prev_;
+  double t_prev_ = 0.0;
+  bool has_x_ = false;
+};
+
 // The policy with what it owns: its inference adapter and process model
 struct Policy {
   std::unique_ptr<PolicyInference> inference;  // a PythonInference, or none
@@ -289,6 +373,28 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "the step (no Python hooks); ``robust``: outlier flags below ``outlier_weight``; "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
 
+  nb::class_<KalmanInference>(
+      m, "KalmanInference",
+      "The compiled EKF's inference for the compiled policy: each step, its outputs and "
+      "standard deviations in compiled code, the Python inference only for the first "
+      "sample and restarts (csrc/bind_sensor_health.cpp).")
+      .def(
+          "__init__",
+          [](KalmanInference* self, NodeModel& node, nb::object inference, In R,
+             nb::object process_noise, nb::object inputs) {
+            check_size(R, size_t(node.nz()) * node.nz(), "R");
+            new (self) KalmanInference(node, inference,
+                                       std::vector<double>(R.data(), R.data() + R.size()),
+                                       q_function(process_noise, node.nx()),
+                                       input_function(inputs, node.nz(),
+                                                      nb::cast<int>(inference.attr("nu"))));
+          },
+          nb::arg("node"), nb::arg("inference"), nb::arg("R"), nb::arg("process_noise"),
+          nb::arg("inputs"), nb::keep_alive<1, 2>(),
+          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart()``, "
+          "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
+          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
+
   nb::class_<Policy>(
       m, "SensorHealth",
       "The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): "
@@ -314,6 +420,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
+            } else if (nb::isinstance<KalmanInference>(inference)) {
+              self->used = nb::cast<KalmanInference*>(inference);
             } else {
               self->inference = std::make_unique<PythonInference>(inference, nx, nz, ny);
               self->used = self->inference.get();

@@ -451,6 +451,16 @@ class HorizonInference:
         ``horizon``: the inference's MovingHorizon; ``finish``: keep certified answers in the step (no Python hooks); ``robust``: outlier flags below ``outlier_weight``; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
         """
 
+class KalmanInference:
+    """
+    The compiled EKF's inference for the compiled policy: each step, its outputs and standard deviations in compiled code, the Python inference only for the first sample and restarts (csrc/bind_sensor_health.cpp).
+    """
+
+    def __init__(self, node: NodeModel, inference: object, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], process_noise: object, inputs: object) -> None:
+        """
+        ``node``: the EKF's NodeModel; ``inference``: its hooks (``restart()``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
+        """
+
 class SensorHealth:
     """
     The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): step one sample, or run a recording into arrays, in compiled code (csrc/sensor_health.hpp).

@@ -13,7 +13,7 @@ policy did over a recording is one :class:`~continuum_mhe.results.Diagnostics` v
 
 The policy runs in the compiled core (``continuum_mhe._core.SensorHealth``,
 ``csrc/sensor_health.*``), one implementation for ``step`` and ``run``: ``run`` steps a
-whole recording there into arrays. It steps the fast MHE's compiled window step directly
+whole recording there into arrays. It steps the fast MHE's and the compiled EKF's steps directly
 (:meth:`~.base.Inference.policy_inference`), any other inference through
 :class:`PythonInference`, and the formulation's checks of a state as data where the
 formulation states them so (:meth:`~continuum_mhe.model.formulations.Formulation.state_checks`).
