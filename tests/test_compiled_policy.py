@@ -14,6 +14,7 @@ import pytest
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
@@ -146,3 +147,19 @@ def test_the_block_writer_writes_the_row_writers_lines() -> None:
     out[0, 0] = np.inf
     with pytest.raises(ValueError, match="non-finite"):
         estimate_lines("x.csv", t, out, std, None, status, ms)
+
+
+def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:
+    """The compiled EKF stepped inside the compiled policy (``KalmanInference``) against
+    the CasADi EKF stepped through its Python ``infer``: the same statuses and, to
+    rounding, the same estimates, through the bad start, dropout, freeze and gap."""
+    f = make_formulation("bend")
+    t, z = faulty_recording()
+    compiled = make_estimator("ekf", f, recovery=RECOVERY)
+    assert type(compiled.inference.policy_inference()).__name__ == "KalmanInference"
+    casadi = ExtendedKalmanFilter(f, RECOVERY)
+    a, b = compiled.run(t, z), casadi.run(t, z)
+    assert list(a.status) == list(b.status)
+    np.testing.assert_allclose(a.output, b.output, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.output_std, b.output_std, rtol=1e-7, atol=1e-12)
+    assert compiled.diagnostics.bad_starts == casadi.diagnostics.bad_starts == 1
