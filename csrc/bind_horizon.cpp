@@ -116,8 +116,9 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def_prop_ro("k", [](MovingHorizon& h) { return h.k; }, "Samples in the window.")
       .def_prop_ro("iterations", [](MovingHorizon& h) { return h.iterations; },
                    "SQP iterations of the last solve.")
-      .def_prop_ro("solve_seconds", [](MovingHorizon& h) { return h.solve_seconds; },
-                   "Wall time of the last step's window solve, s (0 when it solved none).")
+      .def_rw("solve_seconds", &MovingHorizon::solve_seconds,
+              "Wall time of the last step's window solve, s (0 when it solved none; the "
+              "Python hooks add their solves' to it).")
       .def_prop_ro("cost", [](MovingHorizon& h) { return h.cost; },
                    "Window cost at the last certified solve's last iterate (NaN if none).")
       .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },

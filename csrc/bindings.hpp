@@ -9,4 +9,5 @@ void bind_solver(nanobind::module_& m);  // bind_solver.cpp: the MHE window solv
 void bind_filter(nanobind::module_& m);  // bind_filter.cpp: EKF step, arrival prior, outputs
 void bind_consistency(nanobind::module_& m);  // bind_consistency.cpp: the consistency check
 void bind_horizon(nanobind::module_& m); // bind_horizon.cpp: the fast MHE's per-sample step
+void bind_sensor_health(nanobind::module_& m);  // bind_sensor_health.cpp: the policy
 }  // namespace cmhe

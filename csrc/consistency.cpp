@@ -113,22 +113,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       if (!Q || (s_.nu && !u))
         throw std::invalid_argument("the prediction from the previous estimate needs u and Q");
       const double dt = t - t0_;
-      evaluate(transition_, x0_.data(), u, dt, fF_.data());  // x+ = f(x0, u, dt), F
-      evaluate(measurement_, fF_.data(), u, dt, Hr_.data());  // H and r at x+
-      ConstRowMap F(fF_.data() + nx, nx, nx), P0(P0_.data(), nx, nx), Qm(Q, nx, nx);
-      ConstRowMap H(Hr_.data(), nz, nx);
-      const double* r_pred = Hr_.data() + nz * nx;
-      const RowMatrix Pn = F * P0 * F.transpose() + Qm;
-      RowMatrix Hj(dof, nx), S(dof, dof);
-      Eigen::VectorXd rp(dof);
-      for (int a = 0; a < dof; ++a) {
-        Hj.row(a) = H.row(rows_[a]);
-        rp[a] = r_pred[rows_[a]];
-      }
-      S.noalias() = Hj * Pn * Hj.transpose();
-      for (int a = 0; a < dof; ++a)
-        for (int b = 0; b < dof; ++b) S(a, b) += s_.R[rows_[a] * nz + rows_[b]];
-      nis_ = rp.dot(S.partialPivLu().solve(rp));
+      nis_ = predicted_nis(x0_.data(), P0_.data(), dt, z, mask, u, Q, rows_);
       // covariance matching: the average factor of the innovations over their predicted
       // size; a reading flagged on its own (an outlier) stays out of it
       if (nis_ <= s_.limit[dof]) {
@@ -157,6 +142,29 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
     persists_ = false;
   }
   return worst > s_.limit[dof] || (high && high_) || persists_;
+}
+
+double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, double dt,
+                                       const double* z, const double* mask, const double* u,
+                                       const double* Q, const std::vector<int>& rows) {
+  const int nx = s_.nx, nz = s_.nz, dof = static_cast<int>(rows.size());
+  set_readings(z, mask);
+  evaluate(transition_, x0, u, dt, fF_.data());      // x+ = f(x0, u, dt), F
+  evaluate(measurement_, fF_.data(), u, dt, Hr_.data());  // H and r at x+
+  ConstRowMap F(fF_.data() + nx, nx, nx), P(P0, nx, nx), Qm(Q, nx, nx);
+  ConstRowMap H(Hr_.data(), nz, nx);
+  const double* r_pred = Hr_.data() + nz * nx;
+  const RowMatrix Pn = F * P * F.transpose() + Qm;
+  RowMatrix Hj(dof, nx), S(dof, dof);
+  Eigen::VectorXd rp(dof);
+  for (int a = 0; a < dof; ++a) {
+    Hj.row(a) = H.row(rows[a]);
+    rp[a] = r_pred[rows[a]];
+  }
+  S.noalias() = Hj * Pn * Hj.transpose();
+  for (int a = 0; a < dof; ++a)
+    for (int b = 0; b < dof; ++b) S(a, b) += s_.R[rows[a] * nz + rows[b]];
+  return rp.dot(S.partialPivLu().solve(rp));
 }
 
 void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, const double* x,

@@ -56,6 +56,13 @@ class ConsistencyCheck {
   // this one, read only when there is a previous estimate and a judged reading.
   bool check(double t, const double* z, const double* mask, const double* x, const double* P,
              const double* u, const double* Q);
+  // The NIS of the readings ``z`` in ``rows`` (``mask`` > 0 on each) against the estimate
+  // ``x0`` (nx), ``P0`` (nx x nx) predicted over ``dt`` s with inputs ``u`` (nu) and
+  // process noise ``Q`` (nx x nx): ``r^T (H P+ H^T + R)^-1 r`` at ``x+ = f(x0, u, dt)``,
+  // ``P+ = F P0 F^T + Q``; ``rows`` not empty
+  double predicted_nis(const double* x0, const double* P0, double dt, const double* z,
+                       const double* mask, const double* u, const double* Q,
+                       const std::vector<int>& rows);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
   // constant errors and the model error learned so far
   void constant_error_cov(const double* z, const double* mask, const double* x, double* out);

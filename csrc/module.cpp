@@ -11,4 +11,5 @@ NB_MODULE(_ext, m) {
   cmhe::bind_filter(m);
   cmhe::bind_consistency(m);
   cmhe::bind_horizon(m);
+  cmhe::bind_sensor_health(m);
 }

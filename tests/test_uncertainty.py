@@ -33,7 +33,6 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
@@ -513,10 +512,11 @@ def test_recovery_settings_are_validated() -> None:
         RecoverySettings(uncertain_fraction=0.0)
 
 
-def test_measurement_passes_unchanged_without_freeze() -> None:
+def test_a_repeated_reading_is_not_frozen_without_freeze() -> None:
     est = make_estimator("ekf", BendFormulation())
-    m = Measurement(0.0, np.array([0.1, 0.1]))
-    assert est._unfreeze(m) is m
+    t = np.arange(100) * 0.05
+    series = est.run(t, np.tile([0.1, 0.1], (100, 1)))
+    assert est.diagnostics.frozen_samples == 0 and set(series.status) == {"ok"}
 
 
 @pytest.mark.parametrize("case", ["cauchy", "two-sections"])

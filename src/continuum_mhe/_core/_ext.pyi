@@ -335,7 +335,12 @@ class MovingHorizon:
 
     @property
     def solve_seconds(self) -> float:
-        """Wall time of the last step's window solve, s (0 when it solved none)."""
+        """
+        Wall time of the last step's window solve, s (0 when it solved none; the Python hooks add their solves' to it).
+        """
+
+    @solve_seconds.setter
+    def solve_seconds(self, arg: float, /) -> None: ...
 
     @property
     def cost(self) -> float:
@@ -431,3 +436,74 @@ class MovingHorizon:
 
     @property
     def w_last(self) -> NDArray[numpy.float64]: ...
+
+STATUS_NAMES: tuple = ...
+
+class StateChecks:
+    """
+    A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.
+    """
+
+    def __init__(self, nx: int, pairs: Sequence[tuple[int, int]], diverged_r2: Sequence[float], at_bound_r: Sequence[float], rate_rows: Sequence[int], rate_limit: float, std_rows: Sequence[int], std_limit2: float) -> None:
+        """
+        ``pairs``: the bend coordinates (i, j) of each section, with the squared radius beyond which it diverged and the radius at which it is at its bound; ``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance beyond ``std_limit2`` is a divergence.
+        """
+
+    def is_diverged(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)] | None) -> bool:
+        """Whether the state (and covariance) diverged."""
+
+    def at_bound(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> bool:
+        """Whether a section's bend is at its bound."""
+
+class HorizonInference:
+    """
+    The fast MHE's inference for the compiled policy: the window step in compiled code, the Python inference only for its hooks (csrc/bind_sensor_health.cpp).
+    """
+
+    def __init__(self, horizon: MovingHorizon, inference: object, finish: bool, robust: bool, outlier_weight: float, process_noise: object, inputs: object) -> None:
+        """
+        ``horizon``: the inference's MovingHorizon; ``finish``: keep certified answers in the step (no Python hooks); ``robust``: outlier flags below ``outlier_weight``; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
+        """
+
+class KalmanInference:
+    """
+    The compiled EKF's inference for the compiled policy: each step, its outputs and standard deviations in compiled code, the Python inference only for the first sample and restarts (csrc/bind_sensor_health.cpp).
+    """
+
+    def __init__(self, node: NodeModel, inference: object, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], process_noise: object, inputs: object) -> None:
+        """
+        ``node``: the EKF's NodeModel; ``inference``: its hooks (``restart()``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
+        """
+
+class SensorHealth:
+    """
+    The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): step one sample, or run a recording into arrays, in compiled code (csrc/sensor_health.hpp).
+    """
+
+    def __init__(self, inference: object, consistency: ConsistencyCheck, nx: int, nu: int, nz: int, ny: int, blocks: Sequence[tuple[int, int]], imu_blocks: Sequence[tuple[int, int]], tilt_rows: Sequence[int], tip_rows: Sequence[int], freeze: float, freeze_samples: int, gap_reset: float, bad_start: float, reject_reset: float, uncertain_fraction: float, length: float, checks_start: bool, shape_observable: bool, start_limit: Sequence[float], start_samples: int, unobserved_after: float, degrees_like: float, process_noise: object, inputs: object, observable: object, checks: StateChecks | None) -> None:
+        """
+        ``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement block and of the IMUs'; settings in s and rad, NaN where off; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, ``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the inference's is_diverged, drifted and at_bound).
+        """
+
+    def reset(self, keep_counts: bool) -> None:
+        """A new recording (diagnostics zeroed unless keep_counts)."""
+
+    def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+        """
+        One sample: (input error, status code, state, covariance, outputs, their std, outlier, frozen, ms); None where there is none; input error 0 when accepted.
+        """
+
+    def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> tuple[int, int]:
+        """
+        Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its input error), else (n, 0).
+        """
+
+    @property
+    def last_t(self) -> float:
+        """The last accepted sample's time, s (-inf after a reset)."""
+
+    @property
+    def diagnostics(self) -> tuple:
+        """
+        (restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, reject_resets, last_failure or None, bound_samples, max_noise_scale, model_error).
+        """

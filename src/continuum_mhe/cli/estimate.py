@@ -8,6 +8,7 @@ import itertools
 import json
 import math
 import sys
+from collections import Counter
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 from typing import cast
@@ -30,14 +31,29 @@ from continuum_mhe.cli.options import (
     recovery_settings_from_args,
 )
 from continuum_mhe.cli.program import PROG, version
-from continuum_mhe.estimators import Measurement, make_estimator
+from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import bound_notice
 from continuum_mhe.io.csv_files import InputError, check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
+#: Samples read, estimated and written as one block (the compiled policy steps a block in
+#: one call; memory stays flat).
+BLOCK = 1024
+
 #: the comment key that marks an estimate file cut short by a signal (Ctrl-C, SIGTERM)
 PARTIAL = "partial"
+
+
+def _blocks(
+    samples: Iterable[tuple[float, np.ndarray]],
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The samples ``(t, z)`` as blocks of up to :data:`BLOCK`: ``t`` (n,) s and ``z``
+    (n, nz), C-contiguous float64."""
+    it = iter(samples)
+    while block := list(itertools.islice(it, BLOCK)):
+        t = np.array([s[0] for s in block], dtype=np.float64)
+        yield t, np.array([s[1] for s in block], dtype=np.float64).reshape(len(block), -1)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -71,26 +87,31 @@ def run(args: argparse.Namespace) -> int:
         interrupted: BaseException | None = None
         with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
             try:
-                for t, z in samples:  # a signal while waiting for input ends it at once
-                    next(ticks)
-                    frozen_before = diag.frozen_samples
+                last_t = math.nan
+                for t, z in _blocks(samples):  # a signal while waiting for input ends it
                     freezes_before = len(diag.first_freezes)
-                    with signals_deferred():  # inside C code: stop after this sample
-                        e = est.step(Measurement(t, z))
-                    counts[e.status] = counts.get(e.status, 0) + 1
-                    if diag.frozen_samples > frozen_before:
-                        frozen[e.status] = frozen.get(e.status, 0) + 1
-                        note = est.freezes_notice(freezes_before)  # said once per IMU
-                        if note:
-                            print(f"{PROG}: note: {note}", file=sys.stderr)
-                    outliers += e.outlier
-                    readings += bool(np.isfinite(z).any())
-                    sink.write(e)
+                    with signals_deferred():  # inside C code: stop after this block
+                        batch = est.continue_run(t, z)
+                    for _ in range(len(t)):
+                        next(ticks)
+                    statuses = batch.statuses()
+                    for status, k in Counter(statuses).items():
+                        counts[status] = counts.get(status, 0) + k
+                    for i in np.flatnonzero(batch.frozen).tolist():
+                        frozen[statuses[i]] = frozen.get(statuses[i], 0) + 1
+                    note = est.freezes_notice(freezes_before)  # said once per IMU
+                    if note:
+                        print(f"{PROG}: note: {note}", file=sys.stderr)
+                    outliers += int(batch.outlier.sum())
+                    readings += int(np.isfinite(z).any(axis=1).sum())
+                    sink.write_batch(t, batch.output, batch.output_std, batch.outlier,
+                                     statuses, batch.solve_ms)  # fmt: skip
+                    last_t = float(t[-1])
             except BaseException as exc:  # a signal (in C code: any type): keep what is done
                 if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
                     raise
                 interrupted = exc
-                cut = f"interrupted after {sink.rows} samples, at t = {e.t:g} s"
+                cut = f"interrupted after {sink.rows} samples, at t = {last_t:g} s"
                 sink.note(PARTIAL, json.dumps(cut))
             finally:
                 ticks.close()

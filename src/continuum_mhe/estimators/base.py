@@ -72,6 +72,11 @@ class Inference(ABC):
         (robust MHE only; the reject reset counts these); None when the sample had none."""
         return False
 
+    def policy_inference(self) -> object | None:
+        """The object the compiled sensor-health policy steps instead of :meth:`infer`
+        (a compiled inference), or None: it steps :meth:`infer`."""
+        return None
+
     def output(self, state: FloatArray) -> FloatArray:
         """The outputs of a state (an object may use a compiled copy of the model)."""
         return self.formulation.output(state)

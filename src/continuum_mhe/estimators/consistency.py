@@ -138,6 +138,11 @@ class ConsistencyCheck:
         self._q = ProcessNoiseCache(formulation)
         self._prev: tuple[float, FloatArray] | None = None  # the previous (t, z)
 
+    @property
+    def core(self) -> _core.ConsistencyCheck:
+        """The compiled check (the compiled sensor-health policy steps it)."""
+        return self._core
+
     def reset(self) -> None:
         """Forget the previous estimate and the average (a (re)start)."""
         self._core.reset()

@@ -20,10 +20,16 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status, tilt_rows
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
-from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.estimators.sensor_health import (
+    NUMERICAL_FAILURES,
+    Estimator,
+    numerical_failure,
+    status_code,
+)
 from continuum_mhe.model.formulations import Formulation, ModelFunctions
 from continuum_mhe.settings import RecoverySettings
 
@@ -165,6 +171,16 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         self._outputs_of = (state, y, std, cov)
         return state, cov, status
 
+    def policy_inference(self) -> _core.KalmanInference | None:
+        """The compiled policy's EKF (``_core.KalmanInference``: each step in compiled
+        code, this object only for the first sample and restarts)."""
+        if type(self).infer is not CompiledExtendedKalmanInference.infer:
+            return None
+        return _core.KalmanInference(
+            self._node.core, _KalmanHooks(self), np.ascontiguousarray(self._R, dtype=float),
+            self._q, self.formulation.inputs,
+        )  # fmt: skip
+
     def output(self, state: FloatArray) -> FloatArray:
         kept = self._outputs_of
         if kept is not None and kept[0] is state:  # computed in the same compiled call
@@ -176,6 +192,30 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         if kept is not None and kept[0] is state and kept[3] is cov:
             return kept[2]
         return self._node.output_std(state, cov)
+
+
+class _KalmanHooks:
+    """What ``_core.KalmanInference`` asks of a :class:`CompiledExtendedKalmanInference`:
+    its restart and its first sample (the prior from the reading, updated with it)."""
+
+    def __init__(self, inference: CompiledExtendedKalmanInference) -> None:
+        self.inference = inference
+        self.formulation = inference.formulation
+        self.nu = inference.formulation.nu
+
+    def restart(self) -> None:
+        self.inference.restart()
+
+    def first(
+        self, t: float, z: FloatArray
+    ) -> tuple[FloatArray | None, FloatArray | None, int, str | None]:
+        """``(state, covariance, status code, None)``, or a numerical failure's message."""
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are the policy's to catch
+                x, P, status = self.inference.infer(Measurement(t, z))
+        except NUMERICAL_FAILURES as exc:
+            return None, None, 0, numerical_failure(exc)
+        return x, P, status_code(status), None
 
 
 @dataclass(frozen=True)

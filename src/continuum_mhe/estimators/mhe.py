@@ -78,7 +78,12 @@ from continuum_mhe.estimators.loss import (
 )
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.second_start import SecondStart
-from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.estimators.sensor_health import (
+    NUMERICAL_FAILURES,
+    Estimator,
+    numerical_failure,
+    status_code,
+)
 from continuum_mhe.estimators.window_nlp import (
     Nlp,
     WindowProblem,
@@ -350,8 +355,6 @@ class MovingHorizonInference(Inference):
             else None
         )
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
-        #: the compiled window solves' time in the last sample, s (0 on IPOPT)
-        self.solve_seconds = 0.0
         self.restart()
 
     def _window_nlp(self, scale_exp: int) -> Nlp:
@@ -533,13 +536,34 @@ class MovingHorizonInference(Inference):
         self._t_last = m.t
         if valid:
             self._z_prev_valid = m.z
-        hooks = self.branch is not None or self.second_start is not None
-        outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not hooks)
-        self.solve_seconds = window.solve_seconds
+        outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not self._hooks)
         if outcome == NO_ESTIMATE_YET:
             return None, None, Status.NO_ESTIMATE
         if answer is not None:  # kept by the compiled step
             return self._keep(answer, Status.OK, valid)
+        answer, status = self._after_step(outcome)
+        return self._keep(answer, status, valid)
+
+    @property
+    def solve_seconds(self) -> float:
+        """The compiled window solves' time in the last sample, s (0 on IPOPT)."""
+        return float(self._window.solve_seconds)
+
+    @solve_seconds.setter
+    def solve_seconds(self, seconds: float) -> None:
+        self._window.solve_seconds = seconds
+
+    @property
+    def _hooks(self) -> bool:
+        """Whether Python hooks follow a certified solve (the branch check, the second
+        start): the compiled step then leaves its answer to :meth:`_after_step`."""
+        return self.branch is not None or self.second_start is not None
+
+    def _after_step(self, outcome: int) -> tuple[Answer, Status]:
+        """The window after a step that did not keep its answer (``outcome``): the
+        hooks on a certified answer, IPOPT's solve on another; the answer kept and its
+        status."""
+        window = self._window
         problem = self.window_problem(copy=False)
         self._last_cost = None
         if outcome == CERTIFIED:
@@ -560,7 +584,22 @@ class MovingHorizonInference(Inference):
             np.ascontiguousarray(X, dtype=np.float64), X is solved and outcome == CERTIFIED,
             w_new, status == Status.SOLVER_FAILED,
         )  # fmt: skip
-        return self._keep(answer, status, valid)
+        return answer, status
+
+    def policy_inference(self) -> _core.HorizonInference | None:
+        """The fast backend's inference for the compiled policy
+        (``_core.HorizonInference``: the window step in compiled code, this object only
+        for the prior's start, the hooks and IPOPT); None on the IPOPT backend (the
+        policy steps :meth:`infer`)."""
+        if not isinstance(self._window, _core.MovingHorizon) or type(self).infer is not (
+            MovingHorizonInference.infer
+        ):
+            return None
+        f = self.formulation
+        return _core.HorizonInference(
+            self._window, _HorizonHooks(self), not self._hooks, self.flags_outliers,
+            OUTLIER_WEIGHT, self._process_weight, f.inputs,
+        )  # fmt: skip
 
     def _keep(
         self, answer: Answer, status: Status, valid: bool
@@ -721,6 +760,42 @@ class MovingHorizonInference(Inference):
         every scale's NLP shares (the scale is IPOPT's option), so a built one serves."""
         nlp = next(iter(self._nlps.values()), None) or self._nlp
         return float(nlp.cost(X.ravel(), pack_parameters(problem)))
+
+
+class _HorizonHooks:
+    """What ``_core.HorizonInference`` asks of a :class:`MovingHorizonInference`: its
+    restart, the prior's start from the first reading, the step's Python half when the
+    compiled step did not keep its answer, and the reject reset's test."""
+
+    def __init__(self, inference: MovingHorizonInference) -> None:
+        self.inference = inference
+        self.formulation = inference.formulation
+
+    def restart(self) -> None:
+        self.inference.restart()
+
+    def start(self, z: FloatArray) -> str | None:
+        """Anchor the prior at the first reading ``z``; a numerical failure's message."""
+        f = self.formulation
+        try:
+            self.inference._set_prior(f.project(f.initial_state(z)), f.initial_cov())
+        except NUMERICAL_FAILURES as exc:
+            return numerical_failure(exc)
+        return None
+
+    def after_step(self, outcome: int, valid: bool) -> tuple[int, str | None]:
+        """The status code of the kept answer (``dropout`` for an ``ok`` one without a
+        valid reading), or a numerical failure's message."""
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are the policy's to catch
+                answer, status = self.inference._after_step(outcome)
+        except NUMERICAL_FAILURES as exc:
+            return 0, numerical_failure(exc)
+        return status_code(self.inference._keep(answer, status, valid)[2]), None
+
+    def rejected(self) -> int:
+        rejected = self.inference.rejected_every_reading()
+        return -1 if rejected is None else int(rejected)
 
 
 class MovingHorizonEstimator(Estimator[MovingHorizonInference]):

@@ -10,6 +10,13 @@ model error they show (:mod:`.consistency`), and the status of each estimate. Wh
 policy did over a recording is one :class:`~continuum_mhe.results.Diagnostics` value:
 ``run`` returns a copy with the estimates, and a step-by-step caller reads
 :attr:`Estimator.diagnostics`.
+
+The policy runs in the compiled core (``continuum_mhe._core.SensorHealth``,
+``csrc/sensor_health.*``), one implementation for ``step`` and ``run``: ``run`` steps a
+whole recording there into arrays. It steps the fast MHE's and the compiled EKF's steps directly
+(:meth:`~.base.Inference.policy_inference`), any other inference through
+:class:`PythonInference`, and the formulation's checks of a state as data where the
+formulation states them so (:meth:`~continuum_mhe.model.formulations.Formulation.state_checks`).
 """
 
 from __future__ import annotations
@@ -17,18 +24,21 @@ from __future__ import annotations
 import math
 import os
 import sys
-import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type
+from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
+from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
-from continuum_mhe.estimators.start_check import StartCheck
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
@@ -36,9 +46,6 @@ from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measure
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
 
-#: Statuses of an estimate that would be trusted; ``uncertain`` replaces them where the
-#: data do not determine the shape (the others already say more).
-TRUSTED = (Status.OK, Status.FALLBACK_IPOPT, Status.BRANCH_RESTART)
 #: An IMU silent for longer than this (s) no longer observes its part of the shape when
 #: the gap reset is off (else the gap reset's time).
 UNOBSERVED_AFTER = 1.0
@@ -48,7 +55,19 @@ DEGREES_LIKE = 2 * math.pi
 #: The inference object an :class:`Estimator` owns.
 InferenceT = TypeVar("InferenceT", bound=Inference)
 
-__all__ = ["Diagnostics", "Estimator", "bound_notice", "freeze_notice"]
+#: The statuses by the compiled policy's codes (``_core.STATUS_NAMES``).
+STATUSES: tuple[Status, ...] = tuple(
+    next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
+)
+_CODES = {status.value: code for code, status in enumerate(STATUSES)}
+
+
+def status_code(status: Status | str) -> int:
+    """The compiled policy's code of a status (its index in :data:`STATUSES`)."""
+    return _CODES[str(status)]
+
+
+__all__ = ["Diagnostics", "Estimator", "PythonInference", "bound_notice", "freeze_notice"]
 
 
 def _reraise_interrupt(exc: BaseException) -> None:
@@ -57,6 +76,17 @@ def _reraise_interrupt(exc: BaseException) -> None:
     seen = interrupt_in_chain(exc)
     if seen is not None:
         raise seen
+
+
+#: The exceptions of an inference step that are numerical failures (the policy restarts).
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, ArithmeticError, RuntimeError)
+
+
+def numerical_failure(exc: BaseException) -> str:
+    """The policy's message of a numerical failure of an inference step (a Ctrl-C that
+    surfaced as one is raised again)."""
+    _reraise_interrupt(exc)
+    return f"{type(exc).__name__}: {exc}"
 
 
 def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
@@ -94,6 +124,66 @@ def _outside_stacklevel() -> int:
     return level
 
 
+class PythonInference:
+    """The compiled policy's view of an :class:`~.base.Inference` and of its
+    formulation's checks of a state (``is_diverged``, ``drifted``, ``at_bound``): the
+    methods ``_core.SensorHealth`` calls (``csrc/bind_sensor_health.cpp``). A numerical
+    failure of ``infer`` is returned as its message, a Ctrl-C raised again."""
+
+    def __init__(self, inference: Inference) -> None:
+        self.inference = inference
+        self.formulation = inference.formulation
+        self._state: FloatArray | None = None
+        self._cov: FloatArray | None = None
+
+    def restart(self) -> None:
+        self._state = self._cov = None
+        self.inference.restart()
+
+    def infer(
+        self, t: float, z: FloatArray, mask: FloatArray
+    ) -> tuple[FloatArray | None, FloatArray | None, int, str | None]:
+        """``(state, covariance, status code, None)``, or ``(None, None, 0, message)``
+        after a numerical failure."""
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are the policy's to catch
+                state, cov, status = self.inference.infer(Measurement(t, z))
+        except NUMERICAL_FAILURES as exc:
+            self._state = self._cov = None
+            return None, None, 0, numerical_failure(exc)
+        self._state, self._cov = state, cov
+        return state, cov, status_code(status), None
+
+    def output(self, x: FloatArray) -> FloatArray:
+        """The outputs of the last inferred state (``x`` is its copy)."""
+        return self.inference.output(x if self._state is None else self._state)
+
+    def output_std(self, x: FloatArray, P: FloatArray, answer: bool) -> FloatArray:
+        """Output standard deviations of the last inferred state with covariance ``P``
+        (``answer``: its own covariance, which the inference may have them of)."""
+        state = x if self._state is None else self._state
+        if answer and self._cov is not None:
+            P = self._cov
+        return self.inference.output_std(state, P)
+
+    def outlier(self) -> bool:
+        return self.inference.outlier()
+
+    def rejected(self) -> int:
+        """:meth:`~.base.Inference.rejected_every_reading` as 1, 0, or -1 for None."""
+        rejected = self.inference.rejected_every_reading()
+        return -1 if rejected is None else int(rejected)
+
+    def is_diverged(self, x: FloatArray, P: FloatArray | None) -> bool:
+        return self.formulation.is_diverged(x, P)
+
+    def drifted(self, x: FloatArray) -> bool:
+        return self.formulation.drifted(x)
+
+    def at_bound(self, x: FloatArray) -> bool:
+        return self.formulation.at_bound(x)
+
+
 class Estimator(Generic[InferenceT]):
     """An estimator: ``step(measurement) -> Estimate`` and ``run``, the sensor-health
     policy (:meth:`step`) around the inference object :attr:`inference`.
@@ -114,30 +204,16 @@ class Estimator(Generic[InferenceT]):
         self.name: str = inference.name
         #: whether estimates carry outlier flags (a robust MHE)
         self.flags_outliers: bool = inference.flags_outliers
-        #: gap reset, frozen sensors and the ``uncertain`` threshold (see :meth:`step`)
-        self.recovery = RecoverySettings() if recovery is None else recovery
+        self._recovery = RecoverySettings() if recovery is None else recovery
         #: what the policy did since the last :meth:`reset` (:class:`Diagnostics`)
         self.diagnostics = Diagnostics()
-        #: the IMUs' measurement blocks (the sensor-health checks watch only these)
-        self._imu_blocks = tuple(b for b in formulation.measurement_blocks if b.is_imu)
-        self._last_t = -math.inf
         self._ran = False  # the last call was run(): a later step needs reset()
-        self._rejecting_since: float | None = None  # t of the first of the run
-        self._start_check = StartCheck(formulation)
-        self._consistency = ConsistencyCheck(formulation)
-        # the bad-start check needs a covariance that is one (not the paper's weight W)
-        self._checks_start = formulation.calibrated_covariance
-        outs = formulation.outputs
-        self._tip = [i for i, o in enumerate(outs) if o.section == 0 and o.unit == "m"]
         robot = formulation.robot
         rank, bends = shape_rank(robot), 2 * robot.n_sections
         #: whether the IMUs determine the shape (:meth:`Formulation.imus_determine_shape`;
         #: for PCC robots :func:`~continuum_mhe.model.pcc.shape_rank` equals the number of
         #: bend coordinates); if not, no estimate is ``ok``
         self.shape_observable = formulation.imus_determine_shape(tuple(range(robot.n_imus)))
-        #: per IMU ``k``, ``(k, start, stop)`` of its measurement rows
-        self._imu_rows = [(k, b.start, b.start + b.size) for k, b in enumerate(self._imu_blocks)]
-        self._observable_subsets: dict[tuple[int, ...], bool] = {}
         if not self.shape_observable:
             warnings.warn(
                 f"the IMUs of this robot ({robot.describe()}) "
@@ -147,8 +223,64 @@ class Estimator(Generic[InferenceT]):
                 UnobservableShapeWarning,
                 stacklevel=_outside_stacklevel(),
             )
-        self._tilt = tilt_rows(formulation)
+        self._consistency = ConsistencyCheck(formulation)
+        self._policy = self._compiled_policy()
         self.reset()
+
+    @property
+    def recovery(self) -> RecoverySettings:
+        """Gap reset, frozen sensors, bad starts, reject resets and the ``uncertain``
+        threshold (see :meth:`step`); setting them starts a new recording (:meth:`reset`)."""
+        return self._recovery
+
+    @recovery.setter
+    def recovery(self, recovery: RecoverySettings) -> None:
+        expect_type("recovery", recovery, RecoverySettings, "a RecoverySettings")
+        self._recovery = recovery
+        self._policy = self._compiled_policy()
+        self.reset()
+
+    def _compiled_policy(self) -> _core.SensorHealth:
+        """The compiled policy over :attr:`inference` (:class:`PythonInference`)."""
+        f, r = self.formulation, self.recovery
+        blocks = f.measurement_blocks
+
+        def off(value: float | None) -> float:
+            return math.nan if value is None else float(value)
+
+        quantile = start_check.QUANTILE
+        compiled = self.inference.policy_inference()
+        return _core.SensorHealth(
+            PythonInference(self.inference) if compiled is None else compiled,
+            self._consistency.core,
+            nx=f.nx,
+            nu=f.nu,
+            nz=f.nz,
+            ny=f.ny,
+            blocks=[(b.start, b.size) for b in blocks],
+            imu_blocks=[(b.start, b.size) for b in blocks if b.is_imu],
+            tilt_rows=tilt_rows(f),
+            tip_rows=[i for i, o in enumerate(f.outputs) if o.section == 0 and o.unit == "m"],
+            freeze=off(r.freeze),
+            freeze_samples=r.freeze_samples,
+            gap_reset=off(r.gap_reset),
+            bad_start=off(r.bad_start),
+            reject_reset=off(r.reject_reset),
+            uncertain_fraction=r.uncertain_fraction,
+            length=f.robot.length,
+            # the start and consistency checks need a covariance that is one (not the
+            # paper's weight W)
+            checks_start=f.calibrated_covariance,
+            shape_observable=self.shape_observable,
+            start_limit=[math.inf] + [chi2_quantile(quantile, k) for k in range(1, f.nz + 1)],
+            start_samples=start_check.SAMPLES,
+            unobserved_after=UNOBSERVED_AFTER,
+            degrees_like=DEGREES_LIKE,
+            process_noise=ProcessNoiseCache(f),
+            inputs=f.inputs,
+            observable=lambda imus: f.imus_determine_shape(tuple(imus)),
+            checks=f.state_checks(),
+        )
 
     def reset(self, keep_counts: bool = False) -> None:
         """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` and
@@ -158,59 +290,19 @@ class Estimator(Generic[InferenceT]):
         if not keep_counts:
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()
-        n_blocks = len(self._imu_blocks)
-        self._last_t = -math.inf
         self._ran = False
-        self._last_valid_t = -math.inf
-        self._freeze_value: list[FloatArray | None] = [None] * n_blocks
-        self._freeze_since = [-math.inf] * n_blocks
-        self._freeze_count = [0] * n_blocks  # consecutive samples with that reading
-        self._freeze_last_t = [-math.inf] * n_blocks  # t of each block's previous sample, s
-        #: per IMU, t of its last valid reading (s): the IMUs silent for longer than the
-        #: gap reset no longer observe their part of the shape
-        self._imu_last_valid = [-math.inf] * n_blocks
-        self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
-        self._start_check.reset()
-        self._restart()
+        self._policy.reset(keep_counts)
 
-    def _restart(self) -> None:
-        """Clear the inference's state and the bad-start and rejection checks' (a
-        (re)start)."""
-        self._start_check.clear()
-        self._consistency.reset()
-        self._rejecting_since = None
-        self.inference.restart()
-
-    def _unfreeze(self, m: Measurement) -> Measurement:
-        """``m`` with every sensor whose reading has repeated exactly for longer than
-        ``recovery.freeze`` seconds, over at least ``recovery.freeze_samples``
-        consecutive samples none more than ``recovery.freeze`` s after the one before
-        (a gap in the data is not a freeze), marked as dropped out (NaN)."""
-        freeze = self.recovery.freeze
-        if freeze is None:
-            return m
-        min_samples = self.recovery.freeze_samples
-        z: FloatArray | None = None
-        for k, b in enumerate(self._imu_blocks):
-            zb = m.z[b.slice]
-            last = self._freeze_value[k]
-            gap = m.t - self._freeze_last_t[k] > freeze
-            self._freeze_last_t[k] = m.t
-            if last is None or gap or not np.array_equal(zb, last):  # NaN never repeats
-                self._freeze_value[k], self._freeze_since[k] = zb.copy(), m.t
-                self._freeze_count[k] = 1
-                continue
-            self._freeze_count[k] += 1
-            # both: two equal readings with a long gap between them are not a freeze
-            if self._freeze_count[k] >= min_samples and m.t - self._freeze_since[k] > freeze:
-                if z is None:
-                    z = m.z.copy()
-                z[b.slice] = np.nan
-                self.diagnostics.first_freezes.setdefault(k, self._freeze_since[k])
-        if z is None:
-            return m
-        self.diagnostics.frozen_samples += 1
-        return Measurement(m.t, z)
+    def _sync_diagnostics(self) -> None:
+        """:attr:`diagnostics` from the compiled policy's counts (the same object)."""
+        d = self.diagnostics
+        (
+            d.restarts, d.gap_resets, d.frozen_samples, freezes, d.bad_starts,
+            d.reject_resets, d.last_failure, d.bound_samples, d.max_noise_scale,
+            d.model_error,
+        ) = self._policy.diagnostics  # fmt: skip
+        for k, t in freezes[len(d.first_freezes) :]:
+            d.first_freezes[k] = t
 
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
@@ -229,7 +321,7 @@ class Estimator(Generic[InferenceT]):
         the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
         exceeds ``uncertain_fraction`` of the robot's length is ``uncertain``, and so is
         every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
-        (:data:`TRUSTED`) of a robot whose IMUs do not determine its shape
+        (a trusted status) of a robot whose IMUs do not determine its shape
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
         not (an IMU silent for longer: its part of the shape is predicted blindly), or
         after such an IMU's return until its readings have agreed with the estimate for
@@ -255,138 +347,38 @@ class Estimator(Generic[InferenceT]):
                 f"measurement z must have shape ({nz},) for the {self.formulation.name} "
                 f"formulation, got {np.shape(measurement.z)}"
             )
-        if not (math.isfinite(t) and t > self._last_t):
-            hint = ""
+        z = np.ascontiguousarray(measurement.z, dtype=np.float64)
+        err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
+        if err:
+            self._refuse(err, t, z)
+        self._ran = False
+        self._sync_diagnostics()
+        return Estimate(t, state, output, cov, STATUSES[code], ms, std, outlier=outlier)
+
+    def _refuse(self, err: int, t: float, z: FloatArray) -> None:
+        """Raise the :class:`UserError` of a sample the policy refused (``err``, its
+        input error: the time order, or a tilt in degrees or infinite)."""
+        if err == INPUT_TIME:
+            last, hint = self._policy.last_t, ""
             if math.isfinite(t) and self._ran:
                 hint = "; run() left the estimator at its recording's end: call reset() first"
             elif math.isfinite(t):
                 hint = "; to start a new recording, call reset() first"
             raise UserError(
                 f"sample time t={t!r} s must be finite and later than the previous "
-                f"sample's t={self._last_t!r} s{hint}"
+                f"sample's t={last!r} s{hint}"
             )
-        self._ran = False
-        if self._tilt:
-            zl = measurement.z.tolist()
-            if any(abs(zl[i]) > DEGREES_LIKE for i in self._tilt):  # NaN compares False
-                names = self.formulation.measurement_names
-                shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in self._tilt)
-                if any(math.isinf(zl[i]) for i in self._tilt):
-                    raise UserError(
-                        f"measurement at t={t!r} s: {shown}: an infinite angle; a sensor "
-                        "that dropped out is NaN"
-                    )
-                raise UserError(
-                    f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
-                    "degrees; measurements are in radians (numpy.radians converts)"
-                )
-        self._last_t = t
-        start = time.perf_counter()
-        inference, diagnostics = self.inference, self.diagnostics
-        measurement = self._unfreeze(measurement)
-        gap_reset = False
-        gap = self.recovery.gap_reset
-        mask = self.formulation.measurement_mask(measurement.z)
-        if gap is not None and mask.any():
-            gap_reset = -math.inf < self._last_valid_t < t - gap
-            self._last_valid_t = t
-        back = self._note_imus(t, mask)
-        observed = self._observed_now(t)
-        if gap_reset:  # restart from this sample instead of a blind prediction
-            diagnostics.gap_resets += 1
-            self._restart()
-        elif back is not None and self._checks_start:
-            # their part of the shape was predicted blindly: check it as after a start
-            self._start_check.reopen(back, self.recovery.gap_reset or UNOBSERVED_AFTER)
-        bad_start = False
-        window = self.recovery.bad_start
-        check_start = self._checks_start and self._start_check.watching(t, window)
-        if check_start:
-            bad_start = self._start_check.inconsistent(t, measurement.z, mask, window)
-            if bad_start:  # the start was wrong: restart from this reading
-                diagnostics.bad_starts += 1
-                self._restart()
-        reject_reset = False
-        since, limit = self._rejecting_since, self.recovery.reject_reset
-        if since is not None and limit is not None and t - since > limit:
-            if mask.any():
-                reject_reset = True  # restart from this reading
-                diagnostics.reject_resets += 1
-                self._restart()
-        try:
-            with np.errstate(all="ignore"):  # non-finite results are caught below
-                state, cov, status = inference.infer(measurement)
-            healthy = state is None or not self.formulation.is_diverged(state, cov)
-        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
-            _reraise_interrupt(exc)
-            diagnostics.last_failure = f"{type(exc).__name__}: {exc}"
-            healthy = False
-        if not healthy:  # flag it and restart from this sample's measurement
-            diagnostics.restarts += 1
-            self._restart()
-            try:
-                with np.errstate(all="ignore"):
-                    state, cov, status = inference.infer(measurement)
-            except (np.linalg.LinAlgError, ArithmeticError, RuntimeError) as exc:
-                _reraise_interrupt(exc)
-                diagnostics.last_failure = f"{type(exc).__name__}: {exc}"
-                state, cov, status = None, None, Status.NO_ESTIMATE
-            if state is not None and self.formulation.is_diverged(state, cov):
-                self._restart()
-                state, cov, status = None, None, Status.NO_ESTIMATE
-            if state is not None:
-                status = Status.RESET
-        if (gap_reset or bad_start or reject_reset) and state is not None:
-            status = Status.RESET
-        if check_start:
-            self._start_check.remember(t, measurement.z, state, cov)
-        if status == Status.OK and state is not None and self.formulation.drifted(state):
-            status = Status.DRIFTED
-        if status in TRUSTED and not observed:
-            status = Status.UNCERTAIN  # the data do not determine the shape
-        elif status in TRUSTED and self._start_check.unconfirmed:
-            status = Status.UNCERTAIN  # an IMU is back and no reading has confirmed the estimate
-        elif status in TRUSTED and state is not None and self.formulation.at_bound(state):
-            status = Status.AT_BOUND  # the bound, not the data, may have set the shape
-            diagnostics.bound_samples += 1
-        factor = 1.0
-        if self._checks_start:  # the readings against the estimates (.consistency)
-            # a reading the robust MHE rejected as an outlier is flagged as one, and
-            # says nothing about the estimate
-            judged = mask if state is None or not inference.outlier() else np.zeros_like(mask)
-            disagree = self._consistency.check(t, measurement.z, judged, state, cov)
-            if disagree and status in TRUSTED:
-                status = Status.INCONSISTENT
-            factor = self._consistency.std_factor
-            noise_scale = self._consistency.noise_scale
-            if noise_scale > diagnostics.max_noise_scale:
-                diagnostics.max_noise_scale = noise_scale
-            model_error = self._consistency.model_error
-            if model_error > diagnostics.model_error:
-                diagnostics.model_error = model_error
-        ms = (time.perf_counter() - start) * 1e3
-        output = None if state is None else inference.output(state)
-        std = None
-        if state is not None and cov is not None:
-            std = inference.output_std(state, cov)
-            if factor != 1.0:  # the model error the readings show (covariance matching)
-                std = std * factor
-            if status == Status.OK and self._tip and self.formulation.calibrated_covariance:
-                sl = std.tolist()  # a few floats: plain Python is faster than numpy here
-                tip_std = math.sqrt(sum(sl[i] * sl[i] for i in self._tip))
-                if tip_std > self.recovery.uncertain_fraction * self.formulation.robot.length:
-                    status = Status.UNCERTAIN
-            if self._checks_start:  # constant reading errors, model error: no residual shows them
-                bias = self._consistency.constant_error_cov(measurement.z, mask, state)
-                std = np.hypot(std, inference.output_std(state, bias))
-        outlier = state is not None and inference.outlier()
-        # the reject reset's run; a sample without readings (None) neither ends nor extends it
-        rejected = state is not None and inference.rejected_every_reading()
-        if rejected is False:
-            self._rejecting_since = None
-        elif rejected and self._rejecting_since is None:
-            self._rejecting_since = t
-        return Estimate(measurement.t, state, output, cov, status, ms, std, outlier=outlier)
+        names, zl = self.formulation.measurement_names, z.tolist()
+        shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in tilt_rows(self.formulation))
+        if err == INPUT_INFINITE:
+            raise UserError(
+                f"measurement at t={t!r} s: {shown}: an infinite angle; a sensor "
+                "that dropped out is NaN"
+            )
+        raise UserError(
+            f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
+            "degrees; measurements are in radians (numpy.radians converts)"
+        )
 
     def freezes_notice(self, before: int) -> str | None:
         """One line for the sensors first treated as frozen after the first ``before``
@@ -397,54 +389,15 @@ class Estimator(Generic[InferenceT]):
             return None
         return freeze_notice(dict(list(first.items())[before:]), freeze)
 
-    def _note_imus(self, t: float, mask: FloatArray) -> NDArray[np.intp] | None:
-        """Update each IMU's last valid time from ``mask`` (nz,) and return the
-        measurement rows of the IMUs back at ``t`` after more than the gap reset (1 s
-        when it is off) without a valid reading (never having reported counts from the
-        recording's first valid reading), or None if none is."""
-        first = self._first_valid_t
-        if first == -math.inf:
-            if not mask.any():
-                return None
-            first = self._first_valid_t = t
-        window = self.recovery.gap_reset or UNOBSERVED_AFTER
-        last, back = self._imu_last_valid, None
-        for k, start, stop in self._imu_rows:  # plain Python: this runs on every sample
-            if mask[start] > 0.0:
-                if t - last[k] > window and t - first > window:
-                    rows = np.arange(start, stop)
-                    back = rows if back is None else np.concatenate([back, rows])
-                last[k] = t
-        return back
-
-    def _observed_now(self, t: float) -> bool:
-        """Whether the IMUs that reported within the gap reset (1 s when it is off) up to
-        ``t`` determine the shape (:func:`~continuum_mhe.model.pcc.shape_rank`), from
-        each IMU's last valid time (:meth:`_note_imus`)."""
-        if not self.shape_observable:
-            return False
-        blocks = self._imu_blocks
-        if len(blocks) == 1:
-            return True  # its silence is the whole robot's gap
-        last = self._imu_last_valid
-        window = self.recovery.gap_reset or UNOBSERVED_AFTER
-        recent = tuple(k for k in range(len(blocks)) if t - last[k] <= window)
-        if len(recent) == len(blocks) or not recent:
-            return True  # all reporting, or none (the gap's dropout rows say it)
-        known = self._observable_subsets.get(recent)
-        if known is None:
-            known = self.formulation.imus_determine_shape(recent)
-            self._observable_subsets[recent] = known
-        return known
-
     def run(
         self,
         t: FloatArray,
         z: FloatArray,
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
-        """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset;
-        the series carries a copy of :attr:`diagnostics` (``series.diagnostics``)."""
+        """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset,
+        in the compiled policy (``progress`` is shown per block of samples); the series
+        carries a copy of :attr:`diagnostics` (``series.diagnostics``)."""
         try:
             t, z = np.asarray(t, dtype=float), np.asarray(z, dtype=float)
         except (TypeError, ValueError):
@@ -453,17 +406,87 @@ class Estimator(Generic[InferenceT]):
             raise UserError(f"t must be (n,) and z (n, m); got shapes {t.shape} and {z.shape}")
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
+        nz = self.formulation.nz
+        if z.shape[1] != nz:
+            raise UserError(
+                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
+                f"formulation, got {z.shape[1:]}"
+            )
         self.reset()
-        idx: Iterable[int] = range(len(t))
+        n = len(t)
+        block = RUN_BLOCK if progress is not None else max(n, 1)
+        starts: Iterable[int] = range(0, n, block)
         if progress is not None:
-            idx = progress(idx)
-        estimates = [self.step(Measurement(float(t[i]), np.asarray(z[i], float))) for i in idx]
-        series = EstimateSeries.from_estimates(
-            self.name,
-            estimates,
-            self.formulation.outputs,
-            self.flags_outliers,
-            self.diagnostics.copy(),
-        )
+            starts = progress(starts)
+        batch = self.continue_run(np.ascontiguousarray(t), np.ascontiguousarray(z), starts, block)
         self._ran = True
-        return series
+        return EstimateSeries(
+            method=self.name,
+            t=t.copy(),
+            output=batch.output,
+            status=np.array([str(STATUSES[c]) for c in batch.status], dtype=str),
+            solve_ms=batch.solve_ms,
+            outputs=self.formulation.outputs,
+            output_std=batch.output_std,
+            outlier=batch.outlier if self.flags_outliers else None,
+            diagnostics=self.diagnostics.copy(),
+        )
+
+    def continue_run(
+        self,
+        t: FloatArray,
+        z: FloatArray,
+        starts: Iterable[int] | None = None,
+        block: int | None = None,
+    ) -> Batch:
+        """Step the samples ``t`` (n,) s, ``z`` (n, nz) (C-contiguous float64) on from
+        the last one, in the compiled policy, ``block`` samples per call from each of
+        ``starts`` (default: all in one call); raises the :class:`UserError` of
+        :meth:`step` for a refused sample (the samples before it are stepped)."""
+        n, ny = len(t), self.formulation.ny
+        batch = Batch(
+            status=np.zeros(n, dtype=np.int32),
+            solve_ms=np.zeros(n),
+            outlier=np.zeros(n, dtype=np.bool_),
+            frozen=np.zeros(n, dtype=np.bool_),
+            output=np.empty((n, ny)),
+            output_std=np.empty((n, ny)),
+        )
+        u8 = np.uint8
+        if block is None:
+            block = max(n, 1)
+        for i in range(0, n, block) if starts is None else starts:
+            j = min(i + block, n)
+            stop, err = self._policy.run(
+                t[i:j], z[i:j], batch.status[i:j], batch.solve_ms[i:j],
+                batch.outlier[i:j].view(u8), batch.frozen[i:j].view(u8),
+                batch.output[i:j], batch.output_std[i:j],
+            )  # fmt: skip
+            self._sync_diagnostics()
+            if err:
+                self._refuse(err, float(t[i + stop]), z[i + stop])
+        return batch
+
+
+#: Samples per call into the compiled policy when ``run`` shows its progress.
+RUN_BLOCK = 256
+#: The compiled policy's refusals of a sample (``csrc/sensor_health.hpp``: InputError).
+INPUT_TIME, INPUT_DEGREES, INPUT_INFINITE = 1, 2, 3
+
+
+@dataclass
+class Batch:
+    """Samples stepped by :meth:`Estimator.continue_run`: per sample its status code
+    (:data:`STATUSES`), solve time (ms), outlier and frozen flags, outputs and their
+    standard deviations (NaN where there are none)."""
+
+    status: NDArray[np.int32]
+    solve_ms: FloatArray
+    outlier: NDArray[np.bool_]
+    frozen: NDArray[np.bool_]
+    output: FloatArray
+    output_std: FloatArray
+
+    def statuses(self) -> list[Status]:
+        """The statuses as :class:`~continuum_mhe.results.Status` values."""
+        return [STATUSES[c] for c in self.status.tolist()]

@@ -744,6 +744,44 @@ def estimate_row(
     return [float(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
 
 
+def estimate_lines(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    output: FloatArray,
+    output_std: FloatArray,
+    outlier: NDArray[np.bool_] | None,
+    status: Sequence[str],
+    solve_ms: FloatArray,
+) -> str:
+    """The estimate CSV lines of several samples, as :func:`estimate_row` and
+    :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
+    is none; ``outlier`` None: no such column); a non-finite output of an estimate is
+    refused (a bug). A row with every value is one ``%`` format of the whole row."""
+    n, ny = output.shape
+    estimated = ~np.isnan(output).all(axis=1) & (np.asarray(status) != "no-estimate")
+    if not (
+        np.isfinite(t).all()
+        and np.isfinite(solve_ms).all()
+        and np.isfinite(output[estimated]).all()
+    ):
+        raise ValueError(f"refusing to write non-finite value to {path}")
+    whole = estimated & np.isfinite(output_std).all(axis=1)
+    flag = "" if outlier is None else "%d,"
+    line = "%.10g," * (1 + 2 * ny) + flag + "%s,%.10g\n"  # the same digits as _fmt
+    values = np.column_stack([t, output, output_std]).tolist()
+    flags = [()] * n if outlier is None else [(int(bool(f)),) for f in outlier.tolist()]
+    lines = []
+    for i, (row, st, ms, fl) in enumerate(zip(values, status, solve_ms.tolist(), flags)):
+        if whole[i]:
+            lines.append(line % (*row, *fl, st, ms))
+            continue
+        y = output[i] if estimated[i] else None
+        sd = None if y is None else output_std[i]
+        cells = estimate_row(row[0], y, st, ms, ny, sd, None if outlier is None else bool(fl[0]))
+        lines.append(",".join(format_cells(path, cells)) + "\n")
+    return "".join(lines)
+
+
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
     ny = len(series.outputs)

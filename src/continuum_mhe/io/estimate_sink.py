@@ -13,16 +13,21 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from continuum_mhe.io.csv_files import (
+    FloatArray,
     atomic_binary_writer,
     atomic_writer,
     estimate_columns,
+    estimate_lines,
     estimate_row,
     format_cells,
 )
 from continuum_mhe.io.mcap_estimates import mcap_estimate_writer, sample_messages
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.results import Estimate
+from continuum_mhe.results import Estimate, Status
 
 #: the MCAP metadata record of an estimate file's notes (options, partial)
 NOTES_RECORD = "continuum-mhe"
@@ -56,6 +61,7 @@ class EstimateSink:
         self.mcap = Path(path).suffix.lower() == ".mcap"
         self._cm: Any = None
         self._write: Callable[[Estimate], None] | None = None
+        self._write_rows: Callable[..., None] | None = None  # CSV: a block of rows at once
 
     def __enter__(self) -> EstimateSink:
         if self.mcap:
@@ -100,9 +106,43 @@ class EstimateSink:
                 row = estimate_row(e.t, e.output, str(e.status), e.solve_ms, ny, e.output_std, flag)
                 w.writerow(format_cells(self.path, row))
 
+            def write_rows(
+                t: FloatArray,
+                output: FloatArray,
+                output_std: FloatArray,
+                outlier: NDArray[np.bool_],
+                status: Sequence[str],
+                solve_ms: FloatArray,
+            ) -> None:
+                flags = outlier if self.outlier else None
+                fh.write(estimate_lines(self.path, t, output, output_std, flags, status, solve_ms))
+
             self._finish = lambda: None
             self._write = write_csv
+            self._write_rows = write_rows
         return self
+
+    def write_batch(
+        self,
+        t: FloatArray,
+        output: FloatArray,
+        output_std: FloatArray,
+        outlier: NDArray[np.bool_],
+        status: Sequence[Status],
+        solve_ms: FloatArray,
+    ) -> None:
+        """Rows of several samples (``t`` (n,) s, ``output`` and ``output_std`` (n, ny),
+        NaN where there is none, their outlier flags, statuses and solve times): as
+        :meth:`write` of each."""
+        if self._write_rows is not None:
+            self._write_rows(t, output, output_std, outlier, status, solve_ms)
+            self.rows += len(t)
+            return
+        for i, st in enumerate(status):
+            y = None if st == "no-estimate" or np.isnan(output[i]).all() else output[i]
+            s = None if y is None or np.isnan(output_std[i]).all() else output_std[i]
+            self.write(Estimate(float(t[i]), None, y, None, st, float(solve_ms[i]), s,
+                                outlier=bool(outlier[i])))  # fmt: skip
 
     def write(self, estimate: Estimate) -> None:
         assert self._write is not None, "use EstimateSink as a context manager"

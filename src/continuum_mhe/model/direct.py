@@ -202,17 +202,12 @@ class DirectFormulation(BendFormulation):
         n0 = self.n_motion + self.n_gyro_bias
         return [x[n0 + 3 * i : n0 + 3 * i + 3] for i in range(self.robot.n_imus)]
 
-    def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
+    def _rate_rows(self) -> list[int]:
         """As ``bend``'s; the bend accelerations (``own_acceleration``) are not held to
         the rate limit (a vibrating rod's can be hundreds of rad/s^2)."""
-        if not self.own_acceleration:
-            return super().is_diverged(x, P)
         n2 = 2 * self.robot.n_sections
-        xc = np.array(x, dtype=float)
-        if not np.all(np.isfinite(xc[2 * n2 : 3 * n2])):
-            return True
-        xc[2 * n2 : 3 * n2] = 0.0
-        return super().is_diverged(xc, P)
+        accel = range(2 * n2, 3 * n2) if self.own_acceleration else range(0)
+        return [i for i in super()._rate_rows() if i not in accel]
 
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         if not self.own_acceleration:

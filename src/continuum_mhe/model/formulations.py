@@ -34,6 +34,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     MeasurementBlock,
@@ -253,6 +254,11 @@ class Formulation:
         ``theta_max`` or beyond it (status ``at-bound``: the bound, not the data, may
         have set the shape)."""
         return False
+
+    def state_checks(self) -> _core.StateChecks | None:
+        """The checks of a state (:meth:`is_diverged`, :meth:`at_bound`; nothing
+        drifts) as data for the compiled core, or None: the core asks these methods."""
+        return None
 
     # --- shared -------------------------------------------------------------------
     def meas_cov(self) -> FloatArray:
@@ -481,35 +487,40 @@ class BendFormulation(Formulation):
         )
 
     def at_bound(self, x: FloatArray) -> bool:
-        v = x.tolist()  # a few floats: plain Python is faster than numpy here
-        return any(
-            math.hypot(v[2 * k], v[2 * k + 1]) >= sec.theta_max - AT_BOUND_TOL
-            for k, sec in enumerate(self.robot.sections)
-        )
+        return bool(self._checks.at_bound(np.ascontiguousarray(x, dtype=np.float64)))
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
         """Non-finite; a section bent more than ``DIVERGED_MARGIN`` rad beyond its bound
         (the filters are unconstrained, but not that far); a bend rate over
         ``DIVERGED_RATE`` rad/s; or a bend standard deviation over pi rad (the estimate
-        knows nothing any more, e.g. after a long gap)."""
-        v = x.tolist()  # a few floats: plain Python is faster than numpy here
-        if not all(map(math.isfinite, v)):
-            return True
-        n2 = 2 * self.robot.n_sections
-        for k, lim in enumerate(self._diverged_bend2):
-            if v[2 * k] ** 2 + v[2 * k + 1] ** 2 > lim:
-                return True
-        if any(abs(r) > DIVERGED_RATE for r in v[n2:]):
-            return True
-        if P is None:
-            return False
-        if not np.isfinite(P).all():
-            return True
-        return any(d > math.pi**2 for d in P.diagonal()[:n2].tolist())
+        knows nothing any more, e.g. after a long gap). (:meth:`state_checks`.)"""
+        f64 = np.ascontiguousarray
+        cov = None if P is None else f64(P, dtype=np.float64)
+        return bool(self._checks.is_diverged(f64(x, dtype=np.float64), cov))
+
+    def state_checks(self) -> _core.StateChecks:
+        """:meth:`is_diverged` and :meth:`at_bound` as data for the compiled core (the
+        sensor-health policy runs them there): each section's bend pair, the rates
+        (:meth:`_rate_rows`) held to ``DIVERGED_RATE``, the bends' variances to pi^2."""
+        return self._checks
+
+    def _rate_rows(self) -> list[int]:
+        """The states held to ``DIVERGED_RATE``: every state after the bends."""
+        return list(range(2 * self.robot.n_sections, self.nx))
 
     @cached_property
-    def _diverged_bend2(self) -> tuple[float, ...]:
-        return tuple((s.theta_max + DIVERGED_MARGIN) ** 2 for s in self.robot.sections)
+    def _checks(self) -> _core.StateChecks:
+        sections, rate_rows = self.robot.sections, self._rate_rows()
+        return _core.StateChecks(
+            nx=self.nx,
+            pairs=[(2 * k, 2 * k + 1) for k in range(len(sections))],
+            diverged_r2=[(s.theta_max + DIVERGED_MARGIN) ** 2 for s in sections],
+            at_bound_r=[s.theta_max - AT_BOUND_TOL for s in sections],
+            rate_rows=rate_rows,
+            rate_limit=DIVERGED_RATE,
+            std_rows=list(range(2 * len(sections))),
+            std_limit2=math.pi**2,
+        )
 
 
 #: Divergence test (:meth:`BendFormulation.is_diverged`): rad beyond ``theta_max``.

@@ -1,0 +1,512 @@
+// Python bindings of the sensor-health policy (sensor_health.hpp): the policy object over
+// an inference object, the compiled fast MHE's step or a Python one.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include <cstring>
+#include <memory>
+#include <tuple>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bind_arrays.hpp"
+#include "bindings.hpp"
+#include "horizon.hpp"
+#include "sensor_health.hpp"
+
+namespace nb = nanobind;
+using namespace cmhe;
+
+namespace {
+
+using In = InArray;
+using Array = NewArray;
+template <typename T>
+using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
+
+// a float64 array of ``n`` values read from a Python result into ``out``
+void read_into(const nb::handle& value, size_t n, double* out, const char* what) {
+  In a = nb::cast<In>(value);
+  if (a.size() != n)
+    throw std::invalid_argument(std::string(what) + " has " + std::to_string(a.size()) +
+                                " values, expected " + std::to_string(n));
+  std::memcpy(out, a.data(), n * sizeof(double));
+}
+
+// The policy's interface implemented by a Python object with the methods ``restart()``,
+// ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
+// ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
+// ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``
+// (continuum_mhe.estimators.sensor_health.PythonInference).
+class PythonInference final : public PolicyInference {
+ public:
+  PythonInference(nb::object obj, int nx, int nz, int ny) : obj_(std::move(obj)), nx_(nx), nz_(nz), ny_(ny) {}
+  void restart() override { obj_.attr("restart")(); }
+  int infer(double t, const double* z, const double* mask, double* x, double* P,
+            bool& has_state, bool& has_cov) override {
+    nb::tuple r = nb::cast<nb::tuple>(
+        obj_.attr("infer")(t, copy_of(z, {size_t(nz_)}), copy_of(mask, {size_t(nz_)})));
+    if (!r[3].is_none()) throw InferenceFailure(nb::cast<std::string>(r[3]));
+    cov_ = P;
+    has_state = !r[0].is_none();
+    has_cov = !r[1].is_none();
+    if (has_state) read_into(r[0], nx_, x, "state");
+    if (has_cov) read_into(r[1], size_t(nx_) * nx_, P, "covariance");
+    return nb::cast<int>(r[2]);
+  }
+  void output(const double* x, double* y) override {
+    read_into(obj_.attr("output")(state(x)), ny_, y, "output");
+  }
+  void output_std(const double* x, const double* P, double* s) override {
+    // ``answer``: P is the last infer's own covariance (the inference may hold its std)
+    read_into(obj_.attr("output_std")(state(x), cov(P), P == cov_), ny_, s, "output_std");
+  }
+  bool outlier() override { return nb::cast<bool>(obj_.attr("outlier")()); }
+  int rejected_every_reading() override { return nb::cast<int>(obj_.attr("rejected")()); }
+  bool is_diverged(const double* x, const double* P) override {
+    nb::object p = P ? nb::cast(cov(P)) : nb::none();
+    return nb::cast<bool>(obj_.attr("is_diverged")(state(x), p));
+  }
+  bool drifted(const double* x) override { return nb::cast<bool>(obj_.attr("drifted")(state(x))); }
+  bool at_bound(const double* x) override {
+    return nb::cast<bool>(obj_.attr("at_bound")(state(x)));
+  }
+
+ private:
+  Array state(const double* x) const { return copy_of(x, {size_t(nx_)}); }
+  Array cov(const double* P) const { return copy_of(P, {size_t(nx_), size_t(nx_)}); }
+  nb::object obj_;
+  int nx_, nz_, ny_;
+  const double* cov_ = nullptr;  // where the last infer wrote its covariance
+};
+
+// The fast MHE's inference in compiled code: the window's process noise, inputs and
+// step (horizon.hpp) each sample; the Python inference object
+// (continuum_mhe.estimators.mhe.MovingHorizonInference) only where it is needed: its
+// ``restart()``, ``start(z) -> failure | None`` (the arrival prior from the first
+// reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
+// step did not keep its answer (IPOPT's fallback, the branch check, the second start),
+// and the formulation's checks of a state.
+class HorizonInference final : public PolicyInference {
+ public:
+  HorizonInference(MovingHorizon& h, nb::object py, bool finish, bool robust,
+                   ProcessModel::QFunction q, ProcessModel::InputFunction inputs)
+      : h_(h),
+        py_(std::move(py)),
+        formulation_(py_.attr("formulation")),
+        finish_(finish),
+        robust_(robust),
+        process_(int(h.nx), int(h.nu), int(h.nz), std::move(q), std::move(inputs)) {
+    u0_.assign(h.nu, 0.0);
+    zero_.assign(size_t(h.nx) * h.nx, 0.0);
+    z_prev_.resize(h.nz);
+  }
+  MovingHorizon& horizon() { return h_; }
+  void restart() override {
+    py_.attr("restart")();
+    t_last_ = 0.0;
+    has_z_prev_ = false;
+  }
+  int infer(double t, const double* z, const double* mask, double* x, double* P,
+            bool& has_state, bool& has_cov) override {
+    const size_t nx = h_.nx, nz = h_.nz;
+    bool valid = false;
+    for (size_t i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
+    if (!h_.has_prior) {
+      if (!valid) return ST_NO_ESTIMATE;
+      nb::object failure = py_.attr("start")(copy_of(z, {nz}));
+      if (!failure.is_none()) throw InferenceFailure(nb::cast<std::string>(failure));
+    }
+    const double* u = u0_.data();
+    const double *Q = zero_.data(), *Qinv = zero_.data();
+    if (h_.k) {
+      const double dt = t - t_last_;
+      std::tie(Q, Qinv) = process_.noise(dt);
+      if (h_.nu) u = process_.inputs(has_z_prev_ ? z_prev_.data() : nullptr, z, dt);
+    }
+    t_last_ = t;
+    if (valid) {
+      std::copy(z, z + nz, z_prev_.begin());
+      has_z_prev_ = true;
+    }
+    const int outcome = h_.step(t, z, mask, u, Q, Qinv, finish_);
+    if (outcome == STEP_NO_ESTIMATE) return ST_NO_ESTIMATE;
+    int status = ST_OK;
+    if (outcome != STEP_DONE) {  // the Python hooks, or IPOPT on the window
+      nb::tuple r = nb::cast<nb::tuple>(py_.attr("after_step")(outcome, valid));
+      if (!r[1].is_none()) throw InferenceFailure(nb::cast<std::string>(r[1]));
+      status = nb::cast<int>(r[0]);
+    } else if (!valid) {
+      status = ST_DROPOUT;
+    }
+    std::copy(h_.state.begin(), h_.state.end(), x);
+    has_state = true;
+    has_cov = h_.cov_ok;
+    if (has_cov) std::copy(h_.cov.begin(), h_.cov.end(), P);
+    cov_ = P;
+    (void)nx;
+    return status;
+  }
+  void output(const double*, double* y) override { std::copy(h_.y.begin(), h_.y.end(), y); }
+  void output_std(const double* x, const double* P, double* s) override {
+    if (P == cov_ && h_.cov_ok)
+      std::copy(h_.ystd.begin(), h_.ystd.end(), s);
+    else
+      h_.node.output_std(x, P, s);
+  }
+  bool outlier() override {
+    if (!robust_) return false;
+    for (double w : h_.w_last)
+      if (w < outlier_weight) return true;
+    return false;
+  }
+  int rejected_every_reading() override {
+    if (!robust_) return 0;
+    return nb::cast<int>(py_.attr("rejected")());
+  }
+  bool is_diverged(const double* x, const double* P) override {
+    nb::object p = P ? nb::cast(copy_of(P, {size_t(h_.nx), size_t(h_.nx)})) : nb::none();
+    return nb::cast<bool>(formulation_.attr("is_diverged")(copy_of(x, {size_t(h_.nx)}), p));
+  }
+  bool drifted(const double* x) override {
+    return nb::cast<bool>(formulation_.attr("drifted")(copy_of(x, {size_t(h_.nx)})));
+  }
+  bool at_bound(const double* x) override {
+    return nb::cast<bool>(formulation_.attr("at_bound")(copy_of(x, {size_t(h_.nx)})));
+  }
+  double outlier_weight = 0.0;
+
+ private:
+  MovingHorizon& h_;
+  nb::object py_, formulation_;
+  bool finish_, robust_;
+  ProcessModel process_;
+  std::vector<double> u0_, zero_, z_prev_;
+  double t_last_ = 0.0;
+  bool has_z_prev_ = false;
+  const double* cov_ = nullptr;
+};
+
+// The compiled EKF's inference for the policy: each sample's step, outputs and standard
+// deviations on the node model (filter.hpp); the Python inference object
+// (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
+// ``restart()`` and the first sample, ``first(t, z) -> (x | None, P | None, status
+// code, failure | None)`` (the prior from the reading, updated with it).
+class KalmanInference final : public PolicyInference {
+ public:
+  KalmanInference(NodeModel& node, nb::object py, std::vector<double> R,
+                  ProcessModel::QFunction q, ProcessModel::InputFunction inputs)
+      : node_(node),
+        py_(std::move(py)),
+        R_(std::move(R)),
+        process_(node.nx(), int(nb::cast<int>(py_.attr("nu"))), node.nz(), std::move(q),
+                 std::move(inputs)) {
+    x_.resize(node.nx());
+    P_.resize(size_t(node.nx()) * node.nx());
+    z_prev_.resize(node.nz());
+  }
+  void restart() override {
+    py_.attr("restart")();
+    has_x_ = false;
+  }
+  int infer(double t, const double* z, const double* mask, double* x, double* P,
+            bool& has_state, bool& has_cov) override {
+    const int nx = node_.nx(), nz = node_.nz();
+    bool valid = false;
+    for (int i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
+    int status = ST_OK;
+    if (!has_x_) {
+      nb::tuple r = nb::cast<nb::tuple>(py_.attr("first")(t, copy_of(z, {size_t(nz)})));
+      if (!r[3].is_none()) throw InferenceFailure(nb::cast<std::string>(r[3]));
+      if (r[0].is_none()) return nb::cast<int>(r[2]);
+      read_into(r[0], nx, x_.data(), "state");
+      read_into(r[1], size_t(nx) * nx, P_.data(), "covariance");
+      std::copy(z, z + nz, z_prev_.begin());
+      has_x_ = true;
+      status = nb::cast<int>(r[2]);
+    } else {
+      const double dt = t - t_prev_;
+      const double* u = process_.inputs(z_prev_.data(), z, dt);
+      const double* Q = process_.noise(dt).first;
+      if (!node_.ekf_step(x_.data(), P_.data(), process_.nu ? u : nullptr, dt, z, mask,
+                          R_.data(), Q))
+        throw std::runtime_error("singular innovation covariance in the EKF update");
+      status = valid ? ST_OK : ST_DROPOUT;
+      if (valid) std::copy(z, z + nz, z_prev_.begin());
+    }
+    t_prev_ = t;
+    std::copy(x_.begin(), x_.end(), x);
+    std::copy(P_.begin(), P_.end(), P);
+    has_state = has_cov = true;
+    return status;
+  }
+  void output(const double* x, double* y) override { node_.output(x, y); }
+  void output_std(const double* x, const double* P, double* s) override {
+    node_.output_std(x, P, s);
+  }
+  bool is_diverged(const double* x, const double* P) override {
+    return check("is_diverged", x, P);
+  }
+  bool drifted(const double* x) override { return check("drifted", x, nullptr); }
+  bool at_bound(const double* x) override { return check("at_bound", x, nullptr); }
+
+ private:
+  // the formulation's check ``name`` of a state, in Python (a formulation without
+  // StateChecks)
+  bool check(const char* name, const double* x, const double* P) {
+    const size_t nx = node_.nx();
+    nb::object f = py_.attr("formulation");
+    if (std::string(name) == "is_diverged") {
+      nb::object p = P ? nb::cast(copy_of(P, {nx, nx})) : nb::none();
+      return nb::cast<bool>(f.attr(name)(copy_of(x, {nx}), p));
+    }
+    return nb::cast<bool>(f.attr(name)(copy_of(x, {nx})));
+  }
+  NodeModel& node_;
+  nb::object py_;
+  std::vector<double> R_;
+  ProcessModel process_;
+  std::vector<double> x_, P_, z_prev_;
+  double t_prev_ = 0.0;
+  bool has_x_ = false;
+};
+
+// The policy with what it owns: its inference adapter and process model
+struct Policy {
+  std::unique_ptr<PolicyInference> inference;  // a PythonInference, or none
+  PolicyInference* used = nullptr;             // the inference the policy steps
+  std::unique_ptr<ProcessModel> process;
+  std::unique_ptr<SensorHealth> health;
+};
+
+ProcessModel::QFunction q_function(nb::object fn, int nx) {
+  return [fn, nx](double dt, double* Q, double* Qinv) {
+    nb::tuple r = nb::cast<nb::tuple>(fn(dt));
+    read_into(r[0], size_t(nx) * nx, Q, "Q");
+    read_into(r[1], size_t(nx) * nx, Qinv, "Q^-1");
+  };
+}
+
+ProcessModel::InputFunction input_function(nb::object fn, int nz, int nu) {
+  return [fn, nz, nu](const double* z_prev, const double* z, double dt, double* u) {
+    nb::object prev = z_prev ? nb::cast(copy_of(z_prev, {size_t(nz)})) : nb::none();
+    read_into(fn(prev, copy_of(z, {size_t(nz)}), dt), nu, u, "u");
+  };
+}
+
+}  // namespace
+
+void cmhe::bind_sensor_health(nb::module_& m) {
+  nb::list names;
+  for (const char* s : STATUS_NAMES) names.append(nb::str(s));
+  m.attr("STATUS_NAMES") = nb::tuple(names);
+
+  nb::class_<StateChecks>(
+      m, "StateChecks",
+      "A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at "
+      "its bound.")
+      .def(
+          "__init__",
+          [](StateChecks* self, int nx, std::vector<std::pair<int, int>> pairs,
+             std::vector<double> diverged_r2, std::vector<double> at_bound_r,
+             std::vector<int> rate_rows, double rate_limit, std::vector<int> std_rows,
+             double std_limit2) {
+            if (diverged_r2.size() != pairs.size() || at_bound_r.size() != pairs.size())
+              throw std::invalid_argument("one diverged_r2 and at_bound_r per pair");
+            for (const auto& [i, j] : pairs)
+              if (i < 0 || j < 0 || i >= nx || j >= nx)
+                throw std::invalid_argument("a pair's row is outside the state");
+            for (const auto* rows : {&rate_rows, &std_rows})
+              for (int r : *rows)
+                if (r < 0 || r >= nx) throw std::invalid_argument("a row is outside the state");
+            new (self) StateChecks{nx, std::move(pairs), std::move(diverged_r2),
+                                   std::move(at_bound_r), std::move(rate_rows), rate_limit,
+                                   std::move(std_rows), std_limit2};
+          },
+          nb::arg("nx"), nb::arg("pairs"), nb::arg("diverged_r2"), nb::arg("at_bound_r"),
+          nb::arg("rate_rows"), nb::arg("rate_limit"), nb::arg("std_rows"),
+          nb::arg("std_limit2"),
+          "``pairs``: the bend coordinates (i, j) of each section, with the squared radius "
+          "beyond which it diverged and the radius at which it is at its bound; "
+          "``rate_rows`` held to ``rate_limit`` in magnitude; ``std_rows`` whose variance "
+          "beyond ``std_limit2`` is a divergence.")
+      .def(
+          "is_diverged",
+          [](const StateChecks& c, In x, std::optional<In> P) {
+            check_size(x, c.nx, "x");
+            if (P) check_size(*P, size_t(c.nx) * c.nx, "P");
+            return c.is_diverged(x.data(), P ? P->data() : nullptr);
+          },
+          nb::arg("x"), nb::arg("P").none(), "Whether the state (and covariance) diverged.")
+      .def(
+          "at_bound",
+          [](const StateChecks& c, In x) {
+            check_size(x, c.nx, "x");
+            return c.at_bound(x.data());
+          },
+          nb::arg("x"), "Whether a section's bend is at its bound.");
+
+  nb::class_<HorizonInference>(
+      m, "HorizonInference",
+      "The fast MHE's inference for the compiled policy: the window step in compiled code, "
+      "the Python inference only for its hooks (csrc/bind_sensor_health.cpp).")
+      .def(
+          "__init__",
+          [](HorizonInference* self, MovingHorizon& h, nb::object inference, bool finish,
+             bool robust, double outlier_weight, nb::object process_noise, nb::object inputs) {
+            new (self) HorizonInference(h, inference, finish, robust,
+                                        q_function(process_noise, int(h.nx)),
+                                        input_function(inputs, int(h.nz), int(h.nu)));
+            self->outlier_weight = outlier_weight;
+          },
+          nb::arg("horizon"), nb::arg("inference"), nb::arg("finish"), nb::arg("robust"),
+          nb::arg("outlier_weight"), nb::arg("process_noise"), nb::arg("inputs"),
+          nb::keep_alive<1, 2>(),
+          "``horizon``: the inference's MovingHorizon; ``finish``: keep certified answers in "
+          "the step (no Python hooks); ``robust``: outlier flags below ``outlier_weight``; "
+          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
+
+  nb::class_<KalmanInference>(
+      m, "KalmanInference",
+      "The compiled EKF's inference for the compiled policy: each step, its outputs and "
+      "standard deviations in compiled code, the Python inference only for the first "
+      "sample and restarts (csrc/bind_sensor_health.cpp).")
+      .def(
+          "__init__",
+          [](KalmanInference* self, NodeModel& node, nb::object inference, In R,
+             nb::object process_noise, nb::object inputs) {
+            check_size(R, size_t(node.nz()) * node.nz(), "R");
+            new (self) KalmanInference(node, inference,
+                                       std::vector<double>(R.data(), R.data() + R.size()),
+                                       q_function(process_noise, node.nx()),
+                                       input_function(inputs, node.nz(),
+                                                      nb::cast<int>(inference.attr("nu"))));
+          },
+          nb::arg("node"), nb::arg("inference"), nb::arg("R"), nb::arg("process_noise"),
+          nb::arg("inputs"), nb::keep_alive<1, 2>(),
+          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart()``, "
+          "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
+          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
+
+  nb::class_<Policy>(
+      m, "SensorHealth",
+      "The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): "
+      "step one sample, or run a recording into arrays, in compiled code "
+      "(csrc/sensor_health.hpp).")
+      .def(
+          "__init__",
+          [](Policy* self, nb::object inference, ConsistencyCheck& consistency, int nx, int nu,
+             int nz, int ny, std::vector<std::pair<int, int>> blocks,
+             std::vector<std::pair<int, int>> imu_blocks, std::vector<int> tilt_rows,
+             std::vector<int> tip_rows, double freeze, int freeze_samples, double gap_reset,
+             double bad_start, double reject_reset, double uncertain_fraction, double length,
+             bool checks_start, bool shape_observable, std::vector<double> start_limit,
+             int start_samples, double unobserved_after, double degrees_like, nb::object process_noise,
+             nb::object inputs, nb::object observable, const StateChecks* checks) {
+            PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
+                             std::move(tilt_rows), std::move(tip_rows), freeze,
+                             freeze_samples, gap_reset, bad_start, reject_reset,
+                             uncertain_fraction, length, checks_start, shape_observable,
+                             std::move(start_limit), start_samples, unobserved_after,
+                             degrees_like, std::nullopt};
+            if (checks) s.checks = *checks;
+            new (self) Policy();
+            if (nb::isinstance<HorizonInference>(inference)) {
+              self->used = nb::cast<HorizonInference*>(inference);
+            } else if (nb::isinstance<KalmanInference>(inference)) {
+              self->used = nb::cast<KalmanInference*>(inference);
+            } else {
+              self->inference = std::make_unique<PythonInference>(inference, nx, nz, ny);
+              self->used = self->inference.get();
+            }
+            self->process = std::make_unique<ProcessModel>(
+                nx, nu, nz, q_function(process_noise, nx), input_function(inputs, nz, nu));
+            auto obs = [observable](const std::vector<int>& imus) {
+              return nb::cast<bool>(observable(nb::cast(imus)));
+            };
+            self->health = std::make_unique<SensorHealth>(std::move(s), *self->used,
+                                                          *self->process, consistency, obs);
+          },
+          nb::arg("inference"), nb::arg("consistency"), nb::arg("nx"), nb::arg("nu"),
+          nb::arg("nz"), nb::arg("ny"), nb::arg("blocks"), nb::arg("imu_blocks"),
+          nb::arg("tilt_rows"), nb::arg("tip_rows"), nb::arg("freeze"),
+          nb::arg("freeze_samples"), nb::arg("gap_reset"), nb::arg("bad_start"),
+          nb::arg("reject_reset"), nb::arg("uncertain_fraction"), nb::arg("length"),
+          nb::arg("checks_start"), nb::arg("shape_observable"), nb::arg("start_limit"),
+          nb::arg("start_samples"), nb::arg("unobserved_after"), nb::arg("degrees_like"), nb::arg("process_noise"),
+          nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
+          "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
+          "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
+          "block and of the IMUs'; settings in s and rad, NaN where off; "
+          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, "
+          "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
+          "inference's is_diverged, drifted and at_bound).")
+      .def(
+          "reset", [](Policy& p, bool keep_counts) { p.health->reset(keep_counts); },
+          nb::arg("keep_counts"), "A new recording (diagnostics zeroed unless keep_counts).")
+      .def(
+          "step",
+          [](Policy& p, double t, In z) {
+            SensorHealth& h = *p.health;
+            const auto& s = h.settings();
+            check_size(z, s.nz, "z");
+            Array x = new_array({size_t(s.nx)}), P = new_array({size_t(s.nx), size_t(s.nx)});
+            Array y = new_array({size_t(s.ny)}), ystd = new_array({size_t(s.ny)});
+            SampleResult r;
+            const int err = h.step(t, z.data(), x.data(), P.data(), y.data(), ystd.data(), r);
+            nb::object none = nb::none();
+            return nb::make_tuple(err, r.status, r.has_state ? nb::cast(x) : none,
+                                  r.has_cov ? nb::cast(P) : none,
+                                  r.has_state ? nb::cast(y) : none,
+                                  r.has_std ? nb::cast(ystd) : none, r.outlier, r.frozen, r.ms);
+          },
+          nb::arg("t"), nb::arg("z"),
+          "One sample: (input error, status code, state, covariance, outputs, their std, "
+          "outlier, frozen, ms); None where there is none; input error 0 when accepted.")
+      .def(
+          "run",
+          [](Policy& p, In t, In z, OutArray<int32_t> status, OutArray<double> ms,
+             OutArray<uint8_t> outlier, OutArray<uint8_t> frozen, OutArray<double> y,
+             OutArray<double> ystd) {
+            SensorHealth& h = *p.health;
+            const auto& s = h.settings();
+            const size_t n = t.size();
+            check_size(z, n * s.nz, "z");
+            for (size_t size : {status.size(), ms.size(), outlier.size(), frozen.size()})
+              if (size != n) throw std::invalid_argument("every result array needs n values");
+            if (y.size() != n * s.ny || ystd.size() != n * s.ny)
+              throw std::invalid_argument("y and ystd need n x ny values");
+            const auto interrupted = []() {
+              if (PyErr_CheckSignals() != 0) throw nb::python_error();
+              return false;
+            };
+            return h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
+                         outlier.data(), frozen.data(), y.data(), ystd.data(), interrupted);
+          },
+          nb::arg("t"), nb::arg("z"), nb::arg("status"), nb::arg("ms"), nb::arg("outlier"),
+          nb::arg("frozen"), nb::arg("y"), nb::arg("ystd"),
+          "Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, "
+          "outlier and frozen flags, outputs and their std, NaN where none); stops at the "
+          "first refused sample: (its index, its input error), else (n, 0).")
+      .def_prop_ro("last_t", [](const Policy& p) { return p.health->last_t(); },
+                   "The last accepted sample's time, s (-inf after a reset).")
+      .def_prop_ro(
+          "diagnostics",
+          [](const Policy& p) {
+            const PolicyDiagnostics& d = p.health->diagnostics;
+            nb::object failure = d.has_failure ? nb::cast(d.last_failure) : nb::none();
+            return nb::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.first_freezes,
+                                  d.bad_starts, d.reject_resets, failure, d.bound_samples,
+                                  d.max_noise_scale, d.model_error);
+          },
+          "(restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, "
+          "reject_resets, last_failure or None, bound_samples, max_noise_scale, "
+          "model_error).");
+}

@@ -1,0 +1,465 @@
+#include "sensor_health.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmhe {
+
+const char* const STATUS_NAMES[ST_COUNT] = {
+    "ok",          "dropout",        "not-converged", "solver-failed",
+    "no-estimate", "fallback-ipopt", "branch-restart", "reset",
+    "uncertain",   "drifted",        "at-bound",      "inconsistent"};
+
+namespace {
+bool trusted(int status) {
+  return status == ST_OK || status == ST_FALLBACK_IPOPT || status == ST_BRANCH_RESTART;
+}
+bool any_positive(const std::vector<double>& v) {
+  return std::any_of(v.begin(), v.end(), [](double m) { return m > 0.0; });
+}
+}  // namespace
+
+// --- StateChecks ------------------------------------------------------------------------
+
+bool StateChecks::is_diverged(const double* x, const double* P) const {
+  for (int i = 0; i < nx; ++i)
+    if (!std::isfinite(x[i])) return true;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const double a = x[pairs[k].first], b = x[pairs[k].second];
+    if (a * a + b * b > diverged_r2[k]) return true;
+  }
+  for (int r : rate_rows)
+    if (std::fabs(x[r]) > rate_limit) return true;
+  if (!P) return false;
+  for (int i = 0; i < nx * nx; ++i)
+    if (!std::isfinite(P[i])) return true;
+  for (int r : std_rows)
+    if (P[r * nx + r] > std_limit2) return true;
+  return false;
+}
+
+bool StateChecks::at_bound(const double* x) const {
+  for (size_t k = 0; k < pairs.size(); ++k)
+    if (std::hypot(x[pairs[k].first], x[pairs[k].second]) >= at_bound_r[k]) return true;
+  return false;
+}
+
+// --- ProcessModel -----------------------------------------------------------------------
+
+ProcessModel::ProcessModel(int nx_, int nu_, int nz_, QFunction compute, InputFunction inputs)
+    : nx(nx_), nu(nu_), nz(nz_), compute_(std::move(compute)), inputs_(std::move(inputs)) {
+  scratch_.resize(2 * nx * nx);
+  u_.assign(nu, 0.0);
+}
+
+std::pair<const double*, const double*> ProcessModel::noise(double dt) {
+  const double key_d = std::nearbyint(dt * 1e9);  // Python's round(dt, 9), as a count
+  const bool cacheable = std::isfinite(key_d) && std::fabs(key_d) < 9e18;
+  const size_t n2 = static_cast<size_t>(nx) * nx;
+  if (cacheable) {
+    auto it = cache_.find(static_cast<int64_t>(key_d));
+    if (it != cache_.end()) return {it->second.data(), it->second.data() + n2};
+  }
+  compute_(dt, scratch_.data(), scratch_.data() + n2);
+  if (cacheable && cache_.size() < 4096) {
+    auto& v = cache_[static_cast<int64_t>(key_d)];
+    v = scratch_;
+    return {v.data(), v.data() + n2};
+  }
+  return {scratch_.data(), scratch_.data() + n2};
+}
+
+const double* ProcessModel::inputs(const double* z_prev, const double* z, double dt) {
+  if (nu > 0) inputs_(z_prev, z, dt, u_.data());
+  return u_.data();
+}
+
+// --- SensorHealth -----------------------------------------------------------------------
+
+SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
+                           ProcessModel& process, ConsistencyCheck& consistency,
+                           std::function<bool(const std::vector<int>&)> observable)
+    : s_(std::move(settings)),
+      inference_(inference),
+      process_(process),
+      consistency_(consistency),
+      observable_(std::move(observable)) {
+  const size_t nb = s_.imu_blocks.size();
+  freeze_value_.assign(static_cast<size_t>(s_.nz), 0.0);
+  freeze_since_.assign(nb, -INFINITY);
+  freeze_last_t_.assign(nb, -INFINITY);
+  imu_last_valid_.assign(nb, -INFINITY);
+  freeze_count_.assign(nb, 0);
+  has_freeze_value_.assign(nb, 0);
+  z_.resize(s_.nz);
+  mask_.resize(s_.nz);
+  zero_mask_.assign(s_.nz, 0.0);
+  bias_.resize(static_cast<size_t>(s_.nx) * s_.nx);
+  std_b_.resize(s_.ny);
+  prev_x_.resize(s_.nx);
+  prev_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
+  prev_z_.resize(s_.nz);
+  cons_z_.resize(s_.nz);
+  if (static_cast<int>(s_.start_limit.size()) != s_.nz + 1)
+    throw std::invalid_argument("start_limit must hold nz + 1 values");
+  reset(false);
+}
+
+void SensorHealth::reset(bool keep_counts) {
+  if (!keep_counts) diagnostics = PolicyDiagnostics();
+  last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
+  std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
+  std::fill(freeze_since_.begin(), freeze_since_.end(), -INFINITY);
+  std::fill(freeze_last_t_.begin(), freeze_last_t_.end(), -INFINITY);
+  std::fill(freeze_count_.begin(), freeze_count_.end(), 0);
+  std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
+  returned_.clear();
+  hold_ = 0.0;
+  restart();
+}
+
+void SensorHealth::restart() {
+  start_clear();
+  consistency_.reset();
+  cons_has_prev_ = false;
+  rejecting_since_.reset();
+  inference_.restart();
+}
+
+double SensorHealth::unobserved_window() const {
+  return std::isnan(s_.gap_reset) || s_.gap_reset == 0.0 ? s_.unobserved_after : s_.gap_reset;
+}
+
+const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
+  frozen = false;
+  if (std::isnan(s_.freeze)) return z;
+  const double freeze = s_.freeze;
+  bool copied = false;
+  for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
+    const auto [start, size] = s_.imu_blocks[k];
+    const double* zb = z + start;
+    double* last = freeze_value_.data() + start;
+    const bool gap = t - freeze_last_t_[k] > freeze;
+    freeze_last_t_[k] = t;
+    bool same = has_freeze_value_[k] != 0;
+    for (int i = 0; same && i < size; ++i) same = zb[i] == last[i];  // NaN never repeats
+    if (!has_freeze_value_[k] || gap || !same) {
+      std::copy(zb, zb + size, last);
+      has_freeze_value_[k] = 1;
+      freeze_since_[k] = t;
+      freeze_count_[k] = 1;
+      continue;
+    }
+    ++freeze_count_[k];
+    // both: two equal readings with a long gap between them are not a freeze
+    if (freeze_count_[k] >= s_.freeze_samples && t - freeze_since_[k] > freeze) {
+      if (!copied) {
+        std::copy(z, z + s_.nz, z_.begin());
+        copied = true;
+      }
+      std::fill(z_.begin() + start, z_.begin() + start + size, NAN);
+      auto& first = diagnostics.first_freezes;
+      const int kk = static_cast<int>(k);
+      if (std::none_of(first.begin(), first.end(), [kk](const auto& f) { return f.first == kk; }))
+        first.emplace_back(kk, freeze_since_[k]);
+    }
+  }
+  if (!copied) return z;
+  ++diagnostics.frozen_samples;
+  frozen = true;
+  return z_.data();
+}
+
+void SensorHealth::measurement_mask(const double* z) {
+  std::fill(mask_.begin(), mask_.end(), 0.0);
+  for (const auto& [start, size] : s_.blocks) {
+    bool finite = true;
+    for (int i = start; finite && i < start + size; ++i) finite = std::isfinite(z[i]);
+    if (finite) std::fill(mask_.begin() + start, mask_.begin() + start + size, 1.0);
+  }
+}
+
+bool SensorHealth::note_imus(double t) {
+  back_rows_.clear();
+  if (first_valid_t_ == -INFINITY) {
+    if (!any_positive(mask_)) return false;
+    first_valid_t_ = t;
+  }
+  const double window = unobserved_window();
+  for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
+    const auto [start, size] = s_.imu_blocks[k];
+    if (mask_[start] > 0.0) {
+      if (t - imu_last_valid_[k] > window && t - first_valid_t_ > window)
+        for (int i = start; i < start + size; ++i) back_rows_.push_back(i);
+      imu_last_valid_[k] = t;
+    }
+  }
+  return !back_rows_.empty();
+}
+
+bool SensorHealth::observed_now(double t) {
+  if (!s_.shape_observable) return false;
+  const size_t n = s_.imu_blocks.size();
+  if (n == 1) return true;  // its silence is the whole robot's gap
+  const double window = unobserved_window();
+  std::vector<int> recent;
+  for (size_t k = 0; k < n; ++k)
+    if (t - imu_last_valid_[k] <= window) recent.push_back(static_cast<int>(k));
+  if (recent.size() == n || recent.empty()) return true;  // all reporting, or none
+  auto it = observable_cache_.find(recent);
+  if (it != observable_cache_.end()) return it->second;
+  const bool known = observable_(recent);
+  observable_cache_.emplace(recent, known);
+  return known;
+}
+
+// --- the bad-start check ---------------------------------------------------------------
+
+void SensorHealth::start_clear() {
+  since_ = NAN;
+  has_prev_ = false;
+  run_ = 0;
+  agreed_since_ = NAN;
+}
+
+void SensorHealth::start_reopen(double hold) {
+  start_clear();
+  for (int r : back_rows_) returned_.push_back(r);
+  std::sort(returned_.begin(), returned_.end());
+  returned_.erase(std::unique(returned_.begin(), returned_.end()), returned_.end());
+  hold_ = hold;
+}
+
+bool SensorHealth::start_watching(double t) const {
+  if (!returned_.empty()) return true;
+  return !std::isnan(s_.bad_start) && (std::isnan(since_) || t - since_ <= s_.bad_start);
+}
+
+bool SensorHealth::start_inconsistent(double t, const double* z) {
+  const bool in_window = !std::isnan(s_.bad_start) && t - since_ <= s_.bad_start;
+  if (!has_prev_ || !(in_window || !returned_.empty())) return false;
+  rows_.clear();
+  for (int i = 0; i < s_.nz; ++i)
+    if (mask_[i] != 0.0) rows_.push_back(i);
+  if (rows_.empty()) return false;
+  const double dt = t - prev_t_;
+  const double* u = process_.inputs(prev_z_.data(), z, dt);
+  const double* Q = process_.noise(dt).first;
+  const double value =
+      consistency_.predicted_nis(prev_x_.data(), prev_P_.data(), dt, z, mask_.data(), u, Q, rows_);
+  const bool consistent = value <= s_.start_limit[rows_.size()];
+  run_ = consistent ? 0 : run_ + 1;
+  if (!returned_.empty() &&
+      std::all_of(returned_.begin(), returned_.end(), [&](int r) { return mask_[r] > 0.0; })) {
+    if (!consistent)
+      agreed_since_ = NAN;
+    else if (std::isnan(agreed_since_))
+      agreed_since_ = prev_t_;  // the estimate this reading agrees with
+    if (t - agreed_since_ >= hold_) returned_.clear();  // NaN compares false
+  }
+  return in_window && run_ >= s_.start_samples;
+}
+
+void SensorHealth::start_remember(double t, const double* z, const double* x, const double* P,
+                                  bool has_state, bool has_cov) {
+  if (!has_state) return;
+  if (std::isnan(since_)) since_ = t;
+  if (!has_cov) {
+    has_prev_ = false;
+    return;
+  }
+  prev_t_ = t;
+  std::copy(x, x + s_.nx, prev_x_.begin());
+  std::copy(P, P + s_.nx * s_.nx, prev_P_.begin());
+  std::copy(z, z + s_.nz, prev_z_.begin());
+  has_prev_ = true;
+}
+
+bool SensorHealth::consistency_check(double t, const double* z, const double* judged,
+                                     const double* x, const double* P, bool has_state,
+                                     bool has_cov) {
+  if (!has_state || !has_cov) {
+    consistency_.forget();
+    cons_has_prev_ = false;
+    return false;
+  }
+  const double* u = nullptr;
+  const double* Q = nullptr;
+  if (cons_has_prev_) {
+    const auto& judged_rows = consistency_.settings().judged;
+    bool any = false;
+    for (int i = 0; i < s_.nz && !any; ++i) any = judged_rows[i] != 0.0 && judged[i] != 0.0;
+    if (any) {
+      const double dt = t - cons_t_;
+      u = process_.inputs(cons_z_.data(), z, dt);
+      Q = process_.noise(dt).first;
+    }
+  }
+  cons_t_ = t;
+  std::copy(z, z + s_.nz, cons_z_.begin());
+  cons_has_prev_ = true;
+  return consistency_.check(t, z, judged, x, P, u, Q);
+}
+
+bool SensorHealth::diverged(const double* x, const double* P) {
+  return s_.checks ? s_.checks->is_diverged(x, P) : inference_.is_diverged(x, P);
+}
+
+int SensorHealth::infer_once(double t, const double* z, double* x, double* P, bool& has_state,
+                             bool& has_cov, bool& failed) {
+  failed = false;
+  has_state = has_cov = false;
+  try {
+    return inference_.infer(t, z, mask_.data(), x, P, has_state, has_cov);
+  } catch (const InferenceFailure& e) {
+    diagnostics.last_failure = e.what();
+  } catch (const std::runtime_error& e) {
+    diagnostics.last_failure = std::string("RuntimeError: ") + e.what();
+  }
+  diagnostics.has_failure = true;
+  failed = true;
+  has_state = has_cov = false;
+  return ST_NO_ESTIMATE;
+}
+
+int SensorHealth::step(double t, const double* z_in, double* x, double* P, double* y,
+                       double* ystd, SampleResult& out) {
+  if (!(std::isfinite(t) && t > last_t_)) return INPUT_TIME;
+  for (int i : s_.tilt_rows) {
+    if (std::fabs(z_in[i]) > s_.degrees_like) {  // NaN compares false
+      for (int j : s_.tilt_rows)
+        if (std::isinf(z_in[j])) return INPUT_INFINITE;
+      return INPUT_DEGREES;
+    }
+  }
+  last_t_ = t;
+  const auto start = std::chrono::steady_clock::now();
+  out = SampleResult();
+  const double* z = unfreeze(t, z_in, out.frozen);
+  measurement_mask(z);
+  const bool valid = any_positive(mask_);
+  bool gap_reset = false;
+  if (!std::isnan(s_.gap_reset) && valid) {
+    gap_reset = -INFINITY < last_valid_t_ && last_valid_t_ < t - s_.gap_reset;
+    last_valid_t_ = t;
+  }
+  const bool back = note_imus(t);
+  const bool observed = observed_now(t);
+  if (gap_reset) {  // restart from this sample instead of a blind prediction
+    ++diagnostics.gap_resets;
+    restart();
+  } else if (back && s_.checks_start) {
+    // their part of the shape was predicted blindly: check it as after a start
+    start_reopen(unobserved_window());
+  }
+  bool bad_start = false;
+  const bool check_start = s_.checks_start && start_watching(t);
+  if (check_start) {
+    bad_start = start_inconsistent(t, z);
+    if (bad_start) {  // the start was wrong: restart from this reading
+      ++diagnostics.bad_starts;
+      restart();
+    }
+  }
+  bool reject_reset = false;
+  if (rejecting_since_ && !std::isnan(s_.reject_reset) &&
+      t - *rejecting_since_ > s_.reject_reset && valid) {
+    reject_reset = true;  // restart from this reading
+    ++diagnostics.reject_resets;
+    restart();
+  }
+  bool has_state = false, has_cov = false, failed = false;
+  int status = infer_once(t, z, x, P, has_state, has_cov, failed);
+  bool healthy = !failed && (!has_state || !diverged(x, has_cov ? P : nullptr));
+  if (!healthy) {  // flag it and restart from this sample's measurement
+    ++diagnostics.restarts;
+    restart();
+    status = infer_once(t, z, x, P, has_state, has_cov, failed);
+    if (has_state && diverged(x, has_cov ? P : nullptr)) {
+      restart();
+      has_state = has_cov = false;
+      status = ST_NO_ESTIMATE;
+    }
+    if (has_state) status = ST_RESET;
+  }
+  if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
+  if (check_start) start_remember(t, z, x, P, has_state, has_cov);
+  if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
+  if (trusted(status) && !observed) {
+    status = ST_UNCERTAIN;  // the data do not determine the shape
+  } else if (trusted(status) && !returned_.empty()) {
+    status = ST_UNCERTAIN;  // an IMU is back and no reading has confirmed the estimate
+  } else if (trusted(status) && has_state &&
+             (s_.checks ? s_.checks->at_bound(x) : inference_.at_bound(x))) {
+    status = ST_AT_BOUND;  // the bound, not the data, may have set the shape
+    ++diagnostics.bound_samples;
+  }
+  double factor = 1.0;
+  if (s_.checks_start) {  // the readings against the estimates (consistency.hpp)
+    // a reading the robust MHE rejected as an outlier is flagged as one, and says
+    // nothing about the estimate
+    const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
+    const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
+    if (disagree && trusted(status)) status = ST_INCONSISTENT;
+    const double scale = consistency_.noise_scale();
+    factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
+    diagnostics.max_noise_scale = std::max(diagnostics.max_noise_scale, scale);
+    diagnostics.model_error = std::max(diagnostics.model_error, consistency_.model_error());
+  }
+  out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+               .count();
+  if (has_state) inference_.output(x, y);
+  if (has_state && has_cov) {
+    const int ny = s_.ny;
+    inference_.output_std(x, P, ystd);
+    if (factor != 1.0)  // the model error the readings show (covariance matching)
+      for (int i = 0; i < ny; ++i) ystd[i] *= factor;
+    if (status == ST_OK && !s_.tip_rows.empty() && s_.checks_start) {
+      double sum = 0.0;
+      for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
+      if (std::sqrt(sum) > s_.uncertain_fraction * s_.length) status = ST_UNCERTAIN;
+    }
+    if (s_.checks_start) {  // constant reading errors, model error: no residual shows them
+      consistency_.constant_error_cov(z, mask_.data(), x, bias_.data());
+      inference_.output_std(x, bias_.data(), std_b_.data());
+      for (int i = 0; i < ny; ++i) ystd[i] = std::hypot(ystd[i], std_b_[i]);
+    }
+    out.has_std = true;
+  }
+  out.outlier = has_state && inference_.outlier();
+  // the reject reset's run; a sample without readings neither ends nor extends it
+  const int rejected = has_state ? inference_.rejected_every_reading() : 0;
+  if (rejected == 0)
+    rejecting_since_.reset();
+  else if (rejected == 1 && !rejecting_since_)
+    rejecting_since_ = t;
+  out.status = status;
+  out.has_state = has_state;
+  out.has_cov = has_cov;
+  return INPUT_OK;
+}
+
+std::pair<int64_t, int> SensorHealth::run(int64_t n, const double* t, const double* z,
+                                          int32_t* status, double* ms, uint8_t* outlier,
+                                          uint8_t* frozen, double* y, double* ystd,
+                                          const std::function<bool()>& interrupted) {
+  const int nz = s_.nz, ny = s_.ny, nx = s_.nx;
+  std::vector<double> x(nx), P(static_cast<size_t>(nx) * nx);
+  SampleResult r;
+  for (int64_t i = 0; i < n; ++i) {
+    if (interrupted && interrupted()) return {i, INPUT_OK};
+    double* yi = y + i * ny;
+    double* si = ystd + i * ny;
+    const int err = step(t[i], z + i * nz, x.data(), P.data(), yi, si, r);
+    if (err != INPUT_OK) return {i, err};
+    if (!r.has_state) std::fill(yi, yi + ny, NAN);
+    if (!r.has_std) std::fill(si, si + ny, NAN);
+    status[i] = r.status;
+    ms[i] = r.ms;
+    outlier[i] = r.outlier;
+    frozen[i] = r.frozen;
+  }
+  return {n, INPUT_OK};
+}
+
+}  // namespace cmhe

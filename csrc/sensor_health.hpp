@@ -1,0 +1,234 @@
+// The sensor-health policy of every estimator (continuum_mhe.estimators.sensor_health,
+// whose Estimator.step docstring states it): around each inference step it checks the
+// input, marks frozen sensors as dropouts, restarts the inference after a gap, a bad
+// start, a robust MHE's run of rejected readings or a divergence, judges the readings
+// against the estimate (consistency.hpp) and decides the status; ``run`` steps a whole
+// recording into preallocated arrays without leaving compiled code.
+//
+// The inference (the MHE's window, the EKF, the UKF) and the model's checks of a state
+// come through the interface ``PolicyInference``; the binding implements it for the
+// fast MHE's compiled step (horizon.hpp) and for a Python inference object.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "consistency.hpp"
+
+namespace cmhe {
+
+// The statuses, in the order of continuum_mhe.results.Status (STATUS_NAMES)
+enum StatusCode : int {
+  ST_OK = 0,
+  ST_DROPOUT,
+  ST_NOT_CONVERGED,
+  ST_SOLVER_FAILED,
+  ST_NO_ESTIMATE,
+  ST_FALLBACK_IPOPT,
+  ST_BRANCH_RESTART,
+  ST_RESET,
+  ST_UNCERTAIN,
+  ST_DRIFTED,
+  ST_AT_BOUND,
+  ST_INCONSISTENT,
+  ST_COUNT
+};
+extern const char* const STATUS_NAMES[ST_COUNT];
+
+// A sample the policy refuses (the caller's one-line error names it)
+enum InputError : int {
+  INPUT_OK = 0,
+  INPUT_TIME = 1,      // t not finite, or not later than the previous sample's
+  INPUT_DEGREES = 2,   // a tilt reading beyond 2 pi: degrees given for radians
+  INPUT_INFINITE = 3,  // an infinite tilt reading
+};
+
+// A numerical failure of an inference step (the policy restarts from the sample)
+struct InferenceFailure : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// What the policy needs of an inference object and of the model's checks of a state.
+class PolicyInference {
+ public:
+  virtual ~PolicyInference() = default;
+  // forget the state: the next infer starts from its sample
+  virtual void restart() = 0;
+  // one sample (``mask`` (nz) its valid readings): the status; ``x`` (nx) and ``P``
+  // (nx x nx) written when ``has_state`` / ``has_cov`` are set. Throws InferenceFailure
+  // (or std::runtime_error) on a numerical failure.
+  virtual int infer(double t, const double* z, const double* mask, double* x, double* P,
+                    bool& has_state, bool& has_cov) = 0;
+  // the outputs (ny) of the state the last infer returned, and standard deviations (ny)
+  // of a state with covariance P
+  virtual void output(const double* x, double* y) = 0;
+  virtual void output_std(const double* x, const double* P, double* s) = 0;
+  // whether the last infer down-weighted a reading (robust MHE); whether it rejected
+  // every valid reading: 1, 0, or -1 when the sample had none
+  virtual bool outlier() { return false; }
+  virtual int rejected_every_reading() { return 0; }
+  // the model's checks of a state (P may be nullptr)
+  virtual bool is_diverged(const double* x, const double* P) = 0;
+  virtual bool drifted(const double* x) = 0;
+  virtual bool at_bound(const double* x) = 0;
+};
+
+// The process noise ``Q(dt)`` (nx x nx) and its inverse, cached per time step rounded to
+// 1e-9 s (at most 4096 steps), computed by ``compute`` on a miss; and the model's inputs
+// ``u(z_prev, z, dt)`` (nu), by ``inputs`` (none when nu is 0).
+class ProcessModel {
+ public:
+  using QFunction = std::function<void(double dt, double* Q, double* Qinv)>;
+  using InputFunction =
+      std::function<void(const double* z_prev, const double* z, double dt, double* u)>;
+  ProcessModel(int nx, int nu, int nz, QFunction compute, InputFunction inputs);
+  // (Q, Q^-1) of ``dt``: pointers valid until the next call
+  std::pair<const double*, const double*> noise(double dt);
+  // u from the previous valid reading ``z_prev`` (nullptr: none) to ``z``
+  const double* inputs(const double* z_prev, const double* z, double dt);
+  int nx, nu, nz;
+
+ private:
+  QFunction compute_;
+  InputFunction inputs_;
+  std::map<int64_t, std::vector<double>> cache_;  // Q then Q^-1
+  std::vector<double> scratch_, u_;
+};
+
+// A formulation's checks of a state as data (continuum_mhe.model.formulations:
+// ``is_diverged``, ``at_bound``): not finite; a pair of bend coordinates (i, j) with
+// ``x_i^2 + x_j^2`` beyond its ``diverged_r2``, or a rate row beyond ``rate_limit`` in
+// magnitude; a covariance not finite or with a ``std_rows`` variance beyond
+// ``std_limit2``. At its bound: ``hypot(x_i, x_j) >= at_bound_r`` of a pair.
+struct StateChecks {
+  int nx = 0;
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<double> diverged_r2, at_bound_r;
+  std::vector<int> rate_rows;
+  double rate_limit = INFINITY;
+  std::vector<int> std_rows;
+  double std_limit2 = INFINITY;
+  bool is_diverged(const double* x, const double* P) const;  // P may be nullptr
+  bool at_bound(const double* x) const;
+};
+
+// The policy's fixed data (recovery settings: NaN where off)
+struct PolicySettings {
+  int nx, nz, ny;
+  std::vector<std::pair<int, int>> blocks;      // every measurement block: (start, size)
+  std::vector<std::pair<int, int>> imu_blocks;  // the IMUs' blocks
+  std::vector<int> tilt_rows;                   // rows checked for degrees
+  std::vector<int> tip_rows;                    // outputs of the tip position (m)
+  double freeze = NAN;                          // s
+  int freeze_samples = 1;
+  double gap_reset = NAN;     // s
+  double bad_start = NAN;     // s
+  double reject_reset = NAN;  // s
+  double uncertain_fraction = 0.0;
+  double length = 0.0;         // the robot's length, m
+  bool checks_start = false;   // a calibrated covariance: start and consistency checks
+  bool shape_observable = true;
+  std::vector<double> start_limit;  // the start check's NIS limit by dof (index 0 unused)
+  int start_samples = 2;            // consecutive readings beyond it that restart
+  double unobserved_after = 1.0;    // s, an IMU's silence that unobserves it (gap reset off)
+  double degrees_like = 0.0;        // rad, a tilt reading beyond it is in degrees
+  // the formulation's checks of a state, when it states them as data (else the
+  // inference's is_diverged, drifted and at_bound; with them nothing drifts)
+  std::optional<StateChecks> checks;
+};
+
+// What the policy did since its reset (continuum_mhe.results.Diagnostics)
+struct PolicyDiagnostics {
+  int64_t restarts = 0, gap_resets = 0, frozen_samples = 0, bad_starts = 0,
+          reject_resets = 0, bound_samples = 0;
+  std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
+  bool has_failure = false;
+  std::string last_failure;
+  double max_noise_scale = 1.0, model_error = 0.0;
+};
+
+// One sample's answer (the arrays are the caller's)
+struct SampleResult {
+  int status = ST_NO_ESTIMATE;
+  bool has_state = false, has_cov = false, has_std = false, outlier = false, frozen = false;
+  double ms = 0.0;
+};
+
+class SensorHealth {
+ public:
+  // ``observable(imus)``: whether those IMUs (0-based, ascending) determine the shape
+  SensorHealth(PolicySettings settings, PolicyInference& inference, ProcessModel& process,
+               ConsistencyCheck& consistency, std::function<bool(const std::vector<int>&)>
+                                                  observable);
+
+  // a new recording: forget every sample (and zero the diagnostics unless keep_counts)
+  void reset(bool keep_counts);
+  // One sample: INPUT_OK and the answer (state nx, cov nx*nx, y ny, ystd ny), or the input
+  // error (nothing changed)
+  int step(double t, const double* z, double* x, double* P, double* y, double* ystd,
+           SampleResult& out);
+  // ``n`` samples (t n, z n x nz) into the arrays (status n, ms n, outlier n, frozen n, y
+  // n x ny, ystd n x ny, NaN where none); stops at the first refused sample: returns
+  // (its index, its error), or (n, INPUT_OK); ``interrupted()`` is asked between samples
+  std::pair<int64_t, int> run(int64_t n, const double* t, const double* z, int32_t* status,
+                              double* ms, uint8_t* outlier, uint8_t* frozen, double* y,
+                              double* ystd, const std::function<bool()>& interrupted);
+
+  const PolicySettings& settings() const { return s_; }
+  PolicyDiagnostics diagnostics;
+  double last_t() const { return last_t_; }
+  bool unconfirmed() const { return !returned_.empty(); }
+
+ private:
+  void restart();
+  const double* unfreeze(double t, const double* z, bool& frozen);
+  void measurement_mask(const double* z);
+  bool note_imus(double t);  // fills back_rows_
+  bool observed_now(double t);
+  double unobserved_window() const;
+  // the bad-start check (start_check.py's doc)
+  void start_clear();
+  void start_reopen(double hold);
+  bool start_watching(double t) const;
+  bool start_inconsistent(double t, const double* z);
+  void start_remember(double t, const double* z, const double* x, const double* P,
+                      bool has_state, bool has_cov);
+  bool consistency_check(double t, const double* z, const double* judged, const double* x,
+                         const double* P, bool has_state, bool has_cov);
+  bool diverged(const double* x, const double* P);
+  int infer_once(double t, const double* z, double* x, double* P, bool& has_state,
+                 bool& has_cov, bool& failed);
+
+  PolicySettings s_;
+  PolicyInference& inference_;
+  ProcessModel& process_;
+  ConsistencyCheck& consistency_;
+  std::function<bool(const std::vector<int>&)> observable_;
+  std::map<std::vector<int>, bool> observable_cache_;
+  double last_t_ = -INFINITY, last_valid_t_ = -INFINITY, first_valid_t_ = -INFINITY;
+  std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
+  std::vector<int64_t> freeze_count_;
+  std::vector<char> has_freeze_value_;
+  std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
+  std::vector<int> back_rows_, rows_;
+  std::optional<double> rejecting_since_;
+  // the bad-start check's state
+  double since_ = NAN, agreed_since_ = NAN, hold_ = 0.0, prev_t_ = 0.0;
+  int run_ = 0;
+  bool has_prev_ = false;
+  std::vector<double> prev_x_, prev_P_, prev_z_;
+  std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
+  // the consistency check's previous sample
+  bool cons_has_prev_ = false;
+  double cons_t_ = 0.0;
+  std::vector<double> cons_z_;
+};
+
+}  // namespace cmhe

@@ -1,0 +1,165 @@
+"""The sensor-health policy in the compiled core (``csrc/sensor_health.*``): ``run`` over
+a recording, ``continue_run`` in blocks and ``step`` sample by sample are one policy and
+give the same estimates; a refused sample stops ``run`` with the step's error; the
+formulations' checks of a state as data (``StateChecks``) against their definitions;
+the estimate CSV's block writer against its row writer."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.errors import UserError
+from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells
+from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.results import Measurement
+from continuum_mhe.settings import MHESettings, RecoverySettings
+from continuum_mhe.simulation.scenarios import simulate
+
+TWO_SECTIONS = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
+RECOVERY = RecoverySettings(gap_reset=1.0, freeze=1.0, bad_start=2.0)
+
+
+def faulty_recording() -> tuple[np.ndarray, np.ndarray]:
+    """``paper3d`` with a bad start, a dropout, a frozen sensor and a gap."""
+    rec = simulate("paper3d", duration=12.0, seed=3)
+    t, z = rec.t.copy(), rec.z.copy()
+    z[:8] += math.radians(50.0)  # a bad start
+    z[60:70] = np.nan  # a dropout
+    z[100:140] = z[100]  # frozen for 2 s
+    keep = np.ones(len(t), bool)
+    keep[180:210] = False  # a gap of 1.5 s
+    return t[keep], z[keep]
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_run_blocks_and_steps_are_one_policy(method: str) -> None:
+    f = make_formulation("bend")
+    t, z = faulty_recording()
+    settings = MHESettings(horizon=10)
+
+    def estimator():
+        return make_estimator(method, f, settings, RECOVERY)
+
+    est = estimator()
+    series = est.run(t, z)
+    counts = est.diagnostics
+    assert counts.bad_starts == 1 and counts.gap_resets == 1 and counts.frozen_samples > 0
+    assert {"reset", "dropout"} <= set(series.status)
+    blocks = estimator()
+    blocks.reset()
+    batch = blocks.continue_run(t, z, block=37)
+    stepped = estimator()
+    stepped.reset()
+    steps = [stepped.step(Measurement(float(ti), zi)) for ti, zi in zip(t, z)]
+    for other in (batch.statuses(), [e.status for e in steps]):
+        assert list(series.status) == [str(s) for s in other]
+    out = np.array([np.full(f.ny, np.nan) if e.output is None else e.output for e in steps])
+    std = np.array([np.full(f.ny, np.nan) if e.output_std is None else e.output_std for e in steps])
+    np.testing.assert_array_equal(series.output, batch.output)
+    np.testing.assert_array_equal(series.output, out)
+    np.testing.assert_array_equal(series.output_std, std)
+    assert blocks.diagnostics == counts == stepped.diagnostics
+
+
+def test_a_refused_sample_stops_the_run_with_the_steps_error() -> None:
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=2.0, seed=0)
+    z = rec.z.copy()
+    z[30, 0] = 90.0  # degrees
+    est = make_estimator("ekf", f)
+    with pytest.raises(UserError, match=r"t=1\.5 s: roll=90.*look like degrees"):
+        est.run(rec.t, z)
+    assert est.diagnostics == make_estimator("ekf", f).run(rec.t[:30], rec.z[:30]).diagnostics
+    t = rec.t.copy()
+    t[20] = t[19]
+    with pytest.raises(
+        UserError, match=r"t=0\.95\d* s must be .* later than the previous sample's t=0\.95"
+    ):
+        est.run(t, rec.z)
+
+
+@pytest.mark.parametrize("name", ["bend", "two-sections", "direct-accel"])
+def test_state_checks_are_the_formulations_definition(name: str) -> None:
+    two = read_robot(TWO_SECTIONS)
+    if name == "bend":
+        f = make_formulation("bend")
+    elif name == "two-sections":
+        f = make_formulation("bend", two)
+    else:
+        f = make_formulation("direct", two, own_acceleration=True)
+    n2, nx = 2 * f.robot.n_sections, f.nx
+    rng = np.random.default_rng(0)
+    for k, sec in enumerate(f.robot.sections):
+        x = np.zeros(nx)
+        x[2 * k : 2 * k + 2] = (sec.theta_max - AT_BOUND_TOL) * np.array([0.6, 0.8])
+        assert f.at_bound(x) and not f.is_diverged(x)
+        x[2 * k] *= 0.999
+        assert not f.at_bound(x)
+        x[2 * k : 2 * k + 2] = (sec.theta_max + DIVERGED_MARGIN) * np.array([0.6, 0.8]) * 1.001
+        assert f.is_diverged(x)
+    x = rng.normal(scale=0.1, size=nx)
+    P = np.eye(nx) * 0.01
+    assert not f.is_diverged(x, P)
+    for row in range(n2, nx):
+        fast = x.copy()
+        fast[row] = 1.01 * DIVERGED_RATE
+        own_acceleration = getattr(f, "own_acceleration", False) and 2 * n2 <= row < 3 * n2
+        assert f.is_diverged(fast) != own_acceleration
+    bad = x.copy()
+    bad[-1] = np.nan
+    assert f.is_diverged(bad)
+    wide = P.copy()
+    wide[n2 - 1, n2 - 1] = 1.01 * math.pi**2
+    assert f.is_diverged(x, wide) and not f.is_diverged(x, P * 1e3 * (np.arange(nx) >= n2))
+    wide[0, 1] = np.inf
+    assert f.is_diverged(x, wide)
+
+
+def test_the_block_writer_writes_the_row_writers_lines() -> None:
+    rng = np.random.default_rng(1)
+    n, ny = 6, 3
+    t = np.cumsum(rng.uniform(0.01, 0.1, n))
+    out = rng.normal(size=(n, ny))
+    std = rng.uniform(0.001, 0.1, (n, ny))
+    out[1], std[1] = np.nan, np.nan  # no estimate
+    std[2] = np.nan  # no covariance
+    std[3, 1] = np.nan
+    status = ["ok", "no-estimate", "solver-failed", "ok", "reset", "uncertain"]
+    ms = rng.uniform(0.1, 2.0, n)
+    flags = rng.uniform(size=n) > 0.5
+    for outlier in (None, flags):
+        expected = ""
+        for i in range(n):
+            y = None if status[i] == "no-estimate" else out[i]
+            s = None if np.isnan(std[i]).all() else std[i]
+            flag = None if outlier is None else bool(outlier[i])
+            row = estimate_row(t[i], y, status[i], ms[i], ny, s, flag)
+            expected += ",".join(format_cells("x.csv", row)) + "\n"
+        assert estimate_lines("x.csv", t, out, std, outlier, status, ms) == expected
+    out[0, 0] = np.inf
+    with pytest.raises(ValueError, match="non-finite"):
+        estimate_lines("x.csv", t, out, std, None, status, ms)
+
+
+def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:
+    """The compiled EKF stepped inside the compiled policy (``KalmanInference``) against
+    the CasADi EKF stepped through its Python ``infer``: the same statuses and, to
+    rounding, the same estimates, through the bad start, dropout, freeze and gap."""
+    f = make_formulation("bend")
+    t, z = faulty_recording()
+    compiled = make_estimator("ekf", f, recovery=RECOVERY)
+    assert type(compiled.inference.policy_inference()).__name__ == "KalmanInference"
+    casadi = ExtendedKalmanFilter(f, RECOVERY)
+    a, b = compiled.run(t, z), casadi.run(t, z)
+    assert list(a.status) == list(b.status)
+    np.testing.assert_allclose(a.output, b.output, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.output_std, b.output_std, rtol=1e-7, atol=1e-12)
+    assert compiled.diagnostics.bad_starts == casadi.diagnostics.bad_starts == 1
