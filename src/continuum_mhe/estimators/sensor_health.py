@@ -171,13 +171,16 @@ class Estimator(Generic[InferenceT]):
         self._imu_last_valid = [-math.inf] * n_blocks
         self._first_valid_t = -math.inf  # t of the recording's first valid reading, s
         self._start_check.reset()
+        self._consistency.reset()
         self._restart()
 
     def _restart(self) -> None:
         """Clear the inference's state and the bad-start and rejection checks' (a
-        (re)start)."""
+        (re)start). The consistency check forgets the previous estimate only: the model
+        error the readings showed is the robot's, and a restart does not make the model
+        follow."""
         self._start_check.clear()
-        self._consistency.reset()
+        self._consistency.restart()
         self._rejecting_since = None
         self.inference.restart()
 
