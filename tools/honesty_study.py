@@ -61,7 +61,7 @@ section = 2
 def estimate(folder: Path, recording: Path, method: str, *options: str) -> dict[str, np.ndarray]:
     """``continuum-mhe estimate RECORDING --method METHOD OPTIONS``: the tip (n, 3) m, its
     std (n, 3) m and the status (n,) of each row."""
-    out = folder / f"{recording.stem}_{method}.csv"
+    out = folder / f"{recording.parent.name}_{recording.stem}_{method}.csv"
     argv = ["estimate", str(recording), "-o", str(out), "--method", method, *options]
     with contextlib.redirect_stderr(io.StringIO()) as said:
         code = cli_main(argv)
