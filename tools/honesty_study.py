@@ -212,7 +212,7 @@ def main() -> None:
                    help="folders of two-section rod recordings (NAME_truth.csv and "
                    "NAME_raw.csv / NAME_tilt.csv)")  # fmt: skip
     p.add_argument("--cases", nargs="+", default=["raw", "tilt"], help="recording kinds")
-    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], help="paper3d seeds")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4], help="paper3d seeds")
     args = p.parse_args()
     warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as name:
