@@ -31,28 +31,32 @@ void cmhe::bind_consistency(nb::module_& m) {
              const ModelFunction& measurement, const ModelFunction& residual, int nx, int nu,
              int nz, std::vector<double> R, std::vector<double> judged, std::vector<double> limit,
              std::vector<double> run_limit, std::vector<double> avg_limit,
-             std::vector<double> bias, std::vector<double> gravity_r, int memory,
-             double rcond) {
+             std::vector<double> shift_limit, std::vector<double> bias, std::vector<double> gravity_r, int memory,
+             int quiet_memory, double rcond) {
             new (self) ConsistencyCheck(
                 transition, measurement, residual,
                 ConsistencySettings{nx, nu, nz, std::move(R), std::move(judged),
                                     std::move(limit), std::move(run_limit),
-                                    std::move(avg_limit), std::move(bias),
-                                    std::move(gravity_r), memory, rcond});
+                                    std::move(avg_limit), std::move(shift_limit),
+                                    std::move(bias),
+                                    std::move(gravity_r), memory, quiet_memory, rcond});
           },
           nb::arg("transition"), nb::arg("measurement"), nb::arg("residual"), nb::arg("nx"),
           nb::arg("nu"), nb::arg("nz"), nb::arg("R"), nb::arg("judged"), nb::arg("limit"), nb::arg("run_limit"), nb::arg("avg_limit"),
-          nb::arg("bias"), nb::arg("gravity_r"), nb::arg("memory"), nb::arg("rcond"),
+          nb::arg("shift_limit"), nb::arg("bias"), nb::arg("gravity_r"), nb::arg("memory"), nb::arg("quiet_memory"), nb::arg("rcond"),
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
           "Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, "
           "``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, "
           "row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; "
           "``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the "
-          "number of judged readings; ``bias`` (nz): the readings' constant-error "
+          "number of judged readings; ``shift_limit`` (nx + 1): the chi-square limits of "
+          "the shift to the readings' shape by its degrees of freedom; ``bias`` (nz): the readings' constant-error "
           "variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; "
-          "``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's "
+          "``memory``: samples the average remembers; ``quiet_memory``: samples the "
+          "average while no model error shows remembers; ``rcond``: the pseudo-inverse's "
           "cut-off.")
-      .def("reset", &ConsistencyCheck::reset, "Forget the previous estimate and the average.")
+      .def("reset", &ConsistencyCheck::reset,
+           "Forget the previous estimate, the average and the model error.")
       .def("forget", &ConsistencyCheck::forget,
            "A sample without an estimate: forget the previous estimate.")
       .def(
@@ -90,14 +94,23 @@ void cmhe::bind_consistency(nb::module_& m) {
           "and the model error learned so far.")
       .def_prop_ro("noise_scale", &ConsistencyCheck::noise_scale,
                    "The exponentially weighted mean of NIS / dof (1 before any).")
+      .def_prop_ro("quiet_scale", &ConsistencyCheck::quiet_scale,
+                   "The slower mean of NIS / dof while no model error showed (1 before "
+                   "any): the level a model error that showed must fall back to.")
       .def_prop_rw("model_error", &ConsistencyCheck::model_error,
                    &ConsistencyCheck::set_model_error,
-                   "The largest noise_scale - 1 beyond its limit since the (re)start, in "
+                   "The largest noise_scale - 1 beyond its limit since the reset, in "
                    "units of R (settable: a model error known beforehand).")
       .def_prop_ro("has_previous", &ConsistencyCheck::has_previous,
                    "Whether the next sample is predicted from a previous estimate.")
       .def_prop_ro("nis", &ConsistencyCheck::nis, "The last sample's NIS (0 if none).")
       .def_prop_ro("fit", &ConsistencyCheck::fit, "The last sample's fit (0 if not judged).")
+      .def_prop_ro("fit_nis", &ConsistencyCheck::fit_nis,
+                   "The NIS of the innovation the last sample's fit implies, "
+                   "(R^-1 r)^T S (R^-1 r) (0 without a previous estimate).")
+      .def_prop_ro("shift", &ConsistencyCheck::shift,
+                   "The shift that fits the last sample's readings in its covariance, "
+                   "d^T P^+ d (computed only where fit_nis is beyond its limit, else 0).")
       .def_prop_ro("dof", &ConsistencyCheck::dof, "The last sample's judged readings.");
 
   m.def(

@@ -41,9 +41,11 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
   need(s_.limit, nz + 1, "limit");
   need(s_.run_limit, nz + 1, "run_limit");
   need(s_.avg_limit, nz + 1, "avg_limit");
+  need(s_.shift_limit, nx + 1, "shift_limit");
   need(s_.bias, nz, "bias");
   need(s_.gravity_r, nz, "gravity_r");
-  if (s_.memory < 1) throw std::invalid_argument("memory must be at least 1");
+  if (s_.memory < 1 || s_.quiet_memory < 1)
+    throw std::invalid_argument("memory and quiet_memory must be at least 1");
   const auto writes = [](const ModelFunction& fn, size_t n, const char* name) {
     if (fn.output_size() != static_cast<int64_t>(n))
       throw std::invalid_argument(std::string("the ") + name + " function writes " +
@@ -71,12 +73,12 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
 
 void ConsistencyCheck::reset() {
   has_prev_ = false;
-  noise_scale_ = 1.0;
+  noise_scale_ = quiet_scale_ = 1.0;
   model_error_ = 0.0;
   avg_dof_ = 0;
   high_ = false;
   persists_ = false;
-  nis_ = fit_ = 0.0;
+  nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = 0;
 }
 
@@ -105,7 +107,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   for (int i = 0; i < nz; ++i)
     if (s_.judged[i] != 0.0 && mask[i] != 0.0) rows_.push_back(i);
   const int dof = static_cast<int>(rows_.size());
-  nis_ = fit_ = 0.0;
+  nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = dof;
   if (dof > 0) {
     set_readings(z, mask);
@@ -119,8 +121,18 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       if (nis_ <= s_.limit[dof]) {
         noise_scale_ += (nis_ / dof - noise_scale_) / s_.memory;
         avg_dof_ = dof;
+        // the level the readings scatter at while the model follows them
+        if (!persists_) quiet_scale_ += (nis_ / dof - quiet_scale_) / s_.quiet_memory;
       }
       evaluate(residual_, x, u, dt, r_.data());  // r at this estimate
+      // the innovation this estimate's residual implies, S R^-1 r (an exact update of a
+      // linear model leaves r = R S^-1 nu), and its NIS: (R^-1 r)^T S (R^-1 r)
+      Eigen::VectorXd w(dof);
+      for (int a = 0; a < dof; ++a) w[a] = r_[rows_[a]] * r_inv_[rows_[a]];
+      fit_nis_ = w.dot(S * w);
+      // an update that was not a linear one: is the shift to the readings' own shape
+      // within this estimate's covariance?
+      if (fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
     } else {
       evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());
     }
@@ -138,10 +150,52 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   if (avg_dof_ > 0 && noise_scale_ > s_.avg_limit[avg_dof_]) {
     persists_ = true;
     model_error_ = std::max(model_error_, noise_scale_ - 1.0);
-  } else if (noise_scale_ <= 1.0) {
+  } else if (noise_scale_ <= std::min(1.0, quiet_scale_)) {
     persists_ = false;
   }
-  return worst > s_.limit[dof] || (high && high_) || persists_;
+  const bool unexplained = fit_nis_ > s_.limit[dof] && shift_ > s_.shift_limit[shift_dof_];
+  return worst > s_.limit[dof] || (high && high_) || persists_ || unexplained;
+}
+
+void ConsistencyCheck::weighted_jacobian(RowMatrix& Hs, RowMatrix& wh) {
+  const int nx = s_.nx, nz = s_.nz, nr = static_cast<int>(rows_.size());
+  ConstRowMap H(Hr_.data(), nz, nx);
+  cols_.clear();  // the states the readings depend on
+  for (int c = 0; c < nx; ++c)
+    for (int i : rows_)
+      if (H(i, c) != 0.0) {
+        cols_.push_back(c);
+        break;
+      }
+  const int nc = static_cast<int>(cols_.size());
+  Hs.resize(nr, nc);
+  wh.resize(nr, nc);
+  for (int a = 0; a < nr; ++a)
+    for (int c = 0; c < nc; ++c) {
+      Hs(a, c) = H(rows_[a], cols_[c]);
+      wh(a, c) = Hs(a, c) * r_inv_[rows_[a]];  // R^-1 H
+    }
+}
+
+double ConsistencyCheck::shift_to_fit(const double* x, const double* P, const double* u,
+                                      double dt) {
+  const int nx = s_.nx, nz = s_.nz, dof = static_cast<int>(rows_.size());
+  evaluate(measurement_, x, u, dt, Hr_.data());  // H and r at this estimate
+  ConstRowMap Pm(P, nx, nx);
+  const double* r = Hr_.data() + nz * nx;
+  RowMatrix Hs, wh;
+  weighted_jacobian(Hs, wh);
+  const int nc = static_cast<int>(cols_.size());
+  shift_dof_ = std::min(nc, dof);
+  if (nc == 0) return 0.0;
+  RowMatrix Pc(nc, nc);
+  Eigen::VectorXd wr(dof);
+  for (int a = 0; a < dof; ++a) wr[a] = r[rows_[a]] * r_inv_[rows_[a]];  // R^-1 r
+  for (int i = 0; i < nc; ++i)
+    for (int j = 0; j < nc; ++j) Pc(i, j) = Pm(cols_[i], cols_[j]);
+  // the weighted least-squares shift that fits the readings: (H^T R^-1 H)^+ H^T R^-1 r
+  const Eigen::VectorXd d = pinv_symmetric(Hs.transpose() * wh, s_.rcond) * (Hs.transpose() * wr);
+  return d.dot(pinv_symmetric(Pc, s_.rcond) * d);
 }
 
 double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, double dt,
@@ -181,24 +235,11 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   if (nr == 0) return;
   set_readings(z, mask);
   evaluate(measurement_, x, zeros_u_.data(), 0.0, Hr_.data());
-  ConstRowMap H(Hr_.data(), nz, nx);
-  cols_.clear();  // the states the readings depend on
-  for (int c = 0; c < nx; ++c)
-    for (int i : rows_)
-      if (H(i, c) != 0.0) {
-        cols_.push_back(c);
-        break;
-      }
+  RowMatrix Hs, wh;
+  weighted_jacobian(Hs, wh);
   const int nc = static_cast<int>(cols_.size());
-  RowMatrix Hs(nr, nc), wh(nr, nc);
   Eigen::VectorXd b(nr);
-  for (int a = 0; a < nr; ++a) {
-    b[a] = bias[rows_[a]];
-    for (int c = 0; c < nc; ++c) {
-      Hs(a, c) = H(rows_[a], cols_[c]);
-      wh(a, c) = Hs(a, c) * r_inv_[rows_[a]];  // R^-1 H
-    }
-  }
+  for (int a = 0; a < nr; ++a) b[a] = bias[rows_[a]];
   const RowMatrix A = pinv_symmetric(Hs.transpose() * wh, s_.rcond) * wh.transpose();
   const RowMatrix C = A * b.asDiagonal() * A.transpose();
   for (int i = 0; i < nc; ++i)

@@ -1,8 +1,9 @@
 // The consistency check of an estimator's estimates with its readings, every sample
 // (continuum_mhe.estimators.consistency, whose module doc states the tests): the
 // prediction of the previous estimate, the NIS of this reading against it, the fit of
-// this reading to this estimate, the exponential average of NIS / dof and the model
-// error it shows, and the estimate's covariance from the readings' constant errors.
+// this reading to this estimate and the NIS of the innovation that fit implies, the
+// exponential average of NIS / dof and the model error it shows, and the estimate's
+// covariance from the readings' constant errors.
 //
 // Matrices are row-major (numpy's C order). The model comes as three functions of the
 // node's inputs ``(x, u, dt, z, m)`` (continuum_mhe.estimators.fast.codegen.
@@ -35,9 +36,13 @@ struct ConsistencySettings {
   std::vector<double> limit;      // a reading beyond it is inconsistent on its own
   std::vector<double> run_limit;  // two readings in a row beyond it are inconsistent
   std::vector<double> avg_limit;  // the average of NIS / dof beyond it is inconsistent
+  // nx + 1, by the shift's degrees of freedom: a fit not explained by a linear update
+  // whose shift to the readings' own shape is beyond it is inconsistent
+  std::vector<double> shift_limit;
   std::vector<double> bias;       // nz: the readings' constant-error variances (B's diagonal)
   std::vector<double> gravity_r;  // nz: R's diagonal on the gravity directions, 0 elsewhere
   int memory;                     // samples the average of NIS / dof remembers
+  int quiet_memory;               // samples the average while no model error shows remembers
   double rcond;                   // the pseudo-inverse's relative eigenvalue cut-off
 };
 
@@ -46,9 +51,10 @@ class ConsistencyCheck {
   ConsistencyCheck(const ModelFunction& transition, const ModelFunction& measurement,
                    const ModelFunction& residual, ConsistencySettings settings);
 
-  // forget the previous estimate and the average (a (re)start)
+  // forget the previous estimate, the average and the model error (a new recording)
   void reset();
-  // a sample without an estimate: the next one has no previous estimate to predict
+  // a sample without an estimate, or a restart: the next one has no previous estimate
+  // to predict (the average and the model error stay)
   void forget() { has_prev_ = false; }
   // Whether this sample's estimate ``x`` (nx), ``P`` (nx x nx) disagrees with its
   // readings ``z``, ``mask`` (nz); remembers the estimate for the next sample. ``u``
@@ -69,11 +75,21 @@ class ConsistencyCheck {
 
   const ConsistencySettings& settings() const { return s_; }
   double noise_scale() const { return noise_scale_; }
+  // the slower average of NIS / dof over the samples while no model error showed (1
+  // before any): the level a model error that showed must fall back to
+  double quiet_scale() const { return quiet_scale_; }
   double model_error() const { return model_error_; }
   // the model error carried from here on (the largest since a (re)start is kept); >= 0
   void set_model_error(double value);
   double nis() const { return nis_; }  // this sample's NIS (0 when not computed)
   double fit() const { return fit_; }  // this sample's fit (0 when not judged)
+  // the NIS of the innovation this sample's fit implies, ``(R^-1 r)^T S (R^-1 r)`` with
+  // ``S`` the predicted innovation covariance (0 without a previous estimate)
+  double fit_nis() const { return fit_nis_; }
+  // the shift that fits the readings, in this estimate's covariance: ``d^T P^+ d`` with
+  // ``d = (H^T R^-1 H)^+ H^T R^-1 r`` over the states the readings depend on; computed
+  // only where the fit's NIS is beyond its limit (else 0)
+  double shift() const { return shift_; }
   int dof() const { return dof_; }     // this sample's judged readings
   bool has_previous() const { return has_prev_; }
 
@@ -82,6 +98,11 @@ class ConsistencyCheck {
   void evaluate(const ModelFunction& fn, const double* x, const double* u, double dt,
                 double* out);
   void set_readings(const double* z, const double* mask);
+  // the states the readings rows_ depend on (into cols_), and H (in Hr_) and R^-1 H
+  // over those readings and states
+  void weighted_jacobian(RowMatrix& Hs, RowMatrix& wh);
+  // shift() at this estimate ``x``, ``P`` over the judged readings (rows_)
+  double shift_to_fit(const double* x, const double* P, const double* u, double dt);
 
   const ModelFunction &transition_, &measurement_, &residual_;
   ConsistencySettings s_;
@@ -92,8 +113,9 @@ class ConsistencyCheck {
   std::vector<double> x0_, P0_;
   double t0_ = 0.0;
   bool has_prev_ = false;
-  double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0;
-  int avg_dof_ = 0, dof_ = 0;
+  double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
+  double shift_ = 0.0, quiet_scale_ = 1.0;
+  int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;
   bool high_ = false, persists_ = false;
 };
 

@@ -115,12 +115,15 @@ void SensorHealth::reset(bool keep_counts) {
   std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
   returned_.clear();
   hold_ = 0.0;
+  consistency_.reset();
   restart();
 }
 
 void SensorHealth::restart() {
   start_clear();
-  consistency_.reset();
+  // the previous estimate only: the average, its run and the model error learned are
+  // the robot's, and a restart does not make the model follow
+  consistency_.forget();
   cons_has_prev_ = false;
   rejecting_since_.reset();
   inference_.restart();

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.results import Measurement
 from continuum_mhe.settings import MHESettings, NoiseSettings
 from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
@@ -46,18 +47,51 @@ def test_after_one_upside_down_reading_no_row_far_off_is_ok(method) -> None:
     assert np.mean(series.status[100:] == "ok") > 0.9
 
 
-def test_ekf_rows_many_standard_deviations_off_at_1_hz_are_not_ok() -> None:
-    """Sampled at 1 Hz the bend moves far between readings and the EKF's linearisation
-    falls behind: without the checks 49 ``ok`` rows were 4 to 25 of their own standard
-    deviations off, and with the consistency check alone 3 rows 4.0 to 5.8; with the
-    readings' constant errors in the std none is more than 5 (one row at 4.7 remains
-    ``ok``)."""
-    rec = simulate("paper3d", duration=120.0, dt=1.0, seed=1)
-    series = make_estimator("ekf", make_formulation("bend", Robot.single(0.2))).run(rec.t, rec.z)
-    off = np.abs(series.output[:, :3] - rec.truth[:, :3]) / series.std[:, :3]
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rows_many_standard_deviations_off_at_1_hz_are_not_ok(method, seed) -> None:
+    """Sampled at 1 Hz the bend moves far between readings and the EKF's one
+    linearisation falls behind: its update leaves a residual that no linear update
+    leaves, pointing to a shape outside its covariance. Without the checks 49 ``ok``
+    rows were 4 to 25 of their own standard deviations off; with the tests on the
+    innovation and the fit alone, 1 to 5 rows per recording 4 to 6.8 off. No ``ok`` row
+    is 4 off in x or y now, on any estimator; the MHE, which fits its window, keeps
+    every row ``ok``. (The linearised ``std_z`` of a nearly straight robot is near zero,
+    as its tip's ``z`` moves to second order: one EKF row at 0.04 rad of bend is 0.1 mm
+    and 5.6 of its ``std_z`` off in z.)"""
+    rec = simulate("paper3d", duration=120.0, dt=1.0, seed=seed)
+    f = make_formulation("bend", Robot.single(0.2))
+    series = make_estimator(method, f).run(rec.t, rec.z)
+    off = np.abs(series.output[:, :2] - rec.truth[:, :2]) / series.std[:, :2]
     ok = series.status == "ok"
-    assert not np.any(ok & (off.max(axis=1) > 5.0))
-    assert np.sum(ok & (off.max(axis=1) > 4.0)) <= 1
+    assert not np.any(ok & (off.max(axis=1) >= 4.0)), off[ok].max(axis=0)
+    if method == "mhe":
+        assert ok.all()
+
+
+def test_a_restart_keeps_the_model_error_the_readings_showed() -> None:
+    """Noise three times the assumed one: the innovations' average shows it, the rows
+    are ``inconsistent`` and the standard deviations carry the model error. A gap that
+    restarts the estimator does not make the model right: after it the learned model
+    error and the ``inconsistent`` rows remain (they were forgotten, and the rows after
+    the gap said ``ok`` with the noise-only standard deviations)."""
+    from continuum_mhe.settings import RecoverySettings
+
+    rec = simulate("paper3d", duration=10.0, seed=2, noise_deg=6.0, noise_model="tangent")
+    keep = (rec.t < 5.0) | (rec.t > 6.5)  # a 1.5 s gap: the gap reset restarts at 6.5 s
+    f = make_formulation("bend", Robot.single(0.2))
+    est = make_estimator("ekf", f, recovery=RecoverySettings(gap_reset=1.0))
+    est.reset()
+    before = after = None
+    for t, z in zip(rec.t[keep], rec.z[keep], strict=True):
+        e = est.step(Measurement(float(t), z))
+        if t < 5.0:
+            before = est._consistency.model_error
+        elif e.status != "reset" and after is None:
+            after = (est._consistency.model_error, e.status)
+    assert est.diagnostics.gap_resets == 1
+    assert before is not None and before > 1.0
+    assert after is not None and after[0] >= before and after[1] == "inconsistent"
 
 
 def _recording(
@@ -151,6 +185,32 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod(name) -> None:
     assert ok.mean() > 0.9
     covered = np.abs(series.output[ok, :3] - truth[ok]) <= 1.96 * series.std[ok, :3]
     assert np.all(covered.mean(axis=0) >= COVERAGE[0]), covered.mean(axis=0)
+
+
+def test_ok_rows_cover_the_truth_over_the_rods_with_the_command_line_defaults(tmp_path) -> None:
+    """The four shipped two-section rod recordings (raw IMUs; one that the model follows,
+    three that twist), estimated by ``continuum-mhe estimate --method ekf`` with its
+    defaults, whose bad-start check restarts the estimator where the readings disagree:
+    pooled, the ``ok`` rows' 95 % intervals cover the truth 85 to 99 % of the time per
+    axis. Before, each restart forgot the model error the readings had shown and rows
+    were ``ok`` again at once (coverage 91 / 86 / 81 %)."""
+    from continuum_mhe.cli import main
+    from continuum_mhe.io.csv_files import read_state_table
+    from continuum_mhe.simulation.cosserat import default_data_path
+
+    folder = default_data_path().parent / "rod2"
+    covered = []
+    for name in ["planar-s", "spatial-tendon", "spatial-stiff-torsion", "spatial"]:
+        out = tmp_path / f"{name}.csv"
+        argv = ["estimate", str(folder / f"{name}_raw.csv"), "--robot", "two-section"]
+        assert main([*argv, "--method", "ekf", "-o", str(out)]) == 0
+        est = read_state_table(out)
+        truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
+        ok = est.status == "ok"
+        assert est.std is not None
+        covered.append(np.abs(est.values[ok, :3] - truth[ok]) <= 1.96 * est.std[ok, :3])
+    coverage = np.concatenate(covered).mean(axis=0)
+    assert np.all(coverage >= COVERAGE[0]) and np.all(coverage <= COVERAGE[1]), coverage
 
 
 @pytest.mark.parametrize("name", ["force-29", "force-08"])
@@ -266,12 +326,19 @@ def _formulation(name: str):
 def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> None:
     """On random consistent samples (two sections tilt, two raw IMUs with gyro bias, the
     paper formulation with its inputs from the readings), the compiled check's fit,
-    NIS, average and constant-error covariance against numpy on the formulation's own
-    CasADi functions: ``x+, F, Q = predict(x0, u, dt)``, ``r, dr/dx = innovate(z, x)``,
+    NIS, average, the fit's implied NIS and shift, and constant-error covariance
+    against numpy on the formulation's own CasADi functions:
+    ``x+, F, Q = predict(x0, u, dt)``, ``r, dr/dx = innovate(z, x)``,
     ``S = H P+ H^T + R`` over the valid readings, ``A = pinv(H^T R^-1 H) H^T R^-1`` on
     the states the readings depend on. A reading 30 standard deviations off is
     ``inconsistent``."""
-    from continuum_mhe.estimators.consistency import MEMORY, ConsistencyCheck
+    from continuum_mhe.estimators.chi2 import chi2_quantile
+    from continuum_mhe.estimators.consistency import (
+        MEMORY,
+        SAMPLE_QUANTILE,
+        SHIFT_QUANTILE,
+        ConsistencyCheck,
+    )
 
     f = _formulation(name)
     check = ConsistencyCheck(f)
@@ -296,10 +363,10 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
         mask = f.measurement_mask(z)
         rows = np.flatnonzero(mask)
         t += dt
-        assert not check.check(t, z, mask, x, P)
+        flagged = check.check(t, z, mask, x, P)
         (x_prev, P_prev, z_prev), (x0, P0, z0) = (x0, P0, z0), (x, P, z)
         if len(rows) == 0:  # nothing judged: only remembered
-            assert check._core.dof == 0 and check._core.nis == 0.0
+            assert check._core.dof == 0 and check._core.nis == 0.0 and not flagged
             continue
         u = np.asarray(f.inputs(z_prev, z, dt), dtype=float) if f.nu else np.zeros(0)
         xn, F, Q = (np.asarray(v, dtype=float) for v in f.functions.predict(x_prev, u, dt))
@@ -313,6 +380,21 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
         assert check._core.fit == pytest.approx(np.sum(r[rows] ** 2 / np.diag(R)[rows]), rel=1e-9)
         expected_scale += (nis / len(rows) - expected_scale) / MEMORY
         assert check.noise_scale == pytest.approx(expected_scale, rel=1e-9)
+        # the innovation the fit implies, and the shift that fits the readings, in P
+        w = r[rows] / np.diag(R)[rows]
+        fit_nis = w @ S @ w
+        assert check._core.fit_nis == pytest.approx(fit_nis, rel=1e-9)
+        unexplained = False
+        if fit_nis > chi2_quantile(SAMPLE_QUANTILE, len(rows)):
+            _, Hx = innovate(z, x)
+            cols = np.flatnonzero(np.any(Hx[rows] != 0, axis=0))
+            Hs, Wr = Hx[np.ix_(rows, cols)], np.diag(1 / np.diag(R)[rows])
+            d = np.linalg.pinv(Hs.T @ Wr @ Hs, rcond=1e-9, hermitian=True) @ Hs.T @ Wr @ r[rows]
+            Pc = np.linalg.pinv(P[np.ix_(cols, cols)], rcond=1e-9, hermitian=True)
+            assert check._core.shift == pytest.approx(d @ Pc @ d, rel=1e-6)
+            k = min(len(cols), len(rows))
+            unexplained = d @ Pc @ d > chi2_quantile(SHIFT_QUANTILE, k)
+        assert flagged == unexplained  # the samples agree with the states otherwise
 
     check.model_error = 0.3
     bias = np.diag(f.reading_bias_cov()) + 0.3 * np.where(

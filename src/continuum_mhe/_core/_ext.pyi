@@ -244,13 +244,13 @@ class ConsistencyCheck:
     The consistency of one estimator's estimates with its readings, every sample (continuum_mhe.estimators.consistency). Matrices row-major.
     """
 
-    def __init__(self, transition: ModelFunction, measurement: ModelFunction, residual: ModelFunction, nx: int, nu: int, nz: int, R: Sequence[float], judged: Sequence[float], limit: Sequence[float], run_limit: Sequence[float], avg_limit: Sequence[float], bias: Sequence[float], gravity_r: Sequence[float], memory: int, rcond: float) -> None:
+    def __init__(self, transition: ModelFunction, measurement: ModelFunction, residual: ModelFunction, nx: int, nu: int, nz: int, R: Sequence[float], judged: Sequence[float], limit: Sequence[float], run_limit: Sequence[float], avg_limit: Sequence[float], shift_limit: Sequence[float], bias: Sequence[float], gravity_r: Sequence[float], memory: int, quiet_memory: int, rcond: float) -> None:
         """
-        Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, ``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``rcond``: the pseudo-inverse's cut-off.
+        Functions of ``(x, u, dt, z, m)``: ``transition -> (f, F = df/dx)``, ``measurement -> (H = -dr/dx, r)``, ``residual -> r``; ``R`` (nz x nz, row-major); ``judged`` (nz): 1 for a reading, 0 for a pseudo-measurement; ``limit``, ``run_limit``, ``avg_limit`` (nz + 1): the chi-square limits by the number of judged readings; ``shift_limit`` (nx + 1): the chi-square limits of the shift to the readings' shape by its degrees of freedom; ``bias`` (nz): the readings' constant-error variances; ``gravity_r`` (nz): R's diagonal on the gravity directions, else 0; ``memory``: samples the average remembers; ``quiet_memory``: samples the average while no model error shows remembers; ``rcond``: the pseudo-inverse's cut-off.
         """
 
     def reset(self) -> None:
-        """Forget the previous estimate and the average."""
+        """Forget the previous estimate, the average and the model error."""
 
     def forget(self) -> None:
         """A sample without an estimate: forget the previous estimate."""
@@ -270,9 +270,15 @@ class ConsistencyCheck:
         """The exponentially weighted mean of NIS / dof (1 before any)."""
 
     @property
+    def quiet_scale(self) -> float:
+        """
+        The slower mean of NIS / dof while no model error showed (1 before any): the level a model error that showed must fall back to.
+        """
+
+    @property
     def model_error(self) -> float:
         """
-        The largest noise_scale - 1 beyond its limit since the (re)start, in units of R (settable: a model error known beforehand).
+        The largest noise_scale - 1 beyond its limit since the reset, in units of R (settable: a model error known beforehand).
         """
 
     @model_error.setter
@@ -289,6 +295,18 @@ class ConsistencyCheck:
     @property
     def fit(self) -> float:
         """The last sample's fit (0 if not judged)."""
+
+    @property
+    def fit_nis(self) -> float:
+        """
+        The NIS of the innovation the last sample's fit implies, (R^-1 r)^T S (R^-1 r) (0 without a previous estimate).
+        """
+
+    @property
+    def shift(self) -> float:
+        """
+        The shift that fits the last sample's readings in its covariance, d^T P^+ d (computed only where fit_nis is beyond its limit, else 0).
+        """
 
     @property
     def dof(self) -> int:

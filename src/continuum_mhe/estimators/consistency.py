@@ -20,7 +20,19 @@ deviations off, and says nothing about the readings:
 
 Either beyond the ``SAMPLE_QUANTILE`` (99.99 %) chi-square quantile, or beyond the
 ``RUN_QUANTILE`` (99 %) at this reading and the one before, marks this sample
-``inconsistent`` (on data that agree with the model about 2 rows in 10,000). Model
+``inconsistent`` (on data that agree with the model about 2 rows in 10,000).
+
+An update that is not a linear one is tested too: a linear model's exact update leaves
+the residual ``r = R S^-1 nu`` (``S = H P+ H^T + R``, ``nu`` the innovation), so the fit
+implies the innovation ``S R^-1 r``, whose NIS ``(R^-1 r)^T S (R^-1 r)`` is the NIS
+itself for a linear model. Where it is beyond the ``SAMPLE_QUANTILE`` quantile the
+estimate left more of the reading unexplained than an update could (a filter's one
+linearisation across a large step, sampled at 1 Hz); the sample is ``inconsistent``
+when, in addition, the shift that fits the readings, ``d = (H^T R^-1 H)^+ H^T R^-1 r``
+over the states they depend on, lies outside the estimate's own covariance:
+``d^T P^+ d`` beyond the ``SHIFT_QUANTILE`` (95 %) quantile of as many degrees of
+freedom (an unscented filter that left the reading unexplained with a covariance that
+says so is not). Model
 error that no single reading shows is caught by the average (of the readings not
 flagged on their own):
 an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
@@ -30,18 +42,26 @@ quantile of its own distribution (a chi-square of ``dof * (2 MEMORY - 1)`` degre
 freedom, scaled) the sample is ``inconsistent`` too, and every output standard
 deviation is widened by ``sqrt(noise_scale)`` where it exceeds 1 (the covariances are
 scaled as the noise is). Once beyond that quantile, the samples stay ``inconsistent``
-until the average is back at 1, what the noise model predicts (a model error does not
-end when the average merely drops below the quantile).
+until the average is back at the level the readings scattered at while the model
+followed them (a slower average over about ``QUIET_MEMORY`` samples, starting at 1, and
+never above 1): a model error does not end when the average merely drops below the
+quantile, nor when it drops below 1 on readings less noisy than ``R`` says.
+
+What the check learned is the robot's: an estimator's restart within a recording (a
+gap, a bad start, a divergence) forgets only the previous estimate
+(:meth:`ConsistencyCheck.restart`); the averages, the ``inconsistent`` run and the
+model error stay, and only a new recording (:meth:`ConsistencyCheck.reset`) starts
+them again.
 
 A model error the readings showed does not go away when their residuals quieten: with
 one IMU per section the gravity directions determine the shape exactly, so a shape the
 model gets wrong (a curvature that is not constant, a twist) leaves no residual at all
 most of the time, and shows only while the robot moves in a way the model cannot
 follow. The excess the average showed at such a detection, ``noise_scale - 1`` in
-units of ``R``, is :attr:`ConsistencyCheck.model_error`: the largest since the
-(re)start, carried as a constant error of the gravity-direction readings (below), not
-as white noise (a slowly varying model error is not averaged away by the filter or the
-window).
+units of ``R``, is :attr:`ConsistencyCheck.model_error`: the largest of the
+recording (the estimator's restarts keep it), carried as a constant error of the
+gravity-direction readings (below), not as white noise (a slowly varying model error is
+not averaged away by the filter or the window).
 
 Some error no residual shows: a constant error in every reading of an IMU (its
 mounting misalignment, its accelerometer's bias) looks like a different shape.
@@ -93,8 +113,14 @@ QUANTILE = 0.999
 SAMPLE_QUANTILE = 0.9999
 #: Chi-square quantile beyond which two readings in a row are inconsistent.
 RUN_QUANTILE = 0.99
+#: Chi-square quantile beyond which the shift that fits the readings is outside the
+#: estimate's covariance (tested only where the fit is not a linear update's).
+SHIFT_QUANTILE = 0.95
 #: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
 MEMORY = 20
+#: Samples the average of ``NIS / dof`` while no model error shows remembers (the
+#: level the readings scatter at while the model follows them).
+QUIET_MEMORY = 5 * MEMORY
 #: Eigenvalues of ``H^T R^-1 H`` at most this times the largest are taken as zero in
 #: its pseudo-inverse (:meth:`ConsistencyCheck.constant_error_cov`).
 PINV_RCOND = 1e-9
@@ -130,9 +156,11 @@ class ConsistencyCheck:
             limit=_limits(lambda k: chi2_quantile(SAMPLE_QUANTILE, k), nz),
             run_limit=_limits(lambda k: chi2_quantile(RUN_QUANTILE, k), nz),
             avg_limit=_limits(lambda k: chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg), nz),
+            shift_limit=_limits(lambda k: chi2_quantile(SHIFT_QUANTILE, k), f.nx),
             bias=np.diag(np.asarray(f.reading_bias_cov(), dtype=float)).tolist(),
             gravity_r=gravity_r.tolist(),
             memory=MEMORY,
+            quiet_memory=QUIET_MEMORY,
             rcond=PINV_RCOND,
         )
         self._q = ProcessNoiseCache(formulation)
@@ -144,8 +172,16 @@ class ConsistencyCheck:
         return self._core
 
     def reset(self) -> None:
-        """Forget the previous estimate and the average (a (re)start)."""
+        """Forget the previous estimate, the average and the model error (a new
+        recording)."""
         self._core.reset()
+        self._prev = None
+
+    def restart(self) -> None:
+        """Forget the previous estimate only (the estimator restarts within a
+        recording): the average, whether it is beyond its quantile and the model error
+        learned are the robot's, and stay."""
+        self._core.forget()
         self._prev = None
 
     @property
@@ -156,7 +192,7 @@ class ConsistencyCheck:
     @property
     def model_error(self) -> float:
         """The model error the average showed (module doc): the largest
-        ``noise_scale - 1`` beyond its quantile since the (re)start, in units of ``R``."""
+        ``noise_scale - 1`` beyond its quantile in the recording, in units of ``R``."""
         return self._core.model_error
 
     @model_error.setter
@@ -241,7 +277,7 @@ def model_tapes(
     )
 
 
-def _limits(limit: Callable[[int], float], nz: int) -> list[float]:
-    """``[inf, limit(1), ..., limit(nz)]``: a chi-square limit by the number of judged
-    readings (none: never beyond)."""
-    return [math.inf] + [limit(k) for k in range(1, nz + 1)]
+def _limits(limit: Callable[[int], float], n: int) -> list[float]:
+    """``[inf, limit(1), ..., limit(n)]``: a chi-square limit by the degrees of freedom
+    (the judged readings, or the states of a shift; none: never beyond)."""
+    return [math.inf] + [limit(k) for k in range(1, n + 1)]
