@@ -129,7 +129,7 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       // linear model leaves r = R S^-1 nu), and its NIS: (R^-1 r)^T S (R^-1 r)
       Eigen::VectorXd w(dof);
       for (int a = 0; a < dof; ++a) w[a] = r_[rows_[a]] * r_inv_[rows_[a]];
-      fit_nis_ = w.dot(S * w);
+      fit_nis_ = w.dot(S_ * w);
       // an update that was not a linear one: is the shift to the readings' own shape
       // within this estimate's covariance?
       if (fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
@@ -209,16 +209,17 @@ double ConsistencyCheck::predicted_nis(const double* x0, const double* P0, doubl
   ConstRowMap H(Hr_.data(), nz, nx);
   const double* r_pred = Hr_.data() + nz * nx;
   const RowMatrix Pn = F * P * F.transpose() + Qm;
-  RowMatrix Hj(dof, nx), S(dof, dof);
+  RowMatrix Hj(dof, nx);
   Eigen::VectorXd rp(dof);
   for (int a = 0; a < dof; ++a) {
     Hj.row(a) = H.row(rows[a]);
     rp[a] = r_pred[rows[a]];
   }
-  S.noalias() = Hj * Pn * Hj.transpose();
+  S_.resize(dof, dof);
+  S_.noalias() = Hj * Pn * Hj.transpose();
   for (int a = 0; a < dof; ++a)
-    for (int b = 0; b < dof; ++b) S(a, b) += s_.R[rows[a] * nz + rows[b]];
-  return rp.dot(S.partialPivLu().solve(rp));
+    for (int b = 0; b < dof; ++b) S_(a, b) += s_.R[rows[a] * nz + rows[b]];
+  return rp.dot(S_.partialPivLu().solve(rp));
 }
 
 void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, const double* x,

@@ -65,7 +65,8 @@ class ConsistencyCheck {
   // The NIS of the readings ``z`` in ``rows`` (``mask`` > 0 on each) against the estimate
   // ``x0`` (nx), ``P0`` (nx x nx) predicted over ``dt`` s with inputs ``u`` (nu) and
   // process noise ``Q`` (nx x nx): ``r^T (H P+ H^T + R)^-1 r`` at ``x+ = f(x0, u, dt)``,
-  // ``P+ = F P0 F^T + Q``; ``rows`` not empty
+  // ``P+ = F P0 F^T + Q``; ``rows`` not empty. The innovation covariance over ``rows``
+  // stays in ``S_`` until the next call
   double predicted_nis(const double* x0, const double* P0, double dt, const double* z,
                        const double* mask, const double* u, const double* Q,
                        const std::vector<int>& rows);
@@ -111,6 +112,7 @@ class ConsistencyCheck {
   std::vector<double> fF_, Hr_, r_;  // the transition's, measurement's, residual's outputs
   std::vector<int> rows_, cols_;
   std::vector<double> x0_, P0_;
+  RowMatrix S_;  // the last predicted_nis's innovation covariance (its rows)
   double t0_ = 0.0;
   bool has_prev_ = false;
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
