@@ -12,7 +12,7 @@ e.g. ``--set force_accel_psd=0.1``).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
         [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N]
-        [--no-gyro-bias] [--floor-only]
+        [--no-gyro-bias] [--floor-only] [--errors CSV]
 """
 
 from __future__ import annotations
