@@ -32,6 +32,7 @@ from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError, declared_fields
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+from continuum_mhe.results import Status
 from continuum_mhe.stream.protocol import GarbledLine, header_fields, parse_line
 
 REPRO = Path(__file__).parent / "data" / "repro"
@@ -369,13 +370,20 @@ def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
 ) -> None:
     """'no sample gave an estimate (...; every sample is a dropout)' when the robust loss
     had rejected every sample, none a dropout."""
-    from continuum_mhe.estimators.base import Estimate
-    from continuum_mhe.estimators.sensor_health import Estimator
+    from continuum_mhe.estimators.sensor_health import STATUSES, Batch, Estimator
 
-    def rejected(self: Estimator, m: Measurement) -> Estimate:
-        return Estimate(m.t, None, None, None, "no-estimate", 0.0, outlier=True)
+    def rejected(self: Estimator, t: np.ndarray, z: np.ndarray, *args: object) -> Batch:
+        n, ny = len(t), self.formulation.ny
+        return Batch(
+            status=np.full(n, STATUSES.index(Status.NO_ESTIMATE), dtype=np.int32),
+            solve_ms=np.zeros(n),
+            outlier=np.ones(n, dtype=np.bool_),
+            frozen=np.zeros(n, dtype=np.bool_),
+            output=np.full((n, ny), np.nan),
+            output_std=np.full((n, ny), np.nan),
+        )
 
-    monkeypatch.setattr(Estimator, "step", rejected)
+    monkeypatch.setattr(Estimator, "continue_run", rejected)
     out = tmp_path / "e.csv"
     path = REPRO / "gimbal_flip.csv"
     argv = ["estimate", str(path), "-o", str(out), "--solver", "ipopt", "--loss", "huber"]
