@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import continuum_mhe.io.csv_files as csv_files
+import continuum_mhe.io.estimate_sink as estimate_sink
 from continuum_mhe import MHESettings, RobotSettings, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.estimators.window_nlp import objective_scale_exponent
@@ -110,10 +111,10 @@ def test_read_only_folder_names_the_output(tmp_path, capsys, monkeypatch) -> Non
 def test_disk_full_names_the_output(tmp_path, capsys, monkeypatch) -> None:
     meas = _meas(tmp_path)
 
-    def full(v: float) -> str:
+    def full(*args: object) -> str:
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(csv_files, "_fmt", full)
+    monkeypatch.setattr(estimate_sink, "estimate_lines", full)
     capsys.readouterr()
     out = tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(out), "--method", "ekf"]) == 2

@@ -263,20 +263,21 @@ def test_an_interrupted_estimate_keeps_its_rows_marked_partial(
     assert main(["simulate", "paper3d", "--duration", "2", "-o", str(meas)]) == 0
     real = estimate_command.make_estimator
 
-    def interrupted_at_sample_15(*args, **kwargs):
+    def interrupted_in_block_3(*args, **kwargs):
         est = real(*args, **kwargs)
-        step, calls = est.step, []
+        run, calls = est.continue_run, []
 
-        def step_then_interrupt(m):
+        def run_then_interrupt(t, z, *more, **options):
             calls.append(1)
-            if len(calls) == 15:
+            if len(calls) == 3:  # after two blocks of 7 samples
                 raise KeyboardInterrupt
-            return step(m)
+            return run(t, z, *more, **options)
 
-        est.step = step_then_interrupt
+        est.continue_run = run_then_interrupt
         return est
 
-    monkeypatch.setattr(estimate_command, "make_estimator", interrupted_at_sample_15)
+    monkeypatch.setattr(estimate_command, "BLOCK", 7)
+    monkeypatch.setattr(estimate_command, "make_estimator", interrupted_in_block_3)
     out = tmp_path / "e.csv"
     capsys.readouterr()
     assert main(["estimate", str(meas), "--method", "ekf", "-o", str(out)]) == 130

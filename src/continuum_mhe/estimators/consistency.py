@@ -114,7 +114,8 @@ SAMPLE_QUANTILE = 0.9999
 #: Chi-square quantile beyond which two readings in a row are inconsistent.
 RUN_QUANTILE = 0.99
 #: Chi-square quantile beyond which the shift that fits the readings is outside the
-#: estimate's covariance (tested only where the fit is not a linear update's).
+#: estimate's covariance (tested only where the fit is not a linear update's, and only
+#: for models without pseudo-measurements).
 SHIFT_QUANTILE = 0.95
 #: Samples the average of ``NIS / dof`` remembers (its exponential weight is 1/MEMORY).
 MEMORY = 20
@@ -143,6 +144,14 @@ class ConsistencyCheck:
         )
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
+        # the shift test reads the update as a linear one of the judged rows alone
+        # (``r = R S^-1 nu``); pseudo-measurements pull the update too, so it is off
+        # for a model that has them
+        shift_limit = (
+            _limits(lambda k: chi2_quantile(SHIFT_QUANTILE, k), f.nx)
+            if judged.all()
+            else [math.inf] * (f.nx + 1)
+        )
         transition, measurement, residual = model_tapes(f)
         self._core = _core.ConsistencyCheck(
             transition,
@@ -156,7 +165,7 @@ class ConsistencyCheck:
             limit=_limits(lambda k: chi2_quantile(SAMPLE_QUANTILE, k), nz),
             run_limit=_limits(lambda k: chi2_quantile(RUN_QUANTILE, k), nz),
             avg_limit=_limits(lambda k: chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg), nz),
-            shift_limit=_limits(lambda k: chi2_quantile(SHIFT_QUANTILE, k), f.nx),
+            shift_limit=shift_limit,
             bias=np.diag(np.asarray(f.reading_bias_cov(), dtype=float)).tolist(),
             gravity_r=gravity_r.tolist(),
             memory=MEMORY,

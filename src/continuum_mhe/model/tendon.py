@@ -113,11 +113,11 @@ GRAVITY = 9.80665
 #: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
 #: to settle the directions the IMUs do not see, far too faint to move the others.
 START_PRIOR_WEIGHT = 1e-3
-#: The start's most residual evaluations: on a nearly straight rod the axial tip force
-#: barely moves the IMUs and the fit would wander along it for hundreds of evaluations;
-#: it stops there, and the estimator's first update (with the prior of
-#: :meth:`TendonFormulation.initial_cov`) takes it on.
-START_EVALUATIONS = 100
+#: The start's most residual evaluations. On a nearly straight rod the axial tip force
+#: barely moves the IMUs and the fit takes a few hundred evaluations; a start cut short
+#: leaves a force error that the IMUs' misalignment and bias states then absorb, and
+#: the filter follows the wrong shape for many samples.
+START_EVALUATIONS = 600
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
