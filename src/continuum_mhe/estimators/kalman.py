@@ -62,12 +62,23 @@ def ekf_update(
     textbook EKF (with wrapped angles). ``mask`` (nz,) selects the valid components
     (:meth:`Formulation.measurement_mask`); masked ones are left out.
     """
-    rows = valid_rows(mask, len(z))
     zf = np.where(np.isfinite(z), z, 0.0)
     r, Jr = (np.asarray(v, dtype=float) for v in formulation.functions.innovate(zf, x))
-    H = -Jr.reshape(len(z), len(x))[rows]
-    r = r.ravel()[rows]
-    R = R[np.ix_(rows, rows)]
+    return joseph_update(x, P, r.ravel(), -Jr.reshape(len(z), len(x)), R, mask)
+
+
+def joseph_update(
+    x: FloatArray,
+    P: FloatArray,
+    r: FloatArray,
+    H: FloatArray,
+    R: FloatArray,
+    mask: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The EKF's measurement update, Joseph form, with the innovation ``r`` (nz,) and
+    ``H = -dr/dx`` (nz, nx) at ``x``; ``mask`` (nz,) selects the valid components."""
+    rows = valid_rows(mask, len(r))
+    H, r, R = H[rows], r[rows], R[np.ix_(rows, rows)]
     S = H @ P @ H.T + R
     K = np.linalg.solve(S, H @ P).T
     ikh = np.eye(len(x)) - K @ H
@@ -152,6 +163,15 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         #: (state, outputs, output std, covariance) of the last compiled call
         self._outputs_of: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
         super().__init__(formulation)
+
+    def _update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The first sample's update (later ones run inside the compiled step): the
+        equations of :func:`ekf_update` on the compiled node's residual and Jacobian."""
+        zf = np.where(np.isfinite(z), z, 0.0)
+        _, _, H, r = self._node.evaluate(x, np.zeros(self.formulation.nu), 0.0, zf)
+        return joseph_update(x, P, r, H, self._R, mask)
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._x is None or self._P is None:

@@ -260,8 +260,7 @@ def warm_up(estimator: Estimator, steps: int = 40, period_s: float = 0.01) -> No
     a fresh one's by up to 2e-8, enough to break the sample-for-sample replay of a
     recording."""
     f = estimator.formulation
-    h, _ = f.functions.measure(np.zeros(f.nx))
-    z = np.asarray(h, dtype=float).reshape(-1)
+    z = np.asarray(f.functions.observe(np.zeros(f.nx)), dtype=float).reshape(-1)
     for i in range(steps):
         estimator.step(Measurement(i * period_s, z))
     estimator.reset()  # zeroes its counts too

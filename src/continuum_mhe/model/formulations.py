@@ -58,21 +58,60 @@ from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSe
 FloatArray = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
 class ModelFunctions:
-    """Numeric CasADi functions compiled from a formulation's symbolic model.
+    """Numeric CasADi functions of a formulation's symbolic model, each built on first
+    use (a model whose symbolic Jacobians are large, such as the tendon robot's, builds
+    only the functions an estimator asks for).
 
     ``predict(x, u, dt) -> (x+, F, Q)``, ``measure(x) -> (h, H)``,
     ``innovate(z, x) -> (r, dr/dx)`` (the residual the estimators weight with
-    ``R^-1``), ``output(x) -> outputs`` (see :attr:`Formulation.outputs`).
+    ``R^-1``), ``output(x) -> outputs`` (see :attr:`Formulation.outputs`),
+    ``transition(x, u, dt) -> x+`` and ``observe(x) -> h``.
     """
 
-    predict: ca.Function
-    measure: ca.Function
-    innovate: ca.Function
-    output: ca.Function
-    transition: ca.Function
-    observe: ca.Function
+    def __init__(self, formulation: Formulation) -> None:
+        self._formulation = formulation
+        f = formulation
+        self._x = ca.SX.sym("x", f.nx)
+        self._u = ca.SX.sym("u", f.nu)
+        self._dt = ca.SX.sym("dt")
+        self._z = ca.SX.sym("z", f.nz)
+
+    @cached_property
+    def _next_state(self) -> Sym:
+        return self._formulation.transition_sym(self._x, self._u, self._dt)
+
+    @cached_property
+    def _reading(self) -> Sym:
+        return self._formulation.measurement_sym(self._x)
+
+    @cached_property
+    def predict(self) -> ca.Function:
+        xn, x = self._next_state, self._x
+        q = self._formulation.process_cov_sym(self._dt)
+        return ca.Function("predict", [x, self._u, self._dt], [xn, ca.jacobian(xn, x), q])
+
+    @cached_property
+    def measure(self) -> ca.Function:
+        h, x = self._reading, self._x
+        return ca.Function("measure", [x], [h, ca.jacobian(h, x)])
+
+    @cached_property
+    def innovate(self) -> ca.Function:
+        r = self._formulation.measurement_residual_sym(self._z, self._x)
+        return ca.Function("innovate", [self._z, self._x], [r, ca.jacobian(r, self._x)])
+
+    @cached_property
+    def output(self) -> ca.Function:
+        return ca.Function("output", [self._x], [self._formulation.output_sym(self._x)])
+
+    @cached_property
+    def transition(self) -> ca.Function:
+        return ca.Function("f", [self._x, self._u, self._dt], [self._next_state])
+
+    @cached_property
+    def observe(self) -> ca.Function:
+        return ca.Function("h", [self._x], [self._reading])
 
 
 def as_robot(robot: Robot | RobotSettings | None) -> Robot:
@@ -289,23 +328,8 @@ class Formulation:
 
     @cached_property
     def functions(self) -> ModelFunctions:
-        x = ca.SX.sym("x", self.nx)
-        u = ca.SX.sym("u", self.nu)
-        dt = ca.SX.sym("dt")
-        xn = self.transition_sym(x, u, dt)
-        h = self.measurement_sym(x)
-        z = ca.SX.sym("z", self.nz)
-        r = self.measurement_residual_sym(z, x)
-        return ModelFunctions(
-            predict=ca.Function(
-                "predict", [x, u, dt], [xn, ca.jacobian(xn, x), self.process_cov_sym(dt)]
-            ),
-            measure=ca.Function("measure", [x], [h, ca.jacobian(h, x)]),
-            innovate=ca.Function("innovate", [z, x], [r, ca.jacobian(r, x)]),
-            output=ca.Function("output", [x], [self.output_sym(x)]),
-            transition=ca.Function("f", [x, u, dt], [xn]),
-            observe=ca.Function("h", [x], [h]),
-        )
+        """The model's numeric functions (each built on first use)."""
+        return ModelFunctions(self)
 
     #: Whether ``Q`` and ``R`` are noise models, so that the covariances the estimators
     #: compute from them describe the errors (the ``uncertain`` status relies on it).
