@@ -112,9 +112,10 @@ def test_not_checked_where_the_covariance_is_a_weight() -> None:
 
 # --- an IMU back after a silence --------------------------------------------------------
 TWO_SECTIONS = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
-#: ``(seed, silent IMU, from t s, for s)`` on the two-section ``spatial`` scenario. Before,
-#: after the return, ``ok`` estimates were up to (tip error / its own standard deviation):
-#: tip IMU 3 s: EKF 33 (119 mm); middle IMU 3 s: EKF 9.7, UKF 15; tip IMU 2 s: MHE 41.
+#: ``(seed, silent IMU, from t s, for s)`` on the two-section ``spatial`` scenario. Without
+#: the check of a returned IMU, ``ok`` estimates after the return were up to (tip error /
+#: its own standard deviation): tip IMU 3 s: EKF 33 (119 mm); middle IMU 3 s: EKF 9.7,
+#: UKF 15; tip IMU 2 s: MHE 41.
 SILENCES = [(1, 1, 8.0, 3.0), (0, 0, 6.0, 3.0), (5, 1, 10.0, 2.0)]
 SIGMAS = 5.0  # no "ok" estimate may be further off than this many of its own std
 
@@ -136,15 +137,23 @@ def sigmas_off(s, truth) -> np.ndarray:
     return err / np.linalg.norm(s.output_std[:, :3], axis=1)
 
 
-@pytest.mark.parametrize("silence", SILENCES, ids=["tip-3s", "middle-3s", "tip-2s"])
-@pytest.mark.parametrize("index", range(5), ids=IDS)
+#: the MHE on IPOPT (the slowest estimator) on the silence the MHE got wrong; the
+#: policy that flags a return is the same for every estimator
+SILENCE_CASES = [
+    pytest.param(index, silence, id=f"{IDS[index]}-{name}")
+    for name, silence in zip(["tip-3s", "middle-3s", "tip-2s"], SILENCES)
+    for index in range(5)
+    if IDS[index] != "mhe-ipopt" or name == "tip-2s"
+]
+
+
+@pytest.mark.parametrize(("index", "silence"), SILENCE_CASES)
 def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> None:
-    """Before: an IMU back after more than the gap reset (1 s, also when it is off)
-    without a reading gave ``ok`` estimates up to 143 standard deviations off (EKF; UKF
-    30, MHE 41; 120 returns, tools/imu_return_study.py): the EKF's first update with it
-    can land far off with a small covariance. Now the estimate is ``uncertain`` until
-    the returned IMU's readings have agreed with it for as long (library default:
-    flagged, no restart)."""
+    """An IMU back after more than the gap reset (1 s, also when it is off) without a
+    reading: the EKF's first update with it can land far off with a small covariance
+    (up to 143 standard deviations in tools/imu_return_study.py's 120 returns without
+    this check). The estimate is ``uncertain`` until the returned IMU's readings have
+    agreed with it for as long (library default: flagged, no restart)."""
     f, t, z, truth = silent_imu_recording(*silence)
     est = recovery_estimators(RecoverySettings(), f)[index]
     s = est.run(t, z)
@@ -155,7 +164,8 @@ def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> 
         assert s.status[-1] == "ok"  # after tip-2s: 38 mm, 6.6 std off, readings disagree
 
 
-@pytest.mark.parametrize("index", range(5), ids=IDS)
+# not the MHE on IPOPT: it steps through the policy as the CasADi EKF and the UKF do
+@pytest.mark.parametrize("index", range(4), ids=IDS[:4])
 def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) -> None:
     """With ``bad_start`` the check reopens when the IMU returns: the EKF, 33 standard
     deviations off, restarts from the reading two samples later (0.4 s earlier than
