@@ -328,3 +328,13 @@ def test_options_record_leaves_out_the_flags_a_robot_file_replaces() -> None:
         assert f"{key} = " not in with_robot.options_record
     alone = _parse(["estimate", "m.csv", "-o", "e.csv", "--theta-max", "2.5"])
     assert "theta-max = 2.5" in alone.options_record and "length = 0.2" in alone.options_record
+
+
+def test_the_estimate_file_records_the_method_that_made_it(tmp_path: Path) -> None:
+    """Without ``--method`` the record names the default that ran, so the file's options
+    (``--config EST.csv``) give the same estimator again."""
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "0.5"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est)]) == 0
+    record = next(ln for ln in est.read_text().splitlines() if ln.startswith("# options"))
+    assert 'method = "mhe"' in record

@@ -105,6 +105,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         apply_config(command, args.command, args.config)
         args = parser.parse_args(argv)
     if hasattr(args, "config"):
+        args.options_parser = command  # the record is written anew once defaults resolve
         args.options_record = options_record(command, args)
     return args
 

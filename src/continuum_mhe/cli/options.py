@@ -227,6 +227,11 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
             "or --solver ipopt (the MHE on IPOPT: slow, its memory grows with --horizon)"
         )
     args.method = method
+    parser = getattr(args, "options_parser", None)
+    if parser is not None:  # the estimate file records the method that made it
+        from continuum_mhe.cli.config import options_record
+
+        args.options_record = options_record(parser, args)
     return method
 
 
