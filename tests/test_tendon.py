@@ -517,22 +517,3 @@ def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> No
     assert not ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
     z[0] += 10 * f.noise.measurement_std
     assert ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
-
-
-def test_the_consistency_check_judges_only_the_imus_readings() -> None:
-    """The given tensions and their rates are not judged: the rates have a zero
-    residual by construction and the tensions are states held to them, so as judged
-    readings they would only thin the average of NIS / dof the model error shows in.
-    The check's degrees of freedom are the IMUs' valid readings (the tilt IMU's two),
-    not those and the tension block's three."""
-    from continuum_mhe.estimators.consistency import ConsistencyCheck
-
-    f = TendonFormulation(robot=_one_section(Tendon(0, 0.0, 0.01)))
-    tension = np.array([2.0])
-    k0, _ = f.statics.solve(np.zeros(3), tension)
-    x = np.zeros(f.nx)
-    x[:3], x[6] = k0, tension[0]
-    z = np.asarray(f.functions.observe(x)).ravel()
-    check = ConsistencyCheck(f)
-    check.check(0.0, z, f.measurement_mask(z), x, np.eye(f.nx) * 1e-4)
-    assert check.core.dof == f.n_imu_measurements == 2

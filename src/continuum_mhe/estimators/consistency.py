@@ -4,13 +4,10 @@ widens the standard deviations).
 
 An estimate is only worth ``ok`` when the readings around it agree with its model and
 noise. Two tests, on the formulation's own residual ``r(z, x)`` (the one every
-estimator weights with ``R^-1``), valid components only, and the IMUs' readings only:
-a model's pseudo-measurement (a tendon robot's tip condition, block kind
-``"equilibrium"``) is met by an EKF step only to the step's linearisation, many of its
-tiny standard deviations off, and says nothing about the readings; a tendon robot's
-given tensions (block kind ``"tension"``) are states held to them and their rates have
-a zero residual by construction, so as judged rows they would only thin the average
-below:
+estimator weights with ``R^-1``), valid components only, and readings only: a model's
+pseudo-measurement (a tendon robot's tip condition, block kind ``"equilibrium"``) is
+met by an EKF step only to the step's linearisation, many of its tiny standard
+deviations off, and says nothing about the readings:
 
 * **this reading against the previous estimate** (innovation): the previous
   ``(x, P)`` predicted to this sample (``x+ = f(x, u, dt)``, ``P+ = F P F^T + Q``),
@@ -149,10 +146,11 @@ class ConsistencyCheck:
         R = np.asarray(f.meas_cov(), dtype=float)
         # the effective samples of the exponential averages
         n_avg, n_quiet = 2 * MEMORY - 1, 2 * QUIET_MEMORY - 1
-        # the rows judged: the IMUs' readings, not a model's pseudo-measurements (a
-        # tendon robot's tip condition, met only to the linearisation of a step) nor the
-        # given tensions (held states) and their rates (a zero residual)
-        judged = np.concatenate([np.full(b.size, b.is_imu) for b in f.measurement_blocks])
+        # the rows judged: the readings, not a model's pseudo-measurements (a tendon
+        # robot's tip condition, met only to the linearisation of a step)
+        judged = np.concatenate(
+            [np.full(b.size, b.kind != "equilibrium") for b in f.measurement_blocks]
+        )
         self._judged_rows = np.flatnonzero(judged)
         gravity_r = np.where(f.gravity_direction_rows(), np.diag(R), 0.0)
         # the shift test reads the update as a linear one of the judged rows alone
