@@ -78,6 +78,7 @@ void ConsistencyCheck::reset() {
   avg_dof_ = 0;
   high_ = false;
   persists_ = false;
+  quiet_run_ = 0;
   nis_ = fit_ = fit_nis_ = shift_ = 0.0;
   dof_ = 0;
 }
@@ -147,11 +148,21 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
   const double worst = std::max(fit_, nis_);
   const bool high = high_;
   high_ = worst > s_.run_limit[dof];
-  if (avg_dof_ > 0 && noise_scale_ > s_.avg_limit[avg_dof_]) {
+  // the level the readings scattered at while the model followed them (never above R's):
+  // the average is judged against it, as readings less noisy than R says make a model
+  // error show only against their own level
+  const double level = std::min(1.0, quiet_scale_);
+  if (avg_dof_ > 0 && noise_scale_ > s_.avg_limit[avg_dof_] * level) {
     persists_ = true;
-    model_error_ = std::max(model_error_, noise_scale_ - 1.0);
-  } else if (noise_scale_ <= std::min(1.0, quiet_scale_)) {
-    persists_ = false;
+    quiet_run_ = 0;
+    model_error_ = std::max(model_error_, noise_scale_ - level);
+  } else if (persists_ && noise_scale_ <= level) {
+    // a model error ends once the average has stayed at the quiet level for as many
+    // samples as it remembers: a motion that shows the error only in some of its
+    // phases leaves the average low for a few samples between them
+    if (++quiet_run_ >= s_.memory) persists_ = false;
+  } else {
+    quiet_run_ = 0;
   }
   const bool unexplained = fit_nis_ > s_.limit[dof] && shift_ > s_.shift_limit[shift_dof_];
   return worst > s_.limit[dof] || (high && high_) || persists_ || unexplained;

@@ -35,7 +35,9 @@ struct ConsistencySettings {
   std::vector<double> judged;     // nz: 1 for a reading, 0 for a model's pseudo-measurement
   std::vector<double> limit;      // a reading beyond it is inconsistent on its own
   std::vector<double> run_limit;  // two readings in a row beyond it are inconsistent
-  std::vector<double> avg_limit;  // the average of NIS / dof beyond it is inconsistent
+  // the average of NIS / dof beyond it times the quiet level (the slower average while
+  // no model error showed, at most 1) is inconsistent
+  std::vector<double> avg_limit;
   // nx + 1, by the shift's degrees of freedom: a fit not explained by a linear update
   // whose shift to the readings' own shape is beyond it is inconsistent
   std::vector<double> shift_limit;
@@ -118,6 +120,7 @@ class ConsistencyCheck {
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
   double shift_ = 0.0, quiet_scale_ = 1.0;
   int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;
+  int quiet_run_ = 0;  // samples in a row the average has been at the quiet level
   bool high_ = false, persists_ = false;
 };
 

@@ -169,12 +169,15 @@ def test_ok_rows_normalised_errors_over_many_recordings() -> None:
 @pytest.mark.parametrize("name", ["planar-s", "spatial-tendon"])
 def test_ok_rows_cover_the_truth_on_a_cosserat_rod(name) -> None:
     """The shipped rod recordings (PyElastica, MEMS IMUs with mounting misalignment
-    and biases; raw IMUs, defaults) that the model follows: most rows stay ``ok``, and
-    their 95 % intervals cover the truth at least 85 % of the time per axis. planar-s:
-    9, 46 and 84 % with the noise alone (the IMUs' constant errors look like a
-    different shape). spatial-tendon (bends to 124 degrees): 90, 90 and 79 % without
-    the model error learned from its innovations (the curvature the constant-curvature
-    model gets wrong leaves no residual while the gravity directions fix the shape)."""
+    and biases; raw IMUs, defaults) that the model follows or nearly follows: most rows
+    stay ``ok`` (planar-s, which the model follows, more than 90 %), and their 95 %
+    intervals cover the truth at least 85 % of the time per axis. planar-s: 9, 46 and
+    84 % with the noise alone (the IMUs' constant errors look like a different shape).
+    spatial-tendon (bends to 124 degrees, a curvature that is not constant): 90, 90 and
+    79 % without the model error learned from its innovations (the curvature the
+    constant-curvature model gets wrong leaves no residual while the gravity directions
+    fix the shape); its readings scatter at a fraction of ``R``, and against that level
+    the innovations show the model error on about a fifth of the rows."""
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
@@ -187,7 +190,7 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod(name) -> None:
     truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
     series = make_estimator("ekf", data.formulation).run(data.t, data.z)
     ok = series.status == "ok"
-    assert ok.mean() > 0.9
+    assert ok.mean() > (0.9 if name == "planar-s" else 0.5)
     covered = np.abs(series.output[ok, :3] - truth[ok]) <= 1.96 * series.std[ok, :3]
     assert np.all(covered.mean(axis=0) >= COVERAGE[0]), covered.mean(axis=0)
 
@@ -242,17 +245,67 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok(name) -> None:
     assert np.mean(series.status[far] != "ok") >= 0.8
 
 
-def test_chi_square_quantiles_match_scipy_stats() -> None:
-    """The consistency tests' quantiles (scipy.special) against scipy.stats and a known
-    table value (0.95 quantile, 2 degrees of freedom: 5.991)."""
-    from scipy.stats import chi2
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_loaded_tendon_robot_by_a_pcc_robot_of_its_geometry_far_rows_are_not_ok(method) -> None:
+    """force-29 (raw IMUs) estimated without tensions by a PCC robot of the tendon
+    robot's geometry, defaults: the model error shows in the innovations only while the
+    robot moves one way, at about two to four times the level the readings scatter at
+    while the model follows (which is a third of what ``R`` says), and fades between
+    those phases. At least 80 % of the rows more than 20 mm off are not ``ok`` (54 %
+    where the average was judged against ``R``'s level, 74 % where a model error ended
+    as soon as the average touched the quiet level)."""
+    from continuum_mhe.io.csv_files import read_state_table
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.simulation.cosserat import default_data_path
 
-    from continuum_mhe.estimators.chi2 import chi2_quantile
+    # tendon-two-section without its tendons and backbone (tools/honesty_study.py's)
+    section = Section(0.2, theta_max=3.0)
+    robot = Robot((section, section), (ImuPlacement(0), ImuPlacement(1)))
+    folder = default_data_path().parent / "tendon"
+    f = make_formulation("bend", robot)
+    data = load_input(folder / "force-29_raw.csv", InputOptions(), f)
+    truth = read_state_table(folder / "force-29_truth.csv").values[:, :3]
+    series = make_estimator(method, data.formulation).run(data.t, data.z)
+    far = np.linalg.norm(series.output[:, :3] - truth, axis=1) > 0.02
+    assert far.sum() > 100
+    assert np.mean(series.status[far] != "ok") >= 0.8
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_readings_noisier_than_their_own_level_are_inconsistent_below_r(method) -> None:
+    """paper3d with readings four times less noisy than ``R`` says (0.5 degrees) for
+    10 s, then nine times noisier than that (1.5 degrees, still below ``R``'s 2): the
+    average of NIS / dof is judged against the level the readings scattered at while
+    the model followed them, so most rows of the louder half are ``inconsistent`` (none
+    were when it was judged against 1, ``R``'s level), and the quiet half stays ``ok``."""
+    quiet = simulate("paper3d", duration=20.0, seed=4, noise_deg=0.5, noise_model="tangent")
+    loud = simulate("paper3d", duration=20.0, seed=5, noise_deg=1.5, noise_model="tangent")
+    np.testing.assert_array_equal(quiet.truth, loud.truth)  # one motion, two noises
+    z = np.where((quiet.t < 10.0)[:, None], quiet.z, loud.z)
+    f = make_formulation("bend", Robot.single(0.2))
+    series = make_estimator(method, f).run(quiet.t, z)
+    assert np.all(series.status[(quiet.t >= 2.0) & (quiet.t < 10.0)] == "ok")
+    assert np.mean(series.status[quiet.t >= 12.0] == "inconsistent") > 0.5
+
+
+def test_quantiles_match_scipy_stats() -> None:
+    """The consistency tests' quantiles (scipy.special) against scipy.stats and known
+    table values (chi-square 0.95 quantile, 2 degrees of freedom: 5.991; F(5, 10):
+    3.326)."""
+    from scipy.stats import chi2, f
+
+    from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
 
     assert chi2_quantile(0.95, 2) == pytest.approx(5.991464547, rel=1e-9)
     for q in (0.5, 0.9, 0.99, 0.9999):
         for dof in (1, 2, 3.5, 12, 60):
             assert chi2_quantile(q, dof) == pytest.approx(chi2.ppf(q, dof), rel=1e-10)
+    # F: the 0.95 quantile of F(5, 10) is 3.326 (tables); the check's (468, 2388)
+    assert f_quantile(0.95, 5, 10) == pytest.approx(3.325834530, rel=1e-9)
+    for q in (0.5, 0.99, 0.999):
+        for dfn, dfd in ((1, 1), (4, 39), (468, 2388)):
+            assert f_quantile(q, dfn, dfd) == pytest.approx(f.ppf(q, dfn, dfd), rel=1e-10)
 
 
 def test_learned_model_error_is_carried_as_a_constant_reading_error() -> None:

@@ -37,15 +37,21 @@ error that no single reading shows is caught by the average (of the readings not
 flagged on their own):
 an exponentially weighted mean of ``NIS / dof`` over about ``MEMORY`` samples
 (covariance matching: the factor by which the innovations exceed what ``R`` and ``P``
-predict) is :attr:`ConsistencyCheck.noise_scale`; beyond the ``QUANTILE`` (99.9 %)
-quantile of its own distribution (a chi-square of ``dof * (2 MEMORY - 1)`` degrees of
-freedom, scaled) the sample is ``inconsistent`` too, and every output standard
-deviation is widened by ``sqrt(noise_scale)`` where it exceeds 1 (the covariances are
-scaled as the noise is). Once beyond that quantile, the samples stay ``inconsistent``
-until the average is back at the level the readings scattered at while the model
-followed them (a slower average over about ``QUIET_MEMORY`` samples, starting at 1, and
-never above 1): a model error does not end when the average merely drops below the
-quantile, nor when it drops below 1 on readings less noisy than ``R`` says.
+predict) is :attr:`ConsistencyCheck.noise_scale`. It is judged against the level the
+readings scattered at while the model followed them, the *quiet level*: a slower
+average over about ``QUIET_MEMORY`` samples while no model error shows
+(:attr:`ConsistencyCheck.quiet_scale`, starting at 1), never taken above 1. Real
+readings are often less noisy than ``R`` says (a MEMS IMU's direction noise is a
+fraction of the 2 degrees assumed), and a model error then shows as innovations two to
+four times their own level while still below ``R``'s. The ratio of the two averages is
+F-distributed where the model follows (``dof * (2 MEMORY - 1)`` and ``dof * (2
+QUIET_MEMORY - 1)`` degrees of freedom); beyond its ``QUANTILE`` (99.9 %) quantile the
+sample is ``inconsistent`` too, and every output standard deviation is widened by
+``sqrt(noise_scale)`` where it exceeds 1 (the covariances are scaled as the noise is).
+Once beyond that quantile, the samples stay ``inconsistent`` until the average has been
+back at the quiet level for ``MEMORY`` samples in a row (as long as it remembers): a
+model error does not end when the average merely drops below the quantile, nor when
+it touches the quiet level between two phases of a motion that shows it.
 
 What the check learned is the robot's: an estimator's restart within a recording (a
 gap, a bad start, a divergence) forgets only the previous estimate
@@ -57,8 +63,9 @@ A model error the readings showed does not go away when their residuals quieten:
 one IMU per section the gravity directions determine the shape exactly, so a shape the
 model gets wrong (a curvature that is not constant, a twist) leaves no residual at all
 most of the time, and shows only while the robot moves in a way the model cannot
-follow. The excess the average showed at such a detection, ``noise_scale - 1`` in
-units of ``R``, is :attr:`ConsistencyCheck.model_error`: the largest of the
+follow. The excess the average showed at such a detection over the quiet level,
+``noise_scale - min(1, quiet_scale)`` in units of ``R``, is
+:attr:`ConsistencyCheck.model_error`: the largest of the
 recording (the estimator's restarts keep it), carried as a constant error of the
 gravity-direction readings (below), not as white noise (a slowly varying model error is
 not averaged away by the filter or the window).
@@ -99,7 +106,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.estimators.chi2 import chi2_quantile
+from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
 from continuum_mhe.estimators.fast.codegen import node_function
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
@@ -107,7 +114,8 @@ from continuum_mhe.model.tape import residual_node_tapes, tape_function
 
 FloatArray = NDArray[np.float64]
 
-#: Chi-square quantile beyond which the average of NIS / dof is inconsistent.
+#: Quantile of the F distribution beyond which the average of NIS / dof over the quiet
+#: level is inconsistent.
 QUANTILE = 0.999
 #: Chi-square quantile beyond which one reading is inconsistent with the estimate.
 SAMPLE_QUANTILE = 0.9999
@@ -136,7 +144,8 @@ class ConsistencyCheck:
         self.formulation = formulation
         f, nz = formulation, formulation.nz
         R = np.asarray(f.meas_cov(), dtype=float)
-        n_avg = 2 * MEMORY - 1  # the effective samples of the exponential average
+        # the effective samples of the exponential averages
+        n_avg, n_quiet = 2 * MEMORY - 1, 2 * QUIET_MEMORY - 1
         # the rows judged: the readings, not a model's pseudo-measurements (a tendon
         # robot's tip condition, met only to the linearisation of a step)
         judged = np.concatenate(
@@ -164,7 +173,7 @@ class ConsistencyCheck:
             judged=judged.astype(float).tolist(),
             limit=_limits(lambda k: chi2_quantile(SAMPLE_QUANTILE, k), nz),
             run_limit=_limits(lambda k: chi2_quantile(RUN_QUANTILE, k), nz),
-            avg_limit=_limits(lambda k: chi2_quantile(QUANTILE, k * n_avg) / (k * n_avg), nz),
+            avg_limit=_limits(lambda k: f_quantile(QUANTILE, k * n_avg, k * n_quiet), nz),
             shift_limit=shift_limit,
             bias=np.diag(np.asarray(f.reading_bias_cov(), dtype=float)).tolist(),
             gravity_r=gravity_r.tolist(),
@@ -200,8 +209,9 @@ class ConsistencyCheck:
 
     @property
     def model_error(self) -> float:
-        """The model error the average showed (module doc): the largest
-        ``noise_scale - 1`` beyond its quantile in the recording, in units of ``R``."""
+        """The model error the average showed (module doc): the largest excess of
+        ``noise_scale`` over the quiet level beyond its quantile in the recording, in
+        units of ``R``."""
         return self._core.model_error
 
     @model_error.setter
