@@ -123,6 +123,18 @@ void cmhe::bind_horizon(nb::module_& m) {
                    "Window cost at the last certified solve's last iterate (NaN if none).")
       .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },
                    "Whether the last step solved the window (from X0 and lam0).")
+      .def_prop_rw(
+          "plausible_limit",
+          [](MovingHorizon& h) { return view(h, h.plausible_limit, {h.plausible_limit.size()}); },
+          [](MovingHorizon& h, In limit) {
+            if (limit.size() != 0) check_size(limit, h.n * h.nz + 1, "plausible_limit");
+            h.plausible_limit.assign(limit.data(), limit.data() + limit.size());
+          },
+          "The branch check's first test in the step ((n nz + 1,) or empty: none): a "
+          "certified answer whose twice window cost is at most entry [dof] (the window's "
+          "valid measurement components) is kept by the step although finish is false.")
+      .def_rw("plausible_kept", &MovingHorizon::plausible_kept,
+              "Answers kept by plausible_limit since the owner last zeroed it.")
       .def_rw("has_prior", &MovingHorizon::has_prior)
       .def_rw("has_X", &MovingHorizon::has_X)
       .def_rw("outputs_at_last", &MovingHorizon::outputs_at_last)

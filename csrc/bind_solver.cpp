@@ -226,7 +226,9 @@ void cmhe::bind_solver(nb::module_& m) {
         check_shape(E, {n - 1, nx, nx}, "E");
         check_shape(out, {nx, nx}, "out");
         const Feasible fs = feasible_of(lo, hi, ball_idx, ball_r2, nx);
-        return last_block_covariance(n, nx, X.data(), D.data(), E.data(), fs, tol, out.data());
+        CovarianceScratch scratch;
+        return last_block_covariance(n, nx, X.data(), D.data(), E.data(), fs, tol, out.data(),
+                                     scratch);
       },
       nb::arg("X"), nb::arg("D"), nb::arg("E"), nb::arg("lo"), nb::arg("hi"),
       nb::arg("ball_idx"), nb::arg("ball_r2"), nb::arg("tol"), nb::arg("out"),

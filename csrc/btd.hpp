@@ -47,23 +47,39 @@ decltype(auto) with_block_size(Index nx, F&& f) {
   }
 }
 
-// An nx x nx scratch block: on the stack for a constant size, else on the heap.
+// The factor's scratch: an nx x nx block and a row of nx, on the stack for a constant
+// size, else on the heap
 template <int NX>
-struct Block {
-  double a[NX * NX];
-  explicit Block(Index) {}
-  double* data() { return a; }
+struct FactorScratch {
+  double a[NX * NX], row[NX];
+  explicit FactorScratch(Index) {}
 };
 template <>
-struct Block<0> {  // one buffer per thread, grown once (no allocation per call)
-  double* p;
-  explicit Block(Index nx) {
-    thread_local std::vector<double> a;
-    if (Index(a.size()) < nx * nx) a.resize(nx * nx);
-    p = a.data();
+struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation per call)
+  double *a, *row;
+  explicit FactorScratch(Index nx) {
+    thread_local std::vector<double> buf;
+    if (Index(buf.size()) < nx * nx + nx) buf.resize(nx * nx + nx);
+    a = buf.data();
+    row = a + nx * nx;
   }
-  double* data() { return p; }
 };
+
+// A loop that the compiler unrolls completely where its trip count is a constant (the
+// block kernels' rows of NX values stay in registers)
+#if defined(__GNUC__)
+#define CMHE_UNROLL _Pragma("GCC unroll 32")
+#else
+#define CMHE_UNROLL
+#endif
+
+// The block factor also in an AVX2 version that the loader picks where the processor has
+// it (target clones; without FMA contraction each operation rounds as in the default)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMHE_BLOCK_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CMHE_BLOCK_CLONES
+#endif
 
 // ``out = A B`` for nx x nx blocks (out distinct from A and B)
 template <int NX>
@@ -103,44 +119,49 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 // L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
 // transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
 // reciprocals of L's diagonal (divisions by the pivots are multiplications by their
-// reciprocals, computed once: they are the factor's critical path). Every loop runs
-// along rows of nx contiguous values (independent updates the compiler vectorises, no
-// reduction chains); each entry's sum is formed in the same order as the textbook
-// row-by-row form, so the factor has the same bits.
+// reciprocals, computed once: they are the factor's critical path). Each row of the
+// Schur complement, of the block's factor U = L^T and of M_i^T is gathered in a row of
+// nx values (kept in registers where NX is a constant) from the earlier rows' terms, in
+// the order of the textbook row-by-row form, so every entry has its bits; entries below
+// U's diagonal are formed along with the row (D is read below its diagonal for the
+// upper triangle) and dropped.
 template <int NX>
-bool btd_factor(Index n, Index nx_, const double* D, const double* E, double* L, double* M,
-                double* rd) {
+CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
+                                  double* L, double* M, double* rd) {
   const Index nx = block_size<NX>(nx_);
   const Index bs = nx * nx;
-  Block<NX> ablock(nx);
-  double* a = ablock.data();  // the Schur complement, then the factor's rows: U = L^T
+  FactorScratch<NX> scratch(nx);
+  double* a = scratch.a;  // the Schur complement, then the factor's rows: U = L^T
+  double* row = scratch.row;
   for (Index i = 0; i < n; ++i) {
     double* Li = L + i * bs;
-    // the upper triangle of the Schur complement D_i - M_{i-1} M_{i-1}^T (D is read
-    // below its diagonal)
-    for (Index j = 0; j < nx; ++j)
-      for (Index k = j; k < nx; ++k) a[j * nx + k] = D[i * bs + k * nx + j];
-    if (i > 0) {
-      const double* Mp = M + (i - 1) * bs;
-      for (Index c = 0; c < nx; ++c)
-        for (Index j = 0; j < nx; ++j) {
+    const double* Di = D + i * bs;
+    const double* Mp = i > 0 ? M + (i - 1) * bs : nullptr;
+    for (Index j = 0; j < nx; ++j) {  // the Schur complement D_i - M_{i-1} M_{i-1}^T
+      for (Index k = 0; k < nx; ++k) row[k] = Di[k * nx + j];
+      if (Mp) {
+        CMHE_UNROLL
+        for (Index c = 0; c < nx; ++c) {
           const double t = Mp[c * nx + j];
-          for (Index k = j; k < nx; ++k) a[j * nx + k] -= t * Mp[c * nx + k];
+          CMHE_UNROLL
+          for (Index k = 0; k < nx; ++k) row[k] -= t * Mp[c * nx + k];
         }
+      }
+      for (Index k = 0; k < nx; ++k) a[j * nx + k] = row[k];
     }
-    // dense Cholesky of the block, by rows of U = L^T (right-looking)
-    for (Index j = 0; j < nx; ++j) {
-      const double s = a[j * nx + j];
+    for (Index j = 0; j < nx; ++j) {  // dense Cholesky of the block, by rows of U
+      for (Index k = 0; k < nx; ++k) row[k] = a[j * nx + k];
+      for (Index c = 0; c < j; ++c) {
+        const double t = a[c * nx + j];
+        CMHE_UNROLL
+        for (Index k = 0; k < nx; ++k) row[k] -= t * a[c * nx + k];
+      }
+      const double s = row[j];
       if (!(s > 0.0)) return false;
       const double ujj = std::sqrt(s);
       const double r = 1.0 / ujj;
       rd[i * nx + j] = r;
-      a[j * nx + j] = ujj;
-      for (Index k = j + 1; k < nx; ++k) a[j * nx + k] *= r;
-      for (Index m = j + 1; m < nx; ++m) {
-        const double t = a[j * nx + m];
-        for (Index k = m; k < nx; ++k) a[m * nx + k] -= t * a[j * nx + k];
-      }
+      for (Index k = 0; k < nx; ++k) a[j * nx + k] = k > j ? row[k] * r : (k == j ? ujj : 0.0);
     }
     for (Index j = 0; j < nx; ++j)
       for (Index k = 0; k < nx; ++k) Li[j * nx + k] = k <= j ? a[k * nx + j] : 0.0;
@@ -148,15 +169,15 @@ bool btd_factor(Index n, Index nx_, const double* D, const double* E, double* L,
       double* Mi = M + i * bs;
       const double* Ei = E + i * bs;
       for (Index j = 0; j < nx; ++j) {
-        double* row = Mi + j * nx;
         for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
         for (Index c = 0; c < j; ++c) {
           const double l = Li[j * nx + c];
           const double* prev = Mi + c * nx;
+          CMHE_UNROLL
           for (Index k = 0; k < nx; ++k) row[k] -= l * prev[k];
         }
         const double r = rd[i * nx + j];
-        for (Index k = 0; k < nx; ++k) row[k] *= r;
+        for (Index k = 0; k < nx; ++k) Mi[j * nx + k] = row[k] * r;
       }
     }
   }

@@ -39,8 +39,9 @@ void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, 
 }  // namespace
 
 bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
-                           const double* E, const Feasible& fs, double tol, double* out) {
-  QPScratch s;
+                           const double* E, const Feasible& fs, double tol, double* out,
+                           CovarianceScratch& cs) {
+  QPScratch& s = cs.qp;
   s.resize(n, nx, fs.nb);
   const Index nbm = std::max<Index>(fs.nb, 1), bs = nx * nx;
   std::fill(s.nrm.begin(), s.nrm.end(), 0.0);
@@ -60,10 +61,14 @@ bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
     });
   }
   if (!ok) return false;
-  std::vector<double> C(bs), Li(bs), Tn(bs, 0.0), Tb(bs), v(nx), tmp(bs);
+  std::vector<double>&C = cs.C, &Li = cs.Li, &Tn = cs.Tn, &Tb = cs.Tb, &v = cs.v, &tmp = cs.tmp;
+  for (auto* a : {&C, &Li, &Tb, &tmp}) a->resize(bs);
+  v.resize(nx);
+  Tn.assign(bs, 0.0);
   dense_inverse_gram(nx, s.L.data() + (n - 1) * bs, C.data(), Li.data());  // (L_n L_n^T)^-1
   // fixed coordinates of the last node carry no variance (in the rotated frame)
-  std::vector<char> fixed(nx, 0);
+  std::vector<char>& fixed = cs.fixed;
+  fixed.assign(nx, 0);
   for (Index j = 0; j < nx; ++j) Tn[j * nx + j] = 1.0;
   bool any_ball = false;
   for (Index b = 0; b < fs.nb; ++b) {

@@ -3,15 +3,26 @@
 // describes the method).
 #pragma once
 
+#include <vector>
+
 #include "qp.hpp"
 
 namespace cmhe {
 
+// Buffers of last_block_covariance, kept by a caller that computes one covariance per
+// sample (resized to the window on each call, allocated only when it grows)
+struct CovarianceScratch {
+  QPScratch qp;
+  std::vector<double> C, Li, Tn, Tb, v, tmp;
+  std::vector<char> fixed;
+};
+
 // ``out`` (nx, nx): the last diagonal block of H^-1 for H = (D, E) (n blocks), with the
 // coordinates on a box bound (within ``tol`` relative to 1 + |bound|) and the normal of
 // each ball active at X (within ``tol`` of r^2) carrying no variance; false if the
-// reduced Hessian is not positive definite.
+// reduced Hessian is not positive definite. ``s``: the buffers.
 bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
-                           const double* E, const Feasible& fs, double tol, double* out);
+                           const double* E, const Feasible& fs, double tol, double* out,
+                           CovarianceScratch& s);
 
 }  // namespace cmhe

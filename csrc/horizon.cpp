@@ -8,7 +8,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include "covariance.hpp"
 
 namespace cmhe {
 
@@ -237,6 +236,15 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   const double* Xl = solver.Xb.data() + last * n * nx;
   const double* D = solver.Dgn.data() + last * n * bs;
   const double* E = solver.E.data() + last * (n - 1) * bs;
+  if (!finish_ && !plausible_limit.empty()) {
+    double dof = 0.0;
+    for (double v : zmask) dof += v;
+    const Index d = Index(dof);
+    if (d >= 0 && d < Index(plausible_limit.size()) && 2.0 * r.cost <= plausible_limit[d]) {
+      finish_ = true;
+      ++plausible_kept;
+    }
+  }
   if (!finish_) {
     solved_buffer = int(last);
     solved_generation = solver.generation;
@@ -308,7 +316,8 @@ void MovingHorizon::keep_outputs(const double* Xk, const double* D, const double
       }
     }
     if (D != nullptr)
-      cov_ok = last_block_covariance(n, nx, Xk, D, E, solver.feasible(), kActiveTol, cov.data());
+      cov_ok = last_block_covariance(n, nx, Xk, D, E, solver.feasible(), kActiveTol, cov.data(),
+                                     cov_scratch_);
   }
   node.output(state.data(), y.data());
   if (cov_ok) node.output_std(state.data(), cov.data(), ystd.data());

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "covariance.hpp"
 #include "filter.hpp"
 #include "sqp.hpp"
 
@@ -88,6 +89,13 @@ class MovingHorizon {
   // (NaN otherwise): the branch check's measure of the window's fit
   double cost = 0.0;
   std::vector<double> X_sol, X_last_sol, D_sol, E_sol;
+  // The branch check's first test (continuum_mhe.estimators.branch), empty when none
+  // applies: a certified answer whose twice window cost is at most
+  // plausible_limit[dof] (dof: the window's valid measurement components, entries 0 to
+  // n nz) is kept by the step itself (STEP_DONE) although ``finish`` is false, and
+  // counted in plausible_kept (zeroed by its owner, not by restart)
+  std::vector<double> plausible_limit;
+  uint64_t plausible_kept = 0;
   // the kept answer's last node, its covariance and outputs
   std::vector<double> state, cov, y, ystd;
   bool cov_ok = false;
@@ -103,6 +111,7 @@ class MovingHorizon {
                     const double* w_new);
   std::vector<double> R_, Rl_, scale_, zmask_nodes_;
   std::vector<int64_t> block_of_;
+  CovarianceScratch cov_scratch_;
 };
 
 }  // namespace cmhe

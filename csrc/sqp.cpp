@@ -137,7 +137,8 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
   const int64_t* blocks = w.blocks.data();
   double *wr = w.wr.data(), *wj = w.wj.data(), *qw = w.qw.data(), *qf = w.qf.data();
   double* e = w.e.data();
-  double* acc = w.acc.data();
+  double acc_row[NX > 0 ? NX : 1];  // a row of nx sums, in registers for a constant size
+  double* acc = NX > 0 ? acc_row : w.acc.data();
   const Index nodes = shifted ? 3 : n;
   for (Index node = 0; node < nodes; ++node) {
     Index i = node;
@@ -199,16 +200,19 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
           for (Index j = 0; j < nx; ++j) gbi[j] += ja[j] * ra;
         }
         for (Index j = 0; j < nx; ++j) gi[j] += mk * rho1 * gbi[j];
-        for (Index j = 0; j < nx; ++j) {  // J_b^T (rho' R_b^-1 + a2 ...) J_b, upper triangle
-          for (Index k = j; k < nx; ++k) acc[k] = 0.0;
+        // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows (the entries below the diagonal
+        // are formed along and replaced by the mirror of the upper triangle below)
+        for (Index j = 0; j < nx; ++j) {
+          for (Index k = 0; k < nx; ++k) acc[k] = 0.0;
           for (Index a = 0; a < nb_; ++a) {
             const double ja = JRi[(b0 + a) * nx + j];
             const double* wja = wj + a * nx;
-            for (Index k = j; k < nx; ++k) acc[k] += ja * wja[k];
+            CMHE_UNROLL
+            for (Index k = 0; k < nx; ++k) acc[k] += ja * wja[k];
           }
           const double gj = gbi[j];
           double* Dj = Di + j * nx;
-          for (Index k = j; k < nx; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
+          for (Index k = 0; k < nx; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
         }
       }
     }
@@ -301,12 +305,16 @@ void add_curvature(WindowSolver& w, int buf, double sign) {
   for (Index i = 0; i < n; ++i)
     for (Index b = 0; b < nblk; ++b) {
       const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
-      if (wb != 0.0 || x2 != 0.0) {
-        const double* Sb = S + (i * nblk + b) * bs;
+      const double* Sb = S + (i * nblk + b) * bs;
+      double* Di = D + i * bs;
+      if (x2 != 0.0) {
         const double* g = gb + (i * nblk + b) * nx;
         for (Index j = 0; j < nx; ++j)
           for (Index k = 0; k < nx; ++k)
-            D[i * bs + j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
+            Di[j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
+      } else if (wb != 0.0) {  // the same sums without the zero term (sign is +-1)
+        const double sw = sign * wb;
+        for (Index j = 0; j < bs; ++j) Di[j] += sw * Sb[j];
       }
     }
 }

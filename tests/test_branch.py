@@ -192,6 +192,28 @@ def test_the_default_check_costs_no_evaluation_on_clean_data(clean_recording) ->
     assert np.array_equal(s.output, off.output)
 
 
+def test_the_compiled_first_test_keeps_the_answers_of_the_python_check(clean_recording) -> None:  # type: ignore[no-untyped-def]
+    """The compiled step applies the check's first test (``plausible_limit``) and keeps a
+    plausible window itself: the same estimates, standard deviations and statuses as the
+    Python check run on every window, and the same count of checked windows."""
+    rec = clean_recording
+    f = make_formulation("bend", TWO)
+    compiled = MovingHorizonEstimator(f, MHESettings(horizon=N))
+    python = MovingHorizonEstimator(f, MHESettings(horizon=N))
+    window = python.inference._window
+    assert len(window.plausible_limit) == N * f.nz + 1
+    window.plausible_limit = np.empty(0)  # every certified window through the Python hook
+    a, b = compiled.run(rec.t, rec.z), python.run(rec.t, rec.z)
+    assert np.array_equal(a.output, b.output)
+    assert np.array_equal(a.output_std, b.output_std, equal_nan=True)
+    assert np.array_equal(a.status, b.status)
+    branch_a, branch_b = compiled.inference.branch, python.inference.branch
+    assert branch_a is not None and branch_b is not None
+    assert branch_a.stats == branch_b.stats
+    assert branch_a.stats.checked == len(rec.t)
+    assert compiled.inference._window.plausible_kept == 0  # synced into the stats
+
+
 def test_the_section_tilt_inverse_recovers_random_bends_exactly() -> None:
     """``initial_state`` of a two-section robot (the branch check's start from the
     measurements): each section's bend from its IMU's gravity direction in closed

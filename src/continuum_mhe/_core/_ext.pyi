@@ -369,6 +369,22 @@ class MovingHorizon:
         """Whether the last step solved the window (from X0 and lam0)."""
 
     @property
+    def plausible_limit(self) -> NDArray[numpy.float64]:
+        """
+        The branch check's first test in the step ((n nz + 1,) or empty: none): a certified answer whose twice window cost is at most entry [dof] (the window's valid measurement components) is kept by the step although finish is false.
+        """
+
+    @plausible_limit.setter
+    def plausible_limit(self, arg: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], /) -> None: ...
+
+    @property
+    def plausible_kept(self) -> int:
+        """Answers kept by plausible_limit since the owner last zeroed it."""
+
+    @plausible_kept.setter
+    def plausible_kept(self, arg: int, /) -> None: ...
+
+    @property
     def has_prior(self) -> bool: ...
 
     @has_prior.setter

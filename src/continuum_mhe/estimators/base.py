@@ -63,6 +63,11 @@ class Inference(ABC):
         check keep theirs)."""
         return None
 
+    def sync_counts(self) -> None:
+        """Bring the object's own counts up to date with its compiled step's (none here;
+        the MHE's branch check counts some windows in the compiled step)."""
+        return None
+
     def outlier(self) -> bool:
         """Whether the last :meth:`infer` down-weighted its measurement (robust MHE only)."""
         return False

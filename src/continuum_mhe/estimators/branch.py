@@ -123,6 +123,14 @@ class BranchCheck:
         self.stats = BranchStats()
         self._inverse: dict[bytes, FloatArray] = {}  # tilt inverse per sample, by its z
         self._zero_weights: tuple[FloatArray, FloatArray] | None = None
+        #: the first test of :meth:`check` (a quadratic loss; None otherwise): a certified
+        #: window whose twice window cost is at most entry ``dof`` (its valid measurement
+        #: components, 0 to ``horizon * nz``) is plausible without an evaluation; the
+        #: compiled MHE step applies it itself (``_core.MovingHorizon.plausible_limit``)
+        dofs = range(1, horizon * formulation.nz + 1)
+        self.plausible_limits: FloatArray | None = (
+            np.array([np.inf] + [chi2_quantile(QUANTILE, d) for d in dofs]) if quadratic else None
+        )
 
     # --- detect -----------------------------------------------------------------
     def measurement_cost(
@@ -247,8 +255,9 @@ class BranchCheck:
         self.stats.checked += 1
         if status not in (Status.OK, Status.FALLBACK_IPOPT):
             return X, status, None, False
-        if self.quadratic and window_cost is not None:
-            if 2.0 * window_cost <= chi2_quantile(QUANTILE, int(problem.zmask.sum())):
+        limits = self.plausible_limits
+        if limits is not None and window_cost is not None:
+            if 2.0 * window_cost <= limits[int(problem.zmask.sum())]:
                 return X, status, None, False
         self.stats.evaluated += 1
         if not self.implausible(problem, X, cost):

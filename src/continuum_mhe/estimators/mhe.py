@@ -354,6 +354,10 @@ class MovingHorizonInference(Inference):
             if checks_branch(formulation, s.branch_check, robust=s.loss != "l2")
             else None
         )
+        limits = self.branch.plausible_limits if self.branch is not None else None
+        if isinstance(self._window, _core.MovingHorizon) and limits is not None:
+            if self.second_start is None:  # the check's first test in the compiled step
+                self._window.plausible_limit = limits
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
         self.restart()
 
@@ -383,6 +387,16 @@ class MovingHorizonInference(Inference):
             self.second_start.tried = self.second_start.kept = 0
         if self.branch is not None:
             self.branch.stats = BranchStats()
+        if isinstance(self._window, _core.MovingHorizon):
+            self._window.plausible_kept = 0
+
+    def sync_counts(self) -> None:
+        """Add the windows that the compiled step found plausible by the branch check's
+        first test (and kept without calling it) to the check's count."""
+        window = self._window
+        if self.branch is not None and isinstance(window, _core.MovingHorizon):
+            self.branch.stats.checked += window.plausible_kept
+            window.plausible_kept = 0
 
     def restart(self) -> None:
         self._window.restart()
@@ -566,6 +580,7 @@ class MovingHorizonInference(Inference):
         window = self._window
         problem = self.window_problem(copy=False)
         self._last_cost = None
+        self.sync_counts()
         if outcome == CERTIFIED:
             X, status = np.array(window.X_sol), Status.OK
             self._last_cost = window.cost

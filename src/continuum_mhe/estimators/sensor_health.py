@@ -303,6 +303,7 @@ class Estimator(Generic[InferenceT]):
         ) = self._policy.diagnostics  # fmt: skip
         for k, t in freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
+        self.inference.sync_counts()
 
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
