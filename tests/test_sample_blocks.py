@@ -6,6 +6,7 @@ same problems counted, the same one-line error, on tricky inputs and on random t
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from continuum_mhe.io.text_rows import (
     sample_blocks,
 )
 
-Outcome = tuple[object, ...]
+Outcome = tuple[Any, ...]
 
 
 def _by_rows(path: Path, columns: tuple[str, ...], **kw: bool) -> Outcome:
@@ -72,7 +73,7 @@ def _same(tmp_path: Path, text: bytes | str, columns: tuple[str, ...] = ("t", "r
 def _small_line_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Blocks of a few lines, so that a problem falls in the middle of the input, with
     blocks read whole before it and after it."""
-    monkeypatch.setattr(text_rows, "LINE_BLOCK", 4)
+    monkeypatch.setattr(text_rows, "BLOCK_BYTES", 40)
 
 
 ROW_LIST = [f"{0.05 * i:.10g},{0.01 * i:.10g},{-0.02 * i:.10g}\n" for i in range(20)]
@@ -142,7 +143,9 @@ TWO_IMUS = ("t", "roll_1", "pitch_1", "roll_2", "pitch_2")
         "0,0.1,0.1,0.2,0.2\r\n0.05,,,,\r\n\r\n0.1,0.1,0.1,0.2,0.2\r\n",
     ],
 )
-def test_empty_fields_are_dropouts_of_several_imus(tmp_path: Path, body: str, skip_bad: bool) -> None:
+def test_empty_fields_are_dropouts_of_several_imus(
+    tmp_path: Path, body: str, skip_bad: bool
+) -> None:
     _same(tmp_path, ",".join(TWO_IMUS) + "\n" + body, TWO_IMUS, skip_bad=skip_bad,
           empty_is_dropout=True)  # fmt: skip
 
@@ -165,17 +168,21 @@ def test_lines_refused_whole_are_refused_alike(tmp_path: Path, line: bytes) -> N
 
 
 # random text of the characters that matter to either reader
-_CHARS = "0123456789.,e+-  \n\n\n\r\t#n_\"a;"
+_CHARS = '0123456789.,e+-  \n\n\n\r\t#n_"a;'
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(body=st.text(_CHARS, max_size=120), skip_bad=st.booleans(), dropouts=st.booleans())
 def test_random_text_reads_alike(tmp_path: Path, body: str, skip_bad: bool, dropouts: bool) -> None:
     _same(tmp_path, "t,roll,pitch\n0,0.1,0.1\n" + body, skip_bad=skip_bad,
           empty_is_dropout=dropouts)  # fmt: skip
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(
     rows=st.lists(
         st.tuples(st.floats(-1e3, 1e3), st.floats(allow_nan=True), st.floats(allow_infinity=True)),
@@ -189,8 +196,11 @@ def test_random_numbers_read_alike(tmp_path: Path, rows: list[tuple[float, float
         _same(tmp_path, "t,roll,pitch\n" + body, skip_bad=skip_bad)
 
 
-@pytest.mark.parametrize("name", ["plain", "crlf", "comments and blank lines", "semicolons",
-                                  "tabs", "t in ms", "exponents and signs", "no final line end"])  # fmt: skip
+PLAIN = ["plain", "crlf", "comments and blank lines", "semicolons", "tabs", "t in ms",
+         "exponents and signs", "no final line end"]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", PLAIN)
 def test_plain_tables_are_read_by_blocks(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
@@ -206,4 +216,4 @@ def test_plain_tables_are_read_by_blocks(
     expected = _by_rows(tmp_path / "in.csv", ("t", "roll", "pitch"))
     monkeypatch.setattr(text_rows, "_split_rows", refused)
     assert _by_blocks(tmp_path / "in.csv", ("t", "roll", "pitch"), 5) == expected
-    assert len(expected[0]) > 2  # type: ignore[arg-type]
+    assert len(expected[0]) > 2

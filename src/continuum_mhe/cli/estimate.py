@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
                     freezes_before = len(diag.first_freezes)
                     with signals_deferred():  # inside C code: stop after this block
                         batch = est.continue_run(t, z)
-                    for _ in range(len(t)):
+                    for _ in range(len(t) if bar else 0):  # the bar moves per sample
                         next(ticks)
                     statuses = batch.statuses()
                     for status, k in Counter(statuses).items():

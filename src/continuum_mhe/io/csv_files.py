@@ -758,7 +758,9 @@ def estimate_lines(
     :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
     is none; ``outlier`` None: no such column); a non-finite output of an estimate is
     refused (a bug). Written by the compiled core, each number as ``%.10g``."""
-    estimated = ~np.isnan(output).all(axis=1) & (np.asarray(status) != "no-estimate")
+    status = list(status)  # str (or Status, a str): numpy's array of them calls __str__
+    no_estimate = np.fromiter(map("no-estimate".__eq__, status), dtype=np.bool_, count=len(status))
+    estimated = ~np.isnan(output).all(axis=1) & ~no_estimate
     if not (
         np.isfinite(t).all()
         and np.isfinite(solve_ms).all()
@@ -766,10 +768,12 @@ def estimate_lines(
     ):
         raise ValueError(f"refusing to write non-finite value to {path}")
     flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
+    t, output, output_std, solve_ms = (
+        np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)
+    )
     return _core.estimate_lines(
-        *(np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std)),
-        estimated.view(np.uint8), flags, list(status), np.ascontiguousarray(solve_ms, dtype=np.float64),
-    )  # fmt: skip
+        t, output, output_std, estimated.view(np.uint8), flags, status, solve_ms
+    )
 
 
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:

@@ -398,7 +398,7 @@ def sample_blocks(
     as blocks of ``size`` rows (the last one shorter); reads ``rows``' input itself
     (``rows.rows`` is not to be used as well).
 
-    The lines are read :data:`LINE_BLOCK` at a time and parsed as a block by numpy's
+    The lines are read :data:`BLOCK_BYTES` at a time and parsed as a block by numpy's
     :func:`numpy.loadtxt` when the block's text can only mean what the row-by-row reading
     finds in it: ASCII digits, signs, points and exponents, separators and blanks; every
     data line with the header's number of fields; finite values, empty ones only where
@@ -433,16 +433,14 @@ def sample_blocks(
         yield _joined(pieces)
 
 
-#: Lines read and parsed together by :func:`sample_blocks`.
-LINE_BLOCK = 4096
-#: Bytes read at most into one line block (a long line ends the block early).
-_BLOCK_BYTES = 1 << 22
+#: Bytes of whole lines read and parsed together by :func:`sample_blocks` (about 3,000
+#: rows of a tilt table).
+BLOCK_BYTES = 1 << 17
 #: The bytes of a block that :func:`numpy.loadtxt` reads as the rows would be read:
 #: ASCII digits, signs, decimal points, exponents, blanks, line ends (with a separator).
 _PLAIN = b"0123456789.eE+- \t\r\n"
-#: The bytes that are blank in a line (a line of them only is skipped).
-_BLANK = np.zeros(256, dtype=np.bool_)
-_BLANK[list(b" \t\r\n")] = True
+#: A line of blanks only (skipped), in a block of lines.
+_BLANK_LINE = re.compile(rb"^[ \t\r]*$", re.M)
 
 
 def _block_of(rows: list[tuple[int, float, list[float]]], width: int) -> SampleBlock:
@@ -564,61 +562,49 @@ class _SampleChecks:
         table = self.table
         yield from self.rows(iter([(n, split_fields(text, table.separator))
                                    for n, text in table._pending]))  # fmt: skip
-        fh, n = table._stream, table._next_line
-        assert fh is not None, "sample_blocks reads an open table"
-        while True:
-            raw: list[bytes] = []
-            size = 0
-            while len(raw) < LINE_BLOCK and size < _BLOCK_BYTES:
-                line = _read_line(fh)
-                if not line:
-                    break
-                raw.append(line)
-                size += len(line)
-                if not line.endswith(b"\n"):  # the last line, or one too long: read alone
-                    break
-            if not raw:
-                return
-            block = self._parse(raw, n)
-            if block is not None:
-                if len(block):
-                    yield block
-            else:
-                yield from self.rows(_split_rows(table.name, raw, n, table.separator))
-            n += len(raw)
+        assert table._stream is not None, "sample_blocks reads an open table"
+        for first, text in _line_blocks(table._stream, table._next_line):
+            block = self._parse(text, first)
+            if block is None:
+                yield from self.rows(_split_rows(table.name, text, first, table.separator))
+            elif len(block):
+                yield block
 
-    def _parse(self, raw: list[bytes], first: int) -> SampleBlock | None:
-        """The samples of lines ``first, first + 1, ...`` (``raw``, with their ends) parsed
-        as one block, or None when they are to be read row by row (see
-        :func:`sample_blocks`)."""
+    def _parse(self, text: bytes, first: int) -> SampleBlock | None:
+        """The samples of the lines ``text`` (numbered from ``first``) parsed as one
+        block, or None when they are to be read row by row (see :func:`sample_blocks`)."""
         table, sep = self.table, self.table.separator.encode()
-        text = b"".join(raw)
         if text.translate(None, _PLAIN + sep):
             return None
         if b"\r" in text:
             if text.count(b"\r") != text.count(b"\r\n"):
                 return None
             text = text.replace(b"\r\n", b"\n")
-        byte = np.frombuffer(text, dtype=np.uint8)
-        ends = np.flatnonzero(byte == ord("\n"))
-        if not text.endswith(b"\n"):
-            ends = np.append(ends, len(byte))
-        if (np.diff(ends, prepend=-1) - 1 > MAX_LINE_BYTES).any():
-            return None
-        seps = np.diff(_counts_before(byte == sep[0], ends), prepend=0)
-        has_data = np.diff(_counts_before(~_BLANK[byte], ends), prepend=0) > 0
-        width = len(table.header)
-        if (seps[has_data] != width - 1).any():
-            return None
         lines = text.split(b"\n")
-        data = [ln for ln, d in zip(lines, has_data.tolist()) if d]
-        if not data:
+        if text.endswith(b"\n"):
+            lines.pop()
+        if len(text) > MAX_LINE_BYTES and max(map(len, lines)) > MAX_LINE_BYTES:
+            return None
+        numbers = range(first, first + len(lines))
+        if _has_blank_line(text[:-1] if text.endswith(b"\n") else text):
+            kept = [(n, ln) for n, ln in zip(numbers, lines) if ln.strip()]
+            numbers, lines = [k[0] for k in kept], [k[1] for k in kept]  # type: ignore[assignment]
+            text = b"\n".join(lines)
+        if not lines:
             return SampleBlock([], np.empty(0), np.empty((0, len(self.columns) - 1)))
-        if self.empty_is_dropout and self.empty_field.search(text):
-            data = self.empty_field.sub(b"nan", b"\n".join(data)).split(b"\n")
+        # every line with the header's number of fields (numpy reads the columns it is
+        # given from each line, whatever the line's number of fields)
+        byte = np.frombuffer(text, dtype=np.uint8)
+        ends = np.append(np.flatnonzero(byte == ord("\n")), len(byte))[: len(lines)]
+        seps = np.searchsorted(np.flatnonzero(byte == sep[0]), ends)
+        if (np.diff(seps, prepend=0) != len(table.header) - 1).any():
+            return None
+        body = text[:-1] if text.endswith(b"\n") else text
+        if self.empty_is_dropout and self.empty_field.search(body):
+            lines = self.empty_field.sub(b"nan", body).split(b"\n")
         try:
             values = np.loadtxt(
-                data, dtype=np.float64, delimiter=table.separator, comments=None,
+                lines, dtype=np.float64, delimiter=table.separator, comments=None,
                 usecols=self.idx, ndmin=2, encoding="ascii",
             )  # fmt: skip
         except ValueError:
@@ -633,8 +619,7 @@ class _SampleChecks:
         self.last_t = float(t[-1])
         self.n_rows += len(t)
         self.n_out += len(t)
-        numbers = (first + np.flatnonzero(has_data)).tolist()
-        return SampleBlock(numbers, t, np.ascontiguousarray(values[:, 1:]))
+        return SampleBlock(list(numbers), t, np.ascontiguousarray(values[:, 1:]))
 
     def finish(self) -> None:
         """The errors of a table without samples, once it is read."""
@@ -644,18 +629,42 @@ class _SampleChecks:
             raise InputError(f"{self.table.name}: no usable rows ({self.problems.count} skipped)")
 
 
-def _split_rows(
-    name: str, raw: list[bytes], first: int, sep: str
-) -> Iterator[tuple[int, list[str]]]:
-    """The data rows of lines ``first, first + 1, ...`` (``raw``) read one at a time, as
-    :attr:`TextRows.rows` reads them."""
+def _has_blank_line(body: bytes) -> bool:
+    """Whether the lines ``body`` (without the last one's end) have a blank one."""
+    if not body or body.startswith(b"\n") or body.endswith(b"\n") or b"\n\n" in body:
+        return True
+    return (b" " in body or b"\t" in body) and _BLANK_LINE.search(body) is not None
+
+
+def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes]]:
+    """``(number of the first line, text)`` of the rest of ``fh`` in blocks of whole lines
+    of about :data:`BLOCK_BYTES` (the last line of the input may have no end; a line
+    longer than :data:`MAX_LINE_BYTES` comes in a block of its own, cut)."""
+    rest = b""
+    while True:
+        data = fh.read(max(BLOCK_BYTES, len(rest)))  # a long line: reads that double
+        text = rest + data
+        if not text:
+            return
+        cut = text.rfind(b"\n") + 1 if data else len(text)
+        if cut == 0:  # no line end yet: read on, up to the longest line taken
+            if len(text) <= MAX_LINE_BYTES + 2:
+                rest = text
+                continue
+            cut = len(text)
+        text, rest = text[:cut], text[cut:]
+        yield first, text
+        first += text.count(b"\n")
+
+
+def _split_rows(name: str, text: bytes, first: int, sep: str) -> Iterator[tuple[int, list[str]]]:
+    """The data rows of the lines ``text`` (numbered from ``first``) read one at a time,
+    as :attr:`TextRows.rows` reads them (a line cut where :func:`_read_line` cuts it)."""
+    lines = text.split(b"\n")
+    last = lines.pop()  # the text after the last line end: a line without one, or b""
+    raw = [ln + b"\n" for ln in lines] + ([last] if last else [])
     for n, line in enumerate(raw, start=first):
-        text = _decode(name, n, line)
-        s = text.strip()
+        text_line = _decode(name, n, line[: MAX_LINE_BYTES + 2])
+        s = text_line.strip()
         if s and not s.startswith("#"):
-            yield n, split_fields(text, sep)
-
-
-def _counts_before(mask: NDArray[np.bool_], ends: NDArray[np.intp]) -> NDArray[np.intp]:
-    """How many of ``mask`` are true before each of the positions ``ends``."""
-    return np.concatenate(([0], np.cumsum(mask)))[ends]
+            yield n, split_fields(text_line, sep)
