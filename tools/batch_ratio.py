@@ -10,13 +10,15 @@ and ``copies`` of it end to end, each one's ``t`` shifted after the one before::
     python tools/batch_ratio.py 1 5        # the 10,001 samples, 5 runs
 
 Each run is the command as a user runs it, in a new process; prints per run the wall
-time, the time per sample, the median ``solve_ms`` and their ratio, and the machine's
-load average before it.
+time, the time per sample, the median ``solve_ms`` and their ratio, the same for the
+process's CPU time (user and system: on a loaded machine the wall time counts the other
+processes' turns too) and the machine's load average before it.
 """
 
 from __future__ import annotations
 
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -43,12 +45,16 @@ def recording(folder: Path, copies: int) -> Path:
     return out
 
 
-def run(argv: list[str]) -> float:
-    """Wall time (s) of ``continuum-mhe ARGV`` in a new process, start-up included."""
+def run(argv: list[str]) -> tuple[float, float]:
+    """Wall and CPU time (user and system, s) of ``continuum-mhe ARGV`` in a new process,
+    start-up included."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, "-m", "continuum_mhe", *argv], check=True,
                    capture_output=True)  # fmt: skip
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
 
 
 def main() -> None:
@@ -60,14 +66,16 @@ def main() -> None:
         out = folder / "e.csv"
         for _ in range(runs):
             load = os.getloadavg()[0]
-            wall = run(["estimate", str(source), "-o", str(out), "--overwrite"])
+            wall, cpu = run(["estimate", str(source), "-o", str(out), "--overwrite"])
             rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
             column = rows[0].split(",").index("solve_ms")
             ms = np.array([float(r.split(",")[column]) for r in rows[1:]])
             per = wall / len(ms) * 1e3
             median = float(np.median(ms))
+            cpu_per = cpu / len(ms) * 1e3
             print(f"{len(ms)} samples: {wall:.2f} s wall, {per:.4f} ms a sample, median "
-                  f"solve_ms {median:.4f} ms: {per / median:.2f}x (load {load:.1f})")  # fmt: skip
+                  f"solve_ms {median:.4f} ms: {per / median:.2f}x; CPU {cpu:.2f} s, "
+                  f"{cpu_per / median:.2f}x (load {load:.1f})")  # fmt: skip
 
 
 if __name__ == "__main__":
