@@ -10,4 +10,5 @@ void bind_filter(nanobind::module_& m);  // bind_filter.cpp: EKF step, arrival p
 void bind_consistency(nanobind::module_& m);  // bind_consistency.cpp: the consistency check
 void bind_horizon(nanobind::module_& m); // bind_horizon.cpp: the fast MHE's per-sample step
 void bind_sensor_health(nanobind::module_& m);  // bind_sensor_health.cpp: the policy
+void bind_estimate_text(nanobind::module_& m);  // bind_estimate_text.cpp: estimate CSV lines
 }  // namespace cmhe

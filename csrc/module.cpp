@@ -12,4 +12,5 @@ NB_MODULE(_ext, m) {
   cmhe::bind_consistency(m);
   cmhe::bind_horizon(m);
   cmhe::bind_sensor_health(m);
+  cmhe::bind_estimate_text(m);
 }

@@ -149,6 +149,24 @@ def test_the_block_writer_writes_the_row_writers_lines() -> None:
         estimate_lines("x.csv", t, out, std, None, status, ms)
 
 
+def test_the_block_writer_writes_python_s_digits() -> None:
+    """The compiled writer's numbers are Python's ``"%.10g" % v`` to the character, over
+    every magnitude, random bit patterns (subnormals, the largest doubles), negative
+    zero and ties at the tenth digit."""
+    rng = np.random.default_rng(7)
+    scaled = rng.normal(size=20_000) * 10.0 ** rng.integers(-30, 30, 20_000)
+    bits = rng.integers(0, 2**63, 20_000, dtype=np.uint64).view(np.float64)
+    ties = [1234567890.5, 9999999999.5, 0.5, 2.5e-5, 1e-4, 1e-5, 123456789.25]
+    special = [0.0, -0.0, 5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, *ties]
+    values = np.concatenate([scaled, bits, special, np.negative(special)])
+    values = values[np.isfinite(values)]
+    n = len(values) // 2
+    t, ms = values[:n], values[n : 2 * n]
+    out = std = np.zeros((n, 0))
+    lines = estimate_lines("x.csv", t, out, std, None, ["ok"] * n, ms).splitlines()
+    assert lines == [f"{a:.10g},ok,{b:.10g}" for a, b in zip(t.tolist(), ms.tolist())]
+
+
 def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:
     """The compiled EKF stepped inside the compiled policy (``KalmanInference``) against
     the CasADi EKF stepped through its Python ``infer``: the same statuses and, to

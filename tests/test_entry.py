@@ -101,9 +101,9 @@ def test_step_after_run_suggests_reset():
         ("continuum_mhe.settings", "SIGINT", "continuum-mhe: interrupted\n", 130),
         # SIGTERM before the command line sets its handlers: killed, quietly
         ("continuum_mhe.settings", "SIGTERM", "", -signal.SIGTERM),
-        # SIGTERM while the parser imports the commands, the handlers set
-        ("continuum_mhe.cli.view", "SIGTERM", "continuum-mhe: terminated\n", 143),
-        ("continuum_mhe.cli.view", "SIGINT", "continuum-mhe: interrupted\n", 130),
+        # SIGTERM while the parser imports the command's module, the handlers set
+        ("continuum_mhe.cli.estimate", "SIGTERM", "continuum-mhe: terminated\n", 143),
+        ("continuum_mhe.cli.estimate", "SIGINT", "continuum-mhe: interrupted\n", 130),
     ],
     ids=["import-sigint", "import-sigterm", "parser-sigterm", "parser-sigint"],
 )

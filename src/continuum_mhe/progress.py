@@ -6,10 +6,10 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable, Iterable, Iterator
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-from rich.console import Console
-from rich.progress import track
+if TYPE_CHECKING:
+    from rich.console import Console
 
 T = TypeVar("T")
 
@@ -25,6 +25,9 @@ def progress_bar(
         enabled = sys.stderr.isatty()
     if not enabled:
         return None
+
+    from rich.console import Console  # imported where a bar is shown: rich takes a while
+    from rich.progress import track
 
     def wrap(it: Iterable[T]) -> Iterator[T]:
         total = len(it) if hasattr(it, "__len__") else None  # type: ignore[arg-type]
@@ -47,6 +50,8 @@ PIPED_WIDTH = 1000
 def table_console() -> Console:
     """A console on stdout for tables: the terminal's width, ``$COLUMNS`` where set, else
     (piped, logged) wide enough that no column is cut."""
+    from rich.console import Console
+
     console = Console()
     if not console.is_terminal and not os.environ.get("COLUMNS"):
         console.width = PIPED_WIDTH

@@ -541,3 +541,8 @@ class SensorHealth:
         """
         (restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, reject_resets, last_failure or None, bound_samples, max_noise_scale, model_error).
         """
+
+def estimate_lines(t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output_std: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], estimated: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)], outlier: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)] | None, status: Sequence[str], solve_ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> str:
+    """
+    The estimate CSV lines of ``n`` samples: ``t`` (n) s, ``output`` and ``output_std`` (n, ny), ``estimated`` (n, uint8: 0 leaves the row's outputs and standard deviations empty), ``outlier`` (n, uint8; None: no such column), ``status`` (n names), ``solve_ms`` (n); numbers as ``%.10g``, a non-finite standard deviation empty. ValueError for a non-finite time, solve time or estimated output.
+    """

@@ -34,12 +34,17 @@ from continuum_mhe.signals import (
 from continuum_mhe.signals import on_signal as _on_signal
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of every command in :data:`COMMANDS` (imports each command's module)."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command in :data:`COMMANDS` (imports each command's module),
+    or with ``only`` (a command's name) of that command, the others listed by name and
+    help without their options (only its module imported)."""
     parser = OneLineParser(prog=PROG, description=DESCRIPTION)  # errors: one line
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for command in COMMANDS:
+        if only is not None and command.name != only:
+            sub.add_parser(command.name, help=command.help)
+            continue
         module = importlib.import_module(f"continuum_mhe.cli.{command.module}")
         p = sub.add_parser(
             command.name, help=command.help, description=getattr(module, "DESCRIPTION", None)
@@ -95,7 +100,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
-    parser = build_parser()  # imports the command modules: seconds on a small machine
+    # the command word (the top-level options take no value): only its module is imported
+    words = sys.argv[1:] if argv is None else argv
+    word = next((a for a in words if not a.startswith("-")), None)
+    parser = build_parser(only=word)
     args, unknown = parser.parse_known_args(argv)
     (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     command = commands.choices[args.command]

@@ -46,14 +46,12 @@ PARTIAL = "partial"
 
 
 def _blocks(
-    samples: Iterable[tuple[float, np.ndarray]],
+    blocks: Iterable[tuple[np.ndarray, np.ndarray]],
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """The samples ``(t, z)`` as blocks of up to :data:`BLOCK`: ``t`` (n,) s and ``z``
-    (n, nz), C-contiguous float64."""
-    it = iter(samples)
-    while block := list(itertools.islice(it, BLOCK)):
-        t = np.array([s[0] for s in block], dtype=np.float64)
-        yield t, np.array([s[1] for s in block], dtype=np.float64).reshape(len(block), -1)
+    """The input's blocks of samples ``(t, z)`` cut to at most :data:`BLOCK` samples."""
+    for t, z in blocks:
+        for i in range(0, len(t), BLOCK):
+            yield t[i : i + BLOCK], z[i : i + BLOCK]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     counts: dict[str, int] = {}
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
-        formulation, samples = stream.formulation, stream.samples
+        formulation = stream.formulation
         est = make_estimator(
             method_from_args(args, formulation),
             formulation,
@@ -88,11 +86,11 @@ def run(args: argparse.Namespace) -> int:
         with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
             try:
                 last_t = math.nan
-                for t, z in _blocks(samples):  # a signal while waiting for input ends it
+                for t, z in _blocks(stream.blocks):  # a signal while waiting for input ends it
                     freezes_before = len(diag.first_freezes)
                     with signals_deferred():  # inside C code: stop after this block
                         batch = est.continue_run(t, z)
-                    for _ in range(len(t)):
+                    for _ in range(len(t) if bar else 0):  # the bar moves per sample
                         next(ticks)
                     statuses = batch.statuses()
                     for status, k in Counter(statuses).items():

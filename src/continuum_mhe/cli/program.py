@@ -7,6 +7,7 @@ one-line help are written here and nowhere else.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 PROG = "continuum-mhe"
@@ -68,9 +69,10 @@ COMMANDS: tuple[Command, ...] = (
 )
 
 
+@functools.cache
 def version() -> str:
-    """The installed version (from the package metadata; no import of the package's
-    modules)."""
+    """The installed version (from the package metadata, read once: a search of the
+    installed packages; no import of the package's modules)."""
     from importlib import metadata
 
     try:

@@ -41,6 +41,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe import _core
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -756,30 +757,23 @@ def estimate_lines(
     """The estimate CSV lines of several samples, as :func:`estimate_row` and
     :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
     is none; ``outlier`` None: no such column); a non-finite output of an estimate is
-    refused (a bug). A row with every value is one ``%`` format of the whole row."""
-    n, ny = output.shape
-    estimated = ~np.isnan(output).all(axis=1) & (np.asarray(status) != "no-estimate")
+    refused (a bug). Written by the compiled core, each number as ``%.10g``."""
+    status = list(status)  # str (or Status, a str): numpy's array of them calls __str__
+    no_estimate = np.fromiter(map("no-estimate".__eq__, status), dtype=np.bool_, count=len(status))
+    estimated = ~np.isnan(output).all(axis=1) & ~no_estimate
     if not (
         np.isfinite(t).all()
         and np.isfinite(solve_ms).all()
         and np.isfinite(output[estimated]).all()
     ):
         raise ValueError(f"refusing to write non-finite value to {path}")
-    whole = estimated & np.isfinite(output_std).all(axis=1)
-    flag = "" if outlier is None else "%d,"
-    line = "%.10g," * (1 + 2 * ny) + flag + "%s,%.10g\n"  # the same digits as _fmt
-    values = np.column_stack([t, output, output_std]).tolist()
-    flags = [()] * n if outlier is None else [(int(bool(f)),) for f in outlier.tolist()]
-    lines = []
-    for i, (row, st, ms, fl) in enumerate(zip(values, status, solve_ms.tolist(), flags)):
-        if whole[i]:
-            lines.append(line % (*row, *fl, st, ms))
-            continue
-        y = output[i] if estimated[i] else None
-        sd = None if y is None else output_std[i]
-        cells = estimate_row(row[0], y, st, ms, ny, sd, None if outlier is None else bool(fl[0]))
-        lines.append(",".join(format_cells(path, cells)) + "\n")
-    return "".join(lines)
+    flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
+    t, output, output_std, solve_ms = (
+        np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)
+    )
+    return _core.estimate_lines(
+        t, output, output_std, estimated.view(np.uint8), flags, status, solve_ms
+    )
 
 
 def estimate_rows(series: EstimateSeries) -> list[list[object]]:

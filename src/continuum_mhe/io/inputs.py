@@ -73,7 +73,14 @@ from continuum_mhe.io.tensions import (
     read_tensions,
     tendon_formulation_for,
 )
-from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, iter_samples, open_rows
+from continuum_mhe.io.text_rows import (
+    InputError,
+    RowProblems,
+    SampleBlock,
+    TextRows,
+    open_rows,
+    sample_blocks,
+)
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 
@@ -133,17 +140,25 @@ class MeasurementStream:
 
     Attributes:
         description: what the input is and how it was read (its skip counts are
-            complete once ``samples`` is exhausted).
+            complete once ``blocks`` is exhausted).
         formulation: the formulation the measurements are for.
-        samples: ``(t, z)``: s, (nz,) measurement; read once.
+        blocks: ``(t, z)``: (n,) s, (n, nz) measurements (C-contiguous float64), a
+            block of samples at a time, up to :data:`CHUNK`; read once (``blocks`` or
+            ``samples``).
         t0_ns: absolute time of ``t = 0``, ns (0 for a text table).
     """
 
     description: InputDescription
     formulation: Formulation
-    samples: Iterator[tuple[float, FloatArray]]
+    blocks: Iterator[tuple[FloatArray, FloatArray]]
     t0_ns: int = 0
     _rows: TextRows | None = None
+
+    @property
+    def samples(self) -> Iterator[tuple[float, FloatArray]]:
+        """``(t, z)``: s, (nz,) measurement, one sample at a time (of :attr:`blocks`)."""
+        for t, z in self.blocks:
+            yield from zip(t.tolist(), z)
 
     @property
     def name(self) -> str:
@@ -292,9 +307,10 @@ def load_input(
     with _open_measurements(path, options, formulation) as stream:
         problems = stream.description.problems
         problems.keep = sys.maxsize
-        pairs = list(stream.samples)
-    t = np.array([tv for tv, _ in pairs], dtype=float)
-    z = np.array([zv for _, zv in pairs], dtype=float).reshape(len(t), stream.formulation.nz)
+        blocks = list(stream.blocks)
+    nz = stream.formulation.nz
+    t = np.concatenate([b[0] for b in blocks]) if blocks else np.empty(0)
+    z = np.vstack([b[1] for b in blocks]) if blocks else np.empty((0, nz))
     return EstimateInput(stream.kind, t, z, stream.formulation, 0, problems.first)
 
 
@@ -370,14 +386,17 @@ def _append_tensions(
     tensions (interpolated at its time) and their rates appended."""
     f = tendon_formulation_for(stream.formulation, options)
     k = f.robot.n_tendons
-    samples = stream.samples
+    blocks = stream.blocks
 
-    def rows() -> Iterator[tuple[float, FloatArray]]:
-        for t, z in samples:
-            given = tensions.at(t) if tensions is not None else (np.zeros(k),) * 3
-            yield t, f.measurement_row(z, *given)
+    def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
+        for t, z in blocks:
+            rows = []
+            for tv, zv in zip(t.tolist(), z):
+                given = tensions.at(tv) if tensions is not None else (np.zeros(k),) * 3
+                rows.append(f.measurement_row(zv, *given))
+            yield t, np.array(rows, dtype=np.float64).reshape(len(t), f.nz)
 
-    stream.formulation, stream.samples = f, rows()
+    stream.formulation, stream.blocks = f, with_tensions()
     stream.description.tensions = None if tensions is None else tensions.name
 
 
@@ -419,9 +438,10 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             return tilt_values(name, values, lines, options.degrees, n_imus)
 
-    found = iter_samples(
-        rows, cols, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1, problems=problems
-    )
+    found = sample_blocks(
+        rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1,
+        problems=problems,
+    )  # fmt: skip
     readings = _readings(f)
     description = InputDescription(
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
@@ -441,34 +461,26 @@ def _readings(formulation: Formulation) -> ReadingCounts:
 
 def _chunked(
     rows: TextRows,
-    found: Iterator[tuple[int, float, list[float]]],
+    found: Iterator[SampleBlock],
     convert: Convert,
     readings: ReadingCounts,
     formulation: Formulation,
-) -> Iterator[tuple[float, FloatArray]]:
-    """Validate and convert :data:`CHUNK` rows at a time; yield one sample at a time.
-    Counts which IMUs reported in ``readings``, and warns at the end for one that never
-    did. The first chunk's readings are checked against the robot's mounting
+) -> Iterator[tuple[FloatArray, FloatArray]]:
+    """Convert the blocks of :data:`CHUNK` rows, one at a time. Counts which IMUs
+    reported in ``readings``, and warns at the end for one that never did. The first
+    block's readings are checked against the robot's mounting
     (:func:`~continuum_mhe.io.input_options.check_mounting`)."""
     first = True
-    while True:
-        chunk = [r for _, r in zip(range(CHUNK), found)]
-        if not chunk:
-            readings.warn_silent(rows.name)
-            return
-        lines = [c[0] for c in chunk]
-        t = np.array([c[1] for c in chunk], dtype=float)
-        values = np.array([c[2] for c in chunk], dtype=float).reshape(len(chunk), -1)
-        del chunk
+    for block in found:
         if first:
-            check_time_units(rows, t)
-        z = convert(t, values, lines)
+            check_time_units(rows, block.t)
+        z = np.ascontiguousarray(convert(block.t, block.values, block.lines), dtype=np.float64)
         if first:
             check_mounting(rows.name, z, formulation)
             first = False
         readings.add(z)
-        for i, tv in enumerate(t.tolist()):
-            yield tv, z[i]
+        yield block.t, z
+    readings.warn_silent(rows.name)
 
 
 # --- step 3: the samples of a robot log ------------------------------------------------------
@@ -489,8 +501,11 @@ def _log_stream(p: Path, options: InputOptions, formulation: Formulation) -> Mea
         f"t from the header stamps, s; {units}", _imu_model(data.formulation),
         problems=problems, readings=readings, notes=data.notes,
     )  # fmt: skip
-    pairs = zip(data.t.tolist(), data.z)
-    return MeasurementStream(description, data.formulation, pairs, data.t0_ns)
+    blocks = (
+        (data.t[i : i + CHUNK], np.ascontiguousarray(data.z[i : i + CHUNK], dtype=np.float64))
+        for i in range(0, len(data.t), CHUNK)
+    )
+    return MeasurementStream(description, data.formulation, blocks, data.t0_ns)
 
 
 def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> EstimateInput:

@@ -33,7 +33,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
+import numpy as np
+from numpy.typing import NDArray
+
 from continuum_mhe.errors import UserError, expect_type
+
+FloatArray = NDArray[np.float64]
 
 #: Longest line accepted, bytes (a sample row is well under 1 kB; a comment line may be
 #: long, so the limit is generous: it stops a binary file, not a wide table).
@@ -93,6 +98,8 @@ class TextRows:
     time_scale: float = 1.0
     comments: list[str] = field(default_factory=list)
     _stream: IO[bytes] | None = None
+    _pending: list[tuple[int, str]] = field(default_factory=list)  # data lines read already
+    _next_line: int = 0  # the number of the first line not read yet
 
     def close(self) -> None:
         if self._stream is not None:
@@ -110,35 +117,40 @@ def shorten(text: str, limit: int = SHOWN_CHARS) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
 
 
+def _read_line(fh: IO[bytes]) -> bytes:
+    """One raw line with its end, at most :data:`MAX_LINE_BYTES` and its CRLF (``b""``
+    at the end of the input)."""
+    return fh.readline(MAX_LINE_BYTES + 2)
+
+
+def _decode(name: str, n: int, raw: bytes) -> str:
+    """Line ``n``'s text without its end: a line over :data:`MAX_LINE_BYTES`, a CR-only
+    line end, a NUL byte or bytes that are not UTF-8 are one-line errors naming it."""
+    if n == 1 and raw.startswith(b"\xef\xbb\xbf"):  # a BOM (Excel) is fine
+        raw = raw[3:]
+    body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
+    if b"\r" in body.rstrip(b"\r"):
+        raise InputError(
+            f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
+            "the file with LF or CRLF line ends"
+        )
+    if b"\x00" in body:
+        raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
+    if len(body) > MAX_LINE_BYTES:
+        raise InputError(f"{name}: line {n}: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)")
+    try:
+        line = body.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
+    return line.rstrip("\r")
+
+
 def _lines(name: str, fh: IO[bytes]) -> Iterator[tuple[int, str]]:
-    """``(line_number, text)`` of every line, whole and without its end; a line over
-    :data:`MAX_LINE_BYTES`, a CR-only line end, a NUL byte or bytes that are not UTF-8
-    are one-line errors naming the line."""
+    """``(line_number, text)`` of every line, whole and without its end (:func:`_decode`)."""
     n = 0
-    while True:
-        raw = fh.readline(MAX_LINE_BYTES + 2)  # and its CRLF
-        if not raw:
-            return
+    while raw := _read_line(fh):
         n += 1
-        if n == 1 and raw.startswith(b"\xef\xbb\xbf"):  # a BOM (Excel) is fine
-            raw = raw[3:]
-        body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
-        if b"\r" in body.rstrip(b"\r"):
-            raise InputError(
-                f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
-                "the file with LF or CRLF line ends"
-            )
-        if b"\x00" in body:
-            raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
-        if len(body) > MAX_LINE_BYTES:
-            raise InputError(
-                f"{name}: line {n}: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)"
-            )
-        try:
-            line = body.decode("utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
-        yield n, line.rstrip("\r")
+        yield n, _decode(name, n, raw)
 
 
 def split_fields(text: str, separator: str) -> list[str]:
@@ -257,7 +269,7 @@ def open_rows(path: str | os.PathLike[str]) -> TextRows:
     except BaseException:
         fh.close()
         raise
-    return TextRows(name, header, rows, sep, scale, comments, fh)
+    return TextRows(name, header, rows, sep, scale, comments, fh, pending, n0 + 1)
 
 
 def _data_rows(
@@ -354,71 +366,305 @@ def iter_samples(
     row is dropped; each skip is counted in ``problems``. With
     ``empty_is_dropout`` an empty value is a dropout without complaint.
     """
-    idx = column_indices(rows, columns)
-    problems = problems if problems is not None else RowProblems()
-    name, scale, width = rows.name, rows.time_scale, len(rows.header)
-    last_t = -math.inf
-    last_bad = -1
-    n_out = 0
+    checks = _SampleChecks(rows, columns, skip_bad, empty_is_dropout, problems)
+    yield from checks.rows(rows.rows)
+    checks.finish()
 
-    def bad(line: int, msg: str, dropped: bool = False) -> None:
-        nonlocal last_bad
-        if not skip_bad:
-            raise InputError(f"{name}: line {line}: {msg}")
-        if last_bad != line:  # one per row
-            problems.add(f"line {line}: {msg}")
-            last_bad = line
-        problems.dropped += dropped  # the row's last word: its t is bad, it is dropped
 
-    truncated = "expected {} fields, found {} (truncated row?)"
-    n_rows = 0
-    for line, row in rows.rows:
-        n_rows += 1
-        extra = has_extra_fields(row, width)
-        if extra:  # which field is extra is unknown: no value of the row is trusted
-            bad(line, f"expected {width} fields, found {len(row)} (an extra field or separator?)")
-        if len(row) <= idx[0]:
-            bad(line, truncated.format(width, len(row)), dropped=True)
-            continue
-        try:
-            t = parse_float(name, line, columns[0], row[idx[0]]) * scale
-        except InputError as exc:
-            bad(line, str(exc).split(": ", 2)[-1], dropped=True)
-            continue
-        if not math.isfinite(t):
-            bad(line, f"t is {row[idx[0]]}", dropped=True)
-            continue
-        if t <= last_t:
-            kind = "duplicate" if t == last_t else "decreasing"
-            msg = f"{kind} timestamp t={t:g} after t={last_t:g} (t must strictly increase)"
-            bad(line, msg, dropped=True)
-            continue
-        vals: list[float] = []
-        for col, j in zip(columns[1:], idx[1:]):
-            if extra:
-                vals = [math.nan] * (len(columns) - 1)
-                break
-            if j >= len(row):
-                bad(line, truncated.format(width, len(row)))
-                vals = [math.nan] * (len(columns) - 1)
-                break
-            if empty_is_dropout and row[j] == "":
-                vals.append(math.nan)
+@dataclass(frozen=True)
+class SampleBlock:
+    """Validated rows of a sample table (:func:`sample_blocks`): ``lines`` the file's
+    line number of each row, ``t`` (n,) s, ``values`` (n, k) the other columns, NaN for
+    a dropout."""
+
+    lines: list[int]
+    t: FloatArray
+    values: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+
+def sample_blocks(
+    rows: TextRows,
+    columns: Sequence[str],
+    size: int,
+    *,
+    skip_bad: bool = False,
+    empty_is_dropout: bool = False,
+    problems: RowProblems | None = None,
+) -> Iterator[SampleBlock]:
+    """The samples of :func:`iter_samples`, the same values, errors and ``problems``,
+    as blocks of ``size`` rows (the last one shorter); reads ``rows``' input itself
+    (``rows.rows`` is not to be used as well).
+
+    The lines are read :data:`BLOCK_BYTES` at a time and parsed as a block by numpy's
+    :func:`numpy.loadtxt` when the block's text can only mean what the row-by-row reading
+    finds in it: ASCII digits, signs, points and exponents, separators and blanks; every
+    data line with the header's number of fields; finite values, empty ones only where
+    they are dropouts; ``t`` increasing. Any other block is read row by row, as
+    :func:`iter_samples` reads it, so a problem is reported exactly as there (file, line,
+    what is wrong), after the samples before it.
+    """
+    checks = _SampleChecks(rows, columns, skip_bad, empty_is_dropout, problems)
+    pieces: list[SampleBlock] = []
+    loose: list[tuple[int, float, list[float]]] = []  # rows read one at a time
+    count = 0
+    for item in checks.blocks():
+        if isinstance(item, SampleBlock):
+            pieces += [_block_of(loose, len(columns) - 1), item] if loose else [item]
+            loose = []
+            count += len(item)
+        else:
+            loose.append(item)
+            count += 1
+        while count >= size:  # as soon as a block is complete: errors after it come later
+            if loose:
+                pieces.append(_block_of(loose, len(columns) - 1))
+                loose = []
+            whole = _joined(pieces)
+            yield _part(whole, 0, size)
+            pieces = [_part(whole, size, len(whole))] if len(whole) > size else []
+            count -= size
+    checks.finish()
+    if loose:
+        pieces.append(_block_of(loose, len(columns) - 1))
+    if pieces:
+        yield _joined(pieces)
+
+
+#: Bytes of whole lines read and parsed together by :func:`sample_blocks` (about 3,000
+#: rows of a tilt table).
+BLOCK_BYTES = 1 << 17
+#: The bytes of a block that :func:`numpy.loadtxt` reads as the rows would be read:
+#: ASCII digits, signs, decimal points, exponents, blanks, line ends (with a separator).
+_PLAIN = b"0123456789.eE+- \t\r\n"
+#: A line of blanks only (skipped), in a block of lines.
+_BLANK_LINE = re.compile(rb"^[ \t\r]*$", re.M)
+
+
+def _block_of(rows: list[tuple[int, float, list[float]]], width: int) -> SampleBlock:
+    t = np.array([r[1] for r in rows], dtype=np.float64)
+    values = np.array([r[2] for r in rows], dtype=np.float64).reshape(len(rows), width)
+    return SampleBlock([r[0] for r in rows], t, values)
+
+
+def _joined(pieces: list[SampleBlock]) -> SampleBlock:
+    if len(pieces) == 1:
+        return pieces[0]
+    lines = [n for p in pieces for n in p.lines]
+    return SampleBlock(
+        lines, np.concatenate([p.t for p in pieces]), np.vstack([p.values for p in pieces])
+    )
+
+
+def _part(block: SampleBlock, i: int, j: int) -> SampleBlock:
+    return SampleBlock(block.lines[i:j], block.t[i:j], block.values[i:j])
+
+
+class _SampleChecks:
+    """The checks of :func:`iter_samples` over one table, row by row or a block at a
+    time, with their state: the last ``t``, the rows seen, the problems."""
+
+    def __init__(
+        self,
+        rows: TextRows,
+        columns: Sequence[str],
+        skip_bad: bool,
+        empty_is_dropout: bool,
+        problems: RowProblems | None,
+    ) -> None:
+        self.table = rows
+        self.columns = columns
+        self.idx = column_indices(rows, columns)
+        self.skip_bad = skip_bad
+        self.empty_is_dropout = empty_is_dropout
+        self.problems = problems if problems is not None else RowProblems()
+        self.last_t = -math.inf
+        self.last_bad = -1
+        self.n_rows = 0  # data rows read
+        self.n_out = 0  # samples given
+        sep = re.escape(rows.separator.encode())
+        blank = b"[" + b" \t".replace(rows.separator.encode(), b"") + b"]*"
+        #: an empty or blank field (a dropout where ``empty_is_dropout``)
+        self.empty_field = re.compile(
+            b"(?:(?<=" + sep + b")|^)" + blank + b"(?=" + sep + b"|$)", re.M
+        )
+
+    def bad(self, line: int, msg: str, dropped: bool = False) -> None:
+        if not self.skip_bad:
+            raise InputError(f"{self.table.name}: line {line}: {msg}")
+        if self.last_bad != line:  # one per row
+            self.problems.add(f"line {line}: {msg}")
+            self.last_bad = line
+        self.problems.dropped += dropped  # the row's last word: its t is bad, it is dropped
+
+    def rows(
+        self, rows: Iterator[tuple[int, list[str]]]
+    ) -> Iterator[tuple[int, float, list[float]]]:
+        """The checked samples of ``(line, fields)`` rows, one at a time."""
+        columns, idx, bad = self.columns, self.idx, self.bad
+        name, scale, width = self.table.name, self.table.time_scale, len(self.table.header)
+        truncated = "expected {} fields, found {} (truncated row?)"
+        for line, row in rows:
+            self.n_rows += 1
+            extra = has_extra_fields(row, width)
+            if extra:  # which field is extra is unknown: no value of the row is trusted
+                bad(
+                    line,
+                    f"expected {width} fields, found {len(row)} (an extra field or separator?)",
+                )
+            if len(row) <= idx[0]:
+                bad(line, truncated.format(width, len(row)), dropped=True)
                 continue
             try:
-                v = parse_float(name, line, col, row[j])
+                t = parse_float(name, line, columns[0], row[idx[0]]) * scale
             except InputError as exc:
-                bad(line, str(exc).split(": ", 2)[-1])
-                v = math.nan
-            else:
-                if not math.isfinite(v):
-                    bad(line, f"column {col} is {row[j]} (a dropout; --skip-bad keeps it)")
-                    v = math.nan  # with --skip-bad: a dropout, as the message says
-            vals.append(v)
-        last_t = t
-        n_out += 1
-        yield line, t, vals
-    if n_rows == 0:
-        raise InputError(f"{name}: line 2: no data rows after the header")
-    if n_out == 0:
-        raise InputError(f"{name}: no usable rows ({problems.count} skipped)")
+                bad(line, str(exc).split(": ", 2)[-1], dropped=True)
+                continue
+            if not math.isfinite(t):
+                bad(line, f"t is {row[idx[0]]}", dropped=True)
+                continue
+            if t <= self.last_t:
+                kind = "duplicate" if t == self.last_t else "decreasing"
+                msg = f"{kind} timestamp t={t:g} after t={self.last_t:g} (t must strictly increase)"
+                bad(line, msg, dropped=True)
+                continue
+            vals: list[float] = []
+            for col, j in zip(columns[1:], idx[1:]):
+                if extra:
+                    vals = [math.nan] * (len(columns) - 1)
+                    break
+                if j >= len(row):
+                    bad(line, truncated.format(width, len(row)))
+                    vals = [math.nan] * (len(columns) - 1)
+                    break
+                if self.empty_is_dropout and row[j] == "":
+                    vals.append(math.nan)
+                    continue
+                try:
+                    v = parse_float(name, line, col, row[j])
+                except InputError as exc:
+                    bad(line, str(exc).split(": ", 2)[-1])
+                    v = math.nan
+                else:
+                    if not math.isfinite(v):
+                        bad(line, f"column {col} is {row[j]} (a dropout; --skip-bad keeps it)")
+                        v = math.nan  # with --skip-bad: a dropout, as the message says
+                vals.append(v)
+            self.last_t = t
+            self.n_out += 1
+            yield line, t, vals
+
+    def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]]]:
+        """The table's samples, read from its input: a :class:`SampleBlock` for each
+        block of lines parsed whole, one ``(line, t, values)`` at a time for the others."""
+        table = self.table
+        yield from self.rows(iter([(n, split_fields(text, table.separator))
+                                   for n, text in table._pending]))  # fmt: skip
+        assert table._stream is not None, "sample_blocks reads an open table"
+        for first, text in _line_blocks(table._stream, table._next_line):
+            block = self._parse(text, first)
+            if block is None:
+                yield from self.rows(_split_rows(table.name, text, first, table.separator))
+            elif len(block):
+                yield block
+
+    def _parse(self, text: bytes, first: int) -> SampleBlock | None:
+        """The samples of the lines ``text`` (numbered from ``first``) parsed as one
+        block, or None when they are to be read row by row (see :func:`sample_blocks`)."""
+        table, sep = self.table, self.table.separator.encode()
+        if text.translate(None, _PLAIN + sep):
+            return None
+        if b"\r" in text:
+            if text.count(b"\r") != text.count(b"\r\n"):
+                return None
+            text = text.replace(b"\r\n", b"\n")
+        lines = text.split(b"\n")
+        if text.endswith(b"\n"):
+            lines.pop()
+        if len(text) > MAX_LINE_BYTES and max(map(len, lines)) > MAX_LINE_BYTES:
+            return None
+        numbers = range(first, first + len(lines))
+        if _has_blank_line(text[:-1] if text.endswith(b"\n") else text):
+            kept = [(n, ln) for n, ln in zip(numbers, lines) if ln.strip()]
+            numbers, lines = [k[0] for k in kept], [k[1] for k in kept]  # type: ignore[assignment]
+            text = b"\n".join(lines)
+        if not lines:
+            return SampleBlock([], np.empty(0), np.empty((0, len(self.columns) - 1)))
+        # every line with the header's number of fields (numpy reads the columns it is
+        # given from each line, whatever the line's number of fields)
+        byte = np.frombuffer(text, dtype=np.uint8)
+        ends = np.append(np.flatnonzero(byte == ord("\n")), len(byte))[: len(lines)]
+        seps = np.searchsorted(np.flatnonzero(byte == sep[0]), ends)
+        if (np.diff(seps, prepend=0) != len(table.header) - 1).any():
+            return None
+        body = text[:-1] if text.endswith(b"\n") else text
+        if self.empty_is_dropout and self.empty_field.search(body):
+            lines = self.empty_field.sub(b"nan", body).split(b"\n")
+        try:
+            values = np.loadtxt(
+                lines, dtype=np.float64, delimiter=table.separator, comments=None,
+                usecols=self.idx, ndmin=2, encoding="ascii",
+            )  # fmt: skip
+        except ValueError:
+            return None
+        t = values[:, 0] * table.time_scale
+        if np.isinf(values).any() or not np.isfinite(t).all():
+            return None
+        if not (t[0] > self.last_t and (t[1:] > t[:-1]).all()):
+            return None
+        if not self.empty_is_dropout and np.isnan(values).any():
+            return None
+        self.last_t = float(t[-1])
+        self.n_rows += len(t)
+        self.n_out += len(t)
+        return SampleBlock(list(numbers), t, np.ascontiguousarray(values[:, 1:]))
+
+    def finish(self) -> None:
+        """The errors of a table without samples, once it is read."""
+        if self.n_rows == 0:
+            raise InputError(f"{self.table.name}: line 2: no data rows after the header")
+        if self.n_out == 0:
+            raise InputError(f"{self.table.name}: no usable rows ({self.problems.count} skipped)")
+
+
+def _has_blank_line(body: bytes) -> bool:
+    """Whether the lines ``body`` (without the last one's end) have a blank one."""
+    if not body or body.startswith(b"\n") or body.endswith(b"\n") or b"\n\n" in body:
+        return True
+    return (b" " in body or b"\t" in body) and _BLANK_LINE.search(body) is not None
+
+
+def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes]]:
+    """``(number of the first line, text)`` of the rest of ``fh`` in blocks of whole lines
+    of about :data:`BLOCK_BYTES` (the last line of the input may have no end; a line
+    longer than :data:`MAX_LINE_BYTES` comes in a block of its own, cut)."""
+    rest = b""
+    while True:
+        data = fh.read(max(BLOCK_BYTES, len(rest)))  # a long line: reads that double
+        text = rest + data
+        if not text:
+            return
+        cut = text.rfind(b"\n") + 1 if data else len(text)
+        if cut == 0:  # no line end yet: read on, up to the longest line taken
+            if len(text) <= MAX_LINE_BYTES + 2:
+                rest = text
+                continue
+            cut = len(text)
+        text, rest = text[:cut], text[cut:]
+        yield first, text
+        first += text.count(b"\n")
+
+
+def _split_rows(name: str, text: bytes, first: int, sep: str) -> Iterator[tuple[int, list[str]]]:
+    """The data rows of the lines ``text`` (numbered from ``first``) read one at a time,
+    as :attr:`TextRows.rows` reads them (a line cut where :func:`_read_line` cuts it)."""
+    lines = text.split(b"\n")
+    last = lines.pop()  # the text after the last line end: a line without one, or b""
+    raw = [ln + b"\n" for ln in lines] + ([last] if last else [])
+    for n, line in enumerate(raw, start=first):
+        text_line = _decode(name, n, line[: MAX_LINE_BYTES + 2])
+        s = text_line.strip()
+        if s and not s.startswith("#"):
+            yield n, split_fields(text_line, sep)

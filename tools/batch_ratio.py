@@ -1,0 +1,82 @@
+"""A batch ``continuum-mhe estimate``'s wall time per sample against the median
+``solve_ms`` it reports (the compiled step alone): what the command costs beyond the
+solve (start-up, reading and checking the input, the policy's Python per block,
+writing the estimates).
+
+The recording is ``continuum-mhe simulate paper3d --duration 500`` (10,001 samples),
+and ``copies`` of it end to end, each one's ``t`` shifted after the one before::
+
+    python tools/batch_ratio.py            # 10 copies: 100,010 samples, 3 runs
+    python tools/batch_ratio.py 1 5        # the 10,001 samples, 5 runs
+
+Each run is the command as a user runs it, in a new process; prints per run the wall
+time, the time per sample, the median ``solve_ms`` and their ratio, the same for the
+process's CPU time (user and system: on a loaded machine the wall time counts the other
+processes' turns too) and the machine's load average before it.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+STEP_S = 0.05  # paper3d's sample period
+
+
+def recording(folder: Path, copies: int) -> Path:
+    """The simulated recording, ``copies`` times end to end (one header)."""
+    one = folder / "one.csv"
+    run(["simulate", "paper3d", "--duration", "500", "-o", str(one)])
+    header, *rows = one.read_text().splitlines()
+    t = np.array([float(r.split(",", 1)[0]) for r in rows])
+    span = t[-1] - t[0] + STEP_S
+    lines = [header]
+    for k in range(copies):
+        lines += [f"{tv + k * span:.10g},{r.split(',', 1)[1]}" for tv, r in zip(t, rows)]
+    out = folder / f"x{copies}.csv"
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+def run(argv: list[str]) -> tuple[float, float]:
+    """Wall and CPU time (user and system, s) of ``continuum-mhe ARGV`` in a new process,
+    start-up included."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "continuum_mhe", *argv], check=True,
+                   capture_output=True)  # fmt: skip
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def main() -> None:
+    copies = int(sys.argv[1]) if len(sys.argv) > 1 else 10
+    runs = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        source = recording(folder, copies)
+        out = folder / "e.csv"
+        for _ in range(runs):
+            load = os.getloadavg()[0]
+            wall, cpu = run(["estimate", str(source), "-o", str(out), "--overwrite"])
+            rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+            column = rows[0].split(",").index("solve_ms")
+            ms = np.array([float(r.split(",")[column]) for r in rows[1:]])
+            per = wall / len(ms) * 1e3
+            median = float(np.median(ms))
+            cpu_per = cpu / len(ms) * 1e3
+            print(f"{len(ms)} samples: {wall:.2f} s wall, {per:.4f} ms a sample, median "
+                  f"solve_ms {median:.4f} ms: {per / median:.2f}x; CPU {cpu:.2f} s, "
+                  f"{cpu_per / median:.2f}x (load {load:.1f})")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
