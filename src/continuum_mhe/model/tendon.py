@@ -112,7 +112,7 @@ ACCELERATION_STEP = 0.01
 GRAVITY = 9.80665
 #: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
 #: to settle the directions the IMUs do not see, far too faint to move the others.
-START_PRIOR_WEIGHT = 1.0
+START_PRIOR_WEIGHT = 1e-3
 #: The start's most residual evaluations. On a nearly straight rod the axial tip force
 #: barely moves the IMUs and the fit takes a few hundred evaluations; a start cut short
 #: leaves a force error that the IMUs' misalignment and bias states then absorb, and
@@ -758,16 +758,12 @@ class TendonFormulation(Formulation):
         )
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
-        """The base curvature, the tip force and the IMUs' own errors (gyro biases,
-        misalignments, accelerometer biases, where they are states) that fit the first
-        readings best in equilibrium with the sample's tensions, each held to its prior
-        (:meth:`initial_cov`, times :data:`START_PRIOR_WEIGHT`): the maximum a
-        posteriori state of the first sample, by least squares from the unloaded
-        equilibrium. The errors' priors keep what one reading cannot tell apart (a gyro
-        bias from the rate a tip force would give, a board's tilt from the force's) at
-        zero, and the force's prior keeps what the IMUs do not see, such as the axial
-        force on a straight rod, at zero instead of leaving the fit to wander along it;
-        rates zero."""
+        """The base curvature and the tip force that fit the IMUs best in equilibrium
+        with the sample's tensions (least squares from the unloaded equilibrium), held
+        to it by a faint prior (:data:`START_PRIOR_WEIGHT` times that of
+        :meth:`initial_cov`) that keeps what the IMUs cannot see, such as the twist of
+        a straight rod, at the unloaded value instead of leaving the fit to wander
+        along it; rates and biases zero."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -781,15 +777,13 @@ class TendonFormulation(Formulation):
             return x
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
-        # fitted: k0, F and the IMU-error states after the rates
-        fitted = np.r_[0:6, 12 + k : self.nx]
-        prior = x[fitted].copy()
-        prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[fitted])
+        prior = x[:6].copy()
+        prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[:6])
         # the residual and its Jacobian by the compiled core (forward mode), the same
         # functions the compiled EKF evaluates
         model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
         nz, nx = self.nz, self.nx
-        inputs = [x.copy(), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
+        inputs = [np.zeros(nx), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
         out = np.empty(model.output_size)
         last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
@@ -797,9 +791,9 @@ class TendonFormulation(Formulation):
             """The weighted residual and its Jacobian at ``v``, evaluated once."""
             key = v.tobytes()
             if key not in last:
-                inputs[0][fitted] = v
+                inputs[0] = np.r_[v, x[6:]]
                 model.evaluate(inputs, out)
-                J = -out[: nz * nx].reshape(nz, nx)[:, fitted]  # H = -dr/dx, row-major
+                J = -out[: nz * nx].reshape(nz, nx)[:, :6]  # H = -dr/dx, row-major
                 r = (w * out[nz * nx :])[rows]
                 last.clear()
                 last[key] = (
@@ -810,14 +804,12 @@ class TendonFormulation(Formulation):
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
-        scale = np.sqrt(np.diag(self.initial_cov())[fitted])
-        scale[:3] = 1.0
         fit = least_squares(
-            lambda v: evaluate(v)[0], prior, jac=lambda v: evaluate(v)[1], method="lm",
-            x_scale=scale, max_nfev=START_EVALUATIONS,
+            lambda v: evaluate(v)[0], x[:6], jac=lambda v: evaluate(v)[1], method="lm",
+            x_scale=np.r_[[1.0] * 3, [0.1] * 3], max_nfev=START_EVALUATIONS,
         )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
-            x[fitted] = fit.x
+            x[:6] = fit.x
         return x
 
     def initial_cov(self) -> FloatArray:
