@@ -762,10 +762,12 @@ class TendonFormulation(Formulation):
     # --- numeric helpers ----------------------------------------------------------
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
         """With the tensions given, the shape follows from the tip force: three unknowns.
-        Each IMU pins two of them through its gravity direction; a gyro adds the rate
-        of the twist about the vertical but not its value (it drifts with the gyro's
-        bias: one raw IMU at the tip was 100 mm off on the unloaded recording), so the
-        IMUs determine the shape when there are at least two."""
+        Each IMU pins two of them at once through its gravity direction, so two IMUs
+        determine the shape at every sample. One raw IMU determines it only over time:
+        its gyro, integrated from the start, gives the third (the stacked Jacobians of
+        the shipped robot's tip IMU have full rank over 25 samples, IMU-error states
+        included), but loosely (docs/tendon.md, "One IMU"), so a single IMU is still
+        reported as not determining the shape."""
         return 2 * len(imus) >= 3
 
     def unobservable_detail(self, rank: int, bends: int) -> str:
