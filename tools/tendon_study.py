@@ -1,9 +1,9 @@
 """Tendon-robot estimates on the generator's recordings (docs/tendon.md): the EKF
-(CasADi) and the MHE on IPOPT, tilt and raw IMUs, with the recording's tensions;
-prints one JSON line per run (tip and mid-robot mean error, mm; tip-force rms error, N;
-ms per sample), with the recording's model floor: the mean tip and mid-robot error of
-the estimator's model itself, solved with the true tensions and the true tip force
-(``--floor-only``: that alone).
+(the command line's, compiled) and the MHE on IPOPT, tilt and raw IMUs, with the
+recording's tensions; prints one JSON line per run (tip and mid-robot mean error,
+mm; tip-force rms error, N; ms per sample), with the recording's model floor: the
+mean tip and mid-robot error of the estimator's model itself, solved with the true
+tensions and the true tip force (``--floor-only``: that alone).
 
 The formulation is the command line's (``continuum-mhe estimate --robot ROBOT --inputs
 TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.estimators import ExtendedKalmanFilter, MovingHorizonEstimator
+from continuum_mhe.estimators import MovingHorizonEstimator, make_estimator
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
@@ -119,7 +119,7 @@ def main() -> None:
         return
     z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
     if a.method == "ekf":
-        est = ExtendedKalmanFilter(f)
+        est = make_estimator("ekf", f)  # the command line's (compiled) EKF
     else:
         est = MovingHorizonEstimator(f, MHESettings(horizon=a.horizon, solver="ipopt"))
     start = time.perf_counter()
