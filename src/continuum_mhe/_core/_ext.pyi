@@ -173,6 +173,15 @@ class WindowSolver:
     def window_size(self) -> int: ...
 
     @property
+    def watchdog(self) -> bool:
+        """
+        A rejected full step gets one more Gauss-Newton step from its trial point before it is shortened (for models without the second-order term).
+        """
+
+    @watchdog.setter
+    def watchdog(self, arg: bool, /) -> None: ...
+
+    @property
     def entries(self) -> tuple[int, int, int, int, int]:
         """
         (this solver's address, then the addresses of its C entry points solve, evaluate, shift_outputs and project; argument layouts in csrc/sqp.hpp), for compiled callers.
