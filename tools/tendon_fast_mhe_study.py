@@ -54,7 +54,7 @@ def main() -> None:
     p.add_argument("--samples", type=int, default=None)
     p.add_argument("--fallback-iter", type=int, default=300)
     a = p.parse_args()
-    TendonFormulation.fast_mhe_obstacle = None  # type: ignore[misc]  # this run only
+    TendonFormulation.fast_mhe_obstacle = None  # this run only
     fallback = FastOptions(max_iter=a.fallback_iter, step_tol=1e-7)
 
     def fast_fallback(
@@ -77,7 +77,8 @@ def main() -> None:
     cols = [o.name for o in f.outputs]
     for method in ("ekf", "mhe"):
         est = make_estimator(method, f, MHESettings(horizon=a.horizon))
-        out, seconds, iterations, statuses = [], [], [], {}
+        out, seconds, iterations = [], [], []
+        statuses: dict[str, int] = {}
         for i in range(n):
             start = time.perf_counter()
             r = est.step(Measurement(float(t[i]), z[i]))
