@@ -110,17 +110,37 @@ void cmhe::bind_model(nb::module_& m) {
       .def(
           "__init__",
           [](WindowFunction* self, const TapeFunction& meas, const TapeFunction& proc,
-             int64_t horizon) { new (self) WindowFunction(meas.tape(), proc.tape(), horizon); },
-          nb::arg("meas"), nb::arg("proc"), nb::arg("horizon"));
+             int64_t horizon) {
+            new (self) WindowFunction(MeasurementPiece(meas.tape()), proc.tape(), horizon);
+          },
+          nb::arg("meas"), nb::arg("proc"), nb::arg("horizon"))
+      .def(
+          "__init__",
+          [](WindowFunction* self, const TapeFunction& residual, int64_t blocks,
+             const TapeFunction& proc, int64_t horizon) {
+            new (self)
+                WindowFunction(MeasurementPiece(residual.tape(), blocks), proc.tape(), horizon);
+          },
+          nb::arg("residual"), nb::arg("blocks"), nb::arg("proc"), nb::arg("horizon"),
+          "From the residual's tape ``(x, z) -> r`` alone: its Jacobian by forward-mode "
+          "derivatives, the second-order term zero (``blocks`` measurement blocks).");
 
   nb::class_<TailFunction, ModelFunction>(m, "TailFunction",
                                           "A window's last node and its incoming stage.")
       .def(
           "__init__",
           [](TailFunction* self, const TapeFunction& meas, const TapeFunction& proc) {
-            new (self) TailFunction(meas.tape(), proc.tape());
+            new (self) TailFunction(MeasurementPiece(meas.tape()), proc.tape());
           },
-          nb::arg("meas"), nb::arg("proc"));
+          nb::arg("meas"), nb::arg("proc"))
+      .def(
+          "__init__",
+          [](TailFunction* self, const TapeFunction& residual, int64_t blocks,
+             const TapeFunction& proc) {
+            new (self) TailFunction(MeasurementPiece(residual.tape(), blocks), proc.tape());
+          },
+          nb::arg("residual"), nb::arg("blocks"), nb::arg("proc"),
+          "From the residual's tape alone, as WindowFunction's.");
 
   nb::class_<ResidualNodeFunction, ModelFunction>(
       m, "ResidualNodeFunction",

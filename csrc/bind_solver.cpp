@@ -206,6 +206,9 @@ void cmhe::bind_solver(nb::module_& m) {
       .def_prop_ro("ptrs", [](WindowSolver& s) { return view(s, s.ptrs, {2, 5}); })
       .def_prop_ro("tail_ptrs", [](WindowSolver& s) { return view(s, s.tail_ptrs, {6}); })
       .def_ro("window_size", &WindowSolver::window_size)
+      .def_rw("watchdog", &WindowSolver::watchdog,
+              "A rejected full step gets one more Gauss-Newton step from its trial point "
+              "before it is shortened (for models without the second-order term).")
       .def_prop_ro(
           "entries",
           [](WindowSolver& s) {

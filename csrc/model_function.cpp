@@ -1,10 +1,13 @@
 #include "model_function.hpp"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <mutex>
 #include <stdexcept>
 #include <utility>
+
+#include "forward.hpp"
 
 namespace cmhe {
 
@@ -53,73 +56,120 @@ std::uintptr_t ModelFunction::address() const {
 }
 
 namespace {
-void check_pieces(const Tape& meas, const Tape& proc) {
-  if (meas.input_sizes().size() != 3 || meas.output_sizes().size() != 3)
-    throw std::invalid_argument("meas must map (x, z, m) to (r, jr, sr)");
+void check_proc(const MeasurementPiece& meas, const Tape& proc) {
   if (proc.input_sizes().size() != 4 || proc.output_sizes().size() != 2)
     throw std::invalid_argument("proc must map (x, xn, u, dt) to (w, fj)");
-  if (proc.input_sizes()[0] != meas.input_sizes()[0])
+  if (proc.input_sizes()[0] != meas.nx)
     throw std::invalid_argument("meas and proc disagree on the state size");
 }
 }  // namespace
 
-WindowFunction::WindowFunction(const Tape& meas, const Tape& proc, int64_t horizon)
+MeasurementPiece::MeasurementPiece(const Tape& meas) : tape(meas), forward(false) {
+  if (meas.input_sizes().size() != 3 || meas.output_sizes().size() != 3)
+    throw std::invalid_argument("meas must map (x, z, m) to (r, jr, sr)");
+  nx = meas.input_sizes()[0];
+  nz = meas.input_sizes()[1];
+  nr = meas.output_sizes()[0];
+  njr = meas.output_sizes()[1];
+  nsr = meas.output_sizes()[2];
+}
+
+MeasurementPiece::MeasurementPiece(const Tape& residual, int64_t blocks)
+    : tape(residual), forward(true) {
+  if (residual.input_sizes().size() != 2 || residual.output_sizes().size() != 1)
+    throw std::invalid_argument("the residual must map (x, z) to r");
+  if (blocks < 0) throw std::invalid_argument("blocks must be nonnegative");
+  nx = residual.input_sizes()[0];
+  nz = residual.input_sizes()[1];
+  nr = residual.output_sizes()[0];
+  if (nr != nz) throw std::invalid_argument("the residual must have one entry per measurement");
+  njr = nr * nx;
+  nsr = blocks * nx * nx;
+  check_forward(residual);
+}
+
+void MeasurementPiece::evaluate(const double* x, const double* z, const double* m, double* r,
+                                double* jr, double* sr) const {
+  if (!forward) {
+    const double* args[3] = {x, z, m};
+    double* res[3] = {r, jr, sr};
+    tape.evaluate(args, res);
+    return;
+  }
+  const double* args[2] = {x, z};
+  double* vals[1] = {r};
+  double* jac[1] = {jr};
+  evaluate_forward(tape, 0, args, vals, jac);
+  for (int64_t i = 0; i < nr; ++i) {  // as the symbolic piece: m r and its Jacobian
+    const double mi = m ? m[i] : 0.0;
+    r[i] *= mi;
+    for (int64_t j = 0; j < nx; ++j) jr[i * nx + j] *= mi;
+  }
+  if (sr) std::fill(sr, sr + nsr, 0.0);
+}
+
+void MeasurementPiece::evaluate_batch(const double* X, const double* Z, const double* M,
+                                      double* R, double* JR, double* SR, int64_t count) const {
+  if (!forward) {
+    const double* args[3] = {X, Z, M};
+    const int64_t stride[3] = {nx, nz, nz};
+    double* res[3] = {R, JR, SR};
+    const int64_t res_stride[3] = {nr, njr, nsr};
+    tape.evaluate_batch(args, stride, res, res_stride, count);
+    return;
+  }
+  for (int64_t k = 0; k < count; ++k)
+    evaluate(X + k * nx, Z + k * nz, M + k * nz, R + k * nr, JR + k * njr, SR + k * nsr);
+}
+
+WindowFunction::WindowFunction(const MeasurementPiece& meas, const Tape& proc, int64_t horizon)
     : meas_(meas), proc_(proc), n_(horizon) {
-  check_pieces(meas, proc);
+  check_proc(meas, proc);
   if (horizon < 2) throw std::invalid_argument("a window has at least 2 nodes");
-  nx_ = meas.input_sizes()[0];
-  nz_ = meas.input_sizes()[1];
   nu_ = proc.input_sizes()[2];
-  nr_ = meas.output_sizes()[0];
-  njr_ = meas.output_sizes()[1];
-  nsr_ = meas.output_sizes()[2];
   nw_ = proc.output_sizes()[0];
   nfj_ = proc.output_sizes()[1];
 }
 
 int64_t WindowFunction::output_size() const {
-  return n_ * (nr_ + njr_ + nsr_) + (n_ - 1) * (nw_ + nfj_);
+  return n_ * (meas_.nr + meas_.njr + meas_.nsr) + (n_ - 1) * (nw_ + nfj_);
 }
 
 int WindowFunction::evaluate(const double* const* in, double* out) const {
   const double *X = in[0], *Z = in[1], *M = in[2], *U = in[3], *DT = in[4];
+  const int64_t nx = meas_.nx;
   double* R = out;
-  double* JR = R + n_ * nr_;
-  double* W = JR + n_ * njr_;
+  double* JR = R + n_ * meas_.nr;
+  double* W = JR + n_ * meas_.njr;
   double* FJ = W + (n_ - 1) * nw_;
   double* SR = FJ + (n_ - 1) * nfj_;
   // every node's measurement terms, then every stage's process terms, each as one batch
-  const double* margs[3] = {X, Z, M};
-  const int64_t mstride[3] = {nx_, nz_, nz_};
-  double* mres[3] = {R, JR, SR};
-  const int64_t mres_stride[3] = {nr_, njr_, nsr_};
-  meas_.evaluate_batch(margs, mstride, mres, mres_stride, n_);
-  const double* pargs[4] = {X, X + nx_, nu_ ? U : nullptr, DT};
-  const int64_t pstride[4] = {nx_, nx_, nu_, 1};
+  meas_.evaluate_batch(X, Z, M, R, JR, SR, n_);
+  const double* pargs[4] = {X, X + nx, nu_ ? U : nullptr, DT};
+  const int64_t pstride[4] = {nx, nx, nu_, 1};
   double* pres[2] = {W, FJ};
   const int64_t pres_stride[2] = {nw_, nfj_};
   proc_.evaluate_batch(pargs, pstride, pres, pres_stride, n_ - 1);
   return 0;
 }
 
-TailFunction::TailFunction(const Tape& meas, const Tape& proc) : meas_(meas), proc_(proc) {
-  check_pieces(meas, proc);
-  nr_ = meas.output_sizes()[0];
-  njr_ = meas.output_sizes()[1];
-  nsr_ = meas.output_sizes()[2];
+TailFunction::TailFunction(const MeasurementPiece& meas, const Tape& proc)
+    : meas_(meas), proc_(proc) {
+  check_proc(meas, proc);
   nw_ = proc.output_sizes()[0];
   nfj_ = proc.output_sizes()[1];
 }
 
-int64_t TailFunction::output_size() const { return nr_ + njr_ + nsr_ + nw_ + nfj_; }
+int64_t TailFunction::output_size() const {
+  return meas_.nr + meas_.njr + meas_.nsr + nw_ + nfj_;
+}
 
 int TailFunction::evaluate(const double* const* in, double* out) const {
   // inputs (x_prev, x, z, m, u, dt); outputs r, JR, W, FJ, SR
-  const double* margs[3] = {in[1], in[2], in[3]};
-  double* mres[3] = {out, out + nr_, out + nr_ + njr_ + nw_ + nfj_};
-  meas_.evaluate(margs, mres);
+  const int64_t nr = meas_.nr, njr = meas_.njr;
+  meas_.evaluate(in[1], in[2], in[3], out, out + nr, out + nr + njr + nw_ + nfj_);
   const double* pargs[4] = {in[0], in[1], in[4], in[5]};
-  double* pres[2] = {out + nr_ + njr_, out + nr_ + njr_ + nw_};
+  double* pres[2] = {out + nr + njr, out + nr + njr + nw_};
   proc_.evaluate(pargs, pres);
   return 0;
 }

@@ -42,31 +42,55 @@ class TapeFunction : public ModelFunction {
   Tape tape_;
 };
 
+// One node's measurement terms ``(x, z, m) -> (r, jr, sr)`` (layout of
+// continuum_mhe.estimators.fast.codegen.node_pieces): the tape of all three, or, for a
+// model whose symbolic Jacobian is too large to form (``forward``), the residual's tape
+// ``(x, z) -> r`` alone, with ``r`` masked by ``m``, ``jr = d(m r)/dx`` (row-major) by
+// forward-mode derivatives (forward.hpp) and ``sr`` zero (Gauss-Newton steps).
+class MeasurementPiece {
+ public:
+  explicit MeasurementPiece(const Tape& meas);
+  // ``blocks``: the measurement blocks (``sr`` holds ``blocks`` zero (nx, nx) blocks)
+  MeasurementPiece(const Tape& residual, int64_t blocks);
+  // one node
+  void evaluate(const double* x, const double* z, const double* m, double* r, double* jr,
+                double* sr) const;
+  // ``count`` nodes, columns of ``X`` (nx), ``Z``, ``M`` (nz) into ``R``, ``JR``, ``SR``
+  void evaluate_batch(const double* X, const double* Z, const double* M, double* R,
+                      double* JR, double* SR, int64_t count) const;
+
+  Tape tape;
+  bool forward;
+  int64_t nx, nz, nr, njr, nsr;
+};
+
 // ``(X, Z, M, U, DT) -> (R, JR, W, FJ, SR)`` over a window of ``horizon`` nodes from
 // ``meas: (x, z, m) -> (r, jr, sr)`` per node and ``proc: (x, xn, u, dt) -> (w, fj)``
 // per stage; inputs and outputs column-major, one column per node or stage.
 class WindowFunction : public ModelFunction {
  public:
-  WindowFunction(const Tape& meas, const Tape& proc, int64_t horizon);
+  WindowFunction(const MeasurementPiece& meas, const Tape& proc, int64_t horizon);
   int evaluate(const double* const* in, double* out) const override;
   int64_t output_size() const override;
 
  private:
-  Tape meas_, proc_;
-  int64_t n_, nx_, nz_, nu_, nr_, njr_, nsr_, nw_, nfj_;
+  MeasurementPiece meas_;
+  Tape proc_;
+  int64_t n_, nu_, nw_, nfj_;
 };
 
 // ``(x_prev, x, z, m, u, dt) -> (r, JR, W, FJ, SR)``: the window's outputs of one last
 // node and of the stage into it.
 class TailFunction : public ModelFunction {
  public:
-  TailFunction(const Tape& meas, const Tape& proc);
+  TailFunction(const MeasurementPiece& meas, const Tape& proc);
   int evaluate(const double* const* in, double* out) const override;
   int64_t output_size() const override;
 
  private:
-  Tape meas_, proc_;
-  int64_t nr_, njr_, nsr_, nw_, nfj_;
+  MeasurementPiece meas_;
+  Tape proc_;
+  int64_t nw_, nfj_;
 };
 
 }  // namespace cmhe

@@ -383,8 +383,17 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
     }
     double alpha = 1.0;
     const double slack = 1e-13 * (1.0 + std::fabs(cost));
-    bool accepted = false;
+    bool accepted = false, corrected = false;
     double ct = kInf;
+    const double* gc = gp(cur);
+    // the sufficient decrease from X(cur) to X(tr), whose cost is c
+    auto decreases = [&](double c) {
+      double dd = 0.0;
+      const double* xt = X(tr);
+      const double* xc = X(cur);
+      for (Index i = 0; i < size; ++i) dd += gc[i] * (xt[i] - xc[i]);
+      return c <= cost + 1e-4 * dd + slack;
+    };
     for (int ls = 0; ls < 30; ++ls) {
       double* xt = X(tr);
       const double* xc = X(cur);
@@ -392,19 +401,34 @@ SqpResult sqp(WindowSolver& w, const WindowData& data, const double* zmask, doub
       project(n, nx, xt, fs);
       ct = evaluate_sized<NX>(w, tr, data, zmask);
       add_balls(w, tr, lam_qp);
-      double dd = 0.0;
-      const double* gc = gp(cur);
-      for (Index i = 0; i < size; ++i) dd += gc[i] * (xt[i] - xc[i]);
-      if (ct <= cost + 1e-4 * dd + slack) {
+      if (decreases(ct)) {
         accepted = true;
-        exact = opt.newton;
-        if (exact) add_curvature<NX>(w, tr, 1.0);
         break;
+      }
+      if (ls == 0 && w.watchdog && std::isfinite(ct)) {  // the full step, corrected
+        std::copy(d, d + size, w.d_kept.data());
+        std::copy(lam_qp, lam_qp + n * nb, w.lam_kept.data());
+        const QPResult q2 = solve_qp<NX>(n, nx, xt, Dp(tr), Ep(tr), gp(tr), fs,
+                                         opt.max_qp_iter, d, lam_qp, w.qp);
+        if (q2.status == CONVERGED) {
+          for (Index i = 0; i < size; ++i) xt[i] += d[i];
+          project(n, nx, xt, fs);
+          ct = evaluate_sized<NX>(w, tr, data, zmask);
+          add_balls(w, tr, lam_qp);
+          if (decreases(ct)) {
+            accepted = corrected = true;
+            break;
+          }
+        }
+        std::copy(w.d_kept.begin(), w.d_kept.end(), d);
+        std::copy(w.lam_kept.begin(), w.lam_kept.end(), lam_qp);
       }
       alpha *= 0.5;
     }
     if (!accepted) return {LINE_SEARCH_FAILED, it, step, cost, cur};
-    prev = alpha == 1.0 ? step : kInf;
+    exact = opt.newton;
+    if (exact) add_curvature<NX>(w, tr, 1.0);
+    prev = alpha == 1.0 && !corrected ? step : kInf;
     prev_exact = step_exact;
     prev_active = qp.active;
     cur = tr;
@@ -478,6 +502,8 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   g.assign(2 * n * nx, 0.0);
   d.assign(n * nx, 0.0);
   lam_qp.assign(n * nb, 0.0);
+  d_kept.assign(n * nx, 0.0);
+  lam_kept.assign(n * nb, 0.0);
   wgt.assign(2 * n * nblk, 0.0);
   extra.assign(2 * n * nblk, 0.0);
   gb.assign(2 * n * nblk * nx, 0.0);

@@ -110,6 +110,13 @@ class WindowSolver {
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
   int loss_code;
+  // Gauss-Newton steps on stiff rows (a model without the second-order term, whose
+  // weighted rows are far more nonlinear than the rest): a full step that the line
+  // search rejects gets one more Gauss-Newton step from its trial point, and their sum
+  // is tried against the same sufficient decrease before the step is shortened (a
+  // watchdog: the full step overshoots such rows to second order, which the next step
+  // corrects; shortening it instead creeps)
+  bool watchdog = false;
   double loss_scale;
   bool linear;
 
@@ -125,7 +132,7 @@ class WindowSolver {
 
   // scratch
   QPScratch qp;
-  std::vector<double> wr, wj, qw, qf, e, acc, eql, fqfl;
+  std::vector<double> wr, wj, qw, qf, e, acc, eql, fqfl, d_kept, lam_kept;
 };
 
 }  // namespace cmhe

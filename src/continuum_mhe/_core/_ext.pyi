@@ -3,7 +3,7 @@ The compiled core of continuum-mhe: model evaluation, MHE solver, filters.
 """
 
 from collections.abc import Sequence
-from typing import Annotated
+from typing import Annotated, overload
 
 import numpy
 from numpy.typing import NDArray
@@ -41,12 +41,24 @@ class TapeFunction(ModelFunction):
 class WindowFunction(ModelFunction):
     """The MHE window's residuals and Jacobians."""
 
+    @overload
     def __init__(self, meas: TapeFunction, proc: TapeFunction, horizon: int) -> None: ...
+
+    @overload
+    def __init__(self, residual: TapeFunction, blocks: int, proc: TapeFunction, horizon: int) -> None:
+        """
+        From the residual's tape ``(x, z) -> r`` alone: its Jacobian by forward-mode derivatives, the second-order term zero (``blocks`` measurement blocks).
+        """
 
 class TailFunction(ModelFunction):
     """A window's last node and its incoming stage."""
 
+    @overload
     def __init__(self, meas: TapeFunction, proc: TapeFunction) -> None: ...
+
+    @overload
+    def __init__(self, residual: TapeFunction, blocks: int, proc: TapeFunction) -> None:
+        """From the residual's tape alone, as WindowFunction's."""
 
 class ResidualNodeFunction(ModelFunction):
     """
@@ -159,6 +171,15 @@ class WindowSolver:
 
     @property
     def window_size(self) -> int: ...
+
+    @property
+    def watchdog(self) -> bool:
+        """
+        A rejected full step gets one more Gauss-Newton step from its trial point before it is shortened (for models without the second-order term).
+        """
+
+    @watchdog.setter
+    def watchdog(self, arg: bool, /) -> None: ...
 
     @property
     def entries(self) -> tuple[int, int, int, int, int]:

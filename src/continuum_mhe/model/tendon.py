@@ -424,8 +424,9 @@ class TendonFormulation(Formulation):
     second_order_residuals: ClassVar[bool] = False
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
-        "the fast MHE has no window of the robot's mechanics model (its Jacobians "
-        "come from forward-mode derivatives, which only the EKF's node takes)"
+        "the fast MHE's window of the robot's mechanics model (Gauss-Newton steps on "
+        "forward-mode Jacobians) does not certify its windows within its iterations and "
+        "takes seconds a sample (docs/tendon.md)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True

@@ -21,7 +21,7 @@ import numpy as np
 
 import continuum_mhe._core as _core
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.tape import residual_node_tapes, tape_function
+from continuum_mhe.model.tape import residual_function, residual_node_tapes, tape_function
 
 
 def transition_is_linear(formulation: Formulation) -> bool:
@@ -39,9 +39,8 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     node's and one stage's part of :func:`window_function` (the layout described
     there); given to both :func:`window_function` and :func:`tail_function`, they
     compute each node with the same code."""
-    f, nx, nu, nz = formulation, formulation.nx, formulation.nu, formulation.nz
-    x, xn, z = ca.SX.sym("x", nx), ca.SX.sym("xn", nx), ca.SX.sym("z", nz)
-    u, dt, mk = ca.SX.sym("u", nu), ca.SX.sym("dt"), ca.SX.sym("m", nz)
+    f, nx, nz = formulation, formulation.nx, formulation.nz
+    x, z, mk = ca.SX.sym("x", nx), ca.SX.sym("z", nz), ca.SX.sym("m", nz)
     r = mk * f.measurement_residual_sym(z, x)
     jr = ca.jacobian(r, x)
     rinv = np.linalg.inv(f.meas_cov())
@@ -58,9 +57,16 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
         lam = ca.SX.sym("lam", rb.numel())
         curv.append(ca.vec(ca.substitute(ca.jacobian(jb.T @ lam, x), lam, wb @ rb)))
     meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
+    return meas, process_piece(f)
+
+
+def process_piece(formulation: Formulation) -> ca.Function:
+    """``proc: (x, xn, u, dt) -> (W, FJ)``: one stage's part of :func:`window_function`."""
+    f, nx = formulation, formulation.nx
+    x, xn = ca.SX.sym("x", nx), ca.SX.sym("xn", nx)
+    u, dt = ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     xf = f.transition_sym(x, u, dt)
-    proc = ca.Function("mhe_proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
-    return meas, proc
+    return ca.Function("mhe_proc", [x, xn, u, dt], [xn - xf, ca.vec(ca.jacobian(xf, x).T)])
 
 
 NodePieces = tuple[ca.Function, ca.Function]
@@ -166,7 +172,19 @@ def c_function(fn: ca.Function | _core.ModelFunction) -> Any:
 
 def window_c_functions(formulation: Formulation, horizon: int) -> tuple[Any, Any]:
     """``(window, tail)``: :func:`window_function` and :func:`tail_function` of
-    ``formulation`` evaluated by the core from one node's two pieces."""
+    ``formulation`` evaluated by the core from one node's two pieces. With
+    :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
+    measurement piece is the residual's instructions alone: the core propagates its
+    Jacobian with the values (``csrc/forward.hpp``) and the second-order term is zero
+    (the formulation's ``second_order_residuals`` is False: Gauss-Newton steps)."""
+    if formulation.forward_mode_jacobian:
+        if formulation.second_order_residuals:
+            raise NotImplementedError("forward-mode Jacobians give no second-order term")
+        residual = tape_function(residual_function(formulation))
+        proc = tape_function(process_piece(formulation))
+        blocks = len(formulation.measurement_blocks)
+        window = c_function(_core.WindowFunction(residual, blocks, proc, horizon))
+        return window, c_function(_core.TailFunction(residual, blocks, proc))
     meas, proc = (tape_function(p) for p in node_pieces(formulation))
     window = c_function(_core.WindowFunction(meas, proc, horizon))
     return window, c_function(_core.TailFunction(meas, proc))

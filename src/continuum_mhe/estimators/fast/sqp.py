@@ -121,6 +121,9 @@ class Workspace:
             np.ascontiguousarray(lossk.blocks, dtype=np.int64), lossk.code, lossk.scale,
             model.linear_transition if linear is None else linear,
         )  # fmt: skip
+        # Gauss-Newton steps (no second-order term): a rejected full step is corrected
+        # by one more step from its trial point before it is shortened (csrc/sqp.hpp)
+        core.watchdog = not model.second_order_residuals
         self.z, self.m, self.u, self.dt = core.z, core.m, core.u, core.dt
         self.Xb, self.out, self.D, self.E, self.g = core.Xb, core.out, core.D, core.E, core.g
         self.d, self.lam_qp, self.wgt, self.extra = core.d, core.lam_qp, core.wgt, core.extra
