@@ -641,8 +641,11 @@ def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes]]:
     of about :data:`BLOCK_BYTES` (the last line of the input may have no end; a line
     longer than :data:`MAX_LINE_BYTES` comes in a block of its own, cut)."""
     rest = b""
+    # what has arrived, up to the size asked (a pipe's reader gets the lines written so
+    # far instead of waiting for a whole block)
+    read = getattr(fh, "read1", fh.read)
     while True:
-        data = fh.read(max(BLOCK_BYTES, len(rest)))  # a long line: reads that double
+        data = read(max(BLOCK_BYTES, len(rest)))  # a long line: reads that double
         text = rest + data
         if not text:
             return
