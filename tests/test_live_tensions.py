@@ -334,3 +334,11 @@ def test_live_refuses_inputs_for_a_robot_without_tendons_before_the_port(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the robot has no [[tendon]]" in err[0] and str(tensions) in err[0]
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_the_compiled_ekf_builds_no_symbolic_jacobian_of_the_model(runs: Runs) -> None:
+    """The runs above (a start, restarts, live's warm-up) evaluate the tendon model's
+    Jacobians in the compiled core only: its symbolic measurement Jacobians (over a
+    million CasADi instructions) are never built."""
+    built = vars(runs.estimator.formulation.functions)
+    assert "innovate" not in built and "measure" not in built

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from continuum_mhe.cli.config import options_record
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
@@ -229,8 +230,6 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
-        from continuum_mhe.cli.config import options_record
-
         args.options_record = options_record(parser, args)
     return method
 
