@@ -46,6 +46,8 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
   need(s_.gravity_r, nz, "gravity_r");
   if (s_.memory < 1 || s_.quiet_memory < 1)
     throw std::invalid_argument("memory and quiet_memory must be at least 1");
+  if (!(s_.model_error_floor >= 0.0) || !std::isfinite(s_.model_error_floor))
+    throw std::invalid_argument("model_error_floor must be finite and >= 0");
   const auto writes = [](const ModelFunction& fn, size_t n, const char* name) {
     if (fn.output_size() != static_cast<int64_t>(n))
       throw std::invalid_argument(std::string("the ") + name + " function writes " +
@@ -237,9 +239,11 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
                                           double* out) {
   const int nx = s_.nx, nz = s_.nz;
   std::fill(out, out + nx * nx, 0.0);
+  // the model error learned, or the floor assumed before the readings show one
   std::vector<double> bias(s_.bias);
-  if (model_error_ != 0.0)
-    for (int i = 0; i < nz; ++i) bias[i] += model_error_ * s_.gravity_r[i];
+  for (int i = 0; i < nz; ++i)
+    if (s_.gravity_r[i] > 0.0)
+      bias[i] += std::max(model_error_ * s_.gravity_r[i], s_.model_error_floor);
   rows_.clear();
   for (int i = 0; i < nz; ++i)
     if (mask[i] > 0.0 && bias[i] > 0.0) rows_.push_back(i);

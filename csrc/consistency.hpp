@@ -46,6 +46,9 @@ struct ConsistencySettings {
   int memory;                     // samples the average of NIS / dof remembers
   int quiet_memory;               // samples the average while no model error shows remembers
   double rcond;                   // the pseudo-inverse's relative eigenvalue cut-off
+  // the variance (rad^2) of each gravity-direction reading's model error assumed
+  // before the readings show one: the floor under the model error learned
+  double model_error_floor = 0.0;
 };
 
 class ConsistencyCheck {
@@ -73,7 +76,7 @@ class ConsistencyCheck {
                        const double* mask, const double* u, const double* Q,
                        const std::vector<int>& rows);
   // ``A B A^T`` (nx x nx, into ``out``) at ``x``: the covariance from the readings'
-  // constant errors and the model error learned so far
+  // constant errors and the model error (the one learned so far, at least the floor)
   void constant_error_cov(const double* z, const double* mask, const double* x, double* out);
 
   const ConsistencySettings& settings() const { return s_; }

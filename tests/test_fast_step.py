@@ -49,8 +49,9 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
     from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ProcessNoiseCache
 
-    # no constant reading error: the reported std is the covariance's, times one factor
-    noise = NoiseSettings(reading_bias_std=0.0)
+    # no constant reading error nor model error: the reported std is the covariance's,
+    # times one factor
+    noise = NoiseSettings(reading_bias_std=0.0, model_error_std=0.0)
     f = make_formulation("bend", robot, noise) if robot else make_formulation("bend", noise=noise)
     node = NodeEvaluator(build_window_model(f, 2))
     process_noise = ProcessNoiseCache(f)

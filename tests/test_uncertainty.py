@@ -113,10 +113,11 @@ def fd_output_jacobian(f: BendFormulation, x: np.ndarray, h: float = 1e-6) -> np
 
 @pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
 def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
-    """With no constant reading error (``reading_bias_std`` 0) the std is the
-    covariance through the output Jacobian (finite differences)."""
+    """With no constant reading error nor model error (``reading_bias_std`` and
+    ``model_error_std`` 0) the std is the covariance through the output Jacobian
+    (finite differences)."""
     rec = simulate("paper3d", duration=3)
-    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0))
+    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0, model_error_std=0.0))
     est = step_all(cls(f), rec.t, rec.z)
     checked = 0
     for e in est[5:]:
@@ -130,14 +131,18 @@ def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
 def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
-    """With the default ``reading_bias_std`` the output variance is the covariance's
-    plus the estimate's least-squares sensitivity to a constant reading error,
-    ``J A B A^T J^T`` with ``A = (H^T R^-1 H)^-1 H^T R^-1`` (``H`` by finite
-    differences of the residual: one IMU, two readings, two bends, two rates)."""
+    """With the default ``reading_bias_std`` and ``model_error_std`` the output
+    variance is the covariance's plus the estimate's least-squares sensitivity to a
+    constant reading error, ``J A B A^T J^T`` with ``A = (H^T R^-1 H)^-1 H^T R^-1``
+    (``H`` by finite differences of the residual: one IMU, two readings, two bends,
+    two rates) and ``B`` both variances (the readings show no model error larger than
+    the floor on this recording, which the model generated)."""
     rec = simulate("paper3d", duration=3)
     f = BendFormulation()
     est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
-    R, B = f.meas_cov(), np.eye(f.nz) * f.noise.reading_bias_std**2
+    noise = f.noise
+    R = f.meas_cov()
+    B = np.eye(f.nz) * (noise.reading_bias_std**2 + noise.model_error_std**2)
     checked = 0
     for e, z in zip(est[10:], rec.z[10:]):
         if abs(e.output[4]) > 3.0:  # phi near the wrap: finite differences would jump
@@ -166,7 +171,7 @@ def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
 def test_compiled_output_std_equals_the_casadi_one(method: str) -> None:
     """The compiled EKF and the fast MHE use the compiled output Jacobian."""
     rec = simulate("paper3d", duration=2)
-    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0))
+    f = BendFormulation(noise=NoiseSettings(reading_bias_std=0.0, model_error_std=0.0))
     est = step_all(make_estimator(method, f), rec.t, rec.z)  # type: ignore[arg-type]
     for e in est:
         assert_allclose(e.output_std, f.output_std(e.state, e.covariance), rtol=1e-12)
@@ -488,7 +493,8 @@ def test_freeze_samples_are_validated() -> None:
 def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
     rec = simulate("paper3d", duration=2)
     # the status judges the estimator's own std: without the readings' constant errors
-    f = BendFormulation(robot=RobotSettings(length=0.2), noise=NoiseSettings(reading_bias_std=0))
+    noise = NoiseSettings(reading_bias_std=0, model_error_std=0)
+    f = BendFormulation(robot=RobotSettings(length=0.2), noise=noise)
     base = make_estimator("ekf", f).run(rec.t, rec.z)
     tip_std = np.sqrt(np.sum(base.std[:, :3] ** 2, axis=1))
     frac = float(np.median(tip_std)) / 0.2

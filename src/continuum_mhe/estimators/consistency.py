@@ -68,14 +68,20 @@ follow. The excess the average showed at such a detection over the quiet level,
 :attr:`ConsistencyCheck.model_error`: the largest of the
 recording (the estimator's restarts keep it), carried as a constant error of the
 gravity-direction readings (below), not as white noise (a slowly varying model error is
-not averaged away by the filter or the window).
+not averaged away by the filter or the window). Before the readings show one, and
+wherever the one they showed is smaller, each gravity-direction reading carries the
+model error the constant-curvature model is taken to make of a real robot
+(``Formulation.model_error_floor``, ``NoiseSettings.model_error_std``): the rows
+before a model error first shows, and the rows of a robot whose readings never show
+it (two IMUs' tilt fit two sections' bends exactly whatever the model error), are
+otherwise widened by nothing.
 
 Some error no residual shows: a constant error in every reading of an IMU (its
 mounting misalignment, its accelerometer's bias) looks like a different shape.
 :meth:`ConsistencyCheck.constant_error_cov` is the estimate's covariance from it, the
 readings' constant-error covariance ``B`` (``Formulation.reading_bias_cov``,
-``NoiseSettings.reading_bias_std``, plus ``model_error`` times ``R`` on the
-gravity-direction readings) carried through the estimate's weighted
+``NoiseSettings.reading_bias_std``, plus ``model_error`` times ``R``, at least the
+floor, on the gravity-direction readings) carried through the estimate's weighted
 least-squares sensitivity to the readings that carry such an error (the gravity
 directions; the states they depend on: the bends), ``A = (H^T R^-1 H)^+ H^T R^-1``
 at the estimate: ``A B A^T``. Its output standard deviations are added in quadrature
@@ -180,6 +186,7 @@ class ConsistencyCheck:
             memory=MEMORY,
             quiet_memory=QUIET_MEMORY,
             rcond=PINV_RCOND,
+            model_error_floor=f.model_error_floor(),
         )
         self._q = ProcessNoiseCache(formulation)
         self._prev: tuple[float, FloatArray] | None = None  # the previous (t, z)
@@ -248,12 +255,12 @@ class ConsistencyCheck:
 
     def constant_error_cov(self, z: FloatArray, mask: FloatArray, state: FloatArray) -> FloatArray:
         """The state covariance (nx, nx) from the readings' constant errors and the
-        model error learned so far (module doc): ``A B A^T`` with ``B`` the readings'
-        constant-error covariance plus :attr:`model_error` times ``R`` on the
-        gravity-direction readings and ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid
-        readings that carry a constant error (``B > 0``: the gravity directions) and the
-        states they depend on (the bends: the readings that set the shape) at
-        ``state``; zero where ``B`` is."""
+        model error (module doc): ``A B A^T`` with ``B`` the readings' constant-error
+        covariance plus :attr:`model_error` times ``R``, at least
+        ``Formulation.model_error_floor``, on the gravity-direction readings and
+        ``A = (H^T R^-1 H)^+ H^T R^-1`` over the valid readings that carry a constant
+        error (``B > 0``: the gravity directions) and the states they depend on (the
+        bends: the readings that set the shape) at ``state``; zero where ``B`` is."""
         return self._core.constant_error_cov(z, mask, state)
 
     @property

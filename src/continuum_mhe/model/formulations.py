@@ -316,6 +316,13 @@ class Formulation:
         (:meth:`gravity_direction_rows`)."""
         return np.diag(self.gravity_direction_rows() * self.noise.reading_bias_std**2)
 
+    def model_error_floor(self) -> float:
+        """The variance of each gravity-direction reading's model error assumed before
+        the readings show one, in the residual's units (rad^2):
+        ``noise.model_error_std^2``, the constant-curvature model's error of a real
+        robot."""
+        return float(self.noise.model_error_std**2)
+
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Residual ``r(z, x)``, "measurement minus model", weighted by ``R^-1``.
 

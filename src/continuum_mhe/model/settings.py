@@ -69,6 +69,14 @@ class NoiseSettings:
             shows it, so it widens every output standard deviation by the estimate's
             sensitivity to it (:mod:`continuum_mhe.estimators.consistency`); 0 for
             data without it (simulated IMUs mounted exactly).
+        model_error_std: the error of each gravity-direction reading that the
+            constant-curvature model is taken to make of a real robot before the readings
+            show one, rad (a curvature that varies along a section, a twist that turns an
+            IMU's frame; with one IMU per section the readings fit such a shape exactly
+            and no residual shows it): carried as a constant error, as
+            ``reading_bias_std`` is, until the model error learned from the innovations
+            exceeds it (:mod:`continuum_mhe.estimators.consistency`); 0 for data the
+            model generated.
     """
 
     measurement_std: float = math.radians(2.0)
@@ -77,6 +85,7 @@ class NoiseSettings:
     initial_bend_std: float = 0.1
     initial_rate_std: float = 0.5
     reading_bias_std: float = math.radians(1.2)
+    model_error_std: float = math.radians(1.7)
 
     def __post_init__(self) -> None:
         if (
@@ -96,5 +105,7 @@ class NoiseSettings:
             "initial_rate_std",
         ):
             check_positive(name, getattr(self, name))
-        if not (math.isfinite(self.reading_bias_std) and self.reading_bias_std >= 0):
-            raise UserError(f"reading_bias_std must be >= 0, got {self.reading_bias_std!r}")
+        for name in ("reading_bias_std", "model_error_std"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise UserError(f"{name} must be >= 0, got {value!r}")

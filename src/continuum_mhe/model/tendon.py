@@ -737,6 +737,11 @@ class TendonFormulation(Formulation):
 
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
+    def model_error_floor(self) -> float:
+        """0: the model is the robot's mechanics, not a constant-curvature one, and no
+        model error before the readings show one has been measured for it."""
+        return 0.0
+
     def gravity_direction_rows(self) -> NDArray[np.bool_]:
         """The IMUs' gravity-direction readings (tilt, or the accelerometer
         directions); not the tensions nor the equilibrium rows."""
