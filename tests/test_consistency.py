@@ -57,8 +57,8 @@ def test_rows_many_standard_deviations_off_at_1_hz_are_not_ok(method, seed) -> N
     innovation and the fit alone, 1 to 5 rows per recording 4 to 6.8 off. No ``ok`` row
     is 4 off in x or y now, on any estimator; the MHE, which fits its window, keeps
     every row ``ok``. (The linearised ``std_z`` of a nearly straight robot is near zero,
-    as its tip's ``z`` moves to second order: one EKF row at 0.04 rad of bend is 0.1 mm
-    and 5.6 of its ``std_z`` off in z.)"""
+    as its tip's ``z`` moves to second order: one EKF row at 0.04 rad of bend is 0.06
+    mm and 4.5 of its ``std_z`` off in z.)"""
     rec = simulate("paper3d", duration=120.0, dt=1.0, seed=seed)
     f = make_formulation("bend", Robot.single(0.2))
     series = make_estimator(method, f).run(rec.t, rec.z)
