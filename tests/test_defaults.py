@@ -125,3 +125,23 @@ def test_the_default_raw_estimate_is_the_better_one(tmp_path) -> None:
         assert main([*args, *extra, "-o", str(est)]) == 0
         means[name] = float(np.mean(_tip_errors_mm(est, ROD / "planar-s_truth.csv")[0]))
     assert means["default"] < 4.0 < 4.5 < means["tilt"]
+
+
+def test_the_model_error_floor_widens_the_std_and_zero_turns_it_off(tmp_path) -> None:
+    """``--model-error-floor-deg``: the default carries a constant-curvature model's error
+    in every standard deviation from the first row; 0 (data the model generated) leaves
+    the readings' own noise and bias; the estimates themselves do not change."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "2", "--seed", "0"]) == 0
+    tables = {}
+    for floor in ("default", "0", "4"):
+        out = tmp_path / f"e{floor}.csv"
+        extra = [] if floor == "default" else ["--model-error-floor-deg", floor]
+        assert main(["estimate", str(meas), "-o", str(out), "--method", "ekf", *extra]) == 0
+        tables[floor] = read_state_table(out)
+    assert all(t.std is not None for t in tables.values())
+    i = tables["0"].names.index("x")
+    std = {k: t.std[5:, i] for k, t in tables.items()}  # type: ignore[index]
+    assert np.all(std["0"] < std["default"]) and np.all(std["default"] < std["4"])
+    for k in ("0", "4"):
+        np.testing.assert_array_equal(tables[k].column("x"), tables["default"].column("x"))

@@ -115,6 +115,16 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         "the uncertainty for data the model does not describe exactly (default 0)",
     )
     g.add_argument(
+        "--model-error-floor-deg",
+        type=float,
+        default=math.degrees(NoiseSettings.model_error_std),
+        help="the constant-curvature model's error of a real robot, in degrees per "
+        "gravity-direction reading, carried in the standard deviations until the "
+        "readings show a larger one (default %(default).2g); 0 for data the model "
+        "generated (continuum-mhe simulate), where the default makes the intervals too "
+        "wide (docs/uncertainty.md)",
+    )
+    g.add_argument(
         "--accel-psd",
         type=float,
         default=NoiseSettings.bend_accel_psd,
@@ -181,9 +191,13 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
     if not (math.isfinite(model_error) and model_error >= 0):
         raise InputError(f"--model-error-deg must be >= 0, got {model_error}")
     robot = robot_from_args(args)
+    floor = getattr(args, "model_error_floor_deg", math.degrees(NoiseSettings.model_error_std))
+    if not (math.isfinite(floor) and floor >= 0):
+        raise InputError(f"--model-error-floor-deg must be >= 0, got {floor}")
     noise = NoiseSettings(
         measurement_std=math.radians(math.hypot(args.noise_deg, model_error)),
         bend_accel_psd=args.accel_psd,
+        model_error_std=math.radians(floor),
     )
     try:
         return make_formulation(args.formulation, robot, noise)
@@ -496,6 +510,9 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "reject_reset": OptionRange(0.0, 1e6, "s"),
     "uncertain_fraction": OptionRange(0.0, 100.0, lo_open=True),
     "model_error_deg": OptionRange(0.0, 90.0, "deg", above="--model-error-deg is in degrees"),
+    "model_error_floor_deg": OptionRange(
+        0.0, 90.0, "deg", above="--model-error-floor-deg is in degrees"
+    ),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
                                   above="milliseconds? --pair-tolerance is in seconds"),
     "view_hz": OptionRange(0.0, 10_000.0, "Hz"),
