@@ -129,7 +129,7 @@ SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: buckles the straight backbone (a cantilever with a free tip): a wider prior lets the
 #: first updates on a nearly straight rod, which barely sees its axial force, push that
 #: force into compression past the buckling load, where the shape bifurcates and the
-#: filter follows another one (docs/tendon.md, "The start").
+#: filter follows another one (docs/tendon.md, "The tip force's prior").
 FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
