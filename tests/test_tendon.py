@@ -628,3 +628,19 @@ def test_the_start_of_one_raw_imu_on_a_straight_rod_reads_no_axial_force() -> No
     x0 = f.initial_state(z)
     true_force = np.array([truth.column(c)[0] for c in ("fx", "fy", "fz")])
     assert float(np.linalg.norm(x0[3:6] - true_force)) < 0.02
+
+
+def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
+    """The tip force's prior standard deviation defaults to a third of the Euler load of
+    the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)`` (the shipped robot: E =
+    54 GPa, r = 0.7 mm, L = 0.4 m, 0.157 N); a given value wins and a bad one is refused."""
+    from continuum_mhe.errors import UserError
+
+    robot = read_robot("tendon-two-section")
+    ei = 54e9 * math.pi * 0.0007**4 / 4
+    euler = math.pi**2 * ei / (4 * 0.4**2)
+    prior = np.diag(TendonFormulation(robot=robot).initial_cov())
+    np.testing.assert_allclose(prior[3:6], (euler / 3) ** 2, rtol=1e-12)
+    assert TendonFormulation(robot=robot, initial_force_std=0.5).initial_cov()[3, 3] == 0.25
+    with pytest.raises(UserError, match="initial_force_std"):
+        TendonFormulation(robot=robot, initial_force_std=0.0)

@@ -512,7 +512,7 @@ class TendonFormulation(Formulation):
         buckles the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)``."""
         if self.initial_force_std is not None:
             return self.initial_force_std
-        ei = self.robot.backbone.bending_stiffness
+        ei, _ = self.statics.stiffness
         return FORCE_PRIOR_BUCKLING_FRACTION * math.pi**2 * ei / (4 * self.robot.length**2)
 
     @cached_property
