@@ -325,9 +325,10 @@ def test_the_imu_error_states_turn_and_shift_the_specific_force_as_a_board_would
 
 def test_the_start_recovers_the_tip_force_from_noise_free_tilts() -> None:
     """Tilts of a known tip force and tensions (two IMUs): the start's least squares
-    finds the force."""
+    finds the force (with a wide prior on the force: the start holds the force to its
+    prior at the prior's weight, which pulls a weakly seen component towards zero)."""
     robot = read_robot("tendon-two-section")
-    f = TendonFormulation(robot=robot)
+    f = TendonFormulation(robot=robot, initial_force_std=100.0)
     tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
     force = np.array([0.03, -0.02, 0.01])
     k0, _ = f.statics.solve(force, tau)
@@ -576,3 +577,70 @@ def test_one_raw_imu_at_the_tip_holds_the_tip_force() -> None:
     ]
     assert np.all(np.isfinite(force))
     assert float(np.sqrt(np.mean(np.sum(force**2, axis=1)))) < 0.1
+
+
+def test_the_start_takes_a_gyro_reading_as_its_bias_not_as_a_force() -> None:
+    """Noise-free raw readings of a known tip force, tensions and gyro biases (two
+    IMUs, the rod at rest): the start recovers the force and each gyro's bias (a wide
+    prior on the force, as in the tilt case above). With the biases left at zero the
+    gyros' readings would have to be explained by the force."""
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(
+        robot=robot, imu_model="direct", estimate_gyro_bias=True, initial_force_std=100.0
+    )
+    tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
+    force = np.array([0.03, -0.02, 0.01])
+    bias = np.array([0.03, -0.02, 0.05, -0.04, 0.01, 0.02])
+    k0, _ = f.statics.solve(force, tau)
+    x = np.zeros(f.nx)
+    x[:3], x[3:6], x[6:12] = k0, force, tau
+    first_bias = f.state_names.index("bgx_1")
+    x[first_bias : first_bias + 6] = bias
+    h = np.asarray(f.functions.observe(x), float).ravel()
+    z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
+    x0 = f.initial_state(z)
+    np.testing.assert_allclose(x0[3:6], force, atol=1e-4)
+    np.testing.assert_allclose(x0[first_bias : first_bias + 6], bias, atol=1e-4)
+
+
+def test_the_start_of_one_raw_imu_on_a_straight_rod_reads_no_axial_force() -> None:
+    """The first sample of the unloaded recording (straight, no tip force), the tip IMU
+    alone, raw, with its gyro's bias: the start's tip force is within 0.02 N of the
+    truth's zero. A gyro bias read as a force had put 0.59 N along the rod."""
+    from dataclasses import replace
+
+    from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
+
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    robot = read_robot("tendon-two-section")
+    robot = replace(robot, imus=robot.imus[1:])
+    f = TendonFormulation(
+        robot=robot, imu_model="direct", estimate_gyro_bias=True, gyro_std=0.01,
+        accel_direction_std=math.radians(2.0),
+    )  # fmt: skip
+    raw = np.loadtxt(data / "unloaded_raw.csv", delimiter=",", skiprows=1)[:3]
+    truth = read_state_table(data / "unloaded_truth.csv")
+    z_imu = raw_to_measurements(
+        raw[:, 0], raw[:, 7:10], raw[:, 10:13], RawImuSettings(imu_model="direct")
+    )
+    tensions = read_tensions(data / "unloaded_tensions.csv", robot.n_tendons)
+    z = f.measurement_row(z_imu[0], *tensions.at(raw[0, 0]))
+    x0 = f.initial_state(z)
+    true_force = np.array([truth.column(c)[0] for c in ("fx", "fy", "fz")])
+    assert float(np.linalg.norm(x0[3:6] - true_force)) < 0.02
+
+
+def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
+    """The tip force's prior standard deviation defaults to a third of the Euler load of
+    the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)`` (the shipped robot: E =
+    54 GPa, r = 0.7 mm, L = 0.4 m, 0.157 N); a given value wins and a bad one is refused."""
+    from continuum_mhe.errors import UserError
+
+    robot = read_robot("tendon-two-section")
+    ei = 54e9 * math.pi * 0.0007**4 / 4
+    euler = math.pi**2 * ei / (4 * 0.4**2)
+    prior = np.diag(TendonFormulation(robot=robot).initial_cov())
+    np.testing.assert_allclose(prior[3:6], (euler / 3) ** 2, rtol=1e-12)
+    assert TendonFormulation(robot=robot, initial_force_std=0.5).initial_cov()[3, 3] == 0.25
+    with pytest.raises(UserError, match="initial_force_std"):
+        TendonFormulation(robot=robot, initial_force_std=0.0)

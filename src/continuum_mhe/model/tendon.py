@@ -125,6 +125,12 @@ START_EVALUATIONS = 600
 #: 0.09 N with the first and 0.012 N with the second.
 FORCE_ACCEL_PSD = 1.0
 SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
+#: The tip force's prior standard deviation by default, as a fraction of the load that
+#: buckles the straight backbone (a cantilever with a free tip): a wider prior lets the
+#: first updates on a nearly straight rod, which barely sees its axial force, push that
+#: force into compression past the buckling load, where the shape bifurcates and the
+#: filter follows another one (docs/tendon.md, "The tip force's prior").
+FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -415,7 +421,9 @@ class TendonFormulation(Formulation):
         force_accel_psd: white-noise acceleration of the tip force, N^2/s^3 (None, the
             default: :data:`FORCE_ACCEL_PSD`, or :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a
             robot with one IMU; :attr:`force_psd` is the value used).
-        initial_force_std: the tip force's prior standard deviation, N.
+        initial_force_std: the tip force's prior standard deviation, N (None, the
+            default: :data:`FORCE_PRIOR_BUCKLING_FRACTION` of the robot's buckling load;
+            :attr:`force_prior_std` is the value used).
         max_force: a tip force estimate beyond this, N, has diverged.
     """
 
@@ -449,7 +457,7 @@ class TendonFormulation(Formulation):
     equilibrium_std: float = 1e-4
     curvature_accel_psd: float = 1e4
     force_accel_psd: float | None = None
-    initial_force_std: float = 0.5
+    initial_force_std: float | None = None
     max_force: float = 50.0
 
     def __post_init__(self) -> None:
@@ -460,6 +468,7 @@ class TendonFormulation(Formulation):
             raise UserError(f"imu_model must be tilt or direct, got {self.imu_model!r}")
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
+        resolved = {"force_accel_psd": self.force_psd, "initial_force_std": self.force_prior_std}
         for label in (
             "gyro_std",
             "gyro_bias_psd",
@@ -476,7 +485,7 @@ class TendonFormulation(Formulation):
             "initial_force_std",
             "max_force",
         ):
-            v = self.force_psd if label == "force_accel_psd" else getattr(self, label)
+            v = resolved[label] if label in resolved else getattr(self, label)
             if not (math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
 
@@ -495,6 +504,16 @@ class TendonFormulation(Formulation):
         if self.force_accel_psd is not None:
             return self.force_accel_psd
         return SINGLE_IMU_FORCE_ACCEL_PSD if self.robot.n_imus == 1 else FORCE_ACCEL_PSD
+
+    @property
+    def force_prior_std(self) -> float:
+        """The tip force's prior standard deviation used, N (:attr:`initial_force_std`,
+        resolved): by default :data:`FORCE_PRIOR_BUCKLING_FRACTION` of the load that
+        buckles the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)``."""
+        if self.initial_force_std is not None:
+            return self.initial_force_std
+        ei, _ = self.statics.stiffness
+        return FORCE_PRIOR_BUCKLING_FRACTION * math.pi**2 * ei / (4 * self.robot.length**2)
 
     @cached_property
     def statics(self) -> TendonStatics:
@@ -788,7 +807,12 @@ class TendonFormulation(Formulation):
         to it by a faint prior (:data:`START_PRIOR_WEIGHT` times that of
         :meth:`initial_cov`) that keeps what the IMUs cannot see, such as the twist of
         a straight rod, at the unloaded value instead of leaving the fit to wander
-        along it; rates and biases zero."""
+        along it. With raw IMUs the base curvature's rate that keeps the tip condition
+        at the tensions' rates (the tip force's rate zero) and, where estimated, each
+        gyro's bias (its reading less the rate the model predicts) are fitted with
+        them: a gyro reading fixes its bias, not the force (a bias left at zero reads as
+        a force, on a straight rod an axial one the IMUs barely see). The other rates
+        and biases zero."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -800,15 +824,22 @@ class TendonFormulation(Formulation):
         valid = np.isfinite(z0[:n])
         if not valid.any():
             return x
+        # fitted: k0, F; with raw IMUs k0' (held by the tip condition's rate) and the
+        # gyro biases
+        free = np.r_[0:6]
+        if self.imu_model == "direct":
+            free = np.r_[free, 6 + k : 9 + k, 12 + k : 12 + k + self.n_gyro_bias]
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
-        rows = np.r_[np.flatnonzero(valid), n + 3 * k : n + 3 * k + 3]
-        prior = x[:6].copy()
-        prior_w = START_PRIOR_WEIGHT / np.sqrt(np.diag(self.initial_cov())[:6])
+        rows = np.r_[np.flatnonzero(valid), n + 3 * k : self.nz]
+        prior = x[free].copy()
+        std = np.sqrt(np.diag(self.initial_cov()))
+        prior_w = START_PRIOR_WEIGHT / std[free]
+        prior_w[3:6] = 1.0 / std[3:6]  # the force's own prior
         # the residual and its Jacobian by the compiled core (forward mode), the same
         # functions the compiled EKF evaluates
         model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
         nz, nx = self.nz, self.nx
-        inputs = [np.zeros(nx), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
+        inputs = [x.copy(), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
         out = np.empty(model.output_size)
         last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
@@ -816,9 +847,9 @@ class TendonFormulation(Formulation):
             """The weighted residual and its Jacobian at ``v``, evaluated once."""
             key = v.tobytes()
             if key not in last:
-                inputs[0] = np.r_[v, x[6:]]
+                inputs[0][free] = v
                 model.evaluate(inputs, out)
-                J = -out[: nz * nx].reshape(nz, nx)[:, :6]  # H = -dr/dx, row-major
+                J = -out[: nz * nx].reshape(nz, nx)[:, free]  # H = -dr/dx, row-major
                 r = (w * out[nz * nx :])[rows]
                 last.clear()
                 last[key] = (
@@ -829,16 +860,17 @@ class TendonFormulation(Formulation):
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
+        scale = np.r_[[1.0] * 3, [0.1] * 3, [1.0] * 3, [0.01] * self.n_gyro_bias]
         fit = least_squares(
-            lambda v: evaluate(v)[0], x[:6], jac=lambda v: evaluate(v)[1], method="lm",
-            x_scale=np.r_[[1.0] * 3, [0.1] * 3], max_nfev=START_EVALUATIONS,
+            lambda v: evaluate(v)[0], x[free], jac=lambda v: evaluate(v)[1], method="lm",
+            x_scale=scale[: len(free)], max_nfev=START_EVALUATIONS,
         )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
-            x[:6] = fit.x
+            x[free] = fit.x
         return x
 
     def initial_cov(self) -> FloatArray:
-        f = self.initial_force_std**2
+        f = self.force_prior_std**2
         diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
