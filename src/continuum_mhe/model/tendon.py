@@ -125,6 +125,9 @@ START_EVALUATIONS = 600
 #: 0.09 N with the first and 0.012 N with the second.
 FORCE_ACCEL_PSD = 1.0
 SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
+#: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
+#: (:attr:`TendonFormulation.force_acceleration_moves_imus`).
+FORCE_JERK_PSD = 1.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -449,6 +452,9 @@ class TendonFormulation(Formulation):
     equilibrium_std: float = 1e-4
     curvature_accel_psd: float = 1e4
     force_accel_psd: float | None = None
+    estimate_force_acceleration: bool | None = None
+    force_jerk_psd: float = FORCE_JERK_PSD
+    initial_force_acceleration_std: float = 1.0
     initial_force_std: float = 0.5
     max_force: float = 50.0
 
@@ -460,6 +466,11 @@ class TendonFormulation(Formulation):
             raise UserError(f"imu_model must be tilt or direct, got {self.imu_model!r}")
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
+        if self.estimate_force_acceleration and not self.force_rate_moves_imus:
+            raise UserError(
+                "estimate_force_acceleration needs the tip force's rate in the IMUs' "
+                "acceleration (acceleration_from_force_rate)"
+            )
         for label in (
             "gyro_std",
             "gyro_bias_psd",
@@ -473,6 +484,8 @@ class TendonFormulation(Formulation):
             "equilibrium_std",
             "curvature_accel_psd",
             "force_accel_psd",
+            "force_jerk_psd",
+            "initial_force_acceleration_std",
             "initial_force_std",
             "max_force",
         ):
@@ -487,6 +500,25 @@ class TendonFormulation(Formulation):
         if self.acceleration_from_force_rate is None:
             return self.imu_model == "direct"
         return self.acceleration_from_force_rate
+
+    @property
+    def force_acceleration_moves_imus(self) -> bool:
+        """Whether the tip force's acceleration ``F''`` is a state that moves the IMUs
+        (:attr:`estimate_force_acceleration`, resolved: by default wherever the force's
+        rate moves them)."""
+        if self.estimate_force_acceleration is None:
+            return self.force_rate_moves_imus
+        return self.estimate_force_acceleration
+
+    @property
+    def n_force_acceleration(self) -> int:
+        return 3 if self.force_acceleration_moves_imus else 0
+
+    @property
+    def _n_motion(self) -> int:
+        """Size of the state before the IMUs' errors: ``[k0, F, tau, k0', F']`` and
+        ``F''`` where estimated."""
+        return 12 + self.robot.n_tendons + self.n_force_acceleration
 
     @property
     def force_psd(self) -> float:
@@ -516,15 +548,17 @@ class TendonFormulation(Formulation):
     @property
     def state_names(self) -> tuple[str, ...]:
         """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
-        then the gyro biases, the misalignments and the accelerometer biases (each
+        the tip force's acceleration ``fx_ddot, fy_ddot, fz_ddot`` (N/s^2), then the
+        gyro biases, the misalignments and the accelerometer biases (each
         where estimated)."""
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         acc = tuple(f"ba{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        f_ddot = tuple(f"f{c}_ddot" for c in "xyz")[: self.n_force_acceleration]
         return (
-            *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
+            *q, *tau, *(f"{n}_dot" for n in q), *f_ddot, *bias[: self.n_gyro_bias],
             *mis[: self.n_misalignment], *acc[: self.n_accel_bias],
         )  # fmt: skip
 
@@ -584,12 +618,20 @@ class TendonFormulation(Formulation):
 
     # --- model ----------------------------------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
-        """``[k0, F]`` constant velocity, the tensions and biases random walks."""
+        """``k0`` constant velocity, ``F`` constant velocity or, with
+        :attr:`force_acceleration_moves_imus`, constant acceleration; the tensions and
+        biases random walks."""
         q, tau, qd = self._split(x)
-        return ca.vertcat(q + dt * qd, tau, x[6 + self.robot.n_tendons :])
+        k = self.robot.n_tendons
+        if not self.n_force_acceleration:
+            return ca.vertcat(q + dt * qd, tau, x[6 + k :])
+        f_ddot = x[12 + k : 15 + k]
+        step = ca.vertcat(ca.SX.zeros(3), f_ddot)
+        return ca.vertcat(q + dt * qd + dt**2 / 2 * step, tau, qd + dt * step, x[12 + k :])
 
     def process_cov_sym(self, dt: Sym) -> Sym:
-        psd = [self.curvature_accel_psd] * 3 + [self.force_psd] * 3
+        force = 0.0 if self.n_force_acceleration else self.force_psd
+        psd = [self.curvature_accel_psd] * 3 + [force] * 3
         q = ca.diag(ca.DM(psd))
         k = self.robot.n_tendons
         t = self.tension_psd * dt * ca.SX.eye(k)
@@ -601,6 +643,19 @@ class TendonFormulation(Formulation):
                 [q * dt**2 / 2, z6k, q * dt],
             ]
         )
+        if self.n_force_acceleration:
+            # the tip force driven by white jerk instead (a Wiener-process acceleration)
+            j = self.force_jerk_psd
+            fi, fdi = [3, 4, 5], [9 + k, 10 + k, 11 + k]
+            cov = ca.diagcat(cov, ca.SX.zeros(3, 3))
+            n = 15 + k
+            blocks = {(0, 0): dt**5 / 20, (0, 1): dt**4 / 8, (0, 2): dt**3 / 6,
+                      (1, 1): dt**3 / 3, (1, 2): dt**2 / 2, (2, 2): dt}  # fmt: skip
+            idx = (fi, fdi, [n - 3, n - 2, n - 1])
+            for (a, b), c in blocks.items():
+                for i in range(3):
+                    cov[idx[a][i], idx[b][i]] = j * c
+                    cov[idx[b][i], idx[a][i]] = j * c
 
         if self.estimate_gyro_bias:
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
@@ -611,11 +666,17 @@ class TendonFormulation(Formulation):
         return cov
 
     def _imu_accelerations(
-        self, v: Sym, v_dot: Sym, tau_ddot: Sym, res: Sym, poses: dict[Station, tuple[Sym, Sym]]
+        self,
+        v: Sym,
+        v_dot: Sym,
+        v_ddot_given: Sym,
+        res: Sym,
+        poses: dict[Station, tuple[Sym, Sym]],
     ) -> list[Sym]:
         """Each IMU's own acceleration (m/s^2, base frame) along the equilibria, with
-        ``v = [k0, F, tau]``: the tip force at constant velocity (``F'' = 0``), the
-        tensions' second derivative given, and the base curvature's rate and
+        ``v = [k0, F, tau]``: the second derivatives ``v_ddot_given = [F'', tau'']``
+        (the tip force's from the state, zero at constant velocity; the tensions'
+        given), and the base curvature's rate and
         acceleration those that keep the tip condition (the first and second time
         derivatives of the residual zero).
 
@@ -631,7 +692,7 @@ class TendonFormulation(Formulation):
             rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
         k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
         v_dot = ca.vertcat(k0_dot, rest[3:])
-        v_ddot = ca.vertcat(ca.SX.zeros(6), tau_ddot)
+        v_ddot = ca.vertcat(ca.SX.zeros(3), v_ddot_given)
         shifted = []
         for sign in (1.0, -1.0):
             w = v + sign * h * v_dot + h**2 / 2 * v_ddot
@@ -665,18 +726,21 @@ class TendonFormulation(Formulation):
         v = ca.vertcat(q, tau)
         v_dot = ca.vertcat(qd, tau_dot)
         if self.own_acceleration:
-            accel = self._imu_accelerations(v, v_dot, tau_ddot, res, poses)
+            f_ddot = x[12 + k : 12 + k + self.n_force_acceleration]
+            if not self.n_force_acceleration:
+                f_ddot = ca.SX.zeros(3)
+            accel = self._imu_accelerations(v, v_dot, ca.vertcat(f_ddot, tau_ddot), res, poses)
             specific = [ca.DM(up) + a / GRAVITY for a in accel]
         else:
             specific = [ca.DM(up) for _ in rots]
         if self.estimate_misalignment:  # the board turned by a small rotation
-            n0 = 12 + k + self.n_gyro_bias
+            n0 = self._n_motion + self.n_gyro_bias
             rots = [
                 ca.mtimes(R, ca.SX.eye(3) + _hat(x[n0 + 3 * i : n0 + 3 * i + 3]))
                 for i, R in enumerate(rots)
             ]
         gravity = []
-        n0 = 12 + k + self.n_gyro_bias + self.n_misalignment
+        n0 = self._n_motion + self.n_gyro_bias + self.n_misalignment
         for i, (R, f) in enumerate(zip(rots, specific)):
             fb = ca.mtimes(R.T, f)
             if self.estimate_accel_bias:  # in units of g, as the specific force here
@@ -691,7 +755,7 @@ class TendonFormulation(Formulation):
             w = ca.mtimes(R.T, dR)
             rate = 0.5 * ca.vertcat(w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1])
             if self.estimate_gyro_bias:
-                n0 = 12 + k
+                n0 = self._n_motion
                 rate = rate + x[n0 + 3 * i : n0 + 3 + 3 * i]
             imu.append(ca.vertcat(gravity[i], rate))
         return gravity, imu, eq
@@ -836,6 +900,7 @@ class TendonFormulation(Formulation):
         f = self.initial_force_std**2
         diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
+        diag += [self.initial_force_acceleration_std**2] * self.n_force_acceleration
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
         diag += [self.initial_misalignment_std**2] * self.n_misalignment
         diag += [self.initial_accel_bias_std**2] * self.n_accel_bias
