@@ -454,7 +454,7 @@ class TendonFormulation(Formulation):
     force_accel_psd: float | None = None
     estimate_force_acceleration: bool | None = None
     force_jerk_psd: float = FORCE_JERK_PSD
-    initial_force_acceleration_std: float = 1.0
+    initial_force_acceleration_std: float = 0.1
     initial_force_std: float = 0.5
     max_force: float = 50.0
 
@@ -505,9 +505,10 @@ class TendonFormulation(Formulation):
     def force_acceleration_moves_imus(self) -> bool:
         """Whether the tip force's acceleration ``F''`` is a state that moves the IMUs
         (:attr:`estimate_force_acceleration`, resolved: by default wherever the force's
-        rate moves them)."""
+        rate moves them, on a robot with two IMUs or more; one IMU holds the force
+        loosely and keeps it at constant velocity, :data:`SINGLE_IMU_FORCE_ACCEL_PSD`)."""
         if self.estimate_force_acceleration is None:
-            return self.force_rate_moves_imus
+            return self.force_rate_moves_imus and self.robot.n_imus >= 2
         return self.estimate_force_acceleration
 
     @property
