@@ -259,14 +259,18 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
 
 # --- the formulation -------------------------------------------------------------------
 def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
-    """Raw IMUs on a two-IMU robot: the tip force's acceleration is a state, and the
-    force's transition and process noise are those of a triple integrator driven by
-    white jerk, computed independently here by Van Loan's matrix exponential; tilt IMUs
-    and a one-IMU robot keep the force at constant velocity (no such state)."""
+    """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
+    and the force's transition and process noise are those of a triple integrator driven
+    by white jerk, computed independently here by Van Loan's matrix exponential; by
+    default the force keeps constant velocity (no such state)."""
     from scipy.linalg import expm
 
+    from continuum_mhe.errors import UserError
+
     robot = read_robot("tendon-two-section")
-    f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
+    f = TendonFormulation(
+        robot=robot, imu_model="direct", estimate_gyro_bias=True, estimate_force_acceleration=True
+    )
     names = f.state_names
     force = [names.index(f"f{c}") for c in "xyz"]
     rate = [names.index(f"f{c}_dot") for c in "xyz"]
@@ -286,10 +290,10 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
         chain = [force[c], rate[c], accel[c]]
         np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
         np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
-    assert not any(n.endswith("_ddot") for n in TendonFormulation(robot=robot).state_names)
-    one = Robot(robot.sections, robot.imus[1:], robot.mounting, robot.backbone, robot.tendons)
-    one_raw = TendonFormulation(robot=one, imu_model="direct")
-    assert not any(n.endswith("_ddot") for n in one_raw.state_names)
+    raw = TendonFormulation(robot=robot, imu_model="direct")
+    assert not any(n.endswith("_ddot") for n in raw.state_names)
+    with pytest.raises(UserError, match="estimate_force_acceleration"):
+        TendonFormulation(robot=robot, estimate_force_acceleration=True)  # tilt IMUs
 
 
 @pytest.mark.parametrize("imu_errors", [False, True])

@@ -42,17 +42,26 @@ cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [k0, F, tau, k0', F']``, then the IMUs' own errors: a gyro bias per IMU
+State ``x = [k0, F, tau, k0', F']``, with ``estimate_force_acceleration`` the tip
+force's acceleration ``F''``, then the IMUs' own errors: a gyro bias per IMU
 with ``estimate_gyro_bias`` (raw IMUs), each board's misalignment with
 ``estimate_misalignment`` and each accelerometer's bias with ``estimate_accel_bias``
 (both by default), random walks. The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
-the total base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3)
-each follow constant velocity driven by white-noise acceleration (as the ``bend``
-formulation), and the tendon tensions ``tau`` (N, one per tendon) a random walk held to
-the given ones. The IMUs' errors are states by default because they, not the model,
-are what is left: a degree of misalignment, or 0.17 m/s^2 of accelerometer bias, reads
-as a tip force that moves the tip of the shipped robot by about 5 mm; as the robot
-moves through several poses they separate from the force (docs/tendon.md).
+the total base moment scaled to a curvature) follows constant velocity driven by
+white-noise acceleration (as the ``bend`` formulation); the tip force ``F`` (N, base
+frame, 3) the same, or, where ``F''`` is a state, constant acceleration driven by
+white-noise jerk; the tendon tensions ``tau`` (N, one per tendon) a random walk held to
+the given ones. ``F''`` moves the IMUs: a tip force that swings across a bent robot
+accelerates its tip, and at constant velocity that acceleration, about a degree of the
+tip IMU's gravity direction at 0.08 N on the shipped robot, is left to the IMUs'
+misalignment and bias states, which then turn the estimate about the vertical. With it
+as a state the model describes the readings at the true state to their noise, but the
+filter then depends on its start's tip force, and from the start as it is it lost the
+shape on some recordings: off by default (docs/tendon.md, "Under load"). The IMUs'
+errors are states by default because they, not the model, are what is left: a degree
+of misalignment, or 0.17 m/s^2 of accelerometer bias, reads as a tip force that moves
+the tip of the shipped robot by about 5 mm; as the robot moves through several poses
+they separate from the force (docs/tendon.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
@@ -126,7 +135,7 @@ START_EVALUATIONS = 600
 FORCE_ACCEL_PSD = 1.0
 SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
-#: (:attr:`TendonFormulation.force_acceleration_moves_imus`).
+#: (:attr:`TendonFormulation.estimate_force_acceleration`).
 FORCE_JERK_PSD = 1.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
@@ -418,6 +427,13 @@ class TendonFormulation(Formulation):
         force_accel_psd: white-noise acceleration of the tip force, N^2/s^3 (None, the
             default: :data:`FORCE_ACCEL_PSD`, or :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a
             robot with one IMU; :attr:`force_psd` is the value used).
+        estimate_force_acceleration: the tip force's acceleration ``F''`` (N/s^2, 3)
+            as states, the force at constant acceleration driven by white jerk, ``F''``
+            in the IMUs' own acceleration (off by default; needs the force's rate in
+            the acceleration, :attr:`force_rate_moves_imus`).
+        force_jerk_psd: the tip force's white-noise jerk there, N^2/s^5
+            (:attr:`force_accel_psd` is not used then).
+        initial_force_acceleration_std: ``F''``'s prior standard deviation, N/s^2.
         initial_force_std: the tip force's prior standard deviation, N.
         max_force: a tip force estimate beyond this, N, has diverged.
     """
@@ -452,7 +468,7 @@ class TendonFormulation(Formulation):
     equilibrium_std: float = 1e-4
     curvature_accel_psd: float = 1e4
     force_accel_psd: float | None = None
-    estimate_force_acceleration: bool | None = None
+    estimate_force_acceleration: bool = False
     force_jerk_psd: float = FORCE_JERK_PSD
     initial_force_acceleration_std: float = 0.1
     initial_force_std: float = 0.5
@@ -502,18 +518,10 @@ class TendonFormulation(Formulation):
         return self.acceleration_from_force_rate
 
     @property
-    def force_acceleration_moves_imus(self) -> bool:
-        """Whether the tip force's acceleration ``F''`` is a state that moves the IMUs
-        (:attr:`estimate_force_acceleration`, resolved: by default wherever the force's
-        rate moves them, on a robot with two IMUs or more; one IMU holds the force
-        loosely and keeps it at constant velocity, :data:`SINGLE_IMU_FORCE_ACCEL_PSD`)."""
-        if self.estimate_force_acceleration is None:
-            return self.force_rate_moves_imus and self.robot.n_imus >= 2
-        return self.estimate_force_acceleration
-
-    @property
     def n_force_acceleration(self) -> int:
-        return 3 if self.force_acceleration_moves_imus else 0
+        """States of the tip force's acceleration: 3 with
+        :attr:`estimate_force_acceleration`, else 0."""
+        return 3 if self.estimate_force_acceleration else 0
 
     @property
     def _n_motion(self) -> int:
@@ -620,7 +628,7 @@ class TendonFormulation(Formulation):
     # --- model ----------------------------------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         """``k0`` constant velocity, ``F`` constant velocity or, with
-        :attr:`force_acceleration_moves_imus`, constant acceleration; the tensions and
+        :attr:`estimate_force_acceleration`, constant acceleration; the tensions and
         biases random walks."""
         q, tau, qd = self._split(x)
         k = self.robot.n_tendons
