@@ -18,6 +18,7 @@ import json
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from tendon_study import _table
@@ -26,9 +27,10 @@ from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
+from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.settings import NoiseSettings
+from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.simulation.cosserat_sections import DEFAULT_IMU
 
 
@@ -47,26 +49,52 @@ def true_imu_errors(seed: int, n: int, n_imus: int) -> dict[str, np.ndarray]:
     return {k: np.concatenate(v) for k, v in out.items()}
 
 
-def main() -> None:
-    p = argparse.ArgumentParser()
-    p.add_argument("folder", type=Path)
-    p.add_argument("scenario")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
-    a = p.parse_args()
+class RawRecording(NamedTuple):
+    """A generator recording read for the tendon EKF with raw IMUs."""
+
+    formulation: TendonFormulation
+    tensions: Tensions
+    t: np.ndarray
+    z_imu: np.ndarray
+    names: list[str]
+    truth: np.ndarray
+
+
+def read_raw_recording(folder: Path, scenario: str, changes: list[str]) -> RawRecording:
+    """The command line's tendon formulation with raw IMUs (``changes``: its fields as
+    ``NAME=VALUE``), the recording's tensions, times, IMU readings and truth."""
     robot = read_robot("tendon-two-section")
     base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
     f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
-    f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)})
-    tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
-    _, raw = _table(a.folder / f"{a.scenario}_raw.csv")
+    f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in changes)})
+    tensions = read_tensions(folder / f"{scenario}_tensions.csv", robot.n_tendons)
+    _, raw = _table(folder / f"{scenario}_raw.csv")
     t = raw[:, 0]
     settings = RawImuSettings(imu_model="direct")
     z_imu = np.hstack(
         [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
                              settings) for k in range(robot.n_imus)]
     )  # fmt: skip
-    names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
+    names, truth = _table(folder / f"{scenario}_truth.csv")
+    return RawRecording(f, tensions, t, z_imu, names, truth)
+
+
+def recording_parser() -> argparse.ArgumentParser:
+    """The arguments naming a recording: its folder, scenario, seed and the
+    formulation's changes (``--set NAME=VALUE``)."""
+    p = argparse.ArgumentParser()
+    p.add_argument("folder", type=Path)
+    p.add_argument("scenario")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    return p
+
+
+def main() -> None:
+    p = recording_parser()
+    a = p.parse_args()
+    f, tensions, t, z_imu, names, truth = read_raw_recording(a.folder, a.scenario, a.set)
+    robot = f.robot
     force = truth[:, [names.index(c) for c in ("fx", "fy", "fz")]]
     force_dot = np.gradient(force, t, axis=0)
     force_ddot = np.gradient(force_dot, t, axis=0)
