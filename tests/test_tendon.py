@@ -213,9 +213,11 @@ def test_a_slack_tendon_pulls_nothing() -> None:
 
 
 def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria() -> None:
-    """Tensions and a tip force that change in time with known derivatives: the model's
-    IMU acceleration matches the second central difference of the positions of the
-    solved equilibria (a known answer the formulation does not compute itself)."""
+    """Tensions and a tip force that change in time with known derivatives, the force
+    accelerating: the model's IMU acceleration matches the second central difference of
+    the positions of the solved equilibria (a known answer the formulation does not
+    compute itself). The force's acceleration alone moves the IMUs by over 0.1 m/s^2
+    here; a model that takes the force at constant velocity misses it."""
     robot = read_robot("tendon-two-section")
     f = TendonFormulation(robot=robot, acceleration_from_force_rate=True)
     statics = f.statics
@@ -223,8 +225,10 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
     def tau(t: float) -> np.ndarray:
         return np.array([3.0 + 2.0 * math.sin(1.3 * t + i) ** 2 for i in range(6)])
 
+    force_ddot = np.array([-0.3, 0.2, 0.05])  # N/s^2
+
     def force(t: float) -> np.ndarray:
-        return np.array([0.02 * t, -0.01 * t, 0.005 * t])  # constant velocity
+        return np.array([0.02 * t, -0.01 * t, 0.005 * t]) + force_ddot * t**2 / 2
 
     t0, h = 0.7, 1e-3
     positions = []
@@ -236,23 +240,62 @@ def test_the_imus_own_acceleration_is_the_second_derivative_along_the_equilibria
     tau_ddot = (tau(t0 + h) - 2 * tau(t0) + tau(t0 - h)) / h**2
     k0, poses = statics.solve(force(t0), tau(t0))
     v, v_dot = ca.SX.sym("v", 12), ca.SX.sym("v_dot", 12)
-    tau_dd = ca.SX.sym("tau_ddot", 6)
+    force_dot = (force(t0 + h) - force(t0 - h)) / (2 * h)
+    v_dd = ca.SX.sym("v_ddot", 9)  # the force's and the tensions' second derivatives
     poses_sym, res = statics.shoot(v[:3], v[3:6], v[6:])
     accel = ca.Function(
         "a",
-        [v, v_dot, tau_dd],
-        [ca.horzcat(*f._imu_accelerations(v, v_dot, tau_dd, res, poses_sym))],
+        [v, v_dot, v_dd],
+        [ca.horzcat(*f._imu_accelerations(v, v_dot, v_dd, res, poses_sym))],
     )
     # the base curvature's rate in the state is ignored: the equilibrium sets it
-    got = np.asarray(
-        accel(np.r_[k0, force(t0), tau(t0)], np.r_[[9.0] * 3, force(1.0), tau_dot], tau_ddot),
-        float,
-    ).T
+    state, rates = np.r_[k0, force(t0), tau(t0)], np.r_[[9.0] * 3, force_dot, tau_dot]
+    got = np.asarray(accel(state, rates, np.r_[force_ddot, tau_ddot]), float).T
+    at_constant_velocity = np.asarray(accel(state, rates, np.r_[[0.0] * 3, tau_ddot]), float).T
     assert np.abs(expected).max() > 0.5  # metres per second squared: it matters
+    assert np.abs(at_constant_velocity - expected).max() > 0.1
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-3 * np.abs(expected).max())
 
 
 # --- the formulation -------------------------------------------------------------------
+def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
+    """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
+    and the force's transition and process noise are those of a triple integrator driven
+    by white jerk, computed independently here by Van Loan's matrix exponential; by
+    default the force keeps constant velocity (no such state)."""
+    from scipy.linalg import expm
+
+    from continuum_mhe.errors import UserError
+
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(
+        robot=robot, imu_model="direct", estimate_gyro_bias=True, estimate_force_acceleration=True
+    )
+    names = f.state_names
+    force = [names.index(f"f{c}") for c in "xyz"]
+    rate = [names.index(f"f{c}_dot") for c in "xyz"]
+    accel = [names.index(f"f{c}_ddot") for c in "xyz"]
+    dt, jerk = 0.02, f.force_jerk_psd
+    a = np.diag([1.0, 1.0], 1)  # (F, F', F'') of one component, F''' white
+    g = np.array([[0.0], [0.0], [1.0]])
+    van_loan = expm(np.block([[-a, g @ g.T * jerk], [np.zeros((3, 3)), a.T]]) * dt)
+    phi = van_loan[3:, 3:].T
+    q_expected = phi @ van_loan[:3, 3:]
+    x = np.random.default_rng(0).normal(size=f.nx)
+    x_sym, dt_sym = ca.SX.sym("x", f.nx), ca.SX.sym("dt")
+    step = ca.Function("f", [x_sym, dt_sym], [f.transition_sym(x_sym, ca.SX.zeros(f.nu), dt_sym)])
+    q = np.asarray(ca.Function("q", [dt_sym], [f.process_cov_sym(dt_sym)])(dt), float)
+    moved = np.asarray(step(x, dt), float).ravel()
+    for c in range(3):
+        chain = [force[c], rate[c], accel[c]]
+        np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
+        np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
+    raw = TendonFormulation(robot=robot, imu_model="direct")
+    assert not any(n.endswith("_ddot") for n in raw.state_names)
+    with pytest.raises(UserError, match="estimate_force_acceleration"):
+        TendonFormulation(robot=robot, estimate_force_acceleration=True)  # tilt IMUs
+
+
 @pytest.mark.parametrize("imu_errors", [False, True])
 @pytest.mark.parametrize("imu_model", ["tilt", "direct"])
 def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:

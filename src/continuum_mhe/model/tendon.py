@@ -42,17 +42,26 @@ cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [k0, F, tau, k0', F']``, then the IMUs' own errors: a gyro bias per IMU
+State ``x = [k0, F, tau, k0', F']``, with ``estimate_force_acceleration`` the tip
+force's acceleration ``F''``, then the IMUs' own errors: a gyro bias per IMU
 with ``estimate_gyro_bias`` (raw IMUs), each board's misalignment with
 ``estimate_misalignment`` and each accelerometer's bias with ``estimate_accel_bias``
 (both by default), random walks. The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
-the total base moment scaled to a curvature) and the tip force ``F`` (N, base frame, 3)
-each follow constant velocity driven by white-noise acceleration (as the ``bend``
-formulation), and the tendon tensions ``tau`` (N, one per tendon) a random walk held to
-the given ones. The IMUs' errors are states by default because they, not the model,
-are what is left: a degree of misalignment, or 0.17 m/s^2 of accelerometer bias, reads
-as a tip force that moves the tip of the shipped robot by about 5 mm; as the robot
-moves through several poses they separate from the force (docs/tendon.md).
+the total base moment scaled to a curvature) follows constant velocity driven by
+white-noise acceleration (as the ``bend`` formulation); the tip force ``F`` (N, base
+frame, 3) the same, or, where ``F''`` is a state, constant acceleration driven by
+white-noise jerk; the tendon tensions ``tau`` (N, one per tendon) a random walk held to
+the given ones. ``F''`` moves the IMUs: a tip force that swings across a bent robot
+accelerates its tip, and at constant velocity that acceleration, about a degree of the
+tip IMU's gravity direction at 0.08 N on the shipped robot, is left to the IMUs'
+misalignment and bias states, which then turn the estimate about the vertical. With it
+as a state the model describes the readings at the true state to their noise, but the
+filter then depends on its start's tip force, and from the start as it is it lost the
+shape on some recordings: off by default (docs/tendon.md, "Under load"). The IMUs'
+errors are states by default because they, not the model, are what is left: a degree
+of misalignment, or 0.17 m/s^2 of accelerometer bias, reads as a tip force that moves
+the tip of the shipped robot by about 5 mm; as the robot moves through several poses
+they separate from the force (docs/tendon.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
@@ -131,6 +140,9 @@ SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: force into compression past the buckling load, where the shape bifurcates and the
 #: filter follows another one (docs/tendon.md, "The tip force's prior").
 FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
+#: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
+#: (:attr:`TendonFormulation.estimate_force_acceleration`).
+FORCE_JERK_PSD = 1.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
 
@@ -421,6 +433,13 @@ class TendonFormulation(Formulation):
         force_accel_psd: white-noise acceleration of the tip force, N^2/s^3 (None, the
             default: :data:`FORCE_ACCEL_PSD`, or :data:`SINGLE_IMU_FORCE_ACCEL_PSD` for a
             robot with one IMU; :attr:`force_psd` is the value used).
+        estimate_force_acceleration: the tip force's acceleration ``F''`` (N/s^2, 3)
+            as states, the force at constant acceleration driven by white jerk, ``F''``
+            in the IMUs' own acceleration (off by default; needs the force's rate in
+            the acceleration, :attr:`force_rate_moves_imus`).
+        force_jerk_psd: the tip force's white-noise jerk there, N^2/s^5
+            (:attr:`force_accel_psd` is not used then).
+        initial_force_acceleration_std: ``F''``'s prior standard deviation, N/s^2.
         initial_force_std: the tip force's prior standard deviation, N (None, the
             default: :data:`FORCE_PRIOR_BUCKLING_FRACTION` of the robot's buckling load;
             :attr:`force_prior_std` is the value used).
@@ -457,6 +476,9 @@ class TendonFormulation(Formulation):
     equilibrium_std: float = 1e-4
     curvature_accel_psd: float = 1e4
     force_accel_psd: float | None = None
+    estimate_force_acceleration: bool = False
+    force_jerk_psd: float = FORCE_JERK_PSD
+    initial_force_acceleration_std: float = 0.1
     initial_force_std: float | None = None
     max_force: float = 50.0
 
@@ -469,6 +491,11 @@ class TendonFormulation(Formulation):
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
         resolved = {"force_accel_psd": self.force_psd, "initial_force_std": self.force_prior_std}
+        if self.estimate_force_acceleration and not self.force_rate_moves_imus:
+            raise UserError(
+                "estimate_force_acceleration needs the tip force's rate in the IMUs' "
+                "acceleration (acceleration_from_force_rate)"
+            )
         for label in (
             "gyro_std",
             "gyro_bias_psd",
@@ -482,6 +509,8 @@ class TendonFormulation(Formulation):
             "equilibrium_std",
             "curvature_accel_psd",
             "force_accel_psd",
+            "force_jerk_psd",
+            "initial_force_acceleration_std",
             "initial_force_std",
             "max_force",
         ):
@@ -496,6 +525,18 @@ class TendonFormulation(Formulation):
         if self.acceleration_from_force_rate is None:
             return self.imu_model == "direct"
         return self.acceleration_from_force_rate
+
+    @property
+    def n_force_acceleration(self) -> int:
+        """States of the tip force's acceleration: 3 with
+        :attr:`estimate_force_acceleration`, else 0."""
+        return 3 if self.estimate_force_acceleration else 0
+
+    @property
+    def _n_motion(self) -> int:
+        """Size of the state before the IMUs' errors: ``[k0, F, tau, k0', F']`` and
+        ``F''`` where estimated."""
+        return 12 + self.robot.n_tendons + self.n_force_acceleration
 
     @property
     def force_psd(self) -> float:
@@ -535,15 +576,17 @@ class TendonFormulation(Formulation):
     @property
     def state_names(self) -> tuple[str, ...]:
         """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
-        then the gyro biases, the misalignments and the accelerometer biases (each
+        the tip force's acceleration ``fx_ddot, fy_ddot, fz_ddot`` (N/s^2), then the
+        gyro biases, the misalignments and the accelerometer biases (each
         where estimated)."""
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         mis = tuple(f"mis{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
         acc = tuple(f"ba{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
+        f_ddot = tuple(f"f{c}_ddot" for c in "xyz")[: self.n_force_acceleration]
         return (
-            *q, *tau, *(f"{n}_dot" for n in q), *bias[: self.n_gyro_bias],
+            *q, *tau, *(f"{n}_dot" for n in q), *f_ddot, *bias[: self.n_gyro_bias],
             *mis[: self.n_misalignment], *acc[: self.n_accel_bias],
         )  # fmt: skip
 
@@ -603,12 +646,20 @@ class TendonFormulation(Formulation):
 
     # --- model ----------------------------------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
-        """``[k0, F]`` constant velocity, the tensions and biases random walks."""
+        """``k0`` constant velocity, ``F`` constant velocity or, with
+        :attr:`estimate_force_acceleration`, constant acceleration; the tensions and
+        biases random walks."""
         q, tau, qd = self._split(x)
-        return ca.vertcat(q + dt * qd, tau, x[6 + self.robot.n_tendons :])
+        k = self.robot.n_tendons
+        if not self.n_force_acceleration:
+            return ca.vertcat(q + dt * qd, tau, x[6 + k :])
+        f_ddot = x[12 + k : 15 + k]
+        step = ca.vertcat(ca.SX.zeros(3), f_ddot)
+        return ca.vertcat(q + dt * qd + dt**2 / 2 * step, tau, qd + dt * step, x[12 + k :])
 
     def process_cov_sym(self, dt: Sym) -> Sym:
-        psd = [self.curvature_accel_psd] * 3 + [self.force_psd] * 3
+        force = 0.0 if self.n_force_acceleration else self.force_psd
+        psd = [self.curvature_accel_psd] * 3 + [force] * 3
         q = ca.diag(ca.DM(psd))
         k = self.robot.n_tendons
         t = self.tension_psd * dt * ca.SX.eye(k)
@@ -620,6 +671,19 @@ class TendonFormulation(Formulation):
                 [q * dt**2 / 2, z6k, q * dt],
             ]
         )
+        if self.n_force_acceleration:
+            # the tip force driven by white jerk instead (a Wiener-process acceleration)
+            j = self.force_jerk_psd
+            fi, fdi = [3, 4, 5], [9 + k, 10 + k, 11 + k]
+            cov = ca.diagcat(cov, ca.SX.zeros(3, 3))
+            n = 15 + k
+            blocks = {(0, 0): dt**5 / 20, (0, 1): dt**4 / 8, (0, 2): dt**3 / 6,
+                      (1, 1): dt**3 / 3, (1, 2): dt**2 / 2, (2, 2): dt}  # fmt: skip
+            idx = (fi, fdi, [n - 3, n - 2, n - 1])
+            for (a, b), c in blocks.items():
+                for i in range(3):
+                    cov[idx[a][i], idx[b][i]] = j * c
+                    cov[idx[b][i], idx[a][i]] = j * c
 
         if self.estimate_gyro_bias:
             cov = ca.diagcat(cov, self.gyro_bias_psd * dt * ca.SX.eye(self.n_gyro_bias))
@@ -630,11 +694,17 @@ class TendonFormulation(Formulation):
         return cov
 
     def _imu_accelerations(
-        self, v: Sym, v_dot: Sym, tau_ddot: Sym, res: Sym, poses: dict[Station, tuple[Sym, Sym]]
+        self,
+        v: Sym,
+        v_dot: Sym,
+        v_ddot_given: Sym,
+        res: Sym,
+        poses: dict[Station, tuple[Sym, Sym]],
     ) -> list[Sym]:
         """Each IMU's own acceleration (m/s^2, base frame) along the equilibria, with
-        ``v = [k0, F, tau]``: the tip force at constant velocity (``F'' = 0``), the
-        tensions' second derivative given, and the base curvature's rate and
+        ``v = [k0, F, tau]``: the second derivatives ``v_ddot_given = [F'', tau'']``
+        (the tip force's from the state, zero at constant velocity; the tensions'
+        given), and the base curvature's rate and
         acceleration those that keep the tip condition (the first and second time
         derivatives of the residual zero).
 
@@ -650,7 +720,7 @@ class TendonFormulation(Formulation):
             rest = ca.vertcat(ca.SX.zeros(6), v_dot[6:])
         k0_dot = -ca.solve(j_k0, ca.jtimes(res, v, rest))
         v_dot = ca.vertcat(k0_dot, rest[3:])
-        v_ddot = ca.vertcat(ca.SX.zeros(6), tau_ddot)
+        v_ddot = ca.vertcat(ca.SX.zeros(3), v_ddot_given)
         shifted = []
         for sign in (1.0, -1.0):
             w = v + sign * h * v_dot + h**2 / 2 * v_ddot
@@ -684,18 +754,21 @@ class TendonFormulation(Formulation):
         v = ca.vertcat(q, tau)
         v_dot = ca.vertcat(qd, tau_dot)
         if self.own_acceleration:
-            accel = self._imu_accelerations(v, v_dot, tau_ddot, res, poses)
+            f_ddot = x[12 + k : 12 + k + self.n_force_acceleration]
+            if not self.n_force_acceleration:
+                f_ddot = ca.SX.zeros(3)
+            accel = self._imu_accelerations(v, v_dot, ca.vertcat(f_ddot, tau_ddot), res, poses)
             specific = [ca.DM(up) + a / GRAVITY for a in accel]
         else:
             specific = [ca.DM(up) for _ in rots]
         if self.estimate_misalignment:  # the board turned by a small rotation
-            n0 = 12 + k + self.n_gyro_bias
+            n0 = self._n_motion + self.n_gyro_bias
             rots = [
                 ca.mtimes(R, ca.SX.eye(3) + _hat(x[n0 + 3 * i : n0 + 3 * i + 3]))
                 for i, R in enumerate(rots)
             ]
         gravity = []
-        n0 = 12 + k + self.n_gyro_bias + self.n_misalignment
+        n0 = self._n_motion + self.n_gyro_bias + self.n_misalignment
         for i, (R, f) in enumerate(zip(rots, specific)):
             fb = ca.mtimes(R.T, f)
             if self.estimate_accel_bias:  # in units of g, as the specific force here
@@ -710,7 +783,7 @@ class TendonFormulation(Formulation):
             w = ca.mtimes(R.T, dR)
             rate = 0.5 * ca.vertcat(w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1])
             if self.estimate_gyro_bias:
-                n0 = 12 + k
+                n0 = self._n_motion
                 rate = rate + x[n0 + 3 * i : n0 + 3 + 3 * i]
             imu.append(ca.vertcat(gravity[i], rate))
         return gravity, imu, eq
@@ -828,7 +901,8 @@ class TendonFormulation(Formulation):
         # gyro biases
         free = np.r_[0:6]
         if self.imu_model == "direct":
-            free = np.r_[free, 6 + k : 9 + k, 12 + k : 12 + k + self.n_gyro_bias]
+            bias = self._n_motion  # the gyro biases follow the motion states
+            free = np.r_[free, 6 + k : 9 + k, bias : bias + self.n_gyro_bias]
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : self.nz]
         prior = x[free].copy()
@@ -873,6 +947,7 @@ class TendonFormulation(Formulation):
         f = self.force_prior_std**2
         diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
+        diag += [self.initial_force_acceleration_std**2] * self.n_force_acceleration
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
         diag += [self.initial_misalignment_std**2] * self.n_misalignment
         diag += [self.initial_accel_bias_std**2] * self.n_accel_bias
