@@ -4,6 +4,7 @@ independent peer, the formulation's Jacobians, slack tendons, the tensions input
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
@@ -262,7 +263,7 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
     """With ``estimate_force_acceleration`` the tip force's acceleration is a state,
     and the force's transition and process noise are those of a triple integrator driven
     by white jerk, computed independently here by Van Loan's matrix exponential; by
-    default the force keeps constant velocity (no such state)."""
+    default that state is there with raw IMUs on a robot of two or more IMUs only."""
     from scipy.linalg import expm
 
     from continuum_mhe.errors import UserError
@@ -290,8 +291,15 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
         chain = [force[c], rate[c], accel[c]]
         np.testing.assert_allclose(moved[chain], phi @ x[chain], rtol=1e-12)
         np.testing.assert_allclose(q[np.ix_(chain, chain)], q_expected, rtol=1e-9)
-    raw = TendonFormulation(robot=robot, imu_model="direct")
-    assert not any(n.endswith("_ddot") for n in raw.state_names)
+
+    def has_force_acceleration(robot: Robot, imu_model: str) -> bool:
+        names = TendonFormulation(robot=robot, imu_model=imu_model).state_names  # type: ignore[arg-type]
+        return any(n.endswith("_ddot") for n in names)
+
+    # by default: raw IMUs on a robot with two or more IMUs; not one IMU, not tilt
+    assert has_force_acceleration(robot, "direct")
+    assert not has_force_acceleration(replace(robot, imus=robot.imus[-1:]), "direct")
+    assert not has_force_acceleration(robot, "tilt")
     with pytest.raises(UserError, match="estimate_force_acceleration"):
         TendonFormulation(robot=robot, estimate_force_acceleration=True)  # tilt IMUs
 

@@ -42,11 +42,12 @@ cannot push).
 
 The formulation (:class:`TendonFormulation`)
 ---------------------------------------------
-State ``x = [k0, F, tau, k0', F']``, with ``estimate_force_acceleration`` the tip
-force's acceleration ``F''``, then the IMUs' own errors: a gyro bias per IMU
-with ``estimate_gyro_bias`` (raw IMUs), each board's misalignment with
-``estimate_misalignment`` and each accelerometer's bias with ``estimate_accel_bias``
-(both by default), random walks. The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
+State ``x = [k0, F, tau, k0', F']``, with ``estimate_force_acceleration`` (by default
+with raw IMUs on a robot with two or more IMUs) the tip force's acceleration
+``F''``, then the IMUs' own errors: a gyro bias per IMU with ``estimate_gyro_bias``
+(raw IMUs), each board's misalignment with ``estimate_misalignment`` and each
+accelerometer's bias with ``estimate_accel_bias`` (both by default), random walks.
+The base curvature ``k0 = R0^T M(0) / EI`` (rad/m, 3:
 the total base moment scaled to a curvature) follows constant velocity driven by
 white-noise acceleration (as the ``bend`` formulation); the tip force ``F`` (N, base
 frame, 3) the same, or, where ``F''`` is a state, constant acceleration driven by
@@ -435,8 +436,10 @@ class TendonFormulation(Formulation):
             robot with one IMU; :attr:`force_psd` is the value used).
         estimate_force_acceleration: the tip force's acceleration ``F''`` (N/s^2, 3)
             as states, the force at constant acceleration driven by white jerk, ``F''``
-            in the IMUs' own acceleration (off by default; needs the force's rate in
-            the acceleration, :attr:`force_rate_moves_imus`).
+            in the IMUs' own acceleration (needs the force's rate in the acceleration,
+            :attr:`force_rate_moves_imus`). None, the default: on where the force's rate
+            moves the IMUs (raw IMUs) and the robot has two or more IMUs;
+            :attr:`n_force_acceleration` says what is used.
         force_jerk_psd: the tip force's white-noise jerk there, N^2/s^5
             (:attr:`force_accel_psd` is not used then).
         initial_force_acceleration_std: ``F''``'s prior standard deviation, N/s^2.
@@ -476,7 +479,7 @@ class TendonFormulation(Formulation):
     equilibrium_std: float = 1e-4
     curvature_accel_psd: float = 1e4
     force_accel_psd: float | None = None
-    estimate_force_acceleration: bool = False
+    estimate_force_acceleration: bool | None = None
     force_jerk_psd: float = FORCE_JERK_PSD
     initial_force_acceleration_std: float = 0.1
     initial_force_std: float | None = None
@@ -529,8 +532,12 @@ class TendonFormulation(Formulation):
     @property
     def n_force_acceleration(self) -> int:
         """States of the tip force's acceleration: 3 with
-        :attr:`estimate_force_acceleration`, else 0."""
-        return 3 if self.estimate_force_acceleration else 0
+        :attr:`estimate_force_acceleration` (resolved: by default with raw IMUs on a
+        robot with two or more IMUs), else 0."""
+        on = self.estimate_force_acceleration
+        if on is None:
+            on = self.force_rate_moves_imus and self.robot.n_imus > 1
+        return 3 if on else 0
 
     @property
     def _n_motion(self) -> int:
