@@ -5,7 +5,9 @@ with injected readings, and a property test of the normalised errors of ``ok`` r
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -335,6 +337,34 @@ def test_quantiles_match_scipy_stats() -> None:
     for q in (0.5, 0.99, 0.999):
         for dfn, dfd in ((1, 1), (4, 39), (468, 2388)):
             assert f_quantile(q, dfn, dfd) == pytest.approx(f.ppf(q, dfn, dfd), rel=1e-10)
+
+
+def test_quantile_table_is_scipy_s_at_every_level_the_estimators_use(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The table the estimators read their quantiles from (data/quantiles.json) holds
+    ``scipy.special``'s values at each level the estimators use (the levels and degrees
+    of freedom of ``tools/quantile_table.py``, which imports them from the checks), and a
+    quantile beyond it is ``scipy.special``'s too."""
+    from scipy.special import chdtri, fdtri
+
+    from continuum_mhe.estimators.chi2 import TABLE_PATH, chi2_quantile, f_quantile
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "tools"))
+    import quantile_table
+
+    written = json.loads(TABLE_PATH.read_text())
+    assert [float(q) for q in written["chi2"]] == quantile_table.chi2_levels()
+    for level, values in written["chi2"].items():
+        dof = np.arange(1, len(values) + 1)
+        assert len(values) == quantile_table.CHI2_DOF
+        np.testing.assert_allclose(values, chdtri(dof, 1.0 - float(level)), rtol=1e-13)
+    rows = np.array(written["f"])
+    assert [tuple(r) for r in rows[:, :3]] == quantile_table.f_rows()
+    np.testing.assert_allclose(rows[:, 3], fdtri(rows[:, 1], rows[:, 2], rows[:, 0]), rtol=1e-13)
+    n = quantile_table.CHI2_DOF + 1  # beyond the table
+    assert chi2_quantile(0.999, n) == pytest.approx(float(chdtri(n, 0.001)), rel=1e-15)
+    assert f_quantile(0.999, 39, 200) == pytest.approx(float(fdtri(39, 200, 0.999)), rel=1e-15)
 
 
 @pytest.mark.parametrize("floor_deg", [0.0, 2.0])
