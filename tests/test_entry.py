@@ -36,6 +36,17 @@ def test_help_and_version_import_nothing_heavy(argv):
         assert any("estimate" in line for line in shown)
 
 
+def test_the_installed_metadata_carries_the_package_s_version():
+    """``--version`` and the estimate files' first line read ``__version__``; the
+    package's metadata takes it when the package is built (pyproject.toml)."""
+    from importlib import metadata
+
+    import continuum_mhe
+
+    assert entry.version() == continuum_mhe.__version__
+    assert metadata.version("continuum-mhe") == continuum_mhe.__version__
+
+
 def _commands(parser: argparse.ArgumentParser) -> list[tuple[str, str]]:
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     return [(a.dest, str(a.help)) for a in sub._choices_actions]

@@ -7,7 +7,6 @@ one-line help are written here and nowhere else.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 PROG = "continuum-mhe"
@@ -69,18 +68,12 @@ COMMANDS: tuple[Command, ...] = (
 )
 
 
-@functools.cache
 def version() -> str:
-    """The installed version (from the package metadata, read once: a search of the
-    installed packages; no import of the package's modules)."""
-    from importlib import metadata
+    """The version (``continuum_mhe.__version__``, which the package's metadata takes
+    when it is built: no search of the installed packages)."""
+    from continuum_mhe import __version__
 
-    try:
-        return metadata.version("continuum-mhe")
-    except metadata.PackageNotFoundError:  # running from a source tree
-        from continuum_mhe import __version__
-
-        return __version__
+    return __version__
 
 
 def signal_exit() -> int:
