@@ -56,13 +56,14 @@ the given ones. ``F''`` moves the IMUs: a tip force that swings across a bent ro
 accelerates its tip, and at constant velocity that acceleration, about a degree of the
 tip IMU's gravity direction at 0.08 N on the shipped robot, is left to the IMUs'
 misalignment and bias states, which then turn the estimate about the vertical. With it
-as a state the model describes the readings at the true state to their noise, but the
-filter then depends on its start's tip force, and from the start as it is it lost the
-shape on some recordings: off by default (docs/tendon.md, "Under load"). The IMUs'
-errors are states by default because they, not the model, are what is left: a degree
-of misalignment, or 0.17 m/s^2 of accelerometer bias, reads as a tip force that moves
-the tip of the shipped robot by about 5 mm; as the robot moves through several poses
-they separate from the force (docs/tendon.md).
+as a state the model describes the readings at the true state to their noise; the
+filter then depends on its start's tip force (:meth:`TendonFormulation.initial_state`).
+A robot with one IMU lost the shape with it, and keeps the force at constant velocity
+(docs/tendon.md, "Under load"). The IMUs' errors are states by default because they,
+not the model, are what is left: a degree of misalignment, or 0.17 m/s^2 of
+accelerometer bias, reads as a tip force that moves the tip of the shipped robot by
+about 5 mm; as the robot moves through several poses they separate from the force
+(docs/tendon.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
