@@ -112,7 +112,7 @@ def test_constant_acceleration_motion_and_layout() -> None:
 
 def test_fast_mhe_agrees_with_ipopt_with_own_acceleration() -> None:
     """Two sections (an IMU inside section 2), the model's own readings of the motion
-    above plus noise 0.005, 1 s (N = 6: the window slides for 14 samples): fast MHE
+    above plus noise 0.005, 1 s (N = 4: the window slides for 16 samples): fast MHE
     (VM) and IPOPT give the same states to 1e-6 on every sample."""
     f = DirectFormulation(robot=ROBOT, own_acceleration=True, estimate_gyro_bias=True)
     t = np.arange(20) * 0.05
@@ -121,7 +121,7 @@ def test_fast_mhe_agrees_with_ipopt_with_own_acceleration() -> None:
     x = np.concatenate([q, qd, np.gradient(qd, t, axis=0), np.zeros((len(t), 6))], axis=1)
     z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
     z += np.random.default_rng(3).normal(scale=0.005, size=z.shape)
-    states = fast_and_ipopt_states(f, t, z, horizon=6)
+    states = fast_and_ipopt_states(f, t, z, horizon=4)
     assert_allclose(states["fast"], states["ipopt"], atol=1e-6, rtol=0)
 
 
