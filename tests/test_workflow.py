@@ -330,6 +330,23 @@ def test_options_record_leaves_out_the_flags_a_robot_file_replaces() -> None:
     assert "theta-max = 2.5" in alone.options_record and "length = 0.2" in alone.options_record
 
 
+def test_the_estimate_file_records_the_model_the_input_chose(tmp_path: Path) -> None:
+    """Raw IMUs with gyros take the direct model and its gyro biases without a flag; the
+    file says so (its options record only what was given)."""
+    raw = tmp_path / "m_raw.csv"
+    lines = (DATA / "rod2" / "planar-s_raw.csv").read_text().splitlines()
+    raw.write_text("\n".join(lines[:41]) + "\n")  # 40 samples
+    cases = {"raw": (raw, "direct"), "tilt": (DATA / "rod2" / "planar-s_tilt.csv", "bend")}
+    for name, (meas, model) in cases.items():
+        est = tmp_path / f"e_{name}.csv"
+        assert main(["estimate", str(meas), "-o", str(est), "--robot", "two-section"]) == 0
+        line = next(ln for ln in est.read_text().splitlines() if ln.startswith("# model ="))
+        record = tomllib.loads(line[2:])["model"]
+        assert record["name"] == model
+        assert ("bgx_1" in record["states"]) == (name == "raw")
+        assert record["states"][:4] == ["a_1", "b_1", "a_2", "b_2"]
+
+
 def test_the_estimate_file_records_the_method_that_made_it(tmp_path: Path) -> None:
     """Without ``--method`` the record names the default that ran, so the file's options
     (``--config EST.csv``) give the same estimator again."""

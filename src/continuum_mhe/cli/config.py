@@ -15,9 +15,12 @@ import argparse
 import re
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from continuum_mhe.io.csv_files import InputError
+
+if TYPE_CHECKING:
+    from continuum_mhe.model.formulations import Formulation
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -26,6 +29,8 @@ else:  # pragma: no cover - Python 3.10
 
 #: the comment line of an estimate CSV that records its options (a TOML line)
 OPTIONS_LINE = "options"
+#: the comment key of the model an estimate ran on (:func:`model_record`)
+MODEL_LINE = "model"
 #: options that are never read from a file or recorded: they name files or say how to
 #: treat them, not how to estimate
 NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "func", "command"})
@@ -137,6 +142,17 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
             raise InputError(f"{path}: {where}{key} is not an option of {command}")
         defaults[dest] = _value(path, where, key, action, value)
     parser.set_defaults(**defaults)
+
+
+def model_record(formulation: Formulation) -> str:
+    """The model an estimate ran on, as the TOML inline table an estimate file records
+    beside its options (``{name = "direct", states = ["a_1", ...]}``): the options
+    leave some choices to the input (raw IMUs with gyros take the direct model and its
+    gyro biases), and this line says which were made."""
+    import json
+
+    names = ", ".join(json.dumps(n) for n in formulation.state_names)
+    return f"{{name = {json.dumps(formulation.name)}, states = [{names}]}}"
 
 
 def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str:

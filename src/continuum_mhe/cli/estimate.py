@@ -15,7 +15,7 @@ from typing import cast
 
 import numpy as np
 
-from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
+from continuum_mhe.cli.config import MODEL_LINE, OPTIONS_LINE, add_config_option, model_record
 from continuum_mhe.cli.options import (
     add_method_option,
     add_mhe_options,
@@ -81,7 +81,11 @@ def run(args: argparse.Namespace) -> int:
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
         made = f"{version()} estimate {Path(args.measurements).name}"
-        notes = [("continuum-mhe", json.dumps(made)), (OPTIONS_LINE, args.options_record)]
+        notes = [
+            ("continuum-mhe", json.dumps(made)),
+            (OPTIONS_LINE, args.options_record),
+            (MODEL_LINE, model_record(formulation)),
+        ]
         interrupted: BaseException | None = None
         with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
             try:

@@ -7,7 +7,7 @@ import argparse
 import gc
 import os
 
-from continuum_mhe.cli.config import OPTIONS_LINE, add_config_option
+from continuum_mhe.cli.config import MODEL_LINE, OPTIONS_LINE, add_config_option, model_record
 from continuum_mhe.cli.options import (
     add_live_view_option,
     add_method_option,
@@ -92,7 +92,11 @@ def run(args: argparse.Namespace) -> int:
             out_path,
             estimate_columns(formulation.outputs, outlier=estimator.flags_outliers),
             args.overwrite,
-            (f'continuum-mhe = "{version()} live"', f"{OPTIONS_LINE} = {args.options_record}"),
+            (
+                f'continuum-mhe = "{version()} live"',
+                f"{OPTIONS_LINE} = {args.options_record}",
+                f"{MODEL_LINE} = {model_record(formulation)}",
+            ),
         )
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
