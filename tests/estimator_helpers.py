@@ -7,7 +7,7 @@ and the linear Gaussian model (its recording is the ``linear_recording`` fixture
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import casadi as ca
@@ -23,6 +23,12 @@ from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
+
+
+def bare(**changes: Any) -> RecoverySettings:
+    """:meth:`RecoverySettings.off` with ``changes``: one recovery mechanism tested
+    alone, the others off."""
+    return replace(RecoverySettings.off(), **changes)
 
 
 def recovery_estimators(

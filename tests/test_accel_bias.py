@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from estimator_helpers import fast_and_ipopt_states
+from estimator_helpers import bare, fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
 from continuum_mhe.estimators.base import Measurement
@@ -133,7 +133,7 @@ def test_one_pose_leaves_the_bias_along_gravity_unknown() -> None:
     observability statement of the module docstring."""
     f = DirectFormulation(estimate_gyro_bias=True, estimate_accel_bias=True)
     z = np.asarray(f.functions.observe(np.zeros(f.nx)), dtype=float).ravel()
-    ekf = ExtendedKalmanFilter(f)
+    ekf = ExtendedKalmanFilter(f, recovery=bare())  # the exact repeats are no freeze here
     for i in range(200):
         ekf.step(Measurement(i * 0.05, z))
     P = ekf.inference._P

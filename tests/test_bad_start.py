@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from estimator_helpers import recovery_estimators
+from estimator_helpers import bare, recovery_estimators
 from numpy.testing import assert_array_equal
 
 from continuum_mhe.cli import main
@@ -51,14 +51,14 @@ def bad_start_recording(duration: float = 3.0):
 @pytest.mark.parametrize("index", range(5), ids=IDS)
 def test_a_bad_start_is_noticed_and_restarted_from_the_readings(index: int) -> None:
     rec, z = bad_start_recording()
-    est = estimators(RecoverySettings(bad_start=2.0))[index]
+    est = estimators(bare(bad_start=2.0))[index]
     s = est.run(rec.t, z)
     at = FIRST_GOOD + SAMPLES - 1
     assert list(np.flatnonzero(s.status == "reset")) == [at] and est.diagnostics.bad_starts == 1
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[:, :3], axis=1)
     assert tip[at:].max() < 0.01  # m: back on the robot from the restart on
-    plain = estimators(RecoverySettings())[index].run(rec.t, z)
-    assert "reset" not in set(plain.status)  # off by default in the library
+    plain = estimators(bare())[index].run(rec.t, z)
+    assert "reset" not in set(plain.status)  # without it
     late = np.linalg.norm(plain.output[at:, :3] - rec.truth[at:, :3], axis=1)
     assert late.max() > 0.015  # without it: still walking back after the restart time
 
@@ -66,9 +66,9 @@ def test_a_bad_start_is_noticed_and_restarted_from_the_readings(index: int) -> N
 @pytest.mark.parametrize("index", range(5), ids=IDS)
 def test_clean_data_are_unchanged_by_the_check(index: int) -> None:
     rec = simulate("paper3d", duration=4.0, seed=5)
-    on = estimators(RecoverySettings(bad_start=10.0))[index]
+    on = estimators(bare(bad_start=10.0))[index]
     s_on = on.run(rec.t, rec.z)
-    s_off = estimators(RecoverySettings())[index].run(rec.t, rec.z)
+    s_off = estimators(bare())[index].run(rec.t, rec.z)
     assert on.diagnostics.bad_starts == 0
     assert_array_equal(s_on.output, s_off.output)
     assert_array_equal(s_on.status, s_off.status)
@@ -103,9 +103,9 @@ def test_not_checked_where_the_covariance_is_a_weight() -> None:
     """The paper formulation's W is a weight, not a noise model: its NIS is not a test
     (the same bad start restarts the bend formulation's EKF)."""
     rec, z = bad_start_recording()
-    est = make_estimator("ekf", make_formulation("paper"), recovery=RecoverySettings(bad_start=2))
+    est = make_estimator("ekf", make_formulation("paper"), recovery=bare(bad_start=2))
     assert "reset" not in set(est.run(rec.t, z).status) and est.diagnostics.bad_starts == 0
-    checked = estimators(RecoverySettings(bad_start=2))[0]
+    checked = estimators(bare(bad_start=2))[0]
     checked.run(rec.t, z)
     assert checked.diagnostics.bad_starts == 1
 
@@ -155,7 +155,7 @@ def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> 
     this check). The estimate is ``uncertain`` until the returned IMU's readings have
     agreed with it for as long (library default: flagged, no restart)."""
     f, t, z, truth = silent_imu_recording(*silence)
-    est = recovery_estimators(RecoverySettings(), f)[index]
+    est = recovery_estimators(bare(), f)[index]
     s = est.run(t, z)
     assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
     back = t >= silence[2] + silence[3]
@@ -172,7 +172,7 @@ def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) 
     its own divergence check did) and is within 1.5 cm from there on; the same
     recording without the silence gets no status but ``ok``."""
     f, t, z, truth = silent_imu_recording(*SILENCES[0])
-    est = recovery_estimators(RecoverySettings(gap_reset=1.0, bad_start=2.0), f)[index]
+    est = recovery_estimators(bare(gap_reset=1.0, bad_start=2.0), f)[index]
     s = est.run(t, z)
     assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
     back = np.flatnonzero(t >= 11.0)[0]

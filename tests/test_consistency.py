@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import bare
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -77,12 +78,11 @@ def test_a_restart_keeps_the_model_error_the_readings_showed() -> None:
     restarts the estimator does not make the model right: after it the learned model
     error and the ``inconsistent`` rows remain (they were forgotten, and the rows after
     the gap said ``ok`` with the noise-only standard deviations)."""
-    from continuum_mhe.settings import RecoverySettings
 
     rec = simulate("paper3d", duration=10.0, seed=2, noise_deg=6.0, noise_model="tangent")
     keep = (rec.t < 5.0) | (rec.t > 6.5)  # a 1.5 s gap: the gap reset restarts at 6.5 s
     f = make_formulation("bend", Robot.single(0.2))
-    est = make_estimator("ekf", f, recovery=RecoverySettings(gap_reset=1.0))
+    est = make_estimator("ekf", f, recovery=bare(gap_reset=1.0))
     est.reset()
     before = after = None
     for t, z in zip(rec.t[keep], rec.z[keep], strict=True):

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
+from estimator_helpers import bare
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
@@ -58,7 +59,7 @@ def record_ipopt(
 ) -> Recorded:
     """Run the IPOPT estimator (tolerance ``tol``) and keep every window problem it solved."""
     settings = MHESettings(horizon=horizon, solver="ipopt", tol=tol)
-    est = MovingHorizonEstimator(formulation, settings)
+    est = MovingHorizonEstimator(formulation, settings, recovery=bare())
     rec = Recorded(est)
     solve = est.inference._solve
 

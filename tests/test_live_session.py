@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import bare
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Estimate
@@ -282,9 +283,7 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
     rows = "\n".join(f"{0.01 * i!r},{acc[0]!r},{acc[1]!r},{acc[2]!r},0.0,0.0,0.0" for i in range(5))
     raw.write_text("t,ax,ay,az,gx,gy,gz\n" + rows + "\n")
     f = make_formulation("bend", robot, NoiseSettings())
-    z_batch = load_input(
-        raw, InputOptions(raw=RawImuSettings(imu_model="tilt")), f
-    ).z
+    z_batch = load_input(raw, InputOptions(raw=RawImuSettings(imu_model="tilt")), f).z
     (conv,) = imu_converters(RawImuSettings(), robot)
     z_live = conv.convert(0.0, acc, np.zeros(3))
     np.testing.assert_allclose(z_batch[0], z_live, atol=1e-15)
@@ -293,11 +292,10 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
 
 def test_a_frozen_sensor_is_said_once_in_live() -> None:
     """Before: live treated a repeating reading as a dropout without a word."""
-    from continuum_mhe.settings import RecoverySettings
 
     said: list[str] = []
     f = make_formulation("bend", Robot.single(), NoiseSettings())
-    est = make_estimator("ekf", f, recovery=RecoverySettings(freeze=1.0))
+    est = make_estimator("ekf", f, recovery=bare(freeze=1.0))
     s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, None, say=said.append)
     _feed(s, list(range(0, 3000, 50)))  # the same reading for 3 s
     notes = [m for m in said if "repeated the same reading" in m]

@@ -22,6 +22,7 @@ from estimator_helpers import (
     LIN_N,
     SOLVERS,
     LinearBend,
+    bare,
     bend_process_cov,
     fast_windows,
     lin_transition,
@@ -333,7 +334,7 @@ def test_gap_reset_restarts_every_estimator_from_the_measurements(index: int) ->
     keep = (rec.t < 3) | (rec.t >= 10)  # a 7 s gap
     t, z, truth = rec.t[keep], rec.z[keep], rec.truth[keep]
     first_after = int(np.flatnonzero(t >= 10)[0])
-    est = estimators(RecoverySettings(gap_reset=1.0))[index]
+    est = estimators(bare(gap_reset=1.0))[index]
     s = est.run(t, z)
     assert s.status[first_after] == "reset"
     assert list(s.status).count("reset") == 1 and est.diagnostics.gap_resets == 1
@@ -342,9 +343,9 @@ def test_gap_reset_restarts_every_estimator_from_the_measurements(index: int) ->
     assert np.linalg.norm(s.output[first_after, :3] - est.formulation.output(x0)[:3]) < 0.01
     tip = np.linalg.norm(s.output[first_after:, :3] - truth[first_after:, :3], axis=1)
     assert tip.mean() < 0.01
-    plain_est = estimators(RecoverySettings())[index]
+    plain_est = estimators(bare())[index]
     plain = plain_est.run(t, z)
-    assert plain_est.diagnostics.gap_resets == 0  # off by default in the library
+    assert plain_est.diagnostics.gap_resets == 0  # without it
     if plain_est.name == "ukf":  # its sigma points span a half turn after 7 s blind
         assert plain_est.diagnostics.restarts == list(plain.status).count("reset") == 1
         assert "half turn" in str(plain_est.diagnostics.last_failure)
@@ -358,7 +359,7 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
     z = rec.z.copy()
     frozen = (rec.t >= 2) & (rec.t < 4)
     z[frozen] = z[np.flatnonzero(frozen)[0]]
-    est = make_estimator(method, BendFormulation(), recovery=RecoverySettings(freeze=0.5))
+    est = make_estimator(method, BendFormulation(), recovery=bare(freeze=0.5))
     s = est.run(rec.t, z)
     late = frozen & (rec.t > 2 + 0.5 + 1e-9)
     assert set(s.status[late]) == {"dropout"}
@@ -377,7 +378,7 @@ def test_each_run_counts_its_own_recording(index: int) -> None:
     z[frozen] = z[np.flatnonzero(frozen)[0]]
     keep = (rec.t < 1) | (rec.t >= 3)  # a 2 s gap
     t, z = rec.t[keep], z[keep]
-    est = estimators(RecoverySettings(gap_reset=1.0, freeze=0.5))[index]
+    est = estimators(bare(gap_reset=1.0, freeze=0.5))[index]
     first = est.run(t, z).diagnostics
     assert first is not None and first == est.diagnostics  # returned with the estimates
     assert first.gap_resets == 1 and first.frozen_samples > 0 and list(first.first_freezes) == [0]
@@ -421,9 +422,7 @@ def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str
     second of two equal readings 60 s apart (tests/data/fuzz/long_gap.csv) was taken
     as frozen and dropped. A gap is not a sensor seen stuck: both readings are used
     (the gap reset restarts from the second)."""
-    est = make_estimator(
-        method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
-    )
+    est = make_estimator(method, BendFormulation(), recovery=bare(gap_reset=1.0, freeze=1.0))
     s = est.run(np.array([0.0, 60.0, 60.05]), np.array([[0.1, 0.1], [0.1, 0.1], [0.5, -0.2]]))
     assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
     assert "dropout" not in set(s.status) and "no-estimate" not in set(s.status)
@@ -443,7 +442,7 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
     k = 30
     t = dt * np.arange(k)
     z = np.tile([0.1, -0.2], (k, 1))
-    est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
+    est = make_estimator("ekf", BendFormulation(), recovery=bare(freeze=1.0))
     s = est.run(t, z)
     if first is None:
         assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
@@ -455,7 +454,7 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
         }
     # n - 1 equal readings 0.5 s apart (2 s in all, longer than the freeze), then a
     # change: never a freeze
-    est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0))
+    est = make_estimator("ekf", BendFormulation(), recovery=bare(freeze=1.0))
     z2 = z[: n + 1].copy()
     z2[n - 1 :] = [0.3, 0.0]
     est.run(0.5 * np.arange(n + 1), z2)
@@ -469,9 +468,7 @@ def test_equal_readings_on_both_sides_of_a_gap_are_not_a_freeze(method: str) -> 
     it is not a freeze (the gap reset restarts from the reading after it)."""
     t = np.r_[0.05 * np.arange(5), 60.0, 60.05]
     z = np.r_[np.tile([0.1, 0.1], (6, 1)), [[0.5, -0.2]]]
-    est = make_estimator(
-        method, BendFormulation(), recovery=RecoverySettings(gap_reset=1.0, freeze=1.0)
-    )
+    est = make_estimator(method, BendFormulation(), recovery=bare(gap_reset=1.0, freeze=1.0))
     s = est.run(t, z)
     assert est.diagnostics.frozen_samples == 0 and est.diagnostics.first_freezes == {}
     assert s.status[5] == "reset" and "dropout" not in set(s.status)
@@ -485,7 +482,7 @@ def test_freeze_samples_are_validated() -> None:
     t, z = np.array([0.0, 0.6, 1.2]), np.tile([0.1, 0.1], (3, 1))
     for samples, frozen in ((2, 1), (None, 0)):  # a caller may ask for fewer repeats
         kw = {} if samples is None else {"freeze_samples": samples}
-        est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings(freeze=1.0, **kw))
+        est = make_estimator("ekf", BendFormulation(), recovery=bare(freeze=1.0, **kw))
         est.run(t, z)
         assert est.diagnostics.frozen_samples == frozen, samples  # (the default sees none)
 
@@ -498,15 +495,13 @@ def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
     base = make_estimator("ekf", f).run(rec.t, rec.z)
     tip_std = np.sqrt(np.sum(base.std[:, :3] ** 2, axis=1))
     frac = float(np.median(tip_std)) / 0.2
-    s = make_estimator("ekf", f, recovery=RecoverySettings(uncertain_fraction=frac)).run(
-        rec.t, rec.z
-    )
+    s = make_estimator("ekf", f, recovery=bare(uncertain_fraction=frac)).run(rec.t, rec.z)
     assert_allclose(s.std, base.std)
     assert np.array_equal(s.status == "uncertain", tip_std > frac * 0.2)
     assert 0 < np.sum(s.status == "uncertain") < len(s.t)
     # the paper formulation's W is a weight, not a noise model: never uncertain
     paper = make_formulation("paper")
-    s = make_estimator("ekf", paper, recovery=RecoverySettings(uncertain_fraction=1e-6))
+    s = make_estimator("ekf", paper, recovery=bare(uncertain_fraction=1e-6))
     series = s.run(rec.t, rec.z)
     assert set(series.status) == {"ok"} and np.isfinite(series.std).all()
 
@@ -519,7 +514,7 @@ def test_recovery_settings_are_validated() -> None:
 
 
 def test_a_repeated_reading_is_not_frozen_without_freeze() -> None:
-    est = make_estimator("ekf", BendFormulation())
+    est = make_estimator("ekf", BendFormulation(), recovery=bare())
     t = np.arange(100) * 0.05
     series = est.run(t, np.tile([0.1, 0.1], (100, 1)))
     assert est.diagnostics.frozen_samples == 0 and set(series.status) == {"ok"}

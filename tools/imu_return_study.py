@@ -3,15 +3,15 @@ return honest? (``start_check``'s IMU-return confirmation.)
 
 For each of ``spatial`` and ``s-curve``, each seed (20 s at 20 Hz), each IMU and each
 silence (from 4 s for 3 s, 6 s for 3 s, 8 s for 1.5 s, 10 s for 2 s, 12 s for 5 s) the
-IMU's readings are NaN; compiled EKF, UKF and MHE (N = 30) run with the library's
-recovery settings (``--recovery lib``: gap reset and bad-start check off) or the command
-line's (``--recovery cli``: ``--gap-reset 1 --freeze 1 --bad-start 2``). Reported per
+IMU's readings are NaN; compiled EKF, UKF and MHE (N = 30) run with recovery off
+(``--recovery off``: ``RecoverySettings.off()``, gap reset and bad-start check off) or the
+defaults (``--recovery defaults``: ``--gap-reset 1 --freeze 1 --bad-start 2``). Reported per
 method: the largest tip error, in standard deviations of the estimate's own tip
 position, of an ``ok`` estimate within 2 s after the return and anywhere; the ``ok``
 samples within the 2 s beyond 5 standard deviations; and the mean number of samples
 not ``ok`` from the return to the end.
 
-    python tools/imu_return_study.py --seeds 6 --recovery lib
+    python tools/imu_return_study.py --seeds 6 --recovery off
 """
 
 from __future__ import annotations
@@ -30,15 +30,15 @@ from continuum_mhe.simulation.scenarios import simulate_robot
 ROBOT = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
 SILENCES = ((4.0, 3.0), (6.0, 3.0), (8.0, 1.5), (10.0, 2.0), (12.0, 5.0))
 RECOVERY = {
-    "lib": RecoverySettings(),
-    "cli": RecoverySettings(gap_reset=1.0, freeze=1.0, bad_start=2.0),
+    "off": RecoverySettings.off(),
+    "defaults": RecoverySettings(),
 }
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seeds", type=int, default=6)
-    p.add_argument("--recovery", choices=sorted(RECOVERY), default="lib")
+    p.add_argument("--recovery", choices=sorted(RECOVERY), default="off")
     args = p.parse_args()
     warnings.simplefilter("ignore")
     robot = read_robot(ROBOT)

@@ -1,5 +1,6 @@
 """How far ``ok`` and the standard deviations can be trusted on the two-section
-Cosserat-rod recordings (data the PCC model did not generate), with the defaults:
+Cosserat-rod recordings (data the PCC model did not generate), with the defaults and
+recovery off (``RecoverySettings.off()``: no gap reset, freeze or bad-start check):
 per method and recording, the tip error (mean / max, mm), the share of rows ``ok``,
 the per-axis coverage of the 95 % interval (``|e_c| <= 1.96 std_c``) over the ``ok``
 rows, the rows more than 20 mm off that are not ``ok``, the rows more than 50 mm off that are
@@ -23,6 +24,7 @@ from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.settings import RecoverySettings
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 Z95 = 1.959964
@@ -35,7 +37,7 @@ def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> d
         folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
     )
     truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
-    est = make_estimator(method, data.formulation, MHESettings())  # type: ignore[arg-type]
+    est = make_estimator(method, data.formulation, MHESettings(), RecoverySettings.off())  # type: ignore[arg-type]
     s = est.run(data.t, data.z)
     err = s.output[:, :3] - truth
     dist = np.linalg.norm(err, axis=1) * 1e3

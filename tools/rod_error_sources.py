@@ -53,7 +53,9 @@ def rod_settings(info: dict[str, object]) -> SectionRodSettings:
     """The rod of a shipped recording, from its info (G = 5E needs the finer step)."""
     shear = float(info["shear_ratio"])  # type: ignore[arg-type]
     return SectionRodSettings(
-        shear_ratio=shear, sim_dt=5e-6 if shear > 1 else 2e-5, drive=info["drive"]  # type: ignore[arg-type]
+        shear_ratio=shear,
+        sim_dt=5e-6 if shear > 1 else 2e-5,
+        drive=info["drive"],  # type: ignore[arg-type]
     )
 
 

@@ -149,13 +149,13 @@ class RecoverySettings:
     Attributes:
         gap_reset: after no valid measurement for longer than this (s), the next valid
             sample restarts the estimator from its own measurement (status ``reset``)
-            instead of continuing from a blind prediction; None: never (the library's
-            default; the command line's ``--gap-reset`` default is 1 s).
+            instead of continuing from a blind prediction; None: never (``--gap-reset``
+            on the command line; default 1 s, as there).
         freeze: a sensor (measurement block) whose reading repeats exactly for longer
             than this (s), over at least ``freeze_samples`` consecutive samples none more
             than ``freeze`` s after the one before (a gap is not a freeze), is treated as
             dropped out until its reading changes; None: never (command line
-            ``--freeze``, default 1 s).
+            ``--freeze``; default 1 s).
         freeze_samples: the fewest consecutive samples with the same reading (the first
             one included) that can be a freeze (default :data:`FREEZE_MIN_SAMPLES`);
             the duration alone is not enough: two equal readings 60 s apart are a gap in
@@ -164,8 +164,10 @@ class RecoverySettings:
             IMU silent for longer than ``gap_reset`` (1 s when it is off), ``SAMPLES``
             consecutive readings inconsistent with the estimate (normalised innovation
             beyond a chi-square quantile; :mod:`continuum_mhe.estimators.start_check`)
-            restart the estimator from the current reading (status ``reset``); None:
-            never (the library's default; command line ``--bad-start``, default 2 s).
+            restart the estimator from the current reading (status ``reset``); not for
+            a robust MHE (``MHESettings.loss`` not ``l2``), which rejects such readings
+            as outliers and has ``reject_reset``; None: never (command line
+            ``--bad-start``; default 2 s).
             Either way an estimate after such a return is ``uncertain`` until the
             returned IMU's readings have agreed with it for as long as that silence
             threshold.
@@ -174,19 +176,22 @@ class RecoverySettings:
             restarts from the next valid reading (status ``reset``): readings that
             disagree with the estimate for this long are taken as right and the
             estimate as lost (a redescending loss such as Welsch never follows them on
-            its own; docs/robust.md). Acts only on estimators that flag outliers, so it
-            is on in the library too; None: never (command line ``--reject-reset``).
+            its own; docs/robust.md). Acts only on estimators that flag outliers; None:
+            never (command line ``--reject-reset``).
         uncertain_fraction: an estimate whose tip position standard deviation
             (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
             length gets status ``uncertain`` instead of ``ok``; judged on the
             estimator's own covariance, before the readings' constant errors
             (``NoiseSettings.reading_bias_std``) widen the reported std.
+
+    The defaults are the command line's; :meth:`off` gives the bare estimator (no
+    gap reset, freeze, bad-start or reject reset), as the paper's experiments run it.
     """
 
-    gap_reset: float | None = None
-    freeze: float | None = None
+    gap_reset: float | None = 1.0
+    freeze: float | None = 1.0
     uncertain_fraction: float = 0.1
-    bad_start: float | None = None
+    bad_start: float | None = 2.0
     reject_reset: float | None = 0.5
     # last, so that the fields before it keep their positions
     freeze_samples: int = FREEZE_MIN_SAMPLES
@@ -201,3 +206,9 @@ class RecoverySettings:
         if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2):
             raise UserError(f"freeze_samples must be an integer >= 2, got {n!r}")
         object.__setattr__(self, "freeze_samples", int(n))
+
+    @classmethod
+    def off(cls) -> RecoverySettings:
+        """No gap reset, freeze, bad-start check or reject reset: the estimator as the
+        paper runs it (statuses and the ``uncertain`` threshold stay)."""
+        return cls(gap_reset=None, freeze=None, bad_start=None, reject_reset=None)

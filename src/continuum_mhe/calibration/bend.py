@@ -165,9 +165,7 @@ def yaws_from_bend(
     if not math.isfinite(phi_deg):
         raise InputError(f"--bend-phi must be a finite angle in degrees, got {phi_deg}")
     if values.shape[1] != 6 * len(rest):
-        raise InputError(
-            f"{path}: {values.shape[1] // 6} IMU(s), the rest recording {len(rest)}"
-        )
+        raise InputError(f"{path}: {values.shape[1] // 6} IMU(s), the rest recording {len(rest)}")
     out = []
     for i, (rpy, bias, noise) in enumerate(rest):
         block = values[:, 6 * i : 6 * i + 6]

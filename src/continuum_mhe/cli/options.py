@@ -384,10 +384,10 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     return ViewerSink("web" if args.serve_web else "spawn", **ports)
 
 
-#: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s.
-GAP_RESET_S = 1.0
-FREEZE_S = 1.0
-BAD_START_S = 2.0
+#: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s (the library's).
+GAP_RESET_S = RecoverySettings.gap_reset
+FREEZE_S = RecoverySettings.freeze
+BAD_START_S = RecoverySettings.bad_start
 
 
 def add_recovery_options(p: argparse.ArgumentParser) -> None:
@@ -416,7 +416,8 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="for this long after each (re)start, two consecutive readings inconsistent "
         "with the estimate (normalised innovation beyond the chi-square 99.9 %% quantile) "
-        f"restart the estimator from the reading (status reset); 0: never "
+        f"restart the estimator from the reading (status reset); not with --loss, "
+        f"whose MHE rejects such readings (see --reject-reset); 0: never "
         f"(default {BAD_START_S:g})",
     )
     g.add_argument(

@@ -264,7 +264,9 @@ class Estimator(Generic[InferenceT]):
             freeze=off(r.freeze),
             freeze_samples=r.freeze_samples,
             gap_reset=off(r.gap_reset),
-            bad_start=off(r.bad_start),
+            # a robust MHE rejects readings that disagree with its estimate (a burst at
+            # the start would restart it onto them); its reject reset covers a lost start
+            bad_start=off(None if self.flags_outliers else r.bad_start),
             reject_reset=off(r.reject_reset),
             uncertain_fraction=r.uncertain_fraction,
             length=f.robot.length,
@@ -317,7 +319,8 @@ class Estimator(Generic[InferenceT]):
         one restarts the inference the same way (``reset``), and so do readings
         inconsistent with the estimate within ``bad_start`` s of a (re)start or of an
         IMU's return after a silence of more than ``gap_reset`` (1 s when it is off)
-        (:mod:`.start_check`) and, for a robust MHE, a valid reading after every reading
+        (:mod:`.start_check`; not for a robust MHE, which rejects such readings as
+        outliers) and, for a robust MHE, a valid reading after every reading
         of more than ``reject_reset`` s was rejected as an outlier (the estimate, not
         the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
         exceeds ``uncertain_fraction`` of the robot's length is ``uncertain``, and so is

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -67,11 +67,13 @@ RECOVERY_GROUPS = ("gap", "freeze", "bad-start")
 OUTLIER_METHODS = ("mhe-l2", "mhe-robust", "ekf")
 #: Estimators of the coverage and recovery groups.
 ALL_METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
-#: The command line's recovery defaults (``--gap-reset 1 --freeze 1 --bad-start 2``), s.
-RECOVERY_ON = RecoverySettings(gap_reset=1.0, freeze=1.0, bad_start=2.0)
-#: The library's defaults: gap, freeze and bad-start off (the reject reset, on there, acts
-#: only on a robust MHE, which the recovery groups do not run).
-RECOVERY_OFF = RecoverySettings()
+#: The recovery defaults (``--gap-reset 1 --freeze 1 --bad-start 2``), s.
+RECOVERY_ON = RecoverySettings()
+#: Gap, freeze and bad-start off: the bare estimator (the coverage group's too).
+RECOVERY_OFF = RecoverySettings.off()
+#: The outlier groups' estimators: bare, but a robust MHE restarts after its newest
+#: reading was rejected for half a second (``RecoverySettings.reject_reset``).
+RECOVERY_OUTLIERS = replace(RECOVERY_OFF, reject_reset=RecoverySettings.reject_reset)
 #: Start of the gap and of the freeze, s; the score window's extra time after, s.
 EVENT_T0 = 5.0
 AFTER_S = 2.0
@@ -184,7 +186,7 @@ def tip_calibration(
     ``nees_per_dof``: mean of ``e^T C^+ e / k`` (1 when calibrated)."""
     from scipy.stats import chi2
 
-    est = make_estimator(method, f, MHESettings())
+    est = make_estimator(method, f, MHESettings(), RECOVERY_OFF)
     est.reset()
     axis, in3d, nees, err_mm = [], [], [], []
     for i in range(len(t)):
@@ -234,10 +236,10 @@ def _outliers(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
     out: dict[str, Any] = {}
     for m in OUTLIER_METHODS:
         if m == "ekf":
-            s = make_estimator("ekf", f).run(t, z)
+            s = make_estimator("ekf", f, None, RECOVERY_OUTLIERS).run(t, z)
         else:
             mhe = MHESettings(horizon=spec.horizon, loss=losses[m])
-            s = make_estimator("mhe", f, mhe).run(t, z)
+            s = make_estimator("mhe", f, mhe, RECOVERY_OUTLIERS).run(t, z)
         flagged = np.zeros(len(t), dtype=bool) if s.outlier is None else np.asarray(s.outlier)
         out[m] = {
             "tip_mean_mm": float(np.nanmean(_tip_err(s.output, truth)) * 1e3),

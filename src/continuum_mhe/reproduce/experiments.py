@@ -28,7 +28,13 @@ from continuum_mhe.model.kinematics import tip_position
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, plan_beyond
 from continuum_mhe.reproduce.bootstrap import mean_ci
-from continuum_mhe.settings import FormulationName, MHESettings, NoiseSettings, RobotSettings
+from continuum_mhe.settings import (
+    FormulationName,
+    MHESettings,
+    NoiseSettings,
+    RecoverySettings,
+    RobotSettings,
+)
 from continuum_mhe.simulation.scenarios import ScenarioName, simulate
 
 FloatArray = NDArray[np.float64]
@@ -276,9 +282,11 @@ def estimate_all(
     assumed_std: float,
     mhe: MHESettings,
 ) -> dict[str, EstimateSeries]:
-    """Run each method on the same measurements with the same model, Q and R."""
+    """Run each method on the same measurements with the same model, Q and R, as the
+    paper does: the bare estimators (no gap reset, freeze or bad-start check)."""
     f = _formulation(formulation, length, assumed_std)
-    return {m: make_estimator(m, f, mhe).run(t, z) for m in methods}
+    bare = RecoverySettings.off()
+    return {m: make_estimator(m, f, mhe, bare).run(t, z) for m in methods}
 
 
 def _mhe_settings(spec: TrialSpec) -> MHESettings:

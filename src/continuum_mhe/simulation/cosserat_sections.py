@@ -354,11 +354,7 @@ def imu_samples(
         keep = np.isin(np.arange(3), misalignment_axes)
         mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3) * keep)
         spec = np.einsum("nij,nj->ni", traj.directors[idx, k], spec_base) @ mis
-        spec = (
-            spec
-            + imu.accel_bias * rng.normal(size=3)
-            + imu.accel_noise * noise(spec.shape)
-        )
+        spec = spec + imu.accel_bias * rng.normal(size=3) + imu.accel_noise * noise(spec.shape)
         f[:, k] = _quantise(spec, imu.accel_range, imu.bits)
         om = traj.omegas[idx, k] @ mis
         om = om + imu.gyro_bias * rng.normal(size=3) + imu.gyro_noise * noise(om.shape)

@@ -296,8 +296,8 @@ def _tables(s: dict[str, Any]) -> list[str]:
                     ]
                 )
         lines += [
-            "Recovery off (the library's default) and on (`--gap-reset 1 --freeze 1 "
-            "--bad-start 2`, the command line's default). Gap and bad start: the 2 s after "
+            "Recovery off (`RecoverySettings.off()`) and on (`--gap-reset 1 --freeze 1 "
+            "--bad-start 2`, the defaults). Gap and bad start: the 2 s after "
             "it; freeze: the freeze and 2 s after. `ok but wrong`: samples per run with "
             "status ok and the tip more than 10 % of the length wrong:",
             "",
