@@ -145,3 +145,17 @@ def test_the_model_error_floor_widens_the_std_and_zero_turns_it_off(tmp_path) ->
     assert np.all(std["0"] < std["default"]) and np.all(std["default"] < std["4"])
     for k in ("0", "4"):
         np.testing.assert_array_equal(tables[k].column("x"), tables["default"].column("x"))
+
+
+def test_the_library_recovers_as_the_command_line_does() -> None:
+    """``RecoverySettings()`` is what ``estimate`` runs without recovery options (gap
+    reset, freeze, bad-start check and reject reset on); ``off()`` turns them off."""
+    from continuum_mhe.cli.app import build_parser
+    from continuum_mhe.cli.options import recovery_settings_from_args
+    from continuum_mhe.settings import RecoverySettings
+
+    args = build_parser().parse_args(["estimate", "m.csv", "-o", "e.csv"])
+    assert recovery_settings_from_args(args) == RecoverySettings()
+    assert None not in (RecoverySettings().gap_reset, RecoverySettings().bad_start)
+    off = RecoverySettings.off()
+    assert (off.gap_reset, off.freeze, off.bad_start, off.reject_reset) == (None,) * 4
