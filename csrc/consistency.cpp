@@ -12,15 +12,24 @@ namespace cmhe {
 using ConstRowMap = Eigen::Map<const RowMatrix>;
 using ConstVectorMap = Eigen::Map<const Eigen::VectorXd>;
 
-RowMatrix pinv_symmetric(const RowMatrix& a, double rcond) {
-  Eigen::SelfAdjointEigenSolver<RowMatrix> eig(a);
+void pinv_symmetric(const RowMatrix& a, double rcond, PinvScratch& scratch, RowMatrix& out) {
+  Eigen::SelfAdjointEigenSolver<RowMatrix>& eig = scratch.eig;
+  eig.compute(a);
   const Eigen::VectorXd& s = eig.eigenvalues();
   const double cut = rcond * (s.size() ? s.cwiseAbs().maxCoeff() : 0.0);
-  Eigen::VectorXd inv_s(s.size());
+  Eigen::VectorXd& inv_s = scratch.inv_s;
+  inv_s.resize(s.size());
   for (Eigen::Index i = 0; i < s.size(); ++i)
     inv_s[i] = std::fabs(s[i]) > cut ? 1.0 / s[i] : 0.0;
   const RowMatrix& u = eig.eigenvectors();
-  return u * inv_s.asDiagonal() * u.transpose();
+  out.noalias() = u * inv_s.asDiagonal() * u.transpose();
+}
+
+RowMatrix pinv_symmetric(const RowMatrix& a, double rcond) {
+  PinvScratch scratch;
+  RowMatrix out;
+  pinv_symmetric(a, rcond, scratch, out);
+  return out;
 }
 
 ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
@@ -240,7 +249,8 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   const int nx = s_.nx, nz = s_.nz;
   std::fill(out, out + nx * nx, 0.0);
   // the model error learned, or the floor assumed before the readings show one
-  std::vector<double> bias(s_.bias);
+  std::vector<double>& bias = cov_.bias;
+  bias.assign(s_.bias.begin(), s_.bias.end());
   for (int i = 0; i < nz; ++i)
     if (s_.gravity_r[i] > 0.0)
       bias[i] += std::max(model_error_ * s_.gravity_r[i], s_.model_error_floor);
@@ -251,13 +261,17 @@ void ConsistencyCheck::constant_error_cov(const double* z, const double* mask, c
   if (nr == 0) return;
   set_readings(z, mask);
   evaluate(measurement_, x, zeros_u_.data(), 0.0, Hr_.data());
-  RowMatrix Hs, wh;
+  // every sample: the matrices keep their storage from one sample to the next
+  RowMatrix &Hs = cov_.Hs, &wh = cov_.wh, &A = cov_.A, &C = cov_.C;
   weighted_jacobian(Hs, wh);
   const int nc = static_cast<int>(cols_.size());
-  Eigen::VectorXd b(nr);
+  Eigen::VectorXd& b = cov_.b;
+  b.resize(nr);
   for (int a = 0; a < nr; ++a) b[a] = bias[rows_[a]];
-  const RowMatrix A = pinv_symmetric(Hs.transpose() * wh, s_.rcond) * wh.transpose();
-  const RowMatrix C = A * b.asDiagonal() * A.transpose();
+  cov_.info.noalias() = Hs.transpose() * wh;
+  pinv_symmetric(cov_.info, s_.rcond, cov_.pinv, cov_.info_pinv);
+  A.noalias() = cov_.info_pinv * wh.transpose();
+  C.noalias() = A * b.asDiagonal() * A.transpose();
   for (int i = 0; i < nc; ++i)
     for (int j = 0; j < nc; ++j) out[cols_[i] * nx + cols_[j]] = C(i, j);
 }

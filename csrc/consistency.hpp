@@ -14,6 +14,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <vector>
 
 #include "model_function.hpp"
@@ -22,10 +23,18 @@ namespace cmhe {
 
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+// The storage of pinv_symmetric's eigendecomposition, kept between calls.
+struct PinvScratch {
+  Eigen::SelfAdjointEigenSolver<RowMatrix> eig;
+  Eigen::VectorXd inv_s;
+};
+
 // The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, the
 // eigenvalues at most ``rcond`` times the largest in magnitude taken as zero (what
 // ``numpy.linalg.pinv(a, rcond, hermitian=True)`` computes).
 RowMatrix pinv_symmetric(const RowMatrix& a, double rcond);
+// The same into ``out``, in the storage of ``scratch``.
+void pinv_symmetric(const RowMatrix& a, double rcond, PinvScratch& scratch, RowMatrix& out);
 
 // The fixed data of one formulation's check (sizes nz, or nz + 1 for a limit by the
 // number of judged readings, index 0 unused).
@@ -118,6 +127,14 @@ class ConsistencyCheck {
   std::vector<int> rows_, cols_;
   std::vector<double> x0_, P0_;
   RowMatrix S_;  // the last predicted_nis's innovation covariance (its rows)
+  // constant_error_cov's storage: B's diagonal, H and R^-1 H over the readings and
+  // states, H^T R^-1 H and its pseudo-inverse, A and A B A^T
+  struct ConstantErrorScratch {
+    std::vector<double> bias;
+    RowMatrix Hs, wh, info, info_pinv, A, C;
+    Eigen::VectorXd b;
+    PinvScratch pinv;
+  } cov_;
   double t0_ = 0.0;
   bool has_prev_ = false;
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;

@@ -2,7 +2,9 @@
 
 #include "btd.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <utility>
 
 namespace cmhe {
@@ -116,7 +118,8 @@ NodeModel::NodeModel(const ModelFunction& node, const ModelFunction& output,
       oout_(ny),
       jout_(static_cast<size_t>(ny) * nx),
       r_(nz),
-      H_(nz * nx) {}
+      H_(nz * nx),
+      jx_(nx) {}
 
 void NodeModel::set_sample(const double* u, double dt, const double* z, const double* mask) {
   for (int i = 0; i < nu_; ++i) u_[i] = u[i];
@@ -198,9 +201,15 @@ void NodeModel::output(const double* x, double* y) {
 }
 
 void NodeModel::output_std(const double* x, const double* P, double* std) {
-  const double* in[1] = {x};
-  jacobian_.evaluate(in, jout_.data());
   const int ny = ny_, nx = nx_;
+  // the policy asks for two covariances at one state (the estimate's, then the
+  // readings' constant errors): the Jacobian of the last state asked for is kept
+  if (!has_jx_ || std::memcmp(x, jx_.data(), sizeof(double) * nx) != 0) {
+    const double* in[1] = {x};
+    jacobian_.evaluate(in, jout_.data());
+    std::copy(x, x + nx, jx_.begin());
+    has_jx_ = true;
+  }
   for (int i = 0; i < ny; ++i) {
     double s = 0.0;
     for (int j = 0; j < nx; ++j)

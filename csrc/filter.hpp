@@ -60,7 +60,8 @@ class NodeModel {
                 const double* mask, const double* R, const double* Q);
   // outputs of x (wrapped angles in [-pi, pi))
   void output(const double* x, double* y);
-  // sqrt(diag(J P J^T)) with the output Jacobian J at x
+  // sqrt(diag(J P J^T)) with the output Jacobian J at x (evaluated once for consecutive
+  // calls at the same x)
   void output_std(const double* x, const double* P, double* std);
 
  private:
@@ -71,6 +72,8 @@ class NodeModel {
   int nx_, nu_, nz_, ny_;
   std::vector<int64_t> wrapped_;
   std::vector<double> x_, u_, dt_, z_, m_, out_, oout_, jout_, r_, H_;
+  std::vector<double> jx_;  // the state of the output Jacobian in jout_
+  bool has_jx_ = false;
 };
 
 }  // namespace cmhe
