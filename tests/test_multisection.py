@@ -518,37 +518,3 @@ def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
     b = CompiledExtendedKalmanFilter(f).run(rec.t, z)
     assert list(a.status) == list(b.status)
     assert_allclose(b.output, a.output, rtol=0, atol=1e-9)
-
-
-# --- the two-section Cosserat rod ---------------------------------------------------------
-def test_two_section_rod_generator_short_run(tmp_path: Path) -> None:
-    """A short two-section rod run: truth section ends on the centreline, the PCC floor
-    far below a one-section model's error, and files every reader accepts."""
-    import json
-
-    from continuum_mhe.simulation.cosserat_sections import (
-        SectionRodSettings,
-        write_section_recording,
-    )
-
-    info = write_section_recording(
-        tmp_path, "r", SectionRodSettings(), "planar-s", 0.6, bend_duration=0.2
-    )
-    assert (tmp_path / "r_bend.csv").read_text().startswith("t,ax_1,ay_1,az_1,gx_1,")
-    assert float(info["pcc_floor_mean_mm"]) < 0.2 * float(info["one_section_mean_mm"])  # type: ignore[arg-type]
-    assert json.loads((tmp_path / "r_info.json").read_text())["samples"] == info["samples"]
-    truth = read_state_table(tmp_path / "r_truth.csv")
-    assert truth.names[:3] == ("x", "y", "z")
-    assert_allclose(
-        truth.column("x"), truth.column("x_2"), atol=1e-12
-    )  # the tip is section 2's end
-    lengths = np.hypot(truth.column("y_1"), truth.column("z_1"))
-    assert np.all(lengths <= 0.16 + 1e-3)  # section 1's end within its arc length
-    for name in ("r_raw.csv", "r_tilt.csv"):  # raw: the direct model, the default
-        out = tmp_path / f"e_{name}"
-        args = ["estimate", str(tmp_path / name), "-o", str(out), "--robot", "two-section"]
-        assert main(args) == 0
-        assert (
-            main(["evaluate", str(out), str(tmp_path / "r_truth.csv"), "--robot", "two-section"])
-            == 0
-        )

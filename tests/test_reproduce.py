@@ -581,51 +581,6 @@ def test_shipped_rod_recording_is_valid() -> None:
     )
 
 
-@pytest.mark.slow
-def test_rod_generator_short_run(tmp_path: Path) -> None:
-    import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
-
-    rod = cosserat.RodSettings(n_elements=8, period=0.4, sim_dt=4e-5)
-    rec = cosserat.make_recording(rod, cosserat.ImuSettings(), duration=0.3, seed=1)
-    cols = rec.columns
-    assert set(cols) == set(cosserat.COLUMNS) and len(cols["t"]) == 7
-    assert cols["theta_tangent"][0] == 0.0 and cols["z_true"][0] == pytest.approx(0.2)
-    assert np.max(cols["theta_fit"]) > 0.05  # the cable bent it
-    path = tmp_path / "rod.csv"
-    cosserat.write_recording(path, rec)
-    back = cosserat.read_recording(path).columns
-    np.testing.assert_allclose(back["roll"], cols["roll"], rtol=1e-6, atol=1e-9)
-    assert cosserat.main(["-o", str(tmp_path / "x.csv"), "--duration", "-1"]) == 2
-
-
-@pytest.mark.slow
-def test_shipped_rod_recording_comes_from_its_generator_settings() -> None:
-    """The settings shipped beside rod_planar.csv (which the report prints) regenerate
-    its first samples to the CSV's 7 digits."""
-    import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
-
-    info = cosserat.read_generator_info(cosserat.default_data_path())
-    assert info is not None and info["duration"] == 20.0
-    rod, imu = cosserat.RodSettings(**info["rod"]), cosserat.ImuSettings(**info["imu"])
-    again = cosserat.make_recording(rod, imu, duration=0.3, seed=info["seed"]).columns
-    shipped = cosserat.read_recording(cosserat.default_data_path()).columns
-    for name in ("roll", "pitch", "y_true", "z_true", "theta_fit"):
-        k = len(again[name])
-        np.testing.assert_allclose(again[name], shipped[name][:k], rtol=1e-6, atol=1e-7)
-
-
-@pytest.mark.slow
-def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) -> None:
-    out = tmp_path / "rod.csv"
-    assert cosserat.main(["-o", str(out), "--duration", "0.1", "--seed", "3"]) == 0
-    info = cosserat.read_generator_info(out)
-    assert info is not None and (info["seed"], info["duration"]) == (3, 0.1)
-    assert info["rod"] == dataclasses.asdict(cosserat.RodSettings())
-    (tmp_path / "rod_info.json").write_text("{")
-    with pytest.raises(ValueError, match="rod_info.json"):
-        cosserat.read_generator_info(out)
-
-
 def test_fit_constant_curvature_recovers_an_arc() -> None:
     from continuum_mhe.model.kinematics import tip_position
 

@@ -1,9 +1,12 @@
-"""The two-section rod generator's tendon drive and its twist about the tangent (known
-answers; one short simulation of each drive), and the shipped recordings' info against
-their own files."""
+"""The Cosserat-rod generators (PyElastica): the two-section rod's tendon drive and its
+twist about the tangent (known answers; one short simulation of each drive), the
+shipped recordings' info against their own files, short runs of both generators and the
+one-section recording regenerated from its settings. Every test that runs PyElastica is
+here, so that one test process compiles its kernels."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -12,10 +15,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.pcc import section_frames_from_bends
 from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.simulation import cosserat
 from continuum_mhe.simulation.cosserat_sections import (
     SectionRodSettings,
     SectionTrajectory,
@@ -115,3 +120,81 @@ def test_tendon_drive_bends_with_little_twist_where_base_couples_twist() -> None
         assert np.all(np.degrees(np.hypot(bends[..., 0], bends[..., 1])).max(axis=0) > 90)
         twist[drive] = np.degrees(np.abs(tangent_twist(traj, bends))).max(axis=0)
     assert twist["base"][1] > 45 and np.all(twist["tendon"] < 15), twist
+
+
+# --- the two-section Cosserat rod ---------------------------------------------------------
+def test_two_section_rod_generator_short_run(tmp_path: Path) -> None:
+    """A short two-section rod run: truth section ends on the centreline, the PCC floor
+    far below a one-section model's error, and files every reader accepts."""
+    from continuum_mhe.simulation.cosserat_sections import (
+        SectionRodSettings,
+        write_section_recording,
+    )
+
+    info = write_section_recording(
+        tmp_path, "r", SectionRodSettings(), "planar-s", 0.6, bend_duration=0.2
+    )
+    assert (tmp_path / "r_bend.csv").read_text().startswith("t,ax_1,ay_1,az_1,gx_1,")
+    assert float(info["pcc_floor_mean_mm"]) < 0.2 * float(info["one_section_mean_mm"])  # type: ignore[arg-type]
+    assert json.loads((tmp_path / "r_info.json").read_text())["samples"] == info["samples"]
+    truth = read_state_table(tmp_path / "r_truth.csv")
+    assert truth.names[:3] == ("x", "y", "z")
+    assert_allclose(
+        truth.column("x"), truth.column("x_2"), atol=1e-12
+    )  # the tip is section 2's end
+    lengths = np.hypot(truth.column("y_1"), truth.column("z_1"))
+    assert np.all(lengths <= 0.16 + 1e-3)  # section 1's end within its arc length
+    for name in ("r_raw.csv", "r_tilt.csv"):  # raw: the direct model, the default
+        out = tmp_path / f"e_{name}"
+        args = ["estimate", str(tmp_path / name), "-o", str(out), "--robot", "two-section"]
+        assert main(args) == 0
+        assert (
+            main(["evaluate", str(out), str(tmp_path / "r_truth.csv"), "--robot", "two-section"])
+            == 0
+        )
+
+
+# --- the one-section Cosserat rod ---------------------------------------------------------
+@pytest.mark.slow
+def test_rod_generator_short_run(tmp_path: Path) -> None:
+    import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
+
+    rod = cosserat.RodSettings(n_elements=8, period=0.4, sim_dt=4e-5)
+    rec = cosserat.make_recording(rod, cosserat.ImuSettings(), duration=0.3, seed=1)
+    cols = rec.columns
+    assert set(cols) == set(cosserat.COLUMNS) and len(cols["t"]) == 7
+    assert cols["theta_tangent"][0] == 0.0 and cols["z_true"][0] == pytest.approx(0.2)
+    assert np.max(cols["theta_fit"]) > 0.05  # the cable bent it
+    path = tmp_path / "rod.csv"
+    cosserat.write_recording(path, rec)
+    back = cosserat.read_recording(path).columns
+    np.testing.assert_allclose(back["roll"], cols["roll"], rtol=1e-6, atol=1e-9)
+    assert cosserat.main(["-o", str(tmp_path / "x.csv"), "--duration", "-1"]) == 2
+
+
+@pytest.mark.slow
+def test_shipped_rod_recording_comes_from_its_generator_settings() -> None:
+    """The settings shipped beside rod_planar.csv (which the report prints) regenerate
+    its first samples to the CSV's 7 digits."""
+    import elastica  # noqa: F401  (a test dependency: fail loudly if missing)
+
+    info = cosserat.read_generator_info(cosserat.default_data_path())
+    assert info is not None and info["duration"] == 20.0
+    rod, imu = cosserat.RodSettings(**info["rod"]), cosserat.ImuSettings(**info["imu"])
+    again = cosserat.make_recording(rod, imu, duration=0.3, seed=info["seed"]).columns
+    shipped = cosserat.read_recording(cosserat.default_data_path()).columns
+    for name in ("roll", "pitch", "y_true", "z_true", "theta_fit"):
+        k = len(again[name])
+        np.testing.assert_allclose(again[name], shipped[name][:k], rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.slow
+def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) -> None:
+    out = tmp_path / "rod.csv"
+    assert cosserat.main(["-o", str(out), "--duration", "0.1", "--seed", "3"]) == 0
+    info = cosserat.read_generator_info(out)
+    assert info is not None and (info["seed"], info["duration"]) == (3, 0.1)
+    assert info["rod"] == dataclasses.asdict(cosserat.RodSettings())
+    (tmp_path / "rod_info.json").write_text("{")
+    with pytest.raises(ValueError, match="rod_info.json"):
+        cosserat.read_generator_info(out)
