@@ -1,4 +1,4 @@
-"""Fixtures shared by several test modules."""
+"""Fixtures shared by several test modules, and the order in which the test files run."""
 
 from __future__ import annotations
 
@@ -18,3 +18,16 @@ def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
         z.append(LIN_H @ x + rng.multivariate_normal(np.zeros(2), R))
         x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
     return f, np.arange(LIN_N) * LIN_DT, np.array(z)
+
+
+#: Test files that run first, longest first: in a fresh environment the first of them
+#: compiles PyElastica's numba kernels and the second runs mypy without its cache, and
+#: with ``--dist loadfile`` a long file taken last leaves the other worker idle.
+FIRST_FILES = ("test_rod_generators.py", "test_hygiene.py", "test_reproduce.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """:data:`FIRST_FILES` first; every file's tests, and the other files, keep their
+    order (a stable sort)."""
+    rank = {name: i for i, name in enumerate(FIRST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(FIRST_FILES)))

@@ -65,7 +65,7 @@ def test_benchmark_command_records_ratios_and_environment(
     monkeypatch.setattr(bm, "_cpu_model", lambda: "Test CPU 9000")
     out = tmp_path / "bench.json"
     args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "60",
-            "--loss-horizons", "none"]  # fmt: skip
+            "--loss-horizons", "none", "--repeats", "1"]  # fmt: skip
     assert main([*args, "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     rows = {r["method"]: r for r in report["results"]}

@@ -274,9 +274,17 @@ def test_plot_rerenders_from_data_without_estimating(
     def forbidden(*args: object, **kw: object) -> None:
         raise AssertionError("plot must not run estimators")
 
+    from continuum_mhe.evaluation import plotting
+
+    real_save = plotting.save
+
+    def save_png(fig: Any, path: Path, formats: Any, *args: Any, **kw: Any) -> list[Path]:
+        return real_save(fig, path, formats[:1], *args, **kw)  # (the fixture made the PDFs)
+
     monkeypatch.setattr(ex, "run_trial", forbidden)
     monkeypatch.setattr(ex, "estimate_all", forbidden)
     monkeypatch.setattr("continuum_mhe.estimators.make_estimator", forbidden)
+    monkeypatch.setattr(plotting, "save", save_png)
     out = tmp_path / "figs"
     assert main(["plot", str(quick_run), "--out", str(out)]) == 0
     assert sorted(p.stem for p in out.glob("*.png")) == sorted(FIGURES)
