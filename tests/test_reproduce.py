@@ -63,7 +63,8 @@ def quick_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("reproduce") / "results"
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(ex, "QUICK", SMALL)
-        assert main(["reproduce", "--out", str(out), "--quick", "--jobs", "2"]) == 0
+        # in this process (the process pool: test_dask_local_cluster_matches_local_processes)
+        assert main(["reproduce", "--out", str(out), "--quick", "--jobs", "1"]) == 0
     return out
 
 
