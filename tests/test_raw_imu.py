@@ -5,6 +5,7 @@ acceleration."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import casadi as ca
@@ -268,6 +269,36 @@ def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
         read_raw_imu(p)
     table = read_raw_imu(p, skip_bad=True)
     assert np.isnan(table.acc[1]).all() and len(table.skipped) == 1
+
+
+@pytest.mark.parametrize(
+    ("row", "magnitude"),
+    [("1e200,1e200,9.8,0,0,0", "1.41e+200 m/s^2"), ("0,0,9.8,0,2e3,0", "2e+03 rad/s")],
+)
+def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
+    tmp_path: Path, row: str, magnitude: str
+) -> None:
+    """A corrupt value far beyond any sensor (an overflowing 1e200 read a mounting 'nan
+    degrees' off) is named with its line; ``--skip-bad`` reads it as a dropout; with
+    several IMUs it is that IMU's dropout."""
+    from continuum_mhe.io.raw_imu import read_raw_imus
+
+    good = "0,0,9.8,0,0,0"
+    path = _write(tmp_path / "raw.csv", f"t,ax,ay,az,gx,gy,gz\n0,{good}\n0.02,{row}\n0.04,{good}\n")
+    with pytest.raises(
+        InputError,
+        match=rf"raw.csv: line 3: a reading beyond any IMU's range .*{re.escape(magnitude)}",
+    ):
+        read_raw_imu(path)
+    table = read_raw_imu(path, skip_bad=True)
+    assert np.isnan(table.acc[1]).all() and np.isfinite(table.acc[[0, 2]]).all()
+    assert len(table.skipped) == 1
+    header = "t," + ",".join(
+        f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")
+    )
+    two = _write(tmp_path / "two.csv", f"{header}\n0,{good},{good}\n0.02,{row},{good}\n")
+    first, second = read_raw_imus(two, 2).imus
+    assert np.isnan(first.acc[1]).all() and np.isfinite(second.acc).all()
 
 
 @pytest.mark.parametrize(

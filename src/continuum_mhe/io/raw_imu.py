@@ -63,6 +63,11 @@ _LOOKS_LIKE_G = (0.5, 2.0)
 #: means the gyro is in deg/s, not rad/s. A deg/s file whose median rate stays below
 #: 5 deg/s is not caught (its rates are small either way).
 GYRO_MEDIAN_MAX = 5.0
+#: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
+#: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
+#: corrupt value, not a reading.
+ACCEL_READING_MAX = 1e4
+GYRO_READING_MAX = 1e3
 
 
 @dataclass(frozen=True)
@@ -320,8 +325,10 @@ def raw_blocks(
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
     in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`).
 
-    One IMU: a zero acceleration is an error, or with ``skip_bad`` a dropout (recorded);
-    several: any bad value makes that IMU's sample a dropout (NaN)."""
+    One IMU: a zero acceleration, or a reading beyond any IMU's range
+    (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
+    ``skip_bad`` a dropout (recorded); several: any bad value makes that IMU's sample a
+    dropout (NaN)."""
     k = 6 if has_gyro else 3
     out: list[tuple[FloatArray, FloatArray | None]] = []
     for i in range(n_imus):
@@ -329,11 +336,20 @@ def raw_blocks(
         if n_imus > 1:
             block[~np.all(np.isfinite(block), axis=1)] = np.nan
         acc = block[:, :3]
-        with np.errstate(invalid="ignore"):
-            zero = np.linalg.norm(acc, axis=1) == 0.0  # no gravity direction to read
+        # hypot: no overflow to inf for a corrupt 1e200
+        acc_norm = np.hypot.reduce(acc, axis=1)
+        gyr_norm = np.hypot.reduce(block[:, 3:6], axis=1) if has_gyro else np.zeros(len(acc))
+        zero = acc_norm == 0.0  # no gravity direction to read
+        huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
         if n_imus == 1:
-            for j in np.flatnonzero(zero):
-                msg = f"line {lines[int(j)]}: acceleration is zero (no gravity direction)"
+            for j in np.flatnonzero(zero | huge):
+                msg = f"line {lines[int(j)]}: " + (
+                    "acceleration is zero (no gravity direction)"
+                    if zero[j]
+                    else f"a reading beyond any IMU's range (|a| {acc_norm[j]:.3g} m/s^2, "
+                    f"limit {ACCEL_READING_MAX:g}; |omega| {gyr_norm[j]:.3g} rad/s, limit "
+                    f"{GYRO_READING_MAX:g})"
+                )
                 if not skip_bad:
                     raise InputError(f"{name}: {msg}")
                 if isinstance(skipped, RowProblems):
@@ -341,6 +357,7 @@ def raw_blocks(
                 else:
                     skipped.append(msg)
         acc[zero] = np.nan
+        block[huge] = np.nan
         check_accel_units(name, acc)
         if has_gyro:
             label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
