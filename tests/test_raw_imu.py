@@ -278,9 +278,9 @@ def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
 def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
     tmp_path: Path, row: str, magnitude: str
 ) -> None:
-    """A corrupt value far beyond any sensor (an overflowing 1e200 read a mounting 'nan
-    degrees' off) is named with its line; ``--skip-bad`` reads it as a dropout; with
-    several IMUs it is that IMU's dropout."""
+    """A corrupt value far beyond any sensor (a 1e200 would overflow the magnitude and
+    reach the mounting check as 'nan degrees') is named with its line; ``--skip-bad``
+    reads it as a dropout; with several IMUs it is that IMU's dropout."""
     from continuum_mhe.io.raw_imu import read_raw_imus
 
     good = "0,0,9.8,0,0,0"

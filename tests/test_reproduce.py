@@ -48,7 +48,7 @@ FIGURES = (
 
 
 # ``--quick`` with fewer and shorter trials: every experiment, figure and report section
-# of a quick run, at a third of its cost
+# of a quick run
 SMALL = dataclasses.replace(
     ex.QUICK,
     mc_seeds=2,
