@@ -119,6 +119,38 @@ def test_one_tendon_on_a_straight_rod_gives_a_circular_arc() -> None:
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-7)
 
 
+def test_the_backbone_points_of_one_tendon_lie_on_its_arc_evenly_spaced() -> None:
+    """The drawn backbone (``backbone_points``) of a straight rod pulled by one tendon:
+    every point on the circle of curvature ``tension * radius / EI`` through the base,
+    in the tendon's plane, at arc lengths ``L j / m``."""
+    robot = _one_section(Tendon(0, 2.0, 0.01))
+    tau, m = 1.5, 8
+    points = TendonStatics(robot).backbone_points(np.zeros(3), np.array([tau]), m)
+    kappa = tau * 0.01 / EI
+    s = 0.2 * np.arange(m + 1) / m
+    towards = np.array([math.cos(2.0), math.sin(2.0), 0.0])
+    expected = ((1 - np.cos(kappa * s)) / kappa)[:, None] * towards
+    expected[:, 2] = np.sin(kappa * s) / kappa
+    np.testing.assert_allclose(points, expected, atol=1e-8)
+
+
+def test_the_backbone_points_pass_through_the_models_section_ends() -> None:
+    """Under a tip force that twists a bent two-section robot, the drawn backbone ends
+    each section where the estimators' model puts its end: to the error of the model's
+    two steps a section (2e-5 m on this bend), which the drawn curve's 16 do not share."""
+    robot = read_robot("tendon-two-section")
+    statics = TendonStatics(robot)
+    tension = np.zeros(robot.n_tendons)
+    tension[0] = 3.0
+    force = np.array([0.05, 0.1, 0.0])
+    points = statics.backbone_points(force, tension, 16)
+    _, poses = statics.solve(force, tension)
+    assert points.shape == (33, 3)
+    for k in range(2):
+        np.testing.assert_allclose(points[16 * (k + 1)], poses[Station(k, 1.0)][1], atol=5e-5)
+    assert np.linalg.norm(points[-1] - points[0]) > 0.1  # a bend, not a straight rod
+
+
 def test_a_small_tip_force_gives_the_cantilever_deflection() -> None:
     """``F L^3 / (3 EI)`` for a force across the straight rod, to first order."""
     robot = _one_section()
@@ -447,6 +479,35 @@ def test_estimate_reads_tensions_and_writes_the_tip_force(tmp_path: Path) -> Non
     lines = (ln for ln in out.open() if not ln.startswith("#"))
     data = np.genfromtxt(lines, delimiter=",", names=True, dtype=None, encoding="utf-8")
     np.testing.assert_array_equal(data["fx"], table.column("fx"))
+
+
+def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``plot`` of a tendon robot's estimate: with ``--robot`` and ``--inputs`` the
+    backbone from the mechanics model; without them the section ends joined, said in a
+    note; ``--inputs`` on an estimate without a tip force: one line, nothing written."""
+    meas, tensions = _recording(tmp_path)
+    robot = _small_robot(tmp_path)
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(est), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 0
+    capsys.readouterr()
+    fig = tmp_path / "e.png"
+    argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(tensions), "-o", str(fig)]
+    assert main(argv) == 0
+    assert fig.stat().st_size > 0 and "note" not in capsys.readouterr().err
+    assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
+    assert "drawn through the section ends" in capsys.readouterr().err
+    pcc = tmp_path / "pcc.csv"
+    table = read_state_table(est)
+    keep = [c for c in table.names if c not in ("fx", "fy", "fz")]
+    write_table(pcc, ["t", *keep], np.column_stack([table.t, *(table.column(c) for c in keep)]))
+    refused = tmp_path / "refused.png"
+    assert main(["plot", str(pcc), "--inputs", str(tensions), "-o", str(refused)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no tip force columns" in err[0] and not refused.exists()
 
 
 @pytest.mark.parametrize(

@@ -5,15 +5,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from continuum_mhe.cli.options import add_overwrite_option
+from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.io.csv_files import InputError
+
+if TYPE_CHECKING:
+    from continuum_mhe.evaluation.estimate_figure import BackboneOf
 
 DESCRIPTION = (
     "Draw an estimate file (CSV or MCAP from estimate or live): each section end and the "
-    "tip over time with their 95 % bands, the error against --truth, the statuses, and "
-    "the backbone in 3D (its curve from --robot, else from the file's own rows). Given a "
+    "tip over time with their 95 % bands, the error against --truth, a tendon robot's tip "
+    "force, the statuses, and the backbone in 3D (its curve from --robot, else from the "
+    "file's own rows; a tendon robot's from --robot and --inputs). Given a "
     "folder written by 'continuum-mhe reproduce', render its figures again instead."
 )
 
@@ -70,14 +76,42 @@ def _estimate(args: argparse.Namespace) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
+    backbone = _tendon_backbone(args, est.names)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     try:
-        fig = estimate_figure(est, truth, lengths, title)
+        fig = estimate_figure(est, truth, lengths, title, backbone)
     except ValueError as exc:
         raise InputError(f"{args.truth}: {exc}") from None
     save(fig, output, (output.suffix.lower()[1:],))
     print(f"wrote {output}", file=sys.stderr)
     return 0
+
+
+def _tendon_backbone(args: argparse.Namespace, names: Sequence[str]) -> BackboneOf | None:
+    """The mechanics model's backbone for a tendon robot's estimate, from ``--robot``
+    and ``--inputs``; None (the section ends joined, said in a note) without them."""
+    from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.tensions import read_tensions
+
+    if not has_tip_force(names):
+        if args.inputs:
+            raise InputError(
+                f"{args.source}: --inputs draws a tendon robot's backbone, but the "
+                "estimate has no tip force columns (fx, fy, fz)"
+            )
+        return None
+    if not (args.robot and args.inputs):
+        print(
+            "continuum-mhe: note: the backbone is drawn through the section ends; give "
+            "--robot ROBOT.toml --inputs TENSIONS.csv for the mechanics model's curve",
+            file=sys.stderr,
+        )
+        return None
+    robot = read_robot(args.robot)
+    if robot.backbone is None or not robot.n_tendons:
+        raise InputError(f"{args.robot}: --inputs needs a tendon robot ([backbone], [[tendon]])")
+    return tendon_backbone(robot, read_tensions(args.inputs, robot.n_tendons))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -93,6 +127,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the robot file of the estimate: the backbone's curve (default: the section "
         "lengths the file's own rows give)",
     )
+    add_tensions_option(
+        p, "with --robot, a tendon robot's estimate: its backbone drawn from the mechanics "
+        "model at the estimated tip force"
+    )  # fmt: skip
     p.add_argument(
         "-o", "--output", metavar="FIG.png", help="figure to write (.png, .pdf, .svg; default: "
         "EST.png beside the estimate)",

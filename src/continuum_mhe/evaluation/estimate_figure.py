@@ -1,11 +1,12 @@
 """The figure of one estimate file (``continuum-mhe plot EST.csv``): each section end and
-the tip over time with their 95 % bands, the error against a truth, the statuses, and
-the backbone in 3D. It reads the file's table (:class:`~continuum_mhe.io.csv_files.StateTable`)
-and never an estimator; any number of sections, with or without a truth or a robot."""
+the tip over time with their 95 % bands, the error against a truth, a tendon robot's
+tip force, the statuses, and the backbone in 3D. It reads the file's table
+(:class:`~continuum_mhe.io.csv_files.StateTable`) and never an estimator; any number of
+sections, with or without a truth or a robot."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,13 +15,23 @@ import numpy as np
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import FloatArray, StateTable
+from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import backbone_points
+from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import TendonStatics
 from continuum_mhe.results import Status
 
 #: backbones drawn in the 3D view
 SNAPSHOTS = 4
 #: points drawn per section of a backbone
 POINTS_PER_SECTION = 16
+#: a tendon robot's tip force columns (N, base frame)
+FORCE_COLUMNS = ("fx", "fy", "fz")
+
+#: The backbone of one row of a table, ``(table, row) -> (points, 3)`` m from the base to
+#: the tip (a tendon robot's: the mechanics model's equilibrium at the row's tip force
+#: and tensions).
+BackboneOf = Callable[[StateTable, int], FloatArray]
 
 
 @dataclass(frozen=True)
@@ -89,6 +100,26 @@ def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
     return tuple(float(v) for v in lengths)
 
 
+def has_tip_force(names: Sequence[str]) -> bool:
+    """Whether a table has a tendon robot's tip force columns (:data:`FORCE_COLUMNS`)."""
+    return all(c in names for c in FORCE_COLUMNS)
+
+
+def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
+    """A tendon robot's backbone for a row of an estimate or truth table: the mechanics
+    model's equilibrium (:meth:`TendonStatics.backbone_points`) at the row's tip force
+    (:data:`FORCE_COLUMNS`) and the tensions at the row's time (an
+    :class:`~continuum_mhe.errors.InputError` where ``tensions`` do not cover it)."""
+    statics = TendonStatics(robot)
+
+    def points(table: StateTable, row: int) -> FloatArray:
+        force = np.array([table.column(c)[row] for c in FORCE_COLUMNS])
+        tension, _, _ = tensions.at(float(table.t[row]))
+        return statics.backbone_points(force, tension, POINTS_PER_SECTION)
+
+    return points
+
+
 def _positions(table: StateTable, point: TrackedPoint) -> FloatArray:
     return np.stack([table.column(c) for c in point.columns], axis=1)
 
@@ -104,12 +135,16 @@ def estimate_figure(
     truth: StateTable | None = None,
     lengths: Sequence[float] | None = None,
     title: str = "",
+    backbone: BackboneOf | None = None,
 ) -> Figure:
     """The figure of an estimate table ``est``: per axis, the position of each section
     end and of the tip over time (mm) with its 95 % band where the file has standard
-    deviations; the distance of each from the ``truth``'s (mm) when one is given; the
-    status of each row; and the backbone (every section, from ``lengths`` in m, else
-    from the file's own rows) at :data:`SNAPSHOTS` instants, the truth's dashed.
+    deviations; the distance of each from the ``truth``'s (mm) when one is given; a
+    tendon robot's tip force (N, with its band, the truth's dashed); the status of each
+    row; and the backbone at :data:`SNAPSHOTS` instants, the truth's dashed: from
+    ``backbone`` when given; else, for a constant-curvature estimate, the arcs from
+    ``lengths`` (m; else from the file's own rows) and the bend columns; else (a tendon
+    robot's estimate without ``backbone``) straight lines through the section ends.
 
     Raises ``ValueError`` when the truth lacks a tracked point's columns or shares no
     time with the estimate."""
@@ -126,7 +161,8 @@ def estimate_figure(
                 f"only {len(matched[0])} of the estimate's {len(est.t)} rows have a truth row "
                 "at the same t (another recording, or t in milliseconds?)"
             )
-    rows = 3 + (truth is not None) + 1
+    force = has_tip_force(est.names)
+    rows = 3 + (truth is not None) + force + 1
     fig = plt.figure(figsize=(14, 2.3 * rows + 0.6))
     grid = fig.add_gridspec(rows, 2, width_ratios=(1.7, 1.0))
     first = fig.add_subplot(grid[0, 0])
@@ -157,15 +193,32 @@ def estimate_figure(
         ax.set_ylabel("error (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
+    if force:
+        _force_panel(axes[-2], est, truth)
     _status_strip(axes[-1], est)
     axes[-1].set_xlabel("t (s)")
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     view = fig.add_subplot(grid[:, 1], projection="3d")
-    _backbones(view, est, truth, matched, lengths)
+    _backbones(view, est, truth, matched, lengths, backbone)
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def _force_panel(ax: plt.Axes, est: StateTable, truth: StateTable | None) -> None:
+    """The tip force's components (N) with their 95 % bands, the truth's dashed."""
+    for j, c in enumerate(FORCE_COLUMNS):
+        v = est.column(c)
+        ax.plot(est.t, v, color=f"C{j + 4}", lw=1.3, label=c)
+        if est.has_std and est.std is not None:
+            half = Z95 * est.std[:, est.names.index(c)]
+            ax.fill_between(est.t, v - half, v + half, color=f"C{j + 4}", alpha=0.2, lw=0)
+        if truth is not None and c in truth.names:
+            ax.plot(truth.t, truth.column(c), color=f"C{j + 4}", ls="--", lw=1.0)
+    ax.set_ylabel("tip force (N)")
+    ax.legend(loc="upper right", fontsize="small", ncol=3)
+    ax.grid(alpha=0.3)
 
 
 def _status_strip(ax: plt.Axes, est: StateTable) -> None:
@@ -186,20 +239,25 @@ def _backbones(
     truth: StateTable | None,
     matched: tuple[IndexArray, IndexArray] | None,
     lengths: Sequence[float] | None,
+    backbone: BackboneOf | None,
 ) -> None:
     """The backbone at a few instants with an estimate (and the truth's at the same
-    instants, dashed): the curve from ``lengths`` and the bend columns when both are
-    known, else straight lines through the section ends."""
+    instants, dashed): from ``backbone`` when given; else the arcs from ``lengths`` and
+    the bend columns when both are known and the estimate is of constant curvature
+    (a tendon robot's sections are not arcs); else straight lines through the section
+    ends."""
     n = section_count(est.names)
     points = tracked_points(est.names)
-    lengths = lengths if lengths is not None else lengths_from_estimate(est)
+    arcs = backbone is None and not has_tip_force(est.names)
+    if arcs:
+        lengths = lengths if lengths is not None else lengths_from_estimate(est)
     has = np.flatnonzero(np.all(np.isfinite(est.values), axis=1))
     if not len(has):
         ax.set_title("no row has an estimate")
         return
     picks = has[np.linspace(0, len(has) - 1, min(SNAPSHOTS, len(has))).astype(int)]
     truth_row = dict(zip(*matched)) if matched is not None else {}
-    curve = lengths is not None and n == len(lengths)
+    curve = arcs and lengths is not None and n == len(lengths)
     s = None
     if curve:
         assert lengths is not None
@@ -215,7 +273,9 @@ def _backbones(
             if table is None or row is None:
                 continue
             ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in points])
-            if curve and s is not None and lengths is not None:
+            if backbone is not None:
+                line = backbone(table, row)
+            elif curve and s is not None and lengths is not None:
                 theta, phi = section_shapes(table, n)
                 line = backbone_points(lengths, theta[row], phi[row], s)
             else:
@@ -232,5 +292,6 @@ def _backbones(
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
-    ax.set_title("backbone" + (" (truth dashed)" if truth is not None else ""))
+    how = "" if backbone is not None or curve else ", section ends joined"
+    ax.set_title("backbone" + (" (truth dashed)" if truth is not None else "") + how)
     ax.legend(loc="upper left", fontsize="small")

@@ -87,7 +87,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import ClassVar, Literal
 
 import casadi as ca
@@ -304,10 +304,11 @@ class TendonStatics:
         return _move(half, list(zip((-1 / 12, 2 / 12, 2 / 12, 3 / 12), fs)), h, n0)
 
     def shoot(
-        self, k0: Sym, force: Sym, tension: Sym
+        self, k0: Sym, force: Sym, tension: Sym, stations: tuple[Station, ...] | None = None
     ) -> tuple[dict[Station, tuple[Sym, Sym]], Sym]:
         """``({station: (R, p)}, residual)``: the pose (3x3 body-to-base rotation, m) at
-        every :meth:`stations` and the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
+        every one of ``stations`` (default :meth:`stations`; each also ends a step) and
+        the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
         robot = self.robot
         ei, _ = self.stiffness
         taus = [ca.fmax(tension[i], 0.0) for i in range(robot.n_tendons)]
@@ -315,7 +316,7 @@ class TendonStatics:
         y: _RodState = (ca.SX.zeros(3), ca.SX.eye(3), ei * k0)
         s0 = 0.0
         poses: dict[Station, tuple[Sym, Sym]] = {}
-        stations = self.stations()
+        stations = self.stations() if stations is None else stations
         for k, sec in enumerate(robot.sections):
             sums = _tendon_sums(
                 [(taus[i], *td.offset) for i, td in enumerate(robot.tendons) if td.section >= k]
@@ -365,6 +366,32 @@ class TendonStatics:
             for j, st in enumerate(self.stations())
         }
         return x, poses
+
+    def backbone_points(
+        self, force: FloatArray, tension: FloatArray, points_per_section: int = 16
+    ) -> FloatArray:
+        """The backbone at equilibrium under the tip force ``force`` (N, base frame) and
+        the tensions ``tension`` (N): ``(n_sections * points_per_section + 1, 3)`` m,
+        from the base (the origin) to the tip, evenly spaced along each section (for
+        drawing; the points also end the integration's steps, so the curve is at least
+        as fine as the estimators' model)."""
+        k0, _ = self.solve(force, tension)
+        points = self._points_function(points_per_section)(k0, force, tension)
+        return np.vstack([np.zeros(3), np.asarray(points, dtype=float).T])
+
+    @lru_cache(maxsize=4)  # noqa: B019 (a frozen dataclass: the cache keeps it alive)
+    def _points_function(self, points_per_section: int) -> ca.Function:
+        """``(k0, F, tau) -> (3, n_sections * points_per_section)`` backbone points, m."""
+        dense = tuple(
+            Station(k, j / points_per_section)
+            for k in range(self.robot.n_sections)
+            for j in range(1, points_per_section + 1)
+        )
+        k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
+        tau = ca.SX.sym("tau", self.robot.n_tendons)
+        poses, _ = self.shoot(k0, force, tau, dense)
+        points = ca.horzcat(*(poses[st][1] for st in dense))
+        return ca.Function("backbone_points", [k0, force, tau], [points])
 
 
 def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
