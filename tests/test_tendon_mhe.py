@@ -2,7 +2,7 @@
 and Jacobians from the residual's instructions alone (forward mode in the core,
 Gauss-Newton steps) and its gradient against finite differences of its cost. (Its
 answer against the MHE on IPOPT on the same windows, 2.7e-6 apart where 1e-6 is the
-target: ``python tools/tendon_mhe_windows.py``, docs/tendon.md.)"""
+target: ``python tools/tendon_mhe_windows.py``, docs/tendon-studies.md.)"""
 
 from __future__ import annotations
 

@@ -59,11 +59,11 @@ misalignment and bias states, which then turn the estimate about the vertical. W
 as a state the model describes the readings at the true state to their noise; the
 filter then depends on its start's tip force (:meth:`TendonFormulation.initial_state`).
 A robot with one IMU lost the shape with it, and keeps the force at constant velocity
-(docs/tendon.md, "Under load"). The IMUs' errors are states by default because they,
-not the model, are what is left: a degree of misalignment, or 0.17 m/s^2 of
+(docs/tendon-studies.md, "Under load"). The IMUs' errors are states by default
+because they, not the model, are what is left: a degree of misalignment, or 0.17 m/s^2 of
 accelerometer bias, reads as a tip force that moves the tip of the shipped robot by
 about 5 mm; as the robot moves through several poses they separate from the force
-(docs/tendon.md).
+(docs/tendon-studies.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
@@ -140,7 +140,7 @@ SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: buckles the straight backbone (a cantilever with a free tip): a wider prior lets the
 #: first updates on a nearly straight rod, which barely sees its axial force, push that
 #: force into compression past the buckling load, where the shape bifurcates and the
-#: filter follows another one (docs/tendon.md, "The tip force's prior").
+#: filter follows another one (docs/tendon-studies.md, "The tip force's prior").
 FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
 #: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
 #: (:attr:`TendonFormulation.estimate_force_acceleration`).
@@ -899,8 +899,8 @@ class TendonFormulation(Formulation):
         determine the shape at every sample. One raw IMU determines it only over time:
         its gyro, integrated from the start, gives the third (the stacked Jacobians of
         the shipped robot's tip IMU have full rank over 25 samples, IMU-error states
-        included), but loosely (docs/tendon.md, "One IMU"), so a single IMU is still
-        reported as not determining the shape."""
+        included), but loosely (docs/tendon-studies.md, "One IMU"), so a single IMU is
+        still reported as not determining the shape."""
         return 2 * len(imus) >= 3
 
     def unobservable_detail(self, rank: int, bends: int) -> str:
