@@ -60,10 +60,10 @@ as a state the model describes the readings at the true state to their noise; th
 filter then depends on its start's tip force (:meth:`TendonFormulation.initial_state`).
 A robot with one IMU lost the shape with it, and keeps the force at constant velocity
 (docs/tendon-studies.md, "Under load"). The IMUs' errors are states by default
-because they, not the model, are what is left: a degree of misalignment, or 0.17 m/s^2 of
-accelerometer bias, reads as a tip force that moves the tip of the shipped robot by
-about 5 mm; as the robot moves through several poses they separate from the force
-(docs/tendon-studies.md).
+because they, not the model, are what is left: a degree of misalignment, or 0.17
+m/s^2 of accelerometer bias, reads as a tip force that moves the tip of the shipped
+robot by about 5 mm; as the robot moves through several poses they separate from the
+force (docs/tendon-studies.md).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
