@@ -510,6 +510,30 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert len(err) == 1 and "no tip force columns" in err[0] and not refused.exists()
 
 
+def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon estimate whose tip force is off by (0.03, 0.04, 0) N and whose tip is off
+    by 1 mm in x: the force's rms error is 0.05 N, and the SRMSE (m + rad) is 0.001."""
+    from continuum_mhe.evaluation.metrics import compute_metrics
+
+    names = ["x", "y", "z", "psi_1", "fx", "fy", "fz"]
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(20, len(names)))
+    est = truth + [0.001, 0.0, 0.0, 0.0, 0.03, 0.04, 0.0]
+    m = compute_metrics(est, truth, 0.2, names)
+    assert m.tip_force_rms_n == pytest.approx(0.05, rel=1e-12)
+    assert m.srmse == pytest.approx(0.001, rel=1e-9)
+    assert compute_metrics(est[:, :4], truth[:, :4], 0.2, names[:4]).tip_force_rms_n is None
+    t = np.arange(20) * 0.02
+    write_table(tmp_path / "e.csv", ["t", *names], np.column_stack([t, est]))
+    write_table(tmp_path / "t.csv", ["t", *names], np.column_stack([t, truth]))
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(tmp_path / "t.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "tip force error      rms 0.0500 N (RMSE fx, fy, fz 0.0300, 0.0400, 0.0000 N)" in out
+    assert "SRMSE                0.0010 (sum of the RMSEs of x, y, z, psi_1, m + rad)" in out
+
+
 @pytest.mark.parametrize(
     ("rows", "columns", "message"),
     [

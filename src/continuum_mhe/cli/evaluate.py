@@ -12,6 +12,7 @@ import numpy as np
 from continuum_mhe.cli.options import add_robot_option, robot_from_args
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.evaluation.metrics import (
+    TIP_FORCE_COLUMNS,
     Calibration,
     Metrics,
     compute_calibration,
@@ -165,8 +166,18 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
             f"{math.degrees(r[f'phi_{k}']):.2f} deg"
         )
         k += 1
+    k = 1
+    while f"psi_{k}" in r:
+        lines.append(f"RMSE psi_{k}           {math.degrees(r[f'psi_{k}']):.2f} deg (twist)")
+        k += 1
+    if m.tip_force_rms_n is not None:
+        fx, fy, fz = (r[c] for c in TIP_FORCE_COLUMNS)
+        lines.append(
+            f"tip force error      rms {m.tip_force_rms_n:.4f} N "
+            f"(RMSE fx, fy, fz {fx:.4f}, {fy:.4f}, {fz:.4f} N)"
+        )
     if comparable:
-        summed = ", ".join(r)
+        summed = ", ".join(c for c in r if c not in TIP_FORCE_COLUMNS)
         lines.append(f"SRMSE                {m.srmse:.4f} (sum of the RMSEs of {summed}, m + rad)")
     else:  # a score of two different robots would read as a real one
         lines.append(

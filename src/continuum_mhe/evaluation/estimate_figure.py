@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
+from continuum_mhe.evaluation.metrics import TIP_FORCE_COLUMNS, Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import FloatArray, StateTable
 from continuum_mhe.io.tensions import Tensions
@@ -26,7 +26,7 @@ SNAPSHOTS = 4
 #: points drawn per section of a backbone
 POINTS_PER_SECTION = 16
 #: a tendon robot's tip force columns (N, base frame)
-FORCE_COLUMNS = ("fx", "fy", "fz")
+FORCE_COLUMNS = TIP_FORCE_COLUMNS
 
 #: The backbone of one row of a table, ``(table, row) -> (points, 3)`` m from the base to
 #: the tip (a tendon robot's: the mechanics model's equilibrium at the row's tip force

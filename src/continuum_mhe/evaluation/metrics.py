@@ -29,18 +29,25 @@ def is_wrapped(name: str) -> bool:
     return name == "phi" or name.startswith("phi_")
 
 
+#: a tendon robot's tip force columns (N, base frame)
+TIP_FORCE_COLUMNS = ("fx", "fy", "fz")
+
+
 @dataclass(frozen=True)
 class Metrics:
     """Errors over the samples that have an estimate.
 
     Attributes:
-        rmse: RMSE per compared column (m or rad; phi wrapped).
-        srmse: the sum of the RMSEs (the paper's SRMSE for one section, mixed units).
+        rmse: RMSE per compared column (m, rad or N; phi wrapped).
+        srmse: the sum of the RMSEs of the columns in m and rad (the paper's SRMSE for
+            one section, mixed units; a tendon robot's tip force left out).
         tip_mean_mm, tip_max_mm: Euclidean tip error, mm.
         tip_mean_pct, tip_max_pct: the same in % of the robot's length.
         n: samples compared; n_without_estimate: samples with no estimate.
         section_end_mean_mm, section_end_max_mm: Euclidean error of each section's end
             (1-based section number as a string key), where both sides have it.
+        tip_force_rms_n: the rms of the tip force's error vector, N, where both sides
+            have :data:`TIP_FORCE_COLUMNS` (a tendon robot); else None.
     """
 
     rmse: dict[str, float]
@@ -53,6 +60,7 @@ class Metrics:
     n_without_estimate: int
     section_end_mean_mm: dict[str, float] = field(default_factory=dict)
     section_end_max_mm: dict[str, float] = field(default_factory=dict)
+    tip_force_rms_n: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -101,9 +109,13 @@ def compute_metrics(
         e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
         end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
         k += 1
+    force = [col[c] for c in TIP_FORCE_COLUMNS if c in col]
+    force_rms = None
+    if len(force) == len(TIP_FORCE_COLUMNS):
+        force_rms = float(np.sqrt(np.mean(np.sum(err[:, force] ** 2, axis=1))))
     return Metrics(
         rmse={c: float(v) for c, v in zip(common, rmse)},
-        srmse=float(rmse.sum()),
+        srmse=float(sum(v for c, v in zip(common, rmse) if c not in TIP_FORCE_COLUMNS)),
         tip_mean_mm=float(tip.mean() * 1e3),
         tip_max_mm=float(tip.max() * 1e3),
         tip_mean_pct=float(tip.mean() / length * 100),
@@ -112,6 +124,7 @@ def compute_metrics(
         n_without_estimate=int((~has).sum()),
         section_end_mean_mm=end_mean,
         section_end_max_mm=end_max,
+        tip_force_rms_n=force_rms,
     )
 
 
