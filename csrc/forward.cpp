@@ -17,8 +17,79 @@ void check_forward(const Tape& tape) {
       throw std::invalid_argument("forward derivatives: no derivative of FMOD or REMAINDER");
 }
 
+namespace {
+// Whether an operation's derivative reads its first (a) or second (b) operand's tangent
+// (evaluate_forward's px, py may be nonzero)
+bool derivative_uses_a(int32_t op) {
+  switch (op) {
+    case OP_LT: case OP_LE: case OP_EQ: case OP_NE: case OP_NOT: case OP_AND: case OP_OR:
+    case OP_FLOOR: case OP_CEIL: case OP_SIGN: case OP_IF_ELSE_ZERO:
+      return false;
+    default:
+      return true;
+  }
+}
+bool derivative_uses_b(int32_t op) {
+  switch (op) {
+    case OP_ADD: case OP_SUB: case OP_MUL: case OP_DIV: case OP_POW: case OP_IF_ELSE_ZERO:
+    case OP_FMIN: case OP_FMAX: case OP_ATAN2: case OP_HYPOT:
+      return true;
+    default:
+      return false;
+  }
+}
+}  // namespace
+
+ForwardPlan plan_forward(const Tape& tape, int seed) {
+  ForwardPlan plan;
+  plan.seed = seed;
+  const auto& code = tape.code();
+  plan.ranges.assign(code.size() * 6, 0);
+  // each work slot's current range (its latest value's)
+  std::vector<int32_t> lo(static_cast<size_t>(tape.work_size()), 0);
+  std::vector<int32_t> hi(static_cast<size_t>(tape.work_size()), 0);
+  for (size_t i = 0; i < code.size(); ++i) {
+    const Instruction& I = code[i];
+    int32_t* r = plan.ranges.data() + 6 * i;
+    if (I.op == OP_OUTPUT) {  // res: the output's entry, b: the output; a: the slot read
+      r[0] = r[2] = lo[static_cast<size_t>(I.a)];
+      r[1] = r[3] = hi[static_cast<size_t>(I.a)];
+      continue;
+    }
+    int32_t l = 0, h = 0;  // empty
+    if (I.op == OP_INPUT) {
+      if (I.a == seed) l = I.b, h = I.b + 1;
+    } else if (I.op != OP_CONST) {
+      if (derivative_uses_a(I.op)) {
+        r[2] = lo[static_cast<size_t>(I.a)];
+        r[3] = hi[static_cast<size_t>(I.a)];
+      }
+      if (derivative_uses_b(I.op)) {
+        r[4] = lo[static_cast<size_t>(I.b)];
+        r[5] = hi[static_cast<size_t>(I.b)];
+      }
+      const bool ea = r[2] >= r[3], eb = r[4] >= r[5];
+      if (!ea || !eb) {
+        l = ea ? r[4] : (eb ? r[2] : std::min(r[2], r[4]));
+        h = ea ? r[5] : (eb ? r[3] : std::max(r[3], r[5]));
+      }
+    }
+    r[0] = l;
+    r[1] = h;
+    lo[static_cast<size_t>(I.res)] = l;
+    hi[static_cast<size_t>(I.res)] = h;
+  }
+  return plan;
+}
+
 void evaluate_forward(const Tape& tape, int seed, const double* const* in,
                       double* const* out, double* const* dout) {
+  evaluate_forward(tape, plan_forward(tape, seed), in, out, dout);
+}
+
+void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* const* in,
+                      double* const* out, double* const* dout) {
+  const int seed = plan.seed;
   const int64_t d = tape.input_sizes().at(static_cast<size_t>(seed));
   const int64_t nw = tape.work_size();
   thread_local std::vector<double> work, tangents;
@@ -33,11 +104,15 @@ void evaluate_forward(const Tape& tape, int seed, const double* const* in,
     if (out[j]) std::fill(out[j], out[j] + sizes[j], 0.0);
     if (dout[j]) std::fill(dout[j], dout[j] + sizes[j] * d, 0.0);
   }
+  // A slot's tangent is written, and read, over its value's range alone: outside it
+  // the entries are zero by the plan and left as they are in memory.
+  const int32_t* range = plan.ranges.data();
   for (const Instruction& I : tape.code()) {
+    const int32_t* rg = range;
+    range += 6;
     double* dr = t + static_cast<int64_t>(I.res) * d;
     if (I.op == OP_INPUT) {
       w[I.res] = in[I.a] ? in[I.a][I.b] : 0.0;
-      std::fill(dr, dr + d, 0.0);
       if (I.a == seed) dr[I.b] = 1.0;
       continue;
     }
@@ -45,13 +120,12 @@ void evaluate_forward(const Tape& tape, int seed, const double* const* in,
       if (out[I.b]) out[I.b][I.res] = w[I.a];
       if (dout[I.b]) {
         const double* src = t + static_cast<int64_t>(I.a) * d;
-        std::copy(src, src + d, dout[I.b] + static_cast<int64_t>(I.res) * d);
+        std::copy(src + rg[0], src + rg[1], dout[I.b] + static_cast<int64_t>(I.res) * d + rg[0]);
       }
       continue;
     }
     if (I.op == OP_CONST) {
       w[I.res] = c[I.a];
-      std::fill(dr, dr + d, 0.0);
       continue;
     }
     const double x = w[I.a], y = w[I.b];
@@ -135,18 +209,29 @@ void evaluate_forward(const Tape& tape, int seed, const double* const* in,
     }
     w[I.res] = r;
     // a zero partial or a zero tangent contributes nothing, even against an infinite
-    // or undefined factor (a symbolic Jacobian has no term there: a structural zero)
-    if (py == 0.0) {
-      if (px == 0.0) {
-        std::fill(dr, dr + d, 0.0);
-      } else {
-        for (int64_t k = 0; k < d; ++k) dr[k] = dx[k] == 0.0 ? 0.0 : px * dx[k];
-      }
-    } else if (px == 0.0) {
-      for (int64_t k = 0; k < d; ++k) dr[k] = dy[k] == 0.0 ? 0.0 : py * dy[k];
+    // or undefined factor (a symbolic Jacobian has no term there: a structural zero).
+    // Over the result's range [lo, hi): x's tangent counts on [xl, xh), y's on
+    // [yl, yh) (both inside it; the result's slot may be an operand's).
+    const int64_t lo = rg[0], hi = rg[1];
+    const int64_t xl = px == 0.0 ? 0 : rg[2], xh = px == 0.0 ? 0 : rg[3];
+    const int64_t yl = py == 0.0 ? 0 : rg[4], yh = py == 0.0 ? 0 : rg[5];
+    const bool has_x = xl < xh, has_y = yl < yh;
+    if (!has_x && !has_y) {
+      std::fill(dr + lo, dr + hi, 0.0);
+    } else if (!has_y) {
+      for (int64_t k = lo; k < xl; ++k) dr[k] = 0.0;
+      for (int64_t k = xl; k < xh; ++k) dr[k] = dx[k] == 0.0 ? 0.0 : px * dx[k];
+      for (int64_t k = xh; k < hi; ++k) dr[k] = 0.0;
+    } else if (!has_x) {
+      for (int64_t k = lo; k < yl; ++k) dr[k] = 0.0;
+      for (int64_t k = yl; k < yh; ++k) dr[k] = dy[k] == 0.0 ? 0.0 : py * dy[k];
+      for (int64_t k = yh; k < hi; ++k) dr[k] = 0.0;
     } else {
-      for (int64_t k = 0; k < d; ++k)
-        dr[k] = (dx[k] == 0.0 ? 0.0 : px * dx[k]) + (dy[k] == 0.0 ? 0.0 : py * dy[k]);
+      for (int64_t k = lo; k < hi; ++k) {
+        const double vx = (k >= xl && k < xh && dx[k] != 0.0) ? px * dx[k] : 0.0;
+        const double vy = (k >= yl && k < yh && dy[k] != 0.0) ? py * dy[k] : 0.0;
+        dr[k] = vx + vy;
+      }
     }
   }
 }
@@ -165,6 +250,7 @@ ResidualNodeFunction::ResidualNodeFunction(const Tape& transition, const Tape& r
       transition.output_sizes()[1] != nx_ * nx_)
     throw std::invalid_argument("the transition must map (x, u, dt) to (f, F)");
   check_forward(residual);
+  plan_ = plan_forward(residual, 0);
 }
 
 int64_t ResidualNodeFunction::output_size() const {
@@ -183,7 +269,7 @@ int ResidualNodeFunction::evaluate(const double* const* in, double* out) const {
   const double* args[2] = {in[0], in[3]};
   double* vals[1] = {r};
   double* jac[1] = {H};
-  evaluate_forward(residual_, 0, args, vals, jac);
+  evaluate_forward(residual_, plan_, args, vals, jac);
   const double* m = in[4];
   for (int64_t i = 0; i < nz_; ++i) {
     const double mi = m ? m[i] : 0.0;
@@ -199,6 +285,7 @@ ForwardJacobianFunction::ForwardJacobianFunction(const Tape& tape) : tape_(tape)
   nx_ = tape.input_sizes()[0];
   ny_ = tape.output_sizes()[0];
   check_forward(tape);
+  plan_ = plan_forward(tape, 0);
 }
 
 int ForwardJacobianFunction::evaluate(const double* const* in, double* out) const {
@@ -207,7 +294,7 @@ int ForwardJacobianFunction::evaluate(const double* const* in, double* out) cons
   rows.resize(static_cast<size_t>(ny_ * nx_));
   double* vals[1] = {value.data()};
   double* jac[1] = {rows.data()};
-  evaluate_forward(tape_, 0, in, vals, jac);
+  evaluate_forward(tape_, plan_, in, vals, jac);
   for (int64_t i = 0; i < ny_; ++i)
     for (int64_t j = 0; j < nx_; ++j) out[i + j * ny_] = rows[static_cast<size_t>(i * nx_ + j)];
   return 0;

@@ -10,16 +10,22 @@
 #include <cstdint>
 #include <vector>
 
+#include "forward_plan.hpp"
 #include "model_function.hpp"
 #include "tape.hpp"
 
 namespace cmhe {
 
+
 // Evaluate ``tape`` and the derivatives of its outputs with respect to every nonzero of
-// input ``seed``: ``out[j]`` as Tape::evaluate writes it, ``dout[j]`` (when not null)
-// the output's Jacobian, row-major (its ``output_sizes[j]`` rows, one column per
-// nonzero of the seed input). Throws std::invalid_argument for an operation without a
-// derivative here (FMOD, REMAINDER) when the tape is checked (check_forward).
+// input ``plan.seed``: ``out[j]`` as Tape::evaluate writes it, ``dout[j]`` (when not
+// null) the output's Jacobian, row-major (its ``output_sizes[j]`` rows, one column per
+// nonzero of the seed input). The plan must be ``plan_forward(tape, seed)``. Throws
+// std::invalid_argument for an operation without a derivative here (FMOD, REMAINDER)
+// when the tape is checked (check_forward).
+void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* const* in,
+                      double* const* out, double* const* dout);
+// The same, planned on each call
 void evaluate_forward(const Tape& tape, int seed, const double* const* in,
                       double* const* out, double* const* dout);
 // Throws std::invalid_argument if the tape holds an operation evaluate_forward cannot
@@ -40,6 +46,7 @@ class ResidualNodeFunction : public ModelFunction {
 
  private:
   Tape transition_, residual_;
+  ForwardPlan plan_;
   bool with_transition_;
   int64_t nx_, nz_;
 };
@@ -54,6 +61,7 @@ class ForwardJacobianFunction : public ModelFunction {
 
  private:
   Tape tape_;
+  ForwardPlan plan_;
   int64_t nx_, ny_;
 };
 

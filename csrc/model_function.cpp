@@ -86,6 +86,7 @@ MeasurementPiece::MeasurementPiece(const Tape& residual, int64_t blocks)
   njr = nr * nx;
   nsr = blocks * nx * nx;
   check_forward(residual);
+  plan = plan_forward(residual, 0);
 }
 
 void MeasurementPiece::evaluate(const double* x, const double* z, const double* m, double* r,
@@ -99,7 +100,7 @@ void MeasurementPiece::evaluate(const double* x, const double* z, const double* 
   const double* args[2] = {x, z};
   double* vals[1] = {r};
   double* jac[1] = {jr};
-  evaluate_forward(tape, 0, args, vals, jac);
+  evaluate_forward(tape, plan, args, vals, jac);
   for (int64_t i = 0; i < nr; ++i) {  // as the symbolic piece: m r and its Jacobian
     const double mi = m ? m[i] : 0.0;
     r[i] *= mi;

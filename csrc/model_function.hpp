@@ -6,6 +6,7 @@
 
 #include <cstdint>
 
+#include "forward_plan.hpp"
 #include "tape.hpp"
 
 namespace cmhe {
@@ -61,6 +62,7 @@ class MeasurementPiece {
 
   Tape tape;
   bool forward;
+  ForwardPlan plan;  // with ``forward``: the residual's tangents over the state
   int64_t nx, nz, nr, njr, nsr;
 };
 

@@ -56,6 +56,44 @@ def test_every_derivative_equals_casadis(x: list[float], y: float, tie: bool) ->
     np.testing.assert_allclose(got[finite], expected[finite], rtol=1e-13, atol=1e-13)
 
 
+_BINARY = (lambda p, q: p + q, lambda p, q: p - q, lambda p, q: p * q,
+           lambda p, q: p / (1 + q * q), ca.fmin, ca.fmax, ca.hypot, ca.atan2,
+           lambda p, q: ca.if_else(p < q, p, 0))  # fmt: skip
+_UNARY = (ca.sin, ca.cos, ca.tanh, lambda p: p * p, lambda p: ca.exp(-p * p), ca.sign)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 14), st.integers(0, 63), st.integers(0, 63)),
+        min_size=1, max_size=40,
+    ),
+    # away from zero: atan2 and hypot of two zeros have no derivative
+    st.lists(st.floats(0.1, 2) | st.floats(-2, -0.1), min_size=8, max_size=8),
+)  # fmt: skip
+def test_random_expressions_over_parts_of_the_input_equal_casadis(
+    steps: list[tuple[int, int, int]], values: list[float]
+) -> None:
+    """Expressions that each read a few of eight inputs (as a shooting reads the bends
+    and an IMU's error states enter at its end), their work slots reused: the
+    forward-mode Jacobian, propagated over each value's own inputs alone, equals
+    CasADi's symbolic one."""
+    v = ca.SX.sym("v", 8)
+    nodes = [v[i] for i in range(8)]
+    for op, i, j in steps:
+        p, q = nodes[i % len(nodes)], nodes[j % len(nodes)]
+        nodes.append(_BINARY[op](p, q) if op < len(_BINARY) else _UNARY[op - len(_BINARY)](p))
+    out = ca.vertcat(*nodes[8:][-6:], nodes[-1] * v[7])
+    f = ca.Function("f", [v], [out])
+    expected = np.asarray(ca.Function("j", [v], [ca.densify(ca.jacobian(out, v))])(values))
+    forward = _core.ForwardJacobianFunction(tape_function(f))
+    got = np.full(forward.output_size, np.nan)
+    forward.evaluate([np.array(values)], got)
+    got = got.reshape(expected.shape, order="F")
+    finite = np.isfinite(expected)
+    np.testing.assert_allclose(got[finite], expected[finite], rtol=1e-12, atol=1e-12)
+
+
 def test_an_operation_without_a_derivative_is_refused() -> None:
     w = ca.SX.sym("w")
     with pytest.raises(ValueError, match="FMOD"):
