@@ -216,8 +216,21 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     const int64_t xl = px == 0.0 ? 0 : rg[2], xh = px == 0.0 ? 0 : rg[3];
     const int64_t yl = py == 0.0 ? 0 : rg[4], yh = py == 0.0 ? 0 : rg[5];
     const bool has_x = xl < xh, has_y = yl < yh;
+    // finite partials: a zero tangent entry gives a zero term without the test (its
+    // sign aside), so the loops run without branches
+    const bool finite = std::isfinite(px) && std::isfinite(py);
     if (!has_x && !has_y) {
       std::fill(dr + lo, dr + hi, 0.0);
+    } else if (finite && !has_y) {
+      for (int64_t k = lo; k < xl; ++k) dr[k] = 0.0;
+      for (int64_t k = xl; k < xh; ++k) dr[k] = px * dx[k];
+      for (int64_t k = xh; k < hi; ++k) dr[k] = 0.0;
+    } else if (finite && !has_x) {
+      for (int64_t k = lo; k < yl; ++k) dr[k] = 0.0;
+      for (int64_t k = yl; k < yh; ++k) dr[k] = py * dy[k];
+      for (int64_t k = yh; k < hi; ++k) dr[k] = 0.0;
+    } else if (finite && xl == lo && xh == hi && yl == lo && yh == hi) {
+      for (int64_t k = lo; k < hi; ++k) dr[k] = px * dx[k] + py * dy[k];
     } else if (!has_y) {
       for (int64_t k = lo; k < xl; ++k) dr[k] = 0.0;
       for (int64_t k = xl; k < xh; ++k) dr[k] = dx[k] == 0.0 ? 0.0 : px * dx[k];
