@@ -344,17 +344,24 @@ class TendonStatics:
         outs = [ca.vertcat(ca.vec(R), p) for R, p in (poses[s] for s in self.stations())]
         return ca.Function("tendon_statics", [k0, force, tau], [res, ca.horzcat(*outs)])
 
+    @cached_property
+    def _tip_condition(self) -> ca.Function:
+        """``(k0, F, tau) -> (residual, d residual / d k0)``: the tip condition and its
+        Jacobian in the base curvature, for :meth:`solve`'s Newton steps."""
+        k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
+        tau = ca.SX.sym("tau", self.robot.n_tendons)
+        res, _ = self.function(k0, force, tau)
+        return ca.Function("tip_condition", [k0, force, tau], [res, ca.jacobian(res, k0)])
+
     def solve(
         self, force: FloatArray, tension: FloatArray, k0: FloatArray | None = None
     ) -> tuple[FloatArray, dict[Station, tuple[FloatArray, FloatArray]]]:
         """Numeric statics: the base curvature ``k0`` (rad/m) that meets the tip
         condition (Newton on the residual) and the poses ``{station: (R, p)}``."""
-        k = ca.SX.sym("k", 3)
-        res, _ = self.function(k, ca.DM(force), ca.DM(tension))
-        fn = ca.Function("r", [k], [res, ca.jacobian(res, k)])
+        fn = self._tip_condition
         x = np.zeros(3) if k0 is None else np.asarray(k0, dtype=float)
         for _ in range(50):
-            r, J = (np.asarray(v, dtype=float) for v in fn(x))
+            r, J = (np.asarray(v, dtype=float) for v in fn(x, force, tension))
             r = r.ravel()
             if np.linalg.norm(r) < 1e-12:
                 break
