@@ -450,3 +450,95 @@ def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
             "EST.csv"
         )
     assert not (tmp_path / "v.rrd").exists()
+
+
+@pytest.fixture(scope="module")
+def tendon_view(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The first 30 samples of the shipped twist-29 recording (a twisted, loaded tendon
+    robot), estimated and viewed with its tensions and truth."""
+    from importlib.resources import files
+
+    data = files("continuum_mhe") / "data" / "tendon"
+    tmp = tmp_path_factory.mktemp("tendon_view")
+    meas, est, rrd = tmp / "m.csv", tmp / "e.csv", tmp / "v.rrd"
+    meas.write_text("\n".join((data / "twist-29_raw.csv").read_text().splitlines()[:31]) + "\n")
+    tensions, truth = str(data / "twist-29_tensions.csv"), str(data / "twist-29_truth.csv")
+    robot = ["--robot", "tendon-two-section"]
+    assert main(["estimate", str(meas), *robot, "--inputs", tensions, "-o", str(est)]) == 0
+    assert main(["view", str(est), *robot, "--inputs", tensions, "--truth", truth,
+                 "--save", str(rrd), "--points", str(POINTS)]) == 0  # fmt: skip
+    return {"est": est, "rrd": rrd, "tensions": tensions, "tmp": tmp}
+
+
+def test_a_tendon_robot_is_drawn_from_its_mechanics_model(tendon_view: dict[str, Any]) -> None:
+    """``view --inputs``: each section's strip ends where the estimate puts its end,
+    within a millimetre (the estimate's base curvature meets the tip condition to that
+    condition's noise, 1e-4 rad/m, and its tension states their readings' noise; the
+    drawing solves the statics at its tip force and the file's tensions exactly, with
+    finer steps); each IMU frame sits at its section's end with z along the strip's
+    last chord (to that chord's half angle); the truth is drawn by the same model."""
+    rows, robot = read_rrd(tendon_view["rrd"]), read_robot("tendon-two-section")
+    est = read_state_table(tendon_view["est"], ())
+    strips = np.array([r["LineStrips3D:strips"] for _, r in rows["/world/estimate/backbone"]])
+    assert strips.shape == (len(est.t), robot.n_sections, POINTS + 1, 3)
+    for k in range(robot.n_sections):
+        end = np.column_stack([est.column(f"{c}_{k + 1}") for c in "xyz"])
+        np.testing.assert_allclose(strips[:, k, -1], end, atol=1e-3)
+    for i, imu in enumerate(robot.imus):
+        frames = rows[f"/world/estimate/imu_{i + 1}"]
+        pos = np.array([r["Transform3D:translation"][0] for _, r in frames])
+        mat = np.array([r["Transform3D:mat3x3"][0] for _, r in frames]).reshape(-1, 3, 3)
+        mat = mat.transpose(0, 2, 1)  # column-major in the file
+        np.testing.assert_allclose(pos, strips[:, imu.section, -1], atol=1e-7)
+        chord = strips[:, imu.section, -1] - strips[:, imu.section, -2]
+        chord /= np.linalg.norm(chord, axis=1, keepdims=True)
+        assert np.all(np.sum(chord * mat[:, :, 2], axis=1) > math.cos(0.2 / POINTS))
+    truth = np.array([r["LineStrips3D:strips"] for _, r in rows["/world/truth/backbone"]])
+    assert truth.shape[1:] == (robot.n_sections, POINTS + 1, 3)
+
+
+def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str, Any]) -> None:
+    """The live hook draws a tendon robot from each estimate's state (base curvature,
+    tip force, tensions), a replay from each row's tip force and the tensions file: at
+    an equilibrium state the two agree; a replay without the tensions draws the tips
+    alone and says so."""
+    from continuum_mhe.io.tensions import read_tensions
+    from continuum_mhe.model.tendon import TendonStatics, tendon_outputs
+    from continuum_mhe.viewer import TendonShapes
+
+    robot = read_robot("tendon-two-section")
+    outs = tendon_outputs(robot.n_sections)
+    est = read_state_table(tendon_view["est"], ())
+    values = np.column_stack([est.column(o.name) for o in outs])[:5]
+    t = est.t[:5]
+    tensions = read_tensions(tendon_view["tensions"], robot.n_tendons)
+    statics = TendonStatics(robot)
+    states = []
+    for tk, row in zip(t, values):
+        force, tau = row[-3:], tensions.at(float(tk))[0]
+        states.append(np.concatenate([statics.solve(force, tau)[0], force, tau, np.zeros(4)]))
+    live, replay = tendon_view["tmp"] / "live.rrd", tendon_view["tmp"] / "replay.rrd"
+    view = BackboneView(robot, outs, ViewerSink("save", live), points_per_section=POINTS,
+                        tendon=TendonShapes(robot, POINTS))  # fmt: skip
+    for tk, row, x in zip(t, values, states):
+        view.log_estimate(Estimate(float(tk), x, row, None, "ok", 1.0))  # type: ignore[arg-type]
+    view.close()
+    view = BackboneView(robot, outs, ViewerSink("save", replay), points_per_section=POINTS,
+                        tendon=TendonShapes(robot, POINTS, tensions))  # fmt: skip
+    view.log_rows(t, values, ["ok"] * len(t))
+    view.close()
+    a, b = read_rrd(live), read_rrd(replay)
+    for entity in ("/world/estimate/backbone", "/world/estimate/imu_2"):
+        for (ta, ra), (tb, rb) in zip(a[entity], b[entity]):
+            assert ta == tb
+            drawn = [c for c in ra if any(k in c for k in ("strips", "translation", "mat3x3"))]
+            assert drawn
+            for comp in drawn:
+                np.testing.assert_allclose(
+                    np.array(ra[comp], float), np.array(rb[comp], float), atol=1e-6
+                )
+    bare = tendon_view["tmp"] / "bare.rrd"
+    assert main(["view", str(tendon_view["est"]), "--robot", "tendon-two-section",
+                 "--save", str(bare)]) == 0  # fmt: skip
+    rows = read_rrd(bare)
+    assert "/world/estimate/backbone" not in rows and "/world/estimate/tip" in rows

@@ -12,7 +12,6 @@ import numpy as np
 from continuum_mhe.cli.options import add_robot_option, robot_from_args
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.evaluation.metrics import (
-    TIP_FORCE_COLUMNS,
     Calibration,
     Metrics,
     compute_calibration,
@@ -21,6 +20,7 @@ from continuum_mhe.evaluation.metrics import (
     match_rows,
 )
 from continuum_mhe.io.csv_files import InputError, check_same_robot, read_state_table
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 
 
 def _align(

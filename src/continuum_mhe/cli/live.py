@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{out_path}: -o and --record name the same file")
     sink = None
     if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
-        from continuum_mhe.viewer import BackboneView, require_rerun
+        from continuum_mhe.viewer import BackboneView, TendonShapes, require_rerun
 
         require_rerun()
         sink = viewer_sink_from_args(args)
@@ -103,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
     view = None if sink is None else BackboneView(
         robot, formulation.outputs, sink, trail_s=args.trail,
         points_per_section=args.points, max_hz=args.view_hz,
+        tendon=TendonShapes(robot, args.points) if robot.backbone is not None else None,
     )  # fmt: skip
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)

@@ -7,6 +7,7 @@ import argparse
 
 from continuum_mhe.cli.options import (
     add_robot_option,
+    add_tensions_option,
     add_viewer_options,
     robot_from_args,
     viewer_sink_from_args,
@@ -17,7 +18,10 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
-    replay(args.estimates, robot_from_args(args), sink, args.truth, args.trail, args.points)
+    replay(
+        args.estimates, robot_from_args(args), sink, args.truth, args.trail, args.points,
+        args.inputs,
+    )  # fmt: skip
     return 0
 
 
@@ -35,4 +39,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_robot_option(p, replaces=("--length", "--mounting"))
     p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    add_tensions_option(
+        p, "a tendon robot's estimate: its backbone drawn from the mechanics model at the "
+        "estimated tip force; without it, the tips alone"
+    )  # fmt: skip
     add_viewer_options(p)

@@ -12,10 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.evaluation.metrics import TIP_FORCE_COLUMNS, Z95, IndexArray, match_rows
+from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import FloatArray, StateTable
 from continuum_mhe.io.tensions import Tensions
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonStatics
@@ -25,8 +26,6 @@ from continuum_mhe.results import Status
 SNAPSHOTS = 4
 #: points drawn per section of a backbone
 POINTS_PER_SECTION = 16
-#: a tendon robot's tip force columns (N, base frame)
-FORCE_COLUMNS = TIP_FORCE_COLUMNS
 
 #: The backbone of one row of a table, ``(table, row) -> (points, 3)`` m from the base to
 #: the tip (a tendon robot's: the mechanics model's equilibrium at the row's tip force
@@ -101,19 +100,19 @@ def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
 
 
 def has_tip_force(names: Sequence[str]) -> bool:
-    """Whether a table has a tendon robot's tip force columns (:data:`FORCE_COLUMNS`)."""
-    return all(c in names for c in FORCE_COLUMNS)
+    """Whether a table has a tendon robot's tip force columns (:data:`TIP_FORCE_COLUMNS`)."""
+    return all(c in names for c in TIP_FORCE_COLUMNS)
 
 
 def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
     """A tendon robot's backbone for a row of an estimate or truth table: the mechanics
     model's equilibrium (:meth:`TendonStatics.backbone_points`) at the row's tip force
-    (:data:`FORCE_COLUMNS`) and the tensions at the row's time (an
+    (:data:`TIP_FORCE_COLUMNS`) and the tensions at the row's time (an
     :class:`~continuum_mhe.errors.InputError` where ``tensions`` do not cover it)."""
     statics = TendonStatics(robot)
 
     def points(table: StateTable, row: int) -> FloatArray:
-        force = np.array([table.column(c)[row] for c in FORCE_COLUMNS])
+        force = np.array([table.column(c)[row] for c in TIP_FORCE_COLUMNS])
         tension, _, _ = tensions.at(float(table.t[row]))
         return statics.backbone_points(force, tension, POINTS_PER_SECTION)
 
@@ -208,7 +207,7 @@ def estimate_figure(
 
 def _force_panel(ax: plt.Axes, est: StateTable, truth: StateTable | None) -> None:
     """The tip force's components (N) with their 95 % bands, the truth's dashed."""
-    for j, c in enumerate(FORCE_COLUMNS):
+    for j, c in enumerate(TIP_FORCE_COLUMNS):
         v = est.column(c)
         ax.plot(est.t, v, color=f"C{j + 4}", lw=1.3, label=c)
         if est.has_std and est.std is not None:

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.model.descriptions import output_names, pcc_outputs
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, output_names, pcc_outputs
 from continuum_mhe.model.imu import wrap_angle
 
 FloatArray = NDArray[np.float64]
@@ -27,10 +27,6 @@ STATE_NAMES = output_names(pcc_outputs(1))
 def is_wrapped(name: str) -> bool:
     """``phi`` and ``phi_k`` are angles wrapped to ``[-pi, pi)``."""
     return name == "phi" or name.startswith("phi_")
-
-
-#: a tendon robot's tip force columns (N, base frame)
-TIP_FORCE_COLUMNS = ("fx", "fy", "fz")
 
 
 @dataclass(frozen=True)

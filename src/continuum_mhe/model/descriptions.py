@@ -70,6 +70,8 @@ class MeasurementBlock:
 
 
 TIP_OUTPUTS = (OutputSpec("x", "m"), OutputSpec("y", "m"), OutputSpec("z", "m"))
+#: a tendon robot's tip force outputs (N, base frame)
+TIP_FORCE_COLUMNS = ("fx", "fy", "fz")
 
 
 def pcc_outputs(n_sections: int) -> tuple[OutputSpec, ...]:

@@ -97,6 +97,7 @@ from numpy.typing import NDArray
 import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
+    TIP_FORCE_COLUMNS,
     TIP_OUTPUTS,
     MeasurementBlock,
     OutputSpec,
@@ -375,30 +376,43 @@ class TendonStatics:
         return x, poses
 
     def backbone_points(
-        self, force: FloatArray, tension: FloatArray, points_per_section: int = 16
+        self,
+        force: FloatArray,
+        tension: FloatArray,
+        points_per_section: int = 16,
+        k0: FloatArray | None = None,
     ) -> FloatArray:
         """The backbone at equilibrium under the tip force ``force`` (N, base frame) and
         the tensions ``tension`` (N): ``(n_sections * points_per_section + 1, 3)`` m,
         from the base (the origin) to the tip, evenly spaced along each section (for
         drawing; the points also end the integration's steps, so the curve is at least
-        as fine as the estimators' model)."""
-        k0, _ = self.solve(force, tension)
-        points = self._points_function(points_per_section)(k0, force, tension)
+        as fine as the estimators' model). ``k0``: a start for :meth:`solve`."""
+        k0, _ = self.solve(force, tension, k0)
+        points, _, _ = self.drawing_function(points_per_section)(k0, force, tension)
         return np.vstack([np.zeros(3), np.asarray(points, dtype=float).T])
 
     @lru_cache(maxsize=4)  # noqa: B019 (a frozen dataclass: the cache keeps it alive)
-    def _points_function(self, points_per_section: int) -> ca.Function:
-        """``(k0, F, tau) -> (3, n_sections * points_per_section)`` backbone points, m."""
+    def drawing_function(self, points_per_section: int) -> ca.Function:
+        """``(k0, F, tau) -> (points, imu_rotations, imu_positions)``: the backbone at
+        ``points_per_section`` evenly spaced points a section after the base, (3,
+        n_sections * points_per_section) m, and each IMU's disk frame (9, n_imus; a
+        column-major body-to-base rotation, the twist included) and place (3, n_imus) m,
+        from the base curvature ``k0`` (rad/m), the tip force ``F`` (N) and the tensions
+        ``tau`` (N)."""
         dense = tuple(
             Station(k, j / points_per_section)
             for k in range(self.robot.n_sections)
             for j in range(1, points_per_section + 1)
         )
+        imus = tuple(Station(i.section, i.at) for i in self.robot.imus)
         k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
         tau = ca.SX.sym("tau", self.robot.n_tendons)
-        poses, _ = self.shoot(k0, force, tau, dense)
+        poses, _ = self.shoot(k0, force, tau, tuple(sorted(
+            set(dense) | set(imus), key=lambda st: (st.section, st.at))))  # fmt: skip
         points = ca.horzcat(*(poses[st][1] for st in dense))
-        return ca.Function("backbone_points", [k0, force, tau], [points])
+        rotations = ca.horzcat(*(ca.vec(poses[st][0]) for st in imus))
+        places = ca.horzcat(*(poses[st][1] for st in imus))
+        return ca.Function("tendon_drawing", [k0, force, tau], [points, rotations, places])
 
 
 def swing_twist_sym(Q: Sym) -> tuple[Sym, Sym, Sym]:
@@ -423,7 +437,7 @@ def tendon_outputs(n_sections: int) -> tuple[OutputSpec, ...]:
     out = list(TIP_OUTPUTS)
     for k in range(1, n_sections + 1):
         out += [*section_outputs(k), OutputSpec(f"psi_{k}", "rad", True, section=k)]
-    out += [OutputSpec(f"f{c}", "N") for c in "xyz"]
+    out += [OutputSpec(name, "N") for name in TIP_FORCE_COLUMNS]
     return tuple(out)
 
 

@@ -2,7 +2,10 @@
 estimate CSV, :mod:`continuum_mhe.cli.view`) and the per-estimate hook of ``live --view``.
 
 Every shape comes from the robot and the PCC model (:func:`~continuum_mhe.model.pcc.pose_at`
-at ``points_per_section`` arc lengths per section); nothing here knows a size.
+at ``points_per_section`` arc lengths per section), or, for a tendon robot, from its
+mechanics model (:class:`~continuum_mhe.viewer.geometry.TendonShapes`: live from each
+estimate's state, in a replay from each row's tip force and a tensions file, without
+which a replay draws the tips alone); nothing here knows a size.
 Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
 
 - ``world``: view coordinates from the robot's mounting (base z up, or z down); ``world/base``
@@ -14,7 +17,8 @@ Entities, on the timeline ``t`` (the sample time in s, as in the estimate CSV):
   from the previous tip, shown for the last ``trail_s`` seconds (a blueprint override), so
   the file grows by a constant amount per sample.
 - ``world/truth/{tip,tip_trail}``: a truth CSV's ``x, y, z``; ``world/truth/section_ends``
-  its section ends; ``world/truth/backbone`` the PCC curve through its bends, where given.
+  its section ends; ``world/truth/backbone`` the PCC curve through its bends, where given
+  (a tendon robot's: the mechanics model's at its tip force and the tensions).
 - ``outputs/<unit>``: the outputs of that unit (``m``, ``rad``) as one batch of scalars
   per sample, named by a static ``SeriesLines`` (``x``, ``theta_1``...).
 - ``status``: a text line whenever the status changes (``dropout``, ``reset``...).
@@ -26,7 +30,7 @@ breaks the trail. ``rerun-sdk`` is an optional dependency (``pip install
 
 from __future__ import annotations
 
-from continuum_mhe.viewer.geometry import BackboneGeometry, backbone_geometry
+from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
 from continuum_mhe.viewer.replay import replay
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import INSTALL_HINT, BackboneView, require_rerun
@@ -35,6 +39,7 @@ __all__ = [
     "INSTALL_HINT",
     "BackboneGeometry",
     "BackboneView",
+    "TendonShapes",
     "ViewerSink",
     "backbone_geometry",
     "replay",

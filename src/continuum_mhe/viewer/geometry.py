@@ -1,5 +1,6 @@
 """Backbone shapes for drawing: every section's points and the IMU frames, from the
-robot and the PCC model (one CasADi function per robot and resolution)."""
+robot and the PCC model (one CasADi function per robot and resolution), or, for a
+tendon robot, from its mechanics model (:class:`TendonShapes`)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,10 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray
 from continuum_mhe.io.raw_imu import mount_rotation
+from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import TendonStatics
 
 
 @dataclass(frozen=True)
@@ -75,3 +78,58 @@ def backbone_geometry(
     rot = np.einsum("nkij,kjl->nkil", rot, mounts)
     pos = pos.reshape(n_imus, 3, n).transpose(2, 0, 1)
     return BackboneGeometry(sections, rot, pos)
+
+
+@dataclass(frozen=True)
+class TendonShapes:
+    """A tendon robot's shapes for drawing, from its mechanics model: from estimator
+    states (``k0, F, tension_1..k`` first, as :class:`~continuum_mhe.model.tendon.
+    TendonFormulation` orders them), or from tip forces and the ``tensions`` at their
+    times (a replayed estimate or truth file, which holds no state).
+
+    Attributes:
+        robot: the robot (with a ``[backbone]`` and its tendons).
+        points_per_section: points drawn per section.
+        tensions: the tensions file, for :meth:`from_forces`; None without one.
+    """
+
+    robot: Robot
+    points_per_section: int = 16
+    tensions: Tensions | None = None
+
+    def _geometry(self, k0: FloatArray, force: FloatArray, tau: FloatArray) -> BackboneGeometry:
+        """``k0, force`` (n, 3), ``tau`` (n, k) into the shapes of the ``n`` samples."""
+        robot, m = self.robot, self.points_per_section
+        fn = TendonStatics(robot).drawing_function(m).map(len(k0))
+        pts, rot, pos = (np.asarray(v, dtype=float) for v in fn(k0.T, force.T, tau.T))
+        n, n_sec, n_imus = len(k0), robot.n_sections, robot.n_imus
+        pts = pts.reshape(3, m, n_sec, n, order="F").transpose(3, 2, 1, 0)
+        starts = np.concatenate([np.zeros((n, 1, 3)), pts[:, :-1, -1]], axis=1)
+        sections = np.concatenate([starts[:, :, None, :], pts], axis=2)
+        rot = rot.reshape(3, 3, n_imus, n, order="F").transpose(3, 2, 0, 1)
+        mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
+        rot = np.einsum("nkij,kjl->nkil", rot, mounts)
+        pos = pos.reshape(3, n_imus, n, order="F").transpose(2, 1, 0)
+        return BackboneGeometry(sections, rot, pos)
+
+    def from_states(self, states: FloatArray) -> BackboneGeometry:
+        """Shapes of the estimator states ``states`` (n, nx)."""
+        x = np.atleast_2d(np.asarray(states, dtype=float))
+        k = self.robot.n_tendons
+        return self._geometry(x[:, :3], x[:, 3:6], x[:, 6 : 6 + k])
+
+    def from_forces(self, t: FloatArray, forces: FloatArray) -> BackboneGeometry:
+        """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
+        the tensions there (the base curvature solved from the tip condition, each
+        sample from the previous one's)."""
+        if self.tensions is None:
+            raise ValueError("from_forces needs the tensions")
+        statics = TendonStatics(self.robot)
+        forces = np.asarray(forces, dtype=float)
+        tau = np.stack([self.tensions.at(float(tk))[0] for tk in t])
+        k0 = np.zeros((len(forces), 3))
+        previous = None
+        for i in range(len(forces)):
+            previous, _ = statics.solve(forces[i], tau[i], previous)
+            k0[i] = previous
+        return self._geometry(k0, forces, tau)

@@ -19,9 +19,12 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
+from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import tendon_outputs
+from continuum_mhe.viewer.geometry import TendonShapes
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import BackboneView
 
@@ -46,11 +49,27 @@ def read_estimates(path: str) -> StateTable:
 
 def replay(
     estimates: str, robot: Robot, sink: ViewerSink, truth: str | None = None,
-    trail_s: float = 10.0, points_per_section: int = 16,
+    trail_s: float = 10.0, points_per_section: int = 16, tensions: str | None = None,
 ) -> int:  # fmt: skip
     """Write or show the view of an estimate CSV (and its truth). Returns the number of
-    estimates drawn."""
-    outputs = pcc_outputs(robot.n_sections)
+    estimates drawn. A tendon robot's backbone (``robot.backbone``) is its mechanics
+    model's at each row's tip force under the ``tensions`` file's tensions; without
+    that file, its tips alone are drawn (said in a note)."""
+    tendon = None
+    if robot.backbone is not None:
+        outputs = tendon_outputs(robot.n_sections)
+        table = read_tensions(tensions, robot.n_tendons) if tensions else None
+        tendon = TendonShapes(robot, points_per_section, table)
+        if table is None:
+            print(
+                "continuum-mhe: note: a tendon robot's backbone is drawn from its mechanics "
+                "model with --inputs TENSIONS.csv; without it, the tips alone",
+                file=sys.stderr,
+            )
+    elif tensions:
+        raise InputError(f"{tensions}: --inputs is for a tendon robot (a [backbone] in --robot)")
+    else:
+        outputs = pcc_outputs(robot.n_sections)
     est = read_estimates(estimates)
     check_estimate_fits(estimates, est.names, robot)
     cols = [est.names.index(o.name) for o in outputs]
@@ -62,16 +81,15 @@ def replay(
             raise InputError(f"{truth}: {misfit}; pass --robot with its robot")
     view = BackboneView(
         robot, outputs, sink, trail_s=trail_s, points_per_section=points_per_section,
-        name=Path(estimates).name,
+        name=Path(estimates).name, tendon=tendon,
     )  # fmt: skip
     with_truth = ""
     try:
         if truth_table is not None:
             drawn_truth = view.log_truth(truth_table.t, truth_table.values, truth_table.names)
+            missing = "tensions" if tendon is not None else "theta/phi columns for every section"
             with_truth = ", with truth" + (
-                ""
-                if drawn_truth
-                else " (tip and section ends only: no theta/phi columns for every section)"
+                "" if drawn_truth else f" (tip and section ends only: no {missing})"
             )
         view.log_rows(est.t, est.values[:, cols], list(est.status))
     except BaseException:

@@ -18,10 +18,10 @@ from numpy.typing import NDArray
 
 from continuum_mhe.extras import install_hint, require
 from continuum_mhe.io.csv_files import FloatArray, InputError
-from continuum_mhe.model.descriptions import OutputSpec, section_bends
+from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, OutputSpec, section_bends
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate
-from continuum_mhe.viewer.geometry import BackboneGeometry, backbone_geometry
+from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
 
 INSTALL_HINT = install_hint("view")
@@ -42,6 +42,9 @@ class BackboneView:
 
     ``log_estimate`` is the per-estimate hook of ``live``; ``log_rows`` replays arrays.
     Call ``close`` at the end (it finishes the .rrd file, or stops the web viewer).
+    A tendon robot's shapes come from its mechanics model (``tendon``): from each
+    estimate's state live, and from the rows' tip force and the tensions in a replay
+    (without the tensions a replay draws the tip alone).
     """
 
     def __init__(
@@ -54,6 +57,7 @@ class BackboneView:
         points_per_section: int = 16,
         name: str = "continuum-mhe",
         max_hz: float | None = None,
+        tendon: TendonShapes | None = None,
     ) -> None:
         if not (math.isfinite(trail_s) and trail_s > 0):
             raise InputError(f"--trail must be positive seconds, got {trail_s}")
@@ -66,6 +70,7 @@ class BackboneView:
         self.outputs = tuple(outputs)
         self.sink = sink
         self.points_per_section = points_per_section
+        self.tendon = tendon
         self._web: Popen[bytes] | None = None
         self._tmp: Path | None = None
         self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
@@ -185,7 +190,10 @@ class BackboneView:
         ):
             return  # max_hz: drawn often enough (status changes and gaps always are)
         self._drawn_t = float(est.t)
-        geom = backbone_geometry(self.robot, self._bends(out[None, :]), self.points_per_section)
+        if self.tendon is not None and est.state is not None:
+            geom = self.tendon.from_states(est.state[None, :])
+        else:
+            geom = backbone_geometry(self.robot, self._bends(out[None, :]), self.points_per_section)
         colours, labels = self._style("estimate")
         rec.log(
             "world/estimate/backbone",
@@ -271,9 +279,9 @@ class BackboneView:
                     self.rec.log("world/estimate", self.rr.Clear(recursive=True))
         if not has.any():
             return
-        geom = backbone_geometry(self.robot, self._bends(values[has]), self.points_per_section)
+        geom, tips = self._row_shapes(t[has], values[has], [o.name for o in self.outputs])
         joined = (has & np.concatenate([[False], has[:-1]]))[has]
-        self._send_shapes("estimate", t[has], geom, geom.tip, joined)
+        self._send_shapes("estimate", t[has], geom, tips, joined)
         n = int(has.sum())
         for unit, cols in self._units.items():
             self.rec.send_columns(
@@ -283,7 +291,25 @@ class BackboneView:
                     [len(cols)] * n
                 ),
             )
-        self._prev_tip["estimate"] = geom.tip[-1] if has[-1] else None
+        self._prev_tip["estimate"] = tips[-1] if has[-1] else None
+
+    def _row_shapes(
+        self, t: FloatArray, values: FloatArray, names: Sequence[str]
+    ) -> tuple[BackboneGeometry | None, FloatArray]:
+        """The shapes and tips (n, 3) m of rows ``values`` (columns ``names``) at ``t``:
+        the PCC model's from their bends, or a tendon robot's from their tip force and
+        the tensions (None without the tensions or the force; the tips are the rows'
+        ``x, y, z``)."""
+        col = {c: i for i, c in enumerate(names)}
+        if self.tendon is None:
+            ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
+            geom = backbone_geometry(self.robot, self._bends(ordered), self.points_per_section)
+            return geom, geom.tip
+        tips = values[:, [col[c] for c in "xyz"]]
+        if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
+            return None, tips
+        forces = values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
+        return self.tendon.from_forces(t, forces), tips
 
     def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
         """Send a truth recording: ``values`` (n, len(names)), columns named as in a truth
@@ -297,9 +323,8 @@ class BackboneView:
         col = {c: i for i, c in enumerate(names)}
         tips = values[:, [col[c] for c in "xyz"]]
         geom = None
-        if all(o.name in col for o in self.outputs if o.unit == "rad"):
-            ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
-            geom = backbone_geometry(self.robot, self._bends(ordered), self.points_per_section)
+        if self.tendon is not None or all(o.name in col for o in self.outputs if o.unit == "rad"):
+            geom, _ = self._row_shapes(t, values, names)
         self._send_shapes("truth", t, geom, tips, np.arange(len(t)) > 0)
         ends = [k for k in range(1, self.robot.n_sections + 1) if f"x_{k}" in col]
         if ends:
