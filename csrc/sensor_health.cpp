@@ -126,6 +126,7 @@ void SensorHealth::restart() {
   consistency_.forget();
   cons_has_prev_ = false;
   rejecting_since_.reset();
+  wide_t_ = -INFINITY;
   inference_.restart();
 }
 
@@ -417,10 +418,16 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     inference_.output_std(x, P, ystd);
     if (factor != 1.0)  // the model error the readings show (covariance matching)
       for (int i = 0; i < ny; ++i) ystd[i] *= factor;
-    if (status == ST_OK && !s_.tip_rows.empty() && s_.checks_start) {
+    if (!s_.tip_rows.empty() && s_.checks_start) {
+      // a tip standard deviation beyond the fraction: the estimate may be any of
+      // shapes far apart. When it shrinks again the estimate stays uncertain for the
+      // unobserved window: a filter linearised on one of those shapes narrows around
+      // it whether or not it is the robot's, so only readings that go on agreeing
+      // with it confirm it
       double sum = 0.0;
       for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
-      if (std::sqrt(sum) > s_.uncertain_fraction * s_.length) status = ST_UNCERTAIN;
+      if (std::sqrt(sum) > s_.uncertain_fraction * s_.length) wide_t_ = t;
+      if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
     }
     if (s_.checks_start) {  // constant reading errors, model error: no residual shows them
       consistency_.constant_error_cov(z, mask_.data(), x, bias_.data());

@@ -213,6 +213,9 @@ class SensorHealth {
   std::function<bool(const std::vector<int>&)> observable_;
   std::map<std::vector<int>, bool> observable_cache_;
   double last_t_ = -INFINITY, last_valid_t_ = -INFINITY, first_valid_t_ = -INFINITY;
+  // the last sample whose tip standard deviation exceeded the uncertain fraction (the
+  // estimate's belief spanned shapes far apart); -inf since the (re)start when none
+  double wide_t_ = -INFINITY;
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
   std::vector<char> has_freeze_value_;

@@ -180,8 +180,10 @@ class RecoverySettings:
             never (command line ``--reject-reset``).
         uncertain_fraction: an estimate whose tip position standard deviation
             (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
-            length gets status ``uncertain`` instead of ``ok``; judged on the
-            estimator's own covariance, before the readings' constant errors
+            length gets status ``uncertain`` instead of ``ok``, and so does every
+            estimate within the unobserved window after it (``gap_reset``, or 1 s when
+            that is off) since the last that did; judged on the estimator's own
+            covariance, before the readings' constant errors
             (``NoiseSettings.reading_bias_std``) widen the reported std.
 
     The defaults are the command line's; :meth:`off` gives the bare estimator (no

@@ -435,7 +435,8 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         default=RecoverySettings.uncertain_fraction,
         metavar="F",
         help="status uncertain instead of ok when the tip's standard deviation exceeds "
-        f"F times the robot's length (default {RecoverySettings.uncertain_fraction:g})",
+        "F times the robot's length, and for the --gap-reset window (1 s without it) "
+        f"after it last did (default {RecoverySettings.uncertain_fraction:g})",
     )
 
 
