@@ -128,3 +128,53 @@ def test_a_mounting_given_as_a_list_still_builds_an_estimator() -> None:
     robot = Robot(TWO, (ImuPlacement(0, 1.0, [0, 0, 0]), ImuPlacement(1)))  # type: ignore[arg-type]
     assert robot.imus[0].mount_rpy == (0, 0, 0)
     assert make_estimator("ekf", make_formulation("bend", robot)).shape_observable
+
+
+def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon robot's report is of the model that estimates it: with its tensions
+    given, two IMUs' gravity directions determine the tip force; the tip IMU alone gives
+    two of its three components (rank 2 everywhere), so it is not observable from one
+    sample. The Jacobian (through the tip condition, by implicit differentiation)
+    equals central differences of the solved statics."""
+    from continuum_mhe.analysis.observability import _tendon_gravity_jacobian
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.pcc import up_vector
+    from continuum_mhe.model.tendon import Station, TendonStatics
+
+    shipped = read_robot("tendon-two-section")
+    report = observability_report(shipped, samples=40)
+    assert report.tendon_force is not None and report.tendon_samples == 40
+    assert report.tendon_force.full_rank_fraction == 1.0
+    assert verdict(report).startswith("observable: with the tensions given")
+    tip_only = tmp_path / "tip.toml"
+    text = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    body = text.read_text()
+    first = body.index("[[imu]]")
+    tip_only.write_text(body[:first] + body[body.index("[[imu]]", first + 1) :])
+    assert main(["check-robot", str(tip_only), "--samples", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "3x3, rank 3 at 0.0 % of loads (min rank 2)" in out
+    assert "NOT observable from one sample" in out
+    # the Jacobian against central differences of the solved statics
+    statics = TendonStatics(shipped)
+    tau = np.zeros(shipped.n_tendons)
+    tau[0], tau[4] = 4.0, 2.0
+    force = np.array([0.05, -0.03, 0.02])
+    stations = [Station(i.section, i.at) for i in shipped.imus]
+
+    def gravity(f: np.ndarray) -> np.ndarray:
+        _, poses = statics.solve(f, tau)
+        return np.concatenate([poses[s][0].T @ up_vector(shipped.mounting) for s in stations])
+
+    k0, _ = statics.solve(force, tau)
+    _, g_f, g_k, r_k, r_f = (
+        np.asarray(v, dtype=float) for v in _tendon_gravity_jacobian(shipped)(k0, force, tau)
+    )
+    jac = g_f - g_k @ np.linalg.solve(r_k, r_f)
+    h = 1e-5
+    fd = np.column_stack(
+        [(gravity(force + h * e) - gravity(force - h * e)) / (2 * h) for e in np.eye(3)]
+    )
+    np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-6 * np.abs(fd).max())

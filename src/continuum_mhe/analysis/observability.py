@@ -11,6 +11,12 @@ estimators use:
 * ``with gyros``: the same two-sample Jacobian of the ``direct`` formulation (gravity
   direction and gyro of every IMU).
 
+A tendon robot (a ``[backbone]``) is estimated with its mechanics model, whose shape
+follows from the tensions, which are given, and the tip force, which is estimated: its
+report (:func:`tendon_force_summary`) is the rank of the IMUs' gravity directions with
+respect to the tip force, at equilibria of random tensions and tip forces; its verdict
+follows from that.
+
 A Jacobian has full rank at a shape when its rank equals its number of columns (the
 unknowns it should determine), counting the singular values above ``RANK_TOL`` times
 the largest: a Jacobian with fewer rows than columns (one IMU on two sections) never
@@ -29,8 +35,10 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.errors import UserError
+from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import Station, TendonFormulation, TendonStatics
 
 #: Relative singular-value threshold for "rank-deficient".
 RANK_TOL = 1e-6
@@ -52,12 +60,19 @@ class JacobianSummary:
 
 @dataclass(frozen=True)
 class ObservabilityReport:
+    """The PCC model's Jacobians (``tilt``, ``tilt_window``, ``gyro_window``) and, for a
+    tendon robot, its mechanics model's (``tendon_force``: the IMUs' gravity directions
+    with respect to the tip force, the tensions given, at ``tendon_samples`` random
+    equilibria)."""
+
     samples: int
     tilt: JacobianSummary
     tilt_window: JacobianSummary
     gyro_window: JacobianSummary
     deficient_examples: list[dict[str, list[float]]] = field(default_factory=list)
     known_case: dict[str, float] = field(default_factory=dict)
+    tendon_force: JacobianSummary | None = None
+    tendon_samples: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return {**asdict(self), "verdict": verdict(self)}
@@ -69,9 +84,12 @@ OBSERVABLE_FRACTION = 0.99
 
 
 def verdict(r: ObservabilityReport) -> str:
-    """One line from the one-sample tilt Jacobian: ``observable`` when it has full rank
-    at ``OBSERVABLE_FRACTION`` of the sampled shapes or more, ``not observable`` when
-    at none, else ``observable except near some shapes``."""
+    """One line from the one-sample tilt Jacobian (a tendon robot's: from the gravity
+    directions' Jacobian in its tip force): ``observable`` when it has full rank at
+    ``OBSERVABLE_FRACTION`` of the sampled shapes or more, ``not observable`` when at
+    none, else ``observable except near some shapes``."""
+    if r.tendon_force is not None:
+        return _tendon_verdict(r.tendon_force)
     t = r.tilt
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
@@ -89,6 +107,26 @@ def verdict(r: ObservabilityReport) -> str:
     return (
         f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
         "of shapes (the least observable are listed above)"
+    )
+
+
+def _tendon_verdict(t: JacobianSummary) -> str:
+    if t.full_rank_fraction >= OBSERVABLE_FRACTION:
+        return (
+            "observable: with the tensions given, one sample of the IMUs' tilt determines "
+            f"the tip force (all {t.cols} components), and so the shape, at "
+            f"{100 * t.full_rank_fraction:.1f} % of the sampled loads"
+        )
+    if t.full_rank_fraction == 0.0:
+        return (
+            f"NOT observable from one sample: the IMUs' tilt determines at most "
+            f"{t.max_rank} of the tip force's {t.cols} components at every sampled load; "
+            "estimates of this robot are all marked uncertain (raw IMUs' gyros determine "
+            "it over time, loosely; a second IMU makes it observable; docs/tendon.md)"
+        )
+    return (
+        f"observable except near some loads: full rank at {100 * t.full_rank_fraction:.1f} % "
+        "of the sampled loads"
     )
 
 
@@ -149,6 +187,59 @@ def _eval(fn: ca.Function, x: np.ndarray) -> np.ndarray:
     return out.reshape(rows, len(x), cols).transpose(1, 0, 2)  # [J_1 J_2 ...] side by side
 
 
+#: at most this many random equilibria for a tendon robot's report (a statics solve each)
+TENDON_SAMPLES = 200
+
+
+def _tendon_gravity_jacobian(robot: Robot) -> ca.Function:
+    """``(k0, F, tau) -> (residual, d g / d F, d g / d k0, d residual / d k0, d residual
+    / d F)`` of the statics, ``g`` every IMU's gravity direction ``R^T up`` stacked."""
+    statics = TendonStatics(robot)
+    k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
+    tau = ca.SX.sym("tau", robot.n_tendons)
+    stations = tuple(Station(i.section, i.at) for i in robot.imus)
+    poses, res = statics.shoot(k0, force, tau, tuple(sorted(
+        set(stations), key=lambda st: (st.section, st.at))))  # fmt: skip
+    up = ca.DM(up_vector(robot.mounting))
+    g = ca.vertcat(*(ca.mtimes(poses[st][0].T, up) for st in stations))
+    return ca.Function(
+        "tendon_gravity",
+        [k0, force, tau],
+        [res, ca.jacobian(g, force), ca.jacobian(g, k0), ca.jacobian(res, k0),
+         ca.jacobian(res, force)],
+    )  # fmt: skip
+
+
+def tendon_force_summary(robot: Robot, samples: int, seed: int = 0) -> JacobianSummary:
+    """The rank of the IMUs' gravity directions with respect to the tip force, the base
+    curvature following it through the tip condition (implicit differentiation), at
+    ``samples`` equilibria: each section bent by one of its tendons to a random angle up
+    to ``min(theta_max, 2)`` rad, under a random tip force within twice the tendon
+    formulation's force prior."""
+    rng = np.random.default_rng(seed)
+    statics = TendonStatics(robot)
+    fn = _tendon_gravity_jacobian(robot)
+    ei, _ = statics.stiffness
+    reach = 2 * TendonFormulation(robot=robot).force_prior_std
+    by_section = [[i for i, td in enumerate(robot.tendons) if td.section == k]
+                  for k in range(robot.n_sections)]  # fmt: skip
+    jacs = []
+    for _ in range(samples):
+        tau = np.zeros(robot.n_tendons)
+        for k, sec in enumerate(robot.sections):
+            if by_section[k]:
+                i = int(rng.choice(by_section[k]))
+                bend = rng.uniform(0.0, min(sec.theta_max, 2.0))
+                tau[i] = bend * ei / (robot.tendons[i].radius * sec.length)
+        d = rng.normal(size=3)
+        force = reach * rng.uniform() ** (1 / 3) * d / np.linalg.norm(d)
+        k0, _ = statics.solve(force, tau)
+        _, g_f, g_k, r_k, r_f = (np.asarray(v, dtype=float) for v in fn(k0, force, tau))
+        jacs.append(g_f - g_k @ np.linalg.solve(r_k, r_f))
+    summary, _ = _summary(np.array(jacs))
+    return summary
+
+
 def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> ObservabilityReport:
     """Rank of the measurement Jacobians over ``samples`` random shapes of ``robot``."""
     if not (isinstance(samples, int) and 10 <= samples <= 1_000_000):
@@ -179,7 +270,11 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
         for name, fn in (("tilt", j_tilt), ("tilt_window", j_tilt2), ("gyro_window", j_dir2)):
             sv = np.linalg.svd(_eval(fn, xk)[0], compute_uv=False)
             known[name] = float(sv[-1] / sv[0])
-    return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known)
+    if robot.backbone is None:
+        return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known)
+    m = min(samples, TENDON_SAMPLES)
+    tendon = tendon_force_summary(robot, m, seed)
+    return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known, tendon, m)
 
 
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
@@ -209,6 +304,18 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             "section 1 at 90 deg, section 2 bending in the horizontal plane: relative "
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"
+        )
+    if r.tendon_force is not None:
+        s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
+        lines.append(
+            "the model that runs: this is a tendon robot, estimated with its mechanics "
+            "model (the lines above are the constant-curvature model's)"
+        )
+        lines.append(
+            f"tendon model, tensions given, one sample (d gravity directions / d tip force, "
+            f"{r.tendon_samples} loads): {s.rows}x{s.cols}, rank {s.cols} at "
+            f"{100 * s.full_rank_fraction:.1f} % of loads (min rank {s.min_rank}); relative "
+            f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
     lines.append(f"verdict: {verdict(r)}")
     return "\n".join(lines)
