@@ -10,6 +10,7 @@ gap reset, frozen sensors and the ``uncertain`` status.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -322,6 +323,31 @@ def test_calibration_on_a_hand_made_case() -> None:
     lo, hi = nees_band(3, 3)
     assert c.tip_nees_band == (lo, hi) and lo < 3 < hi
     assert Z95 == pytest.approx(scipy.stats.norm.ppf(0.975), abs=1e-6)
+
+
+def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> None:
+    """``evaluate``: the coverage over every row, and over the rows marked ``ok`` (what
+    the status promises). Four rows 0.5 std off, each ``ok``, and two 5 std off marked
+    ``uncertain``: every row 4/6 inside, the ``ok`` rows all inside."""
+    n = 6
+    t = np.arange(n) * 0.02
+    offsets = np.array([0.5, 0.5, 0.5, 0.5, 5.0, 5.0]) * 0.001
+    status = ["ok"] * 4 + ["uncertain"] * 2
+    est = EstimateSeries(
+        method="ekf", t=t, output=np.column_stack([offsets, offsets, offsets + 0.2, 0 * t, 0 * t]),
+        status=np.array(status), solve_ms=np.zeros(n), output_std=np.full((n, 5), 0.001),
+    )  # fmt: skip
+    write_estimates(tmp_path / "e.csv", est)
+    truth = tmp_path / "t.csv"
+    rows = "".join(f"{tk},0,0,0.2,0,0\n" for tk in t)
+    truth.write_text("t,x,y,z,theta,phi\n" + rows)
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert "95% interval coverage x 0.667, y 0.667, z 0.667" in out
+    assert "ok rows              4 of 6: tip 95% interval coverage x 1.000, y 1.000, z 1.000" in out
+    assert main(["evaluate", str(tmp_path / "e.csv"), str(truth), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["ok_rows"] == 4 and report["calibration_ok"]["coverage"]["x"] == 1.0
 
 
 # --- recovery ---------------------------------------------------------------------------------

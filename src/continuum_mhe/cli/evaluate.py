@@ -89,12 +89,21 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
-    cal = None
+    cal = cal_ok = None
+    n_ok = 0
     if est.has_std and est.std is not None:
         std = est.std[i_e][:, cols]
         cal = compute_calibration(
             est.values[i_e][:, cols], std, truth.values[i_t], out_names, truth.names
         )
+        # what the status promises: the rows marked ok alone
+        ok = np.asarray(est.status)[i_e] == "ok"
+        n_ok = int(ok.sum())
+        if n_ok and np.isfinite(std[ok]).any():
+            cal_ok = compute_calibration(
+                est.values[i_e][ok][:, cols], std[ok], truth.values[i_t][ok], out_names,
+                truth.names,
+            )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
     xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
     hint = other_robot or _length_hint(
@@ -110,12 +119,19 @@ def run(args: argparse.Namespace) -> int:
     for line in filter(None, warned):
         print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:
-        extra = {"calibration": None if cal is None else cal.as_dict()}
+        extra = {
+            "calibration": None if cal is None else cal.as_dict(),
+            "ok_rows": n_ok,
+            "calibration_ok": None if cal_ok is None else cal_ok.as_dict(),
+        }
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
         print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched}, indent=2))
     else:
         print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal, est.std_columns))
+        if cal_ok is not None:
+            tip = ", ".join(f"{c} {cal_ok.coverage[c]:.3f}" for c in "xyz" if c in cal_ok.coverage)
+            print(f"ok rows              {n_ok} of {len(i_e)}: tip 95% interval coverage {tip}")
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
@@ -128,7 +144,7 @@ def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
         if std_columns:
             return (
                 "calibration          the std_ columns of the estimate file are empty (made "
-                "without standard deviations, e.g. on a first run while the kernels compiled)"
+                "without standard deviations)"
             )
         return "calibration          no std_ columns in the estimate file"
     cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
