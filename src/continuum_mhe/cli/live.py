@@ -68,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
         raise
     except Exception as exc:
         raise InputError(port_hint(settings.port, exc)) from None
-    # after the port opened: a first run compiles here (said once) before any line is
-    # read; a throwaway estimator pays the first-call costs (warm_up)
+    # after the port opened, before any line is read: the estimator reads its model
+    # here, and a throwaway one pays the first-call costs (warm_up)
     estimator = make_estimator(
         method_from_args(args, formulation),
         formulation,
