@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -453,6 +454,8 @@ def test_fast_backend_agrees_with_ipopt_on_two_sections_with_active_bounds(name:
 
     tight = Robot((Section(0.16, 0.8), Section(0.14, 0.8)), TWO.imus)
     f = make_formulation(name, tight)
+    if name == "direct":  # the readings below carry 0.03 of noise on the gyros too
+        f = replace(f, gyro_std=0.05)
     fs = feasible_set(f)
     assert fs.ball_idx.tolist() == [[0, 1], [2, 3]]
     rec = simulate_robot("s-curve", TWO, duration=4.0, dt=0.05, seed=3)  # beyond the bound

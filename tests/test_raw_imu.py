@@ -25,6 +25,7 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imu,
 )
 from continuum_mhe.model.direct import (
+    DEFAULT_GYRO_STD,
     DirectFormulation,
     raw_imu_readings,
     tip_angular_velocity_bend_sym,
@@ -77,7 +78,9 @@ def test_direct_formulation_model() -> None:
     r = np.asarray(f.functions.innovate(z_far, x)[0], dtype=float).ravel()
     np.testing.assert_allclose(r, [4.0] * 6, atol=1e-12)
     r = np.diag(f.meas_cov())
-    assert r[0] == pytest.approx(f.noise.measurement_std**2) and r[3] == pytest.approx(0.05**2)
+    assert r[0] == pytest.approx(f.noise.measurement_std**2) and r[3] == pytest.approx(
+        DEFAULT_GYRO_STD**2
+    )
     with pytest.raises(ValueError, match="gyro_std"):
         DirectFormulation(gyro_std=-1.0)
 

@@ -17,13 +17,9 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
+from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
-
-#: Gyro white noise of the direct model, rad/s: a MEMS gyro's (MPU-9250 class: 0.01
-#: deg/s/sqrt(Hz), 0.0012 rad/s at 50 Hz; the shipped rod recordings' IMUs 0.0018) with
-#: room for the PCC model's own error in the rates (docs/options.md).
-DEFAULT_GYRO_STD = 0.01
 
 
 @dataclass(frozen=True)

@@ -87,6 +87,13 @@ def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym
     )
 
 
+#: Gyro white noise of the direct model, rad/s: a MEMS gyro's (MPU-9250 class: 0.01
+#: deg/s/sqrt(Hz), 0.0012 rad/s at 50 Hz; the shipped rod recordings' IMUs 0.0018) with
+#: room for the PCC model's own error in the rates (docs/options.md); the command
+#: line's ``--gyro-std`` default too.
+DEFAULT_GYRO_STD = 0.01
+
+
 @dataclass(frozen=True)
 class DirectFormulation(BendFormulation):
     """``bend`` state and motion, raw IMU measurement ``[f/|f|, omega]`` per IMU
@@ -120,7 +127,7 @@ class DirectFormulation(BendFormulation):
     """
 
     name: FormulationName = "direct"
-    gyro_std: float = 0.05
+    gyro_std: float = DEFAULT_GYRO_STD
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     gyro_bias_psd: float = 1e-6

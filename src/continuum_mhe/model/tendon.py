@@ -105,6 +105,7 @@ from continuum_mhe.model.descriptions import (
     section_outputs,
     tilt_blocks,
 )
+from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import FloatArray, Formulation
 from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
 from continuum_mhe.model.kinematics import Sym
@@ -511,7 +512,7 @@ class TendonFormulation(Formulation):
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True
     imu_model: ImuModel = "tilt"
-    gyro_std: float = 0.05
+    gyro_std: float = DEFAULT_GYRO_STD
     accel_direction_std: float | None = None
     estimate_gyro_bias: bool = False
     own_acceleration: bool = True
