@@ -600,10 +600,11 @@ def test_one_imu_does_not_determine_the_tip_force() -> None:
 
 # --- the estimator a tendon robot gets --------------------------------------------------
 def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
-    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The fast MHE cannot take the mechanics model: the EKF is the default, said in one
-    line; a robot without a backbone keeps the MHE, silently; a chosen method is kept."""
+    """The fast MHE cannot take the mechanics model: the EKF is the default, said in the
+    summary line (nothing before the input is read, so a bad input stays one line); a
+    robot without a backbone keeps the MHE, silently; a chosen method is kept."""
     import argparse
 
     from continuum_mhe.cli.options import method_from_args
@@ -616,11 +617,24 @@ def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
     assert default_method(tendon) == "ekf" and default_method(pcc) == "mhe"
     args = argparse.Namespace(method=None)
     assert method_from_args(args, tendon) == "ekf" and args.method == "ekf"
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "the ekf estimates, the default for this robot" in err[0]
-    assert method_from_args(argparse.Namespace(method=None), pcc) == "mhe"
-    assert method_from_args(argparse.Namespace(method="ukf"), tendon) == "ukf"
+    assert args.method_note.startswith("by the ekf, this robot's default")
+    pcc_args = argparse.Namespace(method=None)
+    assert method_from_args(pcc_args, pcc) == "mhe" and pcc_args.method_note is None
+    chosen = argparse.Namespace(method="ukf")
+    assert method_from_args(chosen, tendon) == "ukf" and chosen.method_note is None
     assert capsys.readouterr().err == ""
+    # the command line: the summary says it; a bad input is its one line alone
+    meas, tensions = _recording(tmp_path)
+    robot, out = _small_robot(tmp_path), tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(robot), "--inputs", str(tensions),
+            "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "estimated by the ekf, this robot's default" in err[-1]
+    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.05, 1.0]])  # too short
+    assert main([*argv[:-1], str(tmp_path / "e2.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the tensions must cover the recording" in err[0]
 
 
 def test_the_fast_mhe_on_a_tendon_robot_is_refused_in_one_line(

@@ -146,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
     if flags_outliers:
         summary += f"; outliers flagged: {outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
+    if getattr(args, "method_note", None):
+        msg += f"; estimated {args.method_note}"
     for clause in stream.description.summary():
         msg += f"; {clause}"
     if diag.frozen_samples:

@@ -107,11 +107,12 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
+        default = " (this robot's default)" if args.method_note else ""
         say(
             f"reading {settings.port} at {settings.baud} baud "
             f"({','.join(line_fields(settings.fmt, robot.n_imus, line.tensions_on_line))}"
             f"{'; tensions from ' + line.tensions.name if line.tensions else ''}); "
-            f"{args.method} estimates"
+            f"{args.method} estimates{default}"
             f"{' to ' + str(out_path) if out_path else ''}"
             f"{'; recording to ' + str(rec_path) if rec_path else ''}; Ctrl-C stops"
         )

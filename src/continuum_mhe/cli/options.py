@@ -7,13 +7,11 @@ from __future__ import annotations
 import argparse
 import math
 import re
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from continuum_mhe.cli.config import options_record
-from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
@@ -220,19 +218,20 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
 
 def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:
     """The ``--method`` given, else ``formulation``'s default
-    (:func:`~continuum_mhe.estimators.default_method`), said in one stderr line where it
-    is not the MHE; ``args.method`` is set to it. The fast MHE on a formulation it
-    cannot take is refused (one line naming the alternatives)."""
+    (:func:`~continuum_mhe.estimators.default_method`); ``args.method`` is set to it, and
+    where the default is not the MHE, ``args.method_note`` says so, for the command's
+    summary line (after its input was read: a bad input stays one line). The fast MHE
+    on a formulation it cannot take is refused (one line naming the alternatives)."""
     from continuum_mhe.estimators import default_method
 
     method: Method | None = getattr(args, "method", None)
+    args.method_note = None
     if method is None:
         method = default_method(formulation)
         if method != "mhe":
-            print(
-                f"{PROG}: note: the {method} estimates, the default for this robot: "
-                f"{formulation.fast_mhe_obstacle}",
-                file=sys.stderr,
+            args.method_note = (
+                f"by the {method}, this robot's default (the fast MHE does not take its "
+                "model; --method chooses)"
             )
     obstacle = formulation.fast_mhe_obstacle
     if method == "mhe" and obstacle is not None and getattr(args, "solver", "fast") == "fast":

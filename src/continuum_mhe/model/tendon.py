@@ -504,10 +504,9 @@ class TendonFormulation(Formulation):
     second_order_residuals: ClassVar[bool] = False
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
-        "the fast MHE's window of the robot's mechanics model (Gauss-Newton steps on "
-        "forward-mode Jacobians) does not certify its windows within its iterations, and "
-        "IPOPT, which would take the uncertified ones, takes seconds and gigabytes a "
-        "window (docs/tendon.md)"
+        "the fast MHE does not take this robot's mechanics model (its windows do not "
+        "converge within their iterations, and IPOPT would take seconds and gigabytes a "
+        "window; the docs' tendon robots page)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True
