@@ -278,8 +278,21 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
 
 
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
-    """Human-readable report."""
-    lines = [f"robot: {robot.describe()}", f"shapes sampled: {r.samples}"]
+    """Human-readable report (a tendon robot's: its mechanics model's first)."""
+    lines = [f"robot: {robot.describe()}"]
+    if r.tendon_force is not None:
+        s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
+        lines.append(
+            f"tendon model, tensions given, one sample (d gravity directions / d tip force, "
+            f"{r.tendon_samples} loads): {s.rows}x{s.cols}, rank {s.cols} at "
+            f"{100 * s.full_rank_fraction:.1f} % of loads (min rank {s.min_rank}); relative "
+            f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
+        )
+        lines.append(
+            "for comparison, the constant-curvature model of the same geometry (not the "
+            "model that estimates this robot):"
+        )
+    lines.append(f"shapes sampled: {r.samples}")
     for label, s in (
         ("tilt, one sample (d roll,pitch / d bends)", r.tilt),
         ("tilt, two samples (whole state)", r.tilt_window),
@@ -304,18 +317,6 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             "section 1 at 90 deg, section 2 bending in the horizontal plane: relative "
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"
-        )
-    if r.tendon_force is not None:
-        s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
-        lines.append(
-            "the model that runs: this is a tendon robot, estimated with its mechanics "
-            "model (the lines above are the constant-curvature model's)"
-        )
-        lines.append(
-            f"tendon model, tensions given, one sample (d gravity directions / d tip force, "
-            f"{r.tendon_samples} loads): {s.rows}x{s.cols}, rank {s.cols} at "
-            f"{100 * s.full_rank_fraction:.1f} % of loads (min rank {s.min_rank}); relative "
-            f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
     lines.append(f"verdict: {verdict(r)}")
     return "\n".join(lines)
