@@ -295,9 +295,12 @@ def test_a_mistyped_option_is_one_line_naming_the_commands_help(tmp_path, capsys
         main(["estimate", "m.csv", "-o", str(tmp_path / "e.csv"), "--methd", "ekf"])
     assert exit_.value.code == 2
     assert capsys.readouterr().err == (
-        "continuum-mhe estimate: error: unrecognized arguments: --methd ekf "
-        "(continuum-mhe estimate --help lists the options)\n"
+        "continuum-mhe estimate: error: unrecognized arguments: --methd ekf; did you mean "
+        "--method? (continuum-mhe estimate --help lists the options)\n"
     )
+    with pytest.raises(SystemExit):  # nothing close: no guess
+        main(["estimate", "m.csv", "-o", str(tmp_path / "e.csv"), "--zzz"])
+    assert "did you mean" not in capsys.readouterr().err
 
 
 def test_evaluate_of_a_partial_truth_warns(tmp_path, capsys) -> None:

@@ -79,7 +79,21 @@ class OneLineParser(argparse.ArgumentParser):
         if m is not None:
             what = "a whole number" if m.group(2) == "int" else "a number"
             message = f"{m.group(1)} {m.group(3)}: expected {what}"
+        elif message.startswith("unrecognized arguments: "):
+            message += self._did_you_mean(message.split(": ", 1)[1].split())
         self.exit(2, f"{self.prog}: error: {message} ({self.prog} --help lists the options)\n")
+
+    def _did_you_mean(self, given: list[str]) -> str:
+        """``; did you mean --length?`` for a misspelt option among ``given``, else ``""``."""
+        import difflib
+
+        known = [o for a in self._actions for o in a.option_strings if o.startswith("--")]
+        for word in given:
+            if word.startswith("--"):
+                close = difflib.get_close_matches(word.split("=", 1)[0], known, n=1, cutoff=0.75)
+                if close:
+                    return f"; did you mean {close[0]}?"
+        return ""
 
 
 def add_model_options(p: argparse.ArgumentParser) -> None:
