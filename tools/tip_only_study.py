@@ -13,7 +13,7 @@ from collections import Counter
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.benchmark.harness import raw_imu_recording
+from continuum_mhe.benchmark.harness import raw_imu_model, raw_imu_recording
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.simulation.scenarios import simulate_robot
 
@@ -29,7 +29,7 @@ def main() -> None:
                 f = make_formulation("bend", ROBOT)
             else:
                 rec = raw_imu_recording(ROBOT, 20, dt=0.05, seed=seed)
-                f = make_formulation("direct", ROBOT)
+                f = raw_imu_model(ROBOT)
             tip = [i for i, o in enumerate(f.outputs) if o.section == 0 and o.unit == "m"]
             for m in ("mhe", "ekf"):
                 s = make_estimator(m, f, MHESettings(horizon=30)).run(rec.t, rec.z)  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.benchmark.harness import raw_imu_recording
+from continuum_mhe.benchmark.harness import raw_imu_model, raw_imu_recording
 from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.simulation.scenarios import simulate_robot
@@ -30,7 +30,7 @@ def main() -> None:
                 f = make_formulation("bend", robot)
             else:
                 rec = raw_imu_recording(robot, 20, dt=0.05, seed=seed)
-                f = make_formulation("direct", robot)
+                f = raw_imu_model(robot)
             names = [o.name for o in f.outputs]
             for m in ("mhe", "ekf", "ukf"):
                 s = make_estimator(m, f, MHESettings(horizon=30)).run(rec.t, rec.z)  # type: ignore[arg-type]
