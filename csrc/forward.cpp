@@ -9,6 +9,17 @@ namespace cmhe {
 
 namespace {
 inline double sign(double v) { return v < 0 ? -1.0 : (v > 0 ? 1.0 : v); }
+
+// dr over [lo, hi): p * d on [l, h) (inside it), zero elsewhere. ``kChecked``: a zero
+// entry of d gives a zero term even against an infinite or undefined p; without it
+// (p finite) the loop has no branch and differs only in the sign of a zero.
+template <bool kChecked>
+inline void scaled_tangent(double* dr, int64_t lo, int64_t hi, int64_t l, int64_t h,
+                           double p, const double* d) {
+  for (int64_t k = lo; k < l; ++k) dr[k] = 0.0;
+  for (int64_t k = l; k < h; ++k) dr[k] = kChecked && d[k] == 0.0 ? 0.0 : p * d[k];
+  for (int64_t k = h; k < hi; ++k) dr[k] = 0.0;
+}
 }  // namespace
 
 void check_forward(const Tape& tape) {
@@ -80,11 +91,6 @@ ForwardPlan plan_forward(const Tape& tape, int seed) {
     hi[static_cast<size_t>(I.res)] = h;
   }
   return plan;
-}
-
-void evaluate_forward(const Tape& tape, int seed, const double* const* in,
-                      double* const* out, double* const* dout) {
-  evaluate_forward(tape, plan_forward(tape, seed), in, out, dout);
 }
 
 void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* const* in,
@@ -221,24 +227,18 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     const bool finite = std::isfinite(px) && std::isfinite(py);
     if (!has_x && !has_y) {
       std::fill(dr + lo, dr + hi, 0.0);
-    } else if (finite && !has_y) {
-      for (int64_t k = lo; k < xl; ++k) dr[k] = 0.0;
-      for (int64_t k = xl; k < xh; ++k) dr[k] = px * dx[k];
-      for (int64_t k = xh; k < hi; ++k) dr[k] = 0.0;
-    } else if (finite && !has_x) {
-      for (int64_t k = lo; k < yl; ++k) dr[k] = 0.0;
-      for (int64_t k = yl; k < yh; ++k) dr[k] = py * dy[k];
-      for (int64_t k = yh; k < hi; ++k) dr[k] = 0.0;
+    } else if (!has_y) {
+      if (finite)
+        scaled_tangent<false>(dr, lo, hi, xl, xh, px, dx);
+      else
+        scaled_tangent<true>(dr, lo, hi, xl, xh, px, dx);
+    } else if (!has_x) {
+      if (finite)
+        scaled_tangent<false>(dr, lo, hi, yl, yh, py, dy);
+      else
+        scaled_tangent<true>(dr, lo, hi, yl, yh, py, dy);
     } else if (finite && xl == lo && xh == hi && yl == lo && yh == hi) {
       for (int64_t k = lo; k < hi; ++k) dr[k] = px * dx[k] + py * dy[k];
-    } else if (!has_y) {
-      for (int64_t k = lo; k < xl; ++k) dr[k] = 0.0;
-      for (int64_t k = xl; k < xh; ++k) dr[k] = dx[k] == 0.0 ? 0.0 : px * dx[k];
-      for (int64_t k = xh; k < hi; ++k) dr[k] = 0.0;
-    } else if (!has_x) {
-      for (int64_t k = lo; k < yl; ++k) dr[k] = 0.0;
-      for (int64_t k = yl; k < yh; ++k) dr[k] = dy[k] == 0.0 ? 0.0 : py * dy[k];
-      for (int64_t k = yh; k < hi; ++k) dr[k] = 0.0;
     } else {
       for (int64_t k = lo; k < hi; ++k) {
         const double vx = (k >= xl && k < xh && dx[k] != 0.0) ? px * dx[k] : 0.0;

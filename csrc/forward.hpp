@@ -16,7 +16,6 @@
 
 namespace cmhe {
 
-
 // Evaluate ``tape`` and the derivatives of its outputs with respect to every nonzero of
 // input ``plan.seed``: ``out[j]`` as Tape::evaluate writes it, ``dout[j]`` (when not
 // null) the output's Jacobian, row-major (its ``output_sizes[j]`` rows, one column per
@@ -24,9 +23,6 @@ namespace cmhe {
 // std::invalid_argument for an operation without a derivative here (FMOD, REMAINDER)
 // when the tape is checked (check_forward).
 void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* const* in,
-                      double* const* out, double* const* dout);
-// The same, planned on each call
-void evaluate_forward(const Tape& tape, int seed, const double* const* in,
                       double* const* out, double* const* dout);
 // Throws std::invalid_argument if the tape holds an operation evaluate_forward cannot
 // differentiate.

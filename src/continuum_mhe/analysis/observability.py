@@ -198,8 +198,7 @@ def _tendon_gravity_jacobian(robot: Robot) -> ca.Function:
     k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
     tau = ca.SX.sym("tau", robot.n_tendons)
     stations = tuple(Station(i.section, i.at) for i in robot.imus)
-    poses, res = statics.shoot(k0, force, tau, tuple(sorted(
-        set(stations), key=lambda st: (st.section, st.at))))  # fmt: skip
+    poses, res = statics.shoot(k0, force, tau, stations)
     up = ca.DM(up_vector(robot.mounting))
     g = ca.vertcat(*(ca.mtimes(poses[st][0].T, up) for st in stations))
     return ca.Function(

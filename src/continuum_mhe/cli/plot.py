@@ -10,10 +10,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 
 if TYPE_CHECKING:
     from continuum_mhe.evaluation.estimate_figure import BackboneOf
+    from continuum_mhe.model.robot import Robot
 
 DESCRIPTION = (
     "Draw an estimate file (CSV or MCAP from estimate or live): each section end and the "
@@ -67,6 +69,7 @@ def _estimate(args: argparse.Namespace) -> int:
     est = read_estimates(args.source)
     truth = read_state_table(args.truth) if args.truth else None
     lengths = None
+    robot: Robot | None = None
     if args.robot:
         robot = read_robot(args.robot)
         n = section_count(est.names)
@@ -76,7 +79,7 @@ def _estimate(args: argparse.Namespace) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
-    backbone = _tendon_backbone(args, est.names)
+    backbone = _tendon_backbone(args, est.names, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     try:
         fig = estimate_figure(est, truth, lengths, title, backbone)
@@ -87,11 +90,13 @@ def _estimate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tendon_backbone(args: argparse.Namespace, names: Sequence[str]) -> BackboneOf | None:
+def _tendon_backbone(
+    args: argparse.Namespace, names: Sequence[str], robot: Robot | None
+) -> BackboneOf | None:
     """The mechanics model's backbone for a tendon robot's estimate, from ``--robot``
-    and ``--inputs``; None (the section ends joined, said in a note) without them."""
+    (``robot``, as read) and ``--inputs``; None (the section ends joined, said in a
+    note) without them."""
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
-    from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.tensions import read_tensions
 
     if not has_tip_force(names):
@@ -101,14 +106,13 @@ def _tendon_backbone(args: argparse.Namespace, names: Sequence[str]) -> Backbone
                 "estimate has no tip force columns (fx, fy, fz)"
             )
         return None
-    if not (args.robot and args.inputs):
+    if robot is None or not args.inputs:
         print(
-            "continuum-mhe: note: the backbone is drawn through the section ends; give "
+            f"{PROG}: note: the backbone is drawn through the section ends; give "
             "--robot ROBOT.toml --inputs TENSIONS.csv for the mechanics model's curve",
             file=sys.stderr,
         )
         return None
-    robot = read_robot(args.robot)
     if robot.backbone is None or not robot.n_tendons:
         raise InputError(f"{args.robot}: --inputs needs a tendon robot ([backbone], [[tendon]])")
     return tendon_backbone(robot, read_tensions(args.inputs, robot.n_tendons))

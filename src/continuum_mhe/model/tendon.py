@@ -309,8 +309,8 @@ class TendonStatics:
         self, k0: Sym, force: Sym, tension: Sym, stations: tuple[Station, ...] | None = None
     ) -> tuple[dict[Station, tuple[Sym, Sym]], Sym]:
         """``({station: (R, p)}, residual)``: the pose (3x3 body-to-base rotation, m) at
-        every one of ``stations`` (default :meth:`stations`; each also ends a step) and
-        the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
+        every one of ``stations`` (default :meth:`stations`; in any order; each also ends
+        a step) and the tip residual ``R(L)^T M(L) / EI`` (rad/m)."""
         robot = self.robot
         ei, _ = self.stiffness
         taus = [ca.fmax(tension[i], 0.0) for i in range(robot.n_tendons)]
@@ -377,18 +377,14 @@ class TendonStatics:
         return x, poses
 
     def backbone_points(
-        self,
-        force: FloatArray,
-        tension: FloatArray,
-        points_per_section: int = 16,
-        k0: FloatArray | None = None,
+        self, force: FloatArray, tension: FloatArray, points_per_section: int = 16
     ) -> FloatArray:
         """The backbone at equilibrium under the tip force ``force`` (N, base frame) and
         the tensions ``tension`` (N): ``(n_sections * points_per_section + 1, 3)`` m,
         from the base (the origin) to the tip, evenly spaced along each section (for
         drawing; the points also end the integration's steps, so the curve is at least
-        as fine as the estimators' model). ``k0``: a start for :meth:`solve`."""
-        k0, _ = self.solve(force, tension, k0)
+        as fine as the estimators' model)."""
+        k0, _ = self.solve(force, tension)
         points, _, _ = self.drawing_function(points_per_section)(k0, force, tension)
         return np.vstack([np.zeros(3), np.asarray(points, dtype=float).T])
 
@@ -408,8 +404,7 @@ class TendonStatics:
         imus = tuple(Station(i.section, i.at) for i in self.robot.imus)
         k0, force = ca.SX.sym("k0", 3), ca.SX.sym("F", 3)
         tau = ca.SX.sym("tau", self.robot.n_tendons)
-        poses, _ = self.shoot(k0, force, tau, tuple(sorted(
-            set(dense) | set(imus), key=lambda st: (st.section, st.at))))  # fmt: skip
+        poses, _ = self.shoot(k0, force, tau, dense + imus)
         points = ca.horzcat(*(poses[st][1] for st in dense))
         rotations = ca.horzcat(*(ca.vec(poses[st][0]) for st in imus))
         places = ca.horzcat(*(poses[st][1] for st in imus))

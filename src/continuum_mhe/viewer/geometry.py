@@ -5,7 +5,7 @@ tendon robot, from its mechanics model (:class:`TendonShapes`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 
 import casadi as ca
 import numpy as np
@@ -70,14 +70,25 @@ def backbone_geometry(
     fn = _geometry_function(robot.lengths, places, m)
     pts, rot, pos = (np.asarray(v, dtype=float) for v in fn.map(n)(u.reshape(n, -1).T))
     pts = pts.reshape(3, n, n_sec, m).transpose(1, 2, 3, 0)  # (n, n_sec, m, 3)
-    starts = np.concatenate([np.zeros((n, 1, 3)), pts[:, :-1, -1]], axis=1)
-    sections = np.concatenate([starts[:, :, None, :], pts], axis=2)
     n_imus = robot.n_imus
     rot = rot.reshape(n_imus, 3, 3, n).transpose(3, 0, 2, 1)  # column-major blocks
-    mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
-    rot = np.einsum("nkij,kjl->nkil", rot, mounts)
     pos = pos.reshape(n_imus, 3, n).transpose(2, 0, 1)
-    return BackboneGeometry(sections, rot, pos)
+    return _assembled(robot, pts, rot, pos)
+
+
+def _assembled(
+    robot: Robot, points: FloatArray, disk_rotation: FloatArray, imu_position: FloatArray
+) -> BackboneGeometry:
+    """The shapes from each section's points after its base ``points`` (n, n_sections,
+    m, 3) m, each IMU's disk frame ``disk_rotation`` (n, n_imus, 3, 3) and place
+    ``imu_position`` (n, n_imus, 3) m: every section starts where the one below ends,
+    and each IMU frame is turned by its ``mount_rpy``."""
+    n = len(points)
+    starts = np.concatenate([np.zeros((n, 1, 3)), points[:, :-1, -1]], axis=1)
+    sections = np.concatenate([starts[:, :, None, :], points], axis=2)
+    mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
+    rotation = np.einsum("nkij,kjl->nkil", disk_rotation, mounts)
+    return BackboneGeometry(sections, rotation, imu_position)
 
 
 @dataclass(frozen=True)
@@ -97,20 +108,21 @@ class TendonShapes:
     points_per_section: int = 16
     tensions: Tensions | None = None
 
+    @cached_property
+    def statics(self) -> TendonStatics:
+        """The robot's statics (its drawing function is built once)."""
+        return TendonStatics(self.robot)
+
     def _geometry(self, k0: FloatArray, force: FloatArray, tau: FloatArray) -> BackboneGeometry:
         """``k0, force`` (n, 3), ``tau`` (n, k) into the shapes of the ``n`` samples."""
         robot, m = self.robot, self.points_per_section
-        fn = TendonStatics(robot).drawing_function(m).map(len(k0))
+        fn = self.statics.drawing_function(m).map(len(k0))
         pts, rot, pos = (np.asarray(v, dtype=float) for v in fn(k0.T, force.T, tau.T))
         n, n_sec, n_imus = len(k0), robot.n_sections, robot.n_imus
         pts = pts.reshape(3, m, n_sec, n, order="F").transpose(3, 2, 1, 0)
-        starts = np.concatenate([np.zeros((n, 1, 3)), pts[:, :-1, -1]], axis=1)
-        sections = np.concatenate([starts[:, :, None, :], pts], axis=2)
         rot = rot.reshape(3, 3, n_imus, n, order="F").transpose(3, 2, 0, 1)
-        mounts = np.stack([mount_rotation(imu.mount_rpy) for imu in robot.imus])
-        rot = np.einsum("nkij,kjl->nkil", rot, mounts)
         pos = pos.reshape(3, n_imus, n, order="F").transpose(2, 1, 0)
-        return BackboneGeometry(sections, rot, pos)
+        return _assembled(robot, pts, rot, pos)
 
     def from_states(self, states: FloatArray) -> BackboneGeometry:
         """Shapes of the estimator states ``states`` (n, nx)."""
@@ -124,7 +136,7 @@ class TendonShapes:
         sample from the previous one's)."""
         if self.tensions is None:
             raise ValueError("from_forces needs the tensions")
-        statics = TendonStatics(self.robot)
+        statics = self.statics
         forces = np.asarray(forces, dtype=float)
         tau = np.stack([self.tensions.at(float(tk))[0] for tk in t])
         k0 = np.zeros((len(forces), 3))
