@@ -647,6 +647,16 @@ class TendonFormulation(Formulation):
         k = self.robot.n_tendons
         return x[:6], x[6 : 6 + k], x[6 + k : 12 + k]
 
+    @staticmethod
+    def statics_of_states(
+        states: FloatArray, n_tendons: int
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The statics' arguments of states ``states`` (n, nx) in this formulation's
+        layout (:attr:`state_names`): the base curvature (n, 3) rad/m, the tip force
+        (n, 3) N and the tensions (n, ``n_tendons``) N."""
+        x = np.atleast_2d(np.asarray(states, dtype=float))
+        return x[:, :3], x[:, 3:6], x[:, 6 : 6 + n_tendons]
+
     # --- measurement blocks -----------------------------------------------------------
     @cached_property
     def measurement_blocks(self) -> tuple[MeasurementBlock, ...]:

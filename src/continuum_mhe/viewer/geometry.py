@@ -15,7 +15,7 @@ from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import TendonStatics
+from continuum_mhe.model.tendon import TendonFormulation, TendonStatics
 
 
 @dataclass(frozen=True)
@@ -94,9 +94,9 @@ def _assembled(
 @dataclass(frozen=True)
 class TendonShapes:
     """A tendon robot's shapes for drawing, from its mechanics model: from estimator
-    states (``k0, F, tension_1..k`` first, as :class:`~continuum_mhe.model.tendon.
-    TendonFormulation` orders them), or from tip forces and the ``tensions`` at their
-    times (a replayed estimate or truth file, which holds no state).
+    states (:meth:`~continuum_mhe.model.tendon.TendonFormulation.statics_of_states`), or
+    from tip forces and the ``tensions`` at their times (a replayed estimate or truth
+    file, which holds no state).
 
     Attributes:
         robot: the robot (with a ``[backbone]`` and its tendons).
@@ -126,9 +126,7 @@ class TendonShapes:
 
     def from_states(self, states: FloatArray) -> BackboneGeometry:
         """Shapes of the estimator states ``states`` (n, nx)."""
-        x = np.atleast_2d(np.asarray(states, dtype=float))
-        k = self.robot.n_tendons
-        return self._geometry(x[:, :3], x[:, 3:6], x[:, 6 : 6 + k])
+        return self._geometry(*TendonFormulation.statics_of_states(states, self.robot.n_tendons))
 
     def from_forces(self, t: FloatArray, forces: FloatArray) -> BackboneGeometry:
         """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
