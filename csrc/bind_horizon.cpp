@@ -133,6 +133,34 @@ void cmhe::bind_horizon(nb::module_& m) {
           "The branch check's first test in the step ((n nz + 1,) or empty: none): a "
           "certified answer whose twice window cost is at most entry [dof] (the window's "
           "valid measurement components) is kept by the step although finish is false.")
+      .def_prop_rw(
+          "past_lag", [](MovingHorizon& h) { return h.past_lag; },
+          [](MovingHorizon& h, Index lag) { h.set_past_lag(lag); },
+          "Answers of full windows the robust loss's second start keeps (0: none); "
+          "setting it forgets them.")
+      .def_rw("keep_unrejected", &MovingHorizon::keep_unrejected,
+              "Whether the step keeps a certified answer itself when the window is not "
+              "yet full or no weight of its newest node is below outlier_weight "
+              "(remembering it); other answers are the caller's.")
+      .def_rw("outlier_weight", &MovingHorizon::outlier_weight,
+              "The robust weight below which a block counts as rejected.")
+      .def_prop_ro("past_count", [](MovingHorizon& h) { return h.past_count; },
+                   "Answers of full windows kept, at most past_lag.")
+      .def(
+          "remember",
+          [](MovingHorizon& h, In X) {
+            check_size(X, h.n * h.nx, "X");
+            h.remember(X.data());
+          },
+          nb::arg("X"), "Keep X (N, nx) as the newest past answer (dropping the oldest).")
+      .def("forget_past", &MovingHorizon::forget_past, "Forget the past answers.")
+      .def(
+          "past_oldest",
+          [](MovingHorizon& h) {
+            if (h.past_count == 0) throw std::invalid_argument("no past answer is kept");
+            return copy_of(h.past_oldest(), {size_t(h.n), size_t(h.nx)});
+          },
+          "A copy of the oldest past answer kept (N, nx).")
       .def_rw("plausible_kept", &MovingHorizon::plausible_kept,
               "Answers kept by plausible_limit since the owner last zeroed it.")
       .def_rw("has_prior", &MovingHorizon::has_prior)

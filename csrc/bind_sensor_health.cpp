@@ -167,9 +167,18 @@ class HorizonInference final : public PolicyInference {
       if (w < outlier_weight) return true;
     return false;
   }
+  // 1 when every block of the newest sample with a valid reading was weighted below
+  // outlier_weight in the last answer, 0 when not, -1 when no block had a reading
   int rejected_every_reading() override {
     if (!robust_) return 0;
-    return nb::cast<int>(py_.attr("rejected")());
+    const Index last = (h_.n - 1) * h_.nz;
+    bool any = false, every = true;
+    for (Index b = 0; b < h_.nblk; ++b) {
+      if (h_.zmask[last + h_.solver.blocks[2 * b]] <= 0.0) continue;
+      any = true;
+      every = every && h_.w_last[b] < outlier_weight;
+    }
+    return any ? int(every) : -1;
   }
   bool is_diverged(const double* x, const double* P) override {
     nb::object p = P ? nb::cast(copy_of(P, {size_t(h_.nx), size_t(h_.nx)})) : nb::none();

@@ -50,6 +50,7 @@ MovingHorizon::MovingHorizon(WindowSolver& solver_, NodeModel& node_, std::vecto
   lam.assign(n * nb, 0.0);
   w_first.assign(nblk, 1.0);
   w_last.assign(nblk, 1.0);
+  w_new_.assign(nblk, 1.0);
   X_sol.assign(n * nx, 0.0);
   X_last_sol.assign(n * nx, 0.0);
   D_sol.assign(n * bs, 0.0);
@@ -84,6 +85,7 @@ void MovingHorizon::restart() {
   solve_seconds = 0.0;
   std::fill(w_first.begin(), w_first.end(), 1.0);
   std::fill(w_last.begin(), w_last.end(), 1.0);
+  forget_past();
 }
 
 void MovingHorizon::set_prior(const double* xbar_, const double* P_, const double* Pinv_) {
@@ -245,6 +247,11 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
       ++plausible_kept;
     }
   }
+  const double* w_new = nullptr;
+  if (!finish_ && keep_unrejected && keeps_unrejected(Xa, w_new_.data())) {
+    finish_ = true;
+    if (k == n) w_new = w_new_.data();
+  }
   if (!finish_) {
     solved_buffer = int(last);
     solved_generation = solver.generation;
@@ -259,8 +266,42 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   outputs_at_last = int(last);
   std::copy(Xa, Xa + n * nx, X.begin());
   has_X = true;
-  keep_outputs(X.data(), D, E, false, nullptr);
+  keep_outputs(X.data(), D, E, false, w_new);
   return STEP_DONE;
+}
+
+// A window not yet full: the past answers are forgotten (the second start compares
+// full windows only). A full one: the newest node's weights at the answer into w_new;
+// true, remembering the answer, when none is below outlier_weight.
+bool MovingHorizon::keeps_unrejected(const double* Xa, double* w_new) {
+  if (k < n) {
+    forget_past();
+    return true;
+  }
+  node_weights(n - 1, Xa + (n - 1) * nx, w_new);
+  for (Index b = 0; b < nblk; ++b)
+    if (w_new[b] < outlier_weight) return false;
+  remember(Xa);
+  return true;
+}
+
+void MovingHorizon::set_past_lag(Index lag) {
+  if (lag < 0 || lag > n) throw std::invalid_argument("past_lag must lie in [0, N]");
+  past_lag = lag;
+  past_.assign(lag * n * nx, 0.0);
+  forget_past();
+}
+
+void MovingHorizon::remember(const double* Xk) {
+  if (past_lag == 0) return;
+  std::copy(Xk, Xk + n * nx, past_.begin() + past_next_ * n * nx);
+  past_next_ = (past_next_ + 1) % past_lag;
+  past_count = std::min(past_count + 1, past_lag);
+}
+
+const double* MovingHorizon::past_oldest() const {
+  const Index slot = past_count < past_lag ? 0 : past_next_;
+  return past_.data() + slot * n * nx;
 }
 
 void MovingHorizon::node_weights(Index i, const double* x, double* w) {

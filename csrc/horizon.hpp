@@ -96,6 +96,22 @@ class MovingHorizon {
   // counted in plausible_kept (zeroed by its owner, not by restart)
   std::vector<double> plausible_limit;
   uint64_t plausible_kept = 0;
+  // The robust loss's second start (continuum_mhe.estimators.second_start) keeps the
+  // answers of the last ``past_lag`` full windows (0: none kept) in ``past``; a window not
+  // yet full forgets them. With ``keep_unrejected`` the step keeps a certified answer
+  // itself (STEP_DONE, although ``finish`` is false) when the window is not yet full, or
+  // when every robust weight of its newest node is at least ``outlier_weight`` (nothing
+  // for the second start to try), remembering it; other answers are the caller's, who
+  // remembers the one it keeps (remember).
+  Index past_lag = 0;
+  bool keep_unrejected = false;
+  double outlier_weight = 0.0;
+  void set_past_lag(Index lag);
+  void remember(const double* Xk);
+  void forget_past() { past_count = past_next_ = 0; }
+  Index past_count = 0;
+  // the oldest answer kept (n, nx); valid while past_count > 0
+  const double* past_oldest() const;
   // the kept answer's last node, its covariance and outputs
   std::vector<double> state, cov, y, ystd;
   bool cov_ok = false;
@@ -109,7 +125,9 @@ class MovingHorizon {
   void load(const double* Xs, bool slid);
   void keep_outputs(const double* X, const double* D, const double* E, bool failed,
                     const double* w_new);
-  std::vector<double> R_, Rl_, scale_, zmask_nodes_;
+  bool keeps_unrejected(const double* Xa, double* w_new);
+  std::vector<double> R_, Rl_, scale_, zmask_nodes_, past_, w_new_;
+  Index past_next_ = 0;
   std::vector<int64_t> block_of_;
   CovarianceScratch cov_scratch_;
 };

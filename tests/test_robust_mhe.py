@@ -435,6 +435,73 @@ def test_second_start_shifts_the_old_solution_and_predicts_the_rest() -> None:
     assert SecondStart(horizon=6, lag=12).lag == 5  # at most N - 1
 
 
+@pytest.mark.parametrize("store", ["python", "compiled"])
+def test_the_second_start_comes_from_the_answer_lag_samples_ago(store: str) -> None:
+    """With N = 5 the lag is 4: of six answers remembered, the start shifts the third
+    (the one 4 samples before the current window) by 4 nodes, in either store."""
+    from continuum_mhe.estimators.second_start import SecondStart
+
+    mhe = MovingHorizonEstimator(BendFormulation(), MHESettings(horizon=5, loss="cauchy"))
+    ss = mhe.inference.second_start
+    assert ss is not None and ss.lag == 4
+    if store == "python":
+        ss = SecondStart(horizon=5)
+    u, dt = np.zeros((4, 0)), np.full(4, 0.5)
+
+    def predict(x, u_, dt_):
+        return x + dt_
+
+    answers = [np.full((5, 4), float(k)) + np.arange(5.0)[:, None] for k in range(6)]
+    for k, X in enumerate(answers):
+        ss.remember(X)
+        if k < 3:
+            assert ss.start(u, dt, predict) is None  # fewer than 4 answers
+    expected = np.vstack([answers[2][4], answers[2][4] + 0.5, answers[2][4] + 1.0,
+                          answers[2][4] + 1.5, answers[2][4] + 2.0])  # fmt: skip
+    assert_allclose(ss.start(u, dt, predict), expected)
+    ss.clear()
+    assert ss.start(u, dt, predict) is None
+
+
+def test_the_compiled_step_keeps_what_the_second_start_would_keep() -> None:
+    """The compiled step keeps a certified answer whose newest node no block rejects
+    (and any answer of a window not yet full) without the Python half; through a burst
+    the estimates, outlier flags and second starts equal those with every answer
+    handed to the Python half. On the clean recording the Python half never runs."""
+    rec, z = burst_recording()
+    runs = {}
+    for in_step in (True, False):
+        mhe = MovingHorizonEstimator(BendFormulation(), MHESettings(horizon=30, loss="cauchy"))
+        inference = mhe.inference
+        inference._window.keep_unrejected = in_step
+        calls: list[int] = []
+        after_step = inference._after_step
+
+        def counted(outcome: int, after_step=after_step, calls=calls):
+            calls.append(outcome)
+            return after_step(outcome)
+
+        inference._after_step = counted  # type: ignore[method-assign]
+        clean_calls = len(calls)
+        mhe.run(rec.t, np.array(rec.z, dtype=float))
+        clean_calls = len(calls) - clean_calls
+        del calls[:]
+        out = mhe.run(rec.t, z)
+        second = inference.second_start
+        assert second is not None
+        runs[in_step] = (out, second.tried, second.kept, len(calls), clean_calls)
+    (out, tried, kept, calls, clean), (out_p, tried_p, kept_p, calls_p, clean_p) = (
+        runs[True],
+        runs[False],
+    )
+    assert tried == tried_p >= 1 and kept == kept_p >= 1
+    assert clean == 0 and clean_p == len(rec.t)
+    assert 0 < calls < 20 and calls_p == len(rec.t)  # only the rejected newest samples
+    assert_allclose(out.output, out_p.output, rtol=0, atol=0)
+    assert_allclose(out.output_std, out_p.output_std, rtol=0, atol=0)
+    assert np.array_equal(out.outlier, out_p.outlier)
+
+
 def burst_recording():
     """``paper3d`` seed 3 with one 5-sample burst of +30 deg on roll and pitch at sample 74,
     where the warm-started Cauchy MHE (default scale) stays on the burst after it ended."""

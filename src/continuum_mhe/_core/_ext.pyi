@@ -399,6 +399,44 @@ class MovingHorizon:
     def plausible_limit(self, arg: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], /) -> None: ...
 
     @property
+    def past_lag(self) -> int:
+        """
+        Answers of full windows the robust loss's second start keeps (0: none); setting it forgets them.
+        """
+
+    @past_lag.setter
+    def past_lag(self, arg: int, /) -> None: ...
+
+    @property
+    def keep_unrejected(self) -> bool:
+        """
+        Whether the step keeps a certified answer itself when the window is not yet full or no weight of its newest node is below outlier_weight (remembering it); other answers are the caller's.
+        """
+
+    @keep_unrejected.setter
+    def keep_unrejected(self, arg: bool, /) -> None: ...
+
+    @property
+    def outlier_weight(self) -> float:
+        """The robust weight below which a block counts as rejected."""
+
+    @outlier_weight.setter
+    def outlier_weight(self, arg: float, /) -> None: ...
+
+    @property
+    def past_count(self) -> int:
+        """Answers of full windows kept, at most past_lag."""
+
+    def remember(self, X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None:
+        """Keep X (N, nx) as the newest past answer (dropping the oldest)."""
+
+    def forget_past(self) -> None:
+        """Forget the past answers."""
+
+    def past_oldest(self) -> NDArray[numpy.float64]:
+        """A copy of the oldest past answer kept (N, nx)."""
+
+    @property
     def plausible_kept(self) -> int:
         """Answers kept by plausible_limit since the owner last zeroed it."""
 

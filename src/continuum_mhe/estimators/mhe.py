@@ -346,7 +346,7 @@ class MovingHorizonInference(Inference):
         #: True when the robust loss is in use (estimates carry outlier flags)
         self.flags_outliers = self.settings.loss != "l2"
         #: the robust loss's second start (:mod:`.second_start`), with its counts
-        self.second_start = SecondStart(s.horizon) if self.flags_outliers else None
+        self.second_start = self._second_start() if self.flags_outliers else None
         #: the branch check (``settings.branch_check``, by default for tilt only; see
         #: :mod:`.branch`), with its counts
         self.branch = (
@@ -358,8 +358,22 @@ class MovingHorizonInference(Inference):
         if isinstance(self._window, _core.MovingHorizon) and limits is not None:
             if self.second_start is None:  # the check's first test in the compiled step
                 self._window.plausible_limit = limits
+        if isinstance(self._window, _core.MovingHorizon) and self.second_start is not None:
+            # answers that leave the second start nothing to try are kept by the step
+            self._window.keep_unrejected = self.branch is None
         self._rinv_max = float(np.abs(np.linalg.inv(self._R)).max())
         self.restart()
+
+    def _second_start(self) -> SecondStart:
+        """The robust loss's second start, its past answers kept by the compiled step
+        where there is one."""
+        window = self._window
+        if not isinstance(window, _core.MovingHorizon):
+            return SecondStart(self.settings.horizon)
+        second = SecondStart(self.settings.horizon, past=window)
+        window.past_lag = second.lag
+        window.outlier_weight = OUTLIER_WEIGHT
+        return second
 
     def _window_nlp(self, scale_exp: int) -> Nlp:
         """The IPOPT NLP with the objective divided by ``10**scale_exp``, built on first use."""
@@ -779,8 +793,8 @@ class MovingHorizonInference(Inference):
 
 class _HorizonHooks:
     """What ``_core.HorizonInference`` asks of a :class:`MovingHorizonInference`: its
-    restart, the prior's start from the first reading, the step's Python half when the
-    compiled step did not keep its answer, and the reject reset's test."""
+    restart, the prior's start from the first reading, and the step's Python half when
+    the compiled step did not keep its answer."""
 
     def __init__(self, inference: MovingHorizonInference) -> None:
         self.inference = inference
@@ -807,10 +821,6 @@ class _HorizonHooks:
         except NUMERICAL_FAILURES as exc:
             return 0, numerical_failure(exc)
         return status_code(self.inference._keep(answer, status, valid)[2]), None
-
-    def rejected(self) -> int:
-        rejected = self.inference.rejected_every_reading()
-        return -1 if rejected is None else int(rejected)
 
 
 class MovingHorizonEstimator(Estimator[MovingHorizonInference]):

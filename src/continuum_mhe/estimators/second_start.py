@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -53,13 +53,53 @@ CostFn = Callable[["WindowProblem", FloatArray], float]
 USABLE = (Status.OK, Status.FALLBACK_IPOPT)
 
 
-class SecondStart:
-    """Past window solutions and the second starting trajectory built from them."""
+class PastAnswers(Protocol):
+    """Where the answers of the last ``lag`` full windows are kept: the compiled step
+    (``_core.MovingHorizon``, which keeps the answers that need no second start itself)
+    or :class:`KeptAnswers`."""
 
-    def __init__(self, horizon: int, lag: int = LAG) -> None:
+    @property
+    def past_count(self) -> int: ...
+
+    def remember(self, X: FloatArray) -> None: ...
+
+    def forget_past(self) -> None: ...
+
+    def past_oldest(self) -> FloatArray: ...
+
+
+class KeptAnswers:
+    """The last ``lag`` answers (N, nx) in a deque: :class:`PastAnswers` in Python."""
+
+    def __init__(self, lag: int) -> None:
+        self._past: deque[FloatArray] = deque(maxlen=lag)
+
+    @property
+    def past_count(self) -> int:
+        return len(self._past)
+
+    def remember(self, X: FloatArray) -> None:
+        self._past.append(np.array(X, dtype=np.float64))
+
+    def forget_past(self) -> None:
+        self._past.clear()
+
+    def past_oldest(self) -> FloatArray:
+        return self._past[0]
+
+
+class SecondStart:
+    """Past window solutions and the second starting trajectory built from them.
+
+    ``past``: where the solutions are kept (a :class:`KeptAnswers` of :attr:`lag` when
+    None); a compiled window keeps them itself and must have ``past_lag`` equal to
+    :attr:`lag`.
+    """
+
+    def __init__(self, horizon: int, lag: int = LAG, past: PastAnswers | None = None) -> None:
         #: the age of the solution a second start comes from (at most ``horizon - 1``)
         self.lag = max(1, min(lag, horizon - 1))
-        self._past: deque[FloatArray] = deque(maxlen=lag)
+        self._past = KeptAnswers(self.lag) if past is None else past
         #: second starts tried and those whose answer was kept, since the estimator's
         #: last ``reset()``
         self.tried = 0
@@ -67,11 +107,11 @@ class SecondStart:
 
     def clear(self) -> None:
         """Forget the past solutions (a reset of the estimator)."""
-        self._past.clear()
+        self._past.forget_past()
 
     def remember(self, X: FloatArray) -> None:
         """Store the answer of this sample's window (N, nx)."""
-        self._past.append(X)
+        self._past.remember(X)
 
     def start(self, u: FloatArray, dt: FloatArray, predict: PredictFn) -> FloatArray | None:
         """The second start for the current window (N, nx), before this sample's answer
@@ -80,9 +120,9 @@ class SecondStart:
         ``u`` (N-1, nu) and ``dt`` (N-1,) are the current window's stage inputs and
         time steps (s): node ``i`` of the old solution is node ``i - lag`` now.
         """
-        if len(self._past) < self.lag:
+        if self._past.past_count < self.lag:
             return None
-        old = self._past[0]  # the answer of `lag` samples ago
+        old = self._past.past_oldest()  # the answer of `lag` samples ago
         keep = len(old) - self.lag
         X = np.empty_like(old)
         X[:keep] = old[self.lag :]
@@ -117,5 +157,5 @@ class SecondStart:
             if status2 in USABLE and cost(problem, X2) < c1 - REL_MARGIN * abs(c1):
                 self.kept += 1
                 X, status, w = X2, status2, None
-        self.remember(X.copy())
+        self.remember(X)
         return X, status, w
