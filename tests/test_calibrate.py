@@ -309,3 +309,56 @@ def test_calibrate_from_the_port_takes_lines_with_tensions(tmp_path: Path) -> No
     assert "garbled" not in err
     assert "IMU 1: mounting with the robot straight: --mount-rpy 5.00,-3.00,0" in out
     assert "IMU 2: mounting with the robot straight: --mount-rpy 5.00,-3.00,0" in out
+
+
+def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped rod stands on its base (z-up). Described as z-down, its rest
+    recording put every IMU about 180 degrees from where z-down puts it; calibrate wrote
+    mount_rpy = [179.8, 0.19, 0] for each (every board "upside down"), and estimates
+    with that file were mirrored, 183 mm off, every row ok. Refused now in one line
+    naming mounting, nothing written; one IMU turned over on its disk still calibrates."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    robot = tmp_path / "down.toml"
+    robot.write_text(
+        'mounting = "z-down"\n[[section]]\nlength = 0.16\ntheta_max = 3.0\n'
+        "[[section]]\nlength = 0.14\ntheta_max = 3.0\n[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    out = tmp_path / "cal.toml"
+    rest = str(data / "planar-s_rest.csv")
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", rest, "--robot", str(robot), "--write-robot", str(out)
+    )
+    assert code == 2 and stdout == "" and not out.exists()
+    assert err.count("\n") == 1
+    assert "planar-s_rest.csv: mounting: the robot is described as z-down" in err
+    assert 'set mounting = "z-up"' in err
+    one = tmp_path / "one_rest.csv"  # IMU 1 alone, for the one-section options
+    table = [ln.split(",")[:7] for ln in Path(rest).read_text().splitlines()]
+    table[0] = ["t", "ax", "ay", "az", "gx", "gy", "gz"]
+    one.write_text("\n".join(",".join(r) for r in table) + "\n")
+    code, _, err = _calibrate_main(capsys, "--from", str(one), "--mounting", "z-down")
+    assert code == 2 and err.rstrip().endswith("the robot stands on its base? --mounting z-up")
+    code, _, err = _calibrate_main(capsys, "--from", rest, "--robot", "two-section")
+    assert code == 0, err
+    # IMU 2's readings turned over (x and z negated: 180 degrees about y): one board
+    # mounted upside down is calibrated, with a pitch of about 180 degrees
+    lines = Path(rest).read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    names = lines[head].split(",")
+    flip = [names.index(c) for c in names if c in ("ax_2", "az_2", "gx_2", "gz_2")]
+    assert len(flip) == 4, names
+    rows = []
+    for ln in lines[head + 1 :]:
+        v = ln.split(",")
+        for j in flip:
+            v[j] = repr(-float(v[j]))
+        rows.append(",".join(v))
+    turned = tmp_path / "turned_rest.csv"
+    turned.write_text("\n".join(lines[: head + 1] + rows) + "\n")
+    code, stdout, err = _calibrate_main(
+        capsys, "--from", str(turned), "--robot", "two-section", "--write-robot", str(out)
+    )
+    assert code == 0, err
+    assert "mounting" not in err

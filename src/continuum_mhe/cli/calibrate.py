@@ -14,6 +14,7 @@ from continuum_mhe.calibration.at_rest import (
     Calibration,
     bend_yaws,
     calibrate,
+    check_rest_mounting,
     collect,
     format_report,
     motion_at_rest,
@@ -65,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {moved}")
     if args.write_robot and fmt != "raw":
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
+    if fmt == "raw":
+        check_rest_mounting(source, values, robot, bool(args.robot))
     cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     bend = None
     if args.bend:
