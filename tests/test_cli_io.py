@@ -16,6 +16,7 @@ from continuum_mhe.io.csv_files import (
     ESTIMATE_COLUMNS,
     InputError,
     read_measurements,
+    read_state_table,
     read_states,
     write_measurements,
 )
@@ -157,6 +158,28 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
     assert err.startswith("continuum-mhe: error: ") and str(meas) in err
     assert expected in err
     assert list(tmp_path.iterdir()) == [meas]  # no output, no temporary left behind
+
+
+def test_one_angle_out_of_range_is_a_glitch_not_degrees(tmp_path, capsys):
+    """One pitch of 45 among radians said "the angles look like degrees: pass --degrees",
+    and --degrees then read the whole file 57 times too small (82 mm off, every row ok),
+    while --skip-bad refused it too. The line says how many rows are out of range and
+    that --skip-bad reads them as dropouts; with it that row is a dropout, counted."""
+    rows = [f"{0.05 * i:g},{0.1 + 0.001 * i:g},{0.2:g}" for i in range(60)]
+    rows[30] = "1.5,0.13,45"
+    meas = _write(tmp_path / "meas.csv", "t,roll,pitch\n" + "\n".join(rows) + "\n")
+    est = tmp_path / "est.csv"
+    assert main(["estimate", str(meas), "-o", str(est)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "line 32: roll=0.13, pitch=45 rad is out of range" in err
+    assert "--degrees" not in err and "1 of 60 rows read here are" in err
+    assert "--skip-bad reads them as dropouts" in err and not est.exists()
+    assert main(["estimate", str(meas), "-o", str(est), "--skip-bad"]) == 0
+    said = capsys.readouterr()
+    said_all = said.out + said.err
+    assert "dropout: 1" in said_all and "line 32: roll=0.13, pitch=45 rad out of range" in said_all
+    table = read_state_table(est)
+    assert list(table.status).count("dropout") == 1 and table.status[30] == "dropout"
 
 
 def test_missing_file(tmp_path, capsys):

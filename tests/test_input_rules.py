@@ -264,7 +264,8 @@ def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> Non
     [
         ("--horizon", "3.5", "--horizon '3.5': expected a whole number"),
         ("--noise-deg", "two", "--noise-deg 'two': expected a number"),
-        ("--method", "kf", "argument --method: invalid choice: 'kf' (choose from"),
+        ("--method", "ekff", "--method 'ekff': expected one of mhe, ekf, ukf; did you mean ekf?"),
+        ("--imu-model", "gyro", "--imu-model 'gyro': expected one of tilt, direct ("),
     ],
 )
 def test_an_option_of_the_wrong_type_is_one_line_naming_it(
@@ -278,6 +279,18 @@ def test_an_option_of_the_wrong_type_is_one_line_naming_it(
     assert exit_.value.code == 2 and err.count("\n") == 1, err
     assert err.startswith(f"continuum-mhe estimate: error: {expected}"), err
     assert err.endswith("(continuum-mhe estimate --help lists the options)\n")
+
+
+def test_a_misspelt_command_is_one_line_with_the_closest(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """'estimat' listed argparse's choices without the one meant."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["estimat", "x.csv"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.count("\n") == 1, err
+    assert err.startswith("continuum-mhe: error: 'estimat' is not a command: expected one of ")
+    assert "; did you mean estimate? (continuum-mhe --help lists the options)" in err
 
 
 @pytest.mark.parametrize("method", ["ekf", "mhe"])

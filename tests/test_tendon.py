@@ -539,7 +539,7 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
     [
         ([[0.0, 1.0], [0.1, -0.5]], ["t", "tension_1"], "tension_1 = -0.5 N is negative"),
         ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
-         "expected the columns t,tension_1"),
+         "line 1: expected the columns t,tension_1"),
         ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
     ],
 )  # fmt: skip
@@ -579,6 +579,21 @@ def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
     # central differences (one-sided at the ends): rates 2, 3, 4 N/s; their rate 1 N/s^2
     np.testing.assert_allclose(rate, [2.25, 0.0])
     np.testing.assert_allclose(acceleration, [1.0, 0.0])
+
+
+def test_tensions_stamped_in_milliseconds_are_said_and_read_as_t_ms(tmp_path: Path) -> None:
+    """A tensions file whose t is in milliseconds (0 to 80 in steps of 20 for a 50 Hz
+    log) was read in seconds without a word: an 8 s recording then took the first rows'
+    tensions, its rows 86 mm off and ok. It is said, with the fix; as t_ms it reads."""
+    from continuum_mhe.io.csv_files import UnitWarning
+
+    rows = [[20.0 * i, 1.0 + i, 0.0] for i in range(5)]
+    path = tmp_path / "ms.csv"
+    write_table(path, ["t", "tension_1", "tension_2"], rows)
+    with pytest.warns(UnitWarning, match="median of 20 s per sample; if t is in milliseconds"):
+        read_tensions(path, 2)
+    write_table(path, ["t_ms", "tension_1", "tension_2"], rows)
+    np.testing.assert_allclose(read_tensions(path, 2).at(0.03)[0], [2.5, 0.0])
 
 
 def test_one_imu_does_not_determine_the_tip_force() -> None:

@@ -68,6 +68,9 @@ def robot_from_args(args: argparse.Namespace) -> Robot:
 
 
 _INVALID_VALUE = re.compile(r"argument (\S+?)(?:/\S+)?: invalid (int|float) value: (.*)")
+_INVALID_CHOICE = re.compile(
+    r"argument (\S+?)(?:/\S+)?: invalid choice: '(.*)' \(choose from (.*)\)"
+)
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -81,6 +84,19 @@ class OneLineParser(argparse.ArgumentParser):
             message = f"{m.group(1)} {m.group(3)}: expected {what}"
         elif message.startswith("unrecognized arguments: "):
             message += self._did_you_mean(message.split(": ", 1)[1].split())
+        elif (c := _INVALID_CHOICE.fullmatch(message)) is not None:
+            import difflib
+
+            choices = [x.strip(" '") for x in c.group(3).split(",")]
+            close = difflib.get_close_matches(c.group(2), choices, n=1, cutoff=0.6)
+            what = (
+                f"{c.group(2)!r} is not a command"
+                if c.group(1) == "COMMAND"
+                else (f"{c.group(1)} {c.group(2)!r}")
+            )
+            message = f"{what}: expected one of {', '.join(choices)}"
+            if close:
+                message += f"; did you mean {close[0]}?"
         self.exit(2, f"{self.prog}: error: {message} ({self.prog} --help lists the options)\n")
 
     def _did_you_mean(self, given: list[str]) -> str:

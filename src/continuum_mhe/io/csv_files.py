@@ -171,8 +171,8 @@ def read_measurements(
     """Read a measurement CSV (``t,roll,pitch``, or ``t,roll_1,pitch_1,...`` for
     ``n_imus`` IMUs), validating every row.
 
-    With ``skip_bad``, rows whose angles are missing, non-numeric or NaN become
-    dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
+    With ``skip_bad``, rows whose angles are missing, non-numeric, NaN or out of range
+    become dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
     With several IMUs an empty field is a dropout of that IMU only (an IMU without any
     valid reading gives a :class:`DropoutWarning`). A file with columns
@@ -183,7 +183,9 @@ def read_measurements(
         columns = tilt_sample_columns(rows, n_imus, fix=READER_FIX)
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
     check_time_units(rows, got.t)
-    z = tilt_values(rows.name, got.values, got.lines, degrees, n_imus)
+    z = tilt_values(
+        rows.name, got.values, got.lines, degrees, n_imus, got.skipped if skip_bad else None
+    )
     readings = ReadingCounts(tuple(b.slice for b in tilt_blocks(n_imus)))
     readings.add(z)
     readings.warn_silent(rows.name)
@@ -205,12 +207,19 @@ def tilt_sample_columns(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tu
 
 
 def tilt_values(
-    name: str, values: FloatArray, lines: Sequence[int], degrees: bool, n_imus: int
+    name: str,
+    values: FloatArray,
+    lines: Sequence[int],
+    degrees: bool,
+    n_imus: int,
+    skipped: list[str] | None = None,
 ) -> FloatArray:
-    """Measurements (n, 2 n_imus) in rad from the file's values, range-checked."""
-    z = np.radians(values) if degrees else values
+    """Measurements (n, 2 n_imus) in rad from the file's values, range-checked: an angle
+    out of range is a one-line error, or with ``skipped`` (``skip_bad``) a dropout of its
+    IMU described there."""
+    z = np.radians(values) if degrees else np.array(values, dtype=float)
     for i in range(n_imus):
-        _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees)
+        _check_angle_units(name, z[:, 2 * i : 2 * i + 2], lines, degrees, skipped)
     return z
 
 
@@ -345,20 +354,50 @@ def imu_count_error(
     )
 
 
-def _check_angle_units(path: str, z: FloatArray, lines: Sequence[int], degrees: bool) -> None:
+#: The share of a block's rows whose angles are beyond the radian range above which the
+#: file is taken to be in degrees (fewer such rows are glitches).
+DEGREES_LIKE_SHARE = 0.1
+
+
+def _check_angle_units(
+    path: str,
+    z: FloatArray,
+    lines: Sequence[int],
+    degrees: bool,
+    skipped: list[str] | None = None,
+) -> None:
+    """Refuse angles (n, 2) beyond their range in one line naming the first; with
+    ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
+    its description is appended there instead."""
     with np.errstate(invalid="ignore"):
         over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
     if not over.any():
+        return
+    unit = "deg" if degrees else "rad"
+    if skipped is not None:
+        for row in np.flatnonzero(over).tolist():
+            shown = np.degrees(z[row]) if degrees else z[row]
+            skipped.append(
+                f"line {lines[row]}: roll={shown[0]:.4g}, pitch={shown[1]:.4g} {unit} out of range"
+            )
+            z[row] = np.nan
         return
     i = int(np.argmax(over))
     roll, pitch = z[i]
     where = f"{path}: line {lines[i]}: roll={roll:.4g}, pitch={pitch:.4g}"
     if degrees or max(abs(roll), abs(pitch)) > 360:
+        shown = np.degrees(z[i]) if degrees else z[i]
+        where = f"{path}: line {lines[i]}: roll={shown[0]:.4g}, pitch={shown[1]:.4g}"
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
-    raise InputError(
-        f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); "
-        "the angles look like degrees: pass --degrees"
-    )
+    valid = int(np.isfinite(z).all(axis=1).sum())
+    if over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
+        hint = "the angles look like degrees: pass --degrees"
+    else:
+        hint = (
+            f"{int(over.sum())} of {valid} rows read here are; if they are glitches, "
+            "--skip-bad reads them as dropouts"
+        )
+    raise InputError(f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); {hint}")
 
 
 @dataclass(frozen=True)

@@ -436,7 +436,13 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         options, f = resolve(name, kind, False, options, base)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
-            return tilt_values(name, values, lines, options.degrees, n_imus)
+            if not options.skip_bad:
+                return tilt_values(name, values, lines, options.degrees, n_imus)
+            out_of_range: list[str] = []
+            z = tilt_values(name, values, lines, options.degrees, n_imus, out_of_range)
+            for what in out_of_range:
+                problems.add(what)
+            return z
 
     found = sample_blocks(
         rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1,

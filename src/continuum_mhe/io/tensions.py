@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray
+from continuum_mhe.io.csv_files import FloatArray, check_time_units
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.text_rows import InputError, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
@@ -109,13 +109,14 @@ def read_tensions(
             found = [c for c in found if c.startswith("tension_")]
         if "t" not in rows.header or found != names:
             raise InputError(
-                f"{name}: expected the columns t,{','.join(names)} (one per [[tendon]] of "
+                f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
                 f"the robot file, in its order), got {','.join(rows.header)}"
             )
         data = list(iter_samples(rows, ["t", *names]))
-    if not data:
-        raise InputError(f"{name}: no tension rows")
-    t = np.array([d[1] for d in data], dtype=float)
+        if not data:
+            raise InputError(f"{name}: no tension rows")
+        t = np.array([d[1] for d in data], dtype=float)
+        check_time_units(rows, t)
     values = np.array([d[2] for d in data], dtype=float).reshape(len(t), n_tendons)
     neg = np.argwhere(values < 0)
     if len(neg):
