@@ -355,3 +355,24 @@ def test_the_estimate_file_records_the_method_that_made_it(tmp_path: Path) -> No
     assert main(["estimate", str(meas), "-o", str(est)]) == 0
     record = next(ln for ln in est.read_text().splitlines() if ln.startswith("# options"))
     assert 'method = "mhe"' in record
+
+
+def test_a_metres_wide_band_does_not_flatten_the_position_panels(tmp_path: Path) -> None:
+    """An estimate's rows far from sure (std_x of 1.76 m on a 0.3 m robot) autoscaled the
+    x panel to +-4000 mm, the lines flat; the panels now frame the lines (estimate and
+    truth) with room, and such a band fills the panel."""
+    from continuum_mhe.evaluation.estimate_figure import estimate_figure
+
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(tmp_path / "m.csv"),
+                 "--truth", str(tmp_path / "t.csv")]) == 0  # fmt: skip
+    assert main(["estimate", str(tmp_path / "m.csv"), "--method", "ekf",
+                 "-o", str(tmp_path / "e.csv")]) == 0  # fmt: skip
+    est, truth = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "t.csv")
+    assert est.std is not None
+    est.std[10:20, est.names.index("x")] = 1.76
+    fig = estimate_figure(est, truth)
+    x_mm = np.concatenate([est.column("x"), truth.column("x")]) * 1e3
+    lo, hi = fig.axes[0].get_ylim()
+    span = x_mm.max() - x_mm.min()
+    assert lo <= x_mm.min() and hi >= x_mm.max()
+    assert hi - lo <= 2.0 * span + 20.0 + 1e-9  # the lines with half their span each side

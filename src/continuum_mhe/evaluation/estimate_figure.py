@@ -129,6 +129,25 @@ def _stds(table: StateTable, point: TrackedPoint) -> FloatArray | None:
     return np.stack([table.std[:, table.names.index(c)] for c in point.columns], axis=1)
 
 
+#: Room around a position panel's lines, as a share of their span (at least
+#: :data:`BAND_ROOM_MM`): a 95 % band wider than that is cut at the panel's edge.
+BAND_ROOM = 0.5
+BAND_ROOM_MM = 10.0
+
+
+def _limit_to_lines(ax: plt.Axes, lines: Sequence[np.ndarray]) -> None:
+    """The panel's y limits around its ``lines`` (mm) with :data:`BAND_ROOM`, so that a
+    band of an estimate that is far from sure (metres wide) does not squeeze the lines
+    flat: the band then fills the panel."""
+    finite = [v[np.isfinite(v)] for v in lines]
+    values = np.concatenate(finite) if finite else np.empty(0)
+    if not len(values):
+        return
+    lo, hi = float(values.min()), float(values.max())
+    room = max(BAND_ROOM * (hi - lo), BAND_ROOM_MM)
+    ax.set_ylim(lo - room, hi + room)
+
+
 def estimate_figure(
     est: StateTable,
     truth: StateTable | None = None,
@@ -168,9 +187,11 @@ def estimate_figure(
     axes = [first] + [fig.add_subplot(grid[r, 0], sharex=first) for r in range(1, rows)]
     for j, axis in enumerate("xyz"):
         ax = axes[j]
+        drawn: list[np.ndarray] = []  # the panel's lines, which its limits show whole
         for i, p in enumerate(points):
             color = f"C{i}"
             v = _positions(est, p)[:, j] * 1e3
+            drawn.append(v)
             ax.plot(est.t, v, color=color, lw=1.3, label=p.label)
             sd = _stds(est, p)
             if sd is not None:
@@ -178,8 +199,10 @@ def estimate_figure(
                 ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0,
                                 label="95 % band" if i == 0 else None)  # fmt: skip
             if truth is not None:
-                ax.plot(truth.t, _positions(truth, p)[:, j] * 1e3, color=color, ls="--",
+                drawn.append(_positions(truth, p)[:, j] * 1e3)
+                ax.plot(truth.t, drawn[-1], color=color, ls="--",
                         lw=1.0, label="truth" if i == 0 else None)  # fmt: skip
+        _limit_to_lines(ax, drawn)
         ax.set_ylabel(f"{axis} (mm)")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize="small", ncol=min(4, len(points) + 2))
