@@ -551,3 +551,24 @@ def test_evaluate_warns_when_the_length_does_not_fit_the_files(
     assert main(["evaluate", str(est), str(tip_only), "--length", "0.1"]) == 0
     said = [ln for ln in capsys.readouterr().err.splitlines() if str(tip_only) in ln]
     assert len(said) == 1 and "m from the base, beyond the robot's length 0.1 m" in said[0]
+
+
+def test_simulate_says_that_a_robot_files_mount_rpy_is_not_applied(tmp_path, capsys):
+    """simulate --robot wrote the disks' roll and pitch without a word about the IMUs'
+    mount_rpy of the robot file (estimate says the same of tilt input)."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(
+        "[[section]]\nlength = 0.16\ntheta_max = 3.0\n[[section]]\nlength = 0.14\n"
+        "theta_max = 3.0\n[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+        "mount_rpy = [0.0, 8.0, -20.0]\n"
+    )
+    argv = ["simulate", "spatial", "--robot", str(robot), "--duration", "1"]
+    assert main([*argv, "-o", str(tmp_path / "m.csv")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[1] == (
+        "continuum-mhe: note: the robot file's mount_rpy of IMU 2 is not applied: the roll "
+        "and pitch written are those of each IMU's disk, as estimate takes tilt input"
+    )
+    assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
+                 "-o", str(tmp_path / "m2.csv")]) == 0  # fmt: skip
+    assert "mount_rpy" not in capsys.readouterr().err

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import (
     InputError,
     check_output_target,
@@ -52,6 +53,14 @@ def run(args: argparse.Namespace) -> int:
             Path(args.output).unlink(missing_ok=True)
             raise
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
+    mounted = [str(i + 1) for i, place in enumerate(robot.imus) if any(place.mount_rpy)]
+    if mounted:  # as estimate takes tilt input
+        print(
+            f"{PROG}: note: the robot file's mount_rpy of IMU {', '.join(mounted)} is not "
+            "applied: the roll and pitch written are those of each IMU's disk, as estimate "
+            "takes tilt input",
+            file=sys.stderr,
+        )
     return 0
 
 
