@@ -822,3 +822,72 @@ def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
     assert TendonFormulation(robot=robot, initial_force_std=0.5).initial_cov()[3, 3] == 0.25
     with pytest.raises(UserError, match="initial_force_std"):
         TendonFormulation(robot=robot, initial_force_std=0.0)
+
+
+# --- the standard deviations -----------------------------------------------------------
+def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray, np.ndarray]:
+    """The command line's formulation of the shipped robot with raw IMUs, the first
+    ``n`` samples of ``unloaded``: ``(formulation, t, z, truth)``; the truth's columns
+    those of the formulation's outputs."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
+    from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.settings import NoiseSettings
+
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    robot = read_robot("tendon-two-section")
+    base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
+    f = tendon_formulation_for(base, InputOptions())
+    raw = np.loadtxt(data / "unloaded_raw.csv", delimiter=",", skiprows=1)[:n]
+    t = raw[:, 0]
+    settings = RawImuSettings(imu_model="direct")
+    z_imu = np.hstack(
+        [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
+                             settings) for k in range(robot.n_imus)]
+    )  # fmt: skip
+    tensions = read_tensions(data / "unloaded_tensions.csv", robot.n_tendons)
+    z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
+    with (data / "unloaded_truth.csv").open() as fh:
+        names = fh.readline().strip().split(",")
+    truth = np.loadtxt(data / "unloaded_truth.csv", delimiter=",", skiprows=1)[:n]
+    truth = truth[:, [names.index(o.name) for o in f.outputs]]
+    return f, t, z, truth
+
+
+def test_the_imu_errors_that_are_states_are_not_carried_again_as_reading_errors() -> None:
+    """The IMUs' misalignment and accelerometer bias are states by default, so the
+    readings carry no constant error outside the state; a formulation without one of
+    those states carries the base class's (``noise.reading_bias_std`` on the gravity
+    directions)."""
+    f = TendonFormulation(robot=read_robot("tendon-two-section"), imu_model="direct")
+    assert not np.any(f.reading_bias_cov())
+    for change in ({"estimate_misalignment": False}, {"estimate_accel_bias": False}):
+        g = replace(f, **change)
+        expected = g.gravity_direction_rows() * g.noise.reading_bias_std**2
+        assert np.array_equal(np.diag(g.reading_bias_cov()), expected) and expected.any()
+
+
+def test_the_tip_force_and_tip_std_are_the_filters_own() -> None:
+    """The command line's EKF (its sensor-health policy and consistency check) on the
+    first 60 samples of the shipped ``unloaded``, raw IMUs: every reported standard
+    deviation of the tip and the tip force is the estimate's covariance mapped through
+    the model, ``sqrt(diag(J P J^T))``, to 1e-9 of itself: the readings' constant
+    error (1.2 degrees each) is not added on top of the misalignment and bias states,
+    which would count it twice."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.results import Measurement
+
+    f, t, z, _ = _raw_unloaded(60)
+    est = make_estimator("ekf", f)
+    cols = [o.name for o in f.outputs]
+    rows = [cols.index(c) for c in ("x", "y", "z", "fx", "fy", "fz")]
+    checked = 0
+    for ti, zi in zip(t, z):
+        e = est.step(Measurement(float(ti), zi))
+        if e.state is None or e.covariance is None or e.output_std is None:
+            continue
+        own = f.output_std(e.state, e.covariance)[rows]
+        np.testing.assert_allclose(np.asarray(e.output_std)[rows], own, rtol=1e-9)
+        checked += 1
+    assert checked == len(t)

@@ -891,6 +891,16 @@ class TendonFormulation(Formulation):
 
         return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
 
+    def reading_bias_cov(self) -> FloatArray:
+        """The readings' constant errors carried outside the state: none where each
+        IMU's misalignment and accelerometer bias are states (the default), whose
+        covariance the estimate's holds already; carrying ``noise.reading_bias_std``
+        on top would count the same errors twice (docs/tendon-studies.md, "The
+        standard deviations"). Without both states, the base class's."""
+        if self.estimate_misalignment and self.estimate_accel_bias:
+            return np.zeros((self.nz, self.nz))
+        return super().reading_bias_cov()
+
     def model_error_floor(self) -> float:
         """0: the model is the robot's mechanics, not a constant-curvature one, and no
         model error before the readings show one has been measured for it."""
