@@ -141,7 +141,7 @@ def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
     from continuum_mhe.analysis.observability import _tendon_gravity_jacobian
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.model.pcc import up_vector
-    from continuum_mhe.model.tendon import Station, TendonStatics
+    from continuum_mhe.model.tendon_statics import Station, TendonStatics
 
     shipped = read_robot("tendon-two-section")
     report = observability_report(shipped, samples=40)

@@ -16,12 +16,8 @@ from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
-from continuum_mhe.model.tendon import (
-    STEPS_PER_SECTION,
-    Station,
-    TendonFormulation,
-    TendonStatics,
-)
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon_statics import STEPS_PER_SECTION, Station, TendonStatics
 
 BACKBONE = Backbone(54e9, 20.77e9, 0.0007)
 EI = BACKBONE.bending_stiffness

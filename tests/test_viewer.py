@@ -503,7 +503,8 @@ def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str
     an equilibrium state the two agree; a replay without the tensions draws the tips
     alone and says so."""
     from continuum_mhe.io.tensions import read_tensions
-    from continuum_mhe.model.tendon import TendonStatics, tendon_outputs
+    from continuum_mhe.model.tendon import tendon_outputs
+    from continuum_mhe.model.tendon_statics import TendonStatics
     from continuum_mhe.viewer import TendonShapes
 
     robot = read_robot("tendon-two-section")

@@ -26,7 +26,8 @@ from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions
-from continuum_mhe.model.tendon import TendonFormulation, TendonStatics
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon_statics import TendonStatics
 
 DATA = files("continuum_mhe") / "data" / "tendon"
 

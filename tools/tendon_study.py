@@ -35,7 +35,8 @@ from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.settings import NoiseSettings
-from continuum_mhe.model.tendon import Station, TendonFormulation
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon_statics import Station
 from continuum_mhe.settings import MHESettings
 
 

@@ -38,7 +38,8 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import Station, TendonFormulation, TendonStatics
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon_statics import Station, TendonStatics
 
 #: Relative singular-value threshold for "rank-deficient".
 RANK_TOL = 1e-6

@@ -19,7 +19,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import TendonStatics
+from continuum_mhe.model.tendon_statics import TendonStatics
 from continuum_mhe.results import Status
 
 #: backbones drawn in the 3D view

@@ -308,7 +308,7 @@ def write_tendon_recording(
 
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
-    from continuum_mhe.model.tendon import swing_twist_sym
+    from continuum_mhe.model.tendon_statics import swing_twist_sym
 
     traj = trajectory or quasi_static_trajectory(
         robot, scenario, duration, settings, segments_per_disk=segments_per_disk

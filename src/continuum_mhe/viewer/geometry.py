@@ -15,7 +15,8 @@ from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import TendonFormulation, TendonStatics
+from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon_statics import TendonStatics
 
 
 @dataclass(frozen=True)
