@@ -220,11 +220,17 @@ def test_a_byte_order_mark_is_read_in_robot_files_as_in_csvs(tmp_path: Path) -> 
 
 @pytest.mark.parametrize(
     ("entry", "message"),
-    [
-        ("length = 1e-300", "section 1: section length 1e-300 m is under 1 mm, too short"),
-        ("length = 0.0005", "section 1: section length 0.0005 m is under 1 mm"),
-        ("mount_rpy = [1e300, 0, 0]", "imu 1: mount_rpy must be angles in degrees within +-360"),
-        ("mount_rpy = [0, -361, 0]", "imu 1: mount_rpy must be angles in degrees within +-360"),
+    [  # the line: the key's where the message names one, else its table's header
+        ("length = 1e-300", "line 1: section 1: section length 1e-300 m is under 1 mm, too short"),
+        ("length = 0.0005", "line 1: section 1: section length 0.0005 m is under 1 mm"),
+        (
+            "mount_rpy = [1e300, 0, 0]",
+            "line 5: imu 1: mount_rpy must be angles in degrees within +-360",
+        ),
+        (
+            "mount_rpy = [0, -361, 0]",
+            "line 5: imu 1: mount_rpy must be angles in degrees within +-360",
+        ),
     ],
 )
 def test_absurd_robot_values_are_refused_naming_the_file(
@@ -415,7 +421,9 @@ def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
     path.write_text(ROBOT.replace("0.2", "[" + ", ".join(["1"] * 5000) + "]"))
     with pytest.raises(InputError) as info:
         read_robot(path)
-    assert str(info.value).startswith(f"{path}: section 1: length: expected a finite number")
+    assert str(info.value).startswith(
+        f"{path}: line 2: section 1: length: expected a finite number"
+    )
     assert len(str(info.value)) < 200 + len(str(path))
 
 
@@ -436,3 +444,26 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
     )
     assert proc.returncode == 0, (proc.returncode, proc.stderr)
     assert (tmp_path / "s.csv").exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('# mine\nmounting = "up"\n' + ROBOT, 'line 2: mounting: must be one of z-up, z-down'),
+        (ROBOT + "[[section]]\n# the tip\ntheta_max = 3.0\n",
+         "line 5: section 2: missing key 'length'"),
+        (ROBOT.replace("length = 0.2", "length = 0.2\nlenght = 0.1"),
+         "line 3: section 1: unknown key 'lenght'"),
+        (ROBOT + "[[imu]]\nsection = 1\nmount_rpy = [1, 2]\n", "line 7: imu 2: mount_rpy must be"),
+        (ROBOT + "[backbone]\nradius = 0.0007\n", "line 5: backbone: missing key"),
+    ],
+)  # fmt: skip
+def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message: str) -> None:
+    """A robot file's problem named the table and key but not the line, where every
+    other input's names it: the key's line where the message names a key, else its
+    table's header."""
+    path = tmp_path / "r.toml"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        read_robot(path)
+    assert str(info.value).startswith(f"{path}: {message}"), str(info.value)

@@ -140,7 +140,7 @@ def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
     robot.write_text(f"[[section]]\nlength = 0.16\ntheta_max = {value}\n[[imu]]\nsection = 1\n")
     assert main(["check-robot", str(robot), "--samples", "10"]) == 2
     err = capsys.readouterr().err
-    line = f"section 1: theta_max must lie in (0, pi) rad, got {float(value)!r}"
+    line = f"line 3: section 1: theta_max must lie in (0, pi) rad, got {float(value)!r}"
     assert err.startswith(f"continuum-mhe: error: {robot}: {line}") and err.count("\n") == 1
     assert hint in err and ("degrees" in err) == ("degrees" in hint)
     meas = tmp_path / "m.csv"

@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import warnings
 from collections.abc import Sequence
@@ -342,7 +343,50 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
         raise InputError(f"{p}: not a robot file (nested too deeply for TOML's parser)") from None
     except OSError as exc:
         raise InputError(f"{p}: cannot read ({exc.strerror})") from None
-    return parse_robot(doc, p)
+    try:
+        return parse_robot(doc, p)
+    except InputError as exc:
+        raise InputError(_with_line(str(exc), f"{p}: ", text)) from None
+
+
+#: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``: the
+#: table a robot-file message names, then the word after it (a key, where it is one).
+_WHERE = re.compile(r"(?:(section|imu|tendon) (\d+)|(backbone)|(?=mounting))(?::\s*)?(\w*)")
+_UNKNOWN_KEY = re.compile(r"unknown key '(\w+)'")
+_TABLE_HEADER = re.compile(r"\s*\[")
+
+
+def _with_line(message: str, prefix: str, text: str) -> str:
+    """``message`` (``prefix`` + the problem) with the robot file's line of the table or
+    key it names (``PATH: line N: section 2: ...``); unchanged where none is found."""
+    if not message.startswith(prefix):
+        return message
+    problem = message[len(prefix) :]
+    m = _WHERE.match(problem)
+    if m is None:
+        return message
+    lines = text.splitlines()
+    table = m.group(1) or m.group(3)
+    if table is None:  # a top-level key: before the first table
+        start = 0
+        stop = next((i for i, ln in enumerate(lines) if _TABLE_HEADER.match(ln)), len(lines))
+    else:
+        k = int(m.group(2)) if m.group(2) else 1
+        pattern = re.compile(rf"\s*\[\[?\s*{table}\s*\]\]?\s*(#.*)?$")
+        found = [i for i, ln in enumerate(lines) if pattern.match(ln)]
+        if len(found) < k:
+            return message
+        start = found[k - 1]
+        stop = next(
+            (i for i in range(start + 1, len(lines)) if _TABLE_HEADER.match(lines[i])), len(lines)
+        )
+    unknown = _UNKNOWN_KEY.search(problem)
+    key = unknown.group(1) if unknown else m.group(4)
+    line = start
+    if key:
+        assign = re.compile(rf"\s*{re.escape(key)}\s*=")
+        line = next((i for i in range(start, stop) if assign.match(lines[i])), start)
+    return f"{prefix}line {line + 1}: {problem}"
 
 
 def robot_toml(robot: Robot) -> str:
