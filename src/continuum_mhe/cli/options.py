@@ -625,7 +625,9 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         "--own-acceleration",
         action="store_true",
         help="for --imu-model direct: model each IMU's own acceleration (the bend "
-        "accelerations become states; docs/model.md)",
+        "accelerations become states; docs/model.md). On the shipped rod recordings it "
+        "helps the MHE and can cost the EKF and UKF (restarts, largest errors over 200 mm: "
+        "docs/estimators.md)",
     )
 
 
