@@ -42,7 +42,7 @@ def _recording(robot_name: str, duration: float, seed: int = 1) -> tuple[np.ndar
     from continuum_mhe.model.descriptions import section_bends
 
     robot = read_robot(robot_name) if robot_name != "one" else None
-    f = make_formulation("direct", robot)
+    f = make_formulation("direct", robot, estimate_gyro_bias=False)  # the readings' model
     scenario = "spatial" if robot else "paper3d"
     rec = simulate_robot(scenario, f.robot, duration=duration, dt=0.05, seed=seed)  # type: ignore[arg-type]
     bends = np.array([section_bends(rec.outputs, row).ravel() for row in rec.truth])

@@ -175,6 +175,12 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     assert tip.shape == (len(truth), 4)
     np.testing.assert_array_equal(tip[:, 0], csv_example["table"].t)
     assert np.mean(np.linalg.norm(tip[:, 1:] - truth[:, :3], axis=1)) < 0.01
+    # the raw recording's model: the direct one with the gyro biases, as make_formulation
+    (raw,) = [ns for ns in spaces if "data" in ns]
+    from continuum_mhe import make_formulation
+
+    assert raw["data"].formulation == make_formulation("direct", raw["robot"])
+    assert raw["data"].formulation.estimate_gyro_bias and len(raw["series"].t) == 601
     header = (tmp_path / "estimates.csv").read_text().splitlines()[0]
     documented = re.search(r"# estimates\.csv: (\S+)", LIBRARY_GUIDE.read_text())
     assert documented and documented.group(1) == header  # the guide's comment is the header

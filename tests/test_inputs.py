@@ -91,3 +91,20 @@ def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
     direct = InputOptions(raw=RawImuSettings(imu_model="direct"))
     with pytest.raises(InputError, match="--imu-model direct needs --format raw"):
         serial_input("/dev/x", "tilt", direct, base)
+
+
+def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
+    """From a library user's trial: a tendon robot without tensions was named "None"; a
+    tendon formulation handed to load_input failed inside numpy (cannot reshape array of
+    size 1604 into shape (25)); write_measurements dropped the rows of z beyond t."""
+    from continuum_mhe.io.csv_files import write_measurements
+
+    robot = read_robot(DATA / "robots/tendon_two_section.toml")
+    with pytest.raises(InputError, match="^the robot file: the robot has 6 tendons: .*Python"):
+        open_input(tmp_path / "none.csv", InputOptions(), make_formulation("bend", robot))
+    raw = DATA / "tendon/unloaded_raw.csv"
+    with pytest.raises(InputError, match="not 'tendon': the model it calls for"):
+        load_input(raw, InputOptions(), make_formulation("tendon", robot))
+    with pytest.raises(ValueError, match="t has 40 samples and z 41 rows"):
+        write_measurements(tmp_path / "m.csv", np.arange(40.0), np.zeros((41, 2)))
+    assert not (tmp_path / "m.csv").exists()

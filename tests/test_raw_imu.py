@@ -62,7 +62,7 @@ def test_angular_velocity_matches_finite_differences(x: list[float]) -> None:
 
 
 def test_direct_formulation_model() -> None:
-    f = make_formulation("direct")
+    f = make_formulation("direct", estimate_gyro_bias=False)
     assert isinstance(f, DirectFormulation) and f.nz == 6
     x = np.array([0.4, -0.3, 0.2, 0.1])
     z = np.asarray(f.functions.observe(x)).ravel()
@@ -87,7 +87,7 @@ def test_direct_formulation_model() -> None:
 
 def test_mhe_uses_direct_model_generically() -> None:
     """The IPOPT MHE builds its NLP from nz and measurement_residual_sym unchanged."""
-    f = make_formulation("direct")
+    f = make_formulation("direct", estimate_gyro_bias=False)
     t = np.arange(40) * 0.05
     X = np.column_stack([0.5 * np.sin(t), 0.3 * np.cos(t), 0.5 * np.cos(t), -0.3 * np.sin(t)])
     Z = np.array([np.asarray(f.functions.observe(x)).ravel() for x in X])

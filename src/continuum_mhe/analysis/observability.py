@@ -157,7 +157,7 @@ def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
 
 def _jacobian_functions(robot: Robot) -> tuple[ca.Function, ca.Function, ca.Function]:
     bend = make_formulation("bend", robot)
-    direct = make_formulation("direct", robot)
+    direct = make_formulation("direct", robot, estimate_gyro_bias=False)
     n2 = 2 * robot.n_sections
     x = ca.SX.sym("x", bend.nx)
     x_next = bend.transition_sym(x, ca.SX(0, 1), ca.SX(DT))

@@ -298,7 +298,7 @@ def raw_imu_recording(
     from continuum_mhe.model.descriptions import section_bends
 
     rec = simulate_robot("spatial", robot, duration=duration, dt=dt, seed=seed)
-    f = make_formulation("direct", robot)
+    f = make_formulation("direct", robot, estimate_gyro_bias=False)  # the readings' model
     bends = np.array([section_bends(rec.outputs, row).ravel() for row in rec.truth])
     x = np.concatenate([bends, np.gradient(bends, rec.t, axis=0)], axis=1)
     z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T

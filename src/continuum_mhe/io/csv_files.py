@@ -860,5 +860,7 @@ def write_measurements(
     that sensor) is written as an empty field."""
     if z.shape[1] != len(names):
         raise ValueError(f"z has {z.shape[1]} columns, expected {len(names)}")
+    if len(t) != len(z):
+        raise ValueError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
     rows = [[float(a), *(float(v) if np.isfinite(v) else "" for v in b)] for a, b in zip(t, z)]
     write_table(path, ("t", *names), rows)

@@ -332,6 +332,12 @@ def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], Floa
 def _open_measurements(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> MeasurementStream:
+    if formulation.name not in ("bend", "paper", "direct"):
+        raise InputError(
+            f"{path}: the input is read for the robot's kinematic formulation "
+            f"(make_formulation('bend', robot)), not {formulation.name!r}: the model it "
+            "calls for (direct for raw IMUs, tendon with the tensions) is made from it"
+        )
     if str(path) != "-" and is_robot_log(Path(path)):
         return _log_stream(Path(path), options, formulation)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
@@ -373,9 +379,9 @@ def _tensions(
     ):
         return read_tensions(recording, k, other_columns=True)
     raise InputError(
-        f"{robot_name}: the robot has {k} tendons: give their tensions with --inputs "
-        f"TENSIONS.csv (t,tension_1,...), or as the recording's columns "
-        f"tension_1..tension_{k}"
+        f"{robot_name or 'the robot file'}: the robot has {k} tendons: give their tensions "
+        f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
+        f"or as the recording's columns tension_1..tension_{k}"
     )
 
 

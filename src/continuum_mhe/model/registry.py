@@ -31,11 +31,16 @@ def make_formulation(
     noise: NoiseSettings | None = None,
     **options: Any,
 ) -> Formulation:
-    """Formulation by name: ``"bend"`` (default), ``"paper"`` or ``"direct"`` (raw IMU).
+    """Formulation by name: ``"bend"`` (default), ``"paper"``, ``"direct"`` (raw IMU) or
+    ``"tendon"`` (a robot file with a backbone and tendons).
 
-    ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``).
+    ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``). ``"direct"``
+    estimates each IMU's gyro bias unless ``estimate_gyro_bias=False`` is given, as the
+    command line and :func:`~continuum_mhe.io.inputs.load_input` do.
     """
     cls = REGISTRY.get(name)
+    if name == "direct":  # raw IMUs: their gyro biases are states, as the command line has them
+        options.setdefault("estimate_gyro_bias", True)
     if cls is None:
         raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
     robots = (Robot, RobotSettings, type(None))
