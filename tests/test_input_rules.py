@@ -467,3 +467,21 @@ def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message:
     with pytest.raises(InputError) as info:
         read_robot(path)
     assert str(info.value).startswith(f"{path}: {message}"), str(info.value)
+
+
+def test_library_mistakes_are_one_line_user_errors() -> None:
+    """A library user's trial: an unknown formulation option was Python's TypeError, a
+    robot name for simulate_robot an AttributeError nine frames deep, and freeze=0 (the
+    command line's "never") did not say that None means never."""
+    from continuum_mhe import make_formulation, simulate_robot
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.settings import RecoverySettings
+
+    with pytest.raises(UserError, match="the bend formulation has no option 'gyro_std'"):
+        make_formulation("bend", gyro_std=0.1)
+    with pytest.raises(UserError, match="no option 'gyro_stdd' \\(its options: .*gyro_std"):
+        make_formulation("direct", gyro_stdd=0.1)
+    with pytest.raises(UserError, match="robot must be a Robot \\(read_robot"):
+        simulate_robot("s-curve", "two-section")  # type: ignore[arg-type]
+    with pytest.raises(UserError, match="freeze must be positive, or None for never"):
+        RecoverySettings(freeze=0)

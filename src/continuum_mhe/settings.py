@@ -201,6 +201,10 @@ class RecoverySettings:
     def __post_init__(self) -> None:
         for name in ("gap_reset", "freeze", "bad_start", "reject_reset"):
             value = getattr(self, name)
+            if value is not None and value == 0 and not isinstance(value, bool):
+                raise UserError(
+                    f"{name} must be positive, or None for never (the command line's 0)"
+                )
             if value is not None:
                 check_positive(name, value)
         check_positive("uncertain_fraction", self.uncertain_fraction)

@@ -36,6 +36,7 @@ from typing import Literal
 
 import numpy as np
 
+from continuum_mhe.errors import expect_type
 from continuum_mhe.io.csv_files import (
     FloatArray,
     ReadingCounts,
@@ -332,6 +333,7 @@ def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], Floa
 def _open_measurements(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> MeasurementStream:
+    expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     if formulation.name not in ("bend", "paper", "direct"):
         raise InputError(
             f"{path}: the input is read for the robot's kinematic formulation "

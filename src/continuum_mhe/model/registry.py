@@ -46,4 +46,11 @@ def make_formulation(
     robots = (Robot, RobotSettings, type(None))
     expect_type("robot", robot, robots, "a Robot, RobotSettings or None")
     expect_type("noise", noise, (NoiseSettings, type(None)), "NoiseSettings or None")
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(cls)} - {"robot", "noise", "name"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        takes = f"its options: {', '.join(sorted(known))}" if known else "it takes none"
+        raise UserError(f"the {name} formulation has no option {unknown[0]!r} ({takes})")
     return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]

@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.errors import UserError, real_number
+from continuum_mhe.errors import UserError, expect_type, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import (
     Mounting,
@@ -174,6 +174,7 @@ def simulate_robot(
     """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed)."""
     from continuum_mhe.model.formulations import BendFormulation
 
+    expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if scenario not in MULTI_SECTION_SCENARIOS:
         if robot.n_sections == 1 and robot.is_single:
             return simulate(
