@@ -141,8 +141,8 @@ class Estimate:
     Attributes:
         t: sample time, s.
         state: the formulation's state vector, or None for ``no-estimate``.
-        output: the formulation's outputs (m, rad; see ``Formulation.outputs``), or
-            None for ``no-estimate``.
+        output: the formulation's outputs (m, rad, a tip force in N; see
+            ``Formulation.outputs``), or None for ``no-estimate``.
         covariance: state covariance where the method has one, else None.
         status: see :data:`Status`.
         solve_ms: wall time spent on this sample, ms.
@@ -220,12 +220,13 @@ class EstimateSeries:
     Attributes:
         method: estimator name (``mhe``, ``ekf``, ``ukf``...).
         t: (n,) s.
-        output: (n, ny), the columns described by ``outputs`` (m, rad).
+        output: (n, ny), the columns described by ``outputs`` (m, rad; a tendon
+            robot's tip force in N).
         status: (n,) status strings.
         solve_ms: (n,) ms.
         outputs: what each column of ``output`` is (default: one section's
             ``x, y, z, theta, phi``).
-        output_std: (n, ny) one standard deviation of each output (m, rad), NaN where
+        output_std: (n, ny) one standard deviation of each output (its unit), NaN where
             unknown (default: all NaN).
         outlier: (n,) bool, the samples the robust MHE down-weighted (see
             :attr:`Estimate.outlier`); None when the estimator does not flag outliers.

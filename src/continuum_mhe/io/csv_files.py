@@ -96,8 +96,8 @@ class MeasurementTable:
 
     Attributes:
         t: (n,) s, strictly increasing.
-        z: (n, 2) ``[roll, pitch]`` rad; NaN marks a skipped (bad) sample, kept as a
-            dropout so the output still has its row.
+        z: (n, 2 n_imus) ``[roll, pitch]`` of each IMU, rad; NaN marks a skipped (bad)
+            sample, kept as a dropout so the output still has its row.
         skipped: descriptions of rows dropped or turned into dropouts (``skip_bad``).
     """
 
