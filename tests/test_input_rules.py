@@ -485,3 +485,15 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
         simulate_robot("s-curve", "two-section")  # type: ignore[arg-type]
     with pytest.raises(UserError, match="freeze must be positive, or None for never"):
         RecoverySettings(freeze=0)
+
+
+def test_run_says_when_t_looks_like_milliseconds() -> None:
+    """Estimator.run with t in milliseconds restarted at every sample (each step a gap
+    of 50 s), without a word; the CSV readers said it, the library did not."""
+    from continuum_mhe import make_estimator, make_formulation, simulate
+    from continuum_mhe.io.csv_files import UnitWarning
+
+    rec = simulate("paper3d", duration=2.0)
+    ekf = make_estimator("ekf", make_formulation("bend"))
+    with pytest.warns(UnitWarning, match="median of 50 s per sample; t must be in seconds"):
+        ekf.run(rec.t * 1000.0, rec.z)

@@ -39,6 +39,7 @@ from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
+from continuum_mhe.io.csv_files import check_time_steps
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
@@ -416,6 +417,9 @@ class Estimator(Generic[InferenceT]):
                 f"measurement z must have shape ({nz},) for the {self.formulation.name} "
                 f"formulation, got {z.shape[1:]}"
             )
+        check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
+            "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
+        )
         self.reset()
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)
