@@ -821,34 +821,23 @@ def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
 
 
 # --- the standard deviations -----------------------------------------------------------
-def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray, np.ndarray]:
-    """The command line's formulation of the shipped robot with raw IMUs, the first
-    ``n`` samples of ``unloaded``: ``(formulation, t, z, truth)``; the truth's columns
-    those of the formulation's outputs."""
+def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
+    """The first ``n`` samples of the shipped ``unloaded`` with raw IMUs, read as the
+    command line reads them (the shipped robot, its tensions): ``(formulation, t, z)``."""
     from continuum_mhe.io.input_options import InputOptions
-    from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
-    from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.io.inputs import open_input
     from continuum_mhe.model.registry import make_formulation
-    from continuum_mhe.model.settings import NoiseSettings
 
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
-    robot = read_robot("tendon-two-section")
-    base = make_formulation("direct", robot, NoiseSettings(measurement_std=math.radians(2.0)))
-    f = tendon_formulation_for(base, InputOptions())
-    raw = np.loadtxt(data / "unloaded_raw.csv", delimiter=",", skiprows=1)[:n]
-    t = raw[:, 0]
-    settings = RawImuSettings(imu_model="direct")
-    z_imu = np.hstack(
-        [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
-                             settings) for k in range(robot.n_imus)]
-    )  # fmt: skip
-    tensions = read_tensions(data / "unloaded_tensions.csv", robot.n_tendons)
-    z = np.array([f.measurement_row(zi, *tensions.at(ti)) for ti, zi in zip(t, z_imu)])
-    with (data / "unloaded_truth.csv").open() as fh:
-        names = fh.readline().strip().split(",")
-    truth = np.loadtxt(data / "unloaded_truth.csv", delimiter=",", skiprows=1)[:n]
-    truth = truth[:, [names.index(o.name) for o in f.outputs]]
-    return f, t, z, truth
+    options = InputOptions(tensions=str(data / "unloaded_tensions.csv"))
+    base = make_formulation("bend", read_robot("tendon-two-section"))
+    with open_input(data / "unloaded_raw.csv", options, base) as stream:
+        f = stream.formulation
+        assert isinstance(f, TendonFormulation)
+        blocks = list(stream.blocks)
+    t = np.concatenate([b[0] for b in blocks])[:n]
+    z = np.vstack([b[1] for b in blocks])[:n]
+    return f, t, z
 
 
 def test_the_imu_errors_that_are_states_are_not_carried_again_as_reading_errors() -> None:
@@ -874,7 +863,7 @@ def test_the_tip_force_and_tip_std_are_the_filters_own() -> None:
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.results import Measurement
 
-    f, t, z, _ = _raw_unloaded(60)
+    f, t, z = _raw_unloaded(60)
     est = make_estimator("ekf", f)
     cols = [o.name for o in f.outputs]
     rows = [cols.index(c) for c in ("x", "y", "z", "fx", "fy", "fz")]

@@ -22,6 +22,7 @@ import numpy as np
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import STANDARD_GRAVITY, csv_input_kind, mount_rotation
 from continuum_mhe.model.imu import Mounting
@@ -90,17 +91,12 @@ def mounting_from_gravity(mean_acc: FloatArray, mounting: Mounting) -> tuple[flo
     return (math.degrees(roll), math.degrees(pitch), 0.0)
 
 
-#: Every IMU's gravity direction at rest further than this from where the robot file
-#: puts it on the straight robot (its mounting and each IMU's mount_rpy) is refused as
-#: a wrong ``mounting``, rad (the threshold of the estimate's own check).
-MOUNTING_FLIPPED = math.radians(135.0)
-
-
 def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_file: bool) -> None:
     """Refuse, in one line naming ``mounting``, raw readings at rest (n, 6 n_imus) in
-    which gravity puts every IMU more than :data:`MOUNTING_FLIPPED` from its reading on
-    the straight robot as the robot file describes it (the robot's ``mounting``, each
-    IMU's ``mount_rpy``): the robot is mounted the other way. One IMU turned over on its
+    which gravity puts every IMU more than the estimate's own threshold
+    (:data:`~continuum_mhe.io.input_options.MOUNTING_FLIPPED`) from its reading on the
+    straight robot as the robot file describes it (the robot's ``mounting``, each IMU's
+    ``mount_rpy``): the robot is mounted the other way. One IMU turned over on its
     disk is a mounting to calibrate; all of them at once is the robot's. The line says
     to change the robot file's ``mounting`` (``robot_file``), else ``--mounting``."""
     up = 1.0 if robot.mounting == "z-up" else -1.0
@@ -116,8 +112,7 @@ def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_fil
         angles.append(math.acos(min(1.0, max(-1.0, cos))))
     if not angles or min(angles) <= MOUNTING_FLIPPED:
         return
-    other = "z-down" if robot.mounting == "z-up" else "z-up"
-    pose = "hangs from its base" if other == "z-down" else "stands on its base"
+    other, pose = flipped_mounting(robot.mounting)
     lo, hi = (round(math.degrees(a)) for a in (min(angles), max(angles)))
     spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
     fix = f'set mounting = "{other}" in the robot file' if robot_file else f"--mounting {other}"

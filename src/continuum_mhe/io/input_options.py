@@ -219,6 +219,13 @@ def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, floa
     return k, float(np.median(np.arccos(np.clip(up * f_axis, -1.0, 1.0))))
 
 
+def flipped_mounting(mounting: str) -> tuple[str, str]:
+    """``(other, pose)``: the mounting opposite ``mounting`` and how a robot mounted that
+    way stands (for the messages of a contradicted mounting)."""
+    other = "z-down" if mounting == "z-up" else "z-up"
+    return other, "hangs from its base" if other == "z-down" else "stands on its base"
+
+
 def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
     """Refuse, in one line naming ``mounting``, a recording whose first readings put
     the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
@@ -229,8 +236,7 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
         return
     k, angle = got
     mounting = formulation.robot.mounting
-    other = "z-down" if mounting == "z-up" else "z-up"
-    pose = "hangs from its base" if other == "z-down" else "stands on its base"
+    other, pose = flipped_mounting(mounting)
     raise InputError(
         f"{name}: mounting: the robot is described as {mounting}, but at the start gravity "
         f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "

@@ -84,6 +84,7 @@ from continuum_mhe.io.text_rows import (
 )
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import TendonFormulation
 
 #: Rows validated and converted together (bounds the memory of a streamed input).
 CHUNK = 4096
@@ -334,7 +335,7 @@ def _open_measurements(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> MeasurementStream:
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
-    if formulation.name not in ("bend", "paper", "direct"):
+    if isinstance(formulation, TendonFormulation):
         raise InputError(
             f"{path}: the input is read for the robot's kinematic formulation "
             f"(make_formulation('bend', robot)), not {formulation.name!r}: the model it "
@@ -444,11 +445,9 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         options, f = resolve(name, kind, False, options, base)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
-            if not options.skip_bad:
-                return tilt_values(name, values, lines, options.degrees, n_imus)
-            out_of_range: list[str] = []
+            out_of_range: list[str] | None = [] if options.skip_bad else None
             z = tilt_values(name, values, lines, options.degrees, n_imus, out_of_range)
-            for what in out_of_range:
+            for what in out_of_range or ():
                 problems.add(what)
             return z
 
