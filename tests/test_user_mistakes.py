@@ -562,3 +562,30 @@ def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path
         "--formulation bend (the default), or --imu-model direct with raw IMU input\n"
     )
     assert main([*argv, "--formulation", "bend", "--method", "ekf"]) == 0
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(method) -> None:
+    """The direct model reads a unit specific force and rad/s: an accelerometer's reading
+    in m/s^2 (step and run), or gyros in deg/s (run), is one UserError naming the
+    readings, and the readings built by ``direct_measurements`` pass."""
+    from continuum_mhe.model.direct import direct_measurements
+
+    f = make_formulation("direct")
+    est = make_estimator(method, f)
+    acc = np.array([[0.3, -0.2, 9.79]])
+    meters_per_s2 = r"^measurement at t=0\.0 s: fx, fy, fz have magnitude 9\.8"
+    with pytest.raises(UserError, match=meters_per_s2):
+        est.step(Measurement(0.0, np.array([0.3, -0.2, 9.79, 0.01, 0.0, 0.02])))
+    t = np.arange(40) * 0.02
+    degrees_per_s = np.tile(direct_measurements(acc, np.radians([[30.0, 0.0, 0.0]])), (40, 1))
+    degrees_per_s[:, 3:] = np.degrees(degrees_per_s[:, 3:])
+    with pytest.raises(UserError, match=r"^wx, wy, wz have magnitude 30 \(median\).*deg/s"):
+        est.run(t, degrees_per_s)
+    good = np.tile(direct_measurements(acc, [[0.01, 0.0, 0.02]]), (40, 1))
+    good[3] = np.nan  # a dropout first: step checks the first full reading
+    series = est.run(t, good)
+    assert np.isfinite(series.output[5:]).all()
+    est.reset()
+    for tk, zk in zip(t, good):
+        est.step(Measurement(float(tk), zk))

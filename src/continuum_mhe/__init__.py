@@ -3,8 +3,8 @@
 Public surface::
 
     from continuum_mhe import (Robot, Section, ImuPlacement, NoiseSettings, MHESettings,
-                               make_formulation, make_estimator, simulate, simulate_robot,
-                               Measurement, backbone_points)
+                               RecoverySettings, make_formulation, make_estimator,
+                               simulate, simulate_robot, Measurement, backbone_points)
     from continuum_mhe.io import read_measurements, write_estimates
 
 The names are imported on first use (PEP 562), so that ``continuum-mhe --help`` and
@@ -43,6 +43,7 @@ _EXPORTS: dict[str, str] = {
     "Section": "continuum_mhe.model.robot",
     "MHESettings": "continuum_mhe.settings",
     "NoiseSettings": "continuum_mhe.settings",
+    "RecoverySettings": "continuum_mhe.settings",
     "RobotSettings": "continuum_mhe.settings",
     "Recording": "continuum_mhe.simulation.scenarios",
     "simulate": "continuum_mhe.simulation.scenarios",
@@ -84,5 +85,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.model.pcc import backbone_points
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-    from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
+    from continuum_mhe.settings import (
+        MHESettings,
+        NoiseSettings,
+        RecoverySettings,
+        RobotSettings,
+    )
     from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot

@@ -39,6 +39,7 @@ from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
+from continuum_mhe.estimators.reading_units import direct_blocks, direct_units_problem
 from continuum_mhe.io.csv_files import check_time_steps
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
@@ -225,6 +226,8 @@ class Estimator(Generic[InferenceT]):
                 stacklevel=_outside_stacklevel(),
             )
         self._consistency = ConsistencyCheck(formulation)
+        self._direct_rows = direct_blocks(formulation)
+        self._units_checked = not self._direct_rows  # step checks the first full reading
         self._policy = self._compiled_policy()
         self.reset()
 
@@ -294,6 +297,7 @@ class Estimator(Generic[InferenceT]):
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()
         self._ran = False
+        self._units_checked = not self._direct_rows
         self._policy.reset(keep_counts)
 
     def _sync_diagnostics(self) -> None:
@@ -340,7 +344,9 @@ class Estimator(Generic[InferenceT]):
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
-                a tilt angle beyond 2 pi (degrees given for radians), or
+                a tilt angle beyond 2 pi (degrees given for radians), a raw IMU's
+                specific force that is not a unit vector (the first full reading after
+                a reset is checked; ``run`` checks the gyros' units too), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -353,12 +359,24 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
+        if not self._units_checked and np.all(np.isfinite(z)):
+            self._check_units(t, z[None, :])
+            self._units_checked = True
         err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
         if err:
             self._refuse(err, t, z)
         self._ran = False
         self._sync_diagnostics()
         return Estimate(t, state, output, cov, STATUSES[code], ms, std, outlier=outlier)
+
+    def _check_units(self, t: float | None, z: FloatArray) -> None:
+        """A :class:`UserError` where the ``direct`` IMU readings of ``z`` (n, nz) are not
+        a unit specific force and rad/s (:mod:`.reading_units`); ``t`` (s) names the
+        sample a step gave (one sample: its force only)."""
+        problem = direct_units_problem(self._direct_rows, z, gyro=t is None)
+        if problem is not None:
+            where = "" if t is None else f"measurement at t={t!r} s: "
+            raise UserError(where + problem)
 
     def _refuse(self, err: int, t: float, z: FloatArray) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
@@ -420,6 +438,7 @@ class Estimator(Generic[InferenceT]):
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
+        self._check_units(None, z)
         self.reset()
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)

@@ -32,6 +32,7 @@ _EXPORTS: dict[str, str] = {
     "write_truth": "continuum_mhe.io.csv_files",
     "InputOptions": "continuum_mhe.io.input_options",
     "InputDescription": "continuum_mhe.io.inputs",
+    "EstimateInput": "continuum_mhe.io.inputs",
     "MeasurementStream": "continuum_mhe.io.inputs",
     "load_input": "continuum_mhe.io.inputs",
     "open_input": "continuum_mhe.io.inputs",
@@ -74,7 +75,13 @@ if TYPE_CHECKING:
         write_truth,
     )
     from continuum_mhe.io.input_options import InputOptions
-    from continuum_mhe.io.inputs import InputDescription, MeasurementStream, load_input, open_input
+    from continuum_mhe.io.inputs import (
+        EstimateInput,
+        InputDescription,
+        MeasurementStream,
+        load_input,
+        open_input,
+    )
     from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot

@@ -1,0 +1,64 @@
+"""The units of a ``direct`` IMU block's readings, checked where a library caller hands
+them to an estimator (the CSV readers check a file's raw readings themselves).
+
+A ``direct`` block (:class:`~continuum_mhe.model.descriptions.MeasurementBlock`) holds
+the IMU's unit specific force ``fx, fy, fz`` (a direction, magnitude 1) and its gyro
+``wx, wy, wz`` (rad/s). An accelerometer's reading in m/s^2, or a gyro in deg/s, would be
+read as a direction ten times too long or rates 57 times too fast, and the estimate
+would be wrong without a word; :func:`direct_units_problem` names it. (A reading in g is
+the unit direction to within the IMU's own acceleration.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from continuum_mhe.estimators.base import FloatArray
+from continuum_mhe.io.raw_imu import GYRO_MEDIAN_MAX
+from continuum_mhe.model.formulations import Formulation
+
+#: A unit specific force whose magnitude is off 1 by more than this is not a direction
+#: (readings built by ``direct_measurements`` are 1 to rounding).
+UNIT_TOLERANCE = 0.05
+
+
+DirectRows = tuple[slice, slice, tuple[str, ...]]
+
+
+def direct_blocks(formulation: Formulation) -> list[DirectRows]:
+    """Per ``direct`` block: the rows of its unit specific force, of its gyro, and its
+    six names."""
+    return [
+        (slice(b.start, b.start + 3), slice(b.start + 3, b.start + 6), b.names)
+        for b in formulation.measurement_blocks
+        if b.kind == "direct"
+    ]
+
+
+def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = True) -> str | None:
+    """What is wrong with the units of ``z`` (n, nz) in the ``direct`` ``blocks``
+    (:func:`direct_blocks`), as a line for :class:`~continuum_mhe.errors.UserError`, or
+    None: a specific force whose median magnitude is not 1, or (``gyro``: a recording,
+    where a median says it; one sample of a fast turn may exceed it) a gyro whose median
+    rate exceeds :data:`~continuum_mhe.io.raw_imu.GYRO_MEDIAN_MAX` rad/s (deg/s). Rows
+    with a non-finite reading (dropouts) are left out."""
+    for force_rows, gyro_rows, names in blocks:
+        f, w = z[:, force_rows], z[:, gyro_rows]
+        finite = np.all(np.isfinite(f), axis=1) & np.all(np.isfinite(w), axis=1)
+        if not finite.any():
+            continue
+        typical = " (median)" if finite.sum() > 1 else ""
+        size = float(np.median(np.linalg.norm(f[finite], axis=1)))
+        if abs(size - 1.0) > UNIT_TOLERANCE:
+            return (
+                f"{', '.join(names[:3])} have magnitude {size:.3g}{typical}: the direct model "
+                "takes the unit specific force, not the accelerometer's reading in m/s^2 "
+                "(continuum_mhe.model.direct.direct_measurements(acc, gyr) gives the rows)"
+            )
+        rate = float(np.median(np.linalg.norm(w[finite], axis=1)))
+        if gyro and rate > GYRO_MEDIAN_MAX:
+            return (
+                f"{', '.join(names[3:])} have magnitude {rate:.3g}{typical}, "
+                f"implausible in rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s"
+            )
+    return None
