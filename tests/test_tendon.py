@@ -4,6 +4,7 @@ independent peer, the formulation's Jacobians, slack tendons, the tensions input
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,13 +13,15 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
+from continuum_mhe.io.csv_files import DropoutWarning, InputError, read_state_table, write_table
+from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.model.tendon_statics import STEPS_PER_SECTION, Station, TendonStatics
 
+DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 BACKBONE = Backbone(54e9, 20.77e9, 0.0007)
 EI = BACKBONE.bending_stiffness
 GJ = BACKBONE.torsional_stiffness
@@ -75,9 +78,9 @@ def test_a_pcc_robot_file_reads_as_before() -> None:
     [
         (("[backbone]\nyoungs_modulus = 54e9\nshear_modulus = 20.77e9\nradius = 0.0007\n", ""),
          "1 [[tendon]] but no [backbone]"),
-        (("youngs_modulus = 54e9", "youngs_modulus = -1"), "youngs_modulus (Pa) must be"),
-        (("youngs_modulus = 54e9", "youngs_modulus = 54"), "moduli are in Pa"),
-        (("radius = 0.0007", "radius = 0.7"), "radii are in metres"),
+        (("youngs_modulus = 54e9", "youngs_modulus = -1"), "line 3: backbone youngs_modulus (Pa)"),
+        (("youngs_modulus = 54e9", "youngs_modulus = 54"), "line 3: backbone youngs_modulus 54.0"),
+        (("radius = 0.0007", "radius = 0.7"), "line 5: backbone radius 0.7 m is over 0.1 m"),
         (("shear_modulus = 20.77e9\n", ""), "backbone: missing key 'shear_modulus'"),
         (("angle = 90", "angle = 90\npitch = 1"), "tendon 1: unknown key 'pitch'"),
         (("section = 1\nangle", "section = 2\nangle"), "tendon 1: section must be"),
@@ -145,6 +148,31 @@ def test_the_backbone_points_pass_through_the_models_section_ends() -> None:
     for k in range(2):
         np.testing.assert_allclose(points[16 * (k + 1)], poses[Station(k, 1.0)][1], atol=5e-5)
     assert np.linalg.norm(points[-1] - points[0]) > 0.1  # a bend, not a straight rod
+
+
+@pytest.mark.parametrize("scenario", ["force-29", "twist-29"])
+def test_the_statics_solve_the_loaded_recordings_from_the_straight_rod(scenario: str) -> None:
+    """``TendonStatics.solve`` from the straight rod (as ``plot`` draws a row) under the
+    true tip force and tensions of every 10th sample of a loaded recording: each tip
+    within 0.6 mm of the recording's truth (the model floor: the generator's own
+    rod is not this model). A plain Newton from the straight rod left 16 of force-29's 41
+    rows 250 to 640 mm off and raised LinAlgError on 8."""
+    truth = read_state_table(DATA / f"{scenario}_truth.csv")
+    tensions = read_tensions(DATA / f"{scenario}_tensions.csv", 6)
+    statics = TendonStatics(read_robot("tendon-two-section"))
+    force = np.stack([truth.column(c) for c in ("fx", "fy", "fz")], axis=1)
+    tip = np.stack([truth.column(c) for c in ("x", "y", "z")], axis=1)
+    for row in range(0, len(truth.t), 10):
+        _, poses = statics.solve(force[row], tensions.at(float(truth.t[row]))[0])
+        assert np.linalg.norm(poses[Station(1, 1.0)][1] - tip[row]) < 6e-4, row
+
+
+def test_the_statics_say_when_the_rod_holds_no_equilibrium() -> None:
+    """Loads that are not finite have no equilibrium: ``ArithmeticError`` (not
+    numpy's singular matrix)."""
+    statics = TendonStatics(read_robot("tendon-two-section"))
+    with pytest.raises(ArithmeticError, match="no equilibrium"):
+        statics.solve(np.array([np.nan, 0.0, 0.0]), np.zeros(6))
 
 
 def test_a_small_tip_force_gives_the_cantilever_deflection() -> None:
@@ -439,6 +467,12 @@ def _small_robot(tmp_path: Path) -> Path:
     return path
 
 
+def _write_text_table(path: Path, columns: list[str], rows: list[list[object]]) -> None:
+    """A CSV table as a user's program may write it (``nan`` included)."""
+    lines = [",".join(columns), *(",".join(str(v) for v in row) for row in rows)]
+    path.write_text("\n".join(lines) + "\n")
+
+
 def _recording(tmp_path: Path) -> tuple[Path, Path]:
     """A few tilt samples of the one-section robot with its tendon pulled."""
     robot = read_robot(_small_robot(tmp_path))
@@ -537,14 +571,21 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
          "line 1: expected the columns t,tension_1"),
         ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
+        # milliseconds in t: the 0.1 s recording lies within the first two rows, and was
+        # estimated on tensions held at their first values
+        ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],
+         ["t", "tension_1"], "t steps 20 s a row against the recording's 0.02 s a sample: if "
+         "t is in milliseconds, name the column t_ms"),
+        ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
+         "line 3: column tension_1 is nan (a dropout; --skip-bad keeps it)"),
     ],
 )  # fmt: skip
 def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: list[list[float]],
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: list[list[object]],
     columns: list[str], message: str,
 ) -> None:  # fmt: skip
     meas, tensions = _recording(tmp_path)
-    write_table(tensions, columns, rows)
+    _write_text_table(tensions, columns, rows)
     out = tmp_path / "e.csv"
     argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
             str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
@@ -552,6 +593,52 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
     assert not out.exists()
+
+
+def test_skip_bad_leaves_out_a_bad_tension_row_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The error of a bad tension names --skip-bad: with it the row is left out (the
+    tensions interpolated across it, so the estimate is the one without the row) and
+    counted in a warning."""
+    meas, tensions = _recording(tmp_path)
+    robot = str(_small_robot(tmp_path))
+    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.1, 1.5]])
+    clean = tmp_path / "clean.csv"
+    argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(tensions), "-o"]
+    assert main([*argv, str(clean)]) == 0
+    _write_text_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]])
+    skipped = tmp_path / "skipped.csv"
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main([*argv, str(skipped), "--skip-bad"]) == 0
+    said = [str(w.message) for w in seen if w.category is DropoutWarning]
+    assert said == [f"{tensions}: 1 tension row(s) with a bad value left out (--skip-bad): the "
+                    "tensions are interpolated across them"]  # fmt: skip
+    a, b = read_state_table(clean), read_state_table(skipped)
+    np.testing.assert_allclose(b.column("fx"), a.column("fx"), rtol=0, atol=1e-12)
+
+
+def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording with its own tension columns and --inputs: the --inputs tensions are
+    used, and a warning says so (they were taken without a word)."""
+    meas, tensions = _recording(tmp_path)
+    header, *rows = meas.read_text().splitlines()
+    both = tmp_path / "both.csv"  # its own tensions, not those of --inputs
+    both.write_text("\n".join([f"{header},tension_1", *(f"{r},9.0" for r in rows)]) + "\n")
+    argv = ["estimate", str(both), "--robot", str(_small_robot(tmp_path)), "-o"]
+    said = []
+    for extra in (["--inputs", str(tensions)], []):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert main([*argv, str(tmp_path / f"e{len(extra)}.csv"), *extra]) == 0
+        said.append([str(w.message) for w in seen if w.category is OptionWarning])
+    assert said == [[f"{both}: the recording carries tension columns, but the tensions of "
+                     f"--inputs {tensions} are the ones used"], []]  # fmt: skip
+    own, given = (read_state_table(tmp_path / f"e{k}.csv").column("fz") for k in (0, 2))
+    assert not np.allclose(own, given)  # the files' tensions differ, and so do the estimates
 
 
 def test_a_tendon_robot_needs_its_tensions(
@@ -876,3 +963,34 @@ def test_the_tip_force_and_tip_std_are_the_filters_own() -> None:
         np.testing.assert_allclose(np.asarray(e.output_std)[rows], own, rtol=1e-9)
         checked += 1
     assert checked == len(t)
+
+
+def test_the_recording_generator_refuses_a_robot_it_does_not_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The tendon-robot generator writes two sections with an IMU at each end: another
+    robot is one line and exit 2, nothing written (it wrote the shipped robot's two-IMU
+    files and truth for a one-section robot, named tendon-two-section in its info)."""
+    from continuum_mhe.simulation import cosserat_tendon
+
+    path = tmp_path / "one.toml"
+    path.write_text(TENDON_FILE)
+    out = tmp_path / "out"
+    assert cosserat_tendon.main(["--robot", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "writes two-section robots with an IMU at each section's end" in err[0]
+    assert "not 1 section (0.2 m), IMUs at 1@0.5" in err[0] and not out.exists()
+
+
+def test_simulate_refuses_a_tendon_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``simulate`` writes constant-curvature bends without tensions: with a tendon robot
+    it wrote a tilt recording that ``estimate`` on the same robot then refused for its
+    missing tensions. One line naming the robot file and the tendon generator."""
+    out = tmp_path / "m.csv"
+    argv = ["simulate", "spatial", "--robot", "tendon-two-section", "-o", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("continuum-mhe: error: tendon-two-section: a tendon")
+    assert "continuum_mhe.simulation.cosserat_tendon" in err[0] and not out.exists()

@@ -56,7 +56,11 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def _estimate(args: argparse.Namespace) -> int:
-    from continuum_mhe.evaluation.estimate_figure import estimate_figure, section_count
+    from continuum_mhe.evaluation.estimate_figure import (
+        estimate_figure,
+        section_count,
+        truth_problem,
+    )
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.csv_files import check_output_target, read_state_table
     from continuum_mhe.io.robot_file import read_robot
@@ -81,10 +85,10 @@ def _estimate(args: argparse.Namespace) -> int:
         lengths = robot.lengths
     backbone = _tendon_backbone(args, est.names, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
-    try:
-        fig = estimate_figure(est, truth, lengths, title, backbone)
-    except ValueError as exc:
-        raise InputError(f"{args.truth}: {exc}") from None
+    problem = None if truth is None else truth_problem(est, truth)
+    if problem is not None:
+        raise InputError(f"{args.truth}: {problem}")
+    fig = estimate_figure(est, truth, lengths, title, backbone)
     save(fig, output, (output.suffix.lower()[1:],))
     print(f"wrote {output}", file=sys.stderr)
     return 0

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import (
     InputError,
     check_output_target,
@@ -36,15 +37,20 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.truth}: --truth names the measurement file -o too; give two files"
             )
     robot = robot_from_args(args)
-    rec = simulate_robot(
-        args.scenario,
-        robot,
-        duration=args.duration,
-        dt=args.dt,
-        noise_deg=args.noise_deg,
-        seed=args.seed,
-        noise_model=args.noise_model,
-    )
+    try:
+        rec = simulate_robot(
+            args.scenario,
+            robot,
+            duration=args.duration,
+            dt=args.dt,
+            noise_deg=args.noise_deg,
+            seed=args.seed,
+            noise_model=args.noise_model,
+        )
+    except UserError as exc:  # about the robot: its file named
+        if args.robot is None:
+            raise
+        raise InputError(f"{args.robot}: {exc}") from None
     write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     if args.truth:
         try:

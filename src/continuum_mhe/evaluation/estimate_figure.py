@@ -148,6 +148,23 @@ def _limit_to_lines(ax: plt.Axes, lines: Sequence[np.ndarray]) -> None:
     ax.set_ylim(lo - room, hi + room)
 
 
+def truth_problem(est: StateTable, truth: StateTable) -> str | None:
+    """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it lacks a
+    tracked point's columns, or fewer than two of its rows share a time with the
+    estimate's), or None."""
+    for p in tracked_points(est.names):
+        missing = [c for c in p.columns if c not in truth.names]
+        if missing:
+            return f"the truth has no {', '.join(missing)} column(s)"
+    matched = match_rows(est.t, truth.t)
+    if len(matched[0]) < 2:
+        return (
+            f"only {len(matched[0])} of the estimate's {len(est.t)} rows have a truth row "
+            "at the same t (another recording, or t in milliseconds?)"
+        )
+    return None
+
+
 def estimate_figure(
     est: StateTable,
     truth: StateTable | None = None,
@@ -164,21 +181,15 @@ def estimate_figure(
     ``lengths`` (m; else from the file's own rows) and the bend columns; else (a tendon
     robot's estimate without ``backbone``) straight lines through the section ends.
 
-    Raises ``ValueError`` when the truth lacks a tracked point's columns or shares no
-    time with the estimate."""
+    Raises ``ValueError`` (:func:`truth_problem`'s line) when the truth lacks a tracked
+    point's columns or shares no time with the estimate."""
     points = tracked_points(est.names)
     matched = None
     if truth is not None:
-        for p in points:
-            missing = [c for c in p.columns if c not in truth.names]
-            if missing:
-                raise ValueError(f"the truth has no {', '.join(missing)} column(s)")
+        problem = truth_problem(est, truth)
+        if problem is not None:
+            raise ValueError(problem)
         matched = match_rows(est.t, truth.t)
-        if len(matched[0]) < 2:
-            raise ValueError(
-                f"only {len(matched[0])} of the estimate's {len(est.t)} rows have a truth row "
-                "at the same t (another recording, or t in milliseconds?)"
-            )
     force = has_tip_force(est.names)
     rows = 3 + (truth is not None) + force + 1
     fig = plt.figure(figsize=(14, 2.3 * rows + 0.6))

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +49,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.imu_topics import read_imu_topics
 from continuum_mhe.io.input_options import (
     InputOptions,
+    OptionWarning,
     check_mounting,
     check_options_apply,
     formulation_for,
@@ -268,7 +270,7 @@ def serial_input(
     resolved, f = resolve(port, kind, fmt == "raw", options, base)
     converters = imu_converters(resolved.raw, base.robot) if fmt == "raw" else None
     robot = base.robot
-    tensions = _tensions(options, robot, None, None) if options.tensions else None
+    tensions = _tensions(options, robot, None, None, streamed=False) if options.tensions else None
     if not robot.has_mechanics:
         return SerialInput(f, converters)
     on_line = 0 if tensions is not None else robot.n_tendons
@@ -362,9 +364,14 @@ def _tensions(
     robot: Robot,
     robot_name: str | None,
     recording: str | os.PathLike[str] | None,
+    streamed: bool = True,
 ) -> Tensions | None:
     """The tensions file, read and checked for the robot's tendons (before the input):
-    ``--inputs``, else the ``recording``'s own tension columns."""
+    ``--inputs``, else the ``recording``'s own tension columns (whose times are the
+    recording's). ``streamed``: the recording's samples go through
+    :func:`_append_tensions`, which checks the file's times against theirs
+    (:meth:`Tensions.check_rate`); else (``live``) a ``t`` stepping like milliseconds
+    is a warning."""
     given = options.tensions
     k = robot.n_tendons
     if not k:
@@ -373,14 +380,25 @@ def _tensions(
                 f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
             )
         return None
-    if given:
-        return read_tensions(given, k)
-    if (
+    own = (
         recording is not None
         and not is_robot_log(Path(recording))
         and has_tension_columns(recording, k)
-    ):
-        return read_tensions(recording, k, other_columns=True)
+    )
+    if given:
+        if own:
+            warnings.warn(
+                f"{recording}: the recording carries tension columns, but the tensions "
+                f"of --inputs {given} are the ones used",
+                OptionWarning,
+                stacklevel=2,
+            )
+        return read_tensions(given, k, skip_bad=options.skip_bad, time_warning=not streamed)
+    if own:
+        assert recording is not None
+        return read_tensions(
+            recording, k, other_columns=True, skip_bad=options.skip_bad, time_warning=False
+        )
     raise InputError(
         f"{robot_name or 'the robot file'}: the robot has {k} tendons: give their tensions "
         f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
@@ -398,7 +416,9 @@ def _append_tensions(
     blocks = stream.blocks
 
     def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
-        for t, z in blocks:
+        for i, (t, z) in enumerate(blocks):
+            if i == 0 and tensions is not None:
+                tensions.check_rate(t)
             rows = []
             for tv, zv in zip(t.tolist(), z):
                 given = tensions.at(tv) if tensions is not None else (np.zeros(k),) * 3

@@ -351,7 +351,7 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
 
 #: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``: the
 #: table a robot-file message names, then the word after it (a key, where it is one).
-_WHERE = re.compile(r"(?:(section|imu|tendon) (\d+)|(backbone)|(?=mounting))(?::\s*)?(\w*)")
+_WHERE = re.compile(r"(?:(section|imu|tendon) (\d+)|(backbone)|(?=mounting))(?::\s*|\s+)?(\w*)")
 _UNKNOWN_KEY = re.compile(r"unknown key '(\w+)'")
 _TABLE_HEADER = re.compile(r"\s*\[")
 

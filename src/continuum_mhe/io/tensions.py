@@ -17,13 +17,15 @@ the two samples after it have arrived.
 
 from __future__ import annotations
 
+import math
 import os
+import warnings
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray, check_time_units
+from continuum_mhe.io.csv_files import DropoutWarning, FloatArray, check_time_units
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.text_rows import InputError, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
@@ -48,6 +50,21 @@ class Tensions:
     values: FloatArray
     rates: FloatArray
     accelerations: FloatArray
+
+    def check_rate(self, t: FloatArray) -> None:
+        """An :class:`InputError` where the file's rows step in whole seconds and over a
+        hundred of the recording's samples (times ``t`` (n,) s) fall between two of
+        them: ``t`` in milliseconds read as seconds, which no coverage check sees (the
+        recording lies within the file's first rows)."""
+        if len(t) < 2 or len(self.t) < 2:
+            return
+        step, sample = float(np.median(np.diff(self.t))), float(np.median(np.diff(t)))
+        if step >= 1.0 and step > 100.0 * sample:
+            raise InputError(
+                f"{self.name}: t steps {step:g} s a row against the recording's {sample:g} s "
+                "a sample: if t is in milliseconds, name the column t_ms (it is read in "
+                "seconds)"
+            )
 
     def covers(self, t: float) -> bool:
         """Whether ``t`` s lies within the file's times."""
@@ -96,11 +113,20 @@ def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
 
 
 def read_tensions(
-    path: str | os.PathLike[str], n_tendons: int, other_columns: bool = False
+    path: str | os.PathLike[str],
+    n_tendons: int,
+    other_columns: bool = False,
+    skip_bad: bool = False,
+    time_warning: bool = True,
 ) -> Tensions:
     """Read and check a tensions file for a robot with ``n_tendons`` tendons
     (``other_columns``: a recording that carries its tensions beside its IMUs' columns,
-    which are left out here)."""
+    which are left out here). ``skip_bad``: a row with a missing or non-finite tension,
+    or a bad time, is left out (the tensions are interpolated across it; a
+    :class:`~continuum_mhe.io.csv_files.DropoutWarning` counts them) instead of an
+    error. ``time_warning``: a ``t`` that steps like milliseconds is said (a
+    :class:`~continuum_mhe.io.csv_files.UnitWarning`); a caller that checks it against
+    the recording (:meth:`Tensions.check_rate`) leaves it off."""
     names = list(tension_columns(n_tendons))
     with open_rows(path) as rows:
         name = rows.name
@@ -112,11 +138,21 @@ def read_tensions(
                 f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
                 f"the robot file, in its order), got {','.join(rows.header)}"
             )
-        data = list(iter_samples(rows, ["t", *names]))
+        data = list(iter_samples(rows, ["t", *names], skip_bad=skip_bad))
+        kept = [d for d in data if all(math.isfinite(v) for v in d[2])]
+        if len(kept) < len(data):
+            warnings.warn(
+                f"{name}: {len(data) - len(kept)} tension row(s) with a bad value left out "
+                "(--skip-bad): the tensions are interpolated across them",
+                DropoutWarning,
+                stacklevel=2,
+            )
+        data = kept
         if not data:
             raise InputError(f"{name}: no tension rows")
         t = np.array([d[1] for d in data], dtype=float)
-        check_time_units(rows, t)
+        if time_warning:
+            check_time_units(rows, t)
     values = np.array([d[2] for d in data], dtype=float).reshape(len(t), n_tendons)
     neg = np.argwhere(values < 0)
     if len(neg):

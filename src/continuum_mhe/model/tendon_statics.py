@@ -59,6 +59,13 @@ from continuum_mhe.model.robot import Robot
 #: fourth-order Lie-group steps of :meth:`TendonStatics.shoot`, two per section put every
 #: station of the shipped recordings within 0.07 mm of a converged shooting.
 STEPS_PER_SECTION = 2
+#: The tip condition's residual norm (N m) below which :meth:`TendonStatics.solve`
+#: takes the base curvature as the equilibrium.
+TIP_CONDITION_TOL = 1e-12
+#: Newton iterations of one :meth:`TendonStatics.solve` stage.
+NEWTON_ITERATIONS = 50
+#: The stages of :meth:`TendonStatics.solve`'s continuation in the loads.
+LOAD_STAGES = 10
 #: Standard gravity, m/s^2 (the backbone's weight with a density).
 GRAVITY = 9.80665
 
@@ -271,16 +278,33 @@ class TendonStatics:
     def solve(
         self, force: FloatArray, tension: FloatArray, k0: FloatArray | None = None
     ) -> tuple[FloatArray, dict[Station, tuple[FloatArray, FloatArray]]]:
-        """Numeric statics: the base curvature ``k0`` (rad/m) that meets the tip
-        condition (Newton on the residual) and the poses ``{station: (R, p)}``."""
-        fn = self._tip_condition
-        x = np.zeros(3) if k0 is None else np.asarray(k0, dtype=float)
-        for _ in range(50):
-            r, J = (np.asarray(v, dtype=float) for v in fn(x, force, tension))
-            r = r.ravel()
-            if np.linalg.norm(r) < 1e-12:
-                break
-            x = x - np.linalg.solve(J, r)
+        """Numeric statics under the tip force ``force`` (N, base frame) and the
+        tensions ``tension`` (N): the base curvature ``k0`` (rad/m) that meets the tip
+        condition and the poses ``{station: (R, p)}``.
+
+        Damped Newton on the tip condition from ``k0`` (else the straight rod); where it
+        stalls, from the straight rod, and then along the loads scaled from a tenth to
+        all of them, each stage from the one before (the equilibrium of a large bend is
+        out of a plain Newton's reach from the straight rod).
+
+        Raises:
+            ArithmeticError: if no equilibrium is found (loads beyond what the rod
+                holds, or not finite).
+        """
+        force = np.asarray(force, dtype=float)
+        tension = np.asarray(tension, dtype=float)
+        x = None if k0 is None else self._newton(force, tension, np.asarray(k0, dtype=float))
+        if x is None:
+            x = self._newton(force, tension, np.zeros(3))
+        if x is None:
+            x = np.zeros(3)
+            for scale in np.linspace(0.1, 1.0, LOAD_STAGES):
+                x = self._newton(scale * force, scale * tension, x)
+                if x is None:
+                    raise ArithmeticError(
+                        f"no equilibrium of the tendon robot under the tip force {force} N "
+                        f"and the tensions {tension} N"
+                    )
         _, out = self.function(x, force, tension)
         arr = np.asarray(out, dtype=float)
         poses = {
@@ -288,6 +312,33 @@ class TendonStatics:
             for j, st in enumerate(self.stations())
         }
         return x, poses
+
+    def _newton(self, force: FloatArray, tension: FloatArray, k0: FloatArray) -> FloatArray | None:
+        """The base curvature (rad/m) meeting the tip condition, by Newton steps from
+        ``k0`` halved until the residual's norm falls; None where a step cannot lower
+        it or the iterations run out before it is below :data:`TIP_CONDITION_TOL`."""
+        fn = self._tip_condition
+        x = k0.copy()
+        r, J = (np.asarray(v, dtype=float) for v in fn(x, force, tension))
+        norm = float(np.linalg.norm(r))
+        for _ in range(NEWTON_ITERATIONS):
+            if not np.isfinite(norm):
+                return None
+            if norm < TIP_CONDITION_TOL:
+                return x
+            step = np.linalg.lstsq(J, r.ravel(), rcond=None)[0]
+            alpha = 1.0
+            while alpha > 1e-6:
+                trial = x - alpha * step
+                rt, Jt = (np.asarray(v, dtype=float) for v in fn(trial, force, tension))
+                nt = float(np.linalg.norm(rt))
+                if nt < (1.0 - 1e-4 * alpha) * norm:
+                    x, r, J, norm = trial, rt, Jt, nt
+                    break
+                alpha *= 0.5
+            else:
+                return None
+        return x if norm < TIP_CONDITION_TOL else None
 
     def backbone_points(
         self, force: FloatArray, tension: FloatArray, points_per_section: int = 16

@@ -281,6 +281,18 @@ def simulate_tendon_robot(
     return TendonTrajectory(sections, dirs, tensions, force)
 
 
+def check_generated_robot(robot: Robot) -> None:
+    """A :class:`~continuum_mhe.errors.UserError` for a robot whose recordings this
+    generator does not write: it writes two sections with an IMU at each section's end
+    (its files' columns, its tendon drives per section)."""
+    ends = tuple((p.section, p.at) for p in robot.imus)
+    if robot.n_sections != 2 or ends != ((0, 1.0), (1, 1.0)) or not robot.tendons:
+        raise UserError(
+            f"the tendon-robot generator writes two-section robots with an IMU at each "
+            f"section's end and tendons (as tendon-two-section), not {robot.describe()}"
+        )
+
+
 def truth_columns(n_sections: int) -> list[str]:
     """The truth file's columns: those of the tendon formulation's outputs."""
     from continuum_mhe.model.tendon import tendon_outputs
@@ -299,17 +311,22 @@ def write_tendon_recording(
     imu: ImuSettings = DEFAULT_IMU,
     segments_per_disk: int = SEGMENTS_PER_DISK,
     trajectory: TendonTrajectory | None = None,
+    robot_name: str = "tendon-two-section",
 ) -> dict[str, object]:
     """Simulate, sample and write the files (see the module docstring); returns the
     info. ``imu``: the IMUs' errors (``seed`` draws them); ``segments_per_disk``: the
     discrete rod's resolution (:func:`quasi_static_trajectory`); ``trajectory``: that
-    trajectory, already computed (the same motion with the errors of another seed)."""
+    trajectory, already computed (the same motion with the errors of another seed);
+    ``robot_name``: the robot as the info names it. A robot other than two sections
+    with an IMU at each end (:func:`check_generated_robot`) is a
+    :class:`~continuum_mhe.errors.UserError`."""
     import casadi as ca
 
     from continuum_mhe.io.csv_files import write_table
     from continuum_mhe.model.imu import tilt_from_accelerometer
     from continuum_mhe.model.tendon_statics import swing_twist_sym
 
+    check_generated_robot(robot)
     traj = trajectory or quasi_static_trajectory(
         robot, scenario, duration, settings, segments_per_disk=segments_per_disk
     )
@@ -351,7 +368,7 @@ def write_tendon_recording(
     psi = tr[:, [9, 15]]
     info: dict[str, object] = {
         "scenario": scenario,
-        "robot": "tendon-two-section",
+        "robot": robot_name,
         "samples": len(t),
         "theta_max_deg": [float(np.degrees(tr[:, c].max())) for c in (4, 10)],
         "twist_max_deg": [float(np.degrees(np.abs(psi[:, k]).max())) for k in range(2)],
@@ -368,16 +385,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scenario", choices=SCENARIOS, default="unloaded")
     p.add_argument("--duration", type=float, default=16.0)
-    p.add_argument("--robot", default="tendon-two-section")
+    p.add_argument(
+        "--robot",
+        default="tendon-two-section",
+        help="a robot file (or shipped name) of two sections with an IMU at each end",
+    )
     p.add_argument("--name", default=None)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--sim-dt", type=float, default=TendonRodSettings.sim_dt)
     p.add_argument("-o", "--output", type=Path, required=True)
     a = p.parse_args(argv)
-    robot = read_robot(a.robot)
+    try:
+        robot = read_robot(a.robot)
+        check_generated_robot(robot)
+    except UserError as exc:
+        print(f"cosserat_tendon: error: {exc}", file=sys.stderr)
+        return 2
     info = write_tendon_recording(
         a.output, a.name or a.scenario, robot, a.scenario, a.duration,
-        TendonRodSettings(sim_dt=a.sim_dt), a.seed,
+        TendonRodSettings(sim_dt=a.sim_dt), a.seed, robot_name=a.robot,
     )  # fmt: skip
     print(json.dumps(info), file=sys.stderr)
     return 0

@@ -171,10 +171,23 @@ def simulate_robot(
     seed: int = 0,
     noise_model: NoiseModel = "tilt",
 ) -> Recording:
-    """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed)."""
+    """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed).
+
+    Raises:
+        UserError: for a tendon robot (its recordings come from
+            :mod:`continuum_mhe.simulation.cosserat_tendon`), or a scenario the robot's
+            sections and IMUs do not fit.
+    """
     from continuum_mhe.model.formulations import BendFormulation
 
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
+    if robot.tendons:
+        raise UserError(
+            f"a tendon robot ({robot.describe()}); simulate writes the bends of a "
+            "constant-curvature robot without tensions: a tendon robot's recordings "
+            "(tensions, tip force) come from python -m "
+            "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
+        )
     if scenario not in MULTI_SECTION_SCENARIOS:
         if robot.n_sections == 1 and robot.is_single:
             return simulate(
