@@ -482,12 +482,19 @@ def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
 def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
     two_and_three, tmp_path, capsys
 ) -> None:
-    """Before: evaluate e2.csv t2.csv took the one-section 0.2 m robot, silently."""
+    """Before: evaluate e2.csv t2.csv took the one-section 0.2 m robot, silently. Now
+    the robot file the estimate's options line names (said in a note); without that
+    line (an estimate from elsewhere), an error naming --robot."""
     e2, t2 = two_and_three["e2"], two_and_three["t2"]
     capsys.readouterr()
-    assert main(["evaluate", str(e2), str(t2)]) == 2
+    assert main(["evaluate", str(e2), str(t2)]) == 0
+    out, err = capsys.readouterr()
+    assert "evaluated on that robot (--robot gives another)" in err and "tip error mean" in out
+    bare = tmp_path / "bare.csv"  # the same rows without the comment lines
+    bare.write_text("".join(ln for ln in e2.read_text().splitlines(True) if ln[0] != "#"))
+    assert main(["evaluate", str(bare), str(t2)]) == 2
     assert capsys.readouterr().err == (
-        f"continuum-mhe: error: {e2}: its columns (theta_1, theta_2) do not fit the robot "
+        f"continuum-mhe: error: {bare}: its columns (theta_1, theta_2) do not fit the robot "
         "(1 section (0.2 m), IMUs at 1@1, z-up): missing theta; extra theta_1, theta_2; pass "
         "--robot with the robot it was estimated on\n"
     )

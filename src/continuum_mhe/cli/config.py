@@ -144,6 +144,17 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     parser.set_defaults(**defaults)
 
 
+def recorded_option(path: str, key: str) -> Any:
+    """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line, or
+    None where the file has no such line or key (or cannot be read: its reader says
+    why)."""
+    try:
+        data, _ = _read(path)
+    except InputError:
+        return None
+    return data.get(key)
+
+
 def model_record(formulation: Formulation) -> str:
     """The model an estimate ran on, as the TOML inline table an estimate file records
     beside its options (``{name = "direct", states = ["a_1", ...]}``): the options
