@@ -289,3 +289,24 @@ def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
     bm.print_report(report)
     out = " ".join(capsys.readouterr().out.split())
     assert "acados: not timed: needs comma-deps-acados: pip install --no-deps" in out
+
+
+def test_the_robot_benchmarks_raw_readings_are_unit_directions() -> None:
+    """``benchmark --robot`` times the direct model on readings with noise: each IMU's
+    specific force stays a direction (the estimators refuse one that is not; a
+    three-section robot's noisy readings were 0.95 long and its benchmark stopped)."""
+    from continuum_mhe.benchmark.harness import raw_imu_recording
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot(
+        tuple(Section(0.12, 3.0) for _ in range(3)), tuple(ImuPlacement(k) for k in range(3))
+    )
+    rec = raw_imu_recording(robot, 1.0)
+    f = make_formulation("direct", robot)
+    for b in f.measurement_blocks:
+        norms = np.linalg.norm(rec.z[:, b.start : b.start + 3], axis=1)
+        np.testing.assert_allclose(norms, 1.0, rtol=0, atol=1e-12)
+    series = make_estimator("ekf", f).run(rec.t, rec.z)
+    assert np.isfinite(series.output).all()

@@ -242,7 +242,8 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
         choices=METHODS,
         default=None,
         help="estimator (default: mhe; ekf for a tendon robot, whose model the fast MHE "
-        "cannot take: docs/tendon.md)",
+        "cannot take, and on which the UKF is far slower and less accurate than the EKF: "
+        "docs/tendon.md)",
     )
 
 

@@ -117,6 +117,19 @@ def wrap_angle(x: ArrayLike) -> FloatArray:
     return (np.asarray(x, dtype=float) + np.pi) % (2 * np.pi) - np.pi
 
 
+def canonical_tilt(z: ArrayLike) -> FloatArray:
+    """``(roll, pitch)`` pairs ``z`` (n, 2 m), rad, as an IMU's attitude reports them:
+    a pitch beyond +-pi/2 (a noisy reading near the gimbal lock) as the same gravity
+    direction with pitch ``+-pi - pitch`` and roll turned by pi; roll wrapped to
+    ``[-pi, pi)``. Pairs within the range are returned as they are."""
+    out = np.array(z, dtype=float, copy=True)
+    roll, pitch = out[:, 0::2], out[:, 1::2]
+    over = np.abs(pitch) > np.pi / 2
+    pitch[over] = np.copysign(np.pi, pitch[over]) - pitch[over]
+    roll[over] = wrap_angle(roll[over] + np.pi)
+    return out
+
+
 @cache
 def _tilt_function(mounting: Mounting) -> ca.Function:
     theta, phi = ca.SX.sym("theta"), ca.SX.sym("phi")

@@ -27,6 +27,7 @@ from continuum_mhe.errors import UserError, expect_type, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import (
     Mounting,
+    canonical_tilt,
     shape_from_tilt,
     tilt,
     tilt_from_accelerometer,
@@ -103,8 +104,9 @@ def _noisy(
     h: FloatArray, std: FloatArray, rng: np.random.Generator, noise_model: NoiseModel
 ) -> FloatArray:
     """Readings ``h`` (n, 2 m) of m IMUs with noise ``std`` (2,) rad as ``noise_model``."""
-    if noise_model == "tilt":
-        return wrap_angle(h + rng.normal(size=h.shape) * np.tile(std, h.shape[1] // 2))
+    if noise_model == "tilt":  # as an IMU reports its attitude: |pitch| <= pi/2
+        noisy = wrap_angle(h + rng.normal(size=h.shape) * np.tile(std, h.shape[1] // 2))
+        return canonical_tilt(noisy)
     if noise_model != "tangent":
         choices = ", ".join(NOISE_MODELS)
         raise UserError(f"noise model must be one of {choices}, got {noise_model!r}")
