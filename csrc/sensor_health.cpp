@@ -433,6 +433,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       consistency_.constant_error_cov(z, mask_.data(), x, bias_.data());
       inference_.output_std(x, bias_.data(), std_b_.data());
       for (int i = 0; i < ny; ++i) ystd[i] = std::hypot(ystd[i], std_b_[i]);
+      // where the readings barely pin the shape, their constant errors alone may put
+      // the tip anywhere the robot reaches: a standard deviation beyond its length
+      // says nothing of where the tip is, and the row is not ok
+      double sum = 0.0;
+      for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
+      if (status == ST_OK && !s_.tip_rows.empty() && std::sqrt(sum) > s_.length)
+        status = ST_UNCERTAIN;
     }
     out.has_std = true;
   }

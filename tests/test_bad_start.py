@@ -184,7 +184,13 @@ def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) 
         tip = np.linalg.norm(s.output[:, :3] - truth[:, :3], axis=1)
         assert tip[back + SAMPLES :].max() < 0.015
     _, t, z, _ = silent_imu_recording(1, 1, 11.0, 0.0)  # the same, without the silence
-    assert set(est.run(t, z).status) == {"ok"}
+    quiet = est.run(t, z)
+    # ok but where the reported tip std exceeds the robot's length (uncertain: section 2
+    # near straight across a horizontal section 1, whose bend about the vertical no
+    # gravity direction shows)
+    wide = np.linalg.norm(quiet.output_std[:, :3], axis=1) > f.robot.length
+    assert np.array_equal(quiet.status == "uncertain", wide) and wide.sum() <= 3
+    assert set(quiet.status) <= {"ok", "uncertain"}
 
 
 def test_an_imu_that_reports_only_later_is_confirmed_as_one_back() -> None:

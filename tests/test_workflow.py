@@ -213,6 +213,45 @@ def test_config_file_sets_options_and_the_command_line_overrides(tmp_path: Path)
     np.testing.assert_array_equal(read_state_table(again).values, read_state_table(out).values)
 
 
+def test_an_estimate_file_of_another_command_or_folder_is_an_options_file(
+    tmp_path: Path, capsys
+) -> None:
+    """A live recording's estimate records live's port and baud: ``estimate --config``
+    with it was refused ("baud is not an option of estimate"); they are left out, said
+    in a note. Its robot file, recorded relative to where live ran, is found beside the
+    estimate from another folder. An error in its options line names the file's line
+    (it said line 1 for the line under the header comment)."""
+    sub = tmp_path / "run"
+    sub.mkdir()
+    robot = sub / "robot.toml"
+    robot.write_text("[[section]]\nlength = 0.25\ntheta_max = 3.0\n[[imu]]\nsection = 1\n")
+    meas = tmp_path / "m.csv"
+    assert (
+        main(["simulate", "paper3d", "--duration", "1", "--length", "0.25", "-o", str(meas)]) == 0
+    )
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(est)]) == 0
+    lines = est.read_text().splitlines(True)
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("# options"))
+    lines[at] = (  # as live writes it, run from the folder of its robot file
+        lines[at].replace(f'robot = "{robot}"', 'robot = "robot.toml"')
+        .replace("{", '{port = "/dev/ttyACM0", baud = 115200, ', 1)
+    )  # fmt: skip
+    live = sub / "live.csv"
+    live.write_text("".join(lines))
+    capsys.readouterr()
+    again = tmp_path / "again.csv"
+    assert main(["estimate", str(meas), "--config", str(live), "-o", str(again)]) == 0
+    err = capsys.readouterr().err
+    assert f"{live}: port, baud (of the command that wrote it) are no option of estimate" in err
+    assert _options_of(again)["robot"] == str(robot)
+    np.testing.assert_array_equal(read_state_table(again).values, read_state_table(est).values)
+    lines[at] = lines[at].replace('method = "mhe"', 'method = "kalman"')
+    live.write_text("".join(lines))
+    assert main(["estimate", str(meas), "--config", str(live), "-o", str(tmp_path / "x.csv")]) == 2
+    assert f"{live}: line {at + 1}: method = 'kalman' is not one of" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("text", "needle"),
     [

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 
 if TYPE_CHECKING:
@@ -34,6 +35,9 @@ MODEL_LINE = "model"
 #: options that are never read from a file or recorded: they name files or say how to
 #: treat them, not how to estimate
 NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "func", "command"})
+#: options that name a file (relative to where the command runs, else beside the
+#: options file: :func:`apply_config`)
+FILE_OPTIONS = frozenset({"robot", "inputs"})
 
 
 def add_config_option(p: argparse.ArgumentParser) -> None:
@@ -54,35 +58,41 @@ def _options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
     }
 
 
-def _read(path: str) -> tuple[dict[str, Any], str]:
-    """The options of a TOML file or of an estimate CSV's ``# options = {...}`` line, and
-    the text they were read from (for line numbers)."""
+def _read(path: str) -> tuple[dict[str, Any], str, int]:
+    """The options of a TOML file or of an estimate CSV's ``# options = {...}`` line, the
+    text they were read from (for line numbers) and the file's line number before that
+    text's first (0 for a TOML file)."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None
+    offset = 0
     if p.suffix.lower() == ".csv":
-        lines = [ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")]
-        found = [ln for ln in lines if re.match(rf"{OPTIONS_LINE}\s*=", ln)]
+        found = [
+            (n, ln[1:].strip())
+            for n, ln in enumerate(text.splitlines())
+            if ln.startswith("#") and re.match(rf"{OPTIONS_LINE}\s*=", ln[1:].strip())
+        ]
         if not found:
             raise InputError(
                 f"{path}: no '# {OPTIONS_LINE} = {{...}}' line (not an estimate file?)"
             )
-        text = found[0]
+        offset, text = found[0]
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: {exc}") from None
     if p.suffix.lower() == ".csv":
         data = data[OPTIONS_LINE]
-    return data, text
+    return data, text, offset
 
 
-def _line(text: str, key: str) -> str:
-    """``line N: `` of ``key``'s first assignment in ``text``, else ``""``."""
-    for n, ln in enumerate(text.splitlines(), start=1):
+def _line(text: str, key: str, offset: int = 0) -> str:
+    """``line N: `` of ``key``'s first assignment in ``text`` (whose first line is the
+    file's line ``offset + 1``), else ``""``."""
+    for n, ln in enumerate(text.splitlines(), start=offset + 1):
         if re.match(rf"\s*{re.escape(key)}\s*=", ln) or re.search(
             rf"[{{,]\s*{re.escape(key)}\s*=", ln
         ):
@@ -125,23 +135,51 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     """Set the defaults of ``parser`` (the ``command``'s) from the options file ``path``:
     its top-level keys and those of its ``[command]`` table. A key that is no option of
     the command, or a value the option would refuse, is a one-line error naming the file
-    and the line."""
-    data, text = _read(path)
+    and the line; but an estimate file's options line records the options of the
+    command that wrote it (``live``'s port and baud in a live recording's estimate):
+    those that are no option of ``command`` are left out, and a note says which. A
+    relative robot or tensions file that is not where the command runs but beside the
+    options file is taken from there."""
+    data, text, offset = _read(path)
     options = _options(parser)
     tables = {"estimate", "live"}
     flat = {k: v for k, v in data.items() if k not in tables}
     own = data.get(command, {})
+    recorded = Path(path).suffix.lower() == ".csv"
     defaults: dict[str, Any] = {}
+    left_out: list[str] = []
     for key, value in [*flat.items(), *own.items()]:
         dest = key.replace("-", "_")
-        where = _line(text, key)
+        where = _line(text, key, offset)
         if dest in NOT_OPTIONS:
             raise InputError(f"{path}: {where}{key} is given on the command line, not in a file")
         action = options.get(dest)
+        if action is None and recorded:
+            left_out.append(key)
+            continue
         if action is None:
             raise InputError(f"{path}: {where}{key} is not an option of {command}")
+        if dest in FILE_OPTIONS and isinstance(value, str):
+            value = _beside(path, value)
         defaults[dest] = _value(path, where, key, action, value)
+    if left_out:
+        print(
+            f"{PROG}: note: {path}: {', '.join(left_out)} (of the command that wrote it) "
+            f"{'is' if len(left_out) == 1 else 'are'} no option of {command}: left out",
+            file=sys.stderr,
+        )
     parser.set_defaults(**defaults)
+
+
+def _beside(path: str, value: str) -> str:
+    """``value`` (a file named in the options file ``path``) as the command finds it:
+    as given where it exists from the working folder (or is a shipped robot's name),
+    else beside the options file where it is there."""
+    given = Path(value)
+    there = Path(path).parent / given
+    if given.is_absolute() or given.exists() or not there.exists():
+        return value
+    return str(there)
 
 
 def recorded_option(path: str, key: str) -> Any:
@@ -149,7 +187,7 @@ def recorded_option(path: str, key: str) -> Any:
     None where the file has no such line or key (or cannot be read: its reader says
     why)."""
     try:
-        data, _ = _read(path)
+        data, _, _ = _read(path)
     except InputError:
         return None
     return data.get(key)

@@ -7,11 +7,13 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from continuum_mhe.cli.config import options_record
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
@@ -270,6 +272,13 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         raise InputError(
             f"{robot}: --method mhe: {obstacle}; --method ekf (this robot's default) or ukf, "
             "or --solver ipopt (the MHE on IPOPT: slow, its memory grows with --horizon)"
+        )
+    if method == "mhe" and obstacle is not None:  # asked for the MHE on IPOPT
+        print(
+            f"{PROG}: warning: the MHE on IPOPT with this robot's model takes tens of seconds "
+            "and gigabytes of memory a window, more with a longer --horizon (docs: tendon "
+            "robots); the EKF is this robot's default",
+            file=sys.stderr,
         )
     args.method = method
     parser = getattr(args, "options_parser", None)
