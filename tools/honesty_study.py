@@ -29,6 +29,7 @@ import argparse
 import contextlib
 import csv
 import io
+import shlex
 import tempfile
 import warnings
 from collections.abc import Sequence
@@ -91,7 +92,11 @@ def coverage(est: dict[str, np.ndarray], truth: np.ndarray) -> tuple[np.ndarray,
 
 
 def target_a(
-    tmp: Path, methods: Sequence[str], folders: Sequence[Path], cases: Sequence[str]
+    tmp: Path,
+    methods: Sequence[str],
+    folders: Sequence[Path],
+    cases: Sequence[str],
+    extra: Sequence[str] = (),
 ) -> None:
     print("(a) rods: ok share; ok rows' 95 % coverage x / y / z (target 0.85 to 0.99)")
     for method in methods:
@@ -104,7 +109,7 @@ def target_a(
                     rec = folder / f"{name}_{case}.csv"
                     if not rec.exists():
                         continue
-                    est = estimate(tmp, rec, method, "--robot", "two-section")
+                    est = estimate(tmp, rec, method, "--robot", "two-section", *extra)
                     ok, cov = coverage(est, truth)
                     pooled_ok.append(ok)
                     pooled_cov.append(cov[ok])
@@ -213,12 +218,15 @@ def main() -> None:
                    "NAME_raw.csv / NAME_tilt.csv)")  # fmt: skip
     p.add_argument("--cases", nargs="+", default=["raw", "tilt"], help="recording kinds")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4], help="paper3d seeds")
+    p.add_argument("--estimate-options", default="",
+                   help="(a) options for every estimate, one string: "
+                   "--estimate-options='--model-error-floor-deg 0'")  # fmt: skip
     args = p.parse_args()
     warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
         if "a" in args.only:
-            target_a(tmp, args.methods, args.rods, args.cases)
+            target_a(tmp, args.methods, args.rods, args.cases, shlex.split(args.estimate_options))
         if "b" in args.only:
             target_b(tmp, args.methods, args.cases)
         if "c" in args.only:
