@@ -705,13 +705,19 @@ def print_report(report: dict[str, Any]) -> None:
         console.print(f"  {name}: not timed: {why}")
     fast = {r["horizon"]: r for r in report["results"] if r["method"] == "fast"}
     for n, r in fast.items():
-        console.print(
-            f"fast MHE at N = {n}: {_times(r['over_ipopt'])} of IPOPT, "
-            f"{_times(r['over_ekf_compiled'])}x the compiled EKF, "
-            f"{_times(r['over_ekf_kernel'])}x the bare EKF kernel"
-        )
+        against = [
+            f"{_times(r[key])}{times} {what}"
+            for key, times, what in (
+                ("over_ipopt", "", "of IPOPT"),
+                ("over_ekf_compiled", "x", "the compiled EKF"),
+                ("over_ekf_kernel", "x", "the bare EKF kernel"),
+            )
+            if math.isfinite(r[key])  # a contender skipped: no ratio to say
+        ]
+        if against:
+            console.print(f"fast MHE at N = {n}: {', '.join(against)}")
     for r in report["results"]:
-        if r["method"] == "mhe-kernel":
+        if r["method"] == "mhe-kernel" and math.isfinite(r["over_ekf_kernel"]):
             console.print(
                 f"bare MHE kernel at N = {r['horizon']}: {_times(r['over_ekf_kernel'])}x "
                 "the bare EKF kernel"
