@@ -95,7 +95,8 @@ def verdict(r: ObservabilityReport) -> str:
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
             f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
-            f"{100 * t.full_rank_fraction:.1f} % of shapes"
+            f"{100 * t.full_rank_fraction:.1f} % of the sampled shapes (not near the least "
+            "observable shapes listed above, where the estimate follows its motion model)"
         )
     if t.full_rank_fraction == 0.0:
         return (
