@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 from continuum_mhe.cli.config import recorded_option
-from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.cli.options import DEFAULT_LENGTH, add_robot_option, robot_from_args
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import (
@@ -78,11 +78,11 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
 
 
 def _recorded_robot(args: argparse.Namespace) -> Robot | None:
-    """Without ``--robot``: the robot file the estimate's options line names, where it
-    can be read (said in a note), else None."""
+    """Without ``--robot`` or ``--length``: the robot file the estimate's options line
+    names, where it can be read (said in a note), else None."""
     from continuum_mhe.io.robot_file import read_robot
 
-    if args.robot:
+    if args.robot or args.length is not None:
         return None
     name = recorded_option(args.estimates, "robot")
     if not isinstance(name, str):
@@ -102,8 +102,12 @@ def _recorded_robot(args: argparse.Namespace) -> Robot | None:
 def run(args: argparse.Namespace) -> int:
     est = read_state_table(args.estimates)
     truth = read_state_table(args.truth)
-    # without --robot: the estimate's own, else one section of --length
-    robot = _recorded_robot(args) or robot_from_args(args)
+    # without --robot or --length: the estimate's own, else one section of --length
+    robot = _recorded_robot(args)
+    if robot is None:
+        if args.length is None:
+            args.length = DEFAULT_LENGTH
+        robot = robot_from_args(args)
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
     length = robot.length
@@ -231,6 +235,11 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("estimates")
     p.add_argument("truth")
-    p.add_argument("--length", type=float, default=0.2, help="section length in m")
+    p.add_argument(
+        "--length",
+        type=float,
+        default=None,
+        help="section length in m (default: the robot the estimate records, else 0.2)",
+    )
     add_robot_option(p, replaces=("--length",))
     p.add_argument("--json", action="store_true", help="print JSON")

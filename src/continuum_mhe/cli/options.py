@@ -114,10 +114,19 @@ class OneLineParser(argparse.ArgumentParser):
         return ""
 
 
+#: One section's length (m) where neither ``--robot`` nor ``--length`` gives one.
+DEFAULT_LENGTH = 0.2
+
+
 def add_model_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("model")
     add_robot_option(g)
-    g.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
+    g.add_argument(
+        "--length",
+        type=float,
+        default=DEFAULT_LENGTH,
+        help=f"section length in m (default {DEFAULT_LENGTH:g})",
+    )
     g.add_argument(
         "--theta-max",
         type=float,
