@@ -134,6 +134,12 @@ double SensorHealth::unobserved_window() const {
   return std::isnan(s_.gap_reset) || s_.gap_reset == 0.0 ? s_.unobserved_after : s_.gap_reset;
 }
 
+double SensorHealth::tip_std(const double* ystd) const {
+  double sum = 0.0;
+  for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
+  return std::sqrt(sum);
+}
+
 const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
   frozen = false;
   if (std::isnan(s_.freeze)) return z;
@@ -424,9 +430,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // unobserved window: a filter linearised on one of those shapes narrows around
       // it whether or not it is the robot's, so only readings that go on agreeing
       // with it confirm it
-      double sum = 0.0;
-      for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
-      if (std::sqrt(sum) > s_.uncertain_fraction * s_.length) wide_t_ = t;
+      if (tip_std(ystd) > s_.uncertain_fraction * s_.length) wide_t_ = t;
       if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
     }
     if (s_.checks_start) {  // constant reading errors, model error: no residual shows them
@@ -436,9 +440,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // where the readings barely pin the shape, their constant errors alone may put
       // the tip anywhere the robot reaches: a standard deviation beyond its length
       // says nothing of where the tip is, and the row is not ok
-      double sum = 0.0;
-      for (int i : s_.tip_rows) sum += ystd[i] * ystd[i];
-      if (status == ST_OK && !s_.tip_rows.empty() && std::sqrt(sum) > s_.length)
+      if (status == ST_OK && !s_.tip_rows.empty() && tip_std(ystd) > s_.length)
         status = ST_UNCERTAIN;
     }
     out.has_std = true;

@@ -193,6 +193,8 @@ class SensorHealth {
   bool note_imus(double t);  // fills back_rows_
   bool observed_now(double t);
   double unobserved_window() const;
+  // the tip position's standard deviation, m, from an estimate's output stds
+  double tip_std(const double* ystd) const;
   // the bad-start check (start_check.py's doc)
   void start_clear();
   void start_reopen(double hold);

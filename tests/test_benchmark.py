@@ -310,3 +310,15 @@ def test_the_robot_benchmarks_raw_readings_are_unit_directions() -> None:
         np.testing.assert_allclose(norms, 1.0, rtol=0, atol=1e-12)
     series = make_estimator("ekf", f).run(rec.t, rec.z)
     assert np.isfinite(series.output).all()
+
+
+def test_the_ratios_line_names_only_the_contenders_that_ran(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """With the EKFs skipped the fast MHE's line gives its ratio to IPOPT alone (it
+    printed '-x the compiled EKF' for the contenders that did not run)."""
+    report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1)
+    bm.print_report(report)
+    out = " ".join(capsys.readouterr().out.split())
+    line = out[out.index("fast MHE at N = 3:") :].split("machine:")[0]
+    assert line.strip().endswith("of IPOPT") and "EKF" not in line and "-x" not in line

@@ -574,8 +574,8 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         # milliseconds in t: the 0.1 s recording lies within the first two rows, and was
         # estimated on tensions held at their first values
         ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],
-         ["t", "tension_1"], "t steps 20 s a row against the recording's 0.02 s a sample: if "
-         "t is in milliseconds, name the column t_ms"),
+         ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
+         "in milliseconds, name the column t_ms"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
          "line 3: column tension_1 is nan (a dropout; --skip-bad keeps it)"),
     ],
@@ -593,6 +593,17 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
     assert not out.exists()
+
+
+def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
+    """A tensions file a second or more between rows that spans the recording is no
+    millisecond file: read (a 50 Hz recording with tensions every 2.5 s was refused)."""
+    meas, tensions = _recording(tmp_path)
+    write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0 and out.exists()
 
 
 def test_skip_bad_leaves_out_a_bad_tension_row_and_says_so(
@@ -613,8 +624,9 @@ def test_skip_bad_leaves_out_a_bad_tension_row_and_says_so(
         warnings.simplefilter("always")
         assert main([*argv, str(skipped), "--skip-bad"]) == 0
     said = [str(w.message) for w in seen if w.category is DropoutWarning]
-    assert said == [f"{tensions}: 1 tension row(s) with a bad value left out (--skip-bad): the "
-                    "tensions are interpolated across them"]  # fmt: skip
+    assert said == [f"{tensions}: 1 tension row(s) with a bad value or time left out (--skip-bad; "
+                    "first: line 3: column tension_1 is nan): the tensions are interpolated "
+                    "across them"]  # fmt: skip
     a, b = read_state_table(clean), read_state_table(skipped)
     np.testing.assert_allclose(b.column("fx"), a.column("fx"), rtol=0, atol=1e-12)
 
@@ -993,4 +1005,33 @@ def test_simulate_refuses_a_tendon_robot(
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("continuum-mhe: error: tendon-two-section: a tendon")
+    assert "the scenarios are the bends of a constant-curvature robot" in err[0]
     assert "continuum_mhe.simulation.cosserat_tendon" in err[0] and not out.exists()
+
+
+def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A row's tip force beyond what the rod holds (a force in mN read as N) has no
+    equilibrium to draw: one line naming the file and the row's time, exit 2, no figure
+    (it was reported as a bug, exit 70)."""
+    meas, tensions = _recording(tmp_path)
+    robot = str(_small_robot(tmp_path))
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
+                 "-o", str(est)]) == 0  # fmt: skip
+    lines = est.read_text().splitlines(True)
+    header = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    fx = lines[header].rstrip("\n").split(",").index("fx")
+    for i in range(header + 1, len(lines)):  # every row: the figure draws a few of them
+        cells = lines[i].rstrip("\n").split(",")
+        cells[fx] = "80"
+        lines[i] = ",".join(cells) + "\n"
+    est.write_text("".join(lines))
+    capsys.readouterr()
+    fig = tmp_path / "e.png"
+    argv = ["plot", str(est), "--robot", robot, "--inputs", str(tensions), "-o", str(fig)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {est}: the row at t = 0 s")
+    assert "no equilibrium" in err[0] and not fig.exists()

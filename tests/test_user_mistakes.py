@@ -587,12 +587,18 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
     t = np.arange(40) * 0.02
     degrees_per_s = np.tile(direct_measurements(acc, np.radians([[30.0, 0.0, 0.0]])), (40, 1))
     degrees_per_s[:, 3:] = np.degrees(degrees_per_s[:, 3:])
-    with pytest.raises(UserError, match=r"^wx, wy, wz have magnitude 30 \(median\).*deg/s"):
+    with pytest.raises(
+        UserError, match=r"^wx, wy, wz: gyro magnitude is about 30 \(median\).*deg/s"
+    ):
         est.run(t, degrees_per_s)
     good = np.tile(direct_measurements(acc, [[0.01, 0.0, 0.02]]), (40, 1))
-    good[3] = np.nan  # a dropout first: step checks the first full reading
+    good[0] = np.nan  # a dropout first: step checks the first full reading
     series = est.run(t, good)
     assert np.isfinite(series.output[5:]).all()
     est.reset()
     for tk, zk in zip(t, good):
         est.step(Measurement(float(tk), zk))
+    est.reset()  # a reading in m/s^2 after the dropout is the first full one: refused
+    est.step(Measurement(0.0, good[0]))
+    with pytest.raises(UserError, match=r"^measurement at t=0\.02 s: fx, fy, fz have magnitude"):
+        est.step(Measurement(0.02, np.array([0.3, -0.2, 9.79, 0.01, 0.0, 0.02])))

@@ -184,7 +184,10 @@ class RecoverySettings:
             estimate within the unobserved window after it (``gap_reset``, or 1 s when
             that is off) since the last that did; judged on the estimator's own
             covariance, before the readings' constant errors
-            (``NoiseSettings.reading_bias_std``) widen the reported std.
+            (``NoiseSettings.reading_bias_std``) widen the reported std. Apart from
+            this fraction, an ``ok`` estimate whose reported tip std exceeds the robot's
+            length is ``uncertain`` too (the readings' constant errors alone may then
+            put the tip anywhere it reaches), whatever the fraction.
 
     The defaults are the command line's; :meth:`off` gives the bare estimator (no
     gap reset, freeze, bad-start or reject reset), as the paper's experiments run it.

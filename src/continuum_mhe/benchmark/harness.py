@@ -303,7 +303,8 @@ def raw_imu_recording(
     x = np.concatenate([bends, np.gradient(bends, rec.t, axis=0)], axis=1)
     z = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
     z += np.random.default_rng(seed).normal(scale=RAW_NOISE, size=z.shape)
-    for b in f.measurement_blocks:  # a noisy direction is a direction, as an IMU's reads
+    # a noisy direction is still a direction, as an IMU reads it
+    for b in (b for b in f.measurement_blocks if b.kind == "direct"):
         force = z[:, b.start : b.start + 3]
         force /= np.linalg.norm(force, axis=1, keepdims=True)
     return replace(rec, z=z, measurement_names=f.measurement_names)

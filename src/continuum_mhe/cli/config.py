@@ -160,7 +160,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
         if action is None:
             raise InputError(f"{path}: {where}{key} is not an option of {command}")
         if dest in FILE_OPTIONS and isinstance(value, str):
-            value = _beside(path, value)
+            value = beside(path, value)
         defaults[dest] = _value(path, where, key, action, value)
     if left_out:
         print(
@@ -171,8 +171,8 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     parser.set_defaults(**defaults)
 
 
-def _beside(path: str, value: str) -> str:
-    """``value`` (a file named in the options file ``path``) as the command finds it:
+def beside(path: str, value: str) -> str:
+    """``value`` (a file named in the options file or estimate ``path``) as a command finds it:
     as given where it exists from the working folder (or is a shipped robot's name),
     else beside the options file where it is there."""
     given = Path(value)

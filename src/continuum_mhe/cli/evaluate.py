@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 
-from continuum_mhe.cli.config import recorded_option
+from continuum_mhe.cli.config import beside, recorded_option
 from continuum_mhe.cli.options import DEFAULT_LENGTH, add_robot_option, robot_from_args
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
@@ -88,8 +88,13 @@ def _recorded_robot(args: argparse.Namespace) -> Robot | None:
     if not isinstance(name, str):
         return None
     try:
-        robot = read_robot(name)
-    except UserError:
+        robot = read_robot(beside(args.estimates, name))
+    except UserError as exc:
+        print(
+            f"{PROG}: note: {args.estimates} was estimated with --robot {name}, which "
+            f"cannot be read here ({exc}); give --robot",
+            file=sys.stderr,
+        )
         return None
     print(
         f"{PROG}: note: {args.estimates} was estimated with --robot {name} (its options "

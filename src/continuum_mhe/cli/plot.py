@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
 
 if TYPE_CHECKING:
@@ -88,7 +89,13 @@ def _estimate(args: argparse.Namespace) -> int:
     problem = None if truth is None else truth_problem(est, truth)
     if problem is not None:
         raise InputError(f"{args.truth}: {problem}")
-    fig = estimate_figure(est, truth, lengths, title, backbone)
+    try:
+        fig = estimate_figure(est, truth, lengths, title, backbone)
+    except InputError:  # names its file
+        raise
+    except UserError as exc:  # a row's loads (the estimate's or the truth's)
+        files = f"{args.source} or {args.truth}" if args.truth else args.source
+        raise InputError(f"{files}: {exc}") from None
     save(fig, output, (output.suffix.lower()[1:],))
     print(f"wrote {output}", file=sys.stderr)
     return 0

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from continuum_mhe.estimators.base import FloatArray
-from continuum_mhe.io.raw_imu import GYRO_MEDIAN_MAX
+from continuum_mhe.io.raw_imu import gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
 
 #: A unit specific force whose magnitude is off 1 by more than this is not a direction
@@ -40,7 +40,7 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
     (:func:`direct_blocks`), as a line for :class:`~continuum_mhe.errors.UserError`, or
     None: a specific force whose median magnitude is not 1, or (``gyro``: a recording,
     where a median says it; one sample of a fast turn may exceed it) a gyro whose median
-    rate exceeds :data:`~continuum_mhe.io.raw_imu.GYRO_MEDIAN_MAX` rad/s (deg/s). Rows
+    rate says deg/s (:func:`~continuum_mhe.io.raw_imu.gyro_units_problem`). Rows
     with a non-finite reading (dropouts) are left out."""
     for force_rows, gyro_rows, names in blocks:
         f, w = z[:, force_rows], z[:, gyro_rows]
@@ -55,10 +55,7 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
                 "takes the unit specific force, not the accelerometer's reading in m/s^2 "
                 "(continuum_mhe.model.direct.direct_measurements(acc, gyr) gives the rows)"
             )
-        rate = float(np.median(np.linalg.norm(w[finite], axis=1)))
-        if gyro and rate > GYRO_MEDIAN_MAX:
-            return (
-                f"{', '.join(names[3:])} have magnitude {rate:.3g}{typical}, "
-                f"implausible in rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s"
-            )
+        problem = gyro_units_problem(w[finite], ", ".join(names[3:])) if gyro else None
+        if problem is not None:
+            return f"{', '.join(names[3:])}: {problem}"
     return None

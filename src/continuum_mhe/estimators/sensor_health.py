@@ -328,7 +328,9 @@ class Estimator(Generic[InferenceT]):
         outliers) and, for a robust MHE, a valid reading after every reading
         of more than ``reject_reset`` s was rejected as an outlier (the estimate, not
         the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
-        exceeds ``uncertain_fraction`` of the robot's length is ``uncertain``, and so is
+        exceeds ``uncertain_fraction`` of the robot's length, or whose reported one (the
+        readings' constant errors in it) exceeds the robot's length, is ``uncertain``,
+        and so is
         every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
         (a trusted status) of a robot whose IMUs do not determine its shape
         (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import FloatArray, StateTable
@@ -113,8 +114,12 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
 
     def points(table: StateTable, row: int) -> FloatArray:
         force = np.array([table.column(c)[row] for c in TIP_FORCE_COLUMNS])
-        tension, _, _ = tensions.at(float(table.t[row]))
-        return statics.backbone_points(force, tension, POINTS_PER_SECTION)
+        t = float(table.t[row])
+        tension, _, _ = tensions.at(t)
+        try:
+            return statics.backbone_points(force, tension, POINTS_PER_SECTION)
+        except ArithmeticError as exc:
+            raise UserError(f"the row at t = {t:g} s: {exc} (a force in mN?)") from None
 
     return points
 

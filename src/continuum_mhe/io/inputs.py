@@ -27,6 +27,7 @@ serial line formats through :func:`serial_input`; ``calibrate``'s recordings thr
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import warnings
@@ -370,7 +371,7 @@ def _tensions(
     ``--inputs``, else the ``recording``'s own tension columns (whose times are the
     recording's). ``streamed``: the recording's samples go through
     :func:`_append_tensions`, which checks the file's times against theirs
-    (:meth:`Tensions.check_rate`); else (``live``) a ``t`` stepping like milliseconds
+    (:meth:`Tensions.check_span`); else (``live``) a ``t`` stepping like milliseconds
     is a warning."""
     given = options.tensions
     k = robot.n_tendons
@@ -416,14 +417,18 @@ def _append_tensions(
     blocks = stream.blocks
 
     def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
-        for i, (t, z) in enumerate(blocks):
-            if i == 0 and tensions is not None:
-                tensions.check_rate(t)
+        first = last = math.nan
+        for t, z in blocks:
+            if len(t):
+                first = t[0] if math.isnan(first) else first
+                last = t[-1]
             rows = []
             for tv, zv in zip(t.tolist(), z):
                 given = tensions.at(tv) if tensions is not None else (np.zeros(k),) * 3
                 rows.append(f.measurement_row(zv, *given))
             yield t, np.array(rows, dtype=np.float64).reshape(len(t), f.nz)
+        if tensions is not None:  # the recording's whole span known: milliseconds?
+            tensions.check_span(float(first), float(last))
 
     stream.formulation, stream.blocks = f, with_tensions()
     stream.description.tensions = None if tensions is None else tensions.name

@@ -417,17 +417,28 @@ def check_accel_units(path: Path | str, acc: FloatArray) -> None:
         )
 
 
-def check_gyro_units(path: Path | str, gyr: FloatArray, used: bool = True) -> None:
-    """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s:
-    an error where the estimate uses it (``used``), else one warning (it is ignored)."""
+def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None:
+    """Where the median magnitude of a gyro's readings ``gyr`` (n, 3) exceeds
+    :data:`GYRO_MEDIAN_MAX` rad/s (deg/s given for rad/s): what to say, naming the
+    columns ``names``; else None. Non-finite rows are left out."""
     norm = np.linalg.norm(gyr, axis=1)
     norm = norm[np.isfinite(norm)]
-    if len(norm) and float(np.median(norm)) > GYRO_MEDIAN_MAX:
-        msg = (
-            f"{path}: gyro magnitude is about {float(np.median(norm)):.3g} (median), "
-            f"implausible in rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s (gx, gy, gz "
-            f"times pi/180 = {math.pi / 180:.7f})"
-        )
+    if not len(norm) or float(np.median(norm)) <= GYRO_MEDIAN_MAX:
+        return None
+    return (
+        f"gyro magnitude is about {float(np.median(norm)):.3g} (median), implausible in "
+        f"rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s ({names} times pi/180 = "
+        f"{math.pi / 180:.7f})"
+    )
+
+
+def check_gyro_units(path: Path | str, gyr: FloatArray, used: bool = True) -> None:
+    """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s
+    (:func:`gyro_units_problem`): an error where the estimate uses it (``used``), else one
+    warning (it is ignored)."""
+    problem = gyro_units_problem(gyr)
+    if problem is not None:
+        msg = f"{path}: {problem}"
         if used:
             raise InputError(msg)
         warnings.warn(

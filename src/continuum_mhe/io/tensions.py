@@ -27,7 +27,7 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import DropoutWarning, FloatArray, check_time_units
 from continuum_mhe.io.input_options import InputOptions
-from continuum_mhe.io.text_rows import InputError, iter_samples, open_rows
+from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.tendon import TendonFormulation
 
@@ -51,19 +51,21 @@ class Tensions:
     rates: FloatArray
     accelerations: FloatArray
 
-    def check_rate(self, t: FloatArray) -> None:
-        """An :class:`InputError` where the file's rows step in whole seconds and over a
-        hundred of the recording's samples (times ``t`` (n,) s) fall between two of
-        them: ``t`` in milliseconds read as seconds, which no coverage check sees (the
-        recording lies within the file's first rows)."""
-        if len(t) < 2 or len(self.t) < 2:
+    def check_span(self, first: float, last: float) -> None:
+        """An :class:`InputError` where the file's rows step by a second or more and span
+        over a hundred times the recording's times ``first`` to ``last`` (s): ``t`` in
+        milliseconds read as seconds, which the coverage check does not see (the
+        recording lies within the file's first rows). A file at a slow rate that spans
+        the recording passes."""
+        if len(self.t) < 2 or not last > first:
             return
-        step, sample = float(np.median(np.diff(self.t))), float(np.median(np.diff(t)))
-        if step >= 1.0 and step > 100.0 * sample:
+        step = float(np.median(np.diff(self.t)))
+        span = float(self.t[-1] - self.t[0])
+        if step >= 1.0 and span > 100.0 * (last - first):
             raise InputError(
-                f"{self.name}: t steps {step:g} s a row against the recording's {sample:g} s "
-                "a sample: if t is in milliseconds, name the column t_ms (it is read in "
-                "seconds)"
+                f"{self.name}: its t spans {span:g} s in steps of {step:g} s, the recording "
+                f"{last - first:g} s: if t is in milliseconds, name the column t_ms (it is "
+                "read in seconds)"
             )
 
     def covers(self, t: float) -> bool:
@@ -126,7 +128,7 @@ def read_tensions(
     :class:`~continuum_mhe.io.csv_files.DropoutWarning` counts them) instead of an
     error. ``time_warning``: a ``t`` that steps like milliseconds is said (a
     :class:`~continuum_mhe.io.csv_files.UnitWarning`); a caller that checks it against
-    the recording (:meth:`Tensions.check_rate`) leaves it off."""
+    the recording (:meth:`Tensions.check_span`) leaves it off."""
     names = list(tension_columns(n_tendons))
     with open_rows(path) as rows:
         name = rows.name
@@ -138,12 +140,16 @@ def read_tensions(
                 f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
                 f"the robot file, in its order), got {','.join(rows.header)}"
             )
-        data = list(iter_samples(rows, ["t", *names], skip_bad=skip_bad))
+        problems = RowProblems()
+        data = list(iter_samples(rows, ["t", *names], skip_bad=skip_bad, problems=problems))
         kept = [d for d in data if all(math.isfinite(v) for v in d[2])]
-        if len(kept) < len(data):
+        left_out = len(data) - len(kept) + problems.dropped  # a bad value, or a bad t
+        if left_out:
+            first = problems.first[0].split(" (")[0]  # the line and the problem
             warnings.warn(
-                f"{name}: {len(data) - len(kept)} tension row(s) with a bad value left out "
-                "(--skip-bad): the tensions are interpolated across them",
+                f"{name}: {left_out} tension row(s) with a bad value or time left out "
+                f"(--skip-bad; first: {first}): the tensions are interpolated "
+                "across them",
                 DropoutWarning,
                 stacklevel=2,
             )

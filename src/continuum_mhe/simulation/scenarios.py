@@ -185,8 +185,8 @@ def simulate_robot(
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons:
         raise UserError(
-            f"a tendon robot ({robot.describe()}); simulate writes the bends of a "
-            "constant-curvature robot without tensions: a tendon robot's recordings "
+            f"a tendon robot ({robot.describe()}): the scenarios are the bends of a "
+            "constant-curvature robot without tensions; a tendon robot's recordings "
             "(tensions, tip force) come from python -m "
             "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
         )

@@ -10,6 +10,7 @@ from functools import cache, cached_property
 import casadi as ca
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import FloatArray
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
@@ -132,7 +133,8 @@ class TendonShapes:
     def from_forces(self, t: FloatArray, forces: FloatArray) -> BackboneGeometry:
         """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
         the tensions there (the base curvature solved from the tip condition, each
-        sample from the previous one's)."""
+        sample from the previous one's); a :class:`~continuum_mhe.errors.UserError`
+        naming the row where the rod holds no equilibrium under its loads."""
         if self.tensions is None:
             raise ValueError("from_forces needs the tensions")
         statics = self.statics
@@ -141,6 +143,9 @@ class TendonShapes:
         k0 = np.zeros((len(forces), 3))
         previous = None
         for i in range(len(forces)):
-            previous, _ = statics.solve(forces[i], tau[i], previous)
+            try:
+                previous, _ = statics.solve(forces[i], tau[i], previous)
+            except ArithmeticError as exc:
+                raise UserError(f"the row at t = {t[i]:g} s: {exc} (a force in mN?)") from None
             k0[i] = previous
         return self._geometry(k0, forces, tau)
