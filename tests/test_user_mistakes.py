@@ -602,3 +602,15 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
     est.step(Measurement(0.0, good[0]))
     with pytest.raises(UserError, match=r"^measurement at t=0\.02 s: fx, fy, fz have magnitude"):
         est.step(Measurement(0.02, np.array([0.3, -0.2, 9.79, 0.01, 0.0, 0.02])))
+
+
+def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:
+    """With one IMU silent from the start, the other's readings in m/s^2 are still
+    refused at its first reading (the check waited for a sample with every IMU)."""
+    from continuum_mhe.io.robot_file import read_robot
+
+    est = make_estimator("ekf", make_formulation("direct", read_robot("two-section")))
+    z = np.full(12, np.nan)
+    z[:6] = [0.3, -0.2, 9.79, 0.01, 0.0, 0.02]  # IMU 1 in m/s^2, IMU 2 silent
+    with pytest.raises(UserError, match=r"^measurement at t=0\.0 s: fx_1, fy_1, fz_1 have"):
+        est.step(Measurement(0.0, z))

@@ -39,7 +39,11 @@ from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
-from continuum_mhe.estimators.reading_units import direct_blocks, direct_units_problem
+from continuum_mhe.estimators.reading_units import (
+    DirectRows,
+    direct_blocks,
+    direct_units_problem,
+)
 from continuum_mhe.io.csv_files import check_time_steps
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.pcc import shape_rank
@@ -227,7 +231,8 @@ class Estimator(Generic[InferenceT]):
             )
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
-        self._units_checked = not self._direct_rows  # step checks the first full reading
+        #: the direct blocks whose first full reading step has still to check
+        self._unchecked = list(self._direct_rows)
         self._policy = self._compiled_policy()
         self.reset()
 
@@ -297,7 +302,7 @@ class Estimator(Generic[InferenceT]):
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()
         self._ran = False
-        self._units_checked = not self._direct_rows
+        self._unchecked = list(self._direct_rows)
         self._policy.reset(keep_counts)
 
     def _sync_diagnostics(self) -> None:
@@ -347,8 +352,8 @@ class Estimator(Generic[InferenceT]):
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
                 a tilt angle beyond 2 pi (degrees given for radians), a raw IMU's
-                specific force that is not a unit vector (the first full reading after
-                a reset is checked; ``run`` checks the gyros' units too), or
+                specific force that is not a unit vector (each IMU's first full reading
+                after a reset is checked; ``run`` checks the gyros' units too), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -361,9 +366,11 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
-        if not self._units_checked and np.all(np.isfinite(z)):
-            self._check_units(t, z[None, :])
-            self._units_checked = True
+        if self._unchecked:  # each IMU's first full reading
+            full = [b for b in self._unchecked if np.isfinite(z[b[0]]).all()]
+            if full:
+                self._check_units(t, z[None, :], full)
+                self._unchecked = [b for b in self._unchecked if b not in full]
         err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
         if err:
             self._refuse(err, t, z)
@@ -371,11 +378,15 @@ class Estimator(Generic[InferenceT]):
         self._sync_diagnostics()
         return Estimate(t, state, output, cov, STATUSES[code], ms, std, outlier=outlier)
 
-    def _check_units(self, t: float | None, z: FloatArray) -> None:
-        """A :class:`UserError` where the ``direct`` IMU readings of ``z`` (n, nz) are not
-        a unit specific force and rad/s (:mod:`.reading_units`); ``t`` (s) names the
-        sample a step gave (one sample: its force only)."""
-        problem = direct_units_problem(self._direct_rows, z, gyro=t is None)
+    def _check_units(
+        self, t: float | None, z: FloatArray, blocks: list[DirectRows] | None = None
+    ) -> None:
+        """A :class:`UserError` where the ``direct`` IMU readings of ``z`` (n, nz) in
+        ``blocks`` (default: every direct block) are not a unit specific force and rad/s
+        (:mod:`.reading_units`); ``t`` (s) names the sample a step gave (one sample: its
+        force only)."""
+        chosen = self._direct_rows if blocks is None else blocks
+        problem = direct_units_problem(chosen, z, gyro=t is None)
         if problem is not None:
             where = "" if t is None else f"measurement at t={t!r} s: "
             raise UserError(where + problem)
