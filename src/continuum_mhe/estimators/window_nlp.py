@@ -7,6 +7,7 @@ states; the fast backend solves the same problem (:mod:`.fast`)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -48,16 +49,17 @@ class WindowParameters:
     AR: ca.SX
 
     @classmethod
-    def symbols(cls, formulation: Formulation, horizon: int) -> WindowParameters:
+    def symbols(cls, formulation: Formulation, horizon: int, kind: Any = ca.SX) -> WindowParameters:
+        """The symbols, ``ca.SX`` (default) or ``ca.MX``."""
         f, n, nx = formulation, horizon, formulation.nx
         return cls(
-            Z=ca.SX.sym("Z", f.nz, n),
-            zmask=ca.SX.sym("zmask", f.nz, n),
-            DT=ca.SX.sym("DT", n - 1),
-            U=ca.SX.sym("U", f.nu, n - 1),
-            QI=ca.SX.sym("QI", nx * nx, n - 1),
-            xbar=ca.SX.sym("xbar", nx),
-            AR=ca.SX.sym("AR", nx * nx, n),
+            Z=kind.sym("Z", f.nz, n),
+            zmask=kind.sym("zmask", f.nz, n),
+            DT=kind.sym("DT", n - 1),
+            U=kind.sym("U", f.nu, n - 1),
+            QI=kind.sym("QI", nx * nx, n - 1),
+            xbar=kind.sym("xbar", nx),
+            AR=kind.sym("AR", nx * nx, n),
         )
 
     @property
@@ -113,16 +115,35 @@ def build_nlp(
 ) -> Nlp:
     """The window NLP (decision variables the ``(nx, N)`` states, column-major; the
     parameters as :func:`pack_parameters` packs them), solved by IPOPT with ``max_iter``
-    and ``tol``, the objective divided by ``10**scale_exp``."""
+    and ``tol``, the objective divided by ``10**scale_exp``.
+
+    A model whose second derivatives are too large to form symbolically (a shooting
+    model: ``second_order_residuals`` False) keeps each node's residual and transition
+    as one function called per node (CasADi MX) and IPOPT approximates the Hessian
+    (limited-memory BFGS): expanded over the window, with its exact Hessian, such a
+    model took gigabytes a window. Other models are expanded (SX) with the exact
+    Hessian."""
     f, n, nx = formulation, horizon, formulation.nx
-    X = ca.SX.sym("X", nx, n)
-    par = WindowParameters.symbols(f, n)
+    per_node = not f.second_order_residuals
+    kind: Any = ca.MX if per_node else ca.SX
+    X = kind.sym("X", nx, n)
+    par = WindowParameters.symbols(f, n, kind)
     Z, zmask, DT, U, QI, xbar, AR = par.Z, par.zmask, par.DT, par.U, par.QI, par.xbar, par.AR
+    residual: Callable[..., Any] = f.measurement_residual_sym
+    transition: Callable[..., Any] = f.transition_sym
+    constraint: Callable[..., Any] = lambda x: f.constraint_sym(x)[0]  # noqa: E731
+    if per_node:
+        zs, xs, us, dts = (
+            ca.SX.sym("z", f.nz), ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt"),
+        )  # fmt: skip
+        residual = ca.Function("residual", [zs, xs], [f.measurement_residual_sym(zs, xs)])
+        transition = ca.Function("transition", [xs, us, dts], [f.transition_sym(xs, us, dts)])
+        constraint = ca.Function("constraint", [xs], [f.constraint_sym(xs)[0]])
     rinv = np.linalg.inv(f.meas_cov())
-    cost = ca.SX(0)
+    cost = kind(0)
     g = []
     for i in range(n):
-        r = zmask[:, i] * f.measurement_residual_sym(Z[:, i], X[:, i])
+        r = zmask[:, i] * residual(Z[:, i], X[:, i])
         if loss == "l2":
             cost += 0.5 * ca.bilin(rinv, r, r)
         else:  # one loss per measurement block (R is block-diagonal)
@@ -132,10 +153,9 @@ def build_nlp(
         e = X[:, i] - xbar
         cost += 0.5 * ca.bilin(ca.reshape(AR[:, i], nx, nx), e, e)
         if i < n - 1:
-            w = X[:, i + 1] - f.transition_sym(X[:, i], U[:, i], DT[i])
+            w = X[:, i + 1] - transition(X[:, i], U[:, i], DT[i])
             cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), w, w)
-        gi, _, _ = f.constraint_sym(X[:, i])
-        g.append(gi)
+        g.append(constraint(X[:, i]))
     w, params = ca.vec(X), par.vector
     nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {
@@ -150,6 +170,8 @@ def build_nlp(
     }
     if scale_exp:
         opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
+    if per_node:
+        opts["ipopt.hessian_approximation"] = "limited-memory"
     solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
     lo, hi = f.state_bounds()
     _, glo, ghi = f.constraint_sym(ca.SX.sym("x", nx))
