@@ -284,9 +284,8 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         )
     if method == "mhe" and obstacle is not None:  # asked for the MHE on IPOPT
         print(
-            f"{PROG}: warning: the MHE on IPOPT with this robot's model takes about ten "
-            "seconds a window, and most windows stop at its iteration limit (not-converged; "
-            "docs: tendon robots); the EKF is this robot's default",
+            f"{PROG}: warning: the MHE on IPOPT with this robot's model takes seconds a "
+            "window (docs: tendon robots); the EKF is this robot's default",
             file=sys.stderr,
         )
     args.method = method

@@ -119,9 +119,10 @@ def build_nlp(
 
     A model whose second derivatives are too large to form symbolically (a shooting
     model: ``second_order_residuals`` False) keeps each node's residual and transition
-    as one function called per node (CasADi MX) and IPOPT approximates the Hessian
-    (limited-memory BFGS): expanded over the window, with its exact Hessian, such a
-    model took gigabytes a window. Other models are expanded (SX) with the exact
+    as one function called per node (CasADi MX), and IPOPT takes the Gauss-Newton
+    Hessian of the l2 cost (:func:`_gauss_newton_hessian`; limited-memory BFGS with a
+    robust loss or constraints): expanded over the window with its exact Hessian, such
+    a model needs gigabytes a window. Other models are expanded (SX) with the exact
     Hessian."""
     f, n, nx = formulation, horizon, formulation.nx
     per_node = not f.second_order_residuals
@@ -170,7 +171,9 @@ def build_nlp(
     }
     if scale_exp:
         opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
-    if per_node:
+    if per_node and loss == "l2" and int(ca.vertcat(*g).numel()) == 0:
+        opts["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params)
+    elif per_node:
         opts["ipopt.hessian_approximation"] = "limited-memory"
     solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
     lo, hi = f.state_bounds()
@@ -184,6 +187,34 @@ def build_nlp(
         ubg=np.tile(np.asarray(ghi, dtype=float).ravel(), n)[:ng],
         cost=ca.Function("cost", [w, params], [cost]),
     )
+
+
+def _gauss_newton_hessian(
+    f: Formulation, X: Any, par: WindowParameters, rinv: Any, w: Any, params: Any
+) -> ca.Function:
+    """IPOPT's ``hess_lag`` for an l2 window without constraints: the Gauss-Newton
+    Hessian of its cost (each node's residual Jacobian ``J`` and transition Jacobian
+    ``F``, first derivatives only): ``J^T m R^-1 m J`` and the arrival weight on the
+    diagonal blocks, ``[F^T Q F, -F^T Q; -Q F, Q]`` per stage, times the objective's
+    factor (upper triangle, as IPOPT takes it)."""
+    n, nx = X.shape[1], f.nx
+    innovate, predict = f.functions.innovate, f.functions.predict
+    zero = ca.MX(nx, nx)
+    blocks: list[list[Any]] = [[zero] * n for _ in range(n)]
+    for i in range(n):
+        _, J = innovate(par.Z[:, i], X[:, i])
+        mJ = ca.diag(par.zmask[:, i]) @ J
+        blocks[i][i] = mJ.T @ rinv @ mJ + ca.reshape(par.AR[:, i], nx, nx)
+    for i in range(n - 1):
+        _, F, _ = predict(X[:, i], par.U[:, i], par.DT[i])
+        Q = ca.reshape(par.QI[:, i], nx, nx)
+        blocks[i][i] += F.T @ Q @ F
+        blocks[i + 1][i + 1] += Q
+        blocks[i][i + 1] = -F.T @ Q
+        blocks[i + 1][i] = -Q @ F
+    sigma, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
+    hessian = sigma * ca.triu(ca.blockcat(blocks))
+    return ca.Function("nlp_hess_l", [w, params, sigma, lam_g], [hessian])
 
 
 def pack_parameters(problem: WindowProblem) -> FloatArray:
