@@ -134,11 +134,9 @@ def build_nlp(
     transition: Callable[..., Any] = f.transition_sym
     constraint: Callable[..., Any] = lambda x: f.constraint_sym(x)[0]  # noqa: E731
     if per_node:
-        zs, xs, us, dts = (
-            ca.SX.sym("z", f.nz), ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt"),
-        )  # fmt: skip
+        zs, xs = ca.SX.sym("z", f.nz), ca.SX.sym("x", nx)
         residual = ca.Function("residual", [zs, xs], [f.measurement_residual_sym(zs, xs)])
-        transition = ca.Function("transition", [xs, us, dts], [f.transition_sym(xs, us, dts)])
+        transition = f.functions.transition
         constraint = ca.Function("constraint", [xs], [f.constraint_sym(xs)[0]])
     rinv = np.linalg.inv(f.meas_cov())
     cost = kind(0)
@@ -157,8 +155,9 @@ def build_nlp(
             w = X[:, i + 1] - transition(X[:, i], U[:, i], DT[i])
             cost += 0.5 * ca.bilin(ca.reshape(QI[:, i], nx, nx), w, w)
         g.append(constraint(X[:, i]))
-    w, params = ca.vec(X), par.vector
-    nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*g)}
+    w, params, constraints = ca.vec(X), par.vector, ca.vertcat(*g)
+    ng = int(constraints.numel())
+    nlp: dict[str, Any] = {"x": w, "p": params, "f": cost, "g": constraints}
     opts: dict[str, Any] = {
         "print_time": False,
         "show_eval_warnings": False,  # a NaN in an evaluation is a failed solve: flagged
@@ -171,14 +170,13 @@ def build_nlp(
     }
     if scale_exp:
         opts["ipopt.obj_scaling_factor"] = 10.0**-scale_exp
-    if per_node and loss == "l2" and int(ca.vertcat(*g).numel()) == 0:
+    if per_node and loss == "l2" and ng == 0:
         opts["hess_lag"] = _gauss_newton_hessian(f, X, par, rinv, w, params)
     elif per_node:
         opts["ipopt.hessian_approximation"] = "limited-memory"
     solver = ca.nlpsol("mhe", "ipopt", nlp, opts)
     lo, hi = f.state_bounds()
     _, glo, ghi = f.constraint_sym(ca.SX.sym("x", nx))
-    ng = int(ca.vertcat(*g).numel())
     return Nlp(
         solver=solver,
         lbx=np.tile(lo, n),

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import FloatArray, StateTable
@@ -20,7 +19,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon_statics import TendonStatics
+from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
 from continuum_mhe.results import Status
 
 #: backbones drawn in the 3D view
@@ -119,7 +118,7 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
         try:
             return statics.backbone_points(force, tension, POINTS_PER_SECTION)
         except ArithmeticError as exc:
-            raise UserError(f"the row at t = {t:g} s: {exc} (a force in mN?)") from None
+            raise no_equilibrium_at(t, exc) from None
 
     return points
 

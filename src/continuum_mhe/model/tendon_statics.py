@@ -70,6 +70,12 @@ LOAD_STAGES = 10
 GRAVITY = 9.80665
 
 
+def no_equilibrium_at(t: float, exc: ArithmeticError) -> UserError:
+    """The one-line error of a row at ``t`` s whose loads have no equilibrium
+    (:meth:`TendonStatics.solve`'s ``exc``), for the drawings of estimates and truths."""
+    return UserError(f"the row at t = {t:g} s: {exc} (a force in mN?)")
+
+
 def hat_sym(v: Sym) -> Sym:
     """The cross-product matrix of ``v`` (3,): ``hat_sym(v) w = v x w``."""
     return ca.vertcat(

@@ -395,16 +395,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--sim-dt", type=float, default=TendonRodSettings.sim_dt)
     p.add_argument("-o", "--output", type=Path, required=True)
     a = p.parse_args(argv)
-    try:
-        robot = read_robot(a.robot)
-        check_generated_robot(robot)
+    try:  # a robot it does not write is refused before anything is simulated or written
+        info = write_tendon_recording(
+            a.output, a.name or a.scenario, read_robot(a.robot), a.scenario, a.duration,
+            TendonRodSettings(sim_dt=a.sim_dt), a.seed, robot_name=a.robot,
+        )  # fmt: skip
     except UserError as exc:
         print(f"cosserat_tendon: error: {exc}", file=sys.stderr)
         return 2
-    info = write_tendon_recording(
-        a.output, a.name or a.scenario, robot, a.scenario, a.duration,
-        TendonRodSettings(sim_dt=a.sim_dt), a.seed, robot_name=a.robot,
-    )  # fmt: skip
     print(json.dumps(info), file=sys.stderr)
     return 0
 

@@ -10,14 +10,13 @@ from functools import cache, cached_property
 import casadi as ca
 import numpy as np
 
-from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import FloatArray
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
-from continuum_mhe.model.tendon_statics import TendonStatics
+from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
 
 
 @dataclass(frozen=True)
@@ -146,6 +145,6 @@ class TendonShapes:
             try:
                 previous, _ = statics.solve(forces[i], tau[i], previous)
             except ArithmeticError as exc:
-                raise UserError(f"the row at t = {t[i]:g} s: {exc} (a force in mN?)") from None
+                raise no_equilibrium_at(float(t[i]), exc) from None
             k0[i] = previous
         return self._geometry(k0, forces, tau)
