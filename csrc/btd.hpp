@@ -47,21 +47,27 @@ decltype(auto) with_block_size(Index nx, F&& f) {
   }
 }
 
-// The factor's scratch: an nx x nx block and a row of nx, on the stack for a constant
-// size, else on the heap
+// The factor's scratch: the current block's unscaled rows V and W, the previous block's
+// W, and the reciprocal pivots of both (nx x nx blocks, rows of nx), on the stack for a
+// constant size, else on the heap
 template <int NX>
 struct FactorScratch {
-  double a[NX * NX], row[NX];
+  double v[NX * NX], w[2][NX * NX], p[2][NX], row[NX];
   explicit FactorScratch(Index) {}
 };
 template <>
 struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation per call)
-  double *a, *row;
+  double *v, *w[2], *p[2], *row;
   explicit FactorScratch(Index nx) {
     thread_local std::vector<double> buf;
-    if (Index(buf.size()) < nx * nx + nx) buf.resize(nx * nx + nx);
-    a = buf.data();
-    row = a + nx * nx;
+    const Index bs = nx * nx;
+    if (Index(buf.size()) < 3 * bs + 3 * nx) buf.resize(3 * bs + 3 * nx);
+    v = buf.data();
+    w[0] = v + bs;
+    w[1] = w[0] + bs;
+    p[0] = w[1] + bs;
+    p[1] = p[0] + nx;
+    row = p[1] + nx;
   }
 };
 
@@ -118,67 +124,69 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 // Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
 // L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
 // transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
-// reciprocals of L's diagonal (divisions by the pivots are multiplications by their
-// reciprocals, computed once: they are the factor's critical path). Each row of the
-// Schur complement, of the block's factor U = L^T and of M_i^T is gathered in a row of
-// nx values (kept in registers where NX is a constant) from the earlier rows' terms, in
-// the order of the textbook row-by-row form, so every entry has its bits; entries below
-// U's diagonal are formed along with the row (D is read below its diagonal for the
-// upper triangle) and dropped.
+// reciprocals of L's diagonal. The recursion runs on the square-root-free form (H = V^T
+// P V with P the reciprocal pivots): block i's Schur complement S_i = D_i - W_{i-1}^T
+// P_{i-1} W_{i-1}, its rows V_i by elimination with the reciprocal pivots p_j = 1 /
+// s_j, and W_i = V_i^-T E_i the same way, so that the chain from one block to the next
+// holds a division per pivot and no square root; L = (P^1/2 V)^T and M^T = P^1/2 W are
+// scaled off that chain. Each row is gathered in a row of nx values (kept in registers
+// where NX is a constant); entries below V's diagonal are formed along with the row (D
+// is read below its diagonal for the upper triangle) and dropped.
 template <int NX>
 CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
                                   double* L, double* M, double* rd) {
   const Index nx = block_size<NX>(nx_);
   const Index bs = nx * nx;
   FactorScratch<NX> scratch(nx);
-  double* a = scratch.a;  // the Schur complement, then the factor's rows: U = L^T
+  double* V = scratch.v;
   double* row = scratch.row;
   for (Index i = 0; i < n; ++i) {
     double* Li = L + i * bs;
     const double* Di = D + i * bs;
-    const double* Mp = i > 0 ? M + (i - 1) * bs : nullptr;
-    for (Index j = 0; j < nx; ++j) {  // the Schur complement D_i - M_{i-1} M_{i-1}^T
+    double* W = scratch.w[i & 1];
+    double* p = scratch.p[i & 1];
+    const double* Wp = scratch.w[(i + 1) & 1];  // the previous block's W and pivots
+    const double* pp = scratch.p[(i + 1) & 1];
+    for (Index j = 0; j < nx; ++j) {  // V's row j: the Schur complement's, eliminated
       for (Index k = 0; k < nx; ++k) row[k] = Di[k * nx + j];
-      if (Mp) {
+      if (i > 0) {
         CMHE_UNROLL
         for (Index c = 0; c < nx; ++c) {
-          const double t = Mp[c * nx + j];
+          const double t = Wp[c * nx + j] * pp[c];
           CMHE_UNROLL
-          for (Index k = 0; k < nx; ++k) row[k] -= t * Mp[c * nx + k];
+          for (Index k = 0; k < nx; ++k) row[k] -= t * Wp[c * nx + k];
         }
       }
-      for (Index k = 0; k < nx; ++k) a[j * nx + k] = row[k];
-    }
-    for (Index j = 0; j < nx; ++j) {  // dense Cholesky of the block, by rows of U
-      for (Index k = 0; k < nx; ++k) row[k] = a[j * nx + k];
       for (Index c = 0; c < j; ++c) {
-        const double t = a[c * nx + j];
+        const double t = V[c * nx + j] * p[c];
         CMHE_UNROLL
-        for (Index k = 0; k < nx; ++k) row[k] -= t * a[c * nx + k];
+        for (Index k = 0; k < nx; ++k) row[k] -= t * V[c * nx + k];
       }
       const double s = row[j];
       if (!(s > 0.0)) return false;
-      const double ujj = std::sqrt(s);
-      const double r = 1.0 / ujj;
-      rd[i * nx + j] = r;
-      for (Index k = 0; k < nx; ++k) a[j * nx + k] = k > j ? row[k] * r : (k == j ? ujj : 0.0);
+      p[j] = 1.0 / s;
+      for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
     }
-    for (Index j = 0; j < nx; ++j)
-      for (Index k = 0; k < nx; ++k) Li[j * nx + k] = k <= j ? a[k * nx + j] : 0.0;
-    if (i < n - 1) {  // L_i M_i^T = E_i, row by row (forward substitution on rows)
-      double* Mi = M + i * bs;
+    if (i < n - 1) {  // W = V^-T E_i, row by row
       const double* Ei = E + i * bs;
       for (Index j = 0; j < nx; ++j) {
         for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
         for (Index c = 0; c < j; ++c) {
-          const double l = Li[j * nx + c];
-          const double* prev = Mi + c * nx;
+          const double t = V[c * nx + j] * p[c];
           CMHE_UNROLL
-          for (Index k = 0; k < nx; ++k) row[k] -= l * prev[k];
+          for (Index k = 0; k < nx; ++k) row[k] -= t * W[c * nx + k];
         }
-        const double r = rd[i * nx + j];
-        for (Index k = 0; k < nx; ++k) Mi[j * nx + k] = row[k] * r;
+        for (Index k = 0; k < nx; ++k) W[j * nx + k] = row[k];
       }
+    }
+    for (Index j = 0; j < nx; ++j) {  // the scaled factors, off the recursion's chain
+      const double ujj = std::sqrt(V[j * nx + j]);
+      const double r = 1.0 / ujj;
+      rd[i * nx + j] = r;
+      for (Index k = 0; k < nx; ++k)
+        Li[k * nx + j] = k > j ? V[j * nx + k] * r : (k == j ? ujj : 0.0);
+      if (i < n - 1)
+        for (Index k = 0; k < nx; ++k) M[i * bs + j * nx + k] = W[j * nx + k] * r;
     }
   }
   return true;
