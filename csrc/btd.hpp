@@ -75,8 +75,10 @@ struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation p
 // block kernels' rows of NX values stay in registers)
 #if defined(__GNUC__)
 #define CMHE_UNROLL _Pragma("GCC unroll 32")
+#define CMHE_SIMD _Pragma("omp simd")
 #else
 #define CMHE_UNROLL
+#define CMHE_SIMD
 #endif
 
 // The block factor also in an AVX2 version that the loader picks where the processor has
@@ -86,6 +88,20 @@ struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation p
 #else
 #define CMHE_BLOCK_CLONES
 #endif
+
+// ``row -= t x`` over nx values: unrolled into registers for the smallest constant sizes
+// (the factor's chain of dependent rows is its cost there), vectorised otherwise
+template <int NX>
+inline void row_axpy(Index nx_, double* row, double t, const double* x) {
+  if constexpr (NX > 0 && NX <= 4) {
+    CMHE_UNROLL
+    for (Index k = 0; k < NX; ++k) row[k] -= t * x[k];
+  } else {
+    const Index nx = block_size<NX>(nx_);
+    CMHE_SIMD
+    for (Index k = 0; k < nx; ++k) row[k] -= t * x[k];
+  }
+}
 
 // ``out = A B`` for nx x nx blocks (out distinct from A and B)
 template <int NX>
@@ -153,14 +169,12 @@ CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const dou
         CMHE_UNROLL
         for (Index c = 0; c < nx; ++c) {
           const double t = Wp[c * nx + j] * pp[c];
-          CMHE_UNROLL
-          for (Index k = 0; k < nx; ++k) row[k] -= t * Wp[c * nx + k];
+          row_axpy<NX>(nx, row, t, Wp + c * nx);
         }
       }
       for (Index c = 0; c < j; ++c) {
         const double t = V[c * nx + j] * p[c];
-        CMHE_UNROLL
-        for (Index k = 0; k < nx; ++k) row[k] -= t * V[c * nx + k];
+        row_axpy<NX>(nx, row, t, V + c * nx);
       }
       const double s = row[j];
       if (!(s > 0.0)) return false;
@@ -173,8 +187,7 @@ CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const dou
         for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
         for (Index c = 0; c < j; ++c) {
           const double t = V[c * nx + j] * p[c];
-          CMHE_UNROLL
-          for (Index k = 0; k < nx; ++k) row[k] -= t * W[c * nx + k];
+          row_axpy<NX>(nx, row, t, W + c * nx);
         }
         for (Index k = 0; k < nx; ++k) W[j * nx + k] = row[k];
       }

@@ -421,6 +421,32 @@ def test_small_dense_kernels_match_numpy() -> None:
     np.testing.assert_allclose(Pu, ikh @ P @ ikh.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
 
 
+@pytest.mark.parametrize("nx", [1, 4, 5, 7, 8, 12, 14])
+def test_block_tridiagonal_solve_matches_numpy(nx: int) -> None:
+    """The block-tridiagonal factor and solve (every specialised block size, and run-time
+    sizes 1 and 5) against numpy's dense solve of the same matrix; a matrix with a
+    negative pivot in its middle block is refused (False)."""
+    rng = np.random.default_rng(nx)
+    n = 9
+    D = rng.normal(size=(n, nx, nx))
+    E = rng.normal(size=(n - 1, nx, nx))
+    D = np.einsum("nij,nkj->nik", D, D) + (2.0 * nx + 4.0) * np.eye(nx)
+    H = np.zeros((n * nx, n * nx))
+    for i in range(n):
+        H[i * nx : (i + 1) * nx, i * nx : (i + 1) * nx] = D[i]
+        if i < n - 1:
+            H[i * nx : (i + 1) * nx, (i + 1) * nx : (i + 2) * nx] = E[i]
+            H[(i + 1) * nx : (i + 2) * nx, i * nx : (i + 1) * nx] = E[i].T
+    assert np.linalg.eigvalsh(H).min() > 0.0
+    b = rng.normal(size=(n, nx))
+    y = np.empty((n, nx))
+    assert _core.btd_solve(D, E, b, y)
+    np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-11, atol=1e-12)
+    D_bad = D.copy()
+    D_bad[n // 2] -= (np.linalg.eigvalsh(H).max() + 1.0) * np.eye(nx)
+    assert not _core.btd_solve(D_bad, E, b, y)
+
+
 def test_householder_reflection_and_projection() -> None:
     """The reflection that eliminates a linearised ball is symmetric, orthogonal and
     maps the ball's unit normal to -+ a unit vector on its largest coordinate; the
