@@ -258,6 +258,25 @@ void cmhe::bind_solver(nb::module_& m) {
       "(n, nx, nx), super-diagonal E (n-1, nx, nx)) by block Cholesky; False if H is not "
       "positive definite.");
   m.def(
+      "btd_solve_two_ended",
+      [](In D, In E, In b, Out y) {
+        if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");
+        const Index n = D.shape(0), nx = D.shape(1);
+        check_shape(D, {n, nx, nx}, "D");
+        check_shape(E, {n - 1, nx, nx}, "E");
+        check_shape(b, {n, nx}, "b");
+        check_shape(y, {n, nx}, "y");
+        std::vector<double> V(n * nx * nx), G((n - 1) * nx * nx), p(n * nx), rows(2 * nx);
+        return with_block_size(nx, [&](auto k) {
+          return btd_solve_two_ended<decltype(k)::value>(n, nx, D.data(), E.data(), b.data(),
+                                                         V.data(), G.data(), p.data(),
+                                                         rows.data(), y.data());
+        });
+      },
+      nb::arg("D"), nb::arg("E"), nb::arg("b"), nb::arg("y"),
+      "As btd_solve, eliminating from both ends towards the middle node (the QP's Newton "
+      "system without active constraints); False if H is not positive definite.");
+  m.def(
       "btd_matvec",
       [](In D, In E, In v, Out out) {
         if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");

@@ -241,6 +241,151 @@ bool btd_solve(Index n, Index nx, const double* D, const double* E, const double
   return true;
 }
 
+// One node's elimination in btd_solve_two_ended: the Schur complement of the node
+// (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
+// given), its rows V (unscaled, upper) and reciprocal pivots p (S = V^T P V), h = U~^-T c
+// of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]) and, where
+// Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo read transposed with
+// ``transposed``); U~ = P V is V with unit diagonal. False if the block is not positive
+// definite.
+template <int NX, bool transposed>
+inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const double* Gn,
+                           const double* pn, const double* hn, const double* Eo, double* V,
+                           double* p, double* h, double* G, double* row_scratch) {
+  const Index nx = block_size<NX>(nx_);
+  double row_local[NX > 0 ? NX : 1];  // a local row for a constant size (no aliasing)
+  double* row = NX > 0 ? row_local : row_scratch;
+  for (Index j = 0; j < nx; ++j) {
+    for (Index k = 0; k < nx; ++k) row[k] = Dn[k * nx + j];
+    if (Gn) {
+      CMHE_UNROLL
+      for (Index c = 0; c < nx; ++c) row_axpy<NX>(nx, row, Gn[c * nx + j] * pn[c], Gn + c * nx);
+    }
+    for (Index c = 0; c < j; ++c) row_axpy<NX>(nx, row, V[c * nx + j] * p[c], V + c * nx);
+    const double s = row[j];
+    if (!(s > 0.0)) return false;
+    p[j] = 1.0 / s;
+    for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
+  }
+  for (Index j = 0; j < nx; ++j) {
+    double t = bn[j];
+    if (Gn)
+      for (Index c = 0; c < nx; ++c) t -= pn[c] * hn[c] * Gn[c * nx + j];
+    for (Index c = 0; c < j; ++c) t -= V[c * nx + j] * p[c] * h[c];
+    h[j] = t;
+  }
+  if (Eo) {
+    for (Index j = 0; j < nx; ++j) {
+      if constexpr (transposed)
+        for (Index k = 0; k < nx; ++k) row[k] = Eo[k * nx + j];
+      else
+        for (Index k = 0; k < nx; ++k) row[k] = Eo[j * nx + k];
+      for (Index c = 0; c < j; ++c) row_axpy<NX>(nx, row, V[c * nx + j] * p[c], G + c * nx);
+      for (Index k = 0; k < nx; ++k) G[j * nx + k] = row[k];
+    }
+  }
+  return true;
+}
+
+// y = U~^-1 P (h - G x) for one node (G and x the eliminated neighbour's coupling and
+// solution, or G null); y may be h
+template <int NX>
+inline void back_substitute_node(Index nx_, const double* V, const double* p, const double* h,
+                                 const double* G, const double* x, double* y) {
+  const Index nx = block_size<NX>(nx_);
+  for (Index j = nx - 1; j >= 0; --j) {
+    double t = h[j];
+    if (G)
+      for (Index k = 0; k < nx; ++k) t -= G[j * nx + k] * x[k];
+    for (Index k = j + 1; k < nx; ++k) t -= V[j * nx + k] * y[k];
+    y[j] = p[j] * t;
+  }
+}
+
+// Solve H y = b for the symmetric block-tridiagonal H = (D, E) (as btd_solve) by
+// eliminating nodes from both ends towards the middle node m = n / 2: nodes 0..m-1
+// forwards, nodes n-1..m+1 backwards, two independent recursions that the loop runs
+// side by side (the processor overlaps their chains of dependent divisions), then node
+// m, then the solution outwards from m. False if H is not positive definite. Scratch: V
+// (n, nx, nx), G (n - 1, nx, nx), p (n, nx), row (2 nx: one per end); y (n, nx) holds
+// the eliminated right-hand sides on the way.
+template <int NX>
+CMHE_BLOCK_CLONES bool btd_solve_two_ended(Index n, Index nx_, const double* D,
+                                           const double* E, const double* b, double* V,
+                                           double* G, double* p, double* row, double* y) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx, m = n / 2;
+  const Index steps = std::max(m, n - 1 - m);
+  for (Index s = 0; s < steps; ++s) {
+    if (s < m) {  // node s from the start: coupling G[s] = U~^-T E_s
+      const Index i = s;
+      const bool first = i == 0;
+      if (!eliminate_node<NX, false>(nx, D + i * bs, b + i * nx,
+                                     first ? nullptr : G + (i - 1) * bs,
+                                     first ? nullptr : p + (i - 1) * nx,
+                                     first ? nullptr : y + (i - 1) * nx, E + i * bs, V + i * bs,
+                                     p + i * nx, y + i * nx, G + i * bs, row))
+        return false;
+    }
+    if (s < n - 1 - m) {  // node n-1-s from the end: coupling G[i-1] = U~^-T E_{i-1}^T
+      const Index i = n - 1 - s;
+      const bool last = s == 0;
+      if (!eliminate_node<NX, true>(nx, D + i * bs, b + i * nx, last ? nullptr : G + i * bs,
+                                    last ? nullptr : p + (i + 1) * nx,
+                                    last ? nullptr : y + (i + 1) * nx, E + (i - 1) * bs,
+                                    V + i * bs, p + i * nx, y + i * nx, G + (i - 1) * bs,
+                                    row + nx))
+        return false;
+    }
+  }
+  // node m: both neighbours' Schur terms (the one after m enters as a second pass)
+  {
+    double* Vm = V + m * bs;
+    double* pm = p + m * nx;
+    double* hm = y + m * nx;
+    const bool left = m > 0, right = m < n - 1;
+    // the block less the right neighbour's term, then eliminated with the left one's
+    FactorScratch<NX> scratch(nx);
+    double* Dr = scratch.w[0];
+    double* br = scratch.row;
+    for (Index j = 0; j < nx; ++j) {
+      for (Index k = 0; k < nx; ++k) Dr[j * nx + k] = D[m * bs + j * nx + k];
+      br[j] = b[m * nx + j];
+    }
+    if (right) {
+      const double* Gr = G + m * bs;
+      const double* pr = p + (m + 1) * nx;
+      const double* hr = y + (m + 1) * nx;
+      for (Index c = 0; c < nx; ++c) {
+        const double t = pr[c];
+        for (Index j = 0; j < nx; ++j) {
+          br[j] -= t * hr[c] * Gr[c * nx + j];
+          for (Index k = 0; k < nx; ++k) Dr[j * nx + k] -= Gr[c * nx + j] * t * Gr[c * nx + k];
+        }
+      }
+    }
+    if (!eliminate_node<NX, false>(nx, Dr, br, left ? G + (m - 1) * bs : nullptr,
+                                   left ? p + (m - 1) * nx : nullptr,
+                                   left ? y + (m - 1) * nx : nullptr, nullptr, Vm, pm, hm,
+                                   nullptr, row))
+      return false;
+    back_substitute_node<NX>(nx, Vm, pm, hm, nullptr, nullptr, hm);
+  }
+  for (Index s = 1; s <= steps; ++s) {  // outwards from m, both sides side by side
+    if (m - s >= 0) {
+      const Index i = m - s;
+      back_substitute_node<NX>(nx, V + i * bs, p + i * nx, y + i * nx, G + i * bs,
+                               y + (i + 1) * nx, y + i * nx);
+    }
+    if (m + s <= n - 1) {
+      const Index i = m + s;
+      back_substitute_node<NX>(nx, V + i * bs, p + i * nx, y + i * nx, G + (i - 1) * bs,
+                               y + (i - 1) * nx, y + i * nx);
+    }
+  }
+  return true;
+}
+
 // Symmetric orthogonal T (nx, nx) with T n = -+e_c for the unit normal ``nrm`` (nx) of
 // a ball on the coordinates ``idx`` (k of them); returns the pivot coordinate c
 inline Index householder(Index nx, const double* nrm, const int64_t* idx, Index k, double* T,

@@ -40,7 +40,7 @@ struct Feasible {
 // Buffers of the QP, sized for one window (resized by ``resize``; kept across calls)
 struct QPScratch {
   std::vector<int8_t> wbox, wball, fixed, anyb;
-  std::vector<double> nrm, gnorm, slack, p, grad, b, L, M, rd, Dt, Et, T, tmp, Tb, v;
+  std::vector<double> nrm, gnorm, slack, p, grad, b, L, M, rd, Dt, Et, T, tmp, Tb, v, rows;
 
   void resize(Index n, Index nx, Index nb) {
     const Index nbm = std::max<Index>(nb, 1), bs = nx * nx, ne = std::max<Index>(n - 1, 0);
@@ -60,6 +60,7 @@ struct QPScratch {
     tmp.resize(bs);
     Tb.resize(bs);
     v.resize(nx);
+    rows.resize(2 * nx);
   }
 };
 
@@ -230,7 +231,8 @@ QPResult solve_qp(Index n, Index nx_, const double* X, const double* D, const do
     }
     if (nfix == 0) {  // nothing fixed: the plain Newton system
       for (Index i = 0; i < n * nx; ++i) b[i] = -grad[i];
-      if (!btd_solve<NX>(n, nx, D, E, b, s.L.data(), s.M.data(), s.rd.data(), p))
+      if (!btd_solve_two_ended<NX>(n, nx, D, E, b, s.L.data(), s.M.data(), s.rd.data(),
+                                   s.rows.data(), p))
         return {NOT_PD, it, 0};
     } else if (!eqp<NX>(n, nx, D, E, grad, wbox, wball, nrm, fs, p, s)) {
       return {NOT_PD, it, 0};

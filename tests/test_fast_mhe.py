@@ -421,13 +421,16 @@ def test_small_dense_kernels_match_numpy() -> None:
     np.testing.assert_allclose(Pu, ikh @ P @ ikh.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.parametrize("nx", [1, 4, 5, 7, 8, 12, 14])
-def test_block_tridiagonal_solve_matches_numpy(nx: int) -> None:
-    """The block-tridiagonal factor and solve (every specialised block size, and run-time
-    sizes 1 and 5) against numpy's dense solve of the same matrix; a matrix with a
-    negative pivot in its middle block is refused (False)."""
-    rng = np.random.default_rng(nx)
-    n = 9
+@pytest.mark.parametrize("solver", ["btd_solve", "btd_solve_two_ended"])
+@pytest.mark.parametrize(("n", "nx"), [(9, 1), (9, 4), (9, 5), (9, 7), (9, 8), (9, 12), (9, 14),
+                                       (1, 4), (2, 4), (3, 5), (30, 4)])
+def test_block_tridiagonal_solve_matches_numpy(solver: str, n: int, nx: int) -> None:
+    """The block-tridiagonal solves (forwards, and from both ends; every specialised
+    block size, run-time sizes 1 and 5, windows of 1, 2, 3, 9 and 30 nodes) against
+    numpy's dense solve of the same matrix; a matrix with a negative definite block at
+    either end or in the middle is refused (False)."""
+    solve = getattr(_core, solver)
+    rng = np.random.default_rng(100 * n + nx)
     D = rng.normal(size=(n, nx, nx))
     E = rng.normal(size=(n - 1, nx, nx))
     D = np.einsum("nij,nkj->nik", D, D) + (2.0 * nx + 4.0) * np.eye(nx)
@@ -440,11 +443,12 @@ def test_block_tridiagonal_solve_matches_numpy(nx: int) -> None:
     assert np.linalg.eigvalsh(H).min() > 0.0
     b = rng.normal(size=(n, nx))
     y = np.empty((n, nx))
-    assert _core.btd_solve(D, E, b, y)
+    assert solve(D, E, b, y)
     np.testing.assert_allclose(y.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-11, atol=1e-12)
-    D_bad = D.copy()
-    D_bad[n // 2] -= (np.linalg.eigvalsh(H).max() + 1.0) * np.eye(nx)
-    assert not _core.btd_solve(D_bad, E, b, y)
+    for bad in (0, n // 2, n - 1):  # a negative definite block at an end or in the middle
+        D_bad = D.copy()
+        D_bad[bad] -= (np.linalg.eigvalsh(H).max() + 1.0) * np.eye(nx)
+        assert not solve(D_bad, E, b, y)
 
 
 def test_householder_reflection_and_projection() -> None:

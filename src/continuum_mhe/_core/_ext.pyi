@@ -197,6 +197,11 @@ def btd_solve(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu',
     Solve H y = b for the symmetric block-tridiagonal H = (D, E) (diagonal blocks D (n, nx, nx), super-diagonal E (n-1, nx, nx)) by block Cholesky; False if H is not positive definite.
     """
 
+def btd_solve_two_ended(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
+    """
+    As btd_solve, eliminating from both ends towards the middle node (the QP's Newton system without active constraints); False if H is not positive definite.
+    """
+
 def btd_matvec(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
     """out = H v for the symmetric block-tridiagonal H = (D, E)."""
 
