@@ -40,6 +40,18 @@ void check_shape(const A& a, std::initializer_list<Index> shape, const char* nam
   }
 }
 
+// (n, nx) of the block-tridiagonal system H y = b with H = (D, E), its arrays' shapes
+// checked
+std::pair<Index, Index> btd_system_size(const In& D, const In& E, const In& b, const Out& y) {
+  if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");
+  const Index n = D.shape(0), nx = D.shape(1);
+  check_shape(D, {n, nx, nx}, "D");
+  check_shape(E, {n - 1, nx, nx}, "E");
+  check_shape(b, {n, nx}, "b");
+  check_shape(y, {n, nx}, "y");
+  return {n, nx};
+}
+
 template <class T>
 std::vector<T> copy_of(const nb::ndarray<const T, nb::c_contig, nb::device::cpu>& a) {
   return std::vector<T>(a.data(), a.data() + a.size());
@@ -241,12 +253,7 @@ void cmhe::bind_solver(nb::module_& m) {
   m.def(
       "btd_solve",
       [](In D, In E, In b, Out y) {
-        if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");
-        const Index n = D.shape(0), nx = D.shape(1);
-        check_shape(D, {n, nx, nx}, "D");
-        check_shape(E, {n - 1, nx, nx}, "E");
-        check_shape(b, {n, nx}, "b");
-        check_shape(y, {n, nx}, "y");
+        const auto [n, nx] = btd_system_size(D, E, b, y);
         std::vector<double> L(n * nx * nx), M((n - 1) * nx * nx), rd(n * nx);
         return with_block_size(nx, [&](auto k) {
           return btd_solve<decltype(k)::value>(n, nx, D.data(), E.data(), b.data(), L.data(),
@@ -260,12 +267,7 @@ void cmhe::bind_solver(nb::module_& m) {
   m.def(
       "btd_solve_two_ended",
       [](In D, In E, In b, Out y) {
-        if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");
-        const Index n = D.shape(0), nx = D.shape(1);
-        check_shape(D, {n, nx, nx}, "D");
-        check_shape(E, {n - 1, nx, nx}, "E");
-        check_shape(b, {n, nx}, "b");
-        check_shape(y, {n, nx}, "y");
+        const auto [n, nx] = btd_system_size(D, E, b, y);
         std::vector<double> V(n * nx * nx), G((n - 1) * nx * nx), p(n * nx), rows(2 * nx);
         return with_block_size(nx, [&](auto k) {
           return btd_solve_two_ended<decltype(k)::value>(n, nx, D.data(), E.data(), b.data(),
