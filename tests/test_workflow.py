@@ -124,7 +124,7 @@ def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(
     fig = tmp_path / "f.png"
     assert main(["plot", str(two_section_run / "e.csv"), "--truth", str(one), "-o", str(fig)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "has no x_1, y_1, z_1 column" in err and not fig.exists()
+    assert err.count("\n") == 1 and "bend columns of 1 section(s)" in err and not fig.exists()
     fig.write_text("mine")
     assert main(["plot", str(two_section_run / "e.csv"), "-o", str(fig)]) == 2
     assert "exists; give --overwrite" in capsys.readouterr().err
@@ -329,6 +329,29 @@ def test_an_interrupted_estimate_keeps_its_rows_marked_partial(
 
 
 # --- the shipped rod recording ------------------------------------------------------------
+def test_plot_draws_a_truth_with_positions_alone(
+    two_section_run: Path, tmp_path: Path, capsys
+) -> None:
+    """A truth without bend columns (a motion-capture log: the tip alone, or with some
+    section ends) is drawn with the points it has: the shipped rod recording as its own
+    truth (``x_true, y_true, z_true``), and a two-section estimate against the tip alone
+    and against the tip and section 1's end."""
+    rod = tmp_path / "rod.csv"
+    assert main(["estimate", str(DATA / "rod_planar.csv"), "--method", "ekf", "-o", str(rod)]) == 0
+    assert main(["plot", str(rod), "--truth", str(DATA / "rod_planar.csv"),
+                 "-o", str(tmp_path / "rod.png")]) == 0  # fmt: skip
+    truth = read_state_table(two_section_run / "t.csv")
+    for cols in (("x", "y", "z"), ("x", "y", "z", "x_1", "y_1", "z_1")):
+        log = tmp_path / f"mocap{len(cols)}.csv"
+        values = np.column_stack([truth.t] + [truth.column(c) for c in cols])
+        np.savetxt(log, values, delimiter=",", header=",".join(("t", *cols)), comments="")
+        fig = tmp_path / f"mocap{len(cols)}.png"
+        assert main(["plot", str(two_section_run / "e.csv"), "--truth", str(log),
+                     "-o", str(fig)]) == 0  # fmt: skip
+        assert fig.read_bytes()[:4] == b"\x89PNG"
+    capsys.readouterr()
+
+
 def test_the_shipped_rod_recording_is_its_own_truth(capsys) -> None:
     """``rod_planar.csv`` carries its truth as ``x_true, y_true, z_true``: evaluate reads
     them as the truth's ``x, y, z`` (against itself: no error at all)."""

@@ -152,14 +152,35 @@ def _limit_to_lines(ax: plt.Axes, lines: Sequence[np.ndarray]) -> None:
     ax.set_ylim(lo - room, hi + room)
 
 
+def truth_points(est: StateTable, truth: StateTable) -> list[TrackedPoint | None]:
+    """For each of ``est``'s tracked points, the ``truth``'s columns of it: its own
+    (``x_k, y_k, z_k``), or for the tip the truth's ``x, y, z`` (a motion-capture log of
+    the tip alone); None where the truth has neither."""
+    points = tracked_points(est.names)
+    found: list[TrackedPoint | None] = []
+    for i, p in enumerate(points):
+        if all(c in truth.names for c in p.columns):
+            found.append(p)
+        elif i == len(points) - 1 and all(c in truth.names for c in "xyz"):
+            found.append(TrackedPoint(p.label, ("x", "y", "z")))
+        else:
+            found.append(None)
+    return found
+
+
 def truth_problem(est: StateTable, truth: StateTable) -> str | None:
-    """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it lacks a
-    tracked point's columns, or fewer than two of its rows share a time with the
-    estimate's), or None."""
-    for p in tracked_points(est.names):
-        missing = [c for c in p.columns if c not in truth.names]
-        if missing:
-            return f"the truth has no {', '.join(missing)} column(s)"
+    """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it has none of
+    the estimate's tracked points, or fewer than two of its rows share a time with the
+    estimate's, or it has the bend columns of another number of sections), or None."""
+    n_est, n_truth = section_count(est.names), section_count(truth.names)
+    if n_est and n_truth and n_est != n_truth:
+        return (
+            f"the truth has the bend columns of {n_truth} section(s) and the estimate of "
+            f"{n_est}: a truth of another robot?"
+        )
+    if not any(truth_points(est, truth)):
+        wanted = ", ".join(", ".join(p.columns) for p in tracked_points(est.names))
+        return f"the truth has none of the estimate's positions ({wanted}; or x, y, z)"
     matched = match_rows(est.t, truth.t)
     if len(matched[0]) < 2:
         return (
@@ -185,11 +206,16 @@ def estimate_figure(
     ``lengths`` (m; else from the file's own rows) and the bend columns; else (a tendon
     robot's estimate without ``backbone``) straight lines through the section ends.
 
-    Raises ``ValueError`` (:func:`truth_problem`'s line) when the truth lacks a tracked
-    point's columns or shares no time with the estimate."""
+    The truth draws the points it has (:func:`truth_points`: a motion-capture log may
+    have the tip alone) and its backbone as arcs where it has the bend columns, else as
+    straight lines through its points. Raises ``ValueError`` (:func:`truth_problem`'s
+    line) when the truth has none of the tracked points or shares no time with the
+    estimate."""
     points = tracked_points(est.names)
     matched = None
+    in_truth: list[TrackedPoint | None] = [None] * len(points)
     if truth is not None:
+        in_truth = truth_points(est, truth)
         problem = truth_problem(est, truth)
         if problem is not None:
             raise ValueError(problem)
@@ -213,8 +239,9 @@ def estimate_figure(
                 half = Z95 * sd[:, j] * 1e3
                 ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0,
                                 label="95 % band" if i == 0 else None)  # fmt: skip
-            if truth is not None:
-                drawn.append(_positions(truth, p)[:, j] * 1e3)
+            tp = in_truth[i]
+            if truth is not None and tp is not None:
+                drawn.append(_positions(truth, tp)[:, j] * 1e3)
                 ax.plot(truth.t, drawn[-1], color=color, ls="--",
                         lw=1.0, label="truth" if i == 0 else None)  # fmt: skip
         _limit_to_lines(ax, drawn)
@@ -224,8 +251,10 @@ def estimate_figure(
     if truth is not None and matched is not None:
         ax = axes[3]
         i_e, i_t = matched
-        for i, p in enumerate(points):
-            err = np.linalg.norm(_positions(est, p)[i_e] - _positions(truth, p)[i_t], axis=1)
+        for i, (p, tp) in enumerate(zip(points, in_truth)):
+            if tp is None:
+                continue
+            err = np.linalg.norm(_positions(est, p)[i_e] - _positions(truth, tp)[i_t], axis=1)
             ax.plot(est.t[i_e], err * 1e3, color=f"C{i}", lw=1.2, label=p.label)
         ax.set_ylabel("error (mm)")
         ax.set_ylim(bottom=0)
@@ -237,7 +266,7 @@ def estimate_figure(
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     view = fig.add_subplot(grid[:, 1], projection="3d")
-    _backbones(view, est, truth, matched, lengths, backbone)
+    _backbones(view, est, truth, matched, lengths, backbone, in_truth)
     fig.suptitle(title)
     fig.tight_layout()
     return fig
@@ -277,12 +306,15 @@ def _backbones(
     matched: tuple[IndexArray, IndexArray] | None,
     lengths: Sequence[float] | None,
     backbone: BackboneOf | None,
+    in_truth: Sequence[TrackedPoint | None],
 ) -> None:
     """The backbone at a few instants with an estimate (and the truth's at the same
     instants, dashed): from ``backbone`` when given; else the arcs from ``lengths`` and
     the bend columns when both are known and the estimate is of constant curvature
     (a tendon robot's sections are not arcs); else straight lines through the section
-    ends."""
+    ends. A table without what its backbone needs (a truth without the bend or tip-force
+    columns) is drawn as straight lines through the points it has (``in_truth`` for the
+    truth's)."""
     n = section_count(est.names)
     points = tracked_points(est.names)
     arcs = backbone is None and not has_tip_force(est.names)
@@ -309,10 +341,13 @@ def _backbones(
         for table, row, style in ((est, i, "-"), (truth, truth_row.get(i), "--")):
             if table is None or row is None:
                 continue
-            ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in points])
-            if backbone is not None:
+            shown = points if table is est else [p for p in in_truth if p is not None]
+            ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in shown])
+            if backbone is not None and has_tip_force(table.names):
                 line = backbone(table, row)
-            elif curve and s is not None and lengths is not None:
+            elif (
+                curve and s is not None and lengths is not None and section_count(table.names) == n
+            ):
                 theta, phi = section_shapes(table, n)
                 line = backbone_points(lengths, theta[row], phi[row], s)
             else:
