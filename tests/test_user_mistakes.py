@@ -216,6 +216,42 @@ def test_evaluate_of_a_cut_estimate_warns_that_it_scores_a_part(tmp_path, capsys
     assert "warning" not in capsys.readouterr().err
 
 
+def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_path, capsys) -> None:
+    """A three-section truth without section 2's end scored section 1's alone (the count
+    stopped at the first gap), silently; a header typo (``xx_3``) left section 3 out
+    without a word. Now every end both files have is scored, and the typo is named."""
+    m, t, robot = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "three.toml"
+    robot.write_text(
+        "".join("[[section]]\nlength = 0.1\ntheta_max = 3.0\n" for _ in range(3))
+        + "".join(f"[[imu]]\nsection = {k}\n" for k in (1, 2, 3))
+    )
+    assert main(["simulate", "spatial", "--robot", str(robot), "--duration", "2",
+                 "-o", str(m), "--truth", str(t)]) == 0  # fmt: skip
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "--robot", str(robot), "--method", "ekf",
+                 "-o", str(est)]) == 0  # fmt: skip
+    header, *rows = t.read_text().splitlines(keepends=True)
+    names = header.strip().split(",")
+    keep = [i for i, c in enumerate(names) if c in "t x y z x_1 y_1 z_1 x_3 y_3 z_3".split()]
+    gap = tmp_path / "gap.csv"
+    gap.write_text("".join(",".join(r.strip().split(",")[i] for i in keep) + "\n"
+                           for r in [header, *rows]))  # fmt: skip
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(gap), "--robot", str(robot), "--json"]) == 0
+    assert sorted(json.loads(capsys.readouterr().out)["section_end_mean_mm"]) == ["1", "3"]
+    typo = tmp_path / "typo.csv"
+    typo.write_text(header.replace("x_3", "xx_3") + "".join(rows))
+    assert main(["evaluate", str(est), str(typo), "--robot", str(robot), "--json"]) == 0
+    out = capsys.readouterr()
+    assert sorted(json.loads(out.out)["section_end_mean_mm"]) == ["1", "2"]
+    assert out.err == (
+        f"continuum-mhe: warning: {typo}: column(s) xx_3 for x_3? (a typo: such a column "
+        "is left out)\n"
+    )
+    assert main(["evaluate", str(est), str(t), "--robot", str(robot)]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
     m, _ = _simulated(tmp_path, "a")
     _, t2 = _simulated(tmp_path, "b", "--dt", "0.0493")

@@ -21,7 +21,12 @@ from continuum_mhe.evaluation.metrics import (
     length_misfit,
     match_rows,
 )
-from continuum_mhe.io.csv_files import InputError, check_same_robot, read_state_table
+from continuum_mhe.io.csv_files import (
+    InputError,
+    check_same_robot,
+    misspelt_columns,
+    read_state_table,
+)
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 from continuum_mhe.model.robot import Robot
 
@@ -118,6 +123,8 @@ def run(args: argparse.Namespace) -> int:
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
+    if typo := misspelt_columns(truth.names, out_names):
+        print(f"{PROG}: warning: {args.truth}: {typo}", file=sys.stderr)
     try:
         m = compute_metrics(
             est.values[i_e][:, cols], truth.values[i_t], length, out_names, truth.names

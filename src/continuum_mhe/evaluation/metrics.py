@@ -100,11 +100,11 @@ def compute_metrics(
     tip = np.linalg.norm(err[:, [col["x"], col["y"], col["z"]]], axis=1)
     end_mean: dict[str, float] = {}
     end_max: dict[str, float] = {}
-    k = 1
-    while all(f"{c}_{k}" in col for c in "xyz"):
-        e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
-        end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
-        k += 1
+    ends = sorted(int(c[2:]) for c in col if c.startswith("x_") and c[2:].isdigit())
+    for k in ends:  # every section end both sides have, a gap between them or not
+        if all(f"{c}_{k}" in col for c in "yz"):
+            e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
+            end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
     force = [col[c] for c in TIP_FORCE_COLUMNS if c in col]
     force_rms = None
     if len(force) == len(TIP_FORCE_COLUMNS):

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import difflib
 import errno
 import math
 import os
@@ -563,6 +564,32 @@ def check_same_robot(
     if not misfit:
         return ""
     return f"{truth}: {misfit}: the truth is of another robot (pass --robot with its robot)"
+
+
+def misspelt_columns(names: Sequence[str], outputs: Sequence[str]) -> str:
+    """``""``, or a line naming each column of ``names`` that is none of ``outputs`` but
+    one letter off one of them that ``names`` lacks (``xx_2 for x_2``): a typo in a
+    truth's header leaves that column out of the comparison."""
+    pairs = []
+    for n in names:
+        if n in outputs:
+            continue
+        close = difflib.get_close_matches(n, [o for o in outputs if o not in names], 1, 0.8)
+        if close and _edit_distance_one(n, close[0]):
+            pairs.append(f"{n} for {close[0]}")
+    if not pairs:
+        return ""
+    return f"column(s) {', '.join(pairs)}? (a typo: such a column is left out)"
+
+
+def _edit_distance_one(a: str, b: str) -> bool:
+    """Whether ``a`` becomes ``b`` by one inserted, deleted or replaced character."""
+    if abs(len(a) - len(b)) > 1:
+        return False
+    if len(a) == len(b):
+        return sum(x != y for x, y in zip(a, b)) == 1
+    short, long_ = (a, b) if len(a) < len(b) else (b, a)
+    return any(long_[:i] + long_[i + 1 :] == short for i in range(len(long_)))
 
 
 def _parse_std(path: str, line: int, name: str, text: str) -> float:
