@@ -487,7 +487,7 @@ def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys, short_d
     (out / "estimates_mhe.csv").write_text("old\n")
     (out / "truth.csv").write_text("mine\n")
     (out / "truth.csv").chmod(0o444)
-    assert main(["demo", "--out", str(out)]) == 2
+    assert main(["demo", "--out", str(out), "--overwrite"]) == 2
     assert "truth.csv: the file is read-only; not replaced" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["estimates_mhe.csv", "truth.csv"]
     assert (out / "truth.csv").read_text() == "mine\n"
@@ -504,6 +504,38 @@ def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch)
     (tmp_path / "afile").write_text("x\n")
     assert main(["demo", "--out", str(tmp_path / "afile" / "sub")]) == 2
     assert capsys.readouterr().err.strip().endswith("afile is not a folder")
+
+
+@pytest.mark.parametrize("command", ["demo", "reproduce"])
+def test_demo_and_reproduce_keep_files_in_their_folder_without_overwrite(
+    tmp_path, capsys, monkeypatch, command
+):
+    """Before: ``demo`` replaced a ``truth.csv`` already in its folder with no word (and
+    ``reproduce`` its files). Now one line naming the file and ``--overwrite``, exit 2,
+    before any work, the file kept; a file of another name does not stop the demo."""
+    from continuum_mhe.cli import demo
+    from continuum_mhe.reproduce import pipeline
+
+    def no_run(*args, **kwargs):
+        raise RuntimeError("ran")
+
+    monkeypatch.setattr(demo, "simulate_robot", no_run)
+    monkeypatch.setattr(pipeline, "reproduce", no_run)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "truth.csv").write_text("mine\n")
+    assert main([command, "--out", str(out), *(["--quick"] if command == "reproduce" else [])]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "give --overwrite" in err
+    assert (out / "truth.csv").read_text() == "mine\n"
+    if command == "demo":
+        assert f"{out / 'truth.csv'}: exists" in err
+        (out / "truth.csv").rename(out / "notes.txt")
+        assert main(["demo", "--out", str(out)]) == 70  # past the check: the stand-in ran
+        assert "RuntimeError: ran" in capsys.readouterr().err
+    assert main([command, "--out", str(out), "--overwrite",
+                 *(["--quick"] if command == "reproduce" else [])]) == 70  # fmt: skip
+    assert "RuntimeError: ran" in capsys.readouterr().err
 
 
 def test_main_gives_the_caller_its_warnings_and_signal_handlers_back(tmp_path):

@@ -35,8 +35,8 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     out = Path(args.out)
-    check_new_folder(out)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
+    check_new_folder(out, args.overwrite, demo_files(robot))
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
     rec = simulate_robot(scenario, robot, seed=args.seed)
     formulation = make_formulation("bend", robot, NoiseSettings())
@@ -67,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
         )
     table_console().print(table)
     all_series = [s for s, _ in results]
-    csvs = [out / f"estimates_{m}.csv" for m in METHODS] + [
-        out / "measurements.csv", out / "truth.csv"]  # fmt: skip
+    csvs = [out / name for name in demo_files(robot) if name.endswith(".csv")]
     with new_files(out) as written:  # after the estimates, not during them
         for path, (series, _) in zip(csvs, results):
             write_estimates(path, series)
@@ -81,6 +80,16 @@ def run(args: argparse.Namespace) -> int:
     figs = written[len(csvs) :]
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
+
+
+def demo_files(robot: Robot) -> list[str]:
+    """The names of the files the demo writes into its folder: the estimates of each
+    method, the measurements and the truth (CSV, in that order), then the figures."""
+    figures = ["demo_trajectory_3d.png", "demo_states.png"]
+    if not robot.is_single:
+        figures.append("demo_backbone.png")
+    csvs = [f"estimates_{m}.csv" for m in METHODS] + ["measurements.csv", "truth.csv"]
+    return csvs + figures
 
 
 def _demo_figures(
@@ -112,4 +121,7 @@ def _demo_figures(
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace the demo's files in --out if there"
+    )
     add_robot_option(p, replaces=())

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rod_csv is not None and not Path(args.rod_csv).is_file():
         raise InputError(f"{args.rod_csv}: no such file")
     out = Path(args.out)
-    check_new_folder(out)  # before the trials; the folder is made after them
+    check_new_folder(out, args.overwrite)  # before the trials; the folder is made after them
     cfg = QUICK if args.quick else FULL
     command = "continuum-mhe " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     start = time.perf_counter()
@@ -58,6 +58,9 @@ DESCRIPTION = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="results folder (created)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="write into --out though it holds files"
+    )
     p.add_argument("--quick", action="store_true", help="small sizes (about 25 s on 2 cores)")
     p.add_argument(
         "--jobs", type=int, default=None, help="local worker processes (default: all CPUs)"

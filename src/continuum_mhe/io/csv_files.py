@@ -724,11 +724,26 @@ def atomic_binary_writer(
     return _atomic(path, binary=True)
 
 
-def check_new_folder(folder: Path) -> None:
+def check_new_folder(
+    folder: Path, overwrite: bool = True, names: Sequence[str] | None = None
+) -> None:
     """A one-line error, before any work, unless ``folder`` is, or can be made, a
-    writable folder (its nearest existing ancestor a writable folder)."""
+    writable folder (its nearest existing ancestor a writable folder), and, unless
+    ``overwrite``, holds none of the files ``names`` that the command writes (with
+    ``names`` None: no file at all)."""
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder}: exists and is not a folder")
+    if not overwrite and folder.is_dir():
+        taken = [folder / n for n in names if (folder / n).exists()] if names is not None else []
+        if taken:
+            raise InputError(
+                f"{taken[0]}: exists; give --overwrite to replace it, or another --out"
+            )
+        if names is None and any(folder.iterdir()):
+            raise InputError(
+                f"{folder}: holds files already; give --overwrite to write into it, or "
+                "another --out"
+            )
     existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
     if not existing.is_dir():
         raise InputError(f"{folder}: {existing} is not a folder")
