@@ -252,6 +252,28 @@ def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_pa
     assert "warning" not in capsys.readouterr().err
 
 
+def test_an_empty_field_of_a_one_imu_file_is_a_dropout_as_with_several(tmp_path) -> None:
+    """Before: an empty roll or pitch in a one-IMU file stopped ``estimate`` (``'' is not
+    a number``, exit 2) where the same field of a several-IMU file is a dropout of its
+    IMU. Now a dropout here too, in ``estimate`` and in ``read_measurements``."""
+    from continuum_mhe.io.csv_files import read_measurements
+
+    m, _ = _simulated(tmp_path, "a")
+    header, *rows = m.read_text().splitlines(keepends=True)
+    assert header.strip() == "t,roll,pitch"
+    rows[49] = rows[49].split(",")[0] + ",,\n"  # both fields
+    rows[60] = rows[60].split(",")[0] + ",," + rows[60].split(",")[2]  # roll alone
+    blank = tmp_path / "blank.csv"
+    blank.write_text(header + "".join(rows))
+    table = read_measurements(blank)
+    assert np.isnan(table.z[[49, 60]]).any(axis=1).all() and np.isfinite(table.z[48]).all()
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(blank), "--method", "ekf", "-o", str(est)]) == 0
+    names = _notes_and_rows(est)[1][0].strip().split(",")
+    status = [r.strip().split(",")[names.index("status")] for r in _notes_and_rows(est)[1][1:]]
+    assert status[49] == status[60] == "dropout" and status[48] == "ok"
+
+
 def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
     m, _ = _simulated(tmp_path, "a")
     _, t2 = _simulated(tmp_path, "b", "--dt", "0.0493")

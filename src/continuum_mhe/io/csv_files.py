@@ -175,14 +175,14 @@ def read_measurements(
     With ``skip_bad``, rows whose angles are missing, non-numeric, NaN or out of range
     become dropouts (kept, NaN angles) and rows with a bad or non-increasing ``t`` are
     dropped; each is recorded in ``skipped``. Without it, the first bad row raises.
-    With several IMUs an empty field is a dropout of that IMU only (an IMU without any
-    valid reading gives a :class:`DropoutWarning`). A file with columns
+    An empty field is a dropout of its IMU only (an IMU without any valid reading gives
+    a :class:`DropoutWarning`). A file with columns
     for another number of IMUs than ``n_imus`` (``roll_1 ... roll_2`` for one) is an
     error, never read in part.
     """
     with open_rows(path) as rows:
         columns = tilt_sample_columns(rows, n_imus, fix=READER_FIX)
-        got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=n_imus > 1)
+        got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=True)
     check_time_units(rows, got.t)
     z = tilt_values(
         rows.name, got.values, got.lines, degrees, n_imus, got.skipped if skip_bad else None

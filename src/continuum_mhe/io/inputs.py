@@ -477,7 +477,7 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
             return z
 
     found = sample_blocks(
-        rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=n_imus > 1,
+        rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=True,
         problems=problems,
     )  # fmt: skip
     readings = _readings(f)

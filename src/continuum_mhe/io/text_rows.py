@@ -4,7 +4,7 @@ Dialects read (the same for every CSV reader of the package):
 
 * separators ``,`` ``;`` or tab, taken from the header line;
 * ``#`` comment lines anywhere and blank lines are skipped; a file without a header
-  line whose comments name one (``# format: t_ms,ax,ay,az,gx,gy,gz``, as the
+  line whose comments name one (``# fields: t_ms,ax,ay,az,gx,gy,gz``, as the
   ``continuum_imu`` firmware prints) uses that header, so a plain capture of the
   serial line reads as it is;
 * a ``t_ms`` column (milliseconds) instead of ``t`` (seconds) is converted;
