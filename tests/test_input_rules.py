@@ -456,6 +456,10 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
          "line 3: section 1: unknown key 'lenght'"),
         (ROBOT + "[[imu]]\nsection = 1\nmount_rpy = [1, 2]\n", "line 7: imu 2: mount_rpy must be"),
         (ROBOT + "[backbone]\nradius = 0.0007\n", "line 5: backbone: missing key"),
+        ('mounting = "z-up"\nmountin = "z-down"\n' + ROBOT,
+         "line 2: top level: unknown key 'mountin'"),
+        (ROBOT + "\n[[imus]]\nsection = 1\n", "line 6: top level: unknown key 'imus'"),
+        (ROBOT + "[extra.part]\nx = 1\n", "line 5: top level: unknown key 'extra'"),
     ],
 )  # fmt: skip
 def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message: str) -> None:

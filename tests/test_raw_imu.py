@@ -23,6 +23,7 @@ from continuum_mhe.io.raw_imu import (
     mount_rotation,
     raw_to_measurements,
     read_raw_imu,
+    read_raw_imus,
 )
 from continuum_mhe.model.direct import (
     DEFAULT_GYRO_STD,
@@ -182,7 +183,7 @@ def _write(path: Path, text: str) -> Path:
         ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.1,0,zz,9.8,0,0,0\n", "line 3: column ay: 'zz'"),
         ("t,ax,ay,az\n0,0,0,9.8\n0.1,0,0,9.8\n0.05,0,0,9.8\n", "line 4: decreasing timestamp"),
         ("t,ax,ay,az\n0,0,0,1.0\n0.1,0,0,1.0\n", "look like g"),
-        ("t,ax,ay\n0,0,0\n", "line 1: missing column(s) az"),
+        ("t,ax,ay\n0,0,0\n", "line 1: the IMU has no az column (an IMU's raw columns: ax,"),
         ("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0\n", "line 2: expected 7 fields, found 6"),
     ],
 )
@@ -190,6 +191,50 @@ def test_raw_csv_errors_name_the_line(tmp_path: Path, body: str, needle: str) ->
     with pytest.raises(InputError, match=None) as info:
         read_raw_imu(_write(tmp_path / "raw.csv", body))
     assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+_THREE_IMUS = [f"{c}_{i}" for i in (1, 2, 3) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+
+
+def _renamed(old: str, new: str) -> str:
+    """The three-IMU raw header with column ``old`` renamed ``new`` (``""``: left out)."""
+    return ",".join(["t", *(c for c in (new if c == old else c for c in _THREE_IMUS) if c)])
+
+
+@pytest.mark.parametrize(
+    ("header", "robot", "message"),
+    [
+        (_renamed("ay_2", "ay2"), True, "IMU 2 has no ay_2 column; the header has ay2 (a typo?)"),
+        (_renamed("ax_3", "ax_4"), True, "IMU 3 has no ax_3 column; the header has ax_4 (a typo?)"),
+        (_renamed("ax_2", ""), True,
+         "IMU 2 has no ax_2 column (an IMU's raw columns: ax_k, ay_k, az_k, and gx_k, gy_k, "
+         "gz_k for its gyro)"),
+        (_renamed("ax_1", "ax_0"), True, "IMU 1 has no ax_1 column; the header has ax_0 (a typo?)"),
+        (_renamed("gx_2", "gx2"), True, "IMU 2 has no gx_2 column; the header has gx2 (a typo?)"),
+        ("t,ax,ay_,az,gx,gy,gz", False, "the IMU has no ay column; the header has ay_ (a typo?)"),
+    ],
+)  # fmt: skip
+def test_a_raw_header_typo_names_the_missing_column_and_the_typo(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, robot: bool, message: str
+) -> None:
+    """A raw header with a typo was blamed on the IMU count ("the file has raw columns
+    for 1 IMU(s) (ax_1) but the robot describes 3; pass --robot FILE with a robot file of
+    1 IMU(s)" for ay2), or read as a tilt file ("missing column(s) roll, pitch" for ay_),
+    and a renamed gx_2 dropped every IMU's gyro without a word."""
+    robot_file = _write(
+        tmp_path / "robot.toml",
+        "".join(f"[[section]]\nlength = 0.1\n[[imu]]\nsection = {k}\n" for k in (1, 2, 3)),
+    )
+    meas = _write(tmp_path / "raw.csv", f"{header}\n0,{','.join(['0.1'] * header.count(','))}\n")
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "-o", str(out), "--method", "ekf"]
+    assert main([*argv, *(["--robot", str(robot_file)] if robot else [])]) == 2
+    err = capsys.readouterr().err
+    assert err == f"continuum-mhe: error: {meas}: line 1: {message}\n"
+    assert not out.exists()
+    with pytest.raises(InputError) as info:
+        read_raw_imus(meas, 3) if robot else read_raw_imu(meas)
+    assert str(info.value) == f"{meas}: line 1: {message}"
 
 
 def test_raw_csv_skip_bad_keeps_dropouts(tmp_path: Path) -> None:
@@ -284,8 +329,6 @@ def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
     """A corrupt value far beyond any sensor (a 1e200 would overflow the magnitude and
     reach the mounting check as 'nan degrees') is named with its line; ``--skip-bad``
     reads it as a dropout; with several IMUs it is that IMU's dropout."""
-    from continuum_mhe.io.raw_imu import read_raw_imus
-
     good = "0,0,9.8,0,0,0"
     path = _write(tmp_path / "raw.csv", f"t,ax,ay,az,gx,gy,gz\n0,{good}\n0.02,{row}\n0.04,{good}\n")
     with pytest.raises(

@@ -349,16 +349,21 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
         raise InputError(_with_line(str(exc), f"{p}: ", text)) from None
 
 
-#: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``: the
-#: table a robot-file message names, then the word after it (a key, where it is one).
-_WHERE = re.compile(r"(?:(section|imu|tendon) (\d+)|(backbone)|(?=mounting))(?::\s*|\s+)?(\w*)")
-_UNKNOWN_KEY = re.compile(r"unknown key '(\w+)'")
+#: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``,
+#: ``top level: unknown key 'x' ...``: the table a robot-file message names, then the
+#: word after it (a key, where it is one).
+_WHERE = re.compile(
+    r"(?:(section|imu|tendon) (\d+)|(backbone)|top level|(?=mounting))(?::\s*|\s+)?(\w*)"
+)
+_UNKNOWN_KEY = re.compile(r"unknown key '([^']+)'")
 _TABLE_HEADER = re.compile(r"\s*\[")
 
 
 def _with_line(message: str, prefix: str, text: str) -> str:
     """``message`` (``prefix`` + the problem) with the robot file's line of the table or
-    key it names (``PATH: line N: section 2: ...``); unchanged where none is found."""
+    key it names (``PATH: line N: section 2: ...``); unchanged where none is found. A
+    top-level key is found before the first table, or as a table's header (``[[imus]]``,
+    ``[extra.part]``) anywhere."""
     if not message.startswith(prefix):
         return message
     problem = message[len(prefix) :]
@@ -367,9 +372,15 @@ def _with_line(message: str, prefix: str, text: str) -> str:
         return message
     lines = text.splitlines()
     table = m.group(1) or m.group(3)
+    unknown = _UNKNOWN_KEY.search(problem)
+    key = unknown.group(1) if unknown else m.group(4)
     if table is None:  # a top-level key: before the first table
         start = 0
         stop = next((i for i, ln in enumerate(lines) if _TABLE_HEADER.match(ln)), len(lines))
+        if key and not any(map(_assigns(key).match, lines[start:stop])):
+            header = _table_header(key)
+            at = next((i for i, ln in enumerate(lines) if header.match(ln)), None)
+            return message if at is None else f"{prefix}line {at + 1}: {problem}"
     else:
         k = int(m.group(2)) if m.group(2) else 1
         pattern = re.compile(rf"\s*\[\[?\s*{table}\s*\]\]?\s*(#.*)?$")
@@ -380,13 +391,24 @@ def _with_line(message: str, prefix: str, text: str) -> str:
         stop = next(
             (i for i in range(start + 1, len(lines)) if _TABLE_HEADER.match(lines[i])), len(lines)
         )
-    unknown = _UNKNOWN_KEY.search(problem)
-    key = unknown.group(1) if unknown else m.group(4)
     line = start
     if key:
-        assign = re.compile(rf"\s*{re.escape(key)}\s*=")
+        assign = _assigns(key)
         line = next((i for i in range(start, stop) if assign.match(lines[i])), start)
     return f"{prefix}line {line + 1}: {problem}"
+
+
+def _assigns(key: str) -> re.Pattern[str]:
+    """A line that sets ``key`` (``key =``, ``"key" =`` or the dotted ``key.part =``)."""
+    name = re.escape(key)
+    return re.compile(rf"""\s*(?:{name}|"{name}"|'{name}')\s*[=.]""")
+
+
+def _table_header(key: str) -> re.Pattern[str]:
+    """The header of the table ``key`` or of a table inside it: ``[key]``, ``[[key]]``,
+    ``[key.part]``."""
+    name = re.escape(key)
+    return re.compile(rf"""\s*\[\[?\s*(?:{name}|"{name}"|'{name}')\s*[.\]]""")
 
 
 def robot_toml(robot: Robot) -> str:
