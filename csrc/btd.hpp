@@ -244,7 +244,8 @@ bool btd_solve(Index n, Index nx, const double* D, const double* E, const double
 // One node's elimination in btd_solve_two_ended: the Schur complement of the node
 // (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
 // given), its rows V (unscaled, upper) and reciprocal pivots p (S = V^T P V), h = U~^-T c
-// of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]) and, where
+// of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]; none
+// without bn) and, where
 // Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo read transposed with
 // ``transposed``); U~ = P V is V with unit diagonal. False if the block is not positive
 // definite.
@@ -267,13 +268,14 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
     p[j] = 1.0 / s;
     for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
   }
-  for (Index j = 0; j < nx; ++j) {
-    double t = bn[j];
-    if (Gn)
-      for (Index c = 0; c < nx; ++c) t -= pn[c] * hn[c] * Gn[c * nx + j];
-    for (Index c = 0; c < j; ++c) t -= V[c * nx + j] * p[c] * h[c];
-    h[j] = t;
-  }
+  if (bn)
+    for (Index j = 0; j < nx; ++j) {
+      double t = bn[j];
+      if (Gn)
+        for (Index c = 0; c < nx; ++c) t -= pn[c] * hn[c] * Gn[c * nx + j];
+      for (Index c = 0; c < j; ++c) t -= V[c * nx + j] * p[c] * h[c];
+      h[j] = t;
+    }
   if (Eo) {
     for (Index j = 0; j < nx; ++j) {
       if constexpr (transposed)
@@ -382,6 +384,41 @@ CMHE_BLOCK_CLONES bool btd_solve_two_ended(Index n, Index nx_, const double* D,
       back_substitute_node<NX>(nx, V + i * bs, p + i * nx, y + i * nx, G + (i - 1) * bs,
                                y + (i - 1) * nx, y + i * nx);
     }
+  }
+  return true;
+}
+
+// The last diagonal block of H^-1 (out, nx x nx) for the symmetric block-tridiagonal
+// H = (D, E): the forward Schur recursion of btd_solve_two_ended's elimination alone,
+// nothing kept per node, then the last Schur complement's inverse U~^-1 P U~^-T column
+// by column; where H is an information matrix, the last node's covariance. False if H
+// is not positive definite. Scratch: 3 nx^2 + 3 nx values.
+template <int NX>
+CMHE_BLOCK_CLONES bool btd_last_block_inverse(Index n, Index nx_, const double* D,
+                                              const double* E, double* out, double* scratch) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx;
+  double* V = scratch;
+  double* G[2] = {V + bs, V + 2 * bs};
+  double* p[2] = {V + 3 * bs, V + 3 * bs + nx};
+  double* row = V + 3 * bs + 2 * nx;
+  for (Index i = 0; i < n; ++i) {
+    const bool first = i == 0, last = i == n - 1;
+    if (!eliminate_node<NX, false>(nx, D + i * bs, nullptr, first ? nullptr : G[(i + 1) & 1],
+                                   first ? nullptr : p[(i + 1) & 1], nullptr,
+                                   last ? nullptr : E + i * bs, V, p[i & 1], nullptr, G[i & 1],
+                                   row))
+      return false;
+  }
+  const double* pl = p[(n - 1) & 1];
+  for (Index c = 0; c < nx; ++c) {  // column c: U~^-T e_c, then U~^-1 P of it
+    for (Index j = 0; j < nx; ++j) {
+      double t = j == c ? 1.0 : 0.0;
+      for (Index k = 0; k < j; ++k) t -= V[k * nx + j] * pl[k] * row[k];
+      row[j] = t;
+    }
+    back_substitute_node<NX>(nx, V, pl, row, nullptr, nullptr, row);
+    for (Index j = 0; j < nx; ++j) out[j * nx + c] = row[j];
   }
   return true;
 }

@@ -48,10 +48,15 @@ bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
   active_constraints(n, nx, X, fs, tol, s.wbox.data(), s.wball.data(), s.nrm.data());
   const bool none = std::all_of(s.wbox.begin(), s.wbox.end(), [](int8_t w) { return w == 0; }) &&
                     std::all_of(s.wball.begin(), s.wball.end(), [](int8_t w) { return w == 0; });
+  std::vector<double>&C = cs.C, &Li = cs.Li, &Tn = cs.Tn, &Tb = cs.Tb, &v = cs.v, &tmp = cs.tmp;
+  for (auto* a : {&C, &Li, &Tb, &tmp}) a->resize(bs);
+  v.resize(nx);
+  Tn.assign(bs, 0.0);
   bool ok;
-  if (none) {  // the factor alone
+  if (none) {  // the forward recursion alone, to the last block's inverse
+    cs.last.resize(3 * bs + 3 * nx);
     ok = with_block_size(nx, [&](auto c) {
-      return btd_factor<decltype(c)::value>(n, nx, D, E, s.L.data(), s.M.data(), s.rd.data());
+      return btd_last_block_inverse<decltype(c)::value>(n, nx, D, E, C.data(), cs.last.data());
     });
   } else {  // the reduced Hessian, factored as the QP's equality-constrained step does
     std::fill(s.grad.begin(), s.grad.end(), 0.0);
@@ -59,13 +64,9 @@ bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
       return eqp<decltype(c)::value>(n, nx, D, E, s.grad.data(), s.wbox.data(),
                                      s.wball.data(), s.nrm.data(), fs, s.p.data(), s);
     });
+    if (ok) dense_inverse_gram(nx, s.L.data() + (n - 1) * bs, C.data(), Li.data());
   }
   if (!ok) return false;
-  std::vector<double>&C = cs.C, &Li = cs.Li, &Tn = cs.Tn, &Tb = cs.Tb, &v = cs.v, &tmp = cs.tmp;
-  for (auto* a : {&C, &Li, &Tb, &tmp}) a->resize(bs);
-  v.resize(nx);
-  Tn.assign(bs, 0.0);
-  dense_inverse_gram(nx, s.L.data() + (n - 1) * bs, C.data(), Li.data());  // (L_n L_n^T)^-1
   // fixed coordinates of the last node carry no variance (in the rotated frame)
   std::vector<char>& fixed = cs.fixed;
   fixed.assign(nx, 0);

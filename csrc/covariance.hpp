@@ -13,7 +13,7 @@ namespace cmhe {
 // sample (resized to the window on each call, allocated only when it grows)
 struct CovarianceScratch {
   QPScratch qp;
-  std::vector<double> C, Li, Tn, Tb, v, tmp;
+  std::vector<double> C, Li, Tn, Tb, v, tmp, last;
   std::vector<char> fixed;
 };
 
