@@ -236,6 +236,22 @@ def test_a_raw_header_typo_names_the_missing_column_and_the_typo(
     assert_header_refused(tmp_path, capsys, header, n_imus, message, _read_raw(n_imus))
 
 
+@pytest.mark.parametrize(
+    ("left_out", "message"),
+    [
+        ((2,), "IMU 2 has no gx_2, gy_2, gz_2 columns, IMU 1 and 3 have them"),
+        ((2, 3), "IMU 2 and 3 have no gyro columns (gx_k, gy_k, gz_k), IMU 1 has them"),
+    ],
+)
+def test_some_imus_gyro_columns_without_the_others_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], left_out: tuple[int, ...], message: str
+) -> None:
+    """Not every IMU read without its gyro, without a word."""
+    header = renamed(_THREE_IMUS, {f"{c}_{k}": "" for k in left_out for c in ("gx", "gy", "gz")})
+    message += ": give every IMU's gyro or none"
+    assert_header_refused(tmp_path, capsys, header, 3, message, _read_raw(3))
+
+
 def test_raw_csv_skip_bad_keeps_dropouts(tmp_path: Path) -> None:
     body = (
         "t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.1,0,x,9.8,0,0,0\n"

@@ -309,16 +309,34 @@ RAW_IMU_COLUMNS = ImuColumns(
 )
 
 
+def _imu_list(numbers: Sequence[str]) -> str:
+    """``1``, ``1 and 3``, ``1, 2 and 4``."""
+    return " and ".join(filter(None, [", ".join(numbers[:-1]), numbers[-1]]))
+
+
 def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     """The columns to read from a raw table (``t`` first) and whether it has gyros.
 
     A header with a column missing from an IMU's set (with the columns that look like a
     typo of it), or with whole sets for another number of IMUs than ``n_imus``, is a
-    one-line error (:func:`~continuum_mhe.io.csv_files.imu_suffixes`)."""
+    one-line error (:func:`~continuum_mhe.io.csv_files.imu_suffixes`); so is one that
+    gives some IMUs' gyro columns and not the others'."""
     suffixes = imu_suffixes(rows, n_imus, RAW_IMU_COLUMNS)
-    has_gyro = all(c + s in rows.header for s in suffixes for c in GYRO_COLUMNS)
-    fields = RAW_IMU_COLUMNS.names if has_gyro else ACC_COLUMNS
-    return ("t", *(c + s for s in suffixes for c in fields)), has_gyro
+    gyro = [s for s in suffixes if all(c + s in rows.header for c in GYRO_COLUMNS)]
+    if gyro and len(gyro) < len(suffixes):
+        without = [s[1:] for s in suffixes if s not in gyro]
+        if len(without) == 1:
+            cols = ", ".join(f"{c}_{without[0]}" for c in GYRO_COLUMNS)
+            lacks = f"IMU {without[0]} has no {cols} columns"
+        else:
+            lacks = f"IMU {_imu_list(without)} have no gyro columns (gx_k, gy_k, gz_k)"
+        have = "has" if len(gyro) == 1 else "have"
+        raise InputError(
+            f"{rows.name}: line 1: {lacks}, IMU {_imu_list([s[1:] for s in gyro])} {have} "
+            "them: give every IMU's gyro or none"
+        )
+    fields = RAW_IMU_COLUMNS.names if gyro else ACC_COLUMNS
+    return ("t", *(c + s for s in suffixes for c in fields)), bool(gyro)
 
 
 def raw_blocks(
