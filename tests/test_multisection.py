@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from estimator_helpers import bare
 from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
+from header_helpers import assert_header_refused, imu_columns, renamed
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -393,6 +394,36 @@ def test_measurement_file_with_the_wrong_imu_count(  # type: ignore[no-untyped-d
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{meas}: line 1: the file has {needle}" in err
     assert not out.exists()
+
+
+_THREE_TILTS = imu_columns(("roll", "pitch"), 3)
+
+
+@pytest.mark.parametrize(
+    ("header", "n_imus", "message"),
+    [
+        # not "tilt columns for 4 IMU(s) ... pass --robot FILE with a robot file of 4"
+        (renamed(_THREE_TILTS, {"roll_3": "roll_4"}), 3,
+         "IMU 3 has no roll_3 column; the header has roll_4 (a typo?)"),
+        # not "missing column(s) roll_2" without roll2
+        (renamed(_THREE_TILTS, {"roll_2": "roll2"}), 3,
+         "IMU 2 has no roll_2 column; the header has roll2 (a typo?)"),
+        (renamed(_THREE_TILTS, {"roll_1": "roll_0"}), 3,
+         "IMU 1 has no roll_1 column; the header has roll_0 (a typo?)"),
+        # not IMU 1 read alone where the robot has one IMU
+        (renamed(_THREE_TILTS, {"pitch_3": "pitch3"}), 1,
+         "IMU 3 has no pitch_3 column; the header has pitch3 (a typo?)"),
+        ("t,rol,pitch", 1, "the IMU has no roll column; the header has rol (a typo?)"),
+        ("t,rol,pich", 1, "the IMU has no roll, pitch columns; the header has rol, pich (typos?)"),
+    ],
+)  # fmt: skip
+def test_a_tilt_header_typo_names_the_missing_column_and_the_typo(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, n_imus: int, message: str
+) -> None:
+    def read(path: Path) -> object:
+        return read_measurements(path, n_imus=n_imus)
+
+    assert_header_refused(tmp_path, capsys, header, n_imus, message, read)
 
 
 def test_read_measurements_refuses_another_imu_count(tmp_path: Path) -> None:

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
+from header_helpers import assert_header_refused, imu_columns, renamed
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
@@ -193,48 +195,61 @@ def test_raw_csv_errors_name_the_line(tmp_path: Path, body: str, needle: str) ->
     assert needle in str(info.value) and "\n" not in str(info.value)
 
 
-_THREE_IMUS = [f"{c}_{i}" for i in (1, 2, 3) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+_THREE_IMUS = imu_columns(("ax", "ay", "az", "gx", "gy", "gz"), 3)
 
 
 def _renamed(old: str, new: str) -> str:
     """The three-IMU raw header with column ``old`` renamed ``new`` (``""``: left out)."""
-    return ",".join(["t", *(c for c in (new if c == old else c for c in _THREE_IMUS) if c)])
+    return renamed(_THREE_IMUS, {old: new})
+
+
+def _read_raw(n_imus: int) -> Callable[[Path], object]:
+    return (lambda p: read_raw_imus(p, n_imus)) if n_imus > 1 else read_raw_imu
 
 
 @pytest.mark.parametrize(
-    ("header", "robot", "message"),
+    ("header", "n_imus", "message"),
     [
-        (_renamed("ay_2", "ay2"), True, "IMU 2 has no ay_2 column; the header has ay2 (a typo?)"),
-        (_renamed("ax_3", "ax_4"), True, "IMU 3 has no ax_3 column; the header has ax_4 (a typo?)"),
-        (_renamed("ax_2", ""), True,
+        (_renamed("ay_2", "ay2"), 3, "IMU 2 has no ay_2 column; the header has ay2 (a typo?)"),
+        (_renamed("ax_3", "ax_4"), 3, "IMU 3 has no ax_3 column; the header has ax_4 (a typo?)"),
+        (_renamed("ax_2", ""), 3,
          "IMU 2 has no ax_2 column (an IMU's raw columns: ax_k, ay_k, az_k, and gx_k, gy_k, "
          "gz_k for its gyro)"),
-        (_renamed("ax_1", "ax_0"), True, "IMU 1 has no ax_1 column; the header has ax_0 (a typo?)"),
-        (_renamed("gx_2", "gx2"), True, "IMU 2 has no gx_2 column; the header has gx2 (a typo?)"),
-        ("t,ax,ay_,az,gx,gy,gz", False, "the IMU has no ay column; the header has ay_ (a typo?)"),
+        (_renamed("ax_1", "ax_0"), 3, "IMU 1 has no ax_1 column; the header has ax_0 (a typo?)"),
+        (_renamed("gx_2", "gx2"), 3, "IMU 2 has no gx_2 column; the header has gx2 (a typo?)"),
+        ("t,ax,ay_,az,gx,gy,gz", 1, "the IMU has no ay column; the header has ay_ (a typo?)"),
+        # not IMU 1 read alone, the typo beyond the robot's IMU unseen
+        (_renamed("ay_3", "ay3"), 1, "IMU 3 has no ay_3 column; the header has ay3 (a typo?)"),
+        # no column besides the IMU's: not an internal error (difflib's n must be > 0)
+        ("ax,ay,az,gx,gy", 1,
+         "the IMU has no gz column (an IMU's raw columns: ax, ay, az, and gx, gy, gz for its "
+         "gyro)"),
     ],
 )  # fmt: skip
 def test_a_raw_header_typo_names_the_missing_column_and_the_typo(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, robot: bool, message: str
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, n_imus: int, message: str
 ) -> None:
     """A raw header with a typo was blamed on the IMU count ("the file has raw columns
     for 1 IMU(s) (ax_1) but the robot describes 3; pass --robot FILE with a robot file of
     1 IMU(s)" for ay2), or read as a tilt file ("missing column(s) roll, pitch" for ay_),
     and a renamed gx_2 dropped every IMU's gyro without a word."""
-    robot_file = _write(
-        tmp_path / "robot.toml",
-        "".join(f"[[section]]\nlength = 0.1\n[[imu]]\nsection = {k}\n" for k in (1, 2, 3)),
-    )
-    meas = _write(tmp_path / "raw.csv", f"{header}\n0,{','.join(['0.1'] * header.count(','))}\n")
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "-o", str(out), "--method", "ekf"]
-    assert main([*argv, *(["--robot", str(robot_file)] if robot else [])]) == 2
-    err = capsys.readouterr().err
-    assert err == f"continuum-mhe: error: {meas}: line 1: {message}\n"
-    assert not out.exists()
-    with pytest.raises(InputError) as info:
-        read_raw_imus(meas, 3) if robot else read_raw_imu(meas)
-    assert str(info.value) == f"{meas}: line 1: {message}"
+    assert_header_refused(tmp_path, capsys, header, n_imus, message, _read_raw(n_imus))
+
+
+@pytest.mark.parametrize(
+    ("left_out", "message"),
+    [
+        ((2,), "IMU 2 has no gx_2, gy_2, gz_2 columns, IMU 1 and 3 have them"),
+        ((2, 3), "IMU 2 and 3 have no gyro columns (gx_k, gy_k, gz_k), IMU 1 has them"),
+    ],
+)
+def test_some_imus_gyro_columns_without_the_others_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], left_out: tuple[int, ...], message: str
+) -> None:
+    """Not every IMU read without its gyro, without a word."""
+    header = renamed(_THREE_IMUS, {f"{c}_{k}": "" for k in left_out for c in ("gx", "gy", "gz")})
+    message += ": give every IMU's gyro or none"
+    assert_header_refused(tmp_path, capsys, header, 3, message, _read_raw(3))
 
 
 def test_raw_csv_skip_bad_keeps_dropouts(tmp_path: Path) -> None:

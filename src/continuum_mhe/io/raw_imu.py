@@ -21,7 +21,6 @@ Two measurement models (``imu_model``):
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 import warnings
@@ -35,11 +34,10 @@ import numpy as np
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import (
     FloatArray,
+    ImuColumns,
     UnitWarning,
     check_time_units,
-    imu_count_error,
-    numbered_imus,
-    numbered_span,
+    imu_suffixes,
     read_sample_rows,
 )
 from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
@@ -268,7 +266,8 @@ def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
     estimated from?)."""
     tilt = [h for h in rows.header if h.split("_")[0] in ("roll", "pitch")]
     if not is_raw_header(rows.header):
-        accel = any(h in ACC_COLUMNS or _raw_number(h)[0] in ACC_COLUMNS for h in rows.header)
+        number = RAW_IMU_COLUMNS.number
+        accel = any(h in ACC_COLUMNS or number(h)[0] in ACC_COLUMNS for h in rows.header)
         return "raw" if accel and not tilt else "tilt"
     if tilt:
         raise InputError(
@@ -300,110 +299,44 @@ class MultiRawImuTable:
     skipped: list[str] = field(default_factory=list)
 
 
-#: An unknown header column at least this similar to a missing raw column (difflib's
-#: ratio) is named as a likely typo of it: ``ay2`` or ``ay_`` for ``ay_2`` or ``ay``,
-#: ``ax_4`` or ``ax_0`` for ``ax_3`` or ``ax_1``.
-TYPO_SIMILARITY = 0.75
+#: The raw columns of an IMU: ``ax, ay, az``, and ``gx, gy, gz`` for its gyro
+#: (``ax_k``... for IMU ``k`` of several).
+RAW_IMU_COLUMNS = ImuColumns(
+    "raw",
+    ACC_COLUMNS,
+    GYRO_COLUMNS,
+    holds="an IMU's raw columns: ax{k}, ay{k}, az{k}, and gx{k}, gy{k}, gz{k} for its gyro",
+)
 
 
-def _raw_number(column: str) -> tuple[str, int]:
-    """``("ax", 2)`` for the numbered raw column ``ax_2``; ``("", -1)`` for any other."""
-    base, _, number = column.rpartition("_")
-    return (base, int(number)) if base in RAW_FIELDS and number.isdigit() else ("", -1)
-
-
-def _raw_numbers(header: Sequence[str]) -> dict[int, set[str]]:
-    """The raw fields of each numbered IMU in the header (``ax_2`` -> ``{2: {"ax"}}``)."""
-    numbers: dict[int, set[str]] = {}
-    for base, k in map(_raw_number, header):
-        if base:
-            numbers.setdefault(k, set()).add(base)
-    return numbers
-
-
-def _whole_set(fields: set[str]) -> bool:
-    """An IMU's raw fields are a whole set: the accelerometer's, with all or none of
-    the gyro's."""
-    gyro = fields & set(GYRO_COLUMNS)
-    return set(ACC_COLUMNS) <= fields and gyro in (set(), set(GYRO_COLUMNS))
-
-
-def _missing_raw_columns(
-    header: Sequence[str], suffixes: Sequence[str]
-) -> tuple[dict[str, list[str]], list[str]]:
-    """The columns missing from each IMU's raw set (``suffixes``: ``""`` for the one IMU
-    of an unnumbered file, ``"_k"`` for IMU ``k``), and the header's unknown columns that
-    look like typos of them (:data:`TYPO_SIMILARITY`). An IMU's set is its
-    accelerometer's columns, and its gyro's where the header has one of them or a
-    look-alike. A column of another IMU's whole set is never taken for a typo."""
-    whole = [k for k, fields in _raw_numbers(header).items() if _whole_set(fields)]
-    known = {c + s for s in [*suffixes, *(f"_{k}" for k in whole)] for c in RAW_FIELDS}
-    unknown = [h for h in header if h not in known]
-    missing: dict[str, list[str]] = {}
-    typos: list[str] = []
-    for s in suffixes:
-        near = {
-            c + s: difflib.get_close_matches(c + s, unknown, len(unknown), TYPO_SIMILARITY)
-            for c in RAW_FIELDS
-            if c + s not in header
-        }
-        gyro = [c + s for c in GYRO_COLUMNS]
-        wanted = [c + s for c in ACC_COLUMNS]
-        if any(g in header or near.get(g) for g in gyro):
-            wanted += gyro
-        gone = [c for c in wanted if c not in header]
-        if gone:
-            missing[s] = gone
-        typos += [u for c in gone for u in near[c] if u not in typos]
-    return missing, typos
-
-
-def _missing_raw_message(missing: dict[str, list[str]], typos: Sequence[str]) -> str:
-    """``IMU 2 has no ay_2 column; the header has ay2 (a typo?)`` for
-    :func:`_missing_raw_columns`' result; without look-alikes, what a set holds."""
-    said: list[str] = []
-    for s, gone in missing.items():
-        who = f"IMU {s[1:]}" if s else "the IMU"
-        cols = f"{', '.join(gone)} column{'s' if len(gone) > 1 else ''}"
-        said.append(f"{who} has no {cols}" if not said else f"{who} no {cols}")
-    if typos:
-        guess = "a typo" if len(typos) == 1 else "typos"
-        return f"{', '.join(said)}; the header has {', '.join(typos)} ({guess}?)"
-    k = "" if "" in missing else "_k"  # "": the one IMU of an unnumbered file
-    return (
-        f"{', '.join(said)} (an IMU's raw columns: ax{k}, ay{k}, az{k}, and gx{k}, gy{k}, "
-        f"gz{k} for its gyro)"
-    )
+def _imu_list(numbers: Sequence[str]) -> str:
+    """``1``, ``1 and 3``, ``1, 2 and 4``."""
+    return " and ".join(filter(None, [", ".join(numbers[:-1]), numbers[-1]]))
 
 
 def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
     """The columns to read from a raw table (``t`` first) and whether it has gyros.
 
-    A header with a column missing from an IMU's set is a one-line error naming it and
-    the columns that look like a typo of it (:func:`_missing_raw_columns`); one whose
-    raw columns are whole sets for another number of IMUs than ``n_imus``, an error
-    naming both counts (:func:`~continuum_mhe.io.csv_files.imu_count_error`)."""
-    header = rows.header
-    if all(f"{c}_0" in header for c in ACC_COLUMNS):
-        numbered_imus(rows, RAW_FIELDS)  # raises: IMUs are numbered from 1
-    numbers = [k for k in _raw_numbers(header) if k > 0]
-    unnumbered = not numbers or (n_imus == 1 and any(c in header for c in RAW_FIELDS))
-    suffixes = [""] if unnumbered else [f"_{k}" for k in range(1, n_imus + 1)]
-    missing, typos = _missing_raw_columns(header, suffixes)
-    found = 1 if unnumbered else max(numbers)
-    if unnumbered:
-        whole = not missing
-    else:
-        whole = all(f"{c}_{k}" in header for k in range(1, found + 1) for c in ACC_COLUMNS)
-    if found != n_imus and whole and not typos:
-        shown = "ax, ay, az" if unnumbered else numbered_span("ax", found)
-        raise imu_count_error(rows.name, "raw", shown, found, n_imus)
-    if missing:
-        raise InputError(f"{rows.name}: line 1: {_missing_raw_message(missing, typos)}")
-    numbered_imus(rows, RAW_FIELDS)  # a stray ax_0 beside whole sets: numbered from 1
-    has_gyro = all(f"{c}{s}" in header for s in suffixes for c in GYRO_COLUMNS)
-    cols = [f"{c}{s}" for s in suffixes for c in (RAW_FIELDS if has_gyro else ACC_COLUMNS)]
-    return ("t", *cols), has_gyro
+    A header with a column missing from an IMU's set (with the columns that look like a
+    typo of it), or with whole sets for another number of IMUs than ``n_imus``, is a
+    one-line error (:func:`~continuum_mhe.io.csv_files.imu_suffixes`); so is one that
+    gives some IMUs' gyro columns and not the others'."""
+    suffixes = imu_suffixes(rows, n_imus, RAW_IMU_COLUMNS)
+    gyro = [s for s in suffixes if all(c + s in rows.header for c in GYRO_COLUMNS)]
+    if gyro and len(gyro) < len(suffixes):
+        without = [s[1:] for s in suffixes if s not in gyro]
+        if len(without) == 1:
+            cols = ", ".join(f"{c}_{without[0]}" for c in GYRO_COLUMNS)
+            lacks = f"IMU {without[0]} has no {cols} columns"
+        else:
+            lacks = f"IMU {_imu_list(without)} have no gyro columns (gx_k, gy_k, gz_k)"
+        have = "has" if len(gyro) == 1 else "have"
+        raise InputError(
+            f"{rows.name}: line 1: {lacks}, IMU {_imu_list([s[1:] for s in gyro])} {have} "
+            "them: give every IMU's gyro or none"
+        )
+    fields = RAW_IMU_COLUMNS.names if gyro else ACC_COLUMNS
+    return ("t", *(c + s for s in suffixes for c in fields)), bool(gyro)
 
 
 def raw_blocks(
