@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 #include <vector>
 
@@ -140,14 +141,16 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 // Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
 // L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
 // transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
-// reciprocals of L's diagonal. The recursion runs on the square-root-free form (H = V^T
-// P V with P the reciprocal pivots): block i's Schur complement S_i = D_i - W_{i-1}^T
-// P_{i-1} W_{i-1}, its rows V_i by elimination with the reciprocal pivots p_j = 1 /
-// s_j, and W_i = V_i^-T E_i the same way, so that the chain from one block to the next
-// holds a division per pivot and no square root; L = (P^1/2 V)^T and M^T = P^1/2 W are
-// scaled off that chain. Each row is gathered in a row of nx values (kept in registers
-// where NX is a constant); entries below V's diagonal are formed along with the row (D
-// is read below its diagonal for the upper triangle) and dropped.
+// reciprocals of L's diagonal. The recursion runs on the square-root-free form (each
+// block's S = V^T P V with P the reciprocal pivots p_j = 1 / s_j and U~ = P V of unit
+// diagonal): block i's Schur complement S_i = D_i - W_{i-1}^T P_{i-1} W_{i-1}, its rows
+// V_i by elimination with the reciprocal pivots, and W_i = U~_i^-T E_i the same way, so
+// that the chain from one block to the next holds a division per pivot and no square
+// root; L = (P^1/2 V)^T and M^T = P^1/2 W are scaled off that chain. A pivot below the
+// smallest normal double (2^-1022) is taken as not positive definite (its reciprocal
+// overflows). Each row is gathered in a row of nx values (kept in registers where NX is
+// a constant); entries below V's diagonal are formed along with the row (D is read below
+// its diagonal for the upper triangle) and dropped.
 template <int NX>
 CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
                                   double* L, double* M, double* rd) {
@@ -177,11 +180,11 @@ CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const dou
         row_axpy<NX>(nx, row, t, V + c * nx);
       }
       const double s = row[j];
-      if (!(s > 0.0)) return false;
+      if (!(s >= std::numeric_limits<double>::min())) return false;
       p[j] = 1.0 / s;
       for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
     }
-    if (i < n - 1) {  // W = V^-T E_i, row by row
+    if (i < n - 1) {  // W = U~^-T E_i, row by row
       const double* Ei = E + i * bs;
       for (Index j = 0; j < nx; ++j) {
         for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
@@ -264,7 +267,7 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
     }
     for (Index c = 0; c < j; ++c) row_axpy<NX>(nx, row, V[c * nx + j] * p[c], V + c * nx);
     const double s = row[j];
-    if (!(s > 0.0)) return false;
+    if (!(s >= std::numeric_limits<double>::min())) return false;  // 1 / s finite
     p[j] = 1.0 / s;
     for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
   }

@@ -506,13 +506,14 @@ def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch)
     assert capsys.readouterr().err.strip().endswith("afile is not a folder")
 
 
-@pytest.mark.parametrize("command", ["demo", "reproduce"])
-def test_demo_and_reproduce_keep_files_in_their_folder_without_overwrite(
-    tmp_path, capsys, monkeypatch, command
+def test_demo_and_reproduce_keep_their_files_in_their_folder_without_overwrite(
+    tmp_path, capsys, monkeypatch
 ):
-    """Before: ``demo`` replaced a ``truth.csv`` already in its folder with no word (and
-    ``reproduce`` its files). Now one line naming the file and ``--overwrite``, exit 2,
-    before any work, the file kept; a file of another name does not stop the demo."""
+    """``demo`` replaced a ``truth.csv`` already in its folder with no word, and
+    ``reproduce`` its experiments' data. Now one line naming the file and
+    ``--overwrite``, exit 2, before any work, the file kept. A file of another name does
+    not stop the demo, nor another part's data ``reproduce --only`` (the report covers
+    every part in the folder)."""
     from continuum_mhe.cli import demo
     from continuum_mhe.reproduce import pipeline
 
@@ -523,19 +524,23 @@ def test_demo_and_reproduce_keep_files_in_their_folder_without_overwrite(
     monkeypatch.setattr(pipeline, "reproduce", no_run)
     out = tmp_path / "out"
     out.mkdir()
-    (out / "truth.csv").write_text("mine\n")
-    assert main([command, "--out", str(out), *(["--quick"] if command == "reproduce" else [])]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "give --overwrite" in err
-    assert (out / "truth.csv").read_text() == "mine\n"
-    if command == "demo":
-        assert f"{out / 'truth.csv'}: exists" in err
-        (out / "truth.csv").rename(out / "notes.txt")
-        assert main(["demo", "--out", str(out)]) == 70  # past the check: the stand-in ran
+    for name, command in (("truth.csv", ["demo"]), ("exp1_synthetic3d.json",
+                          ["reproduce", "--quick"])):  # fmt: skip
+        (out / name).write_text("mine\n")
+        assert main([*command, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err == (
+            f"continuum-mhe: error: {out / name}: exists; give --overwrite to replace it, or "
+            "another --out\n"
+        )
+        assert (out / name).read_text() == "mine\n"
+        assert main([*command, "--out", str(out), "--overwrite"]) == 70  # the stand-in ran
         assert "RuntimeError: ran" in capsys.readouterr().err
-    assert main([command, "--out", str(out), "--overwrite",
-                 *(["--quick"] if command == "reproduce" else [])]) == 70  # fmt: skip
-    assert "RuntimeError: ran" in capsys.readouterr().err
+    (out / "truth.csv").rename(out / "notes.txt")
+    assert main(["demo", "--out", str(out)]) == 70
+    assert main(["reproduce", "--quick", "--only", "beyond", "--out", str(out)]) == 70
+    assert main(["reproduce", "--quick", "--only", "paper", "--out", str(out)]) == 2
+    capsys.readouterr()
 
 
 def test_main_gives_the_caller_its_warnings_and_signal_handlers_back(tmp_path):

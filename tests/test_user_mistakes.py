@@ -218,8 +218,11 @@ def test_evaluate_of_a_cut_estimate_warns_that_it_scores_a_part(tmp_path, capsys
 
 def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_path, capsys) -> None:
     """A three-section truth without section 2's end scored section 1's alone (the count
-    stopped at the first gap), silently; a header typo (``xx_3``) left section 3 out
-    without a word. Now every end both files have is scored, and the typo is named."""
+    stopped at the first gap), silently; a header typo (``xx_3``, ``x-3``) left section 3
+    out without a word; a truth with ``theta_2`` and no ``phi_2`` stopped ``evaluate``
+    and ``plot`` with an internal error, and one without section 2's bend was refused
+    by ``plot`` as another robot's. Now every end and bend both files have is scored,
+    the typo is named, and ``plot`` draws such a truth."""
     m, t, robot = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "three.toml"
     robot.write_text(
         "".join("[[section]]\nlength = 0.1\ntheta_max = 3.0\n" for _ in range(3))
@@ -248,6 +251,25 @@ def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_pa
         f"continuum-mhe: warning: {typo}: column(s) xx_3 for x_3? (a typo: such a column "
         "is left out)\n"
     )
+    substituted = tmp_path / "substituted.csv"
+    substituted.write_text(header.replace("x_3", "x-3") + "".join(rows))
+    assert main(["evaluate", str(est), str(substituted), "--robot", str(robot)]) == 0
+    assert "column(s) x-3 for x_3?" in capsys.readouterr().err
+    # a bend without its phi, and a section's bend left out: each bend column there is
+    # scored, none stops the command
+    for drop in (("phi_2",), ("theta_2", "phi_2")):
+        keep = [i for i, c in enumerate(names) if c not in drop]
+        partial = tmp_path / f"partial{len(drop)}.csv"
+        partial.write_text("".join(",".join(r.strip().split(",")[i] for i in keep) + "\n"
+                                   for r in [header, *rows]))  # fmt: skip
+        assert main(["evaluate", str(est), str(partial), "--robot", str(robot)]) == 0
+        out = capsys.readouterr().out
+        assert "RMSE theta_3, phi_3" in out
+        assert ("RMSE theta_2 " in out) == (len(drop) == 1)
+        fig = tmp_path / f"partial{len(drop)}.png"
+        assert main(["plot", str(est), "--truth", str(partial), "--robot", str(robot),
+                     "-o", str(fig)]) == 0  # fmt: skip
+        assert fig.read_bytes()[:4] == b"\x89PNG"
     assert main(["evaluate", str(est), str(t), "--robot", str(robot)]) == 0
     assert "warning" not in capsys.readouterr().err
 

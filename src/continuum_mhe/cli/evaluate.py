@@ -20,6 +20,7 @@ from continuum_mhe.evaluation.metrics import (
     compute_metrics,
     length_misfit,
     match_rows,
+    section_numbers,
 )
 from continuum_mhe.io.csv_files import (
     InputError,
@@ -217,17 +218,12 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
         lines.append(
             f"section {sec} end error  mean {mean:.2f} mm, max {m.section_end_max_mm[sec]:.2f} mm"
         )
-    k = 1
-    while f"theta_{k}" in r:
-        lines.append(
-            f"RMSE theta_{k}, phi_{k}  {math.degrees(r[f'theta_{k}']):.2f}, "
-            f"{math.degrees(r[f'phi_{k}']):.2f} deg"
-        )
-        k += 1
-    k = 1
-    while f"psi_{k}" in r:
+    for k in section_numbers(r, "theta"):  # every section both files have, gaps or not
+        bend = [f"theta_{k}"] + ([f"phi_{k}"] if f"phi_{k}" in r else [])
+        values = ", ".join(f"{math.degrees(r[c]):.2f}" for c in bend)
+        lines.append(f"RMSE {', '.join(bend)}".ljust(21) + f"{values} deg")
+    for k in section_numbers(r, "psi"):
         lines.append(f"RMSE psi_{k}           {math.degrees(r[f'psi_{k}']):.2f} deg (twist)")
-        k += 1
     if m.tip_force_rms_n is not None:
         fx, fy, fz = (r[c] for c in TIP_FORCE_COLUMNS)
         lines.append(

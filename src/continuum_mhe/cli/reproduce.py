@@ -15,7 +15,7 @@ from continuum_mhe.io.csv_files import InputError, check_new_folder
 
 def run(args: argparse.Namespace) -> int:
     from continuum_mhe.reproduce.experiments import FULL, QUICK
-    from continuum_mhe.reproduce.pipeline import PARTS, reproduce
+    from continuum_mhe.reproduce.pipeline import PARTS, part_data_files, reproduce
 
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
@@ -24,7 +24,10 @@ def run(args: argparse.Namespace) -> int:
     if args.rod_csv is not None and not Path(args.rod_csv).is_file():
         raise InputError(f"{args.rod_csv}: no such file")
     out = Path(args.out)
-    check_new_folder(out, args.overwrite)  # before the trials; the folder is made after them
+    parts = PARTS if args.only is None else (args.only,)
+    # before the trials (the folder is made after them): another part's data may be
+    # there, to be reported together; this part's is replaced only with --overwrite
+    check_new_folder(out, args.overwrite, part_data_files(parts))
     cfg = QUICK if args.quick else FULL
     command = "continuum-mhe " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     start = time.perf_counter()
@@ -34,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
         jobs=args.jobs,
         scheduler=args.scheduler,
         rod_path=args.rod_csv,
-        parts=PARTS if args.only is None else (args.only,),
+        parts=parts,
         command=command if sys.argv[1:2] == ["reproduce"] else "continuum-mhe reproduce",
     )
     wall = time.perf_counter() - start
@@ -59,7 +62,9 @@ DESCRIPTION = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="results folder (created)")
     p.add_argument(
-        "--overwrite", action="store_true", help="write into --out though it holds files"
+        "--overwrite",
+        action="store_true",
+        help="replace the data of the experiments run that --out holds already",
     )
     p.add_argument("--quick", action="store_true", help="small sizes (about 25 s on 2 cores)")
     p.add_argument(

@@ -68,6 +68,16 @@ def tracked_points(names: Sequence[str]) -> tuple[TrackedPoint, ...]:
     return (*ends[:-1], TrackedPoint(f"tip (section {len(ends)} end)", last.columns))
 
 
+def has_bend_columns(names: Sequence[str], n_sections: int) -> bool:
+    """Whether a table has every section's bend columns (``theta, phi`` for one section,
+    ``theta_k, phi_k`` for each of several): what :func:`section_shapes` reads."""
+    if n_sections == 1 and "theta" in names:
+        return "phi" in names
+    return n_sections > 0 and all(
+        f"{c}_{k}" in names for k in range(1, n_sections + 1) for c in ("theta", "phi")
+    )
+
+
 def section_shapes(table: StateTable, n_sections: int) -> tuple[FloatArray, FloatArray]:
     """Each row's ``theta`` and ``phi`` per section (n_rows, n_sections), rad."""
     if n_sections == 1:
@@ -172,12 +182,19 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
     """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it has none of
     the estimate's tracked points, or fewer than two of its rows share a time with the
     estimate's, or it has the bend columns of another number of sections), or None."""
-    n_est, n_truth = section_count(est.names), section_count(truth.names)
-    if n_est and n_truth and n_est != n_truth:
-        return (
-            f"the truth has the bend columns of {n_truth} section(s) and the estimate of "
-            f"{n_est}: a truth of another robot?"
-        )
+    n_est = section_count(est.names)
+    if n_est:
+        single = "theta" in est.names
+        other = [
+            c for c in truth.names
+            if (c == "theta" and not single)
+            or (c.startswith("theta_") and c[6:].isdigit() and (single or int(c[6:]) > n_est))
+        ]  # fmt: skip
+        if other:
+            return (
+                f"the truth has bend columns ({', '.join(other)}) that an estimate of "
+                f"{n_est} section(s) has not: a truth of another robot?"
+            )
     if not any(truth_points(est, truth)):
         wanted = ", ".join(", ".join(p.columns) for p in tracked_points(est.names))
         return f"the truth has none of the estimate's positions ({wanted}; or x, y, z)"
@@ -241,9 +258,10 @@ def estimate_figure(
                                 label="95 % band" if i == 0 else None)  # fmt: skip
             tp = in_truth[i]
             if truth is not None and tp is not None:
+                first_truth = tp is next(p for p in in_truth if p is not None)
                 drawn.append(_positions(truth, tp)[:, j] * 1e3)
                 ax.plot(truth.t, drawn[-1], color=color, ls="--",
-                        lw=1.0, label="truth" if i == 0 else None)  # fmt: skip
+                        lw=1.0, label="truth" if first_truth else None)  # fmt: skip
         _limit_to_lines(ax, drawn)
         ax.set_ylabel(f"{axis} (mm)")
         ax.grid(alpha=0.3)
@@ -346,7 +364,7 @@ def _backbones(
             if backbone is not None and has_tip_force(table.names):
                 line = backbone(table, row)
             elif (
-                curve and s is not None and lengths is not None and section_count(table.names) == n
+                curve and s is not None and lengths is not None and has_bend_columns(table.names, n)
             ):
                 theta, phi = section_shapes(table, n)
                 line = backbone_points(lengths, theta[row], phi[row], s)

@@ -9,7 +9,7 @@ columns both sides have.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -100,8 +100,7 @@ def compute_metrics(
     tip = np.linalg.norm(err[:, [col["x"], col["y"], col["z"]]], axis=1)
     end_mean: dict[str, float] = {}
     end_max: dict[str, float] = {}
-    ends = sorted(int(c[2:]) for c in col if c.startswith("x_") and c[2:].isdigit())
-    for k in ends:  # every section end both sides have, a gap between them or not
+    for k in section_numbers(col, "x"):  # every section end both sides have, gaps or not
         if all(f"{c}_{k}" in col for c in "yz"):
             e = np.linalg.norm(err[:, [col[f"x_{k}"], col[f"y_{k}"], col[f"z_{k}"]]], axis=1)
             end_mean[str(k)], end_max[str(k)] = float(e.mean() * 1e3), float(e.max() * 1e3)
@@ -122,6 +121,14 @@ def compute_metrics(
         section_end_max_mm=end_max,
         tip_force_rms_n=force_rms,
     )
+
+
+def section_numbers(columns: Iterable[str], field: str) -> list[int]:
+    """The section numbers ``k`` of the columns ``{field}_k`` among ``columns``, in
+    order (a file may have some sections' columns and not others')."""
+    prefix = field + "_"
+    ks = (c[len(prefix) :] for c in columns if c.startswith(prefix))
+    return sorted(int(k) for k in ks if k.isdigit())
 
 
 #: Two-sided 95 % quantile of the standard normal: the half-width of a 95 % interval in

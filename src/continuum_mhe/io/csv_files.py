@@ -707,13 +707,14 @@ def misspelt_columns(names: Sequence[str], outputs: Sequence[str]) -> str:
     """``""``, or a line naming each column of ``names`` that is none of ``outputs`` but
     one letter off one of them that ``names`` lacks (``xx_2 for x_2``): a typo in a
     truth's header leaves that column out of the comparison."""
+    lacking = [o for o in outputs if o not in names]
     pairs = []
     for n in names:
         if n in outputs:
             continue
-        close = difflib.get_close_matches(n, [o for o in outputs if o not in names], 1, 0.8)
-        if close and _edit_distance_one(n, close[0]):
-            pairs.append(f"{n} for {close[0]}")
+        close = next((o for o in lacking if _edit_distance_one(n, o)), None)
+        if close is not None:
+            pairs.append(f"{n} for {close}")
     if not pairs:
         return ""
     return f"column(s) {', '.join(pairs)}? (a typo: such a column is left out)"

@@ -63,6 +63,17 @@ def run_task(task: TrialSpec | RodTask | BeyondSpec) -> dict[str, Any]:
     return run_trial(task)
 
 
+def part_data_files(parts: Sequence[Part]) -> list[str]:
+    """The experiment data files (JSON) that running ``parts`` writes: the paper's
+    experiments, and ``exp7_beyond`` beyond it. The manifest, the figures and
+    ``report.md`` are rebuilt from every experiment's data in the folder on each run."""
+    from continuum_mhe.reproduce.experiments import EXPERIMENTS
+
+    beyond = "exp7_beyond"
+    names = [e for e in EXPERIMENTS if e != beyond] if "paper" in parts else []
+    return [f"{e}.json" for e in names + ([beyond] if "beyond" in parts else [])]
+
+
 def save_json(path: Path, data: dict[str, Any]) -> None:
     """Write ``data`` as JSON (NaN as null), atomically."""
     from continuum_mhe.io.csv_files import atomic_writer
