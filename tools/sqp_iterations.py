@@ -1,0 +1,48 @@
+"""How many SQP iterations the fast MHE's windows take, and their solve times.
+
+The fast MHE (N = 30, defaults) over ``continuum-mhe simulate paper3d --duration D``
+(2 deg noise, seed 0), one sample at a time; from the first full window on, prints the
+count of windows by SQP iterations, the median solve time of each count (the compiled
+step's ``solve_seconds``, us) and its share, and the mean over the median::
+
+    python tools/sqp_iterations.py          # 500 s: 10,001 samples
+    python tools/sqp_iterations.py 40
+"""
+
+from __future__ import annotations
+
+import collections
+import sys
+
+import numpy as np
+
+from continuum_mhe.estimators.mhe import MovingHorizonEstimator
+from continuum_mhe.model.registry import make_formulation
+from continuum_mhe.results import Measurement
+from continuum_mhe.settings import MHESettings
+from continuum_mhe.simulation.scenarios import simulate
+
+N = 30
+
+
+def main() -> None:
+    duration = float(sys.argv[1]) if len(sys.argv) > 1 else 500.0
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
+    est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast"))
+    est.reset()
+    iterations, seconds = [], []
+    for t, z in zip(rec.t, rec.z):
+        est.step(Measurement(float(t), z))
+        iterations.append(est.inference.sqp_iterations)
+        seconds.append(est.inference.solve_seconds)
+    its, us = np.array(iterations[N:]), np.array(seconds[N:]) * 1e6
+    print(f"{len(its)} full windows: {dict(sorted(collections.Counter(its.tolist()).items()))}")
+    for k in sorted(set(its.tolist())):
+        share = float(np.mean(its == k))
+        print(f"  {k} iterations: median {np.median(us[its == k]):.1f} us, {share:.3f} of them")
+    print(f"mean / median solve time {us.mean() / np.median(us):.3f}")
+
+
+if __name__ == "__main__":
+    main()
