@@ -253,6 +253,28 @@ def test_an_estimate_file_of_another_command_or_folder_is_an_options_file(
     assert f"{live}: line {at + 1}: method = 'kalman' is not one of" in capsys.readouterr().err
 
 
+def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, capsys) -> None:
+    """A live estimate recorded ``record = "raw.csv"`` on its options line, and ``live
+    --config`` with it wrote the new session's raw readings over that recording (with
+    ``--overwrite``, as for ``-o``). Now ``--record`` is not recorded, and a file that
+    still names one has it left out, said in a note; an options file of the user's own
+    with ``record`` is refused as ``output`` is."""
+    from continuum_mhe.cli.app import _parse
+
+    est = tmp_path / "live.csv"
+    est.write_text('# options = {port = "/dev/ttyACM0", record = "raw.csv", method = "ekf"}\n'
+                   "t,x,y,z,theta,phi,status\n")  # fmt: skip
+    args = _parse(["live", "--port", "/dev/null", "--config", str(est), "--record", "new.csv"])
+    assert "record" not in args.options_record and args.record == "new.csv"
+    args = _parse(["live", "--port", "/dev/null", "--config", str(est)])
+    assert args.record is None and args.method == "ekf"
+    assert "record names a file of the run that wrote it: left out" in capsys.readouterr().err
+    own = tmp_path / "opts.toml"
+    own.write_text('record = "raw.csv"\n')
+    assert main(["live", "--port", "/dev/null", "--config", str(own)]) == 2
+    assert "line 1: record is given on the command line" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("text", "needle"),
     [

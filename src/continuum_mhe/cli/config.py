@@ -34,7 +34,7 @@ OPTIONS_LINE = "options"
 MODEL_LINE = "model"
 #: options that are never read from a file or recorded: they name files or say how to
 #: treat them, not how to estimate
-NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "func", "command"})
+NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "record", "func", "command"})
 #: options that name a file (relative to where the command runs, else beside the
 #: options file: :func:`apply_config`)
 FILE_OPTIONS = frozenset({"robot", "inputs"})
@@ -148,9 +148,13 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     recorded = Path(path).suffix.lower() == ".csv"
     defaults: dict[str, Any] = {}
     left_out: list[str] = []
+    files_left_out: list[str] = []
     for key, value in [*flat.items(), *own.items()]:
         dest = key.replace("-", "_")
         where = _line(text, key, offset)
+        if dest in NOT_OPTIONS and recorded:  # a file the run that wrote it wrote
+            files_left_out.append(key)
+            continue
         if dest in NOT_OPTIONS:
             raise InputError(f"{path}: {where}{key} is given on the command line, not in a file")
         action = options.get(dest)
@@ -166,6 +170,12 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
         print(
             f"{PROG}: note: {path}: {', '.join(left_out)} (of the command that wrote it) "
             f"{'is' if len(left_out) == 1 else 'are'} no option of {command}: left out",
+            file=sys.stderr,
+        )
+    for key in files_left_out:
+        print(
+            f"{PROG}: note: {path}: {key} names a file of the run that wrote it: left out "
+            f"(give --{key} FILE to write one)",
             file=sys.stderr,
         )
     parser.set_defaults(**defaults)
