@@ -22,6 +22,26 @@ void append_finite(std::string& out, double v, const char* what) {
   append_number(out, v);
 }
 
+// A time ``t`` (s) as "%.10g" writes it where that keeps it to half a microsecond (below
+// 1e4 s it always does) or |t| >= 1e15 s, else with six decimals, trailing zeros dropped:
+// a device clock past 1e6 s keeps samples a millisecond or less apart distinct
+void append_time(std::string& out, double t) {
+  if (!std::isfinite(t)) throw std::domain_error("refusing to write a non-finite time");
+  char buf[40];
+  auto r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::general, 10);
+  double back = 0.0;
+  std::from_chars(buf, r.ptr, back);
+  if (std::fabs(back - t) <= 5e-7 || std::fabs(t) >= 1e15) {
+    out.append(buf, r.ptr);
+    return;
+  }
+  r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::fixed, 6);
+  const char* end = r.ptr;
+  while (end > buf && end[-1] == '0') --end;
+  if (end > buf && end[-1] == '.') --end;
+  out.append(buf, static_cast<size_t>(end - buf));
+}
+
 }  // namespace
 
 void append_estimate_lines(const EstimateRows& rows, std::string& out) {
@@ -29,7 +49,7 @@ void append_estimate_lines(const EstimateRows& rows, std::string& out) {
   if (rows.status->size() != n) throw std::invalid_argument("one status per sample needed");
   out.reserve(out.size() + n * (24 + 26 * ny));
   for (size_t i = 0; i < n; ++i) {
-    append_finite(out, rows.t[i], "time");
+    append_time(out, rows.t[i]);
     out.push_back(',');
     const double* y = rows.output + i * ny;
     const double* s = rows.output_std + i * ny;

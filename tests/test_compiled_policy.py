@@ -15,7 +15,7 @@ import pytest
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
-from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells
+from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells, format_time
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
 from continuum_mhe.model.registry import make_formulation
@@ -152,7 +152,7 @@ def test_the_block_writer_writes_the_row_writers_lines() -> None:
 def test_the_block_writer_writes_python_s_digits() -> None:
     """The compiled writer's numbers are Python's ``"%.10g" % v`` to the character, over
     every magnitude, random bit patterns (subnormals, the largest doubles), negative
-    zero and ties at the tenth digit."""
+    zero and ties at the tenth digit; its times :func:`format_time`'s."""
     rng = np.random.default_rng(7)
     scaled = rng.normal(size=20_000) * 10.0 ** rng.integers(-30, 30, 20_000)
     bits = rng.integers(0, 2**63, 20_000, dtype=np.uint64).view(np.float64)
@@ -164,7 +164,14 @@ def test_the_block_writer_writes_python_s_digits() -> None:
     t, ms = values[:n], values[n : 2 * n]
     out = std = np.zeros((n, 0))
     lines = estimate_lines("x.csv", t, out, std, None, ["ok"] * n, ms).splitlines()
-    assert lines == [f"{a:.10g},ok,{b:.10g}" for a, b in zip(t.tolist(), ms.tolist())]
+    assert lines == [f"{format_time(a)},ok,{b:.10g}" for a, b in zip(t.tolist(), ms.tolist())]
+    # a time as "%.10g" where that keeps it to half a microsecond, else to the microsecond:
+    # samples half a millisecond apart on a device clock past 1e6 s stay distinct
+    t = np.array([0.15000000000000002, 9999.1234565, 4294957.296, 4294957.2965, -1.5e7 - 1e-3])
+    lines = estimate_lines("x.csv", t, np.zeros((5, 0)), np.zeros((5, 0)), None, ["ok"] * 5,
+                           np.ones(5)).splitlines()  # fmt: skip
+    assert [ln.split(",")[0] for ln in lines] == [
+        "0.15", "9999.123456", "4294957.296", "4294957.2965", "-15000000.001"]  # fmt: skip
 
 
 def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:

@@ -918,6 +918,20 @@ def _fmt(v: float) -> str:
     return f"{v:.10g}"
 
 
+def format_time(t: float) -> str:
+    """An estimate row's time ``t`` (s) as written: ``"%.10g"`` where that keeps it to
+    half a microsecond (below 1e4 s it always does) or ``|t| >= 1e15``, else six decimals
+    without trailing
+    zeros, so that samples a millisecond or less apart on a device clock past 1e6 s stay
+    distinct (the compiled writer's rule, to the character)."""
+    if not math.isfinite(t):
+        raise ValueError("refusing to write a non-finite time")
+    short = f"{t:.10g}"
+    if abs(float(short) - t) <= 5e-7 or abs(t) >= 1e15:
+        return short
+    return f"{t:.6f}".rstrip("0").rstrip(".")
+
+
 def write_table(
     path: str | os.PathLike[str], columns: Sequence[str], rows: Sequence[Sequence[object]]
 ) -> None:
@@ -957,11 +971,11 @@ def estimate_row(
     written as 0 or 1 before the status."""
     flag = [] if outlier is None else [int(bool(outlier))]
     if status == "no-estimate" or output is None:
-        return [float(t), *([""] * (2 * ny)), *flag, str(status), float(solve_ms)]
+        return [format_time(t), *([""] * (2 * ny)), *flag, str(status), float(solve_ms)]
     sd: list[object] = [""] * ny
     if std is not None:
         sd = [float(v) if math.isfinite(v) else "" for v in std]
-    return [float(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
+    return [format_time(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
 
 
 def estimate_lines(
