@@ -336,6 +336,23 @@ def test_live_view_without_rerun_is_one_line_before_the_port(
     assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="DISPLAY is Linux's")
+def test_live_view_without_a_display_names_lives_choices_before_the_port(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``live --view`` without a display named view's options (``--serve-web``,
+    ``--save``), which live does not have, and only once the port had opened."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    args = ["live", "--port", str(tmp_path / "no-such-port"), "--view"]
+    assert main(args) == 2
+    assert _one_error_line(capsys) == (
+        "continuum-mhe: error: --view needs a display (DISPLAY is not set); use --view web "
+        "or --view FILE.rrd"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_truth_without_bends_draws_its_tip_only(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

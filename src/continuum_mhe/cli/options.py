@@ -423,12 +423,20 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
     choice = getattr(args, "view", None)
     if choice is not None:  # live --view
+        option, others = "--view", "--view web or --view FILE.rrd"
         if choice in ("spawn", "web"):
-            return ViewerSink(choice, **ports)
-        return ViewerSink("save", Path(choice), **ports)
-    if args.save:
-        return ViewerSink("save", Path(args.save), **ports)
-    return ViewerSink("web" if args.serve_web else "spawn", **ports)
+            sink = ViewerSink(choice, **ports)
+        else:
+            sink = ViewerSink("save", Path(choice), **ports)
+    else:
+        option, others = "--spawn", "--serve-web or --save FILE.rrd"
+        if args.save:
+            sink = ViewerSink("save", Path(args.save), **ports)
+        else:
+            sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
+    if sink.display_missing():
+        raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
+    return sink
 
 
 #: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s (the library's).
