@@ -11,6 +11,7 @@ import numpy as np
 
 from continuum_mhe.cli.options import add_robot_option, estimate_robot
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.errors import time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
@@ -48,8 +49,9 @@ def _align(
     share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
     if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
         print(
-            f"{PROG}: warning: {path_est}: its rows cover t = {covered[0]:g} to "
-            f"{covered[-1]:g} s of {path_truth}'s {t0:g} to {t1:g} s ({100 * share:.0f} %): "
+            f"{PROG}: warning: {path_est}: its rows cover t = {time_text(covered[0])} to "
+            f"{time_text(covered[-1])} s of {path_truth}'s {time_text(t0)} to {time_text(t1)} s "
+            f"({100 * share:.0f} %): "
             "the scores are of that part only (an interrupted or cut estimate?)",
             file=sys.stderr,
         )

@@ -14,6 +14,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
+from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
@@ -472,8 +473,9 @@ class LiveSession:
             if not self.tension_file.covers(t):
                 ts = self.tension_file.t
                 self.fatal = (
-                    f"{self.tension_file.name}: the tensions cover t = {ts[0]:g} to "
-                    f"{ts[-1]:g} s, but a sample of {self.settings.port} is at t = {t:g} s "
+                    f"{self.tension_file.name}: the tensions cover t = {time_text(ts[0])} to "
+                    f"{time_text(ts[-1])} s, but a sample of {self.settings.port} is at "
+                    f"t = {time_text(t)} s "
                     "(the device clock): the tensions must cover the stream"
                 )
                 return None  # neither recorded nor estimated: the session stops
