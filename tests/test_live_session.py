@@ -127,6 +127,67 @@ def test_device_clock_restart_gives_estimates_and_says_so() -> None:
     assert sum("device clock restarted (9990 ms -> 0 ms)" in m for m in said) == 1
 
 
+def _restart_with_record(tmp_path: Path, silence_s: float) -> tuple[LiveSession, Path, str]:
+    """A tilt session recording to a file: 3 s of samples, then the device clock
+    restarts at 0 after ``silence_s`` s of silence (arrival time), and 1 s more."""
+    out = io.StringIO()
+    s, _ = _session(out=out)
+    rec = tmp_path / "raw.csv"
+    s.record = RowFile(rec, ("t", "roll_1", "pitch_1"), overwrite=False)
+    now = time.monotonic()
+    for i in range(300):
+        s.handle_line(f"{10 * i},{0.1 + 0.002 * i},0.1".encode(), now + 0.01 * i)
+    for i in range(100):
+        s.handle_line(f"{10 * i},{0.7 - 0.002 * i},0.1".encode(), now + 2.99 + silence_s + 0.01 * i)
+    s.record.close()
+    return s, rec, out.getvalue()
+
+
+def _replayed(rec: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``estimate``'s run (the compiled batch) on the recording, with the session's
+    estimator settings."""
+    data = np.loadtxt(rec, delimiter=",", skiprows=1)
+    f = make_formulation("bend", Robot.single(), NoiseSettings())
+    series = make_estimator("ekf", f, MHESettings(horizon=10)).run(data[:, 0], data[:, 1:])
+    return series.t, series.output, series.status
+
+
+def test_summary_after_a_clock_restart_in_a_long_silence_says_the_replay_restarts_too(
+    tmp_path: Path,
+) -> None:
+    """The summary said that 'estimate' on the recording does not restart where live
+    did, so its estimates match only before the restart; but the silence is a gap
+    longer than --gap-reset in the recording, and estimate restarts at the same sample
+    with the same estimates."""
+    s, rec, out = _restart_with_record(tmp_path, silence_s=2.0)
+    assert s.counts.restarts == 1
+    rows = [r.split(",") for r in out.splitlines()[1:]]
+    t, output, status = _replayed(rec)
+    np.testing.assert_allclose(t, [float(r[0]) for r in rows], rtol=0, atol=1e-6)
+    ny = output.shape[1]
+    np.testing.assert_allclose(output, [[float(v) for v in r[1 : 1 + ny]] for r in rows], atol=1e-6)
+    assert status[300] == rows[300][-2] == "reset"
+    summary = s.summary()
+    assert "'estimate' on the recording restarts at the same sample(s)" in summary
+    assert "with the same estimates" in summary and "does not" not in summary
+    assert f"may differ from this run's after t={t[300]:.3f} s" in summary
+
+
+def test_summary_after_a_clock_restart_in_a_short_silence_says_where_the_replay_differs(
+    tmp_path: Path,
+) -> None:
+    """A board that restarts within --gap-reset leaves no long gap in the recording:
+    estimate goes on across it where live restarted, and the summary says so."""
+    s, rec, out = _restart_with_record(tmp_path, silence_s=0.3)
+    t, _, status = _replayed(rec)
+    assert status[300] == "ok" and out.splitlines()[301].split(",")[-2] == "reset"
+    assert (
+        f"'estimate' on the recording does not restart at t={t[300]:.3f} s (the clock "
+        "restart after 0.300 s of silence, not a gap longer than --gap-reset (1 s)), so its "
+        "estimates match this run's only before that time"
+    ) in s.summary()
+
+
 def test_device_clock_wrap_goes_on_seamlessly() -> None:
     """Before: every sample after millis() wrapped was 'out of order'."""
     out = io.StringIO()

@@ -559,6 +559,52 @@ def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
     assert json.loads(capsys.readouterr().out)["srmse"] is None
 
 
+def _on_the_device_clock(src: Path, dst: Path, t0: float) -> list[str]:
+    """``src`` with ``t0`` s added to every row's t (the first column), as a device
+    clock that has run for days gives it; the new t cells, in order."""
+    lines, cells = src.read_text().splitlines(keepends=True), []
+    with dst.open("w") as fh:
+        for ln in lines:
+            if ln.startswith("#") or not ln[0].isdigit():
+                fh.write(ln)
+                continue
+            t, rest = ln.split(",", 1)
+            cells.append(repr(t0 + float(t)))
+            fh.write(f"{cells[-1]},{rest}")
+    return cells
+
+
+def test_evaluate_says_device_clock_times_that_differ_differently(tmp_path, capsys) -> None:
+    """Before: %g printed the times of a device clock past 4.3e6 s alike (``its rows
+    cover t = 4.29496e+06 to 4.29497e+06 s``; ``t=4.29496e+06 does not increase
+    (previous t=4.29496e+06)`` for times 0.05 s apart). Now each as it reads back."""
+    m, t = _simulated(tmp_path, "a")
+    est, cut = tmp_path / "e.csv", tmp_path / "cut.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    notes, rows = _notes_and_rows(est)
+    cut.write_text("".join(notes + rows[:31]))
+    t0 = 4294960.0
+    cut_dev, t_dev = tmp_path / "cut_dev.csv", tmp_path / "t_dev.csv"
+    te, tt = _on_the_device_clock(cut, cut_dev, t0), _on_the_device_clock(t, t_dev, t0)
+    capsys.readouterr()
+    assert main(["evaluate", str(cut_dev), str(t_dev)]) == 0
+    assert capsys.readouterr().err.splitlines() == [
+        f"continuum-mhe: warning: {cut_dev}: its rows cover t = 4294960 to 4294961.45 s of "
+        f"{t_dev}'s 4294960 to 4294965 s (29 %): the scores are of that part only (an "
+        "interrupted or cut estimate?)"
+    ]
+    assert (te[-1], tt[-1]) == ("4294961.45", "4294965.0")
+    notes, rows = _notes_and_rows(cut_dev)
+    back = tmp_path / "back.csv"  # the fourth row again after the fifth: 0.05 s back
+    back.write_text("".join(notes + rows[:6] + rows[4:5]))
+    assert main(["evaluate", str(back), str(t_dev)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {back}: line {len(notes) + 7}: t={te[3]} does not increase "
+        f"(previous t={te[4]})\n"
+    )
+    assert te[3] != te[4]
+
+
 def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
     two_and_three, tmp_path, capsys
 ) -> None:

@@ -225,8 +225,8 @@ def test_view_user_mistakes_are_one_line(
 ) -> None:  # fmt: skip
     est = str(two_section["est"])
     out = tmp_path / "v.rrd"
-    # two-section columns without --robot: the one-section robot does not fit
-    assert main(["view", est, "--save", str(out)]) == 2
+    # two-section columns with a one-section --length: that robot does not fit
+    assert main(["view", est, "--length", "0.3", "--save", str(out)]) == 2
     assert "pass --robot with the robot it was estimated on" in _one_error_line(capsys)
     assert main(["view", est, "--robot", "two-section", "--save", str(tmp_path / "v.txt")]) == 2
     assert ".rrd" in _one_error_line(capsys)
@@ -334,6 +334,53 @@ def test_live_view_without_rerun_is_one_line_before_the_port(
     args = ["live", "--port", str(tmp_path / "no-such-port"), "--view", str(tmp_path / "v.rrd")]
     assert main(args) == 2
     assert "pip install 'continuum-mhe[view]'" in _one_error_line(capsys)
+
+
+def test_view_without_robot_draws_the_robot_the_estimate_names(
+    tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``view EST.csv --save V.rrd`` without --robot failed (``pass --robot with the
+    robot it was estimated on``) although the estimate's options line names the robot;
+    evaluate reads that line. Now view does too, with the same note, and draws the same
+    view as with --robot; a file without the line still needs --robot."""
+    out = tmp_path / "v.rrd"
+    capsys.readouterr()
+    assert main(["view", str(two_section["est"]), "--truth", str(two_section["truth"]),
+                 "--save", str(out), "--points", str(POINTS)]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert (
+        f"note: {two_section['est']} was estimated with --robot two-section (its options "
+        "line): drawn on that robot (--robot gives another)"
+    ) in err
+    rows, given = read_rrd(out), two_section["rows"]
+    assert set(rows) == set(given)
+    for entity in ("/world/estimate/backbone", "/world/truth/backbone"):
+        assert [t for t, _ in rows[entity]] == [t for t, _ in given[entity]]
+        np.testing.assert_array_equal(
+            rows[entity][-1][1]["LineStrips3D:strips"], given[entity][-1][1]["LineStrips3D:strips"]
+        )
+    bare = tmp_path / "bare.csv"  # the same rows without the comment lines
+    text = two_section["est"].read_text().splitlines(True)
+    bare.write_text("".join(ln for ln in text if ln[0] != "#"))
+    assert main(["view", str(bare), "--save", str(tmp_path / "b.rrd")]) == 2
+    assert "pass --robot with the robot it was estimated on" in _one_error_line(capsys)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="DISPLAY is Linux's")
+def test_live_view_without_a_display_names_lives_choices_before_the_port(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``live --view`` without a display named view's options (``--serve-web``,
+    ``--save``), which live does not have, and only once the port had opened."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    args = ["live", "--port", str(tmp_path / "no-such-port"), "--view"]
+    assert main(args) == 2
+    assert _one_error_line(capsys) == (
+        "continuum-mhe: error: --view needs a display (DISPLAY is not set); use --view web "
+        "or --view FILE.rrd"
+    )
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_truth_without_bends_draws_its_tip_only(

@@ -32,6 +32,14 @@ def real_number(name: str, value: object) -> float:
     return float(value)
 
 
+def time_text(t: float) -> str:
+    """A time in a message: the shortest text that reads back as the same float
+    (``4294965.716``, not ``%g``'s ``4.29497e+06``), so two different times never look
+    equal; a whole number without ``.0``."""
+    text = repr(float(t))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def expect_type(name: str, value: object, kind: type | tuple[type, ...], what: str) -> None:
     """A :class:`UserError` naming the argument ``name`` unless ``value`` is a ``kind``
     (``what`` says what is expected, e.g. ``"a Formulation (make_formulation)"``)."""

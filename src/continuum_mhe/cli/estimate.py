@@ -31,6 +31,7 @@ from continuum_mhe.cli.options import (
     recovery_settings_from_args,
 )
 from continuum_mhe.cli.program import PROG, version
+from continuum_mhe.errors import time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import bound_notice
 from continuum_mhe.io.csv_files import InputError, check_output_target
@@ -113,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
                 if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
                     raise
                 interrupted = exc
-                cut = f"interrupted after {sink.rows} samples, at t = {last_t:g} s"
+                cut = f"interrupted after {sink.rows} samples, at t = {time_text(last_t)} s"
                 sink.note(PARTIAL, json.dumps(cut))
             finally:
                 ticks.close()

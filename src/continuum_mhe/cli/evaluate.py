@@ -9,10 +9,9 @@ import sys
 
 import numpy as np
 
-from continuum_mhe.cli.config import beside, recorded_option
-from continuum_mhe.cli.options import DEFAULT_LENGTH, add_robot_option, robot_from_args
+from continuum_mhe.cli.options import add_robot_option, estimate_robot
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
@@ -29,7 +28,6 @@ from continuum_mhe.io.csv_files import (
     read_state_table,
 )
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
-from continuum_mhe.model.robot import Robot
 
 
 def _align(
@@ -51,8 +49,9 @@ def _align(
     share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
     if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
         print(
-            f"{PROG}: warning: {path_est}: its rows cover t = {covered[0]:g} to "
-            f"{covered[-1]:g} s of {path_truth}'s {t0:g} to {t1:g} s ({100 * share:.0f} %): "
+            f"{PROG}: warning: {path_est}: its rows cover t = {time_text(covered[0])} to "
+            f"{time_text(covered[-1])} s of {path_truth}'s {time_text(t0)} to {time_text(t1)} s "
+            f"({100 * share:.0f} %): "
             "the scores are of that part only (an interrupted or cut estimate?)",
             file=sys.stderr,
         )
@@ -83,42 +82,11 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
     )
 
 
-def _recorded_robot(args: argparse.Namespace) -> Robot | None:
-    """Without ``--robot`` or ``--length``: the robot file the estimate's options line
-    names, where it can be read (said in a note), else None."""
-    from continuum_mhe.io.robot_file import read_robot
-
-    if args.robot or args.length is not None:
-        return None
-    name = recorded_option(args.estimates, "robot")
-    if not isinstance(name, str):
-        return None
-    try:
-        robot = read_robot(beside(args.estimates, name))
-    except UserError as exc:
-        print(
-            f"{PROG}: note: {args.estimates} was estimated with --robot {name}, which "
-            f"cannot be read here ({exc}); give --robot",
-            file=sys.stderr,
-        )
-        return None
-    print(
-        f"{PROG}: note: {args.estimates} was estimated with --robot {name} (its options "
-        "line): evaluated on that robot (--robot gives another)",
-        file=sys.stderr,
-    )
-    return robot
-
-
 def run(args: argparse.Namespace) -> int:
     est = read_state_table(args.estimates)
     truth = read_state_table(args.truth)
     # without --robot or --length: the estimate's own, else one section of --length
-    robot = _recorded_robot(args)
-    if robot is None:
-        if args.length is None:
-            args.length = DEFAULT_LENGTH
-        robot = robot_from_args(args)
+    robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
     length = robot.length

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from continuum_mhe.cli.config import options_record
+from continuum_mhe.cli.config import beside, options_record, recorded_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
@@ -54,19 +54,58 @@ def add_robot_option(
 
 
 def robot_from_args(args: argparse.Namespace) -> Robot:
-    """The robot of a command: ``--robot`` file, else the one-section flags."""
+    """The robot of a command: ``--robot`` file, else the one-section flags (a
+    ``--length`` or ``--mounting`` of None: :data:`DEFAULT_LENGTH`, ``z-up``)."""
     if getattr(args, "robot", None):
         from continuum_mhe.io.robot_file import read_robot
 
         return read_robot(args.robot)
+    length = getattr(args, "length", None)
     try:
         return Robot.single(
-            args.length,
+            DEFAULT_LENGTH if length is None else length,
             getattr(args, "theta_max", math.pi / 2),
-            getattr(args, "mounting", "z-up"),
+            getattr(args, "mounting", None) or "z-up",
         )
     except ValueError as exc:
         raise InputError(f"robot: {exc}") from None
+
+
+def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
+    """The robot an estimate CSV ``path`` was made on, for a command that reads it:
+    ``--robot``, or one section of ``--length`` (and ``--mounting``) where one is
+    given; else the robot file the estimate's options line names, where it can be read
+    (said in a note ending in ``use``, what the command does on it); else one section
+    of :data:`DEFAULT_LENGTH`."""
+    given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
+    robot = None if given else _recorded_robot(path, use)
+    return robot_from_args(args) if robot is None else robot
+
+
+def _recorded_robot(path: str, use: str) -> Robot | None:
+    """The robot file the options line of the estimate ``path`` names, where it can be
+    read (said in a note), else None."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    name = recorded_option(path, "robot")
+    if not isinstance(name, str):
+        return None
+    try:
+        robot = read_robot(beside(path, name))
+    except UserError as exc:
+        print(
+            f"{PROG}: note: {path} was estimated with --robot {name}, which cannot be read "
+            f"here ({exc}); give --robot",
+            file=sys.stderr,
+        )
+        return None
+    print(
+        f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
+        f"{use} (--robot gives another)",
+        file=sys.stderr,
+    )
+    return robot
 
 
 _INVALID_VALUE = re.compile(r"argument (\S+?)(?:/\S+)?: invalid (int|float) value: (.*)")
@@ -423,12 +462,20 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
     choice = getattr(args, "view", None)
     if choice is not None:  # live --view
+        option, others = "--view", "--view web or --view FILE.rrd"
         if choice in ("spawn", "web"):
-            return ViewerSink(choice, **ports)
-        return ViewerSink("save", Path(choice), **ports)
-    if args.save:
-        return ViewerSink("save", Path(args.save), **ports)
-    return ViewerSink("web" if args.serve_web else "spawn", **ports)
+            sink = ViewerSink(choice, **ports)
+        else:
+            sink = ViewerSink("save", Path(choice), **ports)
+    else:
+        option, others = "--spawn", "--serve-web or --save FILE.rrd"
+        if args.save:
+            sink = ViewerSink("save", Path(args.save), **ports)
+        else:
+            sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
+    if sink.display_missing():
+        raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
+    return sink
 
 
 #: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s (the library's).

@@ -6,10 +6,11 @@ from __future__ import annotations
 import argparse
 
 from continuum_mhe.cli.options import (
+    DEFAULT_LENGTH,
     add_robot_option,
     add_tensions_option,
     add_viewer_options,
-    robot_from_args,
+    estimate_robot,
     viewer_sink_from_args,
 )
 from continuum_mhe.model.imu import MOUNTINGS
@@ -18,9 +19,9 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
+    robot = estimate_robot(args, args.estimates, "drawn on that robot")
     replay(
-        args.estimates, robot_from_args(args), sink, args.truth, args.trail, args.points,
-        args.inputs,
+        args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
     )  # fmt: skip
     return 0
 
@@ -37,8 +38,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--truth", metavar="TRUTH.csv", help="truth CSV, drawn in grey")
     add_robot_option(p, replaces=("--length", "--mounting"))
-    p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
-    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
+    p.add_argument(
+        "--length",
+        type=float,
+        help=f"one section's length in m (default: the estimate's --robot, else "
+        f"{DEFAULT_LENGTH:g})",
+    )
+    p.add_argument(
+        "--mounting", choices=MOUNTINGS, help="one section's base orientation (default z-up)"
+    )
     add_tensions_option(
         p, "a tendon robot's estimate: its backbone drawn from the mechanics model at the "
         "estimated tip force; without it, the tips alone"

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type
+from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type, time_text
 from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
@@ -101,9 +101,9 @@ def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
     same = f"repeated the same reading for more than {freeze_s:g} s"
     if len(new) == 1:
         ((k, t),) = new.items()
-        who, repeats = f"IMU {k + 1} {same} from t={t:g} s", "it repeats"
+        who, repeats = f"IMU {k + 1} {same} from t={time_text(t)} s", "it repeats"
     else:
-        each = " and ".join(f"IMU {k + 1} (from t={t:g} s)" for k, t in new.items())
+        each = " and ".join(f"IMU {k + 1} (from t={time_text(t)} s)" for k, t in new.items())
         who, repeats = f"{each} {same}", "they repeat"
     return f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off"
 

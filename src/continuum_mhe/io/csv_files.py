@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
+from continuum_mhe.errors import time_text
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -633,7 +634,10 @@ def read_state_table(
             ]
         )
         if t and tv <= t[-1]:
-            raise InputError(f"{p}: line {line}: t={tv:g} does not increase (previous t={t[-1]:g})")
+            raise InputError(
+                f"{p}: line {line}: t={time_text(tv)} does not increase (previous "
+                f"t={time_text(t[-1])})"
+            )
         if o_idx is not None:
             if row[o_idx] not in ("0", "1"):
                 raise InputError(f"{p}: line {line}: outlier must be 0 or 1, got {row[o_idx]!r}")

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from continuum_mhe.errors import time_text
 from continuum_mhe.io.csv_files import DropoutWarning, FloatArray, check_time_units
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
@@ -77,8 +78,9 @@ class Tensions:
         :class:`InputError` outside the file's times."""
         if not self.covers(t):
             raise InputError(
-                f"{self.name}: the tensions cover t = {self.t[0]:g} to {self.t[-1]:g} s, "
-                f"but a measurement is at t = {t:g} s: the tensions must cover the "
+                f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
+                f"{time_text(self.t[-1])} s, but a measurement is at t = {time_text(t)} s: "
+                "the tensions must cover the "
                 "recording; nothing written"
             )
         return tuple(  # type: ignore[return-value]

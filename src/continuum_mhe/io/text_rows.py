@@ -36,7 +36,7 @@ from typing import IO
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.errors import UserError, expect_type
+from continuum_mhe.errors import UserError, expect_type, time_text
 
 FloatArray = NDArray[np.float64]
 
@@ -527,7 +527,10 @@ class _SampleChecks:
                 continue
             if t <= self.last_t:
                 kind = "duplicate" if t == self.last_t else "decreasing"
-                msg = f"{kind} timestamp t={t:g} after t={self.last_t:g} (t must strictly increase)"
+                msg = (
+                    f"{kind} timestamp t={time_text(t)} after t={time_text(self.last_t)} "
+                    "(t must strictly increase)"
+                )
                 bad(line, msg, dropped=True)
                 continue
             vals: list[float] = []

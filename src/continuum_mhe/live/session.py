@@ -14,6 +14,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
+from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
@@ -127,8 +128,11 @@ class LiveCounts:
     clock_restarts: int = 0
     clock_wraps: int = 0
     estimator_failures: int = 0  # exceptions and non-finite estimates: flagged, restarted
-    restarts: int = 0  # times live restarted the estimator (time base broke, long gap, failure)
+    restarts: int = 0  # times live restarted the estimator (clock restart, failure)
     first_restart_t: float | None = None
+    # the first restart that 'estimate' on the recording does not make, and why
+    replay_differs_t: float | None = None
+    replay_differs_why: str = ""
     header: str = ""
     reasons: dict[str, int] = field(default_factory=dict)
     first_garbled: str | None = None  # why the first garbled line was, with a likely cause
@@ -469,8 +473,9 @@ class LiveSession:
             if not self.tension_file.covers(t):
                 ts = self.tension_file.t
                 self.fatal = (
-                    f"{self.tension_file.name}: the tensions cover t = {ts[0]:g} to "
-                    f"{ts[-1]:g} s, but a sample of {self.settings.port} is at t = {t:g} s "
+                    f"{self.tension_file.name}: the tensions cover t = {time_text(ts[0])} to "
+                    f"{time_text(ts[-1])} s, but a sample of {self.settings.port} is at "
+                    f"t = {time_text(t)} s "
                     "(the device clock): the tensions must cover the stream"
                 )
                 return None  # neither recorded nor estimated: the session stops
@@ -498,6 +503,14 @@ class LiveSession:
         elif placed.event == "restart":
             c.clock_restarts += 1
             restart = True
+            assert t_prev is not None  # a restart steps back from a sample
+            gap_reset = self.estimator.recovery.gap_reset
+            if not (gap_reset and t - t_prev > gap_reset):  # the recording's gap is too short
+                self._replay_differs(
+                    t,
+                    f"the clock restart after {t - t_prev:.3f} s of silence, not a gap longer "
+                    f"than --gap-reset ({gap_reset or 0:g} s)",
+                )
             self.say(
                 f"device clock restarted ({dev_prev:.0f} ms -> {s.t_ms:.0f} ms); continuing at "
                 f"t={t:.3f} s, estimator restarts"
@@ -603,6 +616,13 @@ class LiveSession:
         self.estimator.reset(keep_counts=True)  # the same session: its freezes said once
         self._restarted = True  # the next estimate says so (status reset)
 
+    def _replay_differs(self, t: float, why: str) -> None:
+        """Live restarts the estimator at ``t`` s where ``estimate`` on the recording
+        does not (said in the summary, the first only)."""
+        c = self.counts
+        if c.replay_differs_t is None:
+            c.replay_differs_t, c.replay_differs_why = t, why
+
     def _say_freezes(self, before: int) -> None:
         """Say once (one line) which sensors the estimator began to treat as frozen."""
         note = self.estimator.freezes_notice(before)
@@ -630,6 +650,7 @@ class LiveSession:
                     est = replace(est, status=Status.RESET)
             return est
         self.counts.estimator_failures += 1
+        self._replay_differs(t, "an estimator failure")
         self.messages.show(
             f"estimator failed ({problem}); sample flagged, estimator restarts",
             time.monotonic(),
@@ -684,6 +705,34 @@ class LiveSession:
             parts.append(f"BEHIND real time by {behind_s:.1f} s ({queued} lines queued)")
         return ", ".join(parts)
 
+    def _replay_note(self) -> str:
+        """How ``estimate`` on the recording compares with this run, given live's
+        restarts of the estimator. A clock restart after a silence longer than
+        ``--gap-reset`` is a gap in the recording, where ``estimate`` restarts at the
+        same sample with the same estimates; but live starts the sensor checks afresh
+        there (the consistency check's average and model error, as for a new
+        recording), where a gap keeps them, so the statuses may differ after it."""
+        c = self.counts
+        first = f"t={c.first_restart_t:.3f} s"
+        checks = (
+            "live starts the sensor checks afresh at a restart (the readings' consistency "
+            "average and model error) and a gap keeps them, so its statuses (such as "
+            f"'inconsistent') may differ from this run's after {first}"
+        )
+        if c.replay_differs_t is None:
+            return (
+                "'estimate' on the recording restarts at the same sample(s) (a gap longer "
+                "than --gap-reset) with the same estimates, but " + checks
+            )
+        note = (
+            f"'estimate' on the recording does not restart at t={c.replay_differs_t:.3f} s "
+            f"({c.replay_differs_why}), so its estimates match this run's only before that "
+            "time"
+        )
+        if c.replay_differs_t > (c.first_restart_t or 0.0):
+            note += "; before it, " + checks
+        return note
+
     def summary(self) -> str:
         c = self.counts
         msg = (
@@ -705,7 +754,6 @@ class LiveSession:
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
-                f"t={c.first_restart_t:.3f} s: 'estimate' on the recording does not, so its "
-                "estimates match this run's only before that time"
+                f"t={c.first_restart_t:.3f} s: {self._replay_note()}"
             )
         return msg

@@ -49,7 +49,7 @@ from functools import cached_property, lru_cache
 import casadi as ca
 import numpy as np
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, time_text
 from continuum_mhe.model.formulations import FloatArray
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
@@ -73,7 +73,7 @@ GRAVITY = 9.80665
 def no_equilibrium_at(t: float, exc: ArithmeticError) -> UserError:
     """The one-line error of a row at ``t`` s whose loads have no equilibrium
     (:meth:`TendonStatics.solve`'s ``exc``), for the drawings of estimates and truths."""
-    return UserError(f"the row at t = {t:g} s: {exc} (a force in mN?)")
+    return UserError(f"the row at t = {time_text(t)} s: {exc} (a force in mN?)")
 
 
 def hat_sym(v: Sym) -> Sym:

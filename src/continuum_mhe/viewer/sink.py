@@ -45,6 +45,15 @@ class ViewerSink:
             if not (isinstance(v, int) and 0 < v < 65536):
                 raise InputError(f"--{name.replace('_', '-')} must be a port in 1..65535, got {v}")
 
+    def display_missing(self) -> bool:
+        """Whether this is Rerun's native viewer on Linux without a display (neither
+        ``DISPLAY`` nor ``WAYLAND_DISPLAY`` set): it cannot open."""
+        return (
+            self.kind == "spawn"
+            and sys.platform.startswith("linux")
+            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+        )
+
     @property
     def grpc_url(self) -> str:
         """The Rerun server the stream goes to."""

@@ -130,12 +130,10 @@ class BackboneView:
             self._tmp = folder / f".{sink.path.name}.{os.getpid()}.tmp"
             self.rec.save(self._tmp, default_blueprint=blueprint)
         elif sink.kind == "spawn":
-            if sys.platform.startswith("linux") and not (
-                os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-            ):
+            if sink.display_missing():  # the commands say so first, in their own options
                 raise InputError(
-                    "--spawn needs a display (DISPLAY is not set); "
-                    "use --serve-web or --save FILE.rrd"
+                    "Rerun's native viewer needs a display (DISPLAY is not set); "
+                    "use ViewerSink('web') or ViewerSink('save', Path('FILE.rrd'))"
                 )
             self.rec.spawn(port=sink.grpc_port, default_blueprint=blueprint)
         else:
