@@ -387,6 +387,23 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     assert s.only_garbled() is None
 
 
+def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint() -> None:
+    """A cut line (3 fields) in a one-IMU tilt session that the device's ``# fields:``
+    line confirmed was said to be "a line of 1 IMU(s) in --format tilt; --format raw?"
+    style advice; after the confirmation it is a garbled line without that hint, while
+    a session without the confirmation keeps it."""
+    for banner in (True, False):
+        s, said = _session()
+        now = time.monotonic()
+        if banner:
+            s.handle_line(b"# fields: t_ms,roll,pitch (ms, rad, rad)", now)
+        _feed(s, [0, 20, 40])
+        s.handle_line(b"60,0.1,0.1,0.2,0.2,0.3,0.3", now)
+        (first,) = [m for m in said if "garbled line skipped" in m]
+        assert ("--format raw?" in first) is not banner
+        assert first.startswith("garbled line skipped: expected 3 fields, found 7")
+
+
 def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() -> None:
     """Before: live opened mid-line reported the cut line's cause ('found 12') as the
     first garbled line's, hiding the real one ('found 13: ... --robot with 2 IMU(s)?')."""

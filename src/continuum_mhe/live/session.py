@@ -283,6 +283,9 @@ class LiveSession:
         self._periods: deque[float] = deque(maxlen=50)
         self._period: float | None = None  # median of _periods, while they are unchanged
         self._fields_checked = False
+        #: the device named the fields --format and --robot expect (its ``# fields:``
+        #: line): a line of another count is cut or garbled, not another format
+        self._fields_match = False
         #: the first raw samples' values, until their units are checked (None: checked,
         #: or tilt lines)
         self._units_unchecked: list[FloatArray] | None = None if self.converters is None else []
@@ -332,6 +335,8 @@ class LiveSession:
         self._garbage(arrival, reason + self._hint(text))
 
     def _hint(self, text: str) -> str:
+        if self._fields_match:  # the device named the expected fields: a cut line
+            return ""
         return field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
 
     def _garbage(self, arrival: float, why: str) -> None:
@@ -429,6 +434,7 @@ class LiveSession:
         if names is not None and not self._fields_checked:
             self._fields_checked = True
             want = line_fields(self.settings.fmt, self.n_imus, self.n_tensions)
+            self._fields_match = names == want
             if names != want:
                 tensions = f" and {self.n_tensions} tensions" if self.n_tensions else ""
                 self.say(
