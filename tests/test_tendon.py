@@ -530,6 +530,11 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert fig.stat().st_size > 0 and "note" not in capsys.readouterr().err
     assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
     assert "drawn through the section ends" in capsys.readouterr().err
+    # --inputs alone: the robot the estimate's options line names draws the backbone
+    argv = ["plot", str(est), "--inputs", str(tensions), "-o", str(tmp_path / "rec.png")]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "(its options line): drawn on that robot" in err and "section ends" not in err
     pcc = tmp_path / "pcc.csv"
     table = read_state_table(est)
     keep = [c for c in table.names if c not in ("fx", "fy", "fz")]

@@ -78,11 +78,11 @@ def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
     (said in a note ending in ``use``, what the command does on it); else one section
     of :data:`DEFAULT_LENGTH`."""
     given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
-    robot = None if given else _recorded_robot(path, use)
+    robot = None if given else recorded_robot(path, use)
     return robot_from_args(args) if robot is None else robot
 
 
-def _recorded_robot(path: str, use: str) -> Robot | None:
+def recorded_robot(path: str, use: str) -> Robot | None:
     """The robot file the options line of the estimate ``path`` names, where it can be
     read (said in a note), else None."""
     from continuum_mhe.errors import UserError

@@ -105,8 +105,11 @@ def _tendon_backbone(
     args: argparse.Namespace, names: Sequence[str], robot: Robot | None
 ) -> BackboneOf | None:
     """The mechanics model's backbone for a tendon robot's estimate, from ``--robot``
-    (``robot``, as read) and ``--inputs``; None (the section ends joined, said in a
-    note) without them."""
+    (``robot``, as read; without it the robot file the estimate's options line names,
+    said in a note) and ``--inputs``; None (the section ends joined, said in a note)
+    without them."""
+    from continuum_mhe.cli.config import recorded_option
+    from continuum_mhe.cli.options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
 
@@ -117,6 +120,10 @@ def _tendon_backbone(
                 "estimate has no tip force columns (fx, fy, fz)"
             )
         return None
+    name = args.robot
+    if robot is None and args.inputs:  # the robot the estimate's options line names
+        robot = recorded_robot(args.source, "drawn on that robot")
+        name = recorded_option(args.source, "robot")
     if robot is None or not args.inputs:
         print(
             f"{PROG}: note: the backbone is drawn through the section ends; give "
@@ -125,7 +132,7 @@ def _tendon_backbone(
         )
         return None
     if robot.backbone is None or not robot.n_tendons:
-        raise InputError(f"{args.robot}: --inputs needs a tendon robot ([backbone], [[tendon]])")
+        raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
     return tendon_backbone(robot, read_tensions(args.inputs, robot.n_tendons))
 
 
