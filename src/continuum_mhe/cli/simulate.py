@@ -51,7 +51,16 @@ def run(args: argparse.Namespace) -> int:
         if args.robot is None:
             raise
         raise InputError(f"{args.robot}: {exc}") from None
-    write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
+    if args.imu == "raw":
+        from continuum_mhe.simulation.raw_readings import raw_readings
+
+        try:
+            values, names = raw_readings(rec, robot, seed=args.seed)
+        except UserError as exc:
+            raise InputError(f"--imu raw: {exc}") from None
+        write_measurements(args.output, rec.t, values, names)
+    else:
+        write_measurements(args.output, rec.t, rec.z, rec.measurement_names)
     if args.truth:
         try:
             write_truth(args.truth, rec.t, rec.truth, rec.outputs)
@@ -75,6 +84,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--truth", help="truth CSV to write")
     add_overwrite_option(p, "-o or --truth")
+    p.add_argument(
+        "--imu",
+        choices=("tilt", "raw"),
+        default="tilt",
+        help="tilt: roll and pitch per IMU (default); raw: accelerometer (m/s^2) and gyro "
+        "(rad/s) per IMU, as a raw-IMU robot sends them (MEMS-like noise and gyro bias; "
+        "--noise-deg is for tilt)",
+    )
     p.add_argument("--noise-deg", type=float, default=2.0, help="noise std in degrees")
     p.add_argument(
         "--noise-model",
