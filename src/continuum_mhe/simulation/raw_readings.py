@@ -8,7 +8,7 @@ velocity in rad/s, both in the sensor frame of the placement's ``mount_rpy``, th
 placement's ``gyro_bias`` added, then white noise and a constant gyro bias of each IMU
 drawn once. What ``continuum-mhe simulate --imu raw`` writes: the readings a raw-IMU
 robot of the robot file would send, to try the raw path (``--imu-model direct``, the
-default for raw input), ``live`` on a pseudo-terminal or ``calibrate`` without hardware.
+default for raw input) or ``live`` on a pseudo-terminal without hardware.
 The motion is the estimators' own model (constant curvature, no twist); the Cosserat-rod
 recordings (:mod:`continuum_mhe.simulation.cosserat_sections`) are the data it did not
 generate.
