@@ -124,7 +124,7 @@ def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(
     fig = tmp_path / "f.png"
     assert main(["plot", str(two_section_run / "e.csv"), "--truth", str(one), "-o", str(fig)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "bend columns (theta) that an estimate of 2" in err
+    assert err.count("\n") == 1 and "section columns (theta) that an estimate of 2" in err
     assert not fig.exists()
     fig.write_text("mine")
     assert main(["plot", str(two_section_run / "e.csv"), "-o", str(fig)]) == 2
@@ -364,6 +364,14 @@ def test_plot_draws_a_truth_with_positions_alone(
     assert main(["plot", str(rod), "--truth", str(DATA / "rod_planar.csv"),
                  "-o", str(tmp_path / "rod.png")]) == 0  # fmt: skip
     truth = read_state_table(two_section_run / "t.csv")
+    # positions of a third section end: a truth of a robot of more sections, refused
+    more = tmp_path / "more.csv"
+    values = np.column_stack([truth.t] + [truth.column(c) for c in ("x", "y", "z")] * 2)
+    np.savetxt(more, values, delimiter=",", header="t,x,y,z,x_3,y_3,z_3", comments="")
+    capsys.readouterr()
+    argv = ["plot", str(two_section_run / "e.csv"), "--truth", str(more)]
+    assert main([*argv, "-o", str(tmp_path / "more.png")]) == 2
+    assert "section columns (x_3, y_3, z_3) that an estimate of 2" in capsys.readouterr().err
     for cols in (("x", "y", "z"), ("x", "y", "z", "x_1", "y_1", "z_1")):
         log = tmp_path / f"mocap{len(cols)}.csv"
         values = np.column_stack([truth.t] + [truth.column(c) for c in cols])

@@ -14,7 +14,7 @@ import numpy as np
 
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
-from continuum_mhe.io.csv_files import FloatArray, StateTable
+from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
@@ -181,18 +181,20 @@ def truth_points(est: StateTable, truth: StateTable) -> list[TrackedPoint | None
 def truth_problem(est: StateTable, truth: StateTable) -> str | None:
     """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it has none of
     the estimate's tracked points, or fewer than two of its rows share a time with the
-    estimate's, or it has the bend columns of another number of sections), or None."""
+    estimate's, or it has the bend or position columns of a section the estimate has
+    not: a truth of a robot of more sections), or None."""
     n_est = section_count(est.names)
     if n_est:
         single = "theta" in est.names
-        other = [
-            c for c in truth.names
-            if (c == "theta" and not single)
-            or (c.startswith("theta_") and c[6:].isdigit() and (single or int(c[6:]) > n_est))
-        ]  # fmt: skip
+
+        def beyond(c: str) -> bool:  # a section column of a section the estimate has not
+            field, _, k = c.rpartition("_")
+            return field in SECTION_FIELDS and k.isdigit() and (single or int(k) > n_est)
+
+        other = [c for c in truth.names if (c == "theta" and not single) or beyond(c)]
         if other:
             return (
-                f"the truth has bend columns ({', '.join(other)}) that an estimate of "
+                f"the truth has section columns ({', '.join(other)}) that an estimate of "
                 f"{n_est} section(s) has not: a truth of another robot?"
             )
     if not any(truth_points(est, truth)):

@@ -654,12 +654,12 @@ def read_state_table(
 
 #: The per-section columns of a state table: ``theta, phi`` (one section), or
 #: ``theta_k, phi_k, x_k, y_k, z_k``.
-_SECTION_FIELDS = ("theta", "phi", "x", "y", "z")
+SECTION_FIELDS = ("theta", "phi", "x", "y", "z")
 
 
 def _is_section_column(name: str) -> bool:
     base, _, k = name.rpartition("_")
-    return name in ("theta", "phi") or (base in _SECTION_FIELDS and k.isdigit())
+    return name in ("theta", "phi") or (base in SECTION_FIELDS and k.isdigit())
 
 
 def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
