@@ -138,113 +138,8 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
   }
 }
 
-// Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
-// L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
-// transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
-// reciprocals of L's diagonal. The recursion runs on the square-root-free form (each
-// block's S = V^T P V with P the reciprocal pivots p_j = 1 / s_j and U~ = P V of unit
-// diagonal): block i's Schur complement S_i = D_i - W_{i-1}^T P_{i-1} W_{i-1}, its rows
-// V_i by elimination with the reciprocal pivots, and W_i = U~_i^-T E_i the same way, so
-// that the chain from one block to the next holds a division per pivot and no square
-// root; L = (P^1/2 V)^T and M^T = P^1/2 W are scaled off that chain. A pivot below the
-// smallest normal double (2^-1022) is taken as not positive definite (its reciprocal
-// overflows). Each row is gathered in a row of nx values (kept in registers where NX is
-// a constant); entries below V's diagonal are formed along with the row (D is read below
-// its diagonal for the upper triangle) and dropped.
-template <int NX>
-CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
-                                  double* L, double* M, double* rd) {
-  const Index nx = block_size<NX>(nx_);
-  const Index bs = nx * nx;
-  FactorScratch<NX> scratch(nx);
-  double* V = scratch.v;
-  double* row = scratch.row;
-  for (Index i = 0; i < n; ++i) {
-    double* Li = L + i * bs;
-    const double* Di = D + i * bs;
-    double* W = scratch.w[i & 1];
-    double* p = scratch.p[i & 1];
-    const double* Wp = scratch.w[(i + 1) & 1];  // the previous block's W and pivots
-    const double* pp = scratch.p[(i + 1) & 1];
-    for (Index j = 0; j < nx; ++j) {  // V's row j: the Schur complement's, eliminated
-      for (Index k = 0; k < nx; ++k) row[k] = Di[k * nx + j];
-      if (i > 0) {
-        CMHE_UNROLL
-        for (Index c = 0; c < nx; ++c) {
-          const double t = Wp[c * nx + j] * pp[c];
-          row_axpy<NX>(nx, row, t, Wp + c * nx);
-        }
-      }
-      for (Index c = 0; c < j; ++c) {
-        const double t = V[c * nx + j] * p[c];
-        row_axpy<NX>(nx, row, t, V + c * nx);
-      }
-      const double s = row[j];
-      if (!(s >= std::numeric_limits<double>::min())) return false;
-      p[j] = 1.0 / s;
-      for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
-    }
-    if (i < n - 1) {  // W = U~^-T E_i, row by row
-      const double* Ei = E + i * bs;
-      for (Index j = 0; j < nx; ++j) {
-        for (Index k = 0; k < nx; ++k) row[k] = Ei[j * nx + k];
-        for (Index c = 0; c < j; ++c) {
-          const double t = V[c * nx + j] * p[c];
-          row_axpy<NX>(nx, row, t, W + c * nx);
-        }
-        for (Index k = 0; k < nx; ++k) W[j * nx + k] = row[k];
-      }
-    }
-    for (Index j = 0; j < nx; ++j) {  // the scaled factors, off the recursion's chain
-      const double ujj = std::sqrt(V[j * nx + j]);
-      const double r = 1.0 / ujj;
-      rd[i * nx + j] = r;
-      for (Index k = 0; k < nx; ++k)
-        Li[k * nx + j] = k > j ? V[j * nx + k] * r : (k == j ? ujj : 0.0);
-      if (i < n - 1)
-        for (Index k = 0; k < nx; ++k) M[i * bs + j * nx + k] = W[j * nx + k] * r;
-    }
-  }
-  return true;
-}
-
-// ``y = (L L^T)^-1 b`` from btd_factor's L, M (transposed blocks) and rd; b, y (n, nx),
-// y may be b
-template <int NX>
-void btd_substitute(Index n, Index nx_, const double* L, const double* M, const double* rd,
-                    const double* b, double* y) {
-  const Index nx = block_size<NX>(nx_);
-  const Index bs = nx * nx;
-  for (Index i = 0; i < n; ++i) {  // L z = b
-    for (Index j = 0; j < nx; ++j) {
-      double t = b[i * nx + j];
-      if (i > 0)
-        for (Index c = 0; c < nx; ++c) t -= M[(i - 1) * bs + c * nx + j] * y[(i - 1) * nx + c];
-      for (Index c = 0; c < j; ++c) t -= L[i * bs + j * nx + c] * y[i * nx + c];
-      y[i * nx + j] = t * rd[i * nx + j];
-    }
-  }
-  for (Index i = n - 1; i >= 0; --i) {  // L^T y = z
-    for (Index j = nx - 1; j >= 0; --j) {
-      double t = y[i * nx + j];
-      if (i < n - 1)
-        for (Index c = 0; c < nx; ++c) t -= M[i * bs + j * nx + c] * y[(i + 1) * nx + c];
-      for (Index c = j + 1; c < nx; ++c) t -= L[i * bs + c * nx + j] * y[i * nx + c];
-      y[i * nx + j] = t * rd[i * nx + j];
-    }
-  }
-}
-
-// Solve H y = b by block-tridiagonal Cholesky (into L, M, rd); false if not PD
-template <int NX>
-bool btd_solve(Index n, Index nx, const double* D, const double* E, const double* b,
-               double* L, double* M, double* rd, double* y) {
-  if (!btd_factor<NX>(n, nx, D, E, L, M, rd)) return false;
-  btd_substitute<NX>(n, nx, L, M, rd, b, y);
-  return true;
-}
-
-// One node's elimination in btd_solve_two_ended: the Schur complement of the node
+// One node's elimination in the block-tridiagonal recursions (btd_factor,
+// btd_solve_two_ended, btd_last_block_inverse): the Schur complement of the node
 // (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
 // given), its rows V (unscaled, upper) and reciprocal pivots p (S = V^T P V), h = U~^-T c
 // of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]; none
@@ -305,6 +200,87 @@ inline void back_substitute_node(Index nx_, const double* V, const double* p, co
     for (Index k = j + 1; k < nx; ++k) t -= V[j * nx + k] * y[k];
     y[j] = p[j] * t;
   }
+}
+
+// Block-tridiagonal Cholesky H = L L^T of H = (D, E); false if not positive definite.
+// L (n, nx, nx) receives the diagonal factors, M (n-1, nx, nx) the sub-diagonal blocks
+// transposed, M_i^T = L_i^-1 E_i (row r of M_i^T is column r of M_i), rd (n, nx) the
+// reciprocals of L's diagonal. The recursion runs on the square-root-free form (each
+// block's S = V^T P V with P the reciprocal pivots p_j = 1 / s_j and U~ = P V of unit
+// diagonal): block i's Schur complement S_i = D_i - W_{i-1}^T P_{i-1} W_{i-1}, its rows
+// V_i by elimination with the reciprocal pivots, and W_i = U~_i^-T E_i the same way, so
+// that the chain from one block to the next holds a division per pivot and no square
+// root; L = (P^1/2 V)^T and M^T = P^1/2 W are scaled off that chain. A pivot below the
+// smallest normal double (2^-1022) is taken as not positive definite (its reciprocal
+// overflows). Each row is gathered in a row of nx values (kept in registers where NX is
+// a constant); entries below V's diagonal are formed along with the row (D is read below
+// its diagonal for the upper triangle) and dropped.
+template <int NX>
+CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
+                                  double* L, double* M, double* rd) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx;
+  FactorScratch<NX> scratch(nx);
+  double* V = scratch.v;
+  for (Index i = 0; i < n; ++i) {
+    double* Li = L + i * bs;
+    double* W = scratch.w[i & 1];
+    const bool first = i == 0, last = i == n - 1;
+    // V's rows from the Schur complement with the previous block's W and pivots, and
+    // W = U~^-T E_i for the next
+    const double* Wp = first ? nullptr : scratch.w[(i + 1) & 1];
+    const double* pp = first ? nullptr : scratch.p[(i + 1) & 1];
+    if (!eliminate_node<NX, false>(nx, D + i * bs, nullptr, Wp, pp, nullptr,
+                                   last ? nullptr : E + i * bs, V, scratch.p[i & 1], nullptr, W,
+                                   scratch.row))
+      return false;
+    for (Index j = 0; j < nx; ++j) {  // the scaled factors, off the recursion's chain
+      const double ujj = std::sqrt(V[j * nx + j]);
+      const double r = 1.0 / ujj;
+      rd[i * nx + j] = r;
+      for (Index k = 0; k < nx; ++k)
+        Li[k * nx + j] = k > j ? V[j * nx + k] * r : (k == j ? ujj : 0.0);
+      if (i < n - 1)
+        for (Index k = 0; k < nx; ++k) M[i * bs + j * nx + k] = W[j * nx + k] * r;
+    }
+  }
+  return true;
+}
+
+// ``y = (L L^T)^-1 b`` from btd_factor's L, M (transposed blocks) and rd; b, y (n, nx),
+// y may be b
+template <int NX>
+void btd_substitute(Index n, Index nx_, const double* L, const double* M, const double* rd,
+                    const double* b, double* y) {
+  const Index nx = block_size<NX>(nx_);
+  const Index bs = nx * nx;
+  for (Index i = 0; i < n; ++i) {  // L z = b
+    for (Index j = 0; j < nx; ++j) {
+      double t = b[i * nx + j];
+      if (i > 0)
+        for (Index c = 0; c < nx; ++c) t -= M[(i - 1) * bs + c * nx + j] * y[(i - 1) * nx + c];
+      for (Index c = 0; c < j; ++c) t -= L[i * bs + j * nx + c] * y[i * nx + c];
+      y[i * nx + j] = t * rd[i * nx + j];
+    }
+  }
+  for (Index i = n - 1; i >= 0; --i) {  // L^T y = z
+    for (Index j = nx - 1; j >= 0; --j) {
+      double t = y[i * nx + j];
+      if (i < n - 1)
+        for (Index c = 0; c < nx; ++c) t -= M[i * bs + j * nx + c] * y[(i + 1) * nx + c];
+      for (Index c = j + 1; c < nx; ++c) t -= L[i * bs + c * nx + j] * y[i * nx + c];
+      y[i * nx + j] = t * rd[i * nx + j];
+    }
+  }
+}
+
+// Solve H y = b by block-tridiagonal Cholesky (into L, M, rd); false if not PD
+template <int NX>
+bool btd_solve(Index n, Index nx, const double* D, const double* E, const double* b,
+               double* L, double* M, double* rd, double* y) {
+  if (!btd_factor<NX>(n, nx, D, E, L, M, rd)) return false;
+  btd_substitute<NX>(n, nx, L, M, rd, b, y);
+  return true;
 }
 
 // Solve H y = b for the symmetric block-tridiagonal H = (D, E) (as btd_solve) by

@@ -866,26 +866,15 @@ def atomic_binary_writer(
     return _atomic(path, binary=True)
 
 
-def check_new_folder(
-    folder: Path, overwrite: bool = True, names: Sequence[str] | None = None
-) -> None:
+def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:
     """A one-line error, before any work, unless ``folder`` is, or can be made, a
     writable folder (its nearest existing ancestor a writable folder), and, unless
-    ``overwrite``, holds none of the files ``names`` that the command writes (with
-    ``names`` None: no file at all)."""
+    ``overwrite``, holds none of the files ``names`` that the command writes."""
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder}: exists and is not a folder")
-    if not overwrite and folder.is_dir():
-        taken = [folder / n for n in names if (folder / n).exists()] if names is not None else []
-        if taken:
-            raise InputError(
-                f"{taken[0]}: exists; give --overwrite to replace it, or another --out"
-            )
-        if names is None and any(folder.iterdir()):
-            raise InputError(
-                f"{folder}: holds files already; give --overwrite to write into it, or "
-                "another --out"
-            )
+    taken = next((folder / n for n in names if (folder / n).exists()), None)
+    if taken is not None and not overwrite:
+        raise InputError(f"{taken}: exists; give --overwrite to replace it, or another --out")
     existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
     if not existing.is_dir():
         raise InputError(f"{folder}: {existing} is not a folder")
@@ -925,9 +914,8 @@ def _fmt(v: float) -> str:
 def format_time(t: float) -> str:
     """An estimate row's time ``t`` (s) as written: ``"%.10g"`` where that keeps it to
     half a microsecond (below 1e4 s it always does) or ``|t| >= 1e15``, else six decimals
-    without trailing
-    zeros, so that samples a millisecond or less apart on a device clock past 1e6 s stay
-    distinct (the compiled writer's rule, to the character)."""
+    without trailing zeros, so that samples a millisecond or less apart on a device clock
+    past 1e6 s stay distinct (the compiled writer's rule, to the character)."""
     if not math.isfinite(t):
         raise ValueError("refusing to write a non-finite time")
     short = f"{t:.10g}"
