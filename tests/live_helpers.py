@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import select
 import subprocess
 import sys
 import threading
@@ -32,6 +33,37 @@ def new_pty(link: Path) -> int:
     tmp.symlink_to(name)
     os.replace(tmp, link)
     return master
+
+
+def unplug(master: int, link: Path) -> None:
+    """The device behind ``link`` goes away: the link first, as a USB adapter's device
+    node goes, then the pty. Closed first, the pty's number could go to another test's
+    pty while ``link`` still names it, and the reader reopening ``link`` would read that
+    test's lines."""
+    link.unlink()
+    os.close(master)
+
+
+def send(master: int, data: bytes, reading: Callable[[], bool] = lambda: True) -> None:
+    """Write ``data`` to the pty's ``master`` as a device would. A write to a pty blocks
+    once the kernel's buffer is full, which a reader that stopped reading leaves full:
+    this returns as soon as ``reading()`` says the reader has gone (the rest can never be
+    read) and fails after ``SAFETY_S`` without progress, instead of blocking the suite."""
+    os.set_blocking(master, False)
+    left = memoryview(data)
+    end = time.monotonic() + SAFETY_S
+    while left:
+        if not select.select([], [master], [], 0.05)[1]:
+            if not reading():
+                return
+            if time.monotonic() > end:
+                raise AssertionError(f"the pty's reader took no data for {SAFETY_S:g} s")
+            continue
+        try:
+            left = left[os.write(master, left) :]
+        except BlockingIOError:
+            continue
+        end = time.monotonic() + SAFETY_S
 
 
 def wait_for(pred: Callable[[], bool], what: str) -> None:
@@ -121,7 +153,7 @@ def send_and_finish(proc: LiveProcess, master: int, lines: list[str]) -> int:
     The process is killed and ``master`` closed whatever happens."""
     try:
         proc.wait_ready()
-        os.write(master, ("\n".join(lines) + "\n").encode())
+        send(master, ("\n".join(lines) + "\n").encode(), lambda: proc.proc.poll() is None)
         return proc.finish()
     finally:
         if proc.proc.poll() is None:

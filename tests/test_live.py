@@ -25,8 +25,10 @@ from live_helpers import (
     new_pty,
     raw_line,
     raw_lines,
+    send,
     send_and_finish,
     specific_force,
+    unplug,
     wait_for,
 )
 
@@ -95,12 +97,12 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
     try:
         live.wait_ready()
         for line in lines:
-            os.write(master, line.encode("latin-1"))
+            send(master, line.encode("latin-1"))
             time.sleep(0.002)
-        os.write(master, b"99999,0.1,0.2")  # a partial line, then the device hangs up
+        send(master, b"99999,0.1,0.2")  # a partial line, then the device hangs up
         wait_for(lambda: data_rows(out) >= valid_first, "estimates of session 1")
         time.sleep(0.3)
-        os.close(master)
+        unplug(master, port)
         # the file is complete while live waits for the device
         wait_for(lambda: "disconnected" in live.err, "the hang-up")
         t1, x1, s1 = read_states(out)
@@ -111,9 +113,9 @@ def test_live_pty_stream_with_faults(tmp_path: Path) -> None:
         master = new_pty(port)
         wait_for(lambda: "is back" in live.err, "the device to be reopened")
         second = raw_lines(0, 25)
-        os.write(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
+        send(master, b"# continuum_imu 1.0 (after its reset)\n")  # kept: a message
         for line in second:
-            os.write(master, line.encode())
+            send(master, line.encode())
             time.sleep(0.002)
         wait_for(lambda: data_rows(out) >= valid_first + len(second), "estimates of session 2")
         code = live.finish(signal.SIGINT)
@@ -161,6 +163,34 @@ def test_live_bad_port_is_one_line_with_causes(tmp_path: Path) -> None:
     assert res.stderr.startswith("continuum-mhe: error: ") and res.stderr.count("\n") == 1
     for cause in ("dialout", "/dev/cu.usbmodem", "/dev/ttyUSB0", "Serial Monitor"):
         assert cause in res.stderr
+
+
+@pytest.mark.skipif(os.name != "posix", reason="exclusive serial access is POSIX's")
+def test_a_second_reader_of_a_port_is_refused_with_the_port_in_use(tmp_path: Path) -> None:
+    """Two readers of one port would each take some of its lines: the second ``live``
+    on a port one already reads is one line saying the port is in use, exit 2, and the
+    first reads on."""
+    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    master = new_pty(port)
+    first = LiveProcess(["--port", str(port), "--method", "ekf", "-o", str(out)])
+    try:
+        first.wait_ready()
+        res = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)],
+            capture_output=True,
+            text=True,
+            timeout=SAFETY_S,
+        )
+        assert res.returncode == 2, res.stderr
+        assert res.stderr.count("\n") == 1, res.stderr
+        assert "the port is in use" in res.stderr
+        assert first.proc.poll() is None, first.err
+        send(master, "".join(raw_lines(0, 5)).encode())
+        wait_for(lambda: data_rows(out) >= 5, "the first reader's estimates")
+    finally:
+        code = first.finish(signal.SIGINT)
+        unplug(master, port)
+    assert code == 0, first.err
 
 
 def test_live_refuses_to_replace_an_output_without_overwrite(
@@ -227,7 +257,7 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     try:
         live.wait_ready()
         for chunk in stream:
-            os.write(master, chunk.encode())
+            send(master, chunk.encode())
             time.sleep(0.001)
         wait_for(lambda: data_rows(est) >= len(lines), "every estimate")
         code = live.finish(signal.SIGTERM)
@@ -450,7 +480,7 @@ def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
                         "-o", str(out)])  # fmt: skip
     try:
         live.wait_ready()
-        os.write(master, ("\n".join(lines) + "\n").encode())
+        send(master, ("\n".join(lines) + "\n").encode())
         wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
         got = live.finish(sig)
     finally:

@@ -274,28 +274,25 @@ def test_live_view_through_a_pty(tmp_path: Path) -> None:
     backbone per estimate row of ``-o``, at the same times."""
     import os
     import signal
-    import subprocess
 
-    from live_helpers import SAFETY_S, data_rows, new_pty, raw_lines, wait_for
+    from live_helpers import LiveProcess, data_rows, new_pty, raw_lines, send, wait_for
 
     port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
     master = new_pty(port)
-    cmd = [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port),
-           "--method", "ekf", "-o", str(out), "--view", str(rrd), "--view-hz", "0"]  # fmt: skip
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "-o", str(out),
+                        "--view", str(rrd), "--view-hz", "0"])  # fmt: skip
     lines = raw_lines(0, 30)
     try:
-        wait_for(lambda: "reading " in (proc.stderr.readline() or ""), "live to start")
+        live.wait_ready()
         for line in lines:
-            os.write(master, line.encode())
+            send(master, line.encode())
         wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=SAFETY_S)
+        code = live.finish(signal.SIGINT)
     finally:
-        if proc.poll() is None:
-            proc.kill()
+        if live.proc.poll() is None:
+            live.proc.kill()
         os.close(master)
-    assert proc.returncode == 0, err
+    assert code == 0, live.err
     est = read_state_table(out, ())
     rows = read_rrd(rrd)
     assert [t for t, _ in rows["/world/estimate/backbone"]] == _ns(est.t)
@@ -417,21 +414,21 @@ def test_serve_web_on_loopback_until_ctrl_c(
     command (exit 0) and the server (the port closes)."""
     import signal
     import socket
-    import subprocess
     import urllib.request
+
+    from live_helpers import LiveProcess, wait_for
 
     est = tmp_path / "e.csv"
     est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
     web, grpc = _free_port(), _free_port()
     cmd = [sys.executable, "-m", "continuum_mhe.cli", "view", str(est), "--serve-web",
            "--web-port", str(web), "--grpc-port", str(grpc)]  # fmt: skip
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    view = LiveProcess(cmd[4:], command="view")
+    proc = view.proc
     try:
-        assert proc.stderr is not None
-        line = ""
-        while "serving the view at" not in line:
-            line = proc.stderr.readline()
-            assert line or proc.poll() is None, "view exited before serving"
+        wait_for(lambda: "serving the view at" in view.err or proc.poll() is not None, "view")
+        assert proc.poll() is None, f"view exited before serving: {view.err}"
+        (line,) = [ln for ln in view.lines if "serving the view at" in ln]
         url = line.split(" at ")[1].split()[0]
         assert url.startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A")
         with urllib.request.urlopen(url, timeout=30) as page:
@@ -441,13 +438,12 @@ def test_serve_web_on_loopback_until_ctrl_c(
         assert _one_error_line(capsys).endswith(
             f"port {web} on 127.0.0.1 is in use; pick another with --web-port"
         )
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        code = view.finish(signal.SIGINT)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 0, err
-    assert "stopped serving the view" in err
+    assert code == 0, view.err
+    assert "stopped serving the view" in view.err
     with socket.socket() as s:
         assert s.connect_ex(("127.0.0.1", web)) != 0
 

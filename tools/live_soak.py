@@ -142,6 +142,9 @@ class Device(threading.Thread):
             end = time.monotonic() + 10
             while self.received() < self.sent and time.monotonic() < end:
                 time.sleep(0.01)
+            # the device node goes first, as a USB adapter's does: the pty's number, free
+            # once closed, may go to another program's pty, which live must not reopen
+            self.port.unlink()
             os.close(self.master)
             time.sleep(1.0)
             self.master = _new_pty(self.port)

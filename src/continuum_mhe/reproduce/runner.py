@@ -11,6 +11,7 @@ never come back.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 import sys
@@ -88,9 +89,13 @@ def run_parallel(
                 advance()
                 raise_if_signalled()  # a Ctrl-C that CasADi dropped inside the trial
             return results
-        pool = ProcessPoolExecutor(max_workers=min(n_jobs, len(specs)), initializer=_worker_start)
+        pool = ProcessPoolExecutor(
+            max_workers=min(n_jobs, len(specs)),
+            mp_context=_worker_context(fn),
+            initializer=_worker_start,
+        )
         try:
-            with _signals_blocked():  # the workers are forked here, with our handlers
+            with _signals_blocked():  # the workers start here, with SIGINT/SIGTERM blocked
                 futures: dict[Future[R], int] = {pool.submit(fn, s): i for i, s in enumerate(specs)}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
@@ -112,15 +117,25 @@ _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 @contextmanager
 def _signals_blocked() -> Iterator[None]:
-    """SIGINT and SIGTERM wait while the block runs (the pool forks its workers and
-    starts its threads), then arrive: a worker would otherwise start with the parent's
-    handlers until :func:`_worker_start` runs, and the pool's threads, which inherit
-    the blocked set, leave every signal to the main thread."""
+    """SIGINT and SIGTERM wait while the block runs (the pool starts its fork server,
+    its workers and its threads), then arrive: the server and the workers inherit the
+    blocked set, so that a Ctrl-C before :func:`_worker_start` runs cannot interrupt a
+    worker, and the pool's threads leave every signal to the main thread."""
     old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _worker_context(fn: Callable[..., Any]) -> Any:
+    """Workers forked from a server process that holds no thread (``forkserver``), with
+    ``fn``'s module imported there once, never forked from this process: a thread of
+    this one (the progress bar's, a test runner's) may hold a lock at that moment,
+    such as the stderr buffer's, and a child inherits it held for ever."""
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([fn.__module__])
+    return ctx
 
 
 def _worker_start() -> None:

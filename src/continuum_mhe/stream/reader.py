@@ -4,6 +4,7 @@ thread that drains it into a queue of whole lines, reopening a lost device."""
 from __future__ import annotations
 
 import glob
+import os
 import queue
 import sys
 import threading
@@ -18,9 +19,12 @@ Event = tuple[str, Any, float]  # (kind, payload, monotonic arrival time)
 
 def open_port(port: str, baud: int, feature: str = "live on a serial port") -> Any:
     """Open a serial device or pyserial URL with a short read timeout; without pyserial,
-    a :class:`~continuum_mhe.extras.MissingExtraError` naming ``feature``."""
+    a :class:`~continuum_mhe.extras.MissingExtraError` naming ``feature``. On POSIX the
+    device is locked for this process alone (pyserial's ``exclusive``): a second
+    reader of one port would take some of its lines, leaving both streams garbled."""
     serial = require("serial", "robot", feature, package="pyserial")
-    return serial.serial_for_url(port, baudrate=baud, timeout=0.05)
+    exclusive = True if os.name == "posix" else None
+    return serial.serial_for_url(port, baudrate=baud, timeout=0.05, exclusive=exclusive)
 
 
 def port_hint(port: str, exc: BaseException) -> str:
