@@ -3,6 +3,7 @@ pseudo-terminal, and what a running command is doing (writing, waiting for input
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import select
@@ -13,6 +14,7 @@ import time
 import tty
 from collections.abc import Callable
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
@@ -64,6 +66,36 @@ def send(master: int, data: bytes, reading: Callable[[], bool] = lambda: True) -
         except BlockingIOError:
             continue
         end = time.monotonic() + SAFETY_S
+
+
+def open_fifo_writer(fifo: Path, reading: Callable[[], bool]) -> IO[str]:
+    """``fifo`` opened for writing once a reader has opened it. A plain ``open`` blocks
+    until then, for ever when the reader ends first: this fails instead, as soon as
+    ``reading()`` says the reader has gone, or after ``SAFETY_S``."""
+    end = time.monotonic() + SAFETY_S
+    while True:
+        try:
+            fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError as exc:
+            if exc.errno != errno.ENXIO:  # ENXIO: no reader yet
+                raise
+            if not reading():
+                raise AssertionError(f"the reader ended before opening {fifo}") from None
+            if time.monotonic() > end:
+                raise AssertionError(f"nothing opened {fifo} within {SAFETY_S:g} s") from None
+            time.sleep(0.02)
+            continue
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "w")
+
+
+def unblock_fifo_reader(fifo: Path) -> None:
+    """Open ``fifo`` for writing and close it at once: a reader blocked opening it (one
+    that opened it a second time, after its writer left) gets end-of-file."""
+    try:
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+    except OSError:  # no reader waiting
+        pass
 
 
 def wait_for(pred: Callable[[], bool], what: str) -> None:

@@ -122,7 +122,7 @@ def test_the_typing_stub_is_the_built_module(tmp_path) -> None:
     r = subprocess.run(
         [sys.executable, "-m", "nanobind.stubgen", "-q", "-m", "continuum_mhe._core._ext",
          "-o", str(out)],
-        capture_output=True, text=True,
+        capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
     committed = Path(__file__).resolve().parents[1] / "src/continuum_mhe/_core/_ext.pyi"

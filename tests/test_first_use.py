@@ -40,7 +40,7 @@ def _simulated(folder: Path, env: dict[str, str]) -> Path:
     meas = folder / "m.csv"
     sim = subprocess.run(
         [EXE, "simulate", "paper3d", "--duration", "10", "-o", str(meas)],
-        env=env, capture_output=True, text=True, cwd=folder,
+        env=env, capture_output=True, text=True, cwd=folder, timeout=600,
     )  # fmt: skip
     assert sim.returncode == 0, sim.stderr
     return meas
@@ -59,7 +59,7 @@ def test_first_estimate_compiles_nothing(tmp_path, case) -> None:
     out = tmp_path / "e.csv"
     est = subprocess.run(
         [EXE, "estimate", str(meas), "-o", str(out), *extra],
-        env=env, capture_output=True, text=True, cwd=tmp_path,
+        env=env, capture_output=True, text=True, cwd=tmp_path, timeout=600,
     )  # fmt: skip
     assert est.returncode == 0, est.stderr
     assert "compiling" not in est.stderr.lower(), est.stderr

@@ -219,3 +219,47 @@ def test_run_live_estimates_every_line_sent_before_the_end() -> None:
     assert run_live(settings, s, _Port(lines, per_read=64)) == 0  # slow reads: 64 bytes
     assert (s.counts.samples, s.counts.estimates) == (400, 400)
     assert math.isclose(s.clock.t_last or 0.0, 3.99)
+
+
+class _BrokenSplitter:
+    """A line splitter with a defect: its feed raises on the first chunk."""
+
+    max_bytes = 4096
+    too_long: list[int] = []
+
+    def feed(self, chunk: bytes) -> list[bytes]:
+        raise ValueError("a defect in the splitter")
+
+    def pending(self) -> bytes:
+        return b""
+
+
+def test_a_reader_that_fails_stops_live_with_the_cause_instead_of_waiting(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The reader thread's unexpected exception ended the thread and left live, without
+    --duration, waiting for lines for ever. Now its last event says why; live says the
+    summary and stops with that cause, the estimates so far kept."""
+    s, said = _session(port="/dev/ttyIMU")
+    settings = LiveSettings(port="/dev/ttyIMU", fmt="tilt", duration=None)
+    monkeypatch.setattr(
+        "continuum_mhe.stream.reader.LineSplitter", lambda max_bytes: _BrokenSplitter()
+    )
+    done: queue.Queue[BaseException | int] = queue.Queue()
+
+    def run() -> None:
+        try:
+            done.put(run_live(settings, s, _Port(b"0,0.1,0.05\n")))
+        except BaseException as exc:  # noqa: BLE001 - handed to the test's thread
+            done.put(exc)
+
+    import threading
+
+    threading.Thread(target=run, daemon=True).start()
+    got = done.get(timeout=60)  # before: never
+    assert isinstance(got, InputError), got
+    assert str(got) == (
+        "/dev/ttyIMU: reading the port stopped on an internal error "
+        "(ValueError: a defect in the splitter); the estimates written so far are kept"
+    )
+    assert any(m.startswith("0 samples") for m in said), said

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from live_helpers import SAFETY_S, unblock_fifo_reader
 
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
@@ -53,7 +54,13 @@ def test_named_fifo_is_read_once(tmp_path: Path, capsys: pytest.CaptureFixture[s
     os.mkfifo(fifo)
     th = _feed(str(fifo), _csv())
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(fifo), "-o", str(out), "--method", "ekf"]) == 0
+    # a command that opened the FIFO again, after its writer left, would wait for ever
+    guard = threading.Timer(SAFETY_S, unblock_fifo_reader, (fifo,))
+    guard.start()
+    try:
+        assert main(["estimate", str(fifo), "-o", str(out), "--method", "ekf"]) == 0
+    finally:
+        guard.cancel()
     th.join(5)
     assert len(_estimate_rows(out)) == 30
     assert "wrote 30 estimates" in capsys.readouterr().err
@@ -202,7 +209,7 @@ def test_not_utf8_names_its_line(tmp_path: Path) -> None:
 def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> None:
     import signal
 
-    from live_helpers import blocked_reading, temporary_bytes, wait_for
+    from live_helpers import blocked_reading, open_fifo_writer, temporary_bytes, wait_for
 
     fifo = tmp_path / "in.fifo"
     os.mkfifo(fifo)
@@ -212,7 +219,7 @@ def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> N
         stderr=subprocess.PIPE,
         text=True,
     )
-    with open(fifo, "w") as writer:  # returns once the command has opened the FIFO
+    with open_fifo_writer(fifo, lambda: proc.poll() is None) as writer:
         writer.write(_csv(CHUNK + 10))  # one chunk is estimated, then it waits for more
         writer.flush()
         sizes: list[int] = []
@@ -227,7 +234,7 @@ def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> N
             return blocked or proc.poll() is not None
 
         wait_for(waiting_for_input, "the command to wait for more input")
-        assert proc.poll() is None, proc.communicate()[1]
+        assert proc.poll() is None, proc.communicate(timeout=SAFETY_S)[1]
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=30)  # the writer is still open: no EOF
     assert proc.returncode == 143, err

@@ -127,7 +127,9 @@ def test_disk_full_on_a_real_tiny_tmpfs(tmp_path, capsys) -> None:
     small = tmp_path / "small"
     small.mkdir()
     mounted = subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(small)], capture_output=True
+        ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(small)],
+        capture_output=True,
+        timeout=60,
     )
     if mounted.returncode != 0:
         pytest.skip("cannot mount a tmpfs here (not root)")
@@ -141,7 +143,7 @@ def test_disk_full_on_a_real_tiny_tmpfs(tmp_path, capsys) -> None:
         assert err == f"continuum-mhe: error: {out}: No space left on device (nothing written)\n"
         assert os.listdir(small) == []
     finally:
-        subprocess.run(["umount", str(small)], check=False)
+        subprocess.run(["umount", str(small)], check=False, timeout=60)
 
 
 # --- the user sees one line ---------------------------------------------------------------

@@ -405,7 +405,7 @@ def test_a_signal_to_the_process_group_stops_reproduce_at_once(
     )
     try:
         wait_for(lambda: len(list(marks.iterdir())) == 2 or proc.poll() is not None, "workers")
-        assert proc.poll() is None, proc.communicate()[1]
+        assert proc.poll() is None, proc.communicate(timeout=SAFETY_S)[1]
         os.killpg(proc.pid, sig)
         _, err = proc.communicate(timeout=SAFETY_S)
     finally:

@@ -39,7 +39,7 @@ def test_sigterm_during_estimate_keeps_its_rows_marked_partial_exit_143(tmp_path
         lambda: temporary_bytes(tmp_path, "e.csv") > 100_000 or proc.poll() is not None,
         "the first estimates",
     )
-    assert proc.poll() is None, proc.communicate()[1]
+    assert proc.poll() is None, proc.communicate(timeout=SAFETY_S)[1]
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err

@@ -25,6 +25,7 @@ import math
 import os
 import random
 import re
+import select
 import signal
 import subprocess
 import sys
@@ -36,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 G = 9.80665
+STALL_S = 120.0  # s without progress before a wait fails instead of blocking
 
 
 def _new_pty(link: Path) -> int:
@@ -112,10 +114,21 @@ class Device(threading.Thread):
         self.next_index = 0  # the next sample's index (device time = index / rate)
 
     def _write(self, data: bytes) -> None:
+        """Write ``data`` to the pty. A write blocks once the kernel's buffer is full, for
+        ever if live stops reading: this fails after ``STALL_S`` without progress."""
+        os.set_blocking(self.master, False)
         view = memoryview(data)
+        end = time.monotonic() + STALL_S
         while view:
-            n = os.write(self.master, view)
-            view = view[n:]
+            if not select.select([], [self.master], [], 0.05)[1]:
+                if time.monotonic() > end:
+                    raise RuntimeError(f"live took no data from the port for {STALL_S:g} s")
+                continue
+            try:
+                view = view[os.write(self.master, view) :]
+            except BlockingIOError:
+                continue
+            end = time.monotonic() + STALL_S
 
     def _fault(self, k: int) -> None:
         kind = ("garbage", "partial", "mb_line", "port_gone")[k % 4]
@@ -242,9 +255,12 @@ def run_soak(
     reader.daemon = True
     reader.start()
     try:
+        start = time.monotonic()
         while not any("reading " in ln for ln in err):
             if proc.poll() is not None:
                 raise RuntimeError("live ended at start: " + "".join(err))
+            if time.monotonic() - start > STALL_S:
+                raise RuntimeError(f"live did not start within {STALL_S:g} s: " + "".join(err))
             time.sleep(0.05)
         t0 = time.monotonic()
         device.start()

@@ -86,13 +86,21 @@ def run_live(
             if not stopping and deadline is not None and now >= deadline:
                 stopping = True
                 reader.stop.set()
-                reader.join()
+                reader.join(timeout=2.0)  # its reads time out; its drain takes at most 1 s
             try:
                 kind, payload, arrival = events.get(timeout=0.05)
             except queue.Empty:
                 if stopping:
                     break
                 kind = ""
+                if not reader.is_alive():  # ended without its last event: never waits
+                    kind, payload, arrival = "failed", "the thread ended", time.monotonic()
+            if kind == "failed":
+                session.fatal = (
+                    f"{settings.port}: reading the port stopped on an internal error "
+                    f"({payload}); the estimates written so far are kept"
+                )
+                break
             now = time.monotonic()
             if kind == "line":
                 est = session.handle_line(payload, arrival)

@@ -53,7 +53,9 @@ def port_hint(port: str, exc: BaseException) -> str:
 class SerialReader(threading.Thread):
     """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
     t)``, ``("partial", bytes, t)``, ``("lost", reason, t)`` and ``("back",
-    seconds_away, t)``. Reopens with backoff."""
+    seconds_away, t)``. Reopens with backoff. An exception it does not expect ends the
+    thread with ``("failed", reason, t)`` as its last event, so that the reader of the
+    queue stops instead of waiting for lines that will never come."""
 
     def __init__(
         self,
@@ -72,6 +74,12 @@ class SerialReader(threading.Thread):
         self.stop = threading.Event()
 
     def run(self) -> None:
+        try:
+            self._read_until_stopped()
+        except BaseException as exc:  # noqa: BLE001 - said to the queue's reader, which stops
+            self.events.put(("failed", f"{type(exc).__name__}: {exc}", time.monotonic()))
+
+    def _read_until_stopped(self) -> None:
         while not self.stop.is_set():
             try:
                 chunk = self.conn.read(max(1, min(self.conn.in_waiting, 1 << 16)))
