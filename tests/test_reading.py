@@ -54,13 +54,21 @@ def test_named_fifo_is_read_once(tmp_path: Path, capsys: pytest.CaptureFixture[s
     os.mkfifo(fifo)
     th = _feed(str(fifo), _csv())
     out = tmp_path / "e.csv"
-    # a command that opened the FIFO again, after its writer left, would wait for ever
-    guard = threading.Timer(SAFETY_S, unblock_fifo_reader, (fifo,))
+    # a command that opened the FIFO again, after its writer left, would wait for ever:
+    # the guard ends that wait, and the test fails
+    fired = threading.Event()
+
+    def unblock() -> None:
+        fired.set()
+        unblock_fifo_reader(fifo)
+
+    guard = threading.Timer(SAFETY_S, unblock)
     guard.start()
     try:
         assert main(["estimate", str(fifo), "-o", str(out), "--method", "ekf"]) == 0
     finally:
         guard.cancel()
+    assert not fired.is_set(), "the command opened the FIFO a second time"
     th.join(5)
     assert len(_estimate_rows(out)) == 30
     assert "wrote 30 estimates" in capsys.readouterr().err

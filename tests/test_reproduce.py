@@ -504,6 +504,24 @@ def test_dask_local_cluster_matches_local_processes() -> None:
     np.testing.assert_allclose(_errors(remote), _errors(local), rtol=1e-9)
 
 
+def test_local_workers_run_a_function_of_a_script(tmp_path: Path) -> None:
+    """A trial function defined in ``__main__`` (a script, ``python -c``), which fork
+    server workers cannot import: the pool keeps the platform's default start, and
+    the trials run (with the fork server every one failed as 'a worker process ended
+    abruptly')."""
+    script = (
+        "from continuum_mhe.reproduce.runner import run_parallel\n"
+        "def square(x):\n"
+        "    return x * x\n"
+        "if __name__ == '__main__':\n"
+        "    print(run_parallel(square, [1, 2, 3], jobs=2, progress=False))\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=SAFETY_S
+    )
+    assert (r.returncode, r.stdout) == (0, "[1, 4, 9]\n"), r.stderr
+
+
 def test_unreachable_scheduler_is_a_user_error(monkeypatch: pytest.MonkeyPatch) -> None:
     import dask.distributed as distributed
 

@@ -112,6 +112,7 @@ class Device(threading.Thread):
         self.t0 = time.monotonic()
         self.timeline: list[tuple[float, str]] = []  # (s since start, fault)
         self.next_index = 0  # the next sample's index (device time = index / rate)
+        self.error: BaseException | None = None  # what stopped the stream, if anything
 
     def _write(self, data: bytes) -> None:
         """Write ``data`` to the pty. A write blocks once the kernel's buffer is full, for
@@ -171,6 +172,12 @@ class Device(threading.Thread):
             self._write(b"\n")
 
     def run(self) -> None:
+        try:
+            self._stream()
+        except BaseException as exc:  # noqa: BLE001 - re-raised by run_soak
+            self.error = exc
+
+    def _stream(self) -> None:
         start = self.t0 = time.monotonic()
         next_fault = start + self.faults_every
         n_fault = 0
@@ -270,6 +277,8 @@ def run_soak(
             if kb is not None:
                 rss.append((time.monotonic() - t0, kb))
             device.join(timeout=1.0)
+        if device.error is not None:
+            raise device.error
         # all sent: wait until live has written every sample (or stops making progress),
         # then stop it: any difference between sent and written is then a loss
         last, still = -1, time.monotonic()

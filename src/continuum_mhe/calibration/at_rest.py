@@ -296,10 +296,8 @@ def collect(
                 kind, payload, arrival = events.get(timeout=0.1)
             except queue.Empty:
                 continue
-            if kind == "failed":
-                raise InputError(
-                    f"{port}: reading the port stopped on an internal error ({payload})"
-                )
+            if kind == "failed":  # a defect in the reader thread
+                raise payload
             if kind != "line":
                 continue
             try:

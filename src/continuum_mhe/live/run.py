@@ -62,8 +62,9 @@ def run_live(
     and so does an accelerometer in g, or a gyro in deg/s where the estimate uses it
     (checked once on the first raw samples, :meth:`LiveSession.check_units`): the run
     stops there, the lines still queued are left, and the summary is said before the
-    error."""
+    error. An exception of the reader thread (a defect) is raised after the summary."""
     events: queue.Queue[Event] = queue.Queue()
+    failure: BaseException | None = None  # the reader thread's defect
     reader = SerialReader(settings.port, settings.baud, conn, events, settings.retry_max_s)
     say = session.say
     start = time.monotonic()
@@ -87,19 +88,18 @@ def run_live(
                 stopping = True
                 reader.stop.set()
                 reader.join(timeout=2.0)  # its reads time out; its drain takes at most 1 s
+            reading = reader.is_alive()  # before the wait: its last event comes first
             try:
                 kind, payload, arrival = events.get(timeout=0.05)
             except queue.Empty:
                 if stopping:
                     break
                 kind = ""
-                if not reader.is_alive():  # ended without its last event: never waits
-                    kind, payload, arrival = "failed", "the thread ended", time.monotonic()
-            if kind == "failed":
-                session.fatal = (
-                    f"{settings.port}: reading the port stopped on an internal error "
-                    f"({payload}); the estimates written so far are kept"
-                )
+                if not reading:  # ended without its last event: never wait for lines
+                    failure = RuntimeError("the serial reader thread ended on its own")
+                    break
+            if kind == "failed":  # a defect in the reader: raised after the summary
+                failure = payload
                 break
             now = time.monotonic()
             if kind == "line":
@@ -168,6 +168,8 @@ def run_live(
     session.finish()  # a first sample still waiting for the next one
     session.check_units()  # a session shorter than the check's samples: on them all
     say(session.summary())
+    if failure is not None:
+        raise failure
     failed = session.fatal or session.only_garbled()
     if failed:
         raise InputError(failed)

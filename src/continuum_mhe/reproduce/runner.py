@@ -117,9 +117,10 @@ _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 @contextmanager
 def _signals_blocked() -> Iterator[None]:
-    """SIGINT and SIGTERM wait while the block runs (the pool starts its fork server,
-    its workers and its threads), then arrive: the server and the workers inherit the
-    blocked set, so that a Ctrl-C before :func:`_worker_start` runs cannot interrupt a
+    """SIGINT and SIGTERM wait while the block runs (the pool starts its workers and
+    its threads), then arrive: the workers inherit the blocked set (from the fork
+    server, which does when the first pool of the process starts it here; or from this
+    process), so that a Ctrl-C before :func:`_worker_start` runs cannot interrupt a
     worker, and the pool's threads leave every signal to the main thread."""
     old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
@@ -129,10 +130,14 @@ def _signals_blocked() -> Iterator[None]:
 
 
 def _worker_context(fn: Callable[..., Any]) -> Any:
-    """Workers forked from a server process that holds no thread (``forkserver``), with
-    ``fn``'s module imported there once, never forked from this process: a thread of
-    this one (the progress bar's, a test runner's) may hold a lock at that moment,
-    such as the stderr buffer's, and a child inherits it held for ever."""
+    """On Linux, workers forked from a server process started afresh (``forkserver``),
+    with ``fn``'s module imported there once, never forked from this process: a thread
+    of this one (the progress bar's, a test runner's) may hold a lock at that moment,
+    such as the stderr buffer's, and a child inherits it held for ever. Elsewhere, and
+    for a ``fn`` of ``__main__`` (a script's or an interactive session's, which a
+    server's workers cannot import), the platform's default start method (None)."""
+    if not sys.platform.startswith("linux") or fn.__module__ == "__main__":
+        return None
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload([fn.__module__])
     return ctx

@@ -53,9 +53,10 @@ def port_hint(port: str, exc: BaseException) -> str:
 class SerialReader(threading.Thread):
     """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
     t)``, ``("partial", bytes, t)``, ``("lost", reason, t)`` and ``("back",
-    seconds_away, t)``. Reopens with backoff. An exception it does not expect ends the
-    thread with ``("failed", reason, t)`` as its last event, so that the reader of the
-    queue stops instead of waiting for lines that will never come."""
+    seconds_away, t)``. Reopens with backoff. An exception it does not expect (a
+    defect) closes the port and ends the thread with ``("failed", exception, t)`` as its
+    last event, so that the queue's reader raises it instead of waiting for lines that
+    will never come."""
 
     def __init__(
         self,
@@ -76,8 +77,9 @@ class SerialReader(threading.Thread):
     def run(self) -> None:
         try:
             self._read_until_stopped()
-        except BaseException as exc:  # noqa: BLE001 - said to the queue's reader, which stops
-            self.events.put(("failed", f"{type(exc).__name__}: {exc}", time.monotonic()))
+        except BaseException as exc:  # noqa: BLE001 - handed to the queue's reader, which raises it
+            self._close()
+            self.events.put(("failed", exc, time.monotonic()))
 
     def _read_until_stopped(self) -> None:
         while not self.stop.is_set():
