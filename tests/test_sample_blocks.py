@@ -217,3 +217,23 @@ def test_plain_tables_are_read_by_blocks(
     monkeypatch.setattr(text_rows, "_split_rows", refused)
     assert _by_blocks(tmp_path / "in.csv", ("t", "roll", "pitch"), 5) == expected
     assert len(expected[0]) > 2
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.sampled_from([b",", b";", b"\t", b" "]),
+    st.lists(
+        st.lists(st.sampled_from([b"1", b"-2.5", b"nan", b"", b" ", b"\t", b" 3", b"4\t"]),
+                 min_size=1, max_size=4),
+        min_size=1, max_size=4,
+    ),
+)  # fmt: skip
+def test_the_quick_empty_field_test_never_misses_one(sep: bytes, rows: list[list[bytes]]) -> None:
+    """Wherever the pattern finds an empty or blank field, the quick test says there may
+    be one (it only spares the search on lines that cannot have one)."""
+    from continuum_mhe.io.text_rows import empty_field_pattern, may_have_empty_field
+
+    lines = [sep.join(r) for r in rows]
+    body = b"\n".join(ln for ln in lines if ln.strip())  # blank lines are dropped first
+    if body and empty_field_pattern(sep).search(body):  # a block has a line at least
+        assert may_have_empty_field(body, sep)

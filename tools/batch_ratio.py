@@ -9,7 +9,9 @@ and ``copies`` of it end to end, each one's ``t`` shifted after the one before::
     python tools/batch_ratio.py            # 10 copies: 100,010 samples, 3 runs
     python tools/batch_ratio.py 1 5        # the 10,001 samples, 5 runs
 
-Each run is the command as a user runs it, in a new process; prints per run the wall
+Each run is the command as a user runs it, in a new process (the modules' bytecode
+cached, as an install has it: an untimed first run writes it where it is missing);
+prints per run the wall
 time, the time per sample, the median ``solve_ms`` and their ratio, the same for the
 process's CPU time (user and system: on a loaded machine the wall time counts the other
 processes' turns too) and the machine's load average before it.
@@ -45,13 +47,19 @@ def recording(folder: Path, copies: int) -> Path:
     return out
 
 
+#: The command's environment: as a user's, whose install holds the modules' bytecode
+#: (``pip install`` compiles it; an editable install writes it on first import), which
+#: ``PYTHONDONTWRITEBYTECODE`` (set on some machines) would have every run compile anew.
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def run(argv: list[str]) -> tuple[float, float]:
     """Wall and CPU time (user and system, s) of ``continuum-mhe ARGV`` in a new process,
     start-up included."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, "-m", "continuum_mhe", *argv], check=True,
-                   capture_output=True)  # fmt: skip
+                   capture_output=True, env=ENV)  # fmt: skip
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
@@ -64,6 +72,9 @@ def main() -> None:
         folder = Path(tmp)
         source = recording(folder, copies)
         out = folder / "e.csv"
+        warm = folder / "warm.csv"  # a first, untimed run writes the bytecode it lacks
+        warm.write_text("\n".join(source.read_text().splitlines()[:3]) + "\n")
+        run(["estimate", str(warm), "-o", str(out), "--overwrite"])
         for _ in range(runs):
             load = os.getloadavg()[0]
             wall, cpu = run(["estimate", str(source), "-o", str(out), "--overwrite"])

@@ -462,6 +462,28 @@ def _part(block: SampleBlock, i: int, j: int) -> SampleBlock:
     return SampleBlock(block.lines[i:j], block.t[i:j], block.values[i:j])
 
 
+def empty_field_pattern(sep: bytes) -> re.Pattern[bytes]:
+    """An empty or blank (spaces, tabs) field of lines separated by ``sep``."""
+    blank = b"[" + b" \t".replace(sep, b"") + b"]*"
+    sep_re = re.escape(sep)
+    return re.compile(b"(?:(?<=" + sep_re + b")|^)" + blank + b"(?=" + sep_re + b"|$)", re.M)
+
+
+def may_have_empty_field(body: bytes, sep: bytes) -> bool:
+    """False only where the lines ``body`` (none of them empty) have no empty or blank
+    field: no separator at a line's start or end, none beside another, and no space or
+    tab (a blank field's): a quick test before :func:`empty_field_pattern`'s search."""
+    return (
+        body.startswith(sep)
+        or body.endswith(sep)
+        or sep + sep in body
+        or b"\n" + sep in body
+        or sep + b"\n" in body
+        or b" " in body
+        or b"\t" in body
+    )
+
+
 class _SampleChecks:
     """The checks of :func:`iter_samples` over one table, row by row or a block at a
     time, with their state: the last ``t``, the rows seen, the problems."""
@@ -484,12 +506,8 @@ class _SampleChecks:
         self.last_bad = -1
         self.n_rows = 0  # data rows read
         self.n_out = 0  # samples given
-        sep = re.escape(rows.separator.encode())
-        blank = b"[" + b" \t".replace(rows.separator.encode(), b"") + b"]*"
         #: an empty or blank field (a dropout where ``empty_is_dropout``)
-        self.empty_field = re.compile(
-            b"(?:(?<=" + sep + b")|^)" + blank + b"(?=" + sep + b"|$)", re.M
-        )
+        self.empty_field = empty_field_pattern(rows.separator.encode())
 
     def bad(self, line: int, msg: str, dropped: bool = False) -> None:
         if not self.skip_bad:
@@ -603,8 +621,9 @@ class _SampleChecks:
         if (np.diff(seps, prepend=0) != len(table.header) - 1).any():
             return None
         body = text[:-1] if text.endswith(b"\n") else text
-        if self.empty_is_dropout and self.empty_field.search(body):
-            lines = self.empty_field.sub(b"nan", body).split(b"\n")
+        if self.empty_is_dropout and may_have_empty_field(body, sep):
+            if self.empty_field.search(body):
+                lines = self.empty_field.sub(b"nan", body).split(b"\n")
         try:
             values = np.loadtxt(
                 lines, dtype=np.float64, delimiter=table.separator, comments=None,
