@@ -6,12 +6,10 @@ from __future__ import annotations
 import errno
 import math
 import os
-import select
 import subprocess
 import sys
 import threading
 import time
-import tty
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO
@@ -21,20 +19,14 @@ import numpy as np
 from continuum_mhe.model.direct import raw_imu_readings
 from continuum_mhe.simulation.scenarios import simulate
 
+sys.path.append(str(Path(__file__).resolve().parents[1] / "tools"))
+from live_soak import new_pty as new_pty  # noqa: E402 - the soak tool's simulated device
+from live_soak import write_pty  # noqa: E402
+
 SAFETY_S = 120.0  # a hung test fails after this long instead of blocking the suite
 
-
-def new_pty(link: Path) -> int:
-    """A pseudo-terminal whose device ``link`` points to; returns the master fd."""
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo: nothing comes back to the master
-    name = os.ttyname(slave)
-    os.close(slave)
-    tmp = link.with_suffix(".new")
-    tmp.unlink(missing_ok=True)
-    tmp.symlink_to(name)
-    os.replace(tmp, link)
-    return master
+#: a device's write to a pty (:func:`live_soak.write_pty`): fails after its stall time
+send = write_pty
 
 
 def unplug(master: int, link: Path) -> None:
@@ -44,28 +36,6 @@ def unplug(master: int, link: Path) -> None:
     test's lines."""
     link.unlink()
     os.close(master)
-
-
-def send(master: int, data: bytes, reading: Callable[[], bool] = lambda: True) -> None:
-    """Write ``data`` to the pty's ``master`` as a device would. A write to a pty blocks
-    once the kernel's buffer is full, which a reader that stopped reading leaves full:
-    this returns as soon as ``reading()`` says the reader has gone (the rest can never be
-    read) and fails after ``SAFETY_S`` without progress, instead of blocking the suite."""
-    os.set_blocking(master, False)
-    left = memoryview(data)
-    end = time.monotonic() + SAFETY_S
-    while left:
-        if not select.select([], [master], [], 0.05)[1]:
-            if not reading():
-                return
-            if time.monotonic() > end:
-                raise AssertionError(f"the pty's reader took no data for {SAFETY_S:g} s")
-            continue
-        try:
-            left = left[os.write(master, left) :]
-        except BlockingIOError:
-            continue
-        end = time.monotonic() + SAFETY_S
 
 
 def open_fifo_writer(fifo: Path, reading: Callable[[], bool]) -> IO[str]:

@@ -13,9 +13,11 @@ from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
-from continuum_mhe.simulation.raw_readings import RawNoise, raw_column_names, raw_readings
+from continuum_mhe.simulation.raw_readings import RawNoise, raw_readings
 from continuum_mhe.simulation.scenarios import Recording, simulate_robot
 
+#: the raw CSV's reading columns of two IMUs, in the order the raw reader takes
+TWO_IMUS = tuple(f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))
 QUIET = RawNoise(accel_std=0.0, gyro_std=0.0, gyro_bias_std=0.0)
 TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
 
@@ -34,7 +36,7 @@ def test_at_rest_the_accelerometer_reads_gravity_as_the_tilt_model_does(mounting
     rec = simulate_robot("spatial", robot, duration=2.0, noise_deg=0.0, seed=1)
     row = 37
     values, names = raw_readings(_held(rec, row), robot, QUIET)
-    assert names == raw_column_names(2) and names[:3] == ("ax_1", "ay_1", "az_1")
+    assert names == TWO_IMUS and names[:3] == ("ax_1", "ay_1", "az_1")
     for i in range(2):
         f, w = values[:, 6 * i : 6 * i + 3], values[:, 6 * i + 3 : 6 * i + 6]
         np.testing.assert_allclose(np.linalg.norm(f, axis=1), 9.80665, rtol=1e-12)
@@ -94,7 +96,7 @@ def test_simulate_writes_raw_readings_that_estimate_takes_as_raw(tmp_path: Path,
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "spatial", "--robot", "two-section", "--imu", "raw", "-o",
                  str(meas), "--truth", str(truth), "--duration", "6"]) == 0  # fmt: skip
-    assert meas.read_text().splitlines()[0] == ",".join(("t", *raw_column_names(2)))
+    assert meas.read_text().splitlines()[0] == ",".join(("t", *TWO_IMUS))
     assert main(["estimate", str(meas), "--robot", "two-section", "-o", str(est)]) == 0
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth), "--robot", "two-section", "--json"]) == 0

@@ -33,6 +33,7 @@ import tempfile
 import threading
 import time
 import tty
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,9 +41,10 @@ G = 9.80665
 STALL_S = 120.0  # s without progress before a wait fails instead of blocking
 
 
-def _new_pty(link: Path) -> int:
+def new_pty(link: Path) -> int:
+    """A pseudo-terminal whose device ``link`` points to; returns the master fd."""
     master, slave = os.openpty()
-    tty.setraw(slave)
+    tty.setraw(slave)  # no echo: nothing comes back to the master
     name = os.ttyname(slave)
     os.close(slave)
     tmp = link.with_suffix(".new")
@@ -50,6 +52,28 @@ def _new_pty(link: Path) -> int:
     tmp.symlink_to(name)
     os.replace(tmp, link)
     return master
+
+
+def write_pty(master: int, data: bytes, reading: Callable[[], bool] = lambda: True) -> None:
+    """Write ``data`` to the pty's ``master`` as a device would. A write to a pty blocks
+    once the kernel's buffer is full, which a reader that stopped reading leaves full:
+    this returns as soon as ``reading()`` says the reader has gone (the rest can never be
+    read) and fails after ``STALL_S`` without progress, instead of blocking."""
+    os.set_blocking(master, False)
+    left = memoryview(data)
+    end = time.monotonic() + STALL_S
+    while left:
+        if not select.select([], [master], [], 0.05)[1]:
+            if not reading():
+                return
+            if time.monotonic() > end:
+                raise RuntimeError(f"the pty's reader took no data for {STALL_S:g} s")
+            continue
+        try:
+            left = left[os.write(master, left) :]
+        except BlockingIOError:
+            continue
+        end = time.monotonic() + STALL_S
 
 
 def _line(t_ms: int) -> str:
@@ -103,7 +127,7 @@ class Device(threading.Thread):
         self.received = received  # () -> samples live has recorded so far
         self.reopened = reopened  # () -> times live said the port is back
         self.port, self.rate, self.seconds, self.faults_every = port, rate, seconds, faults_every
-        self.master = _new_pty(port)
+        self.master = new_pty(port)
         self.sent = 0
         self.sent_ranges: list[tuple[int, int, float]] = []  # [first, last) index, time
         self.faults: dict[str, int] = {"garbage": 0, "partial": 0, "mb_line": 0, "port_gone": 0}
@@ -115,21 +139,7 @@ class Device(threading.Thread):
         self.error: BaseException | None = None  # what stopped the stream, if anything
 
     def _write(self, data: bytes) -> None:
-        """Write ``data`` to the pty. A write blocks once the kernel's buffer is full, for
-        ever if live stops reading: this fails after ``STALL_S`` without progress."""
-        os.set_blocking(self.master, False)
-        view = memoryview(data)
-        end = time.monotonic() + STALL_S
-        while view:
-            if not select.select([], [self.master], [], 0.05)[1]:
-                if time.monotonic() > end:
-                    raise RuntimeError(f"live took no data from the port for {STALL_S:g} s")
-                continue
-            try:
-                view = view[os.write(self.master, view) :]
-            except BlockingIOError:
-                continue
-            end = time.monotonic() + STALL_S
+        write_pty(self.master, data)
 
     def _fault(self, k: int) -> None:
         kind = ("garbage", "partial", "mb_line", "port_gone")[k % 4]
@@ -161,7 +171,7 @@ class Device(threading.Thread):
             self.port.unlink()
             os.close(self.master)
             time.sleep(1.0)
-            self.master = _new_pty(self.port)
+            self.master = new_pty(self.port)
             # pyserial flushes what waits in the port when it opens it (as it would with a
             # real device): send nothing until live has reopened the port
             end = time.monotonic() + 30

@@ -621,9 +621,12 @@ class _SampleChecks:
         if (np.diff(seps, prepend=0) != len(table.header) - 1).any():
             return None
         body = text[:-1] if text.endswith(b"\n") else text
-        if self.empty_is_dropout and may_have_empty_field(body, sep):
-            if self.empty_field.search(body):
-                lines = self.empty_field.sub(b"nan", body).split(b"\n")
+        if (
+            self.empty_is_dropout
+            and may_have_empty_field(body, sep)
+            and self.empty_field.search(body)
+        ):
+            lines = self.empty_field.sub(b"nan", body).split(b"\n")
         try:
             values = np.loadtxt(
                 lines, dtype=np.float64, delimiter=table.separator, comments=None,

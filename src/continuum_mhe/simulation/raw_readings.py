@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.raw_imu import RAW_FIELDS
+from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.model.direct import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import bend_from_shape
 from continuum_mhe.model.pcc import pose_at, up_vector
@@ -46,14 +46,6 @@ class RawNoise:
     accel_std: float = 0.05
     gyro_std: float = 0.005
     gyro_bias_std: float = 0.01
-
-
-def raw_column_names(n_imus: int) -> tuple[str, ...]:
-    """The raw CSV's reading columns: ``ax, ay, az, gx, gy, gz`` for one IMU, numbered
-    ``ax_1 ... gz_n`` for several (the order the raw reader takes)."""
-    if n_imus == 1:
-        return RAW_FIELDS
-    return tuple(f"{c}_{i}" for i in range(1, n_imus + 1) for c in RAW_FIELDS)
 
 
 def _bends(rec: Recording, n_sections: int) -> FloatArray:
@@ -106,4 +98,5 @@ def raw_readings(
         force = force + rng.normal(0.0, noise.accel_std, force.shape)
         rate = rate + bias + rng.normal(0.0, noise.gyro_std, rate.shape)
         blocks.append(np.hstack([force, rate]))
-    return np.hstack(blocks), raw_column_names(robot.n_imus)
+    names = tuple(c for i in range(robot.n_imus) for c in raw_columns(i, robot.n_imus))
+    return np.hstack(blocks), names
