@@ -113,7 +113,7 @@ def test_not_checked_where_the_covariance_is_a_weight() -> None:
 # --- an IMU back after a silence --------------------------------------------------------
 TWO_SECTIONS = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.toml"
 #: ``(seed, silent IMU, from t s, for s)`` on the two-section ``spatial`` scenario. Without
-#: the check of a returned IMU, ``ok`` estimates after the return were up to (tip error /
+#: the check of a returned IMU, ``ok`` estimates after the return are up to (tip error /
 #: its own standard deviation): tip IMU 3 s: EKF 33 (119 mm); middle IMU 3 s: EKF 9.7,
 #: UKF 15; tip IMU 2 s: MHE 41.
 SILENCES = [(1, 1, 8.0, 3.0), (0, 0, 6.0, 3.0), (5, 1, 10.0, 2.0)]
@@ -137,7 +137,7 @@ def sigmas_off(s, truth) -> np.ndarray:
     return err / np.linalg.norm(s.output_std[:, :3], axis=1)
 
 
-#: the MHE on IPOPT (the slowest estimator) on the silence the MHE got wrong; the
+#: the MHE on IPOPT (the slowest estimator) on the silence the MHE gets wrong; the
 #: policy that flags a return is the same for every estimator
 SILENCE_CASES = [
     pytest.param(index, silence, id=f"{IDS[index]}-{name}")
@@ -169,7 +169,7 @@ def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> 
 def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) -> None:
     """With ``bad_start`` the check reopens when the IMU returns: the EKF, 33 standard
     deviations off, restarts from the reading two samples later (0.4 s earlier than
-    its own divergence check did) and is within 1.5 cm from there on; the same
+    its own divergence check would) and is within 1.5 cm from there on; the same
     recording without the silence gets no status but ``ok``."""
     f, t, z, truth = silent_imu_recording(*SILENCES[0])
     est = recovery_estimators(bare(gap_reset=1.0, bad_start=2.0), f)[index]
@@ -195,7 +195,7 @@ def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) 
 
 def test_an_imu_that_reports_only_later_is_confirmed_as_one_back() -> None:
     """An IMU that never reported before counts from the recording's first reading: the
-    tip IMU first reporting at 3 s is held ``uncertain`` until its readings agreed."""
+    tip IMU first reporting at 3 s is held ``uncertain`` until its readings agree."""
     f, t, z, truth = silent_imu_recording(1, 1, 0.0, 3.0)
     s = make_estimator("ekf", f).run(t, z)
     first = np.flatnonzero(t >= 3.0)[0]

@@ -42,7 +42,8 @@ def test_ekf_kernel_gives_the_casadi_ekf_answers(name: str) -> None:
 def test_dompc_with_our_cost_solves_our_problem_once_the_window_is_full() -> None:
     """do-mpc, given the tangent-plane residual and the EKF arrival prior through its
     API, is an independent peer of the IPOPT backend from sample N on (1e-6; both
-    converge to IPOPT's tolerance). Before, it has no growing window, so it differs."""
+    converge to IPOPT's tolerance). Before sample N it has no growing window, so it
+    differs."""
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=2.0, seed=0)
     n = 6
@@ -166,8 +167,8 @@ def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> 
 def test_a_horizon_longer_than_the_recording_is_one_line_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
 ) -> None:
-    """Before: internal error (exit 70, IndexError after "Mean of empty slice") once
-    the horizon's runs were done: no window was ever full."""
+    """A horizon longer than the recording (no window is ever full) is one line, exit
+    2, before anything runs, not an internal error once the horizon's runs are done."""
     from continuum_mhe.cli import main
 
     out = tmp_path / "bench.json"
@@ -293,8 +294,8 @@ def test_a_missing_peer_is_skipped_with_the_line_that_installs_it(
 
 def test_the_robot_benchmarks_raw_readings_are_unit_directions() -> None:
     """``benchmark --robot`` times the direct model on readings with noise: each IMU's
-    specific force stays a direction (the estimators refuse one that is not; a
-    three-section robot's noisy readings were 0.95 long and its benchmark stopped)."""
+    specific force stays a direction, also on a three-section robot (the estimators
+    refuse one that is not: readings 0.95 long would stop its benchmark)."""
     from continuum_mhe.benchmark.harness import raw_imu_recording
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.registry import make_formulation
@@ -315,8 +316,8 @@ def test_the_robot_benchmarks_raw_readings_are_unit_directions() -> None:
 def test_the_ratios_line_names_only_the_contenders_that_ran(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """With the EKFs skipped the fast MHE's line gives its ratio to IPOPT alone (it
-    printed '-x the compiled EKF' for the contenders that did not run)."""
+    """With the EKFs skipped the fast MHE's line gives its ratio to IPOPT alone, with no
+    '-x the compiled EKF' for the contenders that did not run."""
     report = bm.run_benchmark([3], 0.4, ("fast", "ipopt"), 0, (), repeats=1)
     bm.print_report(report)
     out = " ".join(capsys.readouterr().out.split())

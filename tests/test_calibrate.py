@@ -114,9 +114,9 @@ def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_names_the_garbled_lines(tmp_path: Path) -> None:
-    """Two IMUs' lines to a one-IMU calibrate: it said 'is it streaming?'; now the first
-    garbled line's cause, once garbled lines have come for 2 s beyond --seconds with no
-    valid one (it waited the board's 15 s start-up allowance before)."""
+    """Two IMUs' lines to a one-IMU calibrate: the first garbled line's cause (not 'is
+    it streaming?'), once garbled lines have come for 2 s beyond --seconds with no valid
+    one (not after the board's 15 s start-up allowance)."""
     from live_helpers import raw_line
 
     acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
@@ -197,7 +197,8 @@ def _calibrate_cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_calibrate_refuses_a_moving_recording() -> None:
-    """The shipped planar-S run bends to 87 deg: it gave mount_rpy = [43.85, -0.60, 0]."""
+    """The shipped planar-S run bends to 87 deg: refused in one line as a moving robot
+    (taken as still, it would give mount_rpy = [43.85, -0.60, 0])."""
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
     res = _calibrate_cli("--from", str(data / "planar-s_raw.csv"), "--robot", "two-section")
     assert res.returncode == 2
@@ -225,10 +226,10 @@ def _calibrate_main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int
 def test_the_stillness_bounds_are_options_for_a_noisier_imu(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: STILL_ACC_STD and STILL_GYRO_STD were fixed, so a still robot with an IMU
-    noisier than the MPU9250 (here +-0.3 m/s^2 on ay, std 0.3; +-0.06 rad/s on gx) could
-    not be calibrated. The default still refuses it and says which option to raise;
-    --still-acc-std and --still-gyro-std let it pass, with the exact mounting."""
+    """A still robot with an IMU noisier than the MPU9250 (here +-0.3 m/s^2 on ay, std
+    0.3; +-0.06 rad/s on gx) can be calibrated: the default stillness bounds refuse it
+    and say which option to raise; --still-acc-std and --still-gyro-std let it pass,
+    with the exact mounting."""
     n = 400
     values = _rest_values(n, 0.3, 0.06, tilt_deg=5.0)
     t = 0.01 * np.arange(n)
@@ -246,7 +247,7 @@ def test_the_stillness_bounds_are_options_for_a_noisier_imu(
         "raise --still-acc-std\n"
     )
     code, out, err = _calibrate_main(capsys, "--from", str(path), "--still-acc-std", "0.4")
-    assert code == 2 and out == ""  # now the gyro's spread is the one beyond its bound
+    assert code == 2 and out == ""  # then the gyro's spread is the one beyond its bound
     assert "IMU 1's gyro spread (std of gx) is 0.0601 rad/s, above the 0.05 rad/s" in err
     assert err.endswith("; if the robot was still, raise --still-gyro-std\n")
     args = ["--from", str(path), "--still-acc-std", "0.4", "--still-gyro-std", "0.1"]
@@ -315,10 +316,10 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The shipped rod stands on its base (z-up). Described as z-down, its rest
-    recording put every IMU about 180 degrees from where z-down puts it; calibrate wrote
-    mount_rpy = [179.8, 0.19, 0] for each (every board "upside down"), and estimates
-    with that file were mirrored, 183 mm off, every row ok. Refused now in one line
-    naming mounting, nothing written; one IMU turned over on its disk still calibrates."""
+    recording puts every IMU about 180 degrees from where z-down puts it (calibrated,
+    mount_rpy = [179.8, 0.19, 0] for each, every board "upside down", and estimates
+    mirrored, 183 mm off, every row ok): refused in one line naming mounting, nothing
+    written; one IMU turned over on its disk still calibrates."""
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
     robot = tmp_path / "down.toml"
     robot.write_text(

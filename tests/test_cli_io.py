@@ -161,10 +161,10 @@ def test_bad_measurement_file_is_rejected_cleanly(tmp_path, capsys, case):
 
 
 def test_one_angle_out_of_range_is_a_glitch_not_degrees(tmp_path, capsys):
-    """One pitch of 45 among radians said "the angles look like degrees: pass --degrees",
-    and --degrees then read the whole file 57 times too small (82 mm off, every row ok),
-    while --skip-bad refused it too. The line says how many rows are out of range and
-    that --skip-bad reads them as dropouts; with it that row is a dropout, counted."""
+    """One pitch of 45 among radians is a glitch, not degrees: the line names it, says
+    how many rows are out of range and that --skip-bad reads them as dropouts, and does
+    not suggest --degrees (which would read the whole file 57 times too small); with
+    --skip-bad that row is a dropout, counted."""
     rows = [f"{0.05 * i:g},{0.1 + 0.001 * i:g},{0.2:g}" for i in range(60)]
     rows[30] = "1.5,0.13,45"
     meas = _write(tmp_path / "meas.csv", "t,roll,pitch\n" + "\n".join(rows) + "\n")
@@ -219,7 +219,9 @@ def test_skip_bad_keeps_rows_as_dropouts_and_counts(tmp_path, capsys):
 
 
 def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, capsys):
-    """Before: the sixth field of a row under a five-column header was ignored (ok)."""
+    """A row with one field more than its header is not read as if the field were not
+    there: with --skip-bad the whole sample is a dropout, counted and named ('expected 3
+    fields, found 4'); an empty trailing field is read as it is."""
     rows = _good_rows(20)
     good = read_measurements(_meas(tmp_path, rows)).z
     rows[7] += ",0.3"  # which field is extra is unknown: the whole sample is a dropout
@@ -401,9 +403,8 @@ def test_robot_option_names_only_options_its_command_has():
 
 
 def test_simulate_writes_both_files_or_neither(tmp_path, capsys):
-    """Before: a --truth path in a missing folder failed after the measurements were
-    written (they stayed), and --truth naming -o's file replaced the measurements with
-    the truth, exit 0."""
+    """simulate writes both files or neither: a --truth path in a missing folder, or
+    --truth naming -o's file, is one line, exit 2, and no measurement file is written."""
     meas, lost = tmp_path / "g.csv", tmp_path / "no" / "t.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(lost)]) == 2
     assert "folder" in capsys.readouterr().err and not meas.exists()
@@ -449,10 +450,10 @@ def short_demo(monkeypatch):
 def test_an_interrupted_demo_leaves_nothing_it_wrote(
     tmp_path, capsys, monkeypatch, existing, short_demo
 ):
-    """Before: Ctrl-C during ``demo`` left a folder with the estimates written so far.
-    Now the files are written after the estimates, and an interruption while writing
-    (here: while saving the second figure) removes the files it created, and the folders
-    it created; a user's own files in an existing folder stay."""
+    """Ctrl-C during ``demo`` leaves nothing it wrote: the files are written after the
+    estimates, and an interruption while writing (here: while saving the second figure)
+    removes the files it created, and the folders it created; a user's own files in an
+    existing folder stay."""
     from continuum_mhe.evaluation import plotting
 
     out = tmp_path / "new" / "demo"
@@ -480,8 +481,8 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(
 
 def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys, short_demo):
     """A demo that fails writing (a read-only truth.csv) removes only what it created:
-    the read-only file, never replaced, stays as it was (the first review of the
-    all-or-nothing writing deleted it), and so does a replaced estimates file."""
+    the read-only file, never replaced, stays as it was (the clean-up does not delete
+    it), and so does a replaced estimates file."""
     out = tmp_path / "demo"
     out.mkdir()
     (out / "estimates_mhe.csv").write_text("old\n")
@@ -509,8 +510,8 @@ def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch)
 def test_demo_and_reproduce_keep_their_files_in_their_folder_without_overwrite(
     tmp_path, capsys, monkeypatch
 ):
-    """``demo`` replaced a ``truth.csv`` already in its folder with no word, and
-    ``reproduce`` its experiments' data. Now one line naming the file and
+    """``demo`` does not replace a ``truth.csv`` already in its folder, nor ``reproduce``
+    its experiments' data, without ``--overwrite``: one line naming the file and
     ``--overwrite``, exit 2, before any work, the file kept. A file of another name does
     not stop the demo, nor another part's data ``reproduce --only`` (the report covers
     every part in the folder)."""
@@ -545,7 +546,7 @@ def test_demo_and_reproduce_keep_their_files_in_their_folder_without_overwrite(
 
 def test_main_gives_the_caller_its_warnings_and_signal_handlers_back(tmp_path):
     """A script or test that calls ``main`` keeps numpy's warnings, its warning format
-    and its Ctrl-C handler: before, the command's settings stayed process-wide."""
+    and its Ctrl-C handler: the command's settings do not outlive the call."""
     import signal
     import warnings
 
@@ -563,10 +564,10 @@ def test_main_gives_the_caller_its_warnings_and_signal_handlers_back(tmp_path):
 def test_evaluate_warns_when_the_length_does_not_fit_the_files(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: evaluate --length 0.3 on files made for a 0.2 m robot said nothing (tip
-    errors in % of the wrong length). Now each file whose tip is not where its own angles
-    put it on the given robot is named, with the length it was made for; a truth without
-    angles whose tip is farther from the base than the length is named too."""
+    """evaluate --length 0.3 on files made for a 0.2 m robot (tip errors in % of the
+    wrong length) warns: each file whose tip is not where its own angles put it on the
+    given robot is named, with the length it was made for; a truth without angles whose
+    tip is farther from the base than the length is named too."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
                  "--duration", "2"]) == 0  # fmt: skip
@@ -591,8 +592,9 @@ def test_evaluate_warns_when_the_length_does_not_fit_the_files(
 
 
 def test_simulate_says_that_a_robot_files_mount_rpy_is_not_applied(tmp_path, capsys):
-    """simulate --robot wrote the disks' roll and pitch without a word about the IMUs'
-    mount_rpy of the robot file (estimate says the same of tilt input)."""
+    """simulate --robot writes the disks' roll and pitch and says, in a note, that the
+    robot file's mount_rpy of an IMU is not applied (estimate says the same of tilt
+    input); a robot file without mount_rpy gets no note."""
     robot = tmp_path / "r.toml"
     robot.write_text(
         "[[section]]\nlength = 0.16\ntheta_max = 3.0\n[[section]]\nlength = 0.14\n"

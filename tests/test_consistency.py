@@ -56,9 +56,9 @@ def test_rows_many_standard_deviations_off_at_1_hz_are_not_ok(method, seed) -> N
     """Sampled at 1 Hz the bend moves far between readings and the EKF's one
     linearisation falls behind: its update leaves a residual that no linear update
     leaves, pointing to a shape outside its covariance. Without the checks 49 ``ok``
-    rows were 4 to 25 of their own standard deviations off; with the tests on the
+    rows are 4 to 25 of their own standard deviations off; with the tests on the
     innovation and the fit alone, 1 to 5 rows per recording 4 to 6.8 off. No ``ok`` row
-    is 4 off in x or y now, on any estimator; the MHE, which fits its window, keeps
+    is 4 off in x or y, on any estimator; the MHE, which fits its window, keeps
     every row ``ok``. (The linearised ``std_z`` of a nearly straight robot is near zero,
     as its tip's ``z`` moves to second order: one EKF row at 0.04 rad of bend is 0.06
     mm and 4.5 of its ``std_z`` off in z.)"""
@@ -76,8 +76,8 @@ def test_a_restart_keeps_the_model_error_the_readings_showed() -> None:
     """Noise three times the assumed one: the innovations' average shows it, the rows
     are ``inconsistent`` and the standard deviations carry the model error. A gap that
     restarts the estimator does not make the model right: after it the learned model
-    error and the ``inconsistent`` rows remain (they were forgotten, and the rows after
-    the gap said ``ok`` with the noise-only standard deviations)."""
+    error and the ``inconsistent`` rows remain (forgotten, the rows after the gap would
+    say ``ok`` with the noise-only standard deviations)."""
 
     rec = simulate("paper3d", duration=10.0, seed=2, noise_deg=6.0, noise_model="tangent")
     keep = (rec.t < 5.0) | (rec.t > 6.5)  # a 1.5 s gap: the gap reset restarts at 6.5 s
@@ -234,8 +234,8 @@ def test_ok_rows_cover_the_truth_over_the_rods_with_the_command_line_defaults(tm
     three that twist), estimated by ``continuum-mhe estimate --method ekf`` with its
     defaults, whose bad-start check restarts the estimator where the readings disagree:
     pooled, the ``ok`` rows' 95 % intervals cover the truth 85 to 99 % of the time per
-    axis. Before, each restart forgot the model error the readings had shown and rows
-    were ``ok`` again at once (coverage 91 / 86 / 81 %)."""
+    axis. A restart keeps the model error the readings showed (a restart that forgets it
+    makes rows ``ok`` again at once: coverage 91 / 86 / 81 %)."""
     from continuum_mhe.cli import main
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
@@ -260,8 +260,8 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok(name) -> None:
     """The shipped tendon robot under a 0.29 N or 0.08 N tip force (PyElastica, 13 or
     7 degrees of twist), raw IMUs, estimated without tensions by the PCC model
     (defaults): the model cannot follow, and at least 80 % of the rows more than 20 mm
-    off are not ``ok``. force-08: 73 % while a row was ``ok`` again as soon as the
-    innovations' average dropped below its quantile; its far rows come right after
+    off are not ``ok``. force-08: 73 % if a row is ``ok`` again as soon as the
+    innovations' average drops below its quantile; its far rows come right after
     stretches the average flagged."""
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
@@ -286,8 +286,8 @@ def test_loaded_tendon_robot_by_a_pcc_robot_of_its_geometry_far_rows_are_not_ok(
     robot moves one way, at about two to four times the level the readings scatter at
     while the model follows (which is a third of what ``R`` says), and fades between
     those phases. At least 80 % of the rows more than 20 mm off are not ``ok`` (54 %
-    where the average was judged against ``R``'s level, 74 % where a model error ended
-    as soon as the average touched the quiet level)."""
+    with the average judged against ``R``'s level, 74 % with a model error that ends as
+    soon as the average touches the quiet level)."""
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
@@ -312,7 +312,7 @@ def test_readings_noisier_than_their_own_level_are_inconsistent_below_r(method) 
     10 s, then nine times noisier than that (1.5 degrees, still below ``R``'s 2): the
     average of NIS / dof is judged against the level the readings scattered at while
     the model followed them, so most rows of the louder half are ``inconsistent`` (none
-    were when it was judged against 1, ``R``'s level), and the quiet half stays ``ok``."""
+    would be against 1, ``R``'s level), and the quiet half stays ``ok``."""
     quiet = simulate("paper3d", duration=20.0, seed=4, noise_deg=0.5, noise_model="tangent")
     loud = simulate("paper3d", duration=20.0, seed=5, noise_deg=1.5, noise_model="tangent")
     np.testing.assert_array_equal(quiet.truth, loud.truth)  # one motion, two noises

@@ -54,9 +54,9 @@ def test_ekf_gimbal_flip_is_flagged_not_ok() -> None:
 
 
 def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
-    # its sigma points' tangent-plane residuals straddled the singularity at a half turn
-    # (-1414 against +130): the update kept x = +0.127 m where the reading says -0.127,
-    # status ok, with std y 1e-6 m
+    # its sigma points' tangent-plane residuals straddle the singularity at a half turn
+    # (-1414 against +130): an unchecked update keeps x = +0.127 m where the reading says
+    # -0.127, status ok, with std y 1e-6 m
     data = read_measurements(REPRO / "gimbal_flip.csv")
     est = make_estimator("ukf", make_formulation("bend"))
     series = est.run(data.t, data.z)

@@ -119,10 +119,11 @@ def test_step_after_run_suggests_reset():
     ids=["import-sigint", "import-sigterm", "parser-sigterm", "parser-sigint"],
 )
 def test_a_signal_during_start_up_says_one_line(tmp_path, module, sig, said, code):
-    """Before: Ctrl-C while the modules were still importing printed a 30-line
-    KeyboardInterrupt traceback (entry.py, cli.py, settings.py ...), and so did a signal
-    while the parser imported the commands. Now one line and 130 (SIGTERM: 143). The
-    signal is sent by an import hook when ``module`` is first looked for."""
+    """Ctrl-C while the modules are still importing, or a signal while the parser
+    imports the commands, is one line and 130 (SIGTERM: 143), never a 30-line
+    KeyboardInterrupt traceback (entry.py, cli.py, settings.py ...); a SIGTERM before the
+    command line sets its handlers kills it quietly. The signal is sent by an import hook
+    when ``module`` is first looked for."""
     code_text = (
         "import os, signal, sys\n"
         # a child of a background job inherits SIGINT ignored, and Python then installs

@@ -713,7 +713,7 @@ def test_outputs_of_any_size_with_the_formulations_wrapped_angles() -> None:
 
 @dataclass(frozen=True)
 class _ScalarBall(BendFormulation):
-    """Today's scalar form of ``constraint_sym``: ``(g, lo, hi)`` with floats."""
+    """A ``constraint_sym`` in its scalar form: ``(g, lo, hi)`` with floats."""
 
     def constraint_sym(self, x):
         return x[0] ** 2 + x[1] ** 2, -np.inf, 1.0

@@ -1,6 +1,6 @@
 """Fuzzing the readers and the estimate command (bounded, a few seconds).
 
-A seed corpus (tests/data/fuzz/: inputs that once crashed, hung or lied) runs through
+A seed corpus (tests/data/fuzz/: inputs that can make a reader crash, hang or lie) runs through
 ``estimate`` with every estimator; hypothesis then builds CSV texts from valid rows,
 garbage tokens, separators, comments and extreme numbers. Every outcome must be one of:
 estimates for every kept row, finite, with a documented status (exit 0, one summary
@@ -51,7 +51,7 @@ SEED_OUTCOMES = {
 }
 
 #: seeds whose equal readings have a long gap between them: a gap, not a frozen IMU
-#: (once the second reading was taken as frozen: huge_t's sample at t=1e300 got
+#: (the second reading taken as frozen would give huge_t's sample at t=1e300
 #: no-estimate or not-converged, long_gap's at t=60 no-estimate from the EKF)
 GAP_NOT_FREEZE = ("huge_t.csv", "long_gap.csv")
 

@@ -192,8 +192,9 @@ def test_bias_flag_needs_the_direct_model(tmp_path) -> None:  # type: ignore[no-
 
 
 def test_estimate_cli_with_bias_keeps_the_columns(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
-    """``estimate --imu-model direct --estimate-gyro-bias`` writes today's columns; the
-    flag on tilt input is one line, exit 2, nothing written."""
+    """``estimate --imu-model direct --estimate-gyro-bias`` writes the columns of any
+    estimate (the bias is a state, not an output); the flag on tilt input is one line,
+    exit 2, nothing written."""
     from continuum_mhe.cli import main
 
     t, z, _ = _recording("one", 2.0)

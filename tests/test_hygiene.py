@@ -130,7 +130,7 @@ def test_readme_cli_examples_run(tmp_path, monkeypatch, capsys):
 
     They run in this process, through the executable's own entry point
     (``continuum_mhe.cli.entry.main``, what the ``continuum-mhe`` script calls): a fresh
-    interpreter per line spent over a second importing each time (20 s of the suite);
+    interpreter per line would spend over a second importing each time (20 s of the suite);
     the executable itself is run by the demo test above and ``test_signals``."""
     from continuum_mhe.cli.entry import main
 

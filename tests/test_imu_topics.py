@@ -240,10 +240,9 @@ def test_wrong_topics_are_one_line(
 def test_topics_in_the_wrong_order_warn_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: a two-IMU robot whose --topic order was swapped ran to exit 0 with many
-    resets and no hint. Now more than ORDER_RESTART_SHARE of the samples restarting the
-    estimator warns once that the topic order may not be the robot's; the right order
-    (no restart) does not."""
+    """A two-IMU robot whose --topic order is swapped restarts the estimator often:
+    more than ORDER_RESTART_SHARE of the samples restarting it warns once that the topic
+    order may not be the robot's; the right order (far fewer restarts) does not."""
     import warnings
 
     from continuum_mhe.io.imu_topics import TopicOrderWarning

@@ -50,8 +50,8 @@ def _one_line_error(capsys: pytest.CaptureFixture[str], code: int, out: Path) ->
 # --- lines read whole -------------------------------------------------------------------------
 def test_a_long_utf8_comment_line_is_read_whole(tmp_path: Path) -> None:
     """utf8_long_comment.csv (generated here): a 65,538-byte comment of two-byte
-    characters. Read 65,537 bytes at a time, the line was cut inside a character and
-    refused as 'not UTF-8'."""
+    characters is read whole, not cut inside a character (as reading 65,537 bytes at a
+    time would) and refused as 'not UTF-8'."""
     path = tmp_path / "utf8_long_comment.csv"
     path.write_bytes(HEAD + b"# " + E_ACUTE * 32768 + b"\n0.05,0.1,0.1\n")
     assert path.stat().st_size == 65575  # the reproducer's size
@@ -61,7 +61,7 @@ def test_a_long_utf8_comment_line_is_read_whole(tmp_path: Path) -> None:
 
 def test_text_inside_a_long_comment_never_becomes_a_sample(tmp_path: Path) -> None:
     """utf8_injected_row.csv (generated here): a comment whose text after 65,537 bytes
-    reads as a row. Cut there, it gave three estimates from two samples."""
+    reads as a row stays a comment: two samples, not three (as a cut there would give)."""
     path = tmp_path / "utf8_injected_row.csv"
     path.write_bytes(HEAD + b"#" + E_ACUTE * 32768 + b"0.025,1.2,-0.9\n0.05,0.1,0.1\n")
     assert path.stat().st_size == 65588
@@ -85,7 +85,8 @@ def test_a_line_over_the_limit_is_one_line_naming_it(tmp_path: Path) -> None:
 def test_cr_only_line_ends_are_one_short_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """cr_only.csv: the whole file was one line, quoted whole in the message (3.4 kB)."""
+    """cr_only.csv (3.4 kB, lines ending in CR alone): one short line naming the line
+    ends and the fix, not the whole file quoted as one line."""
     out = tmp_path / "e.csv"
     path = REPRO / "cr_only.csv"
     line = _one_line_error(capsys, main(["estimate", str(path), "-o", str(out)]), out)
@@ -105,7 +106,7 @@ def test_a_long_header_is_cut_in_messages(tmp_path: Path) -> None:
 
 # --- ambiguous headers and numbers ----------------------------------------------------------
 def test_a_column_named_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
-    """dup_header.csv: two roll columns; the first was used."""
+    """dup_header.csv: two roll columns are refused in one line, not the first used."""
     out = tmp_path / "e.csv"
     path = REPRO / "dup_header.csv"
     code = main(["estimate", str(path), "-o", str(out), "--method", "ekf"])
@@ -118,7 +119,8 @@ def test_a_column_named_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureF
 def test_tilt_and_raw_columns_in_one_header_are_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """both_tilt_raw.csv: read as raw, silently."""
+    """both_tilt_raw.csv: a header with both tilt and raw columns is refused in one line,
+    not read as raw."""
     out = tmp_path / "e.csv"
     path = REPRO / "both_tilt_raw.csv"
     code = main(["estimate", str(path), "-o", str(out), "--method", "ekf"])
@@ -130,7 +132,8 @@ def test_tilt_and_raw_columns_in_one_header_are_refused(
 
 @pytest.mark.parametrize("text", ["1_0", "0.1_5", "\uff10.1", "\u0661"])
 def test_python_only_numbers_are_not_numbers(tmp_path: Path, text: str) -> None:
-    """float() reads 1_0 as 10 and fullwidth or Arabic-Indic digits as numbers."""
+    """What float() reads as numbers and a CSV does not hold (1_0 as 10, fullwidth or
+    Arabic-Indic digits) is not a number, in files and in live lines."""
     path = tmp_path / "m.csv"
     path.write_text(f"t,roll,pitch\n0,{text},0.1\n", encoding="utf-8")
     with pytest.raises(InputError, match=r"line 2: column roll: .* is not a number"):
@@ -160,8 +163,8 @@ FIRMWARE_CAPTURE = (
 def test_the_firmware_capture_is_read_by_estimate(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """'line 5: no header line; the first line is data': only '# format:' and
-    '# columns:' were read as a header, not the firmware's '# fields:'."""
+    """The firmware's '# fields:' comment is read as the header, as '# format:' and
+    '# columns:' are (not 'line 5: no header line; the first line is data')."""
     path = tmp_path / "capture.txt"
     path.write_text(FIRMWARE_CAPTURE)
     table = read_raw_imu(path)
@@ -199,7 +202,8 @@ ROBOT = "[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n"
 def test_deeply_nested_robot_file_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """deep_nesting.toml: RecursionError in the TOML parser, exit 70."""
+    """deep_nesting.toml: one line, exit 2 (not a RecursionError in the TOML parser,
+    exit 70)."""
     path = REPRO / "deep_nesting.toml"
     assert main(["check-robot", str(path)]) == 2
     assert capsys.readouterr().err == (
@@ -208,7 +212,7 @@ def test_deeply_nested_robot_file_is_one_line(
 
 
 def test_a_byte_order_mark_is_read_in_robot_files_as_in_csvs(tmp_path: Path) -> None:
-    """A BOM was refused in robot files ('not valid TOML') and accepted in CSVs."""
+    """A BOM is read in robot files (not refused as 'not valid TOML') as in CSVs."""
     path = tmp_path / "r.toml"
     path.write_bytes(b"\xef\xbb\xbf" + ROBOT.encode())
     assert read_robot(path).sections[0].length == 0.2
@@ -252,8 +256,8 @@ def test_library_robot_values_have_the_same_limits() -> None:
 
 
 def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> None:
-    """at = 1e-300: the IMU does not move with the bend, yet check-robot said
-    'observable' (the singular values' ratio is 1 when all are 1e-300)."""
+    """at = 1e-300: the IMU does not move with the bend, and check-robot does not call
+    it observable (the singular values' ratio is 1 when all are 1e-300)."""
     robot = Robot((Section(0.2),), (ImuPlacement(0, 1e-300),))
     report = observability_report(robot, samples=20)
     assert report.tilt.full_rank_fraction == 0.0 and verdict(report).startswith("NOT")
@@ -276,7 +280,8 @@ def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> Non
 def test_an_option_of_the_wrong_type_is_one_line_naming_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str, expected: str
 ) -> None:
-    """Was argparse's 22-line usage, then the error."""
+    """One line naming the option and what it expects, not argparse's 22-line usage
+    then the error."""
     out = tmp_path / "e.csv"
     with pytest.raises(SystemExit) as exit_:
         main(["estimate", str(REPRO / "gimbal_flip.csv"), "-o", str(out), option, value])
@@ -289,7 +294,8 @@ def test_an_option_of_the_wrong_type_is_one_line_naming_it(
 def test_a_misspelt_command_is_one_line_with_the_closest(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """'estimat' listed argparse's choices without the one meant."""
+    """'estimat': one line naming the closest command (did you mean estimate?), not
+    argparse's choices alone."""
     with pytest.raises(SystemExit) as exit_:
         main(["estimat", "x.csv"])
     err = capsys.readouterr().err
@@ -302,7 +308,8 @@ def test_a_misspelt_command_is_one_line_with_the_closest(
 def test_a_vanishing_noise_is_one_line_not_a_singular_matrix(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], method: str
 ) -> None:
-    """--noise-deg 1e-300: 'LinAlgError: Singular matrix', exit 70."""
+    """--noise-deg 1e-300: one line naming the smallest noise the estimators take, exit
+    2 (not 'LinAlgError: Singular matrix', exit 70)."""
     out = tmp_path / "e.csv"
     argv = ["estimate", str(REPRO / "gimbal_flip.csv"), "-o", str(out), "--method", method]
     line = _one_line_error(capsys, main([*argv, "--noise-deg", "1e-300"]), out)
@@ -315,7 +322,8 @@ def test_a_vanishing_noise_is_one_line_not_a_singular_matrix(
 
 
 def test_estimate_from_a_closed_standard_input_is_one_line(tmp_path: Path) -> None:
-    """`estimate - <&-`: AttributeError ('NoneType' has no 'fileno'), exit 70."""
+    """`estimate - <&-`: one line saying standard input is closed, exit 2 (not an
+    AttributeError, exit 70)."""
     out = tmp_path / "e.csv"
     # the shell closes the standard input (a preexec_fn, run between fork and exec, may
     # block on a lock another thread of the test's process held)
@@ -331,7 +339,7 @@ def test_estimate_from_a_closed_standard_input_is_one_line(tmp_path: Path) -> No
 
 
 def test_a_huge_horizon_is_a_user_error_in_the_library() -> None:
-    """horizon=10**9: CasADi's std::bad_alloc."""
+    """horizon=10**9 is a UserError naming the range (not CasADi's std::bad_alloc)."""
     for horizon in (10**9, 1001, 2.5, True):
         with pytest.raises(UserError, match="horizon must be an integer from 2 to 1000"):
             MHESettings(horizon=horizon)
@@ -365,15 +373,17 @@ def _bend() -> Formulation:
     ],
 )
 def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: str) -> None:
-    """Each raised a plain TypeError, ValueError or AttributeError."""
+    """Each is the project's one-line UserError, not a plain TypeError, ValueError or
+    AttributeError."""
     with pytest.raises(UserError) as info:
         call()
     assert message in str(info.value) and "\n" not in str(info.value)
 
 
-# --- messages that said the wrong cause ------------------------------------------------------
+# --- messages that name the right cause ------------------------------------------------------
 def test_an_infinite_angle_is_not_called_degrees() -> None:
-    """step() with roll = inf said 'the angles look like degrees'."""
+    """step() with roll = inf names an infinite angle, not 'the angles look like
+    degrees' (which 45 gets)."""
     est = make_estimator("ekf", _bend())
     with pytest.raises(UserError, match=r"roll=inf, pitch=0\.1: an infinite angle; a sensor"):
         est.step(Measurement(0.0, np.array([np.inf, 0.1])))
@@ -384,8 +394,9 @@ def test_an_infinite_angle_is_not_called_degrees() -> None:
 def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """'no sample gave an estimate (...; every sample is a dropout)' when the robust loss
-    had rejected every sample, none a dropout."""
+    """When the robust loss rejects every sample, none a dropout, 'no sample gave an
+    estimate' names the loss and the fix, not 'every sample is a dropout' (which
+    dropouts get)."""
     from continuum_mhe.estimators.sensor_health import STATUSES, Batch, Estimator
 
     def rejected(self: Estimator, t: np.ndarray, z: np.ndarray, *args: object) -> Batch:
@@ -425,8 +436,9 @@ def test_a_huge_robot_file_value_is_cut_in_the_message(tmp_path: Path) -> None:
 
 
 def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path: Path) -> None:
-    """SIGTERM while the interpreter shut down after a complete command killed it (status
-    -15, the output complete). An exit handler sends it here, at that very moment."""
+    """SIGTERM while the interpreter shuts down after a complete command does not kill
+    it (status -15): the status stays 0, the output complete. An exit handler sends it
+    here, at that very moment."""
     script = tmp_path / "late_signal.py"
     script.write_text(
         "import atexit, os, signal, sys, time\n"
@@ -460,9 +472,8 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
     ],
 )  # fmt: skip
 def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message: str) -> None:
-    """A robot file's problem named the table and key but not the line, where every
-    other input's names it: the key's line where the message names a key, else its
-    table's header."""
+    """A robot file's problem names its line, as every other input's does: the key's
+    line where the message names a key, else its table's header."""
     path = tmp_path / "r.toml"
     path.write_text(text)
     with pytest.raises(InputError) as info:
@@ -471,9 +482,10 @@ def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message:
 
 
 def test_library_mistakes_are_one_line_user_errors() -> None:
-    """A library user's trial: an unknown formulation option was Python's TypeError, a
-    robot name for simulate_robot an AttributeError nine frames deep, and freeze=0 (the
-    command line's "never") did not say that None means never."""
+    """Mistakes from a library user's trial are one-line UserErrors: an unknown
+    formulation option (not Python's TypeError), a robot name for simulate_robot (not an
+    AttributeError nine frames deep), and freeze=0 (the command line's "never"), which
+    says that None means never."""
     from continuum_mhe import make_formulation, simulate_robot
     from continuum_mhe.errors import UserError
     from continuum_mhe.settings import RecoverySettings
@@ -489,8 +501,8 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
 
 
 def test_run_says_when_t_looks_like_milliseconds() -> None:
-    """Estimator.run with t in milliseconds restarted at every sample (each step a gap
-    of 50 s), without a word; the CSV readers said it, the library did not."""
+    """Estimator.run with t in milliseconds (each step a gap of 50 s, a restart at
+    every sample) warns, as the CSV readers do."""
     from continuum_mhe import make_estimator, make_formulation, simulate
     from continuum_mhe.io.csv_files import UnitWarning
 

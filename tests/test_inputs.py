@@ -94,9 +94,10 @@ def test_live_lines_are_resolved_as_a_table_of_their_kind() -> None:
 
 
 def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
-    """From a library user's trial: a tendon robot without tensions was named "None"; a
-    tendon formulation handed to load_input failed inside numpy (cannot reshape array of
-    size 1604 into shape (25)); write_measurements dropped the rows of z beyond t."""
+    """Mistakes from a library user's trial are one line each: a tendon robot without
+    tensions names the robot file and the tendons (not "None"); a tendon formulation
+    handed to load_input names the model it calls for (not numpy's 'cannot reshape
+    array'); write_measurements refuses z with more rows than t, writing nothing."""
     from continuum_mhe.io.csv_files import write_measurements
 
     robot = read_robot(DATA / "robots/tendon_two_section.toml")

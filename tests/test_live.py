@@ -312,7 +312,8 @@ def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
 
 
 def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) -> None:
-    """Before: -o truncated an existing file at start even if no sample ever arrived."""
+    """A session in which no sample arrives leaves an existing -o file as it is, even
+    with --overwrite, and says it was not written."""
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     out.write_text("an earlier session\n")
     master = new_pty(port)
@@ -374,8 +375,9 @@ def test_short_soak_two_imus_500_hz_with_faults(
 
 
 def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> None:
-    """Before: live opened after the device's '# fields' banner, without --robot, on two
-    IMUs: 'garbled 219' in every status line, the cause only in the summary, exit 0."""
+    """Live opened after the device's '# fields' banner, without --robot, on two IMUs:
+    the first garbled line is said once with its likely cause, and the session ends
+    with one error line naming the cause, exit 2, nothing written."""
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
     acc, gyr = np.tile(specific_force(0.1, 0.2), (2, 1)), np.zeros((2, 3))
@@ -419,10 +421,10 @@ def _estimate_says(tmp_path: Path, lines: list[str], options: list[str]) -> str:
 
 
 def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Path) -> None:
-    """Before: live had no gyro-unit check: with --imu-model direct a deg/s gyro (57
-    times too fast) was estimated on for the whole session, exit 0. Now: the first 100
-    samples estimated as they arrive, then the summary, estimate's one line for the same
-    samples (naming the port) and exit 2, the lines queued after them left."""
+    """With --imu-model direct a deg/s gyro (57 times too fast) stops live at its
+    gyro-unit check: the first 100 samples estimated as they arrive, then the summary,
+    estimate's one line for the same samples (naming the port) and exit 2, the lines
+    queued after them left."""
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
@@ -468,11 +470,11 @@ def test_live_cli_warns_once_about_a_deg_s_gyro_it_does_not_use(tmp_path: Path) 
 def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
     tmp_path: Path, sig: int, code: int, last: str | None
 ) -> None:
-    """Before: a session shorter than the gyro check's samples, stopped by Ctrl-C,
-    ended with 'interrupted' (exit 130): the end-of-session check's deg/s error, which
-    the same run stopped by --duration gives (exit 2), was not said. Now the summary,
-    then that error line; exit 2 after Ctrl-C (143 after SIGTERM, as a service manager
-    expects, the error said first); the rows written stay."""
+    """A session shorter than the gyro check's samples, stopped by a signal, still says
+    the end-of-session check's deg/s error, as the same run stopped by --duration does:
+    the summary, then that error line, not 'interrupted'; exit 2 after Ctrl-C (143
+    after SIGTERM, as a service manager expects, the error said first); the rows
+    written stay."""
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
     lines = _deg_s_stream(50)

@@ -68,7 +68,8 @@ def test_the_tail_of_a_line_cut_at_a_reopen_is_not_a_sample() -> None:
 
 
 def test_the_first_whole_line_after_a_reopen_is_kept() -> None:
-    """Was dropped whatever it was: 399 of 400 samples estimated across a replug."""
+    """The first whole line after a reopen is a sample, whatever it holds: all 400
+    samples are estimated across a replug; a session of one line estimates it at the end."""
     s, _ = _session()
     splitter = LineSplitter()  # as the reader thread splits the port's bytes
     now = time.monotonic()
@@ -88,9 +89,9 @@ def test_the_first_whole_line_after_a_reopen_is_kept() -> None:
 
 
 def test_the_view_sees_every_estimate_the_first_after_an_open_included() -> None:
-    """``live --view`` drew the estimates handle_line returned: not the first sample
-    after an open (estimated when the next one shows it whole) nor one still held at
-    the end. The hook sees every estimate written, in time order."""
+    """The ``live --view`` hook (``on_estimate``) sees every estimate written, in time
+    order: the first sample after an open (estimated when the next one shows it whole)
+    and one still held at the end included."""
     out = io.StringIO()
     s, _ = _session(out=out)
     seen: list[float] = []
@@ -118,7 +119,8 @@ def test_header_fields() -> None:
 
 
 def test_device_clock_restart_gives_estimates_and_says_so() -> None:
-    """Before: every sample after a reset button press was 'out of order' (0 estimates)."""
+    """A device clock restart (a reset button press) keeps the samples after it: every
+    one estimated, none 'out of order'; one restart, said once."""
     s, said = _session()
     reset = list(range(0, 10000, 10)) + list(range(0, 5000, 10))
     _feed(s, reset)
@@ -155,10 +157,9 @@ def _replayed(rec: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_summary_after_a_clock_restart_in_a_long_silence_says_the_replay_restarts_too(
     tmp_path: Path,
 ) -> None:
-    """The summary said that 'estimate' on the recording does not restart where live
-    did, so its estimates match only before the restart; but the silence is a gap
-    longer than --gap-reset in the recording, and estimate restarts at the same sample
-    with the same estimates."""
+    """A clock restart after a silence longer than --gap-reset is a gap in the recording
+    too: estimate restarts at the same sample with the same estimates, and the summary
+    says so (not that the replay matches only before the restart)."""
     s, rec, out = _restart_with_record(tmp_path, silence_s=2.0)
     assert s.counts.restarts == 1
     rows = [r.split(",") for r in out.splitlines()[1:]]
@@ -189,7 +190,8 @@ def test_summary_after_a_clock_restart_in_a_short_silence_says_where_the_replay_
 
 
 def test_device_clock_wrap_goes_on_seamlessly() -> None:
-    """Before: every sample after millis() wrapped was 'out of order'."""
+    """Samples after the device's millis() counter wraps are estimated, not rejected as
+    'out of order': one 10 ms step across the wrap, no restart, the wrap said once."""
     out = io.StringIO()
     s, said = _session(out=out)
     wrap = [(MILLIS_WRAP - 3000 + 10 * i) % MILLIS_WRAP for i in range(800)]
@@ -232,7 +234,8 @@ def test_header_with_wrong_field_count_is_reported() -> None:
 
 
 def test_estimator_exception_never_ends_the_session() -> None:
-    """Before: any exception in an estimator ended `live`."""
+    """An exception in an estimator does not end `live`: that sample is ``no-estimate``,
+    the estimator restarts (its next estimate ``reset``) and the session goes on."""
     out = io.StringIO()
     s, said = _session("mhe", out)
     real_step = s.estimator.step
@@ -257,7 +260,8 @@ def test_estimator_exception_never_ends_the_session() -> None:
 
 
 def test_non_finite_estimate_is_never_written_as_ok() -> None:
-    """Before: the live writer wrote NaN rows with status ok."""
+    """The live writer never writes a non-finite estimate: its row is ``no-estimate``
+    (no NaN, never ``ok``), counted as an estimator failure."""
     out = io.StringIO()
     s, _ = _session("ekf", out)
     real_step = s.estimator.step
@@ -276,7 +280,8 @@ def test_non_finite_estimate_is_never_written_as_ok() -> None:
 
 
 def test_row_file_is_created_at_the_first_row_only(tmp_path: Path) -> None:
-    """Before: -o truncated an existing file at start even if no sample ever arrived."""
+    """-o leaves an existing file as it is until the first row arrives (a session
+    without samples keeps it); each row is on disk as soon as written."""
     old = tmp_path / "est.csv"
     old.write_text("precious\n")
     f = RowFile(check_target(old, True, "-o"), ("t", "x"), overwrite=True)
@@ -292,7 +297,8 @@ def test_row_file_is_created_at_the_first_row_only(tmp_path: Path) -> None:
 
 
 def test_row_file_replaces_a_symlink_never_its_target(tmp_path: Path) -> None:
-    """Before: -o followed a symlink and overwrote its target."""
+    """-o naming a symlink replaces the link with the file and leaves its target as it
+    is."""
     target = tmp_path / "target.csv"
     target.write_text("keep me\n")
     link = tmp_path / "link.csv"
@@ -307,7 +313,8 @@ def test_row_file_replaces_a_symlink_never_its_target(tmp_path: Path) -> None:
 def test_row_file_full_disk_keeps_whole_rows_and_names_the_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Before: a full disk left a partial last row and 'error: : No space left'."""
+    """A full disk leaves only whole rows (a short write's half row is taken back) and
+    one error naming the file ('est.csv: cannot write (No space left on device)')."""
     path = tmp_path / "est.csv"
     f = RowFile(path, ("t", "x"), overwrite=False)
     f.write_row(["0.1", "1"])
@@ -327,8 +334,8 @@ def test_row_file_full_disk_keeps_whole_rows_and_names_the_file(
 
 
 def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: Path) -> None:
-    """A one-IMU robot file's mount_rpy: live applied it and estimate did not, so a
-    recording did not replay to the same estimates."""
+    """A one-IMU robot file's mount_rpy is applied by live and by estimate alike, so a
+    recording replays to the same measurements (the mounting undone)."""
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import imu_converters, load_input
     from continuum_mhe.io.raw_imu import RawImuSettings, mount_rotation
@@ -352,7 +359,8 @@ def test_one_imu_robot_file_mounting_is_applied_by_live_and_estimate(tmp_path: P
 
 
 def test_a_frozen_sensor_is_said_once_in_live() -> None:
-    """Before: live treated a repeating reading as a dropout without a word."""
+    """A repeating reading in live is said once: treated as frozen (a dropout) while it
+    repeats, with the option that turns this off."""
 
     said: list[str] = []
     f = make_formulation("bend", Robot.single(), NoiseSettings())
@@ -367,8 +375,9 @@ def test_a_frozen_sensor_is_said_once_in_live() -> None:
 
 
 def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
-    """Before: a missed '# fields' banner left only 'garbled N' in the status lines, the
-    cause in the summary, and exit 0. A two-IMU tilt line to a one-IMU session:"""
+    """A missed '# fields' banner (here a two-IMU tilt line to a one-IMU session): the
+    first garbled line is said once with its likely cause, a session of garbled lines
+    alone says it in one line, and one valid sample makes the session no failure."""
     s, said = _session()
     now = time.monotonic()
     for i in range(10):
@@ -388,10 +397,9 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
 
 
 def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint() -> None:
-    """A cut line (3 fields) in a one-IMU tilt session that the device's ``# fields:``
-    line confirmed was said to be "a line of 1 IMU(s) in --format tilt; --format raw?"
-    style advice; after the confirmation it is a garbled line without that hint, while
-    a session without the confirmation keeps it."""
+    """A line of the wrong field count in a one-IMU tilt session whose fields the
+    device named (``# fields:``) is a garbled line without a format hint ('--format
+    raw?'); a session without that line gets the hint."""
     for banner in (True, False):
         s, said = _session()
         now = time.monotonic()
@@ -405,8 +413,9 @@ def test_a_line_cut_after_the_device_named_its_fields_gets_no_other_format_hint(
 
 
 def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() -> None:
-    """Before: live opened mid-line reported the cut line's cause ('found 12') as the
-    first garbled line's, hiding the real one ('found 13: ... --robot with 2 IMU(s)?')."""
+    """A cut first line after the port opens or reopens is partial, not garbled, so the
+    first garbled line's cause is a whole line's ('found 13: ... --robot with 2 IMU(s)?'),
+    not the cut one's ('found 12'); a whole first line is a sample and ends the grace."""
     s, said = _session()
     now = time.monotonic()
     s.handle_line(b".2,0.1", now)  # the tail of a line the device was sending at the open
@@ -434,7 +443,7 @@ def test_a_cut_first_line_after_opening_or_reopening_is_partial_not_garbled() ->
     [
         ("1,2,3,4,5,6,7,8,9,10,11,12,13", "raw", 1, "2 IMU(s) in --format raw; --robot with 2"),
         ("1,2,3", "raw", 1, "1 IMU(s) in --format tilt; --format tilt?"),
-        # a raw line read as tilt: the format, not three tilt IMUs (said so before)
+        # a raw line read as tilt: the format is named, not three tilt IMUs
         ("1,2,3,4,5,6,7", "tilt", 1, ": a line of 1 IMU(s) in --format raw; --format raw?"),
         ("1,2,3,4,5,6,7", "raw", 2, "1 IMU(s) in --format raw; --robot with 1 IMU(s)?"),
         ("1,2,3,4", "raw", 1, ""),  # no whole number of IMUs in either format
@@ -491,10 +500,10 @@ def _handle(s: LiveSession, lines: list[str]) -> None:
     ids=["direct", "madgwick"],
 )
 def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSettings) -> None:
-    """Before: live had no gyro-unit check (estimate has one for raw files): a deg/s gyro
-    streamed on with estimates 57 times too fast. Now the first UNIT_CHECK_SAMPLES
-    samples are estimated while they arrive, and at the last of them the session stops
-    (fatal: run_live says the summary and raises it), later lines ignored."""
+    """Live checks the gyro's unit as estimate does for raw files, so a deg/s gyro (57
+    times too fast) does not stream on: the first UNIT_CHECK_SAMPLES samples are
+    estimated while they arrive, and at the last of them the session stops (fatal:
+    run_live says the summary and raises it), later lines ignored."""
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     s, said, out = _raw_session(raw)
@@ -514,9 +523,8 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
 
 
 def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
-    """Before: the gyro's unit was checked on the session's first samples only, so a
-    board reset into firmware that sends deg/s went on unchecked. A device clock restart
-    re-arms the check on the samples after it."""
+    """The gyro's unit is checked again after a board reset, which may bring firmware
+    that sends deg/s: a device clock restart re-arms the check on the samples after it."""
     from live_helpers import raw_lines
 
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
@@ -564,8 +572,8 @@ def test_live_gyro_in_rad_s_passes_and_a_short_session_is_checked_at_its_end() -
 
 
 def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
-    """Before: a gyro in deg/s beyond the sensor's range (|g| > 52 rad/s) was only
-    'garbled line skipped: value beyond the sensor's range', naming no field or unit."""
+    """A gyro in deg/s beyond the sensor's range (|g| > 52 rad/s) is named: the field,
+    the range and 'deg/s given for rad/s?' (an IMU's dropout, or the garbled line)."""
     from live_helpers import raw_line, specific_force
 
     from continuum_mhe.stream.protocol import GarbledLine, parse_line
@@ -588,11 +596,11 @@ def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
 
 
 def test_live_stops_early_on_an_accelerometer_in_g() -> None:
-    """Before: live took an accelerometer in g (|a| about 1) for the whole session and
-    recorded it, and estimate then refused the recording ('the values look like g'), so
-    it could not be replayed. Now estimate's check, on the first UNIT_CHECK_SAMPLES
-    samples: one line naming the port, the session stops (fatal), even with tilt from the
-    accelerometer alone (the default), later lines ignored."""
+    """An accelerometer in g (|a| about 1), which estimate refuses ('the values look
+    like g'), stops live early, so no unreplayable recording is made: estimate's check
+    on the first UNIT_CHECK_SAMPLES samples, one line naming the port, the session stops
+    (fatal), even with tilt from the accelerometer alone (the default), later lines
+    ignored."""
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     rows = [ln.split(",") for ln in _deg_s_lines(UNIT_CHECK_SAMPLES + 20, degrees=False)]

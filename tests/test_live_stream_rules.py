@@ -43,8 +43,9 @@ def _session(
 
 # --- 2 kHz with whole-millisecond stamps ---------------------------------------------------
 def test_2_khz_with_whole_millisecond_stamps_keeps_the_samples() -> None:
-    """millis() at 2 kHz gives pairs of equal t_ms: the second of each pair was 'out of
-    order', 4,000 of 8,000 samples lost. The target: at least 99 %."""
+    """millis() at 2 kHz gives pairs of equal t_ms: the second of each pair is a sample,
+    not 'out of order' (which would lose half of them). The target is at least 99 %:
+    all 8,000 are estimated, 0.5 ms apart."""
     s, _ = _session()
     start = time.monotonic()
     for i in range(8000):  # sample i taken at i * 0.5 ms, stamped with whole ms
@@ -79,8 +80,8 @@ def test_a_repeated_stamp_at_a_slow_rate_is_still_out_of_order() -> None:
 # --- the clock reset and wrap reproducer ------------------------------------------------
 def test_live_clock_reset_reproducer() -> None:
     """tests/data/repro/live_clock_reset.py.txt: a device clock restarting at 0 after
-    10 s, and millis() wrapping at 2^32 ms; every later sample was dropped as out of
-    order. Its scenario, with the EKF."""
+    10 s, and millis() wrapping at 2^32 ms; every later sample is estimated, none
+    dropped as out of order. Its scenario, with the EKF."""
     assert "reset = list(range(0, 10000, 10))" in (REPRO / "live_clock_reset.py.txt").read_text()
     for stamps in (
         list(range(0, 10000, 10)) + list(range(0, 5000, 10)),
@@ -96,7 +97,9 @@ def test_live_clock_reset_reproducer() -> None:
 
 # --- a two-IMU line with one bad field ---------------------------------------------------
 def test_a_bad_field_of_one_imu_keeps_the_other_imu(tmp_path: Path) -> None:
-    """Was: the whole line garbled, the good IMU's reading lost with it."""
+    """A line with one IMU's field unreadable keeps the other IMU's reading: a dropout
+    of that IMU, said once, recorded so that it replays; a line with no good IMU is
+    garbled."""
     record = RowFile(tmp_path / "rec.csv", ["t", "roll_1", "pitch_1", "roll_2", "pitch_2"], False)
     s, said = _session(n_imus=2, record=record)
     now = time.monotonic()
@@ -120,7 +123,8 @@ def test_a_bad_field_of_one_imu_keeps_the_other_imu(tmp_path: Path) -> None:
 
 # --- garbage ------------------------------------------------------------------------------
 def test_a_stream_of_garbage_stops_the_session_with_the_cause() -> None:
-    """Was: live ran to the end of --duration (or for ever) on a garbled stream."""
+    """A stream of nothing but garbled lines stops live after GARBAGE_STOP_S (not at the
+    end of --duration, or never), with the cause."""
     s, _ = _session(port="/dev/ttyIMU")
     now = time.monotonic()
     for i in range(1000):  # 100 Hz of lines with one field too many
@@ -189,7 +193,8 @@ def test_live_on_a_garbled_port_stops_with_the_cause_before_its_duration(
 
 
 def test_the_hosts_own_notes_are_not_said_as_the_devices() -> None:
-    """'device says: dropped a line longer than 4096 bytes': the host said that."""
+    """The host's own notes ('dropped a line longer than 4096 bytes') are said as the
+    host's, without 'device says:', which only the device's messages get."""
     s, said = _session()
     s.too_long_line(5000, 4096, time.monotonic())
     assert said == [
@@ -201,8 +206,9 @@ def test_the_hosts_own_notes_are_not_said_as_the_devices() -> None:
 
 # --- the lines still in the port when live stops ---------------------------------------------
 def test_lines_still_in_the_port_at_the_end_are_estimated() -> None:
-    """With the machine busy (kernels compiling), 6 of 200 samples sent before
-    --duration ended were still in the port and lost."""
+    """Lines still in the port when the reader is told to stop are read and handed on:
+    a busy machine (kernels compiling) can leave some of the samples sent before
+    --duration ends there (6 of 200 in one run)."""
     lines = b"".join(f"{10 * i},0.1,0.05\n".encode() for i in range(200))
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader("x", 115200, _Port(lines), events, 1.0)
@@ -237,10 +243,10 @@ class _BrokenSplitter:
 def test_a_reader_that_fails_stops_live_with_the_cause_instead_of_waiting(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """The reader thread's unexpected exception ended the thread and left live, without
-    --duration, waiting for lines for ever. Now its last event carries the exception;
-    live says the summary and raises it (the command line's one line for a bug, exit
-    70), the estimates so far kept."""
+    """An unexpected exception in the reader thread does not leave live, without
+    --duration, waiting for lines for ever: the reader's last event carries the
+    exception; live says the summary and raises it (the command line's one line for a
+    bug, exit 70), the estimates so far kept."""
     s, said = _session(port="/dev/ttyIMU")
     settings = LiveSettings(port="/dev/ttyIMU", fmt="tilt", duration=None)
     monkeypatch.setattr(

@@ -197,8 +197,10 @@ def _two_imu_file(path: Path, edit: dict[int, str]) -> tuple[Path, list[str]]:
 def test_partial_dropouts_are_counted_and_the_status_says_dropout_only_without_any_imu(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: 'ok: 41 ...; skipped 1 bad sample(s)' with IMU 2 missing on two rows and
-    IMU 1 on one: no word of the partial samples, and 'skipped' for kept rows."""
+    """IMU 2 missing on two rows and IMU 1 on one: the summary counts the samples
+    estimated without every IMU, per IMU, and says the bad value was read as a dropout
+    of its IMU (not 'skipped' for a kept row); only a row without any IMU says
+    ``dropout``."""
     meas, _ = _two_imu_file(tmp_path / "m.csv", {
         5: "0.1,0.1,,", 6: "0.1,0.1,,",  # IMU 2 empty: its dropout, IMU 1 used
         10: "nan,0.1,0.2,0.2",  # IMU 1 bad: with --skip-bad its dropout, IMU 2 used
@@ -225,7 +227,8 @@ def test_partial_dropouts_are_counted_and_the_status_says_dropout_only_without_a
 def test_an_imu_that_never_reports_warns_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: IMU 2 empty on every row gave estimates and no word of it."""
+    """IMU 2 empty on every row: the estimates from IMU 1 come with one warning that
+    IMU 2 never reported."""
     meas, _ = _two_imu_file(tmp_path / "m.csv", {})
     meas.write_text("\n".join(
         ",".join([*r.split(",")[:3], "", ""]) for r in meas.read_text().splitlines()
@@ -367,11 +370,11 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
         ("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", True,
          "tilt columns for 3 IMU(s) (roll_1 ... roll_3) but the robot describes 2; "
          "pass --robot FILE with a robot file of 3 IMU(s)"),
-        # before: --robot forgotten, IMU 1's columns estimated as a one-section robot
+        # --robot forgotten: refused, not IMU 1's columns estimated as a one-section robot
         ("t,roll_1,pitch_1,roll_2,pitch_2", False,
          "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "
          "pass --robot FILE with a robot file of 2 IMU(s)"),
-        # before: only "pass --robot FILE with a robot file of 1 IMU(s)"
+        # not only "pass --robot FILE with a robot file of 1 IMU(s)": leaving --robot out too
         ("t,roll,pitch", True, "tilt columns for 1 IMU(s) (roll, pitch) but the robot "
          "describes 2; pass --robot FILE with a robot file of 1 IMU(s), or leave --robot "
          "out: one section with its IMU at the tip needs no robot file"),
@@ -427,7 +430,8 @@ def test_a_tilt_header_typo_names_the_missing_column_and_the_typo(
 
 
 def test_read_measurements_refuses_another_imu_count(tmp_path: Path) -> None:
-    """Before: read_measurements of a two-IMU file returned IMU 1's columns."""
+    """read_measurements of a two-IMU file refuses it without n_imus=2 (it does not
+    return IMU 1's columns alone); one numbered IMU is one IMU."""
     meas = tmp_path / "m.csv"
     meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.2,0.3,0.4\n")
     with pytest.raises(InputError, match=r"for 2 IMU\(s\).*describes 1; .*n_imus=2 in Python"):

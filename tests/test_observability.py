@@ -83,8 +83,8 @@ def test_an_observable_robot_warns_nothing_and_is_ok() -> None:
 
 
 def test_fallback_answers_of_an_unobservable_robot_are_uncertain_too(monkeypatch) -> None:
-    """Before: on a first run (IPOPT answering every window) the warning said 'uncertain'
-    but every row said fallback-ipopt."""
+    """An unobservable robot's rows are ``uncertain``, as its warning says, also where
+    IPOPT answers every window (a first run): never ``fallback-ipopt``."""
     f = make_formulation("bend", TIP_ONLY)
     rec = simulate_robot("spatial", TIP_ONLY, duration=2.0, dt=0.05, seed=1)
     with pytest.warns(UnobservableShapeWarning):
@@ -101,9 +101,10 @@ def test_fallback_answers_of_an_unobservable_robot_are_uncertain_too(monkeypatch
 
 
 def test_a_silent_imu_that_the_shape_needs_makes_the_estimates_uncertain() -> None:
-    """Before: a two-section robot whose tip IMU never reported gave ok rows after each
-    restart (its second section predicted blindly); an IMU whose silence leaves the shape
-    determined (two along section 2 and one on section 1) does not."""
+    """A two-section robot whose tip IMU is silent for longer than the gap reset gets
+    no ``ok`` row after the restarts (its second section is predicted blindly); an IMU
+    whose silence leaves the shape determined (two along section 2 and one on section 1)
+    does not make the estimates uncertain."""
     robot = Robot(TWO, (ImuPlacement(0), ImuPlacement(1)))
     f = make_formulation("bend", robot)
     rec = simulate_robot("spatial", robot, duration=6.0, dt=0.05, seed=0)
@@ -132,7 +133,7 @@ def test_a_silent_imu_that_the_shape_needs_makes_the_estimates_uncertain() -> No
 
 def test_a_mounting_given_as_a_list_still_builds_an_estimator() -> None:
     """The rank is cached per robot, so a robot must hash: a list mount_rpy (from library
-    code) raised TypeError when the estimator was built."""
+    code) is kept as a tuple, and the estimator builds (no TypeError)."""
     robot = Robot(TWO, (ImuPlacement(0, 1.0, [0, 0, 0]), ImuPlacement(1)))  # type: ignore[arg-type]
     assert robot.imus[0].mount_rpy == (0, 0, 0)
     assert make_estimator("ekf", make_formulation("bend", robot)).shape_observable

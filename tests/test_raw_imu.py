@@ -229,10 +229,10 @@ def _read_raw(n_imus: int) -> Callable[[Path], object]:
 def test_a_raw_header_typo_names_the_missing_column_and_the_typo(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, n_imus: int, message: str
 ) -> None:
-    """A raw header with a typo was blamed on the IMU count ("the file has raw columns
-    for 1 IMU(s) (ax_1) but the robot describes 3; pass --robot FILE with a robot file of
-    1 IMU(s)" for ay2), or read as a tilt file ("missing column(s) roll, pitch" for ay_),
-    and a renamed gx_2 dropped every IMU's gyro without a word."""
+    """A raw header with a typo names the missing column and the typo, refused in one
+    line: not blamed on the IMU count ("the file has raw columns for 1 IMU(s) ..." for
+    ay2), not read as a tilt file ("missing column(s) roll, pitch" for ay_), and a
+    renamed gx_2 does not drop every IMU's gyro."""
     assert_header_refused(tmp_path, capsys, header, n_imus, message, _read_raw(n_imus))
 
 
@@ -246,7 +246,8 @@ def test_a_raw_header_typo_names_the_missing_column_and_the_typo(
 def test_some_imus_gyro_columns_without_the_others_are_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], left_out: tuple[int, ...], message: str
 ) -> None:
-    """Not every IMU read without its gyro, without a word."""
+    """Some IMUs' gyro columns without the others' are refused in one line naming them
+    (every IMU's gyro or none), not every IMU read without its gyro."""
     header = renamed(_THREE_IMUS, {f"{c}_{k}": "" for k in left_out for c in ("gx", "gy", "gz")})
     message += ": give every IMU's gyro or none"
     assert_header_refused(tmp_path, capsys, header, 3, message, _read_raw(3))
@@ -385,9 +386,10 @@ def test_gyro_rates_implausible_in_rad_s_are_an_error(
 
 
 def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """The shipped planar-S recording with its gyros in deg/s: estimated, it gave
-    'no-estimate: 54, ok: 78, reset: 68' and no hint; now one line naming IMU 1, exit 2,
-    nothing written."""
+    """The shipped planar-S recording with its gyros in deg/s, estimated with the
+    gyros: one line naming IMU 1 and the likely unit, exit 2, nothing written (not
+    estimates with many ``no-estimate`` and ``reset`` rows); with tilt from the
+    accelerometer, a warning per IMU."""
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2/planar-s_raw.csv"
     lines = data.read_text().splitlines()
     header = lines[0].split(",")

@@ -277,8 +277,9 @@ def test_raw_t_in_milliseconds_warns(tmp_path: Path) -> None:
 def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: the warning came, then a file whose every row after the first was a
-    restart (``reset``), exit 0. Now one line naming the fix, exit 2, nothing written."""
+    """A t in milliseconds, where every sample after the first would restart the
+    estimator (a file of ``reset`` rows): the warning, then one line naming the fix,
+    exit 2, nothing written; with --gap-reset 0 the estimate is written."""
     from continuum_mhe.cli import main
 
     lines = _csv().splitlines()

@@ -260,8 +260,8 @@ def test_quick_run_numbers_are_sane(quick_run: Path) -> None:
     n, dt = SMALL.horizon, SMALL.dt
     assert win["paper-start"]["first_estimate_s"]["mean"] == pytest.approx((n - 1) * dt)
     # the "first N" errors are over N estimates for the growing window and the EKF, over
-    # one for the paper start, and the report's table says so (before, it did not: the
-    # paper start's one-sample error read as better than the growing window's N)
+    # one for the paper start, and the report's table says so (without the count, the
+    # paper start's one-sample error would read as better than the growing window's N)
     counts = {g: win[g]["early_estimates"]["mean"] for g in ("growing", "paper-start", "ekf")}
     assert counts == {"growing": n, "paper-start": 1, "ekf": n}
     report = (quick_run / "report.md").read_text()
@@ -303,9 +303,9 @@ def test_plot_without_data_is_a_one_line_error(
 def test_an_interrupted_plot_leaves_nothing_it_wrote(
     quick_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Before: Ctrl-C during ``plot --out NEW`` left NEW with the figures saved so far
-    (``reproduce`` renders its figures the same way). Now the new figures and the
-    folders made for them are removed."""
+    """Ctrl-C during ``plot --out NEW`` leaves nothing it wrote (``reproduce`` renders
+    its figures the same way): the figures saved so far and the folders made for them
+    are removed."""
     from continuum_mhe.evaluation import plotting
 
     saved: list[Path] = []
@@ -329,12 +329,12 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     quick_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],
 ) -> None:  # fmt: skip
-    """Before: a Ctrl-C whose handler ran inside a weakref callback (matplotlib's
-    WeakKeyDictionary while reproduce wrote its figures: 1 of 7 hand runs near its end)
-    printed ``Exception ignored in: ...`` with an 11-line traceback, and the run went on
-    to exit 0 with every file written. Now the dropped exception is not printed, and
-    the signal, still recorded, ends the writing: one line, 130, the new files and
-    folders removed. Here the signal lands in a callback during the second save."""
+    """A Ctrl-C whose handler runs inside a weakref callback (matplotlib's
+    WeakKeyDictionary while reproduce writes its figures: 1 of 7 hand runs near its end),
+    where Python drops the exception, still interrupts: no ``Exception ignored in: ...``
+    traceback, and the signal, still recorded, is raised once the writing ends: one line,
+    130 (not exit 0), the new files and folders removed. Here the signal lands in a
+    callback during the second save."""
     import weakref
 
     from continuum_mhe import signals
@@ -374,15 +374,13 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
 def test_a_signal_to_the_process_group_stops_reproduce_at_once(
     tmp_path: Path, sig: int, code: int, said: str
 ) -> None:
-    """Before: a Ctrl-C reaching the workers too (a terminal sends it to the process
-    group) while they were inside IPOPT was dropped there; the parent waited for every
-    remaining trial (or for ever, when a worker died holding the task queue's lock),
-    the workers printed tracebacks ending in Terminated when killed, and an empty --out
-    folder stayed. Now the workers ignore SIGINT (and die quietly on SIGTERM), the
-    parent kills them at once, the folder is made only once the trials are done: one
-    line, 130 (143), nothing left. The trials here drop every interrupt, as IPOPT does
-    (:func:`live_helpers.stubborn_trial`), and the signal goes to the whole group once
-    both workers are inside one."""
+    """A Ctrl-C that reaches the workers too (a terminal sends it to the process group)
+    while they are inside IPOPT, which drops it, stops reproduce at once: the workers
+    ignore SIGINT (and die quietly on SIGTERM, no traceback), the parent kills them
+    without waiting for the remaining trials, and the --out folder is made only once the
+    trials are done: one line, 130 (143), nothing left. The trials here drop every
+    interrupt, as IPOPT does (:func:`live_helpers.stubborn_trial`), and the signal goes
+    to the whole group once both workers are inside one."""
     marks, out = tmp_path / "marks", tmp_path / "results"
     marks.mkdir()
     script = (
@@ -432,19 +430,19 @@ def _killed(spec: int) -> int:
 
 
 def test_a_killed_worker_is_a_one_line_error() -> None:
-    """Before: a worker killed from outside (the OOM killer, a SIGTERM to it alone)
-    surfaced as BrokenProcessPool, reported as a bug in continuum-mhe. Now a user
-    error saying what happened (the other workers are stopped)."""
+    """A worker killed from outside (the OOM killer, a SIGTERM to it alone) is a user
+    error saying what happened (the other workers are stopped), not a BrokenProcessPool
+    reported as a bug in continuum-mhe."""
     with pytest.raises(UserError, match="a worker process ended abruptly"):
         run_parallel(_killed, [0, 1, 2, 3], jobs=2, progress=False)
 
 
 def test_a_ctrl_c_dropped_inside_a_trial_ends_a_serial_run(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Before: ``reproduce --jobs 1`` (trials in this process) sometimes ran to the end
-    and exited 0 after Ctrl-C: the handler's KeyboardInterrupt had been raised inside
-    CasADi's argument checks (building a trial's NLP), which drop any exception. Now the
-    serial run checks for a signal after each trial. Here the trial runs the handler and
-    drops its exception, as CasADi does."""
+    """``reproduce --jobs 1`` (trials in this process) stops after Ctrl-C even when the
+    handler's KeyboardInterrupt is raised inside CasADi's argument checks (building a
+    trial's NLP), which drop any exception: the serial run checks for a signal after
+    each trial. Here the trial runs the handler and drops its exception, as CasADi
+    does."""
     from continuum_mhe import signals
 
     monkeypatch.setattr(signals, "SIGNALS_SEEN", [])
@@ -507,8 +505,8 @@ def test_dask_local_cluster_matches_local_processes() -> None:
 def test_local_workers_run_a_function_of_a_script(tmp_path: Path) -> None:
     """A trial function defined in ``__main__`` (a script, ``python -c``), which fork
     server workers cannot import: the pool keeps the platform's default start, and
-    the trials run (with the fork server every one failed as 'a worker process ended
-    abruptly')."""
+    the trials run (with the fork server every one would fail as 'a worker process
+    ended abruptly')."""
     script = (
         "from continuum_mhe.reproduce.runner import run_parallel\n"
         "def square(x):\n"

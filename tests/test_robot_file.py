@@ -30,8 +30,9 @@ def _said(path: Path) -> list[str]:
 
 
 def test_imus_out_of_base_order_warn(tmp_path: Path) -> None:
-    """Before: section 2 listed before section 1 was read silently (IMUs at 2@1, 1@1),
-    and estimate paired roll_1 with the tip IMU: ok rows 64 mm off."""
+    """IMUs listed out of base-to-tip order (section 2 before section 1, or nearer the
+    base within one section) warn: the measurement columns follow the file's order, so
+    estimate would pair roll_1 with the tip IMU (ok rows 64 mm off)."""
     robot = _robot(tmp_path / "r.toml", "section = 2", "section = 1")
     assert _said(robot) == [
         f"{robot}: imu 2 (section 1, at 1) is nearer the base than imu 1 (section 2, at 1) "
@@ -83,7 +84,8 @@ def test_the_order_warning_is_given_once_per_command(tmp_path: Path, capsys) -> 
 
 @pytest.mark.parametrize(("length", "at"), [(0.18, 0.18), (0.12, 0.12), (0.16, 0.1604)])
 def test_at_written_in_metres_warns(tmp_path: Path, length: float, at: float) -> None:
-    """Before: ``at = 0.18`` on a 0.18 m section was read as 18 % of it, silently."""
+    """``at = 0.18`` on a 0.18 m section (the length in metres) warns, and is read as
+    written: 18 % of the section."""
     robot = tmp_path / "r.toml"
     robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\nat = {at}\n")
     with pytest.warns(UnitWarning) as seen:
@@ -133,8 +135,8 @@ def test_mount_rpy_in_degrees_gets_no_hint(rpy: tuple[float, ...]) -> None:
 
 
 def test_mount_rpy_in_radians_warns(tmp_path: Path, capsys) -> None:
-    """Before: mount_rpy = [0, 1.5708, 3.14159] rotated raw readings by 1.6 and 3.1
-    degrees, silently; --mount-rpy 0,1.5708,0 likewise."""
+    """mount_rpy = [0, 1.5708, 3.14159], which rotates raw readings by 1.6 and 3.1
+    degrees, warns that it looks like radians; --mount-rpy 0,1.5708,0 likewise."""
     robot = _robot(tmp_path / "r.toml", "section = 1\nmount_rpy = [0, 1.5708, 3.14159]",
                    "section = 2")  # fmt: skip
     with pytest.warns(UnitWarning) as seen:
@@ -156,7 +158,8 @@ def test_mount_rpy_in_radians_warns(tmp_path: Path, capsys) -> None:
 
 
 def test_a_folder_given_as_robot_file_is_named_a_folder(tmp_path: Path) -> None:
-    """Before: ``check-robot /tmp`` said 'no such robot file' of a folder that exists."""
+    """A folder given as a robot file (``check-robot /tmp``) is named a folder, not 'no
+    such robot file'."""
     with pytest.raises(InputError, match=r": a folder, not a robot file \(shipped robots"):
         read_robot(tmp_path)
     with pytest.raises(InputError, match=r": no such robot file \(shipped robots"):

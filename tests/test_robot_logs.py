@@ -263,7 +263,7 @@ def test_estimate_orientation_equals_the_tilt_csv(
     np.testing.assert_array_equal(t_b, t_c)
     np.testing.assert_allclose(x_b, x_c, rtol=0, atol=1e-9)
     assert list(s_b) == list(s_c)
-    # the accelerometer's noise gives other estimates: the orientation was the input
+    # the accelerometer's noise gives other estimates: --orientation reads the orientation
     _, x_a, _ = _states(tmp_path / "from_acc.csv")
     assert np.max(np.abs(x_a - x_c)) > 1e-4
 
@@ -326,9 +326,9 @@ def test_log_gyro_in_deg_s_is_one_line(
 def test_orientation_skips_the_accelerometer_unit_check(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: estimate --orientation refused a log whose accelerations are in g ('the
-    values look like g'), though it reads only the orientation (docs/hardware.md says the
-    check is skipped there). The raw readings are still checked where they are used."""
+    """estimate --orientation reads a log whose accelerations are in g, as it reads only
+    the orientation (docs/hardware.md says the check is skipped there). The raw readings
+    are still checked where they are used ('the values look like g')."""
     rp = tilt(recording["truth"][:, 3], recording["truth"][:, 4])
     quat = _wxyz(Rotation.from_euler("ZYX", np.stack([0 * rp[:, 0], rp[:, 1], rp[:, 0]], -1)))
     in_g = {**recording, "acc": recording["acc"] / 9.80665, "quat": quat}
@@ -351,9 +351,9 @@ def test_orientation_skips_the_accelerometer_unit_check(
 def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
     robot: tuple[str, ...], needs: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: 'pass --topic; sensor_msgs/msg/Imu topics in this log: none', though no
-    --topic can help (and for a two-IMU robot 'no --topic ...: pass one --topic per
-    IMU'). Now one line saying the log has no Imu topic, listing its topics."""
+    """A log without an Imu topic: one line saying so, listing its topics (not 'pass
+    --topic', which cannot help, nor for a two-IMU robot 'pass one --topic per IMU'
+    alone)."""
     from mcap.writer import CompressionType, Writer
 
     log = tmp_path / "odd.mcap"
@@ -385,8 +385,8 @@ def test_a_log_without_an_imu_topic_says_so_and_lists_its_topics(
 def test_log_stamps_in_another_unit_warn_as_a_csv_t_does(
     tmp_path: Path, recording: dict[str, Any], scale: float, says: str
 ) -> None:
-    """Before: header stamps 1000 times too small (or too large) gave no warning, while a
-    CSV t in milliseconds does. The same rule (check_time_steps) now warns for a log."""
+    """Header stamps 1000 times too small (or too large) warn by the rule that warns of
+    a CSV t in milliseconds (check_time_steps); 50 Hz stamps do not."""
     stamps = T0_NS + np.round((recording["stamps"] - T0_NS) * scale).astype(np.int64)
     log = write_mcap(tmp_path / "x.mcap", {**recording, "stamps": stamps})
     with pytest.warns(UnitWarning) as seen:

@@ -68,8 +68,8 @@ def test_stale_temporary_of_a_dead_writer_is_removed(tmp_path: Path) -> None:
     with atomic_writer(tmp_path / "e.csv") as fh:
         fh.write("t\n")
     assert not stale.exists()
-    assert not other.exists()  # any write into the folder removes it (was: left for ever
-    # unless that same output was written again)
+    assert not other.exists()  # any write into the folder removes it, not only a write
+    # of that same output
     assert alive.exists() and mine.exists()
     assert (tmp_path / "e.csv").read_text() == "t\n"
 
@@ -79,12 +79,12 @@ def test_stale_temporary_of_a_dead_writer_is_removed(tmp_path: Path) -> None:
 def test_an_ipopt_solve_stopped_by_a_signal_raises_it(
     monkeypatch: pytest.MonkeyPatch, status: str, sig: int
 ) -> None:
-    """Before: a Ctrl-C that landed inside IPOPT (CasADi runs the signal handler in
-    IPOPT's callbacks, prints a warning, drops the exception and stops IPOPT) came back
-    as an unconverged or failed solve, and the run went on. Now the status IPOPT returns
-    raises the signal. Here the real solver runs and reports the status CasADi gives
-    after a signal (NonIpopt_Exception_Thrown from an evaluation, User_Requested_Stop
-    from the iteration callback)."""
+    """A Ctrl-C that lands inside IPOPT (CasADi runs the signal handler in IPOPT's
+    callbacks, prints a warning, drops the exception and stops IPOPT) is raised from
+    the status IPOPT returns, not taken for an unconverged or failed solve. Here the
+    real solver runs and reports the status CasADi gives after a signal
+    (NonIpopt_Exception_Thrown from an evaluation, User_Requested_Stop from the
+    iteration callback)."""
     from continuum_mhe import signals
     from continuum_mhe.estimators.mhe import MovingHorizonEstimator
     from continuum_mhe.model.registry import make_formulation
@@ -124,12 +124,11 @@ SIGINT_INSIDE_IPOPT = (
 
 
 def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
-    """Before: Ctrl-C during ``benchmark``'s IPOPT run printed only CasADi's
-    ``WARNING("KeyboardInterruptException")``, the interrupted solve counted as a
-    timing sample, and the benchmark ran on to exit 0 and wrote its JSON. Now the
-    timing loop defers the signal to the end of the sample (as ``estimate``'s does):
-    one line, exit 130, nothing written. The SIGINT is sent from inside IPOPT during
-    the 30th window's solve (:data:`SIGINT_INSIDE_IPOPT`)."""
+    """Ctrl-C during ``benchmark``'s IPOPT run ends the benchmark: the timing loop
+    defers the signal to the end of the sample (as ``estimate``'s does), so the
+    interrupted solve is no timing sample and the run does not go on: one line, exit
+    130, no JSON written. The SIGINT is sent from inside IPOPT during the 30th window's
+    solve (:data:`SIGINT_INSIDE_IPOPT`)."""
     script = (
         "import os, signal, sys\n"
         "from continuum_mhe import cli\n"
@@ -157,12 +156,11 @@ def test_ctrl_c_while_ipopt_is_timed_ends_the_benchmark(tmp_path: Path) -> None:
 
 
 def test_a_signal_inside_ipopt_waits_for_the_solve() -> None:
-    """Before: with the command line's handlers and no deferring loop (a ``reproduce
-    --jobs 1`` trial), a Ctrl-C inside IPOPT stopped it: CasADi printed
-    ``WARNING("KeyboardInterruptException")`` beside our one line. Now the MHE defers
-    the signal while IPOPT solves: the solve ends normally, then the signal is raised,
-    and nothing else is printed. The SIGINT is sent from inside IPOPT during the 30th
-    solve (:data:`SIGINT_INSIDE_IPOPT`)."""
+    """With the command line's handlers and no deferring loop (a ``reproduce --jobs 1``
+    trial), the MHE defers a Ctrl-C that lands inside IPOPT while IPOPT solves: the
+    solve ends normally, then the signal is raised, and nothing else is printed (no
+    CasADi ``WARNING("KeyboardInterruptException")`` beside our one line). The SIGINT is
+    sent from inside IPOPT during the 30th solve (:data:`SIGINT_INSIDE_IPOPT`)."""
     script = (
         "import dataclasses, os, signal, sys\n"
         "from continuum_mhe.estimators.mhe import MovingHorizonEstimator\n"

@@ -68,11 +68,11 @@ def test_bad_noise_model_and_anisotropic_tangent_noise() -> None:
 
 
 def test_simulated_tilt_readings_stay_within_an_imus_pitch_range(tmp_path) -> None:
-    """Tilt noise near the gimbal lock pushed pitch past pi/2, which no IMU reports and
-    the CSV reader refuses: ``simulate spatial`` of a three-section robot wrote files
-    that ``estimate`` refused on seed 11. The readings are now the same gravity
-    direction with |pitch| <= pi/2, and the estimates do not depend on which of the two
-    a reading is written as."""
+    """Tilt noise near the gimbal lock can push pitch past pi/2, which no IMU reports and
+    the CSV reader refuses: the simulated readings are the same gravity direction with
+    |pitch| <= pi/2, so ``estimate`` takes what ``simulate spatial`` of a three-section
+    robot writes on seed 11, and the estimates do not depend on which of the two a
+    reading is written as."""
     from continuum_mhe.cli import main
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.model.imu import canonical_tilt, wrap_angle

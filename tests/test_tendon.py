@@ -155,8 +155,8 @@ def test_the_statics_solve_the_loaded_recordings_from_the_straight_rod(scenario:
     """``TendonStatics.solve`` from the straight rod (as ``plot`` draws a row) under the
     true tip force and tensions of every 10th sample of a loaded recording: each tip
     within 0.6 mm of the recording's truth (the model floor: the generator's own
-    rod is not this model). A plain Newton from the straight rod left 16 of force-29's 41
-    rows 250 to 640 mm off and raised LinAlgError on 8."""
+    rod is not this model). A plain Newton from the straight rod leaves 16 of force-29's
+    41 rows 250 to 640 mm off and raises LinAlgError on 8."""
     truth = read_state_table(DATA / f"{scenario}_truth.csv")
     tensions = read_tensions(DATA / f"{scenario}_tensions.csv", 6)
     statics = TendonStatics(read_robot("tendon-two-section"))
@@ -261,7 +261,7 @@ def test_the_model_floor_on_a_bend_past_120_degrees() -> None:
     """The largest bend of the ``unloaded`` recording (121 and 102 degrees, tendons of
     up to 12 N, the backbone's weight): the shooting agrees with the discrete rod
     extrapolated to zero segment length within 0.05 mm at both section ends, a tenth of
-    the 0.5 mm that the issue allows a reduced model."""
+    the 0.5 mm a reduced model may be off by."""
     robot = read_robot("tendon-two-section")
     tau = np.array([0.078876, 1.79768, 1.123444, 3.904776, 11.91665, 2.178574])
     _, poses = TendonStatics(robot).solve(np.zeros(3), tau)
@@ -576,8 +576,8 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
          "line 1: expected the columns t,tension_1"),
         ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
-        # milliseconds in t: the 0.1 s recording lies within the first two rows, and was
-        # estimated on tensions held at their first values
+        # milliseconds in t: the 0.1 s recording lies within the first two rows, and would
+        # be estimated on tensions held at their first values
         ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],
          ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
          "in milliseconds, name the column t_ms"),
@@ -601,8 +601,9 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
 
 
 def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
-    """A tensions file a second or more between rows that spans the recording is no
-    millisecond file: read (a 50 Hz recording with tensions every 2.5 s was refused)."""
+    """A tensions file that spans the recording with a second or more between rows
+    (tensions every 2.5 s beside a 50 Hz recording) is no millisecond file: read, not
+    refused."""
     meas, tensions = _recording(tmp_path)
     write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
     out = tmp_path / "e.csv"
@@ -640,7 +641,8 @@ def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A recording with its own tension columns and --inputs: the --inputs tensions are
-    used, and a warning says so (they were taken without a word)."""
+    used, and a warning says so; without --inputs the recording's own are used, with no
+    warning."""
     meas, tensions = _recording(tmp_path)
     header, *rows = meas.read_text().splitlines()
     both = tmp_path / "both.csv"  # its own tensions, not those of --inputs
@@ -683,8 +685,8 @@ def test_tensions_interpolate_linearly(tmp_path: Path) -> None:
 
 def test_tensions_stamped_in_milliseconds_are_said_and_read_as_t_ms(tmp_path: Path) -> None:
     """A tensions file whose t is in milliseconds (0 to 80 in steps of 20 for a 50 Hz
-    log) was read in seconds without a word: an 8 s recording then took the first rows'
-    tensions, its rows 86 mm off and ok. It is said, with the fix; as t_ms it reads."""
+    log), read in seconds, would give an 8 s recording the first rows' tensions, its rows
+    86 mm off and ok: it is said, with the fix; as t_ms it reads."""
     from continuum_mhe.io.csv_files import UnitWarning
 
     rows = [[20.0 * i, 1.0 + i, 0.0] for i in range(5)]
@@ -824,7 +826,7 @@ def test_one_raw_imu_at_the_tip_holds_the_tip_force() -> None:
     samples of the unloaded recording, the command line's EKF: the tip force, truly zero,
     is within 0.1 N rms after the first second. The bound is five times the force's
     standard deviation that the Kalman covariance reaches along the true states (about
-    0.02 N per component); at the random walk of a two-IMU robot the error was 0.26 N."""
+    0.02 N per component); at the random walk of a two-IMU robot the error is 0.26 N."""
     from dataclasses import replace
 
     from continuum_mhe.errors import UnobservableShapeWarning
@@ -884,7 +886,7 @@ def test_the_start_takes_a_gyro_reading_as_its_bias_not_as_a_force() -> None:
 def test_the_start_of_one_raw_imu_on_a_straight_rod_reads_no_axial_force() -> None:
     """The first sample of the unloaded recording (straight, no tip force), the tip IMU
     alone, raw, with its gyro's bias: the start's tip force is within 0.02 N of the
-    truth's zero. A gyro bias read as a force had put 0.59 N along the rod."""
+    truth's zero, where a gyro bias read as a force would put 0.59 N along the rod."""
     from dataclasses import replace
 
     from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
@@ -986,8 +988,8 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The tendon-robot generator writes two sections with an IMU at each end: another
-    robot is one line and exit 2, nothing written (it wrote the shipped robot's two-IMU
-    files and truth for a one-section robot, named tendon-two-section in its info)."""
+    robot is one line and exit 2, nothing written (not the shipped robot's two-IMU files
+    and truth under a one-section robot's name, tendon-two-section in its info)."""
     from continuum_mhe.simulation import cosserat_tendon
 
     path = tmp_path / "one.toml"
@@ -1002,9 +1004,9 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
 def test_simulate_refuses_a_tendon_robot(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``simulate`` writes constant-curvature bends without tensions: with a tendon robot
-    it wrote a tilt recording that ``estimate`` on the same robot then refused for its
-    missing tensions. One line naming the robot file and the tendon generator."""
+    """``simulate`` writes constant-curvature bends without tensions, a recording that
+    ``estimate`` on a tendon robot refuses for its missing tensions: with a tendon robot,
+    one line naming the robot file and the tendon generator, nothing written."""
     out = tmp_path / "m.csv"
     argv = ["simulate", "spatial", "--robot", "tendon-two-section", "-o", str(out)]
     assert main(argv) == 2
@@ -1019,7 +1021,7 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
 ) -> None:
     """A row's tip force beyond what the rod holds (a force in mN read as N) has no
     equilibrium to draw: one line naming the file and the row's time, exit 2, no figure
-    (it was reported as a bug, exit 70)."""
+    (not reported as a bug, exit 70)."""
     meas, tensions = _recording(tmp_path)
     robot = str(_small_robot(tmp_path))
     est = tmp_path / "e.csv"

@@ -91,7 +91,7 @@ def test_the_window_gradient_is_the_derivative_of_its_cost() -> None:
 
 def test_the_ipopt_window_of_the_shooting_model_is_per_node_with_the_same_cost() -> None:
     """The MHE on IPOPT keeps the shooting model a function called per node (CasADi MX,
-    with a Gauss-Newton Hessian: expanded, with its exact Hessian, a window took 7 GB at
+    with a Gauss-Newton Hessian: expanded, with its exact Hessian, a window takes 7 GB at
     N = 5 and more than 11 GB at N = 10), its cost is the window cost the compiled
     solver evaluates, on the same window, and IPOPT solves that window."""
     from continuum_mhe.estimators.window_nlp import build_nlp, pack_parameters
@@ -106,7 +106,7 @@ def test_the_ipopt_window_of_the_shooting_model_is_per_node_with_the_same_cost()
     model = fm.build_window_model(f, HORIZON)
     assert ipopt_cost == pytest.approx(window_cost(model, problem, X), rel=1e-12)
     # with the Gauss-Newton Hessian (the residuals' first derivatives) IPOPT converges
-    # on the window (with limited-memory BFGS it stopped at its iteration limit)
+    # on the window (with limited-memory BFGS it stops at its iteration limit)
     solved = build_nlp(f, HORIZON, 100, 1e-8)
     out = solved.solver(x0=X.ravel(), p=pack_parameters(problem), lbx=solved.lbx,
                         ubx=solved.ubx, lbg=solved.lbg, ubg=solved.ubg)  # fmt: skip

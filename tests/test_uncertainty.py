@@ -396,8 +396,9 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
 
 @pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
 def test_each_run_counts_its_own_recording(index: int) -> None:
-    """Before: the counts (gap resets, frozen samples, first freezes) ran on from the
-    estimator's construction, so a second ``run`` reported the totals over both runs."""
+    """Each ``run`` counts its own recording: the counts (gap resets, frozen samples,
+    first freezes) start again at every run, not at the estimator's construction, so a
+    second ``run`` reports the same counts, not the totals over both runs."""
     rec = simulate("paper3d", duration=6, seed=2)
     z = rec.z.copy()
     frozen = (rec.t >= 4) & (rec.t < 5)
@@ -444,8 +445,8 @@ def test_a_reset_zeroes_the_second_start_and_branch_check_counts() -> None:
 
 @pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
 def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str) -> None:
-    """Before: the freeze rule looked only at how long a reading stayed the same, so the
-    second of two equal readings 60 s apart (tests/data/fuzz/long_gap.csv) was taken
+    """The freeze rule looks at more than how long a reading stays the same, so the
+    second of two equal readings 60 s apart (tests/data/fuzz/long_gap.csv) is not taken
     as frozen and dropped. A gap is not a sensor seen stuck: both readings are used
     (the gap reset restarts from the second)."""
     est = make_estimator(method, BendFormulation(), recovery=bare(gap_reset=1.0, freeze=1.0))
@@ -461,9 +462,10 @@ def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
 ) -> None:
     """The same reading at FREEZE_MIN_SAMPLES consecutive samples spanning more than
     ``freeze`` s, none more than ``freeze`` s after the one before, is a freeze from the
-    sample at which all hold (index ``first``; the duration alone said 3 at 2 Hz and 1
-    at 0.05 Hz); one sample fewer, however long it spans, is not; at 20 Hz the duration
-    decides, as before the count; samples 20 s apart (each a gap) are never one."""
+    sample at which all hold (index ``first``; the duration alone would say 3 at 2 Hz
+    and 1 at 0.05 Hz); one sample fewer, however long it spans, is not; at 20 Hz the
+    duration decides, as it would without the count; samples 20 s apart (each a gap) are
+    never one."""
     n = FREEZE_MIN_SAMPLES  # 5, as documented: (0.5, 4) fails for any other default
     k = 30
     t = dt * np.arange(k)
@@ -604,9 +606,9 @@ def test_estimate_says_once_that_a_still_recording_is_frozen(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A hand-written recording of a still robot (the same roll and pitch for 10 s at
-    20 Hz) said only `dropout: 75, no-estimate: 104`: now one note when the freeze
-    begins, and a summary that counts the frozen samples by status (t = 1.05 s on: 179)
-    and the restart behind the no-estimate rows; --freeze 0 estimates every row."""
+    20 Hz): one note when the freeze begins, and a summary that counts the frozen samples
+    by status (t = 1.05 s on: 179) and the restart behind the no-estimate rows, not
+    `dropout: 75, no-estimate: 104` alone; --freeze 0 estimates every row."""
     meas = tmp_path / "still.csv"
     meas.write_text("t,roll,pitch\n" + "".join(f"{0.05 * i:.2f},0.1,-0.2\n" for i in range(200)))
     assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]) == 0

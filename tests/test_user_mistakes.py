@@ -40,7 +40,7 @@ def test_a_bug_is_not_shown_as_a_user_error(monkeypatch, capsys) -> None:
     assert err.count("\n") == 1 and "Traceback" not in err
     assert "internal error (a bug in continuum-mhe): ValueError: index 3" in err
     assert "please report it" in err and "test_user_mistakes.py" in err
-    # before: "maintainers(CONTINUUM_MHE_TRACEBACK=1 ...", no space before the parenthesis
+    # a space before the parenthesis: never "maintainers(CONTINUUM_MHE_TRACEBACK=1 ..."
     assert re.search(
         r"please report it with the command (at \S+|to the maintainers) "
         r"\(CONTINUUM_MHE_TRACEBACK=1 shows the traceback\)\n$",
@@ -135,7 +135,9 @@ def test_theta_max_in_degrees_in_the_library() -> None:
 def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
     tmp_path, capsys, value: str, hint: str
 ) -> None:
-    """Before: theta_max = 3.1416 (pi, rounded up) was told 'degrees? give radians'."""
+    """theta_max = 3.1416 (pi, rounded up) or 6 is told that a bend of pi folds the
+    section back; only a value that cannot be radians (over 2 pi) is told 'degrees? give
+    radians', by check-robot, estimate and the library alike."""
     robot = tmp_path / "robot.toml"
     robot.write_text(f"[[section]]\nlength = 0.16\ntheta_max = {value}\n[[imu]]\nsection = 1\n")
     assert main(["check-robot", str(robot), "--samples", "10"]) == 2
@@ -161,7 +163,8 @@ def test_theta_max_hint_says_degrees_only_where_it_cannot_be_radians(
     ],
 )
 def test_imu_columns_numbered_from_zero_are_named(tmp_path, capsys, header, row, column) -> None:
-    """Before: roll_0 ... roll_1 read as 'the file has columns for 1 IMU(s)'."""
+    """IMU columns numbered from 0 (roll_0 ... roll_1) are named as such, with or
+    without a robot file: one line, 'IMU columns are numbered from 1', nothing written."""
     meas = tmp_path / "m.csv"
     meas.write_text(f"{header}\n{row}\n")
     for robot in ([], ["--robot", "two-section"]):
@@ -191,9 +194,9 @@ def _notes_and_rows(estimate: Path) -> tuple[list[str], list[str]]:
 
 
 def test_evaluate_of_a_cut_estimate_warns_that_it_scores_a_part(tmp_path, capsys) -> None:
-    """Before: an estimate of the first 30 % of a recording (interrupted, cut with head)
-    was scored on that part with no word. Now a warning with the span it covers; a truth
-    sampled twice as densely as the estimate is no mistake and gets none."""
+    """An estimate of the first 30 % of a recording (interrupted, cut with head) is
+    scored on that part with a warning giving the span it covers; a truth sampled twice
+    as densely as the estimate is no mistake and gets none."""
     m, t = _simulated(tmp_path, "a")
     est, cut = tmp_path / "e.csv", tmp_path / "cut.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
@@ -217,12 +220,11 @@ def test_evaluate_of_a_cut_estimate_warns_that_it_scores_a_part(tmp_path, capsys
 
 
 def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_path, capsys) -> None:
-    """A three-section truth without section 2's end scored section 1's alone (the count
-    stopped at the first gap), silently; a header typo (``xx_3``, ``x-3``) left section 3
-    out without a word; a truth with ``theta_2`` and no ``phi_2`` stopped ``evaluate``
-    and ``plot`` with an internal error, and one without section 2's bend was refused
-    by ``plot`` as another robot's. Now every end and bend both files have is scored,
-    the typo is named, and ``plot`` draws such a truth."""
+    """Every section end and bend both files have is scored: a three-section truth
+    without section 2's end scores sections 1 and 3 (the count does not stop at the
+    gap); a header typo (``xx_3``, ``x-3``) is named in a warning; a truth with
+    ``theta_2`` and no ``phi_2``, or without section 2's bend, is scored by ``evaluate``
+    and drawn by ``plot``."""
     m, t, robot = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "three.toml"
     robot.write_text(
         "".join("[[section]]\nlength = 0.1\ntheta_max = 3.0\n" for _ in range(3))
@@ -275,9 +277,9 @@ def test_evaluate_scores_every_section_end_the_truth_has_and_names_a_typo(tmp_pa
 
 
 def test_an_empty_field_of_a_one_imu_file_is_a_dropout_as_with_several(tmp_path) -> None:
-    """Before: an empty roll or pitch in a one-IMU file stopped ``estimate`` (``'' is not
-    a number``, exit 2) where the same field of a several-IMU file is a dropout of its
-    IMU. Now a dropout here too, in ``estimate`` and in ``read_measurements``."""
+    """An empty roll or pitch in a one-IMU file is a dropout, as the same field of a
+    several-IMU file is a dropout of its IMU, in ``estimate`` and in
+    ``read_measurements`` (not an error such as ``'' is not a number``)."""
     from continuum_mhe.io.csv_files import read_measurements
 
     m, _ = _simulated(tmp_path, "a")
@@ -314,7 +316,7 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
     out, err = capsys.readouterr()
-    # one warning (before: a second, est against truth, for the same mistake), naming the
+    # one warning (not a second, est against truth, for the same mistake), naming the
     # file and the length it was made for
     assert err.count("warning") == 1, err
     assert f"warning: {est}: its tip is 2.50 times as far from the base" in err
@@ -330,8 +332,8 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
 
 
 def test_evaluate_of_an_unknown_status_is_an_error(tmp_path, capsys) -> None:
-    # a status outside the vocabulary (edited by hand, another tool's "OK") was read as a
-    # row like any other; evaluate and view then gave it no meaning
+    # a status outside the vocabulary (edited by hand, another tool's "OK") is not read
+    # as a row like any other, to which evaluate and view would give no meaning
     m, t = _simulated(tmp_path, "a")
     est = tmp_path / "e.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
@@ -418,7 +420,7 @@ def _raw_two_imus(path: Path, n: int = 20) -> Path:
          "pitch in tilt CSV files; accelerations are read in m/s^2 and gyro rates in rad/s"),
         ("raw-mounted", ["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot "
          "file gives every IMU its own mount_rpy"),
-        # before: given as 0,0,0 (the default's value) it was taken as not given
+        # given as 0,0,0 (the default's value) it counts as given
         ("raw-mounted", ["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU: the robot "
          "file gives every IMU its own mount_rpy, which wins (leave --mount-rpy out, or "
          "edit the robot file)"),
@@ -432,8 +434,10 @@ def _raw_two_imus(path: Path, n: int = 20) -> Path:
 def test_an_option_that_does_nothing_on_this_input_is_refused(
     tmp_path, capsys, kind: str, argv: list[str], needle: str
 ) -> None:
-    """Before: --mount-rpy on a tilt CSV, --degrees on a raw CSV, and a bag's --topic,
-    --orientation or --pair-tolerance on a CSV did nothing, silently."""
+    """An option that would do nothing on this input is refused in one line saying why,
+    nothing written: --mount-rpy or --attitude on a tilt CSV, --degrees on a raw CSV,
+    --mount-rpy where the robot file mounts every IMU, and a bag's --topic,
+    --orientation or --pair-tolerance on a CSV."""
     every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
     robot = _two_imu_robot(tmp_path / "robot.toml", every if kind == "raw-mounted" else ("", ""))
     if kind == "tilt":
@@ -464,9 +468,9 @@ def test_an_option_that_does_nothing_on_this_input_is_refused(
 def test_live_refuses_an_option_that_does_nothing_before_the_port(
     tmp_path, capsys, argv: list[str], needle: str
 ) -> None:
-    """Before: live read every IMU's robot-file mount_rpy and dropped --mount-rpy (and
-    on tilt lines --mount-rpy and --attitude), silently. Now refused as estimate does,
-    naming the port, before it is opened; nothing written."""
+    """Live refuses --mount-rpy where the robot file gives every IMU its mount_rpy (and
+    on tilt lines --mount-rpy and --attitude) as estimate does, naming the port, before
+    it is opened; nothing written."""
     every = ("mount_rpy = [0, 0, 30]", "mount_rpy = [0, 5, 0]")
     robot = _two_imu_robot(tmp_path / "robot.toml", every)
     port = tmp_path / "ttyACM9"  # no such device: a check after opening it is not reached
@@ -481,7 +485,8 @@ def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
     tmp_path, capsys
 ) -> None:
     """docs/hardware.md: mount_rpy rotates raw vectors; tilt readings are used as they are.
-    Before: silently ignored. Now one warning, and the estimates equal those without it."""
+    A robot file's mount_rpy on tilt input gets one warning, and the estimates equal those
+    without it."""
     args = ["simulate", "spatial", "--robot", "two-section", "--duration", "2"]
     meas = tmp_path / "m.csv"
     assert main([*args, "-o", str(meas)]) == 0
@@ -541,7 +546,8 @@ def two_and_three(tmp_path_factory) -> dict[str, Path]:
 def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
     two_and_three, capsys
 ) -> None:
-    """Before: a two-section estimate against a three-section truth printed an SRMSE."""
+    """A two-section estimate against a three-section truth: a warning that the truth is
+    of another robot, and no SRMSE (None in the JSON)."""
     e2, t2, t3 = two_and_three["e2"], two_and_three["t2"], two_and_three["t3"]
     capsys.readouterr()
     assert main(["evaluate", str(e2), str(t2), "--robot", "two-section"]) == 0
@@ -575,9 +581,9 @@ def _on_the_device_clock(src: Path, dst: Path, t0: float) -> list[str]:
 
 
 def test_evaluate_says_device_clock_times_that_differ_differently(tmp_path, capsys) -> None:
-    """Before: %g printed the times of a device clock past 4.3e6 s alike (``its rows
-    cover t = 4.29496e+06 to 4.29497e+06 s``; ``t=4.29496e+06 does not increase
-    (previous t=4.29496e+06)`` for times 0.05 s apart). Now each as it reads back."""
+    """Times of a device clock past 4.3e6 s are said as they read back, so times 0.05 s
+    apart differ in the messages (%g would print both as ``4.29496e+06``, in ``its rows
+    cover t = ...`` and ``t=... does not increase (previous t=...)``)."""
     m, t = _simulated(tmp_path, "a")
     est, cut = tmp_path / "e.csv", tmp_path / "cut.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
@@ -608,9 +614,9 @@ def test_evaluate_says_device_clock_times_that_differ_differently(tmp_path, caps
 def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
     two_and_three, tmp_path, capsys
 ) -> None:
-    """Before: evaluate e2.csv t2.csv took the one-section 0.2 m robot, silently. Now
-    the robot file the estimate's options line names (said in a note); without that
-    line (an estimate from elsewhere), an error naming --robot."""
+    """evaluate e2.csv t2.csv of a multi-section estimate without --robot takes the
+    robot file the estimate's options line names (said in a note), not the one-section
+    0.2 m robot; without that line (an estimate from elsewhere), an error naming --robot."""
     e2, t2 = two_and_three["e2"], two_and_three["t2"]
     capsys.readouterr()
     assert main(["evaluate", str(e2), str(t2)]) == 0
@@ -635,8 +641,9 @@ def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
 
 
 def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, capsys) -> None:
-    """Before: ``--seed -1`` said ``valid range [0, 4.29497e+09]``, and ``estimate
-    --noise-deg 0`` said ``must be positive`` where ``-1`` said ``valid range [0, 90]``."""
+    """``--seed -1`` says ``valid range [0, 4294967295]`` (not ``4.29497e+09``), and
+    ``estimate --noise-deg 0`` says why the estimators need a positive noise, with the
+    valid range ``(0, 90]``, where simulate takes 0."""
     assert main(["demo", "--seed", "-1", "--out", str(tmp_path / "d")]) == 2
     assert "valid range [0, 4294967295]" in capsys.readouterr().err
     meas = tmp_path / "m.csv"
@@ -653,9 +660,9 @@ def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, c
 
 
 def test_a_multi_section_scenario_from_simulate_names_simulate_robot() -> None:
-    """Before: ``simulate("spatial")`` pointed a library user at the command line's
-    --robot, and ``simulate_robot`` was not exported. Now the error names the call, which
-    ``continuum_mhe`` exports and which simulates the scenario."""
+    """``simulate("spatial")`` names the library call to use, ``simulate_robot('spatial',
+    robot)`` (not the command line's --robot), which ``continuum_mhe`` exports and which
+    simulates the scenario."""
     import continuum_mhe
     from continuum_mhe.errors import UserError
     from continuum_mhe.io import read_robot
@@ -667,8 +674,8 @@ def test_a_multi_section_scenario_from_simulate_names_simulate_robot() -> None:
 
 
 def test_an_imu_on_a_missing_section_in_code_says_the_index_is_0_based() -> None:
-    """Before: ``ImuPlacement(section=2)`` on a two-section robot said 'IMU 2 is on
-    section 3', a number the user never wrote (robot files are 1-based, code 0-based)."""
+    """``ImuPlacement(section=2)`` on a two-section robot names the 0-based index the
+    user wrote, not 'section 3' (robot files are 1-based, code 0-based)."""
     from continuum_mhe import ImuPlacement, Robot, Section
     from continuum_mhe.errors import UserError
 
@@ -683,8 +690,9 @@ def test_an_imu_on_a_missing_section_in_code_says_the_index_is_0_based() -> None
 
 
 def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path, capsys) -> None:
-    """Before: ``use --formulation bend or direct``, and ``--formulation direct`` is no
-    choice (direct is ``--imu-model direct``)."""
+    """The paper formulation on two sections names options that exist: ``--formulation
+    bend``, or ``--imu-model direct`` with raw input (``--formulation direct`` is no
+    choice)."""
     meas = tmp_path / "m.csv"
     meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
     argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", "two-section"]
@@ -732,7 +740,7 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
 
 def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:
     """With one IMU silent from the start, the other's readings in m/s^2 are still
-    refused at its first reading (the check waited for a sample with every IMU)."""
+    refused at its first reading (the check does not wait for a sample with every IMU)."""
     from continuum_mhe.io.robot_file import read_robot
 
     est = make_estimator("ekf", make_formulation("direct", read_robot("two-section")))

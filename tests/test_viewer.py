@@ -336,10 +336,10 @@ def test_live_view_without_rerun_is_one_line_before_the_port(
 def test_view_without_robot_draws_the_robot_the_estimate_names(
     tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``view EST.csv --save V.rrd`` without --robot failed (``pass --robot with the
-    robot it was estimated on``) although the estimate's options line names the robot;
-    evaluate reads that line. Now view does too, with the same note, and draws the same
-    view as with --robot; a file without the line still needs --robot."""
+    """``view EST.csv --save V.rrd`` without --robot reads the robot the estimate's
+    options line names, as evaluate does, with the same note, and draws the same view as
+    with --robot; a file without the line still needs --robot (``pass --robot with the
+    robot it was estimated on``)."""
     out = tmp_path / "v.rrd"
     capsys.readouterr()
     assert main(["view", str(two_section["est"]), "--truth", str(two_section["truth"]),
@@ -367,8 +367,9 @@ def test_view_without_robot_draws_the_robot_the_estimate_names(
 def test_live_view_without_a_display_names_lives_choices_before_the_port(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``live --view`` without a display named view's options (``--serve-web``,
-    ``--save``), which live does not have, and only once the port had opened."""
+    """``live --view`` without a display names live's own choices (``--view web``,
+    ``--view FILE.rrd``), not view's options, which live does not have, before the port
+    is opened."""
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     args = ["live", "--port", str(tmp_path / "no-such-port"), "--view"]
@@ -451,9 +452,9 @@ def test_serve_web_on_loopback_until_ctrl_c(
 def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
     tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: view on an .mcap estimate said 'not UTF-8 text'; on a measurement CSV it
-    suggested --robot. Now the MCAP is drawn as its CSV is, and a measurement file (tilt
-    or raw) is one line saying to run estimate first."""
+    """view draws an .mcap estimate as it draws its CSV (not 'not UTF-8 text'), and a
+    measurement file (tilt or raw) is one line saying to run estimate first (not a
+    suggestion of --robot)."""
     meas, _, _ = _two_section_run(tmp_path)
     est_mcap = tmp_path / "e.mcap"
     robot = ["--robot", "two-section"]

@@ -218,10 +218,10 @@ def test_an_estimate_file_of_another_command_or_folder_is_an_options_file(
     tmp_path: Path, capsys
 ) -> None:
     """A live recording's estimate records live's port and baud: ``estimate --config``
-    with it was refused ("baud is not an option of estimate"); they are left out, said
-    in a note. Its robot file, recorded relative to where live ran, is found beside the
-    estimate from another folder. An error in its options line names the file's line
-    (it said line 1 for the line under the header comment)."""
+    with it leaves them out, said in a note (not refused as "baud is not an option of
+    estimate"). Its robot file, recorded relative to where live ran, is found beside the
+    estimate from another folder. An error in its options line names that line of the
+    file (not line 1 for the line under the header comment)."""
     sub = tmp_path / "run"
     sub.mkdir()
     robot = sub / "robot.toml"
@@ -254,11 +254,10 @@ def test_an_estimate_file_of_another_command_or_folder_is_an_options_file(
 
 
 def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, capsys) -> None:
-    """A live estimate recorded ``record = "raw.csv"`` on its options line, and ``live
-    --config`` with it wrote the new session's raw readings over that recording (with
-    ``--overwrite``, as for ``-o``). Now ``--record`` is not recorded, and a file that
-    still names one has it left out, said in a note; an options file of the user's own
-    with ``record`` is refused as ``output`` is."""
+    """``live --config`` with a live estimate never writes the new session's raw
+    readings over the recording it names: ``--record`` is not recorded, and a file that
+    names one (``record = "raw.csv"``) has it left out, said in a note; an options file
+    of the user's own with ``record`` is refused as ``output`` is."""
     from continuum_mhe.cli.app import _parse
 
     est = tmp_path / "live.csv"
@@ -451,9 +450,9 @@ def test_the_estimate_file_records_the_method_that_made_it(tmp_path: Path) -> No
 
 
 def test_a_metres_wide_band_does_not_flatten_the_position_panels(tmp_path: Path) -> None:
-    """An estimate's rows far from sure (std_x of 1.76 m on a 0.3 m robot) autoscaled the
-    x panel to +-4000 mm, the lines flat; the panels now frame the lines (estimate and
-    truth) with room, and such a band fills the panel."""
+    """An estimate's rows far from sure (std_x of 1.76 m on a 0.3 m robot) do not
+    autoscale the x panel to +-4000 mm with the lines flat: the panels frame the lines
+    (estimate and truth) with room, and such a band fills the panel."""
     from continuum_mhe.evaluation.estimate_figure import estimate_figure
 
     assert main(["simulate", "paper3d", "--duration", "2", "-o", str(tmp_path / "m.csv"),

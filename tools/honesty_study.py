@@ -13,7 +13,8 @@ targets in one run (docs/uncertainty.md, "Honest ``ok``: the four targets").
 (c) ``paper3d`` with one reading turned upside down (roll plus or minus pi, pitch
     negated): the rows more than 50 mm off that are ``ok`` (target none);
 (d) ``paper3d`` sampled at 1 Hz: the ``ok`` rows 4 or more of their own standard
-    deviations off on some tip axis (target none; the issue's case is the EKF).
+    deviations off on some tip axis (target none; the EKF's one linearisation is the
+    case in point).
 
 Every estimate is made by ``continuum-mhe estimate`` with nothing but ``--robot`` and
 ``--method`` (in this process), so the figures are those a user gets.

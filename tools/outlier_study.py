@@ -11,8 +11,8 @@ scales) on the same three versions of the data, with the same model, Q and R:
   one +-30 deg offset on roll and pitch (independent signs), not overlapping.
 
 Corrupted readings are what a sensor reports for the offset orientation
-(``model.imu.as_sensor_reads``); the tables of docs/robust.md's first study were made
-when the pitch was clipped at +-90 deg instead, so a rerun does not reproduce them. The
+(``model.imu.as_sensor_reads``); the tables of docs/robust.md's first study come from
+readings whose pitch is clipped at +-90 deg instead, so a rerun does not reproduce them. The
 score is the mean tip error over the recording (mm). Intervals are 95 % percentile
 bootstrap over seeds, paired (the same resampled seeds for both sides).
 

@@ -80,7 +80,7 @@ PEER_MAX_ITER = 100
 #: Stands for an absent bound where a solver takes no infinity (acados): beyond any
 #: value the benchmark's windows reach (bends and rates in rad and rad/s, the disk's sum
 #: of squares, never negative), and near enough to the problem's scale for HPIPM's
-#: interior point, which with a bound of 1e9 ran into its iteration limit in most QPs
+#: interior point, which with a bound of 1e9 runs into its iteration limit in most QPs
 #: (docs/benchmarks.md).
 INFINITE_BOUND = 1e3
 

@@ -29,9 +29,9 @@ estimator's own restarts in between do not shorten. This part runs whether
 ``bad_start`` is set or not. The reason: the EKF's first update with the returned reading
 can land far off with a small covariance, and readings of a wrong shape can agree with
 it for a few samples. Two-section robot, one IMU silent for 1.5 to 5 s, 120 returns
-(``python tools/imu_return_study.py``): within 2 s of the return, ``ok`` estimates were
-up to 143 standard deviations of their own tip position off before (EKF; UKF 30, MHE
-41); with confirmation after two consistent readings still 7.8 (EKF) and 7.6 (UKF);
+(``python tools/imu_return_study.py``): within 2 s of the return, unconfirmed ``ok``
+estimates are up to 143 standard deviations of their own tip position off (EKF; UKF 30,
+MHE 41); with confirmation after two consistent readings still 7.8 (EKF) and 7.6 (UKF);
 after 1 s of them at most 3.1, at a cost of about 20 samples (1 s at 20 Hz) not ``ok``
 after each return.
 
