@@ -551,7 +551,8 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     """The SQP's certificate (step, contraction or quadratic-rate estimate) against the
     answer iterated far beyond it, window by window, on the benchmark's 40 s recording
     at N = 30: within ``err_tol`` (1e-8; measured 1.7e-9, 3.5e-10 and 3.2e-9 for l2, Huber
-    and Cauchy). With the quadratic-rate estimate, Huber's kink let 4.3e-8 through."""
+    and Cauchy). Huber's kink would let 4.3e-8 through the quadratic-rate estimate, which
+    Huber therefore does not use."""
     rec = simulate("paper3d", duration=40.0, noise_deg=2.0, seed=0)
     z = rec.z
     f = BendFormulation()

@@ -399,12 +399,19 @@ def test_truth_without_bends_draws_its_tip_only(
     assert [t for t, _ in rows["/world/truth/tip_trail"]] == [50_000_000]
 
 
-def _free_port() -> int:
+def _free_ports(count: int) -> list[int]:
+    """``count`` distinct loopback ports that were free a moment ago (bound at once, so
+    that they differ; another process may still take one before the test binds it)."""
     import socket
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    sockets = [socket.socket() for _ in range(count)]
+    try:
+        for s in sockets:
+            s.bind(("127.0.0.1", 0))
+        return [int(s.getsockname()[1]) for s in sockets]
+    finally:
+        for s in sockets:
+            s.close()
 
 
 def test_serve_web_on_loopback_until_ctrl_c(
@@ -421,13 +428,19 @@ def test_serve_web_on_loopback_until_ctrl_c(
 
     est = tmp_path / "e.csv"
     est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
-    web, grpc = _free_port(), _free_port()
-    cmd = [sys.executable, "-m", "continuum_mhe.cli", "view", str(est), "--serve-web",
-           "--web-port", str(web), "--grpc-port", str(grpc)]  # fmt: skip
-    view = LiveProcess(cmd[4:], command="view")
-    proc = view.proc
+    for _ in range(5):  # a port another process took since it was free: other ports
+        web, grpc = _free_ports(2)
+        cmd = [sys.executable, "-m", "continuum_mhe.cli", "view", str(est), "--serve-web",
+               "--web-port", str(web), "--grpc-port", str(grpc)]  # fmt: skip
+        view = LiveProcess(cmd[4:], command="view")
+        proc = view.proc
+        wait_for(lambda v=view: "serving the view at" in v.err or v.proc.poll() is not None, "view")
+        if proc.poll() is None:
+            break
+        view.finish()  # exited: its whole stderr
+        if "is in use" not in view.err:
+            break
     try:
-        wait_for(lambda: "serving the view at" in view.err or proc.poll() is not None, "view")
         assert proc.poll() is None, f"view exited before serving: {view.err}"
         (line,) = [ln for ln in view.lines if "serving the view at" in ln]
         url = line.split(" at ")[1].split()[0]
