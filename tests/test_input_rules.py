@@ -224,8 +224,11 @@ def test_a_byte_order_mark_is_read_in_robot_files_as_in_csvs(tmp_path: Path) -> 
 @pytest.mark.parametrize(
     ("entry", "message"),
     [  # the line: the key's where the message names one, else its table's header
-        ("length = 1e-300", "line 1: section 1: section length 1e-300 m is under 1 mm, too short"),
-        ("length = 0.0005", "line 1: section 1: section length 0.0005 m is under 1 mm"),
+        (
+            "length = 1e-300",
+            "line 2: section 1: length: section length 1e-300 m is under 1 mm, too short",
+        ),
+        ("length = 0.0005", "line 2: section 1: length: section length 0.0005 m is under 1 mm"),
         (
             "mount_rpy = [1e300, 0, 0]",
             "line 5: imu 1: mount_rpy must be angles in degrees within +-360",
@@ -469,6 +472,12 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
          "line 2: top level: unknown key 'mountin'"),
         (ROBOT + "\n[[imus]]\nsection = 1\n", "line 6: top level: unknown key 'imus'"),
         (ROBOT + "[extra.part]\nx = 1\n", "line 5: top level: unknown key 'extra'"),
+        (ROBOT + "[[section]]\n\nlength = -0.14\n", "line 7: section 2: length: section "
+         "length must be positive, got -0.14 m"),
+        (ROBOT.replace("length = 0.2", "length = 0.2\ntheta_max = 4"), "line 3: section 1: "
+         "theta_max: theta_max must lie in (0, pi) rad"),
+        (ROBOT.replace("length = 0.2", "length = 0.2\ndisks = -1"), "line 3: section 1: "
+         "disks must be a whole number"),
     ],
 )  # fmt: skip
 def test_a_robot_file_problem_names_its_line(tmp_path: Path, text: str, message: str) -> None:

@@ -456,6 +456,94 @@ def test_an_option_that_does_nothing_on_this_input_is_refused(
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
+        (["--method", "ekf", "--horizon", "50"], "--horizon is an MHE option; the ekf has no "
+         "window"),
+        (["--method", "ukf", "--paper-start"], "--paper-start is an MHE option; the ukf"),
+        (["--method", "ekf", "--solver", "ipopt"], "--solver is an MHE option; the ekf"),
+        (["--method", "ekf", "--hor", "20"], "--horizon is an MHE option"),  # abbreviated
+        (["--method", "ekf", "--no-branch-check"], "--branch-check is an MHE option"),
+        (["--method", "ekf", "--loss", "welsch"], "--loss welsch is an MHE option; the ekf "
+         "keeps the l2 cost"),
+        (["--robot", "two-section", "--length", "0.5"], "--length does not apply with the "
+         "robot file two-section, which describes the robot (its sections, theta_max and "
+         "mounting): leave it out, or edit the robot file"),
+        (["--robot", "two-section", "--theta-max", "3"], "--theta-max does not apply with"),
+    ],
+)  # fmt: skip
+def test_an_option_that_the_run_would_ignore_is_refused(
+    tmp_path, capsys, argv: list[str], needle: str
+) -> None:
+    """An option given on the command line that the chosen estimator or the robot file
+    would leave unused (an MHE option with a filter, a one-section option beside a robot
+    file) is one line, exit 2, nothing written."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.02,0.1,0.1\n")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {needle}") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> None:
+    """An options file is a profile for several commands and methods: its MHE options
+    with ``--method ekf`` on the command line are no error; the same option given on the
+    command line is."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n")
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text('horizon = 12\nsolver = "ipopt"\n')
+    out = str(tmp_path / "e.csv")
+    assert main(["estimate", str(meas), "--config", str(cfg), "--method", "ekf", "-o", out]) == 0
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--method", "ekf", "-o", out, "--overwrite", "--horizon", "12"]
+    assert main(argv) == 2
+    assert "--horizon is an MHE option" in capsys.readouterr().err
+
+
+def test_an_options_files_value_out_of_range_names_the_file_and_line(tmp_path, capsys) -> None:
+    """A value out of range in an options file is named by the file, its line and key
+    (not as a command-line flag); given on the command line as well, the flag wins."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n")
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text('method = "mhe"\nhorizon = -3\n')
+    argv = ["estimate", str(meas), "--config", str(cfg), "-o", str(tmp_path / "e.csv")]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {cfg}: line 2: horizon = -3 is outside its valid range "
+        "[2, 1000] samples\n"
+    )
+    assert main([*argv, "--horizon", "1"]) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: --horizon 1 is outside its valid range [2, 1000] samples\n"
+    )
+
+
+def test_attitude_fusion_on_raw_input_with_gyros_says_it_takes_the_tilt_model(
+    tmp_path, capsys
+) -> None:
+    """``--attitude`` on raw input with gyros, without ``--imu-model``, runs the tilt
+    model instead of the default direct one: a warning says so (none with
+    ``--imu-model tilt``)."""
+    pytest.importorskip("ahrs")
+    robot = _two_imu_robot(tmp_path / "robot.toml")
+    meas = _raw_two_imus(tmp_path / "m.csv")
+    argv = ["estimate", str(meas), "--robot", str(robot), "--attitude", "mahony", "--method",
+            "ekf", "-o", str(tmp_path / "e.csv"), "--overwrite"]  # fmt: skip
+    said = []
+    for extra in ([], ["--imu-model", "tilt"]):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert main([*argv, *extra]) == 0
+        said.append([str(w.message) for w in seen if w.category is OptionWarning])
+    assert [len(s) for s in said] == [1, 0]
+    assert said[0][0].startswith("--attitude mahony takes the tilt model (roll and pitch")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
         (["--mount-rpy", "0,0,90"], "--mount-rpy applies to no IMU: the robot file gives "
          "every IMU its own mount_rpy, which wins"),
         (["--mount-rpy", "0,0,0"], "--mount-rpy applies to no IMU"),

@@ -22,6 +22,7 @@ from continuum_mhe.cli.config import apply_config, options_record
 from continuum_mhe.cli.options import (
     OneLineParser,
     check_option_ranges,
+    check_robot_replaces,
 )
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit
@@ -109,19 +110,51 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     command = commands.choices[args.command]
     if unknown:  # said by the command's parser, so the usage shown is the command's
         command.error(f"unrecognized arguments: {' '.join(unknown)}")
-    if getattr(args, "config", None):  # the file's options, then the command line's again
-        apply_config(command, args.command, args.config)
+    on_command_line = _given_options(parser, command, argv)
+    sources: dict[str, str] = {}
+    config = getattr(args, "config", None)
+    if config:  # the file's options, then the command line's again
+        sources = apply_config(command, args.command, config)
         args = parser.parse_args(argv)
+    # where each option that the options file set (and the command line did not) was given
+    args.config_sources = {d: w for d, w in sources.items() if d not in on_command_line}
+    # the options given on the command line, which a command refuses where they do not
+    # apply (an options file is a profile for several commands and methods: its options
+    # apply where they can)
+    args.given_options = frozenset(on_command_line)
     if hasattr(args, "config"):
         args.options_parser = command  # the record is written anew once defaults resolve
         args.options_record = options_record(command, args)
     return args
 
 
+def _given_options(
+    parser: argparse.ArgumentParser, command: argparse.ArgumentParser, argv: Sequence[str] | None
+) -> set[str]:
+    """The destinations of ``command``'s options given on the command line ``argv``: a
+    parse with every option's default suppressed, so that only those given are set."""
+    actions = [a for a in command._actions if a.option_strings]
+    saved = {a: a.default for a in actions}
+    saved_defaults = dict(command._defaults)
+    try:
+        for a in actions:
+            a.default = argparse.SUPPRESS
+        command._defaults = {
+            k: v for k, v in saved_defaults.items() if k not in {a.dest for a in actions}
+        }
+        namespace, _ = parser.parse_known_args(argv)
+    finally:
+        for a, default in saved.items():
+            a.default = default
+        command._defaults = saved_defaults
+    return {a.dest for a in actions if hasattr(namespace, a.dest)}
+
+
 def _run_command(argv: Sequence[str] | None) -> int:
     try:  # a signal while the parser imports the commands ends the run as one too
         args = _parse(argv)
         check_option_ranges(args)
+        check_robot_replaces(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
         if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:

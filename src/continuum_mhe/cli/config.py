@@ -131,7 +131,7 @@ def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -
     return converted
 
 
-def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> None:
+def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> dict[str, str]:
     """Set the defaults of ``parser`` (the ``command``'s) from the options file ``path``:
     its top-level keys and those of its ``[command]`` table. A key that is no option of
     the command, or a value the option would refuse, is a one-line error naming the file
@@ -139,7 +139,8 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     command that wrote it (``live``'s port and baud in a live recording's estimate):
     those that are no option of ``command`` are left out, and a note says which. A
     relative robot or tensions file that is not where the command runs but beside the
-    options file is taken from there."""
+    options file is taken from there. Returns where each option set was given, by
+    destination (``PATH: line N: key = value``), for the checks made later."""
     data, text, offset = _read(path)
     options = _options(parser)
     tables = {"estimate", "live"}
@@ -147,6 +148,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
     own = data.get(command, {})
     recorded = Path(path).suffix.lower() == ".csv"
     defaults: dict[str, Any] = {}
+    sources: dict[str, str] = {}
     left_out: list[str] = []
     files_left_out: list[str] = []
     for key, value in [*flat.items(), *own.items()]:
@@ -166,6 +168,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
         if dest in FILE_OPTIONS and isinstance(value, str):
             value = beside(path, value)
         defaults[dest] = _value(path, where, key, action, value)
+        sources[dest] = f"{path}: {where}{key} = {value!r}"
     if left_out:
         print(
             f"{PROG}: note: {path}: {', '.join(left_out)} (of the command that wrote it) "
@@ -179,6 +182,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> No
             file=sys.stderr,
         )
     parser.set_defaults(**defaults)
+    return sources
 
 
 def beside(path: str, value: str) -> str:

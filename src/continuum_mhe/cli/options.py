@@ -327,11 +327,48 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
             "window (docs: tendon robots); the EKF is this robot's default",
             file=sys.stderr,
         )
+    if method != "mhe":
+        _refuse_mhe_options(args, method)
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
         args.options_record = options_record(parser, args)
     return method
+
+
+#: The options of the MHE's window (``--loss`` is refused by value, in
+#: :func:`mhe_settings_from_args`), by destination
+MHE_OPTIONS = ("horizon", "paper_start", "solver", "branch_check")
+
+
+def _refuse_mhe_options(args: argparse.Namespace, method: str) -> None:
+    """One line for an MHE option given on the command line (``args.given_options``)
+    where the estimator is the ``method``, which has no window."""
+    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    dest = next((d for d in MHE_OPTIONS if d in given), None)
+    if dest is None:
+        return
+    flag = "--" + dest.replace("_", "-")
+    chosen = "" if "method" in given else " (this robot's default; --method mhe for the MHE)"
+    raise InputError(f"{flag} is an MHE option; the {method}{chosen} has no window")
+
+
+def check_robot_replaces(args: argparse.Namespace) -> None:
+    """One line for a one-section option given on the command line (``--length``,
+    ``--theta-max``, ``--mounting``) beside a robot file, which describes the robot
+    instead."""
+    robot = getattr(args, "robot", None)
+    if not robot:
+        return
+    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    dest = next((d for d in getattr(args, "robot_replaces", ()) if d in given), None)
+    if dest is None:
+        return
+    flag = "--" + dest.replace("_", "-")
+    raise InputError(
+        f"{flag} does not apply with the robot file {robot}, which describes the robot "
+        "(its sections, theta_max and mounting): leave it out, or edit the robot file"
+    )
 
 
 def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
@@ -635,7 +672,9 @@ def check_option_ranges(args: argparse.Namespace) -> None:
             why = f": {rng.above}" if rng.above and math.isfinite(v) and v > rng.hi else ""
             if rng.hint is not None and rng.hint(float(v)):
                 why = f": {rng.hint(float(v))}"
-            raise InputError(f"{flag} {v!r} is outside its valid range {rng.describe()}{why}")
+            # an options file's value is named by its file and line
+            named = getattr(args, "config_sources", {}).get(dest) or f"{flag} {v!r}"
+            raise InputError(f"{named} is outside its valid range {rng.describe()}{why}")
 
 
 def add_raw_imu_options(p: argparse.ArgumentParser) -> None:

@@ -75,13 +75,17 @@ def with_imu_model(
     model already chosen stays."""
     if options.raw.imu_model is not None:
         return options
-    direct = (
-        raw_input
-        and has_gyro
-        and not options.use_orientation
-        and options.raw.attitude == "accel"
-        and base.name in ("bend", "direct")
-    )
+    gyro_input = raw_input and has_gyro and not options.use_orientation
+    direct = gyro_input and options.raw.attitude == "accel" and base.name in ("bend", "direct")
+    if gyro_input and options.raw.attitude != "accel" and base.name in ("bend", "direct"):
+        warnings.warn(
+            f"--attitude {options.raw.attitude} takes the tilt model (roll and pitch from "
+            "the fused attitude) instead of the direct model, the default for raw input "
+            "with gyros and measurably better (docs/options.md); --imu-model tilt with it "
+            "says so",
+            OptionWarning,
+            stacklevel=3,
+        )
     return replace(options, raw=replace(options.raw, imu_model="direct" if direct else "tilt"))
 
 

@@ -186,7 +186,9 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         try:
             sections.append(Section(length, theta_max, disks))
         except ValueError as exc:
-            raise InputError(f"{path}: {where}: {exc}") from None
+            # the key the problem is with, so that the message names its line
+            key = next(k for k in ("disks", "length", "theta_max") if k in str(exc))
+            raise InputError(f"{path}: {where}: {key}: {exc}") from None
     if not sections:
         raise InputError(f"{path}: no [[section]]: a robot needs at least one section")
     imus: list[ImuPlacement] = []
