@@ -41,13 +41,23 @@ def test_require_names_the_extra(monkeypatch):
     assert require("json", "peers", "x").dumps([1]) == "[1]"
 
 
-def test_benchmark_without_do_mpc(monkeypatch, tmp_path, capsys):
+def test_benchmark_without_do_mpc_times_the_rest(monkeypatch, tmp_path, capsys):
+    """A peer that is not installed is not timed, and the report says what to install,
+    as for acados: the other contenders are timed."""
+    import json
+
     _block(monkeypatch, "do_mpc")
     out = tmp_path / "bench.json"
-    code = main(["benchmark", "--horizons", "5", "--duration", "0.5", "--json", str(out)])
-    assert code == 2
-    _one_error_line(capsys.readouterr().err, "peers")
-    assert not out.exists()
+    argv = ["benchmark", "--horizons", "5", "--duration", "0.5", "--json", str(out),
+            "--skip", "fatrop", "--skip", "sqp-hpipm", "--loss-horizons", "none",
+            "--repeats", "1"]  # fmt: skip
+    assert main(argv) == 0
+    hint = "needs do-mpc, which is not installed: pip install 'continuum-mhe[peers]'"
+    assert f"do-mpc: not timed: {hint}" in " ".join(capsys.readouterr().out.split())
+    report = json.loads(out.read_text())
+    assert report["skipped"]["do-mpc"] == hint
+    assert {r["method"] for r in report["results"]} >= {"fast", "ipopt"}
+    assert "do-mpc" not in {r["method"] for r in report["results"]}
 
 
 def test_reproduce_scheduler_without_dask_writes_no_folder(monkeypatch, tmp_path, capsys):

@@ -49,10 +49,11 @@ PIPED_WIDTH = 1000
 
 def table_console() -> Console:
     """A console on stdout for tables: the terminal's width, ``$COLUMNS`` where set, else
-    (piped, logged) wide enough that no column is cut."""
+    (piped, logged) wide enough that no column is cut. Text is printed as it is: no
+    console markup (``pip install 'continuum-mhe[peers]'`` keeps its brackets)."""
     from rich.console import Console
 
-    console = Console()
+    console = Console(markup=False)
     if not console.is_terminal and not os.environ.get("COLUMNS"):
         console.width = PIPED_WIDTH
     return console

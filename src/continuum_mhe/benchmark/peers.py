@@ -53,6 +53,7 @@ import numpy as np
 from continuum_mhe.estimators.base import FloatArray, Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
+from continuum_mhe.extras import available, install_hint
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import Recording
@@ -466,6 +467,8 @@ def missing_peers(acados_folder: str | None = None) -> dict[str, str]:
     """The peers that cannot run here, each with the one line that says what to
     install."""
     why: dict[str, str] = {}
+    if not available("do_mpc"):
+        why["do-mpc"] = f"needs do-mpc, which is not installed: {install_hint('peers')}"
     if find_acados(acados_folder) is None:
         where = f" (not in {acados_folder})" if acados_folder else ""
         why["acados"] = f"needs {ACADOS_PACKAGE}{where}: {ACADOS_HINT}"

@@ -21,7 +21,6 @@ from continuum_mhe.benchmark.harness import (
     run_robot_benchmark,
 )
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import available, missing
 
 
 def _horizons(text: str) -> list[int]:
@@ -63,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
             _write_json(args.json, robot_report)
         return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
-    if "do-mpc" in methods and not available("do_mpc"):
-        raise missing("do-mpc", "peers", "benchmark's do-mpc row (or leave it out: --skip do-mpc)")
     if args.acados is not None and not Path(args.acados, "acados", "__init__.py").is_file():
         raise UserError(
             f"--acados {args.acados}: no acados package there (pip install --no-deps "
