@@ -462,6 +462,30 @@ def test_serve_web_on_loopback_until_ctrl_c(
         assert s.connect_ex(("127.0.0.1", web)) != 0
 
 
+def test_evaluate_and_plot_read_an_estimate_mcap_as_its_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """evaluate scores an .mcap estimate as it scores the same run's CSV (not 'not UTF-8
+    text'); plot draws it."""
+    import json
+
+    meas, truth, est_csv = _two_section_run(tmp_path)
+    est_mcap = tmp_path / "e.mcap"
+    robot = ["--robot", "two-section"]
+    assert main(["estimate", str(meas), "-o", str(est_mcap), "--method", "ekf", *robot]) == 0
+    scores = []
+    capsys.readouterr()
+    for est in (est_mcap, est_csv):
+        assert main(["evaluate", str(est), str(truth), *robot, "--json"]) == 0
+        scores.append(json.loads(capsys.readouterr().out))
+    mcap, csv = scores
+    assert mcap["tip_mean_mm"] > 0 and mcap.keys() == csv.keys()
+    for key in ("tip_mean_mm", "tip_max_mm", "srmse"):  # the CSV holds 10 digits
+        assert mcap[key] == pytest.approx(csv[key], rel=1e-6), key
+    assert main(["plot", str(est_mcap), *robot, "-o", str(tmp_path / "p.png")]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 0
+
+
 def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
     tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

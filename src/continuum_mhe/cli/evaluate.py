@@ -22,11 +22,13 @@ from continuum_mhe.evaluation.metrics import (
     section_numbers,
 )
 from continuum_mhe.io.csv_files import (
+    TIP_COLUMNS,
     InputError,
     check_same_robot,
     misspelt_columns,
     read_state_table,
 )
+from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
 
 
@@ -83,7 +85,7 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
 
 
 def run(args: argparse.Namespace) -> int:
-    est = read_state_table(args.estimates)
+    est = read_estimates(args.estimates, "evaluate", TIP_COLUMNS)
     truth = read_state_table(args.truth)
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")

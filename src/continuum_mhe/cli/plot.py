@@ -64,14 +64,14 @@ def _estimate(args: argparse.Namespace) -> int:
     )
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.csv_files import check_output_target, read_state_table
+    from continuum_mhe.io.estimate_files import read_estimates
     from continuum_mhe.io.robot_file import read_robot
-    from continuum_mhe.viewer.replay import read_estimates
 
     output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
     if output.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
-    est = read_estimates(args.source)
+    est = read_estimates(args.source, "plot")
     truth = read_state_table(args.truth) if args.truth else None
     lengths = None
     robot: Robot | None = None

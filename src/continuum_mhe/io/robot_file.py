@@ -186,9 +186,10 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         try:
             sections.append(Section(length, theta_max, disks))
         except ValueError as exc:
-            # the key the problem is with, so that the message names its line
+            # the key the problem is with, first, so that the message names its line
             key = next(k for k in ("disks", "length", "theta_max") if k in str(exc))
-            raise InputError(f"{path}: {where}: {key}: {exc}") from None
+            named = "" if str(exc).startswith(key) else f"{key}: "
+            raise InputError(f"{path}: {where}: {named}{exc}") from None
     if not sections:
         raise InputError(f"{path}: no [[section]]: a robot needs at least one section")
     imus: list[ImuPlacement] = []

@@ -9,42 +9,19 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.io.csv_files import (
-    TIP_COLUMNS,
     InputError,
-    StateTable,
     check_estimate_fits,
     read_state_table,
     robot_misfit,
-    tilt_columns,
 )
-from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
-from continuum_mhe.io.raw_imu import is_raw_header
+from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.tensions import read_tensions
-from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import tendon_outputs
 from continuum_mhe.viewer.geometry import TendonShapes
 from continuum_mhe.viewer.sink import ViewerSink
 from continuum_mhe.viewer.view import BackboneView
-
-
-def read_estimates(path: str) -> StateTable:
-    """An estimate CSV, or an estimate MCAP (``estimate -o EST.mcap``); a measurement
-    CSV (tilt or raw, no tip columns) is a one-line error saying to estimate it first."""
-    if Path(path).suffix.lower() == ".mcap":
-        return read_estimate_table_mcap(path)
-    with open_rows(path) as rows:  # the header first: a measurement file's rows may
-        header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
-    tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
-    if not set(TIP_COLUMNS) <= set(header) and (
-        is_raw_header(header) or any(c in header for c in tilt)
-    ):
-        raise InputError(
-            f"{path}: a measurement file (columns {', '.join(header)}), not an estimate: "
-            f"run continuum-mhe estimate {path} -o EST.csv first, then view EST.csv"
-        )
-    return read_state_table(path, ())
 
 
 def replay(
@@ -70,7 +47,7 @@ def replay(
         raise InputError(f"{tensions}: --inputs is for a tendon robot (a [backbone] in --robot)")
     else:
         outputs = pcc_outputs(robot.n_sections)
-    est = read_estimates(estimates)
+    est = read_estimates(estimates, "view")
     check_estimate_fits(estimates, est.names, robot)
     cols = [est.names.index(o.name) for o in outputs]
     truth_table = None

@@ -1,0 +1,42 @@
+"""Estimate files of either format, for the commands that read them back (``evaluate``,
+``plot``, ``view``): an estimate CSV, or an estimate MCAP (``estimate -o EST.mcap``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from continuum_mhe.io.csv_files import (
+    TIP_COLUMNS,
+    InputError,
+    StateTable,
+    read_state_table,
+    tilt_columns,
+)
+from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
+from continuum_mhe.io.raw_imu import is_raw_header
+from continuum_mhe.io.text_rows import open_rows
+
+
+def is_mcap(path: str) -> bool:
+    """Whether ``path`` names an MCAP file (by its suffix, as ``estimate -o`` writes it)."""
+    return Path(path).suffix.lower() == ".mcap"
+
+
+def read_estimates(path: str, command: str, required: Sequence[str] = ()) -> StateTable:
+    """The estimate CSV or MCAP ``path``, with at least ``required`` columns (a CSV's);
+    a measurement CSV (tilt or raw, no tip columns) is a one-line error saying to
+    estimate it first and then run ``command`` on the estimates."""
+    if is_mcap(path):
+        return read_estimate_table_mcap(path)
+    with open_rows(path) as rows:  # the header first: a measurement file's rows may
+        header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
+    tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
+    if not set(TIP_COLUMNS) <= set(header) and (
+        is_raw_header(header) or any(c in header for c in tilt)
+    ):
+        raise InputError(
+            f"{path}: a measurement file (columns {', '.join(header)}), not an estimate: "
+            f"run continuum-mhe estimate {path} -o EST.csv first, then {command} EST.csv"
+        )
+    return read_state_table(path, required)
