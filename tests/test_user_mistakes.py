@@ -331,6 +331,23 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     assert re.search(summed, out)
 
 
+def test_evaluate_of_drifting_positions_names_no_other_length(tmp_path, capsys) -> None:
+    """The paper formulation's positions drift from its angles (rows ``drifted``), by a
+    factor that changes from row to row: no warning that the file was made for a robot
+    of another length, which a constant factor alone means."""
+    from continuum_mhe.evaluation.metrics import steady_ratio
+
+    m, t = _simulated(tmp_path, "p", "--duration", "20")
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(m), "-o", str(est), "--formulation", "paper", "--paper-start"]
+    assert main(argv) == 0
+    assert "drifted" in capsys.readouterr().err
+    assert main(["evaluate", str(est), str(t)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert steady_ratio(np.array([2.5, 2.51, 2.49, np.nan])) == pytest.approx(2.5)
+    assert steady_ratio(np.array([1.0, 1.07, 1.19, 1.49, 1.64])) is None
+
+
 def test_evaluate_of_an_unknown_status_is_an_error(tmp_path, capsys) -> None:
     # a status outside the vocabulary (edited by hand, another tool's "OK") is not read
     # as a row like any other, to which evaluate and view would give no meaning

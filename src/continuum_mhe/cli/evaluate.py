@@ -20,6 +20,7 @@ from continuum_mhe.evaluation.metrics import (
     length_misfit,
     match_rows,
     section_numbers,
+    steady_ratio,
 )
 from continuum_mhe.io.csv_files import (
     TIP_COLUMNS,
@@ -72,11 +73,8 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
     the truth's (made with another length), else ``""``."""
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.linalg.norm(est_xyz, axis=1) / np.linalg.norm(truth_xyz, axis=1)
-    ratio = ratio[np.isfinite(ratio)]
-    if tip_mean < 0.1 * length or not len(ratio):
-        return ""
-    r = float(np.median(ratio))
-    if 0.8 < r < 1.25:
+    r = steady_ratio(ratio)
+    if tip_mean < 0.1 * length or r is None or 0.8 < r < 1.25:
         return ""
     return (
         f"the estimate's tip is {r:.2f} times as far from the base as the truth's: "

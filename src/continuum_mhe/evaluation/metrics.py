@@ -217,6 +217,22 @@ def compute_calibration(
 LENGTH_RATIO_TOLERANCE = 0.1
 
 
+def steady_ratio(ratio: FloatArray) -> float | None:
+    """The median of the per-row ratios ``ratio`` where they are one factor throughout
+    (their 10th and 90th percentiles within :data:`LENGTH_RATIO_TOLERANCE` of each
+    other: a file made for a robot of another length), else None (positions that wander
+    from their angles, as the paper formulation's drifting ones, say nothing of a
+    length)."""
+    r = np.asarray(ratio, dtype=float)
+    r = r[np.isfinite(r)]
+    if not len(r):
+        return None
+    low, high = np.percentile(r, [10, 90])
+    if not (low > 0 and high / low - 1 <= LENGTH_RATIO_TOLERANCE):
+        return None
+    return float(np.median(r))
+
+
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
     """``""`` when an estimate's or truth's tip positions (``x, y, z``) fit a robot of
     these section ``lengths``, else why not, in words. With every section's bend columns
@@ -245,9 +261,10 @@ def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[fl
         bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
         _, p = pose_at(bends, lengths, len(lengths) - 1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = float(np.median(dist[ok] / np.linalg.norm(p, axis=1)))
-        if abs(ratio - 1) <= LENGTH_RATIO_TOLERANCE:
+            steady = steady_ratio(dist[ok] / np.linalg.norm(p, axis=1))
+        if steady is None or abs(steady - 1) <= LENGTH_RATIO_TOLERANCE:
             return ""
+        ratio = steady
         return (
             f"its tip is {ratio:.2f} times as far from the base as its own angles put it on a "
             f"robot of {length:g} m: it was made for a robot of about {ratio * length:.3g} m"

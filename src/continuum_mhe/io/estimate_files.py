@@ -12,6 +12,7 @@ from continuum_mhe.io.csv_files import (
     StateTable,
     read_state_table,
     tilt_columns,
+    truth_named,
 )
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
@@ -31,6 +32,8 @@ def read_estimates(path: str, command: str, required: Sequence[str] = ()) -> Sta
         return read_estimate_table_mcap(path)
     with open_rows(path) as rows:  # the header first: a measurement file's rows may
         header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
+    # a recording with its truth beside the measurements (x_true...) is read as that truth
+    header = truth_named(header, TIP_COLUMNS)
     tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
     if not set(TIP_COLUMNS) <= set(header) and (
         is_raw_header(header) or any(c in header for c in tilt)
