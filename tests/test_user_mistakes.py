@@ -509,13 +509,26 @@ def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> 
     meas = tmp_path / "m.csv"
     meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n")
     cfg = tmp_path / "opts.toml"
-    cfg.write_text('horizon = 12\nsolver = "ipopt"\n')
+    cfg.write_text('horizon = 12\nsolver = "ipopt"\nloss = "huber"\n')
     out = str(tmp_path / "e.csv")
     assert main(["estimate", str(meas), "--config", str(cfg), "--method", "ekf", "-o", out]) == 0
     capsys.readouterr()
     argv = ["estimate", str(meas), "--method", "ekf", "-o", out, "--overwrite", "--horizon", "12"]
     assert main(argv) == 2
     assert "--horizon is an MHE option" in capsys.readouterr().err
+    # the method from the options file is the user's choice, not the robot's default
+    cfg.write_text('method = "ekf"\n')
+    argv = ["estimate", str(meas), "--config", str(cfg), "-o", out, "--overwrite"]
+    assert main([*argv, "--horizon", "12"]) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: --horizon is an MHE option; the ekf has no window\n"
+    )
+    # live refuses it before it opens the port (a board resets when it is opened)
+    argv = ["live", "--port", str(tmp_path / "no-such-port"), "--method", "ekf", "--horizon", "8"]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        "continuum-mhe: error: --horizon is an MHE option; the ekf has no window\n"
+    )
 
 
 def test_an_options_files_value_out_of_range_names_the_file_and_line(tmp_path, capsys) -> None:

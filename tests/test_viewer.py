@@ -484,6 +484,11 @@ def test_evaluate_and_plot_read_an_estimate_mcap_as_its_csv(
         assert mcap[key] == pytest.approx(csv[key], rel=1e-6), key
     assert main(["plot", str(est_mcap), *robot, "-o", str(tmp_path / "p.png")]) == 0
     assert (tmp_path / "p.png").stat().st_size > 0
+    capsys.readouterr()
+    assert main(["evaluate", str(meas), str(truth), *robot]) == 2
+    assert _one_error_line(capsys).endswith(
+        f"-o EST.csv first, then continuum-mhe evaluate EST.csv {truth}"
+    )
 
 
 def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
@@ -527,8 +532,8 @@ def test_view_reads_an_estimate_mcap_and_names_a_measurement_file(
         said = _one_error_line(capsys)
         assert said.startswith(f"continuum-mhe: error: {path}: a measurement file (columns ")
         assert said.endswith(
-            f"not an estimate: run continuum-mhe estimate {path} -o EST.csv first, then view "
-            "EST.csv"
+            f"not an estimate: run continuum-mhe estimate {path} -o EST.csv first, then "
+            "continuum-mhe view EST.csv"
         )
     assert not (tmp_path / "v.rrd").exists()
 

@@ -83,7 +83,7 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
 
 
 def run(args: argparse.Namespace) -> int:
-    est = read_estimates(args.estimates, "evaluate", TIP_COLUMNS)
+    est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")

@@ -52,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
         settings.port, settings.fmt, input_options(args), formulation_from_args(args)
     )
     formulation, robot = line.formulation, line.formulation.robot
+    method = method_from_args(args, formulation)  # its refusals before the port opens
+    mhe_settings = mhe_settings_from_args(args)
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
@@ -71,15 +73,9 @@ def run(args: argparse.Namespace) -> int:
     # after the port opened, before any line is read: the estimator reads its model
     # here, and a throwaway one pays the first-call costs (warm_up)
     estimator = make_estimator(
-        method_from_args(args, formulation),
-        formulation,
-        mhe_settings_from_args(args),
-        recovery=recovery_settings_from_args(args),
+        method, formulation, mhe_settings, recovery=recovery_settings_from_args(args)
     )
-    warm_up(
-        make_estimator(args.method, formulation, mhe_settings_from_args(args)),
-        WARM_UP_STEPS[args.method],
-    )
+    warm_up(make_estimator(method, formulation, mhe_settings), WARM_UP_STEPS[method])
     gc.collect()
     gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
     say = stderr_say("live")

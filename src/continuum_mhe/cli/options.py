@@ -307,6 +307,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
 
     method: Method | None = getattr(args, "method", None)
     args.method_note = None
+    defaulted = method is None
     if method is None:
         method = default_method(formulation)
         if method != "mhe":
@@ -328,7 +329,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
             file=sys.stderr,
         )
     if method != "mhe":
-        _refuse_mhe_options(args, method)
+        _refuse_mhe_options(args, method, defaulted)
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
@@ -336,21 +337,25 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     return method
 
 
-#: The options of the MHE's window (``--loss`` is refused by value, in
-#: :func:`mhe_settings_from_args`), by destination
-MHE_OPTIONS = ("horizon", "paper_start", "solver", "branch_check")
+#: The options of the MHE's window, by destination, in the order they are refused
+MHE_OPTIONS = ("loss", "loss_scale", "horizon", "paper_start", "solver", "branch_check")
 
 
-def _refuse_mhe_options(args: argparse.Namespace, method: str) -> None:
+def _refuse_mhe_options(args: argparse.Namespace, method: str, defaulted: bool) -> None:
     """One line for an MHE option given on the command line (``args.given_options``)
-    where the estimator is the ``method``, which has no window."""
+    where the estimator is the ``method`` (the robot's default where ``defaulted``),
+    which has no window. An options file's MHE options are a profile's: they apply
+    where the MHE runs."""
     given: frozenset[str] = getattr(args, "given_options", frozenset())
     dest = next((d for d in MHE_OPTIONS if d in given), None)
     if dest is None:
         return
     flag = "--" + dest.replace("_", "-")
-    chosen = "" if "method" in given else " (this robot's default; --method mhe for the MHE)"
-    raise InputError(f"{flag} is an MHE option; the {method}{chosen} has no window")
+    default = " (this robot's default; --method mhe for the MHE)" if defaulted else ""
+    which = f"the {method}{default}"
+    if dest == "loss":
+        raise InputError(f"{flag} {args.loss} is an MHE option; {which} keeps the l2 cost")
+    raise InputError(f"{flag} is an MHE option; {which} has no window")
 
 
 def check_robot_replaces(args: argparse.Namespace) -> None:
@@ -365,9 +370,11 @@ def check_robot_replaces(args: argparse.Namespace) -> None:
     if dest is None:
         return
     flag = "--" + dest.replace("_", "-")
+    source = getattr(args, "config_sources", {}).get("robot")  # an options file's
+    named = f"the robot file {robot}" + (f" ({source})" if source else "")
     raise InputError(
-        f"{flag} does not apply with the robot file {robot}, which describes the robot "
-        "(its sections, theta_max and mounting): leave it out, or edit the robot file"
+        f"{flag} does not apply with {named}, which describes the robot (its sections, "
+        "theta_max and mounting): leave it out, or edit the robot file"
     )
 
 
@@ -378,9 +385,6 @@ def mhe_settings_from_args(args: argparse.Namespace) -> MHESettings:
         raise InputError(f"--loss-scale must be a positive number of stds, got {scale}")
     if scale is not None and loss == "l2":
         raise InputError("--loss-scale needs a robust --loss (huber, cauchy or welsch)")
-    method = getattr(args, "method", "mhe")
-    if loss != "l2" and method != "mhe":
-        raise InputError(f"--loss {loss} is an MHE option; the {method} keeps the l2 cost")
     try:
         return MHESettings(
             horizon=args.horizon,

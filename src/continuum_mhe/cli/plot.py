@@ -71,7 +71,7 @@ def _estimate(args: argparse.Namespace) -> int:
     if output.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
-    est = read_estimates(args.source, "plot")
+    est = read_estimates(args.source, "plot EST.csv")
     truth = read_state_table(args.truth) if args.truth else None
     lengths = None
     robot: Robot | None = None

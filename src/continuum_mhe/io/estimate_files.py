@@ -24,10 +24,11 @@ def is_mcap(path: str) -> bool:
     return Path(path).suffix.lower() == ".mcap"
 
 
-def read_estimates(path: str, command: str, required: Sequence[str] = ()) -> StateTable:
+def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateTable:
     """The estimate CSV or MCAP ``path``, with at least ``required`` columns (a CSV's);
     a measurement CSV (tilt or raw, no tip columns) is a one-line error saying to
-    estimate it first and then run ``command`` on the estimates."""
+    estimate it first and then run ``then`` (``view EST.csv``: the command on the
+    estimates)."""
     if is_mcap(path):
         return read_estimate_table_mcap(path)
     with open_rows(path) as rows:  # the header first: a measurement file's rows may
@@ -40,6 +41,6 @@ def read_estimates(path: str, command: str, required: Sequence[str] = ()) -> Sta
     ):
         raise InputError(
             f"{path}: a measurement file (columns {', '.join(header)}), not an estimate: "
-            f"run continuum-mhe estimate {path} -o EST.csv first, then {command} EST.csv"
+            f"run continuum-mhe estimate {path} -o EST.csv first, then continuum-mhe {then}"
         )
     return read_state_table(path, required)

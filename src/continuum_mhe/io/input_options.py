@@ -81,8 +81,8 @@ def with_imu_model(
         warnings.warn(
             f"--attitude {options.raw.attitude} takes the tilt model (roll and pitch from "
             "the fused attitude) instead of the direct model, the default for raw input "
-            "with gyros and measurably better (docs/options.md); --imu-model tilt with it "
-            "says so",
+            "with gyros and measurably better (docs/options.md); add --imu-model tilt to "
+            "choose it without this warning",
             OptionWarning,
             stacklevel=3,
         )

@@ -187,7 +187,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             sections.append(Section(length, theta_max, disks))
         except ValueError as exc:
             # the key the problem is with, first, so that the message names its line
-            key = next(k for k in ("disks", "length", "theta_max") if k in str(exc))
+            key = next((k for k in ("disks", "length", "theta_max") if k in str(exc)), "")
             named = "" if str(exc).startswith(key) else f"{key}: "
             raise InputError(f"{path}: {where}: {named}{exc}") from None
     if not sections:

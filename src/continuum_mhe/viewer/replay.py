@@ -47,7 +47,7 @@ def replay(
         raise InputError(f"{tensions}: --inputs is for a tendon robot (a [backbone] in --robot)")
     else:
         outputs = pcc_outputs(robot.n_sections)
-    est = read_estimates(estimates, "view")
+    est = read_estimates(estimates, "view EST.csv")
     check_estimate_fits(estimates, est.names, robot)
     cols = [est.names.index(o.name) for o in outputs]
     truth_table = None
