@@ -485,6 +485,11 @@ def test_evaluate_and_plot_read_an_estimate_mcap_as_its_csv(
     assert main(["plot", str(est_mcap), *robot, "-o", str(tmp_path / "p.png")]) == 0
     assert (tmp_path / "p.png").stat().st_size > 0
     capsys.readouterr()
+    # without --robot: the robot file its options note names, as a CSV's options line
+    assert main(["evaluate", str(est_mcap), str(truth), "--json"]) == 0
+    got = capsys.readouterr()
+    assert f"{est_mcap} was estimated with --robot two-section" in got.err
+    assert json.loads(got.out)["tip_mean_mm"] == mcap["tip_mean_mm"]
     assert main(["evaluate", str(meas), str(truth), *robot]) == 2
     assert _one_error_line(capsys).endswith(
         f"-o EST.csv first, then continuum-mhe evaluate EST.csv {truth}"

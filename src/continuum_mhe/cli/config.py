@@ -197,9 +197,17 @@ def beside(path: str, value: str) -> str:
 
 
 def recorded_option(path: str, key: str) -> Any:
-    """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line, or
-    None where the file has no such line or key (or cannot be read: its reader says
-    why)."""
+    """The value of option ``key`` on an estimate CSV's ``# options = {...}`` line (an
+    estimate MCAP's ``options`` note), or None where the file has no such line or key
+    (or cannot be read: its reader says why)."""
+    if Path(path).suffix.lower() == ".mcap":
+        from continuum_mhe.io.mcap_estimates import read_notes_mcap
+
+        try:
+            options = tomllib.loads(f"o = {read_notes_mcap(path)[OPTIONS_LINE]}")["o"]
+        except (KeyError, tomllib.TOMLDecodeError):
+            return None
+        return options.get(key) if isinstance(options, dict) else None
     try:
         data, _, _ = _read(path)
     except InputError:

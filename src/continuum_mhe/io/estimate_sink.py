@@ -25,12 +25,9 @@ from continuum_mhe.io.csv_files import (
     estimate_row,
     format_cells,
 )
-from continuum_mhe.io.mcap_estimates import mcap_estimate_writer, sample_messages
+from continuum_mhe.io.mcap_estimates import NOTES_RECORD, mcap_estimate_writer, sample_messages
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, Status
-
-#: the MCAP metadata record of an estimate file's notes (options, partial)
-NOTES_RECORD = "continuum-mhe"
 
 
 class EstimateSink:

@@ -203,6 +203,30 @@ def read_estimates_mcap(
     return table.t, table.values, table.status
 
 
+#: the MCAP metadata record of an estimate file's notes (options, model, partial)
+NOTES_RECORD = "continuum-mhe"
+
+
+def read_notes_mcap(path: str | os.PathLike[str]) -> dict[str, str]:
+    """The notes an estimate MCAP records (its :data:`NOTES_RECORD` metadata records,
+    later ones over earlier ones): an estimate CSV's ``# key = value`` comment lines, by
+    key (``options``, ``model``...). Empty where the file has none or cannot be read
+    as an MCAP (:func:`read_estimate_table_mcap` says why)."""
+    require("mcap", "robot", f"reading the MCAP file {path}")
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    notes: dict[str, str] = {}
+    try:
+        with Path(path).open("rb") as fh:
+            for record in make_reader(fh).iter_metadata():
+                if record.name == NOTES_RECORD:
+                    notes.update(record.metadata)
+    except (OSError, McapError, ValueError, KeyError, TypeError):
+        return {}
+    return notes
+
+
 def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     """An estimate MCAP's ``/continuum/estimate`` messages as the estimate CSV's table
     (its outputs named as in the file, their ``std_`` fields, the status). A one-line
