@@ -337,7 +337,7 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
     ("text", "message"),
     [
         ("[[section]]\n[[imu]]\nsection = 1\n", "section 1: missing key 'length'"),
-        ("[[section]]\nlength = -0.1\n[[imu]]\nsection = 1\n", "section 1: length: section length must"),
+        ("[[section]]\nlength = -0.1\n[[imu]]\nsection = 1\n", "section 1: length: section"),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 2\n", "imu 1: section must be"),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 1.5\n", "imu 1: at must lie"),
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 0\n", "imu 1: at must lie"),
