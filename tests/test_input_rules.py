@@ -385,12 +385,12 @@ def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: 
 
 # --- messages that name the right cause ------------------------------------------------------
 def test_an_infinite_angle_is_not_called_degrees() -> None:
-    """step() with roll = inf names an infinite angle, not 'the angles look like
-    degrees' (which 45 gets)."""
+    """step() with roll = inf names an infinite angle, not an angle out of range
+    (which 45 gets, as degrees)."""
     est = make_estimator("ekf", _bend())
     with pytest.raises(UserError, match=r"roll=inf, pitch=0\.1: an infinite angle; a sensor"):
         est.step(Measurement(0.0, np.array([np.inf, 0.1])))
-    with pytest.raises(UserError, match="the angles look like degrees"):
+    with pytest.raises(UserError, match=r"beyond pi, out of range: degrees\?"):
         est.step(Measurement(0.0, np.array([45.0, 0.1])))
 
 

@@ -14,7 +14,7 @@ import pytest
 
 import continuum_mhe.cli.app as cli
 import continuum_mhe.cli.check_robot as check_robot
-from continuum_mhe import Measurement, make_estimator, make_formulation
+from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import UserError
@@ -104,8 +104,19 @@ def test_every_option_range_is_documented() -> None:
 
 def test_library_call_given_degrees_says_so() -> None:
     est = make_estimator("ekf", make_formulation("bend", RobotSettings()))
-    with pytest.raises(UserError, match="look like degrees"):
+    with pytest.raises(UserError, match="degrees\\? measurements are in radians"):
         est.step(Measurement(0.0, np.array([30.0, 20.0])))
+    # beyond pi (no gravity direction needs it): refused, as degrees
+    for z in ([3.3, 0.0], [0.0, 3.3]):
+        est.reset()
+        with pytest.raises(UserError, match="beyond pi, out of range: degrees"):
+            est.step(Measurement(0.0, np.array(z)))
+    for m in ("mhe", "ukf"):  # every estimator, in run() as in step()
+        rec = simulate("paper3d", duration=0.4)
+        with pytest.raises(UserError, match="out of range"):
+            make_estimator(m, make_formulation("bend")).run(rec.t, np.degrees(rec.z))
+    rec = simulate("paper3d", duration=0.4)  # a pitch beyond pi/2: the same direction
+    assert make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z + [0, 0.2])
     est.reset()  # radians, even the largest: accepted
     e = est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
     # pitch pi/2 (the gimbal lock): a quarter-circle bend, theta = pi/2, phi = +-pi, the

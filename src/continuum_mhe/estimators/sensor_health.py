@@ -46,6 +46,7 @@ from continuum_mhe.estimators.reading_units import (
 )
 from continuum_mhe.io.csv_files import check_time_steps
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
@@ -55,8 +56,10 @@ from continuum_mhe.signals import interrupt_in_chain
 #: An IMU silent for longer than this (s) no longer observes its part of the shape when
 #: the gap reset is off (else the gap reset's time).
 UNOBSERVED_AFTER = 1.0
-#: A tilt measurement beyond this (rad) cannot be radians: degrees were given.
-DEGREES_LIKE = 2 * math.pi
+#: A tilt angle beyond this (rad) is out of range, degrees given for radians: every
+#: gravity direction is a roll and a pitch within +-pi (a pitch beyond pi/2 with the roll
+#: turned by pi is the same direction as its canonical pair, and is taken as it is).
+DEGREES_LIKE = ROLL_LIMIT
 
 #: The inference object an :class:`Estimator` owns.
 InferenceT = TypeVar("InferenceT", bound=Inference)
@@ -351,7 +354,8 @@ class Estimator(Generic[InferenceT]):
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
-                a tilt angle beyond 2 pi (degrees given for radians), a raw IMU's
+                a tilt angle beyond pi (:data:`DEGREES_LIKE`: degrees given for
+                radians), a raw IMU's
                 specific force that is not a unit vector (each IMU's first full reading
                 after a reset is checked; ``run`` checks the gyros' units too), or
                 ``measurement.t`` is not finite or not later than the previous
@@ -412,8 +416,9 @@ class Estimator(Generic[InferenceT]):
                 "that dropped out is NaN"
             )
         raise UserError(
-            f"measurement at t={t!r} s: {shown}: beyond 2 pi, the angles look like "
-            "degrees; measurements are in radians (numpy.radians converts)"
+            f"measurement at t={t!r} s: {shown}: beyond pi, out of range: degrees? "
+            "measurements are in radians (numpy.radians converts); a reading that is not "
+            "there is NaN"
         )
 
     def freezes_notice(self, before: int) -> str | None:

@@ -55,6 +55,7 @@ from continuum_mhe.io.text_rows import (
     parse_float,
 )
 from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
+from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
 from continuum_mhe.signals import raise_if_signalled
@@ -86,10 +87,6 @@ def estimate_columns(outputs: Sequence[OutputSpec], outlier: bool = False) -> tu
 
 
 ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
-
-#: Largest plausible |roll| and |pitch| in radians; beyond these, the file is in degrees.
-_ROLL_LIMIT = math.pi + 0.05
-_PITCH_LIMIT = math.pi / 2 + 0.05
 
 
 @dataclass(frozen=True)
@@ -509,7 +506,7 @@ def _check_angle_units(
     ``skipped`` (``skip_bad``) such a row's angles become a dropout (NaN, in place) and
     its description is appended there instead."""
     with np.errstate(invalid="ignore"):
-        over = (np.abs(z[:, 0]) > _ROLL_LIMIT) | (np.abs(z[:, 1]) > _PITCH_LIMIT)
+        over = (np.abs(z[:, 0]) > ROLL_LIMIT) | (np.abs(z[:, 1]) > PITCH_LIMIT)
     if not over.any():
         return
     unit = "deg" if degrees else "rad"

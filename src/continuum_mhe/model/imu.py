@@ -17,6 +17,7 @@ Mounting:
 
 from __future__ import annotations
 
+import math
 from functools import cache
 from typing import Literal
 
@@ -30,6 +31,11 @@ from continuum_mhe.model.kinematics import FloatArray, Sym, cosc_q, sinc_q
 Mounting = Literal["z-up", "z-down"]
 MOUNTINGS: tuple[Mounting, ...] = ("z-up", "z-down")
 
+#: Largest plausible |roll| and |pitch| of a tilt reading, rad (roll in (-pi, pi], pitch
+#: in [-pi/2, pi/2], with a margin for noise): beyond them, the angles are in degrees or
+#: the reading is a glitch.
+ROLL_LIMIT = math.pi + 0.05
+PITCH_LIMIT = math.pi / 2 + 0.05
 #: Floor of ``hypot(f_y, f_z)`` (unit specific force) in the pitch formula.
 _LOCK_EPS = 1e-9
 
