@@ -289,6 +289,29 @@ def test_live_record_replays_to_the_same_estimates(tmp_path: Path) -> None:
     assert np.all(np.diff(a.t) > 0) and a.t[0] == pytest.approx((2**32 - 1500) / 1e3)
 
 
+def test_live_takes_its_port_from_an_options_file_and_records_it(tmp_path: Path) -> None:
+    """``port`` in an options file's ``[live]`` table (docs/workflow.md) opens that port;
+    the estimate file records it, so that ``--config EST.csv`` runs the session again;
+    without a port anywhere, one line says it is required."""
+    port, est, cfg = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "opts.toml"
+    cfg.write_text(f'method = "ekf"\nrobot = "two-section"\n[live]\nport = "{port}"\n')
+    master = new_pty(port)
+    live = LiveProcess(["--config", str(cfg), "-o", str(est), "--duration", "3"])
+    lines = _two_imu_stream(1000, 20)
+    assert send_and_finish(live, master, lines) == 0, live.err
+    assert f"reading {port}" in live.err and data_rows(est) == len(lines)
+    assert f'port = "{port}"' in est.read_text().split("\n# model", 1)[0]
+    res = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.cli", "live", "--method", "ekf", "-o", str(est)],
+        capture_output=True, text=True, timeout=SAFETY_S,
+    )  # fmt: skip
+    assert res.returncode == 2
+    assert res.stderr == (
+        "continuum-mhe: error: --port is required: the serial device (e.g. /dev/ttyACM0), "
+        "on the command line or as port in --config\n"
+    )
+
+
 def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
     port = tmp_path / "ttyIMU"
     master = new_pty(port)

@@ -323,6 +323,26 @@ def test_log_gyro_in_deg_s_is_one_line(
     assert out.exists()
 
 
+def test_a_nan_in_a_log_message_is_refused_as_in_a_csv(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A message whose acceleration (or angular rate) holds a NaN is one line naming the
+    topic and the message, exit 2, nothing written, as a CSV's nan field is; with
+    --skip-bad it is a dropout."""
+    acc = recording["acc"].copy()
+    acc[49, 1] = np.nan
+    bag = write_ros2_bag(tmp_path / "bag2", {**recording, "acc": acc})
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "topic /tip/imu: the message at t = " in err
+    assert "(sample 50): linear_acceleration is [" in err and "nan" in err
+    assert err.endswith("(a dropout; --skip-bad keeps it)\n")
+    assert not out.exists()
+    assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
+    assert "dropout: 1" in capsys.readouterr().err
+
+
 def test_orientation_skips_the_accelerometer_unit_check(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -39,6 +39,11 @@ from continuum_mhe.stream.recording import RowFile, check_target
 def run(args: argparse.Namespace) -> int:
     from continuum_mhe.estimators import make_estimator
 
+    if not args.port:
+        raise InputError(
+            "--port is required: the serial device (e.g. /dev/ttyACM0), on the command "
+            "line or as port in --config"
+        )
     settings = LiveSettings(
         port=args.port,
         baud=args.baud,

@@ -414,7 +414,11 @@ def add_serial_options(p: argparse.ArgumentParser) -> None:
     from continuum_mhe.stream.protocol import LINE_FORMATS
 
     g = p.add_argument_group("serial stream")
-    g.add_argument("--port", required=True, help="serial device, e.g. /dev/ttyACM0 or COM3")
+    # not argparse's required: an options file may give it (port = "/dev/ttyACM0")
+    g.add_argument(
+        "--port",
+        help="serial device, e.g. /dev/ttyACM0 or COM3 (required: here or as port in --config)",
+    )
     g.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     g.add_argument(
         "--format",

@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.errors import expect_type
+from continuum_mhe.errors import expect_type, time_text
 from continuum_mhe.io.csv_files import (
     FloatArray,
     ReadingCounts,
@@ -568,8 +568,29 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             blocks.append(tilt_from_quaternion(log.orientation))
         else:
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
+            if not options.skip_bad:
+                _refuse_a_missing_value(p, t, log.acc, log.gyr, log.topic)
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
     return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes)
+
+
+def _refuse_a_missing_value(
+    path: Path, t: FloatArray, acc: FloatArray, gyr: FloatArray | None, topic: str
+) -> None:
+    """One line for the first message of ``topic`` whose acceleration or angular rate
+    holds a NaN or an infinity, as a CSV's empty or nan field is (a dropout only with
+    ``--skip-bad``)."""
+    for name, values in (("linear_acceleration", acc), ("angular_velocity", gyr)):
+        if values is None:
+            continue
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path}: topic {topic}: the message at t = {time_text(float(t[i]))} s "
+                f"(sample {i + 1}): {name} is {values[i].tolist()} (a dropout; --skip-bad "
+                "keeps it)"
+            )
 
 
 def _convert_log(
