@@ -946,6 +946,32 @@ def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
     return f, t, z
 
 
+def test_the_estimators_refuse_a_negative_tension_as_the_tensions_file_does() -> None:
+    """A negative tension given to ``step``, ``run`` or ``continue_run`` is one
+    UserError naming the sample and the tendon (a tendon cannot push), as the tensions
+    file's reader refuses one; the tensions' rates may be negative."""
+    import re
+
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.results import Measurement
+
+    f, t, z = _raw_unloaded(5)
+    names = f.measurement_names
+    z = z.copy()
+    z[:, names.index("tension_1_dot")] = -0.5  # a rate: may be negative
+    assert make_estimator("ekf", f).run(t, z).output.shape[0] == 5
+    z[3, names.index("tension_2")] = -5.0
+    message = (
+        f"measurement at t={float(t[3])!r} s: tension_2 = -5 N is negative: a tendon cannot push"
+    )
+    for run in ("run", "continue_run"):
+        with pytest.raises(UserError, match=re.escape(message)):
+            getattr(make_estimator("ekf", f), run)(t, z)
+    with pytest.raises(UserError, match=re.escape(message)):
+        make_estimator("ekf", f).step(Measurement(float(t[3]), z[3]))
+
+
 def test_the_imu_errors_that_are_states_are_not_carried_again_as_reading_errors() -> None:
     """The IMUs' misalignment and accelerometer bias are states by default, so the
     readings carry no constant error outside the state; a formulation without one of

@@ -128,6 +128,20 @@ def test_library_call_given_degrees_says_so() -> None:
     np.testing.assert_allclose([theta, abs(phi)], [math.pi / 2, math.pi], rtol=0, atol=1e-9)
 
 
+def test_continue_run_checks_its_arrays_as_run_does() -> None:
+    """``continue_run`` (the guide's block-by-block run) refuses arrays whose lengths or
+    widths do not fit in one UserError, as ``run`` does, and takes lists."""
+    rec = simulate("paper3d", duration=1.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(UserError, match="t has 10 samples but z has 21"):
+        est.continue_run(rec.t[:10], rec.z)
+    with pytest.raises(UserError, match=r"must have shape \(2,\) for the bend formulation"):
+        est.continue_run(rec.t, rec.z[:, :1])
+    est.reset()
+    batch = est.continue_run(list(rec.t), rec.z.tolist())
+    np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
+
+
 def test_theta_max_in_degrees_in_the_library() -> None:
     with pytest.raises(UserError, match="degrees"):
         RobotSettings(theta_max=90)

@@ -9,6 +9,7 @@ it. Results are data (:mod:`continuum_mhe.results`).
 
 from __future__ import annotations
 
+import re
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -27,6 +28,15 @@ def tilt_rows(formulation: Formulation) -> list[int]:
     return [
         i for b in formulation.measurement_blocks if b.kind == "tilt"
         for i in range(b.start, b.start + b.size)
+    ]  # fmt: skip
+
+
+def tension_rows(formulation: Formulation) -> list[int]:
+    """The measurement rows of a tendon robot's tensions (N; not their rates)."""
+    names = formulation.measurement_names
+    return [
+        i for b in formulation.measurement_blocks if b.kind == "tension"
+        for i in range(b.start, b.start + b.size) if re.fullmatch(r"tension_\d+", names[i])
     ]  # fmt: skip
 
 

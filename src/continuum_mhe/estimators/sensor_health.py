@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from continuum_mhe import _core
 from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type, time_text
 from continuum_mhe.estimators import start_check
-from continuum_mhe.estimators.base import FloatArray, Inference, tilt_rows
+from continuum_mhe.estimators.base import FloatArray, Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
@@ -234,6 +234,7 @@ class Estimator(Generic[InferenceT]):
             )
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
+        self._tension_rows = tension_rows(formulation)
         #: the direct blocks whose first full reading step has still to check
         self._unchecked = list(self._direct_rows)
         self._policy = self._compiled_policy()
@@ -370,6 +371,8 @@ class Estimator(Generic[InferenceT]):
                 f"formulation, got {np.shape(measurement.z)}"
             )
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
+        if self._tension_rows:
+            self._check_tensions(z[None, :], np.array([t], dtype=float))
         if self._unchecked:  # each IMU's first full reading
             full = [b for b in self._unchecked if np.isfinite(z[b[0]]).all()]
             if full:
@@ -381,6 +384,19 @@ class Estimator(Generic[InferenceT]):
         self._ran = False
         self._sync_diagnostics()
         return Estimate(t, state, output, cov, STATUSES[code], ms, std, outlier=outlier)
+
+    def _check_tensions(self, z: FloatArray, t: FloatArray) -> None:
+        """A :class:`UserError` for the first negative tension in ``z`` (n, nz) at the
+        times ``t`` (n,) s, as the tensions file's reader gives one."""
+        names = self.formulation.measurement_names
+        negative = np.argwhere(z[:, self._tension_rows] < 0)
+        if len(negative):
+            i, j = negative[0]
+            row = self._tension_rows[j]
+            raise UserError(
+                f"measurement at t={float(t[i])!r} s: {names[row]} = {z[i, row]:g} N is "
+                "negative: a tendon cannot push (a slack tendon's tension is 0)"
+            )
 
     def _check_units(
         self, t: float | None, z: FloatArray, blocks: list[DirectRows] | None = None
@@ -439,20 +455,7 @@ class Estimator(Generic[InferenceT]):
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset,
         in the compiled policy (``progress`` is shown per block of samples); the series
         carries a copy of :attr:`diagnostics` (``series.diagnostics``)."""
-        try:
-            t, z = np.asarray(t, dtype=float), np.asarray(z, dtype=float)
-        except (TypeError, ValueError):
-            raise UserError("t and z must be arrays of numbers (t (n,) s, z (n, m))") from None
-        if t.ndim != 1 or z.ndim != 2:
-            raise UserError(f"t must be (n,) and z (n, m); got shapes {t.shape} and {z.shape}")
-        if len(t) != len(z):
-            raise UserError(f"t has {len(t)} samples but z has {len(z)}")
-        nz = self.formulation.nz
-        if z.shape[1] != nz:
-            raise UserError(
-                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
-                f"formulation, got {z.shape[1:]}"
-            )
+        t, z = self._samples(t, z)
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
@@ -463,7 +466,7 @@ class Estimator(Generic[InferenceT]):
         starts: Iterable[int] = range(0, n, block)
         if progress is not None:
             starts = progress(starts)
-        batch = self.continue_run(np.ascontiguousarray(t), np.ascontiguousarray(z), starts, block)
+        batch = self.continue_run(t, z, starts, block)
         self._ran = True
         return EstimateSeries(
             method=self.name,
@@ -477,6 +480,28 @@ class Estimator(Generic[InferenceT]):
             diagnostics=self.diagnostics.copy(),
         )
 
+    def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a
+        :class:`UserError` naming what does not fit."""
+        try:
+            t = np.ascontiguousarray(t, dtype=np.float64)
+            z = np.ascontiguousarray(z, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise UserError("t and z must be arrays of numbers (t (n,) s, z (n, m))") from None
+        if t.ndim != 1 or z.ndim != 2:
+            raise UserError(f"t must be (n,) and z (n, m); got shapes {t.shape} and {z.shape}")
+        if len(t) != len(z):
+            raise UserError(f"t has {len(t)} samples but z has {len(z)}")
+        nz = self.formulation.nz
+        if z.shape[1] != nz:
+            raise UserError(
+                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
+                f"formulation, got {z.shape[1:]}"
+            )
+        if self._tension_rows:
+            self._check_tensions(z, t)
+        return t, z
+
     def continue_run(
         self,
         t: FloatArray,
@@ -484,10 +509,12 @@ class Estimator(Generic[InferenceT]):
         starts: Iterable[int] | None = None,
         block: int | None = None,
     ) -> Batch:
-        """Step the samples ``t`` (n,) s, ``z`` (n, nz) (C-contiguous float64) on from
-        the last one, in the compiled policy, ``block`` samples per call from each of
-        ``starts`` (default: all in one call); raises the :class:`UserError` of
-        :meth:`step` for a refused sample (the samples before it are stepped)."""
+        """Step the samples ``t`` (n,) s, ``z`` (n, nz) on from the last one, in the
+        compiled policy, ``block`` samples per call from each of ``starts`` (default:
+        all in one call); raises the :class:`UserError` of :meth:`step` for a refused
+        sample (the samples before it are stepped), and one for arrays whose shapes do
+        not fit (as :meth:`run`)."""
+        t, z = self._samples(t, z)
         n, ny = len(t), self.formulation.ny
         batch = Batch(
             status=np.zeros(n, dtype=np.int32),
