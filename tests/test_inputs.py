@@ -97,7 +97,8 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     """Mistakes from a library user's trial are one line each: a tendon robot without
     tensions names the robot file and the tendons (not "None"); a tendon formulation
     handed to load_input names the model it calls for (not numpy's 'cannot reshape
-    array'); write_measurements refuses z with more rows than t, writing nothing."""
+    array'), and a tensions file handed to it names open_input; write_measurements
+    refuses z with more rows than t, writing nothing."""
     from continuum_mhe.io.csv_files import write_measurements
 
     robot = read_robot(DATA / "robots/tendon_two_section.toml")
@@ -106,6 +107,9 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     raw = DATA / "tendon/unloaded_raw.csv"
     with pytest.raises(InputError, match="not 'tendon': the model it calls for"):
         load_input(raw, InputOptions(), make_formulation("tendon", robot))
+    tensions = DATA / "tendon/unloaded_tensions.csv"  # not silently left out
+    with pytest.raises(InputError, match="load_input reads the measurements alone; open_input"):
+        load_input(raw, InputOptions(tensions=str(tensions)), make_formulation("bend", robot))
     with pytest.raises(ValueError, match="t has 40 samples and z 41 rows"):
         write_measurements(tmp_path / "m.csv", np.arange(40.0), np.zeros((41, 2)))
     assert not (tmp_path / "m.csv").exists()

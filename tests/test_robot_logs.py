@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -203,6 +204,13 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "message 3: status 'OK'" in err, err
     assert not out.exists()
+    # a missing file, a folder, a file cut after its magic: InputError, not OSError
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(est.read_bytes()[:8])
+    for path, why in ((tmp_path / "none.mcap", "no such file"), (tmp_path, "a folder"),
+                      (cut, "cannot read it as an estimate MCAP")):  # fmt: skip
+        with pytest.raises(InputError, match=f"^{re.escape(str(path))}: {why}"):
+            read_estimates_mcap(path)
 
 
 def _wxyz(r: Rotation) -> np.ndarray:

@@ -305,8 +305,14 @@ def load_input(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> EstimateInput:
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) whole, as measurements
-    (without tendon tensions)."""
+    (without tendon tensions: :func:`open_input` reads a tendon robot's with its
+    tensions file, ``options.tensions``, which is refused here)."""
     p = Path(path)
+    if options.tensions is not None:
+        raise InputError(
+            f"{path}: load_input reads the measurements alone; open_input reads them with "
+            f"the tensions file {options.tensions} (a tendon robot's estimator input)"
+        )
     if is_robot_log(p):
         return _load_log(p, options, formulation)
     with _open_measurements(path, options, formulation) as stream:

@@ -259,9 +259,13 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
                         f"{', '.join(STATUS_MEANINGS)}"
                     )
                 status.append(row["status"])
-    except (InputError, OSError):
+    except InputError:
         raise
-    except (McapError, ValueError, KeyError, TypeError) as exc:  # not ours, or not an MCAP
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: a folder, not an estimate MCAP") from None
+    except (McapError, OSError, ValueError, KeyError, TypeError) as exc:  # not ours, or cut
         raise InputError(f"{path}: cannot read it as an estimate MCAP ({exc!r})") from None
     if not t:
         raise InputError(
