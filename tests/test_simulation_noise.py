@@ -105,3 +105,12 @@ def test_simulated_tilt_readings_stay_within_an_imus_pitch_range(tmp_path) -> No
     f = make_formulation("bend", robot)
     a, b = (make_estimator("ekf", f).run(rec.t, z).output for z in (rec.z, other))
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+def test_simulated_truth_phi_lies_in_the_outputs_range() -> None:
+    """The truth's ``phi`` follows the outputs' convention, ``[-pi, pi)``, as every
+    estimate's (paper3d's motion reaches phi = pi exactly)."""
+    rec = simulate("paper3d", seed=0)
+    phi = rec.truth[:, 4]
+    assert np.all((phi >= -np.pi) & (phi < np.pi))
+    assert np.isclose(np.abs(phi).max(), np.pi)  # the motion reaches it

@@ -272,7 +272,8 @@ def simulate(
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
-    truth = np.column_stack([tip_position(theta, phi, length), theta, phi])
+    # the outputs' convention: phi in [-pi, pi), as every estimate and truth file has it
+    truth = np.column_stack([tip_position(theta, phi, length), theta, wrap_angle(phi)])
     std = np.radians([noise_deg, noise_deg]) if noise_std is None else np.abs(noise_std)
     rng = np.random.default_rng(seed)
     z = _noisy(tilt(theta, phi, mounting), std, rng, noise_model)
