@@ -447,3 +447,27 @@ def test_a_one_imu_log_takes_the_robot_file_s_mounting_and_gyro_bias(
     _, x_u, _ = _states(tmp_path / "unmounted.csv")
     np.testing.assert_allclose(x_l, x_c, rtol=0, atol=1e-12)
     assert np.abs(x_u - x_c).max() > 1e-3  # the mounting changes the estimate
+
+
+def test_write_estimates_mcap_checks_the_section_lengths(tmp_path: Path) -> None:
+    """The library's MCAP writer names wrong section lengths in one UserError (not
+    CasADi's shape mismatch or Python's 'not iterable'), millimetres too, and writes
+    nothing; the right ones write a file whose estimates read back."""
+    from continuum_mhe import make_estimator, make_formulation, simulate_robot
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.mcap_estimates import write_estimates_mcap
+    from continuum_mhe.io.robot_file import read_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=0.5)
+    series = make_estimator("ekf", make_formulation("bend", robot)).run(rec.t, rec.z)
+    out = tmp_path / "e.mcap"
+    for lengths, why in (([0.2], "lengths has 1 section length"),
+                         (0.2, "lengths must be the 2 section length"),
+                         ([160, 140], "millimetres")):  # fmt: skip
+        with pytest.raises(UserError, match=why):
+            write_estimates_mcap(out, series, lengths)  # type: ignore[arg-type]
+        assert not out.exists()
+    write_estimates_mcap(out, series, robot.lengths)
+    t, values, _ = read_estimates_mcap(out)
+    np.testing.assert_allclose(t, series.t)

@@ -19,6 +19,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.extras import require
 from continuum_mhe.io.csv_files import (
     STD_PREFIX,
@@ -29,6 +30,7 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
+from continuum_mhe.model.robot import Section
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
 
 BASE_FRAME = "continuum_base"
@@ -148,7 +150,30 @@ def write_estimates_mcap(
     lengths: Sequence[float],
     t0_ns: int = 0,
 ) -> None:
-    """Write estimates as an MCAP file (JSON channels, see module doc), atomically."""
+    """Write estimates as an MCAP file (JSON channels, see module doc), atomically.
+
+    Args:
+        path: the file to write.
+        series: the estimates (``run``'s :class:`~continuum_mhe.results.EstimateSeries`).
+        lengths: the length (m) of each of the robot's sections, base first: the
+            backbone poses are drawn from the estimated bends on them.
+        t0_ns: the absolute time (ns since the epoch) of ``t = 0``, as a robot log's
+            messages are stamped (0: the estimates' ``t`` as they are).
+    """
+    sections = max((o.section for o in series.outputs), default=0) or 1
+    try:
+        given = [float(v) for v in lengths]
+        for v in given:  # the model's checks of a section's length (m, not mm)
+            Section(v)
+    except TypeError:
+        raise UserError(
+            f"lengths must be the {sections} section length(s) in m, got {lengths!r}"
+        ) from None
+    if len(given) != sections:
+        raise UserError(
+            f"lengths has {len(given)} section length(s) but the estimates are of a robot "
+            f"of {sections} section(s)"
+        )
     with atomic_binary_writer(path) as fh:
         writer = mcap_estimate_writer(fh)
         for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
