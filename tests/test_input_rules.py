@@ -507,6 +507,22 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
         simulate_robot("s-curve", "two-section")  # type: ignore[arg-type]
     with pytest.raises(UserError, match="freeze must be positive, or None for never"):
         RecoverySettings(freeze=0)
+    # numpy's scalars are numbers; a string, a bool or None is a one-line error naming
+    # the field (not a TypeError from math)
+    from continuum_mhe.settings import MHESettings, NoiseSettings, RobotSettings
+
+    assert MHESettings(horizon=np.int64(12)).horizon == 12
+    assert RecoverySettings(gap_reset=np.float32(1.0)).gap_reset == 1.0
+    assert RobotSettings(length=np.float32(0.2)).length == pytest.approx(0.2)
+    mistakes = [
+        (lambda: MHESettings(paper_start="yes"), "paper_start must be True"),
+        (lambda: MHESettings(max_iter=True), "max_iter must be a positive"),
+        (lambda: NoiseSettings(reading_bias_std="0.1"), "reading_bias_std must"),
+        (lambda: NoiseSettings(model_error_std=None), "model_error_std must"),
+    ]
+    for make, why in mistakes:
+        with pytest.raises(UserError, match=why):
+            make()
 
 
 def test_run_says_when_t_looks_like_milliseconds() -> None:

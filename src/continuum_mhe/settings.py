@@ -108,18 +108,27 @@ class MHESettings:
             raise UserError(f"loss must be one of {MHE_LOSSES}, got {self.loss!r}")
         if self.loss_scale is not None:
             check_positive("loss_scale", self.loss_scale)
+        whole = numbers.Integral  # numpy's integers too
         if not (
-            isinstance(self.horizon, int)
+            isinstance(self.horizon, whole)
             and not isinstance(self.horizon, bool)
             and 2 <= self.horizon <= MAX_HORIZON
         ):
             raise UserError(
                 f"horizon must be an integer from 2 to {MAX_HORIZON} samples, got {self.horizon!r}"
             )
+        object.__setattr__(self, "horizon", int(self.horizon))
         if not (self.branch_check is None or isinstance(self.branch_check, bool)):
             raise UserError(f"branch_check must be True, False or None, got {self.branch_check!r}")
-        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+        if not isinstance(self.paper_start, bool):
+            raise UserError(f"paper_start must be True or False, got {self.paper_start!r}")
+        if not (
+            isinstance(self.max_iter, whole)
+            and not isinstance(self.max_iter, bool)
+            and self.max_iter >= 1
+        ):
             raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+        object.__setattr__(self, "max_iter", int(self.max_iter))
         check_positive("tol", self.tol)
 
     @property

@@ -5,6 +5,7 @@ formulations (:class:`RobotSettings`) and the noise model every estimator shares
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Literal
 
@@ -16,9 +17,14 @@ FormulationName = Literal["bend", "paper", "direct", "tendon"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
 
 
+def is_real(value: object) -> bool:
+    """Whether ``value`` is a real number (numpy's scalars too), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def check_positive(name: str, value: float) -> None:
     """Raise a :class:`UserError` unless ``value`` is a positive finite number."""
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+    if not (is_real(value) and math.isfinite(value) and value > 0):
         raise UserError(f"{name} must be a positive finite number, got {value!r}")
 
 
@@ -107,5 +113,5 @@ class NoiseSettings:
             check_positive(name, getattr(self, name))
         for name in ("reading_bias_std", "model_error_std"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise UserError(f"{name} must be >= 0, got {value!r}")
+            if not (is_real(value) and math.isfinite(value) and value >= 0):
+                raise UserError(f"{name} must be a finite number >= 0 (rad), got {value!r}")
