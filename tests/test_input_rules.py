@@ -515,6 +515,8 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
     assert RecoverySettings(gap_reset=np.float32(1.0)).gap_reset == 1.0
     assert RobotSettings(length=np.float32(0.2)).length == pytest.approx(0.2)
     mistakes = [
+        (lambda: NoiseSettings(measurement_std=2.0), r"beyond 90 degrees: degrees\? it is in "),
+        (lambda: simulate("paper3d", length=200.0), "millimetres"),
         (lambda: MHESettings(paper_start="yes"), "paper_start must be True"),
         (lambda: MHESettings(max_iter=True), "max_iter must be a positive"),
         (lambda: NoiseSettings(reading_bias_std="0.1"), "reading_bias_std must"),

@@ -52,6 +52,9 @@ class RobotSettings:
 
 #: Smallest measurement standard deviation accepted, rad (0.2 arcseconds).
 MIN_MEASUREMENT_STD = 1e-6
+#: Largest, rad (90 degrees, the command line's --noise-deg range: beyond it the value
+#: is in degrees).
+MAX_MEASUREMENT_STD = math.pi / 2
 
 
 @dataclass(frozen=True)
@@ -94,14 +97,18 @@ class NoiseSettings:
     model_error_std: float = math.radians(1.7)
 
     def __post_init__(self) -> None:
-        if (
-            isinstance(self.measurement_std, (int, float))
-            and 0 < self.measurement_std < MIN_MEASUREMENT_STD
-        ):
+        if is_real(self.measurement_std) and 0 < self.measurement_std < MIN_MEASUREMENT_STD:
             raise UserError(
                 f"measurement_std {self.measurement_std!r} rad is below "
                 f"{MIN_MEASUREMENT_STD:g} rad ({math.degrees(MIN_MEASUREMENT_STD):.2g} deg), "
                 "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
+            )
+        if is_real(self.measurement_std) and self.measurement_std > MAX_MEASUREMENT_STD:
+            raise UserError(
+                f"measurement_std {self.measurement_std!r} rad "
+                f"({math.degrees(self.measurement_std):.3g} deg) is beyond 90 degrees: "
+                f"degrees? it is in radians ({self.measurement_std!r} deg = "
+                f"{math.radians(self.measurement_std):.4g} rad)"
             )
         for name in (
             "measurement_std",

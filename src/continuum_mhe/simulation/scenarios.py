@@ -39,7 +39,7 @@ from continuum_mhe.model.kinematics import (
     shape_from_bend,
     tip_position,
 )
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, Section
 
 NoiseModel = Literal["tilt", "tangent"]
 NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
@@ -266,8 +266,8 @@ def simulate(
         )
     if scenario not in _SHAPES:
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    if not (math.isfinite(real_number("length", length)) and length > 0):
-        raise UserError(f"length must be positive, got {length}")
+    real_number("length", length)
+    Section(length)  # a section's checks: positive, in metres (not millimetres)
     t = _time_axis(duration, dt, noise_deg, seed)
     theta, phi = _SHAPES[scenario](t)
     a, b = bend_from_shape(theta, phi)
