@@ -56,6 +56,8 @@ def test_benchmark_without_do_mpc_times_the_rest(monkeypatch, tmp_path, capsys):
     assert f"do-mpc: not timed: {hint}" in " ".join(capsys.readouterr().out.split())
     report = json.loads(out.read_text())
     assert report["skipped"]["do-mpc"] == hint
+    assert main(argv) == 2  # the report exists: kept without --overwrite
+    assert "exists; give --overwrite" in capsys.readouterr().err
     assert {r["method"] for r in report["results"]} >= {"fast", "ipopt"}
     assert "do-mpc" not in {r["method"] for r in report["results"]}
 

@@ -462,6 +462,23 @@ def test_serve_web_on_loopback_until_ctrl_c(
         assert s.connect_ex(("127.0.0.1", web)) != 0
 
 
+def test_view_keeps_an_existing_file_unless_overwrite(
+    tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``view --save`` keeps an existing file and refuses in one line, as every command
+    that writes; ``--overwrite`` replaces it."""
+    rrd = tmp_path / "v.rrd"
+    rrd.write_text("mine\n")
+    argv = ["view", str(two_section["est"]), "--robot", "two-section", "--save", str(rrd),
+            "--points", str(POINTS)]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 2
+    assert "exists; give --overwrite" in _one_error_line(capsys)
+    assert rrd.read_text() == "mine\n"
+    assert main([*argv, "--overwrite"]) == 0
+    assert rrd.stat().st_size > 1000
+
+
 def test_evaluate_and_plot_read_an_estimate_mcap_as_its_csv(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

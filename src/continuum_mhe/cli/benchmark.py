@@ -20,6 +20,7 @@ from continuum_mhe.benchmark.harness import (
     run_benchmark,
     run_robot_benchmark,
 )
+from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.errors import UserError
 
 
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:  # before the run, not after minutes of it
         from continuum_mhe.io.csv_files import check_output_target
 
-        check_output_target(args.json)
+        check_output_target(args.json, args.overwrite, "--json")
     if args.robot:
         from continuum_mhe.io.robot_file import read_robot
 
@@ -103,6 +104,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="recording length in s (default 20; more samples than the largest horizon)",
     )
     p.add_argument("--json", help="write the report as JSON to this file")
+    add_overwrite_option(p, "--json")
     p.add_argument(
         "--robot",
         metavar="ROBOT.toml",

@@ -437,7 +437,7 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         help="write every valid sample as received (the raw or tilt CSV that 'estimate' "
         "reads, t in s of the device clock), row by row",
     )
-    add_overwrite_option(p, "-o or --record")
+    add_overwrite_option(p, "-o, --record or --view FILE.rrd")
 
 
 def add_overwrite_option(p: argparse.ArgumentParser, what: str = "output") -> None:
@@ -500,22 +500,24 @@ def add_live_view_option(p: argparse.ArgumentParser) -> None:
 
 def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
-    from pathlib import Path
 
+    from continuum_mhe.io.csv_files import check_output_target
     from continuum_mhe.viewer import ViewerSink
 
     ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
+    overwrite = bool(getattr(args, "overwrite", False))
     choice = getattr(args, "view", None)
     if choice is not None:  # live --view
         option, others = "--view", "--view web or --view FILE.rrd"
         if choice in ("spawn", "web"):
             sink = ViewerSink(choice, **ports)
-        else:
-            sink = ViewerSink("save", Path(choice), **ports)
+        else:  # an existing file is kept unless --overwrite, as every output
+            sink = ViewerSink("save", check_output_target(choice, overwrite, "--view"), **ports)
     else:
         option, others = "--spawn", "--serve-web or --save FILE.rrd"
         if args.save:
-            sink = ViewerSink("save", Path(args.save), **ports)
+            target = check_output_target(args.save, overwrite, "--save")
+            sink = ViewerSink("save", target, **ports)
         else:
             sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
     if sink.display_missing():

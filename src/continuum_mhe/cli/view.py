@@ -7,6 +7,7 @@ import argparse
 
 from continuum_mhe.cli.options import (
     DEFAULT_LENGTH,
+    add_overwrite_option,
     add_robot_option,
     add_tensions_option,
     add_viewer_options,
@@ -52,3 +53,4 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "estimated tip force; without it, the tips alone"
     )  # fmt: skip
     add_viewer_options(p)
+    add_overwrite_option(p, "--save")
