@@ -514,6 +514,9 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
     assert MHESettings(horizon=np.int64(12)).horizon == 12
     assert RecoverySettings(gap_reset=np.float32(1.0)).gap_reset == 1.0
     assert RobotSettings(length=np.float32(0.2)).length == pytest.approx(0.2)
+    robot = make_formulation("bend", RobotSettings(length=np.float32(0.2))).robot
+    assert robot.length == pytest.approx(0.2)  # the model's sections take it too
+    assert simulate("paper3d", duration=0.2, length=np.float32(0.2)).length == pytest.approx(0.2)
     mistakes = [
         (lambda: NoiseSettings(measurement_std=2.0), r"beyond 90 degrees: degrees\? it is in "),
         (lambda: simulate("paper3d", length=200.0), "millimetres"),

@@ -115,8 +115,15 @@ def test_library_call_given_degrees_says_so() -> None:
         rec = simulate("paper3d", duration=0.4)
         with pytest.raises(UserError, match="out of range"):
             make_estimator(m, make_formulation("bend")).run(rec.t, np.degrees(rec.z))
-    rec = simulate("paper3d", duration=0.4)  # a pitch beyond pi/2: the same direction
-    assert make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z + [0, 0.2])
+    # every reading written as the same gravity direction with its pitch beyond pi/2
+    # (pi - pitch, the roll turned by pi): accepted, and the same estimates
+    rec = simulate("paper3d", duration=2.0)
+    roll, pitch = rec.z[:, 0], rec.z[:, 1]
+    other = np.column_stack([(roll + 2 * math.pi) % (2 * math.pi) - math.pi,
+                             np.copysign(math.pi, pitch) - pitch])  # fmt: skip
+    assert np.all(np.abs(other[:, 1]) > math.pi / 2)
+    a, b = (make_estimator("ekf", make_formulation("bend")).run(rec.t, z) for z in (rec.z, other))
+    np.testing.assert_allclose(a.output, b.output, rtol=0, atol=1e-9)
     est.reset()  # radians, even the largest: accepted
     e = est.step(Measurement(0.0, np.array([math.pi, math.pi / 2])))
     # pitch pi/2 (the gimbal lock): a quarter-circle bend, theta = pi/2, phi = +-pi, the

@@ -256,8 +256,9 @@ def test_an_estimate_file_of_another_command_or_folder_is_an_options_file(
 def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, capsys) -> None:
     """``live --config`` with a live estimate never writes the new session's raw
     readings over the recording it names: ``--record`` is not recorded, and a file that
-    names one (``record = "raw.csv"``) has it left out, said in a note; an options file
-    of the user's own with ``record`` is refused as ``output`` is."""
+    names one (``record = "raw.csv"``) has it left out, said in a note, as a view file
+    (``view = "session.rrd"``); an options file of the user's own with ``record`` is
+    refused as ``output`` is."""
     from continuum_mhe.cli.app import _parse
 
     est = tmp_path / "live.csv"
@@ -272,6 +273,13 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
     own.write_text('record = "raw.csv"\n')
     assert main(["live", "--port", "/dev/null", "--config", str(own)]) == 2
     assert "line 1: record is given on the command line" in capsys.readouterr().err
+    # a session drawn to a file (live --view FILE.rrd): left out too; the web view stays
+    for view, kept in (("session.rrd", None), ("web", "web")):
+        est.write_text(f'# options = {{port = "/dev/ttyACM0", view = "{view}"}}\n'
+                       "t,x,y,z,theta,phi,status\n")  # fmt: skip
+        args = _parse(["live", "--config", str(est)])
+        assert args.view == kept and args.port == "/dev/ttyACM0"
+    assert "view names a file of the run that wrote it: left out" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -14,6 +14,7 @@ from typing import Literal
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.settings import (
     FORMULATIONS,
+    MAX_MEASUREMENT_STD,
     MIN_MEASUREMENT_STD,
     FormulationName,
     NoiseSettings,
@@ -24,6 +25,7 @@ from continuum_mhe.model.settings import (
 __all__ = [
     "DEFAULT_LOSS_SCALE",
     "MAX_HORIZON",
+    "MAX_MEASUREMENT_STD",
     "MIN_MEASUREMENT_STD",
     "FORMULATIONS",
     "FREEZE_MIN_SAMPLES",

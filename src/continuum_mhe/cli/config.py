@@ -154,7 +154,8 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     for key, value in [*flat.items(), *own.items()]:
         dest = key.replace("-", "_")
         where = _line(text, key, offset)
-        if dest in NOT_OPTIONS and recorded:  # a file the run that wrote it wrote
+        written = dest == "view" and value not in ("spawn", "web")  # live --view FILE.rrd
+        if (dest in NOT_OPTIONS or written) and recorded:  # a file the run that wrote it wrote
             files_left_out.append(key)
             continue
         if dest in NOT_OPTIONS:

@@ -26,6 +26,7 @@ from continuum_mhe.settings import (
     FORMULATIONS,
     FREEZE_MIN_SAMPLES,
     MAX_HORIZON,
+    MAX_MEASUREMENT_STD,
     MHE_LOSSES,
     MIN_MEASUREMENT_STD,
     MHELoss,
@@ -268,6 +269,13 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
     model_error = getattr(args, "model_error_deg", 0.0)
     if not (math.isfinite(model_error) and model_error >= 0):
         raise InputError(f"--model-error-deg must be >= 0, got {model_error}")
+    combined = math.hypot(args.noise_deg, model_error)
+    if math.radians(combined) > MAX_MEASUREMENT_STD:
+        raise InputError(
+            f"--noise-deg {args.noise_deg:g} with --model-error-deg {model_error:g}: a "
+            f"measurement noise of {combined:.3g} deg (added in quadrature), beyond "
+            f"{math.degrees(MAX_MEASUREMENT_STD):g} deg"
+        )
     robot = robot_from_args(args)
     floor = getattr(args, "model_error_floor_deg", math.degrees(NoiseSettings.model_error_std))
     if not (math.isfinite(floor) and floor >= 0):

@@ -102,8 +102,10 @@ class Section:
     def __post_init__(self) -> None:
         if isinstance(self.disks, bool) or not isinstance(self.disks, int) or self.disks < 0:
             raise UserError(f"section disks must be a whole number >= 0, got {self.disks!r}")
-        if not (isinstance(self.length, (int, float)) and math.isfinite(self.length)):
+        real = isinstance(self.length, numbers.Real) and not isinstance(self.length, bool)
+        if not (real and math.isfinite(self.length)):
             raise UserError(f"section length must be a finite number in m, got {self.length!r}")
+        object.__setattr__(self, "length", float(self.length))
         if not self.length > 0:
             raise UserError(f"section length must be positive, got {self.length!r} m")
         if self.length < MIN_SECTION_LENGTH:

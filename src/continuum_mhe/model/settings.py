@@ -103,7 +103,8 @@ class NoiseSettings:
                 f"{MIN_MEASUREMENT_STD:g} rad ({math.degrees(MIN_MEASUREMENT_STD):.2g} deg), "
                 "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
             )
-        if is_real(self.measurement_std) and self.measurement_std > MAX_MEASUREMENT_STD:
+        check_positive("measurement_std", self.measurement_std)
+        if self.measurement_std > MAX_MEASUREMENT_STD:
             raise UserError(
                 f"measurement_std {self.measurement_std!r} rad "
                 f"({math.degrees(self.measurement_std):.3g} deg) is beyond 90 degrees: "

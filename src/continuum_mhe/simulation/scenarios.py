@@ -266,7 +266,7 @@ def simulate(
         )
     if scenario not in _SHAPES:
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    real_number("length", length)
+    length = real_number("length", length)
     Section(length)  # a section's checks: positive, in metres (not millimetres)
     t = _time_axis(duration, dt, noise_deg, seed)
     theta, phi = _SHAPES[scenario](t)
