@@ -113,3 +113,25 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="t has 40 samples and z 41 rows"):
         write_measurements(tmp_path / "m.csv", np.arange(40.0), np.zeros((41, 2)))
     assert not (tmp_path / "m.csv").exists()
+    # lists are arrays; a 1-D z, an array for a series, a series of another robot's
+    # estimates without its outputs: one line each (not AttributeError or IndexError)
+    from continuum_mhe import make_estimator, simulate, simulate_robot
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.csv_files import write_estimates
+    from continuum_mhe.results import EstimateSeries, Measurement
+
+    rec = simulate("paper3d", duration=0.5)
+    write_measurements(tmp_path / "m.csv", list(rec.t), rec.z.tolist())
+    assert (tmp_path / "m.csv").read_text().startswith("t,roll,pitch\n0,")
+    with pytest.raises(ValueError, match=r"t must be \(n,\) and z \(n, m\); got shapes"):
+        write_measurements(tmp_path / "m1.csv", rec.t, rec.z[:, 0])
+    series = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    with pytest.raises(UserError, match="series must be an EstimateSeries .*got a ndarray"):
+        write_estimates(tmp_path / "e.csv", series.output)  # type: ignore[arg-type]
+    two = read_robot("two-section")
+    rec2 = simulate_robot("spatial", two, duration=0.2)
+    est = make_estimator("ekf", make_formulation("bend", two))
+    steps = [est.step(Measurement(float(t), z)) for t, z in zip(rec2.t, rec2.z)]
+    with pytest.raises(UserError, match="has 13 outputs, but outputs describes 5: pass"):
+        EstimateSeries.from_estimates("ekf", steps)
+    assert not (tmp_path / "m1.csv").exists() and not (tmp_path / "e.csv").exists()

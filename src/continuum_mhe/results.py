@@ -293,6 +293,11 @@ class EstimateSeries:
         std = np.full_like(out, np.nan)
         for i, e in enumerate(est):
             if e.output is not None:
+                if len(e.output) != len(outputs):
+                    raise UserError(
+                        f"estimate {i + 1} has {len(e.output)} outputs, but outputs "
+                        f"describes {len(outputs)}: pass outputs=formulation.outputs"
+                    )
                 out[i] = e.output
                 if e.output_std is not None:
                     std[i] = e.output_std

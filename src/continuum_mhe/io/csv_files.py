@@ -40,10 +40,10 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import time_text
+from continuum_mhe.errors import UserError, time_text
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -1010,9 +1010,28 @@ def estimate_rows(series: EstimateSeries) -> list[list[object]]:
     ]
 
 
+def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArray, FloatArray]:
+    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), or a ValueError
+    naming the shapes."""
+    try:
+        t_arr, v_arr = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"t and {name} must be arrays of numbers") from None
+    if t_arr.ndim != 1 or v_arr.ndim != 2:
+        raise ValueError(
+            f"t must be (n,) and {name} (n, m); got shapes {t_arr.shape} and {v_arr.shape}"
+        )
+    return t_arr, v_arr
+
+
 def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
     """Write an estimate CSV atomically (columns from ``series.outputs``; an ``outlier``
     column when the series carries outlier flags)."""
+    if not isinstance(series, EstimateSeries):
+        raise UserError(
+            f"series must be an EstimateSeries (what run() returns), got a "
+            f"{type(series).__name__}"
+        )
     columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
     write_table(path, columns, estimate_rows(series))
 
@@ -1024,6 +1043,7 @@ def write_truth(
     outputs: Sequence[OutputSpec] = pcc_outputs(1),
 ) -> None:
     """Write a truth CSV ``t`` + the output columns atomically."""
+    t, truth = _samples_table(t, truth, "truth")
     if truth.shape[1] != len(outputs):
         raise ValueError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
     write_table(
@@ -1041,6 +1061,7 @@ def write_measurements(
 ) -> None:
     """Write a measurement CSV ``t`` + ``names`` (rad) atomically; NaN (a dropout of
     that sensor) is written as an empty field."""
+    t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
         raise ValueError(f"z has {z.shape[1]} columns, expected {len(names)}")
     if len(t) != len(z):
