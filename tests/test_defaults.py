@@ -81,6 +81,41 @@ def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tm
     assert main(args) == 0
 
 
+def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) -> None:
+    """A hanging two-section robot whose recording starts bent (spatial: IMU 1 about 80
+    degrees from hanging straight, 100 from standing) estimated with a z-up robot file:
+    a warning naming ``mounting`` and the other mounting (the start is within what the
+    sections' theta_max reach, so it is not refused); with the right mounting, none. A
+    start beyond the sections' reach is refused."""
+    import warnings
+
+    from continuum_mhe.io.input_options import MountingWarning
+
+    hang = tmp_path / "hang.toml"
+    text = (DATA / "robots/two_section.toml").read_text()
+    hang.write_text(text.replace('mounting = "z-up"', 'mounting = "z-down"'))
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "spatial", "--robot", str(hang), "-o", str(meas)]) == 0
+    said = []
+    for robot in ("two-section", str(hang)):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            argv = ["estimate", str(meas), "--robot", robot, "--method", "ekf", "-o",
+                    str(tmp_path / "e.csv"), "--overwrite"]  # fmt: skip
+            assert main(argv) == 0
+        said.append([str(w.message) for w in seen if w.category is MountingWarning])
+    assert len(said[0]) == 1 and said[1] == []
+    assert "mounting: the robot is described as z-up" in said[0][0]
+    assert 'if the robot hangs from its base, set mounting = "z-down"' in said[0][0]
+    # sections that cannot bend that far (theta_max 1.2 rad): refused
+    low = tmp_path / "low.toml"
+    low.write_text(text.replace("theta_max = 3.0", "theta_max = 1.2"))
+    argv = ["estimate", str(meas), "--robot", str(low), "--method", "ekf", "-o",
+            str(tmp_path / "e2.csv")]  # fmt: skip
+    assert main(argv) == 2
+    assert not (tmp_path / "e2.csv").exists()
+
+
 def test_raw_readings_of_a_hanging_rod_are_checked_against_the_robot_files_mounting(tmp_path):
     """The two-section rod's raw recording turned upside down (the specific force
     reversed: the rod hangs): refused with a z-up robot file, run with z-down."""

@@ -1029,8 +1029,7 @@ def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> Non
     column when the series carries outlier flags)."""
     if not isinstance(series, EstimateSeries):
         raise UserError(
-            f"series must be an EstimateSeries (what run() returns), got a "
-            f"{type(series).__name__}"
+            f"series must be an EstimateSeries (what run() returns), got a {type(series).__name__}"
         )
     columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
     write_table(path, columns, estimate_rows(series))

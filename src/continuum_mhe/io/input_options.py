@@ -199,6 +199,15 @@ MOUNTING_START_SAMPLES = 25
 #: A start further than this from the straight pose of the stated mounting (and so
 #: within 45 degrees of the opposite mounting's straight pose) is refused, rad.
 MOUNTING_FLIPPED = math.radians(135.0)
+#: A start further than the stated mounting lets the IMU bend (the sections' theta_max
+#: up to it) by more than this is refused too, rad (the readings' noise and the IMU's
+#: misalignment are far below it).
+MOUNTING_MARGIN = math.radians(10.0)
+
+
+class MountingWarning(UserWarning):
+    """A start that gravity puts closer to the other mounting's straight pose than to
+    the stated one's (a robot bent past 90 degrees, or described the wrong way up)."""
 
 
 def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, float] | None:
@@ -233,17 +242,35 @@ def flipped_mounting(mounting: str) -> tuple[str, str]:
 def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
     """Refuse, in one line naming ``mounting``, a recording whose first readings put
     the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
-    of the robot's stated mounting: gravity says the robot is mounted the other way
-    (a hanging robot described as ``z-up``, or the reverse)."""
+    of the robot's stated mounting, or further than its sections' ``theta_max`` let it
+    bend (by :data:`MOUNTING_MARGIN`): gravity says the robot is mounted the other way
+    (a hanging robot described as ``z-up``, or the reverse). Past 90 degrees (by the
+    margin) but within both, a :class:`MountingWarning` says which mounting the start is
+    closer to."""
     got = start_bend_angle(z, formulation)
-    if got is None or got[1] <= MOUNTING_FLIPPED:
-        return
+    if got is None or got[1] <= math.pi / 2 + MOUNTING_MARGIN:  # not clearly closer to
+        return  # the other mounting's straight pose
     k, angle = got
-    mounting = formulation.robot.mounting
+    robot = formulation.robot
+    mounting = robot.mounting
     other, pose = flipped_mounting(mounting)
-    raise InputError(
+    where = (
         f"{name}: mounting: the robot is described as {mounting}, but at the start gravity "
         f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "
-        f"pose ({180 - math.degrees(angle):.0f} from {other}'s): the robot {pose}? set "
-        f'mounting = "{other}" in the robot file (or --mounting {other})'
+        f"pose ({180 - math.degrees(angle):.0f} from {other}'s)"
+    )
+    # the largest angle the sections up to the IMU can bend it through (theta_max each)
+    imu = robot.imus[k]
+    reach = sum(s.theta_max for s in robot.sections[: imu.section])
+    reach += imu.at * robot.sections[imu.section].theta_max
+    if angle > MOUNTING_FLIPPED or angle > reach + MOUNTING_MARGIN:
+        raise InputError(
+            f'{where}: the robot {pose}? set mounting = "{other}" in the robot file '
+            f"(or --mounting {other})"
+        )
+    warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
+        f'{where}: if the robot {pose}, set mounting = "{other}" in the robot file '
+        "(the estimates of a robot described the wrong way up are far off)",
+        MountingWarning,
+        stacklevel=3,
     )
