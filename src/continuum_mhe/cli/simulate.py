@@ -24,6 +24,17 @@ MAX_SIMULATED_SAMPLES = 10_000_000
 
 def run(args: argparse.Namespace) -> int:
     n = args.duration / args.dt
+    if n < 1:  # a recording of one sample (t = 0) estimates nothing
+        raise InputError(
+            f"--duration {args.duration:g} s is shorter than --dt {args.dt:g} s: the "
+            "recording would hold its first sample alone"
+        )
+    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    if args.imu == "raw" and "noise_deg" in given:
+        raise InputError(
+            "--noise-deg is the noise of tilt readings; --imu raw simulates the IMUs' own "
+            "accelerometer and gyro noise (docs/hardware.md), so it would do nothing"
+        )
     if n > MAX_SIMULATED_SAMPLES:
         raise InputError(
             f"--duration {args.duration:g} / --dt {args.dt:g} is {n:.3g} samples; at most "
