@@ -199,9 +199,10 @@ MOUNTING_START_SAMPLES = 25
 #: A start further than this from the straight pose of the stated mounting (and so
 #: within 45 degrees of the opposite mounting's straight pose) is refused, rad.
 MOUNTING_FLIPPED = math.radians(135.0)
-#: A start further than the stated mounting lets the IMU bend (the sections' theta_max
-#: up to it) by more than this is refused too, rad (the readings' noise and the IMU's
-#: misalignment are far below it).
+#: A start more than 90 degrees plus this from the stated mounting's straight pose
+#: warns; the warning says so where it is further than the sections' theta_max let the
+#: IMU bend by more than this too, rad (the readings' noise and the IMU's misalignment
+#: are far below it).
 MOUNTING_MARGIN = math.radians(10.0)
 
 
@@ -242,11 +243,11 @@ def flipped_mounting(mounting: str) -> tuple[str, str]:
 def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
     """Refuse, in one line naming ``mounting``, a recording whose first readings put
     the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
-    of the robot's stated mounting, or further than its sections' ``theta_max`` let it
-    bend (by :data:`MOUNTING_MARGIN`): gravity says the robot is mounted the other way
-    (a hanging robot described as ``z-up``, or the reverse). Past 90 degrees (by the
-    margin) but within both, a :class:`MountingWarning` says which mounting the start is
-    closer to."""
+    of the robot's stated mounting: gravity says the robot is mounted the other way
+    (a hanging robot described as ``z-up``, or the reverse). Past 90 degrees (by
+    :data:`MOUNTING_MARGIN`) but within it, a :class:`MountingWarning` says which
+    mounting the start is closer to, and whether the sections' ``theta_max`` let the
+    stated mounting reach it at all."""
     got = start_bend_angle(z, formulation)
     if got is None or got[1] <= math.pi / 2 + MOUNTING_MARGIN:  # not clearly closer to
         return  # the other mounting's straight pose
@@ -259,18 +260,24 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
         f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "
         f"pose ({180 - math.degrees(angle):.0f} from {other}'s)"
     )
-    # the largest angle the sections up to the IMU can bend it through (theta_max each)
-    imu = robot.imus[k]
-    reach = sum(s.theta_max for s in robot.sections[: imu.section])
-    reach += imu.at * robot.sections[imu.section].theta_max
-    if angle > MOUNTING_FLIPPED or angle > reach + MOUNTING_MARGIN:
+    if angle > MOUNTING_FLIPPED:
         raise InputError(
             f'{where}: the robot {pose}? set mounting = "{other}" in the robot file '
             f"(or --mounting {other})"
         )
+    # the largest angle the sections up to the IMU can bend it through (theta_max each)
+    imu = robot.imus[k]
+    reach = sum(s.theta_max for s in robot.sections[: imu.section])
+    reach += imu.at * robot.sections[imu.section].theta_max
+    bound = ""
+    if angle > reach + MOUNTING_MARGIN:
+        bound = (
+            f"; it is beyond the {math.degrees(reach):.0f} degrees the sections' theta_max "
+            "let it bend (if the robot does bend so far, raise theta_max instead)"
+        )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
         f'{where}: if the robot {pose}, set mounting = "{other}" in the robot file '
-        "(the estimates of a robot described the wrong way up are far off)",
+        f"(the estimates of a robot described the wrong way up are far off){bound}",
         MountingWarning,
         stacklevel=3,
     )
