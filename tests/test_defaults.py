@@ -119,7 +119,7 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
     (message,) = [str(w.message) for w in seen if w.category is MountingWarning]
     assert message.endswith(
         "; it is beyond the 69 degrees the sections' theta_max let it bend (if the robot "
-        "does bend so far, raise theta_max instead)"
+        "does bend so far, raise theta_max, or --theta-max)"
     )
 
 
@@ -139,6 +139,29 @@ def test_raw_readings_of_a_hanging_rod_are_checked_against_the_robot_files_mount
     assert main([*args, "--robot", str(_robot(tmp_path))]) == 2
     assert not est.exists()
     assert main([*args, "--robot", str(_robot(tmp_path, mounting="z-down"))]) == 0
+
+
+def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) -> None:
+    """IMU 1 alone mounted upside down (its specific force reversed, IMU 2 upright):
+    the refusal names mounting and asks whether IMU 1 alone is upside down (its
+    mount_rpy), not only whether the robot hangs."""
+    text = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines()
+    header = text[0].split(",")
+    flip = [i for i, h in enumerate(header) if h in ("ax_1", "ay_1", "az_1")]
+    assert len(flip) == 3
+    rows = [",".join(f"{-float(x)!r}" if i in flip else x for i, x in enumerate(ln.split(",")))
+            for ln in text[1:]]  # fmt: skip
+    meas, est = tmp_path / "imu1_flipped.csv", tmp_path / "e.csv"
+    meas.write_text("\n".join([text[0], *rows]) + "\n", encoding="utf-8")
+    capsys.readouterr()
+    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(_robot(tmp_path))]
+    assert main([*argv, "-o", str(est)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
+    assert err.rstrip().endswith(
+        "(IMU 2 reads upright: is IMU 1 alone mounted upside down? its mount_rpy)"
+    )
+    assert not est.exists()
 
 
 def test_raw_imus_use_their_gyros_by_default() -> None:

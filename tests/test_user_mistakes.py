@@ -86,7 +86,8 @@ def test_numeric_options_out_of_range_are_one_line(tmp_path, capsys, argv, needl
         (["--duration", "1e6", "--dt", "1e-4"], "1e+10 samples; at most"),
         (["--seed", "-1"], "--seed -1 is outside"),
         (["--duration", "1", "--dt", "2"], "--duration 1 s is shorter than --dt 2 s"),
-        (["--imu", "raw", "--noise-deg", "0"], "--noise-deg is the noise of tilt readings"),
+        (["--imu", "raw", "--noise-deg", "0"], "--noise-deg is for the noise of tilt readings"),
+        (["--imu", "raw", "--noise-model", "tangent"], "--noise-model is for the noise of"),
     ],
 )
 def test_simulate_ranges(tmp_path, capsys, argv, needle) -> None:

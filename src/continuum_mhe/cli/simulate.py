@@ -30,9 +30,11 @@ def run(args: argparse.Namespace) -> int:
             "recording would hold its first sample alone"
         )
     given: frozenset[str] = getattr(args, "given_options", frozenset())
-    if args.imu == "raw" and "noise_deg" in given:
+    tilt_noise = next((o for o in ("noise_deg", "noise_model") if o in given), None)
+    if args.imu == "raw" and tilt_noise is not None:
+        flag = "--" + tilt_noise.replace("_", "-")
         raise InputError(
-            "--noise-deg is the noise of tilt readings; --imu raw simulates the IMUs' own "
+            f"{flag} is for the noise of tilt readings; --imu raw simulates the IMUs' own "
             "accelerometer and gyro noise (docs/hardware.md), so it would do nothing"
         )
     if n > MAX_SIMULATED_SAMPLES:

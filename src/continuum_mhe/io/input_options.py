@@ -220,6 +220,13 @@ def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, floa
     whose mounting is stated upside down reads about pi."""
     robot = formulation.robot
     k = min(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+    angle = imu_start_angle(z, formulation, k)
+    return None if angle is None else (k, angle)
+
+
+def imu_start_angle(z: FloatArray, formulation: Formulation, k: int) -> float | None:
+    """IMU ``k``'s (0-based) median angle from the stated mounting's base axis over its
+    first valid readings, rad, as :func:`start_bend_angle` (None without one)."""
     block = formulation.measurement_blocks[k]
     zb = np.asarray(z, dtype=float)[:, block.slice]
     zb = zb[np.all(np.isfinite(zb), axis=1)][:MOUNTING_START_SAMPLES]
@@ -229,8 +236,8 @@ def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, floa
         f_axis = np.cos(zb[:, 0]) * np.cos(zb[:, 1])
     else:
         f_axis = zb[:, 2] / np.linalg.norm(zb[:, :3], axis=1)
-    up = 1.0 if robot.mounting == "z-up" else -1.0
-    return k, float(np.median(np.arccos(np.clip(up * f_axis, -1.0, 1.0))))
+    up = 1.0 if formulation.robot.mounting == "z-up" else -1.0
+    return float(np.median(np.arccos(np.clip(up * f_axis, -1.0, 1.0))))
 
 
 def flipped_mounting(mounting: str) -> tuple[str, str]:
@@ -260,24 +267,40 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
         f"puts IMU {k + 1} {math.degrees(angle):.0f} degrees from that mounting's straight "
         f"pose ({180 - math.degrees(angle):.0f} from {other}'s)"
     )
+    # IMUs that read within 90 degrees of the stated mounting: then this IMU alone may be
+    # the one mounted upside down
+    upright = [
+        j + 1
+        for j in range(robot.n_imus)
+        if j != k and (a := imu_start_angle(z, formulation, j)) is not None and a < math.pi / 2
+    ]
+    alone = ""
+    if upright:
+        reads = "reads" if len(upright) == 1 else "read"
+        alone = (
+            f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
+            "mounted upside down? its mount_rpy)"
+        )
     if angle > MOUNTING_FLIPPED:
         raise InputError(
             f'{where}: the robot {pose}? set mounting = "{other}" in the robot file '
-            f"(or --mounting {other})"
+            f"(or --mounting {other}){alone}"
         )
-    # the largest angle the sections up to the IMU can bend it through (theta_max each)
+    # the largest angle the sections up to the IMU can bend it through (theta_max each;
+    # a tendon robot's mechanics model has no such bound)
     imu = robot.imus[k]
     reach = sum(s.theta_max for s in robot.sections[: imu.section])
     reach += imu.at * robot.sections[imu.section].theta_max
     bound = ""
-    if angle > reach + MOUNTING_MARGIN:
+    if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
         bound = (
             f"; it is beyond the {math.degrees(reach):.0f} degrees the sections' theta_max "
-            "let it bend (if the robot does bend so far, raise theta_max instead)"
+            "let it bend (if the robot does bend so far, raise theta_max, or --theta-max)"
         )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
-        f'{where}: if the robot {pose}, set mounting = "{other}" in the robot file '
-        f"(the estimates of a robot described the wrong way up are far off){bound}",
+        f'{where}: if the robot {pose}, set mounting = "{other}" in the robot file (or '
+        f"--mounting {other}; the estimates of a robot described the wrong way up are far "
+        f"off){alone}{bound}",
         MountingWarning,
         stacklevel=3,
     )
