@@ -289,6 +289,11 @@ def test_plot_rerenders_from_data_without_estimating(
     out = tmp_path / "figs"
     assert main(["plot", str(quick_run), "--out", str(out)]) == 0
     assert sorted(p.stem for p in out.glob("*.png")) == sorted(FIGURES)
+    # a second time into that folder: its figures are kept unless --overwrite
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    assert main(["plot", str(quick_run), "--out", str(out)]) == 2
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+    assert main(["plot", str(quick_run), "--out", str(out), "--overwrite"]) == 0
 
 
 def test_plot_without_data_is_a_one_line_error(

@@ -46,8 +46,11 @@ def _reproduction(args: argparse.Namespace) -> int:
             raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
     results = load_results(args.source)
     out = Path(args.out) if args.out else Path(args.source)
+    # re-rendering a folder's own figures is what plot of a folder is for; figures in
+    # another folder are kept unless --overwrite
+    overwrite = args.overwrite or args.out is None
     with new_files(out) as files:  # Ctrl-C: none of the new figures, no new folder
-        render_all(results, out, files)
+        render_all(results, out, files, overwrite=overwrite)
     print(f"rendered {len(files)} figure files into {out}", file=sys.stderr)
     return 0
 

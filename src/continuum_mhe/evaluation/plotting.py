@@ -229,3 +229,8 @@ def save(
     finally:
         plt.close(fig)
     return out
+
+
+def close(fig: Figure) -> None:
+    """Close ``fig`` unsaved (its memory freed)."""
+    plt.close(fig)

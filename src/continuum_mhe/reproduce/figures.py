@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import EstimateSeries
 from continuum_mhe.evaluation import plotting
 
@@ -300,14 +301,33 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], dict[str, Figure]]] = {
 
 
 def render_all(
-    results: dict[str, dict[str, Any]], folder: str | Path, into: list[Path] | None = None
+    results: dict[str, dict[str, Any]],
+    folder: str | Path,
+    into: list[Path] | None = None,
+    overwrite: bool = True,
 ) -> list[Path]:
     """Render the figures of every experiment present in ``results`` into ``folder``;
-    returns the files, each also put in ``into`` as soon as it is saved."""
+    returns the files, each also put in ``into`` as soon as it is saved. Unless
+    ``overwrite``, a figure file that exists is a one-line :class:`UserError` before
+    any is written."""
+    figures = [
+        (fname, fig)
+        for name, render in RENDERERS.items()
+        if name in results
+        for fname, fig in render(results[name]).items()
+    ]
+    taken = [
+        p
+        for fname, _ in figures
+        for fmt in FORMATS
+        if (p := Path(folder) / f"{fname}.{fmt}").exists()
+    ]
+    if taken and not overwrite:
+        for _, fig in figures:
+            plotting.close(fig)
+        raise UserError(f"{taken[0]}: exists; give --overwrite to replace it, or another --out")
     Path(folder).mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
-    for name, render in RENDERERS.items():
-        if name in results:
-            for fname, fig in render(results[name]).items():
-                out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
+    for fname, fig in figures:
+        out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
     return out
