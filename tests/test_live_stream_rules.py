@@ -207,8 +207,7 @@ def test_the_hosts_own_notes_are_not_said_as_the_devices() -> None:
 # --- the lines still in the port when live stops ---------------------------------------------
 def test_lines_still_in_the_port_at_the_end_are_estimated() -> None:
     """Lines still in the port when the reader is told to stop are read and handed on:
-    a busy machine (kernels compiling) can leave some of the samples sent before
-    --duration ends there (6 of 200 in one run)."""
+    a busy machine can leave some of the samples sent before --duration ends there."""
     lines = b"".join(f"{10 * i},0.1,0.05\n".encode() for i in range(200))
     events: queue.Queue[Event] = queue.Queue()
     reader = SerialReader("x", 115200, _Port(lines), events, 1.0)

@@ -9,6 +9,7 @@ it says so and exits with status 70 (``EX_SOFTWARE``).
 from __future__ import annotations
 
 import numbers
+from typing import TypeGuard
 
 
 class UserError(ValueError):
@@ -24,10 +25,16 @@ class UnobservableShapeWarning(UserWarning):
     than bend coordinates): every estimate of it is ``uncertain``."""
 
 
+def is_real(value: object) -> TypeGuard[float]:
+    """Whether ``value`` is a real number (numpy's scalars too), not a bool (to the type
+    checker a float: every such number compares and converts as one)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def real_number(name: str, value: object) -> float:
     """``value`` as a float, or a :class:`UserError` naming the argument ``name`` when it
     is not a real number (a string, None, a bool, a list)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_real(value):
         raise UserError(f"{name} must be a number, got {value!r}")
     return float(value)
 

@@ -345,6 +345,13 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     return method
 
 
+def given_options(args: argparse.Namespace) -> frozenset[str]:
+    """The destinations of the options given on the command line (``app._parse`` finds
+    them); empty where the namespace was made otherwise (a test's, a library caller's)."""
+    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    return given
+
+
 #: The options of the MHE's window, by destination, in the order they are refused
 MHE_OPTIONS = ("loss", "loss_scale", "horizon", "paper_start", "solver", "branch_check")
 
@@ -354,7 +361,7 @@ def _refuse_mhe_options(args: argparse.Namespace, method: str, defaulted: bool) 
     where the estimator is the ``method`` (the robot's default where ``defaulted``),
     which has no window. An options file's MHE options are a profile's: they apply
     where the MHE runs."""
-    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    given = given_options(args)
     dest = next((d for d in MHE_OPTIONS if d in given), None)
     if dest is None:
         return
@@ -373,7 +380,7 @@ def check_robot_replaces(args: argparse.Namespace) -> None:
     robot = getattr(args, "robot", None)
     if not robot:
         return
-    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    given = given_options(args)
     dest = next((d for d in getattr(args, "robot_replaces", ()) if d in given), None)
     if dest is None:
         return

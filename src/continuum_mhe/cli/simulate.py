@@ -6,7 +6,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
+from continuum_mhe.cli.options import (
+    add_overwrite_option,
+    add_robot_option,
+    given_options,
+    robot_from_args,
+)
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import (
@@ -29,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
             f"--duration {args.duration:g} s is shorter than --dt {args.dt:g} s: the "
             "recording would hold its first sample alone"
         )
-    given: frozenset[str] = getattr(args, "given_options", frozenset())
+    given = given_options(args)
     tilt_noise = next((o for o in ("noise_deg", "noise_model") if o in given), None)
     if args.imu == "raw" and tilt_noise is not None:
         flag = "--" + tilt_noise.replace("_", "-")

@@ -466,7 +466,7 @@ class Estimator(Generic[InferenceT]):
         starts: Iterable[int] = range(0, n, block)
         if progress is not None:
             starts = progress(starts)
-        batch = self.continue_run(t, z, starts, block)
+        batch = self._step_blocks(t, z, starts, block)
         self._ran = True
         return EstimateSeries(
             method=self.name,
@@ -515,6 +515,12 @@ class Estimator(Generic[InferenceT]):
         sample (the samples before it are stepped), and one for arrays whose shapes do
         not fit (as :meth:`run`)."""
         t, z = self._samples(t, z)
+        size = max(len(t), 1) if block is None else block
+        return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)
+
+    def _step_blocks(self, t: FloatArray, z: FloatArray, starts: Iterable[int], size: int) -> Batch:
+        """:meth:`continue_run` on arrays already checked (:meth:`_samples`): ``size``
+        samples per call from each of ``starts``."""
         n, ny = len(t), self.formulation.ny
         batch = Batch(
             status=np.zeros(n, dtype=np.int32),
@@ -525,10 +531,8 @@ class Estimator(Generic[InferenceT]):
             output_std=np.empty((n, ny)),
         )
         u8 = np.uint8
-        if block is None:
-            block = max(n, 1)
-        for i in range(0, n, block) if starts is None else starts:
-            j = min(i + block, n)
+        for i in starts:
+            j = min(i + size, n)
             stop, err = self._policy.run(
                 t[i:j], z[i:j], batch.status[i:j], batch.solve_ms[i:j],
                 batch.outlier[i:j].view(u8), batch.frozen[i:j].view(u8),

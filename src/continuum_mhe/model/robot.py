@@ -18,9 +18,8 @@ import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
-from numbers import Real
 
-from continuum_mhe.errors import UserError, expect_type
+from continuum_mhe.errors import UserError, expect_type, is_real
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -74,7 +73,7 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
 def check_theta_max(value: object) -> None:
     """A :class:`UserError` unless ``value`` is a bending bound in ``(0, pi)`` rad."""
     hint = ""
-    if isinstance(value, Real) and not isinstance(value, bool):
+    if is_real(value):
         if 0 < float(value) < math.pi:
             return
         hint = theta_max_hint(float(value))
@@ -102,8 +101,7 @@ class Section:
     def __post_init__(self) -> None:
         if isinstance(self.disks, bool) or not isinstance(self.disks, int) or self.disks < 0:
             raise UserError(f"section disks must be a whole number >= 0, got {self.disks!r}")
-        real = isinstance(self.length, numbers.Real) and not isinstance(self.length, bool)
-        if not (real and math.isfinite(self.length)):
+        if not (is_real(self.length) and math.isfinite(self.length)):
             raise UserError(f"section length must be a finite number in m, got {self.length!r}")
         object.__setattr__(self, "length", float(self.length))
         if not self.length > 0:

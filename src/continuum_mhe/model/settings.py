@@ -5,21 +5,15 @@ formulations (:class:`RobotSettings`) and the noise model every estimator shares
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 from typing import Literal
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 from continuum_mhe.model.robot import check_theta_max
 
 FormulationName = Literal["bend", "paper", "direct", "tendon"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
-
-
-def is_real(value: object) -> bool:
-    """Whether ``value`` is a real number (numpy's scalars too), not a bool."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def check_positive(name: str, value: float) -> None:
