@@ -4,6 +4,7 @@
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -13,6 +14,7 @@
 #include "forward.hpp"
 #include "model_function.hpp"
 #include "tape.hpp"
+#include "vector_math.hpp"
 
 namespace nb = nanobind;
 using namespace cmhe;
@@ -165,6 +167,24 @@ void cmhe::bind_model(nb::module_& m) {
             new (self) ForwardJacobianFunction(fn.tape());
           },
           nb::arg("function"));
+
+  m.def("vector_sin_cos", &vector_sin_cos,
+        "Whether the batched model evaluations take sin and cos four at a time from glibc's "
+        "vector math library (within 4 ulp of the C library's; csrc/vector_math.hpp).");
+  m.def(
+      "sin_cos_rows",
+      [](ConstArray x) {
+        const size_t n = x.shape(0), padded = (n + 3) / 4 * 4;
+        std::vector<double> in(padded, 0.0), s(padded), c(padded);
+        std::copy(x.data(), x.data() + n, in.begin());
+        sin_row(in.data(), s.data(), static_cast<int64_t>(padded));
+        cos_row(in.data(), c.data(), static_cast<int64_t>(padded));
+        s.resize(n);
+        c.resize(n);
+        return std::make_pair(s, c);
+      },
+      nb::arg("x"),
+      "``(sin(x), cos(x))`` as the batched model evaluations compute them (``x`` 1-D).");
 
   m.attr("OPERATIONS") = nb::make_tuple(
       "INPUT", "OUTPUT", "CONST", "ASSIGN", "ADD", "SUB", "MUL", "DIV", "NEG", "EXP", "LOG",

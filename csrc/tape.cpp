@@ -8,6 +8,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include "vector_math.hpp"
+
 namespace cmhe {
 
 Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
@@ -71,7 +73,8 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
 #endif
 
 // The batched loops also in an AVX2 version where the compiler can choose at load time
-// (a function with target clones; each operation rounds the same either way)
+// (a function with target clones; each operation rounds the same either way, but sin and
+// cos, which vector_math.hpp takes from the vector library where it can)
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define CMHE_CLONES __attribute__((target_clones("avx2", "default")))
 #else
@@ -308,8 +311,8 @@ CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in
       case OP_SQRT: EACH(std::sqrt(x[k]));
       case OP_SQ: EACH(x[k] * x[k]);
       case OP_TWICE: EACH(2.0 * x[k]);
-      case OP_SIN: EACH(std::sin(x[k]));
-      case OP_COS: EACH(std::cos(x[k]));
+      case OP_SIN: sin_row(x, r, n); break;
+      case OP_COS: cos_row(x, r, n); break;
       case OP_TAN: EACH(std::tan(x[k]));
       case OP_ASIN: EACH(std::asin(x[k]));
       case OP_ACOS: EACH(std::acos(x[k]));

@@ -74,6 +74,16 @@ class ForwardJacobianFunction(ModelFunction):
 
     def __init__(self, function: TapeFunction) -> None: ...
 
+def vector_sin_cos() -> bool:
+    """
+    Whether the batched model evaluations take sin and cos four at a time from glibc's vector math library (within 4 ulp of the C library's; csrc/vector_math.hpp).
+    """
+
+def sin_cos_rows(x: Annotated[NDArray[numpy.float64], dict(shape=(None,), order='C', device='cpu', writable=False)]) -> tuple[list[float], list[float]]:
+    """
+    ``(sin(x), cos(x))`` as the batched model evaluations compute them (``x`` 1-D).
+    """
+
 OPERATIONS: tuple = ...
 
 class WindowSolver:
