@@ -40,7 +40,10 @@ SEED_OUTCOMES = {
     "gimbal_flip.csv": (0, "wrote 2 estimates"),
     "huge.csv": (2, "line 2: roll=1e+308, pitch=0.1 is out of range even in degrees"),
     "huge_t.csv": (0, "reset: 1); restarted after 1 gap(s) longer than 1 s"),
-    "inf_angle.csv": (2, "line 3: column roll is inf (a dropout; --skip-bad keeps it)"),
+    "inf_angle.csv": (
+        2,
+        "line 3: column roll is inf (a dropout; --skip-bad keeps it, skip_bad=True in Python)",
+    ),
     "long_gap.csv": (0, "restarted after 1 gap(s) longer than 1 s"),
     "mhe_stops.csv": (0, "wrote 33 estimates"),
     "negative_t.csv": (0, "wrote 2 estimates"),

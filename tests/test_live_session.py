@@ -370,7 +370,8 @@ def test_a_frozen_sensor_is_said_once_in_live() -> None:
     notes = [m for m in said if "repeated the same reading" in m]
     assert notes == [
         "IMU 1 repeated the same reading for more than 1 s from t=0 s: treated as frozen "
-        "(a dropout) while it repeats; --freeze 0 turns this off"
+        "(a dropout) while it repeats; --freeze 0 turns this off (RecoverySettings(freeze=None) "
+        "in Python)"
     ]
 
 

@@ -219,7 +219,7 @@ def test_partial_dropouts_are_counted_and_the_status_says_dropout_only_without_a
     assert (
         "; 3 sample(s) estimated without every IMU (missing: IMU 1 on 2, IMU 2 on 3); "
         "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: "
-        "line 12: column roll_1 is nan (a dropout; --skip-bad keeps it)"
+        "line 12: column roll_1 is nan (a dropout; --skip-bad keeps it, skip_bad=True in Python)"
     ) in err
     assert err.count("\n") == 1 and "dropout: 1," in err and "skipped" not in err
 

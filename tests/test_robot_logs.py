@@ -345,7 +345,7 @@ def test_a_nan_in_a_log_message_is_refused_as_in_a_csv(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "topic /tip/imu: the message at t = " in err
     assert "(sample 50): linear_acceleration is [" in err and "nan" in err
-    assert err.endswith("(a dropout; --skip-bad keeps it)\n")
+    assert err.endswith("(a dropout; --skip-bad keeps it, skip_bad=True in Python)\n")
     assert not out.exists()
     assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
     assert "dropout: 1" in capsys.readouterr().err

@@ -127,7 +127,8 @@ def test_the_block_reader_reads_what_it_should(tmp_path: Path) -> None:
     assert np.frombuffer(t) == pytest.approx(0.01 * np.arange(9))
     error = _same(tmp_path, TRICKY["an overflow"])
     assert error[:2] == ("error", f"{tmp_path / 'in.csv'}: line 3: column roll is 1e999 (a "
-                                  "dropout; --skip-bad keeps it)")  # fmt: skip
+                                  "dropout; --skip-bad keeps it, skip_bad=True in "
+                                  "Python)")  # fmt: skip
 
 
 TWO_IMUS = ("t", "roll_1", "pitch_1", "roll_2", "pitch_2")

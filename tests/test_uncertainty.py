@@ -615,7 +615,8 @@ def test_estimate_says_once_that_a_still_recording_is_frozen(
     err = capsys.readouterr().err.splitlines()
     assert err[0] == (
         "continuum-mhe: note: IMU 1 repeated the same reading for more than 1 s from t=0 s: "
-        "treated as frozen (a dropout) while it repeats; --freeze 0 turns this off"
+        "treated as frozen (a dropout) while it repeats; --freeze 0 turns this off "
+        "(RecoverySettings(freeze=None) in Python)"
     )
     assert len(err) == 2
     assert err[1].startswith(

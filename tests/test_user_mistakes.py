@@ -14,7 +14,7 @@ import pytest
 
 import continuum_mhe.cli.app as cli
 import continuum_mhe.cli.check_robot as check_robot
-from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
+from continuum_mhe import Measurement, compute_metrics, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import UserError
@@ -149,6 +149,34 @@ def test_continue_run_checks_its_arrays_as_run_does() -> None:
         est.continue_run(rec.t, rec.z[:, :1])
     est.reset()
     batch = est.continue_run(list(rec.t), rec.z.tolist())
+    np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
+
+
+@pytest.mark.parametrize(
+    ("block", "starts", "match"),
+    [
+        (-1, None, "block must be a positive integer"),
+        (0, None, "block must be a positive integer"),
+        (2.5, None, "block must be a positive integer"),
+        (True, None, "block must be a positive integer"),
+        (10, [0], "stepped the first 10 of the 21 samples"),  # samples left out
+        (10, [0, 15], "a block starts at 15 where sample 10 is next"),  # a gap
+        (10, [0, 0, 10, 20], "a block starts at 0 where sample 10 is next"),  # repeated
+        (10, [10, 0, 20], "a block starts at 10 where sample 0 is next"),  # out of order
+        (10, [0, 10, 20, 30], "a block starts at 30 where sample 21 is next"),  # beyond
+    ],
+)
+def test_continue_run_refuses_blocks_that_do_not_cover_the_samples(block, starts, match) -> None:
+    """``continue_run`` steps every sample once, in order, or refuses in one
+    UserError: a block size that is not a positive integer, or starts that skip,
+    repeat, reorder or pass the samples (the rows left unstepped would read as ``ok``
+    estimates of uninitialised memory)."""
+    rec = simulate("paper3d", duration=1.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(UserError, match=match):
+        est.continue_run(rec.t, rec.z, starts=starts, block=block)
+    est.reset()
+    batch = est.continue_run(rec.t, rec.z, starts=range(0, 21, 10), block=10)
     np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
 
 
@@ -901,3 +929,103 @@ def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:
     z[:6] = [0.3, -0.2, 9.79, 0.01, 0.0, 0.02]  # IMU 1 in m/s^2, IMU 2 silent
     with pytest.raises(UserError, match=r"^measurement at t=0\.0 s: fx_1, fy_1, fz_1 have"):
         est.step(Measurement(0.0, z))
+
+
+def test_compute_metrics_refuses_what_does_not_fit_in_one_user_error() -> None:
+    """``compute_metrics`` names each mistake in a UserError: an estimate series given
+    for its array, arrays of different lengths or with another column count than their
+    names, a length that is not a number, a string for the names."""
+    rec = simulate("paper3d", duration=2.0, seed=1)
+    s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    cases = [
+        ((s, rec.truth, 0.2), "got a EstimateSeries: pass its .output"),
+        ((s.output[:-1], rec.truth, 0.2), "estimate has 40 rows but truth has 41"),
+        ((s.output, rec.truth, "0.2"), "length must be a number"),
+        ((s.output, rec.truth, -0.2), "length must be a positive number"),
+        ((s.output, rec.truth[:, :3], 0.2), r"truth has 3 columns, but names gives 5"),
+        ((s.output, rec.truth, 0.2, ["x", "y", "z"]), "estimate has 5 columns, but names gives 3"),
+        ((s.output, rec.truth, 0.2, "xyz"), "names must be a sequence of column names"),
+        ((s.output[:, :1], rec.truth[:, :1], 0.2, ["x"]), "both sides need the tip column 'y'"),
+    ]
+    for args, match in cases:
+        with pytest.raises(UserError, match=match):
+            compute_metrics(*args)
+
+
+def test_compute_metrics_skips_rows_without_a_finite_truth_and_counts_them() -> None:
+    """Rows whose truth is NaN (a gap in a motion capture) are left out of the metrics
+    and counted, as rows without an estimate are: the metrics are those of the other
+    rows alone."""
+    rec = simulate("paper3d", duration=2.0, seed=1)
+    s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    truth = rec.truth.copy()
+    truth[5:10] = np.nan
+    keep = np.ones(len(truth), dtype=bool)
+    keep[5:10] = False
+    m = compute_metrics(s.output, truth, 0.2)
+    want = compute_metrics(s.output[keep], rec.truth[keep], 0.2)
+    assert (m.n, m.n_without_truth, m.n_without_estimate) == (36, 5, 0)
+    assert m.tip_mean_mm == want.tip_mean_mm and m.rmse == want.rmse
+    truth[:] = np.nan
+    with pytest.raises(UserError, match="no estimated sample has a finite truth"):
+        compute_metrics(s.output, truth, 0.2)
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (
+            "make_formulation('direct', gyro_std='0.01')",
+            "gyro_std must be a positive finite number",
+        ),
+        ("read_measurements(CSV, n_imus='2')", "n_imus must be a positive integer"),
+        ("read_measurements(CSV, degrees='yes')", "degrees must be True or False"),
+        ("load_input(CSV, None, make_formulation('bend'))", "options must be an InputOptions"),
+        (
+            "load_input(CSV, {'degrees': True}, make_formulation('bend'))",
+            "options must be an InputOptions",
+        ),
+        ("open_input(CSV, InputOptions(), 'bend')", "formulation must be a Formulation"),
+        ("write_estimates(None, SERIES)", "path must be a file path"),
+        ("ImuPlacement(0, gyro_bias=('a', 'b', 'c'))", "IMU gyro_bias must be three finite rates"),
+        ("ImuPlacement(0, gyro_bias=0.0)", "IMU gyro_bias must be three finite rates"),
+        ("ImuPlacement(1.0)", "IMU section must be an integer"),
+        ("RawImuSettings(mount_rpy=('a', 0, 0))", "mount_rpy must be three finite angles"),
+        ("RawImuSettings(gyro_bias=0.1)", "gyro_bias must be three finite rates"),
+        ("write_measurements(OUT, [0.0, 0.0], [[0.1, 0.1], [0.1, 0.1]])", "strictly increasing"),
+        ("write_measurements(OUT, [0.0], [[0.1]])", "z has 1 columns, expected 2"),
+        ("write_truth(OUT, [0.0], [[np.nan] * 5])", "refusing to write a non-finite value"),
+    ],
+)
+def test_library_calls_refuse_wrong_types_in_one_user_error(tmp_path, call, match) -> None:
+    """Public library calls given a wrong type or an impossible value raise a UserError
+    naming the argument, not a TypeError or AttributeError from inside; nothing is
+    written."""
+    import continuum_mhe.io as io
+    from continuum_mhe.io.raw_imu import RawImuSettings
+    from continuum_mhe.model.robot import ImuPlacement
+
+    rec = simulate("paper3d", duration=0.2)
+    csv = tmp_path / "m.csv"
+    io.write_measurements(csv, rec.t, rec.z)
+    names = {
+        "CSV": csv, "OUT": tmp_path / "out.csv", "np": np, "make_formulation": make_formulation,
+        "SERIES": make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z),
+        **{name: getattr(io, name) for name in (
+            "InputOptions", "load_input", "open_input", "read_measurements", "write_estimates",
+            "write_measurements", "write_truth",
+        )},
+        "RawImuSettings": RawImuSettings, "ImuPlacement": ImuPlacement,
+    }  # fmt: skip
+    with pytest.raises(UserError, match=match):
+        eval(call, names)
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_an_imu_section_given_as_a_numpy_integer_is_taken() -> None:
+    """A section index that is a numpy integer (from an array) is an index like any
+    other; a float is refused by its type."""
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot((Section(0.1), Section(0.1)), (ImuPlacement(0), ImuPlacement(np.int64(1))))
+    assert robot.imus[1].section == 1 and type(robot.imus[1].section) is int

@@ -8,7 +8,9 @@ it says so and exits with status 70 (``EX_SOFTWARE``).
 
 from __future__ import annotations
 
+import math
 import numbers
+from collections.abc import Iterable
 from typing import TypeGuard
 
 
@@ -37,6 +39,22 @@ def real_number(name: str, value: object) -> float:
     if not is_real(value):
         raise UserError(f"{name} must be a number, got {value!r}")
     return float(value)
+
+
+def finite_reals(name: str, value: object, size: int, what: str) -> tuple[float, ...]:
+    """``value`` (a sequence: tuple, list, array) as ``size`` finite floats, or a
+    :class:`UserError` naming the argument ``name`` (``what`` says what is expected,
+    e.g. ``"three finite rates in rad/s"``)."""
+    values: list[float] = []
+    if isinstance(value, Iterable) and not isinstance(value, (str, bytes)):
+        for v in value:
+            if not (is_real(v) and math.isfinite(v)):
+                break
+            values.append(float(v))
+        else:
+            if len(values) == size:
+                return tuple(values)
+    raise UserError(f"{name} must be {what}, got {value!r:.60}")
 
 
 def time_text(t: float) -> str:

@@ -173,7 +173,8 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
     ``comparable`` (not of different lengths or robots)."""
     r = m.rmse
     lines = [
-        f"samples compared     {m.n} ({m.n_without_estimate} without estimate)",
+        f"samples compared     {m.n} ({m.n_without_estimate} without estimate"
+        + (f", {m.n_without_truth} without a finite truth)" if m.n_without_truth else ")"),
         f"tip error mean       {m.tip_mean_mm:.2f} mm ({m.tip_mean_pct:.2f} % of length)",
         f"tip error max        {m.tip_max_mm:.2f} mm ({m.tip_max_pct:.2f} % of length)",
         f"RMSE x, y, z         {r['x'] * 1e3:.2f}, {r['y'] * 1e3:.2f}, {r['z'] * 1e3:.2f} mm",

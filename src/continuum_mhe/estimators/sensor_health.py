@@ -108,7 +108,10 @@ def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
     else:
         each = " and ".join(f"IMU {k + 1} (from t={time_text(t)} s)" for k, t in new.items())
         who, repeats = f"{each} {same}", "they repeat"
-    return f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off"
+    return (
+        f"{who}: treated as frozen (a dropout) while {repeats}; --freeze 0 turns this off "
+        "(RecoverySettings(freeze=None) in Python)"
+    )
 
 
 def bound_notice(count: int, n: int, robot: Robot) -> str:
@@ -510,12 +513,19 @@ class Estimator(Generic[InferenceT]):
         block: int | None = None,
     ) -> Batch:
         """Step the samples ``t`` (n,) s, ``z`` (n, nz) on from the last one, in the
-        compiled policy, ``block`` samples per call from each of ``starts`` (default:
-        all in one call); raises the :class:`UserError` of :meth:`step` for a refused
-        sample (the samples before it are stepped), and one for arrays whose shapes do
-        not fit (as :meth:`run`)."""
+        compiled policy, ``block`` samples per call (a positive integer) from each of
+        ``starts`` (default: all in one call; else ``range(0, n, block)`` in order,
+        which a progress display may wrap: the blocks must cover every sample once, in
+        order); raises the :class:`UserError` of :meth:`step` for a refused sample (the
+        samples before it are stepped), and one for arrays whose shapes do not fit (as
+        :meth:`run`), a ``block`` that is not a positive integer, or ``starts`` that
+        skip, repeat or leave out samples."""
         t, z = self._samples(t, z)
-        size = max(len(t), 1) if block is None else block
+        if block is not None and (
+            isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1
+        ):
+            raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
+        size = max(len(t), 1) if block is None else int(block)
         return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)
 
     def _step_blocks(self, t: FloatArray, z: FloatArray, starts: Iterable[int], size: int) -> Batch:
@@ -531,8 +541,16 @@ class Estimator(Generic[InferenceT]):
             output_std=np.empty((n, ny)),
         )
         u8 = np.uint8
+        done = 0  # the samples stepped: each block starts where the last one ended
         for i in starts:
+            if i != done or i >= n:
+                raise UserError(
+                    f"continue_run: the blocks must cover the {n} samples in order, "
+                    f"{size} at a time from 0 (starts range(0, n, block)): a block starts "
+                    f"at {i!r} where sample {done} is next"
+                )
             j = min(i + size, n)
+            done = j
             stop, err = self._policy.run(
                 t[i:j], z[i:j], batch.status[i:j], batch.solve_ms[i:j],
                 batch.outlier[i:j].view(u8), batch.frozen[i:j].view(u8),
@@ -541,6 +559,11 @@ class Estimator(Generic[InferenceT]):
             self._sync_diagnostics()
             if err:
                 self._refuse(err, float(t[i + stop]), z[i + stop])
+        if done != n:
+            raise UserError(
+                f"continue_run: the blocks stepped the first {done} of the {n} samples: "
+                "the starts must cover every sample (range(0, n, block))"
+            )
         return batch
 
 

@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, output_names, pcc_outputs
 from continuum_mhe.model.imu import wrap_angle
 
@@ -39,7 +40,8 @@ class Metrics:
             one section, mixed units; a tendon robot's tip force left out).
         tip_mean_mm, tip_max_mm: Euclidean tip error, mm.
         tip_mean_pct, tip_max_pct: the same in % of the robot's length.
-        n: samples compared; n_without_estimate: samples with no estimate.
+        n: samples compared; n_without_estimate: samples with no estimate;
+            n_without_truth: samples with an estimate but no (finite) truth.
         section_end_mean_mm, section_end_max_mm: Euclidean error of each section's end
             (1-based section number as a string key), where both sides have it.
         tip_force_rms_n: the rms of the tip force's error vector, N, where both sides
@@ -57,9 +59,42 @@ class Metrics:
     section_end_mean_mm: dict[str, float] = field(default_factory=dict)
     section_end_max_mm: dict[str, float] = field(default_factory=dict)
     tip_force_rms_n: float | None = None
+    n_without_truth: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
+
+
+def _column_names(what: str, names: object) -> list[str]:
+    """``names`` as a list of column names, or a :class:`UserError`."""
+    if isinstance(names, str) or not isinstance(names, Iterable):
+        raise UserError(f"{what} must be a sequence of column names, got {names!r:.60}")
+    out = list(names)
+    if not all(isinstance(c, str) for c in out):
+        raise UserError(f"{what} must be column names (strings), got {out!r:.60}")
+    return out
+
+
+def _table(what: str, values: object, names: list[str], name_arg: str) -> FloatArray:
+    """``values`` as an (n, len(names)) float array, or a :class:`UserError` naming
+    what does not fit (``name_arg``: the argument that names its columns)."""
+    if hasattr(values, "output") and not isinstance(values, np.ndarray):
+        raise UserError(
+            f"{what} must be an array (n, k), got a {type(values).__name__}: pass its "
+            ".output (and its outputs' names as names)"
+        )
+    try:
+        a = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise UserError(f"{what} must be an array of numbers (n, k), got {values!r:.60}") from None
+    if a.ndim != 2:
+        raise UserError(f"{what} must be a 2-D array (n, k), got shape {a.shape}")
+    if a.shape[1] != len(names):
+        raise UserError(
+            f"{what} has {a.shape[1]} columns, but {name_arg} gives {len(names)} "
+            f"({', '.join(names)})"
+        )
+    return a
 
 
 def state_errors(
@@ -81,19 +116,39 @@ def compute_metrics(
     truth_names: Sequence[str] | None = None,
 ) -> Metrics:
     """Metrics of ``estimate`` (n, k) with columns ``names`` against ``truth`` (n, k')
-    with columns ``truth_names`` (default: the same). Columns in only one of them are
-    ignored; both must have ``x, y, z``. Rows with a NaN estimate are skipped."""
-    names = list(names)
-    tnames = list(names if truth_names is None else truth_names)
+    with columns ``truth_names`` (default: the same), over a robot of ``length`` m.
+    Columns in only one of them are ignored; both must have ``x, y, z``. Rows with a
+    NaN estimate are skipped (``n_without_estimate``), and so are rows whose truth is
+    not finite (``n_without_truth``: a gap in a motion capture).
+
+    Raises:
+        UserError: arrays that are not (n, k) numbers with a column per name, of
+            different lengths, a ``length`` that is not a positive number, no common
+            tip columns, or no row with both an estimate and its truth.
+    """
+    length = real_number("length", length)
+    if not length > 0:
+        raise UserError(f"length must be a positive number of metres, got {length!r}")
+    names = _column_names("names", names)
+    tnames = names if truth_names is None else _column_names("truth_names", truth_names)
+    est_all = _table("estimate", estimate, names, "names")
+    tru_all = _table("truth", truth, tnames, "names" if truth_names is None else "truth_names")
+    if len(est_all) != len(tru_all):
+        raise UserError(f"estimate has {len(est_all)} rows but truth has {len(tru_all)}")
     common = [c for c in names if c in tnames]
     for c in ("x", "y", "z"):
         if c not in common:
-            raise ValueError(f"both sides need the tip column {c!r}")
-    est = np.asarray(estimate, float)[:, [names.index(c) for c in common]]
-    tru = np.asarray(truth, float)[:, [tnames.index(c) for c in common]]
-    has = np.all(np.isfinite(est), axis=1)
+            raise UserError(f"both sides need the tip column {c!r}")
+    est = est_all[:, [names.index(c) for c in common]]
+    tru = tru_all[:, [tnames.index(c) for c in common]]
+    estimated = np.all(np.isfinite(est), axis=1)
+    has = estimated & np.all(np.isfinite(tru), axis=1)
     if not has.any():
-        raise ValueError("no sample has an estimate")
+        raise UserError(
+            "no sample has an estimate"
+            if not estimated.any()
+            else "no estimated sample has a finite truth"
+        )
     err = state_errors(est[has], tru[has], common)
     rmse = np.sqrt(np.mean(err**2, axis=0))
     col = {c: i for i, c in enumerate(common)}
@@ -116,10 +171,11 @@ def compute_metrics(
         tip_mean_pct=float(tip.mean() / length * 100),
         tip_max_pct=float(tip.max() / length * 100),
         n=int(has.sum()),
-        n_without_estimate=int((~has).sum()),
+        n_without_estimate=int((~estimated).sum()),
         section_end_mean_mm=end_mean,
         section_end_max_mm=end_max,
         tip_force_rms_n=force_rms,
+        n_without_truth=int((estimated & ~has).sum()),
     )
 
 

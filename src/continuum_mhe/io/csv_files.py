@@ -28,6 +28,7 @@ import csv
 import difflib
 import errno
 import math
+import numbers
 import os
 import re
 import stat
@@ -43,7 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import UserError, time_text
+from continuum_mhe.errors import UserError, expect_type, time_text
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -178,8 +179,12 @@ def read_measurements(
     for another number of IMUs than ``n_imus`` (``roll_1 ... roll_2`` for one) is an
     error, never read in part.
     """
+    expect_type("degrees", degrees, bool, "True or False")
+    expect_type("skip_bad", skip_bad, bool, "True or False")
+    if isinstance(n_imus, bool) or not isinstance(n_imus, numbers.Integral) or n_imus < 1:
+        raise UserError(f"n_imus must be a positive integer (the IMUs in the file), got {n_imus!r}")
     with open_rows(path) as rows:
-        columns = tilt_sample_columns(rows, n_imus, fix=READER_FIX)
+        columns = tilt_sample_columns(rows, int(n_imus), fix=READER_FIX)
         got = read_sample_rows(rows, columns, skip_bad=skip_bad, empty_is_dropout=True)
     check_time_units(rows, got.t)
     z = tilt_values(
@@ -527,7 +532,7 @@ def _check_angle_units(
         raise InputError(f"{where} is out of range even in degrees (|roll| <= 180, |pitch| <= 90)")
     valid = int(np.isfinite(z).all(axis=1).sum())
     if over.sum() >= DEGREES_LIKE_SHARE * max(valid, 1):
-        hint = "the angles look like degrees: pass --degrees"
+        hint = "the angles look like degrees: pass --degrees (degrees=True in Python)"
     else:
         hint = (
             f"{int(over.sum())} of {valid} rows read here are; if they are glitches, "
@@ -774,6 +779,7 @@ def check_output_target(
     ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
     file, a read-only file (never silently replaced), or, unless ``overwrite``, an
     existing file (the error names ``--overwrite`` and the command's ``option``)."""
+    expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
     text = os.fspath(path)
     target = Path(text)
     if text == "-":
@@ -914,7 +920,7 @@ def format_time(t: float) -> str:
     without trailing zeros, so that samples a millisecond or less apart on a device clock
     past 1e6 s stay distinct (the compiled writer's rule, to the character)."""
     if not math.isfinite(t):
-        raise ValueError("refusing to write a non-finite time")
+        raise UserError("refusing to write a non-finite time")
     short = f"{t:.10g}"
     if abs(float(short) - t) <= 5e-7 or abs(t) >= 1e15:
         return short
@@ -939,7 +945,7 @@ def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[st
     for v in row:
         if isinstance(v, (float, np.floating)):
             if not math.isfinite(v):
-                raise ValueError(f"refusing to write non-finite value to {path}")
+                raise UserError(f"refusing to write a non-finite value to {path}")
             cells.append(_fmt(float(v)))
         else:
             cells.append(str(v))
@@ -988,7 +994,7 @@ def estimate_lines(
         and np.isfinite(solve_ms).all()
         and np.isfinite(output[estimated]).all()
     ):
-        raise ValueError(f"refusing to write non-finite value to {path}")
+        raise UserError(f"refusing to write a non-finite value to {path}")
     flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
     t, output, output_std, solve_ms = (
         np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)
@@ -1011,14 +1017,14 @@ def estimate_rows(series: EstimateSeries) -> list[list[object]]:
 
 
 def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArray, FloatArray]:
-    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), or a ValueError
+    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), or a UserError
     naming the shapes."""
     try:
         t_arr, v_arr = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"t and {name} must be arrays of numbers") from None
+        raise UserError(f"t and {name} must be arrays of numbers") from None
     if t_arr.ndim != 1 or v_arr.ndim != 2:
-        raise ValueError(
+        raise UserError(
             f"t must be (n,) and {name} (n, m); got shapes {t_arr.shape} and {v_arr.shape}"
         )
     return t_arr, v_arr
@@ -1044,7 +1050,7 @@ def write_truth(
     """Write a truth CSV ``t`` + the output columns atomically."""
     t, truth = _samples_table(t, truth, "truth")
     if truth.shape[1] != len(outputs):
-        raise ValueError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
+        raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
     write_table(
         path,
         ("t", *output_names(outputs)),
@@ -1062,8 +1068,13 @@ def write_measurements(
     that sensor) is written as an empty field."""
     t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
-        raise ValueError(f"z has {z.shape[1]} columns, expected {len(names)}")
+        raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
     if len(t) != len(z):
-        raise ValueError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
+        raise UserError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
+    if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        raise UserError(
+            f"{path}: t must be finite and strictly increasing (s): read_measurements "
+            "refuses a file whose time does not increase"
+        )
     rows = [[float(a), *(float(v) if np.isfinite(v) else "" for v in b)] for a, b in zip(t, z)]
     write_table(path, ("t", *names), rows)

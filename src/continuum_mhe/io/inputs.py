@@ -285,6 +285,14 @@ def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:
 
 
 # --- the pipeline ----------------------------------------------------------------------------
+def _check_arguments(path: object, options: object, formulation: object) -> None:
+    """A :class:`UserError` naming the argument of :func:`open_input` or
+    :func:`load_input` that is not of its type."""
+    expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
+    expect_type("options", options, InputOptions, "an InputOptions (continuum_mhe.io.InputOptions)")
+    expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
+
+
 def open_input(
     path: str | os.PathLike[str],
     options: InputOptions,
@@ -294,6 +302,7 @@ def open_input(
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream of
     measurements for ``formulation``'s robot, tendon tensions appended where it has a
     backbone (``robot_name``: the robot file as named in messages)."""
+    _check_arguments(path, options, formulation)
     tensions = _tensions(options, formulation.robot, robot_name, path)
     stream = _open_measurements(path, options, formulation)
     if formulation.robot.has_mechanics:
@@ -307,6 +316,7 @@ def load_input(
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) whole, as measurements
     (without tendon tensions: :func:`open_input` reads a tendon robot's with its
     tensions file, ``options.tensions``, which is refused here)."""
+    _check_arguments(path, options, formulation)
     p = Path(path)
     if options.tensions is not None:
         raise InputError(
@@ -595,7 +605,7 @@ def _refuse_a_missing_value(
             raise InputError(
                 f"{path}: topic {topic}: the message at t = {time_text(float(t[i]))} s "
                 f"(sample {i + 1}): {name} is {values[i].tolist()} (a dropout; --skip-bad "
-                "keeps it)"
+                "keeps it, skip_bad=True in Python)"
             )
 
 

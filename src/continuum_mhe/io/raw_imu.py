@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, finite_reals
 from continuum_mhe.io.csv_files import (
     FloatArray,
     ImuColumns,
@@ -99,14 +99,10 @@ class RawImuSettings:
             raise UserError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
         if self.attitude not in ATTITUDES:
             raise UserError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
-        if len(self.mount_rpy) != 3 or not all(math.isfinite(v) for v in self.mount_rpy):
-            raise UserError(
-                f"mount_rpy must be three finite angles in degrees, got {self.mount_rpy!r}"
-            )
-        if len(self.gyro_bias) != 3 or not all(math.isfinite(v) for v in self.gyro_bias):
-            raise UserError(
-                f"gyro_bias must be three finite rates in rad/s, got {self.gyro_bias!r}"
-            )
+        rpy = finite_reals("mount_rpy", self.mount_rpy, 3, "three finite angles in degrees")
+        bias = finite_reals("gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
+        object.__setattr__(self, "mount_rpy", rpy)
+        object.__setattr__(self, "gyro_bias", bias)
 
     @property
     def needs_gyro(self) -> bool:

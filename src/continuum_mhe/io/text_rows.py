@@ -570,7 +570,11 @@ class _SampleChecks:
                     v = math.nan
                 else:
                     if not math.isfinite(v):
-                        bad(line, f"column {col} is {row[j]} (a dropout; --skip-bad keeps it)")
+                        bad(
+                            line,
+                            f"column {col} is {row[j]} (a dropout; --skip-bad keeps it, "
+                            "skip_bad=True in Python)",
+                        )
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)
             self.last_t = t

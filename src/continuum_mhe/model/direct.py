@@ -57,7 +57,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
 from continuum_mhe.model.formulations import BendFormulation, FloatArray
 from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
@@ -151,7 +151,7 @@ class DirectFormulation(BendFormulation):
             ("bend_jerk_psd", self.bend_jerk_psd),
             ("initial_bend_accel_std", self.initial_bend_accel_std),
         ):
-            if v is not None and not (math.isfinite(v) and v > 0):
+            if v is not None and not (is_real(v) and math.isfinite(v) and v > 0):
                 raise UserError(f"{label} must be a positive finite number, got {v!r}")
 
     @cached_property

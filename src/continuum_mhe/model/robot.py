@@ -19,7 +19,7 @@ import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from continuum_mhe.errors import UserError, expect_type, is_real
+from continuum_mhe.errors import UserError, expect_type, finite_reals, is_real
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -143,10 +143,15 @@ class ImuPlacement:
                 f"IMU mount_rpy must be three angles in degrees, got {self.mount_rpy!r}"
             )
         object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
-        object.__setattr__(self, "gyro_bias", tuple(self.gyro_bias))
-        if len(self.gyro_bias) != 3 or not all(math.isfinite(v) for v in self.gyro_bias):
-            raise UserError(f"IMU gyro_bias must be three finite rates, got {self.gyro_bias!r}")
-        if not (isinstance(self.section, int) and self.section >= 0):
+        gyro_bias = finite_reals("IMU gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
+        object.__setattr__(self, "gyro_bias", gyro_bias)
+        if isinstance(self.section, bool) or not isinstance(self.section, numbers.Integral):
+            raise UserError(
+                f"IMU section must be an integer (a 0-based section index), got "
+                f"{type(self.section).__name__} {self.section!r}"
+            )
+        object.__setattr__(self, "section", int(self.section))
+        if self.section < 0:
             raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
             raise UserError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")

@@ -230,14 +230,14 @@ def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> Float
         if not (math.isfinite(v) and v > 0):
             raise UserError(f"{name} must be positive, got {v}")
     if not (math.isfinite(noise_deg) and noise_deg >= 0):
-        raise UserError(f"noise-deg must be >= 0, got {noise_deg}")
+        raise UserError(f"noise_deg (--noise-deg) must be >= 0, got {noise_deg}")
     if not (isinstance(seed, int) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
     n = sample_count(duration, dt)
     if n > MAX_SAMPLES:
         raise UserError(
             f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: "
-            "use a shorter --duration or a larger --dt"
+            "use a shorter duration (--duration) or a larger dt (--dt)"
         )
     return np.arange(n, dtype=float) * dt
 
