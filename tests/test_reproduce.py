@@ -803,3 +803,28 @@ def test_reproduce_only_beyond(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     assert "## Beyond the paper" in report and "## Paper vs. ours" not in report
     assert f"{len(one)} runs beyond the paper" in report
     assert (out / "exp7_beyond.png").is_file()
+
+
+def test_a_run_of_one_part_into_the_folder_of_another_keeps_its_record(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--only beyond`` into a folder that holds another part's results records that
+    earlier run in its manifest (``earlier_runs``) and report beside its own, as the
+    earlier data stay there; a run of the same part replaces the record with its data."""
+    from continuum_mhe.reproduce import pipeline
+
+    one = [s for s in ex.plan_beyond_trials(ex.QUICK) if s.seed == 110_000]
+    monkeypatch.setattr(pipeline, "plan_beyond_trials", lambda cfg: one)
+    out = tmp_path / "r"
+    out.mkdir()
+    paper_run = {"command": "continuum-mhe reproduce --only paper --out r", "parts": ["paper"]}
+    (out / "manifest.json").write_text(json.dumps(paper_run))
+    args = ["reproduce", "--quick", "--only", "beyond", "--out", str(out), "--jobs", "1"]
+    assert main(args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["parts"] == ["beyond"] and manifest["earlier_runs"] == [paper_run]
+    report = (out / "report.md").read_text()
+    assert "from an earlier run: `continuum-mhe reproduce --only paper --out r` (paper)" in report
+    assert main([*args, "--overwrite"]) == 0  # beyond again: the paper run is kept, once
+    again = json.loads((out / "manifest.json").read_text())
+    assert again["earlier_runs"] == [paper_run]

@@ -225,6 +225,21 @@ def assemble_beyond(cfg: ReproduceConfig, trials: Sequence[dict[str, Any]]) -> d
     return {"config": asdict(cfg), "summary": summarise_beyond(trials), "trials": list(trials)}
 
 
+def earlier_runs(path: Path, parts: Sequence[Part]) -> list[dict[str, Any]]:
+    """The runs recorded in the manifest at ``path`` (itself and its own
+    ``earlier_runs``) whose data stay in the folder beside a run of ``parts``: those
+    with a part this run does not make again (``--only`` into the folder of another
+    part). None without a readable manifest."""
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    if not isinstance(old, dict):
+        return []
+    runs = [r for r in old.pop("earlier_runs", []) if isinstance(r, dict)] + [old]
+    return [r for r in runs if set(r.get("parts", PARTS)) - set(parts)]
+
+
 def reproduce(
     out: str | Path,
     cfg: ReproduceConfig,
@@ -290,6 +305,9 @@ def reproduce(
         },
         "machine": platform.platform(),
     }
+    earlier = earlier_runs(folder / "manifest.json", parts)
+    if earlier:
+        manifest["earlier_runs"] = earlier
     # the folder and the files once the trials are done; an interruption or an error
     # while writing leaves none of the new files, nor the folders it created
     with new_files(folder) as written:

@@ -125,6 +125,12 @@ def render_report(r: Results) -> str:
             if man.get("scheduler")
             else f"(local processes: {man.get('jobs') or 'all CPUs'})."
         ),
+        *(
+            "Also in this folder, from an earlier run: "
+            f"`{run.get('command') or 'continuum-mhe reproduce'}` "
+            f"({', '.join(run.get('parts', []))})."
+            for run in man.get("earlier_runs", [])
+        ),
         f"Versions: {json.dumps(man.get('versions', {}))}; machine: {man.get('machine', '?')}.",
         f"MHE settings (defaults except N and paper_start): `{man.get('mhe_settings_default')}`;"
         f" noise settings (except measurement_std): `{man.get('noise_settings_default')}`.",
