@@ -342,3 +342,46 @@ def test_the_compiled_ekf_builds_no_symbolic_jacobian_of_the_model(runs: Runs) -
     million CasADi instructions) are never built."""
     built = vars(runs.estimator.formulation.functions)
     assert "innovate" not in built and "measure" not in built
+
+
+def _tensions_in_ms(tmp_path: Path) -> Path:
+    """The shipped unloaded tensions with t in milliseconds, the column still named t."""
+    header, rows = _rows(DATA / "unloaded_tensions.csv", 401)
+    path = tmp_path / "ten_ms.csv"
+    write_table(path, header, [[float(r[0]) * 1000, *map(float, r[1:])] for r in rows])
+    return path
+
+
+def test_live_refuses_a_tensions_file_in_milliseconds_before_the_port(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``live --inputs`` cannot compare the file's times with a recording's before it
+    runs: rows more than 2 s apart (t in milliseconds read as seconds, which would give
+    every sample the tensions of the file's first rows) are refused in one line, before
+    the port, nothing written."""
+    argv = ["live", "--port", str(tmp_path / "none"), "--robot", ROBOT,
+            "--inputs", str(_tensions_in_ms(tmp_path)), "-o", str(tmp_path / "e.csv")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ten_ms.csv: its t steps by a median of 20 s" in err[0]
+    assert "name the column t_ms" in err[0] and not (tmp_path / "e.csv").exists()
+
+
+@pytest.mark.parametrize("command", ["plot", "view"])
+def test_plot_and_view_refuse_a_tensions_file_in_milliseconds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """``plot`` and ``view`` check ``--inputs`` against the estimate's times as
+    ``estimate`` checks it against the recording's: one line, exit 2, no figure."""
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(DATA / "unloaded_raw.csv"), "--robot", ROBOT, "--inputs",
+                 str(DATA / "unloaded_tensions.csv"), "-o", str(est)]) == 0  # fmt: skip
+    capsys.readouterr()
+    out = tmp_path / ("f.png" if command == "plot" else "v.rrd")
+    target = ["-o", str(out)] if command == "plot" else ["--save", str(out)]
+    argv = [command, str(est), "--robot", ROBOT, "--inputs", str(_tensions_in_ms(tmp_path)),
+            *target]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ten_ms.csv: its t spans 8000 s in steps of 20 s" in err[0]
+    assert not out.exists()

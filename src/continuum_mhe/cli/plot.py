@@ -16,6 +16,7 @@ from continuum_mhe.io.csv_files import InputError
 
 if TYPE_CHECKING:
     from continuum_mhe.evaluation.estimate_figure import BackboneOf
+    from continuum_mhe.io.csv_files import FloatArray
     from continuum_mhe.model.robot import Robot
 
 DESCRIPTION = (
@@ -87,7 +88,7 @@ def _estimate(args: argparse.Namespace) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
-    backbone = _tendon_backbone(args, est.names, robot)
+    backbone = _tendon_backbone(args, est.names, est.t, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     problem = None if truth is None else truth_problem(est, truth)
     if problem is not None:
@@ -105,12 +106,13 @@ def _estimate(args: argparse.Namespace) -> int:
 
 
 def _tendon_backbone(
-    args: argparse.Namespace, names: Sequence[str], robot: Robot | None
+    args: argparse.Namespace, names: Sequence[str], t: FloatArray, robot: Robot | None
 ) -> BackboneOf | None:
-    """The mechanics model's backbone for a tendon robot's estimate, from ``--robot``
-    (``robot``, as read; without it the robot file the estimate's options line names,
-    said in a note) and ``--inputs``; None (the section ends joined, said in a note)
-    without them."""
+    """The mechanics model's backbone for a tendon robot's estimate (columns ``names``
+    at the times ``t``, s), from ``--robot`` (``robot``, as read; without it the robot
+    file the estimate's options line names, said in a note) and ``--inputs`` (checked
+    against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
+    note) without them."""
     from continuum_mhe.cli.config import recorded_option
     from continuum_mhe.cli.options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
@@ -136,7 +138,10 @@ def _tendon_backbone(
         return None
     if robot.backbone is None or not robot.n_tendons:
         raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
-    return tendon_backbone(robot, read_tensions(args.inputs, robot.n_tendons))
+    tensions = read_tensions(args.inputs, robot.n_tendons, time_warning=False)
+    if len(t):
+        tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
+    return tendon_backbone(robot, tensions)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

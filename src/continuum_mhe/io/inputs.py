@@ -272,6 +272,8 @@ def serial_input(
     converters = imu_converters(resolved.raw, base.robot) if fmt == "raw" else None
     robot = base.robot
     tensions = _tensions(options, robot, None, None, streamed=False) if options.tensions else None
+    if tensions is not None:
+        tensions.check_steps()
     if not robot.has_mechanics:
         return SerialInput(f, converters)
     on_line = 0 if tensions is not None else robot.n_tendons
@@ -387,8 +389,8 @@ def _tensions(
     ``--inputs``, else the ``recording``'s own tension columns (whose times are the
     recording's). ``streamed``: the recording's samples go through
     :func:`_append_tensions`, which checks the file's times against theirs
-    (:meth:`Tensions.check_span`); else (``live``) a ``t`` stepping like milliseconds
-    is a warning."""
+    (:meth:`Tensions.check_span`); else (``live``) the caller checks its steps
+    (:meth:`Tensions.check_steps`)."""
     given = options.tensions
     k = robot.n_tendons
     if not k:
@@ -410,7 +412,7 @@ def _tensions(
                 OptionWarning,
                 stacklevel=2,
             )
-        return read_tensions(given, k, skip_bad=options.skip_bad, time_warning=not streamed)
+        return read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
     if own:
         assert recording is not None
         return read_tensions(

@@ -26,7 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from continuum_mhe.errors import time_text
-from continuum_mhe.io.csv_files import DropoutWarning, FloatArray, check_time_units
+from continuum_mhe.io.csv_files import (
+    MS_LIKE_STEP_S,
+    DropoutWarning,
+    FloatArray,
+    check_time_units,
+)
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
@@ -66,7 +71,23 @@ class Tensions:
             raise InputError(
                 f"{self.name}: its t spans {span:g} s in steps of {step:g} s, the recording "
                 f"{last - first:g} s: if t is in milliseconds, name the column t_ms (it is "
-                "read in seconds)"
+                "read in seconds); if it is in seconds, cut the file to the recording's times"
+            )
+
+    def check_steps(self) -> None:
+        """An :class:`InputError` where the file's rows are over
+        :data:`~continuum_mhe.io.csv_files.MS_LIKE_STEP_S` apart (median): what
+        :meth:`check_span` would take for milliseconds, for a reader that has no
+        recording to check the span against before it runs (``live``)."""
+        if len(self.t) < 3:
+            return
+        step = float(np.median(np.diff(self.t)))
+        if step > MS_LIKE_STEP_S:
+            raise InputError(
+                f"{self.name}: its t steps by a median of {step:g} s: if t is in "
+                "milliseconds, name the column t_ms (it is read in seconds); live cannot "
+                "check the tensions' times against a recording before it runs, so rows "
+                f"more than {MS_LIKE_STEP_S:g} s apart are refused here (estimate takes them)"
             )
 
     def covers(self, t: float) -> bool:

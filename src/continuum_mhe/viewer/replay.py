@@ -35,7 +35,7 @@ def replay(
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
-        table = read_tensions(tensions, robot.n_tendons) if tensions else None
+        table = read_tensions(tensions, robot.n_tendons, time_warning=False) if tensions else None
         tendon = TendonShapes(robot, points_per_section, table)
         if table is None:
             print(
@@ -49,6 +49,8 @@ def replay(
         outputs = pcc_outputs(robot.n_sections)
     est = read_estimates(estimates, "view EST.csv")
     check_estimate_fits(estimates, est.names, robot)
+    if tendon is not None and tendon.tensions is not None and len(est.t):
+        tendon.tensions.check_span(float(est.t[0]), float(est.t[-1]))  # milliseconds?
     cols = [est.names.index(o.name) for o in outputs]
     truth_table = None
     if truth is not None:
