@@ -582,8 +582,8 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
          ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
          "in milliseconds, name the column t_ms"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is nan (a dropout; --skip-bad keeps it, skip_bad=True "
-         "in Python)"),
+         "line 3: column tension_1 is nan (--skip-bad leaves the row out and interpolates "
+         "across it)"),
     ],
 )  # fmt: skip
 def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
@@ -1069,3 +1069,135 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {est}: the row at t = 0 s")
     assert "no equilibrium" in err[0] and not fig.exists()
+    view = tmp_path / "v.rrd"  # view names the file alike
+    argv = ["view", str(est), "--robot", robot, "--inputs", str(tensions), "--save", str(view)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {est}: the row at t = 0 s")
+    assert not view.exists()
+
+
+def test_check_robot_of_a_backbone_too_soft_for_its_weight_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A backbone whose weight bends it beyond what the mechanics model solves: the
+    loads without an equilibrium are left out of check-robot's report and counted in a
+    warning; where none has one, one line naming the robot file, exit 2 (never an
+    internal error, exit 70)."""
+    shipped = (
+        Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    ).read_text()
+    soft = tmp_path / "soft.toml"
+    soft.write_text(shipped.replace("54e9", "2e9").replace("20.77e9", "0.77e9"))
+    assert main(["check-robot", str(soft)]) == 0
+    out = capsys.readouterr().out
+    assert "loads have no equilibrium the mechanics model finds (left out above)" in out
+    limp = tmp_path / "limp.toml"
+    limp.write_text(shipped.replace("54e9", "1e7").replace("20.77e9", "0.385e7"))
+    assert main(["check-robot", str(limp), "--samples", "10"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {limp}: the mechanics")
+    assert "no equilibrium of this robot at any of 10 loads" in err[0]
+
+
+def test_tendon_angles_in_radians_are_said(tmp_path: Path) -> None:
+    """Tendon angles that all lie within 2 pi and are not whole degrees (radians written
+    for degrees: the tendons would sit within 6 degrees of each other) give one
+    UnitWarning naming the file; the shipped robot's degrees give none."""
+    import re
+    import warnings
+
+    from continuum_mhe.io.csv_files import UnitWarning
+    from continuum_mhe.io.robot_file import read_robot
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    radians = iter(["0", "2.0944", "4.18879", "1.0472", "3.14159", "5.23599"])
+    path = tmp_path / "rad.toml"
+    path.write_text(
+        re.sub(r"angle = \S+", lambda m: f"angle = {next(radians)}", shipped.read_text())
+    )
+    with pytest.warns(UnitWarning, match=r"rad.toml: the tendons' angles \[0, 2.0944, .*radians\?"):
+        read_robot(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_robot(shipped)
+
+
+def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tensions a thousand times too large (mN written as N) would bend a section through
+    hundreds of turns (the tendons' net moment over the backbone's bending stiffness):
+    one line naming the file and the time, exit 2, nothing written. The shipped
+    recordings' tensions (up to 2 rad of bend) pass."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.tensions import read_tensions
+
+    robot = read_robot("tendon-two-section")
+    for name in ("unloaded", "force-29", "twist-29"):
+        read_tensions(DATA / f"{name}_tensions.csv", robot.n_tendons).check_scale(robot)
+    header, *rows = (
+        ln.split(",") for ln in (DATA / "unloaded_tensions.csv").read_text().splitlines()
+    )
+    mn = tmp_path / "mN.csv"
+    write_table(mn, header, [[float(r[0]), *(1000 * float(v) for v in r[1:])] for r in rows])
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(DATA / "unloaded_raw.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(mn), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{mn}: at t = " in err[0]
+    assert "would bend section 1 through" in err[0] and "(mN?)" in err[0] and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "match"),
+    [
+        ("density", "6.45", "density 6.45 kg/m\\^3 is below 100 kg/m\\^3"),
+        ("shear_modulus", "5e4", "shear_modulus 50000.0 Pa is below 1e5 Pa"),
+    ],
+)
+def test_backbone_values_in_other_units_are_refused(tmp_path: Path, key, value, match) -> None:
+    """A density in g/cm^3 and a shear modulus that looks like GPa (under 1e5 Pa, as
+    the docs say) are refused in one line naming the file."""
+    import re
+
+    from continuum_mhe.io.robot_file import read_robot
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    path = tmp_path / "r.toml"
+    path.write_text(re.sub(rf"(?m)^#? ?{key} = \S+", f"{key} = {value}", shipped.read_text()))
+    with pytest.raises(InputError, match=match):
+        read_robot(path)
+
+
+def test_a_tensions_file_with_a_separator_at_every_line_end_reads_as_without(
+    tmp_path: Path,
+) -> None:
+    """A comma at the end of every line (the header's too), as some loggers write it:
+    no column, as in the measurement files; the same tensions."""
+    from continuum_mhe.io.tensions import read_tensions
+
+    path = tmp_path / "trail.csv"
+    text = (DATA / "unloaded_tensions.csv").read_text()
+    path.write_text("".join(ln + ",\n" for ln in text.splitlines()))
+    got, want = read_tensions(path, 6), read_tensions(DATA / "unloaded_tensions.csv", 6)
+    np.testing.assert_array_equal(got.t, want.t)
+    np.testing.assert_array_equal(got.values, want.values)
+
+
+def test_a_recording_with_some_of_the_tension_columns_names_the_missing_ones(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording that carries five of the robot's six tension columns: one line naming
+    the recording and the missing column (not the robot file), exit 2, nothing written."""
+    raw = (DATA / "unloaded_raw.csv").read_text().splitlines()
+    ten = (DATA / "unloaded_tensions.csv").read_text().splitlines()
+    path = tmp_path / "raw5.csv"
+    path.write_text("".join(a + "," + ",".join(b.split(",")[1:6]) + "\n" for a, b in zip(raw, ten)))
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(path), "--robot", "tendon-two-section", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {path}: line 1: the robot")
+    assert "tension_1,tension_2,tension_3,tension_4,tension_5: no tension_6" in err[0]
+    assert not out.exists()

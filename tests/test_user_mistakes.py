@@ -802,7 +802,7 @@ def test_evaluate_of_a_multi_section_estimate_without_its_robot_is_an_error(
     capsys.readouterr()
     assert main(["evaluate", str(e2), str(t2)]) == 0
     out, err = capsys.readouterr()
-    assert "evaluated on that robot (--robot gives another)" in err and "tip error mean" in out
+    assert "evaluated on that robot (pass --robot for another)" in err and "tip error mean" in out
     bare = tmp_path / "bare.csv"  # the same rows without the comment lines
     bare.write_text("".join(ln for ln in e2.read_text().splitlines(True) if ln[0] != "#"))
     assert main(["evaluate", str(bare), str(t2)]) == 2

@@ -347,7 +347,7 @@ def test_view_without_robot_draws_the_robot_the_estimate_names(
     err = capsys.readouterr().err
     assert (
         f"note: {two_section['est']} was estimated with --robot two-section (its options "
-        "line): drawn on that robot (--robot gives another)"
+        "line): drawn on that robot (pass --robot for another)"
     ) in err
     rows, given = read_rrd(out), two_section["rows"]
     assert set(rows) == set(given)

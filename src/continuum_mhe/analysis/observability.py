@@ -74,6 +74,8 @@ class ObservabilityReport:
     known_case: dict[str, float] = field(default_factory=dict)
     tendon_force: JacobianSummary | None = None
     tendon_samples: int = 0
+    #: the sampled loads whose equilibrium the mechanics model did not find (left out)
+    tendon_unsolved: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return {**asdict(self), "verdict": verdict(self)}
@@ -211,12 +213,17 @@ def _tendon_gravity_jacobian(robot: Robot) -> ca.Function:
     )  # fmt: skip
 
 
-def tendon_force_summary(robot: Robot, samples: int, seed: int = 0) -> JacobianSummary:
+def tendon_force_summary(robot: Robot, samples: int, seed: int = 0) -> tuple[JacobianSummary, int]:
     """The rank of the IMUs' gravity directions with respect to the tip force, the base
     curvature following it through the tip condition (implicit differentiation), at
     ``samples`` equilibria: each section bent by one of its tendons to a random angle up
     to ``min(theta_max, 2)`` rad, under a random tip force within twice the tendon
-    formulation's force prior."""
+    formulation's force prior; and how many of those loads had no equilibrium the model
+    finds (left out: a backbone too soft for its weight sags beyond them).
+
+    Raises:
+        UserError: if none of the loads has an equilibrium.
+    """
     rng = np.random.default_rng(seed)
     statics = TendonStatics(robot)
     fn = _tendon_gravity_jacobian(robot)
@@ -225,6 +232,7 @@ def tendon_force_summary(robot: Robot, samples: int, seed: int = 0) -> JacobianS
     by_section = [[i for i, td in enumerate(robot.tendons) if td.section == k]
                   for k in range(robot.n_sections)]  # fmt: skip
     jacs = []
+    unsolved = 0
     for _ in range(samples):
         tau = np.zeros(robot.n_tendons)
         for k, sec in enumerate(robot.sections):
@@ -234,11 +242,23 @@ def tendon_force_summary(robot: Robot, samples: int, seed: int = 0) -> JacobianS
                 tau[i] = bend * ei / (robot.tendons[i].radius * sec.length)
         d = rng.normal(size=3)
         force = reach * rng.uniform() ** (1 / 3) * d / np.linalg.norm(d)
-        k0, _ = statics.solve(force, tau)
+        try:
+            k0, _ = statics.solve(force, tau)
+        except ArithmeticError:
+            unsolved += 1
+            continue
         _, g_f, g_k, r_k, r_f = (np.asarray(v, dtype=float) for v in fn(k0, force, tau))
         jacs.append(g_f - g_k @ np.linalg.solve(r_k, r_f))
+    if not jacs:
+        b = robot.backbone
+        stiffness = "" if b is None else f" (youngs_modulus {b.youngs_modulus:g} Pa)"
+        raise UserError(
+            f"the mechanics model finds no equilibrium of this robot at any of {samples} "
+            f"loads (its tendons bending each section up to 2 rad, tip forces up to "
+            f"{reach:.3g} N): is its backbone this soft{stiffness}, or this heavy (density)?"
+        )
     summary, _ = _summary(np.array(jacs))
-    return summary
+    return summary, unsolved
 
 
 def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> ObservabilityReport:
@@ -274,8 +294,8 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
     if robot.backbone is None:
         return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known)
     m = min(samples, TENDON_SAMPLES)
-    tendon = tendon_force_summary(robot, m, seed)
-    return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known, tendon, m)
+    tendon, unsolved = tendon_force_summary(robot, m, seed)
+    return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved)
 
 
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
@@ -283,12 +303,19 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     lines = [f"robot: {robot.describe()}"]
     if r.tendon_force is not None:
         s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
+        given = "tensions given" if robot.n_tendons else "no tendons: a rod under its tip force"
         lines.append(
-            f"tendon model, tensions given, one sample (d gravity directions / d tip force, "
+            f"tendon model, {given}, one sample (d gravity directions / d tip force, "
             f"{r.tendon_samples} loads): {s.rows}x{s.cols}, rank {s.cols} at "
             f"{100 * s.full_rank_fraction:.1f} % of loads (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
+        if r.tendon_unsolved:
+            lines.append(
+                f"warning: {r.tendon_unsolved} of the {r.tendon_samples} loads have no "
+                "equilibrium the mechanics model finds (left out above): the backbone sags "
+                "beyond them; is it this soft (youngs_modulus), or this heavy (density)?"
+            )
         lines.append(
             "for comparison, the constant-curvature model of the same geometry (not the "
             "model that estimates this robot):"

@@ -6,13 +6,18 @@ import argparse
 import json
 
 from continuum_mhe.cli.options import robot_from_args
+from continuum_mhe.errors import UserError
+from continuum_mhe.io.csv_files import InputError
 
 
 def run(args: argparse.Namespace) -> int:
     from continuum_mhe.analysis.observability import format_report, observability_report
 
     robot = robot_from_args(args)
-    report = observability_report(robot, samples=args.samples, seed=args.seed)
+    try:
+        report = observability_report(robot, samples=args.samples, seed=args.seed)
+    except UserError as exc:  # the robot's own: its file named
+        raise InputError(f"{args.robot}: {exc}") from None
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     else:

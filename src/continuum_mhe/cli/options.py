@@ -103,7 +103,7 @@ def recorded_robot(path: str, use: str) -> Robot | None:
         return None
     print(
         f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
-        f"{use} (--robot gives another)",
+        f"{use} (pass --robot for another)",
         file=sys.stderr,
     )
     return robot

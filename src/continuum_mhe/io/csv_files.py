@@ -667,8 +667,14 @@ def _is_section_column(name: str) -> bool:
 def robot_misfit(names: Sequence[str], robot: Robot, complete: bool) -> str:
     """``""`` when a state table's per-section columns fit ``robot``'s outputs, else
     what does not (``missing theta_3; extra theta``). ``complete``: every output must be
-    there (an estimate, as ``estimate`` writes it); else any subset (a truth)."""
+    there (an estimate, as ``estimate`` writes it); else any subset (a truth). A tendon
+    robot's (a ``[backbone]``) are its mechanics model's (``theta_k`` even for one
+    section, and each section's twist ``psi_k``)."""
     outputs = output_names(pcc_outputs(robot.n_sections))
+    if robot.backbone is not None:
+        from continuum_mhe.model.tendon import tendon_outputs  # its CasADi statics: on use
+
+        outputs = output_names(tendon_outputs(robot.n_sections))
     extra = [n for n in names if _is_section_column(n) and n not in outputs]
     missing = [n for n in outputs if n not in names] if complete else []
     if not (extra or missing):

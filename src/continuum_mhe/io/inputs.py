@@ -76,6 +76,8 @@ from continuum_mhe.io.tensions import (
     has_tension_columns,
     read_tensions,
     tendon_formulation_for,
+    tension_columns,
+    tension_columns_in,
 )
 from continuum_mhe.io.text_rows import (
     InputError,
@@ -412,11 +414,26 @@ def _tensions(
                 OptionWarning,
                 stacklevel=2,
             )
-        return read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
+        table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
+        table.check_scale(robot)
+        return table
     if own:
         assert recording is not None
-        return read_tensions(
+        table = read_tensions(
             recording, k, other_columns=True, skip_bad=options.skip_bad, time_warning=False
+        )
+        table.check_scale(robot)
+        return table
+    partial = (
+        recording is not None and not is_robot_log(Path(recording)) and str(recording) != "-"
+        and os.path.isfile(recording) and tension_columns_in(recording)
+    )  # fmt: skip
+    if partial:  # some of the tension columns, not all
+        missing = [c for c in tension_columns(k) if c not in partial]
+        raise InputError(
+            f"{recording}: line 1: the robot has {k} tendons, but the recording's tension "
+            f"columns are {','.join(partial)}: no {','.join(missing)} (or give the tensions "
+            "with --inputs TENSIONS.csv)"
         )
     raise InputError(
         f"{robot_name or 'the robot file'}: the robot has {k} tendons: give their tensions "
@@ -442,7 +459,7 @@ def _append_tensions(
                 last = t[-1]
             rows = []
             for tv, zv in zip(t.tolist(), z):
-                given = tensions.at(tv) if tensions is not None else (np.zeros(k),) * 3
+                given = tensions.at(tv, stream.name) if tensions is not None else (np.zeros(k),) * 3
                 rows.append(f.measurement_row(zv, *given))
             yield t, np.array(rows, dtype=np.float64).reshape(len(t), f.nz)
         if tensions is not None:  # the recording's whole span known: milliseconds?

@@ -315,7 +315,27 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
             tendons.append(Tendon(sec - 1, math.radians(angle), radius))
         except UserError as exc:
             raise InputError(f"{path}: {where}: {exc}") from None
+    degrees = [math.degrees(t.angle) for t in tendons]
+    if angles_look_like_radians(degrees):
+        shown = ", ".join(f"{v:g}" for v in degrees)
+        warnings.warn(
+            f"{path}: the tendons' angles [{shown}] are read in degrees, but all lie "
+            "within 2 pi and are not whole degrees: radians? (angle = 90 is a quarter turn)",
+            UnitWarning,
+            stacklevel=3,
+        )
     return tendons
+
+
+def angles_look_like_radians(degrees: list[float]) -> bool:
+    """Whether tendon angles given in degrees look like radians: two or more, all within
+    ``2 pi`` in magnitude, one of them nonzero and not a whole number of degrees (the
+    angles of tendons are spread around the backbone, so in degrees some exceed 2 pi)."""
+    return (
+        len(degrees) >= 2
+        and all(abs(v) <= 2 * math.pi + 1e-9 for v in degrees)
+        and any(abs(v - round(v)) > 1e-6 for v in degrees)
+    )
 
 
 def shipped_robots() -> dict[str, Path]:

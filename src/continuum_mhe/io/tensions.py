@@ -35,6 +35,7 @@ from continuum_mhe.io.csv_files import (
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
 
 
@@ -74,6 +75,33 @@ class Tensions:
                 "read in seconds); if it is in seconds, cut the file to the recording's times"
             )
 
+    def check_scale(self, robot: Robot) -> None:
+        """An :class:`InputError` where the tensions would bend a section of ``robot``
+        (with a ``[backbone]``) through more than a full turn on their own: the net moment
+        of the tendons through section ``k`` (each ``T r`` toward its angle, the twist left
+        out) over its bending stiffness, times its length, beyond ``2 pi`` rad at some row
+        (tensions in mN, or a modulus far too low)."""
+        if robot.backbone is None or not robot.tendons:
+            return
+        ei = robot.backbone.bending_stiffness
+        for k, section in enumerate(robot.sections):
+            through = [td for td in robot.tendons if td.section >= k]
+            if not through:
+                continue
+            idx = [robot.tendons.index(td) for td in through]
+            arm = np.array([[td.radius * math.cos(td.angle), td.radius * math.sin(td.angle)]
+                            for td in through])  # fmt: skip
+            moment = np.linalg.norm(self.values[:, idx] @ arm, axis=1)  # N m, per row
+            bend = moment * section.length / ei
+            i = int(np.argmax(bend))
+            if bend[i] > 2 * math.pi:
+                raise InputError(
+                    f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
+                    f"({', '.join(f'{v:g}' for v in self.values[i])} N) would bend section "
+                    f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
+                    f"stiffness {ei:.3g} N m^2): tensions in N (mN?)"
+                )
+
     def check_steps(self) -> None:
         """An :class:`InputError` where the file's rows are over
         :data:`~continuum_mhe.io.csv_files.MS_LIKE_STEP_S` apart (median): what
@@ -94,13 +122,15 @@ class Tensions:
         """Whether ``t`` s lies within the file's times."""
         return bool(self.t[0] <= t <= self.t[-1])
 
-    def at(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def at(self, t: float, source: str = "") -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(tensions, rates, accelerations)`` at ``t`` s, linear between rows; an
-        :class:`InputError` outside the file's times."""
+        :class:`InputError` outside the file's times (``source``: the recording, named
+        in it)."""
         if not self.covers(t):
+            of = f" of {source}" if source else ""
             raise InputError(
                 f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
-                f"{time_text(self.t[-1])} s, but a measurement is at t = {time_text(t)} s: "
+                f"{time_text(self.t[-1])} s, but a measurement{of} is at t = {time_text(t)} s: "
                 "the tensions must cover the "
                 "recording; nothing written"
             )
@@ -155,16 +185,22 @@ def read_tensions(
     names = list(tension_columns(n_tendons))
     with open_rows(path) as rows:
         name = rows.name
-        found = [c for c in rows.header if c != "t"]
+        header = list(rows.header)
+        while header and header[-1] == "":  # a separator at the end of the line: no column
+            header.pop()
+        found = [c for c in header if c != "t"]
         if other_columns:
             found = [c for c in found if c.startswith("tension_")]
-        if "t" not in rows.header or found != names:
+        if "t" not in header or found != names:
             raise InputError(
                 f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
-                f"the robot file, in its order), got {','.join(rows.header)}"
+                f"the robot file, in its order), got {','.join(header)}"
             )
         problems = RowProblems()
-        data = list(iter_samples(rows, ["t", *names], skip_bad=skip_bad, problems=problems))
+        hint = "--skip-bad leaves the row out and interpolates across it"
+        data = list(
+            iter_samples(rows, ["t", *names], skip_bad=skip_bad, problems=problems, skip_hint=hint)
+        )
         kept = [d for d in data if all(math.isfinite(v) for v in d[2])]
         left_out = len(data) - len(kept) + problems.dropped  # a bad value, or a bad t
         if left_out:
@@ -192,6 +228,12 @@ def read_tensions(
         )
     rates = central_differences(t, values)
     return Tensions(name, t, values, rates, central_differences(t, rates))
+
+
+def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
+    """The columns ``tension_...`` of the table ``path`` (a file), in its order."""
+    with open_rows(path) as rows:
+        return [c for c in rows.header if c.startswith("tension_")]
 
 
 def has_tension_columns(path: str | os.PathLike[str], n_tendons: int) -> bool:

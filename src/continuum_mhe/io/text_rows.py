@@ -355,6 +355,7 @@ def iter_samples(
     skip_bad: bool = False,
     empty_is_dropout: bool = False,
     problems: RowProblems | None = None,
+    skip_hint: str | None = None,
 ) -> Iterator[tuple[int, float, list[float]]]:
     """Validated ``(line, t, values)`` of a sample table whose ``columns[0]`` is the
     time ``t`` (converted to s), one row at a time.
@@ -364,9 +365,13 @@ def iter_samples(
     (every value of a row with an extra field is a dropout: which one is extra is
     unknown); a bad, duplicate or decreasing ``t`` is an error, or with ``skip_bad`` the
     row is dropped; each skip is counted in ``problems``. With
-    ``empty_is_dropout`` an empty value is a dropout without complaint.
+    ``empty_is_dropout`` an empty value is a dropout without complaint. ``skip_hint``:
+    what the error of a non-finite value says ``--skip-bad`` does with it (default
+    :data:`DROPOUT_HINT`).
     """
-    checks = _SampleChecks(rows, columns, skip_bad, empty_is_dropout, problems)
+    checks = _SampleChecks(
+        rows, columns, skip_bad, empty_is_dropout, problems, skip_hint or DROPOUT_HINT
+    )
     yield from checks.rows(rows.rows)
     checks.finish()
 
@@ -484,6 +489,10 @@ def may_have_empty_field(body: bytes, sep: bytes) -> bool:
     )
 
 
+#: What a non-finite value's error says ``--skip-bad`` does with a sensor's reading.
+DROPOUT_HINT = "a dropout; --skip-bad keeps it, skip_bad=True in Python"
+
+
 class _SampleChecks:
     """The checks of :func:`iter_samples` over one table, row by row or a block at a
     time, with their state: the last ``t``, the rows seen, the problems."""
@@ -495,8 +504,10 @@ class _SampleChecks:
         skip_bad: bool,
         empty_is_dropout: bool,
         problems: RowProblems | None,
+        skip_hint: str = DROPOUT_HINT,
     ) -> None:
         self.table = rows
+        self.skip_hint = skip_hint  # what --skip-bad does with a non-finite value
         self.columns = columns
         self.idx = column_indices(rows, columns)
         self.skip_bad = skip_bad
@@ -572,8 +583,7 @@ class _SampleChecks:
                     if not math.isfinite(v):
                         bad(
                             line,
-                            f"column {col} is {row[j]} (a dropout; --skip-bad keeps it, "
-                            "skip_bad=True in Python)",
+                            f"column {col} is {row[j]} ({self.skip_hint})",
                         )
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)

@@ -177,6 +177,11 @@ def _positive(label: str, value: object) -> float:
 MAX_RADIUS = 0.1
 
 
+#: The least backbone density taken, kg/m^3 (the lightest solid polymers are near 900; a
+#: value below this is g/cm^3).
+MIN_DENSITY = 100.0
+
+
 @dataclass(frozen=True)
 class Backbone:
     """The backbone's material and cross-section: a solid round elastic rod.
@@ -209,10 +214,15 @@ class Backbone:
                 f"backbone youngs_modulus {self.youngs_modulus!r} Pa is below 1e5 Pa: "
                 "moduli are in Pa (GPa? 54 GPa is 54e9)"
             )
-        if self.shear_modulus < 1e4:
+        if self.shear_modulus < 1e5:
             raise UserError(
-                f"backbone shear_modulus {self.shear_modulus!r} Pa is below 1e4 Pa: "
+                f"backbone shear_modulus {self.shear_modulus!r} Pa is below 1e5 Pa: "
                 "moduli are in Pa (GPa? 20 GPa is 20e9)"
+            )
+        if self.density is not None and self.density < MIN_DENSITY:
+            raise UserError(
+                f"backbone density {self.density!r} kg/m^3 is below {MIN_DENSITY:g} kg/m^3: "
+                "densities are in kg/m^3 (g/cm^3? 6.45 g/cm^3 is 6450)"
             )
 
     @property

@@ -73,7 +73,10 @@ GRAVITY = 9.80665
 def no_equilibrium_at(t: float, exc: ArithmeticError) -> UserError:
     """The one-line error of a row at ``t`` s whose loads have no equilibrium
     (:meth:`TendonStatics.solve`'s ``exc``), for the drawings of estimates and truths."""
-    return UserError(f"the row at t = {time_text(t)} s: {exc} (a force in mN?)")
+    return UserError(
+        f"the row at t = {time_text(t)} s: {exc} (a force in mN, or a backbone too soft for "
+        "its loads?)"
+    )
 
 
 def hat_sym(v: Sym) -> Sym:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import (
     InputError,
     check_estimate_fits,
@@ -65,14 +66,20 @@ def replay(
     with_truth = ""
     try:
         if truth_table is not None:
-            drawn_truth = view.log_truth(truth_table.t, truth_table.values, truth_table.names)
+            try:
+                drawn_truth = view.log_truth(truth_table.t, truth_table.values, truth_table.names)
+            except UserError as exc:  # a row's loads without an equilibrium
+                raise InputError(f"{truth}: {exc}") from None
             missing = "tensions" if tendon is not None else "theta/phi columns for every section"
             with_truth = ", with truth" + (
                 "" if drawn_truth else f" (tip and section ends only: no {missing})"
             )
-        view.log_rows(est.t, est.values[:, cols], list(est.status))
+        try:
+            view.log_rows(est.t, est.values[:, cols], list(est.status))
+        except UserError as exc:
+            raise InputError(f"{estimates}: {exc}") from None
     except BaseException:
-        view.close()
+        view.close(keep=False)
         raise
     drawn = int(np.sum(np.all(np.isfinite(est.values[:, cols]), axis=1)))
     where = {

@@ -338,12 +338,13 @@ class BackboneView:
             )
         return geom is not None
 
-    def close(self, wait: bool = False) -> None:
-        """Finish the stream: rename the .rrd into place, or (``wait``) keep the web
-        viewer up until Ctrl-C, then stop it."""
+    def close(self, wait: bool = False, keep: bool = True) -> None:
+        """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
+        a view that failed writes nothing), or (``wait``) keep the web viewer up until
+        Ctrl-C, then stop it."""
         try:
             self.rec.flush()
-            if self.sink.kind == "save" and self._tmp is not None:
+            if self.sink.kind == "save" and self._tmp is not None and keep:
                 self.rec.disconnect()
                 assert self.sink.path is not None
                 os.replace(self._tmp, self.sink.path)
