@@ -1201,3 +1201,29 @@ def test_a_recording_with_some_of_the_tension_columns_names_the_missing_ones(
     assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {path}: line 1: the robot")
     assert "tension_1,tension_2,tension_3,tension_4,tension_5: no tension_6" in err[0]
     assert not out.exists()
+
+
+def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: Path) -> None:
+    """The figure's backbone is the mechanics model re-solved at each row's tip force and
+    the tensions of --inputs (the file holds no state): with the tensions the estimate
+    was made with it ends at the estimated tip (no warning); with tensions of another
+    recording (here four times as large) it does not, and a warning says by how much."""
+    import warnings
+
+    from continuum_mhe.evaluation.estimate_figure import FigureWarning
+
+    meas, tensions = _recording(tmp_path)
+    robot = str(_small_robot(tmp_path))
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
+                 "-o", str(est)]) == 0  # fmt: skip
+    fig = tmp_path / "f.png"
+    argv = ["plot", str(est), "--robot", robot, "-o", str(fig)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FigureWarning)
+        assert main([*argv, "--inputs", str(tensions)]) == 0
+    other = tmp_path / "other.csv"
+    write_table(other, ["t", "tension_1"], [[0.0, 4.0], [0.1, 6.0]])
+    with pytest.warns(FigureWarning, match=r"backbone at the estimate's tip force .* ends up to"):
+        assert main([*argv, "--inputs", str(other), "--overwrite"]) == 0
+    assert fig.exists()

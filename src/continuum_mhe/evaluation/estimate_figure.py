@@ -6,6 +6,7 @@ sections, with or without a truth or a robot."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -131,6 +132,15 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
             raise no_equilibrium_at(t, exc) from None
 
     return points
+
+
+#: The mechanics model's backbone drawn from a row's tip force and tensions ending more
+#: than this share of the robot's length from the row's tip is said (a warning).
+BACKBONE_MISFIT = 0.05
+
+
+class FigureWarning(UserWarning):
+    """What a figure draws may not be what it looks like."""
 
 
 def _positions(table: StateTable, point: TrackedPoint) -> FloatArray:
@@ -356,6 +366,7 @@ def _backbones(
              for k, (a, b) in enumerate(zip(ends[:-1], ends[1:]))]
         )  # fmt: skip
     reach = float(sum(lengths)) if lengths is not None else 0.0
+    off = 0.0  # the model's backbone's tip from the estimate's (m), at most
     for j, i in enumerate(picks):
         color = plt.get_cmap("viridis")(j / max(1, len(picks) - 1))
         for table, row, style in ((est, i, "-"), (truth, truth_row.get(i), "--")):
@@ -365,6 +376,9 @@ def _backbones(
             ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in shown])
             if backbone is not None and has_tip_force(table.names):
                 line = backbone(table, row)
+                if table is est:
+                    tip = [table.column(c)[row] for c in ("x", "y", "z")]
+                    off = max(off, float(np.linalg.norm(line[-1] - tip)))
             elif (
                 curve and s is not None and lengths is not None and has_bend_columns(table.names, n)
             ):
@@ -385,5 +399,16 @@ def _backbones(
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
     how = "" if backbone is not None or curve else ", section ends joined"
+    if off > BACKBONE_MISFIT * max(reach, 1e-9):
+        # the file holds the tip force, not the estimator's state: the model re-solved at
+        # it need not be the estimate's shape (tensions or robot of another recording)
+        how += f"\nmodel's tip up to {off * 1e3:.0f} mm from the estimate's"
+        warnings.warn(
+            f"the mechanics model's backbone at the estimate's tip force and the tensions "
+            f"ends up to {off * 1e3:.0f} mm from the estimated tip in the rows drawn: are "
+            "--robot and --inputs those of the estimate?",
+            FigureWarning,
+            stacklevel=2,
+        )
     ax.set_title("backbone" + (" (truth dashed)" if truth is not None else "") + how)
     ax.legend(loc="upper left", fontsize="small")
