@@ -1029,3 +1029,25 @@ def test_an_imu_section_given_as_a_numpy_integer_is_taken() -> None:
 
     robot = Robot((Section(0.1), Section(0.1)), (ImuPlacement(0), ImuPlacement(np.int64(1))))
     assert robot.imus[1].section == 1 and type(robot.imus[1].section) is int
+
+
+@pytest.mark.parametrize(
+    ("header", "row", "match"),
+    [
+        ("t,ax_2,ay_2,az_2,gx_2,gy_2,gz_2", "0,0,0,9.81,0,0,0", "numbered ax_2"),
+        ("t,roll_2,pitch_2", "0,0.1,0.1", "numbered roll_2"),
+    ],
+)
+def test_imu_columns_numbered_by_section_are_named(tmp_path, capsys, header, row, match) -> None:
+    """A one-IMU robot whose IMU sits on section 2, recorded with columns numbered by that
+    section (``ax_2``...): one line saying IMUs are numbered in the robot file's order,
+    not by section, and how to name them; nothing written."""
+    robot = tmp_path / "r.toml"
+    robot.write_text("[[section]]\nlength = 0.2\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 2\n")
+    meas = tmp_path / "m.csv"
+    meas.write_text(f"{header}\n{row}\n")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{meas}: line 1: the header's IMU columns are {match}" in err[0]
+    assert "not by section" in err[0] and not out.exists()

@@ -489,6 +489,15 @@ def imu_suffixes(
             raise imu_count_error(rows.name, columns.kind, shown, found, n_imus, fix)
         if not missing:  # whole sets for the robot, broken ones beyond its IMUs
             missing, typos = own
+    whole = sorted(k for k, f in sets.items() if k > 0 and columns.whole(f))
+    if missing and len(whole) == n_imus and whole != list(range(1, n_imus + 1)):
+        shown = ", ".join(f"{columns.fields[0]}_{k}" for k in whole)
+        first = columns.fields[0]
+        want = f"1 to {n_imus}" if n_imus > 1 else f"1 ({first}_1..., or {first}... unnumbered)"
+        raise InputError(
+            f"{rows.name}: line 1: the header's IMU columns are numbered {shown}, but IMUs "
+            f"are numbered in the robot file's [[imu]] order, not by section: name them {want}"
+        )
     if missing:
         raise columns.missing_error(rows, missing, typos)
     numbered_imus(rows, columns.names)  # a stray roll_0 beside whole sets: numbered from 1
