@@ -168,19 +168,16 @@ void cmhe::bind_model(nb::module_& m) {
           },
           nb::arg("function"));
 
-  m.def("vector_sin_cos", &vector_sin_cos,
+  m.def("uses_vector_sin_cos", &uses_vector_sin_cos,
         "Whether the batched model evaluations take sin and cos four at a time from glibc's "
         "vector math library (within 4 ulp of the C library's; csrc/vector_math.hpp).");
   m.def(
       "sin_cos_rows",
       [](ConstArray x) {
-        const size_t n = x.shape(0), padded = (n + 3) / 4 * 4;
-        std::vector<double> in(padded, 0.0), s(padded), c(padded);
-        std::copy(x.data(), x.data() + n, in.begin());
-        sin_row(in.data(), s.data(), static_cast<int64_t>(padded));
-        cos_row(in.data(), c.data(), static_cast<int64_t>(padded));
-        s.resize(n);
-        c.resize(n);
+        const size_t n = x.shape(0);
+        std::vector<double> s(n), c(n);
+        sin_row(x.data(), s.data(), static_cast<int64_t>(n));
+        cos_row(x.data(), c.data(), static_cast<int64_t>(n));
         return std::make_pair(s, c);
       },
       nb::arg("x"),

@@ -10,11 +10,12 @@
 
 namespace cmhe {
 
-// r[k] = sin(x[k]) for k < n; n a multiple of 4; x and r the same row or disjoint
+// r[k] = sin(x[k]) for k < n (four at a time where n allows); x and r the same row or
+// disjoint
 void sin_row(const double* x, double* r, int64_t n);
 // r[k] = cos(x[k]) for k < n; as sin_row
 void cos_row(const double* x, double* r, int64_t n);
 // whether sin_row and cos_row take the vector library's four-at-a-time functions here
-bool vector_sin_cos();
+bool uses_vector_sin_cos();
 
 }  // namespace cmhe

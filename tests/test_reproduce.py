@@ -828,3 +828,21 @@ def test_a_run_of_one_part_into_the_folder_of_another_keeps_its_record(
     assert main([*args, "--overwrite"]) == 0  # beyond again: the paper run is kept, once
     again = json.loads((out / "manifest.json").read_text())
     assert again["earlier_runs"] == [paper_run]
+
+
+def test_earlier_runs_keep_only_those_whose_data_stay(tmp_path: Path) -> None:
+    """A run of every part, then ``--only beyond``, then ``--only paper``: the first
+    run's data are all replaced, so only the beyond run is kept beside the paper run;
+    a manifest without a readable list of earlier runs is read as having none."""
+    from continuum_mhe.reproduce.pipeline import earlier_runs
+
+    manifest = tmp_path / "manifest.json"
+    everything = {"command": "a", "parts": ["paper", "beyond"]}
+    beyond = {"command": "b", "parts": ["beyond"]}
+    manifest.write_text(json.dumps({**beyond, "earlier_runs": [everything]}))
+    assert earlier_runs(manifest, ["paper"]) == [beyond]
+    assert earlier_runs(manifest, ["beyond"]) == [everything]  # its paper data stay
+    manifest.write_text(json.dumps({**beyond, "earlier_runs": None}))
+    assert earlier_runs(manifest, ["paper"]) == [beyond]
+    manifest.write_text("not json")
+    assert earlier_runs(manifest, ["paper"]) == []

@@ -582,8 +582,8 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
          ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
          "in milliseconds, name the column t_ms"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
-         "line 3: column tension_1 is nan (--skip-bad leaves the row out and interpolates "
-         "across it)"),
+         "line 3: column tension_1 is nan (--skip-bad, skip_bad=True in Python, leaves the "
+         "row out and interpolates across it)"),
     ],
 )  # fmt: skip
 def test_bad_tensions_are_one_line_errors_and_nothing_is_written(

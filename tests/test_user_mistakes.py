@@ -938,10 +938,11 @@ def test_compute_metrics_refuses_what_does_not_fit_in_one_user_error() -> None:
     rec = simulate("paper3d", duration=2.0, seed=1)
     s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
     cases = [
-        ((s, rec.truth, 0.2), "got a EstimateSeries: pass its .output"),
+        ((s, rec.truth, 0.2), "not an EstimateSeries: pass its .output"),
         ((s.output[:-1], rec.truth, 0.2), "estimate has 40 rows but truth has 41"),
         ((s.output, rec.truth, "0.2"), "length must be a number"),
         ((s.output, rec.truth, -0.2), "length must be a positive number"),
+        ((s.output, rec.truth, math.inf), "length must be a positive number"),
         ((s.output, rec.truth[:, :3], 0.2), r"truth has 3 columns, but names gives 5"),
         ((s.output, rec.truth, 0.2, ["x", "y", "z"]), "estimate has 5 columns, but names gives 3"),
         ((s.output, rec.truth, 0.2, "xyz"), "names must be a sequence of column names"),
@@ -1051,3 +1052,27 @@ def test_imu_columns_numbered_by_section_are_named(tmp_path, capsys, header, row
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{meas}: line 1: the header's IMU columns are {match}" in err[0]
     assert "not by section" in err[0] and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("header", "match"),
+    [
+        ("t,rol_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", "the header has rol_1 \\(a typo\\?\\)"),
+        ("t,roll_1,roll_2,pitch_2,roll_3,pitch_3", "missing column\\(s\\) pitch_1"),
+    ],
+)
+def test_a_typo_or_a_missing_column_is_named_before_the_numbering(
+    tmp_path, capsys, header, match
+) -> None:
+    """A two-IMU robot's header with a typo or a missing column in IMU 1's set: that is
+    what the one line names, though two whole sets are numbered 2 and 3."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(
+        "[[section]]\nlength = 0.2\n[[section]]\nlength = 0.2\n"
+        "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    meas = tmp_path / "m.csv"
+    meas.write_text(header + "\n" + ",".join(["0"] + ["0.1"] * header.count(",")) + "\n")
+    assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(match, err[0]) and "not by section" not in err[0]

@@ -46,7 +46,11 @@ def finite_reals(name: str, value: object, size: int, what: str) -> tuple[float,
     :class:`UserError` naming the argument ``name`` (``what`` says what is expected,
     e.g. ``"three finite rates in rad/s"``)."""
     values: list[float] = []
-    if isinstance(value, Iterable) and not isinstance(value, (str, bytes)):
+    if (
+        isinstance(value, Iterable)
+        and not isinstance(value, (str, bytes))
+        and getattr(value, "ndim", 1) != 0  # a numpy scalar array is not a sequence
+    ):
         for v in value:
             if not (is_real(v) and math.isfinite(v)):
                 break

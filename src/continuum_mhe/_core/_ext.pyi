@@ -74,7 +74,7 @@ class ForwardJacobianFunction(ModelFunction):
 
     def __init__(self, function: TapeFunction) -> None: ...
 
-def vector_sin_cos() -> bool:
+def uses_vector_sin_cos() -> bool:
     """
     Whether the batched model evaluations take sin and cos four at a time from glibc's vector math library (within 4 ulp of the C library's; csrc/vector_math.hpp).
     """

@@ -80,7 +80,7 @@ def _table(what: str, values: object, names: list[str], name_arg: str) -> FloatA
     what does not fit (``name_arg``: the argument that names its columns)."""
     if hasattr(values, "output") and not isinstance(values, np.ndarray):
         raise UserError(
-            f"{what} must be an array (n, k), got a {type(values).__name__}: pass its "
+            f"{what} must be an array (n, k), not an {type(values).__name__}: pass its "
             ".output (and its outputs' names as names)"
         )
     try:
@@ -127,7 +127,7 @@ def compute_metrics(
             tip columns, or no row with both an estimate and its truth.
     """
     length = real_number("length", length)
-    if not length > 0:
+    if not (math.isfinite(length) and length > 0):
         raise UserError(f"length must be a positive number of metres, got {length!r}")
     names = _column_names("names", names)
     tnames = names if truth_names is None else _column_names("truth_names", truth_names)

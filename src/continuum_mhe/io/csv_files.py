@@ -490,7 +490,11 @@ def imu_suffixes(
         if not missing:  # whole sets for the robot, broken ones beyond its IMUs
             missing, typos = own
     whole = sorted(k for k, f in sets.items() if k > 0 and columns.whole(f))
-    if missing and len(whole) == n_imus and whole != list(range(1, n_imus + 1)):
+    by_section = (  # whole sets, none broken, no typo: numbered otherwise than 1..n
+        missing and not typos and len(whole) == n_imus == len(numbers)
+        and whole != list(range(1, n_imus + 1))
+    )  # fmt: skip
+    if by_section:
         shown = ", ".join(f"{columns.fields[0]}_{k}" for k in whole)
         first = columns.fields[0]
         want = f"1 to {n_imus}" if n_imus > 1 else f"1 ({first}_1..., or {first}... unnumbered)"
@@ -545,7 +549,7 @@ def _check_angle_units(
     else:
         hint = (
             f"{int(over.sum())} of {valid} rows read here are; if they are glitches, "
-            "--skip-bad reads them as dropouts"
+            "--skip-bad reads them as dropouts (skip_bad=True in Python)"
         )
     raise InputError(f"{where} rad is out of range (|roll| <= pi, |pitch| <= pi/2); {hint}")
 

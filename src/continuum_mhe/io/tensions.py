@@ -38,6 +38,11 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
 
+#: The turns a section may bend through under its tendons alone (their net moment over
+#: its bending stiffness, times its length) before the tensions are refused as another
+#: unit: a load at the tip may hold a section against more than its tendons' own bend.
+MAX_TENDON_TURNS = 2.0
+
 
 @dataclass(frozen=True)
 class Tensions:
@@ -77,24 +82,24 @@ class Tensions:
 
     def check_scale(self, robot: Robot) -> None:
         """An :class:`InputError` where the tensions would bend a section of ``robot``
-        (with a ``[backbone]``) through more than a full turn on their own: the net moment
-        of the tendons through section ``k`` (each ``T r`` toward its angle, the twist left
-        out) over its bending stiffness, times its length, beyond ``2 pi`` rad at some row
-        (tensions in mN, or a modulus far too low)."""
+        (with a ``[backbone]``) through more than :data:`MAX_TENDON_TURNS` full turns on
+        their own: the net moment of the tendons through section ``k`` (each ``T r``
+        toward its angle, the twist left out) over its bending stiffness, times its
+        length, at some row (tensions in mN, or a modulus far too low)."""
         if robot.backbone is None or not robot.tendons:
             return
         ei = robot.backbone.bending_stiffness
         for k, section in enumerate(robot.sections):
-            through = [td for td in robot.tendons if td.section >= k]
-            if not through:
+            idx = [j for j, td in enumerate(robot.tendons) if td.section >= k]
+            if not idx:
                 continue
-            idx = [robot.tendons.index(td) for td in through]
-            arm = np.array([[td.radius * math.cos(td.angle), td.radius * math.sin(td.angle)]
-                            for td in through])  # fmt: skip
+            arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
+                             robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
+                            for j in idx])  # fmt: skip
             moment = np.linalg.norm(self.values[:, idx] @ arm, axis=1)  # N m, per row
             bend = moment * section.length / ei
             i = int(np.argmax(bend))
-            if bend[i] > 2 * math.pi:
+            if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
                 raise InputError(
                     f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
                     f"({', '.join(f'{v:g}' for v in self.values[i])} N) would bend section "
@@ -115,7 +120,8 @@ class Tensions:
                 f"{self.name}: its t steps by a median of {step:g} s: if t is in "
                 "milliseconds, name the column t_ms (it is read in seconds); live cannot "
                 "check the tensions' times against a recording before it runs, so rows "
-                f"more than {MS_LIKE_STEP_S:g} s apart are refused here (estimate takes them)"
+                f"more than {MS_LIKE_STEP_S:g} s apart are refused here: add rows between "
+                "them (estimate takes the file as it is)"
             )
 
     def covers(self, t: float) -> bool:
@@ -197,7 +203,7 @@ def read_tensions(
                 f"the robot file, in its order), got {','.join(header)}"
             )
         problems = RowProblems()
-        hint = "--skip-bad leaves the row out and interpolates across it"
+        hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"
         data = list(
             iter_samples(rows, ["t", *names], skip_bad=skip_bad, problems=problems, skip_hint=hint)
         )

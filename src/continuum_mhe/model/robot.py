@@ -257,7 +257,13 @@ class Tendon:
     radius: float
 
     def __post_init__(self) -> None:
-        if isinstance(self.section, bool) or not isinstance(self.section, int) or self.section < 0:
+        if isinstance(self.section, bool) or not isinstance(self.section, numbers.Integral):
+            raise UserError(
+                f"tendon section must be an integer (a 0-based section index), got "
+                f"{type(self.section).__name__} {self.section!r}"
+            )
+        object.__setattr__(self, "section", int(self.section))
+        if self.section < 0:
             raise UserError(f"tendon section must be a non-negative index, got {self.section!r}")
         if not (isinstance(self.angle, (int, float)) and math.isfinite(self.angle)):
             raise UserError(f"tendon angle must be a finite number, got {self.angle!r}")

@@ -227,17 +227,26 @@ def assemble_beyond(cfg: ReproduceConfig, trials: Sequence[dict[str, Any]]) -> d
 
 def earlier_runs(path: Path, parts: Sequence[Part]) -> list[dict[str, Any]]:
     """The runs recorded in the manifest at ``path`` (itself and its own
-    ``earlier_runs``) whose data stay in the folder beside a run of ``parts``: those
-    with a part this run does not make again (``--only`` into the folder of another
-    part). None without a readable manifest."""
+    ``earlier_runs``, oldest first) whose data stay in the folder beside a run of
+    ``parts``: those with a part that neither this run nor a later one made again
+    (``--only`` into the folder of another part). Empty without a readable manifest."""
     try:
         old = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return []
     if not isinstance(old, dict):
         return []
-    runs = [r for r in old.pop("earlier_runs", []) if isinstance(r, dict)] + [old]
-    return [r for r in runs if set(r.get("parts", PARTS)) - set(parts)]
+    earlier = old.pop("earlier_runs", [])
+    runs = [r for r in earlier if isinstance(r, dict)] if isinstance(earlier, list) else []
+    runs.append(old)
+    replaced, kept = set(parts), []
+    for run in reversed(runs):  # newest first: what it made replaced the older runs' data
+        made = run.get("parts", PARTS)
+        made = set(made) if isinstance(made, list) else set(PARTS)
+        if made - replaced:
+            kept.append(run)
+        replaced |= made
+    return kept[::-1]
 
 
 def reproduce(
