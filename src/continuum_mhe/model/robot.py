@@ -145,14 +145,7 @@ class ImuPlacement:
         object.__setattr__(self, "mount_rpy", tuple(self.mount_rpy))  # hashable
         gyro_bias = finite_reals("IMU gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
         object.__setattr__(self, "gyro_bias", gyro_bias)
-        if isinstance(self.section, bool) or not isinstance(self.section, numbers.Integral):
-            raise UserError(
-                f"IMU section must be an integer (a 0-based section index), got "
-                f"{type(self.section).__name__} {self.section!r}"
-            )
-        object.__setattr__(self, "section", int(self.section))
-        if self.section < 0:
-            raise UserError(f"IMU section must be a non-negative index, got {self.section!r}")
+        object.__setattr__(self, "section", section_index("IMU section", self.section))
         if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
             raise UserError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
         if len(self.mount_rpy) != 3 or not all(
@@ -162,6 +155,19 @@ class ImuPlacement:
                 f"IMU mount_rpy must be three angles in degrees within +-{MAX_MOUNT_DEG:g}, "
                 f"got {self.mount_rpy!r}"
             )
+
+
+def section_index(label: str, value: object) -> int:
+    """``value`` as a 0-based section index (an int, numpy's integers too), or a
+    :class:`UserError` naming ``label``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise UserError(
+            f"{label} must be an integer (a 0-based section index), got "
+            f"{type(value).__name__} {value!r}"
+        )
+    if value < 0:
+        raise UserError(f"{label} must be a non-negative index, got {value!r}")
+    return int(value)
 
 
 def _positive(label: str, value: object) -> float:
@@ -257,14 +263,7 @@ class Tendon:
     radius: float
 
     def __post_init__(self) -> None:
-        if isinstance(self.section, bool) or not isinstance(self.section, numbers.Integral):
-            raise UserError(
-                f"tendon section must be an integer (a 0-based section index), got "
-                f"{type(self.section).__name__} {self.section!r}"
-            )
-        object.__setattr__(self, "section", int(self.section))
-        if self.section < 0:
-            raise UserError(f"tendon section must be a non-negative index, got {self.section!r}")
+        object.__setattr__(self, "section", section_index("tendon section", self.section))
         if not (isinstance(self.angle, (int, float)) and math.isfinite(self.angle)):
             raise UserError(f"tendon angle must be a finite number, got {self.angle!r}")
         _positive("tendon radius (m)", self.radius)
