@@ -415,8 +415,8 @@ def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> No
     said = f"live: garbled line skipped: {first} (said for the first only; all are counted)"
     assert err.count(said) == 1
     assert err[-1] == (
-        f"continuum-mhe: error: {port}: no valid sample, 40 garbled line(s) (the first: {first}); "
-        "check --format, --robot and --baud"
+        f"continuum-mhe: error: {port}: no valid sample: 39 garbled, 1 partial line(s) "
+        f"(the first: {first}); check --format, --robot and --baud"
     )
     assert not out.exists()
 

@@ -390,8 +390,9 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
         "tilt; --robot with 2 IMU(s)? (said for the first only; all are counted)"
     ]
     assert s.only_garbled() == (
-        "x: no valid sample, 11 garbled line(s) (the first: expected 3 fields, found 5: a line "
-        "of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?); check --format, --robot and --baud"
+        "x: no valid sample: 10 garbled, 1 partial line(s) (the first: expected 3 fields, found "
+        "5: a line of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?); check --format, "
+        "--robot and --baud"
     )
     _feed(s, [200])  # one valid sample: the session is not a failure
     assert s.only_garbled() is None

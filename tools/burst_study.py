@@ -33,6 +33,7 @@ import argparse
 import dataclasses
 
 import numpy as np
+from outlier_study import add_study_options, apply_study_options
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
@@ -63,8 +64,6 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
     ms = MHESettings(horizon=spec.horizon, loss=args.loss, loss_scale=args.scale)
     on_burst, on_clean = make_estimator("mhe", f, ms), make_estimator("mhe", f, ms)
     window, clean_window = on_burst.inference, on_clean.inference  # the MHEs' window solvers
-    if args.no_second_start:
-        window.second_start = clean_window.second_start = None  # type: ignore[attr-defined]
     on_burst.reset()
     on_clean.reset()
     rel = offsets(mask, 40)
@@ -78,9 +77,9 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
         if rel[i] < 0 or i < spec.horizon:
             continue
         p = window.window_problem()  # type: ignore[attr-defined]
-        kept = window._lam, window.sqp_iterations  # type: ignore[attr-defined]
+        kept = window._lam  # type: ignore[attr-defined]
         X2, _ = window._solve(p, clean_window._X.copy())  # type: ignore[attr-defined]
-        window._lam, window.sqp_iterations = kept  # type: ignore[attr-defined]
+        window._lam = kept  # type: ignore[attr-defined]
         model = window._fast  # type: ignore[attr-defined]
         j1, j2 = window_cost(model, p, window._X), window_cost(model, p, X2)  # type: ignore[attr-defined]
         lower[i] = j2 < j1 - 1e-6 * abs(j1)
@@ -90,13 +89,10 @@ def run_seed(seed: int, args: argparse.Namespace) -> dict[str, np.ndarray]:
 def monte_carlo(args: argparse.Namespace) -> None:
     """The outlier groups of ``reproduce``'s beyond section; prints the targets."""
     from continuum_mhe import settings
-    from continuum_mhe.estimators import mhe
     from continuum_mhe.reproduce.experiments import FULL
 
     if args.scale is not None:
         settings.DEFAULT_LOSS_SCALE[args.loss] = args.scale
-    if args.no_second_start:
-        mhe.SecondStart = lambda *a, **k: None  # type: ignore[assignment,misc]
     c = FULL
     specs = beyond.plan_beyond(args.seeds, c.beyond_duration, dt=c.dt, length=c.length,
                                noise_deg=c.noise_deg, horizon=c.horizon,
@@ -151,7 +147,6 @@ def main() -> None:
     p.add_argument("--duration", type=float, default=20.0)
     p.add_argument("--loss", default="cauchy")
     p.add_argument("--scale", type=float, default=None)
-    p.add_argument("--no-second-start", action="store_true")
     p.add_argument("--mc", action="store_true", help="the reproduce outlier groups")
     p.add_argument(
         "--offset-deg",
@@ -160,7 +155,9 @@ def main() -> None:
         help="with --mc: spike and burst offset, deg (default: the config's 30)",
     )
     p.add_argument("--oracle", action="store_true", help="the l2 MHE, burst readings dropped")
+    add_study_options(p)  # --corruption, --no-second-start
     args = p.parse_args()
+    apply_study_options(args.corruption, not args.no_second_start)
     if args.oracle:
         oracle(args)
         return

@@ -53,7 +53,7 @@ def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> d
         "cz": float(cover[2]),
         "far20": float(np.mean(~ok[dist > 20])) if np.any(dist > 20) else np.nan,
         "ok50": int(np.sum(ok & (dist > 50))),
-        "scale": float(getattr(est, "max_noise_scale", np.nan)),
+        "scale": float(est.diagnostics.max_noise_scale),
         "model_error": float(est.diagnostics.model_error),
     }
 

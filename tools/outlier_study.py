@@ -11,14 +11,16 @@ scales) on the same three versions of the data, with the same model, Q and R:
   one +-30 deg offset on roll and pitch (independent signs), not overlapping.
 
 Corrupted readings are what a sensor reports for the offset orientation
-(``model.imu.as_sensor_reads``); the tables of docs/robust.md's first study come from
-readings whose pitch is clipped at +-90 deg instead, so a rerun does not reproduce them. The
-score is the mean tip error over the recording (mm). Intervals are 95 % percentile
+(``model.imu.as_sensor_reads``); ``--corruption clipped`` clips their pitch at +-90 deg
+and wraps their roll instead (the tables of docs/robust.md's first study, with
+``--no-second-start``: the robust MHE without its second start). The score is the mean
+tip error over the recording (mm). Intervals are 95 % percentile
 bootstrap over seeds, paired (the same resampled seeds for both sides).
 
     python tools/outlier_study.py                   # 50 seeds, writes docs/robust_study.json
     python tools/outlier_study.py --seeds 5 --out /tmp/quick.json
     python tools/outlier_study.py efficiency        # the default loss scales
+    python tools/outlier_study.py --corruption clipped --no-second-start --cauchy-scale 2.0
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from scipy import integrate, optimize, stats
 from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
 from continuum_mhe.evaluation.metrics import compute_metrics
+from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.reproduce import beyond
 from continuum_mhe.settings import DEFAULT_LOSS_SCALE
 from continuum_mhe.simulation.scenarios import simulate
@@ -212,6 +215,34 @@ def print_efficiency() -> None:
             print(f"{loss:6s} default {scale:g}: efficiency {efficiency(loss, scale, 2):.3f} (p=2)")
 
 
+def clipped_reads(z: np.ndarray) -> np.ndarray:
+    """Offset readings ``(n, 2)`` (roll, pitch, rad) with the pitch clipped at +-90 deg and
+    the roll wrapped: the corruption of docs/robust.md's first studies, where a pitch
+    offset near 90 deg becomes a smaller fault at gimbal lock than the one stated."""
+    out = np.array(z, dtype=float)
+    out[:, 0] = wrap_angle(out[:, 0])
+    out[:, 1] = np.clip(out[:, 1], -np.pi / 2, np.pi / 2)
+    return out
+
+
+def apply_study_options(corruption: str, second_start: bool) -> None:
+    """The corruption of ``reproduce``'s outlier groups (``sensor``, as
+    ``model.imu.as_sensor_reads``, or ``clipped``: :func:`clipped_reads`) and, without
+    ``second_start``, every MHE made from here on without its second start."""
+    if corruption == "clipped":
+        beyond.as_sensor_reads = clipped_reads  # type: ignore[assignment]
+    if not second_start:
+        from continuum_mhe.estimators import mhe
+
+        mhe.MovingHorizonInference._second_start = lambda self: None  # type: ignore[assignment,method-assign,return-value]
+
+
+def add_study_options(p: argparse.ArgumentParser) -> None:
+    """``--corruption`` and ``--no-second-start`` (:func:`apply_study_options`)."""
+    p.add_argument("--corruption", choices=("sensor", "clipped"), default="sensor")
+    p.add_argument("--no-second-start", action="store_true")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("what", nargs="?", default="study", choices=("study", "efficiency"))
@@ -220,7 +251,9 @@ def main() -> None:
     p.add_argument("--huber-scale", type=float, default=None)
     p.add_argument("--cauchy-scale", type=float, default=None)
     p.add_argument("--out", default=str(Path(__file__).parents[1] / "docs" / "robust_study.json"))
+    add_study_options(p)
     args = p.parse_args()
+    apply_study_options(args.corruption, not args.no_second_start)
     if args.what == "efficiency":
         print_efficiency()
         return

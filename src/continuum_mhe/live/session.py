@@ -363,8 +363,12 @@ class LiveSession:
         if c.samples or not bad:
             return None
         first = f" (the first: {c.first_garbled})" if c.first_garbled else ""
+        kinds = [f"{c.garbled} garbled"]  # as the summary counts them
+        kinds += [
+            f"{n} {what}" for n, what in ((c.partial, "partial"), (c.too_long, "over-long")) if n
+        ]
         return (
-            f"{self.settings.port}: no valid sample, {bad} garbled line(s){first}; check "
+            f"{self.settings.port}: no valid sample: {', '.join(kinds)} line(s){first}; check "
             "--format, --robot and --baud"
         )
 
