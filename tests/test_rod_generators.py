@@ -198,3 +198,14 @@ def test_rod_generator_writes_its_settings_beside_the_recording(tmp_path: Path) 
     (tmp_path / "rod_info.json").write_text("{")
     with pytest.raises(ValueError, match="rod_info.json"):
         cosserat.read_generator_info(out)
+
+
+def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path, capsys) -> None:
+    """``python -m continuum_mhe.simulation.cosserat -o DIR/x.csv`` with no DIR: one line,
+    exit 2, before the minute of simulation (a traceback after it)."""
+    pytest.importorskip("elastica")
+    from continuum_mhe.simulation import cosserat
+
+    assert cosserat.main(["-o", str(tmp_path / "none" / "x.csv"), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "folder" in err[0] and "does not exist" in err[0]

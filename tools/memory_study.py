@@ -72,8 +72,8 @@ def main() -> int:
             for method in args.methods:
                 start = time.perf_counter()
                 code, kb, err = peak_kib(
-                    [*cli, "estimate", str(meas), "-o", str(Path(tmp) / f"e{args.suffix}"),
-                     "--method", method]
+                    [*cli, "estimate", str(meas), "--overwrite",
+                     "-o", str(Path(tmp) / f"e{args.suffix}"), "--method", method]
                 )  # fmt: skip
                 wall = time.perf_counter() - start
                 if code != 0:

@@ -475,6 +475,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         print(f"{p.prog}: error: --duration must be positive", file=sys.stderr)
         return 2
+    from continuum_mhe.io.csv_files import InputError, check_output_target
+
+    try:  # a missing folder or a directory: said before the minute of simulation
+        check_output_target(args.output)
+    except InputError as exc:
+        print(f"{p.prog}: error: {exc}", file=sys.stderr)
+        return 2
     rod, imu = RodSettings(), ImuSettings()
     rec = make_recording(rod, imu, args.duration, args.seed)
     write_recording(args.output, rec)
