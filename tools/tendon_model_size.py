@@ -1,4 +1,4 @@
-"""The tendon model's size and speed (docs/tendon.md, "The model's size"): CasADi
+"""The tendon model's size and speed (docs/tendon-studies.md, "The model's size and speed"): CasADi
 instructions of the statics and the measurement residual, the compiled node's residual
 and Jacobian (forward mode) against CasADi's symbolic Jacobian (values and time), the
 compiled EKF's build and step, the start, and the statics against a converged shooting
