@@ -74,9 +74,17 @@ def trace(name: str, first: int = 100, stop: int = 520, step: int = 12) -> None:
         err[label] = np.linalg.norm(s.output[:, :3] - truth, axis=1) * 1e3
         ms = np.asarray(s.solve_ms, dtype=float)
         restarts = np.flatnonzero(np.asarray(s.status) == "branch-restart").tolist()
+        branch = getattr(est.inference, "branch", None)
+        counts = (
+            f"; the check fired on {branch.stats.fired} windows and restarted "
+            f"{branch.stats.restarted} ({branch.stats.prior_forgotten} with the prior forgotten)"
+            if branch is not None
+            else ""
+        )
         print(
             f"trace {name} tilt, {label}: solve {ms.mean():.1f} ms mean, "
-            f"{np.median(ms):.1f} ms median, {ms.max():.0f} ms max; restarts at {restarts}"
+            f"{np.median(ms):.1f} ms median, {ms.max():.0f} ms max; rows with the status "
+            f"branch-restart (a row that is also inconsistent says so instead) {restarts}" + counts
         )
     for i in range(first, stop, step):
         print(f"   sample {i}: " + ", ".join(f"{k} {v[i]:.0f} mm" for k, v in err.items()))
