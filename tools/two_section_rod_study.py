@@ -109,6 +109,8 @@ def evaluate(
     data = load_input(path, opts, make_formulation("bend", robot))
     if bias:
         data = replace(data, formulation=replace(data.formulation, gyro_bias_psd=bias_psd))
+    if FORMULATION_SETTINGS:  # --set KEY=VALUE on the raw-IMU formulation
+        data = replace(data, formulation=replace(data.formulation, **FORMULATION_SETTINGS))
     f = data.formulation
     names = [o.name for o in f.outputs]
     out = {}
@@ -167,6 +169,10 @@ def one_section_mhe(robot: Robot, folder: Path, name: str) -> float:
     return float(np.mean(np.linalg.norm(s.output[:, :3] - truth.values[:, :3], axis=1)) * 1e3)
 
 
+#: Fields of the raw-IMU formulation set with ``--set KEY=VALUE``.
+FORMULATION_SETTINGS: dict[str, float] = {}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("folder", nargs="?", type=Path, default=DATA)
@@ -178,6 +184,13 @@ def main() -> None:
         help="gyro-bias random walk, (rad/s)^2/s (default: the formulation's)",
     )
     p.add_argument("--methods", nargs="+", default=["mhe", "ekf", "ukf"])
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a field of the raw-IMU formulation (e.g. bend_jerk_psd=4, accel_direction_std=0.01)",
+    )
     p.add_argument("--solver", default="fast", choices=["fast", "ipopt"], help="the MHE's")
     p.add_argument(
         "--branch-check", action="store_true", help="the MHE's branch check (estimators/branch.py)"
@@ -202,6 +215,9 @@ def main() -> None:
         help=f"default: {' '.join(DEFAULT_CASES)}",
     )
     args = p.parse_args()
+    for item in args.set:
+        key, _, value = item.partition("=")
+        FORMULATION_SETTINGS[key] = float(value)
     warnings.simplefilter("ignore")
     robot = read_robot("two-section")
     if args.theta_max is not None:
