@@ -239,7 +239,6 @@ CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in
   // disjoint or the same (an instruction may overwrite its operand), never partly
   // overlapping, so the loops carry no dependence (the simd pragmas say so).
   const int64_t n = (count + kLanes - 1) / kLanes * kLanes;
-  static_assert(kLanes % 4 == 0, "sin_row and cos_row take rows four at a time");
   thread_local std::vector<double> work;
   const size_t need = static_cast<size_t>(work_size_ * n);
   if (work.size() < need) work.resize(need);

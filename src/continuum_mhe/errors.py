@@ -33,6 +33,11 @@ def is_real(value: object) -> TypeGuard[float]:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+def is_integer(value: object) -> TypeGuard[int]:
+    """Whether ``value`` is an integer (numpy's integers too), not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def real_number(name: str, value: object) -> float:
     """``value`` as a float, or a :class:`UserError` naming the argument ``name`` when it
     is not a real number (a string, None, a bool, a list)."""

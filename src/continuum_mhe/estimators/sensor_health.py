@@ -33,7 +33,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import UnobservableShapeWarning, UserError, expect_type, time_text
+from continuum_mhe.errors import (
+    UnobservableShapeWarning,
+    UserError,
+    expect_type,
+    is_integer,
+    time_text,
+)
 from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import FloatArray, Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
@@ -521,9 +527,7 @@ class Estimator(Generic[InferenceT]):
         :meth:`run`), a ``block`` that is not a positive integer, or ``starts`` that
         skip, repeat or leave out samples."""
         t, z = self._samples(t, z)
-        if block is not None and (
-            isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1
-        ):
+        if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
         size = max(len(t), 1) if block is None else int(block)
         return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)

@@ -28,7 +28,6 @@ import csv
 import difflib
 import errno
 import math
-import numbers
 import os
 import re
 import stat
@@ -44,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import UserError, expect_type, time_text
+from continuum_mhe.errors import UserError, expect_type, is_integer, time_text
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -181,7 +180,7 @@ def read_measurements(
     """
     expect_type("degrees", degrees, bool, "True or False")
     expect_type("skip_bad", skip_bad, bool, "True or False")
-    if isinstance(n_imus, bool) or not isinstance(n_imus, numbers.Integral) or n_imus < 1:
+    if not (is_integer(n_imus) and n_imus >= 1):
         raise UserError(f"n_imus must be a positive integer (the IMUs in the file), got {n_imus!r}")
     with open_rows(path) as rows:
         columns = tilt_sample_columns(rows, int(n_imus), fix=READER_FIX)

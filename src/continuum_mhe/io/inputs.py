@@ -73,7 +73,6 @@ from continuum_mhe.io.raw_imu import (
 from continuum_mhe.io.robot_logs import is_robot_log, read_imu_log, tilt_from_quaternion
 from continuum_mhe.io.tensions import (
     Tensions,
-    has_tension_columns,
     read_tensions,
     tendon_formulation_for,
     tension_columns,
@@ -273,7 +272,7 @@ def serial_input(
     resolved, f = resolve(port, kind, fmt == "raw", options, base)
     converters = imu_converters(resolved.raw, base.robot) if fmt == "raw" else None
     robot = base.robot
-    tensions = _tensions(options, robot, None, None, streamed=False) if options.tensions else None
+    tensions = _tensions(options, robot, None, None) if options.tensions else None
     if tensions is not None:
         tensions.check_steps()
     if not robot.has_mechanics:
@@ -385,14 +384,12 @@ def _tensions(
     robot: Robot,
     robot_name: str | None,
     recording: str | os.PathLike[str] | None,
-    streamed: bool = True,
 ) -> Tensions | None:
     """The tensions file, read and checked for the robot's tendons (before the input):
     ``--inputs``, else the ``recording``'s own tension columns (whose times are the
-    recording's). ``streamed``: the recording's samples go through
-    :func:`_append_tensions`, which checks the file's times against theirs
-    (:meth:`Tensions.check_span`); else (``live``) the caller checks its steps
-    (:meth:`Tensions.check_steps`)."""
+    recording's). Its times are checked against the recording's by
+    :func:`_append_tensions` (:meth:`Tensions.check_span`), or, for ``live``, which has
+    no recording before it runs, by the caller (:meth:`Tensions.check_steps`)."""
     given = options.tensions
     k = robot.n_tendons
     if not k:
@@ -401,11 +398,15 @@ def _tensions(
                 f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
             )
         return None
-    own = (
-        recording is not None
+    columns = (  # the recording's own tension columns, if any
+        tension_columns_in(recording)
+        if recording is not None
         and not is_robot_log(Path(recording))
-        and has_tension_columns(recording, k)
+        and str(recording) != "-"
+        and os.path.isfile(recording)
+        else []
     )
+    own = set(tension_columns(k)) <= set(columns)
     if given:
         if own:
             warnings.warn(
@@ -424,15 +425,11 @@ def _tensions(
         )
         table.check_scale(robot)
         return table
-    partial = (
-        recording is not None and not is_robot_log(Path(recording)) and str(recording) != "-"
-        and os.path.isfile(recording) and tension_columns_in(recording)
-    )  # fmt: skip
-    if partial:  # some of the tension columns, not all
-        missing = [c for c in tension_columns(k) if c not in partial]
+    if columns:  # some of the tension columns, not all
+        missing = [c for c in tension_columns(k) if c not in columns]
         raise InputError(
             f"{recording}: line 1: the robot has {k} tendons, but the recording's tension "
-            f"columns are {','.join(partial)}: no {','.join(missing)} (or give the tensions "
+            f"columns are {','.join(columns)}: no {','.join(missing)} (or give the tensions "
             "with --inputs TENSIONS.csv)"
         )
     raise InputError(

@@ -242,16 +242,6 @@ def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
         return [c for c in rows.header if c.startswith("tension_")]
 
 
-def has_tension_columns(path: str | os.PathLike[str], n_tendons: int) -> bool:
-    """Whether the table ``path`` (not ``-``) has the columns ``tension_1..k`` of a robot
-    with ``n_tendons`` tendons (a ``live --record`` recording of tensions from the
-    serial line)."""
-    if str(path) == "-" or not n_tendons or not os.path.isfile(path):
-        return False
-    with open_rows(path) as rows:
-        return set(tension_columns(n_tendons)) <= set(rows.header)
-
-
 @dataclass(frozen=True)
 class TensionsAt:
     """One sample's tensions (N), their rates (N/s) and second derivatives (N/s^2)."""

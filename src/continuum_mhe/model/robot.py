@@ -19,7 +19,7 @@ import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from continuum_mhe.errors import UserError, expect_type, finite_reals, is_real
+from continuum_mhe.errors import UserError, expect_type, finite_reals, is_integer, is_real
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -160,7 +160,7 @@ class ImuPlacement:
 def section_index(label: str, value: object) -> int:
     """``value`` as a 0-based section index (an int, numpy's integers too), or a
     :class:`UserError` naming ``label``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+    if not is_integer(value):
         raise UserError(
             f"{label} must be an integer (a 0-based section index), got "
             f"{type(value).__name__} {value!r}"

@@ -68,6 +68,8 @@ def replay(
         if truth_table is not None:
             try:
                 drawn_truth = view.log_truth(truth_table.t, truth_table.values, truth_table.names)
+            except InputError:  # names its file (the tensions')
+                raise
             except UserError as exc:  # a row's loads without an equilibrium
                 raise InputError(f"{truth}: {exc}") from None
             missing = "tensions" if tendon is not None else "theta/phi columns for every section"
@@ -76,7 +78,9 @@ def replay(
             )
         try:
             view.log_rows(est.t, est.values[:, cols], list(est.status))
-        except UserError as exc:
+        except InputError:  # names its file (the tensions')
+            raise
+        except UserError as exc:  # a row's loads without an equilibrium
             raise InputError(f"{estimates}: {exc}") from None
     except BaseException:
         view.close(keep=False)
