@@ -889,7 +889,7 @@ def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
 def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(method) -> None:
     """The direct model reads a unit specific force and rad/s: an accelerometer's reading
-    in m/s^2 (step and run), or gyros in deg/s (run), is one UserError naming the
+    in m/s^2 (step and run), or gyros in deg/s (run; step below), is one UserError naming the
     readings, and the readings built by ``direct_measurements`` pass."""
     from continuum_mhe.model.direct import direct_measurements
 
@@ -917,6 +917,45 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
     est.step(Measurement(0.0, good[0]))
     with pytest.raises(UserError, match=r"^measurement at t=0\.02 s: fx, fy, fz have magnitude"):
         est.step(Measurement(0.02, np.array([0.3, -0.2, 9.79, 0.01, 0.0, 0.02])))
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf"])
+def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> None:
+    """A stream of raw readings whose gyros are in deg/s, handed to ``step`` sample by
+    sample or to ``continue_run`` in blocks: one UserError at the sample that completes
+    the first UNIT_CHECK_SAMPLES full readings (their median), naming the gyro columns;
+    the samples before it are estimated. The same stream in rad/s runs through."""
+    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.model.direct import direct_measurements
+
+    n = UNIT_CHECK_SAMPLES + 20
+    t = np.arange(n) * 0.02
+    acc = np.array([[0.3, -0.2, 9.79]])
+    rad_s = np.tile(direct_measurements(acc, np.radians([[30.0, 5.0, 0.0]])), (n, 1))
+    rad_s[0] = np.nan  # a dropout first: the median is of full readings
+    deg_s = rad_s.copy()
+    deg_s[:, 3:] = np.degrees(deg_s[:, 3:])
+    est = make_estimator(method, make_formulation("direct"))
+    last = UNIT_CHECK_SAMPLES  # sample 0 has no reading: sample 100 is the 100th full one
+    for k in range(last):
+        est.step(Measurement(float(t[k]), deg_s[k]))
+    with pytest.raises(
+        UserError,
+        match=rf"^measurement at t={float(t[last])!r} s: wx, wy, wz: gyro magnitude is about "
+        rf"30\.4 \(median of the first {UNIT_CHECK_SAMPLES} full readings\), implausible in "
+        r"rad/s \(above 5\): deg/s\? give rad/s",
+    ):
+        est.step(Measurement(float(t[last]), deg_s[last]))
+    est.reset()
+    first = est.continue_run(t[:60], deg_s[:60])  # not yet the first 100: stepped
+    assert len(first.status) == 60
+    with pytest.raises(UserError, match=r"wx, wy, wz: gyro magnitude is about 30\.4"):
+        est.continue_run(t[60:], deg_s[60:])
+    est.reset()
+    for k in range(n):
+        assert est.step(Measurement(float(t[k]), rad_s[k])).status != "no-estimate" or k == 0
+    est.reset()
+    assert np.isfinite(est.continue_run(t, rad_s).output[5:]).all()
 
 
 def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:

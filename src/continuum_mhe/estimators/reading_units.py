@@ -7,6 +7,9 @@ the IMU's unit specific force ``fx, fy, fz`` (a direction, magnitude 1) and its 
 read as a direction ten times too long or rates 57 times too fast, and the estimate
 would be wrong without a word; :func:`direct_units_problem` names it. (A reading in g is
 the unit direction to within the IMU's own acceleration.)
+
+A whole recording's units are checked at once (:func:`direct_units_problem`); samples
+handed over one by one or in blocks, as they arrive, by :class:`ReadingUnitsWatch`.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from continuum_mhe.estimators.base import FloatArray
-from continuum_mhe.io.raw_imu import gyro_units_problem
+from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
 
 #: A unit specific force whose magnitude is off 1 by more than this is not a direction
@@ -59,3 +62,64 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
         if problem is not None:
             return f"{', '.join(names[3:])}: {problem}"
     return None
+
+
+class ReadingUnitsWatch:
+    """The units of ``direct`` readings that arrive sample by sample (or block by
+    block): each block's first full reading's specific force, and the gyros' median
+    over the first :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` samples with a
+    full reading of the block (the check of a whole recording, on the samples a stream
+    has; one sample of a fast turn says nothing). A stream shorter than that has its
+    gyros unchecked. :meth:`reset` starts over (a new recording)."""
+
+    def __init__(self, blocks: list[DirectRows]) -> None:
+        self._blocks = blocks
+        self.reset()
+
+    def reset(self) -> None:
+        #: per block: whether its specific force is still to check, and its full
+        #: readings' gyro rows seen so far (None once checked)
+        self._force_unchecked = [True] * len(self._blocks)
+        self._gyros: list[list[FloatArray] | None] = [[] for _ in self._blocks]
+        self._counts = [0] * len(self._blocks)
+
+    @property
+    def done(self) -> bool:
+        """Every block checked: nothing more to look at."""
+        return not any(self._force_unchecked) and all(g is None for g in self._gyros)
+
+    def see(self, t: FloatArray, z: FloatArray) -> str | None:
+        """Look at the samples ``t`` (n,) s, ``z`` (n, nz) that follow those seen: what
+        is wrong with their units, as a line naming the sample that showed it
+        (``measurement at t=... s: ...``), or None."""
+        if self.done:
+            return None
+        for k, (force_rows, gyro_rows, names) in enumerate(self._blocks):
+            full = np.flatnonzero(
+                np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
+            )
+            if not len(full):
+                continue
+            if self._force_unchecked[k]:
+                self._force_unchecked[k] = False
+                i = int(full[0])
+                problem = direct_units_problem([self._blocks[k]], z[i : i + 1], gyro=False)
+                if problem is not None:
+                    return f"measurement at t={float(t[i])!r} s: {problem}"
+            seen = self._gyros[k]
+            if seen is None:
+                continue
+            take = full[: UNIT_CHECK_SAMPLES - self._counts[k]]
+            seen.append(z[take, gyro_rows].copy())
+            self._counts[k] += len(take)
+            if self._counts[k] < UNIT_CHECK_SAMPLES:
+                continue
+            self._gyros[k] = None
+            problem = gyro_units_problem(np.concatenate(seen), ", ".join(names[3:]))
+            if problem is not None:
+                of = f"(median of the first {UNIT_CHECK_SAMPLES} full readings)"
+                return (
+                    f"measurement at t={float(t[take[-1]])!r} s: {', '.join(names[3:])}: "
+                    + problem.replace("(median)", of, 1)
+                )
+        return None

@@ -46,7 +46,7 @@ from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.reading_units import (
-    DirectRows,
+    ReadingUnitsWatch,
     direct_blocks,
     direct_units_problem,
 )
@@ -244,8 +244,8 @@ class Estimator(Generic[InferenceT]):
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
         self._tension_rows = tension_rows(formulation)
-        #: the direct blocks whose first full reading step has still to check
-        self._unchecked = list(self._direct_rows)
+        #: the units of the readings that step and continue_run hand over
+        self._units = ReadingUnitsWatch(self._direct_rows)
         self._policy = self._compiled_policy()
         self.reset()
 
@@ -315,7 +315,7 @@ class Estimator(Generic[InferenceT]):
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()
         self._ran = False
-        self._unchecked = list(self._direct_rows)
+        self._units.reset()
         self._policy.reset(keep_counts)
 
     def _sync_diagnostics(self) -> None:
@@ -367,7 +367,10 @@ class Estimator(Generic[InferenceT]):
                 a tilt angle beyond pi (:data:`DEGREES_LIKE`: degrees given for
                 radians), a raw IMU's
                 specific force that is not a unit vector (each IMU's first full reading
-                after a reset is checked; ``run`` checks the gyros' units too), or
+                after a reset is checked) or a gyro in deg/s (the median of each IMU's
+                first :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` full
+                readings after a reset: the samples before are estimated; ``run``
+                checks the whole recording), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -382,11 +385,10 @@ class Estimator(Generic[InferenceT]):
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
         if self._tension_rows:
             self._check_tensions(z[None, :], np.array([t], dtype=float))
-        if self._unchecked:  # each IMU's first full reading
-            full = [b for b in self._unchecked if np.isfinite(z[b[0]]).all()]
-            if full:
-                self._check_units(t, z[None, :], full)
-                self._unchecked = [b for b in self._unchecked if b not in full]
+        if not self._units.done:
+            problem = self._units.see(np.array([t], dtype=float), z[None, :])
+            if problem is not None:
+                raise UserError(problem)
         err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
         if err:
             self._refuse(err, t, z)
@@ -407,18 +409,12 @@ class Estimator(Generic[InferenceT]):
                 "negative: a tendon cannot push (a slack tendon's tension is 0)"
             )
 
-    def _check_units(
-        self, t: float | None, z: FloatArray, blocks: list[DirectRows] | None = None
-    ) -> None:
-        """A :class:`UserError` where the ``direct`` IMU readings of ``z`` (n, nz) in
-        ``blocks`` (default: every direct block) are not a unit specific force and rad/s
-        (:mod:`.reading_units`); ``t`` (s) names the sample a step gave (one sample: its
-        force only)."""
-        chosen = self._direct_rows if blocks is None else blocks
-        problem = direct_units_problem(chosen, z, gyro=t is None)
+    def _check_units(self, z: FloatArray) -> None:
+        """A :class:`UserError` where the ``direct`` IMU readings of a whole recording
+        ``z`` (n, nz) are not a unit specific force and rad/s (:mod:`.reading_units`)."""
+        problem = direct_units_problem(self._direct_rows, z)
         if problem is not None:
-            where = "" if t is None else f"measurement at t={t!r} s: "
-            raise UserError(where + problem)
+            raise UserError(problem)
 
     def _refuse(self, err: int, t: float, z: FloatArray) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
@@ -468,7 +464,7 @@ class Estimator(Generic[InferenceT]):
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
-        self._check_units(None, z)
+        self._check_units(z)
         self.reset()
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)
@@ -523,12 +519,17 @@ class Estimator(Generic[InferenceT]):
         ``starts`` (default: all in one call; else ``range(0, n, block)`` in order,
         which a progress display may wrap: the blocks must cover every sample once, in
         order); raises the :class:`UserError` of :meth:`step` for a refused sample (the
-        samples before it are stepped), and one for arrays whose shapes do not fit (as
-        :meth:`run`), a ``block`` that is not a positive integer, or ``starts`` that
-        skip, repeat or leave out samples."""
+        samples before it are stepped; for readings in the wrong units, checked as
+        :meth:`step` checks them, before any sample of the call), and one for arrays
+        whose shapes do not fit (as :meth:`run`), a ``block`` that is not a positive
+        integer, or ``starts`` that skip, repeat or leave out samples."""
         t, z = self._samples(t, z)
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
+        if not self._units.done:
+            problem = self._units.see(t, z)
+            if problem is not None:
+                raise UserError(problem)
         size = max(len(t), 1) if block is None else int(block)
         return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)
 

@@ -63,6 +63,9 @@ _LOOKS_LIKE_G = (0.5, 2.0)
 #: means the gyro is in deg/s, not rad/s. A deg/s file whose median rate stays below
 #: 5 deg/s is not caught (its rates are small either way).
 GYRO_MEDIAN_MAX = 5.0
+#: A stream's units are checked on the medians of this many first samples (1 s at
+#: 100 Hz), where a recording's are checked on all of them.
+UNIT_CHECK_SAMPLES = 100
 #: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
 #: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
 #: corrupt value, not a reading.

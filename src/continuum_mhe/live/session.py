@@ -19,6 +19,7 @@ from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
+    UNIT_CHECK_SAMPLES,
     RawImuConverter,
     check_accel_units,
     check_gyro_units,
@@ -39,12 +40,13 @@ from continuum_mhe.stream.protocol import (
 from continuum_mhe.stream.reader import stderr_say
 from continuum_mhe.stream.recording import csv_cell
 
-#: Raw lines: the units are checked once, as ``estimate`` checks a raw file (an
-#: accelerometer in g, ``check_accel_units``; a gyro in deg/s, ``check_gyro_units``), on
-#: the medians of this many first samples (1 s at the firmware's 100 Hz), or of all the
-#: samples of a shorter session at its end; again after a board reset (the device clock
-#: restarting). The samples are estimated meanwhile: the check never holds the stream back.
-UNIT_CHECK_SAMPLES = 100
+# Raw lines: the units are checked once, as ``estimate`` checks a raw file (an
+# accelerometer in g, ``check_accel_units``; a gyro in deg/s, ``check_gyro_units``), on
+# the medians of the first UNIT_CHECK_SAMPLES samples (1 s at the firmware's 100 Hz), or
+# of all the samples of a shorter session at its end; again after a board reset (the
+# device clock restarting). The samples are estimated meanwhile: the check never holds
+# the stream back.
+
 #: The first sample after the port opened is kept when the next one follows it within
 #: ``gap_factor`` usual periods, or this many seconds before the period is known: a line
 #: cut inside its ``t_ms`` (``1234,...`` read as ``34,...``) lies 1 s or more before it
