@@ -524,6 +524,28 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
     assert s.fatal.startswith("/dev/ttyIMU: gyro magnitude")
 
 
+def test_live_stops_when_the_estimator_finds_readings_in_the_wrong_units(monkeypatch) -> None:
+    """Readings whose units the estimator's own check refuses (an IMU that was silent
+    through live's check, then sends deg/s: ReadingUnitsError from step) stop the
+    session in one line naming the port, as live's check does; they are not an
+    estimator failure to restart from, sample after sample."""
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
+
+    s, said, out = _raw_session(RawImuSettings(imu_model="direct"))
+    lines = _deg_s_lines(30, degrees=False)
+    _handle(s, lines[:20])
+    assert s.fatal is None and s.counts.estimates == 20
+    why = "measurement at t=0.4 s: wx, wy, wz: gyro magnitude is about 41 (median ...)"
+
+    def refuse(measurement: object) -> None:
+        raise ReadingUnitsError(why)
+
+    monkeypatch.setattr(s.estimator, "step", refuse)
+    _handle(s, lines[20:])
+    assert s.fatal == f"/dev/ttyIMU: {why}"
+    assert s.counts.estimator_failures == 1 and s.counts.samples == 21  # later lines ignored
+
+
 def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     """The gyro's unit is checked again after a board reset, which may bring firmware
     that sends deg/s: a device clock restart re-arms the check on the samples after it."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray
 from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
@@ -62,6 +63,11 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
         if problem is not None:
             return f"{', '.join(names[3:])}: {problem}"
     return None
+
+
+class ReadingUnitsError(UserError):
+    """Raw readings in the wrong units (an accelerometer in m/s^2, a gyro in deg/s),
+    found by an estimator's step: every later reading of the stream is wrong alike."""
 
 
 class ReadingUnitsWatch:

@@ -46,6 +46,7 @@ from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.reading_units import (
+    ReadingUnitsError,
     ReadingUnitsWatch,
     direct_blocks,
     direct_units_problem,
@@ -370,7 +371,8 @@ class Estimator(Generic[InferenceT]):
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
                 first :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` full
                 readings after a reset: the samples before are estimated; ``run``
-                checks the whole recording), or
+                checks the whole recording; both a
+                :class:`~.reading_units.ReadingUnitsError`), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -388,7 +390,7 @@ class Estimator(Generic[InferenceT]):
         if not self._units.done:
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
-                raise UserError(problem)
+                raise ReadingUnitsError(problem)
         err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
         if err:
             self._refuse(err, t, z)
@@ -529,7 +531,7 @@ class Estimator(Generic[InferenceT]):
         if not self._units.done:
             problem = self._units.see(t, z)
             if problem is not None:
-                raise UserError(problem)
+                raise ReadingUnitsError(problem)
         size = max(len(t), 1) if block is None else int(block)
         return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)
 

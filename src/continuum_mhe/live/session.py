@@ -16,6 +16,7 @@ import numpy as np
 
 from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
+from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
@@ -652,6 +653,10 @@ class LiveSession:
             problem = None
             if est.output is not None and not np.all(np.isfinite(est.output)):
                 problem = "a non-finite estimate"
+        except ReadingUnitsError as exc:  # every later reading alike: stop
+            self.fatal = f"{self.settings.port}: {exc}"
+            self.counts.estimator_failures += 1
+            return Estimate(t, None, None, None, Status.NO_ESTIMATE, 0.0)
         except Exception as exc:  # any failure of one window: flag, restart, go on
             _reraise_interrupt(exc)
             problem = f"{type(exc).__name__}: {exc}"
