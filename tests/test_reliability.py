@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import continuum_mhe.io.csv_files as csv_files
 import continuum_mhe.io.estimate_sink as estimate_sink
+import continuum_mhe.io.output_files as output_files
 from continuum_mhe import MHESettings, RobotSettings, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.estimators.window_nlp import objective_scale_exponent
@@ -100,7 +100,7 @@ def test_read_only_folder_names_the_output(tmp_path, capsys, monkeypatch) -> Non
     def denied(*args: object, **kwargs: object) -> None:  # root ignores a 0555 folder
         raise PermissionError(errno.EACCES, "Permission denied", str(folder / ".e.csv.1.x.tmp"))
 
-    monkeypatch.setattr(csv_files.tempfile, "mkstemp", denied)
+    monkeypatch.setattr(output_files.tempfile, "mkstemp", denied)
     capsys.readouterr()
     assert main(["estimate", str(meas), "-o", str(folder / "e.csv"), "--method", "ekf"]) == 2
     err = capsys.readouterr().err

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from live_helpers import SAFETY_S, temporary_bytes, wait_for
 
-from continuum_mhe.io.csv_files import atomic_writer
+from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.signals import Terminated
 
 EXE = str(Path(sys.executable).with_name("continuum-mhe"))

@@ -36,7 +36,7 @@ def _horizons(text: str) -> list[int]:
 
 def _write_json(path: str, report: dict[str, Any]) -> None:
     """The report as JSON (NaN as null), written atomically."""
-    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.io.output_files import atomic_writer
     from continuum_mhe.reproduce.experiments import to_jsonable
 
     with atomic_writer(Path(path)) as fh:
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     timed = args.horizons + ([] if args.robot else list(args.loss_horizons or []))
     check_horizons(timed, args.duration, ROBOT_DT if args.robot else DT)
     if args.json:  # before the run, not after minutes of it
-        from continuum_mhe.io.csv_files import check_output_target
+        from continuum_mhe.io.output_files import check_output_target
 
         check_output_target(args.json, args.overwrite, "--json")
     if args.robot:

@@ -34,7 +34,8 @@ from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.errors import time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import bound_notice
-from continuum_mhe.io.csv_files import InputError, check_output_target
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.output_files import check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 

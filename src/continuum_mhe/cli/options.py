@@ -516,7 +516,7 @@ def add_live_view_option(p: argparse.ArgumentParser) -> None:
 def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
 
-    from continuum_mhe.io.csv_files import check_output_target
+    from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.viewer import ViewerSink
 
     ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}

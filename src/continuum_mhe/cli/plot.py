@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _reproduction(args: argparse.Namespace) -> int:
-    from continuum_mhe.io.csv_files import new_files
+    from continuum_mhe.io.output_files import new_files
     from continuum_mhe.reproduce.figures import render_all
     from continuum_mhe.reproduce.pipeline import load_results
 
@@ -67,8 +67,9 @@ def _estimate(args: argparse.Namespace) -> int:
         truth_problem,
     )
     from continuum_mhe.evaluation.plotting import save
-    from continuum_mhe.io.csv_files import check_output_target, read_state_table
+    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.estimate_files import read_estimates
+    from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.io.robot_file import read_robot
 
     output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")

@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import InputError, check_new_folder
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.output_files import check_new_folder
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,12 +14,8 @@ from continuum_mhe.cli.options import (
 )
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import (
-    InputError,
-    check_output_target,
-    write_measurements,
-    write_truth,
-)
+from continuum_mhe.io.csv_files import InputError, write_measurements, write_truth
+from continuum_mhe.io.output_files import check_output_target
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.simulation.scenarios import NOISE_MODELS, SCENARIOS, simulate_robot
 

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from continuum_mhe.io.csv_files import atomic_binary_writer  # noqa: E402
+from continuum_mhe.io.output_files import atomic_binary_writer  # noqa: E402
 from continuum_mhe.results import EstimateSeries  # noqa: E402
 
 _STYLE = {"mhe": "C0", "ekf": "C1", "ukf": "C2"}

@@ -23,7 +23,7 @@ _EXPORTS: dict[str, str] = {
     "InputError": "continuum_mhe.io.csv_files",
     "MeasurementTable": "continuum_mhe.io.csv_files",
     "StateTable": "continuum_mhe.io.csv_files",
-    "atomic_writer": "continuum_mhe.io.csv_files",
+    "atomic_writer": "continuum_mhe.io.output_files",
     "read_measurements": "continuum_mhe.io.csv_files",
     "read_state_table": "continuum_mhe.io.csv_files",
     "read_states": "continuum_mhe.io.csv_files",
@@ -66,7 +66,6 @@ if TYPE_CHECKING:
         InputError,
         MeasurementTable,
         StateTable,
-        atomic_writer,
         read_measurements,
         read_state_table,
         read_states,
@@ -83,6 +82,7 @@ if TYPE_CHECKING:
         open_input,
     )
     from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
+    from continuum_mhe.io.output_files import atomic_writer
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.robot_logs import read_imu_log

@@ -17,33 +17,26 @@ Formats (docs/formats.md):
   Truth CSV: ``t,x,y,z`` and any of the per-section columns.
 
 Every problem in an input file raises :class:`InputError` with a one-line message
-naming the file and line. Outputs are written atomically: a temporary file in the same
-folder is renamed over the target only once it is complete.
+naming the file and line. Outputs are written atomically (:mod:`.output_files`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import difflib
-import errno
 import math
 import os
-import re
-import stat
 import sys
-import tempfile
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import IO, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.errors import UserError, expect_type, is_integer, time_text
+from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.io.text_rows import (
     InputError,
     RowProblems,
@@ -58,7 +51,6 @@ from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outpu
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
-from continuum_mhe.signals import raise_if_signalled
 
 FloatArray = NDArray[np.float64]
 
@@ -768,164 +760,6 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
     table = read_state_table(path, cols)
     values = np.column_stack([table.column(c) for c in cols])
     return table.t, values, table.status
-
-
-def current_umask() -> int:
-    """The process's umask now (a new file's mode is ``0o666 & ~umask``): read from
-    ``/proc/self/status`` where there is one (it changes nothing), else by setting and
-    restoring it."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-#: Errors of writing that belong to the output file when they carry no file name.
-_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
-
-
-def check_output_target(
-    path: str | os.PathLike[str], overwrite: bool = True, option: str = "-o"
-) -> Path:
-    """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
-    ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
-    file, a read-only file (never silently replaced), or, unless ``overwrite``, an
-    existing file (the error names ``--overwrite`` and the command's ``option``)."""
-    expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
-    text = os.fspath(path)
-    target = Path(text)
-    if text == "-":
-        raise InputError("-: writing to standard output is not supported; give a file name")
-    if text.endswith(("/", os.sep)):
-        raise InputError(
-            f"{text}: names a folder; give a file name, e.g. {text.rstrip('/' + os.sep)}/"
-            "estimates.csv"
-        )
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"{target}: folder {folder} does not exist")
-    if target.is_dir():
-        raise InputError(f"{target}: is a directory, expected a file name")
-    if target.exists() and not target.is_file():
-        raise InputError(f"{target}: not a regular file; give a file name")
-    if target.exists() and not overwrite:
-        raise InputError(f"{target}: exists; give --overwrite to replace it, or another {option}")
-    if target.exists() and not target.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
-        raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
-                         "or remove it)")  # fmt: skip
-    return target
-
-
-@contextlib.contextmanager
-def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
-    target = check_output_target(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    _remove_stale_temporaries(folder)
-    try:
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder
-        )
-    except OSError as exc:  # name the output, not the temporary file
-        raise InputError(f"{target}: cannot write in folder {folder} ({exc.strerror})") from None
-    os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: the usual mode
-    try:
-        try:
-            if binary:
-                with os.fdopen(fd, "wb") as fb:
-                    yield fb
-            else:
-                with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-                    yield fh
-            os.replace(tmp, target)
-        except OSError as exc:
-            if exc.errno in _WRITE_ERRNOS and exc.filename in (None, tmp):
-                raise OSError(exc.errno, f"{exc.strerror} (nothing written)", str(target)) from None
-            raise
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-#: The temporary file of :func:`_atomic`: ``.NAME.PID.XXXXXXXX.tmp`` (mkstemp's suffix).
-_TEMPORARY = re.compile(r"\..+\.(\d+)\.[A-Za-z0-9_]+\.tmp")
-
-
-def _remove_stale_temporaries(folder: Path) -> None:
-    """Remove the ``.NAME.PID.XXXXXXXX.tmp`` files that killed writers (SIGKILL) of any
-    output in ``folder`` left, once their process is gone."""
-    for stale in folder.glob(".*.tmp"):
-        m = _TEMPORARY.fullmatch(stale.name)
-        if m is None:
-            continue
-        pid = int(m.group(1))
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            with contextlib.suppress(OSError):
-                stale.unlink()
-        except PermissionError:  # alive, another user's
-            continue
-
-
-def atomic_writer(path: str | os.PathLike[str]) -> contextlib.AbstractContextManager[IO[str]]:
-    """Open a temporary text file next to ``path``; rename it over ``path`` on success
-    only, so an error never leaves a partial file (or touches an existing one)."""
-    return _atomic(path, binary=False)
-
-
-def atomic_binary_writer(
-    path: str | os.PathLike[str],
-) -> contextlib.AbstractContextManager[IO[bytes]]:
-    """Binary counterpart of :func:`atomic_writer`."""
-    return _atomic(path, binary=True)
-
-
-def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:
-    """A one-line error, before any work, unless ``folder`` is, or can be made, a
-    writable folder (its nearest existing ancestor a writable folder), and, unless
-    ``overwrite``, holds none of the files ``names`` that the command writes."""
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{folder}: exists and is not a folder")
-    taken = next((folder / n for n in names if (folder / n).exists()), None)
-    if taken is not None and not overwrite:
-        raise InputError(f"{taken}: exists; give --overwrite to replace it, or another --out")
-    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
-    if not existing.is_dir():
-        raise InputError(f"{folder}: {existing} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(f"{folder}: {existing} is not writable")
-
-
-@contextlib.contextmanager
-def new_files(folder: Path) -> Iterator[list[Path]]:
-    """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
-    the files put in the yielded list that did not exist before (each is put there once
-    written, atomically), then the folders created here, and re-raise. A file that
-    existed keeps its new content if it was replaced, else its old one. A signal whose
-    exception a library dropped while the block ran (:func:`.signals.raise_if_signalled`)
-    is raised at its end, with the same clean-up."""
-    created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
-    before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
-    folder.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    try:
-        yield written
-        raise_if_signalled()
-    except BaseException:
-        for path in written:
-            if path.name not in before:
-                path.unlink(missing_ok=True)
-        for made in created:  # innermost first
-            with contextlib.suppress(OSError):
-                made.rmdir()
-        raise
 
 
 def _fmt(v: float) -> str:

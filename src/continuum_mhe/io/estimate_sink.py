@@ -18,14 +18,13 @@ from numpy.typing import NDArray
 
 from continuum_mhe.io.csv_files import (
     FloatArray,
-    atomic_binary_writer,
-    atomic_writer,
     estimate_columns,
     estimate_lines,
     estimate_row,
     format_cells,
 )
 from continuum_mhe.io.mcap_estimates import NOTES_RECORD, mcap_estimate_writer, sample_messages
+from continuum_mhe.io.output_files import atomic_binary_writer, atomic_writer
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, Status
 

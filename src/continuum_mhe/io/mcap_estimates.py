@@ -21,13 +21,8 @@ from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import (
-    STD_PREFIX,
-    FloatArray,
-    InputError,
-    StateTable,
-    atomic_binary_writer,
-)
+from continuum_mhe.io.csv_files import STD_PREFIX, FloatArray, InputError, StateTable
+from continuum_mhe.io.output_files import atomic_binary_writer
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.model.robot import Section

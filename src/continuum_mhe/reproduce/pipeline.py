@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError, new_files
+from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.output_files import new_files
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
 from continuum_mhe.reproduce.bootstrap import mean_ci
 from continuum_mhe.reproduce.experiments import (
@@ -76,7 +77,7 @@ def part_data_files(parts: Sequence[Part]) -> list[str]:
 
 def save_json(path: Path, data: dict[str, Any]) -> None:
     """Write ``data`` as JSON (NaN as null), atomically."""
-    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.io.output_files import atomic_writer
 
     with atomic_writer(path) as fh:
         json.dump(to_jsonable(data), fh, allow_nan=False, separators=(",", ":"))

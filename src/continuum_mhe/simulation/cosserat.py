@@ -389,7 +389,7 @@ def make_recording(
 
 def write_recording(path: str | Path, recording: RodRecording) -> None:
     """Write the recording as a plain CSV with the header :data:`COLUMNS`."""
-    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.io.output_files import atomic_writer
 
     cols = recording.columns
     data = np.column_stack([cols[c] for c in COLUMNS])
@@ -475,7 +475,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         print(f"{p.prog}: error: --duration must be positive", file=sys.stderr)
         return 2
-    from continuum_mhe.io.csv_files import InputError, check_output_target
+    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.io.output_files import check_output_target
 
     try:  # a missing folder or a directory: said before the minute of simulation
         check_output_target(args.output)
@@ -485,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rod, imu = RodSettings(), ImuSettings()
     rec = make_recording(rod, imu, args.duration, args.seed)
     write_recording(args.output, rec)
-    from continuum_mhe.io.csv_files import atomic_writer
+    from continuum_mhe.io.output_files import atomic_writer
 
     with atomic_writer(info_path(args.output)) as fh:
         json.dump(generator_info(rod, imu, args.duration, args.seed), fh, indent=2)

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.io.csv_files import atomic_writer
+from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.reproduce.bootstrap import BOOTSTRAP_RESAMPLES
 from continuum_mhe.reproduce.report.beyond import beyond_section
 from continuum_mhe.reproduce.report.claims import PAPER, _claims

@@ -1,0 +1,184 @@
+"""Output files and folders, written so that an error never leaves a partial one.
+
+An output file is written to a temporary file in its folder (``.NAME.PID.XXXXXXXX.tmp``)
+and renamed over the target only once complete (:func:`atomic_writer`,
+:func:`atomic_binary_writer`); a killed writer's temporary file is removed by the next
+writer into that folder once its process is gone. :func:`check_output_target` refuses,
+in one line and before any work, a target that cannot be written;
+:func:`check_new_folder` and :func:`new_files` do the same for a command that writes
+several files into a folder.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import re
+import stat
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+from continuum_mhe.errors import expect_type
+from continuum_mhe.io.text_rows import InputError
+from continuum_mhe.signals import raise_if_signalled
+
+
+def current_umask() -> int:
+    """The process's umask now (a new file's mode is ``0o666 & ~umask``): read from
+    ``/proc/self/status`` where there is one (it changes nothing), else by setting and
+    restoring it."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+#: Errors of writing that belong to the output file when they carry no file name.
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
+
+
+def check_output_target(
+    path: str | os.PathLike[str], overwrite: bool = True, option: str = "-o"
+) -> Path:
+    """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
+    ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
+    file, a read-only file (never silently replaced), or, unless ``overwrite``, an
+    existing file (the error names ``--overwrite`` and the command's ``option``)."""
+    expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
+    text = os.fspath(path)
+    target = Path(text)
+    if text == "-":
+        raise InputError("-: writing to standard output is not supported; give a file name")
+    if text.endswith(("/", os.sep)):
+        raise InputError(
+            f"{text}: names a folder; give a file name, e.g. {text.rstrip('/' + os.sep)}/"
+            "estimates.csv"
+        )
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{target}: folder {folder} does not exist")
+    if target.is_dir():
+        raise InputError(f"{target}: is a directory, expected a file name")
+    if target.exists() and not target.is_file():
+        raise InputError(f"{target}: not a regular file; give a file name")
+    if target.exists() and not overwrite:
+        raise InputError(f"{target}: exists; give --overwrite to replace it, or another {option}")
+    if target.exists() and not target.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
+        raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
+                         "or remove it)")  # fmt: skip
+    return target
+
+
+@contextlib.contextmanager
+def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
+    target = check_output_target(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    _remove_stale_temporaries(folder)
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=folder
+        )
+    except OSError as exc:  # name the output, not the temporary file
+        raise InputError(f"{target}: cannot write in folder {folder} ({exc.strerror})") from None
+    os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: the usual mode
+    try:
+        try:
+            if binary:
+                with os.fdopen(fd, "wb") as fb:
+                    yield fb
+            else:
+                with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+                    yield fh
+            os.replace(tmp, target)
+        except OSError as exc:
+            if exc.errno in _WRITE_ERRNOS and exc.filename in (None, tmp):
+                raise OSError(exc.errno, f"{exc.strerror} (nothing written)", str(target)) from None
+            raise
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+#: The temporary file of :func:`_atomic`: ``.NAME.PID.XXXXXXXX.tmp`` (mkstemp's suffix).
+_TEMPORARY = re.compile(r"\..+\.(\d+)\.[A-Za-z0-9_]+\.tmp")
+
+
+def _remove_stale_temporaries(folder: Path) -> None:
+    """Remove the ``.NAME.PID.XXXXXXXX.tmp`` files that killed writers (SIGKILL) of any
+    output in ``folder`` left, once their process is gone."""
+    for stale in folder.glob(".*.tmp"):
+        m = _TEMPORARY.fullmatch(stale.name)
+        if m is None:
+            continue
+        pid = int(m.group(1))
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            with contextlib.suppress(OSError):
+                stale.unlink()
+        except PermissionError:  # alive, another user's
+            continue
+
+
+def atomic_writer(path: str | os.PathLike[str]) -> contextlib.AbstractContextManager[IO[str]]:
+    """Open a temporary text file next to ``path``; rename it over ``path`` on success
+    only, so an error never leaves a partial file (or touches an existing one)."""
+    return _atomic(path, binary=False)
+
+
+def atomic_binary_writer(
+    path: str | os.PathLike[str],
+) -> contextlib.AbstractContextManager[IO[bytes]]:
+    """Binary counterpart of :func:`atomic_writer`."""
+    return _atomic(path, binary=True)
+
+
+def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:
+    """A one-line error, before any work, unless ``folder`` is, or can be made, a
+    writable folder (its nearest existing ancestor a writable folder), and, unless
+    ``overwrite``, holds none of the files ``names`` that the command writes."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: exists and is not a folder")
+    taken = next((folder / n for n in names if (folder / n).exists()), None)
+    if taken is not None and not overwrite:
+        raise InputError(f"{taken}: exists; give --overwrite to replace it, or another --out")
+    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"{folder}: {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{folder}: {existing} is not writable")
+
+
+@contextlib.contextmanager
+def new_files(folder: Path) -> Iterator[list[Path]]:
+    """Create ``folder`` (and missing parents); on any exception (Ctrl-C too), remove
+    the files put in the yielded list that did not exist before (each is put there once
+    written, atomically), then the folders created here, and re-raise. A file that
+    existed keeps its new content if it was replaced, else its old one. A signal whose
+    exception a library dropped while the block ran (:func:`.signals.raise_if_signalled`)
+    is raised at its end, with the same clean-up."""
+    created = [p for p in (folder, *folder.absolute().parents) if not p.exists()]
+    before = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
+    folder.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        yield written
+        raise_if_signalled()
+    except BaseException:
+        for path in written:
+            if path.name not in before:
+                path.unlink(missing_ok=True)
+        for made in created:  # innermost first
+            with contextlib.suppress(OSError):
+                made.rmdir()
+        raise
