@@ -116,6 +116,41 @@ def test_degrees_flag_matches_radians(tmp_path):
     np.testing.assert_allclose(a.z, b.z, atol=1e-9)
 
 
+def test_degrees_given_for_a_recording_in_radians_warns_once(tmp_path):
+    """``--degrees`` (``degrees=True``) on angles all within pi, as radians are: one
+    warning naming the file, from the reader and from ``estimate``, which still writes
+    (a robot that barely moves may be in degrees); the same file in degrees, or read
+    as radians, gives none."""
+    import warnings
+
+    from continuum_mhe.io.csv_files import UnitWarning
+
+    rec = simulate("paper3d", duration=2, seed=1)
+    rad, deg = tmp_path / "rad.csv", tmp_path / "deg.csv"
+    write_measurements(rad, rec.t, rec.z)
+    write_measurements(deg, rec.t, np.degrees(rec.z))
+    largest = f"{np.abs(rec.z).max():.3g}"
+    with pytest.warns(UnitWarning) as caught:
+        read_measurements(rad, degrees=True)
+    assert [str(w.message) for w in caught] == [
+        f"{rad}: read in degrees (--degrees; degrees=True in Python), but every roll and "
+        f"pitch of its 41 rows is within {largest}: radians? in degrees no IMU tilts more "
+        f"than {largest} degrees in the whole recording; without --degrees the angles are "
+        "read as radians"
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_measurements(deg, degrees=True)
+        read_measurements(rad)
+    with pytest.warns(UnitWarning) as caught:
+        assert main(["estimate", str(rad), "-o", str(tmp_path / "e.csv"), "--degrees"]) == 0
+    said = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
+    assert len(said) == 1 and said[0].startswith(f"{rad}: read in degrees")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        assert main(["estimate", str(deg), "-o", str(tmp_path / "f.csv"), "--degrees"]) == 0
+
+
 def test_extra_columns_and_column_order_are_accepted(tmp_path):
     source = [[float(v) for v in r.split(",")] for r in _good_rows(10)]  # t, roll, pitch
     rows = [f"{p!r},x,{t!r},{r!r}" for t, r, p in source]

@@ -181,6 +181,10 @@ def read_measurements(
     z = tilt_values(
         rows.name, got.values, got.lines, degrees, n_imus, got.skipped if skip_bad else None
     )
+    if degrees:
+        seen = DegreesCheck()
+        seen.add(np.where(np.isfinite(z), got.values, np.nan))  # out-of-range rows skipped
+        seen.warn(rows.name)
     readings = ReadingCounts(tuple(b.slice for b in tilt_blocks(n_imus)))
     readings.add(z)
     readings.warn_silent(rows.name)
@@ -502,6 +506,43 @@ def imu_suffixes(
 #: The share of a block's rows whose angles are beyond the radian range above which the
 #: file is taken to be in degrees (fewer such rows are glitches).
 DEGREES_LIKE_SHARE = 0.1
+
+
+#: With ``degrees``, a recording whose every roll and pitch is within this (in the
+#: file's numbers) over at least :data:`RADIANS_LIKE_ROWS` rows reads like radians: in
+#: degrees no IMU would tilt more than about 3 degrees in the whole recording.
+RADIANS_LIKE_MAX = math.pi
+RADIANS_LIKE_ROWS = 10
+
+
+@dataclass
+class DegreesCheck:
+    """Whether tilt angles read with ``degrees`` look like radians: the largest
+    magnitude of the file's numbers and the rows with a full reading, over the blocks
+    read (:meth:`add`); :meth:`warn` at the end."""
+
+    largest: float = 0.0
+    rows: int = 0
+
+    def add(self, values: FloatArray) -> None:
+        """Count the file's angle values (n, 2 n_imus), as written (degrees)."""
+        v = np.asarray(values, dtype=float)
+        full = np.isfinite(v).all(axis=1)
+        if full.any():
+            self.largest = max(self.largest, float(np.abs(v[full]).max()))
+            self.rows += int(full.sum())
+
+    def warn(self, path: str) -> None:
+        """A :class:`UnitWarning` naming ``path`` where the angles look like radians."""
+        if self.rows >= RADIANS_LIKE_ROWS and self.largest <= RADIANS_LIKE_MAX:
+            warnings.warn(
+                f"{path}: read in degrees (--degrees; degrees=True in Python), but every "
+                f"roll and pitch of its {self.rows} rows is within {self.largest:.3g}: "
+                f"radians? in degrees no IMU tilts more than {self.largest:.3g} degrees in "
+                "the whole recording; without --degrees the angles are read as radians",
+                UnitWarning,
+                stacklevel=3,
+            )
 
 
 def _check_angle_units(

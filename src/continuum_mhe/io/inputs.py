@@ -33,6 +33,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Literal
 
@@ -40,6 +41,7 @@ import numpy as np
 
 from continuum_mhe.errors import expect_type, time_text
 from continuum_mhe.io.csv_files import (
+    DegreesCheck,
     FloatArray,
     ReadingCounts,
     check_time_units,
@@ -479,6 +481,7 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
     problems = RowProblems()
     convert: Convert
     kind: InputKind
+    finish: Callable[[], None] | None = None  # what to say once every sample is read
     if sample_kind(rows) == "raw":
         kind = "raw-csv"
         cols, has_gyro = raw_layout(rows, n_imus)
@@ -501,12 +504,19 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         cols = tilt_sample_columns(rows, n_imus)
         options, f = resolve(name, kind, False, options, base)
 
+        degrees_seen = DegreesCheck()
+
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             out_of_range: list[str] | None = [] if options.skip_bad else None
             z = tilt_values(name, values, lines, options.degrees, n_imus, out_of_range)
             for what in out_of_range or ():
                 problems.add(what)
+            if options.degrees:
+                degrees_seen.add(np.where(np.isfinite(z), values, np.nan))
             return z
+
+        if options.degrees:
+            finish = partial(degrees_seen.warn, name)
 
     found = sample_blocks(
         rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=True,
@@ -517,7 +527,7 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
         problems=problems, readings=readings,
     )  # fmt: skip
-    samples = _chunked(rows, found, convert, readings, f)
+    samples = _chunked(rows, found, convert, readings, f, finish)
     return MeasurementStream(description, f, samples, 0, rows)
 
 
@@ -535,10 +545,11 @@ def _chunked(
     convert: Convert,
     readings: ReadingCounts,
     formulation: Formulation,
+    finish: Callable[[], None] | None = None,
 ) -> Iterator[tuple[FloatArray, FloatArray]]:
     """Convert the blocks of :data:`CHUNK` rows, one at a time. Counts which IMUs
-    reported in ``readings``, and warns at the end for one that never did. The first
-    block's readings are checked against the robot's mounting
+    reported in ``readings``, and warns at the end for one that never did, then calls
+    ``finish``. The first block's readings are checked against the robot's mounting
     (:func:`~continuum_mhe.io.input_options.check_mounting`)."""
     first = True
     for block in found:
@@ -551,6 +562,8 @@ def _chunked(
         readings.add(z)
         yield block.t, z
     readings.warn_silent(rows.name)
+    if finish is not None:
+        finish()
 
 
 # --- step 3: the samples of a robot log ------------------------------------------------------
