@@ -111,8 +111,15 @@ def test_bag_without_rosbags(monkeypatch, tmp_path, capsys):
     _block(monkeypatch, "rosbags")
     code = main(["estimate", str(bag), "-o", str(tmp_path / "e.csv")])
     assert code == 2
-    _one_error_line(capsys.readouterr().err, "robot")
+    err = capsys.readouterr().err
+    _one_error_line(err, "robot")
+    assert "cannot read robot log" not in err  # the missing package, not a corrupt file
     assert not (tmp_path / "e.csv").exists()
+    from continuum_mhe.extras import MissingExtraError
+    from continuum_mhe.io.robot_logs import read_imu_log
+
+    with pytest.raises(MissingExtraError):  # the type a caller catches
+        read_imu_log(bag)
 
 
 def test_pyproject_extras_match_the_documented_ones():

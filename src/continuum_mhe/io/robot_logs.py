@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.extras import require
+from continuum_mhe.extras import MissingExtraError, require
 from continuum_mhe.io.csv_files import FloatArray, InputError, check_time_steps
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
@@ -215,7 +215,7 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
         bag = p.parent if p.suffix.lower() == ".db3" else p
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             return {c.topic: c.msgtype for c in reader.connections}
-    except InputError:
+    except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -243,7 +243,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
                 continue
             stamps.append(ns)
             rows.append(_row(msg))
-    except InputError:
+    except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
