@@ -179,11 +179,12 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
     from mcap.reader import make_reader
 
     from continuum_mhe.io.mcap_estimates import mcap_estimate_writer
+    from continuum_mhe.model.descriptions import pcc_outputs
 
     est, edited = tmp_path / "est.mcap", tmp_path / "edited.mcap"
     _estimate(write_mcap(tmp_path / "in.mcap", recording), est, "--method", "ekf")
     with est.open("rb") as src, edited.open("wb") as dst:
-        writer = mcap_estimate_writer(dst)
+        writer = mcap_estimate_writer(dst, pcc_outputs(1))
         seen = 0
         for seq, (_, channel, message) in enumerate(make_reader(src).iter_messages()):
             msg = json.loads(message.data)
@@ -471,3 +472,22 @@ def test_write_estimates_mcap_checks_the_section_lengths(tmp_path: Path) -> None
     write_estimates_mcap(out, series, robot.lengths)
     t, values, _ = read_estimates_mcap(out)
     np.testing.assert_allclose(t, series.t)
+    # the estimate channel's schema is the one of these outputs: every field of every
+    # message is declared, with the outputs' units
+    from mcap.reader import make_reader
+
+    with out.open("rb") as fh:
+        reader = make_reader(fh)
+        schema = next(
+            json.loads(sc.data) for sc in reader.get_summary().schemas.values()
+            if sc.name == "continuum_mhe.Estimate"
+        )  # fmt: skip
+        fields = [
+            set(json.loads(m.data))
+            for _, ch, m in reader.iter_messages(topics=["/continuum/estimate"])
+        ]
+    names = [o.name for o in series.outputs]
+    declared = schema["properties"]
+    assert list(declared) == ["t", *names, *(f"std_{n}" for n in names), "status", "solve_ms"]
+    assert declared["theta_2"]["description"] == "rad" and declared["x_1"]["description"] == "m"
+    assert all(f == set(declared) for f in fields) and len(fields) == len(series.t)

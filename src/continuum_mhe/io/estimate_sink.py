@@ -63,7 +63,7 @@ class EstimateSink:
         if self.mcap:
             self._cm = atomic_binary_writer(self.path)
             fb: IO[bytes] = self._cm.__enter__()
-            writer = mcap_estimate_writer(fb)
+            writer = mcap_estimate_writer(fb, self.outputs)
             if self.notes:
                 writer.metadata(NOTES_RECORD, dict(self.notes))
 

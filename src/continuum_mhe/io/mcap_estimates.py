@@ -59,23 +59,36 @@ SCHEMAS: dict[str, dict[str, Any]] = {
             "poses": {"type": "array", "items": _POSE},
         },
     },
-    "continuum_mhe.Estimate": {
-        "title": "continuum_mhe.Estimate",
-        "description": "Estimate CSV row: m, rad, ms; state fields null without estimate, "
-        "std_ fields (one standard deviation) null where unknown",
-        "type": "object",
-        "properties": {
-            **{k: {"type": ["number", "null"]} for k in ("t", "x", "y", "z", "theta", "phi")},
-            "status": {"type": "string"},
-            "solve_ms": {"type": "number"},
-        },
-    },
 }
+ESTIMATE_SCHEMA = "continuum_mhe.Estimate"
 TOPICS = {
     "/continuum/tip": "foxglove.PoseInFrame",
     "/continuum/backbone": "foxglove.PosesInFrame",
-    "/continuum/estimate": "continuum_mhe.Estimate",
+    "/continuum/estimate": ESTIMATE_SCHEMA,
 }
+
+
+def estimate_schema(outputs: Sequence[OutputSpec]) -> dict[str, Any]:
+    """The JSON schema of ``/continuum/estimate``: the estimate CSV's fields for these
+    ``outputs`` (each with its unit), their ``std_`` fields, ``status`` and
+    ``solve_ms``."""
+    number = {"type": ["number", "null"]}
+    fields: dict[str, Any] = {"t": {**number, "description": "s"}}
+    for o in outputs:
+        fields[o.name] = {**number, "description": o.unit}
+    for o in outputs:
+        fields[STD_PREFIX + o.name] = {**number, "description": f"{o.unit}, one std"}
+    return {
+        "title": ESTIMATE_SCHEMA,
+        "description": "Estimate CSV row: output fields null without an estimate, std_ "
+        "fields (one standard deviation) null where unknown",
+        "type": "object",
+        "properties": {
+            **fields,
+            "status": {"type": "string"},
+            "solve_ms": {"type": "number", "description": "ms"},
+        },
+    }
 
 
 def backbone_poses(
@@ -170,25 +183,27 @@ def write_estimates_mcap(
             f"of {sections} section(s)"
         )
     with atomic_binary_writer(path) as fh:
-        writer = mcap_estimate_writer(fh)
+        writer = mcap_estimate_writer(fh, series.outputs)
         for seq, (topic, ns, msg) in enumerate(estimate_messages(series, lengths, t0_ns)):
             writer.add(topic, ns, msg, seq)
         writer.finish()
 
 
 class McapEstimateWriter:
-    """An MCAP writer with the estimate channels registered (see the module doc)."""
+    """An MCAP writer with the estimate channels registered (see the module doc), the
+    estimate's schema that of ``outputs``."""
 
-    def __init__(self, fh: IO[bytes]) -> None:
+    def __init__(self, fh: IO[bytes], outputs: Sequence[OutputSpec]) -> None:
         require("mcap", "robot", "writing MCAP")
         from mcap.writer import CompressionType, Writer
 
         self._writer = Writer(fh, compression=CompressionType.NONE)
         self._writer.start(profile="", library="continuum-mhe")
         self._channels: dict[str, int] = {}
+        schemas = {**SCHEMAS, ESTIMATE_SCHEMA: estimate_schema(outputs)}
         for topic, schema in TOPICS.items():
             sid = self._writer.register_schema(
-                name=schema, encoding="jsonschema", data=json.dumps(SCHEMAS[schema]).encode()
+                name=schema, encoding="jsonschema", data=json.dumps(schemas[schema]).encode()
             )
             self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=sid
@@ -208,9 +223,9 @@ class McapEstimateWriter:
         self._writer.finish()
 
 
-def mcap_estimate_writer(fh: IO[bytes]) -> McapEstimateWriter:
-    """Start an estimate MCAP on an open binary file."""
-    return McapEstimateWriter(fh)
+def mcap_estimate_writer(fh: IO[bytes], outputs: Sequence[OutputSpec]) -> McapEstimateWriter:
+    """Start an estimate MCAP of estimates with these ``outputs`` on an open binary file."""
+    return McapEstimateWriter(fh, outputs)
 
 
 def read_estimates_mcap(

@@ -25,7 +25,7 @@ class OutputSpec:
 
     Attributes:
         name: column name, e.g. ``x`` or ``theta_2``.
-        unit: ``"m"`` or ``"rad"``.
+        unit: its unit (``"m"``, ``"rad"``, ``"rad/s"``, ``"N"``, ``"1"``).
         wrapped: True for an angle reported in ``[-pi, pi)`` (errors are wrapped too).
         section: 1-based section it belongs to, 0 for the tip.
     """
