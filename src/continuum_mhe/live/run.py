@@ -131,6 +131,8 @@ def run_live(
                     f"{settings.port} disconnected ({payload}); waiting for it to come back "
                     f"(retrying up to every {settings.retry_max_s:g} s, Ctrl-C to stop)"
                 )
+            elif kind == "retrying":
+                say(f"{settings.port} does not open yet ({payload}); still retrying")
             elif kind == "back":
                 waiting = False
                 session.device_back()

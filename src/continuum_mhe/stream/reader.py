@@ -52,8 +52,9 @@ def port_hint(port: str, exc: BaseException) -> str:
 
 class SerialReader(threading.Thread):
     """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
-    t)``, ``("partial", bytes, t)``, ``("lost", reason, t)`` and ``("back",
-    seconds_away, t)``. Reopens with backoff. An exception it does not expect (a
+    t)``, ``("partial", bytes, t)``, ``("lost", reason, t)``, ``("retrying", reason,
+    t)`` (a new reason the port does not reopen for) and ``("back", seconds_away, t)``.
+    Reopens with backoff. An exception it does not expect (a
     defect) closes the port and ends the thread with ``("failed", exception, t)`` as its
     last event, so that the queue's reader raises it instead of waiting for lines that
     will never come."""
@@ -111,15 +112,15 @@ class SerialReader(threading.Thread):
         end arrive late when this thread was slow (a busy machine), and are estimated
         too. At most ``limit_s`` s, for a device that keeps sending."""
         end = time.monotonic() + limit_s
-        try:
-            while time.monotonic() < end:
+        while time.monotonic() < end:
+            try:
                 waiting = self.conn.in_waiting
                 chunk = self.conn.read(min(waiting, 1 << 16)) if waiting else b""
-                if not chunk:
-                    return
-                self._feed(chunk)
-        except Exception:  # noqa: S110 - the device went away meanwhile: nothing more to read
-            pass
+            except Exception:  # the device went away meanwhile: nothing more to read
+                return
+            if not chunk:
+                return
+            self._feed(chunk)
 
     def _close(self) -> None:
         try:
@@ -128,12 +129,20 @@ class SerialReader(threading.Thread):
             pass
 
     def _reopen(self) -> None:
+        """Open the port again, with backoff, until it opens or the thread is told to
+        stop; each new reason it does not open for (a missing device, then no
+        permission after a replug) is one ``("retrying", reason, t)`` event."""
         lost = time.monotonic()
         delay = 0.1
+        said = None
         while not self.stop.wait(delay):
             try:
                 self.conn = open_port(self.port, self.baud)
-            except Exception:
+            except Exception as exc:
+                reason = str(exc).replace("\n", " ") or type(exc).__name__
+                if reason != said:
+                    self.events.put(("retrying", reason, time.monotonic()))
+                    said = reason
                 delay = min(2 * delay, self.retry_max_s)
                 continue
             self.splitter.resync()
