@@ -108,7 +108,7 @@ def test_step_after_run_suggests_reset():
 @pytest.mark.parametrize(
     ("module", "sig", "said", "code"),
     [
-        # Ctrl-C while the entry point imports the full command line (about 1 s)
+        # Ctrl-C while the entry point imports the full command line
         ("continuum_mhe.settings", "SIGINT", "continuum-mhe: interrupted\n", 130),
         # SIGTERM before the command line sets its handlers: killed, quietly
         ("continuum_mhe.settings", "SIGTERM", "", -signal.SIGTERM),

@@ -529,7 +529,7 @@ def test_unreachable_scheduler_is_a_user_error(monkeypatch: pytest.MonkeyPatch) 
     import dask.distributed as distributed
 
     client = distributed.Client
-    # the runner's Client gives a refused address 10 s of retries (10 s of the suite);
+    # the runner's Client retries a refused address for 10 s;
     # the same Client and the same error after 0.5 s
     monkeypatch.setattr(
         distributed, "Client", lambda address, **kw: client(address, **{**kw, "timeout": "0.5s"})

@@ -147,8 +147,7 @@ class MHESettings:
 #: between them. Five in a row is a sensor seen stuck at five instants (a live IMU's
 #: noise makes even two exact repeats uncommon), and a reading repeated for more than
 #: 1 s (the command line's ``--freeze``) at 3 Hz or more already spans five samples, so
-#: at the usual rates the duration decides as before and only slow or gappy data feel
-#: the count.
+#: at the usual rates the duration decides and only slow or gappy data feel the count.
 FREEZE_MIN_SAMPLES = 5
 
 

@@ -67,7 +67,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="replace the data of the experiments run that --out holds already",
     )
-    p.add_argument("--quick", action="store_true", help="small sizes (about 25 s on 2 cores)")
+    p.add_argument("--quick", action="store_true", help="small sizes, for a quick look")
     p.add_argument(
         "--jobs", type=int, default=None, help="local worker processes (default: all CPUs)"
     )
