@@ -455,7 +455,10 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
         [sys.executable, str(script)], capture_output=True, text=True, timeout=300
     )
     assert proc.returncode == 0, (proc.returncode, proc.stderr)
-    assert (tmp_path / "s.csv").exists()
+    from continuum_mhe.io.csv_files import read_measurements
+
+    written = read_measurements(tmp_path / "s.csv")  # complete: every sample to t = 1 s
+    assert written.t[0] == 0.0 and written.t[-1] == pytest.approx(1.0) and len(written.t) == 21
 
 
 @pytest.mark.parametrize(

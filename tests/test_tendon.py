@@ -603,14 +603,22 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
 
 def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
     """A tensions file that spans the recording with a second or more between rows
-    (tensions every 2.5 s beside a 50 Hz recording) is no millisecond file: read, not
-    refused."""
+    (tensions 1 s apart beside a 50 Hz recording) is no millisecond file: read in
+    seconds and interpolated, so the estimates are those of the same tensions given at
+    every sample's time."""
     meas, tensions = _recording(tmp_path)
     write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out)]  # fmt: skip
-    assert main(argv) == 0 and out.exists()
+    dense = tmp_path / "dense.csv"
+    t = np.arange(6) * 0.02
+    write_table(dense, ["t", "tension_1"], [[tk, 1.0 + 0.5 * tk] for tk in t])
+    robot = str(_small_robot(tmp_path))
+    for given, out in ((tensions, tmp_path / "e.csv"), (dense, tmp_path / "d.csv")):
+        argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(given), "-o", str(out),
+                "--method", "ekf"]  # fmt: skip
+        assert main(argv) == 0
+    slow, every = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "d.csv")
+    assert list(slow.status) == list(every.status)
+    np.testing.assert_allclose(slow.values, every.values, rtol=0, atol=1e-9)
 
 
 def test_skip_bad_leaves_out_a_bad_tension_row_and_says_so(
