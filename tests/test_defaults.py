@@ -5,9 +5,11 @@ two-section rod recordings and on data made here)."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import read_state_table
@@ -162,6 +164,41 @@ def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) ->
         "(IMU 2 reads upright: is IMU 1 alone mounted upside down? its mount_rpy)"
     )
     assert not est.exists()
+
+
+def test_an_imu_further_out_upside_down_is_named(tmp_path) -> None:
+    """IMU 2 mounted upside down (rolled 180 degrees: y and z of its accelerometer and
+    gyro reversed) on a robot that starts straight, IMU 1 upright: the estimate is made
+    (a section may start bent that far) with one MountingWarning naming IMU 2 and its
+    mount_rpy; the recording as it is gives none."""
+    import warnings
+
+    from continuum_mhe.io.input_options import MountingWarning
+
+    source = ROD / "spatial_raw.csv"
+    text = source.read_text(encoding="utf-8").splitlines()
+    header = text[0].split(",")
+    flip = [i for i, h in enumerate(header) if h in ("ay_2", "az_2", "gy_2", "gz_2")]
+    assert len(flip) == 4
+    rows = [",".join(f"{-float(x)!r}" if i in flip else x for i, x in enumerate(ln.split(",")))
+            for ln in text[1:]]  # fmt: skip
+    meas = tmp_path / "imu2_flipped.csv"
+    meas.write_text("\n".join([text[0], *rows]) + "\n", encoding="utf-8")
+    argv = ["estimate", str(meas), "--method", "ekf", "--robot", str(_robot(tmp_path))]
+    with pytest.warns(MountingWarning) as caught:
+        assert main([*argv, "-o", str(tmp_path / "e.csv")]) == 0
+    said = [str(w.message) for w in caught if issubclass(w.category, MountingWarning)]
+    assert len(said) == 1
+    assert re.match(
+        rf"{re.escape(str(meas))}: mounting: at the start gravity puts IMU 2 17\d degrees from "
+        r"the straight pose and IMU 1 \d degrees: the robot between them would start bent "
+        r"17\d degrees or more; is IMU 2 mounted upside down\? \(its mount_rpy",
+        said[0],
+    ), said[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MountingWarning)
+        args = [str(source), "--method", "ekf", "--robot", str(_robot(tmp_path))]
+        assert main(["estimate", *args, "-o", str(tmp_path / "f.csv")]) == 0
 
 
 def test_raw_imus_use_their_gyros_by_default() -> None:

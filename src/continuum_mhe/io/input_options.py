@@ -254,7 +254,41 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
     (a hanging robot described as ``z-up``, or the reverse). Past 90 degrees (by
     :data:`MOUNTING_MARGIN`) but within it, a :class:`MountingWarning` says which
     mounting the start is closer to, and whether the sections' ``theta_max`` let the
-    stated mounting reach it at all."""
+    stated mounting reach it at all. The IMUs further out are checked against the one
+    before them (:func:`check_imu_mountings`)."""
+    _check_base_mounting(name, z, formulation)
+    check_imu_mountings(name, z, formulation)
+
+
+def check_imu_mountings(name: str, z: FloatArray, formulation: Formulation) -> None:
+    """A :class:`MountingWarning` for each IMU whose first readings put it more than
+    :data:`MOUNTING_FLIPPED` further from (or nearer to) the straight pose than the IMU
+    before it (base first): the sections between them would start bent that far at
+    least (the difference of the two angles from the vertical bounds their bend from
+    below), which an IMU mounted upside down reads, a robot at rest seldom."""
+    robot = formulation.robot
+    order = sorted(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
+    angles = {k: imu_start_angle(z, formulation, k) for k in order}
+    seen = [k for k in order if angles[k] is not None]
+    for before, k in zip(seen, seen[1:]):
+        a, b = angles[before], angles[k]
+        assert a is not None and b is not None
+        if abs(b - a) <= MOUNTING_FLIPPED:
+            continue
+        warnings.warn(
+            f"{name}: mounting: at the start gravity puts IMU {k + 1} {math.degrees(b):.0f} "
+            f"degrees from the straight pose and IMU {before + 1} {math.degrees(a):.0f} "
+            "degrees: the robot between them would start bent "
+            f"{math.degrees(abs(b - a)):.0f} degrees or more; is IMU {k + 1} mounted upside "
+            "down? (its mount_rpy; the estimates of a "
+            "robot whose IMU is mounted otherwise than its robot file says are far off)",
+            MountingWarning,
+            stacklevel=3,
+        )
+
+
+def _check_base_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
+    """:func:`check_mounting`'s check of the IMU nearest the base."""
     got = start_bend_angle(z, formulation)
     if got is None or got[1] <= math.pi / 2 + MOUNTING_MARGIN:  # not clearly closer to
         return  # the other mounting's straight pose
@@ -302,5 +336,5 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
         f"--mounting {other}; the estimates of a robot described the wrong way up are far "
         f"off){alone}{bound}",
         MountingWarning,
-        stacklevel=3,
+        stacklevel=4,
     )
