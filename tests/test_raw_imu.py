@@ -363,6 +363,23 @@ def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
     assert np.isnan(first.acc[1]).all() and np.isfinite(second.acc).all()
 
 
+def test_an_accelerometer_in_raw_counts_is_named_not_read_as_dropouts(tmp_path: Path) -> None:
+    """Most readings of one IMU of several beyond any IMU's range (an accelerometer in
+    raw counts, 16384 per g): one InputError naming that IMU and the unit, not a
+    recording whose IMU never reported; a single such reading stays a dropout (above)."""
+    header = "t," + ",".join(
+        f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")
+    )
+    rows = "".join(f"{0.02 * k},0,0,9.8,0,0,0,0,164,16383,0,0,0\n" for k in range(5))
+    path = _write(tmp_path / "counts.csv", header + "\n" + rows)
+    with pytest.raises(
+        InputError,
+        match=r"^.*counts.csv: IMU 2: accelerometer magnitude is about 1\.64e\+04 \(median\), "
+        r"beyond any IMU's range in m/s\^2 \(limit 10000\): raw counts\? give m/s\^2",
+    ):
+        read_raw_imus(path, 2)
+
+
 @pytest.mark.parametrize(
     ("rate", "fails"), [(0.99 * GYRO_MEDIAN_MAX, False), (1.01 * GYRO_MEDIAN_MAX, True)]
 )

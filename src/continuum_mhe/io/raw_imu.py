@@ -367,6 +367,7 @@ def raw_blocks(
         gyr_norm = np.hypot.reduce(block[:, 3:6], axis=1) if has_gyro else np.zeros(len(acc))
         zero = acc_norm == 0.0  # no gravity direction to read
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
+        check_accel_range(name if n_imus == 1 else f"{name}: IMU {i + 1}", acc_norm)
         if n_imus == 1:
             for j in np.flatnonzero(zero | huge):
                 msg = f"line {lines[int(j)]}: " + (
@@ -429,6 +430,21 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped)
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
+
+
+def check_accel_range(label: str, acc_norm: FloatArray) -> None:
+    """An accelerometer most of whose readings (magnitudes ``acc_norm`` of its finite
+    rows, m/s^2) are beyond any IMU's range is in another unit (raw counts): a one-line
+    :class:`InputError` naming ``label``, rather than every reading a dropout (a few
+    corrupt values stay dropouts)."""
+    finite = acc_norm[np.isfinite(acc_norm)]
+    if 2 * int((finite > ACCEL_READING_MAX).sum()) <= len(finite):
+        return
+    raise InputError(
+        f"{label}: accelerometer magnitude is about {float(np.median(finite)):.3g} (median), "
+        f"beyond any IMU's range in m/s^2 (limit {ACCEL_READING_MAX:g}): raw counts? "
+        "give m/s^2 (counts times g over the counts per g, e.g. 9.81 / 16384 at +-2 g)"
+    )
 
 
 def check_accel_units(path: Path | str, acc: FloatArray) -> None:
