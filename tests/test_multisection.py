@@ -343,7 +343,7 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
         ("[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\nat = 0\n", "imu 1: at must lie"),
         ("[[section]]\nlength = 0.1\ncolour = 1\n[[imu]]\nsection = 1\n", "unknown key 'colour'"),
         ("[[section]]\nlength = 0.1\n", "no [[imu]]"),
-        ("[[section]]\nlength = 200\n[[imu]]\nsection = 1\n", "millimetres?"),
+        ("[[section]]\nlength = 200\n[[imu]]\nsection = 1\n", "millimetres or centimetres?"),
         ("[[section]]\nlength = 0.1\ntheta_max = 90\n[[imu]]\nsection = 1\n", "degrees?"),
         ("mounting = 'sideways'\n[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\n", "mounting"),
         ("[[section]\n", "not valid TOML"),

@@ -297,8 +297,9 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
         .err.strip()
         .endswith(
             f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
-            "--gap-reset 1 s: if t is in milliseconds, name the column t_ms (else raise "
-            "--gap-reset, or 0: never); nothing written"
+            "--gap-reset 1 s: t must be in seconds: if in milliseconds, name the column t_ms; "
+            "if in microseconds, give seconds (else raise --gap-reset, or 0: never); nothing "
+            "written"
         )
     )
     with pytest.warns(UnitWarning):  # told to: the estimate is written
@@ -313,3 +314,62 @@ def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
     ]
     with pytest.warns(UnitWarning, match=r"samples per second\); t must be in seconds$"):
         read_measurements(_write(tmp_path / "m.csv", "\n".join(us) + "\n"))
+
+
+@pytest.mark.parametrize(
+    ("column", "scale", "said"),
+    [
+        (
+            "t_ms",
+            1.0,
+            r"t_ms advances by a median of 5e-05 s per sample \(2e\+04 samples per "
+            r"second\); t_ms must be in milliseconds: seconds\? name the column t$",
+        ),
+        (
+            "t_ms",
+            1e6,
+            r"t_ms advances by a median of 50 s per sample; t_ms must be in "
+            r"milliseconds: microseconds\? give milliseconds$",
+        ),
+        (
+            "t",
+            1e6,
+            r"t advances by a median of 50000 s per sample; t in microseconds\? give "
+            r"seconds \(or milliseconds in a column named t_ms\)$",
+        ),
+    ],
+)
+def test_a_time_column_in_another_unit_is_named_with_its_own_fix(
+    tmp_path: Path, column: str, scale: float, said: str
+) -> None:
+    """Seconds in a ``t_ms`` column, microseconds in ``t_ms`` or in ``t``: the warning
+    names the column's unit and the fix that fits it (not "name the column t_ms" for a
+    column so named)."""
+    lines = _csv().splitlines()
+    header = lines[0].replace("t,", f"{column},", 1)
+    rows = [",".join([f"{float(r.split(',')[0]) * scale!r}", *r.split(",")[1:]])
+            for r in lines[1:]]  # fmt: skip
+    with pytest.warns(UnitWarning, match=said):
+        read_measurements(_write(tmp_path / "m.csv", "\n".join([header, *rows]) + "\n"))
+
+
+def test_microseconds_in_a_t_ms_column_are_refused_naming_that_column(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ``t_ms`` column in microseconds restarts at every sample: the refusal names the
+    column's own unit, not a rename to the name it has."""
+    lines = _csv().splitlines()
+    header = lines[0].replace("t,", "t_ms,", 1)
+    rows = [",".join([f"{float(r.split(',')[0]) * 1e6!r}", *r.split(",")[1:]])
+            for r in lines[1:]]  # fmt: skip
+    path = _write(tmp_path / "m.csv", "\n".join([header, *rows]) + "\n")
+    with pytest.warns(UnitWarning):
+        assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv")]) == 2
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(
+            "--gap-reset 1 s: t_ms must be in milliseconds: microseconds? (else raise "
+            "--gap-reset, or 0: never); nothing written"
+        )
+    )

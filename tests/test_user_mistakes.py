@@ -63,7 +63,7 @@ def test_a_user_error_is_exit_2(monkeypatch, capsys) -> None:
         (["--noise-deg", "1e300"], "--noise-deg 1e+300 is outside its valid range [0, 90] deg"),
         (["--gyro-std", "1e300"], "--gyro-std 1e+300 is outside"),
         (["--accel-psd", "1e300", "--method", "ukf"], "--accel-psd 1e+300 is outside"),
-        (["--length", "200"], "millimetres?"),
+        (["--length", "200"], "millimetres or centimetres?"),
         (["--theta-max", "90"], "degrees?"),
         (["--horizon", "1"], "--horizon 1 is outside its valid range [2, 1000]"),
         (["--noise-deg", "nan"], "--noise-deg nan is outside"),

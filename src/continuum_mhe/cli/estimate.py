@@ -128,8 +128,13 @@ def run(args: argparse.Namespace) -> int:
                 )
             if n >= 3 and diag.gap_resets > n // 2:  # t in ms read as s, most often
                 fix = "raise --gap-reset, or 0: never"
-                if stream.kind != "log":  # a log's t comes from its own timestamps
-                    fix = f"if t is in milliseconds, name the column t_ms (else {fix})"
+                if stream.description.time_in_ms:
+                    fix = f"t_ms must be in milliseconds: microseconds? (else {fix})"
+                elif stream.kind != "log":  # a log's t comes from its own timestamps
+                    fix = (
+                        "t must be in seconds: if in milliseconds, name the column t_ms; if "
+                        f"in microseconds, give seconds (else {fix})"
+                    )
                 raise InputError(
                     f"{stream.name}: {diag.gap_resets} of {n} samples restarted the estimator "
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "

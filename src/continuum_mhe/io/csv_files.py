@@ -294,16 +294,29 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     )
 
 
+#: A median step of ``t`` (read in seconds) over this is microseconds rather than
+#: milliseconds (a 1 Hz stream in ms steps by 1000).
+US_LIKE_STEP_S = 2000.0
+
+
 def check_time_units(rows: TextRows, t: FloatArray) -> None:
-    """Warn once when a ``t`` column in seconds steps like another unit
-    (:func:`check_time_steps`), naming the likely cause and the fix."""
+    """Warn once when a ``t`` column in seconds, or a ``t_ms`` column in milliseconds,
+    steps like another unit (:func:`check_time_steps`), naming the likely cause and the
+    fix."""
+    if rows.time_scale == 1e-3:  # t_ms: t (s) is t_ms / 1000
+        check_time_steps(
+            rows.name, "t_ms advances", t,
+            "t_ms must be in milliseconds: microseconds? give milliseconds",
+            "t_ms must be in milliseconds: seconds? name the column t",
+        )  # fmt: skip
+        return
     if rows.time_scale != 1.0:
         return
-    check_time_steps(
-        rows.name, "t advances", t,
-        "if t is in milliseconds, name the column t_ms (it is read in seconds)",
-        "t must be in seconds",
-    )  # fmt: skip
+    steps = np.diff(t)
+    slow = "if t is in milliseconds, name the column t_ms (it is read in seconds)"
+    if len(steps) and float(np.median(steps)) > US_LIKE_STEP_S:
+        slow = "t in microseconds? give seconds (or milliseconds in a column named t_ms)"
+    check_time_steps(rows.name, "t advances", t, slow, "t must be in seconds")
 
 
 class UnitWarning(UserWarning):

@@ -135,6 +135,11 @@ class InputDescription:
     readings: ReadingCounts | None = None
     notes: tuple[str, ...] = ()
 
+    @property
+    def time_in_ms(self) -> bool:
+        """The table's time column is ``t_ms`` (read in milliseconds)."""
+        return self.units.startswith("t in ms")
+
     def summary(self) -> tuple[str, ...]:
         """Clauses for a run's summary line: the IMUs' readings and the bad rows (none
         where there is nothing to say)."""

@@ -114,7 +114,7 @@ class Section:
         if self.length > MAX_SECTION_LENGTH:
             raise UserError(
                 f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
-                "lengths are in metres (millimetres?)"
+                "lengths are in metres (millimetres or centimetres?)"
             )
         check_theta_max(self.theta_max)
 
@@ -213,7 +213,7 @@ class Backbone:
         if self.radius > MAX_RADIUS:
             raise UserError(
                 f"backbone radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
-                "metres (millimetres?)"
+                "metres (millimetres or centimetres?)"
             )
         if self.youngs_modulus < 1e5:
             raise UserError(
@@ -270,7 +270,7 @@ class Tendon:
         if self.radius > MAX_RADIUS:
             raise UserError(
                 f"tendon radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
-                "metres (millimetres?)"
+                "metres (millimetres or centimetres?)"
             )
 
     @property
