@@ -646,7 +646,9 @@ class OptionRange:
 #: Every numeric command-line option (by its ``argparse`` destination) and its valid
 #: range: the one place they are stated; docs/reliability.md lists them (a test checks).
 OPTION_RANGES: dict[str, OptionRange] = {
-    "length": OptionRange(0.005, 5.0, "m", above="millimetres or centimetres? --length is in metres, e.g. 0.2"),
+    "length": OptionRange(
+        0.005, 5.0, "m", above="millimetres or centimetres? --length is in metres, e.g. 0.2"
+    ),
     "theta_max": OptionRange(0.0, math.pi, "rad", lo_open=True, hi_open=True, hint=theta_max_hint),
     "noise_deg": OptionRange(0.0, 90.0, "deg", above="--noise-deg is in degrees"),
     "accel_psd": OptionRange(1e-9, 1e4, "rad^2/s^3"),
