@@ -23,14 +23,13 @@ from continuum_mhe.evaluation.metrics import (
     steady_ratio,
 )
 from continuum_mhe.io.csv_files import (
-    TIP_COLUMNS,
     InputError,
     check_same_robot,
     misspelt_columns,
     read_state_table,
 )
 from continuum_mhe.io.estimate_files import read_estimates
-from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
 def _align(
@@ -116,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
                 truth.names,
             )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
-    xyz = [est.names.index(c) for c in ("x", "y", "z")], [truth.names.index(c) for c in "xyz"]
+    xyz = [est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS]
     hint = other_robot or _length_hint(
         est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
     )

@@ -17,7 +17,7 @@ from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable
 from continuum_mhe.io.tensions import Tensions
-from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
@@ -64,7 +64,7 @@ def tracked_points(names: Sequence[str]) -> tuple[TrackedPoint, ...]:
         ends.append(TrackedPoint(f"section {k} end", (f"x_{k}", f"y_{k}", f"z_{k}")))
         k += 1
     if not ends:
-        return (TrackedPoint("tip", ("x", "y", "z")),)
+        return (TrackedPoint("tip", TIP_COLUMNS),)
     last = ends[-1]
     return (*ends[:-1], TrackedPoint(f"tip (section {len(ends)} end)", last.columns))
 
@@ -181,8 +181,8 @@ def truth_points(est: StateTable, truth: StateTable) -> list[TrackedPoint | None
     for i, p in enumerate(points):
         if all(c in truth.names for c in p.columns):
             found.append(p)
-        elif i == len(points) - 1 and all(c in truth.names for c in "xyz"):
-            found.append(TrackedPoint(p.label, ("x", "y", "z")))
+        elif i == len(points) - 1 and all(c in truth.names for c in TIP_COLUMNS):
+            found.append(TrackedPoint(p.label, TIP_COLUMNS))
         else:
             found.append(None)
     return found
@@ -377,7 +377,7 @@ def _backbones(
             if backbone is not None and has_tip_force(table.names):
                 line = backbone(table, row)
                 if table is est:
-                    tip = [table.column(c)[row] for c in ("x", "y", "z")]
+                    tip = [table.column(c)[row] for c in TIP_COLUMNS]
                     off = max(off, float(np.linalg.norm(line[-1] - tip)))
             elif (
                 curve and s is not None and lengths is not None and has_bend_columns(table.names, n)

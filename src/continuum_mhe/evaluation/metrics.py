@@ -16,7 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.errors import UserError, real_number
-from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, output_names, pcc_outputs
+from continuum_mhe.model.descriptions import (
+    TIP_COLUMNS,
+    TIP_FORCE_COLUMNS,
+    output_names,
+    pcc_outputs,
+)
 from continuum_mhe.model.imu import wrap_angle
 
 FloatArray = NDArray[np.float64]
@@ -136,7 +141,7 @@ def compute_metrics(
     if len(est_all) != len(tru_all):
         raise UserError(f"estimate has {len(est_all)} rows but truth has {len(tru_all)}")
     common = [c for c in names if c in tnames]
-    for c in ("x", "y", "z"):
+    for c in TIP_COLUMNS:
         if c not in common:
             raise UserError(f"both sides need the tip column {c!r}")
     est = est_all[:, [names.index(c) for c in common]]
@@ -254,7 +259,7 @@ def compute_calibration(
         for j, c in enumerate(common)
     }
     counts = {c: int(ok[:, j].sum()) for j, c in enumerate(common)}
-    tip = [common.index(c) for c in ("x", "y", "z") if c in common]
+    tip = [common.index(c) for c in TIP_COLUMNS if c in common]
     rows = np.all(ok[:, tip], axis=1) & np.all(sd[:, tip] > 0, axis=1) if len(tip) == 3 else []
     n_tip = int(np.sum(rows))
     if n_tip:

@@ -47,15 +47,19 @@ from continuum_mhe.io.text_rows import (
     open_rows,
     parse_float,
 )
-from continuum_mhe.model.descriptions import OutputSpec, output_names, pcc_outputs, tilt_blocks
+from continuum_mhe.model.descriptions import (
+    TIP_COLUMNS,
+    OutputSpec,
+    output_names,
+    pcc_outputs,
+    tilt_blocks,
+)
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
 
 FloatArray = NDArray[np.float64]
 
-#: The tip position columns every estimate and truth file has.
-TIP_COLUMNS = ("x", "y", "z")
 #: One section's state columns (the paper's robot); several sections: see
 #: :func:`~continuum_mhe.model.descriptions.pcc_outputs`.
 STATE_COLUMNS = ("t", *output_names(pcc_outputs(1)))

@@ -18,7 +18,12 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
-from continuum_mhe.io.csv_files import FloatArray, InputError, estimate_columns, estimate_row
+from continuum_mhe.io.csv_files import (
+    FloatArray,
+    InputError,
+    estimate_columns,
+    estimate_row,
+)
 from continuum_mhe.io.raw_imu import (
     UNIT_CHECK_SAMPLES,
     RawImuConverter,
@@ -26,6 +31,7 @@ from continuum_mhe.io.raw_imu import (
     check_gyro_units,
 )
 from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream
+from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
@@ -694,7 +700,7 @@ class LiveSession:
         outputs = self.formulation.outputs
         names = [o.name for o in outputs]
         v = dict(zip(names, est.output if est.output is not None else ()))
-        tip = ",".join(f"{v[k] * 1e3:.0f}" for k in ("x", "y", "z") if k in v)
+        tip = ",".join(f"{v[k] * 1e3:.0f}" for k in TIP_COLUMNS if k in v)
         angles = " ".join(
             f"{o.name}={math.degrees(v[o.name]):.1f}" for o in outputs if o.unit == "rad"
         )

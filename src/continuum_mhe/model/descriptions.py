@@ -69,7 +69,9 @@ class MeasurementBlock:
         return slice(self.start, self.start + self.size)
 
 
-TIP_OUTPUTS = (OutputSpec("x", "m"), OutputSpec("y", "m"), OutputSpec("z", "m"))
+#: The tip position columns every estimate and truth file has, and their outputs.
+TIP_COLUMNS: tuple[str, str, str] = ("x", "y", "z")
+TIP_OUTPUTS = tuple(OutputSpec(c, "m") for c in TIP_COLUMNS)
 #: a tendon robot's tip force outputs (N, base frame)
 TIP_FORCE_COLUMNS = ("fx", "fy", "fz")
 

@@ -395,11 +395,14 @@ def write_rest_recording(
 
 
 def _write_imu_table(path: Path, t: FloatArray, f: FloatArray, w: FloatArray) -> Path:
-    """``t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...`` (t from 0)."""
+    """``t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...`` (t from 0) of the IMUs' specific
+    forces ``f`` and rates ``w`` (n, n_imus, 3)."""
     from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.io.raw_imu import raw_columns
 
-    cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
-    rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
+    n_imus = f.shape[1]
+    cols = ["t", *(c for k in range(n_imus) for c in raw_columns(k, n_imus))]
+    rows = np.column_stack([t - t[0]] + [np.hstack([f[:, k], w[:, k]]) for k in range(n_imus)])
     write_table(path, cols, rows.tolist())
     return path
 
@@ -469,7 +472,8 @@ def write_trajectory_recording(
     """The files of :func:`write_section_recording` from a simulated trajectory (so
     that one simulation can be sampled by several IMUs; ``misalignment_axes`` as in
     :func:`imu_samples`)."""
-    from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.io.csv_files import tilt_columns, write_table
+    from continuum_mhe.model.descriptions import output_names, pcc_outputs
     from continuum_mhe.model.imu import tilt_from_accelerometer
 
     imu = imu or DEFAULT_IMU
@@ -481,19 +485,18 @@ def write_trajectory_recording(
     tip = nodes[:, :, -1] - nodes[:, :, 0]
     ends = [nodes[:, :, traj.end_nodes[k]] - nodes[:, :, 0] for k in range(2)]
     _write_imu_table(out / f"{name}_raw.csv", t, f, w)
-    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(2)])
+    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(f.shape[1])])
     write_table(
         out / f"{name}_tilt.csv",
-        ["t", "roll_1", "pitch_1", "roll_2", "pitch_2"],
+        ["t", *tilt_columns(f.shape[1])],
         np.column_stack([t, tilt]).tolist(),
     )
     b = bends[idx]
     theta = np.hypot(b[..., 0], b[..., 1])
     phi = np.arctan2(b[..., 1], b[..., 0])
-    truth_cols = ["t", "x", "y", "z"]
+    truth_cols = ["t", *output_names(pcc_outputs(len(ends)))]  # the estimate's columns
     truth = [t, *tip.T]
-    for k in range(2):
-        truth_cols += [f"theta_{k + 1}", f"phi_{k + 1}", f"x_{k + 1}", f"y_{k + 1}", f"z_{k + 1}"]
+    for k in range(len(ends)):
         truth += [theta[:, k], phi[:, k], *ends[k].T]
     write_table(out / f"{name}_truth.csv", truth_cols, np.column_stack(truth).tolist())
     floor = np.linalg.norm(fk_tip[idx] - tip, axis=1) * 1e3

@@ -322,7 +322,8 @@ def write_tendon_recording(
     :class:`~continuum_mhe.errors.UserError`."""
     import casadi as ca
 
-    from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.io.csv_files import tilt_columns, write_table
+    from continuum_mhe.io.raw_imu import raw_columns
     from continuum_mhe.model.imu import tilt_from_accelerometer
     from continuum_mhe.model.tendon_statics import swing_twist_sym
 
@@ -334,13 +335,14 @@ def write_tendon_recording(
     t, f, w, idx = imu_samples(sec, imu, seed)
     t = t - t[0]
     out.mkdir(parents=True, exist_ok=True)
-    cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
-    raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(2)])
+    n_imus = f.shape[1]
+    cols = ["t", *(c for k in range(n_imus) for c in raw_columns(k, n_imus))]
+    raw = np.column_stack([t] + [np.hstack([f[:, k], w[:, k]]) for k in range(n_imus)])
     write_table(out / f"{name}_raw.csv", cols, np.round(raw, 6).tolist())
-    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(2)])
+    tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(n_imus)])
     write_table(
         out / f"{name}_tilt.csv",
-        ["t", "roll_1", "pitch_1", "roll_2", "pitch_2"],
+        ["t", *tilt_columns(n_imus)],
         np.round(np.column_stack([t, tilt]), 6).tolist(),
     )
     tcols = ["t"] + [f"tension_{i}" for i in range(1, robot.n_tendons + 1)]
