@@ -6,6 +6,7 @@ import csv
 import functools
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -646,3 +647,30 @@ def test_simulate_says_that_a_robot_files_mount_rpy_is_not_applied(tmp_path, cap
     assert main(["simulate", "spatial", "--robot", "two-section", "--duration", "1",
                  "-o", str(tmp_path / "m2.csv")]) == 0  # fmt: skip
     assert "mount_rpy" not in capsys.readouterr().err
+
+
+def test_evaluate_warns_when_the_truths_clock_is_offset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A truth file whose times run 0.5 s late (another clock): evaluate warns, naming
+    the shift and both errors; the truth as it was gives no warning."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "2"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    rows = truth.read_text().splitlines()
+    late = tmp_path / "late.csv"
+    late.write_text(
+        "\n".join([rows[0], *(f"{float(r.split(',')[0]) + 0.5!r},{r.split(',', 1)[1]}"
+                             for r in rows[1:])]) + "\n"
+    )  # fmt: skip
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["evaluate", str(est), str(late)]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
+    assert len(said) == 1 and re.fullmatch(
+        rf"continuum-mhe: warning: {re.escape(str(late))}: the truth fits the estimate best "
+        r"\+0\.5 s later \(mean tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
+        r"are the two files' clocks offset\?",
+        said[0],
+    ), said

@@ -15,6 +15,7 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
+    best_time_shift,
     compute_calibration,
     compute_metrics,
     length_misfit,
@@ -24,6 +25,7 @@ from continuum_mhe.evaluation.metrics import (
 )
 from continuum_mhe.io.csv_files import (
     InputError,
+    StateTable,
     check_same_robot,
     misspelt_columns,
     read_state_table,
@@ -81,6 +83,33 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
     )
 
 
+#: ``evaluate`` warns where the truth shifted in time fits the estimate with a mean tip
+#: error below this share of the unshifted one, itself at least :data:`SHIFT_MIN_ERROR`
+#: of the robot's length.
+SHIFT_GAIN = 0.5
+SHIFT_MIN_ERROR = 0.05
+
+
+def _shift_hint(
+    path: str, est: StateTable, truth: StateTable, xyz: tuple[list[int], list[int]], length: float
+) -> str:
+    """A warning where the truth's clock looks offset from the estimate's (a shift of
+    the truth within 2 s fits far better: :func:`best_time_shift`), else ``""``."""
+    shift = best_time_shift(est.t, est.values[:, xyz[0]], truth.t, truth.values[:, xyz[1]])
+    if (
+        shift is None
+        or shift.shift_s == 0.0
+        or shift.unshifted < SHIFT_MIN_ERROR * length
+        or not shift.error < SHIFT_GAIN * shift.unshifted
+    ):
+        return ""
+    return (
+        f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later (mean tip error "
+        f"{shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as the times "
+        "match): are the two files' clocks offset?"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
@@ -115,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
                 truth.names,
             )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
-    xyz = [est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS]
+    xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
     hint = other_robot or _length_hint(
         est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
     )
@@ -126,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
     warned = [hint] if other_robot or not misfits else misfits
+    warned.append(_shift_hint(args.truth, est, truth, xyz, length))
     for line in filter(None, warned):
         print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:

@@ -354,3 +354,56 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
     match = np.abs(t_truth[nearest] - t_est) <= TIME_MATCH * np.maximum(1.0, np.abs(t_est))
     return np.flatnonzero(match), nearest[match]
+
+
+#: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way,
+#: on at most :data:`SHIFT_ROWS` rows of the estimate.
+SHIFT_MAX_S = 2.0
+SHIFT_ROWS = 20_000
+
+
+@dataclass(frozen=True)
+class TimeShift:
+    """The shift of the truth's clock that fits an estimate best: the truth read at
+    ``t + shift_s`` (s) gives the mean tip error ``error`` (m), against ``unshifted``
+    (m) at ``t``."""
+
+    shift_s: float
+    error: float
+    unshifted: float
+
+
+def best_time_shift(
+    t_est: FloatArray, tip_est: FloatArray, t_truth: FloatArray, tip_truth: FloatArray
+) -> TimeShift | None:
+    """The shift of the truth (``t_truth`` (m,) s, ``tip_truth`` (m, 3) m) within
+    :data:`SHIFT_MAX_S` s, in steps of the estimate's median sample period, that gives
+    the smallest mean tip error against the estimate (``t_est`` (n,), ``tip_est`` (n,
+    3), NaN rows left out), the truth interpolated linearly at the shifted times; None
+    where fewer than 10 rows compare or the times do not increase. A clock offset
+    between the two files shows as a shift whose error is far below the unshifted one."""
+    keep = np.all(np.isfinite(tip_est), axis=1)
+    t_e, x_e = t_est[keep], tip_est[keep]
+    if len(t_e) > SHIFT_ROWS:
+        pick = np.linspace(0, len(t_e) - 1, SHIFT_ROWS).astype(int)
+        t_e, x_e = t_e[pick], x_e[pick]
+    good = np.all(np.isfinite(tip_truth), axis=1)
+    t_t, x_t = t_truth[good], tip_truth[good]
+    if len(t_e) < 10 or len(t_t) < 2 or np.any(np.diff(t_t) <= 0) or np.any(np.diff(t_e) <= 0):
+        return None
+    step = float(np.median(np.diff(t_e)))
+    if not step > 0:
+        return None
+    lags = np.arange(-math.floor(SHIFT_MAX_S / step), math.floor(SHIFT_MAX_S / step) + 1)
+
+    def error(shift: float) -> float:
+        at = t_e + shift
+        inside = (at >= t_t[0]) & (at <= t_t[-1])
+        if inside.sum() < 10:
+            return math.inf
+        truth = np.column_stack([np.interp(at[inside], t_t, x_t[:, k]) for k in range(3)])
+        return float(np.mean(np.linalg.norm(x_e[inside] - truth, axis=1)))
+
+    errors = [error(float(k) * step) for k in lags]
+    best = int(np.argmin(errors))
+    return TimeShift(float(lags[best]) * step, errors[best], error(0.0))
