@@ -201,6 +201,39 @@ def test_an_imu_further_out_upside_down_is_named(tmp_path) -> None:
         assert main(["estimate", *args, "-o", str(tmp_path / "f.csv")]) == 0
 
 
+def test_the_imus_further_out_are_judged_where_both_read_and_within_theta_max() -> None:
+    """The check of an IMU against the one before it: 178 degrees between them warns;
+    150 degrees, which the section's theta_max of 3.0 rad can bend, does not; nor does
+    an IMU silent at the start whose first readings come when the robot has bent (its
+    angle is compared with the other IMU's at the same rows)."""
+    import warnings
+
+    from continuum_mhe.io.input_options import MountingWarning, check_imu_mountings
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    f = make_formulation("bend", read_robot(DATA / "robots/two_section.toml"))  # 3.0 rad each
+    stiff = Robot(  # sections that bend 2.0 rad (115 degrees) at most
+        (Section(0.16, theta_max=2.0), Section(0.14, theta_max=2.0)),
+        (ImuPlacement(section=0), ImuPlacement(section=1)),
+    )
+
+    def start(second: float, first: float = 0.0, rows: int = 30) -> np.ndarray:
+        z = np.zeros((rows, 4))
+        z[:, 0], z[:, 2] = math.radians(first), math.radians(second)  # roll: the tilt
+        return z
+
+    with pytest.warns(MountingWarning, match=r"puts IMU 2 178 degrees .* and IMU 1 0 degrees"):
+        check_imu_mountings("m.csv", start(178.0), f)
+    late = np.vstack([start(150.0), start(142.0, first=62.0)])
+    late[:30, 2:] = np.nan  # IMU 2 silent while IMU 1 reads straight, then 80 degrees apart
+    with pytest.warns(MountingWarning, match=r"puts IMU 2 150 degrees"):
+        check_imu_mountings("m.csv", start(150.0), make_formulation("bend", stiff))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MountingWarning)
+        check_imu_mountings("m.csv", start(150.0), f)
+        check_imu_mountings("m.csv", late, make_formulation("bend", stiff))
+
+
 def test_raw_imus_use_their_gyros_by_default() -> None:
     """A raw file with gyro columns and only a robot file: the direct model with each
     gyro's bias estimated and a MEMS gyro's noise; without gyro columns, tilt."""

@@ -402,7 +402,9 @@ def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(
     dropouts get)."""
     from continuum_mhe.estimators.sensor_health import STATUSES, Batch, Estimator
 
-    def rejected(self: Estimator, t: np.ndarray, z: np.ndarray, *args: object) -> Batch:
+    def rejected(
+        self: Estimator, t: np.ndarray, z: np.ndarray, *args: object, **kwargs: object
+    ) -> Batch:
         n, ny = len(t), self.formulation.ny
         return Batch(
             status=np.full(n, STATUSES.index(Status.NO_ESTIMATE), dtype=np.int32),

@@ -370,7 +370,7 @@ def test_an_accelerometer_in_raw_counts_is_named_not_read_as_dropouts(tmp_path: 
     header = "t," + ",".join(
         f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")
     )
-    rows = "".join(f"{0.02 * k},0,0,9.8,0,0,0,0,164,16383,0,0,0\n" for k in range(5))
+    rows = "".join(f"{0.02 * k},0,0,9.8,0,0,0,0,164,16383,0,0,0\n" for k in range(12))
     path = _write(tmp_path / "counts.csv", header + "\n" + rows)
     with pytest.raises(
         InputError,

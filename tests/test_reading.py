@@ -334,8 +334,8 @@ def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
         (
             "t",
             1e6,
-            r"t advances by a median of 50000 s per sample; t in microseconds\? give "
-            r"seconds \(or milliseconds in a column named t_ms\)$",
+            r"t advances by a median of 50000 s per sample; t is read in seconds: if it is in "
+            r"milliseconds, name the column t_ms; if in microseconds, give seconds$",
         ),
     ],
 )

@@ -701,7 +701,9 @@ def test_tensions_stamped_in_milliseconds_are_said_and_read_as_t_ms(tmp_path: Pa
     rows = [[20.0 * i, 1.0 + i, 0.0] for i in range(5)]
     path = tmp_path / "ms.csv"
     write_table(path, ["t", "tension_1", "tension_2"], rows)
-    with pytest.warns(UnitWarning, match="median of 20 s per sample; if t is in milliseconds"):
+    with pytest.warns(
+        UnitWarning, match="median of 20 s per sample; t is read in seconds: if it is in milli"
+    ):
         read_tensions(path, 2)
     write_table(path, ["t_ms", "tension_1", "tension_2"], rows)
     np.testing.assert_allclose(read_tensions(path, 2).at(0.03)[0], [2.5, 0.0])

@@ -922,9 +922,12 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
 @pytest.mark.parametrize("method", ["mhe", "ekf"])
 def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> None:
     """A stream of raw readings whose gyros are in deg/s, handed to ``step`` sample by
-    sample or to ``continue_run`` in blocks: one UserError at the sample that completes
-    the first UNIT_CHECK_SAMPLES full readings (their median), naming the gyro columns;
-    the samples before it are estimated. The same stream in rad/s runs through."""
+    sample or to ``continue_run`` in blocks: a ReadingUnitsError at the sample that
+    completes the first UNIT_CHECK_SAMPLES full readings over a second (their median),
+    naming the gyro columns, and again at every later sample until a reset; the samples
+    before it are estimated. The same stream in rad/s runs through, and so does a
+    1 kHz stream that turns at 6 rad/s for its first 0.12 s (a fast start, not deg/s)."""
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
     from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
     from continuum_mhe.model.direct import direct_measurements
 
@@ -939,13 +942,15 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     last = UNIT_CHECK_SAMPLES  # sample 0 has no reading: sample 100 is the 100th full one
     for k in range(last):
         est.step(Measurement(float(t[k]), deg_s[k]))
-    with pytest.raises(
-        UserError,
-        match=rf"^measurement at t={float(t[last])!r} s: wx, wy, wz: gyro magnitude is about "
-        rf"30\.4 \(median of the first {UNIT_CHECK_SAMPLES} full readings\), implausible in "
-        r"rad/s \(above 5\): deg/s\? give rad/s",
-    ):
+    said = (
+        rf"^measurement at t={float(t[last])!r} s: wx, wy, wz: gyro magnitude is about "
+        rf"30\.4 \(median of the first {UNIT_CHECK_SAMPLES} full readings, 1\.98 s\), "
+        r"implausible in rad/s \(above 5\): deg/s\? give rad/s"
+    )
+    with pytest.raises(ReadingUnitsError, match=said):
         est.step(Measurement(float(t[last]), deg_s[last]))
+    with pytest.raises(ReadingUnitsError, match=said):  # the next sample too
+        est.step(Measurement(float(t[last + 1]), deg_s[last + 1]))
     est.reset()
     first = est.continue_run(t[:60], deg_s[:60])  # not yet the first 100: stepped
     assert len(first.status) == 60
@@ -956,6 +961,10 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
         assert est.step(Measurement(float(t[k]), rad_s[k])).status != "no-estimate" or k == 0
     est.reset()
     assert np.isfinite(est.continue_run(t, rad_s).output[5:]).all()
+    fast = np.arange(1500) * 0.001  # 1 kHz: 6 rad/s for 0.12 s, then nearly at rest
+    turn = np.where(fast[:, None] < 0.12, [[6.0, 0.0, 0.0]], [[0.01, 0.0, 0.0]])
+    est.reset()
+    est.continue_run(fast, direct_measurements(np.tile(acc, (1500, 1)), turn))
 
 
 def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:

@@ -91,10 +91,18 @@ SHIFT_MIN_ERROR = 0.05
 
 
 def _shift_hint(
-    path: str, est: StateTable, truth: StateTable, xyz: tuple[list[int], list[int]], length: float
+    path: str,
+    est: StateTable,
+    truth: StateTable,
+    xyz: tuple[list[int], list[int]],
+    length: float,
+    tip_mean: float,
 ) -> str:
     """A warning where the truth's clock looks offset from the estimate's (a shift of
-    the truth within 2 s fits far better: :func:`best_time_shift`), else ``""``."""
+    the truth within 2 s fits far better: :func:`best_time_shift`), else ``""``; not
+    looked for where the mean tip error ``tip_mean`` (m) is already small."""
+    if not tip_mean >= SHIFT_MIN_ERROR * length:  # close enough: no shift to look for
+        return ""
     shift = best_time_shift(est.t, est.values[:, xyz[0]], truth.t, truth.values[:, xyz[1]])
     if (
         shift is None
@@ -106,7 +114,8 @@ def _shift_hint(
     return (
         f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later (mean tip error "
         f"{shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as the times "
-        "match): are the two files' clocks offset?"
+        "match): are the two files' clocks offset? (a motion that repeats can fit "
+        "shifted too)"
     )
 
 
@@ -155,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
     warned = [hint] if other_robot or not misfits else misfits
-    warned.append(_shift_hint(args.truth, est, truth, xyz, length))
+    warned.append(_shift_hint(args.truth, est, truth, xyz, length, m.tip_mean_mm / 1e3))
     for line in filter(None, warned):
         print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:

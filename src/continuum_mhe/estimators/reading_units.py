@@ -14,12 +14,17 @@ handed over one by one or in blocks, as they arrive, by :class:`ReadingUnitsWatc
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray
 from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
+
+#: A stream's gyros are checked once their full readings span this long (s) too.
+UNIT_CHECK_SPAN_S = 1.0
 
 #: A unit specific force whose magnitude is off 1 by more than this is not a direction
 #: (readings built by ``direct_measurements`` are 1 to rounding).
@@ -72,60 +77,69 @@ class ReadingUnitsError(UserError):
 
 class ReadingUnitsWatch:
     """The units of ``direct`` readings that arrive sample by sample (or block by
-    block): each block's first full reading's specific force, and the gyros' median
-    over the first :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` samples with a
-    full reading of the block (the check of a whole recording, on the samples a stream
-    has; one sample of a fast turn says nothing). A stream shorter than that has its
-    gyros unchecked. :meth:`reset` starts over (a new recording)."""
+    block): each block's first full reading's specific force, and its gyros' median
+    over its first full readings, at least
+    :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` of them over at least
+    :data:`UNIT_CHECK_SPAN_S` (the check of a whole recording, on the samples a stream
+    has; one fast turn says nothing). A stream shorter than that has its gyros
+    unchecked. A problem found is given again for every later sample, until
+    :meth:`reset` (a new recording)."""
 
     def __init__(self, blocks: list[DirectRows]) -> None:
         self._blocks = blocks
         self.reset()
 
     def reset(self) -> None:
-        #: per block: whether its specific force is still to check, and its full
-        #: readings' gyro rows seen so far (None once checked)
+        #: nothing left to look at (every block checked, and no problem found)
+        self.done = not self._blocks
+        #: the problem found, given for every later sample
+        self.problem: str | None = None
+        self._pending = list(range(len(self._blocks)))  # blocks still to check
         self._force_unchecked = [True] * len(self._blocks)
-        self._gyros: list[list[FloatArray] | None] = [[] for _ in self._blocks]
+        self._gyros: list[list[FloatArray]] = [[] for _ in self._blocks]
+        self._first_t = [math.nan] * len(self._blocks)
         self._counts = [0] * len(self._blocks)
-
-    @property
-    def done(self) -> bool:
-        """Every block checked: nothing more to look at."""
-        return not any(self._force_unchecked) and all(g is None for g in self._gyros)
 
     def see(self, t: FloatArray, z: FloatArray) -> str | None:
         """Look at the samples ``t`` (n,) s, ``z`` (n, nz) that follow those seen: what
         is wrong with their units, as a line naming the sample that showed it
         (``measurement at t=... s: ...``), or None."""
-        if self.done:
-            return None
-        for k, (force_rows, gyro_rows, names) in enumerate(self._blocks):
-            full = np.flatnonzero(
-                np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
-            )
-            if not len(full):
-                continue
-            if self._force_unchecked[k]:
-                self._force_unchecked[k] = False
-                i = int(full[0])
-                problem = direct_units_problem([self._blocks[k]], z[i : i + 1], gyro=False)
-                if problem is not None:
-                    return f"measurement at t={float(t[i])!r} s: {problem}"
-            seen = self._gyros[k]
-            if seen is None:
-                continue
-            take = full[: UNIT_CHECK_SAMPLES - self._counts[k]]
-            seen.append(z[take, gyro_rows].copy())
-            self._counts[k] += len(take)
-            if self._counts[k] < UNIT_CHECK_SAMPLES:
-                continue
-            self._gyros[k] = None
-            problem = gyro_units_problem(np.concatenate(seen), ", ".join(names[3:]))
-            if problem is not None:
-                of = f"(median of the first {UNIT_CHECK_SAMPLES} full readings)"
-                return (
-                    f"measurement at t={float(t[take[-1]])!r} s: {', '.join(names[3:])}: "
-                    + problem.replace("(median)", of, 1)
-                )
+        if self.problem is not None or self.done:
+            return self.problem
+        for k in list(self._pending):
+            self.problem = self._see_block(k, t, z)
+            if self.problem is not None:
+                return self.problem
+        self.done = not self._pending
         return None
+
+    def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> str | None:
+        force_rows, gyro_rows, names = self._blocks[k]
+        full = np.flatnonzero(
+            np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
+        )
+        if not len(full):
+            return None
+        if self._force_unchecked[k]:
+            self._force_unchecked[k] = False
+            i = int(full[0])
+            problem = direct_units_problem([self._blocks[k]], z[i : i + 1], gyro=False)
+            if problem is not None:
+                return f"measurement at t={float(t[i])!r} s: {problem}"
+            self._first_t[k] = float(t[i])
+        seen = self._gyros[k]
+        seen.append(z[full, gyro_rows].copy())
+        self._counts[k] += len(full)
+        span = float(t[full[-1]]) - self._first_t[k]
+        if self._counts[k] < UNIT_CHECK_SAMPLES or span < UNIT_CHECK_SPAN_S:
+            return None
+        self._pending.remove(k)
+        problem = gyro_units_problem(np.concatenate(seen), ", ".join(names[3:]))
+        self._gyros[k] = []
+        if problem is None:
+            return None
+        of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"
+        return (
+            f"measurement at t={float(t[full[-1]])!r} s: {', '.join(names[3:])}: "
+            + problem.replace("(median)", of, 1)
+        )

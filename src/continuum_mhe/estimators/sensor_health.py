@@ -316,7 +316,8 @@ class Estimator(Generic[InferenceT]):
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()
         self._ran = False
-        self._units.reset()
+        if not keep_counts:  # a new recording: its units are checked anew
+            self._units.reset()
         self._policy.reset(keep_counts)
 
     def _sync_diagnostics(self) -> None:
@@ -369,10 +370,11 @@ class Estimator(Generic[InferenceT]):
                 radians), a raw IMU's
                 specific force that is not a unit vector (each IMU's first full reading
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
-                first :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` full
-                readings after a reset: the samples before are estimated; ``run``
-                checks the whole recording; both a
-                :class:`~.reading_units.ReadingUnitsError`), or
+                first full readings after a reset, at least
+                :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` over at least a
+                second: the samples before are estimated; ``run`` checks the whole
+                recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
+                again for every later sample until a reset), or
                 ``measurement.t`` is not finite or not later than the previous
                 sample's (time must strictly increase).
         """
@@ -416,7 +418,7 @@ class Estimator(Generic[InferenceT]):
         ``z`` (n, nz) are not a unit specific force and rad/s (:mod:`.reading_units`)."""
         problem = direct_units_problem(self._direct_rows, z)
         if problem is not None:
-            raise UserError(problem)
+            raise ReadingUnitsError(problem)
 
     def _refuse(self, err: int, t: float, z: FloatArray) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
@@ -515,6 +517,7 @@ class Estimator(Generic[InferenceT]):
         z: FloatArray,
         starts: Iterable[int] | None = None,
         block: int | None = None,
+        check_units: bool = True,
     ) -> Batch:
         """Step the samples ``t`` (n,) s, ``z`` (n, nz) on from the last one, in the
         compiled policy, ``block`` samples per call (a positive integer) from each of
@@ -522,13 +525,14 @@ class Estimator(Generic[InferenceT]):
         which a progress display may wrap: the blocks must cover every sample once, in
         order); raises the :class:`UserError` of :meth:`step` for a refused sample (the
         samples before it are stepped; for readings in the wrong units, checked as
-        :meth:`step` checks them, before any sample of the call), and one for arrays
-        whose shapes do not fit (as :meth:`run`), a ``block`` that is not a positive
-        integer, or ``starts`` that skip, repeat or leave out samples."""
+        :meth:`step` checks them unless ``check_units`` is False (a caller that checked
+        them itself), before any sample of the call), and one for arrays whose shapes
+        do not fit (as :meth:`run`), a ``block`` that is not a positive integer, or
+        ``starts`` that skip, repeat or leave out samples."""
         t, z = self._samples(t, z)
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
-        if not self._units.done:
+        if check_units and not self._units.done:
             problem = self._units.see(t, z)
             if problem is not None:
                 raise ReadingUnitsError(problem)

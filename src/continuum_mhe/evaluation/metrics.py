@@ -356,10 +356,12 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
     return np.flatnonzero(match), nearest[match]
 
 
-#: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way,
-#: on at most :data:`SHIFT_ROWS` rows of the estimate.
+#: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way
+#: (at most :data:`SHIFT_STEPS` of them, then the best one refined to the estimate's
+#: sample period), on at most :data:`SHIFT_ROWS` rows of the estimate.
 SHIFT_MAX_S = 2.0
-SHIFT_ROWS = 20_000
+SHIFT_STEPS = 200
+SHIFT_ROWS = 2_000
 
 
 @dataclass(frozen=True)
@@ -377,33 +379,51 @@ def best_time_shift(
     t_est: FloatArray, tip_est: FloatArray, t_truth: FloatArray, tip_truth: FloatArray
 ) -> TimeShift | None:
     """The shift of the truth (``t_truth`` (m,) s, ``tip_truth`` (m, 3) m) within
-    :data:`SHIFT_MAX_S` s, in steps of the estimate's median sample period, that gives
-    the smallest mean tip error against the estimate (``t_est`` (n,), ``tip_est`` (n,
-    3), NaN rows left out), the truth interpolated linearly at the shifted times; None
-    where fewer than 10 rows compare or the times do not increase. A clock offset
-    between the two files shows as a shift whose error is far below the unshifted one."""
+    :data:`SHIFT_MAX_S` s that gives the smallest mean tip error against the estimate
+    (``t_est`` (n,), ``tip_est`` (n, 3), NaN rows left out), the truth interpolated
+    linearly at the shifted times: a grid of at most :data:`SHIFT_STEPS` shifts, the
+    best refined in steps of the estimate's median sample period. None where fewer
+    than 10 rows compare, with or without the shift, or the times do not increase. A
+    clock offset between the two files shows as a shift whose error is far below the
+    unshifted one (so can half the period of a motion that repeats, on an estimate
+    mirrored in sign)."""
     keep = np.all(np.isfinite(tip_est), axis=1)
     t_e, x_e = t_est[keep], tip_est[keep]
-    if len(t_e) > SHIFT_ROWS:
-        pick = np.linspace(0, len(t_e) - 1, SHIFT_ROWS).astype(int)
-        t_e, x_e = t_e[pick], x_e[pick]
     good = np.all(np.isfinite(tip_truth), axis=1)
     t_t, x_t = t_truth[good], tip_truth[good]
     if len(t_e) < 10 or len(t_t) < 2 or np.any(np.diff(t_t) <= 0) or np.any(np.diff(t_e) <= 0):
         return None
-    step = float(np.median(np.diff(t_e)))
-    if not step > 0:
-        return None
-    lags = np.arange(-math.floor(SHIFT_MAX_S / step), math.floor(SHIFT_MAX_S / step) + 1)
+    period = float(np.median(np.diff(t_e)))
+    if len(t_e) > SHIFT_ROWS:
+        pick = np.linspace(0, len(t_e) - 1, SHIFT_ROWS).astype(int)
+        t_e, x_e = t_e[pick], x_e[pick]
+
+    t_t = np.ascontiguousarray(t_t)
 
     def error(shift: float) -> float:
         at = t_e + shift
         inside = (at >= t_t[0]) & (at <= t_t[-1])
         if inside.sum() < 10:
             return math.inf
-        truth = np.column_stack([np.interp(at[inside], t_t, x_t[:, k]) for k in range(3)])
+        # linear interpolation of the truth at the shifted times (a search per time,
+        # not a pass over the whole truth per call)
+        q = at[inside]
+        j = np.clip(np.searchsorted(t_t, q, side="right") - 1, 0, len(t_t) - 2)
+        w = ((q - t_t[j]) / (t_t[j + 1] - t_t[j]))[:, None]
+        truth = (1.0 - w) * x_t[j] + w * x_t[j + 1]
         return float(np.mean(np.linalg.norm(x_e[inside] - truth, axis=1)))
 
-    errors = [error(float(k) * step) for k in lags]
-    best = int(np.argmin(errors))
-    return TimeShift(float(lags[best]) * step, errors[best], error(0.0))
+    unshifted = error(0.0)
+    if not math.isfinite(unshifted):
+        return None
+    step = max(period, 2 * SHIFT_MAX_S / SHIFT_STEPS)
+    coarse = np.arange(-math.floor(SHIFT_MAX_S / step), math.floor(SHIFT_MAX_S / step) + 1) * step
+    errors = [error(float(s)) for s in coarse]
+    best = float(coarse[int(np.argmin(errors))])
+    if step > period:  # refine around the best in sample periods
+        fine = best + np.arange(-math.ceil(step / period), math.ceil(step / period) + 1) * period
+        fine = fine[np.abs(fine) <= SHIFT_MAX_S]
+        fine_errors = [error(float(s)) for s in fine]
+        best = float(fine[int(np.argmin(fine_errors))])
+    shift = 0.0 if abs(best) < 0.5 * period else best
+    return TimeShift(shift, error(shift), unshifted)

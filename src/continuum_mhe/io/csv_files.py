@@ -298,11 +298,6 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     )
 
 
-#: A median step of ``t`` (read in seconds) over this is microseconds rather than
-#: milliseconds (a 1 Hz stream in ms steps by 1000).
-US_LIKE_STEP_S = 2000.0
-
-
 def check_time_units(rows: TextRows, t: FloatArray) -> None:
     """Warn once when a ``t`` column in seconds, or a ``t_ms`` column in milliseconds,
     steps like another unit (:func:`check_time_steps`), naming the likely cause and the
@@ -316,11 +311,12 @@ def check_time_units(rows: TextRows, t: FloatArray) -> None:
         return
     if rows.time_scale != 1.0:
         return
-    steps = np.diff(t)
-    slow = "if t is in milliseconds, name the column t_ms (it is read in seconds)"
-    if len(steps) and float(np.median(steps)) > US_LIKE_STEP_S:
-        slow = "t in microseconds? give seconds (or milliseconds in a column named t_ms)"
-    check_time_steps(rows.name, "t advances", t, slow, "t must be in seconds")
+    check_time_steps(
+        rows.name, "t advances", t,
+        "t is read in seconds: if it is in milliseconds, name the column t_ms; if in "
+        "microseconds, give seconds",
+        "t must be in seconds",
+    )  # fmt: skip
 
 
 class UnitWarning(UserWarning):

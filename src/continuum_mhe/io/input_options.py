@@ -193,8 +193,8 @@ def imu_settings_for(raw: RawImuSettings, place: ImuPlacement) -> RawImuSettings
     return replace(raw, gyro_bias=place.gyro_bias) if any(place.gyro_bias) else raw
 
 
-#: Valid readings of the IMU nearest the base whose median the mounting check uses
-#: (half a second at 50 Hz).
+#: Valid readings whose median the mounting check uses (half a second at 50 Hz): of the
+#: IMU nearest the base, and of each pair of IMUs one after the other.
 MOUNTING_START_SAMPLES = 25
 #: A start further than this from the straight pose of the stated mounting (and so
 #: within 45 degrees of the opposite mounting's straight pose) is refused, rad.
@@ -227,17 +227,25 @@ def start_bend_angle(z: FloatArray, formulation: Formulation) -> tuple[int, floa
 def imu_start_angle(z: FloatArray, formulation: Formulation, k: int) -> float | None:
     """IMU ``k``'s (0-based) median angle from the stated mounting's base axis over its
     first valid readings, rad, as :func:`start_bend_angle` (None without one)."""
+    angles = _imu_angles(z, formulation, k)
+    valid = angles[np.isfinite(angles)][:MOUNTING_START_SAMPLES]
+    return float(np.median(valid)) if len(valid) else None
+
+
+def _imu_angles(z: FloatArray, formulation: Formulation, k: int) -> FloatArray:
+    """IMU ``k``'s (0-based) angle from the stated mounting's base axis at every row of
+    ``z`` (n, nz), rad; NaN where it has no valid reading."""
     block = formulation.measurement_blocks[k]
     zb = np.asarray(z, dtype=float)[:, block.slice]
-    zb = zb[np.all(np.isfinite(zb), axis=1)][:MOUNTING_START_SAMPLES]
-    if not len(zb):
-        return None
-    if block.kind == "tilt":  # the up direction in the IMU frame is f = R^T u
-        f_axis = np.cos(zb[:, 0]) * np.cos(zb[:, 1])
-    else:
-        f_axis = zb[:, 2] / np.linalg.norm(zb[:, :3], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if block.kind == "tilt":  # the up direction in the IMU frame is f = R^T u
+            f_axis = np.cos(zb[:, 0]) * np.cos(zb[:, 1])
+        else:
+            f_axis = zb[:, 2] / np.linalg.norm(zb[:, :3], axis=1)
     up = 1.0 if formulation.robot.mounting == "z-up" else -1.0
-    return float(np.median(np.arccos(np.clip(up * f_axis, -1.0, 1.0))))
+    angles = np.arccos(np.clip(up * f_axis, -1.0, 1.0))
+    angles[~np.all(np.isfinite(zb), axis=1)] = np.nan
+    return angles
 
 
 def flipped_mounting(mounting: str) -> tuple[str, str]:
@@ -261,19 +269,22 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
 
 
 def check_imu_mountings(name: str, z: FloatArray, formulation: Formulation) -> None:
-    """A :class:`MountingWarning` for each IMU whose first readings put it more than
-    :data:`MOUNTING_FLIPPED` further from (or nearer to) the straight pose than the IMU
-    before it (base first): the sections between them would start bent that far at
-    least (the difference of the two angles from the vertical bounds their bend from
-    below), which an IMU mounted upside down reads, a robot at rest seldom."""
+    """A :class:`MountingWarning` for each IMU whose first readings (where it and the
+    IMU before it, base first, both read) put it further from (or nearer to) the
+    straight pose than that IMU by more than :data:`MOUNTING_FLIPPED` and more than the
+    sections between them can bend (their ``theta_max``; a tendon robot's mechanics
+    have no such bound): the difference of the two angles from the vertical bounds the
+    bend between them from below, and an IMU mounted upside down reads such a start."""
     robot = formulation.robot
     order = sorted(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
-    angles = {k: imu_start_angle(z, formulation, k) for k in order}
-    seen = [k for k in order if angles[k] is not None]
-    for before, k in zip(seen, seen[1:]):
-        a, b = angles[before], angles[k]
-        assert a is not None and b is not None
-        if abs(b - a) <= MOUNTING_FLIPPED:
+    angles = {k: _imu_angles(z, formulation, k) for k in order}
+    for before, k in zip(order, order[1:]):
+        both = np.isfinite(angles[before]) & np.isfinite(angles[k])
+        if not both.any():
+            continue
+        a = float(np.median(angles[before][both][:MOUNTING_START_SAMPLES]))
+        b = float(np.median(angles[k][both][:MOUNTING_START_SAMPLES]))
+        if abs(b - a) <= max(MOUNTING_FLIPPED, _reach_between(robot, before, k)):
             continue
         warnings.warn(
             f"{name}: mounting: at the start gravity puts IMU {k + 1} {math.degrees(b):.0f} "
@@ -285,6 +296,20 @@ def check_imu_mountings(name: str, z: FloatArray, formulation: Formulation) -> N
             MountingWarning,
             stacklevel=3,
         )
+
+
+def _reach_between(robot: Robot, before: int, k: int) -> float:
+    """The largest bend, rad, the sections between IMU ``before`` and IMU ``k`` (0-based,
+    ``k`` further out) let the robot make between them (their ``theta_max``, in part
+    where an IMU sits inside a section); infinite for a robot with mechanics."""
+    if robot.has_mechanics:
+        return math.inf
+    first, last = robot.imus[before], robot.imus[k]
+    if first.section == last.section:
+        return (last.at - first.at) * robot.sections[first.section].theta_max
+    reach = (1.0 - first.at) * robot.sections[first.section].theta_max
+    reach += sum(s.theta_max for s in robot.sections[first.section + 1 : last.section])
+    return reach + last.at * robot.sections[last.section].theta_max
 
 
 def _check_base_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:

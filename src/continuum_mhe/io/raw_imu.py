@@ -71,6 +71,9 @@ UNIT_CHECK_SAMPLES = 100
 #: corrupt value, not a reading.
 ACCEL_READING_MAX = 1e4
 GYRO_READING_MAX = 1e3
+#: :func:`check_accel_range` judges an accelerometer's unit on at least this many rows
+#: (a block of fewer, such as a file's last rows, holds corrupt values at most).
+ACCEL_RANGE_ROWS = 10
 
 
 @dataclass(frozen=True)
@@ -434,11 +437,11 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
 
 def check_accel_range(label: str, acc_norm: FloatArray) -> None:
     """An accelerometer most of whose readings (magnitudes ``acc_norm`` of its finite
-    rows, m/s^2) are beyond any IMU's range is in another unit (raw counts): a one-line
-    :class:`InputError` naming ``label``, rather than every reading a dropout (a few
-    corrupt values stay dropouts)."""
+    rows, m/s^2; at least :data:`ACCEL_RANGE_ROWS` of them) are beyond any IMU's range
+    is in another unit (raw counts): a one-line :class:`InputError` naming ``label``,
+    rather than every reading a dropout (a few corrupt values stay dropouts)."""
     finite = acc_norm[np.isfinite(acc_norm)]
-    if 2 * int((finite > ACCEL_READING_MAX).sum()) <= len(finite):
+    if len(finite) < ACCEL_RANGE_ROWS or 2 * int((finite > ACCEL_READING_MAX).sum()) <= len(finite):
         return
     raise InputError(
         f"{label}: accelerometer magnitude is about {float(np.median(finite)):.3g} (median), "

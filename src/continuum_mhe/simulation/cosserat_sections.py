@@ -483,7 +483,7 @@ def write_trajectory_recording(
     bends, fk_tip = pcc_truth(traj, settings.lengths)
     nodes = traj.nodes[idx]
     tip = nodes[:, :, -1] - nodes[:, :, 0]
-    ends = [nodes[:, :, traj.end_nodes[k]] - nodes[:, :, 0] for k in range(2)]
+    ends = [nodes[:, :, end] - nodes[:, :, 0] for end in traj.end_nodes]
     _write_imu_table(out / f"{name}_raw.csv", t, f, w)
     tilt = np.hstack([tilt_from_accelerometer(f[:, k]) for k in range(f.shape[1])])
     write_table(
@@ -512,9 +512,9 @@ def write_trajectory_recording(
         "one_section_mean_mm": float(one.mean()),
         "one_section_max_mm": float(one.max()),
         "twist_max_deg": float(np.degrees(np.max(np.abs(traj.twist)))),
-        "tangent_twist_max_deg": [float(twist_t[:, k].max()) for k in range(2)],
-        "tangent_twist_mean_deg": [float(twist_t[:, k].mean()) for k in range(2)],
-        "theta_max_deg": [float(np.degrees(theta[:, k].max())) for k in range(2)],
+        "tangent_twist_max_deg": [float(twist_t[:, k].max()) for k in range(len(ends))],
+        "tangent_twist_mean_deg": [float(twist_t[:, k].mean()) for k in range(len(ends))],
+        "theta_max_deg": [float(np.degrees(theta[:, k].max())) for k in range(len(ends))],
         "samples": len(t),
     }
     (out / f"{name}_info.json").write_text(json.dumps(info, indent=2) + "\n")

@@ -53,7 +53,8 @@ def port_hint(port: str, exc: BaseException) -> str:
 class SerialReader(threading.Thread):
     """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
     t)``, ``("partial", bytes, t)``, ``("lost", reason, t)``, ``("retrying", reason,
-    t)`` (a new reason the port does not reopen for) and ``("back", seconds_away, t)``.
+    t)`` (the port does not reopen for another reason than before) and ``("back",
+    seconds_away, t)``.
     Reopens with backoff. An exception it does not expect (a
     defect) closes the port and ends the thread with ``("failed", exception, t)`` as its
     last event, so that the queue's reader raises it instead of waiting for lines that
@@ -130,19 +131,20 @@ class SerialReader(threading.Thread):
 
     def _reopen(self) -> None:
         """Open the port again, with backoff, until it opens or the thread is told to
-        stop; each new reason it does not open for (a missing device, then no
-        permission after a replug) is one ``("retrying", reason, t)`` event."""
+        stop; each reason it does not open for after the first (a missing device while
+        unplugged, then no permission after the replug) is one ``("retrying", reason,
+        t)`` event."""
         lost = time.monotonic()
         delay = 0.1
-        said = None
+        last = None  # the reason of the last failed attempt
         while not self.stop.wait(delay):
             try:
                 self.conn = open_port(self.port, self.baud)
             except Exception as exc:
                 reason = str(exc).replace("\n", " ") or type(exc).__name__
-                if reason != said:
+                if last is not None and reason != last:
                     self.events.put(("retrying", reason, time.monotonic()))
-                    said = reason
+                last = reason
                 delay = min(2 * delay, self.retry_max_s)
                 continue
             self.splitter.resync()
