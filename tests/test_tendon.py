@@ -4,6 +4,7 @@ independent peer, the formulation's Jacobians, slack tendons, the tensions input
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -22,6 +23,7 @@ from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.model.tendon_statics import STEPS_PER_SECTION, Station, TendonStatics
 
 DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+ROBOTS = DATA.parent / "robots"
 BACKBONE = Backbone(54e9, 20.77e9, 0.0007)
 EI = BACKBONE.bending_stiffness
 GJ = BACKBONE.torsional_stiffness
@@ -1237,3 +1239,66 @@ def test_plot_says_when_the_models_backbone_misses_the_estimated_tip(tmp_path: P
     with pytest.warns(FigureWarning, match=r"backbone at the estimate's tip force .* ends up to"):
         assert main([*argv, "--inputs", str(other), "--overwrite"]) == 0
     assert fig.exists()
+
+
+def test_tensions_that_look_like_a_sensor_or_logger_fault_are_said(tmp_path: Path) -> None:
+    """A tendon at 0 in every row, tensions repeated exactly for 6 s, and a 2 s hole
+    between rows 0.02 s apart: one TensionsWarning each, naming the file, the tendon or
+    the times; the shipped tensions file gives none."""
+    import warnings
+
+    from continuum_mhe.io.tensions import TensionsWarning, read_tensions
+
+    source = DATA / "force-29_tensions.csv"
+    good = read_tensions(source, 6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        good.warn_suspect()
+    t, v = good.t, good.values
+    cases = {
+        "zero": (t, np.where(np.arange(6) == 1, 0.0, v)),
+        "frozen": (t, np.where((t > 2.0)[:, None], v[np.searchsorted(t, 2.0)], v)),
+        "hole": (t[(t < 2.0) | (t > 4.0)], v[(t < 2.0) | (t > 4.0)]),
+    }
+    said = {
+        "zero": r"zero.csv: tension_2 is 0 in every row: a sensor not connected",
+        "frozen": r"frozen.csv: the tensions repeat exactly from t = 2 to 8 s \(6 s\): a logger",
+        "hole": r"hole.csv: no tensions between t = 1\.98 and 4\.02 s \(2\.04 s; the rows are "
+        r"0\.02 s apart elsewhere\): interpolated linearly across",
+    }
+    for name, (tc, vc) in cases.items():
+        path = tmp_path / f"{name}.csv"
+        write_table(path, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                    np.column_stack([tc, vc]).tolist())  # fmt: skip
+        with pytest.warns(TensionsWarning, match=said[name]) as caught:
+            read_tensions(path, 6).warn_suspect()
+        assert len([w for w in caught if issubclass(w.category, TensionsWarning)]) == 1
+
+
+def test_bends_past_a_tendon_robots_theta_max_are_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The mechanics model does not bound a tendon robot's bends: where its estimates
+    bend a section past the robot file's theta_max, estimate says how many and how far
+    (the file's bound or the inputs contradict the estimate); with the shipped bound
+    it says nothing."""
+    text = (ROBOTS / "tendon_two_section.toml").read_text()
+    assert text.count("theta_max = 3.0") == 2
+    tight = tmp_path / "tight.toml"
+    tight.write_text(text.replace("theta_max = 3.0", "theta_max = 0.3"))
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join((DATA / "force-29_raw.csv").read_text().splitlines()[:101]) + "\n")
+    args = ["--inputs", str(DATA / "force-29_tensions.csv"), "--method", "ekf"]
+    for robot, out in ((tight, "t.csv"), (ROBOTS / "tendon_two_section.toml", "s.csv")):
+        capsys.readouterr()
+        assert main(["estimate", str(meas), "--robot", str(robot), *args,
+                     "-o", str(tmp_path / out)]) == 0  # fmt: skip
+        said = [ln for ln in capsys.readouterr().err.splitlines() if "theta_max" in ln]
+        if robot == tight:
+            assert len(said) == 1 and re.match(
+                r"continuum-mhe: warning: \d+ of 100 estimates bend past the robot file's "
+                r"theta_max: section 1 up to 0\.\d+ rad \(theta_max 0\.3\)",
+                said[0],
+            ), said
+        else:
+            assert said == []

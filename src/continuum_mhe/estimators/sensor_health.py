@@ -133,6 +133,53 @@ def bound_notice(count: int, n: int, robot: Robot) -> str:
     )
 
 
+class BendsBeyondBound:
+    """The estimates of a robot whose mechanics model does not bound its bends (a
+    tendon robot) that bend a section past the robot file's ``theta_max``, counted
+    block by block from their outputs (``theta_k``) for one line at the end
+    (:meth:`notice`): the file's bound, or the inputs, contradict the estimate."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        robot = formulation.robot
+        names = [o.name for o in formulation.outputs]
+        sections = range(1, len(robot.sections) + 1)
+        wanted = [f"theta_{k}" if len(robot.sections) > 1 else "theta" for k in sections]
+        self._robot = robot
+        self._columns = [names.index(c) if c in names else -1 for c in wanted]
+        self.active = robot.has_mechanics and all(c >= 0 for c in self._columns)
+        self.count = 0
+        self.largest = [0.0] * len(robot.sections)
+
+    def add(self, output: FloatArray) -> None:
+        """Count the estimates ``output`` (n, ny), NaN rows without an estimate."""
+        if not self.active:
+            return
+        theta = np.abs(output[:, self._columns])
+        limits = np.array([s.theta_max for s in self._robot.sections])
+        with np.errstate(invalid="ignore"):
+            beyond = theta > limits
+        self.count += int(beyond.any(axis=1).sum())
+        if beyond.any():
+            worst = np.nanmax(np.where(beyond, theta, 0.0), axis=0)
+            self.largest = [max(a, float(b)) for a, b in zip(self.largest, worst)]
+
+    def notice(self, n: int) -> str | None:
+        """One line for the estimates counted beyond the bound, of ``n``; None without."""
+        if not self.count:
+            return None
+        over = [
+            f"section {k + 1} up to {big:.3g} rad (theta_max {s.theta_max:.4g})"
+            for k, (s, big) in enumerate(zip(self._robot.sections, self.largest))
+            if big > 0
+        ]
+        return (
+            f"{self.count} of {n} estimates bend past the robot file's theta_max: "
+            f"{'; '.join(over)}; the mechanics model does not bound the bend, so the "
+            "file's bound or the inputs (tensions, tendon angles and radii, backbone) "
+            "contradict the estimate: check them"
+        )
+
+
 def _outside_stacklevel() -> int:
     """The ``warnings.warn`` stacklevel of the first caller outside this package (a
     warning of the library names the user's line, not ours)."""

@@ -424,6 +424,7 @@ def _tensions(
             )
         table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
         table.check_scale(robot)
+        table.warn_suspect()
         return table
     if own:
         assert recording is not None
@@ -431,6 +432,7 @@ def _tensions(
             recording, k, other_columns=True, skip_bad=options.skip_bad, time_warning=False
         )
         table.check_scale(robot)
+        table.warn_suspect()
         return table
     if columns:  # some of the tension columns, not all
         missing = [c for c in tension_columns(k) if c not in columns]

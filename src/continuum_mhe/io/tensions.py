@@ -42,6 +42,16 @@ from continuum_mhe.model.tendon import TendonFormulation
 #: its bending stiffness, times its length) before the tensions are refused as another
 #: unit: a load at the tip may hold a section against more than its tendons' own bend.
 MAX_TENDON_TURNS = 2.0
+#: Tensions repeated exactly for longer than this (s) are said (a logger that froze;
+#: live load cells are never exactly still), as a frozen IMU is treated after 1 s.
+TENSIONS_FROZEN_S = 1.0
+#: A step between two rows of more than this many times the median step (and over 1 s)
+#: is said: the tensions are interpolated across the hole.
+TENSIONS_HOLE_FACTOR = 10.0
+
+
+class TensionsWarning(UserWarning):
+    """A tensions file whose rows look like a sensor or logger fault (read as given)."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +114,56 @@ class Tensions:
                     f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
                     f"({', '.join(f'{v:g}' for v in self.values[i])} N) would bend section "
                     f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
-                    f"stiffness {ei:.3g} N m^2): tensions in N (mN?)"
+                    f"stiffness {ei:.3g} N m^2): tensions in N (mN?), or the robot file's "
+                    "[backbone] too soft (youngs_modulus in Pa, radius in m)?"
+                )
+
+    def warn_suspect(self) -> None:
+        """A :class:`TensionsWarning` for what the file's rows say of its sensors or
+        logger: a tendon whose tension is 0 in every row (a sensor not connected, or a
+        tendon slack all along), tensions that repeat exactly for over
+        :data:`TENSIONS_FROZEN_S` (a logger that froze), and a hole between two rows of
+        over :data:`TENSIONS_HOLE_FACTOR` times the usual step and a second (bridged by
+        the linear interpolation)."""
+        n = len(self.t)
+        if n >= 2:
+            zero = [j + 1 for j in range(self.values.shape[1]) if not self.values[:, j].any()]
+            if zero:
+                warnings.warn(
+                    f"{self.name}: tension_{', tension_'.join(map(str, zero))} "
+                    f"{'is' if len(zero) == 1 else 'are'} 0 in every row: a sensor not "
+                    "connected, or a tendon slack all along? (the estimate takes them as given)",
+                    TensionsWarning,
+                    stacklevel=2,
+                )
+        if n >= 3:
+            same = np.all(self.values[1:] == self.values[:-1], axis=1)  # row i+1 repeats row i
+            start, best = 0, (0.0, 0, 0)
+            for i in range(1, n):
+                if not same[i - 1]:
+                    start = i
+                elif self.t[i] - self.t[start] > best[0]:
+                    best = (float(self.t[i] - self.t[start]), start, i)
+            held, a, b = best
+            if held > TENSIONS_FROZEN_S and self.values.any() and not same.all():
+                warnings.warn(
+                    f"{self.name}: the tensions repeat exactly from t = "
+                    f"{time_text(float(self.t[a]))} to {time_text(float(self.t[b]))} s "
+                    f"({held:.3g} s): a logger that froze? "
+                    "(the estimate takes them as given)",
+                    TensionsWarning,
+                    stacklevel=2,
+                )
+            steps = np.diff(self.t)
+            usual = float(np.median(steps))
+            i = int(np.argmax(steps))
+            if steps[i] > max(TENSIONS_HOLE_FACTOR * usual, 1.0):
+                warnings.warn(
+                    f"{self.name}: no tensions between t = {time_text(float(self.t[i]))} and "
+                    f"{time_text(float(self.t[i + 1]))} s ({steps[i]:.3g} s; the rows are "
+                    f"{usual:.3g} s apart elsewhere): interpolated linearly across",
+                    TensionsWarning,
+                    stacklevel=2,
                 )
 
     def check_steps(self) -> None:
