@@ -674,3 +674,21 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
         r"are the two files' clocks offset\? \(a motion that repeats can fit shifted too\)",
         said[0],
     ), said
+
+
+def test_best_time_shift_finds_a_clock_offset_to_the_sample_and_none_where_there_is_none() -> None:
+    """On a 1 kHz tip path whose truth runs 0.317 s late, the shift found is 0.317 s to
+    the sample (the grid, then its refinement), with no error left; a truth on the same
+    clock, and a constant tip (every shift ties), give a shift of 0."""
+    from continuum_mhe.evaluation.metrics import best_time_shift
+
+    t = np.arange(0.0, 20.0, 0.001)
+    tip = np.column_stack([np.sin(0.7 * t), np.cos(0.3 * t), 0.2 + 0.1 * np.sin(1.1 * t)]) * 0.1
+    late = best_time_shift(t, tip, t + 0.317, tip)
+    assert late is not None and late.shift_s == pytest.approx(0.317, abs=1e-9)
+    assert late.error < 1e-9 < late.unshifted
+    same = best_time_shift(t, tip, t, tip)
+    assert same is not None and same.shift_s == 0.0
+    still = np.tile([0.0, 0.0, 0.2], (len(t), 1))
+    flat = best_time_shift(t, still, t, still + 1e-3)
+    assert flat is not None and flat.shift_s == 0.0 and flat.error == flat.unshifted

@@ -232,6 +232,15 @@ def test_the_imus_further_out_are_judged_where_both_read_and_within_theta_max() 
         warnings.simplefilter("error", MountingWarning)
         check_imu_mountings("m.csv", start(150.0), f)
         check_imu_mountings("m.csv", late, make_formulation("bend", stiff))
+    three = Robot(  # IMU 2 silent throughout: IMU 3 is compared with IMU 1
+        tuple(Section(0.1, theta_max=3.0) for _ in range(3)),
+        tuple(ImuPlacement(section=k) for k in range(3)),
+    )
+    z = np.zeros((30, 6))
+    z[:, 2:4] = np.nan
+    z[:, 4] = math.radians(179.0)
+    with pytest.warns(MountingWarning, match=r"puts IMU 3 179 degrees .* and IMU 1 0 degrees"):
+        check_imu_mountings("m.csv", z, make_formulation("bend", three))
 
 
 def test_raw_imus_use_their_gyros_by_default() -> None:

@@ -252,6 +252,11 @@ def test_each_new_reason_a_lost_port_does_not_reopen_for_is_one_event(
     reader._reopen()
     got = [(kind, payload) for kind, payload, _ in list(events.queue)]
     assert got[:1] == [("retrying", "denied")] and [k for k, _ in got] == ["retrying", "back"]
+    failures[:] = [PermissionError("busy")] * 3  # a first reason that is not "gone": said
+    reader.stop.clear()
+    events.queue.clear()
+    reader._reopen()
+    assert [(k, p) for k, p, _ in list(events.queue)][:1] == [("retrying", "busy")]
 
 
 def test_run_live_estimates_every_line_sent_before_the_end() -> None:

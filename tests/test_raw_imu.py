@@ -462,3 +462,26 @@ def test_whole_recording_conversion_equals_the_sample_by_sample_one(imu_model: s
     np.testing.assert_array_equal(np.isnan(got), np.isnan(expected))
     assert np.isnan(got[7]).all() and np.isnan(got[11]).all()
     np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-15)
+
+
+def test_a_short_last_block_of_a_fast_turn_is_not_taken_for_deg_s(tmp_path: Path) -> None:
+    """``estimate`` reads a file in blocks of 4,096 rows: a file at rest whose last 4
+    rows turn at 6 rad/s (a short last block of more than 5 rad/s) is read whole, as the
+    gyro's unit is judged on the first block or on blocks of 100 readings or more; the
+    same turn over a whole block of its own is still refused."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import CHUNK, open_input
+
+    def recording(turning: int) -> Path:
+        n = CHUNK + turning
+        rate = np.where(np.arange(n) >= CHUNK, 6.0, 0.01)
+        rows = "".join(f"{0.001 * k!r},0,0,9.8,{float(rate[k])!r},0,0\n" for k in range(n))
+        return _write(tmp_path / f"turn{turning}.csv", "t,ax,ay,az,gx,gy,gz\n" + rows)
+
+    f = make_formulation("direct")
+    with open_input(recording(4), InputOptions(), f) as stream:
+        assert sum(len(t) for t, _ in stream.blocks) == CHUNK + 4
+    with pytest.raises(InputError, match=r"turn4096.csv: gyro magnitude is about 6 "):
+        with open_input(recording(CHUNK), InputOptions(), f) as stream:
+            for _ in stream.blocks:
+                pass

@@ -1302,3 +1302,30 @@ def test_bends_past_a_tendon_robots_theta_max_are_said(
             ), said
         else:
             assert said == []
+
+
+def test_the_bend_past_theta_max_tally_reads_a_one_section_tendon_robots_columns(
+    tmp_path: Path,
+) -> None:
+    """A one-section tendon robot names its bend theta_1: the tally finds it, counts the
+    rows past theta_max (NaN rows without an estimate left out) and says how far;
+    a PCC robot, whose bound the estimator keeps, is not tallied."""
+    from continuum_mhe.estimators.sensor_health import BendsBeyondBound
+    from continuum_mhe.model.registry import make_formulation
+
+    f = TendonFormulation(robot=read_robot(_small_robot(tmp_path)))
+    names = [o.name for o in f.outputs]
+    assert "theta_1" in names and "theta" not in names
+    bound = f.robot.sections[0].theta_max
+    rows = np.zeros((4, f.ny))
+    rows[:, names.index("theta_1")] = [0.5 * bound, bound + 0.2, np.nan, bound + 0.1]
+    rows[2] = np.nan
+    tally = BendsBeyondBound(f)
+    tally.add(rows)
+    assert tally.active and tally.count == 2
+    note = tally.notice(4)
+    assert note is not None and note.startswith(
+        f"2 of 4 estimates bend past the robot file's theta_max: section 1 up to "
+        f"{bound + 0.2:.3g} rad (theta_max {bound:.4g})"
+    )
+    assert not BendsBeyondBound(make_formulation("bend")).active

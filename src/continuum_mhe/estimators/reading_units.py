@@ -20,11 +20,8 @@ import numpy as np
 
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import FloatArray
-from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, gyro_units_problem
+from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, UNIT_CHECK_SPAN_S, gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
-
-#: A stream's gyros are checked once their full readings span this long (s) too.
-UNIT_CHECK_SPAN_S = 1.0
 
 #: A unit specific force whose magnitude is off 1 by more than this is not a direction
 #: (readings built by ``direct_measurements`` are 1 to rounding).
@@ -80,10 +77,10 @@ class ReadingUnitsWatch:
     block): each block's first full reading's specific force, and its gyros' median
     over its first full readings, at least
     :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` of them over at least
-    :data:`UNIT_CHECK_SPAN_S` (the check of a whole recording, on the samples a stream
-    has; one fast turn says nothing). A stream shorter than that has its gyros
-    unchecked. A problem found is given again for every later sample, until
-    :meth:`reset` (a new recording)."""
+    :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SPAN_S` (the check of a whole
+    recording, on the samples a stream has; one fast turn says nothing). A stream
+    shorter than that has its gyros unchecked. A problem found is given again for every
+    later sample, until :meth:`reset` (a new recording)."""
 
     def __init__(self, blocks: list[DirectRows]) -> None:
         self._blocks = blocks

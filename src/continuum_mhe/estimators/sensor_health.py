@@ -142,10 +142,14 @@ class BendsBeyondBound:
     def __init__(self, formulation: Formulation) -> None:
         robot = formulation.robot
         names = [o.name for o in formulation.outputs]
-        sections = range(1, len(robot.sections) + 1)
-        wanted = [f"theta_{k}" if len(robot.sections) > 1 else "theta" for k in sections]
         self._robot = robot
-        self._columns = [names.index(c) if c in names else -1 for c in wanted]
+        # each section's bend: theta_k, or theta for a one-section model that names it so
+        self._columns = [
+            names.index(f"theta_{k}")
+            if f"theta_{k}" in names
+            else (names.index("theta") if len(robot.sections) == 1 and "theta" in names else -1)
+            for k in range(1, len(robot.sections) + 1)
+        ]
         self.active = robot.has_mechanics and all(c >= 0 for c in self._columns)
         self.count = 0
         self.largest = [0.0] * len(robot.sections)

@@ -357,7 +357,7 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
 
 
 #: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way
-#: (at most :data:`SHIFT_STEPS` of them, then the best one refined to the estimate's
+#: (about :data:`SHIFT_STEPS` of them, then the best one refined towards the estimate's
 #: sample period), on at most :data:`SHIFT_ROWS` rows of the estimate.
 SHIFT_MAX_S = 2.0
 SHIFT_STEPS = 200
@@ -420,10 +420,14 @@ def best_time_shift(
     coarse = np.arange(-math.floor(SHIFT_MAX_S / step), math.floor(SHIFT_MAX_S / step) + 1) * step
     errors = [error(float(s)) for s in coarse]
     best = float(coarse[int(np.argmin(errors))])
-    if step > period:  # refine around the best in sample periods
-        fine = best + np.arange(-math.ceil(step / period), math.ceil(step / period) + 1) * period
+    if step > period:  # refine around the best, in sample periods (at most SHIFT_STEPS)
+        fine_step = max(period, 2 * step / SHIFT_STEPS)
+        half = math.ceil(step / fine_step)
+        fine = best + np.arange(-half, half + 1) * fine_step
         fine = fine[np.abs(fine) <= SHIFT_MAX_S]
         fine_errors = [error(float(s)) for s in fine]
         best = float(fine[int(np.argmin(fine_errors))])
-    shift = 0.0 if abs(best) < 0.5 * period else best
-    return TimeShift(shift, error(shift), unshifted)
+    found = error(best)
+    if abs(best) < 0.5 * period or not found < (1.0 - 1e-6) * unshifted:  # no better: none
+        return TimeShift(0.0, unshifted, unshifted)
+    return TimeShift(best, found, unshifted)

@@ -199,6 +199,10 @@ MOUNTING_START_SAMPLES = 25
 #: A start further than this from the straight pose of the stated mounting (and so
 #: within 45 degrees of the opposite mounting's straight pose) is refused, rad.
 MOUNTING_FLIPPED = math.radians(135.0)
+#: Between two IMUs one after the other, a start bent more than this (rad) is said even
+#: where the sections' theta_max allow it: an IMU mounted upside down on a robot that
+#: starts near straight reads about pi.
+UPSIDE_DOWN_LIKE = math.radians(160.0)
 #: A start more than 90 degrees plus this from the stated mounting's straight pose
 #: warns; the warning says so where it is further than the sections' theta_max let the
 #: IMU bend by more than this too, rad (the readings' noise and the IMU's misalignment
@@ -270,21 +274,26 @@ def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
 
 def check_imu_mountings(name: str, z: FloatArray, formulation: Formulation) -> None:
     """A :class:`MountingWarning` for each IMU whose first readings (where it and the
-    IMU before it, base first, both read) put it further from (or nearer to) the
-    straight pose than that IMU by more than :data:`MOUNTING_FLIPPED` and more than the
-    sections between them can bend (their ``theta_max``; a tendon robot's mechanics
-    have no such bound): the difference of the two angles from the vertical bounds the
-    bend between them from below, and an IMU mounted upside down reads such a start."""
+    nearest IMU before it that reads then, base first, both read) put it further from
+    (or nearer to) the straight pose than that IMU by more than :data:`MOUNTING_FLIPPED`
+    and more than the sections between them can bend (their ``theta_max``), or by more
+    than :data:`UPSIDE_DOWN_LIKE` in any case: the difference of the two angles from the
+    vertical bounds the bend between them from below, and an IMU mounted upside down
+    reads such a start."""
     robot = formulation.robot
     order = sorted(range(robot.n_imus), key=lambda i: (robot.imus[i].section, robot.imus[i].at))
     angles = {k: _imu_angles(z, formulation, k) for k in order}
-    for before, k in zip(order, order[1:]):
-        both = np.isfinite(angles[before]) & np.isfinite(angles[k])
-        if not both.any():
+    for i, k in enumerate(order[1:], 1):
+        # the nearest IMU before it that reads in the same rows
+        pairs = ((j, np.isfinite(angles[j]) & np.isfinite(angles[k])) for j in order[i - 1 :: -1])
+        found = next(((j, both) for j, both in pairs if both.any()), None)
+        if found is None:
             continue
+        before, both = found
         a = float(np.median(angles[before][both][:MOUNTING_START_SAMPLES]))
         b = float(np.median(angles[k][both][:MOUNTING_START_SAMPLES]))
-        if abs(b - a) <= max(MOUNTING_FLIPPED, _reach_between(robot, before, k)):
+        limit = max(MOUNTING_FLIPPED, min(_reach_between(robot, before, k), UPSIDE_DOWN_LIKE))
+        if abs(b - a) <= limit:
             continue
         warnings.warn(
             f"{name}: mounting: at the start gravity puts IMU {k + 1} {math.degrees(b):.0f} "
@@ -301,9 +310,7 @@ def check_imu_mountings(name: str, z: FloatArray, formulation: Formulation) -> N
 def _reach_between(robot: Robot, before: int, k: int) -> float:
     """The largest bend, rad, the sections between IMU ``before`` and IMU ``k`` (0-based,
     ``k`` further out) let the robot make between them (their ``theta_max``, in part
-    where an IMU sits inside a section); infinite for a robot with mechanics."""
-    if robot.has_mechanics:
-        return math.inf
+    where an IMU sits inside a section)."""
     first, last = robot.imus[before], robot.imus[k]
     if first.section == last.section:
         return (last.at - first.at) * robot.sections[first.section].theta_max

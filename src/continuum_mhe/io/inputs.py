@@ -495,11 +495,14 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         options, f = resolve(name, kind, has_gyro, options, base)
         convs = imu_converters(options.raw, base.robot)
 
+        read = [0]  # the blocks read so far
+
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             blocks = raw_blocks(
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
-                options.raw.needs_gyro,
+                options.raw.needs_gyro, first_block=read[0] == 0,
             )  # fmt: skip
+            read[0] += 1
             return np.hstack(
                 [conv.convert_many(t, acc, gyr) for conv, (acc, gyr) in zip(convs, blocks)]
             )

@@ -63,9 +63,11 @@ _LOOKS_LIKE_G = (0.5, 2.0)
 #: means the gyro is in deg/s, not rad/s. A deg/s file whose median rate stays below
 #: 5 deg/s is not caught (its rates are small either way).
 GYRO_MEDIAN_MAX = 5.0
-#: A stream's units are checked on the medians of this many first samples (1 s at
-#: 100 Hz), where a recording's are checked on all of them.
+#: A stream's units are checked on the medians of its first samples, at least this many
+#: (1 s at 100 Hz) over at least :data:`UNIT_CHECK_SPAN_S`, where a recording's are
+#: checked on all of them.
 UNIT_CHECK_SAMPLES = 100
+UNIT_CHECK_SPAN_S = 1.0
 #: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
 #: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
 #: corrupt value, not a reading.
@@ -350,9 +352,13 @@ def raw_blocks(
     skip_bad: bool,
     skipped: list[str] | RowProblems,
     gyro_used: bool = True,
+    first_block: bool = True,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
-    in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`).
+    in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`; on a
+    later block of a file read in blocks (not ``first_block``), only where it has
+    :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
+    no deg/s).
 
     One IMU: a zero acceleration, or a reading beyond any IMU's range
     (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
@@ -389,7 +395,8 @@ def raw_blocks(
         acc[zero] = np.nan
         block[huge] = np.nan
         check_accel_units(name, acc)
-        if has_gyro:
+        judged = first_block or int(np.isfinite(gyr_norm).sum()) >= UNIT_CHECK_SAMPLES
+        if has_gyro and judged:
             label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
             check_gyro_units(label, block[:, 3:6], gyro_used)
         out.append((acc, block[:, 3:6] if has_gyro else None))

@@ -137,23 +137,24 @@ class Tensions:
                     stacklevel=2,
                 )
         if n >= 3:
-            same = np.all(self.values[1:] == self.values[:-1], axis=1)  # row i+1 repeats row i
-            start, best = 0, (0.0, 0, 0)
-            for i in range(1, n):
-                if not same[i - 1]:
-                    start = i
-                elif self.t[i] - self.t[start] > best[0]:
-                    best = (float(self.t[i] - self.t[start]), start, i)
-            held, a, b = best
-            if held > TENSIONS_FROZEN_S and self.values.any() and not same.all():
-                warnings.warn(
-                    f"{self.name}: the tensions repeat exactly from t = "
-                    f"{time_text(float(self.t[a]))} to {time_text(float(self.t[b]))} s "
-                    f"({held:.3g} s): a logger that froze? "
-                    "(the estimate takes them as given)",
-                    TensionsWarning,
-                    stacklevel=2,
-                )
+            # runs of rows that repeat the row before exactly, every tendon slack (all 0)
+            # left out: a robot at rest with its tendons released reads so
+            same = np.all(self.values[1:] == self.values[:-1], axis=1) & self.values[1:].any(axis=1)
+            starts = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(int)])) == 1)
+            ends = np.flatnonzero(np.diff(np.concatenate([same.astype(int), [0]])) == -1)
+            if len(starts) and not same.all():
+                held = self.t[ends + 1] - self.t[starts]  # row starts .. row ends + 1
+                r = int(np.argmax(held))
+                if held[r] > TENSIONS_FROZEN_S:
+                    warnings.warn(
+                        f"{self.name}: the tensions repeat exactly from t = "
+                        f"{time_text(float(self.t[starts[r]]))} to "
+                        f"{time_text(float(self.t[ends[r] + 1]))} s ({held[r]:.3g} s): a "
+                        "logger that froze, or tensions held exactly? (the estimate takes "
+                        "them as given)",
+                        TensionsWarning,
+                        stacklevel=2,
+                    )
             steps = np.diff(self.t)
             usual = float(np.median(steps))
             i = int(np.argmax(steps))

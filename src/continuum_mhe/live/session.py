@@ -26,6 +26,7 @@ from continuum_mhe.io.csv_files import (
 )
 from continuum_mhe.io.raw_imu import (
     UNIT_CHECK_SAMPLES,
+    UNIT_CHECK_SPAN_S,
     RawImuConverter,
     check_accel_units,
     check_gyro_units,
@@ -49,8 +50,9 @@ from continuum_mhe.stream.recording import csv_cell
 
 # Raw lines: the units are checked once, as ``estimate`` checks a raw file (an
 # accelerometer in g, ``check_accel_units``; a gyro in deg/s, ``check_gyro_units``), on
-# the medians of the first UNIT_CHECK_SAMPLES samples (1 s at the firmware's 100 Hz), or
-# of all the samples of a shorter session at its end; again after a board reset (the
+# the medians of the first samples, at least UNIT_CHECK_SAMPLES (1 s at the firmware's
+# 100 Hz) over at least UNIT_CHECK_SPAN_S, or of all the samples of a shorter session at
+# its end; again after a board reset (the
 # device clock restarting). The samples are estimated meanwhile: the check never holds
 # the stream back.
 
@@ -298,6 +300,7 @@ class LiveSession:
         #: the first raw samples' values, until their units are checked (None: checked,
         #: or tilt lines)
         self._units_unchecked: list[FloatArray] | None = None if self.converters is None else []
+        self._units_since = 0.0  # the time of the first sample in _units_unchecked, s
         self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
@@ -507,8 +510,13 @@ class LiveSession:
             # (a gyro the estimate ignores was warned about once: enough)
             self._units_unchecked = []
         if self._units_unchecked is not None:
+            if not self._units_unchecked:
+                self._units_since = t
             self._units_unchecked.append(s.values)
-            if len(self._units_unchecked) >= UNIT_CHECK_SAMPLES:
+            if (
+                len(self._units_unchecked) >= UNIT_CHECK_SAMPLES
+                and t - self._units_since >= UNIT_CHECK_SPAN_S
+            ):
                 self.check_units()
                 if self.fatal is not None:
                     return None  # neither recorded nor estimated: the session stops

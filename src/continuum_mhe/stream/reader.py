@@ -131,9 +131,9 @@ class SerialReader(threading.Thread):
 
     def _reopen(self) -> None:
         """Open the port again, with backoff, until it opens or the thread is told to
-        stop; each reason it does not open for after the first (a missing device while
-        unplugged, then no permission after the replug) is one ``("retrying", reason,
-        t)`` event."""
+        stop; each reason it does not open for (no permission after a replug, a port
+        another program holds) is one ``("retrying", reason, t)`` event when it changes,
+        but a first one that only says the device is gone (unplugged)."""
         lost = time.monotonic()
         delay = 0.1
         last = None  # the reason of the last failed attempt
@@ -142,7 +142,8 @@ class SerialReader(threading.Thread):
                 self.conn = open_port(self.port, self.baud)
             except Exception as exc:
                 reason = str(exc).replace("\n", " ") or type(exc).__name__
-                if last is not None and reason != last:
+                gone = isinstance(exc, FileNotFoundError) or "No such file" in reason
+                if reason != last and not (last is None and gone):
                     self.events.put(("retrying", reason, time.monotonic()))
                 last = reason
                 delay = min(2 * delay, self.retry_max_s)
