@@ -1329,3 +1329,30 @@ def test_the_bend_past_theta_max_tally_reads_a_one_section_tendon_robots_columns
         f"{bound + 0.2:.3g} rad (theta_max {bound:.4g})"
     )
     assert not BendsBeyondBound(make_formulation("bend")).active
+
+
+def test_tensions_logged_fast_give_the_derivatives_of_the_same_tensions_at_50_hz(
+    tmp_path: Path,
+) -> None:
+    """The shipped 50 Hz tensions interpolated linearly to a 1 kHz log: their rates and
+    accelerations at the measurements' times are those of the 50 Hz file (within 1 %
+    and 4 % of the largest; differences over a millisecond would turn the corners of the
+    interpolation into accelerations ten times the largest), and the 50 Hz file itself
+    keeps its rows' central differences."""
+    from continuum_mhe.io.tensions import central_differences, read_tensions
+
+    coarse = read_tensions(DATA / "force-29_tensions.csv", 6)
+    t = np.arange(coarse.t[0], coarse.t[-1] + 1e-9, 0.001)
+    fast_values = np.column_stack([np.interp(t, coarse.t, v) for v in coarse.values.T])
+    path = tmp_path / "fast.csv"
+    write_table(path, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([t, fast_values]).tolist())  # fmt: skip
+    fast = read_tensions(path, 6)
+    at = coarse.t[5:-5]
+    for k, tol in ((1, 0.01), (2, 0.04)):  # rates, accelerations
+        want = np.array([coarse.at(x)[k] for x in at])
+        got = np.array([fast.at(x)[k] for x in at])
+        assert np.abs(got - want).max() <= tol * np.abs(want).max()
+    rates = central_differences(coarse.t, coarse.values)
+    np.testing.assert_array_equal(coarse.rates, rates)
+    np.testing.assert_array_equal(coarse.accelerations, central_differences(coarse.t, rates))

@@ -3,7 +3,9 @@
 
 The tensions at a measurement's time are interpolated linearly between the file's
 rows; their rates are the central differences of the file's rows, and their second
-derivatives the central differences of those rates, both interpolated the same way
+derivatives the central differences of those rates (a file logged faster than 50 Hz
+averaged into 20 ms bins first: :func:`tension_derivatives`), both interpolated the
+same way
 (what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
 accelerometers read). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
@@ -42,6 +44,10 @@ from continuum_mhe.model.tendon import TendonFormulation
 #: its bending stiffness, times its length) before the tensions are refused as another
 #: unit: a load at the tip may hold a section against more than its tendons' own bend.
 MAX_TENDON_TURNS = 2.0
+#: The tensions' derivatives are taken on rows at least about this far apart (s; the
+#: IMUs' 50 Hz): a faster file is averaged into bins of this length first
+#: (:func:`tension_derivatives`).
+DERIVATIVE_STEP_S = 0.02
 #: Tensions repeated exactly for longer than this (s) are said (a logger that froze;
 #: live load cells are never exactly still), as a frozen IMU is treated after 1 s.
 TENSIONS_FROZEN_S = 1.0
@@ -212,6 +218,32 @@ def tension_columns(n_tendons: int) -> tuple[str, ...]:
     return tuple(f"tension_{i}" for i in range(1, n_tendons + 1))
 
 
+def tension_derivatives(t: FloatArray, values: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(rates, accelerations)`` (n, k) of the tensions ``values`` (n, k) at the rows'
+    times ``t`` (n,) s: the rows' central differences, and those of the rates. A file
+    logged faster than :data:`DERIVATIVE_STEP_S` (a median step under three quarters of
+    it) is first averaged into bins of that length and differenced there, the
+    derivatives interpolated back to its rows: a difference over a millisecond would
+    turn a load cell's noise, or the corners of tensions interpolated to a fast log,
+    into accelerations hundreds of times the tensions' own."""
+    if len(t) >= 3 and float(np.median(np.diff(t))) < 0.75 * DERIVATIVE_STEP_S:
+        bins = np.floor((t - t[0]) / DERIVATIVE_STEP_S).astype(np.int64)
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(bins)) + 1])
+        counts = np.diff(np.concatenate([starts, [len(t)]]))
+        tb = np.add.reduceat(t, starts) / counts
+        vb = np.add.reduceat(values, starts, axis=0) / counts[:, None]
+        if len(tb) >= 2:
+            rb = central_differences(tb, vb)
+            ab = central_differences(tb, rb)
+            back = [
+                np.column_stack([np.interp(t, tb, d[:, j]) for j in range(d.shape[1])])
+                for d in (rb, ab)
+            ]
+            return back[0], back[1]
+    rates = central_differences(t, values)
+    return rates, central_differences(t, rates)
+
+
 def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
     """The derivative of ``values`` (n, k) over ``t`` (n,) s at every row: the
     second-order central difference on uneven steps inside, one-sided at the two ends,
@@ -292,8 +324,7 @@ def read_tensions(
             f"{name}: line {data[i][0]}: tension_{j + 1} = {values[i, j]:g} N is negative: "
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
-    rates = central_differences(t, values)
-    return Tensions(name, t, values, rates, central_differences(t, rates))
+    return Tensions(name, t, values, *tension_derivatives(t, values))
 
 
 def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
