@@ -607,17 +607,26 @@ def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
     """A tensions file that spans the recording with a second or more between rows
     (tensions 1 s apart beside a 50 Hz recording) is no millisecond file: read in
     seconds and interpolated, so the estimates are those of the same tensions given at
-    every sample's time."""
+    every sample's time; a warning says that they are taken as linear between rows (the
+    dense file gets none)."""
     meas, tensions = _recording(tmp_path)
     write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
     dense = tmp_path / "dense.csv"
     t = np.arange(6) * 0.02
     write_table(dense, ["t", "tension_1"], [[tk, 1.0 + 0.5 * tk] for tk in t])
+    from continuum_mhe.io.tensions import TensionsWarning
+
     robot = str(_small_robot(tmp_path))
     for given, out in ((tensions, tmp_path / "e.csv"), (dense, tmp_path / "d.csv")):
         argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(given), "-o", str(out),
                 "--method", "ekf"]  # fmt: skip
-        assert main(argv) == 0
+        if given == tensions:  # rows 1 s apart beside samples 0.02 s apart: said
+            with pytest.warns(TensionsWarning, match=r"its rows are 1 s apart, the samples of "):
+                assert main(argv) == 0
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", TensionsWarning)
+            assert main(argv) == 0
     slow, every = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "d.csv")
     assert list(slow.status) == list(every.status)
     np.testing.assert_allclose(slow.values, every.values, rtol=0, atol=1e-9)

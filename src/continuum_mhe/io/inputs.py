@@ -461,6 +461,8 @@ def _append_tensions(
         first = last = math.nan
         for t, z in blocks:
             if len(t):
+                if math.isnan(first) and tensions is not None and len(t) >= 3:
+                    tensions.warn_sparse(float(np.median(np.diff(t))), stream.name)
                 first = t[0] if math.isnan(first) else first
                 last = t[-1]
             rows = []

@@ -54,6 +54,8 @@ TENSIONS_FROZEN_S = 1.0
 #: A step between two rows of more than this many times the median step (and over 1 s)
 #: is said: the tensions are interpolated across the hole.
 TENSIONS_HOLE_FACTOR = 10.0
+#: Rows more than this many times as far apart as the recording's samples are said.
+TENSIONS_SPARSE_FACTOR = 10.0
 
 
 class TensionsWarning(UserWarning):
@@ -172,6 +174,24 @@ class Tensions:
                     TensionsWarning,
                     stacklevel=2,
                 )
+
+    def warn_sparse(self, sample_step: float, source: str) -> None:
+        """A :class:`TensionsWarning` where the file's rows are more than
+        :data:`TENSIONS_SPARSE_FACTOR` times as far apart as the samples of ``source``
+        (``sample_step`` s, median) and over 0.1 s: between rows the tensions are taken
+        as linear and their second derivatives as 0, which a tension that changes
+        faster is not."""
+        if len(self.t) < 2 or not sample_step > 0:
+            return
+        step = float(np.median(np.diff(self.t)))
+        if step > max(TENSIONS_SPARSE_FACTOR * sample_step, 0.1):
+            warnings.warn(
+                f"{self.name}: its rows are {step:.3g} s apart, the samples of {source} "
+                f"{sample_step:.3g} s: between rows the tensions are taken as linear (no "
+                "second derivative); if they change faster, log them faster",
+                TensionsWarning,
+                stacklevel=2,
+            )
 
     def check_steps(self) -> None:
         """An :class:`InputError` where the file's rows are over
