@@ -1365,3 +1365,24 @@ def test_tensions_logged_fast_give_the_derivatives_of_the_same_tensions_at_50_hz
     rates = central_differences(coarse.t, coarse.values)
     np.testing.assert_array_equal(coarse.rates, rates)
     np.testing.assert_array_equal(coarse.accelerations, central_differences(coarse.t, rates))
+
+
+def test_a_recordings_own_tensions_are_differenced_row_by_row_as_live_does(
+    tmp_path: Path,
+) -> None:
+    """The tension columns ``live --record`` writes beside the IMUs' are differenced row
+    by row, as live's stream differenced them (a replay gives live's estimates), even at
+    100 Hz; the same tensions as a file of their own are averaged into 20 ms bins."""
+    from continuum_mhe.io.tensions import central_differences, read_tensions
+
+    t = np.arange(0.0, 2.0, 0.01)
+    values = np.column_stack([1.0 + 0.3 * np.sin(3 * t), 0.5 + 0.1 * t])
+    recording, own = tmp_path / "rec.csv", tmp_path / "own.csv"
+    write_table(recording, ["t", "roll", "pitch", "tension_1", "tension_2"],
+                np.column_stack([t, 0 * t, 0 * t, values]).tolist())  # fmt: skip
+    write_table(own, ["t", "tension_1", "tension_2"], np.column_stack([t, values]).tolist())
+    replayed = read_tensions(recording, 2, other_columns=True)
+    rates = central_differences(replayed.t, replayed.values)
+    np.testing.assert_array_equal(replayed.rates, rates)
+    np.testing.assert_array_equal(replayed.accelerations, central_differences(replayed.t, rates))
+    assert not np.array_equal(read_tensions(own, 2).accelerations, replayed.accelerations)

@@ -3,9 +3,10 @@
 
 The tensions at a measurement's time are interpolated linearly between the file's
 rows; their rates are the central differences of the file's rows, and their second
-derivatives the central differences of those rates (a file logged faster than 50 Hz
-averaged into 20 ms bins first: :func:`tension_derivatives`), both interpolated the
-same way
+derivatives the central differences of those rates (a tensions file logged faster than
+50 Hz averaged into 20 ms bins first: :func:`tension_derivatives`; a recording's own
+tension columns row by row, as ``live`` differenced them), both interpolated the same
+way
 (what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
 accelerometers read). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
@@ -294,7 +295,10 @@ def read_tensions(
 ) -> Tensions:
     """Read and check a tensions file for a robot with ``n_tendons`` tendons
     (``other_columns``: a recording that carries its tensions beside its IMUs' columns,
-    which are left out here). ``skip_bad``: a row with a missing or non-finite tension,
+    which are left out here, and whose rows are differenced one by one, as ``live``
+    differenced them when it recorded them: a replay gives ``live``'s estimates; a
+    tensions file of its own is differenced by :func:`tension_derivatives`).
+    ``skip_bad``: a row with a missing or non-finite tension,
     or a bad time, is left out (the tensions are interpolated across it; a
     :class:`~continuum_mhe.io.csv_files.DropoutWarning` counts them) instead of an
     error. ``time_warning``: a ``t`` that steps like milliseconds is said (a
@@ -344,6 +348,9 @@ def read_tensions(
             f"{name}: line {data[i][0]}: tension_{j + 1} = {values[i, j]:g} N is negative: "
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
+    if other_columns:  # as live's TensionStream, row by row
+        rates = central_differences(t, values)
+        return Tensions(name, t, values, rates, central_differences(t, rates))
     return Tensions(name, t, values, *tension_derivatives(t, values))
 
 
