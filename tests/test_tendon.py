@@ -661,8 +661,8 @@ def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A recording with its own tension columns and --inputs: the --inputs tensions are
-    used, and a warning says so; without --inputs the recording's own are used, with no
-    warning."""
+    used, and a warning says so and how far the two differ (or that they are the same);
+    without --inputs the recording's own are used, with no warning."""
     meas, tensions = _recording(tmp_path)
     header, *rows = meas.read_text().splitlines()
     both = tmp_path / "both.csv"  # its own tensions, not those of --inputs
@@ -675,7 +675,15 @@ def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
             assert main([*argv, str(tmp_path / f"e{len(extra)}.csv"), *extra]) == 0
         said.append([str(w.message) for w in seen if w.category is OptionWarning])
     assert said == [[f"{both}: the recording carries tension columns, but the tensions of "
-                     f"--inputs {tensions} are the ones used"], []]  # fmt: skip
+                     f"--inputs {tensions} are the ones used (they differ by up to 8 N)"],
+                    []]  # fmt: skip
+    same = tmp_path / "same.csv"  # its own columns, the tensions of --inputs at its times
+    same.write_text("\n".join([f"{header},tension_1",
+                               *(f"{r},{1.0 + 5 * float(r.split(',')[0])!r}" for r in rows)])
+                    + "\n")  # fmt: skip
+    with pytest.warns(OptionWarning, match=r"are the ones used \(the same tensions\)$"):
+        assert main(["estimate", str(same), "--robot", str(_small_robot(tmp_path)), "-o",
+                     str(tmp_path / "s.csv"), "--inputs", str(tensions)]) == 0  # fmt: skip
     own, given = (read_state_table(tmp_path / f"e{k}.csv").column("fz") for k in (0, 2))
     assert not np.allclose(own, given)  # the files' tensions differ, and so do the estimates
 

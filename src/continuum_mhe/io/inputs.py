@@ -415,14 +415,15 @@ def _tensions(
     )
     own = set(tension_columns(k)) <= set(columns)
     if given:
+        table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
         if own:
+            assert recording is not None
             warnings.warn(
                 f"{recording}: the recording carries tension columns, but the tensions "
-                f"of --inputs {given} are the ones used",
+                f"of --inputs {given} are the ones used{_tensions_compared(recording, k, table)}",
                 OptionWarning,
                 stacklevel=2,
             )
-        table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
         table.check_scale(robot)
         table.warn_suspect()
         return table
@@ -446,6 +447,24 @@ def _tensions(
         f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
         f"or as the recording's columns tension_1..tension_{k}"
     )
+
+
+def _tensions_compared(recording: str | os.PathLike[str], k: int, given: Tensions) -> str:
+    """How the recording's own tension columns compare with the ``given`` file's at the
+    recording's rows the file covers: `` (the same tensions)``, `` (they differ by up
+    to X N)``, or ``""`` where they cannot be compared."""
+    try:
+        own = read_tensions(recording, k, other_columns=True, time_warning=False)
+    except InputError:
+        return ""
+    inside = (own.t >= given.t[0]) & (own.t <= given.t[-1])
+    if not inside.any():
+        return ""
+    at = np.column_stack([np.interp(own.t[inside], given.t, v) for v in given.values.T])
+    gap = float(np.abs(own.values[inside] - at).max())
+    if gap <= 1e-6 * max(1.0, float(np.abs(at).max())):
+        return " (the same tensions)"
+    return f" (they differ by up to {gap:.3g} N)"
 
 
 def _append_tensions(
