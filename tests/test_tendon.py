@@ -607,8 +607,8 @@ def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
     """A tensions file that spans the recording with a second or more between rows
     (tensions 1 s apart beside a 50 Hz recording) is no millisecond file: read in
     seconds and interpolated, so the estimates are those of the same tensions given at
-    every sample's time; a warning says that they are taken as linear between rows (the
-    dense file gets none)."""
+    every sample's time (a held or ramped load given by a few rows is said nothing of:
+    the tensions are linear)."""
     meas, tensions = _recording(tmp_path)
     write_table(tensions, ["t", "tension_1"], [[0.0, 1.0], [1.0, 1.5]])
     dense = tmp_path / "dense.csv"
@@ -620,11 +620,7 @@ def test_tensions_at_a_slow_rate_in_seconds_are_read(tmp_path: Path) -> None:
     for given, out in ((tensions, tmp_path / "e.csv"), (dense, tmp_path / "d.csv")):
         argv = ["estimate", str(meas), "--robot", robot, "--inputs", str(given), "-o", str(out),
                 "--method", "ekf"]  # fmt: skip
-        if given == tensions:  # rows 1 s apart beside samples 0.02 s apart: said
-            with pytest.warns(TensionsWarning, match=r"its rows are 1 s apart, the samples of "):
-                assert main(argv) == 0
-            continue
-        with warnings.catch_warnings():
+        with warnings.catch_warnings():  # linear tensions: no warning of rows far apart
             warnings.simplefilter("error", TensionsWarning)
             assert main(argv) == 0
     slow, every = read_state_table(tmp_path / "e.csv"), read_state_table(tmp_path / "d.csv")
@@ -1394,3 +1390,29 @@ def test_a_recordings_own_tensions_are_differenced_row_by_row_as_live_does(
     np.testing.assert_array_equal(replayed.rates, rates)
     np.testing.assert_array_equal(replayed.accelerations, central_differences(replayed.t, rates))
     assert not np.array_equal(read_tensions(own, 2).accelerations, replayed.accelerations)
+
+
+def test_tensions_far_apart_that_are_not_linear_are_said() -> None:
+    """The shipped tensions kept one row a second (beside samples 0.02 s apart): a
+    TensionsWarning that they are taken as linear between rows; the file itself, and a
+    ramp given by three rows, get none."""
+    from continuum_mhe.io.tensions import (
+        Tensions,
+        TensionsWarning,
+        read_tensions,
+        tension_derivatives,
+    )
+
+    full = read_tensions(DATA / "force-29_tensions.csv", 6)
+    keep = np.arange(0, len(full.t), 50)
+    sparse = Tensions(full.name, full.t[keep], full.values[keep],
+                      *tension_derivatives(full.t[keep], full.values[keep]))  # fmt: skip
+    with pytest.warns(TensionsWarning, match=r"its rows are 1 s apart, the samples of rec "
+                      r"0\.02 s: between rows the tensions are taken as linear"):  # fmt: skip
+        sparse.warn_sparse(0.02, "rec")
+    t = np.array([0.0, 5.0, 10.0])
+    ramp = np.column_stack([1.0 + 0.1 * t, 0.5 + 0 * t])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        full.warn_sparse(0.02, "rec")
+        Tensions("ramp.csv", t, ramp, *tension_derivatives(t, ramp)).warn_sparse(0.02, "rec")

@@ -478,12 +478,12 @@ def _append_tensions(
 
     def with_tensions() -> Iterator[tuple[FloatArray, FloatArray]]:
         first = last = math.nan
+        n = 0  # the recording's samples
         for t, z in blocks:
             if len(t):
-                if math.isnan(first) and tensions is not None and len(t) >= 3:
-                    tensions.warn_sparse(float(np.median(np.diff(t))), stream.name)
                 first = t[0] if math.isnan(first) else first
                 last = t[-1]
+                n += len(t)
             rows = []
             for tv, zv in zip(t.tolist(), z):
                 given = tensions.at(tv, stream.name) if tensions is not None else (np.zeros(k),) * 3
@@ -491,6 +491,8 @@ def _append_tensions(
             yield t, np.array(rows, dtype=np.float64).reshape(len(t), f.nz)
         if tensions is not None:  # the recording's whole span known: milliseconds?
             tensions.check_span(float(first), float(last))
+            if n >= 2:
+                tensions.warn_sparse((float(last) - float(first)) / (n - 1), stream.name)
 
     stream.formulation, stream.blocks = f, with_tensions()
     stream.description.tensions = None if tensions is None else tensions.name

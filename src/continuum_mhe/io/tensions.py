@@ -72,7 +72,7 @@ class Tensions:
         t: (n,) s, strictly increasing.
         values: (n, k) N, non-negative.
         rates: (n, k) N/s, central differences (one-sided at the ends; zero with one
-            row).
+            row; of 20 ms bins of a faster file: :func:`tension_derivatives`).
         accelerations: (n, k) N/s^2, the rates' central differences (the same way).
     """
 
@@ -179,10 +179,13 @@ class Tensions:
     def warn_sparse(self, sample_step: float, source: str) -> None:
         """A :class:`TensionsWarning` where the file's rows are more than
         :data:`TENSIONS_SPARSE_FACTOR` times as far apart as the samples of ``source``
-        (``sample_step`` s, median) and over 0.1 s: between rows the tensions are taken
-        as linear and their second derivatives as 0, which a tension that changes
-        faster is not."""
+        (``sample_step`` s, on average) and over 0.1 s, and the tensions are not linear
+        in time (a held or ramped load given by a few rows is): between rows the
+        tensions are taken as linear and their second derivatives as 0, which a
+        tension that changes faster is not."""
         if len(self.t) < 2 or not sample_step > 0:
+            return
+        if not np.any(np.abs(self.accelerations) > 1e-9 * max(1.0, float(self.values.max()))):
             return
         step = float(np.median(np.diff(self.t)))
         if step > max(TENSIONS_SPARSE_FACTOR * sample_step, 0.1):
@@ -243,13 +246,14 @@ def tension_derivatives(t: FloatArray, values: FloatArray) -> tuple[FloatArray, 
     """``(rates, accelerations)`` (n, k) of the tensions ``values`` (n, k) at the rows'
     times ``t`` (n,) s: the rows' central differences, and those of the rates. A file
     logged faster than :data:`DERIVATIVE_STEP_S` (a median step under three quarters of
-    it) is first averaged into bins of that length and differenced there, the
-    derivatives interpolated back to its rows: a difference over a millisecond would
-    turn a load cell's noise, or the corners of tensions interpolated to a fast log,
-    into accelerations hundreds of times the tensions' own."""
-    if len(t) >= 3 and float(np.median(np.diff(t))) < 0.75 * DERIVATIVE_STEP_S:
-        bins = np.floor((t - t[0]) / DERIVATIVE_STEP_S).astype(np.int64)
-        starts = np.concatenate([[0], np.flatnonzero(np.diff(bins)) + 1])
+    it: two rows or more to a bin) is first averaged over bins of that many rows, about
+    that long, and differenced there, the derivatives interpolated back to its rows: a
+    difference over a millisecond would turn a load cell's noise, or the corners of
+    tensions interpolated to a fast log, into accelerations hundreds of times the
+    tensions' own."""
+    per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(t)))) if len(t) >= 3 else 1
+    if per_bin >= 2:
+        starts = np.arange(0, len(t), per_bin)
         counts = np.diff(np.concatenate([starts, [len(t)]]))
         tb = np.add.reduceat(t, starts) / counts
         vb = np.add.reduceat(values, starts, axis=0) / counts[:, None]

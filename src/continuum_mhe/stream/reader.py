@@ -3,6 +3,7 @@ thread that drains it into a queue of whole lines, reopening a lost device."""
 
 from __future__ import annotations
 
+import errno
 import glob
 import os
 import queue
@@ -142,7 +143,12 @@ class SerialReader(threading.Thread):
                 self.conn = open_port(self.port, self.baud)
             except Exception as exc:
                 reason = str(exc).replace("\n", " ") or type(exc).__name__
-                gone = isinstance(exc, FileNotFoundError) or "No such file" in reason
+                gone = (
+                    getattr(exc, "errno", None) == errno.ENOENT
+                    or isinstance(exc, FileNotFoundError)
+                    or "No such file" in reason
+                    or "FileNotFoundError" in reason
+                )
                 if reason != last and not (last is None and gone):
                     self.events.put(("retrying", reason, time.monotonic()))
                 last = reason
