@@ -4,7 +4,7 @@
 The tensions at a measurement's time are interpolated linearly between the file's
 rows; their rates are the central differences of the file's rows, and their second
 derivatives the central differences of those rates (a tensions file logged faster than
-50 Hz averaged into 20 ms bins first: :func:`tension_derivatives`; a recording's own
+50 Hz averaged over bins of about 20 ms first: :func:`tension_derivatives`; a recording's own
 tension columns row by row, as ``live`` differenced them), both interpolated the same
 way
 (what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
