@@ -1416,3 +1416,31 @@ def test_tensions_far_apart_that_are_not_linear_are_said() -> None:
         warnings.simplefilter("error", TensionsWarning)
         full.warn_sparse(0.02, "rec")
         Tensions("ramp.csv", t, ramp, *tension_derivatives(t, ramp)).warn_sparse(0.02, "rec")
+
+
+def test_a_tip_force_beyond_every_tension_is_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tensions given in kgf for N: the tip force makes up for them and grows beyond
+    every tension given, and estimate says so at the end (naming the two forces); the
+    tensions in N give no such line."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join((DATA / "force-29_raw.csv").read_text().splitlines()[:301]) + "\n")
+    tensions = read_tensions(DATA / "force-29_tensions.csv", 6)
+    kgf = tmp_path / "kgf.csv"
+    write_table(kgf, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([tensions.t, tensions.values / 9.80665]).tolist())  # fmt: skip
+    for given, out in ((kgf, "k.csv"), (DATA / "force-29_tensions.csv", "n.csv")):
+        capsys.readouterr()
+        assert main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+                     str(given), "--method", "ekf", "-o", str(tmp_path / out)]) == 0  # fmt: skip
+        said = [ln for ln in capsys.readouterr().err.splitlines() if "tip force reached" in ln]
+        if given == kgf:
+            assert len(said) == 1 and re.match(
+                r"continuum-mhe: warning: the estimated tip force reached \d+\.?\d* N, beyond "
+                r"the largest tendon tension given \(0\.\d+ N\): a load that large, or "
+                r"tensions in another unit \(kgf for N\?\)",
+                said[0],
+            ), said
+        else:
+            assert said == []

@@ -33,7 +33,11 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.errors import time_text
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.sensor_health import BendsBeyondBound, bound_notice
+from continuum_mhe.estimators.sensor_health import (
+    BendsBeyondBound,
+    ForceBeyondTensions,
+    bound_notice,
+)
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.output_files import check_output_target
 from continuum_mhe.progress import progress_bar
@@ -78,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
         est.reset()
         diag = est.diagnostics  # the sensor-health policy's counts, kept by each step
         beyond = BendsBeyondBound(formulation)  # a tendon robot's bends past theta_max
+        force = ForceBeyondTensions(formulation)  # ... and its tip force against its tensions
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         outliers = readings = 0  # samples flagged as outliers; samples with a reading
         frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
@@ -109,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
                         print(f"{PROG}: note: {note}", file=sys.stderr)
                     outliers += int(batch.outlier.sum())
                     beyond.add(batch.output)
+                    force.add(z, batch.output)
                     readings += int(np.isfinite(z).any(axis=1).sum())
                     sink.write_batch(t, batch.output, batch.output_std, batch.outlier,
                                      statuses, batch.solve_ms)  # fmt: skip
@@ -195,6 +201,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {note}", file=sys.stderr)
     if beyond_note := beyond.notice(n):
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)
+    if force_note := force.notice():
+        print(f"{PROG}: warning: {force_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "

@@ -121,6 +121,13 @@ def freeze_notice(new: dict[int, float], freeze_s: float) -> str:
     )
 
 
+#: A tendon robot's tip force beyond this many times its largest tension (and over
+#: :data:`FORCE_NOTICE_MIN` N) is said at the end of ``estimate``
+#: (:class:`ForceBeyondTensions`): the shipped recordings reach at most 0.11 of it.
+FORCE_TENSION_RATIO = 1.0
+FORCE_NOTICE_MIN = 0.05
+
+
 def bound_notice(count: int, n: int, robot: Robot) -> str:
     """One line for ``count`` of ``n`` estimates on a section's ``theta_max`` (status
     ``at-bound``)."""
@@ -181,6 +188,45 @@ class BendsBeyondBound:
             f"{'; '.join(over)}; the mechanics model does not bound the bend, so the "
             "file's bound or the inputs (tensions, tendon angles and radii, backbone) "
             "contradict the estimate: check them"
+        )
+
+
+class ForceBeyondTensions:
+    """The largest tip force a tendon robot's estimates reach against the largest
+    tendon tension of its inputs, counted block by block (:meth:`add`) for one line at
+    the end (:meth:`notice`): a tip force beyond every tension is a large load, or
+    tensions given in another unit (kgf for N) that the force makes up for."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        names = [o.name for o in formulation.outputs]
+        self._force = [names.index(c) for c in ("fx", "fy", "fz") if c in names]
+        self._tensions = tension_rows(formulation)
+        self.active = len(self._force) == 3 and bool(self._tensions)
+        self.force = 0.0  # the largest tip force estimated, N
+        self.tension = 0.0  # the largest tension given, N
+
+    def add(self, z: FloatArray, output: FloatArray) -> None:
+        """Count the samples' measurements ``z`` (n, nz) and estimates ``output`` (n, ny),
+        NaN rows without an estimate."""
+        if not self.active or not len(z):
+            return
+        with np.errstate(invalid="ignore"):
+            force = np.linalg.norm(output[:, self._force], axis=1)
+            tension = z[:, self._tensions]
+        if np.isfinite(force).any():
+            self.force = max(self.force, float(np.nanmax(force)))
+        if np.isfinite(tension).any():
+            self.tension = max(self.tension, float(np.nanmax(tension)))
+
+    def notice(self) -> str | None:
+        """One line where the tip force went beyond :data:`FORCE_TENSION_RATIO` times
+        the largest tension (and over :data:`FORCE_NOTICE_MIN` N); None otherwise."""
+        if not self.force > max(FORCE_TENSION_RATIO * self.tension, FORCE_NOTICE_MIN):
+            return None
+        return (
+            f"the estimated tip force reached {self.force:.3g} N, beyond the largest tendon "
+            f"tension given ({self.tension:.3g} N): a load that large, or tensions in "
+            "another unit (kgf for N?) or order that the tip force makes up for; check them"
         )
 
 
