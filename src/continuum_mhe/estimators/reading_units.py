@@ -112,6 +112,10 @@ class ReadingUnitsWatch:
 
     def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> str | None:
         force_rows, gyro_rows, names = self._blocks[k]
+        if len(z) == 1 and not all(  # one sample (a step) without this IMU: nothing to see
+            map(math.isfinite, z[0, force_rows].tolist() + z[0, gyro_rows].tolist())
+        ):
+            return None
         full = np.flatnonzero(
             np.isfinite(z[:, force_rows]).all(axis=1) & np.isfinite(z[:, gyro_rows]).all(axis=1)
         )
