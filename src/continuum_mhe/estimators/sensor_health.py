@@ -150,6 +150,7 @@ class BendsBeyondBound:
         robot = formulation.robot
         names = [o.name for o in formulation.outputs]
         self._robot = robot
+        self._limits = np.array([s.theta_max for s in robot.sections])  # rad
         # each section's bend: theta_k, or theta for a one-section model that names it so
         self._columns = [
             names.index(f"theta_{k}")
@@ -166,9 +167,8 @@ class BendsBeyondBound:
         if not self.active:
             return
         theta = np.abs(output[:, self._columns])
-        limits = np.array([s.theta_max for s in self._robot.sections])
         with np.errstate(invalid="ignore"):
-            beyond = theta > limits
+            beyond = theta > self._limits
         self.count += int(beyond.any(axis=1).sum())
         if beyond.any():
             worst = np.nanmax(np.where(beyond, theta, 0.0), axis=0)

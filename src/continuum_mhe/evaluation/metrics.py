@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -418,16 +419,18 @@ def best_time_shift(
         return None
     step = max(period, 2 * SHIFT_MAX_S / SHIFT_STEPS)
     coarse = np.arange(-math.floor(SHIFT_MAX_S / step), math.floor(SHIFT_MAX_S / step) + 1) * step
-    errors = [error(float(s)) for s in coarse]
-    best = float(coarse[int(np.argmin(errors))])
+
+    def least(shifts: NDArray[np.floating[Any]]) -> tuple[float, float]:
+        errors = [error(float(s)) for s in shifts]
+        i = int(np.argmin(errors))
+        return float(shifts[i]), errors[i]
+
+    best, found = least(coarse)
     if step > period:  # refine around the best, in sample periods (at most SHIFT_STEPS)
         fine_step = max(period, 2 * step / SHIFT_STEPS)
         half = math.ceil(step / fine_step)
         fine = best + np.arange(-half, half + 1) * fine_step
-        fine = fine[np.abs(fine) <= SHIFT_MAX_S]
-        fine_errors = [error(float(s)) for s in fine]
-        best = float(fine[int(np.argmin(fine_errors))])
-    found = error(best)
+        best, found = least(fine[np.abs(fine) <= SHIFT_MAX_S])
     if abs(best) < 0.5 * period or not found < (1.0 - 1e-6) * unshifted:  # no better: none
         return TimeShift(0.0, unshifted, unshifted)
     return TimeShift(best, found, unshifted)

@@ -3,8 +3,8 @@
 
 The tensions at a measurement's time are interpolated linearly between the file's
 rows; their rates are the central differences of the file's rows, and their second
-derivatives the central differences of those rates (a tensions file logged faster than
-50 Hz averaged over bins of about 20 ms first: :func:`tension_derivatives`; a recording's own
+derivatives the central differences of those rates (a tensions file logged at 75 Hz or
+faster averaged over bins of about 20 ms first: :func:`tension_derivatives`; a recording's own
 tension columns row by row, as ``live`` differenced them), both interpolated the same
 way
 (what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
@@ -242,16 +242,20 @@ def tension_columns(n_tendons: int) -> tuple[str, ...]:
     return tuple(f"tension_{i}" for i in range(1, n_tendons + 1))
 
 
-def tension_derivatives(t: FloatArray, values: FloatArray) -> tuple[FloatArray, FloatArray]:
+def tension_derivatives(
+    t: FloatArray, values: FloatArray, binned: bool = True
+) -> tuple[FloatArray, FloatArray]:
     """``(rates, accelerations)`` (n, k) of the tensions ``values`` (n, k) at the rows'
-    times ``t`` (n,) s: the rows' central differences, and those of the rates. A file
-    logged faster than :data:`DERIVATIVE_STEP_S` (a median step under three quarters of
-    it: two rows or more to a bin) is first averaged over bins of that many rows, about
-    that long, and differenced there, the derivatives interpolated back to its rows: a
-    difference over a millisecond would turn a load cell's noise, or the corners of
-    tensions interpolated to a fast log, into accelerations hundreds of times the
-    tensions' own."""
+    times ``t`` (n,) s: the rows' central differences, and those of the rates. With
+    ``binned``, a file logged faster than :data:`DERIVATIVE_STEP_S` (two rows or more
+    to a bin of about that length: a median step of at most two thirds of it) is first
+    averaged over bins of that many rows and differenced there, the derivatives
+    interpolated back to its rows: a difference over a millisecond would turn a load
+    cell's noise, or the corners of tensions interpolated to a fast log, into
+    accelerations hundreds of times the tensions' own."""
     per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(t)))) if len(t) >= 3 else 1
+    if not binned:
+        per_bin = 1
     if per_bin >= 2:
         starts = np.arange(0, len(t), per_bin)
         counts = np.diff(np.concatenate([starts, [len(t)]]))
@@ -352,10 +356,8 @@ def read_tensions(
             f"{name}: line {data[i][0]}: tension_{j + 1} = {values[i, j]:g} N is negative: "
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
-    if other_columns:  # as live's TensionStream, row by row
-        rates = central_differences(t, values)
-        return Tensions(name, t, values, rates, central_differences(t, rates))
-    return Tensions(name, t, values, *tension_derivatives(t, values))
+    # a recording's own columns row by row, as live's TensionStream differenced them
+    return Tensions(name, t, values, *tension_derivatives(t, values, binned=not other_columns))
 
 
 def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
