@@ -40,6 +40,11 @@ void read_into(const nb::handle& value, size_t n, double* out, const char* what)
   std::memcpy(out, a.data(), n * sizeof(double));
 }
 
+// ``run`` steps a recording without the GIL, so that other Python threads (the reading
+// of the next block, the writing of the last) go on meanwhile: every call into Python
+// below holds it (nb::gil_scoped_acquire; it nests where the caller holds it already),
+// and so does every Python object's lifetime.
+
 // The policy's interface implemented by a Python object with the methods ``restart()``,
 // ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
 // ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
@@ -48,9 +53,13 @@ void read_into(const nb::handle& value, size_t n, double* out, const char* what)
 class PythonInference final : public PolicyInference {
  public:
   PythonInference(nb::object obj, int nx, int nz, int ny) : obj_(std::move(obj)), nx_(nx), nz_(nz), ny_(ny) {}
-  void restart() override { obj_.attr("restart")(); }
+  void restart() override {
+    nb::gil_scoped_acquire gil;
+    obj_.attr("restart")();
+  }
   int infer(double t, const double* z, const double* mask, double* x, double* P,
             bool& has_state, bool& has_cov) override {
+    nb::gil_scoped_acquire gil;
     nb::tuple r = nb::cast<nb::tuple>(
         obj_.attr("infer")(t, copy_of(z, {size_t(nz_)}), copy_of(mask, {size_t(nz_)})));
     if (!r[3].is_none()) throw InferenceFailure(nb::cast<std::string>(r[3]));
@@ -62,20 +71,33 @@ class PythonInference final : public PolicyInference {
     return nb::cast<int>(r[2]);
   }
   void output(const double* x, double* y) override {
+    nb::gil_scoped_acquire gil;
     read_into(obj_.attr("output")(state(x)), ny_, y, "output");
   }
   void output_std(const double* x, const double* P, double* s) override {
+    nb::gil_scoped_acquire gil;
     // ``answer``: P is the last infer's own covariance (the inference may hold its std)
     read_into(obj_.attr("output_std")(state(x), cov(P), P == cov_), ny_, s, "output_std");
   }
-  bool outlier() override { return nb::cast<bool>(obj_.attr("outlier")()); }
-  int rejected_every_reading() override { return nb::cast<int>(obj_.attr("rejected")()); }
+  bool outlier() override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<bool>(obj_.attr("outlier")());
+  }
+  int rejected_every_reading() override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<int>(obj_.attr("rejected")());
+  }
   bool is_diverged(const double* x, const double* P) override {
+    nb::gil_scoped_acquire gil;
     nb::object p = P ? nb::cast(cov(P)) : nb::none();
     return nb::cast<bool>(obj_.attr("is_diverged")(state(x), p));
   }
-  bool drifted(const double* x) override { return nb::cast<bool>(obj_.attr("drifted")(state(x))); }
+  bool drifted(const double* x) override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<bool>(obj_.attr("drifted")(state(x)));
+  }
   bool at_bound(const double* x) override {
+    nb::gil_scoped_acquire gil;
     return nb::cast<bool>(obj_.attr("at_bound")(state(x)));
   }
 
@@ -110,7 +132,10 @@ class HorizonInference final : public PolicyInference {
   }
   MovingHorizon& horizon() { return h_; }
   void restart() override {
-    py_.attr("restart")();
+    {
+      nb::gil_scoped_acquire gil;
+      py_.attr("restart")();
+    }
     t_last_ = 0.0;
     has_z_prev_ = false;
   }
@@ -121,6 +146,7 @@ class HorizonInference final : public PolicyInference {
     for (size_t i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
     if (!h_.has_prior) {
       if (!valid) return ST_NO_ESTIMATE;
+      nb::gil_scoped_acquire gil;
       nb::object failure = py_.attr("start")(copy_of(z, {nz}));
       if (!failure.is_none()) throw InferenceFailure(nb::cast<std::string>(failure));
     }
@@ -140,6 +166,7 @@ class HorizonInference final : public PolicyInference {
     if (outcome == STEP_NO_ESTIMATE) return ST_NO_ESTIMATE;
     int status = ST_OK;
     if (outcome != STEP_DONE) {  // the Python hooks, or IPOPT on the window
+      nb::gil_scoped_acquire gil;
       nb::tuple r = nb::cast<nb::tuple>(py_.attr("after_step")(outcome, valid));
       if (!r[1].is_none()) throw InferenceFailure(nb::cast<std::string>(r[1]));
       status = nb::cast<int>(r[0]);
@@ -181,13 +208,16 @@ class HorizonInference final : public PolicyInference {
     return any ? int(every) : -1;
   }
   bool is_diverged(const double* x, const double* P) override {
+    nb::gil_scoped_acquire gil;
     nb::object p = P ? nb::cast(copy_of(P, {size_t(h_.nx), size_t(h_.nx)})) : nb::none();
     return nb::cast<bool>(formulation_.attr("is_diverged")(copy_of(x, {size_t(h_.nx)}), p));
   }
   bool drifted(const double* x) override {
+    nb::gil_scoped_acquire gil;
     return nb::cast<bool>(formulation_.attr("drifted")(copy_of(x, {size_t(h_.nx)})));
   }
   bool at_bound(const double* x) override {
+    nb::gil_scoped_acquire gil;
     return nb::cast<bool>(formulation_.attr("at_bound")(copy_of(x, {size_t(h_.nx)})));
   }
   double outlier_weight = 0.0;
@@ -222,7 +252,10 @@ class KalmanInference final : public PolicyInference {
     z_prev_.resize(node.nz());
   }
   void restart() override {
-    py_.attr("restart")();
+    {
+      nb::gil_scoped_acquire gil;
+      py_.attr("restart")();
+    }
     has_x_ = false;
   }
   int infer(double t, const double* z, const double* mask, double* x, double* P,
@@ -232,6 +265,7 @@ class KalmanInference final : public PolicyInference {
     for (int i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
     int status = ST_OK;
     if (!has_x_) {
+      nb::gil_scoped_acquire gil;
       nb::tuple r = nb::cast<nb::tuple>(py_.attr("first")(t, copy_of(z, {size_t(nz)})));
       if (!r[3].is_none()) throw InferenceFailure(nb::cast<std::string>(r[3]));
       if (r[0].is_none()) return nb::cast<int>(r[2]);
@@ -271,6 +305,7 @@ class KalmanInference final : public PolicyInference {
   // StateChecks)
   bool check(const char* name, const double* x, const double* P) {
     const size_t nx = node_.nx();
+    nb::gil_scoped_acquire gil;
     nb::object f = py_.attr("formulation");
     if (std::string(name) == "is_diverged") {
       nb::object p = P ? nb::cast(copy_of(P, {nx, nx})) : nb::none();
@@ -297,6 +332,7 @@ struct Policy {
 
 ProcessModel::QFunction q_function(nb::object fn, int nx) {
   return [fn, nx](double dt, double* Q, double* Qinv) {
+    nb::gil_scoped_acquire gil;
     nb::tuple r = nb::cast<nb::tuple>(fn(dt));
     read_into(r[0], size_t(nx) * nx, Q, "Q");
     read_into(r[1], size_t(nx) * nx, Qinv, "Q^-1");
@@ -305,6 +341,7 @@ ProcessModel::QFunction q_function(nb::object fn, int nx) {
 
 ProcessModel::InputFunction input_function(nb::object fn, int nz, int nu) {
   return [fn, nz, nu](const double* z_prev, const double* z, double dt, double* u) {
+    nb::gil_scoped_acquire gil;
     nb::object prev = z_prev ? nb::cast(copy_of(z_prev, {size_t(nz)})) : nb::none();
     read_into(fn(prev, copy_of(z, {size_t(nz)}), dt), nu, u, "u");
   };
@@ -438,6 +475,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             self->process = std::make_unique<ProcessModel>(
                 nx, nu, nz, q_function(process_noise, nx), input_function(inputs, nz, nu));
             auto obs = [observable](const std::vector<int>& imus) {
+              nb::gil_scoped_acquire gil;
               return nb::cast<bool>(observable(nb::cast(imus)));
             };
             self->health = std::make_unique<SensorHealth>(std::move(s), *self->used,
@@ -493,9 +531,11 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             if (y.size() != n * s.ny || ystd.size() != n * s.ny)
               throw std::invalid_argument("y and ystd need n x ny values");
             const auto interrupted = []() {
+              nb::gil_scoped_acquire gil;
               if (PyErr_CheckSignals() != 0) throw nb::python_error();
               return false;
             };
+            nb::gil_scoped_release released;  // see the note above PythonInference
             return h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
                          outlier.data(), frozen.data(), y.data(), ystd.data(), interrupted);
           },

@@ -465,8 +465,17 @@ std::pair<int64_t, int> SensorHealth::run(int64_t n, const double* t, const doub
   const int nz = s_.nz, ny = s_.ny, nx = s_.nx;
   std::vector<double> x(nx), P(static_cast<size_t>(nx) * nx);
   SampleResult r;
+  // asked before the first sample and then at most every kInterruptCheck: each asking
+  // takes the GIL, which the reading of the next block may hold meanwhile
+  auto asked = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < n; ++i) {
-    if (interrupted && interrupted()) return {i, INPUT_OK};
+    if (interrupted) {
+      const auto now = std::chrono::steady_clock::now();
+      if (i == 0 || now - asked >= kInterruptCheck) {
+        asked = now;
+        if (interrupted()) return {i, INPUT_OK};
+      }
+    }
     double* yi = y + i * ny;
     double* si = ystd + i * ny;
     const int err = step(t[i], z + i * nz, x.data(), P.data(), yi, si, r);

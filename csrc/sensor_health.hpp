@@ -176,10 +176,13 @@ class SensorHealth {
            SampleResult& out);
   // ``n`` samples (t n, z n x nz) into the arrays (status n, ms n, outlier n, frozen n, y
   // n x ny, ystd n x ny, NaN where none); stops at the first refused sample: returns
-  // (its index, its error), or (n, INPUT_OK); ``interrupted()`` is asked between samples
+  // (its index, its error), or (n, INPUT_OK); ``interrupted()`` is asked before the first
+  // sample and between samples at most every kInterruptCheck (true: stop there)
   std::pair<int64_t, int> run(int64_t n, const double* t, const double* z, int32_t* status,
                               double* ms, uint8_t* outlier, uint8_t* frozen, double* y,
                               double* ystd, const std::function<bool()>& interrupted);
+
+  static constexpr std::chrono::milliseconds kInterruptCheck{10};
 
   const PolicySettings& settings() const { return s_; }
   PolicyDiagnostics diagnostics;

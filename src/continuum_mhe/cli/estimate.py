@@ -60,9 +60,17 @@ def _blocks(
             yield t[i : i + BLOCK], z[i : i + BLOCK]
 
 
+def _reads_ahead(source: str) -> bool:
+    """Whether the input is read a block ahead (io.background): a file or a bag folder,
+    whose reads end by themselves; not standard input or a pipe, which may wait for data
+    (a signal then ends the command in its read)."""
+    return source != "-" and (Path(source).is_file() or Path(source).is_dir())
+
+
 def run(args: argparse.Namespace) -> int:
     # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP; io.inputs reads it) and
     # output (.csv, .mcap), streamed: the input is read once and memory stays flat
+    from continuum_mhe.io.background import WriteBehind, read_ahead
     from continuum_mhe.io.estimate_sink import EstimateSink
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.inputs import open_input
@@ -95,10 +103,18 @@ def run(args: argparse.Namespace) -> int:
             (MODEL_LINE, model_record(formulation)),
         ]
         interrupted: BaseException | None = None
-        with EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink:
+        # the next block is read and the last one written while the estimator steps this
+        # one (io.background); the writes are done before the sink closes
+        with (
+            EstimateSink(out, formulation, stream.t0_ns, flags_outliers, notes) as sink,
+            WriteBehind("estimate-writer") as behind,
+        ):
             try:
                 last_t = math.nan
-                for t, z in _blocks(stream.blocks):  # a signal while waiting for input ends it
+                blocks = stream.blocks
+                if _reads_ahead(args.measurements):
+                    blocks = read_ahead(blocks, "estimate-reader")
+                for t, z in _blocks(blocks):  # a signal while waiting for input ends it
                     freezes_before = len(diag.first_freezes)
                     with signals_deferred():  # inside C code: stop after this block
                         batch = est.continue_run(t, z, check_units=False)  # read checked them
@@ -116,11 +132,15 @@ def run(args: argparse.Namespace) -> int:
                     beyond.add(batch.output)
                     force.add(z, batch.output)
                     readings += int(np.isfinite(z).any(axis=1).sum())
-                    sink.write_batch(t, batch.output, batch.output_std, batch.outlier,
-                                     statuses, batch.solve_ms)  # fmt: skip
+                    behind.submit(sink.write_batch, t, batch.output, batch.output_std,
+                                  batch.outlier, statuses, batch.solve_ms)  # fmt: skip
                     last_t = float(t[-1])
+                behind.finish()
             except BaseException as exc:  # a signal (in C code: any type): keep what is done
-                if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)) or not sink.rows:
+                if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)):
+                    raise
+                behind.finish()  # the rows submitted are written (or a write's error)
+                if not sink.rows:
                     raise
                 interrupted = exc
                 cut = f"interrupted after {sink.rows} samples, at t = {time_text(last_t)} s"

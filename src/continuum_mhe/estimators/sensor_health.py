@@ -559,7 +559,8 @@ class Estimator(Generic[InferenceT]):
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset,
-        in the compiled policy (``progress`` is shown per block of samples); the series
+        in the compiled policy, which steps each block without holding the GIL (other
+        Python threads go on; ``progress`` is shown per block of samples); the series
         carries a copy of :attr:`diagnostics` (``series.diagnostics``)."""
         t, z = self._samples(t, z)
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it

@@ -1,0 +1,140 @@
+"""Reading ahead and writing behind (continuum_mhe.io.background), and estimate's use of
+them: the same rows as a read without them."""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_mhe.cli import estimate as estimate_command
+from continuum_mhe.cli import main
+from continuum_mhe.io.background import WriteBehind, read_ahead
+from continuum_mhe.io.csv_files import write_measurements
+from continuum_mhe.simulation.scenarios import simulate
+
+
+def _threads(name: str) -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name == name]
+
+
+def test_read_ahead_gives_every_item_in_order() -> None:
+    assert list(read_ahead(iter(range(100)), "t-order")) == list(range(100))
+    assert list(read_ahead([], "t-empty")) == []
+    assert not _threads("t-order") and not _threads("t-empty")
+
+
+def test_read_ahead_raises_the_input_error_after_the_items_before_it() -> None:
+    def items() -> Iterator[int]:
+        yield 1
+        yield 2
+        raise ValueError("line 3: not a number")
+
+    got = []
+    with pytest.raises(ValueError, match="line 3"):
+        for item in read_ahead(items(), "t-error"):
+            got.append(item)
+    assert got == [1, 2]
+
+
+def test_read_ahead_closed_early_stops_its_reader() -> None:
+    read = []
+
+    def endless() -> Iterator[int]:
+        k = 0
+        while True:
+            read.append(k)
+            yield k
+            k += 1
+
+    gen = read_ahead(endless(), "t-close")
+    assert [next(gen) for _ in range(3)] == [0, 1, 2]
+    gen.close()
+    assert not _threads("t-close")  # joined on close
+    assert len(read) <= 5  # one item waiting, one being read: not the whole input
+
+
+def test_write_behind_runs_the_calls_in_order_and_finish_waits_for_them() -> None:
+    done: list[int] = []
+    with WriteBehind("t-writer") as w:
+        for k in range(50):
+            w.submit(done.append, k)
+    assert done == list(range(50))
+    assert not _threads("t-writer")
+
+
+def test_write_behind_raises_the_first_error_once_and_drops_later_calls() -> None:
+    done: list[int] = []
+
+    def write(k: int) -> None:
+        if k == 2:
+            raise OSError(28, "No space left on device")
+        done.append(k)
+
+    w = WriteBehind("t-fail")
+    w.submit(write, 1)
+    w.submit(write, 2)
+    with pytest.raises(OSError, match="No space left"):
+        for k in range(3, 100):  # a later submit raises it
+            w.submit(write, k)
+    with pytest.raises(RuntimeError, match="a write failed before"):
+        w.submit(write, 100)
+    w.finish()  # said once: not again
+    assert done == [1]
+
+
+def test_write_behind_error_at_finish() -> None:
+    w = WriteBehind("t-finish")
+    w.submit(lambda: (_ for _ in ()).throw(OSError(5, "Input/output error")))
+    with pytest.raises(OSError, match="Input/output"):
+        w.finish()
+
+
+def test_write_behind_keeps_the_blocks_exception_and_finishes_its_calls() -> None:
+    done: list[int] = []
+    with pytest.raises(KeyError):
+        with WriteBehind("t-block") as w:
+            w.submit(done.append, 1)
+            w.submit(lambda: (_ for _ in ()).throw(OSError(5, "I/O")))
+            raise KeyError("the block's own error")
+    assert done == [1]
+    assert not _threads("t-block")
+
+
+def test_estimate_reads_ahead_and_writes_behind_the_same_rows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file of several blocks (1024 samples each) read ahead and written behind, and
+    the same file read in turn (as standard input is): the same estimates."""
+    rec = simulate("paper3d", duration=150, noise_deg=2.0, seed=3)  # 3001 samples
+    src = tmp_path / "m.csv"
+    write_measurements(src, rec.t, rec.z)
+    out_file, out_pipe = tmp_path / "file.csv", tmp_path / "pipe.csv"
+    assert main(["estimate", str(src), "-o", str(out_file)]) == 0
+    monkeypatch.setattr(estimate_command, "_reads_ahead", lambda source: False)
+    assert main(["estimate", str(src), "-o", str(out_pipe)]) == 0
+
+    def rows(path: Path) -> np.ndarray:
+        lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
+        header = lines[0].split(",")
+        keep = [i for i, h in enumerate(header) if h != "solve_ms"]
+        return np.array([[r.split(",")[i] for i in keep] for r in lines[1:]])
+
+    a, b = rows(out_file), rows(out_pipe)
+    assert a.shape == (3001, b.shape[1])
+    np.testing.assert_array_equal(a, b)
+
+
+def test_estimate_reads_ahead_only_what_ends_by_itself(tmp_path: Path) -> None:
+    src = tmp_path / "m.csv"
+    src.write_text("t,roll,pitch\n0,0,0\n")
+    assert estimate_command._reads_ahead(str(src))
+    assert estimate_command._reads_ahead(str(tmp_path))  # a bag folder
+    assert not estimate_command._reads_ahead("-")
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    assert not estimate_command._reads_ahead(str(fifo))
