@@ -10,9 +10,11 @@
 
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <tuple>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -328,6 +330,32 @@ struct Policy {
   PolicyInference* used = nullptr;             // the inference the policy steps
   std::unique_ptr<ProcessModel> process;
   std::unique_ptr<SensorHealth> health;
+  // the thread whose ``run`` steps samples now, without the GIL: another thread's call
+  // is refused (set and read with the GIL held)
+  std::optional<std::thread::id> running_in;
+
+  // a RuntimeError where another thread's ``run`` is stepping this policy
+  void check_idle() const {
+    if (running_in && *running_in != std::this_thread::get_id())
+      throw std::runtime_error(
+          "this estimator is stepping samples in another thread (run, continue_run): an "
+          "estimator is used from one thread at a time");
+  }
+};
+
+// ``running_in`` for the scope of a ``run``
+class Running {
+ public:
+  explicit Running(Policy& p) : p_(p) {
+    p.check_idle();
+    p.running_in = std::this_thread::get_id();
+  }
+  ~Running() { p_.running_in.reset(); }
+  Running(const Running&) = delete;
+  Running& operator=(const Running&) = delete;
+
+ private:
+  Policy& p_;
 };
 
 ProcessModel::QFunction q_function(nb::object fn, int nx) {
@@ -496,11 +524,16 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
           "inference's is_diverged, drifted and at_bound).")
       .def(
-          "reset", [](Policy& p, bool keep_counts) { p.health->reset(keep_counts); },
+          "reset",
+          [](Policy& p, bool keep_counts) {
+            p.check_idle();
+            p.health->reset(keep_counts);
+          },
           nb::arg("keep_counts"), "A new recording (diagnostics zeroed unless keep_counts).")
       .def(
           "step",
           [](Policy& p, double t, In z) {
+            p.check_idle();
             SensorHealth& h = *p.health;
             const auto& s = h.settings();
             check_size(z, s.nz, "z");
@@ -522,6 +555,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           [](Policy& p, In t, In z, OutArray<int32_t> status, OutArray<double> ms,
              OutArray<uint8_t> outlier, OutArray<uint8_t> frozen, OutArray<double> y,
              OutArray<double> ystd) {
+            Running running(p);  // destroyed last: after the GIL is taken back
             SensorHealth& h = *p.health;
             const auto& s = h.settings();
             const size_t n = t.size();
@@ -544,11 +578,16 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, "
           "outlier and frozen flags, outputs and their std, NaN where none); stops at the "
           "first refused sample: (its index, its input error), else (n, 0).")
-      .def_prop_ro("last_t", [](const Policy& p) { return p.health->last_t(); },
+      .def_prop_ro("last_t",
+                   [](const Policy& p) {
+                     p.check_idle();
+                     return p.health->last_t();
+                   },
                    "The last accepted sample's time, s (-inf after a reset).")
       .def_prop_ro(
           "diagnostics",
           [](const Policy& p) {
+            p.check_idle();
             const PolicyDiagnostics& d = p.health->diagnostics;
             nb::object failure = d.has_failure ? nb::cast(d.last_failure) : nb::none();
             return nb::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.first_freezes,

@@ -138,3 +138,57 @@ def test_estimate_reads_ahead_only_what_ends_by_itself(tmp_path: Path) -> None:
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
     assert not estimate_command._reads_ahead(str(fifo))
+
+
+def test_write_behind_runs_a_call_queued_without_its_wake_up() -> None:
+    """A signal's exception in the caller between a call's queueing and the worker's
+    wake-up (``Condition.notify``) leaves the call queued: the worker finds it at its
+    next look, and ``finish`` returns (a thread here, so that a hang fails the test
+    instead of holding the suite)."""
+    done: list[int] = []
+    w = WriteBehind("t-wake")
+    cond = w._calls.not_empty
+    wake = cond.notify
+
+    def interrupted(n: int = 1) -> None:
+        cond.notify = wake  # type: ignore[method-assign]
+        raise KeyboardInterrupt
+
+    cond.notify = interrupted  # type: ignore[method-assign]
+    with pytest.raises(KeyboardInterrupt):
+        w.submit(done.append, 1)
+    finisher = threading.Thread(target=w.finish, daemon=True)
+    finisher.start()
+    finisher.join(60)
+    assert not finisher.is_alive()
+    assert done == [1]
+
+
+def test_estimate_interrupted_stops_its_reader_and_keeps_the_rows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An interrupt in the second block (as Ctrl-C there): the rows of the first are
+    kept and marked partial, and the reader thread has stopped when the command
+    returns (the input it reads is closed then)."""
+    from continuum_mhe.estimators.sensor_health import Estimator
+
+    rec = simulate("paper3d", duration=250, noise_deg=2.0, seed=3)  # 5001 samples
+    src = tmp_path / "m.csv"
+    write_measurements(src, rec.t, rec.z)
+    calls = [0]
+    step_blocks = Estimator.continue_run
+
+    def interrupted(self: Estimator, *args: object, **kwargs: object) -> object:
+        calls[0] += 1
+        if calls[0] == 2:
+            raise KeyboardInterrupt
+        return step_blocks(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Estimator, "continue_run", interrupted)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(src), "-o", str(out)]) == 130
+    assert not _threads("estimate-reader") and not _threads("estimate-writer")
+    text = out.read_text()
+    rows = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
+    assert len(rows) == 1 + 1024  # the header and the first block
+    assert '# partial = "interrupted after 1024 samples' in text

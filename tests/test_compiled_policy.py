@@ -201,7 +201,8 @@ def test_run_lets_other_threads_go_on(method: str) -> None:
     counter run: with the GIL held through the block it stays where it was. An
     inference that calls back into Python (the UKF's, every sample) takes the GIL back;
     each gives the estimates it gives sample by sample."""
-    rec = simulate("paper3d", duration=6.0 if method == "ukf" else 60.0, seed=1)
+    duration = {"mhe": 120.0, "ekf": 600.0, "ukf": 6.0}[method]  # 0.1 s of stepping or more
+    rec = simulate("paper3d", duration=duration, seed=1)
     est = make_estimator(method, make_formulation("bend"))
     counts = [0]
     running, stop = threading.Event(), threading.Event()
@@ -235,3 +236,32 @@ def test_run_lets_other_threads_go_on(method: str) -> None:
         if e.output is not None:
             stepped[i] = e.output
     np.testing.assert_array_equal(batch.output, stepped)
+
+
+def test_a_second_thread_is_refused_while_run_steps() -> None:
+    """While ``continue_run`` steps samples in one thread without the GIL, another
+    thread's call into the same policy is a RuntimeError (not a data race); the run's
+    own thread goes on, and the policy serves any thread once the run is done."""
+    rec = simulate("paper3d", duration=600.0, seed=1)
+    est = make_estimator("mhe", make_formulation("bend"))
+    est.reset()
+    started = threading.Event()
+    got: dict[str, object] = {}
+
+    def work() -> None:
+        started.set()
+        got["batch"] = est.continue_run(rec.t, rec.z)
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    started.wait()
+    refused = None
+    while worker.is_alive() and refused is None:
+        try:
+            est._policy.last_t  # noqa: B018  # a read of the policy
+        except RuntimeError as exc:
+            refused = exc
+    worker.join()
+    assert refused is not None and "another thread" in str(refused)
+    assert len(got["batch"].status) == len(rec.t)  # type: ignore[attr-defined]
+    assert est._policy.last_t == rec.t[-1]

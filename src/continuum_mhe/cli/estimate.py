@@ -111,30 +111,35 @@ def run(args: argparse.Namespace) -> int:
         ):
             try:
                 last_t = math.nan
-                blocks = stream.blocks
+                ahead = None
                 if _reads_ahead(args.measurements):
-                    blocks = read_ahead(blocks, "estimate-reader")
-                for t, z in _blocks(blocks):  # a signal while waiting for input ends it
-                    freezes_before = len(diag.first_freezes)
-                    with signals_deferred():  # inside C code: stop after this block
-                        batch = est.continue_run(t, z, check_units=False)  # read checked them
-                    for _ in range(len(t) if bar else 0):  # the bar moves per sample
-                        next(ticks)
-                    statuses = batch.statuses()
-                    for status, k in Counter(statuses).items():
-                        counts[status] = counts.get(status, 0) + k
-                    for i in np.flatnonzero(batch.frozen).tolist():
-                        frozen[statuses[i]] = frozen.get(statuses[i], 0) + 1
-                    note = est.freezes_notice(freezes_before)  # said once per IMU
-                    if note:
-                        print(f"{PROG}: note: {note}", file=sys.stderr)
-                    outliers += int(batch.outlier.sum())
-                    beyond.add(batch.output)
-                    force.add(z, batch.output)
-                    readings += int(np.isfinite(z).any(axis=1).sum())
-                    behind.submit(sink.write_batch, t, batch.output, batch.output_std,
-                                  batch.outlier, statuses, batch.solve_ms)  # fmt: skip
-                    last_t = float(t[-1])
+                    ahead = read_ahead(stream.blocks, "estimate-reader")
+                try:
+                    # a signal while waiting for input ends it
+                    for t, z in _blocks(stream.blocks if ahead is None else ahead):
+                        freezes_before = len(diag.first_freezes)
+                        with signals_deferred():  # inside C code: stop after this block
+                            batch = est.continue_run(t, z, check_units=False)  # read checked them
+                        for _ in range(len(t) if bar else 0):  # the bar moves per sample
+                            next(ticks)
+                        statuses = batch.statuses()
+                        for status, k in Counter(statuses).items():
+                            counts[status] = counts.get(status, 0) + k
+                        for i in np.flatnonzero(batch.frozen).tolist():
+                            frozen[statuses[i]] = frozen.get(statuses[i], 0) + 1
+                        note = est.freezes_notice(freezes_before)  # said once per IMU
+                        if note:
+                            print(f"{PROG}: note: {note}", file=sys.stderr)
+                        outliers += int(batch.outlier.sum())
+                        beyond.add(batch.output)
+                        force.add(z, batch.output)
+                        readings += int(np.isfinite(z).any(axis=1).sum())
+                        behind.submit(sink.write_batch, t, batch.output, batch.output_std,
+                                      batch.outlier, statuses, batch.solve_ms)  # fmt: skip
+                        last_t = float(t[-1])
+                finally:
+                    if ahead is not None:  # its reader stops before the input closes
+                        ahead.close()
                 behind.finish()
             except BaseException as exc:  # a signal (in C code: any type): keep what is done
                 if not (SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt)):

@@ -560,8 +560,9 @@ class Estimator(Generic[InferenceT]):
     ) -> EstimateSeries:
         """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset,
         in the compiled policy, which steps each block without holding the GIL (other
-        Python threads go on; ``progress`` is shown per block of samples); the series
-        carries a copy of :attr:`diagnostics` (``series.diagnostics``)."""
+        Python threads go on; another thread's call into this estimator meanwhile is a
+        RuntimeError; ``progress`` is shown per block of samples); the series carries a
+        copy of :attr:`diagnostics` (``series.diagnostics``)."""
         t, z = self._samples(t, z)
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"

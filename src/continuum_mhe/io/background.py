@@ -65,7 +65,8 @@ def read_ahead(items: Iterable[T], name: str = "read-ahead") -> Generator[T, Non
             yield item
     finally:
         stop.set()
-        worker.join()
+        if threading.current_thread() is not worker:  # (a collector may close it there)
+            worker.join()
 
 
 class WriteBehind:
@@ -74,20 +75,30 @@ class WriteBehind:
     exception a call raises is raised by the next :meth:`submit` or by :meth:`finish`,
     and no later call runs. Use as a context manager: leaving it waits for every call
     submitted (:meth:`finish`), raising their error where the block itself raised none.
+
+    The worker looks for calls every :data:`POLL_S` as well as when woken: a signal's
+    exception in the caller's ``put`` can leave a call queued without the wake-up.
     """
 
     def __init__(self, name: str = "write-behind") -> None:
-        self._calls: queue.Queue[Any] = queue.Queue(maxsize=1)
+        self._calls: queue.Queue[tuple[Callable[..., object], tuple[object, ...]]]
+        self._calls = queue.Queue(maxsize=1)
         self._failed: BaseException | None = None  # the first call's error, set once
         self._said = False  # ... and whether the caller got it
+        self._closing = threading.Event()  # no call comes after those queued
         self._done = threading.Event()
         threading.Thread(target=self._work, name=name, daemon=True).start()
 
     def _work(self) -> None:
         try:
-            while (call := self._calls.get()) is not _END:
+            while True:
+                try:
+                    fn, args = self._calls.get(timeout=POLL_S)
+                except queue.Empty:
+                    if self._closing.is_set() and self._calls.empty():
+                        return
+                    continue
                 if self._failed is None:  # after a failure the calls are dropped
-                    fn, args = call
                     try:
                         fn(*args)
                     except BaseException as exc:  # raised in the caller's thread  # noqa: BLE001
@@ -105,13 +116,14 @@ class WriteBehind:
     def submit(self, fn: Callable[..., object], *args: object) -> None:
         """``fn(*args)`` in the worker thread, after the calls submitted before it."""
         self._raise()
+        if self._closing.is_set():
+            raise RuntimeError("WriteBehind: finished; nothing more is written")
         self._calls.put((fn, args))
 
     def finish(self) -> None:
         """Wait for every call submitted, then raise the first error one raised (once)."""
-        if not self._done.is_set():
-            self._calls.put(_END)
-            self._done.wait()
+        self._closing.set()
+        self._done.wait()
         if not self._said:
             self._raise()
 
