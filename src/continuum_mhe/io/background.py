@@ -81,8 +81,7 @@ class WriteBehind:
     """
 
     def __init__(self, name: str = "write-behind") -> None:
-        self._calls: queue.Queue[tuple[Callable[..., object], tuple[object, ...]]]
-        self._calls = queue.Queue(maxsize=1)
+        self._calls: queue.Queue[Any] = queue.Queue(maxsize=1)
         self._failed: BaseException | None = None  # the first call's error, set once
         self._said = False  # ... and whether the caller got it
         self._closing = threading.Event()  # no call comes after those queued
@@ -91,13 +90,14 @@ class WriteBehind:
 
     def _work(self) -> None:
         try:
-            while True:
+            while not (self._closing.is_set() and self._calls.empty()):
                 try:
-                    fn, args = self._calls.get(timeout=POLL_S)
+                    call = self._calls.get(timeout=POLL_S)
                 except queue.Empty:
-                    if self._closing.is_set() and self._calls.empty():
-                        return
                     continue
+                if call is _END:  # finish's wake-up
+                    continue
+                fn, args = call
                 if self._failed is None:  # after a failure the calls are dropped
                     try:
                         fn(*args)
@@ -123,6 +123,10 @@ class WriteBehind:
     def finish(self) -> None:
         """Wait for every call submitted, then raise the first error one raised (once)."""
         self._closing.set()
+        try:
+            self._calls.put_nowait(_END)  # wakes the worker now
+        except queue.Full:
+            pass  # a call is queued: the worker takes it, then sees the closing
         self._done.wait()
         if not self._said:
             self._raise()
