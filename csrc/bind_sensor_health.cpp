@@ -554,7 +554,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "run",
           [](Policy& p, In t, In z, OutArray<int32_t> status, OutArray<double> ms,
              OutArray<uint8_t> outlier, OutArray<uint8_t> frozen, OutArray<double> y,
-             OutArray<double> ystd) {
+             OutArray<double> ystd, nb::object should_stop) {
             Running running(p);  // destroyed last: after the GIL is taken back
             SensorHealth& h = *p.health;
             const auto& s = h.settings();
@@ -564,20 +564,24 @@ void cmhe::bind_sensor_health(nb::module_& m) {
               if (size != n) throw std::invalid_argument("every result array needs n values");
             if (y.size() != n * s.ny || ystd.size() != n * s.ny)
               throw std::invalid_argument("y and ystd need n x ny values");
-            const auto interrupted = []() {
+            // a signal's handler that raises ends the run with its exception; one that
+            // defers it (the command line) leaves should_stop() to say so
+            const auto interrupted = [&should_stop]() {
               nb::gil_scoped_acquire gil;
               if (PyErr_CheckSignals() != 0) throw nb::python_error();
-              return false;
+              return !should_stop.is_none() && nb::cast<bool>(should_stop());
             };
             nb::gil_scoped_release released;  // see the note above PythonInference
             return h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
                          outlier.data(), frozen.data(), y.data(), ystd.data(), interrupted);
           },
           nb::arg("t"), nb::arg("z"), nb::arg("status"), nb::arg("ms"), nb::arg("outlier"),
-          nb::arg("frozen"), nb::arg("y"), nb::arg("ystd"),
+          nb::arg("frozen"), nb::arg("y"), nb::arg("ystd"), nb::arg("should_stop").none() = nb::none(),
           "Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, "
           "outlier and frozen flags, outputs and their std, NaN where none); stops at the "
-          "first refused sample: (its index, its input error), else (n, 0).")
+          "first refused sample: (its index, its input error), or where ``should_stop()`` "
+          "(asked before the first sample and then about every 10 ms) says True: (the "
+          "samples stepped, 0); else (n, 0).")
       .def_prop_ro("last_t",
                    [](const Policy& p) {
                      p.check_idle();

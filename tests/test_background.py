@@ -192,3 +192,101 @@ def test_estimate_interrupted_stops_its_reader_and_keeps_the_rows(
     rows = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
     assert len(rows) == 1 + 1024  # the header and the first block
     assert '# partial = "interrupted after 1024 samples' in text
+
+
+@pytest.fixture
+def signals_cleared() -> Iterator[list[threading.Timer]]:
+    """Timers that a test starts, joined, and the signals the command line recorded,
+    forgotten, when the test ends (the next test in this process starts without them)."""
+    from continuum_mhe.signals import SIGNALS_SEEN
+
+    timers: list[threading.Timer] = []
+    yield timers
+    for timer in timers:
+        timer.join()
+    SIGNALS_SEEN.clear()
+
+
+def _interrupting_second_block(
+    monkeypatch: pytest.MonkeyPatch, timers: list[threading.Timer], after_s: float = 0.0
+) -> None:
+    """A SIGINT in the second block's ``continue_run`` (as from Ctrl-C while the block
+    is estimated), ``after_s`` after it starts (0: before), as the command line's
+    handler takes it while a block is estimated: recorded in ``SIGNALS_SEEN`` for the
+    loop to raise. (A real signal would reach the test runner's thread too.)"""
+    import signal
+
+    from continuum_mhe.estimators.sensor_health import Estimator
+    from continuum_mhe.signals import SIGNALS_SEEN
+
+    calls = [0]
+    step_blocks = Estimator.continue_run
+
+    def signalled(self: Estimator, *args: object, **kwargs: object) -> object:
+        calls[0] += 1
+        if calls[0] == 2:
+            if after_s:
+                timers.append(threading.Timer(after_s, SIGNALS_SEEN.append, (signal.SIGINT,)))
+                timers[-1].start()
+            else:
+                SIGNALS_SEEN.append(signal.SIGINT)
+        return step_blocks(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Estimator, "continue_run", signalled)
+
+
+@pytest.mark.parametrize("after_s", [0.0, 0.02])
+def test_estimate_signal_in_a_block_keeps_what_was_stepped(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    signals_cleared: list[threading.Timer],
+    after_s: float,
+) -> None:
+    """A deferred signal stops the block between two samples (before its first, or
+    some way into the UKF's slow block): the rows stepped are written and counted
+    alike, the note's time is the last row's, and the command ends as interrupted."""
+    rec = simulate("paper3d", duration=250, noise_deg=2.0, seed=3)
+    src = tmp_path / "m.csv"
+    write_measurements(src, rec.t, rec.z)
+    _interrupting_second_block(monkeypatch, signals_cleared, after_s)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(src), "-o", str(out), "--method", "ukf"]) == 130
+    text = out.read_text()
+    rows = [ln for ln in text.splitlines() if ln and not ln.startswith("#")][1:]
+    if after_s:
+        assert 1024 < len(rows) < 2048  # part of the second block
+    else:
+        assert len(rows) == 1024
+    last = rows[-1].split(",")[0]
+    assert f'# partial = "interrupted after {len(rows)} samples, at t = {last} s"' in text
+    assert f"kept the {len(rows)} estimates" in capsys.readouterr().err
+
+
+def test_estimate_write_error_after_a_signal_is_said(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    signals_cleared: list[threading.Timer],
+) -> None:
+    """The disk fills while an interrupted run writes what it keeps: the file system's
+    error is said (one line, the file named) as well as the interruption, and nothing is
+    left."""
+    import errno
+
+    from continuum_mhe.io.estimate_sink import EstimateSink
+
+    rec = simulate("paper3d", duration=250, noise_deg=2.0, seed=3)
+    src = tmp_path / "m.csv"
+    write_measurements(src, rec.t, rec.z)
+    out = tmp_path / "e.csv"
+
+    def full(self: EstimateSink, *args: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(out))
+
+    monkeypatch.setattr(EstimateSink, "write_batch", full)
+    _interrupting_second_block(monkeypatch, signals_cleared)
+    assert main(["estimate", str(src), "-o", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert f"error: {out}: No space left on device" in err
+    assert not out.exists() and not list(tmp_path.glob(".e.csv*"))

@@ -265,3 +265,22 @@ def test_a_second_thread_is_refused_while_run_steps() -> None:
     assert refused is not None and "another thread" in str(refused)
     assert len(got["batch"].status) == len(rec.t)  # type: ignore[attr-defined]
     assert est._policy.last_t == rec.t[-1]
+
+
+def test_continue_run_stops_where_asked_and_goes_on_from_there() -> None:
+    """``should_stop`` ends the call between two samples: the samples stepped are those
+    of an uninterrupted run, and the next call goes on from the next sample to the same
+    estimates; asked before the first sample, True steps none."""
+    rec = simulate("paper3d", duration=600.0, seed=2)
+    est = make_estimator("mhe", make_formulation("bend"))
+    est.reset()
+    whole = est.continue_run(rec.t, rec.z)
+    est.reset()
+    assert len(est.continue_run(rec.t, rec.z, should_stop=lambda: True).status) == 0
+    start = time.perf_counter()
+    first = est.continue_run(rec.t, rec.z, should_stop=lambda: time.perf_counter() > start + 0.05)
+    k = len(first.status)
+    assert 0 < k < len(rec.t)
+    rest = est.continue_run(rec.t[k:], rec.z[k:])
+    np.testing.assert_array_equal(np.vstack([first.output, rest.output]), whole.output)
+    np.testing.assert_array_equal(np.concatenate([first.status, rest.status]), whole.status)

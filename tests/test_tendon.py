@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -692,6 +693,29 @@ def test_a_tendon_robot_needs_its_tensions(
     argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "-o", str(out)]
     assert main(argv) == 2
     assert "give their tensions with --inputs" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_own_tension_columns_from_standard_input_are_said_unread(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A recording read from standard input (or a pipe) is read once, after the
+    tensions: its own tension columns are not read, and the error says so instead of
+    asking for the columns it has."""
+    meas, _ = _recording(tmp_path)
+    lines = meas.read_text().splitlines()
+    header, rows = lines[0], lines[1:]
+    own = tmp_path / "own.csv"  # the recording with its tension column
+    own.write_text("\n".join([f"{header},tension_1", *(f"{r},1.0" for r in rows)]) + "\n")
+    robot = str(_small_robot(tmp_path))
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(own), "--robot", robot, "-o", str(out)]) == 0  # by name
+    out.unlink()
+    with own.open() as stdin:
+        monkeypatch.setattr(sys, "stdin", stdin)
+        assert main(["estimate", "-", "--robot", robot, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "from standard input or a pipe they are not read" in err
     assert not out.exists()
 
 

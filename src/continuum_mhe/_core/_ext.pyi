@@ -601,9 +601,9 @@ class SensorHealth:
         One sample: (input error, status code, state, covariance, outputs, their std, outlier, frozen, ms); None where there is none; input error 0 when accepted.
         """
 
-    def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> tuple[int, int]:
+    def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], should_stop: object | None = None) -> tuple[int, int]:
         """
-        Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its input error), else (n, 0).
+        Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its input error), or where ``should_stop()`` (asked before the first sample and then about every 10 ms) says True: (the samples stepped, 0); else (n, 0).
         """
 
     @property

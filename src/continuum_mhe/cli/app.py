@@ -10,6 +10,7 @@ status 70 (``CONTINUUM_MHE_TRACEBACK=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import signal
@@ -163,8 +164,11 @@ def _run_command(argv: Sequence[str] | None) -> int:
             code = _user_error(exc)
             return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
         # a signal raised inside a C extension (CasADi, numpy) can surface as any
-        # exception type: once a signal arrived, the run ends as interrupted
+        # exception type: once a signal arrived, the run ends as interrupted; a file
+        # system's error on the way (the kept rows could not be written) is said too
         if _SIGNALS_SEEN or isinstance(exc, KeyboardInterrupt):
+            if isinstance(exc, OSError) and exc.strerror and exc.errno != errno.EINTR:
+                _user_error(exc)
             return _signal_exit()
         return _user_error(exc)
     # a command that drained and finished on its own (``live`` after Ctrl-C) keeps its

@@ -10,8 +10,9 @@ import math
 import sys
 from collections import Counter
 from collections.abc import Generator, Iterable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import (
     BendsBeyondBound,
+    Estimator,
     ForceBeyondTensions,
     bound_notice,
 )
@@ -42,6 +44,10 @@ from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.output_files import check_output_target
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
+
+if TYPE_CHECKING:
+    from continuum_mhe.io.background import WriteBehind
+    from continuum_mhe.io.estimate_sink import EstimateSink
 
 #: Samples read, estimated and written as one block (the compiled policy steps a block in
 #: one call; memory stays flat).
@@ -58,6 +64,60 @@ def _blocks(
     for t, z in blocks:
         for i in range(0, len(t), BLOCK):
             yield t[i : i + BLOCK], z[i : i + BLOCK]
+
+
+@dataclass
+class _Tally:
+    """What ``estimate`` counts over the blocks for its summary: statuses, the statuses
+    of samples with a frozen IMU, outliers, samples with a reading, a tendon robot's
+    bends past ``theta_max`` and tip force against its tensions; ``ticks`` moves the
+    progress bar (None: no bar)."""
+
+    ticks: Iterator[int] | None
+    beyond: BendsBeyondBound
+    force: ForceBeyondTensions
+    counts: dict[str, int] = field(default_factory=dict)
+    frozen: dict[str, int] = field(default_factory=dict)
+    outliers: int = 0
+    readings: int = 0
+
+
+def _estimate_block(
+    t: np.ndarray,
+    z: np.ndarray,
+    est: Estimator,
+    tally: _Tally,
+    sink: EstimateSink,
+    behind: WriteBehind,
+) -> float | None:
+    """Step one block of samples (``t`` (n,), ``z`` (n, nz)), count it into ``tally`` and
+    hand its rows to ``behind`` for ``sink``; a signal seen meanwhile stops the block
+    between two samples, and only the samples stepped are counted and written. Returns
+    the last stepped sample's time (None: none)."""
+    freezes_before = len(est.diagnostics.first_freezes)
+    batch = est.continue_run(t, z, check_units=False, should_stop=lambda: bool(SIGNALS_SEEN))
+    done = len(batch.status)  # (read checked the units)
+    if done == 0:
+        return None
+    t, z = t[:done], z[:done]
+    if tally.ticks is not None:  # the bar moves per sample
+        for _ in range(done):
+            next(tally.ticks)
+    statuses = batch.statuses()
+    for status, k in Counter(statuses).items():
+        tally.counts[status] = tally.counts.get(status, 0) + k
+    for i in np.flatnonzero(batch.frozen).tolist():
+        tally.frozen[statuses[i]] = tally.frozen.get(statuses[i], 0) + 1
+    note = est.freezes_notice(freezes_before)  # said once per IMU
+    if note:
+        print(f"{PROG}: note: {note}", file=sys.stderr)
+    tally.outliers += int(batch.outlier.sum())
+    tally.beyond.add(batch.output)
+    tally.force.add(z, batch.output)
+    tally.readings += int(np.isfinite(z).any(axis=1).sum())
+    behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
+                  statuses, batch.solve_ms)  # fmt: skip
+    return float(t[-1])
 
 
 def _reads_ahead(source: str) -> bool:
@@ -77,7 +137,6 @@ def run(args: argparse.Namespace) -> int:
 
     check_output_path(args.output, args.measurements, args.overwrite)
     out = args.output
-    counts: dict[str, int] = {}
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
@@ -89,13 +148,11 @@ def run(args: argparse.Namespace) -> int:
         )
         est.reset()
         diag = est.diagnostics  # the sensor-health policy's counts, kept by each step
-        beyond = BendsBeyondBound(formulation)  # a tendon robot's bends past theta_max
-        force = ForceBeyondTensions(formulation)  # ... and its tip force against its tensions
         flags_outliers = bool(getattr(est, "flags_outliers", False))
-        outliers = readings = 0  # samples flagged as outliers; samples with a reading
-        frozen: dict[str, int] = {}  # statuses of the samples with a frozen sensor
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
+        tally = _Tally(ticks if bar else None, BendsBeyondBound(formulation),
+                       ForceBeyondTensions(formulation))  # fmt: skip
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
             ("continuum-mhe", json.dumps(made)),
@@ -117,26 +174,12 @@ def run(args: argparse.Namespace) -> int:
                 try:
                     # a signal while waiting for input ends it
                     for t, z in _blocks(stream.blocks if ahead is None else ahead):
-                        freezes_before = len(diag.first_freezes)
-                        with signals_deferred():  # inside C code: stop after this block
-                            batch = est.continue_run(t, z, check_units=False)  # read checked them
-                        for _ in range(len(t) if bar else 0):  # the bar moves per sample
-                            next(ticks)
-                        statuses = batch.statuses()
-                        for status, k in Counter(statuses).items():
-                            counts[status] = counts.get(status, 0) + k
-                        for i in np.flatnonzero(batch.frozen).tolist():
-                            frozen[statuses[i]] = frozen.get(statuses[i], 0) + 1
-                        note = est.freezes_notice(freezes_before)  # said once per IMU
-                        if note:
-                            print(f"{PROG}: note: {note}", file=sys.stderr)
-                        outliers += int(batch.outlier.sum())
-                        beyond.add(batch.output)
-                        force.add(z, batch.output)
-                        readings += int(np.isfinite(z).any(axis=1).sum())
-                        behind.submit(sink.write_batch, t, batch.output, batch.output_std,
-                                      batch.outlier, statuses, batch.solve_ms)  # fmt: skip
-                        last_t = float(t[-1])
+                        # a signal stops the block between two samples; the samples
+                        # stepped are counted and written, then it is raised
+                        with signals_deferred():
+                            stepped_to = _estimate_block(t, z, est, tally, sink, behind)
+                            if stepped_to is not None:
+                                last_t = stepped_to
                 finally:
                     if ahead is not None:  # its reader stops before the input closes
                         ahead.close()
@@ -152,9 +195,10 @@ def run(args: argparse.Namespace) -> int:
                 sink.note(PARTIAL, json.dumps(cut))
             finally:
                 ticks.close()
+            counts = tally.counts
             n = sum(counts.values())
             if n == counts.get("no-estimate", 0):
-                why = no_estimate_cause(args, readings, outliers)
+                why = no_estimate_cause(args, tally.readings, tally.outliers)
                 raise InputError(
                     f"{stream.name}: no sample gave an estimate ({n} samples; {why}); "
                     "nothing written"
@@ -184,14 +228,14 @@ def run(args: argparse.Namespace) -> int:
         warn_topic_order(stream.name, args.topic or (), n, diag.restarts + diag.bad_starts)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
-        summary += f"; outliers flagged: {outliers}"
+        summary += f"; outliers flagged: {tally.outliers}"
     msg = f"wrote {n} estimates to {out} ({summary})"
     if getattr(args, "method_note", None):
         msg += f"; estimated {args.method_note}"
     for clause in stream.description.summary():
         msg += f"; {clause}"
     if diag.frozen_samples:
-        of = ", ".join(f"{k}: {v}" for k, v in sorted(frozen.items()))
+        of = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
         msg += (
             f"; {diag.frozen_samples} of them had a frozen IMU (the same reading for over "
             f"{args.freeze:g} s, treated as a dropout): {of}"
@@ -224,9 +268,9 @@ def run(args: argparse.Namespace) -> int:
     if diag.bound_samples:
         note = bound_notice(diag.bound_samples, n, est.formulation.robot)
         print(f"{PROG}: warning: {note}", file=sys.stderr)
-    if beyond_note := beyond.notice(n):
+    if beyond_note := tally.beyond.notice(n):
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)
-    if force_note := force.notice():
+    if force_note := tally.force.notice():
         print(f"{PROG}: warning: {force_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (

@@ -617,6 +617,7 @@ class Estimator(Generic[InferenceT]):
         starts: Iterable[int] | None = None,
         block: int | None = None,
         check_units: bool = True,
+        should_stop: Callable[[], bool] | None = None,
     ) -> Batch:
         """Step the samples ``t`` (n,) s, ``z`` (n, nz) on from the last one, in the
         compiled policy, ``block`` samples per call (a positive integer) from each of
@@ -627,7 +628,10 @@ class Estimator(Generic[InferenceT]):
         :meth:`step` checks them unless ``check_units`` is False (a caller that checked
         them itself), before any sample of the call), and one for arrays whose shapes
         do not fit (as :meth:`run`), a ``block`` that is not a positive integer, or
-        ``starts`` that skip, repeat or leave out samples."""
+        ``starts`` that skip, repeat or leave out samples. ``should_stop()`` (a caller's
+        signal flag, say) is asked before the first sample and then every 10 ms or so,
+        between two samples: once it says True the call returns the samples stepped so
+        far (a shorter batch; the next call goes on from there)."""
         t, z = self._samples(t, z)
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
@@ -636,11 +640,20 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 raise ReadingUnitsError(problem)
         size = max(len(t), 1) if block is None else int(block)
-        return self._step_blocks(t, z, range(0, len(t), size) if starts is None else starts, size)
+        starts = range(0, len(t), size) if starts is None else starts
+        return self._step_blocks(t, z, starts, size, should_stop)
 
-    def _step_blocks(self, t: FloatArray, z: FloatArray, starts: Iterable[int], size: int) -> Batch:
+    def _step_blocks(
+        self,
+        t: FloatArray,
+        z: FloatArray,
+        starts: Iterable[int],
+        size: int,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> Batch:
         """:meth:`continue_run` on arrays already checked (:meth:`_samples`): ``size``
-        samples per call from each of ``starts``."""
+        samples per call from each of ``starts``, up to where ``should_stop()`` says
+        True."""
         n, ny = len(t), self.formulation.ny
         batch = Batch(
             status=np.zeros(n, dtype=np.int32),
@@ -664,11 +677,13 @@ class Estimator(Generic[InferenceT]):
             stop, err = self._policy.run(
                 t[i:j], z[i:j], batch.status[i:j], batch.solve_ms[i:j],
                 batch.outlier[i:j].view(u8), batch.frozen[i:j].view(u8),
-                batch.output[i:j], batch.output_std[i:j],
+                batch.output[i:j], batch.output_std[i:j], should_stop,
             )  # fmt: skip
             self._sync_diagnostics()
             if err:
                 self._refuse(err, float(t[i + stop]), z[i + stop])
+            if stop < j - i:  # should_stop said so: the samples stepped
+                return batch.head(i + stop)
         if done != n:
             raise UserError(
                 f"continue_run: the blocks stepped the first {done} of the {n} samples: "
@@ -695,6 +710,13 @@ class Batch:
     frozen: NDArray[np.bool_]
     output: FloatArray
     output_std: FloatArray
+
+    def head(self, n: int) -> Batch:
+        """The first ``n`` samples' results (views)."""
+        return Batch(
+            self.status[:n], self.solve_ms[:n], self.outlier[:n], self.frozen[:n],
+            self.output[:n], self.output_std[:n],
+        )  # fmt: skip
 
     def statuses(self) -> list[Status]:
         """The statuses as :class:`~continuum_mhe.results.Status` values."""

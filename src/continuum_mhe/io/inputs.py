@@ -442,10 +442,17 @@ def _tensions(
             f"columns are {','.join(columns)}: no {','.join(missing)} (or give the tensions "
             "with --inputs TENSIONS.csv)"
         )
+    where = (
+        f"or as the recording's columns tension_1..tension_{k}"
+        if recording is None or os.path.isfile(recording) or is_robot_log(Path(recording))
+        else f"or as the columns tension_1..tension_{k} of a recording read from a file: "
+        "from standard input or a pipe they are not read (the tensions are read ahead of "
+        "the samples)"
+    )
     raise InputError(
         f"{robot_name or 'the robot file'}: the robot has {k} tendons: give their tensions "
         f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
-        f"or as the recording's columns tension_1..tension_{k}"
+        f"{where}"
     )
 
 
