@@ -332,6 +332,29 @@ def test_output_must_be_a_regular_file_name(tmp_path, capsys, target):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["meas.csv"]
 
 
+def test_an_output_link_is_written_through(tmp_path):
+    """``-o LINK`` writes the file the link points to and keeps the link (a link such as
+    ``/dev/stdout`` is not replaced by a file); a link to a folder or a device is
+    refused as they are."""
+    meas = _meas(tmp_path, _good_rows(5))
+    real, link = tmp_path / "real.csv", tmp_path / "link.csv"
+    real.write_text("old\n")
+    link.symlink_to(real.name)
+    assert main(["estimate", str(meas), "-o", str(link), "--overwrite"]) == 0
+    assert link.is_symlink() and link.readlink() == Path("real.csv")
+    assert real.read_text().startswith("# continuum-mhe = ")
+    dangling = tmp_path / "new-link.csv"
+    dangling.symlink_to("made.csv")
+    assert main(["estimate", str(meas), "-o", str(dangling)]) == 0
+    assert dangling.is_symlink() and (tmp_path / "made.csv").is_file()
+    to_folder, to_device = tmp_path / "to-folder.csv", tmp_path / "to-device.csv"
+    to_folder.symlink_to(tmp_path)
+    to_device.symlink_to("/dev/null")
+    assert main(["estimate", str(meas), "-o", str(to_folder), "--overwrite"]) == 2
+    assert main(["estimate", str(meas), "-o", str(to_device), "--overwrite"]) == 2
+    assert to_folder.is_symlink() and to_device.is_symlink()
+
+
 @pytest.mark.parametrize(("umask", "mode"), [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
 def test_outputs_follow_the_umask_at_write_time(tmp_path, umask, mode):
     """The umask in force when the file is written (set here after the import), not

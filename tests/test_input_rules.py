@@ -341,6 +341,26 @@ def test_estimate_from_a_closed_standard_input_is_one_line(tmp_path: Path) -> No
     assert not out.exists()
 
 
+@pytest.mark.parametrize("source", ["good", "missing"])
+def test_estimate_with_stderr_closed_keeps_its_status_and_stdout(
+    tmp_path: Path, source: str
+) -> None:
+    """`estimate ... 2>&-`: the run's status as with stderr open (0, or 2 for a missing
+    file, not 70), and its messages do not go into standard output."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.12\n0.1,0.11,0.12\n")
+    out = tmp_path / "e.csv"
+    name = str(meas) if source == "good" else str(tmp_path / "missing.csv")
+    for cli in (["-m", "continuum_mhe"], ["-m", "continuum_mhe.cli"]):
+        cmd = [sys.executable, *cli, "estimate", name, "-o", str(out), "--overwrite"]
+        proc = subprocess.run(
+            ["sh", "-c", 'exec "$0" "$@" 2>&-', *cmd], capture_output=True, text=True, timeout=300
+        )
+        assert proc.returncode == (0 if source == "good" else 2)
+        assert proc.stdout == ""
+        assert out.exists() == (source == "good")
+
+
 def test_a_huge_horizon_is_a_user_error_in_the_library() -> None:
     """horizon=10**9 is a UserError naming the range (not CasADi's std::bad_alloc)."""
     for horizon in (10**9, 1001, 2.5, True):

@@ -22,7 +22,7 @@ def progress_bar(
     ``enabled=None`` turns it on only when stderr is a terminal.
     """
     if enabled is None:
-        enabled = sys.stderr.isatty()
+        enabled = sys.stderr is not None and sys.stderr.isatty()
     if not enabled:
         return None
 

@@ -70,6 +70,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns its exit status. The one-line warnings, the numpy
     filter, the signal handlers and the unraisable hook it sets last as long as the
     command: a caller (a script, a test) gets its own back."""
+    if sys.stderr is None:  # started with stderr closed (2>&-): its lines go nowhere,
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115  # not into stdout's output
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
     _SIGNALS_SEEN.clear()  # those of an earlier command run in this process are done
     formatwarning = warnings.formatwarning

@@ -52,12 +52,17 @@ def check_output_target(
     """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
     ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
     file, a read-only file (never silently replaced), or, unless ``overwrite``, an
-    existing file (the error names ``--overwrite`` and the command's ``option``)."""
+    existing file (the error names ``--overwrite`` and the command's ``option``). A
+    symbolic link stands for the file it points to, which is checked and returned
+    (written there, the link stays: ``/dev/stdout`` is not replaced by a file)."""
     expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
     text = os.fspath(path)
     target = Path(text)
     if text == "-":
         raise InputError("-: writing to standard output is not supported; give a file name")
+    if target.is_symlink():
+        target = Path(os.path.realpath(target))
+        text = os.fspath(target)
     if text.endswith(("/", os.sep)):
         raise InputError(
             f"{text}: names a folder; give a file name, e.g. {text.rstrip('/' + os.sep)}/"
