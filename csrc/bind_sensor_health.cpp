@@ -330,32 +330,34 @@ struct Policy {
   PolicyInference* used = nullptr;             // the inference the policy steps
   std::unique_ptr<ProcessModel> process;
   std::unique_ptr<SensorHealth> health;
-  // the thread whose ``run`` steps samples now, without the GIL: another thread's call
-  // is refused (set and read with the GIL held)
+  // the thread whose ``run`` or ``step`` steps samples now (``run`` without the GIL; a
+  // ``step`` or ``run`` whose inference calls into Python lets other threads in there):
+  // another thread's call is refused (set and read with the GIL held)
   std::optional<std::thread::id> running_in;
 
-  // a RuntimeError where another thread's ``run`` is stepping this policy
+  // a RuntimeError where another thread's ``run`` or ``step`` is stepping this policy
   void check_idle() const {
     if (running_in && *running_in != std::this_thread::get_id())
       throw std::runtime_error(
-          "this estimator is stepping samples in another thread (run, continue_run): an "
-          "estimator is used from one thread at a time");
+          "this estimator is stepping samples in another thread (step, run, "
+          "continue_run): an estimator is used from one thread at a time");
   }
 };
 
-// ``running_in`` for the scope of a ``run``
+// ``running_in`` for the scope of a ``run`` or ``step``
 class Running {
  public:
-  explicit Running(Policy& p) : p_(p) {
+  explicit Running(Policy& p) : p_(p), outer_(p.running_in) {
     p.check_idle();
     p.running_in = std::this_thread::get_id();
   }
-  ~Running() { p_.running_in.reset(); }
+  ~Running() { p_.running_in = outer_; }  // a call nested in the same thread keeps it
   Running(const Running&) = delete;
   Running& operator=(const Running&) = delete;
 
  private:
   Policy& p_;
+  std::optional<std::thread::id> outer_;
 };
 
 ProcessModel::QFunction q_function(nb::object fn, int nx) {
@@ -533,7 +535,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def(
           "step",
           [](Policy& p, double t, In z) {
-            p.check_idle();
+            Running running(p);
             SensorHealth& h = *p.health;
             const auto& s = h.settings();
             check_size(z, s.nz, "z");
@@ -569,7 +571,10 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             const auto interrupted = [&should_stop]() {
               nb::gil_scoped_acquire gil;
               if (PyErr_CheckSignals() != 0) throw nb::python_error();
-              return !should_stop.is_none() && nb::cast<bool>(should_stop());
+              if (should_stop.is_none()) return false;
+              const int yes = PyObject_IsTrue(should_stop().ptr());  // any truth value
+              if (yes < 0) throw nb::python_error();
+              return yes == 1;
             };
             nb::gil_scoped_release released;  // see the note above PythonInference
             return h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
@@ -582,6 +587,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "first refused sample: (its index, its input error), or where ``should_stop()`` "
           "(asked before the first sample and then about every 10 ms) says True: (the "
           "samples stepped, 0); else (n, 0).")
+      .def("check_idle", &Policy::check_idle,
+           "A RuntimeError where another thread steps this policy now (before a change "
+           "of its settings).")
       .def_prop_ro("last_t",
                    [](const Policy& p) {
                      p.check_idle();

@@ -284,3 +284,55 @@ def test_continue_run_stops_where_asked_and_goes_on_from_there() -> None:
     rest = est.continue_run(rec.t[k:], rec.z[k:])
     np.testing.assert_array_equal(np.vstack([first.output, rest.output]), whole.output)
     np.testing.assert_array_equal(np.concatenate([first.status, rest.status]), whole.status)
+
+
+def test_one_estimator_stepped_from_two_threads_is_refused() -> None:
+    """``step`` from a second thread while the UKF's step (which calls into Python, so
+    that threads switch inside it) runs in another: a RuntimeError, never two steps
+    interleaved on one policy; the settings too cannot change meanwhile."""
+    rec = simulate("paper3d", duration=100.0, seed=5)
+    est = make_estimator("ukf", make_formulation("bend"))
+    refused: list[RuntimeError] = []
+    nxt = iter(range(len(rec.t)))
+    lock = threading.Lock()
+
+    def worker() -> None:
+        while True:
+            with lock:
+                i = next(nxt, None)
+            if i is None:
+                return
+            try:
+                est.step(Measurement(float(rec.t[i]), rec.z[i]))
+            except RuntimeError as exc:
+                refused.append(exc)
+            except UserError:  # a later sample stepped first: refused as not later
+                pass
+
+    threads = [threading.Thread(target=worker) for _ in range(3)]
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-5)  # threads switch often: inside the UKF's Python step too
+    try:
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+    finally:
+        sys.setswitchinterval(interval)
+    assert refused and all("another thread" in str(e) for e in refused)
+
+
+def test_should_stop_takes_any_truth_value() -> None:
+    rec = simulate("paper3d", duration=5.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    for stop, stepped in ((np.bool_(True), 0), (1, 0), (None, len(rec.t)), (0, len(rec.t))):
+        est.reset()
+        got = est.continue_run(rec.t, rec.z, should_stop=lambda stop=stop: stop)
+        assert len(got.status) == stepped
+    est.reset()
+
+    def broken() -> bool:
+        raise KeyError("the caller's flag")
+
+    with pytest.raises(KeyError, match="the caller's flag"):
+        est.continue_run(rec.t, rec.z, should_stop=broken)

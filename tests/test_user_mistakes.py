@@ -1124,3 +1124,66 @@ def test_a_typo_or_a_missing_column_is_named_before_the_numbering(
     assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(match, err[0]) and "not by section" not in err[0]
+
+
+def test_masked_readings_are_dropouts() -> None:
+    """A numpy masked array's masked readings are missing (NaN), in ``run`` and ``step``
+    alike: ``numpy.asarray`` would keep the values under the mask (a disconnected
+    sensor's noise, estimated as ``ok``)."""
+    import numpy as np
+
+    from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
+
+    rec = simulate("paper3d", duration=20.0, seed=0)
+    z = rec.z.copy()
+    z[100:140] = np.random.default_rng(1).normal(0.0, 0.035, (40, 2))
+    masked = np.ma.masked_array(z, mask=False)
+    masked[100:140] = np.ma.masked
+    nan = z.copy()
+    nan[100:140] = np.nan
+    est = make_estimator("ekf", make_formulation("bend"))
+    by_mask, by_nan = est.run(rec.t, masked), est.run(rec.t, nan)
+    assert set(by_mask.status[100:140]) == {"dropout"}
+    np.testing.assert_array_equal(by_mask.output, by_nan.output)
+    est.reset()
+    stepped = [est.step(Measurement(float(t), zi)) for t, zi in zip(rec.t, masked)]
+    assert {str(e.status) for e in stepped[100:140]} == {"dropout"}
+
+
+def test_a_formulation_switch_is_a_bool() -> None:
+    import pytest
+
+    from continuum_mhe import make_formulation
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_robot
+
+    robot = read_robot("two-section")
+    for value in ("false", "no", None, 0):
+        with pytest.raises(UserError, match="estimate_gyro_bias must be True or False"):
+            make_formulation("direct", robot, estimate_gyro_bias=value)
+    assert not any(
+        s.startswith("bg")
+        for s in make_formulation("direct", robot, estimate_gyro_bias=False).state_names
+    )
+
+
+def test_measurements_and_truth_on_a_unix_clock_round_trip(tmp_path) -> None:
+    """Times of a Unix clock (1.7e9 s) keep their microseconds in the files the library
+    writes (10 significant digits made every row 1700000000, which its reader refuses
+    as a repeated time)."""
+    import numpy as np
+
+    from continuum_mhe import simulate
+    from continuum_mhe.io import (
+        read_measurements,
+        read_state_table,
+        write_measurements,
+        write_truth,
+    )
+
+    rec = simulate("paper3d", duration=5.0)
+    t = 1.7e9 + rec.t
+    write_measurements(tmp_path / "m.csv", t, rec.z)
+    write_truth(tmp_path / "truth.csv", t, rec.truth)
+    np.testing.assert_allclose(read_measurements(tmp_path / "m.csv").t, t, rtol=0, atol=5e-7)
+    np.testing.assert_allclose(read_state_table(tmp_path / "truth.csv").t, t, rtol=0, atol=5e-7)

@@ -79,3 +79,13 @@ def expect_type(name: str, value: object, kind: type | tuple[type, ...], what: s
     (``what`` says what is expected, e.g. ``"a Formulation (make_formulation)"``)."""
     if not isinstance(value, kind):
         raise UserError(f"{name} must be {what}, got {type(value).__name__} {value!r:.60}")
+
+
+def masked_as_missing(values: object) -> object:
+    """``values`` with a numpy masked array's masked entries as NaN (a reading that is
+    missing, a dropout, as NaN says everywhere else), as floats; anything else as it
+    is. (``numpy.asarray`` of a masked array drops its mask and keeps the values under
+    it.)"""
+    if hasattr(values, "mask") and hasattr(values, "filled") and hasattr(values, "astype"):
+        return values.astype(float).filled(math.nan)
+    return values

@@ -15,7 +15,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.errors import UserError, real_number
+from continuum_mhe.errors import UserError, masked_as_missing, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 
 FloatArray = NDArray[np.float64]
@@ -123,7 +123,7 @@ class Measurement:
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         try:
-            z = np.asarray(self.z, dtype=float)
+            z = np.asarray(masked_as_missing(self.z), dtype=float)
         except (TypeError, ValueError):
             raise UserError(f"measurement z must be numbers, got {self.z!r:.60}") from None
         object.__setattr__(self, "z", z)

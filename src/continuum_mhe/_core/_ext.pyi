@@ -606,6 +606,11 @@ class SensorHealth:
         Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its input error), or where ``should_stop()`` (asked before the first sample and then about every 10 ms) says True: (the samples stepped, 0); else (n, 0).
         """
 
+    def check_idle(self) -> None:
+        """
+        A RuntimeError where another thread steps this policy now (before a change of its settings).
+        """
+
     @property
     def last_t(self) -> float:
         """The last accepted sample's time, s (-inf after a reset)."""

@@ -38,6 +38,7 @@ from continuum_mhe.errors import (
     UserError,
     expect_type,
     is_integer,
+    masked_as_missing,
     time_text,
 )
 from continuum_mhe.estimators import start_check
@@ -356,6 +357,9 @@ class Estimator(Generic[InferenceT]):
     @recovery.setter
     def recovery(self, recovery: RecoverySettings) -> None:
         expect_type("recovery", recovery, RecoverySettings, "a RecoverySettings")
+        policy = getattr(self, "_policy", None)
+        if policy is not None:  # not while another thread steps samples
+            policy.check_idle()
         self._recovery = recovery
         self._policy = self._compiled_policy()
         self.reset()
@@ -558,7 +562,8 @@ class Estimator(Generic[InferenceT]):
         z: FloatArray,
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
-        """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m)), from a reset,
+        """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m); NaN or a masked
+        entry of a numpy masked array is a reading missing, a dropout), from a reset,
         in the compiled policy, which steps each block without holding the GIL (other
         Python threads go on; another thread's call into this estimator meanwhile is a
         RuntimeError; ``progress`` is shown per block of samples); the series carries a
@@ -591,9 +596,9 @@ class Estimator(Generic[InferenceT]):
     def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a
         :class:`UserError` naming what does not fit."""
-        try:
-            t = np.ascontiguousarray(t, dtype=np.float64)
-            z = np.ascontiguousarray(z, dtype=np.float64)
+        try:  # masked entries are missing: NaN (a masked t is refused as not finite)
+            t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
+            z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
         except (TypeError, ValueError):
             raise UserError("t and z must be arrays of numbers (t (n,) s, z (n, m))") from None
         if t.ndim != 1 or z.ndim != 2:

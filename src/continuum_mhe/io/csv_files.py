@@ -953,14 +953,15 @@ def write_truth(
     truth: FloatArray,
     outputs: Sequence[OutputSpec] = pcc_outputs(1),
 ) -> None:
-    """Write a truth CSV ``t`` + the output columns atomically."""
+    """Write a truth CSV ``t`` + the output columns atomically (``t`` as
+    :func:`format_time` writes it: a device or Unix clock keeps its microseconds)."""
     t, truth = _samples_table(t, truth, "truth")
     if truth.shape[1] != len(outputs):
         raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
     write_table(
         path,
         ("t", *output_names(outputs)),
-        [[float(a), *map(float, b)] for a, b in zip(t, truth)],
+        [[format_time(float(a)), *map(float, b)] for a, b in zip(t, truth)],
     )
 
 
@@ -971,7 +972,8 @@ def write_measurements(
     names: Sequence[str] = ("roll", "pitch"),
 ) -> None:
     """Write a measurement CSV ``t`` + ``names`` (rad) atomically; NaN (a dropout of
-    that sensor) is written as an empty field."""
+    that sensor) is written as an empty field, ``t`` as :func:`format_time` writes it
+    (a device or Unix clock keeps its microseconds)."""
     t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
         raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
@@ -982,5 +984,8 @@ def write_measurements(
             f"{path}: t must be finite and strictly increasing (s): read_measurements "
             "refuses a file whose time does not increase"
         )
-    rows = [[float(a), *(float(v) if np.isfinite(v) else "" for v in b)] for a, b in zip(t, z)]
+    rows = [
+        [format_time(float(a)), *(float(v) if np.isfinite(v) else "" for v in b)]
+        for a, b in zip(t, z)
+    ]
     write_table(path, ("t", *names), rows)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
@@ -48,9 +50,15 @@ def make_formulation(
     expect_type("noise", noise, (NoiseSettings, type(None)), "NoiseSettings or None")
     import dataclasses
 
-    known = {f.name for f in dataclasses.fields(cls)} - {"robot", "noise", "name"}
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    known = set(fields) - {"robot", "noise", "name"}
     unknown = sorted(set(options) - known)
     if unknown:
         takes = f"its options: {', '.join(sorted(known))}" if known else "it takes none"
         raise UserError(f"the {name} formulation has no option {unknown[0]!r} ({takes})")
+    for key, value in options.items():  # a switch is a bool ("false" would be true)
+        if fields[key].type in ("bool", bool) and not isinstance(value, (bool, np.bool_)):
+            raise UserError(
+                f"the {name} formulation's option {key} must be True or False, got {value!r}"
+            )
     return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]
