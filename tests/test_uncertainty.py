@@ -34,6 +34,7 @@ from estimator_helpers import (
 from numpy.testing import assert_allclose
 
 from continuum_mhe.cli import main
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
@@ -323,6 +324,22 @@ def test_calibration_on_a_hand_made_case() -> None:
     lo, hi = nees_band(3, 3)
     assert c.tip_nees_band == (lo, hi) and lo < 3 < hi
     assert Z95 == pytest.approx(scipy.stats.norm.ppf(0.975), abs=1e-6)
+
+
+def test_calibration_refuses_what_does_not_fit() -> None:
+    """One truth row for four estimates (numpy would broadcast it: a NEES of the wrong
+    rows), rows that differ, a column short and a negative standard deviation: each a
+    UserError naming it."""
+    names = ["x", "y", "z"]
+    est, std = np.zeros((4, 3)), np.ones((4, 3))
+    with pytest.raises(UserError, match="4, 4 and 1 rows"):
+        compute_calibration(est, std, np.zeros((1, 3)), names)
+    with pytest.raises(UserError, match="4, 3 and 4 rows"):
+        compute_calibration(est, std[:3], np.zeros((4, 3)), names)
+    with pytest.raises(UserError, match="std has 2 columns"):
+        compute_calibration(est, std[:, :2], np.zeros((4, 3)), names)
+    with pytest.raises(UserError, match="negative"):
+        compute_calibration(est, -std, np.zeros((4, 3)), names)
 
 
 def test_evaluate_gives_the_coverage_of_the_ok_rows_alone(tmp_path, capsys) -> None:

@@ -1187,3 +1187,34 @@ def test_measurements_and_truth_on_a_unix_clock_round_trip(tmp_path) -> None:
     write_truth(tmp_path / "truth.csv", t, rec.truth)
     np.testing.assert_allclose(read_measurements(tmp_path / "m.csv").t, t, rtol=0, atol=5e-7)
     np.testing.assert_allclose(read_state_table(tmp_path / "truth.csv").t, t, rtol=0, atol=5e-7)
+
+
+def test_an_estimate_series_that_does_not_fit_is_refused(tmp_path) -> None:
+    """A series whose status is short (the writer's zip cut the file to it), or whose
+    times do not increase or statuses are unknown (the readers refuse such a file): a
+    UserError, nothing written."""
+    import dataclasses
+
+    import numpy as np
+    import pytest
+
+    from continuum_mhe import make_estimator, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import read_state_table, write_estimates
+
+    rec = simulate("paper3d", duration=5.0)
+    s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    with pytest.raises(UserError, match=r"status has shape \(30,\), expected \(101,\)"):
+        dataclasses.replace(s, status=s.status[:30])
+    with pytest.raises(UserError, match=r"solve_ms has shape"):
+        dataclasses.replace(s, solve_ms=s.solve_ms[:, None])
+    out = tmp_path / "e.csv"
+    glued = dataclasses.replace(s, t=np.concatenate([s.t[:50], s.t[:51]]))
+    with pytest.raises(UserError, match="strictly increasing"):
+        write_estimates(out, glued)
+    odd = dataclasses.replace(s, status=np.array(["fine"] * len(s.t)))
+    with pytest.raises(UserError, match="status 'fine' is not one of"):
+        write_estimates(out, odd)
+    assert not out.exists()
+    write_estimates(out, s)
+    assert len(read_state_table(out).t) == len(s.t)

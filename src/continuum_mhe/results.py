@@ -245,6 +245,13 @@ class EstimateSeries:
     diagnostics: Diagnostics | None = None
 
     def __post_init__(self) -> None:
+        n = len(self.t)
+        for name in ("status", "solve_ms"):  # one per sample (a writer's zip would cut)
+            if np.shape(getattr(self, name)) != (n,):
+                raise UserError(
+                    f"{name} has shape {np.shape(getattr(self, name))}, expected ({n},): one "
+                    "per sample of t"
+                )
         if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
             raise ValueError(
                 f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"

@@ -241,13 +241,28 @@ def compute_calibration(
     """Coverage and tip NEES of ``estimate`` (n, k) with standard deviations ``std``
     (n, k), columns ``names``, against ``truth`` (n, k') with columns ``truth_names``.
     Rows without a finite estimate or standard deviation are left out per column.
-    Raises ValueError if no sample has a standard deviation."""
-    names = list(names)
-    tnames = list(names if truth_names is None else truth_names)
+
+    Raises:
+        UserError: arrays that are not (n, k) numbers with a column per name, of
+            different lengths, or a negative standard deviation.
+        ValueError: no sample has a standard deviation.
+    """
+    names = _column_names("names", names)
+    tnames = names if truth_names is None else _column_names("truth_names", truth_names)
+    est_all = _table("estimate", estimate, names, "names")
+    sd_all = _table("std", std, names, "names")
+    tru_all = _table("truth", truth, tnames, "names" if truth_names is None else "truth_names")
+    if not len(est_all) == len(sd_all) == len(tru_all):
+        raise UserError(
+            f"estimate, std and truth have {len(est_all)}, {len(sd_all)} and {len(tru_all)} "
+            "rows: one per sample each"
+        )
+    if np.any(sd_all < 0):  # (NaN compares false: a row without one)
+        raise UserError("std must be standard deviations (>= 0), got a negative one")
     common = [c for c in names if c in tnames]
-    est = np.asarray(estimate, float)[:, [names.index(c) for c in common]]
-    sd = np.asarray(std, float)[:, [names.index(c) for c in common]]
-    tru = np.asarray(truth, float)[:, [tnames.index(c) for c in common]]
+    est = est_all[:, [names.index(c) for c in common]]
+    sd = sd_all[:, [names.index(c) for c in common]]
+    tru = tru_all[:, [tnames.index(c) for c in common]]
     ok = np.isfinite(est) & np.isfinite(sd) & np.isfinite(tru)
     if not ok.any():
         raise ValueError("no sample has a standard deviation (std_* columns)")

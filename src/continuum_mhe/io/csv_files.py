@@ -943,6 +943,15 @@ def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> Non
         raise UserError(
             f"series must be an EstimateSeries (what run() returns), got a {type(series).__name__}"
         )
+    t = np.asarray(series.t, dtype=float)
+    if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        raise UserError(
+            f"{path}: t must be finite and strictly increasing (s): the estimate files' "
+            "readers refuse a file whose time does not increase"
+        )
+    unknown = sorted({str(v) for v in series.status} - set(STATUS_MEANINGS))
+    if unknown:
+        raise UserError(f"{path}: status {unknown[0]!r} is not one of {', '.join(STATUS_MEANINGS)}")
     columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
     write_table(path, columns, estimate_rows(series))
 
