@@ -1218,3 +1218,31 @@ def test_an_estimate_series_that_does_not_fit_is_refused(tmp_path) -> None:
     assert not out.exists()
     write_estimates(out, s)
     assert len(read_state_table(out).t) == len(s.t)
+
+
+def test_small_library_mistakes_are_user_errors() -> None:
+    """A DataFrame whose columns are the readings in another order (numpy would drop the
+    labels: every row ok, far off), a time beyond a float, float block starts, and a
+    truth without rows to match: a UserError each, or nothing matched."""
+    import numpy as np
+    import pandas as pd
+    import pytest
+
+    from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.evaluation.metrics import match_rows
+
+    rec = simulate("paper3d", duration=5.0)
+    f = make_formulation("bend")
+    est = make_estimator("ekf", f)
+    table = pd.DataFrame(rec.z, columns=list(f.measurement_names))
+    np.testing.assert_array_equal(est.run(rec.t, table).output, est.run(rec.t, rec.z).output)
+    with pytest.raises(UserError, match="z's columns are pitch, roll"):
+        est.run(rec.t, table[["pitch", "roll"]])
+    with pytest.raises(UserError, match="a number a float can hold"):
+        Measurement(10**400, rec.z[0])
+    est.reset()
+    with pytest.raises(UserError, match="the blocks must cover"):
+        est.continue_run(rec.t, rec.z, starts=[0.0, 50.0], block=50)
+    i_est, i_truth = match_rows(rec.t, np.empty(0))
+    assert len(i_est) == len(i_truth) == 0

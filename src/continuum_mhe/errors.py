@@ -43,7 +43,10 @@ def real_number(name: str, value: object) -> float:
     is not a real number (a string, None, a bool, a list)."""
     if not is_real(value):
         raise UserError(f"{name} must be a number, got {value!r}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an int beyond a float's range (10**400)
+        raise UserError(f"{name} must be a number a float can hold, got {value!r:.40}") from None
 
 
 def finite_reals(name: str, value: object, size: int, what: str) -> tuple[float, ...]:

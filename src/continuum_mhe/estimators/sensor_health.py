@@ -595,7 +595,16 @@ class Estimator(Generic[InferenceT]):
 
     def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a
-        :class:`UserError` naming what does not fit."""
+        :class:`UserError` naming what does not fit (a table whose columns are the
+        formulation's readings in another order, too)."""
+        labels = getattr(z, "columns", None)  # a pandas DataFrame's (numpy drops them)
+        if labels is not None:
+            got, want = [str(c) for c in labels], list(self.formulation.measurement_names)
+            if sorted(got) == sorted(want) and got != want:
+                raise UserError(
+                    f"z's columns are {', '.join(got)}; the {self.formulation.name} "
+                    f"formulation reads {', '.join(want)} in that order (z[{want!r}])"
+                )
         try:  # masked entries are missing: NaN (a masked t is refused as not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
@@ -671,7 +680,7 @@ class Estimator(Generic[InferenceT]):
         u8 = np.uint8
         done = 0  # the samples stepped: each block starts where the last one ended
         for i in starts:
-            if i != done or i >= n:
+            if not is_integer(i) or i != done or i >= n:
                 raise UserError(
                     f"continue_run: the blocks must cover the {n} samples in order, "
                     f"{size} at a time from 0 (starts range(0, n, block)): a block starts "

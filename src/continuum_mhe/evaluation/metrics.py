@@ -364,7 +364,12 @@ IndexArray = NDArray[np.intp]
 
 def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, IndexArray]:
     """Indices ``(i_est, i_truth)`` of the estimate rows that have a truth row at the same
-    time (within :data:`TIME_MATCH`, relative, at least 1 us), and of those truth rows."""
+    time (within :data:`TIME_MATCH`, relative, at least 1 us), and of those truth rows
+    (none of either where the truth has no rows)."""
+    t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
+    if len(t_truth) == 0:
+        none = np.zeros(0, dtype=np.intp)
+        return none, none
     idx = np.clip(np.searchsorted(t_truth, t_est), 0, len(t_truth) - 1)
     lo = np.clip(idx - 1, 0, len(t_truth) - 1)
     nearest = np.where(np.abs(t_truth[lo] - t_est) < np.abs(t_truth[idx] - t_est), lo, idx)
