@@ -1246,3 +1246,23 @@ def test_small_library_mistakes_are_user_errors() -> None:
         est.continue_run(rec.t, rec.z, starts=[0.0, 50.0], block=50)
     i_est, i_truth = match_rows(rec.t, np.empty(0))
     assert len(i_est) == len(i_truth) == 0
+
+
+def test_times_that_are_not_seconds_are_user_errors() -> None:
+    """numpy datetimes for ``t`` (``run`` read them as nanoseconds, every row reset;
+    ``step`` refuses them), and steps so short that the process noise is singular
+    (numpy's LinAlgError): a UserError each, in every estimator."""
+    import numpy as np
+    import pytest
+
+    from continuum_mhe import make_estimator, make_formulation, simulate
+    from continuum_mhe.errors import UserError
+
+    rec = simulate("paper3d", duration=5.0)
+    stamps = np.datetime64("2026-01-01") + (rec.t * 1e9).astype("timedelta64[ns]")
+    for method in ("mhe", "ekf", "ukf"):
+        est = make_estimator(method, make_formulation("bend"))
+        with pytest.raises(UserError, match="numpy datetime or timedelta"):
+            est.run(stamps, rec.z)
+        with pytest.warns(UserWarning), pytest.raises(UserError, match="too short"):
+            est.run(rec.t * 1e-200, rec.z)

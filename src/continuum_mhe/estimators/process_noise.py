@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.errors import UserError
 from continuum_mhe.model.formulations import Formulation
 
 FloatArray = NDArray[np.float64]
@@ -26,7 +27,13 @@ class ProcessNoiseCache:
             f, nx = self._f, self._f.nx
             Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
             Q = Q.reshape(nx, nx)
-            w = (Q, np.linalg.inv(Q))
+            try:
+                w = (Q, np.linalg.inv(Q))
+            except np.linalg.LinAlgError:  # a step so short that Q underflows
+                raise UserError(
+                    f"a time step of {dt:g} s is too short for the process noise (its "
+                    "covariance is singular): t must be in seconds"
+                ) from None
             if len(self._cache) < 4096:
                 self._cache[key] = w
         return w

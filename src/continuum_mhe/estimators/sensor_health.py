@@ -605,6 +605,11 @@ class Estimator(Generic[InferenceT]):
                     f"z's columns are {', '.join(got)}; the {self.formulation.name} "
                     f"formulation reads {', '.join(want)} in that order (z[{want!r}])"
                 )
+        if np.asarray(t).dtype.kind in "mM":  # datetime64, timedelta64: not seconds
+            raise UserError(
+                "t must be seconds (numbers), got numpy datetime or timedelta values: give "
+                "(t - t[0]) / np.timedelta64(1, 's')"
+            )
         try:  # masked entries are missing: NaN (a masked t is refused as not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
