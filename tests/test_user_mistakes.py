@@ -1165,6 +1165,10 @@ def test_a_formulation_switch_is_a_bool() -> None:
         s.startswith("bg")
         for s in make_formulation("direct", robot, estimate_gyro_bias=False).state_names
     )
+    tendon = read_robot("tendon-two-section")  # an option that None leaves to the model
+    with pytest.raises(UserError, match="must be True, False or None, got 'false'"):
+        make_formulation("tendon", tendon, acceleration_from_force_rate="false")
+    make_formulation("tendon", tendon, acceleration_from_force_rate=None)
 
 
 def test_measurements_and_truth_on_a_unix_clock_round_trip(tmp_path) -> None:

@@ -357,11 +357,14 @@ class Estimator(Generic[InferenceT]):
     @recovery.setter
     def recovery(self, recovery: RecoverySettings) -> None:
         expect_type("recovery", recovery, RecoverySettings, "a RecoverySettings")
-        policy = getattr(self, "_policy", None)
-        if policy is not None:  # not while another thread steps samples
-            policy.check_idle()
-        self._recovery = recovery
-        self._policy = self._compiled_policy()
+        self._policy.check_idle()  # not while another thread steps samples
+        kept, self._recovery = self._recovery, recovery
+        try:
+            policy = self._compiled_policy()
+        finally:
+            self._recovery = kept
+        self._policy.check_idle()  # (nor if one started while the new one was built)
+        self._recovery, self._policy = recovery, policy
         self.reset()
 
     def _compiled_policy(self) -> _core.SensorHealth:
@@ -412,7 +415,9 @@ class Estimator(Generic[InferenceT]):
         """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` and
         the inference's own counts; the next ``step`` starts a new recording. (The
         estimator's own restarts, within a recording, keep the counts; so does a caller
-        that restarts it within one, as ``live`` does.)"""
+        that restarts it within one, as ``live`` does.) A RuntimeError, changing
+        nothing, while another thread steps this estimator."""
+        self._policy.check_idle()
         if not keep_counts:
             self.diagnostics = Diagnostics()
             self.inference.clear_counts()

@@ -965,6 +965,8 @@ def write_truth(
     """Write a truth CSV ``t`` + the output columns atomically (``t`` as
     :func:`format_time` writes it: a device or Unix clock keeps its microseconds)."""
     t, truth = _samples_table(t, truth, "truth")
+    if not np.isfinite(t).all():
+        raise UserError(f"{path}: t must be finite (s)")
     if truth.shape[1] != len(outputs):
         raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
     write_table(

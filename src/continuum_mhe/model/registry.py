@@ -57,8 +57,12 @@ def make_formulation(
         takes = f"its options: {', '.join(sorted(known))}" if known else "it takes none"
         raise UserError(f"the {name} formulation has no option {unknown[0]!r} ({takes})")
     for key, value in options.items():  # a switch is a bool ("false" would be true)
-        if fields[key].type in ("bool", bool) and not isinstance(value, (bool, np.bool_)):
-            raise UserError(
-                f"the {name} formulation's option {key} must be True or False, got {value!r}"
-            )
+        kind = str(fields[key].type).replace("Optional[bool]", "bool | None")
+        optional = kind == "bool | None" and value is None  # (None: the formulation's own)
+        if kind in ("bool", "bool | None", "<class 'bool'>") and not optional:
+            if not isinstance(value, (bool, np.bool_)):
+                allowed = "True, False or None" if kind == "bool | None" else "True or False"
+                raise UserError(
+                    f"the {name} formulation's option {key} must be {allowed}, got {value!r}"
+                )
     return cls(robot=robot or RobotSettings(), noise=noise or NoiseSettings(), **options)  # type: ignore[arg-type]
