@@ -419,19 +419,16 @@ def best_time_shift(
         pick = np.linspace(0, len(t_e) - 1, SHIFT_ROWS).astype(int)
         t_e, x_e = t_e[pick], x_e[pick]
 
-    t_t = np.ascontiguousarray(t_t)
+    # contiguous once: numpy.interp would copy a strided column at every call
+    t_t = np.ascontiguousarray(t_t, dtype=float)
+    columns = [np.ascontiguousarray(x_t[:, k], dtype=float) for k in range(3)]
 
     def error(shift: float) -> float:
         at = t_e + shift
         inside = (at >= t_t[0]) & (at <= t_t[-1])
         if inside.sum() < 10:
             return math.inf
-        # linear interpolation of the truth at the shifted times (a search per time,
-        # not a pass over the whole truth per call)
-        q = at[inside]
-        j = np.clip(np.searchsorted(t_t, q, side="right") - 1, 0, len(t_t) - 2)
-        w = ((q - t_t[j]) / (t_t[j + 1] - t_t[j]))[:, None]
-        truth = (1.0 - w) * x_t[j] + w * x_t[j + 1]
+        truth = np.column_stack([np.interp(at[inside], t_t, c) for c in columns])
         return float(np.mean(np.linalg.norm(x_e[inside] - truth, axis=1)))
 
     unshifted = error(0.0)
