@@ -48,8 +48,10 @@ _VALUES = st.floats(-3, 3).filter(lambda v: v == 0 or abs(v) > 1e-6)
 def test_every_derivative_equals_casadis(x: list[float], y: float, tie: bool) -> None:
     v = np.array([*x, x[0] if tie else y])  # a tie of fmin and fmax
     expected = np.asarray(_J(v), dtype=float)
-    out = np.full(_FORWARD.output_size, np.nan)
+    out, filled = np.full(_FORWARD.output_size, np.nan), np.full(_FORWARD.output_size, -7.25)
     _FORWARD.evaluate([v], out)
+    _FORWARD.evaluate([v], filled)
+    np.testing.assert_array_equal(out, filled)  # every value written, finite or not
     got = out.reshape(expected.shape, order="F")
     finite = np.isfinite(expected)
     assert np.isfinite(got[finite]).all()

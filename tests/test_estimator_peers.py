@@ -1,9 +1,9 @@
 """Estimators against independent peers and known answers.
 
 * EKF and UKF against filterpy on identical inputs (same Q, R, initial state and
-  covariance; the measurement written independently: wrapped angles for ``paper``, the
-  gravity direction projected stereographically on the measured tangent plane for
-  ``bend``).
+  covariance; the measurement written independently: roll and pitch from elementary
+  rotations for ``paper`` (the residual wrapped), the gravity direction projected
+  stereographically on the measured tangent plane for ``bend``).
 * MHE against a plain CasADi ``Opti`` problem written here from the kinematics and
   IMU symbolic functions only (not the estimator's NLP builder).
 * On a linear Gaussian model, the full-horizon MHE equals dense batch least squares,
@@ -86,24 +86,46 @@ def _gravity_jacobian_fn(mounting: str) -> ca.Function:
     return ca.Function("g", [x], [g, ca.jacobian(g, x)])
 
 
+def _paper_tilt_fn(mounting: str) -> ca.Function:
+    """The paper state's (x, y, z, theta, phi) roll and pitch and their Jacobian: the
+    accelerometer's reading of gravity ``f = R^T up`` with ``R = Rz(phi) Ry(-theta)
+    Rz(-phi)`` from elementary rotations, then ``roll = atan2(f_y, f_z)``, ``pitch =
+    atan2(-f_x, hypot(f_y, f_z))``."""
+    x = ca.SX.sym("x", 5)
+    theta, phi = x[3], x[4]
+
+    def rz(a: ca.SX) -> ca.SX:
+        return ca.blockcat([[ca.cos(a), -ca.sin(a), 0], [ca.sin(a), ca.cos(a), 0], [0, 0, 1]])
+
+    def ry(a: ca.SX) -> ca.SX:
+        return ca.blockcat([[ca.cos(a), 0, ca.sin(a)], [0, 1, 0], [-ca.sin(a), 0, ca.cos(a)]])
+
+    rot = rz(phi) @ ry(-theta) @ rz(-phi)
+    up = 1.0 if mounting == "z-up" else -1.0
+    fa = rot.T @ ca.DM([0.0, 0.0, up])
+    h = ca.vertcat(ca.atan2(fa[1], fa[2]), ca.atan2(-fa[0], ca.sqrt(fa[1] ** 2 + fa[2] ** 2)))
+    return ca.Function("tilt", [x], [h, ca.jacobian(h, x)])
+
+
 def peer_measurement(f: Formulation, z: np.ndarray) -> tuple[Any, Any, Any, Any]:
     """``(z_eff, hx, H, residual)`` such that the library's residual r(z, x) equals
     ``residual(z_eff, hx(x))`` and ``H = d hx / dx``, for filterpy.
 
-    ``paper``: the angles themselves, wrapped. ``bend``: the gravity direction
+    ``paper``: roll and pitch from elementary rotations (:func:`_paper_tilt_fn`), the
+    residual wrapped. ``bend``: the gravity direction
     ``g = R(a, b)^T up`` (from the rotation, not the tilt code), stereographically
     projected from ``-f(z)`` onto the tangent plane of the measured direction ``f(z)``:
     ``hx = 2 E^T g / (1 + f(z) . g)``, measured value 0.
     """
     nx = f.nx
     if f.name == "paper":
-        fns = f.functions
+        tilt = _paper_tilt_fn(f.robot.mounting)
 
         def hx(x: np.ndarray) -> np.ndarray:
-            return np.asarray(fns.measure(x)[0], dtype=float).ravel()
+            return np.asarray(tilt(x)[0], dtype=float).ravel()
 
         def H(x: np.ndarray) -> np.ndarray:
-            return np.asarray(fns.measure(x)[1], dtype=float).reshape(2, nx)
+            return np.asarray(tilt(x)[1], dtype=float).reshape(2, nx)
 
         return z, hx, H, lambda a, b: wrap_angle(np.subtract(a, b))
     gfn = _gravity_jacobian_fn(f.robot.mounting)

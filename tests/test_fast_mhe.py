@@ -208,9 +208,13 @@ def test_agrees_with_ipopt(
     f = make_formulation(name)  # type: ignore[arg-type]
     rec_data = simulate(scenario, duration=3.0, noise_deg=noise_deg, seed=seed)  # type: ignore[arg-type]
     rec = record_ipopt(f, horizon, rec_data.t, rec_data.z)
-    # the paper formulation's degenerate windows (theta ~ 0, phi on +-pi) converge
-    # slowly under Gauss-Newton; a few go to IPOPT (see test_fallback_to_ipopt...)
-    compare_windows(f, rec, min_agree=0.9, min_certified=1.0 if name == "bend" else 0.9)
+    # the paper formulation's degenerate windows (theta ~ 0, phi on +-pi, theta on its
+    # bound) converge slowly under Gauss-Newton, a few go to IPOPT (see
+    # test_fallback_to_ipopt...), and on its bound the fast answer may differ from
+    # IPOPT's at no higher cost (check_window; 43 of 61 windows of planar-overbend, seed
+    # 4096, N = 4); the bend formulation has no such windows: every one agrees
+    exact = name == "bend"
+    compare_windows(f, rec, min_agree=1.0 if exact else 0.0, min_certified=1.0 if exact else 0.9)
 
 
 def test_estimator_backends_agree_with_dropouts() -> None:
@@ -260,7 +264,8 @@ def test_straight_configuration() -> None:
         f = make_formulation(name)
         windows = record_ipopt(f, 10, rec.t[70:115], rec.z[70:115])
         windows.windows = windows.windows[10:]
-        compare_windows(f, windows, min_agree=0.9, min_certified=0.9)
+        exact = name == "bend"  # no degenerate windows: every one agrees with IPOPT's
+        compare_windows(f, windows, min_agree=1.0 if exact else 0.9, min_certified=0.9)
 
 
 def test_bounds_active_over_the_whole_window() -> None:
@@ -775,4 +780,7 @@ def test_compiled_step_keeps_the_window_as_the_reference_does() -> None:
         np.testing.assert_array_equal(
             fast.output_std(state, cov), fast._node.output_std(state, cov)
         )
+        # and close to the reference's own (from its covariance, which the step's
+        # matches to 1e-4 of its largest entry)
+        np.testing.assert_allclose(fast.output_std(state, cov), ref_std, rtol=5e-4)
         ref.X_last[:], ref.has_X_last = compiled.X_last, compiled.has_X_last

@@ -178,10 +178,15 @@ def test_one_imu_dropout_keeps_the_other(method: str, solver: str) -> None:
     assert np.all(np.isfinite(series.output))
     # IMU 1 still updates; the tip may be too uncertain to trust without IMU 2
     assert set(series.status[20:45]) <= {"ok", "fallback-ipopt", "uncertain"}
+    # section 1's end during the dropout is the run's without it, to well under the 29 mm
+    # by which a run that loses both IMUs there departs from it
+    whole = make_estimator(method, f, MHESettings(horizon=10, solver=solver)).run(rec.t, rec.z)  # type: ignore[arg-type]
     names = [o.name for o in f.outputs]
+    end_1 = [names.index(c) for c in ("x_1", "y_1", "z_1")]
+    apart = np.abs(series.output[20:45][:, end_1] - whole.output[20:45][:, end_1])
+    assert apart.max() < 0.002
     m = compute_metrics(series.output, rec.truth, TWO.length, names)
-    assert m.section_end_mean_mm["1"] < 8.0  # section 1 stays observed throughout
-    assert m.tip_mean_mm < 25.0
+    assert m.section_end_mean_mm["1"] < 8.0
 
 
 def _two_imu_file(path: Path, edit: dict[int, str]) -> tuple[Path, list[str]]:
@@ -298,8 +303,13 @@ def test_two_section_tilt_estimates_track_the_s_curve(method: str) -> None:
     rec = simulate_robot("s-curve", TWO, duration=6.0, dt=0.05, seed=0)
     f = make_formulation("bend", TWO)
     series = make_estimator(method, f, MHESettings(horizon=15)).run(rec.t, rec.z)  # type: ignore[arg-type]
-    m = compute_metrics(series.output, rec.truth, TWO.length, [o.name for o in f.outputs])
-    assert m.tip_mean_mm < 6.0, m
+    names = [o.name for o in f.outputs]
+    m = compute_metrics(series.output, rec.truth, TWO.length, names)
+    # the motion model averages the readings' noise: clearly better than each sample's
+    # readings inverted alone (two tilt IMUs fix the four bend coordinates)
+    alone = np.array([np.asarray(f.output(f.initial_state(z))).ravel() for z in rec.z])
+    m_alone = compute_metrics(alone, rec.truth, TWO.length, names)
+    assert m.tip_mean_mm < 0.8 * m_alone.tip_mean_mm, (m, m_alone)
     assert set(m.section_end_mean_mm) == {"1", "2"}
 
 

@@ -15,7 +15,13 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import DropoutWarning, InputError, read_state_table, write_table
+from continuum_mhe.io.csv_files import (
+    DropoutWarning,
+    InputError,
+    StateTable,
+    read_state_table,
+    write_table,
+)
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.io.tensions import read_tensions
@@ -507,7 +513,24 @@ def test_estimate_reads_tensions_and_writes_the_tip_force(tmp_path: Path) -> Non
         assert col in table.names
     assert table.std is not None
     assert np.all(np.isfinite(table.std[:, table.names.index("fx")]))
-    assert np.all(np.abs(table.column("fx")) < 0.01)
+    # the readings are the model's at no tip force: the estimate is the statics' shape at
+    # each sample's tension (1 + 5 t N, interpolated from the file) and a force near 0
+    f = TendonFormulation(robot=read_robot(_small_robot(tmp_path)))
+    names = [o.name for o in f.outputs]
+    assert list(table.names) == names
+    want = []
+    np.testing.assert_allclose(table.t, np.arange(6) * 0.02)
+    for tk in table.t:
+        tau = 1.0 + 5.0 * tk
+        k0, _ = f.statics.solve(np.zeros(3), np.array([tau]))
+        x = np.zeros(f.nx)
+        x[:3], x[6] = k0, tau
+        want.append(np.asarray(f.output(x), float).ravel())
+    got = table.values
+    tip = [names.index(c) for c in ("x", "y", "z")]
+    np.testing.assert_allclose(got[:, tip], np.array(want)[:, tip], atol=5e-4)
+    force = [names.index(c) for c in ("fx", "fy", "fz")]
+    assert np.abs(got[:, force]).max() < 0.002  # its std: 0.02 N and more
     # numpy's reader as docs/workflow.md gives it reads the same columns
     lines = (ln for ln in out.open() if not ln.startswith("#"))
     data = np.genfromtxt(lines, delimiter=",", names=True, dtype=None, encoding="utf-8")
@@ -848,6 +871,33 @@ def test_the_consistency_check_judges_the_readings_not_the_tip_condition() -> No
     assert not ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
     z[0] += 10 * f.noise.measurement_std
     assert ConsistencyCheck(f).check(0.0, z, f.measurement_mask(z), x, cov)
+
+
+# --- a loaded recording ------------------------------------------------------------------
+def test_estimate_follows_the_loaded_robot_and_its_tip_force(tmp_path: Path) -> None:
+    """``estimate`` with only ``--robot`` and ``--inputs`` on the shipped ``force-29``
+    (raw IMUs, a tip force up to 0.29 N made by PyElastica, not by the estimator's model):
+    the tip within the 10 mm and the force within the 0.05 N rms that the tendon issue
+    asks of such a recording (a PCC model is about 90 mm off there), every row written
+    and none ``ok`` more than 20 mm off."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(data / "force-29_raw.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(data / "force-29_tensions.csv"), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    est, truth = read_state_table(out), read_state_table(data / "force-29_truth.csv")
+    np.testing.assert_array_equal(est.t, truth.t)
+
+    def cols(table: StateTable, names: tuple[str, ...]) -> np.ndarray:
+        return np.column_stack([table.column(c) for c in names])
+
+    tip_error = np.linalg.norm(cols(est, ("x", "y", "z")) - cols(truth, ("x", "y", "z")), axis=1)
+    force_error = cols(est, ("fx", "fy", "fz")) - cols(truth, ("fx", "fy", "fz"))
+    assert np.abs(cols(truth, ("fx", "fy", "fz"))).max() > 0.2  # the recording is loaded
+    assert tip_error.mean() < 0.010
+    assert np.sqrt(np.mean(np.sum(force_error**2, axis=1))) < 0.05
+    assert est.status is not None
+    assert not np.any((est.status == "ok") & (tip_error > 0.020))
 
 
 # --- one IMU ---------------------------------------------------------------------------
@@ -1376,7 +1426,7 @@ def test_tensions_logged_fast_give_the_derivatives_of_the_same_tensions_at_50_hz
     and 4 % of the largest; differences over a millisecond would turn the corners of the
     interpolation into accelerations ten times the largest), and the 50 Hz file itself
     keeps its rows' central differences."""
-    from continuum_mhe.io.tensions import central_differences, read_tensions
+    from continuum_mhe.io.tensions import read_tensions
 
     coarse = read_tensions(DATA / "force-29_tensions.csv", 6)
     t = np.arange(coarse.t[0], coarse.t[-1] + 1e-9, 0.001)
@@ -1390,9 +1440,11 @@ def test_tensions_logged_fast_give_the_derivatives_of_the_same_tensions_at_50_hz
         want = np.array([coarse.at(x)[k] for x in at])
         got = np.array([fast.at(x)[k] for x in at])
         assert np.abs(got - want).max() <= tol * np.abs(want).max()
-    rates = central_differences(coarse.t, coarse.values)
-    np.testing.assert_array_equal(coarse.rates, rates)
-    np.testing.assert_array_equal(coarse.accelerations, central_differences(coarse.t, rates))
+    # the rows' central differences: numpy's (the same formulas, other rounding)
+    rates = np.gradient(coarse.values, coarse.t, axis=0)
+    np.testing.assert_allclose(coarse.rates, rates, rtol=1e-9, atol=1e-12)
+    accelerations = np.gradient(rates, coarse.t, axis=0)
+    np.testing.assert_allclose(coarse.accelerations, accelerations, rtol=1e-9, atol=1e-9)
 
 
 def test_a_recordings_own_tensions_are_differenced_row_by_row_as_live_does(
@@ -1401,7 +1453,7 @@ def test_a_recordings_own_tensions_are_differenced_row_by_row_as_live_does(
     """The tension columns ``live --record`` writes beside the IMUs' are differenced row
     by row, as live's stream differenced them (a replay gives live's estimates), even at
     100 Hz; the same tensions as a file of their own are averaged into 20 ms bins."""
-    from continuum_mhe.io.tensions import central_differences, read_tensions
+    from continuum_mhe.io.tensions import read_tensions
 
     t = np.arange(0.0, 2.0, 0.01)
     values = np.column_stack([1.0 + 0.3 * np.sin(3 * t), 0.5 + 0.1 * t])
@@ -1410,9 +1462,10 @@ def test_a_recordings_own_tensions_are_differenced_row_by_row_as_live_does(
                 np.column_stack([t, 0 * t, 0 * t, values]).tolist())  # fmt: skip
     write_table(own, ["t", "tension_1", "tension_2"], np.column_stack([t, values]).tolist())
     replayed = read_tensions(recording, 2, other_columns=True)
-    rates = central_differences(replayed.t, replayed.values)
-    np.testing.assert_array_equal(replayed.rates, rates)
-    np.testing.assert_array_equal(replayed.accelerations, central_differences(replayed.t, rates))
+    rates = np.gradient(replayed.values, replayed.t, axis=0)  # row by row: numpy's
+    np.testing.assert_allclose(replayed.rates, rates, rtol=1e-9, atol=1e-12)
+    accelerations = np.gradient(rates, replayed.t, axis=0)
+    np.testing.assert_allclose(replayed.accelerations, accelerations, rtol=1e-9, atol=1e-9)
     assert not np.array_equal(read_tensions(own, 2).accelerations, replayed.accelerations)
 
 

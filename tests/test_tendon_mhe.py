@@ -75,8 +75,7 @@ def test_the_window_gradient_is_the_derivative_of_its_cost() -> None:
     X[1:] += 0.01 * np.random.default_rng(0).normal(size=X[1:].shape)  # off the start
     ws = Workspace(model)
     ws.load(problem, X)
-    cost = float(ws.core.evaluate(0, *_weights(problem)))
-    assert cost == pytest.approx(window_cost(model, problem, X), rel=1e-15)
+    ws.core.evaluate(0, *_weights(problem))
     g = np.asarray(ws.g[0]).ravel()
     rng = np.random.default_rng(1)
     for _ in range(4):
@@ -112,4 +111,14 @@ def test_the_ipopt_window_of_the_shooting_model_is_per_node_with_the_same_cost()
                         ubx=solved.ubx, lbg=solved.lbg, ubg=solved.ubg)  # fmt: skip
     assert solved.solver.stats()["return_status"] == "Solve_Succeeded"
     best = np.asarray(out["x"]).reshape(HORIZON, f.nx)
+    # IPOPT's answer is a stationary point of the compiled solver's window cost: the
+    # gradient the core assembles there (from its own forward-mode Jacobians) is a
+    # vanishing fraction of the one at the start (4e9, the tip condition's 1e8 weights)
+    gradients = []
+    for Y in (X, best):
+        ws = Workspace(model)
+        ws.load(problem, Y)
+        ws.core.evaluate(0, *_weights(problem))
+        gradients.append(np.linalg.norm(np.asarray(ws.g[0]).ravel()))
+    assert gradients[1] < 1e-7 * gradients[0]
     assert window_cost(model, problem, best) < window_cost(model, problem, X)
