@@ -208,10 +208,17 @@ def test_an_estimate_mcap_with_an_unknown_status_is_one_line(
     # a missing file, a folder, a file cut after its magic: InputError, not OSError
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(est.read_bytes()[:8])
+    tiny = tmp_path / "tiny.mcap"  # shorter than the magic: the reader's struct.error
+    tiny.write_bytes(b"hello\n")
     for path, why in ((tmp_path / "none.mcap", "no such file"), (tmp_path, "a folder"),
-                      (cut, "cannot read it as an estimate MCAP")):  # fmt: skip
+                      (cut, "cannot read it as an estimate MCAP"),
+                      (tiny, "cannot read it as an estimate MCAP \\(too short")):  # fmt: skip
         with pytest.raises(InputError, match=f"^{re.escape(str(path))}: {why}"):
             read_estimates_mcap(path)
+    png = str(tmp_path / "t.png")
+    for argv in (["evaluate", str(tiny), str(tiny)], ["plot", str(tiny), "-o", png]):
+        assert main(argv) == 2
+        assert capsys.readouterr().err.count("\n") == 1
 
 
 def _wxyz(r: Rotation) -> np.ndarray:

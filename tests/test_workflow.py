@@ -323,6 +323,39 @@ def test_an_existing_output_is_refused_without_overwrite(tmp_path: Path, capsys,
     assert out.read_text() != "mine\n"
 
 
+def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys) -> None:
+    """``-o`` (or ``--write-robot``) naming one of the command's own input files, by any
+    path (a link too), with ``--overwrite``: one line naming it, exit 2, the file kept."""
+    tendon, rod = DATA / "tendon", DATA / "rod2"
+    tensions, robot, rest = tmp_path / "ten.csv", tmp_path / "rob.toml", tmp_path / "rest.csv"
+    tensions.write_bytes((tendon / "force-29_tensions.csv").read_bytes())
+    robot.write_bytes((DATA / "robots" / "two_section.toml").read_bytes())
+    rest.write_bytes((rod / "spatial-tendon_rest.csv").read_bytes())
+    config = tmp_path / "opts.toml"
+    config.write_text('method = "ekf"\n')
+    link = tmp_path / "link.csv"
+    link.symlink_to(tensions)
+    cases = [
+        (["estimate", str(tendon / "force-29_raw.csv"), "--robot", "tendon-two-section",
+          "--inputs", str(tensions), "-o", str(link)], tensions, "the tensions file --inputs"),
+        (["estimate", str(rod / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(robot)],
+         robot, "the robot file --robot"),
+        (["estimate", str(rod / "spatial_tilt.csv"), "--robot", "two-section", "--config",
+          str(config), "-o", str(config)], config, "the options file --config"),
+        (["calibrate", "--from", str(rest), "--robot", "two-section", "--write-robot",
+          str(rest)], rest, "the recording --from"),
+        (["simulate", "paper3d", "--robot", str(robot), "-o", str(robot)], robot,
+         "the robot file --robot"),
+    ]  # fmt: skip
+    for argv, kept, what in cases:
+        before = kept.read_bytes()
+        capsys.readouterr()
+        assert main([*argv, "--overwrite"]) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"refusing to overwrite {what}" in err, err
+        assert kept.read_bytes() == before
+
+
 def test_an_interrupted_estimate_keeps_its_rows_marked_partial(
     tmp_path: Path, capsys, monkeypatch
 ) -> None:

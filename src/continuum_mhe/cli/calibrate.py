@@ -24,7 +24,7 @@ from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, ro
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.inputs import read_recording
-from continuum_mhe.io.output_files import atomic_writer, check_output_target
+from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
@@ -42,6 +42,9 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     if args.write_robot:  # before recording or reading
         check_output_target(args.write_robot, args.overwrite, "--write-robot")
+        # (the robot file --robot may be rewritten with its calibration: not refused)
+        refuse_inputs(args.write_robot, [("the recording --from", args.source),
+                                         ("the bent recording --bend", args.bend)])  # fmt: skip
         if not args.source and args.format != "raw":
             raise InputError("--write-robot needs raw readings (--format raw)")
     if args.bend_phi is not None and not args.bend:

@@ -26,6 +26,7 @@ from continuum_mhe.cli.options import (
     add_recovery_options,
     add_tensions_option,
     formulation_from_args,
+    input_files,
     input_options,
     method_from_args,
     mhe_settings_from_args,
@@ -41,7 +42,7 @@ from continuum_mhe.estimators.sensor_health import (
     bound_notice,
 )
 from continuum_mhe.io.csv_files import InputError
-from continuum_mhe.io.output_files import check_output_target
+from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
@@ -136,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
     from continuum_mhe.io.inputs import open_input
 
     check_output_path(args.output, args.measurements, args.overwrite)
+    refuse_inputs(args.output, input_files(args))
     out = args.output
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:

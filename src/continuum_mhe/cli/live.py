@@ -19,6 +19,7 @@ from continuum_mhe.cli.options import (
     add_serial_options,
     add_tensions_option,
     formulation_from_args,
+    input_files,
     input_options,
     method_from_args,
     mhe_settings_from_args,
@@ -29,6 +30,7 @@ from continuum_mhe.cli.program import version
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.csv_files import InputError, estimate_columns
 from continuum_mhe.io.inputs import serial_input
+from continuum_mhe.io.output_files import refuse_inputs
 from continuum_mhe.live.run import WARM_UP_STEPS, open_plot, run_live, warm_up
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.stream.protocol import line_fields, value_columns
@@ -63,6 +65,9 @@ def run(args: argparse.Namespace) -> int:
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):
         raise InputError(f"{out_path}: -o and --record name the same file")
+    for target in (args.output, args.record):
+        if target:
+            refuse_inputs(target, input_files(args))
     sink = None
     if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
         from continuum_mhe.viewer import BackboneView, TendonShapes, require_rerun

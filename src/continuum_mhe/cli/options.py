@@ -794,3 +794,14 @@ def input_options(args: argparse.Namespace) -> Any:
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
     )
+
+
+def input_files(args: argparse.Namespace) -> list[tuple[str, str | None]]:
+    """The files besides the recording that ``estimate`` and ``live`` read, as
+    :func:`continuum_mhe.io.output_files.refuse_inputs` takes them: an output must not
+    replace one."""
+    return [
+        ("the tensions file --inputs", getattr(args, "inputs", None)),
+        ("the robot file --robot", getattr(args, "robot", None)),
+        ("the options file --config", getattr(args, "config", None)),
+    ]

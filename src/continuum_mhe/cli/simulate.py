@@ -15,7 +15,7 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError, write_measurements, write_truth
-from continuum_mhe.io.output_files import check_output_target
+from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.simulation.scenarios import NOISE_MODELS, SCENARIOS, simulate_robot
 
@@ -44,6 +44,9 @@ def run(args: argparse.Namespace) -> int:
             f"{MAX_SIMULATED_SAMPLES:,} (write longer recordings in parts)"
         )
     check_output_target(args.output, args.overwrite)  # both before writing either
+    for target in (args.output, args.truth):
+        if target:
+            refuse_inputs(target, [("the robot file --robot", getattr(args, "robot", None))])
     if args.truth:
         truth = check_output_target(args.truth, args.overwrite, "--truth")
         if truth.resolve() == Path(args.output).resolve():

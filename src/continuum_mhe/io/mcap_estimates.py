@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import struct
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
@@ -238,6 +239,10 @@ def read_estimates_mcap(
     return table.t, table.values, table.status
 
 
+#: what the MCAP reader raises on a file that is not an MCAP, or is cut short (a file
+#: of a few bytes: struct.error)
+_FOREIGN_FILE_ERRORS = (ValueError, KeyError, TypeError, IndexError, EOFError, struct.error)
+
 #: the MCAP metadata record of an estimate file's notes (options, model, partial)
 NOTES_RECORD = "continuum-mhe"
 
@@ -257,7 +262,7 @@ def read_notes_mcap(path: str | os.PathLike[str]) -> dict[str, str]:
             for record in make_reader(fh).iter_metadata():
                 if record.name == NOTES_RECORD:
                     notes.update(record.metadata)
-    except (OSError, McapError, ValueError, KeyError, TypeError):
+    except (OSError, McapError, *_FOREIGN_FILE_ERRORS):
         return {}
     return notes
 
@@ -300,8 +305,9 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
         raise InputError(f"{path}: no such file") from None
     except IsADirectoryError:
         raise InputError(f"{path}: a folder, not an estimate MCAP") from None
-    except (McapError, OSError, ValueError, KeyError, TypeError) as exc:  # not ours, or cut
-        raise InputError(f"{path}: cannot read it as an estimate MCAP ({exc!r})") from None
+    except (McapError, OSError, *_FOREIGN_FILE_ERRORS) as exc:  # not ours, or cut
+        why = "too short for an MCAP" if isinstance(exc, struct.error) else repr(exc)
+        raise InputError(f"{path}: cannot read it as an estimate MCAP ({why})") from None
     if not t:
         raise InputError(
             f"{path}: no /continuum/estimate messages: not an estimate MCAP (a robot log? "

@@ -4,7 +4,8 @@ An output file is written to a temporary file in its folder (``.NAME.PID.XXXXXXX
 and renamed over the target only once complete (:func:`atomic_writer`,
 :func:`atomic_binary_writer`); a killed writer's temporary file is removed by the next
 writer into that folder once its process is gone. :func:`check_output_target` refuses,
-in one line and before any work, a target that cannot be written;
+in one line and before any work, a target that cannot be written, and
+:func:`refuse_inputs` one that is an input of the command;
 :func:`check_new_folder` and :func:`new_files` do the same for a command that writes
 several files into a folder.
 """
@@ -81,6 +82,24 @@ def check_output_target(
         raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
                          "or remove it)")  # fmt: skip
     return target
+
+
+def refuse_inputs(
+    target: str | os.PathLike[str], inputs: Sequence[tuple[str, str | os.PathLike[str] | None]]
+) -> None:
+    """A one-line :class:`InputError` when the output ``target`` is one of the command's
+    input files (the same file by any name: a link, another path), given as ``(what,
+    path)`` pairs such as ``("the tensions file --inputs", args.inputs)``; a path that is
+    None, ``-`` or not an existing file (a built-in robot's name) is no file to protect.
+    Checked before any work, so that ``--overwrite`` never replaces an input."""
+    out = Path(target)
+    if not out.exists():
+        return
+    for what, path in inputs:
+        if path is None or os.fspath(path) == "-" or not Path(path).is_file():
+            continue
+        if os.path.samefile(out, path):
+            raise InputError(f"{target}: refusing to overwrite {what}, an input of this command")
 
 
 @contextlib.contextmanager
