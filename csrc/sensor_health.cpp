@@ -127,6 +127,7 @@ void SensorHealth::restart() {
   cons_has_prev_ = false;
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
+  unconfirmed_ = 0;
   inference_.restart();
 }
 
@@ -393,6 +394,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (has_state) status = ST_RESET;
   }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
+  const bool forced = (bad_start || reject_reset || !healthy) && has_state;
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
   if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {
@@ -411,6 +413,14 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
     if (disagree && trusted(status)) status = ST_INCONSISTENT;
+    // a restart the readings forced fits this one reading; the next start_samples
+    // readings that agree with the estimate confirm it, and until then it is not ok
+    if (forced) {
+      unconfirmed_ = s_.start_samples;
+    } else if (unconfirmed_ > 0 && has_state && valid) {
+      unconfirmed_ = disagree ? s_.start_samples : unconfirmed_ - 1;
+      if (unconfirmed_ > 0 && status == ST_OK) status = ST_UNCERTAIN;
+    }
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
     diagnostics.max_noise_scale = std::max(diagnostics.max_noise_scale, scale);

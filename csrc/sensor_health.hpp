@@ -221,6 +221,10 @@ class SensorHealth {
   // the last sample whose tip standard deviation exceeded the uncertain fraction (the
   // estimate's belief spanned shapes far apart); -inf since the (re)start when none
   double wide_t_ = -INFINITY;
+  // after a restart that the readings forced (the estimate before it contradicted them,
+  // or failed): how many more samples' readings must agree with the new estimate, one
+  // reading's fit, before it is trusted (start_samples at the restart, 0 otherwise)
+  int unconfirmed_ = 0;
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
   std::vector<char> has_freeze_value_;

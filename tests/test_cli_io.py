@@ -295,6 +295,58 @@ def test_evaluate_rejects_bad_truth(tmp_path, capsys):
     assert "truth.csv: line 1: missing column(s) z (header has: t, x, y)" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("which", "text"),
+    [("truth", "t,x,y,z\n0,1e300,0,0.2\n"), ("estimate", "t,x,y,z,theta,phi,status,solve_ms\n"
+     "0,0,0,0.2,0,0,ok,1\n0.05,0,-2e6,0.2,0,0,ok,1\n")],
+)  # fmt: skip
+def test_evaluate_refuses_values_beyond_any_robot(tmp_path, capsys, which, text):
+    """A value of 1e300 m gave an infinite mean error (and ``Infinity`` in --json)."""
+    good = {"truth": "t,x,y,z\n0,0,0,0.2\n0.05,0,0,0.2\n",
+            "estimate": "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n"}  # fmt: skip
+    files = {k: _write(tmp_path / f"{k}.csv", text if k == which else good[k]) for k in good}
+    assert main(["evaluate", str(files["estimate"]), str(files["truth"])]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{files[which]}: line " in err and "out of range" in err
+
+
+def test_evaluate_refuses_an_estimate_given_as_the_truth(tmp_path, capsys):
+    """The estimate against itself gave a 0 mm error and every coverage 1.000."""
+    est = _write(
+        tmp_path / "est.csv",
+        "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n0.05,0,0,0.2,0,0,ok,1\n",
+    )
+    truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2\n0.05,0,0,0.2\n")
+    for argv in ([str(est), str(est)], [str(truth), str(est)]):
+        assert main(["evaluate", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{est}: has an estimate's status" in err, err
+    assert main(["evaluate", str(est), str(truth)]) == 0
+
+
+@pytest.mark.parametrize("command", ["plot", "view"])
+def test_plot_and_view_refuse_an_estimate_without_any(tmp_path, capsys, command):
+    est = _write(
+        tmp_path / "est.csv",
+        "t,x,y,z,theta,phi,status,solve_ms\n0,,,,,,no-estimate,1\n0.05,,,,,,no-estimate,1\n",
+    )
+    out = {"plot": ["-o", str(tmp_path / "f.png")], "view": ["--save", str(tmp_path / "f.rrd")]}
+    assert main([command, str(est), *out[command]]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no row has an estimate" in err
+    assert list(tmp_path.iterdir()) == [est]
+
+
+@pytest.mark.parametrize("suffix", [".bag", ".png", ".rrd", ".toml"])
+def test_estimate_refuses_an_output_another_reader_would_misread(tmp_path, capsys, suffix):
+    meas = _meas(tmp_path, _good_rows(5))
+    out = tmp_path / f"e{suffix}"
+    assert main(["estimate", str(meas), "-o", str(out)]) == 2
+    assert "an estimate is written as CSV" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.txt")]) == 0
+
+
 def test_invalid_option_values_are_one_line_errors(tmp_path, capsys):
     meas = _meas(tmp_path, _good_rows(5))
     for opts in (

@@ -136,8 +136,8 @@ def run(args: argparse.Namespace) -> int:
     from continuum_mhe.io.imu_topics import warn_topic_order
     from continuum_mhe.io.inputs import open_input
 
+    refuse_inputs(args.output, input_files(args))  # first: an input is the worst to lose
     check_output_path(args.output, args.measurements, args.overwrite)
-    refuse_inputs(args.output, input_files(args))
     out = args.output
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
@@ -304,11 +304,20 @@ def no_estimate_cause(args: argparse.Namespace, readings: int, outliers: int) ->
     return "the estimator failed on every sample (see the statuses in docs/formats.md)"
 
 
+#: the suffixes of an estimate file ``-o`` may name: CSV, or MCAP (estimate_sink)
+ESTIMATE_SUFFIXES = (".csv", ".txt", "", ".mcap")
+
+
 def check_output_path(output: str, source: str, overwrite: bool = False) -> None:
     """The output must be a writable file name in an existing folder (see
     :func:`check_output_target`), not the input itself, and new unless ``overwrite``;
     checked before any work."""
     out = check_output_target(output)
+    if out.suffix.lower() not in ESTIMATE_SUFFIXES:  # a name another reader would misread
+        raise InputError(
+            f"{output}: an estimate is written as CSV (.csv or .txt, or no suffix) or MCAP "
+            f"(.mcap), not {out.suffix}"
+        )
     if source != "-" and out.exists() and out.resolve() == Path(source).resolve():
         raise InputError(f"{out}: refusing to overwrite the input file")
     check_output_target(output, overwrite)
@@ -318,7 +327,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "measurements", help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap"
     )
-    p.add_argument("-o", "--output", required=True, help="estimate CSV to write")
+    p.add_argument(
+        "-o", "--output", required=True, help="estimate file to write: CSV (.csv), or MCAP (.mcap)"
+    )
     add_overwrite_option(p)
     add_config_option(p)
     add_method_option(p)

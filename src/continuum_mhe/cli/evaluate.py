@@ -122,6 +122,11 @@ def _shift_hint(
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
+    if truth.status_column or truth.std_columns:
+        raise InputError(
+            f"{args.truth}: has an estimate's status or std_ columns: an estimate, not a "
+            "truth (evaluate EST.csv TRUTH.csv: the truth comes second)"
+        )
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
@@ -248,8 +253,8 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("estimates")
-    p.add_argument("truth")
+    p.add_argument("estimates", help="estimate CSV or MCAP, as estimate -o writes it")
+    p.add_argument("truth", help="truth CSV: t and the true outputs (x, y, z, ...)")
     p.add_argument(
         "--length",
         type=float,

@@ -517,8 +517,9 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
 
     from continuum_mhe.io.output_files import check_output_target
-    from continuum_mhe.viewer import ViewerSink
+    from continuum_mhe.viewer import ViewerSink, require_rerun
 
+    require_rerun()  # the missing install first: the display is the next thing to fix
     ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
     overwrite = bool(getattr(args, "overwrite", False))
     choice = getattr(args, "view", None)

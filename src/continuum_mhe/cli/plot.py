@@ -68,7 +68,7 @@ def _estimate(args: argparse.Namespace) -> int:
     )
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.csv_files import read_state_table
-    from continuum_mhe.io.estimate_files import read_estimates
+    from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.io.robot_file import read_robot
 
@@ -77,6 +77,7 @@ def _estimate(args: argparse.Namespace) -> int:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
     est = read_estimates(args.source, "plot EST.csv")
+    require_an_estimate(args.source, est)
     truth = read_state_table(args.truth) if args.truth else None
     lengths = None
     robot: Robot | None = None

@@ -109,7 +109,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "(rad/s) per IMU, as a raw-IMU robot sends them (MEMS-like noise and gyro bias; "
         "--noise-deg is for tilt)",
     )
-    p.add_argument("--noise-deg", type=float, default=2.0, help="noise std in degrees")
+    p.add_argument(
+        "--noise-deg",
+        type=float,
+        default=2.0,
+        help="the readings' noise std in degrees (default 2)",
+    )
     p.add_argument(
         "--noise-model",
         choices=NOISE_MODELS,
@@ -117,9 +122,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="tilt: on roll and pitch independently (default, the paper's); tangent: "
         "isotropic on the tangent plane of gravity (what the estimators' R assumes)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="the noise's random seed (default 0)")
     p.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time in s (default 0.05)")
-    p.add_argument("--length", type=float, default=0.2, help="section length in m")
-    p.add_argument("--mounting", choices=MOUNTINGS, default="z-up")
+    p.add_argument("--length", type=float, default=0.2, help="section length in m (default 0.2)")
+    p.add_argument(
+        "--mounting", choices=MOUNTINGS, default="z-up", help="the base's z axis (default z-up)"
+    )
     add_robot_option(p, replaces=("--length", "--mounting"))

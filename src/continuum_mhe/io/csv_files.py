@@ -615,6 +615,8 @@ class StateTable:
     outlier: NDArray[np.bool_] | None = None
     #: the file has ``std_`` columns (perhaps all empty)
     std_columns: bool = False
+    #: the file has a ``status`` column (an estimate's)
+    status_column: bool = False
 
     @property
     def has_std(self) -> bool:
@@ -639,6 +641,11 @@ def truth_named(header: list[str], required: Sequence[str]) -> list[str]:
     if all(c in header for c in required) or not all(c + TRUE_SUFFIX in header for c in required):
         return header
     return [h[: -len(TRUE_SUFFIX)] if h.endswith(TRUE_SUFFIX) else h for h in header]
+
+
+#: The largest magnitude of a value in an estimate or truth file (m, rad, N): none of a
+#: robot's; beyond it errors and their squares lose meaning or overflow.
+STATE_LIMIT = 1e6
 
 
 def read_state_table(
@@ -687,6 +694,12 @@ def read_state_table(
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
             raise InputError(f"{p}: line {line}: NaN or infinite value")
+        for c, v in zip(names, vals):
+            if abs(v) > STATE_LIMIT:  # its squares and sums would overflow the metrics
+                raise InputError(
+                    f"{p}: line {line}: {c}={v:.6g} out of range (|value| <= {STATE_LIMIT:g} "
+                    "in m, rad and N)"
+                )
         sd.append(
             [
                 math.nan if j < 0 or row[j] == "" else _parse_std(p, line, c, row[j])
@@ -709,6 +722,7 @@ def read_state_table(
         np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
         None if o_idx is None else np.array(flags, dtype=bool), any(j >= 0 for j in sd_idx),
+        s_idx is not None,
     )  # fmt: skip
 
 
@@ -804,6 +818,11 @@ def _parse_std(path: str, line: int, name: str, text: str) -> float:
     v = parse_float(path, line, STD_PREFIX + name, text)
     if not (math.isfinite(v) and v >= 0):
         raise InputError(f"{path}: line {line}: {STD_PREFIX}{name} must be >= 0, got {text!r}")
+    if v > STATE_LIMIT:
+        raise InputError(
+            f"{path}: line {line}: {STD_PREFIX}{name}={v:.6g} out of range (at most "
+            f"{STATE_LIMIT:g} in m, rad and N)"
+        )
     return v
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from continuum_mhe.io.csv_files import (
     TIP_COLUMNS,
     InputError,
@@ -44,3 +46,12 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
             f"run continuum-mhe estimate {path} -o EST.csv first, then continuum-mhe {then}"
         )
     return read_state_table(path, required)
+
+
+def require_an_estimate(path: str, table: StateTable) -> None:
+    """A one-line :class:`InputError` where no row of the estimate file ``path`` holds an
+    estimate (every row ``no-estimate``, or its tip empty): nothing to draw."""
+    tip = np.column_stack([table.column(c) for c in TIP_COLUMNS if c in table.names])
+    held = (table.status != "no-estimate") & np.all(np.isfinite(tip), axis=1)
+    if tip.size == 0 or not held.any():
+        raise InputError(f"{path}: no row has an estimate (every one is no-estimate or empty)")

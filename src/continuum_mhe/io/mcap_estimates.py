@@ -318,7 +318,7 @@ def read_estimate_table_mcap(path: str | os.PathLike[str]) -> StateTable:
     return StateTable(
         t=np.array(t, dtype=float), names=tuple(names),
         values=np.array(out, dtype=float).reshape(len(t), k),
-        status=np.array(status, dtype=str), std=std, std_columns=has_std,
+        status=np.array(status, dtype=str), std=std, std_columns=has_std, status_column=True,
     )  # fmt: skip
 
 

@@ -15,7 +15,7 @@ from continuum_mhe.io.csv_files import (
     read_state_table,
     robot_misfit,
 )
-from continuum_mhe.io.estimate_files import read_estimates
+from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
@@ -49,6 +49,7 @@ def replay(
     else:
         outputs = pcc_outputs(robot.n_sections)
     est = read_estimates(estimates, "view EST.csv")
+    require_an_estimate(estimates, est)
     check_estimate_fits(estimates, est.names, robot)
     if tendon is not None and tendon.tensions is not None and len(est.t):
         tendon.tensions.check_span(float(est.t[0]), float(est.t[-1]))  # milliseconds?
