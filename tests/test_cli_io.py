@@ -310,6 +310,13 @@ def test_evaluate_refuses_values_beyond_any_robot(tmp_path, capsys, which, text)
     assert err.count("\n") == 1 and f"{files[which]}: line " in err and "out of range" in err
 
 
+def test_evaluate_of_a_one_row_estimate_says_so(tmp_path, capsys):
+    est = _write(tmp_path / "est.csv", "t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,1\n")
+    truth = _write(tmp_path / "truth.csv", "t,x,y,z\n0,0,0,0.2\n")
+    assert main(["evaluate", str(est), str(truth)]) == 2
+    assert capsys.readouterr().err.endswith(f"{est}: one row: evaluate needs at least two\n")
+
+
 def test_evaluate_refuses_an_estimate_given_as_the_truth(tmp_path, capsys):
     """The estimate against itself gave a 0 mm error and every coverage 1.000."""
     est = _write(

@@ -117,7 +117,8 @@ def target_a(
                     err = np.linalg.norm(est["tip"] - truth, axis=1) * 1e3
                     c = cov[ok].mean(axis=0) if ok.any() else np.full(3, np.nan)
                     print(
-                        f"  {method} {folder.name}/{name} {case}: tip {err.mean():.1f} mm, "
+                        f"  {method} {folder.name}/{name} {case}: tip {np.nanmean(err):.1f} mm "
+                        f"({np.isnan(err).sum()} rows without an estimate), "
                         f"ok {ok.mean():.2f}, coverage {c[0]:.2f} / {c[1]:.2f} / {c[2]:.2f}",
                         flush=True,
                     )

@@ -37,6 +37,8 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 def _align(
     path_est: str, t_est: np.ndarray, path_truth: str, t_truth: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
+    if len(t_est) < 2:
+        raise InputError(f"{path_est}: one row: evaluate needs at least two")
     i_est, i_truth = match_rows(t_est, t_truth)
     n, k = len(t_est), len(i_est)
     what = (
