@@ -97,10 +97,12 @@ def test_at_written_in_metres_warns(tmp_path: Path, length: float, at: float) ->
 
 
 @pytest.mark.parametrize(
-    ("length", "at"), [(1.0, 1.0), (0.16, 0.5), (0.16, 0.15), (0.2, 0.25), (0.16, None)]
+    ("length", "at"),
+    [(1.0, 1.0), (0.16, 0.5), (0.16, 0.15), (0.2, 0.25), (0.16, None), (0.5, 0.5)],
 )
 def test_at_as_a_fraction_reads_silently(tmp_path: Path, length: float, at: float | None) -> None:
-    """A 1 m section's end is at = 1 either way; the default at = 1 is no slip."""
+    """A 1 m section's end is at = 1 either way; the default at = 1 is no slip; a 0.5 m
+    section's at = 0.5 is its middle."""
     robot = tmp_path / "r.toml"
     given = "" if at is None else f"at = {at}\n"
     robot.write_text(f"[[section]]\nlength = {length}\n[[imu]]\nsection = 1\n{given}")

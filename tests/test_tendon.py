@@ -1026,6 +1026,32 @@ def test_the_tip_force_prior_is_a_third_of_the_buckling_load() -> None:
         TendonFormulation(robot=robot, initial_force_std=0.0)
 
 
+def test_a_stiff_backbone_s_prior_is_not_taken_for_a_divergence() -> None:
+    """A 2 mm steel backbone's force prior (a third of its 155 N buckling load) exceeded
+    the fixed 50 N at which a tip force counted as diverged: every sample restarted and
+    ``estimate`` gave no estimate. The limit is ten buckling loads, at least 50 N; a
+    given value wins."""
+    from continuum_mhe.model.tendon import DIVERGED_BUCKLING_MULTIPLE, MAX_FORCE_FLOOR
+
+    shipped = read_robot("tendon-two-section")
+    steel = replace(
+        shipped,
+        sections=shipped.sections[:1],
+        imus=(ImuPlacement(0, 0.5), ImuPlacement(0)),
+        backbone=Backbone(200e9, 79e9, 0.002, 7850.0),
+        tendons=tuple(Tendon(0, a, 0.01) for a in (0.0, 120.0, 240.0)),
+    )
+    f = TendonFormulation(robot=steel)
+    ei = 200e9 * math.pi * 0.002**4 / 4
+    buckling = math.pi**2 * ei / (4 * 0.2**2)
+    assert f.buckling_load == pytest.approx(buckling, rel=1e-12)
+    assert f.max_force_used == pytest.approx(DIVERGED_BUCKLING_MULTIPLE * buckling)
+    x0, P0 = np.zeros(f.nx), f.initial_cov()
+    assert not f.is_diverged(x0, P0)  # the prior alone: 3 * (155 N / 3)^2 > (50 N)^2
+    assert TendonFormulation(robot=steel, max_force=50.0).is_diverged(x0, P0)
+    assert TendonFormulation(robot=shipped).max_force_used == MAX_FORCE_FLOOR
+
+
 # --- the standard deviations -----------------------------------------------------------
 def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
     """The first ``n`` samples of the shipped ``unloaded`` with raw IMUs, read as the
@@ -1174,6 +1200,16 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {est}: the row at t = 0 s")
     assert not view.exists()
+    # one such row among drawable ones: the others are drawn, one warning names it
+    for i in range(header + 1, len(lines)):
+        cells = lines[i].rstrip("\n").split(",")
+        cells[fx] = "80" if i == header + 3 else "0"
+        lines[i] = ",".join(cells) + "\n"
+    est.write_text("".join(lines))
+    view.unlink(missing_ok=True)
+    with pytest.warns(UserWarning, match=r"^1 row\(s\) not drawn, from the row at t = 0.04 s"):
+        assert main(argv) == 0
+    assert view.exists()
 
 
 def test_check_robot_of_a_backbone_too_soft_for_its_weight_says_so(

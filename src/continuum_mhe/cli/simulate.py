@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
             raise
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
     mounted = [str(i + 1) for i, place in enumerate(robot.imus) if any(place.mount_rpy)]
-    if mounted:  # as estimate takes tilt input
+    if mounted and args.imu != "raw":  # as estimate takes tilt input (raw: rotated by it)
         print(
             f"{PROG}: note: the robot file's mount_rpy of IMU {', '.join(mounted)} is not "
             "applied: the roll and pitch written are those of each IMU's disk, as estimate "

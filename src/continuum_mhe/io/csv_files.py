@@ -644,8 +644,9 @@ def truth_named(header: list[str], required: Sequence[str]) -> list[str]:
 
 
 #: The largest magnitude of a value in an estimate or truth file (m, rad, N): none of a
-#: robot's; beyond it errors and their squares lose meaning or overflow.
-STATE_LIMIT = 1e6
+#: robot's; beyond it errors and their squares lose meaning or overflow. (A standard
+#: deviation may be larger: an estimate that says it knows nothing.)
+STATE_LIMIT = 1e9
 
 
 def read_state_table(
@@ -818,11 +819,6 @@ def _parse_std(path: str, line: int, name: str, text: str) -> float:
     v = parse_float(path, line, STD_PREFIX + name, text)
     if not (math.isfinite(v) and v >= 0):
         raise InputError(f"{path}: line {line}: {STD_PREFIX}{name} must be >= 0, got {text!r}")
-    if v > STATE_LIMIT:
-        raise InputError(
-            f"{path}: line {line}: {STD_PREFIX}{name}={v:.6g} out of range (at most "
-            f"{STATE_LIMIT:g} in m, rad and N)"
-        )
     return v
 
 

@@ -98,8 +98,9 @@ class RobotFileWarning(UserWarning):
 def at_in_metres(at: float, length: float) -> bool:
     """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
     written in metres: it equals the section's length to the millimetre, and that length
-    is not 1 m (where the end is ``at = 1`` either way)."""
-    return abs(at - length) <= MM / 2 and abs(length - 1.0) > MM / 2
+    is neither 1 m (where the end is ``at = 1`` either way) nor 0.5 m (where ``at =
+    0.5``, the middle, is the likelier meaning)."""
+    return abs(at - length) <= MM / 2 and min(abs(length - 1.0), abs(length - 0.5)) > MM / 2
 
 
 def _place(imu: ImuPlacement) -> str:

@@ -106,6 +106,12 @@ SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: force into compression past the buckling load, where the shape bifurcates and the
 #: filter follows another one (docs/tendon-studies.md, "The tip force's prior").
 FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
+#: A tip force estimate (or its standard deviation) beyond this many times the buckling
+#: load, and beyond :data:`MAX_FORCE_FLOOR`, has diverged (:meth:`TendonFormulation.
+#: is_diverged`): a stiff backbone's prior alone may exceed a fixed limit.
+DIVERGED_BUCKLING_MULTIPLE = 10.0
+#: The least tip force, N, that counts as diverged by default.
+MAX_FORCE_FLOOR = 50.0
 #: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
 #: (:attr:`TendonFormulation.estimate_force_acceleration`).
 FORCE_JERK_PSD = 1.0
@@ -181,7 +187,9 @@ class TendonFormulation(Formulation):
         initial_force_std: the tip force's prior standard deviation, N (None, the
             default: :data:`FORCE_PRIOR_BUCKLING_FRACTION` of the robot's buckling load;
             :attr:`force_prior_std` is the value used).
-        max_force: a tip force estimate beyond this, N, has diverged.
+        max_force: a tip force estimate (or its standard deviation) beyond this, N, has
+            diverged (None, the default: :data:`DIVERGED_BUCKLING_MULTIPLE` times the
+            buckling load, at least :data:`MAX_FORCE_FLOOR`; :attr:`max_force_used`).
     """
 
     name: FormulationName = "tendon"
@@ -218,7 +226,7 @@ class TendonFormulation(Formulation):
     force_jerk_psd: float = FORCE_JERK_PSD
     initial_force_acceleration_std: float = 0.1
     initial_force_std: float | None = None
-    max_force: float = 50.0
+    max_force: float | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -228,7 +236,11 @@ class TendonFormulation(Formulation):
             raise UserError(f"imu_model must be tilt or direct, got {self.imu_model!r}")
         if self.estimate_gyro_bias and self.imu_model != "direct":
             raise UserError("estimate_gyro_bias needs the direct (raw gyro) IMU model")
-        resolved = {"force_accel_psd": self.force_psd, "initial_force_std": self.force_prior_std}
+        resolved = {
+            "force_accel_psd": self.force_psd,
+            "initial_force_std": self.force_prior_std,
+            "max_force": self.max_force_used,
+        }
         if self.estimate_force_acceleration and not self.force_rate_moves_imus:
             raise UserError(
                 "estimate_force_acceleration needs the tip force's rate in the IMUs' "
@@ -295,8 +307,22 @@ class TendonFormulation(Formulation):
         buckles the straight backbone as a cantilever, ``pi^2 EI / (4 L^2)``."""
         if self.initial_force_std is not None:
             return self.initial_force_std
+        return FORCE_PRIOR_BUCKLING_FRACTION * self.buckling_load
+
+    @property
+    def buckling_load(self) -> float:
+        """The load that buckles the straight backbone as a cantilever, N:
+        ``pi^2 EI / (4 L^2)``."""
         ei, _ = self.statics.stiffness
-        return FORCE_PRIOR_BUCKLING_FRACTION * math.pi**2 * ei / (4 * self.robot.length**2)
+        return math.pi**2 * ei / (4 * self.robot.length**2)
+
+    @property
+    def max_force_used(self) -> float:
+        """The tip force beyond which an estimate has diverged, N (:attr:`max_force`,
+        resolved)."""
+        if self.max_force is not None:
+            return self.max_force
+        return max(MAX_FORCE_FLOOR, DIVERGED_BUCKLING_MULTIPLE * self.buckling_load)
 
     @cached_property
     def statics(self) -> TendonStatics:
@@ -716,13 +742,14 @@ class TendonFormulation(Formulation):
         return np.diag(diag)
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
-        """Non-finite, or a tip force over :attr:`max_force`, or its standard deviation
-        over it."""
+        """Non-finite, or a tip force over :attr:`max_force_used`, or its standard
+        deviation over it."""
         if super().is_diverged(x, P):
             return True
-        if float(np.linalg.norm(x[3:6])) > self.max_force:
+        limit = self.max_force_used
+        if float(np.linalg.norm(x[3:6])) > limit:
             return True
-        return P is not None and float(np.trace(P[3:6, 3:6])) > self.max_force**2
+        return P is not None and float(np.trace(P[3:6, 3:6])) > limit**2
 
 
 def check_tensions(values: FloatArray, where: str) -> None:

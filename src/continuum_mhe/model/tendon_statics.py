@@ -70,6 +70,11 @@ LOAD_STAGES = 10
 GRAVITY = 9.80665
 
 
+def _one_line(v: FloatArray) -> str:
+    """A vector's values on one line, four significant digits."""
+    return np.array2string(np.asarray(v, dtype=float), precision=4, max_line_width=10**6)
+
+
 def no_equilibrium_at(t: float, exc: ArithmeticError) -> UserError:
     """The one-line error of a row at ``t`` s whose loads have no equilibrium
     (:meth:`TendonStatics.solve`'s ``exc``), for the drawings of estimates and truths."""
@@ -311,8 +316,8 @@ class TendonStatics:
                 x = self._newton(scale * force, scale * tension, x)
                 if x is None:
                     raise ArithmeticError(
-                        f"no equilibrium of the tendon robot under the tip force {force} N "
-                        f"and the tensions {tension} N"
+                        f"no equilibrium of the tendon robot under the tip force "
+                        f"{_one_line(force)} N and the tensions {_one_line(tension)} N"
                     )
         _, out = self.function(x, force, tension)
         arr = np.asarray(out, dtype=float)

@@ -4,6 +4,7 @@ tendon robot, from its mechanics model (:class:`TendonShapes`)."""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import cache, cached_property
 
@@ -132,8 +133,10 @@ class TendonShapes:
     def from_forces(self, t: FloatArray, forces: FloatArray) -> BackboneGeometry:
         """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
         the tensions there (the base curvature solved from the tip condition, each
-        sample from the previous one's); a :class:`~continuum_mhe.errors.UserError`
-        naming the row where the rod holds no equilibrium under its loads."""
+        sample from the previous one's). A row whose loads the rod holds no equilibrium
+        under has NaN shapes (not drawn), and one warning names the first and counts
+        them; where no row has one, a :class:`~continuum_mhe.errors.UserError` names
+        the first row."""
         if self.tensions is None:
             raise ValueError("from_forces needs the tensions")
         statics = self.statics
@@ -141,10 +144,19 @@ class TendonShapes:
         tau = np.stack([self.tensions.at(float(tk))[0] for tk in t])
         k0 = np.zeros((len(forces), 3))
         previous = None
+        unsolved: list[tuple[int, ArithmeticError]] = []
         for i in range(len(forces)):
             try:
                 previous, _ = statics.solve(forces[i], tau[i], previous)
             except ArithmeticError as exc:
-                raise no_equilibrium_at(float(t[i]), exc) from None
+                unsolved.append((i, exc))
+                previous = None
+                k0[i] = np.nan
+                continue
             k0[i] = previous
+        if unsolved and len(unsolved) == len(forces):
+            raise no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
+        if unsolved:
+            first = no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
+            warnings.warn(f"{len(unsolved)} row(s) not drawn, from {first}", stacklevel=2)
         return self._geometry(k0, forces, tau)
