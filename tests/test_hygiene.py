@@ -181,6 +181,9 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
 
     assert raw["data"].formulation == make_formulation("direct", raw["robot"])
     assert raw["data"].formulation.estimate_gyro_bias and len(raw["series"].t) == 601
+    # the same recording as arrays through raw_measurements: the same estimates
+    (arrays,) = [ns for ns in spaces if "raw_measurements" in ns]
+    np.testing.assert_allclose(arrays["series"].output, raw["series"].output, atol=1e-12)
     header = (tmp_path / "estimates.csv").read_text().splitlines()[0]
     documented = re.search(r"# estimates\.csv: (\S+)", LIBRARY_GUIDE.read_text())
     assert documented and documented.group(1) == header  # the guide's comment is the header

@@ -30,6 +30,7 @@ from continuum_mhe.io.raw_imu import (
 from continuum_mhe.model.direct import (
     DEFAULT_GYRO_STD,
     DirectFormulation,
+    direct_measurements,
     raw_imu_readings,
     tip_angular_velocity_bend_sym,
 )
@@ -490,3 +491,38 @@ def test_a_short_last_block_of_a_fast_turn_is_not_taken_for_deg_s(tmp_path: Path
         with open_input(recording(CHUNK), InputOptions(), f) as stream:
             for _ in stream.blocks:
                 pass
+
+
+def test_raw_arrays_of_a_robot_give_what_its_file_gives() -> None:
+    """``raw_measurements`` turns each IMU's readings by its robot's ``mount_rpy`` (and
+    removes its ``gyro_bias``) as the file reader does: IMU 2 of the shipped planar-s
+    recording turned 90 degrees about z, with a robot that says so, gives the estimates
+    of the file as shipped; without the conversion (``direct_measurements`` alone) they
+    are far off."""
+    from continuum_mhe.io import load_input, raw_measurements, read_raw_imus, read_robot
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.model.robot import ImuPlacement, Robot
+
+    path = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    shipped = read_robot("two-section")
+    table = read_raw_imus(str(path / "planar-s_raw.csv"), 2)
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # Rz(90 deg)
+    turned = Robot(
+        shipped.sections, (shipped.imus[0], ImuPlacement(1, mount_rpy=(0, 0, 90))),
+        shipped.mounting,
+    )  # fmt: skip
+    acc = np.stack([table.imus[0].acc, table.imus[1].acc @ turn], axis=1)
+    gyr = np.stack([table.imus[0].gyr, table.imus[1].gyr @ turn], axis=1)
+    z = raw_measurements(turned, table.t, acc, gyr)
+    got = make_estimator("ekf", make_formulation("direct", turned)).run(table.t, z)
+    data = load_input(
+        str(path / "planar-s_raw.csv"), InputOptions(), make_formulation("bend", shipped)
+    )
+    want = make_estimator("ekf", data.formulation).run(data.t, data.z)
+    np.testing.assert_allclose(got.output, want.output, atol=1e-12)
+    np.testing.assert_array_equal(got.status, want.status)
+    plain = np.hstack(
+        [direct_measurements(acc[:, i], gyr[:, i]).reshape(len(z), 6) for i in range(2)]
+    )
+    off = make_estimator("ekf", make_formulation("direct", turned)).run(table.t, plain)
+    assert np.abs(off.output[:, :3] - want.output[:, :3]).max() > 0.01

@@ -1,12 +1,14 @@
 """Robot files that read but are likely slips: IMUs out of base-to-tip order or listed
 twice, an ``at`` written in metres, a ``mount_rpy`` in radians. Each is one warning,
-given once by every command that reads the file."""
+given once by every command that reads the file; and the robot classes' own checks."""
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
@@ -166,3 +168,31 @@ def test_a_folder_given_as_robot_file_is_named_a_folder(tmp_path: Path) -> None:
         read_robot(tmp_path)
     with pytest.raises(InputError, match=r": no such robot file \(shipped robots"):
         read_robot(tmp_path / "missing.toml")
+
+
+def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
+    """numpy's reals and integers are numbers (they were refused); bools are not (they
+    were taken as 1); a tendon angle beyond a full turn is degrees given to a class that
+    takes radians; a backbone or tendon that is not one is refused where it is given."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
+
+    assert ImuPlacement(0, np.float32(0.5)).at == 0.5
+    assert Section(0.2, disks=np.int64(10)).disks == 10
+    assert Tendon(0, np.float32(1.0), np.float32(0.01)).angle == 1.0
+    assert Backbone(np.float64(54e9), 20e9, 7e-4).youngs_modulus == 54e9
+    assert ImuPlacement(0, mount_rpy=np.array([0.0, 0.0, 90.0])).mount_rpy == (0.0, 0.0, 90.0)
+    one = ((Section(0.2),), (ImuPlacement(0),))
+    bad = {
+        "'at' must be a number": lambda: ImuPlacement(0, True),
+        "tendon angle must be a finite number": lambda: Tendon(0, True, 0.01),
+        "beyond a full turn: Tendon takes radians": lambda: Tendon(0, 120, 0.01),
+        "mount_rpy must be three angles": lambda: ImuPlacement(0, mount_rpy=(True, 0, 0)),
+        "Robot backbone must be a Backbone": lambda: Robot(*one, backbone=(54e9, 20e9, 7e-4)),
+        "Robot tendons item must be Tendon": lambda: Robot(
+            *one, backbone=Backbone(54e9, 20e9, 7e-4), tendons=[(0, 0, 0.01)]
+        ),
+    }
+    for needle, make in bad.items():
+        with pytest.raises(UserError, match=re.escape(needle)):
+            make()

@@ -1039,7 +1039,7 @@ def test_a_stiff_backbone_s_prior_is_not_taken_for_a_divergence() -> None:
         sections=shipped.sections[:1],
         imus=(ImuPlacement(0, 0.5), ImuPlacement(0)),
         backbone=Backbone(200e9, 79e9, 0.002, 7850.0),
-        tendons=tuple(Tendon(0, a, 0.01) for a in (0.0, 120.0, 240.0)),
+        tendons=tuple(Tendon(0, math.radians(a), 0.01) for a in (0.0, 120.0, 240.0)),
     )
     f = TendonFormulation(robot=steel)
     ei = 200e9 * math.pi * 0.002**4 / 4

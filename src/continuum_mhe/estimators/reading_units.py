@@ -59,7 +59,8 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
             return (
                 f"{', '.join(names[:3])} have magnitude {size:.3g}{typical}: the direct model "
                 "takes the unit specific force, not the accelerometer's reading in m/s^2 "
-                "(continuum_mhe.model.direct.direct_measurements(acc, gyr) gives the rows)"
+                "(continuum_mhe.io.raw_measurements(robot, t, acc, gyr) gives the rows, each IMU "
+                "turned by its mount_rpy)"
             )
         problem = gyro_units_problem(w[finite], ", ".join(names[3:])) if gyro else None
         if problem is not None:

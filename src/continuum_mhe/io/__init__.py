@@ -38,6 +38,7 @@ _EXPORTS: dict[str, str] = {
     "open_input": "continuum_mhe.io.inputs",
     "RawImuSettings": "continuum_mhe.io.raw_imu",
     "read_raw_imu": "continuum_mhe.io.raw_imu",
+    "raw_measurements": "continuum_mhe.io.inputs",
     "read_raw_imus": "continuum_mhe.io.raw_imu",
     "read_robot": "continuum_mhe.io.robot_file",
     "read_imu_log": "continuum_mhe.io.robot_logs",
@@ -80,6 +81,7 @@ if TYPE_CHECKING:
         MeasurementStream,
         load_input,
         open_input,
+        raw_measurements,
     )
     from continuum_mhe.io.mcap_estimates import read_estimates_mcap, write_estimates_mcap
     from continuum_mhe.io.output_files import atomic_writer

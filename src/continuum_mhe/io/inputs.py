@@ -32,14 +32,14 @@ import os
 import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.errors import expect_type, time_text
+from continuum_mhe.errors import UserError, expect_type, time_text
 from continuum_mhe.io.csv_files import (
     DegreesCheck,
     FloatArray,
@@ -286,6 +286,42 @@ def serial_input(
         return SerialInput(f, converters)
     on_line = 0 if tensions is not None else robot.n_tendons
     return SerialInput(tendon_formulation_for(f, options), converters, tensions, on_line)
+
+
+def raw_measurements(
+    robot: Robot,
+    t: FloatArray,
+    acc: FloatArray,
+    gyr: FloatArray | None = None,
+    raw: RawImuSettings | None = None,
+) -> FloatArray:
+    """A robot's raw IMU arrays as the measurements (n, nz) its formulation takes, as the
+    command line converts a raw recording: ``acc`` (n, n_imus, 3) specific force, m/s^2,
+    and ``gyr`` (n, n_imus, 3) rad/s or None, in each sensor's frame; each IMU's
+    ``mount_rpy`` turns it into its disk's frame and its ``gyro_bias`` is removed
+    (:func:`imu_converters`). The IMU model is ``raw.imu_model``, else ``direct`` with
+    gyros (``make_formulation("direct", robot)``) and ``tilt`` without."""
+    acc = np.asarray(acc, dtype=float)
+    n_imus = robot.n_imus
+    if acc.ndim != 3 or acc.shape[1:] != (n_imus, 3):
+        raise UserError(
+            f"acc must be (n, {n_imus}, 3): each sample's specific force per IMU, got shape "
+            f"{acc.shape}"
+        )
+    gyro = None if gyr is None else np.asarray(gyr, dtype=float)
+    if gyro is not None and gyro.shape != acc.shape:
+        raise UserError(f"gyr must have acc's shape {acc.shape}, got {gyro.shape}")
+    settings = raw if raw is not None else RawImuSettings()
+    if settings.imu_model is None:
+        settings = replace(settings, imu_model="direct" if gyro is not None else "tilt")
+    t = np.asarray(t, dtype=float)
+    converters = imu_converters(settings, robot)
+    return np.hstack(
+        [
+            c.convert_many(t, acc[:, i], None if gyro is None else gyro[:, i])
+            for i, c in enumerate(converters)
+        ]
+    )
 
 
 def imu_converters(raw: RawImuSettings, robot: Robot) -> list[RawImuConverter]:

@@ -311,6 +311,10 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
                 f"{n_sections}, got {sec!r}"
             )
         angle = _number(path, f"{where}: angle", table["angle"])
+        if not abs(angle) <= 360:
+            raise InputError(
+                f"{path}: {where}: angle must be in degrees within +-360, got {angle!r}"
+            )
         radius = _number(path, f"{where}: radius", table["radius"])
         try:
             tendons.append(Tendon(sec - 1, math.radians(angle), radius))

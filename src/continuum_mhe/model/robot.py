@@ -15,7 +15,6 @@ section's base; ``at = 1`` is the section's end.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -99,8 +98,9 @@ class Section:
     disks: int = 0
 
     def __post_init__(self) -> None:
-        if isinstance(self.disks, bool) or not isinstance(self.disks, int) or self.disks < 0:
+        if not is_integer(self.disks) or self.disks < 0:
             raise UserError(f"section disks must be a whole number >= 0, got {self.disks!r}")
+        object.__setattr__(self, "disks", int(self.disks))
         if not (is_real(self.length) and math.isfinite(self.length)):
             raise UserError(f"section length must be a finite number in m, got {self.length!r}")
         object.__setattr__(self, "length", float(self.length))
@@ -146,15 +146,19 @@ class ImuPlacement:
         gyro_bias = finite_reals("IMU gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
         object.__setattr__(self, "gyro_bias", gyro_bias)
         object.__setattr__(self, "section", section_index("IMU section", self.section))
-        if not (isinstance(self.at, (int, float)) and 0 < self.at <= 1):
-            raise UserError(f"IMU 'at' must lie in (0, 1], got {self.at!r}")
+        if not (is_real(self.at) and 0 < self.at <= 1):
+            raise UserError(
+                f"IMU 'at' must be a number in (0, 1] (a fraction of the section), got {self.at!r}"
+            )
+        object.__setattr__(self, "at", float(self.at))
         if len(self.mount_rpy) != 3 or not all(
-            isinstance(v, numbers.Real) and abs(v) <= MAX_MOUNT_DEG for v in self.mount_rpy
+            is_real(v) and abs(v) <= MAX_MOUNT_DEG for v in self.mount_rpy
         ):
             raise UserError(
                 f"IMU mount_rpy must be three angles in degrees within +-{MAX_MOUNT_DEG:g}, "
                 f"got {self.mount_rpy!r}"
             )
+        object.__setattr__(self, "mount_rpy", tuple(float(v) for v in self.mount_rpy))
 
 
 def section_index(label: str, value: object) -> int:
@@ -171,9 +175,9 @@ def section_index(label: str, value: object) -> int:
 
 
 def _positive(label: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise UserError(f"{label} must be a positive finite number, got {value!r}")
-    if not (math.isfinite(value) and value > 0):
+    """``value`` as a positive finite float (numpy's reals too, not a bool), or a
+    :class:`UserError` naming ``label``."""
+    if not (is_real(value) and math.isfinite(value) and value > 0):
         raise UserError(f"{label} must be a positive finite number, got {value!r}")
     return float(value)
 
@@ -205,11 +209,11 @@ class Backbone:
     density: float | None = None
 
     def __post_init__(self) -> None:
-        _positive("backbone youngs_modulus (Pa)", self.youngs_modulus)
-        _positive("backbone shear_modulus (Pa)", self.shear_modulus)
-        _positive("backbone radius (m)", self.radius)
-        if self.density is not None:
-            _positive("backbone density (kg/m^3)", self.density)
+        for name, label in (("youngs_modulus", "(Pa)"), ("shear_modulus", "(Pa)"),
+                            ("radius", "(m)"), ("density", "(kg/m^3)")):  # fmt: skip
+            value = getattr(self, name)
+            if value is not None or name != "density":
+                object.__setattr__(self, name, _positive(f"backbone {name} {label}", value))
         if self.radius > MAX_RADIUS:
             raise UserError(
                 f"backbone radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
@@ -264,9 +268,15 @@ class Tendon:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "section", section_index("tendon section", self.section))
-        if not (isinstance(self.angle, (int, float)) and math.isfinite(self.angle)):
+        if not (is_real(self.angle) and math.isfinite(self.angle)):
             raise UserError(f"tendon angle must be a finite number, got {self.angle!r}")
-        _positive("tendon radius (m)", self.radius)
+        if abs(self.angle) > 2 * math.pi + 1e-9:
+            raise UserError(
+                f"tendon angle {self.angle!r} rad is beyond a full turn: Tendon takes "
+                "radians (a robot file's angle is in degrees; math.radians?)"
+            )
+        object.__setattr__(self, "angle", float(self.angle))
+        object.__setattr__(self, "radius", _positive("tendon radius (m)", self.radius))
         if self.radius > MAX_RADIUS:
             raise UserError(
                 f"tendon radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
@@ -321,7 +331,13 @@ class Robot:
                 )
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
+        if self.backbone is not None:
+            expect_type("Robot backbone", self.backbone, Backbone, "a Backbone or None")
+        if isinstance(self.tendons, (str, bytes)) or not hasattr(self.tendons, "__iter__"):
+            raise UserError(f"Robot tendons must be a sequence of Tendon, got {self.tendons!r}")
         object.__setattr__(self, "tendons", tuple(self.tendons))
+        for tendon in self.tendons:
+            expect_type("Robot tendons item", tendon, Tendon, "Tendon")
         if self.tendons and self.backbone is None:
             raise UserError(
                 "a robot with tendons needs its backbone's material ([backbone] "
