@@ -336,13 +336,10 @@ int SensorHealth::infer_once(double t, const double* z, double* x, double* P, bo
 int SensorHealth::step(double t, const double* z_in, double* x, double* P, double* y,
                        double* ystd, SampleResult& out) {
   if (!(std::isfinite(t) && t > last_t_)) return INPUT_TIME;
-  for (int i : s_.tilt_rows) {
-    if (std::fabs(z_in[i]) > s_.degrees_like) {  // NaN compares false
-      for (int j : s_.tilt_rows)
-        if (std::isinf(z_in[j])) return INPUT_INFINITE;
-      return INPUT_DEGREES;
-    }
-  }
+  for (int j = 0; j < s_.nz; ++j)  // a missing reading is NaN; an infinite one is refused
+    if (std::isinf(z_in[j])) return INPUT_INFINITE;
+  for (int i : s_.tilt_rows)
+    if (std::fabs(z_in[i]) > s_.degrees_like) return INPUT_DEGREES;  // NaN compares false
   last_t_ = t;
   const auto start = std::chrono::steady_clock::now();
   out = SampleResult();

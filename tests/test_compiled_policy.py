@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 import sys
 import threading
 import time
@@ -337,3 +338,39 @@ def test_should_stop_takes_any_truth_value() -> None:
 
     with pytest.raises(KeyError, match="the caller's flag"):
         est.continue_run(rec.t, rec.z, should_stop=broken)
+
+
+def test_an_estimator_is_not_copied_nor_pickled() -> None:
+    """A shallow copy shared the compiled policy (stepping the copy moved the original),
+    and pickling named an internal class: each is one TypeError saying what to do."""
+    import copy
+    import pickle
+
+    est = make_estimator("ekf", make_formulation("bend"))
+    for attempt in (copy.copy, copy.deepcopy, pickle.dumps):
+        with pytest.raises(TypeError, match="cannot be copied or pickled; make another"):
+            attempt(est)
+
+
+def test_a_refused_sample_is_refused_before_any_sample_of_the_call_is_stepped() -> None:
+    """A tilt in degrees, an infinite reading or a repeated time at sample 3 of a call:
+    the UserError comes before samples 0 to 2 are stepped (they were stepped and their
+    estimates lost), so the corrected call gives a fresh run's estimates."""
+    rec = simulate("paper3d", duration=1.0, seed=1)
+    t, z = rec.t[:6].copy(), rec.z[:6].copy()
+    want = make_estimator("ekf", make_formulation("bend")).run(t, z)
+    degrees, infinite, repeated = z.copy(), z.copy(), t.copy()
+    degrees[3] = [40.0, 0.0]
+    infinite[3, 1] = np.inf
+    repeated[3] = repeated[2]
+    est = make_estimator("ekf", make_formulation("bend"))
+    for times, readings, needle in (
+        (t, degrees, "roll=40, pitch=0: beyond pi"),
+        (t, infinite, "pitch=inf: an infinite value"),
+        (repeated, z, f"later than the previous sample's t={float(t[2])!r} s"),
+    ):
+        with pytest.raises(UserError, match=re.escape(needle)):
+            est.continue_run(times, readings)
+        assert est._policy.last_t == -math.inf  # nothing stepped
+    got = est.continue_run(t, z)
+    np.testing.assert_array_equal(got.output, want.output)

@@ -404,14 +404,23 @@ def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: 
 
 
 # --- messages that name the right cause ------------------------------------------------------
-def test_an_infinite_angle_is_not_called_degrees() -> None:
-    """step() with roll = inf names an infinite angle, not an angle out of range
-    (which 45 gets, as degrees)."""
+def test_an_infinite_reading_is_not_called_degrees_nor_a_dropout() -> None:
+    """step() with roll = inf names an infinite value, not an angle out of range (which
+    45 gets, as degrees); so does run() with an infinite tension of a tendon robot
+    (taken as a dropout, it left the next second uncertain)."""
     est = make_estimator("ekf", _bend())
-    with pytest.raises(UserError, match=r"roll=inf, pitch=0\.1: an infinite angle; a sensor"):
+    with pytest.raises(UserError, match=r"roll=inf: an infinite value; a reading that"):
         est.step(Measurement(0.0, np.array([np.inf, 0.1])))
     with pytest.raises(UserError, match=r"beyond pi, out of range: degrees\?"):
         est.step(Measurement(0.0, np.array([45.0, 0.1])))
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.registry import make_formulation
+
+    tendon = make_formulation("tendon", read_robot("tendon-two-section"))
+    z = np.zeros((3, tendon.nz))
+    z[:, tendon.measurement_names.index("tension_2")] = [0.1, np.inf, 0.1]
+    with pytest.raises(UserError, match=r"t=0\.02 s: tension_2=inf: an infinite value"):
+        make_estimator("ekf", tendon).run(np.array([0.0, 0.02, 0.04]), z)
 
 
 def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(

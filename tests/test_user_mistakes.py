@@ -1243,6 +1243,18 @@ def test_small_library_mistakes_are_user_errors() -> None:
     np.testing.assert_array_equal(est.run(rec.t, table).output, est.run(rec.t, rec.z).output)
     with pytest.raises(UserError, match="z's columns are pitch, roll"):
         est.run(rec.t, table[["pitch", "roll"]])
+    # pandas' missing value in a nullable column is a dropout, as NaN is
+    nullable = table.astype("Float64")
+    nullable.iloc[3, 0] = pd.NA
+    est.reset()
+    assert list(est.run(rec.t, nullable).status[2:5]) == ["ok", "dropout", "ok"]
+    # a labelled Series to step(): the same check (its labels were dropped: swapped)
+    est.reset()
+    row = pd.Series({"pitch": rec.z[0, 1], "roll": rec.z[0, 0]})
+    with pytest.raises(UserError, match="the measurement's labels are pitch, roll"):
+        est.step(Measurement(0.0, row))
+    assert est.step(Measurement(0.0, row[["roll", "pitch"]])).status == "ok"
+    est.reset()
     with pytest.raises(UserError, match="a number a float can hold"):
         Measurement(10**400, rec.z[0])
     est.reset()
@@ -1270,3 +1282,25 @@ def test_times_that_are_not_seconds_are_user_errors() -> None:
             est.run(stamps, rec.z)
         with pytest.warns(UserWarning), pytest.raises(UserError, match="too short"):
             est.run(rec.t * 1e-200, rec.z)
+
+
+def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> None:
+    """An infinite reading (written empty: read back as a dropout), names given as one
+    string (its letters became the columns) and no samples (a header alone): each a
+    UserError, nothing written."""
+    import numpy as np
+    import pytest
+
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io import write_measurements
+
+    out = tmp_path / "m.csv"
+    t, z = np.array([0.0, 0.05]), np.array([[0.1, 0.2], [np.inf, 0.2]])
+    for args, needle in (
+        ((t, z), "row 2: roll is infinite"),
+        ((t, np.zeros((2, 2)), "rp"), "names must be a sequence"),
+        ((np.zeros(0), np.zeros((0, 2))), "no samples to write"),
+    ):
+        with pytest.raises(UserError, match=needle):
+            write_measurements(out, *args)
+        assert not out.exists()

@@ -107,6 +107,8 @@ class Status(str, Enum):
 
 #: Every status's meaning by its string (read from :class:`Status`).
 STATUS_MEANINGS: dict[str, str] = {status.value: status.meaning for status in Status}
+#: The longest status, characters (the width of a series' status array).
+STATUS_WIDTH = max(len(name) for name in STATUS_MEANINGS)
 
 
 @dataclass(frozen=True)
@@ -115,12 +117,18 @@ class Measurement:
 
     ``z`` holds the formulation's measurement blocks one after the other (for one tilt
     IMU ``[roll, pitch]`` in radians). NaN in a block marks a dropout of that sensor.
+    ``labels``: the names of ``z``'s values where it came labelled (a pandas Series's
+    index), which the estimator checks against its formulation's order.
     """
 
     t: float
     z: FloatArray
+    labels: tuple[str, ...] | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        index = getattr(self.z, "index", None)  # a pandas Series's (numpy drops it)
+        if self.labels is None and index is not None and hasattr(index, "tolist"):
+            object.__setattr__(self, "labels", tuple(str(c) for c in index.tolist()))
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         try:
             z = np.asarray(masked_as_missing(self.z), dtype=float)
@@ -252,6 +260,8 @@ class EstimateSeries:
                     f"{name} has shape {np.shape(getattr(self, name))}, expected ({n},): one "
                     "per sample of t"
                 )
+        # wide enough for every status: an array of "ok"s would cut a later "uncertain"
+        object.__setattr__(self, "status", np.asarray(self.status, dtype=f"<U{STATUS_WIDTH}"))
         if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
             raise ValueError(
                 f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"

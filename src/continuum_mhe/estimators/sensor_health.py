@@ -27,7 +27,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, NoReturn, SupportsIndex, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -301,6 +301,13 @@ class PythonInference:
         return self.formulation.at_bound(x)
 
 
+#: Why an estimator is not copied (a copy would share its compiled state).
+_NOT_COPIED = (
+    "an estimator holds compiled state that a copy would share: it cannot be copied or "
+    "pickled; make another with make_estimator (and feed it the same samples)"
+)
+
+
 class Estimator(Generic[InferenceT]):
     """An estimator: ``step(measurement) -> Estimate`` and ``run``, the sensor-health
     policy (:meth:`step`) around the inference object :attr:`inference`.
@@ -411,6 +418,15 @@ class Estimator(Generic[InferenceT]):
             checks=f.state_checks(),
         )
 
+    def __copy__(self) -> NoReturn:
+        raise TypeError(_NOT_COPIED)
+
+    def __deepcopy__(self, memo: object) -> NoReturn:
+        raise TypeError(_NOT_COPIED)
+
+    def __reduce_ex__(self, protocol: SupportsIndex) -> NoReturn:
+        raise TypeError(_NOT_COPIED)
+
     def reset(self, keep_counts: bool = False) -> None:
         """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` and
         the inference's own counts; the next ``step`` starts a new recording. (The
@@ -485,6 +501,8 @@ class Estimator(Generic[InferenceT]):
                 sample's (time must strictly increase).
         """
         expect_type("measurement", measurement, Measurement, "a Measurement(t, z)")
+        if measurement.labels is not None:
+            self._check_labels("the measurement's labels", list(measurement.labels))
         t = measurement.t
         nz = self.formulation.nz
         if np.shape(measurement.z) != (nz,):
@@ -526,26 +544,29 @@ class Estimator(Generic[InferenceT]):
         if problem is not None:
             raise ReadingUnitsError(problem)
 
-    def _refuse(self, err: int, t: float, z: FloatArray) -> None:
+    def _refuse(self, err: int, t: float, z: FloatArray, previous: float | None = None) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
-        input error: the time order, or a tilt in degrees or infinite)."""
+        input error: the time order, or a tilt in degrees or infinite); ``previous``:
+        the time of the sample before it in the same call (else the policy's last)."""
         if err == INPUT_TIME:
-            last, hint = self._policy.last_t, ""
-            if math.isfinite(t) and self._ran:
+            last, hint = (self._policy.last_t if previous is None else previous), ""
+            first = previous is None and math.isfinite(t)  # the call's first sample
+            if first and self._ran:
                 hint = "; run() left the estimator at its recording's end: call reset() first"
-            elif math.isfinite(t):
+            elif first:
                 hint = "; to start a new recording, call reset() first"
             raise UserError(
                 f"sample time t={t!r} s must be finite and later than the previous "
                 f"sample's t={last!r} s{hint}"
             )
         names, zl = self.formulation.measurement_names, z.tolist()
-        shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in tilt_rows(self.formulation))
         if err == INPUT_INFINITE:
+            infinite = ", ".join(f"{names[i]}={v:g}" for i, v in enumerate(zl) if math.isinf(v))
             raise UserError(
-                f"measurement at t={t!r} s: {shown}: an infinite angle; a sensor "
-                "that dropped out is NaN"
+                f"measurement at t={t!r} s: {infinite}: an infinite value; a reading that "
+                "is not there (a sensor that dropped out) is NaN"
             )
+        shown = ", ".join(f"{names[i]}={zl[i]:g}" for i in tilt_rows(self.formulation))
         raise UserError(
             f"measurement at t={t!r} s: {shown}: beyond pi, out of range: degrees? "
             "measurements are in radians (numpy.radians converts); a reading that is not "
@@ -598,23 +619,35 @@ class Estimator(Generic[InferenceT]):
             diagnostics=self.diagnostics.copy(),
         )
 
+    def _check_labels(self, what: str, got: list[str]) -> None:
+        """A :class:`UserError` where labelled readings (``what``: a DataFrame's columns,
+        a Series's index) are the formulation's readings in another order."""
+        want = list(self.formulation.measurement_names)
+        if sorted(got) == sorted(want) and got != want:
+            raise UserError(
+                f"{what} are {', '.join(got)}; the {self.formulation.name} formulation "
+                f"reads {', '.join(want)} in that order (z[{want!r}])"
+            )
+
     def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a
         :class:`UserError` naming what does not fit (a table whose columns are the
         formulation's readings in another order, too)."""
         labels = getattr(z, "columns", None)  # a pandas DataFrame's (numpy drops them)
         if labels is not None:
-            got, want = [str(c) for c in labels], list(self.formulation.measurement_names)
-            if sorted(got) == sorted(want) and got != want:
-                raise UserError(
-                    f"z's columns are {', '.join(got)}; the {self.formulation.name} "
-                    f"formulation reads {', '.join(want)} in that order (z[{want!r}])"
-                )
+            self._check_labels("z's columns", [str(c) for c in labels])
         if np.asarray(t).dtype.kind in "mM":  # datetime64, timedelta64: not seconds
             raise UserError(
                 "t must be seconds (numbers), got numpy datetime or timedelta values: give "
                 "(t - t[0]) / np.timedelta64(1, 's')"
             )
+        if hasattr(z, "to_numpy"):  # pandas: its missing values (pd.NA too) are NaN
+            try:
+                z = z.to_numpy(dtype=np.float64, na_value=np.nan)
+            except (TypeError, ValueError):
+                raise UserError(
+                    "z's columns must hold numbers (missing ones NaN or pd.NA)"
+                ) from None
         try:  # masked entries are missing: NaN (a masked t is refused as not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
@@ -647,8 +680,8 @@ class Estimator(Generic[InferenceT]):
         compiled policy, ``block`` samples per call (a positive integer) from each of
         ``starts`` (default: all in one call; else ``range(0, n, block)`` in order,
         which a progress display may wrap: the blocks must cover every sample once, in
-        order); raises the :class:`UserError` of :meth:`step` for a refused sample (the
-        samples before it are stepped; for readings in the wrong units, checked as
+        order); raises the :class:`UserError` of :meth:`step` for a refused sample
+        before any sample of the call is stepped (and for readings in the wrong units, checked as
         :meth:`step` checks them unless ``check_units`` is False (a caller that checked
         them itself), before any sample of the call), and one for arrays whose shapes
         do not fit (as :meth:`run`), a ``block`` that is not a positive integer, or
@@ -663,9 +696,28 @@ class Estimator(Generic[InferenceT]):
             problem = self._units.see(t, z)
             if problem is not None:
                 raise ReadingUnitsError(problem)
+        self._refuse_before_stepping(t, z)
         size = max(len(t), 1) if block is None else int(block)
         starts = range(0, len(t), size) if starts is None else starts
         return self._step_blocks(t, z, starts, size, should_stop)
+
+    def _refuse_before_stepping(self, t: FloatArray, z: FloatArray) -> None:
+        """The :class:`UserError` of the first sample of ``t``, ``z`` that the policy
+        would refuse (a time not after the one before, an infinite reading, a tilt in
+        degrees), raised before any sample is stepped: a refusal in the middle of a
+        call would leave the samples before it stepped but not returned."""
+        previous = np.concatenate([[self._policy.last_t], t[:-1]])
+        late = ~(np.isfinite(t) & (t > previous))
+        infinite = np.asarray(np.isinf(z).any(axis=1), dtype=bool)
+        rows = tilt_rows(self.formulation)
+        degrees = np.zeros(len(t), dtype=bool)
+        if rows:
+            degrees = np.asarray((np.abs(z[:, rows]) > DEGREES_LIKE).any(axis=1), dtype=bool)
+        bad = late | infinite | degrees
+        if bad.any():
+            i = int(np.argmax(bad))
+            err = INPUT_TIME if late[i] else INPUT_INFINITE if infinite[i] else INPUT_DEGREES
+            self._refuse(err, float(t[i]), z[i], None if i == 0 else float(previous[i]))
 
     def _step_blocks(
         self,

@@ -1000,16 +1000,23 @@ def write_measurements(
     """Write a measurement CSV ``t`` + ``names`` (rad) atomically; NaN (a dropout of
     that sensor) is written as an empty field, ``t`` as :func:`format_time` writes it
     (a device or Unix clock keeps its microseconds)."""
+    if isinstance(names, str):  # "rp" would be the columns r, p
+        raise UserError(f"names must be a sequence of column names, got the string {names!r}")
     t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
         raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
     if len(t) != len(z):
         raise UserError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
+    if len(t) == 0:
+        raise UserError(f"{path}: no samples to write (read_measurements refuses a file without)")
     if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
         raise UserError(
             f"{path}: t must be finite and strictly increasing (s): read_measurements "
             "refuses a file whose time does not increase"
         )
+    if np.isinf(z).any():  # NaN is a dropout, written empty; an infinite value is not one
+        i, j = np.argwhere(np.isinf(z))[0]
+        raise UserError(f"{path}: row {i + 1}: {names[j]} is infinite (a dropout is NaN)")
     rows = [
         [format_time(float(a)), *(float(v) if np.isfinite(v) else "" for v in b)]
         for a, b in zip(t, z)

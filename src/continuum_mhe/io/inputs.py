@@ -293,6 +293,7 @@ def raw_measurements(
     t: FloatArray,
     acc: FloatArray,
     gyr: FloatArray | None = None,
+    *,
     raw: RawImuSettings | None = None,
 ) -> FloatArray:
     """A robot's raw IMU arrays as the measurements (n, nz) its formulation takes, as the
