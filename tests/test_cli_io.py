@@ -789,3 +789,17 @@ def test_best_time_shift_finds_a_clock_offset_to_the_sample_and_none_where_there
     still = np.tile([0.0, 0.0, 0.2], (len(t), 1))
     flat = best_time_shift(t, still, t, still + 1e-3)
     assert flat is not None and flat.shift_s == 0.0 and flat.error == flat.unshifted
+
+
+def test_simulate_says_where_the_motion_bends_past_theta_max(tmp_path, capsys):
+    """paper3d bends a section to 1.44 rad: on a robot whose theta_max is 1 the note
+    says so (its estimates there are at-bound); within the bound, nothing."""
+    robot = _write(tmp_path / "r.toml", "[[section]]\nlength = 0.05\ntheta_max = 1.0\n"
+                   "[[imu]]\nsection = 1\n")  # fmt: skip
+    assert main(["simulate", "paper3d", "--robot", str(robot), "-o", str(tmp_path / "a.csv")]) == 0
+    err = capsys.readouterr().err
+    assert (
+        "bends section 1 to 1.44 rad, beyond its theta_max 1: estimates there are at-bound" in err
+    )
+    assert main(["simulate", "paper3d", "-o", str(tmp_path / "b.csv")]) == 0
+    assert "theta_max" not in capsys.readouterr().err

@@ -196,3 +196,15 @@ def test_robot_classes_take_numpy_numbers_and_refuse_bools_and_slips() -> None:
     for needle, make in bad.items():
         with pytest.raises(UserError, match=re.escape(needle)):
             make()
+
+
+def test_a_gyro_bias_in_deg_s_warns(tmp_path: Path) -> None:
+    """gyro_bias = [0.5, -1.2, 0.8] (deg/s written for rad/s: 69 deg/s read) warns, and
+    is read as written; a MEMS gyro's bias in rad/s does not."""
+    robot = tmp_path / "r.toml"
+    base = "[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n"
+    robot.write_text(base + "gyro_bias = [0.5, -1.2, 0.8]\n")
+    with pytest.warns(UnitWarning, match=r"gyro_bias = \[0.5, -1.2, 0.8\] is read in rad/s"):
+        assert read_robot(robot).imus[0].gyro_bias == (0.5, -1.2, 0.8)
+    robot.write_text(base + "gyro_bias = [0.01, -0.02, 0.005]\n")
+    assert _said(robot) == []

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from continuum_mhe.cli.options import (
     add_overwrite_option,
     add_robot_option,
@@ -17,6 +19,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError, write_measurements, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.scenarios import NOISE_MODELS, SCENARIOS, simulate_robot
 
 #: Most samples ``simulate`` writes (``--duration / --dt``).
@@ -85,6 +88,13 @@ def run(args: argparse.Namespace) -> int:
             Path(args.output).unlink(missing_ok=True)
             raise
     print(f"wrote {len(rec.t)} samples of {args.scenario} to {args.output}", file=sys.stderr)
+    beyond = _bends_beyond_bounds(rec.truth, [o.name for o in rec.outputs], robot)
+    if beyond:
+        print(
+            f"{PROG}: note: the {args.scenario} motion bends {beyond}: estimates there are "
+            "at-bound (theta_max is the robot's limit)",
+            file=sys.stderr,
+        )
     mounted = [str(i + 1) for i, place in enumerate(robot.imus) if any(place.mount_rpy)]
     if mounted and args.imu != "raw":  # as estimate takes tilt input (raw: rotated by it)
         print(
@@ -94,6 +104,22 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _bends_beyond_bounds(truth: np.ndarray, names: list[str], robot: Robot) -> str:
+    """The sections the true motion bends past their ``theta_max`` ("section 1 to 1.44
+    rad, beyond its theta_max 1"), or ``""``."""
+    said = []
+    for k, section in enumerate(robot.sections, start=1):
+        name = "theta" if "theta" in names else f"theta_{k}"
+        if name not in names:
+            continue
+        most = float(np.max(truth[:, names.index(name)]))
+        if most > section.theta_max + 1e-9:
+            said.append(
+                f"section {k} to {most:.3g} rad, beyond its theta_max {section.theta_max:g}"
+            )
+    return "; ".join(said)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -95,6 +95,11 @@ class RobotFileWarning(UserWarning):
     IMUs at one place)."""
 
 
+#: A gyro bias at rest beyond this, rad/s (about 11 deg/s; a MEMS gyro's is a few deg/s
+#: at most), in a robot file reads as one written in deg/s.
+GYRO_BIAS_LIKE_DEG = 0.2
+
+
 def at_in_metres(at: float, length: float) -> bool:
     """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
     written in metres: it equals the section's length to the millimetre, and that length
@@ -240,6 +245,15 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
         if not isinstance(bias, list) or len(bias) != 3:
             raise InputError(f"{path}: {where}: gyro_bias must be [gx, gy, gz] in rad/s")
         gb = tuple(_number(path, f"{where}: gyro_bias", v) for v in bias)
+        if max(abs(v) for v in gb) > GYRO_BIAS_LIKE_DEG:
+            shown = ", ".join(f"{v:g}" for v in gb)
+            warnings.warn(
+                f"{path}: {where}: gyro_bias = [{shown}] is read in rad/s: "
+                f"{math.degrees(max(abs(v) for v in gb)):.0f} deg/s is no MEMS gyro's bias at "
+                "rest: deg/s? (calibrate writes rad/s)",
+                UnitWarning,
+                stacklevel=3,
+            )
         try:
             imus.append(
                 ImuPlacement(sec - 1, at, (mount[0], mount[1], mount[2]), (gb[0], gb[1], gb[2]))
