@@ -18,8 +18,10 @@ def imu_msg(
     gyr: np.ndarray,
     ros1: bool = False,
     quat: np.ndarray | None = None,
+    no_gyro: bool = False,
 ) -> Any:
-    """An Imu message; ``quat`` ``(w, x, y, z)`` the orientation (None: none, REP 145)."""
+    """An Imu message; ``quat`` ``(w, x, y, z)`` the orientation (None: none, REP 145);
+    ``no_gyro``: its rates marked absent (``angular_velocity_covariance[0] = -1``)."""
     T = store.types
     stamp = T["builtin_interfaces/msg/Time"](sec=int(ns // 10**9), nanosec=int(ns % 10**9))
     header = (
@@ -35,7 +37,7 @@ def imu_msg(
         orientation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
         orientation_covariance=np.array([-1.0] + [0.0] * 8) if quat is None else cov,
         angular_velocity=vec(x=gyr[0], y=gyr[1], z=gyr[2]),
-        angular_velocity_covariance=cov,
+        angular_velocity_covariance=np.array([-1.0] + [0.0] * 8) if no_gyro else cov,
         linear_acceleration=vec(x=acc[0], y=acc[1], z=acc[2]),
         linear_acceleration_covariance=cov,
     )

@@ -207,6 +207,11 @@ def test_live_refuses_to_replace_an_output_without_overwrite(
         assert main(["live", "--port", str(tmp_path / "none"), option, str(old)]) == 2
         assert f"{old}: exists; give --overwrite" in capsys.readouterr().err
         assert old.read_text() == "t,x\n1,2\n"
+        # live writes CSV: a name that says MCAP held CSV text the MCAP readers refuse
+        other = tmp_path / "new.mcap"
+        assert main(["live", "--port", str(tmp_path / "none"), option, str(other)]) == 2
+        assert f"{other}: {option} writes CSV (.csv or .txt), not .mcap" in capsys.readouterr().err
+        assert not other.exists()
 
 
 def _two_imu_stream(t0_ms: int, n: int, dt_ms: int = 10) -> list[str]:

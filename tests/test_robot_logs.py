@@ -69,7 +69,15 @@ def write_ros1_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
     return path
 
 
-def write_mcap(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path:
+def write_mcap(
+    path: Path,
+    rec: dict[str, Any],
+    topic: str = "/tip/imu",
+    headers: np.ndarray | None = None,
+    no_gyro: bool = False,
+) -> Path:
+    """An MCAP of ``rec``'s Imu messages, logged at their stamps; ``headers``: other
+    header stamps, ns; ``no_gyro``: every message's rates marked absent."""
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -80,8 +88,10 @@ def write_mcap(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> Path
         w.start()
         sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
         cid = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
-        for ns, a, g in zip(rec["stamps"], rec["acc"], rec["gyr"]):
-            data = bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU))
+        stamps = rec["stamps"] if headers is None else headers
+        for ns, h, a, g in zip(rec["stamps"], stamps, rec["acc"], rec["gyr"]):
+            msg = imu_msg(store, int(h), a, g, no_gyro=no_gyro)
+            data = bytes(store.serialize_cdr(msg, IMU))
             w.add_message(cid, log_time=int(ns), data=data, publish_time=int(ns))
         w.finish()
     return path
@@ -498,3 +508,44 @@ def test_write_estimates_mcap_checks_the_section_lengths(tmp_path: Path) -> None
     assert list(declared) == ["t", *names, *(f"std_{n}" for n in names), "status", "solve_ms"]
     assert declared["theta_2"]["description"] == "rad" and declared["x_1"]["description"] == "m"
     assert all(f == set(declared) for f in fields) and len(fields) == len(series.t)
+
+
+def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """Header stamps on a device clock (1000 s since boot) logged on the Unix clock: one
+    zero stamp took the log's time, and every later message then counted as going
+    back (a whole log dropped, exit 0). It is left out and counted; where every stamp
+    is zero the log's times are the samples'."""
+    boot = recording["stamps"] - recording["stamps"][0] + 1000 * 10**9
+    headers = boot.copy()
+    headers[100] = 0
+    log = read_imu_log(write_mcap(tmp_path / "z.mcap", recording, headers=headers))
+    n = len(recording["stamps"])
+    assert len(log.t) == n - 1 and log.skipped == [
+        "message 100: header stamp is zero (the others' clock)"
+    ]
+    np.testing.assert_allclose(log.t, np.delete((boot - boot[0]) / 1e9, 100), atol=1e-9)
+    zeros = np.zeros_like(boot)
+    log = read_imu_log(write_mcap(tmp_path / "all.mcap", recording, headers=zeros))
+    assert len(log.t) == n and log.t0_ns == recording["stamps"][0]
+
+
+def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, Any]) -> None:
+    """Messages whose ``angular_velocity_covariance[0]`` is -1 (REP 145) carry no rates:
+    the log reads as an accelerometer alone (the tilt model), as the CSV without gyro
+    columns does (the zeros were taken as rates: 30 mm off)."""
+    log_path = write_mcap(tmp_path / "ng.mcap", recording, no_gyro=True)
+    assert read_imu_log(log_path).gyr is None
+    t = (recording["stamps"] - recording["stamps"][0]) / 1e9
+    csv_in = tmp_path / "acc.csv"
+    with csv_in.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", "ax", "ay", "az"])
+        for row in zip(t, recording["acc"]):
+            w.writerow([repr(float(row[0])), *map(repr, map(float, row[1]))])
+    _estimate(csv_in, tmp_path / "from_csv.csv", "--method", "ekf")
+    _estimate(log_path, tmp_path / "from_log.csv", "--method", "ekf")
+    np.testing.assert_allclose(
+        _states(tmp_path / "from_log.csv")[1], _states(tmp_path / "from_csv.csv")[1], atol=1e-12
+    )

@@ -98,8 +98,9 @@ def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]
 
 
 def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
+    gyr = None if log.gyr is None else log.gyr[idx]
     return ImuLog(
-        topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=log.gyr[idx],
+        topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=gyr,
         orientation=log.orientation[idx], skipped=log.skipped,
     )  # fmt: skip
 

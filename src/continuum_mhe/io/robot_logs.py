@@ -46,7 +46,9 @@ class ImuLog:
         t: (n,) s since ``t0_ns``, strictly increasing.
         t0_ns: absolute time of the first sample, ns (ROS time).
         acc: (n, 3) ``linear_acceleration``, m/s^2.
-        gyr: (n, 3) ``angular_velocity``, rad/s.
+        gyr: (n, 3) ``angular_velocity``, rad/s; None where every message marks it
+            absent (``angular_velocity_covariance[0] = -1``, REP 145; NaN rows where
+            some do).
         orientation: (n, 4) ``(w, x, y, z)``, NaN where the message has none.
         skipped: descriptions of skipped messages.
     """
@@ -55,7 +57,7 @@ class ImuLog:
     t: FloatArray
     t0_ns: int
     acc: FloatArray
-    gyr: FloatArray
+    gyr: FloatArray | None
     orientation: FloatArray
     skipped: list[str] = field(default_factory=list)
 
@@ -66,14 +68,14 @@ def is_robot_log(path: str | os.PathLike[str]) -> bool:
     return p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
 
 
-def _stamp_ns(msg: Any, log_ns: int) -> int:
+def _header_ns(msg: Any) -> int:
+    """A message's ``header.stamp`` in ns (0 where it has none)."""
     if isinstance(msg, dict):  # JSON message: header.stamp {sec, nanosec | nsec}
         st = (msg.get("header") or {}).get("stamp") or {}
         sec, nsec = st.get("sec", 0), st.get("nanosec", st.get("nsec", 0))
     else:
         sec, nsec = msg.header.stamp.sec, msg.header.stamp.nanosec
-    ns = int(sec) * 1_000_000_000 + int(nsec)
-    return ns if ns > 0 else int(log_ns)
+    return int(sec) * 1_000_000_000 + int(nsec)
 
 
 def _vec(v: Any) -> list[float]:
@@ -83,14 +85,20 @@ def _vec(v: Any) -> list[float]:
 
 
 def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
+    """A message's ``linear_acceleration``, ``angular_velocity`` (NaN where its covariance
+    marks it absent) and orientation ``(w, x, y, z)`` (NaN where absent)."""
     if isinstance(msg, dict):
         o = msg.get("orientation") or {}
         ocov = msg.get("orientation_covariance") or [0.0]
-        acc, gyr = _vec(msg["linear_acceleration"]), _vec(msg["angular_velocity"])
+        gcov = msg.get("angular_velocity_covariance") or [0.0]
+        acc = _vec(msg["linear_acceleration"])
+        gyr = [math.nan] * 3 if float(gcov[0]) == -1.0 else _vec(msg["angular_velocity"])
         quat = [float(o.get(k, math.nan)) for k in ("w", "x", "y", "z")]
     else:
         ocov = list(msg.orientation_covariance)
         acc, gyr = _vec(msg.linear_acceleration), _vec(msg.angular_velocity)
+        if float(msg.angular_velocity_covariance[0]) == -1.0:  # REP 145: no gyro
+            gyr = [math.nan] * 3
         o = msg.orientation
         quat = [float(o.w), float(o.x), float(o.y), float(o.z)]
     if float(ocov[0]) == -1.0 or not any(quat):  # REP 145: -1 marks "no orientation"
@@ -236,13 +244,20 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         stamps: list[int] = []
         rows: list[tuple[list[float], list[float], list[float]]] = []
         skipped: list[str] = []
-        for i, (log_ns, msg) in enumerate(messages):
-            ns = _stamp_ns(msg, log_ns)
+        read = [(_header_ns(msg), int(log_ns), _row(msg)) for log_ns, msg in messages]
+        # header stamps where the messages have them; the log's times only where none
+        # has (a zero stamp among others is not on their clock: left out, counted)
+        stamped = any(h > 0 for h, _, _ in read)
+        for i, (header_ns, log_ns, row) in enumerate(read):
+            if stamped and header_ns <= 0:
+                skipped.append(f"message {i}: header stamp is zero (the others' clock)")
+                continue
+            ns = header_ns if stamped else log_ns
             if stamps and ns <= stamps[-1]:
                 skipped.append(f"message {i}: time {ns} ns does not increase")
                 continue
             stamps.append(ns)
-            rows.append(_row(msg))
+            rows.append(row)
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
@@ -258,12 +273,13 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         f"{stamp}: milliseconds in sec?", f"{stamp}: microseconds in nanosec?",
     )  # fmt: skip
     arr = [np.array([r[k] for r in rows], dtype=float) for k in range(3)]
+    no_gyro = bool(np.isnan(arr[1]).all())  # every message marks its rates absent
     return ImuLog(
         topic=name,
         t=t,
         t0_ns=t0,
         acc=arr[0],
-        gyr=arr[1],
+        gyr=None if no_gyro else arr[1],
         orientation=arr[2],
         skipped=skipped,
     )

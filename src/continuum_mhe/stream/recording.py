@@ -26,8 +26,12 @@ def _umask() -> int:
 
 
 def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> Path:
-    """Refuse, before anything starts, a target that cannot or must not be written."""
+    """Refuse, before anything starts, a target that cannot or must not be written, or
+    whose name says another format than the CSV written (``.csv``, ``.txt`` or none:
+    ``X.mcap`` would hold CSV text that the MCAP readers refuse)."""
     p = Path(path)
+    if p.suffix.lower() not in (".csv", ".txt", ""):
+        raise InputError(f"{p}: {option} writes CSV (.csv or .txt), not {p.suffix}")
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{p}: folder {folder} does not exist")
