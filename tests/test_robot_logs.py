@@ -75,16 +75,22 @@ def write_mcap(
     topic: str = "/tip/imu",
     headers: np.ndarray | None = None,
     no_gyro: bool = False,
+    summary: bool = True,
 ) -> Path:
     """An MCAP of ``rec``'s Imu messages, logged at their stamps; ``headers``: other
-    header stamps, ns; ``no_gyro``: every message's rates marked absent."""
-    from mcap.writer import CompressionType, Writer
+    header stamps, ns; ``no_gyro``: every message's rates marked absent; without
+    ``summary``, no summary section (it is optional in MCAP)."""
+    from mcap.writer import CompressionType, IndexType, Writer
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     msgdef, _ = store.generate_msgdef(IMU, ros_version=2)
     with path.open("wb") as fh:
-        w = Writer(fh, compression=CompressionType.NONE)
+        bare = {} if summary else {
+            "index_types": IndexType.NONE, "repeat_channels": False, "repeat_schemas": False,
+            "use_chunking": False, "use_statistics": False, "use_summary_offsets": False,
+        }  # fmt: skip
+        w = Writer(fh, compression=CompressionType.NONE, **bare)
         w.start()
         sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
         cid = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
@@ -549,3 +555,24 @@ def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, An
     np.testing.assert_allclose(
         _states(tmp_path / "from_log.csv")[1], _states(tmp_path / "from_csv.csv")[1], atol=1e-12
     )
+
+
+def test_an_mcap_without_its_optional_summary_is_read(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """The summary section is optional in MCAP: a log without one was refused as an
+    unfinished recording; its topics come from its messages, and the samples are the
+    same as the summarised file's. A file cut inside a record says so."""
+    from mcap.reader import make_reader
+
+    bare = write_mcap(tmp_path / "bare.mcap", recording, summary=False)
+    with bare.open("rb") as fh:
+        assert make_reader(fh).get_summary() is None
+    full = read_imu_log(write_mcap(tmp_path / "full.mcap", recording))
+    got = read_imu_log(bare)
+    np.testing.assert_array_equal(got.t, full.t)
+    np.testing.assert_array_equal(got.acc, full.acc)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bare.read_bytes()[: bare.stat().st_size // 2])
+    with pytest.raises(InputError, match="the file ends inside a record"):
+        read_imu_log(cut)

@@ -156,12 +156,34 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
     return name, gen()
 
 
-def _mcap_topics(summary: Any) -> dict[str, str]:
-    """An MCAP summary's topics: topic -> schema name ("" for a channel without one)."""
-    return {
-        ch.topic: (summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "")
-        for ch in summary.channels.values()
-    }
+def _why_unreadable(exc: BaseException) -> str:
+    """The reader's exception of a corrupt or foreign log, as a few words."""
+    if type(exc).__name__ == "EndOfFile" or "exceeds limit" in str(exc):
+        # mcap's: a record runs past the file's end, or its length is garbage
+        return "the file ends inside a record, or is damaged: a recording cut short?"
+    if isinstance(exc, KeyError):  # a JSON message without a field
+        return f"a message without the field {exc.args[0]!r}" if exc.args else "a missing field"
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def _mcap_topics(path: Path) -> dict[str, str]:
+    """An MCAP file's topics: topic -> schema name ("" for a channel without one), from
+    its summary, or (the summary is optional) from its messages read once."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    if summary is not None:
+        schemas = summary.schemas
+        return {
+            ch.topic: (schemas[ch.schema_id].name if ch.schema_id in schemas else "")
+            for ch in summary.channels.values()
+        }
+    topics: dict[str, str] = {}
+    with path.open("rb") as fh:
+        for schema, channel, _ in make_reader(fh).iter_messages():
+            topics.setdefault(channel.topic, schema.name if schema is not None else "")
+    return topics
 
 
 def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
@@ -170,13 +192,9 @@ def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, 
     from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
+    name = _pick_topic(path, _mcap_topics(path), topic)
     fh = path.open("rb")
     reader = make_reader(fh)
-    summary = reader.get_summary()
-    if summary is None:
-        fh.close()
-        raise InputError(f"{path}: MCAP file has no summary section (unfinished recording?)")
-    name = _pick_topic(path, _mcap_topics(summary), topic)
     store = get_typestore(Stores.ROS2_HUMBLE)
 
     def gen() -> Iterator[tuple[int, Any]]:
@@ -209,13 +227,7 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
     try:
         if p.suffix.lower() == ".mcap":
             require("mcap", "robot", f"reading the MCAP file {p}")
-            from mcap.reader import make_reader
-
-            with p.open("rb") as fh:
-                summary = make_reader(fh).get_summary()
-            if summary is None:
-                raise InputError(f"{p}: MCAP file has no summary section (unfinished recording?)")
-            return _mcap_topics(summary)
+            return _mcap_topics(p)
         require("rosbags", "robot", f"reading the ROS bag {p}")
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
@@ -226,8 +238,7 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"{p}: cannot read robot log ({msg})") from None
+        raise InputError(f"{p}: cannot read robot log ({_why_unreadable(exc)})") from None
 
 
 def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuLog:
@@ -261,8 +272,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"{p}: cannot read robot log ({msg})") from None
+        raise InputError(f"{p}: cannot read robot log ({_why_unreadable(exc)})") from None
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
