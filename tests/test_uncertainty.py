@@ -153,10 +153,11 @@ def test_output_std_carries_the_readings_constant_errors(method: str) -> None:
         x = e.state
         H = np.column_stack(
             [
-                np.ravel(
+                np.asarray(
                     f.functions.innovate(z, x + 1e-7 * d)[0]
-                    - f.functions.innovate(z, x - 1e-7 * d)[0]
-                )
+                    - f.functions.innovate(z, x - 1e-7 * d)[0],
+                    dtype=float,
+                ).ravel()
                 / 2e-7
                 for d in np.eye(f.nx)
             ]

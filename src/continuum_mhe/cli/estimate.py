@@ -256,11 +256,14 @@ def run(args: argparse.Namespace) -> int:
             "start or an IMU's return"
         )
     if counts.get("inconsistent") or diag.max_noise_scale > 1.5:
-        msg += (
-            f"; model error: the readings scattered up to {math.sqrt(diag.max_noise_scale):.2g} "
-            "times their noise model's std (standard deviations widened by it; status "
-            "inconsistent where they disagree beyond the noise)"
+        scatter = math.sqrt(diag.max_noise_scale)
+        widened = (
+            f"the readings scattered up to {scatter:.2g} times their noise model's std "
+            "(standard deviations widened by it; "
+            if scatter >= 1.05
+            else "the readings scattered within their noise model's std ("
         )
+        msg += f"; model error: {widened}status inconsistent where they disagree beyond the noise)"
         if diag.model_error > 0:
             msg += (
                 f"; a model error of {math.sqrt(diag.model_error):.2g} times the readings' "
