@@ -308,3 +308,18 @@ def test_a_reader_that_fails_stops_live_with_the_cause_instead_of_waiting(
     assert isinstance(got, ValueError), got
     assert str(got) == "a defect in the splitter"
     assert any(m.startswith("0 samples") for m in said), said
+
+
+def test_a_device_time_far_ahead_of_real_time_is_out_of_order() -> None:
+    """One line's t_ms corrupted 1e15 ms ahead: it was kept as a sample, the axis moved
+    by 1e12 s and the next real line counted as a device restart. It is dropped as out
+    of order, and the stream goes on without a gap or a restart."""
+    s, _ = _session()
+    now = time.monotonic()
+    stamps = [10 * i for i in range(200)]
+    stamps[100] += 10**15
+    for i, ms in enumerate(stamps):
+        s.handle_line(f"{ms},0.1,0.1".encode(), now + 0.01 * i)
+    s.finish()
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.gaps) == (199, 1, 0)
+    assert s.clock.t_last == pytest.approx(1.99, abs=1e-9)

@@ -7,7 +7,10 @@
   :meth:`DeviceClock.expect_restart` was called. The time base is broken there: the
   axis continues after the wall-clock time the device was silent, and the caller
   restarts the estimator.
-* A smaller backwards step is an out-of-order sample, dropped by the caller.
+* A smaller backwards step is an out-of-order sample, dropped by the caller, and so is
+  a step forward of more than :data:`FORWARD_JUMP_S` beyond the time the host saw pass
+  since the last sample: no device clock runs ahead of real time so far (a corrupted
+  ``t_ms`` would move the whole axis and make the next sample look like a restart).
 * Samples that share a whole-millisecond stamp (a device faster than 1 kHz stamping
   with ``millis()``: 2 kHz gives pairs of equal ``t_ms``) are spread evenly over that
   millisecond, by the number of samples the previous stamp had: the protocol carries
@@ -26,6 +29,10 @@ MILLIS_WRAP = 2**32
 #: A step back from the last ``WRAP_WINDOW_MS`` before the wrap into the first ones
 #: after it is a wrap, not a restart.
 WRAP_WINDOW_MS = 60_000.0
+
+#: A device time further ahead of the last one than the host's time since then plus
+#: this, s, is not a sample's (serial buffering delays lines by seconds at most).
+FORWARD_JUMP_S = 600.0
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
 SUB_MS_PERIOD_S = 1.5e-3
@@ -92,6 +99,10 @@ class DeviceClock:
                 event = "restart"
             else:
                 return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
+        elif last is not None and t_ms - last > 1e3 * (
+            arrival - self._arrival_last + FORWARD_JUMP_S
+        ):
+            return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
         t = (t_ms + self._epoch_ms) / 1e3 + self._offset_s
         repeat = 0
         if event == "next" and t_ms == last and (period_s is None or period_s < SUB_MS_PERIOD_S):
