@@ -576,3 +576,25 @@ def test_an_mcap_without_its_optional_summary_is_read(
     cut.write_bytes(bare.read_bytes()[: bare.stat().st_size // 2])
     with pytest.raises(InputError, match="the file ends inside a record"):
         read_imu_log(cut)
+
+
+def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """A .db3 named by its path is its folder's bag: another .db3 in that folder was read
+    as the metadata's bag (another file's samples, exit 0), and a .db3 without its
+    metadata.yaml gave the reader's riddle; each is one line now."""
+    import shutil
+
+    bag = write_ros2_bag(tmp_path / "bag2", recording)
+    (own,) = sorted(bag.glob("*.db3"))
+    assert len(read_imu_log(own).t) == len(recording["stamps"])  # its own: read
+    other = bag / "other.db3"
+    shutil.copy(own, other)
+    with pytest.raises(InputError, match=r"metadata\.yaml describes another bag of that folder"):
+        read_imu_log(other)
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    shutil.copy(own, lone / "run.db3")
+    with pytest.raises(InputError, match=r"needs the metadata\.yaml that rosbag2 wrote"):
+        read_imu_log(lone / "run.db3")

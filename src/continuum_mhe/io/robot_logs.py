@@ -139,7 +139,7 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    bag = path.parent if path.suffix.lower() == ".db3" else path
+    bag = _bag_folder(path)
     reader = AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
     reader.open()
     topics = {c.topic: c.msgtype for c in reader.connections}
@@ -154,6 +154,27 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
             reader.close()
 
     return name, gen()
+
+
+def _bag_folder(path: Path) -> Path:
+    """The ROS bag to open for ``path``: a ROS 2 bag's folder for one of its ``.db3``
+    files (the folder's ``metadata.yaml`` must list that file: a reader opens the bag
+    the metadata describes), else ``path`` itself; a one-line :class:`InputError` for a
+    ``.db3`` without its metadata or not listed in it."""
+    if path.suffix.lower() != ".db3":
+        return path
+    meta = path.parent / "metadata.yaml"
+    if not meta.is_file():
+        raise InputError(
+            f"{path}: a ROS 2 bag's .db3 needs the metadata.yaml that rosbag2 wrote beside "
+            "it (give the bag's folder, as rosbag2 recorded it)"
+        )
+    if path.name not in meta.read_text(errors="replace"):
+        raise InputError(
+            f"{path}: {meta} describes another bag of that folder (not {path.name}): give "
+            "the folder of this file's own bag"
+        )
+    return path.parent
 
 
 def _why_unreadable(exc: BaseException) -> str:
@@ -232,7 +253,7 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
-        bag = p.parent if p.suffix.lower() == ".db3" else p
+        bag = _bag_folder(p)
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             return {c.topic: c.msgtype for c in reader.connections}
     except (InputError, MissingExtraError):  # said in one line already
