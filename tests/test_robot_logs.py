@@ -598,3 +598,19 @@ def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(
     shutil.copy(own, lone / "run.db3")
     with pytest.raises(InputError, match=r"needs the metadata\.yaml that rosbag2 wrote"):
         read_imu_log(lone / "run.db3")
+
+
+def test_pair_tolerance_on_one_imu_s_topic_is_refused(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--pair-tolerance pairs several topics' samples: on one IMU's topic it did nothing,
+    silently; refused like the other options that do nothing here. An estimate MCAP as
+    --config says that its options are not read from there."""
+    log = write_mcap(tmp_path / "run.mcap", recording)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(log), "--pair-tolerance", "0.01", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--pair-tolerance does not apply to one IMU's topic" in err
+    assert main(["estimate", str(log), "--config", str(tmp_path / "est.mcap"), "-o", str(out)]) == 2
+    assert "an estimate MCAP's options are in its metadata" in capsys.readouterr().err
+    assert not out.exists()

@@ -63,6 +63,11 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     text they were read from (for line numbers) and the file's line number before that
     text's first (0 for a TOML file)."""
     p = Path(path)
+    if p.suffix.lower() == ".mcap":
+        raise InputError(
+            f"{path}: an options file is TOML or an estimate CSV (its '# options' line); an "
+            "estimate MCAP's options are in its metadata, which --config does not read"
+        )
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:

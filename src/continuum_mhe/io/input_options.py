@@ -146,6 +146,11 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
                     f"{name}: {flag} does not apply to this input: it is for ROS bags and "
                     "MCAP files (sensor_msgs/Imu topics), and this is a CSV file"
                 )
+    if options.pair_tolerance is not None and robot.n_imus == 1 and len(options.topics) < 2:
+        raise InputError(
+            f"{name}: --pair-tolerance does not apply to one IMU's topic: it pairs the "
+            "samples of several topics, one per IMU"
+        )
     tilt_input = kind == "tilt-csv" or (kind == "log" and options.use_orientation)
     if options.degrees and kind != "tilt-csv":
         units = (

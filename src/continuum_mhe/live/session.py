@@ -729,7 +729,8 @@ class LiveSession:
         if self.last is not None and self.last.output is not None:
             parts.append(self._describe(self.last))
         parts.append(
-            f"estimates {c.estimates}, garbled {c.garbled + c.partial + c.too_long}, "
+            f"estimates {c.estimates}, lines skipped {c.garbled + c.partial + c.too_long} "
+            "(garbled, partial or over-long), "
             f"out-of-order {c.out_of_order}, gaps {c.gaps} (~{c.missing} missing)"
         )
         if behind_s > self.settings.behind_s:
