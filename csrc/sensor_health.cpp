@@ -411,12 +411,17 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
     if (disagree && trusted(status)) status = ST_INCONSISTENT;
     // a restart the readings forced fits this one reading; the next start_samples
-    // readings that agree with the estimate confirm it, and until then it is not ok
+    // readings the check compares with the estimate (judged rows, not an outlier's)
+    // confirm it when they agree, and until then it is not trusted
     if (forced) {
       unconfirmed_ = s_.start_samples;
-    } else if (unconfirmed_ > 0 && has_state && valid) {
-      unconfirmed_ = disagree ? s_.start_samples : unconfirmed_ - 1;
-      if (unconfirmed_ > 0 && status == ST_OK) status = ST_UNCERTAIN;
+    } else if (unconfirmed_ > 0) {
+      const auto& rows = consistency_.settings().judged;
+      bool compared = has_state && has_cov;
+      bool any = false;
+      for (int i = 0; i < s_.nz && compared && !any; ++i) any = rows[i] != 0.0 && judged[i] > 0.0;
+      if (compared && any) unconfirmed_ = disagree ? s_.start_samples : unconfirmed_ - 1;
+      if (unconfirmed_ > 0 && trusted(status)) status = ST_UNCERTAIN;
     }
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;

@@ -803,3 +803,15 @@ def test_simulate_says_where_the_motion_bends_past_theta_max(tmp_path, capsys):
     )
     assert main(["simulate", "paper3d", "-o", str(tmp_path / "b.csv")]) == 0
     assert "theta_max" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["plot", "view"])
+def test_plot_and_view_of_an_estimate_without_its_tip_columns_is_one_line(
+    tmp_path, capsys, command
+):
+    """A table without x, y, z was an internal error (exit 70) in plot."""
+    est = _write(tmp_path / "est.csv", "t,theta,phi,status\n0,0.1,0.2,ok\n0.05,0.1,0.2,ok\n")
+    out = {"plot": ["-o", str(tmp_path / "f.png")], "view": ["--save", str(tmp_path / "f.rrd")]}
+    assert main([command, str(est), *out[command]]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "x, y, z" in err

@@ -374,3 +374,6 @@ def test_a_refused_sample_is_refused_before_any_sample_of_the_call_is_stepped() 
         assert est._policy.last_t == -math.inf  # nothing stepped
     got = est.continue_run(t, z)
     np.testing.assert_array_equal(got.output, want.output)
+    # run() as well, before any sample, and without a reset() hint (run resets itself)
+    with pytest.raises(UserError, match=r"previous sample's t=0\.1 s$"):
+        est.run(repeated, z)

@@ -421,6 +421,9 @@ def test_an_infinite_reading_is_not_called_degrees_nor_a_dropout() -> None:
     z[:, tendon.measurement_names.index("tension_2")] = [0.1, np.inf, 0.1]
     with pytest.raises(UserError, match=r"t=0\.02 s: tension_2=inf: an infinite value"):
         make_estimator("ekf", tendon).run(np.array([0.0, 0.02, 0.04]), z)
+    z[1, tendon.measurement_names.index("tension_2")] = -np.inf  # infinite, not negative
+    with pytest.raises(UserError, match=r"t=0\.02 s: tension_2=-inf: an infinite value"):
+        make_estimator("ekf", tendon).run(np.array([0.0, 0.02, 0.04]), z)
 
 
 def test_a_robust_loss_that_rejects_every_sample_is_not_called_dropouts(

@@ -323,3 +323,17 @@ def test_a_device_time_far_ahead_of_real_time_is_out_of_order() -> None:
     s.finish()
     assert (s.counts.estimates, s.counts.out_of_order, s.counts.gaps) == (199, 1, 0)
     assert s.clock.t_last == pytest.approx(1.99, abs=1e-9)
+
+
+def test_a_jump_ahead_that_the_next_line_confirms_is_a_gap() -> None:
+    """Two lines left in the port from a session 20 minutes earlier, then the device's
+    live lines: the first live line is dropped as far ahead, the next confirms the jump
+    (every later line was dropped), and the stream goes on after a gap."""
+    s, _ = _session()
+    now = time.monotonic()
+    stamps = [1000, 1010, *(1_201_000 + 10 * i for i in range(300))]
+    for i, ms in enumerate(stamps):
+        s.handle_line(f"{ms},0.1,0.1".encode(), now + 0.01 * i)
+    s.finish()
+    assert (s.counts.estimates, s.counts.out_of_order) == (301, 1)
+    assert s.clock.t_last == pytest.approx(1_203_990 / 1e3, abs=1e-9)  # the device's time

@@ -526,3 +526,9 @@ def test_raw_arrays_of_a_robot_give_what_its_file_gives() -> None:
     )
     off = make_estimator("ekf", make_formulation("direct", turned)).run(table.t, plain)
     assert np.abs(off.output[:, :3] - want.output[:, :3]).max() > 0.01
+    from continuum_mhe.errors import UserError
+
+    for t, a, needle in ((table.t[:-1], acc, "t must be"), (0.0, acc, "t must be"),
+                         (table.t, acc[:, :1], "acc must be (n, 2, 3)")):  # fmt: skip
+        with pytest.raises(UserError, match=re.escape(needle)):
+            raw_measurements(turned, t, a, None)

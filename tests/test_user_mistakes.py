@@ -1248,6 +1248,8 @@ def test_small_library_mistakes_are_user_errors() -> None:
     nullable.iloc[3, 0] = pd.NA
     est.reset()
     assert list(est.run(rec.t, nullable).status[2:5]) == ["ok", "dropout", "ok"]
+    missing = pd.Series([pd.NA, rec.z[0, 1]], index=["roll", "pitch"], dtype="Float64")
+    assert np.isnan(Measurement(0.0, missing).z[0])  # step() takes it as run() does
     # a labelled Series to step(): the same check (its labels were dropped: swapped)
     est.reset()
     row = pd.Series({"pitch": rec.z[0, 1], "roll": rec.z[0, 0]})

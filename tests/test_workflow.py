@@ -331,8 +331,6 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
     tensions.write_bytes((tendon / "force-29_tensions.csv").read_bytes())
     robot.write_bytes((DATA / "robots" / "two_section.toml").read_bytes())
     rest.write_bytes((rod / "spatial-tendon_rest.csv").read_bytes())
-    config = tmp_path / "opts.toml"
-    config.write_text('method = "ekf"\n')
     link = tmp_path / "link.csv"
     link.symlink_to(tensions)
     cases = [
@@ -340,8 +338,6 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
           "--inputs", str(tensions), "-o", str(link)], tensions, "the tensions file --inputs"),
         (["estimate", str(rod / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(robot)],
          robot, "the robot file --robot"),
-        (["estimate", str(rod / "spatial_tilt.csv"), "--robot", "two-section", "--config",
-          str(config), "-o", str(config)], config, "the options file --config"),
         (["calibrate", "--from", str(rest), "--robot", "two-section", "--write-robot",
           str(rest)], rest, "the recording --from"),
         (["simulate", "paper3d", "--robot", str(robot), "-o", str(robot)], robot,
@@ -354,6 +350,12 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"refusing to overwrite {what}" in err, err
         assert kept.read_bytes() == before
+    # an estimate given as its own options file is read first: a re-run replaces it
+    est = tmp_path / "est.csv"
+    first = ["estimate", str(rod / "spatial_tilt.csv"), "--robot", "two-section"]
+    assert main([*first, "--method", "ekf", "-o", str(est)]) == 0
+    assert main([*first, "--config", str(est), "-o", str(est), "--overwrite"]) == 0
+    assert 'method = "ekf"' in est.read_text()
 
 
 def test_an_interrupted_estimate_keeps_its_rows_marked_partial(

@@ -131,7 +131,10 @@ class Measurement:
             object.__setattr__(self, "labels", tuple(str(c) for c in index.tolist()))
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         try:
-            z = np.asarray(masked_as_missing(self.z), dtype=float)
+            given = self.z
+            if hasattr(given, "to_numpy"):  # pandas: a missing value (pd.NA too) is NaN
+                given = given.to_numpy(dtype=float, na_value=np.nan)
+            z = np.asarray(masked_as_missing(given), dtype=float)
         except (TypeError, ValueError):
             raise UserError(f"measurement z must be numbers, got {self.z!r:.60}") from None
         object.__setattr__(self, "z", z)
@@ -261,7 +264,10 @@ class EstimateSeries:
                     "per sample of t"
                 )
         # wide enough for every status: an array of "ok"s would cut a later "uncertain"
-        object.__setattr__(self, "status", np.asarray(self.status, dtype=f"<U{STATUS_WIDTH}"))
+        status = np.asarray(self.status)
+        if status.dtype.kind == "U":
+            status = status.astype(np.result_type(status.dtype, f"<U{STATUS_WIDTH}"))
+        object.__setattr__(self, "status", status)
         if self.outlier is not None and np.shape(self.outlier) != (len(self.t),):
             raise ValueError(
                 f"outlier has shape {np.shape(self.outlier)}, expected ({len(self.t)},)"

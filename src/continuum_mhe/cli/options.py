@@ -800,9 +800,9 @@ def input_options(args: argparse.Namespace) -> Any:
 def input_files(args: argparse.Namespace) -> list[tuple[str, str | None]]:
     """The files besides the recording that ``estimate`` and ``live`` read, as
     :func:`continuum_mhe.io.output_files.refuse_inputs` takes them: an output must not
-    replace one."""
+    replace one. (Not ``--config``: an estimate CSV given as its own options file is
+    read before the new one replaces it, a re-run.)"""
     return [
         ("the tensions file --inputs", getattr(args, "inputs", None)),
         ("the robot file --robot", getattr(args, "robot", None)),
-        ("the options file --config", getattr(args, "config", None)),
     ]

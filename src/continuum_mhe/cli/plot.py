@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import TIP_COLUMNS, InputError
 
 if TYPE_CHECKING:
     from continuum_mhe.evaluation.estimate_figure import BackboneOf
@@ -76,7 +76,7 @@ def _estimate(args: argparse.Namespace) -> int:
     if output.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
-    est = read_estimates(args.source, "plot EST.csv")
+    est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth) if args.truth else None
     lengths = None

@@ -488,8 +488,9 @@ class Estimator(Generic[InferenceT]):
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
-                a tilt angle beyond pi (:data:`DEGREES_LIKE`: degrees given for
-                radians), a raw IMU's
+                an infinite value (a missing reading is NaN), a negative tension, a tilt
+                angle beyond pi (:data:`DEGREES_LIKE`: degrees given for radians), a raw
+                IMU's
                 specific force that is not a unit vector (each IMU's first full reading
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
                 first full readings after a reset, at least
@@ -528,7 +529,8 @@ class Estimator(Generic[InferenceT]):
         """A :class:`UserError` for the first negative tension in ``z`` (n, nz) at the
         times ``t`` (n,) s, as the tensions file's reader gives one."""
         names = self.formulation.measurement_names
-        negative = np.argwhere(z[:, self._tension_rows] < 0)
+        tensions = z[:, self._tension_rows]
+        negative = np.argwhere((tensions < 0) & np.isfinite(tensions))  # -inf: infinite
         if len(negative):
             i, j = negative[0]
             row = self._tension_rows[j]
@@ -600,6 +602,7 @@ class Estimator(Generic[InferenceT]):
         )
         self._check_units(z)
         self.reset()
+        self._refuse_before_stepping(t, z)
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)
         starts: Iterable[int] = range(0, n, block)

@@ -674,6 +674,7 @@ def read_state_table(
     t: list[float] = []
     out: list[list[float]] = []
     status: list[str] = []
+    lines: list[int] = []
     for line, row in body:
         if len(row) < len(header):
             raise InputError(
@@ -695,12 +696,6 @@ def read_state_table(
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):
             raise InputError(f"{p}: line {line}: NaN or infinite value")
-        for c, v in zip(names, vals):
-            if abs(v) > STATE_LIMIT:  # its squares and sums would overflow the metrics
-                raise InputError(
-                    f"{p}: line {line}: {c}={v:.6g} out of range (|value| <= {STATE_LIMIT:g} "
-                    "in m, rad and N)"
-                )
         sd.append(
             [
                 math.nan if j < 0 or row[j] == "" else _parse_std(p, line, c, row[j])
@@ -719,8 +714,17 @@ def read_state_table(
         t.append(tv)
         out.append(vals)
         status.append(st)
+        lines.append(line)
+    values = np.array(out, dtype=float).reshape(len(t), len(names))
+    beyond = np.argwhere(np.abs(values) > STATE_LIMIT)  # squares would overflow the metrics
+    if len(beyond):
+        i, j = beyond[0]
+        raise InputError(
+            f"{p}: line {lines[i]}: {names[j]}={values[i, j]:.6g} out of range (|value| <= "
+            f"{STATE_LIMIT:g} in m, rad and N)"
+        )
     return StateTable(
-        np.array(t), names, np.array(out, dtype=float).reshape(len(t), len(names)),
+        np.array(t), names, values,
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
         None if o_idx is None else np.array(flags, dtype=bool), any(j >= 0 for j in sd_idx),
         s_idx is not None,

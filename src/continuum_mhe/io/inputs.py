@@ -312,10 +312,12 @@ def raw_measurements(
     gyro = None if gyr is None else np.asarray(gyr, dtype=float)
     if gyro is not None and gyro.shape != acc.shape:
         raise UserError(f"gyr must have acc's shape {acc.shape}, got {gyro.shape}")
+    t = np.asarray(t, dtype=float)
+    if t.shape != (len(acc),):
+        raise UserError(f"t must be (n,) = ({len(acc)},), one time per sample, got {t.shape}")
     settings = raw if raw is not None else RawImuSettings()
     if settings.imu_model is None:
         settings = replace(settings, imu_model="direct" if gyro is not None else "tilt")
-    t = np.asarray(t, dtype=float)
     converters = imu_converters(settings, robot)
     return np.hstack(
         [

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -169,7 +170,8 @@ def _bag_folder(path: Path) -> Path:
             f"{path}: a ROS 2 bag's .db3 needs the metadata.yaml that rosbag2 wrote beside "
             "it (give the bag's folder, as rosbag2 recorded it)"
         )
-    if path.name not in meta.read_text(errors="replace"):
+    listed = rf"^\s*-\s*['\"]?{re.escape(path.name)}['\"]?\s*$"  # a relative_file_paths entry
+    if not re.search(listed, meta.read_text(errors="replace"), re.MULTILINE):
         raise InputError(
             f"{path}: {meta} describes another bag of that folder (not {path.name}): give "
             "the folder of this file's own bag"
@@ -276,20 +278,34 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         stamps: list[int] = []
         rows: list[tuple[list[float], list[float], list[float]]] = []
         skipped: list[str] = []
-        read = [(_header_ns(msg), int(log_ns), _row(msg)) for log_ns, msg in messages]
         # header stamps where the messages have them; the log's times only where none
         # has (a zero stamp among others is not on their clock: left out, counted)
-        stamped = any(h > 0 for h, _, _ in read)
-        for i, (header_ns, log_ns, row) in enumerate(read):
-            if stamped and header_ns <= 0:
-                skipped.append(f"message {i}: header stamp is zero (the others' clock)")
-                continue
-            ns = header_ns if stamped else log_ns
+        unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
+        stamped = False
+
+        def keep(i: int, ns: int, row: tuple[list[float], list[float], list[float]]) -> None:
             if stamps and ns <= stamps[-1]:
                 skipped.append(f"message {i}: time {ns} ns does not increase")
-                continue
+                return
             stamps.append(ns)
             rows.append(row)
+
+        for i, (log_ns, msg) in enumerate(messages):
+            header_ns = _header_ns(msg)
+            if header_ns <= 0:
+                if stamped:
+                    skipped.append(f"message {i}: header stamp is zero (the others' clock)")
+                else:
+                    unstamped.append((i, int(log_ns), _row(msg)))
+                continue
+            if not stamped:
+                stamped = True
+                skipped += [f"message {j}: header stamp is zero (the others' clock)"
+                            for j, _, _ in unstamped]  # fmt: skip
+                unstamped = []
+            keep(i, header_ns, _row(msg))
+        for i, log_ns, row in unstamped:  # no message has a stamp: the log's times
+            keep(i, log_ns, row)
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback

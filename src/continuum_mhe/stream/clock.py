@@ -9,8 +9,10 @@
   restarts the estimator.
 * A smaller backwards step is an out-of-order sample, dropped by the caller, and so is
   a step forward of more than :data:`FORWARD_JUMP_S` beyond the time the host saw pass
-  since the last sample: no device clock runs ahead of real time so far (a corrupted
-  ``t_ms`` would move the whole axis and make the next sample look like a restart).
+  since the last sample (a corrupted ``t_ms`` would move the whole axis and make the
+  next sample look like a restart), unless the next sample confirms it (within
+  :data:`CONFIRM_MS` after it: lines left in the port from an earlier run, or a
+  host that was suspended): the axis then jumps with the device's time, a gap.
 * Samples that share a whole-millisecond stamp (a device faster than 1 kHz stamping
   with ``millis()``: 2 kHz gives pairs of equal ``t_ms``) are spread evenly over that
   millisecond, by the number of samples the previous stamp had: the protocol carries
@@ -33,6 +35,9 @@ WRAP_WINDOW_MS = 60_000.0
 #: A device time further ahead of the last one than the host's time since then plus
 #: this, s, is not a sample's (serial buffering delays lines by seconds at most).
 FORWARD_JUMP_S = 600.0
+#: A sample this soon after one dropped for jumping ahead (ms of device time) confirms
+#: that jump.
+CONFIRM_MS = 10_000.0
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
 SUB_MS_PERIOD_S = 1.5e-3
@@ -65,6 +70,7 @@ class DeviceClock:
         self._restart_armed = False
         self._repeat = 0  # samples before this one with the same stamp
         self._per_stamp = 1  # samples the previous stamp had
+        self._ahead_ms: float | None = None  # the last device time dropped as far ahead
 
     @property
     def t_last(self) -> float | None:
@@ -102,7 +108,9 @@ class DeviceClock:
         elif last is not None and t_ms - last > 1e3 * (
             arrival - self._arrival_last + FORWARD_JUMP_S
         ):
-            return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
+            ahead, self._ahead_ms = self._ahead_ms, t_ms
+            if ahead is None or not 0 < t_ms - ahead <= CONFIRM_MS:  # not (yet) confirmed
+                return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
         t = (t_ms + self._epoch_ms) / 1e3 + self._offset_s
         repeat = 0
         if event == "next" and t_ms == last and (period_s is None or period_s < SUB_MS_PERIOD_S):
@@ -114,5 +122,6 @@ class DeviceClock:
             self._per_stamp = self._repeat + 1
         self._repeat = repeat
         self._restart_armed = False
+        self._ahead_ms = None
         self._last_ms, self._t_last, self._arrival_last = t_ms, t, arrival
         return Placed(t, event)

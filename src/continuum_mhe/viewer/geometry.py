@@ -158,5 +158,8 @@ class TendonShapes:
             raise no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
         if unsolved:
             first = no_equilibrium_at(float(t[unsolved[0][0]]), unsolved[0][1])
-            warnings.warn(f"{len(unsolved)} row(s) not drawn, from {first}", stacklevel=2)
+            warnings.warn(
+                f"{len(unsolved)} row(s) not drawn (no equilibrium); the first: {first}",
+                stacklevel=2,
+            )
         return self._geometry(k0, forces, tau)
