@@ -363,3 +363,37 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     )
     assert code == 0, err
     assert "mounting" not in err
+
+
+def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:
+    """--from - (standard input) was read twice and said it had no header: refused in one
+    line, as a pipe is; --write-robot takes a .toml name; a nan reading names what
+    calibrate needs (it pointed to --skip-bad, which calibrate does not have)."""
+    import sys
+    from io import StringIO
+    from pathlib import Path
+
+    from continuum_mhe.cli import main
+
+    rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    rest = rest / "spatial-tendon_rest.csv"
+    stdin = sys.stdin
+    sys.stdin = StringIO(rest.read_text())
+    try:
+        assert main(["calibrate", "--from", "-", "--robot", "two-section"]) == 2
+    finally:
+        sys.stdin = stdin
+    assert "--from reads a file (not standard input" in capsys.readouterr().err
+    out = tmp_path / "cal.png"
+    argv = ["calibrate", "--from", str(rest), "--robot", "two-section", "--write-robot", str(out)]
+    assert main(argv) == 2
+    assert "--write-robot writes a robot file (.toml)" in capsys.readouterr().err
+    lines = rest.read_text().splitlines()
+    cells = lines[11].split(",")
+    cells[3] = "nan"
+    lines[11] = ",".join(cells)
+    nan = tmp_path / "nan.csv"
+    nan.write_text("\n".join(lines) + "\n")
+    assert main(["calibrate", "--from", str(nan), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err
+    assert "calibrate needs every reading of the still robot" in err and "--skip-bad" not in err

@@ -1306,3 +1306,18 @@ def test_write_measurements_refuses_what_read_measurements_would(tmp_path) -> No
         with pytest.raises(UserError, match=needle):
             write_measurements(out, *args)
         assert not out.exists()
+
+
+def test_benchmark_and_check_robot_sizes_that_cannot_work_are_refused(capsys) -> None:
+    """A horizon given twice mixed the two runs' ratios; check-robot --samples 1,000,000
+    needed about 13 GB (an internal error under a memory limit): one line each."""
+    import pytest
+
+    from continuum_mhe.cli import main
+
+    with pytest.raises(SystemExit) as info:  # argparse's own refusal of an option value
+        main(["benchmark", "--horizons", "10,10", "--duration", "1"])
+    assert info.value.code == 2
+    assert "horizons must differ" in capsys.readouterr().err
+    assert main(["check-robot", "two-section", "--samples", "1000000"]) == 2
+    assert "--samples" in capsys.readouterr().err

@@ -340,6 +340,8 @@ def test_overwrite_never_replaces_an_input_of_the_command(tmp_path: Path, capsys
          robot, "the robot file --robot"),
         (["calibrate", "--from", str(rest), "--robot", "two-section", "--write-robot",
           str(rest)], rest, "the recording --from"),
+        (["calibrate", "--from", str(rest), "--robot", str(robot), "--write-robot",
+          str(robot)], robot, "the robot file --robot"),
         (["simulate", "paper3d", "--robot", str(robot), "-o", str(robot)], robot,
          "the robot file --robot"),
     ]  # fmt: skip

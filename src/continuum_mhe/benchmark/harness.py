@@ -16,8 +16,8 @@ outputs ``[x, y, z, theta, phi]`` from IPOPT's, over the recording and from samp
 on both backends, clean and with spikes, as a ratio to ``l2``
 (:mod:`continuum_mhe.benchmark.losses`). A long recording then shows that the fast
 MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report records
-where the numbers come from: whether the model ran compiled, the C compiler, the
-machine and the versions.
+where the numbers come from: the machine (platform, CPU, cores, the load average at the
+start) and the package versions (the compiled core's nanobind among them).
 
 do-mpc's MHE is given our window cost through its own API: the tangent-plane tilt
 residual as its measurement (the window's measurements enter as time-varying

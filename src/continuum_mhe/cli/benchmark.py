@@ -31,6 +31,8 @@ def _horizons(text: str) -> list[int]:
         raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
     if not values or min(values) < 2 or max(values) > 1000:
         raise argparse.ArgumentTypeError("horizons must be integers in [2, 1000]")
+    if len(set(values)) != len(values):  # each N's ratios are taken within its rows
+        raise argparse.ArgumentTypeError(f"horizons must differ, got {text!r}")
     return values
 
 

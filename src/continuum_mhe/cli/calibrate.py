@@ -26,6 +26,7 @@ from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
+from continuum_mhe.io.text_rows import DROPOUT_HINT
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
@@ -40,18 +41,31 @@ def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source:
 
 def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
+    for option, name in (("--from", args.source), ("--bend", args.bend)):
+        if name is not None and not Path(name).is_file():  # read twice: the kind, then it
+            raise InputError(
+                f"{name}: {option} reads a file (not standard input, a pipe or a folder): "
+                "save the recording first"
+            )
     if args.write_robot:  # before recording or reading
-        check_output_target(args.write_robot, args.overwrite, "--write-robot")
-        # (the robot file --robot may be rewritten with its calibration: not refused)
         refuse_inputs(args.write_robot, [("the recording --from", args.source),
-                                         ("the bent recording --bend", args.bend)])  # fmt: skip
+                                         ("the bent recording --bend", args.bend),
+                                         ("the robot file --robot", args.robot)])  # fmt: skip
+        check_output_target(args.write_robot, args.overwrite, "--write-robot")
+        if Path(args.write_robot).suffix.lower() != ".toml":
+            raise InputError(f"{args.write_robot}: --write-robot writes a robot file (.toml)")
         if not args.source and args.format != "raw":
             raise InputError("--write-robot needs raw readings (--format raw)")
     if args.bend_phi is not None and not args.bend:
         raise InputError("--bend-phi needs --bend BEND.csv")
     say = stderr_say("calibrate")
     if args.source:
-        fmt, t, values = read_recording(args.source, robot.n_imus)
+        try:
+            fmt, t, values = read_recording(args.source, robot.n_imus)
+        except InputError as exc:  # calibrate has no --skip-bad: a still robot's every reading
+            raise InputError(
+                str(exc).replace(DROPOUT_HINT, "calibrate needs every reading of the still robot")
+            ) from None
         source = args.source
         _check_gyro_bound_applies(args, fmt, source)
     else:
