@@ -397,3 +397,36 @@ def test_calibrate_reads_files_and_writes_robot_files(tmp_path, capsys) -> None:
     assert main(["calibrate", "--from", str(nan), "--robot", "two-section"]) == 2
     err = capsys.readouterr().err
     assert "calibrate needs every reading of the still robot" in err and "--skip-bad" not in err
+
+
+def test_a_rest_recording_too_short_to_calibrate_is_refused(tmp_path, capsys) -> None:
+    """Two rows (0.02 s) were calibrated and written without a word, and an IMU read in
+    3 rows of 601 too; the refusals named no file: one line naming it now."""
+    from pathlib import Path
+
+    from continuum_mhe.cli import main
+
+    rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = (rest / "spatial-tendon_rest.csv").read_text().splitlines()
+    header = lines[0]
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(lines[:3]) + "\n")
+    sparse = tmp_path / "sparse.csv"
+    i2 = [i for i, c in enumerate(header.split(",")) if c.endswith("_2")]
+    rows = [header]
+    for n, ln in enumerate(lines[1:]):
+        cells = ln.split(",")
+        if n >= 3:
+            for i in i2:
+                cells[i] = ""
+        rows.append(",".join(cells))
+    sparse.write_text("\n".join(rows) + "\n")
+    for path, needle in ((short, "calibration needs the robot still for at least 0.5 s"),
+                         (sparse, "IMU 2: 3 valid sample(s)")):  # fmt: skip
+        out = tmp_path / "cal.toml"
+        argv = ["calibrate", "--from", str(path), "--robot", "two-section", "--write-robot",
+                str(out)]  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{path}: " in err and needle in err, err
+        assert not out.exists()

@@ -123,20 +123,34 @@ def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_fil
     )
 
 
+#: The least time at rest calibration takes, s, and valid samples of each IMU.
+MIN_REST_S = 0.5
+MIN_REST_SAMPLES = 20
+
+
 def calibrate(
     t: FloatArray, values: FloatArray, fmt: LineFormat, n_imus: int, mounting: Mounting
 ) -> Calibration:
-    """Statistics of samples at rest: ``t`` (n,) s, ``values`` (n, k * n_imus)."""
-    if len(t) < 2:
-        raise InputError(f"calibration needs at least 2 samples, got {len(t)}")
+    """Statistics of samples at rest: ``t`` (n,) s, ``values`` (n, k * n_imus); a
+    one-line :class:`InputError` for under :data:`MIN_REST_S` of them or an IMU with
+    under :data:`MIN_REST_SAMPLES` valid ones (its mean and spread would be noise)."""
+    span = float(t[-1] - t[0]) if len(t) else 0.0
+    if len(t) < 2 or span < MIN_REST_S:
+        raise InputError(
+            f"{len(t)} sample(s) over {span:.3g} s: calibration needs the robot still for "
+            f"at least {MIN_REST_S:g} s (a few seconds)"
+        )
     k = VALUES_PER_IMU[fmt]
     steps = np.diff(t)
     imus = []
     for i in range(n_imus):
         block = values[:, k * i : k * (i + 1)]
         block = block[np.all(np.isfinite(block), axis=1)]
-        if len(block) < 2:
-            raise InputError(f"IMU {i + 1}: fewer than 2 valid samples")
+        if len(block) < MIN_REST_SAMPLES:
+            raise InputError(
+                f"IMU {i + 1}: {len(block)} valid sample(s); calibration needs at least "
+                f"{MIN_REST_SAMPLES} of each IMU"
+            )
         mean, std = block.mean(axis=0), block.std(axis=0, ddof=1)
         rpy = mounting_from_gravity(mean[:3], mounting) if fmt == "raw" else None
         imus.append(ImuCalibration(mean, std, rpy))

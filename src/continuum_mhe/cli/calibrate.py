@@ -86,7 +86,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
     if fmt == "raw":
         check_rest_mounting(source, values, robot, bool(args.robot))
-    cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    try:
+        cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
+    except InputError as exc:  # name the recording
+        raise InputError(f"{source}: {exc}") from None
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
