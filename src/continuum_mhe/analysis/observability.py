@@ -119,7 +119,7 @@ def _tendon_verdict(t: JacobianSummary) -> str:
         return (
             "observable: with the tensions given, one sample of the IMUs' tilt determines "
             f"the tip force (all {t.cols} components), and so the shape, at "
-            f"{100 * t.full_rank_fraction:.1f} % of the sampled loads"
+            f"{100 * t.full_rank_fraction:.1f} % of the sampled loads with an equilibrium"
         )
     if t.full_rank_fraction == 0.0:
         return (
@@ -304,10 +304,12 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     if r.tendon_force is not None:
         s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
         given = "tensions given" if robot.n_tendons else "no tendons: a rod under its tip force"
+        solved = r.tendon_samples - r.tendon_unsolved
+        of = "" if not r.tendon_unsolved else f", {solved} of them with an equilibrium"
         lines.append(
             f"tendon model, {given}, one sample (d gravity directions / d tip force, "
-            f"{r.tendon_samples} loads): {s.rows}x{s.cols}, rank {s.cols} at "
-            f"{100 * s.full_rank_fraction:.1f} % of loads (min rank {s.min_rank}); relative "
+            f"{r.tendon_samples} loads{of}): {s.rows}x{s.cols}, rank {s.cols} at "
+            f"{100 * s.full_rank_fraction:.1f} % of those (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
         if r.tendon_unsolved:
