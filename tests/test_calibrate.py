@@ -430,3 +430,17 @@ def test_a_rest_recording_too_short_to_calibrate_is_refused(tmp_path, capsys) ->
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{path}: " in err and needle in err, err
         assert not out.exists()
+
+
+def test_the_serial_line_s_options_with_a_recording_are_refused(capsys) -> None:
+    """--seconds (and --baud, --format, --port) with --from did nothing, silently."""
+    from pathlib import Path
+
+    from continuum_mhe.cli import main
+
+    rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    argv = ["calibrate", "--from", str(rest / "spatial-tendon_rest.csv"), "--robot", "two-section"]
+    for extra in (["--seconds", "5"], ["--baud", "9600"]):
+        assert main([*argv, *extra]) == 2
+        assert f"{extra[0]} does not apply with --from" in capsys.readouterr().err
+    assert main(argv) == 0

@@ -1321,3 +1321,15 @@ def test_benchmark_and_check_robot_sizes_that_cannot_work_are_refused(capsys) ->
     assert "horizons must differ" in capsys.readouterr().err
     assert main(["check-robot", "two-section", "--samples", "1000000"]) == 2
     assert "--samples" in capsys.readouterr().err
+
+
+def test_benchmark_with_a_robot_refuses_options_it_would_not_use(capsys) -> None:
+    """--robot times the fast MHE against IPOPT alone: --skip, --loss-horizons, --acados
+    and --memory-samples ran without effect, exit 0."""
+    from continuum_mhe.cli import main
+
+    for extra in (["--skip", "fatrop"], ["--loss-horizons", "10"], ["--acados", "/none"],
+                  ["--memory-samples", "5"]):  # fmt: skip
+        argv = ["benchmark", "--robot", "two-section", "--horizons", "10", "--duration", "1"]
+        assert main([*argv, *extra]) == 2
+        assert f"{extra[0]} does not apply with --robot" in capsys.readouterr().err

@@ -23,6 +23,9 @@ from continuum_mhe.benchmark.harness import (
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.errors import UserError
 
+#: ``--memory-samples``' default: the long recording of the memory check.
+MEMORY_SAMPLES = 20000
+
 
 def _horizons(text: str) -> list[int]:
     try:
@@ -57,6 +60,16 @@ def run(args: argparse.Namespace) -> int:
 
         check_output_target(args.json, args.overwrite, "--json")
     if args.robot:
+        unused = [flag for flag, given in (
+            ("--skip", bool(args.skip)), ("--loss-horizons", args.loss_horizons is not None),
+            ("--acados", args.acados is not None),
+            ("--memory-samples", args.memory_samples != MEMORY_SAMPLES),
+        ) if given]  # fmt: skip
+        if unused:
+            raise UserError(
+                f"{', '.join(unused)} does not apply with --robot: it times the fast MHE "
+                "against IPOPT alone"
+            )
         from continuum_mhe.io.robot_file import read_robot
 
         robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
@@ -142,6 +155,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--memory-samples",
         type=int,
-        default=20000,
+        default=MEMORY_SAMPLES,
         help="length of the memory run of the fast MHE (0: skip)",
     )

@@ -41,6 +41,14 @@ def _check_gyro_bound_applies(args: argparse.Namespace, fmt: LineFormat, source:
 
 def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
+    if args.source:  # the serial line's options do nothing on a recording
+        given: frozenset[str] = getattr(args, "given_options", frozenset())
+        unused = [f"--{d}" for d in ("seconds", "baud", "format", "port") if d in given]
+        if unused:
+            raise InputError(
+                f"{args.source}: {', '.join(unused)} does not apply with --from: it is for "
+                "reading the serial line (--port)"
+            )
     for option, name in (("--from", args.source), ("--bend", args.bend)):
         if name is not None and not Path(name).is_file():  # read twice: the kind, then it
             raise InputError(
