@@ -614,3 +614,37 @@ def test_pair_tolerance_on_one_imu_s_topic_is_refused(
     assert main(["estimate", str(log), "--config", str(tmp_path / "est.mcap"), "-o", str(out)]) == 2
     assert "an estimate MCAP's options are in its metadata" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:
+    """A JSON message without a field, or with a null one, named no message: the one
+    line says which message and what is wrong with it."""
+    import json as json_module
+
+    from mcap.writer import CompressionType, Writer
+
+    def log(path: Path, bad: dict[str, Any]) -> Path:
+        good = {"header": {"stamp": {"sec": 1, "nanosec": 0}},
+                "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.81},
+                "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}}  # fmt: skip
+        with path.open("wb") as fh:
+            w = Writer(fh, compression=CompressionType.NONE)
+            w.start()
+            sid = w.register_schema(name="sensor_msgs/msg/Imu", encoding="jsonschema", data=b"{}")
+            cid = w.register_channel(topic="/imu", message_encoding="json", schema_id=sid)
+            for k in range(5):
+                msg = dict(good, header={"stamp": {"sec": 1 + k, "nanosec": 0}})
+                if k == 3:
+                    msg = {**msg, **bad}
+                    msg = {key: v for key, v in msg.items() if v != "drop"}
+                data = json_module.dumps(msg).encode()
+                w.add_message(cid, log_time=k + 1, data=data, publish_time=k + 1)
+            w.finish()
+        return path
+
+    for bad, why in (({"linear_acceleration": "drop"}, "without the field 'linear_acceleration'"),
+                     ({"linear_acceleration": None}, "a message with a null field")):  # fmt: skip
+        path = log(tmp_path / "j.mcap", bad)
+        start = re.escape(f"{path}: message 4: cannot read robot log (")
+        with pytest.raises(InputError, match=start + ".*" + re.escape(why)):
+            read_imu_log(path)

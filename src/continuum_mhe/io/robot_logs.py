@@ -184,6 +184,8 @@ def _why_unreadable(exc: BaseException) -> str:
     if type(exc).__name__ == "EndOfFile" or "exceeds limit" in str(exc):
         # mcap's: a record runs past the file's end, or its length is garbage
         return "the file ends inside a record, or is damaged: a recording cut short?"
+    if isinstance(exc, AttributeError) and "'NoneType'" in str(exc):  # JSON null
+        return "a message with a null field"
     if isinstance(exc, KeyError):  # a JSON message without a field
         return f"a message without the field {exc.args[0]!r}" if exc.args else "a missing field"
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -270,6 +272,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
+    at = 0  # the message read: named where one cannot be read
     try:
         if p.suffix.lower() == ".mcap":
             name, messages = _iter_mcap(p, topic)
@@ -291,6 +294,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
             rows.append(row)
 
         for i, (log_ns, msg) in enumerate(messages):
+            at = i + 1
             header_ns = _header_ns(msg)
             if header_ns <= 0:
                 if stamped:
@@ -309,7 +313,8 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
-        raise InputError(f"{p}: cannot read robot log ({_why_unreadable(exc)})") from None
+        where = f"message {at}: " if at else ""
+        raise InputError(f"{p}: {where}cannot read robot log ({_why_unreadable(exc)})") from None
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
