@@ -85,10 +85,13 @@ def expect_type(name: str, value: object, kind: type | tuple[type, ...], what: s
 
 
 def masked_as_missing(values: object) -> object:
-    """``values`` with a numpy masked array's masked entries as NaN (a reading that is
-    missing, a dropout, as NaN says everywhere else), as floats; anything else as it
-    is. (``numpy.asarray`` of a masked array drops its mask and keeps the values under
-    it.)"""
+    """``values`` with a numpy masked array's masked entries, and a pandas object's
+    missing ones (``pd.NA`` too), as NaN (a reading that is missing, a dropout, as NaN
+    says everywhere else), as floats; anything else as it is. (``numpy.asarray`` of a
+    masked array drops its mask and keeps the values under it; of a nullable pandas
+    column it gives objects.) A TypeError or ValueError where they are not numbers."""
     if hasattr(values, "mask") and hasattr(values, "filled") and hasattr(values, "astype"):
         return values.astype(float).filled(math.nan)
+    if hasattr(values, "to_numpy"):  # a pandas Series or DataFrame
+        return values.to_numpy(dtype=float, na_value=math.nan)
     return values

@@ -131,10 +131,7 @@ class Measurement:
             object.__setattr__(self, "labels", tuple(str(c) for c in index.tolist()))
         object.__setattr__(self, "t", real_number("measurement t", self.t))
         try:
-            given = self.z
-            if hasattr(given, "to_numpy"):  # pandas: a missing value (pd.NA too) is NaN
-                given = given.to_numpy(dtype=float, na_value=np.nan)
-            z = np.asarray(masked_as_missing(given), dtype=float)
+            z = np.asarray(masked_as_missing(self.z), dtype=float)
         except (TypeError, ValueError):
             raise UserError(f"measurement z must be numbers, got {self.z!r:.60}") from None
         object.__setattr__(self, "z", z)

@@ -644,14 +644,7 @@ class Estimator(Generic[InferenceT]):
                 "t must be seconds (numbers), got numpy datetime or timedelta values: give "
                 "(t - t[0]) / np.timedelta64(1, 's')"
             )
-        if hasattr(z, "to_numpy"):  # pandas: its missing values (pd.NA too) are NaN
-            try:
-                z = z.to_numpy(dtype=np.float64, na_value=np.nan)
-            except (TypeError, ValueError):
-                raise UserError(
-                    "z's columns must hold numbers (missing ones NaN or pd.NA)"
-                ) from None
-        try:  # masked entries are missing: NaN (a masked t is refused as not finite)
+        try:  # masked or pandas' missing entries are NaN (such a t is refused: not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
         except (TypeError, ValueError):

@@ -51,8 +51,9 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
 def require_an_estimate(path: str, table: StateTable) -> None:
     """A one-line :class:`InputError` where no row of the estimate file ``path`` holds an
     estimate (every row ``no-estimate``, or its tip empty): nothing to draw."""
-    names = [c for c in TIP_COLUMNS if c in table.names] or list(table.names)
-    values = np.column_stack([table.column(c) for c in names]) if names else np.empty((0, 0))
+    values = table.values[:, [i for i, c in enumerate(table.names) if c in TIP_COLUMNS]]
+    if values.shape[1] == 0:  # no tip columns: the estimate's every value
+        values = table.values
     held = (table.status != "no-estimate") & np.all(np.isfinite(values), axis=1)
-    if values.size == 0 or not held.any():
+    if values.shape[1] == 0 or not held.any():
         raise InputError(f"{path}: no row has an estimate (every one is no-estimate or empty)")

@@ -309,7 +309,7 @@ class TendonFormulation(Formulation):
             return self.initial_force_std
         return FORCE_PRIOR_BUCKLING_FRACTION * self.buckling_load
 
-    @property
+    @cached_property
     def buckling_load(self) -> float:
         """The load that buckles the straight backbone as a cantilever, N:
         ``pi^2 EI / (4 L^2)``."""
