@@ -41,14 +41,17 @@ void cmhe::bind_filter(nb::module_& m) {
                         "the outputs with their standard deviations. Matrices row-major.")
       .def(
           "__init__",
-          [](NodeModel* self, const ModelFunction& node, const ModelFunction& output,
-             const ModelFunction& jacobian, int nx, int nu, int nz, int ny,
-             std::vector<int64_t> wrapped) {
-            new (self) NodeModel(node, output, jacobian, nx, nu, nz, ny, std::move(wrapped));
+          [](NodeModel* self, const ModelFunction& transition, const ModelFunction& measurement,
+             const ModelFunction& output, const ModelFunction& jacobian, int nx, int nu, int nz,
+             int ny, std::vector<int64_t> wrapped) {
+            new (self) NodeModel(transition, measurement, output, jacobian, nx, nu, nz, ny,
+                                 std::move(wrapped));
           },
-          nb::arg("node"), nb::arg("output"), nb::arg("output_jacobian"), nb::arg("nx"),
-          nb::arg("nu"), nb::arg("nz"), nb::arg("ny"), nb::arg("wrapped"),
-          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>())
+          nb::arg("transition"), nb::arg("measurement"), nb::arg("output"),
+          nb::arg("output_jacobian"),
+          nb::arg("nx"), nb::arg("nu"), nb::arg("nz"), nb::arg("ny"), nb::arg("wrapped"),
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
+          nb::keep_alive<1, 5>())
       .def(
           "evaluate",
           [](NodeModel& n, In x, In u, double dt, In z, In mask) {

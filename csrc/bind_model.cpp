@@ -156,6 +156,19 @@ void cmhe::bind_model(nb::module_& m) {
           },
           nb::arg("transition"), nb::arg("residual"), nb::arg("with_transition"));
 
+  nb::class_<RememberedFunction, ModelFunction>(
+      m, "RememberedFunction",
+      "A model function with its last evaluation remembered, per thread: an evaluation at "
+      "the same inputs, bit for bit, copies the outputs kept. ``input_sizes``: the number "
+      "of values of each input.")
+      .def(
+          "__init__",
+          [](RememberedFunction* self, const ModelFunction& inner,
+             std::vector<int64_t> input_sizes) {
+            new (self) RememberedFunction(inner, std::move(input_sizes));
+          },
+          nb::arg("function"), nb::arg("input_sizes"), nb::keep_alive<1, 2>());
+
   nb::class_<ForwardJacobianFunction, ModelFunction>(
       m, "ForwardJacobianFunction",
       "``x -> dy/dx`` (ny, nx), column-major, of a tape ``x -> y``, by forward-mode "

@@ -98,10 +98,11 @@ void predict_covariance(double* P, const double* F, const double* Q, int nx) {
   for (int i = 0; i < nx * nx; ++i) P[i] += Q[i];
 }
 
-NodeModel::NodeModel(const ModelFunction& node, const ModelFunction& output,
-                     const ModelFunction& output_jacobian, int nx, int nu, int nz, int ny,
-                     std::vector<int64_t> wrapped)
-    : node_(node),
+NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measurement,
+                     const ModelFunction& output, const ModelFunction& output_jacobian, int nx,
+                     int nu, int nz, int ny, std::vector<int64_t> wrapped)
+    : transition_(transition),
+      measurement_(measurement),
       output_(output),
       jacobian_(output_jacobian),
       nx_(nx),
@@ -136,7 +137,16 @@ void NodeModel::evaluate(const double* x, const double* u, double dt, const doub
   for (int i = 0; i < nx_; ++i) x_[i] = x[i];
   const double* in[5] = {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(),
                          m_.data()};
-  node_.evaluate(in, out_.data());
+  transition_.evaluate(in, out_.data());
+  measurement_.evaluate(in, out_.data() + nx_ + nx_ * nx_);
+}
+
+void NodeModel::predict(const double* x, const double* u, double dt) {
+  set_sample(u, dt, nullptr, nullptr);
+  for (int i = 0; i < nx_; ++i) x_[i] = x[i];
+  const double* in[5] = {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(),
+                         m_.data()};
+  transition_.evaluate(in, out_.data());
 }
 
 namespace {
@@ -155,7 +165,7 @@ bool NodeModel::arrival_step(double* x, double* P, double* Pinv, const double* u
     evaluate(x, u, dt, z, mask);
     if (!ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz)) return false;
   }
-  evaluate(x, u, dt, z, mask);
+  predict(x, u, dt);
   for (int i = 0; i < nx; ++i) x[i] = out_[i];
   predict_covariance(P, out_.data() + nx, Q, nx);
   for (int j = 0; j < nx; ++j)
@@ -177,7 +187,7 @@ bool NodeModel::arrival_step(double* x, double* P, double* Pinv, const double* u
 bool NodeModel::ekf_step(double* x, double* P, const double* u, double dt, const double* z,
                          const double* mask, const double* R, const double* Q) {
   const int nx = nx_, nz = nz_, k = nx + nx * nx;
-  evaluate(x, u, dt, z, mask);
+  predict(x, u, dt);
   for (int i = 0; i < nx; ++i) x[i] = out_[i];
   predict_covariance(P, out_.data() + nx, Q, nx);
   if (!any_valid(mask, nz)) return true;

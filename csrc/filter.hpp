@@ -38,9 +38,12 @@ void predict_covariance(double* P, const double* F, const double* Q, int nx);
 
 class NodeModel {
  public:
-  NodeModel(const ModelFunction& node, const ModelFunction& output,
-            const ModelFunction& output_jacobian, int nx, int nu, int nz, int ny,
-            std::vector<int64_t> wrapped);
+  // The node function ``(x, u, dt, z, mask) -> (f, F, H, r)`` as two functions of its
+  // inputs: ``transition`` its first two outputs ``(f, F)`` (a prediction evaluates no
+  // measurement terms), ``measurement`` its last two ``(H, r)``.
+  NodeModel(const ModelFunction& transition, const ModelFunction& measurement,
+            const ModelFunction& output, const ModelFunction& output_jacobian, int nx, int nu,
+            int nz, int ny, std::vector<int64_t> wrapped);
 
   int nx() const { return nx_; }
   int nz() const { return nz_; }
@@ -50,6 +53,9 @@ class NodeModel {
   void evaluate(const double* x, const double* u, double dt, const double* z,
                 const double* mask);
   const double* node_out() const { return out_.data(); }
+  // the transition alone at (x, u, dt): ``node_out()``'s first nx + nx * nx values
+  // (f, F) are set, the rest are left as they were
+  void predict(const double* x, const double* u, double dt);
 
   // the arrival prior's EKF step: update with the valid components of z (none:
   // prediction only), then predict; ``P`` symmetrised, ``Pinv`` its inverse.
@@ -66,7 +72,8 @@ class NodeModel {
 
  private:
   void set_sample(const double* u, double dt, const double* z, const double* mask);
-  const ModelFunction& node_;
+  const ModelFunction& transition_;
+  const ModelFunction& measurement_;
   const ModelFunction& output_;
   const ModelFunction& jacobian_;
   int nx_, nu_, nz_, ny_;

@@ -156,8 +156,7 @@ void MovingHorizon::warm_start() {
   const double* prev = has_X_last ? X_last.data() : X.data();
   std::copy(prev + nx, prev + n * nx, X0.begin());
   const double step = k > 1 ? tw[n - 1] - tw[n - 2] : 0.0;
-  node.evaluate(prev + (n - 1) * nx, nu ? uw.data() + (n - 2) * nu : nullptr, step, nullptr,
-                nullptr);
+  node.predict(prev + (n - 1) * nx, nu ? uw.data() + (n - 2) * nu : nullptr, step);
   std::copy(node.node_out(), node.node_out() + nx, X0.begin() + (n - 1) * nx);
   project(1, nx, X0.data() + (n - 1) * nx, solver.feasible());
 }

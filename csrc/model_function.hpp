@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "forward_plan.hpp"
 #include "tape.hpp"
@@ -41,6 +42,24 @@ class TapeFunction : public ModelFunction {
 
  private:
   Tape tape_;
+};
+
+// ``inner`` with its last evaluation remembered, per thread: an evaluation at the same
+// inputs, bit for bit (a null input pointer is an input of its own), copies the outputs
+// kept instead of evaluating again. An EKF's update and the consistency check's
+// prediction evaluate the measurement terms at the same state. ``input_sizes``: the
+// number of values of each input; ``inner`` must outlive this object.
+class RememberedFunction : public ModelFunction {
+ public:
+  RememberedFunction(const ModelFunction& inner, std::vector<int64_t> input_sizes);
+  int evaluate(const double* const* in, double* out) const override;
+  int64_t output_size() const override { return inner_.output_size(); }
+
+ private:
+  const ModelFunction& inner_;
+  std::vector<int64_t> input_sizes_;
+  int64_t inputs_ = 0;  // the values of all inputs together
+  uint64_t id_;         // unique among these objects, also after one is freed
 };
 
 // One node's measurement terms ``(x, z, m) -> (r, jr, sr)`` (layout of

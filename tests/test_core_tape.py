@@ -181,3 +181,37 @@ def test_a_repeated_expression_is_evaluated_once() -> None:
     assert len(shared) < len(code) and work <= fn.sz_w()
     args = [np.array([0.7, -1.3])]
     np.testing.assert_array_equal(core_flat(tape_function(fn), args), casadi_flat(fn, args))
+
+
+def test_a_remembered_function_answers_only_for_its_own_inputs() -> None:
+    """A remembered evaluation is reused only for the same function at the same inputs,
+    bit for bit: another input one ulp away, another function at the same inputs, and a
+    new function made after the first was freed (perhaps at its address) each get their
+    own values, CasADi's."""
+    import gc
+
+    x, y = ca.SX.sym("x", 2), ca.SX.sym("y")
+    first = ca.Function("first", [x, y], [ca.sin(x[0]) * y + x[1]])
+    second = ca.Function("second", [x, y], [ca.cos(x[0]) + y * x[1]])
+
+    def remembered(fn: ca.Function) -> _core.RememberedFunction:
+        return _core.RememberedFunction(tape_function(fn), [2, 1])
+
+    a = [np.array([0.3, -1.2]), np.array([2.5])]
+    b = [np.array([np.nextafter(0.3, 1.0), -1.2]), np.array([2.5])]
+    one, two = remembered(first), remembered(second)
+    for fn, core, args in [
+        (first, one, a),
+        (first, one, a),  # the remembered values
+        (second, two, a),  # another function at the same inputs
+        (first, one, a),
+        (first, one, b),  # one ulp away
+        (first, one, a),
+    ]:
+        np.testing.assert_array_equal(core_flat(core, args), casadi_flat(fn, args))
+    assert casadi_flat(first, a)[0] != casadi_flat(first, b)[0]
+    core_flat(one, a)
+    del one
+    gc.collect()
+    three = remembered(second)
+    np.testing.assert_array_equal(core_flat(three, a), casadi_flat(second, a))

@@ -67,6 +67,13 @@ class ResidualNodeFunction(ModelFunction):
 
     def __init__(self, transition: TapeFunction, residual: TapeFunction, with_transition: bool) -> None: ...
 
+class RememberedFunction(ModelFunction):
+    """
+    A model function with its last evaluation remembered, per thread: an evaluation at the same inputs, bit for bit, copies the outputs kept. ``input_sizes``: the number of values of each input.
+    """
+
+    def __init__(self, function: ModelFunction, input_sizes: Sequence[int]) -> None: ...
+
 class ForwardJacobianFunction(ModelFunction):
     """
     ``x -> dy/dx`` (ny, nx), column-major, of a tape ``x -> y``, by forward-mode derivatives (csrc/forward.hpp).
@@ -251,7 +258,7 @@ class NodeModel:
     One node of a model: its EKF step, the arrival prior's step, and the outputs with their standard deviations. Matrices row-major.
     """
 
-    def __init__(self, node: ModelFunction, output: ModelFunction, output_jacobian: ModelFunction, nx: int, nu: int, nz: int, ny: int, wrapped: Sequence[int]) -> None: ...
+    def __init__(self, transition: ModelFunction, measurement: ModelFunction, output: ModelFunction, output_jacobian: ModelFunction, nx: int, nu: int, nz: int, ny: int, wrapped: Sequence[int]) -> None: ...
 
     def evaluate(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
         """

@@ -113,10 +113,13 @@ from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
-from continuum_mhe.estimators.fast.codegen import node_function
+from continuum_mhe.estimators.fast.codegen import (
+    measurement_model,
+    transition_model,
+)
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.tape import residual_node_tapes, tape_function
+from continuum_mhe.model.tape import tape_function
 
 FloatArray = NDArray[np.float64]
 
@@ -283,24 +286,12 @@ def model_tapes(
     Jacobian). The same expressions, so the same values as the node function's (with
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, ``H``
     by forward mode from the residual's instructions, as the EKF's node takes it)."""
-    node = node_function(formulation, jacobian=not formulation.forward_mode_jacobian)
-    inputs = node.sx_in()
-    f, F, H, r = node.call(inputs)
-
-    def tape(name: str, outputs: list[ca.SX]) -> _core.TapeFunction:
-        return tape_function(ca.Function(name, inputs, outputs))
-
-    if formulation.forward_mode_jacobian:
-        measurement: _core.ModelFunction = _core.ResidualNodeFunction(
-            *residual_node_tapes(formulation), with_transition=False
-        )
-    else:
-        measurement = tape("consistency_measurement", [H, r])
-    return (
-        tape("consistency_transition", [f, F]),
-        measurement,
-        tape("consistency_residual", [r]),
-    )
+    f, nx = formulation, formulation.nx
+    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+    r = ca.densify(mk * f.measurement_residual_sym(z, x))
+    residual = tape_function(ca.Function("consistency_residual", [x, u, dt, z, mk], [r]))
+    return transition_model(formulation), measurement_model(formulation), residual
 
 
 def _limits(limit: Callable[[int], float], n: int) -> list[float]:

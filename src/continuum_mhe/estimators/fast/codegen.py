@@ -118,7 +118,7 @@ def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Functio
     """``(x, u, dt, z, m) -> (f, F, H, r)``: transition, its Jacobian, the measurement
     Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``, with
     the masked components (``m = 0``) zero. ``jacobian`` False: ``H`` zero (the core
-    takes it by forward mode: :func:`node_model`)."""
+    takes it by forward mode: :func:`measurement_model`)."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
@@ -129,16 +129,42 @@ def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Functio
 
 
 @lru_cache(maxsize=32)
-def node_model(formulation: Formulation) -> _core.ModelFunction:
-    """:func:`node_function` of ``formulation`` as the core evaluates it, built once per
-    formulation and shared by the EKF's node and the consistency check
-    (:mod:`continuum_mhe.estimators.consistency`): its instructions, or, with
+def transition_model(formulation: Formulation) -> _core.TapeFunction:
+    """The transition ``(f, F)`` of :func:`node_function` alone, a function of its inputs
+    ``(x, u, dt, z, m)`` as the core evaluates it (a prediction evaluates no measurement
+    terms); the same expressions, so the same values as the node function's."""
+    f, nx = formulation, formulation.nx
+    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+    xf = f.transition_sym(x, u, dt)
+    F = ca.vec(ca.jacobian(xf, x).T)
+    return tape_function(
+        ca.Function("mhe_transition_node", [x, u, dt, z, mk], [ca.densify(xf), ca.densify(F)])
+    )
+
+
+@lru_cache(maxsize=32)
+def measurement_model(formulation: Formulation) -> _core.RememberedFunction:
+    """The measurement terms ``(H, r)`` of :func:`node_function` alone, a function of its
+    inputs ``(x, u, dt, z, m)`` as the core evaluates it, shared by the EKF's node and
+    the consistency check (:mod:`continuum_mhe.estimators.consistency`), built once per
+    formulation: their instructions, or, with
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
-    transition's and the residual's instructions with the measurement Jacobian by
-    forward mode (``csrc/forward.hpp``)."""
-    if formulation.forward_mode_jacobian:
-        return _core.ResidualNodeFunction(*residual_node_tapes(formulation), with_transition=True)
-    return tape_function(node_function(formulation))
+    residual's instructions with ``H`` by forward mode (``csrc/forward.hpp``). Its last
+    evaluation is remembered (per thread): the EKF's update and the check's prediction
+    evaluate it at the same state, once."""
+    f, nx = formulation, formulation.nx
+    if f.forward_mode_jacobian:
+        inner: _core.ModelFunction = _core.ResidualNodeFunction(
+            *residual_node_tapes(f), with_transition=False
+        )
+    else:
+        x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
+        z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+        r = mk * f.measurement_residual_sym(z, x)
+        outs = [ca.densify(ca.vec(-ca.jacobian(r, x).T)), ca.densify(r)]
+        inner = tape_function(ca.Function("mhe_measurement_node", [x, u, dt, z, mk], outs))
+    return _core.RememberedFunction(inner, [nx, f.nu, 1, f.nz, f.nz])
 
 
 def output_function(formulation: Formulation) -> ca.Function:

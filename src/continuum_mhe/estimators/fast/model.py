@@ -22,10 +22,11 @@ from numpy.typing import NDArray
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.codegen import (
     c_function,
-    node_model,
+    measurement_model,
     output_function,
     output_jacobian_function,
     transition_is_linear,
+    transition_model,
     window_c_functions,
 )
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
@@ -122,7 +123,9 @@ class WindowModel:
         rinv: (nz, nz) inverse measurement covariance (rad^-2 for tilt).
         window: C function of :func:`~continuum_mhe.estimators.fast.codegen.window_function`.
         tail: C function of :func:`~continuum_mhe.estimators.fast.codegen.tail_function`.
-        node: C function of :func:`~continuum_mhe.estimators.fast.codegen.node_function`.
+        transition, measurement: C functions of the two halves of
+            :func:`~continuum_mhe.estimators.fast.codegen.node_function` (its transition
+            and its measurement terms: ``transition_model``, ``measurement_model``).
         output: C function of the formulation's ``output_sym``.
         output_jacobian: C function of its Jacobian (ny, nx), column-major.
         ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
@@ -138,7 +141,8 @@ class WindowModel:
     feasible: Feasible
     rinv: FloatArray
     window: Any  # ctypes function pointer (CFunction)
-    node: Any
+    transition: Any  # the node function's (f, F)
+    measurement: Any  # the node function's (H, r)
     output: Any  # formulation.output_sym: state -> the formulation's outputs
     output_jacobian: Any = None  # state -> d outputs / d state (ny, nx), column-major
     ny: int = 5
@@ -171,7 +175,8 @@ class NodeFunctions(NamedTuple):
     """One node's functions in the compiled core, without a window (the EKF's):
     the fields of :class:`WindowModel` of the same names."""
 
-    node: Any
+    transition: Any
+    measurement: Any
     output: Any
     output_jacobian: Any
     nx: int
@@ -187,7 +192,8 @@ def node_functions(formulation: Formulation) -> NodeFunctions:
     evaluates them (nothing is compiled), built once per formulation."""
     out = output_function(formulation)
     return NodeFunctions(
-        node=c_function(node_model(formulation)),
+        transition=c_function(transition_model(formulation)),
+        measurement=c_function(measurement_model(formulation)),
         output=c_function(out),
         output_jacobian=c_function(
             _core.ForwardJacobianFunction(tape_function(out))
@@ -209,7 +215,8 @@ class NodeEvaluator:
     def __init__(self, model: WindowModel | NodeFunctions) -> None:
         #: the core's NodeModel
         self.core = self._core = _core.NodeModel(
-            model.node.core, model.output.core, model.output_jacobian.core,
+            model.transition.core, model.measurement.core, model.output.core,
+            model.output_jacobian.core,
             model.nx, model.nu, model.nz, model.ny, list(model.wrapped),
         )  # fmt: skip
         self._zeros, self._ones = np.zeros(model.nz), np.ones(model.nz)
@@ -318,7 +325,8 @@ def build_window_model(
         rinv=rinv,
         window=window,
         tail=tail,
-        node=node.node,
+        transition=node.transition,
+        measurement=node.measurement,
         output=node.output,
         output_jacobian=node.output_jacobian,
         ny=node.ny,
