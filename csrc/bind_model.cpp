@@ -167,7 +167,19 @@ void cmhe::bind_model(nb::module_& m) {
              std::vector<int64_t> input_sizes) {
             new (self) RememberedFunction(inner, std::move(input_sizes));
           },
-          nb::arg("function"), nb::arg("input_sizes"), nb::keep_alive<1, 2>());
+          nb::arg("function"), nb::arg("input_sizes"), nb::keep_alive<1, 2>())
+      .def_prop_ro("hits", &RememberedFunction::hits,
+                   "The evaluations answered from the one kept, on every thread.");
+
+  nb::class_<MaskedResidualFunction, ModelFunction>(
+      m, "MaskedResidualFunction",
+      "``(x, u, dt, z, m) -> m * r(x, z)`` from the residual's tape ``(x, z) -> r``.")
+      .def(
+          "__init__",
+          [](MaskedResidualFunction* self, const TapeFunction& residual) {
+            new (self) MaskedResidualFunction(residual.tape());
+          },
+          nb::arg("residual"));
 
   nb::class_<ForwardJacobianFunction, ModelFunction>(
       m, "ForwardJacobianFunction",

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 
 namespace cmhe {
@@ -120,7 +121,12 @@ NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measu
       jout_(static_cast<size_t>(ny) * nx),
       r_(nz),
       H_(nz * nx),
-      jx_(nx) {}
+      jx_(nx) {
+  if (transition.output_size() != nx + nx * nx)
+    throw std::invalid_argument("the transition must write f and F (nx + nx^2 values)");
+  if (measurement.output_size() != nz * nx + nz)
+    throw std::invalid_argument("the measurement must write H and r (nz nx + nz values)");
+}
 
 void NodeModel::set_sample(const double* u, double dt, const double* z, const double* mask) {
   for (int i = 0; i < nu_; ++i) u_[i] = u[i];

@@ -33,7 +33,7 @@ void check_forward(const Tape& tape);
 // ``(x, u, dt) -> (f, F)`` and the measurement residual's tape ``(x, z) -> r``:
 // ``r_masked = m r`` and ``H = -d r_masked / dx`` (row-major) by forward mode. Without
 // the transition (``with_transition`` false) the outputs are ``(H, r)`` alone (the
-// consistency check's measurement function).
+// measurement function of the EKF's node and of the consistency check).
 class ResidualNodeFunction : public ModelFunction {
  public:
   ResidualNodeFunction(const Tape& transition, const Tape& residual, bool with_transition);

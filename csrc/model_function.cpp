@@ -216,13 +216,11 @@ int RememberedFunction::evaluate(const double* const* in, double* out) const {
   }
   if (same) {
     std::memcpy(out, last.out.data(), nout * sizeof(double));
+    hits_.fetch_add(1, std::memory_order_relaxed);
     return 0;
   }
-  const int status = inner_.evaluate(in, out);
-  if (status != 0) {
-    last.id = 0;
-    return status;
-  }
+  // the inputs are kept before the evaluation (an output may overwrite an input)
+  last.id = 0;
   last.in.resize(inputs_);
   double* kept = last.in.data();
   for (size_t i = 0; i < input_sizes_.size(); ++i) {
@@ -234,8 +232,26 @@ int RememberedFunction::evaluate(const double* const* in, double* out) const {
       std::fill(kept, kept + n, 0.0);
     kept += n;
   }
+  const int status = inner_.evaluate(in, out);
+  if (status != 0) return status;
   last.out.assign(out, out + nout);
   last.id = id_;
+  return 0;
+}
+
+MaskedResidualFunction::MaskedResidualFunction(const Tape& residual) : residual_(residual) {
+  if (residual.input_sizes().size() != 2 || residual.output_sizes().size() != 1 ||
+      residual.output_sizes()[0] != residual.input_sizes()[1])
+    throw std::invalid_argument("the residual must map (x, z) to r, one entry per measurement");
+  nz_ = residual.output_sizes()[0];
+}
+
+int MaskedResidualFunction::evaluate(const double* const* in, double* out) const {
+  const double* args[2] = {in[0], in[3]};
+  double* vals[1] = {out};
+  residual_.evaluate(args, vals);
+  const double* m = in[4];
+  for (int64_t i = 0; i < nz_; ++i) out[i] *= m ? m[i] : 0.0;
   return 0;
 }
 

@@ -4,6 +4,7 @@
 // (WindowFunction, TailFunction; layouts in continuum_mhe.estimators.fast.codegen).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -54,12 +55,28 @@ class RememberedFunction : public ModelFunction {
   RememberedFunction(const ModelFunction& inner, std::vector<int64_t> input_sizes);
   int evaluate(const double* const* in, double* out) const override;
   int64_t output_size() const override { return inner_.output_size(); }
+  // the evaluations answered from the one kept, on every thread
+  int64_t hits() const { return hits_.load(std::memory_order_relaxed); }
 
  private:
   const ModelFunction& inner_;
   std::vector<int64_t> input_sizes_;
+  mutable std::atomic<int64_t> hits_{0};
   int64_t inputs_ = 0;  // the values of all inputs together
   uint64_t id_;         // unique among these objects, also after one is freed
+};
+
+// ``(x, u, dt, z, m) -> m * r(x, z)`` (the masked residual, a function of a node's
+// inputs) from the residual's tape ``(x, z) -> r``; a null ``m`` reads as zeros.
+class MaskedResidualFunction : public ModelFunction {
+ public:
+  explicit MaskedResidualFunction(const Tape& residual);
+  int evaluate(const double* const* in, double* out) const override;
+  int64_t output_size() const override { return nz_; }
+
+ private:
+  Tape residual_;
+  int64_t nz_;
 };
 
 // One node's measurement terms ``(x, z, m) -> (r, jr, sr)`` (layout of

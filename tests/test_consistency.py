@@ -547,3 +547,29 @@ def test_the_compiled_check_matches_an_independent_numpy_computation(name) -> No
     x, P, z = _consistent_sample(f, rng, x0)
     z[0] += 30 * np.sqrt(R[0, 0])
     assert check.check(t + dt, z, f.measurement_mask(z), x, P)
+
+
+def test_the_check_takes_the_ekf_updates_evaluation() -> None:
+    """The check's prediction from the last estimate is the state the compiled EKF's
+    update evaluated the measurement terms at: with every reading valid, each sample
+    after the first takes that evaluation (the measurement function's remembered
+    one) instead of evaluating anew; where a reading was dropped the update's mask
+    differs from the check's, and the check evaluates anew."""
+    from continuum_mhe.estimators.fast import node_functions
+
+    robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=5, seed=4)
+    memo = node_functions(f).measurement.core
+    est = make_estimator("ekf", f)
+    before = memo.hits
+    est.run(rec.t, rec.z)
+    n = len(rec.t)
+    every = memo.hits - before
+    assert every >= n - 2
+    z = rec.z.copy()
+    z[1::2, 2:4] = np.nan  # IMU 2 lost at every other sample
+    est.reset()
+    before = memo.hits
+    est.run(rec.t, z)
+    assert memo.hits - before <= every - (n // 2 - 2)

@@ -125,7 +125,17 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     )
     node = codegen.node_function(f)
     nargs = [X[:, 0], U[:, 0], DT[:, 0], Z[:, 0], M[:, 0]]
-    np.testing.assert_array_equal(core_flat(tape_function(node), nargs), casadi_flat(node, nargs))
+    expected_node = casadi_flat(node, nargs)
+    np.testing.assert_array_equal(core_flat(tape_function(node), nargs), expected_node)
+    # the node as the EKF and the consistency check take it: its transition, its
+    # measurement terms, and the masked residual alone
+    from continuum_mhe.estimators.consistency import model_tapes
+
+    halves = [codegen.transition_model(f), codegen.measurement_model(f)]
+    np.testing.assert_array_equal(
+        np.concatenate([core_flat(h, nargs) for h in halves]), expected_node
+    )
+    np.testing.assert_array_equal(core_flat(model_tapes(f)[2], nargs), expected_node[-f.nz :])
 
 
 @pytest.mark.parametrize("scale", [1e-8, 1e-3, 0.5, 3.2, 40.0, 1e4, 1e8])

@@ -74,6 +74,17 @@ class RememberedFunction(ModelFunction):
 
     def __init__(self, function: ModelFunction, input_sizes: Sequence[int]) -> None: ...
 
+    @property
+    def hits(self) -> int:
+        """The evaluations answered from the one kept, on every thread."""
+
+class MaskedResidualFunction(ModelFunction):
+    """
+    ``(x, u, dt, z, m) -> m * r(x, z)`` from the residual's tape ``(x, z) -> r``.
+    """
+
+    def __init__(self, residual: TapeFunction) -> None: ...
+
 class ForwardJacobianFunction(ModelFunction):
     """
     ``x -> dy/dx`` (ny, nx), column-major, of a tape ``x -> y``, by forward-mode derivatives (csrc/forward.hpp).

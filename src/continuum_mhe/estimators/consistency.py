@@ -105,21 +105,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
-from continuum_mhe.estimators.fast.codegen import (
-    measurement_model,
-    transition_model,
-)
+from continuum_mhe.estimators.fast.model import node_functions
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.tape import tape_function
 
 FloatArray = NDArray[np.float64]
 
@@ -274,24 +268,22 @@ class ConsistencyCheck:
         return math.sqrt(scale) if scale > 1.0 else 1.0
 
 
-@lru_cache(maxsize=32)
 def model_tapes(
     formulation: Formulation,
-) -> tuple[_core.TapeFunction, _core.ModelFunction, _core.TapeFunction]:
+) -> tuple[_core.ModelFunction, _core.ModelFunction, _core.ModelFunction]:
     """The node function's outputs (:func:`~continuum_mhe.estimators.fast.codegen.
     node_function`: ``(x, u, dt, z, m) -> (f, F, H, r)``) as three functions of its
     inputs, each the core evaluates only where the check needs it: the transition
     ``(f, F)`` (the prediction), the measurement ``(H, r)`` (at the prediction, and
     the constant-error covariance) and the residual ``r`` (the fit, without the
-    Jacobian). The same expressions, so the same values as the node function's (with
+    Jacobian: the residual's own instructions, masked). The same expressions, so the
+    same values as the node function's (with
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, ``H``
-    by forward mode from the residual's instructions, as the EKF's node takes it)."""
-    f, nx = formulation, formulation.nx
-    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
-    r = ca.densify(mk * f.measurement_residual_sym(z, x))
-    residual = tape_function(ca.Function("consistency_residual", [x, u, dt, z, mk], [r]))
-    return transition_model(formulation), measurement_model(formulation), residual
+    by forward mode from the residual's instructions, as the EKF's node takes it). The
+    objects are the EKF's node's (:func:`~continuum_mhe.estimators.fast.model.
+    node_functions`): the check's prediction takes the EKF update's evaluation."""
+    node = node_functions(formulation)
+    return node.transition.core, node.measurement.core, node.residual
 
 
 def _limits(limit: Callable[[int], float], n: int) -> list[float]:

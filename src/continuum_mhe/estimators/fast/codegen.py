@@ -13,7 +13,6 @@ Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`
 from __future__ import annotations
 
 import ctypes
-from functools import lru_cache
 from typing import Any
 
 import casadi as ca
@@ -128,11 +127,12 @@ def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Functio
     return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
 
 
-@lru_cache(maxsize=32)
 def transition_model(formulation: Formulation) -> _core.TapeFunction:
     """The transition ``(f, F)`` of :func:`node_function` alone, a function of its inputs
     ``(x, u, dt, z, m)`` as the core evaluates it (a prediction evaluates no measurement
-    terms); the same expressions, so the same values as the node function's."""
+    terms); the same expressions, so the same values as the node function's. Built anew
+    at each call: :func:`~continuum_mhe.estimators.fast.model.node_functions` keeps the
+    formulation's one."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
@@ -143,16 +143,16 @@ def transition_model(formulation: Formulation) -> _core.TapeFunction:
     )
 
 
-@lru_cache(maxsize=32)
 def measurement_model(formulation: Formulation) -> _core.RememberedFunction:
     """The measurement terms ``(H, r)`` of :func:`node_function` alone, a function of its
     inputs ``(x, u, dt, z, m)`` as the core evaluates it, shared by the EKF's node and
-    the consistency check (:mod:`continuum_mhe.estimators.consistency`), built once per
-    formulation: their instructions, or, with
+    the consistency check (:mod:`continuum_mhe.estimators.consistency`) through
+    :func:`~continuum_mhe.estimators.fast.model.node_functions`, which keeps the
+    formulation's one: their instructions, or, with
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
     residual's instructions with ``H`` by forward mode (``csrc/forward.hpp``). Its last
     evaluation is remembered (per thread): the EKF's update and the check's prediction
-    evaluate it at the same state, once."""
+    evaluate it at the same state (where every reading is valid), once."""
     f, nx = formulation, formulation.nx
     if f.forward_mode_jacobian:
         inner: _core.ModelFunction = _core.ResidualNodeFunction(

@@ -31,7 +31,7 @@ from continuum_mhe.estimators.fast.codegen import (
 )
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
-from continuum_mhe.model.tape import tape_function
+from continuum_mhe.model.tape import residual_function, residual_node_tapes, tape_function
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -184,16 +184,27 @@ class NodeFunctions(NamedTuple):
     nz: int
     ny: int
     wrapped: tuple[int, ...]
+    #: the masked residual ``(x, u, dt, z, m) -> m r`` (a core function: the consistency
+    #: check's fit)
+    residual: Any = None
 
 
 @lru_cache(maxsize=32)
 def node_functions(formulation: Formulation) -> NodeFunctions:
-    """The node, output and output-Jacobian functions of ``formulation`` as the core
-    evaluates them (nothing is compiled), built once per formulation."""
+    """The node's functions of ``formulation`` as the core evaluates them (nothing is
+    compiled), built once per formulation: its transition and measurement terms (the
+    EKF's node and the consistency check share these objects, and so the measurement
+    terms' remembered evaluation), the outputs and their Jacobian, the masked residual."""
     out = output_function(formulation)
+    residual_tape = (
+        residual_node_tapes(formulation)[1]
+        if formulation.forward_mode_jacobian
+        else tape_function(residual_function(formulation))
+    )
     return NodeFunctions(
         transition=c_function(transition_model(formulation)),
         measurement=c_function(measurement_model(formulation)),
+        residual=_core.MaskedResidualFunction(residual_tape),
         output=c_function(out),
         output_jacobian=c_function(
             _core.ForwardJacobianFunction(tape_function(out))
