@@ -147,3 +147,18 @@ def test_a_signal_during_start_up_says_one_line(tmp_path, module, sig, said, cod
     )
     assert (r.returncode, r.stderr) == (code, said)
     assert not out.exists()
+
+
+def test_a_reader_that_leaves_stops_the_command_quietly_with_status_1():
+    """``continuum-mhe ... | head`` where the reader has left before the command writes:
+    no traceback and no bug report, exit status 1 (formats.md lists it)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "continuum_mhe", "check-robot", "two-section", "--samples", "50"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader leaves before the command writes a line
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 1
+    assert "Traceback" not in err and "bug" not in err.lower()

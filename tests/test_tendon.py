@@ -607,6 +607,11 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.0, 1.0], [20.0, 1.1], [40.0, 1.2], [60.0, 1.3], [80.0, 1.4], [100.0, 1.5]],
          ["t", "tension_1"], "its t spans 100 s in steps of 20 s, the recording 0.1 s: if t is "
          "in milliseconds, name the column t_ms"),
+        # milliseconds at 2 kHz: rows 0.5 apart, which read in milliseconds cover the
+        # recording
+        ([[0.5 * i, 1.0 + 0.001 * i] for i in range(201)], ["t", "tension_1"],
+         "its t spans 100 s in steps of 0.5 s, the recording 0.1 s: if t is in "
+         "milliseconds, name the column t_ms"),
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
          "line 3: column tension_1 is nan (--skip-bad, skip_bad=True in Python, leaves the "
          "row out and interpolates across it)"),
@@ -618,6 +623,30 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
 ) -> None:  # fmt: skip
     meas, tensions = _recording(tmp_path)
     _write_text_table(tensions, columns, rows)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
+            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "line 1: file is empty, expected a header such as t,tension_1 (or t_ms,...)"),
+        ("0,1.0\n0.1,1.2\n", "line 1: no header line; the first line is data. Add a header "
+         "such as t,tension_1 (or t_ms,...)"),
+    ],
+)  # fmt: skip
+def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, message: str
+) -> None:
+    """An empty or header-less tensions file is told the header a tensions file needs
+    (not a measurement file's)."""
+    meas, tensions = _recording(tmp_path)
+    tensions.write_text(text)
     out = tmp_path / "e.csv"
     argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
             str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
@@ -1291,6 +1320,7 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     [
         ("density", "6.45", "density 6.45 kg/m\\^3 is below 100 kg/m\\^3"),
         ("shear_modulus", "5e4", "shear_modulus 50000.0 Pa is below 1e5 Pa"),
+        ("shear_modulus", "20.77", r"shear_modulus 20.77 Pa .*\(GPa\? 20.77 GPa is 20.77e9\)"),
     ],
 )
 def test_backbone_values_in_other_units_are_refused(tmp_path: Path, key, value, match) -> None:

@@ -83,16 +83,19 @@ class Tensions:
     accelerations: FloatArray
 
     def check_span(self, first: float, last: float) -> None:
-        """An :class:`InputError` where the file's rows step by a second or more and span
-        over a hundred times the recording's times ``first`` to ``last`` (s): ``t`` in
-        milliseconds read as seconds, which the coverage check does not see (the
-        recording lies within the file's first rows). A file at a slow rate that spans
-        the recording passes."""
+        """An :class:`InputError` where the file spans over a hundred times the
+        recording's times ``first`` to ``last`` (s) and either its rows step by a second
+        or more or, read in milliseconds, it would cover the recording (a log faster
+        than 1 kHz): ``t`` in milliseconds read as seconds, which the coverage check does
+        not see (the recording lies within the file's first rows). A file at a slow rate
+        that spans the recording passes."""
         if len(self.t) < 2 or not last > first:
             return
         step = float(np.median(np.diff(self.t)))
         span = float(self.t[-1] - self.t[0])
-        if step >= 1.0 and span > 100.0 * (last - first):
+        # within a millisecond of each end, read in milliseconds (seconds)
+        as_ms_covers = self.t[0] / 1e3 <= first + 1e-3 and self.t[-1] / 1e3 >= last - 1e-3
+        if span > 100.0 * (last - first) and (step >= 1.0 or as_ms_covers):
             raise InputError(
                 f"{self.name}: its t spans {span:g} s in steps of {step:g} s, the recording "
                 f"{last - first:g} s: if t is in milliseconds, name the column t_ms (it is "
@@ -313,7 +316,7 @@ def read_tensions(
     :class:`~continuum_mhe.io.csv_files.UnitWarning`); a caller that checks it against
     the recording (:meth:`Tensions.check_span`) leaves it off."""
     names = list(tension_columns(n_tendons))
-    with open_rows(path) as rows:
+    with open_rows(path, f"t,{','.join(names)} (or t_ms,...)") as rows:
         name = rows.name
         header = list(rows.header)
         while header and header[-1] == "":  # a separator at the end of the line: no column

@@ -224,10 +224,15 @@ def _check_names(name: str, line: int, header: list[str]) -> None:
         seen.add(h)
 
 
-def open_rows(path: str | os.PathLike[str]) -> TextRows:
+#: the header a measurement file starts with, as the errors suggest it
+MEASUREMENT_HEADER_HINT = "t,roll,pitch (or t_ms,ax,ay,az,gx,gy,gz)"
+
+
+def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADER_HINT) -> TextRows:
     """Open a text table once and read up to its header (see the module doc).
 
-    Raises :class:`InputError` for a missing, empty, binary or header-less input.
+    Raises :class:`InputError` for a missing, empty, binary or header-less input (the
+    message suggests ``header_hint``).
     """
     name, fh = _open(path)
     try:
@@ -243,7 +248,7 @@ def open_rows(path: str | os.PathLike[str]) -> TextRows:
                 break
         if first is None:
             what = "only comments" if comments else "file is empty"
-            raise InputError(f"{name}: line 1: {what}, expected a header such as t,roll,pitch")
+            raise InputError(f"{name}: line 1: {what}, expected a header such as {header_hint}")
         n0, text0 = first
         pending: list[tuple[int, str]] = []
         declared = _header_from_comments(comments)
@@ -258,7 +263,7 @@ def open_rows(path: str | os.PathLike[str]) -> TextRows:
         if header and _is_number(header[0]) and len(header) > 1:
             raise InputError(
                 f"{name}: line {n0}: no header line; the first line is data. Add a header "
-                "such as t,roll,pitch (or t_ms,ax,ay,az,gx,gy,gz)"
+                f"such as {header_hint}"
             )
         _check_names(name, n0, header)
         scale = 1.0

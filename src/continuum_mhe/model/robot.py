@@ -222,12 +222,14 @@ class Backbone:
         if self.youngs_modulus < 1e5:
             raise UserError(
                 f"backbone youngs_modulus {self.youngs_modulus!r} Pa is below 1e5 Pa: "
-                "moduli are in Pa (GPa? 54 GPa is 54e9)"
+                f"moduli are in Pa (GPa? {self.youngs_modulus:g} GPa is "
+                f"{self.youngs_modulus:g}e9)"
             )
         if self.shear_modulus < 1e5:
             raise UserError(
                 f"backbone shear_modulus {self.shear_modulus!r} Pa is below 1e5 Pa: "
-                "moduli are in Pa (GPa? 20 GPa is 20e9)"
+                f"moduli are in Pa (GPa? {self.shear_modulus:g} GPa is "
+                f"{self.shear_modulus:g}e9)"
             )
         if self.density is not None and self.density < MIN_DENSITY:
             raise UserError(
