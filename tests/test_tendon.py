@@ -623,13 +623,7 @@ def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
 ) -> None:  # fmt: skip
     meas, tensions = _recording(tmp_path)
     _write_text_table(tensions, columns, rows)
-    out = tmp_path / "e.csv"
-    argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
-            str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and message in err[0] and str(tensions) in err[0]
-    assert not out.exists()
+    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
 
 
 @pytest.mark.parametrize(
@@ -647,6 +641,14 @@ def test_a_tensions_file_without_a_header_is_told_the_tensions_header(
     (not a measurement file's)."""
     meas, tensions = _recording(tmp_path)
     tensions.write_text(text)
+    _assert_refused_in_one_line(tmp_path, capsys, meas, tensions, message)
+
+
+def _assert_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], meas: Path, tensions: Path, message: str
+) -> None:
+    """``estimate`` of ``meas`` with ``tensions``: exit 2, one line naming the tensions
+    file with ``message``, nothing written."""
     out = tmp_path / "e.csv"
     argv = ["estimate", str(meas), "--robot", str(_small_robot(tmp_path)), "--inputs",
             str(tensions), "-o", str(out), "--method", "ekf"]  # fmt: skip
