@@ -541,7 +541,8 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``plot`` of a tendon robot's estimate: with ``--robot`` and ``--inputs`` the
-    backbone from the mechanics model; without them the section ends joined, said in a
+    backbone from the mechanics model; without them those its options line names
+    (said in a note), and where those are gone the section ends joined, said in a
     note; ``--inputs`` on an estimate without a tip force: one line, nothing written."""
     meas, tensions = _recording(tmp_path)
     robot = _small_robot(tmp_path)
@@ -554,8 +555,14 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(tensions), "-o", str(fig)]
     assert main(argv) == 0
     assert fig.stat().st_size > 0 and "note" not in capsys.readouterr().err
+    # without --inputs: the tensions the estimate's options line names, said in a note
+    assert main(["plot", str(est), "-o", str(tmp_path / "recorded.png")]) == 0
+    err = capsys.readouterr().err
+    assert f"was estimated with --inputs {tensions}" in err and "section ends" not in err
+    moved = tensions.rename(tmp_path / "moved.csv")  # those tensions are gone
     assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
     assert "drawn through the section ends" in capsys.readouterr().err
+    moved.rename(tensions)
     # --inputs alone: the robot the estimate's options line names draws the backbone
     argv = ["plot", str(est), "--inputs", str(tensions), "-o", str(tmp_path / "rec.png")]
     assert main(argv) == 0

@@ -128,10 +128,11 @@ def _tendon_backbone(
             )
         return None
     name = args.robot
-    if robot is None and args.inputs:  # the robot the estimate's options line names
+    inputs = args.inputs or _recorded_inputs(args.source)
+    if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
         name = recorded_option(args.source, "robot")
-    if robot is None or not args.inputs:
+    if robot is None or not inputs:
         print(
             f"{PROG}: note: the backbone is drawn through the section ends; give "
             "--robot ROBOT.toml --inputs TENSIONS.csv for the mechanics model's curve",
@@ -140,10 +141,26 @@ def _tendon_backbone(
         return None
     if robot.backbone is None or not robot.n_tendons:
         raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
-    tensions = read_tensions(args.inputs, robot.n_tendons, time_warning=False)
+    tensions = read_tensions(inputs, robot.n_tendons, time_warning=False)
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
     return tendon_backbone(robot, tensions)
+
+
+def _recorded_inputs(source: str) -> str | None:
+    """The tensions file the estimate ``source``'s options line names, where it is a
+    file here (said in a note), else None."""
+    from continuum_mhe.cli.config import beside, recorded_option
+
+    name = recorded_option(source, "inputs")
+    if not isinstance(name, str) or not Path(beside(source, name)).is_file():
+        return None
+    print(
+        f"{PROG}: note: {source} was estimated with --inputs {name} (its options line): "
+        "its backbone drawn with those tensions (pass --inputs for others)",
+        file=sys.stderr,
+    )
+    return beside(source, name)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
