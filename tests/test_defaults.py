@@ -258,6 +258,20 @@ def test_raw_imus_use_their_gyros_by_default() -> None:
     assert f.gyro_std == DEFAULT_GYRO_STD <= 0.02
 
 
+def test_the_library_s_raw_formulations_estimate_the_gyro_biases_by_default() -> None:
+    """``make_formulation`` for raw IMUs, ``"direct"`` or ``"tendon"`` with
+    ``imu_model="direct"``, estimates each gyro's bias as the command line does; an
+    explicit False stays."""
+    tendon = read_robot(DATA / "robots/tendon_two_section.toml")
+    assert make_formulation(
+        "direct", read_robot(DATA / "robots/two_section.toml")
+    ).estimate_gyro_bias
+    assert make_formulation("tendon", tendon, imu_model="direct").estimate_gyro_bias
+    assert not make_formulation("tendon", tendon).estimate_gyro_bias  # tilt: no gyros
+    off = make_formulation("tendon", tendon, imu_model="direct", estimate_gyro_bias=False)
+    assert not off.estimate_gyro_bias
+
+
 def test_the_default_raw_estimate_is_the_better_one(tmp_path) -> None:
     """The planar S rod's raw recording (EKF): the default (gyros fused, biases
     estimated) against accelerometer tilt alone, 3.8 against 5.0 mm mean tip error."""

@@ -97,19 +97,16 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     """Mistakes from a library user's trial are one line each: a tendon robot without
     tensions names the robot file and the tendons (not "None"); a tendon formulation
     handed to load_input names the model it calls for (not numpy's 'cannot reshape
-    array'), and a tensions file handed to it names open_input; write_measurements
-    refuses z with more rows than t, writing nothing."""
+    array'); write_measurements refuses z with more rows than t, writing nothing."""
     from continuum_mhe.io.csv_files import write_measurements
 
     robot = read_robot(DATA / "robots/tendon_two_section.toml")
     with pytest.raises(InputError, match="^the robot file: the robot has 6 tendons: .*Python"):
         open_input(tmp_path / "none.csv", InputOptions(), make_formulation("bend", robot))
     raw = DATA / "tendon/unloaded_raw.csv"
+    tensions = InputOptions(tensions=str(DATA / "tendon/unloaded_tensions.csv"))
     with pytest.raises(InputError, match="not 'tendon': the model it calls for"):
-        load_input(raw, InputOptions(), make_formulation("tendon", robot))
-    tensions = DATA / "tendon/unloaded_tensions.csv"  # not silently left out
-    with pytest.raises(InputError, match="load_input reads the measurements alone; open_input"):
-        load_input(raw, InputOptions(tensions=str(tensions)), make_formulation("bend", robot))
+        load_input(raw, tensions, make_formulation("tendon", robot))
     with pytest.raises(ValueError, match="t has 40 samples and z 41 rows"):
         write_measurements(tmp_path / "m.csv", np.arange(40.0), np.zeros((41, 2)))
     assert not (tmp_path / "m.csv").exists()
@@ -135,3 +132,21 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     with pytest.raises(UserError, match="has 13 outputs, but outputs describes 5: pass"):
         EstimateSeries.from_estimates("ekf", steps)
     assert not (tmp_path / "m1.csv").exists() and not (tmp_path / "e.csv").exists()
+
+
+def test_a_series_gives_an_output_s_standard_deviation_by_name() -> None:
+    """``EstimateSeries.std_column`` is the ``output_std`` column of the name
+    ``column`` takes; an unknown name is a KeyError, a series without standard
+    deviations gives NaN."""
+    from continuum_mhe.results import EstimateSeries
+
+    t = np.arange(3.0)
+    output, std = np.arange(15.0).reshape(3, 5), 0.1 * np.arange(15.0).reshape(3, 5)
+    status = np.array(["ok"] * 3)
+    series = EstimateSeries("ekf", t, output, status, np.zeros(3), output_std=std)
+    np.testing.assert_array_equal(series.std_column("z"), std[:, 2])
+    assert series.names[2] == "z"
+    with pytest.raises(KeyError, match="no output column 'fx'"):
+        series.std_column("fx")
+    bare = EstimateSeries("ekf", t, output, status, np.zeros(3))
+    assert np.isnan(bare.std_column("x")).all()

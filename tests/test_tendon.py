@@ -1597,3 +1597,64 @@ def test_a_tip_force_beyond_every_tension_is_said(
             ), said
         else:
             assert said == []
+
+
+def test_a_sample_without_a_tension_is_a_dropout_as_a_whole() -> None:
+    """A missing (NaN) tension or tension rate makes its sample a dropout as a whole:
+    the model of the IMUs' readings needs the tensions, so the IMUs' readings of that
+    sample are not used either (its row says `dropout`), in ``run`` and ``step``
+    alike, and the estimates after it stay those of the recording without the gap."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.results import Measurement
+
+    f, t, z = _raw_unloaded(150)
+    clean = make_estimator("ekf", f).run(t, z)
+    rows = [i for i, name in enumerate(f.measurement_names) if name.startswith("tension_")]
+    holed = z.copy()
+    holed[100, rows[1]] = np.nan
+    est = make_estimator("ekf", f)
+    got = est.run(t, holed)
+    assert got.status[100] == "dropout"
+    assert np.all(np.isfinite(holed[100, : rows[0]]))  # the IMUs' readings were there
+    tip = [[o.name for o in f.outputs].index(c) for c in ("x", "y", "z")]
+    apart = np.linalg.norm(got.output[101:, tip] - clean.output[101:, tip], axis=1)
+    assert apart.max() < 0.002  # m
+    est.reset()
+    stepped = [est.step(Measurement(float(tk), zk)) for tk, zk in zip(t, holed)]
+    assert stepped[100].status == "dropout"
+    np.testing.assert_array_equal(np.array([e.output for e in stepped]), got.output)
+
+
+def test_load_input_reads_a_tendon_robot_with_its_tensions_as_open_input_does() -> None:
+    """``load_input`` reads a tendon robot's recording with its tensions file into the
+    mechanics model's measurements, the same as ``open_input``'s stream, and without
+    tensions refuses it in the command line's words."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.model.registry import make_formulation
+
+    base = make_formulation("bend", read_robot("tendon-two-section"))
+    got = load_input(
+        DATA / "unloaded_raw.csv", InputOptions(tensions=str(DATA / "unloaded_tensions.csv")), base
+    )
+    f, t, z = _raw_unloaded(401)
+    assert got.formulation == f
+    np.testing.assert_array_equal(got.t, t)
+    np.testing.assert_array_equal(got.z, z)
+    with pytest.raises(InputError, match=r"the robot has 6 tendons: give their tensions"):
+        load_input(DATA / "unloaded_raw.csv", InputOptions(), base)
+
+
+def test_measurement_row_refuses_parts_of_the_wrong_size() -> None:
+    """``measurement_row`` names the part that does not fit the robot (seven tensions
+    with five rates made a ``z`` of the right length before)."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.registry import make_formulation
+
+    f = make_formulation("tendon", read_robot("tendon-two-section"), imu_model="direct")
+    imu, k = np.zeros(f.n_imu_measurements), f.robot.n_tendons
+    assert f.measurement_row(imu, np.ones(k), np.zeros(k)).shape == (f.nz,)
+    with pytest.raises(UserError, match=r"tensions must have shape \(6,\).*got \(7,\)"):
+        f.measurement_row(imu, np.ones(k + 1), np.zeros(k - 1))
+    with pytest.raises(UserError, match=r"tensions must have shape \(6,\).*got \(1, 6\)"):
+        f.measurement_row(imu, np.ones((1, k)), np.zeros(k))

@@ -14,6 +14,7 @@ rows, the rows more than 20 mm off that are not ``ok``, the rows more than 50 mm
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -32,7 +33,8 @@ Z95 = 1.959964
 
 def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> dict[str, float]:
     """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method."""
-    robot = read_robot(robot_name)
+    # a tendon robot's recording estimated without its tensions: its PCC sections
+    robot = dataclasses.replace(read_robot(robot_name), backbone=None, tendons=())
     data = load_input(
         folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
     )

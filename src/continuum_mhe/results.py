@@ -293,6 +293,20 @@ class EstimateSeries:
                 return self.output[:, i]
         raise KeyError(f"no output column {name!r}")
 
+    def std_column(self, name: str) -> FloatArray:
+        """One standard deviation of the output column ``name`` (n,), in its unit; NaN
+        where the series has none."""
+        if name not in self.names:
+            raise KeyError(f"no output column {name!r}")
+        if self.output_std is None:
+            return np.full(len(self.t), np.nan)
+        return self.output_std[:, self.names.index(name)]
+
+    @property
+    def names(self) -> list[str]:
+        """The output columns' names, in order."""
+        return [o.name for o in self.outputs]
+
     @property
     def has_estimate(self) -> NDArray[np.bool_]:
         return self.status != "no-estimate"

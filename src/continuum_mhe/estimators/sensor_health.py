@@ -350,6 +350,13 @@ class Estimator(Generic[InferenceT]):
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
         self._tension_rows = tension_rows(formulation)
+        #: the rows of the tensions and their rates (blocks of kind "tension")
+        self._tension_block_rows = [
+            i
+            for b in formulation.measurement_blocks
+            if b.kind == "tension"
+            for i in range(b.start, b.start + b.size)
+        ]
         #: the units of the readings that step and continue_run hand over
         self._units = ReadingUnitsWatch(self._direct_rows)
         self._policy = self._compiled_policy()
@@ -514,6 +521,7 @@ class Estimator(Generic[InferenceT]):
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
         if self._tension_rows:
             self._check_tensions(z[None, :], np.array([t], dtype=float))
+            z = self._without_tensions_a_dropout(z[None, :])[0]
         if not self._units.done:
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
@@ -661,7 +669,20 @@ class Estimator(Generic[InferenceT]):
             )
         if self._tension_rows:
             self._check_tensions(z, t)
+            z = self._without_tensions_a_dropout(z)
         return t, z
+
+    def _without_tensions_a_dropout(self, z: FloatArray) -> FloatArray:
+        """``z`` (n, nz) with every sample that lacks a tension or a tension's rate (NaN)
+        a dropout as a whole (every value NaN): the model of the IMUs' readings needs the
+        tensions (a copy where one is changed)."""
+        rows = self._tension_block_rows
+        missing = np.isnan(z[:, rows]).any(axis=1)
+        if not missing.any():
+            return z
+        z = z.copy()
+        z[missing] = np.nan
+        return z
 
     def continue_run(
         self,

@@ -41,6 +41,8 @@ _EXPORTS: dict[str, str] = {
     "raw_measurements": "continuum_mhe.io.inputs",
     "read_raw_imus": "continuum_mhe.io.raw_imu",
     "read_robot": "continuum_mhe.io.robot_file",
+    "TensionStream": "continuum_mhe.io.tensions",
+    "read_tensions": "continuum_mhe.io.tensions",
     "read_imu_log": "continuum_mhe.io.robot_logs",
     "read_estimates_mcap": "continuum_mhe.io.mcap_estimates",
     "write_estimates_mcap": "continuum_mhe.io.mcap_estimates",
@@ -88,3 +90,4 @@ if TYPE_CHECKING:
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.robot_logs import read_imu_log
+    from continuum_mhe.io.tensions import TensionStream, read_tensions

@@ -363,18 +363,15 @@ def load_input(
     path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
 ) -> EstimateInput:
     """Read any supported input (tilt CSV, raw CSV, bag, MCAP) whole, as measurements
-    (without tendon tensions: :func:`open_input` reads a tendon robot's with its
-    tensions file, ``options.tensions``, which is refused here)."""
+    for ``formulation``'s robot, as :func:`open_input` streams them: a robot with
+    tendons is read with its tensions (``options.tensions``, or the recording's own
+    tension columns; without them an :class:`InputError` says how to give them), and
+    the formulation returned is its mechanics model."""
     _check_arguments(path, options, formulation)
     p = Path(path)
-    if options.tensions is not None:
-        raise InputError(
-            f"{path}: load_input reads the measurements alone; open_input reads them with "
-            f"the tensions file {options.tensions} (a tendon robot's estimator input)"
-        )
-    if is_robot_log(p):
+    if is_robot_log(p) and options.tensions is None and not formulation.robot.n_tendons:
         return _load_log(p, options, formulation)
-    with _open_measurements(path, options, formulation) as stream:
+    with open_input(path, options, formulation) as stream:
         problems = stream.description.problems
         problems.keep = sys.maxsize
         blocks = list(stream.blocks)

@@ -229,7 +229,7 @@ class Tensions:
             of = f" of {source}" if source else ""
             raise InputError(
                 f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
-                f"{time_text(self.t[-1])} s, but a measurement{of} is at t = {time_text(t)} s: "
+                f"{time_text(self.t[-1])} s, but a sample{of} is at t = {time_text(t)} s: "
                 "the tensions must cover the "
                 "recording; nothing written"
             )

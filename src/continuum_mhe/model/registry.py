@@ -36,12 +36,14 @@ def make_formulation(
     """Formulation by name: ``"bend"`` (default), ``"paper"``, ``"direct"`` (raw IMU) or
     ``"tendon"`` (a robot file with a backbone and tendons).
 
-    ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``). ``"direct"``
-    estimates each IMU's gyro bias unless ``estimate_gyro_bias=False`` is given, as the
-    command line and :func:`~continuum_mhe.io.inputs.load_input` do.
+    ``options`` go to the formulation (e.g. ``gyro_std`` for ``direct``). ``"direct"``,
+    and ``"tendon"`` with ``imu_model="direct"``, estimate each IMU's gyro bias unless
+    ``estimate_gyro_bias=False`` is given, as the command line and
+    :func:`~continuum_mhe.io.inputs.load_input` do.
     """
     cls = REGISTRY.get(name)
-    if name == "direct":  # raw IMUs: their gyro biases are states, as the command line has them
+    # raw IMUs: their gyro biases are states, as the command line has them
+    if name == "direct" or (name == "tendon" and options.get("imu_model") == "direct"):
         options.setdefault("estimate_gyro_bias", True)
     if cls is None:
         raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")

@@ -404,11 +404,28 @@ class TendonFormulation(Formulation):
         tension_rates: FloatArray,
         tension_accelerations: FloatArray | None = None,
     ) -> FloatArray:
-        """The measurement vector ``z`` (nz,) from the IMUs' part, the tensions (N),
-        their rates (N/s) and their second derivatives (N/s^2; None: zero)."""
+        """The measurement vector ``z`` (nz,) from the IMUs' part (``n_imu_measurements``
+        values), the tensions (N), their rates (N/s) and their second derivatives (N/s^2;
+        None: zero), one per tendon each. A :class:`UserError` names a part that is not
+        a 1-D array of its size."""
+        k = self.robot.n_tendons
+        acc = np.zeros(k) if tension_accelerations is None else tension_accelerations
+        parts = {
+            "imu": (imu, self.n_imu_measurements),
+            "tensions": (tensions, k),
+            "tension_rates": (tension_rates, k),
+            "tension_accelerations": (acc, k),
+        }
+        for label, (value, size) in parts.items():
+            shape = np.shape(value)
+            if shape != (size,):
+                raise UserError(
+                    f"measurement_row: {label} must have shape ({size},) (the robot has "
+                    f"{k} tendons and {self.robot.n_imus} IMUs), got {shape}"
+                )
         n_eq = self.measurement_blocks[-1].size
-        acc = np.zeros(len(tensions)) if tension_accelerations is None else tension_accelerations
-        return np.concatenate([imu, tensions, tension_rates, acc, np.zeros(n_eq)])
+        values = [np.asarray(v, dtype=float) for v, _ in parts.values()]
+        return np.concatenate([*values, np.zeros(n_eq)])
 
     def measurement_mask(self, z: FloatArray) -> FloatArray:
         """As the base class's; a sample without its tensions is a dropout as a whole
