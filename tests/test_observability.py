@@ -156,7 +156,7 @@ def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
     report = observability_report(shipped, samples=40)
     assert report.tendon_force is not None and report.tendon_samples == 40
     assert report.tendon_force.full_rank_fraction == 1.0
-    assert verdict(report).startswith("observable: with the tensions given")
+    assert verdict(report).startswith("observable: one sample of the IMUs' tilt (with the tensions")
     tip_only = tmp_path / "tip.toml"
     text = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
     body = text.read_text()

@@ -117,7 +117,8 @@ def verdict(r: ObservabilityReport) -> str:
 def _tendon_verdict(t: JacobianSummary) -> str:
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
-            "observable: with the tensions given, one sample of the IMUs' tilt determines "
+            "observable: one sample of the IMUs' tilt (with the tensions, where the robot "
+            "has tendons) determines "
             f"the tip force (all {t.cols} components), and so the shape, at "
             f"{100 * t.full_rank_fraction:.1f} % of the sampled loads with an equilibrium"
         )
