@@ -3,6 +3,7 @@
 #include "btd.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -140,19 +141,19 @@ void NodeModel::set_sample(const double* u, double dt, const double* z, const do
 void NodeModel::evaluate(const double* x, const double* u, double dt, const double* z,
                          const double* mask) {
   set_sample(u, dt, z, mask);
-  for (int i = 0; i < nx_; ++i) x_[i] = x[i];
-  const double* in[5] = {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(),
-                         m_.data()};
-  transition_.evaluate(in, out_.data());
-  measurement_.evaluate(in, out_.data() + nx_ + nx_ * nx_);
+  const auto in = inputs(x);
+  transition_.evaluate(in.data(), out_.data());
+  measurement_.evaluate(in.data(), out_.data() + nx_ + nx_ * nx_);
 }
 
 void NodeModel::predict(const double* x, const double* u, double dt) {
   set_sample(u, dt, nullptr, nullptr);
+  transition_.evaluate(inputs(x).data(), out_.data());
+}
+
+std::array<const double*, 5> NodeModel::inputs(const double* x) {
   for (int i = 0; i < nx_; ++i) x_[i] = x[i];
-  const double* in[5] = {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(),
-                         m_.data()};
-  transition_.evaluate(in, out_.data());
+  return {x_.data(), nu_ ? u_.data() : nullptr, dt_.data(), z_.data(), m_.data()};
 }
 
 namespace {

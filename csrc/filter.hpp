@@ -6,6 +6,7 @@
 // (continuum_mhe.estimators.fast.codegen.node_function).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -72,6 +73,8 @@ class NodeModel {
 
  private:
   void set_sample(const double* u, double dt, const double* z, const double* mask);
+  // x into x_, then the node functions' inputs (x, u, dt, z, mask) of the sample set
+  std::array<const double*, 5> inputs(const double* x);
   const ModelFunction& transition_;
   const ModelFunction& measurement_;
   const ModelFunction& output_;

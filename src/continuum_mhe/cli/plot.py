@@ -153,14 +153,15 @@ def _recorded_inputs(source: str) -> str | None:
     from continuum_mhe.cli.config import beside, recorded_option
 
     name = recorded_option(source, "inputs")
-    if not isinstance(name, str) or not Path(beside(source, name)).is_file():
+    path = beside(source, name) if isinstance(name, str) else None
+    if path is None or not Path(path).is_file():
         return None
     print(
         f"{PROG}: note: {source} was estimated with --inputs {name} (its options line): "
         "its backbone drawn with those tensions (pass --inputs for others)",
         file=sys.stderr,
     )
-    return beside(source, name)
+    return path
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

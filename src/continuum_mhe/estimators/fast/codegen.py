@@ -113,18 +113,24 @@ def tail_function(formulation: Formulation, pieces: NodePieces | None = None) ->
     return ca.Function("mhe_tail", [xp, x, z, mk, u, dt], outs)
 
 
+def _node_inputs(formulation: Formulation) -> list[ca.SX]:
+    """The node functions' inputs ``[x, u, dt, z, m]`` as symbols."""
+    f = formulation
+    return [ca.SX.sym(name, size) for name, size in
+            (("x", f.nx), ("u", f.nu), ("dt", 1), ("z", f.nz), ("m", f.nz))]  # fmt: skip
+
+
 def node_function(formulation: Formulation, jacobian: bool = True) -> ca.Function:
     """``(x, u, dt, z, m) -> (f, F, H, r)``: transition, its Jacobian, the measurement
     Jacobian ``H = -dr(z, x)/dx`` (row-major), as the EKF uses it, and ``r(z, x)``, with
     the masked components (``m = 0``) zero. ``jacobian`` False: ``H`` zero (the core
     takes it by forward mode: :func:`measurement_model`)."""
     f, nx = formulation, formulation.nx
-    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+    x, u, dt, z, mk = inputs = _node_inputs(f)
     xf, r = f.transition_sym(x, u, dt), mk * f.measurement_residual_sym(z, x)
     H = ca.vec(-ca.jacobian(r, x).T) if jacobian else ca.SX.zeros(f.nz * nx)
     outs = [xf, ca.vec(ca.jacobian(xf, x).T), H, r]
-    return ca.Function("mhe_node", [x, u, dt, z, mk], [ca.densify(v) for v in outs])
+    return ca.Function("mhe_node", inputs, [ca.densify(v) for v in outs])
 
 
 def transition_model(formulation: Formulation) -> _core.TapeFunction:
@@ -133,13 +139,11 @@ def transition_model(formulation: Formulation) -> _core.TapeFunction:
     terms); the same expressions, so the same values as the node function's. Built anew
     at each call: :func:`~continuum_mhe.estimators.fast.model.node_functions` keeps the
     formulation's one."""
-    f, nx = formulation, formulation.nx
-    x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-    z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
-    xf = f.transition_sym(x, u, dt)
+    x, u, dt, _, _ = inputs = _node_inputs(formulation)
+    xf = formulation.transition_sym(x, u, dt)
     F = ca.vec(ca.jacobian(xf, x).T)
     return tape_function(
-        ca.Function("mhe_transition_node", [x, u, dt, z, mk], [ca.densify(xf), ca.densify(F)])
+        ca.Function("mhe_transition_node", inputs, [ca.densify(xf), ca.densify(F)])
     )
 
 
@@ -159,11 +163,10 @@ def measurement_model(formulation: Formulation) -> _core.RememberedFunction:
             *residual_node_tapes(f), with_transition=False
         )
     else:
-        x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
-        z, mk = ca.SX.sym("z", f.nz), ca.SX.sym("m", f.nz)
+        x, _, _, z, mk = inputs = _node_inputs(f)
         r = mk * f.measurement_residual_sym(z, x)
         outs = [ca.densify(ca.vec(-ca.jacobian(r, x).T)), ca.densify(r)]
-        inner = tape_function(ca.Function("mhe_measurement_node", [x, u, dt, z, mk], outs))
+        inner = tape_function(ca.Function("mhe_measurement_node", inputs, outs))
     return _core.RememberedFunction(inner, [nx, f.nu, 1, f.nz, f.nz])
 
 

@@ -186,7 +186,7 @@ class NodeFunctions(NamedTuple):
     wrapped: tuple[int, ...]
     #: the masked residual ``(x, u, dt, z, m) -> m r`` (a core function: the consistency
     #: check's fit)
-    residual: Any = None
+    residual: Any
 
 
 @lru_cache(maxsize=32)
