@@ -484,8 +484,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<int> tip_rows, double freeze, int freeze_samples, double gap_reset,
              double bad_start, double reject_reset, double uncertain_fraction, double length,
              bool checks_start, bool shape_observable, std::vector<double> start_limit,
-             int start_samples, double unobserved_after, double degrees_like, nb::object process_noise,
-             nb::object inputs, nb::object observable, const StateChecks* checks) {
+             int start_samples, double unobserved_after, double degrees_like,
+             std::vector<int> whole_rows, nb::object process_noise, nb::object inputs,
+             nb::object observable, const StateChecks* checks) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -493,6 +494,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
                              std::move(start_limit), start_samples, unobserved_after,
                              degrees_like, std::nullopt};
             if (checks) s.checks = *checks;
+            s.whole_rows = std::move(whole_rows);
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -517,11 +519,13 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("freeze_samples"), nb::arg("gap_reset"), nb::arg("bad_start"),
           nb::arg("reject_reset"), nb::arg("uncertain_fraction"), nb::arg("length"),
           nb::arg("checks_start"), nb::arg("shape_observable"), nb::arg("start_limit"),
-          nb::arg("start_samples"), nb::arg("unobserved_after"), nb::arg("degrees_like"), nb::arg("process_noise"),
+          nb::arg("start_samples"), nb::arg("unobserved_after"), nb::arg("degrees_like"),
+          nb::arg("whole_rows"), nb::arg("process_noise"),
           nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
-          "block and of the IMUs'; settings in s and rad, NaN where off; "
+          "block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout "
+          "as a whole; settings in s and rad, NaN where off; "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, "
           "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
           "inference's is_diverged, drifted and at_bound).")

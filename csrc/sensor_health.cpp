@@ -183,6 +183,8 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
 
 void SensorHealth::measurement_mask(const double* z) {
   std::fill(mask_.begin(), mask_.end(), 0.0);
+  for (int i : s_.whole_rows)
+    if (!std::isfinite(z[i])) return;
   for (const auto& [start, size] : s_.blocks) {
     bool finite = true;
     for (int i = start; finite && i < start + size; ++i) finite = std::isfinite(z[i]);

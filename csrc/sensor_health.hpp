@@ -142,6 +142,9 @@ struct PolicySettings {
   // the formulation's checks of a state, when it states them as data (else the
   // inference's is_diverged, drifted and at_bound; with them nothing drifts)
   std::optional<StateChecks> checks;
+  // rows without which a sample is a dropout as a whole (a tendon robot's tensions and
+  // their derivatives: its IMUs' model needs them)
+  std::vector<int> whole_rows;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)

@@ -350,7 +350,8 @@ class Estimator(Generic[InferenceT]):
         self._consistency = ConsistencyCheck(formulation)
         self._direct_rows = direct_blocks(formulation)
         self._tension_rows = tension_rows(formulation)
-        #: the rows of the tensions and their rates (blocks of kind "tension")
+        #: the rows of the tensions and their derivatives (blocks of kind "tension"):
+        #: without one, a sample is a dropout as a whole (the IMUs' model needs them)
         self._tension_block_rows = [
             i
             for b in formulation.measurement_blocks
@@ -419,6 +420,7 @@ class Estimator(Generic[InferenceT]):
             start_samples=start_check.SAMPLES,
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,
+            whole_rows=self._tension_block_rows,
             process_noise=ProcessNoiseCache(f),
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
@@ -521,7 +523,6 @@ class Estimator(Generic[InferenceT]):
         z = np.ascontiguousarray(measurement.z, dtype=np.float64)
         if self._tension_rows:
             self._check_tensions(z[None, :], np.array([t], dtype=float))
-            z = self._without_tensions_a_dropout(z[None, :])[0]
         if not self._units.done:
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
@@ -669,20 +670,7 @@ class Estimator(Generic[InferenceT]):
             )
         if self._tension_rows:
             self._check_tensions(z, t)
-            z = self._without_tensions_a_dropout(z)
         return t, z
-
-    def _without_tensions_a_dropout(self, z: FloatArray) -> FloatArray:
-        """``z`` (n, nz) with every sample that lacks a tension or a tension's rate (NaN)
-        a dropout as a whole (every value NaN): the model of the IMUs' readings needs the
-        tensions (a copy where one is changed)."""
-        rows = self._tension_block_rows
-        missing = np.isnan(z[:, rows]).any(axis=1)
-        if not missing.any():
-            return z
-        z = z.copy()
-        z[missing] = np.nan
-        return z
 
     def continue_run(
         self,
