@@ -24,7 +24,7 @@ from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cell
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import Measurement
+from continuum_mhe.results import Diagnostics, Measurement
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -72,6 +72,27 @@ def test_run_blocks_and_steps_are_one_policy(method: str) -> None:
     np.testing.assert_array_equal(series.output, out)
     np.testing.assert_array_equal(series.output_std, std)
     assert blocks.diagnostics == counts == stepped.diagnostics
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf"])
+def test_reset_zeroes_the_diagnostics_a_caller_holds(method: str) -> None:
+    """``est.diagnostics`` is one object for the estimator's life: ``reset`` zeroes it
+    (and its ``first_freezes``) in place, so a caller that holds it, as ``estimate``
+    does, reads the new recording's counts, not the last one's."""
+    f = make_formulation("bend")
+    t, z = faulty_recording()
+    est = make_estimator(method, f, MHESettings(horizon=10) if method == "mhe" else None, RECOVERY)
+    held = est.diagnostics
+    freezes = held.first_freezes
+    est.run(t, z)
+    assert held.gap_resets == 1 and held.frozen_samples > 0 and freezes
+    est.reset()
+    assert est.diagnostics is held and held == Diagnostics() and held.first_freezes is freezes
+    for ti, zi in zip(t[:150], z[:150]):  # the bad start and the frozen sensor
+        est.step(Measurement(float(ti), zi))
+    assert held is est.diagnostics and held.bad_starts == 1 and held.frozen_samples > 0
+    est.reset(keep_counts=True)  # a restart within a recording keeps the counts
+    assert held is est.diagnostics and held.bad_starts == 1
 
 
 def test_a_refused_sample_stops_the_run_with_the_steps_error() -> None:

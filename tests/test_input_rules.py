@@ -130,6 +130,55 @@ def test_tilt_and_raw_columns_in_one_header_are_refused(
     )
 
 
+@pytest.mark.parametrize(
+    ("header", "rows", "robot", "message"),
+    [
+        ("T,Roll_1,Pitch_1", "0,0.1,0.1", "two-section", "tilt columns for 1 IMU(s) (Roll_1) but"),
+        ("T,Rol_1,Pitch_1,Roll_2,Pitch_2", "0,0,0,0,0", "two-section", "has Rol_1 (a typo?)"),
+        ("T,Roll", "0,0.1", None, "missing column(s) pitch (header has: T, Roll)"),
+        ("T_MS,Roll,Pitch", "0,0.1,0.1\n50,x,0.1", None, "line 3: column Roll: 'x' is not"),
+        ("T,Roll_0,Pitch_0", "0,0.1,0.1", None, "line 1: column Roll_0: IMU columns are"),
+        ("T,Roll,Pitch,roll", "0,0,0,0", None, "columns 'Roll' and 'roll' of the header are one"),
+        ("T,AX,AY,AZ,GX,GY,GZ,Roll", "0,0,0,9.8,0,0,0,0", None, "header has both tilt (Roll)"),
+    ],
+)
+def test_a_header_is_quoted_as_the_file_writes_it(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    header: str,
+    rows: str,
+    robot: str | None,
+    message: str,
+) -> None:
+    """Column names are read in any case; a message quotes the header's names as the
+    file writes them (``Roll_1``, ``T_MS``), not in lower case."""
+    out = tmp_path / "e.csv"
+    path = tmp_path / "m.csv"
+    path.write_text(f"{header}\n{rows}\n")
+    code = main(["estimate", str(path), "-o", str(out), *(["--robot", robot] if robot else [])])
+    line = _one_line_error(capsys, code, out)
+    assert line.startswith(f"continuum-mhe: error: {path}: ") and message in line, line
+
+
+def test_a_tensions_file_given_as_the_readings_is_said_to_belong_to_inputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped tensions file given where the IMU readings go: one line saying it
+    looks like a tensions file, which belongs to --inputs (not that it lacks roll, pitch
+    columns); the library's reader says the same."""
+    tensions = Path(__file__).parents[1] / "src/continuum_mhe/data/tendon/unloaded_tensions.csv"
+    out = tmp_path / "e.csv"
+    code = main(["estimate", str(tensions), "--robot", "tendon-two-section", "-o", str(out)])
+    line = _one_line_error(capsys, code, out)
+    assert line.startswith(
+        f"continuum-mhe: error: {tensions}: line 1: this looks like a tensions file (columns "
+        "tension_1 ... tension_6), not IMU readings: it belongs to --inputs"
+    ), line
+    assert "missing column" not in line
+    with pytest.raises(InputError, match="looks like a tensions file .* belongs to --inputs"):
+        read_measurements(tensions, n_imus=2)
+
+
 @pytest.mark.parametrize("text", ["1_0", "0.1_5", "\uff10.1", "\u0661"])
 def test_python_only_numbers_are_not_numbers(tmp_path: Path, text: str) -> None:
     """What float() reads as numbers and a CSV does not hold (1_0 as 10, fullwidth or
@@ -401,6 +450,24 @@ def test_wrong_argument_types_raise_the_projects_user_error(call: Any, message: 
     with pytest.raises(UserError) as info:
         call()
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_robust_loss_for_a_filter_is_refused_and_the_window_settings_are_the_mhes() -> None:
+    """``mhe`` settings describe the MHE's window: the EKF and the UKF take them without
+    using them (one settings object for a loop over the methods: the same estimates as
+    without), and refuse a robust loss, which they cannot give (a ValueError naming what
+    to pass instead), rather than give an l2 estimate in its place."""
+    f = _bend()
+    rec = simulate("paper3d", duration=1.0, seed=0)
+    for method in ("ekf", "ukf"):
+        for loss in ("huber", "cauchy", "welsch"):
+            with pytest.raises(ValueError, match=rf"loss='{loss}' .*the {method} keeps the l2"):
+                make_estimator(method, f, MHESettings(loss=loss))  # type: ignore[arg-type]
+        shared = make_estimator(method, f, MHESettings(horizon=10)).run(rec.t, rec.z)  # type: ignore[arg-type]
+        alone = make_estimator(method, f).run(rec.t, rec.z)  # type: ignore[arg-type]
+        np.testing.assert_array_equal(shared.output, alone.output)
+    robust = make_estimator("mhe", f, MHESettings(horizon=10, loss="huber"))
+    assert robust.flags_outliers
 
 
 # --- messages that name the right cause ------------------------------------------------------

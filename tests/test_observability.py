@@ -156,7 +156,7 @@ def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
     report = observability_report(shipped, samples=40)
     assert report.tendon_force is not None and report.tendon_samples == 40
     assert report.tendon_force.full_rank_fraction == 1.0
-    assert verdict(report).startswith("observable: one sample of the IMUs' tilt (with the tensions")
+    assert verdict(report).startswith("observable: with the tensions given, one sample of")
     tip_only = tmp_path / "tip.toml"
     text = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
     body = text.read_text()
@@ -187,3 +187,20 @@ def test_check_robot_judges_a_tendon_robot_by_its_mechanics_model(
         [(gravity(force + h * e) - gravity(force - h * e)) / (2 * h) for e in np.eye(3)]
     )
     np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-6 * np.abs(fd).max())
+
+
+def test_check_robot_of_a_rod_without_tendons_speaks_of_no_tensions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A backbone without tendons (a passive rod under its tip force) is given no
+    tensions: neither its report nor its verdict speaks of tensions given."""
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    body = shipped.read_text()
+    rod = tmp_path / "rod.toml"
+    rod.write_text(body[: body.index("[[tendon]]")] + body[body.index("[[imu]]") :])
+    assert main(["check-robot", str(rod), "--samples", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "no tendons: a rod under its tip force" in out
+    said = out[out.index("verdict: ") :]
+    assert said.startswith("verdict: observable: one sample of the IMUs' tilt determines the tip")
+    assert "tension" not in said, said

@@ -1256,16 +1256,29 @@ def test_check_robot_of_a_backbone_too_soft_for_its_weight_says_so(
 ) -> None:
     """A backbone whose weight bends it beyond what the mechanics model solves: the
     loads without an equilibrium are left out of check-robot's report and counted in a
-    warning; where none has one, one line naming the robot file, exit 2 (never an
-    internal error, exit 70)."""
+    warning on stderr, one line naming the robot file as the other warnings do (the
+    report, and --json's JSON, stay on stdout); where none has one, one line naming the
+    robot file, exit 2 (never an internal error, exit 70)."""
+    import json
+
     shipped = (
         Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
     ).read_text()
     soft = tmp_path / "soft.toml"
     soft.write_text(shipped.replace("54e9", "2e9").replace("20.77e9", "0.77e9"))
-    assert main(["check-robot", str(soft)]) == 0
-    out = capsys.readouterr().out
-    assert "loads have no equilibrium the mechanics model finds (left out above)" in out
+    for json_flag in ([], ["--json"]):
+        assert main(["check-robot", str(soft), "--samples", "20", *json_flag]) == 0
+        out, err = capsys.readouterr()
+        assert "equilibrium the mechanics model finds" not in out
+        lines = err.splitlines()
+        assert len(lines) == 1, err
+        assert re.match(
+            rf"continuum-mhe: warning: {re.escape(str(soft))}: \d+ of the 20 loads have no "
+            r"equilibrium the mechanics model finds \(left out of the report\)",
+            lines[0],
+        ), lines[0]
+        if json_flag:
+            assert json.loads(out)["tendon_unsolved"] > 0
     limp = tmp_path / "limp.toml"
     limp.write_text(shipped.replace("54e9", "1e7").replace("20.77e9", "0.385e7"))
     assert main(["check-robot", str(limp), "--samples", "10"]) == 2

@@ -9,7 +9,7 @@ Plots, metrics, writers and the CLI read these and never touch an estimator.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 
 import numpy as np
@@ -219,6 +219,15 @@ class Diagnostics:
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""
         return replace(self, first_freezes=dict(self.first_freezes))
+
+    def clear(self) -> None:
+        """Zero every count in place (``first_freezes`` emptied, the same dict): whoever
+        holds this object, or its ``first_freezes``, sees the counts of a new recording."""
+        zero = Diagnostics()
+        for f in fields(self):
+            if f.name != "first_freezes":
+                setattr(self, f.name, getattr(zero, f.name))
+        self.first_freezes.clear()
 
 
 @dataclass(frozen=True)

@@ -63,8 +63,8 @@ class JacobianSummary:
 class ObservabilityReport:
     """The PCC model's Jacobians (``tilt``, ``tilt_window``, ``gyro_window``) and, for a
     tendon robot, its mechanics model's (``tendon_force``: the IMUs' gravity directions
-    with respect to the tip force, the tensions given, at ``tendon_samples`` random
-    equilibria)."""
+    with respect to the tip force, the tensions of its ``n_tendons`` tendons given, at
+    ``tendon_samples`` random equilibria; a backbone without tendons has none)."""
 
     samples: int
     tilt: JacobianSummary
@@ -76,6 +76,8 @@ class ObservabilityReport:
     tendon_samples: int = 0
     #: the sampled loads whose equilibrium the mechanics model did not find (left out)
     tendon_unsolved: int = 0
+    #: the robot's tendons (0: a backbone without tendons, given no tensions)
+    n_tendons: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return {**asdict(self), "verdict": verdict(self)}
@@ -92,7 +94,7 @@ def verdict(r: ObservabilityReport) -> str:
     ``OBSERVABLE_FRACTION`` of the sampled shapes or more, ``not observable`` when at
     none, else ``observable except near some shapes``."""
     if r.tendon_force is not None:
-        return _tendon_verdict(r.tendon_force)
+        return _tendon_verdict(r.tendon_force, r.n_tendons)
     t = r.tilt
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
@@ -114,11 +116,11 @@ def verdict(r: ObservabilityReport) -> str:
     )
 
 
-def _tendon_verdict(t: JacobianSummary) -> str:
+def _tendon_verdict(t: JacobianSummary, n_tendons: int) -> str:
+    given = "with the tensions given, " if n_tendons else ""
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
-            "observable: one sample of the IMUs' tilt (with the tensions, where the robot "
-            "has tendons) determines "
+            f"observable: {given}one sample of the IMUs' tilt determines "
             f"the tip force (all {t.cols} components), and so the shape, at "
             f"{100 * t.full_rank_fraction:.1f} % of the sampled loads with an equilibrium"
         )
@@ -296,11 +298,26 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
         return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known)
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
-    return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved)
+    return ObservabilityReport(
+        samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved, robot.n_tendons
+    )
+
+
+def unsolved_warning(r: ObservabilityReport) -> str | None:
+    """One line for the sampled loads of a tendon robot's report that have no
+    equilibrium (left out of it), or None when every load has one."""
+    if not r.tendon_unsolved:
+        return None
+    return (
+        f"{r.tendon_unsolved} of the {r.tendon_samples} loads have no equilibrium the "
+        "mechanics model finds (left out of the report): the backbone sags beyond them; "
+        "is it this soft (youngs_modulus), or this heavy (density)?"
+    )
 
 
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
-    """Human-readable report (a tendon robot's: its mechanics model's first)."""
+    """Human-readable report (a tendon robot's: its mechanics model's first). The loads
+    without an equilibrium are counted in it; :func:`unsolved_warning` says so."""
     lines = [f"robot: {robot.describe()}"]
     if r.tendon_force is not None:
         s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
@@ -313,12 +330,6 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             f"{100 * s.full_rank_fraction:.1f} % of those (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
-        if r.tendon_unsolved:
-            lines.append(
-                f"warning: {r.tendon_unsolved} of the {r.tendon_samples} loads have no "
-                "equilibrium the mechanics model finds (left out above): the backbone sags "
-                "beyond them; is it this soft (youngs_modulus), or this heavy (density)?"
-            )
         lines.append(
             "for comparison, the constant-curvature model of the same geometry (not the "
             "model that estimates this robot):"

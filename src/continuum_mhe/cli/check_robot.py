@@ -4,20 +4,29 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from continuum_mhe.cli.options import robot_from_args
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.csv_files import InputError
 
 
 def run(args: argparse.Namespace) -> int:
-    from continuum_mhe.analysis.observability import format_report, observability_report
+    from continuum_mhe.analysis.observability import (
+        format_report,
+        observability_report,
+        unsolved_warning,
+    )
 
     robot = robot_from_args(args)
     try:
         report = observability_report(robot, samples=args.samples, seed=args.seed)
     except UserError as exc:  # the robot's own: its file named
         raise InputError(f"{args.robot}: {exc}") from None
+    unsolved = unsolved_warning(report)
+    if unsolved is not None:  # on stderr, as every warning: stdout holds the report
+        print(f"{PROG}: warning: {args.robot}: {unsolved}", file=sys.stderr)
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     else:

@@ -142,10 +142,13 @@ def run(args: argparse.Namespace) -> int:
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
+        method = method_from_args(args, formulation)
+        # the MHE's window: an options file's MHE options apply where the MHE runs
+        mhe = mhe_settings_from_args(args)
         est = make_estimator(
-            method_from_args(args, formulation),
+            method,
             formulation,
-            mhe_settings_from_args(args),
+            mhe if method == "mhe" else None,
             recovery_settings_from_args(args),
         )
         est.reset()

@@ -60,7 +60,9 @@ def run(args: argparse.Namespace) -> int:
     )
     formulation, robot = line.formulation, line.formulation.robot
     method = method_from_args(args, formulation)  # its refusals before the port opens
-    mhe_settings = mhe_settings_from_args(args)
+    # the MHE's window: an options file's MHE options apply where the MHE runs
+    mhe = mhe_settings_from_args(args)
+    mhe_settings = mhe if method == "mhe" else None
     out_path = check_target(args.output, args.overwrite, "-o") if args.output else None
     rec_path = check_target(args.record, args.overwrite, "--record") if args.record else None
     if out_path and rec_path and os.path.abspath(out_path) == os.path.abspath(rec_path):

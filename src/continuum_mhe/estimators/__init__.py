@@ -45,14 +45,28 @@ def make_estimator(
     mhe: MHESettings | None = None,
     recovery: RecoverySettings | None = None,
 ) -> Estimator:
-    """Estimator by name on ``formulation``; ``mhe`` settings apply to ``"mhe"`` only,
-    ``recovery`` (gap reset, frozen sensors, ``uncertain``) to every method.
+    """Estimator by name on ``formulation``.
+
+    ``recovery`` (gap reset, frozen sensors, ``uncertain``) applies to every method.
+    ``mhe`` describes the MHE's window (its horizon, start, solver and cost) and applies
+    to ``"mhe"``; the EKF and the UKF have no window, and take the same ``mhe`` without
+    using it, so that one settings object serves a loop over :data:`METHODS`. A robust
+    ``loss`` (other than ``"l2"``) with ``"ekf"`` or ``"ukf"`` is a
+    :class:`~continuum_mhe.errors.UserError` (a ``ValueError``): those filters keep the
+    l2 cost, so the estimate asked for is the MHE's (``method="mhe"``), or ``mhe=None``
+    (or ``loss="l2"``) for the filter.
     """
     if method not in METHODS:
         raise UserError(f"method must be one of {METHODS}, got {method!r}")
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     expect_type("mhe", mhe, (MHESettings, type(None)), "MHESettings or None")
     expect_type("recovery", recovery, (RecoverySettings, type(None)), "RecoverySettings or None")
+    if method != "mhe" and mhe is not None and mhe.loss != "l2":
+        raise UserError(
+            f"mhe loss={mhe.loss!r} is the MHE's robust cost; the {method} keeps the l2 "
+            f"cost: method='mhe' for the robust loss, or mhe=None (or loss='l2') for the "
+            f"{method}"
+        )
     return _make(method, formulation, mhe, recovery)
 
 

@@ -329,7 +329,8 @@ class Estimator(Generic[InferenceT]):
         #: whether estimates carry outlier flags (a robust MHE)
         self.flags_outliers: bool = inference.flags_outliers
         self._recovery = RecoverySettings() if recovery is None else recovery
-        #: what the policy did since the last :meth:`reset` (:class:`Diagnostics`)
+        #: what the policy did since the last :meth:`reset` (:class:`Diagnostics`); one
+        #: object for the estimator's life, which :meth:`reset` zeroes in place
         self.diagnostics = Diagnostics()
         self._ran = False  # the last call was run(): a later step needs reset()
         robot = formulation.robot
@@ -437,14 +438,15 @@ class Estimator(Generic[InferenceT]):
         raise TypeError(_NOT_COPIED)
 
     def reset(self, keep_counts: bool = False) -> None:
-        """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` and
-        the inference's own counts; the next ``step`` starts a new recording. (The
+        """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` (in
+        place: a caller that holds it sees the new recording's counts) and the
+        inference's own counts; the next ``step`` starts a new recording. (The
         estimator's own restarts, within a recording, keep the counts; so does a caller
         that restarts it within one, as ``live`` does.) A RuntimeError, changing
         nothing, while another thread steps this estimator."""
         self._policy.check_idle()
         if not keep_counts:
-            self.diagnostics = Diagnostics()
+            self.diagnostics.clear()
             self.inference.clear_counts()
         self._ran = False
         if not keep_counts:  # a new recording: its units are checked anew

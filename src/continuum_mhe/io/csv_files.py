@@ -28,7 +28,7 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,6 +38,7 @@ from continuum_mhe import _core
 from continuum_mhe.errors import UserError, expect_type, is_integer, time_text
 from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.io.text_rows import (
+    MEASUREMENT_HEADER_HINT,
     InputError,
     RowProblems,
     TextRows,
@@ -199,9 +200,27 @@ def tilt_sample_columns(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tu
     """The columns read from a tilt table: ``t`` and the IMUs' roll and pitch. A header
     with a column missing from an IMU's set, or with columns for another number of IMUs
     (an error ending in ``fix``, ``{found}`` replaced by the file's IMU count), is a
-    one-line error (:func:`imu_suffixes`)."""
+    one-line error (:func:`imu_suffixes`); so is a tensions file's header (``t,tension_1,
+    ...`` without a tilt column: :func:`refuse_tensions_file`)."""
+    refuse_tensions_file(rows)
     suffixes = imu_suffixes(rows, n_imus, TILT_IMU_COLUMNS, fix)
     return ("t", *(c + s for s in suffixes for c in TILT_IMU_COLUMNS.fields))
+
+
+def refuse_tensions_file(rows: TextRows) -> None:
+    """A one-line error for a tensions file (``t,tension_1,...``: tension columns and no
+    roll or pitch column) given where the IMU readings go: it belongs to ``--inputs``."""
+    tensions = [h for h in rows.header if h.startswith("tension_")]
+    if not tensions or any(h.split("_")[0] in ("roll", "pitch") for h in rows.header):
+        return
+    span = rows.as_written(tensions[0])
+    if len(tensions) > 1:
+        span += f" ... {rows.as_written(tensions[-1])}"
+    raise InputError(
+        f"{rows.name}: line 1: this looks like a tensions file (columns {span}), not IMU "
+        "readings: it belongs to --inputs (InputOptions(tensions=...) in Python); the "
+        f"measurement file holds the IMU readings, e.g. {MEASUREMENT_HEADER_HINT}"
+    )
 
 
 def tilt_values(
@@ -337,15 +356,17 @@ def numbered_imus(rows: TextRows, fields: Sequence[str]) -> int:
     if zero:
         first = "_1, ".join(fields[:2]) + "_1"
         raise InputError(
-            f"{rows.name}: line 1: column {zero[0]}: IMU columns are numbered from 1 "
-            f"({first} ... for the robot file's first IMU); renumber the file's columns"
+            f"{rows.name}: line 1: column {rows.as_written(zero[0])}: IMU columns are numbered "
+            f"from 1 ({first} ... for the robot file's first IMU); renumber the file's columns"
         )
     return max(numbers.values(), default=0)
 
 
-def numbered_span(first: str, found: int) -> str:
-    """``roll_1 ... roll_3`` (``roll_1`` for one IMU)."""
-    return f"{first}_1" + (f" ... {first}_{found}" if found > 1 else "")
+def numbered_span(first: str, found: int, shown: Callable[[str], str] = str) -> str:
+    """``roll_1 ... roll_3`` (``roll_1`` for one IMU), each name as ``shown`` gives it
+    (:meth:`~continuum_mhe.io.text_rows.TextRows.as_written`: as the file writes it)."""
+    span = shown(f"{first}_1")
+    return span + (f" ... {shown(f'{first}_{found}')}" if found > 1 else "")
 
 
 def imu_count_error(
@@ -451,7 +472,7 @@ class ImuColumns:
             said.append(f"{who} has no {cols}" if not said else f"{who} no {cols}")
         if typos:
             guess = "a typo" if len(typos) == 1 else "typos"
-            what = f"the header has {', '.join(typos)} ({guess}?)"
+            what = f"the header has {', '.join(map(rows.as_written, typos))} ({guess}?)"
             return InputError(f"{rows.name}: line 1: {', '.join(said)}; {what}")
         k = "" if "" in missing else "_k"  # "": the one IMU of an unnumbered file
         holds = str(self.holds).format(k=k)
@@ -492,7 +513,9 @@ def imu_suffixes(
         own = columns.missing(header, suffixes(found))  # the file's sets, for its count
         if not own[0]:
             shown = (
-                ", ".join(columns.fields) if unnumbered else numbered_span(columns.fields[0], found)
+                ", ".join(map(rows.as_written, columns.fields))
+                if unnumbered
+                else numbered_span(columns.fields[0], found, rows.as_written)
             )
             raise imu_count_error(rows.name, columns.kind, shown, found, n_imus, fix)
         if not missing:  # whole sets for the robot, broken ones beyond its IMUs
@@ -503,7 +526,7 @@ def imu_suffixes(
         and whole != list(range(1, n_imus + 1))
     )  # fmt: skip
     if by_section:
-        shown = ", ".join(f"{columns.fields[0]}_{k}" for k in whole)
+        shown = ", ".join(rows.as_written(f"{columns.fields[0]}_{k}") for k in whole)
         first = columns.fields[0]
         want = f"1 to {n_imus}" if n_imus > 1 else f"1 ({first}_1..., or {first}... unnumbered)"
         raise InputError(
@@ -689,9 +712,11 @@ def read_state_table(
         if st not in STATUS_MEANINGS:
             known = ", ".join(STATUS_MEANINGS)
             raise InputError(f"{p}: line {line}: status {st!r} is not one of {known}")
-        tv = parse_float(p, line, "t", row[t_idx]) * table.time_scale
+        tv = parse_float(p, line, table.as_written("t"), row[t_idx]) * table.time_scale
         vals = [
-            math.nan if (row[j] == "" and st == "no-estimate") else parse_float(p, line, c, row[j])
+            math.nan
+            if (row[j] == "" and st == "no-estimate")
+            else parse_float(p, line, table.as_written(c), row[j])
             for c, j in zip(names, idx)
         ]
         if st != "no-estimate" and not all(map(math.isfinite, [tv, *vals])):

@@ -35,6 +35,7 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
         return read_estimate_table_mcap(path)
     with open_rows(path) as rows:  # the header first: a measurement file's rows may
         header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
+        written = [rows.as_written(h) for h in header]
     # a recording with its truth beside the measurements (x_true...) is read as that truth
     header = truth_named(header, TIP_COLUMNS)
     tilt = [tilt_columns(n)[0] for n in (1, 2)]  # roll, roll_1
@@ -42,7 +43,7 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
         is_raw_header(header) or any(c in header for c in tilt)
     ):
         raise InputError(
-            f"{path}: a measurement file (columns {', '.join(header)}), not an estimate: "
+            f"{path}: a measurement file (columns {', '.join(written)}), not an estimate: "
             f"run continuum-mhe estimate {path} -o EST.csv first, then continuum-mhe {then}"
         )
     return read_state_table(path, required)

@@ -275,7 +275,8 @@ def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
         return "raw" if accel and not tilt else "tilt"
     if tilt:
         raise InputError(
-            f"{rows.name}: line 1: the header has both tilt ({', '.join(tilt[:2])}) and raw "
+            f"{rows.name}: line 1: the header has both tilt "
+            f"({', '.join(map(rows.as_written, tilt[:2]))}) and raw "
             "IMU columns (ax, ay, az); give one kind: remove the tilt or the raw columns"
         )
     return "raw"

@@ -321,13 +321,14 @@ def read_tensions(
         header = list(rows.header)
         while header and header[-1] == "":  # a separator at the end of the line: no column
             header.pop()
+        written = rows.written[: len(header)]
         found = [c for c in header if c != "t"]
         if other_columns:
             found = [c for c in found if c.startswith("tension_")]
         if "t" not in header or found != names:
             raise InputError(
                 f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
-                f"the robot file, in its order), got {','.join(header)}"
+                f"the robot file, in its order), got {','.join(written)}"
             )
         problems = RowProblems()
         hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"

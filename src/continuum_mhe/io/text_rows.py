@@ -89,6 +89,8 @@ class TextRows:
         separator: the field separator found in the header.
         time_scale: seconds per unit of the ``t`` column (1e-3 for ``t_ms``).
         comments: the ``#`` lines before the first data row, without the ``#``.
+        written: the column names as the file writes them (their case, ``t_ms``), one
+            for each of ``header``; messages quote these (:meth:`as_written`).
     """
 
     name: str
@@ -100,6 +102,14 @@ class TextRows:
     _stream: IO[bytes] | None = None
     _pending: list[tuple[int, str]] = field(default_factory=list)  # data lines read already
     _next_line: int = 0  # the number of the first line not read yet
+    written: list[str] = field(default_factory=list)
+
+    def as_written(self, column: str) -> str:
+        """The header's ``column`` (a name of :attr:`header`) as the file writes it, for
+        messages; ``column`` itself where the header has no such column."""
+        if column in self.header and len(self.written) == len(self.header):
+            return self.written[self.header.index(column)]
+        return column
 
     def close(self) -> None:
         if self._stream is not None:
@@ -212,16 +222,23 @@ def _header_from_comments(comments: list[str]) -> str | None:
     return None
 
 
-def _check_names(name: str, line: int, header: list[str]) -> None:
-    """One line for a header that names a column twice (which holds the data?)."""
-    seen: set[str] = set()
-    for h in header:
+def _check_names(name: str, line: int, header: list[str], written: list[str]) -> None:
+    """One line for a header that names a column twice (which holds the data?), in any
+    case (``Roll`` and ``roll``), quoting the file's own names."""
+    seen: dict[str, str] = {}
+    for h, w in zip(header, written):
         if h and h in seen:
-            raise InputError(
-                f"{name}: line {line}: column {shorten(h)!r} appears twice in the header "
-                "(which one holds the data?); rename or remove one"
+            first = seen[h]
+            what = (
+                f"column {shorten(w)!r} appears twice in the header"
+                if first == w
+                else f"columns {shorten(first)!r} and {shorten(w)!r} of the header are one "
+                "column, its case not read"
             )
-        seen.add(h)
+            raise InputError(
+                f"{name}: line {line}: {what} (which one holds the data?); rename or remove one"
+            )
+        seen[h] = w
 
 
 #: the header a measurement file starts with, as the errors suggest it
@@ -259,13 +276,14 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
             pending.append(first)
         else:
             header_text = text0
-        header = [h.lower() for h in split_fields(header_text, _separator(header_text))]
+        written = split_fields(header_text, _separator(header_text))
+        header = [h.lower() for h in written]
         if header and _is_number(header[0]) and len(header) > 1:
             raise InputError(
                 f"{name}: line {n0}: no header line; the first line is data. Add a header "
                 f"such as {header_hint}"
             )
-        _check_names(name, n0, header)
+        _check_names(name, n0, header, written)
         scale = 1.0
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
@@ -274,7 +292,7 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
     except BaseException:
         fh.close()
         raise
-    return TextRows(name, header, rows, sep, scale, comments, fh, pending, n0 + 1)
+    return TextRows(name, header, rows, sep, scale, comments, fh, pending, n0 + 1, written)
 
 
 def _data_rows(
@@ -294,7 +312,7 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
     what the header has (and the separator, when it is likely the problem)."""
     missing = [c for c in required if c not in rows.header]
     if missing:
-        has = shorten(", ".join(rows.header), 200) or "nothing"
+        has = shorten(", ".join(rows.written or rows.header), 200) or "nothing"
         hint = ""
         if len(rows.header) == 1:
             hint = (
@@ -515,6 +533,8 @@ class _SampleChecks:
         self.skip_hint = skip_hint  # what --skip-bad does with a non-finite value
         self.columns = columns
         self.idx = column_indices(rows, columns)
+        #: the columns as the file writes them, for messages
+        self.shown = [rows.as_written(c) for c in columns]
         self.skip_bad = skip_bad
         self.empty_is_dropout = empty_is_dropout
         self.problems = problems if problems is not None else RowProblems()
@@ -537,7 +557,7 @@ class _SampleChecks:
         self, rows: Iterator[tuple[int, list[str]]]
     ) -> Iterator[tuple[int, float, list[float]]]:
         """The checked samples of ``(line, fields)`` rows, one at a time."""
-        columns, idx, bad = self.columns, self.idx, self.bad
+        columns, idx, bad, shown = self.columns, self.idx, self.bad, self.shown
         name, scale, width = self.table.name, self.table.time_scale, len(self.table.header)
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
@@ -552,12 +572,12 @@ class _SampleChecks:
                 bad(line, truncated.format(width, len(row)), dropped=True)
                 continue
             try:
-                t = parse_float(name, line, columns[0], row[idx[0]]) * scale
+                t = parse_float(name, line, shown[0], row[idx[0]]) * scale
             except InputError as exc:
                 bad(line, str(exc).split(": ", 2)[-1], dropped=True)
                 continue
             if not math.isfinite(t):
-                bad(line, f"t is {row[idx[0]]}", dropped=True)
+                bad(line, f"{shown[0]} is {row[idx[0]]}", dropped=True)
                 continue
             if t <= self.last_t:
                 kind = "duplicate" if t == self.last_t else "decreasing"
@@ -568,7 +588,7 @@ class _SampleChecks:
                 bad(line, msg, dropped=True)
                 continue
             vals: list[float] = []
-            for col, j in zip(columns[1:], idx[1:]):
+            for col, j in zip(shown[1:], idx[1:]):
                 if extra:
                     vals = [math.nan] * (len(columns) - 1)
                     break
