@@ -50,6 +50,25 @@ def test_a_robot_file_without_theta_max_does_not_bound_the_bend_at_90_degrees(tm
     assert all(s.theta_max > math.radians(150) for s in robot.sections)
 
 
+def _bound_warning(err: str) -> str:
+    """The one line of ``err`` that counts the estimates on a bending bound."""
+    (line,) = [ln for ln in err.splitlines() if "bending bound" in ln]
+    return line
+
+
+def _bends(est: Path, bound: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(theta, on, status)`` of an estimate file: each section's bend (n, 2), the rows
+    whose bend reaches ``bound`` (within 1e-3 rad), the statuses."""
+    table = read_state_table(est)
+    theta = np.column_stack([table.column("theta_1"), table.column("theta_2")])
+    return theta, (theta >= bound - 1e-3).any(axis=1), table.status
+
+
+def _by_status(status: np.ndarray) -> str:
+    kinds, counts = np.unique(status, return_counts=True)
+    return ", ".join(f"{k} {c}" for k, c in zip(kinds, counts))
+
+
 def test_estimates_on_a_given_bound_are_at_bound_and_counted(tmp_path, capsys):
     """theta_max = pi/2 on a rod that bends to 110 degrees: the rows the bound clips say
     ``at-bound``, never ``ok``, and one warning counts them."""
@@ -57,16 +76,72 @@ def test_estimates_on_a_given_bound_are_at_bound_and_counted(tmp_path, capsys):
     est = tmp_path / "e.csv"
     args = ["estimate", str(ROD / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(est)]
     assert main([*args, "--method", "ekf"]) == 0
-    table = read_state_table(est)
-    theta = np.column_stack([table.column("theta_1"), table.column("theta_2")])
-    on_bound = (theta >= math.pi / 2 - 1e-3).any(axis=1)
+    theta, on_bound, status = _bends(est, math.pi / 2)
     assert on_bound.sum() > 20
-    assert not np.any(table.status[on_bound] == "ok")
-    assert not np.any(table.status[~on_bound] == "at-bound")
-    count = int(np.sum(table.status == "at-bound"))
+    assert not np.any(status[on_bound] == "ok")
+    assert not np.any(status[~on_bound] == "at-bound")
+    count = int(np.sum(status == "at-bound"))
     assert count > 20
-    err = capsys.readouterr().err
-    assert f"{count} of 601 estimates sat on a section's bending bound" in err
+    line = _bound_warning(capsys.readouterr().err)
+    assert f"{on_bound.sum()} of 601 estimates have a section's bend on or beyond" in line
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_the_bound_warning_says_whether_the_estimator_holds_the_bound(tmp_path, capsys, method):
+    """theta_max = pi/2 on the spatial rod's tilt: the MHE holds its estimates to the
+    bound (none past it), and its warning says they are on it and the bound set them;
+    the EKF's and UKF's pass it, and theirs says on or beyond, and how far."""
+    robot = _robot(tmp_path, "\ntheta_max = 1.5707963")
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(ROD / "spatial_tilt.csv"), "--robot", str(robot), "-o", str(est)]
+    assert main([*argv, "--method", method]) == 0
+    theta, on, status = _bends(est, math.pi / 2)
+    line = _bound_warning(capsys.readouterr().err)
+    counted = f"{on.sum()} of 601 estimates have a section's bend on"
+    if method == "mhe":
+        assert np.nanmax(theta) <= math.pi / 2 + 1e-6
+        assert f"{counted} its bending bound theta_max (1.571, 1.571 rad;" in line
+        assert "the MHE holds its estimates to the bound, so the bound, not the data," in line
+    else:
+        largest = np.nanmax(theta, axis=0)
+        assert largest.max() > math.pi / 2 + 0.1  # past the bound
+        assert f"{counted} or beyond its bending bound theta_max (1.571, 1.571 rad;" in line
+        beyond = [f"section {k + 1} up to {big:.3g} rad" for k, big in enumerate(largest)
+                  if big >= math.pi / 2 - 1e-3]  # fmt: skip
+        assert f"), {', '.join(beyond)}: the {method.upper()} does not hold" in line, line
+        assert "the bound, not the data" not in line
+
+
+def test_the_bound_warning_counts_every_row_on_the_bound_by_status(tmp_path, capsys):
+    """The spatial rod's raw recording with a robot file that leaves theta_max out (3.0
+    rad): the MHE restarts on the bound, and those rows are ``reset``, not
+    ``at-bound``; the warning counts what the file shows, every row whose theta_k is
+    on the bound, by status."""
+    est = tmp_path / "e.csv"
+    argv = ["estimate", str(ROD / "spatial_raw.csv"), "--robot", str(_robot(tmp_path))]
+    assert main([*argv, "-o", str(est)]) == 0
+    _, on, status = _bends(est, 3.0)
+    assert np.sum(status[on] == "reset") > 10 and np.sum(status[on] == "at-bound") > 10
+    line = _bound_warning(capsys.readouterr().err)
+    assert line.startswith(
+        f"continuum-mhe: warning: {on.sum()} of 601 estimates have a section's bend on its "
+        f"bending bound theta_max (3, 3 rad; by status: {_by_status(status[on])}): "
+    ), line
+
+
+def test_the_bound_warning_names_the_robot_files_key_or_the_option(tmp_path, capsys):
+    """With a robot file, the bound is raised in it (``--theta-max`` is refused beside
+    it); without one, by ``--theta-max``."""
+    robot = _robot(tmp_path, "\ntheta_max = 1.5707963")
+    argv = ["estimate", str(ROD / "spatial_tilt.csv"), "--method", "ekf"]
+    assert main([*argv, "--robot", str(robot), "-o", str(tmp_path / "a.csv")]) == 0
+    line = _bound_warning(capsys.readouterr().err)
+    assert line.endswith(f"raise theta_max in the robot file {robot} if it bends so far")
+    assert "--theta-max" not in line
+    one = Path(__file__).parent / "data" / "repro" / "gimbal_flip.csv"
+    assert main(["estimate", str(one), "--method", "ekf", "-o", str(tmp_path / "b.csv")]) == 0
+    line = _bound_warning(capsys.readouterr().err)
+    assert line.endswith("raise --theta-max if it bends so far") and "robot file" not in line
 
 
 def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tmp_path, capsys):
@@ -78,7 +153,16 @@ def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tm
     assert main(["estimate", str(meas), "--method", "ekf", "-o", str(est)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "mounting" in err[0] and "z-down" in err[0]
+    # without a robot file the option is the fix; with one, only its key (the option
+    # is refused beside it)
+    assert err[0].endswith("the robot hangs from its base? give --mounting z-down"), err[0]
     assert not est.exists()
+    robot = tmp_path / "robot.toml"
+    robot.write_text("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n")
+    assert main(["estimate", str(meas), "--robot", str(robot), "-o", str(est)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--mounting" not in err[0]
+    assert err[0].endswith(f'set mounting = "z-down" in the robot file {robot}'), err[0]
     args = ["estimate", str(meas), "--method", "ekf", "--mounting", "z-down", "-o", str(est)]
     assert main(args) == 0
 
@@ -109,7 +193,10 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
         said.append([str(w.message) for w in seen if w.category is MountingWarning])
     assert len(said[0]) == 1 and said[1] == []
     assert "mounting: the robot is described as z-up" in said[0][0]
-    assert 'if the robot hangs from its base, set mounting = "z-down"' in said[0][0]
+    assert (
+        'if the robot hangs from its base, set mounting = "z-down" in the robot file '
+        "two-section (the estimates"
+    ) in said[0][0]
     # sections that cannot bend that far (theta_max 1.2 rad): the warning says so too
     low = tmp_path / "low.toml"
     low.write_text(text.replace("theta_max = 3.0", "theta_max = 1.2"))
@@ -121,7 +208,7 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
     (message,) = [str(w.message) for w in seen if w.category is MountingWarning]
     assert message.endswith(
         "; it is beyond the 69 degrees the sections' theta_max let it bend (if the robot "
-        "does bend so far, raise theta_max, or --theta-max)"
+        f"does bend so far, raise theta_max in the robot file {low})"
     )
 
 

@@ -634,6 +634,41 @@ def test_attitude_fusion_on_raw_input_with_gyros_says_it_takes_the_tilt_model(
     assert said[0][0].startswith("--attitude mahony takes the tilt model (roll and pitch")
 
 
+def test_an_attitude_filter_with_the_direct_model_is_refused(tmp_path, capsys) -> None:
+    """``--attitude`` chooses how the tilt model makes roll and pitch; the direct model
+    takes the raw readings and has no attitude filter: the two together are one line
+    naming both and what each is for, exit 2, nothing written (from an options file
+    too, named by its line; in ``live`` before the port; in the library)."""
+    from continuum_mhe.io.raw_imu import RawImuSettings
+
+    robot = _two_imu_robot(tmp_path / "robot.toml")
+    meas = _raw_two_imus(tmp_path / "m.csv")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    argv = ["estimate", str(meas), "--robot", str(robot), "-o", str(tmp_path / "e.csv"),
+            "--imu-model", "direct"]  # fmt: skip
+    assert main([*argv, "--attitude", "madgwick"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(
+        "continuum-mhe: error: --attitude madgwick does not apply with --imu-model direct: "
+        "--attitude chooses how --imu-model tilt makes roll and pitch from raw readings, and "
+        "--imu-model direct puts the accelerometer and gyro readings into the model itself"
+    ), err
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text('attitude = "mahony"\n')
+    assert main([*argv, "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"error: {cfg}: line 1: attitude = 'mahony' does not apply with --imu-model direct" in err
+    )
+    port = tmp_path / "ttyACM9"
+    live = ["live", "--port", str(port), "--robot", str(robot), "--imu-model", "direct"]
+    assert main([*live, "--attitude", "mahony"]) == 2
+    assert "--attitude mahony does not apply with --imu-model direct" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "opts.toml"])
+    with pytest.raises(UserError, match=r"attitude='madgwick' is for imu_model='tilt'"):
+        RawImuSettings(imu_model="direct", attitude="madgwick")
+
+
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [

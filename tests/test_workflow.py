@@ -302,6 +302,88 @@ def test_a_bad_options_file_is_one_line_naming_it(tmp_path: Path, capsys, text, 
     assert not out.exists()
 
 
+def _switches(command: str) -> list[tuple[str, str]]:
+    """``(dest, spelling)`` of every on/off switch of ``command`` that an options file
+    may set (each spelling of an on/off pair)."""
+    import argparse
+
+    from continuum_mhe.cli.app import build_parser
+    from continuum_mhe.cli.config import NOT_OPTIONS
+
+    (commands,) = (
+        a for a in build_parser(only=command)._actions if isinstance(a, argparse._SubParsersAction)
+    )
+    kinds = (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse.BooleanOptionalAction)
+    return [
+        (a.dest, flag)
+        for a in commands.choices[command]._actions
+        if isinstance(a, kinds) and a.dest not in NOT_OPTIONS
+        for flag in a.option_strings
+        if flag.startswith("--")
+    ]
+
+
+@pytest.mark.parametrize("command", ["estimate", "live"])
+def test_every_switch_replays_from_its_record(tmp_path: Path, command) -> None:
+    """Each spelling of each on/off switch of ``estimate`` and ``live``
+    (``--no-estimate-gyro-bias`` and ``--estimate-gyro-bias`` alike) is recorded under
+    one key with true or false, and ``--config EST.csv`` gives the same parsed option
+    and the same record again."""
+    from continuum_mhe.cli.app import _parse
+
+    switches = _switches(command)
+    assert ("estimate_gyro_bias", "--no-estimate-gyro-bias") in switches
+    assert ("branch_check", "--no-branch-check") in switches
+    argv = {"estimate": ["estimate", "m.csv", "-o", "e.csv"], "live": ["live", "--port", "p"]}
+    for dest, flag in switches:
+        given = _parse([*argv[command], flag])
+        est = tmp_path / f"{flag[2:]}.csv"
+        est.write_text(f"# options = {given.options_record}\nt,x,y,z,theta,phi,status\n")
+        again = _parse([*argv[command], "--config", str(est)])
+        assert getattr(again, dest) == getattr(given, dest), flag
+        assert again.options_record == given.options_record, flag
+        assert flag.removeprefix("--no-").removeprefix("--") in _options_of(est), flag
+
+
+@pytest.mark.parametrize(
+    ("line", "dest", "value"),
+    [
+        ("no-estimate-gyro-bias = false", "estimate_gyro_bias", False),
+        ("no-estimate-gyro-bias = true", "estimate_gyro_bias", True),
+        ("no-branch-check = false", "branch_check", False),
+    ],
+)
+def test_an_estimate_file_naming_a_switch_by_its_no_spelling_keeps_its_value(
+    tmp_path: Path, capsys, line, dest, value
+) -> None:
+    """An estimate file's options line that names an on/off pair by its ``--no-``
+    spelling holds the positive switch's value (``no-estimate-gyro-bias = false``: the
+    run was given ``--no-estimate-gyro-bias``); replayed as such, with no note."""
+    from continuum_mhe.cli.app import _parse
+
+    est = tmp_path / "old.csv"
+    est.write_text(f"# options = {{{line}}}\nt,x,y,z,theta,phi,status\n")
+    args = _parse(["estimate", "m.csv", "-o", "e.csv", "--config", str(est)])
+    assert getattr(args, dest) is value
+    assert "left out" not in capsys.readouterr().err
+
+
+def test_an_options_file_sets_an_on_off_pair_by_its_positive_name(tmp_path: Path, capsys) -> None:
+    """``estimate-gyro-bias = false`` in a TOML file is ``--no-estimate-gyro-bias``; the
+    ``--no-`` spelling as a key is one line saying which key to write."""
+    from continuum_mhe.cli.app import _parse
+
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text("estimate-gyro-bias = false\nbranch-check = true\n")
+    args = _parse(["estimate", "m.csv", "-o", "e.csv", "--config", str(cfg)])
+    assert (args.estimate_gyro_bias, args.branch_check) == (False, True)
+    cfg.write_text("no-estimate-gyro-bias = true\n")
+    assert main(["estimate", "m.csv", "--config", str(cfg), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{cfg}: line 1: no-estimate-gyro-bias" in err
+    assert "estimate-gyro-bias = false for --no-estimate-gyro-bias" in err
+
+
 # --- outputs that exist, and an interrupted estimate --------------------------------------
 @pytest.mark.parametrize("command", ["estimate", "simulate"])
 def test_an_existing_output_is_refused_without_overwrite(tmp_path: Path, capsys, command) -> None:

@@ -92,9 +92,10 @@ class Status(str, Enum):
     )
     AT_BOUND = (
         "at-bound",
-        "an estimate was made, but a section's bend sits on (or beyond) its theta_max: the "
-        "robot may bend further than the robot file (or --theta-max) allows, and the bound "
-        "clipped the shape; raise theta_max if the robot really bends so far",
+        "an estimate was made, but a section's bend sits on its theta_max (the MHE holds "
+        "it there: the bound, not the data, set the shape) or beyond it (the EKF and UKF "
+        "do not hold it): the robot may bend further than theta_max allows (the robot "
+        "file's; --theta-max without one); raise it if the robot really bends so far",
     )
     INCONSISTENT = (
         "inconsistent",
@@ -194,8 +195,9 @@ class Diagnostics:
         reject_resets: restarts of a robust MHE after it rejected every reading for longer
             than ``recovery.reject_reset``.
         last_failure: the last numerical failure's message, if any.
-        bound_samples: estimates that sat on a section's ``theta_max`` (status
-            ``at-bound``).
+        bound_samples: estimates of status ``at-bound``: a section's bend on its
+            ``theta_max`` (the MHE holds it there) or beyond it (a filter); such an
+            estimate with a status that comes first (``reset``) is not counted.
         max_noise_scale: the largest model-error factor seen: the innovations' variance
             over the one the noise model predicts (1 when the readings fit their noise).
         model_error: the largest model error learned

@@ -4,9 +4,11 @@ made with, as one line a later ``--config`` reads back.
 
 An options file is TOML: each key is an option's long name, with dashes or underscores
 (``gap-reset = 2.0``, ``method = "ekf"``, ``skip-bad = true``, ``topic = ["/a", "/b"]``);
-keys at the top apply to every command that takes ``--config``, keys under ``[estimate]``
-or ``[live]`` to that command only. An estimate CSV made by ``estimate`` is an options
-file too: its ``# options = {...}`` line holds the options it was made with.
+an on/off pair is set by its positive name, true or false (``estimate-gyro-bias = false``
+for ``--no-estimate-gyro-bias``). Keys at the top apply to every command that takes
+``--config``, keys under ``[estimate]`` or ``[live]`` to that command only. An estimate
+CSV made by ``estimate`` is an options file too: its ``# options = {...}`` line holds the
+options it was made with.
 """
 
 from __future__ import annotations
@@ -58,6 +60,31 @@ def _options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
     }
 
 
+def option_key(action: argparse.Action) -> str:
+    """The key of an option in an options file and in an estimate file's record: its
+    long name without the dashes; an on/off pair (``--branch-check``,
+    ``--no-branch-check``) by its positive name, whose value true or false says which
+    of the two was given."""
+    if isinstance(action, argparse.BooleanOptionalAction):
+        return action.option_strings[0].lstrip("-")
+    longs = [s for s in action.option_strings if s.startswith("--")]
+    return (longs or action.option_strings)[-1].lstrip("-")
+
+
+def _by_key(options: dict[str, argparse.Action]) -> dict[str, argparse.Action]:
+    """``options`` by :func:`option_key`, with underscores for dashes."""
+    return {option_key(a).replace("-", "_"): a for a in options.values()}
+
+
+def _negated(key: str, by_key: dict[str, argparse.Action]) -> argparse.Action | None:
+    """The on/off pair whose ``--no-`` spelling ``key`` (underscores for dashes) is,
+    else None."""
+    if not key.startswith("no_"):
+        return None
+    action = by_key.get(key[3:])
+    return action if isinstance(action, argparse.BooleanOptionalAction) else None
+
+
 def _read(path: str) -> tuple[dict[str, Any], str, int]:
     """The options of a TOML file or of an estimate CSV's ``# options = {...}`` line, the
     text they were read from (for line numbers) and the file's line number before that
@@ -107,11 +134,12 @@ def _line(text: str, key: str, offset: int = 0) -> str:
 
 def _value(path: str, where: str, key: str, action: argparse.Action, value: Any) -> Any:
     """``value`` checked against ``action`` and converted as the command line would."""
-    flag = action.option_strings[-1]
-    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+    flag = "--" + option_key(action)
+    switches = (argparse._StoreTrueAction, argparse._StoreFalseAction)
+    if isinstance(action, (*switches, argparse.BooleanOptionalAction)):
         if not isinstance(value, bool):
             raise InputError(f"{path}: {where}{key} must be true or false ({flag} is a switch)")
-        return value if isinstance(action, argparse._StoreTrueAction) else not value
+        return not value if isinstance(action, argparse._StoreFalseAction) else value
     if isinstance(action, argparse._AppendAction):
         items = value if isinstance(value, list) else [value]
         return [_one(path, where, key, action, v) for v in items]
@@ -124,7 +152,7 @@ def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -
     convert = action.type if callable(action.type) else None
     if isinstance(value, bool) or isinstance(value, (dict, list)):
         raise InputError(
-            f"{path}: {where}{key} = {value!r} is not a value of {action.option_strings[-1]}"
+            f"{path}: {where}{key} = {value!r} is not a value of --{option_key(action)}"
         )
     try:
         converted = convert(str(value)) if convert is not None else str(value)
@@ -148,6 +176,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     destination (``PATH: line N: key = value``), for the checks made later."""
     data, text, offset = _read(path)
     options = _options(parser)
+    by_key = _by_key(options)
     tables = {"estimate", "live"}
     flat = {k: v for k, v in data.items() if k not in tables}
     own = data.get(command, {})
@@ -165,12 +194,26 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
             continue
         if dest in NOT_OPTIONS:
             raise InputError(f"{path}: {where}{key} is given on the command line, not in a file")
-        action = options.get(dest)
+        action = by_key.get(dest)
+        pair = _negated(dest, by_key)
+        if action is None and pair is not None and recorded:
+            # an estimate file's options line may name an on/off pair by its --no-
+            # spelling with the positive switch's value (no-estimate-gyro-bias = false:
+            # --no-estimate-gyro-bias was given): the value is the positive key's
+            action = pair
+        elif action is None and pair is not None:
+            given = f"{option_key(pair)} = false for --no-{option_key(pair)}"
+            if not isinstance(value, bool) or not value:
+                given = f"{option_key(pair)} = true or false"
+            raise InputError(
+                f"{path}: {where}{key}: an on/off switch is set by its positive name: {given}"
+            )
         if action is None and recorded:
             left_out.append(key)
             continue
         if action is None:
             raise InputError(f"{path}: {where}{key} is not an option of {command}")
+        dest = action.dest
         if dest in FILE_OPTIONS and isinstance(value, str):
             value = beside(path, value)
         defaults[dest] = _value(path, where, key, action, value)
@@ -249,5 +292,5 @@ def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) ->
             value = not value  # recorded as the switch's own sense
         if not isinstance(value, (bool, int, float, str, list)):
             value = str(value)
-        table[action.option_strings[-1].lstrip("-")] = value
+        table[option_key(action)] = value
     return table.as_string()

@@ -37,11 +37,12 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import (
     BendsBeyondBound,
+    BendsOnBound,
     Estimator,
     ForceBeyondTensions,
-    bound_notice,
 )
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
@@ -70,11 +71,12 @@ def _blocks(
 @dataclass
 class _Tally:
     """What ``estimate`` counts over the blocks for its summary: statuses, the statuses
-    of samples with a frozen IMU, outliers, samples with a reading, a tendon robot's
-    bends past ``theta_max`` and tip force against its tensions; ``ticks`` moves the
-    progress bar (None: no bar)."""
+    of samples with a frozen IMU, outliers, samples with a reading, the bends on (or
+    past) a section's ``theta_max``, a tendon robot's bends past it and tip force
+    against its tensions; ``ticks`` moves the progress bar (None: no bar)."""
 
     ticks: Iterator[int] | None
+    bound: BendsOnBound
     beyond: BendsBeyondBound
     force: ForceBeyondTensions
     counts: dict[str, int] = field(default_factory=dict)
@@ -113,6 +115,7 @@ def _estimate_block(
     if note:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     tally.outliers += int(batch.outlier.sum())
+    tally.bound.add(batch.output, statuses)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
@@ -156,8 +159,12 @@ def run(args: argparse.Namespace) -> int:
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
-        tally = _Tally(ticks if bar else None, BendsBeyondBound(formulation),
-                       ForceBeyondTensions(formulation))  # fmt: skip
+        tally = _Tally(
+            ticks if bar else None,
+            BendsOnBound(formulation),
+            BendsBeyondBound(formulation),
+            ForceBeyondTensions(formulation),
+        )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
             ("continuum-mhe", json.dumps(made)),
@@ -273,9 +280,9 @@ def run(args: argparse.Namespace) -> int:
                 "noise std carried in the standard deviations as a constant error of the "
                 "gravity directions"
             )
-    if diag.bound_samples:
-        note = bound_notice(diag.bound_samples, n, est.formulation.robot)
-        print(f"{PROG}: warning: {note}", file=sys.stderr)
+    raise_it = robot_fix("theta_max", args.robot)
+    if bound_note := tally.bound.notice(n, args.method, est.inference.holds_bounds, raise_it):
+        print(f"{PROG}: warning: {bound_note}", file=sys.stderr)
     if beyond_note := tally.beyond.notice(n):
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)
     if force_note := tally.force.notice():

@@ -157,6 +157,25 @@ class OneLineParser(argparse.ArgumentParser):
 #: One section's length (m) where neither ``--robot`` nor ``--length`` gives one.
 DEFAULT_LENGTH = 0.2
 
+#: Options measurably worse than the default on the shipped two-section rod recordings
+#: (``data/rod2``, raw IMUs, the MHE, ``--robot two-section``): per rod, the mean tip
+#: error in mm with the option and with the default (``continuum-mhe evaluate``).
+#: Their help and docs/options.md's table say it (:func:`worse_on_rods`).
+WORSE_ON_RODS: dict[str, tuple[tuple[str, float, float], ...]] = {
+    "--loss welsch": (("spatial-tendon", 82.82, 6.89), ("spatial-stiff-torsion", 101.42, 16.24)),
+    "--no-estimate-gyro-bias": (("planar-s", 14.85, 3.77), ("spatial-tendon", 13.41, 6.89)),
+    "--imu-model tilt": (("planar-s", 5.00, 3.77), ("spatial-stiff-torsion", 29.57, 16.24)),
+}
+
+
+def worse_on_rods(option: str) -> str:
+    """The clause of :data:`WORSE_ON_RODS` for ``option``: ``worse on the shipped
+    two-section rods: planar-s 14.85, spatial-tendon 13.41 mm against 3.77, 6.89 mm``."""
+    rods = WORSE_ON_RODS[option]
+    given = ", ".join(f"{rod} {mm:.2f}" for rod, mm, _ in rods)
+    default = ", ".join(f"{mm:.2f}" for _, _, mm in rods)
+    return f"worse on the shipped two-section rods: {given} mm against {default} mm"
+
 
 def add_model_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("model")
@@ -231,7 +250,8 @@ def add_mhe_options(p: argparse.ArgumentParser) -> None:
         default="l2",
         help="MHE measurement cost per IMU: l2 (quadratic, default), or huber, cauchy or "
         "welsch (robust to outliers; flags the samples they down-weight; welsch also "
-        "rejects bursts of consistent wrong readings, docs/robust.md)",
+        "rejects bursts of consistent wrong readings, docs/robust.md; welsch is "
+        f"{worse_on_rods('--loss welsch')})",
     )
     g.add_argument(
         "--loss-scale",
@@ -714,7 +734,8 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="direct: gravity direction and gyro rates in the model, gyro biases "
         "estimated (default where the input has gyro columns); tilt: roll/pitch from the "
-        "accelerometer alone (default without gyros; docs/options.md)",
+        "accelerometer alone (default without gyros; on raw input "
+        f"{worse_on_rods('--imu-model tilt')}; docs/options.md)",
     )
     g.add_argument(
         "--attitude",
@@ -744,7 +765,8 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
-        "IMU; default) or, with --no-estimate-gyro-bias, count it as gyro noise",
+        "IMU; default) or, with --no-estimate-gyro-bias, count it as gyro noise "
+        f"({worse_on_rods('--no-estimate-gyro-bias')})",
     )
     g.add_argument(
         "--estimate-accel-bias",
@@ -764,7 +786,22 @@ def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
 
 
 def raw_settings(args: argparse.Namespace) -> RawImuSettings:
-    """:class:`RawImuSettings` from parsed options (defaults where absent)."""
+    """:class:`RawImuSettings` from parsed options (defaults where absent); an
+    ``--attitude`` filter with ``--imu-model direct``, which has none, is refused in one
+    line naming both (and the options file of either)."""
+    model, attitude = getattr(args, "imu_model", None), getattr(args, "attitude", "accel")
+    if model == "direct" and attitude != "accel":
+        sources = getattr(args, "config_sources", {})
+        named = [
+            sources.get(dest) or f"--{dest.replace('_', '-')} {value}"
+            for dest, value in (("imu_model", model), ("attitude", attitude))
+        ]
+        raise InputError(
+            f"{named[1]} does not apply with {named[0]}: --attitude chooses how --imu-model "
+            "tilt makes roll and pitch from raw readings, and --imu-model direct puts the "
+            "accelerometer and gyro readings into the model itself, with no attitude "
+            "filter; leave one of the two out"
+        )
     return RawImuSettings(
         imu_model=getattr(args, "imu_model", None),
         attitude=getattr(args, "attitude", "accel"),

@@ -52,6 +52,9 @@ class Inference(ABC):
     name: str = "inference"
     #: whether estimates carry outlier flags (a robust MHE)
     flags_outliers: bool = False
+    #: whether its estimates keep the formulation's state bounds (a section's bend at
+    #: most its ``theta_max``): the MHE's constraints; a filter's estimates can pass them
+    holds_bounds: bool = False
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation

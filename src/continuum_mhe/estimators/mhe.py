@@ -279,6 +279,7 @@ class MovingHorizonInference(Inference):
     """
 
     name = "mhe"
+    holds_bounds = True
 
     def __init__(
         self,

@@ -25,7 +25,8 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Generic, NoReturn, SupportsIndex, TypeVar
 
@@ -53,10 +54,9 @@ from continuum_mhe.estimators.reading_units import (
     direct_units_problem,
 )
 from continuum_mhe.io.csv_files import check_time_steps
-from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
-from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
@@ -84,7 +84,7 @@ def status_code(status: Status | str) -> int:
     return _CODES[str(status)]
 
 
-__all__ = ["Diagnostics", "Estimator", "PythonInference", "bound_notice", "freeze_notice"]
+__all__ = ["Diagnostics", "Estimator", "PythonInference", "freeze_notice"]
 
 
 def _reraise_interrupt(exc: BaseException) -> None:
@@ -129,16 +129,86 @@ FORCE_TENSION_RATIO = 1.0
 FORCE_NOTICE_MIN = 0.05
 
 
-def bound_notice(count: int, n: int, robot: Robot) -> str:
-    """One line for ``count`` of ``n`` estimates on a section's ``theta_max`` (status
-    ``at-bound``)."""
-    bounds = ", ".join(f"{s.theta_max:.4g}" for s in robot.sections)
-    return (
-        f"{count} of {n} estimates sat on a section's bending bound theta_max ({bounds} rad; "
-        "status at-bound): the robot may bend further than that bound allows, and the "
-        "bound, not the data, set those shapes; raise theta_max in the robot file (or "
-        "--theta-max) if the robot bends so far"
-    )
+def _bend_columns(formulation: Formulation) -> list[int]:
+    """Each section's bend among ``formulation``'s outputs: ``theta_k``, or ``theta`` for
+    a one-section model that names it so; -1 where there is none."""
+    names = [o.name for o in formulation.outputs]
+    sections = formulation.robot.sections
+    return [
+        names.index(f"theta_{k}")
+        if f"theta_{k}" in names
+        else (names.index("theta") if len(sections) == 1 and "theta" in names else -1)
+        for k in range(1, len(sections) + 1)
+    ]
+
+
+class BendsOnBound:
+    """The estimates of a constant-curvature robot that put a section's bend on its
+    ``theta_max`` (within :data:`~continuum_mhe.model.formulations.AT_BOUND_TOL`) or
+    beyond it, counted block by block from their outputs (``theta_k``) and statuses, by
+    status (a restart's row on the bound is ``reset``, not ``at-bound``), with each
+    section's largest bend, for one line at the end (:meth:`notice`). The rows counted
+    are the rows of the file whose ``theta_k`` reach the bound, and every ``at-bound``
+    row."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        robot = formulation.robot
+        self._robot = robot
+        self._limits = np.array([s.theta_max for s in robot.sections])  # rad
+        self._columns = _bend_columns(formulation)
+        # a mechanics model does not bound the bend: BendsBeyondBound says those
+        self.active = not robot.has_mechanics and all(c >= 0 for c in self._columns)
+        self.count = 0
+        self.statuses: Counter[str] = Counter()
+        self.largest = [0.0] * len(robot.sections)
+
+    def add(self, output: FloatArray, statuses: Sequence[str]) -> None:
+        """Count the estimates ``output`` (n, ny; NaN rows without an estimate) and
+        their ``statuses``."""
+        status = np.asarray(statuses, dtype=object)
+        on = status == Status.AT_BOUND.value
+        if self.active and len(output):
+            theta = np.abs(output[:, self._columns])
+            with np.errstate(invalid="ignore"):
+                reached = theta >= self._limits - AT_BOUND_TOL
+            on = on | reached.any(axis=1)
+            if reached.any():
+                worst = np.nanmax(np.where(reached, theta, 0.0), axis=0)
+                self.largest = [max(a, float(b)) for a, b in zip(self.largest, worst)]
+        self.count += int(on.sum())
+        self.statuses.update(str(v) for v in status[on])
+
+    def notice(self, n: int, method: str, holds: bool, raise_it: str) -> str | None:
+        """One line for the estimates counted on (or beyond) the bound, of ``n``, by
+        ``method`` (the estimator's name), which ``holds`` its bends to the bound (the
+        MHE's constraints) or not (the filters); ``raise_it`` says how to raise the
+        bound (``raise theta_max in the robot file R``). None without."""
+        if not self.count:
+            return None
+        sections = self._robot.sections
+        bounds = ", ".join(f"{s.theta_max:.4g}" for s in sections)
+        by_status = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        what = f"{self.count} of {n} estimates have a section's bend"
+        of = f"its bending bound theta_max ({bounds} rad; by status: {by_status})"
+        further = (
+            f"and the robot may bend further than the bound allows; {raise_it} if it bends so far"
+        )
+        if holds:
+            return (
+                f"{what} on {of}: the {method.upper()} holds its estimates to the bound, "
+                f"so the bound, not the data, set those shapes, {further}"
+            )
+        largest = [
+            f"section {k + 1} up to {big:.3g} rad"
+            for k, big in enumerate(self.largest)
+            if big > 0 and len(sections) > 1
+        ] or [f"up to {big:.3g} rad" for big in self.largest if big > 0]
+        reach = f", {', '.join(largest)}" if largest else ""
+        return (
+            f"{what} on or beyond {of}{reach}: the {method.upper()} does "
+            "not hold its estimates to the bound, so the readings, not the bound, set "
+            f"those shapes, {further}"
+        )
 
 
 class BendsBeyondBound:
@@ -149,16 +219,9 @@ class BendsBeyondBound:
 
     def __init__(self, formulation: Formulation) -> None:
         robot = formulation.robot
-        names = [o.name for o in formulation.outputs]
         self._robot = robot
         self._limits = np.array([s.theta_max for s in robot.sections])  # rad
-        # each section's bend: theta_k, or theta for a one-section model that names it so
-        self._columns = [
-            names.index(f"theta_{k}")
-            if f"theta_{k}" in names
-            else (names.index("theta") if len(robot.sections) == 1 and "theta" in names else -1)
-            for k in range(1, len(robot.sections) + 1)
-        ]
+        self._columns = _bend_columns(formulation)
         self.active = robot.has_mechanics and all(c >= 0 for c in self._columns)
         self.count = 0
         self.largest = [0.0] * len(robot.sections)

@@ -264,16 +264,33 @@ def flipped_mounting(mounting: str) -> tuple[str, str]:
     return other, "hangs from its base" if other == "z-down" else "stands on its base"
 
 
-def check_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
+def robot_fix(key: str, robot_file: str | None, value: str | None = None) -> str:
+    """How a message says to change the robot's ``key`` (``mounting``, ``theta_max``):
+    to ``value`` (``set mounting = "z-down" in the robot file R``), or up where it is
+    None (``raise theta_max in the robot file R``); in the robot file where
+    ``robot_file`` (as named on the command line) describes the robot, else by the
+    one-section option (``give --mounting z-down``, ``raise --theta-max``), the only
+    place each is given."""
+    if robot_file:
+        where = f"in the robot file {robot_file}"
+        return f'set {key} = "{value}" {where}' if value else f"raise {key} {where}"
+    option = "--" + key.replace("_", "-")
+    return f"give {option} {value}" if value else f"raise {option}"
+
+
+def check_mounting(
+    name: str, z: FloatArray, formulation: Formulation, robot_file: str | None = None
+) -> None:
     """Refuse, in one line naming ``mounting``, a recording whose first readings put
     the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
     of the robot's stated mounting: gravity says the robot is mounted the other way
     (a hanging robot described as ``z-up``, or the reverse). Past 90 degrees (by
     :data:`MOUNTING_MARGIN`) but within it, a :class:`MountingWarning` says which
     mounting the start is closer to, and whether the sections' ``theta_max`` let the
-    stated mounting reach it at all. The IMUs further out are checked against the one
-    before them (:func:`check_imu_mountings`)."""
-    _check_base_mounting(name, z, formulation)
+    stated mounting reach it at all; each names the fix as the robot file's key, or
+    without ``robot_file`` the option (:func:`robot_fix`). The IMUs further out are
+    checked against the one before them (:func:`check_imu_mountings`)."""
+    _check_base_mounting(name, z, formulation, robot_file)
     check_imu_mountings(name, z, formulation)
 
 
@@ -324,7 +341,9 @@ def _reach_between(robot: Robot, before: int, k: int) -> float:
     return reach + last.at * robot.sections[last.section].theta_max
 
 
-def _check_base_mounting(name: str, z: FloatArray, formulation: Formulation) -> None:
+def _check_base_mounting(
+    name: str, z: FloatArray, formulation: Formulation, robot_file: str | None
+) -> None:
     """:func:`check_mounting`'s check of the IMU nearest the base."""
     got = start_bend_angle(z, formulation)
     if got is None or got[1] <= math.pi / 2 + MOUNTING_MARGIN:  # not clearly closer to
@@ -352,11 +371,9 @@ def _check_base_mounting(name: str, z: FloatArray, formulation: Formulation) -> 
             f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
             "mounted upside down? its mount_rpy)"
         )
+    fix = robot_fix("mounting", robot_file, other)
     if angle > MOUNTING_FLIPPED:
-        raise InputError(
-            f'{where}: the robot {pose}? set mounting = "{other}" in the robot file '
-            f"(or --mounting {other}){alone}"
-        )
+        raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
     # the largest angle the sections up to the IMU can bend it through (theta_max each;
     # a tendon robot's mechanics model has no such bound)
     imu = robot.imus[k]
@@ -366,12 +383,11 @@ def _check_base_mounting(name: str, z: FloatArray, formulation: Formulation) -> 
     if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
         bound = (
             f"; it is beyond the {math.degrees(reach):.0f} degrees the sections' theta_max "
-            "let it bend (if the robot does bend so far, raise theta_max, or --theta-max)"
+            f"let it bend (if the robot does bend so far, {robot_fix('theta_max', robot_file)})"
         )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
-        f'{where}: if the robot {pose}, set mounting = "{other}" in the robot file (or '
-        f"--mounting {other}; the estimates of a robot described the wrong way up are far "
-        f"off){alone}{bound}",
+        f"{where}: if the robot {pose}, {fix} (the estimates of a robot described the "
+        f"wrong way up are far off){alone}{bound}",
         MountingWarning,
         stacklevel=4,
     )

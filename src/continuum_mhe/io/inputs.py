@@ -350,10 +350,12 @@ def open_input(
 ) -> MeasurementStream:
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream of
     measurements for ``formulation``'s robot, tendon tensions appended where it has a
-    backbone (``robot_name``: the robot file as named in messages)."""
+    backbone (``robot_name``: the robot file as named in messages, whose keys they name
+    as the fix; None: the command line's one-section options, ``--mounting`` and
+    ``--theta-max``)."""
     _check_arguments(path, options, formulation)
     tensions = _tensions(options, formulation.robot, robot_name, path)
-    stream = _open_measurements(path, options, formulation)
+    stream = _open_measurements(path, options, formulation, robot_name)
     if formulation.robot.has_mechanics:
         _append_tensions(stream, tensions, options)
     return stream
@@ -397,7 +399,10 @@ def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], Floa
 
 
 def _open_measurements(
-    path: str | os.PathLike[str], options: InputOptions, formulation: Formulation
+    path: str | os.PathLike[str],
+    options: InputOptions,
+    formulation: Formulation,
+    robot_name: str | None = None,
 ) -> MeasurementStream:
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     if isinstance(formulation, TendonFormulation):
@@ -407,7 +412,7 @@ def _open_measurements(
             "calls for (direct for raw IMUs, tendon with the tensions) is made from it"
         )
     if str(path) != "-" and is_robot_log(Path(path)):
-        return _log_stream(Path(path), options, formulation)
+        return _log_stream(Path(path), options, formulation, robot_name)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         raise InputError(
             f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
@@ -415,7 +420,7 @@ def _open_measurements(
         )
     rows = open_rows(path)
     try:
-        return _table_stream(rows, options, formulation)
+        return _table_stream(rows, options, formulation, robot_name)
     except BaseException:
         rows.close()
         raise
@@ -549,7 +554,9 @@ def _table_units(rows: TextRows, kind: InputKind, options: InputOptions) -> str:
     return f"t in {t_unit}; acceleration in m/s^2, gyro in rad/s"
 
 
-def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> MeasurementStream:
+def _table_stream(
+    rows: TextRows, options: InputOptions, base: Formulation, robot_name: str | None = None
+) -> MeasurementStream:
     n_imus, name = base.robot.n_imus, rows.name
     problems = RowProblems()
     convert: Convert
@@ -603,7 +610,7 @@ def _table_stream(rows: TextRows, options: InputOptions, base: Formulation) -> M
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
         problems=problems, readings=readings,
     )  # fmt: skip
-    samples = _chunked(rows, found, convert, readings, f, finish)
+    samples = _chunked(rows, found, convert, readings, f, finish, robot_name)
     return MeasurementStream(description, f, samples, 0, rows)
 
 
@@ -622,18 +629,20 @@ def _chunked(
     readings: ReadingCounts,
     formulation: Formulation,
     finish: Callable[[], None] | None = None,
+    robot_name: str | None = None,
 ) -> Iterator[tuple[FloatArray, FloatArray]]:
     """Convert the blocks of :data:`CHUNK` rows, one at a time. Counts which IMUs
     reported in ``readings``, and warns at the end for one that never did, then calls
     ``finish``. The first block's readings are checked against the robot's mounting
-    (:func:`~continuum_mhe.io.input_options.check_mounting`)."""
+    (:func:`~continuum_mhe.io.input_options.check_mounting`; ``robot_name``: the robot
+    file its messages name, None: the command line's one-section options)."""
     first = True
     for block in found:
         if first:
             check_time_units(rows, block.t)
         z = np.ascontiguousarray(convert(block.t, block.values, block.lines), dtype=np.float64)
         if first:
-            check_mounting(rows.name, z, formulation)
+            check_mounting(rows.name, z, formulation, robot_name)
             first = False
         readings.add(z)
         yield block.t, z
@@ -643,10 +652,12 @@ def _chunked(
 
 
 # --- step 3: the samples of a robot log ------------------------------------------------------
-def _log_stream(p: Path, options: InputOptions, formulation: Formulation) -> MeasurementStream:
+def _log_stream(
+    p: Path, options: InputOptions, formulation: Formulation, robot_name: str | None = None
+) -> MeasurementStream:
     data = _load_log(p, options, formulation)
     problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
-    check_mounting(str(p), data.z, data.formulation)
+    check_mounting(str(p), data.z, data.formulation, robot_name)
     readings = _readings(data.formulation)
     readings.add(data.z)
     readings.warn_silent(str(p))

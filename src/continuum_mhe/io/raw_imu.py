@@ -107,6 +107,12 @@ class RawImuSettings:
             raise UserError(f"imu model must be one of {IMU_MODELS}, got {self.imu_model!r}")
         if self.attitude not in ATTITUDES:
             raise UserError(f"attitude must be one of {ATTITUDES}, got {self.attitude!r}")
+        if self.imu_model == "direct" and self.attitude != "accel":
+            raise UserError(
+                f"attitude={self.attitude!r} is for imu_model='tilt' (how roll and pitch "
+                "are made from the raw readings); imu_model='direct' puts the readings into "
+                "the model itself, with no attitude filter: leave one out"
+            )
         rpy = finite_reals("mount_rpy", self.mount_rpy, 3, "three finite angles in degrees")
         bias = finite_reals("gyro_bias", self.gyro_bias, 3, "three finite rates in rad/s")
         object.__setattr__(self, "mount_rpy", rpy)

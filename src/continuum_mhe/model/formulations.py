@@ -290,8 +290,8 @@ class Formulation:
 
     def at_bound(self, x: FloatArray) -> bool:
         """True when a section's bending angle sits within :data:`AT_BOUND_TOL` of its
-        ``theta_max`` or beyond it (status ``at-bound``: the bound, not the data, may
-        have set the shape)."""
+        ``theta_max`` or beyond it (status ``at-bound``: the MHE holds a bend there, and
+        the bound, not the data, set the shape; a filter's estimate passes it)."""
         return False
 
     def state_checks(self) -> _core.StateChecks | None:
