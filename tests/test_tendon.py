@@ -1709,3 +1709,54 @@ def test_the_tension_gains_are_the_last_states_and_scale_the_tensions_given() ->
         np.abs(r[:n] - np.asarray(f.functions.innovate(z, x1)[0], float).ravel()[:n]).max() > 1e-4
     )
     assert f.is_diverged(np.where(np.arange(f.nx) == f.nx - 1, -0.1, x))
+
+
+def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tensions given 1.2 times those acting (a tension sensor's gain): with
+    ``--estimate-tension-gain`` both sections' gains end near 1 / 1.2 (acting over
+    given), the tip follows the truth, and estimate says that the gains ended far from
+    1; with the right tensions they end near 1 and nothing is said."""
+    rows = 301
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
+    tensions = read_tensions(DATA / "unloaded_tensions.csv", 6)
+    scaled = tmp_path / "scaled.csv"
+    write_table(scaled, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([tensions.t, tensions.values * 1.2]).tolist())  # fmt: skip
+    truth = read_state_table(DATA / "unloaded_truth.csv")
+    for given, out, acting in (
+        (scaled, "s.csv", 1 / 1.2),
+        (DATA / "unloaded_tensions.csv", "n.csv", 1.0),
+    ):
+        capsys.readouterr()
+        argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(given)]
+        assert main([*argv, "--estimate-tension-gain", "-o", str(tmp_path / out)]) == 0
+        said = [ln for ln in capsys.readouterr().err.splitlines() if "tension gains" in ln]
+        est = read_state_table(tmp_path / out)
+        gains = [est.column(f"tension_gain_{s}")[-1] for s in (1, 2)]
+        np.testing.assert_allclose(gains, acting, atol=0.02)
+        tip = np.linalg.norm(
+            np.column_stack([est.column(c) - truth.column(c)[: rows - 1] for c in "xyz"]), axis=1
+        )
+        assert np.mean(tip[50:]) < 3e-3
+        if acting != 1.0:
+            assert len(said) == 1 and said[0].startswith(
+                "continuum-mhe: warning: the estimated tension gains ended more than 3 "
+                "standard deviations from 1 (section 1: 0.83"
+            ), said
+        else:
+            assert said == []
+
+
+def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1\n0,0,0\n0.02,0,0\n")
+    argv = ["estimate", str(meas), "--estimate-tension-gain", "-o", str(tmp_path / "e.csv")]
+    assert main(argv) == 2
+    assert "--estimate-tension-gain does not apply: it is for a tendon robot" in (
+        capsys.readouterr().err
+    )

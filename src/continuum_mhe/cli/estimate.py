@@ -39,6 +39,7 @@ from continuum_mhe.estimators.sensor_health import (
     BendsBeyondBound,
     Estimator,
     ForceBeyondTensions,
+    TensionGainFromOne,
     bound_notice,
 )
 from continuum_mhe.io.csv_files import InputError
@@ -71,12 +72,13 @@ def _blocks(
 class _Tally:
     """What ``estimate`` counts over the blocks for its summary: statuses, the statuses
     of samples with a frozen IMU, outliers, samples with a reading, a tendon robot's
-    bends past ``theta_max`` and tip force against its tensions; ``ticks`` moves the
-    progress bar (None: no bar)."""
+    bends past ``theta_max``, tip force against its tensions and tension gains;
+    ``ticks`` moves the progress bar (None: no bar)."""
 
     ticks: Iterator[int] | None
     beyond: BendsBeyondBound
     force: ForceBeyondTensions
+    gain: TensionGainFromOne
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
@@ -115,6 +117,7 @@ def _estimate_block(
     tally.outliers += int(batch.outlier.sum())
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
+    tally.gain.add(batch.output, batch.output_std)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip
@@ -153,8 +156,12 @@ def run(args: argparse.Namespace) -> int:
         flags_outliers = bool(getattr(est, "flags_outliers", False))
         bar = progress_bar(f"{args.method} estimate")
         ticks = cast(Generator[int, None, None], (bar or _passthrough)(itertools.count()))
-        tally = _Tally(ticks if bar else None, BendsBeyondBound(formulation),
-                       ForceBeyondTensions(formulation))  # fmt: skip
+        tally = _Tally(
+            ticks if bar else None,
+            BendsBeyondBound(formulation),
+            ForceBeyondTensions(formulation),
+            TensionGainFromOne(formulation),
+        )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
             ("continuum-mhe", json.dumps(made)),
@@ -277,6 +284,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)
     if force_note := tally.force.notice():
         print(f"{PROG}: warning: {force_note}", file=sys.stderr)
+    if gain_note := tally.gain.notice():
+        print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "
@@ -343,6 +352,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
     )
     add_tensions_option(p, "or the recording's own tension_1..k columns")
+    p.add_argument(
+        "--estimate-tension-gain",
+        action="store_true",
+        help="a tendon robot: estimate a gain per section on the tensions given (the "
+        "tension acting over the one given: a tension sensor's gain, tendon friction, "
+        "kgf given as N), a warning where it ends far from 1; costs accuracy where the "
+        "tensions are right, and with tilt IMUs (docs/tendon.md)",
+    )
     add_model_options(p)
     add_mhe_options(p)
     add_recovery_options(p)
