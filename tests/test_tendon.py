@@ -386,7 +386,7 @@ def test_with_raw_imus_the_tip_force_moves_at_constant_acceleration() -> None:
 @pytest.mark.parametrize("imu_model", ["tilt", "direct"])
 def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_errors: bool) -> None:
     """Also with the IMUs' own errors as states (misalignment, accelerometer bias, and
-    the gyro bias with raw IMUs)."""
+    the gyro bias with raw IMUs) and the tension gain."""
     robot = Robot(
         (Section(0.15, 3.0, 5),),
         (ImuPlacement(0, 0.6), ImuPlacement(0, 1.0)),
@@ -400,6 +400,7 @@ def test_the_residual_jacobian_matches_finite_differences(imu_model: str, imu_er
         estimate_misalignment=imu_errors,
         estimate_accel_bias=imu_errors,
         estimate_gyro_bias=imu_errors and imu_model == "direct",
+        estimate_tension_gain=imu_errors,
     )
     rng = np.random.default_rng(3)
     x = np.zeros(f.nx)
@@ -1671,3 +1672,104 @@ def test_measurement_row_refuses_parts_of_the_wrong_size() -> None:
         f.measurement_row(imu, np.ones(k + 1), np.zeros(k - 1))
     with pytest.raises(UserError, match=r"tensions must have shape \(6,\).*got \(1, 6\)"):
         f.measurement_row(imu, np.ones((1, k)), np.zeros(k))
+
+
+def test_the_tension_gains_are_the_last_states_and_scale_the_tensions_given() -> None:
+    """One gain per section with tendons, after every other state (the fixed offsets of
+    the other states stay); the tension residual is ``gain * given - tau`` and the given
+    rates and their rates enter the IMUs' model times the gain: a gain ``g`` with the
+    given tensions predicts what gain 1 does with ``g`` times them. Prior 1, positive
+    bound, a random walk, and an output column each."""
+    robot = read_robot("tendon-two-section")
+    off = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
+    f = replace(off, estimate_tension_gain=True)
+    assert len(f.state_names) == f.nx == off.nx + 2
+    assert f.state_names[: off.nx] == off.state_names
+    assert f.state_names[-2:] == ("tension_gain_1", "tension_gain_2")
+    assert f.tension_gain_start == off.nx
+    # a robot whose tendons all end at its second section: one gain, that section's
+    second = replace(robot, tendons=tuple(replace(t, section=1) for t in robot.tendons))
+    assert TendonFormulation(robot=second, estimate_tension_gain=True).state_names[-1:] == (
+        "tension_gain_2",
+    )
+    g = slice(f.nx - 2, f.nx)
+    tau = np.array([2.0, 0.5, 0.0, 0.0, 1.5, 0.3])
+    rates, accel = np.array([0.3, -0.2, 0.1, 0.0, 0.4, -0.1]), np.full(6, 0.2)
+    imu = np.zeros(f.n_imu_measurements)
+    z = f.measurement_row(imu, tau, rates, accel)
+    x0 = f.initial_state(z)
+    np.testing.assert_array_equal(x0[g], 1.0)
+    np.testing.assert_allclose(np.sqrt(np.diag(f.initial_cov())[g]), 0.3)
+    q = np.asarray(ca.Function("q", [dt := ca.SX.sym("dt")], [f.process_cov_sym(dt)])(0.02))
+    np.testing.assert_allclose(np.diag(q)[g], f.tension_gain_psd * 0.02)
+    lo, hi = f.state_bounds()
+    assert np.all(lo[g] > 0) and np.isinf(lo[: f.nx - 2]).all() and np.isinf(hi).all()
+    assert [o.name for o in f.outputs][-2:] == ["tension_gain_1", "tension_gain_2"]
+    gains = np.array([1.3, 0.8])
+    x = x0.copy()
+    x[g] = gains
+    scale = np.repeat(gains, 3)  # tendons 1-3 end at section 1, 4-6 at section 2
+    np.testing.assert_allclose(f.output(x)[-2:], gains)
+    r = np.asarray(f.functions.innovate(z, x)[0], float).ravel()
+    n = f.n_imu_measurements
+    np.testing.assert_allclose(r[n : n + 6], scale * tau - x[6:12], atol=1e-12)
+    x1 = x.copy()
+    x1[g] = 1.0
+    z1 = f.measurement_row(imu, tau, scale * rates, scale * accel)
+    r1 = np.asarray(f.functions.innovate(z1, x1)[0], float).ravel()
+    np.testing.assert_allclose(r[:n], r1[:n], atol=1e-9)
+    assert (
+        np.abs(r[:n] - np.asarray(f.functions.innovate(z, x1)[0], float).ravel()[:n]).max() > 1e-4
+    )
+    assert f.is_diverged(np.where(np.arange(f.nx) == f.nx - 1, -0.1, x))
+
+
+def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tensions given 1.2 times those acting (a tension sensor's gain): with
+    ``--estimate-tension-gain`` both sections' gains end near 1 / 1.2 (acting over
+    given), the tip follows the truth, and estimate says that the gains ended far from
+    1; with the right tensions they end near 1 and nothing is said."""
+    rows = 301
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
+    tensions = read_tensions(DATA / "unloaded_tensions.csv", 6)
+    scaled = tmp_path / "scaled.csv"
+    write_table(scaled, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([tensions.t, tensions.values * 1.2]).tolist())  # fmt: skip
+    truth = read_state_table(DATA / "unloaded_truth.csv")
+    for given, out, acting in (
+        (scaled, "s.csv", 1 / 1.2),
+        (DATA / "unloaded_tensions.csv", "n.csv", 1.0),
+    ):
+        capsys.readouterr()
+        argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(given)]
+        assert main([*argv, "--estimate-tension-gain", "-o", str(tmp_path / out)]) == 0
+        said = [ln for ln in capsys.readouterr().err.splitlines() if "tension gains" in ln]
+        est = read_state_table(tmp_path / out)
+        gains = [est.column(f"tension_gain_{s}")[-1] for s in (1, 2)]
+        np.testing.assert_allclose(gains, acting, atol=0.02)
+        tip = np.linalg.norm(
+            np.column_stack([est.column(c) - truth.column(c)[: rows - 1] for c in "xyz"]), axis=1
+        )
+        assert np.mean(tip[50:]) < 3e-3
+        if acting != 1.0:
+            assert len(said) == 1 and said[0].startswith(
+                "continuum-mhe: warning: the estimated tension gains ended more than 3 "
+                "standard deviations from 1 (section 1: 0.83"
+            ), said
+        else:
+            assert said == []
+
+
+def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll_1,pitch_1\n0,0,0\n0.02,0,0\n")
+    argv = ["estimate", str(meas), "--estimate-tension-gain", "-o", str(tmp_path / "e.csv")]
+    assert main(argv) == 2
+    assert "--estimate-tension-gain does not apply: it is for a tendon robot" in (
+        capsys.readouterr().err
+    )

@@ -40,6 +40,7 @@ from continuum_mhe.estimators.sensor_health import (
     BendsOnBound,
     Estimator,
     ForceBeyondTensions,
+    TensionGainFromOne,
 )
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import robot_fix
@@ -72,13 +73,14 @@ def _blocks(
 class _Tally:
     """What ``estimate`` counts over the blocks for its summary: statuses, the statuses
     of samples with a frozen IMU, outliers, samples with a reading, the bends on (or
-    past) a section's ``theta_max``, a tendon robot's bends past it and tip force
-    against its tensions; ``ticks`` moves the progress bar (None: no bar)."""
+    past) a section's ``theta_max``, a tendon robot's bends past it, tip force against
+    its tensions and tension gains; ``ticks`` moves the progress bar (None: no bar)."""
 
     ticks: Iterator[int] | None
     bound: BendsOnBound
     beyond: BendsBeyondBound
     force: ForceBeyondTensions
+    gain: TensionGainFromOne
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
@@ -118,6 +120,7 @@ def _estimate_block(
     tally.bound.add(batch.output, statuses)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
+    tally.gain.add(batch.output, batch.output_std)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
                   statuses, batch.solve_ms)  # fmt: skip
@@ -164,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
             BendsOnBound(formulation),
             BendsBeyondBound(formulation),
             ForceBeyondTensions(formulation),
+            TensionGainFromOne(formulation),
         )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
@@ -287,6 +291,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)
     if force_note := tally.force.notice():
         print(f"{PROG}: warning: {force_note}", file=sys.stderr)
+    if gain_note := tally.gain.notice():
+        print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "
@@ -353,6 +359,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
     )
     add_tensions_option(p, "or the recording's own tension_1..k columns")
+    p.add_argument(
+        "--estimate-tension-gain",
+        action="store_true",
+        help="a tendon robot: estimate a gain per section on the tensions given (the "
+        "tension acting over the one given: a tension sensor's gain, tendon friction, "
+        "kgf given as N), a warning where it ends far from 1; costs accuracy where the "
+        "tensions are right, and with tilt IMUs (docs/tendon.md)",
+    )
     add_model_options(p)
     add_mhe_options(p)
     add_recovery_options(p)

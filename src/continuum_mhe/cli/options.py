@@ -831,6 +831,7 @@ def input_options(args: argparse.Namespace) -> Any:
         degrees=bool(getattr(args, "degrees", False)),
         skip_bad=bool(getattr(args, "skip_bad", False)),
         tensions=getattr(args, "inputs", None),
+        estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
     )
 
 

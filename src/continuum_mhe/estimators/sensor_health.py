@@ -294,6 +294,57 @@ class ForceBeyondTensions:
         )
 
 
+#: A tendon robot's tension gain (:attr:`~continuum_mhe.model.tendon.TendonFormulation.
+#: estimate_tension_gain`) that ends more than this many of its standard deviations from
+#: 1 is said at the end of ``estimate`` (:class:`TensionGainFromOne`).
+TENSION_GAIN_SIGMAS = 3.0
+
+
+class TensionGainFromOne:
+    """A tendon robot's estimated tension gains (outputs ``tension_gain_s``: the tension
+    acting on the robot over the one given, for the tendons anchored at section ``s``),
+    the last estimate's of each block (:meth:`add`), for one line at the end
+    (:meth:`notice`) where one ends far from 1: the tensions given are not those acting
+    (another unit, a tension sensor's gain, the tendons' friction)."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        names = [o.name for o in formulation.outputs]
+        self._columns = [i for i, n in enumerate(names) if n.startswith("tension_gain_")]
+        self._sections = [names[i].removeprefix("tension_gain_") for i in self._columns]
+        self.active = bool(self._columns)
+        self.gain: FloatArray | None = None  # the last estimate's gains
+        self.std: FloatArray | None = None  # and their standard deviations
+
+    def add(self, output: FloatArray, output_std: FloatArray) -> None:
+        """Keep the last estimate of ``output`` (n, ny) and ``output_std`` (n, ny) with
+        its gains, NaN rows without an estimate."""
+        if not self.active or not len(output):
+            return
+        gain = output[:, self._columns]
+        has = np.flatnonzero(np.all(np.isfinite(gain), axis=1))
+        if len(has):
+            self.gain, self.std = gain[has[-1]], output_std[has[-1], self._columns]
+
+    def notice(self) -> str | None:
+        """One line where a gain ended more than :data:`TENSION_GAIN_SIGMAS` standard
+        deviations from 1; None otherwise."""
+        if self.gain is None or self.std is None:
+            return None
+        far = [
+            f"section {s}: {g:.3g} (std {d:.2g})"
+            for s, g, d in zip(self._sections, self.gain, self.std)
+            if abs(g - 1.0) > TENSION_GAIN_SIGMAS * d
+        ]
+        if not far:
+            return None
+        return (
+            f"the estimated tension gains ended more than {TENSION_GAIN_SIGMAS:g} standard "
+            f"deviations from 1 ({'; '.join(far)}): the tensions acting on the robot are "
+            "the gain times those given; tensions in another unit (kgf for N?), a tension "
+            "sensor's gain or the tendons' friction; check them"
+        )
+
+
 def _outside_stacklevel() -> int:
     """The ``warnings.warn`` stacklevel of the first caller outside this package (a
     warning of the library names the user's line, not ours)."""

@@ -47,6 +47,8 @@ class InputOptions:
         degrees: a tilt CSV is in degrees.
         skip_bad: skip bad samples instead of stopping.
         tensions: a tendon tensions file (``--inputs``) for a robot with tendons.
+        estimate_tension_gain: a tendon robot's formulation estimates a gain per
+            section on the tensions given (``--estimate-tension-gain``).
     """
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
@@ -62,6 +64,7 @@ class InputOptions:
     degrees: bool = False
     skip_bad: bool = False
     tensions: str | None = None
+    estimate_tension_gain: bool = False
 
 
 def with_imu_model(
@@ -135,6 +138,11 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
     zero or :attr:`InputOptions.mount_rpy_given` says so."""
     raw = options.raw
     mount_given = options.mount_rpy_given or any(raw.mount_rpy)
+    if options.estimate_tension_gain and not robot.n_tendons:
+        raise InputError(
+            f"{name}: --estimate-tension-gain does not apply: it is for a tendon robot "
+            "(a robot file with [[tendon]] entries and a [backbone])"
+        )
     if kind != "log":  # a bag's or MCAP's options
         for flag, given in (
             ("--topic", bool(options.topics) or options.topic is not None),

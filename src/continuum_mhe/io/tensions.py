@@ -436,7 +436,8 @@ class TensionStream:
 def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFormulation:
     """The tendon formulation of ``base``'s robot, with ``base``'s IMU model (tilt, or
     raw with ``direct``) and noise. Its IMU-error states are the formulation's defaults
-    (``--estimate-accel-bias`` asks for one of them)."""
+    (``--estimate-accel-bias`` asks for one of them); its tension gains with
+    ``--estimate-tension-gain``."""
     if options.own_acceleration:
         raise InputError(
             "--own-acceleration is not available for a tendon robot (a [backbone] robot "
@@ -450,4 +451,5 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         gyro_std=options.gyro_std,
         estimate_gyro_bias=direct and options.estimate_gyro_bias is not False,
         estimate_accel_bias=options.estimate_accel_bias or TendonFormulation.estimate_accel_bias,
+        estimate_tension_gain=options.estimate_tension_gain,
     )

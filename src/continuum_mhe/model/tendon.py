@@ -26,13 +26,25 @@ because they, not the model, are what is left: a degree of misalignment, or 0.17
 m/s^2 of accelerometer bias, reads as a tip force that moves the tip of the shipped
 robot by about 5 mm; as the robot moves through several poses they separate from the
 force (docs/tendon-studies.md).
+With ``estimate_tension_gain`` (off by default) the last states are a gain per section
+with tendons anchored at its end, a slow random walk with the prior 1: the tension
+acting on a tendon is its section's gain times the one given (the residual below reads
+``gain * z_tau - tau``, and the given rates and their rates enter the IMUs' model times
+the gain), for tensions whose scale is in doubt (a tension sensor's gain, tendon
+friction, kgf given as N). With raw IMUs, tensions given 0.8, 1.2 and 2 times the
+acting ones (unloaded; 0.5, 1.2, 2 on force-29) read as gains within 0.015 of 1/scale,
+and the mean tip error falls from 16 to 235 mm to 0.8 to 2.7 mm; tensions given 0.5 times
+(unloaded) or in kgf for N are not recovered, but the gains end far from 1, which
+``estimate`` says. With the right tensions it costs (unloaded: 0.58 to 1.59 mm), and with
+tilt IMUs it misleads (twist-29: 222 ``ok`` rows over 20 mm off instead of 21)
+(docs/tendon-studies.md, "Tension gains").
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
-``"tension"``: the tensions are measurements of ``tau`` with the standard deviation
-:attr:`TendonFormulation.tension_std`; the rates enter the gyros' model and have a zero
-residual), then zeros (kind ``"equilibrium"``): the tip condition ``R(L)^T M(L) / EI =
-0``, and with raw IMUs its time derivative, as a pseudo-measurement with the tiny
-standard deviation :attr:`TendonFormulation.equilibrium_std`.
+``"tension"``: the tensions are measurements of ``tau`` (or of ``tau`` over the gain)
+with the standard deviation :attr:`TendonFormulation.tension_std`; the rates enter the
+gyros' model and have a zero residual), then zeros (kind ``"equilibrium"``): the tip
+condition ``R(L)^T M(L) / EI = 0``, and with raw IMUs its time derivative, as a
+pseudo-measurement with the tiny standard deviation :attr:`TendonFormulation.equilibrium_std`.
 
 Why a pseudo-measurement rather than a constraint: every estimator then runs the model
 unchanged (the filters have no constraints, and the fast MHE handles only box and ball
@@ -117,6 +129,21 @@ MAX_FORCE_FLOOR = 50.0
 FORCE_JERK_PSD = 1.0
 #: Equilibrium pseudo-measurement names: the tip curvature and its rate.
 EQUILIBRIUM_NAMES = ("eq_kx", "eq_ky", "eq_kz", "eq_kx_dot", "eq_ky_dot", "eq_kz_dot")
+#: The tension gains' prior standard deviation by default
+#: (:attr:`TendonFormulation.estimate_tension_gain`; dimensionless, about the prior
+#: mean 1): tendon friction, a load cell's calibration.
+INITIAL_TENSION_GAIN_STD = 0.3
+#: The tension gains' random walk by default, 1/s: a gain that drifts by about 0.03
+#: in 100 s, far slower than the motion (1e-6 to 1e-3 give the same tip errors within
+#: 0.3 mm on the shipped recordings: docs/tendon-studies.md, "Tension gains").
+TENSION_GAIN_PSD = 1e-5
+#: The least tension gain (:meth:`TendonFormulation.state_bounds`): a tension that acts
+#: in the direction it is given.
+MIN_TENSION_GAIN = 0.01
+#: The tension states' prior standard deviation, N, where the tension gains are states
+#: (:meth:`TendonFormulation.initial_cov`): far wider than a gain's prior times any
+#: tension, so the gain's prior, not the tensions', holds the start.
+GAIN_TENSION_PRIOR_STD = 100.0
 
 
 ImuModel = Literal["tilt", "direct"]
@@ -190,6 +217,14 @@ class TendonFormulation(Formulation):
         max_force: a tip force estimate (or its standard deviation) beyond this, N, has
             diverged (None, the default: :data:`DIVERGED_BUCKLING_MULTIPLE` times the
             buckling load, at least :data:`MAX_FORCE_FLOOR`; :attr:`max_force_used`).
+        estimate_tension_gain: a tension gain per section with tendons anchored at its
+            end (:attr:`tension_gain_sections`) as states, the last ones, a random walk:
+            the tension acting on the robot is the gain times the given one, for each
+            tendon anchored at that section (the gain is acting over given: tensions
+            given 1.2 times too large read as a gain of 1/1.2).
+        initial_tension_gain_std: the gains' prior standard deviation about 1
+            (dimensionless).
+        tension_gain_psd: the gains' spectral density, 1/s.
     """
 
     name: FormulationName = "tendon"
@@ -227,6 +262,9 @@ class TendonFormulation(Formulation):
     initial_force_acceleration_std: float = 0.1
     initial_force_std: float | None = None
     max_force: float | None = None
+    estimate_tension_gain: bool = False
+    initial_tension_gain_std: float = INITIAL_TENSION_GAIN_STD
+    tension_gain_psd: float = TENSION_GAIN_PSD
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -263,6 +301,8 @@ class TendonFormulation(Formulation):
             "initial_force_acceleration_std",
             "initial_force_std",
             "max_force",
+            "initial_tension_gain_std",
+            "tension_gain_psd",
         ):
             v = resolved[label] if label in resolved else getattr(self, label)
             if not (math.isfinite(v) and v > 0):
@@ -341,12 +381,43 @@ class TendonFormulation(Formulation):
     def n_gyro_bias(self) -> int:
         return 3 * self.robot.n_imus if self.estimate_gyro_bias else 0
 
+    @cached_property
+    def tension_gain_sections(self) -> tuple[int, ...]:
+        """The sections (0-based) with a tension gain state, in the states' order:
+        with :attr:`estimate_tension_gain`, each section at whose end a tendon is
+        anchored; else none."""
+        if not self.estimate_tension_gain:
+            return ()
+        return tuple(sorted({t.section for t in self.robot.tendons}))
+
+    @property
+    def n_tension_gain(self) -> int:
+        """States of the tension gains: one per section of
+        :attr:`tension_gain_sections`."""
+        return len(self.tension_gain_sections)
+
+    @property
+    def tension_gain_start(self) -> int:
+        """The first tension gain's index in the state: the gains come last, after
+        the IMUs' errors."""
+        return self._n_motion + self.n_gyro_bias + self.n_misalignment + self.n_accel_bias
+
+    def _tendon_gains(self, x: Sym) -> Sym:
+        """Each tendon's gain (k,): its section's tension gain state (the acting
+        tension over the given one), 1 without :attr:`estimate_tension_gain`."""
+        k = self.robot.n_tendons
+        if not self.n_tension_gain:
+            return ca.DM.ones(k)
+        g0, where = self.tension_gain_start, self.tension_gain_sections
+        return ca.vertcat(*[x[g0 + where.index(t.section)] for t in self.robot.tendons])
+
     @property
     def state_names(self) -> tuple[str, ...]:
         """``k0x, k0y, k0z, fx, fy, fz, tension_1..k``, then the rates of the first six,
         the tip force's acceleration ``fx_ddot, fy_ddot, fz_ddot`` (N/s^2), then the
-        gyro biases, the misalignments and the accelerometer biases (each
-        where estimated)."""
+        gyro biases, the misalignments, the accelerometer biases and the tension gains
+        ``tension_gain_s`` (``s`` the 1-based section; dimensionless) (each where
+        estimated)."""
         q = (*(f"k0{c}" for c in "xyz"), *(f"f{c}" for c in "xyz"))
         tau = tuple(f"tension_{i}" for i in range(1, self.robot.n_tendons + 1))
         bias = tuple(f"bg{c}_{i}" for i in range(1, self.robot.n_imus + 1) for c in "xyz")
@@ -356,6 +427,7 @@ class TendonFormulation(Formulation):
         return (
             *q, *tau, *(f"{n}_dot" for n in q), *f_ddot, *bias[: self.n_gyro_bias],
             *mis[: self.n_misalignment], *acc[: self.n_accel_bias],
+            *(f"tension_gain_{s + 1}" for s in self.tension_gain_sections),
         )  # fmt: skip
 
     def _split(self, x: Sym) -> tuple[Sym, Sym, Sym]:
@@ -437,13 +509,19 @@ class TendonFormulation(Formulation):
 
     @cached_property
     def outputs(self) -> tuple[OutputSpec, ...]:
-        return tendon_outputs(self.robot.n_sections)
+        """:func:`tendon_outputs`, then each tension gain ``tension_gain_s``
+        (dimensionless, the acting tension over the given one) where estimated."""
+        gains = tuple(
+            OutputSpec(f"tension_gain_{s + 1}", "1", section=s + 1)
+            for s in self.tension_gain_sections
+        )
+        return (*tendon_outputs(self.robot.n_sections), *gains)
 
     # --- model ----------------------------------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
         """``k0`` constant velocity, ``F`` constant velocity or, with
-        :attr:`estimate_force_acceleration`, constant acceleration; the tensions and
-        biases random walks."""
+        :attr:`estimate_force_acceleration`, constant acceleration; the tensions,
+        biases and tension gains random walks."""
         q, tau, qd = self._split(x)
         k = self.robot.n_tendons
         if not self.n_force_acceleration:
@@ -486,6 +564,8 @@ class TendonFormulation(Formulation):
             cov = ca.diagcat(cov, self.misalignment_psd * dt * ca.SX.eye(self.n_misalignment))
         if self.estimate_accel_bias:
             cov = ca.diagcat(cov, self.accel_bias_psd * dt * ca.SX.eye(self.n_accel_bias))
+        if self.n_tension_gain:
+            cov = ca.diagcat(cov, self.tension_gain_psd * dt * ca.SX.eye(self.n_tension_gain))
         return cov
 
     def _imu_accelerations(
@@ -541,8 +621,9 @@ class TendonFormulation(Formulation):
         :attr:`own_acceleration`, the IMU's own acceleration ``a``."""
         n, k = self.n_imu_measurements, self.robot.n_tendons
         q, tau, qd = self._split(x)
-        tau_dot = ca.SX.zeros(k) if z is None else z[n + k : n + 2 * k]
-        tau_ddot = ca.SX.zeros(k) if z is None else z[n + 2 * k : n + 3 * k]
+        gain = self._tendon_gains(x)  # the given tensions' rates scaled to the acting ones
+        tau_dot = ca.SX.zeros(k) if z is None else gain * z[n + k : n + 2 * k]
+        tau_ddot = ca.SX.zeros(k) if z is None else gain * z[n + 2 * k : n + 3 * k]
         poses, res = self.statics.shoot(q[:3], q[3:6], tau)
         up = up_vector(self.robot.mounting)
         rots = [poses[st][0] for st in self._imu_stations]
@@ -588,7 +669,8 @@ class TendonFormulation(Formulation):
         :meth:`measurement_residual_sym`, which reads the sample's tensions)."""
         _, imu, eq = self._model(x, None)
         k = self.robot.n_tendons
-        return ca.vertcat(*imu, x[6 : 6 + k], ca.SX.zeros(2 * k), eq)
+        given = x[6 : 6 + k] / self._tendon_gains(x)
+        return ca.vertcat(*imu, given, ca.SX.zeros(2 * k), eq)
 
     def measurement_residual_sym(self, z: Sym, x: Sym) -> Sym:
         """Tilt blocks on the tangent plane of the measured gravity direction (as
@@ -606,7 +688,7 @@ class TendonFormulation(Formulation):
                     for b, g in zip(self.measurement_blocks, gravity)
                 ]
             )
-        r_tau = z[n : n + k] - x[6 : 6 + k]
+        r_tau = self._tendon_gains(x) * z[n : n + k] - x[6 : 6 + k]
         return ca.vertcat(r_imu, r_tau, ca.SX.zeros(2 * k), -eq)
 
     def meas_cov(self) -> FloatArray:
@@ -660,7 +742,8 @@ class TendonFormulation(Formulation):
             theta, phi, psi = swing_twist_sym(ca.mtimes(R_prev.T, R))
             parts += [theta, phi, p, psi]
             R_prev = R
-        return ca.vertcat(*parts, x[3:6])
+        g0 = self.tension_gain_start
+        return ca.vertcat(*parts, x[3:6], x[g0 : g0 + self.n_tension_gain])
 
     # --- numeric helpers ----------------------------------------------------------
     def imus_determine_shape(self, imus: tuple[int, ...]) -> bool:
@@ -690,13 +773,15 @@ class TendonFormulation(Formulation):
         gyro's bias (its reading less the rate the model predicts) are fitted with
         them: a gyro reading fixes its bias, not the force (a bias left at zero reads as
         a force, on a straight rod an axial one the IMUs barely see). The other rates
-        and biases zero."""
+        and biases zero, the tension gains 1 (the tensions as given)."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
         k0, _ = self.statics.solve(np.zeros(3), tau)
         x = np.zeros(self.nx)
         x[:3], x[6 : 6 + k] = k0, tau
+        g0 = self.tension_gain_start
+        x[g0 : g0 + self.n_tension_gain] = 1.0  # the prior: the tensions as given
         z = np.nan_to_num(z0, nan=0.0)
         z[n : n + k] = tau
         valid = np.isfinite(z0[:n])
@@ -749,19 +834,35 @@ class TendonFormulation(Formulation):
         return x
 
     def initial_cov(self) -> FloatArray:
+        """The start's prior: the tensions' that of the given ones
+        (:attr:`tension_std`), or with the tension gains as states
+        :data:`GAIN_TENSION_PRIOR_STD`, which leaves them to the gains (a tight prior
+        on both would pin each gain to 1 at a start under tension)."""
         f = self.force_prior_std**2
-        diag = [10.0**2] * 3 + [f] * 3 + [self.tension_std**2] * self.robot.n_tendons
+        tension = GAIN_TENSION_PRIOR_STD if self.n_tension_gain else self.tension_std
+        diag = [10.0**2] * 3 + [f] * 3 + [tension**2] * self.robot.n_tendons
         diag += [50.0**2] * 3 + [f] * 3
         diag += [self.initial_force_acceleration_std**2] * self.n_force_acceleration
         diag += [self.initial_gyro_bias_std**2] * self.n_gyro_bias
         diag += [self.initial_misalignment_std**2] * self.n_misalignment
         diag += [self.initial_accel_bias_std**2] * self.n_accel_bias
+        diag += [self.initial_tension_gain_std**2] * self.n_tension_gain
         return np.diag(diag)
+
+    def state_bounds(self) -> tuple[FloatArray, FloatArray]:
+        """None but the tension gains', at least :data:`MIN_TENSION_GAIN`."""
+        lo, hi = np.full(self.nx, -np.inf), np.full(self.nx, np.inf)
+        g0 = self.tension_gain_start
+        lo[g0 : g0 + self.n_tension_gain] = MIN_TENSION_GAIN
+        return lo, hi
 
     def is_diverged(self, x: FloatArray, P: FloatArray | None = None) -> bool:
         """Non-finite, or a tip force over :attr:`max_force_used`, or its standard
-        deviation over it."""
+        deviation over it, or a tension gain not positive (tendons that push)."""
         if super().is_diverged(x, P):
+            return True
+        g0 = self.tension_gain_start
+        if np.any(np.asarray(x)[g0 : g0 + self.n_tension_gain] <= 0):
             return True
         limit = self.max_force_used
         if float(np.linalg.norm(x[3:6])) > limit:
