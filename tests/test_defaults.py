@@ -407,3 +407,29 @@ def test_the_library_recovers_as_the_command_line_does() -> None:
     assert None not in (RecoverySettings().gap_reset, RecoverySettings().bad_start)
     off = RecoverySettings.off()
     assert (off.gap_reset, off.freeze, off.bad_start, off.reject_reset) == (None,) * 4
+
+
+def test_a_start_bent_past_90_degrees_with_the_next_imu_upright_is_said_as_either(
+    tmp_path,
+) -> None:
+    """The spatial rod from t = 8.1 s: IMU 1 starts 109 degrees from straight, IMU 2
+    upright. The estimate is made (the sections reach that far), and the warning gives
+    both readings: a start bent that way, or IMU 1 alone upside down."""
+    import warnings
+
+    from continuum_mhe.io.input_options import MountingWarning
+
+    lines = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("8.1,"))
+    meas = tmp_path / "bent_start.csv"
+    meas.write_text("".join([lines[0], *lines[start : start + 60]]), encoding="utf-8")
+    argv = ["estimate", str(meas), "--robot", "two-section", "--method", "ekf"]
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main([*argv, "-o", str(tmp_path / "e.csv")]) == 0
+    (said,) = [str(w.message) for w in seen if w.category is MountingWarning]
+    assert "gravity puts IMU 1 109 degrees from that mounting's straight pose" in said
+    assert said.endswith(
+        "(IMU 2 reads upright: a start bent this way, or IMU 1 alone mounted upside down, "
+        "its mount_rpy)"
+    ), said

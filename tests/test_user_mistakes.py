@@ -906,19 +906,20 @@ def test_an_imu_on_a_missing_section_in_code_says_the_index_is_0_based() -> None
 
 
 def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path, capsys) -> None:
-    """The paper formulation on two sections names options that exist: ``--formulation
-    bend``, or ``--imu-model direct`` with raw input (``--formulation direct`` is no
-    choice)."""
+    """The paper formulation on two sections says to leave the option out (the default
+    model takes the robot, tilt or raw), and the default runs (``--formulation direct``
+    is no choice, and ``--imu-model direct`` is the default with raw input)."""
     meas = tmp_path / "m.csv"
     meas.write_text("t,roll_1,pitch_1,roll_2,pitch_2\n0,0.1,0.1,0.2,0.2\n")
     argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", "two-section"]
     assert main([*argv, "--formulation", "paper"]) == 2
     assert capsys.readouterr().err == (
         "continuum-mhe: error: the paper formulation models one section with one tip IMU; "
-        "this robot has 2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up: use "
-        "--formulation bend (the default), or --imu-model direct with raw IMU input\n"
+        "this robot has 2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up: leave "
+        "--formulation paper out (the default model, bend with tilt readings and direct "
+        "with raw ones, takes any robot)\n"
     )
-    assert main([*argv, "--formulation", "bend", "--method", "ekf"]) == 0
+    assert main([*argv, "--method", "ekf"]) == 0
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])

@@ -393,6 +393,11 @@ def _check_base_mounting(
             f"; it is beyond the {math.degrees(reach):.0f} degrees the sections' theta_max "
             f"let it bend (if the robot does bend so far, {robot_fix('theta_max', robot_file)})"
         )
+    if upright:  # a start bent this far is the likelier reading of a warning's angle
+        alone = (
+            f" (IMU {', '.join(map(str, upright))} {reads} upright: a start bent this way, "
+            f"or IMU {k + 1} alone mounted upside down, its mount_rpy)"
+        )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
         f"{where}: if the robot {pose}, {fix} (the estimates of a robot described the "
         f"wrong way up are far off){alone}{bound}",

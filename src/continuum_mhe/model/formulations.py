@@ -623,8 +623,9 @@ class PaperFormulation(Formulation):
         if not self.robot.is_single:
             raise UserError(
                 "the paper formulation models one section with one tip IMU; "
-                f"this robot has {self.robot.describe()}: use --formulation bend (the "
-                "default), or --imu-model direct with raw IMU input"
+                f"this robot has {self.robot.describe()}: leave --formulation paper out "
+                "(the default model, bend with tilt readings and direct with raw ones, "
+                "takes any robot)"
             )
 
     @property
