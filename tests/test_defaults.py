@@ -196,9 +196,10 @@ def test_a_hanging_robot_that_starts_bent_is_said_naming_the_mounting(tmp_path) 
         said.append([str(w.message) for w in seen if w.category is MountingWarning])
     assert len(said[0]) == 1 and said[1] == []
     assert "mounting: the robot is described as z-up" in said[0][0]
+    shipped = DATA / "robots" / "two_section.toml"  # a shipped robot: a copy of its file
     assert (
-        'if the robot hangs from its base, set mounting = "z-down" in the robot file '
-        "two-section (the estimates"
+        f'if the robot hangs from its base, set mounting = "z-down" in a copy of the shipped '
+        f"robot file {shipped} (given as --robot two-section) (the estimates"
     ) in said[0][0]
     # sections that cannot bend that far (theta_max 1.2 rad): the warning says so too
     low = tmp_path / "low.toml"

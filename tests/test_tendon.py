@@ -1761,6 +1761,28 @@ def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
             ), said
         else:
             assert said == []
+    # the figure and the view draw the backbone at the acting tensions (the gains times
+    # those given): it ends at the estimated tip; at the given ones it would not
+    import warnings
+
+    from continuum_mhe.evaluation.estimate_figure import FigureWarning
+    from continuum_mhe.viewer.geometry import TendonShapes
+
+    plot = ["plot", str(tmp_path / "s.csv"), "--robot", "tendon-two-section"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FigureWarning)
+        assert main([*plot, "--inputs", str(scaled), "-o", str(tmp_path / "s.png")]) == 0
+    est = read_state_table(tmp_path / "s.csv")
+    rows_drawn = np.arange(100, rows - 1, 50)
+    values = np.column_stack([est.column(c) for c in est.names])[rows_drawn]
+    forces = values[:, [est.names.index(c) for c in ("fx", "fy", "fz")]]
+    tips = values[:, [est.names.index(c) for c in "xyz"]]
+    shapes = TendonShapes(read_robot("tendon-two-section"), tensions=read_tensions(scaled, 6))
+    t = est.t[rows_drawn]
+    acting = shapes.from_forces(t, forces, est.names, values).tip
+    given = shapes.from_forces(t, forces).tip
+    assert np.max(np.linalg.norm(acting - tips, axis=1)) < 1e-3
+    assert np.max(np.linalg.norm(given - tips, axis=1)) > 10e-3
 
 
 def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
@@ -1773,3 +1795,27 @@ def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
     assert "--estimate-tension-gain does not apply: it is for a tendon robot" in (
         capsys.readouterr().err
     )
+
+
+def test_the_tension_gain_warning_keeps_what_the_readings_showed_before_a_restart() -> None:
+    """Gains that ended far from 1 (0.83, std 0.01), then a restart's rows at the prior
+    (1, std 0.3): the warning says the informed gains; rows at the prior alone say
+    nothing."""
+    from continuum_mhe.estimators.sensor_health import TensionGainFromOne
+
+    f = TendonFormulation(robot=read_robot("tendon-two-section"), estimate_tension_gain=True)
+    cols = [i for i, o in enumerate(f.outputs) if o.name.startswith("tension_gain_")]
+
+    def block(gain: float, std: float) -> tuple[np.ndarray, np.ndarray]:
+        out, sd = np.zeros((3, f.ny)), np.full((3, f.ny), 1e-3)
+        out[:, cols], sd[:, cols] = gain, std
+        return out, sd
+
+    said = TensionGainFromOne(f)
+    said.add(*block(0.83, 0.01))
+    said.add(*block(1.0, 0.3))
+    note = said.notice()
+    assert note is not None and "(section 1: 0.83 (std 0.01); section 2: 0.83" in note
+    prior_only = TensionGainFromOne(f)
+    prior_only.add(*block(1.0, 0.3))
+    assert prior_only.notice() is None

@@ -303,27 +303,39 @@ TENSION_GAIN_SIGMAS = 3.0
 class TensionGainFromOne:
     """A tendon robot's estimated tension gains (outputs ``tension_gain_s``: the tension
     acting on the robot over the one given, for the tendons anchored at section ``s``),
-    the last estimate's of each block (:meth:`add`), for one line at the end
-    (:meth:`notice`) where one ends far from 1: the tensions given are not those acting
-    (another unit, a tension sensor's gain, the tendons' friction)."""
+    the last informed estimate's (:meth:`add`), for one line at the end (:meth:`notice`)
+    where one ends far from 1: the tensions given are not those acting (another unit, a
+    tension sensor's gain, the tendons' friction). An estimate is informed where every
+    gain's standard deviation is under half its prior's
+    (:attr:`~continuum_mhe.model.tendon.TendonFormulation.initial_tension_gain_std`): a
+    restart late in a recording starts the gains at their prior again, and the rows
+    after it would hide what the readings showed before it."""
 
     def __init__(self, formulation: Formulation) -> None:
         names = [o.name for o in formulation.outputs]
         self._columns = [i for i, n in enumerate(names) if n.startswith("tension_gain_")]
         self._sections = [names[i].removeprefix("tension_gain_") for i in self._columns]
         self.active = bool(self._columns)
-        self.gain: FloatArray | None = None  # the last estimate's gains
+        self._informed = 0.5 * float(getattr(formulation, "initial_tension_gain_std", np.inf))
+        self.gain: FloatArray | None = None  # the last informed estimate's gains
         self.std: FloatArray | None = None  # and their standard deviations
+        self._has_informed = False  # whether those are an informed estimate's
 
     def add(self, output: FloatArray, output_std: FloatArray) -> None:
-        """Keep the last estimate of ``output`` (n, ny) and ``output_std`` (n, ny) with
-        its gains, NaN rows without an estimate."""
+        """Keep the last informed estimate's gains of ``output`` (n, ny) and their
+        ``output_std`` (n, ny), NaN rows without an estimate; where no estimate so far is
+        informed, the last estimate's."""
         if not self.active or not len(output):
             return
-        gain = output[:, self._columns]
-        has = np.flatnonzero(np.all(np.isfinite(gain), axis=1))
-        if len(has):
-            self.gain, self.std = gain[has[-1]], output_std[has[-1], self._columns]
+        gain, std = output[:, self._columns], output_std[:, self._columns]
+        finite = np.all(np.isfinite(gain) & np.isfinite(std), axis=1)
+        informed = np.flatnonzero(finite & np.all(std < self._informed, axis=1))
+        if len(informed):
+            self.gain, self.std, self._has_informed = gain[informed[-1]], std[informed[-1]], True
+            return
+        has = np.flatnonzero(finite)
+        if len(has) and not self._has_informed:
+            self.gain, self.std = gain[has[-1]], std[has[-1]]
 
     def notice(self) -> str | None:
         """One line where a gain ended more than :data:`TENSION_GAIN_SIGMAS` standard

@@ -20,6 +20,7 @@ from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.tendon import acting_tensions
 from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
 from continuum_mhe.results import Status
 
@@ -119,13 +120,17 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
     """A tendon robot's backbone for a row of an estimate or truth table: the mechanics
     model's equilibrium (:meth:`TendonStatics.backbone_points`) at the row's tip force
     (:data:`TIP_FORCE_COLUMNS`) and the tensions at the row's time (an
-    :class:`~continuum_mhe.errors.InputError` where ``tensions`` do not cover it)."""
+    :class:`~continuum_mhe.errors.InputError` where ``tensions`` do not cover it), times
+    the row's tension gains where it has them (:func:`acting_tensions`)."""
     statics = TendonStatics(robot)
 
     def points(table: StateTable, row: int) -> FloatArray:
         force = np.array([table.column(c)[row] for c in TIP_FORCE_COLUMNS])
         t = float(table.t[row])
-        tension, _, _ = tensions.at(t)
+        given, _, _ = tensions.at(t)
+        gains = [c for c in table.names if c.startswith("tension_gain_")]
+        values = np.array([[table.column(c)[row] for c in gains]])
+        tension = acting_tensions(robot, given, gains, values)[0]
         try:
             return statics.backbone_points(force, tension, POINTS_PER_SECTION)
         except ArithmeticError as exc:

@@ -17,6 +17,7 @@ import numpy as np
 
 from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
+from continuum_mhe.io.robot_file import shipped_robots
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
@@ -278,9 +279,15 @@ def robot_fix(key: str, robot_file: str | None, value: str | None = None) -> str
     None (``raise theta_max in the robot file R``); in the robot file where
     ``robot_file`` (as named on the command line) describes the robot, else by the
     one-section option (``give --mounting z-down``, ``raise --theta-max``), the only
-    place each is given."""
+    place each is given. A shipped robot named by its name (``two-section``) is changed
+    in a copy of its file (:func:`~continuum_mhe.io.robot_file.shipped_robots`)."""
     if robot_file:
-        where = f"in the robot file {robot_file}"
+        shipped = shipped_robots().get(robot_file)
+        where = (
+            f"in a copy of the shipped robot file {shipped} (given as --robot {robot_file})"
+            if shipped is not None and not Path(robot_file).exists()
+            else f"in the robot file {robot_file}"
+        )
         return f'set {key} = "{value}" {where}' if value else f"raise {key} {where}"
     option = "--" + key.replace("_", "-")
     return f"give {option} {value}" if value else f"raise {option}"

@@ -60,6 +60,7 @@ states: the outputs (the shape) are functions of the state alone in every estima
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import ClassVar, Literal
@@ -84,6 +85,7 @@ from continuum_mhe.model.formulations import FloatArray, Formulation
 from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName
 from continuum_mhe.model.tape import residual_node_tapes
 from continuum_mhe.model.tendon_statics import (
@@ -868,6 +870,25 @@ class TendonFormulation(Formulation):
         if float(np.linalg.norm(x[3:6])) > limit:
             return True
         return P is not None and float(np.trace(P[3:6, 3:6])) > limit**2
+
+
+def acting_tensions(
+    robot: Robot, given: FloatArray, names: Sequence[str], values: FloatArray
+) -> FloatArray:
+    """The tensions acting on ``robot``, N, (n, k): the ``given`` ones (n, k) times each
+    tendon's section's tension gain where the rows ``values`` (n, len(names)) of an
+    estimate have its column ``tension_gain_s`` (``s`` the 1-based section at whose end
+    the tendon is anchored; :attr:`TendonFormulation.estimate_tension_gain`), else as
+    given."""
+    given = np.atleast_2d(np.asarray(given, dtype=float))
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    col = {c: i for i, c in enumerate(names)}
+    gains = np.ones_like(given)
+    for j, tendon in enumerate(robot.tendons):
+        i = col.get(f"tension_gain_{tendon.section + 1}")
+        if i is not None:
+            gains[:, j] = values[:, i]
+    return np.asarray(given * gains, dtype=float)
 
 
 def check_tensions(values: FloatArray, where: str) -> None:

@@ -5,6 +5,7 @@ tendon robot, from its mechanics model (:class:`TendonShapes`)."""
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache, cached_property
 
@@ -16,7 +17,7 @@ from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.model.tendon import TendonFormulation
+from continuum_mhe.model.tendon import TendonFormulation, acting_tensions
 from continuum_mhe.model.tendon_statics import TendonStatics, no_equilibrium_at
 
 
@@ -130,10 +131,18 @@ class TendonShapes:
         """Shapes of the estimator states ``states`` (n, nx)."""
         return self._geometry(*TendonFormulation.statics_of_states(states, self.robot.n_tendons))
 
-    def from_forces(self, t: FloatArray, forces: FloatArray) -> BackboneGeometry:
+    def from_forces(
+        self,
+        t: FloatArray,
+        forces: FloatArray,
+        names: Sequence[str] = (),
+        values: FloatArray | None = None,
+    ) -> BackboneGeometry:
         """Shapes of the tip forces ``forces`` (n, 3) N at the times ``t`` (n,) s under
         the tensions there (the base curvature solved from the tip condition, each
-        sample from the previous one's). A row whose loads the rod holds no equilibrium
+        sample from the previous one's), times the tension gains of the rows ``values``
+        (n, len(names)) where they have them (:func:`~continuum_mhe.model.tendon.
+        acting_tensions`). A row whose loads the rod holds no equilibrium
         under has NaN shapes (not drawn), and one warning names the first and counts
         them; where no row has one, a :class:`~continuum_mhe.errors.UserError` names
         the first row."""
@@ -142,6 +151,8 @@ class TendonShapes:
         statics = self.statics
         forces = np.asarray(forces, dtype=float)
         tau = np.stack([self.tensions.at(float(tk))[0] for tk in t])
+        if values is not None:
+            tau = acting_tensions(self.robot, tau, names, values)
         k0 = np.zeros((len(forces), 3))
         previous = None
         unsolved: list[tuple[int, ArithmeticError]] = []

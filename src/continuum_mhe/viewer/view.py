@@ -296,8 +296,8 @@ class BackboneView:
     ) -> tuple[BackboneGeometry | None, FloatArray]:
         """The shapes and tips (n, 3) m of rows ``values`` (columns ``names``) at ``t``:
         the PCC model's from their bends, or a tendon robot's from their tip force and
-        the tensions (None without the tensions or the force; the tips are the rows'
-        ``x, y, z``)."""
+        the tensions, times their tension gains where they have them (None without the
+        tensions or the force; the tips are the rows' ``x, y, z``)."""
         col = {c: i for i, c in enumerate(names)}
         if self.tendon is None:
             ordered = values[:, [col.get(o.name, col["x"]) for o in self.outputs]]
@@ -307,7 +307,7 @@ class BackboneView:
         if self.tendon.tensions is None or not all(c in col for c in TIP_FORCE_COLUMNS):
             return None, tips
         forces = values[:, [col[c] for c in TIP_FORCE_COLUMNS]]
-        return self.tendon.from_forces(t, forces), tips
+        return self.tendon.from_forces(t, forces, names, values), tips
 
     def log_truth(self, t: FloatArray, values: FloatArray, names: Sequence[str]) -> bool:
         """Send a truth recording: ``values`` (n, len(names)), columns named as in a truth
