@@ -385,3 +385,28 @@ def test_plot_and_view_refuse_a_tensions_file_in_milliseconds(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "ten_ms.csv: its t spans 8000 s in steps of 20 s" in err[0]
     assert not out.exists()
+
+
+def test_live_estimates_the_tension_gain_and_says_where_it_ends_far_from_1(
+    tmp_path: Path,
+) -> None:
+    """``live --estimate-tension-gain`` with the tensions on the line given 1.2 times
+    those acting (the first 150 samples of ``unloaded``): the session's gains end near
+    1 / 1.2, and its summary says they ended far from 1, as ``estimate`` does."""
+    head, raw = _rows(DATA / "unloaded_raw.csv", 150)
+    _, ten = _rows(DATA / "unloaded_tensions.csv", 150)
+    lines = [
+        ",".join([f"{round(float(r[0]) * 1000)}", *r[1:], *(f"{1.2 * float(v)!r}" for v in s[1:])])
+        for r, s in zip(raw, ten)
+    ]
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(estimate_tension_gain=True), base)
+    assert serial.formulation.state_names[-2:] == ("tension_gain_1", "tension_gain_2")
+    est = make_estimator("ekf", serial.formulation)
+    session, made, _ = _live(serial, est, lines, duration=3.0)
+    assert len(made) == 150
+    assert session.gains.gain is not None
+    np.testing.assert_allclose(session.gains.gain, 1 / 1.2, atol=0.03)
+    assert "; warning: the estimated tension gains ended more than 3 standard" in (
+        session.summary()
+    )

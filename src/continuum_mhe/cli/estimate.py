@@ -24,6 +24,7 @@ from continuum_mhe.cli.options import (
     add_overwrite_option,
     add_raw_imu_options,
     add_recovery_options,
+    add_tension_gain_option,
     add_tensions_option,
     formulation_from_args,
     input_files,
@@ -359,14 +360,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
     )
     add_tensions_option(p, "or the recording's own tension_1..k columns")
-    p.add_argument(
-        "--estimate-tension-gain",
-        action="store_true",
-        help="a tendon robot: estimate a gain per section on the tensions given (the "
-        "tension acting over the one given: a tension sensor's gain, tendon friction, "
-        "kgf given as N), a warning where it ends far from 1; costs accuracy where the "
-        "tensions are right, and with tilt IMUs (docs/tendon.md)",
-    )
+    add_tension_gain_option(p)
     add_model_options(p)
     add_mhe_options(p)
     add_recovery_options(p)

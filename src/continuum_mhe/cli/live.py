@@ -17,6 +17,7 @@ from continuum_mhe.cli.options import (
     add_recording_options,
     add_recovery_options,
     add_serial_options,
+    add_tension_gain_option,
     add_tensions_option,
     formulation_from_args,
     input_files,
@@ -155,6 +156,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_serial_options(p)
     p.add_argument("-o", "--output", help="estimate CSV, written row by row as samples arrive")
     add_tensions_option(p, "instead of the tensions on every line")
+    add_tension_gain_option(p)
     add_recording_options(p)
     add_config_option(p)
     p.add_argument("--duration", type=float, help="stop after this many seconds")

@@ -444,6 +444,19 @@ def add_tensions_option(p: argparse.ArgumentParser, otherwise: str) -> None:
     )
 
 
+def add_tension_gain_option(p: argparse.ArgumentParser) -> None:
+    """``--estimate-tension-gain``: a tendon robot's gain per section on the tensions
+    given (``estimate`` and ``live``)."""
+    p.add_argument(
+        "--estimate-tension-gain",
+        action="store_true",
+        help="a tendon robot: estimate a gain per section on the tensions given (the "
+        "tension acting over the one given: a tension sensor's gain, tendon friction, "
+        "kgf given as N), a warning where it ends far from 1; costs accuracy where the "
+        "tensions are right, and with tilt IMUs (docs/tendon.md)",
+    )
+
+
 def add_serial_options(p: argparse.ArgumentParser) -> None:
     """The serial stream of ``live`` and ``calibrate``: port, baud, line format."""
     from continuum_mhe.stream.protocol import LINE_FORMATS

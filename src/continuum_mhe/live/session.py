@@ -17,7 +17,11 @@ import numpy as np
 from continuum_mhe.errors import time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
-from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
+from continuum_mhe.estimators.sensor_health import (
+    Estimator,
+    TensionGainFromOne,
+    _reraise_interrupt,
+)
 from continuum_mhe.io.csv_files import (
     FloatArray,
     InputError,
@@ -275,6 +279,9 @@ class LiveSession:
         if self.converters is not None and len(self.converters) != self.n_imus:
             raise ValueError(f"{len(self.converters)} converter(s) for {self.n_imus} IMU(s)")
         self.flags_outliers = bool(getattr(estimator, "flags_outliers", False))
+        #: a tendon robot's tension gains, for the summary's warning where one ends far
+        #: from 1 (``--estimate-tension-gain``)
+        self.gains = TensionGainFromOne(self.formulation)
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
         self.out: RowSink | None = (
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
@@ -697,6 +704,8 @@ class LiveSession:
         self.solve_ms.append(est.solve_ms)
         if self.on_estimate is not None:
             self.on_estimate(est)
+        if self.gains.active and est.output is not None and est.output_std is not None:
+            self.gains.add(np.asarray(est.output)[None], np.asarray(est.output_std)[None])
         if self.out is None:
             return
         ny = self.formulation.ny
@@ -783,6 +792,8 @@ class LiveSession:
             )
         if c.reasons:
             msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
+        if gain_note := self.gains.notice():
+            msg += "; warning: " + gain_note
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
