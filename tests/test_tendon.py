@@ -1819,3 +1819,45 @@ def test_the_tension_gain_warning_keeps_what_the_readings_showed_before_a_restar
     prior_only = TensionGainFromOne(f)
     prior_only.add(*block(1.0, 0.3))
     assert prior_only.notice() is None
+
+
+def test_the_tension_gain_warning_says_when_the_sections_disagree() -> None:
+    """Gains far from 1 that agree (0.83 and 0.83, a scale error) are said as the
+    tensions given not acting; gains that disagree beyond their standard deviations
+    (1.95 and 1.54, std 0.01: what tensions in kgf for N end at) are said as not to be
+    trusted too."""
+    from continuum_mhe.estimators.sensor_health import TensionGainFromOne
+
+    f = TendonFormulation(robot=read_robot("tendon-two-section"), estimate_tension_gain=True)
+    cols = [i for i, o in enumerate(f.outputs) if o.name.startswith("tension_gain_")]
+    notes = []
+    for gains in ((0.83, 0.834), (1.95, 1.54)):
+        out, sd = np.zeros((1, f.ny)), np.full((1, f.ny), 1e-3)
+        out[0, cols], sd[0, cols] = gains, 0.01
+        said = TensionGainFromOne(f)
+        said.add(out, sd)
+        notes.append(said.notice())
+    agree, disagree = notes
+    assert agree is not None and "the tensions given are not those acting" in agree
+    assert "disagree" not in agree
+    assert disagree is not None and disagree.endswith(
+        "the gains, and the estimates, are not to be trusted"
+    )
+
+
+def test_the_tension_gain_with_tilt_imus_is_warned() -> None:
+    """``--estimate-tension-gain`` with tilt readings: one OptionWarning that it
+    misleads there and that raw IMUs take it; with raw readings none."""
+    from continuum_mhe.io.input_options import InputOptions, OptionWarning
+    from continuum_mhe.io.tensions import tendon_formulation_for
+    from continuum_mhe.model.registry import make_formulation
+
+    robot = read_robot("tendon-two-section")
+    options = InputOptions(estimate_tension_gain=True)
+    with pytest.warns(OptionWarning, match=r"with tilt IMUs: .* raw IMUs \(accelerometer"):
+        tilt = tendon_formulation_for(make_formulation("bend", robot), options)
+    assert tilt.estimate_tension_gain and tilt.imu_model == "tilt"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OptionWarning)
+        raw = tendon_formulation_for(make_formulation("direct", robot), options)
+    assert raw.estimate_tension_gain and raw.imu_model == "direct"

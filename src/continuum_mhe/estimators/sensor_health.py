@@ -349,11 +349,32 @@ class TensionGainFromOne:
         ]
         if not far:
             return None
-        return (
+        line = (
             f"the estimated tension gains ended more than {TENSION_GAIN_SIGMAS:g} standard "
-            f"deviations from 1 ({'; '.join(far)}): the tensions acting on the robot are "
-            "the gain times those given; tensions in another unit (kgf for N?), a tension "
-            "sensor's gain or the tendons' friction; check them"
+            f"deviations from 1 ({'; '.join(far)}): the tensions given are not those acting "
+            "(another unit, kgf for N?, a tension sensor's gain, the tendons' friction): "
+            "check them"
+        )
+        if self.disagree():
+            line += (
+                "; the sections' gains disagree beyond their standard deviations: a unit "
+                "or one sensor gain would scale both alike, so unless the sections' "
+                "friction differs this much, the gains, and the estimates, are not to be "
+                "trusted"
+            )
+        return line
+
+    def disagree(self) -> bool:
+        """Whether two sections' last informed gains differ by more than
+        :data:`TENSION_GAIN_SIGMAS` of their combined standard deviation (the gains
+        taken independent)."""
+        if self.gain is None or self.std is None or len(self.gain) < 2:
+            return False
+        g, d = self.gain, self.std
+        return any(
+            abs(g[i] - g[j]) > TENSION_GAIN_SIGMAS * float(np.hypot(d[i], d[j]))
+            for i in range(len(g))
+            for j in range(i + 1, len(g))
         )
 
 

@@ -124,7 +124,8 @@ def formulation_for(
 
 
 class OptionWarning(UserWarning):
-    """A robot-file entry or option that has no effect on this input."""
+    """A robot-file entry or option that has no effect on this input, or one measured
+    to mislead on such input."""
 
 
 def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robot) -> None:

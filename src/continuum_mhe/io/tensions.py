@@ -35,7 +35,7 @@ from continuum_mhe.io.csv_files import (
     FloatArray,
     check_time_units,
 )
-from continuum_mhe.io.input_options import InputOptions
+from continuum_mhe.io.input_options import InputOptions, OptionWarning
 from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
@@ -444,6 +444,16 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
             "file): its model includes each IMU's own acceleration already"
         )
     direct = base.name == "direct"
+    if options.estimate_tension_gain and not direct:
+        warnings.warn(
+            "--estimate-tension-gain with tilt IMUs: the gains trade with the IMUs' "
+            "misalignment and bias states and mislead (on the "
+            "shipped twist-29 with its own tensions they end at 0.27 and 0.46, 222 ok "
+            "rows over 20 mm off; docs/tendon-studies.md): raw IMUs (accelerometer and "
+            "gyro) take them",
+            OptionWarning,
+            stacklevel=2,
+        )
     return TendonFormulation(
         robot=base.robot,
         noise=base.noise,
