@@ -1861,3 +1861,59 @@ def test_the_tension_gain_with_tilt_imus_is_warned() -> None:
         warnings.simplefilter("error", OptionWarning)
         raw = tendon_formulation_for(make_formulation("direct", robot), options)
     assert raw.estimate_tension_gain and raw.imu_model == "direct"
+
+
+def test_tensions_the_robot_does_not_feel_make_rows_drifted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The first 200 samples of ``unloaded`` (raw IMUs): with its own tensions no row is
+    ``drifted`` and no warning names the IMUs' error states; with twice those tensions
+    (tensions in another unit) the IMU error states leave their prior, the rows are
+    ``drifted``, no ``ok`` row is more than 20 mm off, and a warning names the tensions."""
+    rows = 201
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
+    given = read_tensions(DATA / "unloaded_tensions.csv", 6)
+    doubled = tmp_path / "doubled.csv"
+    write_table(doubled, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([given.t, 2.0 * given.values]).tolist())  # fmt: skip
+    truth = read_state_table(DATA / "unloaded_truth.csv")
+    for tensions, out in ((DATA / "unloaded_tensions.csv", "own.csv"), (doubled, "x2.csv")):
+        argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(tensions)]
+        capsys.readouterr()
+        assert main([*argv, "-o", str(tmp_path / out)]) == 0
+        said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
+        est = read_state_table(tmp_path / out)
+        tip = np.linalg.norm(
+            np.column_stack([est.column(c) - truth.column(c)[: rows - 1] for c in "xyz"]), axis=1
+        )
+        drifted = est.status == "drifted"
+        if out == "own.csv":
+            assert not drifted.any() and said == []
+        else:
+            assert drifted.sum() > 100
+            assert not np.any((est.status == "ok") & (tip > 20e-3))
+            assert len(said) == 1 and said[0].startswith(
+                f"continuum-mhe: warning: {drifted.sum()} of 200 estimates drifted: the IMUs' "
+                "error states left their prior"
+            ), said
+            assert "check the tensions (their scale, unit and tendon order" in said[0]
+
+
+def test_the_imu_error_test_is_the_chi_square_of_the_states_against_their_prior() -> None:
+    """``drifted``: the IMU error states (gyro biases, misalignments, accelerometer
+    biases; 18 with raw IMUs) in prior standard deviations, against the chi-square 99.9 %
+    quantile of 18 degrees of freedom (42.31): just inside, not drifted; just outside,
+    drifted; the other states (the tip force) do not count."""
+    from continuum_mhe.model.registry import make_formulation
+
+    f = make_formulation("tendon", read_robot("tendon-two-section"), imu_model="direct")
+    names = f.state_names
+    idx = [i for i, n in enumerate(names) if n.startswith(("bg", "mis", "ba"))]
+    assert len(idx) == 18
+    std = np.sqrt(np.diag(f.initial_cov()))
+    x = np.zeros(f.nx)
+    x[names.index("fx")] = 100.0  # not an IMU error state
+    for d2, drifted in ((42.2, False), (42.4, True)):
+        x[idx] = std[idx] * np.sqrt(d2 / 18)
+        assert f.drifted(x) is drifted

@@ -46,6 +46,7 @@ from continuum_mhe.estimators.sensor_health import (
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
+from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
@@ -294,6 +295,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {force_note}", file=sys.stderr)
     if gain_note := tally.gain.notice():
         print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
+    if (drifted := tally.counts.get("drifted", 0)) and isinstance(formulation, TendonFormulation):
+        print(
+            f"{PROG}: warning: {drifted} of {n} estimates drifted: the IMUs' error states "
+            "left their prior, so the model follows the readings only with IMU errors "
+            "these IMUs are not taken to have; check the tensions (their scale, unit and "
+            "tendon order; --estimate-tension-gain estimates a scale) and the robot file",
+            file=sys.stderr,
+        )
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "
