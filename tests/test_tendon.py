@@ -1724,6 +1724,17 @@ def test_the_tension_gains_are_the_last_states_and_scale_the_tensions_given() ->
     assert f.is_diverged(np.where(np.arange(f.nx) == f.nx - 1, -0.1, x))
 
 
+def _unloaded_with_scaled_tensions(tmp_path: Path, rows: int, scale: float) -> tuple[Path, Path]:
+    """``(readings, tensions)``: the first ``rows - 1`` samples of ``unloaded`` (raw IMUs)
+    and its tensions file with every tension times ``scale``."""
+    meas, scaled = tmp_path / "m.csv", tmp_path / f"tensions_x{scale:g}.csv"
+    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
+    given = read_tensions(DATA / "unloaded_tensions.csv", 6)
+    write_table(scaled, ["t", *(f"tension_{j}" for j in range(1, 7))],
+                np.column_stack([given.t, scale * given.values]).tolist())  # fmt: skip
+    return meas, scaled
+
+
 def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -1732,12 +1743,7 @@ def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
     given), the tip follows the truth, and estimate says that the gains ended far from
     1; with the right tensions they end near 1 and nothing is said."""
     rows = 301
-    meas = tmp_path / "m.csv"
-    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
-    tensions = read_tensions(DATA / "unloaded_tensions.csv", 6)
-    scaled = tmp_path / "scaled.csv"
-    write_table(scaled, ["t", *(f"tension_{j}" for j in range(1, 7))],
-                np.column_stack([tensions.t, tensions.values * 1.2]).tolist())  # fmt: skip
+    meas, scaled = _unloaded_with_scaled_tensions(tmp_path, rows, 1.2)
     truth = read_state_table(DATA / "unloaded_truth.csv")
     for given, out, acting in (
         (scaled, "s.csv", 1 / 1.2),
@@ -1871,12 +1877,7 @@ def test_tensions_the_robot_does_not_feel_make_rows_drifted(
     (tensions in another unit) the IMU error states leave their prior, the rows are
     ``drifted``, no ``ok`` row is more than 20 mm off, and a warning names the tensions."""
     rows = 201
-    meas = tmp_path / "m.csv"
-    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:rows]) + "\n")
-    given = read_tensions(DATA / "unloaded_tensions.csv", 6)
-    doubled = tmp_path / "doubled.csv"
-    write_table(doubled, ["t", *(f"tension_{j}" for j in range(1, 7))],
-                np.column_stack([given.t, 2.0 * given.values]).tolist())  # fmt: skip
+    meas, doubled = _unloaded_with_scaled_tensions(tmp_path, rows, 2.0)
     truth = read_state_table(DATA / "unloaded_truth.csv")
     for tensions, out in ((DATA / "unloaded_tensions.csv", "own.csv"), (doubled, "x2.csv")):
         argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(tensions)]
