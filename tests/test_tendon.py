@@ -1794,13 +1794,34 @@ def test_the_tension_gain_finds_tensions_given_too_large_and_says_so(
 def test_the_tension_gain_is_refused_for_a_robot_without_tendons(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """``--estimate-tension-gain`` on a robot without tendons: one line, exit 2, nothing
+    written; from an options file, named by its file and line; in the library, by
+    ``InputOptions``."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.model.registry import make_formulation
+
     meas = tmp_path / "m.csv"
     meas.write_text("t,roll_1,pitch_1\n0,0,0\n0.02,0,0\n")
-    argv = ["estimate", str(meas), "--estimate-tension-gain", "-o", str(tmp_path / "e.csv")]
-    assert main(argv) == 2
-    assert "--estimate-tension-gain does not apply: it is for a tendon robot" in (
-        capsys.readouterr().err
-    )
+    argv = ["estimate", str(meas), "-o", str(tmp_path / "e.csv")]
+    assert main([*argv, "--estimate-tension-gain"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(
+        "continuum-mhe: error: --estimate-tension-gain does not apply: it is for a tendon "
+        "robot (a robot file with [[tendon]] entries and a [backbone]), and this robot has "
+        "no tendons"
+    ), err
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text("estimate-tension-gain = true\n")
+    assert main([*argv, "--robot", "two-section", "--config", str(cfg)]) == 2
+    assert (
+        f"error: {cfg}: line 1: estimate-tension-gain = True does not apply: it is for a "
+        "tendon robot"
+    ) in capsys.readouterr().err
+    assert not (tmp_path / "e.csv").exists()
+    with pytest.raises(UserError, match="--estimate-tension-gain does not apply"):
+        load_input(meas, InputOptions(estimate_tension_gain=True), make_formulation("bend"))
 
 
 def test_the_tension_gain_warning_keeps_what_the_readings_showed_before_a_restart() -> None:

@@ -56,20 +56,36 @@ def add_robot_option(
 
 def robot_from_args(args: argparse.Namespace) -> Robot:
     """The robot of a command: ``--robot`` file, else the one-section flags (a
-    ``--length`` or ``--mounting`` of None: :data:`DEFAULT_LENGTH`, ``z-up``)."""
+    ``--length`` or ``--mounting`` of None: :data:`DEFAULT_LENGTH`, ``z-up``). A
+    ``--estimate-tension-gain`` for a robot without tendons is refused, naming the
+    options file's line where it came from one."""
     if getattr(args, "robot", None):
         from continuum_mhe.io.robot_file import read_robot
 
-        return read_robot(args.robot)
-    length = getattr(args, "length", None)
-    try:
-        return Robot.single(
-            DEFAULT_LENGTH if length is None else length,
-            getattr(args, "theta_max", math.pi / 2),
-            getattr(args, "mounting", None) or "z-up",
+        robot = read_robot(args.robot)
+    else:
+        length = getattr(args, "length", None)
+        try:
+            robot = Robot.single(
+                DEFAULT_LENGTH if length is None else length,
+                getattr(args, "theta_max", math.pi / 2),
+                getattr(args, "mounting", None) or "z-up",
+            )
+        except ValueError as exc:
+            raise InputError(f"robot: {exc}") from None
+    if getattr(args, "estimate_tension_gain", False) and not robot.n_tendons:
+        named = getattr(args, "config_sources", {}).get("estimate_tension_gain")
+        raise InputError(
+            f"{named or '--estimate-tension-gain'} does not apply: it is for a tendon robot "
+            "(a robot file with [[tendon]] entries and a [backbone]), and "
+            + (
+                f"the robot file {args.robot} has"
+                if getattr(args, "robot", None)
+                else "this robot has"
+            )
+            + " no tendons"
         )
-    except ValueError as exc:
-        raise InputError(f"robot: {exc}") from None
+    return robot
 
 
 def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
