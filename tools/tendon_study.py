@@ -23,6 +23,7 @@ import ast
 import json
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -43,6 +44,26 @@ from continuum_mhe.settings import MHESettings
 def _table(path: Path) -> tuple[list[str], np.ndarray]:
     lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
     return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+
+
+def imu_readings(
+    folder: Path, scenario: str, imu: str, used: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(t (n,) s, readings (n, m))`` of a generator recording's IMUs ``used`` (0-based,
+    in order) as the tendon formulation reads them: ``tilt`` roll and pitch (rad) from
+    ``SCENARIO_tilt.csv``, or ``direct`` the raw ``SCENARIO_raw.csv`` converted (specific
+    force direction and gyro, rad/s)."""
+    if imu == "tilt":
+        _, tilt = _table(folder / f"{scenario}_tilt.csv")
+        return tilt[:, 0], np.hstack([tilt[:, 1 + 2 * k : 3 + 2 * k] for k in used])
+    _, raw = _table(folder / f"{scenario}_raw.csv")
+    t = raw[:, 0]
+    settings = RawImuSettings(imu_model="direct")
+    z_imu = np.hstack(
+        [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
+                             settings) for k in used]
+    )  # fmt: skip
+    return t, z_imu
 
 
 def model_floor(
@@ -97,18 +118,7 @@ def main() -> None:
     changes = {k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in a.set)}
     f = replace(tendon_formulation_for(base, options), **changes)
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
-    if a.imu == "tilt":
-        _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
-        t = tilt[:, 0]
-        z_imu = np.hstack([tilt[:, 1 + 2 * k : 3 + 2 * k] for k in used])
-    else:
-        _, raw = _table(a.folder / f"{a.scenario}_raw.csv")
-        t = raw[:, 0]
-        settings = RawImuSettings(imu_model="direct")
-        z_imu = np.hstack(
-            [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
-                                 settings) for k in used]
-        )  # fmt: skip
+    t, z_imu = imu_readings(a.folder, a.scenario, a.imu, used)
     n = len(t) if a.samples is None else a.samples
     t, z_imu = t[:n], z_imu[:n]
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")

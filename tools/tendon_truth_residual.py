@@ -21,11 +21,10 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from tendon_study import _table
+from tendon_study import _table, imu_readings
 
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
-from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import Tensions, read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
@@ -68,13 +67,7 @@ def read_raw_recording(folder: Path, scenario: str, changes: list[str]) -> RawRe
     f = tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD))
     f = replace(f, **{k: ast.literal_eval(v) for k, v in (kv.split("=", 1) for kv in changes)})
     tensions = read_tensions(folder / f"{scenario}_tensions.csv", robot.n_tendons)
-    _, raw = _table(folder / f"{scenario}_raw.csv")
-    t = raw[:, 0]
-    settings = RawImuSettings(imu_model="direct")
-    z_imu = np.hstack(
-        [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
-                             settings) for k in range(robot.n_imus)]
-    )  # fmt: skip
+    t, z_imu = imu_readings(folder, scenario, "direct", range(robot.n_imus))
     names, truth = _table(folder / f"{scenario}_truth.csv")
     return RawRecording(f, tensions, t, z_imu, names, truth)
 

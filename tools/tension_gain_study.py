@@ -19,24 +19,20 @@ import argparse
 import ast
 import json
 import math
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from tendon_study import _table, imu_readings
 
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD, InputOptions
-from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions, tendon_formulation_for
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.settings import NoiseSettings
 from continuum_mhe.results import Measurement
-
-
-def _table(path: Path) -> tuple[list[str], np.ndarray]:
-    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
-    return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
 
 
 def main() -> None:
@@ -62,17 +58,7 @@ def main() -> None:
     default = replace(tendon_formulation_for(base, InputOptions(gyro_std=DEFAULT_GYRO_STD)),
                       **changes)  # fmt: skip
     tensions = read_tensions(a.folder / f"{a.scenario}_tensions.csv", robot.n_tendons)
-    if a.imu == "tilt":
-        _, tilt = _table(a.folder / f"{a.scenario}_tilt.csv")
-        t, z_imu = tilt[:, 0], tilt[:, 1:]
-    else:
-        _, raw = _table(a.folder / f"{a.scenario}_raw.csv")
-        t = raw[:, 0]
-        settings = RawImuSettings(imu_model="direct")
-        z_imu = np.hstack(
-            [raw_to_measurements(t, raw[:, 1 + 6 * k : 4 + 6 * k], raw[:, 4 + 6 * k : 7 + 6 * k],
-                                 settings) for k in range(robot.n_imus)]
-        )  # fmt: skip
+    t, z_imu = imu_readings(a.folder, a.scenario, a.imu, range(robot.n_imus))
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
     gains = {"off": [False], "on": [True], "both": [False, True]}[a.gain]
     for scale in a.scale:
@@ -111,9 +97,7 @@ def main() -> None:
             ok = np.array(status) == "ok"
             force_rms = float(np.sqrt(np.mean(err(("fx", "fy", "fz"), keep) ** 2)))
             ok_tip = round(float(np.nanmean(tip_all[ok]) * 1e3), 2) if ok.any() else None
-            statuses: dict[str, int] = {}
-            for s in status:
-                statuses[s] = statuses.get(s, 0) + 1
+            statuses = dict(Counter(status))
             row: dict[str, object] = {
                 "scenario": a.scenario, "imu": a.imu, "scale": scale, "gain": on,
                 "tip_mean_mm": round(float(tip.mean() * 1e3), 2),

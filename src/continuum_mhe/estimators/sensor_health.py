@@ -142,6 +142,15 @@ def _bend_columns(formulation: Formulation) -> list[int]:
     ]
 
 
+def _largest_bends(largest: list[float], theta: FloatArray, rows: NDArray[np.bool_]) -> list[float]:
+    """Each section's largest bend (rad) of ``largest`` and of the bends ``theta`` (n,
+    sections) where ``rows`` (n, sections) marks them."""
+    if not rows.any():
+        return largest
+    worst = np.nanmax(np.where(rows, theta, 0.0), axis=0)
+    return [max(a, float(b)) for a, b in zip(largest, worst)]
+
+
 class BendsOnBound:
     """The estimates of a constant-curvature robot that put a section's bend on its
     ``theta_max`` (within :data:`~continuum_mhe.model.formulations.AT_BOUND_TOL`) or
@@ -172,9 +181,7 @@ class BendsOnBound:
             with np.errstate(invalid="ignore"):
                 reached = theta >= self._limits - AT_BOUND_TOL
             on = on | reached.any(axis=1)
-            if reached.any():
-                worst = np.nanmax(np.where(reached, theta, 0.0), axis=0)
-                self.largest = [max(a, float(b)) for a, b in zip(self.largest, worst)]
+            self.largest = _largest_bends(self.largest, theta, reached)
         self.count += int(on.sum())
         self.statuses.update(str(v) for v in status[on])
 
@@ -234,9 +241,7 @@ class BendsBeyondBound:
         with np.errstate(invalid="ignore"):
             beyond = theta > self._limits
         self.count += int(beyond.any(axis=1).sum())
-        if beyond.any():
-            worst = np.nanmax(np.where(beyond, theta, 0.0), axis=0)
-            self.largest = [max(a, float(b)) for a, b in zip(self.largest, worst)]
+        self.largest = _largest_bends(self.largest, theta, beyond)
 
     def notice(self, n: int) -> str | None:
         """One line for the estimates counted beyond the bound, of ``n``; None without."""
