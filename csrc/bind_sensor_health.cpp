@@ -484,14 +484,14 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<int> tip_rows, double freeze, int freeze_samples, double gap_reset,
              double bad_start, double reject_reset, double uncertain_fraction, double length,
              bool checks_start, bool shape_observable, std::vector<double> start_limit,
-             int start_samples, double unobserved_after, double degrees_like,
+             int start_samples, int start_chain, double unobserved_after, double degrees_like,
              std::vector<int> whole_rows, nb::object process_noise, nb::object inputs,
              nb::object observable, const StateChecks* checks) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
                              uncertain_fraction, length, checks_start, shape_observable,
-                             std::move(start_limit), start_samples, unobserved_after,
+                             std::move(start_limit), start_samples, start_chain, unobserved_after,
                              degrees_like, std::nullopt};
             if (checks) s.checks = *checks;
             s.whole_rows = std::move(whole_rows);
@@ -519,7 +519,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("freeze_samples"), nb::arg("gap_reset"), nb::arg("bad_start"),
           nb::arg("reject_reset"), nb::arg("uncertain_fraction"), nb::arg("length"),
           nb::arg("checks_start"), nb::arg("shape_observable"), nb::arg("start_limit"),
-          nb::arg("start_samples"), nb::arg("unobserved_after"), nb::arg("degrees_like"),
+          nb::arg("start_samples"), nb::arg("start_chain"), nb::arg("unobserved_after"),
+          nb::arg("degrees_like"),
           nb::arg("whole_rows"), nb::arg("process_noise"),
           nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
@@ -608,9 +609,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             nb::object failure = d.has_failure ? nb::cast(d.last_failure) : nb::none();
             return nb::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.first_freezes,
                                   d.bad_starts, d.reject_resets, failure, d.bound_samples,
-                                  d.max_noise_scale, d.model_error);
+                                  d.max_noise_scale, d.model_error, d.bad_start_chains);
           },
           "(restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, "
           "reject_resets, last_failure or None, bound_samples, max_noise_scale, "
-          "model_error).");
+          "model_error, bad_start_chains).");
 }

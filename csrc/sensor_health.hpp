@@ -137,6 +137,10 @@ struct PolicySettings {
   bool shape_observable = true;
   std::vector<double> start_limit;  // the start check's NIS limit by dof (index 0 unused)
   int start_samples = 2;            // consecutive readings beyond it that restart
+  // bad-start restarts in a row (each within the probation time of the one before, no
+  // other restart between) after which the check stops restarting until the probation
+  // time passes or another restart: readings that no restart fits (0: no limit)
+  int start_chain = 0;
   double unobserved_after = 1.0;    // s, an IMU's silence that unobserves it (gap reset off)
   double degrees_like = 0.0;        // rad, a tilt reading beyond it is in degrees
   // the formulation's checks of a state, when it states them as data (else the
@@ -150,7 +154,7 @@ struct PolicySettings {
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
 struct PolicyDiagnostics {
   int64_t restarts = 0, gap_resets = 0, frozen_samples = 0, bad_starts = 0,
-          reject_resets = 0, bound_samples = 0;
+          reject_resets = 0, bound_samples = 0, bad_start_chains = 0;
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -238,6 +242,8 @@ class SensorHealth {
   double since_ = NAN, agreed_since_ = NAN, hold_ = 0.0, prev_t_ = 0.0;
   int run_ = 0;
   bool has_prev_ = false;
+  // bad-start restarts in a row (PolicySettings::start_chain)
+  int chain_ = 0;
   std::vector<double> prev_x_, prev_P_, prev_z_;
   std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
   // the consistency check's previous sample

@@ -195,6 +195,9 @@ class Diagnostics:
             repeated readings.
         bad_starts: restarts after a bad start (``recovery.bad_start``), the start of an
             IMU back from a silence included.
+        bad_start_chains: times the bad-start check stopped restarting after the
+            formulation's ``bad_start_chain`` restarts in a row whose readings stayed
+            inconsistent (the model does not fit them).
         reject_resets: restarts of a robust MHE after it rejected every reading for longer
             than ``recovery.reject_reset``.
         last_failure: the last numerical failure's message, if any.
@@ -220,6 +223,7 @@ class Diagnostics:
     bound_samples: int = 0
     max_noise_scale: float = 1.0
     model_error: float = 0.0
+    bad_start_chains: int = 0
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

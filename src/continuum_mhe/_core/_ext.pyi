@@ -606,7 +606,7 @@ class SensorHealth:
     The sensor-health policy of an estimator (continuum_mhe.estimators.sensor_health): step one sample, or run a recording into arrays, in compiled code (csrc/sensor_health.hpp).
     """
 
-    def __init__(self, inference: object, consistency: ConsistencyCheck, nx: int, nu: int, nz: int, ny: int, blocks: Sequence[tuple[int, int]], imu_blocks: Sequence[tuple[int, int]], tilt_rows: Sequence[int], tip_rows: Sequence[int], freeze: float, freeze_samples: int, gap_reset: float, bad_start: float, reject_reset: float, uncertain_fraction: float, length: float, checks_start: bool, shape_observable: bool, start_limit: Sequence[float], start_samples: int, unobserved_after: float, degrees_like: float, whole_rows: Sequence[int], process_noise: object, inputs: object, observable: object, checks: StateChecks | None) -> None:
+    def __init__(self, inference: object, consistency: ConsistencyCheck, nx: int, nu: int, nz: int, ny: int, blocks: Sequence[tuple[int, int]], imu_blocks: Sequence[tuple[int, int]], tilt_rows: Sequence[int], tip_rows: Sequence[int], freeze: float, freeze_samples: int, gap_reset: float, bad_start: float, reject_reset: float, uncertain_fraction: float, length: float, checks_start: bool, shape_observable: bool, start_limit: Sequence[float], start_samples: int, start_chain: int, unobserved_after: float, degrees_like: float, whole_rows: Sequence[int], process_noise: object, inputs: object, observable: object, checks: StateChecks | None) -> None:
         """
         ``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout as a whole; settings in s and rad, NaN where off; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, ``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the inference's is_diverged, drifted and at_bound).
         """
@@ -636,7 +636,7 @@ class SensorHealth:
     @property
     def diagnostics(self) -> tuple:
         """
-        (restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, reject_resets, last_failure or None, bound_samples, max_noise_scale, model_error).
+        (restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, reject_resets, last_failure or None, bound_samples, max_noise_scale, model_error, bad_start_chains).
         """
 
 def estimate_lines(t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output_std: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], estimated: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)], outlier: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)] | None, status: Sequence[str], solve_ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> str:

@@ -271,6 +271,12 @@ def run(args: argparse.Namespace) -> int:
             f"; restarted {diag.bad_starts} time(s) after readings inconsistent with the "
             "start or an IMU's return"
         )
+    if diag.bad_start_chains:
+        msg += (
+            f"; stopped restarting {diag.bad_start_chains} time(s) after "
+            f"{est.formulation.bad_start_chain} restarts in a row that the readings "
+            "contradicted too: the model does not fit them (check the robot file and the inputs)"
+        )
     if counts.get("inconsistent") or diag.max_noise_scale > 1.5:
         scatter = math.sqrt(diag.max_noise_scale)
         widened = (

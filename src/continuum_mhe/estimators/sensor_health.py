@@ -571,6 +571,7 @@ class Estimator(Generic[InferenceT]):
             shape_observable=self.shape_observable,
             start_limit=[math.inf] + [chi2_quantile(quantile, k) for k in range(1, f.nz + 1)],
             start_samples=start_check.SAMPLES,
+            start_chain=f.bad_start_chain or 0,
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,
             whole_rows=self._tension_block_rows,
@@ -611,7 +612,7 @@ class Estimator(Generic[InferenceT]):
         (
             d.restarts, d.gap_resets, d.frozen_samples, freezes, d.bad_starts,
             d.reject_resets, d.last_failure, d.bound_samples, d.max_noise_scale,
-            d.model_error,
+            d.model_error, d.bad_start_chains,
         ) = self._policy.diagnostics  # fmt: skip
         for k, t in freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t

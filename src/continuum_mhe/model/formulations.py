@@ -341,6 +341,14 @@ class Formulation:
     #: Whether ``Q`` and ``R`` are noise models, so that the covariances the estimators
     #: compute from them describe the errors (the ``uncertain`` status relies on it).
     calibrated_covariance = True
+    #: Bad-start restarts in a row (each within the probation time of the one before,
+    #: the readings inconsistent after each) after which the estimators stop restarting
+    #: until a restart holds through its probation time or another kind of restart;
+    #: None: no limit. A restart of this model fits its shape to one reading, cheaply, and
+    #: where the model cannot follow the robot (the shipped ``spatial`` rod, raw IMUs,
+    #: twisting 120 degrees) the restarts keep the estimates nearer the robot than a
+    #: filter left to itself (MHE 68.5 against 154 mm mean tip error with a limit of 3).
+    bad_start_chain: ClassVar[int | None] = None
 
     @cached_property
     def output_jacobian(self) -> ca.Function:

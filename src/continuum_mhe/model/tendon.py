@@ -241,6 +241,12 @@ class TendonFormulation(Formulation):
     name: FormulationName = "tendon"
     #: the shooting model's second derivatives are too large to form (Gauss-Newton)
     second_order_residuals: ClassVar[bool] = False
+    #: A restart fits the start to the reading by least squares (up to
+    #: :data:`START_EVALUATIONS` model evaluations); where the readings contradict every
+    #: restart (tensions of another scale or order) the restarts do not bring the estimate
+    #: nearer the robot and cost most of the run, so three in a row stop them (the rows
+    #: are then ``drifted`` or ``inconsistent``).
+    bad_start_chain: ClassVar[int | None] = 3
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
         "the fast MHE does not take this robot's mechanics model (its windows do not "
