@@ -170,6 +170,9 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
         copied = true;
       }
       std::fill(z_.begin() + start, z_.begin() + start + size, NAN);
+      // its last reading is that of the freeze's start: the repeated ones since then were
+      // no readings, so its silence (which unobserves its part of the shape) dates from it
+      imu_last_valid_[k] = std::min(imu_last_valid_[k], freeze_since_[k]);
       auto& first = diagnostics.first_freezes;
       const int kk = static_cast<int>(k);
       if (std::none_of(first.begin(), first.end(), [kk](const auto& f) { return f.first == kk; }))

@@ -87,6 +87,34 @@ def test_no_row_after_a_forced_restart_is_ok_before_readings_confirm_it(
     assert np.all(off[est.status == "ok"] < 0.05)
 
 
+def test_many_restarts_say_the_readings_do_not_fit_the_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording of CSV readings on which more than 5 % of the samples restart the
+    estimator (the shipped ``spatial`` rod, raw IMUs: its backbone twists, which the
+    PCC model cannot follow) ends with one warning naming the file, the share and what
+    to check in the robot file; the planar S (no restart) has none."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    for name, warned in (("spatial_raw.csv", True), ("planar-s_raw.csv", False)):
+        capsys.readouterr()
+        argv = ["estimate", str(data / name), "--robot", "two-section", "--method", "ekf",
+                "-o", str(tmp_path / f"{name}.est.csv")]  # fmt: skip
+        assert main(argv) == 0
+        said = [
+            ln for ln in capsys.readouterr().err.splitlines() if "restarted the estimator" in ln
+        ]
+        if not warned:
+            assert said == []
+            continue
+        assert len(said) == 1
+        head, share = said[0].split(" samples (")
+        restarts, samples = (int(v) for v in head.rsplit(": ", 1)[1].split(" of "))
+        assert head.startswith(f"continuum-mhe: warning: {data / name}: ")
+        assert samples == 601 and restarts > 0.05 * samples
+        assert share.startswith(f"{100 * restarts / samples:.0f} %) restarted the estimator")
+        assert "check the robot file against the robot (the IMUs' order" in said[0]
+
+
 @pytest.mark.parametrize("index", range(5), ids=IDS)
 def test_clean_data_are_unchanged_by_the_check(index: int) -> None:
     rec = simulate("paper3d", duration=4.0, seed=5)

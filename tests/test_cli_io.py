@@ -152,6 +152,38 @@ def test_degrees_given_for_a_recording_in_radians_warns_once(tmp_path):
         assert main(["estimate", str(deg), "-o", str(tmp_path / "f.csv"), "--degrees"]) == 0
 
 
+def test_a_mounting_refused_on_radians_read_as_degrees_names_the_unit(tmp_path, capsys):
+    """A hanging robot's tilt recording in radians, read with ``--degrees``: the angles
+    (roll near pi) read as a few degrees look like an upright robot, and the mounting
+    check refuses; its line also asks whether the angles are radians and says to leave
+    out ``--degrees``. Read as radians, the same file runs."""
+    robot = tmp_path / "hanging.toml"
+    robot.write_text(
+        'mounting = "z-down"\n[[section]]\nlength = 0.1\ntheta_max = 2.0\n'
+        "[[section]]\nlength = 0.1\ntheta_max = 2.0\n"
+        "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    rec = simulate_robot("spatial", read_robot(str(robot)), duration=2.0, seed=1)
+    rad = tmp_path / "rad.csv"
+    write_measurements(rad, rec.t, rec.z, ["roll_1", "pitch_1", "roll_2", "pitch_2"])
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(rad), "--robot", str(robot), "-o", str(out)]
+    assert main([*argv, "--degrees"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"continuum-mhe: error: {rad}: mounting: the robot is described as z-down"
+    )
+    assert err[0].endswith(
+        f"or are the angles radians? every roll and pitch of its first {len(rec.t)} rows is "
+        f"within {np.abs(rec.z).max():.3g}: leave out --degrees (degrees=False in Python)"
+    )
+    assert not out.exists()
+    assert main(argv) == 0
+
+
 def test_extra_columns_and_column_order_are_accepted(tmp_path):
     source = [[float(v) for v in r.split(",")] for r in _good_rows(10)]  # t, roll, pitch
     rows = [f"{p!r},x,{t!r},{r!r}" for t, r, p in source]

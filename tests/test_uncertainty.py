@@ -412,6 +412,31 @@ def test_a_frozen_sensor_is_treated_as_a_dropout(method: str) -> None:
     assert set(s.status[rec.t >= 4]) <= {"ok", "uncertain"}  # the reading changes: used again
 
 
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_a_frozen_imu_is_silent_from_its_freezes_start(method: str) -> None:
+    """A two-section robot whose tip IMU sticks at t = 3 s for the rest of the
+    recording: once its freeze is found (1 s of the same reading) the IMU left cannot
+    determine the shape, and its silence dates from the freeze's start, so no row from
+    then on is ``ok`` (an IMU silent for less than the unobserved window would count as
+    reporting, and its stale readings made rows up to 58 mm off ``ok``)."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=6.0, seed=1)
+    f = make_formulation("bend", robot)
+    z = rec.z.copy()
+    stuck = rec.t >= 3.0
+    tip = f.measurement_blocks[1].slice
+    z[stuck, tip] = z[np.flatnonzero(stuck)[0], tip]
+    est = make_estimator(method, f, recovery=bare(freeze=1.0))
+    s = est.run(rec.t, z)
+    found = rec.t > 3.0 + 1.0 + 1e-9
+    assert est.diagnostics.first_freezes == {1: 3.0}
+    assert "ok" not in set(s.status[found])
+    assert set(s.status[found]) <= {"uncertain", "inconsistent", "reset", "at-bound"}
+
+
 @pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
 def test_each_run_counts_its_own_recording(index: int) -> None:
     """Each ``run`` counts its own recording: the counts (gap resets, frozen samples,

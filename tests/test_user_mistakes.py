@@ -781,6 +781,37 @@ def test_evaluate_against_a_truth_of_more_sections_warns_and_gives_no_srmse(
     assert json.loads(capsys.readouterr().out)["srmse"] is None
 
 
+def test_a_truth_of_fewer_sections_is_said_in_evaluate_and_refused_in_plot(
+    two_and_three, tmp_path, capsys
+) -> None:
+    """A three-section estimate against a two-section truth: its columns are a subset of
+    the three-section robot's, but its section 2 ends at its tip in every row. evaluate
+    warns that it is of another robot and gives no SRMSE; plot refuses it in one line;
+    the three-section truth passes both."""
+    robot3 = two_and_three["m3"].parent / "robot3.toml"
+    e3 = tmp_path / "e3.csv"
+    assert main(["estimate", str(two_and_three["m3"]), "--robot", str(robot3), "--method",
+                 "ekf", "-o", str(e3)]) == 0  # fmt: skip
+    t2, t3 = two_and_three["t2"], two_and_three["t3"]
+    capsys.readouterr()
+    assert main(["evaluate", str(e3), str(t2), "--robot", str(robot3)]) == 0
+    out, err = capsys.readouterr()
+    assert err == (
+        f"continuum-mhe: warning: {t2}: section 2's end is its tip in every row: a robot of "
+        "2 section(s), not 3: the truth is of another robot (pass --robot with its robot)\n"
+    )
+    assert "SRMSE                not given" in out
+    assert main(["plot", str(e3), "--truth", str(t2), "-o", str(tmp_path / "p.png")]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {t2}: the truth's section 2 ends at its tip in every row: a "
+        "truth of a robot of 2 section(s), not of this estimate's 3?\n"
+    )
+    assert not (tmp_path / "p.png").exists()
+    assert main(["evaluate", str(e3), str(t3), "--robot", str(robot3)]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and re.search(r"SRMSE\s+\d", out)
+
+
 def _on_the_device_clock(src: Path, dst: Path, t0: float) -> list[str]:
     """``src`` with ``t0`` s added to every row's t (the first column), as a device
     clock that has run for days gives it; the new t cells, in order."""

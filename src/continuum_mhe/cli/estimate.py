@@ -42,6 +42,7 @@ from continuum_mhe.estimators.sensor_health import (
     Estimator,
     ForceBeyondTensions,
     TensionGainFromOne,
+    restarts_notice,
 )
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import robot_fix
@@ -242,8 +243,11 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         raise interrupted
-    if stream.kind == "log":  # several topics in the wrong order, most often
-        warn_topic_order(stream.name, args.topic or (), n, diag.restarts + diag.bad_starts)
+    restarts = diag.restarts + diag.bad_starts
+    if stream.kind == "log" and len(args.topic or ()) > 1:  # topics in the wrong order, most often
+        warn_topic_order(stream.name, args.topic, n, restarts)
+    elif restarts_note := restarts_notice(n, restarts):
+        print(f"{PROG}: warning: {stream.name}: {restarts_note}", file=sys.stderr)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
         summary += f"; outliers flagged: {tally.outliers}"

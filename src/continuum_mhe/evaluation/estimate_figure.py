@@ -15,7 +15,7 @@ import numpy as np
 
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
-from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable
+from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points
@@ -211,6 +211,12 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
             return (
                 f"the truth has section columns ({', '.join(other)}) that an estimate of "
                 f"{n_est} section(s) has not: a truth of another robot?"
+            )
+        ends = tip_section(truth)
+        if ends is not None and ends < n_est:
+            return (
+                f"the truth's section {ends} ends at its tip in every row: a truth of a "
+                f"robot of {ends} section(s), not of this estimate's {n_est}?"
             )
     if not any(truth_points(est, truth)):
         wanted = ", ".join(", ".join(p.columns) for p in tracked_points(est.names))

@@ -568,9 +568,23 @@ class DegreesCheck:
             self.largest = max(self.largest, float(np.abs(v[full]).max()))
             self.rows += int(full.sum())
 
+    def radians_like(self) -> bool:
+        """Whether the angles counted so far look like radians (over enough rows)."""
+        return self.rows >= RADIANS_LIKE_ROWS and self.largest <= RADIANS_LIKE_MAX
+
+    def mounting_hint(self) -> str | None:
+        """What a refusal of the robot's mounting adds where the angles counted so far
+        look like radians: radians read as degrees look like an upright robot."""
+        if not self.radians_like():
+            return None
+        return (
+            f"or are the angles radians? every roll and pitch of its first {self.rows} rows "
+            f"is within {self.largest:.3g}: leave out --degrees (degrees=False in Python)"
+        )
+
     def warn(self, path: str) -> None:
         """A :class:`UnitWarning` naming ``path`` where the angles look like radians."""
-        if self.rows >= RADIANS_LIKE_ROWS and self.largest <= RADIANS_LIKE_MAX:
+        if self.radians_like():
             warnings.warn(
                 f"{path}: read in degrees (--degrees; degrees=True in Python), but every "
                 f"roll and pitch of its {self.rows} rows is within {self.largest:.3g}: "
@@ -813,8 +827,39 @@ def check_same_robot(
         check_estimate_fits(estimates, estimate.names, robot)
     misfit = robot_misfit(truth_table.names, robot, complete=False)
     if not misfit:
-        return ""
+        ends = tip_section(truth_table)
+        if ends is None or ends >= robot.n_sections:
+            return ""
+        misfit = (
+            f"section {ends}'s end is its tip in every row: a robot of {ends} section(s), "
+            f"not {robot.n_sections}"
+        )
     return f"{truth}: {misfit}: the truth is of another robot (pass --robot with its robot)"
+
+
+#: The largest distance, m, between a section's end and the tip in every row of a file
+#: for that section to be the file's last (rounding of the written digits only).
+TIP_SECTION_TOLERANCE = 1e-6
+
+
+def tip_section(table: StateTable) -> int | None:
+    """The first section ``k`` (1-based) whose end (``x_k, y_k, z_k``) is the file's tip
+    (``x, y, z``) in every row that has both, within :data:`TIP_SECTION_TOLERANCE`: the
+    last section of the robot the file was made for; None where no section's is (or
+    none is given). A truth of a robot of fewer sections fits a subset of another
+    robot's columns, and this tells it apart."""
+    names = list(table.names)
+    if not all(c in names for c in ("x", "y", "z")):
+        return None
+    tip = table.values[:, [names.index(c) for c in ("x", "y", "z")]]
+    k = 1
+    while all(f"{c}_{k}" in names for c in ("x", "y", "z")):
+        end = table.values[:, [names.index(f"{c}_{k}") for c in ("x", "y", "z")]]
+        both = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(end), axis=1)
+        if both.any() and np.abs(end[both] - tip[both]).max() <= TIP_SECTION_TOLERANCE:
+            return k
+        k += 1
+    return None
 
 
 def misspelt_columns(names: Sequence[str], outputs: Sequence[str]) -> str:

@@ -562,6 +562,7 @@ def _table_stream(
     convert: Convert
     kind: InputKind
     finish: Callable[[], None] | None = None  # what to say once every sample is read
+    mounting_hint: Callable[[], str | None] | None = None  # what a mounting refusal adds
     if sample_kind(rows) == "raw":
         kind = "raw-csv"
         cols, has_gyro = raw_layout(rows, n_imus)
@@ -600,6 +601,7 @@ def _table_stream(
 
         if options.degrees:
             finish = partial(degrees_seen.warn, name)
+            mounting_hint = degrees_seen.mounting_hint
 
     found = sample_blocks(
         rows, cols, CHUNK, skip_bad=options.skip_bad, empty_is_dropout=True,
@@ -610,7 +612,7 @@ def _table_stream(
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
         problems=problems, readings=readings,
     )  # fmt: skip
-    samples = _chunked(rows, found, convert, readings, f, finish, robot_name)
+    samples = _chunked(rows, found, convert, readings, f, finish, robot_name, mounting_hint)
     return MeasurementStream(description, f, samples, 0, rows)
 
 
@@ -630,19 +632,27 @@ def _chunked(
     formulation: Formulation,
     finish: Callable[[], None] | None = None,
     robot_name: str | None = None,
+    mounting_hint: Callable[[], str | None] | None = None,
 ) -> Iterator[tuple[FloatArray, FloatArray]]:
     """Convert the blocks of :data:`CHUNK` rows, one at a time. Counts which IMUs
     reported in ``readings``, and warns at the end for one that never did, then calls
     ``finish``. The first block's readings are checked against the robot's mounting
     (:func:`~continuum_mhe.io.input_options.check_mounting`; ``robot_name``: the robot
-    file its messages name, None: the command line's one-section options)."""
+    file its messages name, None: the command line's one-section options); a refusal
+    ends with ``mounting_hint()`` where that gives another reading of it."""
     first = True
     for block in found:
         if first:
             check_time_units(rows, block.t)
         z = np.ascontiguousarray(convert(block.t, block.values, block.lines), dtype=np.float64)
         if first:
-            check_mounting(rows.name, z, formulation, robot_name)
+            try:
+                check_mounting(rows.name, z, formulation, robot_name)
+            except InputError as err:
+                hint = mounting_hint() if mounting_hint is not None else None
+                if hint is None:
+                    raise
+                raise InputError(f"{err}; {hint}") from None
             first = False
         readings.add(z)
         yield block.t, z
