@@ -357,6 +357,10 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
         ("[[section]]\nlength = 0.1\ntheta_max = 90\n[[imu]]\nsection = 1\n", "degrees?"),
         ("mounting = 'sideways'\n[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\n", "mounting"),
         ("[[section]\n", "not valid TOML"),
+        (
+            "[[section]]\nlength = 0.1\n[imu]\nsection = 1\n[[imu]]\nsection = 1\nat = 0.5\n",
+            "; line 3: [imu] is one table, and every imu is a [[imu]] (double brackets)",
+        ),
     ],
 )
 def test_bad_robot_file_is_one_line_exit_2_nothing_written(

@@ -363,6 +363,21 @@ def shipped_robots() -> dict[str, Path]:
     return {f.stem.replace("_", "-"): f for f in sorted(folder.glob("*.toml"))}
 
 
+def _single_table_hint(text: str) -> str:
+    """Where a list of tables (``[[imu]]``, ``[[section]]``, ``[[tendon]]``) is also
+    written with single brackets, which TOML reads as one table and refuses where the
+    list follows: ``; line N: [imu] ...``; else ``""``."""
+    lines = text.splitlines()
+    for name in ("section", "imu", "tendon"):
+        single = [i for i, ln in enumerate(lines, 1) if ln.strip() == f"[{name}]"]
+        if single and any(ln.strip() == f"[[{name}]]" for ln in lines):
+            return (
+                f"; line {single[0]}: [{name}] is one table, and every {name} is a "
+                f"[[{name}]] (double brackets)"
+            )
+    return ""
+
+
 def read_robot(path: str | os.PathLike[str]) -> Robot:
     """Read and validate a robot file (TOML), or a shipped robot by name
     (:func:`shipped_robots`, e.g. ``two-section``)."""
@@ -380,7 +395,8 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
     except UnicodeDecodeError:
         raise InputError(f"{p}: not a UTF-8 text file") from None
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: not valid TOML ({shorten(str(exc), 200)})") from None
+        hint = _single_table_hint(text)
+        raise InputError(f"{p}: not valid TOML ({shorten(str(exc), 200)}){hint}") from None
     except RecursionError:  # the parser recurses into nested arrays and tables
         raise InputError(f"{p}: not a robot file (nested too deeply for TOML's parser)") from None
     except OSError as exc:
