@@ -116,6 +116,7 @@ void SensorHealth::reset(bool keep_counts) {
   returned_.clear();
   hold_ = 0.0;
   chain_ = 0;
+  forced_t_.clear();
   consistency_.reset();
   restart();
 }
@@ -428,6 +429,18 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // a restart the readings forced fits this one reading; the next start_samples
     // readings the check compares with the estimate (judged rows, not an outlier's)
     // confirm it when they agree, and until then it is not trusted
+    // restarts the readings forced, within the bad-start check's probation time (the
+    // unobserved window where longer, or without the check): a run of them says the
+    // readings contradict every estimate the model makes of them, so none is trusted
+    // while it lasts (a robot file that is not the robot's, a motion the model cannot
+    // follow), even where the readings agree with one for a few samples
+    const double run_window = std::isnan(s_.bad_start)
+                                  ? unobserved_window()
+                                  : std::max(s_.bad_start, unobserved_window());
+    while (!forced_t_.empty() && t - forced_t_.front() > run_window) forced_t_.pop_front();
+    if (forced) forced_t_.push_back(t);
+    const bool storm = static_cast<int>(forced_t_.size()) >= kRestartRun;
+    if (storm && trusted(status)) status = ST_UNCERTAIN;
     if (forced) {
       unconfirmed_ = s_.start_samples;
     } else if (unconfirmed_ > 0) {

@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <map>
 #include <optional>
@@ -244,6 +245,11 @@ class SensorHealth {
   bool has_prev_ = false;
   // bad-start restarts in a row (PolicySettings::start_chain)
   int chain_ = 0;
+  // the times of the restarts the readings forced (bad start, reject reset, a diverged
+  // or failed estimate) within the bad-start probation time or the unobserved window,
+  // the longer; kRestartRun of them make every estimate meanwhile uncertain
+  std::deque<double> forced_t_;
+  static constexpr int kRestartRun = 4;
   std::vector<double> prev_x_, prev_P_, prev_z_;
   std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
   // the consistency check's previous sample
