@@ -47,6 +47,15 @@ void stage_product(Index nx_, const double* qinv, const double* F, double* eq, d
   }
 }
 
+// The leading state coordinates that measurement block b's products run over: its
+// block_cols, or all NX for the smallest constant sizes (there the loops of a constant
+// count, unrolled, cost less than the fewer columns of a variable one)
+template <int NX>
+Index block_width(const WindowSolver& w, Index b) {
+  if constexpr (NX > 0 && NX <= 4) return NX;
+  return w.block_cols[b];
+}
+
 // Views of one buffer's model outputs: measurement residuals R (n, nz) and their
 // Jacobians JR (n, nz, nx), process residuals W (n-1, nx) and their Jacobians FJ (n-1,
 // nx, nx), the residuals' second-order term S (n, nblk, nx, nx)
@@ -168,7 +177,8 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
       const double* JRi = o.JR + i * nz * nx;
       for (Index bk_ = 0; bk_ < nblk; ++bk_) {
         const Index b0 = blocks[2 * bk_], nb_ = blocks[2 * bk_ + 1];
-        // the products below run along rows of nx contiguous values (loops the compiler
+        const Index cb = block_width<NX>(w, bk_);  // J_b is zero beyond its first cb columns
+        // the products below run along rows of cb contiguous values (loops the compiler
         // vectorises); each entry's sum is formed in the order of its index a or c
         double ssq = 0.0;
         for (Index a = 0; a < nb_; ++a) {
@@ -178,11 +188,11 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
           wr[a] = t;
           ssq += Ri[b0 + a] * t;
           double* wja = wj + a * nx;  // (R_b^-1 J_b)[a, :]
-          for (Index k = 0; k < nx; ++k) wja[k] = 0.0;
+          for (Index k = 0; k < cb; ++k) wja[k] = 0.0;
           for (Index c = 0; c < nb_; ++c) {
             const double rc = ra[c];
             const double* jc = JRi + (b0 + c) * nx;
-            for (Index k = 0; k < nx; ++k) wja[k] += rc * jc[k];
+            for (Index k = 0; k < cb; ++k) wja[k] += rc * jc[k];
           }
         }
         double rho, rho1, rho2;
@@ -197,22 +207,23 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         for (Index a = 0; a < nb_; ++a) {
           const double ra = wr[a];
           const double* ja = JRi + (b0 + a) * nx;
-          for (Index j = 0; j < nx; ++j) gbi[j] += ja[j] * ra;
+          for (Index j = 0; j < cb; ++j) gbi[j] += ja[j] * ra;
         }
-        for (Index j = 0; j < nx; ++j) gi[j] += mk * rho1 * gbi[j];
-        // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows (the entries below the diagonal
-        // are formed along and replaced by the mirror of the upper triangle below)
-        for (Index j = 0; j < nx; ++j) {
-          for (Index k = 0; k < nx; ++k) acc[k] = 0.0;
+        for (Index j = 0; j < cb; ++j) gi[j] += mk * rho1 * gbi[j];
+        // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows of its leading cb x cb block (the
+        // entries below the diagonal are formed along and replaced by the mirror of the
+        // upper triangle below)
+        for (Index j = 0; j < cb; ++j) {
+          for (Index k = 0; k < cb; ++k) acc[k] = 0.0;
           for (Index a = 0; a < nb_; ++a) {
             const double ja = JRi[(b0 + a) * nx + j];
             const double* wja = wj + a * nx;
             CMHE_UNROLL
-            for (Index k = 0; k < nx; ++k) acc[k] += ja * wja[k];
+            for (Index k = 0; k < cb; ++k) acc[k] += ja * wja[k];
           }
           const double gj = gbi[j];
           double* Dj = Di + j * nx;
-          for (Index k = 0; k < nx; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
+          for (Index k = 0; k < cb; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
         }
       }
     }
@@ -307,14 +318,16 @@ void add_curvature(WindowSolver& w, int buf, double sign) {
       const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
       const double* Sb = S + (i * nblk + b) * bs;
       double* Di = D + i * bs;
+      const Index cb = block_width<NX>(w, b);  // S_b and gb_b are zero outside the leading cb
       if (x2 != 0.0) {
         const double* g = gb + (i * nblk + b) * nx;
-        for (Index j = 0; j < nx; ++j)
-          for (Index k = 0; k < nx; ++k)
+        for (Index j = 0; j < cb; ++j)
+          for (Index k = 0; k < cb; ++k)
             Di[j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
       } else if (wb != 0.0) {  // the same sums without the zero term (sign is +-1)
         const double sw = sign * wb;
-        for (Index j = 0; j < bs; ++j) Di[j] += sw * Sb[j];
+        for (Index j = 0; j < cb; ++j)
+          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += sw * Sb[j * nx + k];
       }
     }
 }
@@ -473,12 +486,13 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
                            std::vector<int64_t> ball_, Index ball_size,
                            std::vector<double> ball_r2_, std::vector<double> rinv_,
                            std::vector<int64_t> blocks_, int loss_code_, double loss_scale_,
-                           bool linear_transition)
+                           bool linear_transition, std::vector<int64_t> block_cols_)
     : n(horizon), nx(nx_), nz(nz_), nu(nu_), nblk(Index(blocks_.size() / 2)),
       nb(Index(ball_r2_.size())), bk(ball_size), window(window_), tail(tail_),
       lo(std::move(lo_)), hi(std::move(hi_)), ball_r2(std::move(ball_r2_)),
       rinv(std::move(rinv_)), ball(std::move(ball_)), blocks(std::move(blocks_)),
-      loss_code(loss_code_), loss_scale(loss_scale_), linear(linear_transition) {
+      block_cols(std::move(block_cols_)), loss_code(loss_code_), loss_scale(loss_scale_),
+      linear(linear_transition) {
   if (n < 2) throw std::invalid_argument("a window needs at least 2 nodes");
   if (Index(lo.size()) != nx || Index(hi.size()) != nx)
     throw std::invalid_argument("lo and hi need nx values");
@@ -489,6 +503,11 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   for (Index b = 0; b < nblk; ++b)
     if (blocks[2 * b] < 0 || blocks[2 * b + 1] < 0 || blocks[2 * b] + blocks[2 * b + 1] > nz)
       throw std::invalid_argument("a measurement block is out of range");
+  if (block_cols.empty()) block_cols.assign(nblk, nx);
+  if (Index(block_cols.size()) != nblk)
+    throw std::invalid_argument("block_cols needs one value per measurement block");
+  for (int64_t c : block_cols)
+    if (c < 0 || c > nx) throw std::invalid_argument("a block's column count is out of range");
   const Index bs = nx * nx;
   window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + nblk * bs * n;
   z.assign(n * nz, 0.0);

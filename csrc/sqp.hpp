@@ -53,7 +53,7 @@ class WindowSolver {
                std::uintptr_t tail, std::vector<double> lo, std::vector<double> hi,
                std::vector<int64_t> ball, Index ball_size, std::vector<double> ball_r2,
                std::vector<double> rinv, std::vector<int64_t> blocks, int loss_code,
-               double loss_scale, bool linear_transition);
+               double loss_scale, bool linear_transition, std::vector<int64_t> block_cols = {});
 
   // The SQP from Xb[0] on the two buffers (current, trial); lam (n, nb) in: the
   // multipliers of the ball curvature, out: at the answer. Dgn[b] keeps the Gauss-Newton
@@ -109,6 +109,11 @@ class WindowSolver {
   std::uintptr_t window, tail;
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
+  // per measurement block (nblk): its residual depends on the first block_cols[b] state
+  // coordinates at most, so that its Jacobian rows are zero beyond them and its
+  // second-order term outside its leading block_cols[b] x block_cols[b] block; the
+  // assembly's and the curvature's products run over those (nx each where not given)
+  std::vector<int64_t> block_cols;
   int loss_code;
   // Gauss-Newton steps on stiff rows (a model without the second-order term, whose
   // weighted rows are far more nonlinear than the rest): a full step that the line

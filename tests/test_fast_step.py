@@ -221,6 +221,50 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
         assert not np.array_equal(assembled(1, 0, shift_from=src)[3], full[3])
 
 
+@pytest.mark.parametrize("loss", ["l2", "cauchy"])
+def test_block_columns_give_the_whole_blocks_bits(loss) -> None:
+    """A three-section robot's tilt blocks depend on the first 2, 4 and 6 state
+    coordinates (``WindowModel.block_columns``); the assembly and the SQP's curvature
+    over those columns alone give the bits of the whole blocks: the assembled blocks,
+    gradient and robust terms, and the answer, multipliers and blocks of a solve
+    (dropouts and a robust loss, whose clipped curvature adds ``gb gb^T``, included)."""
+    from continuum_mhe.estimators.fast import build_window_model
+    from continuum_mhe.estimators.fast.sqp import Workspace
+    from continuum_mhe.estimators.loss import LOSS_CODES
+
+    robot = Robot(
+        tuple(Section(0.1, 3.0) for _ in range(3)), tuple(ImuPlacement(i) for i in range(3))
+    )
+    f = make_formulation("bend", robot)
+    n, nx, nz = 6, f.nx, f.nz
+    model = build_window_model(f, n)
+    assert model.block_columns.tolist() == [2, 4, 6]
+    lossk = model.loss._replace(code=LOSS_CODES[loss], scale=1.0)
+    rng = np.random.default_rng(3)
+    X = rng.normal(scale=0.3, size=(n, nx))
+    z = rng.normal(scale=0.3, size=(n, nz))
+    m = (rng.random((n, nz)) > 0.2).astype(float)
+    u, dt = rng.normal(size=(n - 1, f.nu)), rng.uniform(0.01, 0.1, size=n - 1)
+    A = rng.normal(size=(n - 1, nx, nx))
+    qinv = np.einsum("sij,skj->sik", A, A) + np.eye(nx)
+    arrival = np.zeros((n, nx, nx))
+    arrival[0] = np.eye(nx)
+    xbar = X[0] + 0.1
+    runs = []
+    for cols in (None, model.block_columns):
+        ws = Workspace(replace(model, block_columns=cols), loss=lossk)
+        ws.Xb[0], ws.z[:], ws.m[:], ws.u[:], ws.dt[:] = X, z * m, m, u, dt
+        cost = ws.core.evaluate(0, qinv, xbar, arrival)
+        parts = [a[0].copy() for a in (ws.D, ws.E, ws.g, ws.wgt, ws.extra, ws.gb, ws.ncost)]
+        lam = np.zeros((n, len(model.feasible.ball_r2)))
+        r = ws.core.solve(qinv, xbar, arrival, lam, 30, 1e-10, 1e-10, 500, True, False)
+        b = r[4]
+        runs.append([cost, *parts, r, ws.Xb[b].copy(), ws.D[b].copy(), lam])
+    assert runs[0][-4][1] >= 2  # SQP iterations, each with its curvature
+    for got, want in zip(runs[1], runs[0]):
+        assert np.array_equal(got, want)
+
+
 def test_measurements_from_a_column_major_array_give_the_same_estimates() -> None:
     """The compiled step's kernels keep the types of their first call, so a sample
     ``z`` that is not contiguous (a row of a Fortran-ordered array) after contiguous

@@ -17,6 +17,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.model.formulations import Formulation
@@ -57,6 +58,23 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
         curv.append(ca.vec(ca.substitute(ca.jacobian(jb.T @ lam, x), lam, wb @ rb)))
     meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
     return meas, process_piece(f)
+
+
+def block_columns(formulation: Formulation, blocks: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Per measurement block (``blocks``, (nblocks, 2) start and size): the number of
+    leading state coordinates its residual depends on at most, from the residual's
+    Jacobian sparsity (no derivative is formed). Its Jacobian rows are zero beyond them,
+    and so its second-order term outside that leading square (the core's assembly skips
+    both: ``WindowSolver``'s ``block_cols``)."""
+    f = formulation
+    x, z = ca.SX.sym("x", f.nx), ca.SX.sym("z", f.nz)
+    sp = ca.jacobian_sparsity(f.measurement_residual_sym(z, x), x)
+    rows, cols = np.array(sp.get_triplet(), dtype=np.int64).reshape(2, -1)
+    out = np.zeros(len(blocks), dtype=np.int64)
+    for b, (start, size) in enumerate(blocks):
+        inside = (rows >= start) & (rows < start + size)
+        out[b] = cols[inside].max() + 1 if np.any(inside) else 0
+    return out
 
 
 def process_piece(formulation: Formulation) -> ca.Function:
