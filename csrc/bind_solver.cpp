@@ -128,8 +128,8 @@ void cmhe::bind_solver(nb::module_& m) {
           nb::arg("linear_transition"), nb::arg("block_cols") = nb::none(),
           "``block_cols`` (nblocks,): the number of leading state coordinates each "
           "measurement block's residual depends on at most (its Jacobian rows are zero "
-          "beyond them, and its second-order term outside that leading square); nx each "
-          "where None.")
+          "beyond them, and its second-order term outside that leading square, which is "
+          "all the window's outputs hold of it); nx each where None.")
       .def("solve", &solve, nb::arg("qinv"), nb::arg("xbar"), nb::arg("arrival"),
            nb::arg("lam"), nb::arg("max_iter"), nb::arg("step_tol"), nb::arg("err_tol"),
            nb::arg("max_qp_iter"), nb::arg("newton"), nb::arg("quadratic"),

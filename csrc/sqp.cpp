@@ -58,7 +58,7 @@ Index block_width(const WindowSolver& w, Index b) {
 
 // Views of one buffer's model outputs: measurement residuals R (n, nz) and their
 // Jacobians JR (n, nz, nx), process residuals W (n-1, nx) and their Jacobians FJ (n-1,
-// nx, nx), the residuals' second-order term S (n, nblk, nx, nx)
+// nx, nx), the residuals' second-order term S (n, sr_size: each block's leading square)
 struct Outputs {
   const double *R, *JR, *W, *FJ, *S;
 };
@@ -308,7 +308,7 @@ void add_balls(WindowSolver& w, int buf, const double* lam) {
 template <int NX>
 void add_curvature(WindowSolver& w, int buf, double sign) {
   const Index n = w.n, nx = block_size<NX>(w.nx), nblk = w.nblk, bs = nx * nx;
-  const double* S = w.out.data() + (buf + 1) * w.window_size - n * nblk * bs;
+  const double* S = w.out.data() + (buf + 1) * w.window_size - n * w.sr_size;
   double* D = w.D.data() + buf * n * bs;
   const double* wgt = w.wgt.data() + buf * n * nblk;
   const double* extra = w.extra.data() + buf * n * nblk;
@@ -316,18 +316,18 @@ void add_curvature(WindowSolver& w, int buf, double sign) {
   for (Index i = 0; i < n; ++i)
     for (Index b = 0; b < nblk; ++b) {
       const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
-      const double* Sb = S + (i * nblk + b) * bs;
+      const Index cb = w.block_cols[b];  // S_b (cb x cb) and gb_b are zero beyond cb
+      const double* Sb = S + i * w.sr_size + w.sr_start[b];
       double* Di = D + i * bs;
-      const Index cb = block_width<NX>(w, b);  // S_b and gb_b are zero outside the leading cb
       if (x2 != 0.0) {
         const double* g = gb + (i * nblk + b) * nx;
         for (Index j = 0; j < cb; ++j)
           for (Index k = 0; k < cb; ++k)
-            Di[j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
+            Di[j * nx + k] += sign * (wb * Sb[j * cb + k] + x2 * g[j] * g[k]);
       } else if (wb != 0.0) {  // the same sums without the zero term (sign is +-1)
         const double sw = sign * wb;
         for (Index j = 0; j < cb; ++j)
-          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += sw * Sb[j * nx + k];
+          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += sw * Sb[j * cb + k];
       }
     }
 }
@@ -506,10 +506,14 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   if (block_cols.empty()) block_cols.assign(nblk, nx);
   if (Index(block_cols.size()) != nblk)
     throw std::invalid_argument("block_cols needs one value per measurement block");
-  for (int64_t c : block_cols)
+  sr_size = 0;
+  for (int64_t c : block_cols) {
     if (c < 0 || c > nx) throw std::invalid_argument("a block's column count is out of range");
+    sr_start.push_back(sr_size);
+    sr_size += c * c;
+  }
   const Index bs = nx * nx;
-  window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + nblk * bs * n;
+  window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + sr_size * n;
   z.assign(n * nz, 0.0);
   m.assign(n * nz, 0.0);
   u.assign((n - 1) * nu, 0.0);
@@ -532,7 +536,7 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   stage_done.assign(ns, 0);
   stage_eq.assign(ns * bs, 0.0);
   stage_fqf.assign(ns * bs, 0.0);
-  tail_out.assign(nz + nz * nx + nx + bs + nblk * bs, 0.0);
+  tail_out.assign(nz + nz * nx + nx + bs + sr_size, 0.0);
   auto addr = [](const double* p) { return reinterpret_cast<std::uintptr_t>(p); };
   ptrs.resize(10);
   for (int b = 0; b < 2; ++b) {
@@ -587,7 +591,7 @@ bool WindowSolver::shift_outputs(int src, int dst) {
   double* to = out.data() + dst * window_size;
   const double* from = out.data() + src * window_size;
   const Index counts[5] = {n, n, n - 1, n - 1, n};
-  const Index chunks[5] = {nz, nz * nx, nx, nx * nx, nblk * nx * nx};
+  const Index chunks[5] = {nz, nz * nx, nx, nx * nx, sr_size};
   Index off = 0, toff = 0;  // section start in the window's outputs and in the tail's
   for (int s = 0; s < 5; ++s) {
     const Index count = counts[s], chunk = chunks[s];

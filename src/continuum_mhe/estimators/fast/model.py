@@ -135,7 +135,8 @@ class WindowModel:
             (:func:`~continuum_mhe.estimators.fast.codegen.transition_is_linear`).
         block_columns: (nblocks,) per block of ``loss.blocks``, the number of leading
             state coordinates its residual depends on at most
-            (:func:`~continuum_mhe.estimators.fast.codegen.block_columns`); None: all.
+            (:func:`~continuum_mhe.estimators.fast.codegen.block_columns`), and the side
+            of its second-order term's square in the window's outputs; None: all.
     """
 
     nx: int
@@ -162,7 +163,9 @@ class WindowModel:
     @property
     def window_size(self) -> int:
         n, nx, nz, nblk = self.horizon, self.nx, self.nz, len(self.loss.blocks)
-        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nblk * nx * nx * n
+        cols = np.full(nblk, nx) if self.block_columns is None else self.block_columns
+        sr = int(np.sum(cols * cols))
+        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + sr * n
 
     def evaluate_node(
         self,

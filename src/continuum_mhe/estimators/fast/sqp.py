@@ -115,9 +115,7 @@ class Workspace:
         fs, lossk = model.feasible, loss or model.loss
         self.tail = address(model.tail) if model.tail is not None else 0
         self.window = address(model.window)  # of the window function (the model keeps it)
-        cols = model.block_columns  # for the model's own blocks
-        if cols is not None and not np.array_equal(lossk.blocks, model.loss.blocks):
-            cols = None
+        cols = model.block_columns  # the layout of the window function's SR
         self.core = core = _core.WindowSolver(
             model.horizon, model.nx, model.nz, model.nu, self.window, self.tail, fs.lo, fs.hi,
             np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2, model.rinv,
