@@ -134,14 +134,6 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
     shift_rows(wgt, w.wgt.data() + prev * n * nblk, 0, n - 1, nblk);
     shift_rows(extra, w.extra.data() + prev * n * nblk, 0, n - 1, nblk);
     shift_rows(gb, w.gb.data() + prev * n * nblk * nx, 0, n - 1, nblk * nx);
-    for (Index i : {Index(0), n - 1}) {
-      std::fill(D + i * bs, D + (i + 1) * bs, 0.0);
-      std::fill(g + i * nx, g + (i + 1) * nx, 0.0);
-    }
-  } else {
-    std::fill(D, D + n * bs, 0.0);
-    std::fill(E, E + (n - 1) * bs, 0.0);
-    std::fill(g, g + n * nx, 0.0);
   }
   const int64_t* blocks = w.blocks.data();
   double *wr = w.wr.data(), *wj = w.wj.data(), *qw = w.qw.data(), *qf = w.qf.data();
@@ -160,6 +152,10 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
     }
     double* Di = D + i * bs;
     double* gi = g + i * nx;
+    if (i == 0) {  // node 0's sums start from zero, every other node's from its stage in
+      std::fill(Di, Di + bs, 0.0);
+      std::fill(gi, gi + nx, 0.0);
+    }
     double mk = zmask[i];
     double cost = 0.0;
     if (!measured) {
@@ -273,9 +269,9 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         gi[j] -= acc[j];
         for (Index k = 0; k < nx; ++k) Ei[j * nx + k] = eqi[j * nx + k];
         for (Index k = j; k < nx; ++k) Di[j * nx + k] += fqfi[j * nx + k];
-        if (push) {
-          g[(i + 1) * nx + j] += qw[j];
-          for (Index k = j; k < nx; ++k) Dn[j * nx + k] += Qi[j * nx + k];
+        if (push) {  // node i + 1's first terms (the upper triangle of its block)
+          g[(i + 1) * nx + j] = qw[j];
+          for (Index k = j; k < nx; ++k) Dn[j * nx + k] = Qi[j * nx + k];
         }
       }
     }
