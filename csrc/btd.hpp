@@ -143,10 +143,9 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 // (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
 // given), its rows V (unscaled, upper) and reciprocal pivots p (S = V^T P V), h = U~^-T c
 // of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]; none
-// without bn) and, where
-// Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo read transposed with
-// ``transposed``); U~ = P V is V with unit diagonal. False if the block is not positive
-// definite.
+// without bn) and, where Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo
+// read transposed with ``transposed``); U~ = P V is V with unit diagonal. False if the
+// block is not positive definite.
 template <int NX, bool transposed>
 inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const double* Gn,
                            const double* pn, const double* hn, const double* Eo, double* V,
@@ -166,14 +165,22 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
     p[j] = 1.0 / s;
     for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
   }
-  if (bn)
-    for (Index j = 0; j < nx; ++j) {
-      double t = bn[j];
-      if (Gn)
-        for (Index c = 0; c < nx; ++c) t -= pn[c] * hn[c] * Gn[c * nx + j];
-      for (Index c = 0; c < j; ++c) t -= V[c * nx + j] * p[c] * h[c];
-      h[j] = t;
+  if (bn) {  // h[j] = bn[j] - sum_c pn_c hn_c Gn[c, j] - sum_{c<j} V[c, j] p_c h_c, in
+             // that order, by rows of Gn and V
+    for (Index j = 0; j < nx; ++j) h[j] = bn[j];
+    if (Gn)
+      for (Index c = 0; c < nx; ++c) {
+        const double t = pn[c] * hn[c];
+        const double* Gc = Gn + c * nx;
+        CMHE_SIMD
+        for (Index j = 0; j < nx; ++j) h[j] -= t * Gc[j];
+      }
+    for (Index c = 0; c + 1 < nx; ++c) {  // h[c] is complete
+      const double pc = p[c], hc = h[c];
+      const double* Vc = V + c * nx;
+      for (Index j = c + 1; j < nx; ++j) h[j] -= Vc[j] * pc * hc;
     }
+  }
   if (Eo) {
     for (Index j = 0; j < nx; ++j) {
       if constexpr (transposed)
