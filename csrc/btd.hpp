@@ -157,10 +157,12 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
   double row_local[NX > 0 ? NX : 1];  // a local row for a constant size (no aliasing)
   double* row = NX > 0 ? row_local : row_scratch;
   // row j of V (false if its pivot is not positive), from the whole vector of 4 values
-  // that holds its diagonal on where NX is a constant above 4 (the entries below the
-  // diagonal are dropped; those of the rows above that the row reads are formed)
+  // that holds its diagonal on for a constant NX of 5 to 12, whose rows are unrolled (the
+  // entries below the diagonal are dropped; those of the rows above that the row reads
+  // are formed); larger blocks whole, in a loop (unrolled, their code grows with NX^3)
+  constexpr bool unrolled = NX > 0 && NX <= 12;
   auto v_row = [&](Index j) CMHE_ALWAYS_INLINE {
-    const Index k0 = NX > 4 ? j - j % 4 : 0;
+    const Index k0 = unrolled && NX > 4 ? j - j % 4 : 0;
     for (Index k = k0; k < nx; ++k) row[k] = Dn[k * nx + j];
     if (Gn) {
       CMHE_UNROLL
@@ -174,7 +176,7 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
     for (Index k = k0; k < nx; ++k) V[j * nx + k] = row[k];
     return true;
   };
-  if constexpr (NX > 0) {  // unrolled: each row's start is a constant
+  if constexpr (unrolled) {  // each row's start is a constant
     CMHE_UNROLL
     for (Index j = 0; j < NX; ++j)
       if (!v_row(j)) return false;
@@ -238,8 +240,8 @@ inline void back_substitute_node(Index nx_, const double* V, const double* p, co
 // smallest normal double (2^-1022) is taken as not positive definite (its reciprocal
 // overflows). Each row is gathered in a row of nx values (kept in registers where NX is
 // a constant); entries below V's diagonal are formed along with the row, from its first
-// whole vector of 4 for a constant NX above 4, else whole (D is read below its diagonal
-// for the upper triangle), and dropped.
+// whole vector of 4 for a constant NX of 5 to 12, else whole (D is read below its
+// diagonal for the upper triangle), and dropped.
 template <int NX>
 CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
                                   double* L, double* M, double* rd) {
