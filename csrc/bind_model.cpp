@@ -117,14 +117,14 @@ void cmhe::bind_model(nb::module_& m) {
           nb::arg("meas"), nb::arg("proc"), nb::arg("horizon"))
       .def(
           "__init__",
-          [](WindowFunction* self, const TapeFunction& residual, int64_t blocks,
+          [](WindowFunction* self, const TapeFunction& residual, int64_t sr_size,
              const TapeFunction& proc, int64_t horizon) {
             new (self)
-                WindowFunction(MeasurementPiece(residual.tape(), blocks), proc.tape(), horizon);
+                WindowFunction(MeasurementPiece(residual.tape(), sr_size), proc.tape(), horizon);
           },
-          nb::arg("residual"), nb::arg("blocks"), nb::arg("proc"), nb::arg("horizon"),
+          nb::arg("residual"), nb::arg("sr_size"), nb::arg("proc"), nb::arg("horizon"),
           "From the residual's tape ``(x, z) -> r`` alone: its Jacobian by forward-mode "
-          "derivatives, the second-order term zero (``blocks`` measurement blocks).");
+          "derivatives, the second-order term zero (``sr_size`` entries per node).");
 
   nb::class_<TailFunction, ModelFunction>(m, "TailFunction",
                                           "A window's last node and its incoming stage.")
@@ -136,11 +136,11 @@ void cmhe::bind_model(nb::module_& m) {
           nb::arg("meas"), nb::arg("proc"))
       .def(
           "__init__",
-          [](TailFunction* self, const TapeFunction& residual, int64_t blocks,
+          [](TailFunction* self, const TapeFunction& residual, int64_t sr_size,
              const TapeFunction& proc) {
-            new (self) TailFunction(MeasurementPiece(residual.tape(), blocks), proc.tape());
+            new (self) TailFunction(MeasurementPiece(residual.tape(), sr_size), proc.tape());
           },
-          nb::arg("residual"), nb::arg("blocks"), nb::arg("proc"),
+          nb::arg("residual"), nb::arg("sr_size"), nb::arg("proc"),
           "From the residual's tape alone, as WindowFunction's.");
 
   nb::class_<ResidualNodeFunction, ModelFunction>(

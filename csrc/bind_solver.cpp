@@ -1,9 +1,11 @@
 // Python bindings of the MHE window solve (sqp.hpp) and its kernels (btd.hpp, qp.hpp).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/tuple.h>
 
 #include <initializer_list>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -112,17 +114,22 @@ void cmhe::bind_solver(nb::module_& m) {
           [](WindowSolver* self, Index horizon, Index nx, Index nz, Index nu,
              std::uintptr_t window, std::uintptr_t tail, In lo, In hi, IndexIn ball_idx,
              In ball_r2, In rinv, IndexIn blocks, int loss_code, double loss_scale,
-             bool linear_transition) {
+             bool linear_transition, std::optional<IndexIn> block_cols) {
             if (ball_idx.ndim() != 2) throw std::invalid_argument("ball_idx must be 2-D");
             new (self) WindowSolver(horizon, nx, nz, nu, window, tail, copy_of(lo), copy_of(hi),
                                     copy_of(ball_idx), Index(ball_idx.shape(1)),
                                     copy_of(ball_r2), copy_of(rinv), copy_of(blocks), loss_code,
-                                    loss_scale, linear_transition);
+                                    loss_scale, linear_transition,
+                                    block_cols ? copy_of(*block_cols) : std::vector<int64_t>{});
           },
           nb::arg("horizon"), nb::arg("nx"), nb::arg("nz"), nb::arg("nu"), nb::arg("window"),
           nb::arg("tail"), nb::arg("lo"), nb::arg("hi"), nb::arg("ball_idx"), nb::arg("ball_r2"),
           nb::arg("rinv"), nb::arg("blocks"), nb::arg("loss_code"), nb::arg("loss_scale"),
-          nb::arg("linear_transition"))
+          nb::arg("linear_transition"), nb::arg("block_cols") = nb::none(),
+          "``block_cols`` (nblocks,): the number of leading state coordinates each "
+          "measurement block's residual depends on at most (its Jacobian rows are zero "
+          "beyond them, and its second-order term outside that leading square, which is "
+          "all the window's outputs hold of it); nx each where None.")
       .def("solve", &solve, nb::arg("qinv"), nb::arg("xbar"), nb::arg("arrival"),
            nb::arg("lam"), nb::arg("max_iter"), nb::arg("step_tol"), nb::arg("err_tol"),
            nb::arg("max_qp_iter"), nb::arg("newton"), nb::arg("quadratic"),

@@ -77,9 +77,11 @@ struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation p
 #if defined(__GNUC__)
 #define CMHE_UNROLL _Pragma("GCC unroll 32")
 #define CMHE_SIMD _Pragma("omp simd")
+#define CMHE_ALWAYS_INLINE __attribute__((always_inline))
 #else
 #define CMHE_UNROLL
 #define CMHE_SIMD
+#define CMHE_ALWAYS_INLINE
 #endif
 
 // The block factor also in an AVX2 version that the loader picks where the processor has
@@ -90,17 +92,18 @@ struct FactorScratch<0> {  // one buffer per thread, grown once (no allocation p
 #define CMHE_BLOCK_CLONES
 #endif
 
-// ``row -= t x`` over nx values: unrolled into registers for the smallest constant sizes
-// (the factor's chain of dependent rows is its cost there), vectorised otherwise
+// ``row -= t x`` over values k0 to nx - 1: over all nx values, unrolled into registers,
+// for the smallest constant sizes (the factor's chain of dependent rows is its cost
+// there), vectorised otherwise
 template <int NX>
-inline void row_axpy(Index nx_, double* row, double t, const double* x) {
+inline void row_axpy(Index nx_, double* row, double t, const double* x, Index k0 = 0) {
   if constexpr (NX > 0 && NX <= 4) {
     CMHE_UNROLL
     for (Index k = 0; k < NX; ++k) row[k] -= t * x[k];
   } else {
     const Index nx = block_size<NX>(nx_);
     CMHE_SIMD
-    for (Index k = 0; k < nx; ++k) row[k] -= t * x[k];
+    for (Index k = k0; k < nx; ++k) row[k] -= t * x[k];
   }
 }
 
@@ -143,10 +146,9 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 // (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
 // given), its rows V (unscaled, upper) and reciprocal pivots p (S = V^T P V), h = U~^-T c
 // of its right-hand side c (bn less the neighbour's sum_c pn_c hn_c Gn[c,:]; none
-// without bn) and, where
-// Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo read transposed with
-// ``transposed``); U~ = P V is V with unit diagonal. False if the block is not positive
-// definite.
+// without bn) and, where Eo is given, the coupling G = U~^-T Eo^(T) for the next node (Eo
+// read transposed with ``transposed``); U~ = P V is V with unit diagonal. False if the
+// block is not positive definite.
 template <int NX, bool transposed>
 inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const double* Gn,
                            const double* pn, const double* hn, const double* Eo, double* V,
@@ -154,26 +156,50 @@ inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const 
   const Index nx = block_size<NX>(nx_);
   double row_local[NX > 0 ? NX : 1];  // a local row for a constant size (no aliasing)
   double* row = NX > 0 ? row_local : row_scratch;
-  for (Index j = 0; j < nx; ++j) {
-    for (Index k = 0; k < nx; ++k) row[k] = Dn[k * nx + j];
+  // row j of V (false if its pivot is not positive), from the whole vector of 4 values
+  // that holds its diagonal on for a constant NX of 5 to 12, whose rows are unrolled (the
+  // entries below the diagonal are dropped; those of the rows above that the row reads
+  // are formed); larger blocks whole, in a loop (unrolled, their code grows with NX^3)
+  constexpr bool unrolled = NX > 0 && NX <= 12;
+  auto v_row = [&](Index j) CMHE_ALWAYS_INLINE {
+    const Index k0 = unrolled && NX > 4 ? j - j % 4 : 0;
+    for (Index k = k0; k < nx; ++k) row[k] = Dn[k * nx + j];
     if (Gn) {
       CMHE_UNROLL
-      for (Index c = 0; c < nx; ++c) row_axpy<NX>(nx, row, Gn[c * nx + j] * pn[c], Gn + c * nx);
+      for (Index c = 0; c < nx; ++c)
+        row_axpy<NX>(nx, row, Gn[c * nx + j] * pn[c], Gn + c * nx, k0);
     }
-    for (Index c = 0; c < j; ++c) row_axpy<NX>(nx, row, V[c * nx + j] * p[c], V + c * nx);
+    for (Index c = 0; c < j; ++c) row_axpy<NX>(nx, row, V[c * nx + j] * p[c], V + c * nx, k0);
     const double s = row[j];
     if (!(s >= std::numeric_limits<double>::min())) return false;  // 1 / s finite
     p[j] = 1.0 / s;
-    for (Index k = 0; k < nx; ++k) V[j * nx + k] = row[k];
+    for (Index k = k0; k < nx; ++k) V[j * nx + k] = row[k];
+    return true;
+  };
+  if constexpr (unrolled) {  // each row's start is a constant
+    CMHE_UNROLL
+    for (Index j = 0; j < NX; ++j)
+      if (!v_row(j)) return false;
+  } else {
+    for (Index j = 0; j < nx; ++j)
+      if (!v_row(j)) return false;
   }
-  if (bn)
-    for (Index j = 0; j < nx; ++j) {
-      double t = bn[j];
-      if (Gn)
-        for (Index c = 0; c < nx; ++c) t -= pn[c] * hn[c] * Gn[c * nx + j];
-      for (Index c = 0; c < j; ++c) t -= V[c * nx + j] * p[c] * h[c];
-      h[j] = t;
+  if (bn) {  // h[j] = bn[j] - sum_c pn_c hn_c Gn[c, j] - sum_{c<j} V[c, j] p_c h_c, in
+             // that order, by rows of Gn and V
+    for (Index j = 0; j < nx; ++j) h[j] = bn[j];
+    if (Gn)
+      for (Index c = 0; c < nx; ++c) {
+        const double t = pn[c] * hn[c];
+        const double* Gc = Gn + c * nx;
+        CMHE_SIMD
+        for (Index j = 0; j < nx; ++j) h[j] -= t * Gc[j];
+      }
+    for (Index c = 0; c + 1 < nx; ++c) {  // h[c] is complete
+      const double pc = p[c], hc = h[c];
+      const double* Vc = V + c * nx;
+      for (Index j = c + 1; j < nx; ++j) h[j] -= Vc[j] * pc * hc;
     }
+  }
   if (Eo) {
     for (Index j = 0; j < nx; ++j) {
       if constexpr (transposed)
@@ -213,8 +239,9 @@ inline void back_substitute_node(Index nx_, const double* V, const double* p, co
 // root; L = (P^1/2 V)^T and M^T = P^1/2 W are scaled off that chain. A pivot below the
 // smallest normal double (2^-1022) is taken as not positive definite (its reciprocal
 // overflows). Each row is gathered in a row of nx values (kept in registers where NX is
-// a constant); entries below V's diagonal are formed along with the row (D is read below
-// its diagonal for the upper triangle) and dropped.
+// a constant); entries below V's diagonal are formed along with the row, from its first
+// whole vector of 4 for a constant NX of 5 to 12, else whole (D is read below its
+// diagonal for the upper triangle), and dropped.
 template <int NX>
 CMHE_BLOCK_CLONES bool btd_factor(Index n, Index nx_, const double* D, const double* E,
                                   double* L, double* M, double* rd) {

@@ -8,7 +8,8 @@ namespace cmhe {
 
 namespace {
 
-// Mark the box bounds (wbox -1/+1) and balls (wball, unit normals nrm) active at X.
+// Mark the box bounds (wbox -1/+1) and balls (wball, unit normals nrm: of an active ball,
+// its coordinates' entries, the ones read) active at X.
 void active_constraints(Index n, Index nx, const double* X, const Feasible& fs, double tol,
                         int8_t* wbox, int8_t* wball, double* nrm) {
   const Index nbm = std::max<Index>(fs.nb, 1);
@@ -44,7 +45,6 @@ bool last_block_covariance(Index n, Index nx, const double* X, const double* D,
   QPScratch& s = cs.qp;
   s.resize(n, nx, fs.nb);
   const Index nbm = std::max<Index>(fs.nb, 1), bs = nx * nx;
-  std::fill(s.nrm.begin(), s.nrm.end(), 0.0);
   active_constraints(n, nx, X, fs, tol, s.wbox.data(), s.wball.data(), s.nrm.data());
   const bool none = std::all_of(s.wbox.begin(), s.wbox.end(), [](int8_t w) { return w == 0; }) &&
                     std::all_of(s.wball.begin(), s.wball.end(), [](int8_t w) { return w == 0; });

@@ -75,17 +75,17 @@ MeasurementPiece::MeasurementPiece(const Tape& meas) : tape(meas), forward(false
   nsr = meas.output_sizes()[2];
 }
 
-MeasurementPiece::MeasurementPiece(const Tape& residual, int64_t blocks)
+MeasurementPiece::MeasurementPiece(const Tape& residual, int64_t sr_size)
     : tape(residual), forward(true) {
   if (residual.input_sizes().size() != 2 || residual.output_sizes().size() != 1)
     throw std::invalid_argument("the residual must map (x, z) to r");
-  if (blocks < 0) throw std::invalid_argument("blocks must be nonnegative");
+  if (sr_size < 0) throw std::invalid_argument("sr_size must be nonnegative");
   nx = residual.input_sizes()[0];
   nz = residual.input_sizes()[1];
   nr = residual.output_sizes()[0];
   if (nr != nz) throw std::invalid_argument("the residual must have one entry per measurement");
   njr = nr * nx;
-  nsr = blocks * nx * nx;
+  nsr = sr_size;
   check_forward(residual);
   plan = plan_forward(residual, 0);
 }

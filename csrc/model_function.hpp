@@ -87,8 +87,8 @@ class MaskedResidualFunction : public ModelFunction {
 class MeasurementPiece {
  public:
   explicit MeasurementPiece(const Tape& meas);
-  // ``blocks``: the measurement blocks (``sr`` holds ``blocks`` zero (nx, nx) blocks)
-  MeasurementPiece(const Tape& residual, int64_t blocks);
+  // ``sr_size``: the second-order term's entries (``sr`` holds that many zeros)
+  MeasurementPiece(const Tape& residual, int64_t sr_size);
   // one node
   void evaluate(const double* x, const double* z, const double* m, double* r, double* jr,
                 double* sr) const;

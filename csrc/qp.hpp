@@ -185,7 +185,6 @@ QPResult solve_qp(Index n, Index nx_, const double* X, const double* D, const do
   double *p = s.p.data(), *grad = s.grad.data(), *b = s.b.data();
   std::fill(s.wbox.begin(), s.wbox.end(), 0);
   std::fill(s.wball.begin(), s.wball.end(), 0);
-  std::fill(s.nrm.begin(), s.nrm.end(), 0.0);
   std::fill(s.gnorm.begin(), s.gnorm.end(), 0.0);
   std::fill(s.slack.begin(), s.slack.end(), 0.0);
   for (Index i = 0; i < n; ++i) {
@@ -199,9 +198,11 @@ QPResult solve_qp(Index n, Index nx_, const double* X, const double* D, const do
       const int64_t* idx = fs.ball + bb * bk;
       double q = 0.0;
       for (Index a = 0; a < bk; ++a) q += X[i * nx + idx[a]] * X[i * nx + idx[a]];
+      double* nr = nrm + (i * nbm + bb) * nx;  // of a ball's normal, its coordinates are read
+      for (Index a = 0; a < bk; ++a) nr[idx[a]] = 0.0;
       if (q > 0.0) {
         const double rq = std::sqrt(q);
-        for (Index a = 0; a < bk; ++a) nrm[(i * nbm + bb) * nx + idx[a]] = X[i * nx + idx[a]] / rq;
+        for (Index a = 0; a < bk; ++a) nr[idx[a]] = X[i * nx + idx[a]] / rq;
         gnorm[i * nbm + bb] = 2.0 * rq;
         slack[i * nbm + bb] = std::max(fs.ball_r2[bb] - q, 0.0) / gnorm[i * nbm + bb];
         if (q >= fs.ball_r2[bb] * (1.0 - 1e-12)) {

@@ -47,9 +47,18 @@ void stage_product(Index nx_, const double* qinv, const double* F, double* eq, d
   }
 }
 
+// The leading state coordinates that measurement block b's products run over: its
+// block_cols, or all NX for the smallest constant sizes (there the loops of a constant
+// count, unrolled, cost less than the fewer columns of a variable one)
+template <int NX>
+Index block_width(const WindowSolver& w, Index b) {
+  if constexpr (NX > 0 && NX <= 4) return NX;
+  return w.block_cols[b];
+}
+
 // Views of one buffer's model outputs: measurement residuals R (n, nz) and their
 // Jacobians JR (n, nz, nx), process residuals W (n-1, nx) and their Jacobians FJ (n-1,
-// nx, nx), the residuals' second-order term S (n, nblk, nx, nx)
+// nx, nx), the residuals' second-order term S (n, sr_size: each block's leading square)
 struct Outputs {
   const double *R, *JR, *W, *FJ, *S;
 };
@@ -125,14 +134,6 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
     shift_rows(wgt, w.wgt.data() + prev * n * nblk, 0, n - 1, nblk);
     shift_rows(extra, w.extra.data() + prev * n * nblk, 0, n - 1, nblk);
     shift_rows(gb, w.gb.data() + prev * n * nblk * nx, 0, n - 1, nblk * nx);
-    for (Index i : {Index(0), n - 1}) {
-      std::fill(D + i * bs, D + (i + 1) * bs, 0.0);
-      std::fill(g + i * nx, g + (i + 1) * nx, 0.0);
-    }
-  } else {
-    std::fill(D, D + n * bs, 0.0);
-    std::fill(E, E + (n - 1) * bs, 0.0);
-    std::fill(g, g + n * nx, 0.0);
   }
   const int64_t* blocks = w.blocks.data();
   double *wr = w.wr.data(), *wj = w.wj.data(), *qw = w.qw.data(), *qf = w.qf.data();
@@ -151,6 +152,10 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
     }
     double* Di = D + i * bs;
     double* gi = g + i * nx;
+    if (i == 0) {  // node 0's sums start from zero, every other node's from its stage in
+      std::fill(Di, Di + bs, 0.0);
+      std::fill(gi, gi + nx, 0.0);
+    }
     double mk = zmask[i];
     double cost = 0.0;
     if (!measured) {
@@ -168,7 +173,8 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
       const double* JRi = o.JR + i * nz * nx;
       for (Index bk_ = 0; bk_ < nblk; ++bk_) {
         const Index b0 = blocks[2 * bk_], nb_ = blocks[2 * bk_ + 1];
-        // the products below run along rows of nx contiguous values (loops the compiler
+        const Index cb = block_width<NX>(w, bk_);  // J_b is zero beyond its first cb columns
+        // the products below run along rows of cb contiguous values (loops the compiler
         // vectorises); each entry's sum is formed in the order of its index a or c
         double ssq = 0.0;
         for (Index a = 0; a < nb_; ++a) {
@@ -178,11 +184,11 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
           wr[a] = t;
           ssq += Ri[b0 + a] * t;
           double* wja = wj + a * nx;  // (R_b^-1 J_b)[a, :]
-          for (Index k = 0; k < nx; ++k) wja[k] = 0.0;
+          for (Index k = 0; k < cb; ++k) wja[k] = 0.0;
           for (Index c = 0; c < nb_; ++c) {
             const double rc = ra[c];
             const double* jc = JRi + (b0 + c) * nx;
-            for (Index k = 0; k < nx; ++k) wja[k] += rc * jc[k];
+            for (Index k = 0; k < cb; ++k) wja[k] += rc * jc[k];
           }
         }
         double rho, rho1, rho2;
@@ -197,22 +203,23 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         for (Index a = 0; a < nb_; ++a) {
           const double ra = wr[a];
           const double* ja = JRi + (b0 + a) * nx;
-          for (Index j = 0; j < nx; ++j) gbi[j] += ja[j] * ra;
+          for (Index j = 0; j < cb; ++j) gbi[j] += ja[j] * ra;
         }
-        for (Index j = 0; j < nx; ++j) gi[j] += mk * rho1 * gbi[j];
-        // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows (the entries below the diagonal
-        // are formed along and replaced by the mirror of the upper triangle below)
-        for (Index j = 0; j < nx; ++j) {
-          for (Index k = 0; k < nx; ++k) acc[k] = 0.0;
+        for (Index j = 0; j < cb; ++j) gi[j] += mk * rho1 * gbi[j];
+        // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows of its leading cb x cb block (the
+        // entries below the diagonal are formed along and replaced by the mirror of the
+        // upper triangle below)
+        for (Index j = 0; j < cb; ++j) {
+          for (Index k = 0; k < cb; ++k) acc[k] = 0.0;
           for (Index a = 0; a < nb_; ++a) {
             const double ja = JRi[(b0 + a) * nx + j];
             const double* wja = wj + a * nx;
             CMHE_UNROLL
-            for (Index k = 0; k < nx; ++k) acc[k] += ja * wja[k];
+            for (Index k = 0; k < cb; ++k) acc[k] += ja * wja[k];
           }
           const double gj = gbi[j];
           double* Dj = Di + j * nx;
-          for (Index k = 0; k < nx; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
+          for (Index k = 0; k < cb; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
         }
       }
     }
@@ -262,9 +269,9 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         gi[j] -= acc[j];
         for (Index k = 0; k < nx; ++k) Ei[j * nx + k] = eqi[j * nx + k];
         for (Index k = j; k < nx; ++k) Di[j * nx + k] += fqfi[j * nx + k];
-        if (push) {
-          g[(i + 1) * nx + j] += qw[j];
-          for (Index k = j; k < nx; ++k) Dn[j * nx + k] += Qi[j * nx + k];
+        if (push) {  // node i + 1's first terms (the upper triangle of its block)
+          g[(i + 1) * nx + j] = qw[j];
+          for (Index k = j; k < nx; ++k) Dn[j * nx + k] = Qi[j * nx + k];
         }
       }
     }
@@ -297,7 +304,7 @@ void add_balls(WindowSolver& w, int buf, const double* lam) {
 template <int NX>
 void add_curvature(WindowSolver& w, int buf, double sign) {
   const Index n = w.n, nx = block_size<NX>(w.nx), nblk = w.nblk, bs = nx * nx;
-  const double* S = w.out.data() + (buf + 1) * w.window_size - n * nblk * bs;
+  const double* S = w.out.data() + (buf + 1) * w.window_size - n * w.sr_size;
   double* D = w.D.data() + buf * n * bs;
   const double* wgt = w.wgt.data() + buf * n * nblk;
   const double* extra = w.extra.data() + buf * n * nblk;
@@ -305,16 +312,18 @@ void add_curvature(WindowSolver& w, int buf, double sign) {
   for (Index i = 0; i < n; ++i)
     for (Index b = 0; b < nblk; ++b) {
       const double wb = wgt[i * nblk + b], x2 = extra[i * nblk + b];
-      const double* Sb = S + (i * nblk + b) * bs;
+      const Index cb = w.block_cols[b];  // S_b (cb x cb) and gb_b are zero beyond cb
+      const double* Sb = S + i * w.sr_size + w.sr_start[b];
       double* Di = D + i * bs;
       if (x2 != 0.0) {
         const double* g = gb + (i * nblk + b) * nx;
-        for (Index j = 0; j < nx; ++j)
-          for (Index k = 0; k < nx; ++k)
-            Di[j * nx + k] += sign * (wb * Sb[j * nx + k] + x2 * g[j] * g[k]);
+        for (Index j = 0; j < cb; ++j)
+          for (Index k = 0; k < cb; ++k)
+            Di[j * nx + k] += sign * (wb * Sb[j * cb + k] + x2 * g[j] * g[k]);
       } else if (wb != 0.0) {  // the same sums without the zero term (sign is +-1)
         const double sw = sign * wb;
-        for (Index j = 0; j < bs; ++j) Di[j] += sw * Sb[j];
+        for (Index j = 0; j < cb; ++j)
+          for (Index k = 0; k < cb; ++k) Di[j * nx + k] += sw * Sb[j * cb + k];
       }
     }
 }
@@ -473,12 +482,13 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
                            std::vector<int64_t> ball_, Index ball_size,
                            std::vector<double> ball_r2_, std::vector<double> rinv_,
                            std::vector<int64_t> blocks_, int loss_code_, double loss_scale_,
-                           bool linear_transition)
+                           bool linear_transition, std::vector<int64_t> block_cols_)
     : n(horizon), nx(nx_), nz(nz_), nu(nu_), nblk(Index(blocks_.size() / 2)),
       nb(Index(ball_r2_.size())), bk(ball_size), window(window_), tail(tail_),
       lo(std::move(lo_)), hi(std::move(hi_)), ball_r2(std::move(ball_r2_)),
       rinv(std::move(rinv_)), ball(std::move(ball_)), blocks(std::move(blocks_)),
-      loss_code(loss_code_), loss_scale(loss_scale_), linear(linear_transition) {
+      block_cols(std::move(block_cols_)), loss_code(loss_code_), loss_scale(loss_scale_),
+      linear(linear_transition) {
   if (n < 2) throw std::invalid_argument("a window needs at least 2 nodes");
   if (Index(lo.size()) != nx || Index(hi.size()) != nx)
     throw std::invalid_argument("lo and hi need nx values");
@@ -489,8 +499,17 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   for (Index b = 0; b < nblk; ++b)
     if (blocks[2 * b] < 0 || blocks[2 * b + 1] < 0 || blocks[2 * b] + blocks[2 * b + 1] > nz)
       throw std::invalid_argument("a measurement block is out of range");
+  if (block_cols.empty()) block_cols.assign(nblk, nx);
+  if (Index(block_cols.size()) != nblk)
+    throw std::invalid_argument("block_cols needs one value per measurement block");
+  sr_size = 0;
+  for (int64_t c : block_cols) {
+    if (c < 0 || c > nx) throw std::invalid_argument("a block's column count is out of range");
+    sr_start.push_back(sr_size);
+    sr_size += c * c;
+  }
   const Index bs = nx * nx;
-  window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + nblk * bs * n;
+  window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + sr_size * n;
   z.assign(n * nz, 0.0);
   m.assign(n * nz, 0.0);
   u.assign((n - 1) * nu, 0.0);
@@ -513,7 +532,7 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   stage_done.assign(ns, 0);
   stage_eq.assign(ns * bs, 0.0);
   stage_fqf.assign(ns * bs, 0.0);
-  tail_out.assign(nz + nz * nx + nx + bs + nblk * bs, 0.0);
+  tail_out.assign(nz + nz * nx + nx + bs + sr_size, 0.0);
   auto addr = [](const double* p) { return reinterpret_cast<std::uintptr_t>(p); };
   ptrs.resize(10);
   for (int b = 0; b < 2; ++b) {
@@ -568,7 +587,7 @@ bool WindowSolver::shift_outputs(int src, int dst) {
   double* to = out.data() + dst * window_size;
   const double* from = out.data() + src * window_size;
   const Index counts[5] = {n, n, n - 1, n - 1, n};
-  const Index chunks[5] = {nz, nz * nx, nx, nx * nx, nblk * nx * nx};
+  const Index chunks[5] = {nz, nz * nx, nx, nx * nx, sr_size};
   Index off = 0, toff = 0;  // section start in the window's outputs and in the tail's
   for (int s = 0; s < 5; ++s) {
     const Index count = counts[s], chunk = chunks[s];

@@ -44,7 +44,8 @@ struct WindowData {
 };
 
 // Buffers and fixed data of the window solve of one window model. Two iterate buffers
-// (current and trial): Xb (2, n, nx), the model outputs ``out`` (2, window_size), the
+// (current and trial): Xb (2, n, nx), the model outputs ``out`` (2, window_size; the
+// window function's layout), the
 // Hessian blocks D, E with the Gauss-Newton diagonal blocks Dgn and gradient g, the
 // robust-loss weights (wgt, extra, gb; see assemble) and node costs of each.
 class WindowSolver {
@@ -53,7 +54,7 @@ class WindowSolver {
                std::uintptr_t tail, std::vector<double> lo, std::vector<double> hi,
                std::vector<int64_t> ball, Index ball_size, std::vector<double> ball_r2,
                std::vector<double> rinv, std::vector<int64_t> blocks, int loss_code,
-               double loss_scale, bool linear_transition);
+               double loss_scale, bool linear_transition, std::vector<int64_t> block_cols = {});
 
   // The SQP from Xb[0] on the two buffers (current, trial); lam (n, nb) in: the
   // multipliers of the ball curvature, out: at the answer. Dgn[b] keeps the Gauss-Newton
@@ -109,6 +110,14 @@ class WindowSolver {
   std::uintptr_t window, tail;
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
+  // per measurement block (nblk): its residual depends on the first block_cols[b] state
+  // coordinates at most, so that its Jacobian rows are zero beyond them and its
+  // second-order term outside its leading block_cols[b] x block_cols[b] block, which is
+  // all the model's outputs hold of it (a node's blocks one after the other from
+  // sr_start[b], sr_size in all); the assembly's and the curvature's products run over
+  // those (nx each where not given)
+  std::vector<int64_t> block_cols, sr_start;
+  Index sr_size;
   int loss_code;
   // Gauss-Newton steps on stiff rows (a model without the second-order term, whose
   // weighted rows are far more nonlinear than the rest): a full step that the line

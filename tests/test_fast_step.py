@@ -221,6 +221,72 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
         assert not np.array_equal(assembled(1, 0, shift_from=src)[3], full[3])
 
 
+@pytest.mark.parametrize("loss", ["l2", "cauchy"])
+def test_block_columns_hold_the_whole_second_order_term(loss) -> None:
+    """A three-section robot's tilt blocks depend on the first 2, 4 and 6 state
+    coordinates (``WindowModel.block_columns``): the whole second-order term of each
+    block (formed here by CasADi) is zero outside that leading square, the window's
+    outputs hold the square, and the curvature the SQP adds to the Gauss-Newton blocks
+    over those columns alone is the whole terms' ``sum_b wgt_b S_b + extra_b gb_b
+    gb_b^T`` (dropouts and a robust loss, whose clipped curvature adds ``gb gb^T``,
+    included)."""
+    import casadi as ca
+
+    from continuum_mhe.estimators.fast import build_window_model
+    from continuum_mhe.estimators.fast.sqp import Workspace
+    from continuum_mhe.estimators.loss import LOSS_CODES
+
+    robot = Robot(
+        tuple(Section(0.1, 3.0) for _ in range(3)), tuple(ImuPlacement(i) for i in range(3))
+    )
+    f = make_formulation("bend", robot)
+    n, nx, nz = 6, f.nx, f.nz
+    model = build_window_model(f, n)
+    cols = model.block_columns
+    assert cols.tolist() == [2, 4, 6]
+    # each block's whole second-order term sum_a (R_b^-1 r_b)_a d2 r_a / dx2 (nx, nx)
+    x, zs, ms = ca.SX.sym("x", nx), ca.SX.sym("z", nz), ca.SX.sym("m", nz)
+    r = ms * f.measurement_residual_sym(zs, x)
+    rinv = np.linalg.inv(f.meas_cov())
+    whole = []
+    for blk in f.measurement_blocks:
+        w = ca.DM(rinv[blk.slice, blk.slice]) @ r[blk.slice]
+        lam = ca.SX.sym("lam", blk.size)  # held fixed: the residuals' second derivatives
+        hess = ca.jacobian(ca.jacobian(r[blk.slice], x).T @ lam, x)
+        whole.append(ca.substitute(hess, lam, w))
+    second = ca.Function("second", [x, zs, ms], whole)
+    lossk = model.loss._replace(code=LOSS_CODES[loss], scale=1.0)
+    ws = Workspace(model, loss=lossk)
+    rng = np.random.default_rng(3)
+    X = rng.normal(scale=0.1, size=(n, nx))  # inside the bend limits
+    z = rng.normal(scale=0.1, size=(n, nz))
+    m = (rng.random((n, nz)) > 0.2).astype(float)
+    ws.Xb[0], ws.z[:], ws.m[:] = X, z * m, m
+    ws.u[:], ws.dt[:] = rng.normal(size=(n - 1, f.nu)), rng.uniform(0.01, 0.1, size=n - 1)
+    A = rng.normal(size=(n - 1, nx, nx))
+    qinv = np.einsum("sij,skj->sik", A, A) + np.eye(nx)
+    arrival = np.zeros((n, nx, nx))
+    arrival[0] = np.eye(nx)
+    lam = np.zeros((n, len(model.feasible.ball_r2)))
+    r = ws.core.solve(qinv, X[0] + 0.1, arrival, lam, 30, 1e-10, 1e-10, 500, True, False)
+    assert r[1] >= 2 and not lam.any()  # no ball active: D = Dgn + the curvature
+    b = 1 - r[4]  # the last evaluated iterate's buffer
+    sr = int(np.sum(cols * cols))
+    S = ws.out[b][-n * sr :].reshape(n, sr)
+    for i in range(n):
+        got, want = ws.D[b, i] - ws.Dgn[b, i], np.zeros((nx, nx))
+        start = 0
+        for k, c in enumerate(cols):
+            full = np.asarray(second(ws.Xb[b, i], ws.z[i], ws.m[i])[k])
+            assert not full[c:].any() and not full[:, c:].any()
+            held = S[i, start : start + c * c].reshape(c, c).T  # column-major
+            assert_allclose(held, full[:c, :c], rtol=1e-12, atol=1e-12)
+            g = ws.gb[b, i, k]
+            want += ws.wgt[b, i, k] * full + ws.extra[b, i, k] * np.outer(g, g)
+            start += c * c
+        assert_allclose(got, want, rtol=1e-9, atol=1e-9 * max(1.0, np.abs(ws.D[b, i]).max()))
+
+
 def test_measurements_from_a_column_major_array_give_the_same_estimates() -> None:
     """The compiled step's kernels keep the types of their first call, so a sample
     ``z`` that is not contiguous (a row of a Fortran-ordered array) after contiguous

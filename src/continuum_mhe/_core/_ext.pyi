@@ -45,9 +45,9 @@ class WindowFunction(ModelFunction):
     def __init__(self, meas: TapeFunction, proc: TapeFunction, horizon: int) -> None: ...
 
     @overload
-    def __init__(self, residual: TapeFunction, blocks: int, proc: TapeFunction, horizon: int) -> None:
+    def __init__(self, residual: TapeFunction, sr_size: int, proc: TapeFunction, horizon: int) -> None:
         """
-        From the residual's tape ``(x, z) -> r`` alone: its Jacobian by forward-mode derivatives, the second-order term zero (``blocks`` measurement blocks).
+        From the residual's tape ``(x, z) -> r`` alone: its Jacobian by forward-mode derivatives, the second-order term zero (``sr_size`` entries per node).
         """
 
 class TailFunction(ModelFunction):
@@ -57,7 +57,7 @@ class TailFunction(ModelFunction):
     def __init__(self, meas: TapeFunction, proc: TapeFunction) -> None: ...
 
     @overload
-    def __init__(self, residual: TapeFunction, blocks: int, proc: TapeFunction) -> None:
+    def __init__(self, residual: TapeFunction, sr_size: int, proc: TapeFunction) -> None:
         """From the residual's tape alone, as WindowFunction's."""
 
 class ResidualNodeFunction(ModelFunction):
@@ -109,7 +109,10 @@ class WindowSolver:
     The fast MHE's window solve for one window model: its buffers (NumPy views, row-major) and the SQP over them (continuum_mhe.estimators.fast.sqp).
     """
 
-    def __init__(self, horizon: int, nx: int, nz: int, nu: int, window: int, tail: int, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], blocks: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], loss_code: int, loss_scale: float, linear_transition: bool) -> None: ...
+    def __init__(self, horizon: int, nx: int, nz: int, nu: int, window: int, tail: int, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], blocks: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], loss_code: int, loss_scale: float, linear_transition: bool, block_cols: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)] | None = None) -> None:
+        """
+        ``block_cols`` (nblocks,): the number of leading state coordinates each measurement block's residual depends on at most (its Jacobian rows are zero beyond them, and its second-order term outside that leading square, which is all the window's outputs hold of it); nx each where None.
+        """
 
     def solve(self, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool, evaluated: bool = False, shifted: int = -1) -> tuple[int, int, float, float, int]:
         """

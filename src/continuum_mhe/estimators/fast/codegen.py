@@ -17,8 +17,10 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
+from continuum_mhe.estimators.loss import block_array
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.tape import residual_function, residual_node_tapes, tape_function
 
@@ -43,20 +45,41 @@ def node_pieces(formulation: Formulation) -> tuple[ca.Function, ca.Function]:
     r = mk * f.measurement_residual_sym(z, x)
     jr = ca.jacobian(r, x)
     rinv = np.linalg.inv(f.meas_cov())
+    cols = block_columns(f, block_array(f.measurement_blocks))
     # second-order part of each block's Hessian, sum_a (R_b^-1 r_b)_a d2 r_a/dx2: the
     # Jacobian of J_b^T lam at lam = R_b^-1 r_b, which differentiates the Jacobian's own
     # expressions once more (half the instructions of the Hessian of the block's cost
-    # less J_b^T R_b^-1 J_b, and no cancellation)
+    # less J_b^T R_b^-1 J_b, and no cancellation); its leading c x c block alone, the
+    # rest being zero (c: the block's column count, block_columns)
     curv = []
-    for b in f.measurement_blocks:
+    for b, c in zip(f.measurement_blocks, cols):
         if not f.second_order_residuals:  # Gauss-Newton: the term is zero
-            curv.append(ca.SX.zeros(nx * nx))
+            curv.append(ca.SX.zeros(c * c))
             continue
         rb, jb, wb = r[b.slice], jr[b.slice, :], ca.DM(rinv[b.slice, b.slice])
         lam = ca.SX.sym("lam", rb.numel())
-        curv.append(ca.vec(ca.substitute(ca.jacobian(jb.T @ lam, x), lam, wb @ rb)))
+        hess = ca.jacobian(jb.T @ lam, x)[: int(c), : int(c)]
+        curv.append(ca.vec(ca.substitute(hess, lam, wb @ rb)))
     meas = ca.Function("mhe_meas", [x, z, mk], [r, ca.vec(jr.T), ca.vertcat(*curv)])
     return meas, process_piece(f)
+
+
+def block_columns(formulation: Formulation, blocks: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Per measurement block (``blocks``, (nblocks, 2) start and size): the number of
+    leading state coordinates its residual depends on at most, from the residual's
+    Jacobian sparsity (no derivative is formed). Its Jacobian rows are zero beyond them,
+    and so its second-order term outside that leading square: the window's ``SR`` holds
+    that square alone, and the core's assembly runs over it (``WindowSolver``'s
+    ``block_cols``)."""
+    f = formulation
+    x, z = ca.SX.sym("x", f.nx), ca.SX.sym("z", f.nz)
+    sp = ca.jacobian_sparsity(f.measurement_residual_sym(z, x), x)
+    rows, cols = np.array(sp.get_triplet(), dtype=np.int64).reshape(2, -1)
+    out = np.zeros(len(blocks), dtype=np.int64)
+    for b, (start, size) in enumerate(blocks):
+        inside = (rows >= start) & (rows < start + size)
+        out[b] = cols[inside].max() + 1 if np.any(inside) else 0
+    return out
 
 
 def process_piece(formulation: Formulation) -> ca.Function:
@@ -82,10 +105,12 @@ def window_function(
     measurement residuals ``R`` (nz, N); their Jacobians
     ``JR`` (nz nx, N), each column the row-major ``dr/dx``; process residuals
     ``W = x_{i+1} - f(x_i, u_i, dt_i)`` (nx, N-1); ``FJ`` (nx^2, N-1), each column
-    the row-major ``df/dx_i``; ``SR`` (nblocks nx^2, N), the second-order part of each
+    the row-major ``df/dx_i``; ``SR`` (sum_b c_b^2, N), the second-order part of each
     measurement block's quadratic cost Hessian ``sum_a (R_b^-1 r_b)_a d2r_a/dx2`` per
     node (one per block, so that a robust loss can weight each block; ``R`` is
-    block-diagonal). ``pieces``: :func:`node_pieces` (built here if None).
+    block-diagonal), each block's leading ``c_b x c_b`` (c_b: its
+    :func:`block_columns`; the rest is zero). ``pieces``: :func:`node_pieces` (built
+    here if None).
     """
     f, nx, nu, nz, n = formulation, formulation.nx, formulation.nu, formulation.nz, horizon
     meas, proc = pieces or node_pieces(f)
@@ -211,9 +236,10 @@ def window_c_functions(formulation: Formulation, horizon: int) -> tuple[Any, Any
             raise NotImplementedError("forward-mode Jacobians give no second-order term")
         residual = tape_function(residual_function(formulation))
         proc = tape_function(process_piece(formulation))
-        blocks = len(formulation.measurement_blocks)
-        window = c_function(_core.WindowFunction(residual, blocks, proc, horizon))
-        return window, c_function(_core.TailFunction(residual, blocks, proc))
+        cols = block_columns(formulation, block_array(formulation.measurement_blocks))
+        sr = int(np.sum(cols * cols))  # the zero second-order term's entries per node
+        window = c_function(_core.WindowFunction(residual, sr, proc, horizon))
+        return window, c_function(_core.TailFunction(residual, sr, proc))
     meas, proc = (tape_function(p) for p in node_pieces(formulation))
     window = c_function(_core.WindowFunction(meas, proc, horizon))
     return window, c_function(_core.TailFunction(meas, proc))

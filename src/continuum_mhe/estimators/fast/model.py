@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.estimators.fast.codegen import (
+    block_columns,
     c_function,
     measurement_model,
     output_function,
@@ -132,6 +133,10 @@ class WindowModel:
         loss: the measurement loss (:class:`LossKernel`).
         linear_transition: the transition is affine in the state
             (:func:`~continuum_mhe.estimators.fast.codegen.transition_is_linear`).
+        block_columns: (nblocks,) per block of ``loss.blocks``, the number of leading
+            state coordinates its residual depends on at most
+            (:func:`~continuum_mhe.estimators.fast.codegen.block_columns`), and the side
+            of its second-order term's square in the window's outputs; None: all.
     """
 
     nx: int
@@ -153,11 +158,14 @@ class WindowModel:
     #: :attr:`~continuum_mhe.model.formulations.Formulation.second_order_residuals`
     second_order_residuals: bool = True
     tail: Any = None  # the last node and stage of a window shifted by one sample
+    block_columns: IntArray | None = None
 
     @property
     def window_size(self) -> int:
         n, nx, nz, nblk = self.horizon, self.nx, self.nz, len(self.loss.blocks)
-        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + nblk * nx * nx * n
+        cols = np.full(nblk, nx) if self.block_columns is None else self.block_columns
+        sr = int(np.sum(cols * cols))
+        return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + sr * n
 
     def evaluate_node(
         self,
@@ -345,4 +353,5 @@ def build_window_model(
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
         second_order_residuals=formulation.second_order_residuals,
+        block_columns=block_columns(formulation, blocks),
     )

@@ -115,11 +115,13 @@ class Workspace:
         fs, lossk = model.feasible, loss or model.loss
         self.tail = address(model.tail) if model.tail is not None else 0
         self.window = address(model.window)  # of the window function (the model keeps it)
+        cols = model.block_columns  # the layout of the window function's SR
         self.core = core = _core.WindowSolver(
             model.horizon, model.nx, model.nz, model.nu, self.window, self.tail, fs.lo, fs.hi,
             np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2, model.rinv,
             np.ascontiguousarray(lossk.blocks, dtype=np.int64), lossk.code, lossk.scale,
             model.linear_transition if linear is None else linear,
+            None if cols is None else np.ascontiguousarray(cols, dtype=np.int64),
         )  # fmt: skip
         # Gauss-Newton steps (no second-order term): a rejected full step is corrected
         # by one more step from its trial point before it is shortened (csrc/sqp.hpp)
