@@ -115,7 +115,7 @@ void SensorHealth::reset(bool keep_counts) {
   std::fill(imu_last_valid_.begin(), imu_last_valid_.end(), -INFINITY);
   returned_.clear();
   hold_ = 0.0;
-  chain_ = 0;
+  end_chain();
   forced_t_.clear();
   consistency_.reset();
   restart();
@@ -242,7 +242,7 @@ void SensorHealth::start_clear() {
 
 void SensorHealth::start_reopen(double hold) {
   start_clear();
-  chain_ = 0;  // a returned IMU: its readings are new evidence
+  end_chain();  // a returned IMU: its readings are new evidence
   for (int r : back_rows_) returned_.push_back(r);
   std::sort(returned_.begin(), returned_.end());
   returned_.erase(std::unique(returned_.begin(), returned_.end()), returned_.end());
@@ -255,10 +255,7 @@ bool SensorHealth::start_watching(double t) const {
 }
 
 bool SensorHealth::start_inconsistent(double t, const double* z) {
-  bool in_window = !std::isnan(s_.bad_start) && t - since_ <= s_.bad_start;
-  // the readings were inconsistent after every one of the last restarts: another
-  // restart from them would not fit either
-  if (s_.start_chain > 0 && chain_ >= s_.start_chain) in_window = false;
+  const bool in_window = !std::isnan(s_.bad_start) && t - since_ <= s_.bad_start;
   if (!has_prev_ || !(in_window || !returned_.empty())) return false;
   rows_.clear();
   for (int i = 0; i < s_.nz; ++i)
@@ -279,7 +276,15 @@ bool SensorHealth::start_inconsistent(double t, const double* z) {
       agreed_since_ = prev_t_;  // the estimate this reading agrees with
     if (t - agreed_since_ >= hold_) returned_.clear();  // NaN compares false
   }
-  return in_window && run_ >= s_.start_samples;
+  const bool fires = in_window && run_ >= s_.start_samples;
+  // the readings were inconsistent after every one of the last restarts: another
+  // restart from them would not fit either (counted once a chain)
+  if (fires && s_.start_chain > 0 && chain_ >= s_.start_chain) {
+    if (!chain_held_) ++diagnostics.bad_start_chains;
+    chain_held_ = true;
+    return false;
+  }
+  return fires;
 }
 
 void SensorHealth::start_remember(double t, const double* z, const double* x, const double* P,
@@ -366,20 +371,20 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   const bool observed = observed_now(t);
   if (gap_reset) {  // restart from this sample instead of a blind prediction
     ++diagnostics.gap_resets;
-    chain_ = 0;
+    end_chain();
     restart();
   } else if (back && s_.checks_start) {
     // their part of the shape was predicted blindly: check it as after a start
     start_reopen(unobserved_window());
   }
-  if (chain_ > 0 && t - since_ > s_.bad_start) chain_ = 0;  // the last restart held
+  if (chain_ > 0 && t - since_ > s_.bad_start) end_chain();  // the last restart held
   bool bad_start = false;
   const bool check_start = s_.checks_start && start_watching(t);
   if (check_start) {
     bad_start = start_inconsistent(t, z);
     if (bad_start) {  // the start was wrong: restart from this reading
       ++diagnostics.bad_starts;
-      if (++chain_ == s_.start_chain) ++diagnostics.bad_start_chains;
+      ++chain_;
       restart();
     }
   }
@@ -388,7 +393,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       t - *rejecting_since_ > s_.reject_reset && valid) {
     reject_reset = true;  // restart from this reading
     ++diagnostics.reject_resets;
-    chain_ = 0;
+    end_chain();
     restart();
   }
   bool has_state = false, has_cov = false, failed = false;
@@ -396,7 +401,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   bool healthy = !failed && (!has_state || !diverged(x, has_cov ? P : nullptr));
   if (!healthy) {  // flag it and restart from this sample's measurement
     ++diagnostics.restarts;
-    chain_ = 0;
+    end_chain();
     restart();
     status = infer_once(t, z, x, P, has_state, has_cov, failed);
     if (has_state && diverged(x, has_cov ? P : nullptr)) {

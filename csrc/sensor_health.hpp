@@ -140,7 +140,8 @@ struct PolicySettings {
   int start_samples = 2;            // consecutive readings beyond it that restart
   // bad-start restarts in a row (each within the probation time of the one before, no
   // other restart between) after which the check stops restarting until the probation
-  // time passes or another restart: readings that no restart fits (0: no limit)
+  // time passes, another restart or an IMU's return: readings that no restart fits
+  // (0: no limit)
   int start_chain = 0;
   double unobserved_after = 1.0;    // s, an IMU's silence that unobserves it (gap reset off)
   double degrees_like = 0.0;        // rad, a tilt reading beyond it is in degrees
@@ -155,7 +156,8 @@ struct PolicySettings {
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
 struct PolicyDiagnostics {
   int64_t restarts = 0, gap_resets = 0, frozen_samples = 0, bad_starts = 0,
-          reject_resets = 0, bound_samples = 0, bad_start_chains = 0;
+          reject_resets = 0, bound_samples = 0,
+          bad_start_chains = 0;  // chains in which the check held a restart back
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -243,8 +245,14 @@ class SensorHealth {
   double since_ = NAN, agreed_since_ = NAN, hold_ = 0.0, prev_t_ = 0.0;
   int run_ = 0;
   bool has_prev_ = false;
-  // bad-start restarts in a row (PolicySettings::start_chain)
+  // bad-start restarts in a row (PolicySettings::start_chain), and whether the check
+  // has held back a restart since the chain began
   int chain_ = 0;
+  bool chain_held_ = false;
+  void end_chain() {
+    chain_ = 0;
+    chain_held_ = false;
+  }
   // the times of the restarts the readings forced (bad start, reject reset, a diverged
   // or failed estimate) within the bad-start probation time or the unobserved window,
   // the longer; kRestartRun of them make every estimate meanwhile uncertain

@@ -115,6 +115,30 @@ def test_many_restarts_say_the_readings_do_not_fit_the_robot(
         assert "check the robot file against the robot (the IMUs' order" in said[0]
 
 
+def test_a_burst_of_wild_readings_does_not_count_as_a_held_back_chain() -> None:
+    """A formulation whose bad-start restarts stop after three in a row: a burst of
+    four wild readings restarts three times (on it, within it, after it) and the
+    estimates after it are ``ok`` again; no restart was held back, so
+    ``bad_start_chains`` stays 0 (it counts the chains in which the check held one
+    back, as ``estimate``'s "stopped restarting" says)."""
+    from dataclasses import dataclass
+
+    from continuum_mhe.model.formulations import BendFormulation
+
+    @dataclass(frozen=True)
+    class Chained(BendFormulation):
+        bad_start_chain = 3
+
+    rec = simulate("paper3d", duration=4.0, seed=1)
+    z = rec.z.copy()
+    z[20:24] = np.random.default_rng(1).uniform(-1.5, 1.5, size=(4, 2))
+    est = make_estimator("ekf", Chained())
+    s = est.run(rec.t, z)
+    assert est.diagnostics.bad_starts == 3
+    assert est.diagnostics.bad_start_chains == 0
+    assert set(s.status[40:]) == {"ok"}
+
+
 #: A hanging robot of three sections with a rotated IMU at each end
 HANGING_THREE_SECTIONS = (
     'mounting = "z-down"\n'
@@ -131,10 +155,10 @@ def test_no_row_is_ok_while_the_readings_keep_forcing_restarts(
 ) -> None:
     """A hanging three-section robot (20 Hz, raw IMUs) whose recording has IMU 2 and
     3's columns swapped: the readings contradict one restart's fit after another (over
-    a third of the samples restart). Rows that two readings agreed with a few samples
-    after a restart were ``ok`` 45 to 125 mm off; with four or more forced restarts
-    within the bad-start probation time they are ``uncertain``: no ``ok`` row is 20 mm
-    off, and the end warns that the readings do not fit the robot."""
+    a third of the samples restart). Two readings agree with a restart's fit a few
+    samples after it, 45 to 125 mm off; with four or more forced restarts within the
+    bad-start probation time those rows are ``uncertain``: no ``ok`` row is 20 mm off,
+    and the end warns that the readings do not fit the robot."""
     robot = tmp_path / "robot.toml"
     robot.write_text(HANGING_THREE_SECTIONS)
     meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"

@@ -417,8 +417,9 @@ def test_a_frozen_imu_is_silent_from_its_freezes_start(method: str) -> None:
     """A two-section robot whose tip IMU sticks at t = 3 s for the rest of the
     recording: once its freeze is found (1 s of the same reading) the IMU left cannot
     determine the shape, and its silence dates from the freeze's start, so no row from
-    then on is ``ok`` (an IMU silent for less than the unobserved window would count as
-    reporting, and its stale readings made rows up to 58 mm off ``ok``)."""
+    then on is ``ok`` (counted from its discovery, the IMU would be silent for less
+    than the unobserved window, count as reporting, and leave rows up to 58 mm off
+    ``ok``)."""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.simulation.scenarios import simulate_robot
 

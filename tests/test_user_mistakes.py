@@ -18,7 +18,7 @@ from continuum_mhe import Measurement, compute_metrics, make_estimator, make_for
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.settings import RobotSettings
 
@@ -807,6 +807,14 @@ def test_a_truth_of_fewer_sections_is_said_in_evaluate_and_refused_in_plot(
         "truth of a robot of 2 section(s), not of this estimate's 3?\n"
     )
     assert not (tmp_path / "p.png").exists()
+    # without section 1's columns (a truth may have some sections' and not others')
+    table = read_state_table(t2)
+    keep = [i for i, n in enumerate(table.names) if not n.endswith("_1")]
+    gapped = tmp_path / "t2_gapped.csv"
+    write_table(gapped, ["t", *(table.names[i] for i in keep)],
+                np.column_stack([table.t, table.values[:, keep]]).tolist())  # fmt: skip
+    assert main(["evaluate", str(e3), str(gapped), "--robot", str(robot3)]) == 0
+    assert "section 2's end is its tip in every row" in capsys.readouterr().err
     assert main(["evaluate", str(e3), str(t3), "--robot", str(robot3)]) == 0
     out, err = capsys.readouterr()
     assert err == "" and re.search(r"SRMSE\s+\d", out)

@@ -81,7 +81,9 @@ class Status(str, Enum):
         "uncertain",
         "an estimate was made, but the tip position's standard deviation exceeds the "
         "stated fraction of the robot's length (--uncertain-fraction), or the IMUs (those "
-        "that reported within --gap-reset) do not determine the robot's shape: do not "
+        "that reported within --gap-reset) do not determine the robot's shape, or the "
+        "estimator restarted on readings that contradicted it and they have not yet "
+        "agreed with it (or it did so four times or more within --bad-start): do not "
         "trust it",
     )
     DRIFTED = (

@@ -42,7 +42,6 @@ from continuum_mhe.estimators.sensor_health import (
     Estimator,
     ForceBeyondTensions,
     TensionGainFromOne,
-    restarts_notice,
 )
 from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import robot_fix
@@ -243,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         raise interrupted
-    restarts = diag.restarts + diag.bad_starts
+    restarts = diag.restarts + diag.bad_starts + diag.reject_resets
     if stream.kind == "log" and len(args.topic or ()) > 1:  # topics in the wrong order, most often
         warn_topic_order(stream.name, args.topic, n, restarts)
     elif restarts_note := restarts_notice(n, restarts):
@@ -322,6 +321,32 @@ def run(args: argparse.Namespace) -> int:
         print(note, file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
+
+
+#: A run in which more than this share of the samples restarted the estimator (readings
+#: inconsistent with its estimate, a diverged or failed estimate) is said at the end of
+#: ``estimate`` (:func:`restarts_notice`), as for Imu topics out of order
+#: (:data:`~continuum_mhe.io.imu_topics.ORDER_RESTART_SHARE`, where it is measured).
+RESTART_SHARE = 0.05
+#: ... and at least this many restarts: one restart in a file of a few samples says
+#: nothing of the robot file.
+RESTARTS_SAID = 5
+
+
+def restarts_notice(samples: int, restarts: int) -> str | None:
+    """One line where more than :data:`RESTART_SHARE` of ``samples``, and at least
+    :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
+    readings do not fit the model of the robot; None otherwise."""
+    if restarts < RESTARTS_SAID or restarts <= RESTART_SHARE * samples:
+        return None
+    return (
+        f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
+        "estimator (readings inconsistent with its estimate, or an estimate that diverged): "
+        "the readings do not fit the model of the robot; check the robot file against the "
+        "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; "
+        "check-robot lists them), or the robot does what the model cannot follow (a "
+        "backbone that twists about itself)"
+    )
 
 
 def _passthrough(it: Iterable[int]) -> Iterator[int]:

@@ -260,32 +260,6 @@ class BendsBeyondBound:
         )
 
 
-#: A run in which more than this share of the samples restarted the estimator (readings
-#: inconsistent with its estimate, a diverged or failed estimate) is said at the end of
-#: ``estimate`` (:func:`restarts_notice`), as for Imu topics out of order
-#: (:data:`~continuum_mhe.io.imu_topics.ORDER_RESTART_SHARE`, where it is measured).
-RESTART_SHARE = 0.05
-#: ... and at least this many restarts: one restart in a file of a few samples says
-#: nothing of the robot file.
-RESTARTS_SAID = 5
-
-
-def restarts_notice(samples: int, restarts: int) -> str | None:
-    """One line where more than :data:`RESTART_SHARE` of ``samples``, and at least
-    :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
-    readings do not fit the model of the robot; None otherwise."""
-    if restarts < RESTARTS_SAID or restarts <= RESTART_SHARE * samples:
-        return None
-    return (
-        f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
-        "estimator (readings inconsistent with its estimate, or an estimate that diverged): "
-        "the readings do not fit the model of the robot; check the robot file against the "
-        "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; "
-        "check-robot lists them), or the robot does what the model cannot follow (a "
-        "backbone that twists about itself)"
-    )
-
-
 class ForceBeyondTensions:
     """The largest tip force a tendon robot's estimates reach against the largest
     tendon tension of its inputs, counted block by block (:meth:`add`) for one line at
@@ -648,28 +622,30 @@ class Estimator(Generic[InferenceT]):
         """Process one sample and return its estimate. Never raises on solver failure.
 
         A diverged (non-finite, or far outside the workspace: ``is_diverged``) or
-        numerically failed step restarts the inference from this sample's measurement;
-        that estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
-        ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor
-        frozen longer than ``freeze`` s (over ``freeze_samples`` samples or more) counts
-        as dropped out; the first valid sample after more than ``gap_reset`` s without
-        one restarts the inference the same way (``reset``), and so do readings
-        inconsistent with the estimate within ``bad_start`` s of a (re)start or of an
-        IMU's return after a silence of more than ``gap_reset`` (1 s when it is off)
-        (:mod:`.start_check`; not for a robust MHE, which rejects such readings as
-        outliers) and, for a robust MHE, a valid reading after every reading
-        of more than ``reject_reset`` s was rejected as an outlier (the estimate, not
-        the sensor, is taken as lost); an ``ok`` estimate whose tip standard deviation
-        exceeds ``uncertain_fraction`` of the robot's length, or whose reported one (the
-        readings' constant errors in it) exceeds the robot's length, is ``uncertain``,
-        and so is
-        every ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate
-        (a trusted status) of a robot whose IMUs do not determine its shape
-        (:attr:`shape_observable`), or whose IMUs that reported within the gap reset do
-        not (an IMU silent for longer: its part of the shape is predicted blindly), or
-        after such an IMU's return until its readings have agreed with the estimate for
-        as long (whether ``bad_start`` is set or not); a trusted estimate with a
-        section's bend on its ``theta_max`` is ``at-bound``
+        numerically failed step restarts the inference from this sample's measurement; that
+        estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
+        ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor frozen
+        longer than ``freeze`` s (over ``freeze_samples`` samples or more) counts as dropped
+        out; the first valid sample after more than ``gap_reset`` s without one restarts the
+        inference the same way (``reset``), and so do readings inconsistent with the
+        estimate within ``bad_start`` s of a (re)start or of an IMU's return after a silence
+        of more than ``gap_reset`` (1 s when it is off) (:mod:`.start_check`; not for a
+        robust MHE, which rejects such readings as outliers; a formulation's
+        ``bad_start_chain`` such restarts in a row, each contradicted in turn, end them
+        until one holds) and, for a robust MHE, a valid reading after every reading of more
+        than ``reject_reset`` s was rejected as an outlier (the estimate, not the sensor, is
+        taken as lost); an ``ok`` estimate whose tip standard deviation exceeds
+        ``uncertain_fraction`` of the robot's length, or whose reported one (the readings'
+        constant errors in it) exceeds the robot's length, is ``uncertain``, and so is every
+        ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate (a trusted status) of a
+        robot whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
+        IMUs that reported within the gap reset do not (an IMU silent for longer: its part
+        of the shape is predicted blindly), or after such an IMU's return until its readings
+        have agreed with the estimate for as long (whether ``bad_start`` is set or not), or
+        while four or more restarts that the readings forced fall within ``bad_start`` (or
+        the unobserved window where longer, or without the check); a frozen IMU's silence
+        counts from the freeze's start; a trusted estimate with a section's bend on its
+        ``theta_max`` is ``at-bound``
         (:meth:`~continuum_mhe.model.formulations.Formulation.at_bound`), and one whose
         readings disagree with it beyond their noise is ``inconsistent``
         (:mod:`.consistency`, which also widens ``output_std`` by the model error the

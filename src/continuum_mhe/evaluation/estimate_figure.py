@@ -197,7 +197,8 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
     """Why :func:`estimate_figure` cannot draw ``truth`` beside ``est`` (it has none of
     the estimate's tracked points, or fewer than two of its rows share a time with the
     estimate's, or it has the bend or position columns of a section the estimate has
-    not: a truth of a robot of more sections), or None."""
+    not: a truth of a robot of more sections; or its section ``k`` ends at its tip
+    where the estimate has more: of fewer), or None."""
     n_est = section_count(est.names)
     if n_est:
         single = "theta" in est.names

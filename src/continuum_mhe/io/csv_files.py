@@ -821,8 +821,10 @@ def check_same_robot(
 ) -> str:  # fmt: skip
     """``evaluate``'s check that the estimate and the truth are of ``robot``: an estimate
     with section columns of another robot is a one-line :class:`InputError` (one with the
-    tip only passes); a truth with columns of another robot gives the warning returned
-    (``""`` when it fits: any subset of the robot's columns does)."""
+    tip only passes); a truth with columns of another robot, or one whose section ``k``
+    ends at its tip where the robot has more sections (:func:`tip_section`), gives the
+    warning returned (``""`` when it fits: any other subset of the robot's columns
+    does)."""
     if any(_is_section_column(n) for n in estimate.names):
         check_estimate_fits(estimates, estimate.names, robot)
     misfit = robot_misfit(truth_table.names, robot, complete=False)
@@ -852,13 +854,16 @@ def tip_section(table: StateTable) -> int | None:
     if not all(c in names for c in ("x", "y", "z")):
         return None
     tip = table.values[:, [names.index(c) for c in ("x", "y", "z")]]
-    k = 1
-    while all(f"{c}_{k}" in names for c in ("x", "y", "z")):
+    given = sorted(
+        int(n[2:]) for n in names if n.startswith("x_") and n[2:].isdigit() and int(n[2:]) > 0
+    )  # a truth may have some sections' ends and not others'
+    for k in given:
+        if not all(f"{c}_{k}" in names for c in ("y", "z")):
+            continue
         end = table.values[:, [names.index(f"{c}_{k}") for c in ("x", "y", "z")]]
         both = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(end), axis=1)
         if both.any() and np.abs(end[both] - tip[both]).max() <= TIP_SECTION_TOLERANCE:
             return k
-        k += 1
     return None
 
 

@@ -369,8 +369,10 @@ def _single_table_hint(text: str) -> str:
     list follows: ``; line N: [imu] ...``; else ``""``."""
     lines = text.splitlines()
     for name in ("section", "imu", "tendon"):
-        single = [i for i, ln in enumerate(lines, 1) if ln.strip() == f"[{name}]"]
-        if single and any(ln.strip() == f"[[{name}]]" for ln in lines):
+        one = re.compile(rf"\s*\[\s*{name}\s*\]\s*(#.*)?")
+        single = [i for i, ln in enumerate(lines, 1) if one.fullmatch(ln)]
+        listed = re.compile(rf"\s*\[\[\s*{name}\s*\]\]\s*(#.*)?")
+        if single and any(listed.fullmatch(ln) for ln in lines):
             return (
                 f"; line {single[0]}: [{name}] is one table, and every {name} is a "
                 f"[[{name}]] (double brackets)"

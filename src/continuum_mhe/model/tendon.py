@@ -245,7 +245,8 @@ class TendonFormulation(Formulation):
     #: :data:`START_EVALUATIONS` model evaluations); where the readings contradict every
     #: restart (tensions of another scale or order) the restarts do not bring the estimate
     #: nearer the robot and cost most of the run, so three in a row stop them (the rows
-    #: are then ``drifted`` or ``inconsistent``).
+    #: are then ``drifted`` or ``inconsistent``). A burst of wild readings counts toward
+    #: the three too.
     bad_start_chain: ClassVar[int | None] = 3
     observable_hint: ClassVar[str] = "a second IMU makes it observable"
     fast_mhe_obstacle: ClassVar[str | None] = (
