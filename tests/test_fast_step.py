@@ -305,3 +305,18 @@ def test_measurements_from_a_column_major_array_give_the_same_estimates() -> Non
         rows = [zc[i] if i < 5 else zf[i] for i in range(len(rec.t))]  # C first
         out = np.array([b.step(Measurement(float(t), z)).output for t, z in zip(rec.t, rows)])
         assert_allclose(out, a.output, rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_a_window_model_without_its_block_columns_is_refused() -> None:
+    """A window function built with each block's columns (every window from
+    ``build_window_model``) writes fewer values than a layout of whole blocks holds: a
+    WindowModel given without its ``block_columns`` is refused by the solver, not read
+    with the Jacobian's values taken for the second-order term."""
+    from continuum_mhe.estimators.fast.model import build_window_model
+    from continuum_mhe.estimators.fast.sqp import Workspace
+
+    robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    model = build_window_model(make_formulation("bend", robot), horizon=5)
+    Workspace(model)  # as built: accepted
+    with pytest.raises(ValueError, match="give WindowModel the block_columns"):
+        Workspace(replace(model, block_columns=None))

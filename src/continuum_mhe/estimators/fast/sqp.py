@@ -116,6 +116,13 @@ class Workspace:
         self.tail = address(model.tail) if model.tail is not None else 0
         self.window = address(model.window)  # of the window function (the model keeps it)
         cols = model.block_columns  # the layout of the window function's SR
+        core_fn = getattr(model.window, "core", None)  # a c_function keeps its evaluation
+        if core_fn is not None and core_fn.output_size != model.window_size:
+            raise ValueError(
+                f"the window function writes {core_fn.output_size} values, the model's "
+                f"layout holds {model.window_size}: give WindowModel the block_columns "
+                "its window function was built with (codegen.block_columns)"
+            )
         self.core = core = _core.WindowSolver(
             model.horizon, model.nx, model.nz, model.nu, self.window, self.tail, fs.lo, fs.hi,
             np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2, model.rinv,
