@@ -431,9 +431,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     const double* judged = !has_state || !inference_.outlier() ? mask_.data() : zero_mask_.data();
     const bool disagree = consistency_check(t, z, judged, x, P, has_state, has_cov);
     if (disagree && trusted(status)) status = ST_INCONSISTENT;
-    // a restart the readings forced fits this one reading; the next start_samples
-    // readings the check compares with the estimate (judged rows, not an outlier's)
-    // confirm it when they agree, and until then it is not trusted
     // restarts the readings forced, within the bad-start check's probation time (the
     // unobserved window where longer, or without the check): a run of them says the
     // readings contradict every estimate the model makes of them, so none is trusted
@@ -446,6 +443,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (forced) forced_t_.push_back(t);
     const bool storm = static_cast<int>(forced_t_.size()) >= kRestartRun;
     if (storm && trusted(status)) status = ST_UNCERTAIN;
+    // a restart the readings forced fits this one reading; the next start_samples
+    // readings the check compares with the estimate (judged rows, not an outlier's)
+    // confirm it when they agree, and until then it is not trusted
     if (forced) {
       unconfirmed_ = s_.start_samples;
     } else if (unconfirmed_ > 0) {

@@ -177,13 +177,12 @@ class RecoverySettings:
             restart the estimator from the current reading (status ``reset``); not for
             a robust MHE (``MHESettings.loss`` not ``l2``), which rejects such readings
             as outliers and has ``reject_reset``; None: never (command line
-            ``--bad-start``; default 2 s). A formulation's ``bad_start_chain`` such
+            ``--bad-start``; default 2 s). Either way an estimate after such a return
+            is ``uncertain`` until the returned IMU's readings have agreed with it for
+            as long as that silence threshold. A formulation's ``bad_start_chain`` such
             restarts in a row, each contradicted in turn, stop them until one holds;
             four or more forced restarts within this time make the estimates meanwhile
             ``uncertain``.
-            Either way an estimate after such a return is ``uncertain`` until the
-            returned IMU's readings have agreed with it for as long as that silence
-            threshold.
         reject_reset: a robust MHE (``MHESettings.loss`` not ``l2``) whose newest reading
             was rejected as an outlier at every sample for longer than this (s)
             restarts from the next valid reading (status ``reset``): readings that

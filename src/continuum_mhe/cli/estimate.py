@@ -323,21 +323,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-#: A run in which more than this share of the samples restarted the estimator (readings
-#: inconsistent with its estimate, a diverged or failed estimate) is said at the end of
-#: ``estimate`` (:func:`restarts_notice`), as for Imu topics out of order
-#: (:data:`~continuum_mhe.io.imu_topics.ORDER_RESTART_SHARE`, where it is measured).
-RESTART_SHARE = 0.05
-#: ... and at least this many restarts: one restart in a file of a few samples says
-#: nothing of the robot file.
+#: A run in which at least this many restarts, and more than the share of the samples
+#: measured for Imu topics out of order
+#: (:data:`~continuum_mhe.io.imu_topics.ORDER_RESTART_SHARE`), restarted the estimator is
+#: said at the end of ``estimate`` (:func:`restarts_notice`): one restart in a file of a
+#: few samples says nothing of the robot file.
 RESTARTS_SAID = 5
 
 
 def restarts_notice(samples: int, restarts: int) -> str | None:
-    """One line where more than :data:`RESTART_SHARE` of ``samples``, and at least
+    """One line where more than ``ORDER_RESTART_SHARE`` of ``samples``, and at least
     :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
     readings do not fit the model of the robot; None otherwise."""
-    if restarts < RESTARTS_SAID or restarts <= RESTART_SHARE * samples:
+    from continuum_mhe.io.imu_topics import ORDER_RESTART_SHARE
+
+    if restarts < RESTARTS_SAID or restarts <= ORDER_RESTART_SHARE * samples:
         return None
     return (
         f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
