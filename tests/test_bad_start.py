@@ -16,7 +16,9 @@ also restarts the EKF from the returned reading).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -25,11 +27,14 @@ from numpy.testing import assert_array_equal
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.start_check import SAMPLES
 from continuum_mhe.io.csv_files import read_state_table, write_measurements
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
+from continuum_mhe.results import Diagnostics
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate, simulate_robot
 
@@ -137,6 +142,138 @@ def test_a_burst_of_wild_readings_does_not_count_as_a_held_back_chain() -> None:
     assert est.diagnostics.bad_starts == 3
     assert est.diagnostics.bad_start_chains == 0
     assert set(s.status[40:]) == {"ok"}
+
+
+# --- the end of a held-back chain -------------------------------------------------------
+@dataclass(frozen=True)
+class ChainOfThree(BendFormulation):
+    """The bend formulation whose bad-start restarts stop after three in a row."""
+
+    bad_start_chain = 3
+
+
+STILL = (0.2, 0.3)  # rad: roll and pitch of the robot at rest
+#: readings that contradict each restart's fit of the one before: a restart on every
+#: second of them
+SWING = ((0.6, 0.6), (-0.6, -0.6))
+BEYOND = (2.9, 0.0)  # rad: a roll that carries the bend past theta_max + 1 rad
+NONE = (math.nan, math.nan)
+#: samples of the middle stretch between the two swings (1.2 s at 20 Hz)
+MIDDLE = 24
+#: the first sample after the middle
+AFTER = 20 + 2 * 5 + MIDDLE
+#: the chain's restarts; the check holds back the one after them
+FIRST_CHAIN = [21, 23, 25]
+#: the probation time (s): the chain's last restart (1.25 s) is held back beyond the
+#: recording's end (3.45 s), so only the event ends the chain
+PROBATION = 4.0
+
+
+def chain_run(middle: list[tuple[float, float]], **recovery: Any) -> tuple[list[int], Diagnostics]:
+    """The compiled EKF of :class:`ChainOfThree` (``bare(bad_start=PROBATION,
+    **recovery)``) on 20 Hz readings: 1 s at rest, 0.5 s of ``SWING`` (restarts at
+    ``FIRST_CHAIN``, then held back), the ``MIDDLE`` readings ``middle`` and 0.8 s of
+    ``SWING`` again; returns the samples of status ``reset`` and the diagnostics."""
+    assert len(middle) == MIDDLE
+    z = np.array([STILL] * 20 + [*SWING] * 5 + middle + [*SWING] * 8)
+    t = 0.05 * np.arange(len(z))
+    est = make_estimator("ekf", ChainOfThree(), recovery=bare(bad_start=PROBATION, **recovery))
+    s = est.run(t, z)
+    assert s.diagnostics is not None
+    return [int(i) for i in np.flatnonzero(s.status == "reset")], s.diagnostics
+
+
+def assert_held_back(resets: list[int], d: Diagnostics) -> None:
+    """The check held the chain back to the end: no restart after its three."""
+    assert resets == FIRST_CHAIN
+    assert (d.bad_starts, d.bad_start_chains, d.restarts, d.gap_resets) == (3, 1, 0, 0)
+
+
+def assert_chained_again(resets: list[int], d: Diagnostics, restarts: list[int]) -> None:
+    """The chain ended: the swing after the middle restarts at ``restarts`` (a new chain
+    of three bad starts, held back in turn)."""
+    assert resets == FIRST_CHAIN + restarts
+    assert (d.bad_starts, d.bad_start_chains) == (6, 2)
+
+
+def test_a_held_back_chain_lasts_the_probation_time_of_its_last_restart() -> None:
+    """Readings that swing from 1 s to the end of the probation time (2 s) of the
+    chain's last restart (1.25 s, sample 25): the check holds back every restart after
+    the three, to the last sample (3.25 s). A chain also ends when the last restart
+    holds through its probation time; the check is closed from then on, and every
+    event that opens it again ends the chain too (the tests below)."""
+    z = np.array([STILL] * 20 + [*SWING] * 23)
+    t = 0.05 * np.arange(len(z))
+    assert t[-1] == pytest.approx(1.25 + 2.0)
+    est = make_estimator("ekf", ChainOfThree(), recovery=bare(bad_start=2.0))
+    s = est.run(t, z)
+    assert list(np.flatnonzero(s.status == "reset")) == FIRST_CHAIN
+    assert (est.diagnostics.bad_starts, est.diagnostics.bad_start_chains) == (3, 1)
+    assert set(s.status[26:]) == {"inconsistent"}
+
+
+def test_a_gap_reset_ends_a_held_back_chain() -> None:
+    """No reading for 1.2 s after a held-back chain, the gap reset 1 s: the first
+    reading after the gap restarts the estimator (sample 54) and the swing after it
+    restarts three times more, a second chain; at rest instead of the gap, the chain
+    stays held back."""
+    resets, d = chain_run([NONE] * MIDDLE, gap_reset=1.0)
+    assert d.gap_resets == 1 and d.restarts == 0
+    assert_chained_again(resets, d, [AFTER, AFTER + 2, AFTER + 4, AFTER + 6])
+    assert_held_back(*chain_run([STILL] * MIDDLE, gap_reset=1.0))
+
+
+def test_a_restart_of_another_kind_ends_a_held_back_chain() -> None:
+    """Four readings of a roll that carries the bend out of the workspace after a
+    held-back chain: the estimate diverges at the last of them (sample 53) and
+    restarts, and the swing after it restarts three times more, a second chain; at
+    rest instead, the chain stays held back. (A numerical failure and a covariance
+    beyond the workspace restart the same way as a divergence.)"""
+    resets, d = chain_run([STILL] * (MIDDLE - 4) + [BEYOND] * 4)
+    assert d.restarts == 1 and d.gap_resets == 0
+    assert_chained_again(resets, d, [AFTER - 1, AFTER + 1, AFTER + 3, AFTER + 5])
+    assert_held_back(*chain_run([STILL] * MIDDLE))
+
+
+@pytest.mark.parametrize(
+    ("middle", "recovery", "restarts"),
+    [
+        ([NONE] * MIDDLE, {}, [AFTER + 3, AFTER + 5, AFTER + 7]),
+        ([STILL] * MIDDLE, {"freeze": 1.0}, [AFTER + 2, AFTER + 4, AFTER + 6]),
+    ],
+    ids=["silence", "freeze"],
+)
+def test_an_imu_back_ends_a_held_back_chain(
+    middle: list[tuple[float, float]], recovery: dict[str, float], restarts: list[int]
+) -> None:
+    """The IMU silent (NaN), or frozen (its reading repeated exactly, with the freeze
+    detection of 1 s), for 1.2 s after a held-back chain, with no gap reset: its
+    return opens the check again and the swing after it restarts three times, a second
+    chain; readings at rest instead, with no freeze detection, keep the chain held
+    back."""
+    resets, d = chain_run(middle, **recovery)
+    assert d.restarts == 0 and d.gap_resets == 0
+    assert d.frozen_samples == (3 if recovery else 0)
+    assert_chained_again(resets, d, restarts)
+    assert_held_back(*chain_run([STILL] * MIDDLE))
+
+
+def test_the_callers_restart_ends_a_held_back_chain() -> None:
+    """A caller's restart within the recording (``reset(keep_counts=True)``, as
+    ``live`` does) after a held-back chain: the swing after it restarts three times, a
+    second chain, and the counts go on from the first; without the caller's restart
+    the chain stays held back."""
+    z = np.array([STILL] * 20 + [*SWING] * 5 + [STILL] * MIDDLE + [*SWING] * 8)
+    t = 0.05 * np.arange(len(z))
+    est = make_estimator("ekf", ChainOfThree(), recovery=bare(bad_start=PROBATION))
+    status = []
+    for i in range(len(t)):
+        if i == AFTER:
+            est.reset(keep_counts=True)
+        status.append(est.step(Measurement(float(t[i]), z[i])).status)
+    resets = [i for i, s in enumerate(status) if s == "reset"]
+    assert_chained_again(resets, est.diagnostics, [AFTER + 2, AFTER + 4, AFTER + 6])
+    assert_held_back(*chain_run([STILL] * MIDDLE))
 
 
 #: A hanging robot of three sections with a rotated IMU at each end
