@@ -43,13 +43,14 @@ void cmhe::bind_filter(nb::module_& m) {
           "__init__",
           [](NodeModel* self, const ModelFunction& transition, const ModelFunction& measurement,
              const ModelFunction& output, const ModelFunction& jacobian, int nx, int nu, int nz,
-             int ny, std::vector<int64_t> wrapped) {
+             int ny, std::vector<int64_t> wrapped, std::vector<int64_t> sigma_states) {
             new (self) NodeModel(transition, measurement, output, jacobian, nx, nu, nz, ny,
-                                 std::move(wrapped));
+                                 std::move(wrapped), std::move(sigma_states));
           },
           nb::arg("transition"), nb::arg("measurement"), nb::arg("output"),
           nb::arg("output_jacobian"),
           nb::arg("nx"), nb::arg("nu"), nb::arg("nz"), nb::arg("ny"), nb::arg("wrapped"),
+          nb::arg("sigma_states") = std::vector<int64_t>{},
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(), nb::keep_alive<1, 4>(),
           nb::keep_alive<1, 5>())
       .def(
@@ -126,7 +127,10 @@ void cmhe::bind_filter(nb::module_& m) {
             n.output_std(x.data(), P.data(), sd.data());
             return sd;
           },
-          nb::arg("x"), nb::arg("P"), "``sqrt(diag(J P J^T))``, J the output Jacobian at x.");
+          nb::arg("x"), nb::arg("P"),
+          "One standard deviation of each output for state ``x`` with covariance ``P``: the "
+          "root mean square of the outputs' change over the sigma points on "
+          "``sigma_states`` (given), else ``sqrt(diag(J P J^T))``, J the output Jacobian at x.");
 
   m.def(
       "ekf_update",

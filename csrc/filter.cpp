@@ -102,7 +102,8 @@ void predict_covariance(double* P, const double* F, const double* Q, int nx) {
 
 NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measurement,
                      const ModelFunction& output, const ModelFunction& output_jacobian, int nx,
-                     int nu, int nz, int ny, std::vector<int64_t> wrapped)
+                     int nu, int nz, int ny, std::vector<int64_t> wrapped,
+                     std::vector<int64_t> sigma_states)
     : transition_(transition),
       measurement_(measurement),
       output_(output),
@@ -122,7 +123,21 @@ NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measu
       jout_(static_cast<size_t>(ny) * nx),
       r_(nz),
       H_(nz * nx),
-      jx_(nx) {
+      jx_(nx),
+      sigma_states_(std::move(sigma_states)),
+      is_wrapped_(ny, 0),
+      yx_(ny),
+      ys_(ny),
+      xs_(nx),
+      Ps_(sigma_states_.size() * sigma_states_.size()),
+      Ls_(sigma_states_.size() * sigma_states_.size()),
+      acc_(ny) {
+  for (int64_t i : wrapped_) {
+    if (i < 0 || i >= ny) throw std::invalid_argument("a wrapped output index out of range");
+    is_wrapped_[i] = 1;
+  }
+  for (int64_t j : sigma_states_)
+    if (j < 0 || j >= nx) throw std::invalid_argument("a sigma state index out of range");
   if (transition.output_size() != nx + nx * nx)
     throw std::invalid_argument("the transition must write f and F (nx + nx^2 values)");
   if (measurement.output_size() != nz * nx + nz)
@@ -218,6 +233,10 @@ void NodeModel::output(const double* x, double* y) {
 }
 
 void NodeModel::output_std(const double* x, const double* P, double* std) {
+  if (!sigma_states_.empty()) {
+    sigma_point_std(x, P, std);
+    return;
+  }
   const int ny = ny_, nx = nx_;
   // the policy asks for two covariances at one state (the estimate's, then the
   // readings' constant errors): the Jacobian of the last state asked for is kept
@@ -233,6 +252,67 @@ void NodeModel::output_std(const double* x, const double* P, double* std) {
       for (int k = 0; k < nx; ++k) s += jout_[i + ny * j] * P[j * nx + k] * jout_[i + ny * k];
     std[i] = std::sqrt(s > 0.0 ? s : 0.0);
   }
+}
+
+namespace {
+// Lower L with L L^T = A (n x n, symmetric positive semidefinite, row-major): Cholesky,
+// with a zero column where the pivot is below 1e-14 of the largest diagonal entry (a
+// direction without variance: a state held at a bound, or rounding)
+void psd_cholesky(const double* A, double* L, int n) {
+  double top = 0.0;
+  for (int i = 0; i < n; ++i) top = std::max(top, A[i * n + i]);
+  const double floor = 1e-14 * top;
+  std::fill(L, L + n * n, 0.0);
+  for (int j = 0; j < n; ++j) {
+    double d = A[j * n + j];
+    for (int k = 0; k < j; ++k) d -= L[j * n + k] * L[j * n + k];
+    if (!(d > floor)) {
+      if (std::isnan(d)) L[j * n + j] = d;  // NaN in, NaN out
+      continue;
+    }
+    const double ljj = std::sqrt(d);
+    L[j * n + j] = ljj;
+    for (int i = j + 1; i < n; ++i) {
+      double v = A[i * n + j];
+      for (int k = 0; k < j; ++k) v -= L[i * n + k] * L[j * n + k];
+      L[i * n + j] = v / ljj;
+    }
+  }
+}
+
+// Python's (d + pi) % (2 pi) - pi
+double wrap(double d) {
+  const double period = 2.0 * M_PI;
+  double m = std::fmod(d + M_PI, period);
+  if (m < 0.0) m += period;
+  return m - M_PI;
+}
+}  // namespace
+
+void NodeModel::sigma_point_std(const double* x, const double* P, double* std) {
+  const int ny = ny_, nx = nx_, s = static_cast<int>(sigma_states_.size());
+  const int64_t* S = sigma_states_.data();
+  if (!has_jx_ || std::memcmp(x, jx_.data(), sizeof(double) * nx) != 0) {
+    output(x, yx_.data());
+    std::copy(x, x + nx, jx_.begin());
+    has_jx_ = true;
+  }
+  for (int a = 0; a < s; ++a)
+    for (int b = 0; b < s; ++b) Ps_[a * s + b] = P[S[a] * nx + S[b]];
+  psd_cholesky(Ps_.data(), Ls_.data(), s);
+  std::fill(acc_.begin(), acc_.end(), 0.0);
+  const double spread = std::sqrt(static_cast<double>(s));
+  for (int j = 0; j < s; ++j)
+    for (double sign : {1.0, -1.0}) {
+      std::copy(x, x + nx, xs_.begin());
+      for (int a = j; a < s; ++a) xs_[S[a]] += sign * spread * Ls_[a * s + j];
+      output(xs_.data(), ys_.data());
+      for (int i = 0; i < ny; ++i) {
+        const double d = is_wrapped_[i] ? wrap(ys_[i] - yx_[i]) : ys_[i] - yx_[i];
+        acc_[i] += d * d;
+      }
+    }
+  for (int i = 0; i < ny; ++i) std[i] = std::sqrt(acc_[i] / (2.0 * s));
 }
 
 }  // namespace cmhe

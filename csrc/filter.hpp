@@ -44,7 +44,8 @@ class NodeModel {
   // measurement terms), ``measurement`` its last two ``(H, r)``.
   NodeModel(const ModelFunction& transition, const ModelFunction& measurement,
             const ModelFunction& output, const ModelFunction& output_jacobian, int nx, int nu,
-            int nz, int ny, std::vector<int64_t> wrapped);
+            int nz, int ny, std::vector<int64_t> wrapped,
+            std::vector<int64_t> sigma_states = {});
 
   int nx() const { return nx_; }
   int nz() const { return nz_; }
@@ -67,8 +68,14 @@ class NodeModel {
                 const double* mask, const double* R, const double* Q);
   // outputs of x (wrapped angles in [-pi, pi))
   void output(const double* x, double* y);
-  // sqrt(diag(J P J^T)) with the output Jacobian J at x (evaluated once for consecutive
-  // calls at the same x)
+  // One standard deviation of each output for a state with mean x and covariance P: with
+  // ``sigma_states`` (the states the outputs depend on, S), the root mean square of
+  // y(X) - y(x) over the 2 s sigma points X = x +- sqrt(s) L e_j, L L^T = P[S, S]
+  // (the unscented transform with weights 1 / (2 s); wrapped outputs' differences
+  // wrapped): it carries the outputs' curvature, which a straight section's z needs
+  // (its first derivative vanishes there). Without them sqrt(diag(J P J^T)) with the
+  // output Jacobian J at x. Either evaluates the outputs (or J) at x once for
+  // consecutive calls at the same x.
   void output_std(const double* x, const double* P, double* std);
 
  private:
@@ -82,8 +89,12 @@ class NodeModel {
   int nx_, nu_, nz_, ny_;
   std::vector<int64_t> wrapped_;
   std::vector<double> x_, u_, dt_, z_, m_, out_, oout_, jout_, r_, H_;
-  std::vector<double> jx_;  // the state of the output Jacobian in jout_
+  void sigma_point_std(const double* x, const double* P, double* std);
+  std::vector<double> jx_;  // the state of the output Jacobian in jout_ (or outputs in yx_)
   bool has_jx_ = false;
+  std::vector<int64_t> sigma_states_;
+  std::vector<char> is_wrapped_;
+  std::vector<double> yx_, ys_, xs_, Ps_, Ls_, acc_;
 };
 
 }  // namespace cmhe

@@ -272,7 +272,7 @@ class NodeModel:
     One node of a model: its EKF step, the arrival prior's step, and the outputs with their standard deviations. Matrices row-major.
     """
 
-    def __init__(self, transition: ModelFunction, measurement: ModelFunction, output: ModelFunction, output_jacobian: ModelFunction, nx: int, nu: int, nz: int, ny: int, wrapped: Sequence[int]) -> None: ...
+    def __init__(self, transition: ModelFunction, measurement: ModelFunction, output: ModelFunction, output_jacobian: ModelFunction, nx: int, nu: int, nz: int, ny: int, wrapped: Sequence[int], sigma_states: Sequence[int] = []) -> None: ...
 
     def evaluate(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
         """
@@ -291,7 +291,9 @@ class NodeModel:
         """The outputs of state ``x`` (wrapped angles in [-pi, pi))."""
 
     def output_std(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
-        """``sqrt(diag(J P J^T))``, J the output Jacobian at x."""
+        """
+        One standard deviation of each output for state ``x`` with covariance ``P``: the root mean square of the outputs' change over the sigma points on ``sigma_states`` (given), else ``sqrt(diag(J P J^T))``, J the output Jacobian at x.
+        """
 
 def ekf_update(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], r: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], H: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
     """EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``."""

@@ -155,6 +155,11 @@ class Formulation:
     #: evaluating a symbolic Jacobian: True for a model whose symbolic Jacobian is far
     #: larger than the model (a shooting model)
     forward_mode_jacobian: ClassVar[bool] = False
+    #: whether the outputs' standard deviations come from sigma points on the states the
+    #: outputs depend on (:meth:`output_std`), which carry the outputs' curvature, or are
+    #: linearised (``sqrt(diag(J P J^T))``): False for a model whose outputs cost a
+    #: shooting each, where the ``2 s`` evaluations would cost more than a filter step
+    sigma_point_output_std: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))
@@ -356,12 +361,43 @@ class Formulation:
         x = ca.SX.sym("x", self.nx)
         return ca.Function("output_jacobian", [x], [ca.jacobian(self.output_sym(x), x)])
 
+    @cached_property
+    def sigma_states(self) -> tuple[int, ...]:
+        """The states the outputs depend on (the columns of the output Jacobian's
+        sparsity), over which :meth:`output_std` places its sigma points; ``()`` where
+        :attr:`sigma_point_output_std` is False (linearised standard deviations)."""
+        if not self.sigma_point_output_std:
+            return ()
+        x = ca.SX.sym("x", self.nx)
+        jac = ca.jacobian(self.output_sym(x), x).sparsity()
+        return tuple(sorted(set(jac.get_col())))
+
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
-        """One standard deviation of every output (ny,) (m, rad) for a state ``x`` with
-        covariance ``P``: ``sqrt(diag(J P J^T))``, linearised at ``x``."""
-        J = np.asarray(self.output_jacobian(x), dtype=float).reshape(self.ny, self.nx)
-        var = np.einsum("ij,jk,ik->i", J, P, J)
-        return np.sqrt(np.maximum(var, 0.0))
+        """One standard deviation of every output (ny,) (m, rad) for a state with mean
+        ``x`` and covariance ``P``: the root mean square of ``y(X) - y(x)`` over the
+        ``2 s`` sigma points ``X = x +- sqrt(s) L e_j`` with ``L L^T = P[S, S]`` on the
+        ``s`` states :attr:`sigma_states` (the unscented transform, weights ``1 / (2 s)``;
+        wrapped outputs' differences wrapped to ``[-pi, pi)``). It carries the outputs'
+        curvature: where a section is straight, its end's ``z`` has no first derivative
+        and a linearised standard deviation would be zero whatever ``P``. Without
+        :attr:`sigma_states`: ``sqrt(diag(J P J^T))``, linearised at ``x``. The compiled
+        core computes the same (``NodeModel::output_std``)."""
+        x = np.asarray(x, dtype=float)
+        P = np.asarray(P, dtype=float)
+        S = list(self.sigma_states)
+        if not S:
+            J = np.asarray(self.output_jacobian(x), dtype=float).reshape(self.ny, self.nx)
+            var = np.einsum("ij,jk,ik->i", J, P, J)
+            return np.sqrt(np.maximum(var, 0.0))
+        s = len(S)
+        L = psd_cholesky(P[np.ix_(S, S)])
+        points = np.tile(x, (2 * s, 1))
+        points[:s, S] += math.sqrt(s) * L.T
+        points[s:, S] -= math.sqrt(s) * L.T
+        d = self.output(points) - self.output(x)
+        wrapped = list(wrapped_indices(self.outputs))
+        d[:, wrapped] = wrap_angle(d[:, wrapped])
+        return np.sqrt(np.mean(d * d, axis=0))
 
     def output(self, x: FloatArray) -> FloatArray:
         """Outputs ``(ny,)`` for a state ``(nx,)``, or ``(n, ny)`` for states ``(n, nx)``;
@@ -707,3 +743,24 @@ class PaperFormulation(Formulation):
         t0, p0 = shape_from_tilt(z_prev[0], z_prev[1], self.robot.mounting)
         t1, p1 = shape_from_tilt(z[0], z[1], self.robot.mounting)
         return np.array([(t1 - t0) / dt, float(wrap_angle(p1 - p0)) / dt])
+
+
+def psd_cholesky(A: FloatArray) -> FloatArray:
+    """Lower ``L`` with ``L L^T = A`` for a symmetric positive semidefinite ``A``: the
+    Cholesky factor, with a zero column where the pivot is below 1e-14 of ``A``'s largest
+    diagonal entry (a direction without variance: a state held at a bound, or rounding).
+    The compiled core's ``psd_cholesky`` (``csrc/filter.cpp``) is the same."""
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    L = np.zeros_like(A)
+    diag = np.diag(A)
+    floor = 1e-14 * float(np.max(diag[~np.isnan(diag)], initial=0.0))
+    for j in range(n):
+        d = A[j, j] - L[j, :j] @ L[j, :j]
+        if not d > floor:
+            if math.isnan(d):
+                L[j, j] = d
+            continue
+        L[j, j] = math.sqrt(d)
+        L[j + 1 :, j] = (A[j + 1 :, j] - L[j + 1 :, :j] @ L[j, :j]) / L[j, j]
+    return L

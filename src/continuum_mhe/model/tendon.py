@@ -256,6 +256,9 @@ class TendonFormulation(Formulation):
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True
+    #: each output evaluation is a shooting: the outputs' standard deviations are
+    #: linearised (sigma points would cost a shooting per state the outputs depend on)
+    sigma_point_output_std: ClassVar[bool] = False
     imu_model: ImuModel = "tilt"
     gyro_std: float = DEFAULT_GYRO_STD
     accel_direction_std: float | None = None

@@ -152,6 +152,8 @@ class WindowModel:
     output_jacobian: Any = None  # state -> d outputs / d state (ny, nx), column-major
     ny: int = 5
     wrapped: tuple[int, ...] = (4,)
+    #: see :class:`NodeFunctions`
+    sigma_states: tuple[int, ...] = ()
     loss: LossKernel = LossKernel(np.zeros((0, 2), dtype=np.int64), 0, math.inf)
     linear_transition: bool = False
     #: the measurement terms' second-order part is formed (exact Newton steps); see
@@ -192,6 +194,9 @@ class NodeFunctions(NamedTuple):
     nz: int
     ny: int
     wrapped: tuple[int, ...]
+    #: the states the outputs depend on, for the outputs' standard deviations
+    #: (:attr:`~continuum_mhe.model.formulations.Formulation.sigma_states`)
+    sigma_states: tuple[int, ...]
     #: the masked residual ``(x, u, dt, z, m) -> m r`` (a core function: the consistency
     #: check's fit)
     residual: Any
@@ -224,6 +229,7 @@ def node_functions(formulation: Formulation) -> NodeFunctions:
         nz=formulation.nz,
         ny=int(out.nnz_out(0)),
         wrapped=tuple(i for i, o in enumerate(formulation.outputs) if getattr(o, "wrapped", False)),
+        sigma_states=formulation.sigma_states,
     )
 
 
@@ -237,6 +243,7 @@ class NodeEvaluator:
             model.transition.core, model.measurement.core, model.output.core,
             model.output_jacobian.core,
             model.nx, model.nu, model.nz, model.ny, list(model.wrapped),
+            list(model.sigma_states),
         )  # fmt: skip
         self._zeros, self._ones = np.zeros(model.nz), np.ones(model.nz)
 
@@ -294,8 +301,8 @@ class NodeEvaluator:
         )
 
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
-        """``sqrt(diag(J P J^T))`` with the output Jacobian ``J`` at ``x``: the same as
-        :meth:`Formulation.output_std`."""
+        """One standard deviation of every output for a state with mean ``x`` and
+        covariance ``P``: the same as :meth:`Formulation.output_std`."""
         return self._core.output_std(_f64(x), _f64(P))
 
     def output(self, x: FloatArray) -> FloatArray:
@@ -350,6 +357,7 @@ def build_window_model(
         output_jacobian=node.output_jacobian,
         ny=node.ny,
         wrapped=node.wrapped,
+        sigma_states=node.sigma_states,
         loss=LossKernel(blocks, LOSS_CODES[loss], float(scale)),
         linear_transition=transition_is_linear(formulation),
         second_order_residuals=formulation.second_order_residuals,
