@@ -127,8 +127,6 @@ NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measu
       sigma_states_(std::move(sigma_states)),
       is_wrapped_(ny, 0),
       yx_(ny),
-      ys_(ny),
-      xs_(nx),
       Ps_(sigma_states_.size() * sigma_states_.size()),
       Ls_(sigma_states_.size() * sigma_states_.size()),
       acc_(ny) {
@@ -138,6 +136,15 @@ NodeModel::NodeModel(const ModelFunction& transition, const ModelFunction& measu
   }
   for (int64_t j : sigma_states_)
     if (j < 0 || j >= nx) throw std::invalid_argument("a sigma state index out of range");
+  if (const auto* tf = dynamic_cast<const TapeFunction*>(&output)) {
+    const Tape& tape = tf->tape();
+    if (tape.input_sizes().size() == 1 && tape.output_sizes().size() == 1 &&
+        tape.input_sizes()[0] == nx && tape.output_sizes()[0] == ny)
+      output_tape_ = &tape;
+  }
+  const size_t points = 2 * sigma_states_.size();
+  xs_.resize(points * nx);
+  ys_.resize(points * ny);
   if (transition.output_size() != nx + nx * nx)
     throw std::invalid_argument("the transition must write f and F (nx + nx^2 values)");
   if (measurement.output_size() != nz * nx + nz)
@@ -300,18 +307,32 @@ void NodeModel::sigma_point_std(const double* x, const double* P, double* std) {
   for (int a = 0; a < s; ++a)
     for (int b = 0; b < s; ++b) Ps_[a * s + b] = P[S[a] * nx + S[b]];
   psd_cholesky(Ps_.data(), Ls_.data(), s);
-  std::fill(acc_.begin(), acc_.end(), 0.0);
+  // the points x + sqrt(s) L e_j, then x - sqrt(s) L e_j, row by row in xs_
   const double spread = std::sqrt(static_cast<double>(s));
-  for (int j = 0; j < s; ++j)
-    for (double sign : {1.0, -1.0}) {
-      std::copy(x, x + nx, xs_.begin());
-      for (int a = j; a < s; ++a) xs_[S[a]] += sign * spread * Ls_[a * s + j];
-      output(xs_.data(), ys_.data());
-      for (int i = 0; i < ny; ++i) {
-        const double d = is_wrapped_[i] ? wrap(ys_[i] - yx_[i]) : ys_[i] - yx_[i];
-        acc_[i] += d * d;
-      }
+  for (int p = 0; p < 2 * s; ++p) {
+    const int j = p % s;
+    const double sign = p < s ? spread : -spread;
+    double* xp = xs_.data() + static_cast<size_t>(p) * nx;
+    std::copy(x, x + nx, xp);
+    for (int a = j; a < s; ++a) xp[S[a]] += sign * Ls_[a * s + j];
+  }
+  if (output_tape_) {  // unwrapped outputs: their differences are wrapped below
+    const double* in[1] = {xs_.data()};
+    double* out[1] = {ys_.data()};
+    const int64_t in_stride[1] = {nx}, out_stride[1] = {ny};
+    output_tape_->evaluate_batch(in, in_stride, out, out_stride, 2 * s);
+  } else {
+    for (int p = 0; p < 2 * s; ++p)
+      output(xs_.data() + static_cast<size_t>(p) * nx, ys_.data() + static_cast<size_t>(p) * ny);
+  }
+  std::fill(acc_.begin(), acc_.end(), 0.0);
+  for (int p = 0; p < 2 * s; ++p) {
+    const double* yp = ys_.data() + static_cast<size_t>(p) * ny;
+    for (int i = 0; i < ny; ++i) {
+      const double d = is_wrapped_[i] ? wrap(yp[i] - yx_[i]) : yp[i] - yx_[i];
+      acc_[i] += d * d;
     }
+  }
   for (int i = 0; i < ny; ++i) std[i] = std::sqrt(acc_[i] / (2.0 * s));
 }
 

@@ -94,6 +94,9 @@ class NodeModel {
   bool has_jx_ = false;
   std::vector<int64_t> sigma_states_;
   std::vector<char> is_wrapped_;
+  // the outputs' tape where ``output`` is one with a single input and output: the sigma
+  // points are then evaluated as one batch
+  const Tape* output_tape_ = nullptr;
   std::vector<double> yx_, ys_, xs_, Ps_, Ls_, acc_;
 };
 

@@ -100,6 +100,7 @@ class Inference(ABC):
         return self.formulation.output(state)
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
-        """Output standard deviations ``sqrt(diag(J P J^T))`` (an object may use a
-        compiled copy of the output Jacobian)."""
+        """Output standard deviations for a state with covariance ``cov``
+        (:meth:`~continuum_mhe.model.formulations.Formulation.output_std`; an object may
+        use the compiled core's, with the same values)."""
         return self.formulation.output_std(state, cov)
