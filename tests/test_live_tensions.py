@@ -302,14 +302,16 @@ def test_central_differences_are_numpys_gradient() -> None:
 def test_a_stream_of_tensions_has_the_derivatives_of_the_same_rows_in_a_file(
     tmp_path: Path, n: int
 ) -> None:
-    """Bit for bit, so that a recording replays to the same estimates; each sample's
-    once the two after it are in."""
+    """Bit for bit as a recording's own tension columns are read, so that a recording
+    replays to the same estimates; each sample's once the two after it are in. (A
+    tensions file of its own whose rows scatter, as these do, is smoothed instead:
+    tests/test_tension_noise.py.)"""
     rng = np.random.default_rng(n)
     t = np.cumsum(rng.uniform(0.01, 0.03, n))
     v = rng.uniform(0.0, 3.0, (n, 2))
     path = tmp_path / "t.csv"
     write_table(path, ["t", "tension_1", "tension_2"], np.column_stack([t, v]).tolist())
-    file = read_tensions(path, 2)
+    file = read_tensions(path, 2, other_columns=True)
     stream = TensionStream()
     got = []
     for i in range(n):

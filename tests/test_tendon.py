@@ -1563,17 +1563,11 @@ def test_tensions_far_apart_that_are_not_linear_are_said() -> None:
     """The shipped tensions kept one row a second (beside samples 0.02 s apart): a
     TensionsWarning that they are taken as linear between rows; the file itself, and a
     ramp given by three rows, get none."""
-    from continuum_mhe.io.tensions import (
-        Tensions,
-        TensionsWarning,
-        read_tensions,
-        tension_derivatives,
-    )
+    from continuum_mhe.io.tensions import Tensions, TensionsWarning, read_tensions
 
     full = read_tensions(DATA / "force-29_tensions.csv", 6)
     keep = np.arange(0, len(full.t), 50)
-    sparse = Tensions(full.name, full.t[keep], full.values[keep],
-                      *tension_derivatives(full.t[keep], full.values[keep]))  # fmt: skip
+    sparse = Tensions.from_rows(full.name, full.t[keep], full.values[keep])
     with pytest.warns(TensionsWarning, match=r"its rows are 1 s apart, the samples of rec "
                       r"0\.02 s: between rows the tensions are taken as linear"):  # fmt: skip
         sparse.warn_sparse(0.02, "rec")
@@ -1582,7 +1576,7 @@ def test_tensions_far_apart_that_are_not_linear_are_said() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", TensionsWarning)
         full.warn_sparse(0.02, "rec")
-        Tensions("ramp.csv", t, ramp, *tension_derivatives(t, ramp)).warn_sparse(0.02, "rec")
+        Tensions.from_rows("ramp.csv", t, ramp).warn_sparse(0.02, "rec")
 
 
 def test_tensions_in_kgf_for_n_are_said(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -1603,7 +1597,7 @@ def test_tensions_in_kgf_for_n_are_said(tmp_path: Path, capsys: pytest.CaptureFi
         if given == kgf:
             assert len(said) == 1 and re.match(
                 r"continuum-mhe: warning: \d+ of 300 estimates drifted: .*check the tensions "
-                r"\(their scale, unit and tendon order",
+                r"\(their scale, unit, tendon order and timing",
                 said[0],
             ), said
         else:
@@ -1950,7 +1944,8 @@ def test_tensions_the_robot_does_not_feel_make_rows_drifted(
                 f"continuum-mhe: warning: {drifted.sum()} of 200 estimates drifted: the IMUs' "
                 "error states left their prior"
             ), said
-            assert "check the tensions (their scale, unit and tendon order" in said[0]
+            assert "check the tensions (their scale, unit, tendon order and timing" in said[0]
+            assert "with tilt IMUs" not in said[0]  # raw IMUs
 
 
 def test_tensions_no_restart_fits_stop_the_restarts_after_three_in_a_row(
@@ -2013,3 +2008,54 @@ def test_the_imu_error_test_is_the_chi_square_of_the_states_against_their_prior(
     for d2, drifted in ((42.2, False), (42.4, True)):
         x[idx] = std[idx] * np.sqrt(d2 / 18)
         assert f.drifted(x) is drifted
+
+
+@pytest.mark.parametrize(
+    ("written", "warned"), [("4.712", True), ("1.5708", True), ("5.5", True), ("2.5", False)]
+)
+def test_one_tendon_angle_in_radians_among_degrees_is_said(
+    tmp_path: Path, written: str, warned: bool
+) -> None:
+    """One tendon's angle written in radians among the others' degrees (the shipped robot
+    file with its third tendon's angle replaced): where it lies within 0.3 degrees of a
+    multiple of 15 degrees read as radians (4.712 rad is 269.98 degrees, 5.5 rad 315.1),
+    a UnitWarning names the tendon and the angle it would be; 2.5 (143.2 degrees read
+    as radians) gets none."""
+    import warnings
+
+    from continuum_mhe.io.csv_files import UnitWarning
+    from continuum_mhe.io.robot_file import read_robot
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    text = shipped.read_text()
+    third = [m.start() for m in re.finditer(r"angle = \S+", text)][2]
+    end = text.index("\n", third)
+    path = tmp_path / "one.toml"
+    path.write_text(text[:third] + f"angle = {written}" + text[end:])
+    said = rf"one.toml: tendon 3: angle = {written} is read in degrees, beside other tendons'"
+    if warned:
+        with pytest.warns(UnitWarning, match=said + r" angles beyond 2 pi: radians\?"):
+            read_robot(path)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UnitWarning)
+            read_robot(path)
+
+
+def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``twist-29`` with tilt IMUs and its own tensions: rows drift although the inputs
+    are right, and the warning, beside what to check, says that tilt IMUs do not follow
+    a loaded robot that twists (raw IMUs do)."""
+    given = DATA / "twist-29_tensions.csv"
+    argv = ["estimate", str(DATA / "twist-29_tilt.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(given), "-o", str(tmp_path / "e.csv")]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "estimates drifted" in ln]
+    assert len(said) == 1
+    assert said[0].endswith(
+        "and the robot file; with tilt IMUs a loaded robot that twists is not followed with "
+        "the right inputs either (raw IMUs are: docs/tendon.md, Limits)"
+    )

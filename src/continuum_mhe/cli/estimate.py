@@ -305,11 +305,18 @@ def run(args: argparse.Namespace) -> int:
     if gain_note := tally.gain.notice():
         print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
     if (drifted := tally.counts.get("drifted", 0)) and isinstance(formulation, TendonFormulation):
+        tilt = (
+            "; with tilt IMUs a loaded robot that twists is not followed with the right "
+            "inputs either (raw IMUs are: docs/tendon.md, Limits)"
+            if formulation.imu_model == "tilt"
+            else ""
+        )
         print(
             f"{PROG}: warning: {drifted} of {n} estimates drifted: the IMUs' error states "
             "left their prior, so the model follows the readings only with IMU errors "
-            "these IMUs are not taken to have; check the tensions (their scale, unit and "
-            "tendon order; --estimate-tension-gain estimates a scale) and the robot file",
+            "these IMUs are not taken to have; check the tensions (their scale, unit, "
+            "tendon order and timing; --estimate-tension-gain estimates a scale) and the "
+            f"robot file{tilt}",
             file=sys.stderr,
         )
     if diag.reject_resets:

@@ -368,8 +368,9 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         )
     if method == "mhe" and obstacle is not None:  # asked for the MHE on IPOPT
         print(
-            f"{PROG}: warning: the MHE on IPOPT with this robot's model takes seconds a "
-            "window (docs: tendon robots); the EKF is this robot's default",
+            f"{PROG}: warning: the MHE on IPOPT with this robot's model takes seconds to "
+            "minutes a window, more with a longer --horizon or a softer backbone (docs: "
+            "tendon robots); the EKF is this robot's default",
             file=sys.stderr,
         )
     if method != "mhe":

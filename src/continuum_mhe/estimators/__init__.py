@@ -35,7 +35,8 @@ def default_method(formulation: Formulation) -> Method:
     """The estimator ``formulation`` gets when none is chosen: the MHE on its fast
     backend, or the EKF where the fast backend cannot take the formulation
     (:attr:`~continuum_mhe.model.formulations.Formulation.fast_mhe_obstacle`, a tendon
-    robot's mechanics model: its MHE solves every window with IPOPT, seconds a sample)."""
+    robot's mechanics model: its MHE solves every window with IPOPT, seconds to minutes a
+    sample)."""
     return "mhe" if formulation.fast_mhe_obstacle is None else "ekf"
 
 

@@ -467,6 +467,7 @@ def _tensions(
             )
         table.check_scale(robot)
         table.warn_suspect()
+        table.warn_smoothed()
         return table
     if own:
         assert recording is not None

@@ -343,7 +343,21 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
             UnitWarning,
             stacklevel=3,
         )
+    else:
+        for i in angles_among_degrees_like_radians(degrees):
+            warnings.warn(
+                f"{path}: tendon {i + 1}: angle = {degrees[i]:g} is read in degrees, beside "
+                f"other tendons' angles beyond 2 pi: radians? ({degrees[i]:g} rad is "
+                f"{math.degrees(degrees[i]):.4g} degrees)",
+                UnitWarning,
+                stacklevel=3,
+            )
     return tendons
+
+
+#: Within how many degrees of a multiple of 15 degrees an angle read as radians must lie
+#: for :func:`angles_among_degrees_like_radians` (2 pi / 3 written as 2.094 is 119.98).
+RADIANS_LAYOUT_TOL_DEG = 0.3
 
 
 def angles_look_like_radians(degrees: list[float]) -> bool:
@@ -355,6 +369,23 @@ def angles_look_like_radians(degrees: list[float]) -> bool:
         and all(abs(v) <= 2 * math.pi + 1e-9 for v in degrees)
         and any(abs(v - round(v)) > 1e-6 for v in degrees)
     )
+
+
+def angles_among_degrees_like_radians(degrees: list[float]) -> list[int]:
+    """The indices of tendon angles (in degrees) that look like radians beside others
+    that do not: where some angle exceeds ``2 pi`` in magnitude (degrees), one within
+    ``2 pi``, nonzero, not a whole number of degrees, which read in radians lies within
+    :data:`RADIANS_LAYOUT_TOL_DEG` of a multiple of 15 degrees (the angles tendons are
+    laid out at: 4.712 is 270 degrees)."""
+    if not any(abs(v) > 2 * math.pi + 1e-9 for v in degrees):
+        return []
+    out = []
+    for i, v in enumerate(degrees):
+        if 0 < abs(v) <= 2 * math.pi and abs(v - round(v)) > 1e-6:
+            as_deg = math.degrees(v)
+            if abs(as_deg - 15.0 * round(as_deg / 15.0)) <= RADIANS_LAYOUT_TOL_DEG:
+                out.append(i)
+    return out
 
 
 def shipped_robots() -> dict[str, Path]:

@@ -3,12 +3,16 @@
 
 The tensions at a measurement's time are interpolated linearly between the file's
 rows; their rates are the central differences of the file's rows, and their second
-derivatives the central differences of those rates (a tensions file logged at 75 Hz or
-faster averaged over bins of about 20 ms first: :func:`tension_derivatives`; a recording's own
-tension columns row by row, as ``live`` differenced them), both interpolated the same
-way
-(what the gyros see of the tendons' pull, and the IMUs' own acceleration that the
-accelerometers read). A tensions file
+derivatives the central differences of those rates (the rows on the line through
+their neighbours, a slower log resampled linearly, left out, and a tensions file logged
+at 75 Hz or faster averaged over bins of about 20 ms first; a recording's own tension
+columns row by row, as ``live`` differenced them), both interpolated the same way (what the gyros
+see of the tendons' pull, and the IMUs' own acceleration that the accelerometers read).
+Where a tensions file's rows scatter (a load cell's noise) so that those differences
+would be noisier than :data:`TENSION_RATE_NOISE` and :data:`TENSION_ACCELERATION_NOISE`,
+the tensions, their rates and second derivatives are a local cubic's over the fewest
+rows that bring them within these (Savitzky-Golay, at most :data:`MAX_SMOOTHING_S`),
+and this is said (:func:`tension_derivatives`). A tensions file
 must cover the recording: a measurement before its first row or after its last is an
 error, as are a negative or non-finite tension, a wrong number of tension columns and
 times that do not increase.
@@ -25,6 +29,7 @@ import os
 import warnings
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -57,10 +62,28 @@ TENSIONS_FROZEN_S = 1.0
 TENSIONS_HOLE_FACTOR = 10.0
 #: Rows more than this many times as far apart as the recording's samples are said.
 TENSIONS_SPARSE_FACTOR = 10.0
+#: The noise of the tensions' rates (N/s) and second derivatives (N/s^2) the estimators
+#: take without losing accuracy: the shipped ``unloaded`` (raw IMUs, EKF) with white
+#: noise added to its tensions (docs/tendon-studies.md, "Noisy tensions").
+TENSION_RATE_NOISE = 0.04
+TENSION_ACCELERATION_NOISE = 0.2
+#: The longest local cubic the tensions are smoothed over, s.
+MAX_SMOOTHING_S = 1.5
+#: Rows of the local cubic whose residuals give the tensions' noise
+#: (:func:`tension_noise_std`).
+NOISE_ROWS = 7
+#: How far a row may lie off the line through its two neighbours, N, and count as on
+#: it (:func:`line_knots`): a file written with six decimals rounds each tension by
+#: half a micronewton.
+ON_LINE_N = 2e-6
+#: Samples of a stream of tensions (``live``) whose scatter is checked at a time
+#: (:class:`TensionStream`).
+NOISE_CHECK_ROWS = 50
 
 
 class TensionsWarning(UserWarning):
-    """A tensions file whose rows look like a sensor or logger fault (read as given)."""
+    """A tensions file whose rows look like a sensor or logger fault (read as given), or
+    scatter so that they are smoothed."""
 
 
 @dataclass(frozen=True)
@@ -72,8 +95,11 @@ class Tensions:
         t: (n,) s, strictly increasing.
         values: (n, k) N, non-negative.
         rates: (n, k) N/s, central differences (one-sided at the ends; zero with one
-            row; of 20 ms bins of a faster file: :func:`tension_derivatives`).
+            row; of 20 ms bins of a faster file; of a local cubic where the rows
+            scatter: :func:`tension_derivatives`).
         accelerations: (n, k) N/s^2, the rates' central differences (the same way).
+        smoothing: how the rows were smoothed, where they scatter (None: they are
+            taken as they are).
     """
 
     name: str
@@ -81,6 +107,39 @@ class Tensions:
     values: FloatArray
     rates: FloatArray
     accelerations: FloatArray
+    smoothing: TensionSmoothing | None = None
+
+    @classmethod
+    def from_rows(
+        cls, name: str, t: FloatArray, values: FloatArray, binned: bool = True
+    ) -> Tensions:
+        """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
+        derivatives (:func:`tension_derivatives`)."""
+        return cls(name, t, *tension_derivatives(t, values, binned=binned))
+
+    def warn_smoothed(self) -> None:
+        """A :class:`TensionsWarning` where the rows scatter so that the tensions are
+        smoothed (:attr:`smoothing`): by how much, and over what span."""
+        sm = self.smoothing
+        if sm is not None:
+            left = (
+                ""
+                if sm.rate_noise <= TENSION_RATE_NOISE
+                and sm.acceleration_noise <= TENSION_ACCELERATION_NOISE
+                else f"; even so their rates keep a noise of about {sm.rate_noise:.2g} N/s "
+                f"and their second derivatives {sm.acceleration_noise:.2g} N/s^2, more than "
+                f"the estimators take without losing accuracy ({TENSION_RATE_NOISE:g} and "
+                f"{TENSION_ACCELERATION_NOISE:g}): filter the tensions at their source"
+            )
+            warnings.warn(
+                f"{self.name}: the tensions scatter by about {sm.noise_std:.2g} N from row "
+                "to row (a load cell's noise?): their values, rates and second derivatives "
+                f"are those of a local cubic over {sm.span_s:.2g} s (Savitzky-Golay), "
+                "so that the noise does not move the estimate; a tension that changes within "
+                f"less than that is smoothed too{left}",
+                TensionsWarning,
+                stacklevel=2,
+            )
 
     def check_span(self, first: float, last: float) -> None:
         """An :class:`InputError` where the file spans over a hundred times the
@@ -245,35 +304,179 @@ def tension_columns(n_tendons: int) -> tuple[str, ...]:
     return tuple(f"tension_{i}" for i in range(1, n_tendons + 1))
 
 
+class TensionSmoothing(NamedTuple):
+    """How a tensions file's rows were smoothed (:func:`tension_derivatives`).
+
+    Attributes:
+        noise_std: the rows' scatter, N (:func:`tension_noise_std`).
+        span_s: the local cubic's span, s.
+        rate_noise, acceleration_noise: the noise the scatter leaves in the rates (N/s)
+            and second derivatives (N/s^2).
+    """
+
+    noise_std: float
+    span_s: float
+    rate_noise: float
+    acceleration_noise: float
+
+
+class DifferencedTensions(NamedTuple):
+    """A tensions file's rows as the estimators take them (:func:`tension_derivatives`):
+    ``values`` (n, k) N (smoothed where ``smoothing`` is set), ``rates`` (n, k) N/s,
+    ``accelerations`` (n, k) N/s^2, ``smoothing`` (None: the rows as they are)."""
+
+    values: FloatArray
+    rates: FloatArray
+    accelerations: FloatArray
+    smoothing: TensionSmoothing | None = None
+
+
+def tension_noise_std(values: FloatArray) -> float:
+    """The tensions' row-to-row noise, N: the largest over the columns of the robust
+    spread (1.4826 times the median absolute deviation) of the rows' residuals from a
+    local cubic over :data:`NOISE_ROWS` rows, scaled by that fit's own share of the
+    noise (a white noise of standard deviation ``s`` leaves residuals of ``s sqrt(1 -
+    2 c_0 + |c|^2)``, ``c`` the fit's weights). A smooth tension's residuals are its
+    fourth differences, far below any load cell's noise. 0 with fewer rows."""
+    if len(values) < NOISE_ROWS:
+        return 0.0
+    from scipy.signal import savgol_coeffs, savgol_filter  # scipy only for a tendon robot
+
+    resid = values - savgol_filter(values, NOISE_ROWS, 3, axis=0, mode="interp")
+    c = savgol_coeffs(NOISE_ROWS, 3)
+    share = math.sqrt(1.0 - 2.0 * float(c[NOISE_ROWS // 2]) + float(c @ c))
+    mad = np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
+    return float(1.4826 * np.max(mad) / share)
+
+
+def smoothing_rows(noise: float, step: float) -> int:
+    """The rows of the local cubic that brings the tensions' rates and second
+    derivatives within :data:`TENSION_RATE_NOISE` and :data:`TENSION_ACCELERATION_NOISE`
+    for rows ``step`` s apart with noise ``noise`` N (the fit's weights' norm times the
+    noise): 0 where the central differences already do (their gains ``sqrt(2) / (2
+    step)`` and ``sqrt(6) / (4 step^2)``), else the fewest odd rows from 5, at most
+    :data:`MAX_SMOOTHING_S` long."""
+    if not (noise > 0.0 and step > 0.0):
+        return 0
+    if (
+        noise * math.sqrt(2.0) / (2.0 * step) <= TENSION_RATE_NOISE
+        and noise * math.sqrt(6.0) / (4.0 * step * step) <= TENSION_ACCELERATION_NOISE
+    ):
+        return 0
+    from scipy.signal import savgol_coeffs  # scipy only for a tendon robot
+
+    most = max(5, 2 * int(MAX_SMOOTHING_S / step / 2) + 1)
+    for rows in range(5, most + 1, 2):
+        rate = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step)))
+        acc = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step)))
+        if rate <= TENSION_RATE_NOISE and acc <= TENSION_ACCELERATION_NOISE:
+            return rows
+    return most
+
+
+def _smoothed(t: FloatArray, values: FloatArray, noise: float) -> DifferencedTensions | None:
+    """The local cubic's values, rates and second derivatives at the rows ``t``, or None
+    where the rows' noise needs none (:func:`smoothing_rows`). Rows unevenly apart are
+    fitted on an even grid at their median step and interpolated back."""
+    if len(t) < 5:
+        return None
+    step = float(np.median(np.diff(t)))
+    rows = smoothing_rows(noise, step)
+    if rows == 0:
+        return None
+    even = bool(np.all(np.abs(np.diff(t) - step) <= 1e-6 * step))
+    grid = t if even else np.arange(t[0], t[-1] + 0.5 * step, step)
+    v = values if even else np.column_stack([np.interp(grid, t, c) for c in values.T])
+    rows = min(rows, len(grid) if len(grid) % 2 else len(grid) - 1)
+    if rows < 5:
+        return None
+    from scipy.signal import savgol_coeffs, savgol_filter  # scipy only for a tendon robot
+
+    fits = [
+        savgol_filter(v, rows, 3, deriv=d, delta=step, axis=0, mode="interp") for d in (0, 1, 2)
+    ]
+    if not even:
+        fits = [np.column_stack([np.interp(t, grid, c) for c in f.T]) for f in fits]
+    gain1 = float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step)))
+    gain2 = float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step)))
+    smoothing = TensionSmoothing(noise, (rows - 1) * step, noise * gain1, noise * gain2)
+    return DifferencedTensions(np.maximum(fits[0], 0.0), fits[1], fits[2], smoothing)
+
+
+def _at_rows(t: FloatArray, tb: FloatArray, d: FloatArray) -> FloatArray:
+    """``d`` (m, k) given at the times ``tb`` interpolated to the rows ``t``."""
+    return np.column_stack([np.interp(t, tb, d[:, j]) for j in range(d.shape[1])])
+
+
+def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
+    """``(n,)`` bool: the rows that are not on the line through their two neighbours in
+    every column (within :data:`ON_LINE_N`), and the first and the last: the corners of
+    tensions resampled by linear interpolation from a slower log. The rows between them
+    change nothing of the tensions interpolated linearly between rows, only their
+    differences: a row's central difference across a corner is half the slope before
+    and half after, and the second differences are spikes at the corners."""
+    keep = np.ones(len(t), dtype=bool)
+    if len(t) < 3:
+        return keep
+    w = ((t[1:-1] - t[:-2]) / (t[2:] - t[:-2]))[:, None]
+    on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
+    keep[1:-1] = ~np.all(on_line, axis=1)
+    return keep
+
+
 def tension_derivatives(
     t: FloatArray, values: FloatArray, binned: bool = True
-) -> tuple[FloatArray, FloatArray]:
-    """``(rates, accelerations)`` (n, k) of the tensions ``values`` (n, k) at the rows'
-    times ``t`` (n,) s: the rows' central differences, and those of the rates. With
-    ``binned``, a file logged faster than :data:`DERIVATIVE_STEP_S` (two rows or more
-    to a bin of about that length: a median step of at most two thirds of it) is first
-    averaged over bins of that many rows and differenced there, the derivatives
-    interpolated back to its rows: a difference over a millisecond would turn a load
-    cell's noise, or the corners of tensions interpolated to a fast log, into
-    accelerations hundreds of times the tensions' own."""
-    per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(t)))) if len(t) >= 3 else 1
-    if not binned:
-        per_bin = 1
+) -> DifferencedTensions:
+    """The tensions ``values`` (n, k) at the rows' times ``t`` (n,) s as the estimators
+    take them: the rows, their central differences, and those of the rates. With
+    ``binned`` (a tensions file of its own; not a recording's own columns, which are
+    differenced row by row as ``live`` differenced them):
+
+    - the rows on the line through their neighbours (:func:`line_knots`: a slower log
+      resampled by linear interpolation) are left out of the differences;
+    - a file logged faster than :data:`DERIVATIVE_STEP_S` (two rows or more to a bin of
+      about that length: a median step of at most two thirds of it) is first averaged
+      over bins of that many rows and differenced there: a difference over a
+      millisecond would turn a load cell's noise into accelerations hundreds of times
+      the tensions' own;
+    - where the rows left scatter so that the differences would be noisier than
+      :data:`TENSION_RATE_NOISE` or :data:`TENSION_ACCELERATION_NOISE`
+      (:func:`tension_noise_std`, :func:`smoothing_rows`), the tensions, rates and
+      second derivatives are a local cubic's over the rows (Savitzky-Golay), described
+      by ``smoothing``;
+
+    and the derivatives (and smoothed values) are interpolated back to every row.
+    """
+    if not binned or len(t) < 3:
+        rates = central_differences(t, values)
+        return DifferencedTensions(values, rates, central_differences(t, rates))
+    knots = line_knots(t, values)
+    tb, vb = t[knots], values[knots]
+    per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(tb)))) if len(tb) >= 3 else 1
     if per_bin >= 2:
-        starts = np.arange(0, len(t), per_bin)
-        counts = np.diff(np.concatenate([starts, [len(t)]]))
-        tb = np.add.reduceat(t, starts) / counts
-        vb = np.add.reduceat(values, starts, axis=0) / counts[:, None]
-        if len(tb) >= 2:
-            rb = central_differences(tb, vb)
-            ab = central_differences(tb, rb)
-            back = [
-                np.column_stack([np.interp(t, tb, d[:, j]) for j in range(d.shape[1])])
-                for d in (rb, ab)
-            ]
-            return back[0], back[1]
-    rates = central_differences(t, values)
-    return rates, central_differences(t, rates)
+        starts = np.arange(0, len(tb), per_bin)
+        counts = np.diff(np.concatenate([starts, [len(tb)]]))
+        tb = np.add.reduceat(tb, starts) / counts
+        vb = np.add.reduceat(vb, starts, axis=0) / counts[:, None]
+    noise = tension_noise_std(vb)
+    every_row = len(tb) == len(t)  # no row left out, none binned
+    smooth = _smoothed(tb, vb, noise)
+    if smooth is not None:
+        if every_row:
+            return smooth
+        return smooth._replace(
+            values=_at_rows(t, tb, smooth.values),
+            rates=_at_rows(t, tb, smooth.rates),
+            accelerations=_at_rows(t, tb, smooth.accelerations),
+        )
+    rates = central_differences(tb, vb)
+    acc = central_differences(tb, rates)
+    if every_row:
+        return DifferencedTensions(values, rates, acc)
+    if len(tb) < 2:
+        zero = np.zeros_like(values, dtype=float)
+        return DifferencedTensions(values, zero, zero.copy())
+    return DifferencedTensions(values, _at_rows(t, tb, rates), _at_rows(t, tb, acc))
 
 
 def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
@@ -361,7 +564,7 @@ def read_tensions(
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
     # a recording's own columns row by row, as live's TensionStream differenced them
-    return Tensions(name, t, values, *tension_derivatives(t, values, binned=not other_columns))
+    return Tensions.from_rows(name, t, values, binned=not other_columns)
 
 
 def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
@@ -381,18 +584,27 @@ class TensionsAt:
 
 
 class TensionStream:
-    """Tensions that come one sample at a time, with the derivatives a tensions file of
-    the same rows gives (:func:`central_differences`, of the values and then of the
-    rates): a sample's are known once the two samples after it are in, or at the
-    :meth:`end` of the stream (one-sided there, as at a file's last row)."""
+    """Tensions that come one sample at a time, with the derivatives a recording's own
+    tension columns of the same rows give (:func:`central_differences`, of the values
+    and then of the rates; not smoothed): a sample's are known once the two samples
+    after it are in, or at the :meth:`end` of the stream (one-sided there, as at a
+    file's last row). Samples that scatter so that a tensions file of them would be
+    smoothed are said once (:meth:`_check_noise`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, name: str = "the tensions on the line") -> None:
+        #: what the stream is called in messages
+        self.name = name
         #: the last samples: two before the oldest one not yet given out, that one, and
         #: the ones after it (five at most)
         self._t: deque[float] = deque(maxlen=5)
         self._values: deque[FloatArray] = deque(maxlen=5)
         self._done = 0  # samples given out so far
         self._seen = 0  # samples pushed so far
+        # the last samples whose scatter is checked (:meth:`_check_noise`), and whether
+        # it has been said
+        self._recent_t: deque[float] = deque(maxlen=NOISE_CHECK_ROWS)
+        self._recent: deque[FloatArray] = deque(maxlen=NOISE_CHECK_ROWS)
+        self._noise_said = False
 
     def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
         """Add a sample (``t`` s, increasing; ``values`` N); the samples whose
@@ -400,7 +612,33 @@ class TensionStream:
         self._t.append(t)
         self._values.append(np.asarray(values, dtype=float))
         self._seen += 1
+        self._recent_t.append(t)
+        self._recent.append(self._values[-1])
+        if not self._noise_said and self._seen % NOISE_CHECK_ROWS == 0:
+            self._check_noise()
         return self._ready(end=False)
+
+    def _check_noise(self) -> None:
+        """A :class:`TensionsWarning`, once, where the last :data:`NOISE_CHECK_ROWS`
+        samples scatter so that a tensions file of them would be smoothed
+        (:func:`smoothing_rows`): the stream differences its samples as they come, and
+        their noise then reaches the estimate."""
+        t = np.array(self._recent_t)
+        noise = tension_noise_std(np.array(self._recent))
+        step = float(np.median(np.diff(t)))
+        if smoothing_rows(noise, step) == 0:
+            return
+        self._noise_said = True
+        warnings.warn(
+            f"{self.name}: the tensions scatter by about {noise:.2g} N from sample to sample "
+            f"(a load cell's noise?), and live takes their rates and second derivatives from "
+            f"consecutive samples, with a noise of about {noise * math.sqrt(2) / (2 * step):.2g} "
+            f"N/s and {noise * math.sqrt(6) / (4 * step * step):.2g} N/s^2 (the estimators "
+            f"take {TENSION_RATE_NOISE:g} and {TENSION_ACCELERATION_NOISE:g} without losing "
+            "accuracy): filter the tensions at their source",
+            TensionsWarning,
+            stacklevel=3,
+        )
 
     def end(self) -> list[TensionsAt]:
         """The stream ended: the samples still waiting, with one-sided derivatives at

@@ -252,7 +252,7 @@ class TendonFormulation(Formulation):
     fast_mhe_obstacle: ClassVar[str | None] = (
         "the fast MHE does not take this robot's mechanics model (its windows do not "
         "converge within their iterations, and IPOPT, which would take those, needs "
-        "seconds a window; the docs' tendon robots page)"
+        "seconds to minutes a window; the docs' tendon robots page)"
     )
     tilt_residual_wraps: ClassVar[bool] = False
     forward_mode_jacobian: ClassVar[bool] = True

@@ -1,0 +1,180 @@
+"""Noisy tensions: a tensions file whose rows scatter (a load cell's noise) is smoothed
+by a local cubic before the estimators take its values, rates and second derivatives
+(``continuum_mhe.io.tensions.tension_derivatives``), and this is said; a smooth file is
+taken row by row as it is."""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.signal import savgol_coeffs
+
+from continuum_mhe.cli import main
+from continuum_mhe.io import tensions as tension_io
+from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.tensions import (
+    TENSION_ACCELERATION_NOISE,
+    TENSION_RATE_NOISE,
+    Tensions,
+    TensionStream,
+    TensionsWarning,
+    read_tensions,
+    smoothing_rows,
+    tension_noise_std,
+)
+
+DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+
+
+@pytest.mark.parametrize("noise", [0.003, 0.01, 0.03])
+def test_the_noise_of_tensions_is_read_from_their_rows(noise: float) -> None:
+    """White noise of a known standard deviation added to smooth tensions (the shipped
+    ``force-29``'s, 401 rows at 50 Hz, slack tendons included) is read back within 15 %;
+    the smooth rows alone read as under a thousandth of the smallest."""
+    smooth = read_tensions(DATA / "force-29_tensions.csv", 6)
+    assert tension_noise_std(smooth.values) < 3e-6
+    rng = np.random.default_rng(3)
+    noisy = smooth.values + rng.normal(0.0, noise, smooth.values.shape)
+    assert tension_noise_std(noisy) == pytest.approx(noise, rel=0.15)
+
+
+@pytest.mark.parametrize("noise", [0.003, 0.01, 0.1])
+def test_the_smoothing_is_the_shortest_that_meets_the_derivatives_noise(noise: float) -> None:
+    """At 50 Hz: the chosen local cubic's rates and second derivatives are within their
+    noise tolerances (its weights' norm times the noise), and two rows fewer are not,
+    unless the longest span is reached; a noise that central differences take as it is
+    gives no smoothing. 0.1 N gets the longest span, 75 rows, where the rates are still
+    noisier than their tolerance."""
+    step = 0.02
+    rows = smoothing_rows(noise, step)
+    assert rows >= 5 and rows % 2 == 1
+
+    def gains(n: int) -> tuple[float, float]:
+        g1 = float(np.linalg.norm(savgol_coeffs(n, 3, deriv=1, delta=step)))
+        g2 = float(np.linalg.norm(savgol_coeffs(n, 3, deriv=2, delta=step)))
+        return g1 * noise, g2 * noise
+
+    def meets(n: int) -> bool:
+        rate, acc = gains(n)
+        return rate <= TENSION_RATE_NOISE and acc <= TENSION_ACCELERATION_NOISE
+
+    longest = 2 * int(tension_io.MAX_SMOOTHING_S / step / 2) + 1
+    assert rows <= longest
+    assert meets(rows) or rows == longest
+    if rows > 5:
+        assert not meets(rows - 2)
+    if noise == 0.1:
+        assert rows == longest == 75 and not meets(rows)
+    assert smoothing_rows(1e-6, step) == 0
+
+
+def test_tensions_too_noisy_for_the_longest_span_are_said() -> None:
+    """0.1 N of noise at 50 Hz: smoothed over the longest span (1.48 s), and the warning
+    says that the rates stay noisier than the estimators take (0.067 against 0.04 N/s);
+    0.01 N: no such clause."""
+    t = np.arange(0.0, 8.0, 0.02)
+    rng = np.random.default_rng(2)
+    loud = Tensions.from_rows("loud.csv", t, 3.0 + rng.normal(0.0, 0.1, (len(t), 2)))
+    assert loud.smoothing is not None and loud.smoothing.span_s == pytest.approx(1.48)
+    assert loud.smoothing.rate_noise > TENSION_RATE_NOISE
+    with pytest.warns(TensionsWarning, match=r"even so their rates keep a noise of about 0\.0"):
+        loud.warn_smoothed()
+    quiet = Tensions.from_rows("quiet.csv", t, 3.0 + rng.normal(0.0, 0.01, (len(t), 2)))
+    with pytest.warns(TensionsWarning) as said:
+        quiet.warn_smoothed()
+    assert "even so" not in str(said[0].message)
+
+
+def test_smooth_tensions_are_taken_row_by_row() -> None:
+    """The shipped tensions (noiseless) are the file's rows, their central differences
+    and those of the rates, with no smoothing and no warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        table = read_tensions(DATA / "unloaded_tensions.csv", 6)
+        table.warn_smoothed()
+    assert table.smoothing is None
+    raw = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(table.values, raw[:, 1:])
+    np.testing.assert_allclose(table.rates, np.gradient(raw[:, 1:], raw[:, 0], axis=0), atol=1e-9)
+
+
+def test_a_cubic_in_time_keeps_its_derivatives_through_the_smoothing() -> None:
+    """Tensions that are a cubic in time plus noise: the local cubic's rates and second
+    derivatives are the cubic's within a few times their noise tolerances (exact for the
+    cubic itself), where the rows' central differences are off by far more."""
+    t = np.arange(0.0, 8.0, 0.02)
+    exact = np.column_stack([1.0 + 0.5 * t - 0.08 * t**2 + 0.004 * t**3, 2.0 + 0.1 * t])
+    rate = np.column_stack([0.5 - 0.16 * t + 0.012 * t**2, 0.1 + 0 * t])
+    acc = np.column_stack([-0.16 + 0.024 * t, 0 * t])
+    noisy = exact + np.random.default_rng(5).normal(0.0, 0.01, exact.shape)
+    table = Tensions.from_rows("cubic.csv", t, noisy)
+    assert table.smoothing is not None
+    inner = slice(50, -50)  # away from the ends' one-sided fits
+    assert np.abs(table.rates - rate)[inner].max() < 4 * TENSION_RATE_NOISE
+    assert np.abs(table.accelerations - acc)[inner].max() < 4 * TENSION_ACCELERATION_NOISE
+    plain = tension_io.central_differences(t, noisy)
+    assert np.abs(tension_io.central_differences(t, plain) - acc)[inner].max() > 20.0
+
+
+def test_noisy_tensions_do_not_throw_the_estimate_off(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``unloaded`` (raw IMUs, the command line's defaults) with 0.01 N of white noise on
+    its tensions: the tip is within 3 mm of the truth on average after the first second,
+    and ``estimate`` says the tensions were smoothed. Differenced row by row (the
+    tolerances taken as infinite, no smoothing), the same file puts it tens of
+    millimetres off."""
+    raw = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
+    rng = np.random.default_rng(0)
+    raw[:, 1:] = np.maximum(raw[:, 1:] + rng.normal(0.0, 0.01, raw[:, 1:].shape), 0.0)
+    given = tmp_path / "noisy.csv"
+    header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))
+    np.savetxt(given, raw, delimiter=",", header=header, comments="", fmt="%.6f")
+    truth = read_state_table(DATA / "unloaded_truth.csv")
+    true_tip = np.stack([truth.column(c) for c in ("x", "y", "z")], axis=1)
+
+    def mean_tip_error(out: Path) -> float:
+        argv = ["estimate", str(DATA / "unloaded_raw.csv"), "--robot", "tendon-two-section",
+                "--inputs", str(given), "-o", str(out)]  # fmt: skip
+        assert main(argv) == 0
+        est = read_state_table(out)
+        tip = np.stack([est.column(c) for c in ("x", "y", "z")], axis=1)
+        after = est.t >= 1.0
+        return float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[after]))
+
+    said = r"noisy\.csv: the tensions scatter by about 0\.01 N .* local cubic over 0\.52 s"
+    with pytest.warns(TensionsWarning, match=said):
+        smoothed = mean_tip_error(tmp_path / "smoothed.csv")
+    assert smoothed < 3e-3
+    monkeypatch.setattr(tension_io, "TENSION_RATE_NOISE", math.inf)
+    monkeypatch.setattr(tension_io, "TENSION_ACCELERATION_NOISE", math.inf)
+    assert mean_tip_error(tmp_path / "differenced.csv") > 20e-3
+
+
+def test_a_stream_of_noisy_tensions_is_said_once() -> None:
+    """``live``'s stream differences its samples as they come (no smoothing, so that a
+    recording replays to the same estimates): 0.01 N of noise at 50 Hz is said once,
+    after the first 50 samples, with the noise its rates then carry (about 0.35 N/s,
+    read from 50 samples); the
+    shipped smooth tensions are not."""
+    smooth = read_tensions(DATA / "force-29_tensions.csv", 6)
+    rng = np.random.default_rng(4)
+    noisy = smooth.values + rng.normal(0.0, 0.01, smooth.values.shape)
+    stream = TensionStream("port")
+    with pytest.warns(TensionsWarning) as said:
+        for i in range(len(smooth.t)):
+            stream.push(float(smooth.t[i]), noisy[i])
+    relevant = [w for w in said if issubclass(w.category, TensionsWarning)]
+    assert len(relevant) == 1
+    assert re.match(r"port: the tensions scatter by about 0\.01\d* N .* about 0\.[34]\d* N/s",
+                    str(relevant[0].message))  # fmt: skip
+    quiet = TensionStream("port")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        for i in range(len(smooth.t)):
+            quiet.push(float(smooth.t[i]), smooth.values[i])
