@@ -183,7 +183,7 @@ def test_a_straight_sections_end_has_the_spread_of_its_curvature() -> None:
 
 def test_nearly_straight_rows_at_1_hz_are_not_ok_far_outside_their_std() -> None:
     """``paper3d`` sampled at 1 Hz (seed 0), the EKF with its defaults: a nearly straight
-    estimate (0.004 rad of bend) whose ``z`` is 0.065 mm off had a linearised ``std_z``
+    estimate (0.004 rad of bend) whose ``z`` is 0.065 mm off has a linearised ``std_z``
     of 0.01 mm (4.5 of them, ``ok``). With the outputs' curvature in their standard
     deviations no ``ok`` row is 4 of its standard deviations off on a tip axis."""
     rec = simulate("paper3d", duration=120, dt=1.0, seed=0)

@@ -6,7 +6,9 @@ taken as ``estimate`` takes it (``as-read``: its rows on the line through their
 neighbours left out of the differences, smoothed where its rows scatter) and, for
 comparison, differenced row by row (``row-by-row``, as a recording's own tension
 columns are). Prints one JSON line per run: the mean tip error after the first second
-(mm), the tip force's rms error (N), the smoothing's span (s) and the statuses.
+(mm), the tip force's rms error (N), the mean norm of its standard deviations (N) and
+the share of its per-axis 95 % intervals that cover the truth, the smoothing's span (s)
+and the statuses.
 
     python tools/tension_noise_study.py unloaded --noise 0 0.003 0.01 0.03
     python tools/tension_noise_study.py force-29 --noise 0.01 --imu tilt
@@ -63,12 +65,16 @@ def errors(out: Path, truth_path: Path) -> dict[str, object]:
     after = est.t >= 1.0
     tip = np.linalg.norm(stack(est, ("x", "y", "z")) - stack(truth, ("x", "y", "z")), axis=1)
     force = stack(est, ("fx", "fy", "fz")) - stack(truth, ("fx", "fy", "fz"))
+    assert est.std is not None
+    force_std = est.std[:, [est.names.index(c) for c in ("fx", "fy", "fz")]]
     statuses: dict[str, int] = {}
     for s in est.status:
         statuses[str(s)] = statuses.get(str(s), 0) + 1
     return {
         "tip_mean_mm": round(float(np.mean(tip[after])) * 1e3, 2),
         "force_rms_n": round(float(np.sqrt(np.mean(np.sum(force[after] ** 2, axis=1)))), 4),
+        "force_std_mean_n": round(float(np.mean(np.linalg.norm(force_std[after], axis=1))), 4),
+        "force_coverage": round(float(np.mean(np.abs(force[after]) <= 1.96 * force_std[after])), 2),
         "statuses": statuses,
     }
 

@@ -509,7 +509,7 @@ def _tensions_compared(recording: str | os.PathLike[str], k: int, given: Tension
     inside = (own.t >= given.t[0]) & (own.t <= given.t[-1])
     if not inside.any():
         return ""
-    at = np.column_stack([np.interp(own.t[inside], given.t, v) for v in given.values.T])
+    at = np.column_stack([np.interp(own.t[inside], given.t, v) for v in given.rows.T])
     gap = float(np.abs(own.values[inside] - at).max())
     if gap <= 1e-6 * max(1.0, float(np.abs(at).max())):
         return " (the same tensions)"

@@ -69,13 +69,17 @@ TENSION_RATE_NOISE = 0.04
 TENSION_ACCELERATION_NOISE = 0.2
 #: The longest local cubic the tensions are smoothed over, s.
 MAX_SMOOTHING_S = 1.5
-#: Rows of the local cubic whose residuals give the tensions' noise
-#: (:func:`tension_noise_std`).
-NOISE_ROWS = 7
+#: The order of the differences whose spread gives the tensions' noise
+#: (:func:`tension_noise_std`): high enough that a smooth motion's part in them is far
+#: below a load cell's noise.
+NOISE_ORDER = 8
 #: How far a row may lie off the line through its two neighbours, N, and count as on
 #: it (:func:`line_knots`): a file written with six decimals rounds each tension by
 #: half a micronewton.
 ON_LINE_N = 2e-6
+#: The share of the gaps between the corners of a linear resampling that are multiples
+#: of its period (:func:`line_knots`; a hold spans several periods).
+LINE_PATTERN_SHARE = 0.95
 #: Samples of a stream of tensions (``live``) whose scatter is checked at a time
 #: (:class:`TensionStream`).
 NOISE_CHECK_ROWS = 50
@@ -100,6 +104,8 @@ class Tensions:
         accelerations: (n, k) N/s^2, the rates' central differences (the same way).
         smoothing: how the rows were smoothed, where they scatter (None: they are
             taken as they are).
+        given: the file's tensions as given, where ``values`` are smoothed (else None;
+            :attr:`rows`).
     """
 
     name: str
@@ -108,6 +114,7 @@ class Tensions:
     rates: FloatArray
     accelerations: FloatArray
     smoothing: TensionSmoothing | None = None
+    given: FloatArray | None = None
 
     @classmethod
     def from_rows(
@@ -115,7 +122,14 @@ class Tensions:
     ) -> Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
         derivatives (:func:`tension_derivatives`)."""
-        return cls(name, t, *tension_derivatives(t, values, binned=binned))
+        taken = tension_derivatives(t, values, binned=binned)
+        return cls(name, t, *taken, given=None if taken.smoothing is None else values)
+
+    @property
+    def rows(self) -> FloatArray:
+        """The file's tensions as it gives them (n, k), N: :attr:`values` unless these
+        are smoothed. The checks of the file read these."""
+        return self.values if self.given is None else self.given
 
     def warn_smoothed(self) -> None:
         """A :class:`TensionsWarning` where the rows scatter so that the tensions are
@@ -177,13 +191,13 @@ class Tensions:
             arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
                              robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
                             for j in idx])  # fmt: skip
-            moment = np.linalg.norm(self.values[:, idx] @ arm, axis=1)  # N m, per row
+            moment = np.linalg.norm(self.rows[:, idx] @ arm, axis=1)  # N m, per row
             bend = moment * section.length / ei
             i = int(np.argmax(bend))
             if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
                 raise InputError(
                     f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
-                    f"({', '.join(f'{v:g}' for v in self.values[i])} N) would bend section "
+                    f"({', '.join(f'{v:g}' for v in self.rows[i])} N) would bend section "
                     f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
                     f"stiffness {ei:.3g} N m^2): tensions in N (mN?), or the robot file's "
                     "[backbone] too soft (youngs_modulus in Pa, radius in m)?"
@@ -198,7 +212,7 @@ class Tensions:
         the linear interpolation)."""
         n = len(self.t)
         if n >= 2:
-            zero = [j + 1 for j in range(self.values.shape[1]) if not self.values[:, j].any()]
+            zero = [j + 1 for j in range(self.rows.shape[1]) if not self.rows[:, j].any()]
             if zero:
                 warnings.warn(
                     f"{self.name}: tension_{', tension_'.join(map(str, zero))} "
@@ -210,7 +224,8 @@ class Tensions:
         if n >= 3:
             # runs of rows that repeat the row before exactly, every tendon slack (all 0)
             # left out: a robot at rest with its tendons released reads so
-            same = np.all(self.values[1:] == self.values[:-1], axis=1) & self.values[1:].any(axis=1)
+            rows = self.rows
+            same = np.all(rows[1:] == rows[:-1], axis=1) & rows[1:].any(axis=1)
             starts = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(int)])) == 1)
             ends = np.flatnonzero(np.diff(np.concatenate([same.astype(int), [0]])) == -1)
             if len(starts) and not same.all():
@@ -332,21 +347,19 @@ class DifferencedTensions(NamedTuple):
 
 
 def tension_noise_std(values: FloatArray) -> float:
-    """The tensions' row-to-row noise, N: the largest over the columns of the robust
-    spread (1.4826 times the median absolute deviation) of the rows' residuals from a
-    local cubic over :data:`NOISE_ROWS` rows, scaled by that fit's own share of the
-    noise (a white noise of standard deviation ``s`` leaves residuals of ``s sqrt(1 -
-    2 c_0 + |c|^2)``, ``c`` the fit's weights). A smooth tension's residuals are its
-    fourth differences, far below any load cell's noise. 0 with fewer rows."""
-    if len(values) < NOISE_ROWS:
+    """The tensions' row-to-row (white) noise, N: the largest over the columns of the
+    robust spread (1.4826 times the median absolute deviation) of the rows'
+    :data:`NOISE_ORDER`-th differences, over ``sqrt(C(2 k, k))`` (the k-th difference of
+    white noise of standard deviation ``s`` has the standard deviation ``s sqrt(C(2 k,
+    k))``). A smooth tension's k-th differences shrink as ``(2 pi f step)^k`` with its
+    frequency ``f``: two newtons swinging at 3 Hz, sampled at 50 Hz, read as 7e-6 N,
+    far under the noise a 50 Hz file is smoothed for (1.3e-4 N). 0 with too few rows."""
+    k = NOISE_ORDER
+    if len(values) < 2 * k + 1:
         return 0.0
-    from scipy.signal import savgol_coeffs, savgol_filter  # scipy only for a tendon robot
-
-    resid = values - savgol_filter(values, NOISE_ROWS, 3, axis=0, mode="interp")
-    c = savgol_coeffs(NOISE_ROWS, 3)
-    share = math.sqrt(1.0 - 2.0 * float(c[NOISE_ROWS // 2]) + float(c @ c))
-    mad = np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
-    return float(1.4826 * np.max(mad) / share)
+    d = np.diff(values, n=k, axis=0)
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    return float(1.4826 * np.max(mad) / math.sqrt(math.comb(2 * k, k)))
 
 
 def smoothing_rows(noise: float, step: float) -> int:
@@ -354,8 +367,8 @@ def smoothing_rows(noise: float, step: float) -> int:
     derivatives within :data:`TENSION_RATE_NOISE` and :data:`TENSION_ACCELERATION_NOISE`
     for rows ``step`` s apart with noise ``noise`` N (the fit's weights' norm times the
     noise): 0 where the central differences already do (their gains ``sqrt(2) / (2
-    step)`` and ``sqrt(6) / (4 step^2)``), else the fewest odd rows from 5, at most
-    :data:`MAX_SMOOTHING_S` long."""
+    step)`` and ``sqrt(6) / (4 step^2)``) or where five rows span more than
+    :data:`MAX_SMOOTHING_S`, else the fewest odd rows from 5, at most that long."""
     if not (noise > 0.0 and step > 0.0):
         return 0
     if (
@@ -365,7 +378,9 @@ def smoothing_rows(noise: float, step: float) -> int:
         return 0
     from scipy.signal import savgol_coeffs  # scipy only for a tendon robot
 
-    most = max(5, 2 * int(MAX_SMOOTHING_S / step / 2) + 1)
+    most = 2 * int(MAX_SMOOTHING_S / step / 2) + 1
+    if most < 5:  # rows too far apart for a local cubic within the longest span
+        return 0
     for rows in range(5, most + 1, 2):
         rate = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step)))
         acc = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step)))
@@ -411,7 +426,11 @@ def _at_rows(t: FloatArray, tb: FloatArray, d: FloatArray) -> FloatArray:
 def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
     """``(n,)`` bool: the rows that are not on the line through their two neighbours in
     every column (within :data:`ON_LINE_N`), and the first and the last: the corners of
-    tensions resampled by linear interpolation from a slower log. The rows between them
+    tensions resampled by linear interpolation from a slower log, where they follow its
+    pattern (the most common number of rows between corners, two or more, is that of
+    at least half of them, and :data:`LINE_PATTERN_SHARE` of them are multiples of it);
+    else every row (a smooth tension sampled fast, or one held, has rows on the line
+    that no slower log put there). The rows between them
     change nothing of the tensions interpolated linearly between rows, only their
     differences: a row's central difference across a corner is half the slope before
     and half after, and the second differences are spikes at the corners."""
@@ -420,8 +439,17 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
         return keep
     w = ((t[1:-1] - t[:-2]) / (t[2:] - t[:-2]))[:, None]
     on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
-    keep[1:-1] = ~np.all(on_line, axis=1)
-    return keep
+    corners = keep.copy()
+    corners[1:-1] = ~np.all(on_line, axis=1)
+    gaps = np.diff(np.flatnonzero(corners))
+    period = int(np.bincount(gaps).argmax())
+    if (
+        period < 2
+        or np.mean(gaps == period) < 0.5
+        or np.mean(gaps % period == 0) < LINE_PATTERN_SHARE
+    ):
+        return keep  # no resampling's pattern: a smooth or held tension's rows
+    return corners
 
 
 def tension_derivatives(
