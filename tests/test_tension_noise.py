@@ -240,18 +240,18 @@ def test_a_slower_log_resampled_linearly_is_differenced_at_its_corners() -> None
 
 
 def test_the_checks_read_the_rows_as_given() -> None:
-    """A noisy file (smoothed) whose logger froze for 2 s: the freeze is said from the
-    rows as given (the smoothed values would not repeat exactly), and ``rows`` are
-    those rows."""
+    """A noisy file (smoothed) whose logger froze for 1.2 s: the freeze is said from the
+    rows as given (the smoothed values repeat for less than the second that is said),
+    and ``rows`` are those rows."""
     t = np.arange(0.0, 8.0, 0.02)
     rng = np.random.default_rng(7)
     v = 3.0 + 0.5 * np.sin(t)[:, None] + rng.normal(0.0, 0.01, (len(t), 2))
-    frozen = (t >= 3.0) & (t < 5.0)
+    frozen = (t >= 3.0) & (t < 4.2)
     v[frozen] = v[np.flatnonzero(frozen)[0]]
     table = Tensions.from_rows("frozen.csv", t, v)
     assert table.smoothing is not None
     np.testing.assert_array_equal(table.rows, v)
-    with pytest.warns(TensionsWarning, match="repeat exactly"):
+    with pytest.warns(TensionsWarning, match=r"repeat exactly from t = 3 to 4\.18 s"):
         table.warn_suspect()
 
 
@@ -260,3 +260,43 @@ def test_no_smoothing_span_beyond_the_longest() -> None:
     (1.5 s), so even a noisy file is differenced row by row."""
     assert smoothing_rows(0.1, 0.5) == 0
     assert smoothing_rows(0.1, 0.3) == 5
+
+
+def test_holds_and_ramps_keep_their_rates() -> None:
+    """A controller's hold, ramp and hold written at 50 Hz (three straight stretches, no
+    resampling's pattern) keeps every row: 0 N/s in the holds, the ramp's 0.5 N/s on
+    it. A smooth 10 Hz log with a 1.4 s hold, resampled linearly to 50 Hz, keeps a knot
+    every fifth row of the hold, whose rates stay 0 there."""
+    t = np.arange(0.0, 8.0, 0.02)
+    v = np.column_stack([np.clip(1.0 + 0.5 * (t - 2.0), 1.0, 3.0)])
+    table = Tensions.from_rows("command.csv", t, v)
+    assert tension_io.line_knots(t, v).all()
+    ramp = (t > 2.1) & (t < 5.9)
+    np.testing.assert_allclose(table.rates[ramp], 0.5, atol=1e-9)
+    assert np.abs(table.rates[t < 1.9]).max() < 1e-9
+    slow_t = np.arange(0.0, 8.0001, 0.1)
+    slow = 2.0 + np.sin(slow_t)
+    hold = (slow_t >= 3.0) & (slow_t <= 4.4)
+    slow[hold] = slow[hold][0]
+    fast = np.round(np.column_stack([np.interp(t, slow_t, slow)]), 6)
+    knots = tension_io.line_knots(t, fast)
+    assert knots.sum() < len(t) / 3  # the resampling's pattern is found
+    resampled = Tensions.from_rows("resampled.csv", t, fast)
+    inside = (t > 3.15) & (t < 4.25)
+    assert np.abs(resampled.rates[inside]).max() < 1e-9
+
+
+def test_jittered_times_and_slack_zeros_read_no_false_noise() -> None:
+    """Exact tensions at times jittered by up to 2 ms (a logger's stamps) read as no
+    noise (they are interpolated onto an even grid first); a tendon at exactly 0 for
+    most of the file does not hide the noise of the rows where it pulls."""
+    rng = np.random.default_rng(9)
+    t = np.arange(0.0, 8.0, 0.02) + rng.uniform(-0.002, 0.002, 400)
+    smooth = np.column_stack([2.0 + np.sin(t), 1.0 + 0.5 * np.cos(0.7 * t)])
+    assert tension_noise_std(smooth, t) < 1e-4
+    assert Tensions.from_rows("jitter.csv", t, smooth).smoothing is None
+    t = np.arange(0.0, 8.0, 0.02)
+    slack = np.zeros((len(t), 2))
+    pulls = t > 5.0
+    slack[pulls] = 1.0 + rng.normal(0.0, 0.03, (int(pulls.sum()), 2))
+    assert tension_noise_std(slack, t) == pytest.approx(0.03, rel=0.3)

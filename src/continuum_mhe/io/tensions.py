@@ -80,6 +80,10 @@ ON_LINE_N = 2e-6
 #: The share of the gaps between the corners of a linear resampling that are multiples
 #: of its period (:func:`line_knots`; a hold spans several periods).
 LINE_PATTERN_SHARE = 0.95
+#: The fewest gaps of one period, and the longest period (s), of a linear resampling
+#: (:func:`line_knots`): a controller's hold-ramp-hold has a few long straight stretches.
+MIN_PERIODS = 5
+MAX_RESAMPLED_PERIOD_S = 0.5
 #: Samples of a stream of tensions (``live``) whose scatter is checked at a time
 #: (:class:`TensionStream`).
 NOISE_CHECK_ROWS = 50
@@ -323,7 +327,8 @@ class TensionSmoothing(NamedTuple):
     """How a tensions file's rows were smoothed (:func:`tension_derivatives`).
 
     Attributes:
-        noise_std: the rows' scatter, N (:func:`tension_noise_std`).
+        noise_std: the rows' scatter, N (:func:`tension_noise_std`; of a fast file's
+            rows, its bins' scatter times the square root of the rows in a bin).
         span_s: the local cubic's span, s.
         rate_noise, acceleration_noise: the noise the scatter leaves in the rates (N/s)
             and second derivatives (N/s^2).
@@ -346,20 +351,35 @@ class DifferencedTensions(NamedTuple):
     smoothing: TensionSmoothing | None = None
 
 
-def tension_noise_std(values: FloatArray) -> float:
+def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
     """The tensions' row-to-row (white) noise, N: the largest over the columns of the
     robust spread (1.4826 times the median absolute deviation) of the rows'
     :data:`NOISE_ORDER`-th differences, over ``sqrt(C(2 k, k))`` (the k-th difference of
     white noise of standard deviation ``s`` has the standard deviation ``s sqrt(C(2 k,
     k))``). A smooth tension's k-th differences shrink as ``(2 pi f step)^k`` with its
     frequency ``f``: two newtons swinging at 3 Hz, sampled at 50 Hz, read as 7e-6 N,
-    far under the noise a 50 Hz file is smoothed for (1.3e-4 N). 0 with too few rows."""
+    far under the noise a 50 Hz file is smoothed for (1.3e-4 N). Rows at uneven times
+    ``t`` are interpolated onto an even grid at their median step first (a smooth
+    tension at jittered times is not noise), and windows of ``k + 1`` equal rows (a
+    slack tendon at exactly 0, a hold) are left out. 0 with too few rows."""
     k = NOISE_ORDER
     if len(values) < 2 * k + 1:
         return 0.0
+    if t is not None:
+        step = float(np.median(np.diff(t)))
+        if not np.all(np.abs(np.diff(t) - step) <= 1e-3 * step):
+            grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+            values = np.column_stack([np.interp(grid, t, c) for c in values.T])
+    windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
+    varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
     d = np.diff(values, n=k, axis=0)
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return float(1.4826 * np.max(mad) / math.sqrt(math.comb(2 * k, k)))
+    spread = 0.0
+    for j in range(values.shape[1]):
+        dj = d[varies[:, j], j]
+        if len(dj) >= 2 * k + 1:
+            mad = float(np.median(np.abs(dj - np.median(dj))))
+            spread = max(spread, 1.4826 * mad)
+    return spread / math.sqrt(math.comb(2 * k, k))
 
 
 def smoothing_rows(noise: float, step: float) -> int:
@@ -424,16 +444,21 @@ def _at_rows(t: FloatArray, tb: FloatArray, d: FloatArray) -> FloatArray:
 
 
 def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
-    """``(n,)`` bool: the rows that are not on the line through their two neighbours in
-    every column (within :data:`ON_LINE_N`), and the first and the last: the corners of
-    tensions resampled by linear interpolation from a slower log, where they follow its
-    pattern (the most common number of rows between corners, two or more, is that of
-    at least half of them, and :data:`LINE_PATTERN_SHARE` of them are multiples of it);
-    else every row (a smooth tension sampled fast, or one held, has rows on the line
-    that no slower log put there). The rows between them
-    change nothing of the tensions interpolated linearly between rows, only their
-    differences: a row's central difference across a corner is half the slope before
-    and half after, and the second differences are spikes at the corners."""
+    """``(n,)`` bool: the rows a slower log resampled linearly onto these rows gave,
+    where the rows follow that pattern, else every row.
+
+    A row that is not on the line through its two neighbours in every column (within
+    :data:`ON_LINE_N`) is a corner. The rows follow a resampling's pattern where the most
+    common number of rows between corners (the period) is two or more, spans at most
+    :data:`MAX_RESAMPLED_PERIOD_S`, is that of at least :data:`MIN_PERIODS` gaps and half
+    of them, and :data:`LINE_PATTERN_SHARE` of the gaps are multiples of it. Then the
+    knots are the corners and every period'th row between two corners a multiple of
+    periods apart (a hold or a straight stretch of the slower log keeps its rows), the
+    first and the last. The rows left out change nothing of the tensions interpolated
+    linearly between rows, only their differences: a row's central difference across a
+    corner is half the slope before and half after, and the second differences are
+    spikes at the corners. A smooth tension sampled fast, or one held or ramped by a
+    controller, has rows on the line that no slower log put there, in no such pattern."""
     keep = np.ones(len(t), dtype=bool)
     if len(t) < 3:
         return keep
@@ -441,15 +466,23 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
     on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
     corners = keep.copy()
     corners[1:-1] = ~np.all(on_line, axis=1)
-    gaps = np.diff(np.flatnonzero(corners))
+    at = np.flatnonzero(corners)
+    gaps = np.diff(at)
     period = int(np.bincount(gaps).argmax())
+    step = float(np.median(np.diff(t)))
     if (
         period < 2
+        or period * step > MAX_RESAMPLED_PERIOD_S
+        or int(np.sum(gaps == period)) < MIN_PERIODS
         or np.mean(gaps == period) < 0.5
         or np.mean(gaps % period == 0) < LINE_PATTERN_SHARE
     ):
-        return keep  # no resampling's pattern: a smooth or held tension's rows
-    return corners
+        return keep  # no resampling's pattern
+    knots = corners.copy()
+    for start, gap in zip(at[:-1], gaps, strict=True):
+        if gap > period and gap % period == 0:
+            knots[start + period : start + gap : period] = True
+    return knots
 
 
 def tension_derivatives(
@@ -483,13 +516,20 @@ def tension_derivatives(
     per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(tb)))) if len(tb) >= 3 else 1
     if per_bin >= 2:
         starts = np.arange(0, len(tb), per_bin)
+        if len(starts) > 1 and len(tb) - starts[-1] < per_bin // 2 + 1:
+            starts = starts[:-1]  # a short last bin joins the one before
         counts = np.diff(np.concatenate([starts, [len(tb)]]))
         tb = np.add.reduceat(tb, starts) / counts
         vb = np.add.reduceat(vb, starts, axis=0) / counts[:, None]
-    noise = tension_noise_std(vb)
+    noise = tension_noise_std(vb, tb)
     every_row = len(tb) == len(t)  # no row left out, none binned
     smooth = _smoothed(tb, vb, noise)
     if smooth is not None:
+        assert smooth.smoothing is not None
+        if per_bin >= 2:  # the noise of the file's rows, not of the bins' means
+            smooth = smooth._replace(
+                smoothing=smooth.smoothing._replace(noise_std=noise * math.sqrt(per_bin))
+            )
         if every_row:
             return smooth
         return smooth._replace(
@@ -652,7 +692,7 @@ class TensionStream:
         (:func:`smoothing_rows`): the stream differences its samples as they come, and
         their noise then reaches the estimate."""
         t = np.array(self._recent_t)
-        noise = tension_noise_std(np.array(self._recent))
+        noise = tension_noise_std(np.array(self._recent), t)
         step = float(np.median(np.diff(t)))
         if smoothing_rows(noise, step) == 0:
             return
