@@ -5,7 +5,6 @@ taken row by row as it is."""
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from pathlib import Path
@@ -121,39 +120,31 @@ def test_a_cubic_in_time_keeps_its_derivatives_through_the_smoothing() -> None:
     assert np.abs(tension_io.central_differences(t, plain) - acc)[inner].max() > 20.0
 
 
-def test_noisy_tensions_do_not_throw_the_estimate_off(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """``unloaded`` (raw IMUs, the command line's defaults) with 0.01 N of white noise on
-    its tensions: the tip is within 3 mm of the truth on average after the first second,
-    and ``estimate`` says the tensions were smoothed. Differenced row by row (the
-    tolerances taken as infinite, no smoothing), the same file puts it tens of
-    millimetres off."""
+def test_noisy_tensions_do_not_throw_the_estimate_off(tmp_path: Path) -> None:
+    """The first 200 samples (4 s) of ``unloaded`` (raw IMUs, the command line's
+    defaults) with 0.01 N of white noise on its tensions: the tip is within 3 mm of the
+    truth on average after the first second, and ``estimate`` says the tensions were
+    smoothed. (Differenced row by row, the whole file is 55 mm off:
+    ``python tools/tension_noise_study.py unloaded``.)"""
     raw = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
     rng = np.random.default_rng(0)
     raw[:, 1:] = np.maximum(raw[:, 1:] + rng.normal(0.0, 0.01, raw[:, 1:].shape), 0.0)
     given = tmp_path / "noisy.csv"
     header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))
     np.savetxt(given, raw, delimiter=",", header=header, comments="", fmt="%.6f")
-    truth = read_state_table(DATA / "unloaded_truth.csv")
-    true_tip = np.stack([truth.column(c) for c in ("x", "y", "z")], axis=1)
-
-    def mean_tip_error(out: Path) -> float:
-        argv = ["estimate", str(DATA / "unloaded_raw.csv"), "--robot", "tendon-two-section",
-                "--inputs", str(given), "-o", str(out)]  # fmt: skip
-        assert main(argv) == 0
-        est = read_state_table(out)
-        tip = np.stack([est.column(c) for c in ("x", "y", "z")], axis=1)
-        after = est.t >= 1.0
-        return float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[after]))
-
+    meas = tmp_path / "meas.csv"
+    meas.write_text("\n".join((DATA / "unloaded_raw.csv").read_text().splitlines()[:201]) + "\n")
+    out = tmp_path / "est.csv"
+    argv = ["estimate", str(meas), "--robot", "tendon-two-section", "--inputs", str(given),
+            "-o", str(out)]  # fmt: skip
     said = r"noisy\.csv: the tensions scatter by about 0\.01\d* N .* local cubic over 0\.52 s"
     with pytest.warns(TensionsWarning, match=said):
-        smoothed = mean_tip_error(tmp_path / "smoothed.csv")
-    assert smoothed < 3e-3
-    monkeypatch.setattr(tension_io, "TENSION_RATE_NOISE", math.inf)
-    monkeypatch.setattr(tension_io, "TENSION_ACCELERATION_NOISE", math.inf)
-    assert mean_tip_error(tmp_path / "differenced.csv") > 20e-3
+        assert main(argv) == 0
+    est, truth = read_state_table(out), read_state_table(DATA / "unloaded_truth.csv")
+    tip = np.stack([est.column(c) for c in ("x", "y", "z")], axis=1)
+    true_tip = np.stack([truth.column(c) for c in ("x", "y", "z")], axis=1)[: len(tip)]
+    after = est.t >= 1.0
+    assert float(np.mean(np.linalg.norm(tip - true_tip, axis=1)[after])) < 3e-3
 
 
 def test_a_stream_of_noisy_tensions_is_said_once() -> None:
