@@ -25,6 +25,7 @@ Formulations are looked up by name in :mod:`continuum_mhe.model.registry`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -391,10 +392,11 @@ class Formulation:
             return np.sqrt(np.maximum(var, 0.0))
         s = len(S)
         L = psd_cholesky(P[np.ix_(S, S)])
-        points = np.tile(x, (2 * s, 1))
-        points[:s, S] += math.sqrt(s) * L.T
-        points[s:, S] -= math.sqrt(s) * L.T
-        d = self.output(points) - self.output(x)
+        points = np.tile(x, (2 * s + 1, 1))  # x, then the sigma points
+        points[1 : s + 1, S] += math.sqrt(s) * L.T
+        points[s + 1 :, S] -= math.sqrt(s) * L.T
+        y = np.asarray(self.functions.output(points.T), dtype=float).reshape(self.ny, -1).T
+        d = y[1:] - y[0]
         wrapped = list(wrapped_indices(self.outputs))
         d[:, wrapped] = wrap_angle(d[:, wrapped])
         return np.sqrt(np.mean(d * d, axis=0))
@@ -747,10 +749,13 @@ class PaperFormulation(Formulation):
 
 def psd_cholesky(A: FloatArray) -> FloatArray:
     """Lower ``L`` with ``L L^T = A`` for a symmetric positive semidefinite ``A``: the
-    Cholesky factor, with a zero column where the pivot is below 1e-14 of ``A``'s largest
-    diagonal entry (a direction without variance: a state held at a bound, or rounding).
-    The compiled core's ``psd_cholesky`` (``csrc/filter.cpp``) is the same."""
+    Cholesky factor (LAPACK's where ``A`` is positive definite), with a zero column
+    where the pivot is below 1e-14 of ``A``'s largest diagonal entry (a direction
+    without variance: a state held at a bound, or rounding). The compiled core's
+    ``psd_cholesky`` (``csrc/filter.cpp``) is the same to rounding."""
     A = np.asarray(A, dtype=float)
+    with contextlib.suppress(np.linalg.LinAlgError):  # positive definite: LAPACK's
+        return np.asarray(np.linalg.cholesky(A), dtype=np.float64)
     n = A.shape[0]
     L = np.zeros_like(A)
     diag = np.diag(A)
