@@ -366,10 +366,7 @@ def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
     if len(values) < 2 * k + 1:
         return 0.0
     if t is not None:
-        step = float(np.median(np.diff(t)))
-        if not np.all(np.abs(np.diff(t) - step) <= 1e-3 * step):
-            grid = np.arange(t[0], t[-1] + 0.5 * step, step)
-            values = np.column_stack([np.interp(grid, t, c) for c in values.T])
+        values = _on_even_grid(t, values, 1e-3)[1]
     windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
     varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
     d = np.diff(values, n=k, axis=0)
@@ -386,27 +383,49 @@ def smoothing_rows(noise: float, step: float) -> int:
     """The rows of the local cubic that brings the tensions' rates and second
     derivatives within :data:`TENSION_RATE_NOISE` and :data:`TENSION_ACCELERATION_NOISE`
     for rows ``step`` s apart with noise ``noise`` N (the fit's weights' norm times the
-    noise): 0 where the central differences already do (their gains ``sqrt(2) / (2
-    step)`` and ``sqrt(6) / (4 step^2)``) or where five rows span more than
+    noise): 0 where the central differences already do
+    (:func:`central_difference_gains`) or where five rows span more than
     :data:`MAX_SMOOTHING_S`, else the fewest odd rows from 5, at most that long."""
     if not (noise > 0.0 and step > 0.0):
         return 0
-    if (
-        noise * math.sqrt(2.0) / (2.0 * step) <= TENSION_RATE_NOISE
-        and noise * math.sqrt(6.0) / (4.0 * step * step) <= TENSION_ACCELERATION_NOISE
-    ):
+    rate, acc = central_difference_gains(step)
+    if noise * rate <= TENSION_RATE_NOISE and noise * acc <= TENSION_ACCELERATION_NOISE:
         return 0
-    from scipy.signal import savgol_coeffs  # scipy only for a tendon robot
-
     most = 2 * int(MAX_SMOOTHING_S / step / 2) + 1
     if most < 5:  # rows too far apart for a local cubic within the longest span
         return 0
     for rows in range(5, most + 1, 2):
-        rate = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step)))
-        acc = noise * float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step)))
-        if rate <= TENSION_RATE_NOISE and acc <= TENSION_ACCELERATION_NOISE:
+        rate, acc = _cubic_gains(rows, step)
+        if noise * rate <= TENSION_RATE_NOISE and noise * acc <= TENSION_ACCELERATION_NOISE:
             return rows
     return most
+
+
+def central_difference_gains(step: float) -> tuple[float, float]:
+    """What white noise of 1 N on rows ``step`` s apart becomes in their central
+    differences (N/s) and in those of the rates (N/s^2): ``sqrt(2) / (2 step)`` and
+    ``sqrt(6) / (4 step^2)``."""
+    return math.sqrt(2.0) / (2.0 * step), math.sqrt(6.0) / (4.0 * step * step)
+
+
+def _cubic_gains(rows: int, step: float) -> tuple[float, float]:
+    """The same for a local cubic over ``rows`` rows (its weights' norms)."""
+    from scipy.signal import savgol_coeffs  # scipy only for a tendon robot
+
+    return (
+        float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step))),
+        float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step))),
+    )
+
+
+def _on_even_grid(t: FloatArray, values: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    """``(t, values)`` where the rows' steps are within ``tol`` of their median, else the
+    rows interpolated onto an even grid at the median step from ``t[0]``."""
+    step = float(np.median(np.diff(t)))
+    if np.all(np.abs(np.diff(t) - step) <= tol * step):
+        return t, values
+    grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+    return grid, _at_rows(grid, t, values)
 
 
 def _smoothed(t: FloatArray, values: FloatArray, noise: float) -> DifferencedTensions | None:
@@ -419,21 +438,19 @@ def _smoothed(t: FloatArray, values: FloatArray, noise: float) -> DifferencedTen
     rows = smoothing_rows(noise, step)
     if rows == 0:
         return None
-    even = bool(np.all(np.abs(np.diff(t) - step) <= 1e-6 * step))
-    grid = t if even else np.arange(t[0], t[-1] + 0.5 * step, step)
-    v = values if even else np.column_stack([np.interp(grid, t, c) for c in values.T])
+    grid, v = _on_even_grid(t, values, 1e-6)
+    even = grid is t
     rows = min(rows, len(grid) if len(grid) % 2 else len(grid) - 1)
     if rows < 5:
         return None
-    from scipy.signal import savgol_coeffs, savgol_filter  # scipy only for a tendon robot
+    from scipy.signal import savgol_filter  # scipy only for a tendon robot
 
     fits = [
         savgol_filter(v, rows, 3, deriv=d, delta=step, axis=0, mode="interp") for d in (0, 1, 2)
     ]
     if not even:
-        fits = [np.column_stack([np.interp(t, grid, c) for c in f.T]) for f in fits]
-    gain1 = float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step)))
-    gain2 = float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step)))
+        fits = [_at_rows(t, grid, f) for f in fits]
+    gain1, gain2 = _cubic_gains(rows, step)
     smoothing = TensionSmoothing(noise, (rows - 1) * step, noise * gain1, noise * gain2)
     return DifferencedTensions(np.maximum(fits[0], 0.0), fits[1], fits[2], smoothing)
 
@@ -541,9 +558,6 @@ def tension_derivatives(
     acc = central_differences(tb, rates)
     if every_row:
         return DifferencedTensions(values, rates, acc)
-    if len(tb) < 2:
-        zero = np.zeros_like(values, dtype=float)
-        return DifferencedTensions(values, zero, zero.copy())
     return DifferencedTensions(values, _at_rows(t, tb, rates), _at_rows(t, tb, acc))
 
 
@@ -697,11 +711,12 @@ class TensionStream:
         if smoothing_rows(noise, step) == 0:
             return
         self._noise_said = True
+        rate, acc = central_difference_gains(step)
         warnings.warn(
             f"{self.name}: the tensions scatter by about {noise:.2g} N from sample to sample "
             f"(a load cell's noise?), and live takes their rates and second derivatives from "
-            f"consecutive samples, with a noise of about {noise * math.sqrt(2) / (2 * step):.2g} "
-            f"N/s and {noise * math.sqrt(6) / (4 * step * step):.2g} N/s^2 (the estimators "
+            f"consecutive samples, with a noise of about {noise * rate:.2g} "
+            f"N/s and {noise * acc:.2g} N/s^2 (the estimators "
             f"take {TENSION_RATE_NOISE:g} and {TENSION_ACCELERATION_NOISE:g} without losing "
             "accuracy): filter the tensions at their source",
             TensionsWarning,
