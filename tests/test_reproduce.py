@@ -293,7 +293,16 @@ def test_plot_rerenders_from_data_without_estimating(
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     assert main(["plot", str(quick_run), "--out", str(out)]) == 2
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+
+    def save_stub(fig: Any, path: Path, formats: Any, *args: Any, **kw: Any) -> list[Path]:
+        plotting.close(fig)  # (the figures were drawn above: only the replacing counts here)
+        target = path.with_suffix(f".{formats[0]}")
+        target.write_bytes(b"replaced")
+        return [target]
+
+    monkeypatch.setattr(plotting, "save", save_stub)
     assert main(["plot", str(quick_run), "--out", str(out), "--overwrite"]) == 0
+    assert {p.read_bytes() for p in out.glob("*.png")} == {b"replaced"}
 
 
 def test_plot_without_data_is_a_one_line_error(
