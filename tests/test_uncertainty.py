@@ -727,7 +727,8 @@ def test_estimate_says_once_that_a_still_recording_is_frozen(
     assert len(err) == 2
     assert err[1].startswith(
         f"wrote 200 estimates to {tmp_path / 'e.csv'} (dropout: 75, no-estimate: 104, ok: 21); "
-        "179 of them had a frozen IMU (the same reading for over 1 s, treated as a dropout): "
+        "179 of the 200 estimates had a frozen IMU (the same reading for over 1 s, treated "
+        "as a dropout): "
         "dropout: 75, no-estimate: 104; restarted 1 time(s) after the estimate diverged"
     )
     args = ["estimate", str(meas), "-o", str(tmp_path / "e0.csv"), "--freeze", "0"]

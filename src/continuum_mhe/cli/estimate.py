@@ -258,8 +258,8 @@ def run(args: argparse.Namespace) -> int:
     if diag.frozen_samples:
         of = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
         msg += (
-            f"; {diag.frozen_samples} of them had a frozen IMU (the same reading for over "
-            f"{args.freeze:g} s, treated as a dropout): {of}"
+            f"; {diag.frozen_samples} of the {n} estimates had a frozen IMU (the same reading "
+            f"for over {args.freeze:g} s, treated as a dropout): {of}"
         )
     if diag.restarts:
         msg += (

@@ -239,6 +239,16 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         "wide (docs/uncertainty.md)",
     )
     g.add_argument(
+        "--reading-bias-deg",
+        type=float,
+        default=math.degrees(NoiseSettings.reading_bias_std),
+        help="the readings' constant error (an IMU's mounting misalignment and "
+        "accelerometer bias), in degrees per gravity-direction reading, carried in the "
+        "standard deviations (default %(default).2g); 0 for readings without one "
+        "(continuum-mhe simulate), where the default makes the intervals too wide "
+        "(docs/options.md)",
+    )
+    g.add_argument(
         "--accel-psd",
         type=float,
         default=NoiseSettings.bend_accel_psd,
@@ -316,10 +326,14 @@ def formulation_from_args(args: argparse.Namespace) -> Formulation:
     floor = getattr(args, "model_error_floor_deg", math.degrees(NoiseSettings.model_error_std))
     if not (math.isfinite(floor) and floor >= 0):
         raise InputError(f"--model-error-floor-deg must be >= 0, got {floor}")
+    bias = getattr(args, "reading_bias_deg", math.degrees(NoiseSettings.reading_bias_std))
+    if not (math.isfinite(bias) and bias >= 0):
+        raise InputError(f"--reading-bias-deg must be >= 0, got {bias}")
     noise = NoiseSettings(
         measurement_std=math.radians(math.hypot(args.noise_deg, model_error)),
         bend_accel_psd=args.accel_psd,
         model_error_std=math.radians(floor),
+        reading_bias_std=math.radians(bias),
     )
     try:
         return make_formulation(args.formulation, robot, noise)
@@ -725,6 +739,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     "model_error_floor_deg": OptionRange(
         0.0, 90.0, "deg", above="--model-error-floor-deg is in degrees"
     ),
+    "reading_bias_deg": OptionRange(0.0, 90.0, "deg", above="--reading-bias-deg is in degrees"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
                                   above="milliseconds? --pair-tolerance is in seconds"),
     "view_hz": OptionRange(0.0, 10_000.0, "Hz"),
