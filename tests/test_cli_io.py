@@ -294,20 +294,22 @@ def test_a_row_with_an_extra_field_is_a_counted_dropout_with_skip_bad(tmp_path, 
     good = read_measurements(_meas(tmp_path, rows)).z
     rows[7] += ",0.3"  # which field is extra is unknown: the whole sample is a dropout
     rows[12] += ","  # an empty trailing field is no data: read as it is
+    rows[15] = rows[15].rsplit(",", 1)[0]  # a field short: the whole sample as well
     meas, est = _meas(tmp_path, rows), tmp_path / "e.csv"
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--skip-bad"]) == 0
     err = capsys.readouterr().err
     assert (
-        "bad rows: 1 sample(s) with a bad value, read as a dropout of its IMU; first: "
-        "line 9: expected 3 fields, found 4" in err
+        "bad rows: 2 sample(s) with too few or too many fields, read as a dropout of every "
+        "IMU (which value is whose is unknown); first: line 9: expected 3 fields, found 4" in err
     )
     t, out, status = read_states(est)
-    assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7]
+    assert len(t) == 20 and list(np.flatnonzero(status == "dropout")) == [7, 15]
     table = read_measurements(meas, skip_bad=True)
-    assert np.isnan(table.z[7]).all() and table.skipped == [
-        "line 9: expected 3 fields, found 4 (an extra field or separator?)"
+    assert np.isnan(table.z[[7, 15]]).all() and table.skipped == [
+        "line 9: expected 3 fields, found 4 (an extra field or separator?)",
+        "line 17: expected 3 fields, found 2 (truncated row?)",
     ]
-    np.testing.assert_array_equal(np.delete(table.z, 7, 0), np.delete(good, 7, 0))
+    np.testing.assert_array_equal(np.delete(table.z, [7, 15], 0), np.delete(good, [7, 15], 0))
 
 
 def test_estimate_or_truth_row_with_an_extra_field_is_refused(tmp_path, capsys):

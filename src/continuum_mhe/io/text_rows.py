@@ -340,14 +340,17 @@ def parse_float(name: str, line: int, column: str, text: str) -> float:
 
 @dataclass
 class RowProblems:
-    """Bad rows met while reading with ``skip_bad``: a count, the first few, and how
-    many of them were dropped (a bad or non-increasing ``t``); the others were kept,
-    their bad values read as dropouts of their IMU."""
+    """Bad rows met while reading with ``skip_bad``: a count, the first few, how many of
+    them were dropped (a bad or non-increasing ``t``) and how many kept with every value
+    a dropout (``whole``: too few or too many fields, so that which value belongs to
+    which column is unknown); the others were kept, their bad values read as dropouts
+    of their IMU."""
 
     count: int = 0
     first: list[str] = field(default_factory=list)
     keep: int = 20
     dropped: int = 0
+    whole: int = 0
 
     def add(self, what: str) -> None:
         self.count += 1
@@ -358,8 +361,13 @@ class RowProblems:
         """One clause for a run's summary line (``""`` when nothing was bad)."""
         if not self.count:
             return ""
-        kept = self.count - self.dropped
+        kept = self.count - self.dropped - self.whole
         parts = [f"{kept} sample(s) with a bad value, read as a dropout of its IMU"] if kept else []
+        if self.whole:
+            parts.append(
+                f"{self.whole} sample(s) with too few or too many fields, read as a dropout "
+                "of every IMU (which value is whose is unknown)"
+            )
         if self.dropped:
             parts.append(f"{self.dropped} sample(s) dropped (bad or non-increasing t)")
         return f"bad rows: {'; '.join(parts)}; first: {self.first[0]}"
@@ -590,10 +598,12 @@ class _SampleChecks:
             vals: list[float] = []
             for col, j in zip(shown[1:], idx[1:]):
                 if extra:
+                    self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)
                     break
                 if j >= len(row):
                     bad(line, truncated.format(width, len(row)))
+                    self.problems.whole += 1
                     vals = [math.nan] * (len(columns) - 1)
                     break
                 if self.empty_is_dropout and row[j] == "":
