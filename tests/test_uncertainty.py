@@ -708,6 +708,32 @@ def test_compiled_and_casadi_covariance_agree_at_the_same_window_solution(case: 
     assert compared > 20
 
 
+def test_half_a_second_of_a_frozen_raw_imu_at_100_hz_is_caught_by_default(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The default ``--freeze`` catches a raw IMU that repeats its six readings for 0.5 s
+    at 100 Hz (a 1 s threshold would not), from 0.2 s into the freeze."""
+    rec = tmp_path / "rec.csv"
+    argv = ["simulate", "spatial", "--robot", "two-section", "--imu", "raw", "--dt", "0.01",
+            "--duration", "3", "-o", str(rec)]  # fmt: skip
+    assert main(argv) == 0
+    lines = rec.read_text().splitlines()
+    names = lines[0].split(",")
+    cols = [names.index(f"{c}_2") for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    rows = [ln.split(",") for ln in lines[1:]]
+    for row in rows[151:200]:  # IMU 2 repeats its reading of t = 1.5 s until 1.99 s
+        for c in cols:
+            row[c] = rows[150][c]
+    rec.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    capsys.readouterr()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(rec), "--robot", "two-section", "-o", str(out),
+                 "--method", "ekf"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "IMU 2 repeated the same reading for more than 0.2 s from t=1.5 s" in err
+    assert "29 of the 301 estimates had a frozen IMU" in err  # 1.71 to 1.99 s
+
+
 def test_estimate_says_once_that_a_still_recording_is_frozen(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -720,16 +746,16 @@ def test_estimate_says_once_that_a_still_recording_is_frozen(
     assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err[0] == (
-        "continuum-mhe: note: IMU 1 repeated the same reading for more than 1 s from t=0 s: "
+        "continuum-mhe: note: IMU 1 repeated the same reading for more than 0.2 s from t=0 s: "
         "treated as frozen (a dropout) while it repeats; --freeze 0 turns this off "
         "(RecoverySettings(freeze=None) in Python)"
     )
     assert len(err) == 2
     assert err[1].startswith(
-        f"wrote 200 estimates to {tmp_path / 'e.csv'} (dropout: 75, no-estimate: 104, ok: 21); "
-        "179 of the 200 estimates had a frozen IMU (the same reading for over 1 s, treated "
+        f"wrote 200 estimates to {tmp_path / 'e.csv'} (dropout: 74, no-estimate: 121, ok: 5); "
+        "195 of the 200 estimates had a frozen IMU (the same reading for over 0.2 s, treated "
         "as a dropout): "
-        "dropout: 75, no-estimate: 104; restarted 1 time(s) after the estimate diverged"
+        "dropout: 74, no-estimate: 121; restarted 1 time(s) after the estimate diverged"
     )
     args = ["estimate", str(meas), "-o", str(tmp_path / "e0.csv"), "--freeze", "0"]
     assert main([*args, "--method", "ekf"]) == 0

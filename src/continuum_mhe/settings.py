@@ -146,9 +146,17 @@ class MHESettings:
 #: from a gap in the data: two equal readings 60 s apart say nothing about the time
 #: between them. Five in a row is a sensor seen stuck at five instants (a live IMU's
 #: noise makes even two exact repeats uncommon), and a reading repeated for more than
-#: 1 s (the command line's ``--freeze``) at 3 Hz or more already spans five samples, so
-#: at the usual rates the duration decides and only slow or gappy data feel the count.
+#: :data:`FREEZE_S` (the command line's ``--freeze``) at 25 Hz or more already spans five
+#: samples, so at the usual rates the duration decides and only slow or gappy data feel
+#: the count.
 FREEZE_MIN_SAMPLES = 5
+#: How long a sensor's reading must repeat exactly to be frozen by default, s
+#: (``RecoverySettings.freeze``). Noise changes a live IMU's raw readings every sample;
+#: an IMU polled faster than it samples repeats each reading for less than its own
+#: sampling period, under this at 5 Hz or more. Shorter than a second, so that a freeze of
+#: half a second is caught: on a three-section robot at 100 Hz one IMU frozen for 0.5 s
+#: put the estimate 17 to 28 mm off and held it off for seconds at 1 s, not at this.
+FREEZE_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -165,7 +173,7 @@ class RecoverySettings:
             than this (s), over at least ``freeze_samples`` consecutive samples none more
             than ``freeze`` s after the one before (a gap is not a freeze), is treated as
             dropped out until its reading changes; None: never (command line
-            ``--freeze``; default 1 s).
+            ``--freeze``; default :data:`FREEZE_S`).
         freeze_samples: the fewest consecutive samples with the same reading (the first
             one included) that can be a freeze (default :data:`FREEZE_MIN_SAMPLES`);
             the duration alone is not enough: two equal readings 60 s apart are a gap in
@@ -206,7 +214,7 @@ class RecoverySettings:
     """
 
     gap_reset: float | None = 1.0
-    freeze: float | None = 1.0
+    freeze: float | None = FREEZE_S
     uncertain_fraction: float = 0.1
     bad_start: float | None = 2.0
     reject_reset: float | None = 0.5

@@ -245,8 +245,8 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         help="the readings' constant error (an IMU's mounting misalignment and "
         "accelerometer bias), in degrees per gravity-direction reading, carried in the "
         "standard deviations (default %(default).2g); 0 for readings without one "
-        "(continuum-mhe simulate), where the default makes the intervals too wide "
-        "(docs/options.md)",
+        "(continuum-mhe simulate; its raw readings with --own-acceleration), where the "
+        "default makes the intervals too wide (docs/options.md)",
     )
     g.add_argument(
         "--accel-psd",

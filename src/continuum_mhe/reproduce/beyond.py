@@ -67,7 +67,7 @@ RECOVERY_GROUPS = ("gap", "freeze", "bad-start")
 OUTLIER_METHODS = ("mhe-l2", "mhe-robust", "ekf")
 #: Estimators of the coverage and recovery groups.
 ALL_METHODS: tuple[Method, ...] = ("mhe", "ekf", "ukf")
-#: The recovery defaults (``--gap-reset 1 --freeze 1 --bad-start 2``), s.
+#: The recovery defaults (the command line's ``--gap-reset``, ``--freeze``, ``--bad-start``).
 RECOVERY_ON = RecoverySettings()
 #: Gap, freeze and bad-start off: the bare estimator (the coverage group's too).
 RECOVERY_OFF = RecoverySettings.off()

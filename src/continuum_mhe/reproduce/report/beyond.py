@@ -12,6 +12,14 @@ from typing import Any
 
 from continuum_mhe.reproduce.report.claims import Claim
 from continuum_mhe.reproduce.report.format import _ci, _f, _rerun, _seed_range, _table
+from continuum_mhe.settings import RecoverySettings
+
+
+def _recovery_flags() -> str:
+    """The command line's recovery options at their defaults (the runs' ``on``)."""
+    r = RecoverySettings()
+    return f"--gap-reset {r.gap_reset:g} --freeze {r.freeze:g} --bad-start {r.bad_start:g}"
+
 
 #: Outliers: the robust MHE's error at most this many times its own on clean data.
 OUTLIER_RATIO = 1.1
@@ -150,7 +158,7 @@ def claim_gap(d: dict[str, Any]) -> Claim:
         paper=f"target: after a gap in the data ({gap_s:g} s here) every estimator "
         "re-initialises from the measurements instead of predicting blindly",
         measured="mean tip error over the 2 s after the gap, recovery off / on "
-        "(`--gap-reset 1 --freeze 1 --bad-start 2`): " + "; ".join(parts),
+        f"(`{_recovery_flags()}`): " + "; ".join(parts),
         verdict=_parts(checks),
         rule=f"holds for an estimator if with the recovery settings its error is at most "
         f"{NOT_WORSE:.0%} above that without (upper end of the paired 95 % interval of on - "
@@ -296,8 +304,8 @@ def _tables(s: dict[str, Any]) -> list[str]:
                     ]
                 )
         lines += [
-            "Recovery off (`RecoverySettings.off()`) and on (`--gap-reset 1 --freeze 1 "
-            "--bad-start 2`, the defaults). Gap and bad start: the 2 s after "
+            f"Recovery off (`RecoverySettings.off()`) and on (`{_recovery_flags()}`, the "
+            "defaults). Gap and bad start: the 2 s after "
             "it; freeze: the freeze and 2 s after. `ok but wrong`: samples per run with "
             "status ok and the tip more than 10 % of the length wrong:",
             "",
