@@ -147,12 +147,15 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
   frozen = false;
   if (std::isnan(s_.freeze)) return z;
   const double freeze = s_.freeze;
+  // a step longer than an IMU's silence (the gap reset, else 1 s), or than the freeze
+  // where that is longer, is a gap in the data: the count starts again
+  const double gap_step = std::max(freeze, unobserved_window());
   bool copied = false;
   for (size_t k = 0; k < s_.imu_blocks.size(); ++k) {
     const auto [start, size] = s_.imu_blocks[k];
     const double* zb = z + start;
     double* last = freeze_value_.data() + start;
-    const bool gap = t - freeze_last_t_[k] > freeze;
+    const bool gap = t - freeze_last_t_[k] > gap_step;
     freeze_last_t_[k] = t;
     bool same = has_freeze_value_[k] != 0;
     for (int i = 0; same && i < size; ++i) same = zb[i] == last[i];  // NaN never repeats

@@ -168,6 +168,11 @@ def test_library_guide_python_examples_run(tmp_path, monkeypatch):
     assert np.mean(np.linalg.norm(out[:, :3] - truth[:, :3], axis=1)) < 0.01
     assert first["est"].status == "ok"
     assert (tmp_path / "two_section_estimates.csv").read_text().startswith("t,x,y,z,theta_1,")
+    # the policy's example: the counts its comments give
+    (policy,) = [ns for ns in spaces if "health" in ns]
+    health = policy["health"]
+    assert (health.frozen_samples, health.first_freezes) == (26, {0: 2.0})
+    assert (health.restarts, health.gap_resets, health.bad_starts) == (0, 1, 0)
     # the CSV example: read back, estimated within 1 cm, x, y, z written with its header
     (csv_example,) = [ns for ns in spaces if "table" in ns]
     tip = np.loadtxt(tmp_path / "tip.csv", delimiter=",", skiprows=1)

@@ -562,6 +562,23 @@ def test_two_equal_readings_with_a_long_gap_between_are_not_a_freeze(method: str
     assert s.status[1] == "reset" and est.diagnostics.gap_resets == 1
 
 
+@pytest.mark.parametrize(("dt", "first"), [(0.01, 21), (0.5, 4), (1.0, 4), (2.0, None)])
+def test_the_default_freeze_finds_slow_data_frozen_as_fast(dt: float, first: int | None) -> None:
+    """With the defaults (a freeze after 0.2 s, a gap reset after 1 s) a step up to the
+    gap reset's 1 s is no gap in the data, so a reading repeated at 1 or 2 Hz is found
+    frozen at its fifth sample, as a 100 Hz one is after 0.2 s; steps of 2 s are gaps
+    (each restarts the estimator), never a freeze."""
+    t = dt * np.arange(30)
+    z = np.tile([0.1, -0.2], (30, 1))
+    est = make_estimator("ekf", BendFormulation(), recovery=RecoverySettings())
+    est.run(t, z)
+    if first is None:
+        assert est.diagnostics.first_freezes == {}
+    else:
+        assert est.diagnostics.first_freezes == {0: 0.0}  # IMU 0 (0-based), from t = 0
+        assert est.diagnostics.frozen_samples == 30 - first
+
+
 @pytest.mark.parametrize(("dt", "first"), [(0.05, 21), (0.5, 4), (0.9, 4), (20.0, None)])
 def test_a_freeze_needs_both_the_duration_and_the_repeated_samples(
     dt: float, first: int | None

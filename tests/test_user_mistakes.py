@@ -1408,3 +1408,32 @@ def test_benchmark_with_a_robot_refuses_options_it_would_not_use(capsys) -> None
         argv = ["benchmark", "--robot", "two-section", "--horizons", "10", "--duration", "1"]
         assert main([*argv, *extra]) == 2
         assert f"{extra[0]} does not apply with --robot" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "why"),
+    [
+        ("--reading-bias-deg", "0", "misalignments and accelerometer biases are states"),
+        ("--model-error-floor-deg", "2", "not a constant-curvature one"),
+    ],
+)
+def test_a_noise_option_a_tendon_robot_ignores_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str, value: str, why: str
+) -> None:
+    """A tendon robot's model carries its IMUs' constant errors as states and assumes no
+    constant-curvature model error: either option would change nothing there, so it is
+    refused in one line naming it, and nothing is written; a constant-curvature robot
+    takes it."""
+    from importlib.resources import files
+
+    tendon = files("continuum_mhe") / "data" / "tendon"
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(tendon / "unloaded_raw.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(tendon / "unloaded_tensions.csv"), "-o", str(out)]  # fmt: skip
+    assert main([*argv, flag, value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"{flag} does not apply to this robot's model" in err
+    assert why in err and not out.exists()
+    rod = files("continuum_mhe") / "data" / "rod2" / "planar-s_raw.csv"
+    argv = ["estimate", str(rod), "--robot", "two-section", "--method", "ekf", "-o", str(out)]
+    assert main([*argv, flag, value]) == 0 and out.exists()

@@ -5,7 +5,7 @@ For each of ``spatial`` and ``s-curve``, each seed (20 s at 20 Hz), each IMU and
 silence (from 4 s for 3 s, 6 s for 3 s, 8 s for 1.5 s, 10 s for 2 s, 12 s for 5 s) the
 IMU's readings are NaN; compiled EKF, UKF and MHE (N = 30) run with recovery off
 (``--recovery off``: ``RecoverySettings.off()``, gap reset and bad-start check off) or the
-defaults (``--recovery defaults``: ``--gap-reset 1 --freeze 1 --bad-start 2``). Reported per
+defaults (``--recovery defaults``: ``RecoverySettings()``, the command line's). Reported per
 method: the largest tip error, in standard deviations of the estimate's own tip
 position, of an ``ok`` estimate within 2 s after the return and anywhere; the ``ok``
 samples within the 2 s beyond 5 standard deviations; and the mean number of samples

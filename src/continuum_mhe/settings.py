@@ -171,7 +171,8 @@ class RecoverySettings:
             on the command line; default 1 s, as there).
         freeze: a sensor (measurement block) whose reading repeats exactly for longer
             than this (s), over at least ``freeze_samples`` consecutive samples none more
-            than ``freeze`` s after the one before (a gap is not a freeze), is treated as
+            than ``gap_reset`` (1 s when it is off; ``freeze`` where that is longer) after
+            the one before (a gap is not a freeze), is treated as
             dropped out until its reading changes; None: never (command line
             ``--freeze``; default :data:`FREEZE_S`).
         freeze_samples: the fewest consecutive samples with the same reading (the first

@@ -26,6 +26,7 @@ from continuum_mhe.cli.options import (
     add_recovery_options,
     add_tension_gain_option,
     add_tensions_option,
+    check_noise_options_apply,
     formulation_from_args,
     input_files,
     input_options,
@@ -150,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
     base = formulation_from_args(args)
     with open_input(args.measurements, input_options(args), base, args.robot) as stream:
         formulation = stream.formulation
+        check_noise_options_apply(args, formulation)
         method = method_from_args(args, formulation)
         # the MHE's window: an options file's MHE options apply where the MHE runs
         mhe = mhe_settings_from_args(args)

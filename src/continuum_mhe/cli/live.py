@@ -19,6 +19,7 @@ from continuum_mhe.cli.options import (
     add_serial_options,
     add_tension_gain_option,
     add_tensions_option,
+    check_noise_options_apply,
     formulation_from_args,
     input_files,
     input_options,
@@ -60,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         settings.port, settings.fmt, input_options(args), formulation_from_args(args)
     )
     formulation, robot = line.formulation, line.formulation.robot
+    check_noise_options_apply(args, formulation)
     method = method_from_args(args, formulation)  # its refusals before the port opens
     # the MHE's window: an options file's MHE options apply where the MHE runs
     mhe = mhe_settings_from_args(args)

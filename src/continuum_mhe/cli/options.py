@@ -9,7 +9,7 @@ import math
 import re
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from continuum_mhe.cli.config import beside, options_record, recorded_option
@@ -353,6 +353,33 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
         "cannot take, and on which the UKF is far slower and less accurate than the EKF: "
         "docs/tendon.md)",
     )
+
+
+def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation) -> None:
+    """Refuse ``--reading-bias-deg`` or ``--model-error-floor-deg`` given (not at its
+    default) where the model takes no such term (a tendon robot: its IMUs' constant
+    errors are states, and its model is the mechanics, not a constant-curvature one), in
+    one line naming the option."""
+    robot = getattr(args, "robot", None) or "the robot"
+    # the model with each term at one radian: a term it ignores stays zero
+    probe = replace(
+        formulation, noise=replace(formulation.noise, reading_bias_std=1.0, model_error_std=1.0)
+    )
+    for flag, attr, default, applies, why in (
+        ("--reading-bias-deg", "reading_bias_deg", NoiseSettings.reading_bias_std,
+         bool(probe.reading_bias_cov().any()),
+         "its IMUs' misalignments and accelerometer biases are states, whose covariance "
+         "the standard deviations carry"),
+        ("--model-error-floor-deg", "model_error_floor_deg", NoiseSettings.model_error_std,
+         probe.model_error_floor() > 0.0,
+         "it is a mechanics model, not a constant-curvature one, and assumes no model "
+         "error before the readings show one"),
+    ):  # fmt: skip
+        given = getattr(args, attr, None)
+        if given is not None and given != math.degrees(default) and not applies:
+            raise InputError(
+                f"{robot}: {flag} does not apply to this robot's model: {why} (docs/tendon.md)"
+            )
 
 
 def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:

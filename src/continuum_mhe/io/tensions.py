@@ -55,7 +55,9 @@ MAX_TENDON_TURNS = 2.0
 #: (:func:`tension_derivatives`).
 DERIVATIVE_STEP_S = 0.02
 #: Tensions repeated exactly for longer than this (s) are said (a logger that froze;
-#: live load cells are never exactly still), as a frozen IMU is treated after 1 s.
+#: live load cells are never exactly still); a controller may hold a tendon's set
+#: tension constant for a while, so this is longer than an IMU's freeze
+#: (:data:`~continuum_mhe.settings.FREEZE_S`).
 TENSIONS_FROZEN_S = 1.0
 #: A step between two rows of more than this many times the median step (and over 1 s)
 #: is said: the tensions are interpolated across the hole.

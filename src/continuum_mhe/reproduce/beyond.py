@@ -314,7 +314,14 @@ def run_beyond(spec: BeyondSpec) -> dict[str, Any]:
         return {"spec": spec.as_dict(), "methods": methods, "methods_tilt_noise": tilt_noise}
     else:
         methods = _recovery(spec, t, z, truth)
+        return {"spec": spec.as_dict(), "methods": methods, "recovery_on": recovery_flags()}
     return {"spec": spec.as_dict(), "methods": methods}
+
+
+def recovery_flags(r: RecoverySettings = RECOVERY_ON) -> str:
+    """``r`` as the command line's options (the recovery groups' ``on``, saved with each
+    of their trials so that a report names what its data were measured with)."""
+    return f"--gap-reset {r.gap_reset:g} --freeze {r.freeze:g} --bad-start {r.bad_start:g}"
 
 
 # --- plan and summary ---------------------------------------------------------------
