@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
+from continuum_mhe.cli import main
 from continuum_mhe.io.raw_imu import mount_rotation
 
 G = 9.80665
@@ -444,3 +445,19 @@ def test_the_serial_line_s_options_with_a_recording_are_refused(capsys) -> None:
         assert main([*argv, *extra]) == 2
         assert f"{extra[0]} does not apply with --from" in capsys.readouterr().err
     assert main(argv) == 0
+
+
+@pytest.mark.parametrize("name", ["rest.mcap", "rest.bag", "rest.db3"])
+def test_calibrate_from_a_robot_log_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    """A ROS bag or MCAP file is no recording to calibrate from (it has no topics to pick
+    the IMUs by here): one line that says what is, not a decoding error."""
+    log = tmp_path / name
+    log.write_bytes(b"\x89MCAP0\r\n")
+    out = tmp_path / "robot.toml"
+    argv = ["calibrate", "--from", str(log), "--robot", "two-section", "--write-robot", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "a recording to calibrate from is a CSV file" in err
+    assert not out.exists()

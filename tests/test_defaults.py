@@ -252,7 +252,9 @@ def test_one_imu_upside_down_is_named_as_that_imus_mounting(tmp_path, capsys) ->
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "mounting: the robot is described as z-up" in err
     assert err.rstrip().endswith(
-        "(IMU 2 reads upright: is IMU 1 alone mounted upside down? its mount_rpy)"
+        "(IMU 2 reads upright: is IMU 1 alone mounted upside down? its mount_rpy; or the "
+        "IMUs in another order? IMU 1 is the one nearest the base: the columns' order, or "
+        "the --topic order of a bag)"
     )
     assert not est.exists()
 
@@ -459,5 +461,6 @@ def test_a_start_bent_past_90_degrees_with_the_next_imu_upright_is_said_as_eithe
     assert "gravity puts IMU 1 109 degrees from that mounting's straight pose" in said
     assert said.endswith(
         "(IMU 2 reads upright: a start bent this way, or IMU 1 alone mounted upside down, "
-        "its mount_rpy)"
+        "its mount_rpy; or the IMUs in another order? IMU 1 is the one nearest the base: "
+        "the columns' order, or the --topic order of a bag)"
     ), said

@@ -242,7 +242,8 @@ def test_topics_in_the_wrong_order_warn_once(
 ) -> None:
     """A two-IMU robot whose --topic order is swapped restarts the estimator often:
     more than ORDER_RESTART_SHARE of the samples restarting it warns once that the topic
-    order may not be the robot's; the right order (far fewer restarts) does not."""
+    order may not be the robot's; the right order (far fewer restarts) does not. Topics
+    numbered against the order given are said before the run, from their names."""
     import warnings
 
     from continuum_mhe.io.imu_topics import TopicOrderWarning
@@ -264,7 +265,13 @@ def test_topics_in_the_wrong_order_warn_once(
             "--imu-model", "direct"]  # fmt: skip
     with pytest.warns(TopicOrderWarning) as seen:
         assert main([*args, "--topic", "/imu2", "--topic", "/imu1"]) == 0
-    (said,) = [str(w.message) for w in seen if w.category is TopicOrderWarning]
+    (names, said) = [str(w.message) for w in seen if w.category is TopicOrderWarning]
+    assert names == (  # before the run, from the names
+        f"{log}: the topics are given as /imu2, /imu1, against the numbers in their names: "
+        "the first --topic is IMU 1 of the robot file (nearest the base), the next IMU 2, "
+        "...; if /imu1 is the IMU nearest the base, give it first (IMUs in the wrong order "
+        "can give estimates far off that fit the readings)"
+    )
     assert said.startswith(f"{log}: ") and " samples (" in said
     assert said.endswith(
         "restarted the estimator (readings inconsistent with its estimate): the readings do "
@@ -277,3 +284,21 @@ def test_topics_in_the_wrong_order_warn_once(
         assert main([*args, "--topic", "/imu1", "--topic", "/imu2", "--overwrite"]) == 0
     right = re.search(r"reset: (\d+)", capsys.readouterr().err.splitlines()[-1])
     assert right is None or int(right.group(1)) * 5 < wrong  # far fewer restarts
+
+
+@pytest.mark.parametrize(
+    ("topics", "numbers"),
+    [
+        (["/imu2/data", "/imu1/data"], [2, 1]),
+        (["/robot1/imu2", "/robot1/imu1"], [2, 1]),
+        (["/imu9", "/imu10"], [9, 10]),
+        (["/imu_base", "/imu_tip"], None),
+        (["/imu1/a2", "/imu2/a1"], None),
+    ],
+)
+def test_the_number_that_tells_topics_apart(topics: list[str], numbers: list[int] | None) -> None:
+    """The one number position at which the topics' names differ (none where no single
+    one does): what the order check compares with the order given."""
+    from continuum_mhe.io.imu_topics import topic_numbers
+
+    assert topic_numbers(topics) == numbers

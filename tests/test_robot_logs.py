@@ -604,16 +604,24 @@ def test_pair_tolerance_on_one_imu_s_topic_is_refused(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """--pair-tolerance pairs several topics' samples: on one IMU's topic it did nothing,
-    silently; refused like the other options that do nothing here. An estimate MCAP as
-    --config says that its options are not read from there."""
+    silently; refused like the other options that do nothing here. An estimate MCAP is
+    an options file, as an estimate CSV is: its options note (a missing one: one line)."""
     log = write_mcap(tmp_path / "run.mcap", recording)
     out = tmp_path / "e.csv"
     assert main(["estimate", str(log), "--pair-tolerance", "0.01", "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--pair-tolerance does not apply to one IMU's topic" in err
-    assert main(["estimate", str(log), "--config", str(tmp_path / "est.mcap"), "-o", str(out)]) == 2
-    assert "an estimate MCAP's options are in its metadata" in capsys.readouterr().err
+    est = tmp_path / "est.mcap"
+    assert main(["estimate", str(log), "--config", str(est), "-o", str(out)]) == 2
+    assert "est.mcap: cannot read the options file (no such file)" in capsys.readouterr().err
     assert not out.exists()
+    assert main(["estimate", str(log), "--method", "ekf", "--freeze", "0.5", "-o", str(est)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(log), "--config", str(est), "-o", str(out)]) == 0
+    options = [ln for ln in out.read_text().splitlines() if ln.startswith("# options = ")]
+    assert len(options) == 1 and 'method = "ekf"' in options[0] and "freeze = 0.5" in options[0]
+    assert main(["estimate", str(log), "--config", str(log), "-o", str(out), "--overwrite"]) == 2
+    assert "no 'options' note in its continuum-mhe metadata" in capsys.readouterr().err
 
 
 def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:

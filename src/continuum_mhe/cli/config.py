@@ -90,11 +90,22 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     text they were read from (for line numbers) and the file's line number before that
     text's first (0 for a TOML file)."""
     p = Path(path)
-    if p.suffix.lower() == ".mcap":
-        raise InputError(
-            f"{path}: an options file is TOML or an estimate CSV (its '# options' line); an "
-            "estimate MCAP's options are in its metadata, which --config does not read"
-        )
+    if p.suffix.lower() == ".mcap":  # an estimate MCAP: its options note
+        from continuum_mhe.io.mcap_estimates import read_notes_mcap
+
+        if not p.is_file():
+            raise InputError(f"{path}: cannot read the options file (no such file)")
+        note = read_notes_mcap(path).get(OPTIONS_LINE)
+        if note is None:
+            raise InputError(
+                f"{path}: no '{OPTIONS_LINE}' note in its continuum-mhe metadata (not an "
+                "estimate MCAP, or not readable as MCAP?)"
+            )
+        text = f"{OPTIONS_LINE} = {note}"
+        try:
+            return tomllib.loads(text)[OPTIONS_LINE], text, 0
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{path}: its options note: {exc}") from None
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -180,7 +191,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     tables = {"estimate", "live"}
     flat = {k: v for k, v in data.items() if k not in tables}
     own = data.get(command, {})
-    recorded = Path(path).suffix.lower() == ".csv"
+    recorded = Path(path).suffix.lower() in (".csv", ".mcap")  # an estimate file
     defaults: dict[str, Any] = {}
     sources: dict[str, str] = {}
     left_out: list[str] = []

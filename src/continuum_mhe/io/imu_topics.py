@@ -11,11 +11,13 @@ stamp. The default tolerance is half of IMU 1's median sample period (a pair is 
 always closer than the next sample); ``--pair-tolerance`` sets it in seconds. Samples left
 without a partner are counted per topic and reported in one line. A run in which many
 samples restarted the estimator gets one warning that the topics may be out of order
-(:func:`warn_topic_order`).
+(:func:`warn_topic_order`), and so do topics whose names number them in another order
+than the one given (:func:`warn_numbers_out_of_order`).
 """
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -125,6 +127,7 @@ def read_imu_topics(
         raise InputError(f"{p}: a --topic is given twice ({', '.join(topics)})")
     if tolerance_s is not None and not (np.isfinite(tolerance_s) and tolerance_s > 0):
         raise InputError(f"--pair-tolerance must be positive seconds, got {tolerance_s}")
+    warn_numbers_out_of_order(str(p), topics)
     logs = [read_imu_log(p, topic) for topic in topics]
     stamps = [_stamps_ns(log) for log in logs]
     if tolerance_s is None:
@@ -163,6 +166,37 @@ ORDER_RESTART_SHARE = 0.05
 
 class TopicOrderWarning(UserWarning):
     """Many restarts in a run from several Imu topics: they may be out of order."""
+
+
+def topic_numbers(topics: Sequence[str]) -> list[int] | None:
+    """The number that tells each topic apart (``/imu2/data`` -> 2): the numbers in the
+    names, at the one position where they differ; None where no such one number does."""
+    found = [[int(n) for n in re.findall(r"\d+", t)] for t in topics]
+    if len({len(f) for f in found}) != 1 or not found[0]:
+        return None
+    differing = [i for i in range(len(found[0])) if len({f[i] for f in found}) > 1]
+    if len(differing) != 1:
+        return None
+    return [f[differing[0]] for f in found]
+
+
+def warn_numbers_out_of_order(name: str, topics: Sequence[str]) -> None:
+    """One :class:`TopicOrderWarning` when the topics' names number them otherwise than
+    in the order given (``--topic /imu2/data --topic /imu1/data``): the order given is
+    the robot file's IMU order, IMU 1 nearest the base, and a swap that fits another
+    shape is not seen in the readings."""
+    numbers = topic_numbers(topics)
+    if numbers is None or numbers == sorted(numbers):
+        return
+    first = topics[numbers.index(min(numbers))]
+    warnings.warn(
+        f"{name}: the topics are given as {', '.join(topics)}, against the numbers in their "
+        "names: the first --topic is IMU 1 of the robot file (nearest the base), the next "
+        f"IMU 2, ...; if {first} is the IMU nearest the base, give it first (IMUs in the "
+        "wrong order can give estimates far off that fit the readings)",
+        TopicOrderWarning,
+        stacklevel=3,
+    )
 
 
 def warn_topic_order(name: str, topics: Sequence[str], samples: int, restarts: int) -> None:

@@ -294,6 +294,14 @@ def robot_fix(key: str, robot_file: str | None, value: str | None = None) -> str
     return f"give {option} {value}" if value else f"raise {option}"
 
 
+#: Where an IMU further out reads upright and the one nearest the base does not, the
+#: readings may be those of IMUs given in another order.
+ORDER_HINT = (
+    "or the IMUs in another order? IMU 1 is the one nearest the base: the columns' order, "
+    "or the --topic order of a bag"
+)
+
+
 def check_mounting(
     name: str, z: FloatArray, formulation: Formulation, robot_file: str | None = None
 ) -> None:
@@ -385,7 +393,7 @@ def _check_base_mounting(
         reads = "reads" if len(upright) == 1 else "read"
         alone = (
             f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
-            "mounted upside down? its mount_rpy)"
+            f"mounted upside down? its mount_rpy; {ORDER_HINT})"
         )
     fix = robot_fix("mounting", robot_file, other)
     if angle > MOUNTING_FLIPPED:
@@ -404,7 +412,7 @@ def _check_base_mounting(
     if upright:  # a start bent this far is the likelier reading of a warning's angle
         alone = (
             f" (IMU {', '.join(map(str, upright))} {reads} upright: a start bent this way, "
-            f"or IMU {k + 1} alone mounted upside down, its mount_rpy)"
+            f"or IMU {k + 1} alone mounted upside down, its mount_rpy; {ORDER_HINT})"
         )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
         f"{where}: if the robot {pose}, {fix} (the estimates of a robot described the "

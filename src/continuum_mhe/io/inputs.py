@@ -386,7 +386,13 @@ def load_input(
 def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], FloatArray, FloatArray]:
     """``(format, t, values)`` of a raw or tilt CSV as recorded (``live --record``),
     unconverted: tilt values in rad, raw ``ax, ay, az, gx, gy, gz`` per IMU (m/s^2,
-    rad/s); the raw form needs every IMU's gyro columns."""
+    rad/s); the raw form needs every IMU's gyro columns. A ROS bag or MCAP file is
+    refused in one line (no topics to choose its IMUs by)."""
+    if is_robot_log(Path(path)):
+        raise InputError(
+            f"{path}: a recording to calibrate from is a CSV file (tilt or raw IMU columns, "
+            "as live --record writes; docs/formats.md), not a ROS bag or MCAP file"
+        )
     if csv_input_kind(path) == "tilt":
         tilt = read_measurements(path, n_imus=n_imus)
         return "tilt", tilt.t, tilt.z
