@@ -34,6 +34,9 @@ else:  # pragma: no cover - Python 3.10
 OPTIONS_LINE = "options"
 #: the comment key of the model an estimate ran on (:func:`model_record`)
 MODEL_LINE = "model"
+#: the comment key of a robot log's clock at ``t = 0`` (ns since the epoch of its header
+#: stamps): an estimate CSV's ``t`` is the time since then
+T0_LINE = "t0_ns"
 #: options that are never read from a file or recorded: they name files or say how to
 #: treat them, not how to estimate
 NOT_OPTIONS = frozenset({"help", "config", "overwrite", "output", "record", "func", "command"})

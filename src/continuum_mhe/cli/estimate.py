@@ -16,7 +16,13 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from continuum_mhe.cli.config import MODEL_LINE, OPTIONS_LINE, add_config_option, model_record
+from continuum_mhe.cli.config import (
+    MODEL_LINE,
+    OPTIONS_LINE,
+    T0_LINE,
+    add_config_option,
+    model_record,
+)
 from continuum_mhe.cli.options import (
     add_method_option,
     add_mhe_options,
@@ -179,6 +185,8 @@ def run(args: argparse.Namespace) -> int:
             (OPTIONS_LINE, args.options_record),
             (MODEL_LINE, model_record(formulation)),
         ]
+        if stream.t0_ns and not str(out).lower().endswith(".mcap"):  # stamped there
+            notes.append((T0_LINE, str(stream.t0_ns)))
         interrupted: BaseException | None = None
         # the next block is read and the last one written while the estimator steps this
         # one (io.background); the writes are done before the sink closes

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from continuum_mhe.evaluation.metrics import (
     match_rows,
     section_numbers,
     steady_ratio,
+    truth_at,
 )
 from continuum_mhe.io.csv_files import (
     InputError,
@@ -34,15 +36,30 @@ from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
-def _align(
-    path_est: str, t_est: np.ndarray, path_truth: str, t_truth: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def _align(path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable) -> Aligned:
+    """The estimate rows compared and the truth's values at them: the truth's rows at the
+    same t, or, where fewer than :data:`WARN_MATCHED` of the rows have one and it is
+    sampled densely enough, the truth interpolated at the estimate's times (a note says
+    so: :func:`~continuum_mhe.evaluation.metrics.truth_at`)."""
+    t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
     i_est, i_truth = match_rows(t_est, t_truth)
+    rows = truth.values[i_truth]
     n, k = len(t_est), len(i_est)
+    at = "have a row at the same t (within 1 us) in"
+    if k < WARN_MATCHED * n and (found := truth_at(t_est, t_truth, truth.values, truth.names)):
+        if len(found[0]) > k:
+            i_est, rows = found
+            k = len(i_est)
+            at = "lie within the times of"
+            print(
+                f"{PROG}: note: {path_truth}'s rows are not at {path_est}'s times: the truth "
+                f"is interpolated linearly at them ({k} of {n} rows)",
+                file=sys.stderr,
+            )
     what = (
-        f"only {k} of {n} rows have a row at the same t in {path_truth} (within 1 us): "
+        f"only {k} of {n} rows {at} {path_truth}: "
         "the files' times do not match (another --dt or duration, t in milliseconds, "
         "or the wrong truth file?)"
     )
@@ -61,7 +78,15 @@ def _align(
             "the scores are of that part only (an interrupted or cut estimate?)",
             file=sys.stderr,
         )
-    return i_est, i_truth
+    return Aligned(i_est, rows)
+
+
+class Aligned(NamedTuple):
+    """The estimate rows compared (``i_est``) and the truth's values at them (``rows``,
+    one per index, the truth file's columns)."""
+
+    i_est: np.ndarray
+    rows: np.ndarray
 
 
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
@@ -132,37 +157,33 @@ def run(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
-    i_e, i_t = _align(args.estimates, est.t, args.truth, truth.t)
+    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth)
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
     if typo := misspelt_columns(truth.names, out_names):
         print(f"{PROG}: warning: {args.truth}: {typo}", file=sys.stderr)
     try:
-        m = compute_metrics(
-            est.values[i_e][:, cols], truth.values[i_t], length, out_names, truth.names
-        )
+        m = compute_metrics(est.values[i_e][:, cols], truth_rows, length, out_names, truth.names)
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
     cal = cal_ok = None
     n_ok = 0
     if est.has_std and est.std is not None:
         std = est.std[i_e][:, cols]
-        cal = compute_calibration(
-            est.values[i_e][:, cols], std, truth.values[i_t], out_names, truth.names
-        )
+        cal = compute_calibration(est.values[i_e][:, cols], std, truth_rows, out_names, truth.names)
         # what the status promises: the rows marked ok alone
         ok = np.asarray(est.status)[i_e] == "ok"
         n_ok = int(ok.sum())
         if n_ok and np.isfinite(std[ok]).any():
             cal_ok = compute_calibration(
-                est.values[i_e][ok][:, cols], std[ok], truth.values[i_t][ok], out_names,
+                est.values[i_e][ok][:, cols], std[ok], truth_rows[ok], out_names,
                 truth.names,
             )  # fmt: skip
     unmatched = int(len(est.t) - len(i_e))
     xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
     hint = other_robot or _length_hint(
-        est.values[i_e][:, xyz[0]], truth.values[i_t][:, xyz[1]], m.tip_mean_mm / 1e3, length
+        est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], m.tip_mean_mm / 1e3, length
     )
     misfits = [
         f"{path}: {misfit}; pass the --length (or --robot) it was made with"

@@ -377,6 +377,46 @@ def match_rows(t_est: FloatArray, t_truth: FloatArray) -> tuple[IndexArray, Inde
     return np.flatnonzero(match), nearest[match]
 
 
+#: :func:`truth_at` interpolates a truth whose median step is at most this many times
+#: the estimate's, and not across a step of more than :data:`INTERPOLATE_GAP` of its own
+#: median steps.
+INTERPOLATE_STEP = 2.0
+INTERPOLATE_GAP = 3.0
+
+
+def truth_at(
+    t_est: FloatArray, t_truth: FloatArray, values: FloatArray, names: Sequence[str]
+) -> tuple[IndexArray, FloatArray] | None:
+    """The truth (``values`` (m, k) at ``t_truth`` (m,) s, columns ``names``) interpolated
+    linearly at the estimate's times ``t_est`` (n,) s: ``(i_est, rows (len(i_est), k))``
+    for the estimate rows inside the truth's time span and not inside a gap of it (a
+    step over :data:`INTERPOLATE_GAP` of its median step), ``phi`` columns through their
+    unwrapped values. None where the truth is sparser than :data:`INTERPOLATE_STEP`
+    times the estimate's median step, or its times do not increase: a motion capture
+    recorded on its own clock, at its own rate, is compared so."""
+    t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
+    values = np.asarray(values, dtype=float)
+    if len(t_truth) < 2 or len(t_est) < 2 or np.any(np.diff(t_truth) <= 0):
+        return None
+    step = float(np.median(np.diff(t_truth)))
+    if step > INTERPOLATE_STEP * float(np.median(np.diff(t_est))):
+        return None
+    inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])
+    after = np.clip(np.searchsorted(t_truth, t_est), 1, len(t_truth) - 1)
+    inside &= t_truth[after] - t_truth[after - 1] <= INTERPOLATE_GAP * step
+    i_est = np.flatnonzero(inside)
+    rows = np.empty((len(i_est), values.shape[1]))
+    for j, name in enumerate(names):
+        column = values[:, j]
+        wrapped = is_wrapped(name) and bool(np.all(np.isfinite(column)))
+        if wrapped:
+            column = np.unwrap(column)
+        rows[:, j] = np.interp(t_est[i_est], t_truth, column)
+        if wrapped:
+            rows[:, j] = wrap_angle(rows[:, j])
+    return i_est.astype(np.intp), rows
+
+
 #: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way
 #: (about :data:`SHIFT_STEPS` of them, then the best one refined towards the estimate's
 #: sample period), on at most :data:`SHIFT_ROWS` rows of the estimate.
