@@ -850,8 +850,9 @@ def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(
 ) -> None:
     """A motion capture's rows are not at the IMUs' times: the truth of the same motion
     at 120 Hz, 3 ms off the estimate's 20 Hz grid, is interpolated at the estimate's
-    times (a note says so) and scores within 0.05 mm of the truth on the same grid; a
-    truth sampled more sparsely than twice the estimate's step is refused as before."""
+    times (a note says so) and scores within 0.05 mm of the truth on the same grid, and
+    plot draws it; a truth sampled more sparsely than twice the estimate's step is
+    refused as before."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "2"]) == 0
     assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
@@ -868,6 +869,12 @@ def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(
     interpolated = json.loads(captured.out)
     assert f"{off}'s rows are not at {est}'s times: the truth is interpolated" in captured.err
     assert interpolated["tip_mean_mm"] == pytest.approx(same["tip_mean_mm"], abs=0.05)
+    figure = tmp_path / "e.png"  # plot draws it so too
+    assert main(["plot", str(est), "--truth", str(off), "-o", str(figure)]) == 0
+    assert "the truth is interpolated linearly at them (400 of 401 rows)" in (  # t = 0: before
+        capsys.readouterr().err
+    )
+    assert figure.stat().st_size > 1000
     sparse = tmp_path / "t5.csv"
     sparse.write_text("\n".join([rows[0], *rows[3::24]]) + "\n")  # 5 Hz, off the grid
     assert main(["evaluate", str(est), str(sparse)]) == 2

@@ -362,12 +362,24 @@ def test_an_empty_field_of_a_one_imu_file_is_a_dropout_as_with_several(tmp_path)
 
 
 def test_evaluate_with_times_that_do_not_match_is_an_error(tmp_path, capsys) -> None:
+    """A truth at another rate is interpolated at the estimate's times (a note); one in
+    milliseconds matches nowhere: one line, exit 2."""
     m, _ = _simulated(tmp_path, "a")
     _, t2 = _simulated(tmp_path, "b", "--dt", "0.0493")
     est = tmp_path / "e.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
     capsys.readouterr()
-    assert main(["evaluate", str(est), str(t2)]) == 2
+    assert main(["evaluate", str(est), str(t2)]) == 0
+    assert "the truth is interpolated linearly at them (100 of 101 rows)" in (
+        capsys.readouterr().err
+    )
+    rows = t2.read_text().splitlines()
+    ms = tmp_path / "b_ms.csv"
+    ms.write_text(
+        "\n".join([rows[0], *(f"{1000 * float(r.split(',')[0])!r},{r.split(',', 1)[1]}"
+                             for r in rows[1:])]) + "\n"
+    )  # fmt: skip
+    assert main(["evaluate", str(est), str(ms)]) == 2
     err = capsys.readouterr().err
     assert "only 1 of 101 rows" in err and "times do not match" in err
 

@@ -64,6 +64,7 @@ def _estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
         section_count,
+        truth_at_estimate,
         truth_problem,
     )
     from continuum_mhe.evaluation.plotting import save
@@ -92,9 +93,17 @@ def _estimate(args: argparse.Namespace) -> int:
         lengths = robot.lengths
     backbone = _tendon_backbone(args, est.names, est.t, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
-    problem = None if truth is None else truth_problem(est, truth)
+    at_est = None if truth is None else truth_at_estimate(est, truth)
+    problem = None if truth is None else truth_problem(est, at_est or truth)
     if problem is not None:
         raise InputError(f"{args.truth}: {problem}")
+    if at_est is not None:
+        print(
+            f"{PROG}: note: {args.truth}'s rows are not at {args.source}'s times: the truth "
+            f"is interpolated linearly at them ({len(at_est.t)} of {len(est.t)} rows)",
+            file=sys.stderr,
+        )
+        truth = at_est
     try:
         fig = estimate_figure(est, truth, lengths, title, backbone)
     except InputError:  # names its file

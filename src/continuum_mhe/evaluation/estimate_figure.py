@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
+from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows, truth_at
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
@@ -229,6 +229,20 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
             "at the same t (another recording, or t in milliseconds?)"
         )
     return None
+
+
+def truth_at_estimate(est: StateTable, truth: StateTable) -> StateTable | None:
+    """``truth`` interpolated at ``est``'s times (the table of its values there), where
+    fewer than half of ``est``'s rows have a truth row at the same t and the truth is
+    dense enough (:func:`~continuum_mhe.evaluation.metrics.truth_at`, as ``evaluate``
+    compares them); else None (the truth as it is)."""
+    if len(match_rows(est.t, truth.t)[0]) >= 0.5 * len(est.t):
+        return None
+    found = truth_at(est.t, truth.t, truth.values, truth.names)
+    if found is None or len(found[0]) < 2:
+        return None
+    i_est, rows = found
+    return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))
 
 
 def estimate_figure(
