@@ -165,7 +165,7 @@ def test_topics_pair_by_stamp_and_count_the_rest(
     i2 = np.searchsorted(streams["imu"][1]["stamps"], ref + 500_000)
     np.testing.assert_array_equal(paired.logs[1].acc, streams["imu"][1]["acc"][i2])
     assert paired.report() == (
-        f"paired {len(ref)} samples of 2 topics (/imu1, /imu2) by header stamp within 10 ms; "
+        f"paired {len(ref)} samples of 2 topics (/imu1, /imu2) by header stamps within 10 ms; "
         f"unpaired: /imu1 {streams['unpaired'][0]}, /imu2 {streams['unpaired'][1]}"
     )
     # a tolerance below the 0.5..2.5 ms offsets pairs fewer, and says so

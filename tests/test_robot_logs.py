@@ -517,7 +517,7 @@ def test_write_estimates_mcap_checks_the_section_lengths(tmp_path: Path) -> None
 
 
 def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
-    tmp_path: Path, recording: dict[str, Any]
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Header stamps on a device clock (1000 s since boot) logged on the Unix clock: one
     zero stamp took the log's time, and every later message then counted as going
@@ -535,6 +535,12 @@ def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
     zeros = np.zeros_like(boot)
     log = read_imu_log(write_mcap(tmp_path / "all.mcap", recording, headers=zeros))
     assert len(log.t) == n and log.t0_ns == recording["stamps"][0]
+    assert log.clock == "log times"  # and estimate says so
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(tmp_path / "all.mcap"), "--method", "ekf", "-o", str(out)]) == 0
+    said = "every header stamp is zero: t from the log's times (when each message was logged)"
+    assert said in capsys.readouterr().err
 
 
 def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, Any]) -> None:

@@ -67,9 +67,10 @@ class PairedImus:
         """One line: pairs, tolerance, unpaired samples per topic."""
         topics = ", ".join(log.topic for log in self.logs)
         left = ", ".join(f"{log.topic} {u}" for log, u in zip(self.logs, self.unpaired))
+        clocks = sorted({log.clock for log in self.logs})
         return (
-            f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by header "
-            f"stamp within {self.tolerance_s * 1e3:.3g} ms; unpaired: {left}"
+            f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
+            f"{' and '.join(clocks)} within {self.tolerance_s * 1e3:.3g} ms; unpaired: {left}"
         )
 
 
@@ -103,7 +104,7 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
     gyr = None if log.gyr is None else log.gyr[idx]
     return ImuLog(
         topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=gyr,
-        orientation=log.orientation[idx], skipped=log.skipped,
+        orientation=log.orientation[idx], skipped=log.skipped, clock=log.clock,
     )  # fmt: skip
 
 

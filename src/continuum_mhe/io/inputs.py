@@ -202,6 +202,8 @@ class EstimateInput:
         t0_ns: absolute time of ``t = 0``, ns (0 for CSV input).
         skipped: descriptions of skipped samples.
         notes: one-line reports for the user (e.g. how samples of several topics paired).
+        clock: what a robot log's ``t`` was read from
+            (:attr:`~continuum_mhe.io.robot_logs.ImuLog.clock`).
     """
 
     kind: str
@@ -211,6 +213,7 @@ class EstimateInput:
     t0_ns: int = 0
     skipped: list[str] = field(default_factory=list)
     notes: tuple[str, ...] = ()
+    clock: str = "header stamps"
 
 
 # --- step 2: the options against this input ----------------------------------------------
@@ -685,7 +688,7 @@ def _log_stream(
     )
     description = InputDescription(
         str(p), "log", options.topics or ((options.topic,) if options.topic else ()),
-        f"t from the header stamps, s; {units}", _imu_model(data.formulation),
+        f"t from the {data.clock}, s; {units}", _imu_model(data.formulation),
         problems=problems, readings=readings, notes=data.notes,
     )  # fmt: skip
     blocks = (
@@ -720,7 +723,14 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             if not options.skip_bad:
                 _refuse_a_missing_value(p, t, log.acc, log.gyr, log.topic)
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
-    return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes)
+    clock = " and ".join(sorted({log.clock for log in logs}))
+    notes += tuple(
+        f"{log.topic}: every header stamp is zero: t from the log's times (when each "
+        "message was logged)"
+        for log in logs
+        if log.clock == "log times"
+    )
+    return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes, clock)
 
 
 def _refuse_a_missing_value(

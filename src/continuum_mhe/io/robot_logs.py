@@ -52,6 +52,8 @@ class ImuLog:
             some do).
         orientation: (n, 4) ``(w, x, y, z)``, NaN where the message has none.
         skipped: descriptions of skipped messages.
+        clock: what ``t`` was read from: ``"header stamps"``, or ``"log times"`` where
+            no message has a stamp (every ``header.stamp`` zero).
     """
 
     topic: str
@@ -61,6 +63,7 @@ class ImuLog:
     gyr: FloatArray | None
     orientation: FloatArray
     skipped: list[str] = field(default_factory=list)
+    clock: str = "header stamps"
 
 
 def is_robot_log(path: str | os.PathLike[str]) -> bool:
@@ -334,6 +337,7 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         gyr=None if no_gyro else arr[1],
         orientation=arr[2],
         skipped=skipped,
+        clock="header stamps" if stamped else "log times",
     )
 
 
