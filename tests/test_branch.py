@@ -19,7 +19,7 @@ from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import EstimateSeries
-from continuum_mhe.settings import MHESettings
+from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.simulation.scenarios import simulate_robot
 
 TWO = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
@@ -85,7 +85,11 @@ def test_a_branch_restart_reaches_the_estimate_file(tmp_path: Path) -> None:
     ``uncertain``, standard deviations given), and the estimate file writes it and reads
     it back (its reader accepts only the statuses of ``STATUS_MEANINGS``)."""
     f = make_formulation("bend", TWO)
-    est = MovingHorizonEstimator(f, MHESettings(horizon=N, branch_check=True))
+    # the same reading at every sample (a robot held still, read without noise): no
+    # freeze check, which would take it for a frozen IMU
+    recovery = RecoverySettings(freeze=None)
+    est = make_estimator("mhe", f, MHESettings(horizon=N, branch_check=True), recovery)
+    assert isinstance(est, MovingHorizonEstimator)
     z = np.asarray(f.functions.observe(TRUTH), dtype=float).ravel()
     estimates = []
     for i in range(N + 2):

@@ -580,8 +580,17 @@ def test_an_mcap_without_its_optional_summary_is_read(
     np.testing.assert_array_equal(got.acc, full.acc)
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(bare.read_bytes()[: bare.stat().st_size // 2])
-    with pytest.raises(InputError, match="the file ends inside a record"):
+    with pytest.raises(InputError, match="the file ends inside a record.*--skip-bad reads it"):
         read_imu_log(cut)
+    # with skip_bad: up to the cut (a recorder that stopped), the same samples, said
+    kept = read_imu_log(cut, skip_bad=True)
+    n = len(kept.t)
+    assert 0.3 * len(full.t) < n < 0.6 * len(full.t)
+    np.testing.assert_array_equal(kept.t, full.t[:n])
+    np.testing.assert_array_equal(kept.acc, full.acc[:n])
+    assert kept.skipped == [  # messages counted from 0, as the skipped ones are
+        f"the file ends inside a record after message {n - 1}: read up to there"
+    ]
 
 
 def test_a_db3_path_is_read_only_as_the_bag_its_metadata_lists(

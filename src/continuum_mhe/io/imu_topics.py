@@ -109,10 +109,16 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
 
 
 def read_imu_topics(
-    path: str | Path, topics: Sequence[str], n_imus: int, tolerance_s: float | None = None
+    path: str | Path,
+    topics: Sequence[str],
+    n_imus: int,
+    tolerance_s: float | None = None,
+    skip_bad: bool = False,
 ) -> PairedImus:
     """Read one Imu topic per IMU (``topics`` in the robot file's IMU order) from a bag
-    or MCAP file and pair their samples by header stamp (see the module doc)."""
+    or MCAP file and pair their samples by header stamp (see the module doc);
+    ``skip_bad``: an MCAP file cut short is read up to the cut
+    (:func:`~continuum_mhe.io.robot_logs.read_imu_log`)."""
     p = Path(path)
     if len(topics) != n_imus:
         given = f"{len(topics)} --topic" if topics else "no --topic"
@@ -129,7 +135,7 @@ def read_imu_topics(
     if tolerance_s is not None and not (np.isfinite(tolerance_s) and tolerance_s > 0):
         raise InputError(f"--pair-tolerance must be positive seconds, got {tolerance_s}")
     warn_numbers_out_of_order(str(p), topics)
-    logs = [read_imu_log(p, topic) for topic in topics]
+    logs = [read_imu_log(p, topic, skip_bad) for topic in topics]
     stamps = [_stamps_ns(log) for log in logs]
     if tolerance_s is None:
         if len(stamps[0]) < 2:

@@ -704,11 +704,13 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     check_options_apply(str(p), "log", options, formulation.robot)
     robot = formulation.robot
     if robot.n_imus > 1 or len(options.topics) > 1:
-        paired = read_imu_topics(p, options.topics, robot.n_imus, options.pair_tolerance)
+        paired = read_imu_topics(
+            p, options.topics, robot.n_imus, options.pair_tolerance, options.skip_bad
+        )
         logs, t, t0_ns, skipped = paired.logs, paired.t, paired.t0_ns, paired.skipped
         notes: tuple[str, ...] = (paired.report(),)
     else:
-        log = read_imu_log(p, options.topic)
+        log = read_imu_log(p, options.topic, options.skip_bad)
         logs, t, t0_ns, skipped, notes = (log,), log.t, log.t0_ns, log.skipped, ()
     has_gyro = all(log.gyr is not None for log in logs)
     options, f = decide_model(str(p), "log", has_gyro, options, formulation)

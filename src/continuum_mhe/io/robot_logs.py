@@ -23,6 +23,7 @@ import json
 import math
 import os
 import re
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -182,9 +183,19 @@ def _bag_folder(path: Path) -> Path:
     return path.parent
 
 
+def _cut_short(exc: BaseException) -> bool:
+    """The reader's exception says the file ends inside a record (mcap's ``EndOfFile``,
+    or a record length past the end)."""
+    return (
+        type(exc).__name__ == "EndOfFile"
+        or "exceeds limit" in str(exc)
+        or (isinstance(exc, struct.error) and "unpack requires a buffer" in str(exc))
+    )
+
+
 def _why_unreadable(exc: BaseException) -> str:
     """The reader's exception of a corrupt or foreign log, as a few words."""
-    if type(exc).__name__ == "EndOfFile" or "exceeds limit" in str(exc):
+    if _cut_short(exc):
         # mcap's: a record runs past the file's end, or its length is garbage
         return "the file ends inside a record, or is damaged: a recording cut short?"
     if isinstance(exc, AttributeError) and "'NoneType'" in str(exc):  # JSON null
@@ -194,13 +205,40 @@ def _why_unreadable(exc: BaseException) -> str:
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
+def _mcap_reader(fh: Any) -> tuple[Any, Any]:
+    """``(reader, summary)`` of the open MCAP file ``fh``: the seeking reader and the
+    file's summary (None where it has none), or, where the file is cut short (its end is
+    no footer: a recorder that stopped), a reader of its records in order up to the cut,
+    and None."""
+    from mcap.reader import NonSeekingReader, make_reader
+
+    try:
+        summary = make_reader(fh).get_summary()
+    except Exception as exc:
+        if not _cut_short(exc):
+            raise
+        fh.seek(0)
+        return NonSeekingReader(fh), None
+    fh.seek(0)
+    return make_reader(fh), summary
+
+
+def _mcap_messages(reader: Any, topics: list[str] | None = None) -> Any:
+    """``reader``'s messages (of ``topics``): in log-time order from a seeking reader, in
+    the file's order from one that reads up to a cut (it would read to the cut before
+    giving the first, to sort them)."""
+    from mcap.reader import NonSeekingReader
+
+    in_order = not isinstance(reader, NonSeekingReader)
+    return reader.iter_messages(topics=topics, log_time_order=in_order)
+
+
 def _mcap_topics(path: Path) -> dict[str, str]:
     """An MCAP file's topics: topic -> schema name ("" for a channel without one), from
-    its summary, or (the summary is optional) from its messages read once."""
-    from mcap.reader import make_reader
-
+    its summary, or (the summary is optional) from its messages read once (up to a
+    cut, in a file cut short)."""
     with path.open("rb") as fh:
-        summary = make_reader(fh).get_summary()
+        summary = _mcap_reader(fh)[1]
     if summary is not None:
         schemas = summary.schemas
         return {
@@ -209,25 +247,28 @@ def _mcap_topics(path: Path) -> dict[str, str]:
         }
     topics: dict[str, str] = {}
     with path.open("rb") as fh:
-        for schema, channel, _ in make_reader(fh).iter_messages():
-            topics.setdefault(channel.topic, schema.name if schema is not None else "")
+        try:
+            for schema, channel, _ in _mcap_messages(_mcap_reader(fh)[0]):
+                topics.setdefault(channel.topic, schema.name if schema is not None else "")
+        except Exception as exc:  # a file cut short: the topics up to the cut
+            if not (_cut_short(exc) and topics):
+                raise
     return topics
 
 
 def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, Any]]]:
     require("mcap", "robot", f"reading the MCAP file {path}")
     require("rosbags", "robot", f"reading the MCAP file {path}")
-    from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
     name = _pick_topic(path, _mcap_topics(path), topic)
     fh = path.open("rb")
-    reader = make_reader(fh)
+    reader = _mcap_reader(fh)[0]
     store = get_typestore(Stores.ROS2_HUMBLE)
 
     def gen() -> Iterator[tuple[int, Any]]:
         try:
-            for schema, channel, message in reader.iter_messages(topics=[name]):
+            for schema, channel, message in _mcap_messages(reader, [name]):
                 if channel.message_encoding == "cdr":
                     msgtype = schema.name if schema is not None else IMU_TYPES[0]
                     if msgtype == "sensor_msgs/Imu":
@@ -269,25 +310,30 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
         raise InputError(f"{p}: cannot read robot log ({_why_unreadable(exc)})") from None
 
 
-def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuLog:
+def read_imu_log(
+    path: str | os.PathLike[str], topic: str | None = None, skip_bad: bool = False
+) -> ImuLog:
     """Read the ``sensor_msgs/msg/Imu`` samples of ``topic`` from a bag or MCAP file
-    (``topic`` may be omitted when the log has exactly one Imu topic)."""
+    (``topic`` may be omitted when the log has exactly one Imu topic). An MCAP file cut
+    short (a recorder that stopped) is an error, or with ``skip_bad`` read up to the
+    cut, which ``skipped`` says."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
     at = 0  # the message read: named where one cannot be read
+    stamps: list[int] = []
+    rows: list[tuple[list[float], list[float], list[float]]] = []
+    skipped: list[str] = []
+    # header stamps where the messages have them; the log's times only where none has
+    # (a zero stamp among others is not on their clock: left out, counted)
+    unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
+    stamped = False
+    name = topic or ""
     try:
         if p.suffix.lower() == ".mcap":
             name, messages = _iter_mcap(p, topic)
         else:
             name, messages = _iter_rosbags(p, topic)
-        stamps: list[int] = []
-        rows: list[tuple[list[float], list[float], list[float]]] = []
-        skipped: list[str] = []
-        # header stamps where the messages have them; the log's times only where none
-        # has (a zero stamp among others is not on their clock: left out, counted)
-        unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
-        stamped = False
 
         def keep(i: int, ns: int, row: tuple[list[float], list[float], list[float]]) -> None:
             if stamps and ns <= stamps[-1]:
@@ -317,7 +363,18 @@ def read_imu_log(path: str | os.PathLike[str], topic: str | None = None) -> ImuL
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
         where = f"message {at}: " if at else ""
-        raise InputError(f"{p}: {where}cannot read robot log ({_why_unreadable(exc)})") from None
+        if not (skip_bad and _cut_short(exc) and (stamps or unstamped)):
+            hint = ""
+            if _cut_short(exc):  # where a message came whole before the cut, it helps
+                hint = "; --skip-bad reads it up to the cut" if at else ""
+                hint = "; no whole message before the cut" if skip_bad and not at else hint
+            raise InputError(
+                f"{p}: {where}cannot read robot log ({_why_unreadable(exc)}{hint})"
+            ) from None
+        if not stamped:  # no message so far has a stamp: the log's times
+            stamps += [ns for _, ns, _ in unstamped]
+            rows += [row for _, _, row in unstamped]
+        skipped.append(f"the file ends inside a record after message {at - 1}: read up to there")
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
