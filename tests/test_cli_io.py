@@ -898,7 +898,12 @@ def test_truth_at_interpolates_inside_its_span_and_not_across_a_gap() -> None:
     expected = (np.interp(t_est[i_est], t_truth, unwrapped) + np.pi) % (2 * np.pi) - np.pi
     np.testing.assert_allclose(rows[:, 1], expected)
     assert abs(rows[1, 1]) > 3.1  # across pi, not through 0
-    assert truth_at(np.arange(0, 1, 0.01), np.arange(0, 1, 0.05), values[:1], ["x"]) is None
+    sparse = np.arange(0, 1, 0.05)  # a step of five of the estimate's
+    assert truth_at(np.arange(0, 1, 0.01), sparse, sparse[:, None], ["x"]) is None
+    column = values[:, 1].copy()  # a NaN row elsewhere does not stop the unwrapping
+    column[-1] = np.nan
+    _, with_nan = truth_at(t_est, t_truth, np.column_stack([values[:, 0], column]), ["x", "psi_1"])
+    np.testing.assert_allclose(with_nan[:3, 1], expected[:3])
 
 
 def test_best_time_shift_finds_a_clock_offset_to_the_sample_and_none_where_there_is_none() -> None:

@@ -294,11 +294,14 @@ def test_topics_in_the_wrong_order_warn_once(
         (["/imu9", "/imu10"], [9, 10]),
         (["/imu_base", "/imu_tip"], None),
         (["/imu1/a2", "/imu2/a1"], None),
+        (["/robot/imu_link2", "/camera1/imu"], None),
+        (["/vn100/imu", "/um7/imu"], None),
     ],
 )
 def test_the_number_that_tells_topics_apart(topics: list[str], numbers: list[int] | None) -> None:
-    """The one number position at which the topics' names differ (none where no single
-    one does): what the order check compares with the order given."""
+    """The one number position at which names that are otherwise the same differ (none
+    where no single one does, or the names differ in more than their numbers): what
+    the order check compares with the order given."""
     from continuum_mhe.io.imu_topics import topic_numbers
 
     assert topic_numbers(topics) == numbers

@@ -97,7 +97,8 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         from continuum_mhe.io.mcap_estimates import read_notes_mcap
 
         if not p.is_file():
-            raise InputError(f"{path}: cannot read the options file (no such file)")
+            missing = "a folder, not an estimate MCAP" if p.is_dir() else "no such file"
+            raise InputError(f"{path}: cannot read the options file ({missing})")
         note = read_notes_mcap(path).get(OPTIONS_LINE)
         if note is None:
             raise InputError(

@@ -236,10 +236,11 @@ def truth_at_estimate(est: StateTable, truth: StateTable) -> StateTable | None:
     fewer than half of ``est``'s rows have a truth row at the same t and the truth is
     dense enough (:func:`~continuum_mhe.evaluation.metrics.truth_at`, as ``evaluate``
     compares them); else None (the truth as it is)."""
-    if len(match_rows(est.t, truth.t)[0]) >= 0.5 * len(est.t):
+    exact = len(match_rows(est.t, truth.t)[0])
+    if exact >= 0.5 * len(est.t):
         return None
     found = truth_at(est.t, truth.t, truth.values, truth.names)
-    if found is None or len(found[0]) < 2:
+    if found is None or len(found[0]) < 2 or len(found[0]) <= exact:
         return None
     i_est, rows = found
     return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))

@@ -32,8 +32,10 @@ STATE_NAMES = output_names(pcc_outputs(1))
 
 
 def is_wrapped(name: str) -> bool:
-    """``phi`` and ``phi_k`` are angles wrapped to ``[-pi, pi)``."""
-    return name == "phi" or name.startswith("phi_")
+    """``phi``, ``phi_k`` and a tendon robot's twist ``psi_k`` are angles wrapped to
+    ``[-pi, pi)`` (the outputs :class:`~continuum_mhe.model.descriptions.OutputSpec`
+    marks ``wrapped``)."""
+    return name == "phi" or name.startswith(("phi_", "psi_"))
 
 
 @dataclass(frozen=True)
@@ -407,10 +409,11 @@ def truth_at(
     i_est = np.flatnonzero(inside)
     rows = np.empty((len(i_est), values.shape[1]))
     for j, name in enumerate(names):
-        column = values[:, j]
-        wrapped = is_wrapped(name) and bool(np.all(np.isfinite(column)))
-        if wrapped:
-            column = np.unwrap(column)
+        column = values[:, j].copy()
+        wrapped = is_wrapped(name)
+        if wrapped:  # through the finite values (a NaN row stops no unwrapping)
+            finite = np.isfinite(column)
+            column[finite] = np.unwrap(column[finite])
         rows[:, j] = np.interp(t_est[i_est], t_truth, column)
         if wrapped:
             rows[:, j] = wrap_angle(rows[:, j])

@@ -104,7 +104,7 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
     gyr = None if log.gyr is None else log.gyr[idx]
     return ImuLog(
         topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=gyr,
-        orientation=log.orientation[idx], skipped=log.skipped, clock=log.clock,
+        orientation=log.orientation[idx], skipped=log.skipped, clock=log.clock, cut=log.cut,
     )  # fmt: skip
 
 
@@ -176,10 +176,13 @@ class TopicOrderWarning(UserWarning):
 
 
 def topic_numbers(topics: Sequence[str]) -> list[int] | None:
-    """The number that tells each topic apart (``/imu2/data`` -> 2): the numbers in the
-    names, at the one position where they differ; None where no such one number does."""
+    """The number that tells each topic apart (``/imu2/data`` -> 2): where the names are
+    the same but for their numbers, the numbers at the one position where they differ;
+    None where no such one number does (``/vn100/imu``, ``/um7/imu``: two makes)."""
+    if len({re.sub(r"\d+", "#", t) for t in topics}) != 1:
+        return None
     found = [[int(n) for n in re.findall(r"\d+", t)] for t in topics]
-    if len({len(f) for f in found}) != 1 or not found[0]:
+    if not found[0]:
         return None
     differing = [i for i in range(len(found[0])) if len({f[i] for f in found}) > 1]
     if len(differing) != 1:

@@ -732,6 +732,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         for log in logs
         if log.clock == "log times"
     )
+    notes += tuple(f"{p}: {log.topic}: {log.cut}" for log in logs if log.cut)
     return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes, clock)
 
 

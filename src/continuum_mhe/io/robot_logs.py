@@ -55,6 +55,7 @@ class ImuLog:
         skipped: descriptions of skipped messages.
         clock: what ``t`` was read from: ``"header stamps"``, or ``"log times"`` where
             no message has a stamp (every ``header.stamp`` zero).
+        cut: where a file cut short was read up to (``skip_bad``), else ``""``.
     """
 
     topic: str
@@ -65,6 +66,7 @@ class ImuLog:
     orientation: FloatArray
     skipped: list[str] = field(default_factory=list)
     clock: str = "header stamps"
+    cut: str = ""
 
 
 def is_robot_log(path: str | os.PathLike[str]) -> bool:
@@ -321,6 +323,7 @@ def read_imu_log(
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
     at = 0  # the message read: named where one cannot be read
+    cut = ""  # where a file cut short was read up to
     stamps: list[int] = []
     rows: list[tuple[list[float], list[float], list[float]]] = []
     skipped: list[str] = []
@@ -374,7 +377,7 @@ def read_imu_log(
         if not stamped:  # no message so far has a stamp: the log's times
             stamps += [ns for _, ns, _ in unstamped]
             rows += [row for _, _, row in unstamped]
-        skipped.append(f"the file ends inside a record after message {at - 1}: read up to there")
+        cut = f"the file ends inside a record after message {at - 1}: read up to there"
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
@@ -395,6 +398,7 @@ def read_imu_log(
         orientation=arr[2],
         skipped=skipped,
         clock="header stamps" if stamped else "log times",
+        cut=cut,
     )
 
 
