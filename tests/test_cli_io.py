@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from continuum_mhe.cli import main
 from continuum_mhe.io.csv_files import (
@@ -948,3 +950,33 @@ def test_plot_and_view_of_an_estimate_without_its_tip_columns_is_one_line(
     assert main([command, str(est), *out[command]]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "x, y, z" in err
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    rate=st.floats(20.0, 400.0),
+    ratio=st.floats(0.55, 1.9),
+    offset=st.floats(0.0, 0.02),
+    omega=st.floats(-40.0, 40.0),
+)
+def test_truth_at_follows_a_turning_angle_across_pi(
+    rate: float, ratio: float, offset: float, omega: float
+) -> None:
+    """A bending plane turning at ``omega`` rad/s (phi wrapped, crossing pi many times)
+    sampled at ``rate`` Hz, read at another rate and offset: the interpolated phi is
+    the turning angle there, wrapped, to the chord's error of a linear interpolation
+    (none: the angle is linear in t), and a line in ``x`` is exact."""
+    from continuum_mhe.evaluation.metrics import truth_at
+    from continuum_mhe.model.imu import wrap_angle
+
+    t_truth = np.arange(0.0, 2.0, 1.0 / rate)
+    values = np.column_stack([3.0 * t_truth, wrap_angle(omega * t_truth)])
+    t_est = np.arange(offset, 2.0, ratio / rate)
+    found = truth_at(t_est, t_truth, values, ["x", "phi_2"])
+    assert found is not None
+    i_est, rows = found  # every row inside the truth's span, none outside
+    assert list(i_est) == list(np.flatnonzero(t_est <= t_truth[-1]))
+    np.testing.assert_allclose(rows[:, 0], 3.0 * t_est[i_est], atol=1e-12)
+    # the wrapped difference: the interpolated angle against the true one
+    diff = wrap_angle(rows[:, 1] - omega * t_est[i_est])
+    assert np.max(np.abs(diff)) < 1e-9
