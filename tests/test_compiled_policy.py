@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells, format_time
@@ -110,6 +110,25 @@ def test_a_refused_sample_stops_the_run_with_the_steps_error() -> None:
         UserError, match=r"t=0\.95\d* s must be .* later than the previous sample's t=0\.95"
     ):
         est.run(t, rec.z)
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf"])
+def test_a_late_sample_online_is_left_out_and_the_estimate_goes_on(method: str) -> None:
+    """step() refuses a sample that came late or twice with a SampleTimeError that says
+    to leave it out, and the estimator is as it was: the samples after it give the
+    estimates of a run without it."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=2.0, seed=0)
+    est, clean = make_estimator(method, f), make_estimator(method, f)
+    for i in range(len(rec.t)):
+        if i == 20:
+            for late in (rec.t[i - 1], rec.t[i - 1] - 0.005):  # twice, then late
+                with pytest.raises(SampleTimeError, match="came late or twice is to be left"):
+                    est.step(Measurement(float(late), rec.z[i - 1]))
+        got = est.step(Measurement(float(rec.t[i]), rec.z[i]))
+        want = clean.step(Measurement(float(rec.t[i]), rec.z[i]))
+        assert got.status == want.status
+        np.testing.assert_array_equal(got.output, want.output)
 
 
 @pytest.mark.parametrize("name", ["bend", "two-sections", "direct-accel"])

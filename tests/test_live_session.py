@@ -129,6 +129,21 @@ def test_device_clock_restart_gives_estimates_and_says_so() -> None:
     assert sum("device clock restarted (9990 ms -> 0 ms)" in m for m in said) == 1
 
 
+def test_a_banner_after_samples_is_a_board_reset_even_without_a_first_banner() -> None:
+    """A board that streamed before live saw its banner, then reset: the banner after
+    samples arms the restart, so its clock stepping back by less than a second (2,500
+    to 1,700 ms) is a restart, said once, and no sample after it is dropped as out of
+    order (80 were, without a word)."""
+    s, said = _session()
+    before, after = list(range(1000, 2510, 10)), list(range(1700, 3000, 10))
+    _feed(s, before)
+    s.handle_line(b"# continuum_imu 1.1.0 mpu9250 imus=1 rate_hz=100", time.monotonic())
+    _feed(s, after)
+    assert s.counts.out_of_order == 0 and s.counts.clock_restarts == 1
+    assert s.counts.estimates == len(before) + len(after)
+    assert sum("device clock restarted (2500 ms -> 1700 ms)" in m for m in said) == 1
+
+
 def _restart_with_record(tmp_path: Path, silence_s: float) -> tuple[LiveSession, Path, str]:
     """A tilt session recording to a file: 3 s of samples, then the device clock
     restarts at 0 after ``silence_s`` s of silence (arrival time), and 1 s more."""

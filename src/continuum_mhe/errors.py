@@ -22,6 +22,12 @@ class UserError(ValueError):
     keep working."""
 
 
+class SampleTimeError(UserError):
+    """A sample whose time is not later than the previous sample's: a sample that came
+    late or twice (an online caller leaves it out and steps on: the estimator is as it
+    was), or the first of a new recording without ``reset()``."""
+
+
 class UnobservableShapeWarning(UserWarning):
     """The robot's IMUs cannot determine its shape (fewer independent tilt readings
     than bend coordinates): every estimate of it is ``uncertain``."""

@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.errors import (
+    SampleTimeError,
     UnobservableShapeWarning,
     UserError,
     expect_type,
@@ -714,16 +715,20 @@ class Estimator(Generic[InferenceT]):
 
     def _refuse(self, err: int, t: float, z: FloatArray, previous: float | None = None) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
-        input error: the time order, or a tilt in degrees or infinite); ``previous``:
-        the time of the sample before it in the same call (else the policy's last)."""
+        input error: the time order, a :class:`SampleTimeError`, or a tilt in degrees or
+        infinite); ``previous``: the time of the sample before it in the same call (else
+        the policy's last)."""
         if err == INPUT_TIME:
             last, hint = (self._policy.last_t if previous is None else previous), ""
             first = previous is None and math.isfinite(t)  # the call's first sample
             if first and self._ran:
                 hint = "; run() left the estimator at its recording's end: call reset() first"
             elif first:
-                hint = "; to start a new recording, call reset() first"
-            raise UserError(
+                hint = (
+                    "; a sample that came late or twice is to be left out (the estimator is "
+                    "as it was: step on), a new recording starts with reset()"
+                )
+            raise SampleTimeError(
                 f"sample time t={t!r} s must be finite and later than the previous "
                 f"sample's t={last!r} s{hint}"
             )

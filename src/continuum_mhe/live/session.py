@@ -448,10 +448,10 @@ class LiveSession:
     def _comment(self, text: str, arrival: float) -> None:
         c = self.counts
         c.comments += 1
+        if "continuum_imu" in text and c.samples:  # a banner after samples: the board reset
+            self.clock.expect_restart()  # (the first banner may have been missed)
         if not c.header:
             c.header = text
-        elif "continuum_imu" in text and c.samples:  # the banner again: the board reset
-            self.clock.expect_restart()
         self.messages.show(text, arrival)
         names = header_fields(text)
         if names is not None and not self._fields_checked:

@@ -247,21 +247,18 @@ class DirectFormulation(BendFormulation):
         return q
 
     def initial_cov(self) -> FloatArray:
+        # diagonal: the bends' and rates' variances (the base class's), then the bend
+        # accelerations', the gyro biases' and the accelerometer biases'
+        n2 = 2 * self.robot.n_sections if self.own_acceleration else 0
         var = np.concatenate(
             [
+                np.diag(super().initial_cov()),
+                np.full(n2, self.initial_bend_accel_std**2),
                 np.full(self.n_gyro_bias, self.initial_gyro_bias_std**2),
                 np.full(self.n_accel_bias, self.initial_accel_bias_std**2),
             ]
         )
-        from scipy.linalg import block_diag  # imported on use: scipy.linalg is slow to import
-
-        base = super().initial_cov()
-        if self.own_acceleration:
-            n2 = 2 * self.robot.n_sections
-            base = block_diag(base, np.eye(n2) * self.initial_bend_accel_std**2)
-        if not len(var):
-            return base
-        return np.asarray(block_diag(base, np.diag(var)), dtype=np.float64)
+        return np.diag(var)
 
     def gravity_directions_sym(self, x: Sym) -> list[Sym]:
         """Unit specific-force direction at rest in each IMU's frame, with the

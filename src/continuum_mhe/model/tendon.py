@@ -723,9 +723,8 @@ class TendonFormulation(Formulation):
         # the rates' rows are zero residuals: any weight
         tension = np.diag([self.tension_std**2] * k + [1.0] * 2 * k)
         eq = np.eye(self.measurement_blocks[-1].size) * self.equilibrium_std**2
-        from scipy.linalg import block_diag  # imported on use: scipy.linalg is slow to import
-
-        return np.asarray(block_diag(imu, tension, eq), dtype=np.float64)
+        # every block is diagonal: so is the whole
+        return np.diag(np.concatenate([np.diag(imu), np.diag(tension), np.diag(eq)]))
 
     def reading_bias_cov(self) -> FloatArray:
         """The readings' constant errors carried outside the state: none where each
