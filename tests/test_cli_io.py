@@ -842,9 +842,16 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     assert len(said) == 1 and re.fullmatch(
         rf"continuum-mhe: warning: {re.escape(str(late))}: the truth fits the estimate best "
         r"\+0\.5 s later \(mean tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
-        r"are the two files' clocks offset\? \(a motion that repeats can fit shifted too\)",
+        r"are the two files' clocks offset\? \(a motion that repeats can fit shifted too; "
+        r"--truth-shift 0\.5 compares them so\)",
         said[0],
     ), said
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    same = json.loads(capsys.readouterr().out)
+    assert main(["evaluate", str(est), str(late), "--truth-shift", "0.5", "--json"]) == 0
+    shifted, err = capsys.readouterr()
+    assert "warning" not in err  # compared as the clocks run, the tip as on one clock
+    assert json.loads(shifted)["tip_mean_mm"] == pytest.approx(same["tip_mean_mm"], abs=1e-9)
 
 
 def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -142,13 +143,15 @@ def _shift_hint(
         f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later (mean tip error "
         f"{shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as the times "
         "match): are the two files' clocks offset? (a motion that repeats can fit "
-        "shifted too)"
+        f"shifted too; --truth-shift {shift.shift_s:.3g} compares them so)"
     )
 
 
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
+    if args.truth_shift:  # the truth read at t + shift: its rows that much earlier
+        truth = replace(truth, t=truth.t - args.truth_shift)
     if truth.status_column or truth.std_columns:
         raise InputError(
             f"{args.truth}: has an estimate's status or std_ columns: an estimate, not a "
@@ -285,4 +288,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="section length in m (default: the robot the estimate records, else 0.2)",
     )
     add_robot_option(p, replaces=("--length",))
+    p.add_argument(
+        "--truth-shift",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="compare each estimate row with the truth SECONDS later (a truth on a clock "
+        "offset from the estimate's; the warning of an offset names the shift)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")

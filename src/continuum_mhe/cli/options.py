@@ -767,6 +767,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
         0.0, 90.0, "deg", above="--model-error-floor-deg is in degrees"
     ),
     "reading_bias_deg": OptionRange(0.0, 90.0, "deg", above="--reading-bias-deg is in degrees"),
+    "truth_shift": OptionRange(-1e6, 1e6, "s"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
                                   above="milliseconds? --pair-tolerance is in seconds"),
     "view_hz": OptionRange(0.0, 10_000.0, "Hz"),
