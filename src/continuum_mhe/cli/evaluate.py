@@ -17,14 +17,14 @@ from continuum_mhe.errors import time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
+    aligned_truth,
     best_time_shift,
     compute_calibration,
     compute_metrics,
+    interpolated_note,
     length_misfit,
-    match_rows,
     section_numbers,
     steady_ratio,
-    truth_at,
 )
 from continuum_mhe.io.csv_files import (
     InputError,
@@ -38,27 +38,18 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
 def _align(path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable) -> Aligned:
-    """The estimate rows compared and the truth's values at them: the truth's rows at the
-    same t, or, where fewer than :data:`WARN_MATCHED` of the rows have one and it is
-    sampled densely enough, the truth interpolated at the estimate's times (a note says
-    so: :func:`~continuum_mhe.evaluation.metrics.truth_at`)."""
+    """The estimate rows compared and the truth's values at them
+    (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
+    interpolated)."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
-    i_est, i_truth = match_rows(t_est, t_truth)
-    rows = truth.values[i_truth]
+    i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names)
     n, k = len(t_est), len(i_est)
     at = "have a row at the same t (within 1 us) in"
-    if k < WARN_MATCHED * n and (found := truth_at(t_est, t_truth, truth.values, truth.names)):
-        if len(found[0]) > k:
-            i_est, rows = found
-            k = len(i_est)
-            at = "lie within the times of"
-            print(
-                f"{PROG}: note: {path_truth}'s rows are not at {path_est}'s times: the truth "
-                f"is interpolated linearly at them ({k} of {n} rows)",
-                file=sys.stderr,
-            )
+    if interpolated:
+        at = "lie within the times of"
+        print(f"{PROG}: note: {interpolated_note(path_truth, path_est, k, n)}", file=sys.stderr)
     what = (
         f"only {k} of {n} rows {at} {path_truth}: "
         "the files' times do not match (another --dt or duration, t in milliseconds, "

@@ -67,6 +67,7 @@ def _estimate(args: argparse.Namespace) -> int:
         truth_at_estimate,
         truth_problem,
     )
+    from continuum_mhe.evaluation.metrics import interpolated_note
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
@@ -98,11 +99,8 @@ def _estimate(args: argparse.Namespace) -> int:
     if problem is not None:
         raise InputError(f"{args.truth}: {problem}")
     if at_est is not None:
-        print(
-            f"{PROG}: note: {args.truth}'s rows are not at {args.source}'s times: the truth "
-            f"is interpolated linearly at them ({len(at_est.t)} of {len(est.t)} rows)",
-            file=sys.stderr,
-        )
+        note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
+        print(f"{PROG}: note: {note}", file=sys.stderr)
         truth = at_est
     try:
         fig = estimate_figure(est, truth, lengths, title, backbone)

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows, truth_at
+from continuum_mhe.evaluation.metrics import Z95, IndexArray, aligned_truth, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
@@ -233,16 +233,12 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
 
 def truth_at_estimate(est: StateTable, truth: StateTable) -> StateTable | None:
     """``truth`` interpolated at ``est``'s times (the table of its values there), where
-    fewer than half of ``est``'s rows have a truth row at the same t and the truth is
-    dense enough (:func:`~continuum_mhe.evaluation.metrics.truth_at`, as ``evaluate``
-    compares them); else None (the truth as it is)."""
-    exact = len(match_rows(est.t, truth.t)[0])
-    if exact >= 0.5 * len(est.t):
+    ``evaluate`` would compare it so
+    (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`); else None (the truth as
+    it is)."""
+    i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names)
+    if not interpolated or len(i_est) < 2:
         return None
-    found = truth_at(est.t, truth.t, truth.values, truth.names)
-    if found is None or len(found[0]) < 2 or len(found[0]) <= exact:
-        return None
-    i_est, rows = found
     return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))
 
 

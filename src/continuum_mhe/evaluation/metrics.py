@@ -420,6 +420,36 @@ def truth_at(
     return i_est.astype(np.intp), rows
 
 
+#: :func:`aligned_truth` interpolates the truth where fewer than this share of the
+#: estimate's rows have a truth row at the same t.
+INTERPOLATE_BELOW = 0.5
+
+
+def aligned_truth(
+    t_est: FloatArray, t_truth: FloatArray, values: FloatArray, names: Sequence[str]
+) -> tuple[IndexArray, FloatArray, bool]:
+    """``(i_est, rows, interpolated)``: the estimate rows compared and the truth's values
+    at them (``evaluate`` and ``plot`` compare so): the truth's rows at the same t
+    (:func:`match_rows`), or, where fewer than :data:`INTERPOLATE_BELOW` of the
+    estimate's rows have one, the truth interpolated at the estimate's times
+    (:func:`truth_at`) where that compares more rows (``interpolated`` True)."""
+    i_est, i_truth = match_rows(t_est, t_truth)
+    if len(i_est) < INTERPOLATE_BELOW * len(t_est):
+        found = truth_at(t_est, t_truth, values, names)
+        if found is not None and len(found[0]) > len(i_est):
+            return found[0], found[1], True
+    return i_est, np.asarray(values, dtype=float)[i_truth], False
+
+
+def interpolated_note(truth: str, estimate: str, compared: int, rows: int) -> str:
+    """The note that the truth file ``truth`` was interpolated at the times of the
+    estimate file ``estimate`` (:func:`aligned_truth`), ``compared`` of its ``rows``."""
+    return (
+        f"{truth}'s rows are not at {estimate}'s times: the truth is interpolated linearly "
+        f"at them ({compared} of {rows} rows)"
+    )
+
+
 #: :func:`best_time_shift` tries shifts of the truth up to this many seconds either way
 #: (about :data:`SHIFT_STEPS` of them, then the best one refined towards the estimate's
 #: sample period), on at most :data:`SHIFT_ROWS` rows of the estimate.

@@ -727,7 +727,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
-        f"{log.topic}: every header stamp is zero: t from the log's times (when each "
+        f"{p}: {log.topic}: every header stamp is zero: t from the log's times (when each "
         "message was logged)"
         for log in logs
         if log.clock == "log times"

@@ -318,7 +318,7 @@ def read_imu_log(
     """Read the ``sensor_msgs/msg/Imu`` samples of ``topic`` from a bag or MCAP file
     (``topic`` may be omitted when the log has exactly one Imu topic). An MCAP file cut
     short (a recorder that stopped) is an error, or with ``skip_bad`` read up to the
-    cut, which ``skipped`` says."""
+    cut, which ``cut`` says."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
@@ -332,18 +332,19 @@ def read_imu_log(
     unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
     stamped = False
     name = topic or ""
+
+    def keep(i: int, ns: int, row: tuple[list[float], list[float], list[float]]) -> None:
+        if stamps and ns <= stamps[-1]:
+            skipped.append(f"message {i}: time {ns} ns does not increase")
+            return
+        stamps.append(ns)
+        rows.append(row)
+
     try:
         if p.suffix.lower() == ".mcap":
             name, messages = _iter_mcap(p, topic)
         else:
             name, messages = _iter_rosbags(p, topic)
-
-        def keep(i: int, ns: int, row: tuple[list[float], list[float], list[float]]) -> None:
-            if stamps and ns <= stamps[-1]:
-                skipped.append(f"message {i}: time {ns} ns does not increase")
-                return
-            stamps.append(ns)
-            rows.append(row)
 
         for i, (log_ns, msg) in enumerate(messages):
             at = i + 1
@@ -360,24 +361,22 @@ def read_imu_log(
                             for j, _, _ in unstamped]  # fmt: skip
                 unstamped = []
             keep(i, header_ns, _row(msg))
-        for i, log_ns, row in unstamped:  # no message has a stamp: the log's times
-            keep(i, log_ns, row)
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
         where = f"message {at}: " if at else ""
         if not (skip_bad and _cut_short(exc) and (stamps or unstamped)):
             hint = ""
-            if _cut_short(exc):  # where a message came whole before the cut, it helps
-                hint = "; --skip-bad reads it up to the cut" if at else ""
-                hint = "; no whole message before the cut" if skip_bad and not at else hint
+            if _cut_short(exc) and skip_bad:
+                hint = "; no whole message before the cut"
+            elif _cut_short(exc) and at:  # messages came whole before the cut
+                hint = "; --skip-bad reads it up to the cut"
             raise InputError(
                 f"{p}: {where}cannot read robot log ({_why_unreadable(exc)}{hint})"
             ) from None
-        if not stamped:  # no message so far has a stamp: the log's times
-            stamps += [ns for _, ns, _ in unstamped]
-            rows += [row for _, _, row in unstamped]
         cut = f"the file ends inside a record after message {at - 1}: read up to there"
+    for i, log_ns, row in unstamped:  # no message (up to a cut) has a stamp: the log's times
+        keep(i, log_ns, row)
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     t0 = stamps[0]
