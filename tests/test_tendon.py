@@ -453,6 +453,15 @@ def test_the_imu_error_states_turn_and_shift_the_specific_force_as_a_board_would
         )
 
 
+def _equilibrium_state(f: TendonFormulation, tau: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """The state of the robot in equilibrium under the tensions ``tau`` and the tip
+    force ``force``, at rest, its IMUs without errors."""
+    k0, _ = f.statics.solve(force, tau)
+    x = np.zeros(f.nx)
+    x[:3], x[3:6], x[6 : 6 + len(tau)] = k0, force, tau
+    return x
+
+
 def test_the_start_recovers_the_tip_force_from_noise_free_tilts() -> None:
     """Tilts of a known tip force and tensions (two IMUs): the start's least squares
     finds the force (with a wide prior on the force: the start holds the force to its
@@ -461,13 +470,99 @@ def test_the_start_recovers_the_tip_force_from_noise_free_tilts() -> None:
     f = TendonFormulation(robot=robot, initial_force_std=100.0)
     tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
     force = np.array([0.03, -0.02, 0.01])
-    k0, _ = f.statics.solve(force, tau)
-    x = np.zeros(f.nx)
-    x[:3], x[3:6], x[6:12] = k0, force, tau
-    h = np.asarray(f.functions.observe(x), float).ravel()
+    h = np.asarray(f.functions.observe(_equilibrium_state(f, tau, force)), float).ravel()
     z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
     x0 = f.initial_state(z)
     np.testing.assert_allclose(x0[3:6], force, atol=1e-6)
+
+
+def test_a_start_free_of_load_reads_the_imus_errors_not_a_tip_force() -> None:
+    """The shipped ``unloaded`` (raw IMUs) starts straight, slack and free of load, its
+    IMUs misaligned and biased: the start takes the narrow tip force prior and reads
+    well under a millinewton, where the wide prior reads the IMUs' errors as a force
+    of several millinewtons (which bends this soft robot by millimetres)."""
+    from continuum_mhe.model.tendon import FREE_START_FORCE_FRACTION
+
+    f, _, z = _raw_unloaded(1)
+    narrow = FREE_START_FORCE_FRACTION * f.force_prior_std
+    x0, P0 = f.start_prior(z[0])
+    np.testing.assert_array_equal(np.diag(P0)[3:6], [narrow**2] * 3)
+    assert np.linalg.norm(x0[3:6]) < 5e-4
+    np.testing.assert_array_equal(f.initial_state(z[0]), x0)
+    wide = replace(f, initial_force_std=f.force_prior_std)
+    x1, P1 = wide.start_prior(z[0])
+    np.testing.assert_array_equal(P1, f.initial_cov())
+    assert np.linalg.norm(x1[3:6]) > 3e-3
+
+
+def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
+    """Noise-free raw readings of the robot under a 0.19 N tip force: fitted without a
+    load they are far beyond their noise and the IMUs' own errors, so the start keeps
+    the wide prior; with tilt IMUs the start always does."""
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
+    tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
+    x = _equilibrium_state(f, tau, np.array([0.15, -0.1, 0.05]))
+    h = np.asarray(f.functions.observe(x), float).ravel()
+    z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
+    _, P0 = f.start_prior(z)
+    np.testing.assert_array_equal(P0, f.initial_cov())
+    tilt = TendonFormulation(robot=robot)
+    h = np.asarray(tilt.functions.observe(x[: tilt.nx]), float).ravel()
+    z = tilt.measurement_row(h[: tilt.n_imu_measurements], np.zeros(6), np.zeros(6))
+    np.testing.assert_array_equal(tilt.start_prior(z)[1], tilt.initial_cov())
+
+
+def test_the_start_misfit_weighs_the_direction_rows_by_noise_and_imu_errors() -> None:
+    """Known answer: each accelerometer-direction row counts ``r^2 / (s^2 + m^2 +
+    (b / g)^2)`` (reading noise s, misalignment and bias priors m and b), the gyro
+    rows not at all, and the limit is the chi-square 99.9 % quantile of the rows
+    counted."""
+    from scipy.stats import chi2
+
+    from continuum_mhe.model.tendon import LOADED_START_PROBABILITY
+    from continuum_mhe.model.tendon_statics import GRAVITY
+
+    robot = read_robot("tendon-two-section")
+    f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
+    var = (
+        f.noise.measurement_std**2
+        + f.initial_misalignment_std**2
+        + (f.initial_accel_bias_std / GRAVITY) ** 2
+    )
+    r = np.zeros(f.n_imu_measurements)
+    r[1] = 2.0 * math.sqrt(var)  # IMU 1's y direction: 4
+    r[7] = math.sqrt(var)  # IMU 2's y direction: 1
+    r[3] = r[10] = 100.0  # gyros: not counted
+    valid = np.ones(f.n_imu_measurements, dtype=bool)
+    misfit, limit = f.start_misfit(r, valid)
+    assert misfit == pytest.approx(5.0, rel=1e-12)
+    assert limit == pytest.approx(chi2.ppf(1 - LOADED_START_PROBABILITY, 6), rel=1e-9)
+    valid[6:9] = False  # IMU 2's direction missing
+    misfit, limit = f.start_misfit(r, valid)
+    assert misfit == pytest.approx(4.0, rel=1e-12)
+    assert limit == pytest.approx(chi2.ppf(1 - LOADED_START_PROBABILITY, 3), rel=1e-9)
+
+
+def test_the_first_second_of_a_raw_recording_is_not_bent_by_the_imus_errors(
+    tmp_path: Path,
+) -> None:
+    """``estimate`` with only ``--robot`` and ``--inputs`` on the first 60 samples of
+    the shipped ``twist-08`` (raw IMUs; the robot starts straight and free of load):
+    the tip within 1 mm on average (2.1 mm with the wide start prior, which reads the
+    IMUs' errors as a tip force)."""
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
+    raw = tmp_path / "raw.csv"
+    raw.write_text("\n".join((data / "twist-08_raw.csv").read_text().splitlines()[:61]) + "\n")
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(raw), "--robot", "tendon-two-section",
+            "--inputs", str(data / "twist-08_tensions.csv"), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    est, truth = read_state_table(out), read_state_table(data / "twist-08_truth.csv")
+    xyz = ("x", "y", "z")
+    e = np.column_stack([est.column(c) for c in xyz])
+    t = np.column_stack([truth.column(c) for c in xyz])[: len(e)]
+    assert np.linalg.norm(e - t, axis=1).mean() < 0.001
 
 
 # --- the tensions input ----------------------------------------------------------------

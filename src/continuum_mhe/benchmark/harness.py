@@ -214,7 +214,7 @@ def _run_dompc(
     time-varying parameters and the arrival prior into the parameters: from sample
     ``N`` on, the EKF's filtered state and covariance at sample ``k - N`` (one EKF step
     per sample, timed with do-mpc's step, as our MHE's arrival update is); before,
-    the first sample's prior ``(initial_state, initial_cov)``."""
+    the first sample's prior (``Formulation.start_prior``)."""
     from continuum_mhe.estimators import make_estimator
 
     f = formulation
@@ -222,8 +222,8 @@ def _run_dompc(
     dt = float(rec.t[1] - rec.t[0])
     out = np.full((n, f.ny), np.nan)
     sec = np.empty(n)
-    x0 = f.project(f.initial_state(rec.z[0]))
-    pinv0 = np.linalg.inv(f.initial_cov()).ravel()
+    x0, P0 = f.start_prior(rec.z[0])
+    x0, pinv0 = f.project(x0), np.linalg.inv(P0).ravel()
     ekf = make_estimator("ekf", f)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # do-mpc calls numpy functions on CasADi values

@@ -38,7 +38,7 @@ def run_ekf_kernel(formulation: Formulation, rec: Recording) -> tuple[FloatArray
     out = np.full((n, f.ny), np.nan)
     sec = np.zeros(n)
     mask = f.measurement_mask(rec.z[0])
-    x, P = ekf_update(f, f.initial_state(rec.z[0]), f.initial_cov(), rec.z[0], R, mask)
+    x, P = ekf_update(f, *f.start_prior(rec.z[0]), rec.z[0], R, mask)
     out[0] = node.output(x)
     z_prev = rec.z[0]
     for i in range(1, n):

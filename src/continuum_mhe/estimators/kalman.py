@@ -105,7 +105,7 @@ class _KalmanBase(Inference):
                 return None, None, Status.NO_ESTIMATE
             # prior from the first reading's inverse, then updated with that reading:
             # the same convention as the MHE (arrival prior plus the first measurement)
-            self._x, self._P = self._update(f.initial_state(m.z), f.initial_cov(), m.z, mask)
+            self._x, self._P = self._update(*f.start_prior(m.z), m.z, mask)
             self._t_prev, self._z_prev = m.t, m.z
             return self._x.copy(), self._P.copy(), Status.OK
         dt = m.t - self._t_prev

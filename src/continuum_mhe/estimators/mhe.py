@@ -555,7 +555,8 @@ class MovingHorizonInference(Inference):
         if not window.has_prior:
             if not valid:
                 return None, None, Status.NO_ESTIMATE
-            self._set_prior(f.project(f.initial_state(m.z)), f.initial_cov())
+            x0, P0 = f.start_prior(m.z)
+            self._set_prior(f.project(x0), P0)
         u, (Q, Qinv) = self._no_input, (self._no_weight, self._no_weight)
         if window.k:
             dt = m.t - self._t_last
@@ -808,7 +809,8 @@ class _HorizonHooks:
         """Anchor the prior at the first reading ``z``; a numerical failure's message."""
         f = self.formulation
         try:
-            self.inference._set_prior(f.project(f.initial_state(z)), f.initial_cov())
+            x0, P0 = f.start_prior(z)
+            self.inference._set_prior(f.project(x0), P0)
         except NUMERICAL_FAILURES as exc:
             return numerical_failure(exc)
         return None

@@ -269,6 +269,13 @@ class Formulation:
     def initial_cov(self) -> FloatArray:
         raise NotImplementedError
 
+    def start_prior(self, z0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(x0, P0)``: the prior every estimator starts (and restarts) from at the
+        reading ``z0``, before its update with that reading: :meth:`initial_state` and
+        :meth:`initial_cov` (a formulation whose prior depends on what the reading shows
+        overrides this)."""
+        return self.initial_state(z0), self.initial_cov()
+
     def inputs(self, z_prev: FloatArray | None, z: FloatArray, dt: float) -> FloatArray:
         """Input ``u`` driving the transition into the sample with measurement ``z``."""
         return np.zeros(self.nu)

@@ -120,6 +120,13 @@ SINGLE_IMU_FORCE_ACCEL_PSD = 1e-3
 #: force into compression past the buckling load, where the shape bifurcates and the
 #: filter follows another one (docs/tendon-studies.md, "The tip force's prior").
 FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
+#: The tip force's prior at a start free of load, as a fraction of the wide one
+#: (:meth:`TendonFormulation.start_prior`; docs/tendon-studies.md, "The tip force's
+#: prior").
+FREE_START_FORCE_FRACTION = 0.01
+#: A start whose readings, fitted without a load, are less likely than this under their
+#: noise and the IMUs' own errors is taken to be under load (the wide prior).
+LOADED_START_PROBABILITY = 1e-3
 #: A tip force estimate (or its standard deviation) beyond this many times the buckling
 #: load, and beyond :data:`MAX_FORCE_FLOOR`, has diverged (:meth:`TendonFormulation.
 #: is_diverged`): a stiff backbone's prior alone may exceed a fixed limit.
@@ -782,6 +789,31 @@ class TendonFormulation(Formulation):
             "with the tensions (two per IMU: its gravity direction)"
         )
 
+    def start_prior(self, z0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(x0, P0)``: the start at the reading ``z0`` (:meth:`initial_state`), with the
+        tip force's prior that the reading allows.
+
+        With raw IMUs (``direct``) and :attr:`initial_force_std` None (the default), a
+        start that the readings show free of load takes a tip force prior of
+        :data:`FREE_START_FORCE_FRACTION` of the wide one. At a start the IMUs'
+        misalignment and accelerometer bias tilt their readings as a small tip force
+        would; under the wide prior the start and the first updates take them for a
+        force, and the shape is off by millimetres until the robot has bent enough to
+        tell the two apart (docs/tendon-studies.md, "The tip force's prior"). Free of
+        load: fitted with the narrow prior, the readings' misfit (:meth:`start_misfit`)
+        is at most its chi-square quantile of :data:`LOADED_START_PROBABILITY`. Under
+        load, with tilt IMUs (where the narrow prior is not better on the recordings
+        measured) and with :attr:`initial_force_std` given: the wide prior of
+        :meth:`initial_cov`."""
+        if self.initial_force_std is None and self.imu_model == "direct":
+            narrow = FREE_START_FORCE_FRACTION * self.force_prior_std
+            x, misfit, limit = self._start_fit(z0, narrow)
+            if misfit <= limit:
+                P = self.initial_cov()
+                P[3:6, 3:6] = np.eye(3) * narrow**2
+                return x, P
+        return self._start_fit(z0, self.force_prior_std)[0], self.initial_cov()
+
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
         with the sample's tensions (least squares from the unloaded equilibrium), held
@@ -793,7 +825,15 @@ class TendonFormulation(Formulation):
         gyro's bias (its reading less the rate the model predicts) are fitted with
         them: a gyro reading fixes its bias, not the force (a bias left at zero reads as
         a force, on a straight rod an axial one the IMUs barely see). The other rates
-        and biases zero, the tension gains 1 (the tensions as given)."""
+        and biases zero, the tension gains 1 (the tensions as given).
+        The tip force's prior is :meth:`start_prior`'s."""
+        return self.start_prior(z0)[0]
+
+    def _start_fit(self, z0: FloatArray, force_std: float) -> tuple[FloatArray, float, float]:
+        """``(x, misfit, limit)``: :meth:`initial_state`'s fit with the tip force's prior
+        standard deviation ``force_std`` (N), the fitted readings' misfit (see
+        :meth:`start_misfit`) and its chi-square quantile of
+        :data:`LOADED_START_PROBABILITY` (0 and inf without a valid reading)."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -806,7 +846,7 @@ class TendonFormulation(Formulation):
         z[n : n + k] = tau
         valid = np.isfinite(z0[:n])
         if not valid.any():
-            return x
+            return x, 0.0, math.inf
         # fitted: k0, F; with raw IMUs k0' (held by the tip condition's rate) and the
         # gyro biases
         free = np.r_[0:6]
@@ -818,7 +858,7 @@ class TendonFormulation(Formulation):
         prior = x[free].copy()
         std = np.sqrt(np.diag(self.initial_cov()))
         prior_w = START_PRIOR_WEIGHT / std[free]
-        prior_w[3:6] = 1.0 / std[3:6]  # the force's own prior
+        prior_w[3:6] = 1.0 / force_std  # the force's own prior
         # the residual and its Jacobian by the compiled core (forward mode), the same
         # functions the compiled EKF evaluates
         model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
@@ -851,7 +891,31 @@ class TendonFormulation(Formulation):
         )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
             x[free] = fit.x
-        return x
+        inputs[0][:] = x
+        model.evaluate(inputs, out)
+        misfit, limit = self.start_misfit(out[nz * nx : nz * nx + n], valid)
+        return x, misfit, limit
+
+    def start_misfit(self, r: FloatArray, valid: NDArray[np.bool_]) -> tuple[float, float]:
+        """``(misfit, limit)``: the squares of the IMUs' residuals ``r`` (the first
+        :attr:`n_imu_measurements` of the residual) where ``valid``, each over its
+        reading's variance plus that of the IMU's misalignment and accelerometer bias
+        priors (the gyros' rows left out: a start fits their biases), summed; and the
+        chi-square quantile of :data:`LOADED_START_PROBABILITY` for as many terms."""
+        from scipy.special import chdtri  # imported on use: scipy is slow to import
+
+        var = np.diag(self.meas_cov())[: self.n_imu_measurements].copy()
+        errors = self.initial_misalignment_std**2 if self.estimate_misalignment else 0.0
+        if self.estimate_accel_bias:
+            errors += (self.initial_accel_bias_std / GRAVITY) ** 2
+        direction = np.ones(self.n_imu_measurements, dtype=bool)
+        if self.imu_model == "direct":  # per IMU: f / |f| (3), then the gyro (3)
+            direction = np.tile(np.r_[[True] * 3, [False] * 3], self.robot.n_imus)
+        used = direction & np.asarray(valid, dtype=bool)
+        if not used.any():
+            return 0.0, math.inf
+        misfit = float(np.sum(np.asarray(r)[used] ** 2 / (var[used] + errors)))
+        return misfit, float(chdtri(int(used.sum()), LOADED_START_PROBABILITY))
 
     def initial_cov(self) -> FloatArray:
         """The start's prior: the tensions' that of the given ones
