@@ -516,7 +516,7 @@ def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
 def test_the_start_misfit_weighs_the_direction_rows_by_noise_and_imu_errors() -> None:
     """Known answer: each accelerometer-direction row counts ``r^2 / (s^2 + m^2 +
     (b / g)^2)`` (reading noise s, misalignment and bias priors m and b), the gyro
-    rows not at all, and the limit is the chi-square 99.9 % quantile of the rows
+    rows not at all, and the limit is the chi-square quantile of the rows
     counted."""
     from scipy.stats import chi2
 
