@@ -483,7 +483,7 @@ def test_a_start_free_of_load_reads_the_imus_errors_not_a_tip_force() -> None:
     of several millinewtons (which bends this soft robot by millimetres)."""
     from continuum_mhe.model.tendon import FREE_START_FORCE_FRACTION
 
-    f, _, z = _raw_unloaded(1)
+    f, _, z = _raw_shipped(1)
     narrow = FREE_START_FORCE_FRACTION * f.force_prior_std
     x0, P0 = f.start_prior(z[0])
     np.testing.assert_array_equal(np.diag(P0)[3:6], [narrow**2] * 3)
@@ -498,7 +498,10 @@ def test_a_start_free_of_load_reads_the_imus_errors_not_a_tip_force() -> None:
 def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
     """Noise-free raw readings of the robot under a 0.19 N tip force: fitted without a
     load they are far beyond their noise and the IMUs' own errors, so the start keeps
-    the wide prior; with tilt IMUs the start always does."""
+    the wide prior; so does a start that the tensions bend, and with tilt IMUs the start
+    always does."""
+    from continuum_mhe.model.tendon import FREE_START_MAX_BEND
+
     robot = read_robot("tendon-two-section")
     f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
     tau = np.array([1.0, 0.5, 0.0, 0.0, 1.5, 0.3])
@@ -507,6 +510,12 @@ def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
     z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
     _, P0 = f.start_prior(z)
     np.testing.assert_array_equal(P0, f.initial_cov())
+    # the shipped twist-29 at 3 s: bent by its tensions, under 0.17 N across the bend,
+    # which the readings' misfit alone passes as free
+    f, _, z = _raw_shipped(151, "twist-29")
+    np.testing.assert_array_equal(f.start_prior(z[150])[1], f.initial_cov())
+    assert f.start_bend(z[150]) > FREE_START_MAX_BEND
+    assert f.start_bend(z[0]) == pytest.approx(0.0, abs=1e-9)
     tilt = TendonFormulation(robot=robot)
     h = np.asarray(tilt.functions.observe(x[: tilt.nx]), float).ravel()
     z = tilt.measurement_row(h[: tilt.n_imu_measurements], np.zeros(6), np.zeros(6))
@@ -1187,17 +1196,20 @@ def test_a_stiff_backbone_s_prior_is_not_taken_for_a_divergence() -> None:
 
 
 # --- the standard deviations -----------------------------------------------------------
-def _raw_unloaded(n: int) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
-    """The first ``n`` samples of the shipped ``unloaded`` with raw IMUs, read as the
-    command line reads them (the shipped robot, its tensions): ``(formulation, t, z)``."""
+def _raw_shipped(
+    n: int, scenario: str = "unloaded"
+) -> tuple[TendonFormulation, np.ndarray, np.ndarray]:
+    """The first ``n`` samples of the shipped recording ``scenario`` with raw IMUs, read
+    as the command line reads them (the shipped robot, its tensions):
+    ``(formulation, t, z)``."""
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import open_input
     from continuum_mhe.model.registry import make_formulation
 
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
-    options = InputOptions(tensions=str(data / "unloaded_tensions.csv"))
+    options = InputOptions(tensions=str(data / f"{scenario}_tensions.csv"))
     base = make_formulation("bend", read_robot("tendon-two-section"))
-    with open_input(data / "unloaded_raw.csv", options, base) as stream:
+    with open_input(data / f"{scenario}_raw.csv", options, base) as stream:
         f = stream.formulation
         assert isinstance(f, TendonFormulation)
         blocks = list(stream.blocks)
@@ -1216,7 +1228,7 @@ def test_the_estimators_refuse_a_negative_tension_as_the_tensions_file_does() ->
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.results import Measurement
 
-    f, t, z = _raw_unloaded(5)
+    f, t, z = _raw_shipped(5)
     names = f.measurement_names
     z = z.copy()
     z[:, names.index("tension_1_dot")] = -0.5  # a rate: may be negative
@@ -1255,7 +1267,7 @@ def test_the_tip_force_and_tip_std_are_the_filters_own() -> None:
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.results import Measurement
 
-    f, t, z = _raw_unloaded(60)
+    f, t, z = _raw_shipped(60)
     est = make_estimator("ekf", f)
     cols = [o.name for o in f.outputs]
     rows = [cols.index(c) for c in ("x", "y", "z", "fx", "fy", "fz")]
@@ -1705,7 +1717,7 @@ def test_a_tip_force_beyond_every_tension_is_said() -> None:
     (NaN) skipped; none at or below the largest tension, or below 0.05 N."""
     from continuum_mhe.estimators.sensor_health import ForceBeyondTensions
 
-    f, _, z = _raw_unloaded(3)
+    f, _, z = _raw_shipped(3)
     names = [o.name for o in f.outputs]
     force = [names.index(c) for c in ("fx", "fy", "fz")]
     rows = [i for i, name in enumerate(f.measurement_names) if name.startswith("tension_")]
@@ -1741,7 +1753,7 @@ def test_a_sample_without_a_tension_is_a_dropout_as_a_whole() -> None:
     from continuum_mhe.estimators import make_estimator
     from continuum_mhe.results import Measurement
 
-    f, t, z = _raw_unloaded(150)
+    f, t, z = _raw_shipped(150)
     clean = make_estimator("ekf", f).run(t, z)
     rows = [i for i, name in enumerate(f.measurement_names) if name.startswith("tension_")]
     holed = z.copy()
@@ -1771,7 +1783,7 @@ def test_load_input_reads_a_tendon_robot_with_its_tensions_as_open_input_does() 
     got = load_input(
         DATA / "unloaded_raw.csv", InputOptions(tensions=str(DATA / "unloaded_tensions.csv")), base
     )
-    f, t, z = _raw_unloaded(401)
+    f, t, z = _raw_shipped(401)
     assert got.formulation == f
     np.testing.assert_array_equal(got.t, t)
     np.testing.assert_array_equal(got.z, z)

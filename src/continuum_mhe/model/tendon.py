@@ -124,6 +124,13 @@ FORCE_PRIOR_BUCKLING_FRACTION = 1.0 / 3.0
 #: (:meth:`TendonFormulation.start_prior`; docs/tendon-studies.md, "The tip force's
 #: prior").
 FREE_START_FORCE_FRACTION = 0.01
+#: A start whose tensions alone would bend the robot's tip further than this from the
+#: base axis (rad) is not taken as free of load: a load across a bent robot can tilt its
+#: IMUs as a change of its shape does, which the readings' misfit does not tell apart
+#: (``twist-29`` from 3 s, under 0.17 N: misfit 5.1, and 303 mm off with the narrow
+#: prior against 67 mm with the wide one). Well beyond the tilt the IMUs' misalignment
+#: gives a reading (:attr:`TendonFormulation.initial_misalignment_std`, 1.7 degrees).
+FREE_START_MAX_BEND = math.radians(10.0)
 #: A start whose readings, fitted without a load, are less likely than this under their
 #: noise and the IMUs' own errors is taken to be under load (the wide prior). Lenient on
 #: purpose: a free start taken for a loaded one keeps the wide prior, which costs
@@ -798,18 +805,23 @@ class TendonFormulation(Formulation):
         tip force's prior that the reading allows.
 
         With raw IMUs (``direct``) and :attr:`initial_force_std` None (the default), a
-        start that the readings show free of load takes a tip force prior of
-        :data:`FREE_START_FORCE_FRACTION` of the wide one. At a start the IMUs'
-        misalignment and accelerometer bias tilt their readings as a small tip force
-        would; under the wide prior the start and the first updates take them for a
-        force, and the shape is off by millimetres until the robot has bent enough to
-        tell the two apart (docs/tendon-studies.md, "The tip force's prior"). Free of
+        start on a nearly straight robot (:meth:`start_bend` at most
+        :data:`FREE_START_MAX_BEND`) that the readings show free of load takes a tip
+        force prior of :data:`FREE_START_FORCE_FRACTION` of the wide one. At a start
+        the IMUs' misalignment and accelerometer bias tilt their readings as a small
+        tip force would; under the wide prior the start and the first updates take them
+        for a force, and the shape is off by millimetres until the robot has bent
+        enough to tell the two apart (docs/tendon-studies.md, "The tip force's prior"). Free of
         load: fitted with the narrow prior, the readings' misfit (:meth:`start_misfit`)
         is at most its chi-square quantile of :data:`LOADED_START_PROBABILITY`. Under
         load, with tilt IMUs (where the narrow prior is not better on the recordings
         measured) and with :attr:`initial_force_std` given: the wide prior of
         :meth:`initial_cov`."""
-        if self.initial_force_std is None and self.imu_model == "direct":
+        if (
+            self.initial_force_std is None
+            and self.imu_model == "direct"
+            and self.start_bend(z0) <= FREE_START_MAX_BEND
+        ):
             narrow = FREE_START_FORCE_FRACTION * self.force_prior_std
             x, misfit, limit = self._start_fit(z0, narrow)
             if misfit <= limit:
@@ -817,6 +829,18 @@ class TendonFormulation(Formulation):
                 P[3:6, 3:6] = np.eye(3) * narrow**2
                 return x, P
         return self._start_fit(z0, self.force_prior_std)[0], self.initial_cov()
+
+    def start_bend(self, z0: FloatArray) -> float:
+        """The angle, rad, between the base axis and the tip's tangent in the unloaded
+        equilibrium of the reading ``z0``'s tensions (inf where the statics find none)."""
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        tau = np.maximum(np.nan_to_num(np.asarray(z0, dtype=float)[n : n + k], nan=0.0), 0.0)
+        try:
+            _, poses = self.statics.solve(np.zeros(3), tau)
+        except ArithmeticError:
+            return math.inf
+        tip = poses[Station(self.robot.n_sections - 1, 1.0)][0]
+        return float(np.arccos(np.clip(tip[2, 2], -1.0, 1.0)))
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
