@@ -150,11 +150,12 @@ def main() -> None:
         z = f.measurement_row(z_imu[i], *tensions.at(ti))
         mask = f.measurement_mask(z)
         if x is None:
+            x0, P0 = f.start_prior(z)  # the estimators' start
             x, P = update(
                 node,
                 f,
-                f.initial_state(z),
-                f.initial_cov(),
+                x0,
+                P0,
                 z,
                 mask,
                 R,
@@ -162,7 +163,7 @@ def main() -> None:
                 a.line_search,
             )
             ikh, K, rows = LAST
-            Pc = ikh @ f.initial_cov() @ ikh.T + K @ Ra[np.ix_(rows, rows)] @ K.T
+            Pc = ikh @ P0 @ ikh.T + K @ Ra[np.ix_(rows, rows)] @ K.T
         else:
             xp, F, _, _ = node.evaluate(x, f.inputs(z_prev, z, ti - t_prev), ti - t_prev)
             Pp = F @ P @ F.T + q(ti - t_prev)[0]

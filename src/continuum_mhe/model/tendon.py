@@ -127,8 +127,8 @@ FREE_START_FORCE_FRACTION = 0.01
 #: A start whose tensions alone would bend the robot's tip further than this from the
 #: base axis (rad) is not taken as free of load: a load across a bent robot can tilt its
 #: IMUs as a change of its shape does, which the readings' misfit does not tell apart
-#: (``twist-29`` from 3 s, under 0.17 N: misfit 5.1, and 303 mm off with the narrow
-#: prior against 67 mm with the wide one). Well beyond the tilt the IMUs' misalignment
+#: (``twist-29`` from 3 s, under 0.17 N: misfit 5.1, and 231 mm off with the narrow
+#: prior against 61 mm with the wide one). Well beyond the tilt the IMUs' misalignment
 #: gives a reading (:attr:`TendonFormulation.initial_misalignment_std`, 1.7 degrees).
 FREE_START_MAX_BEND = math.radians(10.0)
 #: A start whose readings, fitted without a load, are less likely than this under their
