@@ -384,18 +384,23 @@ def write_tendon_recording(
 def main(argv: Sequence[str] | None = None) -> int:
     from continuum_mhe.io.robot_file import read_robot
 
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--scenario", choices=SCENARIOS, default="unloaded")
-    p.add_argument("--duration", type=float, default=16.0)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--scenario", choices=SCENARIOS, default="unloaded", help="the motion")
+    p.add_argument("--duration", type=float, default=16.0, help="s (the shipped recordings: 8 s)")
     p.add_argument(
         "--robot",
         default="tendon-two-section",
         help="a robot file (or shipped name) of two sections with an IMU at each end",
     )
-    p.add_argument("--name", default=None)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--sim-dt", type=float, default=TendonRodSettings.sim_dt)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
+    p.add_argument("--seed", type=int, default=0, help="draws the IMUs' errors and noise")
+    p.add_argument(
+        "--sim-dt", type=float, default=TendonRodSettings.sim_dt, help="simulation step, s"
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, help="the folder to write to")
     a = p.parse_args(argv)
     try:  # a robot it does not write is refused before anything is simulated or written
         info = write_tendon_recording(
