@@ -498,8 +498,8 @@ def test_a_start_free_of_load_reads_the_imus_errors_not_a_tip_force() -> None:
 def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
     """Noise-free raw readings of the robot under a 0.19 N tip force: fitted without a
     load they are far beyond their noise and the IMUs' own errors, so the start keeps
-    the wide prior; so does a start that the tensions bend, and with tilt IMUs the start
-    always does."""
+    the wide prior, as does a straight one under 0.02 N, one without an accelerometer
+    reading, and one that the tensions bend; with tilt IMUs the start always does."""
     from continuum_mhe.model.tendon import FREE_START_MAX_BEND
 
     robot = read_robot("tendon-two-section")
@@ -510,6 +510,16 @@ def test_a_start_under_load_keeps_the_wide_tip_force_prior() -> None:
     z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
     _, P0 = f.start_prior(z)
     np.testing.assert_array_equal(P0, f.initial_cov())
+    # straight (no tension) under 0.02 N: the bend rule lets it through, the misfit not
+    tau = np.zeros(6)
+    x = _equilibrium_state(f, tau, np.array([0.02, 0.0, 0.0]))
+    h = np.asarray(f.functions.observe(x), float).ravel()
+    z = f.measurement_row(h[: f.n_imu_measurements], tau, np.zeros(6))
+    assert f.start_bend(z) == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_array_equal(f.start_prior(z)[1], f.initial_cov())
+    # no accelerometer reading: nothing shows the start free of load
+    z[: f.n_imu_measurements] = np.nan
+    np.testing.assert_array_equal(f.start_prior(z)[1], f.initial_cov())
     # the shipped twist-29 at 3 s: bent by its tensions, under 0.17 N across the bend,
     # which the readings' misfit alone passes as free
     f, _, z = _raw_shipped(151, "twist-29")
@@ -1137,9 +1147,10 @@ def test_the_start_of_one_raw_imu_on_a_straight_rod_reads_no_axial_force() -> No
     data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
     robot = read_robot("tendon-two-section")
     robot = replace(robot, imus=robot.imus[1:])
+    wide = TendonFormulation(robot=robot).force_prior_std  # a narrow one would pin it
     f = TendonFormulation(
         robot=robot, imu_model="direct", estimate_gyro_bias=True, gyro_std=0.01,
-        accel_direction_std=math.radians(2.0),
+        accel_direction_std=math.radians(2.0), initial_force_std=wide,
     )  # fmt: skip
     raw = np.loadtxt(data / "unloaded_raw.csv", delimiter=",", skiprows=1)[:3]
     truth = read_state_table(data / "unloaded_truth.csv")

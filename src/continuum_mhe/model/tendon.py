@@ -33,9 +33,10 @@ acting on a tendon is its section's gain times the one given (the residual below
 the gain), for tensions whose scale is in doubt (a tension sensor's gain, tendon
 friction, kgf given as N). With raw IMUs, tensions given 0.8, 1.2 and 2 times the
 acting ones (unloaded; 0.5, 1.2, 2 on force-29) read as gains within 0.015 of 1/scale,
-and the mean tip error falls from 16 to 235 mm to 0.8 to 2.7 mm; tensions given 0.5 times
-(unloaded) or in kgf for N are not recovered, but the gains end far from 1, which
-``estimate`` says. With the right tensions it costs (unloaded: 0.58 to 1.59 mm), and with
+and the mean tip error falls from 16 to 230 mm to 0.8 to 1.6 mm; tensions given 0.5 times
+are recovered on force-29 and in part on unloaded, tensions in kgf for N are not, but
+the gains end far from 1, which ``estimate`` says. With the right tensions it costs
+(unloaded: 0.39 to 1.22 mm), and with
 tilt IMUs it misleads (twist-29: 222 ``ok`` rows over 20 mm off instead of 21)
 (docs/tendon-studies.md, "Tension gains").
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
@@ -128,7 +129,7 @@ FREE_START_FORCE_FRACTION = 0.01
 #: base axis (rad) is not taken as free of load: a load across a bent robot can tilt its
 #: IMUs as a change of its shape does, which the readings' misfit does not tell apart
 #: (``twist-29`` from 3 s, under 0.17 N: misfit 5.1, and 231 mm off with the narrow
-#: prior against 61 mm with the wide one). Well beyond the tilt the IMUs' misalignment
+#: prior against 67 mm with the wide one). Well beyond the tilt the IMUs' misalignment
 #: gives a reading (:attr:`TendonFormulation.initial_misalignment_std`, 1.7 degrees).
 FREE_START_MAX_BEND = math.radians(10.0)
 #: A start whose readings, fitted without a load, are less likely than this under their
@@ -816,7 +817,8 @@ class TendonFormulation(Formulation):
         is at most its chi-square quantile of :data:`LOADED_START_PROBABILITY`. Under
         load, with tilt IMUs (where the narrow prior is not better on the recordings
         measured) and with :attr:`initial_force_std` given: the wide prior of
-        :meth:`initial_cov`."""
+        :meth:`initial_cov`. Only the force's own prior narrows: its rate's stays wide,
+        so that a load that comes later is followed."""
         if (
             self.initial_force_std is None
             and self.imu_model == "direct"
@@ -861,7 +863,7 @@ class TendonFormulation(Formulation):
         """``(x, misfit, limit)``: :meth:`initial_state`'s fit with the tip force's prior
         standard deviation ``force_std`` (N), the fitted readings' misfit (see
         :meth:`start_misfit`) and its chi-square quantile of
-        :data:`LOADED_START_PROBABILITY` (0 and inf without a valid reading)."""
+        :data:`LOADED_START_PROBABILITY` (inf and 0 without a valid reading)."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
@@ -874,7 +876,7 @@ class TendonFormulation(Formulation):
         z[n : n + k] = tau
         valid = np.isfinite(z0[:n])
         if not valid.any():
-            return x, 0.0, math.inf
+            return x, math.inf, 0.0  # nothing shows the start free of load
         # fitted: k0, F; with raw IMUs k0' (held by the tip condition's rate) and the
         # gyro biases
         free = np.r_[0:6]
@@ -929,7 +931,8 @@ class TendonFormulation(Formulation):
         :attr:`n_imu_measurements` of the residual) where ``valid``, each over its
         reading's variance plus that of the IMU's misalignment and accelerometer bias
         priors (the gyros' rows left out: a start fits their biases), summed; and the
-        chi-square quantile of :data:`LOADED_START_PROBABILITY` for as many terms."""
+        chi-square quantile of :data:`LOADED_START_PROBABILITY` for as many terms (inf
+        and 0 without an accelerometer row: nothing shows the start free of load)."""
         from scipy.special import chdtri  # imported on use: scipy is slow to import
 
         var = np.diag(self.meas_cov())[: self.n_imu_measurements].copy()
@@ -940,8 +943,8 @@ class TendonFormulation(Formulation):
         if self.imu_model == "direct":  # per IMU: f / |f| (3), then the gyro (3)
             direction = np.tile(np.r_[[True] * 3, [False] * 3], self.robot.n_imus)
         used = direction & np.asarray(valid, dtype=bool)
-        if not used.any():
-            return 0.0, math.inf
+        if not used.any():  # no accelerometer: nothing shows the start free of load
+            return math.inf, 0.0
         misfit = float(np.sum(np.asarray(r)[used] ** 2 / (var[used] + errors)))
         return misfit, float(chdtri(int(used.sum()), LOADED_START_PROBABILITY))
 
