@@ -128,16 +128,14 @@ FREE_START_FORCE_FRACTION = 0.01
 #: A start whose tensions alone would bend the robot's tip further than this from the
 #: base axis (rad) is not taken as free of load: a load across a bent robot can tilt its
 #: IMUs as a change of its shape does, which the readings' misfit does not tell apart
-#: (``twist-29`` from 3 s, under 0.17 N: misfit 5.1, and 231 mm off with the narrow
-#: prior against 67 mm with the wide one). Well beyond the tilt the IMUs' misalignment
-#: gives a reading (:attr:`TendonFormulation.initial_misalignment_std`, 1.7 degrees).
+#: (docs/tendon-studies.md, "The tip force's prior"). Well beyond the tilt the IMUs'
+#: misalignment gives a reading (:attr:`TendonFormulation.initial_misalignment_std`).
 FREE_START_MAX_BEND = math.radians(10.0)
 #: A start whose readings, fitted without a load, are less likely than this under their
 #: noise and the IMUs' own errors is taken to be under load (the wide prior). Lenient on
 #: purpose: a free start taken for a loaded one keeps the wide prior, which costs
 #: millimetres in the first seconds; a loaded start taken for a free one holds the load
-#: back, which costs far more (a start under 0.29 N across the bend, at 14.1 against the
-#: 99.9 % quantile's 22.5: 146 mm against the wide prior's 94 mm).
+#: back, which costs far more.
 LOADED_START_PROBABILITY = 0.05
 #: A tip force estimate (or its standard deviation) beyond this many times the buckling
 #: load, and beyond :data:`MAX_FORCE_FLOOR`, has diverged (:meth:`TendonFormulation.
@@ -812,9 +810,10 @@ class TendonFormulation(Formulation):
         the IMUs' misalignment and accelerometer bias tilt their readings as a small
         tip force would; under the wide prior the start and the first updates take them
         for a force, and the shape is off by millimetres until the robot has bent
-        enough to tell the two apart (docs/tendon-studies.md, "The tip force's prior"). Free of
-        load: fitted with the narrow prior, the readings' misfit (:meth:`start_misfit`)
-        is at most its chi-square quantile of :data:`LOADED_START_PROBABILITY`. Under
+        enough to tell the two apart (docs/tendon-studies.md, "The tip force's prior").
+        Free of load: fitted with the narrow prior, the readings' misfit
+        (:meth:`start_misfit`) is at most its chi-square quantile of
+        :data:`LOADED_START_PROBABILITY`. Under
         load, with tilt IMUs (where the narrow prior is not better on the recordings
         measured) and with :attr:`initial_force_std` given: the wide prior of
         :meth:`initial_cov`. Only the force's own prior narrows: its rate's stays wide,
@@ -835,14 +834,18 @@ class TendonFormulation(Formulation):
     def start_bend(self, z0: FloatArray) -> float:
         """The angle, rad, between the base axis and the tip's tangent in the unloaded
         equilibrium of the reading ``z0``'s tensions (inf where the statics find none)."""
-        n, k = self.n_imu_measurements, self.robot.n_tendons
-        tau = np.maximum(np.nan_to_num(np.asarray(z0, dtype=float)[n : n + k], nan=0.0), 0.0)
         try:
-            _, poses = self.statics.solve(np.zeros(3), tau)
+            _, poses = self.statics.solve(np.zeros(3), self._start_tensions(z0))
         except ArithmeticError:
             return math.inf
         tip = poses[Station(self.robot.n_sections - 1, 1.0)][0]
         return float(np.arccos(np.clip(tip[2, 2], -1.0, 1.0)))
+
+    def _start_tensions(self, z0: FloatArray) -> FloatArray:
+        """The tensions of the reading ``z0`` a start takes, N: a missing one as 0, and
+        none below 0."""
+        n, k = self.n_imu_measurements, self.robot.n_tendons
+        return np.maximum(np.nan_to_num(np.asarray(z0, dtype=float)[n : n + k], nan=0.0), 0.0)
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
         """The base curvature and the tip force that fit the IMUs best in equilibrium
@@ -866,7 +869,7 @@ class TendonFormulation(Formulation):
         :data:`LOADED_START_PROBABILITY` (inf and 0 without a valid reading)."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
-        tau = np.maximum(np.nan_to_num(z0[n : n + k], nan=0.0), 0.0)
+        tau = self._start_tensions(z0)
         k0, _ = self.statics.solve(np.zeros(3), tau)
         x = np.zeros(self.nx)
         x[:3], x[6 : 6 + k] = k0, tau
@@ -921,8 +924,7 @@ class TendonFormulation(Formulation):
         )  # fmt: skip
         if np.all(np.isfinite(fit.x)):
             x[free] = fit.x
-        inputs[0][:] = x
-        model.evaluate(inputs, out)
+        evaluate(x[free])  # out: the model's outputs at x (evaluated once)
         misfit, limit = self.start_misfit(out[nz * nx : nz * nx + n], valid)
         return x, misfit, limit
 
