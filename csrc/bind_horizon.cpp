@@ -119,6 +119,10 @@ void cmhe::bind_horizon(nb::module_& m) {
       .def_rw("solve_seconds", &MovingHorizon::solve_seconds,
               "Wall time of the last step's window solve, s (0 when it solved none; the "
               "Python hooks add their solves' to it).")
+      .def_prop_ro("step_seconds", [](MovingHorizon& h) { return h.step_seconds; },
+                   "Wall time of the last sample's step and finish, s: the prior's slide, "
+                   "the warm start, the solve, the covariance and the outputs with their "
+                   "standard deviations.")
       .def_prop_ro("cost", [](MovingHorizon& h) { return h.cost; },
                    "Window cost at the last certified solve's last iterate (NaN if none).")
       .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },

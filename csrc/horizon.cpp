@@ -190,8 +190,23 @@ void MovingHorizon::load(const double* Xs, bool slid) {
   solver.node_mask(zmask_nodes_.data());
 }
 
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
 int MovingHorizon::step(double t, const double* z, const double* mask, const double* u,
                         const double* Q, const double* Qinv, bool finish_) {
+  const auto entered = std::chrono::steady_clock::now();
+  step_seconds = 0.0;
+  const int outcome = step_body(t, z, mask, u, Q, Qinv, finish_);
+  step_seconds = seconds_since(entered);
+  return outcome;
+}
+
+int MovingHorizon::step_body(double t, const double* z, const double* mask, const double* u,
+                             const double* Q, const double* Qinv, bool finish_) {
   if (!has_prior) throw std::logic_error("the arrival prior is not set");
   solve_seconds = 0.0;
   solved = false;
@@ -224,7 +239,7 @@ int MovingHorizon::step(double t, const double* z, const double* mask, const dou
   const bool evaluated = reusable >= 0 && solver.tail != 0 && solver.shift_outputs(reusable, 0);
   const SqpResult r = solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated,
                                    evaluated ? reusable : -1);
-  solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  solve_seconds = seconds_since(start);
   iterations = r.iterations;
   cost = r.outcome == CONVERGED ? r.cost : std::numeric_limits<double>::quiet_NaN();
   if (r.outcome != CONVERGED) {
@@ -319,6 +334,7 @@ void MovingHorizon::node_weights(Index i, const double* x, double* w) {
 }
 
 void MovingHorizon::finish(const double* Xk, bool solved, const double* w_new, bool failed) {
+  const auto entered = std::chrono::steady_clock::now();
   if (Xk != X.data()) std::copy(Xk, Xk + n * nx, X.begin());
   has_X = true;
   if (solved) {
@@ -330,6 +346,7 @@ void MovingHorizon::finish(const double* Xk, bool solved, const double* w_new, b
   }
   keep_outputs(X.data(), solved ? D_sol.data() : nullptr, solved ? E_sol.data() : nullptr,
                failed, w_new);
+  step_seconds += seconds_since(entered);
 }
 
 // the kept answer's robust weights (robust loss; the newest node's are w_new when

@@ -85,6 +85,9 @@ class MovingHorizon {
   bool solved = false;  // the last step solved the window
   Index iterations = 0;
   double solve_seconds = 0.0;  // the last solve's wall time, s
+  // the last sample's wall time in step and finish (the prior's slide, the warm start,
+  // the solve, the covariance and the outputs with their standard deviations), s
+  double step_seconds = 0.0;
   // the window cost at the last solve's last evaluated iterate when it was certified
   // (NaN otherwise): the branch check's measure of the window's fit
   double cost = 0.0;
@@ -117,6 +120,9 @@ class MovingHorizon {
   bool cov_ok = false;
 
  private:
+  // step without its timing
+  int step_body(double t, const double* z, const double* mask, const double* u,
+                const double* Q, const double* Qinv, bool finish);
   void push(double t, const double* z, const double* mask, const double* u, const double* Q,
             const double* Qinv);
   void slide();

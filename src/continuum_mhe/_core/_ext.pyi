@@ -420,6 +420,12 @@ class MovingHorizon:
     def solve_seconds(self, arg: float, /) -> None: ...
 
     @property
+    def step_seconds(self) -> float:
+        """
+        Wall time of the last sample's step and finish, s: the prior's slide, the warm start, the solve, the covariance and the outputs with their standard deviations.
+        """
+
+    @property
     def cost(self) -> float:
         """Window cost at the last certified solve's last iterate (NaN if none)."""
 

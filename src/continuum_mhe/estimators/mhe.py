@@ -155,6 +155,7 @@ class ReferenceWindow:
         self.X_sol = self.X  # never certified: IPOPT's caller solves every window
         self.solved = False
         self.solve_seconds = 0.0
+        self.step_seconds = 0.0  # no compiled step
         self.has_prior = self.has_X = self.has_X_last = self.has_lam = False
         self.w_first = np.ones(len(self._blocks))
         self.w_last = np.ones(len(self._blocks))
@@ -582,6 +583,13 @@ class MovingHorizonInference(Inference):
     @solve_seconds.setter
     def solve_seconds(self, seconds: float) -> None:
         self._window.solve_seconds = seconds
+
+    @property
+    def step_seconds(self) -> float:
+        """The compiled step's time in the last sample, s: the arrival prior's slide, the
+        warm start, the window solve, the covariance and the outputs with their standard
+        deviations (0 on IPOPT)."""
+        return float(self._window.step_seconds)
 
     @property
     def _hooks(self) -> bool:
