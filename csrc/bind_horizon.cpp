@@ -121,8 +121,9 @@ void cmhe::bind_horizon(nb::module_& m) {
               "Python hooks add their solves' to it).")
       .def_prop_ro("step_seconds", [](MovingHorizon& h) { return h.step_seconds; },
                    "Wall time of the last sample's step and finish, s: the prior's slide, "
-                   "the warm start, the solve, the covariance and the outputs with their "
-                   "standard deviations.")
+                   "the warm start, the step's own window solve, the covariance and the "
+                   "outputs with their standard deviations (not the solves of Python hooks "
+                   "between the two; 0 for a sample that stepped no window).")
       .def_prop_ro("cost", [](MovingHorizon& h) { return h.cost; },
                    "Window cost at the last certified solve's last iterate (NaN if none).")
       .def_prop_ro("solved", [](MovingHorizon& h) { return h.solved; },

@@ -144,6 +144,7 @@ class HorizonInference final : public PolicyInference {
   int infer(double t, const double* z, const double* mask, double* x, double* P,
             bool& has_state, bool& has_cov) override {
     const size_t nx = h_.nx, nz = h_.nz;
+    h_.step_seconds = 0.0;  // a sample that does not step the window times nothing
     bool valid = false;
     for (size_t i = 0; i < nz && !valid; ++i) valid = mask[i] > 0.0;
     if (!h_.has_prior) {

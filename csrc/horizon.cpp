@@ -82,7 +82,7 @@ void MovingHorizon::restart() {
   cost = 0.0;
   outputs_at_last = -1;
   iterations = 0;
-  solve_seconds = 0.0;
+  solve_seconds = step_seconds = 0.0;
   std::fill(w_first.begin(), w_first.end(), 1.0);
   std::fill(w_last.begin(), w_last.end(), 1.0);
   forget_past();

@@ -86,7 +86,8 @@ class MovingHorizon {
   Index iterations = 0;
   double solve_seconds = 0.0;  // the last solve's wall time, s
   // the last sample's wall time in step and finish (the prior's slide, the warm start,
-  // the solve, the covariance and the outputs with their standard deviations), s
+  // the step's own window solve, the covariance and the outputs with their standard
+  // deviations; not the solves of Python hooks between the two), s
   double step_seconds = 0.0;
   // the window cost at the last solve's last evaluated iterate when it was certified
   // (NaN otherwise): the branch check's measure of the window's fit

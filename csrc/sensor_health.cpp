@@ -464,8 +464,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     diagnostics.max_noise_scale = std::max(diagnostics.max_noise_scale, scale);
     diagnostics.model_error = std::max(diagnostics.model_error, consistency_.model_error());
   }
-  out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-               .count();
   if (has_state) inference_.output(x, y);
   if (has_state && has_cov) {
     const int ny = s_.ny;
@@ -503,6 +501,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   out.status = status;
   out.has_state = has_state;
   out.has_cov = has_cov;
+  // the whole step, its outputs and their standard deviations included
+  out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+               .count();
   return INPUT_OK;
 }
 

@@ -422,7 +422,7 @@ class MovingHorizon:
     @property
     def step_seconds(self) -> float:
         """
-        Wall time of the last sample's step and finish, s: the prior's slide, the warm start, the solve, the covariance and the outputs with their standard deviations.
+        Wall time of the last sample's step and finish, s: the prior's slide, the warm start, the step's own window solve, the covariance and the outputs with their standard deviations (not the solves of Python hooks between the two; 0 for a sample that stepped no window).
         """
 
     @property

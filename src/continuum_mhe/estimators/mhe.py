@@ -587,8 +587,10 @@ class MovingHorizonInference(Inference):
     @property
     def step_seconds(self) -> float:
         """The compiled step's time in the last sample, s: the arrival prior's slide, the
-        warm start, the window solve, the covariance and the outputs with their standard
-        deviations (0 on IPOPT)."""
+        warm start, the step's own window solve, the covariance and the outputs with
+        their standard deviations (not the solves of the Python hooks, which
+        :attr:`solve_seconds` counts; 0 on IPOPT and for a sample that stepped no
+        window)."""
         return float(self._window.step_seconds)
 
     @property
