@@ -3,6 +3,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/vector.h>
 
+#include <chrono>
 #include <cstring>
 #include <initializer_list>
 #include <stdexcept>
@@ -98,17 +99,24 @@ void cmhe::bind_filter(nb::module_& m) {
             check_size(Q, nx * nx, "Q");
             Sample s = sample(n, u, z, mask, u.size());
             Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+            Out y = new_array({ny}), sd = new_array({ny});
+            const auto start = std::chrono::steady_clock::now();
             if (!n.ekf_step(xn.data(), Pn.data(), s.u, dt, s.z, s.mask, R.data(), Q.data()))
               throw std::runtime_error("singular innovation covariance in the EKF update");
-            Out y = new_array({ny}), sd = new_array({ny});
             n.output(xn.data(), y.data());
             n.output_std(xn.data(), Pn.data(), sd.data());
+            n.step_seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
             return nb::make_tuple(xn, Pn, y, sd);
           },
           nb::arg("x"), nb::arg("P"), nb::arg("u"), nb::arg("dt"), nb::arg("z"),
           nb::arg("mask"), nb::arg("R"), nb::arg("Q"),
           "One EKF step, then the outputs and their standard deviations: "
           "``(x+, P+, y, std)``.")
+      .def_prop_ro("step_seconds", [](NodeModel& n) { return n.step_seconds; },
+                   "Wall time of the last ``ekf_step_outputs`` call's arithmetic (the "
+                   "step, the outputs and their standard deviations; not its arrays' "
+                   "conversion), s.")
       .def(
           "output",
           [](NodeModel& n, In x) {

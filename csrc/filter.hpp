@@ -78,6 +78,10 @@ class NodeModel {
   // consecutive calls at the same x.
   void output_std(const double* x, const double* P, double* std);
 
+  // wall time of the last ``ekf_step_outputs`` binding call's arithmetic (the step, the
+  // outputs and their standard deviations; not its arrays' conversion), s
+  double step_seconds = 0.0;
+
  private:
   void set_sample(const double* u, double dt, const double* z, const double* mask);
   // x into x_, then the node functions' inputs (x, u, dt, z, mask) of the sample set

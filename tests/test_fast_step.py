@@ -12,8 +12,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 import continuum_mhe._core as _core
-from continuum_mhe.benchmark.kernels import run_mhe_kernel
+from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.estimators.base import Measurement
+from continuum_mhe.estimators.fast import NodeEvaluator
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, MovingHorizonInference
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
@@ -54,6 +55,20 @@ def test_the_kernel_row_reads_the_compiled_steps_time(monkeypatch: pytest.Monkey
     monkeypatch.setattr(MovingHorizonInference, "step_seconds", property(lambda self: 0.125))
     _, sec, _ = run_mhe_kernel(f, rec, 10)
     assert np.all(sec == 0.125)
+
+
+def test_the_ekf_kernel_row_is_timed_inside_the_core_as_the_mhes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The EKF's kernel row reads the core's time of each step (as the MHE's row does),
+    and that time is a positive wall time of that step alone."""
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=2.0, seed=4)
+    _, sec = run_ekf_kernel(f, rec)
+    assert np.all(sec[1:] > 0) and sec[0] == 0  # the first sample is the EKF's start
+    monkeypatch.setattr(NodeEvaluator, "step_seconds", property(lambda self: 0.25))
+    _, sec = run_ekf_kernel(f, rec)
+    assert np.all(sec[1:] == 0.25)
 
 
 @pytest.mark.parametrize("robot", [None, TWO], ids=["one-section", "two-sections"])

@@ -287,6 +287,12 @@ class NodeModel:
         One EKF step, then the outputs and their standard deviations: ``(x+, P+, y, std)``.
         """
 
+    @property
+    def step_seconds(self) -> float:
+        """
+        Wall time of the last ``ekf_step_outputs`` call's arithmetic (the step, the outputs and their standard deviations; not its arrays' conversion), s.
+        """
+
     def output(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """The outputs of state ``x`` (wrapped angles in [-pi, pi))."""
 

@@ -76,8 +76,7 @@ METHOD_NOTES: dict[str, str] = {
     "fast": "fast MHE (structure-exploiting SQP): the whole estimator step",
     "mhe-kernel": "the fast MHE's compiled step alone (arrival slide, shift, guess, "
     "SQP, covariance, outputs and their std), no estimator interface, timed inside the "
-    "core (ekf-kernel's time includes its call from Python, a few us) (fallbk: windows "
-    "not certified)",
+    "core, as ekf-kernel (fallbk: windows not certified)",
     "ipopt": "MHE solved by IPOPT through CasADi (the paper's solver): the whole step",
     "do-mpc": "do-mpc's MHE (IPOPT) given the same window cost through its API: "
     "make_step plus our EKF arrival step; its first N estimates differ (no growing "
@@ -88,8 +87,7 @@ METHOD_NOTES: dict[str, str] = {
     "returns): the whole estimator step",
     "ekf-kernel": "the compiled EKF step with its outputs and their std (what "
     "mhe-kernel hands back) in one call alone, no estimator interface (validation, "
-    "masks, divergence check); inputs prepared outside; timed around the call from "
-    "Python",
+    "masks, divergence check); inputs prepared outside; timed inside the core",
 }
 
 

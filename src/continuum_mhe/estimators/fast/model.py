@@ -300,6 +300,12 @@ class NodeEvaluator:
             _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
         )
 
+    @property
+    def step_seconds(self) -> float:
+        """Wall time of the last :meth:`ekf_step_outputs` call's arithmetic in the core
+        (the step, the outputs and their standard deviations), s."""
+        return float(self._core.step_seconds)
+
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
         """One standard deviation of every output for a state with mean ``x`` and
         covariance ``P``: the same as :meth:`Formulation.output_std`."""
