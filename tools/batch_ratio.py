@@ -1,7 +1,7 @@
 """A batch ``continuum-mhe estimate``'s wall time per sample against the median
-``solve_ms`` it reports (the compiled step alone): what the command costs beyond the
-solve (start-up, reading and checking the input, the policy's Python per block,
-writing the estimates).
+``solve_ms`` it reports (the estimator's whole step, its outputs and their standard
+deviations included): what the command costs beyond the estimator (start-up, reading
+and checking the input, the policy's Python per block, writing the estimates).
 
 The recording is ``continuum-mhe simulate paper3d --duration 500`` (10,001 samples),
 and ``copies`` of it end to end, each one's ``t`` shifted after the one before::
