@@ -854,6 +854,38 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     assert json.loads(shifted)["tip_mean_mm"] == pytest.approx(same["tip_mean_mm"], abs=1e-9)
 
 
+def test_evaluate_skip_start_scores_the_rows_after_the_start_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--skip-start 1``: the scores are those of the estimate rows from 1 s after its
+    first on, the tip error's mean and maximum computed here from the two files; a skip
+    that leaves fewer than two rows is one line and exit 2."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--seed", "3",
+                 "--duration", "4"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    e, tr = read_state_table(est), read_state_table(truth)
+    assert np.array_equal(e.t, tr.t)
+    tip = np.linalg.norm(np.column_stack([e.column(c) - tr.column(c) for c in "xyz"]), axis=1)
+    later = e.t >= e.t[0] + 1.0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--skip-start", "1", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["n"] == int(later.sum()) < len(e.t)
+    assert got["tip_mean_mm"] == pytest.approx(1e3 * float(tip[later].mean()), rel=1e-9)
+    assert got["tip_max_mm"] == pytest.approx(1e3 * float(tip[later].max()), rel=1e-9)
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    whole = json.loads(capsys.readouterr().out)
+    assert whole["tip_mean_mm"] == pytest.approx(1e3 * float(tip.mean()), rel=1e-9)
+    assert whole["tip_mean_mm"] != pytest.approx(got["tip_mean_mm"], rel=1e-3)
+    assert main(["evaluate", str(est), str(truth), "--skip-start", "10"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err == (
+        f"continuum-mhe: error: {est}: fewer than two rows after --skip-start 10 s (its rows "
+        "span 4 s)\n"
+    )
+
+
 def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

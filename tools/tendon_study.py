@@ -102,7 +102,11 @@ def main() -> None:
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
     p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     p.add_argument("--floor-only", action="store_true", help="only the model floor")
-    p.add_argument("--errors", type=Path, help="write t, tip and mid error (m) per sample here")
+    p.add_argument(
+        "--errors",
+        type=Path,
+        help="write t, tip and mid error (m) and tip-force error (N) per sample here",
+    )
     a = p.parse_args()
     robot = read_robot(a.robot)
     used = [robot.n_imus - 1] if a.tip_imu_only else list(range(robot.n_imus))
@@ -149,8 +153,10 @@ def main() -> None:
 
     force = [cols.index(n) for n in ("fx", "fy", "fz")]
     if a.errors is not None:
-        rows = np.column_stack([t[keep], err(("x", "y", "z")), err(("x_1", "y_1", "z_1"))])
-        np.savetxt(a.errors, rows, delimiter=",", header="t,tip,mid", comments="")
+        rows = np.column_stack(
+            [t[keep], err(("x", "y", "z")), err(("x_1", "y_1", "z_1")), err(("fx", "fy", "fz"))]
+        )
+        np.savetxt(a.errors, rows, delimiter=",", header="t,tip,mid,force", comments="")
     tip_error = err(("x", "y", "z"))
     ok_over_5mm = int(np.sum((series.status[keep] == "ok") & (tip_error > 5e-3)))
     statuses: dict[str, int] = {}

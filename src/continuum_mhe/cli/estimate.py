@@ -409,7 +409,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "measurements", help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap"
     )
     p.add_argument(
-        "-o", "--output", required=True, help="estimate file to write: CSV (.csv), or MCAP (.mcap)"
+        "-o",
+        "--output",
+        required=True,
+        help="estimate file to write: MCAP where the name ends in .mcap, else CSV",
     )
     add_overwrite_option(p)
     add_config_option(p)

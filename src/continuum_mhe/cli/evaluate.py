@@ -37,10 +37,13 @@ from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
-def _align(path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable) -> Aligned:
+def _align(
+    path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable, skipped: bool = False
+) -> Aligned:
     """The estimate rows compared and the truth's values at them
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
-    interpolated)."""
+    interpolated; ``skipped``: the estimate's first rows were left out by
+    ``--skip-start``)."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
@@ -67,7 +70,8 @@ def _align(path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable)
             f"{PROG}: warning: {path_est}: its rows cover t = {time_text(covered[0])} to "
             f"{time_text(covered[-1])} s of {path_truth}'s {time_text(t0)} to {time_text(t1)} s "
             f"({100 * share:.0f} %): "
-            "the scores are of that part only (an interrupted or cut estimate?)",
+            "the scores are of that part only (an interrupted or cut estimate"
+            f"{', or --skip-start' if skipped else ''}?)",
             file=sys.stderr,
         )
     return Aligned(i_est, rows)
@@ -138,8 +142,30 @@ def _shift_hint(
     )
 
 
+def _after_start(path: str, est: StateTable, seconds: float) -> StateTable:
+    """The rows of ``est`` from ``seconds`` after its first row on (``--skip-start``: the
+    start's transient left out of the scores)."""
+    if seconds <= 0.0:
+        return est
+    keep = est.t >= est.t[0] + seconds
+    if int(keep.sum()) < 2:
+        raise InputError(
+            f"{path}: fewer than two rows after --skip-start {seconds:g} s (its rows span "
+            f"{time_text(float(est.t[-1] - est.t[0]))} s)"
+        )
+    return replace(
+        est,
+        t=est.t[keep],
+        values=est.values[keep],
+        status=est.status[keep],
+        std=None if est.std is None else est.std[keep],
+        outlier=None if est.outlier is None else est.outlier[keep],
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
+    est = _after_start(args.estimates, est, args.skip_start)
     truth = read_state_table(args.truth)
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier
         truth = replace(truth, t=truth.t - args.truth_shift)
@@ -151,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
-    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth)
+    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth, args.skip_start > 0)
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
@@ -220,7 +246,12 @@ def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
         return "calibration          no std_ columns in the estimate file"
     cover = ", ".join(f"{k} {v:.3f}" for k, v in c.coverage.items())
     lo, hi = c.tip_nees_band
-    inside = "inside" if lo <= c.tip_nees <= hi else "outside"
+    if c.tip_nees < lo:  # what each side means, for a reader who meets the NEES here
+        inside = "outside, below: the intervals are wider than the errors"
+    elif c.tip_nees > hi:
+        inside = "outside, above: the intervals are narrower than the errors"
+    else:
+        inside = "inside"
     return (
         f"95% interval coverage {cover} (0.95 when calibrated)\n"
         f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 when calibrated; "
@@ -286,5 +317,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="compare each estimate row with the truth SECONDS later (a truth on a clock "
         "offset from the estimate's; the warning of an offset names the shift)",
+    )
+    p.add_argument(
+        "--skip-start",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="score only the estimate rows from SECONDS after its first row on (the start's "
+        "transient left out; the scores of docs/tendon.md are from 1 s on)",
     )
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -45,7 +45,10 @@ def add_robot_option(
 ) -> None:
     """``--robot ROBOT.toml``; its help names ``replaces``, the command's one-section
     options that a robot file overrides."""
-    text = "robot file (sections, IMUs, mounting; see README)"
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    names = ", ".join(shipped_robots())
+    text = f"robot file (sections, IMUs, mounting; see README), or a shipped robot's name ({names})"
     if replaces:
         *first, last = replaces
         text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
@@ -768,6 +771,7 @@ OPTION_RANGES: dict[str, OptionRange] = {
     ),
     "reading_bias_deg": OptionRange(0.0, 90.0, "deg", above="--reading-bias-deg is in degrees"),
     "truth_shift": OptionRange(-1e6, 1e6, "s"),
+    "skip_start": OptionRange(0.0, 1e6, "s"),
     "pair_tolerance": OptionRange(0.0, 10.0, "s", lo_open=True,
                                   above="milliseconds? --pair-tolerance is in seconds"),
     "view_hz": OptionRange(0.0, 10_000.0, "Hz"),
