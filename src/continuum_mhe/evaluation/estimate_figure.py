@@ -289,8 +289,9 @@ def estimate_figure(
             sd = _stds(est, p)
             if sd is not None:
                 half = Z95 * sd[:, j] * 1e3
-                ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0,
-                                label="95 % band" if i == 0 else None)  # fmt: skip
+                ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0)
+                if j == 0 and i == 0:  # one grey entry: each point's band is in its colour
+                    ax.fill_between([], [], [], color="0.5", alpha=0.3, lw=0, label="95 % band")
             tp = in_truth[i]
             if truth is not None and tp is not None:
                 first_truth = tp is next(p for p in in_truth if p is not None)
