@@ -871,7 +871,7 @@ def test_evaluate_skip_start_scores_the_rows_after_the_start_alone(
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth), "--skip-start", "1", "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
-    assert got["n"] == int(later.sum()) < len(e.t)
+    assert got["n"] == int(later.sum()) < len(e.t) and got["skip_start_s"] == 1.0
     assert got["tip_mean_mm"] == pytest.approx(1e3 * float(tip[later].mean()), rel=1e-9)
     assert got["tip_max_mm"] == pytest.approx(1e3 * float(tip[later].max()), rel=1e-9)
     assert main(["evaluate", str(est), str(truth), "--json"]) == 0
@@ -884,6 +884,40 @@ def test_evaluate_skip_start_scores_the_rows_after_the_start_alone(
         f"continuum-mhe: error: {est}: fewer than two rows after --skip-start 10 s (its rows "
         "span 4 s)\n"
     )
+
+
+def test_skip_start_keeps_the_row_at_its_time_and_starts_at_the_first_finite_time() -> None:
+    """Rows 0.01 s apart from t = 0.29 s, the first time NaN (a row without an estimate):
+    ``--skip-start 1`` keeps the rows from 1.30 s on, the row at 1.30 s included (its
+    time, 1.2999999999999998, rounds below 0.30000000000000004 + 1), and no other."""
+    from continuum_mhe.cli.evaluate import _after_start
+    from continuum_mhe.io.csv_files import StateTable
+
+    t = 0.14 + 0.01 * np.arange(15, 315)
+    t[0] = np.nan
+    assert t[101] < t[1] + 1.0
+    table = StateTable(
+        t=t, names=("x",), values=t[:, None].copy(), status=np.full(300, "ok"),
+        std=np.ones((300, 1)), outlier=np.zeros(300, bool),
+    )  # fmt: skip
+    kept = _after_start("e.csv", table, 1.0)
+    assert len(kept.t) == 300 - 101 and kept.t[0] == t[101]  # 0.15 + 1.0, to rounding
+    assert np.array_equal(kept.values[:, 0], t[101:]) and kept.std is not None
+    assert kept.std.shape == (199, 1) and kept.outlier is not None and len(kept.outlier) == 199
+
+
+def test_the_tip_nees_line_says_which_side_of_its_band_and_what_it_means() -> None:
+    """Below the band the intervals are wider than the errors, above it narrower."""
+    from continuum_mhe.cli.evaluate import format_calibration
+    from continuum_mhe.evaluation.metrics import Calibration
+
+    def line(nees: float) -> str:
+        c = Calibration({"x": 0.95}, {"x": 100}, nees, (2.7, 3.3), 100)
+        return format_calibration(c).splitlines()[1]
+
+    assert line(3.0).endswith("95% band 2.70 to 3.30: inside)")
+    assert line(0.6).endswith(": outside, below: the intervals are wider than the errors)")
+    assert line(9.0).endswith(": outside, above: the intervals are narrower than the errors)")
 
 
 def test_a_truth_on_its_own_clock_is_interpolated_at_the_estimates_times(

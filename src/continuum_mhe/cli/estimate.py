@@ -412,7 +412,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         required=True,
-        help="estimate file to write: MCAP where the name ends in .mcap, else CSV",
+        help="estimate file to write: CSV (.csv, .txt or no suffix) or MCAP (.mcap)",
     )
     add_overwrite_option(p)
     add_config_option(p)

@@ -38,12 +38,16 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
 def _align(
-    path_est: str, t_est: np.ndarray, path_truth: str, truth: StateTable, skipped: bool = False
+    path_est: str,
+    t_est: np.ndarray,
+    path_truth: str,
+    truth: StateTable,
+    scored_from: float | None = None,
 ) -> Aligned:
     """The estimate rows compared and the truth's values at them
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
-    interpolated; ``skipped``: the estimate's first rows were left out by
-    ``--skip-start``)."""
+    interpolated; ``scored_from``: the time from which ``--skip-start`` scores, s, the
+    start of the span the rows should cover)."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
@@ -64,14 +68,15 @@ def _align(
         print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
+    if scored_from is not None:
+        t0 = min(max(t0, scored_from), t1)
     share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
     if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
         print(
             f"{PROG}: warning: {path_est}: its rows cover t = {time_text(covered[0])} to "
             f"{time_text(covered[-1])} s of {path_truth}'s {time_text(t0)} to {time_text(t1)} s "
             f"({100 * share:.0f} %): "
-            "the scores are of that part only (an interrupted or cut estimate"
-            f"{', or --skip-start' if skipped else ''}?)",
+            "the scores are of that part only (an interrupted or cut estimate?)",
             file=sys.stderr,
         )
     return Aligned(i_est, rows)
@@ -142,16 +147,29 @@ def _shift_hint(
     )
 
 
+#: ``--skip-start`` keeps a row this close before its time (s): the rows' times rounded
+#: as ``evaluate`` matches them
+SKIP_TOLERANCE = 1e-6
+
+
+def _scored_from(est: StateTable, seconds: float) -> float | None:
+    """The time from which ``--skip-start SECONDS`` scores, s: that long after the
+    estimate's first row with a finite time (None without a skip or such a row)."""
+    finite = est.t[np.isfinite(est.t)]
+    return float(finite.min()) + seconds if seconds > 0.0 and len(finite) else None
+
+
 def _after_start(path: str, est: StateTable, seconds: float) -> StateTable:
     """The rows of ``est`` from ``seconds`` after its first row on (``--skip-start``: the
     start's transient left out of the scores)."""
-    if seconds <= 0.0:
+    start = _scored_from(est, seconds)
+    if start is None:
         return est
-    keep = est.t >= est.t[0] + seconds
+    keep = est.t >= start - SKIP_TOLERANCE
     if int(keep.sum()) < 2:
         raise InputError(
             f"{path}: fewer than two rows after --skip-start {seconds:g} s (its rows span "
-            f"{time_text(float(est.t[-1] - est.t[0]))} s)"
+            f"{time_text(float(np.nanmax(est.t) - np.nanmin(est.t)))} s)"
         )
     return replace(
         est,
@@ -165,7 +183,6 @@ def _after_start(path: str, est: StateTable, seconds: float) -> StateTable:
 
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
-    est = _after_start(args.estimates, est, args.skip_start)
     truth = read_state_table(args.truth)
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier
         truth = replace(truth, t=truth.t - args.truth_shift)
@@ -177,7 +194,9 @@ def run(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
-    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth, args.skip_start > 0)
+    scored_from = _scored_from(est, args.skip_start)
+    est = _after_start(args.estimates, est, args.skip_start)
+    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth, scored_from)
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
@@ -222,7 +241,9 @@ def run(args: argparse.Namespace) -> int:
             "calibration_ok": None if cal_ok is None else cal_ok.as_dict(),
         }
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
-        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched}, indent=2))
+        skip = {"skip_start_s": args.skip_start}
+        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched, **skip},
+                         indent=2))  # fmt: skip
     else:
         print(format_metrics(m, comparable=not hint))
         print(format_calibration(cal, est.std_columns))

@@ -278,6 +278,7 @@ def estimate_figure(
     grid = fig.add_gridspec(rows, 2, width_ratios=(1.7, 1.0))
     first = fig.add_subplot(grid[0, 0])
     axes = [first] + [fig.add_subplot(grid[r, 0], sharex=first) for r in range(1, rows)]
+    band_named = False  # the legend's one entry for the bands
     for j, axis in enumerate("xyz"):
         ax = axes[j]
         drawn: list[np.ndarray] = []  # the panel's lines, which its limits show whole
@@ -290,8 +291,9 @@ def estimate_figure(
             if sd is not None:
                 half = Z95 * sd[:, j] * 1e3
                 ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0)
-                if j == 0 and i == 0:  # one grey entry: each point's band is in its colour
+                if j == 0 and not band_named:  # one grey entry: each band is in its colour
                     ax.fill_between([], [], [], color="0.5", alpha=0.3, lw=0, label="95 % band")
+                    band_named = True
             tp = in_truth[i]
             if truth is not None and tp is not None:
                 first_truth = tp is next(p for p in in_truth if p is not None)
