@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from continuum_mhe.analysis.observability import observability_report, verdict
+from continuum_mhe.analysis.observability import model_check, observability_report, verdict
 from continuum_mhe.cli import main
 from continuum_mhe.errors import UnobservableShapeWarning
 from continuum_mhe.estimators import make_estimator
@@ -58,6 +58,36 @@ def test_check_robot_calls_an_under_instrumented_robot_not_observable(
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"].startswith("NOT observable")
     assert report["tilt"]["full_rank_fraction"] == 0.0
+
+
+def test_check_robot_says_whether_tilt_leaves_readings_to_check_the_model(
+    tmp_path: Path, capsys
+) -> None:
+    """Two IMUs on two sections: four tilt readings for four bend coordinates, none left
+    over to check the constant-curvature model (said, with the gyros as the remedy); a
+    third IMU mid-section leaves two; a robot whose tilt does not determine its shape gets
+    no such line (its verdict says more)."""
+    two = observability_report(Robot(TWO, (ImuPlacement(0), ImuPlacement(1))), samples=50)
+    assert model_check(two) is not None and model_check(two).startswith(
+        "tilt gives 4 readings a sample for 4 bend coordinates, none left over:"
+    )
+    assert "raw IMUs' gyros" in model_check(two)
+    three = Robot(TWO, (ImuPlacement(0, 0.5), ImuPlacement(0), ImuPlacement(1)))
+    assert model_check(observability_report(three, samples=50)) == (
+        "tilt gives 6 readings a sample for 4 bend coordinates: 2 left over check the "
+        "constant-curvature model at every sample"
+    )
+    assert model_check(observability_report(TIP_ONLY, samples=50)) is None
+    path = tmp_path / "two.toml"
+    path.write_text(
+        "[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n"
+        "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    assert main(["check-robot", str(path), "--samples", "50"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2] == f"model check: {model_check(two)}" and lines[-1].startswith("verdict:")
+    assert main(["check-robot", str(path), "--samples", "50", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["model_check"] == model_check(two)
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])

@@ -80,7 +80,7 @@ class ObservabilityReport:
     n_tendons: int = 0
 
     def as_dict(self) -> dict[str, object]:
-        return {**asdict(self), "verdict": verdict(self)}
+        return {**asdict(self), "model_check": model_check(self), "verdict": verdict(self)}
 
 
 #: Fraction of sampled shapes at which the one-sample tilt Jacobian must have full rank
@@ -113,6 +113,31 @@ def verdict(r: ObservabilityReport) -> str:
     return (
         f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
         "of shapes (the least observable are listed above)"
+    )
+
+
+def model_check(r: ObservabilityReport) -> str | None:
+    """What in the tilt readings can check the constant-curvature model, for a robot
+    without a mechanics model (None for a tendon robot, and where tilt does not determine
+    the shape): the readings a sample beyond its bend coordinates. Where there are none,
+    the one-sample tilt Jacobian is square and of full rank, so the readings of a nearby
+    shape off constant curvature (a twist, a bend that is not an arc under a load) are
+    fitted exactly by another constant-curvature shape."""
+    t = r.tilt
+    if r.tendon_force is not None or t.full_rank_fraction == 0.0:
+        return None
+    spare = t.rows - t.cols
+    if spare > 0:
+        return (
+            f"tilt gives {t.rows} readings a sample for {t.cols} bend coordinates: {spare} "
+            "left over check the constant-curvature model at every sample"
+        )
+    return (
+        f"tilt gives {t.rows} readings a sample for {t.cols} bend coordinates, none left "
+        "over: the readings of a robot off constant curvature (a twist, a load) are fitted "
+        "exactly by another constant-curvature shape, and its rows read ok unless the "
+        "motion between samples gives it away (docs/uncertainty.md); raw IMUs' gyros (3 "
+        "readings each a sample) check the shape"
     )
 
 
@@ -360,5 +385,8 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             f"smallest singular value tilt {k['tilt']:.1e}, tilt window {k['tilt_window']:.1e}, "
             f"with gyros {k['gyro_window']:.1e}"
         )
+    check = model_check(r)
+    if check is not None:
+        lines.append(f"model check: {check}")
     lines.append(f"verdict: {verdict(r)}")
     return "\n".join(lines)
