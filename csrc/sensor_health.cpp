@@ -446,6 +446,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (forced) forced_t_.push_back(t);
     const bool storm = static_cast<int>(forced_t_.size()) >= kRestartRun;
     if (storm && trusted(status)) status = ST_UNCERTAIN;
+    // a model whose restarts are limited (a chain, start_chain): a bad start that follows
+    // another within its probation time says the readings contradicted the last start,
+    // and the filter started again on them may narrow around a shape that its error
+    // states bend to the readings; no row is trusted until a restart has held for the
+    // probation time (the chain ends)
+    if (s_.start_chain > 0 && chain_ >= kChainUntrusted && trusted(status))
+      status = ST_UNCERTAIN;
     // a restart the readings forced fits this one reading; the next start_samples
     // readings the check compares with the estimate (judged rows, not an outlier's)
     // confirm it when they agree, and until then it is not trusted

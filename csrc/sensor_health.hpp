@@ -249,6 +249,8 @@ class SensorHealth {
   // has held back a restart since the chain began
   int chain_ = 0;
   bool chain_held_ = false;
+  // bad starts in a row from which the rows are uncertain until the chain ends
+  static constexpr int kChainUntrusted = 2;
   void end_chain() {
     chain_ = 0;
     chain_held_ = false;
