@@ -487,15 +487,30 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              bool checks_start, bool shape_observable, std::vector<double> start_limit,
              int start_samples, int start_chain, double unobserved_after, double degrees_like,
              std::vector<int> whole_rows, nb::object process_noise, nb::object inputs,
-             nb::object observable, const StateChecks* checks) {
+             nb::object observable, const StateChecks* checks, std::vector<int> change_rows,
+             std::vector<double> change_scale, std::vector<double> change_psd,
+             std::vector<double> change_limit, double change_lag) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
                              uncertain_fraction, length, checks_start, shape_observable,
                              std::move(start_limit), start_samples, start_chain, unobserved_after,
-                             degrees_like, std::nullopt};
+                             degrees_like, std::nullopt, std::move(whole_rows), {}, {}, {},
+                             {}, 0.0};
             if (checks) s.checks = *checks;
-            s.whole_rows = std::move(whole_rows);
+            const size_t m = change_rows.size();
+            if (change_scale.size() != m || change_psd.size() != m ||
+                (m > 0 && change_limit.size() < m + 1))
+              throw std::invalid_argument(
+                  "change_scale and change_psd need one value per change row, change_limit "
+                  "one per degree of freedom after index 0");
+            for (int r : change_rows)
+              if (r < 0 || r >= nx) throw std::invalid_argument("a change row is not a state");
+            s.change_rows = std::move(change_rows);
+            s.change_scale = std::move(change_scale);
+            s.change_psd = std::move(change_psd);
+            s.change_limit = std::move(change_limit);
+            s.change_lag = change_lag;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -523,14 +538,22 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("start_samples"), nb::arg("start_chain"), nb::arg("unobserved_after"),
           nb::arg("degrees_like"),
           nb::arg("whole_rows"), nb::arg("process_noise"),
-          nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
+          nb::arg("inputs"), nb::arg("observable"), nb::arg("checks").none(),
+          nb::arg("change_rows") = std::vector<int>(),
+          nb::arg("change_scale") = std::vector<double>(),
+          nb::arg("change_psd") = std::vector<double>(),
+          nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
+          nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
           "block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout "
           "as a whole; settings in s and rad, NaN where off; "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, "
           "``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the "
-          "inference's is_diverged, drifted and at_bound).")
+          "inference's is_diverged, drifted and at_bound); ``change_rows``, ``change_scale``, "
+          "``change_psd``, ``change_limit``, ``change_lag``: the estimate-change test of "
+          "slowly varying states (rows, prior std, white-noise density per s, chi-square "
+          "limit by dof from index 1, lag s; no rows: off).")
       .def(
           "reset",
           [](Policy& p, bool keep_counts) {

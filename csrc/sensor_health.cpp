@@ -1,5 +1,7 @@
 #include "sensor_health.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 
@@ -130,6 +132,7 @@ void SensorHealth::restart() {
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
+  change_past_.clear();  // a restart's estimate jumps: its change says nothing
   inference_.restart();
 }
 
@@ -335,6 +338,48 @@ bool SensorHealth::diverged(const double* x, const double* P) {
   return s_.checks ? s_.checks->is_diverged(x, P) : inference_.is_diverged(x, P);
 }
 
+bool SensorHealth::changed_too_fast(double t, const double* x, const double* P) {
+  const auto& rows = s_.change_rows;
+  const int m = static_cast<int>(rows.size()), nx = s_.nx;
+  ChangeEntry now{t, std::vector<double>(m), std::vector<double>(static_cast<size_t>(m) * m)};
+  for (int i = 0; i < m; ++i) {
+    now.x[i] = x[rows[i]];
+    for (int j = 0; j < m; ++j) now.P[i * m + j] = P[static_cast<size_t>(rows[i]) * nx + rows[j]];
+  }
+  // the latest remembered estimate at least the lag ago (the older ones are not needed)
+  while (change_past_.size() >= 2 && change_past_[1].t <= t - s_.change_lag)
+    change_past_.pop_front();
+  bool beyond = false;
+  if (!change_past_.empty() && change_past_.front().t <= t - s_.change_lag) {
+    const ChangeEntry& then = change_past_.front();
+    const double dt = t - then.t;
+    Eigen::MatrixXd S(m, m);
+    Eigen::VectorXd d(m);
+    for (int i = 0; i < m; ++i) {
+      const double si = s_.change_scale[i];
+      d[i] = (now.x[i] - then.x[i]) / si;
+      for (int j = 0; j < m; ++j)
+        S(i, j) = (then.P[i * m + j] - now.P[i * m + j] + (i == j ? s_.change_psd[i] * dt : 0.0)) /
+                  (si * s_.change_scale[j]);
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (S + S.transpose()));
+    // directions with little information gained are left out: the estimate may not move
+    // there, and a change below the rounding of P says nothing
+    const Eigen::VectorXd w = eig.eigenvalues();
+    const Eigen::VectorXd y = eig.eigenvectors().transpose() * d;
+    double stat = 0.0;
+    int dof = 0;
+    for (int i = 0; i < m; ++i)
+      if (w[i] > kChangeFloor) {
+        stat += y[i] * y[i] / w[i];
+        ++dof;
+      }
+    beyond = dof > 0 && std::isfinite(stat) && stat > s_.change_limit[dof];
+  }
+  change_past_.push_back(std::move(now));
+  return beyond;
+}
+
 int SensorHealth::infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                              bool& has_cov, bool& failed) {
   failed = false;
@@ -418,6 +463,15 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
   if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
+  if (!s_.change_rows.empty()) {
+    if (has_state && has_cov) {
+      // the IMU errors moved faster than their model allows: the readings are followed
+      // with errors that change, as a model that does not describe the robot needs
+      if (changed_too_fast(t, x, P) && status == ST_OK) status = ST_DRIFTED;
+    } else {
+      change_past_.clear();
+    }
+  }
   if (trusted(status) && !observed) {
     status = ST_UNCERTAIN;  // the data do not determine the shape
   } else if (trusted(status) && !returned_.empty()) {

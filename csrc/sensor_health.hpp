@@ -151,6 +151,13 @@ struct PolicySettings {
   // rows without which a sample is a dropout as a whole (a tendon robot's tensions and
   // their derivatives: its IMUs' model needs them)
   std::vector<int> whole_rows;
+  // The estimate-change test of slowly varying states (a tendon robot's IMU errors,
+  // random walks): their rows, prior standard deviations (the test's units) and
+  // white-noise densities (per s), the lag (s), and the chi-square limit by degrees of
+  // freedom (index 0 unused). No rows: off.
+  std::vector<int> change_rows;
+  std::vector<double> change_scale, change_psd, change_limit;
+  double change_lag = 0.0;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -218,6 +225,16 @@ class SensorHealth {
   bool consistency_check(double t, const double* z, const double* judged, const double* x,
                          const double* P, bool has_state, bool has_cov);
   bool diverged(const double* x, const double* P);
+  // Whether the change-test states moved between the estimate ``change_lag`` ago and
+  // this one (x, P) beyond what their model allows: the change d against the covariance
+  // the information gained and their random walk give it, ``P_then + Q(dt) - P_now``;
+  // remembers this estimate
+  bool changed_too_fast(double t, const double* x, const double* P);
+  struct ChangeEntry {
+    double t;
+    std::vector<double> x, P;  // the change-test states and their covariance block
+  };
+  std::deque<ChangeEntry> change_past_;
   int infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                  bool& has_cov, bool& failed);
 
@@ -260,6 +277,9 @@ class SensorHealth {
   // the longer; kRestartRun of them make every estimate meanwhile uncertain
   std::deque<double> forced_t_;
   static constexpr int kRestartRun = 4;
+  // the estimate-change test's least eigenvalue of the change's covariance, in the
+  // states' prior variances: below it a direction gained too little to be tested
+  static constexpr double kChangeFloor = 1e-4;
   std::vector<double> prev_x_, prev_P_, prev_z_;
   std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
   // the consistency check's previous sample

@@ -91,9 +91,9 @@ class Status(str, Enum):
         "the state is not one the model holds: the paper formulation's position state "
         "more than DRIFT_FRACTION (10 %) of the length from the forward kinematics of the "
         "row's own theta and phi (its separate x, y, z), or a tendon robot's IMU error "
-        "states beyond their prior (chi-square 99.9 %: the model follows the readings "
-        "only with IMU errors the IMUs are not taken to have; wrong tensions, a wrong "
-        "robot file): do not trust it",
+        "states beyond their prior or changing faster than their model allows "
+        "(chi-square 99.9 %: the model follows the readings only with IMU errors the "
+        "IMUs are not taken to have; wrong tensions, a wrong robot file): do not trust it",
     )
     AT_BOUND = (
         "at-bound",

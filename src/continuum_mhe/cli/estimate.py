@@ -323,10 +323,11 @@ def run(args: argparse.Namespace) -> int:
         )
         print(
             f"{PROG}: warning: {drifted} of {n} estimates drifted: the IMUs' error states "
-            "left their prior, so the model follows the readings only with IMU errors "
-            "these IMUs are not taken to have; check the tensions (their scale, unit, "
-            "tendon order and timing; --estimate-tension-gain estimates a scale) and the "
-            f"robot file{tilt}",
+            "left their prior or changed faster than their model allows, so the model "
+            "follows the readings only with IMU errors these IMUs are not taken to have; "
+            "check the tensions (their scale, unit, tendon order and timing; "
+            "--estimate-tension-gain estimates a scale) and the robot file (the IMUs' "
+            f"places, the backbone){tilt}",
             file=sys.stderr,
         )
     if diag.reject_resets:

@@ -546,6 +546,14 @@ class Estimator(Generic[InferenceT]):
 
         quantile = start_check.QUANTILE
         compiled = self.inference.policy_inference()
+        change = f.change_test()
+        change_rows = list(change.rows) if change is not None else []
+        change_limit = (
+            [math.inf]
+            + [chi2_quantile(change.probability, k) for k in range(1, len(change_rows) + 1)]
+            if change is not None
+            else []
+        )
         return _core.SensorHealth(
             PythonInference(self.inference) if compiled is None else compiled,
             self._consistency.core,
@@ -580,6 +588,11 @@ class Estimator(Generic[InferenceT]):
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
+            change_rows=change_rows,
+            change_scale=list(change.scale) if change is not None else [],
+            change_psd=list(change.psd) if change is not None else [],
+            change_limit=change_limit,
+            change_lag=change.lag if change is not None else 0.0,
         )
 
     def __copy__(self) -> NoReturn:

@@ -59,6 +59,29 @@ from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSe
 FloatArray = NDArray[np.float64]
 
 
+@dataclass(frozen=True)
+class ChangeTest:
+    """The estimate-change test of slowly varying states (random walks, such as an
+    IMU's misalignment and biases): between the estimate ``lag`` seconds ago and this
+    one, the change of these states against the covariance that the information gained
+    and their random walk give it (``P_then + Q(dt) - P_now``), beyond the chi-square
+    quantile of ``probability``, makes an estimate ``drifted``.
+
+    Attributes:
+        rows: the states' indices.
+        scale: their prior standard deviations (the test's units).
+        psd: their random walks' white-noise densities, per second.
+        lag: the time between the two estimates compared, s.
+        probability: the chi-square probability of the limit.
+    """
+
+    rows: tuple[int, ...]
+    scale: tuple[float, ...]
+    psd: tuple[float, ...]
+    lag: float
+    probability: float
+
+
 class ModelFunctions:
     """Numeric CasADi functions of a formulation's symbolic model, each built on first
     use (a model whose symbolic Jacobians are large, such as the tendon robot's, builds
@@ -310,6 +333,11 @@ class Formulation:
     def state_checks(self) -> _core.StateChecks | None:
         """The checks of a state (:meth:`is_diverged`, :meth:`at_bound`; nothing
         drifts) as data for the compiled core, or None: the core asks these methods."""
+        return None
+
+    def change_test(self) -> ChangeTest | None:
+        """The slowly varying states whose estimate may not move faster than their
+        model allows (the estimate-change test, status ``drifted``), or None: none."""
         return None
 
     # --- shared -------------------------------------------------------------------

@@ -82,7 +82,7 @@ from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
-from continuum_mhe.model.formulations import FloatArray, Formulation
+from continuum_mhe.model.formulations import ChangeTest, FloatArray, Formulation
 from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
@@ -155,6 +155,13 @@ MAX_FORCE_FLOOR = 50.0
 #: states; tensions given 0.8, 1.2 or 2 times those acting take it past that within
 #: seconds (docs/tendon.md, "Limits").
 IMU_ERROR_PROBABILITY = 0.999
+#: The estimate-change test of the IMUs' error states
+#: (:meth:`TendonFormulation.change_test`): its lag, s, and its chi-square probability.
+#: A model that does not describe the robot (a wrong IMU position, backbone or tensions)
+#: is followed by error states that keep moving while their covariance shrinks; on the
+#: right robot their change stays within a fifth of the limit (docs/tendon.md, "Limits").
+CHANGE_LAG = 0.25
+CHANGE_PROBABILITY = 0.999
 #: The tip force's white-noise jerk, N^2/s^5, where its acceleration is a state
 #: (:attr:`TendonFormulation.estimate_force_acceleration`).
 FORCE_JERK_PSD = 1.0
@@ -990,6 +997,23 @@ class TendonFormulation(Formulation):
         std = np.sqrt(np.diag(self.initial_cov()))[idx]
         limit = float(chdtri(len(idx), 1.0 - IMU_ERROR_PROBABILITY)) if len(idx) else np.inf
         return idx, std, limit
+
+    def change_test(self) -> ChangeTest | None:
+        """The IMUs' error states (those of :meth:`drifted`) for the estimate-change test:
+        an estimate whose IMU errors moved in the last :data:`CHANGE_LAG` seconds beyond
+        what the information gained and their random walk allow is ``drifted``."""
+        idx, std, _ = self._imu_error_test
+        if not len(idx):
+            return None
+        q = np.asarray(ca.Function("q", [], [self.process_cov_sym(1.0)])()["o0"], float)
+        psd = np.diag(q)[idx]
+        return ChangeTest(
+            rows=tuple(int(i) for i in idx),
+            scale=tuple(float(v) for v in std),
+            psd=tuple(float(v) for v in psd),
+            lag=CHANGE_LAG,
+            probability=CHANGE_PROBABILITY,
+        )
 
     def drifted(self, x: FloatArray) -> bool:
         """True when the IMUs' error states have drifted beyond their prior: the sum of
