@@ -504,8 +504,18 @@ void cmhe::bind_sensor_health(nb::module_& m) {
               throw std::invalid_argument(
                   "change_scale and change_psd need one value per change row, change_limit "
                   "one per degree of freedom after index 0");
-            for (int r : change_rows)
+            for (size_t i = 0; i < m; ++i) {
+              const int r = change_rows[i];
               if (r < 0 || r >= nx) throw std::invalid_argument("a change row is not a state");
+              for (size_t j = 0; j < i; ++j)
+                if (change_rows[j] == r) throw std::invalid_argument("a change row repeats");
+              if (!(std::isfinite(change_scale[i]) && change_scale[i] > 0.0) ||
+                  !(std::isfinite(change_psd[i]) && change_psd[i] >= 0.0))
+                throw std::invalid_argument(
+                    "change_scale must be finite and positive, change_psd finite and >= 0");
+            }
+            if (m > 0 && !(std::isfinite(change_lag) && change_lag > 0.0))
+              throw std::invalid_argument("change_lag must be finite and positive");
             s.change_rows = std::move(change_rows);
             s.change_scale = std::move(change_scale);
             s.change_psd = std::move(change_psd);

@@ -133,6 +133,7 @@ void SensorHealth::restart() {
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
+  changed_until_ = -INFINITY;
   inference_.restart();
 }
 
@@ -463,15 +464,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
   if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
-  if (!s_.change_rows.empty()) {
-    if (has_state && has_cov) {
-      // the IMU errors moved faster than their model allows: the readings are followed
-      // with errors that change, as a model that does not describe the robot needs
-      if (changed_too_fast(t, x, P) && status == ST_OK) status = ST_DRIFTED;
-    } else {
-      change_past_.clear();
-    }
-  }
   if (trusted(status) && !observed) {
     status = ST_UNCERTAIN;  // the data do not determine the shape
   } else if (trusted(status) && !returned_.empty()) {
@@ -551,6 +543,23 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
         status = ST_UNCERTAIN;
     }
     out.has_std = true;
+  }
+  if (!s_.change_rows.empty() && s_.checks_start) {
+    // the IMU errors moved faster than their model allows: the readings are followed
+    // with errors that change, as a model that does not describe the robot needs. Only
+    // between rows that are ok, drifted or inconsistent: after a restart, a gap or an
+    // unconfirmed estimate the filter's first updates are not linear ones, and their
+    // change says nothing
+    const bool judged = status == ST_OK || status == ST_DRIFTED || status == ST_INCONSISTENT;
+    if (judged && has_state && has_cov) {
+      // once beyond, for a lag after: a change that dips below the limit for a sample
+      // does not make the model follow
+      if (changed_too_fast(t, x, P)) changed_until_ = t + s_.change_lag;
+      if (status == ST_OK && t <= changed_until_) status = ST_DRIFTED;
+    } else {
+      change_past_.clear();
+      changed_until_ = -INFINITY;
+    }
   }
   out.outlier = has_state && inference_.outlier();
   // the reject reset's run; a sample without readings neither ends nor extends it

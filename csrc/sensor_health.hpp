@@ -235,6 +235,7 @@ class SensorHealth {
     std::vector<double> x, P;  // the change-test states and their covariance block
   };
   std::deque<ChangeEntry> change_past_;
+  double changed_until_ = -INFINITY;  // the change test holds rows drifted until then
   int infer_once(double t, const double* z, double* x, double* P, bool& has_state,
                  bool& has_cov, bool& failed);
 
@@ -277,9 +278,11 @@ class SensorHealth {
   // the longer; kRestartRun of them make every estimate meanwhile uncertain
   std::deque<double> forced_t_;
   static constexpr int kRestartRun = 4;
-  // the estimate-change test's least eigenvalue of the change's covariance, in the
-  // states' prior variances: below it a direction gained too little to be tested
-  static constexpr double kChangeFloor = 1e-4;
+  // the estimate-change test's least eigenvalue of the change's covariance (the
+  // information gained plus the random walk over the lag), in the states' prior
+  // variances: below it a direction is not tested (the defaults' random walks of the
+  // IMU errors stay under a tenth of it over the lag)
+  static constexpr double kChangeFloor = 1e-3;
   std::vector<double> prev_x_, prev_P_, prev_z_;
   std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
   // the consistency check's previous sample
