@@ -281,7 +281,7 @@ class SensorHealth {
   // the estimate-change test's least eigenvalue of the change's covariance (the
   // information gained plus the random walk over the lag), in the states' prior
   // variances: below it a direction is not tested (the defaults' random walks of the
-  // IMU errors stay under a tenth of it over the lag)
+  // IMU errors reach at most a tenth of it over the lag)
   static constexpr double kChangeFloor = 1e-3;
   std::vector<double> prev_x_, prev_P_, prev_z_;
   std::vector<int> returned_;  // rows of the IMUs back from a silence, sorted
