@@ -751,6 +751,13 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert main(["plot", str(est), "-o", str(tmp_path / "ends.png")]) == 0
     assert "drawn through the section ends" in capsys.readouterr().err
     moved.rename(tensions)
+    # the tensions here but the robot file gone: only the notes of what is drawn
+    gone = robot.rename(tmp_path / "gone.toml")
+    assert main(["plot", str(est), "-o", str(tmp_path / "no_robot.png")]) == 0
+    err = capsys.readouterr().err
+    assert "cannot be read here" in err and "drawn through the section ends" in err
+    assert "drawn with those tensions" not in err
+    gone.rename(robot)
     # --inputs alone: the robot the estimate's options line names draws the backbone
     argv = ["plot", str(est), "--inputs", str(tensions), "-o", str(tmp_path / "rec.png")]
     assert main(argv) == 0

@@ -606,6 +606,26 @@ def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> 
     )
 
 
+@pytest.mark.parametrize("option", [["--horizon", "5"], ["--loss", "huber"], ["--branch-check"]])
+def test_an_mhe_option_on_a_tendon_robot_names_the_mhe_that_takes_its_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: list[str]
+) -> None:
+    """A tendon robot's default is the EKF, and the fast MHE does not take its model: an
+    MHE option given there is refused in one line that names the MHE on IPOPT (the one
+    that runs), not ``--method mhe`` alone (itself refused on this robot)."""
+    from importlib.resources import files
+
+    tendon = files("continuum_mhe") / "data" / "tendon"
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(tendon / "unloaded_raw.csv"), "--robot", "tendon-two-section",
+            "--inputs", str(tendon / "unloaded_tensions.csv"), "-o", str(out)]  # fmt: skip
+    assert main([*argv, *option]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{option[0]}" in err and "is an MHE option" in err
+    assert "(this robot's default; --method mhe --solver ipopt (slow) for the MHE)" in err
+    assert not out.exists()
+
+
 def test_an_options_files_value_out_of_range_names_the_file_and_line(tmp_path, capsys) -> None:
     """A value out of range in an options file is named by the file, its line and key
     (not as a command-line flag); given on the command line as well, the flag wins."""
@@ -1427,15 +1447,16 @@ def test_benchmark_with_a_robot_refuses_options_it_would_not_use(capsys) -> None
     [
         ("--reading-bias-deg", "0", "misalignments and accelerometer biases are states"),
         ("--model-error-floor-deg", "2", "not a constant-curvature one"),
+        ("--accel-psd", "50", "the base curvature's and the tip force's own"),
     ],
 )
 def test_a_noise_option_a_tendon_robot_ignores_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str, value: str, why: str
 ) -> None:
-    """A tendon robot's model carries its IMUs' constant errors as states and assumes no
-    constant-curvature model error: either option would change nothing there, so it is
-    refused in one line naming it, and nothing is written; a constant-curvature robot
-    takes it."""
+    """A tendon robot's model carries its IMUs' constant errors as states, assumes no
+    constant-curvature model error and has a process noise of its own: each option would
+    change nothing there, so it is refused in one line naming it, and nothing is written;
+    a constant-curvature robot takes it."""
     from importlib.resources import files
 
     tendon = files("continuum_mhe") / "data" / "tendon"
@@ -1449,3 +1470,32 @@ def test_a_noise_option_a_tendon_robot_ignores_is_refused(
     rod = files("continuum_mhe") / "data" / "rod2" / "planar-s_raw.csv"
     argv = ["estimate", str(rod), "--robot", "two-section", "--method", "ekf", "-o", str(out)]
     assert main([*argv, flag, value]) == 0 and out.exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "why"),
+    [
+        (["--formulation", "paper"], "the paper's W = w I"),
+        (["--imu-model", "direct", "--own-acceleration"], "white jerk"),
+    ],
+)
+def test_accel_psd_where_the_model_does_not_take_it_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str], why: str
+) -> None:
+    """--accel-psd sets the bends' white-noise acceleration: the paper's model (W = w I)
+    and the direct model with the IMUs' own acceleration (white jerk) do not take it, so
+    it is refused in one line there, nothing written; at its default it passes."""
+    from importlib.resources import files
+
+    paper = tmp_path / "p.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(paper)]) == 0
+    raw = files("continuum_mhe") / "data" / "rod2" / "planar-s_raw.csv"
+    source = [str(paper)] if "paper" in options else [str(raw), "--robot", "two-section"]
+    out = tmp_path / "e.csv"
+    argv = ["estimate", *source, *options, "--method", "ekf", "-o", str(out)]
+    capsys.readouterr()
+    assert main([*argv, "--accel-psd", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--accel-psd does not apply to this robot's model" in err
+    assert why in err and not out.exists()
+    assert main([*argv, "--accel-psd", "0.5"]) == 0 and out.exists()

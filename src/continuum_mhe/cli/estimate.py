@@ -422,7 +422,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--skip-bad",
         action="store_true",
-        help="skip bad samples (NaN, non-numeric, non-increasing t) and count them",
+        help="skip bad samples (NaN, non-numeric, non-increasing t) and count them; a "
+        "tensions file's rows with a missing or non-finite tension too (interpolated "
+        "across)",
     )
     add_tensions_option(p, "or the recording's own tension_1..k columns")
     add_tension_gain_option(p)

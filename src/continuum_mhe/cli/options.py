@@ -48,7 +48,10 @@ def add_robot_option(
     from continuum_mhe.io.robot_file import shipped_robots
 
     names = ", ".join(shipped_robots())
-    text = f"robot file (sections, IMUs, mounting; see README), or a shipped robot's name ({names})"
+    text = (
+        "robot file (sections, IMUs, mounting; a tendon robot's [backbone] and [[tendon]]: "
+        f"docs/tendon.md; see README), or a shipped robot's name ({names})"
+    )
     if replaces:
         *first, last = replaces
         text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
@@ -255,7 +258,9 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
         "--accel-psd",
         type=float,
         default=NoiseSettings.bend_accel_psd,
-        help="bend formulation: white-noise acceleration density in rad^2/s^3 (default 0.5)",
+        help="bend formulation: white-noise acceleration density in rad^2/s^3 (default "
+        "0.5); refused where the model does not take it (--formulation paper, "
+        "--own-acceleration, a tendon robot)",
     )
 
 
@@ -358,31 +363,48 @@ def add_method_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _bend_accel_psd_applies(formulation: Formulation) -> bool:
+    """Whether ``formulation``'s process noise depends on ``noise.bend_accel_psd``: its
+    covariance over one 0.05 s step at two values of it."""
+    import casadi as ca
+    import numpy as np
+
+    def cov(f: Formulation) -> Any:
+        return np.array(ca.evalf(f.process_cov_sym(ca.DM(0.05))))
+
+    doubled = replace(
+        formulation,
+        noise=replace(formulation.noise, bend_accel_psd=2.0 * formulation.noise.bend_accel_psd),
+    )
+    return not np.array_equal(cov(formulation), cov(doubled))
+
+
 def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation) -> None:
-    """Refuse ``--reading-bias-deg`` or ``--model-error-floor-deg`` given (not at its
-    default) where the model takes no such term (a tendon robot: its IMUs' constant
-    errors are states, and its model is the mechanics, not a constant-curvature one), in
-    one line naming the option."""
+    """Refuse ``--reading-bias-deg``, ``--model-error-floor-deg`` or ``--accel-psd``
+    given (not at its default) where the model takes no such term (a tendon robot: its
+    IMUs' constant errors are states, its model is the mechanics, not a constant-curvature
+    one, and its process noise is its own), in one line naming the option."""
     robot = getattr(args, "robot", None) or "the robot"
     # the model with each term at one radian: a term it ignores stays zero
     probe = replace(
         formulation, noise=replace(formulation.noise, reading_bias_std=1.0, model_error_std=1.0)
     )
     for flag, attr, default, applies, why in (
-        ("--reading-bias-deg", "reading_bias_deg", NoiseSettings.reading_bias_std,
-         bool(probe.reading_bias_cov().any()),
+        ("--reading-bias-deg", "reading_bias_deg", math.degrees(NoiseSettings.reading_bias_std),
+         lambda: bool(probe.reading_bias_cov().any()),
          "its IMUs' misalignments and accelerometer biases are states, whose covariance "
-         "the standard deviations carry"),
-        ("--model-error-floor-deg", "model_error_floor_deg", NoiseSettings.model_error_std,
-         probe.model_error_floor() > 0.0,
+         "the standard deviations carry (docs/tendon.md)"),
+        ("--model-error-floor-deg", "model_error_floor_deg",
+         math.degrees(NoiseSettings.model_error_std), lambda: probe.model_error_floor() > 0.0,
          "it is a mechanics model, not a constant-curvature one, and assumes no model "
-         "error before the readings show one"),
+         "error before the readings show one (docs/tendon.md)"),
+        ("--accel-psd", "accel_psd", NoiseSettings.bend_accel_psd,
+         lambda: _bend_accel_psd_applies(formulation),
+         f"its process noise is {formulation.process_noise_source}"),
     ):  # fmt: skip
         given = getattr(args, attr, None)
-        if given is not None and given != math.degrees(default) and not applies:
-            raise InputError(
-                f"{robot}: {flag} does not apply to this robot's model: {why} (docs/tendon.md)"
-            )
+        if given is not None and given != default and not applies():
+            raise InputError(f"{robot}: {flag} does not apply to this robot's model: {why}")
 
 
 def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:
@@ -418,7 +440,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
             file=sys.stderr,
         )
     if method != "mhe":
-        _refuse_mhe_options(args, method, defaulted)
+        _refuse_mhe_options(args, method, defaulted, fast_mhe=obstacle is None)
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
@@ -437,17 +459,21 @@ def given_options(args: argparse.Namespace) -> frozenset[str]:
 MHE_OPTIONS = ("loss", "loss_scale", "horizon", "paper_start", "solver", "branch_check")
 
 
-def _refuse_mhe_options(args: argparse.Namespace, method: str, defaulted: bool) -> None:
+def _refuse_mhe_options(
+    args: argparse.Namespace, method: str, defaulted: bool, fast_mhe: bool = True
+) -> None:
     """One line for an MHE option given on the command line (``args.given_options``)
     where the estimator is the ``method`` (the robot's default where ``defaulted``),
-    which has no window. An options file's MHE options are a profile's: they apply
-    where the MHE runs."""
+    which has no window; it names how to ask for the MHE (on IPOPT where the fast MHE
+    does not take the robot's model: ``fast_mhe`` false). An options file's MHE options
+    are a profile's: they apply where the MHE runs."""
     given = given_options(args)
     dest = next((d for d in MHE_OPTIONS if d in given), None)
     if dest is None:
         return
     flag = "--" + dest.replace("_", "-")
-    default = " (this robot's default; --method mhe for the MHE)" if defaulted else ""
+    ask = "--method mhe" if fast_mhe else "--method mhe --solver ipopt (slow)"
+    default = f" (this robot's default; {ask} for the MHE)" if defaulted else ""
     which = f"the {method}{default}"
     if dest == "loss":
         raise InputError(f"{flag} {args.loss} is an MHE option; {which} keeps the l2 cost")

@@ -139,6 +139,13 @@ def _tendon_backbone(
     if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
         name = recorded_option(args.source, "robot")
+    if robot is not None and inputs and not args.inputs:
+        print(
+            f"{PROG}: note: {args.source} was estimated with --inputs "
+            f"{recorded_option(args.source, 'inputs')} (its options line): its backbone "
+            "drawn with those tensions (pass --inputs for others)",
+            file=sys.stderr,
+        )
     if robot is None or not inputs:
         print(
             f"{PROG}: note: the backbone is drawn through the section ends; give "
@@ -156,18 +163,13 @@ def _tendon_backbone(
 
 def _recorded_inputs(source: str) -> str | None:
     """The tensions file the estimate ``source``'s options line names, where it is a
-    file here (said in a note), else None."""
+    file here, else None (the caller says which it draws with)."""
     from continuum_mhe.cli.config import beside, recorded_option
 
     name = recorded_option(source, "inputs")
     path = beside(source, name) if isinstance(name, str) else None
     if path is None or not Path(path).is_file():
         return None
-    print(
-        f"{PROG}: note: {source} was estimated with --inputs {name} (its options line): "
-        "its backbone drawn with those tensions (pass --inputs for others)",
-        file=sys.stderr,
-    )
     return path
 
 

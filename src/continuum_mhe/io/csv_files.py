@@ -376,6 +376,11 @@ def imu_count_error(
     for ``found`` IMUs when the robot has ``n_imus``; ``fix`` ends it (for one IMU with
     :data:`ONE_IMU_FIX` where it names ``--robot``)."""
     more = ONE_IMU_FIX if found == 1 and "--robot" in fix else ""
+    if found > n_imus and "--robot" in fix:  # a robot of some of the recording's IMUs
+        more += (
+            f"; for {n_imus} of them, cut the file to their columns, numbered from 1 in the "
+            "robot file's order"
+        )
     return InputError(
         f"{name}: line 1: the file has {kind} columns for {found} IMU(s) ({columns}) "
         f"but the robot describes {n_imus}; {fix.format(found=found)}{more}"

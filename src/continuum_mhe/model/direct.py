@@ -236,6 +236,12 @@ class DirectFormulation(BendFormulation):
         )
         return ca.kron(blk, ca.SX.eye(n2))
 
+    @property
+    def process_noise_source(self) -> str:
+        if self.own_acceleration:
+            return "the bends' white jerk, with their own acceleration (bend_jerk_psd)"
+        return super().process_noise_source
+
     def process_cov_sym(self, dt: Sym) -> Sym:
         """The bends' white-noise acceleration (white jerk with ``own_acceleration``);
         each bias a random walk."""

@@ -252,6 +252,12 @@ class Formulation:
     def process_cov_sym(self, dt: Sym) -> Sym:
         raise NotImplementedError
 
+    @property
+    def process_noise_source(self) -> str:
+        """What sets :meth:`process_cov_sym`, in words, for a message that names an
+        option that does not reach it."""
+        return "the bends' white-noise acceleration (NoiseSettings.bend_accel_psd)"
+
     def output_sym(self, x: Sym) -> Sym:
         """The outputs (:attr:`outputs`; m, rad) from the state."""
         raise NotImplementedError
@@ -731,6 +737,10 @@ class PaperFormulation(Formulation):
 
     def process_cov_sym(self, dt: Sym) -> Sym:
         return ca.SX.eye(5) / self.noise.paper_process_weight
+
+    @property
+    def process_noise_source(self) -> str:
+        return "the paper's W = w I (NoiseSettings.paper_process_weight)"
 
     def output_sym(self, x: Sym) -> Sym:
         return x

@@ -578,6 +578,13 @@ class TendonFormulation(Formulation):
         step = ca.vertcat(ca.SX.zeros(3), f_ddot)
         return ca.vertcat(q + dt * qd + dt**2 / 2 * step, tau, qd + dt * step, x[12 + k :])
 
+    @property
+    def process_noise_source(self) -> str:
+        return (
+            "the base curvature's and the tip force's own (curvature_accel_psd, "
+            "force_accel_psd, force_jerk_psd: docs/tendon-studies.md)"
+        )
+
     def process_cov_sym(self, dt: Sym) -> Sym:
         force = 0.0 if self.n_force_acceleration else self.force_psd
         psd = [self.curvature_accel_psd] * 3 + [force] * 3
