@@ -383,8 +383,8 @@ def test_bad_robot_file_is_one_line_exit_2_nothing_written(
     [
         ("t,roll_1,pitch_1,roll_2,pitch_2,roll_3,pitch_3", True,
          "tilt columns for 3 IMU(s) (roll_1 ... roll_3) but the robot describes 2; "
-         "pass --robot FILE with a robot file of 3 IMU(s); for 2 of them, cut the file to "
-         "their columns, numbered from 1 in the robot file's order"),
+         "pass --robot FILE with a robot file of 3 IMU(s); a robot file of fewer of them "
+         "takes the file cut to their columns, numbered from 1 in its order"),
         # --robot forgotten: refused, not IMU 1's columns estimated as a one-section robot
         ("t,roll_1,pitch_1,roll_2,pitch_2", False,
          "tilt columns for 2 IMU(s) (roll_1 ... roll_2) but the robot describes 1; "

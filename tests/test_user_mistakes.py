@@ -1447,7 +1447,7 @@ def test_benchmark_with_a_robot_refuses_options_it_would_not_use(capsys) -> None
     [
         ("--reading-bias-deg", "0", "misalignments and accelerometer biases are states"),
         ("--model-error-floor-deg", "2", "not a constant-curvature one"),
-        ("--accel-psd", "50", "the base curvature's and the tip force's own"),
+        ("--accel-psd", "50", "the base curvature's, the tip force's and the tensions' own"),
     ],
 )
 def test_a_noise_option_a_tendon_robot_ignores_is_refused(
@@ -1467,6 +1467,13 @@ def test_a_noise_option_a_tendon_robot_ignores_is_refused(
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and f"{flag} does not apply to this robot's model" in err
     assert why in err and not out.exists()
+    # from an options file: named by its file and line
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text(f"# a profile\n{flag.lstrip('-').replace('-', '_')} = {value}\n")
+    assert main([*argv, "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"{cfg}: line 2" in err and "does not apply" in err
+    assert not out.exists()
     rod = files("continuum_mhe") / "data" / "rod2" / "planar-s_raw.csv"
     argv = ["estimate", str(rod), "--robot", "two-section", "--method", "ekf", "-o", str(out)]
     assert main([*argv, flag, value]) == 0 and out.exists()
@@ -1496,6 +1503,7 @@ def test_accel_psd_where_the_model_does_not_take_it_is_refused(
     capsys.readouterr()
     assert main([*argv, "--accel-psd", "2"]) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "--accel-psd does not apply to this robot's model" in err
+    model = "the paper model" if "paper" in options else "this robot's model"
+    assert "\n" not in err and f"--accel-psd does not apply to {model}" in err
     assert why in err and not out.exists()
     assert main([*argv, "--accel-psd", "0.5"]) == 0 and out.exists()

@@ -381,10 +381,15 @@ def _bend_accel_psd_applies(formulation: Formulation) -> bool:
 
 def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation) -> None:
     """Refuse ``--reading-bias-deg``, ``--model-error-floor-deg`` or ``--accel-psd``
-    given (not at its default) where the model takes no such term (a tendon robot: its
-    IMUs' constant errors are states, its model is the mechanics, not a constant-curvature
-    one, and its process noise is its own), in one line naming the option."""
-    robot = getattr(args, "robot", None) or "the robot"
+    given (not at its default) where the model takes no such term, in one line naming
+    the option (an options file's value by its file and line): a tendon robot carries
+    its IMUs' constant errors as states, assumes no constant-curvature model error and
+    has a process noise of its own; the paper's model (``W = w I``) and the direct model
+    with the IMUs' own acceleration (white jerk) do not take ``--accel-psd``."""
+    robot = getattr(args, "robot", None)
+    prefix, model = (
+        (f"{robot}: ", "this robot's model") if robot else ("", f"the {formulation.name} model")
+    )
     # the model with each term at one radian: a term it ignores stays zero
     probe = replace(
         formulation, noise=replace(formulation.noise, reading_bias_std=1.0, model_error_std=1.0)
@@ -404,7 +409,8 @@ def check_noise_options_apply(args: argparse.Namespace, formulation: Formulation
     ):  # fmt: skip
         given = getattr(args, attr, None)
         if given is not None and given != default and not applies():
-            raise InputError(f"{robot}: {flag} does not apply to this robot's model: {why}")
+            named = getattr(args, "config_sources", {}).get(attr) or flag
+            raise InputError(f"{prefix}{named} does not apply to {model}: {why}")
 
 
 def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Method:

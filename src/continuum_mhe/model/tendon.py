@@ -581,8 +581,9 @@ class TendonFormulation(Formulation):
     @property
     def process_noise_source(self) -> str:
         return (
-            "the base curvature's and the tip force's own (curvature_accel_psd, "
-            "force_accel_psd, force_jerk_psd: docs/tendon-studies.md)"
+            "the base curvature's, the tip force's and the tensions' own "
+            "(curvature_accel_psd, force_accel_psd, force_jerk_psd, tension_psd: "
+            "docs/tendon-studies.md)"
         )
 
     def process_cov_sym(self, dt: Sym) -> Sym:
