@@ -325,6 +325,27 @@ def test_a_stream_of_tensions_has_the_derivatives_of_the_same_rows_in_a_file(
     np.testing.assert_array_equal([g.accelerations for g in got], file.accelerations)
 
 
+@pytest.mark.parametrize("n_tendons", [None, 2])
+def test_a_stream_refuses_a_sample_of_another_count_of_tensions(
+    n_tendons: int | None,
+) -> None:
+    """A sample with another count of tensions than the robot's (or, without it, the
+    first sample's) is one UserError naming the stream and the time, and is not added:
+    the next good sample continues the stream. A NaN is a missing tension, taken."""
+    from continuum_mhe.errors import UserError
+
+    stream = TensionStream("port", n_tendons=n_tendons)
+    assert stream.push(0.0, np.array([1.0, 2.0])) == []
+    with pytest.raises(UserError, match=r"^port: a sample at t = 0.1 s has tensions of shape"):
+        stream.push(0.1, np.array([1.0, 2.0, 3.0]))
+    with pytest.raises(UserError, match=r"the robot has 2 tendons: one tension each"):
+        stream.push(0.1, np.array([[1.0, 2.0]]))
+    assert stream.waiting == 1
+    assert stream.push(0.1, np.array([1.0, np.nan])) == []
+    ready = stream.push(0.2, np.array([1.0, 2.0]))
+    assert [r.t for r in ready] == [0.0] and stream.waiting == 2
+
+
 def test_live_refuses_inputs_for_a_robot_without_tendons_before_the_port(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from continuum_mhe.errors import time_text
+from continuum_mhe.errors import UserError, time_text
 from continuum_mhe.io.csv_files import (
     MS_LIKE_STEP_S,
     DropoutWarning,
@@ -675,9 +675,13 @@ class TensionStream:
     file's last row). Samples that scatter so that a tensions file of them would be
     smoothed are said once (:meth:`_check_noise`)."""
 
-    def __init__(self, name: str = "the tensions on the line") -> None:
+    def __init__(
+        self, name: str = "the tensions on the line", n_tendons: int | None = None
+    ) -> None:
         #: what the stream is called in messages
         self.name = name
+        #: the tensions a sample holds (the robot's tendons; else the first sample's count)
+        self.n_tendons = n_tendons
         #: the last samples: two before the oldest one not yet given out, that one, and
         #: the ones after it (five at most)
         self._t: deque[float] = deque(maxlen=5)
@@ -691,10 +695,23 @@ class TensionStream:
         self._noise_said = False
 
     def push(self, t: float, values: FloatArray) -> list[TensionsAt]:
-        """Add a sample (``t`` s, increasing; ``values`` N); the samples whose
-        derivatives are now known, oldest first (none for the first two)."""
+        """Add a sample (``t`` s, increasing; ``values`` N, one per tendon, NaN where a
+        tension is missing); the samples whose derivatives are now known, oldest first
+        (none for the first two). A sample of another count of tensions than the
+        robot's (:attr:`n_tendons`, else the first sample's) raises
+        :class:`~continuum_mhe.errors.UserError`, and is not added (a negative tension,
+        a load cell's noise about a slack tendon, is taken: the estimator's step refuses
+        it)."""
+        v = np.asarray(values, dtype=float)
+        if self.n_tendons is None and v.ndim == 1:
+            self.n_tendons = v.size
+        if v.shape != (self.n_tendons,):
+            raise UserError(
+                f"{self.name}: a sample at t = {t:g} s has tensions of shape {v.shape}; "
+                f"the robot has {self.n_tendons} tendons: one tension each (N)"
+            )
         self._t.append(t)
-        self._values.append(np.asarray(values, dtype=float))
+        self._values.append(v)
         self._seen += 1
         self._recent_t.append(t)
         self._recent.append(self._values[-1])
