@@ -135,15 +135,16 @@ def _tendon_backbone(
             )
         return None
     name = args.robot
-    inputs = args.inputs or _recorded_inputs(args.source)
+    recorded = None if args.inputs else _recorded_inputs(args.source)
+    inputs = args.inputs or (recorded[1] if recorded else None)
     if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
         name = recorded_option(args.source, "robot")
-    if robot is not None and inputs and not args.inputs:
+    if robot is not None and recorded:
         print(
-            f"{PROG}: note: {args.source} was estimated with --inputs "
-            f"{recorded_option(args.source, 'inputs')} (its options line): its backbone "
-            "drawn with those tensions (pass --inputs for others)",
+            f"{PROG}: note: {args.source} was estimated with --inputs {recorded[0]} (its "
+            "options line): its backbone drawn with those tensions (pass --inputs for "
+            "others)",
             file=sys.stderr,
         )
     if robot is None or not inputs:
@@ -161,16 +162,16 @@ def _tendon_backbone(
     return tendon_backbone(robot, tensions)
 
 
-def _recorded_inputs(source: str) -> str | None:
-    """The tensions file the estimate ``source``'s options line names, where it is a
-    file here, else None (the caller says which it draws with)."""
+def _recorded_inputs(source: str) -> tuple[str, str] | None:
+    """The tensions file the estimate ``source``'s options line names, as written there
+    and as a path here, where it is a file here, else None."""
     from continuum_mhe.cli.config import beside, recorded_option
 
     name = recorded_option(source, "inputs")
     path = beside(source, name) if isinstance(name, str) else None
     if path is None or not Path(path).is_file():
         return None
-    return path
+    return name, path
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

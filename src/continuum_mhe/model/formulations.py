@@ -252,6 +252,10 @@ class Formulation:
     def process_cov_sym(self, dt: Sym) -> Sym:
         raise NotImplementedError
 
+    def process_cov(self, dt: float) -> FloatArray:
+        """``Q(dt)``: :meth:`process_cov_sym` over a step of ``dt`` s, as numbers."""
+        return np.array(ca.evalf(self.process_cov_sym(ca.DM(dt))), dtype=float)
+
     @property
     def process_noise_source(self) -> str:
         """What sets :meth:`process_cov_sym`, in words, for a message that names an

@@ -1013,8 +1013,7 @@ class TendonFormulation(Formulation):
         idx, std, _ = self._imu_error_test
         if not len(idx):
             return None
-        q = np.asarray(ca.Function("q", [], [self.process_cov_sym(1.0)])()["o0"], float)
-        psd = np.diag(q)[idx]
+        psd = np.diag(self.process_cov(1.0))[idx]
         return ChangeTest(
             rows=tuple(int(i) for i in idx),
             scale=tuple(float(v) for v in std),
