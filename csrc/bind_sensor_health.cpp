@@ -33,6 +33,15 @@ using Array = NewArray;
 template <typename T>
 using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 
+// One sample's answer as Python reads it (Policy.step); None where there is none
+struct PolicyStep {
+  int input_error;  // 0 when the sample was accepted, else the input's problem
+  int status;       // a STATUS_NAMES index
+  std::optional<Array> state, covariance, output, output_std;
+  bool outlier, frozen;
+  double solve_ms;
+};
+
 // a float64 array of ``n`` values read from a Python result into ``out``
 void read_into(const nb::handle& value, size_t n, double* out, const char* what) {
   In a = nb::cast<In>(value);
@@ -385,6 +394,56 @@ void cmhe::bind_sensor_health(nb::module_& m) {
   for (const char* s : STATUS_NAMES) names.append(nb::str(s));
   m.attr("STATUS_NAMES") = nb::tuple(names);
 
+  nb::class_<PolicyStep>(m, "PolicyStep", "One sample's answer of Policy.step.")
+      .def_ro("input_error", &PolicyStep::input_error,
+              "0 when the sample was accepted, else the code of the input's problem.")
+      .def_ro("status", &PolicyStep::status, "The status, an index into STATUS_NAMES.")
+      .def_prop_ro("state",
+          [](const PolicyStep& r) { return r.state; }, nb::rv_policy::move,
+          "The state (nx,), or None.")
+      .def_prop_ro("covariance",
+          [](const PolicyStep& r) { return r.covariance; }, nb::rv_policy::move,
+          "The state covariance (nx, nx), or None.")
+      .def_prop_ro("output",
+          [](const PolicyStep& r) { return r.output; }, nb::rv_policy::move,
+          "The outputs (ny,), or None.")
+      .def_prop_ro("output_std",
+          [](const PolicyStep& r) { return r.output_std; }, nb::rv_policy::move,
+          "The outputs' standard deviations (ny,), or None.")
+      .def_ro("outlier", &PolicyStep::outlier, "The robust MHE down-weighted this sample.")
+      .def_ro("frozen", &PolicyStep::frozen, "A sensor counts as frozen at this sample.")
+      .def_ro("solve_ms", &PolicyStep::solve_ms, "Wall time spent on this sample, ms.");
+
+  nb::class_<PolicyDiagnostics>(
+      m, "PolicyDiagnostics",
+      "What the policy did since its last reset (continuum_mhe.results.Diagnostics).")
+      .def_ro("restarts", &PolicyDiagnostics::restarts,
+              "Restarts after a divergence or numerical failure.")
+      .def_ro("gap_resets", &PolicyDiagnostics::gap_resets, "Restarts after a gap.")
+      .def_ro("frozen_samples", &PolicyDiagnostics::frozen_samples,
+              "Samples with at least one IMU counted as frozen.")
+      .def_ro("first_freezes", &PolicyDiagnostics::first_freezes,
+              "Each IMU's first freeze, [(its block index among the IMUs, t s)], in order.")
+      .def_ro("bad_starts", &PolicyDiagnostics::bad_starts,
+              "Restarts after a bad start (an IMU back from a silence included).")
+      .def_ro("reject_resets", &PolicyDiagnostics::reject_resets,
+              "Restarts after the robust MHE rejected every reading for too long.")
+      .def_prop_ro(
+          "last_failure",
+          [](const PolicyDiagnostics& d) {
+            return d.has_failure ? std::optional<std::string>(d.last_failure) : std::nullopt;
+          },
+          "The last numerical failure's description, or None.")
+      .def_ro("bound_samples", &PolicyDiagnostics::bound_samples,
+              "Estimates of status at-bound.")
+      .def_ro("max_noise_scale", &PolicyDiagnostics::max_noise_scale,
+              "The largest model-error factor seen (the innovations' variance over the "
+              "noise model's; 1 when the readings fit their noise).")
+      .def_ro("model_error", &PolicyDiagnostics::model_error,
+              "The largest model error learned, in units of R (0 when none showed).")
+      .def_ro("bad_start_chains", &PolicyDiagnostics::bad_start_chains,
+              "Times the bad-start check stopped restarting after a chain of restarts.");
+
   nb::class_<StateChecks>(
       m, "StateChecks",
       "A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at "
@@ -582,15 +641,20 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             Array y = new_array({size_t(s.ny)}), ystd = new_array({size_t(s.ny)});
             SampleResult r;
             const int err = h.step(t, z.data(), x.data(), P.data(), y.data(), ystd.data(), r);
-            nb::object none = nb::none();
-            return nb::make_tuple(err, r.status, r.has_state ? nb::cast(x) : none,
-                                  r.has_cov ? nb::cast(P) : none,
-                                  r.has_state ? nb::cast(y) : none,
-                                  r.has_std ? nb::cast(ystd) : none, r.outlier, r.frozen, r.ms);
+            auto when = [](bool has, Array a) {
+              return has ? std::optional<Array>(a) : std::nullopt;
+            };
+            return PolicyStep{err,
+                              r.status,
+                              when(r.has_state, x),
+                              when(r.has_cov, P),
+                              when(r.has_state, y),
+                              when(r.has_std, ystd),
+                              r.outlier,
+                              r.frozen,
+                              r.ms};
           },
-          nb::arg("t"), nb::arg("z"),
-          "One sample: (input error, status code, state, covariance, outputs, their std, "
-          "outlier, frozen, ms); None where there is none; input error 0 when accepted.")
+          nb::arg("t"), nb::arg("z"), "One sample: a PolicyStep.")
       .def(
           "run",
           [](Policy& p, In t, In z, OutArray<int32_t> status, OutArray<double> ms,
@@ -639,13 +703,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "diagnostics",
           [](const Policy& p) {
             p.check_idle();
-            const PolicyDiagnostics& d = p.health->diagnostics;
-            nb::object failure = d.has_failure ? nb::cast(d.last_failure) : nb::none();
-            return nb::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.first_freezes,
-                                  d.bad_starts, d.reject_resets, failure, d.bound_samples,
-                                  d.max_noise_scale, d.model_error, d.bad_start_chains);
+            return p.health->diagnostics;  // a copy
           },
-          "(restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, "
-          "reject_resets, last_failure or None, bound_samples, max_noise_scale, "
-          "model_error, bad_start_chains).");
+          "The counts since the last reset, a PolicyDiagnostics (a copy).");
 }

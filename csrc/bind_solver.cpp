@@ -84,10 +84,9 @@ WindowData window_data(const WindowSolver& s, const In& qinv, const In& xbar, co
   return {qinv.data(), xbar.data(), arrival.data()};
 }
 
-std::tuple<int, Index, double, double, int> solve(WindowSolver& s, In qinv, In xbar, In arrival,
-                                                  Out lam, Index max_iter, double step_tol,
-                                                  double err_tol, Index max_qp_iter, bool newton,
-                                                  bool quadratic, bool evaluated, int shifted) {
+SqpResult solve(WindowSolver& s, In qinv, In xbar, In arrival, Out lam, Index max_iter,
+                double step_tol, double err_tol, Index max_qp_iter, bool newton, bool quadratic,
+                bool evaluated, int shifted) {
   const WindowData data = window_data(s, qinv, xbar, arrival);
   check_shape(lam, {s.n, s.nb}, "lam");
   if (shifted >= 2 || shifted < -1) throw std::invalid_argument("shifted must be -1, 0 or 1");
@@ -99,12 +98,19 @@ std::tuple<int, Index, double, double, int> solve(WindowSolver& s, In qinv, In x
     nb::gil_scoped_release release;
     r = s.solve(data, zmask.data(), lam.data(), opt, evaluated, shifted);
   }
-  return {r.outcome, r.iterations, r.step, r.cost, r.buffer};
+  return r;
 }
 
 }  // namespace
 
 void cmhe::bind_solver(nb::module_& m) {
+  nb::class_<SqpResult>(m, "SqpResult", "The outcome of one window solve (WindowSolver.solve).")
+      .def_ro("outcome", &SqpResult::outcome,
+              "0 converged (certified), else the failure (continuum_mhe's OUTCOMES order).")
+      .def_ro("iterations", &SqpResult::iterations, "SQP iterations taken.")
+      .def_ro("step", &SqpResult::step, "The last QP step's largest entry (state units).")
+      .def_ro("cost", &SqpResult::cost, "The window cost at the last evaluated iterate.")
+      .def_ro("buffer", &SqpResult::buffer, "The buffer (0 or 1) of Xb holding the answer.");
   nb::class_<WindowSolver>(
       m, "WindowSolver",
       "The fast MHE's window solve for one window model: its buffers (NumPy views, "
@@ -134,8 +140,8 @@ void cmhe::bind_solver(nb::module_& m) {
            nb::arg("lam"), nb::arg("max_iter"), nb::arg("step_tol"), nb::arg("err_tol"),
            nb::arg("max_qp_iter"), nb::arg("newton"), nb::arg("quadratic"),
            nb::arg("evaluated") = false, nb::arg("shifted") = -1,
-           "The SQP from Xb[0] with the window data in z, m, u, dt: (outcome, iterations, "
-           "step, cost, buffer of the answer); lam (N, nb) in and out.")
+           "The SQP from Xb[0] with the window data in z, m, u, dt: an SqpResult; lam (N, nb) "
+           "in and out.")
       .def(
           "evaluate",
           [](WindowSolver& s, int buf, In qinv, In xbar, In arrival) {

@@ -302,8 +302,8 @@ def test_block_columns_hold_the_whole_second_order_term(loss) -> None:
     arrival[0] = np.eye(nx)
     lam = np.zeros((n, len(model.feasible.ball_r2)))
     r = ws.core.solve(qinv, X[0] + 0.1, arrival, lam, 30, 1e-10, 1e-10, 500, True, False)
-    assert r[1] >= 2 and not lam.any()  # no ball active: D = Dgn + the curvature
-    b = 1 - r[4]  # the last evaluated iterate's buffer
+    assert r.iterations >= 2 and not lam.any()  # no ball active: D = Dgn + the curvature
+    b = 1 - r.buffer  # the last evaluated iterate's buffer
     sr = int(np.sum(cols * cols))
     S = ws.out[b][-n * sr :].reshape(n, sr)
     for i in range(n):

@@ -104,6 +104,31 @@ def sin_cos_rows(x: Annotated[NDArray[numpy.float64], dict(shape=(None,), order=
 
 OPERATIONS: tuple = ...
 
+class SqpResult:
+    """The outcome of one window solve (WindowSolver.solve)."""
+
+    @property
+    def outcome(self) -> int:
+        """
+        0 converged (certified), else the failure (continuum_mhe's OUTCOMES order).
+        """
+
+    @property
+    def iterations(self) -> int:
+        """SQP iterations taken."""
+
+    @property
+    def step(self) -> float:
+        """The last QP step's largest entry (state units)."""
+
+    @property
+    def cost(self) -> float:
+        """The window cost at the last evaluated iterate."""
+
+    @property
+    def buffer(self) -> int:
+        """The buffer (0 or 1) of Xb holding the answer."""
+
 class WindowSolver:
     """
     The fast MHE's window solve for one window model: its buffers (NumPy views, row-major) and the SQP over them (continuum_mhe.estimators.fast.sqp).
@@ -114,9 +139,9 @@ class WindowSolver:
         ``block_cols`` (nblocks,): the number of leading state coordinates each measurement block's residual depends on at most (its Jacobian rows are zero beyond them, and its second-order term outside that leading square, which is all the window's outputs hold of it); nx each where None.
         """
 
-    def solve(self, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool, evaluated: bool = False, shifted: int = -1) -> tuple[int, int, float, float, int]:
+    def solve(self, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool, evaluated: bool = False, shifted: int = -1) -> SqpResult:
         """
-        The SQP from Xb[0] with the window data in z, m, u, dt: (outcome, iterations, step, cost, buffer of the answer); lam (N, nb) in and out.
+        The SQP from Xb[0] with the window data in z, m, u, dt: an SqpResult; lam (N, nb) in and out.
         """
 
     def evaluate(self, buf: int, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> float:
@@ -582,6 +607,100 @@ class MovingHorizon:
 
 STATUS_NAMES: tuple = ...
 
+class PolicyStep:
+    """One sample's answer of Policy.step."""
+
+    @property
+    def input_error(self) -> int:
+        """0 when the sample was accepted, else the code of the input's problem."""
+
+    @property
+    def status(self) -> int:
+        """The status, an index into STATUS_NAMES."""
+
+    @property
+    def state(self) -> NDArray[numpy.float64] | None:
+        """The state (nx,), or None."""
+
+    @property
+    def covariance(self) -> NDArray[numpy.float64] | None:
+        """The state covariance (nx, nx), or None."""
+
+    @property
+    def output(self) -> NDArray[numpy.float64] | None:
+        """The outputs (ny,), or None."""
+
+    @property
+    def output_std(self) -> NDArray[numpy.float64] | None:
+        """The outputs' standard deviations (ny,), or None."""
+
+    @property
+    def outlier(self) -> bool:
+        """The robust MHE down-weighted this sample."""
+
+    @property
+    def frozen(self) -> bool:
+        """A sensor counts as frozen at this sample."""
+
+    @property
+    def solve_ms(self) -> float:
+        """Wall time spent on this sample, ms."""
+
+class PolicyDiagnostics:
+    """
+    What the policy did since its last reset (continuum_mhe.results.Diagnostics).
+    """
+
+    @property
+    def restarts(self) -> int:
+        """Restarts after a divergence or numerical failure."""
+
+    @property
+    def gap_resets(self) -> int:
+        """Restarts after a gap."""
+
+    @property
+    def frozen_samples(self) -> int:
+        """Samples with at least one IMU counted as frozen."""
+
+    @property
+    def first_freezes(self) -> list[tuple[int, float]]:
+        """
+        Each IMU's first freeze, [(its block index among the IMUs, t s)], in order.
+        """
+
+    @property
+    def bad_starts(self) -> int:
+        """Restarts after a bad start (an IMU back from a silence included)."""
+
+    @property
+    def reject_resets(self) -> int:
+        """Restarts after the robust MHE rejected every reading for too long."""
+
+    @property
+    def last_failure(self) -> str | None:
+        """The last numerical failure's description, or None."""
+
+    @property
+    def bound_samples(self) -> int:
+        """Estimates of status at-bound."""
+
+    @property
+    def max_noise_scale(self) -> float:
+        """
+        The largest model-error factor seen (the innovations' variance over the noise model's; 1 when the readings fit their noise).
+        """
+
+    @property
+    def model_error(self) -> float:
+        """The largest model error learned, in units of R (0 when none showed)."""
+
+    @property
+    def bad_start_chains(self) -> int:
+        """
+        Times the bad-start check stopped restarting after a chain of restarts.
+        """
+
 class StateChecks:
     """
     A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.
@@ -631,10 +750,8 @@ class SensorHealth:
     def reset(self, keep_counts: bool) -> None:
         """A new recording (diagnostics zeroed unless keep_counts)."""
 
-    def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
-        """
-        One sample: (input error, status code, state, covariance, outputs, their std, outlier, frozen, ms); None where there is none; input error 0 when accepted.
-        """
+    def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> PolicyStep:
+        """One sample: a PolicyStep."""
 
     def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], should_stop: object | None = None) -> tuple[int, int]:
         """
@@ -651,10 +768,8 @@ class SensorHealth:
         """The last accepted sample's time, s (-inf after a reset)."""
 
     @property
-    def diagnostics(self) -> tuple:
-        """
-        (restarts, gap_resets, frozen_samples, first_freezes [(imu, t)], bad_starts, reject_resets, last_failure or None, bound_samples, max_noise_scale, model_error, bad_start_chains).
-        """
+    def diagnostics(self) -> PolicyDiagnostics:
+        """The counts since the last reset, a PolicyDiagnostics (a copy)."""
 
 def estimate_lines(t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], output_std: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], estimated: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)], outlier: Annotated[NDArray[numpy.uint8], dict(shape=(None,), order='C', device='cpu', writable=False)] | None, status: Sequence[str], solve_ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> str:
     """

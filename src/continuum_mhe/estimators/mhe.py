@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -100,8 +101,14 @@ from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
 #: branch check or the second start follows); not certified (IPOPT solves the window).
 NO_ESTIMATE_YET, KEPT, CERTIFIED, UNCERTIFIED = 0, 1, 2, 3
 
-#: ``(state (nx,), covariance (nx, nx) or None, outputs (ny,), their std (ny,) or None)``
-Answer = tuple[FloatArray, FloatArray | None, FloatArray, FloatArray | None]
+
+class Answer(NamedTuple):
+    """A kept window answer's newest node: what the estimate of the sample holds."""
+
+    state: FloatArray  #: (nx,)
+    covariance: FloatArray | None  #: (nx, nx); None where the window failed or is not PD
+    output: FloatArray  #: (ny,), the formulation's outputs
+    output_std: FloatArray | None  #: (ny,); None where ``covariance`` is
 
 
 class ReferenceWindow:
@@ -255,7 +262,7 @@ class ReferenceWindow:
                 xbar=self.xbar, arrival=self.arrival,
             )  # fmt: skip
             cov = casadi_window_covariance(f, problem, X, self.feasible, loss=self._loss)
-        return x, cov, f.output(x), None if cov is None else f.output_std(x, cov)
+        return Answer(x, cov, f.output(x), None if cov is None else f.output_std(x, cov))
 
 
 class MovingHorizonInference(Inference):
@@ -533,17 +540,17 @@ class MovingHorizonInference(Inference):
     # --- solve ----------------------------------------------------------------
     def output(self, state: FloatArray) -> FloatArray:
         answer = self._answer
-        if answer is not None and state is answer[0]:
-            return answer[2]
+        if answer is not None and state is answer.state:
+            return answer.output
         if self._node is not None:
             return self._node.output(state)
         return self.formulation.output(state)
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         answer = self._answer
-        if answer is not None and state is answer[0] and cov is answer[1]:
-            assert answer[3] is not None
-            return answer[3]
+        if answer is not None and state is answer.state and cov is answer.covariance:
+            assert answer.output_std is not None
+            return answer.output_std
         if self._node is not None:
             return self._node.output_std(state, cov)
         return self.formulation.output_std(state, cov)
@@ -571,7 +578,7 @@ class MovingHorizonInference(Inference):
         if outcome == NO_ESTIMATE_YET:
             return None, None, Status.NO_ESTIMATE
         if answer is not None:  # kept by the compiled step
-            return self._keep(answer, Status.OK, valid)
+            return self._keep(Answer(*answer), Status.OK, valid)
         answer, status = self._after_step(outcome)
         return self._keep(answer, status, valid)
 
@@ -625,7 +632,7 @@ class MovingHorizonInference(Inference):
             np.ascontiguousarray(X, dtype=np.float64), X is solved and outcome == CERTIFIED,
             w_new, status == Status.SOLVER_FAILED,
         )  # fmt: skip
-        return answer, status
+        return Answer(*answer), status
 
     def policy_inference(self) -> _core.HorizonInference | None:
         """The fast backend's inference for the compiled policy
@@ -649,7 +656,7 @@ class MovingHorizonInference(Inference):
         kept for :meth:`output`); ``dropout`` for an ``ok`` one without a sensor."""
         self._answer = answer
         status = Status.DROPOUT if status == Status.OK and not valid else status
-        return answer[0], answer[1], status
+        return answer.state, answer.covariance, status
 
     def _node_weights(self, i: int, x: FloatArray) -> FloatArray:
         """Robust weights ``rho'(s_b)`` (nblocks,) of window node ``i`` at state ``x``."""

@@ -622,13 +622,13 @@ class Estimator(Generic[InferenceT]):
 
     def _sync_diagnostics(self) -> None:
         """:attr:`diagnostics` from the compiled policy's counts (the same object)."""
-        d = self.diagnostics
-        (
-            d.restarts, d.gap_resets, d.frozen_samples, freezes, d.bad_starts,
-            d.reject_resets, d.last_failure, d.bound_samples, d.max_noise_scale,
-            d.model_error, d.bad_start_chains,
-        ) = self._policy.diagnostics  # fmt: skip
-        for k, t in freezes[len(d.first_freezes) :]:
+        d, got = self.diagnostics, self._policy.diagnostics
+        d.restarts, d.gap_resets = got.restarts, got.gap_resets
+        d.frozen_samples, d.bad_starts = got.frozen_samples, got.bad_starts
+        d.reject_resets, d.last_failure = got.reject_resets, got.last_failure
+        d.bound_samples, d.bad_start_chains = got.bound_samples, got.bad_start_chains
+        d.max_noise_scale, d.model_error = got.max_noise_scale, got.model_error
+        for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()
 
@@ -698,12 +698,15 @@ class Estimator(Generic[InferenceT]):
             problem = self._units.see(np.array([t], dtype=float), z[None, :])
             if problem is not None:
                 raise ReadingUnitsError(problem)
-        err, code, state, cov, output, std, outlier, _, ms = self._policy.step(t, z)
-        if err:
-            self._refuse(err, t, z)
+        r = self._policy.step(t, z)
+        if r.input_error:
+            self._refuse(r.input_error, t, z)
         self._ran = False
         self._sync_diagnostics()
-        return Estimate(t, state, output, cov, STATUSES[code], ms, std, outlier=outlier)
+        return Estimate(
+            t, r.state, r.output, r.covariance, STATUSES[r.status], r.solve_ms, r.output_std,
+            outlier=r.outlier,
+        )  # fmt: skip
 
     def _check_tensions(self, z: FloatArray, t: FloatArray) -> None:
         """A :class:`UserError` for the first negative tension in ``z`` (n, nz) at the

@@ -183,18 +183,17 @@ def solve_window(
     ws = workspace or Workspace(model)
     ws.load(problem, X0)
     lam = np.zeros((n, nb)) if lam0 is None else np.array(lam0, dtype=float).reshape(n, nb)
-    outcome, it, step, cost, cur = ws.core.solve(
+    r = ws.core.solve(
         *_weights(problem), lam, opt.max_iter, opt.step_tol, opt.err_tol, opt.max_qp_iter,
         opt.newton, quadratic_rate(model, opt),
     )  # fmt: skip
-    converged = outcome == CONVERGED
     return FastResult(
-        X=ws.Xb[cur].copy(),
-        converged=converged,
-        outcome=OUTCOMES[outcome],
-        iterations=int(it),
-        step=float(step),
-        cost=float(cost),
+        X=ws.Xb[r.buffer].copy(),
+        converged=r.outcome == CONVERGED,
+        outcome=OUTCOMES[r.outcome],
+        iterations=int(r.iterations),
+        step=float(r.step),
+        cost=float(r.cost),
         lam=lam,
     )
 
