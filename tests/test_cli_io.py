@@ -653,11 +653,11 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(
 ):
     """Ctrl-C during ``demo`` leaves nothing it wrote: the files are written after the
     estimates, and an interruption while writing (here: while saving the second figure)
-    removes the files it created, and the folders it created; a user's own files in an
+    removes the files it created, and the folder it created; a user's own files in an
     existing folder stay."""
     from continuum_mhe.evaluation import plotting
 
-    out = tmp_path / "new" / "demo"
+    out = tmp_path / "demo"
     if existing:
         out.mkdir(parents=True)
         (out / "mine.txt").write_text("mine\n")
@@ -677,7 +677,7 @@ def test_an_interrupted_demo_leaves_nothing_it_wrote(
     if existing:
         assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
     else:
-        assert not (tmp_path / "new").exists()  # the folders it made too
+        assert not out.exists()  # the folder it made too
 
 
 def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys, short_demo):

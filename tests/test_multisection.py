@@ -356,7 +356,8 @@ def test_robot_file_round_trip(tmp_path: Path) -> None:
         ("[[section]]\nlength = 200\n[[imu]]\nsection = 1\n", "millimetres or centimetres?"),
         ("[[section]]\nlength = 0.1\ntheta_max = 90\n[[imu]]\nsection = 1\n", "degrees?"),
         ("mounting = 'sideways'\n[[section]]\nlength = 0.1\n[[imu]]\nsection = 1\n", "mounting"),
-        ("[[section]\n", "not valid TOML"),
+        ("[[section]\n", "robot.toml: line 1: not valid TOML: "),
+        ("[[section]]\nlength = 0.1\n[[imu]\n", "robot.toml: line 3: not valid TOML: Expected"),
         (
             "[[section]]\nlength = 0.1\n[imu]\nsection = 1\n[[imu]]\nsection = 1\nat = 0.5\n",
             "; line 3: [imu] is one table, and every imu is a [[imu]] (double brackets)",

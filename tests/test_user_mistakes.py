@@ -1507,3 +1507,63 @@ def test_accel_psd_where_the_model_does_not_take_it_is_refused(
     assert "\n" not in err and f"--accel-psd does not apply to {model}" in err
     assert why in err and not out.exists()
     assert main([*argv, "--accel-psd", "0.5"]) == 0 and out.exists()
+
+
+def test_demo_of_a_tendon_robot_names_the_robot_and_its_help_offers_none(tmp_path, capsys) -> None:
+    """``demo`` and ``simulate`` take constant-curvature robots: a tendon robot is refused
+    in one line that starts with the robot, as ``simulate``'s does, nothing is written,
+    and their ``--robot`` help lists only the shipped constant-curvature robots."""
+    from continuum_mhe.io.robot_file import read_robot, shipped_robots
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--robot", "tendon-two-section", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("continuum-mhe: error: tendon-two-section: a tendon")
+    assert not out.exists()
+    cc = shipped_robots(tendons=False)
+    assert "two-section" in cc and "tendon-two-section" not in cc
+    assert all(not read_robot(p).tendons for p in cc.values())
+    assert any(read_robot(p).tendons for p in shipped_robots().values())
+    for command in ("demo", "simulate"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        help_text = " ".join(capsys.readouterr().out.split())
+        assert "constant-curvature robot file" in help_text
+        assert "tendon-two-section" not in help_text
+
+
+def test_demo_refuses_an_out_folder_in_a_missing_folder(tmp_path, capsys) -> None:
+    """As every command that writes a file refuses a missing folder (a mistyped path),
+    ``demo --out`` makes its own folder but not the folders above it."""
+    out = tmp_path / "nodir" / "demo"
+    assert main(["demo", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"continuum-mhe: error: {out}: folder {out.parent} does not exist"]
+    assert not out.parent.exists()
+
+
+@pytest.mark.parametrize("name", ["time", "timestamp", "Time"])
+def test_a_time_column_named_otherwise_gets_the_name_t(tmp_path, capsys, name) -> None:
+    rec = simulate("paper3d", duration=1.0, seed=0)
+    m = tmp_path / "m.csv"
+    write_table(m, [name, "roll", "pitch"], np.column_stack([rec.t, rec.z]))
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"rename '{name}' to t" in err[0] and "line 1" in err[0]
+    assert not out.exists()
+
+
+def test_an_options_file_that_is_not_toml_names_its_line(tmp_path, capsys) -> None:
+    config = tmp_path / "opts.toml"
+    config.write_text('method = "ekf"\nhorizon = \n')
+    rec = simulate("paper3d", duration=1.0, seed=0)
+    m = tmp_path / "m.csv"
+    write_table(m, ["t", "roll", "pitch"], np.column_stack([rec.t, rec.z]))
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "--config", str(config), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"continuum-mhe: error: {config}: line 2: not valid TOML: Invalid value (column 11)"
+    ]
+    assert not out.exists()

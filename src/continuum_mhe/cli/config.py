@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.io.robot_file import toml_error_line
+from continuum_mhe.io.text_rows import shorten
 
 if TYPE_CHECKING:
     from continuum_mhe.model.formulations import Formulation
@@ -109,7 +111,7 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         try:
             return tomllib.loads(text)[OPTIONS_LINE], text, 0
         except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"{path}: its options note: {exc}") from None
+            raise InputError(f"{path}: its options note: {shorten(str(exc), 200)}") from None
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -130,7 +132,7 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: {exc}") from None
+        raise InputError(toml_error_line(path, exc, first_line=offset + 1)) from None
     if p.suffix.lower() == ".csv":
         data = data[OPTIONS_LINE]
     return data, text, offset

@@ -11,9 +11,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
-from continuum_mhe.io.csv_files import write_estimates, write_measurements, write_truth
+from continuum_mhe.io.csv_files import (
+    InputError,
+    write_estimates,
+    write_measurements,
+    write_truth,
+)
 from continuum_mhe.io.output_files import check_new_folder, new_files
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot
@@ -33,7 +39,10 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     check_new_folder(out, args.overwrite, demo_files(robot))
     scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
-    rec = simulate_robot(scenario, robot, seed=args.seed)
+    try:
+        rec = simulate_robot(scenario, robot, seed=args.seed)
+    except UserError as exc:  # about the robot: its file named, as simulate names it
+        raise InputError(f"{args.robot}: {exc}") from None
     formulation = make_formulation("bend", robot, NoiseSettings())
     names = [o.name for o in rec.outputs]
     results: list[tuple[EstimateSeries, Metrics]] = []
@@ -119,4 +128,4 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--overwrite", action="store_true", help="replace the demo's files in --out if there"
     )
-    add_robot_option(p, replaces=())
+    add_robot_option(p, replaces=(), tendons=False)

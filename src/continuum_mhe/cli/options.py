@@ -42,16 +42,27 @@ if TYPE_CHECKING:
 def add_robot_option(
     g: argparse._ActionsContainer,
     replaces: Sequence[str] = ("--length", "--theta-max", "--mounting"),
+    tendons: bool = True,
 ) -> None:
     """``--robot ROBOT.toml``; its help names ``replaces``, the command's one-section
-    options that a robot file overrides."""
+    options that a robot file overrides, and, unless ``tendons`` (the command takes
+    tendon robots), says that it takes constant-curvature robots and names only those
+    of the shipped robots."""
     from continuum_mhe.io.robot_file import shipped_robots
 
-    names = ", ".join(shipped_robots())
-    text = (
-        "robot file (sections, IMUs, mounting; a tendon robot's [backbone] and [[tendon]]: "
-        f"docs/tendon.md; see README), or a shipped robot's name ({names})"
-    )
+    if tendons:
+        names = ", ".join(shipped_robots())
+        text = (
+            "robot file (sections, IMUs, mounting; a tendon robot's [backbone] and "
+            f"[[tendon]]: docs/tendon.md; see README), or a shipped robot's name ({names})"
+        )
+    else:
+        names = ", ".join(shipped_robots(tendons=False))
+        text = (
+            "constant-curvature robot file (sections, IMUs, mounting; see README), or a "
+            f"shipped one's name ({names}); a tendon robot's recordings come from "
+            "python -m continuum_mhe.simulation.cosserat_tendon"
+        )
     if replaces:
         *first, last = replaces
         text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"

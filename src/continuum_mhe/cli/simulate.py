@@ -155,4 +155,4 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--mounting", choices=MOUNTINGS, default="z-up", help="the base's z axis (default z-up)"
     )
-    add_robot_option(p, replaces=("--length", "--mounting"))
+    add_robot_option(p, replaces=("--length", "--mounting"), tendons=False)

@@ -292,7 +292,10 @@ def estimate_figure(
                 half = Z95 * sd[:, j] * 1e3
                 ax.fill_between(est.t, v - half, v + half, color=color, alpha=0.2, lw=0)
                 if j == 0 and not band_named:  # one grey entry: each band is in its colour
-                    ax.fill_between([], [], [], color="0.5", alpha=0.3, lw=0, label="95 % band")
+                    ax.fill_between(
+                        [], [], [], color="0.5", alpha=0.3, lw=0,
+                        label="95 % band (in its line's colour)",
+                    )  # fmt: skip
                     band_named = True
             tp = in_truth[i]
             if truth is not None and tp is not None:

@@ -169,10 +169,14 @@ def atomic_binary_writer(
 
 def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:
     """A one-line error, before any work, unless ``folder`` is, or can be made, a
-    writable folder (its nearest existing ancestor a writable folder), and, unless
-    ``overwrite``, holds none of the files ``names`` that the command writes."""
+    writable folder (in a folder that exists: a mistyped parent is refused as an output
+    file's is), and, unless ``overwrite``, holds none of the files ``names`` that the
+    command writes."""
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder}: exists and is not a folder")
+    parent = folder.absolute().parent
+    if not folder.exists() and not parent.exists():
+        raise InputError(f"{folder}: folder {folder.parent} does not exist")
     taken = next((folder / n for n in names if (folder / n).exists()), None)
     if taken is not None and not overwrite:
         raise InputError(f"{taken}: exists; give --overwrite to replace it, or another --out")

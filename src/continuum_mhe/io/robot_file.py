@@ -388,10 +388,30 @@ def angles_among_degrees_like_radians(degrees: list[float]) -> list[int]:
     return out
 
 
-def shipped_robots() -> dict[str, Path]:
-    """Robot files shipped with the package, by name (``two-section``...)."""
+#: where tomllib's messages say the problem is: "(at line N, column C)"
+_TOML_AT = re.compile(r"\s*\(at line (\d+), column (\d+)\)$")
+
+
+def toml_error_line(path: object, exc: tomllib.TOMLDecodeError, first_line: int = 1) -> str:
+    """The one-line error of a TOML file that does not parse, in the form of every other
+    input error: ``PATH: line N: not valid TOML: PROBLEM (column C)``; ``first_line``:
+    the file's line number of the parsed text's first line (an options line in a CSV)."""
+    msg = str(exc)
+    at = _TOML_AT.search(msg)
+    if at is None:  # "(at end of document)": no line to name
+        return f"{path}: not valid TOML: {shorten(msg, 200)}"
+    line, problem = int(at.group(1)) + first_line - 1, shorten(msg[: at.start()], 200)
+    return f"{path}: line {line}: not valid TOML: {problem} (column {at.group(2)})"
+
+
+def shipped_robots(tendons: bool = True) -> dict[str, Path]:
+    """Robot files shipped with the package, by name (``two-section``...); without
+    ``tendons``, only those of constant-curvature robots (no ``[[tendon]]``)."""
     folder = Path(__file__).parents[1] / "data" / "robots"
-    return {f.stem.replace("_", "-"): f for f in sorted(folder.glob("*.toml"))}
+    found = {f.stem.replace("_", "-"): f for f in sorted(folder.glob("*.toml"))}
+    if tendons:
+        return found
+    return {name: f for name, f in found.items() if not read_robot(f).tendons}
 
 
 def _single_table_hint(text: str) -> str:
@@ -428,8 +448,7 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
     except UnicodeDecodeError:
         raise InputError(f"{p}: not a UTF-8 text file") from None
     except tomllib.TOMLDecodeError as exc:
-        hint = _single_table_hint(text)
-        raise InputError(f"{p}: not valid TOML ({shorten(str(exc), 200)}){hint}") from None
+        raise InputError(toml_error_line(p, exc) + _single_table_hint(text)) from None
     except RecursionError:  # the parser recurses into nested arrays and tables
         raise InputError(f"{p}: not a robot file (nested too deeply for TOML's parser)") from None
     except OSError as exc:

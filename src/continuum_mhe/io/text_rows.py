@@ -307,6 +307,12 @@ def _data_rows(
         yield n, split_fields(text, sep)
 
 
+#: header names a recording's time column often has elsewhere; the files here name it ``t``
+TIME_LIKE_NAMES = frozenset(
+    {"time", "times", "timestamp", "stamp", "time_s", "t_s", "sec", "secs", "seconds"}
+)
+
+
 def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
     """Positions of ``required`` columns in the header, or a one-line error that names
     what the header has (and the separator, when it is likely the problem)."""
@@ -319,6 +325,12 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
                 f" (one column: the separator must be {', '.join(map(repr, SEPARATORS))}; "
                 f"read as {_SEPARATOR_NAMES[rows.separator]})"
             )
+        elif "t" in missing:
+            named = [c for c in rows.header if c.lower() in TIME_LIKE_NAMES]
+            if named:
+                hint = (
+                    f" (the time in seconds is named t: rename {rows.as_written(named[0])!r} to t)"
+                )
         raise InputError(f"{rows.name}: line 1: missing column(s) {', '.join(missing)} "
                          f"(header has: {has}){hint}")  # fmt: skip
     return [rows.header.index(c) for c in required]
