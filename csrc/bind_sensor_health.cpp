@@ -33,11 +33,13 @@ using Array = NewArray;
 template <typename T>
 using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 
-// One sample's answer as Python reads it (Policy.step); None where there is none
+// One sample's answer as Python reads it (Policy.step); None where there is none. The
+// arrays are held as the Python objects they were converted to once, so that reading
+// them costs no conversion.
 struct PolicyStep {
   int input_error;  // 0 when the sample was accepted, else the input's problem
   int status;       // a STATUS_NAMES index
-  std::optional<Array> state, covariance, output, output_std;
+  nb::object state, covariance, output, output_std;  // NumPy arrays, or None
   bool outlier, frozen;
   double solve_ms;
 };
@@ -398,17 +400,21 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("input_error", &PolicyStep::input_error,
               "0 when the sample was accepted, else the code of the input's problem.")
       .def_ro("status", &PolicyStep::status, "The status, an index into STATUS_NAMES.")
-      .def_prop_ro("state",
-          [](const PolicyStep& r) { return r.state; }, nb::rv_policy::move,
+      .def_prop_ro(
+          "state", [](const PolicyStep& r) { return r.state; },
+          nb::for_getter(nb::sig("def state(self, /) -> NDArray[numpy.float64] | None")),
           "The state (nx,), or None.")
-      .def_prop_ro("covariance",
-          [](const PolicyStep& r) { return r.covariance; }, nb::rv_policy::move,
+      .def_prop_ro(
+          "covariance", [](const PolicyStep& r) { return r.covariance; },
+          nb::for_getter(nb::sig("def covariance(self, /) -> NDArray[numpy.float64] | None")),
           "The state covariance (nx, nx), or None.")
-      .def_prop_ro("output",
-          [](const PolicyStep& r) { return r.output; }, nb::rv_policy::move,
+      .def_prop_ro(
+          "output", [](const PolicyStep& r) { return r.output; },
+          nb::for_getter(nb::sig("def output(self, /) -> NDArray[numpy.float64] | None")),
           "The outputs (ny,), or None.")
-      .def_prop_ro("output_std",
-          [](const PolicyStep& r) { return r.output_std; }, nb::rv_policy::move,
+      .def_prop_ro(
+          "output_std", [](const PolicyStep& r) { return r.output_std; },
+          nb::for_getter(nb::sig("def output_std(self, /) -> NDArray[numpy.float64] | None")),
           "The outputs' standard deviations (ny,), or None.")
       .def_ro("outlier", &PolicyStep::outlier, "The robust MHE down-weighted this sample.")
       .def_ro("frozen", &PolicyStep::frozen, "A sensor counts as frozen at this sample.")
@@ -641,9 +647,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             Array y = new_array({size_t(s.ny)}), ystd = new_array({size_t(s.ny)});
             SampleResult r;
             const int err = h.step(t, z.data(), x.data(), P.data(), y.data(), ystd.data(), r);
-            auto when = [](bool has, Array a) {
-              return has ? std::optional<Array>(a) : std::nullopt;
-            };
+            auto when = [](bool has, Array a) { return has ? nb::cast(a) : nb::none(); };
             return PolicyStep{err,
                               r.status,
                               when(r.has_state, x),

@@ -619,19 +619,19 @@ class PolicyStep:
         """The status, an index into STATUS_NAMES."""
 
     @property
-    def state(self) -> NDArray[numpy.float64] | None:
+    def state(self, /) -> NDArray[numpy.float64] | None:
         """The state (nx,), or None."""
 
     @property
-    def covariance(self) -> NDArray[numpy.float64] | None:
+    def covariance(self, /) -> NDArray[numpy.float64] | None:
         """The state covariance (nx, nx), or None."""
 
     @property
-    def output(self) -> NDArray[numpy.float64] | None:
+    def output(self, /) -> NDArray[numpy.float64] | None:
         """The outputs (ny,), or None."""
 
     @property
-    def output_std(self) -> NDArray[numpy.float64] | None:
+    def output_std(self, /) -> NDArray[numpy.float64] | None:
         """The outputs' standard deviations (ny,), or None."""
 
     @property
