@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.text_rows import InputError
+from continuum_mhe.errors import InputError
 
 
 def imu_columns(fields: Sequence[str], n_imus: int) -> list[str]:

@@ -15,9 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import (
     ESTIMATE_COLUMNS,
-    InputError,
     read_measurements,
     read_state_table,
     read_states,

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
 import continuum_mhe._core as _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.estimators.mhe import (
@@ -29,8 +30,6 @@ from continuum_mhe.model.formulations import BendFormulation, Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import SINGLE_SECTION_SCENARIOS, simulate
-
-FloatArray = np.ndarray
 
 #: agreement with IPOPT: angles (rad, rad/s), and positions (m) of the paper
 #: formulation. Those are tied to the angles only by the process penalty (W = 10 per

@@ -21,8 +21,8 @@ from hypothesis import strategies as st
 
 from continuum_mhe import RobotSettings, make_estimator, make_formulation
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import read_measurements
-from continuum_mhe.io.text_rows import InputError
 from continuum_mhe.results import STATUS_MEANINGS
 
 CORPUS = sorted((Path(__file__).parent / "data" / "fuzz").iterdir())

@@ -11,12 +11,12 @@ import pytest
 from estimator_helpers import fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings

@@ -24,11 +24,11 @@ from continuum_mhe import (
 )
 from continuum_mhe.analysis.observability import observability_report, verdict
 from continuum_mhe.cli import main
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.csv_files import read_measurements
 from continuum_mhe.io.raw_imu import read_raw_imu
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError, declared_fields
+from continuum_mhe.io.text_rows import MAX_LINE_BYTES, declared_fields
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import Status

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input, open_input, serial_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.io.text_rows import InputError
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.registry import make_formulation
 

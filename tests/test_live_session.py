@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from estimator_helpers import bare
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Estimate
-from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.registry import make_formulation

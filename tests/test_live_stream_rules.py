@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.io.csv_files import InputError, read_measurements
+from continuum_mhe.io.csv_files import read_measurements
 from continuum_mhe.live.run import run_live
 from continuum_mhe.live.session import GARBAGE_STOP_S, LiveSession, LiveSettings
 from continuum_mhe.model.registry import make_formulation

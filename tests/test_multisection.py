@@ -20,16 +20,12 @@ from scipy.integrate import solve_ivp
 
 from continuum_mhe.analysis.observability import observability_report
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import (
-    DropoutWarning,
-    InputError,
-    read_measurements,
-    read_state_table,
-)
+from continuum_mhe.io.csv_files import DropoutWarning, read_measurements, read_state_table
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot, robot_toml
 from continuum_mhe.model.formulations import AT_BOUND_TOL
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at

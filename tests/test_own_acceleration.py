@@ -10,7 +10,7 @@ import pytest
 from estimator_helpers import fast_and_ipopt_states
 from numpy.testing import assert_allclose
 
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings

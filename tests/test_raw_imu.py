@@ -15,9 +15,10 @@ import pytest
 from header_helpers import assert_header_refused, imu_columns, renamed
 
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import InputError, UnitWarning, read_states
+from continuum_mhe.io.csv_files import UnitWarning, read_states
 from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
     RawImuConverter,
@@ -330,7 +331,7 @@ def test_mount_calibration_recipe_of_the_docs() -> None:
 
 
 def test_zero_acceleration_is_an_error_unless_skipped(tmp_path) -> None:
-    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.errors import InputError
     from continuum_mhe.io.raw_imu import read_raw_imu
 
     p = tmp_path / "raw.csv"

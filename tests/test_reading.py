@@ -15,10 +15,11 @@ import pytest
 from live_helpers import SAFETY_S, unblock_fifo_reader
 
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
 from continuum_mhe.io.inputs import CHUNK
 from continuum_mhe.io.raw_imu import read_raw_imu
-from continuum_mhe.io.text_rows import MAX_LINE_BYTES, InputError
+from continuum_mhe.io.text_rows import MAX_LINE_BYTES
 from continuum_mhe.simulation.scenarios import simulate
 
 CLI = [sys.executable, "-m", "continuum_mhe.cli"]

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import InputError, UnitWarning
+from continuum_mhe.errors import InputError
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot
 from continuum_mhe.model.robot import mount_rpy_hint
 

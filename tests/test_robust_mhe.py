@@ -20,16 +20,12 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe import _core
 from continuum_mhe.cli import main
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import fast as fm
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives, rho_sym
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
-from continuum_mhe.io.csv_files import (
-    InputError,
-    read_state_table,
-    write_estimates,
-    write_measurements,
-)
+from continuum_mhe.io.csv_files import read_state_table, write_estimates, write_measurements
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.kinematics import rotation_bend_sym
 from continuum_mhe.model.registry import make_formulation

@@ -13,14 +13,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.io import text_rows
-from continuum_mhe.io.text_rows import (
-    InputError,
-    RowProblems,
-    iter_samples,
-    open_rows,
-    sample_blocks,
-)
+from continuum_mhe.io.text_rows import RowProblems, iter_samples, open_rows, sample_blocks
 
 Outcome = tuple[Any, ...]
 

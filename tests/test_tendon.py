@@ -15,13 +15,8 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import (
-    DropoutWarning,
-    InputError,
-    StateTable,
-    read_state_table,
-    write_table,
-)
+from continuum_mhe.errors import InputError
+from continuum_mhe.io.csv_files import DropoutWarning, StateTable, read_state_table, write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.robot_file import read_robot, robot_toml
 from continuum_mhe.io.tensions import read_tensions

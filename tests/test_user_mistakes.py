@@ -17,8 +17,8 @@ import continuum_mhe.cli.check_robot as check_robot
 from continuum_mhe import Measurement, compute_metrics, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
-from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError, read_state_table, write_table
+from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.io.csv_files import read_state_table, write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.settings import RobotSettings
 

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.estimators.base import FloatArray, Measurement
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import solve_window
 from continuum_mhe.estimators.fast import window_cost as fast_window_cost
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator

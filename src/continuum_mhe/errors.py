@@ -22,6 +22,11 @@ class UserError(ValueError):
     keep working."""
 
 
+class InputError(UserError):
+    """A problem with an input file or option; the message is one line, naming file
+    and line."""
+
+
 class SampleTimeError(UserError):
     """A sample whose time is not later than the previous sample's: a sample that came
     late or twice (an online caller leaves it out and steps on: the estimator is as it

@@ -15,10 +15,9 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, masked_as_missing, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
-
-FloatArray = NDArray[np.float64]
 
 
 class Status(str, Enum):

@@ -48,10 +48,11 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.benchmark.peers import PEER_NOTES, PEERS
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import FloatArray, Measurement
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.sensor_health import Estimator

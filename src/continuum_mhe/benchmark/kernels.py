@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.simulation.scenarios import Recording
 

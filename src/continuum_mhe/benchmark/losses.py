@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray, Measurement
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import as_sensor_reads, wrap_angle

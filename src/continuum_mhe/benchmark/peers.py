@@ -50,7 +50,8 @@ from typing import Any, Protocol
 import casadi as ca
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray, Measurement
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
 from continuum_mhe.extras import available, install_hint

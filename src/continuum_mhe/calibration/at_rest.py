@@ -19,9 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
+from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError
-from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import STANDARD_GRAVITY, csv_input_kind, mount_rotation

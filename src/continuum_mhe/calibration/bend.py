@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.model.imu import Mounting
 from continuum_mhe.model.pcc import up_vector

@@ -8,8 +8,7 @@ import sys
 
 from continuum_mhe.cli.options import robot_from_args
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError, UserError
 
 
 def run(args: argparse.Namespace) -> int:

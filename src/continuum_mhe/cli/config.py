@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.robot_file import toml_error_line
 from continuum_mhe.io.text_rows import shorten
 

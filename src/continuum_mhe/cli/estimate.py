@@ -41,7 +41,7 @@ from continuum_mhe.cli.options import (
     recovery_settings_from_args,
 )
 from continuum_mhe.cli.program import PROG, version
-from continuum_mhe.errors import time_text
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.sensor_health import (
     BendsBeyondBound,
@@ -50,7 +50,6 @@ from continuum_mhe.estimators.sensor_health import (
     ForceBeyondTensions,
     TensionGainFromOne,
 )
-from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.tendon import TendonFormulation

@@ -13,7 +13,7 @@ import numpy as np
 
 from continuum_mhe.cli.options import add_robot_option, estimate_robot
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.errors import time_text
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
@@ -27,7 +27,6 @@ from continuum_mhe.evaluation.metrics import (
     steady_ratio,
 )
 from continuum_mhe.io.csv_files import (
-    InputError,
     StateTable,
     check_same_robot,
     misspelt_columns,

@@ -1,6 +1,6 @@
 """Command-line options shared by every command that estimates (``estimate``, ``live``,
 ``simulate``, ``evaluate``, ``demo``): the robot, the model and the MHE. One place, used
-by every command module (``cli``, ``cli_live``, ``cli_calibrate``, ...)."""
+by every command module of this package (``estimate``, ``live``, ``calibrate``, ...)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from continuum_mhe.cli.config import beside, options_record, recorded_option
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
 from continuum_mhe.model.formulations import Formulation

@@ -11,12 +11,12 @@ from typing import TYPE_CHECKING
 
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import TIP_COLUMNS, InputError
+from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.io.csv_files import TIP_COLUMNS
 
 if TYPE_CHECKING:
+    from continuum_mhe.arrays import FloatArray
     from continuum_mhe.evaluation.estimate_figure import BackboneOf
-    from continuum_mhe.io.csv_files import FloatArray
     from continuum_mhe.model.robot import Robot
 
 DESCRIPTION = (

@@ -9,8 +9,8 @@ import sys
 import time
 from pathlib import Path
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import InputError
 from continuum_mhe.io.output_files import check_new_folder
 
 

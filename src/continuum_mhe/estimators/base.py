@@ -12,13 +12,9 @@ from __future__ import annotations
 import re
 from abc import ABC, abstractmethod
 
-import numpy as np
-from numpy.typing import NDArray
-
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["Estimate", "EstimateSeries", "FloatArray", "Inference", "Measurement", "Status"]
 
@@ -87,7 +83,9 @@ class Inference(ABC):
 
     def rejected_every_reading(self) -> bool | None:
         """Whether the last :meth:`infer` down-weighted every valid reading of its sample
-        (robust MHE only; the reject reset counts these); None when the sample had none."""
+        (the reject reset counts these): always False here, as for every inference
+        without a robust loss; a robust MHE's answers None when the sample had no valid
+        reading."""
         return False
 
     def policy_inference(self) -> object | None:

@@ -42,7 +42,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray, Status
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import Status
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.kalman import ekf_predict, ekf_update
 from continuum_mhe.model.formulations import Formulation

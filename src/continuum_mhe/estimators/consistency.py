@@ -107,15 +107,13 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
 
 from continuum_mhe import _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.chi2 import chi2_quantile, f_quantile
 from continuum_mhe.estimators.fast.model import node_functions
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.model.formulations import Formulation
-
-FloatArray = NDArray[np.float64]
 
 #: Quantile of the F distribution beyond which the average of NIS / dof over the quiet
 #: level is inconsistent.

@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status, tilt_rows
+from continuum_mhe.estimators.base import Inference, Measurement, Status, tilt_rows
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.sensor_health import (
     NUMERICAL_FAILURES,

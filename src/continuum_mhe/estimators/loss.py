@@ -29,9 +29,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.descriptions import MeasurementBlock
-
-FloatArray = NDArray[np.float64]
 
 #: Integer codes of the losses in the compiled core.
 LOSS_CODES: dict[str, int] = {"l2": 0, "huber": 1, "cauchy": 2, "welsch": 3}

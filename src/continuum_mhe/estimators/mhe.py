@@ -53,8 +53,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import FloatArray, Inference, Measurement, Status
+from continuum_mhe.estimators.base import Inference, Measurement, Status
 from continuum_mhe.estimators.branch import FORGET, BranchCheck, BranchStats, checks_branch
 from continuum_mhe.estimators.fast import (
     BackendFallbackWarning,

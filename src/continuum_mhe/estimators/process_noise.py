@@ -4,12 +4,10 @@ EKF, the MHE's process weights and the consistency check's prediction use it."""
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.formulations import Formulation
-
-FloatArray = NDArray[np.float64]
 
 
 class ProcessNoiseCache:

@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.base import FloatArray
 from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, UNIT_CHECK_SPAN_S, gyro_units_problem
 from continuum_mhe.model.formulations import Formulation
 

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray, Status
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import Status
 from continuum_mhe.estimators.loss import OUTLIER_WEIGHT
 
 if TYPE_CHECKING:

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import (
     SampleTimeError,
     UnobservableShapeWarning,
@@ -44,7 +45,7 @@ from continuum_mhe.errors import (
     time_text,
 )
 from continuum_mhe.estimators import start_check
-from continuum_mhe.estimators.base import FloatArray, Inference, tension_rows, tilt_rows
+from continuum_mhe.estimators.base import Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache

@@ -15,7 +15,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from continuum_mhe.estimators.base import FloatArray
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.loss import rho_sym
 from continuum_mhe.model.formulations import Formulation
 

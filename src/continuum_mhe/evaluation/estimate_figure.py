@@ -13,9 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, aligned_truth, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
-from continuum_mhe.io.csv_files import SECTION_FIELDS, FloatArray, StateTable, tip_section
+from continuum_mhe.io.csv_files import SECTION_FIELDS, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
@@ -24,8 +25,6 @@ from continuum_mhe.model.descriptions import (
     pcc_outputs,
 )
 from continuum_mhe.model.imu import wrap_angle
-
-FloatArray = NDArray[np.float64]
 
 #: One section's outputs, the default column order of arrays without names.
 STATE_NAMES = output_names(pcc_outputs(1))

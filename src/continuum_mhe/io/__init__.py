@@ -20,7 +20,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 _EXPORTS: dict[str, str] = {
-    "InputError": "continuum_mhe.io.csv_files",
+    "InputError": "continuum_mhe.errors",
     "MeasurementTable": "continuum_mhe.io.csv_files",
     "StateTable": "continuum_mhe.io.csv_files",
     "atomic_writer": "continuum_mhe.io.output_files",
@@ -65,8 +65,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
+    from continuum_mhe.errors import InputError
     from continuum_mhe.io.csv_files import (
-        InputError,
         MeasurementTable,
         StateTable,
         read_measurements,

@@ -35,11 +35,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
-from continuum_mhe.errors import UserError, expect_type, is_integer, time_text
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, UserError, expect_type, is_integer, time_text
 from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.io.text_rows import (
     MEASUREMENT_HEADER_HINT,
-    InputError,
     RowProblems,
     TextRows,
     column_indices,
@@ -58,8 +58,6 @@ from continuum_mhe.model.descriptions import (
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
-
-FloatArray = NDArray[np.float64]
 
 #: One section's state columns (the paper's robot); several sections: see
 #: :func:`~continuum_mhe.model.descriptions.pcc_outputs`.

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import (
     TIP_COLUMNS,
-    InputError,
     StateTable,
     read_state_table,
     tilt_columns,

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.robot_logs import (
     IMU_TYPES,
     ImuLog,

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray, InputError
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import shipped_robots
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD

@@ -39,10 +39,10 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.errors import UserError, expect_type, time_text
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, UserError, expect_type, time_text
 from continuum_mhe.io.csv_files import (
     DegreesCheck,
-    FloatArray,
     ReadingCounts,
     check_time_units,
     read_measurements,
@@ -80,14 +80,7 @@ from continuum_mhe.io.tensions import (
     tension_columns,
     tension_columns_in,
 )
-from continuum_mhe.io.text_rows import (
-    InputError,
-    RowProblems,
-    SampleBlock,
-    TextRows,
-    open_rows,
-    sample_blocks,
-)
+from continuum_mhe.io.text_rows import RowProblems, SampleBlock, TextRows, open_rows, sample_blocks
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation

@@ -22,8 +22,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from continuum_mhe.errors import expect_type
-from continuum_mhe.io.text_rows import InputError
+from continuum_mhe.errors import InputError, expect_type
 from continuum_mhe.signals import raise_if_signalled
 
 

@@ -31,16 +31,16 @@ from typing import Any, Literal
 
 import numpy as np
 
-from continuum_mhe.errors import UserError, finite_reals
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, UserError, finite_reals
 from continuum_mhe.io.csv_files import (
-    FloatArray,
     ImuColumns,
     UnitWarning,
     check_time_units,
     imu_suffixes,
     read_sample_rows,
 )
-from continuum_mhe.io.text_rows import InputError, RowProblems, TextRows, open_rows
+from continuum_mhe.io.text_rows import RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.robot import mount_rpy_hint

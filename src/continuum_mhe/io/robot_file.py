@@ -41,7 +41,7 @@ The tensions file's columns follow the ``[[tendon]]`` order. Tendons without a
 ``[backbone]`` are refused.
 
 Without ``[[imu]]`` entries a robot file is refused (a robot needs a sensor). Every
-problem gives :class:`~continuum_mhe.io.csv_files.InputError` naming the file and key.
+problem gives :class:`~continuum_mhe.errors.InputError` naming the file and key.
 The IMUs are numbered in the file's order, and the measurement columns follow it
 (``roll_1, pitch_1`` are the first ``[[imu]]``'s): IMUs listed out of base-to-tip order
 (by section, then ``at``), or one place listed twice, give a
@@ -62,8 +62,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.errors import UserError, expect_type
-from continuum_mhe.io.csv_files import InputError, UnitWarning
+from continuum_mhe.errors import InputError, UserError, expect_type
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (

@@ -31,8 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError, require
-from continuum_mhe.io.csv_files import FloatArray, InputError, check_time_steps
+from continuum_mhe.io.csv_files import check_time_steps
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")

@@ -33,15 +33,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from continuum_mhe.errors import UserError, time_text
-from continuum_mhe.io.csv_files import (
-    MS_LIKE_STEP_S,
-    DropoutWarning,
-    FloatArray,
-    check_time_units,
-)
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, UserError, time_text
+from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
-from continuum_mhe.io.text_rows import InputError, RowProblems, iter_samples, open_rows
+from continuum_mhe.io.text_rows import RowProblems, iter_samples, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation

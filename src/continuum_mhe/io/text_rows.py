@@ -34,11 +34,9 @@ from pathlib import Path
 from typing import IO
 
 import numpy as np
-from numpy.typing import NDArray
 
-from continuum_mhe.errors import UserError, expect_type, time_text
-
-FloatArray = NDArray[np.float64]
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, expect_type, time_text
 
 #: Longest line accepted, bytes (a sample row is well under 1 kB; a comment line may be
 #: long, so the limit is generous: it stops a binary file, not a wide table).
@@ -48,11 +46,6 @@ SHOWN_CHARS = 40
 #: Separators recognised in the header line, in order of preference.
 SEPARATORS = (",", ";", "\t")
 _SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
-
-
-class InputError(UserError):
-    """A problem with an input file or option; the message is one line, naming file
-    and line (a :class:`~continuum_mhe.errors.UserError`)."""
 
 
 def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:

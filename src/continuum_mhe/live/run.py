@@ -31,9 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.estimators.base import Estimate, Measurement
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.descriptions import OutputSpec
 from continuum_mhe.signals import SIGNALS_SEEN, defer, stop_deferring

@@ -14,7 +14,8 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from continuum_mhe.errors import time_text
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.sensor_health import (
@@ -22,12 +23,7 @@ from continuum_mhe.estimators.sensor_health import (
     TensionGainFromOne,
     _reraise_interrupt,
 )
-from continuum_mhe.io.csv_files import (
-    FloatArray,
-    InputError,
-    estimate_columns,
-    estimate_row,
-)
+from continuum_mhe.io.csv_files import estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,

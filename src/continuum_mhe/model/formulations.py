@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe import _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     MeasurementBlock,
@@ -55,8 +56,6 @@ from continuum_mhe.model.kinematics import Sym, rotation_bend, tip_position, tip
 from continuum_mhe.model.pcc import gravity_direction_at_sym, pose_at_sym, shape_rank, up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -182,7 +181,8 @@ class Formulation:
     #: whether the outputs' standard deviations come from sigma points on the states the
     #: outputs depend on (:meth:`output_std`), which carry the outputs' curvature, or are
     #: linearised (``sqrt(diag(J P J^T))``): False for a model whose outputs cost a
-    #: shooting each, where the ``2 s`` evaluations would cost more than a filter step
+    #: shooting each, where the 2 x (states) sigma-point evaluations would cost more
+    #: than a filter step
     sigma_point_output_std: ClassVar[bool] = True
 
     def __post_init__(self) -> None:

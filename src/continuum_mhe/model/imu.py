@@ -25,8 +25,9 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.model.kinematics import FloatArray, Sym, cosc_q, sinc_q
+from continuum_mhe.model.kinematics import Sym, cosc_q, sinc_q
 
 Mounting = Literal["z-up", "z-down"]
 MOUNTINGS: tuple[Mounting, ...] = ("z-up", "z-down")

@@ -23,10 +23,11 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
+
+from continuum_mhe.arrays import FloatArray
 
 Sym = Any  # casadi.SX or casadi.MX
-FloatArray = NDArray[np.float64]
 
 #: Below this value of ``theta**2`` the series branches are used. The truncation
 #: error of the series at the switch is < 1e-20, far below double precision, so the

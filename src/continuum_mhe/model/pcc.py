@@ -25,13 +25,9 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.imu import Mounting, _up_sign, gravity_direction_bend_sym
-from continuum_mhe.model.kinematics import (
-    FloatArray,
-    Sym,
-    rotation_bend_sym,
-    tip_position_bend_sym,
-)
+from continuum_mhe.model.kinematics import Sym, rotation_bend_sym, tip_position_bend_sym
 from continuum_mhe.model.robot import Robot
 
 

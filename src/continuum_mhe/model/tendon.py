@@ -71,6 +71,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.model.descriptions import (
     TIP_FORCE_COLUMNS,
@@ -82,7 +83,7 @@ from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
-from continuum_mhe.model.formulations import ChangeTest, FloatArray, Formulation
+from continuum_mhe.model.formulations import ChangeTest, Formulation
 from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector

@@ -49,8 +49,8 @@ from functools import cached_property, lru_cache
 import casadi as ca
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, time_text
-from continuum_mhe.model.formulations import FloatArray
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot

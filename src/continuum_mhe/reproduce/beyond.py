@@ -38,8 +38,8 @@ from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import Method, make_estimator
 from continuum_mhe.estimators.base import Measurement
@@ -57,7 +57,6 @@ from continuum_mhe.settings import (
 )
 from continuum_mhe.simulation.scenarios import simulate
 
-FloatArray = NDArray[np.float64]
 BeyondGroup = Literal["clean", "spikes", "bursts", "coverage", "gap", "freeze", "bad-start"]
 BEYOND_GROUPS: tuple[BeyondGroup, ...] = (
     "clean", "spikes", "bursts", "coverage", "gap", "freeze", "bad-start")  # fmt: skip

@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import EstimateSeries, Method, make_estimator
 from continuum_mhe.evaluation.metrics import compute_metrics
@@ -37,7 +37,6 @@ from continuum_mhe.settings import (
 )
 from continuum_mhe.simulation.scenarios import ScenarioName, simulate
 
-FloatArray = NDArray[np.float64]
 Corruption = Literal["none", "bad-init", "outliers"]
 
 #: Table 1: (sigma_beta = pitch, sigma_gamma = roll); |sigma| is read as a std in rad.

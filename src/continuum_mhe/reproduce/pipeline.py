@@ -19,8 +19,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from continuum_mhe.errors import UserError
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.output_files import new_files
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond, summarise_beyond
 from continuum_mhe.reproduce.bootstrap import mean_ci

@@ -39,12 +39,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
-
-FloatArray = NDArray[np.float64]
 
 GRAVITY = 9.80665  # m/s^2
 
@@ -401,7 +400,7 @@ def write_recording(path: str | Path, recording: RodRecording) -> None:
 
 def read_recording(path: str | Path) -> RodRecording:
     """Read a recording written by :func:`write_recording`."""
-    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.errors import InputError
 
     p = Path(path)
     if not p.is_file():
@@ -439,7 +438,7 @@ def generator_info(
 def read_generator_info(path: str | Path) -> dict[str, Any] | None:
     """The generator settings beside a recording (:func:`info_path`), or None if there
     are none (a recording from elsewhere)."""
-    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.errors import InputError
 
     p = info_path(path)
     if not p.is_file():
@@ -475,7 +474,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         print(f"{p.prog}: error: --duration must be positive", file=sys.stderr)
         return 2
-    from continuum_mhe.io.csv_files import InputError
+    from continuum_mhe.errors import InputError
     from continuum_mhe.io.output_files import check_output_target
 
     try:  # a missing folder or a directory: said before the minute of simulation

@@ -81,6 +81,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
 from continuum_mhe.model.kinematics import rotation_bend
@@ -93,7 +94,6 @@ from continuum_mhe.simulation.cosserat import (
     servo_profile,
 )
 
-FloatArray = NDArray[np.float64]
 SCENARIOS = ("planar-s", "spatial")
 #: the bend calibration's rod motion (``NAME_bend.csv``; not a recording's scenario)
 BEND = "bend-xz"

@@ -52,10 +52,11 @@ from typing import Any
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import require
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.simulation.cosserat import GRAVITY, FloatArray, ImuSettings
+from continuum_mhe.simulation.cosserat import GRAVITY, ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,

@@ -19,9 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.model.direct import STANDARD_GRAVITY
@@ -29,8 +29,6 @@ from continuum_mhe.model.kinematics import bend_from_shape
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.scenarios import Recording
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from typing import Literal
 
 import numpy as np
 
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, expect_type, real_number
 from continuum_mhe.model.descriptions import OutputSpec, pcc_outputs
 from continuum_mhe.model.imu import (
@@ -33,12 +34,7 @@ from continuum_mhe.model.imu import (
     tilt_from_accelerometer,
     wrap_angle,
 )
-from continuum_mhe.model.kinematics import (
-    FloatArray,
-    bend_from_shape,
-    shape_from_bend,
-    tip_position,
-)
+from continuum_mhe.model.kinematics import bend_from_shape, shape_from_bend, tip_position
 from continuum_mhe.model.robot import Robot, Section
 
 NoiseModel = Literal["tilt", "tangent"]

@@ -22,7 +22,8 @@ from typing import Literal
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray, tilt_columns
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.io.csv_files import tilt_columns
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields

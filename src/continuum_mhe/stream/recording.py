@@ -16,7 +16,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError
 
 
 def _umask() -> int:

@@ -12,7 +12,7 @@ from functools import cache, cached_property
 import casadi as ca
 import numpy as np
 
-from continuum_mhe.io.csv_files import FloatArray
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.io.raw_imu import mount_rotation
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.pcc import pose_at_sym

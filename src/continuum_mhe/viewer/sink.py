@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Literal
 from urllib.parse import quote
 
-from continuum_mhe.io.csv_files import InputError
+from continuum_mhe.errors import InputError
 
 LOOPBACK = "127.0.0.1"
 SinkKind = Literal["save", "spawn", "web"]

@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
 from continuum_mhe.extras import install_hint, require
-from continuum_mhe.io.csv_files import FloatArray, InputError
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, OutputSpec, section_bends
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate

@@ -31,7 +31,7 @@ from continuum_mhe.model.formulations import Formulation
 if TYPE_CHECKING:
     from continuum_mhe.estimators.window_nlp import WindowProblem as WindowProblemLike
 
-FloatArray = NDArray[np.float64]
+from continuum_mhe.arrays import FloatArray
 
 
 def last_block_covariance(

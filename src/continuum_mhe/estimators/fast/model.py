@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
+from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.fast.codegen import (
     block_columns,
     c_function,
@@ -34,7 +35,6 @@ from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.tape import residual_function, residual_node_tapes, tape_function
 
-FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 

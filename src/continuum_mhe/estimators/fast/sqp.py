@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
@@ -29,7 +28,7 @@ from continuum_mhe.estimators.loss import LOSS_CODES
 if TYPE_CHECKING:
     from continuum_mhe.estimators.window_nlp import WindowProblem as WindowProblemLike
 
-FloatArray = NDArray[np.float64]
+from continuum_mhe.arrays import FloatArray
 
 
 @dataclass(frozen=True)
