@@ -233,17 +233,7 @@ void cmhe::bind_solver(nb::module_& m) {
       .def_ro("window_size", &WindowSolver::window_size)
       .def_rw("watchdog", &WindowSolver::watchdog,
               "A rejected full step gets one more Gauss-Newton step from its trial point "
-              "before it is shortened (for models without the second-order term).")
-      .def_prop_ro(
-          "entries",
-          [](WindowSolver& s) {
-            const auto e = WindowSolver::entries();
-            return std::make_tuple(reinterpret_cast<std::uintptr_t>(&s), e.solve, e.evaluate,
-                                   e.shift, e.project);
-          },
-          "(this solver's address, then the addresses of its C entry points solve, evaluate, "
-          "shift_outputs and project; argument layouts in csrc/sqp.hpp), for compiled "
-          "callers.");
+              "before it is shortened (for models without the second-order term).");
 
   m.def(
       "last_block_covariance",

@@ -599,65 +599,6 @@ bool WindowSolver::shift_outputs(int src, int dst) {
   return true;
 }
 
-namespace {
-
-WindowSolver* solver_of(const double* const* in) {
-  return reinterpret_cast<WindowSolver*>(const_cast<double*>(in[0]));
-}
-
-int solve_entry(const double* const* in, double* out) {
-  try {
-    const double* o = in[6];
-    SqpOptions opt;
-    opt.max_iter = Index(o[0]);
-    opt.step_tol = o[1];
-    opt.err_tol = o[2];
-    opt.max_qp_iter = Index(o[3]);
-    opt.newton = o[4] != 0.0;
-    opt.quadratic = o[5] != 0.0;
-    const SqpResult r = solver_of(in)->solve({in[1], in[2], in[3]}, in[4], const_cast<double*>(in[5]),
-                                             opt, o[6] != 0.0, int(o[7]));
-    out[0] = r.outcome;
-    out[1] = double(r.iterations);
-    out[2] = r.step;
-    out[3] = r.cost;
-    out[4] = r.buffer;
-    return 0;
-  } catch (...) {
-    return 1;
-  }
-}
-
-int evaluate_entry(const double* const* in, double* out) {
-  try {
-    out[0] = solver_of(in)->evaluate(int(in[5][0]), {in[1], in[2], in[3]}, in[4]);
-    return 0;
-  } catch (...) {
-    return 1;
-  }
-}
-
-int shift_entry(const double* const* in, double*) {
-  try {
-    return solver_of(in)->shift_outputs(int(in[1][0]), int(in[1][1])) ? 0 : 1;
-  } catch (...) {
-    return 1;
-  }
-}
-
-int project_entry(const double* const* in, double*) {
-  const WindowSolver* w = solver_of(in);
-  project(Index(in[2][0]), w->nx, const_cast<double*>(in[1]), w->feasible());
-  return 0;
-}
-
-}  // namespace
-
-WindowSolver::Entries WindowSolver::entries() {
-  auto addr = [](Entry f) { return reinterpret_cast<std::uintptr_t>(f); };
-  return {addr(&solve_entry), addr(&evaluate_entry), addr(&shift_entry), addr(&project_entry)};
-}
-
 void WindowSolver::shift_stages() {
   const Index ns = Index(stage_done.size()), bs = nx * nx;
   if (ns == 0) return;

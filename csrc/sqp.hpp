@@ -88,20 +88,6 @@ class WindowSolver {
   // 1 where the node's measurement mask m has a nonzero entry
   void node_mask(double* zmask) const;
 
-  // C entry points ``int f(const double** in, double* out)`` (0 on success) of solve,
-  // evaluate, shift_outputs and project, for compiled callers that hold this solver's
-  // address (``in[0]``, cast to a pointer):
-  //   solve:    in = (solver, qinv, xbar, arrival, zmask, lam, options), options = (max_iter,
-  //             step_tol, err_tol, max_qp_iter, newton, quadratic, evaluated, shifted);
-  //             out = (outcome, iterations, step, cost, buffer)
-  //   evaluate: in = (solver, qinv, xbar, arrival, zmask, (buf,)); out = (cost,)
-  //   shift:    in = (solver, (src, dst)); 1 if the tail function failed
-  //   project:  in = (solver, X, (rows,)): project ``rows`` nodes of X in place
-  struct Entries {
-    std::uintptr_t solve, evaluate, shift, project;
-  };
-  static Entries entries();
-
   Index n, nx, nz, nu, nblk, nb, bk, window_size;
   // counts the calls that write the model outputs or the assembly (solve, evaluate,
   // assemble, shift_outputs): a caller that kept a buffer's outputs knows whether they

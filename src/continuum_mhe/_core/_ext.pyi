@@ -237,12 +237,6 @@ class WindowSolver:
     @watchdog.setter
     def watchdog(self, arg: bool, /) -> None: ...
 
-    @property
-    def entries(self) -> tuple[int, int, int, int, int]:
-        """
-        (this solver's address, then the addresses of its C entry points solve, evaluate, shift_outputs and project; argument layouts in csrc/sqp.hpp), for compiled callers.
-        """
-
 def last_block_covariance(X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], tol: float, out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
     """
     Into out (nx, nx): the last diagonal block of H^-1 for H = (D, E), conditioned on the bounds active at X (n, nx) within tol; False if the reduced Hessian is not positive definite.
