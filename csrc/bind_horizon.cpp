@@ -39,6 +39,14 @@ nb::tuple answer(const MovingHorizon& h) {
 }  // namespace
 
 void cmhe::bind_horizon(nb::module_& m) {
+  nb::enum_<StepOutcome>(m, "StepOutcome", nb::is_arithmetic(),
+                         "Outcomes of MovingHorizon.step (csrc/horizon.hpp).")
+      .value("NO_ESTIMATE", STEP_NO_ESTIMATE,
+             "The window is not full yet and paper_start holds the estimate.")
+      .value("DONE", STEP_DONE, "Solved, certified and kept: the answer is returned.")
+      .value("SOLVED", STEP_SOLVED, "Solved and certified, not kept: finish follows.")
+      .value("UNCERTIFIED", STEP_UNCERTIFIED,
+             "The SQP did not certify its answer: the caller solves the window.");
   nb::class_<MovingHorizon>(
       m, "MovingHorizon",
       "The fast MHE's per-sample step over one WindowSolver and NodeModel: the window's "
@@ -78,14 +86,15 @@ void cmhe::bind_horizon(nb::module_& m) {
             check_size(Qinv, h.nx * h.nx, "Qinv");
             const int outcome = h.step(t, z.data(), mask.data(), u.data(), Q.data(),
                                        Qinv.data(), finish);
-            if (outcome != STEP_DONE) return nb::make_tuple(outcome, nb::none());
-            return nb::make_tuple(outcome, answer(h));
+            const auto code = static_cast<StepOutcome>(outcome);
+            if (outcome != STEP_DONE) return nb::make_tuple(code, nb::none());
+            return nb::make_tuple(code, answer(h));
           },
           nb::arg("t"), nb::arg("z"), nb::arg("mask"), nb::arg("u"), nb::arg("Q"),
           nb::arg("Qinv"), nb::arg("finish"),
           "One sample (push, slide, warm start, solve; keep when certified and finish): "
-          "(outcome, (state, cov, y, std) when the answer was kept, else None); outcome 0 "
-          "no estimate yet, 1 kept, 2 certified and not kept, 3 not certified.")
+          "(a StepOutcome, (state, cov, y, std) when the answer was kept (DONE), else "
+          "None).")
       .def(
           "finish",
           [](MovingHorizon& h, In X, bool solved, nb::object w_new, bool failed) {

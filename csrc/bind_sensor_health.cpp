@@ -37,7 +37,7 @@ using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 // arrays are held as the Python objects they were converted to once, so that reading
 // them costs no conversion.
 struct PolicyStep {
-  int input_error;  // 0 when the sample was accepted, else the input's problem
+  InputError input_error;  // INPUT_OK when the sample was accepted
   int status;       // a STATUS_NAMES index
   nb::object state, covariance, output, output_std;  // NumPy arrays, or None
   bool outlier, frozen;
@@ -181,7 +181,8 @@ class HorizonInference final : public PolicyInference {
     int status = ST_OK;
     if (outcome != STEP_DONE) {  // the Python hooks, or IPOPT on the window
       nb::gil_scoped_acquire gil;
-      nb::tuple r = nb::cast<nb::tuple>(py_.attr("after_step")(outcome, valid));
+      nb::tuple r = nb::cast<nb::tuple>(
+          py_.attr("after_step")(static_cast<StepOutcome>(outcome), valid));
       if (!r[1].is_none()) throw InferenceFailure(nb::cast<std::string>(r[1]));
       status = nb::cast<int>(r[0]);
     } else if (!valid) {
@@ -396,9 +397,16 @@ void cmhe::bind_sensor_health(nb::module_& m) {
   for (const char* s : STATUS_NAMES) names.append(nb::str(s));
   m.attr("STATUS_NAMES") = nb::tuple(names);
 
+  nb::enum_<InputError>(m, "InputProblem", nb::is_arithmetic(),
+                        "A sample the policy refuses (csrc/sensor_health.hpp's InputError).")
+      .value("OK", INPUT_OK, "Accepted.")
+      .value("TIME", INPUT_TIME, "t not finite, or not later than the previous sample's.")
+      .value("DEGREES", INPUT_DEGREES, "A tilt reading beyond 2 pi: degrees given for radians.")
+      .value("INFINITE", INPUT_INFINITE, "An infinite reading.");
+
   nb::class_<PolicyStep>(m, "PolicyStep", "One sample's answer of Policy.step.")
       .def_ro("input_error", &PolicyStep::input_error,
-              "0 when the sample was accepted, else the code of the input's problem.")
+              "InputProblem.OK (0) when the sample was accepted, else its problem.")
       .def_ro("status", &PolicyStep::status, "The status, an index into STATUS_NAMES.")
       .def_prop_ro(
           "state", [](const PolicyStep& r) { return r.state; },
@@ -648,7 +656,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             SampleResult r;
             const int err = h.step(t, z.data(), x.data(), P.data(), y.data(), ystd.data(), r);
             auto when = [](bool has, Array a) { return has ? nb::cast(a) : nb::none(); };
-            return PolicyStep{err,
+            return PolicyStep{static_cast<InputError>(err),
                               r.status,
                               when(r.has_state, x),
                               when(r.has_cov, P),
@@ -684,16 +692,18 @@ void cmhe::bind_sensor_health(nb::module_& m) {
               return yes == 1;
             };
             nb::gil_scoped_release released;  // see the note above PythonInference
-            return h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
-                         outlier.data(), frozen.data(), y.data(), ystd.data(), interrupted);
+            const auto [stop, err] =
+                h.run(static_cast<int64_t>(n), t.data(), z.data(), status.data(), ms.data(),
+                      outlier.data(), frozen.data(), y.data(), ystd.data(), interrupted);
+            return std::make_pair(stop, static_cast<InputError>(err));
           },
           nb::arg("t"), nb::arg("z"), nb::arg("status"), nb::arg("ms"), nb::arg("outlier"),
           nb::arg("frozen"), nb::arg("y"), nb::arg("ystd"), nb::arg("should_stop").none() = nb::none(),
           "Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, "
           "outlier and frozen flags, outputs and their std, NaN where none); stops at the "
-          "first refused sample: (its index, its input error), or where ``should_stop()`` "
+          "first refused sample: (its index, its InputProblem), or where ``should_stop()`` "
           "(asked before the first sample and then about every 10 ms) says True: (the "
-          "samples stepped, 0); else (n, 0).")
+          "samples stepped, InputProblem.OK); else (n, InputProblem.OK).")
       .def("check_idle", &Policy::check_idle,
            "A RuntimeError where another thread steps this policy now (before a change "
            "of its settings).")

@@ -3,6 +3,7 @@ The compiled core of continuum-mhe: model evaluation, MHE solver, filters.
 """
 
 from collections.abc import Sequence
+import enum
 from typing import Annotated, overload
 
 import numpy
@@ -401,6 +402,21 @@ def pinv_symmetric(a: Annotated[NDArray[numpy.float64], dict(order='C', device='
     The pseudo-inverse of the symmetric matrix ``a`` from its eigendecomposition, eigenvalues at most ``rcond`` times the largest in magnitude taken as zero.
     """
 
+class StepOutcome(enum.IntEnum):
+    """Outcomes of MovingHorizon.step (csrc/horizon.hpp)."""
+
+    NO_ESTIMATE = 0
+    """The window is not full yet and paper_start holds the estimate."""
+
+    DONE = 1
+    """Solved, certified and kept: the answer is returned."""
+
+    SOLVED = 2
+    """Solved and certified, not kept: finish follows."""
+
+    UNCERTIFIED = 3
+    """The SQP did not certify its answer: the caller solves the window."""
+
 class MovingHorizon:
     """
     The fast MHE's per-sample step over one WindowSolver and NodeModel: the window's buffers (NumPy views, row-major, aligned at the end), the arrival prior's slide, the warm start, the SQP, the last node's covariance and the outputs (csrc/horizon.hpp).
@@ -416,7 +432,7 @@ class MovingHorizon:
 
     def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], Qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], finish: bool) -> tuple:
         """
-        One sample (push, slide, warm start, solve; keep when certified and finish): (outcome, (state, cov, y, std) when the answer was kept, else None); outcome 0 no estimate yet, 1 kept, 2 certified and not kept, 3 not certified.
+        One sample (push, slide, warm start, solve; keep when certified and finish): (a StepOutcome, (state, cov, y, std) when the answer was kept (DONE), else None).
         """
 
     def finish(self, X: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], solved: bool, w_new: object | None, failed: bool) -> tuple:
@@ -601,12 +617,27 @@ class MovingHorizon:
 
 STATUS_NAMES: tuple = ...
 
+class InputProblem(enum.IntEnum):
+    """A sample the policy refuses (csrc/sensor_health.hpp's InputError)."""
+
+    OK = 0
+    """Accepted."""
+
+    TIME = 1
+    """t not finite, or not later than the previous sample's."""
+
+    DEGREES = 2
+    """A tilt reading beyond 2 pi: degrees given for radians."""
+
+    INFINITE = 3
+    """An infinite reading."""
+
 class PolicyStep:
     """One sample's answer of Policy.step."""
 
     @property
-    def input_error(self) -> int:
-        """0 when the sample was accepted, else the code of the input's problem."""
+    def input_error(self) -> InputProblem:
+        """InputProblem.OK (0) when the sample was accepted, else its problem."""
 
     @property
     def status(self) -> int:
@@ -747,9 +778,9 @@ class SensorHealth:
     def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> PolicyStep:
         """One sample: a PolicyStep."""
 
-    def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], should_stop: object | None = None) -> tuple[int, int]:
+    def run(self, t: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], status: Annotated[NDArray[numpy.int32], dict(order='C', device='cpu')], ms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], outlier: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], frozen: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], ystd: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], should_stop: object | None = None) -> tuple[int, InputProblem]:
         """
-        Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its input error), or where ``should_stop()`` (asked before the first sample and then about every 10 ms) says True: (the samples stepped, 0); else (n, 0).
+        Step the samples ``t`` (n), ``z`` (n, nz) into the arrays (status codes, ms, outlier and frozen flags, outputs and their std, NaN where none); stops at the first refused sample: (its index, its InputProblem), or where ``should_stop()`` (asked before the first sample and then about every 10 ms) says True: (the samples stepped, InputProblem.OK); else (n, InputProblem.OK).
         """
 
     def check_idle(self) -> None:

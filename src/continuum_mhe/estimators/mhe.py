@@ -97,11 +97,6 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 from continuum_mhe.signals import raise_if_solve_interrupted, signals_deferred
 
-#: Outcomes of a window step (``csrc/horizon.hpp``): no estimate yet (``paper_start``);
-#: solved and kept with its covariance and outputs; solved and certified, not kept (the
-#: branch check or the second start follows); not certified (IPOPT solves the window).
-NO_ESTIMATE_YET, KEPT, CERTIFIED, UNCERTIFIED = 0, 1, 2, 3
-
 
 class Answer(NamedTuple):
     """A kept window answer's newest node: what the estimate of the sample holds."""
@@ -116,7 +111,8 @@ class ReferenceWindow:
     """The IPOPT backend's window: the same buffers and steps as the compiled
     :class:`continuum_mhe._core.MovingHorizon` of the fast backend (its attribute names,
     ``csrc/horizon.hpp``), on the formulation's CasADi functions, with no solve of its own
-    (its :meth:`step` leaves the window to the caller: :data:`UNCERTIFIED`).
+    (its :meth:`step` leaves the window to the caller:
+    :attr:`~continuum_mhe._core.StepOutcome.UNCERTIFIED`).
 
     Args:
         formulation: the model.
@@ -181,10 +177,10 @@ class ReferenceWindow:
         Q: FloatArray,
         Qinv: FloatArray,
         finish: bool,
-    ) -> tuple[int, None]:
+    ) -> tuple[_core.StepOutcome, None]:
         """Push the sample (sliding the prior when the window was full), form the warm
-        start :attr:`X0` and the arrival weights; :data:`UNCERTIFIED` (the caller
-        solves), or :data:`NO_ESTIMATE_YET` under ``paper_start``."""
+        start :attr:`X0` and the arrival weights; ``StepOutcome.UNCERTIFIED`` (the caller
+        solves), or ``StepOutcome.NO_ESTIMATE`` under ``paper_start``."""
         n = self.n
         if self.k == n:
             self._slide()
@@ -203,13 +199,13 @@ class ReferenceWindow:
         self.has_X_last = False
         if self.settings.paper_start and self.k < n:
             self.X[:], self.has_X = self.X0, True
-            return NO_ESTIMATE_YET, None
+            return _core.StepOutcome.NO_ESTIMATE, None
         off = n - self.k  # pinned identity before off, P^-1 at off, 0 after
         if off:
             self.arrival[:off] = np.eye(self.nx)
         self.arrival[off : off + 2] = 0.0  # off moves down by one per sample while growing
         self.arrival[off] = self.Pinv
-        return UNCERTIFIED, None
+        return _core.StepOutcome.UNCERTIFIED, None
 
     def _slide(self) -> None:
         """One EKF step of the prior: update with the leaving sample (with a robust loss
@@ -576,7 +572,7 @@ class MovingHorizonInference(Inference):
         if valid:
             self._z_prev_valid = m.z
         outcome, answer = window.step(m.t, m.z, mask, u, Q, Qinv, not self._hooks)
-        if outcome == NO_ESTIMATE_YET:
+        if outcome == _core.StepOutcome.NO_ESTIMATE:
             return None, None, Status.NO_ESTIMATE
         if answer is not None:  # kept by the compiled step
             return self._keep(Answer(*answer), Status.OK, valid)
@@ -607,7 +603,7 @@ class MovingHorizonInference(Inference):
         start): the compiled step then leaves its answer to :meth:`_after_step`."""
         return self.branch is not None or self.second_start is not None
 
-    def _after_step(self, outcome: int) -> tuple[Answer, Status]:
+    def _after_step(self, outcome: _core.StepOutcome) -> tuple[Answer, Status]:
         """The window after a step that did not keep its answer (``outcome``): the
         hooks on a certified answer, IPOPT's solve on another; the answer kept and its
         status."""
@@ -615,7 +611,7 @@ class MovingHorizonInference(Inference):
         problem = self.window_problem(copy=False)
         self._last_cost = None
         self.sync_counts()
-        if outcome == CERTIFIED:
+        if outcome == _core.StepOutcome.SOLVED:
             X, status = np.array(window.X_sol), Status.OK
             self._last_cost = window.cost
         elif self._fast is None:  # IPOPT's backend
@@ -630,7 +626,8 @@ class MovingHorizonInference(Inference):
             X, status = self._try_second_start(problem, X, status)
         w_new, self._w_new = self._w_new, None
         answer = window.finish(
-            np.ascontiguousarray(X, dtype=np.float64), X is solved and outcome == CERTIFIED,
+            np.ascontiguousarray(X, dtype=np.float64),
+            X is solved and outcome == _core.StepOutcome.SOLVED,
             w_new, status == Status.SOLVER_FAILED,
         )  # fmt: skip
         return Answer(*answer), status
@@ -833,7 +830,7 @@ class _HorizonHooks:
             return numerical_failure(exc)
         return None
 
-    def after_step(self, outcome: int, valid: bool) -> tuple[int, str | None]:
+    def after_step(self, outcome: _core.StepOutcome, valid: bool) -> tuple[int, str | None]:
         """The status code of the kept answer (``dropout`` for an ``ok`` one without a
         valid reading), or a numerical failure's message."""
         try:

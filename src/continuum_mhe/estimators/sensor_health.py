@@ -730,12 +730,14 @@ class Estimator(Generic[InferenceT]):
         if problem is not None:
             raise ReadingUnitsError(problem)
 
-    def _refuse(self, err: int, t: float, z: FloatArray, previous: float | None = None) -> None:
+    def _refuse(
+        self, err: _core.InputProblem, t: float, z: FloatArray, previous: float | None = None
+    ) -> None:
         """Raise the :class:`UserError` of a sample the policy refused (``err``, its
         input error: the time order, a :class:`SampleTimeError`, or a tilt in degrees or
         infinite); ``previous``: the time of the sample before it in the same call (else
         the policy's last)."""
-        if err == INPUT_TIME:
+        if err == _core.InputProblem.TIME:
             last, hint = (self._policy.last_t if previous is None else previous), ""
             first = previous is None and math.isfinite(t)  # the call's first sample
             if first and self._ran:
@@ -750,7 +752,7 @@ class Estimator(Generic[InferenceT]):
                 f"sample's t={last!r} s{hint}"
             )
         names, zl = self.formulation.measurement_names, z.tolist()
-        if err == INPUT_INFINITE:
+        if err == _core.InputProblem.INFINITE:
             infinite = ", ".join(f"{names[i]}={v:g}" for i, v in enumerate(zl) if math.isinf(v))
             raise UserError(
                 f"measurement at t={t!r} s: {infinite}: an infinite value; a reading that "
@@ -900,7 +902,11 @@ class Estimator(Generic[InferenceT]):
         bad = late | infinite | degrees
         if bad.any():
             i = int(np.argmax(bad))
-            err = INPUT_TIME if late[i] else INPUT_INFINITE if infinite[i] else INPUT_DEGREES
+            err = (
+                _core.InputProblem.TIME if late[i]
+                else _core.InputProblem.INFINITE if infinite[i]
+                else _core.InputProblem.DEGREES
+            )  # fmt: skip
             self._refuse(err, float(t[i]), z[i], None if i == 0 else float(previous[i]))
 
     def _step_blocks(
@@ -954,8 +960,6 @@ class Estimator(Generic[InferenceT]):
 
 #: Samples per call into the compiled policy when ``run`` shows its progress.
 RUN_BLOCK = 256
-#: The compiled policy's refusals of a sample (``csrc/sensor_health.hpp``: InputError).
-INPUT_TIME, INPUT_DEGREES, INPUT_INFINITE = 1, 2, 3
 
 
 @dataclass
