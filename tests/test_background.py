@@ -14,7 +14,7 @@ import pytest
 from continuum_mhe.cli import estimate as estimate_command
 from continuum_mhe.cli import main
 from continuum_mhe.io.background import WriteBehind, read_ahead
-from continuum_mhe.io.csv_files import write_measurements
+from continuum_mhe.io.estimate_csv import write_measurements
 from continuum_mhe.simulation.scenarios import simulate
 
 

@@ -29,8 +29,9 @@ from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.start_check import SAMPLES
-from continuum_mhe.io.csv_files import read_state_table, write_measurements
+from continuum_mhe.io.estimate_csv import write_measurements
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond

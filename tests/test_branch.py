@@ -14,8 +14,9 @@ from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.branch import FORGET
 from continuum_mhe.estimators.fast import solve_window, window_cost
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
-from continuum_mhe.io.csv_files import read_state_table, write_estimates
+from continuum_mhe.io.estimate_csv import write_estimates
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.results import EstimateSeries

@@ -16,13 +16,9 @@ from hypothesis import strategies as st
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import (
-    ESTIMATE_COLUMNS,
-    read_measurements,
-    read_state_table,
-    read_states,
-    write_measurements,
-)
+from continuum_mhe.io.csv_files import read_measurements
+from continuum_mhe.io.estimate_csv import ESTIMATE_COLUMNS, write_measurements
+from continuum_mhe.io.state_tables import read_state_table, read_states
 from continuum_mhe.model.kinematics import tip_position
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -891,7 +887,7 @@ def test_skip_start_keeps_the_row_at_its_time_and_starts_at_the_first_finite_tim
     ``--skip-start 1`` keeps the rows from 1.30 s on, the row at 1.30 s included (its
     time, 1.2999999999999998, rounds below 0.30000000000000004 + 1), and no other."""
     from continuum_mhe.cli.evaluate import _after_start
-    from continuum_mhe.io.csv_files import StateTable
+    from continuum_mhe.io.state_tables import StateTable
 
     t = 0.14 + 0.01 * np.arange(15, 315)
     t[0] = np.nan

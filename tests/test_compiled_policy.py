@@ -20,7 +20,7 @@ import pytest
 from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
-from continuum_mhe.io.csv_files import estimate_lines, estimate_row, format_cells, format_time
+from continuum_mhe.io.estimate_csv import estimate_lines, estimate_row, format_cells, format_time
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
 from continuum_mhe.model.registry import make_formulation

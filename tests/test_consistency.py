@@ -182,10 +182,10 @@ def test_ok_rows_cover_the_truth_on_a_cosserat_rod(name) -> None:
     constant-curvature model gets wrong leaves no residual while the gravity directions
     fix the shape); its readings scatter at a fraction of ``R``, and against that level
     the innovations show the model error on about a fifth of the rows."""
-    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
     from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "rod2"
@@ -209,10 +209,10 @@ def test_ok_rows_cover_the_truth_where_the_readings_never_show_the_model_error(m
     pin the shape: ``uncertain``). The model error assumed before the readings
     show one (``model_error_std``) makes the 95 % intervals cover the truth 85 to 99 %
     of the time per axis, in every estimator; without it (0) 81, 82 and 85 %."""
-    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
     from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "rod2"
@@ -237,7 +237,7 @@ def test_ok_rows_cover_the_truth_over_the_rods_with_the_command_line_defaults(tm
     axis. A restart keeps the model error the readings showed (a restart that forgets it
     makes rows ``ok`` again at once: coverage 91 / 86 / 81 %)."""
     from continuum_mhe.cli import main
-    from continuum_mhe.io.csv_files import read_state_table
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "rod2"
@@ -263,9 +263,9 @@ def test_loaded_tendon_robot_rows_far_off_are_not_ok(name) -> None:
     off are not ``ok``. force-08: 73 % if a row is ``ok`` again as soon as the
     innovations' average drops below its quantile; its far rows come right after
     stretches the average flagged."""
-    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     folder = default_data_path().parent / "tendon"
@@ -289,9 +289,9 @@ def test_loaded_tendon_robot_by_a_pcc_robot_of_its_geometry_far_rows_are_not_ok(
     those phases. At least 80 % of the rows more than 20 mm off are not ``ok`` (54 %
     with the average judged against ``R``'s level, 74 % with a model error that ends as
     soon as the average touches the quiet level)."""
-    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     # tendon-two-section without its tendons and backbone (tools/honesty_study.py's)

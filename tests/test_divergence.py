@@ -12,7 +12,8 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.io.csv_files import read_measurements, read_states
+from continuum_mhe.io.csv_files import read_measurements
+from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.formulations import AT_BOUND_TOL
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import STATUS_MEANINGS

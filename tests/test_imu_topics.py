@@ -17,10 +17,10 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 from continuum_mhe.benchmark.harness import raw_imu_recording
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.imu_topics import pair_stamps, read_imu_topics
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 
 TOPICS = ("/imu1", "/imu2")
 G = 9.80665

@@ -98,7 +98,7 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     tensions names the robot file and the tendons (not "None"); a tendon formulation
     handed to load_input names the model it calls for (not numpy's 'cannot reshape
     array'); write_measurements refuses z with more rows than t, writing nothing."""
-    from continuum_mhe.io.csv_files import write_measurements
+    from continuum_mhe.io.estimate_csv import write_measurements
 
     robot = read_robot(DATA / "robots/tendon_two_section.toml")
     with pytest.raises(InputError, match="^the robot file: the robot has 6 tendons: .*Python"):
@@ -114,7 +114,7 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     # estimates without its outputs: one line each (not AttributeError or IndexError)
     from continuum_mhe import make_estimator, simulate, simulate_robot
     from continuum_mhe.errors import UserError
-    from continuum_mhe.io.csv_files import write_estimates
+    from continuum_mhe.io.estimate_csv import write_estimates
     from continuum_mhe.results import EstimateSeries, Measurement
 
     rec = simulate("paper3d", duration=0.5)

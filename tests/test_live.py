@@ -32,7 +32,7 @@ from live_helpers import (
     wait_for,
 )
 
-from continuum_mhe.io.csv_files import read_state_table, read_states
+from continuum_mhe.io.state_tables import read_state_table, read_states
 from continuum_mhe.live.run import GarbledLine, parse_line
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")

@@ -17,10 +17,11 @@ from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import Estimate, Measurement, make_estimator
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.io.csv_files import read_state_table, write_table
+from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import SerialInput, open_input, serial_input
 from continuum_mhe.io.robot_file import read_robot, shipped_robots
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.io.tensions import TensionStream, central_differences, read_tensions
 from continuum_mhe.live.run import run_live
 from continuum_mhe.live.session import LiveSession, LiveSettings

@@ -25,8 +25,9 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ekf_update
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import DropoutWarning, read_measurements, read_state_table
+from continuum_mhe.io.csv_files import DropoutWarning, read_measurements
 from continuum_mhe.io.robot_file import RobotFileWarning, read_robot, robot_toml
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.formulations import AT_BOUND_TOL
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at
 from continuum_mhe.model.registry import make_formulation

@@ -18,7 +18,7 @@ from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import UnitWarning, read_states
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
     RawImuConverter,
@@ -28,6 +28,7 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imu,
     read_raw_imus,
 )
+from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.direct import (
     DEFAULT_GYRO_STD,
     DirectFormulation,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.imu import tilt_from_accelerometer
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.simulation.raw_readings import RawNoise, raw_readings

@@ -16,9 +16,10 @@ from live_helpers import SAFETY_S, unblock_fifo_reader
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import UnitWarning, read_measurements, read_states
+from continuum_mhe.io.csv_files import UnitWarning, read_measurements
 from continuum_mhe.io.inputs import CHUNK
 from continuum_mhe.io.raw_imu import read_raw_imu
+from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.io.text_rows import MAX_LINE_BYTES
 from continuum_mhe.simulation.scenarios import simulate
 

@@ -17,9 +17,10 @@ from scipy.spatial.transform import Rotation
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import UnitWarning, read_states
+from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.mcap_estimates import read_estimates_mcap
 from continuum_mhe.io.robot_logs import read_imu_log, tilt_from_quaternion
+from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.direct import raw_imu_readings
 from continuum_mhe.model.imu import tilt, tilt_from_accelerometer
 from continuum_mhe.simulation.scenarios import simulate

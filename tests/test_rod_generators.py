@@ -16,8 +16,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.pcc import section_frames_from_bends
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.simulation import cosserat

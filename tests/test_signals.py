@@ -46,7 +46,7 @@ def test_sigterm_during_estimate_keeps_its_rows_marked_partial_exit_143(tmp_path
     assert err.strip().splitlines()[-1] == "continuum-mhe: terminated"
     assert "kept the" in err and "marked '# partial = ...'" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "m.csv"]  # no temp
-    from continuum_mhe.io.csv_files import read_state_table
+    from continuum_mhe.io.state_tables import read_state_table
 
     rows = len(read_state_table(out).t)
     assert 0 < rows < 60_001

@@ -16,9 +16,11 @@ import pytest
 
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import DropoutWarning, StateTable, read_state_table, write_table
+from continuum_mhe.io.csv_files import DropoutWarning
+from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.robot_file import read_robot, robot_toml
+from continuum_mhe.io.state_tables import StateTable, read_state_table
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
 from continuum_mhe.model.tendon import TendonFormulation

@@ -15,7 +15,7 @@ from scipy.signal import savgol_coeffs
 
 from continuum_mhe.cli import main
 from continuum_mhe.io import tensions as tension_io
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.io.tensions import (
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,

@@ -41,7 +41,8 @@ from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
-from continuum_mhe.io.csv_files import read_state_table, write_estimates
+from continuum_mhe.io.estimate_csv import write_estimates
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import Diagnostics, EstimateSeries
@@ -318,7 +319,7 @@ def test_std_columns_written_read_back_and_evaluated(tmp_path, capsys) -> None:
     series = make_estimator("ekf", BendFormulation()).run(rec.t, rec.z)
     est_path, truth_path = tmp_path / "e.csv", tmp_path / "t.csv"
     write_estimates(est_path, series)
-    from continuum_mhe.io.csv_files import write_truth
+    from continuum_mhe.io.estimate_csv import write_truth
 
     write_truth(truth_path, rec.t, rec.truth, series.outputs)
     header = est_path.read_text().splitlines()[0].split(",")

@@ -18,8 +18,9 @@ from continuum_mhe import Measurement, compute_metrics, make_estimator, make_for
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.csv_files import read_state_table, write_table
+from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate

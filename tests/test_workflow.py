@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from continuum_mhe.cli import main
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.pcc import backbone_points
 from continuum_mhe.model.robot import Robot
 

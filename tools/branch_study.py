@@ -28,11 +28,11 @@ from continuum_mhe.estimators.fast import solve_window
 from continuum_mhe.estimators.fast import window_cost as fast_window_cost
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.simulation.scenarios import simulate_robot
 

@@ -69,7 +69,8 @@ def monte_carlo(args: argparse.Namespace) -> dict[str, object]:
 
 
 def rod(args: argparse.Namespace) -> dict[str, object]:
-    from continuum_mhe.io.csv_files import read_measurements, read_state_table
+    from continuum_mhe.io.csv_files import read_measurements
+    from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.simulation.cosserat import default_data_path
 
     path = default_data_path()

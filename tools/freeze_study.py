@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 
 ROBOT = """mounting = "z-down"
 [[section]]

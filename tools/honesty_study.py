@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.cli.app import main as cli_main
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.simulation.cosserat import default_data_path
 
 DATA = default_data_path().parent  # the package's data folder

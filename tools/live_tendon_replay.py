@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 
 DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 

@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.io.csv_files import read_state_table
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.settings import RecoverySettings
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"

@@ -30,7 +30,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli import main as cli_main
 from continuum_mhe.io import tensions as tension_io
-from continuum_mhe.io.csv_files import read_state_table
+from continuum_mhe.io.state_tables import read_state_table
 
 DATA = Path(tension_io.__file__).resolve().parents[1] / "data" / "tendon"
 

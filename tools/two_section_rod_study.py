@@ -25,11 +25,12 @@ import numpy as np
 
 from continuum_mhe import MHESettings, make_estimator, make_formulation
 from continuum_mhe.evaluation.metrics import compute_metrics
-from continuum_mhe.io.csv_files import read_measurements, read_state_table
+from continuum_mhe.io.csv_files import read_measurements
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot

@@ -14,7 +14,7 @@ from continuum_mhe.cli.options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
-from continuum_mhe.io.csv_files import write_estimates, write_measurements, write_truth
+from continuum_mhe.io.estimate_csv import write_estimates, write_measurements, write_truth
 from continuum_mhe.io.output_files import check_new_folder, new_files
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import Robot

@@ -26,13 +26,13 @@ from continuum_mhe.evaluation.metrics import (
     section_numbers,
     steady_ratio,
 )
-from continuum_mhe.io.csv_files import (
+from continuum_mhe.io.estimate_files import read_estimates
+from continuum_mhe.io.state_tables import (
     StateTable,
     check_same_robot,
     misspelt_columns,
     read_state_table,
 )
-from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 

@@ -31,7 +31,7 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import version
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError
-from continuum_mhe.io.csv_files import estimate_columns
+from continuum_mhe.io.estimate_csv import estimate_columns
 from continuum_mhe.io.inputs import serial_input
 from continuum_mhe.io.output_files import refuse_inputs
 from continuum_mhe.live.run import WARM_UP_STEPS, open_plot, run_live, warm_up

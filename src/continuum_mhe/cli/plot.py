@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.csv_files import TIP_COLUMNS
+from continuum_mhe.model.descriptions import TIP_COLUMNS
 
 if TYPE_CHECKING:
     from continuum_mhe.arrays import FloatArray
@@ -69,10 +69,10 @@ def _estimate(args: argparse.Namespace) -> int:
     )
     from continuum_mhe.evaluation.metrics import interpolated_note
     from continuum_mhe.evaluation.plotting import save
-    from continuum_mhe.io.csv_files import read_state_table
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.io.state_tables import read_state_table
 
     output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
     if output.suffix.lower() not in FIGURE_SUFFIXES:

@@ -16,7 +16,7 @@ from continuum_mhe.cli.options import (
 )
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.csv_files import write_measurements, write_truth
+from continuum_mhe.io.estimate_csv import write_measurements, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot

@@ -1,7 +1,7 @@
 """The figure of one estimate file (``continuum-mhe plot EST.csv``): each section end and
 the tip over time with their 95 % bands, the error against a truth, a tendon robot's
 tip force, the statuses, and the backbone in 3D. It reads the file's table
-(:class:`~continuum_mhe.io.csv_files.StateTable`) and never an estimator; any number of
+(:class:`~continuum_mhe.io.state_tables.StateTable`) and never an estimator; any number of
 sections, with or without a truth or a robot."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, aligned_truth, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
-from continuum_mhe.io.csv_files import SECTION_FIELDS, StateTable, tip_section
+from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 from continuum_mhe.model.pcc import backbone_points

@@ -22,14 +22,14 @@ from typing import TYPE_CHECKING, Any
 _EXPORTS: dict[str, str] = {
     "InputError": "continuum_mhe.errors",
     "MeasurementTable": "continuum_mhe.io.csv_files",
-    "StateTable": "continuum_mhe.io.csv_files",
+    "StateTable": "continuum_mhe.io.state_tables",
     "atomic_writer": "continuum_mhe.io.output_files",
     "read_measurements": "continuum_mhe.io.csv_files",
-    "read_state_table": "continuum_mhe.io.csv_files",
-    "read_states": "continuum_mhe.io.csv_files",
-    "write_estimates": "continuum_mhe.io.csv_files",
-    "write_measurements": "continuum_mhe.io.csv_files",
-    "write_truth": "continuum_mhe.io.csv_files",
+    "read_state_table": "continuum_mhe.io.state_tables",
+    "read_states": "continuum_mhe.io.state_tables",
+    "write_estimates": "continuum_mhe.io.estimate_csv",
+    "write_measurements": "continuum_mhe.io.estimate_csv",
+    "write_truth": "continuum_mhe.io.estimate_csv",
     "InputOptions": "continuum_mhe.io.input_options",
     "InputDescription": "continuum_mhe.io.inputs",
     "EstimateInput": "continuum_mhe.io.inputs",
@@ -66,16 +66,8 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:
     from continuum_mhe.errors import InputError
-    from continuum_mhe.io.csv_files import (
-        MeasurementTable,
-        StateTable,
-        read_measurements,
-        read_state_table,
-        read_states,
-        write_estimates,
-        write_measurements,
-        write_truth,
-    )
+    from continuum_mhe.io.csv_files import MeasurementTable, read_measurements
+    from continuum_mhe.io.estimate_csv import write_estimates, write_measurements, write_truth
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import (
         EstimateInput,
@@ -90,4 +82,5 @@ if TYPE_CHECKING:
     from continuum_mhe.io.raw_imu import RawImuSettings, read_raw_imu, read_raw_imus
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.robot_logs import read_imu_log
+    from continuum_mhe.io.state_tables import StateTable, read_state_table, read_states
     from continuum_mhe.io.tensions import TensionStream, read_tensions

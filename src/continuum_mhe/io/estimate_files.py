@@ -9,16 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.csv_files import (
-    TIP_COLUMNS,
-    StateTable,
-    read_state_table,
-    tilt_columns,
-    truth_named,
-)
+from continuum_mhe.io.csv_files import tilt_columns
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
+from continuum_mhe.io.state_tables import StateTable, read_state_table, truth_named
 from continuum_mhe.io.text_rows import open_rows
+from continuum_mhe.model.descriptions import TIP_COLUMNS
 
 
 def is_mcap(path: str) -> bool:

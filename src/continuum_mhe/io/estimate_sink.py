@@ -17,7 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.io.csv_files import estimate_columns, estimate_lines, estimate_row, format_cells
+from continuum_mhe.io.estimate_csv import (
+    estimate_columns,
+    estimate_lines,
+    estimate_row,
+    format_cells,
+)
 from continuum_mhe.io.mcap_estimates import NOTES_RECORD, mcap_estimate_writer, sample_messages
 from continuum_mhe.io.output_files import atomic_binary_writer, atomic_writer
 from continuum_mhe.model.formulations import Formulation

@@ -23,8 +23,9 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.extras import require
-from continuum_mhe.io.csv_files import STD_PREFIX, StateTable
+from continuum_mhe.io.estimate_csv import STD_PREFIX
 from continuum_mhe.io.output_files import atomic_binary_writer
+from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import OutputSpec, section_bends
 from continuum_mhe.model.pcc import backbone_frames
 from continuum_mhe.model.robot import Section

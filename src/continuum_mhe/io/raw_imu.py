@@ -33,13 +33,8 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
-from continuum_mhe.io.csv_files import (
-    ImuColumns,
-    UnitWarning,
-    check_time_units,
-    imu_suffixes,
-    read_sample_rows,
-)
+from continuum_mhe.io.csv_files import UnitWarning, check_time_units, read_sample_rows
+from continuum_mhe.io.imu_columns import ImuColumns, imu_suffixes
 from continuum_mhe.io.text_rows import RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -330,7 +325,7 @@ def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
 
     A header with a column missing from an IMU's set (with the columns that look like a
     typo of it), or with whole sets for another number of IMUs than ``n_imus``, is a
-    one-line error (:func:`~continuum_mhe.io.csv_files.imu_suffixes`); so is one that
+    one-line error (:func:`~continuum_mhe.io.imu_columns.imu_suffixes`); so is one that
     gives some IMUs' gyro columns and not the others'."""
     suffixes = imu_suffixes(rows, n_imus, RAW_IMU_COLUMNS)
     gyro = [s for s in suffixes if all(c + s in rows.header for c in GYRO_COLUMNS)]

@@ -23,7 +23,7 @@ from continuum_mhe.estimators.sensor_health import (
     TensionGainFromOne,
     _reraise_interrupt,
 )
-from continuum_mhe.io.csv_files import estimate_columns, estimate_row
+from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,

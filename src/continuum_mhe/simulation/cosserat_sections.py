@@ -397,7 +397,7 @@ def write_rest_recording(
 def _write_imu_table(path: Path, t: FloatArray, f: FloatArray, w: FloatArray) -> Path:
     """``t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,...`` (t from 0) of the IMUs' specific
     forces ``f`` and rates ``w`` (n, n_imus, 3)."""
-    from continuum_mhe.io.csv_files import write_table
+    from continuum_mhe.io.estimate_csv import write_table
     from continuum_mhe.io.raw_imu import raw_columns
 
     n_imus = f.shape[1]
@@ -472,7 +472,8 @@ def write_trajectory_recording(
     """The files of :func:`write_section_recording` from a simulated trajectory (so
     that one simulation can be sampled by several IMUs; ``misalignment_axes`` as in
     :func:`imu_samples`)."""
-    from continuum_mhe.io.csv_files import tilt_columns, write_table
+    from continuum_mhe.io.csv_files import tilt_columns
+    from continuum_mhe.io.estimate_csv import write_table
     from continuum_mhe.model.descriptions import output_names, pcc_outputs
     from continuum_mhe.model.imu import tilt_from_accelerometer
 

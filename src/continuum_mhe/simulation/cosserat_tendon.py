@@ -323,7 +323,8 @@ def write_tendon_recording(
     :class:`~continuum_mhe.errors.UserError`."""
     import casadi as ca
 
-    from continuum_mhe.io.csv_files import tilt_columns, write_table
+    from continuum_mhe.io.csv_files import tilt_columns
+    from continuum_mhe.io.estimate_csv import write_table
     from continuum_mhe.io.raw_imu import raw_columns
     from continuum_mhe.model.imu import tilt_from_accelerometer
     from continuum_mhe.model.tendon_statics import swing_twist_sym

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.errors import InputError, UserError
-from continuum_mhe.io.csv_files import check_estimate_fits, read_state_table, robot_misfit
 from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
+from continuum_mhe.io.state_tables import check_estimate_fits, read_state_table, robot_misfit
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.robot import Robot

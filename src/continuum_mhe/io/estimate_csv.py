@@ -1,0 +1,236 @@
+"""Estimate, truth and measurement CSVs written (docs/formats.md): the columns of an
+estimate file (``t``, the formulation's outputs, ``std_c`` for every output ``c``, then
+``status,solve_ms``; a robust MHE's ``outlier`` just before ``status``), its rows as
+text, and the writers. Outputs are written atomically (:mod:`.output_files`)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from continuum_mhe import _core
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
+from continuum_mhe.io.output_files import atomic_writer
+from continuum_mhe.model.descriptions import (
+    OutputSpec,
+    output_names,
+    pcc_outputs,
+)
+from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
+
+#: Prefix of the standard-deviation column of an output (``std_x``, ``std_theta_2``).
+STD_PREFIX = "std_"
+
+
+def std_columns(outputs: Sequence[OutputSpec]) -> tuple[str, ...]:
+    """``std_c`` for every output ``c``."""
+    return tuple(STD_PREFIX + n for n in output_names(outputs))
+
+
+def estimate_columns(outputs: Sequence[OutputSpec], outlier: bool = False) -> tuple[str, ...]:
+    """Header of an estimate CSV: ``t``, the outputs, their ``std_`` columns, ``outlier``
+    (with ``outlier``: a robust MHE's flags), ``status``, ``solve_ms``."""
+    flags = ("outlier",) if outlier else ()
+    return ("t", *output_names(outputs), *std_columns(outputs), *flags, "status", "solve_ms")
+
+
+ESTIMATE_COLUMNS = estimate_columns(pcc_outputs(1))
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.10g}"
+
+
+def format_time(t: float) -> str:
+    """An estimate row's time ``t`` (s) as written: ``"%.10g"`` where that keeps it to
+    half a microsecond (below 1e4 s it always does) or ``|t| >= 1e15``, else six decimals
+    without trailing zeros, so that samples a millisecond or less apart on a device clock
+    past 1e6 s stay distinct (the compiled writer's rule, to the character)."""
+    if not math.isfinite(t):
+        raise UserError("refusing to write a non-finite time")
+    short = f"{t:.10g}"
+    if abs(float(short) - t) <= 5e-7 or abs(t) >= 1e15:
+        return short
+    return f"{t:.6f}".rstrip("0").rstrip(".")
+
+
+def write_table(
+    path: str | os.PathLike[str], columns: Sequence[str], rows: Sequence[Sequence[object]]
+) -> None:
+    """Write a CSV atomically; floats must be finite (refuses to write NaN)."""
+    with atomic_writer(path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            w.writerow(format_cells(path, r))
+
+
+def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[str]:
+    """The CSV cells of one row: floats in 10 significant digits, which must be finite
+    (a non-finite value is a bug: refused)."""
+    cells = []
+    for v in row:
+        if isinstance(v, (float, np.floating)):
+            if not math.isfinite(v):
+                raise UserError(f"refusing to write a non-finite value to {path}")
+            cells.append(_fmt(float(v)))
+        else:
+            cells.append(str(v))
+    return cells
+
+
+def estimate_row(
+    t: float,
+    output: Sequence[float] | FloatArray | None,
+    status: str,
+    solve_ms: float,
+    ny: int,
+    std: Sequence[float] | FloatArray | None = None,
+    outlier: bool | None = None,
+) -> list[object]:
+    """One estimate CSV row; a row without an estimate leaves the outputs empty, and an
+    unknown standard deviation is empty too. ``outlier`` (None: no such column) is
+    written as 0 or 1 before the status."""
+    flag = [] if outlier is None else [int(bool(outlier))]
+    if status == "no-estimate" or output is None:
+        return [format_time(t), *([""] * (2 * ny)), *flag, str(status), float(solve_ms)]
+    sd: list[object] = [""] * ny
+    if std is not None:
+        sd = [float(v) if math.isfinite(v) else "" for v in std]
+    return [format_time(t), *(float(v) for v in output), *sd, *flag, str(status), float(solve_ms)]
+
+
+def estimate_lines(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    output: FloatArray,
+    output_std: FloatArray,
+    outlier: NDArray[np.bool_] | None,
+    status: Sequence[str],
+    solve_ms: FloatArray,
+) -> str:
+    """The estimate CSV lines of several samples, as :func:`estimate_row` and
+    :func:`format_cells` write each (``output``, ``output_std`` (n, ny) NaN where there
+    is none; ``outlier`` None: no such column); a non-finite output of an estimate is
+    refused (a bug). Written by the compiled core, each number as ``%.10g``."""
+    status = list(status)  # str (or Status, a str): numpy's array of them calls __str__
+    no_estimate = np.fromiter(map("no-estimate".__eq__, status), dtype=np.bool_, count=len(status))
+    estimated = ~np.isnan(output).all(axis=1) & ~no_estimate
+    if not (
+        np.isfinite(t).all()
+        and np.isfinite(solve_ms).all()
+        and np.isfinite(output[estimated]).all()
+    ):
+        raise UserError(f"refusing to write a non-finite value to {path}")
+    flags = None if outlier is None else np.ascontiguousarray(outlier, dtype=np.uint8)
+    t, output, output_std, solve_ms = (
+        np.ascontiguousarray(a, dtype=np.float64) for a in (t, output, output_std, solve_ms)
+    )
+    return _core.estimate_lines(
+        t, output, output_std, estimated.view(np.uint8), flags, status, solve_ms
+    )
+
+
+def estimate_rows(series: EstimateSeries) -> list[list[object]]:
+    """Rows of the estimate CSV; no-estimate rows leave the outputs empty."""
+    ny = len(series.outputs)
+    flags = [None] * len(series.t) if series.outlier is None else list(series.outlier)
+    return [
+        estimate_row(t, out, str(st), ms, ny, sd, fl)
+        for t, out, st, ms, sd, fl in zip(
+            series.t, series.output, series.status, series.solve_ms, series.std, flags
+        )
+    ]
+
+
+def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArray, FloatArray]:
+    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), or a UserError
+    naming the shapes."""
+    try:
+        t_arr, v_arr = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise UserError(f"t and {name} must be arrays of numbers") from None
+    if t_arr.ndim != 1 or v_arr.ndim != 2:
+        raise UserError(
+            f"t must be (n,) and {name} (n, m); got shapes {t_arr.shape} and {v_arr.shape}"
+        )
+    return t_arr, v_arr
+
+
+def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
+    """Write an estimate CSV atomically (columns from ``series.outputs``; an ``outlier``
+    column when the series carries outlier flags)."""
+    if not isinstance(series, EstimateSeries):
+        raise UserError(
+            f"series must be an EstimateSeries (what run() returns), got a {type(series).__name__}"
+        )
+    t = np.asarray(series.t, dtype=float)
+    if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        raise UserError(
+            f"{path}: t must be finite and strictly increasing (s): the estimate files' "
+            "readers refuse a file whose time does not increase"
+        )
+    unknown = sorted({str(v) for v in series.status} - set(STATUS_MEANINGS))
+    if unknown:
+        raise UserError(f"{path}: status {unknown[0]!r} is not one of {', '.join(STATUS_MEANINGS)}")
+    columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
+    write_table(path, columns, estimate_rows(series))
+
+
+def write_truth(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    truth: FloatArray,
+    outputs: Sequence[OutputSpec] = pcc_outputs(1),
+) -> None:
+    """Write a truth CSV ``t`` + the output columns atomically (``t`` as
+    :func:`format_time` writes it: a device or Unix clock keeps its microseconds)."""
+    t, truth = _samples_table(t, truth, "truth")
+    if not np.isfinite(t).all():
+        raise UserError(f"{path}: t must be finite (s)")
+    if truth.shape[1] != len(outputs):
+        raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
+    write_table(
+        path,
+        ("t", *output_names(outputs)),
+        [[format_time(float(a)), *map(float, b)] for a, b in zip(t, truth)],
+    )
+
+
+def write_measurements(
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    z: FloatArray,
+    names: Sequence[str] = ("roll", "pitch"),
+) -> None:
+    """Write a measurement CSV ``t`` + ``names`` (rad) atomically; NaN (a dropout of
+    that sensor) is written as an empty field, ``t`` as :func:`format_time` writes it
+    (a device or Unix clock keeps its microseconds)."""
+    if isinstance(names, str):  # "rp" would be the columns r, p
+        raise UserError(f"names must be a sequence of column names, got the string {names!r}")
+    t, z = _samples_table(t, z, "z")
+    if z.shape[1] != len(names):
+        raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
+    if len(t) != len(z):
+        raise UserError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
+    if len(t) == 0:
+        raise UserError(f"{path}: no samples to write (read_measurements refuses a file without)")
+    if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        raise UserError(
+            f"{path}: t must be finite and strictly increasing (s): read_measurements "
+            "refuses a file whose time does not increase"
+        )
+    if np.isinf(z).any():  # NaN is a dropout, written empty; an infinite value is not one
+        i, j = np.argwhere(np.isinf(z))[0]
+        raise UserError(f"{path}: row {i + 1}: {names[j]} is infinite (a dropout is NaN)")
+    rows = [
+        [format_time(float(a)), *(float(v) if np.isfinite(v) else "" for v in b)]
+        for a, b in zip(t, z)
+    ]
+    write_table(path, ("t", *names), rows)
