@@ -1689,7 +1689,7 @@ def test_the_bend_past_theta_max_tally_reads_a_one_section_tendon_robots_columns
     """A one-section tendon robot names its bend theta_1: the tally finds it, counts the
     rows past theta_max (NaN rows without an estimate left out) and says how far;
     a PCC robot, whose bound the estimator keeps, is not tallied."""
-    from continuum_mhe.estimators.sensor_health import BendsBeyondBound
+    from continuum_mhe.estimators.run_notices import BendsBeyondBound
     from continuum_mhe.model.registry import make_formulation
 
     f = TendonFormulation(robot=read_robot(_small_robot(tmp_path)))
@@ -1810,7 +1810,7 @@ def test_a_tip_force_beyond_every_tension_is_said() -> None:
     """The end's line where the tip force went beyond every tension given (a load that
     large, or tensions in another unit): counted over blocks, rows without an estimate
     (NaN) skipped; none at or below the largest tension, or below 0.05 N."""
-    from continuum_mhe.estimators.sensor_health import ForceBeyondTensions
+    from continuum_mhe.estimators.run_notices import ForceBeyondTensions
 
     f, _, z = _raw_shipped(3)
     names = [o.name for o in f.outputs]
@@ -2055,7 +2055,7 @@ def test_the_tension_gain_warning_keeps_what_the_readings_showed_before_a_restar
     """Gains that ended far from 1 (0.83, std 0.01), then a restart's rows at the prior
     (1, std 0.3): the warning says the informed gains; rows at the prior alone say
     nothing."""
-    from continuum_mhe.estimators.sensor_health import TensionGainFromOne
+    from continuum_mhe.estimators.run_notices import TensionGainFromOne
 
     f = TendonFormulation(robot=read_robot("tendon-two-section"), estimate_tension_gain=True)
     cols = [i for i, o in enumerate(f.outputs) if o.name.startswith("tension_gain_")]
@@ -2080,7 +2080,7 @@ def test_the_tension_gain_warning_says_when_the_sections_disagree() -> None:
     tensions given not acting; gains that disagree beyond their standard deviations
     (1.95 and 1.54, std 0.01: what tensions in kgf for N end at) are said as not to be
     trusted too."""
-    from continuum_mhe.estimators.sensor_health import TensionGainFromOne
+    from continuum_mhe.estimators.run_notices import TensionGainFromOne
 
     f = TendonFormulation(robot=read_robot("tendon-two-section"), estimate_tension_gain=True)
     cols = [i for i, o in enumerate(f.outputs) if o.name.startswith("tension_gain_")]

@@ -43,13 +43,13 @@ from continuum_mhe.cli.options import (
 from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.sensor_health import (
+from continuum_mhe.estimators.run_notices import (
     BendsBeyondBound,
     BendsOnBound,
-    Estimator,
     ForceBeyondTensions,
     TensionGainFromOne,
 )
+from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.tendon import TendonFormulation

@@ -18,11 +18,8 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
-from continuum_mhe.estimators.sensor_health import (
-    Estimator,
-    TensionGainFromOne,
-    _reraise_interrupt,
-)
+from continuum_mhe.estimators.run_notices import TensionGainFromOne
+from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
     UNIT_CHECK_SAMPLES,

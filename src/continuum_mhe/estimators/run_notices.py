@@ -1,0 +1,276 @@
+"""Notices at the end of a run, from its estimates: sections whose bend sat on its
+bound or passed it, a tendon robot's tip force beyond its tensions, tension gains far
+from one (each a tally over the estimates, and one line that says what it means)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.estimators.base import tension_rows
+from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
+from continuum_mhe.results import Status
+
+#: A tendon robot's tip force beyond this many times its largest tension (and over
+#: :data:`FORCE_NOTICE_MIN` N) is said at the end of ``estimate``
+#: (:class:`ForceBeyondTensions`): the shipped recordings reach at most 0.11 of it.
+FORCE_TENSION_RATIO = 1.0
+FORCE_NOTICE_MIN = 0.05
+
+
+def _bend_columns(formulation: Formulation) -> list[int]:
+    """Each section's bend among ``formulation``'s outputs: ``theta_k``, or ``theta`` for
+    a one-section model that names it so; -1 where there is none."""
+    names = [o.name for o in formulation.outputs]
+    sections = formulation.robot.sections
+    return [
+        names.index(f"theta_{k}")
+        if f"theta_{k}" in names
+        else (names.index("theta") if len(sections) == 1 and "theta" in names else -1)
+        for k in range(1, len(sections) + 1)
+    ]
+
+
+def _largest_bends(largest: list[float], theta: FloatArray, rows: NDArray[np.bool_]) -> list[float]:
+    """Each section's largest bend (rad) of ``largest`` and of the bends ``theta`` (n,
+    sections) where ``rows`` (n, sections) marks them."""
+    if not rows.any():
+        return largest
+    worst = np.nanmax(np.where(rows, theta, 0.0), axis=0)
+    return [max(a, float(b)) for a, b in zip(largest, worst)]
+
+
+class BendsOnBound:
+    """The estimates of a constant-curvature robot that put a section's bend on its
+    ``theta_max`` (within :data:`~continuum_mhe.model.formulations.AT_BOUND_TOL`) or
+    beyond it, counted block by block from their outputs (``theta_k``) and statuses, by
+    status (a restart's row on the bound is ``reset``, not ``at-bound``), with each
+    section's largest bend, for one line at the end (:meth:`notice`). The rows counted
+    are the rows of the file whose ``theta_k`` reach the bound, and every ``at-bound``
+    row."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        robot = formulation.robot
+        self._robot = robot
+        self._limits = np.array([s.theta_max for s in robot.sections])  # rad
+        self._columns = _bend_columns(formulation)
+        # a mechanics model does not bound the bend: BendsBeyondBound says those
+        self.active = not robot.has_mechanics and all(c >= 0 for c in self._columns)
+        self.count = 0
+        self.statuses: Counter[str] = Counter()
+        self.largest = [0.0] * len(robot.sections)
+
+    def add(self, output: FloatArray, statuses: Sequence[str]) -> None:
+        """Count the estimates ``output`` (n, ny; NaN rows without an estimate) and
+        their ``statuses``."""
+        status = np.asarray(statuses, dtype=object)
+        on = status == Status.AT_BOUND.value
+        if self.active and len(output):
+            theta = np.abs(output[:, self._columns])
+            with np.errstate(invalid="ignore"):
+                reached = theta >= self._limits - AT_BOUND_TOL
+            on = on | reached.any(axis=1)
+            self.largest = _largest_bends(self.largest, theta, reached)
+        self.count += int(on.sum())
+        self.statuses.update(str(v) for v in status[on])
+
+    def notice(self, n: int, method: str, holds: bool, raise_it: str) -> str | None:
+        """One line for the estimates counted on (or beyond) the bound, of ``n``, by
+        ``method`` (the estimator's name), which ``holds`` its bends to the bound (the
+        MHE's constraints) or not (the filters); ``raise_it`` says how to raise the
+        bound (``raise theta_max in the robot file R``). None without."""
+        if not self.count:
+            return None
+        sections = self._robot.sections
+        bounds = ", ".join(f"{s.theta_max:.4g}" for s in sections)
+        by_status = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        what = f"{self.count} of {n} estimates have a section's bend"
+        of = f"its bending bound theta_max ({bounds} rad; by status: {by_status})"
+        further = (
+            f"and the robot may bend further than the bound allows; {raise_it} if it bends so far"
+        )
+        if holds:
+            return (
+                f"{what} on {of}: the {method.upper()} holds its estimates to the bound, "
+                f"so the bound, not the data, set those shapes, {further}"
+            )
+        largest = [
+            f"section {k + 1} up to {big:.3g} rad"
+            for k, big in enumerate(self.largest)
+            if big > 0 and len(sections) > 1
+        ] or [f"up to {big:.3g} rad" for big in self.largest if big > 0]
+        reach = f", {', '.join(largest)}" if largest else ""
+        return (
+            f"{what} on or beyond {of}{reach}: the {method.upper()} does "
+            "not hold its estimates to the bound, so the readings, not the bound, set "
+            f"those shapes, {further}"
+        )
+
+
+class BendsBeyondBound:
+    """The estimates of a robot whose mechanics model does not bound its bends (a
+    tendon robot) that bend a section past the robot file's ``theta_max``, counted
+    block by block from their outputs (``theta_k``) for one line at the end
+    (:meth:`notice`): the file's bound, or the inputs, contradict the estimate."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        robot = formulation.robot
+        self._robot = robot
+        self._limits = np.array([s.theta_max for s in robot.sections])  # rad
+        self._columns = _bend_columns(formulation)
+        self.active = robot.has_mechanics and all(c >= 0 for c in self._columns)
+        self.count = 0
+        self.largest = [0.0] * len(robot.sections)
+
+    def add(self, output: FloatArray) -> None:
+        """Count the estimates ``output`` (n, ny), NaN rows without an estimate."""
+        if not self.active:
+            return
+        theta = np.abs(output[:, self._columns])
+        with np.errstate(invalid="ignore"):
+            beyond = theta > self._limits
+        self.count += int(beyond.any(axis=1).sum())
+        self.largest = _largest_bends(self.largest, theta, beyond)
+
+    def notice(self, n: int) -> str | None:
+        """One line for the estimates counted beyond the bound, of ``n``; None without."""
+        if not self.count:
+            return None
+        over = [
+            f"section {k + 1} up to {big:.3g} rad (theta_max {s.theta_max:.4g})"
+            for k, (s, big) in enumerate(zip(self._robot.sections, self.largest))
+            if big > 0
+        ]
+        return (
+            f"{self.count} of {n} estimates bend past the robot file's theta_max: "
+            f"{'; '.join(over)}; the mechanics model does not bound the bend, so the "
+            "file's bound or the inputs (tensions, tendon angles and radii, backbone) "
+            "contradict the estimate: check them"
+        )
+
+
+class ForceBeyondTensions:
+    """The largest tip force a tendon robot's estimates reach against the largest
+    tendon tension of its inputs, counted block by block (:meth:`add`) for one line at
+    the end (:meth:`notice`): a tip force beyond every tension is a large load, or
+    tensions given in another unit (kgf for N) that the force makes up for."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        names = [o.name for o in formulation.outputs]
+        self._force = [names.index(c) for c in ("fx", "fy", "fz") if c in names]
+        self._tensions = tension_rows(formulation)
+        self.active = len(self._force) == 3 and bool(self._tensions)
+        self.force = 0.0  # the largest tip force estimated, N
+        self.tension = 0.0  # the largest tension given, N
+
+    def add(self, z: FloatArray, output: FloatArray) -> None:
+        """Count the samples' measurements ``z`` (n, nz) and estimates ``output`` (n, ny),
+        NaN rows without an estimate."""
+        if not self.active or not len(z):
+            return
+        with np.errstate(invalid="ignore"):
+            force = np.linalg.norm(output[:, self._force], axis=1)
+            tension = z[:, self._tensions]
+        if np.isfinite(force).any():
+            self.force = max(self.force, float(np.nanmax(force)))
+        if np.isfinite(tension).any():
+            self.tension = max(self.tension, float(np.nanmax(tension)))
+
+    def notice(self) -> str | None:
+        """One line where the tip force went beyond :data:`FORCE_TENSION_RATIO` times
+        the largest tension (and over :data:`FORCE_NOTICE_MIN` N); None otherwise."""
+        if not self.force > max(FORCE_TENSION_RATIO * self.tension, FORCE_NOTICE_MIN):
+            return None
+        return (
+            f"the estimated tip force reached {self.force:.3g} N, beyond the largest tendon "
+            f"tension given ({self.tension:.3g} N): a load that large, or tensions in "
+            "another unit (kgf for N?) or order that the tip force makes up for; check them"
+        )
+
+
+#: A tendon robot's tension gain (:attr:`~continuum_mhe.model.tendon.TendonFormulation.
+#: estimate_tension_gain`) that ends more than this many of its standard deviations from
+#: 1 is said at the end of ``estimate`` (:class:`TensionGainFromOne`).
+TENSION_GAIN_SIGMAS = 3.0
+
+
+class TensionGainFromOne:
+    """A tendon robot's estimated tension gains (outputs ``tension_gain_s``: the tension
+    acting on the robot over the one given, for the tendons anchored at section ``s``),
+    the last informed estimate's (:meth:`add`), for one line at the end (:meth:`notice`)
+    where one ends far from 1: the tensions given are not those acting (another unit, a
+    tension sensor's gain, the tendons' friction). An estimate is informed where every
+    gain's standard deviation is under half its prior's
+    (:attr:`~continuum_mhe.model.tendon.TendonFormulation.initial_tension_gain_std`): a
+    restart late in a recording starts the gains at their prior again, and the rows
+    after it would hide what the readings showed before it."""
+
+    def __init__(self, formulation: Formulation) -> None:
+        names = [o.name for o in formulation.outputs]
+        self._columns = [i for i, n in enumerate(names) if n.startswith("tension_gain_")]
+        self._sections = [names[i].removeprefix("tension_gain_") for i in self._columns]
+        self.active = bool(self._columns)
+        self._informed = 0.5 * float(getattr(formulation, "initial_tension_gain_std", np.inf))
+        self.gain: FloatArray | None = None  # the last informed estimate's gains
+        self.std: FloatArray | None = None  # and their standard deviations
+        self._has_informed = False  # whether those are an informed estimate's
+
+    def add(self, output: FloatArray, output_std: FloatArray) -> None:
+        """Keep the last informed estimate's gains of ``output`` (n, ny) and their
+        ``output_std`` (n, ny), NaN rows without an estimate; where no estimate so far is
+        informed, the last estimate's."""
+        if not self.active or not len(output):
+            return
+        gain, std = output[:, self._columns], output_std[:, self._columns]
+        finite = np.all(np.isfinite(gain) & np.isfinite(std), axis=1)
+        informed = np.flatnonzero(finite & np.all(std < self._informed, axis=1))
+        if len(informed):
+            self.gain, self.std, self._has_informed = gain[informed[-1]], std[informed[-1]], True
+            return
+        has = np.flatnonzero(finite)
+        if len(has) and not self._has_informed:
+            self.gain, self.std = gain[has[-1]], std[has[-1]]
+
+    def notice(self) -> str | None:
+        """One line where a gain ended more than :data:`TENSION_GAIN_SIGMAS` standard
+        deviations from 1; None otherwise."""
+        if self.gain is None or self.std is None:
+            return None
+        far = [
+            f"section {s}: {g:.3g} (std {d:.2g})"
+            for s, g, d in zip(self._sections, self.gain, self.std)
+            if abs(g - 1.0) > TENSION_GAIN_SIGMAS * d
+        ]
+        if not far:
+            return None
+        line = (
+            f"the estimated tension gains ended more than {TENSION_GAIN_SIGMAS:g} standard "
+            f"deviations from 1 ({'; '.join(far)}): the tensions given are not those acting "
+            "(another unit, kgf for N?, a tension sensor's gain, the tendons' friction): "
+            "check them"
+        )
+        if self.disagree():
+            line += (
+                "; the sections' gains disagree beyond their standard deviations: a unit "
+                "or one sensor gain would scale both alike, so unless the sections' "
+                "friction differs this much, the gains, and the estimates, are not to be "
+                "trusted"
+            )
+        return line
+
+    def disagree(self) -> bool:
+        """Whether two sections' last informed gains differ by more than
+        :data:`TENSION_GAIN_SIGMAS` of their combined standard deviation (the gains
+        taken independent)."""
+        if self.gain is None or self.std is None or len(self.gain) < 2:
+            return False
+        g, d = self.gain, self.std
+        return any(
+            abs(g[i] - g[j]) > TENSION_GAIN_SIGMAS * float(np.hypot(d[i], d[j]))
+            for i in range(len(g))
+            for j in range(i + 1, len(g))
+        )
