@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from continuum_mhe.benchmark import environment as bench_env
 from continuum_mhe.benchmark import harness as bm
 from continuum_mhe.benchmark import peers
+from continuum_mhe.benchmark.dompc import run_dompc
 from continuum_mhe.benchmark.peers import PEERS
 from continuum_mhe.cli import benchmark as cli_benchmark
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
@@ -47,7 +49,7 @@ def test_dompc_with_our_cost_solves_our_problem_once_the_window_is_full() -> Non
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=2.0, seed=0)
     n = 6
-    out, _ = bm._run_dompc(f, n, rec)
+    out, _ = run_dompc(f, n, rec)
     ref = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt")).run(rec.t, rec.z)
     assert bm._max_diff(out[n:], ref.output[n:]) < 1e-6
     assert bm._max_diff(out[:n], ref.output[:n]) > 1e-4  # the start-up is not the same
@@ -63,7 +65,7 @@ def test_benchmark_command_records_ratios_and_environment(
 
     from continuum_mhe.cli import main
 
-    monkeypatch.setattr(bm, "_cpu_model", lambda: "Test CPU 9000")
+    monkeypatch.setattr(bench_env, "cpu_model", lambda: "Test CPU 9000")
     out = tmp_path / "bench.json"
     args = ["benchmark", "--horizons", "4", "--duration", "0.6", "--memory-samples", "60",
             "--loss-horizons", "none", "--repeats", "1"]  # fmt: skip
@@ -131,10 +133,10 @@ def test_environment_records_the_cpu_model(
             raise FileNotFoundError(file)
         return io.StringIO(cpuinfo)
 
-    monkeypatch.setattr(bm, "open", fake_open, raising=False)  # the module's open only
+    monkeypatch.setattr(bench_env, "open", fake_open, raising=False)  # the module's open only
     monkeypatch.setattr(platform, "processor", lambda: processor)
     monkeypatch.setattr(platform, "machine", lambda: "test-machine")
-    assert bm.environment(make_formulation("bend"))["machine"]["cpu"] == expected
+    assert bench_env.environment(make_formulation("bend"))["machine"]["cpu"] == expected
 
 
 def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> None:

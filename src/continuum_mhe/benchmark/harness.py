@@ -19,29 +19,14 @@ MHE's memory does not grow per sample (tracemalloc and RSS slopes). The report r
 where the numbers come from: the machine (platform, CPU, cores, the load average at the
 start) and the package versions (the compiled core's nanobind among them).
 
-do-mpc's MHE is given our window cost through its own API: the tangent-plane tilt
-residual as its measurement (the window's measurements enter as time-varying
-parameters, the measured value is 0, so its measurement noise ``v`` is the residual),
-the same ``Q^-1`` and ``R^-1``, the disk bound, and our arrival prior (the EKF's
-filtered state and covariance of the sample before the window) as a parameter of its
-arrival cost. The transition is linear, so its extra arrival node is exactly our prior
-propagated one step. From sample ``N`` on it solves the same problem as our IPOPT
-backend (agreement to the solvers' tolerance); before, do-mpc has no growing window and
-pads the missing samples, so its first ``N`` estimates differ. Its bound covers its
-nodes 0 to N-1 (do-mpc's rule): its extra arrival node and every node of our window but
-the newest; the disk is not reached in this recording.
+do-mpc's MHE: :mod:`continuum_mhe.benchmark.dompc`; the machine and memory records:
+:mod:`continuum_mhe.benchmark.environment`.
 """
 
 from __future__ import annotations
 
-import gc
 import math
-import os
-import platform
-import subprocess
 import time
-import tracemalloc
-import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -49,6 +34,12 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.benchmark.dompc import run_dompc
+from continuum_mhe.benchmark.environment import (
+    environment,
+    environment_line,
+    memory_profile,
+)
 from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.benchmark.peers import PEER_NOTES, PEERS
 from continuum_mhe.errors import UserError
@@ -122,25 +113,6 @@ class Timing:
     solver_median_us: float = math.nan
 
 
-@dataclass(frozen=True)
-class Memory:
-    """Memory of the fast MHE over a long recording.
-
-    Attributes:
-        samples: recording length.
-        tracemalloc_slope_bytes_per_sample: slope of Python-allocated memory (after
-            a garbage collection) over the second half of the run.
-        tracemalloc_peak_kib: peak Python-allocated memory during the run, KiB.
-        rss_slope_bytes_per_sample: slope of the resident set size over the second
-            half (Linux only; nan elsewhere).
-    """
-
-    samples: int
-    tracemalloc_slope_bytes_per_sample: float
-    tracemalloc_peak_kib: float
-    rss_slope_bytes_per_sample: float
-
-
 def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, list[str]]:
     """``(output (n, ny), seconds per sample (n,), statuses)`` from a reset."""
     est.reset()
@@ -157,98 +129,6 @@ def _run_timed(est: Estimator, rec: Recording) -> tuple[FloatArray, FloatArray, 
             out[i] = e.output
         status.append(e.status)
     return out, sec, status
-
-
-def _dompc_mhe(formulation: Formulation, horizon: int, dt: float) -> tuple[Any, Any, Any]:
-    """do-mpc's MHE with our window cost (see the module docstring); returns the MHE
-    and its time-varying-parameter and parameter templates, which the caller fills
-    before each ``make_step``."""
-    import casadi as ca
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import do_mpc
-
-    f = formulation
-    nx, nz = f.nx, f.nz
-    model = do_mpc.model.Model("discrete", "SX")
-    x = model.set_variable("_x", "x", shape=(nx, 1))
-    z = model.set_variable("_tvp", "z", shape=(nz, 1))  # the stage's measurement
-    m = model.set_variable("_tvp", "m", shape=(nz, 1))  # its sensor mask
-    xbar = model.set_variable("_p", "xbar", shape=(nx, 1))  # arrival prior
-    pinv = model.set_variable("_p", "pinv", shape=(nx * nx, 1))
-    model.set_rhs("x", f.transition_sym(x, ca.SX(0, 1), dt), process_noise=True)
-    # measured value 0, so v = -m * r(z, x): the stage cost v' R^-1 v is our residual term
-    model.set_meas("r", m * f.measurement_residual_sym(z, x), meas_noise=True)
-    model.setup()
-    mhe = do_mpc.estimator.MHE(model, p_est_list=[])
-    mhe.settings.n_horizon = horizon
-    mhe.settings.t_step = dt
-    mhe.settings.store_full_solution = False
-    mhe.settings.meas_from_data = True
-    mhe.settings.nlpsol_opts = {
-        "ipopt.print_level": 0,
-        "ipopt.sb": "yes",
-        "print_time": False,
-        "ipopt.tol": MHESettings().tol,
-    }
-    g, _, hi = f.constraint_sym(x)
-    mhe.set_nl_cons("disk", g, ub=hi)
-    Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-    v, w = mhe._v.cat, mhe._w.cat
-    stage = v.T @ np.linalg.inv(f.meas_cov()) @ v + w.T @ np.linalg.inv(Q.reshape(nx, nx)) @ w
-    dx = mhe._x.cat - xbar
-    mhe.set_objective(stage, dx.T @ ca.reshape(pinv, nx, nx) @ dx)
-    tvp, par = mhe.get_tvp_template(), mhe.get_p_template()
-    mhe.set_tvp_fun(lambda t: tvp)
-    mhe.set_p_fun(lambda t: par)
-    mhe.setup()
-    return mhe, tvp, par
-
-
-def _run_dompc(
-    formulation: Formulation, horizon: int, rec: Recording
-) -> tuple[FloatArray, FloatArray]:
-    """do-mpc's MHE over the recording: ``(output (n, ny), seconds per sample (n,))``.
-
-    Before each ``make_step`` the window's measurements and masks go into the
-    time-varying parameters and the arrival prior into the parameters: from sample
-    ``N`` on, the EKF's filtered state and covariance at sample ``k - N`` (one EKF step
-    per sample, timed with do-mpc's step, as our MHE's arrival update is); before,
-    the first sample's prior (``Formulation.start_prior``)."""
-    from continuum_mhe.estimators import make_estimator
-
-    f = formulation
-    n, nz = len(rec.t), f.nz
-    dt = float(rec.t[1] - rec.t[0])
-    out = np.full((n, f.ny), np.nan)
-    sec = np.empty(n)
-    x0, P0 = f.start_prior(rec.z[0])
-    x0, pinv0 = f.project(x0), np.linalg.inv(P0).ravel()
-    ekf = make_estimator("ekf", f)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # do-mpc calls numpy functions on CasADi values
-        mhe, tvp, par = _dompc_mhe(f, horizon, dt)
-        mhe.x0 = x0
-        mhe.set_initial_guess()
-        zero = np.zeros((nz, 1))
-        for j in between_samples(range(n)):  # (see _run_timed)
-            t0 = time.perf_counter()
-            for k in range(horizon):
-                s = j - horizon + 1 + k
-                tvp["_tvp", k, "z"] = rec.z[max(s, 0)]
-                tvp["_tvp", k, "m"] = f.measurement_mask(rec.z[s]) if s >= 0 else np.zeros(nz)
-            if j >= horizon:
-                prior = ekf.step(Measurement(float(rec.t[j - horizon]), rec.z[j - horizon]))
-                if prior.state is None or prior.covariance is None:
-                    raise RuntimeError(f"the EKF gave no arrival prior at sample {j - horizon}")
-                par["xbar"], par["pinv"] = prior.state, np.linalg.inv(prior.covariance).ravel()
-            else:
-                par["xbar"], par["pinv"] = x0, pinv0
-            x = np.asarray(mhe.make_step(zero), float).ravel()
-            sec[j] = time.perf_counter() - t0
-            out[j] = f.output(x)
-    return out, sec
 
 
 def _max_diff(a: FloatArray, b: FloatArray, wrapped: tuple[int, ...] = (4,)) -> float:
@@ -373,101 +253,6 @@ def print_robot_report(report: dict[str, Any]) -> None:
     console.print(environment_line(report))
 
 
-def _rss_bytes() -> float:
-    try:
-        with open("/proc/self/statm") as fh:
-            return float(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError):
-        return math.nan
-
-
-def memory_profile(formulation: Formulation, horizon: int, samples: int) -> Memory:
-    """Run the fast MHE over ``samples`` samples; slopes of allocated memory and RSS."""
-    rec = simulate("paper3d", duration=(samples - 1) * 0.05, seed=1)
-    est = MovingHorizonEstimator(formulation, MHESettings(horizon=horizon))
-    warm = min(2 * horizon + 50, samples // 4)
-    for t, z in zip(rec.t[:warm], rec.z[:warm]):
-        est.step(Measurement(float(t), z))
-    tracemalloc.start()
-    k, traced, rss = [], [], []
-    every = max(samples // 40, 1)
-    for i in range(warm, samples):
-        est.step(Measurement(float(rec.t[i]), rec.z[i]))
-        if (i - warm) % every == 0:
-            gc.collect()  # count what is retained, not cycles waiting for the collector
-            k.append(i)
-            traced.append(tracemalloc.get_traced_memory()[0])
-            rss.append(_rss_bytes())
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    half = len(k) // 2  # fit the second half: allocator free lists settle in the first
-    slope = float(np.polyfit(k[half:], traced[half:], 1)[0])
-    rss_ok = np.all(np.isfinite(rss))
-    rss_slope = float(np.polyfit(k[half:], rss[half:], 1)[0]) if rss_ok else math.nan
-    return Memory(samples, slope, peak / 1024, rss_slope)
-
-
-def _first_line(cmd: list[str]) -> str | None:
-    """First line of a command's output, or None if it cannot run."""
-    try:
-        done = subprocess.run(cmd, capture_output=True, text=True, timeout=30)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    lines = (done.stdout or done.stderr).strip().splitlines()
-    return lines[0].strip() if done.returncode == 0 and lines else None
-
-
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def environment(formulation: Formulation) -> dict[str, Any]:
-    """Where the numbers come from: the machine and the versions of the numeric
-    packages."""
-    from importlib import metadata
-
-    def version(name: str) -> str | None:
-        try:
-            return metadata.version(name)
-        except metadata.PackageNotFoundError:
-            return None
-
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        usable = os.cpu_count() or 0
-    return {
-        "machine": {
-            "platform": platform.platform(),
-            "cpu": _cpu_model(),
-            "cores": os.cpu_count(),
-            "usable_cores": usable,
-            "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-        },
-        "versions": {
-            "python": platform.python_version(),
-            **{k: version(k) for k in ("continuum-mhe", "numpy", "casadi", "nanobind", "do-mpc")},
-        },
-    }
-
-
-def environment_line(report: dict[str, Any]) -> str:
-    """One line of the :func:`environment` record in ``report``, for the printed report."""
-    m, v = report["machine"], report["versions"]
-    return (
-        f"machine: {m['cpu']}, "
-        f"{m['cores']} cores ({m['usable_cores']} usable), {m['platform']}; "
-        + ", ".join(f"{k} {val}" for k, val in v.items() if val)
-    )
-
-
 #: Rounds of every method per horizon (:func:`_interleaved`).
 REPEATS = 3
 
@@ -553,7 +338,7 @@ def _runs(
     ipopt = MovingHorizonEstimator(f, MHESettings(horizon=n, solver="ipopt"))
     runs["ipopt"] = lambda: (*_run_timed(ipopt, rec)[:2], 0)
     if "do-mpc" in methods:
-        runs["do-mpc"] = lambda: (*_run_dompc(f, n, rec), 0)
+        runs["do-mpc"] = lambda: (*run_dompc(f, n, rec), 0)
     peers = [p for p in PEERS if p in methods]
     if peers:
         windows = record_windows(f, rec, n)
