@@ -1,4 +1,4 @@
-// Python binding of the estimate CSV's lines (continuum_mhe.io.csv_files.estimate_lines).
+// Python binding of the estimate CSV's lines (continuum_mhe.io.estimate_csv.estimate_lines).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/optional.h>

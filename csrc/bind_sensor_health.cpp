@@ -33,7 +33,7 @@ using Array = NewArray;
 template <typename T>
 using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 
-// One sample's answer as Python reads it (Policy.step); None where there is none. The
+// One sample's answer as Python reads it (SensorHealth.step); None where there is none. The
 // arrays are held as the Python objects they were converted to once, so that reading
 // them costs no conversion.
 struct PolicyStep {
@@ -401,10 +401,11 @@ void cmhe::bind_sensor_health(nb::module_& m) {
                         "A sample the policy refuses (csrc/sensor_health.hpp's InputError).")
       .value("OK", INPUT_OK, "Accepted.")
       .value("TIME", INPUT_TIME, "t not finite, or not later than the previous sample's.")
-      .value("DEGREES", INPUT_DEGREES, "A tilt reading beyond 2 pi: degrees given for radians.")
+      .value("DEGREES", INPUT_DEGREES,
+             "A tilt reading beyond degrees_like (just over pi): degrees given for radians.")
       .value("INFINITE", INPUT_INFINITE, "An infinite reading.");
 
-  nb::class_<PolicyStep>(m, "PolicyStep", "One sample's answer of Policy.step.")
+  nb::class_<PolicyStep>(m, "PolicyStep", "One sample's answer of SensorHealth.step.")
       .def_ro("input_error", &PolicyStep::input_error,
               "InputProblem.OK (0) when the sample was accepted, else its problem.")
       .def_ro("status", &PolicyStep::status, "The status, an index into STATUS_NAMES.")

@@ -1,5 +1,5 @@
 // The lines of an estimate CSV for a block of samples, written as Python's "%.10g" writes
-// each number (continuum_mhe.io.csv_files.estimate_lines).
+// each number (continuum_mhe.io.estimate_csv.estimate_lines).
 #pragma once
 
 #include <cstddef>

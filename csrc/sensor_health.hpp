@@ -47,7 +47,7 @@ extern const char* const STATUS_NAMES[ST_COUNT];
 enum InputError : int {
   INPUT_OK = 0,
   INPUT_TIME = 1,      // t not finite, or not later than the previous sample's
-  INPUT_DEGREES = 2,   // a tilt reading beyond 2 pi: degrees given for radians
+  INPUT_DEGREES = 2,   // a tilt reading beyond degrees_like (just over pi): degrees for radians
   INPUT_INFINITE = 3,  // an infinite tilt reading
 };
 

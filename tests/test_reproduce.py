@@ -333,10 +333,10 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
         return real_save(fig, path, *args, **kw)
 
     monkeypatch.setattr(plotting, "save", save_then_interrupt)
-    out = tmp_path / "new" / "figs"
+    out = tmp_path / "figs"
     assert main(["plot", str(quick_run), "--out", str(out)]) == 130
     assert len(saved) == 3
-    assert not (tmp_path / "new").exists()
+    assert not out.exists()
 
 
 def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
@@ -370,14 +370,14 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
         return real_save(fig, path, formats[:1], *args, **kw)  # one format is enough here
 
     monkeypatch.setattr(plotting, "save", save)
-    out = tmp_path / "new" / "figs"
+    out = tmp_path / "figs"
     try:
         code = main(["plot", str(quick_run), "--out", str(out)])
     finally:
         signals.SIGNALS_SEEN.clear()  # (this process goes on with other tests)
     assert (code, capsys.readouterr().err) == (130, "continuum-mhe: interrupted\n")
     assert len(saved) == len(FIGURES)  # the writing went on to its end
-    assert not (tmp_path / "new").exists()
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(

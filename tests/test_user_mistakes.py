@@ -1568,3 +1568,33 @@ def test_an_options_file_that_is_not_toml_names_its_line(tmp_path, capsys) -> No
         f"continuum-mhe: error: {config}: line 2: not valid TOML: Invalid value (column 11)"
     ]
     assert not out.exists()
+
+
+def test_an_options_line_of_a_csv_that_is_not_toml_names_its_line_and_column(
+    tmp_path, capsys
+) -> None:
+    """An estimate CSV's recorded options line given to ``--config``: the line and the
+    column are the file's (after its ``# ``)."""
+    rec = simulate("paper3d", duration=1.0, seed=0)
+    m = tmp_path / "m.csv"
+    write_table(m, ["t", "roll", "pitch"], np.column_stack([rec.t, rec.z]))
+    config = tmp_path / "est.csv"
+    config.write_text("# continuum-mhe 0.1.0\n# options = {method = }\nt,x\n")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "--config", str(config), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    line = "# options = {method = }"
+    assert err == [
+        f"continuum-mhe: error: {config}: line 2: not valid TOML: Invalid value "
+        f"(column {line.index('}') + 1})"
+    ]
+
+
+def test_plot_of_a_results_folder_refuses_an_out_folder_in_a_missing_folder(
+    tmp_path, capsys
+) -> None:
+    out = tmp_path / "nodir" / "figures"
+    assert main(["plot", str(tmp_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "does not exist" in err[0]
+    assert not out.parent.exists()

@@ -627,13 +627,15 @@ class InputProblem(enum.IntEnum):
     """t not finite, or not later than the previous sample's."""
 
     DEGREES = 2
-    """A tilt reading beyond 2 pi: degrees given for radians."""
+    """
+    A tilt reading beyond degrees_like (just over pi): degrees given for radians.
+    """
 
     INFINITE = 3
     """An infinite reading."""
 
 class PolicyStep:
-    """One sample's answer of Policy.step."""
+    """One sample's answer of SensorHealth.step."""
 
     @property
     def input_error(self) -> InputProblem:

@@ -117,10 +117,10 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None
-    offset = 0
+    offset = indent = 0
     if p.suffix.lower() == ".csv":
         found = [
-            (n, ln[1:].strip())
+            (n, ln[1:].strip(), len(ln) - len(ln[1:].lstrip()))
             for n, ln in enumerate(text.splitlines())
             if ln.startswith("#") and re.match(rf"{OPTIONS_LINE}\s*=", ln[1:].strip())
         ]
@@ -128,11 +128,13 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
             raise InputError(
                 f"{path}: no '# {OPTIONS_LINE} = {{...}}' line (not an estimate file?)"
             )
-        offset, text = found[0]
+        offset, text, indent = found[0]
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(toml_error_line(path, exc, first_line=offset + 1)) from None
+        raise InputError(
+            toml_error_line(path, exc, first_line=offset + 1, first_column=indent + 1)
+        ) from None
     if p.suffix.lower() == ".csv":
         data = data[OPTIONS_LINE]
     return data, text, offset

@@ -37,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         rec = simulate_robot(scenario, robot, seed=args.seed)
     except UserError as exc:  # about the robot: its file named, as simulate names it
+        if args.robot is None:
+            raise
         raise InputError(f"{args.robot}: {exc}") from None
     formulation = make_formulation("bend", robot, NoiseSettings())
     names = [o.name for o in rec.outputs]

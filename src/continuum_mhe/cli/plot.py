@@ -38,15 +38,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _reproduction(args: argparse.Namespace) -> int:
-    from continuum_mhe.io.output_files import new_files
+    from continuum_mhe.io.output_files import new_files, refuse_missing_parent
     from continuum_mhe.reproduce.figures import render_all
     from continuum_mhe.reproduce.pipeline import load_results
 
     for flag, given in (("--truth", args.truth), ("--robot", args.robot), ("-o", args.output)):
         if given is not None:
             raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
-    results = load_results(args.source)
     out = Path(args.out) if args.out else Path(args.source)
+    refuse_missing_parent(out)
+    results = load_results(args.source)
     # re-rendering a folder's own figures is what plot of a folder is for; figures in
     # another folder are kept unless --overwrite
     overwrite = args.overwrite or args.out is None

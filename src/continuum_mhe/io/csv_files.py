@@ -6,8 +6,8 @@ Format (docs/formats.md): a header with at least ``t,roll,pitch`` (one IMU) or
 file's order, :mod:`.imu_columns`); ``t`` in seconds, strictly increasing; angles in
 radians (``degrees=True`` for degrees), in the convention of
 :mod:`continuum_mhe.model.imu`. Other columns are ignored. With several IMUs an empty
-field is a dropout of that IMU. Estimate and truth files: :mod:`.estimate_csv`
-(written) and :mod:`.state_tables` (read).
+field is a dropout of that IMU. Measurement, estimate and truth files written:
+:mod:`.estimate_csv`; estimate and truth files read: :mod:`.state_tables`.
 
 Every problem in an input file raises :class:`~continuum_mhe.errors.InputError` with a
 one-line message naming the file and line.

@@ -16,7 +16,8 @@ from continuum_mhe.io.text_rows import (
 
 #: The fix named when a file's IMU count is not the robot's (``{found}``: the file's).
 ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"
-#: The same for :func:`read_measurements`, called from Python and from ``calibrate``.
+#: The same for :func:`~continuum_mhe.io.csv_files.read_measurements`, called from Python
+#: and from ``calibrate``.
 READER_FIX = "pass the robot of {found} IMU(s) (--robot FILE; n_imus={found} in Python)"
 #: Added to a fix naming ``--robot`` when the file has one IMU.
 ONE_IMU_FIX = ", or leave --robot out: one section with its IMU at the tip needs no robot file"

@@ -166,6 +166,14 @@ def atomic_binary_writer(
     return _atomic(path, binary=True)
 
 
+def refuse_missing_parent(folder: Path) -> None:
+    """A one-line error where ``folder`` does not exist and neither does the folder it
+    would be made in: an output folder is made, but not the folders above it (a mistyped
+    path), as an output file's folder must exist."""
+    if not folder.exists() and not folder.absolute().parent.exists():
+        raise InputError(f"{folder}: folder {folder.parent} does not exist")
+
+
 def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> None:
     """A one-line error, before any work, unless ``folder`` is, or can be made, a
     writable folder (in a folder that exists: a mistyped parent is refused as an output
@@ -173,9 +181,7 @@ def check_new_folder(folder: Path, overwrite: bool, names: Sequence[str]) -> Non
     command writes."""
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder}: exists and is not a folder")
-    parent = folder.absolute().parent
-    if not folder.exists() and not parent.exists():
-        raise InputError(f"{folder}: folder {folder.parent} does not exist")
+    refuse_missing_parent(folder)
     taken = next((folder / n for n in names if (folder / n).exists()), None)
     if taken is not None and not overwrite:
         raise InputError(f"{taken}: exists; give --overwrite to replace it, or another --out")
