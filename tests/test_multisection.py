@@ -571,3 +571,32 @@ def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
     b = CompiledExtendedKalmanFilter(f).run(rec.t, z)
     assert list(a.status) == list(b.status)
     assert_allclose(b.output, a.output, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])
+def test_a_single_estimate_reads_its_outputs_by_name(method: str) -> None:
+    """``Estimate.value`` and ``Estimate.std`` read the outputs a step returns by the
+    formulation's names, the same numbers as the series' columns of ``run``; NaN for a
+    sample without an estimate; an unknown name is a KeyError that lists the outputs."""
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=1.0, seed=0)
+    est = make_estimator(method, f)
+    steps = [est.step(Measurement(float(t), z)) for t, z in zip(rec.t, rec.z)]
+    series = make_estimator(method, f).run(rec.t, rec.z)
+    last = steps[-1]
+    assert [o.name for o in last.outputs] == [o.name for o in f.outputs]
+    for name in ("x", "z_1", "theta_2", "phi_2"):
+        assert last.value(name) == series.column(name)[-1]
+        assert last.std(name) == series.std_column(name)[-1]
+        assert math.isfinite(last.std(name)) and last.std(name) > 0
+    with pytest.raises(KeyError, match="no output 'theta_3' .*theta_2"):
+        last.value("theta_3")
+    from continuum_mhe.results import Estimate, Status
+
+    none = Estimate(1.0, None, None, None, Status.NO_ESTIMATE, 0.0, outputs=f.outputs)
+    assert math.isnan(none.value("x")) and math.isnan(none.std("theta_2"))

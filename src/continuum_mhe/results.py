@@ -8,6 +8,7 @@ Plots, metrics, writers and the CLI read these and never touch an estimator.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
@@ -167,6 +168,8 @@ class Estimate:
         outlier: the robust MHE down-weighted this sample's measurement (a block's
             weight below ``estimators.loss.OUTLIER_WEIGHT`` in this solve); always
             False for the quadratic cost and the filters.
+        outputs: what each entry of ``output`` is (the formulation's outputs; an
+            estimator's ``step`` sets them): :meth:`value` and :meth:`std` read by name.
     """
 
     t: float
@@ -177,6 +180,26 @@ class Estimate:
     solve_ms: float
     output_std: FloatArray | None = None
     outlier: bool = False
+    outputs: tuple[OutputSpec, ...] = ()
+
+    def _index(self, name: str) -> int:
+        for i, o in enumerate(self.outputs):
+            if o.name == name:
+                return i
+        known = ", ".join(o.name for o in self.outputs) or "none: outputs not set"
+        raise KeyError(f"no output {name!r} (the outputs: {known})")
+
+    def value(self, name: str) -> float:
+        """The output ``name`` (``x``, ``theta_2``, ``fx``...), in its unit (m, rad, N);
+        NaN where the sample has no estimate."""
+        i = self._index(name)
+        return math.nan if self.output is None else float(self.output[i])
+
+    def std(self, name: str) -> float:
+        """One standard deviation of the output ``name``, in its unit; NaN where the
+        sample has none."""
+        i = self._index(name)
+        return math.nan if self.output_std is None else float(self.output_std[i])
 
 
 @dataclass

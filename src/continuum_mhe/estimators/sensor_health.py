@@ -444,7 +444,7 @@ class Estimator(Generic[InferenceT]):
         self._sync_diagnostics()
         return Estimate(
             t, r.state, r.output, r.covariance, STATUSES[r.status], r.solve_ms, r.output_std,
-            outlier=r.outlier,
+            outlier=r.outlier, outputs=self.formulation.outputs,
         )  # fmt: skip
 
     def _check_tensions(self, z: FloatArray, t: FloatArray) -> None:
