@@ -21,7 +21,8 @@ from continuum_mhe.estimators.fast.sqp import FastResult
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.model.formulations import BendFormulation, Formulation
+from continuum_mhe.model.bend import BendFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import MHESettings, RecoverySettings
 
 

@@ -32,7 +32,7 @@ from continuum_mhe.estimators.start_check import SAMPLES
 from continuum_mhe.io.estimate_csv import write_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.model.formulations import BendFormulation
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.beyond import BeyondSpec, run_beyond
 from continuum_mhe.results import Diagnostics
@@ -130,7 +130,7 @@ def test_a_burst_of_wild_readings_does_not_count_as_a_held_back_chain() -> None:
     probation time (2 s), and ``ok`` after it."""
     from dataclasses import dataclass
 
-    from continuum_mhe.model.formulations import BendFormulation
+    from continuum_mhe.model.bend import BendFormulation
 
     @dataclass(frozen=True)
     class Chained(BendFormulation):

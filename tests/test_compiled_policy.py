@@ -22,7 +22,8 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.io.estimate_csv import estimate_lines, estimate_row, format_cells, format_time
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN, DIVERGED_RATE
+from continuum_mhe.model.bend import DIVERGED_RATE
+from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import Diagnostics, Measurement
 from continuum_mhe.settings import MHESettings, RecoverySettings

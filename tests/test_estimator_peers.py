@@ -46,7 +46,8 @@ from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.estimators.sensor_health import Estimator
-from continuum_mhe.model.formulations import BendFormulation, Formulation
+from continuum_mhe.model.bend import BendFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import shape_from_tilt, wrap_angle
 from continuum_mhe.model.kinematics import rotation_bend_sym, tip_position
 from continuum_mhe.model.registry import make_formulation

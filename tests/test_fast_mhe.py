@@ -26,7 +26,8 @@ from continuum_mhe.estimators.mhe import (
     MovingHorizonEstimator,
     WindowProblem,
 )
-from continuum_mhe.model.formulations import BendFormulation, Formulation
+from continuum_mhe.model.bend import BendFormulation
+from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import SINGLE_SECTION_SCENARIOS, simulate

@@ -16,8 +16,8 @@ import continuum_mhe.io.output_files as output_files
 from continuum_mhe import MHESettings, RobotSettings, make_estimator, make_formulation, simulate
 from continuum_mhe.cli import main
 from continuum_mhe.estimators.window_nlp import objective_scale_exponent
-from continuum_mhe.model.formulations import DRIFT_FRACTION
 from continuum_mhe.model.kinematics import tip_position
+from continuum_mhe.model.paper import DRIFT_FRACTION
 
 REPRO = Path(__file__).parent / "data" / "repro"
 

@@ -27,7 +27,7 @@ from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives, rho_sym
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.io.estimate_csv import write_estimates, write_measurements
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.model.formulations import BendFormulation
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.kinematics import rotation_bend_sym
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section

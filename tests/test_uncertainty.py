@@ -43,7 +43,7 @@ from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.io.estimate_csv import write_estimates
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.model.formulations import BendFormulation
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import Diagnostics, EstimateSeries
 from continuum_mhe.settings import (

@@ -33,9 +33,9 @@ _EXPORTS: dict[str, str] = {
     "Metrics": "continuum_mhe.evaluation.metrics",
     "compute_metrics": "continuum_mhe.evaluation.metrics",
     "DirectFormulation": "continuum_mhe.model.direct",
-    "BendFormulation": "continuum_mhe.model.formulations",
+    "BendFormulation": "continuum_mhe.model.bend",
     "Formulation": "continuum_mhe.model.formulations",
-    "PaperFormulation": "continuum_mhe.model.formulations",
+    "PaperFormulation": "continuum_mhe.model.paper",
     "make_formulation": "continuum_mhe.model.registry",
     "backbone_points": "continuum_mhe.model.pcc",
     "ImuPlacement": "continuum_mhe.model.robot",
@@ -80,8 +80,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
         make_estimator,
     )
     from continuum_mhe.evaluation.metrics import Metrics, compute_metrics
+    from continuum_mhe.model.bend import BendFormulation
     from continuum_mhe.model.direct import DirectFormulation
-    from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+    from continuum_mhe.model.formulations import Formulation
+    from continuum_mhe.model.paper import PaperFormulation
     from continuum_mhe.model.pcc import backbone_points
     from continuum_mhe.model.registry import make_formulation
     from continuum_mhe.model.robot import ImuPlacement, Robot, Section

@@ -59,8 +59,8 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, is_real
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
-from continuum_mhe.model.formulations import BendFormulation
 from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym

@@ -12,8 +12,10 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.errors import UserError, expect_type
+from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.direct import DirectFormulation
-from continuum_mhe.model.formulations import BendFormulation, Formulation, PaperFormulation
+from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.paper import PaperFormulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
 from continuum_mhe.model.tendon import TendonFormulation

@@ -176,7 +176,7 @@ def simulate_robot(
             :mod:`continuum_mhe.simulation.cosserat_tendon`), or a scenario the robot's
             sections and IMUs do not fit.
     """
-    from continuum_mhe.model.formulations import BendFormulation
+    from continuum_mhe.model.bend import BendFormulation
 
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons:
