@@ -1,6 +1,7 @@
 """Command-line options shared by every command that estimates (``estimate``, ``live``,
 ``simulate``, ``evaluate``, ``demo``): the robot, the model and the MHE. One place, used
-by every command module of this package (``estimate``, ``live``, ``calibrate``, ...)."""
+by every command module of this package (``estimate``, ``live``, ``calibrate``, ...).
+The serial stream's and the 3D view's options: :mod:`.live_options`."""
 
 from __future__ import annotations
 
@@ -558,37 +559,6 @@ def add_tension_gain_option(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_serial_options(p: argparse.ArgumentParser) -> None:
-    """The serial stream of ``live`` and ``calibrate``: port, baud, line format."""
-    from continuum_mhe.stream.protocol import LINE_FORMATS
-
-    g = p.add_argument_group("serial stream")
-    # not argparse's required: an options file may give it (port = "/dev/ttyACM0")
-    g.add_argument(
-        "--port",
-        help="serial device, e.g. /dev/ttyACM0 or COM3 (required: here or as port in --config)",
-    )
-    g.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
-    g.add_argument(
-        "--format",
-        choices=LINE_FORMATS,
-        default="raw",
-        help="line format: raw (t_ms + ax,ay,az,gx,gy,gz per IMU, default) or tilt "
-        "(t_ms + roll,pitch per IMU); IMUs in the order of --robot",
-    )
-
-
-def add_recording_options(p: argparse.ArgumentParser) -> None:
-    """``--record`` and ``--overwrite`` of ``live``."""
-    p.add_argument(
-        "--record",
-        metavar="RAW.csv",
-        help="write every valid sample as received (the raw or tilt CSV that 'estimate' "
-        "reads, t in s of the device clock), row by row",
-    )
-    add_overwrite_option(p, "-o, --record or --view FILE.rrd")
-
-
 def add_overwrite_option(p: argparse.ArgumentParser, what: str = "output") -> None:
     """``--overwrite``: every command that writes files refuses an existing one without
     it (checked before any work)."""
@@ -597,82 +567,6 @@ def add_overwrite_option(p: argparse.ArgumentParser, what: str = "output") -> No
         action="store_true",
         help=f"replace an existing {what} file (else refused)",
     )
-
-
-def _add_port_options(g: argparse._ActionsContainer) -> None:
-    g.add_argument("--web-port", type=int, default=9090, help="web viewer HTTP port (9090)")
-    g.add_argument("--grpc-port", type=int, default=9876, help="Rerun server port (9876)")
-    g.add_argument(
-        "--trail", type=float, default=10.0, help="seconds of tip trail shown (default 10)"
-    )
-    g.add_argument(
-        "--points", type=int, default=16, help="backbone points per section (default 16)"
-    )
-
-
-def add_viewer_options(p: argparse.ArgumentParser) -> None:
-    """Where ``view`` sends the 3D view (Rerun): a file, the native viewer, or the web."""
-    g = p.add_argument_group("3D view (Rerun)")
-    sink = g.add_mutually_exclusive_group()
-    sink.add_argument("--save", metavar="OUT.rrd", help="write a Rerun file (open: rerun OUT.rrd)")
-    sink.add_argument(
-        "--spawn", action="store_true", help="show in Rerun's native viewer (default)"
-    )
-    sink.add_argument(
-        "--serve-web",
-        action="store_true",
-        help="serve Rerun's web viewer on 127.0.0.1 only (until Ctrl-C)",
-    )
-    _add_port_options(g)
-
-
-def add_live_view_option(p: argparse.ArgumentParser) -> None:
-    """``live --view [spawn|web|FILE.rrd]``: the 3D view of every estimate as it is made."""
-    g = p.add_argument_group("3D view (Rerun)")
-    g.add_argument(
-        "--view",
-        nargs="?",
-        const="spawn",
-        metavar="spawn|web|FILE.rrd",
-        help="3D view of the estimates in Rerun: the native viewer (default), the web "
-        "viewer on 127.0.0.1, or a .rrd file",
-    )
-    g.add_argument(
-        "--view-hz",
-        type=float,
-        default=30.0,
-        help="draw at most this many estimates per second of sample time (default 30; "
-        "0: every estimate); status changes and gaps are always drawn",
-    )
-    _add_port_options(g)
-
-
-def viewer_sink_from_args(args: argparse.Namespace) -> Any:
-    """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
-
-    from continuum_mhe.io.output_files import check_output_target
-    from continuum_mhe.viewer import ViewerSink, require_rerun
-
-    require_rerun()  # the missing install first: the display is the next thing to fix
-    ports = {"web_port": args.web_port, "grpc_port": args.grpc_port}
-    overwrite = bool(getattr(args, "overwrite", False))
-    choice = getattr(args, "view", None)
-    if choice is not None:  # live --view
-        option, others = "--view", "--view web or --view FILE.rrd"
-        if choice in ("spawn", "web"):
-            sink = ViewerSink(choice, **ports)
-        else:  # an existing file is kept unless --overwrite, as every output
-            sink = ViewerSink("save", check_output_target(choice, overwrite, "--view"), **ports)
-    else:
-        option, others = "--spawn", "--serve-web or --save FILE.rrd"
-        if args.save:
-            target = check_output_target(args.save, overwrite, "--save")
-            sink = ViewerSink("save", target, **ports)
-        else:
-            sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
-    if sink.display_missing():
-        raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
-    return sink
 
 
 #: ``--gap-reset``, ``--freeze`` and ``--bad-start`` defaults, s (the library's).
