@@ -31,14 +31,11 @@ with tendons anchored at its end, a slow random walk with the prior 1: the tensi
 acting on a tendon is its section's gain times the one given (the residual below reads
 ``gain * z_tau - tau``, and the given rates and their rates enter the IMUs' model times
 the gain), for tensions whose scale is in doubt (a tension sensor's gain, tendon
-friction, kgf given as N). With raw IMUs, tensions given 0.8, 1.2 and 2 times the
-acting ones (unloaded; 0.5, 1.2, 2 on force-29) read as gains within 0.015 of 1/scale,
-and the mean tip error falls from 16 to 230 mm to 0.8 to 1.6 mm; tensions given 0.5 times
-are recovered on force-29 and in part on unloaded, tensions in kgf for N are not, but
-the gains end far from 1, which ``estimate`` says. With the right tensions it costs
-(unloaded: 0.39 to 1.22 mm), and with
-tilt IMUs it misleads (twist-29: 222 ``ok`` rows over 20 mm off instead of 21)
-(docs/tendon-studies.md, "Tension gains").
+friction, kgf given as N). With raw IMUs the gains recover tensions given a few
+tenths to twice the acting ones; tensions in kgf for N are not recovered, but the gains
+end far from 1, which ``estimate`` says. With the right tensions the gains cost
+accuracy, and with tilt IMUs they trade with the IMUs' errors and mislead: hence off
+by default (docs/tendon-studies.md, "Tension gains", has the measurements).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
 as ``bend`` and ``direct``), then the given tensions and their rates (kind
 ``"tension"``: the tensions are measurements of ``tau`` (or of ``tau`` over the gain)
