@@ -33,6 +33,15 @@ using Array = NewArray;
 template <typename T>
 using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 
+// What the counts of the policy's diagnostics are at a moment: a sample that changes
+// none of them leaves Python's copy as it is (a failure restarts, so it changes a count)
+auto counts_of(const PolicyDiagnostics& d) {
+  return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
+                         d.reject_resets, d.bound_samples, d.bad_start_chains,
+                         d.first_freezes.size(), d.has_failure, d.max_noise_scale,
+                         d.model_error);
+}
+
 // One sample's answer as Python reads it (SensorHealth.step); None where there is none. The
 // arrays are held as the Python objects they were converted to once, so that reading
 // them costs no conversion.
@@ -41,6 +50,7 @@ struct PolicyStep {
   int status;       // a STATUS_NAMES index
   nb::object state, covariance, output, output_std;  // NumPy arrays, or None
   bool outlier, frozen;
+  bool diagnostics_changed;  // the sample changed the policy's counts
   double solve_ms;
 };
 
@@ -427,6 +437,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "The outputs' standard deviations (ny,), or None.")
       .def_ro("outlier", &PolicyStep::outlier, "The robust MHE down-weighted this sample.")
       .def_ro("frozen", &PolicyStep::frozen, "A sensor counts as frozen at this sample.")
+      .def_ro("diagnostics_changed", &PolicyStep::diagnostics_changed,
+              "The sample changed a count of SensorHealth.diagnostics.")
       .def_ro("solve_ms", &PolicyStep::solve_ms, "Wall time spent on this sample, ms.");
 
   nb::class_<PolicyDiagnostics>(
@@ -655,6 +667,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             Array x = new_array({size_t(s.nx)}), P = new_array({size_t(s.nx), size_t(s.nx)});
             Array y = new_array({size_t(s.ny)}), ystd = new_array({size_t(s.ny)});
             SampleResult r;
+            const auto before = counts_of(h.diagnostics);
             const int err = h.step(t, z.data(), x.data(), P.data(), y.data(), ystd.data(), r);
             auto when = [](bool has, Array a) { return has ? nb::cast(a) : nb::none(); };
             return PolicyStep{static_cast<InputError>(err),
@@ -665,6 +678,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
                               when(r.has_std, ystd),
                               r.outlier,
                               r.frozen,
+                              counts_of(h.diagnostics) != before,
                               r.ms};
           },
           nb::arg("t"), nb::arg("z"), "One sample: a PolicyStep.")

@@ -670,6 +670,10 @@ class PolicyStep:
         """A sensor counts as frozen at this sample."""
 
     @property
+    def diagnostics_changed(self) -> bool:
+        """The sample changed a count of SensorHealth.diagnostics."""
+
+    @property
     def solve_ms(self) -> float:
         """Wall time spent on this sample, ms."""
 

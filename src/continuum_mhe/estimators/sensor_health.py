@@ -441,7 +441,10 @@ class Estimator(Generic[InferenceT]):
         if r.input_error:
             self._refuse(r.input_error, t, z)
         self._ran = False
-        self._sync_diagnostics()
+        if r.diagnostics_changed:
+            self._sync_diagnostics()
+        else:
+            self.inference.sync_counts()
         return Estimate(
             t, r.state, r.output, r.covariance, STATUSES[r.status], r.solve_ms, r.output_std,
             outlier=r.outlier, outputs=self.formulation.outputs,
