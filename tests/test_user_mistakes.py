@@ -1598,3 +1598,34 @@ def test_plot_of_a_results_folder_refuses_an_out_folder_in_a_missing_folder(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "does not exist" in err[0]
     assert not out.parent.exists()
+
+
+def test_a_state_tables_columns_by_name_and_the_reader_of_several_sections(tmp_path) -> None:
+    """``StateTable.column`` and ``std_column`` read by name, an unknown one a KeyError
+    listing the table's; ``read_states`` (one section) points a several-section file to
+    ``read_state_table``."""
+    from continuum_mhe.io import read_states, write_estimates
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=1.0, seed=0)
+    series = make_estimator("ekf", f).run(rec.t, rec.z)
+    path = tmp_path / "two.csv"
+    write_estimates(path, series)
+    table = read_state_table(path)
+    np.testing.assert_allclose(table.column("theta_2"), series.column("theta_2"), rtol=1e-9)
+    np.testing.assert_allclose(table.std_column("theta_2"), series.std_column("theta_2"), rtol=1e-9)
+    with pytest.raises(KeyError, match="no column 'std_theta_2' .*theta_2"):
+        table.column("std_theta_2")
+    with pytest.raises(InputError, match="several sections .* read_state_table"):
+        read_states(path)
+
+
+def test_a_first_sample_without_a_finite_time_says_so() -> None:
+    from continuum_mhe.errors import SampleTimeError
+
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(SampleTimeError, match=r"t=nan s must be finite$"):
+        est.step(Measurement(math.nan, np.zeros(2)))

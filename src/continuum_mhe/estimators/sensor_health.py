@@ -488,6 +488,8 @@ class Estimator(Generic[InferenceT]):
                     "; a sample that came late or twice is to be left out (the estimator is "
                     "as it was: step on), a new recording starts with reset()"
                 )
+            if not math.isfinite(t) and not math.isfinite(last):  # no sample before it
+                raise SampleTimeError(f"sample time t={t!r} s must be finite")
             raise SampleTimeError(
                 f"sample time t={t!r} s must be finite and later than the previous "
                 f"sample's t={last!r} s{hint}"
@@ -706,8 +708,10 @@ RUN_BLOCK = 256
 @dataclass
 class Batch:
     """Samples stepped by :meth:`Estimator.continue_run`: per sample its status code
-    (:data:`STATUSES`), solve time (ms), outlier and frozen flags, outputs and their
-    standard deviations (NaN where there are none)."""
+    (an index into :data:`STATUSES`; :meth:`statuses` gives the ``Status`` values, which
+    compare equal to their strings), solve time (ms), outlier and frozen flags, outputs
+    (in the formulation's ``outputs`` order) and their standard deviations (NaN where
+    there are none)."""
 
     status: NDArray[np.int32]
     solve_ms: FloatArray

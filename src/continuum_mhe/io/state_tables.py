@@ -66,8 +66,20 @@ class StateTable:
         """The file has a finite standard deviation somewhere."""
         return self.std is not None and bool(np.isfinite(self.std).any())
 
+    def _index(self, name: str) -> int:
+        if name not in self.names:
+            raise KeyError(f"no column {name!r} (the table's: {', '.join(self.names)})")
+        return self.names.index(name)
+
     def column(self, name: str) -> FloatArray:
-        return self.values[:, self.names.index(name)]
+        """The column ``name`` (n,), in its unit; NaN where empty."""
+        return self.values[:, self._index(name)]
+
+    def std_column(self, name: str) -> FloatArray:
+        """One standard deviation of the column ``name`` (n,), in its unit; NaN where
+        the file has none."""
+        i = self._index(name)
+        return np.full(len(self.t), np.nan) if self.std is None else self.std[:, i]
 
 
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
@@ -309,8 +321,16 @@ def _parse_std(path: str, line: int, name: str, text: str) -> float:
 
 def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
     """Read a one-section estimate or truth CSV: ``t`` (n,), states (n, 5)
-    ``x, y, z, theta, phi`` with NaN where empty, and status (n,)."""
+    ``x, y, z, theta, phi`` with NaN where empty, and status (n,). A file of several
+    sections (``theta_1``...) is refused with a pointer to :func:`read_state_table`,
+    which reads any."""
     cols = STATE_COLUMNS[1:]
+    with open_rows(path) as rows:
+        if "theta" not in rows.header and "theta_1" in rows.header:
+            raise InputError(
+                f"{rows.name}: a robot of several sections (theta_1, ...): read it with "
+                "read_state_table, which reads any estimate or truth file"
+            )
     table = read_state_table(path, cols)
     values = np.column_stack([table.column(c) for c in cols])
     return table.t, values, table.status
