@@ -156,7 +156,11 @@ class Estimate:
         t: sample time, s.
         state: the formulation's state vector, or None for ``no-estimate``.
         output: the formulation's outputs (m, rad, a tip force in N; see
-            ``Formulation.outputs``), or None for ``no-estimate``.
+            ``Formulation.outputs``), or None for ``no-estimate``. Positions are in the
+            robot's base frame (z along the base's tangent); ``theta_k`` is section
+            ``k``'s bending angle and ``phi_k`` the angle of its bending plane from its
+            base frame's x axis: the section bends towards ``-(cos phi, sin phi)``
+            (docs/model.md).
         covariance: state covariance where the method has one, else None.
         status: see :data:`Status`.
         solve_ms: wall time spent on this sample, ms.
@@ -272,7 +276,7 @@ class EstimateSeries:
         method: estimator name (``mhe``, ``ekf``, ``ukf``...).
         t: (n,) s.
         output: (n, ny), the columns described by ``outputs`` (m, rad; a tendon
-            robot's tip force in N).
+            robot's tip force in N); conventions as :attr:`Estimate.output`'s.
         status: (n,) status strings.
         solve_ms: (n,) ms.
         outputs: what each column of ``output`` is (default: one section's

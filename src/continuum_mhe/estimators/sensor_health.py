@@ -374,36 +374,47 @@ class Estimator(Generic[InferenceT]):
     def step(self, measurement: Measurement) -> Estimate:
         """Process one sample and return its estimate. Never raises on solver failure.
 
-        A diverged (non-finite, or far outside the workspace: ``is_diverged``) or
-        numerically failed step restarts the inference from this sample's measurement; that
-        estimate has status ``"reset"`` (``no-estimate`` if the sample has none).
-        ``recovery`` (:class:`~continuum_mhe.settings.RecoverySettings`): a sensor frozen
-        longer than ``freeze`` s (over ``freeze_samples`` samples or more) counts as dropped
-        out; the first valid sample after more than ``gap_reset`` s without one restarts the
-        inference the same way (``reset``), and so do readings inconsistent with the
-        estimate within ``bad_start`` s of a (re)start or of an IMU's return after a silence
-        of more than ``gap_reset`` (1 s when it is off) (:mod:`.start_check`; not for a
-        robust MHE, which rejects such readings as outliers; a formulation's
-        ``bad_start_chain`` such restarts in a row, each contradicted in turn, end them
-        until one holds) and, for a robust MHE, a valid reading after every reading of more
-        than ``reject_reset`` s was rejected as an outlier (the estimate, not the sensor, is
-        taken as lost); an ``ok`` estimate whose tip standard deviation exceeds
-        ``uncertain_fraction`` of the robot's length, or whose reported one (the readings'
-        constant errors in it) exceeds the robot's length, is ``uncertain``, and so is every
-        ``ok``, ``fallback-ipopt`` or ``branch-restart`` estimate (a trusted status) of a
-        robot whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
-        IMUs that reported within the gap reset do not (an IMU silent for longer: its part
-        of the shape is predicted blindly), or after such an IMU's return until its readings
-        have agreed with the estimate for as long (whether ``bad_start`` is set or not), or
-        while four or more restarts that the readings forced fall within ``bad_start`` (or
-        the unobserved window where longer, or without the check); a frozen IMU's silence
-        counts from the freeze's start; a trusted estimate with a section's bend on its
-        ``theta_max`` is ``at-bound``
-        (:meth:`~continuum_mhe.model.formulations.Formulation.at_bound`), and one whose
-        readings disagree with it beyond their noise is ``inconsistent``
-        (:mod:`.consistency`, which also widens ``output_std`` by the model error the
-        readings show). The estimate carries ``output_std`` wherever the method has a
-        covariance. Each restart and its cause is counted in :attr:`diagnostics`.
+        Restarts (status ``reset``; ``no-estimate`` if the sample has none), each counted
+        with its cause in :attr:`diagnostics`:
+
+        - a diverged step (non-finite, or far outside the workspace: ``is_diverged``) or
+          a numerically failed one restarts the inference from this sample's
+          measurement;
+        - the first valid sample after more than ``recovery.gap_reset`` s without one;
+        - readings inconsistent with the estimate within ``recovery.bad_start`` s of a
+          (re)start or of an IMU's return after a silence of more than ``gap_reset``
+          (1 s when it is off) (:mod:`.start_check`). Not for a robust MHE, which
+          rejects such readings as outliers; a formulation's ``bad_start_chain`` such
+          restarts in a row, each contradicted in turn, end them until one holds;
+        - for a robust MHE, a valid reading after every reading of more than
+          ``recovery.reject_reset`` s was rejected as an outlier (the estimate, not the
+          sensor, is taken as lost).
+
+        A sensor frozen longer than ``recovery.freeze`` s (over ``freeze_samples``
+        samples or more) counts as dropped out
+        (:class:`~continuum_mhe.settings.RecoverySettings`).
+
+        Statuses other than ``ok``:
+
+        - ``uncertain``: an ``ok`` estimate whose tip standard deviation exceeds
+          ``uncertain_fraction`` of the robot's length, or whose reported one (the
+          readings' constant errors in it) exceeds the robot's length; and every
+          trusted estimate (``ok``, ``fallback-ipopt``, ``branch-restart``) of a robot
+          whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
+          IMUs that reported within the gap reset do not (an IMU silent for longer: its
+          part of the shape is predicted blindly), or after such an IMU's return until
+          its readings have agreed with the estimate for as long (whether ``bad_start``
+          is set or not), or while four or more restarts that the readings forced fall
+          within ``bad_start`` (or the unobserved window where longer, or without the
+          check); a frozen IMU's silence counts from the freeze's start;
+        - ``at-bound``: a trusted estimate with a section's bend on its ``theta_max``
+          (:meth:`~continuum_mhe.model.formulations.Formulation.at_bound`);
+        - ``inconsistent``: one whose readings disagree with it beyond their noise
+          (:mod:`.consistency`, which also widens ``output_std`` by the model error the
+          readings show).
+
+        The estimate carries ``output_std`` wherever the method has a covariance, and
+        its outputs' names (:meth:`~continuum_mhe.results.Estimate.value`).
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
