@@ -325,12 +325,16 @@ def read_states(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, N
     sections (``theta_1``...) is refused with a pointer to :func:`read_state_table`,
     which reads any."""
     cols = STATE_COLUMNS[1:]
-    with open_rows(path) as rows:
-        if "theta" not in rows.header and "theta_1" in rows.header:
-            raise InputError(
-                f"{rows.name}: a robot of several sections (theta_1, ...): read it with "
-                "read_state_table, which reads any estimate or truth file"
-            )
-    table = read_state_table(path, cols)
+    try:
+        table = read_state_table(path, cols)
+    except InputError:  # the header read again only to say which reader fits
+        with open_rows(path) as rows:
+            several = "theta" not in rows.header and "theta_1" in rows.header
+        if not several:
+            raise
+        raise InputError(
+            f"{rows.name}: a robot of several sections (theta_1, ...): read it with "
+            "read_state_table, which reads any estimate or truth file"
+        ) from None
     values = np.column_stack([table.column(c) for c in cols])
     return table.t, values, table.status
