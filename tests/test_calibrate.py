@@ -257,6 +257,32 @@ def test_the_stillness_bounds_are_options_for_a_noisier_imu(
     assert "IMU 1: mounting with the robot straight: --mount-rpy 5.00," in out  # pitch 0
 
 
+def test_a_gyro_spread_with_still_accelerometers_suggests_deg_s(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A rest recording whose accelerometer is still but whose gyro spreads by 0.35 (a
+    MEMS gyro's noise in deg/s, read as rad/s): the refusal says the accelerometers
+    stayed still and asks whether the gyro is in deg/s, instead of "the robot moved";
+    a gyro only a little beyond its bound (a noisy IMU) still gets "the robot moved"."""
+    n = 400
+    t = 0.01 * np.arange(n)
+    path = tmp_path / "rest_degs.csv"
+    for swing, deg_s in ((0.35, True), (0.06, False)):
+        rows = np.column_stack([t, _rest_values(n, 0.0, swing, tilt_deg=5.0)])
+        path.write_text(
+            "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
+        )
+        code, out, err = _calibrate_main(capsys, "--from", str(path))
+        assert code == 2 and out == "" and err.count("\n") == 1
+        assert "IMU 1's gyro spread (std of gx) is" in err
+        if deg_s:
+            assert "while every accelerometer stayed still: a gyro in deg/s? give rad/s" in err
+            assert "the robot moved" not in err
+        else:
+            assert f"{path}: the robot moved: IMU 1's gyro spread" in err
+            assert "deg/s" not in err
+
+
 def test_the_tilt_stillness_bound_follows_still_acc_std(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -279,6 +305,39 @@ def test_the_tilt_stillness_bound_follows_still_acc_std(
     assert (code, out) == (2, "") and err.endswith(
         "tilt_rest.csv: --still-gyro-std needs a raw recording (this one is tilt)\n"
     )
+
+
+def test_the_printed_mounting_keeps_the_robot_files_yaw(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An IMU mounted turned 90 degrees about its disk's axis (``mount_rpy = [0, 0, 90]``
+    in the robot file): gravity does not see the yaw, so calibrate prints the roll and
+    pitch it measures with the file's yaw, as ``--write-robot`` writes it; a line copied
+    from the output into the robot file keeps the mounting."""
+    robot = tmp_path / "robot.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.2\ntheta_max = 3.0\n'
+        "[[imu]]\nsection = 1\nmount_rpy = [0.0, 0.0, 90.0]\n"
+    )
+    n = 200
+    acc = np.tile(mount_rotation((4.0, -2.0, 90.0)).T @ [0, 0, G], (n, 1))
+    rows = np.column_stack([0.01 * np.arange(n), acc, np.zeros((n, 3))])
+    path = tmp_path / "rest.csv"
+    path.write_text(
+        "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
+    )
+    written = tmp_path / "calibrated.toml"
+    code, out, err = _calibrate_main(
+        capsys, "--from", str(path), "--robot", str(robot), "--write-robot", str(written)
+    )
+    assert code == 0, err
+    assert (
+        "IMU 1: mounting with the robot straight: --mount-rpy 4.00,-2.00,90 (robot file: "
+        "mount_rpy = [4.00, -2.00, 90]); yaw: the robot file's" in out
+    )
+    from continuum_mhe.io.robot_file import read_robot
+
+    np.testing.assert_allclose(read_robot(written).imus[0].mount_rpy, (4.0, -2.0, 90.0), atol=1e-6)
 
 
 @pytest.mark.parametrize(

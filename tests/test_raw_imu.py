@@ -23,6 +23,7 @@ from continuum_mhe.io.raw_imu import (
     GYRO_MEDIAN_MAX,
     RawImuConverter,
     RawImuSettings,
+    gyro_gravity_problem,
     mount_rotation,
     raw_to_measurements,
     read_raw_imu,
@@ -408,6 +409,121 @@ def test_gyro_rates_implausible_in_rad_s_are_an_error(
         f"{path}: gyro magnitude is about {rate:.3g} (median), implausible in rad/s "
         "(above 5): deg/s? give rad/s (gx, gy, gz times pi/180 = 0.0174533)"
     )
+
+
+@pytest.mark.parametrize(
+    ("header", "said"),
+    [
+        (
+            "t,ax1,ay1,az1,gx1,gy1,gz1,ax2,ay2,az2,gx2,gy2,gz2",
+            "ax1 -> ax_1, ay1 -> ay_1, az1 -> az_1, ...",
+        ),
+        (
+            "time_s,acc_x,acc_y,acc_z,gyro_x,gyro_y,gyro_z",
+            "acc_x -> ax, acc_y -> ay, acc_z -> az, ...",
+        ),
+        ("t,Accel_X_2,wz", "Accel_X_2 -> ax_2, wz -> gz"),
+    ],
+)
+def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
+    tmp_path: Path, capsys: pytest.CaptureFixture, header: str, said: str
+) -> None:
+    """A header whose accelerometer and gyro columns are spelled otherwise (a logger's
+    ``ax1``, ``acc_x``): one line giving the names the reader takes and the rename of
+    the first columns, not a request for tilt columns."""
+    values = ",".join(["0.0"] * len(header.split(",")))
+    path = _write(tmp_path / "logger.csv", f"{header}\n{values}\n")
+    out = tmp_path / "est.csv"
+    code = main(["estimate", str(path), "-o", str(out), "--robot", "two-section"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and not out.exists()
+    assert err == (
+        f"continuum-mhe: error: {path}: line 1: no column is named as this reader takes IMU "
+        "readings: raw columns are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... "
+        "for several (m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the "
+        f"columns ({said})\n"
+    )
+
+
+def test_a_header_without_imu_columns_names_the_robots_columns(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A header with no IMU column at all asks for the robot's own columns: numbered
+    for a robot of two IMUs, unnumbered for one."""
+    path = _write(tmp_path / "other.csv", "t,x,y\n0.0,0.0,0.0\n")
+    out = tmp_path / "est.csv"
+    for robot, missing in (
+        (["--robot", "two-section"], "roll_1, pitch_1, roll_2, pitch_2"),
+        ([], "roll, pitch"),
+    ):
+        assert main(["estimate", str(path), "-o", str(out), *robot]) == 2
+        err = capsys.readouterr().err
+        assert err == (
+            f"continuum-mhe: error: {path}: line 1: missing column(s) {missing} "
+            "(header has: t, x, y)\n"
+        )
+
+
+def _still_two_imus(tmp_path: Path, gyro: np.ndarray, name: str) -> Path:
+    """A 10 s raw recording of the shipped two-section robot held straight and still
+    (each IMU's accelerometer gravity plus noise), its gyros reading ``gyro`` (n, 6)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 10.0, 0.02)
+    acc = np.array([0.05, -0.08, 9.80]) + rng.normal(0.0, 0.05, (len(t), 6))[:, :3]
+    cols = [acc, gyro[:, :3], acc + rng.normal(0.0, 0.05, acc.shape), gyro[:, 3:]]
+    rows = np.column_stack([t, *cols])
+    header = "t,ax_1,ay_1,az_1,gx_1,gy_1,gz_1,ax_2,ay_2,az_2,gx_2,gy_2,gz_2"
+    text = header + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n"
+    return _write(tmp_path / name, text)
+
+
+def test_a_resting_gyro_in_deg_s_is_told_by_the_accelerometers(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A robot at rest whose gyros are in deg/s (biases of 1 to 2 deg/s, noise 0.3
+    deg/s): their median rate is far below the deg/s threshold, but read as rad/s they
+    would turn the gravity direction by tens of degrees a second where the
+    accelerometers stay still: one line naming IMU 1 and the likely unit, exit 2,
+    nothing written. The same gyros in rad/s, and in rad/s turning at 1.5 rad/s about
+    the vertical (which no accelerometer sees), are estimated."""
+    rng = np.random.default_rng(4)
+    n = 500
+    bias = np.array([1.2, -1.5, 0.8, -0.9, 1.1, 1.6])  # deg/s
+    degs = bias + rng.normal(0.0, 0.3, (n, 6))
+    out = tmp_path / "est.csv"
+    for name, gyro, refused in (
+        ("degs.csv", degs, True),
+        ("rads.csv", np.radians(degs), False),
+        ("yaw.csv", np.radians(degs) + np.array([0.0, 0.0, 1.5] * 2), False),
+    ):
+        path = _still_two_imus(tmp_path, gyro, name)
+        code = main(["estimate", str(path), "-o", str(out), "--robot", "two-section"])
+        err = capsys.readouterr().err
+        if refused:
+            assert code == 2 and err.count("\n") == 1 and not out.exists()
+            assert err.startswith(
+                f"continuum-mhe: error: {path}: IMU 1: the accelerometer's gravity direction "
+                "turns as the gyro says only with the gyro in deg/s (read as rad/s it misses by"
+            )
+            assert err.rstrip().endswith("give rad/s (gx, gy, gz times pi/180 = 0.0174533)")
+        else:
+            assert code == 0, err
+            assert "deg/s" not in err
+            out.unlink()
+
+
+def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None:
+    """No shipped raw recording (rad/s: the rods bend, turn and twist fast, the tendon
+    robot works under load, and each IMU also feels its own acceleration) is taken for
+    deg/s by the gravity check: their gyros follow the accelerometers' turns."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"
+    files = sorted(data.glob("rod2/*_raw.csv")) + sorted(data.glob("tendon/*_raw.csv"))
+    assert len(files) == 9
+    for path in files:
+        table = read_raw_imus(path, 2)
+        for imu in table.imus:
+            assert imu.gyr is not None
+            assert gyro_gravity_problem(table.t, imu.acc, imu.gyr) is None, path
 
 
 def test_estimate_names_a_gyro_in_deg_s(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -1028,6 +1028,36 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf"])
+def test_a_resting_gyro_in_degrees_per_second_is_refused_by_run_and_step(method) -> None:
+    """``direct`` readings of an IMU at rest whose gyro is in deg/s (a bias of about 2
+    deg/s: its median rate is far below the deg/s threshold) are refused by ``run`` (the
+    whole recording) and by ``step`` (at the sample that completes the first check),
+    because read as rad/s the gyro would turn the still specific force by tens of
+    degrees a second; the same readings in rad/s run through."""
+    from continuum_mhe.estimators.reading_units import ReadingUnitsError
+    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.model.direct import direct_measurements
+
+    rng = np.random.default_rng(5)
+    n = UNIT_CHECK_SAMPLES + 20
+    t = np.arange(n) * 0.02
+    acc = np.array([0.3, -0.2, 9.79]) + rng.normal(0.0, 0.05, (n, 3))
+    deg_s = np.array([1.2, -1.5, 0.9]) + rng.normal(0.0, 0.3, (n, 3))
+    degs = direct_measurements(acc, deg_s)
+    rads = direct_measurements(acc, np.radians(deg_s))
+    said = r"wx, wy, wz: the accelerometer's gravity direction turns as the gyro says only"
+    est = make_estimator(method, make_formulation("direct"))
+    with pytest.raises(ReadingUnitsError, match=said):
+        est.run(t, degs)
+    assert np.isfinite(est.run(t, rads).output[-1]).all()
+    est.reset()
+    for k in range(UNIT_CHECK_SAMPLES - 1):
+        est.step(Measurement(float(t[k]), degs[k]))
+    with pytest.raises(ReadingUnitsError, match=rf"^measurement at t=.* s: {said}"):
+        est.step(Measurement(float(t[UNIT_CHECK_SAMPLES - 1]), degs[UNIT_CHECK_SAMPLES - 1]))
+
+
+@pytest.mark.parametrize("method", ["mhe", "ekf"])
 def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> None:
     """A stream of raw readings whose gyros are in deg/s, handed to ``step`` sample by
     sample or to ``continue_run`` in blocks: a ReadingUnitsError at the sample that

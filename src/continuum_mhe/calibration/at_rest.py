@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import queue
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -160,6 +161,12 @@ def calibrate(
     )
 
 
+#: A gyro spread this many times its bound, with every accelerometer still, reads as a
+#: gyro in deg/s: a MEMS gyro's noise at rest is a few hundredths of a deg/s to half a
+#: deg/s, which read as rad/s is many times :data:`STILL_GYRO_STD`.
+DEG_S_SPREAD_RATIO = 3.0
+
+
 def motion_at_rest(
     values: FloatArray,
     fmt: LineFormat,
@@ -186,6 +193,7 @@ def motion_at_rest(
             ("tilt", 0, "rad", tilt_std, ("roll", "pitch"), "--still-acc-std (bound: it / g)")
         ]
     worst: tuple[float, str, str] | None = None
+    accelerometers_moved = False
     for i in range(n_imus):
         block = values[:, k * i : k * (i + 1)]
         block = block[np.all(np.isfinite(block), axis=1)]
@@ -199,6 +207,7 @@ def motion_at_rest(
             spread = part.std(axis=0, ddof=1)
             j = int(np.argmax(spread))
             ratio = float(spread[j]) / bound
+            accelerometers_moved |= what != "gyro" and ratio > 1.0
             if ratio > 1.0 and (worst is None or ratio > worst[0]):
                 worst = (
                     ratio,
@@ -208,6 +217,16 @@ def motion_at_rest(
                 )
     if worst is None:
         return None
+    if (
+        worst[2] == "--still-gyro-std"
+        and worst[0] >= DEG_S_SPREAD_RATIO
+        and not accelerometers_moved
+    ):
+        return (
+            f"{worst[1]}, while every accelerometer stayed still: a gyro in deg/s? give "
+            f"rad/s (gx, gy, gz times pi/180 = {math.pi / 180:.7f}); if the robot did "
+            f"move, calibrate needs it straight and still; if it was still, raise {worst[2]}"
+        )
     return (
         f"the robot moved: {worst[1]}; calibrate needs it straight and still "
         f"(a bend in a known plane goes to --bend BEND.csv); if the robot was still, raise "
@@ -216,10 +235,15 @@ def motion_at_rest(
 
 
 def format_report(
-    cal: Calibration, source: str, bend: tuple[str, float, list[YawCalibration]] | None = None
+    cal: Calibration,
+    source: str,
+    bend: tuple[str, float, list[YawCalibration]] | None = None,
+    yaws_deg: Sequence[float] | None = None,
 ) -> str:
     """The calibration as text for the terminal; ``bend``: ``(file, phi deg, yaws)``
-    from a bend in a known plane (each IMU's yaw, and the full mounting)."""
+    from a bend in a known plane (each IMU's yaw, and the full mounting); ``yaws_deg``:
+    each IMU's yaw as the robot file gives it (gravity does not see it), kept in the
+    mounting printed without a bend (else 0)."""
     lines = [
         f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
         f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
@@ -238,11 +262,17 @@ def format_report(
             assert imu.mount_rpy is not None
             r, p, _ = imu.mount_rpy
             tilt_noise = math.degrees(float(np.hypot(s[0], s[1])) / g) if g > 0 else math.nan
-            yaw_hint = "from --bend below" if bend else "see docs/hardware.md"
+            yaw = 0.0 if yaws_deg is None else float(yaws_deg[i - 1])
+            if bend:
+                yaw_hint = "from --bend below"
+            elif yaw:
+                yaw_hint = "the robot file's (a bend in a known plane measures it: --bend)"
+            else:
+                yaw_hint = "see docs/hardware.md"
             lines.append(
-                f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},0 "
-                f"(robot file: mount_rpy = [{r:.2f}, {p:.2f}, 0]); yaw: {yaw_hint}; "
-                f"accelerometer noise as tilt: {tilt_noise:.2f} deg"
+                f"IMU {i}: mounting with the robot straight: --mount-rpy {r:.2f},{p:.2f},"
+                f"{yaw:g} (robot file: mount_rpy = [{r:.2f}, {p:.2f}, {yaw:g}]); yaw: "
+                f"{yaw_hint}; accelerometer noise as tilt: {tilt_noise:.2f} deg"
             )
             if bend:
                 y = bend[2][i - 1]

@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
         bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
-    print(format_report(cal, source, bend))
+    print(format_report(cal, source, bend, [imu.mount_rpy[2] for imu in robot.imus]))
     if args.write_robot:
         _write_robot(args, robot, cal, bend)
     return 0

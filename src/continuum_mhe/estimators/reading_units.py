@@ -20,7 +20,12 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES, UNIT_CHECK_SPAN_S, gyro_units_problem
+from continuum_mhe.io.raw_imu import (
+    UNIT_CHECK_SAMPLES,
+    UNIT_CHECK_SPAN_S,
+    gyro_gravity_problem,
+    gyro_units_problem,
+)
 from continuum_mhe.model.formulations import Formulation
 
 #: A unit specific force whose magnitude is off 1 by more than this is not a direction
@@ -41,13 +46,17 @@ def direct_blocks(formulation: Formulation) -> list[DirectRows]:
     ]
 
 
-def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = True) -> str | None:
+def direct_units_problem(
+    blocks: list[DirectRows], z: FloatArray, gyro: bool = True, t: FloatArray | None = None
+) -> str | None:
     """What is wrong with the units of ``z`` (n, nz) in the ``direct`` ``blocks``
     (:func:`direct_blocks`), as a line for :class:`~continuum_mhe.errors.UserError`, or
     None: a specific force whose median magnitude is not 1, or (``gyro``: a recording,
     where a median says it; one sample of a fast turn may exceed it) a gyro whose median
-    rate says deg/s (:func:`~continuum_mhe.io.raw_imu.gyro_units_problem`). Rows
-    with a non-finite reading (dropouts) are left out."""
+    rate says deg/s (:func:`~continuum_mhe.io.raw_imu.gyro_units_problem`), or, given
+    the samples' times ``t`` (n,) s, whose rates turn the specific force as deg/s would
+    (:func:`~continuum_mhe.io.raw_imu.gyro_gravity_problem`: a gyro in deg/s at rest).
+    Rows with a non-finite reading (dropouts) are left out."""
     for force_rows, gyro_rows, names in blocks:
         f, w = z[:, force_rows], z[:, gyro_rows]
         finite = np.all(np.isfinite(f), axis=1) & np.all(np.isfinite(w), axis=1)
@@ -63,6 +72,8 @@ def direct_units_problem(blocks: list[DirectRows], z: FloatArray, gyro: bool = T
                 "turned by its mount_rpy)"
             )
         problem = gyro_units_problem(w[finite], ", ".join(names[3:])) if gyro else None
+        if problem is None and gyro and t is not None:
+            problem = gyro_gravity_problem(t[finite], f[finite], w[finite], ", ".join(names[3:]))
         if problem is not None:
             return f"{', '.join(names[3:])}: {problem}"
     return None
@@ -95,6 +106,8 @@ class ReadingUnitsWatch:
         self._pending = list(range(len(self._blocks)))  # blocks still to check
         self._force_unchecked = [True] * len(self._blocks)
         self._gyros: list[list[FloatArray]] = [[] for _ in self._blocks]
+        self._forces: list[list[FloatArray]] = [[] for _ in self._blocks]
+        self._times: list[list[FloatArray]] = [[] for _ in self._blocks]
         self._first_t = [math.nan] * len(self._blocks)
         self._counts = [0] * len(self._blocks)
 
@@ -131,13 +144,21 @@ class ReadingUnitsWatch:
             self._first_t[k] = float(t[i])
         seen = self._gyros[k]
         seen.append(z[full, gyro_rows].copy())
+        self._forces[k].append(z[full, force_rows].copy())
+        self._times[k].append(np.asarray(t, dtype=float)[full].copy())
         self._counts[k] += len(full)
         span = float(t[full[-1]]) - self._first_t[k]
         if self._counts[k] < UNIT_CHECK_SAMPLES or span < UNIT_CHECK_SPAN_S:
             return None
         self._pending.remove(k)
-        problem = gyro_units_problem(np.concatenate(seen), ", ".join(names[3:]))
-        self._gyros[k] = []
+        gyros = np.concatenate(seen)
+        problem = gyro_units_problem(gyros, ", ".join(names[3:]))
+        if problem is None:
+            problem = gyro_gravity_problem(
+                np.concatenate(self._times[k]), np.concatenate(self._forces[k]), gyros,
+                ", ".join(names[3:]),
+            )  # fmt: skip
+        self._gyros[k], self._forces[k], self._times[k] = [], [], []
         if problem is None:
             return None
         of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"

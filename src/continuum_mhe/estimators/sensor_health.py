@@ -475,10 +475,11 @@ class Estimator(Generic[InferenceT]):
                 "negative: a tendon cannot push (a slack tendon's tension is 0)"
             )
 
-    def _check_units(self, z: FloatArray) -> None:
+    def _check_units(self, t: FloatArray, z: FloatArray) -> None:
         """A :class:`UserError` where the ``direct`` IMU readings of a whole recording
-        ``z`` (n, nz) are not a unit specific force and rad/s (:mod:`.reading_units`)."""
-        problem = direct_units_problem(self._direct_rows, z)
+        ``z`` (n, nz) at the times ``t`` (n,) s are not a unit specific force and rad/s
+        (:mod:`.reading_units`)."""
+        problem = direct_units_problem(self._direct_rows, z, t=t)
         if problem is not None:
             raise ReadingUnitsError(problem)
 
@@ -544,7 +545,7 @@ class Estimator(Generic[InferenceT]):
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
-        self._check_units(z)
+        self._check_units(t, z)
         self.reset()
         self._refuse_before_stepping(t, z)
         n = len(t)

@@ -186,10 +186,11 @@ def imu_suffixes(
     sets = columns.numbered(header)
     numbers = [k for k in sets if k > 0]
     plain = any(c in header for c in columns.names)  # unnumbered columns
-    unnumbered = not numbers or (
+    # no IMU column at all: the robot's own count, numbered where it has several IMUs
+    unnumbered = (not numbers and (plain or n_imus == 1)) or (
         n_imus == 1 and plain and not any(columns.whole(f) for k, f in sets.items() if k > 0)
     )
-    found = 1 if unnumbered else max(numbers)
+    found = 1 if unnumbered else max(numbers, default=n_imus)
 
     def suffixes(count: int) -> list[str]:
         return [""] if unnumbered else [f"_{k}" for k in range(1, count + 1)]

@@ -577,7 +577,7 @@ def _table_stream(
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             blocks = raw_blocks(
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
-                options.raw.needs_gyro, first_block=read[0] == 0,
+                options.raw.needs_gyro, first_block=read[0] == 0, t=t,
             )  # fmt: skip
             read[0] += 1
             return np.hstack(
@@ -761,5 +761,5 @@ def _convert_log(
     # the units of the raw vectors, where they are used (not with --orientation)
     check_accel_units(f"{path}: topic {topic}", acc)
     if gyr is not None:
-        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro)
+        check_gyro_units(f"{path}: topic {topic}", gyr, raw.needs_gyro, t, acc)
     return raw_to_measurements(t, acc, gyr, raw)

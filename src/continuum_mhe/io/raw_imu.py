@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
@@ -63,6 +65,16 @@ GYRO_MEDIAN_MAX = 5.0
 #: checked on all of them.
 UNIT_CHECK_SAMPLES = 100
 UNIT_CHECK_SPAN_S = 1.0
+#: The gravity check of a gyro's units (:func:`gyro_gravity_problem`) compares the
+#: accelerometer's direction with the gyro's turn over stretches of this length (s), of
+#: at least :data:`GRAVITY_TURN_ROWS` readings, ...
+GRAVITY_TURN_SPAN_S = 0.5
+GRAVITY_TURN_ROWS = 5
+#: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
+#: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
+#: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
+#: as rad/s by 29 deg.
+GRAVITY_TURN_MISMATCH = math.radians(20.0)
 #: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
 #: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
 #: corrupt value, not a reading.
@@ -273,6 +285,8 @@ def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
     if not is_raw_header(rows.header):
         number = RAW_IMU_COLUMNS.number
         accel = any(h in ACC_COLUMNS or number(h)[0] in ACC_COLUMNS for h in rows.header)
+        if not accel and not tilt:
+            _refuse_other_raw_names(rows)
         return "raw" if accel and not tilt else "tilt"
     if tilt:
         raise InputError(
@@ -281,6 +295,38 @@ def sample_kind(rows: TextRows) -> Literal["tilt", "raw"]:
             "IMU columns (ax, ay, az); give one kind: remove the tilt or the raw columns"
         )
     return "raw"
+
+
+#: A header column that names an accelerometer or gyro axis in another spelling
+#: (``ax1``, ``acc_x``, ``accel_x_2``, ``gyro_z1``, ``wx``): its sensor, axis and IMU number.
+_OTHER_RAW_NAME = re.compile(
+    r"^(?:(a|acc|accel|accelerometer)|(g|gyr|gyro|w|omega))[_. -]?([xyz])[_. -]?(\d*)$",
+    re.IGNORECASE,
+)
+
+
+def _refuse_other_raw_names(rows: TextRows) -> None:
+    """A one-line error for a header with neither tilt nor raw columns but with columns
+    that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
+    this reader takes, and what each such column would be called (``ax1`` -> ``ax_1``).
+    Any other header is left to the tilt reader's message."""
+    renames = []
+    for h in rows.header:
+        m = _OTHER_RAW_NAME.match(h)
+        if m:
+            field = ("a" if m.group(1) else "g") + m.group(3).lower()
+            renames.append(
+                f"{rows.as_written(h)} -> {field}{'_' + m.group(4) if m.group(4) else ''}"
+            )
+    if not renames:
+        return
+    shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
+    raise InputError(
+        f"{rows.name}: line 1: no column is named as this reader takes IMU readings: raw "
+        "columns are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... for "
+        f"several (m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the "
+        f"columns ({shown})"
+    )
 
 
 def raw_columns(i: int, n_imus: int, gyro: bool = True) -> tuple[str, ...]:
@@ -355,12 +401,14 @@ def raw_blocks(
     skipped: list[str] | RowProblems,
     gyro_used: bool = True,
     first_block: bool = True,
+    t: FloatArray | None = None,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
     in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`; on a
     later block of a file read in blocks (not ``first_block``), only where it has
     :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
-    no deg/s).
+    no deg/s; with the rows' times ``t`` (n,) s, the first block's gyros are also held
+    against the accelerometers: :func:`gyro_gravity_problem`).
 
     One IMU: a zero acceleration, or a reading beyond any IMU's range
     (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
@@ -400,7 +448,10 @@ def raw_blocks(
         judged = first_block or int(np.isfinite(gyr_norm).sum()) >= UNIT_CHECK_SAMPLES
         if has_gyro and judged:
             label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
-            check_gyro_units(label, block[:, 3:6], gyro_used)
+            gravity = t is not None and first_block
+            check_gyro_units(
+                label, block[:, 3:6], gyro_used, t if gravity else None, acc if gravity else None
+            )
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -415,7 +466,9 @@ def read_raw_imus(
         got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
     check_time_units(rows, got.t)
     skipped = list(got.skipped)
-    blocks = raw_blocks(rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped)
+    blocks = raw_blocks(
+        rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t
+    )
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
     return MultiRawImuTable(got.t, imus, skipped)
 
@@ -440,7 +493,9 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
         got = read_sample_rows(rows, cols, skip_bad=skip_bad)
     check_time_units(rows, got.t)
     skipped = list(got.skipped)
-    ((acc, gyr),) = raw_blocks(rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped)
+    ((acc, gyr),) = raw_blocks(
+        rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped, t=got.t
+    )
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
 
 
@@ -486,11 +541,77 @@ def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None
     )
 
 
-def check_gyro_units(path: Path | str, gyr: FloatArray, used: bool = True) -> None:
+def _turn_errors(t: FloatArray, direction: FloatArray, gyr: FloatArray) -> FloatArray:
+    """Per stretch of :data:`GRAVITY_TURN_SPAN_S` (at least :data:`GRAVITY_TURN_ROWS`
+    finite rows): the angle (rad) between the accelerometer's last direction and its
+    first one turned by the gyro's summed rates (one rotation vector: exact for a rate of
+    constant direction, such as a resting gyro's bias), the gyro read as rad/s (column
+    0) and as deg/s (column 1); (k, 2), k stretches."""
+    ok = np.isfinite(t) & np.isfinite(direction).all(axis=1) & np.isfinite(gyr).all(axis=1)
+    t, direction, gyr = t[ok], direction[ok], gyr[ok]
+    if len(t) < GRAVITY_TURN_ROWS:
+        return np.zeros((0, 2))
+    stretch = np.floor((t - t[0]) / GRAVITY_TURN_SPAN_S).astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, np.diff(stretch) != 0])
+    stops = np.r_[starts[1:], len(t)]
+    long = stops - starts >= GRAVITY_TURN_ROWS
+    starts, stops = starts[long], stops[long]
+    # each row's rate over the step to the next row of its stretch
+    step = np.r_[np.diff(t), 0.0]
+    step[stops - 1] = 0.0
+    turn = np.add.reduceat(gyr * step[:, None], starts, axis=0) if len(starts) else gyr[:0]
+    first, last = direction[starts], direction[stops - 1]
+    errors = np.empty((len(starts), 2))
+    for col, scale in enumerate((1.0, math.pi / 180.0)):
+        # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
+        turned = Rotation.from_rotvec(-scale * turn).apply(first) if len(starts) else first
+        errors[:, col] = np.arccos(np.clip(np.sum(turned * last, axis=1), -1.0, 1.0))
+    return errors
+
+
+def gyro_gravity_problem(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
+) -> str | None:
+    """A gyro in deg/s whose rates are too small for :func:`gyro_units_problem` (an IMU
+    at rest, a slow robot), told by the accelerometer: where its rates ``gyr`` (n, 3), read
+    as rad/s, would turn the gravity direction of ``acc`` (n, 3; any unit, the IMU's own
+    acceleration small) over the times ``t`` (n,) s by more than
+    :data:`GRAVITY_TURN_MISMATCH` rad in the median stretch, while read as deg/s they
+    follow it at least three times as closely: what to say, naming the columns
+    ``names``; else None. A turn about the vertical moves no accelerometer and says
+    nothing."""
+    errors = _turn_errors(
+        np.asarray(t, float), np.asarray(acc, float) / np.linalg.norm(acc, axis=1)[:, None],
+        np.asarray(gyr, float),
+    )  # fmt: skip
+    if len(errors) < 2:
+        return None
+    as_rad, as_deg = (float(v) for v in np.median(errors, axis=0))
+    if as_rad <= GRAVITY_TURN_MISMATCH or as_deg * 3.0 > as_rad:
+        return None
+    return (
+        "the accelerometer's gravity direction turns as the gyro says only with the gyro "
+        f"in deg/s (read as rad/s it misses by {math.degrees(as_rad):.0f} deg every "
+        f"{GRAVITY_TURN_SPAN_S:g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
+        f"deg): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
+    )
+
+
+def check_gyro_units(
+    path: Path | str,
+    gyr: FloatArray,
+    used: bool = True,
+    t: FloatArray | None = None,
+    acc: FloatArray | None = None,
+) -> None:
     """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s
-    (:func:`gyro_units_problem`): an error where the estimate uses it (``used``), else one
-    warning (it is ignored)."""
+    (:func:`gyro_units_problem`), and so does one whose rates, given its times ``t`` and
+    accelerometer ``acc``, turn the gravity direction as deg/s would
+    (:func:`gyro_gravity_problem`): an error where the estimate uses it (``used``), else
+    one warning (it is ignored)."""
     problem = gyro_units_problem(gyr)
+    if problem is None and t is not None and acc is not None:
+        problem = gyro_gravity_problem(t, acc, gyr)
     if problem is not None:
         msg = f"{path}: {problem}"
         if used:

@@ -301,6 +301,7 @@ class LiveSession:
         #: or tilt lines)
         self._units_unchecked: list[FloatArray] | None = None if self.converters is None else []
         self._units_since = 0.0  # the time of the first sample in _units_unchecked, s
+        self._units_times: list[float] = []  # the times of the samples in _units_unchecked, s
         self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
@@ -512,7 +513,9 @@ class LiveSession:
         if self._units_unchecked is not None:
             if not self._units_unchecked:
                 self._units_since = t
+                self._units_times = []
             self._units_unchecked.append(s.values)
+            self._units_times.append(t)
             if (
                 len(self._units_unchecked) >= UNIT_CHECK_SAMPLES
                 and t - self._units_since >= UNIT_CHECK_SPAN_S
@@ -599,13 +602,15 @@ class LiveSession:
         until a board reset re-arms the check), with ``estimate``'s rules and wording
         for a raw file, naming the port: an accelerometer whose median magnitude is
         about 1 is in g and sets :attr:`fatal` (``estimate`` refuses the recording);
-        a gyro whose median rate exceeds ``GYRO_MEDIAN_MAX`` (5 rad/s) looks like
-        deg/s, and sets :attr:`fatal` where the estimate uses it, else warns
-        (``UnitWarning``) that it is ignored."""
+        a gyro whose median rate exceeds ``GYRO_MEDIAN_MAX`` (5 rad/s), or whose rates
+        turn the accelerometer's gravity direction as deg/s would
+        (``gyro_gravity_problem``), looks like deg/s, and sets :attr:`fatal` where the
+        estimate uses it, else warns (``UnitWarning``) that it is ignored."""
         seen, self._units_unchecked = self._units_unchecked, None
         if not seen or self.converters is None:
             return
         values = np.asarray(seen, dtype=float).reshape(len(seen), -1)
+        times = np.asarray(self._units_times, dtype=float)
         used = self.converters[0].settings.needs_gyro
         gyro = used or not self._unused_gyro_checked
         self._unused_gyro_checked = True
@@ -614,10 +619,11 @@ class LiveSession:
             for i in range(self.n_imus):
                 label = port if self.n_imus == 1 else f"{port}: IMU {i + 1}"
                 block = values[:, 6 * i : 6 * i + 6]
-                block = block[np.isfinite(block).all(axis=1)]  # an IMU's dropouts left out
+                full = np.isfinite(block).all(axis=1)  # an IMU's dropouts left out
+                block = block[full]
                 check_accel_units(label, block[:, :3])
                 if gyro:
-                    check_gyro_units(label, block[:, 3:], used)
+                    check_gyro_units(label, block[:, 3:], used, times[full], block[:, :3])
         except InputError as exc:
             self.fatal = str(exc)
 
