@@ -569,12 +569,13 @@ def test_a_signal_during_the_shutdown_after_a_command_keeps_its_status(tmp_path:
         (ROBOT + "[[section]]\n# the tip\ntheta_max = 3.0\n",
          "line 5: section 2: missing key 'length'"),
         (ROBOT.replace("length = 0.2", "length = 0.2\nlenght = 0.1"),
-         "line 3: section 1: unknown key 'lenght'"),
+         "line 3: section 1: unknown key 'lenght' (length?) (allowed: disks, length, "
+         "theta_max)"),
         (ROBOT + "[[imu]]\nsection = 1\nmount_rpy = [1, 2]\n", "line 7: imu 2: mount_rpy must be"),
         (ROBOT + "[backbone]\nradius = 0.0007\n", "line 5: backbone: missing key"),
         ('mounting = "z-up"\nmountin = "z-down"\n' + ROBOT,
          "line 2: top level: unknown key 'mountin'"),
-        (ROBOT + "\n[[imus]]\nsection = 1\n", "line 6: top level: unknown key 'imus'"),
+        (ROBOT + "\n[[imus]]\nsection = 1\n", "line 6: top level: unknown key 'imus' (imu?)"),
         (ROBOT + "[extra.part]\nx = 1\n", "line 5: top level: unknown key 'extra'"),
         (ROBOT + "[[section]]\n\nlength = -0.14\n", "line 7: section 2: length: section "
          "length must be positive, got -0.14 m"),

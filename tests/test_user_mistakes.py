@@ -407,6 +407,69 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     assert re.search(summed, out)
 
 
+@pytest.mark.parametrize(
+    ("unit", "factor", "angles"), [("mm", 1000.0, True), ("cm", 100.0, True), ("mm", 1000.0, False)]
+)
+def test_evaluate_refuses_a_truth_whose_positions_are_in_mm_or_cm(
+    tmp_path, capsys, unit: str, factor: float, angles: bool
+) -> None:
+    """A truth file whose x, y, z are in mm (or cm), with or without its bend angles:
+    one line naming the file and the likely unit, exit 2, no figures (not a warning about
+    a robot 1000 times as long and a tip error of hundreds of metres)."""
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    lines = t.read_text().splitlines()
+    header = lines[0].split(",")
+    xyz = [header.index(c) for c in ("x", "y", "z")]
+    keep = [i for i, c in enumerate(header) if angles or c not in ("theta", "phi")]
+    rows = []
+    for line in lines[1:]:
+        v = line.split(",")
+        for i in xyz:
+            v[i] = repr(float(v[i]) * factor)
+        rows.append(",".join(v[i] for i in keep))
+    scaled = tmp_path / "truth_scaled.csv"
+    scaled.write_text(",".join(header[i] for i in keep) + "\n" + "\n".join(rows) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(scaled)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1
+    assert err.startswith(f"continuum-mhe: error: {scaled}: its tip is ")
+    assert err.rstrip().endswith(
+        "times as far from the base as a robot of 0.2 m reaches: "
+        f"positions in {unit}? give x, y, z in m"
+    )
+
+
+def test_evaluate_with_another_robot_than_the_estimate_records_warns(tmp_path, capsys) -> None:
+    """An estimate made with one robot file, evaluated with ``--robot`` naming another of
+    other section lengths: a warning naming both and their lengths (the figures, in %
+    of the length, are the given robot's); the recorded robot itself, or ``--robot``
+    left out, gives none."""
+    robot = tmp_path / "mine.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.15\ntheta_max = 2.5\n'
+        "[[section]]\nlength = 0.12\n[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    m, t, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    argv = ["simulate", "spatial", "--robot", str(robot), "-o", str(m), "--truth", str(t)]
+    assert main([*argv, "--duration", "2"]) == 0
+    assert main(["estimate", str(m), "-o", str(est), "--robot", str(robot), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(t), "--robot", "two-section"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning") == 1, err
+    assert (
+        f"warning: {est} was estimated with --robot {robot} (its options line: sections of "
+        "0.15, 0.12 m), not with --robot two-section (sections of 0.16, 0.14 m); the given "
+        "one is used: leave --robot out to use the recorded one"
+    ) in err
+    for extra in (["--robot", str(robot)], []):
+        assert main(["evaluate", str(est), str(t), *extra]) == 0
+        assert "warning" not in capsys.readouterr().err
+
+
 def test_evaluate_of_drifting_positions_names_no_other_length(tmp_path, capsys) -> None:
     """The paper formulation's positions drift from its angles (rows ``drifted``), by a
     factor that changes from row to row: no warning that the file was made for a robot
@@ -578,6 +641,22 @@ def test_an_option_that_the_run_would_ignore_is_refused(
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_a_robot_file_given_as_options_file_is_told_to_go_to_robot(tmp_path, capsys) -> None:
+    """The robot file passed to ``--config`` by mistake: one line naming its first robot
+    table and ``--robot``, not a complaint about an ``[[imu]]``'s ``section`` key."""
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n0.05,0.1,0.1\n")
+    robot = tmp_path / "robot.toml"
+    robot.write_text('mounting = "z-up"\n\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "-o", str(out), "--config", str(robot)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {robot}: line 3: [[section]], [[imu]]: a robot file, not an "
+        "options file: give it with --robot\n"
+    )
+    assert not out.exists()
+
+
 def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> None:
     """An options file is a profile for several commands and methods: its MHE options
     with ``--method ekf`` on the command line are no error; the same option given on the
@@ -599,6 +678,21 @@ def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> 
     assert capsys.readouterr().err == (
         "continuum-mhe: error: --horizon is an MHE option; the ekf has no window\n"
     )
+    # the same file choosing the filter and setting an MHE option contradicts itself
+    cfg.write_text('method = "ekf"\nhorizon = 10\n')
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {cfg}: line 2: horizon = 10 is an MHE option, and the same "
+        "file chooses the ekf (method = 'ekf'), which has no window: remove one\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    # a profile's MHE options unused by the filter are not recorded as the run's
+    cfg.write_text("horizon = 12\n")
+    assert main([*argv, "--method", "ekf"]) == 0
+    capsys.readouterr()
+    record = next(ln for ln in Path(out).read_text().splitlines() if ln.startswith("# options"))
+    assert 'method = "ekf"' in record and "horizon" not in record
     # live refuses it before it opens the port (a board resets when it is opened)
     argv = ["live", "--port", str(tmp_path / "no-such-port"), "--method", "ekf", "--horizon", "8"]
     assert main(argv) == 2

@@ -34,7 +34,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("robot", metavar="ROBOT.toml", help="robot file")
+    p.add_argument(
+        "robot", metavar="ROBOT.toml", help="robot file, or a shipped robot's name (two-section)"
+    )
     p.add_argument("--samples", type=int, default=2000, help="random shapes (default 2000)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random shapes (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -194,6 +195,20 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     options file is taken from there. Returns where each option set was given, by
     destination (``PATH: line N: key = value``), for the checks made later."""
     data, text, offset = _read(path)
+    robot_tables = [k for k in ("section", "imu", "backbone", "tendon") if k in data]
+    if robot_tables:  # --config given a robot file
+        shown = ", ".join(f"[[{k}]]" if k != "backbone" else "[backbone]" for k in robot_tables)
+        first = next(
+            (
+                f"line {n}: "
+                for n, ln in enumerate(text.splitlines(), start=offset + 1)
+                if re.match(rf"\s*\[+\s*{robot_tables[0]}\s*\]", ln)
+            ),
+            "",
+        )
+        raise InputError(
+            f"{path}: {first}{shown}: a robot file, not an options file: give it with --robot"
+        )
     options = _options(parser)
     by_key = _by_key(options)
     tables = {"estimate", "live"}
@@ -294,10 +309,13 @@ def model_record(formulation: Formulation) -> str:
     return f"{{name = {json.dumps(formulation.name)}, states = [{names}]}}"
 
 
-def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str:
+def options_record(
+    parser: argparse.ArgumentParser, args: argparse.Namespace, leave_out: Collection[str] = ()
+) -> str:
     """The options ``args`` holds, as the TOML inline table an estimate file records
     (``{method = "mhe", horizon = 30, ...}``; options left unset are left out, and so
-    are the one-section flags a ``--robot`` file replaces)."""
+    are the one-section flags a ``--robot`` file replaces and the destinations
+    ``leave_out``: options of another method than the one that ran)."""
     import tomlkit
 
     table = tomlkit.inline_table()
@@ -305,7 +323,7 @@ def options_record(parser: argparse.ArgumentParser, args: argparse.Namespace) ->
     replaced = getattr(args, "robot_replaces", ()) if getattr(args, "robot", None) else ()
     for dest, action in _options(parser).items():
         value = getattr(args, dest, None)
-        if value is None or dest in NOT_OPTIONS or dest in replaced:
+        if value is None or dest in NOT_OPTIONS or dest in replaced or dest in leave_out:
             continue
         if isinstance(action, argparse._StoreFalseAction):
             value = not value  # recorded as the switch's own sense

@@ -120,7 +120,11 @@ def _demo_figures(
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="continuum-mhe-demo", help="folder for figures and CSVs")
+    p.add_argument(
+        "--out",
+        default="continuum-mhe-demo",
+        help="folder for figures and CSVs (default continuum-mhe-demo)",
+    )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument(
         "--overwrite", action="store_true", help="replace the demo's files in --out if there"

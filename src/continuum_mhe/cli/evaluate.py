@@ -23,6 +23,7 @@ from continuum_mhe.evaluation.metrics import (
     compute_metrics,
     interpolated_note,
     length_misfit,
+    position_unit_problem,
     section_numbers,
     steady_ratio,
 )
@@ -193,6 +194,9 @@ def run(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
+    for path, table in ((args.estimates, est), (args.truth, truth)):
+        if unit := position_unit_problem(table.names, table.values, robot.lengths):
+            raise InputError(f"{path}: {unit}")
     scored_from = _scored_from(est, args.skip_start)
     est = _after_start(args.estimates, est, args.skip_start)
     i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth, scored_from)

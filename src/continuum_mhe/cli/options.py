@@ -114,7 +114,44 @@ def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
     of :data:`DEFAULT_LENGTH`."""
     given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
     robot = None if given else recorded_robot(path, use)
-    return robot_from_args(args) if robot is None else robot
+    if robot is not None:
+        return robot
+    robot = robot_from_args(args)
+    if args.robot:
+        warn_other_recorded_robot(path, args.robot, robot)
+    return robot
+
+
+def _geometry(robot: Robot) -> tuple[object, ...]:
+    """What a robot's outputs depend on: its sections' lengths and its IMUs' places."""
+    return (robot.lengths, tuple((i.section, i.at) for i in robot.imus))
+
+
+def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
+    """A warning (a line on stderr) where the estimate ``path`` records, in its options
+    line, a robot file other than the ``--robot`` ``given`` (``robot``, as read) with
+    other sections or IMUs: the command then uses the given robot, likely not the one
+    the estimate was made on. Nothing where the recorded file cannot be read."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    name = recorded_option(path, "robot")
+    if not isinstance(name, str) or name == given:
+        return
+    try:
+        recorded = read_robot(beside(path, name))
+    except UserError:
+        return
+    if _geometry(recorded) == _geometry(robot):
+        return
+    lengths = ", ".join(f"{v:g}" for v in recorded.lengths)
+    given_lengths = ", ".join(f"{v:g}" for v in robot.lengths)
+    print(
+        f"{PROG}: warning: {path} was estimated with --robot {name} (its options line: "
+        f"sections of {lengths} m), not with --robot {given} (sections of {given_lengths} "
+        "m); the given one is used: leave --robot out to use the recorded one",
+        file=sys.stderr,
+    )
 
 
 def recorded_robot(path: str, use: str) -> Robot | None:
@@ -458,7 +495,8 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
-        args.options_record = options_record(parser, args)
+        leave_out = () if method == "mhe" else MHE_OPTIONS  # a profile's, unused
+        args.options_record = options_record(parser, args, leave_out)
     return method
 
 
@@ -483,6 +521,14 @@ def _refuse_mhe_options(
     are a profile's: they apply where the MHE runs."""
     given = given_options(args)
     dest = next((d for d in MHE_OPTIONS if d in given), None)
+    in_file = getattr(args, "config_sources", {})
+    if dest is None and "method" in in_file:  # the options file chose the method
+        both = next((d for d in MHE_OPTIONS if d in in_file), None)
+        if both is not None:
+            raise InputError(
+                f"{in_file[both]} is an MHE option, and the same file chooses the {method} "
+                f"({in_file['method'].split(': ')[-1]}), which has no window: remove one"
+            )
     if dest is None:
         return
     flag = "--" + dest.replace("_", "-")

@@ -311,6 +311,69 @@ def steady_ratio(ratio: FloatArray) -> float | None:
     return float(np.median(r))
 
 
+#: Positions in these units, read as metres, put the tip this many times as far from
+#: the base as it is (:func:`position_unit_problem`).
+POSITION_UNITS = (("mm", 1000.0), ("cm", 100.0))
+#: ... recognised where the file's ratio is within this fraction of one of them.
+POSITION_UNIT_TOLERANCE = 0.03
+
+
+def position_unit_problem(
+    names: Sequence[str], values: FloatArray, lengths: Sequence[float]
+) -> str:
+    """``""``, or why the positions of an estimate or truth (``x, y, z``, m) are in
+    another unit: the tip :data:`POSITION_UNITS` times as far from the base as the file's
+    own bend angles put it on a robot of these section ``lengths`` (the same ratio as
+    :func:`length_misfit`), or, without angles, a median tip distance over 100 times the
+    robot's length (a shape the robot cannot take in any unit but another one)."""
+    ratio = _tip_ratio(names, values, lengths)
+    if ratio is None:
+        return ""
+    for unit, factor in POSITION_UNITS:
+        if abs(ratio / factor - 1.0) <= POSITION_UNIT_TOLERANCE or (
+            unit == "mm" and not _has_bends(names) and ratio > 100.0
+        ):
+            return (
+                f"its tip is {ratio:.4g} times as far from the base as a robot of "
+                f"{sum(lengths):g} m reaches: positions in {unit}? give x, y, z in m"
+            )
+    return ""
+
+
+def _has_bends(names: Sequence[str]) -> bool:
+    return any(n.startswith(("theta", "phi")) for n in names)
+
+
+def _tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> float | None:
+    """With every section's bend columns: the steady ratio of the tip's distance from
+    the base to the one its own angles give on a robot of ``lengths``
+    (:func:`steady_ratio`); without them: the median distance over the robot's length;
+    None where neither says anything (no finite row, a wandering ratio, angles of
+    another number of sections)."""
+    from continuum_mhe.model.pcc import pose_at
+
+    rows = np.asarray(values, dtype=float)
+    outputs = pcc_outputs(len(lengths))
+    tip = rows[:, [list(names).index(o.name) for o in outputs[:3]]]
+    dist = np.linalg.norm(tip, axis=1)
+    bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
+    in_file = {n for n in names if n.startswith(("theta", "phi"))}
+    if in_file and in_file != set(bend_names):
+        return None
+    if not in_file:
+        finite = dist[np.isfinite(dist)]
+        return float(np.median(finite)) / float(sum(lengths)) if len(finite) else None
+    ok = np.all(np.isfinite(rows), axis=1)
+    if not ok.any():
+        return None
+    cols = [list(names).index(n) for n in bend_names]
+    theta, phi = rows[ok][:, cols[0::2]], rows[ok][:, cols[1::2]]
+    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
+    _, p = pose_at(bends, lengths, len(lengths) - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return steady_ratio(dist[ok] / np.linalg.norm(p, axis=1))
+
+
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
     """``""`` when an estimate's or truth's tip positions (``x, y, z``) fit a robot of
     these section ``lengths``, else why not, in words. With every section's bend columns
@@ -319,35 +382,18 @@ def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[fl
     length over this one's); without them: a tip farther from the base than the whole
     length, which no shape of the robot reaches. A file with the angles of another number
     of sections is of another robot (the caller says so): ``""``."""
-    from continuum_mhe.model.pcc import pose_at
-
     rows = np.asarray(values, dtype=float)
-    outputs = pcc_outputs(len(lengths))
-    tip = rows[:, [list(names).index(o.name) for o in outputs[:3]]]  # the tip's x, y, z
-    dist = np.linalg.norm(tip, axis=1)
     length = float(sum(lengths))
-    bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
-    in_file = {n for n in names if n.startswith(("theta", "phi"))}
-    if in_file and in_file != set(bend_names):
-        return ""
-    if in_file:
-        ok = np.all(np.isfinite(rows), axis=1)
-        if not ok.any():
+    if _has_bends(names):
+        ratio = _tip_ratio(names, rows, lengths)
+        if ratio is None or abs(ratio - 1) <= LENGTH_RATIO_TOLERANCE:
             return ""
-        cols = [list(names).index(n) for n in bend_names]
-        theta, phi = rows[ok][:, cols[0::2]], rows[ok][:, cols[1::2]]
-        bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
-        _, p = pose_at(bends, lengths, len(lengths) - 1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            steady = steady_ratio(dist[ok] / np.linalg.norm(p, axis=1))
-        if steady is None or abs(steady - 1) <= LENGTH_RATIO_TOLERANCE:
-            return ""
-        ratio = steady
         return (
             f"its tip is {ratio:.2f} times as far from the base as its own angles put it on a "
             f"robot of {length:g} m: it was made for a robot of about {ratio * length:.3g} m"
         )
-    far = float(np.nanmax(dist, initial=0.0))
+    tip = rows[:, [list(names).index(o.name) for o in pcc_outputs(len(lengths))[:3]]]
+    far = float(np.nanmax(np.linalg.norm(tip, axis=1), initial=0.0))
     if far <= (1 + LENGTH_RATIO_TOLERANCE) * length:
         return ""
     return (

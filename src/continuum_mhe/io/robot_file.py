@@ -53,6 +53,7 @@ The IMUs are numbered in the file's order, and the measurement columns follow it
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import re
@@ -155,8 +156,10 @@ def _number(path: Path, where: str, value: Any) -> float:
 def _unknown(path: Path, where: str, table: dict[str, Any], allowed: set[str]) -> None:
     extra = sorted(set(table) - allowed)
     if extra:
+        near = difflib.get_close_matches(extra[0], sorted(allowed), n=1, cutoff=0.75)
+        typo = f" ({near[0]}?)" if near else ""
         raise InputError(
-            f"{path}: {where}: unknown key {_shown(extra[0])} "
+            f"{path}: {where}: unknown key {_shown(extra[0])}{typo} "
             f"(allowed: {', '.join(sorted(allowed))})"
         )
 
