@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
@@ -561,6 +560,8 @@ def _turn_errors(t: FloatArray, direction: FloatArray, gyr: FloatArray) -> Float
     step[stops - 1] = 0.0
     turn = np.add.reduceat(gyr * step[:, None], starts, axis=0) if len(starts) else gyr[:0]
     first, last = direction[starts], direction[stops - 1]
+    from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
+
     errors = np.empty((len(starts), 2))
     for col, scale in enumerate((1.0, math.pi / 180.0)):
         # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
