@@ -1544,13 +1544,22 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     ("key", "value", "match"),
     [
         ("density", "6.45", "density 6.45 kg/m\\^3 is below 100 kg/m\\^3"),
-        ("shear_modulus", "5e4", "shear_modulus 50000.0 Pa is below 1e5 Pa"),
-        ("shear_modulus", "20.77", r"shear_modulus 20.77 Pa .*\(GPa\? 20.77 GPa is 20.77e9\)"),
+        ("shear_modulus", "5e4", r"shear_modulus 50000.0 Pa is below 100000 Pa: moduli are in "
+         r"Pa \(MPa\? 50000 MPa is 5e\+10 Pa\)"),
+        ("shear_modulus", "20.77", r"shear_modulus 20.77 Pa .*\(GPa\? 20.77 GPa is "
+         r"2.077e\+10 Pa\)"),
+        ("shear_modulus", "77000", r"77000.0 Pa .*\(MPa\? 77000 MPa is 7.7e\+10 Pa\)"),
+        ("youngs_modulus", "54e15", r"youngs_modulus 5.4e\+16 Pa is above any material's"),
+        ("shear_modulus", "60e9", r"shear_modulus 60000000000.0 Pa is above its youngs_modulus "
+         r"54000000000.0 Pa: .*\(swapped\?\)"),
+        ("radius", "0.02", r"tendon 1: radius 0.02 m is not outside the backbone's radius 0.02 m"),
     ],
-)
+)  # fmt: skip
 def test_backbone_values_in_other_units_are_refused(tmp_path: Path, key, value, match) -> None:
-    """A density in g/cm^3 and a shear modulus that looks like GPa (under 1e5 Pa, as
-    the docs say) are refused in one line naming the file."""
+    """A density in g/cm^3, a modulus that looks like GPa or MPa (under 1e5 Pa, as the
+    docs say: the hint names the unit that makes it a material's), one above diamond's,
+    a shear modulus above Young's, and a backbone wider than the tendons' pitch radius
+    are refused in one line naming the file."""
     import re
 
     from continuum_mhe.io.robot_file import read_robot

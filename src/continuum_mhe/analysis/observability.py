@@ -78,6 +78,8 @@ class ObservabilityReport:
     tendon_unsolved: int = 0
     #: the robot's tendons (0: a backbone without tendons, given no tensions)
     n_tendons: int = 0
+    #: the robot's IMUs
+    n_imus: int = 1
 
     def as_dict(self) -> dict[str, object]:
         return {**asdict(self), "model_check": model_check(self), "verdict": verdict(self)}
@@ -94,7 +96,7 @@ def verdict(r: ObservabilityReport) -> str:
     ``OBSERVABLE_FRACTION`` of the sampled shapes or more, ``not observable`` when at
     none, else ``observable except near some shapes``."""
     if r.tendon_force is not None:
-        return _tendon_verdict(r.tendon_force, r.n_tendons)
+        return _tendon_verdict(r.tendon_force, r.n_tendons, r.n_imus)
     t = r.tilt
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
@@ -141,7 +143,7 @@ def model_check(r: ObservabilityReport) -> str | None:
     )
 
 
-def _tendon_verdict(t: JacobianSummary, n_tendons: int) -> str:
+def _tendon_verdict(t: JacobianSummary, n_tendons: int, n_imus: int) -> str:
     given = "with the tensions given, " if n_tendons else ""
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
@@ -153,8 +155,13 @@ def _tendon_verdict(t: JacobianSummary, n_tendons: int) -> str:
         return (
             f"NOT observable from one sample: the IMUs' tilt determines at most "
             f"{t.max_rank} of the tip force's {t.cols} components at every sampled load; "
-            "estimates of this robot are all marked uncertain (raw IMUs' gyros determine "
-            "it over time, loosely; a second IMU makes it observable; docs/tendon.md)"
+            + (
+                "estimates of this robot are all marked uncertain (raw IMUs' gyros determine "
+                "it over time, loosely; a second IMU makes it observable; docs/tendon.md)"
+                if n_imus == 1
+                else "its estimates rest on the motion model and raw IMUs' gyros between "
+                "samples (docs/tendon.md)"
+            )
         )
     return (
         f"observable except near some loads: full rank at {100 * t.full_rank_fraction:.1f} % "
@@ -324,8 +331,9 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
     return ObservabilityReport(
-        samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved, robot.n_tendons
-    )
+        samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved, robot.n_tendons,
+        robot.n_imus,
+    )  # fmt: skip
 
 
 def unsolved_warning(r: ObservabilityReport) -> str | None:

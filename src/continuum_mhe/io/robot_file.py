@@ -273,7 +273,10 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             f"{path}: {len(tendons)} [[tendon]] but no [backbone]: a tendon-driven robot needs "
             "its backbone's material (youngs_modulus, shear_modulus, radius)"
         )
-    return Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
+    try:
+        return Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
+    except UserError as exc:
+        raise InputError(f"{path}: {exc}") from None
 
 
 def _disk_place(path: Path, where: str, table: dict[str, Any], section: Section, sec: int) -> float:

@@ -187,6 +187,37 @@ def _positive(label: str, value: object) -> float:
 MAX_RADIUS = 0.1
 
 
+#: The range of elastic moduli taken, Pa: from soft silicone rubbers (about 1e6) down to
+#: an order of magnitude below them, up to diamond's (about 1.1e12), the stiffest
+#: material there is. A modulus outside it was written in another unit.
+MIN_MODULUS = 1e5
+MAX_MODULUS = 1.2e12
+#: The units a modulus is likely written in by mistake, with their size in Pa.
+_MODULUS_UNITS = (("kPa", 1e3), ("MPa", 1e6), ("GPa", 1e9))
+
+
+def modulus_problem(name: str, value: float) -> str | None:
+    """What is wrong with a backbone's elastic modulus ``value`` (Pa) named ``name``,
+    for a one-line error, or None: below :data:`MIN_MODULUS` (with the unit that would
+    make it a plausible modulus: ``77000`` is ``77000 MPa``), or above
+    :data:`MAX_MODULUS`."""
+    if value < MIN_MODULUS:
+        hints = [
+            f"{unit}? {value:g} {unit} is {value * size:.4g} Pa"
+            for unit, size in _MODULUS_UNITS
+            if 1e6 <= value * size <= MAX_MODULUS
+        ]
+        hint = f" ({hints[-1]})" if hints else ""
+        return f"backbone {name} {value!r} Pa is below {MIN_MODULUS:g} Pa: moduli are in Pa{hint}"
+    if value > MAX_MODULUS:
+        return (
+            f"backbone {name} {value!r} Pa is above any material's (diamond's, the "
+            f"stiffest, is about 1.1e12 Pa): moduli are in Pa (steel about 2e11, nitinol "
+            "about 5e10; GPa times 1e9)"
+        )
+    return None
+
+
 #: The least backbone density taken, kg/m^3 (the lightest solid polymers are near 900; a
 #: value below this is g/cm^3).
 MIN_DENSITY = 100.0
@@ -219,17 +250,15 @@ class Backbone:
                 f"backbone radius {self.radius!r} m is over {MAX_RADIUS} m: radii are in "
                 "metres (millimetres or centimetres?)"
             )
-        if self.youngs_modulus < 1e5:
+        for name in ("youngs_modulus", "shear_modulus"):
+            problem = modulus_problem(name, getattr(self, name))
+            if problem is not None:
+                raise UserError(problem)
+        if self.shear_modulus > self.youngs_modulus:
             raise UserError(
-                f"backbone youngs_modulus {self.youngs_modulus!r} Pa is below 1e5 Pa: "
-                f"moduli are in Pa (GPa? {self.youngs_modulus:g} GPa is "
-                f"{self.youngs_modulus:g}e9)"
-            )
-        if self.shear_modulus < 1e5:
-            raise UserError(
-                f"backbone shear_modulus {self.shear_modulus!r} Pa is below 1e5 Pa: "
-                f"moduli are in Pa (GPa? {self.shear_modulus:g} GPa is "
-                f"{self.shear_modulus:g}e9)"
+                f"backbone shear_modulus {self.shear_modulus!r} Pa is above its "
+                f"youngs_modulus {self.youngs_modulus!r} Pa: an elastic material's G = E / "
+                "(2 (1 + nu)) is E/3 to E/2 for a Poisson's ratio nu of 0.5 to 0 (swapped?)"
             )
         if self.density is not None and self.density < MIN_DENSITY:
             raise UserError(
@@ -350,6 +379,13 @@ class Robot:
                 raise UserError(
                     f"tendon {i + 1}: section index {tendon.section} is past the robot's "
                     f"{len(self.sections)} section(s)"
+                )
+            if self.backbone is not None and tendon.radius <= self.backbone.radius:
+                raise UserError(
+                    f"tendon {i + 1}: radius {tendon.radius!r} m is not outside the "
+                    f"backbone's radius {self.backbone.radius!r} m: a tendon runs through "
+                    "the disks beside the backbone (radii in m; the tendon's is its "
+                    "distance from the backbone's axis)"
                 )
 
     @property
