@@ -539,6 +539,32 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
     assert s.fatal.startswith("/dev/ttyIMU: gyro magnitude")
 
 
+def test_live_stops_on_a_resting_gyro_in_deg_s() -> None:
+    """A board at rest whose gyro sends deg/s (a bias of 1 to 2 deg/s: a median far
+    below the deg/s threshold): live's unit check finds it from the accelerometer, which
+    stays still where the rates read as rad/s would turn it, and stops the session; the
+    same board in rad/s streams on."""
+    from live_helpers import raw_line, specific_force
+
+    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+
+    rng = np.random.default_rng(6)
+    n = UNIT_CHECK_SAMPLES + 10
+    acc = specific_force(0.05, -0.03) + rng.normal(0.0, 0.05, (n, 3))
+    deg_s = np.array([1.2, -1.5, 0.9]) + rng.normal(0.0, 0.3, (n, 3))
+    for gyro, stops in ((deg_s, True), (np.radians(deg_s), False)):
+        s, said, out = _raw_session(RawImuSettings(imu_model="direct"))
+        _handle(s, [raw_line(20 * i, acc[i][None], gyro[i][None]) for i in range(n)])
+        if stops:
+            assert s.fatal is not None and s.fatal.startswith(
+                "/dev/ttyIMU: the accelerometer's gravity direction turns as the gyro says "
+                "only with the gyro in deg/s"
+            )
+            assert s.counts.estimates == UNIT_CHECK_SAMPLES - 1
+        else:
+            assert s.fatal is None and s.counts.estimates == n
+
+
 def test_live_stops_when_the_estimator_finds_readings_in_the_wrong_units(monkeypatch) -> None:
     """Readings whose units the estimator's own check refuses (an IMU that was silent
     through live's check, then sends deg/s: ReadingUnitsError from step) stop the
