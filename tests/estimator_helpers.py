@@ -18,7 +18,7 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
 from continuum_mhe.estimators.fast.sqp import FastResult
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.bend import BendFormulation
@@ -40,7 +40,7 @@ def recovery_estimators(
     f = BendFormulation() if f is None else f
     out: list[Estimator] = [
         make_estimator("ekf", f, recovery=recovery),
-        ExtendedKalmanFilter(f),
+        CasadiExtendedKalmanFilter(f),
         make_estimator("ukf", f, recovery=recovery),
         make_estimator("mhe", f, MHESettings(horizon=10), recovery),
         make_estimator("mhe", f, MHESettings(horizon=10, solver="ipopt"), recovery),

@@ -16,7 +16,7 @@ from numpy.testing import assert_allclose
 from continuum_mhe.errors import InputError
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
@@ -116,7 +116,7 @@ def test_every_estimator_recovers_a_constant_accel_bias_with_motion() -> None:
     )  # noise settings near the recording's 0.003 (the default 2 deg tilt noise: slower)
     no_c = FastOptions()
     estimators = {
-        "ekf": ExtendedKalmanFilter(f),
+        "ekf": CasadiExtendedKalmanFilter(f),
         "ukf": UnscentedKalmanFilter(f),
         "mhe-fast": MovingHorizonEstimator(f, MHESettings(horizon=10), no_c),
     }
@@ -133,7 +133,7 @@ def test_one_pose_leaves_the_bias_along_gravity_unknown() -> None:
     observability statement of the module docstring."""
     f = DirectFormulation(estimate_gyro_bias=True, estimate_accel_bias=True)
     z = np.asarray(f.functions.observe(np.zeros(f.nx)), dtype=float).ravel()
-    ekf = ExtendedKalmanFilter(f, recovery=bare())  # the exact repeats are no freeze here
+    ekf = CasadiExtendedKalmanFilter(f, recovery=bare())  # the exact repeats are no freeze here
     for i in range(200):
         ekf.step(Measurement(i * 0.05, z))
     P = ekf.inference._P

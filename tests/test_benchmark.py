@@ -19,7 +19,7 @@ from continuum_mhe.benchmark import peers
 from continuum_mhe.benchmark.dompc import run_dompc
 from continuum_mhe.benchmark.peers import PEERS
 from continuum_mhe.cli import benchmark as cli_benchmark
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import build_nlp, pack_parameters
 from continuum_mhe.model.registry import make_formulation
@@ -36,7 +36,7 @@ def test_ekf_kernel_gives_the_casadi_ekf_answers(name: str) -> None:
     z[12:18] = np.nan  # the IMU drops out: prediction only
     rec = replace(rec, z=z)
     out, sec = bm.run_ekf_kernel(f, rec)
-    ref = ExtendedKalmanFilter(f).run(rec.t, z)
+    ref = CasadiExtendedKalmanFilter(f).run(rec.t, z)
     assert_allclose(out, ref.output, rtol=0, atol=1e-9)
     assert sec[0] == 0.0 and np.all(sec[1:] > 0)
 

@@ -19,7 +19,7 @@ import pytest
 
 from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.io.estimate_csv import estimate_lines, estimate_row, format_cells, format_time
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.model.bend import DIVERGED_RATE
@@ -228,7 +228,7 @@ def test_the_compiled_ekf_in_the_policy_is_the_casadi_ekf() -> None:
     t, z = faulty_recording()
     compiled = make_estimator("ekf", f, recovery=RECOVERY)
     assert type(compiled.inference.policy_inference()).__name__ == "KalmanInference"
-    casadi = ExtendedKalmanFilter(f, RECOVERY)
+    casadi = CasadiExtendedKalmanFilter(f, RECOVERY)
     a, b = compiled.run(t, z), casadi.run(t, z)
     assert list(a.status) == list(b.status)
     np.testing.assert_allclose(a.output, b.output, rtol=0, atol=1e-9)

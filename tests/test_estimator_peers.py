@@ -43,7 +43,7 @@ from numpy.testing import assert_allclose
 
 from continuum_mhe.estimators import EstimateSeries
 from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator, WindowProblem
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.bend import BendFormulation
@@ -202,7 +202,7 @@ def filterpy_ekf_states(f: Formulation, rec: Recording) -> np.ndarray:
 def test_ekf_matches_filterpy(name: str, mounting: str, paper3d, paper3d_down) -> None:
     rec = recording_for(mounting, paper3d, paper3d_down)
     f = make_formulation(name, robot=RobotSettings(mounting=mounting))
-    ours = np.array([e.state for e in step_all(ExtendedKalmanFilter(f), rec.t, rec.z)])
+    ours = np.array([e.state for e in step_all(CasadiExtendedKalmanFilter(f), rec.t, rec.z)])
     assert_allclose(ours, filterpy_ekf_states(f, rec), rtol=0, atol=1e-9)
 
 
@@ -438,7 +438,7 @@ def test_linear_mhe_last_node_equals_kalman_filter_with_same_prior(
     assert_allclose(estimates[-1].state, kalman_filter_with_prior(f, z), rtol=0, atol=1e-8)
 
 
-@pytest.mark.parametrize("filter_cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
+@pytest.mark.parametrize("filter_cls", [CasadiExtendedKalmanFilter, UnscentedKalmanFilter])
 def test_linear_mhe_last_node_equals_library_filter(
     linear_recording, full_horizon_mhe, filter_cls
 ) -> None:
@@ -495,7 +495,7 @@ def make_estimator(kind: str, f: Formulation) -> Estimator:
         return MovingHorizonEstimator(f, MHESettings(horizon=HORIZON))
     if kind == "mhe-ipopt":
         return MovingHorizonEstimator(f, ipopt_settings(horizon=HORIZON))
-    return {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
+    return {"ekf": CasadiExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind](f)
 
 
 ESTIMATORS = ("ekf", "ukf", "mhe", "mhe-ipopt")
@@ -681,7 +681,7 @@ def test_leading_dropouts_give_no_estimate_then_start(kind: str, paper3d) -> Non
 
 
 @pytest.mark.parametrize(
-    "cls", [ExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
+    "cls", [CasadiExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
 )
 def test_non_increasing_time_is_a_clear_error(cls) -> None:
     est = cls(BendFormulation())
@@ -742,7 +742,7 @@ def test_linear_sliding_window_mhe_equals_kalman_filter_at_every_sample(
     f, t, z = linear_recording
     settings = ipopt_settings(horizon=4) if solver == "ipopt" else MHESettings(horizon=4)
     mhe = step_all(MovingHorizonEstimator(f, settings), t, z)
-    kf = step_all(ExtendedKalmanFilter(f), t, z)
+    kf = step_all(CasadiExtendedKalmanFilter(f), t, z)
     assert len(t) > 3 * 4
     assert_allclose([e.state for e in mhe], [e.state for e in kf], rtol=0, atol=1e-7)
 
@@ -768,7 +768,7 @@ def test_mhe_recovers_after_a_long_gap_in_the_data() -> None:
 
 
 @pytest.mark.parametrize(
-    "cls", [ExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
+    "cls", [CasadiExtendedKalmanFilter, UnscentedKalmanFilter, MovingHorizonEstimator]
 )
 def test_list_measurements_and_mismatched_lengths(cls, paper3d) -> None:
     est = cls(BendFormulation())

@@ -81,7 +81,7 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
     reports them."""
     from continuum_mhe._core import ekf_update as arrival_update
     from continuum_mhe.estimators.fast import NodeEvaluator, build_window_model
-    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ProcessNoiseCache
+    from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, ProcessNoiseCache
 
     # no constant reading error nor model error: the reported std is the covariance's,
     # times one factor
@@ -112,7 +112,7 @@ def test_fused_ekf_step_equals_the_step_then_the_outputs(robot) -> None:
         x, P = x2, P2
     rec = simulate_robot("s-curve", robot, duration=0.5, seed=4) if robot else simulate(
         "paper3d", duration=0.5, seed=4)  # fmt: skip
-    ekf = CompiledExtendedKalmanFilter(f)
+    ekf = ExtendedKalmanFilter(f)
     ekf.reset()
     for i in range(len(rec.t)):
         e = ekf.step(Measurement(float(rec.t[i]), rec.z[i]))

@@ -15,7 +15,7 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import FastOptions
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
@@ -117,7 +117,7 @@ def test_innovation_jacobian_with_bias_matches_finite_differences(x: np.ndarray)
 def _estimators(f: DirectFormulation) -> dict[str, object]:
     no_c = FastOptions()  # the VM: no C build in the test (same answers)
     return {
-        "ekf": ExtendedKalmanFilter(f),
+        "ekf": CasadiExtendedKalmanFilter(f),
         "ukf": UnscentedKalmanFilter(f),
         "mhe-fast": MovingHorizonEstimator(f, MHESettings(horizon=20), no_c),
     }
@@ -169,7 +169,7 @@ def test_compiled_ekf_takes_the_bias_state() -> None:
     answers (sizes from the formulation, nothing hard-coded)."""
     f = DirectFormulation(estimate_gyro_bias=True)
     t, z, _ = _recording("one", 1.0)
-    compiled, plain = make_estimator("ekf", f), ExtendedKalmanFilter(f)
+    compiled, plain = make_estimator("ekf", f), CasadiExtendedKalmanFilter(f)
     a = [compiled.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
     b = [plain.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
     assert a[-1].state is not None and a[-1].state.shape == (7,)

@@ -625,6 +625,8 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
     mistakes = [
         (lambda: NoiseSettings(measurement_std=2.0), r"beyond 90 degrees: degrees\? it is in "),
         (lambda: simulate("paper3d", length=200.0), "millimetres"),
+        # refused where it is made, as the settings promise, not later in the model
+        (lambda: RobotSettings(length=200.0), "section length 200.0 m is over 5.0 m"),
         (lambda: MHESettings(paper_start="yes"), "paper_start must be True"),
         (lambda: MHESettings(max_iter=True), "max_iter must be a positive"),
         (lambda: NoiseSettings(reading_bias_std="0.1"), "reading_bias_std must"),

@@ -557,7 +557,7 @@ def test_robot_benchmark_reports_fast_against_ipopt_on_the_same_windows() -> Non
 @pytest.mark.parametrize("name", ["bend", "paper", "direct"])
 def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
     from continuum_mhe.benchmark.harness import raw_imu_recording
-    from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
+    from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, ExtendedKalmanFilter
 
     robot = TWO if name == "direct" else Robot.single(0.2)
     f = make_formulation(name, robot)
@@ -567,8 +567,8 @@ def test_compiled_ekf_equals_the_casadi_ekf(name: str) -> None:
         rec = simulate_robot("paper3d", robot, duration=3.0)
     z = rec.z.copy()
     z[10:20, : f.measurement_blocks[0].size] = np.nan  # the first IMU drops out
-    a = ExtendedKalmanFilter(f).run(rec.t, z)
-    b = CompiledExtendedKalmanFilter(f).run(rec.t, z)
+    a = CasadiExtendedKalmanFilter(f).run(rec.t, z)
+    b = ExtendedKalmanFilter(f).run(rec.t, z)
     assert list(a.status) == list(b.status)
     assert_allclose(b.output, a.output, rtol=0, atol=1e-9)
 

@@ -228,8 +228,16 @@ def test_horizon_claims_follow_their_rules() -> None:
 
 
 def test_few_seeds_line_only_for_few_seeds() -> None:
-    assert rp._few_seeds_line(dataclasses.asdict(ex.FULL)) == []
-    assert "verdicts come from few seeds" in rp._few_seeds_line(dataclasses.asdict(ex.QUICK))[0]
+    """A run of few seeds says so, naming ``--quick`` where its command has it (not as
+    a question), else that its seeds were set low; a run of enough seeds says
+    nothing."""
+    quick_cmd = "continuum-mhe reproduce --out r --quick"
+    assert rp._few_seeds_line(dataclasses.asdict(ex.FULL), quick_cmd) == []
+    quick = rp._few_seeds_line(dataclasses.asdict(ex.QUICK), quick_cmd)[0]
+    assert "verdicts come from few seeds" in quick and "per group, `--quick`): " in quick
+    assert quick.endswith("Rerun without `--quick` before citing them.**")
+    by_hand = rp._few_seeds_line(dataclasses.asdict(ex.QUICK), "continuum-mhe reproduce")[0]
+    assert "per group, seeds set low): " in by_hand and "with more seeds" in by_hand
 
 
 def test_quick_run_numbers_are_sane(quick_run: Path) -> None:

@@ -1005,7 +1005,7 @@ def test_one_imu_does_not_determine_the_tip_force() -> None:
     """Two of the tip force's three components per IMU (its gravity direction): one IMU,
     raw or tilt, leaves the shape unobservable; two determine it."""
     from continuum_mhe.errors import UnobservableShapeWarning
-    from continuum_mhe.estimators import ExtendedKalmanFilter
+    from continuum_mhe.estimators import CasadiExtendedKalmanFilter
 
     one = _one_section(Tendon(0, 0.0, 0.01))
     two = Robot(one.sections, (ImuPlacement(0, 0.5), ImuPlacement(0, 1.0)), "z-up", BACKBONE,
@@ -1015,7 +1015,7 @@ def test_one_imu_does_not_determine_the_tip_force() -> None:
         assert not f1.imus_determine_shape((0,))
         assert TendonFormulation(robot=two, imu_model=model).imus_determine_shape((0, 1))  # type: ignore[arg-type]
     with pytest.warns(UnobservableShapeWarning, match="two per IMU"):
-        ExtendedKalmanFilter(TendonFormulation(robot=one))
+        CasadiExtendedKalmanFilter(TendonFormulation(robot=one))
 
 
 # --- the estimator a tendon robot gets --------------------------------------------------

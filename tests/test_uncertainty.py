@@ -38,7 +38,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.branch import BranchStats
 from continuum_mhe.estimators.fast.model import NodeEvaluator, node_functions
-from continuum_mhe.estimators.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, UnscentedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.evaluation.metrics import Z95, compute_calibration, nees_band
 from continuum_mhe.io.estimate_csv import write_estimates
@@ -95,7 +95,7 @@ def test_linear_mhe_covariance_equals_kalman_p_at_every_sample(linear_recording,
     assert len(t) > 3 * 4  # the window slides
     for e, P in zip(mhe, kf):
         assert_allclose(e.covariance, P, rtol=1e-7, atol=1e-12)
-    ekf = step_all(ExtendedKalmanFilter(f), t, z)
+    ekf = step_all(CasadiExtendedKalmanFilter(f), t, z)
     assert_allclose(ekf[-1].covariance, kf[-1], rtol=1e-9, atol=1e-14)
 
 
@@ -133,7 +133,7 @@ def sigma_point_std(f: BendFormulation, x: np.ndarray, P: np.ndarray) -> np.ndar
     return np.sqrt(np.mean(np.square(diffs), axis=0))
 
 
-@pytest.mark.parametrize("cls", [ExtendedKalmanFilter, UnscentedKalmanFilter])
+@pytest.mark.parametrize("cls", [CasadiExtendedKalmanFilter, UnscentedKalmanFilter])
 def test_filter_output_std_is_the_propagated_covariance(cls) -> None:
     """With no constant reading error nor model error (``reading_bias_std`` and
     ``model_error_std`` 0) the std is the covariance through the outputs at its sigma

@@ -22,7 +22,7 @@ import numpy as np
 
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
-from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import ExtendedKalmanFilter
 from continuum_mhe.io.raw_imu import RawImuSettings, raw_to_measurements
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.tensions import read_tensions
@@ -114,7 +114,7 @@ def main() -> None:
     report["start_ms"] = [round(_median_ms(lambda k=k: f.initial_state(z[k]), 3))
                           for k in (0, 50, 150, 300)]  # fmt: skip
     start = time.perf_counter()
-    ekf = CompiledExtendedKalmanFilter(f)
+    ekf = ExtendedKalmanFilter(f)
     report["ekf_build_s"] = round(time.perf_counter() - start, 2)
     steps = []
     for k in range(a.samples):

@@ -44,7 +44,7 @@ from continuum_mhe.benchmark.kernels import run_ekf_kernel, run_mhe_kernel
 from continuum_mhe.benchmark.peers import PEER_NOTES, PEERS
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Measurement
-from continuum_mhe.estimators.kalman import CompiledExtendedKalmanFilter, ExtendedKalmanFilter
+from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter, ExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.model.direct import DirectFormulation
@@ -277,9 +277,9 @@ def _cheap_runs(f: Formulation, rec: Recording, n: int, methods: tuple[str, ...]
         runs["mhe-kernel"] = lambda: run_mhe_kernel(f, rec, n)
     filters: list[tuple[str, Estimator]] = []
     if "ekf" in methods:
-        filters.append(("ekf", ExtendedKalmanFilter(f)))
+        filters.append(("ekf", CasadiExtendedKalmanFilter(f)))
     if "ekf-compiled" in methods:
-        filters.append(("ekf-compiled", CompiledExtendedKalmanFilter(f)))
+        filters.append(("ekf-compiled", ExtendedKalmanFilter(f)))
     for name, ekf in filters:
         runs[name] = lambda ekf=ekf: (*_run_timed(ekf, rec)[:2], 0)  # type: ignore[misc]
     if "ekf-kernel" in methods:

@@ -18,7 +18,7 @@ from continuum_mhe.estimators.base import (
     Status,
 )
 from continuum_mhe.estimators.kalman import (
-    CompiledExtendedKalmanFilter,
+    CasadiExtendedKalmanFilter,
     ExtendedKalmanFilter,
     UnscentedKalmanFilter,
 )
@@ -80,7 +80,7 @@ def _make(
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe, recovery=recovery)
     if method == "ekf":
-        return CompiledExtendedKalmanFilter(formulation, recovery)
+        return ExtendedKalmanFilter(formulation, recovery)
     if method == "ukf":
         return UnscentedKalmanFilter(formulation, recovery=recovery)
     raise UserError(f"method must be one of {METHODS}, got {method!r}")
@@ -92,8 +92,8 @@ __all__ = [
     "Estimate",
     "EstimateSeries",
     "Estimator",
-    "CompiledExtendedKalmanFilter",
     "ExtendedKalmanFilter",
+    "CasadiExtendedKalmanFilter",
     "Inference",
     "Measurement",
     "Method",

@@ -7,7 +7,7 @@ used. The pure functions :func:`ekf_predict` and :func:`ekf_update` are shared w
 MHE's arrival cost.
 
 The ``*Inference`` classes are the filters alone (inference objects);
-:class:`ExtendedKalmanFilter`, :class:`CompiledExtendedKalmanFilter` and
+:class:`CasadiExtendedKalmanFilter`, :class:`ExtendedKalmanFilter` and
 :class:`UnscentedKalmanFilter` are the sensor-health policy
 (:mod:`~continuum_mhe.estimators.sensor_health`) around them.
 """
@@ -133,7 +133,7 @@ class _KalmanBase(Inference):
 
 class ExtendedKalmanInference(_KalmanBase):
     """The EKF's inference, with Jacobians from CasADi's automatic differentiation of
-    the model (:class:`ExtendedKalmanFilter` steps it)."""
+    the model (:class:`CasadiExtendedKalmanFilter` steps it)."""
 
     name = "ekf"
 
@@ -346,19 +346,22 @@ class UnscentedKalmanInference(_KalmanBase):
             )
 
 
-class ExtendedKalmanFilter(Estimator[ExtendedKalmanInference]):
-    """EKF (CasADi Jacobians) with the sensor-health policy of
-    :class:`~continuum_mhe.estimators.sensor_health.Estimator`; the filter is
-    :attr:`inference` (:class:`ExtendedKalmanInference`)."""
+class CasadiExtendedKalmanFilter(Estimator[ExtendedKalmanInference]):
+    """The EKF of :class:`ExtendedKalmanFilter` on CasADi's functions, stepped in Python
+    (:class:`ExtendedKalmanInference`, CasADi Jacobians), with the same sensor-health
+    policy: the independent reference the tests hold the compiled EKF to, and the
+    benchmark's ``ekf`` row. The same estimates, many times slower: use
+    :class:`ExtendedKalmanFilter` (``make_estimator("ekf", ...)``)."""
 
     def __init__(self, formulation: Formulation, recovery: RecoverySettings | None = None):
         super().__init__(ExtendedKalmanInference(formulation), recovery)
 
 
-class CompiledExtendedKalmanFilter(Estimator[CompiledExtendedKalmanInference]):
-    """The EKF as one compiled call per step (:class:`CompiledExtendedKalmanInference`;
-    the EKF ``make_estimator`` gives), with the sensor-health policy of
-    :class:`~continuum_mhe.estimators.sensor_health.Estimator`."""
+class ExtendedKalmanFilter(Estimator[CompiledExtendedKalmanInference]):
+    """The EKF (``make_estimator("ekf", ...)`` gives it): one compiled call per step
+    (:class:`CompiledExtendedKalmanInference`), with the sensor-health policy of
+    :class:`~continuum_mhe.estimators.sensor_health.Estimator`.
+    :class:`CasadiExtendedKalmanFilter` is the same filter on CasADi's functions."""
 
     def __init__(self, formulation: Formulation, recovery: RecoverySettings | None = None):
         super().__init__(CompiledExtendedKalmanInference(formulation), recovery)

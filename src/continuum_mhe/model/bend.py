@@ -52,6 +52,7 @@ class BendFormulation(Formulation):
         return [(x[2 * k], x[2 * k + 1]) for k in range(self.robot.n_sections)]
 
     def rates_sym(self, x: Sym) -> list[tuple[Sym, Sym]]:
+        """``[(a_k_dot, b_k_dot)]`` per section, rad/s."""
         n2 = 2 * self.robot.n_sections
         return [(x[n2 + 2 * k], x[n2 + 2 * k + 1]) for k in range(self.robot.n_sections)]
 

@@ -246,12 +246,18 @@ class Formulation:
 
     # --- symbolic model (override) ---------------------------------------------
     def transition_sym(self, x: Sym, u: Sym, dt: Sym) -> Sym:
+        """The next state ``f(x, u, dt)`` (nx,) from the state ``x`` (nx,), the input
+        ``u`` (nu,) and the step ``dt`` (s), symbolic (CasADi)."""
         raise NotImplementedError
 
     def measurement_sym(self, x: Sym) -> Sym:
+        """The readings ``h(x)`` (nz,) the state ``x`` predicts, in the units of
+        :attr:`measurement_blocks` (rad for tilt, a unit direction and rad/s for
+        ``direct``), symbolic; the estimators take residuals from it."""
         raise NotImplementedError
 
     def process_cov_sym(self, dt: Sym) -> Sym:
+        """``Q(dt)`` (nx, nx): the process noise over a step of ``dt`` s, symbolic."""
         raise NotImplementedError
 
     def process_cov(self, dt: float) -> FloatArray:
@@ -273,6 +279,8 @@ class Formulation:
         return ca.SX(0, 1), np.zeros(0), np.zeros(0)
 
     def state_bounds(self) -> tuple[FloatArray, FloatArray]:
+        """``(lo, hi)`` (nx,) each: the box every estimate is held in (the MHE's hard
+        bounds, the filters' projection; -inf and inf where a state is free)."""
         return np.full(self.nx, -np.inf), np.full(self.nx, np.inf)
 
     # --- numeric helpers (override) ----------------------------------------------
@@ -299,9 +307,12 @@ class Formulation:
         return f"determine {rank} of its {bends} bend coordinates"
 
     def initial_state(self, z0: FloatArray) -> FloatArray:
+        """The state (nx,) a start takes from the first reading ``z0`` (nz; NaN where a
+        sensor dropped out): the estimators' prior mean (:meth:`start_prior`)."""
         raise NotImplementedError
 
     def initial_cov(self) -> FloatArray:
+        """The prior covariance (nx, nx) of a start, in the state's units squared."""
         raise NotImplementedError
 
     def start_prior(self, z0: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -321,6 +332,7 @@ class Formulation:
         return np.clip(x, lo, hi)
 
     def is_feasible(self, x: FloatArray, tol: float = 1e-7) -> bool:
+        """Whether the state ``x`` (nx,) lies within :meth:`state_bounds`, to ``tol``."""
         lo, hi = self.state_bounds()
         return bool(np.all(x >= lo - tol) and np.all(x <= hi + tol))
 

@@ -10,7 +10,7 @@ from typing import Literal
 
 from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
-from continuum_mhe.model.robot import check_theta_max
+from continuum_mhe.model.robot import Section
 
 FormulationName = Literal["bend", "paper", "direct", "tendon"]
 FORMULATIONS: tuple[FormulationName, ...] = ("bend", "paper")
@@ -39,7 +39,7 @@ class RobotSettings:
 
     def __post_init__(self) -> None:
         check_positive("length", self.length)
-        check_theta_max(self.theta_max)
+        Section(self.length, self.theta_max)  # a section's range checks (m, rad)
         if self.mounting not in MOUNTINGS:
             raise UserError(f"mounting must be one of {MOUNTINGS}, got {self.mounting!r}")
 

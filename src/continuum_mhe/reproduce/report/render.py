@@ -83,7 +83,9 @@ def _config(r: Results) -> dict[str, Any]:
     return dict(r.get("manifest", {}).get("config", {}))
 
 
-def _few_seeds_line(cfg: dict[str, Any]) -> list[str]:
+def _few_seeds_line(cfg: dict[str, Any], command: str) -> list[str]:
+    """The warning of a run of few seeds per group, naming ``--quick`` where the run's
+    ``command`` has it (else asking whether the seeds were set low by hand)."""
     keys = tuple(
         k
         for k in ("mc_seeds", "condition_seeds", "sweep_seeds", "window_seeds", "beyond_seeds")
@@ -92,9 +94,12 @@ def _few_seeds_line(cfg: dict[str, Any]) -> list[str]:
     if not cfg or min(int(cfg[k]) for k in keys) >= FEW_SEEDS:
         return []
     counts = ", ".join(f"{k.removesuffix('_seeds')} {cfg[k]}" for k in keys)
+    quick = "--quick" in command.split()
+    how = "`--quick`" if quick else "seeds set low"
+    again = "without `--quick`" if quick else "with more seeds"
     return [
-        f"**Few seeds ({counts} per group; `--quick`?): the intervals below are rough and "
-        f"the verdicts come from few seeds. Rerun without `--quick` before citing them.**",
+        f"**Few seeds ({counts} per group, {how}): the intervals below are rough and the "
+        f"verdicts come from few seeds. Rerun {again} before citing them.**",
         "",
     ]
 
@@ -117,7 +122,7 @@ def render_report(r: Results) -> str:
         "# Reproduction of 'State Estimation of Continuum Robots: A Nonlinear Constrained "
         "Moving Horizon Approach' (Sec. 3)",
         "",
-        *_few_seeds_line(cfg),
+        *_few_seeds_line(cfg, str(man.get("command", ""))),
         f"Command: `{man.get('command', 'continuum-mhe reproduce')}`; " + _counts(man) + " in "
         f"{_f(man.get('wall_s_trials'), 0)} s "
         + (
