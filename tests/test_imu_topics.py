@@ -73,8 +73,11 @@ def streams() -> dict[str, Any]:
 
 
 def _messages(store: Any, imu: dict[str, Any]) -> list[tuple[int, bytes]]:
+    """The topic's messages, serialised; its rates marked absent where ``imu`` says
+    ``no_gyro``."""
+    no_gyro = bool(imu.get("no_gyro", False))
     return [
-        (int(ns), bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU)))
+        (int(ns), bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g, no_gyro=no_gyro), IMU)))
         for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
     ]
 
@@ -306,3 +309,27 @@ def test_the_number_that_tells_topics_apart(topics: list[str], numbers: list[int
     from continuum_mhe.io.imu_topics import topic_numbers
 
     assert topic_numbers(topics) == numbers
+
+
+def test_rates_on_some_topics_only_are_refused_as_a_table_s_columns(
+    tmp_path: Path, streams: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 2's topic marks its rates absent (REP 145) while IMU 1's has them: one line
+    naming both topics, exit 2, nothing written (the estimate fell back to the tilt
+    model and dropped IMU 1's gyro, as a table with one IMU's gyro columns is refused);
+    ``--imu-model tilt`` leaves the gyros out on purpose and runs."""
+    imus = [streams["imu"][0], {**streams["imu"][1], "no_gyro": True}]
+    log = write_mcap_topics(tmp_path / "mixed.mcap", imus)
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(log), "-o", str(out), "--robot", "two-section"]
+    argv += [a for t in TOPICS for a in ("--topic", t)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"continuum-mhe: error: {log}: topic {TOPICS[1]} has no angular rates "
+        f"(angular_velocity_covariance[0] = -1 in every message) while {TOPICS[0]} has "
+        "them: give every IMU's gyro or none (as a table's columns), or --imu-model tilt "
+        "to leave the gyros out\n"
+    )
+    assert not out.exists()
+    assert main([*argv, "--imu-model", "tilt"]) == 0

@@ -423,6 +423,7 @@ def test_gyro_rates_implausible_in_rad_s_are_an_error(
             "acc_x -> ax, acc_y -> ay, acc_z -> az, ...",
         ),
         ("t,Accel_X_2,wz", "Accel_X_2 -> ax_2, wz -> gz"),
+        ("t,ax0,ay0,az0,ax1,ay1,az1", "ax0 -> ax_1, ay0 -> ay_1, az0 -> az_1, ..."),
     ],
 )
 def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
@@ -442,6 +443,20 @@ def test_a_logger_header_with_other_imu_names_is_told_the_names_to_use(
         "readings: raw columns are t,ax,ay,az,gx,gy,gz for one IMU and ax_1 ... gz_1, ax_2 ... "
         "for several (m/s^2, rad/s), tilt ones roll, pitch (roll_1, pitch_1 ...); rename the "
         f"columns ({said})\n"
+    )
+
+
+def test_a_header_with_gyro_columns_alone_asks_for_the_accelerometer(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Gyro columns without accelerometer ones: one line saying the accelerometer is
+    needed (not a rename of gx to gx)."""
+    path = _write(tmp_path / "gyro.csv", "t,gx,gy,gz\n0.0,0.0,0.0,0.0\n")
+    assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv")]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {path}: line 1: gyro columns (gx, gy, gz) but no "
+        "accelerometer columns (ax, ay, az; ax_1 ... for several IMUs): raw readings need "
+        "the accelerometer (m/s^2); the gyro is optional\n"
     )
 
 
@@ -510,6 +525,35 @@ def test_a_resting_gyro_in_deg_s_is_told_by_the_accelerometers(
             assert code == 0, err
             assert "deg/s" not in err
             out.unlink()
+
+
+def test_the_gravity_check_of_gyro_units_judges_still_stretches_alone() -> None:
+    """Known answers of the gravity check: a resting IMU's gyro in deg/s (bias about 2
+    deg/s) is found; in rad/s (bias 0.05 rad/s) it is not, also at 100 Hz with a 20 s
+    gap and short stretches between its readings (each stretch pairs its own rows
+    only); nor is a swinging IMU in rad/s (a pendulum: the specific force stays along
+    the rod while the gyro turns, so its stretches are not still), nor a turn about the
+    vertical."""
+    rng = np.random.default_rng(8)
+    t = np.arange(0.0, 10.0, 0.01)
+    acc = np.array([0.1, -0.2, 9.8]) + rng.normal(0.0, 0.05, (len(t), 3))
+    bias = np.array([1.2, -1.5, 0.9])
+    assert gyro_gravity_problem(t, acc, bias + rng.normal(0.0, 0.3, (len(t), 3))) is not None
+    rad_s = np.array([0.03, -0.04, 0.01]) + rng.normal(0.0, 0.003, (len(t), 3))
+    assert gyro_gravity_problem(t, acc, rad_s) is None
+    # 0.53 s, then 0.5 s more 20 s later: two still stretches and a short one (0.5 to
+    # 0.53 s) before the gap, whose step across the gap belongs to no stretch
+    gap = np.r_[t[:53], 20.5 + t[:50]]
+    assert gyro_gravity_problem(gap, acc[: len(gap)], rad_s[: len(gap)]) is None
+    for amp_deg, hz in ((20.0, 0.7), (20.0, 1.2), (25.0, 0.5), (10.0, 1.0)):
+        a, w = math.radians(amp_deg), 2 * math.pi * hz
+        swing, rate = a * np.sin(w * t), a * w * np.cos(w * t)
+        along = 9.81 * np.cos(swing) + 0.3 * rate**2  # the rod's tension, per unit mass
+        spec = np.column_stack([np.zeros_like(t), np.zeros_like(t), along])
+        gyro = np.column_stack([rate, np.zeros_like(t), np.zeros_like(t)]) + 0.01
+        assert gyro_gravity_problem(t, spec, gyro) is None, (amp_deg, hz)
+    yaw = np.tile([0.0, 0.0, 1.5], (len(t), 1))  # about the vertical: rad/s, seen by nobody
+    assert gyro_gravity_problem(t, np.tile([0.0, 0.0, 9.8], (len(t), 1)), yaw) is None
 
 
 def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None:

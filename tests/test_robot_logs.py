@@ -673,3 +673,51 @@ def test_an_unreadable_message_is_named_by_its_position(tmp_path: Path) -> None:
         start = re.escape(f"{path}: message 4: cannot read robot log (")
         with pytest.raises(InputError, match=start + ".*" + re.escape(why)):
             read_imu_log(path)
+
+
+def test_stamps_on_another_clock_than_the_log_s_warn(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """Header stamps on a sensor's boot clock (1000 s since boot) in a log on the Unix
+    clock: one warning naming the offset (an MCAP estimate keeps the stamps' clock and
+    would not line up with the log's other topics); stamps 20 ms after the log's times
+    (a driver's latency) say nothing."""
+    boot = recording["stamps"] - recording["stamps"][0] + 1000 * 10**9
+    with pytest.warns(UnitWarning) as seen:
+        read_imu_log(write_mcap(tmp_path / "boot.mcap", recording, headers=boot))
+    said = [str(w.message) for w in seen]
+    assert (
+        len(said) == 1
+        and "topic /tip/imu: the header stamps are 1.7e+09 s behind the log's" in said[0]
+    )
+    assert "an MCAP estimate (-o .mcap) does not line up with the log's other topics" in said[0]
+    late = recording["stamps"] + 20_000_000
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_imu_log(write_mcap(tmp_path / "late.mcap", recording, headers=late))
+
+
+def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """Stamps that step back by 2 s at message 100 (a sensor clock that restarted): an
+    error naming the message and the step, not the rest of the log silently dropped (or
+    joined across the jump); with ``skip_bad`` the messages until the times pass the
+    last one kept (here the other 51) are left out and counted. One message 1 ms out of order is
+    left out and counted either way."""
+    headers = recording["stamps"].copy()
+    headers[100:] -= 2 * 10**9
+    path = write_mcap(tmp_path / "back.mcap", recording, headers=headers)
+    with pytest.raises(InputError) as info:
+        read_imu_log(path)
+    assert str(info.value) == (
+        f"{path}: topic /tip/imu: message 100: the time steps back by 1.98 s (a sensor clock "
+        "that restarted?): the log is not one recording; cut it there, or --skip-bad leaves "
+        "out the messages until the times pass the last one"
+    )
+    log = read_imu_log(path, skip_bad=True)
+    assert len(log.skipped) == 51 and log.skipped[0].startswith("message 100: time ")
+    jitter = recording["stamps"].copy()
+    jitter[50] = jitter[49] - 1_000_000
+    log = read_imu_log(write_mcap(tmp_path / "jitter.mcap", recording, headers=jitter))
+    assert log.skipped == [f"message 50: time {int(jitter[50])} ns does not increase"]

@@ -1552,14 +1552,12 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
         ("youngs_modulus", "54e15", r"youngs_modulus 5.4e\+16 Pa is above any material's"),
         ("shear_modulus", "60e9", r"shear_modulus 60000000000.0 Pa is above its youngs_modulus "
          r"54000000000.0 Pa: .*\(swapped\?\)"),
-        ("radius", "0.02", r"tendon 1: radius 0.02 m is not outside the backbone's radius 0.02 m"),
     ],
 )  # fmt: skip
 def test_backbone_values_in_other_units_are_refused(tmp_path: Path, key, value, match) -> None:
     """A density in g/cm^3, a modulus that looks like GPa or MPa (under 1e5 Pa, as the
     docs say: the hint names the unit that makes it a material's), one above diamond's,
-    a shear modulus above Young's, and a backbone wider than the tendons' pitch radius
-    are refused in one line naming the file."""
+    and a shear modulus above Young's are refused in one line naming the file."""
     import re
 
     from continuum_mhe.io.robot_file import read_robot
@@ -1569,6 +1567,25 @@ def test_backbone_values_in_other_units_are_refused(tmp_path: Path, key, value, 
     path.write_text(re.sub(rf"(?m)^#? ?{key} = \S+", f"{key} = {value}", shipped.read_text()))
     with pytest.raises(InputError, match=match):
         read_robot(path)
+
+
+def test_a_tendon_inside_the_backbone_is_refused_naming_its_line(tmp_path: Path) -> None:
+    """The shipped robot with its backbone's radius (0.7 mm) written as 12 mm, wider
+    than the tendons' 10 mm pitch radius: one line naming the robot file, the first
+    tendon's ``radius`` line and both radii."""
+    from continuum_mhe.io.robot_file import read_robot
+
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    text = shipped.read_text()
+    assert text.count("radius = 0.0007") == 1
+    path = tmp_path / "r.toml"
+    path.write_text(text.replace("radius = 0.0007", "radius = 0.012"))
+    line = next(n for n, ln in enumerate(text.splitlines(), 1) if ln.startswith("radius = 0.01"))
+    with pytest.raises(InputError) as info:
+        read_robot(path)
+    assert str(info.value).startswith(
+        f"{path}: line {line}: tendon 1: radius 0.01 m is not outside the backbone's radius 0.012 m"
+    ), str(info.value)
 
 
 def test_a_tensions_file_with_a_separator_at_every_line_end_reads_as_without(

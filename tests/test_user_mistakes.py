@@ -442,6 +442,19 @@ def test_evaluate_refuses_a_truth_whose_positions_are_in_mm_or_cm(
     )
 
 
+def test_position_units_without_angles_known_answers() -> None:
+    """A file of tip positions alone (no angles): a straight robot's tip 100.5 times as
+    far as the robot's length is in cm (not mm, though over 100); 150 times, beyond any
+    shape in cm, is mm; 1.0 times is metres."""
+    from continuum_mhe.evaluation.metrics import position_unit_problem
+
+    names = ("x", "y", "z")
+    for factor, unit in ((100.5, "cm"), (150.0, "mm"), (1.0, None)):
+        rows = np.tile([0.0, 0.0, 0.2 * factor], (5, 1))
+        said = position_unit_problem(names, rows, (0.2,))
+        assert said.endswith(f"positions in {unit}? give x, y, z in m") if unit else said == ""
+
+
 def test_evaluate_with_another_robot_than_the_estimate_records_warns(tmp_path, capsys) -> None:
     """An estimate made with one robot file, evaluated with ``--robot`` naming another of
     other section lengths: a warning naming both and their lengths (the figures, in %
@@ -687,6 +700,19 @@ def test_a_profile_sets_mhe_options_a_filter_leaves_unused(tmp_path, capsys) -> 
         "file chooses the ekf (method = 'ekf'), which has no window: remove one\n"
     )
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+    # in different tables they are a profile's: the MHE option waits for the MHE (live's)
+    cfg.write_text('horizon = 10\n[estimate]\nmethod = "ekf"\n')
+    assert main(argv) == 0
+    capsys.readouterr()
+    # an estimate file records a run, not a profile: its options line read back runs
+    recorded = tmp_path / "recorded.csv"
+    recorded.write_text(
+        '# continuum-mhe = "0.1.0 estimate m.csv"\n'
+        '# options = {method = "ekf", horizon = 12}\nt,x,y,z\n0,0,0,0.2\n'
+    )
+    argv_recorded = ["estimate", str(meas), "--config", str(recorded), "-o", out, "--overwrite"]
+    assert main(argv_recorded) == 0
+    capsys.readouterr()
     # a profile's MHE options unused by the filter are not recorded as the run's
     cfg.write_text("horizon = 12\n")
     assert main([*argv, "--method", "ekf"]) == 0

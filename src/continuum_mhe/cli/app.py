@@ -115,12 +115,16 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         command.error(f"unrecognized arguments: {' '.join(unknown)}")
     on_command_line = _given_options(parser, command, argv)
     sources: dict[str, str] = {}
+    tables: dict[str, str] = {}
     config = getattr(args, "config", None)
     if config:  # the file's options, then the command line's again
-        sources = apply_config(command, args.command, config)
+        sources, tables = apply_config(command, args.command, config)
         args = parser.parse_args(argv)
     # where each option that the options file set (and the command line did not) was given
     args.config_sources = {d: w for d, w in sources.items() if d not in on_command_line}
+    # ... and in which of the file's tables (a profile's top level, its [command] table,
+    # or an estimate file's record of a run)
+    args.config_tables = {d: tables[d] for d in args.config_sources}
     # the options given on the command line, which a command refuses where they do not
     # apply (an options file is a profile for several commands and methods: its options
     # apply where they can)

@@ -184,7 +184,9 @@ def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -
     return converted
 
 
-def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> dict[str, str]:
+def apply_config(
+    parser: argparse.ArgumentParser, command: str, path: str
+) -> tuple[dict[str, str], dict[str, str]]:
     """Set the defaults of ``parser`` (the ``command``'s) from the options file ``path``:
     its top-level keys and those of its ``[command]`` table. A key that is no option of
     the command, or a value the option would refuse, is a one-line error naming the file
@@ -193,7 +195,9 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     those that are no option of ``command`` are left out, and a note says which. A
     relative robot or tensions file that is not where the command runs but beside the
     options file is taken from there. Returns where each option set was given, by
-    destination (``PATH: line N: key = value``), for the checks made later."""
+    destination (``PATH: line N: key = value``), for the checks made later, and the
+    table that set it (``"top"``, ``"[command]"``, or ``"recorded"`` for an estimate
+    file's options line, which records a run rather than a profile)."""
     data, text, offset = _read(path)
     robot_tables = [k for k in ("section", "imu", "backbone", "tendon") if k in data]
     if robot_tables:  # --config given a robot file
@@ -217,6 +221,8 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
     recorded = Path(path).suffix.lower() in (".csv", ".mcap")  # an estimate file
     defaults: dict[str, Any] = {}
     sources: dict[str, str] = {}
+    set_in: dict[str, str] = {}  # the table that set each destination
+    own_keys = set(own)
     left_out: list[str] = []
     files_left_out: list[str] = []
     for key, value in [*flat.items(), *own.items()]:
@@ -252,6 +258,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
             value = beside(path, value)
         defaults[dest] = _value(path, where, key, action, value)
         sources[dest] = f"{path}: {where}{key} = {value!r}"
+        set_in[dest] = "recorded" if recorded else f"[{command}]" if key in own_keys else "top"
     if left_out:
         print(
             f"{PROG}: note: {path}: {', '.join(left_out)} (of the command that wrote it) "
@@ -265,7 +272,7 @@ def apply_config(parser: argparse.ArgumentParser, command: str, path: str) -> di
             file=sys.stderr,
         )
     parser.set_defaults(**defaults)
-    return sources
+    return sources, set_in
 
 
 def beside(path: str, value: str) -> str:

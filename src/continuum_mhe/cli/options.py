@@ -142,14 +142,19 @@ def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
         recorded = read_robot(beside(path, name))
     except UserError:
         return
-    if _geometry(recorded) == _geometry(robot):
+    if _geometry(recorded) == _geometry(robot):  # the same robot (a copy, another path)
         return
-    lengths = ", ".join(f"{v:g}" for v in recorded.lengths)
-    given_lengths = ", ".join(f"{v:g}" for v in robot.lengths)
+
+    def described(r: Robot) -> str:
+        """Sections and, where those agree, IMU places: what tells the two apart."""
+        if r.lengths != (recorded.lengths if r is robot else robot.lengths):
+            return "sections of " + ", ".join(f"{v:g}" for v in r.lengths) + " m"
+        return "IMUs at " + ", ".join(f"section {i.section + 1} at {i.at:g}" for i in r.imus)
+
     print(
         f"{PROG}: warning: {path} was estimated with --robot {name} (its options line: "
-        f"sections of {lengths} m), not with --robot {given} (sections of {given_lengths} "
-        "m); the given one is used: leave --robot out to use the recorded one",
+        f"{described(recorded)}), not with --robot {given} ({described(robot)}); the given "
+        "one is used: leave --robot out to use the recorded one",
         file=sys.stderr,
     )
 
@@ -522,8 +527,14 @@ def _refuse_mhe_options(
     given = given_options(args)
     dest = next((d for d in MHE_OPTIONS if d in given), None)
     in_file = getattr(args, "config_sources", {})
-    if dest is None and "method" in in_file:  # the options file chose the method
-        both = next((d for d in MHE_OPTIONS if d in in_file), None)
+    table = getattr(args, "config_tables", {})
+    if dest is None and "method" in in_file and table.get("method") != "recorded":
+        # the filter and an MHE option in one table of the file contradict each other;
+        # across tables (a top-level profile, an [estimate] method) the option waits for
+        # the MHE, as one given beside another method does
+        both = next(
+            (d for d in MHE_OPTIONS if d in in_file and table.get(d) == table["method"]), None
+        )
         if both is not None:
             raise InputError(
                 f"{in_file[both]} is an MHE option, and the same file chooses the {method} "

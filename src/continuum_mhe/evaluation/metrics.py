@@ -329,15 +329,16 @@ def position_unit_problem(
     ratio = _tip_ratio(names, values, lengths)
     if ratio is None:
         return ""
-    for unit, factor in POSITION_UNITS:
-        if abs(ratio / factor - 1.0) <= POSITION_UNIT_TOLERANCE or (
-            unit == "mm" and not _has_bends(names) and ratio > 100.0
-        ):
-            return (
-                f"its tip is {ratio:.4g} times as far from the base as a robot of "
-                f"{sum(lengths):g} m reaches: positions in {unit}? give x, y, z in m"
-            )
-    return ""
+    units = [unit for unit, factor in POSITION_UNITS
+             if abs(ratio / factor - 1.0) <= POSITION_UNIT_TOLERANCE]  # fmt: skip
+    if not units and not _has_bends(names) and ratio > 100.0 * (1 + POSITION_UNIT_TOLERANCE):
+        units = ["mm"]  # beyond any shape in cm: a bent robot's tip in mm
+    if not units:
+        return ""
+    return (
+        f"its tip is {ratio:.4g} times as far from the base as a robot of "
+        f"{sum(lengths):g} m reaches: positions in {units[0]}? give x, y, z in m"
+    )
 
 
 def _has_bends(names: Sequence[str]) -> bool:

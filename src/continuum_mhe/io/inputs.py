@@ -706,6 +706,16 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         log = read_imu_log(p, options.topic, options.skip_bad)
         logs, t, t0_ns, skipped, notes = (log,), log.t, log.t0_ns, log.skipped, ()
     has_gyro = all(log.gyr is not None for log in logs)
+    with_rates = [log.topic for log in logs if log.gyr is not None]
+    tilt_asked = options.raw.imu_model == "tilt" and options.raw.attitude == "accel"
+    if with_rates and not has_gyro and not (options.use_orientation or tilt_asked):
+        without = [log.topic for log in logs if log.gyr is None]
+        raise InputError(
+            f"{p}: topic {', '.join(without)} has no angular rates (angular_velocity_"
+            f"covariance[0] = -1 in every message) while {', '.join(with_rates)} has them: "
+            "give every IMU's gyro or none (as a table's columns), or --imu-model tilt to "
+            "leave the gyros out"
+        )
     options, f = decide_model(str(p), "log", has_gyro, options, formulation)
     blocks = []
     for log, place in zip(logs, robot.imus):

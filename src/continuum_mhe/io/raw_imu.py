@@ -69,6 +69,13 @@ UNIT_CHECK_SPAN_S = 1.0
 #: at least :data:`GRAVITY_TURN_ROWS` readings, ...
 GRAVITY_TURN_SPAN_S = 0.5
 GRAVITY_TURN_ROWS = 5
+#: ... where the IMU is still: its specific force's magnitude spreads by at most this
+#: fraction of its mean over the stretch (the noise of a MEMS accelerometer at rest is
+#: about 0.5 %; a swing's own acceleration is more) ...
+GRAVITY_TURN_ACCEL_SPREAD = 0.01
+#: ... and its rates are steady, as a bias: their spread (the norm of the axes' standard
+#: deviations) at most this fraction of their mean rate's magnitude ...
+GRAVITY_TURN_RATE_SPREAD = 0.5
 #: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
 #: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
 #: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
@@ -309,14 +316,24 @@ def _refuse_other_raw_names(rows: TextRows) -> None:
     that name accelerometer or gyro axes otherwise (:data:`_OTHER_RAW_NAME`): the names
     this reader takes, and what each such column would be called (``ax1`` -> ``ax_1``).
     Any other header is left to the tilt reader's message."""
+    matches = [(h, m) for h in rows.header if (m := _OTHER_RAW_NAME.match(h))]
+    numbers = [int(m.group(4)) for _, m in matches if m.group(4)]
+    first = min(numbers, default=1)  # IMUs count from 1: a file's 0 is IMU 1
+    several = len(set(numbers)) > 1
     renames = []
-    for h in rows.header:
-        m = _OTHER_RAW_NAME.match(h)
-        if m:
-            field = ("a" if m.group(1) else "g") + m.group(3).lower()
-            renames.append(
-                f"{rows.as_written(h)} -> {field}{'_' + m.group(4) if m.group(4) else ''}"
-            )
+    for h, m in matches:
+        name = ("a" if m.group(1) else "g") + m.group(3).lower()
+        if m.group(4) and (several or first != 0):
+            name += f"_{int(m.group(4)) + 1 - min(first, 1)}"
+        if name != h:
+            renames.append(f"{rows.as_written(h)} -> {name}")
+    gyros = [h for h in rows.header if h in GYRO_COLUMNS or RAW_IMU_COLUMNS.number(h)[0]]
+    if not renames and gyros:
+        raise InputError(
+            f"{rows.name}: line 1: gyro columns ({', '.join(map(rows.as_written, gyros[:3]))}) "
+            "but no accelerometer columns (ax, ay, az; ax_1 ... for several IMUs): raw "
+            "readings need the accelerometer (m/s^2); the gyro is optional"
+        )
     if not renames:
         return
     shown = ", ".join(renames[:3]) + (", ..." if len(renames) > 3 else "")
@@ -540,32 +557,54 @@ def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None
     )
 
 
-def _turn_errors(t: FloatArray, direction: FloatArray, gyr: FloatArray) -> FloatArray:
-    """Per stretch of :data:`GRAVITY_TURN_SPAN_S` (at least :data:`GRAVITY_TURN_ROWS`
-    finite rows): the angle (rad) between the accelerometer's last direction and its
-    first one turned by the gyro's summed rates (one rotation vector: exact for a rate of
-    constant direction, such as a resting gyro's bias), the gyro read as rad/s (column
-    0) and as deg/s (column 1); (k, 2), k stretches."""
-    ok = np.isfinite(t) & np.isfinite(direction).all(axis=1) & np.isfinite(gyr).all(axis=1)
-    t, direction, gyr = t[ok], direction[ok], gyr[ok]
+def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
+    """Per still stretch of :data:`GRAVITY_TURN_SPAN_S`: the angle (rad) between the
+    accelerometer's last direction and its first one turned by the gyro's summed rates
+    (one rotation vector: exact for a rate of constant direction, such as a resting
+    gyro's bias), the gyro read as rad/s (column 0) and as deg/s (column 1); (k, 2).
+
+    A stretch is judged where it has at least :data:`GRAVITY_TURN_ROWS` finite rows, its
+    specific force's magnitude spreads by at most :data:`GRAVITY_TURN_ACCEL_SPREAD` of
+    its mean (no acceleration of the IMU's own: a swinging IMU's specific force turns
+    with it) and its rates by at most :data:`GRAVITY_TURN_RATE_SPREAD` of their mean (a
+    steady rate, as a bias; a swing's rates change sign). Rows are paired with the next
+    row of their own stretch only (a gap or a short stretch adds nothing)."""
+    ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1)
+    t, acc, gyr = t[ok], acc[ok], gyr[ok]
+    norm = np.linalg.norm(acc, axis=1)
+    t, acc, gyr, norm = t[norm > 0], acc[norm > 0], gyr[norm > 0], norm[norm > 0]
     if len(t) < GRAVITY_TURN_ROWS:
         return np.zeros((0, 2))
+    direction = acc / norm[:, None]
     stretch = np.floor((t - t[0]) / GRAVITY_TURN_SPAN_S).astype(np.int64)
     starts = np.flatnonzero(np.r_[True, np.diff(stretch) != 0])
     stops = np.r_[starts[1:], len(t)]
-    long = stops - starts >= GRAVITY_TURN_ROWS
-    starts, stops = starts[long], stops[long]
-    # each row's rate over the step to the next row of its stretch
+    count = (stops - starts).astype(float)
+    # each row's rate over the step to the next row of its own stretch
     step = np.r_[np.diff(t), 0.0]
     step[stops - 1] = 0.0
-    turn = np.add.reduceat(gyr * step[:, None], starts, axis=0) if len(starts) else gyr[:0]
-    first, last = direction[starts], direction[stops - 1]
+    turn = np.add.reduceat(gyr * step[:, None], starts, axis=0)
+    norm_mean = np.add.reduceat(norm, starts) / count
+    norm_var = np.add.reduceat(norm**2, starts) / count - norm_mean**2
+    rate_mean = np.add.reduceat(gyr, starts, axis=0) / count[:, None]
+    rate_var = np.add.reduceat(gyr**2, starts, axis=0) / count[:, None] - rate_mean**2
+    still = (
+        (count >= GRAVITY_TURN_ROWS)
+        & (np.sqrt(np.maximum(norm_var, 0.0)) <= GRAVITY_TURN_ACCEL_SPREAD * norm_mean)
+        & (
+            np.sqrt(np.maximum(rate_var, 0.0).sum(axis=1))
+            <= GRAVITY_TURN_RATE_SPREAD * np.linalg.norm(rate_mean, axis=1)
+        )
+    )
+    if not still.any():
+        return np.zeros((0, 2))
+    first, last, turn = direction[starts[still]], direction[stops[still] - 1], turn[still]
     from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
 
-    errors = np.empty((len(starts), 2))
+    errors = np.empty((len(first), 2))
     for col, scale in enumerate((1.0, math.pi / 180.0)):
         # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
-        turned = Rotation.from_rotvec(-scale * turn).apply(first) if len(starts) else first
+        turned = Rotation.from_rotvec(-scale * turn).apply(first)
         errors[:, col] = np.arccos(np.clip(np.sum(turned * last, axis=1), -1.0, 1.0))
     return errors
 
@@ -574,17 +613,15 @@ def gyro_gravity_problem(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
 ) -> str | None:
     """A gyro in deg/s whose rates are too small for :func:`gyro_units_problem` (an IMU
-    at rest, a slow robot), told by the accelerometer: where its rates ``gyr`` (n, 3), read
-    as rad/s, would turn the gravity direction of ``acc`` (n, 3; any unit, the IMU's own
-    acceleration small) over the times ``t`` (n,) s by more than
-    :data:`GRAVITY_TURN_MISMATCH` rad in the median stretch, while read as deg/s they
-    follow it at least three times as closely: what to say, naming the columns
-    ``names``; else None. A turn about the vertical moves no accelerometer and says
-    nothing."""
-    errors = _turn_errors(
-        np.asarray(t, float), np.asarray(acc, float) / np.linalg.norm(acc, axis=1)[:, None],
-        np.asarray(gyr, float),
-    )  # fmt: skip
+    at rest with its bias), told by the accelerometer: where, over the still stretches
+    of the times ``t`` (n,) s (:func:`_turn_errors`: the specific force ``acc`` (n, 3;
+    any unit) steady in magnitude, the rates ``gyr`` (n, 3) steady), the rates read as
+    rad/s would turn the gravity direction by more than :data:`GRAVITY_TURN_MISMATCH`
+    rad in the median stretch, while read as deg/s they follow it at least three times
+    as closely: what to say, naming the columns ``names``; else None (also with fewer
+    than two still stretches). A turn about the vertical moves no accelerometer and
+    says nothing."""
+    errors = _turn_errors(np.asarray(t, float), np.asarray(acc, float), np.asarray(gyr, float))
     if len(errors) < 2:
         return None
     as_rad, as_deg = (float(v) for v in np.median(errors, axis=0))

@@ -24,6 +24,7 @@ import math
 import os
 import re
 import struct
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +35,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError, require
-from continuum_mhe.io.csv_files import check_time_steps
+from continuum_mhe.io.csv_files import UnitWarning, check_time_steps
 from continuum_mhe.model.imu import tilt_from_accelerometer
 
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
@@ -327,6 +328,7 @@ def read_imu_log(
     at = 0  # the message read: named where one cannot be read
     cut = ""  # where a file cut short was read up to
     stamps: list[int] = []
+    offsets: list[int] = []  # header stamp minus log time, ns, of the messages kept
     rows: list[tuple[list[float], list[float], list[float]]] = []
     skipped: list[str] = []
     # header stamps where the messages have them; the log's times only where none has
@@ -335,11 +337,22 @@ def read_imu_log(
     stamped = False
     name = topic or ""
 
-    def keep(i: int, ns: int, row: tuple[list[float], list[float], list[float]]) -> None:
+    def keep(
+        i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
+    ) -> None:
         if stamps and ns <= stamps[-1]:
+            back = (stamps[-1] - ns) / 1e9
+            if back > MAX_STAMP_STEP_BACK_S and not skip_bad:
+                raise InputError(
+                    f"{p}: topic {name}: message {i}: the time steps back by {back:.3g} s (a "
+                    "sensor clock that restarted?): the log is not one recording; cut it "
+                    "there, or --skip-bad leaves out the messages until the times pass the "
+                    "last one"
+                )
             skipped.append(f"message {i}: time {ns} ns does not increase")
             return
         stamps.append(ns)
+        offsets.append(ns - log_ns)
         rows.append(row)
 
     try:
@@ -362,7 +375,7 @@ def read_imu_log(
                 skipped += [f"message {j}: header stamp is zero (the others' clock)"
                             for j, _, _ in unstamped]  # fmt: skip
                 unstamped = []
-            keep(i, header_ns, _row(msg))
+            keep(i, header_ns, _row(msg), int(log_ns))
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
@@ -378,9 +391,19 @@ def read_imu_log(
             ) from None
         cut = f"the file ends inside a record after message {at - 1}: read up to there"
     for i, log_ns, row in unstamped:  # no message (up to a cut) has a stamp: the log's times
-        keep(i, log_ns, row)
+        keep(i, log_ns, row, log_ns)
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
+    offset = float(np.median(offsets)) / 1e9
+    if abs(offset) > STAMP_CLOCK_OFFSET_S:
+        warnings.warn(
+            f"{p}: topic {name}: the header stamps are {abs(offset):.4g} s "
+            f"{'ahead of' if offset > 0 else 'behind'} the log's times (median; a sensor's "
+            "own clock?): the estimates keep the stamps' clock, so an MCAP estimate (-o "
+            ".mcap) does not line up with the log's other topics in a viewer",
+            UnitWarning,
+            stacklevel=2,
+        )
     t0 = stamps[0]
     t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
     stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
@@ -401,6 +424,16 @@ def read_imu_log(
         clock="header stamps" if stamped else "log times",
         cut=cut,
     )
+
+
+#: A header stamp further back than this from the last one kept (s) is a clock that
+#: restarted, not a message out of order: an error (``skip_bad``: left out, as the
+#: messages out of order are).
+MAX_STAMP_STEP_BACK_S = 1.0
+#: Header stamps whose median distance from the log's own times exceeds this (s) are on
+#: another clock than the log's (a sensor's boot clock): said once, since an MCAP
+#: estimate keeps the stamps' clock.
+STAMP_CLOCK_OFFSET_S = 1.0
 
 
 def tilt_from_quaternion(q: FloatArray) -> FloatArray:
