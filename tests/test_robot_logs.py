@@ -721,3 +721,33 @@ def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     jitter[50] = jitter[49] - 1_000_000
     log = read_imu_log(write_mcap(tmp_path / "jitter.mcap", recording, headers=jitter))
     assert log.skipped == [f"message 50: time {int(jitter[50])} ns does not increase"]
+
+
+def test_a_ros2_bag_stored_as_mcap_cut_short_is_read_up_to_the_cut_with_skip_bad(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """A ROS 2 bag folder whose storage is MCAP (rosbag2's default) reads as its MCAP
+    file does: whole, the same samples as the SQLite bag; cut short (a recorder that
+    was killed), one line saying so and that --skip-bad reads up to the cut, and with
+    it the messages before the cut."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    bag = tmp_path / "bag_mcap"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/tip/imu", IMU, typestore=store)
+        for ns, a, g in zip(recording["stamps"], recording["acc"], recording["gyr"]):
+            w.write(conn, int(ns), store.serialize_cdr(imu_msg(store, int(ns), a, g), IMU))
+    whole = read_imu_log(bag)
+    sqlite = read_imu_log(write_ros2_bag(tmp_path / "bag_db3", recording))
+    np.testing.assert_array_equal(whole.t, sqlite.t)
+    np.testing.assert_array_equal(whole.acc, sqlite.acc)
+    (storage,) = bag.glob("*.mcap")
+    data = storage.read_bytes()
+    storage.write_bytes(data[: len(data) - 40])  # the footer and end magic lost
+    with pytest.raises(InputError, match=r"--skip-bad reads it up to the cut\)$"):
+        read_imu_log(bag)
+    cut = read_imu_log(bag, skip_bad=True)
+    assert 0 < len(cut.t) <= len(whole.t) and cut.cut.startswith("the file ends inside a record")
+    np.testing.assert_array_equal(cut.acc, whole.acc[: len(cut.t)])

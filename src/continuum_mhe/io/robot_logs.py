@@ -166,6 +166,20 @@ def _iter_rosbags(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[in
     return name, gen()
 
 
+def _single_mcap(path: Path) -> Path | None:
+    """The MCAP file to read ``path`` as: ``path`` itself where it is one, the one
+    ``.mcap`` of a ROS 2 bag folder stored as MCAP (rosbag2's default storage; read as
+    the file it is, so that a recording cut short is read up to the cut as a lone MCAP
+    file is), else None (a ``.bag``, a SQLite bag, a bag split into several files)."""
+    if path.suffix.lower() == ".mcap":
+        return path
+    if path.is_dir():
+        files = sorted(path.glob("*.mcap"))
+        if len(files) == 1 and not any(path.glob("*.db3")):
+            return files[0]
+    return None
+
+
 def _bag_folder(path: Path) -> Path:
     """The ROS bag to open for ``path``: a ROS 2 bag's folder for one of its ``.db3``
     files (the folder's ``metadata.yaml`` must list that file: a reader opens the bag
@@ -356,8 +370,9 @@ def read_imu_log(
         rows.append(row)
 
     try:
-        if p.suffix.lower() == ".mcap":
-            name, messages = _iter_mcap(p, topic)
+        storage = _single_mcap(p)
+        if storage is not None:
+            name, messages = _iter_mcap(storage, topic)
         else:
             name, messages = _iter_rosbags(p, topic)
 
