@@ -751,3 +751,52 @@ def test_a_ros2_bag_stored_as_mcap_cut_short_is_read_up_to_the_cut_with_skip_bad
     cut = read_imu_log(bag, skip_bad=True)
     assert 0 < len(cut.t) <= len(whole.t) and cut.cut.startswith("the file ends inside a record")
     np.testing.assert_array_equal(cut.acc, whole.acc[: len(cut.t)])
+
+
+def test_an_orientation_only_imu_is_told_to_use_orientation(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An IMU whose messages give an orientation and a zero linear acceleration (an
+    orientation-only driver): one line naming the topic and --orientation, not "every
+    sample is a dropout"; with --orientation it is estimated."""
+    n = len(recording["stamps"])
+    quat = [np.array([1.0, 0.0, 0.0, 0.0])] * n
+    rec = {**recording, "acc": np.zeros((n, 3)), "quat": quat}
+    bag = write_ros2_bag(tmp_path / "orient", rec)
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf"]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {bag}: topic /tip/imu: linear_acceleration is zero or absent "
+        "in every message while its orientation is given (an orientation-only IMU): "
+        "--orientation reads its roll and pitch\n"
+    )
+    assert not out.exists()
+    assert main(["estimate", str(bag), "-o", str(out), "--method", "ekf", "--orientation"]) == 0
+
+
+def test_a_message_whose_rates_are_marked_absent_among_others_names_the_flag(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Messages 51 on with their rates marked absent (REP 145) among messages with rates:
+    the refusal names the flag, not NaN values the file does not hold."""
+    from mcap.writer import CompressionType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgdef, _ = store.generate_msgdef(IMU, ros_version=2)
+    path = tmp_path / "some.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start()
+        sid = w.register_schema(name=IMU, encoding="ros2msg", data=msgdef.encode())
+        cid = w.register_channel(topic="/tip/imu", message_encoding="cdr", schema_id=sid)
+        rows = zip(recording["stamps"], recording["acc"], recording["gyr"])
+        for i, (ns, a, g) in enumerate(rows):
+            msg = imu_msg(store, int(ns), a, g, no_gyro=i >= 50)
+            w.add_message(cid, log_time=int(ns), data=bytes(store.serialize_cdr(msg, IMU)),
+                          publish_time=int(ns))  # fmt: skip
+        w.finish()
+    assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]) == 2
+    err = capsys.readouterr().err
+    assert "(sample 51): angular_velocity is absent (NaN, or marked absent: " in err
+    assert "angular_velocity_covariance[0] = -1) (a dropout; --skip-bad keeps it" in err

@@ -718,6 +718,15 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         )
     options, f = decide_model(str(p), "log", has_gyro, options, formulation)
     blocks = []
+    for log in logs:
+        no_accel = ~np.isfinite(log.acc).all(axis=1) | ~(np.abs(log.acc) > 0).any(axis=1)
+        oriented = np.isfinite(log.orientation).all(axis=1)
+        if not options.use_orientation and no_accel.all() and oriented.any():
+            raise InputError(
+                f"{p}: topic {log.topic}: linear_acceleration is zero or absent in every "
+                "message while its orientation is given (an orientation-only IMU): "
+                "--orientation reads its roll and pitch"
+            )
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
             if not np.all(np.isfinite(log.orientation)):
@@ -751,10 +760,13 @@ def _refuse_a_missing_value(
         bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
             i = int(np.argmax(bad))
+            shown = values[i].tolist()
+            if name == "angular_velocity" and np.isnan(values[i]).all():
+                shown = "absent (NaN, or marked absent: angular_velocity_covariance[0] = -1)"
             raise InputError(
                 f"{path}: topic {topic}: the message at t = {time_text(float(t[i]))} s "
-                f"(sample {i + 1}): {name} is {values[i].tolist()} (a dropout; --skip-bad "
-                "keeps it, skip_bad=True in Python)"
+                f"(sample {i + 1}): {name} is {shown} (a dropout; --skip-bad keeps it, "
+                "skip_bad=True in Python)"
             )
 
 
