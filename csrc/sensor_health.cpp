@@ -93,6 +93,7 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   imu_last_valid_.assign(nb, -INFINITY);
   freeze_count_.assign(nb, 0);
   has_freeze_value_.assign(nb, 0);
+  frozen_now_.assign(nb, 0);
   z_.resize(s_.nz);
   mask_.resize(s_.nz);
   zero_mask_.assign(s_.nz, 0.0);
@@ -111,6 +112,7 @@ void SensorHealth::reset(bool keep_counts) {
   if (!keep_counts) diagnostics = PolicyDiagnostics();
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
+  std::fill(frozen_now_.begin(), frozen_now_.end(), 0);
   std::fill(freeze_since_.begin(), freeze_since_.end(), -INFINITY);
   std::fill(freeze_last_t_.begin(), freeze_last_t_.end(), -INFINITY);
   std::fill(freeze_count_.begin(), freeze_count_.end(), 0);
@@ -164,6 +166,7 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
     bool same = has_freeze_value_[k] != 0;
     for (int i = 0; same && i < size; ++i) same = zb[i] == last[i];  // NaN never repeats
     if (!has_freeze_value_[k] || gap || !same) {
+      frozen_now_[k] = 0;
       std::copy(zb, zb + size, last);
       has_freeze_value_[k] = 1;
       freeze_since_[k] = t;
@@ -178,6 +181,7 @@ const double* SensorHealth::unfreeze(double t, const double* z, bool& frozen) {
         copied = true;
       }
       std::fill(z_.begin() + start, z_.begin() + start + size, NAN);
+      frozen_now_[k] = 1;
       // its last reading is that of the freeze's start: the repeated ones since then were
       // no readings, so its silence (which unobserves its part of the shape) dates from it
       imu_last_valid_[k] = std::min(imu_last_valid_[k], freeze_since_[k]);
@@ -228,8 +232,8 @@ bool SensorHealth::observed_now(double t) {
   if (n == 1) return true;  // its silence is the whole robot's gap
   const double window = unobserved_window();
   std::vector<int> recent;
-  for (size_t k = 0; k < n; ++k)
-    if (t - imu_last_valid_[k] <= window) recent.push_back(static_cast<int>(k));
+  for (size_t k = 0; k < n; ++k)  // a frozen IMU observes nothing, however recent
+    if (t - imu_last_valid_[k] <= window && !frozen_now_[k]) recent.push_back(static_cast<int>(k));
   if (recent.size() == n || recent.empty()) return true;  // all reporting, or none
   auto it = observable_cache_.find(recent);
   if (it != observable_cache_.end()) return it->second;

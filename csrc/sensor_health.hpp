@@ -256,6 +256,9 @@ class SensorHealth {
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
   std::vector<char> has_freeze_value_;
+  // per IMU: its readings of the last sample were a freeze's (set by unfreeze): it
+  // observes nothing from the freeze's discovery on (observed_now)
+  std::vector<char> frozen_now_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
   std::vector<int> back_rows_, rows_;
   std::optional<double> rejecting_since_;

@@ -464,3 +464,20 @@ def test_a_start_bent_past_90_degrees_with_the_next_imu_upright_is_said_as_eithe
         "its mount_rpy; or the IMUs in another order? IMU 1 is the one nearest the base: "
         "the columns' order, or the --topic order of a bag)"
     ), said
+
+
+def test_dropout_rows_past_the_bound_are_not_counted_against_theta_max() -> None:
+    """Rows without a reading (``dropout``: the motion model's prediction) that reach
+    theta_max say nothing of how far the robot bends: the bound's notice counts the
+    rows with readings that reach it, and every ``at-bound`` row, not them."""
+    from continuum_mhe.estimators.run_notices import BendsOnBound
+    from continuum_mhe.settings import RobotSettings
+
+    f = make_formulation("bend", RobotSettings(theta_max=1.5))
+    theta = f.outputs.index(next(o for o in f.outputs if o.name == "theta"))
+    output = np.zeros((4, f.ny))
+    output[:, theta] = [1.6, 1.6, 0.3, 1.0]
+    bends = BendsOnBound(f)
+    bends.add(output, ["dropout", "ok", "at-bound", "dropout"])
+    assert bends.count == 2 and dict(bends.statuses) == {"ok": 1, "at-bound": 1}
+    assert bends.largest == [1.6]

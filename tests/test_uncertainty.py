@@ -501,6 +501,30 @@ def test_a_frozen_imu_is_silent_from_its_freezes_start(method: str) -> None:
     assert set(s.status[found]) <= {"uncertain", "inconsistent", "reset", "at-bound"}
 
 
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_a_frozen_imu_observes_nothing_from_its_freezes_discovery(method: str) -> None:
+    """The same robot with the default freeze (0.2 s): the freeze is found 0.2 s after
+    it began, when the IMU's silence is shorter than the unobserved window (1 s); a
+    frozen IMU observes nothing however recent its last reading, so every row from the
+    discovery on is not ``ok`` (counted as reporting until its silence outgrew the
+    window, it left rows up to 79 mm off ``ok`` on a spatial recording)."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("spatial", robot, duration=6.0, seed=1)
+    f = make_formulation("bend", robot)
+    z = rec.z.copy()
+    stuck = (rec.t >= 3.0) & (rec.t < 5.0)
+    tip = f.measurement_blocks[1].slice
+    z[stuck, tip] = z[np.flatnonzero(stuck)[0], tip]
+    est = make_estimator(method, f, recovery=bare(freeze=0.2))
+    s = est.run(rec.t, z)
+    found = stuck & (rec.t > 3.0 + 0.2 + 1e-9)
+    assert est.diagnostics.first_freezes == {1: 3.0}
+    assert found.sum() >= 30 and "ok" not in set(s.status[found])
+
+
 @pytest.mark.parametrize("index", range(5), ids=["ekf-c", "ekf", "ukf", "mhe-fast", "mhe-ipopt"])
 def test_each_run_counts_its_own_recording(index: int) -> None:
     """Each ``run`` counts its own recording: the counts (gap resets, frozen samples,

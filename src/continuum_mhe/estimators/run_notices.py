@@ -51,7 +51,8 @@ class BendsOnBound:
     status (a restart's row on the bound is ``reset``, not ``at-bound``), with each
     section's largest bend, for one line at the end (:meth:`notice`). The rows counted
     are the rows of the file whose ``theta_k`` reach the bound, and every ``at-bound``
-    row."""
+    row; not ``dropout`` rows (no reading: the motion model's prediction reached the
+    bound, which says nothing of how far the robot bends)."""
 
     def __init__(self, formulation: Formulation) -> None:
         robot = formulation.robot
@@ -73,6 +74,7 @@ class BendsOnBound:
             theta = np.abs(output[:, self._columns])
             with np.errstate(invalid="ignore"):
                 reached = theta >= self._limits - AT_BOUND_TOL
+            reached &= (status != Status.DROPOUT.value)[:, None]
             on = on | reached.any(axis=1)
             self.largest = _largest_bends(self.largest, theta, reached)
         self.count += int(on.sum())
