@@ -1537,7 +1537,22 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{mn}: at t = " in err[0]
-    assert "would bend section 1 through" in err[0] and "(mN?)" in err[0] and not out.exists()
+    assert "would bend section 1 through" in err[0] and not out.exists()
+    assert "N m^2): tensions in N (mN?), or the robot file's [backbone] too soft" in err[0]
+    # tensions a tendon carries in N, with a modulus given in MPa: the backbone first
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    mpa = tmp_path / "mpa.toml"
+    text = shipped.read_text().replace("youngs_modulus = 54e9", "youngs_modulus = 540000")
+    mpa.write_text(text.replace("shear_modulus = 20.77e9", "shear_modulus = 207700"))
+    argv = ["estimate", str(DATA / "unloaded_raw.csv"), "--robot", str(mpa),
+            "--inputs", str(DATA / "unloaded_tensions.csv"), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "would bend section" in err[0] and not out.exists()
+    assert (
+        "N m^2): the robot file's [backbone] too soft (youngs_modulus 540000 Pa: MPa?; radius "
+        "0.0007 m), or tensions in N (mN?)?"
+    ) in err[0]
 
 
 @pytest.mark.parametrize(

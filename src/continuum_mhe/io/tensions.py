@@ -46,6 +46,10 @@ from continuum_mhe.model.tendon import TendonFormulation
 #: its bending stiffness, times its length) before the tensions are refused as another
 #: unit: a load at the tip may hold a section against more than its tendons' own bend.
 MAX_TENDON_TURNS = 2.0
+#: The largest tension (N) read as a tension in N where the tensions would bend a section
+#: too far: beyond it, the tensions are more likely in another unit (mN) than the
+#: backbone too soft.
+PLAUSIBLE_TENSION_N = 200.0
 #: The tensions' derivatives are taken on rows at least about this far apart (s; the
 #: IMUs' 50 Hz): a faster file is averaged into bins of this length first
 #: (:func:`tension_derivatives`).
@@ -197,12 +201,20 @@ class Tensions:
             bend = moment * section.length / ei
             i = int(np.argmax(bend))
             if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
+                bb = robot.backbone
+                soft = (
+                    f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
+                    f"Pa: MPa?; radius {bb.radius:g} m)"
+                )
+                # tensions a tendon can carry in N point at the backbone first
+                causes = [soft, "tensions in N (mN?)"]
+                if float(np.max(self.rows)) > PLAUSIBLE_TENSION_N:
+                    causes.reverse()
                 raise InputError(
                     f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
                     f"({', '.join(f'{v:g}' for v in self.rows[i])} N) would bend section "
                     f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
-                    f"stiffness {ei:.3g} N m^2): tensions in N (mN?), or the robot file's "
-                    "[backbone] too soft (youngs_modulus in Pa, radius in m)?"
+                    f"stiffness {ei:.3g} N m^2): {causes[0]}, or {causes[1]}?"
                 )
 
     def warn_suspect(self) -> None:
