@@ -15,6 +15,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <vector>
 
 #include "model_function.hpp"
@@ -105,6 +106,13 @@ class ConsistencyCheck {
   // ``d = (H^T R^-1 H)^+ H^T R^-1 r`` over the states the readings depend on; computed
   // only where the fit's NIS is beyond its limit (else 0)
   double shift() const { return shift_; }
+  // how many times this estimate's covariance must grow for the shift that fits the
+  // readings to lie at its quantile (``shift() / shift_limit``); 1 where the shift is
+  // within it, or was not computed
+  double shift_inflation() const {
+    if (!(shift_ > 0.0) || shift_dof_ <= 0) return 1.0;
+    return std::max(1.0, shift_ / s_.shift_limit[shift_dof_]);
+  }
   int dof() const { return dof_; }     // this sample's judged readings
   bool has_previous() const { return has_prev_; }
 

@@ -477,7 +477,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     status = ST_AT_BOUND;  // the bound, not the data, may have set the shape
     ++diagnostics.bound_samples;
   }
-  double factor = 1.0;
+  double factor = 1.0, shift_factor = 1.0;
   if (s_.checks_start) {  // the readings against the estimates (consistency.hpp)
     // a reading the robust MHE rejected as an outlier is flagged as one, and says
     // nothing about the estimate
@@ -518,6 +518,11 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
     const double scale = consistency_.noise_scale();
     factor = scale > 1.0 ? std::sqrt(scale) : 1.0;
+    // a row whose readings this estimate cannot explain (inconsistent, or another
+    // status that is not ok): its covariance grows until the shift that would fit them
+    // lies within it, so that its standard deviation says how far off the readings put
+    // it (after the statuses are decided: it changes no row's status)
+    if (disagree) shift_factor = std::sqrt(consistency_.shift_inflation());
     diagnostics.max_noise_scale = std::max(diagnostics.max_noise_scale, scale);
     diagnostics.model_error = std::max(diagnostics.model_error, consistency_.model_error());
   }
@@ -536,6 +541,8 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       if (tip_std(ystd) > s_.uncertain_fraction * s_.length) wide_t_ = t;
       if (status == ST_OK && t - wide_t_ < unobserved_window()) status = ST_UNCERTAIN;
     }
+    if (shift_factor != 1.0)
+      for (int i = 0; i < ny; ++i) ystd[i] *= shift_factor;
     if (s_.checks_start) {  // constant reading errors, model error: no residual shows them
       consistency_.constant_error_cov(z, mask_.data(), x, bias_.data());
       inference_.output_std(x, bias_.data(), std_b_.data());

@@ -166,8 +166,9 @@ class Estimate:
         solve_ms: wall time spent on this sample, ms.
         output_std: one standard deviation of every output (same units as ``output``),
             from ``covariance`` through the outputs (``Formulation.output_std``: its
-            sigma points), widened by the model error the readings show and the
-            readings' constant errors
+            sigma points), widened by the model error the readings show, by the
+            shift the readings ask for where the estimate cannot explain them (a row
+            whose status is not ``ok``), and by the readings' constant errors
             (``estimators.consistency``); None where unknown.
         outlier: the robust MHE down-weighted this sample's measurement (a block's
             weight below ``estimators.loss.OUTLIER_WEIGHT`` in this solve); always
