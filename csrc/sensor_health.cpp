@@ -522,7 +522,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // status that is not ok): its covariance grows until the shift that would fit them
     // lies within it, so that its standard deviation says how far off the readings put
     // it (after the statuses are decided: it changes no row's status)
-    if (disagree) shift_factor = std::sqrt(consistency_.shift_inflation());
+    // (the shift is measured against the plain covariance: the model error's widening
+    // already counts towards it)
+    if (disagree)
+      shift_factor = std::sqrt(std::max(1.0, consistency_.shift_inflation() / std::max(1.0, scale)));
     diagnostics.max_noise_scale = std::max(diagnostics.max_noise_scale, scale);
     diagnostics.model_error = std::max(diagnostics.model_error, consistency_.model_error());
   }

@@ -800,3 +800,28 @@ def test_a_message_whose_rates_are_marked_absent_among_others_names_the_flag(
     err = capsys.readouterr().err
     assert "(sample 51): angular_velocity is absent (NaN, or marked absent: " in err
     assert "angular_velocity_covariance[0] = -1) (a dropout; --skip-bad keeps it" in err
+
+
+def test_a_bag_folder_is_read_as_its_mcap_only_where_its_metadata_lists_it_alone(
+    tmp_path: Path,
+) -> None:
+    """The folder's one MCAP file is read directly only where ``metadata.yaml`` lists
+    that file alone and no compression; a bag compressed by rosbag2, or one whose
+    metadata lists more files (a split bag with a part missing), is left to rosbags."""
+    from continuum_mhe.io.robot_logs import _single_mcap
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(b"")
+    meta = bag / "metadata.yaml"
+    head = "rosbag2_bagfile_information:\n  storage_identifier: mcap\n"
+    meta.write_text(head + "  compression_mode: ''\n  relative_file_paths:\n  - bag_0.mcap\n")
+    assert _single_mcap(bag) == bag / "bag_0.mcap"
+    meta.write_text(head + "  compression_mode: MESSAGE\n  relative_file_paths:\n  - bag_0.mcap\n")
+    assert _single_mcap(bag) is None
+    meta.write_text(
+        head + "  compression_mode: ''\n  relative_file_paths:\n  - bag_0.mcap\n  - bag_1.mcap\n"
+    )
+    assert _single_mcap(bag) is None
+    meta.unlink()
+    assert _single_mcap(bag) is None

@@ -705,6 +705,15 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     else:
         log = read_imu_log(p, options.topic, options.skip_bad)
         logs, t, t0_ns, skipped, notes = (log,), log.t, log.t0_ns, log.skipped, ()
+    for log in logs:
+        no_accel = ~np.isfinite(log.acc).all(axis=1) | ~(np.abs(log.acc) > 0).any(axis=1)
+        oriented = np.isfinite(log.orientation).all(axis=1)
+        if not options.use_orientation and no_accel.all() and oriented.all():
+            raise InputError(
+                f"{p}: topic {log.topic}: linear_acceleration is zero or absent in every "
+                "message while its orientation is given (an orientation-only IMU): "
+                "--orientation reads its roll and pitch"
+            )
     has_gyro = all(log.gyr is not None for log in logs)
     with_rates = [log.topic for log in logs if log.gyr is not None]
     tilt_asked = options.raw.imu_model == "tilt" and options.raw.attitude == "accel"
@@ -718,15 +727,6 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         )
     options, f = decide_model(str(p), "log", has_gyro, options, formulation)
     blocks = []
-    for log in logs:
-        no_accel = ~np.isfinite(log.acc).all(axis=1) | ~(np.abs(log.acc) > 0).any(axis=1)
-        oriented = np.isfinite(log.orientation).all(axis=1)
-        if not options.use_orientation and no_accel.all() and oriented.any():
-            raise InputError(
-                f"{p}: topic {log.topic}: linear_acceleration is zero or absent in every "
-                "message while its orientation is given (an orientation-only IMU): "
-                "--orientation reads its roll and pitch"
-            )
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
             if not np.all(np.isfinite(log.orientation)):

@@ -170,13 +170,21 @@ def _single_mcap(path: Path) -> Path | None:
     """The MCAP file to read ``path`` as: ``path`` itself where it is one, the one
     ``.mcap`` of a ROS 2 bag folder stored as MCAP (rosbag2's default storage; read as
     the file it is, so that a recording cut short is read up to the cut as a lone MCAP
-    file is), else None (a ``.bag``, a SQLite bag, a bag split into several files)."""
+    file is), where its ``metadata.yaml`` lists that file alone and no compression;
+    else None (a ``.bag``, a SQLite bag, a bag split into several files or compressed
+    by rosbag2: rosbags reads those)."""
     if path.suffix.lower() == ".mcap":
         return path
-    if path.is_dir():
-        files = sorted(path.glob("*.mcap"))
-        if len(files) == 1 and not any(path.glob("*.db3")):
-            return files[0]
+    meta = path / "metadata.yaml"
+    if not (path.is_dir() and meta.is_file()):
+        return None
+    files = sorted(path.glob("*.mcap"))
+    text = meta.read_text(errors="replace")
+    listed = re.findall(r"^\s*-\s*['\"]?([^'\"\s]+\.mcap)['\"]?\s*$", text, re.MULTILINE)
+    mode = re.search(r"^\s*compression_mode:\s*['\"]?([A-Za-z]*)", text, re.MULTILINE)
+    plain = mode is None or mode.group(1).lower() in ("", "none")
+    if len(files) == 1 and listed == [files[0].name] and plain:
+        return files[0]
     return None
 
 
@@ -313,9 +321,10 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
     try:
-        if p.suffix.lower() == ".mcap":
+        storage = _single_mcap(p)
+        if storage is not None:
             require("mcap", "robot", f"reading the MCAP file {p}")
-            return _mcap_topics(p)
+            return _mcap_topics(storage)
         require("rosbags", "robot", f"reading the ROS bag {p}")
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
