@@ -20,11 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.cli.config import apply_config, options_record
-from continuum_mhe.cli.options import (
-    OneLineParser,
-    check_option_ranges,
-    check_robot_replaces,
-)
+from continuum_mhe.cli.options import check_option_ranges, check_robot_replaces
+from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit
 from continuum_mhe.errors import UserError

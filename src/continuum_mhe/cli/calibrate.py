@@ -20,8 +20,9 @@ from continuum_mhe.calibration.at_rest import (
     motion_at_rest,
 )
 from continuum_mhe.calibration.bend import YawCalibration
-from continuum_mhe.cli.options import add_overwrite_option, add_robot_option, robot_from_args
+from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs

@@ -6,8 +6,8 @@ import argparse
 import json
 import sys
 
-from continuum_mhe.cli.options import robot_from_args
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.robot_options import robot_from_args
 from continuum_mhe.errors import InputError, UserError
 
 

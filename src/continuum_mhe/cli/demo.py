@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from continuum_mhe.cli.options import add_robot_option, robot_from_args
+from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.estimators import METHODS, EstimateSeries, make_estimator
 from continuum_mhe.evaluation.metrics import Metrics, compute_metrics

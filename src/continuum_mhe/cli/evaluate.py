@@ -11,8 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from continuum_mhe.cli.options import add_robot_option, estimate_robot
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.robot_options import add_robot_option, estimate_robot
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,

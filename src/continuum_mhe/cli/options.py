@@ -1,27 +1,28 @@
 """Command-line options shared by every command that estimates (``estimate``, ``live``,
-``simulate``, ``evaluate``, ``demo``): the robot, the model and the MHE. One place, used
-by every command module of this package (``estimate``, ``live``, ``calibrate``, ...).
-The serial stream's and the 3D view's options: :mod:`.live_options`."""
+``simulate``, ``evaluate``, ``demo``): the model, the method, the MHE, recovery and raw
+IMUs. One place, used by every command module of this package (``estimate``, ``live``,
+``calibrate``, ...). The robot's options: :mod:`.robot_options`; the serial stream's and
+the 3D view's: :mod:`.live_options`."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import re
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any
 
-from continuum_mhe.cli.config import beside, options_record, recorded_option
+from continuum_mhe.cli.config import options_record
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError
 from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
 from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.model.robot import Robot, theta_max_hint
+from continuum_mhe.model.robot import theta_max_hint
 from continuum_mhe.settings import (
     DEFAULT_LOSS_SCALE,
     FORMULATIONS,
@@ -39,199 +40,6 @@ from continuum_mhe.settings import (
 if TYPE_CHECKING:
     from continuum_mhe.estimators import Method
 
-
-def add_robot_option(
-    g: argparse._ActionsContainer,
-    replaces: Sequence[str] = ("--length", "--theta-max", "--mounting"),
-    tendons: bool = True,
-) -> None:
-    """``--robot ROBOT.toml``; its help names ``replaces``, the command's one-section
-    options that a robot file overrides, and, unless ``tendons`` (the command takes
-    tendon robots), says that it takes constant-curvature robots and names only those
-    of the shipped robots."""
-    from continuum_mhe.io.robot_file import shipped_robots
-
-    if tendons:
-        names = ", ".join(shipped_robots())
-        text = (
-            "robot file (sections, IMUs, mounting; a tendon robot's [backbone] and "
-            f"[[tendon]]: docs/tendon.md; see README), or a shipped robot's name ({names})"
-        )
-    else:
-        names = ", ".join(shipped_robots(tendons=False))
-        text = (
-            "constant-curvature robot file (sections, IMUs, mounting; see README), or a "
-            f"shipped one's name ({names}); a tendon robot's recordings come from "
-            "python -m continuum_mhe.simulation.cosserat_tendon"
-        )
-    if replaces:
-        *first, last = replaces
-        text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
-    g.add_argument("--robot", metavar="ROBOT.toml", help=text)
-    # read by the options record: what a robot file sets is not recorded from the flags
-    g.set_defaults(robot_replaces=tuple(o.lstrip("-").replace("-", "_") for o in replaces))
-
-
-def robot_from_args(args: argparse.Namespace) -> Robot:
-    """The robot of a command: ``--robot`` file, else the one-section flags (a
-    ``--length`` or ``--mounting`` of None: :data:`DEFAULT_LENGTH`, ``z-up``). A
-    ``--estimate-tension-gain`` for a robot without tendons is refused, naming the
-    options file's line where it came from one."""
-    if getattr(args, "robot", None):
-        from continuum_mhe.io.robot_file import read_robot
-
-        robot = read_robot(args.robot)
-    else:
-        length = getattr(args, "length", None)
-        try:
-            robot = Robot.single(
-                DEFAULT_LENGTH if length is None else length,
-                getattr(args, "theta_max", math.pi / 2),
-                getattr(args, "mounting", None) or "z-up",
-            )
-        except ValueError as exc:
-            raise InputError(f"robot: {exc}") from None
-    if getattr(args, "estimate_tension_gain", False) and not robot.n_tendons:
-        named = getattr(args, "config_sources", {}).get("estimate_tension_gain")
-        raise InputError(
-            f"{named or '--estimate-tension-gain'} does not apply: it is for a tendon robot "
-            "(a robot file with [[tendon]] entries and a [backbone]), and "
-            + (
-                f"the robot file {args.robot} has"
-                if getattr(args, "robot", None)
-                else "this robot has"
-            )
-            + " no tendons"
-        )
-    return robot
-
-
-def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
-    """The robot an estimate CSV ``path`` was made on, for a command that reads it:
-    ``--robot``, or one section of ``--length`` (and ``--mounting``) where one is
-    given; else the robot file the estimate's options line names, where it can be read
-    (said in a note ending in ``use``, what the command does on it); else one section
-    of :data:`DEFAULT_LENGTH`."""
-    given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
-    robot = None if given else recorded_robot(path, use)
-    if robot is not None:
-        return robot
-    robot = robot_from_args(args)
-    if args.robot:
-        warn_other_recorded_robot(path, args.robot, robot)
-    return robot
-
-
-def _geometry(robot: Robot) -> tuple[object, ...]:
-    """What a robot's outputs depend on: its sections' lengths and its IMUs' places."""
-    return (robot.lengths, tuple((i.section, i.at) for i in robot.imus))
-
-
-def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
-    """A warning (a line on stderr) where the estimate ``path`` records, in its options
-    line, a robot file other than the ``--robot`` ``given`` (``robot``, as read) with
-    other sections or IMUs: the command then uses the given robot, likely not the one
-    the estimate was made on. Nothing where the recorded file cannot be read."""
-    from continuum_mhe.errors import UserError
-    from continuum_mhe.io.robot_file import read_robot
-
-    name = recorded_option(path, "robot")
-    if not isinstance(name, str) or name == given:
-        return
-    try:
-        recorded = read_robot(beside(path, name))
-    except UserError:
-        return
-    if _geometry(recorded) == _geometry(robot):  # the same robot (a copy, another path)
-        return
-
-    def described(r: Robot) -> str:
-        """Sections and, where those agree, IMU places: what tells the two apart."""
-        if r.lengths != (recorded.lengths if r is robot else robot.lengths):
-            return "sections of " + ", ".join(f"{v:g}" for v in r.lengths) + " m"
-        return "IMUs at " + ", ".join(f"section {i.section + 1} at {i.at:g}" for i in r.imus)
-
-    print(
-        f"{PROG}: warning: {path} was estimated with --robot {name} (its options line: "
-        f"{described(recorded)}), not with --robot {given} ({described(robot)}); the given "
-        "one is used: leave --robot out to use the recorded one",
-        file=sys.stderr,
-    )
-
-
-def recorded_robot(path: str, use: str) -> Robot | None:
-    """The robot file the options line of the estimate ``path`` names, where it can be
-    read (said in a note), else None."""
-    from continuum_mhe.errors import UserError
-    from continuum_mhe.io.robot_file import read_robot
-
-    name = recorded_option(path, "robot")
-    if not isinstance(name, str):
-        return None
-    try:
-        robot = read_robot(beside(path, name))
-    except UserError as exc:
-        print(
-            f"{PROG}: note: {path} was estimated with --robot {name}, which cannot be read "
-            f"here ({exc}); give --robot",
-            file=sys.stderr,
-        )
-        return None
-    print(
-        f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
-        f"{use} (pass --robot for another)",
-        file=sys.stderr,
-    )
-    return robot
-
-
-_INVALID_VALUE = re.compile(r"argument (\S+?)(?:/\S+)?: invalid (int|float) value: (.*)")
-_INVALID_CHOICE = re.compile(
-    r"argument (\S+?)(?:/\S+)?: invalid choice: '(.*)' \(choose from (.*)\)"
-)
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line naming the option and the problem
-    (``--horizon 3.5: expected a whole number``), exit 2, instead of the usage."""
-
-    def error(self, message: str) -> NoReturn:
-        m = _INVALID_VALUE.fullmatch(message)
-        if m is not None:
-            what = "a whole number" if m.group(2) == "int" else "a number"
-            message = f"{m.group(1)} {m.group(3)}: expected {what}"
-        elif message.startswith("unrecognized arguments: "):
-            message += self._did_you_mean(message.split(": ", 1)[1].split())
-        elif (c := _INVALID_CHOICE.fullmatch(message)) is not None:
-            import difflib
-
-            choices = [x.strip(" '") for x in c.group(3).split(",")]
-            close = difflib.get_close_matches(c.group(2), choices, n=1, cutoff=0.6)
-            what = (
-                f"{c.group(2)!r} is not a command"
-                if c.group(1) == "COMMAND"
-                else (f"{c.group(1)} {c.group(2)!r}")
-            )
-            message = f"{what}: expected one of {', '.join(choices)}"
-            if close:
-                message += f"; did you mean {close[0]}?"
-        self.exit(2, f"{self.prog}: error: {message} ({self.prog} --help lists the options)\n")
-
-    def _did_you_mean(self, given: list[str]) -> str:
-        """``; did you mean --length?`` for a misspelt option among ``given``, else ``""``."""
-        import difflib
-
-        known = [o for a in self._actions for o in a.option_strings if o.startswith("--")]
-        for word in given:
-            if word.startswith("--"):
-                close = difflib.get_close_matches(word.split("=", 1)[0], known, n=1, cutoff=0.75)
-                if close:
-                    return f"; did you mean {close[0]}?"
-        return ""
-
-
-#: One section's length (m) where neither ``--robot`` nor ``--length`` gives one.
-DEFAULT_LENGTH = 0.2
 
 #: Options measurably worse than the default on the shipped two-section rod recordings
 #: (``data/rod2``, raw IMUs, the MHE, ``--robot two-section``): per rod, the mean tip

@@ -124,7 +124,7 @@ def _tendon_backbone(
     against ``t`` as ``estimate`` checks it); None (the section ends joined, said in a
     note) without them."""
     from continuum_mhe.cli.config import recorded_option
-    from continuum_mhe.cli.options import recorded_robot
+    from continuum_mhe.cli.robot_options import recorded_robot
     from continuum_mhe.evaluation.estimate_figure import has_tip_force, tendon_backbone
     from continuum_mhe.io.tensions import read_tensions
 

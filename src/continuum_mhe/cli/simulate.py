@@ -8,13 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from continuum_mhe.cli.options import (
-    add_overwrite_option,
-    add_robot_option,
-    given_options,
-    robot_from_args,
-)
+from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG
+from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.estimate_csv import write_measurements, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs

@@ -6,13 +6,8 @@ from __future__ import annotations
 import argparse
 
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
-from continuum_mhe.cli.options import (
-    DEFAULT_LENGTH,
-    add_overwrite_option,
-    add_robot_option,
-    add_tensions_option,
-    estimate_robot,
-)
+from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
+from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.viewer import INSTALL_HINT, replay
 

@@ -1,0 +1,163 @@
+"""The robot a command estimates on: ``--robot`` (a robot file or a shipped robot's
+name) or the one-section flags, and the robot an estimate file records in its options
+line, for the commands that read estimates (``evaluate``, ``plot``, ``view``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+
+from continuum_mhe.cli.config import beside, recorded_option
+from continuum_mhe.cli.program import PROG
+from continuum_mhe.errors import InputError
+from continuum_mhe.model.robot import Robot
+
+#: One section's length (m) where neither ``--robot`` nor ``--length`` gives one.
+DEFAULT_LENGTH = 0.2
+
+
+def add_robot_option(
+    g: argparse._ActionsContainer,
+    replaces: Sequence[str] = ("--length", "--theta-max", "--mounting"),
+    tendons: bool = True,
+) -> None:
+    """``--robot ROBOT.toml``; its help names ``replaces``, the command's one-section
+    options that a robot file overrides, and, unless ``tendons`` (the command takes
+    tendon robots), says that it takes constant-curvature robots and names only those
+    of the shipped robots."""
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    if tendons:
+        names = ", ".join(shipped_robots())
+        text = (
+            "robot file (sections, IMUs, mounting; a tendon robot's [backbone] and "
+            f"[[tendon]]: docs/tendon.md; see README), or a shipped robot's name ({names})"
+        )
+    else:
+        names = ", ".join(shipped_robots(tendons=False))
+        text = (
+            "constant-curvature robot file (sections, IMUs, mounting; see README), or a "
+            f"shipped one's name ({names}); a tendon robot's recordings come from "
+            "python -m continuum_mhe.simulation.cosserat_tendon"
+        )
+    if replaces:
+        *first, last = replaces
+        text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
+    g.add_argument("--robot", metavar="ROBOT.toml", help=text)
+    # read by the options record: what a robot file sets is not recorded from the flags
+    g.set_defaults(robot_replaces=tuple(o.lstrip("-").replace("-", "_") for o in replaces))
+
+
+def robot_from_args(args: argparse.Namespace) -> Robot:
+    """The robot of a command: ``--robot`` file, else the one-section flags (a
+    ``--length`` or ``--mounting`` of None: :data:`DEFAULT_LENGTH`, ``z-up``). A
+    ``--estimate-tension-gain`` for a robot without tendons is refused, naming the
+    options file's line where it came from one."""
+    if getattr(args, "robot", None):
+        from continuum_mhe.io.robot_file import read_robot
+
+        robot = read_robot(args.robot)
+    else:
+        length = getattr(args, "length", None)
+        try:
+            robot = Robot.single(
+                DEFAULT_LENGTH if length is None else length,
+                getattr(args, "theta_max", math.pi / 2),
+                getattr(args, "mounting", None) or "z-up",
+            )
+        except ValueError as exc:
+            raise InputError(f"robot: {exc}") from None
+    if getattr(args, "estimate_tension_gain", False) and not robot.n_tendons:
+        named = getattr(args, "config_sources", {}).get("estimate_tension_gain")
+        raise InputError(
+            f"{named or '--estimate-tension-gain'} does not apply: it is for a tendon robot "
+            "(a robot file with [[tendon]] entries and a [backbone]), and "
+            + (
+                f"the robot file {args.robot} has"
+                if getattr(args, "robot", None)
+                else "this robot has"
+            )
+            + " no tendons"
+        )
+    return robot
+
+
+def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
+    """The robot an estimate CSV ``path`` was made on, for a command that reads it:
+    ``--robot``, or one section of ``--length`` (and ``--mounting``) where one is
+    given; else the robot file the estimate's options line names, where it can be read
+    (said in a note ending in ``use``, what the command does on it); else one section
+    of :data:`DEFAULT_LENGTH`."""
+    given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
+    robot = None if given else recorded_robot(path, use)
+    if robot is not None:
+        return robot
+    robot = robot_from_args(args)
+    if args.robot:
+        warn_other_recorded_robot(path, args.robot, robot)
+    return robot
+
+
+def _geometry(robot: Robot) -> tuple[object, ...]:
+    """What a robot's outputs depend on: its sections' lengths and its IMUs' places."""
+    return (robot.lengths, tuple((i.section, i.at) for i in robot.imus))
+
+
+def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
+    """A warning (a line on stderr) where the estimate ``path`` records, in its options
+    line, a robot file other than the ``--robot`` ``given`` (``robot``, as read) with
+    other sections or IMUs: the command then uses the given robot, likely not the one
+    the estimate was made on. Nothing where the recorded file cannot be read."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    name = recorded_option(path, "robot")
+    if not isinstance(name, str) or name == given:
+        return
+    try:
+        recorded = read_robot(beside(path, name))
+    except UserError:
+        return
+    if _geometry(recorded) == _geometry(robot):  # the same robot (a copy, another path)
+        return
+
+    def described(r: Robot) -> str:
+        """Sections and, where those agree, IMU places: what tells the two apart."""
+        if r.lengths != (recorded.lengths if r is robot else robot.lengths):
+            return "sections of " + ", ".join(f"{v:g}" for v in r.lengths) + " m"
+        return "IMUs at " + ", ".join(f"section {i.section + 1} at {i.at:g}" for i in r.imus)
+
+    print(
+        f"{PROG}: warning: {path} was estimated with --robot {name} (its options line: "
+        f"{described(recorded)}), not with --robot {given} ({described(robot)}); the given "
+        "one is used: leave --robot out to use the recorded one",
+        file=sys.stderr,
+    )
+
+
+def recorded_robot(path: str, use: str) -> Robot | None:
+    """The robot file the options line of the estimate ``path`` names, where it can be
+    read (said in a note), else None."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    name = recorded_option(path, "robot")
+    if not isinstance(name, str):
+        return None
+    try:
+        robot = read_robot(beside(path, name))
+    except UserError as exc:
+        print(
+            f"{PROG}: note: {path} was estimated with --robot {name}, which cannot be read "
+            f"here ({exc}); give --robot",
+            file=sys.stderr,
+        )
+        return None
+    print(
+        f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
+        f"{use} (pass --robot for another)",
+        file=sys.stderr,
+    )
+    return robot
