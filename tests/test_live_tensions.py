@@ -22,7 +22,8 @@ from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import SerialInput, open_input, serial_input
 from continuum_mhe.io.robot_file import read_robot, shipped_robots
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.io.tensions import TensionStream, central_differences, read_tensions
+from continuum_mhe.io.tension_derivatives import central_differences
+from continuum_mhe.io.tensions import TensionStream, read_tensions
 from continuum_mhe.live.run import run_live
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.formulations import Formulation

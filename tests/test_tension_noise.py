@@ -1,6 +1,6 @@
 """Noisy tensions: a tensions file whose rows scatter (a load cell's noise) is smoothed
 by a local cubic before the estimators take its values, rates and second derivatives
-(``continuum_mhe.io.tensions.tension_derivatives``), and this is said; a smooth file is
+(``continuum_mhe.io.tension_derivatives.tension_derivatives``), and this is said; a smooth file is
 taken row by row as it is."""
 
 from __future__ import annotations
@@ -14,18 +14,17 @@ import pytest
 from scipy.signal import savgol_coeffs
 
 from continuum_mhe.cli import main
-from continuum_mhe.io import tensions as tension_io
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.io.tensions import (
+from continuum_mhe.io.tension_derivatives import (
+    MAX_SMOOTHING_S,
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
-    Tensions,
-    TensionStream,
-    TensionsWarning,
-    read_tensions,
+    central_differences,
+    line_knots,
     smoothing_rows,
     tension_noise_std,
 )
+from continuum_mhe.io.tensions import Tensions, TensionStream, TensionsWarning, read_tensions
 
 DATA = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 
@@ -62,7 +61,7 @@ def test_the_smoothing_is_the_shortest_that_meets_the_derivatives_noise(noise: f
         rate, acc = gains(n)
         return rate <= TENSION_RATE_NOISE and acc <= TENSION_ACCELERATION_NOISE
 
-    longest = 2 * int(tension_io.MAX_SMOOTHING_S / step / 2) + 1
+    longest = 2 * int(MAX_SMOOTHING_S / step / 2) + 1
     assert rows <= longest
     assert meets(rows) or rows == longest
     if rows > 5:
@@ -116,8 +115,8 @@ def test_a_cubic_in_time_keeps_its_derivatives_through_the_smoothing() -> None:
     inner = slice(50, -50)  # away from the ends' one-sided fits
     assert np.abs(table.rates - rate)[inner].max() < 4 * TENSION_RATE_NOISE
     assert np.abs(table.accelerations - acc)[inner].max() < 4 * TENSION_ACCELERATION_NOISE
-    plain = tension_io.central_differences(t, noisy)
-    assert np.abs(tension_io.central_differences(t, plain) - acc)[inner].max() > 20.0
+    plain = central_differences(t, noisy)
+    assert np.abs(central_differences(t, plain) - acc)[inner].max() > 20.0
 
 
 def test_noisy_tensions_do_not_throw_the_estimate_off(tmp_path: Path) -> None:
@@ -180,8 +179,8 @@ def test_a_fast_smooth_swing_is_not_read_as_noise(hz: float) -> None:
     v = np.column_stack([3.0 + 2.0 * np.sin(2 * np.pi * hz * t), 1.0 + 0 * t])
     table = Tensions.from_rows("swing.csv", t, v)
     assert table.smoothing is None
-    rates = tension_io.central_differences(t, v)
-    np.testing.assert_array_equal(table.accelerations, tension_io.central_differences(t, rates))
+    rates = central_differences(t, v)
+    np.testing.assert_array_equal(table.accelerations, central_differences(t, rates))
 
 
 def test_a_fast_smooth_log_and_a_hold_keep_every_row() -> None:
@@ -195,7 +194,7 @@ def test_a_fast_smooth_log_and_a_hold_keep_every_row() -> None:
     d = np.loadtxt(DATA / "force-29_tensions.csv", delimiter=",", skiprows=1)
     t = np.arange(0.0, 8.0005, 0.001)
     v = np.maximum(np.round(CubicSpline(d[:, 0], d[:, 1:])(t), 6), 0.0)
-    assert tension_io.line_knots(t, v).all()
+    assert line_knots(t, v).all()
     assert Tensions.from_rows("fast.csv", t, v).smoothing is None
     t50 = np.arange(0.0, 6.0, 0.02)
     held = np.column_stack([np.where(t50 < 2.0, 2.0, 2.0 + 0.3 * np.sin(t50 - 2.0) ** 2)])
@@ -221,7 +220,7 @@ def test_a_slower_log_resampled_linearly_is_differenced_at_its_corners() -> None
     slow = Tensions.from_rows("slow.csv", t[keep], lin[keep])
     at = np.column_stack([np.interp(t, t[keep], slow.accelerations[:, j]) for j in range(6)])
     np.testing.assert_allclose(table.accelerations, at, atol=1e-6)
-    row_by_row = tension_io.central_differences(t, tension_io.central_differences(t, lin))
+    row_by_row = central_differences(t, central_differences(t, lin))
     fifty = read_tensions(DATA / "force-29_tensions.csv", 6).accelerations
 
     def rms(a: np.ndarray) -> float:
@@ -261,7 +260,7 @@ def test_holds_and_ramps_keep_their_rates() -> None:
     t = np.arange(0.0, 8.0, 0.02)
     v = np.column_stack([np.clip(1.0 + 0.5 * (t - 2.0), 1.0, 3.0)])
     table = Tensions.from_rows("command.csv", t, v)
-    assert tension_io.line_knots(t, v).all()
+    assert line_knots(t, v).all()
     ramp = (t > 2.1) & (t < 5.9)
     np.testing.assert_allclose(table.rates[ramp], 0.5, atol=1e-9)
     assert np.abs(table.rates[t < 1.9]).max() < 1e-9
@@ -270,7 +269,7 @@ def test_holds_and_ramps_keep_their_rates() -> None:
     hold = (slow_t >= 3.0) & (slow_t <= 4.4)
     slow[hold] = slow[hold][0]
     fast = np.round(np.column_stack([np.interp(t, slow_t, slow)]), 6)
-    knots = tension_io.line_knots(t, fast)
+    knots = line_knots(t, fast)
     assert knots.sum() < len(t) / 3  # the resampling's pattern is found
     resampled = Tensions.from_rows("resampled.csv", t, fast)
     inside = (t > 3.15) & (t < 4.25)

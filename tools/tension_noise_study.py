@@ -31,6 +31,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.cli import main as cli_main
 from continuum_mhe.io import tensions as tension_io
 from continuum_mhe.io.state_tables import read_state_table
+from continuum_mhe.io.tension_derivatives import DifferencedTensions
 
 DATA = Path(tension_io.__file__).resolve().parents[1] / "data" / "tendon"
 
@@ -38,9 +39,7 @@ DATA = Path(tension_io.__file__).resolve().parents[1] / "data" / "tendon"
 AS_READ = tension_io.tension_derivatives
 
 
-def row_by_row(
-    t: FloatArray, values: FloatArray, binned: bool = True
-) -> tension_io.DifferencedTensions:
+def row_by_row(t: FloatArray, values: FloatArray, binned: bool = True) -> DifferencedTensions:
     """The tensions differenced row by row, as a recording's own columns, whatever asked."""
     return AS_READ(t, values, binned=False)
 

@@ -1,0 +1,300 @@
+"""The tensions' rates and second derivatives as the estimators take them, from a
+tensions file's rows or a recording's own tension columns: central differences,
+averaged over bins where the file is logged fast, smoothed by a local cubic
+(Savitzky-Golay) where its rows scatter, with the rows of a linear resampling left out
+(:func:`tension_derivatives`)."""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from continuum_mhe.arrays import FloatArray
+
+#: The tensions' derivatives are taken on rows at least about this far apart (s; the
+#: IMUs' 50 Hz): a faster file is averaged into bins of this length first
+#: (:func:`tension_derivatives`).
+DERIVATIVE_STEP_S = 0.02
+#: The noise of the tensions' rates (N/s) and second derivatives (N/s^2) the estimators
+#: take without losing accuracy: the shipped ``unloaded`` (raw IMUs, EKF) with white
+#: noise added to its tensions (docs/tendon-studies.md, "Noisy tensions").
+TENSION_RATE_NOISE = 0.04
+TENSION_ACCELERATION_NOISE = 0.2
+#: The longest local cubic the tensions are smoothed over, s.
+MAX_SMOOTHING_S = 1.5
+#: The order of the differences whose spread gives the tensions' noise
+#: (:func:`tension_noise_std`): high enough that a smooth motion's part in them is far
+#: below a load cell's noise.
+NOISE_ORDER = 8
+#: How far a row may lie off the line through its two neighbours, N, and count as on
+#: it (:func:`line_knots`): a file written with six decimals rounds each tension by
+#: half a micronewton.
+ON_LINE_N = 2e-6
+#: The share of the gaps between the corners of a linear resampling that are multiples
+#: of its period (:func:`line_knots`; a hold spans several periods).
+LINE_PATTERN_SHARE = 0.95
+#: The fewest gaps of one period, and the longest period (s), of a linear resampling
+#: (:func:`line_knots`): a controller's hold-ramp-hold has a few long straight stretches.
+MIN_PERIODS = 5
+MAX_RESAMPLED_PERIOD_S = 0.5
+
+
+class TensionSmoothing(NamedTuple):
+    """How a tensions file's rows were smoothed (:func:`tension_derivatives`).
+
+    Attributes:
+        noise_std: the rows' scatter, N (:func:`tension_noise_std`; of a fast file's
+            rows, its bins' scatter times the square root of the rows in a bin).
+        span_s: the local cubic's span, s.
+        rate_noise, acceleration_noise: the noise the scatter leaves in the rates (N/s)
+            and second derivatives (N/s^2).
+    """
+
+    noise_std: float
+    span_s: float
+    rate_noise: float
+    acceleration_noise: float
+
+
+class DifferencedTensions(NamedTuple):
+    """A tensions file's rows as the estimators take them (:func:`tension_derivatives`):
+    ``values`` (n, k) N (smoothed where ``smoothing`` is set), ``rates`` (n, k) N/s,
+    ``accelerations`` (n, k) N/s^2, ``smoothing`` (None: the rows as they are)."""
+
+    values: FloatArray
+    rates: FloatArray
+    accelerations: FloatArray
+    smoothing: TensionSmoothing | None = None
+
+
+def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
+    """The tensions' row-to-row (white) noise, N: the largest over the columns of the
+    robust spread (1.4826 times the median absolute deviation) of the rows'
+    :data:`NOISE_ORDER`-th differences, over ``sqrt(C(2 k, k))`` (the k-th difference of
+    white noise of standard deviation ``s`` has the standard deviation ``s sqrt(C(2 k,
+    k))``). A smooth tension's k-th differences shrink as ``(2 pi f step)^k`` with its
+    frequency ``f``: two newtons swinging at 3 Hz, sampled at 50 Hz, read as 7e-6 N,
+    far under the noise a 50 Hz file is smoothed for (1.3e-4 N). Rows at uneven times
+    ``t`` are interpolated onto an even grid at their median step first (a smooth
+    tension at jittered times is not noise), and windows of ``k + 1`` equal rows (a
+    slack tendon at exactly 0, a hold) are left out. 0 with too few rows."""
+    k = NOISE_ORDER
+    if len(values) < 2 * k + 1:
+        return 0.0
+    if t is not None:
+        values = _on_even_grid(t, values, 1e-3)[1]
+    windows = np.lib.stride_tricks.sliding_window_view(values, k + 1, axis=0)
+    varies = windows.max(axis=-1) > windows.min(axis=-1)  # (n - k, columns)
+    d = np.diff(values, n=k, axis=0)
+    spread = 0.0
+    for j in range(values.shape[1]):
+        dj = d[varies[:, j], j]
+        if len(dj) >= 2 * k + 1:
+            mad = float(np.median(np.abs(dj - np.median(dj))))
+            spread = max(spread, 1.4826 * mad)
+    return spread / math.sqrt(math.comb(2 * k, k))
+
+
+def smoothing_rows(noise: float, step: float) -> int:
+    """The rows of the local cubic that brings the tensions' rates and second
+    derivatives within :data:`TENSION_RATE_NOISE` and :data:`TENSION_ACCELERATION_NOISE`
+    for rows ``step`` s apart with noise ``noise`` N (the fit's weights' norm times the
+    noise): 0 where the central differences already do
+    (:func:`central_difference_gains`) or where five rows span more than
+    :data:`MAX_SMOOTHING_S`, else the fewest odd rows from 5, at most that long."""
+    if not (noise > 0.0 and step > 0.0):
+        return 0
+    rate, acc = central_difference_gains(step)
+    if noise * rate <= TENSION_RATE_NOISE and noise * acc <= TENSION_ACCELERATION_NOISE:
+        return 0
+    most = 2 * int(MAX_SMOOTHING_S / step / 2) + 1
+    if most < 5:  # rows too far apart for a local cubic within the longest span
+        return 0
+    for rows in range(5, most + 1, 2):
+        rate, acc = _cubic_gains(rows, step)
+        if noise * rate <= TENSION_RATE_NOISE and noise * acc <= TENSION_ACCELERATION_NOISE:
+            return rows
+    return most
+
+
+def central_difference_gains(step: float) -> tuple[float, float]:
+    """What white noise of 1 N on rows ``step`` s apart becomes in their central
+    differences (N/s) and in those of the rates (N/s^2): ``sqrt(2) / (2 step)`` and
+    ``sqrt(6) / (4 step^2)``."""
+    return math.sqrt(2.0) / (2.0 * step), math.sqrt(6.0) / (4.0 * step * step)
+
+
+def _cubic_gains(rows: int, step: float) -> tuple[float, float]:
+    """The same for a local cubic over ``rows`` rows (its weights' norms)."""
+    from scipy.signal import savgol_coeffs  # scipy only for a tendon robot
+
+    return (
+        float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=1, delta=step))),
+        float(np.linalg.norm(savgol_coeffs(rows, 3, deriv=2, delta=step))),
+    )
+
+
+def _on_even_grid(t: FloatArray, values: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    """``(t, values)`` where the rows' steps are within ``tol`` of their median, else the
+    rows interpolated onto an even grid at the median step from ``t[0]``."""
+    step = float(np.median(np.diff(t)))
+    if np.all(np.abs(np.diff(t) - step) <= tol * step):
+        return t, values
+    grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+    return grid, _at_rows(grid, t, values)
+
+
+def _smoothed(t: FloatArray, values: FloatArray, noise: float) -> DifferencedTensions | None:
+    """The local cubic's values, rates and second derivatives at the rows ``t``, or None
+    where the rows' noise needs none (:func:`smoothing_rows`). Rows unevenly apart are
+    fitted on an even grid at their median step and interpolated back."""
+    if len(t) < 5:
+        return None
+    step = float(np.median(np.diff(t)))
+    rows = smoothing_rows(noise, step)
+    if rows == 0:
+        return None
+    grid, v = _on_even_grid(t, values, 1e-6)
+    even = grid is t
+    rows = min(rows, len(grid) if len(grid) % 2 else len(grid) - 1)
+    if rows < 5:
+        return None
+    from scipy.signal import savgol_filter  # scipy only for a tendon robot
+
+    fits = [
+        savgol_filter(v, rows, 3, deriv=d, delta=step, axis=0, mode="interp") for d in (0, 1, 2)
+    ]
+    if not even:
+        fits = [_at_rows(t, grid, f) for f in fits]
+    gain1, gain2 = _cubic_gains(rows, step)
+    smoothing = TensionSmoothing(noise, (rows - 1) * step, noise * gain1, noise * gain2)
+    return DifferencedTensions(np.maximum(fits[0], 0.0), fits[1], fits[2], smoothing)
+
+
+def _at_rows(t: FloatArray, tb: FloatArray, d: FloatArray) -> FloatArray:
+    """``d`` (m, k) given at the times ``tb`` interpolated to the rows ``t``."""
+    return np.column_stack([np.interp(t, tb, d[:, j]) for j in range(d.shape[1])])
+
+
+def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
+    """``(n,)`` bool: the rows a slower log resampled linearly onto these rows gave,
+    where the rows follow that pattern, else every row.
+
+    A row that is not on the line through its two neighbours in every column (within
+    :data:`ON_LINE_N`) is a corner. The rows follow a resampling's pattern where the most
+    common number of rows between corners (the period) is two or more, spans at most
+    :data:`MAX_RESAMPLED_PERIOD_S`, is that of at least :data:`MIN_PERIODS` gaps and half
+    of them, and :data:`LINE_PATTERN_SHARE` of the gaps are multiples of it. Then the
+    knots are the corners and every period'th row between two corners a multiple of
+    periods apart (a hold or a straight stretch of the slower log keeps its rows), the
+    first and the last. The rows left out change nothing of the tensions interpolated
+    linearly between rows, only their differences: a row's central difference across a
+    corner is half the slope before and half after, and the second differences are
+    spikes at the corners. A smooth tension sampled fast, or one held or ramped by a
+    controller, has rows on the line that no slower log put there, in no such pattern."""
+    keep = np.ones(len(t), dtype=bool)
+    if len(t) < 3:
+        return keep
+    w = ((t[1:-1] - t[:-2]) / (t[2:] - t[:-2]))[:, None]
+    on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
+    corners = keep.copy()
+    corners[1:-1] = ~np.all(on_line, axis=1)
+    at = np.flatnonzero(corners)
+    gaps = np.diff(at)
+    period = int(np.bincount(gaps).argmax())
+    step = float(np.median(np.diff(t)))
+    if (
+        period < 2
+        or period * step > MAX_RESAMPLED_PERIOD_S
+        or int(np.sum(gaps == period)) < MIN_PERIODS
+        or np.mean(gaps == period) < 0.5
+        or np.mean(gaps % period == 0) < LINE_PATTERN_SHARE
+    ):
+        return keep  # no resampling's pattern
+    knots = corners.copy()
+    for start, gap in zip(at[:-1], gaps, strict=True):
+        if gap > period and gap % period == 0:
+            knots[start + period : start + gap : period] = True
+    return knots
+
+
+def tension_derivatives(
+    t: FloatArray, values: FloatArray, binned: bool = True
+) -> DifferencedTensions:
+    """The tensions ``values`` (n, k) at the rows' times ``t`` (n,) s as the estimators
+    take them: the rows, their central differences, and those of the rates. With
+    ``binned`` (a tensions file of its own; not a recording's own columns, which are
+    differenced row by row as ``live`` differenced them):
+
+    - the rows on the line through their neighbours (:func:`line_knots`: a slower log
+      resampled by linear interpolation) are left out of the differences;
+    - a file logged faster than :data:`DERIVATIVE_STEP_S` (two rows or more to a bin of
+      about that length: a median step of at most two thirds of it) is first averaged
+      over bins of that many rows and differenced there: a difference over a
+      millisecond would turn a load cell's noise into accelerations hundreds of times
+      the tensions' own;
+    - where the rows left scatter so that the differences would be noisier than
+      :data:`TENSION_RATE_NOISE` or :data:`TENSION_ACCELERATION_NOISE`
+      (:func:`tension_noise_std`, :func:`smoothing_rows`), the tensions, rates and
+      second derivatives are a local cubic's over the rows (Savitzky-Golay), described
+      by ``smoothing``;
+
+    and the derivatives (and smoothed values) are interpolated back to every row.
+    """
+    if not binned or len(t) < 3:
+        rates = central_differences(t, values)
+        return DifferencedTensions(values, rates, central_differences(t, rates))
+    knots = line_knots(t, values)
+    tb, vb = t[knots], values[knots]
+    per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(tb)))) if len(tb) >= 3 else 1
+    if per_bin >= 2:
+        starts = np.arange(0, len(tb), per_bin)
+        if len(starts) > 1 and len(tb) - starts[-1] < per_bin // 2 + 1:
+            starts = starts[:-1]  # a short last bin joins the one before
+        counts = np.diff(np.concatenate([starts, [len(tb)]]))
+        tb = np.add.reduceat(tb, starts) / counts
+        vb = np.add.reduceat(vb, starts, axis=0) / counts[:, None]
+    noise = tension_noise_std(vb, tb)
+    every_row = len(tb) == len(t)  # no row left out, none binned
+    smooth = _smoothed(tb, vb, noise)
+    if smooth is not None:
+        assert smooth.smoothing is not None
+        if per_bin >= 2:  # the noise of the file's rows, not of the bins' means
+            smooth = smooth._replace(
+                smoothing=smooth.smoothing._replace(noise_std=noise * math.sqrt(per_bin))
+            )
+        if every_row:
+            return smooth
+        return smooth._replace(
+            values=_at_rows(t, tb, smooth.values),
+            rates=_at_rows(t, tb, smooth.rates),
+            accelerations=_at_rows(t, tb, smooth.accelerations),
+        )
+    rates = central_differences(tb, vb)
+    acc = central_differences(tb, rates)
+    if every_row:
+        return DifferencedTensions(values, rates, acc)
+    return DifferencedTensions(values, _at_rows(t, tb, rates), _at_rows(t, tb, acc))
+
+
+def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
+    """The derivative of ``values`` (n, k) over ``t`` (n,) s at every row: the
+    second-order central difference on uneven steps inside, one-sided at the two ends,
+    zero with one row (numpy's ``gradient`` formulas). Written out because numpy's
+    switches to another formula when the steps of the whole array are equal: the
+    interior rows here depend on their neighbours alone, so a window of a stream gives
+    bit for bit the values of the whole file (:class:`TensionStream`)."""
+    out = np.zeros_like(values, dtype=float)
+    if len(t) < 2:
+        return out
+    h = np.diff(t)[:, None]
+    out[0] = (values[1] - values[0]) / h[0]
+    out[-1] = (values[-1] - values[-2]) / h[-1]
+    h1, h2 = h[:-1], h[1:]
+    a = -h2 / (h1 * (h1 + h2))
+    b = (h2 - h1) / (h1 * h2)
+    c = h1 / (h2 * (h1 + h2))
+    out[1:-1] = a * values[:-2] + b * values[1:-1] + c * values[2:]
+    return out
