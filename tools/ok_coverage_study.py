@@ -9,12 +9,14 @@ rows, the rows more than 20 mm off that are not ``ok``, the rows more than 50 mm
     python tools/ok_coverage_study.py [--rod NAME ...] [--cases raw tilt] [--methods ...]
     python tools/ok_coverage_study.py --folder src/continuum_mhe/data/tendon \
         --robot tendon-two-section --rod force-08 unloaded
+    python tools/ok_coverage_study.py --reading-bias-deg 0   # no constant-error term
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import warnings
 from pathlib import Path
 
@@ -25,18 +27,26 @@ from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
-from continuum_mhe.settings import RecoverySettings
+from continuum_mhe.settings import NoiseSettings, RecoverySettings
 
 DATA = Path(__file__).parents[1] / "src/continuum_mhe/data/rod2"
 Z95 = 1.959964
 
 
-def study(folder: Path, name: str, case: str, method: str, robot_name: str) -> dict[str, float]:
-    """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method."""
+def study(
+    folder: Path,
+    name: str,
+    case: str,
+    method: str,
+    robot_name: str,
+    noise: NoiseSettings | None = None,
+) -> dict[str, float]:
+    """One recording, ``case`` ``raw`` (defaults) or ``tilt``, one method; ``noise``
+    (None: the defaults) for the formulation."""
     # a tendon robot's recording estimated without its tensions: its PCC sections
     robot = dataclasses.replace(read_robot(robot_name), backbone=None, tendons=())
     data = load_input(
-        folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot)
+        folder / f"{name}_{case}.csv", InputOptions(), make_formulation("bend", robot, noise)
     )
     truth = read_state_table(folder / f"{name}_truth.csv").values[:, :3]
     est = make_estimator(method, data.formulation, MHESettings(), RecoverySettings.off())  # type: ignore[arg-type]
@@ -68,7 +78,19 @@ def main() -> None:
     p.add_argument("--rod", nargs="+", default=names)
     p.add_argument("--cases", nargs="+", default=["raw"])
     p.add_argument("--methods", nargs="+", default=["ekf", "ukf", "mhe"])
+    p.add_argument(
+        "--reading-bias-deg",
+        type=float,
+        default=None,
+        help="the readings' constant error (NoiseSettings.reading_bias_std, deg; "
+        "default: the default's)",
+    )
     args = p.parse_args()
+    noise = (
+        None
+        if args.reading_bias_deg is None
+        else NoiseSettings(reading_bias_std=math.radians(args.reading_bias_deg))
+    )
     warnings.simplefilter("ignore")
     print(
         "recording case method: tip mean/max mm, ok share, ok coverage x/y/z, "
@@ -77,7 +99,7 @@ def main() -> None:
     for name in args.rod:
         for case in args.cases:
             for m in args.methods:
-                r = study(args.folder, name, case, m, args.robot)
+                r = study(args.folder, name, case, m, args.robot, noise)
                 print(
                     f"{name} {case} {m}: {r['mean']:.2f} / {r['max']:.1f}, ok {r['ok']:.2f}, "
                     f"cov {r['cx']:.3f} {r['cy']:.3f} {r['cz']:.3f}, "
