@@ -20,6 +20,7 @@ from continuum_mhe.io.tension_derivatives import (
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
     central_differences,
+    hold_knots,
     line_knots,
     smoothing_rows,
     tension_noise_std,
@@ -290,3 +291,111 @@ def test_jittered_times_and_slack_zeros_read_no_false_noise() -> None:
     pulls = t > 5.0
     slack[pulls] = 1.0 + rng.normal(0.0, 0.03, (int(pulls.sum()), 2))
     assert tension_noise_std(slack, t) == pytest.approx(0.03, rel=0.3)
+
+
+def _slower_log(every: int = 5) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The shipped ``force-29`` tensions (50 Hz) kept every ``every``-th row, written back
+    at every row two ways: ``(t, held, linear, kept rows)``, each kept value repeated
+    until the next (a logger's zero-order hold) and linear between them."""
+    d = np.loadtxt(DATA / "force-29_tensions.csv", delimiter=",", skiprows=1)
+    t, keep = d[:, 0], np.arange(0, len(d), every)
+    held = d[(np.arange(len(d)) // every) * every, 1:]
+    lin = np.column_stack([np.interp(t, t[keep], d[keep, j]) for j in range(1, 7)])
+    return t, held, lin, keep
+
+
+def test_a_slower_log_held_at_every_row_is_taken_between_its_samples() -> None:
+    """The 10 Hz tensions held over the 50 Hz rows: the rows where they change are that
+    log's samples, so that the tensions, rates and second derivatives are those of the
+    same log resampled linearly (to 1e-9), not the steps and spikes of the held rows
+    (second derivatives 1.4 N/s^2 rms off the 50 Hz file's, row by row); the rows as
+    given stay what the checks read, and it is said."""
+    t, held, lin, keep = _slower_log()
+    found = hold_knots(t, held)
+    assert found is not None
+    knots, period = found
+    np.testing.assert_array_equal(np.flatnonzero(knots), keep)
+    assert period == pytest.approx(0.1)
+    table = Tensions.from_rows("held.csv", t, held)
+    linear = Tensions.from_rows("lin.csv", t, lin)
+    assert table.hold_period_s == pytest.approx(0.1) and linear.hold_period_s == 0.0
+    np.testing.assert_allclose(table.values, linear.values, atol=1e-9)
+    np.testing.assert_allclose(table.rates, linear.rates, atol=1e-9)
+    np.testing.assert_allclose(table.accelerations, linear.accelerations, atol=1e-9)
+    np.testing.assert_array_equal(table.rows, held)
+    fifty = read_tensions(DATA / "force-29_tensions.csv", 6).accelerations
+    row_by_row = central_differences(t, central_differences(t, held))
+    assert np.sqrt(np.mean((row_by_row - fifty) ** 2)) > 1.0
+    with pytest.warns(TensionsWarning, match=r"held\.csv: the tensions hold each value for "
+                      r"about 0\.1 s \(a log at 10 Hz"):  # fmt: skip
+        table.warn_held()
+
+
+def test_a_quantised_ramp_is_read_as_its_slope() -> None:
+    """A load cell's 0.01 N steps on a 0.1 N/s ramp sampled at 50 Hz change every fifth
+    row: taken between its changes, the ramp's rate is 0.1 N/s on every inner row (row
+    by row it is 0 or 0.25 N/s); a value that changes on every row, or a hold of 2 s
+    in a smooth swing, is no held log."""
+    t = np.arange(0.0, 6.0, 0.02)
+    steps = np.column_stack([np.floor(np.round((1.0 + 0.1 * t) / 0.01, 9)) * 0.01])
+    table = Tensions.from_rows("cell.csv", t, steps)
+    assert table.hold_period_s == pytest.approx(0.1)
+    inner = (t > 0.2) & (t < 5.7)
+    np.testing.assert_allclose(table.rates[inner], 0.1, atol=1e-9)
+    assert hold_knots(t, np.column_stack([1.0 + 0.1 * t])) is None
+    swing = np.column_stack([np.where(t < 2.0, 2.0, 2.0 + 0.3 * np.sin(t - 2.0) ** 2)])
+    assert hold_knots(t, swing) is None
+
+
+def test_a_recordings_held_tension_columns_and_a_held_stream_are_said(tmp_path: Path) -> None:
+    """A recording whose own tension columns hold a 10 Hz log's values (differenced row
+    by row, as ``live`` takes them) is told to give them as a tensions file; so is one
+    whose columns are resampled linearly; ``live``'s stream of held tensions says it
+    once, instead of reading the steps as a load cell's noise."""
+    t, held, lin, _ = _slower_log()
+    raw = (DATA / "force-29_raw.csv").read_text().splitlines()
+    names = ",".join(f"tension_{j}" for j in range(1, 7))
+    for kind, values in (("hold each value of", held), ("are resampled linearly from", lin)):
+        rec = tmp_path / "rec.csv"
+        rows = [f"{r},{','.join(f'{v:.6f}' for v in values[i])}" for i, r in enumerate(raw[1:])]
+        rec.write_text("\n".join([f"{raw[0]},{names}", *rows]) + "\n")
+        table = read_tensions(rec, 6, other_columns=True)
+        with pytest.warns(TensionsWarning, match=f"rec.csv: the tension columns {kind} a "
+                          r"slower log \(every 0\.1 s, 10 Hz\).*--inputs"):  # fmt: skip
+            table.warn_slower_log()
+    quiet = read_tensions(DATA / "force-29_tensions.csv", 6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TensionsWarning)
+        quiet.warn_slower_log()
+    stream = TensionStream("port")
+    with pytest.warns(TensionsWarning) as said:
+        for i in range(len(t)):
+            stream.push(float(t[i]), held[i])
+    relevant = [str(w.message) for w in said if issubclass(w.category, TensionsWarning)]
+    assert len(relevant) == 1
+    assert relevant[0].startswith("port: the tensions hold each value of a slower log")
+
+
+def test_a_held_tensions_file_estimates_as_its_linear_resampling(tmp_path: Path) -> None:
+    """``estimate`` with the 10 Hz tensions held over the 50 Hz rows of ``force-29``
+    gives the estimates of the same log resampled linearly (to 1e-6: the files keep nine
+    digits; a bend angle of a nearly straight section moves most), and says the
+    hold."""
+    t, held, lin, _ = _slower_log()
+    header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))
+    outs = []
+    for name, values in (("held", held), ("lin", lin)):
+        f = tmp_path / f"{name}.csv"
+        np.savetxt(f, np.column_stack([t, values]), delimiter=",", fmt="%.9g", header=header,
+                   comments="")  # fmt: skip
+        out = tmp_path / f"est_{name}.csv"
+        argv = ["estimate", str(DATA / "force-29_raw.csv"), "--robot", "tendon-two-section",
+                "--inputs", str(f), "-o", str(out)]  # fmt: skip
+        if name == "held":
+            with pytest.warns(TensionsWarning, match="hold each value for about 0.1 s"):
+                assert main(argv) == 0
+        else:
+            assert main(argv) == 0
+        outs.append(read_state_table(out))
+    np.testing.assert_allclose(outs[0].values, outs[1].values, rtol=0, atol=1e-6)
+    assert list(outs[0].status) == list(outs[1].status)

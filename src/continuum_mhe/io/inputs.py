@@ -470,6 +470,7 @@ def _tensions(
         table.check_scale(robot)
         table.warn_suspect()
         table.warn_smoothed()
+        table.warn_held()
         return table
     if own:
         assert recording is not None
@@ -478,6 +479,7 @@ def _tensions(
         )
         table.check_scale(robot)
         table.warn_suspect()
+        table.warn_slower_log()
         return table
     if columns:  # some of the tension columns, not all
         missing = [c for c in tension_columns(k) if c not in columns]

@@ -60,13 +60,17 @@ class TensionSmoothing(NamedTuple):
 
 class DifferencedTensions(NamedTuple):
     """A tensions file's rows as the estimators take them (:func:`tension_derivatives`):
-    ``values`` (n, k) N (smoothed where ``smoothing`` is set), ``rates`` (n, k) N/s,
-    ``accelerations`` (n, k) N/s^2, ``smoothing`` (None: the rows as they are)."""
+    ``values`` (n, k) N (smoothed where ``smoothing`` is set; linear between the rows
+    where a held value changes where ``hold_period_s`` is), ``rates`` (n, k) N/s,
+    ``accelerations`` (n, k) N/s^2, ``smoothing`` (None: the rows as they are),
+    ``hold_period_s`` (the period, s, of a slower log whose values the rows hold, a
+    zero-order hold: :func:`hold_knots`; 0: none found)."""
 
     values: FloatArray
     rates: FloatArray
     accelerations: FloatArray
     smoothing: TensionSmoothing | None = None
+    hold_period_s: float = 0.0
 
 
 def tension_noise_std(values: FloatArray, t: FloatArray | None = None) -> float:
@@ -201,8 +205,23 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
     on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
     corners = keep.copy()
     corners[1:-1] = ~np.all(on_line, axis=1)
-    at = np.flatnonzero(corners)
+    knots = _periodic_knots(t, corners)
+    return keep if knots is None else knots
+
+
+def _periodic_knots(t: FloatArray, marks: FloatArray) -> FloatArray | None:
+    """The knots of a slower log's period in the rows ``marks`` (n,) bool set (the rows
+    where that log shows: corners of a linear resampling, changes of a held value), or
+    None where the marks do not follow a period: the most common number of rows between
+    marks (the period) is two or more, spans at most :data:`MAX_RESAMPLED_PERIOD_S`, is
+    that of at least :data:`MIN_PERIODS` gaps and half of them, and
+    :data:`LINE_PATTERN_SHARE` of the gaps are multiples of it. The knots are the marks
+    and every period'th row between two marks a multiple of periods apart (a hold or a
+    straight stretch of the slower log keeps its rows)."""
+    at = np.flatnonzero(marks)
     gaps = np.diff(at)
+    if len(gaps) == 0:
+        return None
     period = int(np.bincount(gaps).argmax())
     step = float(np.median(np.diff(t)))
     if (
@@ -212,12 +231,47 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
         or np.mean(gaps == period) < 0.5
         or np.mean(gaps % period == 0) < LINE_PATTERN_SHARE
     ):
-        return keep  # no resampling's pattern
-    knots = corners.copy()
+        return None
+    knots = marks.copy()
     for start, gap in zip(at[:-1], gaps, strict=True):
         if gap > period and gap % period == 0:
             knots[start + period : start + gap : period] = True
     return knots
+
+
+def hold_knots(t: FloatArray, values: FloatArray) -> tuple[FloatArray, float] | None:
+    """``(knots (n,) bool, period s)`` where the rows ``values`` (n, k) at ``t`` (n,) s
+    hold each value of a slower log for several rows (a zero-order hold: a logger that
+    writes the last tension it received at every IMU sample), else None. A row that
+    differs from the row before it in some column (by more than :data:`ON_LINE_N`) is a
+    change, a new sample of the slower log; the changes must follow a period as
+    :func:`_periodic_knots` asks (a tension held steady by a controller for a while, or
+    a constant one, keeps a knot per period). Differenced row by row, such rows give
+    rates that are zero within a hold and a spike at each change, and second
+    derivatives of twice that size; the knots give the slower log's own."""
+    if len(t) < 3:
+        return None
+    marks = np.ones(len(t), dtype=bool)
+    marks[1:] = np.any(np.abs(np.diff(values, axis=0)) > ON_LINE_N, axis=1)
+    knots = _periodic_knots(t, marks)
+    if knots is None:
+        return None
+    at = np.flatnonzero(marks)
+    return knots, float(np.median(np.diff(t[at])))
+
+
+def slower_log(t: FloatArray, values: FloatArray) -> tuple[str, float] | None:
+    """``(how, period s)`` where the rows ``values`` (n, k) at ``t`` (n,) s carry a
+    slower log's samples onto faster rows, ``how`` ``"hold"`` (each value repeated:
+    :func:`hold_knots`) or ``"resample"`` (linear between them: :func:`line_knots`);
+    else None."""
+    held = hold_knots(t, values)
+    if held is not None:
+        return "hold", held[1]
+    knots = line_knots(t, values)
+    if knots.all():
+        return None
+    return "resample", float(np.median(np.diff(t[knots])))
 
 
 def tension_derivatives(
@@ -229,7 +283,11 @@ def tension_derivatives(
     differenced row by row as ``live`` differenced them):
 
     - the rows on the line through their neighbours (:func:`line_knots`: a slower log
-      resampled by linear interpolation) are left out of the differences;
+      resampled by linear interpolation) are left out of the differences; where the
+      rows hold each value of a slower log for several rows instead (:func:`hold_knots`:
+      a zero-order hold), the rows where a value changes are that log's samples: the
+      tensions are linear between them (``hold_period_s`` says it) and differenced
+      there;
     - a file logged faster than :data:`DERIVATIVE_STEP_S` (two rows or more to a bin of
       about that length: a median step of at most two thirds of it) is first averaged
       over bins of that many rows and differenced there: a difference over a
@@ -246,8 +304,12 @@ def tension_derivatives(
     if not binned or len(t) < 3:
         rates = central_differences(t, values)
         return DifferencedTensions(values, rates, central_differences(t, rates))
-    knots = line_knots(t, values)
+    held = hold_knots(t, values)
+    knots = line_knots(t, values) if held is None else held[0]
+    hold_s = 0.0 if held is None else held[1]
     tb, vb = t[knots], values[knots]
+    if held is not None:  # the held rows take the line between the slower log's samples
+        values = _at_rows(t, tb, vb)
     per_bin = round(DERIVATIVE_STEP_S / float(np.median(np.diff(tb)))) if len(tb) >= 3 else 1
     if per_bin >= 2:
         starts = np.arange(0, len(tb), per_bin)
@@ -271,12 +333,15 @@ def tension_derivatives(
             values=_at_rows(t, tb, smooth.values),
             rates=_at_rows(t, tb, smooth.rates),
             accelerations=_at_rows(t, tb, smooth.accelerations),
+            hold_period_s=hold_s,
         )
     rates = central_differences(tb, vb)
     acc = central_differences(tb, rates)
     if every_row:
         return DifferencedTensions(values, rates, acc)
-    return DifferencedTensions(values, _at_rows(t, tb, rates), _at_rows(t, tb, acc))
+    return DifferencedTensions(
+        values, _at_rows(t, tb, rates), _at_rows(t, tb, acc), hold_period_s=hold_s
+    )
 
 
 def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:

@@ -43,6 +43,7 @@ from continuum_mhe.io.tension_derivatives import (
     TensionSmoothing,
     central_difference_gains,
     central_differences,
+    slower_log,
     smoothing_rows,
     tension_derivatives,
     tension_noise_std,
@@ -76,8 +77,26 @@ NOISE_CHECK_ROWS = 50
 
 
 class TensionsWarning(UserWarning):
-    """A tensions file whose rows look like a sensor or logger fault (read as given), or
-    scatter so that they are smoothed."""
+    """A tensions file whose rows look like a sensor or logger fault (read as given),
+    scatter so that they are smoothed, or hold the samples of a slower log; tensions
+    differenced row by row that carry a slower log's samples."""
+
+
+def slower_log_said(what: str, t: FloatArray, values: FloatArray, taken: str, fix: str) -> str:
+    """The line that says that ``what`` (``values`` (n, k) N at ``t`` (n,) s), which are
+    ``taken`` row by row, carry a slower log's samples
+    (:func:`~.tension_derivatives.slower_log`), and the ``fix``; ``""`` where they do
+    not."""
+    found = slower_log(t, values)
+    if found is None:
+        return ""
+    how, period = found
+    carried = "hold each value of" if how == "hold" else "are resampled linearly from"
+    return (
+        f"{what} {carried} a slower log (every {period:.3g} s, {1 / period:.3g} Hz): "
+        f"{taken}, so that each of that log's samples is a spike of the tensions' rates and "
+        f"second derivatives, which the estimate follows (tens of mm off at the tip); {fix}"
+    )
 
 
 @dataclass(frozen=True)
@@ -94,8 +113,11 @@ class Tensions:
         accelerations: (n, k) N/s^2, the rates' central differences (the same way).
         smoothing: how the rows were smoothed, where they scatter (None: they are
             taken as they are).
-        given: the file's tensions as given, where ``values`` are smoothed (else None;
-            :attr:`rows`).
+        given: the file's tensions as given, where ``values`` are smoothed or taken
+            between a held log's samples (else None; :attr:`rows`).
+        hold_period_s: the period of a slower log whose values the rows hold (a
+            zero-order hold), s: ``values`` are linear between the rows where they
+            change (0: none found; :func:`~.tension_derivatives.hold_knots`).
     """
 
     name: str
@@ -105,6 +127,7 @@ class Tensions:
     accelerations: FloatArray
     smoothing: TensionSmoothing | None = None
     given: FloatArray | None = None
+    hold_period_s: float = 0.0
 
     @classmethod
     def from_rows(
@@ -113,7 +136,17 @@ class Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
         derivatives (:func:`tension_derivatives`)."""
         taken = tension_derivatives(t, values, binned=binned)
-        return cls(name, t, *taken, given=None if taken.smoothing is None else values)
+        changed = taken.smoothing is not None or taken.hold_period_s > 0
+        return cls(
+            name,
+            t,
+            taken.values,
+            taken.rates,
+            taken.accelerations,
+            taken.smoothing,
+            given=values if changed else None,
+            hold_period_s=taken.hold_period_s,
+        )
 
     @property
     def rows(self) -> FloatArray:
@@ -144,6 +177,37 @@ class Tensions:
                 TensionsWarning,
                 stacklevel=2,
             )
+
+    def warn_held(self) -> None:
+        """A :class:`TensionsWarning` where the rows hold each value of a slower log
+        (:attr:`hold_period_s`): the tensions are taken linear between the rows where
+        they change."""
+        if self.hold_period_s > 0:
+            warnings.warn(
+                f"{self.name}: the tensions hold each value for about "
+                f"{self.hold_period_s:.3g} s (a log at {1 / self.hold_period_s:.3g} Hz "
+                "written at every row): the rows where a value changes are taken as that "
+                "log's samples, the tensions linear between them and differenced there",
+                TensionsWarning,
+                stacklevel=2,
+            )
+
+    def warn_slower_log(self) -> None:
+        """A :class:`TensionsWarning` where a recording's own tension columns,
+        differenced row by row (as ``live`` takes them), carry a slower log's samples
+        (:func:`~.tension_derivatives.slower_log`): each of that log's samples is then
+        a spike of the rates and second derivatives, which the estimate follows."""
+        said = slower_log_said(
+            f"{self.name}: the tension columns",
+            self.t,
+            self.values,
+            "a recording's own tension columns are differenced row by row, as live takes them",
+            "give the tensions as a file of their own (--inputs TENSIONS.csv, columns "
+            "t,tension_1,...), whose rows are taken as that log's samples, or log them at "
+            "the IMUs' rate",
+        )
+        if said:
+            warnings.warn(said, TensionsWarning, stacklevel=2)
 
     def check_span(self, first: float, last: float) -> None:
         """An :class:`InputError` where the file spans over a hundred times the
@@ -458,6 +522,17 @@ class TensionStream:
         (:func:`smoothing_rows`): the stream differences its samples as they come, and
         their noise then reaches the estimate."""
         t = np.array(self._recent_t)
+        said = slower_log_said(
+            f"{self.name}: the tensions",
+            t,
+            np.array(self._recent),
+            "live takes their rates and second derivatives from consecutive samples",
+            "send the tensions measured at each IMU sample",
+        )
+        if said:
+            self._noise_said = True
+            warnings.warn(said, TensionsWarning, stacklevel=3)
+            return
         noise = tension_noise_std(np.array(self._recent), t)
         step = float(np.median(np.diff(t)))
         if smoothing_rows(noise, step) == 0:
