@@ -446,7 +446,7 @@ def test_position_units_without_angles_known_answers() -> None:
     """A file of tip positions alone (no angles): a straight robot's tip 100.5 times as
     far as the robot's length is in cm (not mm, though over 100); 150 times, beyond any
     shape in cm, is mm; 1.0 times is metres."""
-    from continuum_mhe.evaluation.metrics import position_unit_problem
+    from continuum_mhe.io.position_units import position_unit_problem
 
     names = ("x", "y", "z")
     for factor, unit in ((100.5, "cm"), (150.0, "mm"), (1.0, None)):
@@ -487,7 +487,7 @@ def test_evaluate_of_drifting_positions_names_no_other_length(tmp_path, capsys) 
     """The paper formulation's positions drift from its angles (rows ``drifted``), by a
     factor that changes from row to row: no warning that the file was made for a robot
     of another length, which a constant factor alone means."""
-    from continuum_mhe.evaluation.metrics import steady_ratio
+    from continuum_mhe.io.position_units import steady_ratio
 
     m, t = _simulated(tmp_path, "p", "--duration", "20")
     est = tmp_path / "e.csv"
@@ -1779,3 +1779,139 @@ def test_a_first_sample_without_a_finite_time_says_so() -> None:
     est = make_estimator("ekf", make_formulation("bend"))
     with pytest.raises(SampleTimeError, match=r"t=nan s must be finite$"):
         est.step(Measurement(math.nan, np.zeros(2)))
+
+
+def _scaled_truth(t: Path, out: Path, columns: tuple[str, ...], factor: float) -> Path:
+    """The truth ``t`` with ``columns`` multiplied by ``factor``, as ``out``."""
+    lines = t.read_text().splitlines()
+    header = lines[0].split(",")
+    at = [header.index(c) for c in columns]
+    rows = []
+    for line in lines[1:]:
+        v = line.split(",")
+        for i in at:
+            v[i] = repr(float(v[i]) * factor)
+        rows.append(",".join(v))
+    out.write_text(lines[0] + "\n" + "\n".join(rows) + "\n")
+    return out
+
+
+def test_bend_angles_in_degrees_are_refused_on_their_line(tmp_path, capsys) -> None:
+    """A truth whose theta is in degrees (a 3112-degree theta RMSE when read as rad):
+    one line naming the file, the first row beyond 2 pi and its value, exit 2."""
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    degrees = _scaled_truth(t, tmp_path / "deg.csv", ("theta",), math.degrees(1.0))
+    theta = read_state_table(t).column("theta")
+    first = int(np.argmax(np.degrees(theta) > 2 * math.pi))
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(degrees)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1
+    assert err.startswith(f"continuum-mhe: error: {degrees}: line {first + 2}: theta=")
+    assert "beyond 2 pi: degrees? bend angles are in rad" in err
+
+
+def test_plot_refuses_a_truth_in_mm_without_the_robot(tmp_path, capsys) -> None:
+    """``plot --truth`` in mm, no --robot: the truth's tip 1000 times as far from the
+    base as the estimate's, one line, nothing drawn; the same truth in m is drawn."""
+    from continuum_mhe.io.position_units import position_unit_against
+
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    mm = _scaled_truth(t, tmp_path / "mm.csv", ("x", "y", "z"), 1000.0)
+    figure = tmp_path / "p.png"
+    capsys.readouterr()
+    assert main(["plot", str(est), "--truth", str(mm), "-o", str(figure)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {mm}: its tip is ")
+    assert "times as far from the base as the estimate's: positions in mm?" in err
+    assert not figure.exists()
+    truth, e = read_state_table(t), read_state_table(est)
+    assert position_unit_against(truth.names, truth.values, e.names, e.values) == ""
+    cm = read_state_table(_scaled_truth(t, tmp_path / "cm.csv", ("x", "y", "z"), 100.0))
+    assert "positions in cm?" in position_unit_against(cm.names, cm.values, e.names, e.values)
+    assert main(["plot", str(est), "--truth", str(t), "-o", str(figure)]) == 0
+
+
+@pytest.mark.parametrize(
+    ("header", "said"),
+    [
+        ("t,roll,pitch,roll_1,pitch_1", "the header has both roll, pitch and roll_1, pitch_1"),
+        ("t,t_ms,roll,pitch", "the header has both t and t_ms"),
+    ],
+)
+def test_a_header_with_two_sets_of_the_same_columns_is_refused(
+    tmp_path, capsys, header: str, said: str
+) -> None:
+    """Two columns for the same reading (an IMU's unnumbered and numbered tilt, the
+    time in s and in ms): which one is meant is not guessed (the numbered set was read
+    and the other left out)."""
+    f = tmp_path / "two.csv"
+    n = header.count(",")
+    f.write_text(header + "\n" + "\n".join(",".join([str(0.05 * i)] + ["0.1"] * n)
+                                           for i in range(1, 30)) + "\n")  # fmt: skip
+    out = tmp_path / "o.csv"
+    assert main(["estimate", str(f), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {f}: line 1: {said}") and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_evaluate_refuses_the_same_file_as_estimate_and_truth(tmp_path, capsys) -> None:
+    """``evaluate truth.csv truth.csv`` (or the same file spelt another way) scored 0 mm."""
+    _, t = _simulated(tmp_path, "a")
+    capsys.readouterr()
+    assert main(["evaluate", str(t), str(tmp_path / "." / t.name)]) == 2
+    assert "the truth is the estimate file itself" in capsys.readouterr().err
+
+
+def test_a_broken_options_line_is_said_with_its_line(tmp_path, capsys) -> None:
+    """An estimate whose ``# options`` line is cut: ``evaluate`` warns that the options
+    it records are not read (it used to fall back to the defaults silently), and
+    ``--config`` of it names the line."""
+    m, t = _simulated(tmp_path, "a")
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
+    lines = est.read_text().splitlines()
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("# options = {"))
+    lines[at] = lines[at][:40]
+    broken = tmp_path / "broken.csv"
+    broken.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(broken), str(t)]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {broken}: line {at + 1}: not valid TOML" in err
+    assert "the options the estimate was made with (its robot file among them) are not read" in err
+    assert main(["estimate", str(m), "--config", str(broken), "-o", str(tmp_path / "o.csv")]) == 2
+    assert f"error: {broken}: line {at + 1}: not valid TOML" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("line", "said"),
+    [
+        ('mount-rpy = "1,2"', "line 1: mount-rpy = '1,2': --mount-rpy must be three angles"),
+        ("horizon = 30.5", "line 1: horizon = 30.5: expected a whole number"),
+        ("robot = 5", "line 1: robot = 5: 5: no such robot file"),
+    ],
+)
+def test_an_options_files_value_refused_later_names_its_line(
+    tmp_path, capsys, line: str, said: str
+) -> None:
+    """A value the options file sets and a later check refuses (the mounting's three
+    angles, the robot file) names the file's line, as a value the parser refuses does;
+    a whole number is asked for as on the command line, not in Python's words."""
+    m, _ = _simulated(tmp_path, "a")
+    raw = tmp_path / "raw.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "--imu", "raw", "-o", str(raw)]) == 0
+    config = tmp_path / "c.toml"
+    config.write_text(line + "\n")
+    capsys.readouterr()
+    source = raw if "mount" in line else m
+    assert (
+        main(["estimate", str(source), "--config", str(config), "-o", str(tmp_path / "o.csv")]) == 2
+    )
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {config}: {said}"), err

@@ -510,15 +510,20 @@ def test_plot_draws_a_truth_with_positions_alone(
     capsys.readouterr()
 
 
-def test_the_shipped_rod_recording_is_its_own_truth(capsys) -> None:
+def test_the_shipped_rod_recording_is_its_own_truth(tmp_path: Path, capsys) -> None:
     """``rod_planar.csv`` carries its truth as ``x_true, y_true, z_true``: evaluate reads
-    them as the truth's ``x, y, z`` (against itself: no error at all)."""
+    them as the truth's ``x, y, z`` (against a copy of itself: no error at all; the file
+    itself given twice is refused)."""
     rod = DATA / "rod_planar.csv"
     table = read_state_table(rod)
     raw = np.genfromtxt(rod, delimiter=",", names=True)
     np.testing.assert_array_equal(table.column("x"), raw["x_true"])
     np.testing.assert_array_equal(table.column("z"), raw["z_true"])
-    assert main(["evaluate", str(rod), str(rod), "--json"]) == 0
+    copy = tmp_path / "rod_copy.csv"
+    copy.write_bytes(rod.read_bytes())
+    assert main(["evaluate", str(rod), str(rod)]) == 2
+    capsys.readouterr()
+    assert main(["evaluate", str(rod), str(copy), "--json"]) == 0
     import json
 
     scores = json.loads(capsys.readouterr().out)

@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from continuum_mhe.cli.config import apply_config, options_record
+from continuum_mhe.cli.config import FILE_OPTIONS, apply_config, options_record
 from continuum_mhe.cli.options import check_option_ranges, check_robot_replaces
 from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
@@ -154,7 +154,26 @@ def _given_options(
     return {a.dest for a in actions if hasattr(namespace, a.dest)}
 
 
+def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
+    """``PATH: line N: key = value: `` where the user error ``exc`` is about an option
+    that the options file (``--config``) set, naming it as the command line's flag
+    (``--mount-rpy ...``) or, for a file option, as its value (``5: no such robot
+    file``); else ``""``."""
+    sources = getattr(args, "config_sources", None)
+    if not sources or not isinstance(exc, UserError):
+        return ""
+    message = str(exc)
+    for dest, source in sources.items():
+        flag = "--" + dest.replace("_", "-")
+        value = getattr(args, dest, None)
+        named = message.startswith(flag) and not message[len(flag) : len(flag) + 1].isalnum()
+        if named or (dest in FILE_OPTIONS and message.startswith(f"{value}:")):
+            return f"{source}: "
+    return ""
+
+
 def _run_command(argv: Sequence[str] | None) -> int:
+    args: argparse.Namespace | None = None
     try:  # a signal while the parser imports the commands ends the run as one too
         args = _parse(argv)
         check_option_ranges(args)
@@ -164,7 +183,7 @@ def _run_command(argv: Sequence[str] | None) -> int:
         if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:
             # a command that stopped cleanly on the signal and then found a problem with
             # its input (``live``'s end-of-session unit check) says it, as without one
-            code = _user_error(exc)
+            code = _user_error(exc, _from_config(args, exc))
             return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
         # a signal raised inside a C extension (CasADi, numpy) can surface as any
         # exception type: once a signal arrived, the run ends as interrupted; a file
@@ -173,7 +192,7 @@ def _run_command(argv: Sequence[str] | None) -> int:
             if isinstance(exc, OSError) and exc.strerror and exc.errno != errno.EINTR:
                 _user_error(exc)
             return _signal_exit()
-        return _user_error(exc)
+        return _user_error(exc, _from_config(args, exc))
     # a command that drained and finished on its own (``live`` after Ctrl-C) keeps its
     # exit status; after SIGTERM the status is 143, as a service manager expects
     return _signal_exit() if signal.SIGTERM in _SIGNALS_SEEN else code
@@ -183,11 +202,12 @@ def _run_command(argv: Sequence[str] | None) -> int:
 EXIT_BUG = 70
 
 
-def _user_error(exc: BaseException) -> int:
-    """One line and exit 2 for user errors and file-system errors; anything else is
-    a bug: one line saying so (exit 70), the traceback with ``CONTINUUM_MHE_TRACEBACK=1``."""
+def _user_error(exc: BaseException, where: str = "") -> int:
+    """One line and exit 2 for user errors (after ``where``: the options file's line that
+    set the option, :func:`_from_config`) and file-system errors; anything else is a bug:
+    one line saying so (exit 70), the traceback with ``CONTINUUM_MHE_TRACEBACK=1``."""
     if isinstance(exc, UserError):
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: {where}{exc}", file=sys.stderr)
         return 2
     if isinstance(exc, BrokenPipeError):  # e.g. `... | head`: the reader left; stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -91,6 +91,10 @@ def _negated(key: str, by_key: dict[str, argparse.Action]) -> argparse.Action | 
     return action if isinstance(action, argparse.BooleanOptionalAction) else None
 
 
+class UnreadableOptions(InputError):
+    """An options file, or an estimate file's options line, that is not valid TOML."""
+
+
 def _read(path: str) -> tuple[dict[str, Any], str, int]:
     """The options of a TOML file or of an estimate CSV's ``# options = {...}`` line, the
     text they were read from (for line numbers) and the file's line number before that
@@ -133,8 +137,8 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(
-            toml_error_line(path, exc, first_line=offset + 1, first_column=indent + 1)
+        raise UnreadableOptions(
+            toml_error_line(path, exc, first_line=offset + 1, first_column=indent + 1, text=text)
         ) from None
     if p.suffix.lower() == ".csv":
         data = data[OPTIONS_LINE]
@@ -177,7 +181,8 @@ def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -
     try:
         converted = convert(str(value)) if convert is not None else str(value)
     except (ValueError, TypeError, argparse.ArgumentTypeError) as exc:
-        raise InputError(f"{path}: {where}{key} = {value!r}: {exc}") from None
+        why = {int: "expected a whole number", float: "expected a number"}.get(convert, str(exc))  # type: ignore[call-overload]
+        raise InputError(f"{path}: {where}{key} = {value!r}: {why}") from None
     if action.choices is not None and converted not in action.choices:
         known = ", ".join(map(str, action.choices))
         raise InputError(f"{path}: {where}{key} = {value!r} is not one of {known}")
@@ -300,9 +305,22 @@ def recorded_option(path: str, key: str) -> Any:
         return options.get(key) if isinstance(options, dict) else None
     try:
         data, _, _ = _read(path)
+    except UnreadableOptions as exc:  # a file without the line, or none: its reader says
+        if path not in _UNREAD_OPTIONS:
+            _UNREAD_OPTIONS.add(path)
+            print(
+                f"{PROG}: warning: {exc}: the options the estimate was made with (its robot "
+                "file among them) are not read; give them (--robot ...)",
+                file=sys.stderr,
+            )
+        return None
     except InputError:
         return None
     return data.get(key)
+
+
+#: The estimate files whose options line could not be read, said once each
+_UNREAD_OPTIONS: set[str] = set()
 
 
 def model_record(formulation: Formulation) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from dataclasses import replace
 from typing import NamedTuple
@@ -23,11 +24,10 @@ from continuum_mhe.evaluation.metrics import (
     compute_metrics,
     interpolated_note,
     length_misfit,
-    position_unit_problem,
     section_numbers,
-    steady_ratio,
 )
 from continuum_mhe.io.estimate_files import read_estimates
+from continuum_mhe.io.position_units import position_unit_problem, steady_ratio
 from continuum_mhe.io.state_tables import (
     StateTable,
     check_same_robot,
@@ -181,6 +181,14 @@ def _after_start(path: str, est: StateTable, seconds: float) -> StateTable:
     )
 
 
+def _same_file(a: str, b: str) -> bool:
+    """``a`` and ``b`` name one file (a link or another spelling of its path too)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them is missing: its reader says so
+        return False
+
+
 def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
@@ -190,6 +198,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             f"{args.truth}: has an estimate's status or std_ columns: an estimate, not a "
             "truth (evaluate EST.csv TRUTH.csv: the truth comes second)"
+        )
+    if _same_file(args.estimates, args.truth):
+        raise InputError(
+            f"{args.truth}: the truth is the estimate file itself (evaluate EST.csv TRUTH.csv): "
+            "give the truth the estimate is scored against"
         )
     # without --robot or --length: the estimate's own, else one section of --length
     robot = estimate_robot(args, args.estimates, "evaluated on that robot")

@@ -72,6 +72,7 @@ def _estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
     from continuum_mhe.io.output_files import check_output_target
+    from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.state_tables import read_state_table
 
@@ -93,6 +94,14 @@ def _estimate(args: argparse.Namespace) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
+    for path, table in ((args.source, est), (args.truth, truth)):
+        unit = ""
+        if table is not None and lengths is not None:
+            unit = position_unit_problem(table.names, table.values, lengths)
+        elif table is truth and truth is not None:
+            unit = position_unit_against(truth.names, truth.values, est.names, est.values)
+        if unit:
+            raise InputError(f"{path}: {unit}")
     backbone = _tendon_backbone(args, est.names, est.t, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     at_est = None if truth is None else truth_at_estimate(est, truth)

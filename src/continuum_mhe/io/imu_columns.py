@@ -186,6 +186,15 @@ def imu_suffixes(
     sets = columns.numbered(header)
     numbers = [k for k in sets if k > 0]
     plain = any(c in header for c in columns.names)  # unnumbered columns
+    numbered_whole = [k for k, f in sets.items() if k > 0 and columns.whole(f)]
+    if numbered_whole and columns.whole({c for c in columns.names if c in header}):
+        both = ", ".join(map(rows.as_written, columns.fields))
+        other = ", ".join(rows.as_written(f"{c}_{numbered_whole[0]}") for c in columns.fields)
+        raise InputError(
+            f"{rows.name}: line 1: the header has both {both} and {other}: which are the "
+            "IMU's readings? keep one set of columns per IMU (numbered from 1 where the "
+            "robot has several)"
+        )
     # no IMU column at all: the robot's own count, numbered where it has several IMUs
     unnumbered = (not numbers and (plain or n_imus == 1)) or (
         n_imus == 1 and plain and not any(columns.whole(f) for k, f in sets.items() if k > 0)

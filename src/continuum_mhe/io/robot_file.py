@@ -399,16 +399,24 @@ _TOML_AT = re.compile(r"\s*\(at line (\d+), column (\d+)\)$")
 
 
 def toml_error_line(
-    path: object, exc: tomllib.TOMLDecodeError, first_line: int = 1, first_column: int = 1
+    path: object,
+    exc: tomllib.TOMLDecodeError,
+    first_line: int = 1,
+    first_column: int = 1,
+    text: str | None = None,
 ) -> str:
     """The one-line error of a TOML file that does not parse, in the form of every other
     input error: ``PATH: line N: not valid TOML: PROBLEM (column C)``; ``first_line`` and
     ``first_column``: where the parsed text starts in the file (an options line in a
-    CSV's comment: its line, and its column after the ``#``)."""
+    CSV's comment: its line, and its column after the ``#``); ``text``: the parsed text,
+    whose last line a problem "at end of document" names (else no line)."""
     msg = str(exc)
     at = _TOML_AT.search(msg)
-    if at is None:  # "(at end of document)": no line to name
-        return f"{path}: not valid TOML: {shorten(msg, 200)}"
+    if at is None:  # "(at end of document)"
+        if text is None or not text.strip():
+            return f"{path}: not valid TOML: {shorten(msg, 200)}"
+        last = first_line + len(text.rstrip("\n").splitlines()) - 1
+        return f"{path}: line {last}: not valid TOML: {shorten(msg, 200)}"
     line, problem = int(at.group(1)) + first_line - 1, shorten(msg[: at.start()], 200)
     column = int(at.group(2)) + (first_column - 1 if at.group(1) == "1" else 0)
     return f"{path}: line {line}: not valid TOML: {problem} (column {column})"

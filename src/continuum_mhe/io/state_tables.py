@@ -83,6 +83,10 @@ class StateTable:
 
 
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
+#: The largest bend angle (``theta``, ``phi`` columns, rad) a state table takes: a
+#: section bends less than a turn (``theta_max`` lies below pi), and ``phi`` is given
+#: in ``[-pi, pi]`` or ``[0, 2 pi)``; beyond it, the angles are in degrees.
+ANGLE_LIMIT = 2.0 * math.pi + 1e-9
 
 
 #: the suffix of a truth column kept beside the measurements of a recording
@@ -179,6 +183,15 @@ def read_state_table(
         raise InputError(
             f"{p}: line {lines[i]}: {names[j]}={values[i, j]:.6g} out of range (|value| <= "
             f"{STATE_LIMIT:g} in m, rad and N)"
+        )
+    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
+    turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
+    if len(turned):
+        i, j = turned[0]
+        name = names[angles[j]]
+        raise InputError(
+            f"{p}: line {lines[i]}: {name}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? "
+            "bend angles are in rad (numpy.radians converts)"
         )
     return StateTable(
         np.array(t), names, values,

@@ -278,6 +278,11 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
             )
         _check_names(name, n0, header, written)
         scale = 1.0
+        if "t" in header and "t_ms" in header:
+            raise InputError(
+                f"{name}: line {n0}: the header has both t and t_ms: one time column, t in "
+                "seconds or t_ms in milliseconds"
+            )
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
             scale = 1e-3

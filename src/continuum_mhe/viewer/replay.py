@@ -10,6 +10,7 @@ import numpy as np
 
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
+from continuum_mhe.io.position_units import position_unit_problem
 from continuum_mhe.io.state_tables import check_estimate_fits, read_state_table, robot_misfit
 from continuum_mhe.io.tensions import read_tensions
 from continuum_mhe.model.descriptions import pcc_outputs
@@ -55,6 +56,10 @@ def replay(
         misfit = robot_misfit(truth_table.names, robot, complete=False)
         if misfit:
             raise InputError(f"{truth}: {misfit}; pass --robot with its robot")
+    for path, shown in ((estimates, est), (truth, truth_table)):
+        if shown is not None and (unit := position_unit_problem(shown.names, shown.values,
+                                                                robot.lengths)):  # fmt: skip
+            raise InputError(f"{path}: {unit}")
     view = BackboneView(
         robot, outputs, sink, trail_s=trail_s, points_per_section=points_per_section,
         name=Path(estimates).name, tendon=tendon,
