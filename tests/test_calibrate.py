@@ -520,3 +520,27 @@ def test_calibrate_from_a_robot_log_is_one_line(
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "a recording to calibrate from is a CSV file" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cell", ["", "1e6"])
+def test_an_empty_or_impossible_reading_left_out_is_said(tmp_path, capsys, cell) -> None:
+    """An empty field or an acceleration of 1e6 m/s^2 on one row of a two-IMU rest
+    recording (that IMU's dropout there) is left out of its mean and noise, and said with
+    its time: the report counted every sample without a word."""
+    from continuum_mhe.cli import main
+
+    rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = (rest / "spatial-tendon_rest.csv").read_text().splitlines()
+    cells = lines[11].split(",")
+    cells[3] = cell
+    lines[11] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    assert main(["calibrate", "--from", str(bad), "--robot", "two-section"]) == 0
+    err = capsys.readouterr().err
+    t = float(cells[0])
+    assert err == (
+        f"continuum-mhe: warning: {bad}: 1 of {len(lines) - 1} row(s) with a reading missing "
+        f"or beyond any IMU's range (the first at t = {t:g} s): that IMU's reading is left "
+        "out of its mean and noise there\n"
+    )

@@ -23,7 +23,7 @@ from continuum_mhe.calibration.bend import YawCalibration
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if args.bend_phi is not None and not args.bend:
         raise InputError("--bend-phi needs --bend BEND.csv")
     say = stderr_say("calibrate")
+    left_out = ""  # said once the calibration holds
     if args.source:
         try:
             fmt, t, values = read_recording(args.source, robot.n_imus)
@@ -76,6 +77,16 @@ def run(args: argparse.Namespace) -> int:
                 str(exc).replace(DROPOUT_HINT, "calibrate needs every reading of the still robot")
             ) from None
         source = args.source
+        import numpy as np
+
+        missing = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
+        if len(missing):  # an empty field, a reading beyond any IMU's range: a dropout
+            left_out = (
+                f"{PROG}: warning: {source}: {len(missing)} of {len(t)} row(s) with a reading "
+                f"missing or beyond any IMU's range (the first at t = "
+                f"{time_text(float(t[missing[0]]))} s): that IMU's reading is left out of its "
+                "mean and noise there"
+            )
         _check_gyro_bound_applies(args, fmt, source)
     else:
         if args.port is None:
@@ -99,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
         cal = calibrate(t, values, fmt, robot.n_imus, robot.mounting)
     except InputError as exc:  # name the recording
         raise InputError(f"{source}: {exc}") from None
+    if left_out:
+        print(left_out, file=sys.stderr)
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
