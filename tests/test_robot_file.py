@@ -209,3 +209,21 @@ def test_a_gyro_bias_in_deg_s_warns(tmp_path: Path) -> None:
         assert read_robot(robot).imus[0].gyro_bias == (0.5, -1.2, 0.8)
     robot.write_text(base + "gyro_bias = [0.01, -0.02, 0.005]\n")
     assert _said(robot) == []
+
+
+def test_a_tendon_radius_and_a_single_bracket_table_are_named_on_their_line(tmp_path) -> None:
+    """A tendon's radius of 0 names the ``radius =`` line, not its ``[[tendon]]`` line;
+    ``[section]`` (one table, where a list is meant) names its own line."""
+    shipped = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    lines = shipped.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.strip() == "[[tendon]]")
+    at = next(i for i in range(first, len(lines)) if lines[i].startswith("radius"))
+    lines[at] = "radius = 0"
+    robot = tmp_path / "r.toml"
+    robot.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=rf"r\.toml: line {at + 1}: tendon 1: radius = 0: "):
+        read_robot(robot)
+    single = tmp_path / "s.toml"
+    single.write_text("# a robot\n[section]\nlength = 0.2\n[[imu]]\nsection = 1\n")
+    with pytest.raises(InputError, match=r"s\.toml: line 2: 'section' must be a list of tables"):
+        read_robot(single)

@@ -338,8 +338,9 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
         radius = _number(path, f"{where}: radius", table["radius"])
         try:
             tendons.append(Tendon(sec - 1, math.radians(angle), radius))
-        except UserError as exc:
-            raise InputError(f"{path}: {where}: {exc}") from None
+        except UserError as exc:  # named by its key, so that its line is found
+            key = "radius" if "radius" in str(exc) else "angle"
+            raise InputError(f"{path}: {where}: {key} = {table[key]!r}: {exc}") from None
     degrees = [math.degrees(t.angle) for t in tendons]
     if angles_look_like_radians(degrees):
         shown = ", ".join(f"{v:g}" for v in degrees)
@@ -495,10 +496,15 @@ def _with_line(message: str, prefix: str, text: str) -> str:
     if not message.startswith(prefix):
         return message
     problem = message[len(prefix) :]
+    lines = text.splitlines()
+    single = re.match(r"'(\w+)' must be a list of tables", problem)
+    if single is not None:  # written [key] (or key = ...): the first line that writes it
+        header, assign = _table_header(single.group(1)), _assigns(single.group(1))
+        at = next((i for i, ln in enumerate(lines) if header.match(ln) or assign.match(ln)), None)
+        return message if at is None else f"{prefix}line {at + 1}: {problem}"
     m = _WHERE.match(problem)
     if m is None:
         return message
-    lines = text.splitlines()
     table = m.group(1) or m.group(3)
     unknown = _UNKNOWN_KEY.search(problem)
     key = unknown.group(1) if unknown else m.group(4)
