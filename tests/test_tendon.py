@@ -90,7 +90,7 @@ def test_a_pcc_robot_file_reads_as_before() -> None:
         (("shear_modulus = 20.77e9\n", ""), "backbone: missing key 'shear_modulus'"),
         (("angle = 90", "angle = 90\npitch = 1"), "tendon 1: unknown key 'pitch'"),
         (("section = 1\nangle", "section = 2\nangle"), "tendon 1: section must be"),
-        (("radius = 0.01", "radius = 0"), "tendon 1: radius = 0: tendon radius (m) must be a positive"),
+        (("radius = 0.01", "radius = 0"), "tendon 1: radius = 0: tendon radius (m) must be"),
         (("disk = 5", "disk = 11"), "imu 1: disk must be a disk number from 1 to 10"),
         (("disks = 10", "disks = 2.5"), "section 1: disks must be a whole number"),
     ],
