@@ -526,7 +526,7 @@ def test_calibrate_from_a_robot_log_is_one_line(
 def test_an_empty_or_impossible_reading_left_out_is_said(tmp_path, capsys, cell) -> None:
     """An empty field or an acceleration of 1e6 m/s^2 on one row of a two-IMU rest
     recording (that IMU's dropout there) is left out of its mean and noise, and said with
-    its time: the report counted every sample without a word."""
+    its time (the report's sample count is the file's rows)."""
     from continuum_mhe.cli import main
 
     rest = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"

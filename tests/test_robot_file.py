@@ -227,3 +227,12 @@ def test_a_tendon_radius_and_a_single_bracket_table_are_named_on_their_line(tmp_
     single.write_text("# a robot\n[section]\nlength = 0.2\n[[imu]]\nsection = 1\n")
     with pytest.raises(InputError, match=r"s\.toml: line 2: 'section' must be a list of tables"):
         read_robot(single)
+
+
+def test_a_single_bracket_table_after_a_key_of_its_name_names_the_table(tmp_path) -> None:
+    """``section = 1`` inside an ``[[imu]]`` before a ``[section]`` table: the line named
+    is the table's, not the IMU's key."""
+    robot = tmp_path / "r.toml"
+    robot.write_text("[[imu]]\nsection = 1\n\n[section]\nlength = 0.2\n")
+    with pytest.raises(InputError, match=r"r\.toml: line 4: 'section' must be a list of tables"):
+        read_robot(robot)

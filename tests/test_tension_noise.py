@@ -23,6 +23,7 @@ from continuum_mhe.io.tension_derivatives import (
     hold_knots,
     line_knots,
     smoothing_rows,
+    tension_derivatives,
     tension_noise_std,
 )
 from continuum_mhe.io.tensions import Tensions, TensionStream, TensionsWarning, read_tensions
@@ -399,3 +400,40 @@ def test_a_held_tensions_file_estimates_as_its_linear_resampling(tmp_path: Path)
         outs.append(read_state_table(out))
     np.testing.assert_allclose(outs[0].values, outs[1].values, rtol=0, atol=1e-6)
     assert list(outs[0].status) == list(outs[1].status)
+
+
+@pytest.mark.parametrize("hz", [9.5, 9.9, 8.0])
+def test_a_log_held_at_a_period_of_no_whole_number_of_rows_is_found(hz: float) -> None:
+    """The ``force-29`` tensions sampled at a rate that is no divisor of 50 Hz and held:
+    changes every 5 or 6 rows (9.5 Hz), mostly 5 with a 6 now and then (9.9 Hz), 6 or
+    7 (8 Hz). The hold is found at its rate, and the tensions, linear between the
+    changes, are within 0.01 N rms of the 50 Hz file's (a change is taken at the row
+    where it appears, up to a row late), where the held rows as given lag them by half a
+    period: 0.03 N rms or more."""
+    d = np.loadtxt(DATA / "force-29_tensions.csv", delimiter=",", skiprows=1)
+    t = d[:, 0]
+    ts = np.arange(0.0, t[-1] + 1e-9, 1.0 / hz)
+    slow = np.column_stack([np.interp(ts, t, d[:, j]) for j in range(1, 7)])
+    held = slow[np.searchsorted(ts, t + 1e-9, side="right") - 1]
+    found = hold_knots(t, held)
+    assert found is not None and 1.0 / found[1] == pytest.approx(hz, rel=0.02)
+    fifty = read_tensions(DATA / "force-29_tensions.csv", 6).values
+
+    def rms(a: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((a - fifty) ** 2)))
+
+    assert rms(Tensions.from_rows("held.csv", t, held).values) < 0.01
+    assert rms(tension_derivatives(t, held, hold=False).values) > 0.03
+
+
+def test_a_held_log_that_holds_to_the_end_keeps_its_rate_zero_there() -> None:
+    """A 10 Hz ramp from 1 N at 0.5 N/s, held at 3.5 N from 5 s to the end of an 8 s
+    file: 0.5 N/s on the ramp, 0 over the held end (not the ramp's slope carried on)."""
+    t = np.arange(0.0, 8.0, 0.02)
+    slow_t = np.arange(0.0, 8.0001, 0.1)
+    slow = np.minimum(1.0 + 0.5 * slow_t, 3.5)
+    rows = slow[np.searchsorted(slow_t, t + 1e-9, side="right") - 1][:, None]
+    table = Tensions.from_rows("tail.csv", t, rows)
+    assert table.hold_period_s == pytest.approx(0.1)
+    np.testing.assert_allclose(table.rates[(t > 1.0) & (t < 4.0)], 0.5, atol=1e-9)
+    assert np.abs(table.rates[t > 5.2]).max() < 1e-9

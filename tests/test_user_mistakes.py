@@ -1797,7 +1797,7 @@ def _scaled_truth(t: Path, out: Path, columns: tuple[str, ...], factor: float) -
 
 
 def test_bend_angles_in_degrees_are_refused_on_their_line(tmp_path, capsys) -> None:
-    """A truth whose theta is in degrees (a 3112-degree theta RMSE when read as rad):
+    """A truth whose theta is in degrees (read as rad, a theta RMSE of thousands of degrees):
     one line naming the file, the first row beyond 2 pi and its value, exit 2."""
     m, t = _simulated(tmp_path, "a")
     est = tmp_path / "e.csv"
@@ -1847,8 +1847,7 @@ def test_a_header_with_two_sets_of_the_same_columns_is_refused(
     tmp_path, capsys, header: str, said: str
 ) -> None:
     """Two columns for the same reading (an IMU's unnumbered and numbered tilt, the
-    time in s and in ms): which one is meant is not guessed (the numbered set was read
-    and the other left out)."""
+    time in s and in ms): which one is meant is not guessed."""
     f = tmp_path / "two.csv"
     n = header.count(",")
     f.write_text(header + "\n" + "\n".join(",".join([str(0.05 * i)] + ["0.1"] * n)
@@ -1861,7 +1860,8 @@ def test_a_header_with_two_sets_of_the_same_columns_is_refused(
 
 
 def test_evaluate_refuses_the_same_file_as_estimate_and_truth(tmp_path, capsys) -> None:
-    """``evaluate truth.csv truth.csv`` (or the same file spelt another way) scored 0 mm."""
+    """``evaluate truth.csv truth.csv`` (or the same file spelt another way) would score
+    0 mm: refused."""
     _, t = _simulated(tmp_path, "a")
     capsys.readouterr()
     assert main(["evaluate", str(t), str(tmp_path / "." / t.name)]) == 2
@@ -1870,8 +1870,8 @@ def test_evaluate_refuses_the_same_file_as_estimate_and_truth(tmp_path, capsys) 
 
 def test_a_broken_options_line_is_said_with_its_line(tmp_path, capsys) -> None:
     """An estimate whose ``# options`` line is cut: ``evaluate`` warns that the options
-    it records are not read (it used to fall back to the defaults silently), and
-    ``--config`` of it names the line."""
+    it records are not read (it takes the defaults' robot), and ``--config`` of it names
+    the line."""
     m, t = _simulated(tmp_path, "a")
     est = tmp_path / "e.csv"
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf"]) == 0
@@ -1915,3 +1915,25 @@ def test_an_options_files_value_refused_later_names_its_line(
     )
     err = capsys.readouterr().err
     assert err.startswith(f"continuum-mhe: error: {config}: {said}"), err
+
+
+def test_an_options_files_line_is_not_given_to_another_options_error(tmp_path, capsys) -> None:
+    """``loss = "huber"`` in the options file and a bad ``--loss-scale`` on the command
+    line: the error is the command line's, without the file's ``loss`` line (a flag that
+    begins like another is not that one); a robot file named there whose content is
+    wrong is its own error, not the options file's."""
+    m, _ = _simulated(tmp_path, "a")
+    config = tmp_path / "c.toml"
+    config.write_text('loss = "huber"\n')
+    out = tmp_path / "o.csv"
+    capsys.readouterr()
+    argv = ["estimate", str(m), "--config", str(config), "--loss-scale", "-1", "-o", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("continuum-mhe: error: --loss-scale") and str(config) not in err
+    robot = tmp_path / "s.toml"
+    robot.write_text("[section]\nlength = 0.2\n")
+    config.write_text(f"robot = {str(robot)!r}\n")
+    assert main(["estimate", str(m), "--config", str(config), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"continuum-mhe: error: {robot}: line 1: 'section' must be"), err

@@ -13,6 +13,7 @@ import argparse
 import errno
 import importlib
 import os
+import re
 import signal
 import sys
 import warnings
@@ -157,17 +158,18 @@ def _given_options(
 def _from_config(args: argparse.Namespace | None, exc: BaseException) -> str:
     """``PATH: line N: key = value: `` where the user error ``exc`` is about an option
     that the options file (``--config``) set, naming it as the command line's flag
-    (``--mount-rpy ...``) or, for a file option, as its value (``5: no such robot
-    file``); else ``""``."""
+    (``--mount-rpy ...``; not another flag that begins alike, ``--loss-scale`` for
+    ``--loss``) or, for a file option, a file it names that is not there (``5: no such
+    robot file``); else ``""``."""
     sources = getattr(args, "config_sources", None)
     if not sources or not isinstance(exc, UserError):
         return ""
     message = str(exc)
     for dest, source in sources.items():
         flag = "--" + dest.replace("_", "-")
-        value = getattr(args, dest, None)
-        named = message.startswith(flag) and not message[len(flag) : len(flag) + 1].isalnum()
-        if named or (dest in FILE_OPTIONS and message.startswith(f"{value}:")):
+        named = re.match(rf"{re.escape(flag)}(?![\w-])", message) is not None
+        missing = f"{getattr(args, dest, None)}: no such "  # the file it names is not there
+        if named or (dest in FILE_OPTIONS and message.startswith(missing)):
             return f"{source}: "
     return ""
 

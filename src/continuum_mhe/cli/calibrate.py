@@ -8,6 +8,8 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from continuum_mhe.calibration.at_rest import (
     STILL_ACC_STD,
     STILL_GYRO_STD,
@@ -77,8 +79,6 @@ def run(args: argparse.Namespace) -> int:
                 str(exc).replace(DROPOUT_HINT, "calibrate needs every reading of the still robot")
             ) from None
         source = args.source
-        import numpy as np
-
         missing = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
         if len(missing):  # an empty field, a reading beyond any IMU's range: a dropout
             left_out = (

@@ -338,9 +338,8 @@ def _tendons(path: Path, doc: dict[str, Any], n_sections: int) -> list[Tendon]:
         radius = _number(path, f"{where}: radius", table["radius"])
         try:
             tendons.append(Tendon(sec - 1, math.radians(angle), radius))
-        except UserError as exc:  # named by its key, so that its line is found
-            key = "radius" if "radius" in str(exc) else "angle"
-            raise InputError(f"{path}: {where}: {key} = {table[key]!r}: {exc}") from None
+        except UserError as exc:  # the radius (the angle is checked above): its line
+            raise InputError(f"{path}: {where}: radius = {table['radius']!r}: {exc}") from None
     degrees = [math.degrees(t.angle) for t in tendons]
     if angles_look_like_radians(degrees):
         shown = ", ".join(f"{v:g}" for v in degrees)
@@ -498,9 +497,12 @@ def _with_line(message: str, prefix: str, text: str) -> str:
     problem = message[len(prefix) :]
     lines = text.splitlines()
     single = re.match(r"'(\w+)' must be a list of tables", problem)
-    if single is not None:  # written [key] (or key = ...): the first line that writes it
+    if single is not None:  # written [key], or key = ... at the top level
         header, assign = _table_header(single.group(1)), _assigns(single.group(1))
-        at = next((i for i, ln in enumerate(lines) if header.match(ln) or assign.match(ln)), None)
+        top = next((i for i, ln in enumerate(lines) if _TABLE_HEADER.match(ln)), len(lines))
+        at = next((i for i, ln in enumerate(lines) if header.match(ln)), None)
+        if at is None:
+            at = next((i for i in range(top) if assign.match(lines[i])), None)
         return message if at is None else f"{prefix}line {at + 1}: {problem}"
     m = _WHERE.match(problem)
     if m is None:

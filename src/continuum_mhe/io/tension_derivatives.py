@@ -242,22 +242,47 @@ def _periodic_knots(t: FloatArray, marks: FloatArray) -> FloatArray | None:
 def hold_knots(t: FloatArray, values: FloatArray) -> tuple[FloatArray, float] | None:
     """``(knots (n,) bool, period s)`` where the rows ``values`` (n, k) at ``t`` (n,) s
     hold each value of a slower log for several rows (a zero-order hold: a logger that
-    writes the last tension it received at every IMU sample), else None. A row that
-    differs from the row before it in some column (by more than :data:`ON_LINE_N`) is a
-    change, a new sample of the slower log; the changes must follow a period as
-    :func:`_periodic_knots` asks (a tension held steady by a controller for a while, or
-    a constant one, keeps a knot per period). Differenced row by row, such rows give
-    rates that are zero within a hold and a spike at each change, and second
+    writes the last tension it received at every IMU sample), else None.
+
+    A row that differs from the row before it in some column (by more than
+    :data:`ON_LINE_N`) is a change, a new sample of the slower log. The rows hold such a
+    log where the median number of rows between changes (its period, not always a whole
+    number: a 9.5 Hz log on 50 Hz rows changes every 5 or 6 rows) is two or more and
+    spans at most :data:`MAX_RESAMPLED_PERIOD_S`, at least :data:`MIN_PERIODS` and half
+    of the gaps lie within a row of it, and :data:`LINE_PATTERN_SHARE` of them are no
+    shorter than a row under it (a longer gap: the log held a value, as a controller's
+    steady tension or a constant one). The knots are the changes, and where a gap is
+    longer than a period and a row, or after the last change, a row every period and
+    the last row (the log's samples of the held value). Differenced row by row, such
+    rows give rates that are zero within a hold and a spike at each change, and second
     derivatives of twice that size; the knots give the slower log's own."""
-    if len(t) < 3:
+    n = len(t)
+    if n < 3:
         return None
-    marks = np.ones(len(t), dtype=bool)
+    marks = np.ones(n, dtype=bool)
     marks[1:] = np.any(np.abs(np.diff(values, axis=0)) > ON_LINE_N, axis=1)
-    knots = _periodic_knots(t, marks)
-    if knots is None:
-        return None
     at = np.flatnonzero(marks)
-    return knots, float(np.median(np.diff(t[at])))
+    gaps = np.diff(at)
+    if len(gaps) < MIN_PERIODS:
+        return None
+    period = float(np.median(gaps))
+    regular = np.abs(gaps - period) <= 1.0
+    step = float(np.median(np.diff(t)))
+    if (
+        period < 2.0
+        or period * step > MAX_RESAMPLED_PERIOD_S
+        or int(regular.sum()) < MIN_PERIODS
+        or np.mean(regular) < 0.5
+        or np.mean(gaps >= period - 1.0) < LINE_PATTERN_SHARE
+    ):
+        return None
+    knots = marks.copy()
+    every = max(2, round(period))
+    for start, stop in zip(at, [*at[1:], n], strict=True):  # the held stretches
+        if stop - start > period + 1.0:
+            knots[start + every : stop : every] = True
+    knots[-1] = True
+    return knots, float(np.mean(np.diff(t[at])[regular]))
 
 
 def slower_log(t: FloatArray, values: FloatArray) -> tuple[str, float] | None:
@@ -275,7 +300,7 @@ def slower_log(t: FloatArray, values: FloatArray) -> tuple[str, float] | None:
 
 
 def tension_derivatives(
-    t: FloatArray, values: FloatArray, binned: bool = True
+    t: FloatArray, values: FloatArray, binned: bool = True, hold: bool = True
 ) -> DifferencedTensions:
     """The tensions ``values`` (n, k) at the rows' times ``t`` (n,) s as the estimators
     take them: the rows, their central differences, and those of the rates. With
@@ -300,11 +325,13 @@ def tension_derivatives(
       by ``smoothing``;
 
     and the derivatives (and smoothed values) are interpolated back to every row.
+    ``hold`` False: a held log is not looked for (each held row taken as given; for
+    comparison).
     """
     if not binned or len(t) < 3:
         rates = central_differences(t, values)
         return DifferencedTensions(values, rates, central_differences(t, rates))
-    held = hold_knots(t, values)
+    held = hold_knots(t, values) if hold else None
     knots = line_knots(t, values) if held is None else held[0]
     hold_s = 0.0 if held is None else held[1]
     tb, vb = t[knots], values[knots]
