@@ -1518,7 +1518,7 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
 ) -> None:
     """Tensions a thousand times too large (mN written as N) would bend a section through
     hundreds of turns (the tendons' net moment over the backbone's bending stiffness):
-    one line naming the file and the time, exit 2, nothing written. The shipped
+    one line naming the file, the line and its time, exit 2, nothing written. The shipped
     recordings' tensions (up to 2 rad of bend) pass."""
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.tensions import read_tensions
@@ -1536,7 +1536,10 @@ def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
             "--inputs", str(mn), "-o", str(out)]  # fmt: skip
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"{mn}: at t = " in err[0]
+    said = re.search(rf"{re.escape(str(mn))}: line (\d+): at t = (\S+) s", err[0])
+    assert len(err) == 1 and said is not None, err
+    line = mn.read_text().splitlines()[int(said.group(1)) - 1]  # the row it names
+    assert float(line.split(",")[0]) == pytest.approx(float(said.group(2)))
     assert "would bend section 1 through" in err[0] and not out.exists()
     assert "N m^2): tensions in N (mN?), or the robot file's [backbone] too soft" in err[0]
     # tensions a tendon carries in N, with a modulus given in MPa: the backbone first

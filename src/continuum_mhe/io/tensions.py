@@ -118,6 +118,7 @@ class Tensions:
         hold_period_s: the period of a slower log whose values the rows hold (a
             zero-order hold), s: ``values`` are linear between the rows where they
             change (0: none found; :func:`~.tension_derivatives.hold_knots`).
+        lines: each row's line in its file, for messages (None: rows of no file).
     """
 
     name: str
@@ -128,13 +129,20 @@ class Tensions:
     smoothing: TensionSmoothing | None = None
     given: FloatArray | None = None
     hold_period_s: float = 0.0
+    lines: tuple[int, ...] | None = None
 
     @classmethod
     def from_rows(
-        cls, name: str, t: FloatArray, values: FloatArray, binned: bool = True
+        cls,
+        name: str,
+        t: FloatArray,
+        values: FloatArray,
+        binned: bool = True,
+        lines: tuple[int, ...] | None = None,
     ) -> Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
-        derivatives (:func:`tension_derivatives`)."""
+        derivatives (:func:`tension_derivatives`); ``lines``: each row's line in its
+        file (None: rows of no file)."""
         taken = tension_derivatives(t, values, binned=binned)
         changed = taken.smoothing is not None or taken.hold_period_s > 0
         return cls(
@@ -146,6 +154,7 @@ class Tensions:
             taken.smoothing,
             given=values if changed else None,
             hold_period_s=taken.hold_period_s,
+            lines=lines,
         )
 
     @property
@@ -258,8 +267,9 @@ class Tensions:
                 causes = [soft, "tensions in N (mN?)"]
                 if float(np.max(self.rows)) > PLAUSIBLE_TENSION_N:
                     causes.reverse()
+                line = "" if self.lines is None else f"line {self.lines[i]}: "
                 raise InputError(
-                    f"{self.name}: at t = {time_text(float(self.t[i]))} s the tensions "
+                    f"{self.name}: {line}at t = {time_text(float(self.t[i]))} s the tensions "
                     f"({', '.join(f'{v:g}' for v in self.rows[i])} N) would bend section "
                     f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
                     f"stiffness {ei:.3g} N m^2): {causes[0]}, or {causes[1]}?"
@@ -445,7 +455,8 @@ def read_tensions(
             "a tendon cannot push (a slack tendon's tension is 0)"
         )
     # a recording's own columns row by row, as live's TensionStream differenced them
-    return Tensions.from_rows(name, t, values, binned=not other_columns)
+    lines = tuple(int(d[0]) for d in data)
+    return Tensions.from_rows(name, t, values, binned=not other_columns, lines=lines)
 
 
 def tension_columns_in(path: str | os.PathLike[str]) -> list[str]:
