@@ -4,6 +4,7 @@ records the ratios and where the numbers come from."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 from dataclasses import replace
@@ -217,7 +218,7 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
         for i, problem in enumerate(windows):
             assert problem is not None
             X0 = peers.shifted_guess(f, problem, X)
-            X, converged, _ = solver.solve(problem, X0)
+            X, converged, _ = peers.solve_window(solver, problem, X0)
             assert converged, f"{name} did not converge on window {i}"
             if i in (2, n, n + 3, len(windows) - 1):  # growing, first full, dropout, last
                 ref = nlp.solver(x0=X0.ravel(), p=pack_parameters(problem), lbx=nlp.lbx,
@@ -325,3 +326,29 @@ def test_the_ratios_line_names_only_the_contenders_that_ran(
     out = " ".join(capsys.readouterr().out.split())
     line = out[out.index("fast MHE at N = 3:") :].split("machine:")[0]
     assert line.strip().endswith("of IPOPT") and "EKF" not in line and "-x" not in line
+
+
+def test_a_peer_is_timed_on_its_solve_alone(monkeypatch) -> None:
+    """``run_peer`` hands each window and its warm start to the peer (``prepare``: the
+    guess's model calls, the parameters) before its clock starts, and stops the clock
+    after the solve: the order of the calls, with the clock's reads among them."""
+    calls: list[str] = []
+
+    class Recorder:
+        def prepare(self, problem: object, X0: np.ndarray) -> None:
+            calls.append("prepare")
+
+        def solve(self) -> tuple[np.ndarray, bool, float]:
+            calls.append("solve")
+            return np.zeros((3, f.nx)), True, math.nan
+
+    def clock() -> float:
+        calls.append("clock")
+        return float(len(calls))
+
+    f = make_formulation("bend")
+    windows = peers.record_windows(f, simulate("paper3d", duration=0.2, seed=0), 3)
+    monkeypatch.setattr(peers.time, "perf_counter", clock)
+    _, sec, failed, _ = peers.run_peer(f, Recorder(), windows)
+    assert calls == ["prepare", "clock", "solve", "clock"] * len(windows)
+    assert failed == 0 and np.all(sec == 2.0)  # the two reads around the solve alone
