@@ -142,7 +142,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--repeats",
         type=int,
         default=REPEATS,
-        help="rounds of the fast MHE, its kernel and the EKFs per horizon, in turn; each "
+        help="rounds of every method per horizon, in turn, after one warm-up run; each "
         f"sample's time is the median over the rounds (default {REPEATS})",
     )
     p.add_argument(
