@@ -352,3 +352,34 @@ def test_a_peer_is_timed_on_its_solve_alone(monkeypatch) -> None:
     _, sec, failed, _ = peers.run_peer(f, Recorder(), windows)
     assert calls == ["prepare", "clock", "solve", "clock"] * len(windows)
     assert failed == 0 and np.all(sec == 2.0)  # the two reads around the solve alone
+
+
+@pytest.mark.parametrize("ng", [0, 1])
+def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> None:
+    """Each multiplier of a window answer labelled by its stage and place: after the
+    shift stage i holds stage i + 1's; the new last stage repeats the old last one's
+    state bounds and constraints, its noise bounds are 0, and the dynamics before it are
+    the old last dynamics'."""
+    n, nx = 4, 2
+
+    def label(i: int, size: int, base: int) -> np.ndarray:
+        return base * i + 1 + np.arange(size, dtype=float)
+
+    lam_x = np.concatenate(
+        [np.concatenate([label(i, nx, 10), -label(i, nx, 10)]) for i in range(n - 1)]
+        + [label(n - 1, nx, 10)]
+    )
+    stage = [np.concatenate([label(i, nx, 100), -label(i, ng, 100)]) for i in range(n - 1)]
+    lam_g = np.concatenate([*stage, -label(n - 1, ng, 100)])
+    x, g = peers.shifted_multipliers(lam_x, lam_g, nx, ng)
+    states = x.reshape(-1)[np.r_[0:nx, 2 * nx : 3 * nx, 4 * nx : 5 * nx, 6 * nx : 7 * nx]]
+    assert list(states) == [11, 12, 21, 22, 31, 32, 31, 32]
+    assert list(x[[nx, nx + 1, 3 * nx, 3 * nx + 1]]) == [-11, -12, -21, -22]
+    assert list(x[5 * nx : 6 * nx]) == [0, 0]  # the new last noise
+    per = nx + ng
+    dyn = [list(g[i * per : i * per + nx]) for i in range(n - 1)]
+    assert dyn == [[101, 102], [201, 202], [201, 202]]
+    if ng:
+        cons = [float(g[i * per + nx]) for i in range(n - 1)] + [float(g[-1])]
+        assert cons == [-101, -201, -301, -301]
+    assert len(x) == len(lam_x) and len(g) == len(lam_g)

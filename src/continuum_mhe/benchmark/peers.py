@@ -67,9 +67,11 @@ PEER_NOTES: dict[str, str] = {
     "generated C, on the same windows (noise as control), warm-started from its shifted "
     "answer: the solve and read-back through acados_template; solver us: acados' own time",
     "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
-    "(noise as control), warm-started from its shifted answer: the nlpsol call",
+    "(noise as control), warm-started from its shifted answer and multipliers: the nlpsol "
+    "call",
     "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
-    "windows (noise as control), warm-started from its shifted answer: the nlpsol call",
+    "windows (noise as control), warm-started from its shifted answer and multipliers: "
+    "the nlpsol call",
 }
 
 #: Convergence tolerance of every peer (the fast MHE's step and error tolerances and
@@ -251,6 +253,8 @@ class CasadiPeer:
         self.formulation, self.horizon = formulation, horizon
         self.ocp = o = ocp_nlp(formulation, horizon)
         self._x0 = self._p = np.zeros(0)  # the prepared window (prepare)
+        # the previous answer's multipliers (lam_x, lam_g), shifted in prepare
+        self._lam: tuple[FloatArray, FloatArray] | None = None
         nx, n = formulation.nx, horizon
         common: dict[str, Any] = {"print_time": False, "error_on_fail": False}
         if name == "fatrop":
@@ -287,15 +291,38 @@ class CasadiPeer:
             raise ValueError(f"no CasADi peer named {name!r}")
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
-        """The window's parameters and the guess, as ``nlpsol`` takes them."""
+        """The window's parameters and the guess, as ``nlpsol`` takes them: the states'
+        and the multipliers of the previous answer shifted by one sample, as the fast
+        MHE shifts its own (:func:`shifted_multipliers`; none before the first
+        answer)."""
         self._x0 = ocp_guess(self.formulation, problem, X0)
         self._p = pack_parameters(problem)
+        if self._lam is not None:
+            nx, ng = self.formulation.nx, self.ocp.ng
+            self._lam = shifted_multipliers(*self._lam, nx, ng)
 
     def solve(self) -> tuple[FloatArray, bool, float]:
         o = self.ocp
-        sol = self.solver(x0=self._x0, p=self._p, lbx=o.lbx, ubx=o.ubx, lbg=o.lbg, ubg=o.ubg)
+        lam = {} if self._lam is None else {"lam_x0": self._lam[0], "lam_g0": self._lam[1]}
+        sol = self.solver(x0=self._x0, p=self._p, lbx=o.lbx, ubx=o.ubx, lbg=o.lbg, ubg=o.ubg, **lam)
+        self._lam = (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel())
         X = ocp_states(np.asarray(sol["x"], dtype=float).ravel(), self.formulation.nx, self.horizon)
         return X, bool(self.solver.stats()["success"]), math.nan
+
+
+def shifted_multipliers(
+    lam_x: FloatArray, lam_g: FloatArray, nx: int, ng: int
+) -> tuple[FloatArray, FloatArray]:
+    """The multipliers of an :class:`OcpNlp` answer moved by one sample, as its states
+    are (:func:`shifted_guess`): stage ``i`` takes stage ``i + 1``'s; the new last
+    stage's noise bound none (the noise is unbounded), its state bounds and constraints
+    the old last ones', and the dynamics of the stage before it the old last dynamics'."""
+    stage_x, stage_g = 2 * nx, nx + ng
+    x = np.concatenate([lam_x[stage_x:], np.zeros(nx), lam_x[-nx:]])
+    dyn_last = lam_g[-ng - stage_g : -ng - ng] if ng else lam_g[-stage_g:]
+    g = np.concatenate([lam_g[stage_g : len(lam_g) - ng], dyn_last, lam_g[len(lam_g) - ng :],
+                        lam_g[len(lam_g) - ng :]])  # fmt: skip
+    return x, g
 
 
 @contextlib.contextmanager
