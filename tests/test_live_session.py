@@ -682,3 +682,26 @@ def test_live_stops_early_on_an_accelerometer_in_g() -> None:
     rad, _, _ = _raw_session(RawImuSettings())  # the same stream in m/s^2 goes on
     _handle(rad, [",".join(r) for r in rows])
     assert rad.fatal is None and rad.counts.estimates == len(rows)
+
+
+def test_a_sample_whose_solve_a_signal_stops_keeps_its_row(monkeypatch) -> None:
+    """A second Ctrl-C that stops the estimator's step on a sample (already recorded)
+    still writes that sample's row, without an estimate, before the signal goes on: the
+    recording and the estimates keep a row per sample."""
+    out = io.StringIO()
+    s, _ = _session(out=out)
+    step = s.estimator.step
+    calls = []
+
+    def stopped(m: object) -> object:
+        calls.append(m)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return step(m)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(s.estimator, "step", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        _feed(s, [0, 50, 100, 150, 200, 250])
+    rows = [ln for ln in out.getvalue().splitlines() if ln and not ln.startswith(("#", "t,"))]
+    assert len(rows) == s.counts.estimates == 4
+    assert rows[-1].endswith(",no-estimate,0")

@@ -151,6 +151,10 @@ def run_live(
         reader.stop.set()
         left = events.qsize()
         say(f"stopping; estimating {left} queued line(s), Ctrl-C again to abandon them")
+        # the signal that stopped the loop is acted on by this drain: set aside, so that
+        # only a new one stops it (a solve that defers signals raises those it finds)
+        acted = list(SIGNALS_SEEN)
+        SIGNALS_SEEN.clear()
         try:
             while True:
                 try:
@@ -163,6 +167,8 @@ def run_live(
                         break
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")
+        finally:
+            SIGNALS_SEEN[:0] = acted  # the command's exit status reads them
     finally:
         stop_deferring()
         reader.stop.set()

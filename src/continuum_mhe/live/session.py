@@ -590,7 +590,11 @@ class LiveSession:
             )  # fmt: skip
             if p.restart:
                 self._restart(p.t, converters=False)
-            est = self._estimate(p.t, z)
+            try:
+                est = self._estimate(p.t, z)
+            except KeyboardInterrupt:  # recorded: its row, without an estimate, then stop
+                self._write(Estimate(p.t, None, None, None, Status.NO_ESTIMATE, 0.0))
+                raise
             self._write(est)
             ms = (time.monotonic() - p.arrival) * 1e3
             self.latency.add(ms)
