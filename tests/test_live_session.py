@@ -705,3 +705,18 @@ def test_a_sample_whose_solve_a_signal_stops_keeps_its_row(monkeypatch) -> None:
     rows = [ln for ln in out.getvalue().splitlines() if ln and not ln.startswith(("#", "t,"))]
     assert len(rows) == s.counts.estimates == 4
     assert rows[-1].endswith(",no-estimate,0")
+
+
+def test_seconds_of_lines_of_another_field_count_say_why_where_fields_were_declared() -> None:
+    """A device that declared its fields (``# fields: t_ms,roll,pitch``), whose lines
+    then carry a second IMU's tilt for seconds: a single such line is taken as cut (no
+    hint), but the stop after seconds of them names the likely cause, as it does
+    without the declaration."""
+    s, _ = _session()
+    now = time.monotonic()
+    s.handle_line(b"# fields: t_ms,roll,pitch", now)
+    _feed(s, [0, 50, 100])
+    for i in range(80):  # 4 s of two-IMU lines at 20 Hz
+        s.handle_line(f"{150 + 50 * i},0.1,0.1,0.2,0.2".encode(), now + 0.05 * i)
+    assert s.fatal is not None and "nothing but garbled lines" in s.fatal
+    assert ": a line of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?" in s.fatal, s.fatal

@@ -345,23 +345,29 @@ class LiveSession:
                 f"garbled line skipped: {c.first_garbled} (said for the first only; all are "
                 "counted)"
             )
-        self._garbage(arrival, reason + self._hint(text))
+        self._garbage(arrival, reason + self._hint(text), text)
 
     def _hint(self, text: str) -> str:
         if self._fields_match:  # the device named the expected fields: a cut line
             return ""
         return field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
 
-    def _garbage(self, arrival: float, why: str) -> None:
+    def _garbage(self, arrival: float, why: str, text: str = "") -> None:
         """One more garbled line in the run of them since the last valid sample: a run
         over ``GARBAGE_STOP_S`` s of ``GARBAGE_STOP_LINES`` lines or more sets
-        :attr:`fatal` with the cause of its last line."""
+        :attr:`fatal` with the cause of its last line (``text``), and the likely cause of
+        its field count (:func:`~continuum_mhe.stream.protocol.field_count_hint`; said
+        here even where the device declared its fields, whose wrong count in one line
+        is taken as a cut line: not for seconds of them)."""
         if self._garbage_since is None:
             self._garbage_since = arrival
         self._garbage_lines += 1
         span = arrival - self._garbage_since
         if span >= GARBAGE_STOP_S and self._garbage_lines >= GARBAGE_STOP_LINES:
             after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
+            hint = field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
+            if hint and hint not in why:
+                why += hint
             self.fatal = (
                 f"{self.settings.port}: nothing but garbled lines for {span:.1f} s{after} "
                 f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
