@@ -329,12 +329,16 @@ def test_the_ratios_line_names_only_the_contenders_that_ran(
 
 
 def test_a_peer_is_timed_on_its_solve_alone(monkeypatch) -> None:
-    """``run_peer`` hands each window and its warm start to the peer (``prepare``: the
-    guess's model calls, the parameters) before its clock starts, and stops the clock
-    after the solve: the order of the calls, with the clock's reads among them."""
+    """``run_peer`` starts the peer on a new recording (``reset``: no multipliers of
+    another run's last window), hands each window and its warm start to it (``prepare``:
+    the guess's model calls, the parameters) before its clock starts, and stops the
+    clock after the solve: the order of the calls, with the clock's reads among them."""
     calls: list[str] = []
 
     class Recorder:
+        def reset(self) -> None:
+            calls.append("reset")
+
         def prepare(self, problem: object, X0: np.ndarray) -> None:
             calls.append("prepare")
 
@@ -350,7 +354,7 @@ def test_a_peer_is_timed_on_its_solve_alone(monkeypatch) -> None:
     windows = peers.record_windows(f, simulate("paper3d", duration=0.2, seed=0), 3)
     monkeypatch.setattr(peers.time, "perf_counter", clock)
     _, sec, failed, _ = peers.run_peer(f, Recorder(), windows)
-    assert calls == ["prepare", "clock", "solve", "clock"] * len(windows)
+    assert calls == ["reset"] + ["prepare", "clock", "solve", "clock"] * len(windows)
     assert failed == 0 and np.all(sec == 2.0)  # the two reads around the solve alone
 
 

@@ -67,8 +67,8 @@ PEER_NOTES: dict[str, str] = {
     "generated C, on the same windows (noise as control), warm-started from its shifted "
     "answer: the solve and read-back through acados_template; solver us: acados' own time",
     "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
-    "(noise as control), warm-started from its shifted answer and multipliers: the nlpsol "
-    "call",
+    "(noise as control), warm-started from its shifted answer (it takes no multipliers): "
+    "the nlpsol call",
     "sqp-hpipm": "CasADi's sqpmethod with HPIPM as QP solver (exact Hessian) on the same "
     "windows (noise as control), warm-started from its shifted answer and multipliers: "
     "the nlpsol call",
@@ -101,9 +101,12 @@ ACADOS_HINT = (
 
 
 class WindowSolver(Protocol):
-    """A peer: :meth:`prepare` hands it one window and its guess (the problem data and
-    the warm start, formed outside the timed part), :meth:`solve` solves it (the timed
-    part) and returns ``(X (N, nx), converged, the solver's own seconds or nan)``."""
+    """A peer: :meth:`reset` starts a recording (no previous answer), :meth:`prepare`
+    hands it one window and its guess (the problem data and the warm start, formed
+    outside the timed part), :meth:`solve` solves it (the timed part) and returns ``(X
+    (N, nx), converged, the solver's own seconds or nan)``."""
+
+    def reset(self) -> None: ...
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None: ...
 
@@ -163,6 +166,7 @@ def run_peer(
     own = np.full(n, np.nan)
     failed = 0
     X: FloatArray | None = None
+    solver.reset()
     for i, problem in enumerate(windows):
         if problem is None:
             continue
@@ -290,11 +294,15 @@ class CasadiPeer:
         else:
             raise ValueError(f"no CasADi peer named {name!r}")
 
+    def reset(self) -> None:
+        """A new recording: no previous multipliers."""
+        self._lam = None
+
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
         """The window's parameters and the guess, as ``nlpsol`` takes them: the states'
         and the multipliers of the previous answer shifted by one sample, as the fast
-        MHE shifts its own (:func:`shifted_multipliers`; none before the first
-        answer)."""
+        MHE shifts its own (:func:`shifted_multipliers`; none before the first answer of
+        a recording; fatrop, an interior-point method, does not take them)."""
         self._x0 = ocp_guess(self.formulation, problem, X0)
         self._p = pack_parameters(problem)
         if self._lam is not None:
@@ -454,6 +462,9 @@ class AcadosPeer:
         self._W[:m, :m] = self.rinv
         self._W_e = np.zeros((m + nx, m + nx))
         self._W_e[:m, :m] = self.rinv
+
+    def reset(self) -> None:
+        """A new recording (acados keeps its own multipliers from its last solve)."""
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
         """The window's parameters, weights and guess, set in the solver through

@@ -74,6 +74,7 @@ def run_live(
     window_start, window_n = start, 0
     behind_since: float | None = None
     stopping = waiting = False
+    acted: list[int] = []  # the signals that stopped the loop, set aside while it drains
     # Under the CLI, SIGINT/SIGTERM only set a flag while this loop runs; the loop stops
     # between two lines, so a sample is never in the recording without its estimate.
     if view is not None:  # every estimate, as it is written
@@ -147,15 +148,16 @@ def run_live(
                 if plot is not None and session.last is not None:
                     plot.update(session.last, session.formulation.outputs)
     except KeyboardInterrupt:
-        stop_deferring()  # a second signal abandons the queue at once
+        # the signal that stopped the loop is acted on by the drain and the end below:
+        # set aside (while signals are still deferred), so that only a new one stops
+        # them (a solve that defers signals raises those it finds)
+        acted[:] = SIGNALS_SEEN
+        SIGNALS_SEEN.clear()
         reader.stop.set()
         left = events.qsize()
         say(f"stopping; estimating {left} queued line(s), Ctrl-C again to abandon them")
-        # the signal that stopped the loop is acted on by this drain: set aside, so that
-        # only a new one stops it (a solve that defers signals raises those it finds)
-        acted = list(SIGNALS_SEEN)
-        SIGNALS_SEEN.clear()
         try:
+            stop_deferring()  # a second signal abandons the queue at once
             while True:
                 try:
                     kind, payload, arrival = events.get_nowait()
@@ -167,15 +169,16 @@ def run_live(
                         break
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")
-        finally:
-            SIGNALS_SEEN[:0] = acted  # the command's exit status reads them
     finally:
         stop_deferring()
         reader.stop.set()
     if session.fatal is not None:
         reader.join(timeout=1.0)  # it closes the port (reads time out after 0.05 s)
-    session.finish()  # a first sample still waiting for the next one
-    session.check_units()  # a session shorter than the check's samples: on them all
+    try:
+        session.finish()  # a first sample still waiting for the next one
+        session.check_units()  # a session shorter than the check's samples: on them all
+    finally:
+        SIGNALS_SEEN[:0] = acted  # the command's exit status reads them
     say(session.summary())
     if failure is not None:
         raise failure
