@@ -124,7 +124,8 @@ class ImuPlacement:
     """Where an IMU sits.
 
     Attributes:
-        section: 0-based index of the section it is on.
+        section: 0-based index of the section it is on (a robot file's ``section = 1``
+            is ``section=0`` here).
         at: fraction of that section's length from its base, in ``(0, 1]``.
         mount_rpy: sensor mounting ``(roll, pitch, yaw)`` in degrees, Z-Y-X, mapping
             sensor-frame vectors into the local backbone frame (applied to raw data).
