@@ -181,7 +181,13 @@ def _one(path: str, where: str, key: str, action: argparse.Action, value: Any) -
     try:
         converted = convert(str(value)) if convert is not None else str(value)
     except (ValueError, TypeError, argparse.ArgumentTypeError) as exc:
-        why = {int: "expected a whole number", float: "expected a number"}.get(convert, str(exc))  # type: ignore[call-overload]
+        why = (
+            "expected a whole number"
+            if convert is int
+            else "expected a number"
+            if convert is float
+            else str(exc)
+        )
         raise InputError(f"{path}: {where}{key} = {value!r}: {why}") from None
     if action.choices is not None and converted not in action.choices:
         known = ", ".join(map(str, action.choices))
@@ -305,7 +311,7 @@ def recorded_option(path: str, key: str) -> Any:
         return options.get(key) if isinstance(options, dict) else None
     try:
         data, _, _ = _read(path)
-    except UnreadableOptions as exc:  # a file without the line, or none: its reader says
+    except UnreadableOptions as exc:  # an options line that is not valid TOML: said once
         if path not in _UNREAD_OPTIONS:
             _UNREAD_OPTIONS.add(path)
             print(
@@ -314,7 +320,7 @@ def recorded_option(path: str, key: str) -> Any:
                 file=sys.stderr,
             )
         return None
-    except InputError:
+    except InputError:  # no such line, or no such file: its reader says so
         return None
     return data.get(key)
 

@@ -479,9 +479,10 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
 
 #: ``section 2: length: ...``, ``imu 1: unknown key 'x' ...``, ``backbone: ...``,
 #: ``top level: unknown key 'x' ...``: the table a robot-file message names, then the
-#: word after it (a key, where it is one).
+#: word after it (a key, where it is one); a message that starts with a quoted key
+#: (``'section' must be a list of tables``) names a top-level key.
 _WHERE = re.compile(
-    r"(?:(section|imu|tendon) (\d+)|(backbone)|top level|(?=mounting))(?::\s*|\s+)?(\w*)"
+    r"(?:(section|imu|tendon) (\d+)|(backbone)|top level|(?=mounting)|(?='))(?::\s*|\s+)?'?(\w*)"
 )
 _UNKNOWN_KEY = re.compile(r"unknown key '([^']+)'")
 _TABLE_HEADER = re.compile(r"\s*\[")
@@ -495,18 +496,10 @@ def _with_line(message: str, prefix: str, text: str) -> str:
     if not message.startswith(prefix):
         return message
     problem = message[len(prefix) :]
-    lines = text.splitlines()
-    single = re.match(r"'(\w+)' must be a list of tables", problem)
-    if single is not None:  # written [key], or key = ... at the top level
-        header, assign = _table_header(single.group(1)), _assigns(single.group(1))
-        top = next((i for i, ln in enumerate(lines) if _TABLE_HEADER.match(ln)), len(lines))
-        at = next((i for i, ln in enumerate(lines) if header.match(ln)), None)
-        if at is None:
-            at = next((i for i in range(top) if assign.match(lines[i])), None)
-        return message if at is None else f"{prefix}line {at + 1}: {problem}"
     m = _WHERE.match(problem)
     if m is None:
         return message
+    lines = text.splitlines()
     table = m.group(1) or m.group(3)
     unknown = _UNKNOWN_KEY.search(problem)
     key = unknown.group(1) if unknown else m.group(4)

@@ -2,6 +2,7 @@
 tensions file's rows or a recording's own tension columns: central differences,
 averaged over bins where the file is logged fast, smoothed by a local cubic
 (Savitzky-Golay) where its rows scatter, with the rows of a linear resampling left out
+and a slower log held at every row taken between its changes
 (:func:`tension_derivatives`)."""
 
 from __future__ import annotations
@@ -205,23 +206,8 @@ def line_knots(t: FloatArray, values: FloatArray) -> FloatArray:
     on_line = np.abs(values[1:-1] - ((1.0 - w) * values[:-2] + w * values[2:])) <= ON_LINE_N
     corners = keep.copy()
     corners[1:-1] = ~np.all(on_line, axis=1)
-    knots = _periodic_knots(t, corners)
-    return keep if knots is None else knots
-
-
-def _periodic_knots(t: FloatArray, marks: FloatArray) -> FloatArray | None:
-    """The knots of a slower log's period in the rows ``marks`` (n,) bool set (the rows
-    where that log shows: corners of a linear resampling, changes of a held value), or
-    None where the marks do not follow a period: the most common number of rows between
-    marks (the period) is two or more, spans at most :data:`MAX_RESAMPLED_PERIOD_S`, is
-    that of at least :data:`MIN_PERIODS` gaps and half of them, and
-    :data:`LINE_PATTERN_SHARE` of the gaps are multiples of it. The knots are the marks
-    and every period'th row between two marks a multiple of periods apart (a hold or a
-    straight stretch of the slower log keeps its rows)."""
-    at = np.flatnonzero(marks)
+    at = np.flatnonzero(corners)
     gaps = np.diff(at)
-    if len(gaps) == 0:
-        return None
     period = int(np.bincount(gaps).argmax())
     step = float(np.median(np.diff(t)))
     if (
@@ -231,8 +217,8 @@ def _periodic_knots(t: FloatArray, marks: FloatArray) -> FloatArray | None:
         or np.mean(gaps == period) < 0.5
         or np.mean(gaps % period == 0) < LINE_PATTERN_SHARE
     ):
-        return None
-    knots = marks.copy()
+        return keep  # no resampling's pattern
+    knots = corners.copy()
     for start, gap in zip(at[:-1], gaps, strict=True):
         if gap > period and gap % period == 0:
             knots[start + period : start + gap : period] = True
