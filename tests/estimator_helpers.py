@@ -175,3 +175,14 @@ def lin_transition(dt: float) -> np.ndarray:
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     return F
+
+
+def reading_by_reading(z: np.ndarray, length: float = 0.2) -> np.ndarray:
+    """The shape read from each tilt reading alone, no filter: ``(theta, phi, x, y, z)``
+    per row (rad, m) by the closed-form inverse tilt and the arc's tip. An estimator
+    that filters the readings must beat it; one that follows each reading equals it."""
+    from continuum_mhe.model.imu import shape_from_tilt
+    from continuum_mhe.model.kinematics import tip_position
+
+    theta, phi = shape_from_tilt(z[:, 0], z[:, 1])
+    return np.column_stack([theta, phi, tip_position(theta, phi, length)])

@@ -375,7 +375,7 @@ def test_the_default_raw_estimate_is_the_better_one(tmp_path) -> None:
         est = tmp_path / f"{name}.csv"
         assert main([*args, *extra, "-o", str(est)]) == 0
         means[name] = float(np.mean(_tip_errors_mm(est, ROD / "planar-s_truth.csv")[0]))
-    assert means["default"] < 4.0 < 4.5 < means["tilt"]
+    assert means["default"] < 0.85 * means["tilt"], means  # 0.76 of it
 
 
 def test_the_model_error_floor_widens_the_std_and_zero_turns_it_off(tmp_path) -> None:

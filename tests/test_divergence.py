@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import reading_by_reading
 
 from continuum_mhe.cli import main
 from continuum_mhe.estimators import make_estimator
@@ -97,7 +98,15 @@ def test_mhe_survives_the_rows_that_stopped_it() -> None:
     assert "Invalid_Number_Detected" in str(est.diagnostics.last_failure)
     assert "not-converged" not in set(series.status)
     # and it follows the readings again: the bend leaves the bound where they do
-    assert np.min(series.output[3:, 3]) < 1.2
+    _leaves_the_bound_where_the_readings_do(data.z, series.output[:, 3])
+
+
+def _leaves_the_bound_where_the_readings_do(z: np.ndarray, theta: np.ndarray) -> None:
+    """Every row whose reading alone bends less than 1 rad (three of ``mhe_stops.csv``,
+    past its flips) has a bend at least 0.3 rad inside the pi/2 bound."""
+    inside = reading_by_reading(z)[:, 0] < 1.0
+    assert inside[3:].sum() >= 3
+    assert np.all(theta[3:][inside[3:]] < np.pi / 2 - 0.3), theta[inside]
 
 
 @pytest.mark.parametrize("solver", ["fast", "ipopt"])
@@ -109,7 +118,7 @@ def test_mhe_restarts_after_the_flip_on_both_backends(solver: str) -> None:
     # not the flip's answer kept on every later row (not-converged, 1.571 rad throughout)
     after = series.status[3:]
     assert np.mean(after == "not-converged") < 0.25, list(series.status)
-    assert np.min(series.output[3:, 3]) < 1.4
+    _leaves_the_bound_where_the_readings_do(data.z, series.output[:, 3])
 
 
 def test_slow_sampling_ekf_never_reports_absurd_bends_as_ok() -> None:
@@ -140,7 +149,11 @@ def test_filters_restart_after_a_long_gap(method: str) -> None:
     err = np.linalg.norm(
         series.output[first_after:, :3] - rec.truth[keep][first_after:, :3], axis=1
     )
-    assert np.mean(err) < 0.01  # m: tracking again, not 58 rad off
+    unfiltered = reading_by_reading(rec.z[keep][first_after:])[:, 2:]
+    # filtering again (0.70 of the readings' own error), not 58 rad off
+    assert np.mean(err) < 0.8 * np.mean(
+        np.linalg.norm(unfiltered - rec.truth[keep][first_after:, :3], axis=1)
+    )
 
 
 def test_status_vocabulary_is_documented() -> None:

@@ -32,6 +32,7 @@ from estimator_helpers import (
     bend_process_cov,
     ipopt_settings,
     lin_transition,
+    reading_by_reading,
     solver_settings,
     step_all,
     tilt_tangent_basis,
@@ -481,7 +482,8 @@ def test_mhe_with_larger_theta_max_tracks_further_bending(solver: str, overbend)
     assert series.output[:, 3].max() > 2.0
     assert series.output[:, 3].max() <= 3.0 + 1e-7
     err = np.abs(series.output[:, 3] - overbend.truth[:, 3])
-    assert np.mean(err) < 0.05  # rad
+    unfiltered = np.abs(reading_by_reading(overbend.z)[:, 0] - overbend.truth[:, 3])
+    assert np.mean(err) < 0.8 * np.mean(unfiltered)  # 0.66 of it; a bound-clipped 1.0+
 
 
 # --- straight configuration -----------------------------------------------------------------
@@ -548,7 +550,12 @@ def test_bend_output_position_equals_kinematics_of_its_own_shape(kind: str, stra
     f = make_formulation("bend")
     series = straight_run("bend", kind)
     theta, phi = series.output[:, 3], series.output[:, 4]
-    assert_allclose(series.output[:, :3], tip_position(theta, phi, f.robot.length), atol=1e-12)
+    # the arc's tip in closed form: (L / theta) (cos phi (cos theta - 1), sin phi (cos
+    # theta - 1), sin theta), written with sinc so that theta = 0 is the straight rod
+    length = f.robot.length
+    bow = -length * np.sin(theta / 2) * np.sinc(theta / (2 * np.pi))  # L (cos t - 1) / t
+    arc = np.column_stack([bow * np.cos(phi), bow * np.sin(phi), length * np.sinc(theta / np.pi)])
+    assert_allclose(series.output[:, :3], arc, rtol=0, atol=1e-12)
 
 
 # --- solver failures ---------------------------------------------------------------------------
@@ -764,7 +771,11 @@ def test_mhe_recovers_after_a_long_gap_in_the_data() -> None:
     keep = (rec.t < 5) | (rec.t >= 15)  # a 10 s gap
     s = MovingHorizonEstimator(BendFormulation()).run(rec.t[keep], rec.z[keep])
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[keep, :3], axis=1)
-    assert tip.mean() < 0.02 * 0.2
+    unfiltered = np.linalg.norm(
+        reading_by_reading(rec.z[keep])[:, 2:] - rec.truth[keep, :3], axis=1
+    )
+    after = rec.t[keep] >= 15  # filtering again after the gap: 0.59 of the readings' error
+    assert tip[after].mean() < 0.8 * unfiltered[after].mean()
 
 
 @pytest.mark.parametrize(

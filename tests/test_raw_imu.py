@@ -131,9 +131,11 @@ def test_simulated_accelerometer_feels_tip_acceleration(moving_tip: dict[str, np
 
 
 @pytest.mark.parametrize("method", ["ekf", "mhe"])
-def test_raw_estimation_accuracy_comparable_to_tilt(
+def test_raw_imus_estimate_better_than_their_tilt(
     moving_tip: dict[str, np.ndarray], method: str
 ) -> None:
+    """The gyros fused (the direct model) at most half the tip error of the same IMU
+    reduced to tilt: an estimator that ignored the gyros would give the tilt's."""
     t, truth = moving_tip["t"], moving_tip["truth"]
     robot, noise = RobotSettings(length=0.2), NoiseSettings(measurement_std=math.radians(2))
     mhe = MHESettings(horizon=10)
@@ -145,9 +147,7 @@ def test_raw_estimation_accuracy_comparable_to_tilt(
         f = make_formulation("direct" if model == "direct" else "bend", robot, noise)
         s = make_estimator(method, f, mhe).run(t, z)
         errors[model] = compute_metrics(s.output, truth, robot.length).tip_mean_mm
-    assert errors["tilt"] < 5.0
-    assert errors["direct"] < 5.0
-    assert errors["direct"] < 1.5 * errors["tilt"] + 0.5, errors
+    assert errors["direct"] < 0.5 * errors["tilt"], errors
 
 
 def test_gyro_fusion_tracks_tilt(moving_tip: dict[str, np.ndarray]) -> None:
