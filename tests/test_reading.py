@@ -375,3 +375,55 @@ def test_microseconds_in_a_t_ms_column_are_refused_naming_that_column(
             "--gap-reset, or 0: never); nothing written"
         )
     )
+
+
+@pytest.mark.parametrize("command", ["evaluate", "plot"])
+def test_an_estimate_piped_in_is_read_as_from_its_file(tmp_path: Path, command: str) -> None:
+    """``evaluate`` and ``plot`` read an estimate more than once (its header, its options
+    line, its rows): from standard input they give what they give from the file."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "3"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    out: dict[str, subprocess.CompletedProcess[str]] = {}
+    for source in (str(est), "-"):
+        args = (
+            [str(truth), "--json"]
+            if command == "evaluate"
+            else ["-o", str(tmp_path / "p.png"), "--overwrite"]
+        )
+        with est.open("rb") as fh:
+            out[source] = subprocess.run(
+                [*CLI, command, source, *args],
+                stdin=fh,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+        assert out[source].returncode == 0, out[source].stderr
+    assert out["-"].stdout == out[str(est)].stdout
+    if command == "plot":  # no file to put the figure beside
+        with est.open("rb") as fh:
+            alone = subprocess.run(
+                [*CLI, "plot", "-"], stdin=fh, capture_output=True, text=True, timeout=120
+            )
+        assert alone.returncode == 2 and "give -o" in alone.stderr
+
+
+def test_a_robot_file_from_a_fifo_is_read(tmp_path: Path) -> None:
+    """``--robot <(...)``: a pipe named by a path is a robot file, not a missing one."""
+    from continuum_mhe.io.robot_file import read_robot, shipped_robots
+
+    fifo = tmp_path / "robot.fifo"
+    os.mkfifo(fifo)
+    text = shipped_robots()["two-section"].read_text()
+
+    def write() -> None:
+        with open(fifo, "w") as fh:
+            fh.write(text)
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    robot = read_robot(fifo)
+    writer.join(timeout=SAFETY_S)
+    assert robot == read_robot("two-section")

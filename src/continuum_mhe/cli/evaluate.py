@@ -34,6 +34,7 @@ from continuum_mhe.io.state_tables import (
     misspelt_columns,
     read_state_table,
 )
+from continuum_mhe.io.text_rows import hold_for_rereading
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
@@ -183,6 +184,8 @@ def _after_start(path: str, est: StateTable, seconds: float) -> StateTable:
 
 def _same_file(a: str, b: str) -> bool:
     """``a`` and ``b`` name one file (a link or another spelling of its path too)."""
+    if a == b:  # standard input twice, too
+        return True
     try:
         return os.path.samefile(a, b)
     except OSError:  # one of them is missing: its reader says so
@@ -190,6 +193,8 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
+    for path in (args.estimates, args.truth):  # the estimate is read more than once
+        hold_for_rereading(path)
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier

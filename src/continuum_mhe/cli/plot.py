@@ -75,11 +75,17 @@ def _estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.state_tables import read_state_table
+    from continuum_mhe.io.text_rows import hold_for_rereading
 
+    if args.output is None and not Path(args.source).is_file():
+        raise InputError(f"{args.source}: not a file to put the figure beside; give -o FIG.png")
     output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
     if output.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
     check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
+    for path in (args.source, args.truth):  # the estimate is read more than once
+        if path is not None:
+            hold_for_rereading(path)
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth) if args.truth else None

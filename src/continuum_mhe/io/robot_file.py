@@ -456,7 +456,7 @@ def read_robot(path: str | os.PathLike[str]) -> Robot:
     p = Path(path)
     if not p.exists() and str(path) in shipped_robots():
         p = shipped_robots()[str(path)]
-    if not p.is_file():
+    if not p.exists() or p.is_dir():  # a pipe or <(...) is read as a file
         names = ", ".join(shipped_robots())
         what = "a folder, not a robot file" if p.is_dir() else "no such robot file"
         raise InputError(f"{p}: {what} (shipped robots by name: {names})")

@@ -48,9 +48,34 @@ SEPARATORS = (",", ";", "\t")
 _SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 
 
+#: The inputs read whole by :func:`hold_for_rereading`: the name as given -> (the name
+#: shown in messages, the bytes).
+_HELD: dict[str, tuple[str, bytes]] = {}
+
+
+def hold_for_rereading(path: str | os.PathLike[str]) -> None:
+    """Read ``path`` whole now where it cannot be read twice (``-``, a pipe, ``<(...)``,
+    a named FIFO), and keep it for this process, so that :func:`open_rows` can open it
+    again. For a command that reads one input more than once (an estimate file: its
+    header, its options line, its rows); a regular file (or a missing one, which its
+    reader names) is left to be opened as usual. Readers that stream their input
+    (``estimate`` of a recording, ``live``) do not call it."""
+    key = str(path)
+    if key in _HELD or (key != "-" and (not os.path.exists(key) or os.path.isfile(key))):
+        return
+    if os.path.isdir(key):
+        return  # its reader says so
+    name, fh = _open(path)
+    with fh:
+        _HELD[key] = (name, fh.read())
+
+
 def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
     """``(name shown in messages, binary stream)``; ``-`` is standard input."""
     expect_type("path", path, (str, os.PathLike), "a file name (str or pathlib.Path)")
+    if str(path) in _HELD:
+        name, data = _HELD[str(path)]
+        return name, io.BytesIO(data)
     if str(path) == "-":
         if sys.stdin is None:  # Python's stand-in for a closed descriptor 0 (`<&-`)
             raise InputError("-: standard input is closed; pipe the CSV in or name a file")
