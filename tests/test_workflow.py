@@ -134,6 +134,23 @@ def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(
     assert fig.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_plot_warns_of_a_robot_file_whose_sections_the_estimate_does_not_fit(
+    two_section_run: Path, tmp_path: Path, capsys
+) -> None:
+    """A robot file of other section lengths (0.3 + 0.3 m for an estimate on 0.16 + 0.14
+    m) would draw a backbone that misses the estimate's section ends: said, with both."""
+    big = tmp_path / "big.toml"
+    big.write_text(TWO_SECTION.read_text().replace("0.16", "0.3").replace("0.14", "0.3"))
+    fig = tmp_path / "f.png"
+    capsys.readouterr()
+    assert main(["plot", str(two_section_run / "e.csv"), "--robot", str(big), "-o", str(fig)]) == 0
+    err = capsys.readouterr().err
+    assert "fit sections of 0.16, 0.14 m, not the robot file's 0.3, 0.3 m" in err, err
+    assert main(["plot", str(two_section_run / "e.csv"), "--robot", str(TWO_SECTION),
+                 "-o", str(fig), "--overwrite"]) == 0  # fmt: skip
+    assert capsys.readouterr().err.strip() == f"wrote {fig}"
+
+
 # --- calibrate --write-robot --------------------------------------------------------------
 def _rest_recording(path: Path, rpy_deg: tuple[float, float, float], bias: np.ndarray) -> None:
     """A straight, still robot seen by an IMU mounted at ``rpy_deg`` (Z-Y-X: v_tip =

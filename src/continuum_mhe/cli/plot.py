@@ -62,8 +62,11 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def _estimate(args: argparse.Namespace) -> int:
+    from continuum_mhe.cli.robot_options import warn_other_recorded_robot
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
+        has_tip_force,
+        lengths_misfit,
         section_count,
         truth_at_estimate,
         truth_problem,
@@ -100,6 +103,16 @@ def _estimate(args: argparse.Namespace) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
+        misfit = None if has_tip_force(est.names) else lengths_misfit(est, lengths)
+        if misfit:  # drawn on the robot file's sections, off the estimate's points
+            print(
+                f"{PROG}: warning: {args.source}: {misfit}; its backbone is drawn on "
+                f"{args.robot}'s and misses its section ends: give the robot file it was "
+                "estimated with, or leave --robot out",
+                file=sys.stderr,
+            )
+        else:
+            warn_other_recorded_robot(args.source, args.robot, robot)
     for path, table in ((args.source, est), (args.truth, truth)):
         unit = ""
         if table is not None and lengths is not None:

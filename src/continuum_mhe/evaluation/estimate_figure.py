@@ -112,6 +112,23 @@ def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
     return tuple(float(v) for v in lengths)
 
 
+def lengths_misfit(table: StateTable, lengths: Sequence[float]) -> str | None:
+    """Where the section lengths the estimate's own rows give
+    (:func:`lengths_from_estimate`) differ from ``lengths`` (m, a robot file's) by more
+    than :data:`BACKBONE_MISFIT` of the robot's length: what to say (the two lengths),
+    else None (also where the rows give none)."""
+    own = lengths_from_estimate(table)
+    if own is None or len(own) != len(lengths):
+        return None
+    if max(abs(a - b) for a, b in zip(own, lengths)) <= BACKBONE_MISFIT * sum(lengths):
+        return None
+
+    def shown(v: Sequence[float]) -> str:
+        return ", ".join(f"{x:.3g}" for x in v) + " m"
+
+    return f"its rows fit sections of {shown(own)}, not the robot file's {shown(lengths)}"
+
+
 def has_tip_force(names: Sequence[str]) -> bool:
     """Whether a table has a tendon robot's tip force columns (:data:`TIP_FORCE_COLUMNS`)."""
     return all(c in names for c in TIP_FORCE_COLUMNS)
