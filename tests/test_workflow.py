@@ -618,3 +618,27 @@ def test_a_metres_wide_band_does_not_flatten_the_position_panels(tmp_path: Path)
     span = x_mm.max() - x_mm.min()
     assert lo <= x_mm.min() and hi >= x_mm.max()
     assert hi - lo <= 2.0 * span + 20.0 + 1e-9  # the lines with half their span each side
+
+
+def test_calibrate_writes_the_given_one_section_robot_and_says_what_it_assumed(
+    tmp_path: Path, capsys
+) -> None:
+    """Without --robot the written file holds --length and --theta-max (the robot file's
+    3.0 rad by default, not the one-section command line's pi/2), and the message says
+    they were not measured."""
+    from continuum_mhe.io.robot_file import read_robot
+
+    rest = tmp_path / "rest.csv"
+    _rest_recording(rest, (0.0, 0.0, 0.0), np.array([0.01, 0.0, 0.0]))
+    out = tmp_path / "c.toml"
+    assert main(["calibrate", "--from", str(rest), "--write-robot", str(out)]) == 0
+    robot = read_robot(out)
+    assert robot.lengths == (0.2,) and robot.sections[0].theta_max == 3.0
+    assert "length = 0.2 m (--length) and theta_max = 3 rad" in capsys.readouterr().err
+    assert main(["calibrate", "--from", str(rest), "--write-robot", str(out), "--overwrite",
+                 "--length", "0.35", "--theta-max", "2.5"]) == 0  # fmt: skip
+    robot = read_robot(out)
+    assert robot.lengths == (0.35,) and robot.sections[0].theta_max == 2.5
+    two = str(TWO_SECTION)
+    assert main(["calibrate", "--from", str(rest), "--robot", two, "--theta-max", "2"]) == 2
+    assert "--theta-max does not apply with the robot file" in capsys.readouterr().err

@@ -31,7 +31,7 @@ from continuum_mhe.io.output_files import atomic_writer, check_output_target, re
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
 from continuum_mhe.io.text_rows import DROPOUT_HINT
 from continuum_mhe.model.imu import MOUNTINGS
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import DEFAULT_THETA_MAX, Robot
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat
 from continuum_mhe.stream.reader import stderr_say
 
@@ -142,10 +142,23 @@ def _write_robot(
     )
     with atomic_writer(Path(args.write_robot)) as fh:
         fh.write(text)
-    whence = "from --bend" if bend else "kept from the robot file (gravity does not show it)"
+    whence = (
+        "from --bend"
+        if bend
+        else "kept from the robot file (gravity does not show it)"
+        if args.robot
+        else "0: gravity does not show it, --bend measures it"
+    )
+    assumed = (
+        ""
+        if args.robot
+        else f"; its section's length = {robot.lengths[0]:g} m (--length) and theta_max = "
+        f"{robot.sections[0].theta_max:g} rad (--theta-max) are not measured: set them to "
+        "your robot's"
+    )
     print(
         f"{PROG}: wrote {args.write_robot}: each IMU's mount_rpy (roll and pitch measured, yaw "
-        f"{whence}) and gyro_bias",
+        f"{whence}) and gyro_bias{assumed}",
         file=sys.stderr,
     )
 
@@ -181,7 +194,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--format", choices=LINE_FORMATS, default="raw", help="line format (raw)")
-    add_robot_option(p, replaces=("--mounting",))
+    add_robot_option(p, replaces=("--length", "--theta-max", "--mounting"))
     p.add_argument(
         "--write-robot",
         metavar="OUT.toml",
@@ -189,7 +202,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "mount_rpy and gyro_bias",
     )
     add_overwrite_option(p, "--write-robot")
-    p.add_argument("--length", type=float, default=0.2, help=argparse.SUPPRESS)
+    p.add_argument(
+        "--length",
+        type=float,
+        default=0.2,
+        metavar="M",
+        help="without --robot: the section length of the one-section robot (m, default "
+        "0.2), which --write-robot writes",
+    )
+    p.add_argument(
+        "--theta-max",
+        type=float,
+        default=DEFAULT_THETA_MAX,
+        metavar="RAD",
+        help="without --robot: its bound on the bend that --write-robot writes (rad, "
+        f"default {DEFAULT_THETA_MAX:g}, as a robot file without theta_max)",
+    )
     p.add_argument("--mounting", choices=MOUNTINGS, default="z-up", help="base orientation")
     p.add_argument(
         "--still-acc-std",
