@@ -231,3 +231,32 @@ def test_live_bias_flag_needs_the_direct_model(tmp_path, capsys) -> None:  # typ
         "continuum-mhe: error: --estimate-gyro-bias needs --imu-model direct (raw gyros)"
     ]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flag", [["--no-estimate-gyro-bias"], ["--gyro-std", "0.01"]])
+def test_gyro_options_without_gyros_are_refused(tmp_path, capsys, flag) -> None:  # type: ignore[no-untyped-def]
+    """``--no-estimate-gyro-bias`` and ``--gyro-std`` where no gyro is read (a tilt file,
+    or raw input taken as tilt) would do nothing: one line, exit 2, nothing written; an
+    options file's ``gyro-std`` (for every recording) is not refused."""
+    from continuum_mhe.cli import main
+
+    tilt = tmp_path / "tilt.csv"
+    tilt.write_text("t,roll,pitch\n0,0.1,0.2\n0.05,0.1,0.2\n")
+    raw = tmp_path / "raw.csv"
+    raw.write_text("t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n0.05,0,0,9.8,0,0,0\n")
+    out = tmp_path / "est.csv"
+    for argv in (
+        ["estimate", str(tilt), "-o", str(out), *flag],
+        ["estimate", str(raw), "-o", str(out), "--imu-model", "tilt", *flag],
+    ):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [f"continuum-mhe: error: {flag[0]} needs --imu-model direct (raw gyros)"]
+        assert not out.exists()
+    assert main(["estimate", str(raw), "-o", str(out), *flag]) == 0  # raw: the gyros read
+    config = tmp_path / "c.toml"
+    config.write_text("gyro-std = 0.01\n")
+    assert (
+        main(["estimate", str(tilt), "-o", str(out), "--overwrite", "--config", str(config)]) == 0
+    )

@@ -565,3 +565,29 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
         worst = max(worst, float(np.max(np.abs(res.X - ref.X))))
     assert len(windows) > 700
     assert worst <= fm.FastOptions().err_tol
+
+
+@pytest.mark.parametrize(
+    ("extra", "refused"),
+    [
+        (["--loss", "huber", "--bad-start", "1"], "--bad-start does not apply with --loss huber"),
+        (["--reject-reset", "1"], "--reject-reset does not apply without a robust --loss"),
+        (["--method", "ekf", "--reject-reset", "1"], "--reject-reset does not apply without"),
+    ],
+)
+def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, refused) -> None:
+    """The bad-start check is off for a robust MHE (it rejects such readings instead),
+    and the reject reset acts only where readings are rejected: each given where it
+    would do nothing is one line, exit 2, nothing written."""
+    from continuum_mhe.cli import main
+
+    meas, out = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(out), *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and refused in err[0], err
+    assert not out.exists()
+    assert (
+        main(["estimate", str(meas), "-o", str(out), "--loss", "huber", "--reject-reset", "1"]) == 0
+    )

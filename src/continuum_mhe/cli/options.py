@@ -359,6 +359,26 @@ def _refuse_mhe_options(
     raise InputError(f"{flag} is an MHE option; {which} has no window")
 
 
+def check_outlier_options_apply(args: argparse.Namespace) -> None:
+    """One line for a recovery option given on the command line that the estimator's
+    cost makes do nothing: ``--bad-start`` with a robust ``--loss`` (whose MHE rejects
+    inconsistent readings instead), ``--reject-reset`` without one (nothing is
+    rejected)."""
+    given = given_options(args)
+    loss = getattr(args, "loss", "l2")
+    if "bad_start" in given and loss != "l2":
+        raise InputError(
+            f"--bad-start does not apply with --loss {loss}: the robust MHE rejects readings "
+            "inconsistent with its estimate instead of restarting on them (--reject-reset "
+            "restarts it after it rejected every reading for that long)"
+        )
+    if "reject_reset" in given and loss == "l2":
+        raise InputError(
+            "--reject-reset does not apply without a robust --loss (huber, cauchy, ...): "
+            "only a robust MHE rejects readings as outliers"
+        )
+
+
 def check_robot_replaces(args: argparse.Namespace) -> None:
     """One line for a one-section option given on the command line (``--length``,
     ``--theta-max``, ``--mounting``) beside a robot file, which describes the robot
@@ -696,6 +716,7 @@ def input_options(args: argparse.Namespace) -> Any:
     return InputOptions(
         raw=raw_settings(args),
         mount_rpy_given=getattr(args, "mount_rpy", None) is not None,
+        gyro_std_given="gyro_std" in given_options(args),
         topic=topics[0] if len(topics) == 1 else None,
         topics=topics,
         pair_tolerance=getattr(args, "pair_tolerance", None),

@@ -32,6 +32,8 @@ class InputOptions:
         raw: raw-IMU conversion (raw CSV, bags, MCAP).
         mount_rpy_given: ``--mount-rpy`` was given (even as 0,0,0): refused where it
             applies to no IMU (:func:`check_options_apply`).
+        gyro_std_given: ``--gyro-std`` was given on the command line: refused where no
+            gyro is read (:func:`formulation_for`).
         topic: Imu topic in a bag or MCAP file (None: the only one).
         topics: one Imu topic per IMU, in the robot file's order, for a robot with
             several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
@@ -55,6 +57,7 @@ class InputOptions:
 
     raw: RawImuSettings = field(default_factory=RawImuSettings)
     mount_rpy_given: bool = False
+    gyro_std_given: bool = False
     topic: str | None = None
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
@@ -102,6 +105,8 @@ def formulation_for(
             ("--estimate-gyro-bias", options.estimate_gyro_bias),
             ("--estimate-accel-bias", options.estimate_accel_bias),
             ("--own-acceleration", options.own_acceleration),
+            ("--no-estimate-gyro-bias", options.estimate_gyro_bias is False),
+            ("--gyro-std", options.gyro_std_given),
         ):
             if on:
                 raise InputError(f"{flag} needs --imu-model direct (raw gyros)")
