@@ -1937,3 +1937,27 @@ def test_an_options_files_line_is_not_given_to_another_options_error(tmp_path, c
     assert main(["estimate", str(m), "--config", str(config), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"continuum-mhe: error: {robot}: line 1: 'section' must be"), err
+
+
+def test_estimate_of_another_kind_of_file_says_which_kind(tmp_path, capsys) -> None:
+    """An estimate, a truth or a robot file given to ``estimate`` as the recording: one
+    line that says what the file is, exit 2, nothing written."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert (
+        main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
+        == 0
+    )
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    robot = tmp_path / "r.toml"
+    robot.write_text('mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    out = tmp_path / "x.csv"
+    for given, says in (
+        (truth, "an estimate or truth table, not IMU readings"),
+        (est, "an estimate or truth table, not IMU readings"),
+        (robot, "a robot file? it is given with --robot ROBOT.toml"),
+    ):
+        capsys.readouterr()
+        assert main(["estimate", str(given), "-o", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and says in err[0], err
+        assert not out.exists()

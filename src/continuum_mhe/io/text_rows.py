@@ -336,19 +336,38 @@ TIME_LIKE_NAMES = frozenset(
 )
 
 
+#: the columns that IMU readings have (tilt or raw, first IMU or only one)
+_READING_COLUMNS = frozenset({"roll", "pitch", "ax", "roll_1", "pitch_1", "ax_1"})
+
+
+def _other_kind_of_file(header: Sequence[str], missing: Sequence[str]) -> str:
+    """A hint where the table read for IMU readings is another kind of file: a robot
+    file (TOML: its first line a ``key = value``, or a ``[table]``) or an estimate or
+    truth (tip columns x, y, z); else ""."""
+    first = header[0] if header else ""
+    if "=" in first or first.startswith("["):
+        return " (a robot file? it is given with --robot ROBOT.toml)"
+    if _READING_COLUMNS & set(missing) and {"x", "y", "z"} <= set(header):
+        return (
+            " (an estimate or truth table, not IMU readings: estimate reads a recording of "
+            "the IMUs; continuum-mhe evaluate EST.csv TRUTH.csv scores an estimate)"
+        )
+    return ""
+
+
 def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
     """Positions of ``required`` columns in the header, or a one-line error that names
     what the header has (and the separator, when it is likely the problem)."""
     missing = [c for c in required if c not in rows.header]
     if missing:
         has = shorten(", ".join(rows.written or rows.header), 200) or "nothing"
-        hint = ""
-        if len(rows.header) == 1:
+        hint = _other_kind_of_file(rows.header, missing)
+        if not hint and len(rows.header) == 1:
             hint = (
                 f" (one column: the separator must be {', '.join(map(repr, SEPARATORS))}; "
                 f"read as {_SEPARATOR_NAMES[rows.separator]})"
             )
-        elif "t" in missing:
+        elif not hint and "t" in missing:
             named = [c for c in rows.header if c.lower() in TIME_LIKE_NAMES]
             if named:
                 hint = (
