@@ -814,6 +814,9 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
         ([[0.0, 1.0], [0.05, "nan"], [0.1, 1.5]], ["t", "tension_1"],
          "line 3: column tension_1 is nan (--skip-bad, skip_bad=True in Python, leaves the "
          "row out and interpolates across it)"),
+        ([[0.0, 1.0], [0.05, ""], [0.1, 1.5]], ["t", "tension_1"],
+         "line 3: column tension_1 is empty (--skip-bad, skip_bad=True in Python, leaves "
+         "the row out and interpolates across it)"),
     ],
 )  # fmt: skip
 def test_bad_tensions_are_one_line_errors_and_nothing_is_written(
@@ -2306,3 +2309,21 @@ def test_drifted_rows_with_tilt_imus_say_that_tilt_does_not_follow_a_twisting_ro
         "that twists is not followed with the right inputs either (raw IMUs are: "
         "docs/tendon.md, Limits)"
     )
+
+
+def test_tension_columns_are_taken_by_name_in_any_order(tmp_path: Path) -> None:
+    """A tensions file whose columns come in another order (``t,tension_6,...``) gives
+    the tensions of the file in the robot file's order, value for value."""
+    from continuum_mhe.io.tensions import read_tensions
+
+    rng = np.random.default_rng(2)
+    t = np.arange(6) * 0.1
+    values = rng.uniform(0.0, 2.0, (6, 3))
+    ordered, shuffled = tmp_path / "a.csv", tmp_path / "b.csv"
+    _write_text_table(ordered, ["t", "tension_1", "tension_2", "tension_3"],
+                      np.column_stack([t, values]).tolist())  # fmt: skip
+    _write_text_table(shuffled, ["t", "tension_3", "tension_1", "tension_2"],
+                      np.column_stack([t, values[:, [2, 0, 1]]]).tolist())  # fmt: skip
+    a, b = read_tensions(ordered, 3), read_tensions(shuffled, 3)
+    np.testing.assert_array_equal(b.values, a.values)
+    np.testing.assert_array_equal(b.values, values)

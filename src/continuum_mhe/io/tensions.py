@@ -419,10 +419,10 @@ def read_tensions(
         found = [c for c in header if c != "t"]
         if other_columns:
             found = [c for c in found if c.startswith("tension_")]
-        if "t" not in header or found != names:
+        if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             raise InputError(
                 f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
-                f"the robot file, in its order), got {','.join(written)}"
+                f"the robot file, numbered in its order), got {','.join(written)}"
             )
         problems = RowProblems()
         hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"

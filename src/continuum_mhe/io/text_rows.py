@@ -666,7 +666,9 @@ class _SampleChecks:
                 try:
                     v = parse_float(name, line, col, row[j])
                 except InputError as exc:
-                    bad(line, str(exc).split(": ", 2)[-1])
+                    empty = row[j] == ""  # a missing value, which --skip-bad leaves out
+                    bad(line, f"column {col} is empty ({self.skip_hint})" if empty
+                        else str(exc).split(": ", 2)[-1])  # fmt: skip
                     v = math.nan
                 else:
                     if not math.isfinite(v):
