@@ -57,6 +57,7 @@ def test_check_robot_calls_an_under_instrumented_robot_not_observable(
     assert main(["check-robot", str(path), "--samples", "50", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"].startswith("NOT observable")
+    assert report["observable"] == "no"  # for scripts: no prose to search
     assert report["tilt"]["full_rank_fraction"] == 0.0
 
 
@@ -87,7 +88,9 @@ def test_check_robot_says_whether_tilt_leaves_readings_to_check_the_model(
     lines = capsys.readouterr().out.splitlines()
     assert lines[-2] == f"model check: {model_check(two)}" and lines[-1].startswith("verdict:")
     assert main(["check-robot", str(path), "--samples", "50", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["model_check"] == model_check(two)
+    report = json.loads(capsys.readouterr().out)
+    assert report["model_check"] == model_check(two) and report["observable"] == "yes"
+    assert "above" not in report["verdict"]  # nothing is above it in JSON
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])

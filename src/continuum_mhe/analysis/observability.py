@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from typing import Literal
 
 import casadi as ca
 import numpy as np
@@ -82,12 +83,27 @@ class ObservabilityReport:
     n_imus: int = 1
 
     def as_dict(self) -> dict[str, object]:
-        return {**asdict(self), "model_check": model_check(self), "verdict": verdict(self)}
+        return {
+            **asdict(self),
+            "model_check": model_check(self),
+            "observable": observability(self),
+            "verdict": verdict(self),
+        }
 
 
 #: Fraction of sampled shapes at which the one-sample tilt Jacobian must have full rank
 #: for the verdict "observable".
 OBSERVABLE_FRACTION = 0.99
+
+
+def observability(r: ObservabilityReport) -> Literal["yes", "except-near-some", "no"]:
+    """The verdict as a word for scripts: ``yes`` where one sample determines the
+    shape (a tendon robot's: its tip force) at :data:`OBSERVABLE_FRACTION` of the
+    sampled shapes (loads) or more, ``no`` where at none, else ``except-near-some``."""
+    t = r.tendon_force if r.tendon_force is not None else r.tilt
+    if t.full_rank_fraction >= OBSERVABLE_FRACTION:
+        return "yes"
+    return "no" if t.full_rank_fraction == 0.0 else "except-near-some"
 
 
 def verdict(r: ObservabilityReport) -> str:
@@ -102,7 +118,7 @@ def verdict(r: ObservabilityReport) -> str:
         return (
             f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
             f"{100 * t.full_rank_fraction:.1f} % of the sampled shapes (not near the least "
-            "observable shapes listed above, where the estimate follows its motion model)"
+            "observable shapes of the report, where the estimate follows its motion model)"
         )
     if t.full_rank_fraction == 0.0:
         return (
@@ -114,7 +130,7 @@ def verdict(r: ObservabilityReport) -> str:
         )
     return (
         f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
-        "of shapes (the least observable are listed above)"
+        "of shapes (the least observable are the report's)"
     )
 
 
