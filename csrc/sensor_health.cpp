@@ -134,6 +134,7 @@ void SensorHealth::restart() {
   rejecting_since_.reset();
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
+  started_ = false;
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
   inference_.restart();
@@ -466,6 +467,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
+  // the first estimate since a (re)start fits its one reading alone
+  const bool first = has_state && !started_;
+  if (has_state) started_ = true;
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
   if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {
@@ -478,6 +482,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     ++diagnostics.bound_samples;
   }
   double factor = 1.0, shift_factor = 1.0;
+  bool start_unconfirmed = false;  // uncertain for that alone: the first row of a start
   if (s_.checks_start) {  // the readings against the estimates (consistency.hpp)
     // a reading the robust MHE rejected as an outlier is flagged as one, and says
     // nothing about the estimate
@@ -506,8 +511,14 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // a restart the readings forced fits this one reading; the next start_samples
     // readings the check compares with the estimate (judged rows, not an outlier's)
     // confirm it when they agree, and until then it is not trusted
+    // (the first estimate of a recording, or after a gap, is as unconfirmed: one later
+    // reading that agrees with it confirms it)
     if (forced) {
       unconfirmed_ = s_.start_samples;
+    } else if (first) {
+      unconfirmed_ = 1;
+      start_unconfirmed = status == ST_OK;
+      if (trusted(status)) status = ST_UNCERTAIN;
     } else if (unconfirmed_ > 0) {
       const auto& rows = consistency_.settings().judged;
       bool compared = has_state && has_cov;
@@ -564,12 +575,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // between rows that are ok, drifted or inconsistent: after a restart, a gap or an
     // unconfirmed estimate the filter's first updates are not linear ones, and their
     // change says nothing
-    const bool judged = status == ST_OK || status == ST_DRIFTED || status == ST_INCONSISTENT;
+    const bool judged = status == ST_OK || status == ST_DRIFTED ||
+                        status == ST_INCONSISTENT || start_unconfirmed;
     if (judged && has_state && has_cov) {
       // once beyond, for a lag after: a change that dips below the limit for a sample
       // does not make the model follow
       if (changed_too_fast(t, x, P)) changed_until_ = t + s_.change_lag;
-      if (status == ST_OK && t <= changed_until_) status = ST_DRIFTED;
+      if ((status == ST_OK || start_unconfirmed) && t <= changed_until_) status = ST_DRIFTED;
     } else {
       change_past_.clear();
       changed_until_ = -INFINITY;

@@ -253,6 +253,9 @@ class SensorHealth {
   // or failed): how many more samples' readings must agree with the new estimate, one
   // reading's fit, before it is trusted (start_samples at the restart, 0 otherwise)
   int unconfirmed_ = 0;
+  // an estimate has been made since the last (re)start: the next one is a start from
+  // one reading (the first, or the first after a gap), which a later reading confirms
+  bool started_ = false;
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
   std::vector<char> has_freeze_value_;

@@ -49,6 +49,14 @@ def recovery_estimators(
     return out
 
 
+def assert_ok_after_the_start(statuses: Any, allowed: frozenset[str] = frozenset({"ok"})) -> None:
+    """The first row of a run is ``uncertain`` (a start fits its one reading; a later
+    reading confirms it) and every later row's status is in ``allowed`` (``ok``)."""
+    got = [str(s) for s in statuses]
+    assert got[0] == "uncertain", got[:3]
+    assert set(got[1:]) <= set(allowed), sorted(set(got[1:]))
+
+
 def fast_and_ipopt_states(
     f: Formulation, t: np.ndarray, z: np.ndarray, horizon: int
 ) -> dict[str, np.ndarray]:
@@ -58,7 +66,7 @@ def fast_and_ipopt_states(
     for solver in ("fast", "ipopt"):
         est = MovingHorizonEstimator(f, MHESettings(horizon=horizon, solver=solver), FastOptions())
         res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
-        assert {r.status for r in res} == {"ok"}
+        assert_ok_after_the_start([r.status for r in res])
         states[solver] = np.array([r.state for r in res])
     return states
 

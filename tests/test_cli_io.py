@@ -66,7 +66,8 @@ def test_simulate_estimate_evaluate_round_trip(tmp_path, capsys, method):
     t_m = [r[0] for r in list(csv.reader(meas.open()))[1:]]
     assert [r[0] for r in rows[1:]] == [f"{float(t):.10g}" for t in t_m]  # one row per input row
     st = rows[0].index("status")
-    assert all(r[st] in ("ok", "dropout") for r in rows[1:])
+    assert rows[1][st] == "uncertain"  # the start: one reading's fit, unconfirmed
+    assert all(r[st] in ("ok", "dropout") for r in rows[2:])
     capsys.readouterr()
     assert main(["evaluate", str(est), str(truth), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
@@ -95,7 +96,8 @@ def test_paper_start_leaves_first_rows_empty(tmp_path):
     header, *rows = list(csv.reader(ln for ln in est.open() if not ln.startswith("#")))
     st = header.index("status")
     assert all(r[1:st] == [""] * 10 and r[st] == "no-estimate" for r in rows[:9])
-    assert rows[9][st] == "ok" and all(r[1:6] != [""] * 5 for r in rows[9:])
+    assert rows[9][st] == "uncertain" and rows[10][st] == "ok"  # the start, then confirmed
+    assert all(r[1:6] != [""] * 5 for r in rows[9:])
     assert "nan" not in est.read_text().lower()
 
 

@@ -69,8 +69,8 @@ def test_rows_many_standard_deviations_off_at_1_hz_are_not_ok(method, seed) -> N
     off = np.abs(series.output[:, :2] - rec.truth[:, :2]) / series.std[:, :2]
     ok = series.status == "ok"
     assert not np.any(ok & (off.max(axis=1) >= 4.0)), off[ok].max(axis=0)
-    if method == "mhe":
-        assert ok.all()
+    if method == "mhe":  # every row but the start (unconfirmed)
+        assert series.status[0] == "uncertain" and ok[1:].all()
 
 
 def test_a_restart_keeps_the_model_error_the_readings_showed() -> None:

@@ -44,9 +44,10 @@ def test_reproducers_give_finite_flagged_estimates(tmp_path: Path, method: str, 
     assert np.all(np.isfinite(x))
     assert set(status) <= set(STATUS_MEANINGS)
     assert FLAGGED[name, method] in set(status), list(status)
-    # the first reading alone contradicts nothing (gimbal_flip's is a bend of exactly
-    # theta_max = pi/2: on the bound)
-    assert status[0] in (("ok", "at-bound") if name == "gimbal_flip.csv" else ("ok",))
+    # the first reading alone contradicts nothing: a start from it is unconfirmed
+    # (gimbal_flip's is a bend of exactly theta_max = pi/2: on the bound)
+    first = ("uncertain", "at-bound") if name == "gimbal_flip.csv" else ("uncertain",)
+    assert status[0] in first
 
 
 def test_ekf_gimbal_flip_is_flagged_not_ok() -> None:
@@ -63,7 +64,7 @@ def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
     data = read_measurements(REPRO / "gimbal_flip.csv")
     est = make_estimator("ukf", make_formulation("bend"))
     series = est.run(data.t, data.z)
-    assert list(series.status) == ["ok", "reset"]
+    assert list(series.status) == ["uncertain", "reset"]
     assert est.diagnostics.restarts == 1 and "half turn" in str(est.diagnostics.last_failure)
     assert series.output[1, 0] < 0  # restarted from the second reading
     assert series.output_std[1, 1] > 1e-3
@@ -182,5 +183,5 @@ def test_skip_bad_keeps_an_infinite_angle_as_a_dropout(tmp_path: Path) -> None:
     assert not out.exists()
     assert main(["estimate", src, "-o", str(out), "--skip-bad"]) == 0
     _, x, status = read_states(out)
-    assert list(status) == ["ok", "dropout", "ok", *status[3:]]
+    assert list(status) == ["uncertain", "dropout", "ok", *status[3:]]
     assert np.all(np.isfinite(x))

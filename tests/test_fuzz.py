@@ -39,7 +39,7 @@ SEED_OUTCOMES = {
     "decimal_comma.csv": (2, "line 2: column roll: '0,1' is not a number (a decimal comma?"),
     "gimbal_flip.csv": (0, "wrote 2 estimates"),
     "huge.csv": (2, "line 2: roll=1e+308, pitch=0.1 is out of range even in degrees"),
-    "huge_t.csv": (0, "reset: 1); restarted after 1 gap(s) longer than 1 s"),
+    "huge_t.csv": (0, "reset: 1, uncertain: 1); restarted after 1 gap(s) longer than 1 s"),
     "inf_angle.csv": (
         2,
         "line 3: column roll is inf (a dropout; --skip-bad keeps it, skip_bad=True in Python)",

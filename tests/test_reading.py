@@ -253,7 +253,7 @@ def test_sigterm_while_waiting_on_an_idle_pipe_ends_at_once(tmp_path: Path) -> N
     assert last == "continuum-mhe: terminated"
     t, _, status = read_states(out)
     n = len(t)
-    assert n >= 1 and set(status) == {"ok"}
+    assert n >= 1 and status[0] == "uncertain" and set(status[1:]) <= {"ok"}
     np.testing.assert_allclose(t, read_measurements(_write(tmp_path / "m.csv", _csv(n))).t)
     assert kept == (
         f"continuum-mhe: kept the {n} estimates made before the interruption in {out}, "

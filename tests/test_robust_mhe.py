@@ -387,7 +387,7 @@ def test_newton_off_reaches_the_same_robust_optimum(recording) -> None:
         ).run(recording.t, z)
         for newton in (True, False)
     }
-    assert all(np.all(s.status == "ok") for s in series.values())
+    assert all(np.all(s.status[1:] == "ok") for s in series.values())
     assert_allclose(series[False].output, series[True].output, rtol=0, atol=1e-6)
 
 
@@ -537,7 +537,7 @@ def test_second_start_chooses_alike_on_both_backends() -> None:
         for k in range(86):
             est = mhe.step(Measurement(float(rec.t[k]), z[k]))
             # the burst's readings that were not down-weighted disagree with the estimate
-            assert est.status in ("ok", "inconsistent")
+            assert est.status in ("ok", "inconsistent") or (k == 0 and est.status == "uncertain")
             states.append(est.state)
         assert mhe.inference.second_start is not None and mhe.inference.second_start.kept >= 1
     assert_allclose(states[:86], states[86:], rtol=0, atol=1e-6)

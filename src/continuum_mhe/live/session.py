@@ -693,7 +693,9 @@ class LiveSession:
         if problem is None:
             if self._restarted and est.state is not None:
                 self._restarted = False
-                if est.status == "ok":  # restarted where the time base broke
+                # restarted where the time base broke: the start's row says reset, as
+                # the policy's own restarts do (over its being unconfirmed, uncertain)
+                if est.status in (Status.OK, Status.UNCERTAIN):
                     est = replace(est, status=Status.RESET)
             return est
         self.counts.estimator_failures += 1
