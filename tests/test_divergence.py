@@ -185,3 +185,27 @@ def test_skip_bad_keeps_an_infinite_angle_as_a_dropout(tmp_path: Path) -> None:
     _, x, status = read_states(out)
     assert list(status) == ["uncertain", "dropout", "ok", *status[3:]]
     assert np.all(np.isfinite(x))
+
+
+@pytest.mark.parametrize("method", ["ekf", "ukf", "mhe"])
+def test_a_first_reading_upside_down_gives_no_ok_row_far_off(method: str) -> None:
+    """The first estimate fits its one reading alone: with that reading upside down
+    (roll plus or minus pi, pitch negated) it is 170 to 360 mm off the two-section
+    robot's tip, and not ok; with the right one it is uncertain too, and the next
+    reading that agrees confirms it (ok)."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section")
+    f = make_formulation("bend", robot)
+    rec = simulate_robot("spatial", robot, duration=4, seed=0)
+    clean = make_estimator(method, f).run(rec.t, rec.z)
+    assert list(clean.status[:3]) == ["uncertain", "ok", "ok"]
+    for imu in (0, 1):
+        z = rec.z.copy()
+        roll, pitch = z[0, 2 * imu : 2 * imu + 2]
+        z[0, 2 * imu : 2 * imu + 2] = (roll - np.pi if roll > 0 else roll + np.pi, -pitch)
+        series = make_estimator(method, f).run(rec.t, z)
+        off = np.linalg.norm(series.output[:, :3] - rec.truth[:, :3], axis=1)
+        assert off[0] > 0.15  # the start on the upside-down reading
+        assert not np.any((series.status == "ok") & (off > 0.05)), (imu, series.status[:5])
