@@ -437,3 +437,24 @@ def test_live_estimates_the_tension_gain_and_says_where_it_ends_far_from_1(
     assert "; warning: the estimated tension gains ended more than 3 standard" in (
         session.summary()
     )
+
+
+def test_a_tension_sample_not_later_than_the_last_is_refused_and_left_out() -> None:
+    """``TensionStream.push`` with a time that steps back or repeats: a
+    ``SampleTimeError``, and the stream's derivatives are those without that sample."""
+    from continuum_mhe.errors import SampleTimeError
+
+    values = [np.array([1.0, 2.0]) + 0.1 * k for k in range(6)]
+    times = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10]
+    clean, glitched = TensionStream("t.csv", 2), TensionStream("t.csv", 2)
+    want = [r for t, v in zip(times, values) for r in clean.push(t, v)]
+    got = []
+    for k, (t, v) in enumerate(zip(times, values)):
+        got += glitched.push(t, v)
+        if k == 2:
+            for bad in (0.03, 0.04, float("nan")):
+                with pytest.raises(SampleTimeError, match="not later than the last one"):
+                    glitched.push(bad, v + 5.0)
+    assert len(got) == len(want) > 0
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a.rates, b.rates)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import InputError, UserError, time_text
+from continuum_mhe.errors import InputError, SampleTimeError, UserError, time_text
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
 from continuum_mhe.io.tension_derivatives import (
@@ -509,7 +509,15 @@ class TensionStream:
         robot's (:attr:`n_tendons`, else the first sample's) raises
         :class:`~continuum_mhe.errors.UserError`, and is not added (a negative tension,
         a load cell's noise about a slack tendon, is taken: the estimator's step refuses
-        it)."""
+        it). A sample whose time is not later than the last one's raises
+        :class:`~continuum_mhe.errors.SampleTimeError` and is not added (its differences
+        would be of a step back in time)."""
+        if not math.isfinite(t) or (self._t and t <= self._t[-1]):
+            raise SampleTimeError(
+                f"{self.name}: a sample at t = {time_text(t)} s is not later than the last "
+                f"one ({time_text(self._t[-1]) if self._t else '-'} s): left out (the "
+                "tensions' times must increase)"
+            )
         v = np.asarray(values, dtype=float)
         if self.n_tendons is None and v.ndim == 1:
             self.n_tendons = v.size
