@@ -801,3 +801,22 @@ def test_list_measurements_and_mismatched_lengths(cls, paper3d) -> None:
     assert est.step(Measurement(0.0, [0.1, 0.1])).status == "uncertain"  # a list is fine
     with pytest.raises(ValueError, match="t has 5 samples but z has 4"):
         est.run(paper3d.t[:5], paper3d.z[:4])
+
+
+@pytest.mark.parametrize("gap", [1e-9, 1e-7, 1e-6])
+def test_two_samples_microseconds_apart_leave_every_window_solved(gap: float, paper3d) -> None:
+    """A sample stamped ``gap`` s after the one before (a logger's near-duplicate time):
+    its process noise is that of a 10 us step, so the MHE's process weights (``Q^-1``,
+    of order ``1 / dt^3``) stay within its window's conditioning. Every window is
+    solved (no ``not-converged``, no IPOPT fallback), and the estimates are the EKF's
+    to the MHE's own accuracy."""
+    t = np.insert(paper3d.t[:80], 11, paper3d.t[10] + gap)
+    z = np.insert(paper3d.z[:80], 11, paper3d.z[10], axis=0)
+    truth = np.insert(paper3d.truth[:80], 11, paper3d.truth[10], axis=0)
+    f = make_formulation("bend")
+    mhe = MovingHorizonEstimator(f).run(t, z)
+    assert_ok_after_the_start(mhe.status)
+    tip = np.linalg.norm(mhe.output[:, :3] - truth[:, :3], axis=1)
+    ekf = make_estimator("ekf", f).run(t, z)
+    ekf_tip = np.linalg.norm(ekf.output[:, :3] - truth[:, :3], axis=1)
+    assert tip.max() < 1.5 * ekf_tip.max()

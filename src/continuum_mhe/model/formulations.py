@@ -113,7 +113,7 @@ class ModelFunctions:
     @cached_property
     def predict(self) -> ca.Function:
         xn, x = self._next_state, self._x
-        q = self._formulation.process_cov_sym(self._dt)
+        q = self._formulation.process_cov_sym(noise_step(self._dt))
         return ca.Function("predict", [x, self._u, self._dt], [xn, ca.jacobian(xn, x), q])
 
     @cached_property
@@ -261,8 +261,10 @@ class Formulation:
         raise NotImplementedError
 
     def process_cov(self, dt: float) -> FloatArray:
-        """``Q(dt)``: :meth:`process_cov_sym` over a step of ``dt`` s, as numbers."""
-        return np.array(ca.evalf(self.process_cov_sym(ca.DM(dt))), dtype=float)
+        """``Q(dt)``: :meth:`process_cov_sym` over a step of ``dt`` s, as numbers, as
+        every estimator takes it (over at least :data:`MIN_NOISE_STEP_S`:
+        :func:`noise_step`)."""
+        return np.array(ca.evalf(self.process_cov_sym(noise_step(ca.DM(dt)))), dtype=float)
 
     @property
     def process_noise_source(self) -> str:
@@ -478,6 +480,18 @@ DIVERGED_MARGIN = 1.0
 #: its ``theta_max`` (a constrained solver's answer on the bound is within its
 #: tolerance of it, far below this; a free bend is that close about once in a thousand).
 AT_BOUND_TOL = 1e-3
+#: The shortest step whose process noise the estimators take, s: ``Q(dt)`` of a shorter
+#: step (two samples a logger stamped microseconds apart) is that of this one. Without
+#: it the MHE's process weights, ``Q^-1`` of order ``1 / dt^3``, drown the window's
+#: conditioning: a sample 0.1 us after another left 27 windows unsolved; the step's own
+#: transition is unchanged.
+MIN_NOISE_STEP_S = 1e-5
+
+
+def noise_step(dt: Sym) -> Sym:
+    """The step (s) whose process noise a step of ``dt`` s takes: ``max(dt,``
+    :data:`MIN_NOISE_STEP_S` ``)``, symbolic."""
+    return ca.fmax(dt, MIN_NOISE_STEP_S)
 
 
 def psd_cholesky(A: FloatArray) -> FloatArray:
