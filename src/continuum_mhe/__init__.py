@@ -30,6 +30,8 @@ _EXPORTS: dict[str, str] = {
     "MovingHorizonEstimator": "continuum_mhe.estimators",
     "UnscentedKalmanFilter": "continuum_mhe.estimators",
     "make_estimator": "continuum_mhe.estimators",
+    "SampleTimeError": "continuum_mhe.errors",
+    "UserError": "continuum_mhe.errors",
     "Metrics": "continuum_mhe.evaluation.metrics",
     "compute_metrics": "continuum_mhe.evaluation.metrics",
     "DirectFormulation": "continuum_mhe.model.direct",
@@ -41,6 +43,9 @@ _EXPORTS: dict[str, str] = {
     "ImuPlacement": "continuum_mhe.model.robot",
     "Robot": "continuum_mhe.model.robot",
     "Section": "continuum_mhe.model.robot",
+    "Backbone": "continuum_mhe.model.robot",
+    "Tendon": "continuum_mhe.model.robot",
+    "Status": "continuum_mhe.results",
     "MHESettings": "continuum_mhe.settings",
     "NoiseSettings": "continuum_mhe.settings",
     "RecoverySettings": "continuum_mhe.settings",
@@ -48,6 +53,7 @@ _EXPORTS: dict[str, str] = {
     "Recording": "continuum_mhe.simulation.scenarios",
     "simulate": "continuum_mhe.simulation.scenarios",
     "simulate_robot": "continuum_mhe.simulation.scenarios",
+    "raw_readings": "continuum_mhe.simulation.raw_readings",
 }
 
 __all__ = sorted([*_EXPORTS, "__version__"])
@@ -67,6 +73,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
+    from continuum_mhe.errors import SampleTimeError, UserError
     from continuum_mhe.estimators import (
         METHODS,
         Diagnostics,
@@ -86,11 +93,13 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from continuum_mhe.model.paper import PaperFormulation
     from continuum_mhe.model.pcc import backbone_points
     from continuum_mhe.model.registry import make_formulation
-    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.model.robot import Backbone, ImuPlacement, Robot, Section, Tendon
+    from continuum_mhe.results import Status
     from continuum_mhe.settings import (
         MHESettings,
         NoiseSettings,
         RecoverySettings,
         RobotSettings,
     )
+    from continuum_mhe.simulation.raw_readings import raw_readings
     from continuum_mhe.simulation.scenarios import Recording, simulate, simulate_robot
