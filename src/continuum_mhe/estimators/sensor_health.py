@@ -55,7 +55,7 @@ from continuum_mhe.estimators.reading_units import (
     direct_units_problem,
 )
 from continuum_mhe.io.csv_files import check_time_steps
-from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
@@ -545,6 +545,11 @@ class Estimator(Generic[InferenceT]):
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
         )
+        if len(t) >= 3 and 0 < (step := float(np.median(np.diff(t)))) < MIN_NOISE_STEP_S:
+            raise UserError(  # no IMU stream is this fast: a unit, not a rate
+                f"run: t advances by a median of {step:g} s per sample ({1 / step:.3g} "
+                "samples per second): t must be in seconds"
+            )
         self._check_units(t, z)
         self.reset()
         self._refuse_before_stepping(t, z)
