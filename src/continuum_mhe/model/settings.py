@@ -28,8 +28,10 @@ class RobotSettings:
 
     Attributes:
         length: section length ``s`` in metres.
-        theta_max: upper bound on the bending angle ``theta`` in radians (eq. 11 uses
-            ``pi/2``). Must lie in ``(0, pi)``.
+        theta_max: upper bound on the bending angle ``theta`` in radians; the default
+            is the paper's ``pi/2`` (eq. 11), which clips a robot that bends further (a
+            :class:`~continuum_mhe.model.robot.Section` and a robot file default to 3.0,
+            a bound a robot does not reach). Must lie in ``(0, pi)``.
         mounting: ``"z-up"`` (base z against gravity) or ``"z-down"`` (hanging).
     """
 
