@@ -109,7 +109,10 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
 }
 
 void SensorHealth::reset(bool keep_counts) {
-  if (!keep_counts) diagnostics = PolicyDiagnostics();
+  if (!keep_counts) {  // a new recording (else a restart within one: its drift is kept)
+    diagnostics = PolicyDiagnostics();
+    drifted_t_ = -INFINITY;
+  }
   last_t_ = last_valid_t_ = first_valid_t_ = -INFINITY;
   std::fill(has_freeze_value_.begin(), has_freeze_value_.end(), 0);
   std::fill(frozen_now_.begin(), frozen_now_.end(), 0);
@@ -135,6 +138,7 @@ void SensorHealth::restart() {
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
   started_ = false;
+  restarted_since_drift_ = true;  // drifted_t_ is kept: see step
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
   inference_.restart();
@@ -586,6 +590,17 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       change_past_.clear();
       changed_until_ = -INFINITY;
     }
+  }
+  // a restart does not make a model that did not follow the robot follow it: the rows
+  // after a restart within the probation time of the last drifted row are not trusted
+  // (the restart cleared the IMU error states and their change, which showed it)
+  if (status == ST_DRIFTED) {
+    drifted_t_ = t;
+    restarted_since_drift_ = false;
+  } else if (restarted_since_drift_ && trusted(status)) {
+    const double window = std::isnan(s_.bad_start) ? unobserved_window()
+                                                   : std::max(s_.bad_start, unobserved_window());
+    if (t - drifted_t_ <= window) status = ST_UNCERTAIN;
   }
   out.outlier = has_state && inference_.outlier();
   // the reject reset's run; a sample without readings neither ends nor extends it

@@ -256,6 +256,10 @@ class SensorHealth {
   // an estimate has been made since the last (re)start: the next one is a start from
   // one reading (the first, or the first after a gap), which a later reading confirms
   bool started_ = false;
+  // the last drifted row's time (-inf: none), kept across restarts, and whether the
+  // estimator restarted after it
+  double drifted_t_ = -INFINITY;
+  bool restarted_since_drift_ = false;
   std::vector<double> freeze_value_, freeze_since_, freeze_last_t_, imu_last_valid_;
   std::vector<int64_t> freeze_count_;
   std::vector<char> has_freeze_value_;
