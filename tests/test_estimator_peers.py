@@ -820,3 +820,26 @@ def test_two_samples_microseconds_apart_leave_every_window_solved(gap: float, pa
     ekf = make_estimator("ekf", f).run(t, z)
     ekf_tip = np.linalg.norm(ekf.output[:, :3] - truth[:, :3], axis=1)
     assert tip.max() < 1.5 * ekf_tip.max()
+
+
+def test_an_estimate_series_has_a_length_statuses_and_row_subsets() -> None:
+    """``len``, ``statuses()`` (Status values) and ``rows()`` (a mask, a slice or
+    indices) of a run's series: the rows after the first second are those
+    ``evaluate --skip-start 1`` scores, each column cut alike."""
+    from continuum_mhe import Status
+    from continuum_mhe.errors import UserError
+
+    rec = simulate("paper3d", duration=2.0, seed=0)
+    series = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    assert len(series) == len(rec.t) == 41
+    statuses = series.statuses()
+    assert statuses[0] is Status.UNCERTAIN and all(isinstance(s, Status) for s in statuses)
+    late = series.rows(series.t >= 1.0)
+    assert len(late) == 21 and late.t[0] == 1.0
+    np.testing.assert_array_equal(late.output, series.output[20:])
+    np.testing.assert_array_equal(late.std, series.std[20:])
+    assert list(late.status) == list(series.status[20:]) and late.names == series.names
+    np.testing.assert_array_equal(series.rows(slice(20, None)).output, late.output)
+    np.testing.assert_array_equal(series.rows(np.arange(20, 41)).solve_ms, late.solve_ms)
+    with pytest.raises(UserError, match="one per sample"):
+        series.rows(np.ones(3, dtype=bool))

@@ -334,6 +334,37 @@ class EstimateSeries:
         assert self.output_std is not None  # set in __post_init__
         return self.output_std
 
+    def __len__(self) -> int:
+        """The number of samples."""
+        return len(self.t)
+
+    def statuses(self) -> list[Status]:
+        """Each sample's status as a :class:`Status` (``status`` holds the strings)."""
+        by_value = {str(m): m for m in Status}
+        return [by_value[str(s)] for s in self.status]
+
+    def rows(self, which: slice | NDArray[np.bool_] | NDArray[np.integer]) -> EstimateSeries:
+        """The series at the samples ``which`` selects (a slice, a boolean mask of
+        ``len(self)``, or indices), for example ``series.rows(series.t >= 1.0)``: the
+        rows after the first second, as ``evaluate --skip-start 1`` scores them. The
+        ``diagnostics`` are the whole run's."""
+        if not isinstance(which, slice):
+            which = np.asarray(which)
+            if which.dtype == bool and which.shape != (len(self),):
+                raise UserError(
+                    f"a row mask has shape {which.shape}, expected ({len(self)},): one per sample"
+                )
+        outlier = None if self.outlier is None else self.outlier[which]
+        return replace(
+            self,
+            t=self.t[which],
+            output=self.output[which],
+            status=self.status[which],
+            solve_ms=self.solve_ms[which],
+            output_std=self.std[which],
+            outlier=outlier,
+        )
+
     def column(self, name: str) -> FloatArray:
         """The output column ``name`` (n,)."""
         for i, o in enumerate(self.outputs):
