@@ -521,7 +521,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       unconfirmed_ = s_.start_samples;
     } else if (first) {
       unconfirmed_ = 1;
-      start_unconfirmed = status == ST_OK;
+      start_unconfirmed = trusted(status);
       if (trusted(status)) status = ST_UNCERTAIN;
     } else if (unconfirmed_ > 0) {
       const auto& rows = consistency_.settings().judged;
@@ -585,7 +585,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       // once beyond, for a lag after: a change that dips below the limit for a sample
       // does not make the model follow
       if (changed_too_fast(t, x, P)) changed_until_ = t + s_.change_lag;
-      if ((status == ST_OK || start_unconfirmed) && t <= changed_until_) status = ST_DRIFTED;
+      if (status == ST_OK && t <= changed_until_) status = ST_DRIFTED;
     } else {
       change_past_.clear();
       changed_until_ = -INFINITY;
@@ -597,10 +597,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (status == ST_DRIFTED) {
     drifted_t_ = t;
     restarted_since_drift_ = false;
-  } else if (restarted_since_drift_ && trusted(status)) {
+  } else if (restarted_since_drift_ && trusted(status) && s_.checks_start) {
     const double window = std::isnan(s_.bad_start) ? unobserved_window()
                                                    : std::max(s_.bad_start, unobserved_window());
-    if (t - drifted_t_ <= window) status = ST_UNCERTAIN;
+    if (0.0 <= t - drifted_t_ && t - drifted_t_ <= window) status = ST_UNCERTAIN;
   }
   out.outlier = has_state && inference_.outlier();
   // the reject reset's run; a sample without readings neither ends nor extends it

@@ -256,7 +256,7 @@ def test_gyro_options_without_gyros_are_refused(tmp_path, capsys, flag) -> None:
         assert not out.exists()
     assert main(["estimate", str(raw), "-o", str(out), *flag]) == 0  # raw: the gyros read
     config = tmp_path / "c.toml"
-    config.write_text("gyro-std = 0.01\n")
+    config.write_text("gyro-std = 0.01\nestimate-gyro-bias = false\n")
     assert (
         main(["estimate", str(tilt), "-o", str(out), "--overwrite", "--config", str(config)]) == 0
     )

@@ -58,6 +58,7 @@ def test_check_robot_calls_an_under_instrumented_robot_not_observable(
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"].startswith("NOT observable")
     assert report["observable"] == "no"  # for scripts: no prose to search
+    assert "above" not in report["verdict"]  # nothing is above it in JSON
     assert report["tilt"]["full_rank_fraction"] == 0.0
 
 

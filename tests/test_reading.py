@@ -427,3 +427,31 @@ def test_a_robot_file_from_a_fifo_is_read(tmp_path: Path) -> None:
     robot = read_robot(fifo)
     writer.join(timeout=SAFETY_S)
     assert robot == read_robot("two-section")
+
+
+def test_a_second_estimate_piped_in_the_same_process_is_read_anew(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Standard input is held for one command only: a second ``evaluate -`` in the same
+    process (a notebook, a test) scores the second estimate, not the first again."""
+    import json
+
+    meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "3"]) == 0  # fmt: skip
+    scores = {}
+    for method in ("ekf", "ukf"):
+        est = tmp_path / f"{method}.csv"
+        assert main(["estimate", str(meas), "-o", str(est), "--method", method]) == 0
+        capsys.readouterr()
+        assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+        from_file = json.loads(capsys.readouterr().out)["tip_mean_mm"]
+        r, w = os.pipe()
+        os.write(w, est.read_bytes())
+        os.close(w)
+        with os.fdopen(r) as stdin:
+            monkeypatch.setattr(sys, "stdin", stdin)
+            assert main(["evaluate", "-", str(truth), "--json"]) == 0
+        scores[method] = (from_file, json.loads(capsys.readouterr().out)["tip_mean_mm"])
+    assert scores["ekf"][0] != scores["ukf"][0]  # two estimates that differ
+    assert all(file == piped for file, piped in scores.values()), scores

@@ -571,8 +571,10 @@ def test_certified_answer_lies_within_the_error_tolerance_of_the_converged_one(l
     ("extra", "refused"),
     [
         (["--loss", "huber", "--bad-start", "1"], "--bad-start does not apply with --loss huber"),
-        (["--reject-reset", "1"], "--reject-reset does not apply without a robust --loss"),
-        (["--method", "ekf", "--reject-reset", "1"], "--reject-reset does not apply without"),
+        (["--reject-reset", "1"], "--reject-reset does not apply to the MHE with the l2 cost"),
+        (["--method", "ekf", "--reject-reset", "1"], "--reject-reset does not apply to the ekf"),
+        # the MHE option's own refusal first
+        (["--method", "ekf", "--loss", "huber", "--bad-start", "1"], "--loss huber is an MHE"),
     ],
 )
 def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, refused) -> None:
@@ -591,3 +593,12 @@ def test_recovery_options_the_cost_ignores_are_refused(tmp_path, capsys, extra, 
     assert (
         main(["estimate", str(meas), "-o", str(out), "--loss", "huber", "--reject-reset", "1"]) == 0
     )
+    # an options file's robust loss is a profile for the MHE: the EKF keeps its check
+    config = tmp_path / "o.toml"
+    config.write_text('loss = "huber"\n')
+    ekf = ["--config", str(config), "--method", "ekf", "--bad-start", "1", "--overwrite"]
+    assert main(["estimate", str(meas), "-o", str(out), *ekf]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "-o", str(out), "--config", str(config),
+                 "--bad-start", "1", "--overwrite"]) == 2  # fmt: skip
+    assert "--bad-start does not apply with " + str(config) in capsys.readouterr().err

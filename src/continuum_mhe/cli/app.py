@@ -21,11 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.cli.config import FILE_OPTIONS, apply_config, options_record
-from continuum_mhe.cli.options import (
-    check_option_ranges,
-    check_outlier_options_apply,
-    check_robot_replaces,
-)
+from continuum_mhe.cli.options import check_option_ranges, check_robot_replaces
 from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit
@@ -184,7 +180,6 @@ def _run_command(argv: Sequence[str] | None) -> int:
         args = _parse(argv)
         check_option_ranges(args)
         check_robot_replaces(args)
-        check_outlier_options_apply(args)
         code = int(args.func(args))
     except BaseException as exc:  # noqa: BLE001 - sorted out just below
         if _SIGNALS_SEEN and isinstance(exc, UserError) and interrupt_in_chain(exc) is None:

@@ -34,7 +34,7 @@ from continuum_mhe.io.state_tables import (
     misspelt_columns,
     read_state_table,
 )
-from continuum_mhe.io.text_rows import hold_for_rereading
+from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
 
 
@@ -193,8 +193,11 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    for path in (args.estimates, args.truth):  # the estimate is read more than once
-        hold_for_rereading(path)
+    with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
+        return _evaluate(args)
+
+
+def _evaluate(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimates, f"evaluate EST.csv {args.truth}", TIP_COLUMNS)
     truth = read_state_table(args.truth)
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier

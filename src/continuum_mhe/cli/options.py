@@ -305,6 +305,7 @@ def method_from_args(args: argparse.Namespace, formulation: Formulation) -> Meth
         )
     if method != "mhe":
         _refuse_mhe_options(args, method, defaulted, fast_mhe=obstacle is None)
+    _refuse_outlier_options(args, method)
     args.method = method
     parser = getattr(args, "options_parser", None)
     if parser is not None:  # the estimate file records the method that made it
@@ -359,23 +360,25 @@ def _refuse_mhe_options(
     raise InputError(f"{flag} is an MHE option; {which} has no window")
 
 
-def check_outlier_options_apply(args: argparse.Namespace) -> None:
-    """One line for a recovery option given on the command line that the estimator's
-    cost makes do nothing: ``--bad-start`` with a robust ``--loss`` (whose MHE rejects
-    inconsistent readings instead), ``--reject-reset`` without one (nothing is
-    rejected)."""
+def _refuse_outlier_options(args: argparse.Namespace, method: str) -> None:
+    """One line for a recovery option typed on the command line that the estimator
+    ``method`` with its cost makes do nothing: ``--bad-start`` for a robust MHE (it
+    rejects inconsistent readings instead), ``--reject-reset`` for any other estimator
+    (nothing is rejected). The loss may come from an options file (named)."""
     given = given_options(args)
     loss = getattr(args, "loss", "l2")
-    if "bad_start" in given and loss != "l2":
+    named = getattr(args, "config_sources", {}).get("loss") or f"--loss {loss}"
+    if "bad_start" in given and method == "mhe" and loss != "l2":
         raise InputError(
-            f"--bad-start does not apply with --loss {loss}: the robust MHE rejects readings "
-            "inconsistent with its estimate instead of restarting on them (--reject-reset "
+            f"--bad-start does not apply with {named} (the robust MHE rejects readings "
+            "inconsistent with its estimate instead of restarting on them; --reject-reset "
             "restarts it after it rejected every reading for that long)"
         )
-    if "reject_reset" in given and loss == "l2":
+    if "reject_reset" in given and (method != "mhe" or loss == "l2"):
+        which = f"the {method}" if method != "mhe" else "the MHE with the l2 cost"
         raise InputError(
-            "--reject-reset does not apply without a robust --loss (huber, cauchy, ...): "
-            "only a robust MHE rejects readings as outliers"
+            f"--reject-reset does not apply to {which}: only a robust MHE (--loss huber, "
+            "cauchy, ...) rejects readings as outliers"
         )
 
 
@@ -717,6 +720,8 @@ def input_options(args: argparse.Namespace) -> Any:
         raw=raw_settings(args),
         mount_rpy_given=getattr(args, "mount_rpy", None) is not None,
         gyro_std_given="gyro_std" in given_options(args),
+        gyro_bias_off_given="estimate_gyro_bias" in given_options(args)
+        and getattr(args, "estimate_gyro_bias", None) is False,
         topic=topics[0] if len(topics) == 1 else None,
         topics=topics,
         pair_tolerance=getattr(args, "pair_tolerance", None),

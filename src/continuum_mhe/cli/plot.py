@@ -62,6 +62,23 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def _estimate(args: argparse.Namespace) -> int:
+    from continuum_mhe.io.output_files import check_output_target
+    from continuum_mhe.io.text_rows import held_for_rereading
+
+    if args.output is None and (
+        args.source == "-" or (Path(args.source).exists() and not Path(args.source).is_file())
+    ):
+        raise InputError(f"{args.source}: not a file to put the figure beside; give -o FIG.png")
+    output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
+    if output.suffix.lower() not in FIGURE_SUFFIXES:
+        raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
+    check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
+    with held_for_rereading(args.source, args.truth):  # the estimate is read twice
+        return _figure(args, output)
+
+
+def _figure(args: argparse.Namespace, output: Path) -> int:
+    """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
     from continuum_mhe.cli.robot_options import warn_other_recorded_robot
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
@@ -74,21 +91,10 @@ def _estimate(args: argparse.Namespace) -> int:
     from continuum_mhe.evaluation.metrics import interpolated_note
     from continuum_mhe.evaluation.plotting import save
     from continuum_mhe.io.estimate_files import read_estimates, require_an_estimate
-    from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.state_tables import read_state_table
-    from continuum_mhe.io.text_rows import hold_for_rereading
 
-    if args.output is None and not Path(args.source).is_file():
-        raise InputError(f"{args.source}: not a file to put the figure beside; give -o FIG.png")
-    output = Path(args.output) if args.output else Path(args.source).with_suffix(".png")
-    if output.suffix.lower() not in FIGURE_SUFFIXES:
-        raise InputError(f"{output}: give a figure file ending in {', '.join(FIGURE_SUFFIXES)}")
-    check_output_target(output, overwrite=args.overwrite, option="-o")  # before reading
-    for path in (args.source, args.truth):  # the estimate is read more than once
-        if path is not None:
-            hold_for_rereading(path)
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth) if args.truth else None

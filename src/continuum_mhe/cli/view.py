@@ -8,20 +8,18 @@ import argparse
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
-from continuum_mhe.io.text_rows import hold_for_rereading
+from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.viewer import INSTALL_HINT, replay
 
 
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
-    for path in (args.estimates, args.truth):  # the estimate is read more than once
-        if path is not None:
-            hold_for_rereading(path)
-    robot = estimate_robot(args, args.estimates, "drawn on that robot")
-    replay(
-        args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
-    )  # fmt: skip
+    with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
+        robot = estimate_robot(args, args.estimates, "drawn on that robot")
+        replay(
+            args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
+        )  # fmt: skip
     return 0
 
 

@@ -33,7 +33,9 @@ class InputOptions:
         mount_rpy_given: ``--mount-rpy`` was given (even as 0,0,0): refused where it
             applies to no IMU (:func:`check_options_apply`).
         gyro_std_given: ``--gyro-std`` was given on the command line: refused where no
-            gyro is read (:func:`formulation_for`).
+            gyro is read (:func:`formulation_for`); an options file's value is not.
+        gyro_bias_off_given: ``--no-estimate-gyro-bias`` was given on the command line:
+            refused where no gyro is read, as ``gyro_std_given``.
         topic: Imu topic in a bag or MCAP file (None: the only one).
         topics: one Imu topic per IMU, in the robot file's order, for a robot with
             several IMUs (see :mod:`continuum_mhe.io.imu_topics`).
@@ -58,6 +60,7 @@ class InputOptions:
     raw: RawImuSettings = field(default_factory=RawImuSettings)
     mount_rpy_given: bool = False
     gyro_std_given: bool = False
+    gyro_bias_off_given: bool = False
     topic: str | None = None
     topics: tuple[str, ...] = ()
     pair_tolerance: float | None = None
@@ -105,7 +108,7 @@ def formulation_for(
             ("--estimate-gyro-bias", options.estimate_gyro_bias),
             ("--estimate-accel-bias", options.estimate_accel_bias),
             ("--own-acceleration", options.own_acceleration),
-            ("--no-estimate-gyro-bias", options.estimate_gyro_bias is False),
+            ("--no-estimate-gyro-bias", options.gyro_bias_off_given),
             ("--gyro-std", options.gyro_std_given),
         ):
             if on:

@@ -512,11 +512,13 @@ class TensionStream:
         it). A sample whose time is not later than the last one's raises
         :class:`~continuum_mhe.errors.SampleTimeError` and is not added (its differences
         would be of a step back in time)."""
-        if not math.isfinite(t) or (self._t and t <= self._t[-1]):
+        if not math.isfinite(t):
+            raise SampleTimeError(f"{self.name}: a sample's time is {t}: left out (seconds)")
+        if self._t and t <= self._t[-1]:
             raise SampleTimeError(
                 f"{self.name}: a sample at t = {time_text(t)} s is not later than the last "
-                f"one ({time_text(self._t[-1]) if self._t else '-'} s): left out (the "
-                "tensions' times must increase)"
+                f"one ({time_text(self._t[-1])} s): left out (the tensions' times must "
+                "increase)"
             )
         v = np.asarray(values, dtype=float)
         if self.n_tendons is None and v.ndim == 1:
@@ -615,7 +617,7 @@ def tendon_formulation_for(base: Formulation, options: InputOptions) -> TendonFo
         warnings.warn(
             "--estimate-tension-gain with tilt IMUs: the gains trade with the IMUs' "
             "misalignment and bias states and mislead (on the "
-            "shipped twist-29 with its own tensions they end at 0.27 and 0.46, 222 ok "
+            "shipped twist-29 with its own tensions they end at 0.27 and 0.46, 124 ok "
             "rows over 20 mm off; docs/tendon-studies.md): raw IMUs (accelerometer and "
             "gyro) take them",
             OptionWarning,

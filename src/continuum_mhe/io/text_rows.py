@@ -22,6 +22,7 @@ substitution and named FIFOs work, and rows stream without being held in memory.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -48,26 +49,38 @@ SEPARATORS = (",", ";", "\t")
 _SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 
 
-#: The inputs read whole by :func:`hold_for_rereading`: the name as given -> (the name
-#: shown in messages, the bytes).
+#: The inputs held by :func:`held_for_rereading` while it lasts: the name as given ->
+#: (the name shown in messages, the bytes).
 _HELD: dict[str, tuple[str, bytes]] = {}
 
 
-def hold_for_rereading(path: str | os.PathLike[str]) -> None:
-    """Read ``path`` whole now where it cannot be read twice (``-``, a pipe, ``<(...)``,
-    a named FIFO), and keep it for this process, so that :func:`open_rows` can open it
-    again. For a command that reads one input more than once (an estimate file: its
-    header, its options line, its rows); a regular file (or a missing one, which its
-    reader names) is left to be opened as usual. Readers that stream their input
-    (``estimate`` of a recording, ``live``) do not call it."""
-    key = str(path)
-    if key in _HELD or (key != "-" and (not os.path.exists(key) or os.path.isfile(key))):
-        return
-    if os.path.isdir(key):
-        return  # its reader says so
-    name, fh = _open(path)
-    with fh:
-        _HELD[key] = (name, fh.read())
+@contextlib.contextmanager
+def held_for_rereading(*paths: str | os.PathLike[str] | None) -> Iterator[None]:
+    """Within the block, each of ``paths`` that cannot be read twice (``-``, a pipe,
+    ``<(...)``, a named FIFO) is read whole once, at entry, and :func:`open_rows` opens
+    it again from memory: for a command that reads one input more than once (an estimate
+    file: its header, its options line, its rows). A regular file, a missing one (which
+    its reader names) or None is left to be opened as usual. Released at exit, so that a
+    later read of the same name (another ``-`` in the same process) reads anew. Readers
+    that stream their input (``estimate`` of a recording, ``live``) do not use it."""
+    held: list[str] = []
+    try:
+        for path in paths:
+            if path is None:
+                continue
+            key = str(path)
+            if key in _HELD or (key != "-" and (not os.path.exists(key) or os.path.isfile(key))):
+                continue
+            if os.path.isdir(key):
+                continue  # its reader says so
+            name, fh = _open(path)
+            with fh:
+                _HELD[key] = (name, fh.read())
+            held.append(key)
+        yield
+    finally:
+        for key in held:
+            _HELD.pop(key, None)
 
 
 def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:

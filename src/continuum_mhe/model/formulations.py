@@ -481,10 +481,10 @@ DIVERGED_MARGIN = 1.0
 #: tolerance of it, far below this; a free bend is that close about once in a thousand).
 AT_BOUND_TOL = 1e-3
 #: The shortest step whose process noise the estimators take, s: ``Q(dt)`` of a shorter
-#: step (two samples a logger stamped microseconds apart) is that of this one. Without
-#: it the MHE's process weights, ``Q^-1`` of order ``1 / dt^3``, drown the window's
-#: conditioning: a sample 0.1 us after another left 27 windows unsolved; the step's own
-#: transition is unchanged.
+#: step (two samples a logger stamped microseconds apart) is that of this one, so that
+#: the MHE's process weights, ``Q^-1`` of order ``1 / dt^3``, stay within the window's
+#: conditioning (a sample 0.1 us after another would leave windows unsolved); the
+#: step's own transition is unchanged.
 MIN_NOISE_STEP_S = 1e-5
 
 
