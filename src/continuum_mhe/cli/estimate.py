@@ -48,6 +48,7 @@ from continuum_mhe.estimators.run_notices import (
     BendsOnBound,
     ForceBeyondTensions,
     TensionGainFromOne,
+    TwistWithTiltImus,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.input_options import robot_fix
@@ -89,6 +90,7 @@ class _Tally:
     beyond: BendsBeyondBound
     force: ForceBeyondTensions
     gain: TensionGainFromOne
+    twist: TwistWithTiltImus
     counts: dict[str, int] = field(default_factory=dict)
     frozen: dict[str, int] = field(default_factory=dict)
     outliers: int = 0
@@ -128,6 +130,7 @@ def _estimate_block(
     tally.bound.add(batch.output, statuses)
     tally.beyond.add(batch.output)
     tally.force.add(z, batch.output)
+    tally.twist.add(batch.output)
     tally.gain.add(batch.output, batch.output_std)
     tally.readings += int(np.isfinite(z).any(axis=1).sum())
     behind.submit(sink.write_batch, t, batch.output, batch.output_std, batch.outlier,
@@ -177,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
             BendsBeyondBound(formulation),
             ForceBeyondTensions(formulation),
             TensionGainFromOne(formulation),
+            TwistWithTiltImus(formulation),
         )
         made = f"{version()} estimate {Path(args.measurements).name}"
         notes = [
@@ -313,6 +317,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {force_note}", file=sys.stderr)
     if gain_note := tally.gain.notice():
         print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
+    if twist_note := tally.twist.notice():
+        print(f"{PROG}: warning: {twist_note}", file=sys.stderr)
     if (drifted := tally.counts.get("drifted", 0)) and isinstance(formulation, TendonFormulation):
         tilt = (
             "; with tilt IMUs a loaded robot that twists is not followed with the right "
