@@ -146,8 +146,10 @@ def test_continue_run_checks_its_arrays_as_run_does() -> None:
     est = make_estimator("ekf", make_formulation("bend"))
     with pytest.raises(UserError, match="t has 10 samples but z has 21"):
         est.continue_run(rec.t[:10], rec.z)
-    with pytest.raises(UserError, match=r"must have shape \(2,\) for the bend formulation"):
+    with pytest.raises(UserError, match=r"z must have shape \(n, 2\) for the bend formulation"):
         est.continue_run(rec.t, rec.z[:, :1])
+    with pytest.raises(UserError, match=r"z is None: give the readings, an array \(n, 2\)"):
+        est.continue_run(rec.t, None)  # type: ignore[arg-type]
     est.reset()
     batch = est.continue_run(list(rec.t), rec.z.tolist())
     np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)

@@ -594,20 +594,22 @@ class Estimator(Generic[InferenceT]):
                 "t must be seconds (numbers), got numpy datetime or timedelta values: give "
                 "(t - t[0]) / np.timedelta64(1, 's')"
             )
+        nz = self.formulation.nz
+        if z is None:
+            raise UserError(f"z is None: give the readings, an array (n, {nz})")
         try:  # masked or pandas' missing entries are NaN (such a t is refused: not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)
         except (TypeError, ValueError):
             raise UserError("t and z must be arrays of numbers (t (n,) s, z (n, m))") from None
         if t.ndim != 1 or z.ndim != 2:
-            raise UserError(f"t must be (n,) and z (n, m); got shapes {t.shape} and {z.shape}")
+            raise UserError(f"t must be (n,) and z (n, {nz}); got shapes {t.shape} and {z.shape}")
         if len(t) != len(z):
             raise UserError(f"t has {len(t)} samples but z has {len(z)}")
-        nz = self.formulation.nz
         if z.shape[1] != nz:
             raise UserError(
-                f"measurement z must have shape ({nz},) for the {self.formulation.name} "
-                f"formulation, got {z.shape[1:]}"
+                f"z must have shape (n, {nz}) for the {self.formulation.name} formulation "
+                f"(a row of {nz} readings a sample), got {z.shape}"
             )
         if self._tension_rows:
             self._check_tensions(z, t)
