@@ -434,7 +434,7 @@ def _bend() -> Formulation:
         (lambda: Measurement("0.1", np.zeros(2)), "measurement t must be a number, got '0.1'"),
         (lambda: Measurement(0.1, "ab"), "measurement z must be numbers"),
         (lambda: make_estimator("ekf", _bend()).run("abc", "def"), "arrays of numbers"),
-        (lambda: make_estimator("ekf", _bend()).run(None, None), "t must be (n,) and z (n, m)"),
+        (lambda: make_estimator("ekf", _bend()).run(None, None), "z is None: give the readings"),
         (lambda: simulate("paper3d", dt="0.05"), "dt must be a number, got '0.05'"),
         (lambda: simulate("paper3d", noise_deg=None), "noise_deg must be a number"),
         (lambda: read_measurements(5), "path must be a file name"),  # type: ignore[arg-type]

@@ -49,6 +49,7 @@ from continuum_mhe.io.csv_files import (
     tilt_sample_columns,
     tilt_values,
 )
+from continuum_mhe.io.imu_columns import ROBOT_FIX
 from continuum_mhe.io.imu_topics import read_imu_topics
 from continuum_mhe.io.input_options import (
     InputOptions,
@@ -392,7 +393,7 @@ def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], Floa
     if csv_input_kind(path) == "tilt":
         tilt = read_measurements(path, n_imus=n_imus)
         return "tilt", tilt.t, tilt.z
-    tables = read_raw_imus(path, n_imus).imus if n_imus > 1 else [read_raw_imu(path)]
+    tables = read_raw_imus(path, n_imus, fix=ROBOT_FIX).imus if n_imus > 1 else [read_raw_imu(path)]
     for i, tab in enumerate(tables, start=1):
         if tab.gyr is None:
             raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")

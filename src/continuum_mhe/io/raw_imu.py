@@ -35,7 +35,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
 from continuum_mhe.io.csv_files import UnitWarning, check_time_units, read_sample_rows
-from continuum_mhe.io.imu_columns import ImuColumns, imu_suffixes
+from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, ImuColumns, imu_suffixes
 from continuum_mhe.io.text_rows import RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import tilt_from_accelerometer
@@ -382,14 +382,14 @@ def _imu_list(numbers: Sequence[str]) -> str:
     return " and ".join(filter(None, [", ".join(numbers[:-1]), numbers[-1]]))
 
 
-def raw_layout(rows: TextRows, n_imus: int) -> tuple[tuple[str, ...], bool]:
+def raw_layout(rows: TextRows, n_imus: int, fix: str = ROBOT_FIX) -> tuple[tuple[str, ...], bool]:
     """The columns to read from a raw table (``t`` first) and whether it has gyros.
 
     A header with a column missing from an IMU's set (with the columns that look like a
     typo of it), or with whole sets for another number of IMUs than ``n_imus``, is a
-    one-line error (:func:`~continuum_mhe.io.imu_columns.imu_suffixes`); so is one that
-    gives some IMUs' gyro columns and not the others'."""
-    suffixes = imu_suffixes(rows, n_imus, RAW_IMU_COLUMNS)
+    one-line error (:func:`~continuum_mhe.io.imu_columns.imu_suffixes`, which names
+    ``fix``); so is one that gives some IMUs' gyro columns and not the others'."""
+    suffixes = imu_suffixes(rows, n_imus, RAW_IMU_COLUMNS, fix)
     gyro = [s for s in suffixes if all(c + s in rows.header for c in GYRO_COLUMNS)]
     if gyro and len(gyro) < len(suffixes):
         without = [s[1:] for s in suffixes if s not in gyro]
@@ -473,12 +473,13 @@ def raw_blocks(
 
 
 def read_raw_imus(
-    path: str | os.PathLike[str], n_imus: int, *, skip_bad: bool = False
+    path: str | os.PathLike[str], n_imus: int, *, skip_bad: bool = False, fix: str = READER_FIX
 ) -> MultiRawImuTable:
     """Read a raw CSV of ``n_imus`` IMUs: ``t,ax_1,ay_1,az_1[,gx_1,gy_1,gz_1],ax_2,...``
-    (m/s^2, rad/s, each IMU in its own sensor frame)."""
+    (m/s^2, rad/s, each IMU in its own sensor frame). A file of another number of IMUs
+    is a one-line error that names ``fix`` (the command line names ``--robot``)."""
     with open_rows(path) as rows:
-        cols, has_gyro = raw_layout(rows, n_imus)
+        cols, has_gyro = raw_layout(rows, n_imus, fix)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
     check_time_units(rows, got.t)
     skipped = list(got.skipped)
