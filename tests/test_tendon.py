@@ -2388,3 +2388,26 @@ def test_tilt_estimates_of_a_twisting_robot_are_said(
     )
     assert "raw IMUs (accelerometer and gyro) follow it" in said["twist-08", "tilt"][0]
     assert said["force-29", "tilt"] == [] and said["twist-08", "raw"] == []
+
+
+def test_the_tilt_twist_notice_counts_the_largest_twist_past_20_degrees() -> None:
+    """``TwistWithTiltImus`` (the line of ``estimate`` and of ``live``'s summary): active
+    for a tendon robot with tilt IMUs only; silent at 19 degrees of twist, said at 21
+    (the largest over the blocks, NaN rows without an estimate left out)."""
+    from continuum_mhe.estimators.run_notices import TwistWithTiltImus
+
+    robot = read_robot("tendon-two-section")
+    tilt = TendonFormulation(robot=robot)
+    assert not TwistWithTiltImus(TendonFormulation(robot=robot, imu_model="direct")).active
+    names = [o.name for o in tilt.outputs]
+    notice = TwistWithTiltImus(tilt)
+    assert notice.active
+    out = np.zeros((3, len(names)))
+    out[:, names.index("psi_2")] = np.radians([5.0, -19.0, 2.0])
+    notice.add(out)
+    notice.add(np.full((2, len(names)), np.nan))
+    assert notice.notice() is None
+    out[1, names.index("psi_2")] = np.radians(-21.0)
+    notice.add(out)
+    said = notice.notice()
+    assert said is not None and said.startswith("the estimates twist section 2 by up to 21")

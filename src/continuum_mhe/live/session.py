@@ -18,7 +18,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
-from continuum_mhe.estimators.run_notices import TensionGainFromOne
+from continuum_mhe.estimators.run_notices import TensionGainFromOne, TwistWithTiltImus
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
@@ -275,6 +275,8 @@ class LiveSession:
         #: a tendon robot's tension gains, for the summary's warning where one ends far
         #: from 1 (``--estimate-tension-gain``)
         self.gains = TensionGainFromOne(self.formulation)
+        #: a tendon robot's twist estimated from tilt IMUs, for the summary's warning
+        self.twist = TwistWithTiltImus(self.formulation)
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
         self.out: RowSink | None = (
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
@@ -717,6 +719,8 @@ class LiveSession:
             self.on_estimate(est)
         if self.gains.active and est.output is not None and est.output_std is not None:
             self.gains.add(np.asarray(est.output)[None], np.asarray(est.output_std)[None])
+        if self.twist.active and est.output is not None:
+            self.twist.add(np.asarray(est.output)[None])
         if self.out is None:
             return
         ny = self.formulation.ny
@@ -805,6 +809,8 @@ class LiveSession:
             msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
         if gain_note := self.gains.notice():
             msg += "; warning: " + gain_note
+        if twist_note := self.twist.notice():
+            msg += "; warning: " + twist_note
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
