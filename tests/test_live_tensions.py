@@ -460,3 +460,24 @@ def test_a_tension_sample_not_later_than_the_last_is_refused_and_left_out() -> N
     assert len(got) == len(want) > 0
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a.rates, b.rates)
+
+
+def test_live_summary_says_drifted_rows_as_estimate_does(tmp_path: Path) -> None:
+    """Tensions on the line twice those acting (another unit): the rows are ``drifted``,
+    and ``live``'s summary carries ``estimate``'s warning with their count."""
+    n = 200
+    head, raw = _rows(DATA / "unloaded_raw.csv", n)
+    _, ten = _rows(DATA / "unloaded_tensions.csv", n)
+    lines = [
+        ",".join([f"{round(float(r[0]) * 1000)}", *r[1:], *(f"{2 * float(v):.6g}" for v in s[1:])])
+        for r, s in zip(raw, ten)
+    ]
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    session, made, _ = _live(serial, est, lines, duration=10.0)
+    drifted = sum(str(e.status) == "drifted" for e in made)
+    assert drifted > 100
+    assert f"warning: {drifted} of {len(made)} estimates drifted: the IMUs' error states" in (
+        session.summary()
+    )

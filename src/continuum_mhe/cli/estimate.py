@@ -49,11 +49,11 @@ from continuum_mhe.estimators.run_notices import (
     ForceBeyondTensions,
     TensionGainFromOne,
     TwistWithTiltImus,
+    drifted_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
-from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.progress import progress_bar
 from continuum_mhe.signals import SIGNALS_SEEN, signals_deferred
 
@@ -319,22 +319,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {gain_note}", file=sys.stderr)
     if twist_note := tally.twist.notice():
         print(f"{PROG}: warning: {twist_note}", file=sys.stderr)
-    if (drifted := tally.counts.get("drifted", 0)) and isinstance(formulation, TendonFormulation):
-        tilt = (
-            "; with tilt IMUs a loaded robot that twists is not followed with the right "
-            "inputs either (raw IMUs are: docs/tendon.md, Limits)"
-            if formulation.imu_model == "tilt"
-            else ""
-        )
-        print(
-            f"{PROG}: warning: {drifted} of {n} estimates drifted: the IMUs' error states "
-            "left their prior or changed faster than their model allows, so the model "
-            "follows the readings only with IMU errors these IMUs are not taken to have; "
-            "check the tensions (their scale, unit, tendon order and timing; "
-            "--estimate-tension-gain estimates a scale) and the robot file (the IMUs' "
-            f"places, the backbone){tilt}",
-            file=sys.stderr,
-        )
+    if drift_note := drifted_notice(tally.counts.get("drifted", 0), n, formulation):
+        print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "

@@ -321,3 +321,25 @@ class TensionGainFromOne:
             for i in range(len(g))
             for j in range(i + 1, len(g))
         )
+
+
+def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None:
+    """The line for a tendon robot's ``drifted`` rows (``drifted`` of ``n`` estimates):
+    the IMU error states took up what the model did not explain, so check the tensions
+    and the robot file; None where there are none or the robot has no mechanics model
+    (``estimate``'s warning and ``live``'s summary)."""
+    if not drifted or not formulation.robot.has_mechanics:
+        return None
+    tilt = (
+        "; with tilt IMUs a loaded robot that twists is not followed with the right "
+        "inputs either (raw IMUs are: docs/tendon.md, Limits)"
+        if getattr(formulation, "imu_model", None) == "tilt"
+        else ""
+    )
+    return (
+        f"{drifted} of {n} estimates drifted: the IMUs' error states left their prior or "
+        "changed faster than their model allows, so the model follows the readings only "
+        "with IMU errors these IMUs are not taken to have; check the tensions (their "
+        "scale, unit, tendon order and timing; --estimate-tension-gain estimates a scale) "
+        f"and the robot file (the IMUs' places, the backbone){tilt}"
+    )

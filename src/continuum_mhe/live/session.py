@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import IO, Any, Protocol
@@ -18,7 +18,11 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
-from continuum_mhe.estimators.run_notices import TensionGainFromOne, TwistWithTiltImus
+from continuum_mhe.estimators.run_notices import (
+    TensionGainFromOne,
+    TwistWithTiltImus,
+    drifted_notice,
+)
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
 from continuum_mhe.io.raw_imu import (
@@ -277,6 +281,8 @@ class LiveSession:
         self.gains = TensionGainFromOne(self.formulation)
         #: a tendon robot's twist estimated from tilt IMUs, for the summary's warning
         self.twist = TwistWithTiltImus(self.formulation)
+        #: the estimates written, by status (the summary's drifted warning counts them)
+        self.status_counts: Counter[str] = Counter()
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
         self.out: RowSink | None = (
             None if out is None else out if hasattr(out, "write_row") else _TextSink(out, columns)
@@ -696,9 +702,8 @@ class LiveSession:
             if self._restarted and est.state is not None:
                 self._restarted = False
                 # restarted where the time base broke: the start's row says reset, as
-                # the policy's own restarts do (over its being unconfirmed, uncertain)
-                if est.status in (Status.OK, Status.UNCERTAIN):
-                    est = replace(est, status=Status.RESET)
+                # the policy's own restarts' rows do whatever else they would say
+                est = replace(est, status=Status.RESET)
             return est
         self.counts.estimator_failures += 1
         self._replay_differs(t, "an estimator failure")
@@ -714,6 +719,7 @@ class LiveSession:
     def _write(self, est: Estimate) -> None:
         self.counts.estimates += 1
         self.last = est
+        self.status_counts[str(est.status)] += 1
         self.solve_ms.append(est.solve_ms)
         if self.on_estimate is not None:
             self.on_estimate(est)
@@ -811,6 +817,9 @@ class LiveSession:
             msg += "; warning: " + gain_note
         if twist_note := self.twist.notice():
             msg += "; warning: " + twist_note
+        drifted = self.status_counts.get("drifted", 0)
+        if drift_note := drifted_notice(drifted, c.estimates, self.formulation):
+            msg += "; warning: " + drift_note
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
