@@ -720,3 +720,25 @@ def test_seconds_of_lines_of_another_field_count_say_why_where_fields_were_decla
         s.handle_line(f"{150 + 50 * i},0.1,0.1,0.2,0.2".encode(), now + 0.05 * i)
     assert s.fatal is not None and "nothing but garbled lines" in s.fatal
     assert ": a line of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?" in s.fatal, s.fatal
+
+
+def test_the_warm_up_pays_the_gyro_units_checks_import() -> None:
+    """The gyros' units check (about a second into a raw stream) rotates with SciPy:
+    ``warm_up`` imports it before the port opens, so that the import (hundreds of
+    modules) does not stall the stream; a tilt robot's warm-up does not."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from continuum_mhe.estimators import make_estimator\n"
+        "from continuum_mhe.io.robot_file import read_robot\n"
+        "from continuum_mhe.live.run import warm_up\n"
+        "from continuum_mhe.model.registry import make_formulation\n"
+        "f = make_formulation(sys.argv[1], read_robot('two-section'))\n"
+        "warm_up(make_estimator('ekf', f), 5)\n"
+        "print('scipy.spatial.transform' in sys.modules)\n"
+    )
+    for name, imported in (("direct", "True"), ("bend", "False")):
+        out = subprocess.run([sys.executable, "-c", code, name], capture_output=True, text=True)
+        assert out.stdout.strip() == imported, (name, out.stderr)
