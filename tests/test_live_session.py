@@ -742,3 +742,20 @@ def test_the_warm_up_pays_the_gyro_units_checks_import() -> None:
     for name, imported in (("direct", "True"), ("bend", "False")):
         out = subprocess.run([sys.executable, "-c", code, name], capture_output=True, text=True)
         assert out.stdout.strip() == imported, (name, out.stderr)
+
+
+def test_falling_behind_after_a_long_restart_names_the_restart() -> None:
+    """The falling-behind line names a restart that took long (a tendon robot's start
+    fits the tip force: half a second) rather than advising a lower rate."""
+    from types import SimpleNamespace
+
+    from continuum_mhe.live.run import _faster
+    from continuum_mhe.results import Estimate, Status
+
+    ekf = SimpleNamespace(name="ekf")
+    restart = Estimate(1.0, None, None, None, Status.RESET, 540.0)
+    said = _faster(SimpleNamespace(last=restart, estimator=ekf))  # type: ignore[arg-type]
+    assert said.startswith("the estimator's restart took 540 ms")
+    ok = Estimate(1.0, None, None, None, Status.OK, 3.0)
+    said = _faster(SimpleNamespace(last=ok, estimator=ekf))  # type: ignore[arg-type]
+    assert said == "the ekf is slower than the stream: a lower rate or a faster machine"

@@ -190,7 +190,15 @@ def run_live(
 
 
 def _faster(session: LiveSession) -> str:
-    """What may make the estimator keep up with the stream."""
+    """What may make the estimator keep up with the stream, or, where the last estimate
+    was a restart that took long (a start fits the state to the readings: a tendon
+    robot's, the tip force), that the queue is that restart's."""
+    last = session.last
+    if last is not None and str(last.status) == "reset" and last.solve_ms > 100.0:
+        return (
+            f"the estimator's restart took {last.solve_ms:.0f} ms (a start fits the state "
+            "to the readings); the queue drains once it is done"
+        )
     if session.estimator.name == "mhe":
         return "try --method ekf or a shorter --horizon"
     return (
