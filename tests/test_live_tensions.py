@@ -481,3 +481,22 @@ def test_live_summary_says_drifted_rows_as_estimate_does(tmp_path: Path) -> None
     assert f"warning: {drifted} of {len(made)} estimates drifted: the IMUs' error states" in (
         session.summary()
     )
+
+
+def test_one_line_without_its_tensions_says_so_where_the_device_named_its_fields(
+    runs: Runs,
+) -> None:
+    """A device that names its fields (tensions included) and sends one line of the IMUs'
+    fields alone: that line is garbled, and what is said names the missing tensions (a
+    line cut elsewhere is said as a cut line, without a hint)."""
+    with_tensions, imus_only = _first_samples_lines()
+    fields = "# fields: t_ms," + ",".join(
+        [*(f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz"))]
+        + [f"tension_{j}" for j in range(1, 7)]
+    )
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), runs.base)
+    lines = [fields, *with_tensions[:5], imus_only[5], *with_tensions[6:]]
+    session, _, said = _live(serial, runs.estimator, lines)
+    garbled = [s for s in said if s.startswith("garbled line skipped")]
+    assert len(garbled) == 1 and "a line without the robot's 6 tendon tensions" in garbled[0], said
+    assert session.counts.garbled == 1

@@ -356,9 +356,10 @@ class LiveSession:
         self._garbage(arrival, reason + self._hint(text), text)
 
     def _hint(self, text: str) -> str:
-        if self._fields_match:  # the device named the expected fields: a cut line
-            return ""
-        return field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
+        hint = field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
+        if self._fields_match and "tendon tensions" not in hint:
+            return ""  # the device named the expected fields: a cut line
+        return hint  # (a line of the IMUs' fields alone lacks the tensions either way)
 
     def _garbage(self, arrival: float, why: str, text: str = "") -> None:
         """One more garbled line in the run of them since the last valid sample: a run
