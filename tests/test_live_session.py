@@ -759,3 +759,19 @@ def test_falling_behind_after_a_long_restart_names_the_restart() -> None:
     ok = Estimate(1.0, None, None, None, Status.OK, 3.0)
     said = _faster(SimpleNamespace(last=ok, estimator=ekf))  # type: ignore[arg-type]
     assert said == "the ekf is slower than the stream: a lower rate or a faster machine"
+
+
+def test_device_message_repeats_not_shown_are_counted_for_the_summary() -> None:
+    """A banner repeated within the rate limit (a board that resets twice in 5 s) is
+    shown once; the repeats hidden are counted (the summary says how many), and said
+    with the message where it is shown again later."""
+    from continuum_mhe.live.session import DeviceMessages
+
+    said: list[str] = []
+    messages = DeviceMessages(said.append, 5.0)
+    for now in (0.0, 1.0, 2.0):
+        messages.show("continuum_imu v1", now)
+    assert said == ["device says: continuum_imu v1"] and messages.not_shown() == 2
+    messages.show("continuum_imu v1", 6.0)
+    assert said[-1] == "device says: continuum_imu v1 (and 2 more time(s) since)"
+    assert messages.not_shown() == 0

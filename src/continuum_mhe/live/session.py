@@ -171,6 +171,11 @@ class DeviceMessages:
             self._shown.pop(next(iter(self._shown)))
         self._shown[text] = (now, 0)
 
+    def not_shown(self) -> int:
+        """The repeats hidden since their message was last shown (none said yet): the
+        summary counts them."""
+        return sum(hidden for _, hidden in self._shown.values())
+
 
 class LatencyHistogram:
     """Latencies (ms) in log-spaced bins (2.3 % wide), so memory stays constant."""
@@ -796,6 +801,15 @@ class LiveSession:
             note += "; before it, " + checks
         return note
 
+    def _not_shown(self) -> str:
+        """The device messages' repeats not shown, for the summary, or ""."""
+        hidden = self.messages.not_shown()
+        return (
+            f" ({hidden} repeated within {self.settings.repeat_every_s:g} s not shown)"
+            if hidden
+            else ""
+        )
+
     def summary(self) -> str:
         c = self.counts
         msg = (
@@ -803,7 +817,8 @@ class LiveSession:
             f"{c.imu_dropouts} unreadable IMU reading(s) on kept lines, "
             f"{c.partial} partial and {c.too_long} over-long line(s), {c.out_of_order} out of "
             f"order, {c.gaps} gap(s) (~{c.missing} samples missing), {c.disconnects} "
-            f"disconnect(s), {c.comments} device message(s), {c.clock_restarts} clock "
+            f"disconnect(s), {c.comments} device message(s){self._not_shown()}, "
+            f"{c.clock_restarts} clock "
             f"restart(s), {c.clock_wraps} clock wrap(s), {c.estimator_failures} estimator "
             f"failure(s)"
         )
