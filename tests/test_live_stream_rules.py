@@ -326,6 +326,22 @@ def test_a_device_time_far_ahead_of_real_time_is_out_of_order() -> None:
     assert s.clock.t_last == pytest.approx(1.99, abs=1e-9)
 
 
+@pytest.mark.parametrize("ahead_ms", [80_000, 31_000])
+def test_a_device_time_seconds_ahead_of_real_time_is_out_of_order(ahead_ms: int) -> None:
+    """One line's t_ms corrupted 80 s (or 31 s) ahead, 10 ms of host time after the last:
+    no gap, no restart, the axis where it was; one line out of order."""
+    s, _ = _session()
+    now = time.monotonic()
+    stamps = [10 * i for i in range(200)]
+    stamps[100] += ahead_ms
+    for i, ms in enumerate(stamps):
+        s.handle_line(f"{ms},0.1,0.1".encode(), now + 0.01 * i)
+    s.finish()
+    c = s.counts
+    assert (c.estimates, c.out_of_order, c.gaps, c.clock_restarts) == (199, 1, 0, 0)
+    assert s.clock.t_last == pytest.approx(1.99, abs=1e-9)
+
+
 def test_a_jump_ahead_that_the_next_line_confirms_is_a_gap() -> None:
     """Two lines left in the port from a session 20 minutes earlier, then the device's
     live lines: the first live line is dropped as far ahead, the next confirms the jump

@@ -33,8 +33,9 @@ MILLIS_WRAP = 2**32
 WRAP_WINDOW_MS = 60_000.0
 
 #: A device time further ahead of the last one than the host's time since then plus
-#: this, s, is not a sample's (serial buffering delays lines by seconds at most).
-FORWARD_JUMP_S = 600.0
+#: this, s, is not a sample's (serial buffering delays lines by seconds at most; a host
+#: suspended for longer has its first line back dropped and the next confirms the jump).
+FORWARD_JUMP_S = 30.0
 #: A sample this soon after one dropped for jumping ahead (ms of device time) confirms
 #: that jump.
 CONFIRM_MS = 10_000.0
