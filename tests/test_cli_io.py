@@ -1056,3 +1056,27 @@ def test_truth_at_follows_a_turning_angle_across_pi(
     # the wrapped difference: the interpolated angle against the true one
     diff = wrap_angle(rows[:, 1] - omega * t_est[i_est])
     assert np.max(np.abs(diff)) < 1e-9
+
+
+def test_evaluate_takes_the_truth_as_plot_does_too(tmp_path, capsys):
+    """``evaluate EST --truth TRUTH`` (as ``plot`` and ``view`` take it) scores as
+    ``evaluate EST TRUTH``; both, or neither, is one line, exit 2. (``--truth`` was read
+    as an abbreviation of ``--truth-shift``: "expected a number".)"""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert (
+        main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "2"])
+        == 0
+    )
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--json"]) == 0
+    positional = json.loads(capsys.readouterr().out)
+    assert main(["evaluate", str(est), "--truth", str(truth), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == positional
+    for argv, says in (
+        ([str(est), str(truth), "--truth", str(truth)], "two truths"),
+        ([str(est)], "no truth to score it against"),
+    ):
+        assert main(["evaluate", *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and says in err[0], err

@@ -193,6 +193,17 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
+    given = getattr(args, "truth_option", None)
+    if given is not None and args.truth is not None:
+        raise InputError(
+            f"two truths, {args.truth} and --truth {given}: give one (evaluate EST.csv TRUTH.csv)"
+        )
+    args.truth = args.truth if given is None else given
+    if args.truth is None:
+        raise InputError(
+            f"{args.estimates}: no truth to score it against: continuum-mhe evaluate EST.csv "
+            "TRUTH.csv"
+        )
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
         return _evaluate(args)
 
@@ -347,7 +358,13 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("estimates", help="estimate CSV or MCAP, as estimate -o writes it")
-    p.add_argument("truth", help="truth CSV: t and the true outputs (x, y, z, ...)")
+    p.add_argument("truth", nargs="?", help="truth CSV: t and the true outputs (x, y, z, ...)")
+    p.add_argument(
+        "--truth",
+        dest="truth_option",
+        metavar="TRUTH.csv",
+        help="the truth given as plot and view take it (instead of the second argument)",
+    )
     p.add_argument(
         "--length",
         type=float,

@@ -198,7 +198,10 @@ def simulate_robot(
             f"({robot.describe()}) choose from {', '.join(MULTI_SECTION_SCENARIOS)}"
         )
     if robot.n_sections < 2:
-        raise UserError(f"scenario {scenario!r} needs a robot with two or more sections")
+        raise UserError(
+            f"scenario {scenario!r} needs a robot with two or more sections (--robot); "
+            f"one section ({robot.describe()}) takes {', '.join(sorted(_SHAPES))}"
+        )
     t = _time_axis(duration, dt, noise_deg, seed)
     bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
     f = BendFormulation(robot=robot)
