@@ -145,7 +145,7 @@ def test_plot_warns_of_a_robot_file_whose_sections_the_estimate_does_not_fit(
     capsys.readouterr()
     assert main(["plot", str(two_section_run / "e.csv"), "--robot", str(big), "-o", str(fig)]) == 0
     err = capsys.readouterr().err
-    assert "fit sections of 0.16, 0.14 m, not the robot file's 0.3, 0.3 m" in err, err
+    assert "fit sections of 0.16, 0.14 m, not the given robot's 0.3, 0.3 m" in err, err
     assert main(["plot", str(two_section_run / "e.csv"), "--robot", str(TWO_SECTION),
                  "-o", str(fig), "--overwrite"]) == 0  # fmt: skip
     assert capsys.readouterr().err.strip() == f"wrote {fig}"
@@ -642,3 +642,29 @@ def test_calibrate_writes_the_given_one_section_robot_and_says_what_it_assumed(
     two = str(TWO_SECTION)
     assert main(["calibrate", "--from", str(rest), "--robot", two, "--theta-max", "2"]) == 2
     assert "--theta-max does not apply with the robot file" in capsys.readouterr().err
+
+
+def test_view_warns_of_a_drawing_that_misses_the_estimate(tmp_path: Path, capsys) -> None:
+    """``view`` with other sections than the estimate's rows fit (``--length``), or a
+    tendon robot's other tensions file than the one its options line names: a warning
+    each, the view written; none with the estimate's own."""
+    pytest.importorskip("rerun")
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    data = shipped_robots()["tendon-two-section"].parents[1] / "tendon"
+    est = tmp_path / "e.csv"
+    own = str(data / "force-08_tensions.csv")
+    assert main(["estimate", str(data / "force-08_raw.csv"), "--robot", "tendon-two-section",
+                 "--inputs", own, "-o", str(est)]) == 0  # fmt: skip
+    view = ["view", str(est), "--robot", "tendon-two-section", "--save", str(tmp_path / "v.rrd")]
+    capsys.readouterr()
+    assert main([*view, "--inputs", str(data / "twist-29_tensions.csv")]) == 0
+    assert "was estimated with --inputs" in capsys.readouterr().err
+    assert main([*view, "--inputs", own, "--overwrite"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    one = tmp_path / "one.csv"
+    assert main(["simulate", "paper3d", "--duration", "2", "-o", str(tmp_path / "m.csv")]) == 0
+    assert main(["estimate", str(tmp_path / "m.csv"), "--method", "ekf", "-o", str(one)]) == 0
+    capsys.readouterr()
+    assert main(["view", str(one), "--length", "0.3", "--save", str(tmp_path / "w.rrd")]) == 0
+    assert "its rows fit sections of 0.2 m, not the given robot's 0.3 m" in capsys.readouterr().err

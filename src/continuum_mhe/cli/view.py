@@ -4,12 +4,17 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
 from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.imu import MOUNTINGS
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.viewer import INSTALL_HINT, replay
 
 
@@ -17,10 +22,52 @@ def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
+        _warn_other_drawing(args, robot)
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
         )  # fmt: skip
     return 0
+
+
+def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:
+    """A warning where the view would draw the estimate on other sections than its rows
+    fit (``--length`` or ``--robot`` of other lengths) or a tendon robot's backbone with
+    another tensions file than the one its options line names: the drawn backbone then
+    misses the estimate's section ends and tip."""
+    from continuum_mhe.cli.config import beside, recorded_option
+    from continuum_mhe.evaluation.estimate_figure import has_tip_force, lengths_misfit
+    from continuum_mhe.io.estimate_files import read_estimates
+
+    try:
+        est = read_estimates(args.estimates, "view EST.csv")
+    except UserError:
+        return  # replay says why, in its words
+    if not has_tip_force(est.names) and (misfit := lengths_misfit(est, robot.lengths)):
+        print(
+            f"{PROG}: warning: {args.estimates}: {misfit}; its backbone is drawn on those "
+            "sections and misses its section ends: give the robot (--robot, --length) it "
+            "was estimated with",
+            file=sys.stderr,
+        )
+    recorded = recorded_option(args.estimates, "inputs")
+    if args.inputs and isinstance(recorded, str):
+        here = Path(beside(args.estimates, recorded))
+        same = (
+            here.is_file()
+            and Path(args.inputs).is_file()
+            and (
+                here.resolve() == Path(args.inputs).resolve()
+                or here.read_bytes() == Path(args.inputs).read_bytes()
+            )
+        )
+        if not same:
+            print(
+                f"{PROG}: warning: {args.estimates} was estimated with --inputs {recorded} "
+                f"(its options line), not {args.inputs}: the backbone is drawn with these "
+                "tensions and may miss the estimate's tip: give the tensions file it was "
+                "estimated with",
+                file=sys.stderr,
+            )
 
 
 DESCRIPTION = (

@@ -126,7 +126,7 @@ def lengths_misfit(table: StateTable, lengths: Sequence[float]) -> str | None:
     def shown(v: Sequence[float]) -> str:
         return ", ".join(f"{x:.3g}" for x in v) + " m"
 
-    return f"its rows fit sections of {shown(own)}, not the robot file's {shown(lengths)}"
+    return f"its rows fit sections of {shown(own)}, not the given robot's {shown(lengths)}"
 
 
 def has_tip_force(names: Sequence[str]) -> bool:
