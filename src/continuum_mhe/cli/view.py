@@ -22,10 +22,10 @@ def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
-        _warn_other_drawing(args, robot)
         replay(
             args.estimates, robot, sink, args.truth, args.trail, args.points, args.inputs
         )  # fmt: skip
+        _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
 
 

@@ -99,6 +99,8 @@ def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
     points = tracked_points(table.names)
     if n == 0 or len(points) != n:
         return None
+    if not all(c in table.names for p in points for c in p.columns):
+        return None  # a table without a section end's (or the tip's) positions
     theta, _ = section_shapes(table, n)
     ends = np.stack([np.stack([table.column(c) for c in p.columns], axis=1) for p in points], 1)
     starts = np.concatenate([np.zeros_like(ends[:, :1]), ends[:, :-1]], axis=1)
