@@ -82,7 +82,6 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     from continuum_mhe.cli.robot_options import warn_other_recorded_robot
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
-        has_tip_force,
         lengths_misfit,
         section_count,
         truth_at_estimate,
@@ -109,7 +108,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
                 f"{robot.n_sections}; give the robot file it was made with"
             )
         lengths = robot.lengths
-        misfit = None if has_tip_force(est.names) else lengths_misfit(est, lengths)
+        misfit = lengths_misfit(est, lengths)
         if misfit:  # drawn on the robot file's sections, off the estimate's points
             print(
                 f"{PROG}: warning: {args.source}: {misfit}; its backbone is drawn on "

@@ -35,14 +35,14 @@ def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:
     another tensions file than the one its options line names: the drawn backbone then
     misses the estimate's section ends and tip."""
     from continuum_mhe.cli.config import beside, recorded_option
-    from continuum_mhe.evaluation.estimate_figure import has_tip_force, lengths_misfit
+    from continuum_mhe.evaluation.estimate_figure import lengths_misfit
     from continuum_mhe.io.estimate_files import read_estimates
 
     try:
         est = read_estimates(args.estimates, "view EST.csv")
     except UserError:
         return  # replay says why, in its words
-    if not has_tip_force(est.names) and (misfit := lengths_misfit(est, robot.lengths)):
+    if misfit := lengths_misfit(est, robot.lengths):
         print(
             f"{PROG}: warning: {args.estimates}: {misfit}; its backbone is drawn on those "
             "sections and misses its section ends: give the robot (--robot, --length) it "

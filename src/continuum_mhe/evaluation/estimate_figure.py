@@ -118,7 +118,10 @@ def lengths_misfit(table: StateTable, lengths: Sequence[float]) -> str | None:
     """Where the section lengths the estimate's own rows give
     (:func:`lengths_from_estimate`) differ from ``lengths`` (m, a robot file's) by more
     than :data:`BACKBONE_MISFIT` of the robot's length: what to say (the two lengths),
-    else None (also where the rows give none)."""
+    else None (also where the rows give none, and for a tendon robot's estimate, whose
+    sections are not arcs)."""
+    if has_tip_force(table.names):
+        return None
     own = lengths_from_estimate(table)
     if own is None or len(own) != len(lengths):
         return None
