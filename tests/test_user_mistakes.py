@@ -1965,3 +1965,14 @@ def test_estimate_of_another_kind_of_file_says_which_kind(tmp_path, capsys) -> N
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and says in err[0], err
         assert not out.exists()
+
+
+def test_a_multi_section_scenario_on_one_section_names_the_ones_it_takes(tmp_path, capsys) -> None:
+    """``simulate spatial`` without ``--robot``: one line that names ``--robot`` and the
+    scenarios a one-section robot takes, exit 2, nothing written."""
+    out = tmp_path / "m.csv"
+    assert main(["simulate", "spatial", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs a robot with two or more sections (--robot)" in err[0], err
+    assert "takes paper3d, planar-overbend, straight" in err[0]
+    assert not out.exists()
