@@ -104,8 +104,6 @@ void cmhe::bind_consistency(nb::module_& m) {
                    &ConsistencyCheck::set_model_error,
                    "The largest noise_scale - 1 beyond its limit since the reset, in "
                    "units of R (settable: a model error known beforehand).")
-      .def_prop_ro("has_previous", &ConsistencyCheck::has_previous,
-                   "Whether the next sample is predicted from a previous estimate.")
       .def_prop_ro("nis", &ConsistencyCheck::nis, "The last sample's NIS (0 if none).")
       .def_prop_ro("fit", &ConsistencyCheck::fit, "The last sample's fit (0 if not judged).")
       .def_prop_ro("fit_nis", &ConsistencyCheck::fit_nis,

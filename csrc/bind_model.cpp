@@ -58,10 +58,8 @@ static_assert(sizeof(Instruction) == 4 * sizeof(int32_t), "Instruction is four i
 
 void cmhe::bind_model(nb::module_& m) {
   nb::class_<ModelFunction>(m, "ModelFunction",
-                            "A model evaluation with a C entry point "
-                            "``int f(const double** inputs, double* out)``.")
-      .def_prop_ro("address", &ModelFunction::address,
-                   "Address of the C entry point (valid while this object lives).")
+                            "A model evaluation of the compiled core: flat column-major "
+                            "inputs to all outputs concatenated.")
       .def_prop_ro("output_size", &ModelFunction::output_size,
                    "Number of values written (all outputs concatenated).")
       .def("evaluate", &evaluate, nb::arg("inputs"), nb::arg("out"),

@@ -118,7 +118,8 @@ void cmhe::bind_solver(nb::module_& m) {
       .def(
           "__init__",
           [](WindowSolver* self, Index horizon, Index nx, Index nz, Index nu,
-             std::uintptr_t window, std::uintptr_t tail, In lo, In hi, IndexIn ball_idx,
+             const ModelFunction* window, const ModelFunction* tail, In lo, In hi,
+             IndexIn ball_idx,
              In ball_r2, In rinv, IndexIn blocks, int loss_code, double loss_scale,
              bool linear_transition, std::optional<IndexIn> block_cols) {
             if (ball_idx.ndim() != 2) throw std::invalid_argument("ball_idx must be 2-D");
@@ -128,14 +129,17 @@ void cmhe::bind_solver(nb::module_& m) {
                                     loss_scale, linear_transition,
                                     block_cols ? copy_of(*block_cols) : std::vector<int64_t>{});
           },
-          nb::arg("horizon"), nb::arg("nx"), nb::arg("nz"), nb::arg("nu"), nb::arg("window"),
-          nb::arg("tail"), nb::arg("lo"), nb::arg("hi"), nb::arg("ball_idx"), nb::arg("ball_r2"),
+          nb::arg("horizon"), nb::arg("nx"), nb::arg("nz"), nb::arg("nu"),
+          nb::arg("window").none(), nb::arg("tail").none(), nb::arg("lo"), nb::arg("hi"), nb::arg("ball_idx"), nb::arg("ball_r2"),
           nb::arg("rinv"), nb::arg("blocks"), nb::arg("loss_code"), nb::arg("loss_scale"),
           nb::arg("linear_transition"), nb::arg("block_cols") = nb::none(),
           "``block_cols`` (nblocks,): the number of leading state coordinates each "
           "measurement block's residual depends on at most (its Jacobian rows are zero "
           "beyond them, and its second-order term outside that leading square, which is "
-          "all the window's outputs hold of it); nx each where None.")
+          "all the window's outputs hold of it); nx each where None. ``window`` and "
+          "``tail`` (a WindowFunction and a TailFunction; None: the caller writes the "
+          "outputs ``out`` itself) are kept alive with the solver.",
+          nb::keep_alive<1, 6>(), nb::keep_alive<1, 7>())
       .def("solve", &solve, nb::arg("qinv"), nb::arg("xbar"), nb::arg("arrival"),
            nb::arg("lam"), nb::arg("max_iter"), nb::arg("step_tol"), nb::arg("err_tol"),
            nb::arg("max_qp_iter"), nb::arg("newton"), nb::arg("quadratic"),
@@ -228,8 +232,6 @@ void cmhe::bind_solver(nb::module_& m) {
                    })
       .def_prop_ro("tail_out",
                    [](WindowSolver& s) { return view(s, s.tail_out, {s.tail_out.size()}); })
-      .def_prop_ro("ptrs", [](WindowSolver& s) { return view(s, s.ptrs, {2, 5}); })
-      .def_prop_ro("tail_ptrs", [](WindowSolver& s) { return view(s, s.tail_ptrs, {6}); })
       .def_ro("window_size", &WindowSolver::window_size)
       .def_rw("watchdog", &WindowSolver::watchdog,
               "A rejected full step gets one more Gauss-Newton step from its trial point "
@@ -281,20 +283,6 @@ void cmhe::bind_solver(nb::module_& m) {
       nb::arg("D"), nb::arg("E"), nb::arg("b"), nb::arg("y"),
       "As btd_solve, eliminating from both ends towards the middle node (the QP's Newton "
       "system without active constraints); False if H is not positive definite.");
-  m.def(
-      "btd_matvec",
-      [](In D, In E, In v, Out out) {
-        if (D.ndim() != 3) throw std::invalid_argument("D must be (n, nx, nx)");
-        const Index n = D.shape(0), nx = D.shape(1);
-        check_shape(E, {n - 1, nx, nx}, "E");
-        check_shape(v, {n, nx}, "v");
-        check_shape(out, {n, nx}, "out");
-        with_block_size(nx, [&](auto k) {
-          btd_matvec<decltype(k)::value>(n, nx, D.data(), E.data(), v.data(), out.data());
-        });
-      },
-      nb::arg("D"), nb::arg("E"), nb::arg("v"), nb::arg("out"),
-      "out = H v for the symmetric block-tridiagonal H = (D, E).");
   m.def(
       "householder",
       [](In nrm, IndexIn idx, Out T) {

@@ -6,7 +6,7 @@
 // covariance from the readings' constant errors.
 //
 // Matrices are row-major (numpy's C order). The model comes as three functions of the
-// node's inputs ``(x, u, dt, z, m)`` (continuum_mhe.estimators.fast.codegen.
+// node's inputs ``(x, u, dt, z, m)`` (continuum_mhe.estimators.fast.window_functions.
 // node_function's outputs, each evaluated only where it is needed): the transition
 // ``(f, F)``, the measurement ``(H, r)`` and the residual ``r``, with ``F = df/dx``,
 // ``H = -dr/dx``; they are evaluated with every reading's mask 1 and the invalid
@@ -114,7 +114,6 @@ class ConsistencyCheck {
     return std::max(1.0, shift_ / s_.shift_limit[shift_dof_]);
   }
   int dof() const { return dof_; }     // this sample's judged readings
-  bool has_previous() const { return has_prev_; }
 
  private:
   // ``fn`` at (x, u, dt, zv) with every mask 1 into ``out``

@@ -3,7 +3,7 @@
 // Matrices are row-major (numpy's C order). The node function is
 // ``(x, u, dt, z, m) -> (f, F, H, r)``: the transition, its Jacobian (row-major), the
 // measurement Jacobian ``H = -dr/dx`` (nz x nx, row-major) and the masked residual
-// (continuum_mhe.estimators.fast.codegen.node_function).
+// (continuum_mhe.estimators.fast.window_functions.node_function).
 #pragma once
 
 #include <array>

@@ -29,7 +29,7 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
 void check_forward(const Tape& tape);
 
 // ``(x, u, dt, z, m) -> (f, F, H, r)`` (the layout of
-// continuum_mhe.estimators.fast.codegen.node_function) from the transition's tape
+// continuum_mhe.estimators.fast.window_functions.node_function) from the transition's tape
 // ``(x, u, dt) -> (f, F)`` and the measurement residual's tape ``(x, z) -> r``:
 // ``r_masked = m r`` and ``H = -d r_masked / dx`` (row-major) by forward mode. Without
 // the transition (``with_transition`` false) the outputs are ``(H, r)`` alone (the

@@ -236,7 +236,7 @@ int MovingHorizon::step_body(double t, const double* z, const double* mask, cons
   const auto start = std::chrono::steady_clock::now();
   // the warm start's nodes but the last are the last iterate's, shifted: so are their
   // model outputs (each node's depend on its own state and data only)
-  const bool evaluated = reusable >= 0 && solver.tail != 0 && solver.shift_outputs(reusable, 0);
+  const bool evaluated = reusable >= 0 && solver.tail != nullptr && solver.shift_outputs(reusable, 0);
   const SqpResult r = solver.solve(data, zmask_nodes_.data(), lam.data(), options, evaluated,
                                    evaluated ? reusable : -1);
   solve_seconds = seconds_since(start);

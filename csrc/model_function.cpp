@@ -1,60 +1,14 @@
 #include "model_function.hpp"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cstring>
-#include <mutex>
 #include <stdexcept>
 #include <utility>
 
 #include "forward.hpp"
 
 namespace cmhe {
-
-namespace {
-
-// A C function pointer carries no object: each live ModelFunction holds one of these
-// slots, and the slot's own entry point calls it.
-constexpr int kSlots = 1024;
-std::array<std::atomic<const ModelFunction*>, kSlots> g_slots{};
-std::mutex g_slot_mutex;
-
-template <int K>
-int trampoline(const double* const* in, double* out) {
-  const ModelFunction* f = g_slots[K].load(std::memory_order_acquire);
-  return f ? f->evaluate(in, out) : 1;
-}
-
-template <int... K>
-constexpr std::array<Entry, sizeof...(K)> make_entries(std::integer_sequence<int, K...>) {
-  return {&trampoline<K>...};
-}
-
-const std::array<Entry, kSlots> g_entries = make_entries(std::make_integer_sequence<int, kSlots>{});
-
-}  // namespace
-
-ModelFunction::ModelFunction() : slot_(-1) {
-  std::lock_guard<std::mutex> lock(g_slot_mutex);
-  for (int k = 0; k < kSlots; ++k) {
-    if (g_slots[k].load() == nullptr) {
-      g_slots[k].store(this, std::memory_order_release);
-      slot_ = k;
-      return;
-    }
-  }
-  throw std::runtime_error("more than 1024 model functions alive at once");
-}
-
-ModelFunction::~ModelFunction() {
-  std::lock_guard<std::mutex> lock(g_slot_mutex);
-  g_slots[slot_].store(nullptr, std::memory_order_release);
-}
-
-std::uintptr_t ModelFunction::address() const {
-  return reinterpret_cast<std::uintptr_t>(g_entries[slot_]);
-}
 
 namespace {
 void check_proc(const MeasurementPiece& meas, const Tape& proc) {

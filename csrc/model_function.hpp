@@ -1,7 +1,7 @@
-// Model functions with a plain C entry point, ``int f(const double** in, double* out)``
-// (0 on success), so that compiled kernels call every model the same way: one SX
-// function (TapeFunction), or the whole MHE window built from a node's two pieces
-// (WindowFunction, TailFunction; layouts in continuum_mhe.estimators.fast.codegen).
+// Model functions, all evaluated the same way, ``evaluate(const double** in, double* out)``
+// (0 on success): one SX function (TapeFunction), or the whole MHE window built from a
+// node's two pieces (WindowFunction, TailFunction; layouts in
+// continuum_mhe.estimators.fast.window_functions).
 #pragma once
 
 #include <atomic>
@@ -13,22 +13,15 @@
 
 namespace cmhe {
 
-using Entry = int (*)(const double* const*, double*);
-
 class ModelFunction {
  public:
-  ModelFunction();
-  virtual ~ModelFunction();
+  ModelFunction() = default;
+  virtual ~ModelFunction() = default;
   ModelFunction(const ModelFunction&) = delete;
   ModelFunction& operator=(const ModelFunction&) = delete;
 
   virtual int evaluate(const double* const* in, double* out) const = 0;
   virtual int64_t output_size() const = 0;
-  // address of a C function that calls ``evaluate`` on this object
-  std::uintptr_t address() const;
-
- private:
-  int slot_;
 };
 
 class TapeFunction : public ModelFunction {
@@ -80,7 +73,7 @@ class MaskedResidualFunction : public ModelFunction {
 };
 
 // One node's measurement terms ``(x, z, m) -> (r, jr, sr)`` (layout of
-// continuum_mhe.estimators.fast.codegen.node_pieces): the tape of all three, or, for a
+// continuum_mhe.estimators.fast.window_functions.node_pieces): the tape of all three, or, for a
 // model whose symbolic Jacobian is too large to form (``forward``), the residual's tape
 // ``(x, z) -> r`` alone, with ``r`` masked by ``m``, ``jr = d(m r)/dx`` (row-major) by
 // forward-mode derivatives (forward.hpp) and ``sr`` zero (Gauss-Newton steps).

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "model_function.hpp"
 
@@ -331,9 +332,7 @@ void add_curvature(WindowSolver& w, int buf, double sign) {
 template <int NX>
 double evaluate_sized(WindowSolver& w, int buf, const WindowData& data, const double* zmask) {
   double* out = w.out.data() + buf * w.window_size;
-  const auto fn = reinterpret_cast<Entry>(w.window);
-  if (!fn) return kInf;
-  if (fn(reinterpret_cast<const double* const*>(w.ptrs.data() + 5 * buf), out) != 0) return kInf;
+  if (!w.window || w.window->evaluate(w.ptrs.data() + 5 * buf, out) != 0) return kInf;
   return assemble<NX>(w, buf, w.Xb.data() + buf * w.n * w.nx, out, zmask, data, -1);
 }
 
@@ -477,7 +476,7 @@ void rho_derivatives(int code, double scale, double s, double& rho, double& rho1
 }
 
 WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
-                           std::uintptr_t window_, std::uintptr_t tail_,
+                           const ModelFunction* window_, const ModelFunction* tail_,
                            std::vector<double> lo_, std::vector<double> hi_,
                            std::vector<int64_t> ball_, Index ball_size,
                            std::vector<double> ball_r2_, std::vector<double> rinv_,
@@ -510,6 +509,13 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   }
   const Index bs = nx * nx;
   window_size = nz * n + nz * nx * n + nx * (n - 1) + bs * (n - 1) + sr_size * n;
+  if (window && window->output_size() != window_size)
+    throw std::invalid_argument(
+        "the window function writes " + std::to_string(window->output_size()) +
+        " values, the window's layout holds " + std::to_string(window_size) +
+        ": give the solver the block_cols its window function was built with");
+  if (tail && tail->output_size() != Index(nz + nz * nx + nx + bs + sr_size))
+    throw std::invalid_argument("the tail function's outputs do not fit the window's layout");
   z.assign(n * nz, 0.0);
   m.assign(n * nz, 0.0);
   u.assign((n - 1) * nu, 0.0);
@@ -533,18 +539,17 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
   stage_eq.assign(ns * bs, 0.0);
   stage_fqf.assign(ns * bs, 0.0);
   tail_out.assign(nz + nz * nx + nx + bs + sr_size, 0.0);
-  auto addr = [](const double* p) { return reinterpret_cast<std::uintptr_t>(p); };
   ptrs.resize(10);
   for (int b = 0; b < 2; ++b) {
-    ptrs[5 * b] = addr(Xb.data() + b * n * nx);
-    ptrs[5 * b + 1] = addr(z.data());
-    ptrs[5 * b + 2] = addr(m.data());
-    ptrs[5 * b + 3] = nu ? addr(u.data()) : 0;
-    ptrs[5 * b + 4] = addr(dt.data());
+    ptrs[5 * b] = Xb.data() + b * n * nx;
+    ptrs[5 * b + 1] = z.data();
+    ptrs[5 * b + 2] = m.data();
+    ptrs[5 * b + 3] = nu ? u.data() : nullptr;
+    ptrs[5 * b + 4] = dt.data();
   }
-  tail_ptrs = {addr(Xb.data() + (n - 2) * nx), addr(Xb.data() + (n - 1) * nx),
-               addr(z.data() + (n - 1) * nz), addr(m.data() + (n - 1) * nz),
-               nu ? addr(u.data() + (n - 2) * nu) : 0, addr(dt.data() + (n - 2))};
+  tail_ptrs = {Xb.data() + (n - 2) * nx, Xb.data() + (n - 1) * nx,
+               z.data() + (n - 1) * nz, m.data() + (n - 1) * nz,
+               nu ? u.data() + (n - 2) * nu : nullptr, dt.data() + (n - 2)};
   wr.resize(nz);
   wj.resize(nz * nx);
   qw.resize(nx);
@@ -580,10 +585,8 @@ double WindowSolver::assemble(int buf, const WindowData& data, const double* zma
 
 bool WindowSolver::shift_outputs(int src, int dst) {
   ++generation;
-  const auto fn = reinterpret_cast<Entry>(tail);
-  if (!fn) throw std::invalid_argument("the window model has no tail function");
-  if (fn(reinterpret_cast<const double* const*>(tail_ptrs.data()), tail_out.data()) != 0)
-    return false;
+  if (!tail) throw std::invalid_argument("the window model has no tail function");
+  if (tail->evaluate(tail_ptrs.data(), tail_out.data()) != 0) return false;
   double* to = out.data() + dst * window_size;
   const double* from = out.data() + src * window_size;
   const Index counts[5] = {n, n, n - 1, n - 1, n};

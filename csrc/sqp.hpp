@@ -2,7 +2,7 @@
 //
 // Each iteration evaluates the whole window's model in one call of its C entry point
 // (residuals, Jacobians and the measurement residuals' second-order term; layout of
-// continuum_mhe.estimators.fast.codegen.window_function), assembles the block-tridiagonal
+// continuum_mhe.estimators.fast.window_functions.window_function), assembles the block-tridiagonal
 // Hessian of the Lagrangian (Gauss-Newton J^T W J, plus the exact second-order term
 // where that keeps it positive definite, plus 2 lam_b I on the coordinates of each ball
 // b with a positive multiplier), and solves the QP subproblem (qp.hpp). Iterates stay
@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "model_function.hpp"
 #include "qp.hpp"
 
 namespace cmhe {
@@ -50,8 +51,10 @@ struct WindowData {
 // robust-loss weights (wgt, extra, gb; see assemble) and node costs of each.
 class WindowSolver {
  public:
-  WindowSolver(Index horizon, Index nx, Index nz, Index nu, std::uintptr_t window,
-               std::uintptr_t tail, std::vector<double> lo, std::vector<double> hi,
+  // ``window`` and ``tail`` must outlive the solver; a null ``window``: only assembly from
+  // outputs written by the caller (evaluate returns an infinite cost)
+  WindowSolver(Index horizon, Index nx, Index nz, Index nu, const ModelFunction* window,
+               const ModelFunction* tail, std::vector<double> lo, std::vector<double> hi,
                std::vector<int64_t> ball, Index ball_size, std::vector<double> ball_r2,
                std::vector<double> rinv, std::vector<int64_t> blocks, int loss_code,
                double loss_scale, bool linear_transition, std::vector<int64_t> block_cols = {});
@@ -93,7 +96,8 @@ class WindowSolver {
   // assemble, shift_outputs): a caller that kept a buffer's outputs knows whether they
   // are still there
   uint64_t generation = 0;
-  std::uintptr_t window, tail;
+  const ModelFunction* window;  // the whole window's outputs (WindowFunction)
+  const ModelFunction* tail;    // one new last node's (TailFunction), or null
   std::vector<double> lo, hi, ball_r2, rinv;
   std::vector<int64_t> ball, blocks;
   // per measurement block (nblk): its residual depends on the first block_cols[b] state
@@ -119,7 +123,7 @@ class WindowSolver {
   std::vector<double> z, m, u, dt, Xb, out, D, E, g, d, lam_qp, wgt, extra, gb, Dgn, ncost;
   std::vector<int64_t> stage_done;  // (n-1,) for an affine transition, else empty
   std::vector<double> stage_eq, stage_fqf, tail_out;
-  std::vector<std::uintptr_t> ptrs, tail_ptrs;  // the model's argument pointers
+  std::vector<const double*> ptrs, tail_ptrs;  // the model's argument pointers
 
   Feasible feasible() const {
     return {lo.data(), hi.data(), ball.data(), ball_r2.data(), nb, bk};

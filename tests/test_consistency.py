@@ -562,7 +562,7 @@ def test_the_check_takes_the_ekf_updates_evaluation() -> None:
     robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
     f = make_formulation("bend", robot)
     rec = simulate_robot("spatial", robot, duration=5, seed=4)
-    memo = node_functions(f).measurement.core
+    memo = node_functions(f).measurement
     est = make_estimator("ekf", f)
     before = memo.hits
     est.run(rec.t, rec.z)

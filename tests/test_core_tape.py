@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import continuum_mhe._core as _core
-from continuum_mhe.estimators.fast import codegen
+from continuum_mhe.estimators.fast import window_functions
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.model.tape import tape_function
@@ -104,26 +104,24 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     M = (rng.random((f.nz, n)) > 0.2).astype(float)
     U = rng.normal(size=(f.nu, n - 1))
     DT = rng.uniform(0.01, 0.1, size=(1, n - 1))
-    window, tail = codegen.window_c_functions(f, n)
+    window, tail = window_functions.core_window_functions(f, n)
     args = [X, Z, M, U, DT]
-    expected = casadi_flat(codegen.window_function(f, n), args)
+    expected = casadi_flat(window_functions.window_function(f, n), args)
     if _core.uses_vector_sin_cos():
         # a few ulp in each sin and cos, carried through the derivatives' sums: to 1e-12
         # of the window's largest output (measured at most 1.6e-13 over 200 draws)
         scale = max(1.0, float(np.abs(expected).max()))
-        np.testing.assert_allclose(
-            core_flat(window.core, args), expected, rtol=0, atol=1e-12 * scale
-        )
+        np.testing.assert_allclose(core_flat(window, args), expected, rtol=0, atol=1e-12 * scale)
     else:
-        np.testing.assert_allclose(core_flat(window.core, args), expected, rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(core_flat(window, args), expected, rtol=1e-14, atol=1e-14)
     targs = [X[:, 0], X[:, 1], Z[:, 1], M[:, 1], U[:, 0], DT[:, 0]]
     np.testing.assert_allclose(
-        core_flat(tail.core, targs),
-        casadi_flat(codegen.tail_function(f), targs),
+        core_flat(tail, targs),
+        casadi_flat(window_functions.tail_function(f), targs),
         rtol=1e-14,
         atol=1e-14,
     )
-    node = codegen.node_function(f)
+    node = window_functions.node_function(f)
     nargs = [X[:, 0], U[:, 0], DT[:, 0], Z[:, 0], M[:, 0]]
     expected_node = casadi_flat(node, nargs)
     np.testing.assert_array_equal(core_flat(tape_function(node), nargs), expected_node)
@@ -131,7 +129,7 @@ def test_window_and_node_functions_equal_casadi(name: str, f) -> None:
     # measurement terms, and the masked residual alone
     from continuum_mhe.estimators.consistency import model_tapes
 
-    halves = [codegen.transition_model(f), codegen.measurement_model(f)]
+    halves = [window_functions.transition_model(f), window_functions.measurement_model(f)]
     np.testing.assert_array_equal(
         np.concatenate([core_flat(h, nargs) for h in halves]), expected_node
     )

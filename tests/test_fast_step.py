@@ -149,7 +149,9 @@ def test_shifted_outputs_equal_the_window_model_at_the_shifted_iterate(in_place)
     def window(lo: int, b: int) -> np.ndarray:
         ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
         ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
-        assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
+        model.window.evaluate(
+            [ws.Xb[b].ravel(), ws.z.ravel(), ws.m.ravel(), ws.u.ravel(), ws.dt], ws.out[b]
+        )
         return ws.out[b].copy()
 
     src = 0 if in_place else 1
@@ -219,7 +221,9 @@ def test_shifted_assembly_equals_the_full_one(robot, loss, linear, in_place, arr
     def assembled(lo: int, b: int, shift_from: int = -1, spoil: bool = False) -> tuple:
         ws.Xb[b], ws.z[:], ws.m[:] = X[lo : lo + n], z[lo : lo + n] * m[lo : lo + n], m[lo : lo + n]
         ws.u[:], ws.dt[:] = u[lo : lo + n - 1], dt[lo : lo + n - 1]
-        assert model.window(ws.ptrs[b].ctypes.data, ws.out[b].ctypes.data) == 0
+        model.window.evaluate(
+            [ws.Xb[b].ravel(), ws.z.ravel(), ws.m.ravel(), ws.u.ravel(), ws.dt], ws.out[b]
+        )
         if spoil:  # the carried nodes' measurement outputs: a shifted assembly ignores them
             ws.out[b, nz : (n - 2) * nz] = np.nan
         arrival = np.zeros((n, nx, nx))
@@ -351,5 +355,5 @@ def test_a_window_model_without_its_block_columns_is_refused() -> None:
     robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
     model = build_window_model(make_formulation("bend", robot), horizon=5)
     Workspace(model)  # as built: accepted
-    with pytest.raises(ValueError, match="give WindowModel the block_columns"):
+    with pytest.raises(ValueError, match="the block_cols its window function was built with"):
         Workspace(replace(model, block_columns=None))

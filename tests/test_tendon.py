@@ -234,8 +234,8 @@ def test_the_shooting_converges_with_its_steps() -> None:
 
 
 def _rod_section_ends(robot: Robot, tau: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """Both section ends (3, 2) of :class:`~continuum_mhe.simulation.cosserat_tendon.
-    EnergyRod` extrapolated to zero segment length: it converges as ``ds^2``, so
+    """Both section ends (3, 2) of :func:`~continuum_mhe.simulation.cosserat_tendon.
+    energy_equilibrium` extrapolated to zero segment length: it converges as ``ds^2``, so
     Richardson on 1 and 2 segments per disk; the rod's two distances between them show
     that the bend is large enough for the extrapolation to matter."""
     from continuum_mhe.simulation.cosserat_tendon import energy_equilibrium
@@ -250,7 +250,7 @@ def _rod_section_ends(robot: Robot, tau: np.ndarray, force: np.ndarray) -> np.nd
 
 
 def test_the_shooting_agrees_with_an_independent_energy_minimisation() -> None:
-    """The discrete rod of :class:`~continuum_mhe.simulation.cosserat_tendon.EnergyRod`
+    """The discrete rod of :func:`~continuum_mhe.simulation.cosserat_tendon.energy_equilibrium`
     (energy minimised, tendons as polylines through every segment's end), extrapolated
     to zero segment length: the section ends agree to 0.05 mm on a loaded spatial
     bend."""

@@ -12,12 +12,8 @@ from numpy.typing import NDArray
 
 class ModelFunction:
     """
-    A model evaluation with a C entry point ``int f(const double** inputs, double* out)``.
+    A model evaluation of the compiled core: flat column-major inputs to all outputs concatenated.
     """
-
-    @property
-    def address(self) -> int:
-        """Address of the C entry point (valid while this object lives)."""
 
     @property
     def output_size(self) -> int:
@@ -135,9 +131,9 @@ class WindowSolver:
     The fast MHE's window solve for one window model: its buffers (NumPy views, row-major) and the SQP over them (continuum_mhe.estimators.fast.sqp).
     """
 
-    def __init__(self, horizon: int, nx: int, nz: int, nu: int, window: int, tail: int, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], blocks: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], loss_code: int, loss_scale: float, linear_transition: bool, block_cols: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)] | None = None) -> None:
+    def __init__(self, horizon: int, nx: int, nz: int, nu: int, window: ModelFunction | None, tail: ModelFunction | None, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ball_idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], ball_r2: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], blocks: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], loss_code: int, loss_scale: float, linear_transition: bool, block_cols: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)] | None = None) -> None:
         """
-        ``block_cols`` (nblocks,): the number of leading state coordinates each measurement block's residual depends on at most (its Jacobian rows are zero beyond them, and its second-order term outside that leading square, which is all the window's outputs hold of it); nx each where None.
+        ``block_cols`` (nblocks,): the number of leading state coordinates each measurement block's residual depends on at most (its Jacobian rows are zero beyond them, and its second-order term outside that leading square, which is all the window's outputs hold of it); nx each where None. ``window`` and ``tail`` (a WindowFunction and a TailFunction; None: the caller writes the outputs ``out`` itself) are kept alive with the solver.
         """
 
     def solve(self, qinv: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], xbar: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], arrival: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lam: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], max_iter: int, step_tol: float, err_tol: float, max_qp_iter: int, newton: bool, quadratic: bool, evaluated: bool = False, shifted: int = -1) -> SqpResult:
@@ -221,12 +217,6 @@ class WindowSolver:
     def tail_out(self) -> NDArray[numpy.float64]: ...
 
     @property
-    def ptrs(self) -> NDArray[numpy.uint64]: ...
-
-    @property
-    def tail_ptrs(self) -> NDArray[numpy.uint64]: ...
-
-    @property
     def window_size(self) -> int: ...
 
     @property
@@ -252,9 +242,6 @@ def btd_solve_two_ended(D: Annotated[NDArray[numpy.float64], dict(order='C', dev
     """
     As btd_solve, eliminating from both ends towards the middle node (the QP's Newton system without active constraints); False if H is not positive definite.
     """
-
-def btd_matvec(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], out: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> None:
-    """out = H v for the symmetric block-tridiagonal H = (D, E)."""
 
 def householder(nrm: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], T: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> int:
     """
@@ -368,10 +355,6 @@ class ConsistencyCheck:
 
     @model_error.setter
     def model_error(self, arg: float, /) -> None: ...
-
-    @property
-    def has_previous(self) -> bool:
-        """Whether the next sample is predicted from a previous estimate."""
 
     @property
     def nis(self) -> float:

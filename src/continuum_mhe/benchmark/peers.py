@@ -41,7 +41,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -539,6 +539,3 @@ def missing_peers(acados_folder: str | None = None) -> dict[str, str]:
     if not ca.has_conic("hpipm"):
         why["sqp-hpipm"] = "this CasADi has no HPIPM: pip install 'casadi>=3.6.5'"
     return why
-
-
-PeerRun = Callable[[], tuple[FloatArray, FloatArray, int, FloatArray]]

@@ -91,7 +91,7 @@ does not depend on it.
 
 The numerics run in the compiled core (``continuum_mhe._core.ConsistencyCheck``,
 ``csrc/consistency.*``), which evaluates the node model the EKF uses
-(:func:`~continuum_mhe.estimators.fast.codegen.node_function`, split into the parts
+(:func:`~continuum_mhe.estimators.fast.window_functions.node_function`, split into the parts
 each step needs: :func:`model_tapes`) without Python in between; this class gives it
 the formulation's noise, limits and, per sample, the inputs and the process noise
 ``Q(dt)``.
@@ -258,18 +258,11 @@ class ConsistencyCheck:
         bends: the readings that set the shape) at ``state``; zero where ``B`` is."""
         return self._core.constant_error_cov(z, mask, state)
 
-    @property
-    def std_factor(self) -> float:
-        """The factor (>= 1) the output standard deviations are widened by:
-        ``sqrt(noise_scale)`` where the readings scatter more than predicted."""
-        scale = self._core.noise_scale
-        return math.sqrt(scale) if scale > 1.0 else 1.0
-
 
 def model_tapes(
     formulation: Formulation,
 ) -> tuple[_core.ModelFunction, _core.ModelFunction, _core.ModelFunction]:
-    """The node function's outputs (:func:`~continuum_mhe.estimators.fast.codegen.
+    """The node function's outputs (:func:`~continuum_mhe.estimators.fast.window_functions.
     node_function`: ``(x, u, dt, z, m) -> (f, F, H, r)``) as three functions of its
     inputs, each the core evaluates only where the check needs it: the transition
     ``(f, F)`` (the prediction), the measurement ``(H, r)`` (at the prediction, and
@@ -281,7 +274,7 @@ def model_tapes(
     objects are the EKF's node's (:func:`~continuum_mhe.estimators.fast.model.
     node_functions`): the check's prediction takes the EKF update's evaluation."""
     node = node_functions(formulation)
-    return node.transition.core, node.measurement.core, node.residual
+    return node.transition, node.measurement, node.residual
 
 
 def _limits(limit: Callable[[int], float], n: int) -> list[float]:

@@ -11,8 +11,8 @@ subject to the formulation's bounds as hard constraints, where ``m_i`` (one 0/1 
 measurement component) masks the sensors that dropped out at sample ``i``: validity is
 per measurement block, so one IMU's dropout keeps the others. ``rho`` is the
 measurement loss (``MHESettings.loss``, :mod:`continuum_mhe.estimators.loss`): ``s``
-for the quadratic cost, Huber or Cauchy of each block's whitened norm for the robust
-ones. The NLP is built once per (formulation, N, loss) with the window's measurements,
+for the quadratic cost, Huber, Cauchy or Welsch of each block's whitened norm for the
+robust ones. The NLP is built once per (formulation, N, loss) with the window's measurements,
 masks, time steps, inputs, per-stage ``Q^-1`` and the arrival prior as parameters.
 
 Arrival cost: when the window slides, ``(xbar, P)`` take one EKF step, an update with
@@ -34,7 +34,7 @@ are decoupled and do not change the answer. With ``paper_start`` no estimate is 
 before ``N`` samples (Algorithm 1).
 
 Backends (``MHESettings.solver``): ``"fast"`` solves the same window problem with
-the Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast` and hands the window
+the SQP of :mod:`continuum_mhe.estimators.fast` and hands the window
 to IPOPT when it cannot certify convergence (status ``"fallback-ipopt"``);
 ``"ipopt"`` is the reference.
 
@@ -267,9 +267,10 @@ class MovingHorizonInference(Inference):
     each sample, and its arrival prior (:class:`MovingHorizonEstimator` steps it).
 
     Backends (``settings.solver``): ``"fast"`` (default), the structure-exploiting
-    Gauss-Newton SQP of :mod:`continuum_mhe.estimators.fast`, which falls back to
-    IPOPT on the same window (status ``"fallback-ipopt"``) when it cannot certify
-    convergence; ``"ipopt"``, the paper's solver and the reference.
+    SQP of :mod:`continuum_mhe.estimators.fast` (Newton steps, Gauss-Newton where the
+    exact Hessian is not positive definite), which falls back to IPOPT on the same
+    window (status ``"fallback-ipopt"``) when it cannot certify convergence;
+    ``"ipopt"``, the paper's solver and the reference.
 
     On the fast backend one call into the compiled core
     (:class:`continuum_mhe._core.MovingHorizon`) takes each sample: the window's

@@ -39,8 +39,6 @@ from continuum_mhe.model.descriptions import (
 )
 from continuum_mhe.model.imu import PITCH_LIMIT, ROLL_LIMIT
 
-MEASUREMENT_COLUMNS = ("t", "roll", "pitch")
-
 
 @dataclass(frozen=True)
 class MeasurementTable:

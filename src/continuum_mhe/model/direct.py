@@ -68,8 +68,6 @@ from continuum_mhe.model.settings import FormulationName
 
 #: Standard gravity, m/s^2 (converts the accelerometer-bias state to units of |f|).
 STANDARD_GRAVITY = 9.80665
-#: Measurement names of one IMU, in order.
-DIRECT_MEASUREMENTS = ("fx", "fy", "fz", "wx", "wy", "wz")
 
 
 def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym:

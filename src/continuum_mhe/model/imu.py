@@ -114,11 +114,6 @@ def tilt_sym(theta: Sym, phi: Sym, mounting: Mounting = "z-up") -> Sym:
     return tilt_bend_sym(theta * ca.cos(phi), theta * ca.sin(phi), mounting)
 
 
-def wrap_angle_sym(x: Sym) -> Sym:
-    """Angle wrapped to ``(-pi, pi]``, smooth away from ``+-pi``."""
-    return ca.atan2(ca.sin(x), ca.cos(x))
-
-
 def wrap_angle(x: ArrayLike) -> FloatArray:
     """Angle wrapped to ``[-pi, pi)`` (numpy)."""
     return (np.asarray(x, dtype=float) + np.pi) % (2 * np.pi) - np.pi

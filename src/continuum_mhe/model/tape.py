@@ -102,7 +102,7 @@ def tape_function(fn: ca.Function) -> _core.TapeFunction:
 
 def transition_function(formulation: Formulation) -> ca.Function:
     """``(x, u, dt) -> (f, F)``: the transition and its Jacobian (row-major), the first
-    two outputs of :func:`~continuum_mhe.estimators.fast.codegen.node_function`."""
+    two outputs of :func:`~continuum_mhe.estimators.fast.window_functions.node_function`."""
     f, nx = formulation, formulation.nx
     x, u, dt = ca.SX.sym("x", nx), ca.SX.sym("u", f.nu), ca.SX.sym("dt")
     xf = f.transition_sym(x, u, dt)

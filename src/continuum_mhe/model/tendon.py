@@ -1063,14 +1063,3 @@ def acting_tensions(
         if i is not None:
             gains[:, j] = values[:, i]
     return np.asarray(given * gains, dtype=float)
-
-
-def check_tensions(values: FloatArray, where: str) -> None:
-    """A :class:`UserError` naming ``where`` for a negative or non-finite tension."""
-    bad = ~np.isfinite(values) | (values < 0)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise UserError(
-            f"{where}: row {i + 1}: tension_{j + 1} = {values[i, j]!r}: tensions are "
-            "non-negative finite newtons (a tendon cannot push)"
-        )

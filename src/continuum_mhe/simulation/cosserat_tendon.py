@@ -5,14 +5,14 @@ The robot of ``tendon-two-section`` (docs/tendon.md): a nitinol-like rod (0.2 m 
 base clamped, z up), three tendons per section at 10 mm (section 1's at 0, 120 and
 240 degrees, section 2's at 60, 180 and 300), an IMU at each section's end, 50 Hz.
 
-PyElastica integrates the rod's dynamics (extensible, shearable), slowly driven and
-damped so that it stays quasi-static. A tendon is a polyline through one point per
-spacer disk (the element ending at each disk, offset by the tendon's radius in that
-element's frame) from a fixed point on the base to its anchor disk: its tension pulls
-each point towards its two neighbours (the anchor towards its one), a force and a
-couple on the element, so the loads are the discrete tendon's own, not the continuous
-model of :mod:`continuum_mhe.model.tendon`. A tip force acts on the last node, in the
-base frame.
+The recordings are the quasi-static equilibria of a discrete rod whose energy is
+minimised (:func:`energy_equilibrium`, IPOPT, warm-started every 20 ms): inextensible,
+bending and twisting, each tendon a polyline through every segment's end at its radius
+whose tension's potential is ``tension * length``, the tip force's ``-F . p_tip`` and
+the backbone's weight. Energy on a discrete rod, not the forces of the shooting model
+of :mod:`continuum_mhe.model.tendon`. A tip force acts on the last node, in the base
+frame. Each IMU's specific force includes its own acceleration (the equilibria's
+central differences).
 
 Scenarios (``SCENARIOS``):
 
@@ -34,7 +34,7 @@ generators', IMU noise and biases as theirs), ``NAME_tilt.csv``, ``NAME_tensions
 phi_k, x_k, y_k, z_k, psi_k``, then ``fx,fy,fz``: the columns of the tendon
 formulation's estimates) and ``NAME_info.json`` (the largest bends, twist and force).
 
-Regenerate (needs the ``rod`` extra)::
+Regenerate (CasADi and its IPOPT, no extra)::
 
     python -m continuum_mhe.simulation.cosserat_tendon --scenario unloaded -o DIR
 """
@@ -54,7 +54,6 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.extras import require
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.cosserat import GRAVITY, ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
@@ -75,11 +74,6 @@ class TendonRodSettings:
     """The simulated robot and its numerics.
 
     Attributes:
-        elements_per_disk: Cosserat elements between two disks.
-        damping: uniform linear damping constant, 1/s; sim_dt: integration step, s.
-        refresh: integration steps between two evaluations of the tendon loads.
-        rotational_inertia_scale: factor on the elements' rotational inertia (see
-            :func:`simulate_tendon_robot`).
         tension: largest ``T_k`` per section, N (``unloaded``).
         loaded_tension: ``T_k`` on the loaded recordings, N.
         twist_tension: ``T_k`` on the twisting recordings, N, per peak force
@@ -87,11 +81,6 @@ class TendonRodSettings:
         ramp: s over which the tendons and the force come up from zero.
     """
 
-    elements_per_disk: int = 1
-    damping: float = 10.0
-    sim_dt: float = 2.0e-6
-    refresh: int = 20
-    rotational_inertia_scale: float = 1e4
     tension: tuple[float, float] = (1.0, 6.0)
     loaded_tension: tuple[float, float] = (1.0, 1.5)
     twist_tension: tuple[tuple[float, float], tuple[float, float]] = ((3.4, 1.5), (3.5, 1.8))
@@ -146,140 +135,6 @@ class TendonTrajectory:
     directors: FloatArray
     tensions: FloatArray
     force: FloatArray
-
-
-def simulate_tendon_robot(
-    robot: Robot,
-    scenario: str,
-    duration: float,
-    settings: TendonRodSettings | None = None,
-    record_dt: float = 1e-3,
-) -> TendonTrajectory:
-    """Integrate the robot (PyElastica) for ``duration`` s; record every ``record_dt``."""
-    ea: Any = require("elastica", "rod", "the tendon-robot simulation", package="pyelastica")
-    if scenario not in SCENARIOS:
-        raise UserError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
-    s = settings or TendonRodSettings()
-    bb = robot.backbone
-    if bb is None or bb.density is None:
-        raise UserError("the simulated robot needs a backbone with a density")
-    disks = [sec.disks for sec in robot.sections]
-    if any(d < 1 for d in disks):
-        raise UserError("every section needs disks for the tendon simulation")
-    per = s.elements_per_disk
-    n_el = per * sum(disks)
-    # element index ending at every disk, per section; and the section-end nodes
-    disk_elements: list[list[int]] = []
-    first = 0
-    for d in disks:
-        disk_elements.append([first + per * (j + 1) - 1 for j in range(d)])
-        first += per * d
-    ends = (disk_elements[0][-1] + 1, n_el)
-    lengths = robot.lengths
-    if len(lengths) != 2 or abs(lengths[0] / disks[0] - lengths[1] / disks[1]) > 1e-12:
-        raise UserError("the simulation takes two sections with equally spaced disks")
-
-    class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
-        pass
-
-    offsets = np.array([[*td.offset, 0.0] for td in robot.tendons]).T  # (3, m)
-    # per tendon, the elements it passes (the disks up to its anchor)
-    routes = [
-        np.array([e for k in range(td.section + 1) for e in disk_elements[k]])
-        for td in robot.tendons
-    ]
-    cache: dict[str, Any] = {"step": 0}
-
-    def tendon_loads(x: FloatArray, q: FloatArray, tau: FloatArray) -> tuple[FloatArray, ...]:
-        """Node forces (3, n+1) and element couples (3, n, their frames) of the tendons."""
-        forces = np.zeros((3, n_el + 1))
-        torques = np.zeros((3, n_el))
-        centre = 0.5 * (x[:, :-1] + x[:, 1:])
-        arms = np.einsum("jik,jm->imk", q, offsets)  # (3, m, n): Q^T r per element
-        for i, elems in enumerate(routes):
-            if tau[i] <= 0.0:
-                continue
-            pts = np.column_stack([offsets[:, i], centre[:, elems] + arms[:, i, elems]])
-            seg = np.diff(pts, axis=1)
-            unit = seg / np.linalg.norm(seg, axis=0)
-            f = -tau[i] * unit  # each point pulled back towards the one before
-            f[:, :-1] += tau[i] * unit[:, 1:]  # and on towards the one after
-            forces[:, elems] += 0.5 * f  # a tendon passes an element once
-            forces[:, elems + 1] += 0.5 * f
-            couple = np.cross(arms[:, i, elems].T, f.T).T  # base frame
-            torques[:, elems] += np.einsum("ijk,jk->ik", q[:, :, elems], couple)
-        return forces, torques
-
-    class _Tendons(ea.NoForces):
-        def apply_forces(self, system: Any, time: float = 0.0) -> None:
-            # the loads change slowly: recomputed every ``s.refresh`` steps
-            if cache["step"] % s.refresh == 0:
-                tau = tension_profile(robot, scenario, float(time), s)
-                f, c = tendon_loads(system.position_collection, system.director_collection, tau)
-                f[:, -1] += tip_force(scenario, float(time), s)
-                cache["loads"] = (f, c)
-            cache["step"] += 1
-            f, c = cache["loads"]
-            system.external_forces[...] += f
-            system.external_torques[...] += c
-
-    sim = _Sim()
-    rod = ea.CosseratRod.straight_rod(
-        n_el,
-        np.zeros(3),
-        np.array([0.0, 0.0, 1.0]),
-        np.array([1.0, 0.0, 0.0]),
-        robot.length,
-        bb.radius,
-        bb.density,
-        youngs_modulus=bb.youngs_modulus,
-        shear_modulus=bb.shear_modulus,
-    )
-    # a thin stiff rod's shear-rotation mode has the period 2 pi r / sqrt(4 G / rho)
-    # (0.9 us here): the elements' rotational inertia is scaled up so that the step is
-    # set by the axial waves instead (quasi-static motion: their inertia does not show)
-    rod.mass_second_moment_of_inertia *= s.rotational_inertia_scale
-    rod.inv_mass_second_moment_of_inertia /= s.rotational_inertia_scale
-    sim.append(rod)
-    sim.constrain(rod).using(
-        ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
-    )
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
-    sim.add_forcing_to(rod).using(_Tendons)
-    sim.dampen(rod).using(
-        ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
-    )
-    sim.finalize()
-    stepper = ea.PositionVerlet()
-    per_record = max(1, int(round(record_dt / s.sim_dt)))
-    n_rec = int(round(duration / (per_record * s.sim_dt))) + 1
-    t_rec = np.zeros(n_rec)
-    nodes = np.zeros((n_rec, 3, n_el + 1))
-    dirs = np.zeros((n_rec, 3, 3, n_el))
-    vel = np.zeros((n_rec, 2, 3))
-    omega = np.zeros((n_rec, 2, 3))
-    twist = np.zeros(n_rec)
-    tensions = np.zeros((n_rec, robot.n_tendons))
-    force = np.zeros((n_rec, 3))
-    time = np.float64(0.0)
-    for i in range(n_rec):
-        if i > 0:
-            for _ in range(per_record):
-                time = stepper.step(sim, time, np.float64(s.sim_dt))
-        if not np.all(np.isfinite(rod.position_collection)):
-            raise RuntimeError(f"rod simulation diverged at t = {float(time):.4f} s")
-        t_rec[i] = time
-        nodes[i] = rod.position_collection
-        dirs[i] = rod.director_collection
-        for k, node in enumerate(ends):
-            vel[i, k] = rod.velocity_collection[:, node]
-            omega[i, k] = rod.omega_collection[:, node - 1]
-        twist[i] = float(np.sum(rod.kappa[2] * rod.rest_voronoi_lengths))
-        tensions[i] = tension_profile(robot, scenario, float(time), s)
-        force[i] = tip_force(scenario, float(time), s)
-    end_dirs = np.stack([dirs[:, :, :, ends[0] - 1], dirs[:, :, :, -1]], axis=1)
-    sections = SectionTrajectory(t_rec, nodes, end_dirs, vel, omega, twist, ends)
-    return TendonTrajectory(sections, dirs, tensions, force)
 
 
 def check_generated_robot(robot: Robot) -> None:
@@ -399,15 +254,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--name", help="the files' prefix, the scenario's name if not given")
     p.add_argument("--seed", type=int, default=0, help="draws the IMUs' errors and noise")
-    p.add_argument(
-        "--sim-dt", type=float, default=TendonRodSettings.sim_dt, help="simulation step, s"
-    )
     p.add_argument("-o", "--output", type=Path, required=True, help="the folder to write to")
     a = p.parse_args(argv)
     try:  # a robot it does not write is refused before anything is simulated or written
         info = write_tendon_recording(
             a.output, a.name or a.scenario, read_robot(a.robot), a.scenario, a.duration,
-            TendonRodSettings(sim_dt=a.sim_dt), a.seed, robot_name=a.robot,
+            TendonRodSettings(), a.seed, robot_name=a.robot,
         )  # fmt: skip
     except UserError as exc:
         print(f"cosserat_tendon: error: {exc}", file=sys.stderr)
@@ -432,30 +284,19 @@ def _rotvec_sym(w: Any) -> Any:
     return ca.SX.eye(3) + a * K + b * ca.mtimes(K, K)
 
 
-@dataclass(frozen=True)
-class EnergyRod:
-    """A discrete inextensible rod whose total energy is minimised (IPOPT): each of
-    ``segments_per_disk`` segments per disk turns by a rotation vector ``w_j`` from the
-    one before (bending energy ``EI/2 (w_x^2 + w_y^2)/ds``, torsion ``GJ/2 w_z^2/ds``);
-    each tendon a polyline at its offset in the frames it passes (every segment's end:
-    ``route="continuous"``, Rucker and Webster's routing in the limit; or only the
-    disks' with ``"disks"``, straight from disk to disk), whose tension's potential is
-    ``tau * length``; the tip force's ``-F . p_tip``; the weight's ``rho A g z`` per
-    segment. Independent of the shooting model: energy, not forces, on a discrete
-    rod."""
-
-    robot: Robot
-    segments_per_disk: int = 2
-
-    @property
-    def solver(self) -> Any:
-        return _energy_solver(self.robot, self.segments_per_disk)
-
-
 _SOLVERS: dict[tuple[Robot, int, str], Any] = {}
 
 
 def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
+    """The IPOPT solver of a discrete inextensible rod's total energy: each of ``per``
+    segments per disk turns by a rotation vector ``w_j`` from the one before (bending
+    energy ``EI/2 (w_x^2 + w_y^2)/ds``, torsion ``GJ/2 w_z^2/ds``); each tendon a
+    polyline at its offset in the frames it passes (every segment's end:
+    ``route="continuous"``, Rucker and Webster's routing in the limit; or only the
+    disks' with ``"disks"``, straight from disk to disk), whose tension's potential is
+    ``tension * length``; the tip force's ``-F . p_tip``; the weight's ``rho A g z`` per
+    segment. Independent of the shooting model: energy, not forces, on a discrete
+    rod. Cached per robot, resolution and routing."""
     import casadi as ca
 
     key = (robot, per, route)
@@ -521,7 +362,7 @@ def energy_equilibrium(
     segments_per_disk: int = 3,
     route: str = "continuous",
 ) -> tuple[FloatArray, FloatArray]:
-    """The discrete rod's equilibrium (:class:`EnergyRod`): ``(w, frames)`` with the
+    """The discrete rod's equilibrium (:func:`_energy_solver`): ``(w, frames)`` with the
     rotation vectors (3 n) and every segment end's ``[vec R, p]`` (12, n)."""
     solver, frames_fn, n_seg = _energy_solver(robot, segments_per_disk, route)
     x0 = np.zeros(3 * n_seg) if start is None else start

@@ -33,7 +33,7 @@ Algorithm (see ``docs/fast-solver.md``):
 
 Modules (one responsibility each):
 
-* :mod:`~continuum_mhe.estimators.fast.codegen`: CasADi functions of the window, node and
+* :mod:`~continuum_mhe.estimators.fast.window_functions`: CasADi functions of the window, node and
   outputs, evaluated by the compiled core.
 * :mod:`~continuum_mhe.estimators.fast.model`: the feasible set read from the
   formulation, :class:`WindowModel`, :class:`NodeEvaluator`, :func:`build_window_model`.
@@ -54,7 +54,6 @@ standard deviations are the core's :class:`~continuum_mhe._core.NodeModel`
 
 from __future__ import annotations
 
-from continuum_mhe.estimators.fast.codegen import BackendFallbackWarning, CFunction
 from continuum_mhe.estimators.fast.model import (
     Feasible,
     LossKernel,
@@ -80,11 +79,11 @@ from continuum_mhe.estimators.fast.sqp import (
     solve_window,
     window_cost,
 )
+from continuum_mhe.estimators.fast.window_functions import BackendFallbackWarning
 
 __all__ = [
     "BackendFallbackWarning",
     "CONVERGED",
-    "CFunction",
     "Feasible",
     "FastOptions",
     "FastResult",

@@ -125,7 +125,7 @@ def casadi_window_covariance(
     # second-order part is not used by the Gauss-Newton blocks)
     free = np.full(nx, np.inf)
     solver = _core.WindowSolver(
-        n, nx, nz, f.nu, 0, 0, -free, free, np.zeros((0, 1), dtype=np.int64), np.zeros(0),
+        n, nx, nz, f.nu, None, None, -free, free, np.zeros((0, 1), dtype=np.int64), np.zeros(0),
         rinv, np.ascontiguousarray(loss.blocks, dtype=np.int64), loss.code, loss.scale, False,
     )  # fmt: skip
     solver.m[:] = zmask

@@ -3,7 +3,7 @@
 :func:`build_window_model` turns a formulation and a horizon into a :class:`WindowModel`:
 the node feasible set read from ``constraint_sym`` (:func:`feasible_set`), and the
 window, node and output functions evaluated by the compiled core
-(:mod:`continuum_mhe.estimators.fast.codegen`). :class:`NodeEvaluator` evaluates one node
+(:mod:`continuum_mhe.estimators.fast.window_functions`). :class:`NodeEvaluator` evaluates one node
 and runs the EKF step of the arrival prior and of the compiled EKF (the core's
 ``NodeModel``).
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -21,15 +21,15 @@ from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.estimators.fast.codegen import (
+from continuum_mhe.estimators.fast.window_functions import (
     block_columns,
-    c_function,
+    core_function,
+    core_window_functions,
     measurement_model,
     output_function,
     output_jacobian_function,
     transition_is_linear,
     transition_model,
-    window_c_functions,
 )
 from continuum_mhe.estimators.loss import LOSS_CODES, block_array
 from continuum_mhe.model.formulations import Formulation
@@ -122,20 +122,23 @@ class WindowModel:
         nx, nu, nz, horizon: sizes.
         feasible: the node feasible set.
         rinv: (nz, nz) inverse measurement covariance (rad^-2 for tilt).
-        window: C function of :func:`~continuum_mhe.estimators.fast.codegen.window_function`.
-        tail: C function of :func:`~continuum_mhe.estimators.fast.codegen.tail_function`.
-        transition, measurement: C functions of the two halves of
-            :func:`~continuum_mhe.estimators.fast.codegen.node_function` (its transition
-            and its measurement terms: ``transition_model``, ``measurement_model``).
-        output: C function of the formulation's ``output_sym``.
-        output_jacobian: C function of its Jacobian (ny, nx), column-major.
+        window: the core's evaluation of
+            :func:`~continuum_mhe.estimators.fast.window_functions.window_function`.
+        tail: the core's evaluation of
+            :func:`~continuum_mhe.estimators.fast.window_functions.tail_function`.
+        transition, measurement: the core's evaluations of the two halves of
+            :func:`~continuum_mhe.estimators.fast.window_functions.node_function` (its
+            transition and its measurement terms: ``transition_model``,
+            ``measurement_model``).
+        output: the core's evaluation of the formulation's ``output_sym``.
+        output_jacobian: the same of its Jacobian (ny, nx), column-major.
         ny: number of outputs; wrapped: indices of the outputs that are wrapped angles.
         loss: the measurement loss (:class:`LossKernel`).
         linear_transition: the transition is affine in the state
-            (:func:`~continuum_mhe.estimators.fast.codegen.transition_is_linear`).
+            (:func:`~continuum_mhe.estimators.fast.window_functions.transition_is_linear`).
         block_columns: (nblocks,) per block of ``loss.blocks``, the number of leading
             state coordinates its residual depends on at most
-            (:func:`~continuum_mhe.estimators.fast.codegen.block_columns`), and the side
+            (:func:`~continuum_mhe.estimators.fast.window_functions.block_columns`), and the side
             of its second-order term's square in the window's outputs; None: all.
     """
 
@@ -145,11 +148,12 @@ class WindowModel:
     horizon: int
     feasible: Feasible
     rinv: FloatArray
-    window: Any  # ctypes function pointer (CFunction)
-    transition: Any  # the node function's (f, F)
-    measurement: Any  # the node function's (H, r)
-    output: Any  # formulation.output_sym: state -> the formulation's outputs
-    output_jacobian: Any = None  # state -> d outputs / d state (ny, nx), column-major
+    window: _core.ModelFunction  # the whole window's outputs (a WindowFunction)
+    transition: _core.ModelFunction  # the node function's (f, F)
+    measurement: _core.ModelFunction  # the node function's (H, r)
+    output: _core.ModelFunction  # formulation.output_sym: state -> the formulation's outputs
+    #: state -> d outputs / d state (ny, nx), column-major
+    output_jacobian: _core.ModelFunction
     ny: int = 5
     wrapped: tuple[int, ...] = (4,)
     #: see :class:`NodeFunctions`
@@ -159,7 +163,8 @@ class WindowModel:
     #: the measurement terms' second-order part is formed (exact Newton steps); see
     #: :attr:`~continuum_mhe.model.formulations.Formulation.second_order_residuals`
     second_order_residuals: bool = True
-    tail: Any = None  # the last node and stage of a window shifted by one sample
+    #: the last node and stage of a window shifted by one sample (a TailFunction)
+    tail: _core.ModelFunction | None = None
     block_columns: IntArray | None = None
 
     @property
@@ -169,26 +174,15 @@ class WindowModel:
         sr = int(np.sum(cols * cols))
         return nz * n + nz * nx * n + nx * (n - 1) + nx * nx * (n - 1) + sr * n
 
-    def evaluate_node(
-        self,
-        x: FloatArray,
-        u: FloatArray,
-        dt: float,
-        z: FloatArray | None = None,
-        mask: FloatArray | None = None,
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``(f(x, u, dt), df/dx, -dr(z, x)/dx, r(z, x))`` at one node."""
-        return NodeEvaluator(self).evaluate(x, u, dt, z, mask)
-
 
 class NodeFunctions(NamedTuple):
     """One node's functions in the compiled core, without a window (the EKF's):
     the fields of :class:`WindowModel` of the same names."""
 
-    transition: Any
-    measurement: Any
-    output: Any
-    output_jacobian: Any
+    transition: _core.ModelFunction
+    measurement: _core.ModelFunction
+    output: _core.ModelFunction
+    output_jacobian: _core.ModelFunction
     nx: int
     nu: int
     nz: int
@@ -199,7 +193,7 @@ class NodeFunctions(NamedTuple):
     sigma_states: tuple[int, ...]
     #: the masked residual ``(x, u, dt, z, m) -> m r`` (a core function: the consistency
     #: check's fit)
-    residual: Any
+    residual: _core.ModelFunction
 
 
 @lru_cache(maxsize=32)
@@ -215,11 +209,11 @@ def node_functions(formulation: Formulation) -> NodeFunctions:
         else tape_function(residual_function(formulation))
     )
     return NodeFunctions(
-        transition=c_function(transition_model(formulation)),
-        measurement=c_function(measurement_model(formulation)),
+        transition=core_function(transition_model(formulation)),
+        measurement=core_function(measurement_model(formulation)),
         residual=_core.MaskedResidualFunction(residual_tape),
-        output=c_function(out),
-        output_jacobian=c_function(
+        output=core_function(out),
+        output_jacobian=core_function(
             _core.ForwardJacobianFunction(tape_function(out))
             if formulation.forward_mode_jacobian
             else output_jacobian_function(formulation)
@@ -240,8 +234,7 @@ class NodeEvaluator:
     def __init__(self, model: WindowModel | NodeFunctions) -> None:
         #: the core's NodeModel
         self.core = self._core = _core.NodeModel(
-            model.transition.core, model.measurement.core, model.output.core,
-            model.output_jacobian.core,
+            model.transition, model.measurement, model.output, model.output_jacobian,
             model.nx, model.nu, model.nz, model.ny, list(model.wrapped),
             list(model.sigma_states),
         )  # fmt: skip
@@ -346,7 +339,7 @@ def build_window_model(
         inside[start : start + size, start : start + size] = True
     if np.any(rinv[~inside] != 0.0):
         raise NotImplementedError("the measurement covariance is not block-diagonal")
-    window, tail = window_c_functions(formulation, horizon)
+    window, tail = core_window_functions(formulation, horizon)
     node = node_functions(formulation)
     return WindowModel(
         nx=formulation.nx,

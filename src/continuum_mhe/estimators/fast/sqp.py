@@ -20,7 +20,6 @@ import numpy as np
 
 import continuum_mhe._core as _core
 from continuum_mhe.errors import UserError
-from continuum_mhe.estimators.fast.codegen import address
 from continuum_mhe.estimators.fast.model import LossKernel, WindowModel
 from continuum_mhe.estimators.fast.qp import CONVERGED, OUTCOMES
 from continuum_mhe.estimators.loss import LOSS_CODES
@@ -112,18 +111,9 @@ class Workspace:
         self, model: WindowModel, loss: LossKernel | None = None, linear: bool | None = None
     ) -> None:
         fs, lossk = model.feasible, loss or model.loss
-        self.tail = address(model.tail) if model.tail is not None else 0
-        self.window = address(model.window)  # of the window function (the model keeps it)
         cols = model.block_columns  # the layout of the window function's SR
-        core_fn = getattr(model.window, "core", None)  # a c_function keeps its evaluation
-        if core_fn is not None and core_fn.output_size != model.window_size:
-            raise ValueError(
-                f"the window function writes {core_fn.output_size} values, the model's "
-                f"layout holds {model.window_size}: give WindowModel the block_columns "
-                "its window function was built with (codegen.block_columns)"
-            )
         self.core = core = _core.WindowSolver(
-            model.horizon, model.nx, model.nz, model.nu, self.window, self.tail, fs.lo, fs.hi,
+            model.horizon, model.nx, model.nz, model.nu, model.window, model.tail, fs.lo, fs.hi,
             np.ascontiguousarray(fs.ball_idx, dtype=np.int64), fs.ball_r2, model.rinv,
             np.ascontiguousarray(lossk.blocks, dtype=np.int64), lossk.code, lossk.scale,
             model.linear_transition if linear is None else linear,
@@ -139,8 +129,8 @@ class Workspace:
         self.Dgn = core.Dgn  # Gauss-Newton diagonal blocks per iterate
         self.ncost = core.ncost  # each node's cost per iterate
         self.stage = (core.stage_done, core.stage_eq, core.stage_fqf)
-        # the tail function's arguments (``WindowSolver.shift_outputs``): buffer 0's last stage
-        self.tail_out, self.tail_ptrs, self.ptrs = core.tail_out, core.tail_ptrs, core.ptrs
+        # the tail function's outputs (``WindowSolver.shift_outputs``): buffer 0's last stage
+        self.tail_out = core.tail_out
 
     def load(self, problem: WindowProblemLike, X: FloatArray) -> None:
         """Copy ``problem``'s data and the iterate ``X`` (N, nx) into buffer 0, and mark

@@ -4,16 +4,12 @@ Nothing of the model is written a second time: :func:`window_function`,
 :func:`node_pieces` and :func:`node_function` are built from the formulation's symbolic
 methods (``measurement_residual_sym``, ``transition_sym``, ``output_sym``). The compiled
 core evaluates them from their instruction lists (:mod:`~continuum_mhe.model.tape`),
-so a new robot or option set compiles nothing.
-
-Every model evaluation is ``int f(const double** inputs, double* out)`` (:data:`CFunction`),
-0 on success.
+so a new robot or option set compiles nothing. The core's objects
+(:class:`~continuum_mhe._core.ModelFunction`) take flat column-major inputs and write
+all outputs concatenated.
 """
 
 from __future__ import annotations
-
-import ctypes
-from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -211,20 +207,15 @@ class BackendFallbackWarning(UserWarning):
     """The requested MHE backend is not what runs (said once)."""
 
 
-#: C signature of every model evaluation: ``int f(const double** inputs, double* out)``.
-CFunction = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
+def core_function(fn: ca.Function | _core.ModelFunction) -> _core.ModelFunction:
+    """The core's evaluation of ``fn``: a CasADi SX function read as a tape, or a core
+    model function as it is."""
+    return fn if isinstance(fn, _core.ModelFunction) else tape_function(fn)
 
 
-def c_function(fn: ca.Function | _core.ModelFunction) -> Any:
-    """A ctypes :data:`CFunction` calling the core's evaluation of ``fn`` (a CasADi SX
-    function, read as a tape, or a core model function); it keeps that alive."""
-    core = fn if isinstance(fn, _core.ModelFunction) else tape_function(fn)
-    cfn = CFunction(core.address)
-    cfn.core = core  # type: ignore[attr-defined]  # keeps the evaluation alive
-    return cfn
-
-
-def window_c_functions(formulation: Formulation, horizon: int) -> tuple[Any, Any]:
+def core_window_functions(
+    formulation: Formulation, horizon: int
+) -> tuple[_core.ModelFunction, _core.ModelFunction]:
     """``(window, tail)``: :func:`window_function` and :func:`tail_function` of
     ``formulation`` evaluated by the core from one node's two pieces. With
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
@@ -238,16 +229,7 @@ def window_c_functions(formulation: Formulation, horizon: int) -> tuple[Any, Any
         proc = tape_function(process_piece(formulation))
         cols = block_columns(formulation, block_array(formulation.measurement_blocks))
         sr = int(np.sum(cols * cols))  # the zero second-order term's entries per node
-        window = c_function(_core.WindowFunction(residual, sr, proc, horizon))
-        return window, c_function(_core.TailFunction(residual, sr, proc))
+        window = _core.WindowFunction(residual, sr, proc, horizon)
+        return window, _core.TailFunction(residual, sr, proc)
     meas, proc = (tape_function(p) for p in node_pieces(formulation))
-    window = c_function(_core.WindowFunction(meas, proc, horizon))
-    return window, c_function(_core.TailFunction(meas, proc))
-
-
-def address(fn: Any) -> int:
-    """The address of a ctypes function (a :data:`CFunction`)."""
-    value = ctypes.cast(fn, ctypes.c_void_p).value
-    if not value:
-        raise ValueError("a model function without an address")
-    return int(value)
+    return _core.WindowFunction(meas, proc, horizon), _core.TailFunction(meas, proc)
