@@ -92,6 +92,7 @@ def test_check_robot_says_whether_tilt_leaves_readings_to_check_the_model(
     report = json.loads(capsys.readouterr().out)
     assert report["model_check"] == model_check(two) and report["observable"] == "yes"
     assert "above" not in report["verdict"]  # nothing is above it in JSON
+    assert (report["n_imus"], report["n_tendons"]) == (2, 0)  # the robot's own
 
 
 @pytest.mark.parametrize("method", ["mhe", "ekf", "ukf"])

@@ -343,7 +343,9 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
             sv = np.linalg.svd(_eval(fn, xk)[0], compute_uv=False)
             known[name] = float(sv[-1] / sv[0])
     if robot.backbone is None:
-        return ObservabilityReport(samples, tilt, tilt2, gyro2, examples, known)
+        return ObservabilityReport(
+            samples, tilt, tilt2, gyro2, examples, known, n_imus=robot.n_imus
+        )
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
     return ObservabilityReport(
