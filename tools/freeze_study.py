@@ -13,8 +13,8 @@ statuses. Also the numbers of docs/options.md for simulated readings (``--readin
 
 from __future__ import annotations
 
+import argparse
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -74,7 +74,9 @@ def coverage(est: Path, truth: Path) -> str:
 
 
 def main() -> None:
-    folder = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp())
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("folder", nargs="?", type=Path, help="where the files go (default: a new one)")
+    folder = p.parse_args().folder or Path(tempfile.mkdtemp())
     folder.mkdir(parents=True, exist_ok=True)
     robot, clean, truth = folder / "robot3.toml", folder / "clean.csv", folder / "truth.csv"
     robot.write_text(ROBOT)
