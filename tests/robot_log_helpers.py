@@ -19,9 +19,11 @@ def imu_msg(
     ros1: bool = False,
     quat: np.ndarray | None = None,
     no_gyro: bool = False,
+    no_accel: bool = False,
 ) -> Any:
     """An Imu message; ``quat`` ``(w, x, y, z)`` the orientation (None: none, REP 145);
-    ``no_gyro``: its rates marked absent (``angular_velocity_covariance[0] = -1``)."""
+    ``no_gyro``: its rates marked absent (``angular_velocity_covariance[0] = -1``);
+    ``no_accel``: its acceleration marked absent (``linear_acceleration_covariance``)."""
     T = store.types
     stamp = T["builtin_interfaces/msg/Time"](sec=int(ns // 10**9), nanosec=int(ns % 10**9))
     header = (
@@ -39,5 +41,5 @@ def imu_msg(
         angular_velocity=vec(x=gyr[0], y=gyr[1], z=gyr[2]),
         angular_velocity_covariance=np.array([-1.0] + [0.0] * 8) if no_gyro else cov,
         linear_acceleration=vec(x=acc[0], y=acc[1], z=acc[2]),
-        linear_acceleration_covariance=cov,
+        linear_acceleration_covariance=np.array([-1.0] + [0.0] * 8) if no_accel else cov,
     )

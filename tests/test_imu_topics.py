@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import re
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 from continuum_mhe.benchmark.harness import raw_imu_recording
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.imu_topics import pair_stamps, read_imu_topics
+from continuum_mhe.io.imu_topics import TopicClockWarning, pair_stamps, read_imu_topics
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
@@ -73,12 +74,13 @@ def streams() -> dict[str, Any]:
 
 
 def _messages(store: Any, imu: dict[str, Any]) -> list[tuple[int, bytes]]:
-    """The topic's messages, serialised; its rates marked absent where ``imu`` says
-    ``no_gyro``."""
+    """The topic's messages with their log times (``imu["log"]``, ns; its stamps where
+    not given), serialised; its rates marked absent where ``imu`` says ``no_gyro``."""
     no_gyro = bool(imu.get("no_gyro", False))
+    logged = imu.get("log", imu["stamps"])
     return [
-        (int(ns), bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g, no_gyro=no_gyro), IMU)))
-        for ns, a, g in zip(imu["stamps"], imu["acc"], imu["gyr"])
+        (int(t), bytes(store.serialize_cdr(imu_msg(store, int(ns), a, g, no_gyro=no_gyro), IMU)))
+        for t, ns, a, g in zip(logged, imu["stamps"], imu["acc"], imu["gyr"])
     ]
 
 
@@ -151,6 +153,35 @@ def test_a_wrong_topic_count_lists_the_logs_imu_topics(
         f"{log}: no --topic for a robot with 2 IMUs: pass one --topic per IMU, in the robot "
         "file's order; sensor_msgs/msg/Imu topics in this log: /imu1, /imu2"
     )
+
+
+def test_topics_whose_stamps_stand_apart_from_the_log_s_clock_warn(
+    streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """IMU 2's header stamps 0.5 s ahead of the log's times, IMU 1's on them (a sensor
+    with a clock of its own): paired by stamp, each pair joins readings taken 0.5 s
+    apart (a user's log: 91 mm off, nothing said); one warning naming the topics and
+    the offset. One topic delivered 20 ms later than the other says nothing."""
+    ahead = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    ahead[1]["log"] = ahead[1]["stamps"] - 500_000_000
+    with pytest.warns(TopicClockWarning) as seen:
+        read_imu_topics(write_mcap_topics(tmp_path / "ahead.mcap", ahead), TOPICS, 2)
+    said = [str(w.message) for w in seen]
+    assert len(said) == 1 and (
+        "/imu2's header stamps are 500 ms ahead of /imu1's, against the log's own times" in said[0]
+    )
+    late = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    late[1]["log"] = late[1]["stamps"] + 20_000_000
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_imu_topics(write_mcap_topics(tmp_path / "late.mcap", late), TOPICS, 2)
+
+
+def test_a_tolerance_of_seconds_is_said_in_seconds(streams: dict[str, Any], tmp_path: Path) -> None:
+    """``--pair-tolerance 5`` was reported as "within 5e+03 ms"."""
+    log = write_mcap_topics(tmp_path / "x.mcap", streams["imu"])
+    assert " within 5 s; " in read_imu_topics(log, TOPICS, 2, tolerance_s=5.0).report()
+    assert " within 10 ms; " in read_imu_topics(log, TOPICS, 2).report()
 
 
 @pytest.mark.parametrize("kind", sorted(WRITERS))

@@ -53,8 +53,9 @@ def write_ros2_bag(path: Path, rec: dict[str, Any], topic: str = "/tip/imu") -> 
             ),
         )
         quats = rec.get("quat", [None] * len(rec["stamps"]))
-        for ns, a, g, q in zip(rec["stamps"], rec["acc"], rec["gyr"], quats):
-            msg = imu_msg(store, int(ns), a, g, quat=q)
+        no_accel = rec.get("no_accel", np.zeros(len(rec["stamps"]), dtype=bool))
+        for ns, a, g, q, na in zip(rec["stamps"], rec["acc"], rec["gyr"], quats, no_accel):
+            msg = imu_msg(store, int(ns), a, g, quat=q, no_accel=bool(na))
             w.write(conn, int(ns), store.serialize_cdr(msg, IMU))
     return path
 
@@ -377,6 +378,55 @@ def test_a_nan_in_a_log_message_is_refused_as_in_a_csv(
     assert "dropout: 1" in capsys.readouterr().err
 
 
+def test_accelerations_marked_absent_are_dropouts_as_nan_fields(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A message whose ``linear_acceleration_covariance[0]`` is -1 (REP 145: absent) has
+    no acceleration, whatever its field holds (a driver's placeholder of 0, 0, 9.81 was
+    read as gravity: the IMU looked frozen): named in one line, or with --skip-bad a
+    dropout; marked in every message, the topic is refused in one line."""
+    acc = recording["acc"].copy()
+    acc[10:12] = [0.0, 0.0, 9.81]
+    no_accel = np.zeros(len(acc), dtype=bool)
+    no_accel[10:12] = True
+    bag = write_ros2_bag(tmp_path / "bag2", {**recording, "acc": acc, "no_accel": no_accel})
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(sample 11): linear_acceleration is absent (NaN, or " in err
+    assert "marked absent: linear_acceleration_covariance[0] = -1)" in err and not out.exists()
+    assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
+    assert "dropout: 2" in capsys.readouterr().err
+    every = write_ros2_bag(
+        tmp_path / "every", {**recording, "no_accel": np.ones(len(acc), dtype=bool)}
+    )
+    assert main(["estimate", str(every), "-o", str(out), "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "linear_acceleration is zero or absent " in err
+    assert "in every message: no reading of gravity to estimate from" in err
+
+
+def test_orientation_missing_in_some_messages_is_named_or_a_dropout(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--orientation`` on a log whose messages 50 to 54 carry no orientation (a zero
+    quaternion; a filter still starting marks it -1): one line naming the first (the
+    whole log was refused as having none, --skip-bad or not); with --skip-bad five
+    dropouts."""
+    truth = recording["truth"]
+    rp = tilt(truth[:, 3], truth[:, 4])
+    quat = _wxyz(Rotation.from_euler("ZYX", np.stack([0 * rp[:, 0], rp[:, 1], rp[:, 0]], -1)))
+    quat[49:54] = 0.0
+    bag = write_ros2_bag(tmp_path / "bag2", {**recording, "quat": quat})
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(bag), "-o", str(out), "--orientation"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(sample 50) has no orientation" in err
+    assert "5 such): --skip-bad keeps them as dropouts" in err and not out.exists()
+    assert main(["estimate", str(bag), "-o", str(out), "--orientation", "--skip-bad"]) == 0
+    assert "dropout: 5" in capsys.readouterr().err
+
+
 def test_orientation_skips_the_accelerometer_unit_check(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -531,7 +581,7 @@ def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
     log = read_imu_log(write_mcap(tmp_path / "z.mcap", recording, headers=headers))
     n = len(recording["stamps"])
     assert len(log.t) == n - 1 and log.skipped == [
-        "message 100: header stamp is zero (the others' clock)"
+        "message 101: header stamp is zero (the others' clock)"  # counted from 1
     ]
     np.testing.assert_allclose(log.t, np.delete((boot - boot[0]) / 1e9, 100), atol=1e-9)
     zeros = np.zeros_like(boot)
@@ -590,8 +640,8 @@ def test_an_mcap_without_its_optional_summary_is_read(
     assert 0.3 * len(full.t) < n < 0.6 * len(full.t)
     np.testing.assert_array_equal(kept.t, full.t[:n])
     np.testing.assert_array_equal(kept.acc, full.acc[:n])
-    assert kept.skipped == [] and kept.cut == (  # counted from 0, as skipped ones are
-        f"the file ends inside a record after message {n - 1}: read up to there"
+    assert kept.skipped == [] and kept.cut == (  # counted from 1, as skipped ones are
+        f"the file ends inside a record after message {n}: read up to there"
     )
 
 
@@ -700,7 +750,7 @@ def test_stamps_on_another_clock_than_the_log_s_warn(
 def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     tmp_path: Path, recording: dict[str, Any]
 ) -> None:
-    """Stamps that step back by 2 s at message 100 (a sensor clock that restarted): an
+    """Stamps that step back by 2 s at message 101 (a sensor clock that restarted): an
     error naming the message and the step, not the rest of the log silently dropped (or
     joined across the jump); with ``skip_bad`` the messages until the times pass the
     last one kept (here the other 51) are left out and counted. One message 1 ms out of order is
@@ -711,16 +761,16 @@ def test_a_clock_that_steps_back_is_refused_unless_skip_bad(
     with pytest.raises(InputError) as info:
         read_imu_log(path)
     assert str(info.value) == (
-        f"{path}: topic /tip/imu: message 100: the time steps back by 1.98 s (a sensor clock "
+        f"{path}: topic /tip/imu: message 101: the time steps back by 1.98 s (a sensor clock "
         "that restarted?): the log is not one recording; cut it there, or --skip-bad leaves "
         "out the messages until the times pass the last one"
     )
     log = read_imu_log(path, skip_bad=True)
-    assert len(log.skipped) == 51 and log.skipped[0].startswith("message 100: time ")
+    assert len(log.skipped) == 51 and log.skipped[0].startswith("message 101: time ")
     jitter = recording["stamps"].copy()
     jitter[50] = jitter[49] - 1_000_000
     log = read_imu_log(write_mcap(tmp_path / "jitter.mcap", recording, headers=jitter))
-    assert log.skipped == [f"message 50: time {int(jitter[50])} ns does not increase"]
+    assert log.skipped == [f"message 51: time {int(jitter[50])} ns does not increase"]
 
 
 def test_a_ros2_bag_stored_as_mcap_cut_short_is_read_up_to_the_cut_with_skip_bad(

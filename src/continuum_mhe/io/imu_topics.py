@@ -12,7 +12,9 @@ always closer than the next sample); ``--pair-tolerance`` sets it in seconds. Sa
 without a partner are counted per topic and reported in one line. A run in which many
 samples restarted the estimator gets one warning that the topics may be out of order
 (:func:`warn_topic_order`), and so do topics whose names number them in another order
-than the one given (:func:`warn_numbers_out_of_order`).
+than the one given (:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
+apart from one another against the log's own times (:func:`warn_clocks_apart`) get one
+warning too: paired by stamp, their readings may be from different instants.
 """
 
 from __future__ import annotations
@@ -71,8 +73,13 @@ class PairedImus:
         clocks = sorted({log.clock for log in self.logs})
         return (
             f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
-            f"{' and '.join(clocks)} within {self.tolerance_s * 1e3:.3g} ms; unpaired: {left}"
+            f"{' and '.join(clocks)} within {_duration(self.tolerance_s)}; unpaired: {left}"
         )
+
+
+def _duration(seconds: float) -> str:
+    """``12.5 ms`` below a second, ``2 s`` from there."""
+    return f"{seconds * 1e3:.3g} ms" if seconds < 1.0 else f"{seconds:.3g} s"
 
 
 def _stamps_ns(log: ImuLog) -> IntArray:
@@ -142,11 +149,12 @@ def read_imu_topics(
         if len(stamps[0]) < 2:
             raise InputError(f"{p}: topic {topics[0]} has one sample: pass --pair-tolerance")
         tolerance_s = 0.5 * float(np.median(np.diff(stamps[0]))) / 1e9
+    warn_clocks_apart(str(p), logs, tolerance_s)
     idx = pair_stamps(stamps, int(round(tolerance_s * 1e9)))
     if len(idx[0]) == 0:
         raise InputError(
             f"{p}: no sample of {topics[0]} has a partner in every other topic within "
-            f"{tolerance_s * 1e3:.3g} ms (--pair-tolerance)"
+            f"{_duration(tolerance_s)} (--pair-tolerance)"
         )
     ref = stamps[0][idx[0]]
     t0 = int(ref[0])
@@ -223,4 +231,48 @@ def warn_topic_order(name: str, topics: Sequence[str], samples: int, restarts: i
         "IMU order (IMU 1 nearest the base)",
         TopicOrderWarning,
         stacklevel=2,
+    )
+
+
+#: Topics whose header stamps' offsets from the log's times (medians) differ by more
+#: than this (s), or by more than twice the pairing tolerance, get one
+#: :class:`TopicClockWarning`: a delivery delay that differs between topics by this much
+#: is unusual, sensors on clocks of their own are not.
+CLOCKS_APART_S = 0.1
+
+
+class TopicClockWarning(UserWarning):
+    """The topics' header stamps are on clocks that stand apart: pairs by stamp may join
+    readings taken at different instants."""
+
+
+def warn_clocks_apart(name: str, logs: Sequence[ImuLog], tolerance_s: float) -> None:
+    """One :class:`TopicClockWarning` where a topic's header stamps stand apart from IMU
+    1's against the log's own times (:attr:`ImuLog.stamp_offset_s`, a median) by more
+    than :data:`CLOCKS_APART_S` or twice ``tolerance_s``: the log's times are one clock
+    for every topic, so such a difference is the sensors' clocks (or a delivery delay of
+    one topic), and pairing by stamp joins readings that far apart in time."""
+    ref = logs[0]
+    if ref.clock != "header stamps":
+        return
+    limit = max(CLOCKS_APART_S, 2.0 * tolerance_s)
+    apart = [
+        (log, log.stamp_offset_s - ref.stamp_offset_s)
+        for log in logs[1:]
+        if log.clock == "header stamps" and abs(log.stamp_offset_s - ref.stamp_offset_s) > limit
+    ]
+    if not apart:
+        return
+    said = "; ".join(
+        f"{log.topic}'s header stamps are {_duration(abs(d))} "
+        f"{'ahead of' if d > 0 else 'behind'} {ref.topic}'s"
+        for log, d in apart
+    )
+    warnings.warn(
+        f"{name}: {said}, against the log's own times (medians): sensors on clocks of "
+        "their own? The samples are paired by their stamps, so each "
+        "pair may join readings taken that far apart; stamp every IMU on one clock "
+        "(readings paired across a motion give estimates that can be far off)",
+        TopicClockWarning,
+        stacklevel=3,
     )

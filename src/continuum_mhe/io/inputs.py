@@ -73,7 +73,12 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imus,
     sample_kind,
 )
-from continuum_mhe.io.robot_logs import is_robot_log, read_imu_log, tilt_from_quaternion
+from continuum_mhe.io.robot_logs import (
+    ImuLog,
+    is_robot_log,
+    read_imu_log,
+    tilt_from_quaternion,
+)
 from continuum_mhe.io.tensions import (
     Tensions,
     read_tensions,
@@ -717,6 +722,12 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
                 "message while its orientation is given (an orientation-only IMU): "
                 "--orientation reads its roll and pitch"
             )
+        if not options.use_orientation and no_accel.all():
+            raise InputError(
+                f"{p}: topic {log.topic}: linear_acceleration is zero or absent "
+                "(linear_acceleration_covariance[0] = -1) in every message: no reading "
+                "of gravity to estimate from"
+            )
     has_gyro = all(log.gyr is not None for log in logs)
     with_rates = [log.topic for log in logs if log.gyr is not None]
     tilt_asked = options.raw.imu_model == "tilt" and options.raw.attitude == "accel"
@@ -732,9 +743,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     blocks = []
     for log, place in zip(logs, robot.imus):
         if options.use_orientation:
-            if not np.all(np.isfinite(log.orientation)):
-                raise InputError(f"{p}: topic {log.topic} carries no orientation (covariance -1)")
-            blocks.append(tilt_from_quaternion(log.orientation))
+            blocks.append(tilt_from_quaternion(_orientations(p, t, log, options.skip_bad)))
         else:
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
             if not options.skip_bad:
@@ -751,6 +760,28 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     return EstimateInput("log", t, np.hstack(blocks), f, t0_ns, skipped, notes, clock)
 
 
+def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> FloatArray:
+    """``log``'s orientations for ``--orientation``: a topic without any is refused in one
+    line; a message without one (``orientation_covariance[0] = -1``, a zero or
+    non-finite quaternion: a filter still starting) is named in one line, or with
+    ``skip_bad`` a dropout (NaN)."""
+    absent = np.asarray(~np.isfinite(log.orientation).all(axis=1), dtype=bool)
+    if absent.all():
+        raise InputError(
+            f"{path}: topic {log.topic} carries no orientation in any message "
+            "(orientation_covariance[0] = -1, or a zero quaternion): --orientation needs it"
+        )
+    if absent.any() and not skip_bad:
+        i = int(np.argmax(absent))
+        raise InputError(
+            f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
+            f"(sample {i + 1}) has no orientation (orientation_covariance[0] = -1, or a zero "
+            f"or non-finite quaternion; {int(absent.sum())} such): --skip-bad keeps them as "
+            "dropouts (skip_bad=True in Python)"
+        )
+    return np.where(absent[:, None], np.nan, log.orientation)
+
+
 def _refuse_a_missing_value(
     path: Path, t: FloatArray, acc: FloatArray, gyr: FloatArray | None, topic: str
 ) -> None:
@@ -764,8 +795,8 @@ def _refuse_a_missing_value(
         if bad.any():
             i = int(np.argmax(bad))
             shown = values[i].tolist()
-            if name == "angular_velocity" and np.isnan(values[i]).all():
-                shown = "absent (NaN, or marked absent: angular_velocity_covariance[0] = -1)"
+            if np.isnan(values[i]).all():
+                shown = f"absent (NaN, or marked absent: {name}_covariance[0] = -1)"
             raise InputError(
                 f"{path}: topic {topic}: the message at t = {time_text(float(t[i]))} s "
                 f"(sample {i + 1}): {name} is {shown} (a dropout; --skip-bad keeps it, "

@@ -55,10 +55,13 @@ class ImuLog:
             absent (``angular_velocity_covariance[0] = -1``, REP 145; NaN rows where
             some do).
         orientation: (n, 4) ``(w, x, y, z)``, NaN where the message has none.
-        skipped: descriptions of skipped messages.
+        skipped: descriptions of skipped messages (numbered from 1 in the topic).
         clock: what ``t`` was read from: ``"header stamps"``, or ``"log times"`` where
             no message has a stamp (every ``header.stamp`` zero).
         cut: where a file cut short was read up to (``skip_bad``), else ``""``.
+        stamp_offset_s: the median of header stamp minus the log's time over the
+            messages kept, s (0 with ``clock`` ``"log times"``): each topic's stamps
+            against the one clock of the log.
     """
 
     topic: str
@@ -70,6 +73,7 @@ class ImuLog:
     skipped: list[str] = field(default_factory=list)
     clock: str = "header stamps"
     cut: str = ""
+    stamp_offset_s: float = 0.0
 
 
 def is_robot_log(path: str | os.PathLike[str]) -> bool:
@@ -95,23 +99,27 @@ def _vec(v: Any) -> list[float]:
 
 
 def _row(msg: Any) -> tuple[list[float], list[float], list[float]]:
-    """A message's ``linear_acceleration``, ``angular_velocity`` (NaN where its covariance
-    marks it absent) and orientation ``(w, x, y, z)`` (NaN where absent)."""
+    """A message's ``linear_acceleration``, ``angular_velocity`` and orientation ``(w, x,
+    y, z)``, each NaN where the first entry of its covariance is -1 (REP 145: the field
+    is absent), the orientation also where it is all zeros."""
     if isinstance(msg, dict):
         o = msg.get("orientation") or {}
         ocov = msg.get("orientation_covariance") or [0.0]
         gcov = msg.get("angular_velocity_covariance") or [0.0]
-        acc = _vec(msg["linear_acceleration"])
-        gyr = [math.nan] * 3 if float(gcov[0]) == -1.0 else _vec(msg["angular_velocity"])
+        acov = msg.get("linear_acceleration_covariance") or [0.0]
+        acc, gyr = _vec(msg["linear_acceleration"]), _vec(msg["angular_velocity"])
         quat = [float(o.get(k, math.nan)) for k in ("w", "x", "y", "z")]
     else:
-        ocov = list(msg.orientation_covariance)
+        ocov, gcov = list(msg.orientation_covariance), list(msg.angular_velocity_covariance)
+        acov = list(msg.linear_acceleration_covariance)
         acc, gyr = _vec(msg.linear_acceleration), _vec(msg.angular_velocity)
-        if float(msg.angular_velocity_covariance[0]) == -1.0:  # REP 145: no gyro
-            gyr = [math.nan] * 3
         o = msg.orientation
         quat = [float(o.w), float(o.x), float(o.y), float(o.z)]
-    if float(ocov[0]) == -1.0 or not any(quat):  # REP 145: -1 marks "no orientation"
+    if float(acov[0]) == -1.0:
+        acc = [math.nan] * 3
+    if float(gcov[0]) == -1.0:
+        gyr = [math.nan] * 3
+    if float(ocov[0]) == -1.0 or not any(quat):
         quat = [math.nan] * 4
     return acc, gyr, quat
 
@@ -135,7 +143,8 @@ def _pick_topic(path: Path, topics: dict[str, str], topic: str | None) -> str:
         if not imu:  # no --topic can help
             raise InputError(f"{path}: {topics_line(topics)}")
         raise InputError(
-            f"{path}: pass --topic; sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
+            f"{path}: name the topic to read (--topic; topic= in Python); "
+            f"sensor_msgs/msg/Imu topics in this log: {', '.join(imu)}"
         )
     if topic not in topics:
         raise InputError(f"{path}: no topic {topic!r}; topics: {every or 'none'}")
@@ -348,7 +357,8 @@ def read_imu_log(
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
-    at = 0  # the message read: named where one cannot be read
+    at = 0  # the message being read (from 1): named where one cannot be read
+    done = 0  # the messages read whole
     cut = ""  # where a file cut short was read up to
     stamps: list[int] = []
     offsets: list[int] = []  # header stamp minus log time, ns, of the messages kept
@@ -367,12 +377,12 @@ def read_imu_log(
             back = (stamps[-1] - ns) / 1e9
             if back > MAX_STAMP_STEP_BACK_S and not skip_bad:
                 raise InputError(
-                    f"{p}: topic {name}: message {i}: the time steps back by {back:.3g} s (a "
+                    f"{p}: topic {name}: message {i + 1}: the time steps back by {back:.3g} s (a "
                     "sensor clock that restarted?): the log is not one recording; cut it "
                     "there, or --skip-bad leaves out the messages until the times pass the "
                     "last one"
                 )
-            skipped.append(f"message {i}: time {ns} ns does not increase")
+            skipped.append(f"message {i + 1}: time {ns} ns does not increase")
             return
         stamps.append(ns)
         offsets.append(ns - log_ns)
@@ -390,20 +400,22 @@ def read_imu_log(
             header_ns = _header_ns(msg)
             if header_ns <= 0:
                 if stamped:
-                    skipped.append(f"message {i}: header stamp is zero (the others' clock)")
+                    skipped.append(f"message {i + 1}: header stamp is zero (the others' clock)")
                 else:
                     unstamped.append((i, int(log_ns), _row(msg)))
+                done = at
                 continue
             if not stamped:
                 stamped = True
-                skipped += [f"message {j}: header stamp is zero (the others' clock)"
+                skipped += [f"message {j + 1}: header stamp is zero (the others' clock)"
                             for j, _, _ in unstamped]  # fmt: skip
                 unstamped = []
             keep(i, header_ns, _row(msg), int(log_ns))
+            done = at
     except (InputError, MissingExtraError):  # said in one line already
         raise
     except Exception as exc:  # a corrupt or foreign file: one line, no traceback
-        where = f"message {at}: " if at else ""
+        where = f"message {done + 1}: " if at else ""
         if not (skip_bad and _cut_short(exc) and (stamps or unstamped)):
             hint = ""
             if _cut_short(exc) and skip_bad:
@@ -413,7 +425,7 @@ def read_imu_log(
             raise InputError(
                 f"{p}: {where}cannot read robot log ({_why_unreadable(exc)}{hint})"
             ) from None
-        cut = f"the file ends inside a record after message {at - 1}: read up to there"
+        cut = f"the file ends inside a record after message {done}: read up to there"
     for i, log_ns, row in unstamped:  # no message (up to a cut) has a stamp: the log's times
         keep(i, log_ns, row, log_ns)
     if not stamps:
@@ -447,6 +459,7 @@ def read_imu_log(
         skipped=skipped,
         clock="header stamps" if stamped else "log times",
         cut=cut,
+        stamp_offset_s=offset,
     )
 
 
