@@ -22,6 +22,16 @@ class UserError(ValueError):
     keep working."""
 
 
+class FieldError(UserError):
+    """A :class:`UserError` about one named field of a description or a setting (a robot
+    section's ``length``): ``field`` names it, so that a reader of a file can say where
+    the field is."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
 class InputError(UserError):
     """A problem with an input file or option; the message is one line, naming file
     and line."""

@@ -14,6 +14,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.results import Status
 from continuum_mhe.simulation.scenarios import Recording
 
 
@@ -81,5 +82,5 @@ def run_mhe_kernel(
         sec[i] = est.inference.step_seconds
         if e.output is not None:
             out[i] = e.output
-        uncertified += e.status == "fallback-ipopt"
+        uncertified += e.status == Status.FALLBACK_IPOPT
     return out, sec, uncertified

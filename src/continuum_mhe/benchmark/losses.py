@@ -23,6 +23,7 @@ from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import as_sensor_reads, wrap_angle
+from continuum_mhe.results import Status
 from continuum_mhe.settings import MHE_LOSSES, MHESettings
 from continuum_mhe.signals import between_samples
 from continuum_mhe.simulation.scenarios import Recording
@@ -55,7 +56,7 @@ def _timed(
         sec[i] = time.perf_counter() - t0
         if e.output is not None:
             out[i] = e.output
-        fallbacks += e.status == "fallback-ipopt"
+        fallbacks += e.status == Status.FALLBACK_IPOPT
         iterations += est.inference.sqp_iterations
     return out, sec, fallbacks, iterations / len(rec.t)
 

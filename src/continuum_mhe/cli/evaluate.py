@@ -36,6 +36,7 @@ from continuum_mhe.io.state_tables import (
 )
 from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.descriptions import TIP_COLUMNS, TIP_FORCE_COLUMNS
+from continuum_mhe.results import Status
 
 
 def _align(
@@ -247,7 +248,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         std = est.std[i_e][:, cols]
         cal = compute_calibration(est.values[i_e][:, cols], std, truth_rows, out_names, truth.names)
         # what the status promises: the rows marked ok alone
-        ok = np.asarray(est.status)[i_e] == "ok"
+        ok = np.asarray(est.status)[i_e] == Status.OK
         n_ok = int(ok.sum())
         if n_ok and np.isfinite(std[ok]).any():
             cal_ok = compute_calibration(

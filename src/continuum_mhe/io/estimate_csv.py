@@ -22,7 +22,7 @@ from continuum_mhe.model.descriptions import (
     output_names,
     pcc_outputs,
 )
-from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries
+from continuum_mhe.results import STATUS_MEANINGS, EstimateSeries, Status
 
 #: Prefix of the standard-deviation column of an output (``std_x``, ``std_theta_2``).
 STD_PREFIX = "std_"
@@ -98,7 +98,7 @@ def estimate_row(
     unknown standard deviation is empty too. ``outlier`` (None: no such column) is
     written as 0 or 1 before the status."""
     flag = [] if outlier is None else [int(bool(outlier))]
-    if status == "no-estimate" or output is None:
+    if status == Status.NO_ESTIMATE or output is None:
         return [format_time(t), *([""] * (2 * ny)), *flag, str(status), float(solve_ms)]
     sd: list[object] = [""] * ny
     if std is not None:

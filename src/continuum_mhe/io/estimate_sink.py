@@ -135,7 +135,7 @@ class EstimateSink:
             self.rows += len(t)
             return
         for i, st in enumerate(status):
-            y = None if st == "no-estimate" or np.isnan(output[i]).all() else output[i]
+            y = None if st == Status.NO_ESTIMATE or np.isnan(output[i]).all() else output[i]
             s = None if y is None or np.isnan(output_std[i]).all() else output_std[i]
             self.write(Estimate(float(t[i]), None, y, None, st, float(solve_ms[i]), s,
                                 outlier=bool(outlier[i])))  # fmt: skip

@@ -63,7 +63,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from continuum_mhe.errors import InputError, UserError, expect_type
+from continuum_mhe.errors import FieldError, InputError, UserError, expect_type
 from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
@@ -194,10 +194,9 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             )
         try:
             sections.append(Section(length, theta_max, disks))
-        except ValueError as exc:
+        except FieldError as exc:
             # the key the problem is with, first, so that the message names its line
-            key = next((k for k in ("disks", "length", "theta_max") if k in str(exc)), "")
-            named = "" if str(exc).startswith(key) else f"{key}: "
+            named = "" if str(exc).startswith(exc.field) else f"{exc.field}: "
             raise InputError(f"{path}: {where}: {named}{exc}") from None
     if not sections:
         raise InputError(f"{path}: no [[section]]: a robot needs at least one section")

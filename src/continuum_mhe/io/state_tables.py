@@ -29,7 +29,7 @@ from continuum_mhe.model.descriptions import (
     pcc_outputs,
 )
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.results import STATUS_MEANINGS
+from continuum_mhe.results import STATUS_MEANINGS, Status
 
 #: One section's state columns (the paper's robot); several sections: see
 #: :func:`~continuum_mhe.model.descriptions.pcc_outputs`.
@@ -151,7 +151,7 @@ def read_state_table(
         tv = parse_float(p, line, table.as_written("t"), row[t_idx]) * table.time_scale
         vals = [
             math.nan
-            if (row[j] == "" and st == "no-estimate")
+            if (row[j] == "" and st == Status.NO_ESTIMATE)
             else parse_float(p, line, table.as_written(c), row[j])
             for c, j in zip(names, idx)
         ]

@@ -18,7 +18,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from continuum_mhe.errors import UserError, expect_type, finite_reals, is_integer, is_real
+from continuum_mhe.errors import (
+    FieldError,
+    UserError,
+    expect_type,
+    finite_reals,
+    is_integer,
+    is_real,
+)
 from continuum_mhe.model.imu import MOUNTINGS, Mounting
 
 #: Largest plausible section length in metres; longer is almost surely millimetres.
@@ -70,14 +77,16 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
 
 
 def check_theta_max(value: object) -> None:
-    """A :class:`UserError` unless ``value`` is a bending bound in ``(0, pi)`` rad."""
+    """A :class:`~continuum_mhe.errors.FieldError` unless ``value`` is a bending bound in
+    ``(0, pi)`` rad."""
     hint = ""
     if is_real(value):
         if 0 < float(value) < math.pi:
             return
         hint = theta_max_hint(float(value))
-    raise UserError(
-        f"theta_max must lie in (0, pi) rad, got {value!r}" + (f" ({hint})" if hint else "")
+    raise FieldError(
+        "theta_max",
+        f"theta_max must lie in (0, pi) rad, got {value!r}" + (f" ({hint})" if hint else ""),
     )
 
 
@@ -99,22 +108,28 @@ class Section:
 
     def __post_init__(self) -> None:
         if not is_integer(self.disks) or self.disks < 0:
-            raise UserError(f"section disks must be a whole number >= 0, got {self.disks!r}")
+            raise FieldError(
+                "disks", f"section disks must be a whole number >= 0, got {self.disks!r}"
+            )
         object.__setattr__(self, "disks", int(self.disks))
         if not (is_real(self.length) and math.isfinite(self.length)):
-            raise UserError(f"section length must be a finite number in m, got {self.length!r}")
+            raise FieldError(
+                "length", f"section length must be a finite number in m, got {self.length!r}"
+            )
         object.__setattr__(self, "length", float(self.length))
         if not self.length > 0:
-            raise UserError(f"section length must be positive, got {self.length!r} m")
+            raise FieldError("length", f"section length must be positive, got {self.length!r} m")
         if self.length < MIN_SECTION_LENGTH:
-            raise UserError(
+            raise FieldError(
+                "length",
                 f"section length {self.length!r} m is under {MIN_SECTION_LENGTH * 1e3:g} mm, "
-                "too short for a section (lengths are in metres, e.g. 0.2)"
+                "too short for a section (lengths are in metres, e.g. 0.2)",
             )
         if self.length > MAX_SECTION_LENGTH:
-            raise UserError(
+            raise FieldError(
+                "length",
                 f"section length {self.length!r} m is over {MAX_SECTION_LENGTH} m: "
-                "lengths are in metres (millimetres or centimetres?)"
+                "lengths are in metres (millimetres or centimetres?)",
             )
         check_theta_max(self.theta_max)
 

@@ -48,6 +48,7 @@ from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.imu import as_sensor_reads
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.reproduce.bootstrap import mean_ci, paired
+from continuum_mhe.results import Status
 from continuum_mhe.settings import (
     MHELoss,
     MHESettings,
@@ -272,7 +273,7 @@ def _recovery(spec: BeyondSpec, t: FloatArray, z: FloatArray, truth: FloatArray)
             est = make_estimator(m, f, MHESettings(horizon=spec.horizon), rs)
             s = est.run(t, z)
             err = _tip_err(s.output, truth)
-            wrong = (s.status == "ok") & (err > WRONG_SHARE * spec.length)
+            wrong = (s.status == Status.OK) & (err > WRONG_SHARE * spec.length)
             out[f"{m} {label}"] = {
                 "tip_mean_mm": float(np.nanmean(err[window]) * 1e3),
                 "tip_max_mm": float(np.nanmax(err[window]) * 1e3),

@@ -21,7 +21,7 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.extras import install_hint, require
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, OutputSpec, section_bends
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.results import Estimate
+from continuum_mhe.results import Estimate, Status
 from continuum_mhe.viewer.geometry import BackboneGeometry, TendonShapes, backbone_geometry
 from continuum_mhe.viewer.sink import ViewerSink, start_web_viewer, stop_web_viewer
 
@@ -165,7 +165,7 @@ class BackboneView:
 
     def _log_status(self, status: str) -> None:
         if status != self._status:
-            level = "INFO" if status == "ok" else "WARN"
+            level = "INFO" if status == Status.OK else "WARN"
             self.rec.log("status", self.rr.TextLog(f"status: {status}", level=level))
             self._status = status
 
@@ -177,7 +177,7 @@ class BackboneView:
         changed = str(est.status) != self._status
         self._log_status(str(est.status))
         out = est.output
-        if out is None or est.status == "no-estimate" or not np.all(np.isfinite(out)):
+        if out is None or est.status == Status.NO_ESTIMATE or not np.all(np.isfinite(out)):
             rec.log("world/estimate", rr.Clear(recursive=True))
             self._prev_tip["estimate"] = None
             self._drawn_t = None
