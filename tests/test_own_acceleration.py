@@ -15,7 +15,8 @@ from continuum_mhe.io.input_options import InputOptions
 from continuum_mhe.io.inputs import load_input
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.model.direct import STANDARD_GRAVITY, DirectFormulation
+from continuum_mhe.model.direct import DirectFormulation
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot, Section

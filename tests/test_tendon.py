@@ -609,15 +609,15 @@ def test_the_start_misfit_weighs_the_direction_rows_by_noise_and_imu_errors() ->
     counted."""
     from scipy.stats import chi2
 
+    from continuum_mhe.model.imu import STANDARD_GRAVITY
     from continuum_mhe.model.tendon import LOADED_START_PROBABILITY
-    from continuum_mhe.model.tendon_statics import GRAVITY
 
     robot = read_robot("tendon-two-section")
     f = TendonFormulation(robot=robot, imu_model="direct", estimate_gyro_bias=True)
     var = (
         f.noise.measurement_std**2
         + f.initial_misalignment_std**2
-        + (f.initial_accel_bias_std / GRAVITY) ** 2
+        + (f.initial_accel_bias_std / STANDARD_GRAVITY) ** 2
     )
     r = np.zeros(f.n_imu_measurements)
     r[1] = 2.0 * math.sqrt(var)  # IMU 1's y direction: 4

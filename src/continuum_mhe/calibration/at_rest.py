@@ -26,8 +26,8 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
-from continuum_mhe.io.raw_imu import STANDARD_GRAVITY, csv_input_kind, mount_rotation
-from continuum_mhe.model.imu import Mounting
+from continuum_mhe.io.raw_imu import csv_input_kind, mount_rotation
+from continuum_mhe.model.imu import STANDARD_GRAVITY, Mounting
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (

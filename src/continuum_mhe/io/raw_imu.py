@@ -38,7 +38,7 @@ from continuum_mhe.io.csv_files import UnitWarning, check_time_units, read_sampl
 from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, ImuColumns, imu_suffixes
 from continuum_mhe.io.text_rows import RowProblems, TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
-from continuum_mhe.model.imu import tilt_from_accelerometer
+from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.robot import mount_rpy_hint
 
 ImuModel = Literal["tilt", "direct"]
@@ -51,7 +51,6 @@ GYRO_COLUMNS = ("gx", "gy", "gz")
 #: One IMU's raw columns, unnumbered (``ax_k``... for IMU ``k`` of several).
 RAW_FIELDS = (*ACC_COLUMNS, *GYRO_COLUMNS)
 
-STANDARD_GRAVITY = 9.80665  # m/s^2
 #: Median |a| in this band (in the file's unit) means the file is in g, not m/s^2.
 _LOOKS_LIKE_G = (0.5, 2.0)
 #: Median |omega| above this (rad/s, 286 deg/s: turning most of the time faster than

@@ -61,13 +61,10 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, is_real
 from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.descriptions import MeasurementBlock, direct_blocks
-from continuum_mhe.model.imu import shape_from_tilt, tilt_from_accelerometer
+from continuum_mhe.model.imu import STANDARD_GRAVITY, shape_from_tilt, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import Sym, rotation_bend_sym
 from continuum_mhe.model.pcc import angular_velocity_at_sym, pose_at_sym
 from continuum_mhe.model.settings import FormulationName
-
-#: Standard gravity, m/s^2 (converts the accelerometer-bias state to units of |f|).
-STANDARD_GRAVITY = 9.80665
 
 
 def tip_angular_velocity_bend_sym(a: Sym, b: Sym, a_dot: Sym, b_dot: Sym) -> Sym:
@@ -388,7 +385,7 @@ def raw_imu_readings(
     phi: FloatArray,
     length: float,
     mounting: str = "z-up",
-    gravity: float = 9.80665,
+    gravity: float = STANDARD_GRAVITY,
 ) -> tuple[FloatArray, FloatArray]:
     """Noise-free raw IMU readings of a moving tip, for simulation and tests.
 

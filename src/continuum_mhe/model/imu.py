@@ -35,6 +35,9 @@ MOUNTINGS: tuple[Mounting, ...] = ("z-up", "z-down")
 #: Largest plausible |roll| and |pitch| of a tilt reading, rad (roll in (-pi, pi], pitch
 #: in [-pi/2, pi/2], with a margin for noise): beyond them, the angles are in degrees or
 #: the reading is a glitch.
+#: Standard gravity, m/s^2 (the accelerometers' unit of g; the one value everywhere).
+STANDARD_GRAVITY = 9.80665
+
 ROLL_LIMIT = math.pi + 0.05
 PITCH_LIMIT = math.pi / 2 + 0.05
 #: Floor of ``hypot(f_y, f_z)`` (unit specific force) in the pitch formula.

@@ -81,14 +81,17 @@ from continuum_mhe.model.descriptions import (
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import ChangeTest, Formulation
-from continuum_mhe.model.imu import tilt_from_gravity_sym, tilt_tangent_residual_sym
+from continuum_mhe.model.imu import (
+    STANDARD_GRAVITY,
+    tilt_from_gravity_sym,
+    tilt_tangent_residual_sym,
+)
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.settings import FormulationName
 from continuum_mhe.model.tape import residual_node_tapes
 from continuum_mhe.model.tendon_statics import (
-    GRAVITY,
     Station,
     TendonStatics,
     hat_sym,
@@ -688,7 +691,7 @@ class TendonFormulation(Formulation):
             if not self.n_force_acceleration:
                 f_ddot = ca.SX.zeros(3)
             accel = self._imu_accelerations(v, v_dot, ca.vertcat(f_ddot, tau_ddot), res, poses)
-            specific = [ca.DM(up) + a / GRAVITY for a in accel]
+            specific = [ca.DM(up) + a / STANDARD_GRAVITY for a in accel]
         else:
             specific = [ca.DM(up) for _ in rots]
         if self.estimate_misalignment:  # the board turned by a small rotation
@@ -702,7 +705,7 @@ class TendonFormulation(Formulation):
         for i, (R, f) in enumerate(zip(rots, specific)):
             fb = ca.mtimes(R.T, f)
             if self.estimate_accel_bias:  # in units of g, as the specific force here
-                fb = fb + x[n0 + 3 * i : n0 + 3 * i + 3] / GRAVITY
+                fb = fb + x[n0 + 3 * i : n0 + 3 * i + 3] / STANDARD_GRAVITY
             gravity.append(fb / ca.norm_2(fb))
         if self.imu_model == "tilt":
             return gravity, [tilt_from_gravity_sym(g) for g in gravity], res
@@ -956,7 +959,7 @@ class TendonFormulation(Formulation):
         var = np.diag(self.meas_cov())[: self.n_imu_measurements].copy()
         errors = self.initial_misalignment_std**2 if self.estimate_misalignment else 0.0
         if self.estimate_accel_bias:
-            errors += (self.initial_accel_bias_std / GRAVITY) ** 2
+            errors += (self.initial_accel_bias_std / STANDARD_GRAVITY) ** 2
         direction = np.ones(self.n_imu_measurements, dtype=bool)
         if self.imu_model == "direct":  # per IMU: f / |f| (3), then the gyro (3)
             direction = np.tile(np.r_[[True] * 3, [False] * 3], self.robot.n_imus)

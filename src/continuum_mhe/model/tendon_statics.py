@@ -51,6 +51,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, time_text
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import Sym
 from continuum_mhe.model.pcc import up_vector
 from continuum_mhe.model.robot import Robot
@@ -66,8 +67,6 @@ TIP_CONDITION_TOL = 1e-12
 NEWTON_ITERATIONS = 50
 #: The stages of :meth:`TendonStatics.solve`'s continuation in the loads.
 LOAD_STAGES = 10
-#: Standard gravity, m/s^2 (the backbone's weight with a density).
-GRAVITY = 9.80665
 
 
 def _one_line(v: FloatArray) -> str:
@@ -186,7 +185,7 @@ class TendonStatics:
         assert bb is not None
         if bb.density is None:
             return np.zeros(3)
-        return -bb.density * bb.area * GRAVITY * up_vector(self.robot.mounting)
+        return -bb.density * bb.area * STANDARD_GRAVITY * up_vector(self.robot.mounting)
 
     def curvature_sym(self, m_body: Sym, tensions: list[tuple[Sym, float, float]]) -> Sym:
         """Body curvature and twist rate ``u`` (rad/m) from the body-frame total moment

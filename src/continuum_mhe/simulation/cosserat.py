@@ -42,10 +42,8 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
-from continuum_mhe.model.imu import tilt_from_accelerometer
+from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.kinematics import shape_from_bend, tip_position
-
-GRAVITY = 9.80665  # m/s^2
 
 #: Columns of the recording CSV (SI units: s, rad, rad/s, m).
 COLUMNS = (
@@ -136,7 +134,7 @@ class ImuSettings:
     dlpf_window: float = 0.01
     accel_noise: float = 0.02
     accel_bias: float = 0.1
-    accel_range: float = 2 * GRAVITY
+    accel_range: float = 2 * STANDARD_GRAVITY
     gyro_noise: float = math.radians(0.1)
     gyro_bias: float = math.radians(2.0)
     gyro_range: float = math.radians(250.0)
@@ -237,7 +235,9 @@ def simulate_rod(settings: RodSettings, duration: float, record_dt: float = 1e-3
     sim.constrain(rod).using(
         ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+    sim.add_forcing_to(rod).using(
+        ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -STANDARD_GRAVITY])
+    )
     sim.add_forcing_to(rod).using(_CableMoment, max_moment=s.max_moment, period=s.period)
     sim.dampen(rod).using(
         ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
@@ -299,7 +299,7 @@ def imu_readings(
     prev = np.maximum(idx - lag, 0)
     span = np.maximum((idx - prev) * dt_rec, dt_rec)
     acc = (traj.tip_velocity[idx] - traj.tip_velocity[prev]) / span[:, None]
-    g = np.array([0.0, 0.0, -GRAVITY])
+    g = np.array([0.0, 0.0, -STANDARD_GRAVITY])
     spec_base = acc - g
     mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3))
     spec_tip = np.einsum("nij,nj->ni", traj.tip_director[idx], spec_base) @ mis

@@ -84,10 +84,10 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.extras import available, missing, require
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import rotation_bend
 from continuum_mhe.model.pcc import bend_from_tangent_frames, pose_at, section_frames_from_bends
 from continuum_mhe.simulation.cosserat import (
-    GRAVITY,
     ImuSettings,
     _quantise,
     _rotation_xyz,
@@ -248,7 +248,9 @@ def simulate_sections(
     sim.constrain(rod).using(
         ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+    sim.add_forcing_to(rod).using(
+        ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -STANDARD_GRAVITY])
+    )
     sim.add_forcing_to(rod).using(_Couples)
     sim.dampen(rod).using(
         ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping, time_step=s.sim_dt
@@ -350,7 +352,7 @@ def imu_samples(
     w = np.zeros((len(idx), 2, 3))
     for k in range(2):
         acc = (traj.velocities[idx, k] - traj.velocities[prev, k]) / span[:, None]
-        spec_base = acc - np.array([0.0, 0.0, -GRAVITY])
+        spec_base = acc - np.array([0.0, 0.0, -STANDARD_GRAVITY])
         keep = np.isin(np.arange(3), misalignment_axes)
         mis = _rotation_xyz(np.radians(imu.misalignment_deg) * rng.normal(size=3) * keep)
         spec = np.einsum("nij,nj->ni", traj.directors[idx, k], spec_base) @ mis

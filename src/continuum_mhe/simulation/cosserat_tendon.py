@@ -54,8 +54,9 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.simulation.cosserat import GRAVITY, ImuSettings
+from continuum_mhe.simulation.cosserat import ImuSettings
 from continuum_mhe.simulation.cosserat_sections import (
     DEFAULT_IMU,
     SectionTrajectory,
@@ -305,7 +306,7 @@ def _energy_solver(robot: Robot, per: int, route: str = "continuous") -> Any:
     bb = robot.backbone
     assert bb is not None
     ei, gj = bb.bending_stiffness, bb.torsional_stiffness
-    rho_a_g = (bb.density or 0.0) * bb.area * GRAVITY
+    rho_a_g = (bb.density or 0.0) * bb.area * STANDARD_GRAVITY
     n_seg = per * sum(s.disks for s in robot.sections)
     w = ca.SX.sym("w", 3, n_seg)
     tau = ca.SX.sym("tau", robot.n_tendons)

@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
 from continuum_mhe.io.raw_imu import raw_columns
-from continuum_mhe.model.direct import STANDARD_GRAVITY
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import bend_from_shape
 from continuum_mhe.model.pcc import pose_at, up_vector
 from continuum_mhe.model.robot import Robot

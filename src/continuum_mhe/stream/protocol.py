@@ -27,13 +27,14 @@ from continuum_mhe.io.csv_files import tilt_columns
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.tensions import tension_columns
 from continuum_mhe.io.text_rows import declared_fields
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 
 LineFormat = Literal["raw", "tilt"]
 LINE_FORMATS: tuple[LineFormat, ...] = ("raw", "tilt")
 #: Values per IMU on a line.
 VALUES_PER_IMU: dict[str, int] = {"raw": 6, "tilt": 2}
 #: Plausibility limits: MPU9250 full scale (16 g, 2000 deg/s) with 50 % margin.
-ACC_LIMIT = 16 * 9.80665 * 1.5
+ACC_LIMIT = 16 * STANDARD_GRAVITY * 1.5
 GYRO_LIMIT = math.radians(2000) * 1.5
 TILT_LIMITS = (math.pi + 0.05, math.pi / 2 + 0.05)
 #: Longest accepted line, bytes (a sample of 8 raw IMUs is under 500).

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.reproduce.report.format import (
     _METRIC_HEADER,
     _ci,
@@ -111,7 +112,7 @@ def _rod_description(gen: dict[str, Any] | None) -> str:
     if gen is None:
         return "was given with --rod-csv, with no generator settings beside it."
     rod, imu = gen["rod"], gen["imu"]
-    g = 9.80665
+    g = STANDARD_GRAVITY
     return (
         f"comes from a PyElastica Cosserat rod ({rod['length']:g} m, radius "
         f"{rod['radius'] * 1e3:g} mm, E = {rod['youngs_modulus'] / 1e6:g} MPa, "
