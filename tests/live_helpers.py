@@ -163,6 +163,19 @@ def send_and_finish(proc: LiveProcess, master: int, lines: list[str]) -> int:
         os.close(master)
 
 
+def alive(values: np.ndarray, i: int | None = None, amplitude: float = 1e-4) -> np.ndarray:
+    """Raw readings with a real IMU's noise where a test's have none: ``values`` (n, 6 k)
+    with ``+-amplitude`` rad/s, alternating sample by sample, on each IMU's gx (mean zero
+    over an even count); or, with ``i``, one sample's gyro rows (k, 3) with the sign of
+    sample ``i``. Readings that repeat exactly for 0.2 s are a frozen sensor's."""
+    out = np.array(values, dtype=float)
+    if i is not None:
+        out[:, 0] += amplitude * (1.0 if i % 2 == 0 else -1.0)
+        return out
+    out[:, 3::6] += amplitude * np.where(np.arange(len(out)) % 2 == 0, 1.0, -1.0)[:, None]
+    return out
+
+
 def raw_line(t_ms: int, acc: np.ndarray, gyr: np.ndarray) -> str:
     """``t_ms`` then ``ax,ay,az,gx,gy,gz`` per IMU (``acc``, ``gyr``: (n_imus, 3))."""
     vals = [f"{v:.4f}" for a, g in zip(acc, gyr) for v in (*a, *g)]

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from live_helpers import alive
 
 from continuum_mhe.calibration.at_rest import calibrate
 from continuum_mhe.calibration.bend import yaws_from_bend
@@ -36,7 +37,7 @@ def _bend_readings(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free ``(rest values, bend values)`` (n, 12) of the IMUs at both section
     ends, base z up (``up = 1``) or down (-1), for the bend sequence ``bends`` (n, 2, 2)
-    rad."""
+    rad; the rest's gyros with a real IMU's alternating noise (:func:`live_helpers.alive`)."""
     rest, bend = [], []
     for k, rpy in enumerate(mounts):
         m = mount_rotation(rpy)  # sensor to backbone frame
@@ -49,7 +50,7 @@ def _bend_readings(
         gyr = w @ m + BIAS[k]
         bend.append(np.hstack([acc[1:-1], gyr]))
         rest.append(np.tile(np.hstack([m.T @ [0.0, 0.0, up * G], BIAS[k]]), (len(w), 1)))
-    return np.hstack(rest), np.hstack(bend)
+    return alive(np.hstack(rest)), np.hstack(bend)
 
 
 def _planar_bend(phi: float, n: int = 300) -> np.ndarray:

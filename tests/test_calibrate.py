@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from live_helpers import alive
 
 from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
 from continuum_mhe.cli import main
@@ -82,11 +83,11 @@ def _calibrate_port(
 def _device_lines(acc: np.ndarray) -> list[str]:
     """The banner and a line per accelerometer row of ``acc`` (n, 3), 100 Hz, one IMU
     with a small gyro bias."""
-    from live_helpers import raw_line
+    from live_helpers import alive, raw_line
 
     lines = ["# continuum_imu 1.1.0 imus=1", "# fields: t_ms,ax,ay,az,gx,gy,gz (ms)"]
     gyr = np.array([[0.002, 0.0, -0.001]])
-    return lines + [raw_line(1000 + 10 * i, a[None], gyr) for i, a in enumerate(acc)]
+    return lines + [raw_line(1000 + 10 * i, a[None], alive(gyr, i)) for i, a in enumerate(acc)]
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
@@ -141,7 +142,7 @@ def test_calibrate_from_the_port_leaves_out_lines_with_one_bad_imu(tmp_path: Pat
     from live_helpers import raw_line
 
     acc, gyr = np.tile([0.0, 0.0, G], (2, 1)), np.zeros((2, 3))
-    lines = [raw_line(1000 + 10 * i, acc, gyr) for i in range(400)]
+    lines = [raw_line(1000 + 10 * i, acc, alive(gyr, i)) for i in range(400)]
     for i in range(0, 400, 10):  # IMU 2's az unreadable on every tenth line
         fields = lines[i].split(",")
         fields[9] = "x"
@@ -321,7 +322,7 @@ def test_the_printed_mounting_keeps_the_robot_files_yaw(
     )
     n = 200
     acc = np.tile(mount_rotation((4.0, -2.0, 90.0)).T @ [0, 0, G], (n, 1))
-    rows = np.column_stack([0.01 * np.arange(n), acc, np.zeros((n, 3))])
+    rows = np.column_stack([0.01 * np.arange(n), alive(np.hstack([acc, np.zeros((n, 3))]))])
     path = tmp_path / "rest.csv"
     path.write_text(
         "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
@@ -364,7 +365,10 @@ def test_calibrate_from_the_port_takes_lines_with_tensions(tmp_path: Path) -> No
     acc = np.tile(mount_rotation((5.0, -3.0, 0.0)).T @ [0, 0, G], (2, 1))
     gyr = np.zeros((2, 3))
     tensions = ",0.0,1.5,0.25,0.0,2.0,0.0"  # the shipped robot's six tendons, N
-    lines = [raw_line(1000 + 10 * i, acc, gyr) + (tensions if i % 2 else "") for i in range(400)]
+    lines = [
+        raw_line(1000 + 10 * i, acc, alive(gyr, i)) + (tensions if i % 2 else "")
+        for i in range(400)
+    ]
     code, out, err = _calibrate_port(tmp_path, lines, more=("--robot", "tendon-two-section"))
     assert code == 0, err
     assert "garbled" not in err
@@ -544,3 +548,69 @@ def test_an_empty_or_impossible_reading_left_out_is_said(tmp_path, capsys, cell)
         f"or beyond any IMU's range (the first at t = {t:g} s): that IMU's reading is left "
         "out of its mean and noise there\n"
     )
+
+
+def _two_imu_rest(path: Path, tilts_deg: tuple[float, float], n: int = 400) -> np.ndarray:
+    """A two-IMU rest recording at 100 Hz (noise on each gyro's x), the IMUs tilted by
+    ``tilts_deg`` about x; returns its values (n, 12)."""
+    values = np.hstack([alive(_rest_values(n, 0.0, 0.0, tilt_deg=a)) for a in tilts_deg])
+    _write_rest(path, values)
+    return values
+
+
+def _write_rest(path: Path, values: np.ndarray) -> None:
+    cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
+    rows = np.column_stack([0.01 * np.arange(len(values)), values])
+    path.write_text(
+        ",".join(cols) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
+    )
+
+
+def test_a_frozen_imu_at_rest_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 2 repeating one reading exactly for 1.5 s of a rest (a stuck sensor, whose
+    noise and offsets the calibration would have taken as its own) is refused in one
+    line, as estimate's --freeze would flag it; the same IMU alive is calibrated."""
+    path = tmp_path / "rest.csv"
+    values = _two_imu_rest(path, (1.0, -2.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and "IMU 2: mounting" in out, err
+    values[200:350, 6:] = values[200, 6:]  # and row 350 reads as row 200 does
+    _write_rest(path, values)
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 2 and out == ""
+    assert err == (
+        f"continuum-mhe: error: {path}: IMU 2 repeats one reading exactly for 151 samples "
+        "(1.5 s from t = 2 s): a frozen sensor, whose noise and offsets would be the "
+        "freeze's; record the rest again\n"
+    )
+
+
+def test_a_rest_in_which_every_imu_reads_tilted_warns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every IMU tilted (12 and 20 degrees: a robot bent, or its base not level, at rest)
+    is calibrated as the IMUs' mountings, which puts every estimate off (a user's robot:
+    rows 57 mm off, `ok`): one warning with each IMU's tilt. One IMU tilted on its disk
+    says nothing."""
+    path = tmp_path / "rest.csv"
+    _two_imu_rest(path, (12.0, 20.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and "--mount-rpy 20.00," in out
+    assert err == (
+        f"continuum-mhe: warning: {path}: every IMU reads more than 5 degrees from the "
+        "straight robot's gravity direction (IMU 1 12.0, IMU 2 20.0 degrees), and mount_rpy "
+        "takes that as its mounting: was the robot straight and its base level at rest? If "
+        "not, every estimate is off by as much; record the rest again (IMUs mounted tilted "
+        "on their disks are calibrated right)\n"
+    )
+    _two_imu_rest(path, (12.0, 1.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and err == ""
+
+
+def test_a_missing_recording_is_said_to_be_missing(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = _calibrate_main(capsys, "--from", "no_such_rest.csv")
+    assert (code, out) == (2, "")
+    assert err == "continuum-mhe: error: no_such_rest.csv: no such file\n"

@@ -22,13 +22,14 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.calibration.bend import YawCalibration, yaws_from_bend
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.input_options import MOUNTING_FLIPPED, flipped_mounting
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.raw_imu import csv_input_kind, mount_rotation
 from continuum_mhe.model.imu import STANDARD_GRAVITY, Mounting
 from continuum_mhe.model.robot import Robot
+from continuum_mhe.settings import FREEZE_MIN_SAMPLES, FREEZE_S
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
     VALUES_PER_IMU,
@@ -122,6 +123,63 @@ def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_fil
         f"{source}: mounting: the robot is described as {robot.mounting}, but at rest gravity "
         f"puts every IMU {spread} degrees from where that mounting puts it: the robot "
         f"{pose}? {fix}"
+    )
+
+
+def frozen_at_rest(t: FloatArray, values: FloatArray, n_imus: int) -> str | None:
+    """Why a raw rest recording ``values`` (n, 6 n_imus) at times ``t`` (s) holds a frozen
+    IMU, or None: one whose six values repeat exactly for longer than
+    :data:`~continuum_mhe.settings.FREEZE_S` and over at least
+    :data:`~continuum_mhe.settings.FREEZE_MIN_SAMPLES` samples, as ``estimate``'s
+    ``--freeze`` judges one (a still IMU's noise changes its raw readings every sample;
+    tilt angles of an attitude output can repeat at rest, so they are not judged)."""
+    for i in range(n_imus):
+        block = values[:, 6 * i : 6 * i + 6]
+        repeats = np.concatenate([[False], np.all(block[1:] == block[:-1], axis=1)])
+        start, best = 0, (0, 0)  # the longest run of one reading: first and last sample
+        for j in range(1, len(repeats)):
+            if not repeats[j]:
+                start = j
+            elif j - start > best[1] - best[0]:
+                best = (start, j)
+        samples = best[1] - best[0] + 1
+        span = float(t[best[1]] - t[best[0]]) if samples > 1 else 0.0
+        if samples >= FREEZE_MIN_SAMPLES and span > FREEZE_S:
+            return (
+                f"IMU {i + 1} repeats one reading exactly for {samples} samples ({span:.3g} s "
+                f"from t = {time_text(float(t[best[0]]))} s): a frozen sensor, whose noise and "
+                "offsets would be the freeze's; record the rest again"
+            )
+    return None
+
+
+#: A rest in which every IMU reads more than this (deg) from the straight robot's
+#: gravity direction gets a warning: a robot not straight, or a base not level, reads
+#: so in every IMU, where IMUs mounted tilted on their disks read so one by one.
+REST_TILT_WARN_DEG = 5.0
+
+
+def rest_tilt_warning(cal: Calibration) -> str | None:
+    """A warning where every IMU of a raw calibration ``cal`` of two or more IMUs reads
+    more than :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction, or
+    None: calibrate takes each tilt as its IMU's mounting, which a bent robot or a tilted
+    base at rest puts into every estimate (one IMU alone cannot tell its own tilted
+    mounting from a tilted base)."""
+    tilts = []
+    for imu in cal.imus:
+        if imu.mount_rpy is None:
+            return None
+        roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
+        tilts.append(math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))))
+    if len(tilts) < 2 or min(tilts) <= REST_TILT_WARN_DEG:
+        return None
+    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
+    return (
+        f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
+        f"gravity direction ({each} degrees), and mount_rpy takes that as its mounting: "
+        "was the robot straight and its base level at rest? If not, every estimate is off "
+        "by as much; record the rest again (IMUs mounted tilted on their disks are "
+        "calibrated right)"
     )
 
 

@@ -19,7 +19,9 @@ from continuum_mhe.calibration.at_rest import (
     check_rest_mounting,
     collect,
     format_report,
+    frozen_at_rest,
     motion_at_rest,
+    rest_tilt_warning,
 )
 from continuum_mhe.calibration.bend import YawCalibration
 from continuum_mhe.cli.options import add_overwrite_option
@@ -53,6 +55,8 @@ def run(args: argparse.Namespace) -> int:
                 "reading the serial line (--port)"
             )
     for option, name in (("--from", args.source), ("--bend", args.bend)):
+        if name is not None and not Path(name).exists() and name != "-":
+            raise InputError(f"{name}: no such file")
         if name is not None and not Path(name).is_file():  # read twice: the kind, then it
             raise InputError(
                 f"{name}: {option} reads a file (not standard input, a pipe or a folder): "
@@ -102,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
+    frozen = frozen_at_rest(t, values, robot.n_imus) if fmt == "raw" else None
+    if frozen:
+        raise InputError(f"{source}: {frozen}")
     if args.write_robot and fmt != "raw":
         raise InputError(f"{source}: --write-robot needs a raw recording (this one is {fmt})")
     if fmt == "raw":
@@ -112,6 +119,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {exc}") from None
     if left_out:
         print(left_out, file=sys.stderr)
+    tilted = rest_tilt_warning(cal) if fmt == "raw" else None
+    if tilted:
+        print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
