@@ -103,6 +103,9 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   prev_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   prev_z_.resize(s_.nz);
   cons_z_.resize(s_.nz);
+  held_z_.assign(s_.nz, 0.0);
+  held_t_.assign(s_.nz, -INFINITY);
+  held_mask_.assign(s_.nz, 0.0);
   if (static_cast<int>(s_.start_limit.size()) != s_.nz + 1)
     throw std::invalid_argument("start_limit must hold nz + 1 values");
   reset(false);
@@ -141,6 +144,7 @@ void SensorHealth::restart() {
   restarted_since_drift_ = true;  // drifted_t_ is kept: see step
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
+  std::fill(held_t_.begin(), held_t_.end(), -INFINITY);  // a start holds no past reading
   inference_.restart();
 }
 
@@ -562,7 +566,14 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (shift_factor != 1.0)
       for (int i = 0; i < ny; ++i) ystd[i] *= shift_factor;
     if (s_.checks_start) {  // constant reading errors, model error: no residual shows them
-      consistency_.constant_error_cov(z, mask_.data(), x, bias_.data());
+      for (int i = 0; i < s_.nz; ++i) {
+        if (mask_[i] > 0.0) {
+          held_z_[i] = z[i];
+          held_t_[i] = t;
+        }
+        held_mask_[i] = t - held_t_[i] <= unobserved_window() ? 1.0 : 0.0;
+      }
+      consistency_.constant_error_cov(held_z_.data(), held_mask_.data(), x, bias_.data());
       inference_.output_std(x, bias_.data(), std_b_.data());
       for (int i = 0; i < ny; ++i) ystd[i] = std::hypot(ystd[i], std_b_[i]);
       // where the readings barely pin the shape, their constant errors alone may put

@@ -267,6 +267,12 @@ class SensorHealth {
   // observes nothing from the freeze's discovery on (observed_now)
   std::vector<char> frozen_now_;
   std::vector<double> z_, mask_, zero_mask_, bias_, std_b_;
+  // The constant reading errors' term of the standard deviations counts each reading
+  // the estimate still holds: a reading missing now (a dropout) at its last value while
+  // it was valid within the unobserved window since the last (re)start, since its
+  // constant error entered the state through the estimates before (held_t_: -inf where
+  // none); held_z_ and held_mask_ the readings and mask the term is computed on
+  std::vector<double> held_z_, held_t_, held_mask_;
   std::vector<int> back_rows_, rows_;
   std::optional<double> rejecting_since_;
   // the bad-start check's state
