@@ -35,8 +35,9 @@ from pathlib import Path
 import numpy as np
 from scipy import integrate, optimize, stats
 
+import continuum_mhe._core as _core
 from continuum_mhe import MHESettings, make_estimator, make_formulation
-from continuum_mhe.estimators.loss import LOSS_CODES, rho_derivatives
+from continuum_mhe.estimators.loss import LOSS_CODES
 from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.model.imu import wrap_angle
 from continuum_mhe.reproduce import beyond
@@ -197,7 +198,7 @@ def efficiency(loss: str, scale: float, p: int) -> float:
         return integrate.quad(lambda r: g(r) * stats.chi.pdf(r, p), 0, np.inf, limit=200)[0]
 
     def w(r: float) -> tuple[float, float]:
-        _, d1, d2 = rho_derivatives(code, scale, r * r)
+        _, d1, d2 = _core.rho_derivatives(code, scale, r * r)
         return d1, d2
 
     a = expect(lambda r: w(r)[0] + 2 * r * r * w(r)[1] + (p - 1) * w(r)[0])

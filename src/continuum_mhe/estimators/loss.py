@@ -16,19 +16,18 @@ block's weight in iteratively reweighted least squares (1 for an inlier, about
 ``c / sqrt(s)`` for Huber, ``c^2 / s`` for Cauchy and ``exp(-s / c^2)`` for Welsch far
 out).
 
-:func:`rho_sym` is the CasADi expression (IPOPT's cost), :func:`rho_derivatives` its
-value and derivatives at one point (the compiled core has the same), :func:`block_weights`
-the weights of one node's blocks for a residual vector.
+:func:`rho_sym` is the CasADi expression (IPOPT's cost), the compiled core's
+``rho_derivatives(code, scale, s)`` its value and derivatives at one point (the window
+solve's), :func:`block_weights` the weights of one node's blocks for a residual vector.
 """
 
 from __future__ import annotations
-
-import math
 
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+import continuum_mhe._core as _core
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.descriptions import MeasurementBlock
 
@@ -56,25 +55,6 @@ def rho_sym(loss: str, scale: float, s: ca.SX) -> ca.SX:
     raise ValueError(f"unknown loss {loss!r}")
 
 
-def rho_derivatives(code: int, scale: float, s: float) -> tuple[float, float, float]:
-    """``(rho(s), rho'(s), rho''(s))`` of loss ``code`` (:data:`LOSS_CODES`)."""
-    if code == 1:
-        c2 = scale * scale
-        if s <= c2:
-            return s, 1.0, 0.0
-        r = math.sqrt(s)
-        return 2.0 * scale * r - c2, scale / r, -0.5 * scale / (s * r)
-    if code == 2:
-        c2 = scale * scale
-        q = 1.0 + s / c2
-        return c2 * math.log1p(s / c2), 1.0 / q, -1.0 / (c2 * q * q)
-    if code == 3:
-        c2 = scale * scale
-        w = math.exp(-s / c2)
-        return c2 * (1.0 - w), w, -w / c2
-    return s, 1.0, 0.0
-
-
 def block_array(blocks: tuple[MeasurementBlock, ...]) -> NDArray[np.int64]:
     """``(nblocks, 2)``: start and size of each measurement block (for the kernels)."""
     return np.array([(b.start, b.size) for b in blocks], dtype=np.int64).reshape(-1, 2)
@@ -91,13 +71,15 @@ def block_weights(
     return _block_weights(LOSS_CODES[loss], scale, np.asarray(r, dtype=np.float64), rinv, blocks)
 
 
-def _block_weights(code, scale, r, rinv, blocks):
+def _block_weights(
+    code: int, scale: float, r: FloatArray, rinv: FloatArray, blocks: NDArray[np.int64]
+) -> FloatArray:
     out = np.ones(blocks.shape[0])
     for k in range(blocks.shape[0]):
         b0, nb = blocks[k, 0], blocks[k, 1]
-        s = 0.0
+        s = 0.0  # r_b^T R_b^-1 r_b, term by term
         for a in range(nb):
             for c in range(nb):
                 s += r[b0 + a] * rinv[b0 + a, b0 + c] * r[b0 + c]
-        out[k] = rho_derivatives(code, scale, s)[1]
+        out[k] = _core.rho_derivatives(code, scale, s)[1]
     return out

@@ -10,9 +10,25 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.model.formulations import Formulation
 
 
+def process_noise(formulation: Formulation, dt: float) -> tuple[FloatArray, FloatArray]:
+    """``(Q(dt), Q(dt)^-1)`` (nx, nx) of ``formulation`` for a time step ``dt`` (s),
+    uncached (the compiled core keeps its own cache); a one-line
+    :class:`~continuum_mhe.errors.UserError` for a step so short that Q is singular."""
+    f, nx = formulation, formulation.nx
+    Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
+    Q = Q.reshape(nx, nx)
+    try:
+        return Q, np.linalg.inv(Q)
+    except np.linalg.LinAlgError:  # a step so short that Q underflows
+        raise UserError(
+            f"a time step of {dt:g} s is too short for the process noise (its "
+            "covariance is singular): t must be in seconds"
+        ) from None
+
+
 class ProcessNoiseCache:
-    """``(Q(dt), Q(dt)^-1)`` of a formulation, cached per time step (Q depends on the
-    time step only; at most 4096 distinct steps are kept)."""
+    """:func:`process_noise` of a formulation, cached per time step rounded to 1e-9 s
+    (Q depends on the time step only; at most 4096 distinct steps are kept)."""
 
     def __init__(self, formulation: Formulation) -> None:
         self._f = formulation
@@ -22,16 +38,7 @@ class ProcessNoiseCache:
         key = round(dt, 9)
         w = self._cache.get(key)
         if w is None:
-            f, nx = self._f, self._f.nx
-            Q = np.asarray(f.functions.predict(np.zeros(nx), np.zeros(f.nu), dt)[2], float)
-            Q = Q.reshape(nx, nx)
-            try:
-                w = (Q, np.linalg.inv(Q))
-            except np.linalg.LinAlgError:  # a step so short that Q underflows
-                raise UserError(
-                    f"a time step of {dt:g} s is too short for the process noise (its "
-                    "covariance is singular): t must be in seconds"
-                ) from None
+            w = process_noise(self._f, dt)
             if len(self._cache) < 4096:
                 self._cache[key] = w
         return w

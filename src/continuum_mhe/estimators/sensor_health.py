@@ -27,6 +27,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from functools import partial
 from typing import Generic, NoReturn, SupportsIndex, TypeVar
 
 import numpy as np
@@ -47,7 +48,7 @@ from continuum_mhe.estimators import start_check
 from continuum_mhe.estimators.base import Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
-from continuum_mhe.estimators.process_noise import ProcessNoiseCache
+from continuum_mhe.estimators.process_noise import process_noise
 from continuum_mhe.estimators.reading_units import (
     ReadingUnitsError,
     ReadingUnitsWatch,
@@ -323,7 +324,7 @@ class Estimator(Generic[InferenceT]):
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,
             whole_rows=self._tension_block_rows,
-            process_noise=ProcessNoiseCache(f),
+            process_noise=partial(process_noise, f),  # the core caches it
             inputs=f.inputs,
             observable=lambda imus: f.imus_determine_shape(tuple(imus)),
             checks=f.state_checks(),
