@@ -1,6 +1,6 @@
-"""The block reader of sample tables (:func:`~continuum_mhe.io.text_rows.sample_blocks`,
+"""The block reader of sample tables (:func:`~continuum_mhe.io.sample_rows.sample_blocks`,
 numpy's ``loadtxt`` over blocks of lines) against the row-by-row reader
-(:func:`~continuum_mhe.io.text_rows.iter_samples`): the same samples to the bit, the
+(:func:`~continuum_mhe.io.sample_rows.iter_samples`): the same samples to the bit, the
 same problems counted, the same one-line error, on tricky inputs and on random text."""
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.io import text_rows
-from continuum_mhe.io.text_rows import RowProblems, iter_samples, open_rows, sample_blocks
+from continuum_mhe.io import sample_rows, text_rows
+from continuum_mhe.io.sample_rows import RowProblems, iter_samples, sample_blocks
+from continuum_mhe.io.text_rows import open_rows
 
 Outcome = tuple[Any, ...]
 
@@ -68,7 +69,7 @@ def _same(tmp_path: Path, text: bytes | str, columns: tuple[str, ...] = ("t", "r
 def _small_line_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Blocks of a few lines, so that a problem falls in the middle of the input, with
     blocks read whole before it and after it."""
-    monkeypatch.setattr(text_rows, "BLOCK_BYTES", 40)
+    monkeypatch.setattr(sample_rows, "BLOCK_BYTES", 40)
 
 
 ROW_LIST = [f"{0.05 * i:.10g},{0.01 * i:.10g},{-0.02 * i:.10g}\n" for i in range(20)]
@@ -210,7 +211,7 @@ def test_plain_tables_are_read_by_blocks(
         raise AssertionError("read row by row")
 
     expected = _by_rows(tmp_path / "in.csv", ("t", "roll", "pitch"))
-    monkeypatch.setattr(text_rows, "_split_rows", refused)
+    monkeypatch.setattr(sample_rows, "_split_rows", refused)
     assert _by_blocks(tmp_path / "in.csv", ("t", "roll", "pitch"), 5) == expected
     assert len(expected[0]) > 2
 
@@ -227,7 +228,7 @@ def test_plain_tables_are_read_by_blocks(
 def test_the_quick_empty_field_test_never_misses_one(sep: bytes, rows: list[list[bytes]]) -> None:
     """Wherever the pattern finds an empty or blank field, the quick test says there may
     be one (it only spares the search on lines that cannot have one)."""
-    from continuum_mhe.io.text_rows import empty_field_pattern, may_have_empty_field
+    from continuum_mhe.io.sample_rows import empty_field_pattern, may_have_empty_field
 
     lines = [sep.join(r) for r in rows]
     body = b"\n".join(ln for ln in lines if ln.strip())  # blank lines are dropped first

@@ -31,7 +31,7 @@ from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.inputs import read_recording
 from continuum_mhe.io.output_files import atomic_writer, check_output_target, refuse_inputs
 from continuum_mhe.io.robot_file import robot_source_text, with_imu_calibration
-from continuum_mhe.io.text_rows import DROPOUT_HINT
+from continuum_mhe.io.sample_rows import DROPOUT_HINT
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX, Robot
 from continuum_mhe.stream.protocol import LINE_FORMATS, LineFormat

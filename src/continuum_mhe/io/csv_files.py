@@ -27,13 +27,8 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, expect_type, is_integer
 from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, TILT_IMU_COLUMNS, imu_suffixes
-from continuum_mhe.io.text_rows import (
-    MEASUREMENT_HEADER_HINT,
-    RowProblems,
-    TextRows,
-    iter_samples,
-    open_rows,
-)
+from continuum_mhe.io.sample_rows import RowProblems, iter_samples
+from continuum_mhe.io.text_rows import MEASUREMENT_HEADER_HINT, TextRows, open_rows
 from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )

@@ -9,10 +9,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.text_rows import (
-    TextRows,
-    column_indices,
-)
+from continuum_mhe.io.text_rows import TextRows, column_indices
 
 #: The fix named when a file's IMU count is not the robot's (``{found}``: the file's).
 ROBOT_FIX = "pass --robot FILE with a robot file of {found} IMU(s)"

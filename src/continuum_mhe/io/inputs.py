@@ -79,6 +79,7 @@ from continuum_mhe.io.robot_logs import (
     read_imu_log,
     tilt_from_quaternion,
 )
+from continuum_mhe.io.sample_rows import RowProblems, SampleBlock, sample_blocks
 from continuum_mhe.io.tensions import (
     Tensions,
     read_tensions,
@@ -86,7 +87,7 @@ from continuum_mhe.io.tensions import (
     tension_columns,
     tension_columns_in,
 )
-from continuum_mhe.io.text_rows import RowProblems, SampleBlock, TextRows, open_rows, sample_blocks
+from continuum_mhe.io.text_rows import TextRows, open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation

@@ -36,7 +36,8 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, finite_reals
 from continuum_mhe.io.csv_files import UnitWarning, check_time_units, read_sample_rows
 from continuum_mhe.io.imu_columns import READER_FIX, ROBOT_FIX, ImuColumns, imu_suffixes
-from continuum_mhe.io.text_rows import RowProblems, TextRows, open_rows
+from continuum_mhe.io.sample_rows import RowProblems
+from continuum_mhe.io.text_rows import TextRows, open_rows
 from continuum_mhe.model.direct import direct_measurements
 from continuum_mhe.model.imu import STANDARD_GRAVITY, tilt_from_accelerometer
 from continuum_mhe.model.robot import mount_rpy_hint

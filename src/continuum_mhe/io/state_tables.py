@@ -16,13 +16,8 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.estimate_csv import STD_PREFIX
-from continuum_mhe.io.text_rows import (
-    TextRows,
-    column_indices,
-    has_extra_fields,
-    open_rows,
-    parse_float,
-)
+from continuum_mhe.io.sample_rows import has_extra_fields
+from continuum_mhe.io.text_rows import TextRows, column_indices, open_rows, parse_float
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     output_names,

@@ -37,6 +37,7 @@ from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, SampleTimeError, UserError, time_text
 from continuum_mhe.io.csv_files import MS_LIKE_STEP_S, DropoutWarning, check_time_units
 from continuum_mhe.io.input_options import InputOptions, OptionWarning
+from continuum_mhe.io.sample_rows import RowProblems, iter_samples
 from continuum_mhe.io.tension_derivatives import (
     TENSION_ACCELERATION_NOISE,
     TENSION_RATE_NOISE,
@@ -48,7 +49,7 @@ from continuum_mhe.io.tension_derivatives import (
     tension_derivatives,
     tension_noise_std,
 )
-from continuum_mhe.io.text_rows import RowProblems, iter_samples, open_rows
+from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.model.tendon import TendonFormulation
