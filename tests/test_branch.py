@@ -146,7 +146,7 @@ def test_fast_and_ipopt_agree_with_the_check_on(clean_recording) -> None:  # typ
 def test_the_check_is_on_by_default_for_tilt_only_and_the_cli_sets_it() -> None:
     import argparse
 
-    from continuum_mhe.cli.options import add_mhe_options, mhe_settings_from_args
+    from continuum_mhe.cli.method_options import add_mhe_options, mhe_settings_from_args
 
     p = argparse.ArgumentParser()
     add_mhe_options(p)

@@ -429,7 +429,7 @@ def test_the_library_recovers_as_the_command_line_does() -> None:
     """``RecoverySettings()`` is what ``estimate`` runs without recovery options (gap
     reset, freeze, bad-start check and reject reset on); ``off()`` turns them off."""
     from continuum_mhe.cli.app import build_parser
-    from continuum_mhe.cli.options import recovery_settings_from_args
+    from continuum_mhe.cli.recovery_options import recovery_settings_from_args
     from continuum_mhe.settings import RecoverySettings
 
     args = build_parser().parse_args(["estimate", "m.csv", "-o", "e.csv"])

@@ -1030,7 +1030,7 @@ def test_a_tendon_robot_defaults_to_the_ekf_and_a_pcc_robot_to_the_mhe(
     robot without a backbone keeps the MHE, silently; a chosen method is kept."""
     import argparse
 
-    from continuum_mhe.cli.options import method_from_args
+    from continuum_mhe.cli.method_options import method_from_args
     from continuum_mhe.estimators import default_method
     from continuum_mhe.model.registry import make_formulation
 

@@ -5,7 +5,9 @@ written once) and :mod:`.entry` the light entry point that answers ``--help`` an
 ``--version`` from it; :mod:`.app` builds the full parser from the same table and runs a
 command (one line and exit status 2 for a user's mistake, 70 for a bug); each command
 lives in its own module (:mod:`.estimate`, :mod:`.live`, ...) with ``add_arguments`` and
-``run``; :mod:`.options` holds the options several commands share.
+``run``; the options several commands share are in :mod:`.options`,
+:mod:`.model_options`, :mod:`.method_options`, :mod:`.recovery_options` and
+:mod:`.input_options`.
 
 ``main`` and ``build_parser`` are imported from :mod:`.app` on first use, so that
 importing the entry point stays light.

@@ -21,7 +21,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.cli.config import FILE_OPTIONS, apply_config, options_record
-from continuum_mhe.cli.options import check_option_ranges, check_robot_replaces
+from continuum_mhe.cli.method_options import check_robot_replaces
+from continuum_mhe.cli.options import check_option_ranges
 from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit

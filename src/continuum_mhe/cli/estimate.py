@@ -23,24 +23,27 @@ from continuum_mhe.cli.config import (
     add_config_option,
     model_record,
 )
-from continuum_mhe.cli.options import (
-    add_method_option,
-    add_mhe_options,
-    add_model_options,
-    add_overwrite_option,
+from continuum_mhe.cli.input_options import (
     add_raw_imu_options,
-    add_recovery_options,
     add_tension_gain_option,
     add_tensions_option,
-    check_noise_options_apply,
-    formulation_from_args,
     input_files,
     input_options,
+)
+from continuum_mhe.cli.method_options import (
+    add_method_option,
+    add_mhe_options,
     method_from_args,
     mhe_settings_from_args,
-    recovery_settings_from_args,
 )
+from continuum_mhe.cli.model_options import (
+    add_model_options,
+    check_noise_options_apply,
+    formulation_from_args,
+)
+from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG, version
+from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.run_notices import (

@@ -8,29 +8,32 @@ import gc
 import os
 
 from continuum_mhe.cli.config import MODEL_LINE, OPTIONS_LINE, add_config_option, model_record
+from continuum_mhe.cli.input_options import (
+    add_raw_imu_options,
+    add_tension_gain_option,
+    add_tensions_option,
+    input_files,
+    input_options,
+)
 from continuum_mhe.cli.live_options import (
     add_live_view_option,
     add_recording_options,
     add_serial_options,
     viewer_sink_from_args,
 )
-from continuum_mhe.cli.options import (
+from continuum_mhe.cli.method_options import (
     add_method_option,
     add_mhe_options,
-    add_model_options,
-    add_raw_imu_options,
-    add_recovery_options,
-    add_tension_gain_option,
-    add_tensions_option,
-    check_noise_options_apply,
-    formulation_from_args,
-    input_files,
-    input_options,
     method_from_args,
     mhe_settings_from_args,
-    recovery_settings_from_args,
+)
+from continuum_mhe.cli.model_options import (
+    add_model_options,
+    check_noise_options_apply,
+    formulation_from_args,
 )
 from continuum_mhe.cli.program import version
+from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import MissingExtraError
 from continuum_mhe.io.estimate_csv import estimate_columns

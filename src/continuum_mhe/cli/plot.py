@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
+from continuum_mhe.cli.input_options import add_tensions_option
+from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.model.descriptions import TIP_COLUMNS

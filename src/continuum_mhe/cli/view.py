@@ -7,8 +7,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from continuum_mhe.cli.input_options import add_tensions_option
 from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_args
-from continuum_mhe.cli.options import add_overwrite_option, add_tensions_option
+from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
 from continuum_mhe.errors import UserError

@@ -1,0 +1,167 @@
+"""The input's command-line options: raw IMUs (``--imu-model``, ``--attitude``,
+``--gyro-std``...), tendon tensions (``--inputs``), and the input options and files
+they make."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import TYPE_CHECKING, Any
+
+from continuum_mhe.errors import InputError
+from continuum_mhe.io.input_options import DEFAULT_GYRO_STD
+from continuum_mhe.io.raw_imu import ATTITUDES, IMU_MODELS, RawImuSettings, parse_mount_rpy
+
+if TYPE_CHECKING:
+    pass
+from continuum_mhe.cli.model_options import worse_on_rods
+from continuum_mhe.cli.options import given_options
+
+
+def add_tensions_option(p: argparse.ArgumentParser, otherwise: str) -> None:
+    """``--inputs TENSIONS.csv``: a tendon robot's tensions file (``otherwise``: where
+    the tensions come from without it)."""
+    p.add_argument(
+        "--inputs",
+        metavar="TENSIONS.csv",
+        help="tendon tensions t,tension_1,...,tension_k (N, the robot file's [[tendon]] "
+        f"order), interpolated linearly to the sample times ({otherwise}; docs/tendon.md)",
+    )
+
+
+def add_tension_gain_option(p: argparse.ArgumentParser) -> None:
+    """``--estimate-tension-gain``: a tendon robot's gain per section on the tensions
+    given (``estimate`` and ``live``)."""
+    p.add_argument(
+        "--estimate-tension-gain",
+        action="store_true",
+        help="a tendon robot with raw IMUs: estimate a gain per section on the tensions "
+        "given (the tension acting over the one given: a tension sensor's gain, tendon "
+        "friction; a unit error such as kgf given as N is said, not recovered), a warning "
+        "where it ends far from 1; costs accuracy where the tensions are right, and "
+        "misleads with tilt IMUs (docs/tendon.md)",
+    )
+
+
+def add_raw_imu_options(p: argparse.ArgumentParser) -> None:
+    """Options that turn raw IMU samples into measurements (estimate and live)."""
+    g = p.add_argument_group("raw IMU input (accelerometer m/s^2, gyro rad/s)")
+    g.add_argument(
+        "--imu-model",
+        choices=IMU_MODELS,
+        default=None,
+        help="direct: gravity direction and gyro rates in the model, gyro biases "
+        "estimated (default where the input has gyro columns); tilt: roll/pitch from the "
+        "accelerometer alone (default without gyros; on raw input "
+        f"{worse_on_rods('--imu-model tilt')}; docs/options.md)",
+    )
+    g.add_argument(
+        "--attitude",
+        choices=ATTITUDES,
+        default="accel",
+        help="for --imu-model tilt: accel (accelerometer only, default), or madgwick / "
+        "mahony gyro fusion from the ahrs package; both measurably worse than the default "
+        "direct model (planar-S rod, EKF: madgwick 33 mm, mahony 5.8 mm, direct 3.8 mm "
+        "mean tip error; docs/options.md)",
+    )
+    g.add_argument(
+        "--mount-rpy",
+        default=None,  # None: not given (0,0,0); given, it must apply to some IMU
+        metavar="R,P,Y",
+        help="sensor mounting roll,pitch,yaw in degrees: v_tip = Rz(Y) Ry(P) Rx(R) v_sensor "
+        "(default 0,0,0); for the IMUs without a robot-file mount_rpy",
+    )
+    g.add_argument(
+        "--gyro-std",
+        type=float,
+        default=DEFAULT_GYRO_STD,
+        help="gyro white noise std in rad/s for --imu-model direct (default "
+        f"{DEFAULT_GYRO_STD:g}: a MEMS gyro, with room for the model's error)",
+    )
+    g.add_argument(
+        "--estimate-gyro-bias",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="for --imu-model direct: estimate each gyro's bias (a random-walk state per "
+        "IMU; default) or, with --no-estimate-gyro-bias, count it as gyro noise "
+        f"({worse_on_rods('--no-estimate-gyro-bias')})",
+    )
+    g.add_argument(
+        "--estimate-accel-bias",
+        action="store_true",
+        help="for --imu-model direct: estimate each accelerometer's bias (a random-walk "
+        "state per IMU, m/s^2); needs motion through several orientations (docs/model.md; "
+        "a tendon robot estimates it by default: docs/tendon.md)",
+    )
+    g.add_argument(
+        "--own-acceleration",
+        action="store_true",
+        help="for --imu-model direct: model each IMU's own acceleration (the bend "
+        "accelerations become states; docs/model.md). On the shipped rod recordings it "
+        "helps the MHE and can cost the EKF and UKF (restarts, largest errors over 200 mm: "
+        "docs/estimators.md)",
+    )
+
+
+def raw_settings(args: argparse.Namespace) -> RawImuSettings:
+    """:class:`RawImuSettings` from parsed options (defaults where absent); an
+    ``--attitude`` filter with ``--imu-model direct``, which has none, is refused in one
+    line naming both (and the options file of either)."""
+    model, attitude = getattr(args, "imu_model", None), getattr(args, "attitude", "accel")
+    if model == "direct" and attitude != "accel":
+        sources = getattr(args, "config_sources", {})
+        named = [
+            sources.get(dest) or f"--{dest.replace('_', '-')} {value}"
+            for dest, value in (("imu_model", model), ("attitude", attitude))
+        ]
+        raise InputError(
+            f"{named[1]} does not apply with {named[0]}: --attitude chooses how --imu-model "
+            "tilt makes roll and pitch from raw readings, and --imu-model direct puts the "
+            "accelerometer and gyro readings into the model itself, with no attitude "
+            "filter; leave one of the two out"
+        )
+    return RawImuSettings(
+        imu_model=getattr(args, "imu_model", None),
+        attitude=getattr(args, "attitude", "accel"),
+        mount_rpy=parse_mount_rpy(getattr(args, "mount_rpy", None) or "0,0,0"),
+    )
+
+
+def input_options(args: argparse.Namespace) -> Any:
+    """``input_options.InputOptions`` for ``estimate`` (and ``live``) from parsed options."""
+    from continuum_mhe.io.input_options import InputOptions
+
+    topics = tuple(getattr(args, "topic", None) or ())
+    gyro_std = float(getattr(args, "gyro_std", DEFAULT_GYRO_STD))
+    if not (math.isfinite(gyro_std) and gyro_std > 0):
+        raise InputError(f"--gyro-std must be positive, got {gyro_std}")
+    return InputOptions(
+        raw=raw_settings(args),
+        mount_rpy_given=getattr(args, "mount_rpy", None) is not None,
+        gyro_std_given="gyro_std" in given_options(args),
+        gyro_bias_off_given="estimate_gyro_bias" in given_options(args)
+        and getattr(args, "estimate_gyro_bias", None) is False,
+        topic=topics[0] if len(topics) == 1 else None,
+        topics=topics,
+        pair_tolerance=getattr(args, "pair_tolerance", None),
+        use_orientation=bool(getattr(args, "orientation", False)),
+        gyro_std=gyro_std,
+        estimate_gyro_bias=getattr(args, "estimate_gyro_bias", None),
+        estimate_accel_bias=bool(getattr(args, "estimate_accel_bias", False)),
+        own_acceleration=bool(getattr(args, "own_acceleration", False)),
+        degrees=bool(getattr(args, "degrees", False)),
+        skip_bad=bool(getattr(args, "skip_bad", False)),
+        tensions=getattr(args, "inputs", None),
+        estimate_tension_gain=bool(getattr(args, "estimate_tension_gain", False)),
+    )
+
+
+def input_files(args: argparse.Namespace) -> list[tuple[str, str | None]]:
+    """The files besides the recording that ``estimate`` and ``live`` read, as
+    :func:`continuum_mhe.io.output_files.refuse_inputs` takes them: an output must not
+    replace one. (Not ``--config``: an estimate CSV given as its own options file is
+    read before the new one replaces it, a re-run.)"""
+    return [
+        ("the tensions file --inputs", getattr(args, "inputs", None)),
+        ("the robot file --robot", getattr(args, "robot", None)),
+    ]
