@@ -765,7 +765,7 @@ def test_device_message_repeats_not_shown_are_counted_for_the_summary() -> None:
     """A banner repeated within the rate limit (a board that resets twice in 5 s) is
     shown once; the repeats hidden are counted (the summary says how many), and said
     with the message where it is shown again later."""
-    from continuum_mhe.live.session import DeviceMessages
+    from continuum_mhe.live.counts import DeviceMessages
 
     said: list[str] = []
     messages = DeviceMessages(said.append, 5.0)

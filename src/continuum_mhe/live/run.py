@@ -122,7 +122,7 @@ def run_live(
                     say(f"caught up with real time after {now - behind_since:.1f} s")
                     behind_since = None
             elif kind == "too-long":
-                session.too_long_line(payload, reader.splitter.max_bytes, arrival)
+                session.too_long_line(reader.splitter.max_bytes, arrival)
                 if session.fatal is not None:
                     break
             elif kind == "partial":

@@ -9,7 +9,7 @@ import statistics
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import IO, Any, Protocol
 
 import numpy as np
@@ -33,6 +33,7 @@ from continuum_mhe.io.raw_imu import (
     check_gyro_units,
 )
 from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream
+from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock
@@ -119,83 +120,6 @@ class LiveSettings:
                 raise ValueError(f"{name} must be positive, got {v!r}")
         if not self.gap_factor > 1:
             raise ValueError(f"gap_factor must exceed 1, got {self.gap_factor!r}")
-
-
-@dataclass
-class LiveCounts:
-    """Running counts of a live session (reported in the status line and at the end)."""
-
-    lines: int = 0
-    samples: int = 0
-    estimates: int = 0
-    comments: int = 0
-    garbled: int = 0
-    imu_dropouts: int = 0  # IMU readings unreadable on a line whose other IMUs' were kept
-    partial: int = 0
-    too_long: int = 0
-    out_of_order: int = 0
-    gaps: int = 0
-    missing: int = 0  # samples the gaps are estimated to have lost on the device side
-    disconnects: int = 0
-    clock_restarts: int = 0
-    clock_wraps: int = 0
-    estimator_failures: int = 0  # exceptions and non-finite estimates: flagged, restarted
-    restarts: int = 0  # times live restarted the estimator (clock restart, failure)
-    first_restart_t: float | None = None
-    # the first restart that 'estimate' on the recording does not make, and why
-    replay_differs_t: float | None = None
-    replay_differs_why: str = ""
-    header: str = ""
-    reasons: dict[str, int] = field(default_factory=dict)
-    first_garbled: str | None = None  # why the first garbled line was, with a likely cause
-
-
-class DeviceMessages:
-    """Shows every device ``#`` line, the same text at most once per ``every`` s (with
-    the count of repeats not shown)."""
-
-    def __init__(self, say: Any, every: float) -> None:
-        self.say, self.every = say, every
-        self._shown: dict[str, tuple[float, int]] = {}  # text -> (last shown, hidden since)
-
-    def show(self, text: str, now: float, source: str = "device says: ") -> None:
-        """Say ``source`` and ``text`` (``source=""``: a note of the host's own, such as
-        an estimator failure, rate-limited the same way)."""
-        last, hidden = self._shown.get(text, (-math.inf, 0))
-        if now - last < self.every:
-            self._shown[text] = (last, hidden + 1)
-            return
-        more = f" (and {hidden} more time(s) since)" if hidden else ""
-        self.say(f"{source}{text}{more}")
-        if len(self._shown) > 1000:  # a device that never repeats itself: forget the oldest
-            self._shown.pop(next(iter(self._shown)))
-        self._shown[text] = (now, 0)
-
-    def not_shown(self) -> int:
-        """The repeats hidden since their message was last shown (none said yet): the
-        summary counts them."""
-        return sum(hidden for _, hidden in self._shown.values())
-
-
-class LatencyHistogram:
-    """Latencies (ms) in log-spaced bins (2.3 % wide), so memory stays constant."""
-
-    EDGES = np.geomspace(1e-3, 1e5, 801)
-
-    def __init__(self) -> None:
-        self.counts = np.zeros(len(self.EDGES) + 1, dtype=np.int64)
-        self.n = 0
-
-    def add(self, ms: float) -> None:
-        self.counts[int(np.searchsorted(self.EDGES, ms))] += 1
-        self.n += 1
-
-    def quantile(self, q: float) -> float:
-        """The ``q`` quantile, ms (upper edge of its bin); NaN when empty."""
-        if self.n == 0:
-            return math.nan
-        i = int(np.searchsorted(np.cumsum(self.counts), q * self.n))
-        return float(self.EDGES[min(i, len(self.EDGES) - 1)])
 
 
 @dataclass(frozen=True)
@@ -480,7 +404,7 @@ class LiveSession:
                     f"expects {len(want)} ({','.join(want)}); check --format and --robot"
                 )
 
-    def too_long_line(self, n_bytes: int, max_bytes: int, arrival: float) -> None:
+    def too_long_line(self, max_bytes: int, arrival: float) -> None:
         """The reader dropped a line longer than ``max_bytes`` (no line end: the wrong
         baud rate, or not this protocol): counted, said (rate-limited) as the host's own
         note, and part of a run of garbage (:data:`GARBAGE_STOP_S`)."""
