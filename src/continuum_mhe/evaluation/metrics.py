@@ -112,7 +112,9 @@ def _table(what: str, values: object, names: list[str], name_arg: str) -> FloatA
 def state_errors(
     estimate: FloatArray, truth: FloatArray, names: Sequence[str] = STATE_NAMES
 ) -> FloatArray:
-    """Per-sample errors (n, k) of named columns, with phi columns wrapped."""
+    """Per-sample errors (n, k), estimate minus truth, of the columns ``names`` (each in
+    its own unit: rad for ``theta``/``phi``, m for positions), ``phi`` columns wrapped to
+    ``[-pi, pi)``."""
     err = np.asarray(estimate, float) - np.asarray(truth, float)
     for j, name in enumerate(names):
         if is_wrapped(name):

@@ -169,7 +169,11 @@ def simulate_robot(
     seed: int = 0,
     noise_model: NoiseModel = "tilt",
 ) -> Recording:
-    """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed).
+    """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed): the
+    bends for ``duration`` s sampled every ``dt`` s, each IMU's roll and pitch with
+    noise of ``noise_deg`` degrees standard deviation (``noise_model``: how it enters,
+    see the module docstring), drawn from ``seed``. A scenario for one section with a
+    tip IMU on a one-section robot is :func:`simulate`'s.
 
     Raises:
         UserError: for a tendon robot (its recordings come from
