@@ -795,6 +795,31 @@ def test_evaluate_warns_when_the_length_does_not_fit_the_files(
     assert len(said) == 1 and "m from the base, beyond the robot's length 0.1 m" in said[0]
 
 
+def test_evaluate_takes_the_length_the_estimate_records(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An estimate made with --length 0.3 is evaluated on 0.3 m without --length (its
+    options line records it; the tip error in % of 0.2 m and the warning naming 0.3
+    disagreed), said in a note; --length given wins; the default length records
+    nothing to say."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
+                 "--duration", "2", "--length", "0.3"]) == 0  # fmt: skip
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf", "--length", "0.3"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    out, err = capsys.readouterr()
+    assert err == (
+        f"continuum-mhe: note: {est} was estimated with --length 0.3 (its options line): "
+        "evaluated on that robot (pass --length or --robot for another)\n"
+    )
+    tip_mm = float(out.split("tip error mean")[1].split("mm")[0])
+    share = float(out.split("tip error mean")[1].split("(")[1].split("%")[0])
+    assert share == pytest.approx(100 * tip_mm / 300, abs=0.01)
+    assert main(["evaluate", str(est), str(truth), "--length", "0.3"]) == 0
+    assert "note" not in capsys.readouterr().err
+
+
 def test_simulate_says_that_a_robot_files_mount_rpy_is_not_applied(tmp_path, capsys):
     """simulate --robot writes the disks' roll and pitch and says, in a note, that the
     robot file's mount_rpy of an IMU is not applied (estimate says the same of tilt

@@ -394,11 +394,13 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["evaluate", str(est), str(t)]) == 0
     out, err = capsys.readouterr()
-    # one warning (not a second, est against truth, for the same mistake), naming the
-    # file and the length it was made for
+    # evaluated on the length the estimate records (a note says so); one warning (not a
+    # second, est against truth, for the same mistake), naming the truth and the length
+    # it was made for
     assert err.count("warning") == 1, err
-    assert f"warning: {est}: its tip is 2.50 times as far from the base" in err
-    assert "made for a robot of about 0.5 m; pass the --length" in err
+    assert f"note: {est} was estimated with --length 0.5 (its options line)" in err
+    assert f"warning: {t}: its tip is 0.40 times as far from the base" in err
+    assert "made for a robot of about 0.2 m; pass the --length" in err
     assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf", "--overwrite"]) == 0
     capsys.readouterr()
@@ -1976,3 +1978,70 @@ def test_a_multi_section_scenario_on_one_section_names_the_ones_it_takes(tmp_pat
     assert len(err) == 1 and "needs a robot with two or more sections (--robot)" in err[0], err
     assert "takes paper3d, planar-overbend, straight" in err[0]
     assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def paper3d_pair(tmp_path_factory) -> dict[str, Path]:
+    """A paper3d EKF estimate (6 s), its truth, and three mistaken copies: the estimate's
+    positions in mm, the truth on a clock 0.5 s late, and the truth with t in ms."""
+    tmp = tmp_path_factory.mktemp("pair")
+    paths = {k: tmp / f"{k}.csv" for k in ("m", "t", "e", "e_mm", "t_late", "t_ms")}
+    assert main(["simulate", "paper3d", "--duration", "6", "-o", str(paths["m"]),
+                 "--truth", str(paths["t"])]) == 0  # fmt: skip
+    assert main(["estimate", str(paths["m"]), "-o", str(paths["e"]), "--method", "ekf"]) == 0
+
+    def rewrite(src: Path, dst: Path, change) -> None:
+        lines = src.read_text().splitlines()
+        body = [ln for ln in lines if not ln.startswith("#")]
+        header = body[0].split(",")
+        out = [ln for ln in lines if ln.startswith("#")] + [body[0]]
+        for ln in body[1:]:
+            fields = ln.split(",")
+            out.append(",".join(change(header, fields)))
+        dst.write_text("\n".join(out) + "\n")
+
+    def in_mm(header, f):
+        return [repr(float(v) * 1e3) if h in ("x", "y", "z") and v else v
+                for h, v in zip(header, f)]  # fmt: skip
+
+    rewrite(paths["e"], paths["e_mm"], in_mm)
+    rewrite(paths["t"], paths["t_late"], lambda h, f: [repr(float(f[0]) + 0.5), *f[1:]])
+    rewrite(paths["t"], paths["t_ms"], lambda h, f: [repr(float(f[0]) * 1e3), *f[1:]])
+    return paths
+
+
+def test_plot_refuses_positions_in_mm_without_a_robot(paper3d_pair, tmp_path, capsys) -> None:
+    """plot of an estimate whose positions are in mm drew a 200 m robot without a word
+    (evaluate and view refused it): its rows' own sections, beyond any robot's, refuse it."""
+    fig = tmp_path / "f.png"
+    assert main(["plot", str(paper3d_pair["e_mm"]), "-o", str(fig)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not fig.exists()
+    assert "its rows give sections of 200 m (its positions against its own bend angles)" in err
+    assert err.endswith("positions in mm? give x, y, z in m\n")
+
+
+def test_plot_and_view_warn_of_a_truth_on_an_offset_clock(paper3d_pair, tmp_path, capsys) -> None:
+    """A truth 0.5 s late: evaluate warned, plot and view drew the offset as an error of
+    the estimate without a word; each says it, naming evaluate's --truth-shift."""
+    e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
+    said = "the truth fits the estimate best +0.5 s later"
+    assert main(["evaluate", e, late]) == 0
+    assert said in capsys.readouterr().err
+    assert main(["plot", e, "--truth", late, "-o", str(tmp_path / "f.png")]) == 0
+    err = capsys.readouterr().err
+    assert said in err and "evaluate --truth-shift 0.5 compares them so" in err
+    pytest.importorskip("rerun")
+    assert main(["view", e, "--truth", late, "--save", str(tmp_path / "v.rrd")]) == 0
+    assert said in capsys.readouterr().err
+
+
+def test_view_refuses_a_truth_with_t_in_milliseconds(paper3d_pair, tmp_path, capsys) -> None:
+    """view wrote a recording "with truth" of a truth whose t is in ms (evaluate and plot
+    refused it): refused in one line, nothing written."""
+    pytest.importorskip("rerun")
+    out = tmp_path / "v.rrd"
+    argv = ["view", str(paper3d_pair["e"]), "--truth", str(paper3d_pair["t_ms"])]
+    assert main([*argv, "--save", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{paper3d_pair['t_ms']}: only " in err and not out.exists()

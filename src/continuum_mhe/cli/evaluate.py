@@ -14,12 +14,12 @@ import numpy as np
 
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, estimate_robot
+from continuum_mhe.cli.truth_checks import clock_offset_warning
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
     Metrics,
     aligned_truth,
-    best_time_shift,
     compute_calibration,
     compute_metrics,
     interpolated_note,
@@ -110,42 +110,6 @@ def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, le
     return (
         f"the estimate's tip is {r:.2f} times as far from the base as the truth's: "
         "was it made with another --length (or robot file) than the truth?"
-    )
-
-
-#: ``evaluate`` warns where the truth shifted in time fits the estimate with a mean tip
-#: error below this share of the unshifted one, itself at least :data:`SHIFT_MIN_ERROR`
-#: of the robot's length.
-SHIFT_GAIN = 0.5
-SHIFT_MIN_ERROR = 0.05
-
-
-def _shift_hint(
-    path: str,
-    est: StateTable,
-    truth: StateTable,
-    xyz: tuple[list[int], list[int]],
-    length: float,
-    tip_mean: float,
-) -> str:
-    """A warning where the truth's clock looks offset from the estimate's (a shift of
-    the truth within 2 s fits far better: :func:`best_time_shift`), else ``""``; not
-    looked for where the mean tip error ``tip_mean`` (m) is already small."""
-    if not tip_mean >= SHIFT_MIN_ERROR * length:  # close enough: no shift to look for
-        return ""
-    shift = best_time_shift(est.t, est.values[:, xyz[0]], truth.t, truth.values[:, xyz[1]])
-    if (
-        shift is None
-        or shift.shift_s == 0.0
-        or shift.unshifted < SHIFT_MIN_ERROR * length
-        or not shift.error < SHIFT_GAIN * shift.unshifted
-    ):
-        return ""
-    return (
-        f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later (mean tip error "
-        f"{shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as the times "
-        "match): are the two files' clocks offset? (a motion that repeats can fit "
-        f"shifted too; --truth-shift {shift.shift_s:.3g} compares them so)"
     )
 
 
@@ -267,7 +231,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
     warned = [hint] if other_robot or not misfits else misfits
-    warned.append(_shift_hint(args.truth, est, truth, xyz, length, m.tip_mean_mm / 1e3))
+    warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
     for line in filter(None, warned):
         print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:

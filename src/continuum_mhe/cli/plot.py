@@ -80,9 +80,11 @@ def _estimate(args: argparse.Namespace) -> int:
 
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
-    from continuum_mhe.cli.robot_options import warn_other_recorded_robot
+    from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, warn_other_recorded_robot
+    from continuum_mhe.cli.truth_checks import clock_offset_warning, tip_error_mean
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
+        lengths_from_estimate,
         lengths_misfit,
         section_count,
         truth_at_estimate,
@@ -94,6 +96,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     from continuum_mhe.io.position_units import position_unit_against, position_unit_problem
     from continuum_mhe.io.robot_file import read_robot
     from continuum_mhe.io.state_tables import read_state_table
+    from continuum_mhe.model.robot import MAX_SECTION_LENGTH
 
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
@@ -119,6 +122,13 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             )
         else:
             warn_other_recorded_robot(args.source, args.robot, robot)
+    own = lengths_from_estimate(est) if lengths is None else None
+    if own is not None and max(own) > MAX_SECTION_LENGTH:  # positions in mm, or cm
+        raise InputError(
+            f"{args.source}: its rows give sections of "
+            f"{', '.join(f'{v:.4g}' for v in own)} m (its positions against its own bend "
+            "angles), beyond any robot's: positions in mm? give x, y, z in m"
+        )
     for path, table in ((args.source, est), (args.truth, truth)):
         unit = ""
         if table is not None and lengths is not None:
@@ -136,6 +146,14 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     if at_est is not None:
         note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
         print(f"{PROG}: note: {note}", file=sys.stderr)
+    if truth is not None:
+        length = sum(lengths or own or (DEFAULT_LENGTH,))
+        offset = clock_offset_warning(
+            args.truth, est, truth, length, tip_error_mean(est, truth), "evaluate --truth-shift"
+        )
+        if offset:
+            print(f"{PROG}: warning: {offset}", file=sys.stderr)
+    if at_est is not None:
         truth = at_est
     try:
         fig = estimate_figure(est, truth, lengths, title, backbone)

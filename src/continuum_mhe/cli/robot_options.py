@@ -139,13 +139,14 @@ def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
 
 def recorded_robot(path: str, use: str) -> Robot | None:
     """The robot file the options line of the estimate ``path`` names, where it can be
-    read (said in a note), else None."""
+    read, or the one section of the ``length`` (``mounting``, ``theta-max``) it records
+    (said in a note), else None."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.io.robot_file import read_robot
 
     name = recorded_option(path, "robot")
     if not isinstance(name, str):
-        return None
+        return _recorded_section(path, use)
     try:
         robot = read_robot(beside(path, name))
     except UserError as exc:
@@ -158,6 +159,33 @@ def recorded_robot(path: str, use: str) -> Robot | None:
     print(
         f"{PROG}: note: {path} was estimated with --robot {name} (its options line): "
         f"{use} (pass --robot for another)",
+        file=sys.stderr,
+    )
+    return robot
+
+
+def _recorded_section(path: str, use: str) -> Robot | None:
+    """The one-section robot of the ``length`` the options line of the estimate
+    ``path`` records (with its ``mounting`` and ``theta-max``; said in a note), where it
+    records one other than :data:`DEFAULT_LENGTH`, else None."""
+    length = recorded_option(path, "length")
+    if not isinstance(length, (int, float)) or isinstance(length, bool):
+        return None
+    if float(length) == DEFAULT_LENGTH:
+        return None
+    mounting = recorded_option(path, "mounting")
+    theta_max = recorded_option(path, "theta-max")
+    try:
+        robot = Robot.single(
+            float(length),
+            float(theta_max) if isinstance(theta_max, (int, float)) else math.pi / 2,
+            mounting if mounting in ("z-up", "z-down") else "z-up",
+        )
+    except ValueError:
+        return None
+    print(
+        f"{PROG}: note: {path} was estimated with --length {float(length):g} (its options "
+        f"line): {use} (pass --length or --robot for another)",
         file=sys.stderr,
     )
     return robot

@@ -1,0 +1,75 @@
+"""The checks of a truth against an estimate that ``evaluate``, ``plot`` and ``view``
+share: a truth on an offset clock (:func:`clock_offset_warning`, with the mean tip
+error it starts from, :func:`tip_error_mean`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from continuum_mhe.evaluation.metrics import SHIFT_MAX_S, aligned_truth, best_time_shift
+from continuum_mhe.io.state_tables import StateTable
+from continuum_mhe.model.descriptions import TIP_COLUMNS
+
+#: ``evaluate`` warns where the truth shifted in time fits the estimate with a mean tip
+#: error below this share of the unshifted one, itself at least :data:`SHIFT_MIN_ERROR`
+#: of the robot's length.
+SHIFT_GAIN = 0.5
+SHIFT_MIN_ERROR = 0.05
+
+
+def clock_offset_warning(
+    path: str,
+    est: StateTable,
+    truth: StateTable,
+    length: float,
+    tip_mean: float,
+    shift_option: str = "--truth-shift",
+) -> str:
+    """A warning where the truth ``path`` (``truth``) looks on a clock offset from the
+    estimate ``est``'s (a shift of the truth within :data:`SHIFT_MAX_S` s fits far better:
+    :func:`~continuum_mhe.evaluation.metrics.best_time_shift`), else ``""``; not looked
+    for where the mean tip error ``tip_mean`` (m) on a robot of ``length`` m is already
+    small. A best shift at the edge of the search says that the offset may be larger.
+    ``shift_option``: how the command line compares the files shifted (``evaluate``'s
+    ``--truth-shift``)."""
+    if not tip_mean >= SHIFT_MIN_ERROR * length:  # close enough: no shift to look for
+        return ""
+    xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
+    shift = best_time_shift(est.t, est.values[:, xyz[0]], truth.t, truth.values[:, xyz[1]])
+    if (
+        shift is None
+        or shift.shift_s == 0.0
+        or shift.unshifted < SHIFT_MIN_ERROR * length
+        or not shift.error < SHIFT_GAIN * shift.unshifted
+    ):
+        return ""
+    fits = (
+        f"(mean tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as "
+        "the times match): are the two files' clocks offset?"
+    )
+    if abs(shift.shift_s) >= SHIFT_MAX_S - 0.05:  # at the edge: the offset may be larger
+        return (
+            f"{path}: the truth fits the estimate better {shift.shift_s:+.3g} s later, at the "
+            f"edge of the +-{SHIFT_MAX_S:g} s searched {fits} The offset may be larger; find "
+            f"the shift that fits with {shift_option} (a motion that repeats fits shifted too)"
+        )
+    return (
+        f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later {fits} (a "
+        f"motion that repeats can fit shifted too; {shift_option} {shift.shift_s:.3g} "
+        "compares them so)"
+    )
+
+
+def tip_error_mean(est: StateTable, truth: StateTable) -> float:
+    """The mean tip error (m) of ``est`` against ``truth`` at the rows they share (as
+    ``evaluate`` aligns them); NaN where none does."""
+    i_est, rows, _ = aligned_truth(est.t, truth.t, truth.values, truth.names)
+    if not len(i_est):
+        return math.nan
+    tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
+    true = rows[:, [truth.names.index(c) for c in TIP_COLUMNS]]
+    err = np.linalg.norm(tip - true, axis=1)
+    err = err[np.isfinite(err)]
+    return float(err.mean()) if len(err) else math.nan
