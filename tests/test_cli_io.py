@@ -650,6 +650,22 @@ def short_demo(monkeypatch):
     monkeypatch.setattr(demo, "simulate_robot", short)
 
 
+def test_a_demo_s_estimates_are_evaluated_on_its_robot(tmp_path, capsys, short_demo) -> None:
+    """The demo's estimate files record their method and --robot, as estimate's do:
+    evaluate of a two-section demo's file against its truth took the default 0.2 m
+    section and was refused until --robot was given."""
+    out = tmp_path / "d"
+    assert main(["demo", "--robot", "two-section", "--out", str(out)]) == 0
+    assert (
+        (out / "estimates_ekf.csv")
+        .read_text()
+        .startswith('# options = {method = "ekf", robot = "two-section"}\n')
+    )
+    capsys.readouterr()
+    assert main(["evaluate", str(out / "estimates_mhe.csv"), str(out / "truth.csv")]) == 0
+    assert "estimated with --robot two-section (its options line)" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "existing-folder"])
 def test_an_interrupted_demo_leaves_nothing_it_wrote(
     tmp_path, capsys, monkeypatch, existing, short_demo
@@ -696,7 +712,7 @@ def test_a_failed_demo_keeps_the_files_that_were_there(tmp_path, capsys, short_d
     assert "truth.csv: the file is read-only; not replaced" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["estimates_mhe.csv", "truth.csv"]
     assert (out / "truth.csv").read_text() == "mine\n"
-    assert (out / "estimates_mhe.csv").read_text().startswith("t,")  # replaced, kept
+    assert (out / "estimates_mhe.csv").read_text().startswith("# options = ")  # replaced, kept
 
 
 def test_demo_checks_its_folder_before_estimating(tmp_path, capsys, monkeypatch):

@@ -2045,3 +2045,21 @@ def test_view_refuses_a_truth_with_t_in_milliseconds(paper3d_pair, tmp_path, cap
     assert main([*argv, "--save", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{paper3d_pair['t_ms']}: only " in err and not out.exists()
+
+
+def test_aligned_truth_warns_where_few_rows_are_scored() -> None:
+    """The library's scoring path (aligned_truth, then compute_metrics) scored an
+    estimate against a truth whose t is in ms on the one row they shared (a tip error of
+    0.64 mm) without a word, where evaluate refuses it: a TruthCoverageWarning says how
+    few rows are compared; a matching truth says nothing."""
+    from continuum_mhe.evaluation.metrics import TruthCoverageWarning, aligned_truth
+
+    rec = simulate("paper3d", duration=4.0)
+    names = [o.name for o in rec.outputs]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rows, _, _ = aligned_truth(rec.t, rec.t, rec.truth, names)
+    assert len(rows) == len(rec.t)
+    with pytest.warns(TruthCoverageWarning, match=r"only 1 of the estimate's 81 rows have a"):
+        rows, _, _ = aligned_truth(rec.t, rec.t * 1e3, rec.truth, names)
+    assert len(rows) == 1

@@ -70,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
     all_series = [s for s, _ in results]
     csvs = [out / name for name in demo_files(robot) if name.endswith(".csv")]
     with new_files(out) as written:  # after the estimates, not during them
-        for path, (series, _) in zip(csvs, results):
-            write_estimates(path, series)
+        for path, (series, _), method in zip(csvs, results, METHODS):
+            write_estimates(path, series, _options_note(method, args.robot))
             written.append(path)
         write_measurements(csvs[-2], rec.t, rec.z, rec.measurement_names)
         written.append(csvs[-2])
@@ -81,6 +81,19 @@ def run(args: argparse.Namespace) -> int:
     figs = written[len(csvs) :]
     print(f"figures: {', '.join(str(p) for p in figs)}", file=sys.stderr)
     return 0
+
+
+def _options_note(method: str, robot: str | None) -> list[tuple[str, str]]:
+    """The ``# options = {...}`` line of a demo estimate, as ``estimate`` writes one: the
+    method and the robot file (``evaluate``, ``plot`` and ``view`` of the file then take
+    that robot; without one, the default 0.2 m section)."""
+    import tomlkit
+
+    table = tomlkit.inline_table()
+    table["method"] = method
+    if robot is not None:
+        table["robot"] = robot
+    return [("options", table.as_string())]
 
 
 def demo_files(robot: Robot) -> list[str]:

@@ -53,7 +53,7 @@ def _align(
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
-    i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names)
+    i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names, warn=False)
     n, k = len(t_est), len(i_est)
     at = "have a row at the same t (within 1 us) in"
     if interpolated:

@@ -84,6 +84,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     from continuum_mhe.cli.truth_checks import clock_offset_warning, tip_error_mean
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
+        has_tip_force,
         lengths_from_estimate,
         lengths_misfit,
         section_count,
@@ -122,7 +123,8 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             )
         else:
             warn_other_recorded_robot(args.source, args.robot, robot)
-    own = lengths_from_estimate(est) if lengths is None else None
+    # a tendon robot's sections are not arcs: its rows give no lengths
+    own = lengths_from_estimate(est) if lengths is None and not has_tip_force(est.names) else None
     if own is not None and max(own) > MAX_SECTION_LENGTH:  # positions in mm, or cm
         raise InputError(
             f"{args.source}: its rows give sections of "

@@ -65,7 +65,7 @@ def clock_offset_warning(
 def tip_error_mean(est: StateTable, truth: StateTable) -> float:
     """The mean tip error (m) of ``est`` against ``truth`` at the rows they share (as
     ``evaluate`` aligns them); NaN where none does."""
-    i_est, rows, _ = aligned_truth(est.t, truth.t, truth.values, truth.names)
+    i_est, rows, _ = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
     if not len(i_est):
         return math.nan
     tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]

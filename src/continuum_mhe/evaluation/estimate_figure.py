@@ -82,8 +82,10 @@ def has_bend_columns(names: Sequence[str], n_sections: int) -> bool:
 
 
 def section_shapes(table: StateTable, n_sections: int) -> tuple[FloatArray, FloatArray]:
-    """Each row's ``theta`` and ``phi`` per section (n_rows, n_sections), rad."""
-    if n_sections == 1:
+    """Each row's ``theta`` and ``phi`` per section (n_rows, n_sections), rad (one
+    section's columns ``theta, phi``, or ``theta_1, phi_1`` as a tendon robot's of one
+    section are named)."""
+    if n_sections == 1 and "theta" in table.names:
         return table.column("theta")[:, None], table.column("phi")[:, None]
     theta = np.stack([table.column(f"theta_{k}") for k in range(1, n_sections + 1)], axis=1)
     phi = np.stack([table.column(f"phi_{k}") for k in range(1, n_sections + 1)], axis=1)
@@ -259,7 +261,7 @@ def truth_at_estimate(est: StateTable, truth: StateTable) -> StateTable | None:
     ``evaluate`` would compare it so
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`); else None (the truth as
     it is)."""
-    i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names)
+    i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
     if not interpolated or len(i_est) < 2:
         return None
     return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))

@@ -9,6 +9,7 @@ columns both sides have.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -390,20 +391,42 @@ def truth_at(
 INTERPOLATE_BELOW = 0.5
 
 
+class TruthCoverageWarning(UserWarning):
+    """Fewer than half of an estimate's rows have a truth to be scored against: the
+    scores are of those rows alone (the files' times do not match?)."""
+
+
 def aligned_truth(
-    t_est: FloatArray, t_truth: FloatArray, values: FloatArray, names: Sequence[str]
+    t_est: FloatArray,
+    t_truth: FloatArray,
+    values: FloatArray,
+    names: Sequence[str],
+    *,
+    warn: bool = True,
 ) -> tuple[IndexArray, FloatArray, bool]:
     """``(i_est, rows, interpolated)``: the estimate rows compared and the truth's values
     at them (``evaluate`` and ``plot`` compare so): the truth's rows at the same t
     (:func:`match_rows`), or, where fewer than :data:`INTERPOLATE_BELOW` of the
     estimate's rows have one, the truth interpolated at the estimate's times
-    (:func:`truth_at`) where that compares more rows (``interpolated`` True)."""
+    (:func:`truth_at`) where that compares more rows (``interpolated`` True). A
+    :class:`TruthCoverageWarning` where fewer than half of the estimate's rows are
+    compared (``warn=False``: none; the command line says it with the files' names)."""
     i_est, i_truth = match_rows(t_est, t_truth)
+    rows = np.asarray(values, dtype=float)[i_truth]
+    interpolated = False
     if len(i_est) < INTERPOLATE_BELOW * len(t_est):
         found = truth_at(t_est, t_truth, values, names)
         if found is not None and len(found[0]) > len(i_est):
-            return found[0], found[1], True
-    return i_est, np.asarray(values, dtype=float)[i_truth], False
+            i_est, rows, interpolated = found[0], found[1], True
+    if warn and len(i_est) < 0.5 * len(t_est):
+        warnings.warn(
+            f"only {len(i_est)} of the estimate's {len(t_est)} rows have a truth at their "
+            "time: the scores are of those rows alone (t in milliseconds, another "
+            "recording, a truth of part of it?)",
+            TruthCoverageWarning,
+            stacklevel=2,
+        )
+    return i_est, rows, interpolated
 
 
 def interpolated_note(truth: str, estimate: str, compared: int, rows: int) -> str:

@@ -61,11 +61,18 @@ def format_time(t: float) -> str:
 
 
 def write_table(
-    path: str | os.PathLike[str], columns: Sequence[str], rows: Sequence[Sequence[object]]
+    path: str | os.PathLike[str],
+    columns: Sequence[str],
+    rows: Sequence[Sequence[object]],
+    notes: Sequence[tuple[str, str]] = (),
 ) -> None:
-    """Write a CSV atomically; floats must be finite (refuses to write NaN)."""
+    """Write a CSV atomically; floats must be finite (refuses to write NaN). ``notes``:
+    ``(key, value)`` pairs (each value a TOML value) written as ``# key = value`` lines
+    above the header, as ``estimate`` writes its options."""
     with atomic_writer(path) as fh:
         w = csv.writer(fh, lineterminator="\n")
+        for key, value in notes:
+            fh.write(f"# {key} = {value}\n")
         w.writerow(columns)
         for r in rows:
             w.writerow(format_cells(path, r))
@@ -163,9 +170,15 @@ def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArr
     return t_arr, v_arr
 
 
-def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> None:
+def write_estimates(
+    path: str | os.PathLike[str],
+    series: EstimateSeries,
+    notes: Sequence[tuple[str, str]] = (),
+) -> None:
     """Write an estimate CSV atomically (columns from ``series.outputs``; an ``outlier``
-    column when the series carries outlier flags)."""
+    column when the series carries outlier flags); ``notes`` as :func:`write_table`'s
+    (``("options", '{robot = "two-section"}')``: ``evaluate``, ``plot`` and ``view`` then
+    take that robot)."""
     if not isinstance(series, EstimateSeries):
         raise UserError(
             f"series must be an EstimateSeries (what run() returns), got a {type(series).__name__}"
@@ -180,7 +193,7 @@ def write_estimates(path: str | os.PathLike[str], series: EstimateSeries) -> Non
     if unknown:
         raise UserError(f"{path}: status {unknown[0]!r} is not one of {', '.join(STATUS_MEANINGS)}")
     columns = estimate_columns(series.outputs, outlier=series.outlier is not None)
-    write_table(path, columns, estimate_rows(series))
+    write_table(path, columns, estimate_rows(series), notes)
 
 
 def write_truth(
