@@ -3,6 +3,7 @@ records the ratios and where the numbers come from."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -20,6 +21,7 @@ from continuum_mhe.benchmark import peers
 from continuum_mhe.benchmark.dompc import run_dompc
 from continuum_mhe.benchmark.peers import PEERS
 from continuum_mhe.cli import benchmark as cli_benchmark
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import build_nlp, pack_parameters
@@ -147,8 +149,12 @@ def test_benchmark_skips_a_method_and_leaves_its_ratio_empty(tmp_path: Path) -> 
     assert {r["method"] for r in report["results"]} == {
         "fast", "mhe-kernel", "ipopt", "ekf", "ekf-compiled"}  # fmt: skip
     assert all(np.isnan(r["over_ekf_kernel"]) for r in report["results"])
-    cli_benchmark._write_json(str(out), report)
-    assert json.loads(out.read_text())["results"][0]["over_ekf_kernel"] is None
+    cli_benchmark._write_json(str(out), report, argparse.Namespace(acados=None))
+    written = json.loads(out.read_text())
+    assert written["results"][0]["over_ekf_kernel"] is None
+    # what made it: the command line, when (UTC) and the acados folder
+    assert written["command"].startswith("continuum-mhe") and written["acados"] is None
+    assert written["run_at"].endswith("+00:00")
 
 
 @pytest.mark.parametrize(
@@ -228,6 +234,27 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
     finally:
         getattr(solver, "close", lambda: None)()
     assert worst < 1e-6
+
+
+def test_an_acados_solver_that_does_not_build_is_one_line_and_leaves_no_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A make that fails while acados builds its generated solver: a UserError naming
+    acados and --skip acados (the command line's one line, exit 2; it was an internal
+    error, exit 70), and the generated code's temporary folder removed (it was left)."""
+    folder = os.environ.get(ACADOS_DIR_VARIABLE)
+    why = peers.missing_peers(folder).get("acados")
+    if why is not None:
+        pytest.skip(f"acados: {why} (or set {ACADOS_DIR_VARIABLE}=DIR)")
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "make").write_text("#!/bin/sh\necho 'make: no rule' >&2\nexit 2\n")
+    (fake / "make").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake}{os.pathsep}{os.environ['PATH']}")
+    monkeypatch.setattr(peers.tempfile, "tempdir", str(tmp_path))  # its folder goes here
+    with pytest.raises(UserError, match=r"^acados: its generated solver for N = 6 did not build"):
+        peers.make_peer("acados", make_formulation("bend"), 6, peers.find_acados(folder))
+    assert not list(tmp_path.glob("continuum-mhe-acados-*"))
 
 
 def test_peer_window_is_the_mhe_window() -> None:

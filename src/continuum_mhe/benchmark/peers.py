@@ -51,6 +51,7 @@ import casadi as ca
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Measurement
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.window_nlp import WindowParameters, WindowProblem, pack_parameters
@@ -334,20 +335,26 @@ def shifted_multipliers(
 
 
 @contextlib.contextmanager
-def _quiet() -> Iterator[None]:
+def _quiet() -> Iterator[list[str]]:
     """Silence what a solver's construction prints on the process's own stdout (C
-    code writes there, past Python's ``sys.stdout``)."""
+    code, a compiler's make, write there, past Python's ``sys.stdout``); the list
+    yielded receives what was printed once the block ends (for a message where the
+    construction failed)."""
     sys.stdout.flush()
     saved = os.dup(1)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            with contextlib.redirect_stdout(io.StringIO()):
-                yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
+    printed: list[str] = []
+    python_out = io.StringIO()
+    with tempfile.TemporaryFile("w+") as sink:
+        try:
+            os.dup2(sink.fileno(), 1)
+            with contextlib.redirect_stdout(python_out):
+                yield printed
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+            sink.seek(0)
+            printed.append(sink.read() + python_out.getvalue())
 
 
 # --- acados ----------------------------------------------------------------------
@@ -456,8 +463,20 @@ class AcadosPeer:
         self.folder = tempfile.mkdtemp(prefix="continuum-mhe-acados-")
         ocp.code_export_directory = os.path.join(self.folder, "c_generated_code")
         json_file = os.path.join(self.folder, "ocp.json")
-        with _quiet():
-            self.solver = AcadosOcpSolver(ocp, json_file=json_file, verbose=False)
+        try:
+            with _quiet() as printed:
+                self.solver = AcadosOcpSolver(ocp, json_file=json_file, verbose=False)
+        except BaseException as exc:  # Ctrl-C or a failed build: no folder left behind
+            shutil.rmtree(self.folder, ignore_errors=True)
+            if not isinstance(exc, Exception):
+                raise
+            said = [ln.strip() for ln in "".join(printed).splitlines() if ln.strip()]
+            tail = f"; it printed: {' | '.join(said[-3:])}" if said else ""
+            raise UserError(
+                f"acados: its generated solver for N = {horizon} did not build or load "
+                f"({type(exc).__name__}: {exc}){tail}: check the C compiler and make it "
+                "uses; --skip acados times the others"
+            ) from None
         self._W = np.zeros((m + 2 * nx, m + 2 * nx))
         self._W[:m, :m] = self.rinv
         self._W_e = np.zeros((m + nx, m + nx))

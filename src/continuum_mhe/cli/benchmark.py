@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ from continuum_mhe.benchmark.harness import (
     run_robot_benchmark,
 )
 from continuum_mhe.cli.options import add_overwrite_option
+from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import UserError
 
 #: ``--memory-samples``' default: the long recording of the memory check.
@@ -39,13 +41,22 @@ def _horizons(text: str) -> list[int]:
     return values
 
 
-def _write_json(path: str, report: dict[str, Any]) -> None:
-    """The report as JSON (NaN as null), written atomically."""
+def _write_json(path: str, report: dict[str, Any], args: argparse.Namespace) -> None:
+    """The report as JSON (NaN as null), written atomically, with what made it: the
+    command line, the time it was run (UTC) and the acados folder."""
+    import shlex
+    from datetime import datetime, timezone
+
     from continuum_mhe.io.output_files import atomic_writer
     from continuum_mhe.reproduce.experiments import to_jsonable
 
+    made = {
+        "command": shlex.join([PROG, *sys.argv[1:]]) if sys.argv[1:] else PROG,
+        "run_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "acados": getattr(args, "acados", None),
+    }
     with atomic_writer(Path(path)) as fh:
-        fh.write(json.dumps(to_jsonable(report), indent=2, allow_nan=False) + "\n")
+        fh.write(json.dumps(to_jsonable({**made, **report}), indent=2, allow_nan=False) + "\n")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,10 +83,12 @@ def run(args: argparse.Namespace) -> int:
             )
         from continuum_mhe.io.robot_file import read_robot
 
-        robot_report = run_robot_benchmark(read_robot(args.robot), args.horizons, args.duration)
+        robot_report = run_robot_benchmark(
+            read_robot(args.robot), args.horizons, args.duration, args.repeats
+        )
         print_robot_report(robot_report)
         if args.json:
-            _write_json(args.json, robot_report)
+            _write_json(args.json, robot_report, args)
         return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
     if args.acados is not None and not Path(args.acados, "acados", "__init__.py").is_file():
@@ -94,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     )
     print_report(report)
     if args.json:
-        _write_json(args.json, report)
+        _write_json(args.json, report, args)
     return 0
 
 
