@@ -347,6 +347,33 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
     assert not out.exists()
 
 
+def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
+    quick_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C while ``reproduce --overwrite`` writes into an earlier run's folder: the
+    files it replaced keep their new content, so the folder mixes two runs; its
+    manifest, which recorded the interrupted run as made, is removed (it said so)."""
+    import shutil
+
+    from continuum_mhe.evaluation import plotting
+
+    folder = tmp_path / "results"
+    shutil.copytree(quick_run, folder)
+    saved: list[Path] = []
+
+    def save_then_interrupt(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
+        saved.append(path)
+        plotting.plt.close(fig)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ex, "QUICK", SMALL)
+    monkeypatch.setattr(plotting, "save", save_then_interrupt)
+    argv = ["reproduce", "--out", str(folder), "--quick", "--jobs", "1", "--overwrite"]
+    assert main([*argv, "--only", "paper"]) == 130
+    assert saved and not (folder / "manifest.json").exists()
+    assert (folder / "report.md").exists()  # the earlier run's, not replaced
+
+
 def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     quick_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],

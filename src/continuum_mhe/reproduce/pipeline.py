@@ -318,15 +318,23 @@ def reproduce(
     if earlier:
         manifest["earlier_runs"] = earlier
     # the folder and the files once the trials are done; an interruption or an error
-    # while writing leaves none of the new files, nor the folders it created
-    with new_files(folder) as written:
-        for name, d in data.items():
-            p = folder / f"{name}.json"
-            save_json(p, d)
-            written.append(p)
-        save_json(folder / "manifest.json", manifest)
-        written.append(folder / "manifest.json")
-        loaded = load_results(folder)
-        render_all(loaded, folder, written)
-        written.append(write_report(loaded, folder))
+    # while writing leaves none of the new files, nor the folders it created. Files of an
+    # earlier run it replaced (--overwrite) keep their new content: the manifest, which
+    # would record this run as made, is removed then, so that the folder claims no run
+    replacing = (folder / "manifest.json").is_file()
+    try:
+        with new_files(folder) as written:
+            for name, d in data.items():
+                p = folder / f"{name}.json"
+                save_json(p, d)
+                written.append(p)
+            save_json(folder / "manifest.json", manifest)
+            written.append(folder / "manifest.json")
+            loaded = load_results(folder)
+            render_all(loaded, folder, written)
+            written.append(write_report(loaded, folder))
+    except BaseException:
+        if replacing:
+            (folder / "manifest.json").unlink(missing_ok=True)
+        raise
     return written
