@@ -2063,3 +2063,37 @@ def test_aligned_truth_warns_where_few_rows_are_scored() -> None:
     with pytest.warns(TruthCoverageWarning, match=r"only 1 of the estimate's 81 rows have a"):
         rows, _, _ = aligned_truth(rec.t, rec.t * 1e3, rec.truth, names)
     assert len(rows) == 1
+
+
+def test_evaluate_json_carries_what_the_text_says(paper3d_pair, capsys) -> None:
+    """evaluate --json left out the warnings the text run says, the truth shift used,
+    whether the truth was interpolated and which columns the SRMSE sums: a script could
+    not see a problem a person would."""
+    e, late = str(paper3d_pair["e"]), str(paper3d_pair["t_late"])
+    assert main(["evaluate", e, late, "--json"]) == 0
+    out, err = capsys.readouterr()
+    report = json.loads(out)
+    said = [ln.removeprefix("continuum-mhe: warning: ") for ln in err.splitlines()]
+    assert report["warnings"] == said and len(said) == 1 and "+0.5 s later" in said[0]
+    assert report["srmse_columns"] == ["x", "y", "z", "theta", "phi"]
+    assert (report["truth_shift_s"], report["interpolated"]) == (0.0, False)
+    assert main(["evaluate", e, late, "--json", "--truth-shift", "0.5"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["truth_shift_s"] == 0.5 and report["warnings"] == []
+
+
+def test_a_full_disk_on_standard_output_says_what_failed(paper3d_pair) -> None:
+    """evaluate > /dev/full said 'error: : No space left on device'."""
+    import subprocess
+    import sys
+
+    if not Path("/dev/full").exists():
+        pytest.skip("needs /dev/full")
+    with open("/dev/full", "w") as full:
+        done = subprocess.run(
+            [sys.executable, "-m", "continuum_mhe", "evaluate", str(paper3d_pair["e"]),
+             str(paper3d_pair["t"])],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=120,
+        )  # fmt: skip
+    assert done.returncode == 2
+    assert done.stderr == "continuum-mhe: error: writing the output: No space left on device\n"

@@ -217,7 +217,9 @@ def _user_error(exc: BaseException, where: str = "") -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 1
     if isinstance(exc, OSError) and exc.strerror:
-        print(f"{PROG}: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        # a write names no file (standard output, an output file's stream: a full disk)
+        where = exc.filename if exc.filename else "writing the output"
+        print(f"{PROG}: error: {where}: {exc.strerror}", file=sys.stderr)
         return 2
     if not isinstance(exc, Exception):  # SystemExit and the like: not ours to report
         raise exc

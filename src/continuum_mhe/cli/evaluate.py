@@ -49,7 +49,8 @@ def _align(
     """The estimate rows compared and the truth's values at them
     (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`; a note where the truth is
     interpolated; ``scored_from``: the time from which ``--skip-start`` scores, s, the
-    start of the span the rows should cover)."""
+    start of the span the rows should cover); a one-line error where too few rows
+    compare, the warnings where few do."""
     t_truth = truth.t
     if len(t_est) < 2:
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
@@ -66,30 +67,33 @@ def _align(
     )
     if k < max(2, MIN_MATCHED * n):
         raise InputError(f"{path_est}: {what}")
+    warnings: list[str] = []
     if k < WARN_MATCHED * n:
-        print(f"{PROG}: warning: {path_est}: {what}", file=sys.stderr)
+        warnings.append(f"{path_est}: {what}")
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
     if scored_from is not None:
         t0 = min(max(t0, scored_from), t1)
     share = (covered[-1] - covered[0]) / (t1 - t0) if t1 > t0 else 1.0
     if share < WARN_MATCHED:  # by time span: a truth sampled more densely is no mistake
-        print(
-            f"{PROG}: warning: {path_est}: its rows cover t = {time_text(covered[0])} to "
+        warnings.append(
+            f"{path_est}: its rows cover t = {time_text(covered[0])} to "
             f"{time_text(covered[-1])} s of {path_truth}'s {time_text(t0)} to {time_text(t1)} s "
             f"({100 * share:.0f} %): "
-            "the scores are of that part only (an interrupted or cut estimate?)",
-            file=sys.stderr,
+            "the scores are of that part only (an interrupted or cut estimate?)"
         )
-    return Aligned(i_est, rows)
+    return Aligned(i_est, rows, interpolated, warnings)
 
 
 class Aligned(NamedTuple):
     """The estimate rows compared (``i_est``) and the truth's values at them (``rows``,
-    one per index, the truth file's columns)."""
+    one per index, the truth file's columns), whether the truth was interpolated at the
+    estimate's times, and the warnings of the alignment (said by the caller)."""
 
     i_est: np.ndarray
     rows: np.ndarray
+    interpolated: bool
+    warnings: list[str]
 
 
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
@@ -196,7 +200,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             raise InputError(f"{path}: {unit}")
     scored_from = _scored_from(est, args.skip_start)
     est = _after_start(args.estimates, est, args.skip_start)
-    i_e, truth_rows = _align(args.estimates, est.t, args.truth, truth, scored_from)
+    aligned = _align(args.estimates, est.t, args.truth, truth, scored_from)
+    i_e, truth_rows = aligned.i_est, aligned.rows
     length = robot.length
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
@@ -230,9 +235,10 @@ def _evaluate(args: argparse.Namespace) -> int:
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
-    warned = [hint] if other_robot or not misfits else misfits
+    warned = [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
     warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
-    for line in filter(None, warned):
+    warned = [line for line in warned if line]
+    for line in warned:
         print(f"{PROG}: warning: {line}", file=sys.stderr)
     if args.json:
         extra = {
@@ -241,8 +247,15 @@ def _evaluate(args: argparse.Namespace) -> int:
             "calibration_ok": None if cal_ok is None else cal_ok.as_dict(),
         }
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
-        skip = {"skip_start_s": args.skip_start}
-        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched, **skip},
+        summed = [c for c in m.rmse if c not in TIP_FORCE_COLUMNS]  # as the text says
+        made = {
+            "srmse_columns": [] if hint else summed,
+            "skip_start_s": args.skip_start,
+            "truth_shift_s": args.truth_shift or 0.0,
+            "interpolated": aligned.interpolated,
+            "warnings": warned,  # as said on standard error
+        }
+        print(json.dumps({**m.as_dict(), **extra, **srmse, "unmatched": unmatched, **made},
                          indent=2))  # fmt: skip
     else:
         print(format_metrics(m, comparable=not hint))
