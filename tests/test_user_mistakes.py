@@ -2097,3 +2097,14 @@ def test_a_full_disk_on_standard_output_says_what_failed(paper3d_pair) -> None:
         )  # fmt: skip
     assert done.returncode == 2
     assert done.stderr == "continuum-mhe: error: writing the output: No space left on device\n"
+
+
+def test_an_empty_estimate_names_an_estimate_s_header(tmp_path, capsys) -> None:
+    """evaluate of an empty estimate file suggested a measurement header (t,roll,pitch)."""
+    empty = tmp_path / "e.csv"
+    empty.write_text("")
+    assert main(["evaluate", str(empty), str(empty)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {empty}: line 1: file is empty, expected a header such as "
+        "t,x,y,z,theta,phi (an estimate's or a truth's)\n"
+    )

@@ -12,7 +12,12 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import tilt_columns
 from continuum_mhe.io.mcap_estimates import read_estimate_table_mcap
 from continuum_mhe.io.raw_imu import is_raw_header
-from continuum_mhe.io.state_tables import StateTable, read_state_table, truth_named
+from continuum_mhe.io.state_tables import (
+    STATE_HEADER_HINT,
+    StateTable,
+    read_state_table,
+    truth_named,
+)
 from continuum_mhe.io.text_rows import open_rows
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 
@@ -29,7 +34,9 @@ def read_estimates(path: str, then: str, required: Sequence[str] = ()) -> StateT
     estimates)."""
     if is_mcap(path):
         return read_estimate_table_mcap(path)
-    with open_rows(path) as rows:  # the header first: a measurement file's rows may
+    with open_rows(
+        path, STATE_HEADER_HINT
+    ) as rows:  # the header first: a measurement file's rows may
         header = [h for h in rows.header if h != "t"]  # hold dropouts (empty, nan)
         written = [rows.as_written(h) for h in header]
     # a recording with its truth beside the measurements (x_true...) is read as that truth

@@ -31,9 +31,13 @@ from continuum_mhe.results import STATUS_MEANINGS, Status
 STATE_COLUMNS = ("t", *output_names(pcc_outputs(1)))
 
 
+#: The header an estimate or truth table's refusal suggests (an empty file, no header).
+STATE_HEADER_HINT = "t,x,y,z,theta,phi (an estimate's or a truth's)"
+
+
 def _read_rows(path: str | os.PathLike[str]) -> tuple[TextRows, list[tuple[int, list[str]]]]:
     """The opened table and all its ``(line_number, fields)`` rows (a small file)."""
-    with open_rows(path) as rows:
+    with open_rows(path, STATE_HEADER_HINT) as rows:
         return rows, list(rows.rows)
 
 
