@@ -44,6 +44,7 @@ _EXPORTS: dict[str, str] = {
     "TensionStream": "continuum_mhe.io.tensions",
     "read_tensions": "continuum_mhe.io.tensions",
     "read_imu_log": "continuum_mhe.io.robot_logs",
+    "read_imu_topics": "continuum_mhe.io.imu_topics",
     "read_estimates_mcap": "continuum_mhe.io.mcap_estimates",
     "write_estimates_mcap": "continuum_mhe.io.mcap_estimates",
 }
@@ -68,6 +69,7 @@ if TYPE_CHECKING:
     from continuum_mhe.errors import InputError
     from continuum_mhe.io.csv_files import MeasurementTable, read_measurements
     from continuum_mhe.io.estimate_csv import write_estimates, write_measurements, write_truth
+    from continuum_mhe.io.imu_topics import read_imu_topics
     from continuum_mhe.io.input_options import InputOptions
     from continuum_mhe.io.inputs import (
         EstimateInput,
