@@ -418,3 +418,12 @@ def test_a_refused_sample_is_refused_before_any_sample_of_the_call_is_stepped() 
     # run() as well, before any sample, and without a reset() hint (run resets itself)
     with pytest.raises(UserError, match=r"previous sample's t=0\.1 s$"):
         est.run(repeated, z)
+
+
+def test_the_core_s_statuses_are_the_status_vocabulary_in_its_order() -> None:
+    """csrc/sensor_health.hpp repeats results.Status as a C++ enum: the same names in the
+    same order (a status added on one side only would be read as another)."""
+    import continuum_mhe._core as core
+    from continuum_mhe.results import Status
+
+    assert tuple(core.STATUS_NAMES) == tuple(s.value for s in Status)

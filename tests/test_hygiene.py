@@ -20,7 +20,33 @@ def _run(*cmd: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
 
 def test_ruff_clean():
     ruff = shutil.which("ruff") or str(Path(sys.executable).with_name("ruff"))
-    r = _run(ruff, "check", "src", "tests")
+    r = _run(ruff, "check", "src", "tests", "tools")
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_every_tool_answers_help():
+    """Each script of tools/ prints its usage for --help and exits 0 (seven crashed on
+    int('--help') and three ran their whole study), in one process: each run as a
+    script with --help as its argument."""
+    code = (
+        "import runpy, sys\n"
+        "from pathlib import Path\n"
+        "failed = []\n"
+        "sys.path.insert(0, 'tools')\n"
+        "for path in sorted(Path('tools').glob('*.py')):\n"
+        "    sys.argv = [str(path), '--help']\n"
+        "    try:\n"
+        "        runpy.run_path(str(path), run_name='__main__')\n"
+        "        failed.append(f'{path}: no SystemExit')\n"
+        "    except SystemExit as exc:\n"
+        "        if exc.code not in (0, None):\n"
+        "            failed.append(f'{path}: exit {exc.code}')\n"
+        "    except BaseException as exc:\n"
+        "        failed.append(f'{path}: {type(exc).__name__}: {exc}')\n"
+        "print('\\n'.join(failed))\n"
+        "sys.exit(1 if failed else 0)\n"
+    )
+    r = _run(sys.executable, "-c", code)
     assert r.returncode == 0, r.stdout + r.stderr
 
 

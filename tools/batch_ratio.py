@@ -19,6 +19,7 @@ processes' turns too) and the machine's load average before it.
 
 from __future__ import annotations
 
+import argparse
 import os
 import resource
 import subprocess
@@ -66,8 +67,18 @@ def run(argv: list[str]) -> tuple[float, float]:
 
 
 def main() -> None:
-    copies = int(sys.argv[1]) if len(sys.argv) > 1 else 10
-    runs = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument(
+        "copies",
+        nargs="?",
+        type=int,
+        default=10,
+        help="copies of the recording (10,001 samples each) (default 10)",
+    )
+    p.add_argument("runs", nargs="?", type=int, default=3, help="runs (default 3)")
+    a = p.parse_args()
+    copies = a.copies
+    runs = a.runs
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         source = recording(folder, copies)

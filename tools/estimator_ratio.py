@@ -14,7 +14,7 @@ Prints the medians from sample N on (us) and ``fast / ekf-compiled``.
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import numpy as np
 
@@ -24,8 +24,12 @@ from continuum_mhe.simulation.scenarios import simulate
 
 
 def main() -> None:
-    horizon = int(sys.argv[1]) if len(sys.argv) > 1 else 30
-    rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 5
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("horizon", nargs="?", type=int, default=30, help="the window N (default 30)")
+    p.add_argument("rounds", nargs="?", type=int, default=5, help="rounds, interleaved (default 5)")
+    a = p.parse_args()
+    horizon = a.horizon
+    rounds = a.rounds
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=40, noise_deg=2.0, seed=0)
     runs = _cheap_runs(f, rec, horizon, ("fast", "mhe-kernel", "ekf-compiled", "ekf-kernel"))

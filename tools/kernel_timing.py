@@ -11,7 +11,7 @@ after a warm-up, and prints each round's medians (us per sample) and their ratio
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import numpy as np
 
@@ -21,7 +21,10 @@ from continuum_mhe.simulation.scenarios import simulate
 
 
 def main() -> None:
-    horizon = int(sys.argv[1]) if len(sys.argv) > 1 else 30
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("horizon", nargs="?", type=int, default=30, help="the window N (default 30)")
+    a = p.parse_args()
+    horizon = a.horizon
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=20, noise_deg=2.0, seed=0)
     run_mhe_kernel(f, rec, horizon)  # compiles, fills caches

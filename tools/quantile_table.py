@@ -16,6 +16,7 @@ itself; ``tests/test_consistency.py`` checks the table against it::
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -63,6 +64,7 @@ def table() -> dict[str, object]:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()  # --help
     path = Path(TABLE_PATH)
     path.write_text(json.dumps(table(), separators=(",", ":")) + "\n")
     print(f"wrote {path}")

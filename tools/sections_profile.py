@@ -15,9 +15,9 @@ with ``-O3``) for the names of its functions.
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
-import sys
 
 import numpy as np
 
@@ -40,7 +40,11 @@ def instrument(on: bool) -> None:
 
 
 def main() -> None:
-    k, method = int(sys.argv[1]), sys.argv[2]
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("sections", type=int, choices=(1, 2, 3), help="sections of the robot")
+    p.add_argument("method", choices=("mhe", "ekf"), help="the estimator profiled")
+    a = p.parse_args()
+    k, method = a.sections, a.method
     robot = Robot(
         tuple(Section(0.3 / k, 3.0) for _ in range(k)), tuple(ImuPlacement(i) for i in range(k))
     )

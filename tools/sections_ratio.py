@@ -11,7 +11,7 @@ sample of ``run()``::
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
 
 import numpy as np
@@ -26,7 +26,10 @@ N = 30
 
 
 def main() -> None:
-    rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 3
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("rounds", nargs="?", type=int, default=3, help="rounds, interleaved (default 3)")
+    a = p.parse_args()
+    rounds = a.rounds
     for k in (1, 2, 3):
         sections = tuple(Section(0.3 / k, 3.0) for _ in range(k))
         robot = Robot(sections, tuple(ImuPlacement(i) for i in range(k)))

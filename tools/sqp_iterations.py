@@ -11,8 +11,8 @@ step's ``solve_seconds``, us) and its share, and the mean over the median::
 
 from __future__ import annotations
 
+import argparse
 import collections
-import sys
 
 import numpy as np
 
@@ -26,7 +26,12 @@ N = 30
 
 
 def main() -> None:
-    duration = float(sys.argv[1]) if len(sys.argv) > 1 else 500.0
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument(
+        "duration", nargs="?", type=float, default=500.0, help="the recording, s (default 500.0)"
+    )
+    a = p.parse_args()
+    duration = a.duration
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=duration, noise_deg=2.0, seed=0)
     est = MovingHorizonEstimator(f, MHESettings(horizon=N, solver="fast"))

@@ -7,6 +7,7 @@ of that size, approximately), MHE and EKF, tilt (``spatial``) and gyros (raw IMU
     python tools/tip_only_study.py
 """
 
+import argparse
 import warnings
 from collections import Counter
 
@@ -21,6 +22,7 @@ ROBOT = Robot((Section(0.16), Section(0.14)), (ImuPlacement(1),))  # theta_max p
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()  # --help
     warnings.simplefilter("ignore")
     for kind in ("tilt", "gyro"):
         for seed in range(2):

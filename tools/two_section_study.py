@@ -5,6 +5,7 @@ gyros (raw IMUs, ``direct``), 5 seeds, 20 s at 20 Hz, N = 30.
     python tools/two_section_study.py
 """
 
+import argparse
 import warnings
 from pathlib import Path
 
@@ -20,6 +21,7 @@ ROBOT = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_section.t
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()  # --help
     warnings.simplefilter("ignore")
     robot = read_robot(ROBOT)
     res: dict[tuple[str, str], list[tuple[float, float]]] = {}

@@ -9,7 +9,7 @@ median and 99th percentile after the first 50 (the compile of the geometry funct
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
 from pathlib import Path
 
@@ -43,4 +43,7 @@ def main(path: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "hook.rrd"))
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("rrd", nargs="?", type=Path, default=Path("hook.rrd"),
+                        help="the recording to write (default hook.rrd)")  # fmt: skip
+    main(parser.parse_args().rrd)

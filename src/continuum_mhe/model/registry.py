@@ -1,4 +1,5 @@
-"""Formulations by name: the one place that knows them all (no import cycles).
+"""Formulations by name: the one place that maps a name to its class (no import cycles;
+the names' type is ``model.settings.FormulationName``, and a test keeps the two equal).
 
 ``make_formulation("bend" | "paper" | "direct" | "tendon", robot, noise)``. A robot is a
 :class:`~continuum_mhe.model.robot.Robot` or, for one section, a
