@@ -513,7 +513,8 @@ WindowSolver::WindowSolver(Index horizon, Index nx_, Index nz_, Index nu_,
     throw std::invalid_argument(
         "the window function writes " + std::to_string(window->output_size()) +
         " values, the window's layout holds " + std::to_string(window_size) +
-        ": give the solver the block_cols its window function was built with");
+        ": a window function of another horizon, nx or nz, or give the solver the "
+        "block_cols its window function was built with");
   if (tail && tail->output_size() != Index(nz + nz * nx + nx + bs + sr_size))
     throw std::invalid_argument("the tail function's outputs do not fit the window's layout");
   z.assign(n * nz, 0.0);

@@ -1,6 +1,6 @@
 // The MHE window solve: Newton-type SQP with a projected line search (sqp.cpp).
 //
-// Each iteration evaluates the whole window's model in one call of its C entry point
+// Each iteration evaluates the whole window's model in one call of its window function
 // (residuals, Jacobians and the measurement residuals' second-order term; layout of
 // continuum_mhe.estimators.fast.window_functions.window_function), assembles the block-tridiagonal
 // Hessian of the Lagrangian (Gauss-Newton J^T W J, plus the exact second-order term

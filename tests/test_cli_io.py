@@ -826,14 +826,26 @@ def test_evaluate_takes_the_length_the_estimate_records(
     assert main(["evaluate", str(est), str(truth)]) == 0
     out, err = capsys.readouterr()
     assert err == (
-        f"continuum-mhe: note: {est} was estimated with --length 0.3 (its options line): "
-        "evaluated on that robot (pass --length or --robot for another)\n"
+        f"continuum-mhe: note: {est} was estimated on 1 section (0.3 m), IMUs at 1@1, z-up "
+        "(its options line: --length 0.3): evaluated on that robot (pass --length or --robot "
+        "for another)\n"
     )
     tip_mm = float(out.split("tip error mean")[1].split("mm")[0])
     share = float(out.split("tip error mean")[1].split("(")[1].split("%")[0])
     assert share == pytest.approx(100 * tip_mm / 300, abs=0.01)
     assert main(["evaluate", str(est), str(truth), "--length", "0.3"]) == 0
     assert "note" not in capsys.readouterr().err
+    # a hanging robot of the default length: its mounting is recorded too (it was not)
+    meas_down, est_down = tmp_path / "md.csv", tmp_path / "ed.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas_down), "--duration", "2",
+                 "--mounting", "z-down"]) == 0  # fmt: skip
+    argv = ["estimate", str(meas_down), "-o", str(est_down), "--method", "ekf"]
+    assert main([*argv, "--mounting", "z-down"]) == 0
+    capsys.readouterr()
+    from continuum_mhe.cli.robot_options import recorded_robot
+
+    robot = recorded_robot(str(est_down), "used")
+    assert robot is not None and robot.mounting == "z-down" and robot.lengths == (0.2,)
 
 
 def test_simulate_says_that_a_robot_files_mount_rpy_is_not_applied(tmp_path, capsys):

@@ -398,9 +398,10 @@ def test_evaluate_of_another_length_gets_a_hint(tmp_path, capsys) -> None:
     # second, est against truth, for the same mistake), naming the truth and the length
     # it was made for
     assert err.count("warning") == 1, err
-    assert f"note: {est} was estimated with --length 0.5 (its options line)" in err
+    assert f"note: {est} was estimated on 1 section (0.5 m), IMUs at 1@1, z-up" in err
     assert f"warning: {t}: its tip is 0.40 times as far from the base" in err
-    assert "made for a robot of about 0.2 m; pass the --length" in err
+    # not "pass the --length": the estimate would then misfit it, the other way round
+    assert "made for a robot of about 0.2 m; the estimate's robot (its options line) is" in err
     assert "SRMSE                not given" in out and not re.search(r"SRMSE\s+\d", out)
     assert main(["estimate", str(m), "-o", str(est), "--method", "ekf", "--overwrite"]) == 0
     capsys.readouterr()
@@ -2080,6 +2081,12 @@ def test_evaluate_json_carries_what_the_text_says(paper3d_pair, capsys) -> None:
     assert main(["evaluate", e, late, "--json", "--truth-shift", "0.5"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["truth_shift_s"] == 0.5 and report["warnings"] == []
+    typo = paper3d_pair["t"].with_name("t_typo.csv")
+    typo.write_text(paper3d_pair["t"].read_text().replace(",theta,", ",thetaa,", 1))
+    assert main(["evaluate", e, str(typo), "--json"]) == 0
+    out, err = capsys.readouterr()
+    said = [ln.removeprefix("continuum-mhe: warning: ") for ln in err.splitlines()]
+    assert json.loads(out)["warnings"] == said and "thetaa" in said[0]
 
 
 def test_a_full_disk_on_standard_output_says_what_failed(paper3d_pair) -> None:
@@ -2108,3 +2115,22 @@ def test_an_empty_estimate_names_an_estimate_s_header(tmp_path, capsys) -> None:
         f"continuum-mhe: error: {empty}: line 1: file is empty, expected a header such as "
         "t,x,y,z,theta,phi (an estimate's or a truth's)\n"
     )
+
+
+def test_evaluate_plot_and_view_refuse_a_truth_of_two_rows_alike(paper3d_pair, tmp_path, capsys):
+    """A truth of the estimate's first two rows: evaluate refused it (under 10 % of the
+    rows compare), plot and view drew it without a word; all three refuse it in the
+    same line."""
+    lines = paper3d_pair["t"].read_text().splitlines()
+    body = [i for i, ln in enumerate(lines) if not ln.startswith("#")]
+    two = tmp_path / "t2.csv"
+    two.write_text("\n".join(lines[: body[0] + 3]) + "\n")
+    e = str(paper3d_pair["e"])
+    said = f"{e}: only 2 of 121 rows have a row at the same t (within 1 us) in {two}"
+    assert main(["evaluate", e, str(two)]) == 2
+    assert said in capsys.readouterr().err
+    assert main(["plot", e, "--truth", str(two), "-o", str(tmp_path / "f.png")]) == 2
+    assert said in capsys.readouterr().err
+    pytest.importorskip("rerun")
+    assert main(["view", e, "--truth", str(two), "--save", str(tmp_path / "v.rrd")]) == 2
+    assert said in capsys.readouterr().err

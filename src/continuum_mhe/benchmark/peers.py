@@ -463,6 +463,7 @@ class AcadosPeer:
         self.folder = tempfile.mkdtemp(prefix="continuum-mhe-acados-")
         ocp.code_export_directory = os.path.join(self.folder, "c_generated_code")
         json_file = os.path.join(self.folder, "ocp.json")
+        printed: list[str] = []
         try:
             with _quiet() as printed:
                 self.solver = AcadosOcpSolver(ocp, json_file=json_file, verbose=False)

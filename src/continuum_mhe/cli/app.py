@@ -217,8 +217,12 @@ def _user_error(exc: BaseException, where: str = "") -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 1
     if isinstance(exc, OSError) and exc.strerror:
-        # a write names no file (standard output, an output file's stream: a full disk)
-        where = exc.filename if exc.filename else "writing the output"
+        # a stream's error names no file (standard output, an output file's stream)
+        where = exc.filename or (
+            "writing the output"
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+            else "reading or writing a file"
+        )
         print(f"{PROG}: error: {where}: {exc.strerror}", file=sys.stderr)
         return 2
     if not isinstance(exc, Exception):  # SystemExit and the like: not ours to report

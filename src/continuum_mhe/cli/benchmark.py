@@ -51,7 +51,12 @@ def _write_json(path: str, report: dict[str, Any], args: argparse.Namespace) -> 
     from continuum_mhe.reproduce.experiments import to_jsonable
 
     made = {
-        "command": shlex.join([PROG, *sys.argv[1:]]) if sys.argv[1:] else PROG,
+        # the process's own command line where it ran as the command, else the command
+        "command": (
+            shlex.join([PROG, *sys.argv[1:]])
+            if sys.argv[1:2] == ["benchmark"]
+            else f"{PROG} benchmark"
+        ),
         "run_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "acados": getattr(args, "acados", None),
     }

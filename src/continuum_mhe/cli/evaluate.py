@@ -13,8 +13,13 @@ from typing import NamedTuple
 import numpy as np
 
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.cli.robot_options import add_robot_option, estimate_robot
-from continuum_mhe.cli.truth_checks import clock_offset_warning
+from continuum_mhe.cli.robot_options import (
+    add_robot_option,
+    estimate_robot,
+    robot_from_args,
+    robot_given,
+)
+from continuum_mhe.cli.truth_checks import WARN_MATCHED, clock_offset_warning, rows_matched
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
@@ -56,20 +61,12 @@ def _align(
         raise InputError(f"{path_est}: one row: evaluate needs at least two")
     i_est, rows, interpolated = aligned_truth(t_est, t_truth, truth.values, truth.names, warn=False)
     n, k = len(t_est), len(i_est)
-    at = "have a row at the same t (within 1 us) in"
     if interpolated:
-        at = "lie within the times of"
         print(f"{PROG}: note: {interpolated_note(path_truth, path_est, k, n)}", file=sys.stderr)
-    what = (
-        f"only {k} of {n} rows {at} {path_truth}: "
-        "the files' times do not match (another --dt or duration, t in milliseconds, "
-        "or the wrong truth file?)"
-    )
-    if k < max(2, MIN_MATCHED * n):
-        raise InputError(f"{path_est}: {what}")
-    warnings: list[str] = []
-    if k < WARN_MATCHED * n:
-        warnings.append(f"{path_est}: {what}")
+    problem, warning = rows_matched(path_est, path_truth, k, n, interpolated)
+    if problem:
+        raise InputError(problem)
+    warnings = [warning] if warning else []
     covered = t_est[i_est]
     t0, t1 = float(t_truth[0]), float(t_truth[-1])
     if scored_from is not None:
@@ -94,13 +91,6 @@ class Aligned(NamedTuple):
     rows: np.ndarray
     interpolated: bool
     warnings: list[str]
-
-
-#: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
-#: fewer than 2), and warns below :data:`WARN_MATCHED`, and when the matched rows span
-#: less than that share of the truth's time span.
-MIN_MATCHED = 0.1
-WARN_MATCHED = 0.5
 
 
 def _length_hint(est_xyz: np.ndarray, truth_xyz: np.ndarray, tip_mean: float, length: float) -> str:
@@ -193,7 +183,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             "give the truth the estimate is scored against"
         )
     # without --robot or --length: the estimate's own, else one section of --length
-    robot = estimate_robot(args, args.estimates, "evaluated on that robot")
+    warned: list[str] = []  # said once the scores are known, and in --json
+    robot = estimate_robot(args, args.estimates, "evaluated on that robot", warned)
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     for path, table in ((args.estimates, est), (args.truth, truth)):
         if unit := position_unit_problem(table.names, table.values, robot.lengths):
@@ -206,7 +197,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     out_names = [n for n in est.names if not n.startswith("std_")]
     cols = [est.names.index(n) for n in out_names]
     if typo := misspelt_columns(truth.names, out_names):
-        print(f"{PROG}: warning: {args.truth}: {typo}", file=sys.stderr)
+        warned.append(f"{args.truth}: {typo}")
     try:
         m = compute_metrics(est.values[i_e][:, cols], truth_rows, length, out_names, truth.names)
     except ValueError as exc:
@@ -229,13 +220,18 @@ def _evaluate(args: argparse.Namespace) -> int:
     hint = other_robot or _length_hint(
         est.values[i_e][:, xyz[0]], truth_rows[:, xyz[1]], m.tip_mean_mm / 1e3, length
     )
+    # the robot from the estimate's options line: a truth that misfits it is another
+    # robot's (its --length would misfit the estimate instead)
+    given_length = "pass the --length (or --robot) it was made with"
+    other = "the estimate's robot (its options line) is another: score it against its robot's truth"
+    recorded = not robot_given(args) and robot.lengths != robot_from_args(args).lengths
     misfits = [
-        f"{path}: {misfit}; pass the --length (or --robot) it was made with"
+        f"{path}: {misfit}; {other if recorded and path == args.truth else given_length}"
         for path, table in ((args.estimates, est), (args.truth, truth))
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
-    warned = [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
+    warned += [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
     warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
     warned = [line for line in warned if line]
     for line in warned:

@@ -81,7 +81,11 @@ def _estimate(args: argparse.Namespace) -> int:
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
     from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, warn_other_recorded_robot
-    from continuum_mhe.cli.truth_checks import clock_offset_warning, tip_error_mean
+    from continuum_mhe.cli.truth_checks import (
+        clock_offset_warning,
+        matched_rows_checked,
+        tip_error_mean,
+    )
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
         has_tip_force,
@@ -145,6 +149,9 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     problem = None if truth is None else truth_problem(est, at_est or truth)
     if problem is not None:
         raise InputError(f"{args.truth}: {problem}")
+    few = None if truth is None else matched_rows_checked(args.source, est, args.truth, truth)
+    if few:
+        print(f"{PROG}: warning: {few}", file=sys.stderr)
     if at_est is not None:
         note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
         print(f"{PROG}: note: {note}", file=sys.stderr)

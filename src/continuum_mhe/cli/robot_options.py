@@ -84,20 +84,33 @@ def robot_from_args(args: argparse.Namespace) -> Robot:
     return robot
 
 
-def estimate_robot(args: argparse.Namespace, path: str, use: str) -> Robot:
+def estimate_robot(
+    args: argparse.Namespace, path: str, use: str, warned: list[str] | None = None
+) -> Robot:
     """The robot an estimate CSV ``path`` was made on, for a command that reads it:
     ``--robot``, or one section of ``--length`` (and ``--mounting``) where one is
-    given; else the robot file the estimate's options line names, where it can be read
+    given; else the robot the estimate's options line records, where it can be read
     (said in a note ending in ``use``, what the command does on it); else one section
-    of :data:`DEFAULT_LENGTH`."""
-    given = args.robot or any(getattr(args, o, None) is not None for o in ("length", "mounting"))
-    robot = None if given else recorded_robot(path, use)
+    of :data:`DEFAULT_LENGTH`. ``warned``: where a warning goes (printed when None)."""
+    robot = None if robot_given(args) else recorded_robot(path, use)
     if robot is not None:
         return robot
     robot = robot_from_args(args)
     if args.robot:
-        warn_other_recorded_robot(path, args.robot, robot)
+        line = other_recorded_robot(path, args.robot, robot)
+        if line and warned is not None:
+            warned.append(line)
+        elif line:
+            print(f"{PROG}: warning: {line}", file=sys.stderr)
     return robot
+
+
+def robot_given(args: argparse.Namespace) -> bool:
+    """Whether the command line gives the robot (``--robot``, ``--length`` or
+    ``--mounting``), rather than the estimate's options line."""
+    return bool(args.robot) or any(
+        getattr(args, o, None) is not None for o in ("length", "mounting")
+    )
 
 
 def _geometry(robot: Robot) -> tuple[object, ...]:
@@ -106,22 +119,29 @@ def _geometry(robot: Robot) -> tuple[object, ...]:
 
 
 def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
-    """A warning (a line on stderr) where the estimate ``path`` records, in its options
-    line, a robot file other than the ``--robot`` ``given`` (``robot``, as read) with
-    other sections or IMUs: the command then uses the given robot, likely not the one
-    the estimate was made on. Nothing where the recorded file cannot be read."""
+    """:func:`other_recorded_robot`'s warning, printed (a line on stderr)."""
+    line = other_recorded_robot(path, given, robot)
+    if line:
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
+
+
+def other_recorded_robot(path: str, given: str, robot: Robot) -> str:
+    """A warning where the estimate ``path`` records, in its options line, a robot file
+    other than the ``--robot`` ``given`` (``robot``, as read) with other sections or
+    IMUs: the command then uses the given robot, likely not the one the estimate was
+    made on; ``""`` where not, or where the recorded file cannot be read."""
     from continuum_mhe.errors import UserError
     from continuum_mhe.io.robot_file import read_robot
 
     name = recorded_option(path, "robot")
     if not isinstance(name, str) or name == given:
-        return
+        return ""
     try:
         recorded = read_robot(beside(path, name))
     except UserError:
-        return
+        return ""
     if _geometry(recorded) == _geometry(robot):  # the same robot (a copy, another path)
-        return
+        return ""
 
     def described(r: Robot) -> str:
         """Sections and, where those agree, IMU places: what tells the two apart."""
@@ -129,11 +149,10 @@ def warn_other_recorded_robot(path: str, given: str, robot: Robot) -> None:
             return "sections of " + ", ".join(f"{v:g}" for v in r.lengths) + " m"
         return "IMUs at " + ", ".join(f"section {i.section + 1} at {i.at:g}" for i in r.imus)
 
-    print(
-        f"{PROG}: warning: {path} was estimated with --robot {name} (its options line: "
+    return (
+        f"{path} was estimated with --robot {name} (its options line: "
         f"{described(recorded)}), not with --robot {given} ({described(robot)}); the given "
-        "one is used: leave --robot out to use the recorded one",
-        file=sys.stderr,
+        "one is used: leave --robot out to use the recorded one"
     )
 
 
@@ -165,16 +184,17 @@ def recorded_robot(path: str, use: str) -> Robot | None:
 
 
 def _recorded_section(path: str, use: str) -> Robot | None:
-    """The one-section robot of the ``length`` the options line of the estimate
-    ``path`` records (with its ``mounting`` and ``theta-max``; said in a note), where it
-    records one other than :data:`DEFAULT_LENGTH`, else None."""
+    """The one-section robot of the ``length``, ``mounting`` and ``theta-max`` the options
+    line of the estimate ``path`` records (said in a note), where one of them differs
+    from the command line's default section, else None."""
     length = recorded_option(path, "length")
     if not isinstance(length, (int, float)) or isinstance(length, bool):
         return None
-    if float(length) == DEFAULT_LENGTH:
-        return None
     mounting = recorded_option(path, "mounting")
     theta_max = recorded_option(path, "theta-max")
+    default_bound = not isinstance(theta_max, (int, float)) or theta_max == math.pi / 2
+    if float(length) == DEFAULT_LENGTH and mounting in (None, "z-up") and default_bound:
+        return None
     try:
         robot = Robot.single(
             float(length),
@@ -184,8 +204,8 @@ def _recorded_section(path: str, use: str) -> Robot | None:
     except ValueError:
         return None
     print(
-        f"{PROG}: note: {path} was estimated with --length {float(length):g} (its options "
-        f"line): {use} (pass --length or --robot for another)",
+        f"{PROG}: note: {path} was estimated on {robot.describe()} (its options line: "
+        f"--length {float(length):g}): {use} (pass --length or --robot for another)",
         file=sys.stderr,
     )
     return robot

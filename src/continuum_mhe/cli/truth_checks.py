@@ -1,6 +1,7 @@
 """The checks of a truth against an estimate that ``evaluate``, ``plot`` and ``view``
-share: a truth on an offset clock (:func:`clock_offset_warning`, with the mean tip
-error it starts from, :func:`tip_error_mean`)."""
+share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth on an
+offset clock (:func:`clock_offset_warning`, with the mean tip error it starts from,
+:func:`tip_error_mean`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 
 import numpy as np
 
+from continuum_mhe.errors import InputError
 from continuum_mhe.evaluation.metrics import SHIFT_MAX_S, aligned_truth, best_time_shift
 from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import TIP_COLUMNS
@@ -73,3 +75,41 @@ def tip_error_mean(est: StateTable, truth: StateTable) -> float:
     err = np.linalg.norm(tip - true, axis=1)
     err = err[np.isfinite(err)]
     return float(err.mean()) if len(err) else math.nan
+
+
+#: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
+#: fewer than 2), and warns below :data:`WARN_MATCHED`, and when the matched rows span
+#: less than that share of the truth's time span.
+MIN_MATCHED = 0.1
+WARN_MATCHED = 0.5
+
+
+def rows_matched(
+    path_est: str, path_truth: str, compared: int, rows: int, interpolated: bool
+) -> tuple[str, str]:
+    """``(problem, warning)`` where ``compared`` of the estimate's ``rows`` have a truth
+    (at the same t, or within the truth's times where it is ``interpolated``): the
+    refusal below :data:`MIN_MATCHED` of them (or 2), the warning below
+    :data:`WARN_MATCHED`; ``""`` for none."""
+    at = "lie within the times of" if interpolated else "have a row at the same t (within 1 us) in"
+    what = (
+        f"{path_est}: only {compared} of {rows} rows {at} {path_truth}: "
+        "the files' times do not match (another --dt or duration, t in milliseconds, "
+        "or the wrong truth file?)"
+    )
+    if compared < max(2, MIN_MATCHED * rows):
+        return what, ""
+    return "", what if compared < WARN_MATCHED * rows else ""
+
+
+def matched_rows_checked(path_est: str, est: StateTable, path_truth: str, truth: StateTable) -> str:
+    """:func:`rows_matched` of an estimate and a truth as ``evaluate`` aligns them: a
+    :class:`~continuum_mhe.errors.InputError` for the refusal, the warning (``""`` for
+    none); nothing to say of an estimate of one row."""
+    if len(est.t) < 2:
+        return ""
+    i_est, _, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
+    problem, warning = rows_matched(path_est, path_truth, len(i_est), len(est.t), interpolated)
+    if problem:
+        raise InputError(problem)
+    return warning

@@ -12,7 +12,11 @@ from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
-from continuum_mhe.cli.truth_checks import clock_offset_warning, tip_error_mean
+from continuum_mhe.cli.truth_checks import (
+    clock_offset_warning,
+    matched_rows_checked,
+    tip_error_mean,
+)
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.imu import MOUNTINGS
@@ -53,6 +57,8 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
     problem = truth_problem(est, truth_at_estimate(est, truth) or truth)
     if problem is not None:
         raise InputError(f"{args.truth}: {problem}")
+    if few := matched_rows_checked(args.estimates, est, args.truth, truth):
+        print(f"{PROG}: warning: {few}", file=sys.stderr)
     offset = clock_offset_warning(
         args.truth, est, truth, robot.length, tip_error_mean(est, truth), "evaluate --truth-shift"
     )

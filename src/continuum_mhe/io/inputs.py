@@ -717,11 +717,12 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
     for log in logs:
         no_accel = ~np.isfinite(log.acc).all(axis=1) | ~(np.abs(log.acc) > 0).any(axis=1)
         oriented = np.isfinite(log.orientation).all(axis=1)
-        if not options.use_orientation and no_accel.all() and oriented.all():
+        if not options.use_orientation and no_accel.all() and oriented.any():
             raise InputError(
                 f"{p}: topic {log.topic}: linear_acceleration is zero or absent in every "
                 "message while its orientation is given (an orientation-only IMU): "
                 "--orientation reads its roll and pitch"
+                + ("" if oriented.all() else " (with --skip-bad: some messages have none)")
             )
         if not options.use_orientation and no_accel.all():
             raise InputError(
