@@ -32,7 +32,11 @@ from continuum_mhe.evaluation.metrics import (
     section_numbers,
 )
 from continuum_mhe.io.estimate_files import read_estimates
-from continuum_mhe.io.position_units import position_unit_problem, steady_ratio
+from continuum_mhe.io.position_units import (
+    position_unit_problem,
+    steady_ratio,
+    tip_direction_problem,
+)
 from continuum_mhe.io.state_tables import (
     StateTable,
     check_same_robot,
@@ -232,6 +236,10 @@ def _evaluate(args: argparse.Namespace) -> int:
     ]  # tip errors in % of the length are then of another robot's length
     # a file made for another length explains the estimate-truth ratio too: say it once
     warned += [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
+    # the truth's own positions against its own angles (an estimate's can drift from
+    # its angles by design: the paper formulation's positions are states of their own)
+    if turned := tip_direction_problem(truth.names, truth.values, robot.lengths):
+        warned.append(f"{args.truth}: {turned}")
     warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
     warned = [line for line in warned if line]
     for line in warned:

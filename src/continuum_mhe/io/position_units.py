@@ -122,3 +122,49 @@ def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]
     _, p = pose_at(bends, lengths, len(lengths) - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return steady_ratio(dist[ok] / np.linalg.norm(p, axis=1))
+
+
+#: A file whose tip points further than this (deg, median over its bent rows) from where
+#: its own bend angles put it has positions in another frame than its angles (x and y
+#: swapped, a sign flipped); real rods' and tendon robots' truths measure under 3.
+TIP_DIRECTION_LIMIT_DEG = 20.0
+
+
+def tip_direction_problem(
+    names: Sequence[str], values: FloatArray, lengths: Sequence[float]
+) -> str:
+    """``""``, or why the positions of an estimate or truth (``x, y`` of its tip) do not
+    point where its own bend angles put its tip on a robot of these section ``lengths``:
+    the median angle between the two horizontal directions over the rows bent by more
+    than 5 % of the robot's length beyond :data:`TIP_DIRECTION_LIMIT_DEG`. Nothing said
+    without every section's bend columns."""
+    from continuum_mhe.model.pcc import pose_at
+
+    outputs = pcc_outputs(len(lengths))
+    bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
+    if not all(o.name in names for o in outputs[:3]) or not set(bend_names) <= set(names):
+        return ""
+    rows = np.asarray(values, dtype=float)
+    tip = rows[:, [list(names).index(o.name) for o in outputs[:2]]]
+    cols = [list(names).index(n) for n in bend_names]
+    theta, phi = rows[:, cols[0::2]], rows[:, cols[1::2]]
+    with np.errstate(invalid="ignore"):
+        bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
+    ok = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(bends), axis=(1, 2))
+    if not ok.any():
+        return ""
+    _, p = pose_at(bends[ok], lengths, len(lengths) - 1)
+    given, own = tip[ok], p[:, :2]
+    bent = np.linalg.norm(own, axis=1) > 0.05 * float(sum(lengths))
+    norms = np.linalg.norm(given[bent], axis=1) * np.linalg.norm(own[bent], axis=1)
+    if bent.sum() < 10 or not np.all(norms > 0):
+        return ""
+    cos = np.sum(given[bent] * own[bent], axis=1) / norms
+    angle = math.degrees(float(np.median(np.arccos(np.clip(cos, -1.0, 1.0)))))
+    if angle <= TIP_DIRECTION_LIMIT_DEG:
+        return ""
+    return (
+        f"its tip points {angle:.0f} degrees from where its own bend angles put it (median "
+        "over its bent rows): x and y swapped, a sign flipped, or positions in another frame "
+        "than its angles?"
+    )
