@@ -2161,6 +2161,8 @@ def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_p
     assert f"warning: {swapped}: its tip points " in err and "x and y swapped" in err
     assert main(["evaluate", e, str(paper3d_pair["t"])]) == 0
     assert "tip points" not in capsys.readouterr().err
+    assert main(["plot", e, "--truth", str(swapped), "-o", str(tmp_path / "f.png")]) == 0
+    assert f"warning: {swapped}: its tip points " in capsys.readouterr().err  # as evaluate
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"
     for folder, lengths in (("rod2", (0.16, 0.14)), ("tendon", (0.2, 0.2))):
         for path in sorted((data / folder).glob("*_truth.csv")):

@@ -19,7 +19,12 @@ from continuum_mhe.cli.robot_options import (
     robot_from_args,
     robot_given,
 )
-from continuum_mhe.cli.truth_checks import WARN_MATCHED, clock_offset_warning, rows_matched
+from continuum_mhe.cli.truth_checks import (
+    WARN_MATCHED,
+    clock_offset_warning,
+    rows_matched,
+    truth_frame_warning,
+)
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.evaluation.metrics import (
     Calibration,
@@ -35,7 +40,6 @@ from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (
     position_unit_problem,
     steady_ratio,
-    tip_direction_problem,
 )
 from continuum_mhe.io.state_tables import (
     StateTable,
@@ -238,8 +242,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     warned += [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
     # the truth's own positions against its own angles (an estimate's can drift from
     # its angles by design: the paper formulation's positions are states of their own)
-    if turned := tip_direction_problem(truth.names, truth.values, robot.lengths):
-        warned.append(f"{args.truth}: {turned}")
+    warned.append(truth_frame_warning(args.truth, truth, robot.lengths))
     warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
     warned = [line for line in warned if line]
     for line in warned:

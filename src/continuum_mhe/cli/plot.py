@@ -85,6 +85,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         clock_offset_warning,
         matched_rows_checked,
         tip_error_mean,
+        truth_frame_warning,
     )
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
@@ -152,6 +153,13 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     few = None if truth is None else matched_rows_checked(args.source, est, args.truth, truth)
     if few:
         print(f"{PROG}: warning: {few}", file=sys.stderr)
+    turned = (
+        ""
+        if truth is None
+        else truth_frame_warning(args.truth, truth, tuple(lengths or own or (DEFAULT_LENGTH,)))
+    )
+    if turned:
+        print(f"{PROG}: warning: {turned}", file=sys.stderr)
     if at_est is not None:
         note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
         print(f"{PROG}: note: {note}", file=sys.stderr)

@@ -11,6 +11,7 @@ import numpy as np
 
 from continuum_mhe.errors import InputError
 from continuum_mhe.evaluation.metrics import SHIFT_MAX_S, aligned_truth, best_time_shift
+from continuum_mhe.io.position_units import tip_direction_problem
 from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 
@@ -113,3 +114,11 @@ def matched_rows_checked(path_est: str, est: StateTable, path_truth: str, truth:
     if problem:
         raise InputError(problem)
     return warning
+
+
+def truth_frame_warning(path_truth: str, truth: StateTable, lengths: tuple[float, ...]) -> str:
+    """A warning where the truth's tip points away from its own bend angles on a robot of
+    these section ``lengths`` (:func:`~continuum_mhe.io.position_units.tip_direction_problem`:
+    x and y swapped, a sign flipped), else ``""``."""
+    turned = tip_direction_problem(truth.names, truth.values, lengths)
+    return f"{path_truth}: {turned}" if turned else ""

@@ -16,6 +16,7 @@ from continuum_mhe.cli.truth_checks import (
     clock_offset_warning,
     matched_rows_checked,
     tip_error_mean,
+    truth_frame_warning,
 )
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.text_rows import held_for_rereading
@@ -59,6 +60,8 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
         raise InputError(f"{args.truth}: {problem}")
     if few := matched_rows_checked(args.estimates, est, args.truth, truth):
         print(f"{PROG}: warning: {few}", file=sys.stderr)
+    if turned := truth_frame_warning(args.truth, truth, robot.lengths):
+        print(f"{PROG}: warning: {turned}", file=sys.stderr)
     offset = clock_offset_warning(
         args.truth, est, truth, robot.length, tip_error_mean(est, truth), "evaluate --truth-shift"
     )
