@@ -2168,3 +2168,24 @@ def test_evaluate_warns_of_a_truth_whose_x_and_y_are_swapped(paper3d_pair, tmp_p
         for path in sorted((data / folder).glob("*_truth.csv")):
             table = read_state_table(path)
             assert tip_direction_problem(table.names, table.values, lengths) == "", path
+
+
+def test_the_srmse_counts_the_tip_once_on_several_sections() -> None:
+    """A two-section table has the tip twice (x, y, z and the second section's end
+    x_2, y_2, z_2): a tip 10 mm off in x summed 20 mm into the SRMSE; now 10 mm. One
+    section's SRMSE (the paper's) is unchanged."""
+    from continuum_mhe.evaluation.metrics import srmse_columns
+
+    names = ["x", "y", "z", "theta_1", "phi_1", "x_1", "y_1", "z_1",
+             "theta_2", "phi_2", "x_2", "y_2", "z_2"]  # fmt: skip
+    truth = np.zeros((20, len(names)))
+    truth[:, names.index("z")] = truth[:, names.index("z_2")] = 0.3
+    truth[:, names.index("z_1")] = 0.16
+    est = truth.copy()
+    est[:, names.index("x")] += 0.01
+    est[:, names.index("x_2")] += 0.01
+    m = compute_metrics(est, truth, 0.3, names)
+    assert m.rmse["x"] == pytest.approx(0.01) and m.rmse["x_2"] == pytest.approx(0.01)
+    assert m.srmse == pytest.approx(0.01)
+    assert "x_2" not in srmse_columns(names) and "x_1" in srmse_columns(names)
+    assert srmse_columns(["x", "y", "z", "theta", "phi"]) == ["x", "y", "z", "theta", "phi"]

@@ -35,6 +35,7 @@ from continuum_mhe.evaluation.metrics import (
     interpolated_note,
     length_misfit,
     section_numbers,
+    srmse_columns,
 )
 from continuum_mhe.io.estimate_files import read_estimates
 from continuum_mhe.io.position_units import (
@@ -254,7 +255,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             "calibration_ok": None if cal_ok is None else cal_ok.as_dict(),
         }
         srmse = {"srmse": None} if hint else {}  # not a score of two different robots
-        summed = [c for c in m.rmse if c not in TIP_FORCE_COLUMNS]  # as the text says
+        summed = srmse_columns(list(m.rmse))  # as the text says
         made = {
             "srmse_columns": [] if hint else summed,
             "skip_start_s": args.skip_start,
@@ -332,7 +333,7 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
             f"(RMSE fx, fy, fz {fx:.4f}, {fy:.4f}, {fz:.4f} N)"
         )
     if comparable:
-        summed = ", ".join(c for c in r if c not in TIP_FORCE_COLUMNS)
+        summed = ", ".join(srmse_columns(list(r)))
         lines.append(f"SRMSE                {m.srmse:.4f} (sum of the RMSEs of {summed}, m + rad)")
     else:  # a score of two different robots would read as a real one
         lines.append(

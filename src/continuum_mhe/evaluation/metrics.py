@@ -49,7 +49,8 @@ class Metrics:
 
     Attributes:
         rmse: RMSE per compared column (m, rad or N; phi wrapped).
-        srmse: the sum of the RMSEs of the columns in m and rad (the paper's SRMSE for
+        srmse: the sum of the RMSEs of the columns in m and rad (:func:`srmse_columns`:
+            the last section's end, the tip again, counted once; the paper's SRMSE for
             one section, mixed units; a tendon robot's tip force left out).
         tip_mean_mm, tip_max_mm: Euclidean tip error, mm.
         tip_mean_pct, tip_max_pct: the same in % of the robot's length.
@@ -123,6 +124,17 @@ def state_errors(
     return err
 
 
+def srmse_columns(names: Sequence[str]) -> list[str]:
+    """The columns of ``names`` whose RMSEs the SRMSE sums: those in m and rad (not a
+    tendon robot's tip force), the last section's end (``x_n, y_n, z_n`` of ``n``
+    sections, the tip again) left out where the tip is there: each point counted once."""
+    n = 0
+    while f"theta_{n + 1}" in names:
+        n += 1
+    again = {f"{c}_{n}" for c in TIP_COLUMNS} if n and set(TIP_COLUMNS) <= set(names) else set()
+    return [c for c in names if c not in TIP_FORCE_COLUMNS and c not in again]
+
+
 def compute_metrics(
     estimate: FloatArray,
     truth: FloatArray,
@@ -180,7 +192,7 @@ def compute_metrics(
         force_rms = float(np.sqrt(np.mean(np.sum(err[:, force] ** 2, axis=1))))
     return Metrics(
         rmse={c: float(v) for c, v in zip(common, rmse)},
-        srmse=float(sum(v for c, v in zip(common, rmse) if c not in TIP_FORCE_COLUMNS)),
+        srmse=float(sum(v for c, v in zip(common, rmse) if c in srmse_columns(common))),
         tip_mean_mm=float(tip.mean() * 1e3),
         tip_max_mm=float(tip.max() * 1e3),
         tip_mean_pct=float(tip.mean() / length * 100),
