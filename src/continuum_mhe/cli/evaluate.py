@@ -14,9 +14,9 @@ import numpy as np
 
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import (
+    DEFAULT_LENGTH,
     add_robot_option,
     estimate_robot,
-    robot_from_args,
     robot_given,
 )
 from continuum_mhe.cli.truth_checks import (
@@ -233,7 +233,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     # robot's (its --length would misfit the estimate instead)
     given_length = "pass the --length (or --robot) it was made with"
     other = "the estimate's robot (its options line) is another: score it against its robot's truth"
-    recorded = not robot_given(args) and robot.lengths != robot_from_args(args).lengths
+    recorded = not robot_given(args) and robot.lengths != (DEFAULT_LENGTH,)
     misfits = [
         f"{path}: {misfit}; {other if recorded and path == args.truth else given_length}"
         for path, table in ((args.estimates, est), (args.truth, truth))

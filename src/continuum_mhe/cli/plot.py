@@ -81,20 +81,13 @@ def _estimate(args: argparse.Namespace) -> int:
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
     from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, warn_other_recorded_robot
-    from continuum_mhe.cli.truth_checks import (
-        clock_offset_warning,
-        matched_rows_checked,
-        tip_error_mean,
-        truth_frame_warning,
-    )
+    from continuum_mhe.cli.truth_checks import truth_beside
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
         has_tip_force,
         lengths_from_estimate,
         lengths_misfit,
         section_count,
-        truth_at_estimate,
-        truth_problem,
     )
     from continuum_mhe.evaluation.metrics import interpolated_note
     from continuum_mhe.evaluation.plotting import save
@@ -146,32 +139,16 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
             raise InputError(f"{path}: {unit}")
     backbone = _tendon_backbone(args, est.names, est.t, robot)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
-    at_est = None if truth is None else truth_at_estimate(est, truth)
-    problem = None if truth is None else truth_problem(est, at_est or truth)
-    if problem is not None:
-        raise InputError(f"{args.truth}: {problem}")
-    few = None if truth is None else matched_rows_checked(args.source, est, args.truth, truth)
-    if few:
-        print(f"{PROG}: warning: {few}", file=sys.stderr)
-    turned = (
-        ""
-        if truth is None
-        else truth_frame_warning(args.truth, truth, tuple(lengths or own or (DEFAULT_LENGTH,)))
-    )
-    if turned:
-        print(f"{PROG}: warning: {turned}", file=sys.stderr)
-    if at_est is not None:
-        note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
-        print(f"{PROG}: note: {note}", file=sys.stderr)
     if truth is not None:
-        length = sum(lengths or own or (DEFAULT_LENGTH,))
-        offset = clock_offset_warning(
-            args.truth, est, truth, length, tip_error_mean(est, truth), "evaluate --truth-shift"
+        at_est, warned = truth_beside(
+            args.source, est, args.truth, truth, tuple(lengths or own or (DEFAULT_LENGTH,))
         )
-        if offset:
-            print(f"{PROG}: warning: {offset}", file=sys.stderr)
-    if at_est is not None:
-        truth = at_est
+        if at_est is not None:
+            note = interpolated_note(args.truth, args.source, len(at_est.t), len(est.t))
+            print(f"{PROG}: note: {note}", file=sys.stderr)
+            truth = at_est
+        for line in warned:
+            print(f"{PROG}: warning: {line}", file=sys.stderr)
     try:
         fig = estimate_figure(est, truth, lengths, title, backbone)
     except InputError:  # names its file

@@ -1,7 +1,8 @@
 """The checks of a truth against an estimate that ``evaluate``, ``plot`` and ``view``
 share: too few of the estimate's rows with a truth (:func:`rows_matched`), a truth on an
-offset clock (:func:`clock_offset_warning`, with the mean tip error it starts from,
-:func:`tip_error_mean`)."""
+offset clock (:func:`clock_offset_warning`), a truth whose tip points away from its own
+bend angles (:func:`truth_frame_warning`); ``plot`` and ``view`` take them together
+(:func:`truth_beside`)."""
 
 from __future__ import annotations
 
@@ -65,19 +66,6 @@ def clock_offset_warning(
     )
 
 
-def tip_error_mean(est: StateTable, truth: StateTable) -> float:
-    """The mean tip error (m) of ``est`` against ``truth`` at the rows they share (as
-    ``evaluate`` aligns them); NaN where none does."""
-    i_est, rows, _ = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
-    if not len(i_est):
-        return math.nan
-    tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
-    true = rows[:, [truth.names.index(c) for c in TIP_COLUMNS]]
-    err = np.linalg.norm(tip - true, axis=1)
-    err = err[np.isfinite(err)]
-    return float(err.mean()) if len(err) else math.nan
-
-
 #: ``evaluate`` refuses files whose times match on fewer than this share of rows (or
 #: fewer than 2), and warns below :data:`WARN_MATCHED`, and when the matched rows span
 #: less than that share of the truth's time span.
@@ -103,22 +91,44 @@ def rows_matched(
     return "", what if compared < WARN_MATCHED * rows else ""
 
 
-def matched_rows_checked(path_est: str, est: StateTable, path_truth: str, truth: StateTable) -> str:
-    """:func:`rows_matched` of an estimate and a truth as ``evaluate`` aligns them: a
-    :class:`~continuum_mhe.errors.InputError` for the refusal, the warning (``""`` for
-    none); nothing to say of an estimate of one row."""
-    if len(est.t) < 2:
-        return ""
-    i_est, _, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
-    problem, warning = rows_matched(path_est, path_truth, len(i_est), len(est.t), interpolated)
-    if problem:
-        raise InputError(problem)
-    return warning
-
-
 def truth_frame_warning(path_truth: str, truth: StateTable, lengths: tuple[float, ...]) -> str:
     """A warning where the truth's tip points away from its own bend angles on a robot of
     these section ``lengths`` (:func:`~continuum_mhe.io.position_units.tip_direction_problem`:
     x and y swapped, a sign flipped), else ``""``."""
     turned = tip_direction_problem(truth.names, truth.values, lengths)
     return f"{path_truth}: {turned}" if turned else ""
+
+
+def truth_beside(
+    path_est: str, est: StateTable, path_truth: str, truth: StateTable, lengths: tuple[float, ...]
+) -> tuple[StateTable | None, list[str]]:
+    """What ``plot`` and ``view`` check of a truth drawn beside an estimate, on one
+    alignment of the two (as ``evaluate`` aligns them): an
+    :class:`~continuum_mhe.errors.InputError` for a truth of another robot or too few
+    rows the estimate's times share (:func:`rows_matched`; not asked of an estimate of one
+    row); else the truth interpolated at the estimate's times where ``evaluate`` would
+    interpolate it (None: as it is) and the warnings, in order: few rows, a truth whose
+    tip points away from its own angles (:func:`truth_frame_warning`, on a robot of these
+    section ``lengths``), a clock offset (:func:`clock_offset_warning`)."""
+    from continuum_mhe.evaluation.estimate_figure import truth_at_rows, truth_problem
+
+    i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
+    at_est = truth_at_rows(est, truth, i_est, rows, interpolated)
+    problem = truth_problem(est, at_est or truth)
+    if problem is not None:
+        raise InputError(f"{path_truth}: {problem}")
+    warned = []
+    if len(est.t) >= 2:
+        refused, few = rows_matched(path_est, path_truth, len(i_est), len(est.t), interpolated)
+        if refused:
+            raise InputError(refused)
+        warned.append(few)
+    warned.append(truth_frame_warning(path_truth, truth, lengths))
+    tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
+    err = np.linalg.norm(tip - rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], axis=1)
+    err = err[np.isfinite(err)]
+    mean = float(err.mean()) if len(err) else math.nan  # the mean tip error, m
+    offset = clock_offset_warning(
+        path_truth, est, truth, sum(lengths), mean, "evaluate --truth-shift"
+    )
+    return at_est, [line for line in (*warned, offset) if line]

@@ -12,13 +12,8 @@ from continuum_mhe.cli.live_options import add_viewer_options, viewer_sink_from_
 from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
-from continuum_mhe.cli.truth_checks import (
-    clock_offset_warning,
-    matched_rows_checked,
-    tip_error_mean,
-    truth_frame_warning,
-)
-from continuum_mhe.errors import InputError, UserError
+from continuum_mhe.cli.truth_checks import truth_beside
+from continuum_mhe.errors import UserError
 from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
@@ -43,7 +38,6 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
     fewer than two of its rows share the estimate's times (``t`` in milliseconds, another
     recording) or it has another robot's sections; a warning where its clock looks
     offset. Nothing here where either file cannot be read: replay says why."""
-    from continuum_mhe.evaluation.estimate_figure import truth_at_estimate, truth_problem
     from continuum_mhe.io.estimate_files import read_estimates
     from continuum_mhe.io.state_tables import read_state_table
     from continuum_mhe.model.descriptions import TIP_COLUMNS
@@ -55,18 +49,8 @@ def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
         return
     if len(est.t) < 2:  # one row: nothing to compare times with
         return
-    problem = truth_problem(est, truth_at_estimate(est, truth) or truth)
-    if problem is not None:
-        raise InputError(f"{args.truth}: {problem}")
-    if few := matched_rows_checked(args.estimates, est, args.truth, truth):
-        print(f"{PROG}: warning: {few}", file=sys.stderr)
-    if turned := truth_frame_warning(args.truth, truth, robot.lengths):
-        print(f"{PROG}: warning: {turned}", file=sys.stderr)
-    offset = clock_offset_warning(
-        args.truth, est, truth, robot.length, tip_error_mean(est, truth), "evaluate --truth-shift"
-    )
-    if offset:
-        print(f"{PROG}: warning: {offset}", file=sys.stderr)
+    for line in truth_beside(args.estimates, est, args.truth, truth, robot.lengths)[1]:
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
 
 
 def _warn_other_drawing(args: argparse.Namespace, robot: Robot) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.evaluation.metrics import Z95, IndexArray, aligned_truth, match_rows
+from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
 from continuum_mhe.io.tensions import Tensions
@@ -256,12 +256,13 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
     return None
 
 
-def truth_at_estimate(est: StateTable, truth: StateTable) -> StateTable | None:
+def truth_at_rows(
+    est: StateTable, truth: StateTable, i_est: IndexArray, rows: FloatArray, interpolated: bool
+) -> StateTable | None:
     """``truth`` interpolated at ``est``'s times (the table of its values there), where
-    ``evaluate`` would compare it so
-    (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`); else None (the truth as
-    it is)."""
-    i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
+    ``evaluate`` would compare it so, from their alignment ``(i_est, rows,
+    interpolated)`` (:func:`~continuum_mhe.evaluation.metrics.aligned_truth`'s result);
+    else None (the truth as it is)."""
     if not interpolated or len(i_est) < 2:
         return None
     return StateTable(est.t[i_est], truth.names, rows, np.full(len(i_est), "ok"))

@@ -94,14 +94,26 @@ def has_bend_columns(names: Sequence[str]) -> bool:
     return any(n.startswith(("theta", "phi")) for n in names)
 
 
+def _tips_from_own_angles(
+    rows: FloatArray, names: Sequence[str], lengths: Sequence[float]
+) -> FloatArray:
+    """The tip (n, 3), m, where each row's own bend angles (``theta_k, phi_k`` of
+    ``names``, finite in ``rows``) put it on a robot of these section ``lengths``."""
+    from continuum_mhe.model.pcc import pose_at
+
+    bend_names = [o.name for o in pcc_outputs(len(lengths)) if o.name.startswith(("theta", "phi"))]
+    cols = [list(names).index(n) for n in bend_names]
+    theta, phi = rows[:, cols[0::2]], rows[:, cols[1::2]]
+    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
+    return np.asarray(pose_at(bends, lengths, len(lengths) - 1)[1], dtype=float)
+
+
 def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> float | None:
     """With every section's bend columns: the steady ratio of the tip's distance from
     the base to the one its own angles give on a robot of ``lengths``
     (:func:`steady_ratio`); without them: the median distance over the robot's length;
     None where neither says anything (no finite row, a wandering ratio, angles of
     another number of sections)."""
-    from continuum_mhe.model.pcc import pose_at
-
     rows = np.asarray(values, dtype=float)
     outputs = pcc_outputs(len(lengths))
     tip = rows[:, [list(names).index(o.name) for o in outputs[:3]]]
@@ -116,10 +128,7 @@ def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]
     ok = np.all(np.isfinite(rows), axis=1)
     if not ok.any():
         return None
-    cols = [list(names).index(n) for n in bend_names]
-    theta, phi = rows[ok][:, cols[0::2]], rows[ok][:, cols[1::2]]
-    bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
-    _, p = pose_at(bends, lengths, len(lengths) - 1)
+    p = _tips_from_own_angles(rows[ok], names, lengths)
     with np.errstate(invalid="ignore", divide="ignore"):
         return steady_ratio(dist[ok] / np.linalg.norm(p, axis=1))
 
@@ -138,23 +147,17 @@ def tip_direction_problem(
     the median angle between the two horizontal directions over the rows bent by more
     than 5 % of the robot's length beyond :data:`TIP_DIRECTION_LIMIT_DEG`. Nothing said
     without every section's bend columns."""
-    from continuum_mhe.model.pcc import pose_at
-
     outputs = pcc_outputs(len(lengths))
     bend_names = [o.name for o in outputs if o.name.startswith(("theta", "phi"))]
     if not all(o.name in names for o in outputs[:3]) or not set(bend_names) <= set(names):
         return ""
     rows = np.asarray(values, dtype=float)
     tip = rows[:, [list(names).index(o.name) for o in outputs[:2]]]
-    cols = [list(names).index(n) for n in bend_names]
-    theta, phi = rows[:, cols[0::2]], rows[:, cols[1::2]]
-    with np.errstate(invalid="ignore"):
-        bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
-    ok = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(bends), axis=(1, 2))
+    bends = rows[:, [list(names).index(n) for n in bend_names]]
+    ok = np.all(np.isfinite(tip), axis=1) & np.all(np.isfinite(bends), axis=1)
     if not ok.any():
         return ""
-    _, p = pose_at(bends[ok], lengths, len(lengths) - 1)
-    given, own = tip[ok], p[:, :2]
+    given, own = tip[ok], _tips_from_own_angles(rows[ok], names, lengths)[:, :2]
     bent = np.linalg.norm(own, axis=1) > 0.05 * float(sum(lengths))
     norms = np.linalg.norm(given[bent], axis=1) * np.linalg.norm(own[bent], axis=1)
     if bent.sum() < 10 or not np.all(norms > 0):
