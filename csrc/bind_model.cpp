@@ -210,5 +210,5 @@ void cmhe::bind_model(nb::module_& m) {
       "POW", "CONSTPOW", "SQRT", "SQ", "TWICE", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN",
       "LT", "LE", "EQ", "NE", "NOT", "AND", "OR", "FLOOR", "CEIL", "FMOD", "FABS", "SIGN",
       "COPYSIGN", "IF_ELSE_ZERO", "ERF", "FMIN", "FMAX", "INV", "SINH", "COSH", "TANH",
-      "ASINH", "ACOSH", "ATANH", "ATAN2", "HYPOT", "LOG1P", "EXPM1", "REMAINDER");
+      "ASINH", "ACOSH", "ATANH", "ATAN2", "HYPOT", "LOG1P", "EXPM1", "REMAINDER", "GUARD");
 }

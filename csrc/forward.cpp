@@ -62,6 +62,7 @@ ForwardPlan plan_forward(const Tape& tape, int seed) {
   for (size_t i = 0; i < code.size(); ++i) {
     const Instruction& I = code[i];
     int32_t* r = plan.ranges.data() + 6 * i;
+    if (I.op == OP_GUARD) continue;  // res: a count, not a slot
     if (I.op == OP_OUTPUT) {  // res: the output's entry, b: the output; a: the slot read
       r[0] = r[2] = lo[static_cast<size_t>(I.a)];
       r[1] = r[3] = hi[static_cast<size_t>(I.a)];
@@ -112,10 +113,14 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
   }
   // A slot's tangent is written, and read, over its value's range alone: outside it
   // the entries are zero by the plan and left as they are in memory.
-  const int32_t* range = plan.ranges.data();
-  for (const Instruction& I : tape.code()) {
-    const int32_t* rg = range;
-    range += 6;
+  const auto& code = tape.code();
+  for (size_t pc = 0; pc < code.size(); ++pc) {
+    const Instruction& I = code[pc];
+    const int32_t* rg = plan.ranges.data() + 6 * pc;
+    if (I.op == OP_GUARD) {  // the values skipped are read only as IF_ELSE_ZERO(0, .)
+      if (w[I.a] == 0.0) pc += static_cast<size_t>(I.res);
+      continue;
+    }
     double* dr = t + static_cast<int64_t>(I.res) * d;
     if (I.op == OP_INPUT) {
       w[I.res] = in[I.a] ? in[I.a][I.b] : 0.0;

@@ -45,6 +45,10 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
         work(I.res);
         if (I.a < 0 || I.a >= static_cast<int32_t>(constants_.size())) bad("constant out of range");
         break;
+      case OP_GUARD:  // res: the instructions skipped, all of them after it
+        work(I.a);
+        if (I.res < 1 || static_cast<size_t>(I.res) >= code_.size() - k) bad("guard out of range");
+        break;
       default:
         work(I.res);
         work(I.a);
@@ -58,11 +62,15 @@ Tape::Tape(std::vector<Instruction> code, std::vector<double> constants,
     if (I.op == OP_OUTPUT) ++written[I.b];
   for (size_t j = 0; j < output_sizes_.size(); ++j)
     if (written[j] < output_sizes_[j]) sparse_outputs_.push_back(static_cast<int64_t>(j));
-  // consecutive elementwise instructions run as pairs in the batched evaluation
+  // consecutive elementwise instructions run as pairs in the batched evaluation, never
+  // the last one a guard may skip with the next
+  std::vector<char> run_end(code_.size(), 0);
+  for (size_t k = 0; k < code_.size(); ++k)
+    if (code_[k].op == OP_GUARD) run_end[k + static_cast<size_t>(code_[k].res)] = 1;
   pair_.assign(code_.size(), -1);
   for (size_t k = 0; k + 1 < code_.size(); ++k) {
     const int p = pair_index(code_[k].op), q = pair_index(code_[k + 1].op);
-    if (p >= 0 && q >= 0) pair_[k++] = static_cast<int16_t>(p * kPairOps + q);
+    if (p >= 0 && q >= 0 && !run_end[k]) pair_[k++] = static_cast<int16_t>(p * kPairOps + q);
   }
 }
 
@@ -190,6 +198,7 @@ void Tape::evaluate(const double* const* in, double* const* out) const {
   labels[OP_INPUT] = &&op_INPUT;
   labels[OP_OUTPUT] = &&op_OUTPUT;
   labels[OP_CONST] = &&op_CONST;
+  labels[OP_GUARD] = &&op_GUARD;
 #define CMHE_LABEL(NAME, VALUE) labels[OP_##NAME] = &&op_##NAME;
   CMHE_SCALAR_OPS(CMHE_LABEL)
 #undef CMHE_LABEL
@@ -206,6 +215,9 @@ op_OUTPUT:
 op_CONST:
   r = c[I->a];
   CMHE_NEXT;
+op_GUARD:
+  if (x == 0.0) I += I->res;
+  CMHE_NEXT;
 #define CMHE_CASE(NAME, VALUE) \
   op_##NAME : r = (VALUE);     \
   CMHE_NEXT;
@@ -220,6 +232,7 @@ done:
       case OP_INPUT: r = in[I->a] ? in[I->a][I->b] : 0.0; break;
       case OP_OUTPUT: if (out[I->b]) out[I->b][I->res] = x; break;
       case OP_CONST: r = c[I->a]; break;
+      case OP_GUARD: if (x == 0.0) I += I->res; break;
 #define CMHE_CASE(NAME, VALUE) case OP_##NAME: r = (VALUE); break;
       CMHE_SCALAR_OPS(CMHE_CASE)
 #undef CMHE_CASE
@@ -265,6 +278,13 @@ CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in
       }
       continue;
     }
+    if (I.op == OP_GUARD) {  // res: a count, not a slot
+      const double* cond = w + static_cast<int64_t>(I.a) * n;
+      bool zero = true;
+      for (int64_t k = 0; k < count; ++k) zero = zero && cond[k] == 0.0;
+      if (zero) pc += static_cast<size_t>(I.res);
+      continue;
+    }
     double* r = w + static_cast<int64_t>(I.res) * n;
     const double* x = w + static_cast<int64_t>(I.a) * n;
     const double* y = w + static_cast<int64_t>(I.b) * n;
@@ -299,6 +319,7 @@ CMHE_CLONES void Tape::evaluate_batch(const double* const* in, const int64_t* in
         const double v = c[I.a];
         EACH(v);
       }
+
       case OP_ASSIGN: EACH(x[k]);
       case OP_ADD: EACH(x[k] + y[k]);
       case OP_SUB: EACH(x[k] - y[k]);
@@ -420,33 +441,116 @@ std::vector<Instruction> share_tape(const std::vector<Instruction>& code,
   for (size_t v = defs.size(); v-- > 0;)
     if (needed[v] && operands(defs[v]))
       needed[static_cast<size_t>(defs[v].a)] = needed[static_cast<size_t>(defs[v].b)] = 1;
-  std::vector<int64_t> last(defs.size(), -1);
-  for (size_t step = 0; step < order.size(); ++step) {
-    int32_t k = order[step];
+  // Each needed value's guard: the condition value c such that every use of it is
+  // IF_ELSE_ZERO(c, value) or a value with guard c (-1: none; a value an output reads
+  // has none). The uses come later in the order of the values, so one backward sweep
+  // meets them all first.
+  constexpr int32_t kUnset = -2;
+  std::vector<int32_t> guard(defs.size(), kUnset);
+  auto meet = [&](int32_t v, int32_t g) {
+    int32_t& m = guard[static_cast<size_t>(v)];
+    m = m == kUnset ? g : (m == g ? m : -1);
+  };
+  for (const Instruction& o : outputs) meet(o.op, -1);
+  for (size_t v = defs.size(); v-- > 0;) {
+    if (!needed[v]) continue;
+    int32_t& g = guard[v];
+    if (g == kUnset) g = -1;
+    const Instruction& d = defs[v];
+    if (!operands(d)) continue;
+    if (d.op == OP_IF_ELSE_ZERO && d.a != d.b) {
+      meet(d.a, g);
+      meet(d.b, d.a);
+    } else {
+      meet(d.a, g);
+      if (d.b != d.a) meet(d.b, g);
+    }
+  }
+  // The schedule: the order of the values, but each guarded value held back with the
+  // others of its guard until a value outside them reads one; the held values then run
+  // together behind a guard on their condition, if that is computed by then (else, or
+  // if they are fewer than kMinRun, whose guard would cost as much as it saves, without
+  // one). Where a guard's condition is zero its values are read by none of the values
+  // that follow: IF_ELSE_ZERO(0, .) is 0 whatever its operand holds.
+  constexpr size_t kMinRun = 4;
+  struct Step {
+    int32_t kind;  // 0: value, 1: output, 2: guard
+    int32_t index; // the value, the output, or the guard's condition value
+    int32_t count; // a guard's values
+  };
+  std::vector<Step> steps;
+  steps.reserve(order.size() + 16);
+  std::vector<std::vector<int32_t>> held(defs.size());
+  std::vector<char> is_held(defs.size(), 0), scheduled(defs.size(), 0);
+  auto release = [&](int32_t c) {
+    std::vector<int32_t>& run = held[static_cast<size_t>(c)];
+    if (run.size() >= kMinRun && scheduled[static_cast<size_t>(c)])
+      steps.push_back({2, c, static_cast<int32_t>(run.size())});
+    for (int32_t v : run) {
+      steps.push_back({0, v, 0});
+      is_held[static_cast<size_t>(v)] = 0;
+      scheduled[static_cast<size_t>(v)] = 1;
+    }
+    run.clear();
+  };
+  for (int32_t k : order) {
     if (k < 0) {
-      last[static_cast<size_t>(outputs[static_cast<size_t>(-k - 1)].op)] =
-          static_cast<int64_t>(step);
-    } else if (needed[static_cast<size_t>(k)] && operands(defs[static_cast<size_t>(k)])) {
-      const Instruction& d = defs[static_cast<size_t>(k)];
-      last[static_cast<size_t>(d.a)] = last[static_cast<size_t>(d.b)] = static_cast<int64_t>(step);
+      steps.push_back({1, -k - 1, 0});
+      continue;
+    }
+    const auto v = static_cast<size_t>(k);
+    if (!needed[v]) continue;
+    const Instruction& d = defs[v];
+    if (operands(d))
+      for (int32_t op : {d.a, d.b})
+        if (is_held[static_cast<size_t>(op)] && guard[static_cast<size_t>(op)] != guard[v])
+          release(guard[static_cast<size_t>(op)]);
+    if (guard[v] >= 0) {
+      held[static_cast<size_t>(guard[v])].push_back(k);
+      is_held[v] = 1;
+    } else {
+      steps.push_back({0, k, 0});
+      scheduled[v] = 1;
+    }
+  }
+  for (size_t c = 0; c < held.size(); ++c)
+    if (!held[c].empty()) release(static_cast<int32_t>(c));
+  // each value's last use (a guard reads its condition)
+  std::vector<int64_t> last(defs.size(), -1);
+  for (size_t step = 0; step < steps.size(); ++step) {
+    const Step& st = steps[step];
+    const auto now = static_cast<int64_t>(step);
+    if (st.kind == 1) {
+      last[static_cast<size_t>(outputs[static_cast<size_t>(st.index)].op)] = now;
+    } else if (st.kind == 2) {
+      last[static_cast<size_t>(st.index)] = now;
+    } else if (operands(defs[static_cast<size_t>(st.index)])) {
+      const Instruction& d = defs[static_cast<size_t>(st.index)];
+      last[static_cast<size_t>(d.a)] = last[static_cast<size_t>(d.b)] = now;
     }
   }
   std::vector<int32_t> slot(defs.size(), -1);
   std::vector<int32_t> free;
   int32_t size = 0;
   std::vector<Instruction> rows;
-  rows.reserve(order.size());
-  for (size_t step = 0; step < order.size(); ++step) {
+  rows.reserve(steps.size());
+  for (size_t step = 0; step < steps.size(); ++step) {
     const auto now = static_cast<int64_t>(step);
-    int32_t k = order[step];
-    if (k < 0) {
-      const Instruction& o = outputs[static_cast<size_t>(-k - 1)];
+    const Step& st = steps[step];
+    if (st.kind == 1) {
+      const Instruction& o = outputs[static_cast<size_t>(st.index)];
       const auto value = static_cast<size_t>(o.op);
       rows.push_back({OP_OUTPUT, o.res, slot[value], o.a});
       if (last[value] == now) free.push_back(slot[value]);
       continue;
     }
-    if (!needed[static_cast<size_t>(k)]) continue;
+    if (st.kind == 2) {
+      const int32_t cs = slot[static_cast<size_t>(st.index)];
+      rows.push_back({OP_GUARD, st.count, cs, cs});
+      if (last[static_cast<size_t>(st.index)] == now) free.push_back(cs);
+      continue;
+    }
+    const int32_t k = st.index;
     const Instruction& d = defs[static_cast<size_t>(k)];
     int32_t a = d.a, b = d.b;
     if (operands(d)) {

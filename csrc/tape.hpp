@@ -24,6 +24,8 @@ enum Op : int32_t {
   OP_FABS, OP_SIGN, OP_COPYSIGN, OP_IF_ELSE_ZERO, OP_ERF, OP_FMIN, OP_FMAX, OP_INV,
   OP_SINH, OP_COSH, OP_TANH, OP_ASINH, OP_ACOSH, OP_ATANH, OP_ATAN2, OP_HYPOT,
   OP_LOG1P, OP_EXPM1, OP_REMAINDER,
+  OP_GUARD,       // where w[a] is zero (in every evaluation of a batch), skip the next res
+                  // instructions: values only IF_ELSE_ZERO(w[a], .) reads (share_tape)
   OP_COUNT
 };
 
@@ -80,7 +82,11 @@ class Tape {
 // the same inputs, constant (the same bits) or values as an earlier one is the earlier
 // value (value numbering; ADD and MUL operands in either order), instructions no output
 // needs are dropped, and work slots are reassigned (a slot is free after its value's
-// last use). The arithmetic of every value is unchanged. ``work_size``: the slots used.
+// last use). The values that only one side of a branch needs (``if_else(c, a, b)`` is
+// ``IF_ELSE_ZERO(c, a) + IF_ELSE_ZERO(!c, b)``: every use of such a value is an
+// ``IF_ELSE_ZERO(c, .)``, directly or through other such values) are moved together
+// behind an OP_GUARD on ``c``, so that an evaluation skips the side not taken. The
+// arithmetic of every value used is unchanged. ``work_size``: the slots used.
 std::vector<Instruction> share_tape(const std::vector<Instruction>& code,
                                     const std::vector<double>& constants,
                                     int64_t& work_size);

@@ -223,3 +223,78 @@ def test_a_remembered_function_answers_only_for_its_own_inputs() -> None:
     gc.collect()
     three = remembered(second)
     np.testing.assert_array_equal(core_flat(three, a), casadi_flat(second, a))
+
+
+def _branch_function() -> ca.Function:
+    """sinc-like branches as the kinematics write them (a series below a switch, a closed
+    form above it), with their Jacobians: each side long enough to be guarded."""
+    v = ca.SX.sym("v", 2)
+    q = v[0] ** 2 + v[1] ** 2
+    series = 1 - q / 6 + q**2 / 120 - q**3 / 5040 + q**4 / 362880
+    t = ca.sqrt(ca.if_else(q < 1e-2, 1e-2, q))
+    value = ca.if_else(q < 1e-2, series, ca.sin(t) / t) * v[1] + ca.cos(v[0])
+    return ca.Function("branch", [v], [value, ca.jacobian(value, v)])
+
+
+def test_each_side_of_a_branch_is_guarded_and_no_output_is() -> None:
+    """The shared tape puts each side of an ``if_else`` behind a guard on its condition,
+    and no guard skips an output."""
+    from continuum_mhe.model.tape import shared_tape, tape_arrays
+
+    shared, _, _ = shared_tape(*tape_arrays(_branch_function()))
+    ops = [_core.OPERATIONS[op] for op in shared[:, 0]]
+    guards = [i for i, op in enumerate(ops) if op == "GUARD"]
+    assert len(guards) >= 2
+    for i in guards:
+        assert "OUTPUT" not in ops[i + 1 : i + 1 + shared[i, 1]]
+    conditions = {ops[j] for i in guards for j in [_defined_at(shared, i)]}
+    assert conditions <= {"LT", "NOT"} and len(conditions) == 2
+
+
+def _defined_at(code: np.ndarray, i: int) -> int:
+    """The row that last wrote the slot row ``i`` reads."""
+    slot = code[i, 2]  # OUTPUT and GUARD rows write no slot (res: an offset, a count)
+    writes = [j for j in range(i) if _core.OPERATIONS[code[j, 0]] not in ("OUTPUT", "GUARD")]
+    return max(j for j in writes if code[j, 1] == slot)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-0.3, 0.3), min_size=10, max_size=10), st.integers(0, 2))
+def test_a_guarded_branch_equals_casadi_on_each_side_and_mixed(
+    values: list[float], side: int
+) -> None:
+    """A window whose nodes all lie on one side of the kinematics' series switch
+    (``theta^2 = 1e-2``: the other side's guard skips it), or on both (nothing is
+    skipped), near the switch too, equals CasADi's window to the last bit (to the
+    rounding of the vector library's sin and cos in the batch); one node and the
+    forward-mode Jacobian likewise."""
+    f = make_formulation("bend")
+    n = 5
+    bend = np.array(values).reshape(2, n)
+    if side == 0:  # straight: every node in the series
+        bend *= 0.09 / max(0.3, float(np.abs(bend).max()))
+    elif side == 1:  # bent: every node on the closed form, one at the switch
+        bend += np.sign(bend) * 0.2 + (bend == 0) * 0.2
+        bend[:, 0] = [math.sqrt(1e-2), 0.0]
+    rng = np.random.default_rng(len(values) + side)
+    X = np.vstack([bend, rng.normal(scale=0.3, size=(f.nx - 2, n))])
+    Z = rng.normal(scale=0.3, size=(f.nz, n))
+    M = np.ones((f.nz, n))
+    U = np.zeros((f.nu, n - 1))
+    DT = np.full((1, n - 1), 0.05)
+    window, _ = window_functions.core_window_functions(f, n)
+    args = [X, Z, M, U, DT]
+    expected = casadi_flat(window_functions.window_function(f, n), args)
+    scale = max(1.0, float(np.abs(expected).max()))
+    atol = 1e-12 * scale if _core.uses_vector_sin_cos() else 0.0
+    np.testing.assert_allclose(core_flat(window, args), expected, rtol=0, atol=atol)
+    fn = _branch_function()
+    for k in range(n):
+        point = [X[:2, k]]
+        np.testing.assert_array_equal(core_flat(tape_function(fn), point), casadi_flat(fn, point))
+    value = ca.Function("value", fn.sx_in(), [fn.call(fn.sx_in())[0]])
+    forward = _core.ForwardJacobianFunction(tape_function(value))
+    for k in range(n):
+        got = np.full(forward.output_size, np.nan)
+        forward.evaluate([X[:2, k].copy()], got)
+        np.testing.assert_allclose(got, casadi_flat(fn, [X[:2, k]])[1:], rtol=1e-14, atol=1e-15)
