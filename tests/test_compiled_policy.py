@@ -393,6 +393,34 @@ def test_an_estimator_is_not_copied_nor_pickled() -> None:
             attempt(est)
 
 
+@pytest.mark.parametrize("name, sections, method", [
+    ("bend", 1, "ekf"), ("paper", 1, "mhe"), ("bend", 2, "mhe"), ("bend", 1, "ukf"),
+])  # fmt: skip
+def test_a_formulation_pickles_and_copies_after_an_estimator_used_it(
+    name: str, sections: int, method: str
+) -> None:
+    """A formulation that an estimator has used (its cached symbolic expressions and
+    compiled checks built) pickles and copies as a fresh one does (it raised
+    TypeError or "Cannot pickle SX objects"), and the copy estimates alike."""
+    import copy
+    import pickle
+
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = read_robot("two-section") if sections == 2 else None
+    f = make_formulation(name, robot)
+    if sections == 2:
+        rec = simulate_robot("spatial", f.robot, duration=0.5, seed=0)
+    else:
+        rec = simulate("paper3d", duration=0.5, seed=0)
+    z = rec.z
+    want = make_estimator(method, f).run(rec.t, z)
+    for again in (pickle.loads(pickle.dumps(f)), copy.deepcopy(f), copy.copy(f)):
+        assert again == f
+        got = make_estimator(method, again).run(rec.t, z)
+        np.testing.assert_array_equal(got.output, want.output)
+
+
 def test_a_refused_sample_is_refused_before_any_sample_of_the_call_is_stepped() -> None:
     """A tilt in degrees, an infinite reading or a repeated time at sample 3 of a call:
     the UserError comes before samples 0 to 2 are stepped (they were stepped and their

@@ -647,3 +647,32 @@ def test_run_says_when_t_looks_like_milliseconds() -> None:
     ekf = make_estimator("ekf", make_formulation("bend"))
     with pytest.warns(UnitWarning, match="median of 50 s per sample; t must be in seconds"):
         ekf.run(rec.t * 1000.0, rec.z)
+
+
+def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
+    """Samples handed over one at a time (step) or a block at a time (continue_run) with
+    t in milliseconds warn once, after the first steps, as run does; a reset warns
+    again for the next recording; times in seconds do not warn."""
+    import warnings
+
+    from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
+    from continuum_mhe.io.csv_files import UnitWarning
+
+    rec = simulate("paper3d", duration=1.0)
+    ekf = make_estimator("ekf", make_formulation("bend"))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        for t, z in zip(rec.t * 1000.0, rec.z):
+            ekf.step(Measurement(float(t), z))
+        ekf.reset()
+        ekf.continue_run(rec.t[:2] * 1000.0, rec.z[:2])  # one step: not judged yet
+        ekf.continue_run(rec.t[2:] * 1000.0, rec.z[2:])
+        ekf.reset()
+        for t, z in zip(rec.t, rec.z):
+            ekf.step(Measurement(float(t), z))
+        ekf.continue_run(rec.t + rec.t[-1] + 0.05, rec.z)
+    units = [w for w in seen if issubclass(w.category, UnitWarning)]
+    assert [str(w.message)[:44] for w in units] == [
+        "t advances by a median of 50 s per sample ov"
+    ] * 2
+    assert all(w.filename == __file__ for w in units)

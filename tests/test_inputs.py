@@ -111,7 +111,7 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
         write_measurements(tmp_path / "m.csv", np.arange(40.0), np.zeros((41, 2)))
     assert not (tmp_path / "m.csv").exists()
     # lists are arrays; a 1-D z, an array for a series, a series of another robot's
-    # estimates without its outputs: one line each (not AttributeError or IndexError)
+    # estimates with another's outputs: one line each (not AttributeError or IndexError)
     from continuum_mhe import make_estimator, simulate, simulate_robot
     from continuum_mhe.errors import UserError
     from continuum_mhe.io.estimate_csv import write_estimates
@@ -129,8 +129,12 @@ def test_library_input_mistakes_are_one_line(tmp_path: Path) -> None:
     rec2 = simulate_robot("spatial", two, duration=0.2)
     est = make_estimator("ekf", make_formulation("bend", two))
     steps = [est.step(Measurement(float(t), z)) for t, z in zip(rec2.t, rec2.z)]
+    # the estimates name their outputs: a series of them needs no outputs=
+    series2 = EstimateSeries.from_estimates("ekf", steps)
+    assert series2.names == [o.name for o in est.formulation.outputs]
+    np.testing.assert_array_equal(series2.column("theta_2")[-1], steps[-1].value("theta_2"))
     with pytest.raises(UserError, match="has 13 outputs, but outputs describes 5: pass"):
-        EstimateSeries.from_estimates("ekf", steps)
+        EstimateSeries.from_estimates("ekf", steps, outputs=make_formulation("bend").outputs)
     assert not (tmp_path / "m1.csv").exists() and not (tmp_path / "e.csv").exists()
 
 
@@ -146,7 +150,8 @@ def test_a_series_gives_an_output_s_standard_deviation_by_name() -> None:
     series = EstimateSeries("ekf", t, output, status, np.zeros(3), output_std=std)
     np.testing.assert_array_equal(series.std_column("z"), std[:, 2])
     assert series.names[2] == "z"
-    with pytest.raises(KeyError, match="no output column 'fx'"):
-        series.std_column("fx")
+    for get in (series.std_column, series.column):  # the columns there are, named
+        with pytest.raises(KeyError, match=r"no output column 'fx' \(the columns: x, y, z, "):
+            get("fx")
     bare = EstimateSeries("ekf", t, output, status, np.zeros(3))
     assert np.isnan(bare.std_column("x")).all()

@@ -1114,7 +1114,7 @@ def test_the_paper_formulation_on_two_sections_names_options_that_exist(tmp_path
         "continuum-mhe: error: the paper formulation models one section with one tip IMU; "
         "this robot has 2 sections (0.16 m, 0.14 m), IMUs at 1@1, 2@1, z-up: leave "
         "--formulation paper out (the default model, bend with tilt readings and direct "
-        "with raw ones, takes any robot)\n"
+        "with raw ones, takes any robot; in Python make_formulation('bend', robot))\n"
     )
     assert main([*argv, "--method", "ekf"]) == 0
 
@@ -1136,7 +1136,9 @@ def test_raw_readings_in_the_wrong_units_given_to_an_estimator_are_refused(metho
     degrees_per_s = np.tile(direct_measurements(acc, np.radians([[30.0, 0.0, 0.0]])), (40, 1))
     degrees_per_s[:, 3:] = np.degrees(degrees_per_s[:, 3:])
     with pytest.raises(
-        UserError, match=r"^wx, wy, wz: gyro magnitude is about 30 \(median\).*deg/s"
+        UserError,
+        match=r"^wx, wy, wz \(the gyro's gx, gy, gz\): gyro magnitude is about 30 \(median\)"
+        r".*deg/s",
     ):
         est.run(t, degrees_per_s)
     good = np.tile(direct_measurements(acc, [[0.01, 0.0, 0.02]]), (40, 1))
@@ -1170,7 +1172,10 @@ def test_a_resting_gyro_in_degrees_per_second_is_refused_by_run_and_step(method)
     deg_s = np.array([1.2, -1.5, 0.9]) + rng.normal(0.0, 0.3, (n, 3))
     degs = direct_measurements(acc, deg_s)
     rads = direct_measurements(acc, np.radians(deg_s))
-    said = r"wx, wy, wz: the accelerometer's gravity direction turns as the gyro says only"
+    said = (
+        r"wx, wy, wz \(the gyro's gx, gy, gz\): the accelerometer's gravity direction turns "
+        r"as the gyro says only"
+    )
     est = make_estimator(method, make_formulation("direct"))
     with pytest.raises(ReadingUnitsError, match=said):
         est.run(t, degs)
@@ -1206,7 +1211,8 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     for k in range(last):
         est.step(Measurement(float(t[k]), deg_s[k]))
     said = (
-        rf"^measurement at t={float(t[last])!r} s: wx, wy, wz: gyro magnitude is about "
+        rf"^measurement at t={float(t[last])!r} s: wx, wy, wz \(the gyro's gx, gy, gz\): "
+        r"gyro magnitude is about "
         rf"30\.4 \(median of the first {UNIT_CHECK_SAMPLES} full readings, 1\.98 s\), "
         r"implausible in rad/s \(above 5\): deg/s\? give rad/s"
     )
@@ -1217,7 +1223,9 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     est.reset()
     first = est.continue_run(t[:60], deg_s[:60])  # not yet the first 100: stepped
     assert len(first.status) == 60
-    with pytest.raises(UserError, match=r"wx, wy, wz: gyro magnitude is about 30\.4"):
+    with pytest.raises(
+        UserError, match=r"wx, wy, wz \(the gyro's gx, gy, gz\): gyro magnitude is about 30\.4"
+    ):
         est.continue_run(t[60:], deg_s[60:])
     est.reset()
     for k in range(n):

@@ -366,20 +366,23 @@ class EstimateSeries:
         )
 
     def column(self, name: str) -> FloatArray:
-        """The output column ``name`` (n,)."""
-        for i, o in enumerate(self.outputs):
-            if o.name == name:
-                return self.output[:, i]
-        raise KeyError(f"no output column {name!r}")
+        """The output column ``name`` (n,); a KeyError naming the columns for a name
+        not among them."""
+        return self.output[:, self._index(name)]
+
+    def _index(self, name: str) -> int:
+        names = self.names
+        if name not in names:
+            raise KeyError(f"no output column {name!r} (the columns: {', '.join(names)})")
+        return names.index(name)
 
     def std_column(self, name: str) -> FloatArray:
         """One standard deviation of the output column ``name`` (n,), in its unit; NaN
         where the series has none."""
-        if name not in self.names:
-            raise KeyError(f"no output column {name!r}")
+        i = self._index(name)
         if self.output_std is None:
             return np.full(len(self.t), np.nan)
-        return self.output_std[:, self.names.index(name)]
+        return self.output_std[:, i]
 
     @property
     def names(self) -> list[str]:
@@ -388,6 +391,8 @@ class EstimateSeries:
 
     @property
     def has_estimate(self) -> NDArray[np.bool_]:
+        """(n,): True where the sample has an estimate (every status but
+        ``no-estimate``)."""
         return self.status != "no-estimate"
 
     @classmethod
@@ -395,13 +400,17 @@ class EstimateSeries:
         cls,
         method: str,
         estimates: Iterable[Estimate],
-        outputs: tuple[OutputSpec, ...] = pcc_outputs(1),
+        outputs: tuple[OutputSpec, ...] | None = None,
         flags_outliers: bool = False,
         diagnostics: Diagnostics | None = None,
     ) -> EstimateSeries:
-        """The series of ``estimates``; with ``flags_outliers`` it keeps their outlier
-        flags (a robust MHE's), else ``outlier`` is None."""
+        """The series of ``estimates``; ``outputs`` (default: those the estimates carry,
+        :attr:`Estimate.outputs`, else one section's) names their entries; with
+        ``flags_outliers`` it keeps their outlier flags (a robust MHE's), else
+        ``outlier`` is None."""
         est = list(estimates)
+        if outputs is None:
+            outputs = next((e.outputs for e in est if e.outputs), pcc_outputs(1))
         out = np.full((len(est), len(outputs)), np.nan)
         std = np.full_like(out, np.nan)
         for i, e in enumerate(est):

@@ -36,6 +36,13 @@ UNIT_TOLERANCE = 0.05
 DirectRows = tuple[slice, slice, tuple[str, ...]]
 
 
+def gyro_label(names: tuple[str, ...]) -> str:
+    """A ``direct`` block's gyro readings as a message names them: the model's
+    ``wx_i, wy_i, wz_i``, with the raw file's ``gx_i, gy_i, gz_i`` they come from."""
+    model, raw = names[3:], tuple("g" + n[1:] for n in names[3:])
+    return f"{', '.join(model)} (the gyro's {', '.join(raw)})"
+
+
 def direct_blocks(formulation: Formulation) -> list[DirectRows]:
     """Per ``direct`` block: the rows of its unit specific force, of its gyro, and its
     six names."""
@@ -75,7 +82,7 @@ def direct_units_problem(
         if problem is None and gyro and t is not None:
             problem = gyro_gravity_problem(t[finite], f[finite], w[finite], ", ".join(names[3:]))
         if problem is not None:
-            return f"{', '.join(names[3:])}: {problem}"
+            return f"{gyro_label(names)}: {problem}"
     return None
 
 
@@ -163,6 +170,6 @@ class ReadingUnitsWatch:
             return None
         of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"
         return (
-            f"measurement at t={float(t[full[-1]])!r} s: {', '.join(names[3:])}: "
+            f"measurement at t={float(t[full[-1]])!r} s: {gyro_label(names)}: "
             + problem.replace("(median)", of, 1)
         )

@@ -55,7 +55,7 @@ from continuum_mhe.estimators.reading_units import (
     direct_blocks,
     direct_units_problem,
 )
-from continuum_mhe.io.csv_files import check_time_steps
+from continuum_mhe.io.csv_files import TimeStepWatch, UnitWarning, check_time_steps
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
@@ -254,6 +254,8 @@ class Estimator(Generic[InferenceT]):
         ]
         #: the units of the readings that step and continue_run hand over
         self._units = ReadingUnitsWatch(self._direct_rows)
+        #: the unit of the times that step and continue_run hand over
+        self._time_steps = TimeStepWatch()
         self._policy = self._compiled_policy()
         self.reset()
 
@@ -358,6 +360,7 @@ class Estimator(Generic[InferenceT]):
         self._ran = False
         if not keep_counts:  # a new recording: its units are checked anew
             self._units.reset()
+            self._time_steps.reset()
         self._policy.reset(keep_counts)
 
     def _sync_diagnostics(self) -> None:
@@ -415,7 +418,10 @@ class Estimator(Generic[InferenceT]):
           readings show).
 
         The estimate carries ``output_std`` wherever the method has a covariance, and
-        its outputs' names (:meth:`~continuum_mhe.results.Estimate.value`).
+        its outputs' names (:meth:`~continuum_mhe.results.Estimate.value`). Sample
+        times whose first steps after a reset exceed 2 s (milliseconds given for
+        seconds: every step a gap that restarts the estimate) are warned of once, a
+        :class:`~continuum_mhe.io.csv_files.UnitWarning`.
 
         Raises:
             UserError: if ``measurement.z`` does not have the formulation's size, holds
@@ -452,6 +458,7 @@ class Estimator(Generic[InferenceT]):
         r = self._policy.step(t, z)
         if r.input_error:
             self._refuse(r.input_error, t, z)
+        self._warn_time_unit(np.array([t], dtype=float))
         self._ran = False
         if r.diagnostics_changed:
             self._sync_diagnostics()
@@ -630,14 +637,16 @@ class Estimator(Generic[InferenceT]):
         ``starts`` (default: all in one call; else ``range(0, n, block)`` in order,
         which a progress display may wrap: the blocks must cover every sample once, in
         order); raises the :class:`UserError` of :meth:`step` for a refused sample
-        before any sample of the call is stepped (and for readings in the wrong units, checked as
-        :meth:`step` checks them unless ``check_units`` is False (a caller that checked
-        them itself), before any sample of the call), and one for arrays whose shapes
-        do not fit (as :meth:`run`), a ``block`` that is not a positive integer, or
-        ``starts`` that skip, repeat or leave out samples. ``should_stop()`` (a caller's
-        signal flag, say) is asked before the first sample and then every 10 ms or so,
-        between two samples: once it says True the call returns the samples stepped so
-        far (a shorter batch; the next call goes on from there)."""
+        before any sample of the call is stepped (and for readings in the wrong units,
+        checked as :meth:`step` checks them unless ``check_units`` is False (a caller
+        that checked them itself), before any sample of the call; unless it is False,
+        sample times that step like milliseconds are warned of as :meth:`step` warns),
+        and one for arrays whose shapes do not fit (as :meth:`run`), a ``block`` that
+        is not a positive integer, or ``starts`` that skip, repeat or leave out
+        samples. ``should_stop()`` (a caller's signal flag, say) is asked before the
+        first sample and then every 10 ms or so, between two samples: once it says True
+        the call returns the samples stepped so far (a shorter batch; the next call goes
+        on from there)."""
         t, z = self._samples(t, z)
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
@@ -646,9 +655,20 @@ class Estimator(Generic[InferenceT]):
             if problem is not None:
                 raise ReadingUnitsError(problem)
         self._refuse_before_stepping(t, z)
+        if check_units:
+            self._warn_time_unit(t)
         size = max(len(t), 1) if block is None else int(block)
         starts = range(0, len(t), size) if starts is None else starts
         return self._step_blocks(t, z, starts, size, should_stop)
+
+    def _warn_time_unit(self, t: FloatArray) -> None:
+        """A :class:`~continuum_mhe.io.csv_files.UnitWarning`, once a recording, where
+        the first sample times handed over step like milliseconds (as :meth:`run` warns
+        of a whole recording)."""
+        if not self._time_steps.done:
+            problem = self._time_steps.see(t)
+            if problem is not None:
+                warnings.warn(problem, UnitWarning, stacklevel=3)
 
     def _refuse_before_stepping(self, t: FloatArray, z: FloatArray) -> None:
         """The :class:`UserError` of the first sample of ``t``, ``z`` that the policy

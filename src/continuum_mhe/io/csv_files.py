@@ -252,6 +252,44 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     )
 
 
+class TimeStepWatch:
+    """The first few sample times of a stream handed over one sample or one block at a
+    time (an estimator's ``step`` and ``continue_run``), checked as
+    :func:`check_time_steps` checks a whole recording once it holds
+    :data:`WATCHED_STEPS` steps: :meth:`see` returns the warning's text once, then
+    None until :meth:`reset`."""
+
+    #: steps seen before the median step is judged
+    WATCHED_STEPS = 3
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the times seen: the next sample starts a new stream."""
+        self._times: list[float] = []
+        self.done = False
+
+    def see(self, t: FloatArray) -> str | None:
+        """Take the sample times ``t`` (s, increasing, after the ones seen); the text of a
+        warning (``what advances by a median of ... s per sample; ...``) the first time
+        the first :data:`WATCHED_STEPS` steps look like milliseconds, else None."""
+        if self.done:
+            return None
+        self._times.extend(float(v) for v in t[: self.WATCHED_STEPS + 1 - len(self._times)])
+        if len(self._times) <= self.WATCHED_STEPS:
+            return None
+        self.done = True
+        step = float(np.median(np.diff(self._times)))
+        if step <= MS_LIKE_STEP_S:
+            return None
+        return (
+            f"t advances by a median of {step:g} s per sample over the first samples: t must "
+            "be in seconds (milliseconds? every step longer than the gap reset restarts the "
+            "estimate)"
+        )
+
+
 def check_time_units(rows: TextRows, t: FloatArray) -> None:
     """Warn once when a ``t`` column in seconds, or a ``t_ms`` column in milliseconds,
     steps like another unit (:func:`check_time_steps`), naming the likely cause and the

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import ClassVar
 
@@ -189,6 +189,13 @@ class Formulation:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "robot", as_robot(self.robot))
+
+    def __getstate__(self) -> dict[str, object]:
+        """Its fields alone, for pickle and copy: the descriptions and functions it
+        builds on first use (symbolic expressions, the compiled core's objects) are
+        built again by the copy, so a formulation pickles whether or not an estimator
+        has used it."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     # --- sizes and descriptions -----------------------------------------------------
     @property

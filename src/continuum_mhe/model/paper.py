@@ -46,7 +46,7 @@ class PaperFormulation(Formulation):
                 "the paper formulation models one section with one tip IMU; "
                 f"this robot has {self.robot.describe()}: leave --formulation paper out "
                 "(the default model, bend with tilt readings and direct with raw ones, "
-                "takes any robot)"
+                "takes any robot; in Python make_formulation('bend', robot))"
             )
 
     @property

@@ -411,6 +411,7 @@ class Robot:
 
     @property
     def n_tendons(self) -> int:
+        """The number of tendons (the tensions' columns, in the robot file's order)."""
         return len(self.tendons)
 
     @classmethod
@@ -422,10 +423,12 @@ class Robot:
 
     @property
     def n_sections(self) -> int:
+        """The number of constant-curvature sections, base first."""
         return len(self.sections)
 
     @property
     def n_imus(self) -> int:
+        """The number of IMUs (the readings' blocks, in :attr:`imus`' order)."""
         return len(self.imus)
 
     @property
@@ -435,6 +438,7 @@ class Robot:
 
     @property
     def lengths(self) -> tuple[float, ...]:
+        """Each section's length, m, base first."""
         return tuple(s.length for s in self.sections)
 
     @property
