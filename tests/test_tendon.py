@@ -799,7 +799,9 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
     [
         ([[0.0, 1.0], [0.1, -0.5]], ["t", "tension_1"], "tension_1 = -0.5 N is negative"),
         ([[0.0, 1.0, 1.0], [0.1, 1.0, 1.0]], ["t", "tension_1", "tension_2"],
-         "line 1: expected the columns t,tension_1"),
+         "line 1: tension_2 not the robot's: expected the columns t,tension_1"),
+        ([[0.0, 1.0], [0.1, 1.0]], ["t", "tension_2"],  # the one missing is named
+         "line 1: tension_1 missing; tension_2 not the robot's: expected the columns"),
         ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
         # milliseconds in t: the 0.1 s recording lies within the first two rows, and would
         # be estimated on tensions held at their first values
@@ -1395,6 +1397,39 @@ def test_the_recording_generator_refuses_a_robot_it_does_not_write(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "writes two-section robots with an IMU at each section's end" in err[0]
     assert "not 1 section (0.2 m), IMUs at 1@0.5" in err[0] and not out.exists()
+
+
+def test_the_recording_generator_refuses_sections_without_disks_and_warns_in_one_line(
+    tmp_path: Path,
+) -> None:
+    """A robot file without ``disks`` (optional: the estimators' model does not need
+    them) is one line and exit 2 from the generator, which routes the tendons through
+    the disks (it ended in a ZeroDivisionError traceback), nothing written; a robot
+    file's warning (a tendon angle that reads as radians) prints as the generator's one
+    line, not as Python's file, line and source line."""
+    import subprocess
+    import sys
+
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    shipped = Path(shipped_robots()["tendon-two-section"]).read_text()
+    robot = tmp_path / "radians_no_disks.toml"
+    lines = [ln for ln in shipped.splitlines() if not ln.startswith("disks")]
+    robot.write_text("\n".join(lines).replace("angle = 240", "angle = 4.712"))
+    out = tmp_path / "out"
+    r = subprocess.run(
+        [sys.executable, "-m", "continuum_mhe.simulation.cosserat_tendon", "--robot",
+         str(robot), "--duration", "0.04", "-o", str(out)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 2, r.stderr
+    assert (
+        err[0].startswith("cosserat_tendon: warning: ") and "(4.712 rad is 270 degrees)" in err[0]
+    )
+    assert err[1].startswith("cosserat_tendon: error: section 1 has no spacer disks")
+    assert not out.exists()
 
 
 def test_simulate_refuses_a_tendon_robot(

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Iterable
+import warnings
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import TypeGuard
 
 
@@ -116,3 +118,25 @@ def masked_as_missing(values: object) -> object:
     if hasattr(values, "to_numpy"):  # a pandas Series or DataFrame
         return values.to_numpy(dtype=float, na_value=math.nan)
     return values
+
+
+@contextmanager
+def one_line_warnings(prog: str) -> Iterator[None]:
+    """While the block runs, a warning prints as one line, ``prog: warning: message``
+    (a command's own form, without Python's file, line number and source line)."""
+
+    def one_line(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        line: str | None = None,
+    ) -> str:
+        return f"{prog}: warning: {message}\n"
+
+    saved = warnings.formatwarning
+    warnings.formatwarning = one_line
+    try:
+        yield
+    finally:
+        warnings.formatwarning = saved

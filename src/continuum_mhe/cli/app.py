@@ -26,7 +26,7 @@ from continuum_mhe.cli.options import check_option_ranges
 from continuum_mhe.cli.parser import OneLineParser
 from continuum_mhe.cli.program import COMMANDS, DESCRIPTION, PROG, version
 from continuum_mhe.cli.program import signal_exit as _signal_exit
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, one_line_warnings
 from continuum_mhe.signals import SIGNALS_SEEN as _SIGNALS_SEEN
 from continuum_mhe.signals import (
     interrupt_in_chain,
@@ -55,16 +55,6 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line_warning(
-    message: Warning | str,
-    category: type[Warning],
-    filename: str,
-    lineno: int,
-    line: str | None = None,
-) -> str:
-    return f"{PROG}: warning: {message}\n"
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns its exit status. The one-line warnings, the numpy
     filter, the signal handlers and the unraisable hook it sets last as long as the
@@ -73,12 +63,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr = open(os.devnull, "w")  # noqa: SIM115  # not into stdout's output
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
     _SIGNALS_SEEN.clear()  # those of an earlier command run in this process are done
-    formatwarning = warnings.formatwarning
     unraisablehook = sys.unraisablehook
     sys.unraisablehook = quiet_unraisable(unraisablehook)
     try:
-        with warnings.catch_warnings():
-            warnings.formatwarning = _one_line_warning
+        with warnings.catch_warnings(), one_line_warnings(PROG):
             # numerical trouble is flagged in each row's status; numpy's own notes would
             # only surround the summary or the one-line error
             warnings.filterwarnings(
@@ -93,7 +81,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                 pass
             return _run_command(argv)
     finally:
-        warnings.formatwarning = formatwarning
         sys.unraisablehook = unraisablehook
         for sig, handler in handlers.items():
             try:

@@ -421,9 +421,20 @@ def read_tensions(
         if other_columns:
             found = [c for c in found if c.startswith("tension_")]
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
+            missing = [c for c in ["t", *names] if c not in header]
+            extra = [c for c in found if c not in names]
+            said = "; ".join(
+                part
+                for part in (
+                    f"{', '.join(missing)} missing" if missing else "",
+                    f"{', '.join(extra)} not the robot's" if extra else "",
+                )
+                if part
+            )
             raise InputError(
-                f"{name}: line 1: expected the columns t,{','.join(names)} (one per [[tendon]] of "
-                f"the robot file, numbered in its order), got {','.join(written)}"
+                f"{name}: line 1: {said or 'a column twice'}: expected the columns "
+                f"t,{','.join(names)} (one per [[tendon]] of the robot file, numbered in its "
+                f"order), got {','.join(written)}"
             )
         problems = RowProblems()
         hint = "--skip-bad, skip_bad=True in Python, leaves the row out and interpolates across it"

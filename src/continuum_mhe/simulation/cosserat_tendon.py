@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, one_line_warnings
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.cosserat import ImuSettings
@@ -148,6 +148,14 @@ def check_generated_robot(robot: Robot) -> None:
             f"the tendon-robot generator writes two-section robots with an IMU at each "
             f"section's end and tendons (as tendon-two-section), not {robot.describe()}"
         )
+    for k, section in enumerate(robot.sections):
+        if section.disks < 1:
+            raise UserError(
+                f"section {k + 1} has no spacer disks: the generator routes each tendon "
+                "straight from disk to disk; give the section's disks (disks = 10 in "
+                "tendon-two-section; the estimators' model takes the tendons as continuous "
+                "and does not need them)"
+            )
 
 
 def truth_columns(n_sections: int) -> list[str]:
@@ -258,10 +266,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("-o", "--output", type=Path, required=True, help="the folder to write to")
     a = p.parse_args(argv)
     try:  # a robot it does not write is refused before anything is simulated or written
-        info = write_tendon_recording(
-            a.output, a.name or a.scenario, read_robot(a.robot), a.scenario, a.duration,
-            TendonRodSettings(), a.seed, robot_name=a.robot,
-        )  # fmt: skip
+        with one_line_warnings("cosserat_tendon"):
+            info = write_tendon_recording(
+                a.output, a.name or a.scenario, read_robot(a.robot), a.scenario, a.duration,
+                TendonRodSettings(), a.seed, robot_name=a.robot,
+            )  # fmt: skip
     except UserError as exc:
         print(f"cosserat_tendon: error: {exc}", file=sys.stderr)
         return 2
