@@ -12,7 +12,7 @@ TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
 e.g. ``--set force_accel_psd=0.1``).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
-        [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N]
+        [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N] [--start S]
         [--no-gyro-bias] [--floor-only] [--errors CSV]
 """
 
@@ -100,6 +100,10 @@ def main() -> None:
                    help="a TendonFormulation field (repeatable)")  # fmt: skip
     p.add_argument("--tip-imu-only", action="store_true", help="use only the last IMU")
     p.add_argument("--samples", type=int, default=None, help="only the first N samples")
+    p.add_argument(
+        "--start", type=float, default=0.0,
+        help="s: the recording from this time on (a start under the load it has then)",
+    )  # fmt: skip
     p.add_argument("--no-gyro-bias", action="store_true", help="raw IMUs: no gyro-bias states")
     p.add_argument("--floor-only", action="store_true", help="only the model floor")
     p.add_argument(
@@ -127,6 +131,8 @@ def main() -> None:
     t, z_imu = t[:n], z_imu[:n]
     names, truth = _table(a.folder / f"{a.scenario}_truth.csv")
     truth = truth[:n]
+    later = t >= a.start
+    t, z_imu, truth = t[later], z_imu[later], truth[later]
     after = t >= a.skip
     floor = model_floor(f, t[after], tensions, names, truth[after])
     if a.floor_only:
