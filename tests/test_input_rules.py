@@ -652,7 +652,9 @@ def test_run_says_when_t_looks_like_milliseconds() -> None:
 def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
     """Samples handed over one at a time (step) or a block at a time (continue_run) with
     t in milliseconds warn once, after the first steps, as run does; a reset warns
-    again for the next recording; times in seconds do not warn."""
+    again for the next recording; times in seconds do not warn; a recording run warned
+    of is not warned of again as it continues; times handed over again after a stop
+    count once."""
     import warnings
 
     from continuum_mhe import Measurement, make_estimator, make_formulation, simulate
@@ -671,8 +673,18 @@ def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
         for t, z in zip(rec.t, rec.z):
             ekf.step(Measurement(float(t), z))
         ekf.continue_run(rec.t + rec.t[-1] + 0.05, rec.z)
-    units = [w for w in seen if issubclass(w.category, UnitWarning)]
-    assert [str(w.message)[:44] for w in units] == [
-        "t advances by a median of 50 s per sample ov"
-    ] * 2
-    assert all(w.filename == __file__ for w in units)
+        ekf.run(rec.t * 1000.0, rec.z)  # run warns of the whole recording, once:
+        ekf.continue_run(rec.t[-1] * 1000.0 + rec.t[1:] * 1000.0, rec.z[1:])  # not again
+        ekf.reset()  # samples handed over again after a stop count once
+        for _ in range(4):
+            stopped = ekf.continue_run(rec.t[:1] * 1000.0, rec.z[:1], should_stop=lambda: True)
+            assert len(stopped.status) == 0
+        ekf.continue_run(rec.t[:5] * 1000.0, rec.z[:5])
+    units = [str(w.message) for w in seen if issubclass(w.category, UnitWarning)]
+    assert [u[:52] for u in units] == [
+        "step: t advances by a median of 50 s per sample over",
+        "continue_run: t advances by a median of 50 s per sam",
+        "run: t advances by a median of 50 s per sample; t mu",
+        "continue_run: t advances by a median of 50 s per sam",
+    ]
+    assert all(w.filename == __file__ for w in seen if issubclass(w.category, UnitWarning))

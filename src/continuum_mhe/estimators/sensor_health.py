@@ -458,7 +458,8 @@ class Estimator(Generic[InferenceT]):
         r = self._policy.step(t, z)
         if r.input_error:
             self._refuse(r.input_error, t, z)
-        self._warn_time_unit(np.array([t], dtype=float))
+        if not self._time_steps.done:
+            self._warn_time_unit(np.array([t], dtype=float), "step")
         self._ran = False
         if r.diagnostics_changed:
             self._sync_diagnostics()
@@ -560,6 +561,7 @@ class Estimator(Generic[InferenceT]):
             )
         self._check_units(t, z)
         self.reset()
+        self._time_steps.done = True  # the whole recording's times were checked above
         self._refuse_before_stepping(t, z)
         n = len(t)
         block = RUN_BLOCK if progress is not None else max(n, 1)
@@ -656,17 +658,17 @@ class Estimator(Generic[InferenceT]):
                 raise ReadingUnitsError(problem)
         self._refuse_before_stepping(t, z)
         if check_units:
-            self._warn_time_unit(t)
+            self._warn_time_unit(t, "continue_run")
         size = max(len(t), 1) if block is None else int(block)
         starts = range(0, len(t), size) if starts is None else starts
         return self._step_blocks(t, z, starts, size, should_stop)
 
-    def _warn_time_unit(self, t: FloatArray) -> None:
-        """A :class:`~continuum_mhe.io.csv_files.UnitWarning`, once a recording, where
-        the first sample times handed over step like milliseconds (as :meth:`run` warns
-        of a whole recording)."""
+    def _warn_time_unit(self, t: FloatArray, what: str) -> None:
+        """A :class:`~continuum_mhe.io.csv_files.UnitWarning` (``what: ...``, the method
+        called), once a recording, where the first sample times handed over step like
+        milliseconds (as :meth:`run` warns of a whole recording)."""
         if not self._time_steps.done:
-            problem = self._time_steps.see(t)
+            problem = self._time_steps.see(t, what)
             if problem is not None:
                 warnings.warn(problem, UnitWarning, stacklevel=3)
 

@@ -270,23 +270,26 @@ class TimeStepWatch:
         self._times: list[float] = []
         self.done = False
 
-    def see(self, t: FloatArray) -> str | None:
-        """Take the sample times ``t`` (s, increasing, after the ones seen); the text of a
-        warning (``what advances by a median of ... s per sample; ...``) the first time
-        the first :data:`WATCHED_STEPS` steps look like milliseconds, else None."""
-        if self.done:
-            return None
-        self._times.extend(float(v) for v in t[: self.WATCHED_STEPS + 1 - len(self._times)])
-        if len(self._times) <= self.WATCHED_STEPS:
+    def see(self, t: FloatArray, what: str) -> str | None:
+        """Take the sample times ``t`` (s; those not after the last one seen, handed over
+        again, are left out); the text of a warning (``what: t advances by a median of
+        ... s per sample ...``) the first time the first :data:`WATCHED_STEPS` steps look
+        like milliseconds, else None."""
+        for v in t:
+            if self.done or len(self._times) > self.WATCHED_STEPS:
+                break
+            if not self._times or float(v) > self._times[-1]:
+                self._times.append(float(v))
+        if self.done or len(self._times) <= self.WATCHED_STEPS:
             return None
         self.done = True
         step = float(np.median(np.diff(self._times)))
         if step <= MS_LIKE_STEP_S:
             return None
         return (
-            f"t advances by a median of {step:g} s per sample over the first samples: t must "
-            "be in seconds (milliseconds? every step longer than the gap reset restarts the "
-            "estimate)"
+            f"{what}: t advances by a median of {step:g} s per sample over the first "
+            "samples: t must be in seconds (milliseconds? every step longer than the gap "
+            "reset restarts the estimate)"
         )
 
 

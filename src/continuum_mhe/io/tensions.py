@@ -423,7 +423,7 @@ def read_tensions(
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             missing = [c for c in ["t", *names] if c not in header]
             extra = [c for c in found if c not in names]
-            said = "; ".join(
+            said = "; ".join(  # a column twice is refused by open_rows
                 part
                 for part in (
                     f"{', '.join(missing)} missing" if missing else "",
@@ -432,7 +432,7 @@ def read_tensions(
                 if part
             )
             raise InputError(
-                f"{name}: line 1: {said or 'a column twice'}: expected the columns "
+                f"{name}: line 1: {said}: expected the columns "
                 f"t,{','.join(names)} (one per [[tendon]] of the robot file, numbered in its "
                 f"order), got {','.join(written)}"
             )
