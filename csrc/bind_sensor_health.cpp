@@ -11,6 +11,7 @@
 #include <cstring>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <tuple>
 #include <stdexcept>
 #include <string>
@@ -68,7 +69,14 @@ void read_into(const nb::handle& value, size_t n, double* out, const char* what)
 // below holds it (nb::gil_scoped_acquire; it nests where the caller holds it already),
 // and so does every Python object's lifetime.
 
-// The policy's interface implemented by a Python object with the methods ``restart()``,
+// A restart's kept estimate for Python: ``(x (nx,), P (nx, nx))`` arrays, or (None, None)
+inline std::pair<nb::object, nb::object> kept_arrays(const double* x, const double* P, int nx) {
+  if (!x || !P) return {nb::none(), nb::none()};
+  return {nb::cast(copy_of(x, {size_t(nx)})), nb::cast(copy_of(P, {size_t(nx), size_t(nx)}))};
+}
+
+// The policy's interface implemented by a Python object with the methods
+// ``restart(kept_x | None, kept_P | None)``,
 // ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
 // ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
 // ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``
@@ -76,9 +84,10 @@ void read_into(const nb::handle& value, size_t n, double* out, const char* what)
 class PythonInference final : public PolicyInference {
  public:
   PythonInference(nb::object obj, int nx, int nz, int ny) : obj_(std::move(obj)), nx_(nx), nz_(nz), ny_(ny) {}
-  void restart() override {
+  void restart(const double* kept_x, const double* kept_P) override {
     nb::gil_scoped_acquire gil;
-    obj_.attr("restart")();
+    auto [x, P] = kept_arrays(kept_x, kept_P, nx_);
+    obj_.attr("restart")(x, P);
   }
   int infer(double t, const double* z, const double* mask, double* x, double* P,
             bool& has_state, bool& has_cov) override {
@@ -135,7 +144,7 @@ class PythonInference final : public PolicyInference {
 // The fast MHE's inference in compiled code: the window's process noise, inputs and
 // step (horizon.hpp) each sample; the Python inference object
 // (continuum_mhe.estimators.mhe.MovingHorizonInference) only where it is needed: its
-// ``restart()``, ``start(z) -> failure | None`` (the arrival prior from the first
+// ``restart(kept_x, kept_P)``, ``start(z) -> failure | None`` (the arrival prior from the first
 // reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
 // step did not keep its answer (IPOPT's fallback, the branch check, the second start),
 // and the formulation's checks of a state.
@@ -154,10 +163,11 @@ class HorizonInference final : public PolicyInference {
     z_prev_.resize(h.nz);
   }
   MovingHorizon& horizon() { return h_; }
-  void restart() override {
+  void restart(const double* kept_x, const double* kept_P) override {
     {
       nb::gil_scoped_acquire gil;
-      py_.attr("restart")();
+      auto [x, P] = kept_arrays(kept_x, kept_P, int(h_.nx));
+      py_.attr("restart")(x, P);
     }
     t_last_ = 0.0;
     has_z_prev_ = false;
@@ -261,7 +271,7 @@ class HorizonInference final : public PolicyInference {
 // The compiled EKF's inference for the policy: each sample's step, outputs and standard
 // deviations on the node model (filter.hpp); the Python inference object
 // (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
-// ``restart()`` and the first sample, ``first(t, z) -> (x | None, P | None, status
+// ``restart(kept_x, kept_P)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
 // code, failure | None)`` (the prior from the reading, updated with it).
 class KalmanInference final : public PolicyInference {
  public:
@@ -276,10 +286,11 @@ class KalmanInference final : public PolicyInference {
     P_.resize(size_t(node.nx()) * node.nx());
     z_prev_.resize(node.nz());
   }
-  void restart() override {
+  void restart(const double* kept_x, const double* kept_P) override {
     {
       nb::gil_scoped_acquire gil;
-      py_.attr("restart")();
+      auto [x, P] = kept_arrays(kept_x, kept_P, node_.nx());
+      py_.attr("restart")(x, P);
     }
     has_x_ = false;
   }
@@ -554,7 +565,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           },
           nb::arg("node"), nb::arg("inference"), nb::arg("R"), nb::arg("process_noise"),
           nb::arg("inputs"), nb::keep_alive<1, 2>(),
-          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart()``, "
+          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P)``, "
           "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
 

@@ -100,6 +100,8 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   bias_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   std_b_.resize(s_.ny);
   prev_x_.resize(s_.nx);
+  last_x_.resize(s_.nx);
+  last_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   prev_P_.resize(static_cast<size_t>(s_.nx) * s_.nx);
   prev_z_.resize(s_.nz);
   cons_z_.resize(s_.nz);
@@ -128,10 +130,11 @@ void SensorHealth::reset(bool keep_counts) {
   end_chain();
   forced_t_.clear();
   consistency_.reset();
-  restart();
+  if (!keep_counts) has_last_ = false;  // a new recording: another robot's sensors, maybe
+  restart(keep_counts);
 }
 
-void SensorHealth::restart() {
+void SensorHealth::restart(bool keep_sensors) {
   start_clear();
   // the previous estimate only: the average, its run and the model error learned are
   // the robot's, and a restart does not make the model follow
@@ -145,7 +148,8 @@ void SensorHealth::restart() {
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
   std::fill(held_t_.begin(), held_t_.end(), -INFINITY);  // a start holds no past reading
-  inference_.restart();
+  if (!keep_sensors) has_last_ = false;
+  inference_.restart(has_last_ ? last_x_.data() : nullptr, has_last_ ? last_P_.data() : nullptr);
 }
 
 double SensorHealth::unobserved_window() const {
@@ -434,7 +438,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (gap_reset) {  // restart from this sample instead of a blind prediction
     ++diagnostics.gap_resets;
     end_chain();
-    restart();
+    restart(true);  // the sensors are those of the estimate before the gap
   } else if (back && s_.checks_start) {
     // their part of the shape was predicted blindly: check it as after a start
     start_reopen(unobserved_window());
@@ -447,7 +451,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     if (bad_start) {  // the start was wrong: restart from this reading
       ++diagnostics.bad_starts;
       ++chain_;
-      restart();
+      restart(false);  // what it kept may be why
     }
   }
   bool reject_reset = false;
@@ -456,7 +460,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     reject_reset = true;  // restart from this reading
     ++diagnostics.reject_resets;
     end_chain();
-    restart();
+    restart(false);
   }
   bool has_state = false, has_cov = false, failed = false;
   int status = infer_once(t, z, x, P, has_state, has_cov, failed);
@@ -464,14 +468,24 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if (!healthy) {  // flag it and restart from this sample's measurement
     ++diagnostics.restarts;
     end_chain();
-    restart();
+    restart(false);
     status = infer_once(t, z, x, P, has_state, has_cov, failed);
     if (has_state && diverged(x, has_cov ? P : nullptr)) {
-      restart();
+      restart(false);
       has_state = has_cov = false;
       status = ST_NO_ESTIMATE;
     }
     if (has_state) status = ST_RESET;
+  }
+  if (!failed && has_state && has_cov) {  // a healthy estimate: what a restart may keep
+    const size_t nx = static_cast<size_t>(s_.nx);
+    const bool finite = std::all_of(x, x + nx, [](double v) { return std::isfinite(v); }) &&
+                        std::all_of(P, P + nx * nx, [](double v) { return std::isfinite(v); });
+    if (finite && !diverged(x, P)) {
+      std::copy(x, x + nx, last_x_.begin());
+      std::copy(P, P + nx * nx, last_P_.begin());
+      has_last_ = true;
+    }
   }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;

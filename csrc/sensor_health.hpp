@@ -60,8 +60,11 @@ struct InferenceFailure : std::runtime_error {
 class PolicyInference {
  public:
   virtual ~PolicyInference() = default;
-  // forget the state: the next infer starts from its sample
-  virtual void restart() = 0;
+  // forget the state: the next infer starts from its sample. ``kept_x`` (nx) and
+  // ``kept_P`` (nx x nx), or null: the last estimate before the restart and its
+  // covariance, whose sensor states (the formulation's ``sensor_states``: biases,
+  // misalignments, gains) the start keeps
+  virtual void restart(const double* kept_x, const double* kept_P) = 0;
   // one sample (``mask`` (nz) its valid readings): the status; ``x`` (nx) and ``P``
   // (nx x nx) written when ``has_state`` / ``has_cov`` are set. Throws InferenceFailure
   // (or std::runtime_error) on a numerical failure.
@@ -207,7 +210,9 @@ class SensorHealth {
   bool unconfirmed() const { return !returned_.empty(); }
 
  private:
-  void restart();
+  // ``keep_sensors``: hand the inference the last estimate (a restart within a
+  // recording that does not doubt it: a gap, a live reconnect), else nothing
+  void restart(bool keep_sensors);
   const double* unfreeze(double t, const double* z, bool& frozen);
   void measurement_mask(const double* z);
   bool note_imus(double t);  // fills back_rows_
@@ -273,6 +278,10 @@ class SensorHealth {
   // constant error entered the state through the estimates before (held_t_: -inf where
   // none); held_z_ and held_mask_ the readings and mask the term is computed on
   std::vector<double> held_z_, held_t_, held_mask_;
+  // the last healthy estimate with a covariance since the last restart that kept
+  // nothing (has_last_), for a restart that keeps the sensors' states
+  std::vector<double> last_x_, last_P_;
+  bool has_last_ = false;
   std::vector<int> back_rows_, rows_;
   std::optional<double> rejecting_since_;
   // the bad-start check's state

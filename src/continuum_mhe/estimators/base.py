@@ -54,10 +54,27 @@ class Inference(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
+        #: what the next start keeps of the estimate before a restart (the sensor
+        #: states and their covariance: ``Formulation.kept_sensors``), or None
+        self.kept_sensors: tuple[FloatArray, FloatArray] | None = None
 
     @abstractmethod
-    def restart(self) -> None:
-        """Forget the state: the next :meth:`infer` starts from its sample."""
+    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
+        """Forget the state: the next :meth:`infer` starts from its sample, keeping the
+        sensor states of the estimate ``kept_x`` (nx,) with covariance ``kept_P`` before
+        the restart where they are given (a restart within a recording that does not
+        doubt them: :meth:`keep`)."""
+
+    def keep(self, kept_x: FloatArray | None, kept_P: FloatArray | None) -> None:
+        """Remember what the next start keeps of ``kept_x``, ``kept_P``
+        (:meth:`~continuum_mhe.model.formulations.Formulation.kept_sensors`; none
+        without them)."""
+        self.kept_sensors = self.formulation.kept_sensors(kept_x, kept_P)
+
+    def start_prior(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The formulation's start at the reading ``z``, with the sensor states kept by
+        the last restart."""
+        return self.formulation.start_prior(z, self.kept_sensors)
 
     @abstractmethod
     def infer(

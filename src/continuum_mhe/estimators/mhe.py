@@ -419,7 +419,8 @@ class MovingHorizonInference(Inference):
             self.branch.stats.checked += window.plausible_kept
             window.plausible_kept = 0
 
-    def restart(self) -> None:
+    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
+        self.keep(kept_x, kept_P)
         self._window.restart()
         self._t_last = 0.0  # the last sample's time, s
         self._z_prev_valid: FloatArray | None = None
@@ -561,7 +562,7 @@ class MovingHorizonInference(Inference):
         if not window.has_prior:
             if not valid:
                 return None, None, Status.NO_ESTIMATE
-            x0, P0 = f.start_prior(m.z)
+            x0, P0 = self.start_prior(m.z)
             self._set_prior(f.project(x0), P0)
         u, (Q, Qinv) = self._no_input, (self._no_weight, self._no_weight)
         if window.k:
@@ -818,14 +819,14 @@ class _HorizonHooks:
         self.inference = inference
         self.formulation = inference.formulation
 
-    def restart(self) -> None:
-        self.inference.restart()
+    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
+        self.inference.restart(kept_x, kept_P)
 
     def start(self, z: FloatArray) -> str | None:
         """Anchor the prior at the first reading ``z``; a numerical failure's message."""
         f = self.formulation
         try:
-            x0, P0 = f.start_prior(z)
+            x0, P0 = self.inference.start_prior(z)
             self.inference._set_prior(f.project(x0), P0)
         except NUMERICAL_FAILURES as exc:
             return numerical_failure(exc)

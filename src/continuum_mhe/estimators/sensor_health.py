@@ -146,9 +146,9 @@ class PythonInference:
         self._state: FloatArray | None = None
         self._cov: FloatArray | None = None
 
-    def restart(self) -> None:
+    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
         self._state = self._cov = None
-        self.inference.restart()
+        self.inference.restart(kept_x, kept_P)
 
     def infer(
         self, t: float, z: FloatArray, mask: FloatArray

@@ -324,12 +324,52 @@ class Formulation:
         """The prior covariance (nx, nx) of a start, in the state's units squared."""
         raise NotImplementedError
 
-    def start_prior(self, z0: FloatArray) -> tuple[FloatArray, FloatArray]:
+    @property
+    def sensor_states(self) -> tuple[int, ...]:
+        """The states that describe the sensors rather than the robot's motion
+        (biases, misalignments, gains: what a restart within a recording keeps, see
+        :meth:`kept_sensors`); none here."""
+        return ()
+
+    def kept_sensors(
+        self, x: FloatArray | None, P: FloatArray | None
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """What a restart within a recording keeps of the last estimate ``x`` (nx,) and
+        its covariance ``P``: the :attr:`sensor_states`' values and their covariance
+        block, or None (no sensor states, no estimate, a non-finite one, or one
+        :meth:`drifted`: its sensor states may be why)."""
+        idx = np.asarray(self.sensor_states, dtype=np.intp)
+        if not len(idx) or x is None or P is None:
+            return None
+        x, P = np.asarray(x, dtype=float), np.asarray(P, dtype=float)
+        if not (np.isfinite(x).all() and np.isfinite(P).all()) or self.drifted(x):
+            return None
+        return x[idx].copy(), P[np.ix_(idx, idx)].copy()
+
+    def start_prior(
+        self, z0: FloatArray, kept: tuple[FloatArray, FloatArray] | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """``(x0, P0)``: the prior every estimator starts (and restarts) from at the
         reading ``z0``, before its update with that reading: :meth:`initial_state` and
-        :meth:`initial_cov` (a formulation whose prior depends on what the reading shows
-        overrides this)."""
-        return self.initial_state(z0), self.initial_cov()
+        :meth:`initial_cov`, with the sensor states' values and covariance ``kept`` by
+        a restart (:meth:`kept_sensors`) in place of theirs (a formulation whose prior
+        depends on what the reading shows overrides this)."""
+        x, P = self.initial_state(z0), self.initial_cov()
+        if kept is not None:
+            x[np.asarray(self.sensor_states, dtype=np.intp)] = kept[0]
+        return x, self.with_kept_covariance(P, kept)
+
+    def with_kept_covariance(
+        self, P: FloatArray, kept: tuple[FloatArray, FloatArray] | None
+    ) -> FloatArray:
+        """``P`` (changed in place) with the sensor states' rows and columns those of the
+        covariance ``kept`` (:meth:`kept_sensors`; None: ``P`` as it is)."""
+        if kept is not None:
+            idx = np.asarray(self.sensor_states, dtype=np.intp)
+            P[idx, :] = 0.0
+            P[:, idx] = 0.0
+            P[np.ix_(idx, idx)] = kept[1]
+        return P
 
     def inputs(self, z_prev: FloatArray | None, z: FloatArray, dt: float) -> FloatArray:
         """Input ``u`` driving the transition into the sample with measurement ``z``."""

@@ -109,6 +109,14 @@ START_PRIOR_WEIGHT = 1e-3
 #: leaves a force error that the IMUs' misalignment and bias states then absorb, and
 #: the filter follows the wrong shape for many samples.
 START_EVALUATIONS = 600
+#: A restart within a recording that keeps the sensors' states (the IMUs' biases and
+#: misalignments, the tension gains: :meth:`TendonFormulation.kept_sensors`) fits the
+#: tip force, and with raw IMUs its rate, under a prior of this many times the robot's
+#: buckling load (per second for the rate). With the IMUs' errors known, one reading
+#: determines the force and the gyros its rate; a start that does not know them holds
+#: the force to a third of the buckling load, as those errors tilt the readings as a
+#: small force would, and under a larger load it does not find it again.
+KEPT_START_BUCKLING_MULTIPLE = 3.0
 #: The tip force's white-noise acceleration by default, N^2/s^3: with two or more IMUs,
 #: and with one. One IMU's gravity direction and gyro hold a faster force only loosely:
 #: with the shipped robot's tip IMU alone, the Kalman covariance along the true states of
@@ -818,7 +826,16 @@ class TendonFormulation(Formulation):
             "with the tensions (two per IMU: its gravity direction)"
         )
 
-    def start_prior(self, z0: FloatArray) -> tuple[FloatArray, FloatArray]:
+    @property
+    def sensor_states(self) -> tuple[int, ...]:
+        """The states that describe the sensors, not the robot's motion: the gyro
+        biases, the IMUs' misalignments and accelerometer biases, the tension gains."""
+        g0 = self._n_motion
+        return tuple(range(g0, self.nx))
+
+    def start_prior(
+        self, z0: FloatArray, kept: tuple[FloatArray, FloatArray] | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """``(x0, P0)``: the start at the reading ``z0`` (:meth:`initial_state`), with the
         tip force's prior that the reading allows.
 
@@ -836,18 +853,34 @@ class TendonFormulation(Formulation):
         load, with tilt IMUs (where the narrow prior is not better on the recordings
         measured) and with :attr:`initial_force_std` given: the wide prior of
         :meth:`initial_cov`. Only the force's own prior narrows: its rate's stays wide,
-        so that a load that comes later is followed."""
+        so that a load that comes later is followed.
+
+        ``kept``: a restart within a recording (after a gap, a live reconnect), with
+        the sensor states' values and covariance of the estimate before it
+        (:meth:`kept_sensors`). The fit then holds the IMUs' errors and gyro biases at
+        those values, and with the IMUs' errors known the reading shows a load: where it
+        is not free of load, the force, and with raw IMUs its rate (fitted to the gyros),
+        take a prior of :data:`KEPT_START_BUCKLING_MULTIPLE` times the buckling load."""
         if (
             self.initial_force_std is None
             and self.imu_model == "direct"
             and self.start_bend(z0) <= FREE_START_MAX_BEND
         ):
             narrow = FREE_START_FORCE_FRACTION * self.force_prior_std
-            x, misfit, limit = self._start_fit(z0, narrow)
+            x, misfit, limit = self._start_fit(z0, narrow, kept)
             if misfit <= limit:
-                P = self.initial_cov()
+                P = self.with_kept_covariance(self.initial_cov(), kept)
                 P[3:6, 3:6] = np.eye(3) * narrow**2
                 return x, P
+        if kept is not None:  # the IMUs' errors known: the reading shows the load
+            wide = KEPT_START_BUCKLING_MULTIPLE * self.buckling_load
+            x = self._start_fit(z0, wide, kept)[0]
+            P = self.with_kept_covariance(self.initial_cov(), kept)
+            k = self.robot.n_tendons
+            P[3:6, 3:6] = np.eye(3) * wide**2
+            if self.imu_model == "direct":  # the force's rate, fitted to the gyros
+                P[9 + k : 12 + k, 9 + k : 12 + k] = np.eye(3) * wide**2
+            return x, P
         return self._start_fit(z0, self.force_prior_std)[0], self.initial_cov()
 
     def start_bend(self, z0: FloatArray) -> float:
@@ -881,11 +914,19 @@ class TendonFormulation(Formulation):
         The tip force's prior is :meth:`start_prior`'s."""
         return self.start_prior(z0)[0]
 
-    def _start_fit(self, z0: FloatArray, force_std: float) -> tuple[FloatArray, float, float]:
+    def _start_fit(
+        self,
+        z0: FloatArray,
+        force_std: float,
+        kept: tuple[FloatArray, FloatArray] | None = None,
+    ) -> tuple[FloatArray, float, float]:
         """``(x, misfit, limit)``: :meth:`initial_state`'s fit with the tip force's prior
         standard deviation ``force_std`` (N), the fitted readings' misfit (see
         :meth:`start_misfit`) and its chi-square quantile of
-        :data:`LOADED_START_PROBABILITY` (inf and 0 without a valid reading)."""
+        :data:`LOADED_START_PROBABILITY` (inf and 0 without a valid reading).
+        ``kept`` (:meth:`kept_sensors`): the sensor states held at those values (the
+        gyro biases to their kept standard deviations), and with raw IMUs the force's
+        rate fitted too (``force_std`` per second)."""
         z0 = np.asarray(z0, dtype=float)
         n, k = self.n_imu_measurements, self.robot.n_tendons
         tau = self._start_tensions(z0)
@@ -894,6 +935,8 @@ class TendonFormulation(Formulation):
         x[:3], x[6 : 6 + k] = k0, tau
         g0 = self.tension_gain_start
         x[g0 : g0 + self.n_tension_gain] = 1.0  # the prior: the tensions as given
+        if kept is not None:
+            x[np.asarray(self.sensor_states, dtype=np.intp)] = kept[0]
         z = np.nan_to_num(z0, nan=0.0)
         z[n : n + k] = tau
         valid = np.isfinite(z0[:n])
@@ -905,12 +948,22 @@ class TendonFormulation(Formulation):
         if self.imu_model == "direct":
             bias = self._n_motion  # the gyro biases follow the motion states
             free = np.r_[free, 6 + k : 9 + k, bias : bias + self.n_gyro_bias]
+            if kept is not None:  # its gyro biases known: the gyros show the force's rate
+                free = np.r_[free, 9 + k : 12 + k]
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : self.nz]
         prior = x[free].copy()
         std = np.sqrt(np.diag(self.initial_cov()))
         prior_w = START_PRIOR_WEIGHT / std[free]
         prior_w[3:6] = 1.0 / force_std  # the force's own prior
+        if self.imu_model == "direct" and kept is not None:
+            prior_w[-3:] = 1.0 / force_std  # the force's rate, per second
+        if kept is not None:  # the kept gyro biases: their own standard deviations
+            sensors = {state: i for i, state in enumerate(self.sensor_states)}
+            for j, state in enumerate(free):
+                if int(state) in sensors:
+                    i = sensors[int(state)]
+                    prior_w[j] = 1.0 / math.sqrt(max(float(kept[1][i, i]), 1e-30))
         # the residual and its Jacobian by the compiled core (forward mode), the same
         # functions the compiled EKF evaluates
         model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
@@ -936,7 +989,7 @@ class TendonFormulation(Formulation):
 
         from scipy.optimize import least_squares  # imported on use (slow to import)
 
-        scale = np.r_[[1.0] * 3, [0.1] * 3, [1.0] * 3, [0.01] * self.n_gyro_bias]
+        scale = np.r_[[1.0] * 3, [0.1] * 3, [1.0] * 3, [0.01] * self.n_gyro_bias, [0.1] * 3]
         fit = least_squares(
             lambda v: evaluate(v)[0], x[free], jac=lambda v: evaluate(v)[1], method="lm",
             x_scale=scale[: len(free)], max_nfev=START_EVALUATIONS,
