@@ -1984,9 +1984,39 @@ def test_a_multi_section_scenario_on_one_section_names_the_ones_it_takes(tmp_pat
     out = tmp_path / "m.csv"
     assert main(["simulate", "spatial", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "needs a robot with two or more sections (--robot)" in err[0], err
-    assert "takes paper3d, planar-overbend, straight" in err[0]
+    assert len(err) == 1 and "is for a robot of two or more sections (--robot)" in err[0], err
+    assert "choose from paper3d, planar-overbend, straight" in err[0]
     assert not out.exists()
+
+
+def test_one_section_with_imus_along_it_simulates_the_one_section_scenarios(tmp_path) -> None:
+    """A robot of one section with an IMU at its middle and one at its tip takes the
+    one-section scenarios (each scenario sent it to the others' list), every IMU reading
+    the section's bend as the model reads it (noise 0: to rounding); a two-section
+    scenario names those it takes."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.bend import BendFormulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    robot = Robot((Section(0.3),), (ImuPlacement(0, 0.5), ImuPlacement(0, 1.0)))
+    rec = simulate_robot("paper3d", robot, duration=2.0, noise_deg=0.0)
+    f = BendFormulation(robot=robot)
+    theta, phi = rec.truth[:, 3], rec.truth[:, 4]
+    x = np.column_stack([theta * np.cos(phi), theta * np.sin(phi), np.zeros((len(theta), 2))])
+    model = np.asarray(f.functions.observe(x.T), dtype=float).reshape(f.nz, -1).T
+    np.testing.assert_allclose(rec.z, model, rtol=0, atol=1e-12)
+    assert rec.z.shape == (len(rec.t), 4) and np.ptp(rec.z[:, 0]) > 0.1
+    with pytest.raises(UserError, match="for a robot of two or more sections.*choose from paper3d"):
+        simulate_robot("spatial", robot)
+    robot_file = tmp_path / "long.toml"
+    robot_file.write_text(
+        "[[section]]\nlength = 0.3\n[[imu]]\nsection = 1\nat = 0.5\n[[imu]]\nsection = 1\n"
+    )
+    out = tmp_path / "m.csv"
+    argv = ["simulate", "planar-overbend", "--robot", str(robot_file), "-o", str(out)]
+    assert main([*argv, "--duration", "1"]) == 0
+    assert out.read_text().startswith("t,roll_1,pitch_1,roll_2,pitch_2\n")
 
 
 @pytest.fixture(scope="module")

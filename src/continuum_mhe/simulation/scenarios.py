@@ -190,24 +190,28 @@ def simulate_robot(
             "(tensions, tip force) come from python -m "
             "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
         )
-    if scenario not in MULTI_SECTION_SCENARIOS:
-        if robot.n_sections == 1 and robot.is_single:
-            return simulate(
-                scenario, duration=duration, dt=dt, noise_deg=noise_deg,
-                length=robot.length, seed=seed, mounting=robot.mounting,
-                noise_model=noise_model,
-            )  # fmt: skip
+    if scenario not in _SHAPES and scenario not in MULTI_SECTION_SCENARIOS:
+        raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
+    one_section = scenario in _SHAPES
+    if one_section and robot.n_sections == 1 and robot.is_single:
+        return simulate(
+            scenario, duration=duration, dt=dt, noise_deg=noise_deg,
+            length=robot.length, seed=seed, mounting=robot.mounting,
+            noise_model=noise_model,
+        )  # fmt: skip
+    if one_section != (robot.n_sections == 1):
+        shapes = _SHAPES if robot.n_sections == 1 else MULTI_SECTION_SCENARIOS
+        needs = "one section" if one_section else "two or more sections"
         raise UserError(
-            f"scenario {scenario!r} is for one section with a tip IMU; for this robot "
-            f"({robot.describe()}) choose from {', '.join(MULTI_SECTION_SCENARIOS)}"
-        )
-    if robot.n_sections < 2:
-        raise UserError(
-            f"scenario {scenario!r} needs a robot with two or more sections (--robot); "
-            f"one section ({robot.describe()}) takes {', '.join(sorted(_SHAPES))}"
+            f"scenario {scenario!r} is for a robot of {needs} (--robot); for this robot "
+            f"({robot.describe()}) choose from {', '.join(sorted(shapes))}"
         )
     t = _time_axis(duration, dt, noise_deg, seed)
-    bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
+    if one_section:  # one section with IMUs along it: the section's bend, read by each
+        a, b = bend_from_shape(*_SHAPES[scenario](t))
+        bends = np.column_stack([a, b]).reshape(len(t), 1, 2)
+    else:
+        bends = _multi_bends(scenario, t, [s.theta_max for s in robot.sections])
     f = BendFormulation(robot=robot)
     x = np.concatenate([bends.reshape(len(t), -1), np.zeros((len(t), bends[0].size))], axis=1)
     truth = f.output(x)
