@@ -253,6 +253,25 @@ def test_a_tensions_file_that_does_not_cover_the_stream_stops_it_before_writing(
     assert not recording.exists()  # nothing written
 
 
+def test_tensions_in_mn_on_the_line_stop_the_session_in_one_line(runs: Runs) -> None:
+    """Tensions in mN on the line (each a thousand times the newtons) stop the session
+    at the first sample whose tensions would bend a section through turns, as a
+    tensions file in mN is refused: they were estimated, every row lost, and the session
+    fell behind the stream."""
+    with_tensions, _ = _first_samples_lines()
+    in_mn = []
+    for ln in with_tensions[:20]:
+        cells = ln.split(",")
+        in_mn.append(",".join([*cells[:-6], *(f"{float(v) * 1000:g}" for v in cells[-6:])]))
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), runs.base)
+    with pytest.raises(
+        InputError,
+        match=r"^/dev/ttyTEN: the tensions on the line: at t = .* "
+        r"would bend section 1 through .* full turns .*mN\?",
+    ):
+        _live(serial, runs.estimator, in_mn)
+
+
 def _first_samples_lines() -> tuple[list[str], list[str]]:
     import tempfile
 

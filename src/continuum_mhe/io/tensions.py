@@ -29,6 +29,7 @@ import math
 import os
 import warnings
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,6 +99,54 @@ def slower_log_said(what: str, t: FloatArray, values: FloatArray, taken: str, fi
         f"{taken}, so that each of that log's samples is a spike of the tensions' rates and "
         f"second derivatives, which the estimate follows (tens of mm off at the tip); {fix}"
     )
+
+
+def tension_scale_problem(
+    robot: Robot,
+    t: FloatArray,
+    rows: FloatArray,
+    name: str,
+    lines: Sequence[int] | None = None,
+) -> str | None:
+    """The line saying where the tensions ``rows`` (n, tendons; N) at the times ``t``
+    would bend a section of ``robot`` (with a ``[backbone]``) through more than
+    :data:`MAX_TENDON_TURNS` full turns on their own: the net moment of the tendons
+    through section ``k`` (each ``T r`` toward its angle, the twist left out) over its
+    bending stiffness, times its length, at some row (tensions in mN, or a modulus far
+    too low); ``name`` the source in the line, ``lines`` each row's line in it; None
+    where no row does."""
+    if robot.backbone is None or not robot.tendons:
+        return None
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    ei = robot.backbone.bending_stiffness
+    for k, section in enumerate(robot.sections):
+        idx = [j for j, td in enumerate(robot.tendons) if td.section >= k]
+        if not idx:
+            continue
+        arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
+                         robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
+                        for j in idx])  # fmt: skip
+        moment = np.linalg.norm(np.nan_to_num(rows[:, idx]) @ arm, axis=1)  # N m, per row
+        bend = moment * section.length / ei
+        i = int(np.argmax(bend))
+        if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
+            bb = robot.backbone
+            soft = (
+                f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
+                f"Pa: MPa?; radius {bb.radius:g} m)"
+            )
+            # tensions a tendon can carry in N point at the backbone first
+            causes = [soft, "tensions in N (mN?)"]
+            if float(np.nanmax(rows)) > PLAUSIBLE_TENSION_N:
+                causes.reverse()
+            line = "" if lines is None else f"line {lines[i]}: "
+            return (
+                f"{name}: {line}at t = {time_text(float(t[i]))} s the tensions "
+                f"({', '.join(f'{v:g}' for v in rows[i])} N) would bend section "
+                f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
+                f"stiffness {ei:.3g} N m^2): {causes[0]}, or {causes[1]}?"
+            )
+    return None
 
 
 @dataclass(frozen=True)
@@ -241,40 +290,11 @@ class Tensions:
 
     def check_scale(self, robot: Robot) -> None:
         """An :class:`InputError` where the tensions would bend a section of ``robot``
-        (with a ``[backbone]``) through more than :data:`MAX_TENDON_TURNS` full turns on
-        their own: the net moment of the tendons through section ``k`` (each ``T r``
-        toward its angle, the twist left out) over its bending stiffness, times its
-        length, at some row (tensions in mN, or a modulus far too low)."""
-        if robot.backbone is None or not robot.tendons:
-            return
-        ei = robot.backbone.bending_stiffness
-        for k, section in enumerate(robot.sections):
-            idx = [j for j, td in enumerate(robot.tendons) if td.section >= k]
-            if not idx:
-                continue
-            arm = np.array([[robot.tendons[j].radius * math.cos(robot.tendons[j].angle),
-                             robot.tendons[j].radius * math.sin(robot.tendons[j].angle)]
-                            for j in idx])  # fmt: skip
-            moment = np.linalg.norm(self.rows[:, idx] @ arm, axis=1)  # N m, per row
-            bend = moment * section.length / ei
-            i = int(np.argmax(bend))
-            if bend[i] > MAX_TENDON_TURNS * 2 * math.pi:
-                bb = robot.backbone
-                soft = (
-                    f"the robot file's [backbone] too soft (youngs_modulus {bb.youngs_modulus:g} "
-                    f"Pa: MPa?; radius {bb.radius:g} m)"
-                )
-                # tensions a tendon can carry in N point at the backbone first
-                causes = [soft, "tensions in N (mN?)"]
-                if float(np.max(self.rows)) > PLAUSIBLE_TENSION_N:
-                    causes.reverse()
-                line = "" if self.lines is None else f"line {self.lines[i]}: "
-                raise InputError(
-                    f"{self.name}: {line}at t = {time_text(float(self.t[i]))} s the tensions "
-                    f"({', '.join(f'{v:g}' for v in self.rows[i])} N) would bend section "
-                    f"{k + 1} through {bend[i] / (2 * math.pi):.3g} full turns (its bending "
-                    f"stiffness {ei:.3g} N m^2): {causes[0]}, or {causes[1]}?"
-                )
+        through more than :data:`MAX_TENDON_TURNS` full turns on their own
+        (:func:`tension_scale_problem`: tensions in mN, or a modulus far too low)."""
+        problem = tension_scale_problem(robot, self.t, self.rows, self.name, self.lines)
+        if problem is not None:
+            raise InputError(problem)
 
     def warn_suspect(self) -> None:
         """A :class:`TensionsWarning` for what the file's rows say of its sensors or

@@ -32,7 +32,7 @@ from continuum_mhe.io.raw_imu import (
     check_accel_units,
     check_gyro_units,
 )
-from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream
+from continuum_mhe.io.tensions import Tensions, TensionsAt, TensionStream, tension_scale_problem
 from continuum_mhe.live.counts import DeviceMessages, LatencyHistogram, LiveCounts
 from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
@@ -449,6 +449,16 @@ class LiveSession:
             given = self.tension_file.at(t)
         elif self.tendon is not None and not self.n_tensions:  # a backbone, no tendons
             given = (np.zeros(0),) * 3
+        elif self.tendon is not None:  # tensions on the line: in N, as a file's
+            problem = tension_scale_problem(
+                self.tendon.robot,
+                np.array([t]),
+                np.asarray(s.tensions, dtype=float)[None, :],
+                f"{self.settings.port}: the tensions on the line",
+            )
+            if problem is not None:
+                self.fatal = problem
+                return None  # neither recorded nor estimated: the session stops
         c.samples += 1
         if placed.event == "restart" and self.converters is not None and self.fatal is None:
             # a board reset: it may run other firmware now, so the units are checked again
