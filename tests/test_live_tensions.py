@@ -306,6 +306,12 @@ def test_field_count_hint_names_the_missing_tensions() -> None:
     tilt_read = "20," + ",".join(["0.1"] * 12) + ",1,1,1,1,1,1"
     assert "--format raw" in field_count_hint(tilt_read, "tilt", 2, n_tensions=6)
     assert field_count_hint(tilt_read, "raw", 2, n_tensions=6) == ""
+    # the tensions on the line where --inputs gives them too (it named 3 IMUs)
+    said = field_count_hint(tilt_read, "raw", 2, file_tensions=6)
+    assert said.startswith(
+        ": a line of the IMUs and the robot's 6 tendon tensions, which "
+        "--inputs gives too; leave --inputs out"
+    )
 
 
 def test_central_differences_are_numpys_gradient() -> None:

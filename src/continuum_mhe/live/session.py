@@ -191,6 +191,8 @@ class LiveSession:
         if tensions is not None and self.tendon is None:
             raise ValueError("tendon tensions given for a robot without a mechanics model")
         self.tension_file = tensions
+        #: the tensions a file gives (``--inputs``): a line that carries them too is told so
+        self._file_tensions = f.robot.n_tendons if tensions is not None else 0
         #: tendon tensions on every line, after the IMUs' values
         self.n_tensions = f.robot.n_tendons if self.tendon is not None and tensions is None else 0
         self._tension_stream = TensionStream(n_tendons=self.n_tensions) if self.n_tensions else None
@@ -285,7 +287,9 @@ class LiveSession:
         self._garbage(arrival, reason + self._hint(text), text)
 
     def _hint(self, text: str) -> str:
-        hint = field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
+        hint = field_count_hint(
+            text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
+        )
         if self._fields_match and "tendon tensions" not in hint:
             return ""  # the device named the expected fields: a cut line
         return hint  # (a line of the IMUs' fields alone lacks the tensions either way)
@@ -303,7 +307,9 @@ class LiveSession:
         span = arrival - self._garbage_since
         if span >= GARBAGE_STOP_S and self._garbage_lines >= GARBAGE_STOP_LINES:
             after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
-            hint = field_count_hint(text, self.settings.fmt, self.n_imus, self.n_tensions)
+            hint = field_count_hint(
+                text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
+            )
             if hint and hint not in why:
                 why += hint
             self.fatal = (

@@ -178,14 +178,23 @@ def beyond_range(values: list[float], imu: int, n_imus: int) -> str:
     return "value beyond the sensor's range"
 
 
-def field_count_hint(text: str, fmt: LineFormat, n_imus: int, n_tensions: int = 0) -> str:
+def field_count_hint(
+    text: str, fmt: LineFormat, n_imus: int, n_tensions: int = 0, file_tensions: int = 0
+) -> str:
     """A likely cause of a line with the wrong number of fields, or "": the tensions
-    left out (a line of the IMUs alone where ``n_tensions`` tensions follow them),
+    left out (a line of the IMUs alone where ``n_tensions`` tensions follow them), the
+    tensions on the line where ``file_tensions`` tensions come from a file (``--inputs``),
     ``--format`` (another format with the robot's IMU count), then the IMU count of
     ``--robot`` (another whole number of IMUs in this format), then both."""
     found = len(text.strip().split(","))
     if found == 1 + VALUES_PER_IMU[fmt] * n_imus + n_tensions:  # garbled otherwise
         return ""
+    if file_tensions and found == 1 + VALUES_PER_IMU[fmt] * n_imus + file_tensions:
+        return (
+            f": a line of the IMUs and the robot's {file_tensions} tendon tensions, which "
+            "--inputs gives too; leave --inputs out (live then reads the line's), or send "
+            "the IMUs' fields alone"
+        )
     if n_tensions and found == 1 + VALUES_PER_IMU[fmt] * n_imus:
         return (
             f": a line without the robot's {n_tensions} tendon tensions; send "
