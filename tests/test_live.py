@@ -554,3 +554,18 @@ def test_one_ctrl_c_estimates_every_queued_line_with_ipopt(tmp_path: Path) -> No
     assert queued is not None and int(queued.group(1)) > 0, live.err  # a queue to drain
     assert "abandoned" not in live.err, live.err
     assert data_rows(out) == data_rows(rec) == len(lines), live.err
+
+
+def test_the_latency_quantiles_say_where_they_are_beyond_the_histogram() -> None:
+    """Known answers: a latency's quantile is the upper edge of its bin (2.3 % wide); one
+    beyond the histogram's last edge (100 s: a session that fell minutes behind) is said
+    as over it, not as the edge itself."""
+    from continuum_mhe.live.counts import LatencyHistogram
+
+    h = LatencyHistogram()
+    assert math.isnan(h.quantile(0.5))
+    for ms in (10.0, 10.0, 10.0, 250_000.0):
+        h.add(ms)
+    assert h.quantile(0.5) == pytest.approx(10.0, rel=0.024) and h.quantile(0.5) >= 10.0
+    assert h.text(0.5).endswith(" ms") and not h.text(0.5).startswith("over")
+    assert math.isinf(h.quantile(0.99)) and h.text(0.99) == "over 100000 ms"

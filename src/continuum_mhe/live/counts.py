@@ -82,8 +82,15 @@ class LatencyHistogram:
         self.n += 1
 
     def quantile(self, q: float) -> float:
-        """The ``q`` quantile, ms (upper edge of its bin); NaN when empty."""
+        """The ``q`` quantile, ms (upper edge of its bin); inf beyond the last edge
+        (:meth:`text` says so); NaN when empty."""
         if self.n == 0:
             return math.nan
         i = int(np.searchsorted(np.cumsum(self.counts), q * self.n))
-        return float(self.EDGES[min(i, len(self.EDGES) - 1)])
+        return math.inf if i >= len(self.EDGES) else float(self.EDGES[i])
+
+    def text(self, q: float) -> str:
+        """The ``q`` quantile as the summary says it: ``12.34 ms``, or ``over 100000 ms``
+        beyond the last edge."""
+        v = self.quantile(q)
+        return f"over {self.EDGES[-1]:.0f} ms" if math.isinf(v) else f"{v:.2f} ms"

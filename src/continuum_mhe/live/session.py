@@ -765,7 +765,7 @@ class LiveSession:
         if self.latency.n:
             msg += (
                 f"; latency from line received to estimate written: median "
-                f"{self.latency.quantile(0.5):.2f} ms, p99 {self.latency.quantile(0.99):.2f} ms"
+                f"{self.latency.text(0.5)}, p99 {self.latency.text(0.99)}"
             )
         if c.reasons:
             msg += "; garbled: " + ", ".join(f"{k} x{v}" for k, v in c.reasons.items())
