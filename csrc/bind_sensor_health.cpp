@@ -663,11 +663,13 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "limit by dof from index 1, lag s; no rows: off).")
       .def(
           "reset",
-          [](Policy& p, bool keep_counts) {
+          [](Policy& p, bool keep_counts, bool keep_sensors) {
             p.check_idle();
-            p.health->reset(keep_counts);
+            p.health->reset(keep_counts, keep_sensors);
           },
-          nb::arg("keep_counts"), "A new recording (diagnostics zeroed unless keep_counts).")
+          nb::arg("keep_counts"), nb::arg("keep_sensors"),
+          "A new recording (diagnostics zeroed unless keep_counts; the last estimate's sensor "
+          "states kept for the next start with keep_sensors and keep_counts).")
       .def(
           "step",
           [](Policy& p, double t, In z) {

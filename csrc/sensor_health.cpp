@@ -110,10 +110,10 @@ SensorHealth::SensorHealth(PolicySettings settings, PolicyInference& inference,
   held_mask_.assign(s_.nz, 0.0);
   if (static_cast<int>(s_.start_limit.size()) != s_.nz + 1)
     throw std::invalid_argument("start_limit must hold nz + 1 values");
-  reset(false);
+  reset(false, false);
 }
 
-void SensorHealth::reset(bool keep_counts) {
+void SensorHealth::reset(bool keep_counts, bool keep_sensors) {
   if (!keep_counts) {  // a new recording (else a restart within one: its drift is kept)
     diagnostics = PolicyDiagnostics();
     drifted_t_ = -INFINITY;
@@ -131,7 +131,7 @@ void SensorHealth::reset(bool keep_counts) {
   forced_t_.clear();
   consistency_.reset();
   if (!keep_counts) has_last_ = false;  // a new recording: another robot's sensors, maybe
-  restart(keep_counts);
+  restart(keep_counts && keep_sensors);
 }
 
 void SensorHealth::restart(bool keep_sensors) {

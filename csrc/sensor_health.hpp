@@ -189,7 +189,9 @@ class SensorHealth {
                                                   observable);
 
   // a new recording: forget every sample (and zero the diagnostics unless keep_counts)
-  void reset(bool keep_counts);
+  // a new recording, or (keep_counts) a restart within one; ``keep_sensors`` (with
+  // keep_counts): the next start keeps the last estimate's sensor states
+  void reset(bool keep_counts, bool keep_sensors);
   // One sample: INPUT_OK and the answer (state nx, cov nx*nx, y ny, ystd ny), or the input
   // error (nothing changed)
   int step(double t, const double* z, double* x, double* P, double* y, double* ystd,

@@ -572,8 +572,10 @@ def test_a_restart_after_a_gap_under_load_keeps_the_sensors_and_finds_the_load()
     shows the load (the force and, from the gyros, its rate): the tip is within 1 mm on
     average after the gap, as without the gap, where a start at the same sample that
     knows nothing of the sensors is over 10 mm off (every row drifted or reset). A
-    reset of the estimator (a new recording) keeps nothing: it gives that start's
-    estimates."""
+    caller's restart within the recording (``reset(keep_counts=True)``, as live's at a
+    board reset) keeps them too, unless told not to (live's after an estimator
+    failure); a reset of the estimator (a new recording) keeps nothing: it gives that
+    start's estimates."""
     from continuum_mhe.estimators import make_estimator
 
     f, t, z = _raw_shipped(401, "force-29")
@@ -587,6 +589,21 @@ def test_a_restart_after_a_gap_under_load_keeps_the_sensors_and_finds_the_load()
     cold = _tip_errors(f, t[t > 5.0 - 1e-9], fresh)
     assert gap.mean() < 1e-3 and cold.mean() > 10e-3, (gap.mean(), cold.mean())
     assert not np.any((gap > 5e-3) & (np.asarray(series.status)[after] == "ok"))
+    # a restart within the recording by the caller (live's at a board reset) keeps them
+    # too; one after a failure that may have come from them does not
+    from continuum_mhe.results import Measurement
+
+    late = t > 5.0 - 1e-9
+    for keep_sensors, good in ((True, True), (False, False)):
+        est.reset()
+        est.continue_run(t[kept][~after], z[kept][~after])
+        est.reset(keep_counts=True, keep_sensors=keep_sensors)
+        rows = [est.step(Measurement(float(tk), zk)) for tk, zk in zip(t[late], z[late])]
+        tip = np.array([r.value(c) for r in rows for c in "xyz"]).reshape(-1, 3)
+        truth = read_state_table(DATA / "force-29_truth.csv")
+        true_tip = np.column_stack([truth.column(c)[late] for c in "xyz"])
+        mean = float(np.linalg.norm(tip - true_tip, axis=1).mean())
+        assert (mean < 1e-3) if good else (mean > 10e-3), (keep_sensors, mean)
     est.reset()  # a new recording: nothing kept from the last one
     est.run(t[kept][~after], z[kept][~after])
     again = est.run(t[t > 5.0 - 1e-9], z[t > 5.0 - 1e-9])

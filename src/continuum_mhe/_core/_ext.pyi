@@ -761,8 +761,10 @@ class SensorHealth:
         ``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement block and of the IMUs'; ``whole_rows``: rows without which a sample is a dropout as a whole; settings in s and rad, NaN where off; ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``, ``observable(imus) -> bool``; ``checks``: the formulation's StateChecks (None: the inference's is_diverged, drifted and at_bound); ``change_rows``, ``change_scale``, ``change_psd``, ``change_limit``, ``change_lag``: the estimate-change test of slowly varying states (rows, prior std, white-noise density per s, chi-square limit by dof from index 1, lag s; no rows: off).
         """
 
-    def reset(self, keep_counts: bool) -> None:
-        """A new recording (diagnostics zeroed unless keep_counts)."""
+    def reset(self, keep_counts: bool, keep_sensors: bool) -> None:
+        """
+        A new recording (diagnostics zeroed unless keep_counts; the last estimate's sensor states kept for the next start with keep_sensors and keep_counts).
+        """
 
     def step(self, t: float, z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> PolicyStep:
         """One sample: a PolicyStep."""

@@ -346,13 +346,17 @@ class Estimator(Generic[InferenceT]):
     def __reduce_ex__(self, protocol: SupportsIndex) -> NoReturn:
         raise TypeError(_NOT_COPIED)
 
-    def reset(self, keep_counts: bool = False) -> None:
+    def reset(self, keep_counts: bool = False, keep_sensors: bool | None = None) -> None:
         """Forget all samples and, unless ``keep_counts``, zero :attr:`diagnostics` (in
         place: a caller that holds it sees the new recording's counts) and the
         inference's own counts; the next ``step`` starts a new recording. (The
         estimator's own restarts, within a recording, keep the counts; so does a caller
-        that restarts it within one, as ``live`` does.) A RuntimeError, changing
-        nothing, while another thread steps this estimator."""
+        that restarts it within one, as ``live`` does.) ``keep_sensors`` (default
+        ``keep_counts``; only with it): the next start keeps what the last estimate
+        says of the sensors (the formulation's ``sensor_states``, as a restart after a
+        gap does), the same sensors on the same robot; not after a failure that may
+        have come from them. A RuntimeError, changing nothing, while another thread
+        steps this estimator."""
         self._policy.check_idle()
         if not keep_counts:
             self.diagnostics.clear()
@@ -361,7 +365,8 @@ class Estimator(Generic[InferenceT]):
         if not keep_counts:  # a new recording: its units are checked anew
             self._units.reset()
             self._time_steps.reset()
-        self._policy.reset(keep_counts)
+        keep = keep_counts if keep_sensors is None else keep_sensors
+        self._policy.reset(keep_counts, keep_counts and keep)
 
     def _sync_diagnostics(self) -> None:
         """:attr:`diagnostics` from the compiled policy's counts (the same object)."""

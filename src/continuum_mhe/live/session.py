@@ -601,16 +601,18 @@ class LiveSession:
             ]
         )
 
-    def _restart(self, t: float, converters: bool = True) -> None:
+    def _restart(self, t: float, converters: bool = True, keep_sensors: bool = True) -> None:
         """Restart the estimator at the sample at ``t`` s (and the raw converters, unless
-        they were restarted when that sample arrived)."""
+        they were restarted when that sample arrived), keeping what it knew of the
+        sensors unless not ``keep_sensors`` (after an estimator failure)."""
         c = self.counts
         c.restarts += 1
         if c.first_restart_t is None:
             c.first_restart_t = t
         for conv in (self.converters or ()) if converters else ():
             conv.reset()
-        self.estimator.reset(keep_counts=True)  # the same session: its freezes said once
+        # the same session: its freezes said once
+        self.estimator.reset(keep_counts=True, keep_sensors=keep_sensors)
         self._restarted = True  # the next estimate says so (status reset)
 
     def _replay_differs(self, t: float, why: str) -> None:
@@ -658,7 +660,7 @@ class LiveSession:
             time.monotonic(),
             source="",
         )
-        self._restart(t)
+        self._restart(t, keep_sensors=False)  # the failure may have come from them
         solve_ms = (time.perf_counter() - start) * 1e3
         return Estimate(t, None, None, None, Status.NO_ESTIMATE, solve_ms)
 
