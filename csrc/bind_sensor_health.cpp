@@ -76,7 +76,7 @@ inline std::pair<nb::object, nb::object> kept_arrays(const double* x, const doub
 }
 
 // The policy's interface implemented by a Python object with the methods
-// ``restart(kept_x | None, kept_P | None)``,
+// ``restart(kept_x | None, kept_P | None, kept_t)``,
 // ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
 // ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
 // ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``
@@ -84,10 +84,10 @@ inline std::pair<nb::object, nb::object> kept_arrays(const double* x, const doub
 class PythonInference final : public PolicyInference {
  public:
   PythonInference(nb::object obj, int nx, int nz, int ny) : obj_(std::move(obj)), nx_(nx), nz_(nz), ny_(ny) {}
-  void restart(const double* kept_x, const double* kept_P) override {
+  void restart(const double* kept_x, const double* kept_P, double kept_t) override {
     nb::gil_scoped_acquire gil;
     auto [x, P] = kept_arrays(kept_x, kept_P, nx_);
-    obj_.attr("restart")(x, P);
+    obj_.attr("restart")(x, P, kept_t);
   }
   int infer(double t, const double* z, const double* mask, double* x, double* P,
             bool& has_state, bool& has_cov) override {
@@ -144,7 +144,7 @@ class PythonInference final : public PolicyInference {
 // The fast MHE's inference in compiled code: the window's process noise, inputs and
 // step (horizon.hpp) each sample; the Python inference object
 // (continuum_mhe.estimators.mhe.MovingHorizonInference) only where it is needed: its
-// ``restart(kept_x, kept_P)``, ``start(z) -> failure | None`` (the arrival prior from the first
+// ``restart(kept_x, kept_P, kept_t)``, ``start(z) -> failure | None`` (the arrival prior from the first
 // reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
 // step did not keep its answer (IPOPT's fallback, the branch check, the second start),
 // and the formulation's checks of a state.
@@ -163,11 +163,11 @@ class HorizonInference final : public PolicyInference {
     z_prev_.resize(h.nz);
   }
   MovingHorizon& horizon() { return h_; }
-  void restart(const double* kept_x, const double* kept_P) override {
+  void restart(const double* kept_x, const double* kept_P, double kept_t) override {
     {
       nb::gil_scoped_acquire gil;
       auto [x, P] = kept_arrays(kept_x, kept_P, int(h_.nx));
-      py_.attr("restart")(x, P);
+      py_.attr("restart")(x, P, kept_t);
     }
     t_last_ = 0.0;
     has_z_prev_ = false;
@@ -271,7 +271,7 @@ class HorizonInference final : public PolicyInference {
 // The compiled EKF's inference for the policy: each sample's step, outputs and standard
 // deviations on the node model (filter.hpp); the Python inference object
 // (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
-// ``restart(kept_x, kept_P)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
+// ``restart(kept_x, kept_P, kept_t)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
 // code, failure | None)`` (the prior from the reading, updated with it).
 class KalmanInference final : public PolicyInference {
  public:
@@ -286,11 +286,11 @@ class KalmanInference final : public PolicyInference {
     P_.resize(size_t(node.nx()) * node.nx());
     z_prev_.resize(node.nz());
   }
-  void restart(const double* kept_x, const double* kept_P) override {
+  void restart(const double* kept_x, const double* kept_P, double kept_t) override {
     {
       nb::gil_scoped_acquire gil;
       auto [x, P] = kept_arrays(kept_x, kept_P, node_.nx());
-      py_.attr("restart")(x, P);
+      py_.attr("restart")(x, P, kept_t);
     }
     has_x_ = false;
   }
@@ -565,7 +565,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           },
           nb::arg("node"), nb::arg("inference"), nb::arg("R"), nb::arg("process_noise"),
           nb::arg("inputs"), nb::keep_alive<1, 2>(),
-          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P)``, "
+          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, "
           "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
           "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
 

@@ -149,7 +149,8 @@ void SensorHealth::restart(bool keep_sensors) {
   changed_until_ = -INFINITY;
   std::fill(held_t_.begin(), held_t_.end(), -INFINITY);  // a start holds no past reading
   if (!keep_sensors) has_last_ = false;
-  inference_.restart(has_last_ ? last_x_.data() : nullptr, has_last_ ? last_P_.data() : nullptr);
+  inference_.restart(has_last_ ? last_x_.data() : nullptr, has_last_ ? last_P_.data() : nullptr,
+                     last_state_t_);
 }
 
 double SensorHealth::unobserved_window() const {
@@ -477,16 +478,6 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     }
     if (has_state) status = ST_RESET;
   }
-  if (!failed && has_state && has_cov) {  // a healthy estimate: what a restart may keep
-    const size_t nx = static_cast<size_t>(s_.nx);
-    const bool finite = std::all_of(x, x + nx, [](double v) { return std::isfinite(v); }) &&
-                        std::all_of(P, P + nx * nx, [](double v) { return std::isfinite(v); });
-    if (finite && !diverged(x, P)) {
-      std::copy(x, x + nx, last_x_.begin());
-      std::copy(P, P + nx * nx, last_P_.begin());
-      has_last_ = true;
-    }
-  }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
   // the first estimate since a (re)start fits its one reading alone
@@ -634,6 +625,18 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     rejecting_since_.reset();
   else if (rejected == 1 && !rejecting_since_)
     rejecting_since_ = t;
+  if (status == ST_OK && has_state && has_cov && !failed) {
+    // an estimate the readings confirmed: what a restart within the recording may keep
+    const size_t nx = static_cast<size_t>(s_.nx);
+    const bool finite = std::all_of(x, x + nx, [](double v) { return std::isfinite(v); }) &&
+                        std::all_of(P, P + nx * nx, [](double v) { return std::isfinite(v); });
+    if (finite) {
+      std::copy(x, x + nx, last_x_.begin());
+      std::copy(P, P + nx * nx, last_P_.begin());
+      last_state_t_ = t;
+      has_last_ = true;
+    }
+  }
   out.status = status;
   out.has_state = has_state;
   out.has_cov = has_cov;

@@ -61,10 +61,10 @@ class PolicyInference {
  public:
   virtual ~PolicyInference() = default;
   // forget the state: the next infer starts from its sample. ``kept_x`` (nx) and
-  // ``kept_P`` (nx x nx), or null: the last estimate before the restart and its
-  // covariance, whose sensor states (the formulation's ``sensor_states``: biases,
-  // misalignments, gains) the start keeps
-  virtual void restart(const double* kept_x, const double* kept_P) = 0;
+  // ``kept_P`` (nx x nx), or null: the last confirmed (ok) estimate before the restart,
+  // at ``kept_t`` s, and its covariance, whose sensor states (the formulation's
+  // ``sensor_states``: biases, misalignments, gains) the start keeps
+  virtual void restart(const double* kept_x, const double* kept_P, double kept_t) = 0;
   // one sample (``mask`` (nz) its valid readings): the status; ``x`` (nx) and ``P``
   // (nx x nx) written when ``has_state`` / ``has_cov`` are set. Throws InferenceFailure
   // (or std::runtime_error) on a numerical failure.
@@ -280,9 +280,10 @@ class SensorHealth {
   // constant error entered the state through the estimates before (held_t_: -inf where
   // none); held_z_ and held_mask_ the readings and mask the term is computed on
   std::vector<double> held_z_, held_t_, held_mask_;
-  // the last healthy estimate with a covariance since the last restart that kept
-  // nothing (has_last_), for a restart that keeps the sensors' states
+  // the last ok estimate with a covariance since the last restart that kept nothing
+  // (has_last_), for a restart that keeps the sensors' states
   std::vector<double> last_x_, last_P_;
+  double last_state_t_ = 0.0;  // its time, s
   bool has_last_ = false;
   std::vector<int> back_rows_, rows_;
   std::optional<double> rejecting_since_;

@@ -613,6 +613,36 @@ def test_a_restart_after_a_gap_under_load_keeps_the_sensors_and_finds_the_load()
     assert lost.mean() == pytest.approx(cold.mean(), rel=1e-3)
 
 
+def test_a_restart_keeps_no_sensor_state_one_reading_set() -> None:
+    """The shipped ``unloaded`` with the tension gains estimated, the samples between
+    0.02 and 1.52 s missing: the estimate before the gap is the start's second, whose
+    gains one reading moved (0.83 and 0.99) and barely informed. Kept, they set the rest
+    of the run (hundreds of ``ok`` rows more than 5 mm off, 6.7 mm on average); the
+    restart keeps only the states the data informed, and no ``ok`` row is 5 mm off."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import open_input
+    from continuum_mhe.model.registry import make_formulation
+
+    options = InputOptions(tensions=str(DATA / "unloaded_tensions.csv"), estimate_tension_gain=True)
+    base = make_formulation("bend", read_robot("tendon-two-section"))
+    with open_input(DATA / "unloaded_raw.csv", options, base) as stream:
+        f = stream.formulation
+        blocks = list(stream.blocks)
+    t = np.concatenate([b[0] for b in blocks])
+    z = np.vstack([b[1] for b in blocks])
+    kept = (t < 0.02 + 1e-9) | (t > 1.52 - 1e-9)
+    series = make_estimator("ekf", f).run(t[kept], z[kept])
+    truth = read_state_table(DATA / "unloaded_truth.csv")
+    rows = np.searchsorted(truth.t, t[kept] - 1e-9)
+    cols = [o.name for o in f.outputs]
+    tip = np.asarray(series.output, float)[:, [cols.index(c) for c in "xyz"]]
+    err = np.linalg.norm(tip - np.column_stack([truth.column(c)[rows] for c in "xyz"]), axis=1)
+    after = t[kept] > 1.52 - 1e-9
+    assert not np.any((err > 5e-3) & (np.asarray(series.status) == "ok") & after)
+    assert err[after].mean() < 2e-3
+
+
 def test_what_a_restart_keeps_of_the_sensors() -> None:
     """Known answers: a tendon robot's sensor states are its IMU-error states (gyro
     biases, misalignments, accelerometer biases); a restart keeps their values and
@@ -634,8 +664,17 @@ def test_what_a_restart_keeps_of_the_sensors() -> None:
     P = 1e-6 * (A @ A.T + np.eye(f.nx))
     kept = f.kept_sensors(x, P)
     assert kept is not None
-    np.testing.assert_array_equal(kept[0], x[idx])
-    np.testing.assert_array_equal(kept[1], P[np.ix_(idx, idx)])
+    np.testing.assert_array_equal(kept.states, idx)
+    np.testing.assert_array_equal(kept.values, x[idx])
+    np.testing.assert_array_equal(kept.cov, P[np.ix_(idx, idx)])
+    # a state the data have not informed (its std near its prior's) is not kept, and
+    # the random walks widen what is, over the time since
+    wide = P.copy()
+    wide[idx[0], idx[0]] = f.initial_cov()[idx[0], idx[0]]
+    partial = f.kept_sensors(x, wide, dt=10.0)
+    assert partial is not None and list(partial.states) == list(idx[1:])
+    grown = np.diag(partial.cov) - np.diag(P)[idx[1:]]
+    np.testing.assert_allclose(grown, 10.0 * np.diag(f.process_cov(1.0))[idx[1:]], rtol=1e-9)
     xs, Ps = f.start_prior(z[0], kept)
     held = np.array([not n.startswith("bg") for n in names])  # the gyro biases: fitted
     np.testing.assert_array_equal(xs[idx[held]], x[idx[held]])

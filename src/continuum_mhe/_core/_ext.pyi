@@ -748,7 +748,7 @@ class KalmanInference:
 
     def __init__(self, node: NodeModel, inference: object, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], process_noise: object, inputs: object) -> None:
         """
-        ``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P)``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
+        ``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
         """
 
 class SensorHealth:

@@ -13,7 +13,7 @@ import re
 from abc import ABC, abstractmethod
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.model.formulations import Formulation
+from continuum_mhe.model.formulations import Formulation, KeptSensors
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 
 __all__ = ["Estimate", "EstimateSeries", "FloatArray", "Inference", "Measurement", "Status"]
@@ -54,27 +54,42 @@ class Inference(ABC):
 
     def __init__(self, formulation: Formulation) -> None:
         self.formulation = formulation
-        #: what the next start keeps of the estimate before a restart (the sensor
+        #: what the last start kept of the estimate before its restart (the sensor
         #: states and their covariance: ``Formulation.kept_sensors``), or None
-        self.kept_sensors: tuple[FloatArray, FloatArray] | None = None
+        self.kept_sensors: KeptSensors | None = None
+        self._kept: tuple[FloatArray, FloatArray, float | None] | None = None
 
     @abstractmethod
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
         """Forget the state: the next :meth:`infer` starts from its sample, keeping the
-        sensor states of the estimate ``kept_x`` (nx,) with covariance ``kept_P`` before
-        the restart where they are given (a restart within a recording that does not
-        doubt them: :meth:`keep`)."""
+        sensor states of the estimate ``kept_x`` (nx,) at ``kept_t`` s with covariance
+        ``kept_P`` before the restart where they are given (a restart within a
+        recording that does not doubt them: :meth:`keep`)."""
 
-    def keep(self, kept_x: FloatArray | None, kept_P: FloatArray | None) -> None:
-        """Remember what the next start keeps of ``kept_x``, ``kept_P``
-        (:meth:`~continuum_mhe.model.formulations.Formulation.kept_sensors`; none
-        without them)."""
-        self.kept_sensors = self.formulation.kept_sensors(kept_x, kept_P)
+    def keep(
+        self, kept_x: FloatArray | None, kept_P: FloatArray | None, kept_t: float | None
+    ) -> None:
+        """Remember what the next start keeps: the estimate ``kept_x`` at ``kept_t`` s
+        with covariance ``kept_P`` (none without them)."""
+        self._kept = None if kept_x is None or kept_P is None else (kept_x, kept_P, kept_t)
 
-    def start_prior(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """The formulation's start at the reading ``z``, with the sensor states kept by
-        the last restart."""
-        return self.formulation.start_prior(z, self.kept_sensors)
+    def start_prior(self, z: FloatArray, t: float | None = None) -> tuple[FloatArray, FloatArray]:
+        """The formulation's start at the reading ``z`` (at ``t`` s), with the sensor
+        states kept by the last restart, their covariance grown by their random walks
+        over the time since (:meth:`~continuum_mhe.model.formulations.Formulation.
+        kept_sensors`; ``t`` None: not grown)."""
+        kept = None
+        if self._kept is not None:
+            x, P, t0 = self._kept
+            dt = 0.0 if t is None or t0 is None else max(float(t) - float(t0), 0.0)
+            kept = self.formulation.kept_sensors(x, P, dt)
+        self.kept_sensors = kept
+        return self.formulation.start_prior(z, kept)
 
     @abstractmethod
     def infer(

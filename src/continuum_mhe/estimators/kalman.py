@@ -92,8 +92,13 @@ class _KalmanBase(Inference):
         self._R = formulation.meas_cov()
         self.restart()
 
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
-        self.keep(kept_x, kept_P)
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
+        self.keep(kept_x, kept_P, kept_t)
         self._x: FloatArray | None = None
         self._P: FloatArray | None = None
         self._t_prev = 0.0
@@ -107,7 +112,7 @@ class _KalmanBase(Inference):
                 return None, None, Status.NO_ESTIMATE
             # prior from the first reading's inverse, then updated with that reading:
             # the same convention as the MHE (arrival prior plus the first measurement)
-            self._x, self._P = self._update(*self.start_prior(m.z), m.z, mask)
+            self._x, self._P = self._update(*self.start_prior(m.z, m.t), m.z, mask)
             self._t_prev, self._z_prev = m.t, m.z
             return self._x.copy(), self._P.copy(), Status.OK
         dt = m.t - self._t_prev
@@ -225,8 +230,13 @@ class _KalmanHooks:
         self.formulation = inference.formulation
         self.nu = inference.formulation.nu
 
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
-        self.inference.restart(kept_x, kept_P)
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
+        self.inference.restart(kept_x, kept_P, kept_t)
 
     def first(
         self, t: float, z: FloatArray

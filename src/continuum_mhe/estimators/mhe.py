@@ -419,8 +419,13 @@ class MovingHorizonInference(Inference):
             self.branch.stats.checked += window.plausible_kept
             window.plausible_kept = 0
 
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
-        self.keep(kept_x, kept_P)
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
+        self.keep(kept_x, kept_P, kept_t)
         self._window.restart()
         self._t_last = 0.0  # the last sample's time, s
         self._z_prev_valid: FloatArray | None = None
@@ -562,7 +567,7 @@ class MovingHorizonInference(Inference):
         if not window.has_prior:
             if not valid:
                 return None, None, Status.NO_ESTIMATE
-            x0, P0 = self.start_prior(m.z)
+            x0, P0 = self.start_prior(m.z, m.t)
             self._set_prior(f.project(x0), P0)
         u, (Q, Qinv) = self._no_input, (self._no_weight, self._no_weight)
         if window.k:
@@ -819,8 +824,13 @@ class _HorizonHooks:
         self.inference = inference
         self.formulation = inference.formulation
 
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
-        self.inference.restart(kept_x, kept_P)
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
+        self.inference.restart(kept_x, kept_P, kept_t)
 
     def start(self, z: FloatArray) -> str | None:
         """Anchor the prior at the first reading ``z``; a numerical failure's message."""

@@ -146,9 +146,14 @@ class PythonInference:
         self._state: FloatArray | None = None
         self._cov: FloatArray | None = None
 
-    def restart(self, kept_x: FloatArray | None = None, kept_P: FloatArray | None = None) -> None:
+    def restart(
+        self,
+        kept_x: FloatArray | None = None,
+        kept_P: FloatArray | None = None,
+        kept_t: float | None = None,
+    ) -> None:
         self._state = self._cov = None
-        self.inference.restart(kept_x, kept_P)
+        self.inference.restart(kept_x, kept_P, kept_t)
 
     def infer(
         self, t: float, z: FloatArray, mask: FloatArray

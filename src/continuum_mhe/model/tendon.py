@@ -80,7 +80,7 @@ from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
-from continuum_mhe.model.formulations import ChangeTest, Formulation
+from continuum_mhe.model.formulations import ChangeTest, Formulation, KeptSensors
 from continuum_mhe.model.imu import (
     STANDARD_GRAVITY,
     tilt_from_gravity_sym,
@@ -834,7 +834,7 @@ class TendonFormulation(Formulation):
         return tuple(range(g0, self.nx))
 
     def start_prior(
-        self, z0: FloatArray, kept: tuple[FloatArray, FloatArray] | None = None
+        self, z0: FloatArray, kept: KeptSensors | None = None
     ) -> tuple[FloatArray, FloatArray]:
         """``(x0, P0)``: the start at the reading ``z0`` (:meth:`initial_state`), with the
         tip force's prior that the reading allows.
@@ -878,10 +878,18 @@ class TendonFormulation(Formulation):
             P = self.with_kept_covariance(self.initial_cov(), kept)
             k = self.robot.n_tendons
             P[3:6, 3:6] = np.eye(3) * wide**2
-            if self.imu_model == "direct":  # the force's rate, fitted to the gyros
-                P[9 + k : 12 + k, 9 + k : 12 + k] = np.eye(3) * wide**2
+            if self.imu_model == "direct" and self._gyro_biases_kept(kept):
+                P[9 + k : 12 + k, 9 + k : 12 + k] = np.eye(3) * wide**2  # fitted to the gyros
             return x, P
         return self._start_fit(z0, self.force_prior_std)[0], self.initial_cov()
+
+    def _gyro_biases_kept(self, kept: KeptSensors | None) -> bool:
+        """Whether a restart kept every gyro bias (with raw IMUs): the gyros then show
+        the force's rate."""
+        if kept is None or self.imu_model != "direct":
+            return False
+        biases = range(self._n_motion, self._n_motion + self.n_gyro_bias)
+        return set(biases) <= {int(i) for i in kept.states}
 
     def start_bend(self, z0: FloatArray) -> float:
         """The angle, rad, between the base axis and the tip's tangent in the unloaded
@@ -918,7 +926,7 @@ class TendonFormulation(Formulation):
         self,
         z0: FloatArray,
         force_std: float,
-        kept: tuple[FloatArray, FloatArray] | None = None,
+        kept: KeptSensors | None = None,
     ) -> tuple[FloatArray, float, float]:
         """``(x, misfit, limit)``: :meth:`initial_state`'s fit with the tip force's prior
         standard deviation ``force_std`` (N), the fitted readings' misfit (see
@@ -936,7 +944,7 @@ class TendonFormulation(Formulation):
         g0 = self.tension_gain_start
         x[g0 : g0 + self.n_tension_gain] = 1.0  # the prior: the tensions as given
         if kept is not None:
-            x[np.asarray(self.sensor_states, dtype=np.intp)] = kept[0]
+            x[kept.states] = kept.values
         z = np.nan_to_num(z0, nan=0.0)
         z[n : n + k] = tau
         valid = np.isfinite(z0[:n])
@@ -948,7 +956,7 @@ class TendonFormulation(Formulation):
         if self.imu_model == "direct":
             bias = self._n_motion  # the gyro biases follow the motion states
             free = np.r_[free, 6 + k : 9 + k, bias : bias + self.n_gyro_bias]
-            if kept is not None:  # its gyro biases known: the gyros show the force's rate
+            if self._gyro_biases_kept(kept):  # the gyros then show the force's rate
                 free = np.r_[free, 9 + k : 12 + k]
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
         rows = np.r_[np.flatnonzero(valid), n + 3 * k : self.nz]
@@ -956,14 +964,14 @@ class TendonFormulation(Formulation):
         std = np.sqrt(np.diag(self.initial_cov()))
         prior_w = START_PRIOR_WEIGHT / std[free]
         prior_w[3:6] = 1.0 / force_std  # the force's own prior
-        if self.imu_model == "direct" and kept is not None:
+        if self.imu_model == "direct" and self._gyro_biases_kept(kept):
             prior_w[-3:] = 1.0 / force_std  # the force's rate, per second
         if kept is not None:  # the kept gyro biases: their own standard deviations
-            sensors = {state: i for i, state in enumerate(self.sensor_states)}
+            at = {int(state): i for i, state in enumerate(kept.states)}
             for j, state in enumerate(free):
-                if int(state) in sensors:
-                    i = sensors[int(state)]
-                    prior_w[j] = 1.0 / math.sqrt(max(float(kept[1][i, i]), 1e-30))
+                if int(state) in at:
+                    i = at[int(state)]
+                    prior_w[j] = 1.0 / math.sqrt(max(float(kept.cov[i, i]), 1e-30))
         # the residual and its Jacobian by the compiled core (forward mode), the same
         # functions the compiled EKF evaluates
         model = _core.ResidualNodeFunction(*residual_node_tapes(self), with_transition=False)
