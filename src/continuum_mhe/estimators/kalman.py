@@ -230,13 +230,10 @@ class _KalmanHooks:
         self.formulation = inference.formulation
         self.nu = inference.formulation.nu
 
-    def restart(
-        self,
-        kept_x: FloatArray | None = None,
-        kept_P: FloatArray | None = None,
-        kept_t: float | None = None,
-    ) -> None:
-        self.inference.restart(kept_x, kept_P, kept_t)
+    def restart(self, *kept: object) -> None:
+        """The inference's restart, with what the policy hands it (``kept_x, kept_P,
+        kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
+        self.inference.restart(*kept)  # type: ignore[arg-type]
 
     def first(
         self, t: float, z: FloatArray

@@ -146,14 +146,11 @@ class PythonInference:
         self._state: FloatArray | None = None
         self._cov: FloatArray | None = None
 
-    def restart(
-        self,
-        kept_x: FloatArray | None = None,
-        kept_P: FloatArray | None = None,
-        kept_t: float | None = None,
-    ) -> None:
+    def restart(self, *kept: object) -> None:
+        """The inference's restart, with what the policy hands it (``kept_x, kept_P,
+        kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
         self._state = self._cov = None
-        self.inference.restart(kept_x, kept_P, kept_t)
+        self.inference.restart(*kept)  # type: ignore[arg-type]
 
     def infer(
         self, t: float, z: FloatArray, mask: FloatArray
