@@ -272,6 +272,24 @@ def test_tensions_in_mn_on_the_line_stop_the_session_in_one_line(runs: Runs) -> 
         _live(serial, runs.estimator, in_mn)
 
 
+def test_a_stream_that_starts_well_into_its_tensions_file_is_said(runs: Runs) -> None:
+    """A device clock that starts 1 s into the tensions file (a file that starts with the
+    stream but on another clock: every tension from another time) is said at the first
+    sample; one that starts with the file is not."""
+    _, imus_only = _first_samples_lines()
+    late = [f"{int(ln.split(',', 1)[0]) + 1000},{ln.split(',', 1)[1]}" for ln in imus_only]
+    options = InputOptions(tensions=str(DATA / "unloaded_tensions.csv"))
+    for lines, warned in ((late, True), (imus_only, False)):
+        serial = serial_input("/dev/ttyTEN", "raw", options, runs.base)
+        _, made, said = _live(serial, runs.estimator, lines)
+        assert made
+        starts = [m for m in said if m.startswith("the stream starts at t = ")]
+        if warned:
+            assert len(starts) == 1 and "1 s after the first row of" in starts[0], said
+        else:
+            assert not starts, said
+
+
 def _first_samples_lines() -> tuple[list[str], list[str]]:
     import tempfile
 

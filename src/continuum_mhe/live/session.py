@@ -69,6 +69,12 @@ GARBAGE_STOP_S = 3.0
 GARBAGE_STOP_LINES = 20
 
 
+#: A stream that starts this many seconds after its tensions file's first row is said:
+#: a file that starts with the stream on another clock gives every sample another
+#: time's tensions.
+TENSIONS_LATE_START_S = 0.5
+
+
 @dataclass(frozen=True)
 class LiveSettings:
     """Settings of a live run.
@@ -452,6 +458,15 @@ class LiveSession:
                     "(the device clock): the tensions must cover the stream"
                 )
                 return None  # neither recorded nor estimated: the session stops
+            first = float(self.tension_file.t[0])
+            if c.samples == 0 and t - first > TENSIONS_LATE_START_S:
+                self.say(
+                    f"the stream starts at t = {time_text(t)} s (the device clock), "
+                    f"{time_text(t - first)} s after the first row of "
+                    f"{self.tension_file.name} (t = {time_text(first)} s): if that file "
+                    "starts with the stream, its t is on another clock, and every tension "
+                    "is taken from another time"
+                )
             given = self.tension_file.at(t)
         elif self.tendon is not None and not self.n_tensions:  # a backbone, no tendons
             given = (np.zeros(0),) * 3
