@@ -59,24 +59,22 @@ class Inference(ABC):
         self.kept_sensors: KeptSensors | None = None
         self._kept: tuple[FloatArray, FloatArray, float | None] | None = None
 
-    @abstractmethod
     def restart(
         self,
         kept_x: FloatArray | None = None,
         kept_P: FloatArray | None = None,
         kept_t: float | None = None,
     ) -> None:
-        """Forget the state: the next :meth:`infer` starts from its sample, keeping the
-        sensor states of the estimate ``kept_x`` (nx,) at ``kept_t`` s with covariance
-        ``kept_P`` before the restart where they are given (a restart within a
-        recording that does not doubt them: :meth:`keep`)."""
-
-    def keep(
-        self, kept_x: FloatArray | None, kept_P: FloatArray | None, kept_t: float | None
-    ) -> None:
-        """Remember what the next start keeps: the estimate ``kept_x`` at ``kept_t`` s
-        with covariance ``kept_P`` (none without them)."""
+        """Forget the state (:meth:`forget`): the next :meth:`infer` starts from its
+        sample, keeping the sensor states of the estimate ``kept_x`` (nx,) at ``kept_t``
+        s with covariance ``kept_P`` before the restart where they are given (a restart
+        within a recording that does not doubt them: :meth:`start_prior`)."""
         self._kept = None if kept_x is None or kept_P is None else (kept_x, kept_P, kept_t)
+        self.forget()
+
+    @abstractmethod
+    def forget(self) -> None:
+        """Forget the state: the next :meth:`infer` starts from its sample."""
 
     def start_prior(self, z: FloatArray, t: float | None = None) -> tuple[FloatArray, FloatArray]:
         """The formulation's start at the reading ``z`` (at ``t`` s), with the sensor

@@ -92,13 +92,7 @@ class _KalmanBase(Inference):
         self._R = formulation.meas_cov()
         self.restart()
 
-    def restart(
-        self,
-        kept_x: FloatArray | None = None,
-        kept_P: FloatArray | None = None,
-        kept_t: float | None = None,
-    ) -> None:
-        self.keep(kept_x, kept_P, kept_t)
+    def forget(self) -> None:
         self._x: FloatArray | None = None
         self._P: FloatArray | None = None
         self._t_prev = 0.0

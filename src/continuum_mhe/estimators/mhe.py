@@ -419,13 +419,7 @@ class MovingHorizonInference(Inference):
             self.branch.stats.checked += window.plausible_kept
             window.plausible_kept = 0
 
-    def restart(
-        self,
-        kept_x: FloatArray | None = None,
-        kept_P: FloatArray | None = None,
-        kept_t: float | None = None,
-    ) -> None:
-        self.keep(kept_x, kept_P, kept_t)
+    def forget(self) -> None:
         self._window.restart()
         self._t_last = 0.0  # the last sample's time, s
         self._z_prev_valid: FloatArray | None = None
