@@ -147,6 +147,58 @@ def test_the_bound_warning_names_the_robot_files_key_or_the_option(tmp_path, cap
     assert line.endswith("raise --theta-max if it bends so far") and "robot file" not in line
 
 
+def test_a_bound_no_robot_reaches_points_to_the_robot_file_not_to_raising_it(tmp_path, capsys):
+    """Estimates held at the default bound (3 rad, 172 degrees) come from readings the
+    model does not explain (here a rod that twists about itself), not from a robot
+    bending that far: the warning says to check the robot file, not to raise the bound;
+    and the rows that disagree with their readings for most of the run get a line of
+    their own (with the summary's count alone, an ``ok`` share could be read as
+    reassurance)."""
+    argv = ["estimate", str(ROD / "spatial_tilt.csv"), "--method", "ekf"]
+    assert main([*argv, "--robot", str(_robot(tmp_path)), "-o", str(tmp_path / "a.csv")]) == 0
+    err = capsys.readouterr().err
+    line = _bound_warning(err)
+    assert "if it bends so far" not in line and "raise theta_max" not in line
+    assert line.endswith(
+        "and a bound of 3 rad or more is one a robot does not reach: readings that the model "
+        "of the robot does not explain pushed the estimates there; check the robot file "
+        "against the robot (the IMUs' order, section, at and mount_rpy, the sections' "
+        "lengths and order, the mounting; check-robot lists them), or the robot does what "
+        "the model cannot follow (a backbone that twists about itself)"
+    ), line
+    (warned,) = [ln for ln in err.splitlines() if "are inconsistent:" in ln]
+    status = read_state_table(tmp_path / "a.csv").status
+    bad = int(np.sum(status == "inconsistent"))
+    assert bad > 0.25 * len(status)
+    assert warned.startswith(
+        f"continuum-mhe: warning: {bad} of {len(status)} estimates "
+        f"({100 * bad / len(status):.0f} %) are inconsistent: their readings disagree"
+    ), warned
+
+
+def test_no_inconsistency_line_where_the_readings_fit(tmp_path, capsys):
+    """The planar S rod, which the model follows: few rows inconsistent, no line."""
+    argv = ["estimate", str(ROD / "planar-s_raw.csv"), "--method", "ekf"]
+    assert main([*argv, "--robot", str(_robot(tmp_path)), "-o", str(tmp_path / "a.csv")]) == 0
+    assert "are inconsistent" not in capsys.readouterr().err
+
+
+def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
+    """Known answers of the threshold: more than a quarter of the estimates, and five."""
+    from continuum_mhe.estimators.run_notices import inconsistent_notice
+    from continuum_mhe.model.registry import make_formulation
+
+    f = make_formulation("bend")
+    assert inconsistent_notice(25, 100, f) is None
+    assert inconsistent_notice(4, 5, f) is None
+    line = inconsistent_notice(26, 100, f)
+    assert line is not None and line.startswith("26 of 100 estimates (26 %) are inconsistent")
+    assert "--own-acceleration" not in line  # tilt readings: no own acceleration to model
+    raw = make_formulation("direct")
+    line = inconsistent_notice(5, 6, raw)
+    assert line is not None and "(--own-acceleration models it)" in line
+
+
 def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tmp_path, capsys):
     """A robot hanging from its base (simulated z-down) estimated as z-up: one line
     naming ``mounting``, exit 2, nothing written; as z-down it runs."""

@@ -543,3 +543,22 @@ def test_one_line_without_its_tensions_says_so_where_the_device_named_its_fields
     garbled = [s for s in said if s.startswith("garbled line skipped")]
     assert len(garbled) == 1 and "a line without the robot's 6 tendon tensions" in garbled[0], said
     assert session.counts.garbled == 1
+
+
+def test_live_summary_says_inconsistent_rows_as_estimate_does() -> None:
+    """A rod that twists about itself, which the constant-curvature model cannot follow
+    (the shipped ``spatial-stiff-torsion``, raw IMUs on the line): most rows are
+    ``inconsistent``, and ``live``'s summary carries ``estimate``'s warning with their
+    count."""
+    rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    _, raw = _rows(rod / "spatial-stiff-torsion_raw.csv", 400)
+    lines = [",".join([f"{round(float(r[0]) * 1000)}", *r[1:]]) for r in raw]
+    base = make_formulation("bend", read_robot(shipped_robots()["two-section"]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    session, made, _ = _live(serial, est, lines, duration=10.0)
+    bad = sum(str(e.status) == "inconsistent" for e in made)
+    assert bad > 0.25 * len(made) and len(made) == 400
+    assert f"warning: {bad} of {len(made)} estimates ({100 * bad / len(made):.0f} %) are " in (
+        session.summary()
+    )

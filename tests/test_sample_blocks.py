@@ -5,6 +5,7 @@ same problems counted, the same one-line error, on tricky inputs and on random t
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +128,27 @@ def test_the_block_reader_reads_what_it_should(tmp_path: Path) -> None:
                                   "Python)")  # fmt: skip
 
 
+def test_a_last_line_without_an_end_is_said_and_skip_bad_drops_it(tmp_path: Path) -> None:
+    """A file cut off as it was written ends inside a number (``0.19`` of ``0.19,...``
+    read as ``0.1``): its last line, without a line end, is read as written with a
+    warning that names it, by either reader; with ``skip_bad`` it is dropped and
+    counted. A CR before the cut ends the line."""
+    from continuum_mhe.io.text_rows import CutLineWarning
+
+    text = TRICKY["no final line end"]
+    with pytest.warns(CutLineWarning, match=r"in.csv: line 21: the last line has no line end"):
+        lines, t, *_ = _same(tmp_path, text)
+    assert lines == list(range(2, 22))
+    lines, t, _, count, dropped, first = _same(tmp_path, text, skip_bad=True)
+    assert lines == list(range(2, 21)) and (count, dropped) == (1, 1)
+    assert first[0].startswith("line 21: the last line has no line end")
+    assert np.frombuffer(t)[-1] == pytest.approx(0.05 * 18)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lines, *_ = _same(tmp_path, text + "\r")
+    assert lines == list(range(2, 22))
+
+
 TWO_IMUS = ("t", "roll_1", "pitch_1", "roll_2", "pitch_2")
 
 
@@ -194,7 +216,7 @@ def test_random_numbers_read_alike(tmp_path: Path, rows: list[tuple[float, float
 
 
 PLAIN = ["plain", "crlf", "comments and blank lines", "semicolons", "tabs", "t in ms",
-         "exponents and signs", "no final line end"]  # fmt: skip
+         "exponents and signs"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", PLAIN)

@@ -21,6 +21,7 @@ from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.state_tables import read_state_table
+from continuum_mhe.io.text_rows import CutLineWarning
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
@@ -2227,3 +2228,62 @@ def test_the_srmse_counts_the_tip_once_on_several_sections() -> None:
     assert m.srmse == pytest.approx(0.01)
     assert "x_2" not in srmse_columns(names) and "x_1" in srmse_columns(names)
     assert srmse_columns(["x", "y", "z", "theta", "phi"]) == ["x", "y", "z", "theta", "phi"]
+
+
+def _cut_last_line(src: Path, dst: Path, chars: int = 5) -> None:
+    """``src`` cut off inside its last line, as a logger killed while writing leaves it."""
+    dst.write_bytes(src.read_bytes()[: -(chars + 1)])
+
+
+def test_a_file_cut_off_inside_its_last_line_is_said_or_skipped(tmp_path, capsys) -> None:
+    """The last line of a cut-off file ends inside a number, which reads as another
+    number: every reader says so in one warning naming the line and reads it as written
+    (a file whose writer left out the last line end is whole), and ``--skip-bad`` drops
+    it and counts it."""
+    meas, truth = tmp_path / "m.csv", tmp_path / "truth.csv"
+    assert (
+        main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
+        == 0
+    )
+    cut = tmp_path / "cut.csv"
+    _cut_last_line(meas, cut)
+    last = len(meas.read_text().splitlines())
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    with pytest.warns(CutLineWarning) as said:
+        assert main(["estimate", str(cut), "--method", "ekf", "-o", str(out)]) == 0
+    assert [str(w.message) for w in said] == [
+        f"{cut}: line {last}: the last line has no line end: if the file was cut off as it "
+        "was written, its last value may be cut short (read as written; end the line if it "
+        "is whole, or remove it)"
+    ]
+    err = capsys.readouterr().err
+    assert f"wrote {last - 1} estimates" in err
+    assert main(["estimate", str(cut), "--method", "ekf", "--skip-bad", "-o", str(out),
+                 "--overwrite"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert f"first: line {last}: the last line has no line end" in err
+    assert f"wrote {last - 2} estimates" in err  # the rows but the header and the cut one
+    whole = tmp_path / "whole.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CutLineWarning)
+        assert main(["estimate", str(meas), "--method", "ekf", "-o", str(whole)]) == 0
+    cut_truth = tmp_path / "cut_truth.csv"
+    _cut_last_line(truth, cut_truth)
+    with pytest.warns(CutLineWarning, match=rf"{cut_truth.name}: line {last}: the last line"):
+        assert main(["evaluate", str(whole), str(cut_truth)]) == 0
+
+
+def test_a_bend_recording_with_a_bad_value_names_no_skip_bad_calibrate_lacks(tmp_path, capsys):
+    rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    lines = (rod / "spatial_bend.csv").read_text().splitlines()
+    fields = lines[49].split(",")
+    fields[2] = "nan"
+    lines[49] = ",".join(fields)
+    bend = tmp_path / "bend.csv"
+    bend.write_text("\n".join(lines) + "\n")
+    argv = ["calibrate", "--from", str(rod / "spatial_rest.csv"), "--bend", str(bend)]
+    assert main([*argv, "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"{bend}: line 50: column ay_1 is nan (calibrate needs every reading "
+                        "of the bent robot)")  # fmt: skip

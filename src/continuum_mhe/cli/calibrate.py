@@ -78,10 +78,8 @@ def run(args: argparse.Namespace) -> int:
     if args.source:
         try:
             fmt, t, values = read_recording(args.source, robot.n_imus)
-        except InputError as exc:  # calibrate has no --skip-bad: a still robot's every reading
-            raise InputError(
-                str(exc).replace(DROPOUT_HINT, "calibrate needs every reading of the still robot")
-            ) from None
+        except InputError as exc:
+            raise _without_skip_bad(exc, "the still robot") from None
         source = args.source
         missing = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
         if len(missing):  # an empty field, a reading beyond any IMU's range: a dropout
@@ -125,11 +123,20 @@ def run(args: argparse.Namespace) -> int:
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
-        bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
+        try:
+            bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
+        except InputError as exc:
+            raise _without_skip_bad(exc, "the bent robot") from None
     print(format_report(cal, source, bend, [imu.mount_rpy[2] for imu in robot.imus]))
     if args.write_robot:
         _write_robot(args, robot, cal, bend)
     return 0
+
+
+def _without_skip_bad(exc: InputError, robot: str) -> InputError:
+    """A reading error as calibrate says it: it has no --skip-bad (the readings of
+    ``robot``, each of them, make the calibration)."""
+    return InputError(str(exc).replace(DROPOUT_HINT, f"calibrate needs every reading of {robot}"))
 
 
 def _write_robot(

@@ -53,6 +53,7 @@ from continuum_mhe.estimators.run_notices import (
     TensionGainFromOne,
     TwistWithTiltImus,
     drifted_notice,
+    inconsistent_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.input_options import robot_fix
@@ -324,6 +325,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {twist_note}", file=sys.stderr)
     if drift_note := drifted_notice(tally.counts.get("drifted", 0), n, formulation):
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
+    inconsistent = tally.counts.get("inconsistent", 0)
+    if inconsistent_note := inconsistent_notice(inconsistent, n, formulation):
+        print(f"{PROG}: warning: {inconsistent_note}", file=sys.stderr)
     if diag.reject_resets:
         msg += (
             f"; restarted {diag.reject_resets} time(s) after rejecting every reading for over "

@@ -1,6 +1,7 @@
 """Notices at the end of a run, from its estimates: sections whose bend sat on its
-bound or passed it, a tendon robot's tip force beyond its tensions, tension gains far
-from one (each a tally over the estimates, and one line that says what it means)."""
+bound or passed it, rows inconsistent with their readings, a tendon robot's tip force
+beyond its tensions, tension gains far from one (each a tally over the estimates, and
+one line that says what it means)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import tension_rows
+from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
+from continuum_mhe.model.robot import DEFAULT_THETA_MAX
 from continuum_mhe.results import Status
 
 #: A tendon robot's tip force beyond this many times its largest tension (and over
@@ -92,9 +95,22 @@ class BendsOnBound:
         by_status = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
         what = f"{self.count} of {n} estimates have a section's bend"
         of = f"its bending bound theta_max ({bounds} rad; by status: {by_status})"
-        further = (
-            f"and the robot may bend further than the bound allows; {raise_it} if it bends so far"
-        )
+        reached = [s for s, big in zip(sections, self.largest) if big > 0]
+        if reached and all(s.theta_max >= DEFAULT_THETA_MAX for s in reached):
+            # a bound no robot reaches: the readings, not the robot, went there
+            further = (
+                f"and a bound of {DEFAULT_THETA_MAX:g} rad or more is one a robot does not "
+                "reach: readings that the model of the robot does not explain pushed the "
+                "estimates there; check the robot file against the robot (the IMUs' order, "
+                "section, at and mount_rpy, the sections' lengths and order, the mounting; "
+                "check-robot lists them), or the robot does what the model cannot follow "
+                "(a backbone that twists about itself)"
+            )
+        else:
+            further = (
+                "and the robot may bend further than the bound allows; "
+                f"{raise_it} if it bends so far"
+            )
         if holds:
             return (
                 f"{what} on {of}: the {method.upper()} holds its estimates to the bound, "
@@ -321,6 +337,45 @@ class TensionGainFromOne:
             for i in range(len(g))
             for j in range(i + 1, len(g))
         )
+
+
+#: A run with more than this share of its estimates ``inconsistent`` (and at least
+#: :data:`INCONSISTENT_SAID` of them) is said at the end of ``estimate`` and in
+#: ``live``'s summary (:func:`inconsistent_notice`): on model-consistent recordings the
+#: share stays near the consistency test's false-alarm rate.
+INCONSISTENT_SHARE = 0.25
+INCONSISTENT_SAID = 5
+
+
+def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> str | None:
+    """The line for a run whose ``inconsistent`` rows (of ``n`` estimates) exceed
+    :data:`INCONSISTENT_SHARE`: the readings disagree with the model of the robot
+    beyond their noise for much of the run, so the robot file, the readings' order or
+    units, or (raw IMUs) the IMUs' own acceleration are to be checked; None otherwise."""
+    if inconsistent < INCONSISTENT_SAID or inconsistent <= INCONSISTENT_SHARE * n:
+        return None
+    robot = formulation.robot
+    checks = [
+        "the robot file against the robot (the IMUs' order, each IMU's section, at and "
+        "mount_rpy, the sections' lengths and their order, the mounting; check-robot "
+        "lists them)",
+        "the readings' columns (each IMU's in the robot file's order) and units",
+    ]
+    if robot.has_mechanics:
+        checks.append("the tensions (their scale, unit, tendon order and timing)")
+    elif isinstance(formulation, DirectFormulation) and not formulation.own_acceleration:
+        checks.append(
+            "for a fast motion, the IMUs' own acceleration in their readings "
+            "(--own-acceleration models it)"
+        )
+    return (
+        f"{inconsistent} of {n} estimates ({100 * inconsistent / n:.0f} %) are inconsistent: "
+        "their readings disagree with the model of the robot beyond the readings' noise "
+        "for much of the run, so the shapes estimated are not to be trusted; check "
+        + "; ".join(checks)
+        + "; or the robot does what the model cannot follow (a backbone that twists "
+        "about itself, a load that bends a section off constant curvature)"
+    )
 
 
 def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None:

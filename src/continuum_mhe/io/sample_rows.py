@@ -17,12 +17,14 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.text_rows import (
+    CUT_LINE,
     MAX_LINE_BYTES,
     TextRows,
     column_indices,
     decode_line,
     parse_float,
     split_fields,
+    warn_cut_line,
 )
 
 
@@ -240,6 +242,7 @@ class _SampleChecks:
         self.n_out = 0  # samples given
         #: an empty or blank field (a dropout where ``empty_is_dropout``)
         self.empty_field = empty_field_pattern(rows.separator.encode())
+        rows.cut.checked = True  # a last line without an end: said by rows()
 
     def bad(self, line: int, msg: str, dropped: bool = False) -> None:
         if not self.skip_bad:
@@ -258,6 +261,11 @@ class _SampleChecks:
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
             self.n_rows += 1
+            if line == self.table.cut.line:  # its last value may be cut short
+                if self.skip_bad:
+                    bad(line, f"{CUT_LINE} (dropped by --skip-bad)", dropped=True)
+                    continue
+                warn_cut_line(self.table.name, line)
             extra = has_extra_fields(row, width)
             if extra:  # which field is extra is unknown: no value of the row is trusted
                 bad(
@@ -324,7 +332,9 @@ class _SampleChecks:
                                    for n, text in table._pending]))  # fmt: skip
         assert table._stream is not None, "sample_blocks reads an open table"
         for first, text in _line_blocks(table._stream, table._next_line):
-            block = self._parse(text, first)
+            if text and not text.endswith((b"\n", b"\r")):  # the input's last line, no end
+                table.cut.line = first + text.count(b"\n")
+            block = None if table.cut.line is not None else self._parse(text, first)
             if block is None:
                 yield from self.rows(_split_rows(table.name, text, first, table.separator))
             elif len(block):

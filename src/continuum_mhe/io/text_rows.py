@@ -25,9 +25,11 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import itertools
 import os
 import re
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -104,6 +106,41 @@ def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
         raise InputError(f"{p}: cannot open ({exc.strerror})") from None
 
 
+class CutLineWarning(UserWarning):
+    """The last line of an input has no line end: read as written, but a file cut off
+    as it was written ends inside a number, which reads as another one."""
+
+
+@dataclass
+class CutLine:
+    """The last line of an input that has no line end (a file cut off as it was
+    written, or a writer that ends without one), once read: ``line`` its number (None
+    until then, or where every line ends); ``checked`` where the reader of the rows
+    says it itself (:mod:`~continuum_mhe.io.sample_rows`: a bad row that ``skip_bad``
+    drops), else reading it warns (:func:`warn_cut_line`)."""
+
+    line: int | None = None
+    checked: bool = False
+
+
+#: What a last line without a line end may be, for messages after ``line N:``.
+CUT_LINE = (
+    "the last line has no line end: if the file was cut off as it was written, its last "
+    "value may be cut short"
+)
+
+
+def warn_cut_line(name: str, line: int) -> None:
+    """Say (a :class:`CutLineWarning`) that line ``line`` of ``name``, the last, has no
+    line end and is read as written."""
+    warnings.warn(
+        f"{name}: line {line}: {CUT_LINE} (read as written; end the line if it is whole, "
+        "or remove it)",
+        CutLineWarning,
+        stacklevel=3,
+    )
+
+
 @dataclass
 class TextRows:
     """A text table opened once: its header and a lazy iterator over its data rows.
@@ -130,6 +167,7 @@ class TextRows:
     _pending: list[tuple[int, str]] = field(default_factory=list)  # data lines read already
     _next_line: int = 0  # the number of the first line not read yet
     written: list[str] = field(default_factory=list)
+    cut: CutLine = field(default_factory=CutLine)
 
     def as_written(self, column: str) -> str:
         """The header's ``column`` (a name of :attr:`header`) as the file writes it, for
@@ -182,12 +220,17 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     return line.rstrip("\r")
 
 
-def _lines(name: str, fh: IO[bytes]) -> Iterator[tuple[int, str]]:
-    """``(line_number, text)`` of every line, whole and without its end (:func:`decode_line`)."""
+def _lines(name: str, fh: IO[bytes], cut: CutLine) -> Iterator[tuple[int, str]]:
+    """``(line_number, text)`` of every line, whole and without its end
+    (:func:`decode_line`); a last line without an end (LF, or CR before it) is noted in
+    ``cut``."""
     n = 0
     while raw := read_line(fh):
         n += 1
-        yield n, decode_line(name, n, raw)
+        text = decode_line(name, n, raw)
+        if not raw.endswith((b"\n", b"\r")) and len(raw) <= MAX_LINE_BYTES:
+            cut.line = n
+        yield n, text
 
 
 def split_fields(text: str, separator: str) -> list[str]:
@@ -279,8 +322,9 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
     message suggests ``header_hint``).
     """
     name, fh = _open(path)
+    cut = CutLine()
     try:
-        lines = _lines(name, fh)
+        lines = _lines(name, fh, cut)
         comments: list[str] = []
         first: tuple[int, str] | None = None
         for n, text in lines:
@@ -320,22 +364,28 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
         if "t" not in header and "t_ms" in header:
             header[header.index("t_ms")] = "t"
             scale = 1e-3
-        rows = _data_rows(lines, pending, sep)
+        rows = _data_rows(name, lines, pending, sep, cut)
     except BaseException:
         fh.close()
         raise
-    return TextRows(name, header, rows, sep, scale, comments, fh, pending, n0 + 1, written)
+    return TextRows(name, header, rows, sep, scale, comments, fh, pending, n0 + 1, written, cut)
 
 
 def _data_rows(
-    lines: Iterator[tuple[int, str]], pending: list[tuple[int, str]], sep: str
+    name: str,
+    lines: Iterator[tuple[int, str]],
+    pending: list[tuple[int, str]],
+    sep: str,
+    cut: CutLine,
 ) -> Iterator[tuple[int, list[str]]]:
-    for n, text in [*pending]:
-        yield n, split_fields(text, sep)
-    for n, text in lines:
+    """The data rows of ``pending`` and ``lines``; a last data line without an end is
+    said (:func:`warn_cut_line`) unless the reader says it (``cut.checked``)."""
+    for n, text in itertools.chain(pending, lines):
         s = text.strip()
         if not s or s.startswith("#"):
             continue
+        if n == cut.line and not cut.checked:
+            warn_cut_line(name, n)
         yield n, split_fields(text, sep)
 
 

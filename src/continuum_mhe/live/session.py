@@ -22,6 +22,7 @@ from continuum_mhe.estimators.run_notices import (
     TensionGainFromOne,
     TwistWithTiltImus,
     drifted_notice,
+    inconsistent_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
@@ -793,6 +794,9 @@ class LiveSession:
         drifted = self.status_counts.get("drifted", 0)
         if drift_note := drifted_notice(drifted, c.estimates, self.formulation):
             msg += "; warning: " + drift_note
+        inconsistent = self.status_counts.get("inconsistent", 0)
+        if inconsistent_note := inconsistent_notice(inconsistent, c.estimates, self.formulation):
+            msg += "; warning: " + inconsistent_note
         if self.record is not None and c.first_restart_t is not None:
             msg += (
                 f"; live restarted the estimator {c.restarts} time(s), first at "
