@@ -614,3 +614,44 @@ def test_a_missing_recording_is_said_to_be_missing(capsys: pytest.CaptureFixture
     code, out, err = _calibrate_main(capsys, "--from", "no_such_rest.csv")
     assert (code, out) == (2, "")
     assert err == "continuum-mhe: error: no_such_rest.csv: no such file\n"
+
+
+def test_a_rest_in_another_acceleration_unit_is_refused_naming_the_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Readings in cm/s^2 (gravity 981, a noise 100 times larger) are refused for their
+    magnitude, not read as a motion, and not calibrated when the stillness bound is
+    raised for them."""
+    n = 400
+    values = _rest_values(n, 0.02, 0.001)
+    values[:, :3] *= 100.0
+    rows = np.column_stack([0.01 * np.arange(n), values])
+    path = tmp_path / "rest_cms2.csv"
+    path.write_text(
+        "t,ax,ay,az,gx,gy,gz\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in rows)
+    )
+    for extra in ((), ("--still-acc-std", "5")):
+        code, out, err = _calibrate_main(capsys, "--from", str(path), *extra)
+        assert code == 2 and out == ""
+        assert err == (
+            f"continuum-mhe: error: {path}: IMU 1's accelerometer magnitude at rest is 980.7, "
+            "not about 9.81 m/s^2: another unit? (at rest cm/s^2 reads about 981, milli-g "
+            "1000, raw counts thousands); give ax, ay, az in m/s^2\n"
+        )
+
+
+def test_a_bend_plane_in_radians_is_said(capsys: pytest.CaptureFixture[str]) -> None:
+    """--bend-phi is in degrees: 1.5708 (a quarter turn in radians) is said; 90 is not."""
+    from continuum_mhe.cli.calibrate import radians_like_degrees
+
+    rod = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    args = ["--from", str(rod / "spatial_rest.csv"), "--bend", str(rod / "spatial_bend.csv")]
+    code, _, err = _calibrate_main(capsys, *args, "--robot", "two-section", "--bend-phi", "1.5708")
+    assert code == 0
+    assert (
+        "continuum-mhe: warning: --bend-phi 1.5708 is in degrees: radians? (1.5708 rad is 90 "
+        "degrees: give --bend-phi 90)\n"
+    ) in err
+    assert [radians_like_degrees(a) for a in (90.0, 0.0, 45.0, -3.0, 0.7854, -1.5708, 6.3)] == [
+        False, False, False, False, True, True, False,
+    ]  # fmt: skip

@@ -19,7 +19,7 @@ from continuum_mhe.errors import InputError
 from continuum_mhe.io.csv_files import UnitWarning, read_measurements
 from continuum_mhe.io.inputs import CHUNK
 from continuum_mhe.io.raw_imu import read_raw_imu
-from continuum_mhe.io.state_tables import read_states
+from continuum_mhe.io.state_tables import read_state_table, read_states
 from continuum_mhe.io.text_rows import MAX_LINE_BYTES
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -455,3 +455,49 @@ def test_a_second_estimate_piped_in_the_same_process_is_read_anew(
         scores[method] = (from_file, json.loads(capsys.readouterr().out)["tip_mean_mm"])
     assert scores["ekf"][0] != scores["ukf"][0]  # two estimates that differ
     assert all(file == piped for file, piped in scores.values()), scores
+
+
+@pytest.mark.parametrize(
+    ("start", "what"),
+    [
+        (b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03\r\n", "a gzip file: decompress it first"),
+        (b"PK\x03\x04\x14\x00\x06\x00\r\n", "a zip file (an Excel .xlsx?)"),
+    ],
+)
+def test_a_packed_file_is_named_for_what_it_is(tmp_path: Path, start: bytes, what: str) -> None:
+    """A compressed recording (its bytes may hold a CR before a LF) is named as such,
+    not told about its line ends."""
+    path = tmp_path / "m.csv"
+    path.write_bytes(start + bytes(range(1, 200)))
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert (
+        str(info.value)
+        == f"{path}: line 1: not CSV text but {what}" + str(info.value).split(what, 1)[1]
+    )
+
+
+def test_bytes_that_are_not_text_are_said_before_line_ends(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"t,roll,pitch\n0,0.1,\xff\r0.2\n")
+    with pytest.raises(InputError, match=r"line 2: not UTF-8 text \(a binary file\?\)"):
+        read_measurements(path)
+
+
+def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
+    path = _write(tmp_path / "m.csv", "# a\n# b\nt,roll,pitch\n")
+    with pytest.raises(InputError, match=r"m.csv: line 4: no data rows after the header"):
+        read_measurements(path)
+    truth = _write(tmp_path / "truth.csv", "# a\n# b\nt,x,y,z\n")
+    with pytest.raises(InputError, match=r"truth.csv: line 4: no data rows after the header"):
+        read_state_table(truth)
+
+
+def test_a_stray_imu_column_far_beyond_the_robot_is_a_short_line(tmp_path: Path) -> None:
+    """A column of IMU 100000 beside two IMUs' columns: the missing columns it implies
+    are counted, not listed (a line of megabytes)."""
+    path = _write(tmp_path / "m.csv", "t,roll_1,pitch_1,roll_2,pitch_2,roll_100000\n0,0,0,0,0,0\n")
+    with pytest.raises(InputError) as info:
+        read_measurements(path, n_imus=2)
+    text = str(info.value)
+    assert len(text) < 600 and "roll_8, pitch_8 and 199983 more" in text

@@ -25,6 +25,7 @@ from continuum_mhe.io.text_rows import CutLineWarning
 from continuum_mhe.settings import RobotSettings
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
+DATA_ROBOTS = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "robots"
 
 
 def test_input_error_is_a_user_error_and_a_value_error() -> None:
@@ -2287,3 +2288,51 @@ def test_a_bend_recording_with_a_bad_value_names_no_skip_bad_calibrate_lacks(tmp
     err = capsys.readouterr().err.strip()
     assert err.endswith(f"{bend}: line 50: column ay_1 is nan (calibrate needs every reading "
                         "of the bent robot)")  # fmt: skip
+
+
+def test_plot_refuses_an_estimate_given_as_the_truth(tmp_path, capsys) -> None:
+    """As ``evaluate`` does: an estimate's status and std_ columns in the truth's place."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(meas)]) == 0
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(a)]) == 0
+    assert main(["estimate", str(meas), "--method", "ukf", "-o", str(b)]) == 0
+    capsys.readouterr()
+    png = tmp_path / "p.png"
+    assert main(["plot", str(a), "--truth", str(b), "-o", str(png)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {b}: has an estimate's status or std_ columns: an estimate, "
+        "not a truth (plot EST.csv --truth TRUTH.csv)\n"
+    )
+    assert not png.exists()
+
+
+def test_evaluate_says_when_the_truths_sections_are_the_robot_files_in_another_order(
+    tmp_path, capsys
+) -> None:
+    """Two sections of 0.16 and 0.14 m described as 0.14 and 0.16 m: the whole length
+    agrees, so only the truth's own sections (their chords and bends) show that the
+    robot file is not the truth's robot."""
+    meas, truth = tmp_path / "m.csv", tmp_path / "truth.csv"
+    argv = ["simulate", "spatial", "--robot", "two-section", "--duration", "2"]
+    assert main([*argv, "-o", str(meas), "--truth", str(truth)]) == 0
+    swapped = tmp_path / "swapped.toml"
+    text = (DATA_ROBOTS / "two_section.toml").read_text()
+    swapped.write_text(text.replace("length = 0.16", "length = X").replace(
+        "length = 0.14", "length = 0.16").replace("length = X", "length = 0.14"))  # fmt: skip
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", str(swapped), "--method", "ekf",
+                 "-o", str(est)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth), "--robot", str(swapped)]) == 0
+    warned = [ln for ln in capsys.readouterr().err.splitlines() if "its rows fit" in ln]
+    assert warned == [
+        f"continuum-mhe: warning: {truth}: its rows fit sections of 0.16, 0.14 m, not the "
+        "given robot's 0.14, 0.16 m: check the robot's section lengths and their order"
+    ]
+    est_right = tmp_path / "e2.csv"
+    argv = ["estimate", str(meas), "--robot", "two-section", "--method", "ekf"]
+    assert main([*argv, "-o", str(est_right)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est_right), str(truth), "--robot", "two-section"]) == 0
+    assert "its rows fit" not in capsys.readouterr().err

@@ -225,6 +225,35 @@ def calibrate(
 DEG_S_SPREAD_RATIO = 3.0
 
 
+#: A still accelerometer reads gravity alone: a mean magnitude outside these multiples
+#: of g is another unit (cm/s^2 reads about 981 at rest, milli-g about 1000).
+REST_GRAVITY_RANGE = (0.5, 2.0)
+
+
+def rest_gravity_problem(values: FloatArray, fmt: LineFormat, n_imus: int) -> str | None:
+    """Why the raw samples ``values`` (n, 6 * n_imus, or 3 without gyros) cannot be a
+    still robot's in m/s^2, or None: an IMU whose mean accelerometer magnitude is
+    outside :data:`REST_GRAVITY_RANGE` times g (before the spreads are compared, so
+    that a unit's larger numbers are not read as a motion). Tilt readings: None."""
+    if fmt != "raw":
+        return None
+    k = VALUES_PER_IMU[fmt]
+    for i in range(n_imus):
+        acc = values[:, k * i : k * i + 3]
+        norm = np.linalg.norm(acc[np.all(np.isfinite(acc), axis=1)], axis=1)
+        if not len(norm):
+            continue
+        mean = float(norm.mean())
+        low, high = REST_GRAVITY_RANGE
+        if not low * STANDARD_GRAVITY <= mean <= high * STANDARD_GRAVITY:
+            return (
+                f"IMU {i + 1}'s accelerometer magnitude at rest is {mean:.4g}, not about "
+                f"{STANDARD_GRAVITY:.2f} m/s^2: another unit? (at rest cm/s^2 reads about "
+                "981, milli-g 1000, raw counts thousands); give ax, ay, az in m/s^2"
+            )
+    return None
+
+
 def motion_at_rest(
     values: FloatArray,
     fmt: LineFormat,

@@ -21,6 +21,7 @@ from continuum_mhe.calibration.at_rest import (
     format_report,
     frozen_at_rest,
     motion_at_rest,
+    rest_gravity_problem,
     rest_tilt_warning,
 )
 from continuum_mhe.calibration.bend import YawCalibration
@@ -101,6 +102,8 @@ def run(args: argparse.Namespace) -> int:
             args.port, args.baud, fmt, robot.n_imus, args.seconds, say, robot.n_tendons
         )
     gyro_std = STILL_GYRO_STD if args.still_gyro_std is None else args.still_gyro_std
+    if unit := rest_gravity_problem(values, fmt, robot.n_imus):
+        raise InputError(f"{source}: {unit}")
     moved = motion_at_rest(values, fmt, robot.n_imus, args.still_acc_std, gyro_std)
     if moved:
         raise InputError(f"{source}: {moved}")
@@ -123,6 +126,12 @@ def run(args: argparse.Namespace) -> int:
     bend = None
     if args.bend:
         phi = 0.0 if args.bend_phi is None else args.bend_phi
+        if radians_like_degrees(phi):
+            print(
+                f"{PROG}: warning: --bend-phi {phi:g} is in degrees: radians? ({phi:g} rad "
+                f"is {math.degrees(phi):.4g} degrees: give --bend-phi {math.degrees(phi):.4g})",
+                file=sys.stderr,
+            )
         try:
             bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
         except InputError as exc:
@@ -131,6 +140,12 @@ def run(args: argparse.Namespace) -> int:
     if args.write_robot:
         _write_robot(args, robot, cal, bend)
     return 0
+
+
+def radians_like_degrees(angle: float) -> bool:
+    """An angle given in degrees that looks like radians: within 2 pi, not zero, and
+    not a whole number of degrees (a plane's angle is 90, or 45, not 1.5708)."""
+    return 0.0 < abs(angle) <= 2.0 * math.pi and abs(angle - round(angle)) > 1e-9
 
 
 def _without_skip_bad(exc: InputError, robot: str) -> InputError:

@@ -22,6 +22,7 @@ from continuum_mhe.cli.robot_options import (
 from continuum_mhe.cli.truth_checks import (
     WARN_MATCHED,
     clock_offset_warning,
+    refuse_an_estimate_as_truth,
     rows_matched,
     truth_frame_warning,
 )
@@ -181,11 +182,9 @@ def _evaluate(args: argparse.Namespace) -> int:
     truth = read_state_table(args.truth)
     if args.truth_shift:  # the truth read at t + shift: its rows that much earlier
         truth = replace(truth, t=truth.t - args.truth_shift)
-    if truth.status_column or truth.std_columns:
-        raise InputError(
-            f"{args.truth}: has an estimate's status or std_ columns: an estimate, not a "
-            "truth (evaluate EST.csv TRUTH.csv: the truth comes second)"
-        )
+    refuse_an_estimate_as_truth(
+        args.truth, truth, "evaluate EST.csv TRUTH.csv: the truth comes second"
+    )
     if _same_file(args.estimates, args.truth):
         raise InputError(
             f"{args.truth}: the truth is the estimate file itself (evaluate EST.csv TRUTH.csv): "
@@ -194,6 +193,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     # without --robot or --length: the estimate's own, else one section of --length
     warned: list[str] = []  # said once the scores are known, and in --json
     robot = estimate_robot(args, args.estimates, "evaluated on that robot", warned)
+    other_recorded = bool(warned)  # the estimate's options line names another robot
     other_robot = check_same_robot(args.estimates, est, args.truth, truth, robot)
     for path, table in ((args.estimates, est), (args.truth, truth)):
         if unit := position_unit_problem(table.names, table.values, robot.lengths):
@@ -239,6 +239,15 @@ def _evaluate(args: argparse.Namespace) -> int:
         for path, table in ((args.estimates, est), (args.truth, truth))
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
     ]  # tip errors in % of the length are then of another robot's length
+    from continuum_mhe.evaluation.estimate_figure import lengths_misfit  # matplotlib's
+
+    if not (misfits or other_robot or other_recorded) and (
+        sections := lengths_misfit(truth, robot.lengths)
+    ):
+        # the same length in all, shared otherwise among the sections (their order)
+        misfits.append(
+            f"{args.truth}: {sections}: check the robot's section lengths and their order"
+        )
     # a file made for another length explains the estimate-truth ratio too: say it once
     warned += [*aligned.warnings, *([hint] if other_robot or not misfits else misfits)]
     # the truth's own positions against its own angles (an estimate's can drift from
@@ -295,8 +304,8 @@ def format_calibration(c: Calibration | None, std_columns: bool = False) -> str:
     else:
         inside = "inside"
     return (
-        f"95% interval coverage {cover} (0.95 when calibrated)\n"
-        f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 when calibrated; "
+        f"95% interval coverage {cover} (0.95 where the std is right)\n"
+        f"tip NEES             {c.tip_nees:.2f} over {c.tip_n} samples (3 where the std is right; "
         f"95% band {lo:.2f} to {hi:.2f}: {inside})"
     )
 

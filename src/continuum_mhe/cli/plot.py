@@ -81,7 +81,7 @@ def _estimate(args: argparse.Namespace) -> int:
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
     from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, warn_other_recorded_robot
-    from continuum_mhe.cli.truth_checks import truth_beside
+    from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
         has_tip_force,
@@ -100,6 +100,8 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
     est = read_estimates(args.source, "plot EST.csv", TIP_COLUMNS)
     require_an_estimate(args.source, est)
     truth = read_state_table(args.truth) if args.truth else None
+    if truth is not None:
+        refuse_an_estimate_as_truth(args.truth, truth, "plot EST.csv --truth TRUTH.csv")
     lengths = None
     robot: Robot | None = None
     if args.robot:

@@ -132,3 +132,14 @@ def truth_beside(
         path_truth, est, truth, sum(lengths), mean, "evaluate --truth-shift"
     )
     return at_est, [line for line in (*warned, offset) if line]
+
+
+def refuse_an_estimate_as_truth(path_truth: str, truth: StateTable, usage: str) -> None:
+    """A truth file with an estimate's ``status`` or ``std_`` columns is an estimate
+    given in the truth's place: a one-line error naming it and ``usage`` (the command's
+    form, where the truth comes second)."""
+    if truth.status_column or truth.std_columns:
+        raise InputError(
+            f"{path_truth}: has an estimate's status or std_ columns: an estimate, not a "
+            f"truth ({usage})"
+        )

@@ -103,7 +103,12 @@ def lengths_from_estimate(table: StateTable) -> tuple[float, ...] | None:
         return None
     if not all(c in table.names for p in points for c in p.columns):
         return None  # a table without a section end's (or the tip's) positions
-    theta, _ = section_shapes(table, n)
+    bends = (
+        ["theta"] if n == 1 and "theta" in table.names else [f"theta_{k}" for k in range(1, n + 1)]
+    )
+    if not all(c in table.names for c in bends):
+        return None  # a table without a section's bend (a partial truth)
+    theta = np.stack([table.column(c) for c in bends], axis=1)
     ends = np.stack([np.stack([table.column(c) for c in p.columns], axis=1) for p in points], 1)
     starts = np.concatenate([np.zeros_like(ends[:, :1]), ends[:, :-1]], axis=1)
     chord = np.linalg.norm(ends - starts, axis=2)

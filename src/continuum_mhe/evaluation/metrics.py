@@ -225,10 +225,10 @@ class Calibration:
 
     Attributes:
         coverage: per output column, the fraction of samples whose error lies inside
-            the 95 % interval ``estimate +- 1.96 std`` (0.95 when calibrated).
+            the 95 % interval ``estimate +- 1.96 std`` (0.95 where the std is right).
         n: per output column, the samples with a finite standard deviation.
         tip_nees: average normalised estimation error squared of the tip position,
-            ``mean(sum_xyz (e / std)^2)`` (3 when calibrated; the per-axis variances
+            ``mean(sum_xyz (e / std)^2)`` (3 where the std is right; the per-axis variances
             only, as an estimate file keeps no correlations).
         tip_nees_band: its 95 % band under calibration, ``chi2(3 n) / n`` quantiles.
         tip_n: samples in ``tip_nees``.

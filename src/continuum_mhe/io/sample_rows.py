@@ -398,7 +398,8 @@ class _SampleChecks:
     def finish(self) -> None:
         """The errors of a table without samples, once it is read."""
         if self.n_rows == 0:
-            raise InputError(f"{self.table.name}: line 2: no data rows after the header")
+            line = self.table.first_data_line
+            raise InputError(f"{self.table.name}: line {line}: no data rows after the header")
         if self.n_out == 0:
             raise InputError(f"{self.table.name}: no usable rows ({self.problems.count} skipped)")
 

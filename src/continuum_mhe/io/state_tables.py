@@ -125,7 +125,7 @@ def read_state_table(
     sd: list[list[float]] = []
     t_idx = header.index("t")
     if not body:
-        raise InputError(f"{p}: line 2: no data rows after the header")
+        raise InputError(f"{p}: line {table.first_data_line}: no data rows after the header")
     s_idx = header.index("status") if "status" in header else None
     o_idx = header.index("outlier") if "outlier" in header else None
     flags: list[bool] = []

@@ -169,6 +169,12 @@ class TextRows:
     written: list[str] = field(default_factory=list)
     cut: CutLine = field(default_factory=CutLine)
 
+    @property
+    def first_data_line(self) -> int:
+        """The number of the line after the header (where the data rows start), for
+        messages of a table without them."""
+        return self._next_line
+
     def as_written(self, column: str) -> str:
         """The header's ``column`` (a name of :attr:`header`) as the file writes it, for
         messages; ``column`` itself where the header has no such column."""
@@ -203,12 +209,11 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     line end, a NUL byte or bytes that are not UTF-8 are one-line errors naming it."""
     if n == 1 and raw.startswith(b"\xef\xbb\xbf"):  # a BOM (Excel) is fine
         raw = raw[3:]
+    if n == 1:
+        for magic, what in _PACKED:
+            if raw.startswith(magic):
+                raise InputError(f"{name}: line 1: not CSV text but {what}")
     body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
-    if b"\r" in body.rstrip(b"\r"):
-        raise InputError(
-            f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
-            "the file with LF or CRLF line ends"
-        )
     if b"\x00" in body:
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
     if len(body) > MAX_LINE_BYTES:
@@ -217,7 +222,21 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
         line = body.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
+    if "\r" in line.rstrip("\r"):
+        raise InputError(
+            f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
+            "the file with LF or CRLF line ends"
+        )
     return line.rstrip("\r")
+
+
+#: The first bytes of packed files that a CSV reader meets, and what each is.
+_PACKED = (
+    (b"\x1f\x8b", "a gzip file: decompress it first (gunzip)"),
+    (b"PK\x03\x04", "a zip file (an Excel .xlsx?): unpack it, or save the sheet as CSV"),
+    (b"\x89HDF", "an HDF5 file"),
+    (b"\x7fELF", "a program"),
+)
 
 
 def _lines(name: str, fh: IO[bytes], cut: CutLine) -> Iterator[tuple[int, str]]:
@@ -414,6 +433,10 @@ def _other_kind_of_file(header: Sequence[str], missing: Sequence[str]) -> str:
     return ""
 
 
+#: The missing columns a header error names (the rest are counted).
+MISSING_SHOWN = 12
+
+
 def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
     """Positions of ``required`` columns in the header, or a one-line error that names
     what the header has (and the separator, when it is likely the problem)."""
@@ -432,7 +455,10 @@ def column_indices(rows: TextRows, required: Sequence[str]) -> list[int]:
                 hint = (
                     f" (the time in seconds is named t: rename {rows.as_written(named[0])!r} to t)"
                 )
-        raise InputError(f"{rows.name}: line 1: missing column(s) {', '.join(missing)} "
+        shown = ", ".join(missing)
+        if len(missing) > MISSING_SHOWN:
+            shown = f"{', '.join(missing[:MISSING_SHOWN])} and {len(missing) - MISSING_SHOWN} more"
+        raise InputError(f"{rows.name}: line 1: missing column(s) {shown} "
                          f"(header has: {has}){hint}")  # fmt: skip
     return [rows.header.index(c) for c in required]
 

@@ -183,7 +183,7 @@ def tip_calibration(
 
     Per axis: ``|e_c| <= 1.96 std_c``. 3D: ``e^T C^+ e <= chi2_k(0.95)`` with
     ``C = J P J^T`` and ``k`` its rank (2 for one section: the tip moves on a surface).
-    ``nees_per_dof``: mean of ``e^T C^+ e / k`` (1 when calibrated)."""
+    ``nees_per_dof``: mean of ``e^T C^+ e / k`` (1 where the covariance is right)."""
     from scipy.stats import chi2
 
     est = make_estimator(method, f, MHESettings(), RECOVERY_OFF)

@@ -269,8 +269,8 @@ def _tables(s: dict[str, Any], recovery_on: str) -> list[str]:
         lines += [
             "Coverage of the tip's 95 % intervals (per axis: |e| <= 1.96 std; 3D: inside "
             "the ellipsoid of J P J^T, rank 2 for one section) and NEES per degree of "
-            "freedom (1 when calibrated), clean data, model-consistent noise (isotropic "
-            "on the tangent plane of gravity, as R models it):",
+            "freedom (1 where the covariance is right), clean data, model-consistent noise "
+            "(isotropic on the tangent plane of gravity, as R models it):",
             "",
             *_table(("method", "x", "y", "z", "3D", "NEES/dof", "tip mean (mm)"), rows),
         ]
