@@ -99,6 +99,7 @@ TRICKY = {
     "underscores": "t,roll,pitch\n0,0.1,0.1\n0.05,1_0,0.1\n",
     "a decimal comma": "t;roll;pitch\n0;0,1;0,1\n0,05;0,1;0,1\n",
     "semicolons": "t;roll;pitch\n" + ROWS.replace(",", ";"),
+    "an Excel sep line": "sep=;\nt;roll;pitch\n" + ROWS.replace(",", ";"),
     "tabs": "t\troll\tpitch\n" + ROWS.replace(",", "\t"),
     "t in ms": "t_ms,roll,pitch\n" + "".join(f"{10 * i},0.1,0.2\n" for i in range(9)),
     "a lone e": "t,roll,pitch\n0,0.1,0.1\n0.05,e,0.1\n",
@@ -117,6 +118,9 @@ def test_block_reader_matches_the_row_reader(tmp_path: Path, name: str, skip_bad
 
 def test_the_block_reader_reads_what_it_should(tmp_path: Path) -> None:
     """Known answers: the tricky inputs read, not only read alike."""
+    lines, t, *_ = _same(tmp_path, TRICKY["an Excel sep line"])
+    assert lines == list(range(3, 23))  # Excel's "sep=;" line names the separator
+    assert np.frombuffer(t) == pytest.approx(0.05 * np.arange(20))
     lines, t, values, *_ = _same(tmp_path, TRICKY["comments and blank lines"])
     assert lines == [3, 4, *range(9, 27)]  # the comment and blank lines are skipped
     assert np.frombuffer(t) == pytest.approx(0.05 * np.arange(20))
@@ -216,7 +220,7 @@ def test_random_numbers_read_alike(tmp_path: Path, rows: list[tuple[float, float
 
 
 PLAIN = ["plain", "crlf", "comments and blank lines", "semicolons", "tabs", "t in ms",
-         "exponents and signs"]  # fmt: skip
+         "exponents and signs", "an Excel sep line"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", PLAIN)

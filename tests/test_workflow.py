@@ -308,6 +308,8 @@ def test_a_live_estimate_as_options_file_does_not_name_its_recording(tmp_path, c
         ("skip-bad = 1\n", "line 1: skip-bad must be true or false"),
         ('output = "x.csv"\n', "line 1: output is given on the command line"),
         ("method = \n", "opts.toml: "),
+        ('[estimat]\nmethod = "ekf"\n', "line 1: [estimat] is not a table of an options file"),
+        ('method = "ekf"\n[estimate]\nhorizn = 3\n', "line 3: horizn is not an option of"),
     ],
 )
 def test_a_bad_options_file_is_one_line_naming_it(tmp_path: Path, capsys, text, needle) -> None:

@@ -149,8 +149,10 @@ def _line(text: str, key: str, offset: int = 0) -> str:
     """``line N: `` of ``key``'s first assignment in ``text`` (whose first line is the
     file's line ``offset + 1``), else ``""``."""
     for n, ln in enumerate(text.splitlines(), start=offset + 1):
-        if re.match(rf"\s*{re.escape(key)}\s*=", ln) or re.search(
-            rf"[{{,]\s*{re.escape(key)}\s*=", ln
+        if (
+            re.match(rf"\s*{re.escape(key)}\s*=", ln)
+            or re.search(rf"[{{,]\s*{re.escape(key)}\s*=", ln)
+            or re.match(rf"\s*\[+\s*{re.escape(key)}\s*\]", ln)  # a table's header
         ):
             return f"line {n}: "
     return ""
@@ -262,6 +264,11 @@ def apply_config(
         if action is None and recorded:
             left_out.append(key)
             continue
+        if action is None and isinstance(value, dict):
+            raise InputError(
+                f"{path}: {where}[{key}] is not a table of an options file ([estimate] and "
+                "[live] are, besides the options at the top)"
+            )
         if action is None:
             raise InputError(f"{path}: {where}{key} is not an option of {command}")
         dest = action.dest

@@ -346,10 +346,13 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
         lines = _lines(name, fh, cut)
         comments: list[str] = []
         first: tuple[int, str] | None = None
+        excel_sep = False  # Excel's first line "sep=;" names the separator: read past it
         for n, text in lines:
             s = text.strip()
             if s.startswith("#"):
                 comments.append(s[1:].strip())
+            elif first is None and not excel_sep and re.fullmatch(r"(?i)sep=[,;\t]", s):
+                excel_sep = True
             elif s:
                 first = (n, text)
                 break
