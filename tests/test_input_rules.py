@@ -96,6 +96,22 @@ def test_cr_only_line_ends_are_one_short_line(
     )
 
 
+@pytest.mark.parametrize(
+    "body",
+    [
+        "".join(f"{0.02 * i:.2f},0.1,0.1\r" for i in range(80000)),  # over 1 MiB on one "line"
+        "# 10\xb0 (a MacRoman or Latin-1 byte)\r0,0.1,0.1\r",  # not UTF-8
+    ],
+)
+def test_cr_only_line_ends_are_said_before_size_and_encoding(tmp_path: Path, body: str) -> None:
+    """A file whose lines end in CR alone reads as one line: it is told its line ends
+    however long that line is, and whatever bytes the old Mac encoding left in it."""
+    path = tmp_path / "m.csv"
+    path.write_bytes(("t,roll,pitch\r" + body).encode("latin-1"))
+    with pytest.raises(InputError, match=r"m.csv: line 1: lines end in CR alone"):
+        read_measurements(path)
+
+
 def test_a_long_header_is_cut_in_messages(tmp_path: Path) -> None:
     path = tmp_path / "m.csv"
     path.write_text("t," + ",".join(f"c{i}" for i in range(2000)) + "\n0,1\n")

@@ -477,13 +477,6 @@ def test_a_packed_file_is_named_for_what_it_is(tmp_path: Path, start: bytes, wha
     )
 
 
-def test_bytes_that_are_not_text_are_said_before_line_ends(tmp_path: Path) -> None:
-    path = tmp_path / "m.csv"
-    path.write_bytes(b"t,roll,pitch\n0,0.1,\xff\r0.2\n")
-    with pytest.raises(InputError, match=r"line 2: not UTF-8 text \(a binary file\?\)"):
-        read_measurements(path)
-
-
 def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
     path = _write(tmp_path / "m.csv", "# a\n# b\nt,roll,pitch\n")
     with pytest.raises(InputError, match=r"m.csv: line 4: no data rows after the header"):

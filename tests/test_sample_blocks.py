@@ -100,6 +100,7 @@ TRICKY = {
     "a decimal comma": "t;roll;pitch\n0;0,1;0,1\n0,05;0,1;0,1\n",
     "semicolons": "t;roll;pitch\n" + ROWS.replace(",", ";"),
     "an Excel sep line": "sep=;\nt;roll;pitch\n" + ROWS.replace(",", ";"),
+    "an Excel sep line, tabs": "sep=\t\nt\troll\tpitch\n" + ROWS.replace(",", "\t"),
     "tabs": "t\troll\tpitch\n" + ROWS.replace(",", "\t"),
     "t in ms": "t_ms,roll,pitch\n" + "".join(f"{10 * i},0.1,0.2\n" for i in range(9)),
     "a lone e": "t,roll,pitch\n0,0.1,0.1\n0.05,e,0.1\n",
@@ -132,21 +133,20 @@ def test_the_block_reader_reads_what_it_should(tmp_path: Path) -> None:
                                   "Python)")  # fmt: skip
 
 
-def test_a_last_line_without_an_end_is_said_and_skip_bad_drops_it(tmp_path: Path) -> None:
+def test_a_last_line_without_an_end_is_read_and_said(tmp_path: Path) -> None:
     """A file cut off as it was written ends inside a number (``0.19`` of ``0.19,...``
     read as ``0.1``): its last line, without a line end, is read as written with a
-    warning that names it, by either reader; with ``skip_bad`` it is dropped and
-    counted. A CR before the cut ends the line."""
+    warning that names it, by either reader, with ``skip_bad`` too (a whole file's
+    last row is needed: a tensions file's covers the recording's end). A CR before the
+    cut ends the line."""
     from continuum_mhe.io.text_rows import CutLineWarning
 
     text = TRICKY["no final line end"]
-    with pytest.warns(CutLineWarning, match=r"in.csv: line 21: the last line has no line end"):
-        lines, t, *_ = _same(tmp_path, text)
-    assert lines == list(range(2, 22))
-    lines, t, _, count, dropped, first = _same(tmp_path, text, skip_bad=True)
-    assert lines == list(range(2, 21)) and (count, dropped) == (1, 1)
-    assert first[0].startswith("line 21: the last line has no line end")
-    assert np.frombuffer(t)[-1] == pytest.approx(0.05 * 18)
+    for skip_bad in (False, True):
+        with pytest.warns(CutLineWarning, match=r"in.csv: line 21: the last line has no line"):
+            lines, t, _, count, *_ = _same(tmp_path, text, skip_bad=skip_bad)
+        assert lines == list(range(2, 22)) and count == 0
+        assert np.frombuffer(t)[-1] == pytest.approx(0.05 * 19)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         lines, *_ = _same(tmp_path, text + "\r")
@@ -220,7 +220,7 @@ def test_random_numbers_read_alike(tmp_path: Path, rows: list[tuple[float, float
 
 
 PLAIN = ["plain", "crlf", "comments and blank lines", "semicolons", "tabs", "t in ms",
-         "exponents and signs", "an Excel sep line"]  # fmt: skip
+         "exponents and signs", "an Excel sep line", "an Excel sep line, tabs"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", PLAIN)

@@ -265,9 +265,10 @@ def apply_config(
             left_out.append(key)
             continue
         if action is None and isinstance(value, dict):
+            table = f"{command}.{key}" if key in own_keys else key  # [estimate.noise]
             raise InputError(
-                f"{path}: {where}[{key}] is not a table of an options file ([estimate] and "
-                "[live] are, besides the options at the top)"
+                f"{path}: {_line(text, table, offset)}[{table}] is not a table of an options "
+                "file ([estimate] and [live] are, besides the options at the top)"
             )
         if action is None:
             raise InputError(f"{path}: {where}{key} is not an option of {command}")

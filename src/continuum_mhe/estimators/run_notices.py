@@ -371,7 +371,7 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
     return (
         f"{inconsistent} of {n} estimates ({100 * inconsistent / n:.0f} %) are inconsistent: "
         "their readings disagree with the model of the robot beyond the readings' noise "
-        "for much of the run, so the shapes estimated are not to be trusted; check "
+        "for much of the run; check "
         + "; ".join(checks)
         + "; or the robot does what the model cannot follow (a backbone that twists "
         "about itself, a load that bends a section off constant curvature)"

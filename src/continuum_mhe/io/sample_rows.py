@@ -17,7 +17,6 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.io.text_rows import (
-    CUT_LINE,
     MAX_LINE_BYTES,
     TextRows,
     column_indices,
@@ -261,10 +260,7 @@ class _SampleChecks:
         truncated = "expected {} fields, found {} (truncated row?)"
         for line, row in rows:
             self.n_rows += 1
-            if line == self.table.cut.line:  # its last value may be cut short
-                if self.skip_bad:
-                    bad(line, f"{CUT_LINE} (dropped by --skip-bad)", dropped=True)
-                    continue
+            if line == self.table.cut.line:  # its last value may be cut short: said
                 warn_cut_line(self.table.name, line)
             extra = has_extra_fields(row, width)
             if extra:  # which field is extra is unknown: no value of the row is trusted

@@ -116,8 +116,10 @@ class CutLine:
     """The last line of an input that has no line end (a file cut off as it was
     written, or a writer that ends without one), once read: ``line`` its number (None
     until then, or where every line ends); ``checked`` where the reader of the rows
-    says it itself (:mod:`~continuum_mhe.io.sample_rows`: a bad row that ``skip_bad``
-    drops), else reading it warns (:func:`warn_cut_line`)."""
+    says it itself (:mod:`~continuum_mhe.io.sample_rows`), else reading it warns
+    (:func:`warn_cut_line`). It is read as written either way: a ``skip_bad`` that
+    dropped it would drop a whole file's last row (a tensions file's, which the
+    recording's last sample needs)."""
 
     line: int | None = None
     checked: bool = False
@@ -216,17 +218,17 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
     if b"\x00" in body:
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
+    if b"\r" in body.rstrip(b"\r"):
+        raise InputError(
+            f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
+            "the file with LF or CRLF line ends"
+        )
     if len(body) > MAX_LINE_BYTES:
         raise InputError(f"{name}: line {n}: longer than {MAX_LINE_BYTES} bytes (not a CSV file?)")
     try:
         line = body.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
-    if "\r" in line.rstrip("\r"):
-        raise InputError(
-            f"{name}: line {n}: lines end in CR alone (classic Mac OS line ends); save "
-            "the file with LF or CRLF line ends"
-        )
     return line.rstrip("\r")
 
 
@@ -351,7 +353,7 @@ def open_rows(path: str | os.PathLike[str], header_hint: str = MEASUREMENT_HEADE
             s = text.strip()
             if s.startswith("#"):
                 comments.append(s[1:].strip())
-            elif first is None and not excel_sep and re.fullmatch(r"(?i)sep=[,;\t]", s):
+            elif first is None and not excel_sep and re.fullmatch(r"(?i) *sep=[,;\t] *", text):
                 excel_sep = True
             elif s:
                 first = (n, text)
