@@ -271,18 +271,21 @@ void cmhe::bind_solver(nb::module_& m) {
       "positive definite.");
   m.def(
       "btd_solve_two_ended",
-      [](In D, In E, In b, Out y) {
+      [](In D, In E, In b, Out y, bool generic) {
         const auto [n, nx] = btd_system_size(D, E, b, y);
         std::vector<double> V(n * nx * nx), G((n - 1) * nx * nx), p(n * nx), rows(2 * nx);
-        return with_block_size(nx, [&](auto k) {
+        auto solve = [&](auto k) {
           return btd_solve_two_ended<decltype(k)::value>(n, nx, D.data(), E.data(), b.data(),
                                                          V.data(), G.data(), p.data(),
                                                          rows.data(), y.data());
-        });
+        };
+        return generic ? solve(std::integral_constant<int, 0>{}) : with_block_size(nx, solve);
       },
-      nb::arg("D"), nb::arg("E"), nb::arg("b"), nb::arg("y"),
+      nb::arg("D"), nb::arg("E"), nb::arg("b"), nb::arg("y"), nb::arg("generic") = false,
       "As btd_solve, eliminating from both ends towards the middle node (the QP's Newton "
-      "system without active constraints); False if H is not positive definite.");
+      "system without active constraints); False if H is not positive definite. "
+      "``generic``: the kernel for a block size read at run time, not the one specialised "
+      "for nx (the same operations in the same order: the same bits).");
   m.def(
       "householder",
       [](In nrm, IndexIn idx, Out T) {

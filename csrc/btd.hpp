@@ -141,6 +141,97 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
   }
 }
 
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMHE_NODE4_AVX2 1
+}  // namespace cmhe
+#include <immintrin.h>
+namespace cmhe {
+
+// Whether the processor has AVX2 (eliminate_node4_avx2 is used then)
+inline const bool kNode4Avx2 = __builtin_cpu_supports("avx2");
+
+// The columns of a 4 x 4 block (row-major), each in a register
+__attribute__((target("avx2"), always_inline)) inline void columns4_avx2(const double* A,
+                                                                         __m256d* c) {
+  const __m256d r0 = _mm256_loadu_pd(A), r1 = _mm256_loadu_pd(A + 4);
+  const __m256d r2 = _mm256_loadu_pd(A + 8), r3 = _mm256_loadu_pd(A + 12);
+  const __m256d a = _mm256_unpacklo_pd(r0, r1), b = _mm256_unpackhi_pd(r0, r1);
+  const __m256d e = _mm256_unpacklo_pd(r2, r3), f = _mm256_unpackhi_pd(r2, r3);
+  c[0] = _mm256_permute2f128_pd(a, e, 0x20);
+  c[1] = _mm256_permute2f128_pd(b, f, 0x20);
+  c[2] = _mm256_permute2f128_pd(a, e, 0x31);
+  c[3] = _mm256_permute2f128_pd(b, f, 0x31);
+}
+
+// eliminate_node for NX = 4 with AVX2: a row of four values in one register, each
+// lane's operations the scalar code's (a product, then a difference; no FMA), in its
+// order, so that the results are its bits. Rows of V, G and the Schur complement as
+// registers; the scalar factors t = V[c, j] p[c] as in the scalar code.
+template <bool transposed>
+__attribute__((target("avx2"))) bool eliminate_node4_avx2(
+    const double* Dn, const double* bn, const double* Gn, const double* pn, const double* hn,
+    const double* Eo, double* V, double* p, double* h, double* G) {
+  __m256d row[4];
+  columns4_avx2(Dn, row);
+  __m256d g[4];
+  if (Gn) {
+    alignas(32) double t[4][4];  // t[c][j] = Gn[c, j] pn[c]
+    for (int c = 0; c < 4; ++c) {
+      g[c] = _mm256_loadu_pd(Gn + 4 * c);
+      _mm256_store_pd(t[c], _mm256_mul_pd(g[c], _mm256_broadcast_sd(pn + c)));
+    }
+    for (int j = 0; j < 4; ++j)
+      for (int c = 0; c < 4; ++c)
+        row[j] = _mm256_sub_pd(row[j], _mm256_mul_pd(_mm256_broadcast_sd(&t[c][j]), g[c]));
+  }
+  __m256d v[4];
+  for (int j = 0; j < 4; ++j) {
+    for (int c = 0; c < j; ++c) {
+      const double t = V[4 * c + j] * p[c];
+      row[j] = _mm256_sub_pd(row[j], _mm256_mul_pd(_mm256_set1_pd(t), v[c]));
+    }
+    v[j] = row[j];
+    _mm256_storeu_pd(V + 4 * j, v[j]);
+    const double s = V[4 * j + j];
+    if (!(s >= std::numeric_limits<double>::min())) return false;  // 1 / s finite
+    p[j] = 1.0 / s;
+  }
+  if (bn) {
+    __m256d hv = _mm256_loadu_pd(bn);
+    if (Gn)
+      for (int c = 0; c < 4; ++c)
+        hv = _mm256_sub_pd(hv, _mm256_mul_pd(_mm256_set1_pd(pn[c] * hn[c]), g[c]));
+    alignas(32) double hs[4];
+    for (int c = 0; c < 3; ++c) {  // h[c] is complete
+      _mm256_store_pd(hs, hv);
+      const __m256d d = _mm256_sub_pd(
+          hv, _mm256_mul_pd(_mm256_mul_pd(v[c], _mm256_set1_pd(p[c])), _mm256_set1_pd(hs[c])));
+      hv = c == 0 ? _mm256_blend_pd(hv, d, 0xE) : c == 1 ? _mm256_blend_pd(hv, d, 0xC)
+                                                         : _mm256_blend_pd(hv, d, 0x8);
+    }
+    _mm256_storeu_pd(h, hv);
+  }
+  if (Eo) {
+    __m256d er[4], out[4];
+    if constexpr (transposed) {
+      columns4_avx2(Eo, er);
+    } else {
+      for (int j = 0; j < 4; ++j) er[j] = _mm256_loadu_pd(Eo + 4 * j);
+    }
+    for (int j = 0; j < 4; ++j) {
+      __m256d r = er[j];
+      for (int c = 0; c < j; ++c) {
+        const double t = V[4 * c + j] * p[c];
+        r = _mm256_sub_pd(r, _mm256_mul_pd(_mm256_set1_pd(t), out[c]));
+      }
+      out[j] = r;
+      _mm256_storeu_pd(G + 4 * j, r);
+    }
+  }
+  return true;
+}
+#endif
+
 // One node's elimination in the block-tridiagonal recursions (btd_factor,
 // btd_solve_two_ended, btd_last_block_inverse): the Schur complement of the node
 // (its block Dn less the eliminated neighbour's sum_c pn_c Gn[c,:]^T Gn[c,:], where Gn is
@@ -153,6 +244,10 @@ template <int NX, bool transposed>
 inline bool eliminate_node(Index nx_, const double* Dn, const double* bn, const double* Gn,
                            const double* pn, const double* hn, const double* Eo, double* V,
                            double* p, double* h, double* G, double* row_scratch) {
+#if defined(CMHE_NODE4_AVX2)
+  if constexpr (NX == 4)
+    if (kNode4Avx2) return eliminate_node4_avx2<transposed>(Dn, bn, Gn, pn, hn, Eo, V, p, h, G);
+#endif
   const Index nx = block_size<NX>(nx_);
   double row_local[NX > 0 ? NX : 1];  // a local row for a constant size (no aliasing)
   double* row = NX > 0 ? row_local : row_scratch;

@@ -238,9 +238,9 @@ def btd_solve(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu',
     Solve H y = b for the symmetric block-tridiagonal H = (D, E) (diagonal blocks D (n, nx, nx), super-diagonal E (n-1, nx, nx)) by block Cholesky; False if H is not positive definite.
     """
 
-def btd_solve_two_ended(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> bool:
+def btd_solve_two_ended(D: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], E: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], y: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], generic: bool = False) -> bool:
     """
-    As btd_solve, eliminating from both ends towards the middle node (the QP's Newton system without active constraints); False if H is not positive definite.
+    As btd_solve, eliminating from both ends towards the middle node (the QP's Newton system without active constraints); False if H is not positive definite. ``generic``: the kernel for a block size read at run time, not the one specialised for nx (the same operations in the same order: the same bits).
     """
 
 def householder(nrm: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], idx: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], T: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')]) -> int:
