@@ -147,8 +147,12 @@ void btd_matvec(Index n, Index nx_, const double* D, const double* E, const doub
 #include <immintrin.h>
 namespace cmhe {
 
-// Whether the processor has AVX2 (eliminate_node4_avx2 is used then)
-inline const bool kNode4Avx2 = __builtin_cpu_supports("avx2");
+// Whether the processor has AVX2 (eliminate_node4_avx2 is used then); the processor
+// is read first, as a static initialiser may run before libgcc's
+inline const bool kNode4Avx2 = [] {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") != 0;
+}();
 
 // The columns of a 4 x 4 block (row-major), each in a register
 __attribute__((target("avx2"), always_inline)) inline void columns4_avx2(const double* A,
