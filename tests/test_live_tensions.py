@@ -7,6 +7,7 @@ tape (tens of seconds): every estimate here comes from one module fixture's runs
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -559,6 +560,10 @@ def test_live_summary_says_inconsistent_rows_as_estimate_does() -> None:
     session, made, _ = _live(serial, est, lines, duration=10.0)
     bad = sum(str(e.status) == "inconsistent" for e in made)
     assert bad > 0.25 * len(made) and len(made) == 400
+    summary = session.summary()
     assert f"warning: {bad} of {len(made)} estimates ({100 * bad / len(made):.0f} %) are " in (
-        session.summary()
+        summary
     )
+    counts = Counter(str(e.status) for e in made)  # and every status, as estimate says them
+    shown = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    assert f"; statuses: {shown}" in summary and f"inconsistent: {bad}" in shown

@@ -780,6 +780,10 @@ class LiveSession:
             f"restart(s), {c.clock_wraps} clock wrap(s), {c.estimator_failures} estimator "
             f"failure(s)"
         )
+        if self.status_counts:  # as estimate's summary gives them (no-estimate: no reading)
+            msg += "; statuses: " + ", ".join(
+                f"{k}: {v}" for k, v in sorted(self.status_counts.items())
+            )
         if self.latency.n:
             msg += (
                 f"; latency from line received to estimate written: median "
