@@ -209,7 +209,9 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
         for (Index j = 0; j < cb; ++j) gi[j] += mk * rho1 * gbi[j];
         // J_b^T (rho' R_b^-1 + a2 ...) J_b by whole rows of its leading cb x cb block (the
         // entries below the diagonal are formed along and replaced by the mirror of the
-        // upper triangle below)
+        // upper triangle below); where rho' = 1 and a2 = 0 (the quadratic loss, a robust
+        // one within its scale) the terms that multiply by 1 and add 0 are left out
+        const bool plain = rho1 == 1.0 && a2 == 0.0;
         for (Index j = 0; j < cb; ++j) {
           for (Index k = 0; k < cb; ++k) acc[k] = 0.0;
           for (Index a = 0; a < nb_; ++a) {
@@ -220,7 +222,10 @@ double assemble(WindowSolver& w, int buf, const double* X, const double* out,
           }
           const double gj = gbi[j];
           double* Dj = Di + j * nx;
-          for (Index k = 0; k < cb; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
+          if (plain)
+            for (Index k = 0; k < cb; ++k) Dj[k] += mk * acc[k];
+          else
+            for (Index k = 0; k < cb; ++k) Dj[k] += mk * (rho1 * acc[k] + a2 * gj * gbi[k]);
         }
       }
     }
