@@ -533,3 +533,33 @@ def test_dropout_rows_past_the_bound_are_not_counted_against_theta_max() -> None
     bends.add(output, ["dropout", "ok", "at-bound", "dropout"])
     assert bends.count == 2 and dict(bends.statuses) == {"ok": 1, "at-bound": 1}
     assert bends.largest == [1.6]
+
+
+def test_a_tip_imu_bent_past_the_refusal_angle_is_said_not_refused(tmp_path, capsys):
+    """The only IMU of a two-section robot at its tip reads a start bent 129 degrees
+    from upright (the ``spatial`` scenario bends both sections): the sections before it,
+    which no IMU reads, may bend it so far, so the start is not refused as a robot
+    mounted the other way (as it is where the IMU nearest the base is on section 1):
+    the warning names both readings."""
+    robot = tmp_path / "tip.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n'
+        "[[imu]]\nsection = 2\n"
+    )
+    meas = tmp_path / "m.csv"
+    assert (
+        main(["simulate", "spatial", "--robot", str(robot), "--duration", "2", "-o", str(meas)])
+        == 0
+    )
+    from continuum_mhe.io.input_options import MountingWarning
+
+    with pytest.warns(MountingWarning) as said:
+        code = main(["estimate", str(meas), "--robot", str(robot), "--method", "ekf",
+                     "-o", str(tmp_path / "e.csv")])  # fmt: skip
+    assert code == 0
+    (line,) = [str(w.message) for w in said if "mounting:" in str(w.message)]
+    assert "puts IMU 1 129 degrees from that mounting's straight pose" in line
+    assert line.endswith(
+        "IMU 1 is on section 2, and the sections before it, which no IMU reads, may bend it "
+        "this far"
+    )

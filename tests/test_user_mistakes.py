@@ -2335,3 +2335,35 @@ def test_evaluate_says_when_the_truths_sections_are_the_robot_files_in_another_o
     capsys.readouterr()
     assert main(["evaluate", str(est_right), str(truth), "--robot", "two-section"]) == 0
     assert "its rows fit" not in capsys.readouterr().err
+
+
+def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys) -> None:
+    """As ``evaluate`` says it: a truth made for sections twice as long, drawn beside the
+    estimate's backbone; the right truth gives no such line."""
+    pytest.importorskip("rerun")
+    long_robot = tmp_path / "long.toml"
+    text = (DATA_ROBOTS / "two_section.toml").read_text()
+    long_robot.write_text(text.replace("length = 0.16", "length = 0.3").replace(
+        "length = 0.14", "length = 0.3"))  # fmt: skip
+    meas, truth = tmp_path / "m.csv", tmp_path / "t.csv"
+    long_truth = tmp_path / "tl.csv"
+    argv = ["simulate", "spatial", "--duration", "2"]
+    assert main([*argv, "--robot", "two-section", "-o", str(meas), "--truth", str(truth)]) == 0
+    assert main([*argv, "--robot", str(long_robot), "-o", str(tmp_path / "ml.csv"),
+                 "--truth", str(long_truth)]) == 0  # fmt: skip
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", "two-section", "--method", "ekf",
+                 "-o", str(est)]) == 0  # fmt: skip
+    for command in (["plot", str(est), "-o", str(tmp_path / "p.png")],
+                    ["view", str(est), "--save", str(tmp_path / "v.rrd")]):  # fmt: skip
+        capsys.readouterr()
+        assert main([*command, "--truth", str(long_truth)]) == 0
+        err = capsys.readouterr().err
+        assert (
+            f"warning: {long_truth}: its tip is 2.00 times as far from the base as its own "
+            "angles put it on a robot of 0.3 m: it was made for a robot of about 0.6 m; it is "
+            "drawn beside the estimate of a robot of 0.16, 0.14 m (the truth of another "
+            "robot?)"
+        ) in err, err
+        assert main([*command, "--truth", str(truth), "--overwrite"]) == 0
+        assert "another robot" not in capsys.readouterr().err

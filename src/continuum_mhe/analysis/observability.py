@@ -125,7 +125,7 @@ def verdict(r: ObservabilityReport) -> str:
             f"NOT observable: tilt determines at most {t.max_rank} of the {t.cols} bend "
             "coordinates at every sampled shape; estimates of this robot are all marked "
             "uncertain (put an IMU on every section; the gyros' two-sample rank of the "
-            "report needs motion and is ill-conditioned: with them the tip stays tens of mm off, "
+            "report needs motion and is ill-conditioned: with them the tip is hundreds of mm off, "
             "docs/uncertainty.md)"
         )
     return (

@@ -11,7 +11,12 @@ import math
 import numpy as np
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.evaluation.metrics import SHIFT_MAX_S, aligned_truth, best_time_shift
+from continuum_mhe.evaluation.metrics import (
+    SHIFT_MAX_S,
+    aligned_truth,
+    best_time_shift,
+    length_misfit,
+)
 from continuum_mhe.io.position_units import tip_direction_problem
 from continuum_mhe.io.state_tables import StateTable
 from continuum_mhe.model.descriptions import TIP_COLUMNS
@@ -110,7 +115,11 @@ def truth_beside(
     interpolate it (None: as it is) and the warnings, in order: few rows, a truth whose
     tip points away from its own angles (:func:`truth_frame_warning`, on a robot of these
     section ``lengths``), a clock offset (:func:`clock_offset_warning`)."""
-    from continuum_mhe.evaluation.estimate_figure import truth_at_rows, truth_problem
+    from continuum_mhe.evaluation.estimate_figure import (
+        lengths_misfit,
+        truth_at_rows,
+        truth_problem,
+    )
 
     i_est, rows, interpolated = aligned_truth(est.t, truth.t, truth.values, truth.names, warn=False)
     at_est = truth_at_rows(est, truth, i_est, rows, interpolated)
@@ -123,6 +132,15 @@ def truth_beside(
         if refused:
             raise InputError(refused)
         warned.append(few)
+    # a truth of a robot of other lengths is drawn beside the estimate's backbone as it
+    # is: said, as evaluate says it
+    other = length_misfit(truth.names, truth.values, lengths) or lengths_misfit(truth, lengths)
+    if other:
+        shown = ", ".join(f"{v:g}" for v in lengths)
+        warned.append(
+            f"{path_truth}: {other}; it is drawn beside the estimate of a robot of {shown} m "
+            "(the truth of another robot?)"
+        )
     warned.append(truth_frame_warning(path_truth, truth, lengths))
     tip = est.values[i_est][:, [est.names.index(c) for c in TIP_COLUMNS]]
     err = np.linalg.norm(tip - rows[:, [truth.names.index(c) for c in TIP_COLUMNS]], axis=1)

@@ -405,11 +405,19 @@ def _check_base_mounting(
             f"mounted upside down? its mount_rpy; {ORDER_HINT})"
         )
     fix = robot_fix("mounting", robot_file, other)
-    if angle > MOUNTING_FLIPPED:
+    imu = robot.imus[k]
+    # an IMU beyond the first section: the sections before it, which no IMU reads, may
+    # have bent it this far (a start bent, not a robot mounted the other way)
+    unread = (
+        f"; IMU {k + 1} is on section {imu.section + 1}, and the sections before it, which "
+        "no IMU reads, may bend it this far"
+        if imu.section > 0
+        else ""
+    )
+    if angle > MOUNTING_FLIPPED and not unread:
         raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
     # the largest angle the sections up to the IMU can bend it through (theta_max each;
     # a tendon robot's mechanics model has no such bound)
-    imu = robot.imus[k]
     reach = sum(s.theta_max for s in robot.sections[: imu.section])
     reach += imu.at * robot.sections[imu.section].theta_max
     bound = ""
@@ -425,7 +433,7 @@ def _check_base_mounting(
         )
     warnings.warn(  # a bend past 90 degrees at the start, or the other mounting
         f"{where}: if the robot {pose}, {fix} (the estimates of a robot described the "
-        f"wrong way up are far off){alone}{bound}",
+        f"wrong way up are far off){alone}{bound}{unread}",
         MountingWarning,
         stacklevel=4,
     )
