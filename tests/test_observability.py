@@ -240,3 +240,40 @@ def test_check_robot_of_a_rod_without_tendons_speaks_of_no_tensions(
     said = out[out.index("verdict: ") :]
     assert said.startswith("verdict: observable: one sample of the IMUs' tilt determines the tip")
     assert "tension" not in said, said
+
+
+def test_the_tip_std_of_one_tilt_sample_known_answer() -> None:
+    """A straight section of length L with its IMU at the tip: each bend coordinate
+    turns the IMU by as much (tilt Jacobian I) and moves the tip sideways by L/2, so
+    a reading noise s gives the tip a standard deviation of s L / 2 on each side axis,
+    sqrt(2) s L / 2 in all; an IMU that does not turn with the bend gives infinity."""
+    from continuum_mhe.analysis.observability import tip_noise_std
+
+    length, s = 0.2, 0.01
+    j_tip = np.array([[[length / 2, 0.0], [0.0, length / 2], [0.0, 0.0]]])
+    got = tip_noise_std(np.eye(2)[None], j_tip, s)
+    assert got[0] == pytest.approx(np.sqrt(2.0) * s * length / 2, rel=1e-12)
+    assert tip_noise_std(np.array([[[1.0, 0.0], [0.0, 0.0]]]), j_tip, s)[0] == np.inf
+    # and the report's, at a robot's sampled shapes: the same formula on its Jacobians,
+    # so a tip IMU's is about the reading noise times the length
+    rep = observability_report(Robot((Section(length, 3.0),), (ImuPlacement(0),)), samples=200)
+    assert 0.5 * np.radians(2.0) * length < rep.tip_noise_std < 2.0 * np.radians(2.0) * length
+
+
+@pytest.mark.parametrize(("at", "weak"), [(1.0, False), (0.05, True)])
+def test_check_robot_says_an_imu_near_its_sections_base_sees_the_bend_weakly(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], at: float, weak: bool
+) -> None:
+    """An IMU at 0.05 of its section turns by a twentieth of the bend: one sample of its
+    tilt places the tip within 39 % of the robot's length, and the verdict, still
+    observable (full rank), says so (a simulated estimate of such a robot is tens of mm
+    off with every row uncertain); one at the section's end is not said to be weak."""
+    robot = tmp_path / "r.toml"
+    robot.write_text(
+        f'mounting = "z-up"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\nat = {at}\n'
+    )
+    assert main(["check-robot", str(robot), "--samples", "200"]) == 0
+    (line,) = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("verdict:")]
+    assert line.startswith("verdict: observable: one sample of tilt determines all 2 bend")
+    assert ("but weakly: one sample of tilt readings with 2 degrees of noise places the tip "
+            "within about" in line) is weak  # fmt: skip

@@ -58,6 +58,10 @@ class JacobianSummary:
     min_rank: int
     max_rank: int
     sigma_min_percentiles: dict[str, float]  # relative smallest singular value
+    #: the median over the shapes of the smallest singular value itself (the Jacobian's
+    #: unit: for tilt, rad of reading per rad of bend coordinate; 0 with fewer readings
+    #: than unknowns)
+    sigma_min_median: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,11 @@ class ObservabilityReport:
     n_tendons: int = 0
     #: the robot's IMUs
     n_imus: int = 1
+    #: the tip position's standard deviation, m, that one sample of tilt readings with
+    #: :data:`VERDICT_NOISE` gives (:func:`tip_noise_std`), at the median sampled shape
+    tip_noise_std: float = math.nan
+    #: the robot's length, m
+    length: float = math.nan
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -94,6 +103,14 @@ class ObservabilityReport:
 #: Fraction of sampled shapes at which the one-sample tilt Jacobian must have full rank
 #: for the verdict "observable".
 OBSERVABLE_FRACTION = 0.99
+#: The readings' noise the report converts into the tip's standard deviation, rad (the
+#: command line's default ``--noise-deg``).
+VERDICT_NOISE = math.radians(2.0)
+#: A robot whose tip one sample of tilt readings places within more than this fraction
+#: of its length (:attr:`ObservabilityReport.tip_noise_std`, at the median shape) is
+#: observable only weakly: an IMU at a section's end gives 0.03 of the length on one
+#: section, 0.05 to 0.06 on three or four sections; one at 0.05 of its section 0.38.
+WEAK_TIP_FRACTION = 0.2
 
 
 def observability(r: ObservabilityReport) -> Literal["yes", "except-near-some", "no"]:
@@ -114,11 +131,20 @@ def verdict(r: ObservabilityReport) -> str:
     if r.tendon_force is not None:
         return _tendon_verdict(r.tendon_force, r.n_tendons, r.n_imus)
     t = r.tilt
+    weak = ""
+    if t.full_rank_fraction > 0.0 and r.tip_noise_std > WEAK_TIP_FRACTION * r.length:
+        weak = (
+            f"; but weakly: one sample of tilt readings with {math.degrees(VERDICT_NOISE):g} "
+            f"degrees of noise places the tip within about {_mm(r.tip_noise_std)} (a "
+            f"standard deviation, {100 * r.tip_noise_std / r.length:.0f} % of the robot's "
+            "length, at the median shape): an IMU near its section's base barely turns "
+            "with the bend (put each section's IMU at its end, at = 1)"
+        )
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
             f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
             f"{100 * t.full_rank_fraction:.1f} % of the sampled shapes (not near the least "
-            "observable shapes of the report, where the estimate follows its motion model)"
+            f"observable shapes of the report, where the estimate follows its motion model){weak}"
         )
     if t.full_rank_fraction == 0.0:
         return (
@@ -130,8 +156,13 @@ def verdict(r: ObservabilityReport) -> str:
         )
     return (
         f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
-        "of shapes (the least observable are the report's)"
+        f"of shapes (the least observable are the report's){weak}"
     )
+
+
+def _mm(length: float) -> str:
+    """A length, m, in mm as the verdict says it."""
+    return f"{1e3 * length:.0f} mm" if length < 1e3 else "kilometres"
 
 
 def model_check(r: ObservabilityReport) -> str | None:
@@ -196,6 +227,7 @@ def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
     ranks = np.sum(sv > RANK_TOL * np.maximum(sv[:, :1], 1.0), axis=1)
     full = jacs.shape[2]  # the unknowns: full column rank
     pct = {f"p{q}": float(np.percentile(rel, q)) for q in (0, 1, 5, 50)}
+    absolute = 0.0 if jacs.shape[1] < jacs.shape[2] else float(np.median(sv[:, -1]))
     return (
         JacobianSummary(
             rows=jacs.shape[1],
@@ -204,9 +236,26 @@ def _summary(jacs: np.ndarray) -> tuple[JacobianSummary, np.ndarray]:
             min_rank=int(ranks.min()),
             max_rank=int(ranks.max()),
             sigma_min_percentiles=pct,
+            sigma_min_median=absolute,
         ),
         rel,
     )
+
+
+def tip_noise_std(j_tilt: np.ndarray, j_tip: np.ndarray, noise: float) -> np.ndarray:
+    """The tip position's standard deviation, m (the root of its covariance's trace),
+    that one sample of tilt readings of independent noise ``noise`` (rad) gives through
+    the bend coordinates, per shape: ``J_tip (J_tilt^T J_tilt)^-1 J_tip^T noise^2`` from
+    the Jacobians ``j_tilt`` (shapes, readings, bends) and ``j_tip`` (shapes, 3, bends);
+    infinite where the tilt Jacobian is singular."""
+    out = np.full(len(j_tilt), np.inf)
+    for i, (a, t) in enumerate(zip(j_tilt, j_tip)):
+        sv = np.linalg.svd(a, compute_uv=False)
+        if a.shape[0] < a.shape[1] or sv[-1] <= RANK_TOL * max(sv[0], 1.0):
+            continue  # the rank _summary counts: tilt does not determine the bends
+        cov = t @ np.linalg.solve(a.T @ a, t.T) * noise**2
+        out[i] = math.sqrt(max(float(np.trace(cov)), 0.0))
+    return out
 
 
 def _jacobian_functions(robot: Robot) -> tuple[ca.Function, ca.Function, ca.Function]:
@@ -222,6 +271,14 @@ def _jacobian_functions(robot: Robot) -> tuple[ca.Function, ca.Function, ca.Func
     two_d = ca.vertcat(h_dir(x), h_dir(x_next))
     j_dir2 = ca.Function("j_dir2", [x], [ca.jacobian(two_d, x)])
     return j_tilt, j_tilt2, j_dir2
+
+
+def _tip_jacobian(robot: Robot) -> ca.Function:
+    """The tip position's (m) Jacobian in the bend coordinates."""
+    bend = make_formulation("bend", robot)
+    x = ca.SX.sym("x", bend.nx)
+    tip = bend.output_sym(x)[:3]
+    return ca.Function("j_tip", [x], [ca.jacobian(tip, x[: 2 * robot.n_sections])])
 
 
 def _sample_states(robot: Robot, samples: int, seed: int) -> np.ndarray:
@@ -318,7 +375,11 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
         raise UserError(f"samples must be an integer in [10, 1000000], got {samples!r}")
     j_tilt, j_tilt2, j_dir2 = _jacobian_functions(robot)
     x = _sample_states(robot, samples, seed)
-    tilt, rel = _summary(_eval(j_tilt, x))
+    tilt_jacs = _eval(j_tilt, x)
+    tilt, rel = _summary(tilt_jacs)
+    tip_std = float(
+        np.median(tip_noise_std(tilt_jacs, _eval(_tip_jacobian(robot), x), VERDICT_NOISE))
+    )
     tilt2, _ = _summary(_eval(j_tilt2, x))
     gyro2, _ = _summary(_eval(j_dir2, x))
     worst = np.argsort(rel)[:3]
@@ -344,13 +405,14 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
             known[name] = float(sv[-1] / sv[0])
     if robot.backbone is None:
         return ObservabilityReport(
-            samples, tilt, tilt2, gyro2, examples, known, n_imus=robot.n_imus
-        )
+            samples, tilt, tilt2, gyro2, examples, known, n_imus=robot.n_imus,
+            tip_noise_std=tip_std, length=sum(robot.lengths),
+        )  # fmt: skip
     m = min(samples, TENDON_SAMPLES)
     tendon, unsolved = tendon_force_summary(robot, m, seed)
     return ObservabilityReport(
         samples, tilt, tilt2, gyro2, examples, known, tendon, m, unsolved, robot.n_tendons,
-        robot.n_imus,
+        robot.n_imus, tip_std, sum(robot.lengths),
     )  # fmt: skip
 
 
@@ -392,11 +454,18 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
         ("with gyros, two samples (whole state)", r.gyro_window),
     ):
         p = s.sigma_min_percentiles
+        absolute = (
+            f" (itself: median {s.sigma_min_median:.2e} rad of reading per rad of bend; "
+            f"the tip's std from one sample at {math.degrees(VERDICT_NOISE):g} degrees of "
+            f"noise: median {1e3 * r.tip_noise_std:.3g} mm)"
+            if s is r.tilt and math.isfinite(r.tip_noise_std) and s.full_rank_fraction > 0.0
+            else ""
+        )
         lines.append(
             f"{label}: {s.rows}x{s.cols}, rank {s.cols} (all unknowns) at "
             f"{100 * s.full_rank_fraction:.1f} % of shapes (min rank {s.min_rank}); "
             "relative smallest singular value "
-            f"p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
+            f"p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}{absolute}"
         )
     if r.tilt.full_rank_fraction > 0.0:
         lines.append("least observable shapes (tilt, one sample):")
