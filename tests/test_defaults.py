@@ -560,6 +560,29 @@ def test_a_tip_imu_bent_past_the_refusal_angle_is_said_not_refused(tmp_path, cap
     (line,) = [str(w.message) for w in said if "mounting:" in str(w.message)]
     assert "puts IMU 1 129 degrees from that mounting's straight pose" in line
     assert line.endswith(
-        "IMU 1 is on section 2, and the sections before it, which no IMU reads, may bend it "
-        "this far"
+        "IMU 1 is on section 2, and the sections before it, whose bends the robot's IMUs do "
+        "not determine, may bend it this far"
     )
+
+
+def test_a_hanging_robot_whose_imus_are_all_on_section_2_is_still_refused(tmp_path, capsys):
+    """Two IMUs on section 2 (at 0.5 and 1) determine both sections' bends: a hanging
+    recording estimated as z-up is refused naming the mounting, as with an IMU on
+    section 1 (the leniency is for robots whose IMUs do not determine the sections
+    before them)."""
+    text = (
+        'mounting = "{m}"\n[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n'
+        "[[imu]]\nsection = 2\nat = 0.5\n[[imu]]\nsection = 2\n"
+    )
+    down, up = tmp_path / "down.toml", tmp_path / "up.toml"
+    down.write_text(text.format(m="z-down"))
+    up.write_text(text.format(m="z-up"))
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert (
+        main(["simulate", "s-curve", "--robot", str(down), "--duration", "2", "-o", str(meas)]) == 0
+    )
+    capsys.readouterr()
+    assert main(["estimate", str(meas), "--robot", str(up), "--method", "ekf", "-o", str(est)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "mounting" in err[0] and "hangs from its base?" in err[0], err
+    assert not est.exists()

@@ -277,3 +277,23 @@ def test_check_robot_says_an_imu_near_its_sections_base_sees_the_bend_weakly(
     assert line.startswith("verdict: observable: one sample of tilt determines all 2 bend")
     assert ("but weakly: one sample of tilt readings with 2 degrees of noise places the tip "
             "within about" in line) is weak  # fmt: skip
+
+
+def test_check_robot_json_is_strict_json_for_a_robot_the_readings_do_not_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One IMU on two sections: the tip's standard deviation from one sample is not
+    finite, and the report says null (JSON has no Infinity), not a value strict parsers
+    refuse."""
+    robot = tmp_path / "tip.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.16\n[[section]]\nlength = 0.14\n'
+        "[[imu]]\nsection = 2\n"
+    )
+    assert main(["check-robot", str(robot), "--samples", "50", "--json"]) == 0
+
+    def refuse(constant: str) -> None:
+        raise ValueError(f"not JSON: {constant}")
+
+    report = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    assert report["tip_noise_std"] is None and report["observable"] == "no"

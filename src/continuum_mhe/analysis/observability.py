@@ -92,8 +92,11 @@ class ObservabilityReport:
     length: float = math.nan
 
     def as_dict(self) -> dict[str, object]:
+        own = asdict(self)
+        # JSON has no infinity: a tip the readings do not place (rank-deficient) is null
+        own["tip_noise_std"] = self.tip_noise_std if math.isfinite(self.tip_noise_std) else None
         return {
-            **asdict(self),
+            **own,
             "model_check": model_check(self),
             "observable": observability(self),
             "verdict": verdict(self),

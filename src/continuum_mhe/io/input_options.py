@@ -406,20 +406,23 @@ def _check_base_mounting(
         )
     fix = robot_fix("mounting", robot_file, other)
     imu = robot.imus[k]
-    # an IMU beyond the first section: the sections before it, which no IMU reads, may
-    # have bent it this far (a start bent, not a robot mounted the other way)
-    unread = (
-        f"; IMU {k + 1} is on section {imu.section + 1}, and the sections before it, which "
-        "no IMU reads, may bend it this far"
-        if imu.section > 0
-        else ""
-    )
-    if angle > MOUNTING_FLIPPED and not unread:
-        raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
     # the largest angle the sections up to the IMU can bend it through (theta_max each;
     # a tendon robot's mechanics model has no such bound)
     reach = sum(s.theta_max for s in robot.sections[: imu.section])
     reach += imu.at * robot.sections[imu.section].theta_max
+    # an IMU beyond the first section of a robot whose IMUs do not determine its shape
+    # (no IMU reads the sections before it): those sections may have bent it this far,
+    # within their theta_max (a start bent, not a robot mounted the other way)
+    unread = (
+        f"; IMU {k + 1} is on section {imu.section + 1}, and the sections before it, whose "
+        "bends the robot's IMUs do not determine, may bend it this far"
+        if imu.section > 0
+        and angle <= reach + MOUNTING_MARGIN
+        and not formulation.imus_determine_shape(tuple(range(robot.n_imus)))
+        else ""
+    )
+    if angle > MOUNTING_FLIPPED and not unread:
+        raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
     bound = ""
     if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
         bound = (
