@@ -313,7 +313,8 @@ def run(args: argparse.Namespace) -> int:
                 "gravity directions"
             )
     raise_it = robot_fix("theta_max", args.robot)
-    if bound_note := tally.bound.notice(n, args.method, est.inference.holds_bounds, raise_it):
+    holds = est.inference.holds_bounds
+    if bound_note := tally.bound.notice(n, args.method, holds, raise_it, est.shape_observable):
         print(f"{PROG}: warning: {bound_note}", file=sys.stderr)
     if beyond_note := tally.beyond.notice(n):
         print(f"{PROG}: warning: {beyond_note}", file=sys.stderr)

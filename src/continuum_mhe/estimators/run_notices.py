@@ -83,11 +83,15 @@ class BendsOnBound:
         self.count += int(on.sum())
         self.statuses.update(str(v) for v in status[on])
 
-    def notice(self, n: int, method: str, holds: bool, raise_it: str) -> str | None:
+    def notice(
+        self, n: int, method: str, holds: bool, raise_it: str, observable: bool = True
+    ) -> str | None:
         """One line for the estimates counted on (or beyond) the bound, of ``n``, by
         ``method`` (the estimator's name), which ``holds`` its bends to the bound (the
         MHE's constraints) or not (the filters); ``raise_it`` says how to raise the
-        bound (``raise theta_max in the robot file R``). None without."""
+        bound (``raise theta_max in the robot file R``); ``observable``: whether the
+        robot's IMUs determine its shape (where they do not, the bends they leave free
+        drift to the bound). None without."""
         if not self.count:
             return None
         sections = self._robot.sections
@@ -96,7 +100,13 @@ class BendsOnBound:
         what = f"{self.count} of {n} estimates have a section's bend"
         of = f"its bending bound theta_max ({bounds} rad; by status: {by_status})"
         reached = [s for s, big in zip(sections, self.largest) if big > 0]
-        if reached and all(s.theta_max >= DEFAULT_THETA_MAX for s in reached):
+        if not observable:
+            further = (
+                "and the robot's IMUs do not determine its shape: the bends they leave "
+                "free drift to the bound (one IMU per section determines them; "
+                "check-robot tells)"
+            )
+        elif reached and all(s.theta_max >= DEFAULT_THETA_MAX for s in reached):
             # a bound no robot reaches: the readings, not the robot, went there
             further = (
                 f"and a bound of {DEFAULT_THETA_MAX:g} rad or more is one a robot does not "
