@@ -410,9 +410,9 @@ def _check_base_mounting(
     # a tendon robot's mechanics model has no such bound)
     reach = sum(s.theta_max for s in robot.sections[: imu.section])
     reach += imu.at * robot.sections[imu.section].theta_max
-    # an IMU beyond the first section of a robot whose IMUs do not determine its shape
-    # (no IMU reads the sections before it): those sections may have bent it this far,
-    # within their theta_max (a start bent, not a robot mounted the other way)
+    # an IMU beyond the first section of a robot whose IMUs do not determine its shape:
+    # the sections before it may have bent it this far, within their theta_max (a start
+    # bent, not a robot mounted the other way)
     unread = (
         f"; IMU {k + 1} is on section {imu.section + 1}, and the sections before it, whose "
         "bends the robot's IMUs do not determine, may bend it this far"
