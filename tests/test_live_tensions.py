@@ -557,7 +557,7 @@ def test_live_summary_says_inconsistent_rows_as_estimate_does() -> None:
     base = make_formulation("bend", read_robot(shipped_robots()["two-section"]), NoiseSettings())
     serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
     est = make_estimator("ekf", serial.formulation, MHESettings())
-    session, made, _ = _live(serial, est, lines, duration=10.0)
+    session, made, _ = _live(serial, est, lines, duration=5.0)
     bad = sum(str(e.status) == "inconsistent" for e in made)
     assert bad > 0.25 * len(made) and len(made) == 400
     summary = session.summary()
