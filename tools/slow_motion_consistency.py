@@ -22,27 +22,19 @@ import numpy as np
 
 from continuum_mhe.cli import main as cli_main
 from continuum_mhe.io.estimate_csv import write_measurements
-from continuum_mhe.io.robot_file import read_robot
+from continuum_mhe.io.robot_file import robot_toml
 from continuum_mhe.io.state_tables import read_state_table
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.simulation.raw_readings import raw_readings
 from continuum_mhe.simulation.scenarios import simulate_robot
 
 DURATION_S = 120.0  # of the slowed recording
 DT_S = 0.05
-ROBOT_FILE = """mounting = "z-up"
-[[section]]
-length = 0.12
-[[section]]
-length = 0.10
-[[section]]
-length = 0.08
-[[imu]]
-section = 1
-[[imu]]
-section = 2
-[[imu]]
-section = 3
-"""
+#: the robot: three sections with an IMU at each section's end
+ROBOT = Robot(
+    (Section(0.12, 3.0), Section(0.10, 3.0), Section(0.08, 3.0)),
+    tuple(ImuPlacement(i) for i in range(3)),
+)
 
 
 def main() -> None:
@@ -53,8 +45,8 @@ def main() -> None:
     k = a.slowdown
     with tempfile.TemporaryDirectory() as folder:
         robot_file = Path(folder) / "robot.toml"
-        robot_file.write_text(ROBOT_FILE)
-        robot = read_robot(robot_file)
+        robot_file.write_text(robot_toml(ROBOT))
+        robot = ROBOT
         rec = simulate_robot("spatial", robot, duration=DURATION_S / k, dt=DT_S / k)
         rec = dataclasses.replace(rec, t=rec.t * k)
         names = [o.name for o in rec.outputs]

@@ -261,7 +261,11 @@ def tip_noise_std(j_tilt: np.ndarray, j_tip: np.ndarray, noise: float) -> np.nda
     return out
 
 
-def _jacobian_functions(robot: Robot) -> tuple[ca.Function, ca.Function, ca.Function]:
+def _jacobian_functions(
+    robot: Robot,
+) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function]:
+    """The one-sample tilt, two-sample tilt and two-sample raw Jacobians, and the tip
+    position's (m) Jacobian in the bend coordinates."""
     bend = make_formulation("bend", robot)
     direct = make_formulation("direct", robot, estimate_gyro_bias=False)
     n2 = 2 * robot.n_sections
@@ -273,15 +277,8 @@ def _jacobian_functions(robot: Robot) -> tuple[ca.Function, ca.Function, ca.Func
     j_tilt2 = ca.Function("j_tilt2", [x], [ca.jacobian(two, x)])
     two_d = ca.vertcat(h_dir(x), h_dir(x_next))
     j_dir2 = ca.Function("j_dir2", [x], [ca.jacobian(two_d, x)])
-    return j_tilt, j_tilt2, j_dir2
-
-
-def _tip_jacobian(robot: Robot) -> ca.Function:
-    """The tip position's (m) Jacobian in the bend coordinates."""
-    bend = make_formulation("bend", robot)
-    x = ca.SX.sym("x", bend.nx)
-    tip = bend.output_sym(x)[:3]
-    return ca.Function("j_tip", [x], [ca.jacobian(tip, x[: 2 * robot.n_sections])])
+    j_tip = ca.Function("j_tip", [x], [ca.jacobian(bend.output_sym(x)[:3], x[:n2])])
+    return j_tilt, j_tilt2, j_dir2, j_tip
 
 
 def _sample_states(robot: Robot, samples: int, seed: int) -> np.ndarray:
@@ -376,13 +373,11 @@ def observability_report(robot: Robot, samples: int = 2000, seed: int = 0) -> Ob
     """Rank of the measurement Jacobians over ``samples`` random shapes of ``robot``."""
     if not (isinstance(samples, int) and 10 <= samples <= 1_000_000):
         raise UserError(f"samples must be an integer in [10, 1000000], got {samples!r}")
-    j_tilt, j_tilt2, j_dir2 = _jacobian_functions(robot)
+    j_tilt, j_tilt2, j_dir2, j_tip = _jacobian_functions(robot)
     x = _sample_states(robot, samples, seed)
     tilt_jacs = _eval(j_tilt, x)
     tilt, rel = _summary(tilt_jacs)
-    tip_std = float(
-        np.median(tip_noise_std(tilt_jacs, _eval(_tip_jacobian(robot), x), VERDICT_NOISE))
-    )
+    tip_std = float(np.median(tip_noise_std(tilt_jacs, _eval(j_tip, x), VERDICT_NOISE)))
     tilt2, _ = _summary(_eval(j_tilt2, x))
     gyro2, _ = _summary(_eval(j_dir2, x))
     worst = np.argsort(rel)[:3]

@@ -239,7 +239,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         for path, table in ((args.estimates, est), (args.truth, truth))
         if (misfit := length_misfit(table.names, table.values, robot.lengths))
     ]  # tip errors in % of the length are then of another robot's length
-    from continuum_mhe.evaluation.estimate_figure import lengths_misfit  # matplotlib's
+    # here, not at the top: estimate_figure loads matplotlib
+    from continuum_mhe.evaluation.estimate_figure import lengths_misfit
 
     if not (misfits or other_robot or other_recorded) and (
         sections := lengths_misfit(truth, robot.lengths)

@@ -780,7 +780,7 @@ class LiveSession:
             f"restart(s), {c.clock_wraps} clock wrap(s), {c.estimator_failures} estimator "
             f"failure(s)"
         )
-        if self.status_counts:  # as estimate's summary gives them (no-estimate: no reading)
+        if self.status_counts:  # as estimate's summary gives them
             msg += "; statuses: " + ", ".join(
                 f"{k}: {v}" for k, v in sorted(self.status_counts.items())
             )
