@@ -113,6 +113,9 @@ void cmhe::bind_filter(nb::module_& m) {
           nb::arg("mask"), nb::arg("R"), nb::arg("Q"),
           "One EKF step, then the outputs and their standard deviations: "
           "``(x+, P+, y, std)``.")
+      .def_prop_ro("log_likelihood", [](NodeModel& n) { return n.log_likelihood; },
+                   "The last EKF step's innovation log-density, ``-(r^T S^-1 r + log|S|) / 2`` "
+                   "(its constant left out); NaN where the step had no valid reading.")
       .def_prop_ro("step_seconds", [](NodeModel& n) { return n.step_seconds; },
                    "Wall time of the last ``ekf_step_outputs`` call's arithmetic (the "
                    "step, the outputs and their standard deviations; not its arrays' "

@@ -63,14 +63,25 @@ bool solve(const double* A, const double* B, double* X, int n, int m) {
 }  // namespace small
 
 bool ekf_update(double* x, double* P, const double* r, const double* H, const double* R,
-                int nx, int nz) {
+                int nx, int nz, double* log_likelihood) {
   std::vector<double> HP(nz * nx), S(nz * nz), Ls(nz * nz), Si(nz * nz), Kt(nz * nx);
   small::mul(H, P, HP.data(), nz, nx, nx);
   small::mul_t(HP.data(), H, S.data(), nz, nx, nz);
   for (int i = 0; i < nz * nz; ++i) S[i] += R[i];
+  if (log_likelihood) *log_likelihood = NAN;
   if (small::cholesky(S.data(), Ls.data(), nz)) {
     small::inverse_gram(Ls.data(), Si.data(), nz);
     small::mul(Si.data(), HP.data(), Kt.data(), nz, nz, nx);  // S^-1 H P
+    if (log_likelihood) {  // log N(r; 0, S) without its constant: -(r^T S^-1 r)/2 - log|S|/2
+      double q = 0.0, half_log_det = 0.0;
+      for (int a = 0; a < nz; ++a) {
+        double s = 0.0;
+        for (int b = 0; b < nz; ++b) s += Si[a * nz + b] * r[b];
+        q += r[a] * s;
+        half_log_det += std::log(Ls[a * nz + a]);
+      }
+      *log_likelihood = -0.5 * q - half_log_det;
+    }
   } else if (!small::solve(S.data(), HP.data(), Kt.data(), nz, nx)) {
     return false;
   }
@@ -219,9 +230,11 @@ bool NodeModel::ekf_step(double* x, double* P, const double* u, double dt, const
   predict(x, u, dt);
   for (int i = 0; i < nx; ++i) x[i] = out_[i];
   predict_covariance(P, out_.data() + nx, Q, nx);
+  log_likelihood = NAN;
   if (!any_valid(mask, nz)) return true;
   evaluate(x, u, dt, z, mask);
-  return ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz);
+  return ekf_update(x, P, out_.data() + k + nz * nx, out_.data() + k, R, nx, nz,
+                    &log_likelihood);
 }
 
 void NodeModel::output(const double* x, double* y) {

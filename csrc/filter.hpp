@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -31,9 +32,11 @@ bool solve(const double* A, const double* B, double* X, int n, int m);
 }  // namespace small
 
 // EKF measurement update, Joseph form, in place: ``x`` (nx), ``P`` (nx x nx) with the
-// residual ``r`` (nz) and ``H = -dr/dx`` (nz x nx); false if ``S`` is singular.
+// residual ``r`` (nz) and ``H = -dr/dx`` (nz x nx); false if ``S`` is singular. With
+// ``log_likelihood``: the innovation's log-density ``-(r^T S^-1 r + log|S|) / 2`` (the
+// constant left out; NaN where ``S`` has no Cholesky factor).
 bool ekf_update(double* x, double* P, const double* r, const double* H, const double* R,
-                int nx, int nz);
+                int nx, int nz, double* log_likelihood = nullptr);
 // ``P = F P F^T + Q``, in place
 void predict_covariance(double* P, const double* F, const double* Q, int nx);
 
@@ -81,6 +84,9 @@ class NodeModel {
   // wall time of the last ``ekf_step_outputs`` binding call's arithmetic (the step, the
   // outputs and their standard deviations; not its arrays' conversion), s
   double step_seconds = 0.0;
+  // the last ``ekf_step``'s innovation log-density (``ekf_update``); NaN where it had no
+  // valid reading
+  double log_likelihood = NAN;
 
  private:
   void set_sample(const double* u, double dt, const double* z, const double* mask);

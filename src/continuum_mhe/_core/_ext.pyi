@@ -295,6 +295,12 @@ class NodeModel:
         """
 
     @property
+    def log_likelihood(self) -> float:
+        """
+        The last EKF step's innovation log-density, ``-(r^T S^-1 r + log|S|) / 2`` (its constant left out); NaN where the step had no valid reading.
+        """
+
+    @property
     def step_seconds(self) -> float:
         """
         Wall time of the last ``ekf_step_outputs`` call's arithmetic (the step, the outputs and their standard deviations; not its arrays' conversion), s.

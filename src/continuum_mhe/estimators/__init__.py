@@ -22,6 +22,7 @@ from continuum_mhe.estimators.kalman import (
     ExtendedKalmanFilter,
     UnscentedKalmanFilter,
 )
+from continuum_mhe.estimators.load_hypotheses import LoadHypothesesKalmanFilter
 from continuum_mhe.estimators.mhe import MovingHorizonEstimator
 from continuum_mhe.estimators.sensor_health import Diagnostics, Estimator
 from continuum_mhe.model.formulations import Formulation
@@ -79,6 +80,8 @@ def _make(
 ) -> Estimator:
     if method == "mhe":
         return MovingHorizonEstimator(formulation, mhe, recovery=recovery)
+    if method == "ekf" and formulation.load_states:
+        return LoadHypothesesKalmanFilter(formulation, recovery)
     if method == "ekf":
         return ExtendedKalmanFilter(formulation, recovery)
     if method == "ukf":

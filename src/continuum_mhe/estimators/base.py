@@ -81,13 +81,17 @@ class Inference(ABC):
         states kept by the last restart, their covariance grown by their random walks
         over the time since (:meth:`~continuum_mhe.model.formulations.Formulation.
         kept_sensors`; ``t`` None: not grown)."""
-        kept = None
-        if self._kept is not None:
-            x, P, t0 = self._kept
-            dt = 0.0 if t is None or t0 is None else max(float(t) - float(t0), 0.0)
-            kept = self.formulation.kept_sensors(x, P, dt)
-        self.kept_sensors = kept
-        return self.formulation.start_prior(z, kept)
+        self.kept_sensors = self.kept_at(t)
+        return self.formulation.start_prior(z, self.kept_sensors)
+
+    def kept_at(self, t: float | None) -> KeptSensors | None:
+        """The sensor states the last restart kept, at ``t`` s: their covariance grown by
+        their random walks since (``t`` None: not grown); None where it kept none."""
+        if self._kept is None:
+            return None
+        x, P, t0 = self._kept
+        dt = 0.0 if t is None or t0 is None else max(float(t) - float(t0), 0.0)
+        return self.formulation.kept_sensors(x, P, dt)
 
     @abstractmethod
     def infer(

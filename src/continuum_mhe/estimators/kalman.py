@@ -163,6 +163,9 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         #: ``(state, outputs, standard deviations)`` of the last fused step
         #: (state, outputs, output std, covariance) of the last compiled call
         self._outputs_of: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
+        #: the last :meth:`infer`'s innovation log-density ``-(r^T S^-1 r + log|S|) / 2``
+        #: (NaN for a start, and for a sample without a valid reading)
+        self.log_likelihood = math.nan
         super().__init__(formulation)
 
     def _update(
@@ -176,6 +179,7 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._x is None or self._P is None:
+            self.log_likelihood = math.nan
             return super().infer(m)  # the first sample: prior, then its update
         f = self.formulation
         mask = f.measurement_mask(m.z)
@@ -184,6 +188,7 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
         x, P, y, std = self._node.ekf_step_outputs(
             self._x, self._P, u, dt, m.z, mask, self._R, self._q(dt)[0]
         )
+        self.log_likelihood = float(self._node.core.log_likelihood)
         status: Status = Status.OK if mask.any() else Status.DROPOUT
         if mask.any():
             self._z_prev = m.z

@@ -167,6 +167,19 @@ class KeptSensors:
     cov: FloatArray
 
 
+def without_load(
+    x: FloatArray, P: FloatArray, load: tuple[int, ...]
+) -> tuple[FloatArray, FloatArray]:
+    """Copies of the state ``x`` (nx,) and its covariance ``P`` with the states ``load``
+    zero and certain (their rows and columns of ``P`` zero)."""
+    x, P = np.array(x, dtype=float), np.array(P, dtype=float)
+    idx = np.asarray(load, dtype=np.intp)
+    x[idx] = 0.0
+    P[idx, :] = 0.0
+    P[:, idx] = 0.0
+    return x, P
+
+
 @dataclass(frozen=True)
 class Formulation:
     """Base class: subclasses define the symbolic model.
@@ -373,6 +386,23 @@ class Formulation:
         if dt > 0.0:
             cov += self.process_cov(dt)[np.ix_(idx, idx)]
         return KeptSensors(idx, x[idx].copy(), cov)
+
+    @property
+    def load_states(self) -> tuple[int, ...]:
+        """The states of an external load the robot may be free of (a tendon robot's tip
+        force and its derivatives), indices into :attr:`state_names`; none here. The
+        EKF of a model that has them weighs the robot free of load against loaded
+        (:mod:`continuum_mhe.estimators.load_hypotheses`)."""
+        return ()
+
+    def unloaded_start_prior(
+        self, z0: FloatArray, kept: KeptSensors | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`start_prior` with the :attr:`load_states` held at zero: their values
+        and their rows and columns of the covariance zero (a formulation whose start fit
+        depends on the load overrides this)."""
+        x, P = self.start_prior(z0, kept)
+        return without_load(x, P, self.load_states)
 
     def start_prior(
         self, z0: FloatArray, kept: KeptSensors | None = None

@@ -58,6 +58,7 @@ states: the outputs (the shape) are functions of the state alone in every estima
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -80,7 +81,7 @@ from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
-from continuum_mhe.model.formulations import ChangeTest, Formulation, KeptSensors
+from continuum_mhe.model.formulations import ChangeTest, Formulation, KeptSensors, without_load
 from continuum_mhe.model.imu import (
     STANDARD_GRAVITY,
     tilt_from_gravity_sym,
@@ -117,6 +118,9 @@ START_EVALUATIONS = 600
 #: the force to a third of the buckling load, as those errors tilt the readings as a
 #: small force would, and under a larger load it does not find it again.
 KEPT_START_BUCKLING_MULTIPLE = 3.0
+#: The tip force's prior standard deviation, N, in the start fit of the robot free of
+#: load (:meth:`TendonFormulation.unloaded_start_prior`): the force held at zero.
+UNLOADED_FIT_FORCE_STD = 1e-9
 #: The tip force's white-noise acceleration by default, N^2/s^3: with two or more IMUs,
 #: and with one. One IMU's gravity direction and gyro hold a faster force only loosely:
 #: with the shipped robot's tip IMU alone, the Kalman covariance along the true states of
@@ -882,6 +886,22 @@ class TendonFormulation(Formulation):
                 P[9 + k : 12 + k, 9 + k : 12 + k] = np.eye(3) * wide**2  # fitted to the gyros
             return x, P
         return self._start_fit(z0, self.force_prior_std)[0], self.initial_cov()
+
+    @property
+    def load_states(self) -> tuple[int, ...]:
+        """The tip force ``fx, fy, fz``, its rate and (where estimated) its acceleration."""
+        names = self.state_names
+        return tuple(i for i, n in enumerate(names) if re.fullmatch(r"f[xyz](_dot|_ddot)?", n))
+
+    def unloaded_start_prior(
+        self, z0: FloatArray, kept: KeptSensors | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """The start free of load: :meth:`start_prior`'s fit with the tip force held at
+        zero (a prior of :data:`UNLOADED_FIT_FORCE_STD`), the force and its derivatives
+        zero and certain."""
+        x = self._start_fit(z0, UNLOADED_FIT_FORCE_STD, kept)[0]
+        P = self.with_kept_covariance(self.initial_cov(), kept)
+        return without_load(x, P, self.load_states)
 
     def _gyro_biases_kept(self, kept: KeptSensors | None) -> bool:
         """Whether a restart kept every gyro bias (with raw IMUs): the gyros then show
