@@ -150,3 +150,27 @@ def test_a_load_that_appears_is_followed_by_the_loaded_hypothesis() -> None:
     late = t >= 1.0
     assert tip[late].mean() < single_tip[late].mean() + 0.05e-3
     assert np.sqrt(np.mean(force[late] ** 2)) < np.sqrt(np.mean(single_force[late] ** 2)) + 1e-3
+
+
+def test_estimate_says_how_many_rows_were_taken_as_free_of_load(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``estimate``'s summary line counts the rows of the free-of-load hypothesis: most
+    of ``unloaded`` (tilt), none of ``force-29``, whose force rises from its start."""
+    import re
+
+    from continuum_mhe.cli import main
+
+    counts = {}
+    for name in ("unloaded", "force-29"):
+        capsys.readouterr()
+        assert main(["estimate", str(DATA / f"{name}_tilt.csv"), "--robot",
+                     "tendon-two-section", "--inputs", str(DATA / f"{name}_tensions.csv"),
+                     "-o", str(tmp_path / f"{name}.csv")]) == 0  # fmt: skip
+        said = re.search(
+            r"taken as free of load \(tip force 0 N\) in (\d+) of the 401 estimates",
+            capsys.readouterr().err,
+        )
+        assert said is not None
+        counts[name] = int(said.group(1))
+    assert counts["unloaded"] >= 380 and counts["force-29"] == 0

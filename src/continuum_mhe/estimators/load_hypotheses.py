@@ -95,6 +95,8 @@ class LoadHypothesesInference(Inference):
         unloaded: the EKF with the load held at zero.
         evidence: the log-likelihood ratio, free of load over loaded, with its memory.
         unloaded_chosen: whether the last estimate is the free-of-load hypothesis'.
+        free_of_load_samples: the estimates the free-of-load hypothesis gave since the
+            estimator's last reset.
     """
 
     name = "ekf"
@@ -106,6 +108,10 @@ class LoadHypothesesInference(Inference):
         self.evidence = 0.0
         self.unloaded_chosen = False
         self._chosen: CompiledExtendedKalmanInference = self.loaded
+        self.free_of_load_samples = 0
+
+    def clear_counts(self) -> None:
+        self.free_of_load_samples = 0
 
     def forget(self) -> None:
         """Both hypotheses restart, with the sensor states the restart kept (each keeps
@@ -137,6 +143,7 @@ class LoadHypothesesInference(Inference):
                 P = mixture(xl, Pl, xu, Pu, -self.evidence)
         else:
             self._chosen = self.unloaded
+            self.free_of_load_samples += 1
             x, P = xu, mixture(xu, Pu, xl, Pl, self.evidence)
         return x, P, status
 
