@@ -527,6 +527,25 @@ def test_live_summary_says_drifted_rows_as_estimate_does(tmp_path: Path) -> None
     )
 
 
+def test_live_summary_says_the_rows_taken_as_free_of_load(tmp_path: Path) -> None:
+    """The shipped ``unloaded`` (raw IMUs and tensions on the line): ``live``'s summary
+    says how many estimates the free-of-load hypothesis gave, as ``estimate``'s does;
+    here most of them."""
+    n = 200
+    head, raw = _rows(DATA / "unloaded_raw.csv", n)
+    _, ten = _rows(DATA / "unloaded_tensions.csv", n)
+    lines = [",".join([f"{round(float(r[0]) * 1000)}", *r[1:], *s[1:]]) for r, s in zip(raw, ten)]
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    session, made, _ = _live(serial, est, lines, duration=10.0)
+    free = est.inference.free_of_load_samples
+    assert len(made) == n and free > 0.9 * n
+    assert f"; taken as free of load (tip force 0 N) in {free} of the {n} estimates" in (
+        session.summary()
+    )
+
+
 def test_one_line_without_its_tensions_says_so_where_the_device_named_its_fields(
     runs: Runs,
 ) -> None:

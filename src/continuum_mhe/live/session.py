@@ -17,6 +17,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
+from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.run_notices import (
     TensionGainFromOne,
@@ -783,6 +784,12 @@ class LiveSession:
         if self.status_counts:  # as estimate's summary gives them
             msg += "; statuses: " + ", ".join(
                 f"{k}: {v}" for k, v in sorted(self.status_counts.items())
+            )
+        inference = self.estimator.inference
+        if isinstance(inference, LoadHypothesesInference):  # as estimate's summary says it
+            msg += (
+                f"; taken as free of load (tip force 0 N) in "
+                f"{inference.free_of_load_samples} of the {c.estimates} estimates"
             )
         if self.latency.n:
             msg += (
