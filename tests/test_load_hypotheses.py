@@ -174,3 +174,96 @@ def test_estimate_says_how_many_rows_were_taken_as_free_of_load(
         assert said is not None
         counts[name] = int(said.group(1))
     assert counts["unloaded"] >= 380 and counts["force-29"] == 0
+
+
+def test_the_free_of_load_filter_keeps_its_force_at_zero_and_certain() -> None:
+    """Over the whole of ``force-29`` (raw), whose force rises to 0.29 N, the
+    free-of-load filter's force and its derivatives stay exactly zero, their rows and
+    columns of its covariance too; the loaded filter's force does not."""
+    f, t, z = _shipped("force-29", "raw")
+    inference = LoadHypothesesInference(f)
+    load = list(f.load_states)
+    for ti, zi in zip(t, z):
+        inference.infer(Measurement(float(ti), zi))
+        x, P = inference.unloaded._x, inference.unloaded._P
+        assert x is not None and P is not None
+        assert np.all(x[load] == 0.0) and np.all(P[load, :] == 0.0) and np.all(P[:, load] == 0.0)
+    assert np.linalg.norm(inference.loaded._x[load[:3]]) > 0.2  # type: ignore[index]
+
+
+def test_the_answer_covariance_is_the_mixture_with_the_prior_odds() -> None:
+    """At each sample the covariance handed back is the two hypotheses' mixture about
+    the chosen one's state, weighted by the evidence against the prior odds of a load
+    (``EVIDENCE_MARGIN``): at the first sample after the start (no evidence yet) the
+    loaded one, weighted ``1 / (1 + exp(-margin))``."""
+    from continuum_mhe.estimators.load_hypotheses import EVIDENCE_MARGIN
+
+    f, t, z = _shipped("unloaded", "tilt")
+    inference = LoadHypothesesInference(f)
+    inference.infer(Measurement(float(t[0]), z[0]))
+    x, P, _ = inference.infer(Measurement(float(t[1]), z[1]))
+    xl, Pl = inference.loaded._x, inference.loaded._P
+    xu, Pu = inference.unloaded._x, inference.unloaded._P
+    log_odds = inference.evidence - EVIDENCE_MARGIN
+    if inference.unloaded_chosen:
+        want = mixture(xu, Pu, xl, Pl, log_odds)  # type: ignore[arg-type]
+    else:
+        want = mixture(xl, Pl, xu, Pu, -log_odds)  # type: ignore[arg-type]
+    assert P is not None and np.allclose(P, want, rtol=1e-12, atol=0.0)
+    for ti, zi in zip(t[2:60], z[2:60]):
+        x, P, _ = inference.infer(Measurement(float(ti), zi))
+    assert inference.unloaded_chosen and inference.evidence > EVIDENCE_MARGIN
+    xl, Pl = inference.loaded._x, inference.loaded._P
+    xu, Pu = inference.unloaded._x, inference.unloaded._P
+    assert x is xu or np.array_equal(x, xu)  # type: ignore[arg-type]
+    want = mixture(xu, Pu, xl, Pl, inference.evidence - EVIDENCE_MARGIN)  # type: ignore[arg-type]
+    assert P is not None and np.allclose(P, want, rtol=1e-12, atol=0.0)
+
+
+def test_a_failure_of_one_hypothesis_leaves_the_estimate_to_the_other(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``force-29`` (raw): the free-of-load filter's step fails once at sample 200 (a
+    numerical failure). The estimate goes on from the loaded filter, without a restart
+    of the estimator, and stays as near the truth as without the failure."""
+    f, t, z = _shipped("force-29", "raw")
+    est = make_estimator("ekf", f)
+    clean_tip, _ = _errors(f, make_estimator("ekf", f).run(t, z), "force-29")
+    unloaded = est.inference.unloaded
+    step = type(unloaded).infer
+
+    def failing(self, m):  # type: ignore[no-untyped-def]
+        if abs(m.t - float(t[200])) < 1e-9:
+            raise np.linalg.LinAlgError("singular matrix")
+        return step(self, m)
+
+    monkeypatch.setattr(type(unloaded), "infer", failing)
+    series = est.run(t, z)
+    tip, _ = _errors(f, series, "force-29")
+    assert est.diagnostics.restarts == 0 and not np.any(series.status == "reset")
+    late = t >= t[200]
+    assert tip[late].mean() < clean_tip[late].mean() + 0.05e-3
+
+
+def test_a_restart_gives_each_hypothesis_its_own_sensor_states() -> None:
+    """A gap longer than the gap reset restarts the estimator, keeping the sensor
+    states of its last confirmed estimate: each hypothesis starts again from its own
+    estimate's IMU errors at that time, not from the other's."""
+    f, t, z = _shipped("unloaded", "tilt")
+    inference = LoadHypothesesInference(f)
+    answers = {}
+    for ti, zi in zip(t[:150], z[:150]):
+        inference.infer(Measurement(float(ti), zi))
+        answers[float(ti)] = (inference.loaded._x.copy(), inference.unloaded._x.copy())  # type: ignore[union-attr]
+    kept_t = float(t[140])
+    x_kept, P_kept = inference.loaded._x, inference.loaded._P
+    inference.restart(x_kept, P_kept, kept_t)
+    inference.infer(Measurement(float(t[200]), z[200]))
+    sensors = np.asarray(f.sensor_states)
+    for hypothesis, own in ((inference.loaded, 0), (inference.unloaded, 1)):
+        kept = hypothesis.kept_sensors
+        assert kept is not None
+        mine = answers[kept_t][own][kept.states]
+        other = answers[kept_t][1 - own][kept.states]
+        assert np.array_equal(kept.values, mine) and not np.array_equal(kept.values, other)
+        assert set(kept.states) <= set(sensors)

@@ -13,26 +13,31 @@ force, millimetres off. Two compiled EKFs run side by side on every sample:
 
 Each step's innovation log-density (``log N(r; 0, S)``, the compiled step's
 ``log_likelihood``) of the two is compared; their difference, summed with a memory of
-:data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load. The
-estimate is the hypothesis that evidence favours (free of load where it is positive),
-and its covariance is the two hypotheses' mixture about it, weighted by the evidence's
+:data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load. Against
+prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
+hypothesis' where the evidence exceeds :data:`EVIDENCE_MARGIN`, else the loaded one's;
+its covariance is the two hypotheses' mixture about it, weighted by those posterior
 odds, so that the standard deviations carry what the other hypothesis would make of
 the readings. A load that appears makes the free-of-load filter's predictions miss the
 readings, and the evidence turns within a few readings. Each hypothesis keeps its own
-state: the free-of-load filter's IMU errors are never the loaded one's, which may have
-taken part of a load for them.
+state, a restart included (each restarts from its own estimate at the time the restart
+keeps): the free-of-load filter's IMU errors are never the loaded one's, which may have
+taken part of a load for them. Where one hypothesis' step fails, the sample's estimate
+is the other's, and the failed one starts again at the next sample with the other's
+sensor states.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Inference, Measurement, Status
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
-from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.estimators.sensor_health import NUMERICAL_FAILURES, Estimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import RecoverySettings
 
@@ -44,6 +49,27 @@ EVIDENCE_MEMORY = 0.9
 #: ``exp(EVIDENCE_MARGIN)`` to 1 for a load, so that a load that grows from zero is
 #: followed before the free-of-load filter has bent its IMU errors to it.
 EVIDENCE_MARGIN = 3.0
+
+
+#: The samples whose two answers are kept for a restart that keeps the sensor states of
+#: the estimate at a recent time (the policy keeps those of its last confirmed one).
+RECENT_SAMPLES = 256
+
+_Answer = tuple[FloatArray, FloatArray]
+
+
+def _step(
+    hypothesis: CompiledExtendedKalmanInference, m: Measurement
+) -> tuple[tuple[FloatArray | None, FloatArray | None, Status] | None, float]:
+    """``((x, P, status), log-likelihood)`` of one hypothesis' step, or ``(None, nan)``
+    where it failed: a numerical failure, or a state or covariance that is not finite."""
+    try:
+        x, P, status = hypothesis.infer(m)
+    except NUMERICAL_FAILURES:
+        return None, math.nan
+    if (x is not None and not np.isfinite(x).all()) or (P is not None and not np.isfinite(P).all()):
+        return None, math.nan
+    return (x, P, status), hypothesis.log_likelihood
 
 
 class _NoiseWithoutLoad:
@@ -59,10 +85,10 @@ class _NoiseWithoutLoad:
         key = round(dt, 9)
         got = self._cache.get(key)
         if got is None:
-            Q, Qinv = self._inner(dt)  # type: ignore[operator]
-            Q = np.array(Q, dtype=float)
-            Q[self._load, :] = 0.0
-            Q[:, self._load] = 0.0
+            Q, Qinv = (np.array(a, dtype=float) for a in self._inner(dt))  # type: ignore[operator]
+            for a in (Q, Qinv):  # no noise on the load (Q^-1 as zero there: an inactive term)
+                a[self._load, :] = 0.0
+                a[:, self._load] = 0.0
             got = (Q, Qinv)
             if len(self._cache) < 4096:
                 self._cache[key] = got
@@ -109,42 +135,87 @@ class LoadHypothesesInference(Inference):
         self.unloaded_chosen = False
         self._chosen: CompiledExtendedKalmanInference = self.loaded
         self.free_of_load_samples = 0
+        self._counted_t: float | None = None
+        #: each recent sample's time and the two hypotheses' answers, so that a restart
+        #: that keeps the sensor states of the estimate at a time gives each its own
+        self._recent: deque[tuple[float, _Answer, _Answer]] = deque(maxlen=RECENT_SAMPLES)
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
+        self._counted_t = None
 
     def forget(self) -> None:
-        """Both hypotheses restart, with the sensor states the restart kept (each keeps
-        them from the estimate before it), and the evidence is zero."""
-        kept = (None, None, None) if self._kept is None else self._kept
-        self.loaded.restart(*kept)
-        self.unloaded.restart(*kept)
+        """Both hypotheses restart, each keeping the sensor states of its own estimate at
+        the time the restart keeps (:meth:`restart`'s ``kept_t``; the estimate handed to
+        the restart where that time is not among the recent samples), and the evidence
+        is zero."""
+        kept = self._kept
+        if kept is None:
+            self.loaded.restart()
+            self.unloaded.restart()
+        else:
+            own = next((r for r in reversed(self._recent) if r[0] == kept[2]), None)
+            answers = (None, None) if own is None else (own[1], own[2])
+            for hypothesis, answer in zip((self.loaded, self.unloaded), answers):
+                if answer is None:
+                    hypothesis.restart(*kept)
+                else:
+                    hypothesis.restart(answer[0], answer[1], kept[2])
+        self._recent.clear()
         self.evidence = 0.0
         self.unloaded_chosen = False
         self._chosen = self.loaded
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
-        xl, Pl, status = self.loaded.infer(m)
-        if xl is None or Pl is None:
-            return xl, Pl, status
-        ll_loaded = self.loaded.log_likelihood
-        xu, Pu, _ = self.unloaded.infer(m)
-        ll_free = self.unloaded.log_likelihood
-        kept = self.loaded.kept_sensors
-        self.kept_sensors = kept
+        if self._counted_t is not None and m.t == self._counted_t:
+            self.free_of_load_samples -= 1  # the policy steps this sample again
+        self._counted_t = None
+        got_l, ll_loaded = _step(self.loaded, m)
+        got_u, ll_free = _step(self.unloaded, m)
+        if got_l is None and got_u is None:
+            raise FloatingPointError("both hypotheses' EKF steps failed (non-finite)")
+        # a hypothesis whose step failed starts again at the next sample, keeping the
+        # other's sensor states; this sample's answer is the other's alone
+        if got_l is None and got_u is not None:
+            self.loaded.restart(got_u[0], got_u[1], m.t)
+            return self._answer(self.unloaded, m, got_u[0], got_u[1], got_u[2], None)
+        if got_u is None and got_l is not None:
+            self.unloaded.restart(got_l[0], got_l[1], m.t)
+            return self._answer(self.loaded, m, got_l[0], got_l[1], got_l[2], None)
+        assert got_l is not None and got_u is not None
+        (xl, Pl, status), (xu, Pu, _) = got_l, got_u
+        if xl is None or Pl is None or xu is None or Pu is None:
+            return xl, Pl, status  # no estimate yet
+        self._recent.append((m.t, (xl, Pl), (xu, Pu)))
         if math.isfinite(ll_loaded) and math.isfinite(ll_free):
             self.evidence = EVIDENCE_MEMORY * self.evidence + (ll_free - ll_loaded)
-        free = xu is not None and Pu is not None and self.evidence > EVIDENCE_MARGIN
-        self.unloaded_chosen = free
-        if not free or xu is None or Pu is None:
-            self._chosen = self.loaded
-            x, P = xl, Pl
-            if xu is not None and Pu is not None:
-                P = mixture(xl, Pl, xu, Pu, -self.evidence)
-        else:
-            self._chosen = self.unloaded
+        elif math.isfinite(ll_loaded) or math.isfinite(ll_free):
+            self.evidence *= EVIDENCE_MEMORY  # one side without a density: no new evidence
+        # the odds of the robot free of load: the evidence against the prior odds of a load
+        log_odds = self.evidence - EVIDENCE_MARGIN
+        if log_odds > 0.0:
+            return self._answer(
+                self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status, True
+            )
+        return self._answer(self.loaded, m, xl, mixture(xl, Pl, xu, Pu, -log_odds), status, False)
+
+    def _answer(
+        self,
+        hypothesis: CompiledExtendedKalmanInference,
+        m: Measurement,
+        x: FloatArray | None,
+        P: FloatArray | None,
+        status: Status,
+        free: bool | None,
+    ) -> tuple[FloatArray | None, FloatArray | None, Status]:
+        """``(x, P, status)`` as the answer of ``hypothesis`` (``free`` None: the other
+        failed at this sample), counted where it is the free-of-load one."""
+        self._chosen = hypothesis
+        self.unloaded_chosen = hypothesis is self.unloaded
+        self.kept_sensors = hypothesis.kept_sensors
+        if self.unloaded_chosen and x is not None:
             self.free_of_load_samples += 1
-            x, P = xu, mixture(xu, Pu, xl, Pl, self.evidence)
+            self._counted_t = m.t
         return x, P, status
 
     def output(self, state: FloatArray) -> FloatArray:

@@ -260,7 +260,7 @@ class TwistWithTiltImus:
             f"the estimates twist section {k + 1} by up to {np.degrees(self.largest[k]):.0f} "
             "degrees: tilt IMUs (no gyros) do not see a turn about the vertical, and the "
             "estimates of a robot that a tip force twists are far off while the readings "
-            "fit, with rows ok (the shipped twist-08 and twist-29: 63 and 200 mm mean); "
+            "fit, with rows ok (the shipped twist-08 and twist-29: 67 and 200 mm mean); "
             "raw IMUs (accelerometer and gyro) follow it (docs/tendon.md, Limits)"
         )
 
