@@ -267,3 +267,29 @@ def test_a_restart_gives_each_hypothesis_its_own_sensor_states() -> None:
         other = answers[kept_t][1 - own][kept.states]
         assert np.array_equal(kept.values, mine) and not np.array_equal(kept.values, other)
         assert set(kept.states) <= set(sensors)
+
+
+def test_a_row_taken_as_free_of_load_does_not_exclude_a_small_load() -> None:
+    """``force-08`` (tilt IMUs): the force rises from zero, and the first rows are taken
+    as free of load (0 N) while it is still small. Their tip force's standard deviation
+    is the loaded hypothesis' (no less), so the true force lies within three of them on
+    every axis; the free-of-load filter alone would say 0 N to a fraction of a mN."""
+    f, t, z = _shipped("force-08", "tilt")
+    est = make_estimator("ekf", f)
+    free = []
+    rows = []
+    for ti, zi in zip(t[:120], z[:120]):
+        e = est.step(Measurement(float(ti), zi))
+        free.append(est.inference.unloaded_chosen)
+        rows.append(e)
+    names, truth = _truth("force-08")
+    cols = [o.name for o in f.outputs]
+    force = [cols.index(c) for c in ("fx", "fy", "fz")]
+    true_force = truth[:120][:, [names.index(c) for c in ("fx", "fy", "fz")]]
+    free_rows = [k for k in range(1, 120) if free[k]]
+    assert len(free_rows) >= 10 and np.max(np.abs(true_force[free_rows])) > 0.005
+    for k in free_rows:
+        std = np.asarray(rows[k].output_std, dtype=float)[force]
+        out = np.asarray(rows[k].output, dtype=float)[force]
+        assert np.all(out == 0.0)
+        assert np.all(np.abs(true_force[k]) <= 3.0 * std), (t[k], true_force[k], std)

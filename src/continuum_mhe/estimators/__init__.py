@@ -57,6 +57,10 @@ def make_estimator(
     :class:`~continuum_mhe.errors.UserError` (a ``ValueError``): those filters keep the
     l2 cost, so the estimate asked for is the MHE's (``method="mhe"``), or ``mhe=None``
     (or ``loss="l2"``) for the filter.
+
+    ``"ekf"`` is :class:`ExtendedKalmanFilter`, or for a formulation with load states (a
+    tendon robot's tip force) :class:`LoadHypothesesKalmanFilter`, which weighs the
+    robot free of load against loaded.
     """
     if method not in METHODS:
         raise UserError(f"method must be one of {METHODS}, got {method!r}")
@@ -98,6 +102,7 @@ __all__ = [
     "ExtendedKalmanFilter",
     "CasadiExtendedKalmanFilter",
     "Inference",
+    "LoadHypothesesKalmanFilter",
     "Measurement",
     "Method",
     "MovingHorizonEstimator",

@@ -136,6 +136,9 @@ class LoadHypothesesInference(Inference):
         self._chosen: CompiledExtendedKalmanInference = self.loaded
         self.free_of_load_samples = 0
         self._counted_t: float | None = None
+        #: the last answer's covariance and the loaded hypothesis' answer at that sample
+        self._answer_P: FloatArray | None = None
+        self._loaded_answer: _Answer | None = None
         #: each recent sample's time and the two hypotheses' answers, so that a restart
         #: that keeps the sensor states of the estimate at a time gives each its own
         self._recent: deque[tuple[float, _Answer, _Answer]] = deque(maxlen=RECENT_SAMPLES)
@@ -193,6 +196,7 @@ class LoadHypothesesInference(Inference):
             self.evidence *= EVIDENCE_MEMORY  # one side without a density: no new evidence
         # the odds of the robot free of load: the evidence against the prior odds of a load
         log_odds = self.evidence - EVIDENCE_MARGIN
+        self._loaded_answer = (xl, Pl)
         if log_odds > 0.0:
             return self._answer(
                 self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status, True
@@ -211,6 +215,9 @@ class LoadHypothesesInference(Inference):
         """``(x, P, status)`` as the answer of ``hypothesis`` (``free`` None: the other
         failed at this sample), counted where it is the free-of-load one."""
         self._chosen = hypothesis
+        self._answer_P = P
+        if free is None:
+            self._loaded_answer = None
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
         if self.unloaded_chosen and x is not None:
@@ -222,7 +229,17 @@ class LoadHypothesesInference(Inference):
         return self._chosen.output(state)
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
-        return self._chosen.output_std(state, cov)
+        """The chosen hypothesis' output standard deviations; for the answer of the
+        free-of-load one, its load outputs' (0 N, held) at least the loaded hypothesis'
+        at that sample: a load smaller than what the loaded filter can tell from none
+        is not excluded by taking the robot as free of load."""
+        std = np.array(self._chosen.output_std(state, cov), dtype=float)
+        loaded = self._loaded_answer
+        if self.unloaded_chosen and cov is self._answer_P and loaded is not None:
+            idx = list(self.formulation.load_outputs)
+            floor = np.asarray(self.loaded.output_std(loaded[0], loaded[1]), dtype=float)
+            std[idx] = np.maximum(std[idx], floor[idx])
+        return std
 
 
 def mixture(

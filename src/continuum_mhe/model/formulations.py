@@ -395,6 +395,12 @@ class Formulation:
         (:mod:`continuum_mhe.estimators.load_hypotheses`)."""
         return ()
 
+    @property
+    def load_outputs(self) -> tuple[int, ...]:
+        """The outputs that are the load of :attr:`load_states` (a tendon robot's ``fx,
+        fy, fz``), indices into :attr:`outputs`; none here."""
+        return ()
+
     def unloaded_start_prior(
         self, z0: FloatArray, kept: KeptSensors | None = None
     ) -> tuple[FloatArray, FloatArray]:

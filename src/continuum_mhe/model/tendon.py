@@ -893,6 +893,12 @@ class TendonFormulation(Formulation):
         names = self.state_names
         return tuple(i for i, n in enumerate(names) if re.fullmatch(r"f[xyz](_dot|_ddot)?", n))
 
+    @property
+    def load_outputs(self) -> tuple[int, ...]:
+        """The tip force ``fx, fy, fz``."""
+        names = [o.name for o in self.outputs]
+        return tuple(names.index(c) for c in TIP_FORCE_COLUMNS)
+
     def unloaded_start_prior(
         self, z0: FloatArray, kept: KeptSensors | None = None
     ) -> tuple[FloatArray, FloatArray]:
