@@ -245,28 +245,25 @@ def test_a_failure_of_one_hypothesis_leaves_the_estimate_to_the_other(
     assert tip[late].mean() < clean_tip[late].mean() + 0.05e-3
 
 
-def test_a_restart_gives_each_hypothesis_its_own_sensor_states() -> None:
-    """A gap longer than the gap reset restarts the estimator, keeping the sensor
-    states of its last confirmed estimate: each hypothesis starts again from its own
-    estimate's IMU errors at that time, not from the other's."""
-    f, t, z = _shipped("unloaded", "tilt")
+def test_a_restart_gives_both_hypotheses_the_kept_estimates_sensor_states() -> None:
+    """A restart that keeps the sensor states of an estimate (the policy's last
+    confirmed one, the hypothesis chosen then) gives them to both hypotheses: where the
+    loaded one was chosen, the free-of-load filter's own IMU errors may have taken part
+    of the load (``force-08``, raw: the force is on from its first second)."""
+    f, t, z = _shipped("force-08", "raw")
     inference = LoadHypothesesInference(f)
-    answers = {}
     for ti, zi in zip(t[:150], z[:150]):
-        inference.infer(Measurement(float(ti), zi))
-        answers[float(ti)] = (inference.loaded._x.copy(), inference.unloaded._x.copy())  # type: ignore[union-attr]
-    kept_t = float(t[140])
-    x_kept, P_kept = inference.loaded._x, inference.loaded._P
-    inference.restart(x_kept, P_kept, kept_t)
+        x, P, _ = inference.infer(Measurement(float(ti), zi))
+    assert not inference.unloaded_chosen and x is not None and P is not None
+    own_unloaded = inference.unloaded._x.copy()  # type: ignore[union-attr]
+    inference.restart(x, P, float(t[149]))
     inference.infer(Measurement(float(t[200]), z[200]))
-    sensors = np.asarray(f.sensor_states)
-    for hypothesis, own in ((inference.loaded, 0), (inference.unloaded, 1)):
+    for hypothesis in (inference.loaded, inference.unloaded):
         kept = hypothesis.kept_sensors
-        assert kept is not None
-        mine = answers[kept_t][own][kept.states]
-        other = answers[kept_t][1 - own][kept.states]
-        assert np.array_equal(kept.values, mine) and not np.array_equal(kept.values, other)
-        assert set(kept.states) <= set(sensors)
+        assert kept is not None and set(kept.states) <= set(f.sensor_states)
+        assert np.array_equal(kept.values, x[kept.states])
+    kept = inference.unloaded.kept_sensors
+    assert kept is not None and not np.allclose(kept.values, own_unloaded[kept.states])
 
 
 def test_a_row_taken_as_free_of_load_does_not_exclude_a_small_load() -> None:

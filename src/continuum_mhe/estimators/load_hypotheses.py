@@ -20,17 +20,16 @@ its covariance is the two hypotheses' mixture about it, weighted by those poster
 odds, so that the standard deviations carry what the other hypothesis would make of
 the readings. A load that appears makes the free-of-load filter's predictions miss the
 readings, and the evidence turns within a few readings. Each hypothesis keeps its own
-state, a restart included (each restarts from its own estimate at the time the restart
-keeps): the free-of-load filter's IMU errors are never the loaded one's, which may have
-taken part of a load for them. Where one hypothesis' step fails, the sample's estimate
-is the other's, and the failed one starts again at the next sample with the other's
-sensor states.
+state between restarts: the free-of-load filter's IMU errors are not the loaded one's,
+which may have taken part of a load for them. A restart gives both the sensor states of
+the estimate it keeps (the hypothesis chosen then). Where one hypothesis' step fails,
+the sample's estimate is the other's, and the failed one starts again at the next
+sample with the other's sensor states.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 
@@ -50,10 +49,6 @@ EVIDENCE_MEMORY = 0.9
 #: followed before the free-of-load filter has bent its IMU errors to it.
 EVIDENCE_MARGIN = 3.0
 
-
-#: The samples whose two answers are kept for a restart that keeps the sensor states of
-#: the estimate at a recent time (the policy keeps those of its last confirmed one).
-RECENT_SAMPLES = 256
 
 _Answer = tuple[FloatArray, FloatArray]
 
@@ -139,32 +134,19 @@ class LoadHypothesesInference(Inference):
         #: the last answer's covariance and the loaded hypothesis' answer at that sample
         self._answer_P: FloatArray | None = None
         self._loaded_answer: _Answer | None = None
-        #: each recent sample's time and the two hypotheses' answers, so that a restart
-        #: that keeps the sensor states of the estimate at a time gives each its own
-        self._recent: deque[tuple[float, _Answer, _Answer]] = deque(maxlen=RECENT_SAMPLES)
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
         self._counted_t = None
 
     def forget(self) -> None:
-        """Both hypotheses restart, each keeping the sensor states of its own estimate at
-        the time the restart keeps (:meth:`restart`'s ``kept_t``; the estimate handed to
-        the restart where that time is not among the recent samples), and the evidence
-        is zero."""
-        kept = self._kept
-        if kept is None:
-            self.loaded.restart()
-            self.unloaded.restart()
-        else:
-            own = next((r for r in reversed(self._recent) if r[0] == kept[2]), None)
-            answers = (None, None) if own is None else (own[1], own[2])
-            for hypothesis, answer in zip((self.loaded, self.unloaded), answers):
-                if answer is None:
-                    hypothesis.restart(*kept)
-                else:
-                    hypothesis.restart(answer[0], answer[1], kept[2])
-        self._recent.clear()
+        """Both hypotheses restart, keeping the sensor states of the estimate the restart
+        keeps (the chosen hypothesis' at that time: where the loaded one was chosen, the
+        free-of-load filter's IMU errors may have taken part of the load), and the
+        evidence is zero."""
+        kept = (None, None, None) if self._kept is None else self._kept
+        self.loaded.restart(*kept)
+        self.unloaded.restart(*kept)
         self.evidence = 0.0
         self.unloaded_chosen = False
         self._chosen = self.loaded
@@ -189,7 +171,6 @@ class LoadHypothesesInference(Inference):
         (xl, Pl, status), (xu, Pu, _) = got_l, got_u
         if xl is None or Pl is None or xu is None or Pu is None:
             return xl, Pl, status  # no estimate yet
-        self._recent.append((m.t, (xl, Pl), (xu, Pu)))
         if math.isfinite(ll_loaded) and math.isfinite(ll_free):
             self.evidence = EVIDENCE_MEMORY * self.evidence + (ll_free - ll_loaded)
         elif math.isfinite(ll_loaded) or math.isfinite(ll_free):
