@@ -276,6 +276,10 @@ class TendonFormulation(Formulation):
         initial_tension_gain_std: the gains' prior standard deviation about 1
             (dimensionless).
         tension_gain_psd: the gains' spectral density, 1/s.
+        free_of_load_hypothesis: the EKF weighs the robot free of load against loaded
+            (:attr:`load_states`, :mod:`continuum_mhe.estimators.load_hypotheses`;
+            default on); off, ``make_estimator("ekf", ...)`` gives the single loaded
+            EKF.
     """
 
     name: FormulationName = "tendon"
@@ -326,6 +330,7 @@ class TendonFormulation(Formulation):
     estimate_tension_gain: bool = False
     initial_tension_gain_std: float = INITIAL_TENSION_GAIN_STD
     tension_gain_psd: float = TENSION_GAIN_PSD
+    free_of_load_hypothesis: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -889,7 +894,10 @@ class TendonFormulation(Formulation):
 
     @property
     def load_states(self) -> tuple[int, ...]:
-        """The tip force ``fx, fy, fz``, its rate and (where estimated) its acceleration."""
+        """The tip force ``fx, fy, fz``, its rate and (where estimated) its acceleration;
+        none without :attr:`free_of_load_hypothesis`."""
+        if not self.free_of_load_hypothesis:
+            return ()
         names = self.state_names
         return tuple(i for i, n in enumerate(names) if re.fullmatch(r"f[xyz](_dot|_ddot)?", n))
 
