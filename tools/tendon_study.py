@@ -9,7 +9,8 @@ tensions and the true tip force (``--floor-only``: that alone).
 The formulation is the command line's (``continuum-mhe estimate --robot ROBOT --inputs
 TENSIONS.csv``, with ``--imu-model direct`` for raw IMUs): its defaults, unless
 ``--set NAME=VALUE`` changes a :class:`TendonFormulation` field (repeatable; a study,
-e.g. ``--set force_accel_psd=0.1``).
+e.g. ``--set force_accel_psd=0.1``; ``--set free_of_load_hypothesis=False``: the single
+loaded EKF instead of the two hypotheses, loaded and free of load).
 
     python tools/tendon_study.py DIR SCENARIO [--method ekf|mhe] [--imu tilt|direct]
         [--horizon N] [--skip S] [--set NAME=VALUE] [--tip-imu-only] [--samples N] [--start S]
