@@ -36,6 +36,7 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.estimators.base import Inference, Measurement, Status
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
+from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.sensor_health import NUMERICAL_FAILURES, Estimator
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.settings import RecoverySettings
@@ -68,10 +69,10 @@ def _step(
 
 
 class _NoiseWithoutLoad:
-    """A process-noise cache's ``(Q, Q^-1)`` with the load states' rows and columns of
-    ``Q`` zero (the force held: no random walk)."""
+    """A process-noise cache's ``(Q, Q^-1)`` with the load states' rows and columns zero
+    in both (the force held: no random walk; the EKF does not use ``Q^-1``)."""
 
-    def __init__(self, inner: object, load: tuple[int, ...]) -> None:
+    def __init__(self, inner: ProcessNoiseCache, load: tuple[int, ...]) -> None:
         self._inner = inner
         self._load = np.asarray(load, dtype=np.intp)
         self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
@@ -80,7 +81,7 @@ class _NoiseWithoutLoad:
         key = round(dt, 9)
         got = self._cache.get(key)
         if got is None:
-            Q, Qinv = (np.array(a, dtype=float) for a in self._inner(dt))  # type: ignore[operator]
+            Q, Qinv = (np.array(a, dtype=float) for a in self._inner(dt))
             for a in (Q, Qinv):  # no noise on the load (Q^-1 as zero there: an inactive term)
                 a[self._load, :] = 0.0
                 a[:, self._load] = 0.0
