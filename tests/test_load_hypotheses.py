@@ -293,3 +293,33 @@ def test_a_row_taken_as_free_of_load_does_not_exclude_a_small_load() -> None:
         out = np.asarray(rows[k].output, dtype=float)[force]
         assert np.all(out == 0.0)
         assert np.all(np.abs(true_force[k]) <= 3.0 * std), (t[k], true_force[k], std)
+
+
+def test_a_failure_of_the_loaded_hypothesis_keeps_the_force_floor_and_the_next_dropout(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``unloaded`` (raw): the loaded filter's step fails at sample 200 and sample 201
+    has no valid reading. Row 200 is the free-of-load filter's, its tip force 0 N with
+    the loaded hypothesis' last standard deviation (not zero); row 201, where the loaded
+    filter has nothing to start from, is the free-of-load filter's prediction
+    (``dropout``), not ``no-estimate``."""
+    f, t, z = _shipped("unloaded", "raw")
+    z = z.copy()
+    z[201] = np.nan  # nothing read at that sample
+    est = make_estimator("ekf", f)
+    loaded = est.inference.loaded
+    step = loaded.infer
+
+    def failing(m):  # type: ignore[no-untyped-def]
+        if abs(m.t - float(t[200])) < 1e-9:
+            raise np.linalg.LinAlgError("singular matrix")
+        return step(m)
+
+    monkeypatch.setattr(loaded, "infer", failing)
+    rows = [est.step(Measurement(float(ti), zi)) for ti, zi in zip(t[:205], z[:205])]
+    cols = [o.name for o in f.outputs]
+    force = [cols.index(c) for c in ("fx", "fy", "fz")]
+    assert str(rows[200].status) == "ok" and np.all(np.asarray(rows[200].output)[force] == 0.0)
+    assert np.all(np.asarray(rows[200].output_std)[force] > 1e-4)
+    assert str(rows[201].status) == "dropout" and rows[201].output is not None
+    assert est.diagnostics.restarts == 0

@@ -13,8 +13,9 @@ force, millimetres off. Two compiled EKFs run side by side on every sample:
 
 Each step's innovation log-density (``log N(r; 0, S)``, the compiled step's
 ``log_likelihood``) of the two is compared; their difference, summed with a memory of
-:data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load. Against
-prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
+:data:`EVIDENCE_MEMORY` per reading, is the evidence for the robot free of load (held
+where neither filter has a valid reading, and only decaying where one has no density).
+Against prior odds of ``exp(EVIDENCE_MARGIN)`` to 1 for a load, the estimate is the free-of-load
 hypothesis' where the evidence exceeds :data:`EVIDENCE_MARGIN`, else the loaded one's;
 its covariance is the two hypotheses' mixture about it, weighted by those posterior
 odds, so that the standard deviations carry what the other hypothesis would make of
@@ -169,8 +170,14 @@ class LoadHypothesesInference(Inference):
             self.unloaded.restart(got_l[0], got_l[1], m.t)
             return self._answer(self.loaded, m, got_l[0], got_l[1], got_l[2], None)
         assert got_l is not None and got_u is not None
-        (xl, Pl, status), (xu, Pu, _) = got_l, got_u
+        (xl, Pl, status), (xu, Pu, status_u) = got_l, got_u
         if xl is None or Pl is None or xu is None or Pu is None:
+            # one without an estimate yet (restarted after a failure, and this sample
+            # without a valid reading to start from): the other's, where it has one
+            if xu is not None and Pu is not None:
+                return self._answer(self.unloaded, m, xu, Pu, status_u, None)
+            if xl is not None and Pl is not None:
+                return self._answer(self.loaded, m, xl, Pl, status, None)
             return xl, Pl, status  # no estimate yet
         if math.isfinite(ll_loaded) and math.isfinite(ll_free):
             self.evidence = EVIDENCE_MEMORY * self.evidence + (ll_free - ll_loaded)
@@ -195,11 +202,10 @@ class LoadHypothesesInference(Inference):
         free: bool | None,
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """``(x, P, status)`` as the answer of ``hypothesis`` (``free`` None: the other
-        failed at this sample), counted where it is the free-of-load one."""
+        has none at this sample, and the free-of-load answer's force floor is the loaded
+        hypothesis' last), counted where it is the free-of-load one."""
         self._chosen = hypothesis
         self._answer_P = P
-        if free is None:
-            self._loaded_answer = None
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
         if self.unloaded_chosen and x is not None:

@@ -125,10 +125,11 @@ UNLOADED_FIT_FORCE_STD = 1e-9
 #: and with one. One IMU's gravity direction and gyro hold a faster force only loosely:
 #: with the shipped robot's tip IMU alone, the Kalman covariance along the true states of
 #: the unloaded recording keeps each horizontal component's standard deviation at about
-#: 0.09 N at 1 N^2/s^3 and 0.012 N at 1e-3. The EKF weighs the robot free of load against
-#: loaded (estimators.load_hypotheses), so a robot free of load does not pay for a faster
-#: force; the one-IMU value is the one of those measured (6e-4 to 1e-2) that is best
-#: under load and twist on seeds 0 to 2 of docs/tendon-studies.md ("One IMU").
+#: 0.09 N at 1 N^2/s^3 and 0.012 N at 1e-3. The default EKF weighs the robot free of load
+#: against loaded (estimators.load_hypotheses), so a robot free of load does not pay for
+#: a faster force there (the single loaded EKF does: free_of_load_hypothesis=False); the
+#: one-IMU value is the one of those measured (6e-4 to 1e-2) that is best under load and
+#: twist on seeds 0 to 2 of docs/tendon-studies.md ("One IMU").
 FORCE_ACCEL_PSD = 1.0
 SINGLE_IMU_FORCE_ACCEL_PSD = 2e-3
 #: The tip force's prior standard deviation by default, as a fraction of the load that
