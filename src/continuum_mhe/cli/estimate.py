@@ -46,7 +46,6 @@ from continuum_mhe.cli.program import PROG, version
 from continuum_mhe.cli.recovery_options import add_recovery_options, recovery_settings_from_args
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators import make_estimator
-from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.estimators.run_notices import (
     BendsBeyondBound,
     BendsOnBound,
@@ -54,6 +53,7 @@ from continuum_mhe.estimators.run_notices import (
     TensionGainFromOne,
     TwistWithTiltImus,
     drifted_notice,
+    free_of_load_clause,
     inconsistent_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
@@ -273,9 +273,8 @@ def run(args: argparse.Namespace) -> int:
         msg += f"; estimated {args.method_note}"
     for clause in stream.description.summary():
         msg += f"; {clause}"
-    if isinstance(est.inference, LoadHypothesesInference):
-        free = est.inference.free_of_load_samples
-        msg += f"; taken as free of load (tip force 0 N) in {free} of the {n} estimates"
+    if free_note := free_of_load_clause(est.inference, n):
+        msg += f"; {free_note}"
     if diag.frozen_samples:
         of = ", ".join(f"{k}: {v}" for k, v in sorted(tally.frozen.items()))
         msg += (

@@ -69,29 +69,6 @@ def _step(
     return (x, P, status), hypothesis.log_likelihood
 
 
-class _NoiseWithoutLoad:
-    """A process-noise cache's ``(Q, Q^-1)`` with the load states' rows and columns zero
-    in both (the force held: no random walk; the EKF does not use ``Q^-1``)."""
-
-    def __init__(self, inner: ProcessNoiseCache, load: tuple[int, ...]) -> None:
-        self._inner = inner
-        self._load = np.asarray(load, dtype=np.intp)
-        self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
-
-    def __call__(self, dt: float) -> tuple[FloatArray, FloatArray]:
-        key = round(dt, 9)
-        got = self._cache.get(key)
-        if got is None:
-            Q, Qinv = (np.array(a, dtype=float) for a in self._inner(dt))
-            for a in (Q, Qinv):  # no noise on the load (Q^-1 as zero there: an inactive term)
-                a[self._load, :] = 0.0
-                a[:, self._load] = 0.0
-            got = (Q, Qinv)
-            if len(self._cache) < 4096:
-                self._cache[key] = got
-        return got
-
-
 class UnloadedKalmanInference(CompiledExtendedKalmanInference):
     """The compiled EKF with the formulation's load states held at zero: its starts
     are :meth:`~continuum_mhe.model.formulations.Formulation.unloaded_start_prior`, its
@@ -99,14 +76,11 @@ class UnloadedKalmanInference(CompiledExtendedKalmanInference):
 
     def __init__(self, formulation: Formulation) -> None:
         super().__init__(formulation)
-        self._q = _NoiseWithoutLoad(self._q, formulation.load_states)  # type: ignore[assignment]
+        self._q = ProcessNoiseCache(formulation, held=formulation.load_states)
 
     def start_prior(self, z: FloatArray, t: float | None = None) -> tuple[FloatArray, FloatArray]:
         self.kept_sensors = self.kept_at(t)
         return self.formulation.unloaded_start_prior(z, self.kept_sensors)
-
-    def policy_inference(self) -> None:
-        return None  # stepped by LoadHypothesesInference
 
 
 class LoadHypothesesInference(Inference):
@@ -136,6 +110,7 @@ class LoadHypothesesInference(Inference):
         #: the last answer's covariance and the loaded hypothesis' answer at that sample
         self._answer_P: FloatArray | None = None
         self._loaded_answer: _Answer | None = None
+        self._load_outputs = list(formulation.load_outputs)
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
@@ -165,19 +140,19 @@ class LoadHypothesesInference(Inference):
         # other's sensor states; this sample's answer is the other's alone
         if got_l is None and got_u is not None:
             self.loaded.restart(got_u[0], got_u[1], m.t)
-            return self._answer(self.unloaded, m, got_u[0], got_u[1], got_u[2], None)
+            return self._answer(self.unloaded, m, got_u[0], got_u[1], got_u[2])
         if got_u is None and got_l is not None:
             self.unloaded.restart(got_l[0], got_l[1], m.t)
-            return self._answer(self.loaded, m, got_l[0], got_l[1], got_l[2], None)
+            return self._answer(self.loaded, m, got_l[0], got_l[1], got_l[2])
         assert got_l is not None and got_u is not None
         (xl, Pl, status), (xu, Pu, status_u) = got_l, got_u
         if xl is None or Pl is None or xu is None or Pu is None:
             # one without an estimate yet (restarted after a failure, and this sample
             # without a valid reading to start from): the other's, where it has one
             if xu is not None and Pu is not None:
-                return self._answer(self.unloaded, m, xu, Pu, status_u, None)
+                return self._answer(self.unloaded, m, xu, Pu, status_u)
             if xl is not None and Pl is not None:
-                return self._answer(self.loaded, m, xl, Pl, status, None)
+                return self._answer(self.loaded, m, xl, Pl, status)
             return xl, Pl, status  # no estimate yet
         if math.isfinite(ll_loaded) and math.isfinite(ll_free):
             self.evidence = EVIDENCE_MEMORY * self.evidence + (ll_free - ll_loaded)
@@ -187,10 +162,8 @@ class LoadHypothesesInference(Inference):
         log_odds = self.evidence - EVIDENCE_MARGIN
         self._loaded_answer = (xl, Pl)
         if log_odds > 0.0:
-            return self._answer(
-                self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status, True
-            )
-        return self._answer(self.loaded, m, xl, mixture(xl, Pl, xu, Pu, -log_odds), status, False)
+            return self._answer(self.unloaded, m, xu, mixture(xu, Pu, xl, Pl, log_odds), status)
+        return self._answer(self.loaded, m, xl, mixture(xl, Pl, xu, Pu, -log_odds), status)
 
     def _answer(
         self,
@@ -199,11 +172,10 @@ class LoadHypothesesInference(Inference):
         x: FloatArray | None,
         P: FloatArray | None,
         status: Status,
-        free: bool | None,
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
-        """``(x, P, status)`` as the answer of ``hypothesis`` (``free`` None: the other
-        has none at this sample, and the free-of-load answer's force floor is the loaded
-        hypothesis' last), counted where it is the free-of-load one."""
+        """``(x, P, status)`` as the answer of ``hypothesis``, counted where it is the
+        free-of-load one (where the loaded one has no answer at this sample, the
+        free-of-load answer's force floor is the loaded hypothesis' last)."""
         self._chosen = hypothesis
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
@@ -224,7 +196,7 @@ class LoadHypothesesInference(Inference):
         std = np.array(self._chosen.output_std(state, cov), dtype=float)
         loaded = self._loaded_answer
         if self.unloaded_chosen and cov is self._answer_P and loaded is not None:
-            idx = list(self.formulation.load_outputs)
+            idx = self._load_outputs
             floor = np.asarray(self.loaded.output_std(loaded[0], loaded[1]), dtype=float)
             std[idx] = np.maximum(std[idx], floor[idx])
         return std

@@ -28,10 +28,14 @@ def process_noise(formulation: Formulation, dt: float) -> tuple[FloatArray, Floa
 
 class ProcessNoiseCache:
     """:func:`process_noise` of a formulation, cached per time step rounded to 1e-9 s
-    (Q depends on the time step only; at most 4096 distinct steps are kept)."""
+    (Q depends on the time step only; at most 4096 distinct steps are kept). ``held``:
+    states without process noise, their rows and columns of ``Q`` and ``Q^-1`` zero (a
+    state held where it is, such as the tip force of a robot taken as free of load;
+    ``Q^-1`` there is that of the other states, as on an inactive term)."""
 
-    def __init__(self, formulation: Formulation) -> None:
+    def __init__(self, formulation: Formulation, held: tuple[int, ...] = ()) -> None:
         self._f = formulation
+        self._held = np.asarray(held, dtype=np.intp)
         self._cache: dict[float, tuple[FloatArray, FloatArray]] = {}
 
     def __call__(self, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -39,6 +43,10 @@ class ProcessNoiseCache:
         w = self._cache.get(key)
         if w is None:
             w = process_noise(self._f, dt)
+            if len(self._held):
+                for a in w:
+                    a[self._held, :] = 0.0
+                    a[:, self._held] = 0.0
             if len(self._cache) < 4096:
                 self._cache[key] = w
         return w

@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.estimators.base import tension_rows
+from continuum_mhe.estimators.base import Inference, tension_rows
+from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
@@ -408,3 +409,12 @@ def drifted_notice(drifted: int, n: int, formulation: Formulation) -> str | None
         "scale, unit, tendon order and timing; --estimate-tension-gain estimates a scale) "
         f"and the robot file (the IMUs' places, the backbone){tilt}"
     )
+
+
+def free_of_load_clause(inference: Inference, n: int) -> str | None:
+    """The summary's clause of the estimates, of ``n``, that a tendon robot's EKF took as
+    free of load (:mod:`.load_hypotheses`); None for any other inference."""
+    if not isinstance(inference, LoadHypothesesInference):
+        return None
+    free = inference.free_of_load_samples
+    return f"taken as free of load (tip force 0 N) in {free} of the {n} estimates"

@@ -17,12 +17,12 @@ import numpy as np
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
-from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.run_notices import (
     TensionGainFromOne,
     TwistWithTiltImus,
     drifted_notice,
+    free_of_load_clause,
     inconsistent_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
@@ -785,12 +785,8 @@ class LiveSession:
             msg += "; statuses: " + ", ".join(
                 f"{k}: {v}" for k, v in sorted(self.status_counts.items())
             )
-        inference = self.estimator.inference
-        if isinstance(inference, LoadHypothesesInference):  # as estimate's summary says it
-            msg += (
-                f"; taken as free of load (tip force 0 N) in "
-                f"{inference.free_of_load_samples} of the {c.estimates} estimates"
-            )
+        if free_note := free_of_load_clause(self.estimator.inference, c.estimates):
+            msg += f"; {free_note}"  # as estimate's summary says it
         if self.latency.n:
             msg += (
                 f"; latency from line received to estimate written: median "
