@@ -12,7 +12,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
@@ -219,3 +219,30 @@ def stubborn_trial(spec: object) -> dict[str, object]:
         except KeyboardInterrupt:
             pass
     return {}
+
+
+def slow_pool_thread() -> None:
+    """Widen, in this process, the race between the interpreter's exit and a process
+    pool's own thread as it ends: the thread takes a tenth of a second to close its
+    wake-up pipe, and the exit's write to that pipe comes half a second after its check
+    that the pipe is open. A pool's thread still running at exit then meets a closed
+    pipe (a traceback on stderr)."""
+    from concurrent.futures import process
+
+    wakeup_class = process._ThreadWakeup
+    close = wakeup_class.close
+    wakeup = wakeup_class.wakeup
+
+    def slow_close(self: Any) -> None:
+        time.sleep(0.1)
+        close(self)
+
+    def late_wakeup(self: Any) -> None:
+        if process._global_shutdown and not self._closed:  # the exit's call
+            time.sleep(0.5)
+            self._writer.send_bytes(b"")
+        else:
+            wakeup(self)
+
+    wakeup_class.close = slow_close
+    wakeup_class.wakeup = late_wakeup

@@ -415,13 +415,14 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     assert not out.exists()
 
 
+@pytest.mark.parametrize("slow_pool", [False, True], ids=["", "slow-pool-thread"])
 @pytest.mark.parametrize(
     ("sig", "code", "said"),
     [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],
     ids=["sigint", "sigterm"],
 )
 def test_a_signal_to_the_process_group_stops_reproduce_at_once(
-    tmp_path: Path, sig: int, code: int, said: str
+    tmp_path: Path, sig: int, code: int, said: str, slow_pool: bool
 ) -> None:
     """A Ctrl-C that reaches the workers too (a terminal sends it to the process group)
     while they are inside IPOPT, which drops it, stops reproduce at once: the workers
@@ -429,14 +430,17 @@ def test_a_signal_to_the_process_group_stops_reproduce_at_once(
     without waiting for the remaining trials, and the --out folder is made only once the
     trials are done: one line, 130 (143), nothing left. The trials here drop every
     interrupt, as IPOPT does (:func:`live_helpers.stubborn_trial`), and the signal goes
-    to the whole group once both workers are inside one."""
+    to the whole group once both workers are inside one. With the pool's own thread slow
+    to end (:func:`live_helpers.slow_pool_thread`), the exit still writes nothing more
+    than the one line."""
     marks, out = tmp_path / "marks", tmp_path / "results"
     marks.mkdir()
     script = (
         "import sys\n"
-        "from live_helpers import stubborn_trial\n"
+        "from live_helpers import slow_pool_thread, stubborn_trial\n"
         "from continuum_mhe import cli\n"
         "from continuum_mhe.reproduce import pipeline\n"
+        f"if {slow_pool}: slow_pool_thread()\n"
         "pipeline.run_task = stubborn_trial\n"
         "sys.exit(cli.main(['reproduce', '--out', sys.argv[1], '--quick', '--jobs', '2']))\n"
     )

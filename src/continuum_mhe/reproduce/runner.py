@@ -15,6 +15,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -113,6 +114,7 @@ def run_parallel(
 
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_MANAGER_JOIN_S = 10.0  # bound on the wait for the pool's thread after its workers die
 
 
 @contextmanager
@@ -158,6 +160,8 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
     solve, or blocked for ever on a lock a killed one held)."""
     workers = list((pool._processes or {}).values())
     results = getattr(pool._result_queue, "_writer", None)  # the workers' end
+    # (shutdown forgets the pool's thread; typeshed types it as its wake-up pipe)
+    manager: threading.Thread | None = pool._executor_manager_thread  # type: ignore[assignment]
     pool.shutdown(wait=False, cancel_futures=True)
     for p in workers:
         p.kill()
@@ -167,6 +171,11 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
     # writer closed (ours is never used) it gets end-of-file instead of waiting for ever
     if results is not None:
         results.close()
+    # With its workers dead the pool's thread closes its wake-up pipe and ends. Waited
+    # for here, since the interpreter's exit otherwise writes to that pipe while the
+    # thread may be closing it (a traceback on stderr after the command's one line).
+    if manager is not None:
+        manager.join(timeout=_MANAGER_JOIN_S)
 
 
 def _run_dask(
