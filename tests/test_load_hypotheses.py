@@ -323,3 +323,23 @@ def test_a_failure_of_the_loaded_hypothesis_keeps_the_force_floor_and_the_next_d
     assert np.all(np.asarray(rows[200].output_std)[force] > 1e-4)
     assert str(rows[201].status) == "dropout" and rows[201].output is not None
     assert est.diagnostics.restarts == 0
+
+
+def test_a_new_stretch_at_the_last_counted_time_keeps_the_free_of_load_count() -> None:
+    """``reset(keep_counts=True)`` (``live``'s reconnect) begins another stretch of the
+    recording: its first sample, even at the time of the last row counted as free of
+    load, is another sample, and the count keeps that row (a policy's second step of
+    one sample takes it back; here nothing is stepped twice)."""
+    f, t, z = _shipped("unloaded", "tilt")
+    est = make_estimator("ekf", f)
+    assert isinstance(est, LoadHypothesesKalmanFilter)
+    for ti, zi in zip(t[:120], z[:120]):
+        est.step(Measurement(float(ti), zi))
+    inference = est.inference
+    assert isinstance(inference, LoadHypothesesInference) and inference.unloaded_chosen
+    counted = inference.free_of_load_samples
+    assert counted > 50
+    est.reset(keep_counts=True)
+    est.step(Measurement(float(t[119]), z[119]))  # the restart's first sample: loaded
+    assert not inference.unloaded_chosen
+    assert inference.free_of_load_samples == counted

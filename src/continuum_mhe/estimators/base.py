@@ -106,6 +106,12 @@ class Inference(ABC):
         check keep theirs)."""
         return None
 
+    def close_recording(self) -> None:
+        """The samples so far are final: the next :meth:`infer`, even of a sample at the
+        last one's time, begins another recording (or another stretch of one), not the
+        estimator's second step of that sample (none here)."""
+        return None
+
     def sync_counts(self) -> None:
         """Bring the object's own counts up to date with its compiled step's (none here;
         the MHE's branch check counts some windows in the compiled step)."""

@@ -116,6 +116,9 @@ class LoadHypothesesInference(Inference):
         self.free_of_load_samples = 0
         self._counted_t = None
 
+    def close_recording(self) -> None:
+        self._counted_t = None  # a sample at the same time is then another one
+
     def forget(self) -> None:
         """Both hypotheses restart, keeping the sensor states of the estimate the restart
         keeps (the chosen hypothesis' at that time: where the loaded one was chosen, the

@@ -360,6 +360,7 @@ class Estimator(Generic[InferenceT]):
         have come from them. A RuntimeError, changing nothing, while another thread
         steps this estimator."""
         self._policy.check_idle()
+        self.inference.close_recording()
         if not keep_counts:
             self.diagnostics.clear()
             self.inference.clear_counts()
