@@ -1,6 +1,7 @@
 #include "model_function.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstring>
 #include <stdexcept>
@@ -135,13 +136,16 @@ int TailFunction::evaluate(const double* const* in, double* out) const {
 namespace cmhe {
 
 namespace {
-// the last evaluation of a RememberedFunction on this thread: its id, inputs (each
-// input's presence, then its values) and outputs
+// an evaluation of a RememberedFunction kept on this thread: its function's id, inputs
+// (each input's presence, then its values) and outputs
 struct LastEvaluation {
   uint64_t id = 0;
   std::vector<double> in, out;
 };
-thread_local LastEvaluation last_evaluation;
+// the last two evaluations on this thread (two filters stepping one model side by side,
+// then a check at either's prediction), and which of them is the latest
+thread_local std::array<LastEvaluation, 2> last_evaluations;
+thread_local int latest_evaluation = 0;
 std::atomic<uint64_t> next_remembered_id{1};
 }  // namespace
 
@@ -154,26 +158,32 @@ RememberedFunction::RememberedFunction(const ModelFunction& inner,
   }
 }
 
+bool RememberedFunction::same_inputs(const double* kept, const double* const* in) const {
+  for (size_t i = 0; i < input_sizes_.size(); ++i) {
+    const int64_t n = input_sizes_[i];
+    const bool present = in[i] != nullptr;
+    if ((*kept++ != 0.0) != present) return false;
+    if (present && std::memcmp(kept, in[i], n * sizeof(double)) != 0) return false;
+    kept += n;
+  }
+  return true;
+}
+
 int RememberedFunction::evaluate(const double* const* in, double* out) const {
-  LastEvaluation& last = last_evaluation;
   const int64_t nout = inner_.output_size();
-  bool same = last.id == id_;
-  if (same) {
-    const double* kept = last.in.data();
-    for (size_t i = 0; same && i < input_sizes_.size(); ++i) {
-      const int64_t n = input_sizes_[i];
-      const bool present = in[i] != nullptr;
-      same = (*kept++ != 0.0) == present;
-      if (same && present) same = std::memcmp(kept, in[i], n * sizeof(double)) == 0;
-      kept += n;
+  for (int k : {latest_evaluation, 1 - latest_evaluation}) {
+    const LastEvaluation& kept = last_evaluations[k];
+    if (kept.id == id_ && same_inputs(kept.in.data(), in)) {
+      std::memcpy(out, kept.out.data(), nout * sizeof(double));
+      latest_evaluation = k;
+      hits_.fetch_add(1, std::memory_order_relaxed);
+      return 0;
     }
   }
-  if (same) {
-    std::memcpy(out, last.out.data(), nout * sizeof(double));
-    hits_.fetch_add(1, std::memory_order_relaxed);
-    return 0;
-  }
-  // the inputs are kept before the evaluation (an output may overwrite an input)
+  // the older one gives way; the inputs are kept before the evaluation (an output may
+  // overwrite an input)
+  const int k = 1 - latest_evaluation;
+  LastEvaluation& last = last_evaluations[k];
   last.id = 0;
   last.in.resize(inputs_);
   double* kept = last.in.data();
@@ -190,6 +200,7 @@ int RememberedFunction::evaluate(const double* const* in, double* out) const {
   if (status != 0) return status;
   last.out.assign(out, out + nout);
   last.id = id_;
+  latest_evaluation = k;
   return 0;
 }
 

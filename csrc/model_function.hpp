@@ -38,10 +38,12 @@ class TapeFunction : public ModelFunction {
   Tape tape_;
 };
 
-// ``inner`` with its last evaluation remembered, per thread: an evaluation at the same
-// inputs, bit for bit (a null input pointer is an input of its own), copies the outputs
-// kept instead of evaluating again. An EKF's update and the consistency check's
-// prediction evaluate the measurement terms at the same state. ``input_sizes``: the
+// ``inner`` with its last evaluations remembered, per thread (the last two of any
+// RememberedFunction on that thread): an evaluation at the same inputs, bit for bit (a
+// null input pointer is an input of its own), copies the outputs kept instead of
+// evaluating again. An EKF's update and the consistency check's prediction evaluate the
+// measurement terms at the same state; two EKFs of one model side by side (a tendon
+// robot's load hypotheses) step before the check evaluates at either's prediction. ``input_sizes``: the
 // number of values of each input; ``inner`` must outlive this object.
 class RememberedFunction : public ModelFunction {
  public:
@@ -52,6 +54,8 @@ class RememberedFunction : public ModelFunction {
   int64_t hits() const { return hits_.load(std::memory_order_relaxed); }
 
  private:
+  // whether ``kept`` (presence and values of each input) holds the inputs ``in``
+  bool same_inputs(const double* kept, const double* const* in) const;
   const ModelFunction& inner_;
   std::vector<int64_t> input_sizes_;
   mutable std::atomic<int64_t> hits_{0};

@@ -225,6 +225,29 @@ def test_a_remembered_function_answers_only_for_its_own_inputs() -> None:
     np.testing.assert_array_equal(core_flat(three, a), casadi_flat(second, a))
 
 
+def test_a_remembered_function_keeps_the_last_two_evaluations() -> None:
+    """The last two evaluations on a thread are kept: two inputs in turn (two filters of
+    one model side by side) are each evaluated once, and a third input takes the place
+    of the older of the two; every answer is CasADi's."""
+    x, y = ca.SX.sym("x", 2), ca.SX.sym("y")
+    fn = ca.Function("f", [x, y], [ca.sin(x[0]) * y + x[1]])
+    core = _core.RememberedFunction(tape_function(fn), [2, 1])
+    inputs = {
+        name: [np.array([v, -1.2]), np.array([2.5])]
+        for name, v in (("a", 0.3), ("b", 0.4), ("c", 0.5))
+    }
+    hits = []
+    for name in ["a", "b", "a", "b", "a", "c", "a", "b"]:
+        args = inputs[name]
+        out = np.full(core.output_size, np.nan)
+        before = core.hits
+        core.evaluate([np.ascontiguousarray(a) for a in args], out)
+        hits.append(core.hits - before)
+        np.testing.assert_array_equal(out, casadi_flat(fn, args))
+    # c takes b's place (a was the latest); b is then evaluated again
+    assert hits == [0, 0, 1, 1, 1, 0, 1, 0]
+
+
 def _branch_function() -> ca.Function:
     """sinc-like branches as the kinematics write them (a series below a switch, a closed
     form above it), with their Jacobians: each side long enough to be guarded."""

@@ -343,3 +343,18 @@ def test_a_new_stretch_at_the_last_counted_time_keeps_the_free_of_load_count() -
     est.step(Measurement(float(t[119]), z[119]))  # the restart's first sample: loaded
     assert not inference.unloaded_chosen
     assert inference.free_of_load_samples == counted
+
+
+def test_the_check_takes_the_chosen_hypothesis_evaluation() -> None:
+    """Both hypotheses' EKFs evaluate the measurement terms at their predictions, then
+    the consistency check at the prediction from the chosen one's estimate: that
+    evaluation is one of the two just made (every reading valid), taken instead of
+    evaluated anew at every sample after the first."""
+    from continuum_mhe.estimators.fast import node_functions
+
+    f, t, z = _shipped("unloaded", "raw")
+    memo = node_functions(f).measurement
+    est = make_estimator("ekf", f)
+    before = memo.hits
+    est.run(t, z)
+    assert memo.hits - before >= len(t) - 2
