@@ -236,6 +236,45 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
     assert worst < 1e-6
 
 
+def test_acados_starts_each_window_from_its_shifted_multipliers() -> None:
+    """As sqpmethod (``shifted_multipliers``) and the fast MHE, acados starts a window
+    from the last answer's multipliers moved by one sample: each stage's dynamics
+    multipliers, inequality multipliers and slacks are the next stage's of the answer
+    before, the last stage's and the dynamics' into it the old last ones'; a new
+    recording starts from what acados holds."""
+    folder = os.environ.get(ACADOS_DIR_VARIABLE)
+    why = peers.missing_peers(folder).get("acados")
+    if why is not None:
+        pytest.skip(f"acados: {why} (or set {ACADOS_DIR_VARIABLE}=DIR)")
+    f = make_formulation("bend")
+    rec = simulate("paper3d", duration=0.6, seed=3)
+    n = 6
+    windows = [w for w in peers.record_windows(f, rec, n) if w is not None]
+    solver = peers.make_peer("acados", f, n, peers.find_acados(folder))
+    fields = (("pi", n - 1), ("lam", n), ("t", n))
+    try:
+        X = peers.shifted_guess(f, windows[0], None)
+        X, converged, _ = peers.solve_window(solver, windows[0], X)
+        assert converged
+        s = solver.solver  # type: ignore[attr-defined]
+        held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
+        assert np.any(held["pi"][1] != 0.0)
+        solver.prepare(windows[1], peers.shifted_guess(f, windows[1], X))
+        for k, m in fields:
+            for i in range(m):
+                np.testing.assert_array_equal(s.get(i, k), held[k][min(i + 1, m - 1)])
+        solver.reset()
+        X, converged, _ = peers.solve_window(solver, windows[1], X)
+        held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
+        solver.reset()  # a new recording: nothing moved
+        solver.prepare(windows[2], peers.shifted_guess(f, windows[2], X))
+        for k, m in fields:
+            for i in range(m):
+                np.testing.assert_array_equal(s.get(i, k), held[k][i])
+    finally:
+        getattr(solver, "close", lambda: None)()
+
+
 def test_an_acados_solver_that_does_not_build_is_one_line_and_leaves_no_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -66,7 +66,8 @@ PEERS = ("acados", "fatrop", "sqp-hpipm")
 PEER_NOTES: dict[str, str] = {
     "acados": "acados SQP (exact Hessian) with HPIPM (SPEED mode, QP warm start), "
     "generated C, on the same windows (noise as control), warm-started from its shifted "
-    "answer: the solve and read-back through acados_template; solver us: acados' own time",
+    "answer and multipliers: the solve and read-back through acados_template; solver us: "
+    "acados' own time",
     "fatrop": "CasADi's fatrop (structure-exploiting interior point) on the same windows "
     "(noise as control), warm-started from its shifted answer (it takes no multipliers): "
     "the nlpsol call",
@@ -478,17 +479,22 @@ class AcadosPeer:
                 f"({type(exc).__name__}: {exc}){tail}: check the C compiler and make it "
                 "uses; --skip acados times the others"
             ) from None
+        #: whether the solver holds an answer of this recording (its multipliers)
+        self._solved = False
         self._W = np.zeros((m + 2 * nx, m + 2 * nx))
         self._W[:m, :m] = self.rinv
         self._W_e = np.zeros((m + nx, m + nx))
         self._W_e[:m, :m] = self.rinv
 
     def reset(self) -> None:
-        """A new recording (acados keeps its own multipliers from its last solve)."""
+        """A new recording: no previous multipliers."""
+        self._solved = False
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
         """The window's parameters, weights and guess, set in the solver through
-        ``acados_template``."""
+        ``acados_template``, with the multipliers of the previous answer shifted by one
+        sample as the fast MHE shifts its own (:meth:`_set_shifted_duals`)."""
+        self._set_shifted_duals()  # (read from the last answer before anything is set)
         f, n, nx, m = self.formulation, self.horizon, self.formulation.nx, self.formulation.nz
         s, W = self.solver, self._W
         yref = np.zeros(m + 2 * nx)
@@ -511,10 +517,27 @@ class AcadosPeer:
         s.cost_set(last, "yref", np.concatenate([np.zeros(m), problem.xbar]))
         s.set(last, "x", X0[last])
 
+    def _set_shifted_duals(self) -> None:
+        """The previous answer's multipliers moved by one sample, as
+        :func:`shifted_multipliers` moves sqpmethod's: each stage takes the next one's
+        dynamics multipliers (``pi``) and inequality multipliers and slacks (``lam``,
+        ``t``: the state bounds and the constraints, alike at every stage); the new
+        last stage and the dynamics into it keep the old last ones'. acados otherwise
+        starts from its own last multipliers, unshifted. Nothing before the first
+        answer of a recording."""
+        if not self._solved:
+            return
+        s, last = self.solver, self.horizon - 1
+        for field, stages in (("pi", last), ("lam", last + 1), ("t", last + 1)):
+            old = [np.array(s.get(i, field)) for i in range(stages)]
+            for i in range(stages):
+                s.set(i, field, old[min(i + 1, stages - 1)])
+
     def solve(self) -> tuple[FloatArray, bool, float]:
         s = self.solver
         status = s.solve()
         X = np.array([s.get(i, "x") for i in range(self.horizon)])
+        self._solved = True
         return X, status == 0, float(np.asarray(s.get_stats("time_tot")).ravel()[0])
 
     def close(self) -> None:
