@@ -474,7 +474,7 @@ def test_live_estimates_the_tension_gain_and_says_where_it_ends_far_from_1(
     serial = serial_input("/dev/ttyTEN", "raw", InputOptions(estimate_tension_gain=True), base)
     assert serial.formulation.state_names[-2:] == ("tension_gain_1", "tension_gain_2")
     est = make_estimator("ekf", serial.formulation)
-    session, made, _ = _live(serial, est, lines, duration=3.0)
+    session, made, _ = _live(serial, est, lines)
     assert len(made) == 150
     assert session.gains.gain is not None
     np.testing.assert_allclose(session.gains.gain, 1 / 1.2, atol=0.03)
@@ -519,7 +519,7 @@ def test_live_summary_says_drifted_rows_as_estimate_does(tmp_path: Path) -> None
     base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
     serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
     est = make_estimator("ekf", serial.formulation, MHESettings())
-    session, made, _ = _live(serial, est, lines, duration=10.0)
+    session, made, _ = _live(serial, est, lines)
     drifted = sum(str(e.status) == "drifted" for e in made)
     assert drifted > 100
     assert f"warning: {drifted} of {len(made)} estimates drifted: the IMUs' error states" in (
@@ -538,7 +538,7 @@ def test_live_summary_says_the_rows_taken_as_free_of_load(tmp_path: Path) -> Non
     base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
     serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
     est = make_estimator("ekf", serial.formulation, MHESettings())
-    session, made, _ = _live(serial, est, lines, duration=10.0)
+    session, made, _ = _live(serial, est, lines)
     free = est.inference.free_of_load_samples
     assert len(made) == n and free > 0.9 * n
     assert f"; taken as free of load (tip force 0 N) in {free} of the {n} estimates" in (
@@ -576,7 +576,7 @@ def test_live_summary_says_inconsistent_rows_as_estimate_does() -> None:
     base = make_formulation("bend", read_robot(shipped_robots()["two-section"]), NoiseSettings())
     serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
     est = make_estimator("ekf", serial.formulation, MHESettings())
-    session, made, _ = _live(serial, est, lines, duration=5.0)
+    session, made, _ = _live(serial, est, lines)
     bad = sum(str(e.status) == "inconsistent" for e in made)
     assert bad > 0.25 * len(made) and len(made) == 400
     summary = session.summary()
