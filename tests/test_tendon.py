@@ -584,6 +584,7 @@ def test_a_restart_after_a_gap_under_load_keeps_the_sensors_and_finds_the_load()
     est = make_estimator("ekf", f)
     series = est.run(t[kept], z[kept])
     assert est.diagnostics.gap_resets == 1
+    assert est.inference.load_at_start_samples == 0  # type: ignore[attr-defined]
     gap = _tip_errors(f, t[kept][after], series.rows(after))
     fresh = make_estimator("ekf", f).run(t[t > 5.0 - 1e-9], z[t > 5.0 - 1e-9])
     cold = _tip_errors(f, t[t > 5.0 - 1e-9], fresh)

@@ -26,6 +26,15 @@ which may have taken part of a load for them. A restart gives both the sensor st
 the estimate it keeps (the hypothesis chosen then). Where one hypothesis' step fails,
 the sample's estimate is the other's, and the failed one starts again at the next
 sample with the other's sensor states.
+
+A start that knows nothing of the sensors and whose first reading shows a load (the
+free-of-load start fit misses it beyond the IMUs' noise and their own errors:
+:meth:`Formulation.unloaded_start
+<continuum_mhe.model.formulations.Formulation.unloaded_start>`) cannot tell that load
+from the IMUs' errors, and neither hypothesis' estimates can be trusted: every
+estimate of that start is ``uncertain`` (``drifted`` where its IMU errors have left
+their prior) until the next restart (:attr:`LoadHypothesesInference.
+load_at_start_samples` counts the ``uncertain`` ones).
 """
 
 from __future__ import annotations
@@ -71,16 +80,23 @@ def _step(
 
 class UnloadedKalmanInference(CompiledExtendedKalmanInference):
     """The compiled EKF with the formulation's load states held at zero: its starts
-    are :meth:`~continuum_mhe.model.formulations.Formulation.unloaded_start_prior`, its
-    process noise has none on them."""
+    are :meth:`~continuum_mhe.model.formulations.Formulation.unloaded_start`'s, its
+    process noise has none on them.
+
+    Attributes:
+        start_shows_load: whether the reading of its last start showed a load that the
+            start could not tell from the sensors' errors (``unloaded_start``).
+    """
 
     def __init__(self, formulation: Formulation) -> None:
         super().__init__(formulation)
         self._q = ProcessNoiseCache(formulation, held=formulation.load_states)
+        self.start_shows_load = False
 
     def start_prior(self, z: FloatArray, t: float | None = None) -> tuple[FloatArray, FloatArray]:
         self.kept_sensors = self.kept_at(t)
-        return self.formulation.unloaded_start_prior(z, self.kept_sensors)
+        x, P, self.start_shows_load = self.formulation.unloaded_start(z, self.kept_sensors)
+        return x, P
 
 
 class LoadHypothesesInference(Inference):
@@ -94,6 +110,10 @@ class LoadHypothesesInference(Inference):
         unloaded_chosen: whether the last estimate is the free-of-load hypothesis'.
         free_of_load_samples: the estimates the free-of-load hypothesis gave since the
             estimator's last reset.
+        load_at_start: whether the current start's first reading showed a load it
+            could not tell from the sensors' errors (see the module docstring).
+        load_at_start_samples: the estimates made ``uncertain`` for that since the
+            estimator's last reset.
     """
 
     name = "ekf"
@@ -106,7 +126,11 @@ class LoadHypothesesInference(Inference):
         self.unloaded_chosen = False
         self._chosen: CompiledExtendedKalmanInference = self.loaded
         self.free_of_load_samples = 0
+        self.load_at_start = False
+        self.load_at_start_samples = 0
+        #: the time of the last answer counted, and what it counted (free, load at start)
         self._counted_t: float | None = None
+        self._counted = (0, 0)
         #: the last answer's covariance and the loaded hypothesis' answer at that sample
         self._answer_P: FloatArray | None = None
         self._loaded_answer: _Answer | None = None
@@ -114,6 +138,7 @@ class LoadHypothesesInference(Inference):
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
+        self.load_at_start_samples = 0
         self._counted_t = None
 
     def close_recording(self) -> None:
@@ -129,14 +154,20 @@ class LoadHypothesesInference(Inference):
         self.unloaded.restart(*kept)
         self.evidence = 0.0
         self.unloaded_chosen = False
+        self.load_at_start = False
         self._chosen = self.loaded
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._counted_t is not None and m.t == self._counted_t:
-            self.free_of_load_samples -= 1  # the policy steps this sample again
+            free, load = self._counted  # the policy steps this sample again
+            self.free_of_load_samples -= free
+            self.load_at_start_samples -= load
         self._counted_t = None
+        starting = self.unloaded._x is None
         got_l, ll_loaded = _step(self.loaded, m)
         got_u, ll_free = _step(self.unloaded, m)
+        if starting and self.unloaded._x is not None and self.unloaded.kept_sensors is None:
+            self.load_at_start = self.unloaded.start_shows_load  # a start of the estimator
         if got_l is None and got_u is None:
             raise FloatingPointError("both hypotheses' EKF steps failed (non-finite)")
         # a hypothesis whose step failed starts again at the next sample, keeping the
@@ -183,9 +214,19 @@ class LoadHypothesesInference(Inference):
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
-        if self.unloaded_chosen and x is not None:
-            self.free_of_load_samples += 1
-            self._counted_t = m.t
+        load = 0
+        if self.load_at_start and status == Status.OK and x is not None:
+            # the load and the IMUs' errors not told apart (drifted where the IMU errors
+            # have left their prior: that says more)
+            if self.formulation.drifted(x):
+                status = Status.DRIFTED
+            else:
+                status, load = Status.UNCERTAIN, 1
+        free = int(self.unloaded_chosen and x is not None)
+        self.free_of_load_samples += free
+        self.load_at_start_samples += load
+        self._counted = (free, load)
+        self._counted_t = m.t if free or load else None
         return x, P, status
 
     def output(self, state: FloatArray) -> FloatArray:

@@ -401,14 +401,17 @@ class Formulation:
         fy, fz``), indices into :attr:`outputs`; none here."""
         return ()
 
-    def unloaded_start_prior(
+    def unloaded_start(
         self, z0: FloatArray, kept: KeptSensors | None = None
-    ) -> tuple[FloatArray, FloatArray]:
-        """:meth:`start_prior` with the :attr:`load_states` held at zero: their values
-        and their rows and columns of the covariance zero (a formulation whose start fit
-        depends on the load overrides this)."""
+    ) -> tuple[FloatArray, FloatArray, bool]:
+        """``(x0, P0, shows_load)``: :meth:`start_prior` with the :attr:`load_states`
+        held at zero (their values and their rows and columns of the covariance zero),
+        and whether the reading shows a load that a start cannot tell from the sensors'
+        own errors, so that the estimates of that start are not to be trusted (never
+        here; a formulation whose start fit depends on the load overrides this)."""
         x, P = self.start_prior(z0, kept)
-        return without_load(x, P, self.load_states)
+        x, P = without_load(x, P, self.load_states)
+        return x, P, False
 
     def start_prior(
         self, z0: FloatArray, kept: KeptSensors | None = None

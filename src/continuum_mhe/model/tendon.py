@@ -119,7 +119,7 @@ START_EVALUATIONS = 600
 #: small force would, and under a larger load it does not find it again.
 KEPT_START_BUCKLING_MULTIPLE = 3.0
 #: The tip force's prior standard deviation, N, in the start fit of the robot free of
-#: load (:meth:`TendonFormulation.unloaded_start_prior`): the force held at zero.
+#: load (:meth:`TendonFormulation.unloaded_start`): the force held at zero.
 UNLOADED_FIT_FORCE_STD = 1e-9
 #: The tip force's white-noise acceleration by default, N^2/s^3: with two or more IMUs,
 #: and with one. One IMU's gravity direction and gyro hold a faster force only loosely:
@@ -154,6 +154,12 @@ FREE_START_MAX_BEND = math.radians(10.0)
 #: millimetres in the first seconds; a loaded start taken for a free one holds the load
 #: back, which costs far more.
 LOADED_START_PROBABILITY = 0.05
+#: A start that knows nothing of the sensors, whose readings, fitted free of load, are
+#: less likely than this under their noise and the IMUs' own errors, shows a load that
+#: it cannot tell from those errors (:meth:`TendonFormulation.unloaded_start`): the
+#: estimates of that start are not trusted. Strict: a false alarm leaves a whole
+#: recording untrusted.
+LOAD_AT_START_PROBABILITY = 1e-3
 #: A tip force estimate (or its standard deviation) beyond this many times the buckling
 #: load, and beyond :data:`MAX_FORCE_FLOOR`, has diverged (:meth:`TendonFormulation.
 #: is_diverged`): a stiff backbone's prior alone may exceed a fixed limit.
@@ -908,15 +914,23 @@ class TendonFormulation(Formulation):
         names = [o.name for o in self.outputs]
         return tuple(names.index(c) for c in TIP_FORCE_COLUMNS)
 
-    def unloaded_start_prior(
+    def unloaded_start(
         self, z0: FloatArray, kept: KeptSensors | None = None
-    ) -> tuple[FloatArray, FloatArray]:
-        """The start free of load: :meth:`start_prior`'s fit with the tip force held at
-        zero (a prior of :data:`UNLOADED_FIT_FORCE_STD`), the force and its derivatives
-        zero and certain."""
-        x = self._start_fit(z0, UNLOADED_FIT_FORCE_STD, kept)[0]
+    ) -> tuple[FloatArray, FloatArray, bool]:
+        """``(x0, P0, shows_load)``: the start free of load, :meth:`start_prior`'s fit
+        with the tip force held at zero (a prior of :data:`UNLOADED_FIT_FORCE_STD`), the
+        force and its derivatives zero and certain; and whether the reading shows a load
+        that a start cannot tell from the IMUs' errors: without ``kept`` sensors, the
+        fit's misfit (:meth:`start_misfit`) beyond its chi-square quantile of
+        :data:`LOAD_AT_START_PROBABILITY`. At one pose a load tilts the IMUs as their
+        misalignments and accelerometer biases do, and the estimates that follow such a
+        start take part of the load for those errors (docs/tendon.md, "Limits")."""
+        x, misfit, limit = self._start_fit(
+            z0, UNLOADED_FIT_FORCE_STD, kept, probability=LOAD_AT_START_PROBABILITY
+        )
         P = self.with_kept_covariance(self.initial_cov(), kept)
-        return without_load(x, P, self.load_states)
+        x, P = without_load(x, P, self.load_states)
+        return x, P, kept is None and misfit > limit
 
     def _gyro_biases_kept(self, kept: KeptSensors | None) -> bool:
         """Whether a restart kept every gyro bias (with raw IMUs): the gyros then show
@@ -962,11 +976,12 @@ class TendonFormulation(Formulation):
         z0: FloatArray,
         force_std: float,
         kept: KeptSensors | None = None,
+        probability: float = LOADED_START_PROBABILITY,
     ) -> tuple[FloatArray, float, float]:
         """``(x, misfit, limit)``: :meth:`initial_state`'s fit with the tip force's prior
         standard deviation ``force_std`` (N), the fitted readings' misfit (see
-        :meth:`start_misfit`) and its chi-square quantile of
-        :data:`LOADED_START_PROBABILITY` (inf and 0 without a valid reading).
+        :meth:`start_misfit`) and its chi-square quantile of ``probability`` (inf and 0
+        without a valid reading).
         ``kept`` (:meth:`kept_sensors`): the sensor states held at those values (the
         gyro biases to their kept standard deviations), and with raw IMUs the force's
         rate fitted too (``force_std`` per second)."""
@@ -1040,16 +1055,22 @@ class TendonFormulation(Formulation):
         if np.all(np.isfinite(fit.x)):
             x[free] = fit.x
         evaluate(x[free])  # out: the model's outputs at x (evaluated once)
-        misfit, limit = self.start_misfit(out[nz * nx : nz * nx + n], valid)
+        misfit, limit = self.start_misfit(out[nz * nx : nz * nx + n], valid, probability)
         return x, misfit, limit
 
-    def start_misfit(self, r: FloatArray, valid: NDArray[np.bool_]) -> tuple[float, float]:
+    def start_misfit(
+        self,
+        r: FloatArray,
+        valid: NDArray[np.bool_],
+        probability: float = LOADED_START_PROBABILITY,
+    ) -> tuple[float, float]:
         """``(misfit, limit)``: the squares of the IMUs' residuals ``r`` (the first
         :attr:`n_imu_measurements` of the residual) where ``valid``, each over its
         reading's variance plus that of the IMU's misalignment and accelerometer bias
         priors (the gyros' rows left out: a start fits their biases), summed; and the
-        chi-square quantile of :data:`LOADED_START_PROBABILITY` for as many terms (inf
-        and 0 without an accelerometer row: nothing shows the start free of load)."""
+        chi-square quantile of ``probability`` (the chance of a larger misfit free of
+        load) for as many terms (inf and 0 without an accelerometer row: nothing shows
+        the start free of load)."""
         from scipy.special import chdtri  # imported on use: scipy is slow to import
 
         var = np.diag(self.meas_cov())[: self.n_imu_measurements].copy()
@@ -1063,7 +1084,7 @@ class TendonFormulation(Formulation):
         if not used.any():  # no accelerometer: nothing shows the start free of load
             return math.inf, 0.0
         misfit = float(np.sum(np.asarray(r)[used] ** 2 / (var[used] + errors)))
-        return misfit, float(chdtri(int(used.sum()), LOADED_START_PROBABILITY))
+        return misfit, float(chdtri(int(used.sum()), probability))
 
     def initial_cov(self) -> FloatArray:
         """The start's prior: the tensions' that of the given ones
