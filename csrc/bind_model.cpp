@@ -156,9 +156,9 @@ void cmhe::bind_model(nb::module_& m) {
 
   nb::class_<RememberedFunction, ModelFunction>(
       m, "RememberedFunction",
-      "A model function with its last evaluation remembered, per thread: an evaluation at "
-      "the same inputs, bit for bit, copies the outputs kept. ``input_sizes``: the number "
-      "of values of each input.")
+      "A model function with its last evaluations remembered, per thread (the last two of "
+      "any such function on that thread): an evaluation at the same inputs, bit for bit, "
+      "copies the outputs kept. ``input_sizes``: the number of values of each input.")
       .def(
           "__init__",
           [](RememberedFunction* self, const ModelFunction& inner,
@@ -167,7 +167,7 @@ void cmhe::bind_model(nb::module_& m) {
           },
           nb::arg("function"), nb::arg("input_sizes"), nb::keep_alive<1, 2>())
       .def_prop_ro("hits", &RememberedFunction::hits,
-                   "The evaluations answered from the one kept, on every thread.");
+                   "The evaluations answered from those kept, on every thread.");
 
   nb::class_<MaskedResidualFunction, ModelFunction>(
       m, "MaskedResidualFunction",

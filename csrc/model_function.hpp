@@ -43,14 +43,15 @@ class TapeFunction : public ModelFunction {
 // null input pointer is an input of its own), copies the outputs kept instead of
 // evaluating again. An EKF's update and the consistency check's prediction evaluate the
 // measurement terms at the same state; two EKFs of one model side by side (a tendon
-// robot's load hypotheses) step before the check evaluates at either's prediction. ``input_sizes``: the
-// number of values of each input; ``inner`` must outlive this object.
+// robot's load hypotheses) step before the check evaluates at either's prediction.
+// ``input_sizes``: the number of values of each input; ``inner`` must outlive this
+// object.
 class RememberedFunction : public ModelFunction {
  public:
   RememberedFunction(const ModelFunction& inner, std::vector<int64_t> input_sizes);
   int evaluate(const double* const* in, double* out) const override;
   int64_t output_size() const override { return inner_.output_size(); }
-  // the evaluations answered from the one kept, on every thread
+  // the evaluations answered from those kept, on every thread
   int64_t hits() const { return hits_.load(std::memory_order_relaxed); }
 
  private:

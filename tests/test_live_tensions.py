@@ -586,3 +586,22 @@ def test_live_summary_says_inconsistent_rows_as_estimate_does() -> None:
     counts = Counter(str(e.status) for e in made)  # and every status, as estimate says them
     shown = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     assert f"; statuses: {shown}" in summary and f"inconsistent: {bad}" in shown
+
+
+def test_live_summary_says_a_start_under_load_is_not_trusted() -> None:
+    """The shipped ``force-08`` from 3 s, under 0.08 N (raw IMUs and tensions on the
+    line): the first reading shows a load the start cannot tell from the IMUs' errors;
+    no estimate is ``ok`` and ``live``'s summary says why, as ``estimate``'s does."""
+    head, raw = _rows(DATA / "force-08_raw.csv", 251)
+    _, ten = _rows(DATA / "force-08_tensions.csv", 251)
+    lines = [",".join([f"{round(float(r[0]) * 1000)}", *r[1:], *s[1:]])
+             for r, s in zip(raw[150:], ten[150:])]  # fmt: skip
+    assert float(raw[150][0]) == 3.0
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    session, made, _ = _live(serial, est, lines)
+    assert len(made) == 101 and not any(str(e.status) == "ok" for e in made)
+    assert "; warning: 101 of 101 estimates not ok (uncertain, or drifted where the IMU " in (
+        session.summary()
+    )

@@ -357,7 +357,7 @@ def test_the_check_takes_the_chosen_hypothesis_evaluation() -> None:
     est = make_estimator("ekf", f)
     before = memo.hits
     est.run(t, z)
-    assert memo.hits - before >= len(t) - 2
+    assert memo.hits - before >= len(t) + 50  # (one kept evaluation: 397 hits)
 
 
 def test_a_start_under_load_is_not_trusted_and_said(
@@ -391,8 +391,24 @@ def test_a_start_under_load_is_not_trusted_and_said(
         else:
             assert status.count("ok") > 0.9 * len(status)
     assert re.search(
-        rf"warning: {len(late)} of {len(late)} estimates uncertain: the first reading of "
-        r"their start showed a tip load \(or tensions that do not act as given\)",
+        rf"warning: {len(late)} of {len(late)} estimates not ok \(uncertain, or drifted "
+        r"where the IMU errors left their prior\): the first reading of their start "
+        r"showed a tip load \(or tensions that do not act as given\)",
         said["from3"],
     ), said["from3"]
     assert "first reading of their start" not in said["whole"]
+
+
+@pytest.mark.parametrize("imu", ["tilt", "raw"])
+def test_a_first_reading_without_imus_shows_no_load(imu: str) -> None:
+    """A start on a sample with the tensions but no IMU reading (``live`` before the
+    IMUs report) has nothing that shows a load: once the IMUs' readings have confirmed
+    the estimate (the unobserved window after their return), its rows are ``ok``."""
+    f, t, z = _shipped("unloaded", imu)
+    z = z.copy()
+    z[0, : f.n_imu_measurements] = np.nan
+    est = make_estimator("ekf", f)
+    statuses = [str(s) for s in est.run(t[:100], z[:100]).status]
+    inference = est.inference
+    assert isinstance(inference, LoadHypothesesInference)
+    assert inference.load_at_start_samples == 0 and statuses[-40:] == ["ok"] * 40

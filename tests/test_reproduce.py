@@ -415,7 +415,7 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
     assert not out.exists()
 
 
-@pytest.mark.parametrize("slow_pool", [False, True], ids=["", "slow-pool-thread"])
+@pytest.mark.parametrize("slow_pool", [False, True], ids=["pool", "slow-pool-thread"])
 @pytest.mark.parametrize(
     ("sig", "code", "said"),
     [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],

@@ -66,14 +66,14 @@ class ResidualNodeFunction(ModelFunction):
 
 class RememberedFunction(ModelFunction):
     """
-    A model function with its last evaluation remembered, per thread: an evaluation at the same inputs, bit for bit, copies the outputs kept. ``input_sizes``: the number of values of each input.
+    A model function with its last evaluations remembered, per thread (the last two of any such function on that thread): an evaluation at the same inputs, bit for bit, copies the outputs kept. ``input_sizes``: the number of values of each input.
     """
 
     def __init__(self, function: ModelFunction, input_sizes: Sequence[int]) -> None: ...
 
     @property
     def hits(self) -> int:
-        """The evaluations answered from the one kept, on every thread."""
+        """The evaluations answered from those kept, on every thread."""
 
 class MaskedResidualFunction(ModelFunction):
     """

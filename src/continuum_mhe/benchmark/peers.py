@@ -259,8 +259,10 @@ class CasadiPeer:
         self.formulation, self.horizon = formulation, horizon
         self.ocp = o = ocp_nlp(formulation, horizon)
         self._x0 = self._p = np.zeros(0)  # the prepared window (prepare)
-        # the previous answer's multipliers (lam_x, lam_g), shifted in prepare
+        # the previous answer's multipliers (lam_x, lam_g), and the prepared window's
+        # start from them, shifted (prepare)
         self._lam: tuple[FloatArray, FloatArray] | None = None
+        self._lam0: tuple[FloatArray, FloatArray] | None = None
         nx, n = formulation.nx, horizon
         common: dict[str, Any] = {"print_time": False, "error_on_fail": False}
         if name == "fatrop":
@@ -298,7 +300,7 @@ class CasadiPeer:
 
     def reset(self) -> None:
         """A new recording: no previous multipliers."""
-        self._lam = None
+        self._lam = self._lam0 = None
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
         """The window's parameters and the guess, as ``nlpsol`` takes them: the states'
@@ -307,13 +309,14 @@ class CasadiPeer:
         a recording; fatrop, an interior-point method, does not take them)."""
         self._x0 = ocp_guess(self.formulation, problem, X0)
         self._p = pack_parameters(problem)
+        self._lam0 = None
         if self._lam is not None:
             nx, ng = self.formulation.nx, self.ocp.ng
-            self._lam = shifted_multipliers(*self._lam, nx, ng)
+            self._lam0 = shifted_multipliers(*self._lam, nx, ng)
 
     def solve(self) -> tuple[FloatArray, bool, float]:
         o = self.ocp
-        lam = {} if self._lam is None else {"lam_x0": self._lam[0], "lam_g0": self._lam[1]}
+        lam = {} if self._lam0 is None else {"lam_x0": self._lam0[0], "lam_g0": self._lam0[1]}
         sol = self.solver(x0=self._x0, p=self._p, lbx=o.lbx, ubx=o.ubx, lbg=o.lbg, ubg=o.ubg, **lam)
         self._lam = (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel())
         X = ocp_states(np.asarray(sol["x"], dtype=float).ravel(), self.formulation.nx, self.horizon)
@@ -487,7 +490,8 @@ class AcadosPeer:
         self._W_e[:m, :m] = self.rinv
 
     def reset(self) -> None:
-        """A new recording: no previous multipliers."""
+        """A new recording: its first window starts from the multipliers acados holds,
+        not shifted (no answer of this recording to shift)."""
         self._solved = False
 
     def prepare(self, problem: WindowProblem, X0: FloatArray) -> None:
@@ -532,6 +536,7 @@ class AcadosPeer:
             old = [np.array(s.get(i, field)) for i in range(stages)]
             for i in range(stages):
                 s.set(i, field, old[min(i + 1, stages - 1)])
+        self._solved = False  # shifted once: a second prepare does not shift again
 
     def solve(self) -> tuple[FloatArray, bool, float]:
         s = self.solver

@@ -92,6 +92,11 @@ class _KalmanBase(Inference):
         self._R = formulation.meas_cov()
         self.restart()
 
+    @property
+    def has_state(self) -> bool:
+        """Whether the filter has started: it holds a state since its last restart."""
+        return self._x is not None
+
     def forget(self) -> None:
         self._x: FloatArray | None = None
         self._P: FloatArray | None = None

@@ -32,9 +32,10 @@ free-of-load start fit misses it beyond the IMUs' noise and their own errors:
 :meth:`Formulation.unloaded_start
 <continuum_mhe.model.formulations.Formulation.unloaded_start>`) cannot tell that load
 from the IMUs' errors, and neither hypothesis' estimates can be trusted: every
-estimate of that start is ``uncertain`` (``drifted`` where its IMU errors have left
-their prior) until the next restart (:attr:`LoadHypothesesInference.
-load_at_start_samples` counts the ``uncertain`` ones).
+estimate of that start that would be ``ok`` is ``uncertain`` (``drifted`` where its
+IMU errors have left their prior) until the next restart
+(:attr:`LoadHypothesesInference.load_at_start_samples` counts the estimates of such
+starts).
 """
 
 from __future__ import annotations
@@ -112,8 +113,8 @@ class LoadHypothesesInference(Inference):
             estimator's last reset.
         load_at_start: whether the current start's first reading showed a load it
             could not tell from the sensors' errors (see the module docstring).
-        load_at_start_samples: the estimates made ``uncertain`` for that since the
-            estimator's last reset.
+        load_at_start_samples: the estimates of such starts since the estimator's last
+            reset (none of them ``ok``).
     """
 
     name = "ekf"
@@ -163,10 +164,10 @@ class LoadHypothesesInference(Inference):
             self.free_of_load_samples -= free
             self.load_at_start_samples -= load
         self._counted_t = None
-        starting = self.unloaded._x is None
+        starting = not self.unloaded.has_state
         got_l, ll_loaded = _step(self.loaded, m)
         got_u, ll_free = _step(self.unloaded, m)
-        if starting and self.unloaded._x is not None and self.unloaded.kept_sensors is None:
+        if starting and self.unloaded.has_state and self.unloaded.kept_sensors is None:
             self.load_at_start = self.unloaded.start_shows_load  # a start of the estimator
         if got_l is None and got_u is None:
             raise FloatingPointError("both hypotheses' EKF steps failed (non-finite)")
@@ -214,14 +215,11 @@ class LoadHypothesesInference(Inference):
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
-        load = 0
-        if self.load_at_start and status == Status.OK and x is not None:
+        load = int(self.load_at_start and x is not None)
+        if x is not None and load and status == Status.OK:
             # the load and the IMUs' errors not told apart (drifted where the IMU errors
             # have left their prior: that says more)
-            if self.formulation.drifted(x):
-                status = Status.DRIFTED
-            else:
-                status, load = Status.UNCERTAIN, 1
+            status = Status.DRIFTED if self.formulation.drifted(x) else Status.UNCERTAIN
         free = int(self.unloaded_chosen and x is not None)
         self.free_of_load_samples += free
         self.load_at_start_samples += load

@@ -421,17 +421,18 @@ def free_of_load_clause(inference: Inference, n: int) -> str | None:
 
 
 def load_at_start_notice(inference: Inference, n: int) -> str | None:
-    """The line for the estimates, of ``n``, that a tendon robot's EKF left
-    ``uncertain`` because their start's first reading showed a load it could not tell
-    from the IMUs' errors (:mod:`.load_hypotheses`); None where there are none
-    (``estimate``'s warning and ``live``'s summary)."""
+    """The line for the estimates, of ``n``, of a tendon robot's EKF whose start's first
+    reading showed a load it could not tell from the IMUs' errors, none of them ``ok``
+    (:mod:`.load_hypotheses`); None where there are none (``estimate``'s warning and
+    ``live``'s summary)."""
     if not isinstance(inference, LoadHypothesesInference) or not inference.load_at_start_samples:
         return None
     return (
-        f"{inference.load_at_start_samples} of {n} estimates uncertain: the first reading "
-        "of their start showed a tip load (or tensions that do not act as given), which a "
-        "start cannot tell from the IMUs' misalignments and accelerometer biases, so the "
-        "estimates may take part of the load for those errors; start the recording with "
-        "the robot free of load (the estimates then learn the IMUs' errors, and keep them "
-        "across a gap), and check the tensions (their scale, unit, tendon order and timing)"
+        f"{inference.load_at_start_samples} of {n} estimates not ok (uncertain, or drifted "
+        "where the IMU errors left their prior): the first reading of their start showed a "
+        "tip load (or tensions that do not act as given), which a start cannot tell from "
+        "the IMUs' misalignments and accelerometer biases, so the estimates may take part "
+        "of the load for those errors; start the recording with the robot free of load "
+        "(the estimates then learn the IMUs' errors, and keep them across a gap), and "
+        "check the tensions (their scale, unit, tendon order and timing)"
     )

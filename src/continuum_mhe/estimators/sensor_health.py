@@ -418,7 +418,10 @@ class Estimator(Generic[InferenceT]):
           its readings have agreed with the estimate for as long (whether ``bad_start``
           is set or not), or while four or more restarts that the readings forced fall
           within ``bad_start`` (or the unobserved window where longer, or without the
-          check); a frozen IMU's silence counts from the freeze's start;
+          check); a frozen IMU's silence counts from the freeze's start; and on a tendon
+          robot every estimate of a start whose first reading showed a tip load it could
+          not tell from the IMUs' errors (:mod:`.load_hypotheses`), until the next
+          restart;
         - ``at-bound``: a trusted estimate with a section's bend on its ``theta_max``
           (:meth:`~continuum_mhe.model.formulations.Formulation.at_bound`);
         - ``inconsistent``: one whose readings disagree with it beyond their noise

@@ -922,7 +922,8 @@ class TendonFormulation(Formulation):
         force and its derivatives zero and certain; and whether the reading shows a load
         that a start cannot tell from the IMUs' errors: without ``kept`` sensors, the
         fit's misfit (:meth:`start_misfit`) beyond its chi-square quantile of
-        :data:`LOAD_AT_START_PROBABILITY`. At one pose a load tilts the IMUs as their
+        :data:`LOAD_AT_START_PROBABILITY` (never for a reading without an accelerometer
+        row, which shows no load). At one pose a load tilts the IMUs as their
         misalignments and accelerometer biases do, and the estimates that follow such a
         start take part of the load for those errors (docs/tendon.md, "Limits")."""
         x, misfit, limit = self._start_fit(
@@ -930,7 +931,8 @@ class TendonFormulation(Formulation):
         )
         P = self.with_kept_covariance(self.initial_cov(), kept)
         x, P = without_load(x, P, self.load_states)
-        return x, P, kept is None and misfit > limit
+        # (a reading without an accelerometer row shows nothing: an infinite misfit)
+        return x, P, kept is None and math.isfinite(misfit) and misfit > limit
 
     def _gyro_biases_kept(self, kept: KeptSensors | None) -> bool:
         """Whether a restart kept every gyro bias (with raw IMUs): the gyros then show

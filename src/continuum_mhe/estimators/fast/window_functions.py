@@ -176,8 +176,9 @@ def measurement_model(formulation: Formulation) -> _core.RememberedFunction:
     formulation's one: their instructions, or, with
     :attr:`~continuum_mhe.model.formulations.Formulation.forward_mode_jacobian`, the
     residual's instructions with ``H`` by forward mode (``csrc/forward.hpp``). Its last
-    evaluation is remembered (per thread): the EKF's update and the check's prediction
-    evaluate it at the same state (where every reading is valid), once."""
+    two evaluations are remembered (per thread): the EKF's update and the check's
+    prediction evaluate it at the same state (where every reading is valid), once, also
+    where two EKFs of the model step side by side (a tendon robot's load hypotheses)."""
     f, nx = formulation, formulation.nx
     if f.forward_mode_jacobian:
         inner: _core.ModelFunction = _core.ResidualNodeFunction(
