@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 import pytest
 from estimator_helpers import LIN_DT, LIN_H, LIN_N, LinearBend, bend_process_cov, lin_transition
@@ -31,3 +33,19 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     order (a stable sort)."""
     rank = {name: i for i, name in enumerate(FIRST_FILES)}
     items.sort(key=lambda item: rank.get(item.path.name, len(FIRST_FILES)))
+
+
+#: the test file whose first test froze the collector's objects (pytest_runtest_setup)
+_frozen_for: list[object] = [None]
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """At each test file's first test, collect the cyclic garbage and move every object
+    left (the compiled models and CasADi functions that earlier files cached) out of
+    the garbage collector's passes (``gc.freeze``): otherwise each pass walks them
+    again, and the estimators' per-sample loops in every later file pay for it."""
+    module = getattr(item, "module", None)
+    if module is not _frozen_for[0]:
+        _frozen_for[0] = module
+        gc.collect()
+        gc.freeze()
