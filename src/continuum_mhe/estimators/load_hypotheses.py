@@ -210,16 +210,20 @@ class LoadHypothesesInference(Inference):
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """``(x, P, status)`` as the answer of ``hypothesis``, counted where it is the
         free-of-load one (where the loaded one has no answer at this sample, the
-        free-of-load answer's force floor is the loaded hypothesis' last)."""
+        free-of-load answer's force floor is the loaded hypothesis' last), and where it
+        belongs to a start that showed a load (:attr:`load_at_start`: an ``ok`` status
+        becomes ``uncertain``, or ``drifted``)."""
         self._chosen = hypothesis
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
-        load = int(self.load_at_start and x is not None)
-        if x is not None and load and status == Status.OK:
-            # the load and the IMUs' errors not told apart (drifted where the IMU errors
-            # have left their prior: that says more)
-            status = Status.DRIFTED if self.formulation.drifted(x) else Status.UNCERTAIN
+        load = 0
+        if self.load_at_start and x is not None:
+            load = 1
+            if status == Status.OK:
+                # the load and the IMUs' errors not told apart (drifted where the IMU
+                # errors have left their prior: that says more)
+                status = Status.DRIFTED if self.formulation.drifted(x) else Status.UNCERTAIN
         free = int(self.unloaded_chosen and x is not None)
         self.free_of_load_samples += free
         self.load_at_start_samples += load
