@@ -81,6 +81,7 @@ from continuum_mhe.model.descriptions import (
     tilt_blocks,
 )
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
+from continuum_mhe.model.equilibrium_fit import EquilibriumFit, fit_on_equilibrium
 from continuum_mhe.model.formulations import ChangeTest, Formulation, KeptSensors, without_load
 from continuum_mhe.model.imu import (
     STANDARD_GRAVITY,
@@ -105,10 +106,11 @@ ACCELERATION_STEP = 0.01
 #: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
 #: to settle the directions the IMUs do not see, far too faint to move the others.
 START_PRIOR_WEIGHT = 1e-3
-#: The start's most residual evaluations. On a nearly straight rod the axial tip force
-#: barely moves the IMUs and the fit takes a few hundred evaluations; a start cut short
-#: leaves a force error that the IMUs' misalignment and bias states then absorb, and
-#: the filter follows the wrong shape for many samples.
+#: The start's most model evaluations (each Newton step of the equilibrium counts:
+#: :func:`~continuum_mhe.model.equilibrium_fit.fit_on_equilibrium`). A start cut short
+#: leaves a force error that the IMUs' misalignment and bias states then absorb, and the
+#: filter follows the wrong shape for many samples; readings the model cannot fit take
+#: the whole budget.
 START_EVALUATIONS = 600
 #: A restart within a recording that keeps the sensors' states (the IMUs' biases and
 #: misalignments, the tension gains: :meth:`TendonFormulation.kept_sensors`) fits the
@@ -1011,7 +1013,6 @@ class TendonFormulation(Formulation):
             if self._gyro_biases_kept(kept):  # the gyros then show the force's rate
                 free = np.r_[free, 9 + k : 12 + k]
         w = np.sqrt(1.0 / np.diag(self.meas_cov()))
-        rows = np.r_[np.flatnonzero(valid), n + 3 * k : self.nz]
         prior = x[free].copy()
         std = np.sqrt(np.diag(self.initial_cov()))
         prior_w = START_PRIOR_WEIGHT / std[free]
@@ -1030,34 +1031,28 @@ class TendonFormulation(Formulation):
         nz, nx = self.nz, self.nx
         inputs = [x.copy(), np.zeros(self.nu), np.zeros(1), z, np.ones(nz)]
         out = np.empty(model.output_size)
-        last: dict[bytes, tuple[FloatArray, FloatArray]] = {}
 
         def evaluate(v: FloatArray) -> tuple[FloatArray, FloatArray]:
-            """The weighted residual and its Jacobian at ``v``, evaluated once."""
-            key = v.tobytes()
-            if key not in last:
-                inputs[0][free] = v
-                model.evaluate(inputs, out)
-                J = -out[: nz * nx].reshape(nz, nx)[:, free]  # H = -dr/dx, row-major
-                r = (w * out[nz * nx :])[rows]
-                last.clear()
-                last[key] = (
-                    np.r_[r, prior_w * (v - prior)],
-                    np.vstack([(w[:, None] * J)[rows], np.diag(prior_w)]),
-                )
-            return last[key]
-
-        from scipy.optimize import least_squares  # imported on use (slow to import)
+            """The residual at the state ``v`` and its Jacobian ``dr/dx``."""
+            inputs[0][:] = v
+            model.evaluate(inputs, out)
+            return out[nz * nx :].copy(), -out[: nz * nx].reshape(nz, nx)  # H = -dr/dx
 
         scale = np.r_[[1.0] * 3, [0.1] * 3, [1.0] * 3, [0.01] * self.n_gyro_bias, [0.1] * 3]
-        fit = least_squares(
-            lambda v: evaluate(v)[0], x[free], jac=lambda v: evaluate(v)[1], method="lm",
-            x_scale=scale[: len(free)], max_nfev=START_EVALUATIONS,
-        )  # fmt: skip
-        if np.all(np.isfinite(fit.x)):
-            x[free] = fit.x
-        evaluate(x[free])  # out: the model's outputs at x (evaluated once)
-        misfit, limit = self.start_misfit(out[nz * nx : nz * nx + n], valid, probability)
+        n_eq = self.measurement_blocks[-1].size  # the tip condition (and its rate)
+        spec = EquilibriumFit(
+            free=free,
+            settled=np.r_[0:3, 6 + k : 9 + k] if n_eq == 6 else np.r_[0:3],
+            equilibrium_rows=np.r_[nz - n_eq : nz],
+            rows=np.flatnonzero(valid),
+            weights=w,
+            prior=prior,
+            prior_weights=prior_w,
+            scale=scale[: len(free)],
+        )
+        x = fit_on_equilibrium(evaluate, x, spec, START_EVALUATIONS)[0]
+        r = evaluate(x)[0]
+        misfit, limit = self.start_misfit(r[:n], valid, probability)
         return x, misfit, limit
 
     def start_misfit(
