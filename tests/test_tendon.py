@@ -1642,6 +1642,34 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     assert view.exists()
 
 
+def test_plot_and_view_refuse_tensions_in_millinewtons_as_estimate_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tensions a thousand times too large given to ``plot`` and ``view`` (mN written as
+    N): the line ``estimate`` gives for them (the bend they would make), exit 2, no
+    figure and no view; with the right tensions both draw."""
+    meas, tensions = _recording(tmp_path)
+    robot = str(_small_robot(tmp_path))
+    est = tmp_path / "e.csv"
+    assert main(["estimate", str(meas), "--robot", robot, "--inputs", str(tensions),
+                 "-o", str(est)]) == 0  # fmt: skip
+    header, *rows = (ln.split(",") for ln in tensions.read_text().splitlines())
+    mn = tmp_path / "mN.csv"
+    write_table(mn, header, [[float(r[0]), *(1000 * float(v) for v in r[1:])] for r in rows])
+    capsys.readouterr()
+    for command, flag, out in (("plot", "-o", tmp_path / "e.png"),
+                               ("view", "--save", tmp_path / "v.rrd")):  # fmt: skip
+        argv = [command, str(est), "--robot", robot, "--inputs", str(mn), flag, str(out)]
+        assert main(argv) == 2, command
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"{mn}: line " in err[0], (command, err)
+        assert "would bend section 1 through" in err[0] and "(mN?)" in err[0]
+        assert not out.exists()
+        argv = [command, str(est), "--robot", robot, "--inputs", str(tensions), flag, str(out)]
+        assert main(argv) == 0 and out.exists(), command
+        capsys.readouterr()
+
+
 def test_check_robot_of_a_backbone_too_soft_for_its_weight_says_so(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

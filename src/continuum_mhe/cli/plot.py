@@ -206,6 +206,7 @@ def _tendon_backbone(
     if robot.backbone is None or not robot.n_tendons:
         raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
     tensions = read_tensions(inputs, robot.n_tendons, time_warning=False)
+    tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
     return tendon_backbone(robot, tensions)

@@ -33,6 +33,8 @@ def replay(
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
         table = read_tensions(tensions, robot.n_tendons, time_warning=False) if tensions else None
+        if table is not None:
+            table.check_scale(robot)  # mN for N, as estimate refuses them
         tendon = TendonShapes(robot, points_per_section, table)
         if table is None:
             print(
