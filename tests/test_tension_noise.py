@@ -437,3 +437,48 @@ def test_a_held_log_that_holds_to_the_end_keeps_its_rate_zero_there() -> None:
     assert table.hold_period_s == pytest.approx(0.1)
     np.testing.assert_allclose(table.rates[(t > 1.0) & (t < 4.0)], 0.5, atol=1e-9)
     assert np.abs(table.rates[t > 5.2]).max() < 1e-9
+
+
+@pytest.mark.parametrize("resampled", [False, True])
+def test_a_slower_logs_ends_take_second_order_differences(resampled: bool) -> None:
+    """Tensions ``a t^2`` from rest at 10 Hz (the file's own rows, or resampled linearly
+    to 50 Hz): at the first row the rate is 0 and the second derivative ``2 a``, exact
+    for a quadratic, where the chord to the next sample gives ``a h`` and half of
+    ``2 a``; at the last row too. A file at the IMUs' 50 Hz keeps the chord at its ends,
+    as a recording's own columns and ``live`` difference them."""
+    a = 3.0
+    slow_t = np.arange(0.0, 2.0001, 0.1)
+    t = np.arange(0.0, 2.0001, 0.02) if resampled else slow_t
+    rows = (a * np.interp(t, slow_t, slow_t**2))[:, None]
+    table = Tensions.from_rows("slow.csv", t, rows)
+    assert table.rates[0, 0] == pytest.approx(0.0, abs=1e-9)
+    assert table.accelerations[0, 0] == pytest.approx(2 * a, rel=1e-9)
+    assert table.rates[-1, 0] == pytest.approx(2 * a * t[-1], rel=1e-9)
+    assert table.accelerations[-1, 0] == pytest.approx(2 * a, rel=1e-9)
+    fast_t = np.arange(0.0, 2.0001, 0.02)
+    fast = Tensions.from_rows("fast.csv", fast_t, (a * fast_t**2)[:, None])
+    assert fast.rates[0, 0] == pytest.approx(a * 0.02, rel=1e-9)  # the chord
+
+
+def test_the_start_of_a_10_hz_tensions_file_is_not_thrown_off(tmp_path: Path) -> None:
+    """``unloaded``'s tensions kept at every fifth row (a 10 Hz log, from rest): the
+    first estimates are as close as the 50 Hz file's (within 1 mm over the first
+    second), and the start is not taken as under load (with the chord at the first
+    row they were 28.9 mm off at t = 0, and every row ``uncertain``)."""
+    d = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
+    slow = tmp_path / "slow.csv"
+    header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))
+    np.savetxt(slow, d[::5], delimiter=",", fmt="%.9g", header=header, comments="")
+    lines = (DATA / "unloaded_raw.csv").read_text().splitlines()
+    first = tmp_path / "first.csv"
+    first.write_text("\n".join(lines[: 1 + 51]) + "\n")  # the first second
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(first), "--robot", "tendon-two-section", "--inputs", str(slow),
+            "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    est, truth = read_state_table(out), read_state_table(DATA / "unloaded_truth.csv")
+    tip = np.column_stack([est.column(c) for c in "xyz"])
+    true_tip = np.column_stack([truth.column(c)[: len(tip)] for c in "xyz"])
+    err = np.linalg.norm(tip - true_tip, axis=1)
+    assert err.max() < 1e-3, err.max()
+    assert list(est.status).count("ok") >= len(tip) - 2

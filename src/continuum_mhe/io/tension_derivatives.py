@@ -18,6 +18,10 @@ from continuum_mhe.arrays import FloatArray
 #: IMUs' 50 Hz): a faster file is averaged into bins of this length first
 #: (:func:`tension_derivatives`).
 DERIVATIVE_STEP_S = 0.02
+#: Rows (or a slower log's samples) further apart than this many derivative steps take
+#: second-order one-sided differences at the file's two ends, the chord to the next
+#: row otherwise (:func:`tension_derivatives`).
+SLOW_LOG_STEPS = 1.5
 #: The noise of the tensions' rates (N/s) and second derivatives (N/s^2) the estimators
 #: take without losing accuracy: the shipped ``unloaded`` (raw IMUs, EKF) with white
 #: noise added to its tensions (docs/tendon-studies.md, "Noisy tensions").
@@ -348,8 +352,13 @@ def tension_derivatives(
             accelerations=_at_rows(t, tb, smooth.accelerations),
             hold_period_s=hold_s,
         )
-    rates = central_differences(tb, vb)
-    acc = central_differences(tb, rates)
+    # rows further apart than the derivative step (a slower log's samples): second order
+    # at the ends, where a chord over the longer step errs by half that step times the
+    # second derivative (at a start from rest, the first step's mean rate for none)
+    slow = len(tb) >= 2 and float(np.median(np.diff(tb))) > SLOW_LOG_STEPS * DERIVATIVE_STEP_S
+    edge = 2 if slow else 1
+    rates = central_differences(tb, vb, edge)
+    acc = central_differences(tb, rates, edge)
     if every_row:
         return DifferencedTensions(values, rates, acc)
     return DifferencedTensions(
@@ -357,19 +366,32 @@ def tension_derivatives(
     )
 
 
-def central_differences(t: FloatArray, values: FloatArray) -> FloatArray:
+def central_differences(t: FloatArray, values: FloatArray, edge_order: int = 1) -> FloatArray:
     """The derivative of ``values`` (n, k) over ``t`` (n,) s at every row: the
-    second-order central difference on uneven steps inside, one-sided at the two ends,
-    zero with one row (numpy's ``gradient`` formulas). Written out because numpy's
-    switches to another formula when the steps of the whole array are equal: the
-    interior rows here depend on their neighbours alone, so a window of a stream gives
-    bit for bit the values of the whole file (:class:`TensionStream`)."""
+    second-order central difference on uneven steps inside, one-sided at the two ends
+    (first order, the chord to the next row, or with ``edge_order`` 2 and three rows or
+    more second order), zero with one row (numpy's ``gradient`` formulas). Written out
+    because numpy's switches to another formula when the steps of the whole array are
+    equal: the interior rows here depend on their neighbours alone, so a window of a
+    stream gives bit for bit the values of the whole file (:class:`TensionStream`)."""
     out = np.zeros_like(values, dtype=float)
     if len(t) < 2:
         return out
     h = np.diff(t)[:, None]
     out[0] = (values[1] - values[0]) / h[0]
     out[-1] = (values[-1] - values[-2]) / h[-1]
+    if edge_order == 2 and len(t) >= 3:
+        a1, a2, b1, b2 = h[0], h[1], h[-2], h[-1]
+        out[0] = (
+            -(2 * a1 + a2) / (a1 * (a1 + a2)) * values[0]
+            + (a1 + a2) / (a1 * a2) * values[1]
+            - a1 / (a2 * (a1 + a2)) * values[2]
+        )
+        out[-1] = (
+            b2 / (b1 * (b1 + b2)) * values[-3]
+            - (b1 + b2) / (b1 * b2) * values[-2]
+            + (2 * b2 + b1) / (b2 * (b1 + b2)) * values[-1]
+        )
     h1, h2 = h[:-1], h[1:]
     a = -h2 / (h1 * (h1 + h2))
     b = (h2 - h1) / (h1 * h2)
