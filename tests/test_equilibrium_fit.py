@@ -4,6 +4,7 @@ objective with those rows as constraints, and the evaluations a start takes."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
@@ -13,6 +14,7 @@ from scipy.optimize import minimize_scalar
 
 import continuum_mhe._core as core
 from continuum_mhe.model.equilibrium_fit import (
+    SETTLE_STALLS,
     SETTLE_TOLERANCE,
     EquilibriumFit,
     fit_on_equilibrium,
@@ -22,33 +24,95 @@ from continuum_mhe.model.tendon import START_PRIOR_WEIGHT
 DATA = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "tendon"
 
 
-def test_a_known_answer_meets_its_equilibrium_exactly() -> None:
-    """States ``(s, o)``, the equilibrium ``s = o^3 + 1`` and two readings ``s = 9``
-    and ``o = 2.1``: the fit is the minimiser of ``(o^3 - 8)^2 + (o - 2.1)^2`` (found
-    here by a scalar search), with ``s`` on the equilibrium to its tolerance."""
+def _cubic(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """States ``(s, o)``: the readings ``s = 9`` and ``o = 2.1``, the equilibrium
+    ``s = o^3 + 1`` (rows 0, 1, 2) and its Jacobian."""
+    s, o = x
+    r = np.array([s - 9.0, o - 2.1, s - o**3 - 1.0])
+    J = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, -3.0 * o**2]])
+    return r, J
 
-    def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s, o = x
-        r = np.array([s - 9.0, o - 2.1, s - o**3 - 1.0])
-        J = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, -3.0 * o**2]])
-        return r, J
 
-    spec = EquilibriumFit(
+def _cubic_spec(prior_weights: tuple[float, float] = (0.0, 0.0)) -> EquilibriumFit:
+    return EquilibriumFit(
         free=np.array([0, 1]),
         settled=np.array([0]),
         equilibrium_rows=np.array([2]),
         rows=np.array([0, 1]),
         weights=np.ones(3),
         prior=np.zeros(2),
-        prior_weights=np.zeros(2),
+        prior_weights=np.array(prior_weights),
         scale=np.ones(2),
     )
-    x, converged = fit_on_equilibrium(evaluate, np.array([0.0, 1.0]), spec, 200)
-    best = minimize_scalar(lambda o: (o**3 - 8.0) ** 2 + (o - 2.1) ** 2, bracket=(1.0, 3.0),
-                           tol=1e-12).x  # fmt: skip
-    assert converged
-    assert x[1] == pytest.approx(best, abs=1e-7)
-    assert abs(x[0] - x[1] ** 3 - 1.0) <= SETTLE_TOLERANCE
+
+
+@pytest.mark.parametrize("prior_on_s", [0.0, 0.3])
+def test_a_known_answer_meets_its_equilibrium_exactly(prior_on_s: float) -> None:
+    """The readings and the equilibrium of :func:`_cubic`, and a prior ``0.3 s`` on the
+    settled state or none: the fit is the minimiser of ``(o^3 - 8)^2 + (o - 2.1)^2 +
+    (0.3 (o^3 + 1))^2`` (found here by a scalar search), with ``s`` on the equilibrium
+    to its tolerance."""
+    got = fit_on_equilibrium(_cubic, np.array([0.0, 1.0]), _cubic_spec((prior_on_s, 0.0)), 200)
+
+    def cost(o: float) -> float:
+        return (o**3 - 8.0) ** 2 + (o - 2.1) ** 2 + (prior_on_s * (o**3 + 1.0)) ** 2
+
+    best = minimize_scalar(cost, bracket=(1.0, 3.0), tol=1e-12).x
+    assert got.converged and got.settled
+    assert got.x[1] == pytest.approx(best, abs=1e-7)
+    assert abs(got.x[0] - got.x[1] ** 3 - 1.0) <= SETTLE_TOLERANCE
+    np.testing.assert_array_equal(got.residual, _cubic(got.x)[0])
+
+
+@pytest.mark.parametrize("budget", [4, 5, 8, 13])
+def test_a_fit_cut_short_keeps_its_best_settled_point(budget: int) -> None:
+    """With too few evaluations the fit ends at the settled point of lowest cost it met
+    (never above the start's), says it did not converge, and spends no more than it
+    was given."""
+    spec = _cubic_spec()
+    start = np.array([0.0, 1.0])
+    got = fit_on_equilibrium(_cubic, start, spec, budget)
+
+    def cost(x: np.ndarray) -> float:
+        r = _cubic(x)[0]
+        return float(r[0] ** 2 + r[1] ** 2)
+
+    assert not got.converged and got.settled and got.evaluations <= budget
+    assert abs(got.x[0] - got.x[1] ** 3 - 1.0) <= SETTLE_TOLERANCE
+    assert cost(got.x) <= cost(np.array([start[1] ** 3 + 1.0, start[1]]))
+
+
+def test_an_equilibrium_that_does_not_settle_is_said_and_costs_little() -> None:
+    """``s^2 + 1 = 0`` has no solution: Newton's method stops after a few steps that do
+    not lower it, and the result is the start, not settled; a model that fails
+    (``ArithmeticError``) is the same."""
+
+    def no_root(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s, o = x
+        return np.array([s - 9.0, o - 2.1, s**2 + 1.0]), np.array(
+            [[1.0, 0.0], [0.0, 1.0], [2.0 * s, 0.0]]
+        )
+
+    def failing(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise ArithmeticError("no equilibrium")
+
+    start = np.array([0.5, 1.0])
+    for evaluate in (no_root, failing):
+        got = fit_on_equilibrium(evaluate, start, _cubic_spec(), 600)
+        assert not got.settled and not got.converged and got.residual is None
+        np.testing.assert_array_equal(got.x, start)
+        assert got.evaluations <= SETTLE_STALLS + 2, got.evaluations
+
+
+def test_a_spec_that_cannot_be_solved_is_refused() -> None:
+    """A settled state that is not free, or settled states and equilibrium rows of
+    different numbers: a ValueError naming it."""
+    with pytest.raises(ValueError, match="every settled state must be free"):
+        replace(_cubic_spec(), settled=np.array([2]))
+    with pytest.raises(ValueError, match="as many settled states as equilibrium rows"):
+        replace(_cubic_spec(), equilibrium_rows=np.array([1, 2]))
+    with pytest.raises(ValueError, match="prior needs one value per free state"):
+        replace(_cubic_spec(), prior=np.zeros(3))
 
 
 class _Counting:
@@ -90,9 +154,10 @@ def _start_under_load(imu: str = "raw"):  # type: ignore[no-untyped-def]
 def test_a_start_under_load_takes_few_evaluations(
     imu: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Fitted with the tip condition as rows of its tiny standard deviation, the start
-    at 5 s of ``force-29`` took 400 to 600 evaluations of the model (the most allowed);
-    with the condition solved at each trial point, a few tens, and it holds exactly."""
+    """The start at 5 s of ``force-29`` takes a few tens of the model's evaluations with
+    the tip condition solved at each trial point (400 to 600, the most allowed, with
+    the condition fitted as rows of its tiny standard deviation), and the condition
+    holds exactly."""
     f, z0 = _start_under_load(imu)
     monkeypatch.setattr(core, "ResidualNodeFunction", _Counting)
     _Counting.calls = 0

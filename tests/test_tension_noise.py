@@ -463,8 +463,8 @@ def test_a_slower_logs_ends_take_second_order_differences(resampled: bool) -> No
 def test_the_start_of_a_10_hz_tensions_file_is_not_thrown_off(tmp_path: Path) -> None:
     """``unloaded``'s tensions kept at every fifth row (a 10 Hz log, from rest): the
     first estimates are as close as the 50 Hz file's (within 1 mm over the first
-    second), and the start is not taken as under load (with the chord at the first
-    row they were 28.9 mm off at t = 0, and every row ``uncertain``)."""
+    second), and the start is not taken as under load (the chord to the next sample
+    at the first row puts the first estimate 28.9 mm off and every row ``uncertain``)."""
     d = np.loadtxt(DATA / "unloaded_tensions.csv", delimiter=",", skiprows=1)
     slow = tmp_path / "slow.csv"
     header = "t," + ",".join(f"tension_{j}" for j in range(1, 7))

@@ -15,6 +15,7 @@ readings' total derivative along the equilibrium, ``J_o - J_e E_e^-1 E_o``, wher
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -25,6 +26,9 @@ from continuum_mhe.arrays import FloatArray
 
 #: Newton iterations of the equilibrium at one trial point, at most.
 SETTLE_ITERATIONS = 30
+#: Newton iterations in a row that do not halve the equilibrium rows' largest value
+#: from its best at that point, after which the point is taken as not settling.
+SETTLE_STALLS = 4
 #: The equilibrium rows' largest value (their own unit: rad/m for the tip condition,
 #: rad/(m s) for its rate) at which Newton's method stops.
 SETTLE_TOLERANCE = 1e-10
@@ -55,6 +59,40 @@ class EquilibriumFit:
     prior_weights: FloatArray
     scale: FloatArray
 
+    def __post_init__(self) -> None:
+        free = {int(j) for j in self.free}
+        if not {int(j) for j in self.settled} <= free:
+            raise ValueError("EquilibriumFit: every settled state must be free")
+        if len(self.settled) != len(self.equilibrium_rows):
+            raise ValueError(
+                "EquilibriumFit: as many settled states as equilibrium rows are needed "
+                f"({len(self.settled)} and {len(self.equilibrium_rows)})"
+            )
+        for name in ("prior", "prior_weights", "scale"):
+            if len(getattr(self, name)) != len(self.free):
+                raise ValueError(f"EquilibriumFit: {name} needs one value per free state")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """What :func:`fit_on_equilibrium` found.
+
+    Attributes:
+        x: the state (the fitted point, or the best settled point where the fit ended
+            early, or ``x0`` where none settled).
+        residual: the model's residual at ``x`` (``evaluate``'s ``r``); None where no
+            point settled.
+        settled: whether ``x`` meets the equilibrium rows (to :data:`SETTLE_TOLERANCE`).
+        converged: whether the least-squares fit converged within the budget.
+        evaluations: the calls of ``evaluate``.
+    """
+
+    x: FloatArray
+    residual: FloatArray | None
+    settled: bool
+    converged: bool
+    evaluations: int
+
 
 #: ``evaluate(x) -> (r, J)``: the residual (nz,) at the state ``x`` and its Jacobian
 #: ``dr/dx`` (nz, nx); raises ``ArithmeticError`` where the model fails.
@@ -63,12 +101,12 @@ Evaluate = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
 
 def fit_on_equilibrium(
     evaluate: Evaluate, x0: FloatArray, spec: EquilibriumFit, max_evaluations: int
-) -> tuple[FloatArray, bool]:
-    """``(x, converged)``: ``x0`` with its free states fitted (variable projection, as
-    the module says), the settled ones meeting the equilibrium rows, in at most
-    ``max_evaluations`` calls of ``evaluate`` (each Newton step of the equilibrium is
-    one). Where the fit ends unsettled or without converging, the last point that
-    settled (``x0`` itself where none did) and ``converged`` False."""
+) -> FitResult:
+    """``x0`` with its free states fitted (variable projection, as the module says), the
+    settled ones meeting the equilibrium rows, in at most ``max_evaluations`` calls of
+    ``evaluate`` (each Newton step of the equilibrium is one). Where the budget runs out
+    the result is the settled point of lowest cost met so far (``converged`` False);
+    where not even ``x0``'s free states settle, ``x0`` itself (``settled`` False)."""
     from scipy.optimize import least_squares  # imported on use (slow to import)
 
     free = np.asarray(spec.free)
@@ -81,6 +119,7 @@ def fit_on_equilibrium(
     eq, rows = np.asarray(spec.equilibrium_rows), np.asarray(spec.rows)
     w_rows = spec.weights[rows]
     kept: dict[bytes, tuple[FloatArray, FloatArray, FloatArray]] = {}
+    best: list[tuple[float, FloatArray, FloatArray]] = []  # (cost, x, r) of the best point
     count = [0]
 
     def settle(v_o: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
@@ -91,6 +130,7 @@ def fit_on_equilibrium(
             return kept[key]
         trial = x.copy()
         trial[other] = v_o
+        lowest, stalls = math.inf, 0
         for _ in range(SETTLE_ITERATIONS):
             if count[0] >= max_evaluations:
                 return None
@@ -102,11 +142,16 @@ def fit_on_equilibrium(
             c = r[eq]
             if not np.all(np.isfinite(c)) or not np.all(np.isfinite(J[eq][:, settled])):
                 return None
-            if np.max(np.abs(c)) <= SETTLE_TOLERANCE:
+            size = float(np.max(np.abs(c)))
+            if size <= SETTLE_TOLERANCE:
                 x[:] = trial  # the next trial's settled states start here
                 kept.clear()
                 kept[key] = (trial, r, J)
                 return kept[key]
+            stalls = 0 if size < 0.5 * lowest else stalls + 1
+            lowest = min(lowest, size)
+            if stalls >= SETTLE_STALLS:
+                return None
             try:
                 trial[settled] -= np.linalg.solve(J[np.ix_(eq, settled)], c)
             except np.linalg.LinAlgError:
@@ -129,10 +174,13 @@ def fit_on_equilibrium(
         dfree[pos_s] = ds
         res = np.r_[w_rows * r[rows], spec.prior_weights * (trial[free] - spec.prior)]
         jac = np.vstack([w_rows[:, None] * J_rows, spec.prior_weights[:, None] * dfree])
+        cost = float(res @ res)
+        if not best or cost < best[0][0]:
+            best[:] = [(cost, trial.copy(), r.copy())]
         return res, jac
 
     if settle(x[other]) is None:
-        return np.array(x0, dtype=float), False
+        return FitResult(np.array(x0, dtype=float), None, False, False, count[0])
     fit = least_squares(
         lambda v: reduced(v)[0],
         x[other],
@@ -141,7 +189,9 @@ def fit_on_equilibrium(
         x_scale=spec.scale[pos_o],
         max_nfev=max_evaluations,
     )
+    spent = count[0] >= max_evaluations
     got = settle(fit.x) if np.all(np.isfinite(fit.x)) else None
-    if got is None:
-        return x, False
-    return got[0], bool(fit.status > 0)
+    if got is None or spent:  # the best point the fit settled
+        _, xb, rb = best[0]
+        return FitResult(xb, rb, True, False, count[0])
+    return FitResult(got[0], got[1], True, bool(fit.status > 0), count[0])

@@ -106,7 +106,7 @@ ACCELERATION_STEP = 0.01
 #: The start's prior weight relative to :meth:`TendonFormulation.initial_cov`'s: enough
 #: to settle the directions the IMUs do not see, far too faint to move the others.
 START_PRIOR_WEIGHT = 1e-3
-#: The start's most model evaluations (each Newton step of the equilibrium counts:
+#: The start's most model evaluations (each Newton step of the equilibrium counts,
 #: :func:`~continuum_mhe.model.equilibrium_fit.fit_on_equilibrium`). A start cut short
 #: leaves a force error that the IMUs' misalignment and bias states then absorb, and the
 #: filter follows the wrong shape for many samples; readings the model cannot fit take
@@ -1050,8 +1050,9 @@ class TendonFormulation(Formulation):
             prior_weights=prior_w,
             scale=scale[: len(free)],
         )
-        x = fit_on_equilibrium(evaluate, x, spec, START_EVALUATIONS)[0]
-        r = evaluate(x)[0]
+        fit = fit_on_equilibrium(evaluate, x, spec, START_EVALUATIONS)
+        # (where not even the unloaded equilibrium settles, its misfit says so)
+        x, r = fit.x, fit.residual if fit.residual is not None else evaluate(fit.x)[0]
         misfit, limit = self.start_misfit(r[:n], valid, probability)
         return x, misfit, limit
 
