@@ -37,7 +37,8 @@ def add_tension_gain_option(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="a tendon robot with raw IMUs: estimate a gain per section on the tensions "
         "given (the tension acting over the one given: a tension sensor's gain, tendon "
-        "friction; a unit error such as kgf given as N is said, not recovered), a warning "
+        "friction; a unit error such as kgf given as N is said, and recovered only in part "
+        "under load), a warning "
         "where it ends far from 1; costs accuracy where the tensions are right, and "
         "misleads with tilt IMUs (docs/tendon.md)",
     )

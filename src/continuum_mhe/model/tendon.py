@@ -31,9 +31,9 @@ with tendons anchored at its end, a slow random walk with the prior 1: the tensi
 acting on a tendon is its section's gain times the one given (the residual below reads
 ``gain * z_tau - tau``, and the given rates and their rates enter the IMUs' model times
 the gain), for tensions whose scale is in doubt (a tension sensor's gain, tendon
-friction, kgf given as N). With raw IMUs the gains recover tensions given a few
-tenths to twice the acting ones; tensions in kgf for N are not recovered, but the gains
-end far from 1, which ``estimate`` says. With the right tensions the gains cost
+friction, kgf given as N). With raw IMUs the gains recover tensions given half to
+twice the acting ones, and kgf for N in part under load; a gain that ends far from 1
+is said by ``estimate``. With the right tensions the gains cost
 accuracy, and with tilt IMUs they trade with the IMUs' errors and mislead: hence off
 by default (docs/tendon-studies.md, "Tension gains", has the measurements).
 The measurement vector is the IMUs' (tilt: roll and pitch, or raw: ``f/|f|`` and gyro,
