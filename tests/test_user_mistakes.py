@@ -1072,6 +1072,16 @@ def test_integer_ranges_are_said_as_integers_and_zero_noise_says_why(tmp_path, c
         "(0, 90] deg here (simulate takes 0: noise-free data)"
     )
     assert not (tmp_path / "e.csv").exists()
+    # a negative noise: the option's range, and what the estimators need
+    assert main(["estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--noise-deg", "-1"]) == 2
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(
+            "--noise-deg -1.0 is outside its valid range [0, 90] deg: the estimators need more "
+            "than 0 (simulate takes 0: noise-free data)"
+        )
+    )
 
 
 def test_a_multi_section_scenario_from_simulate_names_simulate_robot() -> None:
@@ -1608,6 +1618,21 @@ def test_benchmark_with_a_robot_refuses_options_it_would_not_use(capsys) -> None
         argv = ["benchmark", "--robot", "two-section", "--horizons", "10", "--duration", "1"]
         assert main([*argv, *extra]) == 2
         assert f"{extra[0]} does not apply with --robot" in capsys.readouterr().err
+
+
+def test_benchmark_with_a_robot_takes_the_skip_values_of_what_it_leaves_out(
+    capsys, tmp_path
+) -> None:
+    """``--loss-horizons none`` and ``--memory-samples 0`` (the help's "skip") ask for
+    what --robot leaves out anyway: no refusal, the robot's benchmark runs."""
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "b.json"
+    argv = ["benchmark", "--robot", "two-section", "--horizons", "5", "--duration", "0.5",
+            "--repeats", "1", "--loss-horizons", "none", "--memory-samples", "0",
+            "--json", str(out)]  # fmt: skip
+    assert main(argv) == 0, capsys.readouterr().err
+    assert "does not apply" not in capsys.readouterr().err and out.exists()
 
 
 @pytest.mark.parametrize(

@@ -76,10 +76,11 @@ def run(args: argparse.Namespace) -> int:
 
         check_output_target(args.json, args.overwrite, "--json")
     if args.robot:
+        # (what --robot leaves out anyway may be asked to be left out: none, 0)
         unused = [flag for flag, given in (
-            ("--skip", bool(args.skip)), ("--loss-horizons", args.loss_horizons is not None),
+            ("--skip", bool(args.skip)), ("--loss-horizons", bool(args.loss_horizons)),
             ("--acados", args.acados is not None),
-            ("--memory-samples", args.memory_samples != MEMORY_SAMPLES),
+            ("--memory-samples", args.memory_samples not in (MEMORY_SAMPLES, 0)),
         ) if given]  # fmt: skip
         if unused:
             raise UserError(

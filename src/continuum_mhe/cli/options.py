@@ -76,7 +76,12 @@ OPTION_RANGES: dict[str, OptionRange] = {
         0.005, 5.0, "m", above="millimetres or centimetres? --length is in metres, e.g. 0.2"
     ),
     "theta_max": OptionRange(0.0, math.pi, "rad", lo_open=True, hi_open=True, hint=theta_max_hint),
-    "noise_deg": OptionRange(0.0, 90.0, "deg", above="--noise-deg is in degrees"),
+    "noise_deg": OptionRange(
+        0.0, 90.0, "deg", above="--noise-deg is in degrees",
+        # the estimators' own check refuses 0 (model_options): say so for a negative too
+        hint=lambda v: "the estimators need more than 0 (simulate takes 0: noise-free data)"
+        if v < 0 else "",
+    ),  # fmt: skip
     "accel_psd": OptionRange(1e-9, 1e4, "rad^2/s^3"),
     "gyro_std": OptionRange(1e-6, 10.0, "rad/s", above="degrees? --gyro-std is in rad/s"),
     "horizon": OptionRange(2, MAX_HORIZON, "samples", integer=True),
