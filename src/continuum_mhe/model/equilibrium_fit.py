@@ -9,8 +9,9 @@ second order, and Levenberg-Marquardt creeps, hundreds of evaluations a start. H
 the variables that the tip condition settles (the base curvature, and with raw IMUs
 its rate) are solved from those rows by Newton's method at every trial point, and the
 least-squares problem runs over the rest (variable projection): its Jacobian is the
-readings' total derivative along the equilibrium, ``J_o - J_e E_e^-1 E_o``, where
-``E`` are the equilibrium rows' derivatives.
+readings' total derivative along the equilibrium, ``J_o - J_s E_s^-1 E_o``, where ``J``
+and ``E`` are the fitted rows' and the equilibrium rows' derivatives with respect to
+the settled states (``s``) and the others (``o``).
 """
 
 from __future__ import annotations

@@ -1039,11 +1039,12 @@ class TendonFormulation(Formulation):
             return out[nz * nx :].copy(), -out[: nz * nx].reshape(nz, nx)  # H = -dr/dx
 
         scale = np.r_[[1.0] * 3, [0.1] * 3, [1.0] * 3, [0.01] * self.n_gyro_bias, [0.1] * 3]
-        n_eq = self.measurement_blocks[-1].size  # the tip condition (and its rate)
+        eq = self.measurement_blocks[-1]  # the tip condition (with raw IMUs, its rate too)
         spec = EquilibriumFit(
             free=free,
-            settled=np.r_[0:3, 6 + k : 9 + k] if n_eq == 6 else np.r_[0:3],
-            equilibrium_rows=np.r_[nz - n_eq : nz],
+            # the base curvature (with raw IMUs, its rate too), which those rows settle
+            settled=np.r_[0:3, 6 + k : 9 + k] if self.imu_model == "direct" else np.r_[0:3],
+            equilibrium_rows=np.arange(eq.start, eq.start + eq.size),
             rows=np.flatnonzero(valid),
             weights=w,
             prior=prior,
