@@ -19,6 +19,11 @@ Scenarios (``SCENARIOS``):
 * ``unloaded``: each section's tendons pull ``T_k (1 + cos(alpha_i - beta_k))`` (so the
   tendon opposite the bend goes slack), with the bending directions ``beta_k`` turning
   at different rates; bends past 90 degrees; no tip force.
+* ``planar-s``: the two sections bent in one vertical plane the opposite ways (an S),
+  the S swinging through straight to its mirror image and back (each tendon
+  ``T_k (1 +- s(t) cos(alpha_i - beta))`` with ``s`` a sine of period
+  :data:`PLANAR_S_PERIOD`, so the tendons on the bend's outside go nearly slack at the
+  largest bends, about 60 degrees a section); no tip force.
 * ``force-08`` and ``force-29``: moderate tendon bends and a tip force turning in the
   horizontal plane with a vertical part, up to 0.08 N and 0.29 N in magnitude.
 * ``twist-08`` and ``twist-29``: both sections bent the same way (past 90 degrees in
@@ -63,11 +68,17 @@ from continuum_mhe.simulation.cosserat_sections import (
     imu_samples,
 )
 
-SCENARIOS = ("unloaded", "force-08", "force-29", "twist-08", "twist-29", "static")
+SCENARIOS = ("unloaded", "planar-s", "force-08", "force-29", "twist-08", "twist-29", "static")
 #: The quasi-static peer's segments per disk: its section ends converge as ``ds^2``;
 #: at 2 the tip of a 120-degree bend is 0.3 to 0.7 mm from the converged rod's, at 4
 #: about 0.1 mm, at 8 a few hundredths.
 SEGMENTS_PER_DISK = 4
+
+
+#: ``planar-s``: the period of the S's swing, s, and its plane's angle from the base x
+#: axis, rad.
+PLANAR_S_PERIOD = 6.0
+PLANAR_S_PLANE = 0.4
 
 
 @dataclass(frozen=True)
@@ -79,12 +90,15 @@ class TendonRodSettings:
         loaded_tension: ``T_k`` on the loaded recordings, N.
         twist_tension: ``T_k`` on the twisting recordings, N, per peak force
             (``twist-08``, ``twist-29``).
+        s_tension: ``T_k`` per section on ``planar-s``, N (the first section's
+            twice the second's: the second section's tendons bend the first one too).
         ramp: s over which the tendons and the force come up from zero.
     """
 
     tension: tuple[float, float] = (1.0, 6.0)
     loaded_tension: tuple[float, float] = (1.0, 1.5)
     twist_tension: tuple[tuple[float, float], tuple[float, float]] = ((3.4, 1.5), (3.5, 1.8))
+    s_tension: tuple[float, float] = (7.0, 3.5)
     ramp: float = 3.0
 
 
@@ -99,6 +113,13 @@ def tension_profile(robot: Robot, scenario: str, t: float, s: TendonRodSettings)
         amp = s.twist_tension[scenario == "twist-29"]
         betas = (_twist_plane(t),) * 2
     out = np.zeros(robot.n_tendons)
+    if scenario == "planar-s":
+        swing = math.sin(2 * math.pi * t / PLANAR_S_PERIOD)
+        for i, td in enumerate(robot.tendons):
+            side = 1.0 if td.section == 0 else -1.0  # the second section bends back
+            bend = side * swing * math.cos(td.angle - PLANAR_S_PLANE)
+            out[i] = ramp * s.s_tension[td.section] * (1 + bend)
+        return out
     for i, td in enumerate(robot.tendons):
         k = td.section
         out[i] = ramp * amp[k] * (1 + math.cos(td.angle - betas[k]))
@@ -112,7 +133,7 @@ def _twist_plane(t: float) -> float:
 
 def tip_force(scenario: str, t: float, s: TendonRodSettings) -> FloatArray:
     """The tip force at ``t``, N, base frame."""
-    if scenario == "unloaded":
+    if scenario in ("unloaded", "planar-s"):
         return np.zeros(3)
     peak = 0.08 if scenario in ("force-08", "twist-08") else 0.29
     ramp = 0.5 * (1 - math.cos(math.pi * min(t / s.ramp, 1.0)))
