@@ -39,6 +39,7 @@ using OutArray = nb::ndarray<T, nb::c_contig, nb::device::cpu>;
 auto counts_of(const PolicyDiagnostics& d) {
   return std::make_tuple(d.restarts, d.gap_resets, d.frozen_samples, d.bad_starts,
                          d.reject_resets, d.bound_samples, d.bad_start_chains,
+                         d.untrusted_start_samples,
                          d.first_freezes.size(), d.has_failure, d.max_noise_scale,
                          d.model_error);
 }
@@ -79,7 +80,7 @@ inline std::pair<nb::object, nb::object> kept_arrays(const double* x, const doub
 // ``restart(kept_x | None, kept_P | None, kept_t)``,
 // ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
 // ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
-// ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``
+// ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``, ``start_untrusted()``
 // (continuum_mhe.estimators.sensor_health.PythonInference).
 class PythonInference final : public PolicyInference {
  public:
@@ -132,6 +133,10 @@ class PythonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(obj_.attr("at_bound")(state(x)));
   }
+  bool start_untrusted() override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<bool>(obj_.attr("start_untrusted")());
+  }
 
  private:
   Array state(const double* x) const { return copy_of(x, {size_t(nx_)}); }
@@ -147,7 +152,7 @@ class PythonInference final : public PolicyInference {
 // ``restart(kept_x, kept_P, kept_t)``, ``start(z) -> failure | None`` (the arrival prior from the first
 // reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
 // step did not keep its answer (IPOPT's fallback, the branch check, the second start),
-// and the formulation's checks of a state.
+// ``start_untrusted()`` once per start, and the formulation's checks of a state.
 class HorizonInference final : public PolicyInference {
  public:
   HorizonInference(MovingHorizon& h, nb::object py, bool finish, bool robust,
@@ -255,6 +260,10 @@ class HorizonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(formulation_.attr("at_bound")(copy_of(x, {size_t(h_.nx)})));
   }
+  bool start_untrusted() override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<bool>(py_.attr("start_untrusted")());
+  }
   double outlier_weight = 0.0;
 
  private:
@@ -272,7 +281,8 @@ class HorizonInference final : public PolicyInference {
 // deviations on the node model (filter.hpp); the Python inference object
 // (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
 // ``restart(kept_x, kept_P, kept_t)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
-// code, failure | None)`` (the prior from the reading, updated with it).
+// code, failure | None)`` (the prior from the reading, updated with it), and
+// ``start_untrusted()`` once per start.
 class KalmanInference final : public PolicyInference {
  public:
   KalmanInference(NodeModel& node, nb::object py, std::vector<double> R,
@@ -335,6 +345,10 @@ class KalmanInference final : public PolicyInference {
   }
   bool drifted(const double* x) override { return check("drifted", x, nullptr); }
   bool at_bound(const double* x) override { return check("at_bound", x, nullptr); }
+  bool start_untrusted() override {
+    nb::gil_scoped_acquire gil;
+    return nb::cast<bool>(py_.attr("start_untrusted")());
+  }
 
  private:
   // the formulation's check ``name`` of a state, in Python (a formulation without
@@ -480,7 +494,9 @@ void cmhe::bind_sensor_health(nb::module_& m) {
       .def_ro("model_error", &PolicyDiagnostics::model_error,
               "The largest model error learned, in units of R (0 when none showed).")
       .def_ro("bad_start_chains", &PolicyDiagnostics::bad_start_chains,
-              "Times the bad-start check stopped restarting after a chain of restarts.");
+              "Times the bad-start check stopped restarting after a chain of restarts.")
+      .def_ro("untrusted_start_samples", &PolicyDiagnostics::untrusted_start_samples,
+              "Estimates of a start the inference did not trust (none of them ok).");
 
   nb::class_<StateChecks>(
       m, "StateChecks",

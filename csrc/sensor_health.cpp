@@ -144,6 +144,7 @@ void SensorHealth::restart(bool keep_sensors) {
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
   started_ = false;
+  start_untrusted_ = false;
   restarted_since_drift_ = true;  // drifted_t_ is kept: see step
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
@@ -483,6 +484,13 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   // the first estimate since a (re)start fits its one reading alone
   const bool first = has_state && !started_;
   if (has_state) started_ = true;
+  if (first) start_untrusted_ = inference_.start_untrusted();
+  if (start_untrusted_ && has_state) {
+    // no estimate of that start is ok (drifted where the model's error states have left
+    // their prior: that says more), until the next restart
+    ++diagnostics.untrusted_start_samples;
+    if (status == ST_OK) status = inference_.drifted(x) ? ST_DRIFTED : ST_UNCERTAIN;
+  }
   if (check_start) start_remember(t, z, x, P, has_state, has_cov);
   if (status == ST_OK && has_state && !s_.checks && inference_.drifted(x)) status = ST_DRIFTED;
   if (trusted(status) && !observed) {

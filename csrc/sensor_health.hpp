@@ -82,6 +82,12 @@ class PolicyInference {
   virtual bool is_diverged(const double* x, const double* P) = 0;
   virtual bool drifted(const double* x) = 0;
   virtual bool at_bound(const double* x) = 0;
+  // whether the start of the last infer (the first estimate since a restart) is one that
+  // no later reading confirms: its formulation could not tell what its first reading
+  // showed from the sensors' own errors (a tendon robot's tip load at a start that knows
+  // nothing of the IMUs). Asked once per start; every estimate of that start until the
+  // next restart is then not trusted.
+  virtual bool start_untrusted() { return false; }
 };
 
 // The process noise ``Q(dt)`` (nx x nx) and its inverse, cached per time step rounded to
@@ -167,7 +173,8 @@ struct PolicySettings {
 struct PolicyDiagnostics {
   int64_t restarts = 0, gap_resets = 0, frozen_samples = 0, bad_starts = 0,
           reject_resets = 0, bound_samples = 0,
-          bad_start_chains = 0;  // chains in which the check held a restart back
+          bad_start_chains = 0,  // chains in which the check held a restart back
+          untrusted_start_samples = 0;  // estimates of a start the inference did not trust
   std::vector<std::pair<int, double>> first_freezes;  // (IMU, t), in order
   bool has_failure = false;
   std::string last_failure;
@@ -263,6 +270,7 @@ class SensorHealth {
   // an estimate has been made since the last (re)start: the next one is a start from
   // one reading (the first, or the first after a gap), which a later reading confirms
   bool started_ = false;
+  bool start_untrusted_ = false;  // the inference did not trust the current start
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
   // estimator restarted after it
   double drifted_t_ = -INFINITY;

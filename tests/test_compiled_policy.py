@@ -12,17 +12,19 @@ import re
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
+from estimator_helpers import recovery_estimators
 
 from continuum_mhe.errors import SampleTimeError, UserError
 from continuum_mhe.estimators import make_estimator
 from continuum_mhe.estimators.kalman import CasadiExtendedKalmanFilter
 from continuum_mhe.io.estimate_csv import estimate_lines, estimate_row, format_cells, format_time
 from continuum_mhe.io.robot_file import read_robot
-from continuum_mhe.model.bend import DIVERGED_RATE
+from continuum_mhe.model.bend import DIVERGED_RATE, BendFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, DIVERGED_MARGIN
 from continuum_mhe.model.registry import make_formulation
 from continuum_mhe.results import Diagnostics, Measurement
@@ -455,3 +457,35 @@ def test_the_core_s_statuses_are_the_status_vocabulary_in_its_order() -> None:
     from continuum_mhe.results import Status
 
     assert tuple(core.STATUS_NAMES) == tuple(s.value for s in Status)
+
+
+@dataclass(frozen=True)
+class _DistrustedStarts(BendFormulation):
+    """The bend formulation, whose starts at the readings of ``distrusted`` (their
+    bytes) cannot be trusted (as a tendon robot's start whose first reading shows a
+    load: ``Formulation.start_untrusted``)."""
+
+    distrusted: frozenset[bytes] = frozenset()
+
+    def start_untrusted(self, z0: np.ndarray) -> bool:
+        return np.asarray(z0, float).tobytes() in self.distrusted
+
+
+def test_an_untrusted_start_gives_no_ok_row_until_the_next_start_in_every_estimator() -> None:
+    """A start the formulation does not trust (its first reading shows what the start
+    cannot tell from the sensors' errors) makes every estimate of that start not ``ok``
+    in every estimator, counted in the diagnostics; the start after a gap is judged
+    anew, and trusted, its rows are ``ok`` again."""
+    rec = simulate("paper3d", duration=6.0, seed=1)
+    keep = (rec.t < 2.5) | (rec.t > 4.0)  # a gap of 1.5 s: a new start at 4.05 s
+    t, z = rec.t[keep], rec.z[keep]
+    f = _DistrustedStarts(distrusted=frozenset({np.asarray(z[0], float).tobytes()}))
+    first = t < 2.5
+    for est in recovery_estimators(RECOVERY, f):
+        series = est.run(t, z)
+        status = np.asarray(series.status).astype(str)
+        assert "ok" not in status[first], (est.inference.name, status[first])
+        assert est.diagnostics.gap_resets == 1
+        assert est.diagnostics.untrusted_start_samples == first.sum()
+        # after the gap's start (uncertain until a reading confirms it) the rows are ok
+        assert set(status[~first][2:]) == {"ok"}, (est.inference.name, status[~first])

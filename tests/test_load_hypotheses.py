@@ -411,4 +411,4 @@ def test_a_first_reading_without_imus_shows_no_load(imu: str) -> None:
     statuses = [str(s) for s in est.run(t[:100], z[:100]).status]
     inference = est.inference
     assert isinstance(inference, LoadHypothesesInference)
-    assert inference.load_at_start_samples == 0 and statuses[-40:] == ["ok"] * 40
+    assert est.diagnostics.untrusted_start_samples == 0 and statuses[-40:] == ["ok"] * 40

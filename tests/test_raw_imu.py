@@ -562,7 +562,7 @@ def test_the_gravity_check_of_gyro_units_passes_the_shipped_recordings() -> None
     deg/s by the gravity check: their gyros follow the accelerometers' turns."""
     data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"
     files = sorted(data.glob("rod2/*_raw.csv")) + sorted(data.glob("tendon/*_raw.csv"))
-    assert len(files) == 9
+    assert len(files) == 10
     for path in files:
         table = read_raw_imus(path, 2)
         for imu in table.imus:

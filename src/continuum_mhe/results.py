@@ -241,6 +241,10 @@ class Diagnostics:
             the excess of the innovations over the noise model, in units of ``R``,
             carried in the standard deviations as a constant error of the gravity
             directions); 0 when none showed.
+        untrusted_start_samples: estimates of a start that no later reading confirms
+            (:meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`: a tendon
+            robot's first reading that showed a tip load it cannot tell from the IMUs'
+            errors), none of them ``ok``.
     """
 
     restarts: int = 0
@@ -254,6 +258,7 @@ class Diagnostics:
     max_noise_scale: float = 1.0
     model_error: float = 0.0
     bad_start_chains: int = 0
+    untrusted_start_samples: int = 0
 
     def copy(self) -> Diagnostics:
         """An independent copy (later steps do not change it)."""

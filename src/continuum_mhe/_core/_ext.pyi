@@ -721,6 +721,10 @@ class PolicyDiagnostics:
         Times the bad-start check stopped restarting after a chain of restarts.
         """
 
+    @property
+    def untrusted_start_samples(self) -> int:
+        """Estimates of a start the inference did not trust (none of them ok)."""
+
 class StateChecks:
     """
     A formulation's checks of a state as data (csrc/sensor_health.hpp): diverged, at its bound.

@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 from abc import ABC, abstractmethod
 
+import numpy as np
+
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.model.formulations import Formulation, KeptSensors
 from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
@@ -58,6 +60,10 @@ class Inference(ABC):
         #: states and their covariance: ``Formulation.kept_sensors``), or None
         self.kept_sensors: KeptSensors | None = None
         self._kept: tuple[FloatArray, FloatArray, float | None] | None = None
+        #: the first reading of the current start, while :meth:`start_untrusted` has not
+        #: judged it (None once judged, and for a start that kept sensor states)
+        self._start_reading: FloatArray | None = None
+        self._start_untrusted = False
 
     def restart(
         self,
@@ -82,7 +88,22 @@ class Inference(ABC):
         over the time since (:meth:`~continuum_mhe.model.formulations.Formulation.
         kept_sensors`; ``t`` None: not grown)."""
         self.kept_sensors = self.kept_at(t)
+        self._start_reading = np.array(z, dtype=float) if self.kept_sensors is None else None
+        self._start_untrusted = False
         return self.formulation.start_prior(z, self.kept_sensors)
+
+    def start_untrusted(self) -> bool:
+        """Whether the current start is one that no later reading confirms: it knows
+        nothing of the sensors, and its formulation cannot tell what its first reading
+        shows from their own errors
+        (:meth:`~continuum_mhe.model.formulations.Formulation.start_untrusted`: a tendon
+        robot's tip load). The policy asks it once per start, and no estimate of that
+        start is then ``ok``. Judged on the first call after the start (a tendon robot's
+        judgement is a fit of its own), then remembered."""
+        if self._start_reading is not None:
+            z, self._start_reading = self._start_reading, None
+            self._start_untrusted = self.formulation.start_untrusted(z)
+        return self._start_untrusted
 
     def kept_at(self, t: float | None) -> KeptSensors | None:
         """The sensor states the last restart kept, at ``t`` s: their covariance grown by

@@ -239,6 +239,10 @@ class _KalmanHooks:
         kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
         self.inference.restart(*kept)  # type: ignore[arg-type]
 
+    def start_untrusted(self) -> bool:
+        """The inference's :meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`."""
+        return self.inference.start_untrusted()
+
     def first(
         self, t: float, z: FloatArray
     ) -> tuple[FloatArray | None, FloatArray | None, int, str | None]:

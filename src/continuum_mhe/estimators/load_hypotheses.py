@@ -31,11 +31,11 @@ A start that knows nothing of the sensors and whose first reading shows a load (
 free-of-load start fit misses it beyond the IMUs' noise and their own errors:
 :meth:`Formulation.unloaded_start
 <continuum_mhe.model.formulations.Formulation.unloaded_start>`) cannot tell that load
-from the IMUs' errors, and neither hypothesis' estimates can be trusted: every
-estimate of that start that would be ``ok`` is ``uncertain`` (``drifted`` where its
-IMU errors have left their prior) until the next restart
-(:attr:`LoadHypothesesInference.load_at_start_samples` counts the estimates of such
-starts).
+from the IMUs' errors, and neither hypothesis' estimates can be trusted: the inference
+says so (:meth:`LoadHypothesesInference.start_untrusted`), and the estimator's policy
+makes every estimate of that start that would be ``ok`` ``uncertain`` (``drifted``
+where its IMU errors have left their prior) until the next restart, as for every
+estimator of such a robot (``Diagnostics.untrusted_start_samples`` counts them).
 """
 
 from __future__ import annotations
@@ -113,8 +113,6 @@ class LoadHypothesesInference(Inference):
             estimator's last reset.
         load_at_start: whether the current start's first reading showed a load it
             could not tell from the sensors' errors (see the module docstring).
-        load_at_start_samples: the estimates of such starts since the estimator's last
-            reset (none of them ``ok``).
     """
 
     name = "ekf"
@@ -128,10 +126,9 @@ class LoadHypothesesInference(Inference):
         self._chosen: CompiledExtendedKalmanInference = self.loaded
         self.free_of_load_samples = 0
         self.load_at_start = False
-        self.load_at_start_samples = 0
-        #: the time of the last answer counted, and what it counted (free, load at start)
+        #: the time of the last answer counted, and whether it counted it as free of load
         self._counted_t: float | None = None
-        self._counted = (0, 0)
+        self._counted = 0
         #: the last answer's covariance and the loaded hypothesis' answer at that sample
         self._answer_P: FloatArray | None = None
         self._loaded_answer: _Answer | None = None
@@ -139,7 +136,6 @@ class LoadHypothesesInference(Inference):
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
-        self.load_at_start_samples = 0
         self._counted_t = None
 
     def close_recording(self) -> None:
@@ -160,9 +156,7 @@ class LoadHypothesesInference(Inference):
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
         if self._counted_t is not None and m.t == self._counted_t:
-            free, load = self._counted  # the policy steps this sample again
-            self.free_of_load_samples -= free
-            self.load_at_start_samples -= load
+            self.free_of_load_samples -= self._counted  # the policy steps this sample again
         self._counted_t = None
         starting = not self.unloaded.has_state
         got_l, ll_loaded = _step(self.loaded, m)
@@ -210,26 +204,22 @@ class LoadHypothesesInference(Inference):
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """``(x, P, status)`` as the answer of ``hypothesis``, counted where it is the
         free-of-load one (where the loaded one has no answer at this sample, the
-        free-of-load answer's force floor is the loaded hypothesis' last), and where it
-        belongs to a start that showed a load (:attr:`load_at_start`: an ``ok`` status
-        becomes ``uncertain``, or ``drifted``)."""
+        free-of-load answer's force floor is the loaded hypothesis' last)."""
         self._chosen = hypothesis
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
         self.kept_sensors = hypothesis.kept_sensors
-        load = 0
-        if self.load_at_start and x is not None:
-            load = 1
-            if status == Status.OK:
-                # the load and the IMUs' errors not told apart (drifted where the IMU
-                # errors have left their prior: that says more)
-                status = Status.DRIFTED if self.formulation.drifted(x) else Status.UNCERTAIN
         free = int(self.unloaded_chosen and x is not None)
         self.free_of_load_samples += free
-        self.load_at_start_samples += load
-        self._counted = (free, load)
-        self._counted_t = m.t if free or load else None
+        self._counted = free
+        self._counted_t = m.t if free else None
         return x, P, status
+
+    def start_untrusted(self) -> bool:
+        """Whether the current start's first reading showed a load it could not tell
+        from the IMUs' errors (:attr:`load_at_start`, the free-of-load hypothesis'
+        start fit: no second fit)."""
+        return self.load_at_start
 
     def output(self, state: FloatArray) -> FloatArray:
         return self._chosen.output(state)

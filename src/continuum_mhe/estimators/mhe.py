@@ -823,6 +823,10 @@ class _HorizonHooks:
         kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
         self.inference.restart(*kept)  # type: ignore[arg-type]
 
+    def start_untrusted(self) -> bool:
+        """The inference's :meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`."""
+        return self.inference.start_untrusted()
+
     def start(self, z: FloatArray) -> str | None:
         """Anchor the prior at the first reading ``z``; a numerical failure's message."""
         f = self.formulation

@@ -17,7 +17,7 @@ from continuum_mhe.estimators.load_hypotheses import LoadHypothesesInference
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import AT_BOUND_TOL, Formulation
 from continuum_mhe.model.robot import DEFAULT_THETA_MAX
-from continuum_mhe.results import Status
+from continuum_mhe.results import Diagnostics, Status
 
 #: A tendon robot's tip force beyond this many times its largest tension (and over
 #: :data:`FORCE_NOTICE_MIN` N) is said at the end of ``estimate``
@@ -420,15 +420,15 @@ def free_of_load_clause(inference: Inference, n: int) -> str | None:
     return f"taken as free of load (tip force 0 N) in {free} of the {n} estimates"
 
 
-def load_at_start_notice(inference: Inference, n: int) -> str | None:
-    """The line for the estimates, of ``n``, of a tendon robot's EKF whose start's first
-    reading showed a load it could not tell from the IMUs' errors, none of them ``ok``
-    (:mod:`.load_hypotheses`); None where there are none (``estimate``'s warning and
-    ``live``'s summary)."""
-    if not isinstance(inference, LoadHypothesesInference) or not inference.load_at_start_samples:
+def load_at_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
+    """The line for the estimates, of ``n``, of a start whose first reading showed a
+    load it could not tell from the IMUs' errors (a tendon robot's, in any estimator:
+    ``Diagnostics.untrusted_start_samples``), none of them ``ok``; None where there are
+    none (``estimate``'s warning and ``live``'s summary)."""
+    if not diagnostics.untrusted_start_samples:
         return None
     return (
-        f"{inference.load_at_start_samples} of {n} estimates not ok (uncertain, or drifted "
+        f"{diagnostics.untrusted_start_samples} of {n} estimates not ok (uncertain, or drifted "
         "where the IMU errors left their prior): the first reading of their start showed a "
         "tip load (or tensions that do not act as given), which a start cannot tell from "
         "the IMUs' misalignments and accelerometer biases, so the estimates may take part "

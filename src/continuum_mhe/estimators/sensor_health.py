@@ -195,6 +195,9 @@ class PythonInference:
     def at_bound(self, x: FloatArray) -> bool:
         return self.formulation.at_bound(x)
 
+    def start_untrusted(self) -> bool:
+        return self.inference.start_untrusted()
+
 
 #: Why an estimator is not copied (a copy would share its compiled state).
 _NOT_COPIED = (
@@ -379,6 +382,7 @@ class Estimator(Generic[InferenceT]):
         d.reject_resets, d.last_failure = got.reject_resets, got.last_failure
         d.bound_samples, d.bad_start_chains = got.bound_samples, got.bad_start_chains
         d.max_noise_scale, d.model_error = got.max_noise_scale, got.model_error
+        d.untrusted_start_samples = got.untrusted_start_samples
         for k, t in got.first_freezes[len(d.first_freezes) :]:
             d.first_freezes[k] = t
         self.inference.sync_counts()

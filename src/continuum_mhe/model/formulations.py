@@ -401,6 +401,14 @@ class Formulation:
         fy, fz``), indices into :attr:`outputs`; none here."""
         return ()
 
+    def start_untrusted(self, z0: FloatArray) -> bool:
+        """Whether a start that knows nothing of the sensors' own errors cannot be
+        trusted at the reading ``z0``, whatever the readings after it show: the reading
+        shows what the start cannot tell from those errors (never here; a tendon robot's
+        tip load). Every estimator's rows of such a start are not ``ok`` until the next
+        restart."""
+        return False
+
     def unloaded_start(
         self, z0: FloatArray, kept: KeptSensors | None = None
     ) -> tuple[FloatArray, FloatArray, bool]:

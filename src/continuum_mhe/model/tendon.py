@@ -933,8 +933,17 @@ class TendonFormulation(Formulation):
         )
         P = self.with_kept_covariance(self.initial_cov(), kept)
         x, P = without_load(x, P, self.load_states)
-        # (a reading without an accelerometer row shows nothing: an infinite misfit)
-        return x, P, kept is None and math.isfinite(misfit) and misfit > limit
+        return x, P, kept is None and _shows_load(misfit, limit)
+
+    def start_untrusted(self, z0: FloatArray) -> bool:
+        """Whether the reading ``z0`` shows a tip load that a start knowing nothing of
+        the IMUs' errors cannot tell from them: :meth:`unloaded_start`'s test (its fit
+        free of load misses the reading beyond the chance
+        :data:`LOAD_AT_START_PROBABILITY`), asked by every estimator at such a start."""
+        _, misfit, limit = self._start_fit(
+            z0, UNLOADED_FIT_FORCE_STD, None, probability=LOAD_AT_START_PROBABILITY
+        )
+        return _shows_load(misfit, limit)
 
     def _gyro_biases_kept(self, kept: KeptSensors | None) -> bool:
         """Whether a restart kept every gyro bias (with raw IMUs): the gyros then show
@@ -1182,3 +1191,9 @@ def acting_tensions(
         if i is not None:
             gains[:, j] = values[:, i]
     return np.asarray(given * gains, dtype=float)
+
+
+def _shows_load(misfit: float, limit: float) -> bool:
+    """Whether a start fit free of load misses its reading beyond ``limit`` (a reading
+    without an accelerometer row shows nothing: an infinite misfit)."""
+    return math.isfinite(misfit) and misfit > limit
