@@ -241,6 +241,11 @@ bool SensorHealth::note_imus(double t) {
   return !back_rows_.empty();
 }
 
+bool SensorHealth::imu_reading() const {
+  return std::any_of(s_.imu_blocks.begin(), s_.imu_blocks.end(),
+                     [this](const auto& b) { return mask_[b.first] > 0.0; });
+}
+
 bool SensorHealth::observed_now(double t) {
   if (!s_.shape_observable) return false;
   const size_t n = s_.imu_blocks.size();
@@ -482,6 +487,9 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
   // the first estimate since a (re)start fits its one reading alone
+  // a sample without any IMU's reading is a dropout, whatever else it carried (a
+  // tendon robot's tensions update the estimate, but nothing read the robot)
+  if (status == ST_OK && has_state && !s_.imu_blocks.empty() && !imu_reading()) status = ST_DROPOUT;
   const bool first = has_state && !started_;
   if (has_state) started_ = true;
   if (first) start_untrusted_ = inference_.start_untrusted();

@@ -226,6 +226,7 @@ class SensorHealth {
   void measurement_mask(const double* z);
   bool note_imus(double t);  // fills back_rows_
   bool observed_now(double t);
+  bool imu_reading() const;  // whether an IMU's reading is valid at this sample (mask_)
   double unobserved_window() const;
   // the tip position's standard deviation, m, from an estimate's output stds
   double tip_std(const double* ystd) const;

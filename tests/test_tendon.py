@@ -2712,3 +2712,62 @@ def test_the_single_loaded_ekf_trusts_no_row_of_a_start_that_shows_a_load() -> N
     assert est.diagnostics.untrusted_start_samples == 150
     note = load_at_start_notice(est.diagnostics, 150)
     assert note is not None and note.startswith("150 of 150 estimates not ok")
+
+
+def test_tension_rows_after_the_recording_are_not_taken_for_a_frozen_logger(
+    tmp_path: Path,
+) -> None:
+    """A tensions file that goes on for 400 s after an 8 s recording, held at its last
+    row (a controller's log that outlasts the IMUs'): the rows the recording does not
+    use are not said to be a frozen logger; held for its last 4 s, they are, once."""
+    good = read_tensions(DATA / "force-29_tensions.csv", 6)
+    later = np.arange(8.02, 400.0, 0.02)
+    cols = ["t", *(f"tension_{j}" for j in range(1, 7))]
+    long = tmp_path / "long.csv"
+    after = np.repeat(good.values[-1:], len(later), 0)
+    rows = np.column_stack([np.concatenate([good.t, later]), np.vstack([good.values, after])])
+    write_table(long, cols, rows.tolist())
+    held = tmp_path / "held.csv"
+    values = np.where(
+        (good.t > 4.0)[:, None], good.values[np.searchsorted(good.t, 4.0)], good.values
+    )
+    write_table(held, cols, np.column_stack([good.t, values]).tolist())
+    import warnings
+
+    from continuum_mhe.io.tensions import TensionsWarning
+
+    def estimate(inputs: Path) -> list[str]:
+        out = tmp_path / f"{inputs.stem}_est.csv"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            argv = ["estimate", str(DATA / "force-29_raw.csv"), "--robot", "tendon-two-section",
+                    "--inputs", str(inputs), "-o", str(out)]  # fmt: skip
+            assert main(argv) == 0
+        return [str(w.message) for w in caught if issubclass(w.category, TensionsWarning)]
+
+    assert estimate(long) == []
+    said = estimate(held)
+    assert len(said) == 1 and said[0].startswith(
+        f"{held}: the tensions repeat exactly from t = 4 to 8 s (4 s): a logger that froze"
+    ), said
+
+
+def test_a_sample_without_imu_readings_is_a_dropout_though_its_tensions_update_it(
+    tmp_path: Path,
+) -> None:
+    """Rows of a tendon robot's recording whose IMU cells are empty (the tensions given
+    for their times): the estimate follows the tensions there, but nothing read the
+    robot, so each such row is ``dropout``, as on a robot without tendons."""
+    lines = (DATA / "force-29_raw.csv").read_text().splitlines()
+    empty = {50, 51, 52}  # t = 0.98, 1.0 and 1.02 s
+    for i in empty:
+        lines[i] = lines[i].split(",")[0] + "," * (lines[0].count(","))
+    meas = tmp_path / "gaps.csv"
+    meas.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "est.csv"
+    assert main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+                 str(DATA / "force-29_tensions.csv"), "-o", str(out)]) == 0  # fmt: skip
+    est = read_state_table(out)
+    rows = np.flatnonzero(est.status == "dropout")
+    assert sorted(rows + 1) == sorted(empty)  # the file's line i is row i - 1
+    assert set(est.status[2:]) - {"dropout"} <= {"ok"}

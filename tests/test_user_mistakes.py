@@ -2392,3 +2392,29 @@ def test_plot_and_view_say_a_truth_of_a_robot_of_other_lengths(tmp_path, capsys)
         ) in err, err
         assert main([*command, "--truth", str(truth), "--overwrite"]) == 0
         assert "another robot" not in capsys.readouterr().err
+
+
+def test_the_tip_direction_warning_names_bends_past_180_degrees() -> None:
+    """A section bent past 180 degrees (a soft robot curled by the tensions sized for
+    another) has a bend angle, the swing of its end's frame, that cannot describe it:
+    its positions then disagree with its angles as swapped axes would. The warning names
+    that cause where the file's bends reach over 170 degrees, and only there."""
+    from continuum_mhe.io.position_units import tip_direction_problem
+    from continuum_mhe.model.pcc import pose_at
+
+    names = ["t", "x", "y", "z", "theta_1", "phi_1", "theta_2", "phi_2"]
+    lengths = (0.15, 0.15)
+
+    def table(theta_1: float) -> np.ndarray:
+        theta = np.column_stack([np.full(40, theta_1), np.linspace(0.1, 0.6, 40)])
+        phi = np.column_stack([np.linspace(0.0, 1.0, 40), np.linspace(0.0, 1.0, 40)])
+        bends = np.stack([theta * np.cos(phi), theta * np.sin(phi)], axis=-1)
+        tip = -np.asarray(pose_at(bends, lengths, 1)[1], dtype=float)  # x and y flipped
+        tip[:, 2] *= -1.0
+        return np.column_stack([np.arange(40) * 0.02, tip, theta[:, 0], phi[:, 0],
+                                theta[:, 1], phi[:, 1]])  # fmt: skip
+
+    said = tip_direction_problem(names, table(math.radians(175.0)), lengths)
+    assert "x and y swapped" in said and "bent past 180 degrees (its bends reach 175" in said
+    said = tip_direction_problem(names, table(math.radians(120.0)), lengths)
+    assert "x and y swapped" in said and "bent past" not in said

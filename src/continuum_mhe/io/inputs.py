@@ -475,7 +475,8 @@ def _tensions(
                 stacklevel=2,
             )
         table.check_scale(robot)
-        table.warn_suspect()
+        if recording is None:  # else once the recording's span is known (_append_tensions)
+            table.warn_suspect()
         table.warn_smoothed()
         table.warn_held()
         return table
@@ -551,6 +552,8 @@ def _append_tensions(
             yield t, np.array(rows, dtype=np.float64).reshape(len(t), f.nz)
         if tensions is not None:  # the recording's whole span known: milliseconds?
             tensions.check_span(float(first), float(last))
+            if options.tensions and n:  # the rows of --inputs that the recording used
+                tensions.warn_suspect(float(first), float(last))
             if n >= 2:
                 tensions.warn_sparse((float(last) - float(first)) / (n - 1), stream.name)
 

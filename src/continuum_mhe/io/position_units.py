@@ -137,6 +137,9 @@ def tip_ratio(names: Sequence[str], values: FloatArray, lengths: Sequence[float]
 #: its own bend angles put it has positions in another frame than its angles (x and y
 #: swapped, a sign flipped); real rods' and tendon robots' truths measure under 3.
 TIP_DIRECTION_LIMIT_DEG = 20.0
+#: A section's bend (deg) beyond which it may have been bent past 180 degrees: its
+#: ``theta_k`` (the swing of its end's frame, at most 180) then does not describe it.
+WRAPPED_BEND_DEG = 170.0
 
 
 def tip_direction_problem(
@@ -166,8 +169,15 @@ def tip_direction_problem(
     angle = math.degrees(float(np.median(np.arccos(np.clip(cos, -1.0, 1.0)))))
     if angle <= TIP_DIRECTION_LIMIT_DEG:
         return ""
+    most = math.degrees(float(np.max(bends[ok][:, 0::2])))
+    wrapped = (
+        f", or sections bent past 180 degrees (its bends reach {most:.0f} degrees: a "
+        "section's bend angle, from its end's frame, cannot describe a bend past 180)"
+        if most > WRAPPED_BEND_DEG
+        else ""
+    )
     return (
         f"its tip points {angle:.0f} degrees from where its own bend angles put it (median "
         "over its bent rows): x and y swapped, a sign flipped, or positions in another frame "
-        "than its angles?"
+        f"than its angles{wrapped}?"
     )

@@ -296,16 +296,23 @@ class Tensions:
         if problem is not None:
             raise InputError(problem)
 
-    def warn_suspect(self) -> None:
+    def warn_suspect(self, first: float | None = None, last: float | None = None) -> None:
         """A :class:`TensionsWarning` for what the file's rows say of its sensors or
         logger: a tendon whose tension is 0 in every row (a sensor not connected, or a
         tendon slack all along), tensions that repeat exactly for over
         :data:`TENSIONS_FROZEN_S` (a logger that froze), and a hole between two rows of
         over :data:`TENSIONS_HOLE_FACTOR` times the usual step and a second (bridged by
-        the linear interpolation)."""
-        n = len(self.t)
+        the linear interpolation). ``first`` and ``last``: the recording's first and
+        last times, s, where known: only the rows the recording uses count (from the
+        last row at or before ``first`` to the first at or after ``last``)."""
+        t, rows = self.t, self.rows
+        if first is not None and last is not None:
+            lo = max(int(np.searchsorted(t, first, side="right")) - 1, 0)
+            hi = int(np.searchsorted(t, last, side="left"))
+            t, rows = t[lo : hi + 1], rows[lo : hi + 1]
+        n = len(t)
         if n >= 2:
-            zero = [j + 1 for j in range(self.rows.shape[1]) if not self.rows[:, j].any()]
+            zero = [j + 1 for j in range(rows.shape[1]) if not rows[:, j].any()]
             if zero:
                 warnings.warn(
                     f"{self.name}: tension_{', tension_'.join(map(str, zero))} "
@@ -317,30 +324,29 @@ class Tensions:
         if n >= 3:
             # runs of rows that repeat the row before exactly, every tendon slack (all 0)
             # left out: a robot at rest with its tendons released reads so
-            rows = self.rows
             same = np.all(rows[1:] == rows[:-1], axis=1) & rows[1:].any(axis=1)
             starts = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(int)])) == 1)
             ends = np.flatnonzero(np.diff(np.concatenate([same.astype(int), [0]])) == -1)
             if len(starts) and not same.all():
-                held = self.t[ends + 1] - self.t[starts]  # row starts .. row ends + 1
+                held = t[ends + 1] - t[starts]  # row starts .. row ends + 1
                 r = int(np.argmax(held))
                 if held[r] > TENSIONS_FROZEN_S:
                     warnings.warn(
                         f"{self.name}: the tensions repeat exactly from t = "
-                        f"{time_text(float(self.t[starts[r]]))} to "
-                        f"{time_text(float(self.t[ends[r] + 1]))} s ({held[r]:.3g} s): a "
+                        f"{time_text(float(t[starts[r]]))} to "
+                        f"{time_text(float(t[ends[r] + 1]))} s ({held[r]:.3g} s): a "
                         "logger that froze, or tensions held exactly? (the estimate takes "
                         "them as given)",
                         TensionsWarning,
                         stacklevel=2,
                     )
-            steps = np.diff(self.t)
+            steps = np.diff(t)
             usual = float(np.median(steps))
             i = int(np.argmax(steps))
             if steps[i] > max(TENSIONS_HOLE_FACTOR * usual, 1.0):
                 warnings.warn(
-                    f"{self.name}: no tensions between t = {time_text(float(self.t[i]))} and "
-                    f"{time_text(float(self.t[i + 1]))} s ({steps[i]:.3g} s; the rows are "
+                    f"{self.name}: no tensions between t = {time_text(float(t[i]))} and "
+                    f"{time_text(float(t[i + 1]))} s ({steps[i]:.3g} s; the rows are "
                     f"{usual:.3g} s apart elsewhere): interpolated linearly across",
                     TensionsWarning,
                     stacklevel=2,

@@ -50,6 +50,7 @@ import argparse
 import json
 import math
 import sys
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,6 +60,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, one_line_warnings
+from continuum_mhe.io.position_units import WRAPPED_BEND_DEG
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.simulation.cosserat import ImuSettings
@@ -255,6 +257,18 @@ def write_tendon_recording(
     tr = np.column_stack([t, np.array(truth)])
     write_table(out / f"{name}_truth.csv", truth_columns(2), np.round(tr, 7).tolist())
     psi = tr[:, [9, 15]]
+    for k, c in enumerate((4, 10)):
+        bend = math.degrees(float(tr[:, c].max()))
+        if bend > WRAPPED_BEND_DEG:
+            warnings.warn(
+                f"section {k + 1} bends to {bend:.0f} degrees under the motion's tensions "
+                f"(sized for tendon-two-section): a section's bend angle (theta_{k + 1} of "
+                "the truth file, from its end's frame) cannot describe a bend past 180 "
+                "degrees, and evaluate's check of the truth's angles against its positions "
+                "fails there; a stiffer backbone, or tendons nearer to it, bend less",
+                UserWarning,
+                stacklevel=2,
+            )
     info: dict[str, object] = {
         "scenario": scenario,
         "robot": robot_name,
