@@ -941,6 +941,8 @@ def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
          "line 1: tension_2 not the robot's: expected the columns t,tension_1"),
         ([[0.0, 1.0], [0.1, 1.0]], ["t", "tension_2"],  # the one missing is named
          "line 1: tension_1 missing; tension_2 not the robot's: expected the columns"),
+        ([[0.0, 1.0], [0.1, 1.0]], ["t", "Tension_1 (N)"],  # as the file spells it
+         "line 1: tension_1 missing; Tension_1 (N) not the robot's: expected the columns"),
         ([[0.0, 1.0], [0.05, 1.0]], ["t", "tension_1"], "the tensions must cover the recording"),
         # milliseconds in t: the 0.1 s recording lies within the first two rows, and would
         # be estimated on tensions held at their first values
@@ -2771,3 +2773,23 @@ def test_a_sample_without_imu_readings_is_a_dropout_though_its_tensions_update_i
     rows = np.flatnonzero(est.status == "dropout")
     assert sorted(rows + 1) == sorted(empty)  # the file's line i is row i - 1
     assert set(est.status[2:]) - {"dropout"} <= {"ok"}
+
+
+def test_the_ukfs_restarts_on_tilt_readings_name_its_sigma_points(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--method ukf`` on the first 40 tilt samples of ``force-29``: its sigma points
+    spread the tilt readings across a half turn and it restarts on almost every sample.
+    The end-of-run warning names that cause and the EKF, not the robot file."""
+    meas = tmp_path / "t40.csv"
+    meas.write_text("\n".join((DATA / "force-29_tilt.csv").read_text().splitlines()[:41]) + "\n")
+    assert main(["estimate", str(meas), "--robot", "tendon-two-section", "--inputs",
+                 str(DATA / "force-29_tensions.csv"), "--method", "ukf",
+                 "-o", str(tmp_path / "e.csv")]) == 0  # fmt: skip
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "restarted the" in ln]
+    assert len(said) == 1 and re.search(
+        r"\d+ of 40 samples \(\d+ %\) restarted the UKF: its sigma points spread a tilt "
+        r"reading across a half turn",
+        said[0],
+    ), said
+    assert "check the robot file" not in said[0] and "--method ekf" in said[0]

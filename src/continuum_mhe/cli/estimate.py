@@ -264,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
     restarts = diag.restarts + diag.bad_starts + diag.reject_resets
     if stream.kind == "log" and len(args.topic or ()) > 1:  # topics in the wrong order, most often
         warn_topic_order(stream.name, args.topic, n, restarts)
-    elif restarts_note := restarts_notice(n, restarts):
+    elif restarts_note := restarts_notice(n, restarts, diag.last_failure):
         print(f"{PROG}: warning: {stream.name}: {restarts_note}", file=sys.stderr)
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
     if flags_outliers:
@@ -354,16 +354,26 @@ def run(args: argparse.Namespace) -> int:
 RESTARTS_SAID = 5
 
 
-def restarts_notice(samples: int, restarts: int) -> str | None:
+def restarts_notice(samples: int, restarts: int, last_failure: str | None = None) -> str | None:
     """One line where more than ``ORDER_RESTART_SHARE`` of ``samples``, and at least
     :data:`RESTARTS_SAID`, restarted the estimator (``restarts``, gaps not counted): the
-    readings do not fit the model of the robot; None otherwise."""
+    readings do not fit the model of the robot, or (``last_failure``, the policy's last
+    numerical failure, the UKF's) its sigma points spread a tilt reading across a half
+    turn; None otherwise."""
+    from continuum_mhe.estimators.kalman import UNSCENTED_SPREAD
     from continuum_mhe.io.imu_topics import ORDER_RESTART_SHARE
 
     if restarts < RESTARTS_SAID or restarts <= ORDER_RESTART_SHARE * samples:
         return None
-    return (
-        f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
+    said = f"{restarts} of {samples} samples ({100 * restarts / samples:.0f} %) restarted the "
+    if last_failure is not None and UNSCENTED_SPREAD in last_failure:
+        return said + (
+            "UKF: its sigma points spread a tilt reading across a half turn, where the "
+            "unscented transform means nothing (a robot whose IMUs bend far from level, or "
+            "an estimate this uncertain; the last: "
+            f"{last_failure.split(': ', 1)[-1]}); the EKF (--method ekf) has no sigma points"
+        )
+    return said + (
         "estimator (readings inconsistent with its estimate, or an estimate that diverged): "
         "the readings do not fit the model of the robot; check the robot file against the "
         "robot (the IMUs' order, their mount_rpy and at, the sections' lengths; "

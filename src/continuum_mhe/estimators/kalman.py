@@ -268,6 +268,11 @@ class SigmaPointSettings:
             raise UserError(f"alpha must lie in (0, 1], got {self.alpha!r}")
 
 
+#: How the UKF's failure begins where its sigma points spread a tilt reading across a
+#: half turn (:meth:`UnscentedKalmanInference._check_tilt_chart`).
+UNSCENTED_SPREAD = "the unscented transform's"
+
+
 def merwe_sigma_points(
     x: FloatArray, P: FloatArray, s: SigmaPointSettings
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -356,7 +361,7 @@ class UnscentedKalmanInference(_KalmanBase):
             name = self.formulation.measurement_names[int(rows[tilt][j])]
             col = rs[:, tilt][:, j]
             raise ArithmeticError(
-                f"the unscented transform's {name} residuals span "
+                f"{UNSCENTED_SPREAD} {name} residuals span "
                 f"{float(col.max() - col.min()):.3g} across the sigma points: the "
                 "reading is about a half turn from the predicted tilt"
             )

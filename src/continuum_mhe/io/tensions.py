@@ -448,7 +448,8 @@ def read_tensions(
             found = [c for c in found if c.startswith("tension_")]
         if "t" not in header or sorted(found) != sorted(names):  # in any order, by name
             missing = [c for c in ["t", *names] if c not in header]
-            extra = [c for c in found if c not in names]
+            spelled = dict(zip(header, written))  # the file's own spelling of a name
+            extra = [spelled.get(c, c) for c in found if c not in names]
             said = "; ".join(  # a column twice is refused by open_rows
                 part
                 for part in (
@@ -522,7 +523,7 @@ class TensionStream:
     smoothed are said once (:meth:`_check_noise`)."""
 
     def __init__(
-        self, name: str = "the tensions on the line", n_tendons: int | None = None
+        self, name: str = "the tension stream", n_tendons: int | None = None
     ) -> None:
         #: what the stream is called in messages
         self.name = name

@@ -204,7 +204,11 @@ class LiveSession:
         self._file_tensions = f.robot.n_tendons if tensions is not None else 0
         #: tendon tensions on every line, after the IMUs' values
         self.n_tensions = f.robot.n_tendons if self.tendon is not None and tensions is None else 0
-        self._tension_stream = TensionStream(n_tendons=self.n_tensions) if self.n_tensions else None
+        self._tension_stream = (
+            TensionStream(f"{settings.port}: the tensions on the line", self.n_tensions)
+            if self.n_tensions
+            else None
+        )
         self._pending: deque[_Pending] = deque()
         self.converters: list[RawImuConverter] | None = (
             None
