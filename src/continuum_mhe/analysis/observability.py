@@ -427,8 +427,9 @@ def unsolved_warning(r: ObservabilityReport) -> str | None:
 
 
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
-    """Human-readable report (a tendon robot's: its mechanics model's first). The loads
-    without an equilibrium are counted in it; :func:`unsolved_warning` says so."""
+    """Human-readable report (a tendon robot's: its mechanics model's first, with the
+    verdict, which is that model's, right after it). The loads without an equilibrium
+    are counted in it; :func:`unsolved_warning` says so."""
     lines = [f"robot: {robot.describe()}"]
     if r.tendon_force is not None:
         s, p = r.tendon_force, r.tendon_force.sigma_min_percentiles
@@ -441,6 +442,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
             f"{100 * s.full_rank_fraction:.1f} % of those (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
+        lines.append(f"verdict: {verdict(r)}")
         lines.append(
             "for comparison, the constant-curvature model of the same geometry (not the "
             "model that estimates this robot):"
@@ -481,5 +483,6 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
     check = model_check(r)
     if check is not None:
         lines.append(f"model check: {check}")
-    lines.append(f"verdict: {verdict(r)}")
+    if r.tendon_force is None:
+        lines.append(f"verdict: {verdict(r)}")
     return "\n".join(lines)

@@ -522,9 +522,7 @@ class TensionStream:
     file's last row). Samples that scatter so that a tensions file of them would be
     smoothed are said once (:meth:`_check_noise`)."""
 
-    def __init__(
-        self, name: str = "the tension stream", n_tendons: int | None = None
-    ) -> None:
+    def __init__(self, name: str = "the tension stream", n_tendons: int | None = None) -> None:
         #: what the stream is called in messages
         self.name = name
         #: the tensions a sample holds (the robot's tendons; else the first sample's count)

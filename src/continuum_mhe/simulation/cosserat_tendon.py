@@ -290,7 +290,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument("--scenario", choices=SCENARIOS, default="unloaded", help="the motion")
-    p.add_argument("--duration", type=float, default=16.0, help="s (the shipped recordings: 8 s)")
+    p.add_argument("--duration", type=float, default=8.0, help="s (the shipped recordings' length)")
     p.add_argument(
         "--robot",
         default="tendon-two-section",
