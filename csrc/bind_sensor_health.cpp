@@ -80,7 +80,7 @@ inline std::pair<nb::object, nb::object> kept_arrays(const double* x, const doub
 // ``restart(kept_x | None, kept_P | None, kept_t)``,
 // ``infer(t, z, mask) -> (state | None, cov | None, status code, failure | None)``,
 // ``output(x)``, ``output_std(x, P)``, ``outlier()``, ``rejected() -> 1, 0 or -1``,
-// ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``, ``start_untrusted()``
+// ``is_diverged(x, P | None)``, ``drifted(x)``, ``at_bound(x)``, ``start_untrusted(t, z)``
 // (continuum_mhe.estimators.sensor_health.PythonInference).
 class PythonInference final : public PolicyInference {
  public:
@@ -133,9 +133,9 @@ class PythonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(obj_.attr("at_bound")(state(x)));
   }
-  bool start_untrusted() override {
+  bool start_untrusted(double t, const double* z) override {
     nb::gil_scoped_acquire gil;
-    return nb::cast<bool>(obj_.attr("start_untrusted")());
+    return nb::cast<bool>(obj_.attr("start_untrusted")(t, copy_of(z, {size_t(nz_)})));
   }
 
  private:
@@ -152,7 +152,7 @@ class PythonInference final : public PolicyInference {
 // ``restart(kept_x, kept_P, kept_t)``, ``start(z) -> failure | None`` (the arrival prior from the first
 // reading), ``after_step(outcome, valid) -> (status code, failure | None)`` when the compiled
 // step did not keep its answer (IPOPT's fallback, the branch check, the second start),
-// ``start_untrusted()`` once per start, and the formulation's checks of a state.
+// ``start_untrusted(t, z)`` once per start, and the formulation's checks of a state.
 class HorizonInference final : public PolicyInference {
  public:
   HorizonInference(MovingHorizon& h, nb::object py, bool finish, bool robust,
@@ -260,9 +260,9 @@ class HorizonInference final : public PolicyInference {
     nb::gil_scoped_acquire gil;
     return nb::cast<bool>(formulation_.attr("at_bound")(copy_of(x, {size_t(h_.nx)})));
   }
-  bool start_untrusted() override {
+  bool start_untrusted(double t, const double* z) override {
     nb::gil_scoped_acquire gil;
-    return nb::cast<bool>(py_.attr("start_untrusted")());
+    return nb::cast<bool>(py_.attr("start_untrusted")(t, copy_of(z, {size_t(h_.nz)})));
   }
   double outlier_weight = 0.0;
 
@@ -282,7 +282,7 @@ class HorizonInference final : public PolicyInference {
 // (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
 // ``restart(kept_x, kept_P, kept_t)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
 // code, failure | None)`` (the prior from the reading, updated with it), and
-// ``start_untrusted()`` once per start.
+// ``start_untrusted(t, z)`` once per start.
 class KalmanInference final : public PolicyInference {
  public:
   KalmanInference(NodeModel& node, nb::object py, std::vector<double> R,
@@ -345,9 +345,9 @@ class KalmanInference final : public PolicyInference {
   }
   bool drifted(const double* x) override { return check("drifted", x, nullptr); }
   bool at_bound(const double* x) override { return check("at_bound", x, nullptr); }
-  bool start_untrusted() override {
+  bool start_untrusted(double t, const double* z) override {
     nb::gil_scoped_acquire gil;
-    return nb::cast<bool>(py_.attr("start_untrusted")());
+    return nb::cast<bool>(py_.attr("start_untrusted")(t, copy_of(z, {size_t(node_.nz())})));
   }
 
  private:

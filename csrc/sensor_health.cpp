@@ -144,7 +144,7 @@ void SensorHealth::restart(bool keep_sensors) {
   wide_t_ = -INFINITY;
   unconfirmed_ = 0;
   started_ = false;
-  start_untrusted_ = false;
+  start_untrusted_ = start_judged_ = false;
   restarted_since_drift_ = true;  // drifted_t_ is kept: see step
   change_past_.clear();  // a restart's estimate jumps: its change says nothing
   changed_until_ = -INFINITY;
@@ -486,13 +486,21 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
   }
   if ((gap_reset || bad_start || reject_reset) && has_state) status = ST_RESET;
   const bool forced = (bad_start || reject_reset || !healthy) && has_state;
-  // the first estimate since a (re)start fits its one reading alone
   // a sample without any IMU's reading is a dropout, whatever else it carried (a
   // tendon robot's tensions update the estimate, but nothing read the robot)
-  if (status == ST_OK && has_state && !s_.imu_blocks.empty() && !imu_reading()) status = ST_DROPOUT;
+  const bool imu_read = s_.imu_blocks.empty() || imu_reading();
+  if (status == ST_OK && has_state && !imu_read) status = ST_DROPOUT;
+  // the first estimate since a (re)start fits its one reading alone
   const bool first = has_state && !started_;
   if (has_state) started_ = true;
-  if (first) start_untrusted_ = inference_.start_untrusted();
+  // whether the start can be trusted, judged on its first IMU reading (a start on a
+  // sample without one, as live's before its IMUs report, is judged on the next that
+  // has one). A restart that keeps the sensor states keeps those of the last ok
+  // estimate, which an untrusted start never gives.
+  if (has_state && !start_judged_ && imu_read) {
+    start_judged_ = true;
+    start_untrusted_ = inference_.start_untrusted(t, z);
+  }
   if (start_untrusted_ && has_state) {
     // no estimate of that start is ok (drifted where the model's error states have left
     // their prior: that says more), until the next restart

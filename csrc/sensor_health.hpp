@@ -82,12 +82,12 @@ class PolicyInference {
   virtual bool is_diverged(const double* x, const double* P) = 0;
   virtual bool drifted(const double* x) = 0;
   virtual bool at_bound(const double* x) = 0;
-  // whether the start of the last infer (the first estimate since a restart) is one that
-  // no later reading confirms: its formulation could not tell what its first reading
-  // showed from the sensors' own errors (a tendon robot's tip load at a start that knows
-  // nothing of the IMUs). Asked once per start; every estimate of that start until the
-  // next restart is then not trusted.
-  virtual bool start_untrusted() { return false; }
+  // whether the current start (since the last restart) is one that no later reading
+  // confirms: its formulation cannot tell what the reading ``z`` (nz) at ``t`` s, its
+  // first with an IMU's reading, shows from the sensors' own errors (a tendon robot's
+  // tip load at a start that knows nothing of the IMUs). Asked once per start; every
+  // estimate of that start until the next restart is then not trusted.
+  virtual bool start_untrusted(double /*t*/, const double* /*z*/) { return false; }
 };
 
 // The process noise ``Q(dt)`` (nx x nx) and its inverse, cached per time step rounded to
@@ -272,6 +272,7 @@ class SensorHealth {
   // one reading (the first, or the first after a gap), which a later reading confirms
   bool started_ = false;
   bool start_untrusted_ = false;  // the inference did not trust the current start
+  bool start_judged_ = false;     // ... asked, at the start's first IMU reading
   // the last drifted row's time (-inf: none), kept across restarts, and whether the
   // estimator restarted after it
   double drifted_t_ = -INFINITY;

@@ -2793,3 +2793,30 @@ def test_the_ukfs_restarts_on_tilt_readings_name_its_sigma_points(
         said[0],
     ), said
     assert "check the robot file" not in said[0] and "--method ekf" in said[0]
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_a_start_under_load_on_a_sample_without_imus_is_judged_at_the_first_imu_reading(
+    single: bool,
+) -> None:
+    """``force-08`` (raw IMUs) started at 3 s, under load, its first three samples with
+    the tensions but no IMU reading (``live`` before its IMUs report): the start is
+    judged at the first sample with an IMU reading, and no row of it is ``ok`` (it was
+    judged on the first sample, which shows nothing, and about 100 rows were ``ok`` and
+    over 5 mm off); the default EKF and the single loaded EKF alike."""
+    from continuum_mhe.estimators import ExtendedKalmanFilter, make_estimator
+
+    f, t, z = _raw_shipped(401, "force-08")
+    late = t >= 3.0 - 1e-9
+    t, z = t[late][:150], z[late][:150].copy()
+    z[:3, : f.n_imu_measurements] = np.nan
+    est = (
+        ExtendedKalmanFilter(replace(f, free_of_load_hypothesis=False))
+        if single
+        else make_estimator("ekf", f)
+    )
+    series = est.run(t, z)
+    status = np.asarray(series.status).astype(str)
+    assert list(status[:3]) == ["dropout"] * 3
+    assert "ok" not in set(status)
+    assert est.diagnostics.untrusted_start_samples == 147  # from the first IMU reading on

@@ -47,8 +47,9 @@ class Status(str, Enum):
     OK = "ok", "converged (MHE) or updated with a measurement (filters)"
     DROPOUT = (
         "dropout",
-        "no valid measurement of any sensor at this sample: prediction only (a sample "
-        "where some IMUs reported is updated with those and keeps that update's status)",
+        "no valid reading of any IMU at this sample: prediction only (a tendon robot's "
+        "tensions still update it; a sample where some IMUs reported is updated with "
+        "those and keeps that update's status)",
     )
     NOT_CONVERGED = "not-converged", "solver stopped early; its last feasible iterate is used"
     SOLVER_FAILED = "solver-failed", "solver error; the projected prediction is used"

@@ -370,7 +370,7 @@ def restarts_notice(samples: int, restarts: int, last_failure: str | None = None
         return said + (
             "UKF: its sigma points spread a tilt reading across a half turn, where the "
             "unscented transform means nothing (a robot whose IMUs bend far from level, or "
-            "an estimate this uncertain; the last: "
+            "an estimate this uncertain; the last restart's: "
             f"{last_failure.split(': ', 1)[-1]}); the EKF (--method ekf) has no sigma points"
         )
     return said + (

@@ -20,6 +20,19 @@ from continuum_mhe.results import Estimate, EstimateSeries, Measurement, Status
 
 __all__ = ["Estimate", "EstimateSeries", "FloatArray", "Inference", "Measurement", "Status"]
 
+#: The exceptions a numerical failure raises (a singular matrix, an overflow, CasADi's or
+#: the compiled core's errors); the estimator's policy restarts on them.
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, ArithmeticError, RuntimeError)
+
+
+def judged_untrusted(formulation: Formulation, z: FloatArray) -> bool:
+    """``formulation.start_untrusted(z)``, and True where judging fails numerically (a
+    start whose reading the model cannot judge is not trusted either)."""
+    try:
+        return formulation.start_untrusted(z)
+    except NUMERICAL_FAILURES:
+        return True
+
 
 def tilt_rows(formulation: Formulation) -> list[int]:
     """The measurement rows of the formulation's tilt blocks (roll and pitch, rad)."""
@@ -60,10 +73,8 @@ class Inference(ABC):
         #: states and their covariance: ``Formulation.kept_sensors``), or None
         self.kept_sensors: KeptSensors | None = None
         self._kept: tuple[FloatArray, FloatArray, float | None] | None = None
-        #: the first reading of the current start, while :meth:`start_untrusted` has not
-        #: judged it (None once judged, and for a start that kept sensor states)
-        self._start_reading: FloatArray | None = None
-        self._start_untrusted = False
+        #: whether the current start knows nothing of the sensors (kept none of them)
+        self.fresh_start = False
 
     def restart(
         self,
@@ -88,22 +99,19 @@ class Inference(ABC):
         over the time since (:meth:`~continuum_mhe.model.formulations.Formulation.
         kept_sensors`; ``t`` None: not grown)."""
         self.kept_sensors = self.kept_at(t)
-        self._start_reading = np.array(z, dtype=float) if self.kept_sensors is None else None
-        self._start_untrusted = False
+        self.fresh_start = self.kept_sensors is None
         return self.formulation.start_prior(z, self.kept_sensors)
 
-    def start_untrusted(self) -> bool:
+    def start_untrusted(self, t: float, z: FloatArray) -> bool:
         """Whether the current start is one that no later reading confirms: it knows
-        nothing of the sensors, and its formulation cannot tell what its first reading
+        nothing of the sensors (:attr:`fresh_start`), and its formulation cannot tell
+        what the reading ``z`` at ``t`` s, the start's first with an IMU's reading,
         shows from their own errors
         (:meth:`~continuum_mhe.model.formulations.Formulation.start_untrusted`: a tendon
-        robot's tip load). The policy asks it once per start, and no estimate of that
-        start is then ``ok``. Judged on the first call after the start (a tendon robot's
-        judgement is a fit of its own), then remembered."""
-        if self._start_reading is not None:
-            z, self._start_reading = self._start_reading, None
-            self._start_untrusted = self.formulation.start_untrusted(z)
-        return self._start_untrusted
+        robot's tip load; a reading the formulation fails to judge is not trusted
+        either). The policy asks it once per start, and no estimate of that start is
+        then ``ok``."""
+        return self.fresh_start and judged_untrusted(self.formulation, z)
 
     def kept_at(self, t: float | None) -> KeptSensors | None:
         """The sensor states the last restart kept, at ``t`` s: their covariance grown by

@@ -239,9 +239,9 @@ class _KalmanHooks:
         kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
         self.inference.restart(*kept)  # type: ignore[arg-type]
 
-    def start_untrusted(self) -> bool:
+    def start_untrusted(self, t: float, z: FloatArray) -> bool:
         """The inference's :meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`."""
-        return self.inference.start_untrusted()
+        return self.inference.start_untrusted(t, z)
 
     def first(
         self, t: float, z: FloatArray

@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.estimators.base import Inference, Measurement, Status
+from continuum_mhe.estimators.base import Inference, Measurement, Status, judged_untrusted
 from continuum_mhe.estimators.kalman import CompiledExtendedKalmanInference
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
 from continuum_mhe.estimators.sensor_health import NUMERICAL_FAILURES, Estimator
@@ -126,6 +126,8 @@ class LoadHypothesesInference(Inference):
         self._chosen: CompiledExtendedKalmanInference = self.loaded
         self.free_of_load_samples = 0
         self.load_at_start = False
+        #: the time of the current start's first sample, s
+        self._start_t = math.nan
         #: the time of the last answer counted, and whether it counted it as free of load
         self._counted_t: float | None = None
         self._counted = 0
@@ -152,6 +154,7 @@ class LoadHypothesesInference(Inference):
         self.evidence = 0.0
         self.unloaded_chosen = False
         self.load_at_start = False
+        self._start_t = math.nan
         self._chosen = self.loaded
 
     def infer(self, m: Measurement) -> tuple[FloatArray | None, FloatArray | None, Status]:
@@ -162,7 +165,8 @@ class LoadHypothesesInference(Inference):
         got_l, ll_loaded = _step(self.loaded, m)
         got_u, ll_free = _step(self.unloaded, m)
         if starting and self.unloaded.has_state and self.unloaded.kept_sensors is None:
-            self.load_at_start = self.unloaded.start_shows_load  # a start of the estimator
+            self._start_t = m.t  # a start of the estimator
+            self.load_at_start = self.unloaded.start_shows_load
         if got_l is None and got_u is None:
             raise FloatingPointError("both hypotheses' EKF steps failed (non-finite)")
         # a hypothesis whose step failed starts again at the next sample, keeping the
@@ -215,11 +219,17 @@ class LoadHypothesesInference(Inference):
         self._counted_t = m.t if free else None
         return x, P, status
 
-    def start_untrusted(self) -> bool:
-        """Whether the current start's first reading showed a load it could not tell
-        from the IMUs' errors (:attr:`load_at_start`, the free-of-load hypothesis'
-        start fit: no second fit)."""
-        return self.load_at_start
+    def start_untrusted(self, t: float, z: FloatArray) -> bool:
+        """Whether the current start, which knows nothing of the sensors, shows at its
+        first IMU reading ``z`` (at ``t`` s) a load it could not tell from the IMUs'
+        errors: :attr:`load_at_start` (the free-of-load hypothesis' start fit, no second
+        fit) where that reading is the start's own, else the formulation's judgement of
+        ``z`` (a start on a sample without IMU readings)."""
+        if self._kept is not None:  # the estimator's restart kept the sensor states
+            return False
+        if t == self._start_t:
+            return self.load_at_start
+        return judged_untrusted(self.formulation, z)
 
     def output(self, state: FloatArray) -> FloatArray:
         return self._chosen.output(state)

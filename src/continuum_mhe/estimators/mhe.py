@@ -823,9 +823,9 @@ class _HorizonHooks:
         kept_t``: :meth:`~continuum_mhe.estimators.base.Inference.restart`)."""
         self.inference.restart(*kept)  # type: ignore[arg-type]
 
-    def start_untrusted(self) -> bool:
+    def start_untrusted(self, t: float, z: FloatArray) -> bool:
         """The inference's :meth:`~continuum_mhe.estimators.base.Inference.start_untrusted`."""
-        return self.inference.start_untrusted()
+        return self.inference.start_untrusted(t, z)
 
     def start(self, z: FloatArray) -> str | None:
         """Anchor the prior at the first reading ``z``; a numerical failure's message."""

@@ -45,7 +45,7 @@ from continuum_mhe.errors import (
     time_text,
 )
 from continuum_mhe.estimators import start_check
-from continuum_mhe.estimators.base import Inference, tension_rows, tilt_rows
+from continuum_mhe.estimators.base import NUMERICAL_FAILURES, Inference, tension_rows, tilt_rows
 from continuum_mhe.estimators.chi2 import chi2_quantile
 from continuum_mhe.estimators.consistency import ConsistencyCheck
 from continuum_mhe.estimators.process_noise import process_noise
@@ -95,10 +95,6 @@ def _reraise_interrupt(exc: BaseException) -> None:
     seen = interrupt_in_chain(exc)
     if seen is not None:
         raise seen
-
-
-#: The exceptions of an inference step that are numerical failures (the policy restarts).
-NUMERICAL_FAILURES = (np.linalg.LinAlgError, ArithmeticError, RuntimeError)
 
 
 def numerical_failure(exc: BaseException) -> str:
@@ -195,8 +191,8 @@ class PythonInference:
     def at_bound(self, x: FloatArray) -> bool:
         return self.formulation.at_bound(x)
 
-    def start_untrusted(self) -> bool:
-        return self.inference.start_untrusted()
+    def start_untrusted(self, t: float, z: FloatArray) -> bool:
+        return self.inference.start_untrusted(t, z)
 
 
 #: Why an estimator is not copied (a copy would share its compiled state).

@@ -532,7 +532,10 @@ def _append_tensions(
     stream: MeasurementStream, tensions: Tensions | None, options: InputOptions
 ) -> None:
     """Switch ``stream`` to the tendon formulation of its robot, each sample with the
-    tensions (interpolated at its time) and their rates appended."""
+    tensions (interpolated at its time) and their rates appended. Once the stream has
+    given its last block (the recording's span known), the tensions' span is checked
+    and the rows of ``--inputs`` the recording used are checked for a frozen logger or
+    a hole (:meth:`Tensions.warn_suspect`): a reader that stops early sees neither."""
     f = tendon_formulation_for(stream.formulation, options)
     k = f.robot.n_tendons
     blocks = stream.blocks

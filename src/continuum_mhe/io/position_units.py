@@ -169,7 +169,7 @@ def tip_direction_problem(
     angle = math.degrees(float(np.median(np.arccos(np.clip(cos, -1.0, 1.0)))))
     if angle <= TIP_DIRECTION_LIMIT_DEG:
         return ""
-    most = math.degrees(float(np.max(bends[ok][:, 0::2])))
+    most = math.degrees(float(np.max(np.abs(bends[ok][:, 0::2]))))
     wrapped = (
         f", or sections bent past 180 degrees (its bends reach {most:.0f} degrees: a "
         "section's bend angle, from its end's frame, cannot describe a bend past 180)"

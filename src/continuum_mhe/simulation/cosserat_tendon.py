@@ -257,6 +257,8 @@ def write_tendon_recording(
     tr = np.column_stack([t, np.array(truth)])
     write_table(out / f"{name}_truth.csv", truth_columns(2), np.round(tr, 7).tolist())
     psi = tr[:, [9, 15]]
+    # (theta is the swing of the section end's frame, at most 180 degrees: a bend past
+    # 180 folds back below it, and is seen as it passes through 170 to 180 degrees)
     for k, c in enumerate((4, 10)):
         bend = math.degrees(float(tr[:, c].max()))
         if bend > WRAPPED_BEND_DEG:
