@@ -655,3 +655,37 @@ def test_a_bend_plane_in_radians_is_said(capsys: pytest.CaptureFixture[str]) -> 
     assert [radians_like_degrees(a) for a in (90.0, 0.0, 45.0, -3.0, 0.7854, -1.5708, 6.3)] == [
         False, False, False, False, True, True, False,
     ]  # fmt: skip
+
+
+def test_a_simulated_rest_calibrates_a_robot_of_three_sections(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``simulate rest`` (every section straight and still) gives a robot without
+    hardware the recording ``calibrate --from`` takes: on a three-section robot whose
+    second IMU is mounted at roll 3 and pitch -2 degrees, the written robot file holds
+    that mounting (to the readings' noise) and each IMU's gyro bias, and reading it back
+    says nothing of radians (a well-mounted IMU's near-zero angles were taken for
+    radians)."""
+    import warnings
+
+    from continuum_mhe.io.robot_file import read_robot
+
+    robot = tmp_path / "r3.toml"
+    robot.write_text(
+        "".join(f"[[section]]\nlength = {s}\ntheta_max = 3.0\n" for s in (0.12, 0.10, 0.08))
+        + "[[imu]]\nsection = 1\n[[imu]]\nsection = 2\nmount_rpy = [3.0, -2.0, 0.0]\n"
+        "[[imu]]\nsection = 3\n"
+    )
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "--robot", str(robot), "--imu", "raw", "--duration", "5",
+                 "-o", str(rest)]) == 0  # fmt: skip
+    cal = tmp_path / "cal.toml"
+    assert main(["calibrate", "--from", str(rest), "--robot", str(robot),
+                 "--write-robot", str(cal)]) == 0  # fmt: skip
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = read_robot(cal)
+    rpy = np.array([imu.mount_rpy for imu in got.imus])
+    np.testing.assert_allclose(rpy[1, :2], [3.0, -2.0], atol=0.3)
+    np.testing.assert_allclose(rpy[[0, 2], :2], 0.0, atol=0.3)

@@ -197,7 +197,8 @@ def test_the_inconsistency_line_counts_and_names_what_to_check() -> None:
     assert "--own-acceleration" not in line  # tilt readings: no own acceleration to model
     raw = make_formulation("direct")
     line = inconsistent_notice(5, 6, raw)
-    assert line is not None and "(--own-acceleration models it)" in line
+    assert line is not None and "--own-acceleration models it)" in line
+    assert "quiet readings at 50 Hz or more, as simulate --imu raw writes them" in line
 
 
 def test_a_hanging_recording_with_a_z_up_robot_is_refused_naming_the_mounting(tmp_path, capsys):

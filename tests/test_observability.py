@@ -300,3 +300,13 @@ def test_check_robot_json_is_strict_json_for_a_robot_the_readings_do_not_place(
 
     report = json.loads(capsys.readouterr().out, parse_constant=refuse)
     assert report["tip_noise_std"] is None and report["observable"] == "no"
+
+
+def test_a_share_of_shapes_under_one_never_reads_100_percent() -> None:
+    """check-robot printed a rank drop at 1 of 2000 shapes as "at 100.0 % of shapes (min
+    rank 5)": a share under 1 keeps the digits that show it, and one over 0 too."""
+    from continuum_mhe.analysis.observability import _percent
+
+    assert [_percent(f) for f in (0.9995, 1.0, 0.0, 1e-5, 0.5, 0.999)] == [
+        "99.95", "100.0", "0.0", "0.001", "50.0", "99.9",
+    ]  # fmt: skip

@@ -300,8 +300,8 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
         .endswith(
             f"m.csv: {n - 1} of {n} samples restarted the estimator after a gap longer than "
             "--gap-reset 1 s: t must be in seconds: if in milliseconds, name the column t_ms; "
-            "if in microseconds, give seconds (else raise --gap-reset, or 0: never); nothing "
-            "written"
+            "if in microseconds or nanoseconds, give seconds (else raise --gap-reset, or 0: "
+            "never); nothing written"
         )
     )
     with pytest.warns(UnitWarning):  # told to: the estimate is written
@@ -337,7 +337,7 @@ def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
             "t",
             1e6,
             r"t advances by a median of 50000 s per sample; t is read in seconds: if it is in "
-            r"milliseconds, name the column t_ms; if in microseconds, give seconds$",
+            r"milliseconds, name the column t_ms; if in microseconds or nanoseconds, give seconds$",
         ),
     ],
 )

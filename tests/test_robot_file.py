@@ -131,11 +131,12 @@ def test_mount_rpy_in_radians_gets_a_hint(rpy: tuple[float, ...], degrees: str) 
 @pytest.mark.parametrize(
     "rpy",
     [(0, 0, 0), (0, 90, 180), (3, 6, 0), (0, 0, 3), (30.5, 0, 0), (1, 2, 4), (0.5, -1.5, 2.5),
-     (0, 0, 45), (3.14, 0, 0), (90, 0, 1.5708)],
+     (0, 0, 45), (3.14, 0, 0), (90, 0, 1.5708), (-0.001, -0.004, 0.0), (0.0005, 0, 0)],
 )  # fmt: skip
 def test_mount_rpy_in_degrees_gets_no_hint(rpy: tuple[float, ...]) -> None:
     """Whole degrees are never within 1e-3 of a multiple of pi/4; beside a value over
-    2 pi (90) the others are degrees too."""
+    2 pi (90) the others are degrees too; values within 1e-3 of 0 (a well-mounted IMU
+    as calibrate writes it) are no quarter turn."""
     assert mount_rpy_hint(rpy) == ""
 
 

@@ -875,3 +875,46 @@ def test_a_bag_folder_is_read_as_its_mcap_only_where_its_metadata_lists_it_alone
     assert _single_mcap(bag) is None
     meta.unlink()
     assert _single_mcap(bag) is None
+
+
+def test_json_stamps_of_ros_1_fractional_seconds_and_nanoseconds_in_sec(tmp_path: Path) -> None:
+    """A JSON message's header stamp as ROS 1 writes it through rosbridge (``secs``,
+    ``nsecs``) and as a fractional ``sec`` are read to the nanosecond (the fractional one
+    was cut to whole seconds, and all but a few messages left out as not increasing);
+    nanoseconds in ``sec`` (an int64 overflow, exit 70) are refused in one line naming
+    the message."""
+    import json as json_module
+
+    from mcap.writer import CompressionType, Writer
+
+    t0 = 1_700_000_000
+    times = [t0 + 0.02 * k for k in range(6)]
+
+    def log(path: Path, stamp: Any) -> Path:
+        with path.open("wb") as fh:
+            w = Writer(fh, compression=CompressionType.NONE)
+            w.start()
+            sid = w.register_schema(name="sensor_msgs/msg/Imu", encoding="jsonschema", data=b"{}")
+            cid = w.register_channel(topic="/imu", message_encoding="json", schema_id=sid)
+            for k, tk in enumerate(times):
+                msg = {"header": {"stamp": stamp(k)},
+                       "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.81},
+                       "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}}  # fmt: skip
+                ns = round(tk * 1e9)
+                w.add_message(
+                    cid, log_time=ns, data=json_module.dumps(msg).encode(), publish_time=ns
+                )
+            w.finish()
+        return path
+
+    ros1 = log(tmp_path / "ros1.mcap", lambda k: {"secs": t0, "nsecs": 20_000_000 * k})
+    frac = log(tmp_path / "frac.mcap", lambda k: {"sec": times[k]})
+    for path in (ros1, frac):
+        got = read_imu_log(path)
+        assert got.skipped == [] and got.clock == "header stamps"
+        np.testing.assert_allclose(got.t, 0.02 * np.arange(6), atol=1e-6)
+    ns = log(tmp_path / "ns.mcap", lambda k: {"sec": round(times[k] * 1e9), "nanosec": 0})
+    with pytest.raises(InputError, match=re.escape(
+        f"{ns}: topic /imu: message 1: its header.stamp.sec is 1.7e+18: nanoseconds in sec?"
+    )):  # fmt: skip
+        read_imu_log(ns)

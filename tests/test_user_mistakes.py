@@ -2012,7 +2012,7 @@ def test_a_multi_section_scenario_on_one_section_names_the_ones_it_takes(tmp_pat
     assert main(["simulate", "spatial", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "is for a robot of two or more sections (--robot)" in err[0], err
-    assert "choose from paper3d, planar-overbend, straight" in err[0]
+    assert "choose from paper3d, planar-overbend, rest, straight" in err[0]
     assert not out.exists()
 
 

@@ -146,7 +146,7 @@ def verdict(r: ObservabilityReport) -> str:
     if t.full_rank_fraction >= OBSERVABLE_FRACTION:
         return (
             f"observable: one sample of tilt determines all {t.cols} bend coordinates at "
-            f"{100 * t.full_rank_fraction:.1f} % of the sampled shapes (not near the least "
+            f"{_percent(t.full_rank_fraction)} % of the sampled shapes (not near the least "
             f"observable shapes of the report, where the estimate follows its motion model){weak}"
         )
     if t.full_rank_fraction == 0.0:
@@ -158,7 +158,7 @@ def verdict(r: ObservabilityReport) -> str:
             "docs/uncertainty.md)"
         )
     return (
-        f"observable except near some shapes: full rank at {100 * t.full_rank_fraction:.1f} % "
+        f"observable except near some shapes: full rank at {_percent(t.full_rank_fraction)} % "
         f"of shapes (the least observable are the report's){weak}"
     )
 
@@ -199,7 +199,7 @@ def _tendon_verdict(t: JacobianSummary, n_tendons: int, n_imus: int) -> str:
         return (
             f"observable: {given}one sample of the IMUs' tilt determines "
             f"the tip force (all {t.cols} components), and so the shape, at "
-            f"{100 * t.full_rank_fraction:.1f} % of the sampled loads with an equilibrium"
+            f"{_percent(t.full_rank_fraction)} % of the sampled loads with an equilibrium"
         )
     if t.full_rank_fraction == 0.0:
         return (
@@ -214,7 +214,7 @@ def _tendon_verdict(t: JacobianSummary, n_tendons: int, n_imus: int) -> str:
             )
         )
     return (
-        f"observable except near some loads: full rank at {100 * t.full_rank_fraction:.1f} % "
+        f"observable except near some loads: full rank at {_percent(t.full_rank_fraction)} % "
         "of the sampled loads"
     )
 
@@ -426,6 +426,17 @@ def unsolved_warning(r: ObservabilityReport) -> str | None:
     )
 
 
+def _percent(fraction: float) -> str:
+    """``fraction`` (0 to 1) as a percentage to one decimal, or to as many more as keep a
+    fraction under 1 from showing 100 and one over 0 from showing 0 (a rank drop at 1 of
+    2000 shapes is 99.95 %, not 100.0 %)."""
+    for digits in range(1, 7):
+        text = f"{100 * fraction:.{digits}f}"
+        if not ((fraction < 1 and float(text) >= 100) or (fraction > 0 and float(text) == 0)):
+            break
+    return text
+
+
 def format_report(robot: Robot, r: ObservabilityReport) -> str:
     """Human-readable report (a tendon robot's: its mechanics model's first, with the
     verdict, which is that model's, right after it). The loads without an equilibrium
@@ -439,7 +450,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
         lines.append(
             f"tendon model, {given}, one sample (d gravity directions / d tip force, "
             f"{r.tendon_samples} loads{of}): {s.rows}x{s.cols}, rank {s.cols} at "
-            f"{100 * s.full_rank_fraction:.1f} % of those (min rank {s.min_rank}); relative "
+            f"{_percent(s.full_rank_fraction)} % of those (min rank {s.min_rank}); relative "
             f"smallest singular value p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}"
         )
         lines.append(f"verdict: {verdict(r)}")
@@ -463,7 +474,7 @@ def format_report(robot: Robot, r: ObservabilityReport) -> str:
         )
         lines.append(
             f"{label}: {s.rows}x{s.cols}, rank {s.cols} (all unknowns) at "
-            f"{100 * s.full_rank_fraction:.1f} % of shapes (min rank {s.min_rank}); "
+            f"{_percent(s.full_rank_fraction)} % of shapes (min rank {s.min_rank}); "
             "relative smallest singular value "
             f"p1 {p['p1']:.2e}, p5 {p['p5']:.2e}, median {p['p50']:.2e}{absolute}"
         )

@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
                 elif stream.kind != "log":  # a log's t comes from its own timestamps
                     fix = (
                         "t must be in seconds: if in milliseconds, name the column t_ms; if "
-                        f"in microseconds, give seconds (else {fix})"
+                        f"in microseconds or nanoseconds, give seconds (else {fix})"
                     )
                 raise InputError(
                     f"{stream.name}: {diag.gap_resets} of {n} samples restarted the estimator "

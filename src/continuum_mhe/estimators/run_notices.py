@@ -376,8 +376,9 @@ def inconsistent_notice(inconsistent: int, n: int, formulation: Formulation) -> 
         checks.append("the tensions (their scale, unit, tendon order and timing)")
     elif isinstance(formulation, DirectFormulation) and not formulation.own_acceleration:
         checks.append(
-            "for a fast motion, the IMUs' own acceleration in their readings "
-            "(--own-acceleration models it)"
+            "the IMUs' own acceleration in their readings, which the model leaves out (a "
+            "fast motion, or quiet readings at 50 Hz or more, as simulate --imu raw writes "
+            "them: --own-acceleration models it)"
         )
     return (
         f"{inconsistent} of {n} estimates ({100 * inconsistent / n:.0f} %) are inconsistent: "

@@ -309,7 +309,7 @@ def check_time_units(rows: TextRows, t: FloatArray) -> None:
     check_time_steps(
         rows.name, "t advances", t,
         "t is read in seconds: if it is in milliseconds, name the column t_ms; if in "
-        "microseconds, give seconds",
+        "microseconds or nanoseconds, give seconds",
         "t must be in seconds",
     )  # fmt: skip
 

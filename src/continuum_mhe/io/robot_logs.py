@@ -82,14 +82,29 @@ def is_robot_log(path: str | os.PathLike[str]) -> bool:
     return p.suffix.lower() in LOG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
 
 
+#: The largest ``header.stamp.sec`` read as seconds (the year 5138): beyond it the
+#: stamp is another unit (nanoseconds in ``sec``), refused.
+MAX_STAMP_SEC = 1e11
+
+
 def _header_ns(msg: Any) -> int:
-    """A message's ``header.stamp`` in ns (0 where it has none)."""
-    if isinstance(msg, dict):  # JSON message: header.stamp {sec, nanosec | nsec}
+    """A message's ``header.stamp`` in ns (0 where it has none). A JSON message's stamp
+    is ``{sec, nanosec}`` (ROS 2), ``{secs, nsecs}`` (ROS 1 as rosbridge writes it) or
+    ``{sec, nsec}``, and a fractional ``sec`` keeps its fraction. A ``sec`` beyond
+    :data:`MAX_STAMP_SEC` raises ``ValueError``."""
+    if isinstance(msg, dict):
         st = (msg.get("header") or {}).get("stamp") or {}
-        sec, nsec = st.get("sec", 0), st.get("nanosec", st.get("nsec", 0))
+        sec = st.get("sec", st.get("secs", 0))
+        nsec = st.get("nanosec", st.get("nsec", st.get("nsecs", 0)))
     else:
         sec, nsec = msg.header.stamp.sec, msg.header.stamp.nanosec
-    return int(sec) * 1_000_000_000 + int(nsec)
+    if not abs(float(sec)) <= MAX_STAMP_SEC:
+        raise ValueError(
+            f"its header.stamp.sec is {float(sec):.4g}: nanoseconds in sec? (header.stamp "
+            "must be ROS time: sec, and nanosec in ns)"
+        )
+    whole = int(sec)
+    return whole * 1_000_000_000 + round((float(sec) - whole) * 1e9) + int(nsec)
 
 
 def _vec(v: Any) -> list[float]:
@@ -397,7 +412,10 @@ def read_imu_log(
 
         for i, (log_ns, msg) in enumerate(messages):
             at = i + 1
-            header_ns = _header_ns(msg)
+            try:
+                header_ns = _header_ns(msg)
+            except ValueError as exc:
+                raise InputError(f"{p}: topic {name}: message {i + 1}: {exc}") from None
             if header_ns <= 0:
                 if stamped:
                     skipped.append(f"message {i + 1}: header stamp is zero (the others' clock)")

@@ -69,7 +69,11 @@ def mount_rpy_hint(rpy: Sequence[float], name: str = "mount_rpy") -> str:
     if not all(math.isfinite(v) and abs(v) <= 2 * math.pi + RADIAN_TOLERANCE for v in rpy):
         return ""
     quarter = math.pi / 4
-    turns = [v for v in rpy if v and abs(v - round(v / quarter) * quarter) <= RADIAN_TOLERANCE]
+    # (a value near 0 is no multiple's: calibrate writes a well-mounted IMU's [-0.001, ...])
+    turns = [
+        v for v in rpy
+        if round(v / quarter) != 0 and abs(v - round(v / quarter) * quarter) <= RADIAN_TOLERANCE
+    ]  # fmt: skip
     if not turns:
         return ""
     degrees = ", ".join(f"{round(math.degrees(v), 1):g}" for v in rpy)

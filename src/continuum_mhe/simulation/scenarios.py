@@ -8,6 +8,8 @@ direction (``"tangent"``: what the estimators' ``R`` assumes, so the data are
 model-consistent for the measurement; the two differ where pitch is large, since
 roll noise moves the gravity direction by only ``cos(pitch)`` of it).
 One-section scenarios: ``paper3d``, ``planar-overbend``, ``straight``.
+Any robot: ``rest`` (every section straight and still: a recording at rest, as
+``calibrate --from`` takes).
 Multi-section scenarios (a robot with two or more sections, one tilt IMU per entry of
 the robot's IMU list): ``s-curve`` (planar, neighbouring sections bend in opposite
 senses) and ``spatial`` (bending planes turning at different rates, bends up to
@@ -40,13 +42,14 @@ from continuum_mhe.model.robot import Robot, Section
 NoiseModel = Literal["tilt", "tangent"]
 NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
 
-ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial"]
+ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial", "rest"]
 SCENARIOS: tuple[ScenarioName, ...] = (
     "paper3d",
     "planar-overbend",
     "straight",
     "s-curve",
     "spatial",
+    "rest",
 )
 #: Scenarios for robots with two or more sections.
 MULTI_SECTION_SCENARIOS: tuple[ScenarioName, ...] = ("s-curve", "spatial")
@@ -190,9 +193,10 @@ def simulate_robot(
             "(tensions, tip force) come from python -m "
             "continuum_mhe.simulation.cosserat_tendon (two sections, an IMU at each end)"
         )
-    if scenario not in _SHAPES and scenario not in MULTI_SECTION_SCENARIOS:
+    if scenario not in _SHAPES and scenario not in (*MULTI_SECTION_SCENARIOS, "rest"):
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    one_section = scenario in _SHAPES
+    rest = scenario == "rest"
+    one_section = scenario in _SHAPES or (rest and robot.n_sections == 1)
     if one_section and robot.n_sections == 1 and robot.is_single:
         return simulate(
             scenario, duration=duration, dt=dt, noise_deg=noise_deg,
@@ -200,14 +204,16 @@ def simulate_robot(
             noise_model=noise_model,
         )  # fmt: skip
     if one_section != (robot.n_sections == 1):
-        shapes = _SHAPES if robot.n_sections == 1 else MULTI_SECTION_SCENARIOS
+        shapes = (*(_SHAPES if robot.n_sections == 1 else MULTI_SECTION_SCENARIOS), "rest")
         needs = "one section" if one_section else "two or more sections"
         raise UserError(
             f"scenario {scenario!r} is for a robot of {needs} (--robot); for this robot "
             f"({robot.describe()}) choose from {', '.join(sorted(shapes))}"
         )
     t = _time_axis(duration, dt, noise_deg, seed)
-    if one_section:  # one section with IMUs along it: the section's bend, read by each
+    if rest:  # every section straight, still
+        bends = np.zeros((len(t), robot.n_sections, 2))
+    elif one_section:  # one section with IMUs along it: the section's bend, read by each
         a, b = bend_from_shape(*_SHAPES[scenario](t))
         bends = np.column_stack([a, b]).reshape(len(t), 1, 2)
     else:
@@ -271,12 +277,14 @@ def simulate(
             f"scenario {scenario!r} needs a robot with two or more sections: "
             f"simulate_robot({scenario!r}, robot) (on the command line: --robot)"
         )
-    if scenario not in _SHAPES:
+    if scenario not in _SHAPES and scenario != "rest":
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     length = real_number("length", length)
     Section(length)  # a section's checks: positive, in metres (not millimetres)
     t = _time_axis(duration, dt, noise_deg, seed)
-    theta, phi = _SHAPES[scenario](t)
+    theta, phi = (
+        (np.zeros_like(t), np.zeros_like(t)) if scenario == "rest" else _SHAPES[scenario](t)
+    )
     a, b = bend_from_shape(theta, phi)
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
     # the outputs' convention: phi in [-pi, pi), as every estimate and truth file has it
