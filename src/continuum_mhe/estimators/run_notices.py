@@ -430,7 +430,7 @@ def load_at_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
         return None
     return (
         f"{diagnostics.untrusted_start_samples} of {n} estimates not ok (uncertain, or drifted "
-        "where the IMU errors left their prior): the first reading of their start showed a "
+        "where the IMU errors left their prior): the first IMU reading of their start showed a "
         "tip load (or tensions that do not act as given), which a start cannot tell from "
         "the IMUs' misalignments and accelerometer biases, so the estimates may take part "
         "of the load for those errors; start the recording with the robot free of load "
