@@ -456,3 +456,47 @@ def test_the_peers_multipliers_move_by_one_sample_as_their_states(ng: int) -> No
         cons = [float(g[i * per + nx]) for i in range(n - 1)] + [float(g[-1])]
         assert cons == [-101, -201, -301, -301]
     assert len(x) == len(lam_x) and len(g) == len(lam_g)
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--robot", ""], "continuum-mhe: error: --robot names no file or folder"),
+        (["--acados", " "], "continuum-mhe: error: --acados names no file or folder"),
+        (["--horizons", "10,,30"], "horizons must be integers separated by commas, got '10,,30'"),
+        (["--horizons", ",10"], "horizons must be integers separated by commas, got ',10'"),
+        (["--horizons", "10", "--duration", "2", "--skip", "fast", "--loss-horizons", "10"],
+         "continuum-mhe: error: --loss-horizons times the fast MHE's losses, which --skip "
+         "fast leaves out"),
+    ],
+)  # fmt: skip
+def test_empty_values_and_a_loss_table_without_the_fast_mhe_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
+) -> None:
+    """An empty ``--robot`` ran the whole peer benchmark, an empty ``--acados`` named an
+    install command without a folder, empty horizons were dropped, and a loss table
+    asked for with the fast MHE skipped vanished: one line each, exit 2, before
+    anything runs."""
+    from continuum_mhe.cli import main
+
+    out = tmp_path / "bench.json"
+    try:
+        code = main(["benchmark", *argv, "--json", str(out)])
+    except SystemExit as exc:  # argparse's own refusal
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+def test_the_robot_benchmark_takes_a_robot_of_one_section() -> None:
+    """``benchmark --robot`` on a one-section robot refused it with a scenario error of
+    ``simulate`` (an option the benchmark has not): it times its ``paper3d`` motion."""
+    from continuum_mhe.benchmark.harness import run_robot_benchmark
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    robot = Robot((Section(0.2, 3.0),), (ImuPlacement(0),))
+    report = run_robot_benchmark(robot, [10], 1.0)
+    (row,) = report["rows"]
+    assert row["horizon"] == 10 and row["fallbacks"] == 0 and row["max_diff_vs_ipopt"] < 1e-6

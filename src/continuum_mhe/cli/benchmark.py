@@ -30,8 +30,13 @@ MEMORY_SAMPLES = 20000
 
 
 def _horizons(text: str) -> list[int]:
+    items = text.split(",")
+    if any(not v.strip() for v in items):
+        raise argparse.ArgumentTypeError(
+            f"horizons must be integers separated by commas, got {text!r}"
+        )
     try:
-        values = [int(v) for v in text.split(",") if v.strip()]
+        values = [int(v) for v in items]
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"horizons must be integers, got {text!r}") from exc
     if not values or min(values) < 2 or max(values) > 1000:
@@ -75,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
         from continuum_mhe.io.output_files import check_output_target
 
         check_output_target(args.json, args.overwrite, "--json")
+    for flag, given in (("--robot", args.robot), ("--acados", args.acados)):
+        if given is not None and not given.strip():
+            raise UserError(f"{flag} names no file or folder (an empty value)")
     if args.robot:
         # (what --robot leaves out anyway may be asked to be left out: none, 0)
         unused = [flag for flag, given in (
@@ -97,6 +105,11 @@ def run(args: argparse.Namespace) -> int:
             _write_json(args.json, robot_report, args)
         return 0
     methods = tuple(m for m in METHODS if m not in set(args.skip or []))
+    if args.loss_horizons and "fast" not in methods:
+        raise UserError(
+            "--loss-horizons times the fast MHE's losses, which --skip fast leaves out "
+            "(give --loss-horizons none, or keep fast)"
+        )
     if args.acados is not None and not Path(args.acados, "acados", "__init__.py").is_file():
         raise UserError(
             f"--acados {args.acados}: no acados package there (pip install --no-deps "
