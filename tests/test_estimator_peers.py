@@ -201,10 +201,16 @@ def filterpy_ekf_states(f: Formulation, rec: Recording) -> np.ndarray:
 
 @pytest.mark.parametrize("mounting", MOUNTINGS)
 @pytest.mark.parametrize("name", FORMULATIONS)
-def test_ekf_matches_filterpy(name: str, mounting: str, paper3d, paper3d_down) -> None:
+@pytest.mark.parametrize("compiled", [False, True])
+def test_ekf_matches_filterpy(
+    name: str, mounting: str, compiled: bool, paper3d, paper3d_down
+) -> None:
+    """The CasADi EKF and the compiled one (``make_estimator("ekf")``, the command
+    line's) against filterpy's EKF on identical inputs."""
     rec = recording_for(mounting, paper3d, paper3d_down)
     f = make_formulation(name, robot=RobotSettings(mounting=mounting))
-    ours = np.array([e.state for e in step_all(CasadiExtendedKalmanFilter(f), rec.t, rec.z)])
+    est = make_estimator("ekf", f) if compiled else CasadiExtendedKalmanFilter(f)
+    ours = np.array([e.state for e in step_all(est, rec.t, rec.z)])
     assert_allclose(ours, filterpy_ekf_states(f, rec), rtol=0, atol=1e-9)
 
 
