@@ -2697,7 +2697,7 @@ def test_the_single_loaded_ekf_trusts_no_row_of_a_start_that_shows_a_load() -> N
     took part of it for those errors. As with the default EKF's two hypotheses, none of
     that start's rows is ``ok``, and ``estimate``'s line counts them."""
     from continuum_mhe.estimators import ExtendedKalmanFilter
-    from continuum_mhe.estimators.run_notices import load_at_start_notice
+    from continuum_mhe.estimators.run_notices import untrusted_start_notice
 
     f, t, z = _raw_shipped(401, "force-08")
     late = t >= 3.0 - 1e-9
@@ -2712,7 +2712,7 @@ def test_the_single_loaded_ekf_trusts_no_row_of_a_start_that_shows_a_load() -> N
     assert far.sum() > 100  # the start under load is off
     assert "ok" not in set(series.status)
     assert est.diagnostics.untrusted_start_samples == 150
-    note = load_at_start_notice(est.diagnostics, 150)
+    note = untrusted_start_notice(est.diagnostics, 150)
     assert note is not None and note.startswith("150 of 150 estimates not ok")
 
 

@@ -55,7 +55,7 @@ from continuum_mhe.estimators.run_notices import (
     drifted_notice,
     free_of_load_clause,
     inconsistent_notice,
-    load_at_start_notice,
+    untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.io.input_options import robot_fix
@@ -330,7 +330,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {twist_note}", file=sys.stderr)
     if drift_note := drifted_notice(tally.counts.get("drifted", 0), n, formulation):
         print(f"{PROG}: warning: {drift_note}", file=sys.stderr)
-    if load_note := load_at_start_notice(diag, n):
+    if load_note := untrusted_start_notice(diag, n):
         print(f"{PROG}: warning: {load_note}", file=sys.stderr)
     inconsistent = tally.counts.get("inconsistent", 0)
     if inconsistent_note := inconsistent_notice(inconsistent, n, formulation):

@@ -421,16 +421,17 @@ def free_of_load_clause(inference: Inference, n: int) -> str | None:
     return f"taken as free of load (tip force 0 N) in {free} of the {n} estimates"
 
 
-def load_at_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
+def untrusted_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
     """The line for the estimates, of ``n``, of a start whose first reading showed a
     load it could not tell from the IMUs' errors (a tendon robot's, in any estimator:
-    ``Diagnostics.untrusted_start_samples``), none of them ``ok``; None where there are
-    none (``estimate``'s warning and ``live``'s summary)."""
+    ``Diagnostics.untrusted_start_samples``, every row of such a start: none of them
+    ``ok``); None where there are none (``estimate``'s warning and ``live``'s summary)."""
     if not diagnostics.untrusted_start_samples:
         return None
     return (
-        f"{diagnostics.untrusted_start_samples} of {n} estimates not ok (uncertain, or drifted "
-        "where the IMU errors left their prior): the first IMU reading of their start showed a "
+        f"{diagnostics.untrusted_start_samples} of {n} estimates not ok (none of a start's "
+        "rows is; its trusted ones are uncertain, or drifted where the IMU errors left their "
+        "prior): the first IMU reading of their start showed a "
         "tip load (or tensions that do not act as given), which a start cannot tell from "
         "the IMUs' misalignments and accelerometer biases, so the estimates may take part "
         "of the load for those errors; start the recording with the robot free of load "

@@ -24,7 +24,7 @@ from continuum_mhe.estimators.run_notices import (
     drifted_notice,
     free_of_load_clause,
     inconsistent_notice,
-    load_at_start_notice,
+    untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
@@ -806,7 +806,7 @@ class LiveSession:
         drifted = self.status_counts.get("drifted", 0)
         if drift_note := drifted_notice(drifted, c.estimates, self.formulation):
             msg += "; warning: " + drift_note
-        if load_note := load_at_start_notice(self.estimator.diagnostics, c.estimates):
+        if load_note := untrusted_start_notice(self.estimator.diagnostics, c.estimates):
             msg += "; warning: " + load_note
         inconsistent = self.status_counts.get("inconsistent", 0)
         if inconsistent_note := inconsistent_notice(inconsistent, c.estimates, self.formulation):
