@@ -391,8 +391,9 @@ def test_a_start_under_load_is_not_trusted_and_said(
         else:
             assert status.count("ok") > 0.9 * len(status)
     assert re.search(
-        rf"warning: {len(late)} of {len(late)} estimates not ok \(uncertain, or drifted "
-        r"where the IMU errors left their prior\): the first IMU reading of their start "
+        rf"warning: {len(late)} of {len(late)} estimates not ok \(none of a start's rows is; "
+        r"its trusted ones are uncertain, or drifted where the IMU errors left their "
+        r"prior\): the first IMU reading of their start "
         r"showed a tip load \(or tensions that do not act as given\)",
         said["from3"],
     ), said["from3"]

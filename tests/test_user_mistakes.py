@@ -1204,7 +1204,8 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     """A stream of raw readings whose gyros are in deg/s, handed to ``step`` sample by
     sample or to ``continue_run`` in blocks: a ReadingUnitsError at the sample that
     completes the first UNIT_CHECK_SAMPLES full readings over a second (their median),
-    naming the gyro columns, and again at every later sample until a reset; the samples
+    naming the gyro columns, and again at every later sample until a reset (named with its
+    own time and the one that showed it); the samples
     before it are estimated. The same stream in rad/s runs through, and so does a
     1 kHz stream that turns at 6 rad/s for its first 0.12 s (a fast start, not deg/s)."""
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
@@ -1230,7 +1231,11 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     )
     with pytest.raises(ReadingUnitsError, match=said):
         est.step(Measurement(float(t[last]), deg_s[last]))
-    with pytest.raises(ReadingUnitsError, match=said):  # the next sample too
+    later = (  # the next sample too, named with its own time and the one that showed it
+        rf"^measurement at t={float(t[last + 1])!r} s: as found at t={float(t[last])!r} s, "
+        r"wx, wy, wz \(the gyro's gx, gy, gz\): gyro magnitude is about 30\.4"
+    )
+    with pytest.raises(ReadingUnitsError, match=later):
         est.step(Measurement(float(t[last + 1]), deg_s[last + 1]))
     est.reset()
     first = est.continue_run(t[:60], deg_s[:60])  # not yet the first 100: stepped
@@ -1265,9 +1270,12 @@ def test_each_raw_imus_first_full_reading_is_checked_by_step() -> None:
 def test_compute_metrics_refuses_what_does_not_fit_in_one_user_error() -> None:
     """``compute_metrics`` names each mistake in a UserError: an estimate series given
     for its array, arrays of different lengths or with another column count than their
-    names, a length that is not a number, a string for the names."""
+    names, a length that is not a number, a string for the names; a length or positions
+    in mm (as ``evaluate`` refuses them)."""
     rec = simulate("paper3d", duration=2.0, seed=1)
     s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    in_mm = rec.truth.copy()
+    in_mm[:, :3] *= 1000.0
     cases = [
         ((s, rec.truth, 0.2), "not an EstimateSeries: pass its .output"),
         ((s.output[:-1], rec.truth, 0.2), "estimate has 40 rows but truth has 41"),
@@ -1278,6 +1286,9 @@ def test_compute_metrics_refuses_what_does_not_fit_in_one_user_error() -> None:
         ((s.output, rec.truth, 0.2, ["x", "y", "z"]), "estimate has 5 columns, but names gives 3"),
         ((s.output, rec.truth, 0.2, "xyz"), "names must be a sequence of column names"),
         ((s.output[:, :1], rec.truth[:, :1], 0.2, ["x"]), "both sides need the tip column 'y'"),
+        ((s.output, rec.truth, 200), r"length 200 m is over 5 m: .*millimetres"),
+        ((s.output, in_mm, 0.2), r"^truth: its tip is 1000 times as far .* positions in mm\?"),
+        ((in_mm, in_mm, 0.2), r"^estimate: its tip is 1000 times as far .* positions in mm\?"),
     ]
     for args, match in cases:
         with pytest.raises(UserError, match=match):
@@ -1327,6 +1338,8 @@ def test_compute_metrics_skips_rows_without_a_finite_truth_and_counts_them() -> 
         ("write_measurements(OUT, [0.0, 0.0], [[0.1, 0.1], [0.1, 0.1]])", "strictly increasing"),
         ("write_measurements(OUT, [0.0], [[0.1]])", "z has 1 columns, expected 2"),
         ("write_truth(OUT, [0.0], [[np.nan] * 5])", "refusing to write a non-finite value"),
+        ("write_truth(OUT, [0.0], [[0.0] * 5] * 2)", "t has 1 samples and truth 2 rows"),
+        ("write_measurements(OUT, [0.0, 1.0], [[0.1, 0.1]])", "t has 2 samples and z 1 rows"),
     ],
 )
 def test_library_calls_refuse_wrong_types_in_one_user_error(tmp_path, call, match) -> None:
@@ -1509,8 +1522,9 @@ def test_an_estimate_series_that_does_not_fit_is_refused(tmp_path) -> None:
 
 def test_small_library_mistakes_are_user_errors() -> None:
     """A DataFrame whose columns are the readings in another order (numpy would drop the
-    labels: every row ok, far off), a time beyond a float, float block starts, and a
-    truth without rows to match: a UserError each, or nothing matched."""
+    labels: every row ok, far off), or not the readings' names, a time beyond a float,
+    float block starts, and a truth without rows to match: a UserError each, or nothing
+    matched."""
     import numpy as np
     import pandas as pd
     import pytest
@@ -1526,6 +1540,21 @@ def test_small_library_mistakes_are_user_errors() -> None:
     np.testing.assert_array_equal(est.run(rec.t, table).output, est.run(rec.t, rec.z).output)
     with pytest.raises(UserError, match="z's columns are pitch, roll"):
         est.run(rec.t, table[["pitch", "roll"]])
+    # other names (one that says degrees), or another count: the formulation's names
+    for bad in (["roll_deg", "pitch_deg"], ["roll", "pitch", "yaw"]):
+        with pytest.raises(
+            UserError, match=r"reads 2 readings a sample, roll, pitch: name them so"
+        ):
+            est.run(
+                rec.t, pd.DataFrame(np.column_stack([rec.z, rec.z])[:, : len(bad)], columns=bad)
+            )
+    with pytest.raises(UserError, match=r"the measurement's labels are roll; .*: name them so"):
+        est.step(Measurement(0.0, rec.z[0], labels=("roll",)))
+    # raw IMU columns given to the model of raw IMUs: raw_measurements converts them
+    direct = make_estimator("ekf", make_formulation("direct"))
+    raw = pd.DataFrame(np.zeros((3, 6)), columns=["ax", "ay", "az", "gx", "gy", "gz"])
+    with pytest.raises(UserError, match=r"are ax, ay, az, gx, gy, gz; .*inputs\.raw_measurements"):
+        direct.run(np.arange(3) * 0.02, raw)
     # pandas' missing value in a nullable column is a dropout, as NaN is
     nullable = table.astype("Float64")
     nullable.iloc[3, 0] = pd.NA
@@ -2418,3 +2447,48 @@ def test_the_tip_direction_warning_names_bends_past_180_degrees() -> None:
     assert "x and y swapped" in said and "bent past 180 degrees (its bends reach 175" in said
     said = tip_direction_problem(names, table(math.radians(120.0)), lengths)
     assert "x and y swapped" in said and "bent past" not in said
+
+
+def test_tensions_from_arrays_refuse_what_a_tensions_file_would() -> None:
+    """``Tensions.from_rows`` (a tendon robot's tensions from arrays): arrays of other
+    lengths or shapes, times that do not increase, a tension that is missing or
+    negative: one UserError naming the stream and the problem, not an error from inside
+    the derivatives."""
+    from continuum_mhe.io.tensions import Tensions
+
+    t = np.arange(10) * 0.02
+    v = np.ones((10, 6))
+    gap = v.copy()
+    gap[3, 1] = np.nan
+    cases = [
+        ((t[:-1], v), r"^log: t has 9 times and the tensions 10 rows: they must match$"),
+        ((t, v[:, 0]), r"^log: t must be \(n,\) s and the tensions \(n, k\) N"),
+        ((t[::-1], v), r"^log: t must be finite and strictly increasing \(s\)$"),
+        ((t[:0], v[:0]), r"^log: no tension rows$"),
+        (("abc", v), r"^log: t and the tensions must be arrays of numbers"),
+        ((t, gap), r"^log: row 3 \(t = 0.06 s\): tension_2 is nan: leave the row out"),
+        ((t, -v), r"^log: row 0 \(t = 0 s\): tension_1 = -1 N is negative: a tendon cannot push"),
+    ]
+    for (times, values), match in cases:
+        with pytest.raises(UserError, match=match):
+            Tensions.from_rows("log", times, values)
+    taken = Tensions.from_rows("log", list(t), v.tolist())  # lists are arrays too
+    np.testing.assert_array_equal(taken.values, v)
+
+
+def test_raw_readings_and_reset_name_a_wrong_argument() -> None:
+    """``raw_readings`` given RobotSettings for its robot, and ``reset(keep_sensors=True)``
+    without ``keep_counts`` (the sensors are kept within a recording): a UserError each."""
+    from continuum_mhe import raw_readings, simulate_robot
+    from continuum_mhe.io.robot_file import read_robot
+
+    robot = read_robot("two-section")
+    rec = simulate_robot("s-curve", robot, duration=0.2)
+    with pytest.raises(UserError, match=r"^robot must be a Robot \(read_robot"):
+        raw_readings(rec, RobotSettings())  # type: ignore[arg-type]
+    with pytest.raises(UserError, match=r"^rec must be a Recording"):
+        raw_readings(rec.z, robot)  # type: ignore[arg-type]
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(UserError, match=r"keep_sensors=True\) needs keep_counts=True"):
+        est.reset(keep_sensors=True)
+    est.reset(keep_counts=True, keep_sensors=True)

@@ -108,8 +108,10 @@ class ReadingUnitsWatch:
     def reset(self) -> None:
         #: nothing left to look at (every block checked, and no problem found)
         self.done = not self._blocks
-        #: the problem found, given for every later sample
+        #: the problem found (the line naming the sample that showed it); every later
+        #: sample is refused with it, named with its own time
         self.problem: str | None = None
+        self._found: tuple[float, str] | None = None  # that sample's time, the problem
         self._pending = list(range(len(self._blocks)))  # blocks still to check
         self._force_unchecked = [True] * len(self._blocks)
         self._gyros: list[list[FloatArray]] = [[] for _ in self._blocks]
@@ -122,16 +124,24 @@ class ReadingUnitsWatch:
         """Look at the samples ``t`` (n,) s, ``z`` (n, nz) that follow those seen: what
         is wrong with their units, as a line naming the sample that showed it
         (``measurement at t=... s: ...``), or None."""
-        if self.problem is not None or self.done:
-            return self.problem
+        if self._found is not None:
+            found_t, problem = self._found
+            now = float(t[0]) if len(t) else found_t
+            if now == found_t:
+                return self.problem
+            return f"measurement at t={now!r} s: as found at t={found_t!r} s, {problem}"
+        if self.done:
+            return None
         for k in list(self._pending):
-            self.problem = self._see_block(k, t, z)
-            if self.problem is not None:
+            found = self._see_block(k, t, z)
+            if found is not None:
+                self._found = found
+                self.problem = f"measurement at t={found[0]!r} s: {found[1]}"
                 return self.problem
         self.done = not self._pending
         return None
 
-    def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> str | None:
+    def _see_block(self, k: int, t: FloatArray, z: FloatArray) -> tuple[float, str] | None:
         force_rows, gyro_rows, names = self._blocks[k]
         if len(z) == 1 and not all(  # one sample (a step) without this IMU: nothing to see
             map(math.isfinite, z[0, force_rows].tolist() + z[0, gyro_rows].tolist())
@@ -147,7 +157,7 @@ class ReadingUnitsWatch:
             i = int(full[0])
             problem = direct_units_problem([self._blocks[k]], z[i : i + 1], gyro=False)
             if problem is not None:
-                return f"measurement at t={float(t[i])!r} s: {problem}"
+                return float(t[i]), problem
             self._first_t[k] = float(t[i])
         seen = self._gyros[k]
         seen.append(z[full, gyro_rows].copy())
@@ -169,7 +179,4 @@ class ReadingUnitsWatch:
         if problem is None:
             return None
         of = f"(median of the first {self._counts[k]} full readings, {span:.3g} s)"
-        return (
-            f"measurement at t={float(t[full[-1]])!r} s: {gyro_label(names)}: "
-            + problem.replace("(median)", of, 1)
-        )
+        return float(t[full[-1]]), f"{gyro_label(names)}: " + problem.replace("(median)", of, 1)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator
@@ -79,6 +80,9 @@ STATUSES: tuple[Status, ...] = tuple(
     next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
 )
 _CODES = {status.value: code for code, status in enumerate(STATUSES)}
+
+#: A raw IMU reading's column name (``ax``, ``gz_2``): accelerometer or gyro, axis, IMU
+RAW_LABEL = re.compile(r"[ag][xyz](_[0-9]+)?")
 
 
 def status_code(status: Status | str) -> int:
@@ -353,11 +357,17 @@ class Estimator(Generic[InferenceT]):
         inference's own counts; the next ``step`` starts a new recording. (The
         estimator's own restarts, within a recording, keep the counts; so does a caller
         that restarts it within one, as ``live`` does.) ``keep_sensors`` (default
-        ``keep_counts``; only with it): the next start keeps what the last estimate
-        says of the sensors (the formulation's ``sensor_states``, as a restart after a
+        ``keep_counts``; only with it, else a UserError): the next start keeps what the
+        last estimate says of the sensors (the formulation's ``sensor_states``, as a restart after a
         gap does), the same sensors on the same robot; not after a failure that may
         have come from them. A RuntimeError, changing nothing, while another thread
         steps this estimator."""
+        if keep_sensors and not keep_counts:
+            raise UserError(
+                "reset(keep_sensors=True) needs keep_counts=True: the sensors are kept "
+                "within one recording (a restart of the same robot), and keep_counts=False "
+                "starts a new one"
+            )
         self._policy.check_idle()
         self.inference.close_recording()
         if not keep_counts:
@@ -595,13 +605,32 @@ class Estimator(Generic[InferenceT]):
 
     def _check_labels(self, what: str, got: list[str]) -> None:
         """A :class:`UserError` where labelled readings (``what``: a DataFrame's columns,
-        a Series's index) are the formulation's readings in another order."""
+        a Series's index) are not the formulation's readings in its order: the same
+        names in another order, other names (raw accelerometer and gyro columns, or a
+        name that says degrees), or another count. Unlabelled values (a numpy array)
+        are taken in the formulation's order."""
         want = list(self.formulation.measurement_names)
-        if sorted(got) == sorted(want) and got != want:
+        if got == want:
+            return
+        name = self.formulation.name
+        if sorted(got) == sorted(want):
             raise UserError(
-                f"{what} are {', '.join(got)}; the {self.formulation.name} formulation "
+                f"{what} are {', '.join(got)}; the {name} formulation "
                 f"reads {', '.join(want)} in that order (z[{want!r}])"
             )
+        raw = bool(got) and all(RAW_LABEL.fullmatch(g) for g in got)
+        hint = (
+            "raw accelerometer and gyro readings become its readings with "
+            "continuum_mhe.io.inputs.raw_measurements (each IMU's mount_rpy and gyro_bias "
+            "applied)"
+            if raw
+            else f"name them so, or give the values alone (z.to_numpy()) to pass {len(want)} "
+            "readings a sample in that order"
+        )
+        raise UserError(
+            f"{what} are {', '.join(got)}; the {name} formulation reads "
+            f"{len(want)} readings a sample, {', '.join(want)}: {hint}"
+        )
 
     def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a

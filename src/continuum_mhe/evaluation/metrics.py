@@ -22,6 +22,8 @@ from continuum_mhe.errors import UserError, real_number
 from continuum_mhe.io.position_units import (
     LENGTH_RATIO_TOLERANCE,
     has_bend_columns,
+    position_unit_against,
+    position_unit_problem,
     tip_ratio,
 )
 from continuum_mhe.model.descriptions import (
@@ -31,6 +33,7 @@ from continuum_mhe.model.descriptions import (
     pcc_outputs,
 )
 from continuum_mhe.model.imu import wrap_angle
+from continuum_mhe.model.robot import MAX_SECTION_LENGTH
 
 #: One section's outputs, the default column order of arrays without names.
 STATE_NAMES = output_names(pcc_outputs(1))
@@ -156,6 +159,11 @@ def compute_metrics(
     length = real_number("length", length)
     if not (math.isfinite(length) and length > 0):
         raise UserError(f"length must be a positive number of metres, got {length!r}")
+    if length > MAX_SECTION_LENGTH:
+        raise UserError(
+            f"length {length:g} m is over {MAX_SECTION_LENGTH:g} m: the robot's length is in "
+            "metres (millimetres or centimetres?)"
+        )
     names = _column_names("names", names)
     tnames = names if truth_names is None else _column_names("truth_names", truth_names)
     est_all = _table("estimate", estimate, names, "names")
@@ -166,6 +174,13 @@ def compute_metrics(
     for c in TIP_COLUMNS:
         if c not in common:
             raise UserError(f"both sides need the tip column {c!r}")
+    # positions in another unit than m (as evaluate refuses them): against the robot's
+    # length, then the truth against the estimate
+    for side, side_names, values in (("estimate", names, est_all), ("truth", tnames, tru_all)):
+        if problem := position_unit_problem(side_names, values, [length]):
+            raise UserError(f"{side}: {problem}")
+    if problem := position_unit_against(tnames, tru_all, names, est_all):
+        raise UserError(f"truth: {problem}")
     est = est_all[:, [names.index(c) for c in common]]
     tru = tru_all[:, [tnames.index(c) for c in common]]
     estimated = np.all(np.isfinite(est), axis=1)

@@ -157,8 +157,8 @@ def estimate_rows(series: EstimateSeries) -> list[list[object]]:
 
 
 def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArray, FloatArray]:
-    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), or a UserError
-    naming the shapes."""
+    """``t`` (n,) and ``values`` (n, m) as float arrays (lists too), a row per sample,
+    or a UserError naming the shapes (or the counts, where they differ)."""
     try:
         t_arr, v_arr = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
     except (TypeError, ValueError):
@@ -167,6 +167,8 @@ def _samples_table(t: ArrayLike, values: ArrayLike, name: str) -> tuple[FloatArr
         raise UserError(
             f"t must be (n,) and {name} (n, m); got shapes {t_arr.shape} and {v_arr.shape}"
         )
+    if len(t_arr) != len(v_arr):
+        raise UserError(f"t has {len(t_arr)} samples and {name} {len(v_arr)} rows: they must match")
     return t_arr, v_arr
 
 
@@ -230,8 +232,6 @@ def write_measurements(
     t, z = _samples_table(t, z, "z")
     if z.shape[1] != len(names):
         raise UserError(f"z has {z.shape[1]} columns, expected {len(names)}")
-    if len(t) != len(z):
-        raise UserError(f"t has {len(t)} samples and z {len(z)} rows: they must match")
     if len(t) == 0:
         raise UserError(f"{path}: no samples to write (read_measurements refuses a file without)")
     if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):

@@ -192,7 +192,15 @@ class Tensions:
     ) -> Tensions:
         """The tensions of rows ``values`` (n, k) N at ``t`` (n,) s, with their
         derivatives (:func:`tension_derivatives`); ``lines``: each row's line in its
-        file (None: rows of no file)."""
+        file (None: rows of no file).
+
+        Raises:
+            UserError: arrays that are not numbers of those shapes, of different
+                lengths or without a row; a ``t`` that is not finite and strictly
+                increasing; a tension that is not a finite number (leave such a row out:
+                the tensions are interpolated across it) or is negative.
+        """
+        t, values = _checked_rows(name, t, values, lines)
         taken = tension_derivatives(t, values, binned=binned)
         changed = taken.smoothing is not None or taken.hold_period_s > 0
         return cls(
@@ -418,6 +426,54 @@ def tension_columns(n_tendons: int) -> tuple[str, ...]:
     return tuple(f"tension_{i}" for i in range(1, n_tendons + 1))
 
 
+def _checked_rows(
+    name: str, t: FloatArray, values: FloatArray, lines: tuple[int, ...] | None
+) -> tuple[FloatArray, FloatArray]:
+    """``t`` (n,) s and ``values`` (n, k) N of the tensions ``name`` as float arrays, or a
+    :class:`UserError` naming the first problem and its row (its file's line where
+    ``lines`` gives them: an :class:`InputError`) (:meth:`Tensions.from_rows`)."""
+    try:
+        t_arr = np.asarray(t, dtype=float)
+        v_arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise UserError(
+            f"{name}: t and the tensions must be arrays of numbers (t (n,) s, tensions (n, k) N)"
+        ) from None
+    if t_arr.ndim != 1 or v_arr.ndim != 2:
+        raise UserError(
+            f"{name}: t must be (n,) s and the tensions (n, k) N, a row per time and a column "
+            f"per tendon; got shapes {t_arr.shape} and {v_arr.shape}"
+        )
+    if len(t_arr) != len(v_arr):
+        raise UserError(
+            f"{name}: t has {len(t_arr)} times and the tensions {len(v_arr)} rows: they must match"
+        )
+    if not len(t_arr):
+        raise UserError(f"{name}: no tension rows")
+    if not np.isfinite(t_arr).all() or np.any(np.diff(t_arr) <= 0):
+        raise UserError(f"{name}: t must be finite and strictly increasing (s)")
+
+    def where(i: int) -> str:
+        return f"line {lines[i]}" if lines else f"row {i} (t = {t_arr[i]:g} s)"
+
+    error = InputError if lines else UserError
+    bad = np.argwhere(~np.isfinite(v_arr))
+    if len(bad):
+        i, j = bad[0]
+        raise error(
+            f"{name}: {where(i)}: tension_{j + 1} is {v_arr[i, j]}: leave the row out (the "
+            "tensions are interpolated across it)"
+        )
+    neg = np.argwhere(v_arr < 0)
+    if len(neg):
+        i, j = neg[0]
+        raise error(
+            f"{name}: {where(i)}: tension_{j + 1} = {v_arr[i, j]:g} N is negative: a tendon "
+            "cannot push (a slack tendon's tension is 0)"
+        )
+    return t_arr, v_arr
+
+
 def read_tensions(
     path: str | os.PathLike[str],
     n_tendons: int,
@@ -486,13 +542,7 @@ def read_tensions(
         if time_warning:
             check_time_units(rows, t)
     values = np.array([d[2] for d in data], dtype=float).reshape(len(t), n_tendons)
-    neg = np.argwhere(values < 0)
-    if len(neg):
-        i, j = neg[0]
-        raise InputError(
-            f"{name}: line {data[i][0]}: tension_{j + 1} = {values[i, j]:g} N is negative: "
-            "a tendon cannot push (a slack tendon's tension is 0)"
-        )
+    # (a negative tension is refused on its line by from_rows)
     # a recording's own columns row by row, as live's TensionStream differenced them
     lines = tuple(int(d[0]) for d in data)
     return Tensions.from_rows(name, t, values, binned=not other_columns, lines=lines)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import bend_from_shape
@@ -75,6 +75,8 @@ def raw_readings(
 ) -> tuple[FloatArray, tuple[str, ...]]:
     """The raw readings (n, 6 m) of the ``robot``'s m IMUs along ``rec``'s truth, m/s^2
     and rad/s in each sensor frame (see the module), with their column names."""
+    expect_type("rec", rec, Recording, "a Recording (simulate_robot(SCENARIO, robot))")
+    expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons:
         raise UserError("raw readings are simulated for constant-curvature robots only")
     if len(rec.t) < 3:
