@@ -602,4 +602,6 @@ def test_live_summary_says_a_start_under_load_is_not_trusted() -> None:
     est = make_estimator("ekf", serial.formulation, MHESettings())
     session, made, _ = _live(serial, est, lines)
     assert len(made) == 101 and not any(str(e.status) == "ok" for e in made)
-    assert "; warning: 101 of 101 estimates not ok (none of a start" in (session.summary())
+    assert "; warning: 101 of 101 estimates are of a start whose first IMU reading" in (
+        session.summary()
+    )

@@ -1712,7 +1712,8 @@ def test_check_robot_of_a_backbone_too_soft_for_its_weight_says_so(
 def test_tendon_angles_in_radians_are_said(tmp_path: Path) -> None:
     """Tendon angles that all lie within 2 pi and are not whole degrees (radians written
     for degrees: the tendons would sit within 6 degrees of each other) give one
-    UnitWarning naming the file; the shipped robot's degrees give none."""
+    UnitWarning naming the file; the shipped robot's degrees give none; a robot's only
+    tendon at a quarter turn in radians is said, at 1.5 or 90 degrees not."""
     import re
     import warnings
 
@@ -1730,6 +1731,21 @@ def test_tendon_angles_in_radians_are_said(tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_robot(shipped)
+    # a robot's only tendon: a quarter turn in radians is said, 1.5 or 90 degrees are not
+    text = shipped.read_text()
+    first = text.index("[[tendon]]")
+    rest = text.index("[[imu]]")
+    for angle, said in (("1.5708", True), ("1.5", False), ("90", False)):
+        one = tmp_path / f"one_{angle}.toml"
+        tendon = text[first : text.index("[[tendon]]", first + 1)]
+        one.write_text(
+            text[:first] + re.sub(r"angle = \S+", f"angle = {angle}", tendon) + text[rest:]
+        )
+        with warnings.catch_warnings(record=True) as got:
+            warnings.simplefilter("always")
+            read_robot(one)
+        radians = [w for w in got if "radians?" in str(w.message)]
+        assert bool(radians) == said, (angle, [str(w.message) for w in got])
 
 
 def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
@@ -2713,7 +2729,9 @@ def test_the_single_loaded_ekf_trusts_no_row_of_a_start_that_shows_a_load() -> N
     assert "ok" not in set(series.status)
     assert est.diagnostics.untrusted_start_samples == 150
     note = untrusted_start_notice(est.diagnostics, 150)
-    assert note is not None and note.startswith("150 of 150 estimates not ok")
+    assert note is not None and note.startswith(
+        "150 of 150 estimates are of a start whose first IMU reading"
+    )
 
 
 def test_tension_rows_after_the_recording_are_not_taken_for_a_frozen_logger(

@@ -32,7 +32,7 @@ class Command:
 COMMANDS: tuple[Command, ...] = (
     Command("demo", "simulate paper3d, run MHE, EKF and UKF, print errors, plot", "demo"),
     Command("simulate", "write a synthetic measurement CSV and its truth", "simulate"),
-    Command("estimate", "estimate shape and tip from a measurement CSV", "estimate"),
+    Command("estimate", "estimate shape and tip from a recording (CSV, ROS bag, MCAP)", "estimate"),
     Command("evaluate", "errors of an estimate CSV against a truth CSV", "evaluate"),
     Command(
         "check-robot",

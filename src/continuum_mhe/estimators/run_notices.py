@@ -429,12 +429,12 @@ def untrusted_start_notice(diagnostics: Diagnostics, n: int) -> str | None:
     if not diagnostics.untrusted_start_samples:
         return None
     return (
-        f"{diagnostics.untrusted_start_samples} of {n} estimates not ok (none of a start's "
-        "rows is; its trusted ones are uncertain, or drifted where the IMU errors left their "
-        "prior): the first IMU reading of their start showed a "
-        "tip load (or tensions that do not act as given), which a start cannot tell from "
-        "the IMUs' misalignments and accelerometer biases, so the estimates may take part "
-        "of the load for those errors; start the recording with the robot free of load "
-        "(the estimates then learn the IMUs' errors, and keep them across a gap), and "
-        "check the tensions (their scale, unit, tendon order and timing)"
+        f"{diagnostics.untrusted_start_samples} of {n} estimates are of a start whose first "
+        "IMU reading showed a tip load (or tensions that do not act as given), which a start "
+        "cannot tell from the IMUs' misalignments and accelerometer biases: none of them is "
+        "ok (uncertain, or drifted where the IMU errors left their prior, where not a "
+        "restart or a dropout), as they may take part of the load for those errors; start "
+        "the recording with the robot free of load (the estimates then learn the IMUs' "
+        "errors, and keep them across a gap), and check the tensions (their scale, unit, "
+        "tendon order and timing)"
     )

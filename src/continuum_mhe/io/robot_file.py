@@ -368,7 +368,11 @@ RADIANS_LAYOUT_TOL_DEG = 0.3
 def angles_look_like_radians(degrees: list[float]) -> bool:
     """Whether tendon angles given in degrees look like radians: two or more, all within
     ``2 pi`` in magnitude, one of them nonzero and not a whole number of degrees (the
-    angles of tendons are spread around the backbone, so in degrees some exceed 2 pi)."""
+    angles of tendons are spread around the backbone, so in degrees some exceed 2 pi);
+    one alone where it is a quarter or eighth turn in radians (:func:`mount_rpy_hint`'s
+    rule: 1.5708, 0.7854, 3.1416 ...)."""
+    if len(degrees) == 1:
+        return bool(mount_rpy_hint(degrees))
     return (
         len(degrees) >= 2
         and all(abs(v) <= 2 * math.pi + 1e-9 for v in degrees)
