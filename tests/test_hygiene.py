@@ -19,8 +19,11 @@ def _run(*cmd: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
 
 
 def test_ruff_clean():
+    """ruff's lint and its format (as ``ruff format`` would leave the files)."""
     ruff = shutil.which("ruff") or str(Path(sys.executable).with_name("ruff"))
     r = _run(ruff, "check", "src", "tests", "tools")
+    assert r.returncode == 0, r.stdout + r.stderr
+    r = _run(ruff, "format", "--check", "src", "tests", "tools")
     assert r.returncode == 0, r.stdout + r.stderr
 
 
