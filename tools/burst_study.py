@@ -13,12 +13,15 @@ when that reaches a lower window cost, the estimator sat in a local minimum.
 With ``--mc`` it runs instead the outlier groups (clean, spikes, bursts) of
 ``reproduce``'s beyond-the-paper section exactly as ``reproduce`` does
 (``plan_beyond``/``run_beyond``/``summarise_beyond``, the full configuration's seeds),
-with the Cauchy scale and the second start as given, and prints the targets:
+with the loss's scale, the second start and the reject reset as given
+(``--no-reject-reset``: the robust MHE without ``RecoverySettings.reject_reset``), and
+prints the targets:
 
     python tools/burst_study.py                       # 10 seeds, Cauchy, default scale
     python tools/burst_study.py --seeds 5 --scale 1.0 --no-second-start
     python tools/burst_study.py --mc --seeds 50 --scale 2.0 --no-second-start
     python tools/burst_study.py --mc --seeds 50 --loss welsch --scale 3.0
+    python tools/burst_study.py --mc --seeds 50 --loss welsch --no-reject-reset
     python tools/burst_study.py --mc --seeds 50 --loss welsch --offset-deg 10
     python tools/burst_study.py --oracle --seeds 50   # burst readings dropped, l2 MHE
 
@@ -93,6 +96,8 @@ def monte_carlo(args: argparse.Namespace) -> None:
 
     if args.scale is not None:
         settings.DEFAULT_LOSS_SCALE[args.loss] = args.scale
+    if args.no_reject_reset:  # every estimator of the outlier groups without it
+        beyond.RECOVERY_OUTLIERS = dataclasses.replace(beyond.RECOVERY_OUTLIERS, reject_reset=None)
     c = FULL
     specs = beyond.plan_beyond(args.seeds, c.beyond_duration, dt=c.dt, length=c.length,
                                noise_deg=c.noise_deg, horizon=c.horizon,
@@ -104,6 +109,7 @@ def monte_carlo(args: argparse.Namespace) -> None:
     s = beyond.summarise_beyond(trials)
     print(f"seeds {args.seeds}  {args.loss} scale {settings.DEFAULT_LOSS_SCALE[args.loss]}  "
           f"second start {'off' if args.no_second_start else 'on'}  "
+          f"reject reset {'off' if args.no_reject_reset else 'on'}  "
           f"offset {specs[0].spike_deg:g} deg")  # fmt: skip
     for g, by in s["outliers"].items():
         print(f"  {g:7s} " + "  ".join(f"{m} {v['mean']:.3f}" for m, v in by.items()) + " mm")
@@ -156,6 +162,11 @@ def main() -> None:
     )
     p.add_argument("--oracle", action="store_true", help="the l2 MHE, burst readings dropped")
     add_study_options(p)  # --corruption, --no-second-start
+    p.add_argument(
+        "--no-reject-reset",
+        action="store_true",
+        help="with --mc: the robust MHE without its reject reset",
+    )
     args = p.parse_args()
     apply_study_options(args.corruption, not args.no_second_start)
     if args.oracle:
