@@ -1748,6 +1748,28 @@ def test_tendon_angles_in_radians_are_said(tmp_path: Path) -> None:
         assert bool(radians) == said, (angle, [str(w.message) for w in got])
 
 
+def test_tensions_in_millinewtons_given_as_arrays_are_refused_by_the_estimator() -> None:
+    """The shipped ``force-29`` rows with their tensions 1000 times too large (mN given
+    for N), handed to ``run`` as arrays: refused in one UserError naming the time and
+    the turns the tensions would bend a section through, as a tensions file is; the
+    rows as read run."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.estimators.base import tension_rows
+
+    f, t, z = _raw_shipped(40, "force-29")
+    scaled = z.copy()
+    scaled[:, tension_rows(f)] *= 1000.0
+    with pytest.raises(
+        UserError,
+        match=r"^the measurements' tensions: at t = [0-9.]+ s the tensions \(.*\) would bend "
+        r"section 1 through [0-9.]+ full turns .*: tensions in N \(mN\?\), or the robot "
+        r"file's \[backbone\] too soft",
+    ):
+        make_estimator("ekf", f).run(t, scaled)
+    assert len(make_estimator("ekf", f).run(t, z).status) == 40
+
+
 def test_tensions_in_millinewtons_are_refused_by_the_bend_they_would_make(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

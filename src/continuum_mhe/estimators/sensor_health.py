@@ -57,9 +57,11 @@ from continuum_mhe.estimators.reading_units import (
     direct_units_problem,
 )
 from continuum_mhe.io.csv_files import TimeStepWatch, UnitWarning, check_time_steps
+from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
 from continuum_mhe.model.pcc import shape_rank
+from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Diagnostics, Estimate, EstimateSeries, Measurement, Status
 from continuum_mhe.settings import RecoverySettings
 from continuum_mhe.signals import interrupt_in_chain
@@ -493,7 +495,8 @@ class Estimator(Generic[InferenceT]):
 
     def _check_tensions(self, z: FloatArray, t: FloatArray) -> None:
         """A :class:`UserError` for the first negative tension in ``z`` (n, nz) at the
-        times ``t`` (n,) s, as the tensions file's reader gives one."""
+        times ``t`` (n,) s, and for tensions that would bend a section through turns on
+        their own (mN given for N), as the tensions file's reader gives them."""
         names = self.formulation.measurement_names
         tensions = z[:, self._tension_rows]
         negative = np.argwhere((tensions < 0) & np.isfinite(tensions))  # -inf: infinite
@@ -504,6 +507,11 @@ class Estimator(Generic[InferenceT]):
                 f"measurement at t={float(t[i])!r} s: {names[row]} = {z[i, row]:g} N is "
                 "negative: a tendon cannot push (a slack tendon's tension is 0)"
             )
+        robot = getattr(self.formulation, "robot", None)
+        if isinstance(robot, Robot):
+            problem = tension_scale_problem(robot, t, tensions, "the measurements' tensions")
+            if problem is not None:
+                raise UserError(problem)
 
     def _check_units(self, t: FloatArray, z: FloatArray) -> None:
         """A :class:`UserError` where the ``direct`` IMU readings of a whole recording
