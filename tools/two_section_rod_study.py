@@ -119,7 +119,7 @@ def evaluate(
     for m in methods:
         est = make_estimator(m, f, mhe or MHESettings(horizon=30))  # type: ignore[arg-type]
         s = est.run(data.t, data.z)
-        branch = getattr(est, "branch", None)
+        branch = getattr(getattr(est, "inference", None), "branch", None)  # the MHE's
         if branch is not None:
             b = branch.stats
             print(

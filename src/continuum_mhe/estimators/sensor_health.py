@@ -508,8 +508,9 @@ class Estimator(Generic[InferenceT]):
                 "negative: a tendon cannot push (a slack tendon's tension is 0)"
             )
         robot = getattr(self.formulation, "robot", None)
-        if isinstance(robot, Robot):
-            problem = tension_scale_problem(robot, t, tensions, "the measurements' tensions")
+        if isinstance(robot, Robot):  # (an infinite tension is the policy's to refuse)
+            finite = np.where(np.isfinite(tensions), tensions, np.nan)
+            problem = tension_scale_problem(robot, t, finite, "the measurements' tensions")
             if problem is not None:
                 raise UserError(problem)
 
