@@ -2492,3 +2492,41 @@ def test_raw_readings_and_reset_name_a_wrong_argument() -> None:
     with pytest.raises(UserError, match=r"keep_sensors=True\) needs keep_counts=True"):
         est.reset(keep_sensors=True)
     est.reset(keep_counts=True, keep_sensors=True)
+
+
+def test_a_robot_built_in_code_gets_the_robot_files_slip_warnings() -> None:
+    """``make_formulation`` on a robot built in code says what a robot file's reader
+    would (IMUs out of base order or at one place, an ``at`` in metres, a ``mount_rpy``
+    in radians, a ``gyro_bias`` in deg/s), once per robot, in 0-based terms; a clean
+    robot and a robot file's (said by its reader) get none."""
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.model.robot import ImuPlacement, Robot, RobotWarning, Section
+
+    two = (Section(0.16), Section(0.14))
+    cases = [
+        (
+            (ImuPlacement(1), ImuPlacement(0)),
+            r"imus\[1\] \(sections\[0\], at 1\) is nearer the base",
+        ),
+        ((ImuPlacement(0), ImuPlacement(0)), r"imus\[1\] is at the same place as imus\[0\]"),
+        ((ImuPlacement(0, at=0.16), ImuPlacement(1)), r"imus\[0\]\.at = 0\.16 .* metres\?"),
+        (
+            (ImuPlacement(0), ImuPlacement(1, mount_rpy=(0.0, 1.5708, 0.0))),
+            r"radians\? imus\[1\]\.mount_rpy",
+        ),
+        (
+            (ImuPlacement(0, gyro_bias=(0.5, 0.0, 0.0)), ImuPlacement(1)),
+            r"imus\[0\]\.gyro_bias .*deg/s\?",
+        ),
+    ]
+    for imus, match in cases:
+        robot = Robot(two, imus)
+        with pytest.warns(RobotWarning, match=r"^robot: " + match):
+            make_formulation("bend", robot)
+        with warnings.catch_warnings():  # said once
+            warnings.simplefilter("error")
+            make_formulation("bend", robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_formulation("bend", Robot(two, (ImuPlacement(0), ImuPlacement(1))))
+        make_formulation("bend", read_robot("two-section"))

@@ -69,13 +69,17 @@ from continuum_mhe.io.text_rows import shorten
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import (
     DEFAULT_THETA_MAX,
+    GYRO_BIAS_LIKE_DEG,
     MAX_MOUNT_DEG,
     Backbone,
     ImuPlacement,
     Robot,
     Section,
     Tendon,
+    at_in_metres,
+    misplaced_imus,
     mount_rpy_hint,
+    slips_said,
 )
 
 if sys.version_info >= (3, 11):
@@ -96,19 +100,6 @@ class RobotFileWarning(UserWarning):
     IMUs at one place)."""
 
 
-#: A gyro bias at rest beyond this, rad/s (about 11 deg/s; a MEMS gyro's is a few deg/s
-#: at most), in a robot file reads as one written in deg/s.
-GYRO_BIAS_LIKE_DEG = 0.2
-
-
-def at_in_metres(at: float, length: float) -> bool:
-    """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
-    written in metres: it equals the section's length to the millimetre, and that length
-    is neither 1 m (where the end is ``at = 1`` either way) nor 0.5 m (where ``at =
-    0.5``, the middle, is the likelier meaning)."""
-    return abs(at - length) <= MM / 2 and min(abs(length - 1.0), abs(length - 0.5)) > MM / 2
-
-
 def _place(imu: ImuPlacement) -> str:
     return f"section {imu.section + 1}, at {imu.at:g}"
 
@@ -118,8 +109,7 @@ def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
     the base to the tip (by section, then ``at``), and where two are at one place: the
     measurement columns follow the file's order, so such a file usually pairs the
     columns with the wrong IMUs."""
-    key = [(imu.section, imu.at) for imu in imus]
-    later = next((i for i in range(1, len(key)) if key[i] < key[i - 1]), None)
+    later, same = misplaced_imus(imus)
     if later is not None:
         warnings.warn(
             f"{path}: imu {later + 1} ({_place(imus[later])}) is nearer the base than imu "
@@ -129,17 +119,13 @@ def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
             RobotFileWarning,
             stacklevel=4,
         )
-    first: dict[tuple[int, float], int] = {}
-    for i, k in enumerate(key, start=1):
-        if k in first:
-            warnings.warn(
-                f"{path}: imu {i} is at the same place as imu {first[k]} "
-                f"({_place(imus[i - 1])}): two IMUs listed at one place (a copied entry?)",
-                RobotFileWarning,
-                stacklevel=4,
-            )
-            break
-        first[k] = i
+    if same is not None:
+        warnings.warn(
+            f"{path}: imu {same[0] + 1} is at the same place as imu {same[1] + 1} "
+            f"({_place(imus[same[0]])}): two IMUs listed at one place (a copied entry?)",
+            RobotFileWarning,
+            stacklevel=4,
+        )
 
 
 def _shown(value: object) -> str:
@@ -273,9 +259,11 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
             "its backbone's material (youngs_modulus, shear_modulus, radius)"
         )
     try:
-        return Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
+        robot = Robot(tuple(sections), tuple(imus), mounting, backbone, tuple(tendons))
     except UserError as exc:
         raise InputError(f"{path}: {exc}") from None
+    slips_said(robot)  # said above with the file's lines
+    return robot
 
 
 def _disk_place(path: Path, where: str, table: dict[str, Any], section: Section, sec: int) -> float:

@@ -17,7 +17,7 @@ from continuum_mhe.model.bend import BendFormulation
 from continuum_mhe.model.direct import DirectFormulation
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.paper import PaperFormulation
-from continuum_mhe.model.robot import Robot
+from continuum_mhe.model.robot import Robot, warn_slips
 from continuum_mhe.model.settings import FormulationName, NoiseSettings, RobotSettings
 from continuum_mhe.model.tendon import TendonFormulation
 
@@ -52,6 +52,8 @@ def make_formulation(
         raise UserError(f"formulation must be one of {', '.join(REGISTRY)}, got {name!r}")
     robots = (Robot, RobotSettings, type(None))
     expect_type("robot", robot, robots, "a Robot, RobotSettings or None")
+    if isinstance(robot, Robot):  # built in code: what a robot file's reader would say
+        warn_slips(robot)
     expect_type("noise", noise, (NoiseSettings, type(None)), "NoiseSettings or None")
     import dataclasses
 

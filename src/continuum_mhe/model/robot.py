@@ -15,6 +15,8 @@ section's base; ``at = 1`` is the section's end.
 from __future__ import annotations
 
 import math
+import warnings
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -471,3 +473,94 @@ class Robot:
         if self.tendons:
             text += f", {len(self.tendons)} tendons"
         return text
+
+
+class RobotWarning(UserWarning):
+    """A robot that is valid but likely a slip (IMUs out of base order, two at one
+    place, a place or a mounting in another unit), as a robot file's are said."""
+
+
+#: A gyro bias at rest beyond this, rad/s (about 11 deg/s; a MEMS gyro's is a few deg/s
+#: at most), reads as one written in deg/s.
+GYRO_BIAS_LIKE_DEG = 0.2
+_MM = 1e-3  # m
+
+
+def at_in_metres(at: float, length: float) -> bool:
+    """Whether an IMU's ``at`` (a fraction of its section's length) looks like a place
+    written in metres: it equals the section's length to the millimetre, and that length
+    is neither 1 m (where the end is ``at = 1`` either way) nor 0.5 m (where ``at =
+    0.5``, the middle, is the likelier meaning)."""
+    return abs(at - length) <= _MM / 2 and min(abs(length - 1.0), abs(length - 0.5)) > _MM / 2
+
+
+def misplaced_imus(imus: Sequence[ImuPlacement]) -> tuple[int | None, tuple[int, int] | None]:
+    """The first IMU (0-based) listed after one nearer the tip (by section, then
+    ``at``; None where they run from the base to the tip), and the first pair ``(i, j)``,
+    ``j < i``, of IMUs at one place (None where there is none)."""
+    key = [(imu.section, imu.at) for imu in imus]
+    later = next((i for i in range(1, len(key)) if key[i] < key[i - 1]), None)
+    same = next(((i, key.index(key[i])) for i in range(1, len(key)) if key[i] in key[:i]), None)
+    return later, same
+
+
+def likely_slips(robot: Robot) -> tuple[str, ...]:
+    """What in ``robot`` (built in code: 0-based ``imus[i]`` and ``sections[k]``) looks
+    like a slip, one line each: IMUs not listed from the base to the tip (the
+    measurement columns follow their order) or two at one place, an ``at`` equal to its
+    section's length in m, a ``mount_rpy`` that looks like radians, a ``gyro_bias`` that
+    looks like deg/s. A robot file's reader says the same with the file's lines."""
+    out = []
+    imus = robot.imus
+
+    def place(i: int) -> str:
+        return f"sections[{imus[i].section}], at {imus[i].at:g}"
+
+    later, same = misplaced_imus(imus)
+    if later is not None:
+        out.append(
+            f"imus[{later}] ({place(later)}) is nearer the base than imus[{later - 1}] "
+            f"({place(later - 1)}) but listed after it: the measurement columns follow the "
+            "IMUs' order, the first nearest the base; list them from base to tip (or check "
+            "that the columns follow this order)"
+        )
+    if same is not None:
+        out.append(
+            f"imus[{same[0]}] is at the same place as imus[{same[1]}] ({place(same[0])}): "
+            "two IMUs at one place (a copied entry?)"
+        )
+    for i, imu in enumerate(imus):
+        if at_in_metres(imu.at, robot.sections[imu.section].length):
+            out.append(
+                f"imus[{i}].at = {imu.at:g} equals sections[{imu.section}]'s length in m: "
+                "at is a fraction of the section's length (1 its end, 0.5 its middle): metres?"
+            )
+        if hint := mount_rpy_hint(imu.mount_rpy, f"imus[{i}].mount_rpy"):
+            out.append(hint)
+        if max(abs(v) for v in imu.gyro_bias) > GYRO_BIAS_LIKE_DEG:
+            deg = math.degrees(max(abs(v) for v in imu.gyro_bias))
+            out.append(
+                f"imus[{i}].gyro_bias is in rad/s: {deg:.0f} deg/s is no MEMS gyro's bias at "
+                "rest: deg/s?"
+            )
+    return tuple(out)
+
+
+#: Robots whose slips were said (a robot file's reader says them with its lines)
+_SAID: weakref.WeakSet[Robot] = weakref.WeakSet()
+
+
+def slips_said(robot: Robot) -> None:
+    """Take ``robot``'s slips as said (:func:`warn_slips` says nothing of it, or of an
+    equal robot)."""
+    _SAID.add(robot)
+
+
+def warn_slips(robot: Robot) -> None:
+    """A :class:`RobotWarning` for each of :func:`likely_slips`, once per robot (equal
+    robots count as one; a robot file's robot is said by its reader)."""
+    if robot in _SAID:
+        return
+    for line in likely_slips(robot):
+        warnings.warn(f"robot: {line}", RobotWarning, stacklevel=3)
+    _SAID.add(robot)
