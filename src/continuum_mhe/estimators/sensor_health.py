@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator
@@ -57,6 +56,7 @@ from continuum_mhe.estimators.reading_units import (
     direct_units_problem,
 )
 from continuum_mhe.io.csv_files import TimeStepWatch, UnitWarning, check_time_steps
+from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
 from continuum_mhe.model.imu import ROLL_LIMIT
@@ -82,9 +82,6 @@ STATUSES: tuple[Status, ...] = tuple(
     next(s for s in Status if s.value == name) for name in _core.STATUS_NAMES
 )
 _CODES = {status.value: code for code, status in enumerate(STATUSES)}
-
-#: A raw IMU reading's column name (``ax``, ``gz_2``): accelerometer or gyro, axis, IMU
-RAW_LABEL = re.compile(r"[ag][xyz](_[0-9]+)?")
 
 
 def status_code(status: Status | str) -> int:
@@ -627,7 +624,9 @@ class Estimator(Generic[InferenceT]):
                 f"{what} are {', '.join(got)}; the {name} formulation "
                 f"reads {', '.join(want)} in that order (z[{want!r}])"
             )
-        raw = bool(got) and all(RAW_LABEL.fullmatch(g) for g in got)
+        raw = bool(got) and all(  # a raw IMU file's columns (ax, gz_2)
+            g in RAW_IMU_COLUMNS.names or RAW_IMU_COLUMNS.number(g)[1] > 0 for g in got
+        )
         hint = (
             "raw accelerometer and gyro readings become its readings with "
             "continuum_mhe.io.inputs.raw_measurements (each IMU's mount_rpy and gyro_bias "
