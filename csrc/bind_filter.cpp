@@ -1,6 +1,8 @@
-// Python bindings of the node model's EKF step, arrival prior and outputs.
+// Python bindings of the node model's EKF step, arrival prior and outputs, and of the
+// UKF's predict and update.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include <chrono>
@@ -12,6 +14,7 @@
 #include "bind_arrays.hpp"
 #include "bindings.hpp"
 #include "filter.hpp"
+#include "unscented.hpp"
 
 namespace nb = nanobind;
 using namespace cmhe;
@@ -157,4 +160,56 @@ void cmhe::bind_filter(nb::module_& m) {
       },
       nb::arg("x"), nb::arg("P"), nb::arg("r"), nb::arg("H"), nb::arg("R"),
       "EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``.");
+
+  nb::class_<UnscentedFilter>(
+      m, "UnscentedFilter",
+      "The UKF's predict and update with Van der Merwe's scaled sigma points, on a node "
+      "model's transition ``(x, u, dt, z, m) -> (f, F)`` and masked residual "
+      "``(x, u, dt, z, m) -> m r(z, x)``. Matrices row-major. Each call returns "
+      "``(x, P, failure, message)``: ``failure`` 0, or 1 (no Cholesky factor, a singular "
+      "innovation covariance) or 2 (a tilt reading about a half turn from the sigma "
+      "points' tilts), with ``x`` and ``P`` then unchanged.")
+      .def(
+          "__init__",
+          [](UnscentedFilter* self, const ModelFunction& transition,
+             const ModelFunction& residual, int nx, int nu, int nz, double alpha, double beta,
+             double kappa, std::vector<int64_t> chart_rows, std::vector<std::string> names) {
+            new (self) UnscentedFilter(transition, residual, nx, nu, nz, alpha, beta, kappa,
+                                       std::move(chart_rows), std::move(names));
+          },
+          nb::arg("transition"), nb::arg("residual"), nb::arg("nx"), nb::arg("nu"),
+          nb::arg("nz"), nb::arg("alpha"), nb::arg("beta"), nb::arg("kappa"),
+          nb::arg("chart_rows"), nb::arg("names"), nb::keep_alive<1, 2>(),
+          nb::keep_alive<1, 3>())
+      .def(
+          "predict",
+          [](UnscentedFilter& f, In x, In P, In u, double dt, In Q) {
+            const size_t nx = f.nx();
+            check_size(x, nx, "x");
+            check_size(P, nx * nx, "P");
+            check_size(Q, nx * nx, "Q");
+            Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+            f.predict(xn.data(), Pn.data(), u.size() ? u.data() : nullptr, dt, Q.data());
+            return nb::make_tuple(xn, Pn, int(f.failure), f.message);
+          },
+          nb::arg("x"), nb::arg("P"), nb::arg("u"), nb::arg("dt"), nb::arg("Q"),
+          "The prediction with ``(u, dt)`` and process noise ``Q``.")
+      .def(
+          "update",
+          [](UnscentedFilter& f, In x, In P, In z, In mask, In R, bool check_chart) {
+            const size_t nx = f.nx(), nz = f.nz();
+            check_size(x, nx, "x");
+            check_size(P, nx * nx, "P");
+            check_size(z, nz, "z");
+            check_size(mask, nz, "mask");
+            check_size(R, nz * nz, "R");
+            Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
+            f.update(xn.data(), Pn.data(), z.data(), mask.data(), R.data(), check_chart);
+            return nb::make_tuple(xn, Pn, int(f.failure), f.message);
+          },
+          nb::arg("x"), nb::arg("P"), nb::arg("z"), nb::arg("mask"), nb::arg("R"),
+          nb::arg("check_chart"),
+          "The update with the valid components of ``z`` (``mask`` > 0), noise ``R``; "
+          "``check_chart``: refuse a valid tilt reading whose residuals differ by more than "
+          "pi across the sigma points.");
 }

@@ -23,6 +23,7 @@
 #include "bindings.hpp"
 #include "horizon.hpp"
 #include "sensor_health.hpp"
+#include "unscented.hpp"
 
 namespace nb = nanobind;
 using namespace cmhe;
@@ -277,17 +278,21 @@ class HorizonInference final : public PolicyInference {
   const double* cov_ = nullptr;
 };
 
-// The compiled EKF's inference for the policy: each sample's step, outputs and standard
-// deviations on the node model (filter.hpp); the Python inference object
-// (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference) only for its
+// The compiled EKF's or UKF's inference for the policy: each sample's step (the node
+// model's EKF step, filter.hpp, or an UnscentedFilter's, unscented.hpp), outputs and
+// standard deviations on the node model; the Python inference object
+// (continuum_mhe.estimators.kalman.CompiledExtendedKalmanInference or
+// UnscentedKalmanInference) only for its
 // ``restart(kept_x, kept_P, kept_t)`` and the first sample, ``first(t, z) -> (x | None, P | None, status
 // code, failure | None)`` (the prior from the reading, updated with it), and
 // ``start_untrusted(t, z)`` once per start.
 class KalmanInference final : public PolicyInference {
  public:
   KalmanInference(NodeModel& node, nb::object py, std::vector<double> R,
-                  ProcessModel::QFunction q, ProcessModel::InputFunction inputs)
+                  ProcessModel::QFunction q, ProcessModel::InputFunction inputs,
+                  UnscentedFilter* unscented = nullptr)
       : node_(node),
+        unscented_(unscented),
         py_(std::move(py)),
         R_(std::move(R)),
         process_(node.nx(), int(nb::cast<int>(py_.attr("nu"))), node.nz(), std::move(q),
@@ -324,9 +329,12 @@ class KalmanInference final : public PolicyInference {
       const double dt = t - t_prev_;
       const double* u = process_.inputs(z_prev_.data(), z, dt);
       const double* Q = process_.noise(dt).first;
-      if (!node_.ekf_step(x_.data(), P_.data(), process_.nu ? u : nullptr, dt, z, mask,
-                          R_.data(), Q))
+      if (unscented_ != nullptr) {
+        unscented_step(process_.nu ? u : nullptr, dt, z, mask, Q, valid);
+      } else if (!node_.ekf_step(x_.data(), P_.data(), process_.nu ? u : nullptr, dt, z, mask,
+                                 R_.data(), Q)) {
         throw std::runtime_error("singular innovation covariance in the EKF update");
+      }
       status = valid ? ST_OK : ST_DROPOUT;
       if (valid) std::copy(z, z + nz, z_prev_.begin());
     }
@@ -351,6 +359,19 @@ class KalmanInference final : public PolicyInference {
   }
 
  private:
+  // the UKF's step (predict, then update with the valid components), in place; a failure
+  // as the Python UKF's would be named (numpy's LinAlgError, or the tilt chart's
+  // ArithmeticError)
+  void unscented_step(const double* u, double dt, const double* z, const double* mask,
+                      const double* Q, bool valid) {
+    UnscentedFilter& f = *unscented_;
+    if (f.predict(x_.data(), P_.data(), u, dt, Q) &&
+        (!valid || f.update(x_.data(), P_.data(), z, mask, R_.data(), true)))
+      return;
+    const char* kind =
+        f.failure == UnscentedFailure::TILT_CHART ? "ArithmeticError: " : "LinAlgError: ";
+    throw InferenceFailure(kind + f.message);
+  }
   // the formulation's check ``name`` of a state, in Python (a formulation without
   // StateChecks)
   bool check(const char* name, const double* x, const double* P) {
@@ -364,6 +385,7 @@ class KalmanInference final : public PolicyInference {
     return nb::cast<bool>(f.attr(name)(copy_of(x, {nx})));
   }
   NodeModel& node_;
+  UnscentedFilter* unscented_;  // the UKF's step, else the EKF's
   nb::object py_;
   std::vector<double> R_;
   ProcessModel process_;
@@ -565,25 +587,31 @@ void cmhe::bind_sensor_health(nb::module_& m) {
 
   nb::class_<KalmanInference>(
       m, "KalmanInference",
-      "The compiled EKF's inference for the compiled policy: each step, its outputs and "
+      "The compiled EKF's or UKF's inference for the compiled policy: each step, its outputs and "
       "standard deviations in compiled code, the Python inference only for the first "
       "sample and restarts (csrc/bind_sensor_health.cpp).")
       .def(
           "__init__",
           [](KalmanInference* self, NodeModel& node, nb::object inference, In R,
-             nb::object process_noise, nb::object inputs) {
+             nb::object process_noise, nb::object inputs, UnscentedFilter* unscented) {
             check_size(R, size_t(node.nz()) * node.nz(), "R");
+            if (unscented && (unscented->nx() != node.nx() || unscented->nz() != node.nz()))
+              throw std::invalid_argument("the unscented filter's sizes differ from the node's");
             new (self) KalmanInference(node, inference,
                                        std::vector<double>(R.data(), R.data() + R.size()),
                                        q_function(process_noise, node.nx()),
                                        input_function(inputs, node.nz(),
-                                                      nb::cast<int>(inference.attr("nu"))));
+                                                      nb::cast<int>(inference.attr("nu"))),
+                                       unscented);
           },
           nb::arg("node"), nb::arg("inference"), nb::arg("R"), nb::arg("process_noise"),
-          nb::arg("inputs"), nb::keep_alive<1, 2>(),
-          "``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, "
+          nb::arg("inputs"), nb::arg("unscented").none() = nb::none(), nb::keep_alive<1, 2>(),
+          nb::keep_alive<1, 7>(),
+          "``node``: the filter's NodeModel (its outputs, and the EKF's step); "
+          "``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, "
           "``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); "
-          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.");
+          "``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``; "
+          "``unscented``: the UKF's steps (an UnscentedFilter) instead of the EKF's.");
 
   nb::class_<Policy>(
       m, "SensorHealth",

@@ -243,15 +243,21 @@ def test_estimate_signal_in_a_block_keeps_what_was_stepped(
     signals_cleared: list[threading.Timer],
     after_s: float,
 ) -> None:
-    """A deferred signal stops the block between two samples (before its first, or
-    some way into the UKF's slow block): the rows stepped are written and counted
-    alike, the note's time is the last row's, and the command ends as interrupted."""
+    """A deferred signal stops the block between two samples (before its first, in the
+    compiled UKF's block, or some way into the MHE on IPOPT's slow one, milliseconds a
+    sample): the rows stepped are written and counted alike, the note's time is the
+    last row's, and the command ends as interrupted."""
     rec = simulate("paper3d", duration=250, noise_deg=2.0, seed=3)
     src = tmp_path / "m.csv"
     write_measurements(src, rec.t, rec.z)
     _interrupting_second_block(monkeypatch, signals_cleared, after_s)
     out = tmp_path / "e.csv"
-    assert main(["estimate", str(src), "-o", str(out), "--method", "ukf"]) == 130
+    method = (
+        ["--method", "mhe", "--solver", "ipopt", "--horizon", "5"]
+        if after_s
+        else ["--method", "ukf"]
+    )
+    assert main(["estimate", str(src), "-o", str(out), *method]) == 130
     text = out.read_text()
     rows = [ln for ln in text.splitlines() if ln and not ln.startswith("#")][1:]
     if after_s:

@@ -17,7 +17,7 @@ from continuum_mhe.io.csv_files import read_measurements
 from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.formulations import AT_BOUND_TOL
 from continuum_mhe.model.registry import make_formulation
-from continuum_mhe.results import STATUS_MEANINGS
+from continuum_mhe.results import STATUS_MEANINGS, Measurement
 from continuum_mhe.settings import MHESettings
 from continuum_mhe.simulation.scenarios import simulate
 
@@ -71,20 +71,31 @@ def test_ukf_gimbal_flip_is_not_ok_with_a_collapsed_covariance() -> None:
 
 
 def test_ukf_chart_check_knows_a_singularity_from_a_wrap() -> None:
-    # the bend formulation's tangent-plane residual does not wrap: a jump is its singularity
-    far = np.array([[0.0, -1414.2], [0.0, 129.8], [0.0, -8.7]])
-    ukf = make_estimator("ukf", make_formulation("bend"))
-    ukf.inference._check_tilt_chart(far, np.arange(2))  # a (re)start's first update: its prior is
-    ukf.inference._x = np.zeros(4)  # the reading's own; a running filter's estimate is checked
-    with pytest.raises(ArithmeticError, match="pitch residuals span 1.54e"):
-        ukf.inference._check_tilt_chart(far, np.arange(2))
-    near = np.array([[0.0, 0.05], [0.0, 0.3], [0.0, -0.2]])
-    ukf.inference._check_tilt_chart(near, np.arange(2))
-    # the paper formulation's Euler angles wrap: residuals straddling +-pi are no singularity
-    wrapped = np.array([[3.10, 0.1], [-3.12, 0.2], [3.13, 0.0]])
-    make_estimator("ukf", make_formulation("paper")).inference._check_tilt_chart(
-        wrapped, np.arange(2)
-    )
+    # gimbal_flip.csv's second reading is a half turn from the first: the bend
+    # formulation's tangent-plane residual does not wrap, and its sigma points' residuals
+    # straddle its singularity (a jump of 1.54e3); the paper formulation's Euler angles
+    # wrap, and there a jump across +-pi is no singularity
+    data = read_measurements(REPRO / "gimbal_flip.csv")
+    dt = float(data.t[1] - data.t[0])
+    for name, refused in (("bend", True), ("paper", False)):
+        inf = make_estimator("ukf", make_formulation(name)).inference
+        f = inf.formulation
+        x, P, _ = inf.infer(Measurement(float(data.t[0]), data.z[0]))
+        xp, Pp = inf._predict(x, P, np.zeros(f.nu), dt)
+        mask = f.measurement_mask(data.z[1])
+        if refused:
+            with pytest.raises(ArithmeticError, match="pitch residuals span 1.54e"):
+                inf._update(xp, Pp, data.z[1], mask)
+        else:
+            assert np.all(np.isfinite(inf._update(xp, Pp, data.z[1], mask)[0]))
+        inf._x = None  # a (re)start's first update: its prior is the reading's own
+        assert np.all(np.isfinite(inf._update(xp, Pp, data.z[1], mask)[0]))
+    # a reading near the prediction passes the check
+    inf = make_estimator("ukf", make_formulation("bend")).inference
+    x, P, _ = inf.infer(Measurement(0.0, np.array([0.0, 0.3])))
+    xp, Pp = inf._predict(x, P, np.zeros(0), 0.01)
+    near = np.array([0.02, 0.31])
+    assert np.all(np.isfinite(inf._update(xp, Pp, near, np.ones(2))[0]))
 
 
 def test_mhe_survives_the_rows_that_stopped_it() -> None:

@@ -2098,13 +2098,19 @@ def test_tensions_in_kgf_for_n_are_said(tmp_path: Path, capsys: pytest.CaptureFi
                      str(given), "--method", "ekf", "-o", str(tmp_path / out)]) == 0  # fmt: skip
         said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
         if given == kgf:  # (the first reading, read with them, shows a load too)
-            assert len(said) == 2 and re.match(
+            # where the estimated tip force passes the largest tension (0.35 N against
+            # 0.31 N on some processors, below it on others: the drifted rows' estimates
+            # differ in their rounding), a line before them names kgf as well
+            force = [ln for ln in said if "the estimated tip force reached" in ln]
+            assert all("kgf for N?" in ln for ln in force), force
+            rest = [ln for ln in said if ln not in force]
+            assert len(rest) == 2 and re.match(
                 r"continuum-mhe: warning: \d+ of 300 estimates drifted: .*check the tensions "
                 r"\(their scale, unit, tendon order and timing",
-                said[0],
+                rest[0],
             ), said
-            assert "or tensions that do not act as given" in said[1]
-            assert "check the tensions (their scale, unit" in said[1]
+            assert "or tensions that do not act as given" in rest[1]
+            assert "check the tensions (their scale, unit" in rest[1]
         else:
             assert said == []
 

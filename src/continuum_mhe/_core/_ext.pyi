@@ -317,6 +317,21 @@ class NodeModel:
 def ekf_update(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], r: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], H: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
     """EKF measurement update, Joseph form: ``(x+, P+)`` with ``H = -dr/dx``."""
 
+class UnscentedFilter:
+    """
+    The UKF's predict and update with Van der Merwe's scaled sigma points, on a node model's transition ``(x, u, dt, z, m) -> (f, F)`` and masked residual ``(x, u, dt, z, m) -> m r(z, x)``. Matrices row-major. Each call returns ``(x, P, failure, message)``: ``failure`` 0, or 1 (no Cholesky factor, a singular innovation covariance) or 2 (a tilt reading about a half turn from the sigma points' tilts), with ``x`` and ``P`` then unchanged.
+    """
+
+    def __init__(self, transition: ModelFunction, residual: ModelFunction, nx: int, nu: int, nz: int, alpha: float, beta: float, kappa: float, chart_rows: Sequence[int], names: Sequence[str]) -> None: ...
+
+    def predict(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], u: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], dt: float, Q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+        """The prediction with ``(u, dt)`` and process noise ``Q``."""
+
+    def update(self, x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], P: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], z: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mask: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], check_chart: bool) -> tuple:
+        """
+        The update with the valid components of ``z`` (``mask`` > 0), noise ``R``; ``check_chart``: refuse a valid tilt reading whose residuals differ by more than pi across the sigma points.
+        """
+
 class ConsistencyCheck:
     """
     The consistency of one estimator's estimates with its readings, every sample (continuum_mhe.estimators.consistency). Matrices row-major.
@@ -753,12 +768,12 @@ class HorizonInference:
 
 class KalmanInference:
     """
-    The compiled EKF's inference for the compiled policy: each step, its outputs and standard deviations in compiled code, the Python inference only for the first sample and restarts (csrc/bind_sensor_health.cpp).
+    The compiled EKF's or UKF's inference for the compiled policy: each step, its outputs and standard deviations in compiled code, the Python inference only for the first sample and restarts (csrc/bind_sensor_health.cpp).
     """
 
-    def __init__(self, node: NodeModel, inference: object, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], process_noise: object, inputs: object) -> None:
+    def __init__(self, node: NodeModel, inference: object, R: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], process_noise: object, inputs: object, unscented: UnscentedFilter | None = None) -> None:
         """
-        ``node``: the EKF's NodeModel; ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``.
+        ``node``: the filter's NodeModel (its outputs, and the EKF's step); ``inference``: its hooks (``restart(kept_x, kept_P, kept_t)``, ``first(t, z)``, ``formulation``, ``nu``); ``R`` (nz, nz); ``process_noise(dt) -> (Q, Q^-1)``, ``inputs(z_prev | None, z, dt) -> u``; ``unscented``: the UKF's steps (an UnscentedFilter) instead of the EKF's.
         """
 
 class SensorHealth:

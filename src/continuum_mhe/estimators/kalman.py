@@ -226,10 +226,11 @@ class CompiledExtendedKalmanInference(ExtendedKalmanInference):
 
 
 class _KalmanHooks:
-    """What ``_core.KalmanInference`` asks of a :class:`CompiledExtendedKalmanInference`:
-    its restart and its first sample (the prior from the reading, updated with it)."""
+    """What ``_core.KalmanInference`` asks of a :class:`CompiledExtendedKalmanInference`
+    or :class:`UnscentedKalmanInference`: its restart and its first sample (the prior
+    from the reading, updated with it)."""
 
-    def __init__(self, inference: CompiledExtendedKalmanInference) -> None:
+    def __init__(self, inference: _KalmanBase) -> None:
         self.inference = inference
         self.formulation = inference.formulation
         self.nu = inference.formulation.nu
@@ -269,102 +270,104 @@ class SigmaPointSettings:
 
 
 #: How the UKF's failure begins where its sigma points spread a tilt reading across a
-#: half turn (:meth:`UnscentedKalmanInference._check_tilt_chart`).
+#: half turn (:class:`UnscentedKalmanInference`; the core writes the message).
 UNSCENTED_SPREAD = "the unscented transform's"
 
 
-def merwe_sigma_points(
-    x: FloatArray, P: FloatArray, s: SigmaPointSettings
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Sigma points (2n+1, n) and their mean and covariance weights."""
-    n = len(x)
-    lam = s.alpha**2 * (n + s.kappa) - n
-    L = np.linalg.cholesky((n + lam) * P)
-    pts = np.vstack([x, x + L.T, x - L.T])
-    wm = np.full(2 * n + 1, 0.5 / (n + lam))
-    wc = wm.copy()
-    wm[0] = lam / (n + lam)
-    wc[0] = wm[0] + 1 - s.alpha**2 + s.beta
-    return pts, wm, wc
-
-
 class UnscentedKalmanInference(_KalmanBase):
-    """The UKF's inference, with scaled sigma points; angle residuals are wrapped before
-    averaging, and a chart's residuals across its singularity raise (the owning
-    estimator restarts it; :meth:`_check_tilt_chart`). :class:`UnscentedKalmanFilter`
-    steps it."""
+    """The UKF's inference, with Van der Merwe's scaled sigma points, each step in the
+    compiled core (``_core.UnscentedFilter``, ``csrc/unscented.hpp``; through
+    ``_core.KalmanInference`` in the compiled policy, this object only for the first
+    sample and restarts). The sigma points go through the transition and the residual
+    ``r(z, .)``: the innovation is the residuals' weighted mean, the predicted
+    measurement's deviations ``-(r_i - mean)``; only the valid blocks take part.
+    Angle residuals that wrap (the paper formulation's Euler angles) are averaged as they
+    come. Where a residual does not wrap (the bend formulation's tangent plane,
+    ``2 tan(error / 2)``), a valid tilt component whose residuals differ by more than pi
+    from the central point's fails the update with an ``ArithmeticError``: its values
+    differ that much only near its singularity, where the reading is about a half turn
+    from the sigma points' tilts (from about 130 degrees on), and the transform's mean and
+    covariance mean nothing there (on ``gimbal_flip.csv`` they kept the old estimate,
+    ``ok``, with a standard deviation of 1e-6 m).
+    :meth:`~continuum_mhe.estimators.sensor_health.Estimator.step` then restarts the
+    filter from the reading (status ``reset``), as for a diverged EKF. Not checked in the
+    first update of a (re)start, whose prior comes from the reading itself. A covariance
+    without a Cholesky factor, or a singular innovation covariance, is a
+    ``numpy.linalg.LinAlgError``. :class:`UnscentedKalmanFilter` steps it."""
 
     name = "ukf"
 
     def __init__(self, formulation: Formulation, sigma: SigmaPointSettings | None = None):
-        self.sigma = sigma or SigmaPointSettings()
+        from continuum_mhe.estimators.fast import NodeEvaluator, node_functions
+
+        self.sigma = s = sigma or SigmaPointSettings()
+        functions = node_functions(formulation)
+        self._node = NodeEvaluator(functions)
+        self._q = ProcessNoiseCache(formulation)
+        chart = [] if formulation.tilt_residual_wraps else tilt_rows(formulation)
+        self._unscented = _core.UnscentedFilter(
+            functions.transition, functions.residual, formulation.nx, formulation.nu,
+            formulation.nz, s.alpha, s.beta, s.kappa, chart,
+            list(formulation.measurement_names),
+        )  # fmt: skip
         super().__init__(formulation)
-        self._tilt_mask = np.zeros(formulation.nz, dtype=bool)
-        self._tilt_mask[tilt_rows(formulation)] = True
 
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
     ) -> tuple[FloatArray, FloatArray]:
-        fns = self.formulation.functions
-        pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
-        k = len(pts)
-        prop = np.asarray(fns.transition(pts.T, np.tile(u[:, None], (1, k)), dt), float)
-        prop = prop.reshape(len(x), k).T
-        mean = wm @ prop
-        d = prop - mean
-        Q = np.asarray(fns.predict(x, u, dt)[2], dtype=float).reshape(len(x), len(x))
-        return mean, (wc[:, None] * d).T @ d + Q
+        got = self._unscented.predict(_f64(x), _f64(P), _f64(u), float(dt), self._q(dt)[0])
+        return _unscented_result(*got)
 
     def _update(
         self, x: FloatArray, P: FloatArray, z: FloatArray, mask: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Sigma points through the residual ``r(z, .)``: the innovation is its mean,
-        and the predicted measurement's deviations are ``-(r_i - mean)``. Only the
-        valid blocks (``mask``) take part."""
-        fns = self.formulation.functions
-        rows = valid_rows(mask, len(z))
-        zf = np.where(np.isfinite(z), z, 0.0)
-        pts, wm, wc = merwe_sigma_points(x, P, self.sigma)
-        k = len(pts)
-        rs = np.asarray(fns.innovate(np.tile(zf[:, None], (1, k)), pts.T)[0], dtype=float)
-        rs = rs.reshape(-1, k).T[:, rows]
-        self._check_tilt_chart(rs, rows)
-        rm = wm @ rs
-        dr = rs - rm
-        S = (wc[:, None] * dr).T @ dr + self._R[np.ix_(rows, rows)]
-        C = -(wc[:, None] * (pts - x)).T @ dr
-        K = np.linalg.solve(S, C.T).T
-        return x + K @ rm, P - K @ S @ K.T
+        """The update with the valid blocks (``mask``); the tilt chart is checked except
+        in a (re)start's first update."""
+        got = self._unscented.update(
+            _f64(x), _f64(P), _f64(z), _f64(mask), _f64(self._R), self._x is not None
+        )
+        return _unscented_result(*got)
 
-    def _check_tilt_chart(self, rs: FloatArray, rows: NDArray[np.intp]) -> None:
-        """Raise ``ArithmeticError`` where a valid tilt component's residuals ``rs``
-        ((2n+1, len(rows)), one row per sigma point) differ by more than pi from the
-        central point's, in a residual that does not wrap
-        (:attr:`~continuum_mhe.model.formulations.Formulation.tilt_residual_wraps`
-        False: the bend formulation's tangent plane, ``2 tan(error / 2)``). Its values
-        differ that much only near its singularity, where the reading is about a half turn
-        from the sigma points' tilts (from about 130 degrees on); there the transform's
-        mean and covariance mean nothing (on ``gimbal_flip.csv`` they kept the old
-        estimate, ``ok``, with a standard deviation of 1e-6 m).
-        :meth:`~continuum_mhe.estimators.sensor_health.Estimator.step` then restarts the filter
-        from the reading (status ``reset``), as for a diverged EKF. Not checked in the
-        first update of a (re)start, whose prior comes from the reading itself, nor for
-        wrapped residuals (the paper formulation's Euler angles, averaged as they are)."""
-        if self.formulation.tilt_residual_wraps or self._x is None:
-            return
-        tilt = self._tilt_mask[rows]
-        if not tilt.any():
-            return
-        jump = np.abs(rs[:, tilt] - rs[0, tilt]).max(axis=0)
-        if jump.max() > math.pi:
-            j = int(np.argmax(jump))
-            name = self.formulation.measurement_names[int(rows[tilt][j])]
-            col = rs[:, tilt][:, j]
-            raise ArithmeticError(
-                f"{UNSCENTED_SPREAD} {name} residuals span "
-                f"{float(col.max() - col.min()):.3g} across the sigma points: the "
-                "reading is about a half turn from the predicted tilt"
-            )
+    def policy_inference(self) -> _core.KalmanInference | None:
+        """The compiled policy's UKF (``_core.KalmanInference`` with this filter's
+        ``UnscentedFilter``: each step in compiled code, this object only for the first
+        sample and restarts); None where a subclass steps otherwise."""
+        cls = type(self)
+        if (cls.infer, cls._predict, cls._update) != (
+            _KalmanBase.infer,
+            UnscentedKalmanInference._predict,
+            UnscentedKalmanInference._update,
+        ):
+            return None
+        return _core.KalmanInference(
+            self._node.core, _KalmanHooks(self), _f64(self._R), self._q,
+            self.formulation.inputs, self._unscented,
+        )  # fmt: skip
+
+    def output(self, state: FloatArray) -> FloatArray:
+        return self._node.output(state)
+
+    def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
+        return self._node.output_std(state, cov)
+
+
+def _f64(a: FloatArray) -> FloatArray:
+    """``a`` as a C-contiguous float64 array (the core's argument type)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _unscented_result(
+    x: FloatArray, P: FloatArray, failure: int, message: str
+) -> tuple[FloatArray, FloatArray]:
+    """``(x, P)`` of an ``UnscentedFilter`` call, or its failure raised as the policy
+    names it: a tilt reading across the chart's singularity an ``ArithmeticError``
+    (whose message begins with :data:`UNSCENTED_SPREAD`), a linear-algebra failure a
+    ``numpy.linalg.LinAlgError``."""
+    if failure == 2:
+        raise ArithmeticError(message)
+    if failure:
+        raise np.linalg.LinAlgError(message)
+    return x, P
 
 
 class CasadiExtendedKalmanFilter(Estimator[ExtendedKalmanInference]):
