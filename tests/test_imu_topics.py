@@ -177,6 +177,66 @@ def test_topics_whose_stamps_stand_apart_from_the_log_s_clock_warn(
         read_imu_topics(write_mcap_topics(tmp_path / "late.mcap", late), TOPICS, 2)
 
 
+def test_a_wide_pair_tolerance_does_not_hide_clocks_apart(
+    streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """IMU 2's stamps 0.3 s ahead of the log's times, paired with ``--pair-tolerance
+    0.35``: the tolerance lets the pairs join readings 0.3 s apart, and the clocks are
+    said all the same (the limit was twice the tolerance given: nothing said, rows `ok`
+    38 mm off)."""
+    ahead = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    ahead[1]["log"] = ahead[1]["stamps"] - 300_000_000
+    with pytest.warns(TopicClockWarning, match="/imu2's header stamps are 300 ms ahead"):
+        read_imu_topics(write_mcap_topics(tmp_path / "a.mcap", ahead), TOPICS, 2, 0.35)
+
+
+def test_a_topic_timed_by_the_log_beside_stamped_ones_is_said(
+    streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """IMU 2's stamps all zero (timed by the log, 150 ms after its instants), IMU 1's
+    stamped: the pairs join IMU 1's instants with IMU 2's arrivals, a delay the log
+    cannot show; one warning names the topic."""
+    mixed = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    mixed[1]["log"] = mixed[1]["stamps"] + 150_000_000
+    mixed[1]["stamps"] = np.zeros_like(mixed[1]["stamps"])
+    with pytest.warns(TopicClockWarning) as seen:
+        read_imu_topics(write_mcap_topics(tmp_path / "m.mcap", mixed), TOPICS, 2)
+    said = [str(w.message) for w in seen]
+    assert len(said) == 1 and "/imu2 has no header stamps (every one zero)" in said[0], said
+
+
+def test_zero_of_time_is_imu_1_s_first_stamp_where_a_topic_starts_later(
+    streams: dict[str, Any], tmp_path: Path
+) -> None:
+    """IMU 2 starting 0.16 s after IMU 1: ``t = 0`` stays at IMU 1's first stamp, where
+    a tensions file counted from IMU 1's first message has it (the first pair's moved
+    it, every later tension 0.16 s off in time, the rows `ok`)."""
+    late2 = {k: v[streams["imu"][1]["stamps"] >= streams["base"][8]] for k, v in
+             streams["imu"][1].items()}  # fmt: skip
+    log = write_mcap_topics(tmp_path / "late.mcap", [streams["imu"][0], late2])
+    paired = read_imu_topics(log, TOPICS, 2)
+    assert paired.t0_ns == streams["imu"][0]["stamps"][0] == T0_NS
+    assert paired.t[0] == pytest.approx(0.16)
+    np.testing.assert_allclose(paired.t, (streams["base"][streams["paired"][6:]] - T0_NS) / 1e9)
+
+
+def test_an_error_names_the_message_in_its_topic_not_the_paired_sample(
+    streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 1's message 40 without an acceleration: two of IMU 1's samples before it have
+    no partner, and the error named it "sample 38" (the paired samples' count); it names
+    the message in its topic."""
+    imus = [dict(streams["imu"][0]), streams["imu"][1]]
+    acc = imus[0]["acc"].copy()
+    acc[39] = np.nan
+    imus[0]["acc"] = acc
+    log = write_mcap_topics(tmp_path / "nan.mcap", imus)
+    argv = ["estimate", str(log), "--robot", "two-section", "--method", "ekf", "-o"]
+    assert main([*argv, str(tmp_path / "e.csv"), "--topic", TOPICS[0], "--topic", TOPICS[1]]) == 2
+    err = capsys.readouterr().err
+    assert "topic /imu1: the message at t = 0.8 s (message 40): linear_acceleration is" in err
+
+
 def test_a_tolerance_of_seconds_is_said_in_seconds(streams: dict[str, Any], tmp_path: Path) -> None:
     """``--pair-tolerance 5`` was reported as "within 5e+03 ms"."""
     log = write_mcap_topics(tmp_path / "x.mcap", streams["imu"])

@@ -343,14 +343,17 @@ def test_live_says_nothing_is_saved_and_why_no_plot(tmp_path: Path) -> None:
 
 def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) -> None:
     """A session in which no sample arrives leaves an existing -o file as it is, even
-    with --overwrite, and says it was not written."""
-    port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
+    with --overwrite, and says it was not written; so for a --view file (it was
+    replaced by a view without an estimate, and nothing said)."""
+    port, out, view = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "v.rrd"
     out.write_text("an earlier session\n")
+    view.write_bytes(b"an earlier view")
     master = new_pty(port)
     try:
         res = subprocess.run(
             [sys.executable, "-m", "continuum_mhe.cli", "live", "--port", str(port)]
-            + ["--method", "ekf", "--duration", "0.5", "-o", str(out), "--overwrite"],
+            + ["--method", "ekf", "--duration", "0.5", "-o", str(out), "--overwrite"]
+            + ["--view", str(view)],
             capture_output=True,
             text=True,
             timeout=SAFETY_S,
@@ -360,6 +363,9 @@ def test_live_without_samples_leaves_an_existing_output_alone(tmp_path: Path) ->
     assert res.returncode == 0, res.stderr
     assert out.read_text() == "an earlier session\n"
     assert f"no sample arrived: {out} not written" in res.stderr
+    assert view.read_bytes() == b"an earlier view"
+    assert f"no sample arrived: {view} not written" in res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["est.csv", "ttyIMU", "v.rrd"]
 
 
 def test_short_soak_two_imus_500_hz_with_faults(
@@ -419,8 +425,10 @@ def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> No
     )
     err = live.err.splitlines()
     assert code == 2, live.err
-    said = f"live: garbled line skipped: {first} (said for the first only; all are counted)"
-    assert err.count(said) == 1
+    said = [
+        ln for ln in err if ln.startswith(f"live: garbled line skipped: {first} ({port}, line ")
+    ]
+    assert len(said) == 1 and said[0].endswith("; said for the first only; all are counted)")
     assert err[-1] == (
         f"continuum-mhe: error: {port}: no valid sample: 39 garbled, 1 partial line(s) "
         f"(the first: {first}); check --format, --robot and --baud"

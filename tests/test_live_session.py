@@ -104,6 +104,48 @@ def test_the_view_sees_every_estimate_the_first_after_an_open_included() -> None
     assert s.counts.estimates == 6 and seen == rows and rows == sorted(rows)
 
 
+def test_a_status_line_after_a_silence_says_its_estimate_is_that_old() -> None:
+    """A device that stops sending: each status line showed the last estimate as if
+    it were the robot's now (``0.0 Hz ... [ok]``); it says how long no line came and
+    that the estimate is from then, and nothing of the kind while lines arrive."""
+    s, _ = _session()
+    _feed(s, [1000 + 10 * i for i in range(5)])
+    assert "no line" not in s.status(100.0, 0.0, 0, silent_s=0.2)
+    line = s.status(0.0, 0.0, 0, silent_s=2.5)
+    assert "no line for 2.5 s, the last estimate from then: t=" in line
+    assert "no line for 0.0 s, the last estimate from then" in s.status(0.0, 0.0, 0, True)
+    empty, _ = _session()
+    assert "no line for 3.0 s" in empty.status(0.0, 0.0, 0, silent_s=3.0)
+
+
+def test_the_first_garbled_line_is_said_with_its_port_place_and_beginning() -> None:
+    """The notice of the first garbled line named neither the port, nor where, nor
+    what came: it names them (a line not in ASCII by its bytes, a long one cut), and a
+    tilt in degrees names the field, its value and the unit."""
+    s, said = _session()
+    now = time.monotonic()
+    s.handle_line(b"0,0.1,0.1", now)  # the first line after the open: kept
+    s.handle_line(b"\xff\xfe10,0.1,0.1", now)
+    assert [m for m in said if "garbled" in m] == [
+        "garbled line skipped: not ASCII (x, line 2: b'\\xff\\xfe10,0.1,0.1'; said for the "
+        "first only; all are counted)"
+    ]
+    s, said = _session()
+    s.handle_line(b"0,0.1,0.1", now)
+    s.handle_line(b"20,45.0,0.1," + b"9" * 60, now)
+    (first,) = [m for m in said if "garbled" in m]
+    assert first.startswith("garbled line skipped: expected 3 fields, found 4")
+    assert first.endswith(f"(x, line 2: '20,45.0,0.1,{'9' * 36}...'; said for the first only; "
+                          "all are counted)")  # fmt: skip
+    s, said = _session()
+    s.handle_line(b"0,0.1,0.1", now)
+    s.handle_line(b"20,45.0,0.1", now)
+    assert [m for m in said if "garbled" in m] == [
+        "garbled line skipped: roll = 45, beyond pi: degrees given for radians? (x, line 2: "
+        "'20,45.0,0.1'; said for the first only; all are counted)"
+    ]
+
+
 def test_header_fields() -> None:
     assert header_fields("# fields: t_ms,ax_1,ay_1") == ("t_ms", "ax_1", "ay_1")
     assert header_fields("# format: t_ms,ax,ay,az,gx,gy,gz (ms, m/s^2, rad/s)") == (
@@ -402,7 +444,8 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     garbled = [m for m in said if "garbled" in m]
     assert garbled == [
         "garbled line skipped: expected 3 fields, found 5: a line of 2 IMU(s) in --format "
-        "tilt; --robot with 2 IMU(s)? (said for the first only; all are counted)"
+        "tilt; --robot with 2 IMU(s)? (x, line 2: '10,0.1,0.1,0.2,0.2'; said for the first "
+        "only; all are counted)"
     ]
     assert s.only_garbled() == (
         "x: no valid sample: 10 garbled, 1 partial line(s) (the first: expected 3 fields, found "
@@ -654,7 +697,8 @@ def test_a_deg_s_gyro_line_names_its_field_and_the_likely_unit() -> None:
     _handle(s, ["0,0.1,0.2,9.8,0.01,0.02,0.03", "20,0.1,0.2,9.8,-90.0,0.02,0.03"])
     assert [m for m in said if "garbled" in m] == [
         "garbled line skipped: gx beyond the gyro's range (|gx| > 52.4 rad/s, 2000 deg/s and "
-        "a margin): deg/s given for rad/s? (said for the first only; all are counted)"
+        "a margin): deg/s given for rad/s? (/dev/ttyIMU, line 2: "
+        "'20,0.1,0.2,9.8,-90.0,0.02,0.03'; said for the first only; all are counted)"
     ]
     with pytest.raises(GarbledLine, match=r"^ay beyond the accelerometer's range \(\|ay\| > 235 "):
         parse_line("20,0.1,981.0,9.8,0.01,0.02,0.03", "raw")

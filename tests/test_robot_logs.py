@@ -371,7 +371,7 @@ def test_a_nan_in_a_log_message_is_refused_as_in_a_csv(
     assert main(["estimate", str(bag), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "topic /tip/imu: the message at t = " in err
-    assert "(sample 50): linear_acceleration is [" in err and "nan" in err
+    assert "(message 50): linear_acceleration is [" in err and "nan" in err
     assert err.endswith("(a dropout; --skip-bad keeps it, skip_bad=True in Python)\n")
     assert not out.exists()
     assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
@@ -393,7 +393,7 @@ def test_accelerations_marked_absent_are_dropouts_as_nan_fields(
     out = tmp_path / "e.csv"
     assert main(["estimate", str(bag), "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "(sample 11): linear_acceleration is absent (NaN, or " in err
+    assert err.count("\n") == 1 and "(message 11): linear_acceleration is absent (NaN, or " in err
     assert "marked absent: linear_acceleration_covariance[0] = -1)" in err and not out.exists()
     assert main(["estimate", str(bag), "-o", str(out), "--skip-bad"]) == 0
     assert "dropout: 2" in capsys.readouterr().err
@@ -421,7 +421,7 @@ def test_orientation_missing_in_some_messages_is_named_or_a_dropout(
     out = tmp_path / "e.csv"
     assert main(["estimate", str(bag), "-o", str(out), "--orientation"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "(sample 50) has no orientation" in err
+    assert err.count("\n") == 1 and "(message 50) has no orientation" in err
     assert "5 such): --skip-bad keeps them as dropouts" in err and not out.exists()
     assert main(["estimate", str(bag), "-o", str(out), "--orientation", "--skip-bad"]) == 0
     assert "dropout: 5" in capsys.readouterr().err
@@ -848,7 +848,7 @@ def test_a_message_whose_rates_are_marked_absent_among_others_names_the_flag(
         w.finish()
     assert main(["estimate", str(path), "-o", str(tmp_path / "e.csv"), "--method", "ekf"]) == 2
     err = capsys.readouterr().err
-    assert "(sample 51): angular_velocity is absent (NaN, or marked absent: " in err
+    assert "(message 51): angular_velocity is absent (NaN, or marked absent: " in err
     assert "angular_velocity_covariance[0] = -1) (a dropout; --skip-bad keeps it" in err
 
 
@@ -883,29 +883,12 @@ def test_json_stamps_of_ros_1_fractional_seconds_and_nanoseconds_in_sec(tmp_path
     was cut to whole seconds, and all but a few messages left out as not increasing);
     nanoseconds in ``sec`` (an int64 overflow, exit 70) are refused in one line naming
     the message."""
-    import json as json_module
-
-    from mcap.writer import CompressionType, Writer
-
     t0 = 1_700_000_000
     times = [t0 + 0.02 * k for k in range(6)]
 
     def log(path: Path, stamp: Any) -> Path:
-        with path.open("wb") as fh:
-            w = Writer(fh, compression=CompressionType.NONE)
-            w.start()
-            sid = w.register_schema(name="sensor_msgs/msg/Imu", encoding="jsonschema", data=b"{}")
-            cid = w.register_channel(topic="/imu", message_encoding="json", schema_id=sid)
-            for k, tk in enumerate(times):
-                msg = {"header": {"stamp": stamp(k)},
-                       "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.81},
-                       "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}}  # fmt: skip
-                ns = round(tk * 1e9)
-                w.add_message(
-                    cid, log_time=ns, data=json_module.dumps(msg).encode(), publish_time=ns
-                )
-            w.finish()
-        return path
+        headers = [{"stamp": stamp(k)} for k in range(len(times))]
+        return _json_imu_mcap(path, headers, [round(tk * 1e9) for tk in times])
 
     ros1 = log(tmp_path / "ros1.mcap", lambda k: {"secs": t0, "nsecs": 20_000_000 * k})
     frac = log(tmp_path / "frac.mcap", lambda k: {"sec": times[k]})
@@ -918,3 +901,64 @@ def test_json_stamps_of_ros_1_fractional_seconds_and_nanoseconds_in_sec(tmp_path
         f"{ns}: topic /imu: message 1: its header.stamp.sec is 1.7e+18: nanoseconds in sec?"
     )):  # fmt: skip
         read_imu_log(ns)
+
+
+def test_a_topic_whose_frame_changes_is_said(tmp_path: Path) -> None:
+    """A topic whose messages name another ``header.frame_id`` from message 4 on
+    (another sensor's messages on it) was read as one IMU's, nothing said; one
+    warning names the two frames and the message. One frame throughout, or none, says
+    nothing."""
+    from continuum_mhe.io.robot_logs import FrameWarning
+
+    def log(path: Path, frame: Any) -> Path:
+        ns = [T0_NS + 20_000_000 * k for k in range(8)]
+        headers = [{"stamp": {"sec": v // 10**9, "nanosec": v % 10**9}, "frame_id": frame(k)}
+                   for k, v in enumerate(ns)]  # fmt: skip
+        return _json_imu_mcap(path, headers, ns)
+
+    switched = log(tmp_path / "switch.mcap", lambda k: "imu1" if k < 3 else "imu2")
+    with pytest.warns(FrameWarning) as seen:
+        got = read_imu_log(switched)
+    assert [str(w.message) for w in seen] == [
+        f"{switched}: topic /imu: header.frame_id changes from 'imu1' to 'imu2' at message 4 "
+        "(2 frames in all): another sensor's messages on this topic? Its messages are read "
+        "as one IMU's"
+    ]
+    assert got.frames == ("imu1", "imu2") and len(got.t) == 8
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_imu_log(log(tmp_path / "one.mcap", lambda k: "imu1")).frames == ("imu1",)
+        assert read_imu_log(log(tmp_path / "none.mcap", lambda k: "")).frames == ()
+
+
+def test_a_record_naming_a_missing_channel_is_not_called_a_missing_field() -> None:
+    """The MCAP reader's ``KeyError`` of a damaged record (a channel or schema id the
+    file does not hold) was worded as a JSON message without a field ("a message
+    without the field 16571"); a JSON message's missing field keeps its wording."""
+    from continuum_mhe.io.robot_logs import _why_unreadable
+
+    assert _why_unreadable(KeyError(16571)) == (
+        "a record names channel or schema 16571, which the file does not hold: damaged?"
+    )
+    assert _why_unreadable(KeyError("header")) == "a message without the field 'header'"
+
+
+def _json_imu_mcap(path: Path, headers: list[dict[str, Any]], log_ns: list[int]) -> Path:
+    """An MCAP file of one JSON ``sensor_msgs/msg/Imu`` topic ``/imu``: an IMU at rest,
+    level, one message per header, logged at ``log_ns``."""
+    import json as json_module
+
+    from mcap.writer import CompressionType, Writer
+
+    with path.open("wb") as fh:
+        w = Writer(fh, compression=CompressionType.NONE)
+        w.start()
+        sid = w.register_schema(name="sensor_msgs/msg/Imu", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/imu", message_encoding="json", schema_id=sid)
+        for header, ns in zip(headers, log_ns):
+            msg = {"header": header,
+                   "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.81},
+                   "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}}  # fmt: skip
+            w.add_message(cid, log_time=ns, data=json_module.dumps(msg).encode(), publish_time=ns)
+        w.finish()
+    return path

@@ -79,26 +79,28 @@ def run(args: argparse.Namespace) -> int:
     for target in (args.output, args.record):
         if target:
             refuse_inputs(target, input_files(args))
-    sink = None
+    view_sink = None
     if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
         from continuum_mhe.viewer import BackboneView, TendonShapes, require_rerun
 
         require_rerun()
-        sink = viewer_sink_from_args(args)
-    try:
-        conn = open_port(settings.port, settings.baud)
-    except MissingExtraError:
-        raise
-    except Exception as exc:
-        raise InputError(port_hint(settings.port, exc)) from None
-    # after the port opened, before any line is read: the estimator reads its model
-    # here, and a throwaway one pays the first-call costs (warm_up)
+        view_sink = viewer_sink_from_args(args)
+    # before the port opens: the estimator reads its model here, and a throwaway one pays
+    # the first-call costs (warm_up), so that no line waits in the port's buffer meanwhile
+    # (a device that streams from the start would have them queued, or lost where the
+    # buffer is full)
     estimator = make_estimator(
         method, formulation, mhe_settings, recovery=recovery_settings_from_args(args)
     )
     warm_up(make_estimator(method, formulation, mhe_settings), WARM_UP_STEPS[method])
     gc.collect()
     gc.freeze()  # the long-lived objects made so far are never scanned again: shorter GC pauses
+    try:
+        conn = open_port(settings.port, settings.baud)
+    except MissingExtraError:
+        raise
+    except Exception as exc:
+        raise InputError(port_hint(settings.port, exc)) from None
     say = stderr_say("live")
     plot = open_plot(robot.lengths, say) if args.plot else None
     columns = value_columns(settings.fmt, robot.n_imus, line.tensions_on_line)
@@ -117,11 +119,13 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     record = None if rec_path is None else RowFile(rec_path, ("t", *columns), args.overwrite)
-    view = None if sink is None else BackboneView(
-        robot, formulation.outputs, sink, trail_s=args.trail,
+    view = None if view_sink is None else BackboneView(
+        robot, formulation.outputs, view_sink, trail_s=args.trail,
         points_per_section=args.points, max_hz=args.view_hz,
         tendon=TendonShapes(robot, args.points) if robot.backbone is not None else None,
     )  # fmt: skip
+    if view_sink is not None and view_sink.kind == "web":
+        say(f"serving the view at {view_sink.web_url}")
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
         default = " (this robot's default)" if args.method_note else ""
@@ -140,8 +144,15 @@ def run(args: argparse.Namespace) -> int:
             )
         return run_live(settings, session, conn, plot, view)
     finally:
-        if view is not None:
-            view.close()
+        if view is not None and view_sink is not None:  # a view file without an estimate
+            view.close(keep=view.estimates > 0)  # is not written
+            if view_sink.kind == "save":
+                path = view_sink.path
+                say(
+                    f"the view in {path}"
+                    if view.estimates
+                    else f"no sample arrived: {path} not written"
+                )
         for sink, what in ((out, "estimates"), (record, "samples")):
             if sink is None:
                 continue

@@ -48,7 +48,7 @@ class PairedImus:
     Attributes:
         logs: per topic (robot-file order), its samples at the pairs only.
         t: (n,) s since ``t0_ns``: IMU 1's stamps.
-        t0_ns: absolute time of the first pair, ns.
+        t0_ns: absolute time of IMU 1's first sample (paired or not), ns.
         tolerance_s: largest stamp difference accepted in a pair, s.
         read: samples read per topic (after skipping non-increasing stamps).
         skipped: descriptions of skipped messages, prefixed by their topic.
@@ -113,6 +113,8 @@ def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
     return ImuLog(
         topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=gyr,
         orientation=log.orientation[idx], skipped=log.skipped, clock=log.clock, cut=log.cut,
+        stamp_offset_s=log.stamp_offset_s, frames=log.frames,
+        numbers=None if log.numbers is None else log.numbers[idx],
     )  # fmt: skip
 
 
@@ -145,11 +147,14 @@ def read_imu_topics(
     warn_numbers_out_of_order(str(p), topics)
     logs = [read_imu_log(p, topic, skip_bad) for topic in topics]
     stamps = [_stamps_ns(log) for log in logs]
+    # half of IMU 1's median sample period: the default tolerance, and the clock check's
+    # measure of a period (a --pair-tolerance does not widen what that check allows)
+    half_period_s = 0.5 * float(np.median(np.diff(stamps[0]))) / 1e9 if len(stamps[0]) > 1 else 0.0
     if tolerance_s is None:
         if len(stamps[0]) < 2:
             raise InputError(f"{p}: topic {topics[0]} has one sample: pass --pair-tolerance")
-        tolerance_s = 0.5 * float(np.median(np.diff(stamps[0]))) / 1e9
-    warn_clocks_apart(str(p), logs, tolerance_s)
+        tolerance_s = half_period_s
+    warn_clocks_apart(str(p), logs, half_period_s)
     idx = pair_stamps(stamps, int(round(tolerance_s * 1e9)))
     if len(idx[0]) == 0:
         raise InputError(
@@ -157,7 +162,9 @@ def read_imu_topics(
             f"{_duration(tolerance_s)} (--pair-tolerance)"
         )
     ref = stamps[0][idx[0]]
-    t0 = int(ref[0])
+    # IMU 1's first stamp, paired or not: a topic that starts later leaves t = 0 where a
+    # tensions file counted from the log's start of IMU 1 has it
+    t0 = int(stamps[0][0])
     t = (ref - t0) / 1e9
     return PairedImus(
         logs=tuple(_subset(log, i, t, t0) for log, i in zip(logs, idx)),
@@ -235,7 +242,7 @@ def warn_topic_order(name: str, topics: Sequence[str], samples: int, restarts: i
 
 
 #: Topics whose header stamps' offsets from the log's times (medians) differ by more
-#: than this (s), or by more than twice the pairing tolerance, get one
+#: than this (s), or by more than IMU 1's sample period, get one
 #: :class:`TopicClockWarning`: a delivery delay that differs between topics by this much
 #: is unusual, sensors on clocks of their own are not.
 CLOCKS_APART_S = 0.1
@@ -246,16 +253,33 @@ class TopicClockWarning(UserWarning):
     readings taken at different instants."""
 
 
-def warn_clocks_apart(name: str, logs: Sequence[ImuLog], tolerance_s: float) -> None:
+def warn_clocks_apart(name: str, logs: Sequence[ImuLog], half_period_s: float) -> None:
     """One :class:`TopicClockWarning` where a topic's header stamps stand apart from IMU
     1's against the log's own times (:attr:`ImuLog.stamp_offset_s`, a median) by more
-    than :data:`CLOCKS_APART_S` or twice ``tolerance_s``: the log's times are one clock
-    for every topic, so such a difference is the sensors' clocks (or a delivery delay of
-    one topic), and pairing by stamp joins readings that far apart in time."""
+    than :data:`CLOCKS_APART_S` or IMU 1's sample period (twice ``half_period_s``): the
+    log's times are one clock for every topic, so such a difference is the sensors'
+    clocks (or a delivery delay of one topic), and pairing by stamp joins readings that
+    far apart in time; and where some topics are timed by their header stamps and others
+    by the log's times (every stamp zero), which pairs a sensor's instant with a
+    message's arrival, its delivery delay unseen."""
+    clocks = {log.clock for log in logs}
+    if len(clocks) > 1:
+        by_log = ", ".join(log.topic for log in logs if log.clock != "header stamps")
+        warnings.warn(
+            f"{name}: {by_log} {'has' if ',' not in by_log else 'have'} no header stamps "
+            "(every one zero) and are timed by the log's own times, the other topics by "
+            "their stamps: each pair joins a sensor's instant with a message's arrival, "
+            "later by its delivery delay, which the log cannot show; stamp every IMU on "
+            "one clock (readings paired across a motion give estimates that can be far "
+            "off)",
+            TopicClockWarning,
+            stacklevel=3,
+        )
+        return
     ref = logs[0]
     if ref.clock != "header stamps":
         return
-    limit = max(CLOCKS_APART_S, 2.0 * tolerance_s)
+    limit = max(CLOCKS_APART_S, 2.0 * half_period_s)
     apart = [
         (log, log.stamp_offset_s - ref.stamp_offset_s)
         for log in logs[1:]

@@ -755,7 +755,7 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
         else:
             raw = imu_settings_for(options.raw, place)  # as a table's (and live's)
             if not options.skip_bad:
-                _refuse_a_missing_value(p, t, log.acc, log.gyr, log.topic)
+                _refuse_a_missing_value(p, t, log)
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
@@ -783,20 +783,26 @@ def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> Flo
         i = int(np.argmax(absent))
         raise InputError(
             f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
-            f"(sample {i + 1}) has no orientation (orientation_covariance[0] = -1, or a zero "
-            f"or non-finite quaternion; {int(absent.sum())} such): --skip-bad keeps them as "
-            "dropouts (skip_bad=True in Python)"
+            f"({_message_number(log, i)}) has no orientation (orientation_covariance[0] = -1, "
+            f"or a zero or non-finite quaternion; {int(absent.sum())} such): --skip-bad keeps "
+            "them as dropouts (skip_bad=True in Python)"
         )
     return np.where(absent[:, None], np.nan, log.orientation)
 
 
-def _refuse_a_missing_value(
-    path: Path, t: FloatArray, acc: FloatArray, gyr: FloatArray | None, topic: str
-) -> None:
-    """One line for the first message of ``topic`` whose acceleration or angular rate
+def _message_number(log: ImuLog, i: int) -> str:
+    """How an error names sample ``i`` of ``log``: its message number in the topic
+    (paired samples skip messages), else its sample number."""
+    if log.numbers is not None:
+        return f"message {int(log.numbers[i])}"
+    return f"sample {i + 1}"
+
+
+def _refuse_a_missing_value(path: Path, t: FloatArray, log: ImuLog) -> None:
+    """One line for the first message of ``log`` whose acceleration or angular rate
     holds a NaN or an infinity, as a CSV's empty or nan field is (a dropout only with
     ``--skip-bad``)."""
-    for name, values in (("linear_acceleration", acc), ("angular_velocity", gyr)):
+    for name, values in (("linear_acceleration", log.acc), ("angular_velocity", log.gyr)):
         if values is None:
             continue
         bad = ~np.isfinite(values).all(axis=1)
@@ -806,8 +812,8 @@ def _refuse_a_missing_value(
             if np.isnan(values[i]).all():
                 shown = f"absent (NaN, or marked absent: {name}_covariance[0] = -1)"
             raise InputError(
-                f"{path}: topic {topic}: the message at t = {time_text(float(t[i]))} s "
-                f"(sample {i + 1}): {name} is {shown} (a dropout; --skip-bad keeps it, "
+                f"{path}: topic {log.topic}: the message at t = {time_text(float(t[i]))} s "
+                f"({_message_number(log, i)}): {name} is {shown} (a dropout; --skip-bad keeps it, "
                 "skip_bad=True in Python)"
             )
 

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError
@@ -62,6 +63,10 @@ class ImuLog:
         stamp_offset_s: the median of header stamp minus the log's time over the
             messages kept, s (0 with ``clock`` ``"log times"``): each topic's stamps
             against the one clock of the log.
+        frames: the ``header.frame_id`` values of the messages, each once, in the order
+            they first came (empty ones left out).
+        numbers: (n,) each sample's message number in its topic (from 1; None where not
+            known): the place an error names.
     """
 
     topic: str
@@ -74,6 +79,8 @@ class ImuLog:
     clock: str = "header stamps"
     cut: str = ""
     stamp_offset_s: float = 0.0
+    frames: tuple[str, ...] = ()
+    numbers: NDArray[np.int64] | None = None
 
 
 def is_robot_log(path: str | os.PathLike[str]) -> bool:
@@ -105,6 +112,18 @@ def _header_ns(msg: Any) -> int:
         )
     whole = int(sec)
     return whole * 1_000_000_000 + round((float(sec) - whole) * 1e9) + int(nsec)
+
+
+def _frame_id(msg: Any) -> str:
+    """A message's ``header.frame_id`` ("" where it has none)."""
+    if isinstance(msg, dict):
+        return str((msg.get("header") or {}).get("frame_id") or "")
+    return str(getattr(getattr(msg, "header", None), "frame_id", "") or "")
+
+
+class FrameWarning(UserWarning):
+    """A topic's IMU messages name more than one frame (``header.frame_id``): another
+    sensor's messages on the topic?"""
 
 
 def _vec(v: Any) -> list[float]:
@@ -251,6 +270,10 @@ def _why_unreadable(exc: BaseException) -> str:
         return "the file ends inside a record, or is damaged: a recording cut short?"
     if isinstance(exc, AttributeError) and "'NoneType'" in str(exc):  # JSON null
         return "a message with a null field"
+    if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], int):
+        # the MCAP reader's: a record names a channel or schema the file does not hold
+        missing = exc.args[0]
+        return f"a record names channel or schema {missing}, which the file does not hold: damaged?"
     if isinstance(exc, KeyError):  # a JSON message without a field
         return f"a message without the field {exc.args[0]!r}" if exc.args else "a missing field"
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -376,6 +399,7 @@ def read_imu_log(
     done = 0  # the messages read whole
     cut = ""  # where a file cut short was read up to
     stamps: list[int] = []
+    numbers: list[int] = []  # the message number (from 1) of each one kept
     offsets: list[int] = []  # header stamp minus log time, ns, of the messages kept
     rows: list[tuple[list[float], list[float], list[float]]] = []
     skipped: list[str] = []
@@ -384,6 +408,7 @@ def read_imu_log(
     unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
     stamped = False
     name = topic or ""
+    frames: dict[str, int] = {}  # each frame_id and the message (from 1) it came first in
 
     def keep(
         i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
@@ -400,6 +425,7 @@ def read_imu_log(
             skipped.append(f"message {i + 1}: time {ns} ns does not increase")
             return
         stamps.append(ns)
+        numbers.append(i + 1)
         offsets.append(ns - log_ns)
         rows.append(row)
 
@@ -412,6 +438,7 @@ def read_imu_log(
 
         for i, (log_ns, msg) in enumerate(messages):
             at = i + 1
+            frames.setdefault(_frame_id(msg), at)
             try:
                 header_ns = _header_ns(msg)
             except ValueError as exc:
@@ -458,6 +485,16 @@ def read_imu_log(
             UnitWarning,
             stacklevel=2,
         )
+    named = {f: i for f, i in frames.items() if f}
+    if len(named) > 1:
+        (first, _), (second, at_msg) = list(named.items())[:2]
+        warnings.warn(
+            f"{p}: topic {name}: header.frame_id changes from {first!r} to {second!r} at "
+            f"message {at_msg} ({len(named)} frames in all): another sensor's messages on "
+            "this topic? Its messages are read as one IMU's",
+            FrameWarning,
+            stacklevel=2,
+        )
     t0 = stamps[0]
     t = (np.array(stamps, dtype=np.int64) - t0) / 1e9
     stamp = "header.stamp must be ROS time (sec, and nanosec in ns)"
@@ -478,6 +515,8 @@ def read_imu_log(
         clock="header stamps" if stamped else "log times",
         cut=cut,
         stamp_offset_s=offset,
+        frames=tuple(named),
+        numbers=np.array(numbers, dtype=np.int64),
     )
 
 

@@ -73,6 +73,7 @@ def run_live(
     deadline = None if settings.duration is None else start + settings.duration
     next_status = start + settings.status_every
     window_start, window_n = start, 0
+    last_line = start  # when the last line arrived (monotonic s)
     behind_since: float | None = None
     stopping = waiting = False
     acted: list[int] = []  # the signals that stopped the loop, set aside while it drains
@@ -106,6 +107,7 @@ def run_live(
                 break
             now = time.monotonic()
             if kind == "line":
+                last_line = now
                 est = session.handle_line(payload, arrival)
                 if session.fatal is not None:
                     break
@@ -143,7 +145,7 @@ def run_live(
             if now >= next_status:
                 rate = window_n / max(now - window_start, 1e-9)
                 lag = now - arrival if kind == "line" else 0.0
-                say(session.status(rate, lag, events.qsize(), waiting))
+                say(session.status(rate, lag, events.qsize(), waiting, now - last_line))
                 window_start, window_n = now, 0
                 next_status = now + settings.status_every
                 if plot is not None and session.last is not None:

@@ -70,6 +70,11 @@ FIRST_STEP_MAX_S = 0.25
 #: ``GARBAGE_STOP_LINES`` of them stops the session with the last one's cause.
 GARBAGE_STOP_S = 3.0
 GARBAGE_STOP_LINES = 20
+#: A status line after this many seconds (arrival time) without a line says so, and
+#: that its last estimate is that old.
+SILENT_S = 1.0
+#: The characters of the first garbled line that its notice shows.
+SHOWN_CHARS = 48
 
 
 #: A stream that starts this many seconds after its tensions file's first row is said:
@@ -283,7 +288,10 @@ class LiveSession:
         self.clock.expect_restart()
         self._joined = True
 
-    def _bad(self, reason: str, arrival: float, text: str = "") -> None:
+    def _bad(self, reason: str, arrival: float, text: str = "", shown: str | None = None) -> None:
+        """One garbled line (``reason``), ``text`` its characters (``shown``: how to show
+        it where it has none, its bytes); the first is said with the port, its line
+        number in the session and its beginning, the rest are counted."""
         c = self.counts
         if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
             self._joined = False
@@ -293,9 +301,11 @@ class LiveSession:
         c.reasons[reason] = c.reasons.get(reason, 0) + 1
         if c.first_garbled is None:  # said once, as it happens (the rest are counted)
             c.first_garbled = reason + self._hint(text)
+            begin = text[:SHOWN_CHARS] + ("..." if len(text) > SHOWN_CHARS else "")
             self.say(
-                f"garbled line skipped: {c.first_garbled} (said for the first only; all are "
-                "counted)"
+                f"garbled line skipped: {c.first_garbled} ({self.settings.port}, line "
+                f"{c.lines}: {repr(begin) if shown is None else shown}; said for the first "
+                "only; all are counted)"
             )
         self._garbage(arrival, reason + self._hint(text), text)
 
@@ -358,7 +368,7 @@ class LiveSession:
         try:
             text = raw.decode("ascii")
         except UnicodeDecodeError:
-            self._bad("not ASCII", arrival)
+            self._bad("not ASCII", arrival, shown=repr(bytes(raw[:SHOWN_CHARS])))
             return None
         try:
             sample = parse_line(text, self.settings.fmt, self.n_imus, self.n_tensions)
@@ -716,7 +726,19 @@ class LiveSession:
         force = f" tip force=({force}) N" if force else ""
         return f"t={est.t:.2f} s tip=({tip}) mm {angles} deg{force} [{est.status}]"
 
-    def status(self, rate_hz: float, behind_s: float, queued: int, waiting: bool = False) -> str:
+    def status(
+        self,
+        rate_hz: float,
+        behind_s: float,
+        queued: int,
+        waiting: bool = False,
+        silent_s: float = 0.0,
+    ) -> str:
+        """The status line: the rate of lines (``rate_hz``), the solve times, the last
+        estimate, the counts, and how far behind real time (``behind_s``, ``queued``
+        lines). Where no line has arrived for :data:`SILENT_S` or more (``silent_s``; or
+        while ``waiting`` for the device), the last estimate is said to be that old: it
+        says nothing of the robot now."""
         c = self.counts
         parts = ["WAITING for the device" if waiting else f"{rate_hz:5.1f} Hz"]
         if self.solve_ms:
@@ -727,7 +749,12 @@ class LiveSession:
             )
         self.latency_max_window = 0.0
         if self.last is not None and self.last.output is not None:
-            parts.append(self._describe(self.last))
+            last = self._describe(self.last)
+            if waiting or silent_s >= SILENT_S:
+                last = f"no line for {silent_s:.1f} s, the last estimate from then: {last}"
+            parts.append(last)
+        elif silent_s >= SILENT_S:
+            parts.append(f"no line for {silent_s:.1f} s")
         parts.append(
             f"estimates {c.estimates}, lines skipped {c.garbled + c.partial + c.too_long} "
             "(garbled, partial or over-long), "

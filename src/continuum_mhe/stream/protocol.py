@@ -106,8 +106,13 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
             raise GarbledLine(beyond_range(v, imu, n_imus))
         if ax == 0.0 and ay == 0.0 and az == 0.0:
             raise GarbledLine("accelerometer reads exactly zero")
-    elif abs(v[0]) > TILT_LIMITS[0] or abs(v[1]) > TILT_LIMITS[1]:
-        raise GarbledLine("angle out of range (radians expected)")
+    else:
+        suffix = f"_{imu + 1}" if n_imus > 1 else ""
+        for name, value, limit, bound in zip(("roll", "pitch"), v, TILT_LIMITS, ("pi", "pi/2")):
+            if abs(value) > limit:
+                raise GarbledLine(
+                    f"{name}{suffix} = {value:g}, beyond {bound}: degrees given for radians?"
+                )
     return v
 
 

@@ -74,6 +74,8 @@ class BackboneView:
         self.tendon = tendon
         self._web: Popen[bytes] | None = None
         self._tmp: Path | None = None
+        #: the estimates logged one by one (``log_estimate``)
+        self.estimates = 0
         self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
         self._status = ""
         self._min_step = 1.0 / max_hz if max_hz else 0.0
@@ -173,6 +175,7 @@ class BackboneView:
         """The live hook: log one estimate (its ``output`` in ``outputs`` order), one
         entity at a time (``log_rows`` sends a whole recording as columns)."""
         rr, rec, size = self.rr, self.rec, self.robot.length
+        self.estimates += 1
         rec.set_time("t", duration=float(est.t))
         changed = str(est.status) != self._status
         self._log_status(str(est.status))
