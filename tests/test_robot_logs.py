@@ -962,3 +962,18 @@ def _json_imu_mcap(path: Path, headers: list[dict[str, Any]], log_ns: list[int])
             w.add_message(cid, log_time=ns, data=json_module.dumps(msg).encode(), publish_time=ns)
         w.finish()
     return path
+
+
+def test_a_cut_inside_the_only_chunk_says_why_nothing_before_it_is_read(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """An MCAP file whose one chunk holds every message, cut inside that chunk: with
+    --skip-bad nothing can be read, and the line said "no whole message before the
+    cut" of a file with a hundred messages before it; it says that a chunk's messages
+    are lost with the chunk the cut ends."""
+    log = write_mcap(tmp_path / "chunked.mcap", recording)
+    data = log.read_bytes()
+    log.write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputError, match=r"no message could be read before the cut \(the "
+                       r"messages of a chunk that the cut ends are lost with it\)\)$"):  # fmt: skip
+        read_imu_log(log, skip_bad=True)

@@ -2866,3 +2866,25 @@ def test_a_start_under_load_on_a_sample_without_imus_is_judged_at_the_first_imu_
     assert list(status[:3]) == ["dropout"] * 3
     assert "ok" not in set(status)
     assert est.diagnostics.untrusted_start_samples == 147  # from the first IMU reading on
+
+
+def test_tensions_on_a_clock_s_absolute_time_are_said_to_be() -> None:
+    """Tensions stamped with a clock's time since 1970, for a recording counted from its
+    start: the line said only that they miss the recording; it says their times look
+    like a clock's own and where the recording's zero is. Tensions that merely end
+    early get no such words."""
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.io.tensions import Tensions
+
+    epoch = Tensions.from_rows("abs.csv", np.array([1.7e9, 1.7e9 + 10]), np.ones((2, 1)))
+    said = (
+        r"abs\.csv: the tensions cover t = 1700000000 to 1700000010 s \(times since 1970, "
+        r"a clock's own\? the recording's t counts from its start: a robot log's t = 0 is "
+        r"IMU 1's first stamp"
+    )
+    with pytest.raises(InputError, match=said):
+        epoch.at(0.1, "rec.csv")
+    short = Tensions.from_rows("short.csv", np.array([0.0, 0.05]), np.ones((2, 1)))
+    with pytest.raises(InputError) as info:
+        short.at(0.1, "rec.csv")
+    assert "since 1970" not in str(info.value)

@@ -464,7 +464,12 @@ def read_imu_log(
         if not (skip_bad and _cut_short(exc) and (stamps or unstamped)):
             hint = ""
             if _cut_short(exc) and skip_bad:
-                hint = "; no whole message before the cut"
+                # a chunked MCAP's messages are read chunk by chunk: those in the chunk
+                # that the cut ends are lost with it
+                hint = (
+                    "; no message could be read before the cut (the messages of a chunk "
+                    "that the cut ends are lost with it)"
+                )
             elif _cut_short(exc) and at:  # messages came whole before the cut
                 hint = "; --skip-bad reads it up to the cut"
             raise InputError(

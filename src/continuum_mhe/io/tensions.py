@@ -84,6 +84,11 @@ class TensionsWarning(UserWarning):
     differenced row by row that carry a slower log's samples."""
 
 
+#: Tension times from this many seconds on (1973) are a clock's absolute time (since
+#: 1970), not seconds from the recording's start: said where they miss the recording.
+EPOCH_LIKE_S = 1e8
+
+
 def slower_log_said(what: str, t: FloatArray, values: FloatArray, taken: str, fix: str) -> str:
     """The line that says that ``what`` (``values`` (n, k) N at ``t`` (n,) s), which are
     ``taken`` row by row, carry a slower log's samples
@@ -408,11 +413,17 @@ class Tensions:
         in it)."""
         if not self.covers(t):
             of = f" of {source}" if source else ""
+            epoch = ""
+            if self.t[0] >= EPOCH_LIKE_S > abs(t):  # a clock's absolute time, s
+                epoch = (
+                    " (times since 1970, a clock's own? the recording's t counts from its "
+                    "start: a robot log's t = 0 is IMU 1's first stamp, the estimate's "
+                    "# t0_ns line)"
+                )
             raise InputError(
                 f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
-                f"{time_text(self.t[-1])} s, but a sample{of} is at t = {time_text(t)} s: "
-                "the tensions must cover the "
-                "recording; nothing written"
+                f"{time_text(self.t[-1])} s{epoch}, but a sample{of} is at t = "
+                f"{time_text(t)} s: the tensions must cover the recording; nothing written"
             )
         return tuple(  # type: ignore[return-value]
             np.array([np.interp(t, self.t, v) for v in a.T])
