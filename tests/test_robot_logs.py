@@ -977,3 +977,23 @@ def test_a_cut_inside_the_only_chunk_says_why_nothing_before_it_is_read(
     with pytest.raises(InputError, match=r"no message could be read before the cut \(the "
                        r"messages of a chunk that the cut ends are lost with it\)\)$"):  # fmt: skip
         read_imu_log(log, skip_bad=True)
+
+
+@pytest.mark.parametrize("ahead_s", [5.0, 0.5])
+def test_one_stamp_that_jumps_ahead_is_left_out_alone(
+    tmp_path: Path, recording: dict[str, Any], ahead_s: float
+) -> None:
+    """Message 51 stamped ``ahead_s`` after its neighbours (a stamp's glitch): the next
+    message was blamed (a clock that restarted, exit 2), or with a smaller jump the ten
+    good messages after it were left out and the bad one kept; the glitch alone is left
+    out, counted, and every other message kept."""
+    stamps = recording["stamps"].copy()
+    stamps[50] = stamps[49] + int(ahead_s * 1e9)
+    log = read_imu_log(write_mcap(tmp_path / "glitch.mcap", recording, headers=stamps))
+    assert log.skipped == [
+        f"message 51: time {int(stamps[50])} ns jumps {(stamps[50] - stamps[49]) / 1e9:.3g} s "
+        "ahead of the messages around it"
+    ]
+    keep = np.delete(np.arange(len(stamps)), 50)
+    np.testing.assert_array_equal(log.numbers, keep + 1)
+    np.testing.assert_allclose(log.t, (stamps[keep] - stamps[0]) / 1e9)

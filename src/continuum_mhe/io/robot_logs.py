@@ -413,6 +413,15 @@ def read_imu_log(
     def keep(
         i: int, ns: int, row: tuple[list[float], list[float], list[float]], log_ns: int
     ) -> None:
+        if len(stamps) > 1 and stamps[-2] < ns <= stamps[-1]:
+            ahead = (stamps[-1] - stamps[-2]) / 1e9
+            if ahead > STAMP_JUMP_AHEAD_S:  # the last one kept jumped ahead of both
+                skipped.append(
+                    f"message {numbers[-1]}: time {stamps[-1]} ns jumps {ahead:.3g} s ahead "
+                    "of the messages around it"
+                )
+                for kept in (stamps, numbers, offsets, rows):
+                    kept.pop()
         if stamps and ns <= stamps[-1]:
             back = (stamps[-1] - ns) / 1e9
             if back > MAX_STAMP_STEP_BACK_S and not skip_bad:
@@ -529,6 +538,10 @@ def read_imu_log(
 #: restarted, not a message out of order: an error (``skip_bad``: left out, as the
 #: messages out of order are).
 MAX_STAMP_STEP_BACK_S = 1.0
+#: A kept message whose stamp lies more than this (s) after the one before it, where the
+#: next one falls back between the two, jumped ahead alone (a stamp's glitch): it is left
+#: out, counted, and the messages after it are kept.
+STAMP_JUMP_AHEAD_S = 0.1
 #: Header stamps whose median distance from the log's own times exceeds this (s) are on
 #: another clock than the log's (a sensor's boot clock): said once, since an MCAP
 #: estimate keeps the stamps' clock.
