@@ -6,6 +6,7 @@ paired samples; a topic count that does not match the robot is one line."""
 from __future__ import annotations
 
 import csv
+import math
 import re
 import warnings
 from pathlib import Path
@@ -32,13 +33,13 @@ def test_pair_stamps_known_answers() -> None:
     ref = np.array([0, 10, 20, 30, 40], dtype=np.int64)
     other = np.array([1, 12, 19, 33, 45, 50], dtype=np.int64)
     idx = pair_stamps([ref, other], 3)  # 40-45 too far; 50 is nobody's nearest
-    assert [list(i) for i in idx] == [[0, 1, 2, 3], [0, 1, 2, 3]]
+    assert [list(i) for i in idx] == [[0, 1, 2, 3, 4], [0, 1, 2, 3, -1]]
     # two samples of IMU 1 want the same sample of IMU 2: only its nearest gets it
     idx = pair_stamps([np.array([0, 4]), np.array([3])], 5)
-    assert [list(i) for i in idx] == [[1], [0]]
-    # three topics: a fused sample needs a partner in every one
+    assert [list(i) for i in idx] == [[0, 1], [-1, 0]]
+    # three topics: each paired on its own (-1: a dropout of that IMU at that sample)
     idx = pair_stamps([ref, other, np.array([0, 21, 31], dtype=np.int64)], 3)
-    assert [list(i) for i in idx] == [[0, 2, 3], [0, 2, 3], [0, 1, 2]]
+    assert [list(i) for i in idx] == [[0, 1, 2, 3, 4], [0, 1, 2, 3, -1], [0, -1, 1, 2, -1]]
 
 
 @pytest.fixture(scope="module")
@@ -210,14 +211,16 @@ def test_zero_of_time_is_imu_1_s_first_stamp_where_a_topic_starts_later(
 ) -> None:
     """IMU 2 starting 0.16 s after IMU 1: ``t = 0`` stays at IMU 1's first stamp, where
     a tensions file counted from IMU 1's first message has it (the first pair's moved
-    it, every later tension 0.16 s off in time, the rows `ok`)."""
+    it, every later tension 0.16 s off in time, the rows `ok`); the samples before IMU
+    2's first are IMU 2's dropouts."""
     late2 = {k: v[streams["imu"][1]["stamps"] >= streams["base"][8]] for k, v in
              streams["imu"][1].items()}  # fmt: skip
     log = write_mcap_topics(tmp_path / "late.mcap", [streams["imu"][0], late2])
     paired = read_imu_topics(log, TOPICS, 2)
     assert paired.t0_ns == streams["imu"][0]["stamps"][0] == T0_NS
-    assert paired.t[0] == pytest.approx(0.16)
-    np.testing.assert_allclose(paired.t, (streams["base"][streams["paired"][6:]] - T0_NS) / 1e9)
+    np.testing.assert_allclose(paired.t, (streams["imu"][0]["stamps"] - T0_NS) / 1e9)
+    first = int(np.argmax(paired.logs[1].numbers > 0))
+    assert paired.t[first] == pytest.approx(0.16) and paired.dropouts[1] == first
 
 
 def test_an_error_names_the_message_in_its_topic_not_the_paired_sample(
@@ -237,6 +240,18 @@ def test_an_error_names_the_message_in_its_topic_not_the_paired_sample(
     assert "topic /imu1: the message at t = 0.8 s (message 40): linear_acceleration is" in err
 
 
+def test_a_topic_that_pairs_nowhere_is_one_line(streams: dict[str, Any], tmp_path: Path) -> None:
+    """IMU 2's stamps 10 s after IMU 1's (no sample within the tolerance): every
+    sample would be IMU 2's dropout; one line names the topic and the tolerance."""
+    far = [dict(streams["imu"][0]), dict(streams["imu"][1])]
+    far[1]["stamps"] = far[1]["stamps"] + 10_000_000_000
+    far[1]["log"] = far[1]["stamps"]
+    log = write_mcap_topics(tmp_path / "far.mcap", far)
+    with pytest.raises(InputError, match=r"no sample of /imu2 pairs with one of /imu1 within "
+                       r"10 ms \(--pair-tolerance\)$"):  # fmt: skip
+        read_imu_topics(log, TOPICS, 2)
+
+
 def test_a_tolerance_of_seconds_is_said_in_seconds(streams: dict[str, Any], tmp_path: Path) -> None:
     """``--pair-tolerance 5`` was reported as "within 5e+03 ms"."""
     log = write_mcap_topics(tmp_path / "x.mcap", streams["imu"])
@@ -252,32 +267,41 @@ def test_topics_pair_by_stamp_and_count_the_rest(
     log = write(tmp_path / name, streams["imu"])
     paired = read_imu_topics(log, TOPICS, 2)
     assert paired.tolerance_s == pytest.approx(0.010)  # half of the 20 ms period
-    ref = streams["base"][streams["paired"]]
-    np.testing.assert_array_equal(paired.t, (ref - ref[0]) / 1e9)
-    assert paired.t0_ns == ref[0]
-    assert paired.unpaired == streams["unpaired"]
+    imu1 = streams["imu"][0]["stamps"]  # every sample of IMU 1 is a sample
+    np.testing.assert_array_equal(paired.t, (imu1 - imu1[0]) / 1e9)
+    assert paired.t0_ns == imu1[0]
+    # IMU 1's samples 5 and 6 have no IMU 2 partner: dropouts of IMU 2 there; IMU 2's
+    # sample 30 (IMU 1 has none) and its three strays are unused
+    assert paired.dropouts == (0, 2) and paired.unpaired == (0, streams["unpaired"][1])
+    missing = np.isin(np.arange(len(imu1)), [5, 6])
+    assert np.isnan(paired.logs[1].acc[missing]).all()
+    assert np.array_equal(paired.logs[1].numbers == 0, missing)
     # every IMU 2 sample in a pair is the one stamped 1.5 +- 1 ms after its IMU 1 sample
+    ref = streams["base"][streams["paired"]]
     i2 = np.searchsorted(streams["imu"][1]["stamps"], ref + 500_000)
-    np.testing.assert_array_equal(paired.logs[1].acc, streams["imu"][1]["acc"][i2])
+    np.testing.assert_array_equal(paired.logs[1].acc[~missing], streams["imu"][1]["acc"][i2])
     assert paired.report() == (
-        f"paired {len(ref)} samples of 2 topics (/imu1, /imu2) by header stamps within 10 ms; "
-        f"unpaired: /imu1 {streams['unpaired'][0]}, /imu2 {streams['unpaired'][1]}"
+        f"paired {len(imu1)} samples of 2 topics (/imu1, /imu2) by header stamps within 10 ms; "
+        f"without a partner (a dropout of that IMU): /imu2 2; unpaired: /imu1 0, "
+        f"/imu2 {streams['unpaired'][1]}"
     )
     # a tolerance below the 0.5..2.5 ms offsets pairs fewer, and says so
     tight = read_imu_topics(log, TOPICS, 2, tolerance_s=0.0015)
-    assert 0 < len(tight.t) < len(paired.t)
-    assert tight.unpaired[0] == streams["unpaired"][0] + len(paired.t) - len(tight.t)
+    assert len(tight.t) == len(paired.t) and tight.dropouts[1] > paired.dropouts[1]
+    assert tight.unpaired[1] - paired.unpaired[1] == tight.dropouts[1] - paired.dropouts[1]
 
 
 def _paired_csv(path: Path, streams: dict[str, Any], pairs: Any) -> Path:
-    """The multi-IMU raw CSV holding the paired samples (the reader's own format)."""
+    """The multi-IMU raw CSV holding the paired samples (the reader's own format), an
+    IMU's fields empty where it has no partner."""
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["t", *raw_columns(0, 2, True), *raw_columns(1, 2, True)])
         for k, t in enumerate(pairs.t):
             row = [repr(float(t))]
             for log in pairs.logs:
-                row += [repr(float(v)) for v in (*log.acc[k], *log.gyr[k])]
+                values = (*log.acc[k], *log.gyr[k])
+                row += ["" if math.isnan(v) else repr(float(v)) for v in values]
             w.writerow(row)
     return path
 
@@ -293,12 +317,12 @@ def test_estimate_from_topics_equals_the_paired_csv(
     assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
     err = capsys.readouterr().err
     assert err.count("paired ") == 1
-    assert f"unpaired: /imu1 {streams['unpaired'][0]}, /imu2 {streams['unpaired'][1]}" in err
+    assert f"unpaired: /imu1 0, /imu2 {streams['unpaired'][1]}" in err
     csv_in = _paired_csv(tmp_path / "p.csv", streams, read_imu_topics(log, TOPICS, 2))
     assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
     a = read_state_table(tmp_path / "a.csv", ())
     b = read_state_table(tmp_path / "b.csv", ())
-    assert len(a.t) == len(streams["paired"])
+    assert len(a.t) == len(streams["imu"][0]["stamps"])
     np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
 

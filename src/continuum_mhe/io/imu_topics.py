@@ -6,10 +6,12 @@ topic is read as in :mod:`continuum_mhe.io.robot_logs` (messages with a non-incr
 stamp skipped and counted); then samples are paired across topics by header stamp: a
 sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
 (mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
-most the tolerance. A fused sample needs a partner in every topic; its time is IMU 1's
-stamp. The default tolerance is half of IMU 1's median sample period (a pair is then
-always closer than the next sample); ``--pair-tolerance`` sets it in seconds. Samples left
-without a partner are counted per topic and reported in one line. A run in which many
+most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; in a topic
+where it has no partner, that IMU's reading is missing (a dropout of that IMU, as a
+table's row with its fields empty). The default tolerance is half of IMU 1's median
+sample period (a pair is then always closer than the next sample); ``--pair-tolerance``
+sets it in seconds. The dropouts and the samples of the other topics left without a
+partner are counted per topic and reported in one line. A run in which many
 samples restarted the estimator gets one warning that the topics may be out of order
 (:func:`warn_topic_order`), and so do topics whose names number them in another order
 than the one given (:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
@@ -43,14 +45,17 @@ IntArray = NDArray[np.int64]
 
 @dataclass(frozen=True)
 class PairedImus:
-    """IMU samples of several topics, paired by header stamp.
+    """IMU samples of several topics, paired by header stamp on IMU 1's samples.
 
     Attributes:
-        logs: per topic (robot-file order), its samples at the pairs only.
+        logs: per topic (robot-file order), its samples at IMU 1's: a sample of IMU 1
+            without a partner in a topic is NaN there (a dropout of that IMU; its
+            ``numbers`` 0).
         t: (n,) s since ``t0_ns``: IMU 1's stamps.
-        t0_ns: absolute time of IMU 1's first sample (paired or not), ns.
+        t0_ns: absolute time of IMU 1's first sample, ns.
         tolerance_s: largest stamp difference accepted in a pair, s.
         read: samples read per topic (after skipping non-increasing stamps).
+        partners: per topic, IMU 1's samples with a partner in it (IMU 1: all).
         skipped: descriptions of skipped messages, prefixed by their topic.
     """
 
@@ -59,21 +64,29 @@ class PairedImus:
     t0_ns: int
     tolerance_s: float
     read: tuple[int, ...]
+    partners: tuple[int, ...] = ()
     skipped: list[str] = field(default_factory=list)
 
     @property
     def unpaired(self) -> tuple[int, ...]:
-        """Samples of each topic left without a partner."""
-        return tuple(r - len(self.t) for r in self.read)
+        """Samples of each topic left without a partner among IMU 1's (unused)."""
+        return tuple(r - p for r, p in zip(self.read, self.partners))
+
+    @property
+    def dropouts(self) -> tuple[int, ...]:
+        """IMU 1's samples without a partner in each topic (that IMU's dropouts)."""
+        return tuple(len(self.t) - p for p in self.partners)
 
     def report(self) -> str:
-        """One line: pairs, tolerance, unpaired samples per topic."""
+        """One line: samples, tolerance, dropouts and unpaired samples per topic."""
         topics = ", ".join(log.topic for log in self.logs)
         left = ", ".join(f"{log.topic} {u}" for log, u in zip(self.logs, self.unpaired))
+        missing = ", ".join(f"{log.topic} {d}" for log, d in zip(self.logs[1:], self.dropouts[1:]))
         clocks = sorted({log.clock for log in self.logs})
         return (
             f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
-            f"{' and '.join(clocks)} within {_duration(self.tolerance_s)}; unpaired: {left}"
+            f"{' and '.join(clocks)} within {_duration(self.tolerance_s)}; without a "
+            f"partner (a dropout of that IMU): {missing}; unpaired: {left}"
         )
 
 
@@ -94,27 +107,35 @@ def _nearest(src: IntArray, dst: IntArray) -> IntArray:
 
 
 def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]:
-    """Indices into each of ``stamps`` (increasing, ns) of the samples that pair with
-    one of ``stamps[0]`` in every other topic (mutual nearest, within the tolerance)."""
+    """Per topic of ``stamps`` (increasing, ns), for each sample of ``stamps[0]`` the
+    index of its partner in that topic (mutual nearest, within the tolerance), or -1
+    where it has none; the first array is ``stamps[0]``'s own indices."""
     ref = stamps[0]
-    keep = np.ones(len(ref), dtype=bool)
-    partners = []
+    out = [np.arange(len(ref), dtype=np.int64)]
     for other in stamps[1:]:
         j = _nearest(ref, other)
         back = _nearest(other, ref)
-        keep &= (back[j] == np.arange(len(ref))) & (np.abs(other[j] - ref) <= tolerance_ns)
-        partners.append(j)
-    idx = np.flatnonzero(keep)
-    return [idx, *(j[idx] for j in partners)]
+        paired = (back[j] == np.arange(len(ref))) & (np.abs(other[j] - ref) <= tolerance_ns)
+        out.append(np.where(paired, j, -1).astype(np.int64))
+    return out
 
 
 def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
-    gyr = None if log.gyr is None else log.gyr[idx]
+    """``log`` at the samples ``idx`` (-1: none there, NaN values and message 0)."""
+    has = idx >= 0
+    take = np.where(has, idx, 0)
+
+    def rows(a: FloatArray) -> FloatArray:
+        out = a[take].copy()
+        out[~has] = np.nan
+        return out
+
     return ImuLog(
-        topic=log.topic, t=t, t0_ns=t0_ns, acc=log.acc[idx], gyr=gyr,
-        orientation=log.orientation[idx], skipped=log.skipped, clock=log.clock, cut=log.cut,
+        topic=log.topic, t=t, t0_ns=t0_ns, acc=rows(log.acc),
+        gyr=None if log.gyr is None else rows(log.gyr), orientation=rows(log.orientation),
+        skipped=log.skipped, clock=log.clock, cut=log.cut,
         stamp_offset_s=log.stamp_offset_s, frames=log.frames,
-        numbers=None if log.numbers is None else log.numbers[idx],
+        numbers=None if log.numbers is None else np.where(has, log.numbers[take], 0),
     )  # fmt: skip
 
 
@@ -156,15 +177,16 @@ def read_imu_topics(
         tolerance_s = half_period_s
     warn_clocks_apart(str(p), logs, half_period_s)
     idx = pair_stamps(stamps, int(round(tolerance_s * 1e9)))
-    if len(idx[0]) == 0:
-        raise InputError(
-            f"{p}: no sample of {topics[0]} has a partner in every other topic within "
-            f"{_duration(tolerance_s)} (--pair-tolerance)"
-        )
-    ref = stamps[0][idx[0]]
-    # IMU 1's first stamp, paired or not: a topic that starts later leaves t = 0 where a
-    # tensions file counted from the log's start of IMU 1 has it
-    t0 = int(stamps[0][0])
+    for topic, i in zip(topics[1:], idx[1:]):
+        if not (i >= 0).any():
+            raise InputError(
+                f"{p}: no sample of {topic} pairs with one of {topics[0]} within "
+                f"{_duration(tolerance_s)} (--pair-tolerance)"
+            )
+    ref = stamps[0]
+    # IMU 1's first stamp: a topic that starts later leaves t = 0 where a tensions file
+    # counted from the log's start of IMU 1 has it
+    t0 = int(ref[0])
     t = (ref - t0) / 1e9
     return PairedImus(
         logs=tuple(_subset(log, i, t, t0) for log, i in zip(logs, idx)),
@@ -172,6 +194,7 @@ def read_imu_topics(
         t0_ns=t0,
         tolerance_s=tolerance_s,
         read=tuple(len(s) for s in stamps),
+        partners=tuple(int((i >= 0).sum()) for i in idx),
         skipped=[f"{log.topic}: {s}" for log in logs for s in log.skipped],
     )
 

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError, UserError, expect_type, time_text
@@ -773,8 +774,9 @@ def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> Flo
     line; a message without one (``orientation_covariance[0] = -1``, a zero or
     non-finite quaternion: a filter still starting) is named in one line, or with
     ``skip_bad`` a dropout (NaN)."""
-    absent = np.asarray(~np.isfinite(log.orientation).all(axis=1), dtype=bool)
-    if absent.all():
+    unpaired = _unpaired(log)  # a sample without this topic's message: a dropout
+    absent = np.asarray(~np.isfinite(log.orientation).all(axis=1), dtype=bool) & ~unpaired
+    if (absent | unpaired).all():
         raise InputError(
             f"{path}: topic {log.topic} carries no orientation in any message "
             "(orientation_covariance[0] = -1, or a zero quaternion): --orientation needs it"
@@ -787,7 +789,15 @@ def _orientations(path: Path, t: FloatArray, log: ImuLog, skip_bad: bool) -> Flo
             f"or a zero or non-finite quaternion; {int(absent.sum())} such): --skip-bad keeps "
             "them as dropouts (skip_bad=True in Python)"
         )
-    return np.where(absent[:, None], np.nan, log.orientation)
+    return np.where((absent | unpaired)[:, None], np.nan, log.orientation)
+
+
+def _unpaired(log: ImuLog) -> NDArray[np.bool_]:
+    """(n,) True where the sample has no message of ``log``'s topic (IMU 1's sample
+    without a partner in it: a dropout of that IMU, not a bad reading)."""
+    if log.numbers is None:
+        return np.zeros(len(log.t), dtype=bool)
+    return np.asarray(log.numbers == 0)
 
 
 def _message_number(log: ImuLog, i: int) -> str:
@@ -802,10 +812,11 @@ def _refuse_a_missing_value(path: Path, t: FloatArray, log: ImuLog) -> None:
     """One line for the first message of ``log`` whose acceleration or angular rate
     holds a NaN or an infinity, as a CSV's empty or nan field is (a dropout only with
     ``--skip-bad``)."""
+    unpaired = _unpaired(log)
     for name, values in (("linear_acceleration", log.acc), ("angular_velocity", log.gyr)):
         if values is None:
             continue
-        bad = ~np.isfinite(values).all(axis=1)
+        bad = ~np.isfinite(values).all(axis=1) & ~unpaired
         if bad.any():
             i = int(np.argmax(bad))
             shown = values[i].tolist()
