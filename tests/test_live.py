@@ -577,3 +577,30 @@ def test_the_latency_quantiles_say_where_they_are_beyond_the_histogram() -> None
     assert h.quantile(0.5) == pytest.approx(10.0, rel=0.024) and h.quantile(0.5) >= 10.0
     assert h.text(0.5).endswith(" ms") and not h.text(0.5).startswith("over")
     assert math.isinf(h.quantile(0.99)) and h.text(0.99) == "over 100000 ms"
+
+
+def test_live_warms_its_estimator_up_before_it_opens_the_port(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The estimator was built and warmed up after the port opened: a device that
+    streams from the start had its lines wait meanwhile (1.5 s on a tendon robot, a
+    false "falling behind" at every start, lines lost where the port's buffer fills).
+    The port opens after the warm-up."""
+    import continuum_mhe.cli.live as live_cli
+    from continuum_mhe.cli import main
+
+    order: list[str] = []
+    real_warm_up = live_cli.warm_up
+
+    def warm_up(*args: object) -> None:
+        order.append("warm-up")
+        real_warm_up(*args)  # type: ignore[arg-type]
+
+    def open_port(port: str, baud: int) -> None:
+        order.append("open")
+        raise OSError("no such port (the test stops here)")
+
+    monkeypatch.setattr(live_cli, "warm_up", warm_up)
+    monkeypatch.setattr(live_cli, "open_port", open_port)
+    assert main(["live", "--port", str(tmp_path / "ttyIMU"), "--method", "ekf"]) == 2
+    assert order == ["warm-up", "open"]
