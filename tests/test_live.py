@@ -413,7 +413,8 @@ def test_short_soak_two_imus_500_hz_with_faults(
 def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> None:
     """Live opened after the device's '# fields' banner, without --robot, on two IMUs:
     the first garbled line is said once with its likely cause, and the session ends
-    with one error line naming the cause, exit 2, nothing written."""
+    with one error line naming the cause, exit 2, nothing written; the first line, with
+    more fields than a line has, counts as garbled, not as the tail of a line."""
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
     acc, gyr = np.tile(specific_force(0.1, 0.2), (2, 1)), np.zeros((2, 3))
@@ -430,7 +431,7 @@ def test_live_with_only_garbled_lines_says_why_and_exits_2(tmp_path: Path) -> No
     ]
     assert len(said) == 1 and said[0].endswith("; said for the first only; all are counted)")
     assert err[-1] == (
-        f"continuum-mhe: error: {port}: no valid sample: 39 garbled, 1 partial line(s) "
+        f"continuum-mhe: error: {port}: no valid sample: 40 garbled line(s) "
         f"(the first: {first}); check --format, --robot and --baud"
     )
     assert not out.exists()

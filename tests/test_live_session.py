@@ -435,7 +435,9 @@ def test_a_frozen_sensor_is_said_once_in_live() -> None:
 def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     """A missed '# fields' banner (here a two-IMU tilt line to a one-IMU session): the
     first garbled line is said once with its likely cause, a session of garbled lines
-    alone says it in one line, and one valid sample makes the session no failure."""
+    alone says it in one line, and one valid sample makes the session no failure. The
+    first line after the open, with more fields than a line has, is a whole line,
+    garbled, not the tail of one (it was counted as partial)."""
     s, said = _session()
     now = time.monotonic()
     for i in range(10):
@@ -444,11 +446,11 @@ def test_the_first_garbled_line_is_said_once_with_its_likely_cause() -> None:
     garbled = [m for m in said if "garbled" in m]
     assert garbled == [
         "garbled line skipped: expected 3 fields, found 5: a line of 2 IMU(s) in --format "
-        "tilt; --robot with 2 IMU(s)? (x, line 2: '10,0.1,0.1,0.2,0.2'; said for the first "
+        "tilt; --robot with 2 IMU(s)? (x, line 1: '0,0.1,0.1,0.2,0.2'; said for the first "
         "only; all are counted)"
     ]
     assert s.only_garbled() == (
-        "x: no valid sample: 10 garbled, 1 partial line(s) (the first: expected 3 fields, found "
+        "x: no valid sample: 11 garbled line(s) (the first: expected 3 fields, found "
         "5: a line of 2 IMU(s) in --format tilt; --robot with 2 IMU(s)?); check --format, "
         "--robot and --baud"
     )

@@ -295,8 +295,10 @@ class LiveSession:
         c = self.counts
         if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
             self._joined = False
-            c.partial += 1
-            return
+            expected = len(line_fields(self.settings.fmt, self.n_imus, self.n_tensions))
+            if len(text.split(",")) <= expected:  # (more fields: a whole line, garbled)
+                c.partial += 1
+                return
         c.garbled += 1
         c.reasons[reason] = c.reasons.get(reason, 0) + 1
         if c.first_garbled is None:  # said once, as it happens (the rest are counted)
