@@ -188,8 +188,9 @@ void cmhe::bind_filter(nb::module_& m) {
             check_size(x, nx, "x");
             check_size(P, nx * nx, "P");
             check_size(Q, nx * nx, "Q");
+            check_size(u, size_t(f.nu()), "u");
             Out xn = copy_of(x.data(), {nx}), Pn = copy_of(P.data(), {nx, nx});
-            f.predict(xn.data(), Pn.data(), u.size() ? u.data() : nullptr, dt, Q.data());
+            f.predict(xn.data(), Pn.data(), f.nu() ? u.data() : nullptr, dt, Q.data());
             return nb::make_tuple(xn, Pn, int(f.failure), f.message);
           },
           nb::arg("x"), nb::arg("P"), nb::arg("u"), nb::arg("dt"), nb::arg("Q"),

@@ -70,8 +70,8 @@ UnscentedFilter::UnscentedFilter(const ModelFunction& transition, const ModelFun
   dt_.resize(1);
   zv_.resize(nz);
   mask_.resize(nz);
+  r_.resize(nz);
   rs_.resize(size_t(points) * nz);
-  mean_.resize(std::max(nx, nz));
 }
 
 bool UnscentedFilter::fail(UnscentedFailure kind, std::string text) {
@@ -129,12 +129,11 @@ bool UnscentedFilter::update(double* x, double* P, const double* z, const double
     zv_[i] = mask[i] > 0.0 && std::isfinite(z[i]) ? z[i] : 0.0;
   }
   dt_[0] = 0.0;
-  std::vector<double> r(nz);
   for (int k = 0; k < points; ++k) {
     const double* in[5] = {pts_.data() + k * n, nullptr, dt_.data(), zv_.data(), mask_.data()};
-    if (residual_.evaluate(in, r.data()) != 0)
+    if (residual_.evaluate(in, r_.data()) != 0)
       throw std::runtime_error("the residual's evaluation failed");
-    for (int a = 0; a < m; ++a) rs_[k * m + a] = r[rows_[a]];
+    for (int a = 0; a < m; ++a) rs_[k * m + a] = r_[rows_[a]];
   }
   if (check_chart) {  // the valid tilt component whose residuals spread the most
     double worst = 0.0;
@@ -161,36 +160,36 @@ bool UnscentedFilter::update(double* x, double* P, const double* z, const double
                       "the predicted tilt");
     }
   }
-  std::vector<double> rm(m), S(size_t(m) * m), C(size_t(n) * m), Kt(size_t(m) * n);
-  weighted_moments(rs_.data(), points, m, wm_.data(), wc_.data(), rm.data(), S.data());
+  rm_.resize(m);
+  S_.resize(size_t(m) * m);
+  Ct_.resize(size_t(m) * n);
+  Kt_.resize(size_t(m) * n);
+  SK_.resize(size_t(m) * n);
+  weighted_moments(rs_.data(), points, m, wm_.data(), wc_.data(), rm_.data(), S_.data());
   for (int a = 0; a < m; ++a)
-    for (int b = 0; b < m; ++b) S[a * m + b] += R[rows_[a] * nz + rows_[b]];
-  // C = -sum_k wc_k (X_k - x) dr_k^T: the state's cross-covariance with the predicted
-  // measurement, whose deviations are -dr
-  for (int c = 0; c < n; ++c)
-    for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) S_[a * m + b] += R[rows_[a] * nz + rows_[b]];
+  // C^T (m x n), C = -sum_k wc_k (X_k - x) dr_k^T: the state's cross-covariance with the
+  // predicted measurement, whose deviations are -dr
+  for (int a = 0; a < m; ++a)
+    for (int c = 0; c < n; ++c) {
       double s = 0.0;
       for (int k = 0; k < points; ++k) s += wc_[k] * (pts_[k * n + c] - x[c]) * rs_[k * m + a];
-      C[c * m + a] = -s;
+      Ct_[a * n + c] = -s;
     }
   // K^T = S^-1 C^T (S symmetric)
-  std::vector<double> Ct(size_t(m) * n);
-  for (int c = 0; c < n; ++c)
-    for (int a = 0; a < m; ++a) Ct[a * n + c] = C[c * m + a];
-  if (!small::solve(S.data(), Ct.data(), Kt.data(), m, n))
+  if (!small::solve(S_.data(), Ct_.data(), Kt_.data(), m, n))
     return fail(UnscentedFailure::LINEAR_ALGEBRA, "Singular matrix");
   for (int c = 0; c < n; ++c) {
     double s = 0.0;
-    for (int a = 0; a < m; ++a) s += Kt[a * n + c] * rm[a];
+    for (int a = 0; a < m; ++a) s += Kt_[a * n + c] * rm_[a];
     x[c] += s;
   }
   // P -= K S K^T
-  std::vector<double> SK(size_t(m) * n);
-  small::mul(S.data(), Kt.data(), SK.data(), m, m, n);
+  small::mul(S_.data(), Kt_.data(), SK_.data(), m, m, n);
   for (int c = 0; c < n; ++c)
     for (int d = 0; d < n; ++d) {
       double s = 0.0;
-      for (int a = 0; a < m; ++a) s += Kt[a * n + c] * SK[a * n + d];
+      for (int a = 0; a < m; ++a) s += Kt_[a * n + c] * SK_[a * n + d];
       P[c * n + d] -= s;
     }
   return true;

@@ -31,6 +31,7 @@ class UnscentedFilter {
                   std::vector<int64_t> chart_rows, std::vector<std::string> names);
 
   int nx() const { return nx_; }
+  int nu() const { return nu_; }
   int nz() const { return nz_; }
 
   // ``x`` (nx) and ``P`` (nx x nx) through the transition with ``(u, dt)``, plus ``Q``,
@@ -60,7 +61,9 @@ class UnscentedFilter {
   std::vector<double> wm_, wc_;
   std::vector<char> chart_;
   std::vector<std::string> names_;
-  std::vector<double> pts_, prop_, L_, scaled_, out_, dt_, zv_, mask_, rs_, mean_;
+  std::vector<double> pts_, prop_, L_, scaled_, out_, dt_, zv_, mask_, r_, rs_;
+  // the update's matrices over its valid rows (m of them): kept from sample to sample
+  std::vector<double> rm_, S_, Kt_, Ct_, SK_;
   std::vector<int> rows_;
 };
 

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import contiguous_f64 as f64
 from continuum_mhe.errors import UserError
 from continuum_mhe.estimators.base import Inference, Measurement, Status, tilt_rows
 from continuum_mhe.estimators.process_noise import ProcessNoiseCache
@@ -315,7 +316,7 @@ class UnscentedKalmanInference(_KalmanBase):
     def _predict(
         self, x: FloatArray, P: FloatArray, u: FloatArray, dt: float
     ) -> tuple[FloatArray, FloatArray]:
-        got = self._unscented.predict(_f64(x), _f64(P), _f64(u), float(dt), self._q(dt)[0])
+        got = self._unscented.predict(f64(x), f64(P), f64(u), float(dt), self._q(dt)[0])
         return _unscented_result(*got)
 
     def _update(
@@ -324,7 +325,12 @@ class UnscentedKalmanInference(_KalmanBase):
         """The update with the valid blocks (``mask``); the tilt chart is checked except
         in a (re)start's first update."""
         got = self._unscented.update(
-            _f64(x), _f64(P), _f64(z), _f64(mask), _f64(self._R), self._x is not None
+            f64(x),
+            f64(P),
+            f64(z),
+            f64(mask),
+            f64(self._R),
+            self._x is not None,
         )
         return _unscented_result(*got)
 
@@ -340,7 +346,7 @@ class UnscentedKalmanInference(_KalmanBase):
         ):
             return None
         return _core.KalmanInference(
-            self._node.core, _KalmanHooks(self), _f64(self._R), self._q,
+            self._node.core, _KalmanHooks(self), f64(self._R), self._q,
             self.formulation.inputs, self._unscented,
         )  # fmt: skip
 
@@ -349,11 +355,6 @@ class UnscentedKalmanInference(_KalmanBase):
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         return self._node.output_std(state, cov)
-
-
-def _f64(a: FloatArray) -> FloatArray:
-    """``a`` as a C-contiguous float64 array (the core's argument type)."""
-    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _unscented_result(

@@ -290,7 +290,8 @@ def warn_clocks_apart(name: str, logs: Sequence[ImuLog], half_period_s: float) -
         by_log = ", ".join(log.topic for log in logs if log.clock != "header stamps")
         warnings.warn(
             f"{name}: {by_log} {'has' if ',' not in by_log else 'have'} no header stamps "
-            "(every one zero) and are timed by the log's own times, the other topics by "
+            f"(every one zero) and {'is' if ',' not in by_log else 'are'} timed by the "
+            "log's own times, the other topics by "
             "their stamps: each pair joins a sensor's instant with a message's arrival, "
             "later by its delivery delay, which the log cannot show; stamp every IMU on "
             "one clock (readings paired across a motion give estimates that can be far "

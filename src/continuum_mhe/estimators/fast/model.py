@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 import continuum_mhe._core as _core
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.arrays import contiguous_f64 as f64
 from continuum_mhe.estimators.fast.window_functions import (
     block_columns,
     core_function,
@@ -253,7 +254,7 @@ class NodeEvaluator:
         zeroes the components of sensors that dropped out."""
         z = self._zeros if z is None else z
         mask = self._ones if mask is None else mask
-        return self._core.evaluate(_f64(x), _f64(u), float(dt), _f64(z), _f64(mask))
+        return self._core.evaluate(f64(x), f64(u), float(dt), f64(z), f64(mask))
 
     def arrival_step(
         self,
@@ -270,7 +271,7 @@ class NodeEvaluator:
         ``mask``; none: prediction only), predict with ``(u, dt)``. Returns
         ``(x+, P+, P+^-1)``, ``P+`` symmetrised."""
         return self._core.arrival_step(
-            _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
+            f64(x), f64(P), f64(u), float(dt), f64(z), f64(mask), f64(R), f64(Q)
         )
 
     def ekf_step_outputs(
@@ -290,7 +291,7 @@ class NodeEvaluator:
         :meth:`output` and :meth:`output_std` of its answer, in one call into the core:
         ``(x+, P+, outputs, output standard deviations)``."""
         return self._core.ekf_step_outputs(
-            _f64(x), _f64(P), _f64(u), float(dt), _f64(z), _f64(mask), _f64(R), _f64(Q)
+            f64(x), f64(P), f64(u), float(dt), f64(z), f64(mask), f64(R), f64(Q)
         )
 
     @property
@@ -302,18 +303,12 @@ class NodeEvaluator:
     def output_std(self, x: FloatArray, P: FloatArray) -> FloatArray:
         """One standard deviation of every output for a state with mean ``x`` and
         covariance ``P``: the same as :meth:`Formulation.output_std`."""
-        return self._core.output_std(_f64(x), _f64(P))
+        return self._core.output_std(f64(x), f64(P))
 
     def output(self, x: FloatArray) -> FloatArray:
         """The outputs of state ``x`` (``output_sym``; wrapped angles in ``[-pi, pi)``
         as :meth:`Formulation.output` does)."""
-        return self._core.output(_f64(x))
-
-
-def _f64(a: FloatArray) -> FloatArray:
-    """``a`` as a C-contiguous float64 array (no copy when it is one already): the
-    compiled calls' argument types are fixed on their first call."""
-    return np.ascontiguousarray(a, dtype=np.float64)
+        return self._core.output(f64(x))
 
 
 @lru_cache(maxsize=32)
