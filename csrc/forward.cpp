@@ -11,14 +11,21 @@ namespace {
 inline double sign(double v) { return v < 0 ? -1.0 : (v > 0 ? 1.0 : v); }
 
 // dr over [lo, hi): p * d on [l, h) (inside it), zero elsewhere. ``kChecked``: a zero
-// entry of d gives a zero term even against an infinite or undefined p; without it
-// (p finite) the loop has no branch and differs only in the sign of a zero.
+// entry of d gives a zero term even against an infinite or undefined p.
 template <bool kChecked>
 inline void scaled_tangent(double* dr, int64_t lo, int64_t hi, int64_t l, int64_t h,
                            double p, const double* d) {
   for (int64_t k = lo; k < l; ++k) dr[k] = 0.0;
   for (int64_t k = l; k < h; ++k) dr[k] = kChecked && d[k] == 0.0 ? 0.0 : p * d[k];
   for (int64_t k = h; k < hi; ++k) dr[k] = 0.0;
+}
+
+// zero the slot's entries that its previous value may have left nonzero ([rg[6],
+// rg[7]), ForwardPlan) outside its new range [rg[0], rg[1])
+inline void clear_outside(double* dr, const int32_t* rg) {
+  const int32_t lo = rg[0], hi = rg[1], old_lo = rg[6], old_hi = rg[7];
+  if (old_lo < lo) std::fill(dr + old_lo, dr + std::min(lo, old_hi), 0.0);
+  if (old_hi > hi) std::fill(dr + std::max(hi, old_lo), dr + old_hi, 0.0);
 }
 }  // namespace
 
@@ -52,16 +59,27 @@ bool derivative_uses_b(int32_t op) {
 }  // namespace
 
 ForwardPlan plan_forward(const Tape& tape, int seed) {
+  constexpr int kS = ForwardPlan::kStride;
   ForwardPlan plan;
   plan.seed = seed;
   const auto& code = tape.code();
-  plan.ranges.assign(code.size() * 6, 0);
-  // each work slot's current range (its latest value's)
-  std::vector<int32_t> lo(static_cast<size_t>(tape.work_size()), 0);
-  std::vector<int32_t> hi(static_cast<size_t>(tape.work_size()), 0);
+  const int32_t d = static_cast<int32_t>(tape.input_sizes().at(static_cast<size_t>(seed)));
+  plan.ranges.assign(code.size() * kS, 0);
+  // the instructions a GUARD may skip
+  std::vector<char> skippable(code.size(), 0);
+  for (size_t i = 0; i < code.size(); ++i)
+    if (code[i].op == OP_GUARD)
+      for (size_t k = i + 1; k <= i + static_cast<size_t>(code[i].res) && k < code.size(); ++k)
+        skippable[k] = 1;
+  // each work slot's current range (its latest value's), and whether its content is
+  // known to be zero outside that range (written in this evaluation, by an instruction
+  // that always runs)
+  const size_t nw = static_cast<size_t>(tape.work_size());
+  std::vector<int32_t> lo(nw, 0), hi(nw, 0);
+  std::vector<char> known(nw, 0);
   for (size_t i = 0; i < code.size(); ++i) {
     const Instruction& I = code[i];
-    int32_t* r = plan.ranges.data() + 6 * i;
+    int32_t* r = plan.ranges.data() + kS * i;
     if (I.op == OP_GUARD) continue;  // res: a count, not a slot
     if (I.op == OP_OUTPUT) {  // res: the output's entry, b: the output; a: the slot read
       r[0] = r[2] = lo[static_cast<size_t>(I.a)];
@@ -86,10 +104,14 @@ ForwardPlan plan_forward(const Tape& tape, int seed) {
         h = ea ? r[5] : (eb ? r[3] : std::max(r[3], r[5]));
       }
     }
+    const size_t s = static_cast<size_t>(I.res);
     r[0] = l;
     r[1] = h;
-    lo[static_cast<size_t>(I.res)] = l;
-    hi[static_cast<size_t>(I.res)] = h;
+    r[6] = known[s] ? lo[s] : 0;
+    r[7] = known[s] ? hi[s] : d;
+    lo[s] = l;
+    hi[s] = h;
+    known[s] = !skippable[i];
   }
   return plan;
 }
@@ -111,12 +133,14 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     if (out[j]) std::fill(out[j], out[j] + sizes[j], 0.0);
     if (dout[j]) std::fill(dout[j], dout[j] + sizes[j] * d, 0.0);
   }
-  // A slot's tangent is written, and read, over its value's range alone: outside it
-  // the entries are zero by the plan and left as they are in memory.
+  // A slot's tangent is written over its value's range and kept zero outside it (the
+  // previous value's entries outside the new range are cleared): an operation reads
+  // its operands' tangents over the result's range.
   const auto& code = tape.code();
+  constexpr int kS = ForwardPlan::kStride;
   for (size_t pc = 0; pc < code.size(); ++pc) {
     const Instruction& I = code[pc];
-    const int32_t* rg = plan.ranges.data() + 6 * pc;
+    const int32_t* rg = plan.ranges.data() + kS * pc;
     if (I.op == OP_GUARD) {  // the values skipped are read only as IF_ELSE_ZERO(0, .)
       if (w[I.a] == 0.0) pc += static_cast<size_t>(I.res);
       continue;
@@ -125,6 +149,7 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     if (I.op == OP_INPUT) {
       w[I.res] = in[I.a] ? in[I.a][I.b] : 0.0;
       if (I.a == seed) dr[I.b] = 1.0;
+      clear_outside(dr, rg);
       continue;
     }
     if (I.op == OP_OUTPUT) {
@@ -137,6 +162,7 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     }
     if (I.op == OP_CONST) {
       w[I.res] = c[I.a];
+      clear_outside(dr, rg);
       continue;
     }
     const double x = w[I.a], y = w[I.b];
@@ -222,28 +248,29 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
     // a zero partial or a zero tangent contributes nothing, even against an infinite
     // or undefined factor (a symbolic Jacobian has no term there: a structural zero).
     // Over the result's range [lo, hi): x's tangent counts on [xl, xh), y's on
-    // [yl, yh) (both inside it; the result's slot may be an operand's).
+    // [yl, yh) (both inside it; the result's slot may be an operand's), and is zero
+    // elsewhere in that range.
     const int64_t lo = rg[0], hi = rg[1];
     const int64_t xl = px == 0.0 ? 0 : rg[2], xh = px == 0.0 ? 0 : rg[3];
     const int64_t yl = py == 0.0 ? 0 : rg[4], yh = py == 0.0 ? 0 : rg[5];
     const bool has_x = xl < xh, has_y = yl < yh;
-    // finite partials: a zero tangent entry gives a zero term without the test (its
-    // sign aside), so the loops run without branches
-    const bool finite = std::isfinite(px) && std::isfinite(py);
-    if (!has_x && !has_y) {
+    if (std::isfinite(px) && std::isfinite(py)) {
+      // finite partials: a zero tangent entry gives a zero term (its sign aside), so
+      // the loops run over the whole range without branches
+      if (has_x && has_y)
+        for (int64_t k = lo; k < hi; ++k) dr[k] = px * dx[k] + py * dy[k];
+      else if (has_x)
+        for (int64_t k = lo; k < hi; ++k) dr[k] = px * dx[k];
+      else if (has_y)
+        for (int64_t k = lo; k < hi; ++k) dr[k] = py * dy[k];
+      else
+        std::fill(dr + lo, dr + hi, 0.0);
+    } else if (!has_x && !has_y) {
       std::fill(dr + lo, dr + hi, 0.0);
     } else if (!has_y) {
-      if (finite)
-        scaled_tangent<false>(dr, lo, hi, xl, xh, px, dx);
-      else
-        scaled_tangent<true>(dr, lo, hi, xl, xh, px, dx);
+      scaled_tangent<true>(dr, lo, hi, xl, xh, px, dx);
     } else if (!has_x) {
-      if (finite)
-        scaled_tangent<false>(dr, lo, hi, yl, yh, py, dy);
-      else
-        scaled_tangent<true>(dr, lo, hi, yl, yh, py, dy);
-    } else if (finite && xl == lo && xh == hi && yl == lo && yh == hi) {
-      for (int64_t k = lo; k < hi; ++k) dr[k] = px * dx[k] + py * dy[k];
+      scaled_tangent<true>(dr, lo, hi, yl, yh, py, dy);
     } else {
       for (int64_t k = lo; k < hi; ++k) {
         const double vx = (k >= xl && k < xh && dx[k] != 0.0) ? px * dx[k] : 0.0;
@@ -251,6 +278,7 @@ void evaluate_forward(const Tape& tape, const ForwardPlan& plan, const double* c
         dr[k] = vx + vy;
       }
     }
+    clear_outside(dr, rg);
   }
 }
 

@@ -16,9 +16,18 @@ namespace cmhe {
 // through differentiable operations (it may hold more). A model's long shooting
 // depends on a few of the state's entries (the IMUs' error states enter only at its
 // end), so its tangents are propagated over those alone.
+//
+// A work slot's tangent is kept zero outside its value's range, so that an operation
+// reads its operands over the result's whole range without tests: each instruction also
+// names the entries the slot's previous value may have left nonzero (``lo_old, hi_old``:
+// that value's range, or the whole tangent where the slot has not been written yet in
+// this evaluation or its last write may have been skipped by a GUARD), which it clears
+// outside its own range.
 struct ForwardPlan {
+  static constexpr int kStride = 8;  // entries of ``ranges`` per instruction
   int seed = 0;
-  std::vector<int32_t> ranges;  // per instruction: lo_res, hi_res, lo_a, hi_a, lo_b, hi_b
+  // per instruction: lo_res, hi_res, lo_a, hi_a, lo_b, hi_b, lo_old, hi_old
+  std::vector<int32_t> ranges;
 };
 ForwardPlan plan_forward(const Tape& tape, int seed);
 

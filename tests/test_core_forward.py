@@ -96,6 +96,57 @@ def test_random_expressions_over_parts_of_the_input_equal_casadis(
     np.testing.assert_allclose(got[finite], expected[finite], rtol=1e-12, atol=1e-12)
 
 
+# a function whose every value reads all eight inputs: evaluated first, it leaves the
+# forward mode's reused tangent memory nonzero in every entry of many work slots
+_v8 = ca.SX.sym("v", 8)
+_DENSE = _core.ForwardJacobianFunction(
+    tape_function(
+        ca.Function(
+            "dense", [_v8], [ca.vertcat(*(ca.sin(ca.sum1(_v8) * (k + 1)) * _v8[k % 8]
+                                          for k in range(64)))]
+        )
+    )
+)  # fmt: skip
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(0.1, 2) | st.floats(-2, -0.1), min_size=8, max_size=8),
+    st.booleans(),
+    st.integers(1, 6),
+)
+def test_slots_reused_after_a_skipped_branch_carry_no_stale_derivatives(
+    values: list[float], taken: bool, depth: int
+) -> None:
+    """A value of one input read only by ``if_else(c, value, 0)`` is skipped where ``c``
+    is zero (a GUARD); its work slots are reused afterwards by values of one or two
+    other inputs. Evaluated after a function whose tangents fill every entry (the
+    tangents' memory is reused from call to call and from function to function), the
+    forward-mode Jacobian, which keeps each slot's tangent zero outside its value's
+    inputs, equals CasADi's whether or not the branch ran."""
+    v = ca.SX.sym("v", 8)
+    chain = v[1]
+    for _ in range(depth + 2):  # values of v[1] alone, in slots reused later
+        chain = ca.sin(chain) * chain + v[1]
+    c = v[0] > 0 if taken else v[0] > 100
+    gated = ca.if_else(c, chain * chain, 0)
+    narrow = [ca.cos(v[k] * v[(k + depth) % 6 + 2]) for k in range(2, 8)]
+    out = ca.vertcat(gated, *narrow, narrow[0] * narrow[-1] + v[7])
+    f = ca.Function("f", [v], [out])
+    forward = _core.ForwardJacobianFunction(tape_function(f))
+    other = np.array(values)
+    other[0] = -other[0] if taken else 200.0  # the branch's other outcome
+    scratch = np.empty(_DENSE.output_size)
+    for x in (np.array(values), other, np.array(values)):
+        expected = np.asarray(ca.Function("j", [v], [ca.densify(ca.jacobian(out, v))])(x))
+        _DENSE.evaluate([x], scratch)
+        got = np.full(forward.output_size, np.nan)
+        forward.evaluate([x], got)
+        np.testing.assert_allclose(
+            got.reshape(expected.shape, order="F"), expected, rtol=1e-12, atol=1e-12
+        )
+
+
 def test_an_operation_without_a_derivative_is_refused() -> None:
     w = ca.SX.sym("w")
     with pytest.raises(ValueError, match="FMOD"):
