@@ -19,7 +19,12 @@ from robot_log_helpers import IMU, T0_NS, imu_msg
 from continuum_mhe.benchmark.harness import raw_imu_recording
 from continuum_mhe.cli import main
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.imu_topics import TopicClockWarning, pair_stamps, read_imu_topics
+from continuum_mhe.io.imu_topics import (
+    TopicClockWarning,
+    fill_outages,
+    pair_stamps,
+    read_imu_topics,
+)
 from continuum_mhe.io.raw_imu import raw_columns
 from continuum_mhe.io.robot_file import read_robot
 from continuum_mhe.io.state_tables import read_state_table
@@ -42,11 +47,29 @@ def test_pair_stamps_known_answers() -> None:
     assert [list(i) for i in idx] == [[0, 1, 2, 3, 4], [0, 1, 2, 3, -1], [0, -1, 1, 2, -1]]
 
 
+def test_fill_outages_known_answers() -> None:
+    """IMU 1 silent from 20 to 60 (period 10, tolerance 4): IMU 2's samples there fill
+    the outage, thinned to IMU 1's rate where IMU 2 is faster, none within the tolerance
+    of a sample taken before; a third topic fills only where neither IMU 1 nor IMU 2
+    has a sample."""
+    ref = np.array([0, 10, 20, 60, 70], dtype=np.int64)
+    assert list(fill_outages([ref, ref + 1], 10, 4)) == list(ref)  # no outage
+    other = np.array([1, 11, 21, 31, 41, 51, 61], dtype=np.int64)
+    assert list(fill_outages([ref, other], 10, 4)) == [0, 10, 20, 31, 41, 51, 60, 70]
+    fast = np.arange(0, 75, 5, dtype=np.int64) + 1  # 1, 6, ..., 71: twice IMU 1's rate
+    assert list(fill_outages([ref, fast], 10, 4)) == [0, 10, 20, 31, 41, 51, 60, 70]
+    # IMU 2 silent from 35 on: IMU 3 fills the rest, not beside IMU 2's 31
+    imu2 = np.array([1, 11, 21, 31, 61], dtype=np.int64)
+    imu3 = np.array([2, 12, 22, 33, 43, 53, 62], dtype=np.int64)
+    assert list(fill_outages([ref, imu2, imu3], 10, 4)) == [0, 10, 20, 31, 43, 53, 60, 70]
+
+
 @pytest.fixture(scope="module")
 def streams() -> dict[str, Any]:
     """Two IMUs of the two-section robot with their own clocks: IMU 2 stamped 1.5 ms
-    (+- 1 ms jitter) after IMU 1, IMU 2 missing samples 5 and 6, IMU 1 missing sample 30,
-    and three stray IMU 2 samples 9 ms after an IMU 1 sample (nobody's nearest)."""
+    (+- 1 ms jitter) after IMU 1, IMU 2 missing samples 5 and 6, IMU 1 missing sample 30
+    (IMU 2's sample 30 fills it: ``timeline``, the samples' stamps), and three stray IMU
+    2 samples 9 ms after an IMU 1 sample (nobody's nearest)."""
     rec = raw_imu_recording(read_robot("two-section"), 2.0)
     n = len(rec.t)
     rng = np.random.default_rng(7)
@@ -70,8 +93,10 @@ def streams() -> dict[str, Any]:
     }
     order = np.argsort(imu[1]["stamps"])
     imu[1] = {key: v[order] for key, v in imu[1].items()}
-    paired1 = np.flatnonzero(np.isin(np.arange(n), [5, 6, 30], invert=True))
-    return {"imu": imu, "base": base, "paired": paired1, "unpaired": (2, 1 + len(stray))}
+    with_imu2 = np.flatnonzero(np.isin(np.arange(n), [5, 6], invert=True))
+    timeline = np.sort(np.append(imu[0]["stamps"], base[30] + 1_500_000 + jitter[30]))
+    return {"imu": imu, "base": base, "with_imu2": with_imu2, "strays": len(stray),
+            "timeline": timeline}  # fmt: skip
 
 
 def _messages(store: Any, imu: dict[str, Any]) -> list[tuple[int, bytes]]:
@@ -218,7 +243,7 @@ def test_zero_of_time_is_imu_1_s_first_stamp_where_a_topic_starts_later(
     log = write_mcap_topics(tmp_path / "late.mcap", [streams["imu"][0], late2])
     paired = read_imu_topics(log, TOPICS, 2)
     assert paired.t0_ns == streams["imu"][0]["stamps"][0] == T0_NS
-    np.testing.assert_allclose(paired.t, (streams["imu"][0]["stamps"] - T0_NS) / 1e9)
+    np.testing.assert_allclose(paired.t, (streams["timeline"] - T0_NS) / 1e9)
     first = int(np.argmax(paired.logs[1].numbers > 0))
     assert paired.t[first] == pytest.approx(0.16) and paired.dropouts[1] == first
 
@@ -267,23 +292,26 @@ def test_topics_pair_by_stamp_and_count_the_rest(
     log = write(tmp_path / name, streams["imu"])
     paired = read_imu_topics(log, TOPICS, 2)
     assert paired.tolerance_s == pytest.approx(0.010)  # half of the 20 ms period
-    imu1 = streams["imu"][0]["stamps"]  # every sample of IMU 1 is a sample
-    np.testing.assert_array_equal(paired.t, (imu1 - imu1[0]) / 1e9)
+    imu1 = streams["imu"][0]["stamps"]  # every sample of IMU 1 is a sample, and IMU 2's
+    timeline = streams["timeline"]  # sample 30 where IMU 1 has none (its outage)
+    np.testing.assert_array_equal(paired.t, (timeline - imu1[0]) / 1e9)
     assert paired.t0_ns == imu1[0]
-    # IMU 1's samples 5 and 6 have no IMU 2 partner: dropouts of IMU 2 there; IMU 2's
-    # sample 30 (IMU 1 has none) and its three strays are unused
-    assert paired.dropouts == (0, 2) and paired.unpaired == (0, streams["unpaired"][1])
-    missing = np.isin(np.arange(len(imu1)), [5, 6])
+    # samples 5 and 6 have no IMU 2 partner: dropouts of IMU 2 there; sample 30 none of
+    # IMU 1; IMU 2's three strays are unused
+    assert paired.dropouts == (1, 2) and paired.unpaired == (0, streams["strays"])
+    missing = np.isin(np.arange(len(timeline)), [5, 6])
     assert np.isnan(paired.logs[1].acc[missing]).all()
     assert np.array_equal(paired.logs[1].numbers == 0, missing)
-    # every IMU 2 sample in a pair is the one stamped 1.5 +- 1 ms after its IMU 1 sample
-    ref = streams["base"][streams["paired"]]
+    assert np.array_equal(paired.logs[0].numbers == 0, np.arange(len(timeline)) == 30)
+    assert np.isnan(paired.logs[0].acc[30]).all()
+    # every IMU 2 sample in a pair is the one stamped 1.5 +- 1 ms after IMU 1's sample
+    ref = streams["base"][streams["with_imu2"]]
     i2 = np.searchsorted(streams["imu"][1]["stamps"], ref + 500_000)
     np.testing.assert_array_equal(paired.logs[1].acc[~missing], streams["imu"][1]["acc"][i2])
     assert paired.report() == (
-        f"paired {len(imu1)} samples of 2 topics (/imu1, /imu2) by header stamps within 10 ms; "
-        f"without a partner (a dropout of that IMU): /imu2 2; unpaired: /imu1 0, "
-        f"/imu2 {streams['unpaired'][1]}"
+        f"paired {len(timeline)} samples of 2 topics (/imu1, /imu2) by header stamps within "
+        f"10 ms; without a partner (a dropout of that IMU): /imu1 1, /imu2 2; unpaired: "
+        f"/imu1 0, /imu2 {streams['strays']}"
     )
     # a tolerance below the 0.5..2.5 ms offsets pairs fewer, and says so
     tight = read_imu_topics(log, TOPICS, 2, tolerance_s=0.0015)
@@ -317,12 +345,49 @@ def test_estimate_from_topics_equals_the_paired_csv(
     assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
     err = capsys.readouterr().err
     assert err.count("paired ") == 1
-    assert f"unpaired: /imu1 0, /imu2 {streams['unpaired'][1]}" in err
+    assert f"unpaired: /imu1 0, /imu2 {streams['strays']}" in err
     csv_in = _paired_csv(tmp_path / "p.csv", streams, read_imu_topics(log, TOPICS, 2))
     assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
     a = read_state_table(tmp_path / "a.csv", ())
     b = read_state_table(tmp_path / "b.csv", ())
-    assert len(a.t) == len(streams["imu"][0]["stamps"])
+    assert len(a.t) == len(streams["timeline"])
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+
+
+def test_an_outage_of_imu_1_is_estimated_from_the_other_imus(
+    streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 1 silent for 0.6 s (samples 40 to 69) while IMU 2 goes on at twice IMU 1's
+    rate there: those 0.6 s are estimated from IMU 2 at IMU 1's rate (its samples were
+    left unused, a gap in the estimate), IMU 1 missing as in a table's row with its
+    fields empty (the estimates equal those of that table), and the line says so."""
+    imu1, imu2 = dict(streams["imu"][0]), dict(streams["imu"][1])
+    base = streams["base"]
+    out = (imu1["stamps"] >= base[40]) & (imu1["stamps"] <= base[69])
+    imu1 = {k: v[~out] for k, v in imu1.items()}
+    extra = (imu2["stamps"] > base[40]) & (imu2["stamps"] < base[69])  # 100 Hz there
+    imu2 = {k: np.concatenate([v, v[extra]]) if k != "stamps" else
+            np.concatenate([v, v[extra] + 10_000_000]) for k, v in imu2.items()}  # fmt: skip
+    order = np.argsort(imu2["stamps"])
+    imu2 = {k: v[order] for k, v in imu2.items()}
+    log = write_mcap_topics(tmp_path / "outage.mcap", [imu1, imu2])
+    pairs = read_imu_topics(log, TOPICS, 2)
+    inside = (pairs.t > (base[39] - T0_NS) / 1e9) & (pairs.t < (base[70] - T0_NS) / 1e9)
+    assert inside.sum() == 30 and pairs.dropouts[0] == 30 + 1  # and sample 30
+    assert np.median(np.diff(pairs.t[inside])) == pytest.approx(0.02, abs=2e-3)
+    assert (pairs.logs[0].numbers[inside] == 0).all() and (pairs.logs[1].numbers[inside] > 0).all()
+    robot = ["--robot", "two-section", "--method", "ekf", "--imu-model", "direct"]
+    topics = ["--topic", TOPICS[0], "--topic", TOPICS[1]]
+    assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
+    assert (
+        "without a partner (a dropout of that IMU): /imu1 31, /imu2 2; " in capsys.readouterr().err
+    )
+    csv_in = _paired_csv(tmp_path / "p.csv", streams, pairs)
+    assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
+    a = read_state_table(tmp_path / "a.csv", ())
+    b = read_state_table(tmp_path / "b.csv", ())
+    assert len(a.t) == len(pairs.t) == len(imu1["stamps"]) + 31
     np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
 

@@ -6,12 +6,15 @@ topic is read as in :mod:`continuum_mhe.io.robot_logs` (messages with a non-incr
 stamp skipped and counted); then samples are paired across topics by header stamp: a
 sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
 (mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
-most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; in a topic
-where it has no partner, that IMU's reading is missing (a dropout of that IMU, as a
-table's row with its fields empty). The default tolerance is half of IMU 1's median
-sample period (a pair is then always closer than the next sample); ``--pair-tolerance``
-sets it in seconds. The dropouts and the samples of the other topics left without a
-partner are counted per topic and reported in one line. A run in which many
+most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
+is silent for more than one and a half of its median sample periods (an outage) while
+another topic goes on, that topic's samples there are samples too (:func:`fill_outages`),
+at most one per IMU 1 period, IMU 1's reading missing. A sample without a partner in
+a topic has that IMU's reading missing (a dropout of that IMU, as a table's row with
+its fields empty). The default tolerance is half of IMU 1's median sample period (a pair
+is then always closer than the next sample); ``--pair-tolerance`` sets it in seconds.
+The dropouts and the samples of the topics left without a partner are counted per
+topic and reported in one line. A run in which many
 samples restarted the estimator gets one warning that the topics may be out of order
 (:func:`warn_topic_order`), and so do topics whose names number them in another order
 than the one given (:func:`warn_numbers_out_of_order`). Topics whose header stamps stand
@@ -45,17 +48,19 @@ IntArray = NDArray[np.int64]
 
 @dataclass(frozen=True)
 class PairedImus:
-    """IMU samples of several topics, paired by header stamp on IMU 1's samples.
+    """IMU samples of several topics, paired by header stamp on IMU 1's samples and
+    those that fill IMU 1's outages.
 
     Attributes:
-        logs: per topic (robot-file order), its samples at IMU 1's: a sample of IMU 1
+        logs: per topic (robot-file order), its samples at those of ``t``: a sample
             without a partner in a topic is NaN there (a dropout of that IMU; its
             ``numbers`` 0).
-        t: (n,) s since ``t0_ns``: IMU 1's stamps.
+        t: (n,) s since ``t0_ns``: IMU 1's stamps, and other topics' stamps where IMU 1
+            had an outage (:func:`fill_outages`).
         t0_ns: absolute time of IMU 1's first sample, ns.
         tolerance_s: largest stamp difference accepted in a pair, s.
         read: samples read per topic (after skipping non-increasing stamps).
-        partners: per topic, IMU 1's samples with a partner in it (IMU 1: all).
+        partners: per topic, the samples with a partner in it (IMU 1: its own).
         skipped: descriptions of skipped messages, prefixed by their topic.
     """
 
@@ -74,14 +79,19 @@ class PairedImus:
 
     @property
     def dropouts(self) -> tuple[int, ...]:
-        """IMU 1's samples without a partner in each topic (that IMU's dropouts)."""
+        """The samples without a partner in each topic (that IMU's dropouts; IMU 1's:
+        the samples filling its outages)."""
         return tuple(len(self.t) - p for p in self.partners)
 
     def report(self) -> str:
-        """One line: samples, tolerance, dropouts and unpaired samples per topic."""
+        """One line: samples, tolerance, dropouts and unpaired samples per topic (IMU
+        1's dropouts where it had outages)."""
         topics = ", ".join(log.topic for log in self.logs)
         left = ", ".join(f"{log.topic} {u}" for log, u in zip(self.logs, self.unpaired))
-        missing = ", ".join(f"{log.topic} {d}" for log, d in zip(self.logs[1:], self.dropouts[1:]))
+        missing = ", ".join(
+            f"{log.topic} {d}" for k, (log, d) in enumerate(zip(self.logs, self.dropouts))
+            if k > 0 or d > 0
+        )  # fmt: skip
         clocks = sorted({log.clock for log in self.logs})
         return (
             f"paired {len(self.t)} samples of {len(self.logs)} topics ({topics}) by "
@@ -118,6 +128,43 @@ def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]
         paired = (back[j] == np.arange(len(ref))) & (np.abs(other[j] - ref) <= tolerance_ns)
         out.append(np.where(paired, j, -1).astype(np.int64))
     return out
+
+
+#: IMU 1 silent for more than this many of its median sample periods is an outage, which
+#: the other topics' samples fill (:func:`fill_outages`).
+OUTAGE_PERIODS = 1.5
+#: Samples that fill an outage are at least this many of IMU 1's periods apart (a
+#: faster topic's samples are thinned to about IMU 1's rate).
+FILL_SPACING_PERIODS = 0.75
+
+
+def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int) -> IntArray:
+    """The samples' stamps (ns, increasing): IMU 1's (``stamps[0]``), and where IMU 1 is
+    silent for more than :data:`OUTAGE_PERIODS` of ``period_ns`` between two of its
+    samples, the stamps of the other topics there, topic by topic in order: each one
+    farther than ``tolerance_ns`` from every stamp taken before (so no sample of IMU 1
+    or of an earlier topic could pair with it) and at least
+    :data:`FILL_SPACING_PERIODS` periods from the last one taken in that outage."""
+    ref = stamps[0]
+    gaps = np.flatnonzero(np.diff(ref) > OUTAGE_PERIODS * period_ns)
+    if len(gaps) == 0:
+        return ref
+    taken = list(ref)
+    for other in stamps[1:]:
+        timeline = np.sort(np.asarray(taken, dtype=np.int64))
+        for g in gaps:
+            lo, hi = ref[g], ref[g + 1]
+            last = lo
+            for s in other[(other > lo + tolerance_ns) & (other < hi - tolerance_ns)]:
+                near = timeline[_nearest(np.array([s]), timeline)[0]]
+                if abs(int(near) - int(s)) <= tolerance_ns:
+                    last = max(last, int(near))
+                    continue
+                if s - last < FILL_SPACING_PERIODS * period_ns:
+                    continue
+                taken.append(int(s))
+                last = int(s)
+    return np.sort(np.asarray(taken, dtype=np.int64))
 
 
 def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:
@@ -176,18 +223,22 @@ def read_imu_topics(
             raise InputError(f"{p}: topic {topics[0]} has one sample: pass --pair-tolerance")
         tolerance_s = half_period_s
     warn_clocks_apart(str(p), logs, half_period_s)
-    idx = pair_stamps(stamps, int(round(tolerance_s * 1e9)))
+    tolerance_ns = int(round(tolerance_s * 1e9))
+    idx = pair_stamps(stamps, tolerance_ns)
     for topic, i in zip(topics[1:], idx[1:]):
         if not (i >= 0).any():
             raise InputError(
                 f"{p}: no sample of {topic} pairs with one of {topics[0]} within "
                 f"{_duration(tolerance_s)} (--pair-tolerance)"
             )
-    ref = stamps[0]
+    # IMU 1's outages filled by the other topics: every topic paired on the samples
+    timeline = fill_outages(stamps, 2.0 * half_period_s * 1e9, tolerance_ns)
+    if len(timeline) > len(stamps[0]):
+        idx = pair_stamps([timeline, *stamps], tolerance_ns)[1:]
     # IMU 1's first stamp: a topic that starts later leaves t = 0 where a tensions file
     # counted from the log's start of IMU 1 has it
-    t0 = int(ref[0])
-    t = (ref - t0) / 1e9
+    t0 = int(stamps[0][0])
+    t = (timeline - t0) / 1e9
     return PairedImus(
         logs=tuple(_subset(log, i, t, t0) for log, i in zip(logs, idx)),
         t=t,
