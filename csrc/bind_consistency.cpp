@@ -111,7 +111,8 @@ void cmhe::bind_consistency(nb::module_& m) {
                    "(R^-1 r)^T S (R^-1 r) (0 without a previous estimate).")
       .def_prop_ro("shift", &ConsistencyCheck::shift,
                    "The shift that fits the last sample's readings in its covariance, "
-                   "d^T P^+ d (computed only where fit_nis is beyond its limit, else 0).")
+                   "d^T P^+ d (computed only where fit_nis is beyond its limit and the shift "
+                   "test is on, some shift_limit finite; else 0).")
       .def_prop_ro("dof", &ConsistencyCheck::dof, "The last sample's judged readings.");
 
   m.def(

@@ -68,6 +68,7 @@ ConsistencyCheck::ConsistencyCheck(const ModelFunction& transition,
   writes(residual_, nz, "residual (r)");
   r_inv_.resize(nz);
   for (size_t i = 0; i < nz; ++i) r_inv_[i] = 1.0 / s_.R[i * nz + i];
+  for (double v : s_.shift_limit) shift_judged_ = shift_judged_ || std::isfinite(v);
   zv_.resize(nz);
   ones_.assign(nz, 1.0);
   zeros_u_.assign(s_.nu, 0.0);
@@ -143,8 +144,10 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       for (int a = 0; a < dof; ++a) w[a] = r_[rows_[a]] * r_inv_[rows_[a]];
       fit_nis_ = w.dot(S_ * w);
       // an update that was not a linear one: is the shift to the readings' own shape
-      // within this estimate's covariance?
-      if (fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
+      // within this estimate's covariance? (not asked where no shift is beyond its
+      // limit: a model with pseudo-measurements, whose update is not a linear one of
+      // the readings alone)
+      if (shift_judged_ && fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
     } else {
       evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());
     }

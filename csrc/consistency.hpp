@@ -104,7 +104,8 @@ class ConsistencyCheck {
   double fit_nis() const { return fit_nis_; }
   // the shift that fits the readings, in this estimate's covariance: ``d^T P^+ d`` with
   // ``d = (H^T R^-1 H)^+ H^T R^-1 r`` over the states the readings depend on; computed
-  // only where the fit's NIS is beyond its limit (else 0)
+  // only where the fit's NIS is beyond its limit and some shift_limit is finite (a
+  // model whose shift test is off has none), else 0
   double shift() const { return shift_; }
   // how many times this estimate's covariance must grow for the shift that fits the
   // readings to lie at its quantile (``shift() / shift_limit``); 1 where the shift is
@@ -144,6 +145,7 @@ class ConsistencyCheck {
   } cov_;
   double t0_ = 0.0;
   bool has_prev_ = false;
+  bool shift_judged_ = false;  // some shift_limit is finite: the shift can matter
   double noise_scale_ = 1.0, model_error_ = 0.0, nis_ = 0.0, fit_ = 0.0, fit_nis_ = 0.0;
   double shift_ = 0.0, quiet_scale_ = 1.0;
   int avg_dof_ = 0, dof_ = 0, shift_dof_ = 0;

@@ -1460,6 +1460,26 @@ def _raw_shipped(
     return f, t, z
 
 
+def test_the_check_skips_the_shift_that_a_tendon_robot_does_not_judge() -> None:
+    """The tip condition's pseudo-measurements pull each update, so a tendon robot's
+    shift test is off (every shift limit infinite): the check does not evaluate the
+    model again for the shift (a Jacobian of the shooting a sample), though the fit's
+    NIS is beyond its limit on every sample."""
+    from continuum_mhe.estimators import make_estimator
+    from continuum_mhe.estimators.consistency import SAMPLE_QUANTILE
+    from continuum_mhe.results import Measurement
+    from continuum_mhe.estimators.chi2 import chi2_quantile
+
+    f, t, z = _raw_shipped(12, "force-29")
+    est = make_estimator("ekf", f)
+    core = est._consistency.core
+    for k, (tk, zk) in enumerate(zip(t, z)):
+        est.step(Measurement(float(tk), zk))
+        if k > 0:
+            assert core.fit_nis > chi2_quantile(SAMPLE_QUANTILE, core.dof), k
+            assert core.shift == 0.0, k
+
+
 def test_the_estimators_refuse_a_negative_tension_as_the_tensions_file_does() -> None:
     """A negative tension given to ``step``, ``run`` or ``continue_run`` is one
     UserError naming the sample and the tendon (a tendon cannot push), as the tensions

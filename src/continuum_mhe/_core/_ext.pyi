@@ -394,7 +394,7 @@ class ConsistencyCheck:
     @property
     def shift(self) -> float:
         """
-        The shift that fits the last sample's readings in its covariance, d^T P^+ d (computed only where fit_nis is beyond its limit, else 0).
+        The shift that fits the last sample's readings in its covariance, d^T P^+ d (computed only where fit_nis is beyond its limit and the shift test is on, some shift_limit finite; else 0).
         """
 
     @property
