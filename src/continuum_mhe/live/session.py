@@ -464,6 +464,12 @@ class LiveSession:
         placed = self.clock.place(s.t_ms, arrival, p)
         t = placed.t
         if placed.event == "out-of-order":
+            if c.out_of_order == 0:
+                self.say(
+                    f"a line with t_ms {s.t_ms:g} after one with t_ms {dev_prev:g}: not after "
+                    "the last sample (a repeated, late or stray line), skipped (said for "
+                    "the first only; all are counted)"
+                )
             c.out_of_order += 1
             return None
         given = None
