@@ -543,12 +543,12 @@ def test_one_ctrl_c_estimates_every_queued_line_with_ipopt(tmp_path: Path) -> No
     """The MHE on IPOPT defers a signal over each solve; the first Ctrl-C, which stops
     reading and drains the queue, is not raised again by the next solve: every line
     received is estimated (none abandoned), and the recording and the estimates have a
-    row per sample."""
+    row per sample. The drain says how far it is at the status lines' interval."""
     port, out, rec = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "rec.csv"
     master = new_pty(port)
     lines = raw_lines(1000, 200)
     live = LiveProcess(["--port", str(port), "--solver", "ipopt", "--horizon", "10",
-                        "-o", str(out), "--record", str(rec)])  # fmt: skip
+                        "-o", str(out), "--record", str(rec), "--status-every", "0.2"])  # fmt: skip
     try:
         live.wait_ready()
         send(master, "".join(lines).encode())
@@ -560,7 +560,12 @@ def test_one_ctrl_c_estimates_every_queued_line_with_ipopt(tmp_path: Path) -> No
         os.close(master)
     assert got == 0, live.err
     queued = re.search(r"stopping; estimating (\d+) queued line", live.err)
-    assert queued is not None and int(queued.group(1)) > 0, live.err  # a queue to drain
+    assert queued is not None and int(queued.group(1)) >= 100, live.err  # a queue to drain
+    progress = re.findall(
+        r"estimated (\d+) of the (\d+) queued line\(s\); Ctrl-C abandons", live.err
+    )
+    assert progress and all(b == queued.group(1) for _, b in progress), live.err
+    assert [int(a) for a, _ in progress] == sorted(int(a) for a, _ in progress), live.err
     assert "abandoned" not in live.err, live.err
     assert data_rows(out) == data_rows(rec) == len(lines), live.err
 

@@ -161,6 +161,8 @@ def run_live(
         say(f"stopping; estimating {left} queued line(s), Ctrl-C again to abandon them")
         try:
             stop_deferring()  # a second signal abandons the queue at once
+            done = 0
+            next_progress = time.monotonic() + settings.status_every
             while True:
                 try:
                     kind, payload, arrival = events.get_nowait()
@@ -170,6 +172,10 @@ def run_live(
                     session.handle_line(payload, arrival)
                     if session.fatal is not None:
                         break
+                done += 1
+                if time.monotonic() >= next_progress:  # a long queue is not silent
+                    say(f"estimated {done} of the {left} queued line(s); Ctrl-C abandons the rest")
+                    next_progress = time.monotonic() + settings.status_every
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")
     finally:
