@@ -134,7 +134,6 @@ class LoadHypothesesInference(Inference):
         #: the last answer's covariance and the loaded hypothesis' answer at that sample
         self._answer_P: FloatArray | None = None
         self._loaded_answer: _Answer | None = None
-        self._load_outputs = list(formulation.load_outputs)
 
     def clear_counts(self) -> None:
         self.free_of_load_samples = 0
@@ -236,15 +235,15 @@ class LoadHypothesesInference(Inference):
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         """The chosen hypothesis' output standard deviations; for the answer of the
-        free-of-load one, its load outputs' (0 N, held) at least the loaded hypothesis'
-        at that sample: a load smaller than what the loaded filter can tell from none
-        is not excluded by taking the robot as free of load."""
+        free-of-load one, each at least the loaded hypothesis' at that sample (the load
+        outputs, 0 N held, and the shape): a load smaller than what the loaded filter
+        can tell from none is not excluded by taking the robot as free of load, nor is
+        the shape it would bend the robot into."""
         std = np.array(self._chosen.output_std(state, cov), dtype=float)
         loaded = self._loaded_answer
         if self.unloaded_chosen and cov is self._answer_P and loaded is not None:
-            idx = self._load_outputs
             floor = np.asarray(self.loaded.output_std(loaded[0], loaded[1]), dtype=float)
-            std[idx] = np.maximum(std[idx], floor[idx])
+            std = np.maximum(std, floor)
         return std
 
 
