@@ -144,9 +144,9 @@ bool ConsistencyCheck::check(double t, const double* z, const double* mask, cons
       for (int a = 0; a < dof; ++a) w[a] = r_[rows_[a]] * r_inv_[rows_[a]];
       fit_nis_ = w.dot(S_ * w);
       // an update that was not a linear one: is the shift to the readings' own shape
-      // within this estimate's covariance? (not asked where no shift is beyond its
-      // limit: a model with pseudo-measurements, whose update is not a linear one of
-      // the readings alone)
+      // within this estimate's covariance? (not asked where no shift limit is finite:
+      // a model with pseudo-measurements, whose update is not a linear one of the
+      // readings alone)
       if (shift_judged_ && fit_nis_ > s_.limit[dof]) shift_ = shift_to_fit(x, P, u, dt);
     } else {
       evaluate(residual_, x, zeros_u_.data(), 0.0, r_.data());

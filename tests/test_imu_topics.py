@@ -49,19 +49,36 @@ def test_pair_stamps_known_answers() -> None:
 
 def test_fill_outages_known_answers() -> None:
     """IMU 1 silent from 20 to 60 (period 10, tolerance 4): IMU 2's samples there fill
-    the outage, thinned to IMU 1's rate where IMU 2 is faster, none within the tolerance
-    of a sample taken before; a third topic fills only where neither IMU 1 nor IMU 2
-    has a sample."""
+    the outage, thinned to IMU 1's rate where IMU 2 is faster, none closer than 0.75 of
+    a period to a sample taken before; a third topic fills only where IMU 1 and IMU 2
+    leave an outage; no fill takes a partner from one of IMU 1's samples."""
     ref = np.array([0, 10, 20, 60, 70], dtype=np.int64)
     assert list(fill_outages([ref, ref + 1], 10, 4)) == list(ref)  # no outage
     other = np.array([1, 11, 21, 31, 41, 51, 61], dtype=np.int64)
     assert list(fill_outages([ref, other], 10, 4)) == [0, 10, 20, 31, 41, 51, 60, 70]
     fast = np.arange(0, 75, 5, dtype=np.int64) + 1  # 1, 6, ..., 71: twice IMU 1's rate
     assert list(fill_outages([ref, fast], 10, 4)) == [0, 10, 20, 31, 41, 51, 60, 70]
-    # IMU 2 silent from 35 on: IMU 3 fills the rest, not beside IMU 2's 31
+    # IMU 2 silent from 35 on: IMU 3 fills the rest, not beside IMU 2's 31 or IMU 1's 60
     imu2 = np.array([1, 11, 21, 31, 61], dtype=np.int64)
     imu3 = np.array([2, 12, 22, 33, 43, 53, 62], dtype=np.int64)
-    assert list(fill_outages([ref, imu2, imu3], 10, 4)) == [0, 10, 20, 31, 43, 53, 60, 70]
+    assert list(fill_outages([ref, imu2, imu3], 10, 4)) == [0, 10, 20, 31, 43, 60, 70]
+    # IMU 1 at 300 pairs with IMU 2's 340 (tolerance 50, period 100); IMU 3's 376 is
+    # nearer to it: no fill there, and every IMU 1 sample keeps its partners
+    ref = np.array([0, 100, 200, 300, 1000, 1100], dtype=np.int64)
+    grid = np.arange(0, 1200, 100, dtype=np.int64)
+    topics = [ref, grid + 40, grid + 76]
+    filled = fill_outages(topics, 100, 50)
+    assert 376 not in filled and 440 in filled
+    before = pair_stamps(topics, 50)
+    after = pair_stamps([filled, *topics[1:]], 50)
+    at = np.searchsorted(filled, ref)
+    for b, a in zip(before[1:], after[1:]):
+        np.testing.assert_array_equal(a[at][b >= 0], b[b >= 0])
+    # IMU 2 silent with IMU 1: IMU 3 fills, but not at 376, which would take IMU 2's 340
+    # from IMU 1's 300
+    imu2 = np.array([40, 140, 240, 340, 1040, 1140], dtype=np.int64)
+    filled = fill_outages([ref, imu2, grid + 76], 100, 50)
+    assert list(filled) == [0, 100, 200, 300, 476, 576, 676, 776, 876, 1000, 1100]
 
 
 @pytest.fixture(scope="module")

@@ -148,6 +148,7 @@ class LoadHypothesesInference(Inference):
         free-of-load filter's IMU errors may have taken part of the load), and the
         evidence is zero."""
         kept = (None, None, None) if self._kept is None else self._kept
+        self._loaded_answer = None  # the floor of a free-of-load answer: none before one
         self.loaded.restart(*kept)
         self.unloaded.restart(*kept)
         self.evidence = 0.0
@@ -207,7 +208,8 @@ class LoadHypothesesInference(Inference):
     ) -> tuple[FloatArray | None, FloatArray | None, Status]:
         """``(x, P, status)`` as the answer of ``hypothesis``, counted where it is the
         free-of-load one (where the loaded one has no answer at this sample, the
-        free-of-load answer's force floor is the loaded hypothesis' last)."""
+        free-of-load answer's standard deviations are floored by the loaded hypothesis'
+        last answer since the hypotheses' restart, if any)."""
         self._chosen = hypothesis
         self._answer_P = P
         self.unloaded_chosen = hypothesis is self.unloaded
@@ -235,8 +237,9 @@ class LoadHypothesesInference(Inference):
 
     def output_std(self, state: FloatArray, cov: FloatArray) -> FloatArray:
         """The chosen hypothesis' output standard deviations; for the answer of the
-        free-of-load one, each at least the loaded hypothesis' at that sample (the load
-        outputs, 0 N held, and the shape): a load smaller than what the loaded filter
+        free-of-load one, each at least the loaded hypothesis' at that sample, or at its
+        last answer where its step failed there (the load outputs, 0 N held, and the
+        shape): a load smaller than what the loaded filter
         can tell from none is not excluded by taking the robot as free of load, nor is
         the shape it would bend the robot into."""
         std = np.array(self._chosen.output_std(state, cov), dtype=float)

@@ -7,9 +7,10 @@ stamp skipped and counted); then samples are paired across topics by header stam
 sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
 (mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
 most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
-is silent for more than one and a half of its median sample periods (an outage) while
-another topic goes on, that topic's samples there are samples too (:func:`fill_outages`),
-at most one per IMU 1 period, IMU 1's reading missing. A sample without a partner in
+is silent between two of its samples for more than one and a half of its median sample
+periods (an outage) while another topic goes on, that topic's samples there are samples
+too (:func:`fill_outages`), thinned to at least three quarters of IMU 1's period apart,
+IMU 1's reading missing. A sample without a partner in
 a topic has that IMU's reading missing (a dropout of that IMU, as a table's row with
 its fields empty). The default tolerance is half of IMU 1's median sample period (a pair
 is then always closer than the next sample); ``--pair-tolerance`` sets it in seconds.
@@ -74,7 +75,7 @@ class PairedImus:
 
     @property
     def unpaired(self) -> tuple[int, ...]:
-        """Samples of each topic left without a partner among IMU 1's (unused)."""
+        """Samples of each topic left without a partner among the samples (unused)."""
         return tuple(r - p for r, p in zip(self.read, self.partners))
 
     @property
@@ -130,41 +131,58 @@ def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]
     return out
 
 
-#: IMU 1 silent for more than this many of its median sample periods is an outage, which
-#: the other topics' samples fill (:func:`fill_outages`).
+#: The samples silent for more than this many of IMU 1's median sample periods, between
+#: two of IMU 1's samples, are an outage, which the other topics' samples fill
+#: (:func:`fill_outages`).
 OUTAGE_PERIODS = 1.5
-#: Samples that fill an outage are at least this many of IMU 1's periods apart (a
-#: faster topic's samples are thinned to about IMU 1's rate).
+#: Samples that fill an outage are at least this many of IMU 1's periods apart, and
+#: from the samples around them (a faster topic's samples are thinned to about IMU 1's
+#: rate).
 FILL_SPACING_PERIODS = 0.75
 
 
 def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int) -> IntArray:
-    """The samples' stamps (ns, increasing): IMU 1's (``stamps[0]``), and where IMU 1 is
-    silent for more than :data:`OUTAGE_PERIODS` of ``period_ns`` between two of its
-    samples, the stamps of the other topics there, topic by topic in order: each one
-    farther than ``tolerance_ns`` from every stamp taken before (so no sample of IMU 1
-    or of an earlier topic could pair with it) and at least
-    :data:`FILL_SPACING_PERIODS` periods from the last one taken in that outage."""
+    """The samples' stamps (ns, increasing): IMU 1's (``stamps[0]``), and where those
+    taken so far are silent for more than :data:`OUTAGE_PERIODS` of ``period_ns``
+    between two of IMU 1's samples (after IMU 1's first and before its last), the
+    stamps of the next topic there, topic by topic in order (IMU 3's only where IMU 2
+    is silent too): each farther than ``tolerance_ns`` and at least
+    :data:`FILL_SPACING_PERIODS` periods from every stamp taken before. A stamp taken
+    that would take a sample of another topic away from the IMU 1 sample it pairs with
+    (mutual nearest, :func:`pair_stamps`) is left out."""
     ref = stamps[0]
-    gaps = np.flatnonzero(np.diff(ref) > OUTAGE_PERIODS * period_ns)
-    if len(gaps) == 0:
+    if len(ref) < 2 or not (np.diff(ref) > OUTAGE_PERIODS * period_ns).any():
         return ref
-    taken = list(ref)
+    apart = max(float(tolerance_ns), FILL_SPACING_PERIODS * period_ns)
+    timeline = ref
     for other in stamps[1:]:
-        timeline = np.sort(np.asarray(taken, dtype=np.int64))
+        gaps = np.flatnonzero(np.diff(timeline) > OUTAGE_PERIODS * period_ns)
+        taken: list[int] = []
         for g in gaps:
-            lo, hi = ref[g], ref[g + 1]
-            last = lo
-            for s in other[(other > lo + tolerance_ns) & (other < hi - tolerance_ns)]:
-                near = timeline[_nearest(np.array([s]), timeline)[0]]
-                if abs(int(near) - int(s)) <= tolerance_ns:
-                    last = max(last, int(near))
-                    continue
-                if s - last < FILL_SPACING_PERIODS * period_ns:
-                    continue
-                taken.append(int(s))
-                last = int(s)
-    return np.sort(np.asarray(taken, dtype=np.int64))
+            last = int(timeline[g])  # the gap's start; its end is timeline[g + 1]
+            for s in other[(other > timeline[g]) & (other < timeline[g + 1])]:
+                if s - last >= apart and timeline[g + 1] - s >= apart:
+                    taken.append(int(s))
+                    last = int(s)
+        if taken:
+            timeline = np.sort(np.concatenate([timeline, np.asarray(taken, dtype=np.int64)]))
+    # no fill may take a partner from one of IMU 1's samples: where one would, the
+    # filled stamp nearest that partner is left out, until none does
+    before = pair_stamps(stamps, tolerance_ns)
+    while len(timeline) > len(ref):
+        at = np.searchsorted(timeline, ref)  # IMU 1's samples among them
+        after = pair_stamps([timeline, *stamps[1:]], tolerance_ns)
+        lost = [
+            (k, int(b[i]))
+            for k, (b, a) in enumerate(zip(before[1:], after[1:]), start=1)
+            for i in np.flatnonzero((b >= 0) & (a[at] != b))
+        ]
+        if not lost:
+            break
+        filled = np.setdiff1d(timeline, ref)
+        drop = {int(filled[_nearest(np.array([stamps[k][j]]), filled)[0]]) for k, j in lost}
+        timeline = timeline[~np.isin(timeline, list(drop))]
+    return timeline
 
 
 def _subset(log: ImuLog, idx: IntArray, t: FloatArray, t0_ns: int) -> ImuLog:

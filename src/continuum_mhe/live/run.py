@@ -172,9 +172,13 @@ def run_live(
                     session.handle_line(payload, arrival)
                     if session.fatal is not None:
                         break
-                done += 1
-                if time.monotonic() >= next_progress:  # a long queue is not silent
-                    say(f"estimated {done} of the {left} queued line(s); Ctrl-C abandons the rest")
+                    done += 1
+                if time.monotonic() >= next_progress:  # as the status line, while it waits
+                    # (the reader may still add what the port held when it stopped)
+                    say(
+                        f"estimated {done} queued line(s), {events.qsize()} still queued; "
+                        "Ctrl-C abandons them"
+                    )
                     next_progress = time.monotonic() + settings.status_every
         except KeyboardInterrupt:
             say(f"abandoned {events.qsize()} received line(s) without estimates")

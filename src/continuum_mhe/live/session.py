@@ -464,11 +464,17 @@ class LiveSession:
         placed = self.clock.place(s.t_ms, arrival, p)
         t = placed.t
         if placed.event == "out-of-order":
-            if c.out_of_order == 0:
+            if c.out_of_order == 0 and dev_prev is not None:
+                why = (
+                    "far ahead of the time the host saw pass (a corrupted t_ms?), skipped "
+                    "unless the next line confirms it"
+                    if s.t_ms > dev_prev
+                    else "not after the last sample (a repeated, late or stray line), skipped"
+                )
                 self.say(
-                    f"a line with t_ms {s.t_ms:g} after one with t_ms {dev_prev:g}: not after "
-                    "the last sample (a repeated, late or stray line), skipped (said for "
-                    "the first only; all are counted)"
+                    f"a line with t_ms {_ms_text(s.t_ms)} after one with t_ms "
+                    f"{_ms_text(dev_prev)}: out of order, {why} (said for the first only; "
+                    "all are counted)"
                 )
             c.out_of_order += 1
             return None
@@ -852,3 +858,9 @@ class LiveSession:
                 f"t={c.first_restart_t:.3f} s: {self._replay_note()}"
             )
         return msg
+
+
+def _ms_text(t_ms: float) -> str:
+    """A device time in ms as the line gave it: whole milliseconds without a decimal
+    point (every digit kept), else to the microsecond."""
+    return str(int(t_ms)) if float(t_ms).is_integer() else f"{t_ms:.3f}"
