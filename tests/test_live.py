@@ -573,6 +573,36 @@ def test_one_ctrl_c_estimates_every_queued_line_with_ipopt(tmp_path: Path) -> No
     assert data_rows(out) == data_rows(rec) == len(lines), live.err
 
 
+def test_a_second_ctrl_c_abandons_the_queue_between_two_lines(tmp_path: Path) -> None:
+    """The second Ctrl-C, while the first one's drain estimates the queue with IPOPT
+    (most of a line's time is its solve), abandons the queue after the line it came in,
+    not inside it: every line in the recording has its estimate, none is left
+    ``no-estimate`` (the recording replayed gives the same rows), and it says how many
+    lines it abandoned."""
+    port, out, rec = tmp_path / "ttyIMU", tmp_path / "est.csv", tmp_path / "rec.csv"
+    master = new_pty(port)
+    lines = raw_lines(1000, 200)
+    live = LiveProcess(["--port", str(port), "--solver", "ipopt", "--horizon", "10",
+                        "-o", str(out), "--record", str(rec)])  # fmt: skip
+    try:
+        live.wait_ready()
+        send(master, "".join(lines).encode())
+        wait_for(lambda: data_rows(out) >= 3, "the first estimates")
+        live.proc.send_signal(signal.SIGINT)
+        wait_for(lambda: "stopping; estimating" in live.err, "the drain")
+        time.sleep(0.3)  # some lines into it, inside a solve
+        got = live.finish(signal.SIGINT)
+    finally:
+        if live.proc.poll() is None:
+            live.proc.kill()
+        os.close(master)
+    assert got == 0, live.err  # a stop asked for, as with one Ctrl-C
+    assert re.search(r"abandoned \d+ received line\(s\) without estimates", live.err), live.err
+    assert 3 <= data_rows(out) == data_rows(rec) < len(lines), live.err
+    statuses = [ln.rsplit(",", 2)[-2:] for ln in out.read_text().splitlines()[1:]]
+    assert not any("no-estimate" in row for row in statuses), live.err
+
+
 def test_the_latency_quantiles_say_where_they_are_beyond_the_histogram() -> None:
     """Known answers: a latency's quantile is the upper edge of its bin (2.3 % wide); one
     beyond the histogram's last edge (100 s: a session that fell minutes behind) is said

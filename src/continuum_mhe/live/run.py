@@ -38,7 +38,7 @@ from continuum_mhe.estimators.reading_units import direct_blocks
 from continuum_mhe.estimators.sensor_health import Estimator
 from continuum_mhe.live.session import LiveSession, LiveSettings
 from continuum_mhe.model.descriptions import OutputSpec
-from continuum_mhe.signals import SIGNALS_SEEN, defer, stop_deferring
+from continuum_mhe.signals import SIGNALS_SEEN, defer, signals_deferred, stop_deferring
 from continuum_mhe.stream.protocol import (
     GarbledLine,
     Sample,
@@ -169,7 +169,10 @@ def run_live(
                 except queue.Empty:
                     break
                 if kind == "line":
-                    session.handle_line(payload, arrival)
+                    # a second signal abandons the queue after this line, not inside it
+                    # (its sample recorded without its estimate)
+                    with signals_deferred():
+                        session.handle_line(payload, arrival)
                     if session.fatal is not None:
                         break
                     done += 1
