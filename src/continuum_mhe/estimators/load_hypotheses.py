@@ -239,9 +239,9 @@ class LoadHypothesesInference(Inference):
         """The chosen hypothesis' output standard deviations; for the answer of the
         free-of-load one, each at least the loaded hypothesis' at that sample, or at its
         last answer where its step failed there (the load outputs, 0 N held, and the
-        shape): a load smaller than what the loaded filter
-        can tell from none is not excluded by taking the robot as free of load, nor is
-        the shape it would bend the robot into."""
+        shape): a load smaller than what the loaded filter can tell from none is not
+        excluded by taking the robot as free of load, nor is the shape it would bend the
+        robot into."""
         std = np.array(self._chosen.output_std(state, cov), dtype=float)
         loaded = self._loaded_answer
         if self.unloaded_chosen and cov is self._answer_P and loaded is not None:

@@ -168,6 +168,8 @@ def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int
             timeline = np.sort(np.concatenate([timeline, np.asarray(taken, dtype=np.int64)]))
     # no fill may take a partner from one of IMU 1's samples: where one would, the
     # filled stamp nearest that partner is left out, until none does
+    if len(timeline) == len(ref):
+        return ref
     before = pair_stamps(stamps, tolerance_ns)
     while len(timeline) > len(ref):
         at = np.searchsorted(timeline, ref)  # IMU 1's samples among them

@@ -160,7 +160,7 @@ def run_live(
         left = events.qsize()
         say(f"stopping; estimating {left} queued line(s), Ctrl-C again to abandon them")
         try:
-            stop_deferring()  # a second signal abandons the queue at once
+            stop_deferring()  # a second signal abandons the queue after its line
             done = 0
             next_progress = time.monotonic() + settings.status_every
             while True:

@@ -472,8 +472,8 @@ class LiveSession:
                     else "not after the last sample (a repeated, late or stray line), skipped"
                 )
                 self.say(
-                    f"a line with t_ms {_ms_text(s.t_ms)} after one with t_ms "
-                    f"{_ms_text(dev_prev)}: out of order, {why} (said for the first only; "
+                    f"a line with t_ms {time_text(s.t_ms)} after one with t_ms "
+                    f"{time_text(dev_prev)}: out of order, {why} (said for the first only; "
                     "all are counted)"
                 )
             c.out_of_order += 1
@@ -858,9 +858,3 @@ class LiveSession:
                 f"t={c.first_restart_t:.3f} s: {self._replay_note()}"
             )
         return msg
-
-
-def _ms_text(t_ms: float) -> str:
-    """A device time in ms as the line gave it: whole milliseconds without a decimal
-    point (every digit kept), else to the microsecond."""
-    return str(int(t_ms)) if float(t_ms).is_integer() else f"{t_ms:.3f}"
