@@ -486,11 +486,27 @@ def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
         read_state_table(truth)
 
 
+def test_a_whole_set_numbered_beyond_the_gap_is_named_not_the_sets_between(
+    tmp_path: Path,
+) -> None:
+    """Two IMUs' columns and a whole set numbered 9: the line names IMU 9's columns,
+    not the six columns of IMUs 3 to 8 that its number would imply."""
+    header = "t,roll_1,pitch_1,roll_2,pitch_2,roll_9,pitch_9"
+    path = _write(tmp_path / "m.csv", f"{header}\n0,0,0,0,0,0,0\n")
+    with pytest.raises(InputError) as info:
+        read_measurements(path, n_imus=2)
+    text = str(info.value)
+    assert "line 1: roll_9, pitch_9 are columns of IMU 9" in text, text
+    assert "roll_3" not in text and "describes 2 IMU(s)" in text
+
+
 def test_a_stray_imu_column_far_beyond_the_robot_is_a_short_line(tmp_path: Path) -> None:
-    """A column of IMU 100000 beside two IMUs' columns: the missing columns it implies
-    are counted, not listed (a line of megabytes)."""
+    """A column of IMU 100000 beside two IMUs' columns: named as a column beyond the
+    robot's IMUs, without the missing columns it implies (a line of megabytes) or a
+    search for their look-alikes (time in proportion to the number)."""
     path = _write(tmp_path / "m.csv", "t,roll_1,pitch_1,roll_2,pitch_2,roll_100000\n0,0,0,0,0,0\n")
     with pytest.raises(InputError) as info:
         read_measurements(path, n_imus=2)
     text = str(info.value)
-    assert len(text) < 600 and "roll_8, pitch_8 and 199983 more" in text
+    assert len(text) < 600 and "roll_100000 is a column of IMU 100000" in text
+    assert "the robot describes 2 IMU(s)" in text

@@ -162,6 +162,23 @@ class ImuColumns:
         return InputError(f"{rows.name}: line 1: {', '.join(said)} ({holds})")
 
 
+def _beyond_error(
+    rows: TextRows, columns: ImuColumns, sets: dict[int, set[str]], n_imus: int
+) -> InputError:
+    """``line 1: roll_9 is a column of IMU 9, but the robot describes 2 IMU(s) ...``:
+    the header holds the robot's IMUs' whole sets and columns of IMUs beyond them."""
+    beyond = sorted(k for k in sets if k > n_imus)
+    shown = [rows.as_written(f"{c}_{k}") for k in beyond for c in columns.names if c in sets[k]]
+    listed = ", ".join(shown[:4]) + (f" and {len(shown) - 4} more" if len(shown) > 4 else "")
+    imus = ", ".join(map(str, beyond[:4])) + (" ..." if len(beyond) > 4 else "")
+    return InputError(
+        f"{rows.name}: line 1: {listed} {'is a column' if len(shown) == 1 else 'are columns'} "
+        f"of IMU {imus}, but the robot describes {n_imus} IMU(s), whose columns the header "
+        f"holds: remove {'it' if len(shown) == 1 else 'them'}, or describe the robot's "
+        "IMUs in its robot file ([[imu]], numbered from 1 in its order)"
+    )
+
+
 #: The tilt columns of an IMU: ``roll, pitch`` (``roll_k, pitch_k`` for IMU ``k``).
 TILT_IMU_COLUMNS = ImuColumns("tilt", ("roll", "pitch"))
 
@@ -202,7 +219,13 @@ def imu_suffixes(
         return [""] if unnumbered else [f"_{k}" for k in range(1, count + 1)]
 
     missing, typos = columns.missing(header, suffixes(n_imus))
-    if found != n_imus and not typos:
+    # whole sets of ``found`` IMUs fit in the header (else a column numbers an IMU
+    # far beyond the others: its count implies sets the header cannot hold, and listing
+    # them, or their look-alikes, takes as long as that number says)
+    fits = found * len(columns.fields) <= len(header)
+    if found != n_imus and not typos and not fits and not missing:
+        raise _beyond_error(rows, columns, sets, n_imus)
+    if found != n_imus and not typos and fits:
         own = columns.missing(header, suffixes(found))  # the file's sets, for its count
         if not own[0]:
             shown = (
