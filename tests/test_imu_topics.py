@@ -62,6 +62,15 @@ def test_fill_outages_known_answers() -> None:
     imu2 = np.array([1, 11, 21, 31, 61], dtype=np.int64)
     imu3 = np.array([2, 12, 22, 33, 43, 53, 62], dtype=np.int64)
     assert list(fill_outages([ref, imu2, imu3], 10, 4)) == [0, 10, 20, 31, 43, 60, 70]
+    # IMU 1 stops at 70, IMU 2 goes on: its samples after are taken (an open outage);
+    # one sample of IMU 2 within the outage's 1.5 periods after IMU 1's last is not
+    later = np.array([1, 11, 21, 61, 71, 81, 91, 101], dtype=np.int64)
+    assert list(fill_outages([ref, later], 10, 4)) == [0, 10, 20, 60, 70, 81, 91, 101]
+    assert list(fill_outages([ref, later[:6]], 10, 4)) == list(ref)
+    # IMU 2 stops at 81 (too soon to fill), IMU 3 goes on to 112 and fills from 82 on
+    imu3 = np.array([2, 12, 22, 62, 72, 82, 92, 102, 112], dtype=np.int64)
+    filled = fill_outages([ref, later[:6], imu3], 10, 4)
+    assert list(filled) == [0, 10, 20, 60, 70, 82, 92, 102, 112]
     # IMU 1 at 300 pairs with IMU 2's 340 (tolerance 50, period 100); IMU 3's 376 is
     # nearer to it: no fill there, and every IMU 1 sample keeps its partners
     ref = np.array([0, 100, 200, 300, 1000, 1100], dtype=np.int64)
@@ -405,6 +414,37 @@ def test_an_outage_of_imu_1_is_estimated_from_the_other_imus(
     a = read_state_table(tmp_path / "a.csv", ())
     b = read_state_table(tmp_path / "b.csv", ())
     assert len(a.t) == len(pairs.t) == len(imu1["stamps"]) + 31
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
+
+
+def test_imu_1_stopping_first_leaves_the_other_imus_estimated(
+    streams: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """IMU 1 stops after sample 69 of 101 while IMU 2 goes on: the last 0.62 s are
+    estimated from IMU 2 (they were left out, the estimate ending with IMU 1), IMU 1
+    missing as in a table's row with its fields empty (the estimates equal that
+    table's), and the line counts them as IMU 1's dropouts."""
+    imu1, imu2 = dict(streams["imu"][0]), dict(streams["imu"][1])
+    base = streams["base"]
+    imu1 = {k: v[imu1["stamps"] <= base[69]] for k, v in imu1.items()}
+    log = write_mcap_topics(tmp_path / "stop.mcap", [imu1, imu2])
+    pairs = read_imu_topics(log, TOPICS, 2)
+    after = pairs.t > (base[69] - T0_NS) / 1e9
+    tail = len(base) - 70  # IMU 2's samples 70 on (its stray one there is thinned out)
+    assert after.sum() == tail and pairs.dropouts[0] == tail + 1  # and sample 30
+    assert (pairs.logs[0].numbers[after] == 0).all() and (pairs.logs[1].numbers[after] > 0).all()
+    robot = ["--robot", "two-section", "--method", "ekf", "--imu-model", "direct"]
+    topics = ["--topic", TOPICS[0], "--topic", TOPICS[1]]
+    assert main(["estimate", str(log), "-o", str(tmp_path / "a.csv"), *robot, *topics]) == 0
+    assert (
+        f"without a partner (a dropout of that IMU): /imu1 {tail + 1}, " in capsys.readouterr().err
+    )
+    csv_in = _paired_csv(tmp_path / "p.csv", streams, pairs)
+    assert main(["estimate", str(csv_in), "-o", str(tmp_path / "b.csv"), *robot]) == 0
+    a = read_state_table(tmp_path / "a.csv", ())
+    b = read_state_table(tmp_path / "b.csv", ())
+    assert len(a.t) == len(imu1["stamps"]) + tail + 1
     np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-9)
 

@@ -132,8 +132,8 @@ def pair_stamps(stamps: Sequence[IntArray], tolerance_ns: int) -> list[IntArray]
 
 
 #: The samples silent for more than this many of IMU 1's median sample periods, between
-#: two of IMU 1's samples, are an outage, which the other topics' samples fill
-#: (:func:`fill_outages`).
+#: two of IMU 1's samples or after its last one while another topic goes on, are an
+#: outage, which the other topics' samples fill (:func:`fill_outages`).
 OUTAGE_PERIODS = 1.5
 #: Samples that fill an outage are at least this many of IMU 1's periods apart, and
 #: from the samples around them (a faster topic's samples are thinned to about IMU 1's
@@ -144,24 +144,32 @@ FILL_SPACING_PERIODS = 0.75
 def fill_outages(stamps: Sequence[IntArray], period_ns: float, tolerance_ns: int) -> IntArray:
     """The samples' stamps (ns, increasing): IMU 1's (``stamps[0]``), and where those
     taken so far are silent for more than :data:`OUTAGE_PERIODS` of ``period_ns``
-    between two of IMU 1's samples (after IMU 1's first and before its last), the
-    stamps of the next topic there, topic by topic in order (IMU 3's only where IMU 2
-    is silent too): each farther than ``tolerance_ns`` and at least
-    :data:`FILL_SPACING_PERIODS` periods from every stamp taken before. A stamp taken
-    that would take a sample of another topic away from the IMU 1 sample it pairs with
-    (mutual nearest, :func:`pair_stamps`) is left out."""
+    between two of IMU 1's samples, or after the last one taken while the next topic
+    goes on for longer (IMU 1 stopped first), the stamps of the next topic there, topic
+    by topic in order (IMU 3's only where IMU 2 is silent too): each farther than
+    ``tolerance_ns`` and at least :data:`FILL_SPACING_PERIODS` periods from every stamp
+    taken before. A stamp taken that would take a sample of another topic away from the
+    IMU 1 sample it pairs with (mutual nearest, :func:`pair_stamps`) is left out. Before
+    IMU 1's first sample nothing is filled (the estimates' time starts there)."""
     ref = stamps[0]
-    if len(ref) < 2 or not (np.diff(ref) > OUTAGE_PERIODS * period_ns).any():
+    outage = OUTAGE_PERIODS * period_ns
+    last_other = max((int(o[-1]) for o in stamps[1:] if len(o)), default=-1)
+    if len(ref) < 2 or not ((np.diff(ref) > outage).any() or last_other - int(ref[-1]) > outage):
         return ref
     apart = max(float(tolerance_ns), FILL_SPACING_PERIODS * period_ns)
     timeline = ref
     for other in stamps[1:]:
-        gaps = np.flatnonzero(np.diff(timeline) > OUTAGE_PERIODS * period_ns)
+        gaps = [int(g) for g in np.flatnonzero(np.diff(timeline) > outage)]
+        end = int(timeline[-1])
+        if len(other) and int(other[-1]) - end > outage:  # the tail: an open gap
+            gaps.append(len(timeline) - 1)
         taken: list[int] = []
         for g in gaps:
             last = int(timeline[g])  # the gap's start; its end is timeline[g + 1]
-            for s in other[(other > timeline[g]) & (other < timeline[g + 1])]:
-                if s - last >= apart and timeline[g + 1] - s >= apart:
+            closed = g + 1 < len(timeline)
+            stop = int(timeline[g + 1]) if closed else int(other[-1]) + 1
+            for s in other[(other > timeline[g]) & (other < stop)]:
+                if s - last >= apart and (not closed or stop - s >= apart):
                     taken.append(int(s))
                     last = int(s)
         if taken:
