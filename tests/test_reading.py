@@ -308,6 +308,61 @@ def test_estimate_refuses_t_in_milliseconds_where_every_sample_restarts(
         assert main(["estimate", str(path), "-o", str(out), "--gap-reset", "0"]) == 0
 
 
+def _raw_recording(path: Path, dt: float, duration: float, scale: float, column: str) -> Path:
+    """A two-section raw recording (``simulate spatial --imu raw``) at ``dt`` s, its times
+    multiplied by ``scale`` in a column named ``column``."""
+    made = path.with_name(f"{path.stem}_made.csv")
+    args = ["simulate", "spatial", "--robot", "two-section", "--imu", "raw", "--dt", str(dt)]
+    assert main([*args, "--duration", str(duration), "-o", str(made)]) == 0
+    lines = made.read_text().splitlines()
+    rows = [",".join([repr(float(r.split(",")[0]) * scale), *r.split(",")[1:]]) for r in lines[1:]]
+    path.write_text("\n".join([column + lines[0][1:], *rows]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("scale", "column", "says"),
+    [
+        (1e3, "t", "t looks like milliseconds: name the column t_ms (t is read in seconds)"),
+        (1e6, "t_ms", "t_ms looks like microseconds: give milliseconds"),
+    ],
+)
+def test_raw_times_a_thousand_times_too_long_are_told_by_the_gyros(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], scale: float, column: str, says: str
+) -> None:
+    """A 1 kHz raw recording with its times in milliseconds read as seconds steps by 1 s
+    a sample, as a 1 Hz recording does (no gap restarts it): it was estimated, no row
+    `ok`, a warning blaming the robot file. The gyros turn the gravity direction over a
+    second far from where the accelerometers show it next, over a millisecond onto it:
+    one line, exit 2, nothing written. The same with ``t_ms`` in microseconds."""
+    path = _raw_recording(tmp_path / "k.csv", 0.001, 2.0, scale, column)
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(path), "-o", str(out), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("continuum-mhe: error: ") and err.endswith(says), err
+    assert "\n" not in err and not out.exists()
+    good = _raw_recording(tmp_path / "g.csv", 0.001, 2.0, scale * 1e-3, column)
+    assert main(["estimate", str(good), "-o", str(out), "--robot", "two-section"]) == 0
+
+
+def test_a_raw_recording_at_1_hz_in_seconds_is_not_taken_for_milliseconds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """At 1 Hz the gyro's turn over a step misses the next gravity direction by tens of
+    degrees (a second of a swing), yet by less than no turn at all: read as it is. The
+    check judges its steps (with no margin asked for, it would refuse the file)."""
+    from continuum_mhe.io import raw_imu
+
+    path = _raw_recording(tmp_path / "s.csv", 1.0, 60.0, 1.0, "t")
+    table = raw_imu.read_raw_imus(path, 2)
+    imu = table.imus[0]
+    assert imu.gyr is not None
+    assert raw_imu.time_unit_problem(imu.t, imu.acc, imu.gyr) is None
+    monkeypatch.setattr(raw_imu, "TIME_CHECK_RATIO", 0.0)
+    assert raw_imu.time_unit_problem(imu.t, imu.acc, imu.gyr) is not None
+
+
 def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
     """The log's rule (check_time_steps), in a CSV: steps under 0.1 ms are another unit."""
     lines = _csv().splitlines()

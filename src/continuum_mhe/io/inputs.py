@@ -594,6 +594,7 @@ def _table_stream(
             blocks = raw_blocks(
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
                 options.raw.needs_gyro, first_block=read[0] == 0, t=t,
+                time_scale=rows.time_scale,
             )  # fmt: skip
             read[0] += 1
             return np.hstack(

@@ -418,13 +418,15 @@ def raw_blocks(
     gyro_used: bool = True,
     first_block: bool = True,
     t: FloatArray | None = None,
+    time_scale: float = 1.0,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
     in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`; on a
     later block of a file read in blocks (not ``first_block``), only where it has
     :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
     no deg/s; with the rows' times ``t`` (n,) s, the first block's gyros are also held
-    against the accelerometers: :func:`gyro_gravity_problem`).
+    against the accelerometers: :func:`gyro_gravity_problem`, and so are its times, read
+    with ``time_scale`` s per unit: :func:`check_time_unit`).
 
     One IMU: a zero acceleration, or a reading beyond any IMU's range
     (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
@@ -468,6 +470,8 @@ def raw_blocks(
             check_gyro_units(
                 label, block[:, 3:6], gyro_used, t if gravity else None, acc if gravity else None
             )
+            if gravity and t is not None:
+                check_time_unit(label, t, acc, block[:, 3:6], time_scale)
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -484,8 +488,9 @@ def read_raw_imus(
     check_time_units(rows, got.t)
     skipped = list(got.skipped)
     blocks = raw_blocks(
-        rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t
-    )
+        rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t,
+        time_scale=rows.time_scale,
+    )  # fmt: skip
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
     return MultiRawImuTable(got.t, imus, skipped)
 
@@ -511,8 +516,9 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     check_time_units(rows, got.t)
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(
-        rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped, t=got.t
-    )
+        rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped, t=got.t,
+        time_scale=rows.time_scale,
+    )  # fmt: skip
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
 
 
@@ -634,6 +640,81 @@ def gyro_gravity_problem(
         f"{GRAVITY_TURN_SPAN_S:g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
         f"deg): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
     )
+
+
+#: The time check of a raw recording (:func:`time_unit_problem`) judges the steps over
+#: which the gyro, its rates taken over the step as given, turns the gravity direction
+#: by at least this (rad; a MEMS gyro's bias turns it by under 0.05 rad in a second) ...
+TIME_CHECK_MIN_TURN = 0.1
+#: ... on at least this many such steps ...
+TIME_CHECK_STEPS = 20
+#: ... and finds the times a thousand times too long where the turn misses the
+#: accelerometer's by this factor more than the turn over a thousandth of the step does.
+TIME_CHECK_RATIO = 5.0
+
+
+def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | None:
+    """Times ``t`` (n,) a thousand times too long (milliseconds read as seconds), told by
+    the gyro against the accelerometer: over the steps from one row to the next where
+    the rates ``gyr`` (n, 3; rad/s, their mean over the step), taken over the step, turn
+    the specific force's direction ``acc`` (n, 3; any unit) by at least
+    :data:`TIME_CHECK_MIN_TURN`, the direction they predict misses the next row's by a
+    median of more than :data:`TIME_CHECK_MIN_TURN` and :data:`TIME_CHECK_RATIO` times
+    the miss over a thousandth of each step. What to say (the two misses), or None (also
+    with fewer than :data:`TIME_CHECK_STEPS` such steps: slow steps or slow turns, where
+    the unit makes little difference to the gyro's part). Steps of a few milliseconds
+    turn no direction by that much: a recording in seconds at a usual rate is never
+    judged."""
+    t, acc, gyr = (np.asarray(a, float) for a in (t, acc, gyr))
+    norm = np.linalg.norm(acc, axis=1)
+    ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1) & (norm > 0)
+    pair = ok[:-1] & ok[1:]
+    step = np.diff(t)
+    pair &= step > 0
+    if int(pair.sum()) < TIME_CHECK_STEPS:
+        return None
+    direction = acc / np.where(norm > 0, norm, 1.0)[:, None]
+    first, last = direction[:-1][pair], direction[1:][pair]
+    rate = 0.5 * (gyr[:-1] + gyr[1:])[pair]
+    step = step[pair]
+    # the turn of a direction fixed in the world, seen in the IMU's frame: dv/dt = -w x v
+    across = np.linalg.norm(np.cross(rate, first), axis=1) * step
+    judged = across >= TIME_CHECK_MIN_TURN
+    if int(judged.sum()) < TIME_CHECK_STEPS:
+        return None
+    from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
+
+    first, last, rotvec = first[judged], last[judged], -(rate * step[:, None])[judged]
+    miss = []
+    for scale in (1.0, 1e-3):
+        turned = Rotation.from_rotvec(scale * rotvec).apply(first)
+        miss.append(float(np.median(np.arccos(np.clip(np.sum(turned * last, axis=1), -1, 1)))))
+    as_given, as_thousandth = miss
+    if as_given <= TIME_CHECK_MIN_TURN or as_thousandth * TIME_CHECK_RATIO > as_given:
+        return None
+    return (
+        f"over {int(judged.sum())} steps the gyro's rates, taken over the steps of t as "
+        "given, turn the accelerometer's gravity direction to a median of "
+        f"{math.degrees(as_given):.0f} deg from where the accelerometer shows it next, over "
+        f"a thousandth of each step to {math.degrees(as_thousandth):.1f} deg"
+    )
+
+
+def check_time_unit(
+    name: str, t: FloatArray, acc: FloatArray, gyr: FloatArray, time_scale: float
+) -> None:
+    """A one-line :class:`InputError` where :func:`time_unit_problem` finds the times of
+    ``name`` (s; read from a ``t`` column, or ``t_ms`` where ``time_scale`` is 1e-3) a
+    thousand times too long."""
+    problem = time_unit_problem(t, acc, gyr)
+    if problem is None:
+        return
+    fix = (
+        "t_ms looks like microseconds: give milliseconds"
+        if time_scale == 1e-3
+        else "t looks like milliseconds: name the column t_ms (t is read in seconds)"
+    )
+    raise InputError(f"{name}: {problem}: {fix}")
 
 
 def check_gyro_units(
