@@ -546,6 +546,28 @@ def test_every_commands_help_is_plain_text():
             assert markup not in text, f"{name} --help shows {markup}"
 
 
+def test_a_help_that_names_shipped_robots_names_those_the_command_takes():
+    """Where a command's ``--help`` says it takes a shipped robot's name, it lists every
+    shipped robot (every command reads tendon robots but those whose help says it takes
+    constant-curvature robots only, which list those)."""
+    import argparse
+
+    from continuum_mhe.cli import build_parser
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    said = 0
+    for name, sub in commands.choices.items():
+        text = " ".join(sub.format_help().split())
+        for listed in re.findall(r"shipped robot's name \(([^)]*)\)", text):
+            said += 1
+            pcc = "constant-curvature" in text and "[[tendon]]" not in text
+            want = shipped_robots(tendons=False) if pcc else shipped_robots()
+            assert listed.replace("- ", "-").split(", ") == list(want), (name, listed)
+    assert said >= 5
+
+
 #: Options measured worse than the default on the shipped two-section rods (raw IMUs,
 #: the MHE, mean tip error in mm, `continuum-mhe estimate ... --robot two-section` and
 #: `evaluate`): the option, its `estimate --help` entry, its docs/options.md row, the

@@ -171,6 +171,31 @@ def test_device_clock_restart_gives_estimates_and_says_so() -> None:
     assert sum("device clock restarted (9990 ms -> 0 ms)" in m for m in said) == 1
 
 
+@pytest.mark.parametrize(
+    ("t_ms", "arrival_step", "slow"),
+    [
+        ([0.02 * i for i in range(200)], 0.02, True),  # seconds sent as t_ms, in real time
+        ([20 * i for i in range(200)], 0.02, False),  # milliseconds, in real time
+        ([20 * i for i in range(200)], 0.0005, False),  # a file replayed 40 times faster
+    ],
+)
+def test_a_device_clock_in_seconds_is_said_once(
+    t_ms: list[float], arrival_step: float, slow: bool
+) -> None:
+    """A device that sends seconds as ``t_ms`` (0.02 a line at 50 Hz): its clock
+    advances 2 ms in 2 s of arrival, which the session says once (the steps were read
+    a thousand times too short without a word); milliseconds, or a replay faster than
+    real time, say nothing."""
+    s, said = _session()
+    now = time.monotonic()
+    for i, t in enumerate(t_ms):
+        s.handle_line(f"{t:g},0.1,0.1".encode(), now + arrival_step * i)
+    told = [m for m in said if "t_ms in seconds?" in m]
+    assert len(told) == (1 if slow else 0), said
+    if slow:
+        assert told[0].startswith("the device clock advanced ")
+
+
 def test_a_banner_after_samples_is_a_board_reset_even_without_a_first_banner() -> None:
     """A board that streamed before live saw its banner, then reset: the banner after
     samples arms the restart, so its clock stepping back by less than a second (2,500

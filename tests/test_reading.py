@@ -532,6 +532,18 @@ def test_a_packed_file_is_named_for_what_it_is(tmp_path: Path, start: bytes, wha
     )
 
 
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
+def test_a_utf16_file_is_told_to_be_saved_as_utf8(tmp_path: Path, encoding: str) -> None:
+    """Excel's "Unicode Text" (UTF-16, with or without a byte-order mark): named as
+    UTF-16 with the fix, not as a binary file with a NUL byte."""
+    path = tmp_path / "m.csv"
+    path.write_bytes(_csv().encode(encoding))
+    with pytest.raises(InputError) as info:
+        read_measurements(path)
+    assert str(info.value).startswith(f"{path}: line 1: not UTF-8 text but UTF-16 text")
+    assert "iconv -f UTF-16 -t UTF-8" in str(info.value)
+
+
 def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
     path = _write(tmp_path / "m.csv", "# a\n# b\nt,roll,pitch\n")
     with pytest.raises(InputError, match=r"m.csv: line 4: no data rows after the header"):

@@ -34,8 +34,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from continuum_mhe.io.robot_file import shipped_robots
+
+    names = ", ".join(shipped_robots())
     p.add_argument(
-        "robot", metavar="ROBOT.toml", help="robot file, or a shipped robot's name (two-section)"
+        "robot", metavar="ROBOT.toml", help=f"robot file, or a shipped robot's name ({names})"
     )
     p.add_argument("--samples", type=int, default=2000, help="random shapes (default 2000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random shapes (default 0)")

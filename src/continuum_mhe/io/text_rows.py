@@ -217,6 +217,8 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
                 raise InputError(f"{name}: line 1: not CSV text but {what}")
     body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
     if b"\x00" in body:
+        if n == 1 and _utf16(body):
+            raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16}")
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
     if b"\r" in body.rstrip(b"\r"):
         raise InputError(
@@ -230,6 +232,22 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
     except UnicodeDecodeError:
         raise InputError(f"{name}: line {n}: not UTF-8 text (a binary file?)") from None
     return line.rstrip("\r")
+
+
+#: What a file of UTF-16 text is told.
+UTF16 = (
+    'UTF-16 text (Excel\'s "Unicode Text"?): save it as "CSV UTF-8", or convert it '
+    "(iconv -f UTF-16 -t UTF-8)"
+)
+
+
+def _utf16(first: bytes) -> bool:
+    """A first line of UTF-16 text: its byte-order mark, or (without one) a NUL in every
+    other byte of an ASCII header."""
+    if first.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return True
+    even, odd = set(first[0::2]), set(first[1::2])
+    return len(first) >= 4 and ((odd == {0} and 0 not in even) or (even == {0} and 0 not in odd))
 
 
 #: The first bytes of packed files that a CSV reader meets, and what each is.

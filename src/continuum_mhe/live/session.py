@@ -77,6 +77,13 @@ SILENT_S = 1.0
 SHOWN_CHARS = 48
 
 
+#: The device clock is held against the host's arrival times once this many seconds
+#: of arrival have passed since the first sample of a run of the clock (and
+#: :data:`CLOCK_CHECK_SAMPLES` samples): a clock that advanced less than
+#: :data:`CLOCK_SLOW_FACTOR` times as much sends seconds as ``t_ms`` (said once).
+CLOCK_CHECK_S = 2.0
+CLOCK_CHECK_SAMPLES = 20
+CLOCK_SLOW_FACTOR = 0.01
 #: A stream that starts this many seconds after its tensions file's first row is said:
 #: a file that starts with the stream on another clock gives every sample another
 #: time's tensions.
@@ -260,6 +267,9 @@ class LiveSession:
         self._units_since = 0.0  # the time of the first sample in _units_unchecked, s
         self._units_times: list[float] = []  # the times of the samples in _units_unchecked, s
         self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
+        #: (arrival s, t s, samples since) at the first sample of the device clock's run,
+        #: until it is held against the arrival times (None: held, said or fine)
+        self._clock_start: list[float] | None = []
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
         #: line is handled after
@@ -448,6 +458,32 @@ class LiveSession:
         )
         self._garbage(arrival, f"a line longer than {max_bytes} bytes")
 
+    def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
+        """Say once where the device clock (``t``, s) advanced less than
+        :data:`CLOCK_SLOW_FACTOR` times the arrival time over the first
+        :data:`CLOCK_CHECK_S` s of its run: ``t_ms`` sent in seconds (a 50 Hz stream's
+        steps of 0.02 read as 0.02 ms). A faster device clock is a feed faster than real
+        time (a file replayed through a port), not a unit."""
+        if self._clock_start is None:
+            return
+        if restart or not self._clock_start:
+            self._clock_start = [arrival, t, 0]
+            return
+        self._clock_start[2] += 1
+        since, t0, count = self._clock_start
+        host = arrival - since
+        if host < CLOCK_CHECK_S or count < CLOCK_CHECK_SAMPLES:
+            return
+        self._clock_start = None
+        device = t - t0
+        if device < CLOCK_SLOW_FACTOR * host:
+            self.say(
+                f"the device clock advanced {time_text(1e3 * device)} ms in "
+                f"{time_text(host)} s of arrival time: t_ms in seconds? (the first field "
+                "is milliseconds, as millis() gives; every step reads a thousand times too "
+                "short)"
+            )
+
     def _handle_sample(self, s: Sample, arrival: float) -> Estimate | None:
         c = self.counts
         if s.problems:
@@ -512,6 +548,7 @@ class LiveSession:
                 self.fatal = problem
                 return None  # neither recorded nor estimated: the session stops
         c.samples += 1
+        self._check_clock_rate(t, arrival, placed.event == "restart")
         if placed.event == "restart" and self.converters is not None and self.fatal is None:
             # a board reset: it may run other firmware now, so the units are checked again
             # (a gyro the estimate ignores was warned about once: enough)
