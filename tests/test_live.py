@@ -463,14 +463,16 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     """With --imu-model direct a deg/s gyro (57 times too fast) stops live at its
     gyro-unit check: the first 100 samples estimated as they arrive, then the summary,
     estimate's one line for the same samples (naming the port) and exit 2, the lines
-    queued after them left."""
+    queued after them left; the estimates made from those readings are removed (they
+    were kept, `ok` rows among them), the recording of the readings kept."""
     from continuum_mhe.live.session import UNIT_CHECK_SAMPLES
 
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
     lines = _deg_s_stream(UNIT_CHECK_SAMPLES + 100)
     args = ["--port", str(port), "--method", "ekf", "--imu-model", "direct"]
-    live = LiveProcess([*args, "--duration", "30", "-o", str(out)])
+    raw = tmp_path / "raw.csv"
+    live = LiveProcess([*args, "--duration", "30", "-o", str(out), "--record", str(raw)])
     code = send_and_finish(live, master, lines)
     assert code == 2, live.err  # stopped at the check (the summary below: its samples only)
     err = live.err.splitlines()
@@ -480,7 +482,12 @@ def test_live_stops_on_a_deg_s_gyro_it_uses_with_estimates_message(tmp_path: Pat
     assert err[-1] == expected.replace("PORT", str(port))
     summary = f"live: {UNIT_CHECK_SAMPLES} samples, {UNIT_CHECK_SAMPLES - 1} estimates; "
     assert sum(ln.startswith(summary) for ln in err) == 1, live.err
-    assert data_rows(out) == UNIT_CHECK_SAMPLES - 1  # those estimated before the check
+    removed = (
+        f"live: the {UNIT_CHECK_SAMPLES - 1} estimates made from readings in the wrong units "
+        f"are not kept: {out} removed ({raw} keeps the readings as received)"
+    )
+    assert removed in err and not out.exists(), live.err
+    assert data_rows(raw) == UNIT_CHECK_SAMPLES - 1
     assert sum("gyro magnitude" in ln for ln in err) == 1
 
 
@@ -513,7 +520,7 @@ def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
     the end-of-session check's deg/s error, as the same run stopped by --duration does:
     the summary, then that error line, not 'interrupted'; exit 2 after Ctrl-C (143
     after SIGTERM, as a service manager expects, the error said first); the rows
-    written stay."""
+    written from those readings are removed, as where the check stops a session."""
     port, out = tmp_path / "ttyIMU", tmp_path / "est.csv"
     master = new_pty(port)
     lines = _deg_s_stream(50)
@@ -536,7 +543,11 @@ def test_live_stopped_by_a_signal_still_says_its_end_of_session_unit_check(
     (expected,) = [ln for ln in said.splitlines() if "gyro magnitude" in ln]
     assert err[-1] == expected.replace("PORT", str(port)) and "interrupted" not in live.err
     assert any(ln.startswith("live: 50 samples, 50 estimates; ") for ln in err), live.err
-    assert data_rows(out) == len(lines)
+    assert (
+        f"live: the 50 estimates made from readings in the wrong units are not kept: {out} removed"
+        in err
+    )
+    assert not out.exists()
 
 
 def test_one_ctrl_c_estimates_every_queued_line_with_ipopt(tmp_path: Path) -> None:

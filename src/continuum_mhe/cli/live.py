@@ -126,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if view_sink is not None and view_sink.kind == "web":
         say(f"serving the view at {view_sink.web_url}")
+    session: LiveSession | None = None
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
         default = " (this robot's default)" if args.method_note else ""
@@ -153,8 +154,15 @@ def run(args: argparse.Namespace) -> int:
                     if view.estimates
                     else f"no sample arrived: {path} not written"
                 )
+        if session is not None and session.wrong_units and out is not None and out.rows:
+            say(
+                f"the {out.rows} estimates made from readings in the wrong units are not "
+                f"kept: {out.path} removed"
+                + (f" ({record.path} keeps the readings as received)" if record else "")
+            )
+            out.discard()
         for sink, what in ((out, "estimates"), (record, "samples")):
-            if sink is None:
+            if sink is None or (sink is out and session is not None and session.wrong_units):
                 continue
             sink.close()
             if sink.rows:

@@ -267,6 +267,9 @@ class LiveSession:
         self._units_since = 0.0  # the time of the first sample in _units_unchecked, s
         self._units_times: list[float] = []  # the times of the samples in _units_unchecked, s
         self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
+        #: :attr:`fatal` says the readings are in the wrong units (an accelerometer in g,
+        #: a gyro in deg/s the estimate uses): the estimates made are from them
+        self.wrong_units = False
         #: (arrival s, t s, samples since) at the first sample of the device clock's run,
         #: until it is held against the arrival times (None: held, said or fine)
         self._clock_start: list[float] | None = []
@@ -673,6 +676,7 @@ class LiveSession:
                     check_gyro_units(label, block[:, 3:], used, times[full], block[:, :3])
         except InputError as exc:
             self.fatal = str(exc)
+            self.wrong_units = True
 
     def _measurement(self, t: float, values: FloatArray) -> FloatArray:
         if self.converters is None:
@@ -724,6 +728,7 @@ class LiveSession:
                 problem = "a non-finite estimate"
         except ReadingUnitsError as exc:  # every later reading alike: stop
             self.fatal = f"{self.settings.port}: {exc}"
+            self.wrong_units = True
             self.counts.estimator_failures += 1
             return Estimate(t, None, None, None, Status.NO_ESTIMATE, 0.0)
         except Exception as exc:  # any failure of one window: flag, restart, go on

@@ -129,6 +129,16 @@ class RowFile:
             raise
         self._size += len(data)
 
+    def discard(self) -> None:
+        """Close and remove the file with its rows (:attr:`rows` is then 0): rows that must
+        not be read (estimates from readings in the wrong units)."""
+        created = self._fd is not None
+        self.close()
+        if created:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+        self.rows = 0
+
     def close(self) -> None:
         if self._fd is not None:
             with contextlib.suppress(OSError):
