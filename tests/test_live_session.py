@@ -681,6 +681,50 @@ def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     assert s.fatal is not None and "deg/s? give rad/s" in s.fatal
 
 
+def test_a_units_stop_after_a_board_reset_cuts_back_only_the_rows_after_it(
+    tmp_path: Path,
+) -> None:
+    """rad/s readings checked and estimated, then a board reset brings firmware that
+    sends deg/s: the session stops at the check re-armed by the reset, and only the
+    estimates made since it are cut from the file (the whole file was removed, the
+    estimates from the right readings with it)."""
+    from live_helpers import raw_lines
+
+    from continuum_mhe.io.estimate_csv import estimate_columns
+    from continuum_mhe.io.inputs import imu_converters
+    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.model.direct import DirectFormulation
+
+    robot = Robot.single()
+    f = DirectFormulation(robot=robot)
+    path = tmp_path / "est.csv"
+    out = RowFile(path, estimate_columns(f.outputs), overwrite=False)
+    raw = RawImuSettings(imu_model="direct")
+    s = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"), make_estimator("ekf", f),
+        imu_converters(raw, robot), out, say=[].append,
+    )  # fmt: skip
+    before = [ln.rstrip("\n") for ln in raw_lines(60_000, UNIT_CHECK_SAMPLES + 10)]
+    _handle(s, before)
+    assert s.fatal is None and out.rows == len(before)
+    _handle(s, _deg_s_lines(UNIT_CHECK_SAMPLES + 5))
+    assert s.wrong_units and s.units_mark is not None
+    good = s.units_mark[0]
+    assert good == len(before) and out.rows > good
+    out.cut_back(s.units_mark)
+    assert out.rows == good and path.read_text().count("\n") == good + 1  # and the header
+    # a stop at the first check removes the file: no row came from readings in units known
+    out2 = RowFile(tmp_path / "e2.csv", estimate_columns(f.outputs), overwrite=False)
+    s2 = LiveSession(
+        LiveSettings(port="/dev/ttyIMU", fmt="raw"), make_estimator("ekf", f),
+        imu_converters(raw, robot), out2, say=[].append,
+    )  # fmt: skip
+    _handle(s2, _deg_s_lines(UNIT_CHECK_SAMPLES + 5))
+    assert s2.wrong_units and out2.rows > 0 and s2.units_mark == (0, 0)
+    out2.cut_back(s2.units_mark)
+    assert out2.rows == 0 and not (tmp_path / "e2.csv").exists()
+
+
 def test_live_warns_once_about_a_deg_s_gyro_it_does_not_use() -> None:
     """Tilt from the accelerometer (the default): one UnitWarning, as estimate gives for
     a raw file, and every sample is estimated."""

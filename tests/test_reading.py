@@ -3,6 +3,7 @@ comments, ``t_ms``, ``;`` and tab, a plain serial capture), with one-line errors
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -346,21 +347,57 @@ def test_raw_times_a_thousand_times_too_long_are_told_by_the_gyros(
     assert main(["estimate", str(good), "-o", str(out), "--robot", "two-section"]) == 0
 
 
-def test_a_raw_recording_at_1_hz_in_seconds_is_not_taken_for_milliseconds(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+def test_a_still_start_longer_than_a_block_does_not_hide_milliseconds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """At 1 Hz the gyro's turn over a step misses the next gravity direction by tens of
-    degrees (a second of a swing), yet by less than no turn at all: read as it is. The
-    check judges its steps (with no margin asked for, it would refuse the file)."""
-    from continuum_mhe.io import raw_imu
+    """5 s of rest at 1 kHz (more than the 4,096 rows of the first block read) before
+    the motion, times in milliseconds read as seconds: the rest gives no evidence, the
+    motion after it does, and the file is refused as a whole one is."""
+    moving = _raw_recording(tmp_path / "k.csv", 0.001, 2.0, 1e3, "t").read_text().splitlines()
+    first = moving[1].split(",")
+    still = [v if h.startswith("a") else "0.0" for h, v in zip(moving[0].split(","), first)]
+    rest = [",".join([repr(float(k)), *still[1:]]) for k in range(5000)]  # gyros at rest
+    rows = [
+        ",".join([repr(5000.0 + float(r.split(",")[0])), *r.split(",")[1:]]) for r in moving[1:]
+    ]
+    path = tmp_path / "still.csv"
+    path.write_text("\n".join([moving[0], *rest, *rows]) + "\n")
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(path), "-o", str(out), "--robot", "two-section"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.endswith("t looks like milliseconds: name the column t_ms (t is read in seconds)")
+    assert not out.exists()
 
-    path = _raw_recording(tmp_path / "s.csv", 1.0, 60.0, 1.0, "t")
-    table = raw_imu.read_raw_imus(path, 2)
-    imu = table.imus[0]
-    assert imu.gyr is not None
-    assert raw_imu.time_unit_problem(imu.t, imu.acc, imu.gyr) is None
-    monkeypatch.setattr(raw_imu, "TIME_CHECK_RATIO", 0.0)
-    assert raw_imu.time_unit_problem(imu.t, imu.acc, imu.gyr) is not None
+
+def test_gyros_that_read_more_than_the_imu_turns_are_not_taken_for_milliseconds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Readings in seconds whose gyro turns more than the accelerometer shows, for
+    another reason than the time's unit: a resting IMU at 1 Hz with an uncalibrated
+    consumer gyro's bias (15, -10, 5 deg/s), and a 100 Hz recording whose gyro, unused
+    by ``--imu-model tilt``, is in deg/s (warned of). Neither has the accelerometer
+    follow the gyro's turn over a thousandth of the steps: both are read."""
+    from continuum_mhe.io.raw_imu import time_unit_problem
+
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 120.0, 1.0)
+    acc = np.array([0.5, -0.3, 9.78]) + rng.normal(0, 0.03, (len(t), 3))
+    gyr = np.radians([15.0, -10.0, 5.0]) + rng.normal(0, 0.005, (len(t), 3))
+    assert time_unit_problem(t, acc, gyr) is None
+    degrees = _raw_recording(tmp_path / "d.csv", 0.01, 10.0, 1.0, "t")
+    lines = degrees.read_text().splitlines()
+    header = lines[0].split(",")
+    gyro = [i for i, h in enumerate(header) if h.startswith("g")]
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        for i in gyro:
+            r[i] = repr(math.degrees(float(r[i])))
+    degrees.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    out = tmp_path / "e.csv"
+    args = ["estimate", str(degrees), "-o", str(out), "--robot", "two-section"]
+    with pytest.warns(UnitWarning, match="deg/s"):
+        assert main([*args, "--imu-model", "tilt"]) == 0
 
 
 def test_t_in_microseconds_read_as_seconds_warns(tmp_path: Path) -> None:
@@ -532,16 +569,22 @@ def test_a_packed_file_is_named_for_what_it_is(tmp_path: Path, start: bytes, wha
     )
 
 
-@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
-def test_a_utf16_file_is_told_to_be_saved_as_utf8(tmp_path: Path, encoding: str) -> None:
+@pytest.mark.parametrize(
+    ("encoding", "iconv"),
+    [("utf-16", "UTF-16"), ("utf-16-le", "UTF-16LE"), ("utf-16-be", "UTF-16BE")],
+)
+def test_a_utf16_file_is_told_to_be_saved_as_utf8(
+    tmp_path: Path, encoding: str, iconv: str
+) -> None:
     """Excel's "Unicode Text" (UTF-16, with or without a byte-order mark): named as
-    UTF-16 with the fix, not as a binary file with a NUL byte."""
+    UTF-16 with the fix (iconv's encoding names the byte order where no mark does), not
+    as a binary file with a NUL byte."""
     path = tmp_path / "m.csv"
     path.write_bytes(_csv().encode(encoding))
     with pytest.raises(InputError) as info:
         read_measurements(path)
     assert str(info.value).startswith(f"{path}: line 1: not UTF-8 text but UTF-16 text")
-    assert "iconv -f UTF-16 -t UTF-8" in str(info.value)
+    assert f"iconv -f {iconv} -t UTF-8" in str(info.value)
 
 
 def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
@@ -556,15 +599,18 @@ def test_a_header_without_rows_names_the_line_after_it(tmp_path: Path) -> None:
 def test_a_whole_set_numbered_beyond_the_gap_is_named_not_the_sets_between(
     tmp_path: Path,
 ) -> None:
-    """Two IMUs' columns and a whole set numbered 9: the line names IMU 9's columns,
-    not the six columns of IMUs 3 to 8 that its number would imply."""
-    header = "t,roll_1,pitch_1,roll_2,pitch_2,roll_9,pitch_9"
-    path = _write(tmp_path / "m.csv", f"{header}\n0,0,0,0,0,0,0\n")
-    with pytest.raises(InputError) as info:
-        read_measurements(path, n_imus=2)
-    text = str(info.value)
-    assert "line 1: roll_9, pitch_9 are columns of IMU 9" in text, text
-    assert "roll_3" not in text and "describes 2 IMU(s)" in text
+    """Two IMUs' columns and a whole set numbered 4 or 9: the line names that IMU's
+    columns, not the columns of IMUs 3 to 8 that its number would imply, whatever other
+    columns the header holds."""
+    for k, extra in ((9, ""), (4, ",x,y"), (4, ",x,y,u,v,w")):
+        header = f"t,roll_1,pitch_1,roll_2,pitch_2,roll_{k},pitch_{k}{extra}"
+        values = ",".join("0" * len(header.split(",")))
+        path = _write(tmp_path / "m.csv", f"{header}\n{values}\n")
+        with pytest.raises(InputError) as info:
+            read_measurements(path, n_imus=2)
+        text = str(info.value)
+        assert f"line 1: roll_{k}, pitch_{k} are columns of IMU {k}," in text, text
+        assert "roll_3" not in text and "describes 2 IMU(s)" in text
 
 
 def test_a_stray_imu_column_far_beyond_the_robot_is_a_short_line(tmp_path: Path) -> None:

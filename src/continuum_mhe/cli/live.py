@@ -154,15 +154,22 @@ def run(args: argparse.Namespace) -> int:
                     if view.estimates
                     else f"no sample arrived: {path} not written"
                 )
-        if session is not None and session.wrong_units and out is not None and out.rows:
-            say(
-                f"the {out.rows} estimates made from readings in the wrong units are not "
-                f"kept: {out.path} removed"
-                + (f" ({record.path} keeps the readings as received)" if record else "")
-            )
-            out.discard()
+        cut = session is not None and session.wrong_units and out is not None
+        if cut and out is not None and session is not None:
+            mark = session.units_mark or (0, 0)
+            wrong = out.rows - mark[0]
+            if wrong:
+                kept = (
+                    f"{out.path} keeps the {mark[0]} before" if mark[0] else f"{out.path} removed"
+                )
+                say(
+                    f"the {wrong} estimates made from readings in the wrong units are not "
+                    f"kept: {kept}"
+                    + (f" ({record.path} keeps the readings as received)" if record else "")
+                )
+            out.cut_back(mark)
         for sink, what in ((out, "estimates"), (record, "samples")):
-            if sink is None or (sink is out and session is not None and session.wrong_units):
+            if sink is None or (cut and sink is out and not sink.rows):
                 continue
             sink.close()
             if sink.rows:

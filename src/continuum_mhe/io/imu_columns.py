@@ -171,11 +171,12 @@ def _beyond_error(
     shown = [rows.as_written(f"{c}_{k}") for k in beyond for c in columns.names if c in sets[k]]
     listed = ", ".join(shown[:4]) + (f" and {len(shown) - 4} more" if len(shown) > 4 else "")
     imus = ", ".join(map(str, beyond[:4])) + (" ..." if len(beyond) > 4 else "")
+    which = f"IMU{'s' if len(beyond) > 1 else ''} {imus}"
     return InputError(
         f"{rows.name}: line 1: {listed} {'is a column' if len(shown) == 1 else 'are columns'} "
-        f"of IMU {imus}, but the robot describes {n_imus} IMU(s), whose columns the header "
-        f"holds: remove {'it' if len(shown) == 1 else 'them'}, or describe the robot's "
-        "IMUs in its robot file ([[imu]], numbered from 1 in its order)"
+        f"of {which}, but the robot describes {n_imus} IMU(s), whose columns the header "
+        f"holds: remove {'it' if len(shown) == 1 else 'them'}, or describe every IMU in "
+        "the robot ([[imu]] entries, numbered from 1 in their order)"
     )
 
 
@@ -219,23 +220,21 @@ def imu_suffixes(
         return [""] if unnumbered else [f"_{k}" for k in range(1, count + 1)]
 
     missing, typos = columns.missing(header, suffixes(n_imus))
-    # whole sets of ``found`` IMUs fit in the header (else a column numbers an IMU
-    # far beyond the others: its count implies sets the header cannot hold, and listing
-    # them, or their look-alikes, takes as long as that number says)
-    fits = found * len(columns.fields) <= len(header)
-    if found != n_imus and not typos and not fits and not missing:
-        raise _beyond_error(rows, columns, sets, n_imus)
-    if found != n_imus and not typos and fits:
-        own = columns.missing(header, suffixes(found))  # the file's sets, for its count
-        if not own[0]:
-            shown = (
-                ", ".join(map(rows.as_written, columns.fields))
-                if unnumbered
-                else numbered_span(columns.fields[0], found, rows.as_written)
-            )
-            raise imu_count_error(rows.name, columns.kind, shown, found, n_imus, fix)
-        if not missing:  # whole sets for the robot, broken ones beyond its IMUs
-            missing, typos = own
+    if found != n_imus and not typos:
+        # whole sets of ``found`` IMUs fit in the header (else its count implies sets the
+        # header cannot hold, and listing them, or their look-alikes, takes as long as
+        # that number says)
+        if found * len(columns.fields) <= len(header):
+            own = columns.missing(header, suffixes(found))  # the file's sets, for its count
+            if not own[0]:
+                shown = (
+                    ", ".join(map(rows.as_written, columns.fields))
+                    if unnumbered
+                    else numbered_span(columns.fields[0], found, rows.as_written)
+                )
+                raise imu_count_error(rows.name, columns.kind, shown, found, n_imus, fix)
+        if not missing:  # whole sets for the robot, columns of IMUs beyond it
+            raise _beyond_error(rows, columns, sets, n_imus)
     whole = sorted(k for k, f in sets.items() if k > 0 and columns.whole(f))
     by_section = (  # whole sets, none broken, no typo: numbered otherwise than 1..n
         missing and not typos and len(whole) == n_imus == len(numbers)

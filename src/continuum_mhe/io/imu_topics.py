@@ -7,11 +7,11 @@ stamp skipped and counted); then samples are paired across topics by header stam
 sample of IMU 1 and one of IMU ``k`` are a pair when each is the other's nearest in time
 (mutual nearest neighbours, so no sample is used twice) and their stamps differ by at
 most the tolerance. Every sample of IMU 1 is a sample, at IMU 1's stamp; where IMU 1
-is silent between two of its samples for more than one and a half of its median sample
-periods (an outage) while another topic goes on, that topic's samples there are samples
-too (:func:`fill_outages`), thinned to at least three quarters of IMU 1's period apart,
-IMU 1's reading missing. A sample without a partner in
-a topic has that IMU's reading missing (a dropout of that IMU, as a table's row with
+is silent between two of its samples, or after its last one, for more than one and a
+half of its median sample periods (an outage) while another topic goes on, that topic's
+samples there are samples too (:func:`fill_outages`), thinned to at least three
+quarters of IMU 1's period apart, IMU 1's reading missing. A sample without a partner
+in a topic has that IMU's reading missing (a dropout of that IMU, as a table's row with
 its fields empty). The default tolerance is half of IMU 1's median sample period (a pair
 is then always closer than the next sample); ``--pair-tolerance`` sets it in seconds.
 The dropouts and the samples of the topics left without a partner are counted per

@@ -64,6 +64,7 @@ from continuum_mhe.io.input_options import (
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
+    TimeUnitWatch,
     check_accel_units,
     check_gyro_units,
     csv_input_kind,
@@ -589,12 +590,13 @@ def _table_stream(
         convs = imu_converters(options.raw, base.robot)
 
         read = [0]  # the blocks read so far
+        time_watch = TimeUnitWatch(rows.time_scale)
 
         def convert(t: FloatArray, values: FloatArray, lines: Sequence[int]) -> FloatArray:
             blocks = raw_blocks(
                 name, values, lines, n_imus, has_gyro, options.skip_bad, problems,
                 options.raw.needs_gyro, first_block=read[0] == 0, t=t,
-                time_scale=rows.time_scale,
+                time_watch=time_watch,
             )  # fmt: skip
             read[0] += 1
             return np.hstack(

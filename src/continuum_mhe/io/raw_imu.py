@@ -419,6 +419,7 @@ def raw_blocks(
     first_block: bool = True,
     t: FloatArray | None = None,
     time_scale: float = 1.0,
+    time_watch: TimeUnitWatch | None = None,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
     in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`; on a
@@ -426,7 +427,8 @@ def raw_blocks(
     :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
     no deg/s; with the rows' times ``t`` (n,) s, the first block's gyros are also held
     against the accelerometers: :func:`gyro_gravity_problem`, and so are its times, read
-    with ``time_scale`` s per unit: :func:`check_time_unit`).
+    with ``time_scale`` s per unit: :func:`check_time_unit`; a stream read in blocks
+    gives its ``time_watch``, which gathers the first blocks' rows for that check).
 
     One IMU: a zero acceleration, or a reading beyond any IMU's range
     (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
@@ -470,8 +472,11 @@ def raw_blocks(
             check_gyro_units(
                 label, block[:, 3:6], gyro_used, t if gravity else None, acc if gravity else None
             )
-            if gravity and t is not None:
-                check_time_unit(label, t, acc, block[:, 3:6], time_scale)
+        if has_gyro and t is not None and time_watch is not None:
+            time_watch.add(name if n_imus == 1 else f"{name}: IMU {i + 1}", t, acc, block[:, 3:6])
+        elif has_gyro and t is not None and first_block:
+            label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
+            check_time_unit(label, t, acc, block[:, 3:6], time_scale)
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -642,62 +647,120 @@ def gyro_gravity_problem(
     )
 
 
-#: The time check of a raw recording (:func:`time_unit_problem`) judges the steps over
-#: which the gyro, its rates taken over the step as given, turns the gravity direction
-#: by at least this (rad; a MEMS gyro's bias turns it by under 0.05 rad in a second) ...
+#: The time check of a raw recording (:func:`time_unit_problem`) cuts the rows into
+#: windows, each as long as the gyro's rates, taken over a thousandth of each step of
+#: ``t``, need to turn the gravity direction by this (rad) ...
 TIME_CHECK_MIN_TURN = 0.1
-#: ... on at least this many such steps ...
-TIME_CHECK_STEPS = 20
-#: ... and finds the times a thousand times too long where the turn misses the
-#: accelerometer's by this factor more than the turn over a thousandth of the step does.
+#: ... and judges at least this many such windows ...
+TIME_CHECK_WINDOWS = 5
+#: ... where the accelerometer's direction follows that turn to within this fraction of
+#: it (median), while the turn over each step as given misses it by more than
+#: :data:`TIME_CHECK_MIN_TURN` and by this factor more than the thousandth's.
+TIME_CHECK_FOLLOW = 0.35
 TIME_CHECK_RATIO = 5.0
+#: The rows examined, at most (the first ones), and the longest window.
+TIME_CHECK_ROWS = 100_000
+TIME_CHECK_WINDOW_ROWS = 20_000
+
+
+def _angles(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The angles (rad) between the unit vectors of the rows of ``a`` and ``b``."""
+    return np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
 
 
 def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | None:
     """Times ``t`` (n,) a thousand times too long (milliseconds read as seconds), told by
-    the gyro against the accelerometer: over the steps from one row to the next where
-    the rates ``gyr`` (n, 3; rad/s, their mean over the step), taken over the step, turn
-    the specific force's direction ``acc`` (n, 3; any unit) by at least
-    :data:`TIME_CHECK_MIN_TURN`, the direction they predict misses the next row's by a
-    median of more than :data:`TIME_CHECK_MIN_TURN` and :data:`TIME_CHECK_RATIO` times
-    the miss over a thousandth of each step. What to say (the two misses), or None (also
-    with fewer than :data:`TIME_CHECK_STEPS` such steps: slow steps or slow turns, where
-    the unit makes little difference to the gyro's part). Steps of a few milliseconds
-    turn no direction by that much: a recording in seconds at a usual rate is never
-    judged."""
+    the gyro against the accelerometer, on positive evidence only: the rows (finite,
+    the first :data:`TIME_CHECK_ROWS`) are cut into consecutive windows over which the
+    rates ``gyr`` (n, 3; rad/s, the mean of a step's two rows), taken over a thousandth
+    of each step, turn the specific force's direction ``acc`` (n, 3; any unit) by
+    :data:`TIME_CHECK_MIN_TURN` across it; with at least :data:`TIME_CHECK_WINDOWS` of
+    them, where the accelerometer's direction at a window's end follows that turn
+    (median miss within :data:`TIME_CHECK_FOLLOW` of the turn) and the turn over the
+    steps as given misses it by more than :data:`TIME_CHECK_MIN_TURN` and
+    :data:`TIME_CHECK_RATIO` times as much: what to say (the two misses), else None. A
+    gyro that reads more than the IMU turns (a bias, deg/s, counts) or an accelerometer
+    that does not follow gravity (a swing's own acceleration) gives no such evidence."""
     t, acc, gyr = (np.asarray(a, float) for a in (t, acc, gyr))
     norm = np.linalg.norm(acc, axis=1)
     ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1) & (norm > 0)
-    pair = ok[:-1] & ok[1:]
-    step = np.diff(t)
-    pair &= step > 0
-    if int(pair.sum()) < TIME_CHECK_STEPS:
+    keep = np.flatnonzero(ok)[:TIME_CHECK_ROWS]
+    if len(keep) < 2 * TIME_CHECK_WINDOWS:
         return None
-    direction = acc / np.where(norm > 0, norm, 1.0)[:, None]
-    first, last = direction[:-1][pair], direction[1:][pair]
-    rate = 0.5 * (gyr[:-1] + gyr[1:])[pair]
-    step = step[pair]
-    # the turn of a direction fixed in the world, seen in the IMU's frame: dv/dt = -w x v
-    across = np.linalg.norm(np.cross(rate, first), axis=1) * step
-    judged = across >= TIME_CHECK_MIN_TURN
-    if int(judged.sum()) < TIME_CHECK_STEPS:
+    t, direction, gyr = t[keep], acc[keep] / norm[keep, None], gyr[keep]
+    step = np.diff(t)
+    if not (step > 0).all():
+        return None
+    # the turn of a direction fixed in the world, seen in the IMU's frame: dv/dt = -w x v;
+    # the summed rotation vector from row 0 (exact for a turn about one axis)
+    turn = np.vstack(
+        [np.zeros(3), np.cumsum(-1e-3 * 0.5 * (gyr[:-1] + gyr[1:]) * step[:, None], axis=0)]
+    )
+    ends: list[tuple[int, int]] = []
+    i = 0
+    while i < len(t) - 1:
+        ahead = turn[i + 1 : i + 1 + TIME_CHECK_WINDOW_ROWS] - turn[i]
+        reached = np.flatnonzero(
+            np.linalg.norm(np.cross(ahead, direction[i]), axis=1) >= TIME_CHECK_MIN_TURN
+        )
+        if not len(reached):
+            if i + 1 + TIME_CHECK_WINDOW_ROWS >= len(t):
+                break
+            i += TIME_CHECK_WINDOW_ROWS  # a still stretch: the next window starts after it
+            continue
+        j = i + 1 + int(reached[0])
+        ends.append((i, j))
+        i = j
+    if len(ends) < TIME_CHECK_WINDOWS:
         return None
     from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
 
-    first, last, rotvec = first[judged], last[judged], -(rate * step[:, None])[judged]
-    miss = []
-    for scale in (1.0, 1e-3):
-        turned = Rotation.from_rotvec(scale * rotvec).apply(first)
-        miss.append(float(np.median(np.arccos(np.clip(np.sum(turned * last, axis=1), -1, 1)))))
-    as_given, as_thousandth = miss
-    if as_given <= TIME_CHECK_MIN_TURN or as_thousandth * TIME_CHECK_RATIO > as_given:
+    first, last = (np.asarray(ix) for ix in zip(*ends))
+    rotvec = turn[last] - turn[first]
+    start = direction[first]
+    medians = []
+    for scale in (1.0, 1e3):
+        predicted = Rotation.from_rotvec(scale * rotvec).apply(start)
+        medians.append(float(np.median(_angles(predicted, direction[last]))))
+    as_thousandth, as_given = medians
+    turned = float(np.median(_angles(Rotation.from_rotvec(rotvec).apply(start), start)))
+    if (
+        as_thousandth > TIME_CHECK_FOLLOW * turned
+        or as_given <= TIME_CHECK_MIN_TURN
+        or as_thousandth * TIME_CHECK_RATIO > as_given
+    ):
         return None
     return (
-        f"over {int(judged.sum())} steps the gyro's rates, taken over the steps of t as "
-        "given, turn the accelerometer's gravity direction to a median of "
-        f"{math.degrees(as_given):.0f} deg from where the accelerometer shows it next, over "
-        f"a thousandth of each step to {math.degrees(as_thousandth):.1f} deg"
+        f"over {len(ends)} stretches the accelerometer's gravity direction turns as the "
+        "gyro's rates say over a thousandth of the steps of t (to a median of "
+        f"{math.degrees(as_thousandth):.1f} deg of a {math.degrees(turned):.1f}-deg turn), "
+        f"not over the steps as given (to {math.degrees(as_given):.0f} deg)"
     )
+
+
+class TimeUnitWatch:
+    """:func:`check_time_unit` over the first :data:`TIME_CHECK_ROWS` rows of a stream
+    read in blocks, each IMU's rows gathered from block to block (a still start longer
+    than a block gives no evidence in its first one)."""
+
+    def __init__(self, time_scale: float) -> None:
+        self.time_scale = time_scale
+        self._rows: dict[str, list[FloatArray]] = {}
+        self._count: dict[str, int] = {}
+
+    def add(self, label: str, t: FloatArray, acc: FloatArray, gyr: FloatArray) -> None:
+        """Take a block of IMU ``label``'s rows (``t`` s, ``acc``, ``gyr`` as
+        :func:`time_unit_problem` takes them) and check its rows so far: a one-line
+        :class:`InputError` where they are a thousand times too long."""
+        seen = self._count.get(label, 0)
+        if seen >= TIME_CHECK_ROWS:
+            return
+        self._rows.setdefault(label, []).append(np.column_stack([t, acc, gyr]))
+        self._count[label] = seen + len(t)
+        rows = np.vstack(self._rows[label])
+        check_time_unit(label, rows[:, 0], rows[:, 1:4], rows[:, 4:7], self.time_scale)
+        if self._count[label] >= TIME_CHECK_ROWS:
+            del self._rows[label]  # judged: the memory goes
 
 
 def check_time_unit(

@@ -217,8 +217,8 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
                 raise InputError(f"{name}: line 1: not CSV text but {what}")
     body = raw.rstrip(b"\r\n") if raw.endswith(b"\n") else raw
     if b"\x00" in body:
-        if n == 1 and _utf16(body):
-            raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16}")
+        if n == 1 and (encoding := _utf16(body)):
+            raise InputError(f"{name}: line 1: not UTF-8 text but {UTF16.format(encoding)}")
         raise InputError(f"{name}: line {n}: contains a NUL byte (a binary file, not CSV)")
     if b"\r" in body.rstrip(b"\r"):
         raise InputError(
@@ -237,17 +237,22 @@ def decode_line(name: str, n: int, raw: bytes) -> str:
 #: What a file of UTF-16 text is told.
 UTF16 = (
     'UTF-16 text (Excel\'s "Unicode Text"?): save it as "CSV UTF-8", or convert it '
-    "(iconv -f UTF-16 -t UTF-8)"
+    "(iconv -f {} -t UTF-8)"
 )
 
 
-def _utf16(first: bytes) -> bool:
-    """A first line of UTF-16 text: its byte-order mark, or (without one) a NUL in every
-    other byte of an ASCII header."""
+def _utf16(first: bytes) -> str:
+    """The encoding for ``iconv`` of a first line of UTF-16 text (``UTF-16`` with its
+    byte-order mark; without one, ``UTF-16LE`` or ``UTF-16BE`` where every other byte
+    of an ASCII header is NUL), else ``""``."""
     if first.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return True
+        return "UTF-16"
     even, odd = set(first[0::2]), set(first[1::2])
-    return len(first) >= 4 and ((odd == {0} and 0 not in even) or (even == {0} and 0 not in odd))
+    if len(first) < 4:
+        return ""
+    if odd == {0} and 0 not in even:
+        return "UTF-16LE"
+    return "UTF-16BE" if even == {0} and 0 not in odd else ""
 
 
 #: The first bytes of packed files that a CSV reader meets, and what each is.

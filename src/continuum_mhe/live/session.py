@@ -268,11 +268,18 @@ class LiveSession:
         self._units_times: list[float] = []  # the times of the samples in _units_unchecked, s
         self._unused_gyro_checked = False  # a gyro the estimate ignores: warned once at most
         #: :attr:`fatal` says the readings are in the wrong units (an accelerometer in g,
-        #: a gyro in deg/s the estimate uses): the estimates made are from them
+        #: a gyro in deg/s the estimate uses): the estimates made since
+        #: :attr:`units_mark` are from them
         self.wrong_units = False
-        #: (arrival s, t s, samples since) at the first sample of the device clock's run,
-        #: until it is held against the arrival times (None: held, said or fine)
-        self._clock_start: list[float] | None = []
+        #: the estimate sink's end (its ``mark()``, where it has one) when the units check
+        #: was last armed: at the start, and at each board reset
+        self.units_mark: tuple[int, int] | None = None
+        self._mark_units()
+        #: the first sample of the device clock's run (its arrival and time, s), and the
+        #: samples since, until the clock is held against the arrival times
+        self._clock_checked = False
+        self._clock_since: tuple[float, float] | None = None
+        self._clock_samples = 0
         #: why the session must stop (an accelerometer in g, a gyro in deg/s where the
         #: estimate uses it): one line, raised by :func:`~continuum_mhe.live.run_live`; no
         #: line is handled after
@@ -461,23 +468,28 @@ class LiveSession:
         )
         self._garbage(arrival, f"a line longer than {max_bytes} bytes")
 
+    def _mark_units(self) -> None:
+        """Keep where the estimate sink ends as the units check is armed."""
+        mark = getattr(self.out, "mark", None)
+        self.units_mark = mark() if mark is not None else None
+
     def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
         """Say once where the device clock (``t``, s) advanced less than
         :data:`CLOCK_SLOW_FACTOR` times the arrival time over the first
         :data:`CLOCK_CHECK_S` s of its run: ``t_ms`` sent in seconds (a 50 Hz stream's
         steps of 0.02 read as 0.02 ms). A faster device clock is a feed faster than real
         time (a file replayed through a port), not a unit."""
-        if self._clock_start is None:
+        if self._clock_checked:
             return
-        if restart or not self._clock_start:
-            self._clock_start = [arrival, t, 0]
+        if restart or self._clock_since is None:
+            self._clock_since, self._clock_samples = (arrival, t), 0
             return
-        self._clock_start[2] += 1
-        since, t0, count = self._clock_start
+        self._clock_samples += 1
+        since, t0 = self._clock_since
         host = arrival - since
-        if host < CLOCK_CHECK_S or count < CLOCK_CHECK_SAMPLES:
+        if host < CLOCK_CHECK_S or self._clock_samples < CLOCK_CHECK_SAMPLES:
             return
-        self._clock_start = None
+        self._clock_checked = True
         device = t - t0
         if device < CLOCK_SLOW_FACTOR * host:
             self.say(
@@ -556,6 +568,7 @@ class LiveSession:
             # a board reset: it may run other firmware now, so the units are checked again
             # (a gyro the estimate ignores was warned about once: enough)
             self._units_unchecked = []
+            self._mark_units()
         if self._units_unchecked is not None:
             if not self._units_unchecked:
                 self._units_since = t

@@ -129,15 +129,25 @@ class RowFile:
             raise
         self._size += len(data)
 
-    def discard(self) -> None:
-        """Close and remove the file with its rows (:attr:`rows` is then 0): rows that must
-        not be read (estimates from readings in the wrong units)."""
-        created = self._fd is not None
-        self.close()
-        if created:
-            with contextlib.suppress(OSError):
-                os.unlink(self.path)
-        self.rows = 0
+    def mark(self) -> tuple[int, int]:
+        """Where the file ends now: ``(rows, bytes)``, for :meth:`cut_back`."""
+        return self.rows, self._size
+
+    def cut_back(self, mark: tuple[int, int]) -> None:
+        """Remove the rows written after ``mark`` (:meth:`mark`), and the file where no
+        row was written before it: rows that must not be read (estimates from readings
+        in the wrong units). The file is closed."""
+        rows, size = mark
+        if self._fd is not None:
+            if rows:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(self._fd, size)
+                self._size = size
+            self.close()
+            if not rows:
+                with contextlib.suppress(OSError):
+                    os.unlink(self.path)
+        self.rows = rows
 
     def close(self) -> None:
         if self._fd is not None:
