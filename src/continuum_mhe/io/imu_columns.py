@@ -224,6 +224,7 @@ def imu_suffixes(
         # whole sets of ``found`` IMUs fit in the header (else its count implies sets the
         # header cannot hold, and listing them, or their look-alikes, takes as long as
         # that number says)
+        own: tuple[dict[str, list[str]], list[str]] = ({}, [])
         if found * len(columns.fields) <= len(header):
             own = columns.missing(header, suffixes(found))  # the file's sets, for its count
             if not own[0]:
@@ -233,7 +234,9 @@ def imu_suffixes(
                     else numbered_span(columns.fields[0], found, rows.as_written)
                 )
                 raise imu_count_error(rows.name, columns.kind, shown, found, n_imus, fix)
-        if not missing:  # whole sets for the robot, columns of IMUs beyond it
+        if not missing and own[1]:  # whole sets for the robot, a typo in one beyond it
+            missing, typos = own
+        elif not missing:  # whole sets for the robot, columns of IMUs beyond it
             raise _beyond_error(rows, columns, sets, n_imus)
     whole = sorted(k for k, f in sets.items() if k > 0 and columns.whole(f))
     by_section = (  # whole sets, none broken, no typo: numbered otherwise than 1..n
