@@ -324,6 +324,27 @@ def test_blueprint_shows_the_trail_for_its_seconds(tmp_path: Path) -> None:
     }
 
 
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_a_live_view_of_readings_in_the_wrong_units_says_it_holds_them(tmp_path: Path) -> None:
+    """A gyro in deg/s stops ``live`` at its units check, and the estimates written to
+    ``-o`` are removed; the view file cannot be cut back, and the line naming it says
+    it holds the estimates from those readings."""
+    import math
+
+    from live_helpers import LiveProcess, new_pty, raw_lines, send_and_finish
+
+    port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
+    master = new_pty(port)
+    lines = [ln.rstrip("\n") for ln in raw_lines(1000, 200, gyro_scale=180 / math.pi)]
+    live = LiveProcess(["--port", str(port), "--method", "ekf", "--imu-model", "direct",
+                        "-o", str(out), "--view", str(rrd), "--view-hz", "0",
+                        "--duration", "30"])  # fmt: skip
+    code = send_and_finish(live, master, lines)  # kills it and closes master in any case
+    assert code == 2 and not out.exists(), live.err
+    said = f"live: the view in {rrd} (with the estimates from readings in the wrong units)"
+    assert said in live.err.splitlines(), live.err
+
+
 def test_live_view_without_rerun_is_one_line_before_the_port(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -149,8 +149,10 @@ def run(args: argparse.Namespace) -> int:
             view.close(keep=view.estimates > 0)  # is not written
             if view_sink.kind == "save":
                 path = view_sink.path
+                mixed = " (with the estimates from readings in the wrong units)"
                 say(
                     f"the view in {path}"
+                    + (mixed if session is not None and session.wrong_units else "")
                     if view.estimates
                     else f"no sample arrived: {path} not written"
                 )
