@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -704,3 +705,22 @@ def test_step_and_continue_run_say_when_t_looks_like_milliseconds() -> None:
         "continue_run: t advances by a median of 50 s per sam",
     ]
     assert all(w.filename == __file__ for w in seen if issubclass(w.category, UnitWarning))
+
+
+def test_run_on_a_recording_without_a_reading_warns_that_nothing_was_estimated() -> None:
+    """Every reading NaN (each a dropout): ``run`` returns a series of ``no-estimate``
+    rows, and says so in a warning (it said nothing: an empty result read as a quiet
+    one). One sample with readings gives an estimate and no warning."""
+    from continuum_mhe.io.csv_files import DropoutWarning
+
+    rec = simulate("straight", seed=1, duration=2.0)
+    z = np.full_like(rec.z, np.nan)
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.warns(DropoutWarning, match=r"run: none of the \d+ samples gave an estimate"):
+        series = est.run(rec.t, z)
+    assert set(series.status) == {"no-estimate"}
+    z[5] = rec.z[5]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DropoutWarning)
+        series = est.run(rec.t, z)
+    assert "no-estimate" in set(series.status) and len(set(series.status)) > 1

@@ -55,7 +55,12 @@ from continuum_mhe.estimators.reading_units import (
     direct_blocks,
     direct_units_problem,
 )
-from continuum_mhe.io.csv_files import TimeStepWatch, UnitWarning, check_time_steps
+from continuum_mhe.io.csv_files import (
+    DropoutWarning,
+    TimeStepWatch,
+    UnitWarning,
+    check_time_steps,
+)
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
@@ -597,6 +602,18 @@ class Estimator(Generic[InferenceT]):
             starts = progress(starts)
         batch = self._step_blocks(t, z, starts, block)
         self._ran = True
+        no_estimate = STATUSES.index(Status.NO_ESTIMATE)
+        if n and bool((batch.status == no_estimate).all()):
+            why = (
+                "every reading is missing (NaN: a dropout)"
+                if not np.isfinite(z).any()
+                else "see series.diagnostics"
+            )
+            warnings.warn(
+                f"run: none of the {n} samples gave an estimate (every status no-estimate): {why}",
+                DropoutWarning,
+                stacklevel=2,
+            )
         return EstimateSeries(
             method=self.name,
             t=t.copy(),

@@ -176,7 +176,8 @@ def tilt_values(
 
 
 class DropoutWarning(UserWarning):
-    """An IMU of several that gave no valid reading in a whole recording."""
+    """An IMU of several that gave no valid reading in a whole recording, or a recording
+    none of whose samples gave an estimate."""
 
 
 @dataclass

@@ -423,7 +423,7 @@ class Tensions:
             raise InputError(
                 f"{self.name}: the tensions cover t = {time_text(self.t[0])} to "
                 f"{time_text(self.t[-1])} s{epoch}, but a sample{of} is at t = "
-                f"{time_text(t)} s: the tensions must cover the recording; nothing written"
+                f"{time_text(t)} s: the tensions must cover the recording"
             )
         return tuple(  # type: ignore[return-value]
             np.array([np.interp(t, self.t, v) for v in a.T])
