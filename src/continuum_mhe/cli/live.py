@@ -156,8 +156,8 @@ def run(args: argparse.Namespace) -> int:
                     if view.estimates
                     else f"no sample arrived: {path} not written"
                 )
-        cut = session is not None and session.wrong_units and out is not None
-        if cut and out is not None and session is not None:
+        removed = False  # the estimates from readings in the wrong units, and the file
+        if session is not None and session.wrong_units and out is not None:
             mark = session.units_mark or (0, 0)
             wrong = out.rows - mark[0]
             if wrong:
@@ -170,8 +170,9 @@ def run(args: argparse.Namespace) -> int:
                     + (f" ({record.path} keeps the readings as received)" if record else "")
                 )
             out.cut_back(mark)
+            removed = not out.rows
         for sink, what in ((out, "estimates"), (record, "samples")):
-            if sink is None or (cut and sink is out and not sink.rows):
+            if sink is None or (removed and sink is out):
                 continue
             sink.close()
             if sink.rows:

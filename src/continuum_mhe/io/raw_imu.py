@@ -418,7 +418,6 @@ def raw_blocks(
     gyro_used: bool = True,
     first_block: bool = True,
     t: FloatArray | None = None,
-    time_scale: float = 1.0,
     time_watch: TimeUnitWatch | None = None,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
@@ -426,9 +425,9 @@ def raw_blocks(
     later block of a file read in blocks (not ``first_block``), only where it has
     :data:`UNIT_CHECK_SAMPLES` readings or more: a short last block of a fast turn is
     no deg/s; with the rows' times ``t`` (n,) s, the first block's gyros are also held
-    against the accelerometers: :func:`gyro_gravity_problem`, and so are its times, read
-    with ``time_scale`` s per unit: :func:`check_time_unit`; a stream read in blocks
-    gives its ``time_watch``, which gathers the first blocks' rows for that check).
+    against the accelerometers: :func:`gyro_gravity_problem`; with ``time_watch`` (a
+    whole table's, or a stream's, which gathers its first blocks' rows), the times are
+    checked against the gyros: :class:`TimeUnitWatch`).
 
     One IMU: a zero acceleration, or a reading beyond any IMU's range
     (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
@@ -437,6 +436,7 @@ def raw_blocks(
     k = 6 if has_gyro else 3
     out: list[tuple[FloatArray, FloatArray | None]] = []
     for i in range(n_imus):
+        label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
         block = values[:, k * i : k * (i + 1)].copy()
         if n_imus > 1:
             block[~np.all(np.isfinite(block), axis=1)] = np.nan
@@ -446,7 +446,7 @@ def raw_blocks(
         gyr_norm = np.hypot.reduce(block[:, 3:6], axis=1) if has_gyro else np.zeros(len(acc))
         zero = acc_norm == 0.0  # no gravity direction to read
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
-        check_accel_range(name if n_imus == 1 else f"{name}: IMU {i + 1}", acc_norm)
+        check_accel_range(label, acc_norm)
         if n_imus == 1:
             for j in np.flatnonzero(zero | huge):
                 msg = f"line {lines[int(j)]}: " + (
@@ -467,16 +467,12 @@ def raw_blocks(
         check_accel_units(name, acc)
         judged = first_block or int(np.isfinite(gyr_norm).sum()) >= UNIT_CHECK_SAMPLES
         if has_gyro and judged:
-            label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
             gravity = t is not None and first_block
             check_gyro_units(
                 label, block[:, 3:6], gyro_used, t if gravity else None, acc if gravity else None
             )
         if has_gyro and t is not None and time_watch is not None:
-            time_watch.add(name if n_imus == 1 else f"{name}: IMU {i + 1}", t, acc, block[:, 3:6])
-        elif has_gyro and t is not None and first_block:
-            label = name if n_imus == 1 else f"{name}: IMU {i + 1}"
-            check_time_unit(label, t, acc, block[:, 3:6], time_scale)
+            time_watch.add(label, t, acc, block[:, 3:6])
         out.append((acc, block[:, 3:6] if has_gyro else None))
     return out
 
@@ -494,7 +490,7 @@ def read_raw_imus(
     skipped = list(got.skipped)
     blocks = raw_blocks(
         rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t,
-        time_scale=rows.time_scale,
+        time_watch=TimeUnitWatch(rows.time_scale),
     )  # fmt: skip
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
     return MultiRawImuTable(got.t, imus, skipped)
@@ -522,7 +518,7 @@ def read_raw_imu(path: str | os.PathLike[str], *, skip_bad: bool = False) -> Raw
     skipped = list(got.skipped)
     ((acc, gyr),) = raw_blocks(
         rows.name, got.values, got.lines, 1, has_gyro, skip_bad, skipped, t=got.t,
-        time_scale=rows.time_scale,
+        time_watch=TimeUnitWatch(rows.time_scale),
     )  # fmt: skip
     return RawImuTable(t=got.t, acc=acc, gyr=gyr, skipped=skipped)
 
@@ -755,8 +751,9 @@ class TimeUnitWatch:
         seen = self._count.get(label, 0)
         if seen >= TIME_CHECK_ROWS:
             return
-        self._rows.setdefault(label, []).append(np.column_stack([t, acc, gyr]))
-        self._count[label] = seen + len(t)
+        take = TIME_CHECK_ROWS - seen  # the rows beyond are never judged
+        self._rows.setdefault(label, []).append(np.column_stack([t, acc, gyr])[:take])
+        self._count[label] = seen + min(len(t), take)
         rows = np.vstack(self._rows[label])
         check_time_unit(label, rows[:, 0], rows[:, 1:4], rows[:, 4:7], self.time_scale)
         if self._count[label] >= TIME_CHECK_ROWS:
