@@ -3,10 +3,24 @@
 from __future__ import annotations
 
 import gc
+import os
 
-import numpy as np
-import pytest
-from estimator_helpers import LIN_DT, LIN_H, LIN_N, LinearBend, bend_process_cov, lin_transition
+# One BLAS thread per test process (before numpy loads its BLAS): the estimators'
+# matrices are small, and with a worker per core an idle BLAS thread's spinning takes
+# the other worker's core.
+for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_threads, "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from estimator_helpers import (  # noqa: E402
+    LIN_DT,
+    LIN_H,
+    LIN_N,
+    LinearBend,
+    bend_process_cov,
+    lin_transition,
+)
 
 
 @pytest.fixture(scope="module")

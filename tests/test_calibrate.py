@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,17 @@ from live_helpers import alive
 from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
 from continuum_mhe.cli import main
 from continuum_mhe.io.raw_imu import mount_rotation
+
+#: The columns of one raw IMU's rest recording.
+RAW_COLUMNS = ("t", "ax", "ay", "az", "gx", "gy", "gz")
+
+
+def _write_rows(path: Path, columns: Sequence[str], rows: np.ndarray) -> None:
+    """A CSV of ``rows`` under ``columns``, each value as Python writes it (every digit)
+    and every line ended."""
+    lines = [",".join(columns), *(",".join(repr(float(v)) for v in r) for r in rows)]
+    path.write_text("\n".join(lines) + "\n")
+
 
 G = 9.80665
 
@@ -40,9 +52,7 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
     t = 100.0 + dt * np.arange(n)
     path = tmp_path / "rest.csv"
     rows = np.column_stack([t, *blocks])
-    path.write_text(
-        ",".join(cols) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n"
-    )
+    _write_rows(path, cols, rows)
     cal = calibrate(t, np.hstack(blocks), "raw", 2, "z-up")
     assert cal.rate_hz == pytest.approx(500.0, rel=1e-9)
     for k, imu in enumerate(cal.imus):
@@ -237,9 +247,7 @@ def test_the_stillness_bounds_are_options_for_a_noisier_imu(
     t = 0.01 * np.arange(n)
     path = tmp_path / "noisy_rest.csv"
     rows = np.column_stack([t, values])
-    path.write_text(
-        "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
-    )
+    _write_rows(path, RAW_COLUMNS, rows)
     code, out, err = _calibrate_main(capsys, "--from", str(path))
     assert code == 2 and out == ""
     assert err == (
@@ -270,9 +278,7 @@ def test_a_gyro_spread_with_still_accelerometers_suggests_deg_s(
     path = tmp_path / "rest_degs.csv"
     for swing, deg_s in ((0.35, True), (0.06, False)):
         rows = np.column_stack([t, _rest_values(n, 0.0, swing, tilt_deg=5.0)])
-        path.write_text(
-            "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
-        )
+        _write_rows(path, RAW_COLUMNS, rows)
         code, out, err = _calibrate_main(capsys, "--from", str(path))
         assert code == 2 and out == "" and err.count("\n") == 1
         assert "IMU 1's gyro spread (std of gx) is" in err
@@ -324,9 +330,7 @@ def test_the_printed_mounting_keeps_the_robot_files_yaw(
     acc = np.tile(mount_rotation((4.0, -2.0, 90.0)).T @ [0, 0, G], (n, 1))
     rows = np.column_stack([0.01 * np.arange(n), alive(np.hstack([acc, np.zeros((n, 3))]))])
     path = tmp_path / "rest.csv"
-    path.write_text(
-        "t,ax,ay,az,gx,gy,gz\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
-    )
+    _write_rows(path, RAW_COLUMNS, rows)
     written = tmp_path / "calibrated.toml"
     code, out, err = _calibrate_main(
         capsys, "--from", str(path), "--robot", str(robot), "--write-robot", str(written)
@@ -561,9 +565,7 @@ def _two_imu_rest(path: Path, tilts_deg: tuple[float, float], n: int = 400) -> n
 def _write_rest(path: Path, values: np.ndarray) -> None:
     cols = ["t"] + [f"{c}_{k}" for k in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")]
     rows = np.column_stack([0.01 * np.arange(len(values)), values])
-    path.write_text(
-        ",".join(cols) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows)
-    )
+    _write_rows(path, cols, rows)
 
 
 def test_a_frozen_imu_at_rest_is_refused(
@@ -627,9 +629,7 @@ def test_a_rest_in_another_acceleration_unit_is_refused_naming_the_unit(
     values[:, :3] *= 100.0
     rows = np.column_stack([0.01 * np.arange(n), values])
     path = tmp_path / "rest_cms2.csv"
-    path.write_text(
-        "t,ax,ay,az,gx,gy,gz\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in rows)
-    )
+    _write_rows(path, RAW_COLUMNS, rows)
     for extra in ((), ("--still-acc-std", "5")):
         code, out, err = _calibrate_main(capsys, "--from", str(path), *extra)
         assert code == 2 and out == ""
