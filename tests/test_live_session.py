@@ -599,7 +599,7 @@ def test_live_stops_on_a_gyro_in_deg_s_where_the_estimate_uses_it(raw: RawImuSet
     times too fast) does not stream on: the first UNIT_CHECK_SAMPLES samples are
     estimated while they arrive, and at the last of them the session stops (fatal:
     run_live says the summary and raises it), later lines ignored."""
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
 
     s, said, out = _raw_session(raw)
     lines = _deg_s_lines(UNIT_CHECK_SAMPLES + 20)
@@ -624,7 +624,7 @@ def test_live_stops_on_a_resting_gyro_in_deg_s() -> None:
     same board in rad/s streams on."""
     from live_helpers import raw_line, specific_force
 
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
 
     rng = np.random.default_rng(6)
     n = UNIT_CHECK_SAMPLES + 10
@@ -670,7 +670,7 @@ def test_live_checks_the_gyro_again_after_a_board_reset() -> None:
     that sends deg/s: a device clock restart re-arms the check on the samples after it."""
     from live_helpers import raw_lines
 
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
 
     s, said, _ = _raw_session(RawImuSettings(imu_model="direct"))
     before = [ln.rstrip("\n") for ln in raw_lines(60_000, UNIT_CHECK_SAMPLES + 10)]
@@ -692,7 +692,7 @@ def test_a_units_stop_after_a_board_reset_cuts_back_only_the_rows_after_it(
 
     from continuum_mhe.io.estimate_csv import estimate_columns
     from continuum_mhe.io.inputs import imu_converters
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
     from continuum_mhe.model.direct import DirectFormulation
 
     robot = Robot.single()
@@ -789,7 +789,7 @@ def test_live_stops_early_on_an_accelerometer_in_g() -> None:
     on the first UNIT_CHECK_SAMPLES samples, one line naming the port, the session stops
     (fatal), even with tilt from the accelerometer alone (the default), later lines
     ignored."""
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
 
     rows = [ln.split(",") for ln in _deg_s_lines(UNIT_CHECK_SAMPLES + 20, degrees=False)]
     in_g = [",".join([r[0], *(f"{float(v) / 9.80665:.5f}" for v in r[1:4]), *r[4:]]) for r in rows]

@@ -20,15 +20,14 @@ from continuum_mhe.estimators import make_estimator
 from continuum_mhe.evaluation.metrics import compute_metrics
 from continuum_mhe.io.csv_files import UnitWarning
 from continuum_mhe.io.raw_imu import (
-    GYRO_MEDIAN_MAX,
     RawImuConverter,
     RawImuSettings,
-    gyro_gravity_problem,
     mount_rotation,
     raw_to_measurements,
     read_raw_imu,
     read_raw_imus,
 )
+from continuum_mhe.io.raw_units import GYRO_MEDIAN_MAX, gyro_gravity_problem
 from continuum_mhe.io.state_tables import read_states
 from continuum_mhe.model.direct import (
     DEFAULT_GYRO_STD,

@@ -378,7 +378,7 @@ def test_gyros_that_read_more_than_the_imu_turns_are_not_taken_for_milliseconds(
     consumer gyro's bias (15, -10, 5 deg/s), and a 100 Hz recording whose gyro, unused
     by ``--imu-model tilt``, is in deg/s (warned of). Neither has the accelerometer
     follow the gyro's turn over a thousandth of the steps: both are read."""
-    from continuum_mhe.io.raw_imu import time_unit_problem
+    from continuum_mhe.io.raw_units import time_unit_problem
 
     rng = np.random.default_rng(0)
     t = np.arange(0.0, 120.0, 1.0)

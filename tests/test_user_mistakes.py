@@ -1174,7 +1174,7 @@ def test_a_resting_gyro_in_degrees_per_second_is_refused_by_run_and_step(method)
     because read as rad/s the gyro would turn the still specific force by tens of
     degrees a second; the same readings in rad/s run through."""
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
     from continuum_mhe.model.direct import direct_measurements
 
     rng = np.random.default_rng(5)
@@ -1209,7 +1209,7 @@ def test_gyros_in_degrees_per_second_stepped_one_by_one_are_refused(method) -> N
     before it are estimated. The same stream in rad/s runs through, and so does a
     1 kHz stream that turns at 6 rad/s for its first 0.12 s (a fast start, not deg/s)."""
     from continuum_mhe.estimators.reading_units import ReadingUnitsError
-    from continuum_mhe.io.raw_imu import UNIT_CHECK_SAMPLES
+    from continuum_mhe.io.raw_units import UNIT_CHECK_SAMPLES
     from continuum_mhe.model.direct import direct_measurements
 
     n = UNIT_CHECK_SAMPLES + 20

@@ -20,7 +20,7 @@ import numpy as np
 
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError
-from continuum_mhe.io.raw_imu import (
+from continuum_mhe.io.raw_units import (
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,
     gyro_gravity_problem,
@@ -60,9 +60,9 @@ def direct_units_problem(
     (:func:`direct_blocks`), as a line for :class:`~continuum_mhe.errors.UserError`, or
     None: a specific force whose median magnitude is not 1, or (``gyro``: a recording,
     where a median says it; one sample of a fast turn may exceed it) a gyro whose median
-    rate says deg/s (:func:`~continuum_mhe.io.raw_imu.gyro_units_problem`), or, given
+    rate says deg/s (:func:`~continuum_mhe.io.raw_units.gyro_units_problem`), or, given
     the samples' times ``t`` (n,) s, whose rates turn the specific force as deg/s would
-    (:func:`~continuum_mhe.io.raw_imu.gyro_gravity_problem`: a gyro in deg/s at rest).
+    (:func:`~continuum_mhe.io.raw_units.gyro_gravity_problem`: a gyro in deg/s at rest).
     Rows with a non-finite reading (dropouts) are left out."""
     for force_rows, gyro_rows, names in blocks:
         f, w = z[:, force_rows], z[:, gyro_rows]
@@ -95,8 +95,8 @@ class ReadingUnitsWatch:
     """The units of ``direct`` readings that arrive sample by sample (or block by
     block): each block's first full reading's specific force, and its gyros' median
     over its first full readings, at least
-    :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` of them over at least
-    :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SPAN_S` (the check of a whole
+    :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` of them over at least
+    :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SPAN_S` (the check of a whole
     recording, on the samples a stream has; one fast turn says nothing). A stream
     shorter than that has its gyros unchecked. A problem found is given again for every
     later sample, until :meth:`reset` (a new recording)."""

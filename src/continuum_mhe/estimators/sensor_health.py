@@ -456,7 +456,7 @@ class Estimator(Generic[InferenceT]):
                 specific force that is not a unit vector (each IMU's first full reading
                 after a reset is checked) or a gyro in deg/s (the median of each IMU's
                 first full readings after a reset, at least
-                :data:`~continuum_mhe.io.raw_imu.UNIT_CHECK_SAMPLES` over at least a
+                :data:`~continuum_mhe.io.raw_units.UNIT_CHECK_SAMPLES` over at least a
                 second: the samples before are estimated; ``run`` checks the whole
                 recording; both a :class:`~.reading_units.ReadingUnitsError`, raised
                 again for every later sample until a reset), or

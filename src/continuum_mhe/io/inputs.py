@@ -64,9 +64,6 @@ from continuum_mhe.io.input_options import (
 from continuum_mhe.io.raw_imu import (
     RawImuConverter,
     RawImuSettings,
-    TimeUnitWatch,
-    check_accel_units,
-    check_gyro_units,
     csv_input_kind,
     raw_blocks,
     raw_layout,
@@ -75,6 +72,7 @@ from continuum_mhe.io.raw_imu import (
     read_raw_imus,
     sample_kind,
 )
+from continuum_mhe.io.raw_units import TimeUnitWatch, check_accel_units, check_gyro_units
 from continuum_mhe.io.robot_logs import (
     ImuLog,
     is_robot_log,

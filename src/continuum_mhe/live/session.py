@@ -28,10 +28,10 @@ from continuum_mhe.estimators.run_notices import (
 )
 from continuum_mhe.estimators.sensor_health import Estimator, _reraise_interrupt
 from continuum_mhe.io.estimate_csv import estimate_columns, estimate_row
-from continuum_mhe.io.raw_imu import (
+from continuum_mhe.io.raw_imu import RawImuConverter
+from continuum_mhe.io.raw_units import (
     UNIT_CHECK_SAMPLES,
     UNIT_CHECK_SPAN_S,
-    RawImuConverter,
     check_accel_units,
     check_gyro_units,
 )

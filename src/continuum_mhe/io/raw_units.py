@@ -1,0 +1,335 @@
+"""Unit checks of raw IMU readings: an accelerometer in g or in raw counts, a gyro in
+deg/s (by its median rate, or against the turn of gravity's direction that the
+accelerometer shows), and times a thousand times too long (the gyro's turn against the
+accelerometer's). Each check names the file or IMU and the fix in one line."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import InputError
+from continuum_mhe.io.csv_files import UnitWarning
+from continuum_mhe.model.imu import STANDARD_GRAVITY
+
+#: Median |a| in this band (in the file's unit) means the file is in g, not m/s^2.
+_LOOKS_LIKE_G = (0.5, 2.0)
+#: Median |omega| above this (rad/s, 286 deg/s: turning most of the time faster than
+#: most continuum robots ever do; the shipped rod recordings' largest median is 2.7)
+#: means the gyro is in deg/s, not rad/s. A deg/s file whose median rate stays below
+#: 5 deg/s is not caught (its rates are small either way).
+GYRO_MEDIAN_MAX = 5.0
+#: A stream's units are checked on the medians of its first samples, at least this many
+#: (1 s at 100 Hz) over at least :data:`UNIT_CHECK_SPAN_S`, where a recording's are
+#: checked on all of them.
+UNIT_CHECK_SAMPLES = 100
+UNIT_CHECK_SPAN_S = 1.0
+#: The gravity check of a gyro's units (:func:`gyro_gravity_problem`) compares the
+#: accelerometer's direction with the gyro's turn over stretches of this length (s), of
+#: at least :data:`GRAVITY_TURN_ROWS` readings, ...
+GRAVITY_TURN_SPAN_S = 0.5
+GRAVITY_TURN_ROWS = 5
+#: ... where the IMU is still: its specific force's magnitude spreads by at most this
+#: fraction of its mean over the stretch (the noise of a MEMS accelerometer at rest is
+#: about 0.5 %; a swing's own acceleration is more) ...
+GRAVITY_TURN_ACCEL_SPREAD = 0.01
+#: ... and its rates are steady, as a bias: their spread (the norm of the axes' standard
+#: deviations) at most this fraction of their mean rate's magnitude ...
+GRAVITY_TURN_RATE_SPREAD = 0.5
+#: ... and finds deg/s where the gyro, read as rad/s, misses the accelerometer's turn by
+#: more than this (rad, 20 deg) in the median stretch: a MEMS gyro's bias in rad/s
+#: (under 0.05) turns a direction by about 1.5 deg in a stretch, one of 1 deg/s read
+#: as rad/s by 29 deg.
+GRAVITY_TURN_MISMATCH = math.radians(20.0)
+#: An acceleration (m/s^2) or a rate (rad/s) of a larger magnitude is beyond any IMU's
+#: range (high-g accelerometers end near 4,000 m/s^2, MEMS gyros near 70 rad/s): a
+#: corrupt value, not a reading.
+ACCEL_READING_MAX = 1e4
+GYRO_READING_MAX = 1e3
+#: :func:`check_accel_range` judges an accelerometer's unit on at least this many rows
+#: (a block of fewer, such as a file's last rows, holds corrupt values at most).
+ACCEL_RANGE_ROWS = 10
+
+
+def check_accel_range(label: str, acc_norm: FloatArray) -> None:
+    """An accelerometer most of whose readings (magnitudes ``acc_norm`` of its finite
+    rows, m/s^2; at least :data:`ACCEL_RANGE_ROWS` of them) are beyond any IMU's range
+    is in another unit (raw counts): a one-line :class:`InputError` naming ``label``,
+    rather than every reading a dropout (a few corrupt values stay dropouts)."""
+    finite = acc_norm[np.isfinite(acc_norm)]
+    if len(finite) < ACCEL_RANGE_ROWS or 2 * int((finite > ACCEL_READING_MAX).sum()) <= len(finite):
+        return
+    raise InputError(
+        f"{label}: accelerometer magnitude is about {float(np.median(finite)):.3g} (median), "
+        f"beyond any IMU's range in m/s^2 (limit {ACCEL_READING_MAX:g}): raw counts? "
+        "give m/s^2 (counts times g over the counts per g, e.g. 9.81 / 16384 at +-2 g)"
+    )
+
+
+def check_accel_units(path: Path | str, acc: FloatArray) -> None:
+    """An accelerometer whose median magnitude is about 1 (within :data:`_LOOKS_LIKE_G`)
+    is in g, not m/s^2: a one-line :class:`InputError` naming ``path``."""
+    norm = np.linalg.norm(acc, axis=1)
+    norm = norm[np.isfinite(norm)]
+    if len(norm) and _LOOKS_LIKE_G[0] < float(np.median(norm)) < _LOOKS_LIKE_G[1]:
+        raise InputError(
+            f"{path}: accelerometer magnitude is about {float(np.median(norm)):.2f}: the "
+            f"values look like g; ax, ay, az must be in m/s^2 (multiply by {STANDARD_GRAVITY})"
+        )
+
+
+def gyro_units_problem(gyr: FloatArray, names: str = "gx, gy, gz") -> str | None:
+    """Where the median magnitude of a gyro's readings ``gyr`` (n, 3) exceeds
+    :data:`GYRO_MEDIAN_MAX` rad/s (deg/s given for rad/s): what to say, naming the
+    columns ``names``; else None. Non-finite rows are left out."""
+    norm = np.linalg.norm(gyr, axis=1)
+    norm = norm[np.isfinite(norm)]
+    if not len(norm) or float(np.median(norm)) <= GYRO_MEDIAN_MAX:
+        return None
+    return (
+        f"gyro magnitude is about {float(np.median(norm)):.3g} (median), implausible in "
+        f"rad/s (above {GYRO_MEDIAN_MAX:g}): deg/s? give rad/s ({names} times pi/180 = "
+        f"{math.pi / 180:.7f})"
+    )
+
+
+def _turn_errors(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> FloatArray:
+    """Per still stretch of :data:`GRAVITY_TURN_SPAN_S`: the angle (rad) between the
+    accelerometer's last direction and its first one turned by the gyro's summed rates
+    (one rotation vector: exact for a rate of constant direction, such as a resting
+    gyro's bias), the gyro read as rad/s (column 0) and as deg/s (column 1); (k, 2).
+
+    A stretch is judged where it has at least :data:`GRAVITY_TURN_ROWS` finite rows, its
+    specific force's magnitude spreads by at most :data:`GRAVITY_TURN_ACCEL_SPREAD` of
+    its mean (no acceleration of the IMU's own: a swinging IMU's specific force turns
+    with it) and its rates by at most :data:`GRAVITY_TURN_RATE_SPREAD` of their mean (a
+    steady rate, as a bias; a swing's rates change sign). Rows are paired with the next
+    row of their own stretch only (a gap or a short stretch adds nothing)."""
+    ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1)
+    t, acc, gyr = t[ok], acc[ok], gyr[ok]
+    norm = np.linalg.norm(acc, axis=1)
+    t, acc, gyr, norm = t[norm > 0], acc[norm > 0], gyr[norm > 0], norm[norm > 0]
+    if len(t) < GRAVITY_TURN_ROWS:
+        return np.zeros((0, 2))
+    direction = acc / norm[:, None]
+    stretch = np.floor((t - t[0]) / GRAVITY_TURN_SPAN_S).astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, np.diff(stretch) != 0])
+    stops = np.r_[starts[1:], len(t)]
+    count = (stops - starts).astype(float)
+    # each row's rate over the step to the next row of its own stretch
+    step = np.r_[np.diff(t), 0.0]
+    step[stops - 1] = 0.0
+    turn = np.add.reduceat(gyr * step[:, None], starts, axis=0)
+    norm_mean = np.add.reduceat(norm, starts) / count
+    norm_var = np.add.reduceat(norm**2, starts) / count - norm_mean**2
+    rate_mean = np.add.reduceat(gyr, starts, axis=0) / count[:, None]
+    rate_var = np.add.reduceat(gyr**2, starts, axis=0) / count[:, None] - rate_mean**2
+    still = (
+        (count >= GRAVITY_TURN_ROWS)
+        & (np.sqrt(np.maximum(norm_var, 0.0)) <= GRAVITY_TURN_ACCEL_SPREAD * norm_mean)
+        & (
+            np.sqrt(np.maximum(rate_var, 0.0).sum(axis=1))
+            <= GRAVITY_TURN_RATE_SPREAD * np.linalg.norm(rate_mean, axis=1)
+        )
+    )
+    if not still.any():
+        return np.zeros((0, 2))
+    first, last, turn = direction[starts[still]], direction[stops[still] - 1], turn[still]
+    from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
+
+    errors = np.empty((len(first), 2))
+    for col, scale in enumerate((1.0, math.pi / 180.0)):
+        # a direction fixed in the world turns in the IMU's frame as dv/dt = -w x v
+        turned = Rotation.from_rotvec(-scale * turn).apply(first)
+        errors[:, col] = np.arccos(np.clip(np.sum(turned * last, axis=1), -1.0, 1.0))
+    return errors
+
+
+def gyro_gravity_problem(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, names: str = "gx, gy, gz"
+) -> str | None:
+    """A gyro in deg/s whose rates are too small for :func:`gyro_units_problem` (an IMU
+    at rest with its bias), told by the accelerometer: where, over the still stretches
+    of the times ``t`` (n,) s (:func:`_turn_errors`: the specific force ``acc`` (n, 3;
+    any unit) steady in magnitude, the rates ``gyr`` (n, 3) steady), the rates read as
+    rad/s would turn the gravity direction by more than :data:`GRAVITY_TURN_MISMATCH`
+    rad in the median stretch, while read as deg/s they follow it at least three times
+    as closely: what to say, naming the columns ``names``; else None (also with fewer
+    than two still stretches). A turn about the vertical moves no accelerometer and
+    says nothing."""
+    errors = _turn_errors(np.asarray(t, float), np.asarray(acc, float), np.asarray(gyr, float))
+    if len(errors) < 2:
+        return None
+    as_rad, as_deg = (float(v) for v in np.median(errors, axis=0))
+    if as_rad <= GRAVITY_TURN_MISMATCH or as_deg * 3.0 > as_rad:
+        return None
+    return (
+        "the accelerometer's gravity direction turns as the gyro says only with the gyro "
+        f"in deg/s (read as rad/s it misses by {math.degrees(as_rad):.0f} deg every "
+        f"{GRAVITY_TURN_SPAN_S:g} s, median; read as deg/s by {math.degrees(as_deg):.1f} "
+        f"deg): give rad/s ({names} times pi/180 = {math.pi / 180:.7f})"
+    )
+
+
+#: The time check of a raw recording (:func:`time_unit_problem`) cuts the rows into
+#: windows, each as long as the gyro's rates, taken over a thousandth of each step of
+#: ``t``, need to turn the gravity direction by this (rad) ...
+TIME_CHECK_MIN_TURN = 0.1
+#: ... and judges at least this many such windows ...
+TIME_CHECK_WINDOWS = 5
+#: ... where the accelerometer's direction follows that turn to within this fraction of
+#: it (median), while the turn over each step as given misses it by more than
+#: :data:`TIME_CHECK_MIN_TURN` and by this factor more than the thousandth's.
+TIME_CHECK_FOLLOW = 0.35
+TIME_CHECK_RATIO = 5.0
+#: The rows examined, at most (the first ones), and the longest window.
+TIME_CHECK_ROWS = 100_000
+TIME_CHECK_WINDOW_ROWS = 20_000
+
+
+def _angles(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The angles (rad) between the unit vectors of the rows of ``a`` and ``b``."""
+    return np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
+
+
+def time_unit_problem(t: FloatArray, acc: FloatArray, gyr: FloatArray) -> str | None:
+    """Times ``t`` (n,) a thousand times too long (milliseconds read as seconds), told by
+    the gyro against the accelerometer, on positive evidence only: the rows (finite,
+    the first :data:`TIME_CHECK_ROWS`) are cut into consecutive windows over which the
+    rates ``gyr`` (n, 3; rad/s, the mean of a step's two rows), taken over a thousandth
+    of each step, turn the specific force's direction ``acc`` (n, 3; any unit) by
+    :data:`TIME_CHECK_MIN_TURN` across it; with at least :data:`TIME_CHECK_WINDOWS` of
+    them, where the accelerometer's direction at a window's end follows that turn
+    (median miss within :data:`TIME_CHECK_FOLLOW` of the turn) and the turn over the
+    steps as given misses it by more than :data:`TIME_CHECK_MIN_TURN` and
+    :data:`TIME_CHECK_RATIO` times as much: what to say (the two misses), else None. A
+    gyro that reads more than the IMU turns (a bias, deg/s, counts) or an accelerometer
+    that does not follow gravity (a swing's own acceleration) gives no such evidence."""
+    t, acc, gyr = (np.asarray(a, float) for a in (t, acc, gyr))
+    norm = np.linalg.norm(acc, axis=1)
+    ok = np.isfinite(t) & np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1) & (norm > 0)
+    keep = np.flatnonzero(ok)[:TIME_CHECK_ROWS]
+    if len(keep) < 2 * TIME_CHECK_WINDOWS:
+        return None
+    t, direction, gyr = t[keep], acc[keep] / norm[keep, None], gyr[keep]
+    step = np.diff(t)
+    if not (step > 0).all():
+        return None
+    # the turn of a direction fixed in the world, seen in the IMU's frame: dv/dt = -w x v;
+    # the summed rotation vector from row 0 (exact for a turn about one axis)
+    turn = np.vstack(
+        [np.zeros(3), np.cumsum(-1e-3 * 0.5 * (gyr[:-1] + gyr[1:]) * step[:, None], axis=0)]
+    )
+    ends: list[tuple[int, int]] = []
+    i = 0
+    while i < len(t) - 1:
+        ahead = turn[i + 1 : i + 1 + TIME_CHECK_WINDOW_ROWS] - turn[i]
+        reached = np.flatnonzero(
+            np.linalg.norm(np.cross(ahead, direction[i]), axis=1) >= TIME_CHECK_MIN_TURN
+        )
+        if not len(reached):
+            if i + 1 + TIME_CHECK_WINDOW_ROWS >= len(t):
+                break
+            i += TIME_CHECK_WINDOW_ROWS  # a still stretch: the next window starts after it
+            continue
+        j = i + 1 + int(reached[0])
+        ends.append((i, j))
+        i = j
+    if len(ends) < TIME_CHECK_WINDOWS:
+        return None
+    from scipy.spatial.transform import Rotation  # here: a tilt run imports no SciPy
+
+    first, last = (np.asarray(ix) for ix in zip(*ends))
+    rotvec = turn[last] - turn[first]
+    start = direction[first]
+    medians = []
+    for scale in (1.0, 1e3):
+        predicted = Rotation.from_rotvec(scale * rotvec).apply(start)
+        medians.append(float(np.median(_angles(predicted, direction[last]))))
+    as_thousandth, as_given = medians
+    turned = float(np.median(_angles(Rotation.from_rotvec(rotvec).apply(start), start)))
+    if (
+        as_thousandth > TIME_CHECK_FOLLOW * turned
+        or as_given <= TIME_CHECK_MIN_TURN
+        or as_thousandth * TIME_CHECK_RATIO > as_given
+    ):
+        return None
+    return (
+        f"over {len(ends)} stretches the accelerometer's gravity direction turns as the "
+        "gyro's rates say over a thousandth of the steps of t (to a median of "
+        f"{math.degrees(as_thousandth):.1f} deg of a {math.degrees(turned):.1f}-deg turn), "
+        f"not over the steps as given (to {math.degrees(as_given):.0f} deg)"
+    )
+
+
+class TimeUnitWatch:
+    """:func:`check_time_unit` over the first :data:`TIME_CHECK_ROWS` rows of a stream
+    read in blocks, each IMU's rows gathered from block to block (a still start longer
+    than a block gives no evidence in its first one)."""
+
+    def __init__(self, time_scale: float) -> None:
+        self.time_scale = time_scale
+        self._rows: dict[str, list[FloatArray]] = {}
+        self._count: dict[str, int] = {}
+
+    def add(self, label: str, t: FloatArray, acc: FloatArray, gyr: FloatArray) -> None:
+        """Take a block of IMU ``label``'s rows (``t`` s, ``acc``, ``gyr`` as
+        :func:`time_unit_problem` takes them) and check its rows so far: a one-line
+        :class:`InputError` where they are a thousand times too long."""
+        seen = self._count.get(label, 0)
+        if seen >= TIME_CHECK_ROWS:
+            return
+        take = TIME_CHECK_ROWS - seen  # the rows beyond are never judged
+        self._rows.setdefault(label, []).append(np.column_stack([t, acc, gyr])[:take])
+        self._count[label] = seen + min(len(t), take)
+        rows = np.vstack(self._rows[label])
+        check_time_unit(label, rows[:, 0], rows[:, 1:4], rows[:, 4:7], self.time_scale)
+        if self._count[label] >= TIME_CHECK_ROWS:
+            del self._rows[label]  # judged: the memory goes
+
+
+def check_time_unit(
+    name: str, t: FloatArray, acc: FloatArray, gyr: FloatArray, time_scale: float
+) -> None:
+    """A one-line :class:`InputError` where :func:`time_unit_problem` finds the times of
+    ``name`` (s; read from a ``t`` column, or ``t_ms`` where ``time_scale`` is 1e-3) a
+    thousand times too long."""
+    problem = time_unit_problem(t, acc, gyr)
+    if problem is None:
+        return
+    fix = (
+        "t_ms looks like microseconds: give milliseconds"
+        if time_scale == 1e-3
+        else "t looks like milliseconds: name the column t_ms (t is read in seconds)"
+    )
+    raise InputError(f"{name}: {problem}: {fix}")
+
+
+def check_gyro_units(
+    path: Path | str,
+    gyr: FloatArray,
+    used: bool = True,
+    t: FloatArray | None = None,
+    acc: FloatArray | None = None,
+) -> None:
+    """A gyro whose median magnitude exceeds :data:`GYRO_MEDIAN_MAX` rad/s looks like deg/s
+    (:func:`gyro_units_problem`), and so does one whose rates, given its times ``t`` and
+    accelerometer ``acc``, turn the gravity direction as deg/s would
+    (:func:`gyro_gravity_problem`): an error where the estimate uses it (``used``), else
+    one warning (it is ignored)."""
+    problem = gyro_units_problem(gyr)
+    if problem is None and t is not None and acc is not None:
+        problem = gyro_gravity_problem(t, acc, gyr)
+    if problem is not None:
+        msg = f"{path}: {problem}"
+        if used:
+            raise InputError(msg)
+        warnings.warn(
+            f"{msg}; these options do not use the gyro, so the estimate is unaffected",
+            UnitWarning,
+            stacklevel=2,
+        )
