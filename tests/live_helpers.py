@@ -246,3 +246,20 @@ def slow_pool_thread() -> None:
 
     wakeup_class.close = slow_close
     wakeup_class.wakeup = late_wakeup
+
+
+def send_until_rows(
+    proc: LiveProcess, master: int, data: str, out: Path, rows: int, sig: int
+) -> int:
+    """Once ``proc`` reads its port, write ``data`` to the pty's ``master``, wait until
+    ``out`` holds ``rows`` rows, stop ``proc`` with ``sig`` and return its exit status.
+    The process is killed and ``master`` closed whatever happens."""
+    try:
+        proc.wait_ready()
+        send(master, data.encode())
+        wait_for(lambda: data_rows(out) >= rows, f"{rows} rows in {out.name}")
+        return proc.finish(sig)
+    finally:
+        if proc.proc.poll() is None:
+            proc.proc.kill()
+        os.close(master)

@@ -4,9 +4,11 @@ against the estimate CSV (the formulation's outputs) and the robot's lengths."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from collections import defaultdict
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -272,26 +274,16 @@ def test_imu_frame_includes_its_mounting(tmp_path: Path) -> None:
 def test_live_view_through_a_pty(tmp_path: Path) -> None:
     """``live --view FILE.rrd --view-hz 0`` on a pseudo-terminal: the file holds one
     backbone per estimate row of ``-o``, at the same times."""
-    import os
     import signal
 
-    from live_helpers import LiveProcess, data_rows, new_pty, raw_lines, send, wait_for
+    from live_helpers import LiveProcess, new_pty, raw_lines, send_until_rows
 
     port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
     master = new_pty(port)
     live = LiveProcess(["--port", str(port), "--method", "ekf", "-o", str(out),
                         "--view", str(rrd), "--view-hz", "0"])  # fmt: skip
     lines = raw_lines(0, 30)
-    try:
-        live.wait_ready()
-        for line in lines:
-            send(master, line.encode())
-        wait_for(lambda: data_rows(out) >= len(lines), "the estimates")
-        code = live.finish(signal.SIGINT)
-    finally:
-        if live.proc.poll() is None:
-            live.proc.kill()
-        os.close(master)
+    code = send_until_rows(live, master, "".join(lines), out, len(lines), signal.SIGINT)
     assert code == 0, live.err
     est = read_state_table(out, ())
     rows = read_rrd(rrd)
@@ -672,3 +664,123 @@ def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str
                  "--save", str(bare)]) == 0  # fmt: skip
     rows = read_rrd(bare)
     assert "/world/estimate/backbone" not in rows and "/world/estimate/tip" in rows
+
+
+# --- a folder or disk that cannot take the .rrd -----------------------------------------
+@contextlib.contextmanager
+def _tmpfs(folder: Path, options: str) -> Iterator[Path]:
+    """A tmpfs mounted with ``options`` on ``folder`` for the block, or skip (not root)."""
+    import subprocess
+
+    folder.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                          capture_output=True, timeout=60)  # fmt: skip
+    if done.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=False, timeout=60)
+
+
+def test_view_into_a_folder_that_takes_no_file_is_one_line_before_the_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A folder that refuses a new file (here every file's creation fails, as in a
+    read-only folder for a non-root user) is named in one line, exit 2, before the
+    estimate is read."""
+    import errno
+
+    from continuum_mhe.io import output_files
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+
+    def denied(*args: object, **kwargs: object) -> None:
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(output_files.tempfile, "mkstemp", denied)
+    capsys.readouterr()
+    missing = tmp_path / "no-such-estimate.csv"  # the folder is refused first
+    assert main(["view", str(missing), "--save", str(folder / "p.rrd")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"continuum-mhe: error: {folder / 'p.rrd'}: cannot write in folder {folder} "
+        "(Permission denied)\n"
+    )
+    assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("options", "seconds", "problem"),
+    [
+        ("ro,size=64k", 0, "cannot write in folder {folder} (Read-only file system)"),
+        ("size=64k", 60, "cannot write (No space left on device) (nothing written)"),
+    ],
+    ids=["read-only", "full"],
+)
+def test_view_onto_a_file_system_that_cannot_take_it_is_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], options: str, seconds: int,
+    problem: str,
+) -> None:  # fmt: skip
+    """A read-only file system (which refuses even root) before the work, and a disk
+    that fills while the view is written: one line naming the file and why, exit 2,
+    no .rrd and no temporary file (and no line of Rerun's own)."""
+    est = tmp_path / "e.csv"
+    if seconds:
+        meas = tmp_path / "m.csv"
+        assert main(["simulate", "paper3d", "-o", str(meas), "--duration", str(seconds)]) == 0
+        assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    else:
+        est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    with _tmpfs(tmp_path / "fs", options) as folder:
+        capfd.readouterr()
+        assert main(["view", str(est), "--save", str(folder / "p.rrd")]) == 2
+        err = capfd.readouterr().err
+        assert (
+            err
+            == f"continuum-mhe: error: {folder / 'p.rrd'}: " + problem.format(folder=folder) + "\n"
+        )
+        assert list(folder.iterdir()) == []
+
+
+def test_a_killed_views_temporary_file_is_removed_by_the_next_write(tmp_path: Path) -> None:
+    """The .rrd is written to a temporary file named as every output's, so a killed
+    view's (its process gone) is removed by the next write into that folder."""
+    import subprocess
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f".p.rrd.{dead.pid}.k2j3h4g5.tmp"
+    stale.write_bytes(b"partial")
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    assert main(["view", str(est), "--save", str(tmp_path / "q.rrd")]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "q.rrd"]
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_a_live_view_onto_a_full_disk_is_one_line_after_the_estimates_are_kept(
+    tmp_path: Path,
+) -> None:
+    """``live --view`` onto a disk that fills: the estimates file is still written in
+    full, then one line names the view file and the full disk, exit 2, and the small
+    disk is left empty."""
+    import signal
+
+    from live_helpers import LiveProcess, data_rows, new_pty, raw_lines, send_until_rows
+
+    with _tmpfs(tmp_path / "small", "size=64k") as small:
+        port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", small / "live.rrd"
+        master = new_pty(port)
+        lines = raw_lines(0, 400)
+        live = LiveProcess(["--port", str(port), "--method", "ekf", "-o", str(out),
+                            "--view", str(rrd), "--view-hz", "0"])  # fmt: skip
+        code = send_until_rows(live, master, "".join(lines), out, len(lines), signal.SIGINT)
+        assert code == 2, live.err
+        assert data_rows(out) == len(lines), live.err
+        last = live.err.splitlines()[-1]
+        assert last == (
+            f"continuum-mhe: error: {rrd}: cannot write (No space left on device) (nothing written)"
+        ), live.err
+        assert list(small.iterdir()) == []

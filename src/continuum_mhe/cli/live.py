@@ -127,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
     if view_sink is not None and view_sink.kind == "web":
         say(f"serving the view at {view_sink.web_url}")
     session: LiveSession | None = None
+    view_error: InputError | None = None
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
         default = " (this robot's default)" if args.method_note else ""
@@ -143,11 +144,14 @@ def run(args: argparse.Namespace) -> int:
                 "nothing is saved: give -o EST.csv for the estimates, "
                 "--record RAW.csv for the samples"
             )
-        return run_live(settings, session, conn, plot, view)
+        code = run_live(settings, session, conn, plot, view)
     finally:
         if view is not None and view_sink is not None:  # a view file without an estimate
-            view.close(keep=view.estimates > 0)  # is not written
-            if view_sink.kind == "save":
+            try:  # is not written; one it cannot write (a full disk) is said after
+                view.close(keep=view.estimates > 0)  # the other files are closed
+            except InputError as exc:
+                view_error = exc
+            if view_sink.kind == "save" and view_error is None:
                 path = view_sink.path
                 mixed = " (with the estimates from readings in the wrong units)"
                 say(
@@ -179,6 +183,9 @@ def run(args: argparse.Namespace) -> int:
                 say(f"{sink.rows} {what} in {sink.path}")
             else:
                 say(f"no sample arrived: {sink.path} not written")
+    if view_error is not None:
+        raise view_error
+    return code
 
 
 DESCRIPTION = (

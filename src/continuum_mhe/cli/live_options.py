@@ -93,7 +93,7 @@ def add_live_view_option(p: argparse.ArgumentParser) -> None:
 def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
 
-    from continuum_mhe.io.output_files import check_output_target
+    from continuum_mhe.io.output_files import check_folder_takes, check_output_target
     from continuum_mhe.viewer import ViewerSink, require_rerun
 
     require_rerun()  # the missing install first: the display is the next thing to fix
@@ -115,4 +115,6 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
             sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
     if sink.display_missing():
         raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
+    if sink.path is not None:  # a folder that cannot take the file, before any work
+        check_folder_takes(sink.path)
     return sink

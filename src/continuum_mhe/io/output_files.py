@@ -7,7 +7,9 @@ writer into that folder once its process is gone. :func:`check_output_target` re
 in one line and before any work, a target that cannot be written, and
 :func:`refuse_inputs` one that is an input of the command;
 :func:`check_new_folder` and :func:`new_files` do the same for a command that writes
-several files into a folder.
+several files into a folder; :func:`check_folder_takes` tries the folder itself (a
+read-only file system refuses even root). A writer that opens its file itself (Rerun)
+writes to :func:`temporary_beside` and renames it.
 """
 
 from __future__ import annotations
@@ -101,9 +103,10 @@ def refuse_inputs(
             raise InputError(f"{target}: refusing to overwrite {what}, an input of this command")
 
 
-@contextlib.contextmanager
-def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
-    target = check_output_target(path)
+def _open_temporary(target: Path) -> tuple[int, str]:
+    """A new temporary file beside ``target`` (``.NAME.PID.XXXXXXXX.tmp``, the usual
+    mode), open for writing, after removing the stale ones of killed writers; a folder
+    that cannot take it is a one-line :class:`InputError` naming ``target``."""
     folder = target.parent if str(target.parent) else Path(".")
     _remove_stale_temporaries(folder)
     try:
@@ -113,6 +116,35 @@ def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
     except OSError as exc:  # name the output, not the temporary file
         raise InputError(f"{target}: cannot write in folder {folder} ({exc.strerror})") from None
     os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: the usual mode
+    return fd, tmp
+
+
+def temporary_beside(target: Path) -> Path:
+    """An empty temporary file beside ``target``, named as :func:`atomic_writer` names
+    its own (so that a killed writer's is removed by the next one), for a writer that
+    opens the file itself (Rerun's .rrd) and renames it over ``target`` when complete;
+    a one-line :class:`InputError` where the folder cannot take it."""
+    fd, tmp = _open_temporary(target)
+    os.close(fd)
+    return Path(tmp)
+
+
+def check_folder_takes(path: str | os.PathLike[str]) -> None:
+    """A one-line :class:`InputError`, before any work, where the folder of the output
+    ``path`` cannot take a new file (read-only, a read-only file system, no space for
+    a file's entry): a file is made there and removed, so the answer is the file
+    system's, whoever the user is."""
+    target = Path(path)
+    fd, tmp = _open_temporary(target)
+    os.close(fd)
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def _atomic(path: str | os.PathLike[str], binary: bool) -> Iterator[IO[Any]]:
+    target = check_output_target(path)
+    fd, tmp = _open_temporary(target)
     try:
         try:
             if binary:

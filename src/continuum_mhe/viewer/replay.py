@@ -94,9 +94,12 @@ def replay(
         "spawn": "sent to the Rerun viewer",
         "web": "sent to the web viewer",
     }[sink.kind]
+    if sink.kind == "save":  # written out first: a full disk is said instead
+        view.close()
     print(
         f"{where}: {drawn} of {len(est.t)} estimate(s) of {robot.describe()}{with_truth}",
         file=sys.stderr,
     )
-    view.close(wait=True)
+    if sink.kind != "save":
+        view.close(wait=True)
     return drawn

@@ -3,8 +3,11 @@ doc for its entities."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import math
 import os
+import shutil
 import sys
 import time
 import uuid
@@ -19,6 +22,7 @@ from numpy.typing import NDArray
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import InputError
 from continuum_mhe.extras import install_hint, require
+from continuum_mhe.io.output_files import temporary_beside
 from continuum_mhe.model.descriptions import TIP_FORCE_COLUMNS, OutputSpec, section_bends
 from continuum_mhe.model.robot import Robot
 from continuum_mhe.results import Estimate, Status
@@ -31,10 +35,18 @@ APPLICATION_ID = "continuum-mhe"
 SECTION_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40))
 TRUTH_COLOUR = (150, 150, 150)
 TRAIL_COLOUR = (227, 119, 194)
+#: free bytes below which a failed .rrd write is put down to a full disk
+DISK_NEARLY_FULL = 1 << 20
 
 
 def require_rerun() -> Any:
-    """The ``rerun`` module, or one line naming the install command (exit 2)."""
+    """The ``rerun`` module, or one line naming the install command (exit 2).
+
+    Rerun's own log lines (its Rust side's, read from ``RUST_LOG`` when it is first
+    imported) are off unless ``RUST_LOG`` is set: a file it cannot write reaches the
+    user as this package's one line, naming the file and why."""
+    if "rerun" not in sys.modules:
+        os.environ.setdefault("RUST_LOG", "off")
     return require("rerun", "view", "the 3D view", package="rerun-sdk")
 
 
@@ -130,8 +142,12 @@ class BackboneView:
             if not folder.is_dir():
                 raise InputError(f"{sink.path}: folder {folder} does not exist")
             # written beside the target and renamed at close: never a half-written .rrd
-            self._tmp = folder / f".{sink.path.name}.{os.getpid()}.tmp"
-            self.rec.save(self._tmp, default_blueprint=blueprint)
+            self._tmp = temporary_beside(sink.path)
+            try:
+                self.rec.save(self._tmp, default_blueprint=blueprint)
+            except RuntimeError as exc:  # Rerun's file errors
+                self._tmp.unlink(missing_ok=True)
+                raise InputError(f"{sink.path}: cannot write ({exc}) (nothing written)") from None
         elif sink.kind == "spawn":
             if sink.display_missing():  # the commands say so first, in their own options
                 raise InputError(
@@ -342,18 +358,38 @@ class BackboneView:
             )
         return geom is not None
 
+    def _finish_file(self, tmp: Path) -> None:
+        """Write out the .rrd and rename it into place, or a one-line
+        :class:`InputError` naming the file and why (a full disk) where Rerun could
+        not (the caller removes the temporary file)."""
+        path = self.sink.path
+        assert path is not None  # checked by ViewerSink
+        try:
+            self.rec.flush()
+            self.rec.disconnect()
+            os.replace(tmp, path)
+        except (RuntimeError, OSError) as exc:
+            folder = path.parent if str(path.parent) else Path(".")
+            reason = str(getattr(exc, "strerror", None) or exc)
+            with contextlib.suppress(OSError):
+                if shutil.disk_usage(folder).free < DISK_NEARLY_FULL:  # Rerun's writer
+                    reason = os.strerror(errno.ENOSPC)  # thread names no cause
+            raise InputError(f"{path}: cannot write ({reason}) (nothing written)") from None
+
     def close(self, wait: bool = False, keep: bool = True) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
         a view that failed writes nothing), or (``wait``) keep the web viewer up until
         Ctrl-C, then stop it."""
         try:
-            self.rec.flush()
             if self.sink.kind == "save" and self._tmp is not None and keep:
-                self.rec.disconnect()
-                assert self.sink.path is not None
-                os.replace(self._tmp, self.sink.path)
+                self._finish_file(self._tmp)
                 self._tmp = None
-            elif self.sink.kind == "web" and wait and self._web is not None:
+            elif self.sink.kind == "save":
+                with contextlib.suppress(RuntimeError):  # a file not kept: whatever Rerun
+                    self.rec.flush()  # could not write goes with it
+            else:
+                self.rec.flush()
+            if self.sink.kind == "web" and wait and self._web is not None:
                 print(f"serving the view at {self.sink.web_url} (Ctrl-C stops)", file=sys.stderr)
                 try:
                     while self._web.poll() is None:
