@@ -606,9 +606,10 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       inference_.output_std(x, bias_.data(), std_b_.data());
       for (int i = 0; i < ny; ++i) ystd[i] = std::hypot(ystd[i], std_b_[i]);
       // where the readings barely pin the shape, their constant errors alone may put
-      // the tip anywhere the robot reaches: a standard deviation beyond its length
-      // says nothing of where the tip is, and the row is not ok
-      if (status == ST_OK && !s_.tip_rows.empty() && tip_std(ystd) > s_.length)
+      // the tip far off: the standard deviation written (these errors in it) beyond
+      // the fraction makes the row uncertain as the estimate's own does
+      if (status == ST_OK && !s_.tip_rows.empty() &&
+          tip_std(ystd) > s_.uncertain_fraction * s_.length)
         status = ST_UNCERTAIN;
     }
     out.has_std = true;

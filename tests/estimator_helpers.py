@@ -61,12 +61,13 @@ def fast_and_ipopt_states(
     f: Formulation, t: np.ndarray, z: np.ndarray, horizon: int
 ) -> dict[str, np.ndarray]:
     """``{"fast": states, "ipopt": states}`` (n, nx) of the MHE on both backends (the
-    fast one on CasADi's VM), every sample asserted ``ok``."""
+    fast one on CasADi's VM), every sample asserted ``ok`` or ``uncertain`` (a wide
+    standard deviation, which changes no state): no restart."""
     states = {}
     for solver in ("fast", "ipopt"):
         est = MovingHorizonEstimator(f, MHESettings(horizon=horizon, solver=solver), FastOptions())
         res = [est.step(Measurement(float(t[i]), z[i])) for i in range(len(t))]
-        assert_ok_after_the_start([r.status for r in res])
+        assert_ok_after_the_start([r.status for r in res], frozenset({"ok", "uncertain"}))
         states[solver] = np.array([r.state for r in res])
     return states
 

@@ -455,12 +455,13 @@ def test_the_bad_start_check_reopens_for_an_imu_back_from_a_silence(index: int) 
         assert tip[back + SAMPLES :].max() < 0.015
     _, t, z, _ = silent_imu_recording(1, 1, 11.0, 0.0)  # the same, without the silence
     quiet = est.run(t, z)
-    # ok but where the reported tip std exceeds the robot's length (uncertain: section 2
-    # near straight across a horizontal section 1, whose bend about the vertical no
-    # gravity direction shows)
-    wide = np.linalg.norm(quiet.output_std[:, :3], axis=1) > f.robot.length
+    # ok but where the reported tip std exceeds the uncertain fraction of the robot's
+    # length (uncertain: section 2 near straight across a horizontal section 1, whose
+    # bend about the vertical no gravity direction shows; 23 of the 260 rows)
+    limit = RecoverySettings().uncertain_fraction * f.robot.length
+    wide = np.linalg.norm(quiet.output_std[:, :3], axis=1) > limit
     assert quiet.status[0] == "uncertain"  # the start, unconfirmed
-    assert np.array_equal(quiet.status[1:] == "uncertain", wide[1:]) and wide.sum() <= 3
+    assert np.array_equal(quiet.status[1:] == "uncertain", wide[1:]) and wide.sum() <= 25
     assert set(quiet.status) <= {"ok", "uncertain"}
 
 

@@ -15,6 +15,7 @@ from live_helpers import alive
 from continuum_mhe.calibration.at_rest import calibrate, mounting_from_gravity
 from continuum_mhe.cli import main
 from continuum_mhe.io.raw_imu import mount_rotation
+from continuum_mhe.model.imu import STANDARD_GRAVITY
 
 #: The columns of one raw IMU's rest recording.
 RAW_COLUMNS = ("t", "ax", "ay", "az", "gx", "gy", "gz")
@@ -689,3 +690,32 @@ def test_a_simulated_rest_calibrates_a_robot_of_three_sections(
     rpy = np.array([imu.mount_rpy for imu in got.imus])
     np.testing.assert_allclose(rpy[1, :2], [3.0, -2.0], atol=0.3)
     np.testing.assert_allclose(rpy[[0, 2], :2], 0.0, atol=0.3)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_simulated_tilt_rest_is_one_calibrate_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], seed: int
+) -> None:
+    """``simulate rest`` with tilt IMUs (the default) draws a still IMU's noise, not the
+    2 degrees of a moving one (the IMU's own acceleration in it), so that ``calibrate
+    --from`` takes it (it was refused as a robot that moved); an explicit
+    ``--noise-deg`` is kept. The still noise is the raw accelerometer's at rest, as
+    tilt."""
+    from continuum_mhe.io.state_tables import read_state_table
+    from continuum_mhe.simulation.raw_readings import RawNoise
+    from continuum_mhe.simulation.scenarios import REST_NOISE_DEG
+
+    assert REST_NOISE_DEG == pytest.approx(
+        math.degrees(RawNoise().accel_std / STANDARD_GRAVITY), abs=0.005
+    )
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "-o", str(rest), "--seed", str(seed)]) == 0
+    roll = read_state_table(rest, ()).column("roll")
+    assert math.degrees(float(np.std(roll, ddof=1))) == pytest.approx(REST_NOISE_DEG, rel=0.15)
+    code, out, err = _calibrate_main(capsys, "--from", str(rest))
+    assert code == 0, err
+    assert "roll mean" in out
+    noisy = tmp_path / "noisy.csv"
+    assert main(["simulate", "rest", "-o", str(noisy), "--noise-deg", "2"]) == 0
+    roll = read_state_table(noisy, ()).column("roll")
+    assert math.degrees(float(np.std(roll, ddof=1))) == pytest.approx(2.0, rel=0.15)

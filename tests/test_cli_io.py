@@ -688,6 +688,20 @@ def test_a_demo_s_estimates_are_evaluated_on_its_robot(tmp_path, capsys, short_d
     assert "estimated with --robot two-section (its options line)" in capsys.readouterr().err
 
 
+def test_a_demo_of_one_section_with_its_imu_midway_runs_paper3d(
+    tmp_path, capsys, short_demo
+) -> None:
+    """A one-section robot whose IMU is not at the tip gets the one-section scenario
+    (paper3d); it was refused as a robot of too few sections for the spatial one."""
+    robot = tmp_path / "mid.toml"
+    robot.write_text("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\nat = 0.5\n")
+    out = tmp_path / "d"
+    assert main(["demo", "--robot", str(robot), "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "paper3d, 1 section (0.2 m), IMUs at 1@0.5" in said
+    assert main(["evaluate", str(out / "estimates_mhe.csv"), str(out / "truth.csv")]) == 0
+
+
 @pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "existing-folder"])
 def test_an_interrupted_demo_leaves_nothing_it_wrote(
     tmp_path, capsys, monkeypatch, existing, short_demo

@@ -205,9 +205,10 @@ def test_ok_rows_cover_the_truth_where_the_readings_never_show_the_model_error(m
     """The first 6 s of the shipped spatial-tendon rod recording, tilt only: two IMUs'
     roll and pitch fit the two sections' four bend coordinates exactly whatever the
     model error, no residual shows the curvature the constant-curvature model gets
-    wrong, and every row is ``ok`` but those whose tip standard deviation, the
-    readings' constant errors in it, exceeds the robot's length (where the IMUs barely
-    pin the shape: ``uncertain``). The model error assumed before the readings
+    wrong, and every row is ``ok`` but those whose written tip standard deviation, the
+    readings' constant errors in it, exceeds the uncertain fraction of the robot's
+    length (where the IMUs barely pin the shape: ``uncertain``, 45 or 46 of the 300
+    rows, at most 12 to 17 mm off). The model error assumed before the readings
     show one (``model_error_std``) makes the 95 % intervals cover the truth 85 to 99 %
     of the time per axis, in every estimator; without it (0) 81, 82 and 85 %."""
     from continuum_mhe.io.input_options import InputOptions
@@ -223,7 +224,7 @@ def test_ok_rows_cover_the_truth_where_the_readings_never_show_the_model_error(m
     truth = read_state_table(folder / "spatial-tendon_truth.csv").values[:n, :3]
     series = make_estimator(method, data.formulation).run(data.t[:n], data.z[:n])
     ok = series.status == "ok"
-    assert ok.mean() > 0.9
+    assert ok.mean() > 0.8
     assert np.all((series.status == "ok") | (series.status == "uncertain"))
     covered = np.abs(series.output[ok, :3] - truth[ok]) <= 1.96 * series.std[ok, :3]
     coverage = covered.mean(axis=0)

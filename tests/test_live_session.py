@@ -8,6 +8,7 @@ import errno
 import io
 import math
 import os
+import re
 import time
 from pathlib import Path
 
@@ -174,7 +175,8 @@ def test_device_clock_restart_gives_estimates_and_says_so() -> None:
 @pytest.mark.parametrize(
     ("t_ms", "arrival_step", "slow"),
     [
-        ([0.02 * i for i in range(200)], 0.02, True),  # seconds sent as t_ms, in real time
+        ([0.02 * i for i in range(200)], 0.0200034, True),  # seconds sent as t_ms, in real
+        # time (a host clock's steps, not round numbers)
         ([20 * i for i in range(200)], 0.02, False),  # milliseconds, in real time
         ([20 * i for i in range(200)], 0.0005, False),  # a file replayed 40 times faster
     ],
@@ -192,8 +194,10 @@ def test_a_device_clock_in_seconds_is_said_once(
         s.handle_line(f"{t:g},0.1,0.1".encode(), now + arrival_step * i)
     told = [m for m in said if "t_ms in seconds?" in m]
     assert len(told) == (1 if slow else 0), said
-    if slow:
-        assert told[0].startswith("the device clock advanced ")
+    if slow:  # the times as a user reads them (three digits, not a float's repr)
+        assert re.match(
+            r"the device clock advanced \d\.?\d{0,2} ms in \d\.?\d{0,2} s of ", told[0]
+        ), told
 
 
 def test_a_banner_after_samples_is_a_board_reset_even_without_a_first_banner() -> None:
@@ -898,3 +902,28 @@ def test_device_message_repeats_not_shown_are_counted_for_the_summary() -> None:
     messages.show("continuum_imu v1", 6.0)
     assert said[-1] == "device says: continuum_imu v1 (and 2 more time(s) since)"
     assert messages.not_shown() == 0
+
+
+@pytest.mark.parametrize(("radians_first", "wrong"), [(0, True), (150, False)])
+def test_tilt_in_degrees_stops_live_and_its_first_estimates_are_not_kept(
+    radians_first: int, wrong: bool
+) -> None:
+    """Tilt lines in degrees: the first few, near straight, are within the radians'
+    range and estimated; then every line is beyond pi and the session stops on
+    garbled lines. Those first estimates were degrees read as radians: the session says
+    the readings were in the wrong units (``live`` then removes them, as for g or
+    deg/s). A stream that ran in radians for longer than the units check before its
+    garbage keeps its estimates."""
+    s, _ = _session()
+    now = time.monotonic()
+    lines = [f"{20 * i},0.1,0.1" for i in range(radians_first)]
+    lines += [f"{20 * (radians_first + i)},{1.0 + 0.5 * i},1.0" for i in range(4)]
+    lines += [f"{20 * (radians_first + 4 + i)},{10.0 + 0.1 * i},20.0" for i in range(300)]
+    for i, line in enumerate(lines):
+        s.handle_line(line.encode(), now + 0.02 * i)
+        if s.fatal:
+            break
+    assert s.fatal is not None and "degrees given for radians?" in s.fatal
+    # (the session's first line may be the tail of one sent before it opened the port)
+    assert s.counts.samples in (radians_first + 3, radians_first + 4)
+    assert s.wrong_units is wrong

@@ -109,6 +109,44 @@ def test_read_only_folder_names_the_output(tmp_path, capsys, monkeypatch) -> Non
     assert ".tmp" not in err
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["benchmark", "--json", "{folder}/b.json"],
+        ["calibrate", "--from", "{rest}", "--write-robot", "{folder}/c.toml"],
+        ["simulate", "paper3d", "-o", "{folder}/m.csv"],
+        ["plot", "{rest}", "-o", "{folder}/p.png"],
+    ],
+    ids=["benchmark", "calibrate", "simulate", "plot"],
+)
+def test_a_read_only_file_system_is_refused_before_the_work(tmp_path, capsys, command) -> None:
+    """An output on a read-only file system (which refuses even root, and which a
+    folder's mode does not show to root) is one line naming it, exit 2, before any
+    work: nothing printed before it (benchmark ran for minutes, calibrate printed its
+    report, and then the write failed)."""
+    rest = tmp_path / "rest.csv"
+    assert main(["simulate", "rest", "--imu", "raw", "-o", str(rest), "--duration", "3"]) == 0
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs",
+                              str(folder)], capture_output=True, timeout=60)  # fmt: skip
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    try:
+        capsys.readouterr()
+        args = [a.format(folder=folder, rest=rest) for a in command]
+        assert main(args) == 2
+        out, err = capsys.readouterr()
+        assert out == ""
+        assert re.fullmatch(
+            rf"continuum-mhe: error: {re.escape(str(folder))}/\w+\.\w+: cannot write in "
+            rf"folder {re.escape(str(folder))} \(Read-only file system\)\n",
+            err,
+        ), err
+    finally:
+        subprocess.run(["umount", str(folder)], check=False, timeout=60)
+
+
 def test_disk_full_names_the_output(tmp_path, capsys, monkeypatch) -> None:
     meas = _meas(tmp_path)
 

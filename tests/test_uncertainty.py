@@ -695,6 +695,23 @@ def test_uncertain_status_when_the_tip_std_exceeds_the_fraction() -> None:
     assert set(series.status) == {"ok"} and np.isfinite(series.std).all()
 
 
+def test_no_ok_row_has_a_written_tip_std_beyond_the_fraction() -> None:
+    """With the readings' constant errors in the written std (the defaults), a row
+    whose written tip std exceeds the fraction is not ``ok``, though the estimator's
+    own std (without them) is within it: the fraction is of the std a user reads."""
+    rec = simulate("paper3d", duration=4)
+    f = BendFormulation(robot=RobotSettings(length=0.2))
+    base = make_estimator("ekf", f, recovery=bare(uncertain_fraction=100.0)).run(rec.t, rec.z)
+    tip_std = np.sqrt(np.sum(base.std[:, :3] ** 2, axis=1))
+    frac = float(np.median(tip_std[rec.t > 1.5])) / 0.2  # half the settled rows beyond
+    s = make_estimator("ekf", f, recovery=bare(uncertain_fraction=frac)).run(rec.t, rec.z)
+    assert_allclose(s.std, base.std)
+    beyond = tip_std > frac * 0.2
+    assert np.sum(beyond & (rec.t > 1.5)) > 10
+    assert not np.any(beyond & (s.status == "ok"))
+    assert np.any(~beyond & (s.status == "ok"))
+
+
 def test_recovery_settings_are_validated() -> None:
     with pytest.raises(ValueError, match="gap_reset"):
         RecoverySettings(gap_reset=-1.0)

@@ -2530,3 +2530,62 @@ def test_a_robot_built_in_code_gets_the_robot_files_slip_warnings() -> None:
         warnings.simplefilter("error")
         make_formulation("bend", Robot(two, (ImuPlacement(0), ImuPlacement(1))))
         make_formulation("bend", read_robot("two-section"))
+
+
+@pytest.mark.parametrize(
+    ("command", "said"),
+    [
+        (["calibrate", "--from", "{rest}", "--length", "0.3"],
+         "--length does nothing without --write-robot"),
+        (["calibrate", "--from", "{rest}", "--length", "0.3", "--theta-max", "2"],
+         "--length and --theta-max do nothing without --write-robot"),
+        (["view", "{est}", "--save", "{tmp}/v.rrd", "--web-port", "9000"],
+         "--web-port does nothing with the view written to a file"),
+        (["view", "{est}", "--spawn", "--web-port", "9000"],
+         "--web-port does nothing with Rerun's native viewer"),
+        (["live", "--port", "{tmp}/no-port", "--view-hz", "5", "--trail", "3"],
+         "--view-hz and --trail do nothing without --view"),
+        (["live", "--port", "{tmp}/no-port", "--view", "{tmp}/v.rrd", "--grpc-port", "3000"],
+         "--grpc-port does nothing with the view written to a file"),
+    ],
+    ids=["calibrate-length", "calibrate-both", "view-save", "view-spawn", "live-no-view",
+         "live-view-file"],
+)  # fmt: skip
+def test_an_option_that_does_nothing_here_is_refused(tmp_path, capsys, command, said) -> None:
+    """An option that the rest of the command line leaves without effect is one line,
+    exit 2, before any work (it was accepted without a word, and the user took it to
+    have acted), nothing written."""
+    pytest.importorskip("rerun")
+    rest, est = tmp_path / "rest.csv", tmp_path / "e.csv"
+    assert main(["simulate", "rest", "--imu", "raw", "-o", str(rest), "--duration", "2"]) == 0
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    capsys.readouterr()
+    args = [a.format(rest=rest, est=est, tmp=tmp_path) for a in command]
+    assert main(args) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"continuum-mhe: error: {said}") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("command", ["check-robot", "estimate"])
+def test_an_options_file_given_as_the_robot_is_named_as_one(tmp_path, capsys, command) -> None:
+    """An options file given where a robot file goes is said to be one, with where it
+    goes (the reverse mistake is recognised by --config); a robot file's typo of a
+    table (``[[sections]]``) keeps its hint."""
+    opts = tmp_path / "opts.toml"
+    opts.write_text('# my options\n[estimate]\nmethod = "ekf"\n')
+    meas = tmp_path / "m.csv"
+    meas.write_text("t,roll,pitch\n0,0.1,0.1\n")
+    args = ["check-robot", str(opts)] if command == "check-robot" else [
+        "estimate", str(meas), "-o", str(tmp_path / "e.csv"), "--robot", str(opts)]  # fmt: skip
+    capsys.readouterr()
+    assert main(args) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {opts}: line 2: top level: unknown key 'estimate' and no "
+        "[[section]]: not a robot file (an options file? it goes to --config)\n"
+    )
+    typo = tmp_path / "typo.toml"
+    typo.write_text("[[sections]]\nlength = 0.2\n")
+    assert main(["check-robot", str(typo)]) == 2
+    assert "unknown key 'sections' (section?)" in capsys.readouterr().err

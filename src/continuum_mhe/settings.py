@@ -199,16 +199,15 @@ class RecoverySettings:
             estimate as lost (a redescending loss such as Welsch never follows them on
             its own; docs/robust.md). Acts only on estimators that flag outliers; None:
             never (command line ``--reject-reset``).
-        uncertain_fraction: an estimate whose tip position standard deviation
-            (``sqrt(std_x^2 + std_y^2 + std_z^2)``) exceeds this fraction of the robot's
-            length gets status ``uncertain`` instead of ``ok``, and so does every
-            estimate within the unobserved window after it (``gap_reset``, or 1 s when
-            that is off) since the last that did; judged on the estimator's own
-            covariance, before the readings' constant errors
-            (``NoiseSettings.reading_bias_std``) widen the reported std. Apart from
-            this fraction, an ``ok`` estimate whose reported tip std exceeds the robot's
-            length is ``uncertain`` too (the readings' constant errors alone may then
-            put the tip anywhere it reaches), whatever the fraction.
+        uncertain_fraction: an estimate whose reported tip position standard
+            deviation (``sqrt(std_x^2 + std_y^2 + std_z^2)`` as written, the readings'
+            constant errors ``NoiseSettings.reading_bias_std`` in it) exceeds this
+            fraction of the robot's length gets status ``uncertain`` instead of ``ok``.
+            Where the estimator's own covariance (without those constant errors)
+            exceeds it, so does every estimate within the unobserved window after
+            (``gap_reset``, or 1 s when that is off): a filter linearised on one of
+            several shapes that fit the readings narrows around it whether or not it is
+            the robot's.
 
     The defaults are the command line's; :meth:`off` gives the bare estimator (no
     gap reset, freeze, bad-start or reject reset), as the paper's experiments run it.

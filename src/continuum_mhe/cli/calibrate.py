@@ -25,7 +25,7 @@ from continuum_mhe.calibration.at_rest import (
     rest_tilt_warning,
 )
 from continuum_mhe.calibration.bend import YawCalibration
-from continuum_mhe.cli.options import add_overwrite_option
+from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import add_robot_option, robot_from_args
 from continuum_mhe.errors import InputError, time_text
@@ -54,6 +54,16 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(
                 f"{args.source}: {', '.join(unused)} does not apply with --from: it is for "
                 "reading the serial line (--port)"
+            )
+    if not args.write_robot:  # they describe the robot file it writes, and nothing else
+        unused = [
+            f"--{d.replace('_', '-')}" for d in ("length", "theta_max") if d in given_options(args)
+        ]
+        if unused:
+            verb = "does" if len(unused) == 1 else "do"
+            raise InputError(
+                f"{' and '.join(unused)} {verb} nothing without --write-robot: they describe "
+                "the robot file that --write-robot writes"
             )
     for option, name in (("--from", args.source), ("--bend", args.bend)):
         if name is not None and not Path(name).exists() and name != "-":

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
     check_new_folder(out, args.overwrite, demo_files(robot))
-    scenario: ScenarioName = "paper3d" if robot.is_single else "spatial"
+    scenario: ScenarioName = "paper3d" if robot.n_sections == 1 else "spatial"
     try:
         rec = simulate_robot(scenario, robot, seed=args.seed)
     except UserError as exc:  # about the robot: its file named, as simulate names it

@@ -19,6 +19,7 @@ from continuum_mhe.cli.live_options import (
     add_live_view_option,
     add_recording_options,
     add_serial_options,
+    refuse_unused_view_options,
     viewer_sink_from_args,
 )
 from continuum_mhe.cli.method_options import (
@@ -80,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
         if target:
             refuse_inputs(target, input_files(args))
     view_sink = None
-    if args.view is not None:  # the 3D view (continuum_mhe.viewer): checked before the port
+    if args.view is None:
+        refuse_unused_view_options(args, None)
+    else:  # the 3D view (continuum_mhe.viewer): checked before the port
         from continuum_mhe.viewer import BackboneView, TendonShapes, require_rerun
 
         require_rerun()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from continuum_mhe.cli.options import add_overwrite_option
+from continuum_mhe.cli.options import add_overwrite_option, given_options
 from continuum_mhe.errors import InputError
 
 
@@ -93,7 +93,7 @@ def add_live_view_option(p: argparse.ArgumentParser) -> None:
 def viewer_sink_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~continuum_mhe.viewer.ViewerSink` of ``view`` or ``live --view``."""
 
-    from continuum_mhe.io.output_files import check_folder_takes, check_output_target
+    from continuum_mhe.io.output_files import check_output_target
     from continuum_mhe.viewer import ViewerSink, require_rerun
 
     require_rerun()  # the missing install first: the display is the next thing to fix
@@ -113,8 +113,35 @@ def viewer_sink_from_args(args: argparse.Namespace) -> Any:
             sink = ViewerSink("save", target, **ports)
         else:
             sink = ViewerSink("web" if args.serve_web else "spawn", **ports)
+    refuse_unused_view_options(args, sink.kind)
     if sink.display_missing():
         raise InputError(f"{option} needs a display (DISPLAY is not set); use {others}")
-    if sink.path is not None:  # a folder that cannot take the file, before any work
-        check_folder_takes(sink.path)
     return sink
+
+
+#: the view options each kind of view leaves unused (``None``: ``live`` without ``--view``)
+_UNUSED_VIEW_OPTIONS: dict[str | None, tuple[str, ...]] = {
+    None: ("view_hz", "trail", "points", "web_port", "grpc_port"),
+    "save": ("web_port", "grpc_port"),
+    "spawn": ("web_port",),
+    "web": (),
+}
+
+
+def refuse_unused_view_options(args: argparse.Namespace, kind: str | None) -> None:
+    """A one-line error where an option given on the command line does nothing with the
+    view ``kind`` (``save``, ``spawn``, ``web``; None: ``live`` without ``--view``): it
+    would be accepted without a word, and the user would think it took effect."""
+    given = given_options(args)
+    unused = [f"--{d.replace('_', '-')}" for d in _UNUSED_VIEW_OPTIONS[kind] if d in given]
+    if not unused:
+        return
+    which = " and ".join(unused)
+    if kind is None:
+        why = "without --view: they are for the 3D view (--view spawn, web or FILE.rrd)"
+    elif kind == "save":
+        why = "with the view written to a file: the ports are for Rerun's viewers"
+    else:
+        why = "with Rerun's native viewer: the web port is for its web viewer"
+    verb = "does" if len(unused) == 1 else "do"
+    raise InputError(f"{which} {verb} nothing {why}")

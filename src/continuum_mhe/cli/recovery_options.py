@@ -71,9 +71,11 @@ def add_recovery_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=RecoverySettings.uncertain_fraction,
         metavar="F",
-        help="status uncertain instead of ok when the tip's standard deviation exceeds "
-        "F times the robot's length, and for the --gap-reset window (1 s without it) "
-        f"after it last did (default {RecoverySettings.uncertain_fraction:g})",
+        help="status uncertain instead of ok when the tip's standard deviation as "
+        "written (sqrt(std_x^2 + std_y^2 + std_z^2)) exceeds F times the robot's length; "
+        "and for the --gap-reset window (1 s without it) after the estimator's own (without "
+        "the readings' constant errors, --reading-bias-deg) last did "
+        f"(default {RecoverySettings.uncertain_fraction:g})",
     )
 
 

@@ -16,7 +16,12 @@ from continuum_mhe.io.estimate_csv import write_measurements, write_truth
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
-from continuum_mhe.simulation.scenarios import NOISE_MODELS, SCENARIOS, simulate_robot
+from continuum_mhe.simulation.scenarios import (
+    NOISE_MODELS,
+    REST_NOISE_DEG,
+    SCENARIOS,
+    simulate_robot,
+)
 
 #: Most samples ``simulate`` writes (``--duration / --dt``).
 MAX_SIMULATED_SAMPLES = 10_000_000
@@ -59,7 +64,11 @@ def run(args: argparse.Namespace) -> int:
             robot,
             duration=args.duration,
             dt=args.dt,
-            noise_deg=args.noise_deg,
+            noise_deg=(
+                REST_NOISE_DEG
+                if args.scenario == "rest" and "noise_deg" not in given
+                else args.noise_deg
+            ),
             seed=args.seed,
             noise_model=args.noise_model,
         )
@@ -135,7 +144,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--noise-deg",
         type=float,
         default=2.0,
-        help="the readings' noise std in degrees (default 2)",
+        help="the readings' noise std in degrees (default 2; for rest "
+        f"{REST_NOISE_DEG:g}, a still IMU's, as calibrate --from takes it)",
     )
     p.add_argument(
         "--noise-model",

@@ -422,9 +422,10 @@ class Estimator(Generic[InferenceT]):
 
         Statuses other than ``ok``:
 
-        - ``uncertain``: an ``ok`` estimate whose tip standard deviation exceeds
-          ``uncertain_fraction`` of the robot's length, or whose reported one (the
-          readings' constant errors in it) exceeds the robot's length; and every
+        - ``uncertain``: an ``ok`` estimate whose reported tip standard deviation (the
+          readings' constant errors in it) exceeds ``uncertain_fraction`` of the
+          robot's length, or whose own one (without them) did within the unobserved
+          window; and every
           trusted estimate (``ok``, ``fallback-ipopt``, ``branch-restart``) of a robot
           whose IMUs do not determine its shape (:attr:`shape_observable`), or whose
           IMUs that reported within the gap reset do not (an IMU silent for longer: its

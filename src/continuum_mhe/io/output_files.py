@@ -7,9 +7,10 @@ writer into that folder once its process is gone. :func:`check_output_target` re
 in one line and before any work, a target that cannot be written, and
 :func:`refuse_inputs` one that is an input of the command;
 :func:`check_new_folder` and :func:`new_files` do the same for a command that writes
-several files into a folder; :func:`check_folder_takes` tries the folder itself (a
-read-only file system refuses even root). A writer that opens its file itself (Rerun)
-writes to :func:`temporary_beside` and renames it.
+several files into a folder; :func:`check_output_target` tries the target's folder
+itself (:func:`check_folder_takes`: a read-only file system refuses even root). A
+writer that opens its file itself (Rerun) writes to :func:`temporary_beside` and
+renames it.
 """
 
 from __future__ import annotations
@@ -53,8 +54,9 @@ def check_output_target(
 ) -> Path:
     """The output file ``path`` as a :class:`Path`, or a one-line :class:`InputError`:
     ``-``, a name ending in ``/`` (a folder), a missing folder, a directory, a special
-    file, a read-only file (never silently replaced), or, unless ``overwrite``, an
-    existing file (the error names ``--overwrite`` and the command's ``option``). A
+    file, a read-only file (never silently replaced), unless ``overwrite`` an existing
+    file (the error names ``--overwrite`` and the command's ``option``), or a folder
+    that cannot take a new file (:func:`check_folder_takes`). A
     symbolic link stands for the file it points to, which is checked and returned
     (written there, the link stays: ``/dev/stdout`` is not replaced by a file)."""
     expect_type("path", path, (str, os.PathLike), "a file path (a str or pathlib.Path)")
@@ -82,6 +84,7 @@ def check_output_target(
     if target.exists() and not target.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
         raise InputError(f"{target}: the file is read-only; not replaced (make it writable "
                          "or remove it)")  # fmt: skip
+    check_folder_takes(target)
     return target
 
 

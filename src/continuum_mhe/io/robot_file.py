@@ -159,6 +159,13 @@ def _tables(path: Path, doc: dict[str, Any], key: str) -> list[dict[str, Any]]:
 
 def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     """A :class:`Robot` from a parsed robot-file document (``path`` for messages)."""
+    others = sorted(set(doc) - _TOP_KEYS)
+    typos = [k for k in others if difflib.get_close_matches(k, sorted(_TOP_KEYS), cutoff=0.75)]
+    if others and not typos and "section" not in doc:  # another kind of file: an options file
+        raise InputError(
+            f"{path}: top level: unknown key {_shown(others[0])} and no [[section]]: not a "
+            "robot file (an options file? it goes to --config)"
+        )
     _unknown(path, "top level", doc, _TOP_KEYS)
     mounting = doc.get("mounting", "z-up")
     if mounting not in MOUNTINGS:

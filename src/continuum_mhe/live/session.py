@@ -41,6 +41,7 @@ from continuum_mhe.model.descriptions import TIP_COLUMNS
 from continuum_mhe.model.tendon import TendonFormulation
 from continuum_mhe.stream.clock import DeviceClock
 from continuum_mhe.stream.protocol import (
+    DEGREES_FOR_RADIANS,
     LINE_FORMATS,
     GarbledLine,
     LineFormat,
@@ -362,6 +363,13 @@ class LiveSession:
                 f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
                 "and --baud"
             )
+            # tilt angles in degrees: the few samples before, within the first units
+            # check's count since the start or a board reset, were small angles in
+            # degrees read as radians (their estimates are not kept); a stream that ran
+            # for longer before it turned to garbage keeps its estimates
+            early = self.counts.samples - self._units_mark_samples <= UNIT_CHECK_SAMPLES
+            if DEGREES_FOR_RADIANS in why and early:
+                self.wrong_units = True
 
     def only_garbled(self) -> str | None:
         """Why the session failed if it read lines but not one valid sample (every line
@@ -472,6 +480,7 @@ class LiveSession:
         """Keep where the estimate sink ends as the units check is armed."""
         mark = getattr(self.out, "mark", None)
         self.units_mark = mark() if mark is not None else None
+        self._units_mark_samples = self.counts.samples
 
     def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
         """Say once where the device clock (``t``, s) advanced less than
@@ -493,8 +502,8 @@ class LiveSession:
         device = t - t0
         if device < CLOCK_SLOW_FACTOR * host:
             self.say(
-                f"the device clock advanced {time_text(1e3 * device)} ms in "
-                f"{time_text(host)} s of arrival time: t_ms in seconds? (the first field "
+                f"the device clock advanced {1e3 * device:.3g} ms in "
+                f"{host:.3g} s of arrival time: t_ms in seconds? (the first field "
                 "is milliseconds, as millis() gives; every step reads a thousand times too "
                 "short)"
             )

@@ -42,6 +42,12 @@ from continuum_mhe.model.robot import Robot, Section
 NoiseModel = Literal["tilt", "tangent"]
 NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
 
+#: Tilt noise of a still IMU, degrees: ``simulate rest``'s default, the tilt that a MEMS
+#: accelerometer's white noise (``RawNoise.accel_std``, 0.05 m/s^2) gives at rest. The
+#: 2 degrees of the moving scenarios hold the IMUs' own acceleration too, which a still
+#: robot does not have (and which ``calibrate`` takes for motion).
+REST_NOISE_DEG = 0.29
+
 ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial", "rest"]
 SCENARIOS: tuple[ScenarioName, ...] = (
     "paper3d",

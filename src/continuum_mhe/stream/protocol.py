@@ -94,6 +94,10 @@ def _number(text: str) -> float:
     return v
 
 
+#: the problem a tilt angle beyond its range names (a board sending degrees)
+DEGREES_FOR_RADIANS = "degrees given for radians?"
+
+
 def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> list[float]:
     """One IMU's values of a line, checked (plausible, finite), or :class:`GarbledLine`."""
     v = [_number(f) for f in fields]
@@ -111,7 +115,7 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
         for name, value, limit, bound in zip(("roll", "pitch"), v, TILT_LIMITS, ("pi", "pi/2")):
             if abs(value) > limit:
                 raise GarbledLine(
-                    f"{name}{suffix} = {value:g}, beyond {bound}: degrees given for radians?"
+                    f"{name}{suffix} = {value:g}, beyond {bound}: {DEGREES_FOR_RADIANS}"
                 )
     return v
 
