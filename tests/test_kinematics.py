@@ -605,3 +605,21 @@ def test_backbone_in_one_call_equals_pose_at_one_pose_at_a_time(bends: list[list
             assert_allclose(rots[i], r, atol=1e-14)
             assert_allclose(points[i], p, atol=1e-14)
             i += 1
+
+
+@pytest.mark.parametrize("columns", [1, 7, 64])
+def test_a_long_evaluation_in_parts_equals_it_in_one(monkeypatch, columns: int) -> None:
+    """The numeric kinematics evaluate a long array in parts of ``CALL_COLUMNS``
+    columns (so that Ctrl-C is handled between them): every part's columns land where
+    one call puts them, for any part size, including a last part of one column."""
+    rng = np.random.default_rng(0)
+    theta = rng.uniform(0.0, 3.0, (5, 13))
+    phi = rng.uniform(-math.pi, math.pi, (5, 13))
+    whole = (kinematics.tip_position(theta, phi, 0.2), kinematics.rotation(theta, phi))
+    monkeypatch.setattr(kinematics, "CALL_COLUMNS", columns)
+    parts = (kinematics.tip_position(theta, phi, 0.2), kinematics.rotation(theta, phi))
+    for a, b in zip(whole, parts):
+        assert a.shape == b.shape
+        assert_allclose(b, a, rtol=0, atol=0)
+    one = kinematics.tip_position(0.5, 0.1, 0.2)
+    assert one.shape == (3,)

@@ -107,14 +107,21 @@ def _numeric() -> dict[str, ca.Function]:
     }
 
 
+#: columns per CasADi call: a long recording is evaluated in parts, so that Ctrl-C
+#: (handled between Python steps, never inside a call) stops it within a part's time
+CALL_COLUMNS = 1 << 16
+
+
 def _call(name: str, *args: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
     arrays = np.broadcast_arrays(*[np.asarray(x, dtype=float) for x in args])
     shape = arrays[0].shape
     flat = [x.reshape(1, -1) for x in arrays]
-    out = np.asarray(_numeric()[name](*flat), dtype=float)
-    if out.ndim == 1:  # casadi returns (rows,) for a single column
-        out = out.reshape(-1, 1)
-    return out, shape
+    f = _numeric()[name]
+    parts = []
+    for start in range(0, max(flat[0].shape[1], 1), CALL_COLUMNS):
+        part = np.asarray(f(*(x[:, start : start + CALL_COLUMNS] for x in flat)), dtype=float)
+        parts.append(part.reshape(-1, 1) if part.ndim == 1 else part)  # casadi: (rows,)
+    return (parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)), shape
 
 
 def _as_matrix(out: FloatArray, shape: tuple[int, ...], rows: int, cols: int) -> FloatArray:
