@@ -68,11 +68,13 @@ def unblock_fifo_reader(fifo: Path) -> None:
         pass
 
 
-def wait_for(pred: Callable[[], bool], what: str) -> None:
+def wait_for(pred: Callable[[], bool], what: str, said: Callable[[], str] = str) -> None:
+    """Wait until ``pred()``; fails after :data:`SAFETY_S` with ``what`` and ``said()``
+    (what the process wrote so far)."""
     end = time.monotonic() + SAFETY_S
     while not pred():
         if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
+            raise AssertionError(f"timed out waiting for {what}: {said()}")
         time.sleep(0.02)
 
 
@@ -134,7 +136,8 @@ class LiveProcess:
         return "".join(self.lines)
 
     def wait_ready(self) -> None:
-        wait_for(lambda: "reading " in self.err or self.proc.poll() is not None, "live to start")
+        wait_for(lambda: "reading " in self.err or self.proc.poll() is not None, "live to start",
+                 lambda: self.err)  # fmt: skip
         assert self.proc.poll() is None, self.err
 
     def finish(self, sig: int | None = None) -> int:

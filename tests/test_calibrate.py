@@ -719,3 +719,15 @@ def test_a_simulated_tilt_rest_is_one_calibrate_takes(
     assert main(["simulate", "rest", "-o", str(noisy), "--noise-deg", "2"]) == 0
     roll = read_state_table(noisy, ()).column("roll")
     assert math.degrees(float(np.std(roll, ddof=1))) == pytest.approx(2.0, rel=0.15)
+    # the library's default is the same, for one section and for several
+    from continuum_mhe.io.robot_file import read_robot
+    from continuum_mhe.simulation.scenarios import simulate, simulate_robot
+
+    for rec in (simulate("rest", seed=seed), simulate_robot("rest", read_robot("two-section"))):
+        spread = math.degrees(float(np.std(rec.z[:, 0], ddof=1)))
+        assert spread == pytest.approx(REST_NOISE_DEG, rel=0.15)
+    moving = (
+        simulate("paper3d", seed=seed).z[:, 0]
+        - simulate("paper3d", seed=seed, noise_deg=0.0).z[:, 0]
+    )
+    assert math.degrees(float(np.std(moving, ddof=1))) == pytest.approx(2.0, rel=0.15)

@@ -453,7 +453,7 @@ def _bend() -> Formulation:
         (lambda: make_estimator("ekf", _bend()).run("abc", "def"), "arrays of numbers"),
         (lambda: make_estimator("ekf", _bend()).run(None, None), "z is None: give the readings"),
         (lambda: simulate("paper3d", dt="0.05"), "dt must be a number, got '0.05'"),
-        (lambda: simulate("paper3d", noise_deg=None), "noise_deg must be a number"),
+        (lambda: simulate("paper3d", noise_deg="2"), "noise_deg must be a number"),
         (lambda: read_measurements(5), "path must be a file name"),  # type: ignore[arg-type]
         (lambda: read_robot(None), "path must be a file name"),  # type: ignore[arg-type]
         (lambda: Robot(Section(0.2), ()), "Robot sections must be a sequence of Section"),

@@ -904,26 +904,37 @@ def test_device_message_repeats_not_shown_are_counted_for_the_summary() -> None:
     assert messages.not_shown() == 0
 
 
-@pytest.mark.parametrize(("radians_first", "wrong"), [(0, True), (150, False)])
-def test_tilt_in_degrees_stops_live_and_its_first_estimates_are_not_kept(
-    radians_first: int, wrong: bool
+@pytest.mark.parametrize(
+    ("first", "count", "then", "wrong"),
+    [
+        ("{i:.1f},1.0", 4, "degrees", True),  # bending from the start, in degrees
+        ("1.0,1.0", 150, "degrees", True),  # upright in degrees for 3 s, then bending
+        ("0.1,0.1", 150, "garbage", False),  # radians, then garbage beyond pi
+        ("0.1,0.1", 10, "garbage", False),  # the same, early
+    ],
+    ids=["degrees-at-once", "degrees-later", "radians-then-garbage", "radians-early-garbage"],
+)
+def test_tilt_in_degrees_stops_live_and_its_estimates_are_not_kept(
+    first: str, count: int, then: str, wrong: bool
 ) -> None:
-    """Tilt lines in degrees: the first few, near straight, are within the radians'
-    range and estimated; then every line is beyond pi and the session stops on
-    garbled lines. Those first estimates were degrees read as radians: the session says
-    the readings were in the wrong units (``live`` then removes them, as for g or
-    deg/s). A stream that ran in radians for longer than the units check before its
-    garbage keeps its estimates."""
+    """Tilt lines in degrees: those near straight are within the radians' range and
+    estimated; once the angles grow past it, every line is garbled and the session
+    stops. Where the garbled angles follow on from the last valid ones, the valid ones
+    were degrees read as radians: the session says the readings were in the wrong
+    units (``live`` then removes their estimates, as for g or deg/s), however many there
+    were. A radians stream that turns to garbage beyond pi keeps its estimates."""
     s, _ = _session()
     now = time.monotonic()
-    lines = [f"{20 * i},0.1,0.1" for i in range(radians_first)]
-    lines += [f"{20 * (radians_first + i)},{1.0 + 0.5 * i},1.0" for i in range(4)]
-    lines += [f"{20 * (radians_first + 4 + i)},{10.0 + 0.1 * i},20.0" for i in range(300)]
+    lines = [f"{20 * i}," + first.format(i=1.0 + 0.5 * i) for i in range(count)]
+    start = float(first.format(i=1.0 + 0.5 * (count - 1)).split(",")[0])
+    for i in range(300):
+        roll = start + 0.3 * (i + 1) if then == "degrees" else 57.3
+        lines.append(f"{20 * (count + i)},{roll:.2f},1.0")
     for i, line in enumerate(lines):
         s.handle_line(line.encode(), now + 0.02 * i)
         if s.fatal:
             break
     assert s.fatal is not None and "degrees given for radians?" in s.fatal
     # (the session's first line may be the tail of one sent before it opened the port)
-    assert s.counts.samples in (radians_first + 3, radians_first + 4)
+    assert s.counts.samples >= count - 1
     assert s.wrong_units is wrong

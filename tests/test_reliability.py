@@ -147,6 +147,30 @@ def test_a_read_only_file_system_is_refused_before_the_work(tmp_path, capsys, co
         subprocess.run(["umount", str(folder)], check=False, timeout=60)
 
 
+def test_a_folder_whose_files_cannot_be_removed_is_refused_naming_the_output(
+    tmp_path, capsys, monkeypatch
+) -> None:
+    """An append-only folder (``chattr +a``: files made, never removed or replaced)
+    is refused in one line naming the output, before any work (the temporary file's
+    name was the error, and the file stayed)."""
+    real_unlink = os.unlink
+
+    def append_only(path, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if str(path).endswith(".tmp"):
+            raise PermissionError(errno.EPERM, "Operation not permitted", str(path))
+        return real_unlink(path, *args, **kwargs)
+
+    monkeypatch.setattr(output_files.os, "unlink", append_only)
+    capsys.readouterr()
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "paper3d", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"continuum-mhe: error: {out}: cannot write in folder {tmp_path} (a file made there "
+        "cannot be removed or replaced: Operation not permitted)\n"
+    )
+
+
 def test_disk_full_names_the_output(tmp_path, capsys, monkeypatch) -> None:
     meas = _meas(tmp_path)
 

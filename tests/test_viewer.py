@@ -317,20 +317,27 @@ def test_blueprint_shows_the_trail_for_its_seconds(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
-def test_a_live_view_of_readings_in_the_wrong_units_says_it_holds_them(tmp_path: Path) -> None:
-    """A gyro in deg/s stops ``live`` at its units check, and the estimates written to
-    ``-o`` are removed; the view file cannot be cut back, and the line naming it says
-    it holds the estimates from those readings."""
-    import math
+def _live_with_a_gyro_in_degrees(port: Path, out: Path, rrd: Path) -> tuple[Any, int, list[str]]:
+    """``live --view rrd`` (EKF, raw readings, 30 s) on a new pty at ``port``, and 4 s of
+    raw lines whose gyro is in deg/s: the process, the pty's master and the lines."""
+    from live_helpers import LiveProcess, new_pty, raw_lines
 
-    from live_helpers import LiveProcess, new_pty, raw_lines, send_and_finish
-
-    port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", tmp_path / "live.rrd"
     master = new_pty(port)
     lines = [ln.rstrip("\n") for ln in raw_lines(1000, 200, gyro_scale=180 / math.pi)]
     live = LiveProcess(["--port", str(port), "--method", "ekf", "--imu-model", "direct",
                         "-o", str(out), "--view", str(rrd), "--view-hz", "0",
                         "--duration", "30"])  # fmt: skip
+    return live, master, lines
+
+
+def test_a_live_view_of_readings_in_the_wrong_units_says_it_holds_them(tmp_path: Path) -> None:
+    """A gyro in deg/s stops ``live`` at its units check, and the estimates written to
+    ``-o`` are removed; the view file cannot be cut back, and the line naming it says
+    it holds the estimates from those readings."""
+    from live_helpers import send_and_finish
+
+    out, rrd = tmp_path / "live.csv", tmp_path / "live.rrd"
+    live, master, lines = _live_with_a_gyro_in_degrees(tmp_path / "tty", out, rrd)
     code = send_and_finish(live, master, lines)  # kills it and closes master in any case
     assert code == 2 and not out.exists(), live.err
     said = f"live: the view in {rrd} (with the estimates from readings in the wrong units)"
@@ -667,6 +674,15 @@ def test_a_tendon_robots_live_shapes_are_its_replayed_ones(tendon_view: dict[str
 
 
 # --- a folder or disk that cannot take the .rrd -----------------------------------------
+def _fill_leaving(folder: Path, room: int) -> Path:
+    """A file in ``folder`` that leaves ``room`` bytes free on its disk."""
+    import shutil
+
+    filler = folder / "filler"
+    filler.write_bytes(b"\0" * max(shutil.disk_usage(folder).free - room, 0))
+    return filler
+
+
 @contextlib.contextmanager
 def _tmpfs(folder: Path, options: str) -> Iterator[Path]:
     """A tmpfs mounted with ``options`` on ``folder`` for the block, or skip (not root)."""
@@ -715,16 +731,22 @@ def test_view_into_a_folder_that_takes_no_file_is_one_line_before_the_work(
     ("options", "seconds", "problem"),
     [
         ("ro,size=64k", 0, "cannot write in folder {folder} (Read-only file system)"),
-        ("size=64k", 60, "cannot write (No space left on device) (nothing written)"),
+        (
+            "size=64k",
+            0,
+            "cannot write (its disk has 64 KiB free, a view needs 1 MiB) (nothing written)",
+        ),
+        ("size=1088k", 180, "cannot write (No space left on device) (nothing written)"),
     ],
-    ids=["read-only", "full"],
+    ids=["read-only", "nearly-full", "full"],
 )
 def test_view_onto_a_file_system_that_cannot_take_it_is_one_line(
     tmp_path: Path, options: str, seconds: int, problem: str
 ) -> None:
-    """A read-only file system (which refuses even root) before the work, and a disk
-    that fills while the view is written: one line naming the file and why, exit 2,
-    no .rrd and no temporary file (and no line of Rerun's own)."""
+    """A read-only file system (which refuses even root) and a disk with too little
+    room for a view before the work, and a disk that fills while the view is written:
+    one line naming the file and why, exit 2, no .rrd and no temporary file (and no
+    line of Rerun's own)."""
     est = tmp_path / "e.csv"
     if seconds:
         meas = tmp_path / "m.csv"
@@ -763,6 +785,17 @@ def test_a_killed_views_temporary_file_is_removed_by_the_next_write(tmp_path: Pa
     est.write_text("t,x,y,z,theta,phi,status,solve_ms\n0,0,0,0.2,0,0,ok,0.1\n")
     assert main(["view", str(est), "--save", str(tmp_path / "q.rrd")]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "q.rrd"]
+    # a view's own temporary file is one that pattern takes
+    from continuum_mhe.io.output_files import _TEMPORARY
+
+    robot = Robot.single(0.2)
+    view = BackboneView(robot, pcc_outputs(1), ViewerSink("save", tmp_path / "r.rrd"))
+    try:
+        assert view._tmp is not None and _TEMPORARY.fullmatch(view._tmp.name), view._tmp
+        assert view._tmp.parent == tmp_path
+    finally:
+        view.close(keep=False)
+    assert not (tmp_path / "r.rrd").exists()
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
@@ -776,12 +809,14 @@ def test_a_live_view_onto_a_full_disk_is_one_line_after_the_estimates_are_kept(
 
     from live_helpers import LiveProcess, data_rows, new_pty, raw_lines, send_until_rows
 
-    with _tmpfs(tmp_path / "small", "size=64k") as small:
+    with _tmpfs(tmp_path / "small", "size=2m") as small:
         port, out, rrd = tmp_path / "tty", tmp_path / "live.csv", small / "live.rrd"
         master = new_pty(port)
         lines = raw_lines(0, 400)
         live = LiveProcess(["--port", str(port), "--method", "ekf", "-o", str(out),
                             "--view", str(rrd), "--view-hz", "0"])  # fmt: skip
+        live.wait_ready()
+        filler = _fill_leaving(small, 16 << 10)
         code = send_until_rows(live, master, "".join(lines), out, len(lines), signal.SIGINT)
         assert code == 2, live.err
         assert data_rows(out) == len(lines), live.err
@@ -789,4 +824,44 @@ def test_a_live_view_onto_a_full_disk_is_one_line_after_the_estimates_are_kept(
         assert last == (
             f"continuum-mhe: error: {rrd}: cannot write (No space left on device) (nothing written)"
         ), live.err
-        assert list(small.iterdir()) == []
+        assert list(small.iterdir()) == [filler]
+
+
+def test_rerun_is_imported_quiet_and_the_users_rust_log_is_left_as_it_was() -> None:
+    """Rerun's log lines are off for its import only: afterwards the process (and a
+    viewer it starts) sees RUST_LOG as the user set it, or not at all."""
+    import os
+    import subprocess
+
+    code = (
+        "import os; from continuum_mhe.viewer import require_rerun; require_rerun(); "
+        "print(os.environ.get('RUST_LOG'))"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "RUST_LOG"}
+    for given, want in ((None, "None"), ("info", "info")):
+        run_env = env if given is None else {**env, "RUST_LOG": given}
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              env=run_env, timeout=120)  # fmt: skip
+        assert done.stdout.strip() == want, done.stderr
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_a_live_view_that_cannot_be_written_is_said_when_another_error_ends_live(
+    tmp_path: Path,
+) -> None:
+    """A gyro in deg/s stops ``live`` (exit 2, its error the last line) while its view
+    file's disk is full: the view's own error is said too, not dropped."""
+    from live_helpers import send_and_finish
+
+    with _tmpfs(tmp_path / "small", "size=2m") as small:
+        out, rrd = tmp_path / "live.csv", small / "live.rrd"
+        live, master, lines = _live_with_a_gyro_in_degrees(tmp_path / "tty", out, rrd)
+        live.wait_ready()
+        filler = _fill_leaving(small, 0)
+        code = send_and_finish(live, master, lines)
+        assert code == 2, live.err
+        said = live.err.splitlines()
+        view_line = f"live: {rrd}: cannot write (No space left on device) (nothing written)"
+        assert view_line in said, live.err
+        assert "deg/s" in said[-1], live.err
+        assert list(small.iterdir()) == [filler]

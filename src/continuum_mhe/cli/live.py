@@ -131,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
         say(f"serving the view at {view_sink.web_url}")
     session: LiveSession | None = None
     view_error: InputError | None = None
+    failed = False
     try:
         session = LiveSession(settings, estimator, line.converters, out, say, record, line.tensions)
         default = " (this robot's default)" if args.method_note else ""
@@ -148,12 +149,17 @@ def run(args: argparse.Namespace) -> int:
                 "--record RAW.csv for the samples"
             )
         code = run_live(settings, session, conn, plot, view)
+    except BaseException:
+        failed = True
+        raise
     finally:
         if view is not None and view_sink is not None:  # a view file without an estimate
             try:  # is not written; one it cannot write (a full disk) is said after
                 view.close(keep=view.estimates > 0)  # the other files are closed
             except InputError as exc:
                 view_error = exc
+                if failed:  # another error ends the session: this one said here
+                    say(f"{exc}")
             if view_sink.kind == "save" and view_error is None:
                 path = view_sink.path
                 mixed = " (with the estimates from readings in the wrong units)"

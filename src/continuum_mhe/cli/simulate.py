@@ -64,11 +64,7 @@ def run(args: argparse.Namespace) -> int:
             robot,
             duration=args.duration,
             dt=args.dt,
-            noise_deg=(
-                REST_NOISE_DEG
-                if args.scenario == "rest" and "noise_deg" not in given
-                else args.noise_deg
-            ),
+            noise_deg=args.noise_deg if "noise_deg" in given else None,  # the scenario's
             seed=args.seed,
             noise_model=args.noise_model,
         )

@@ -140,8 +140,16 @@ def check_folder_takes(path: str | os.PathLike[str]) -> None:
     target = Path(path)
     fd, tmp = _open_temporary(target)
     os.close(fd)
-    with contextlib.suppress(FileNotFoundError):
+    try:
         os.unlink(tmp)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:  # an append-only folder: its files are never replaced
+        folder = target.parent if str(target.parent) else Path(".")
+        raise InputError(
+            f"{target}: cannot write in folder {folder} (a file made there cannot be "
+            f"removed or replaced: {exc.strerror})"
+        ) from None
 
 
 @contextlib.contextmanager

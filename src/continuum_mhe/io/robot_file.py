@@ -160,8 +160,15 @@ def _tables(path: Path, doc: dict[str, Any], key: str) -> list[dict[str, Any]]:
 def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     """A :class:`Robot` from a parsed robot-file document (``path`` for messages)."""
     others = sorted(set(doc) - _TOP_KEYS)
-    typos = [k for k in others if difflib.get_close_matches(k, sorted(_TOP_KEYS), cutoff=0.75)]
-    if others and not typos and "section" not in doc:  # another kind of file: an options file
+    # an options file: option values and [estimate] / [live] tables, none of them a list
+    # of tables as a robot file's (a mistyped [[segment]] is a robot file's key)
+    robot_like = [
+        k
+        for k in others
+        if difflib.get_close_matches(k, sorted(_TOP_KEYS), cutoff=0.75)
+        or (isinstance(doc[k], list) and any(isinstance(v, dict) for v in doc[k]))
+    ]
+    if others and not robot_like and "section" not in doc:
         raise InputError(
             f"{path}: top level: unknown key {_shown(others[0])} and no [[section]]: not a "
             "robot file (an options file? it goes to --config)"

@@ -71,6 +71,10 @@ FIRST_STEP_MAX_S = 0.25
 #: ``GARBAGE_STOP_LINES`` of them stops the session with the last one's cause.
 GARBAGE_STOP_S = 3.0
 GARBAGE_STOP_LINES = 20
+#: the largest step (in the units sent) from the last valid tilt angles to the first
+#: garbled ones for the garbled run to be taken as degrees that grew past the radians'
+#: range (successive samples of a moving robot differ by a few degrees at most)
+DEGREES_CONTINUED = 5.0
 #: A status line after this many seconds (arrival time) without a line says so, and
 #: that its last estimate is that old.
 SILENT_S = 1.0
@@ -276,6 +280,10 @@ class LiveSession:
         #: was last armed: at the start, and at each board reset
         self.units_mark: tuple[int, int] | None = None
         self._mark_units()
+        #: tilt: the last valid sample's angles, and whether the current run of garbled
+        #: lines began with angles beyond their range that follow on from them
+        self._last_tilt: FloatArray | None = None
+        self._degrees_run = False
         #: the first sample of the device clock's run (its arrival and time, s), and the
         #: samples since, until the clock is held against the arrival times
         self._clock_checked = False
@@ -332,6 +340,22 @@ class LiveSession:
             )
         self._garbage(arrival, reason + self._hint(text), text)
 
+    def _continues(self, text: str) -> bool:
+        """Whether the tilt angles of the line ``text`` follow on from the last valid
+        sample's (each within :data:`DEGREES_CONTINUED` of it, in the units sent):
+        angles in degrees that grew past the radians' range, not a stream that turned
+        to garbage."""
+        last = self._last_tilt
+        fields = text.split(",")[1 : 1 + len(last)] if last is not None else []
+        if last is None or len(fields) < len(last):
+            return False
+        try:
+            angles = np.array([float(f) for f in fields])
+        except ValueError:
+            return False
+        step = np.abs(angles - last)
+        return bool(np.all(np.isfinite(step)) and np.max(step) <= DEGREES_CONTINUED)
+
     def _hint(self, text: str) -> str:
         hint = field_count_hint(
             text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
@@ -363,12 +387,11 @@ class LiveSession:
                 f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
                 "and --baud"
             )
-            # tilt angles in degrees: the few samples before, within the first units
-            # check's count since the start or a board reset, were small angles in
-            # degrees read as radians (their estimates are not kept); a stream that ran
-            # for longer before it turned to garbage keeps its estimates
-            early = self.counts.samples - self._units_mark_samples <= UNIT_CHECK_SAMPLES
-            if DEGREES_FOR_RADIANS in why and early:
+            # tilt angles in degrees that grew past the radians' range from the last
+            # valid sample: the samples since the start or a board reset were degrees
+            # read as radians (their estimates are not kept); a stream that turned to
+            # garbage keeps its estimates
+            if DEGREES_FOR_RADIANS in why and self._degrees_run:
                 self.wrong_units = True
 
     def only_garbled(self) -> str | None:
@@ -403,6 +426,8 @@ class LiveSession:
         try:
             sample = parse_line(text, self.settings.fmt, self.n_imus, self.n_tensions)
         except GarbledLine as exc:
+            if self._garbage_since is None:  # the first garbled line of a run
+                self._degrees_run = DEGREES_FOR_RADIANS in str(exc) and self._continues(text)
             self._bad(str(exc), arrival, text)
             return None
         joined, self._joined = self._joined, False
@@ -480,7 +505,6 @@ class LiveSession:
         """Keep where the estimate sink ends as the units check is armed."""
         mark = getattr(self.out, "mark", None)
         self.units_mark = mark() if mark is not None else None
-        self._units_mark_samples = self.counts.samples
 
     def _check_clock_rate(self, t: float, arrival: float, restart: bool) -> None:
         """Say once where the device clock (``t``, s) advanced less than
@@ -572,11 +596,15 @@ class LiveSession:
                 self.fatal = problem
                 return None  # neither recorded nor estimated: the session stops
         c.samples += 1
+        if self.converters is None:  # tilt: where a run of degrees would continue from
+            self._last_tilt = np.array(s.values[: 2 * self.n_imus], dtype=float)
         self._check_clock_rate(t, arrival, placed.event == "restart")
-        if placed.event == "restart" and self.converters is not None and self.fatal is None:
+        if placed.event == "restart" and self.fatal is None:
             # a board reset: it may run other firmware now, so the units are checked again
-            # (a gyro the estimate ignores was warned about once: enough)
-            self._units_unchecked = []
+            # (a gyro the estimate ignores was warned about once: enough); tilt angles
+            # in degrees count from here
+            if self.converters is not None:
+                self._units_unchecked = []
             self._mark_units()
         if self._units_unchecked is not None:
             if not self._units_unchecked:

@@ -42,10 +42,12 @@ from continuum_mhe.model.robot import Robot, Section
 NoiseModel = Literal["tilt", "tangent"]
 NOISE_MODELS: tuple[NoiseModel, ...] = ("tilt", "tangent")
 
-#: Tilt noise of a still IMU, degrees: ``simulate rest``'s default, the tilt that a MEMS
+#: Tilt noise of the moving scenarios, degrees (the paper's): the default of ``noise_deg``
+NOISE_DEG = 2.0
+#: Tilt noise of a still IMU, degrees: ``rest``'s default ``noise_deg``, the tilt that a MEMS
 #: accelerometer's white noise (``RawNoise.accel_std``, 0.05 m/s^2) gives at rest. The
-#: 2 degrees of the moving scenarios hold the IMUs' own acceleration too, which a still
-#: robot does not have (and which ``calibrate`` takes for motion).
+#: :data:`NOISE_DEG` of the moving scenarios hold the IMUs' own acceleration too, which
+#: a still robot does not have (and which ``calibrate`` takes for motion).
 REST_NOISE_DEG = 0.29
 
 ScenarioName = Literal["paper3d", "planar-overbend", "straight", "s-curve", "spatial", "rest"]
@@ -174,14 +176,15 @@ def simulate_robot(
     *,
     duration: float = 20.0,
     dt: float = 0.05,
-    noise_deg: float = 2.0,
+    noise_deg: float | None = None,
     seed: int = 0,
     noise_model: NoiseModel = "tilt",
 ) -> Recording:
     """Simulate a multi-section ``scenario`` on ``robot`` (tilt IMUs as placed): the
     bends for ``duration`` s sampled every ``dt`` s, each IMU's roll and pitch with
-    noise of ``noise_deg`` degrees standard deviation (``noise_model``: how it enters,
-    see the module docstring), drawn from ``seed``. A scenario for one section with a
+    noise of ``noise_deg`` degrees standard deviation (None: :data:`NOISE_DEG`, and
+    :data:`REST_NOISE_DEG` for ``rest``; ``noise_model``: how it enters, see the module
+    docstring), drawn from ``seed``. A scenario for one section with a
     tip IMU on a one-section robot is :func:`simulate`'s.
 
     Raises:
@@ -216,6 +219,7 @@ def simulate_robot(
             f"scenario {scenario!r} is for a robot of {needs} (--robot); for this robot "
             f"({robot.describe()}) choose from {', '.join(sorted(shapes))}"
         )
+    noise_deg = default_noise_deg(scenario, noise_deg)
     t = _time_axis(duration, dt, noise_deg, seed)
     if rest:  # every section straight, still
         bends = np.zeros((len(t), robot.n_sections, 2))
@@ -242,6 +246,14 @@ def sample_count(duration: float, dt: float) -> int:
     return int(round(duration / dt)) + 1
 
 
+def default_noise_deg(scenario: str, noise_deg: float | None) -> float:
+    """``noise_deg``, or where None the scenario's default: :data:`REST_NOISE_DEG` for
+    ``rest``, else :data:`NOISE_DEG`."""
+    if noise_deg is not None:
+        return noise_deg
+    return REST_NOISE_DEG if scenario == "rest" else NOISE_DEG
+
+
 def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
     for name, v in (("duration", duration), ("dt", dt), ("noise_deg", noise_deg)):
         real_number(name, v)
@@ -266,7 +278,7 @@ def simulate(
     *,
     duration: float = 20.0,
     dt: float = 0.05,
-    noise_deg: float = 2.0,
+    noise_deg: float | None = None,
     length: float = 0.2,
     seed: int = 0,
     mounting: Mounting = "z-up",
@@ -275,8 +287,9 @@ def simulate(
 ) -> Recording:
     """Simulate ``scenario`` for ``duration`` s at sample time ``dt`` s.
 
-    ``noise_std`` (roll, pitch) in rad overrides ``noise_deg`` (used for Table 1);
-    ``noise_model``: see the module docstring.
+    ``noise_deg``: the readings' noise, degrees (None: :data:`NOISE_DEG`, and
+    :data:`REST_NOISE_DEG` for ``rest``); ``noise_std`` (roll, pitch) in rad overrides
+    it (used for Table 1); ``noise_model``: see the module docstring.
     """
     if scenario in MULTI_SECTION_SCENARIOS:
         raise UserError(
@@ -287,6 +300,7 @@ def simulate(
         raise UserError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
     length = real_number("length", length)
     Section(length)  # a section's checks: positive, in metres (not millimetres)
+    noise_deg = default_noise_deg(scenario, noise_deg)
     t = _time_axis(duration, dt, noise_deg, seed)
     theta, phi = (
         (np.zeros_like(t), np.zeros_like(t)) if scenario == "rest" else _SHAPES[scenario](t)

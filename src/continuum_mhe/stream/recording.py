@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.errors import InputError
+from continuum_mhe.io.output_files import check_folder_takes
 
 
 def _umask() -> int:
@@ -44,6 +45,7 @@ def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> 
             raise InputError(f"{p}: exists; give --overwrite to replace it, or another {option}")
         if not (p.is_symlink() or p.is_file()):
             raise InputError(f"{p}: not a regular file; give a file name")
+    check_folder_takes(p)  # what the mode does not show (a read-only file system)
     return p
 
 

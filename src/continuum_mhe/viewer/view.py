@@ -35,7 +35,9 @@ APPLICATION_ID = "continuum-mhe"
 SECTION_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40))
 TRUTH_COLOUR = (150, 150, 150)
 TRAIL_COLOUR = (227, 119, 194)
-#: free bytes below which a failed .rrd write is put down to a full disk
+#: free bytes below which a failed .rrd write is put down to a full disk, and below
+#: which no .rrd is begun (Rerun's file writer can hang on a disk that fills while it
+#: writes a recording's first bytes)
 DISK_NEARLY_FULL = 1 << 20
 
 
@@ -44,10 +46,15 @@ def require_rerun() -> Any:
 
     Rerun's own log lines (its Rust side's, read from ``RUST_LOG`` when it is first
     imported) are off unless ``RUST_LOG`` is set: a file it cannot write reaches the
-    user as this package's one line, naming the file and why."""
-    if "rerun" not in sys.modules:
-        os.environ.setdefault("RUST_LOG", "off")
-    return require("rerun", "view", "the 3D view", package="rerun-sdk")
+    user as this package's one line, naming the file and why. The variable is set for
+    that import only (a viewer it starts, or another Rust library, sees the user's)."""
+    if "rerun" in sys.modules or "RUST_LOG" in os.environ:
+        return require("rerun", "view", "the 3D view", package="rerun-sdk")
+    os.environ["RUST_LOG"] = "off"
+    try:
+        return require("rerun", "view", "the 3D view", package="rerun-sdk")
+    finally:
+        os.environ.pop("RUST_LOG", None)
 
 
 class BackboneView:
@@ -141,6 +148,15 @@ class BackboneView:
             folder = sink.path.parent if str(sink.path.parent) else Path(".")
             if not folder.is_dir():
                 raise InputError(f"{sink.path}: folder {folder} does not exist")
+            try:
+                free = shutil.disk_usage(folder).free
+            except OSError:  # a file system that cannot say is tried
+                free = DISK_NEARLY_FULL
+            if free < DISK_NEARLY_FULL:
+                raise InputError(
+                    f"{sink.path}: cannot write (its disk has {free // 1024} KiB free, "
+                    f"a view needs {DISK_NEARLY_FULL >> 20} MiB) (nothing written)"
+                )
             # written beside the target and renamed at close: never a half-written .rrd
             self._tmp = temporary_beside(sink.path)
             try:
