@@ -334,6 +334,23 @@ def test_corrupt_log_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert err.startswith("continuum-mhe: error: ") and "\n" not in err
 
 
+@pytest.mark.parametrize("name", ["empty.mcap", "empty.bag", "empty.db3"])
+def test_an_empty_log_is_named_empty(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    """A 0-byte log (a recorder that never wrote) is said to be empty, whatever its kind,
+    not cut short or damaged."""
+    empty = tmp_path / name
+    empty.touch()
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(empty), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"continuum-mhe: error: {empty}: the robot log is empty (0 bytes): a recorder that "
+        "never wrote?\n"
+    )
+    assert not out.exists()
+
+
 def test_log_gyro_in_deg_s_is_one_line(
     tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:

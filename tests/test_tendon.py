@@ -907,6 +907,19 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert main(["plot", str(pcc), "--inputs", str(tensions), "-o", str(refused)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no tip force columns" in err[0] and not refused.exists()
+    # --robot without tendons, no --inputs: the estimate's recorded tensions are not
+    # called the user's --inputs, and the line names what is wrong
+    plain = tmp_path / "plain.toml"
+    plain.write_text("[[section]]\nlength = 0.2\ntheta_max = 3.0\n[[imu]]\nsection = 1\n")
+    assert main(["plot", str(est), "--robot", str(plain), "-o", str(refused)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (
+        f"continuum-mhe: error: {plain}: the robot has no [[tendon]], but {est} is a tendon "
+        f"robot's estimate (its tip force columns; estimated with --inputs {tensions}, its "
+        "options line): give that robot's file, or no --robot for the one it names"
+    )
+    assert not any("drawn with those tensions" in line for line in err)
+    assert not refused.exists()
 
 
 def test_evaluate_gives_the_tip_force_error_and_keeps_it_out_of_the_srmse(
@@ -1082,6 +1095,30 @@ def test_tensions_of_inputs_beside_the_recordings_own_are_said_to_win(
                      str(tmp_path / "s.csv"), "--inputs", str(tensions)]) == 0  # fmt: skip
     own, given = (read_state_table(tmp_path / f"e{k}.csv").column("fz") for k in (0, 2))
     assert not np.allclose(own, given)  # the files' tensions differ, and so do the estimates
+
+
+def test_a_recordings_tension_columns_unused_by_a_robot_without_tendons_are_said(
+    tmp_path: Path,
+) -> None:
+    """A tendon robot's recording (its own tension columns, as ``live --record`` writes
+    them) estimated with a robot file without tendons: the estimate runs, and a warning
+    names the columns it leaves out (``--inputs`` on such a robot is refused)."""
+    meas, _ = _recording(tmp_path)
+    header, *rows = meas.read_text().splitlines()
+    rec = tmp_path / "rec.csv"
+    rec.write_text("\n".join([f"{header},tension_1", *(f"{r},2.0" for r in rows)]) + "\n")
+    plain = tmp_path / "plain.toml"
+    plain.write_text("[[section]]\nlength = 0.2\ntheta_max = 3.0\n[[imu]]\nsection = 1\n")
+    out = tmp_path / "e.csv"
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["estimate", str(rec), "--robot", str(plain), "--method", "ekf",
+                     "-o", str(out)]) == 0  # fmt: skip
+    said = [str(w.message) for w in seen if w.category is OptionWarning]
+    assert said == [f"{rec}: its column tension_1 is not used: the robot ({plain}) has no "
+                    "[[tendon]] (a tendon robot's file, with [backbone] and its [[tendon]]s, "
+                    "takes them)"]  # fmt: skip
+    assert out.exists()
 
 
 def test_a_tendon_robot_needs_its_tensions(

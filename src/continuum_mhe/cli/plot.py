@@ -189,6 +189,16 @@ def _tendon_backbone(
     if robot is None and inputs:  # the robot the estimate's options line names
         robot = recorded_robot(args.source, "drawn on that robot")
         name = recorded_option(args.source, "robot")
+    tendons = robot is not None and robot.backbone is not None and robot.n_tendons > 0
+    if robot is not None and inputs and not tendons:
+        if args.inputs:
+            raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
+        written = recorded[0] if recorded else inputs  # as its options line names it
+        raise InputError(
+            f"{name}: the robot has no [[tendon]], but {args.source} is a tendon robot's "
+            f"estimate (its tip force columns; estimated with --inputs {written}, its "
+            "options line): give that robot's file, or no --robot for the one it names"
+        )
     if robot is not None and recorded:
         print(
             f"{PROG}: note: {args.source} was estimated with --inputs {recorded[0]} (its "
@@ -203,8 +213,6 @@ def _tendon_backbone(
             file=sys.stderr,
         )
         return None
-    if robot.backbone is None or not robot.n_tendons:
-        raise InputError(f"{name}: --inputs needs a tendon robot ([backbone], [[tendon]])")
     tensions = read_tensions(inputs, robot.n_tendons, time_warning=False)
     tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):

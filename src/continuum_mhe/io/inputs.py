@@ -449,12 +449,6 @@ def _tensions(
     no recording before it runs, by the caller (:meth:`Tensions.check_steps`)."""
     given = options.tensions
     k = robot.n_tendons
-    if not k:
-        if given:
-            raise InputError(
-                f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
-            )
-        return None
     columns = (  # the recording's own tension columns, if any
         tension_columns_in(recording)
         if recording is not None
@@ -463,6 +457,22 @@ def _tensions(
         and os.path.isfile(recording)
         else []
     )
+    if not k:
+        if given:
+            raise InputError(
+                f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
+            )
+        if columns:
+            several = len(columns) > 1
+            warnings.warn(
+                f"{recording}: its column{'s' if several else ''} {_column_span(columns)} "
+                f"{'are' if several else 'is'} not used: the robot "
+                f"({robot_name or 'the robot file'}) has no [[tendon]] (a tendon robot's "
+                "file, with [backbone] and its [[tendon]]s, takes them)",
+                OptionWarning,
+                stacklevel=2,
+            )
+        return None
     own = set(tension_columns(k)) <= set(columns)
     if given:
         table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
@@ -508,6 +518,11 @@ def _tensions(
         f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
         f"{where}"
     )
+
+
+def _column_span(columns: list[str]) -> str:
+    """``a..b`` for more than two column names, else them joined by commas."""
+    return f"{columns[0]}..{columns[-1]}" if len(columns) > 2 else ",".join(columns)
 
 
 def _tensions_compared(recording: str | os.PathLike[str], k: int, given: Tensions) -> str:

@@ -361,12 +361,19 @@ def _iter_mcap(path: Path, topic: str | None) -> tuple[str, Iterator[tuple[int, 
     return name, gen()
 
 
+def _refuse_empty(path: Path) -> None:
+    """A one-line :class:`InputError` for a log file of 0 bytes (any kind of log)."""
+    if path.is_file() and path.stat().st_size == 0:
+        raise InputError(f"{path}: the robot log is empty (0 bytes): a recorder that never wrote?")
+
+
 def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
     """The topics of a bag or MCAP file: topic -> message type ("" when an MCAP
     channel has no schema)."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
+    _refuse_empty(p)
     try:
         storage = _single_mcap(p)
         if storage is not None:
@@ -395,6 +402,7 @@ def read_imu_log(
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
+    _refuse_empty(p)
     at = 0  # the message being read (from 1): named where one cannot be read
     done = 0  # the messages read whole
     cut = ""  # where a file cut short was read up to
