@@ -613,6 +613,57 @@ def test_a_rest_in_which_every_imu_reads_tilted_warns(
     assert code == 0 and err == ""
 
 
+def _tilt_rest(path: Path, roll: float, pitch: float, noise: float) -> None:
+    """A tilt rest recording of one IMU (10 s at 20 Hz), its angles as numbers around
+    ``roll`` and ``pitch``."""
+    rng = np.random.default_rng(3)
+    rows = [f"{0.05 * k:.2f},{roll + rng.normal(0, noise):.5f},{pitch + rng.normal(0, noise):.5f}"
+            for k in range(200)]  # fmt: skip
+    path.write_text("t,roll,pitch\n" + "\n".join(rows) + "\n")
+
+
+def test_a_tilt_rest_in_degrees_is_read_with_degrees_or_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tilt rest recording in degrees: ``--degrees`` reads it (the refusal of angles
+    beyond radians' range names it, and calibrate takes it); a quiet one whose angles,
+    read as radians, are tens of degrees is calibrated with a warning that says
+    degrees; ``--degrees`` with a raw recording or the port is one line."""
+    path = tmp_path / "rest_deg.csv"
+    _tilt_rest(path, 3.5, -2.7, 0.3)  # beyond pi: refused, naming --degrees
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 2 and err.endswith("the angles look like degrees: pass --degrees (degrees=True "
+                                      "in Python)\n")  # fmt: skip
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--degrees")
+    assert code == 0 and err == "" and "roll mean 3.5" in out and "pitch mean -2.6" in out
+    _tilt_rest(path, 1.0, -1.0, 0.005)  # within radians' range: read, and said
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 0 and "roll mean 57.3" in out
+    assert err == (
+        f"continuum-mhe: warning: {path}: every IMU reads more than 30 degrees from the "
+        "straight robot's gravity direction (IMU 1 73.0 degrees) if its roll and pitch are "
+        "in radians, and within 5 if they are in degrees: degrees? pass --degrees\n"
+    )
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--degrees")
+    assert code == 0 and err == "" and "roll mean 1.000 deg" in out
+    _tilt_rest(path, 0.2, -0.1, 0.005)  # radians, tilted 12.8 degrees: no hint
+    code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 0 and err == ""
+    raw = tmp_path / "rest_raw.csv"
+    assert main(["simulate", "rest", "--imu", "raw", "-o", str(raw)]) == 0
+    capsys.readouterr()
+    code, out, err = _calibrate_main(capsys, "--from", str(raw), "--degrees")
+    assert code == 2 and err == (
+        f"continuum-mhe: error: {raw}: --degrees is for a tilt recording's roll and pitch; "
+        "this one is raw (accelerometer in m/s^2, gyro in rad/s)\n"
+    )
+    code, out, err = _calibrate_main(capsys, "--port", str(tmp_path / "tty"), "--degrees")
+    assert code == 2 and err == (
+        "continuum-mhe: error: --degrees reads a tilt recording in degrees (--from "
+        "TILT.csv); a board's tilt lines are in radians\n"
+    )
+
+
 def test_a_missing_recording_is_said_to_be_missing(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = _calibrate_main(capsys, "--from", "no_such_rest.csv")
     assert (code, out) == (2, "")

@@ -157,23 +157,44 @@ def frozen_at_rest(t: FloatArray, values: FloatArray, n_imus: int) -> str | None
 #: gravity direction gets a warning: a robot not straight, or a base not level, reads
 #: so in every IMU, where IMUs mounted tilted on their disks read so one by one.
 REST_TILT_WARN_DEG = 5.0
+#: A tilt rest in which every IMU, its angles read as radians, tilts more than this
+#: (deg), and read as degrees less than :data:`REST_TILT_WARN_DEG`, gets a warning that
+#: says degrees: no IMU is mounted so far off straight.
+DEGREES_LIKE_TILT_DEG = 30.0
 
 
 def rest_tilt_warning(cal: Calibration) -> str | None:
-    """A warning where every IMU of a raw calibration ``cal`` of two or more IMUs reads
-    more than :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction, or
-    None: calibrate takes each tilt as its IMU's mounting, which a bent robot or a tilted
-    base at rest puts into every estimate (one IMU alone cannot tell its own tilted
-    mounting from a tilted base)."""
-    tilts = []
+    """A warning where every IMU of a calibration ``cal`` reads more than
+    :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction, or None:
+    for two or more IMUs of a raw one (calibrate takes each tilt as its IMU's mounting,
+    which a bent robot or a tilted base at rest puts into every estimate; one IMU alone
+    cannot tell its own tilted mounting from a tilted base); and where every IMU of a
+    tilt one reads more than :data:`DEGREES_LIKE_TILT_DEG`, but its angles, read as
+    degrees, would all lie within :data:`REST_TILT_WARN_DEG` (degrees given for
+    radians)."""
+    rolls_pitches = []  # each IMU's mean roll and pitch, rad
     for imu in cal.imus:
-        if imu.mount_rpy is None:
+        if cal.fmt == "raw" and imu.mount_rpy is None:
             return None
-        roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
-        tilts.append(math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))))
+        if cal.fmt == "raw":
+            assert imu.mount_rpy is not None
+            rolls_pitches.append(tuple(math.radians(a) for a in imu.mount_rpy[:2]))
+        else:
+            rolls_pitches.append((float(imu.mean[0]), float(imu.mean[1])))
+    tilts = [math.degrees(math.acos(min(1.0, math.cos(r) * math.cos(p)))) for r, p in rolls_pitches]
+    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
+    if cal.fmt != "raw":
+        as_degrees = max(abs(a) for rp in rolls_pitches for a in rp)
+        if min(tilts) <= DEGREES_LIKE_TILT_DEG or as_degrees > REST_TILT_WARN_DEG:
+            return None
+        return (
+            f"every IMU reads more than {DEGREES_LIKE_TILT_DEG:g} degrees from the straight "
+            f"robot's gravity direction ({each} degrees) if its roll and pitch are in "
+            f"radians, and within {REST_TILT_WARN_DEG:g} if they are in degrees: degrees? "
+            "pass --degrees"
+        )
     if len(tilts) < 2 or min(tilts) <= REST_TILT_WARN_DEG:
         return None
-    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
     return (
         f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
         f"gravity direction ({each} degrees), and mount_rpy takes that as its mounting: "

@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     left_out = ""  # said once the calibration holds
     if args.source:
         try:
-            fmt, t, values = read_recording(args.source, robot.n_imus)
+            fmt, t, values = read_recording(args.source, robot.n_imus, args.degrees)
         except InputError as exc:
             raise _without_skip_bad(exc, "the still robot") from None
         source = args.source
@@ -104,6 +104,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         if args.port is None:
             raise InputError("give --port DEVICE or --from RAW.csv")
+        if args.degrees:
+            raise InputError(
+                "--degrees reads a tilt recording in degrees (--from TILT.csv); a board's "
+                "tilt lines are in radians"
+            )
         if not (math.isfinite(args.seconds) and args.seconds > 0):
             raise InputError(f"--seconds must be positive, got {args.seconds}")
         fmt, source = args.format, args.port
@@ -130,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {exc}") from None
     if left_out:
         print(left_out, file=sys.stderr)
-    tilted = rest_tilt_warning(cal) if fmt == "raw" else None
+    tilted = rest_tilt_warning(cal)
     if tilted:
         print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
     bend = None
@@ -232,6 +237,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="DEG",
         help="the plane of --bend: the direction the robot bends towards, degrees "
         "(default 0: towards base -x)",
+    )
+    p.add_argument(
+        "--degrees",
+        action="store_true",
+        help="the tilt recording of --from gives roll and pitch in degrees (default radians)",
     )
     p.add_argument("--seconds", type=float, default=10.0, help="device seconds to read (10)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")

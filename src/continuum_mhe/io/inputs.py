@@ -45,6 +45,7 @@ from continuum_mhe.errors import InputError, UserError, expect_type, time_text
 from continuum_mhe.io.csv_files import (
     DegreesCheck,
     ReadingCounts,
+    UnitWarning,
     check_time_units,
     read_measurements,
     tilt_sample_columns,
@@ -386,19 +387,30 @@ def load_input(
     return EstimateInput(stream.kind, t, z, stream.formulation, 0, problems.first)
 
 
-def read_recording(path: str, n_imus: int) -> tuple[Literal["raw", "tilt"], FloatArray, FloatArray]:
+def read_recording(
+    path: str, n_imus: int, degrees: bool = False
+) -> tuple[Literal["raw", "tilt"], FloatArray, FloatArray]:
     """``(format, t, values)`` of a raw or tilt CSV as recorded (``live --record``),
-    unconverted: tilt values in rad, raw ``ax, ay, az, gx, gy, gz`` per IMU (m/s^2,
-    rad/s); the raw form needs every IMU's gyro columns. A ROS bag or MCAP file is
-    refused in one line (no topics to choose its IMUs by)."""
+    unconverted: tilt values in rad (``degrees``: the file's are in degrees), raw ``ax,
+    ay, az, gx, gy, gz`` per IMU (m/s^2, rad/s); the raw form needs every IMU's gyro
+    columns. A ROS bag or MCAP file is refused in one line (no topics to choose its IMUs
+    by), and so is ``degrees`` for a raw recording. Small angles read as degrees are not
+    said to look like radians: a robot at rest, straight, reads them."""
     if is_robot_log(Path(path)):
         raise InputError(
             f"{path}: a recording to calibrate from is a CSV file (tilt or raw IMU columns, "
             "as live --record writes; docs/formats.md), not a ROS bag or MCAP file"
         )
     if csv_input_kind(path) == "tilt":
-        tilt = read_measurements(path, n_imus=n_imus)
+        with warnings.catch_warnings():  # a still, straight robot's angles are small
+            warnings.filterwarnings("ignore", r".*: read in degrees \(--degrees", UnitWarning)
+            tilt = read_measurements(path, n_imus=n_imus, degrees=degrees)
         return "tilt", tilt.t, tilt.z
+    if degrees:
+        raise InputError(
+            f"{path}: --degrees is for a tilt recording's roll and pitch; this one is raw "
+            "(accelerometer in m/s^2, gyro in rad/s)"
+        )
     tables = read_raw_imus(path, n_imus, fix=ROBOT_FIX).imus if n_imus > 1 else [read_raw_imu(path)]
     for i, tab in enumerate(tables, start=1):
         if tab.gyr is None:

@@ -17,13 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from continuum_mhe.errors import InputError
-from continuum_mhe.io.output_files import check_folder_takes
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+from continuum_mhe.io.output_files import check_folder_takes, current_umask
 
 
 def check_target(path: str | os.PathLike[str], overwrite: bool, option: str) -> Path:
@@ -93,7 +87,7 @@ class RowFile:
             if self.overwrite:  # a new file renamed over the old one (or its symlink)
                 fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
                 try:
-                    os.fchmod(fd, 0o666 & ~_umask())
+                    os.fchmod(fd, 0o666 & ~current_umask())
                     self._fd = fd
                     self._write_whole(first)
                     os.replace(tmp, p)
