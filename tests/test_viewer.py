@@ -827,6 +827,36 @@ def test_a_live_view_onto_a_full_disk_is_one_line_after_the_estimates_are_kept(
         assert list(small.iterdir()) == [filler]
 
 
+def test_a_view_whose_writer_does_not_finish_is_one_line_and_left_unclosed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Rerun's file writer can wait forever on a full disk: closing a view waits for it
+    only FLUSH_TIMEOUT_S, then names the file (nothing written) without closing the
+    recording (which would wait again) or running Rerun's shutdown at exit."""
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.viewer import view as view_module
+
+    view = BackboneView(Robot.single(0.2), pcc_outputs(1), ViewerSink("save", tmp_path / "v.rrd"))
+    timeouts: list[float] = []
+    calls: list[str] = []
+
+    def never_done(timeout_sec: float = 1e38) -> None:
+        timeouts.append(timeout_sec)
+        raise RuntimeError("flush timed out")
+
+    monkeypatch.setattr(view.rec, "flush", never_done)
+    monkeypatch.setattr(view.rec, "disconnect", lambda: calls.append("disconnect"))
+    monkeypatch.setattr(view.rr, "unregister_shutdown", lambda: calls.append("unregistered"))
+    monkeypatch.setattr(view_module, "_STUCK_RECORDINGS", [])
+    with pytest.raises(InputError) as err:
+        view.close()
+    assert str(err.value).startswith(f"{tmp_path / 'v.rrd'}: cannot write (")
+    assert str(err.value).endswith(") (nothing written)")
+    assert timeouts == [view_module.FLUSH_TIMEOUT_S] and calls == ["unregistered"]
+    assert view_module._STUCK_RECORDINGS == [view.rec]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_rerun_is_imported_quiet_and_the_users_rust_log_is_left_as_it_was() -> None:
     """Rerun's log lines are off for its import only: afterwards the process (and a
     viewer it starts) sees RUST_LOG as the user set it, or not at all."""

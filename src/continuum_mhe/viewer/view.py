@@ -39,6 +39,11 @@ TRAIL_COLOUR = (227, 119, 194)
 #: which no .rrd is begun (Rerun's file writer can hang on a disk that fills while it
 #: writes a recording's first bytes)
 DISK_NEARLY_FULL = 1 << 20
+#: How long closing a .rrd waits for Rerun to write out what it holds, s: its file
+#: writer can wait forever on a full disk; one that has not finished by then has failed
+FLUSH_TIMEOUT_S = 20.0
+#: the recordings whose writer did not finish: kept to the process's end, never closed
+_STUCK_RECORDINGS: list[Any] = []
 
 
 def require_rerun() -> Any:
@@ -93,6 +98,9 @@ class BackboneView:
         self.tendon = tendon
         self._web: Popen[bytes] | None = None
         self._tmp: Path | None = None
+        #: whether Rerun's writer did not finish within FLUSH_TIMEOUT_S: its recording
+        #: is then left as it is (closing it would wait for the writer too)
+        self._stuck = False
         #: the estimates logged one by one (``log_estimate``)
         self.estimates = 0
         self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
@@ -381,7 +389,7 @@ class BackboneView:
         path = self.sink.path
         assert path is not None  # checked by ViewerSink
         try:
-            self.rec.flush()
+            self._flush_file()
             self.rec.disconnect()
             os.replace(tmp, path)
         except (RuntimeError, OSError) as exc:
@@ -391,6 +399,19 @@ class BackboneView:
                 if shutil.disk_usage(folder).free < DISK_NEARLY_FULL:  # Rerun's writer
                     reason = os.strerror(errno.ENOSPC)  # thread names no cause
             raise InputError(f"{path}: cannot write ({reason}) (nothing written)") from None
+
+    def _flush_file(self) -> None:
+        """Wait for Rerun to write out what it holds (a RuntimeError where it cannot);
+        a writer that has not finished within :data:`FLUSH_TIMEOUT_S` is taken as stuck:
+        its recording is kept unclosed to the process's end, and Rerun's own shutdown at
+        exit, which would wait for it, is not run."""
+        try:
+            self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+        except RuntimeError:
+            self._stuck = True
+            _STUCK_RECORDINGS.append(self.rec)
+            self.rr.unregister_shutdown()
+            raise
 
     def close(self, wait: bool = False, keep: bool = True) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
@@ -402,7 +423,7 @@ class BackboneView:
                 self._tmp = None
             elif self.sink.kind == "save":
                 with contextlib.suppress(RuntimeError):  # a file not kept: whatever Rerun
-                    self.rec.flush()  # could not write goes with it
+                    self._flush_file()  # could not write goes with it
             else:
                 self.rec.flush()
             if self.sink.kind == "web" and wait and self._web is not None:
@@ -413,7 +434,7 @@ class BackboneView:
                 except KeyboardInterrupt:
                     print("stopped serving the view", file=sys.stderr)
         finally:
-            if self._tmp is not None or self.sink.kind != "save":
+            if not self._stuck and (self._tmp is not None or self.sink.kind != "save"):
                 self.rec.disconnect()  # before the server stops: no broken-connection noise
             if self._tmp is not None:
                 self._tmp.unlink(missing_ok=True)
