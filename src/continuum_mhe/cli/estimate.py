@@ -341,7 +341,7 @@ def run(args: argparse.Namespace) -> int:
             f"{args.reject_reset:g} s"
         )
     for note in stream.description.notes:  # e.g. how the samples of several Imu topics paired
-        print(note, file=sys.stderr)
+        print(f"{PROG}: note: {note}", file=sys.stderr)
     print(msg, file=sys.stderr)
     return 0
 
