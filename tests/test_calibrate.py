@@ -114,6 +114,22 @@ def test_calibrate_from_the_port(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_says_a_board_sending_degrees_must_send_radians(
+    tmp_path: Path,
+) -> None:
+    """A board that sends its tilt in degrees (1 and -1, read as radians): the warning
+    says the board must send radians (--degrees is for a recording)."""
+    wobble = 1e-3 * np.where(np.arange(300) % 2 == 0, 1.0, -1.0)[:, None]
+    rows = np.tile([1.0, -1.0], (300, 1)) + wobble
+    lines = ["# continuum_imu 1.1.0 imus=1"]
+    lines += [f"{10 * k},{r:.5f},{p:.5f}" for k, (r, p) in enumerate(rows)]
+    code, out, err = _calibrate_port(tmp_path, lines, more=("--format", "tilt"))
+    assert code == 0, err
+    warning = [ln for ln in err.splitlines() if "degrees?" in ln]
+    assert len(warning) == 1 and warning[0].endswith("degrees? the board must send radians")
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_refuses_a_moving_robot(tmp_path: Path) -> None:
     """The device tilts from 0 to 30 deg about x while calibrate reads it: exit 2."""
     a = np.radians(np.linspace(0.0, 30.0, 400))
@@ -648,6 +664,11 @@ def test_a_tilt_rest_in_degrees_is_read_with_degrees_or_said(
     assert code == 0 and err == "" and "roll mean 1.000 deg" in out
     _tilt_rest(path, 0.2, -0.1, 0.005)  # radians, tilted 12.8 degrees: no hint
     code, out, err = _calibrate_main(capsys, "--from", str(path))
+    assert code == 0 and err == ""
+    hanging = tmp_path / "hanging.toml"  # a z-down robot's rest in radians, 5 degrees off
+    hanging.write_text('mounting = "z-down"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    _tilt_rest(path, 3.05, 0.02, 0.005)
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", str(hanging))
     assert code == 0 and err == ""
     raw = tmp_path / "rest_raw.csv"
     assert main(["simulate", "rest", "--imu", "raw", "-o", str(raw)]) == 0

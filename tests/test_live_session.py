@@ -29,9 +29,11 @@ from continuum_mhe.stream.protocol import LineSplitter, header_fields
 from continuum_mhe.stream.recording import RowFile, check_target
 
 
-def _session(method: str = "ekf", out: io.StringIO | None = None) -> tuple[LiveSession, list[str]]:
+def _session(
+    method: str = "ekf", out: io.StringIO | None = None, robot: Robot | None = None
+) -> tuple[LiveSession, list[str]]:
     said: list[str] = []
-    f = make_formulation("bend", Robot.single(), NoiseSettings())
+    f = make_formulation("bend", robot or Robot.single(), NoiseSettings())
     est = make_estimator(method, f, MHESettings(horizon=10))
     s = LiveSession(LiveSettings(port="x", fmt="tilt"), est, None, out, say=said.append)
     return s, said
@@ -938,3 +940,21 @@ def test_tilt_in_degrees_stops_live_and_its_estimates_are_not_kept(
     # (the session's first line may be the tail of one sent before it opened the port)
     assert s.counts.samples >= count - 1
     assert s.wrong_units is wrong
+
+
+def test_tilt_in_degrees_of_several_imus_is_found_past_an_imus_dropout() -> None:
+    """Two IMUs sending degrees, IMU 2 bending twice as fast: its angle leaves the
+    radians' range first (that IMU a dropout on the lines after), then IMU 1's, and the
+    lines are garbled. IMU 1's angle follows on from its last valid one: the readings
+    were degrees read as radians."""
+    from continuum_mhe.io.robot_file import read_robot
+
+    s, _ = _session(robot=read_robot("two-section"))
+    now = time.monotonic()
+    for i in range(400):
+        s.handle_line(f"{20 * i},0.5,{0.05 * i:.3f},0.5,{0.1 * i:.3f}".encode(), now + 0.02 * i)
+        if s.fatal:
+            break
+    assert s.fatal is not None and "degrees given for radians?" in s.fatal
+    assert s.counts.samples > 16  # IMU 2 left the range at line 16, IMU 1 at line 32
+    assert s.wrong_units is True

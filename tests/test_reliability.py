@@ -151,8 +151,8 @@ def test_a_folder_whose_files_cannot_be_removed_is_refused_naming_the_output(
     tmp_path, capsys, monkeypatch
 ) -> None:
     """An append-only folder (``chattr +a``: files made, never removed or replaced)
-    is refused in one line naming the output, before any work (the temporary file's
-    name was the error, and the file stayed)."""
+    is refused in one line naming the output, before any work, and the probe file made
+    there is not named as the problem."""
     real_unlink = os.unlink
 
     def append_only(path, *args, **kwargs):  # type: ignore[no-untyped-def]

@@ -1119,6 +1119,16 @@ def test_a_recordings_tension_columns_unused_by_a_robot_without_tendons_are_said
                     "[[tendon]] (a tendon robot's file, with [backbone] and its [[tendon]]s, "
                     "takes them)"]  # fmt: skip
     assert out.exists()
+    # without --robot: the command line's robot described; bad input: its one line alone
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["estimate", str(rec), "--method", "ekf", "-o", str(tmp_path / "d.csv")]) == 0
+        assert main(["estimate", str(rec), "--robot", "two-section", "-o",
+                     str(tmp_path / "two.csv")]) == 2  # fmt: skip
+    said = [str(w.message) for w in seen if w.category is OptionWarning]
+    assert said == [f"{rec}: its column tension_1 is not used: the robot (1 section (0.2 m), "
+                    "IMUs at 1@1, z-up) has no [[tendon]] (a tendon robot's file, with "
+                    "[backbone] and its [[tendon]]s, takes them)"]  # fmt: skip
 
 
 def test_a_tendon_robot_needs_its_tensions(

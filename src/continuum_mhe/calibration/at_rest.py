@@ -163,38 +163,45 @@ REST_TILT_WARN_DEG = 5.0
 DEGREES_LIKE_TILT_DEG = 30.0
 
 
-def rest_tilt_warning(cal: Calibration) -> str | None:
+def rest_tilt_warning(
+    cal: Calibration, mounting: Mounting = "z-up", degrees_fix: str = "pass --degrees"
+) -> str | None:
     """A warning where every IMU of a calibration ``cal`` reads more than
-    :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction, or None:
-    for two or more IMUs of a raw one (calibrate takes each tilt as its IMU's mounting,
-    which a bent robot or a tilted base at rest puts into every estimate; one IMU alone
-    cannot tell its own tilted mounting from a tilted base); and where every IMU of a
-    tilt one reads more than :data:`DEGREES_LIKE_TILT_DEG`, but its angles, read as
-    degrees, would all lie within :data:`REST_TILT_WARN_DEG` (degrees given for
-    radians)."""
-    rolls_pitches = []  # each IMU's mean roll and pitch, rad
-    for imu in cal.imus:
-        if cal.fmt == "raw" and imu.mount_rpy is None:
-            return None
-        if cal.fmt == "raw":
-            assert imu.mount_rpy is not None
-            rolls_pitches.append(tuple(math.radians(a) for a in imu.mount_rpy[:2]))
-        else:
-            rolls_pitches.append((float(imu.mean[0]), float(imu.mean[1])))
-    tilts = [math.degrees(math.acos(min(1.0, math.cos(r) * math.cos(p)))) for r, p in rolls_pitches]
-    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
+    :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction (``mounting``
+    says which), or None: for two or more IMUs of a raw one (calibrate takes each tilt
+    as its IMU's mounting, which a bent robot or a tilted base at rest puts into every
+    estimate; one IMU alone cannot tell its own tilted mounting from a tilted base);
+    and where every IMU of a tilt one reads more than :data:`DEGREES_LIKE_TILT_DEG`,
+    but its angles, read as degrees, would each lie within :data:`REST_TILT_WARN_DEG`
+    (degrees given for radians: ``degrees_fix`` says what to do)."""
+    up = 1.0 if mounting == "z-up" else -1.0  # a straight robot's cos(roll) cos(pitch)
+
+    def off_straight(roll: float, pitch: float) -> float:
+        """Degrees from the straight robot's gravity direction, roll and pitch in rad."""
+        return math.degrees(math.acos(max(-1.0, min(1.0, up * math.cos(roll) * math.cos(pitch)))))
+
     if cal.fmt != "raw":
-        as_degrees = max(abs(a) for rp in rolls_pitches for a in rp)
-        if min(tilts) <= DEGREES_LIKE_TILT_DEG or as_degrees > REST_TILT_WARN_DEG:
+        means = [(float(imu.mean[0]), float(imu.mean[1])) for imu in cal.imus]
+        as_radians = [off_straight(r, p) for r, p in means]
+        as_degrees = [off_straight(math.radians(r), math.radians(p)) for r, p in means]
+        if min(as_radians) <= DEGREES_LIKE_TILT_DEG or max(as_degrees) > REST_TILT_WARN_DEG:
             return None
+        each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(as_radians))
         return (
             f"every IMU reads more than {DEGREES_LIKE_TILT_DEG:g} degrees from the straight "
             f"robot's gravity direction ({each} degrees) if its roll and pitch are in "
             f"radians, and within {REST_TILT_WARN_DEG:g} if they are in degrees: degrees? "
-            "pass --degrees"
+            f"{degrees_fix}"
         )
+    tilts = []
+    for imu in cal.imus:
+        if imu.mount_rpy is None:
+            return None
+        roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
+        tilts.append(math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))))
     if len(tilts) < 2 or min(tilts) <= REST_TILT_WARN_DEG:
         return None
+    each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
     return (
         f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
         f"gravity direction ({each} degrees), and mount_rpy takes that as its mounting: "

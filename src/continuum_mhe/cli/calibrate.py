@@ -135,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{source}: {exc}") from None
     if left_out:
         print(left_out, file=sys.stderr)
-    tilted = rest_tilt_warning(cal)
+    fix = "pass --degrees" if args.source else "the board must send radians"
+    tilted = rest_tilt_warning(cal, robot.mounting, fix)
     if tilted:
         print(f"{PROG}: warning: {source}: {tilted}", file=sys.stderr)
     bend = None

@@ -360,6 +360,7 @@ def open_input(
     _check_arguments(path, options, formulation)
     tensions = _tensions(options, formulation.robot, robot_name, path)
     stream = _open_measurements(path, options, formulation, robot_name)
+    _say_unused_tension_columns(path, formulation.robot, robot_name)
     if formulation.robot.has_mechanics:
         _append_tensions(stream, tensions, options)
     return stream
@@ -461,30 +462,13 @@ def _tensions(
     no recording before it runs, by the caller (:meth:`Tensions.check_steps`)."""
     given = options.tensions
     k = robot.n_tendons
-    columns = (  # the recording's own tension columns, if any
-        tension_columns_in(recording)
-        if recording is not None
-        and not is_robot_log(Path(recording))
-        and str(recording) != "-"
-        and os.path.isfile(recording)
-        else []
-    )
     if not k:
         if given:
             raise InputError(
                 f"{given}: --inputs gives tendon tensions, but the robot has no [[tendon]]"
             )
-        if columns:
-            several = len(columns) > 1
-            warnings.warn(
-                f"{recording}: its column{'s' if several else ''} {_column_span(columns)} "
-                f"{'are' if several else 'is'} not used: the robot "
-                f"({robot_name or 'the robot file'}) has no [[tendon]] (a tendon robot's "
-                "file, with [backbone] and its [[tendon]]s, takes them)",
-                OptionWarning,
-                stacklevel=2,
-            )
         return None
+    columns = _own_tension_columns(recording)
     own = set(tension_columns(k)) <= set(columns)
     if given:
         table = read_tensions(given, k, skip_bad=options.skip_bad, time_warning=False)
@@ -530,6 +514,37 @@ def _tensions(
         f"with --inputs TENSIONS.csv (t,tension_1,...; InputOptions(tensions=...) in Python), "
         f"{where}"
     )
+
+
+def _own_tension_columns(recording: str | os.PathLike[str] | None) -> list[str]:
+    """The tension columns of the recording ``recording``, a table file (none for a
+    robot log, standard input or no recording)."""
+    if (
+        recording is None
+        or is_robot_log(Path(recording))
+        or str(recording) == "-"
+        or not os.path.isfile(recording)
+    ):
+        return []
+    return tension_columns_in(recording)
+
+
+def _say_unused_tension_columns(
+    recording: str | os.PathLike[str], robot: Robot, robot_name: str | None
+) -> None:
+    """An :class:`OptionWarning` naming the recording's own tension columns where the
+    robot has no tendons to take them."""
+    columns = _own_tension_columns(recording) if not robot.n_tendons else []
+    if columns:
+        several = len(columns) > 1
+        warnings.warn(
+            f"{recording}: its column{'s' if several else ''} {_column_span(columns)} "
+            f"{'are' if several else 'is'} not used: the robot "
+            f"({robot_name or robot.describe()}) has no [[tendon]] (a tendon robot's "
+            "file, with [backbone] and its [[tendon]]s, takes them)",
+            OptionWarning,
+            stacklevel=3,
+        )
 
 
 def _column_span(columns: list[str]) -> str:

@@ -342,9 +342,10 @@ class LiveSession:
 
     def _continues(self, text: str) -> bool:
         """Whether the tilt angles of the line ``text`` follow on from the last valid
-        sample's (each within :data:`DEGREES_CONTINUED` of it, in the units sent):
-        angles in degrees that grew past the radians' range, not a stream that turned
-        to garbage."""
+        sample's (each within :data:`DEGREES_CONTINUED` of it, in the units sent; an
+        IMU that was a dropout there, such as one already past the radians' range on a
+        line of several IMUs, is not compared): angles in degrees that grew past the
+        radians' range, not a stream that turned to garbage."""
         last = self._last_tilt
         fields = text.split(",")[1 : 1 + len(last)] if last is not None else []
         if last is None or len(fields) < len(last):
@@ -353,8 +354,9 @@ class LiveSession:
             angles = np.array([float(f) for f in fields])
         except ValueError:
             return False
-        step = np.abs(angles - last)
-        return bool(np.all(np.isfinite(step)) and np.max(step) <= DEGREES_CONTINUED)
+        known = np.isfinite(last)
+        step = np.abs(angles[known] - last[known])
+        return bool(known.any() and np.all(np.isfinite(step)) and step.max() <= DEGREES_CONTINUED)
 
     def _hint(self, text: str) -> str:
         hint = field_count_hint(

@@ -42,8 +42,37 @@ DISK_NEARLY_FULL = 1 << 20
 #: How long closing a .rrd waits for Rerun to write out what it holds, s: its file
 #: writer can wait forever on a full disk; one that has not finished by then has failed
 FLUSH_TIMEOUT_S = 20.0
-#: the recordings whose writer did not finish: kept to the process's end, never closed
+#: the recordings whose writer did not finish: never closed nor freed
 _STUCK_RECORDINGS: list[Any] = []
+
+
+def free_bytes(folder: Path) -> int:
+    """The bytes this process can still write in ``folder``'s file system: the blocks
+    free to every user, and for root the reserved ones too; :data:`DISK_NEARLY_FULL`
+    where the file system cannot say."""
+    try:
+        if not hasattr(os, "statvfs"):  # Windows: what every user may write
+            return shutil.disk_usage(folder).free
+        st = os.statvfs(folder)
+    except OSError:
+        return DISK_NEARLY_FULL
+    blocks = st.f_bfree if os.geteuid() == 0 else st.f_bavail
+    return int(blocks * st.f_frsize)
+
+
+def _leave_unclosed(rr: Any, rec: Any) -> None:
+    """Leave the recording ``rec``, whose file writer is stuck (a full disk), as it is
+    to the process's end: closing it, freeing it (``RecordingStream.__del__``) or
+    Rerun's shutdown at exit would each wait for that writer, so the process would
+    never end. It gets a reference that is never released, and Rerun's exit handler
+    (``rr``'s) is taken off."""
+    import ctypes
+
+    if any(r is rec for r in _STUCK_RECORDINGS):
+        return
+    _STUCK_RECORDINGS.append(rec)
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))  # the interpreter's end frees it not
+    rr.unregister_shutdown()
 
 
 def require_rerun() -> Any:
@@ -99,8 +128,9 @@ class BackboneView:
         self._web: Popen[bytes] | None = None
         self._tmp: Path | None = None
         #: whether Rerun's writer did not finish within FLUSH_TIMEOUT_S: its recording
-        #: is then left as it is (closing it would wait for the writer too)
+        #: is then left as it is (:func:`_leave_unclosed`)
         self._stuck = False
+        self._closed = False  # close() was called: a second call does nothing
         #: the estimates logged one by one (``log_estimate``)
         self.estimates = 0
         self._prev_tip: dict[str, FloatArray | None] = {"estimate": None, "truth": None}
@@ -156,10 +186,7 @@ class BackboneView:
             folder = sink.path.parent if str(sink.path.parent) else Path(".")
             if not folder.is_dir():
                 raise InputError(f"{sink.path}: folder {folder} does not exist")
-            try:
-                free = shutil.disk_usage(folder).free
-            except OSError:  # a file system that cannot say is tried
-                free = DISK_NEARLY_FULL
+            free = free_bytes(folder)
             if free < DISK_NEARLY_FULL:
                 raise InputError(
                     f"{sink.path}: cannot write (its disk has {free // 1024} KiB free, "
@@ -395,28 +422,32 @@ class BackboneView:
         except (RuntimeError, OSError) as exc:
             folder = path.parent if str(path.parent) else Path(".")
             reason = str(getattr(exc, "strerror", None) or exc)
-            with contextlib.suppress(OSError):
-                if shutil.disk_usage(folder).free < DISK_NEARLY_FULL:  # Rerun's writer
-                    reason = os.strerror(errno.ENOSPC)  # thread names no cause
+            if self._stuck:
+                reason = f"Rerun's file writer did not finish in {FLUSH_TIMEOUT_S:g} s"
+            if free_bytes(folder) < DISK_NEARLY_FULL:  # Rerun's writer thread names no
+                reason = os.strerror(errno.ENOSPC)  # cause
             raise InputError(f"{path}: cannot write ({reason}) (nothing written)") from None
 
     def _flush_file(self) -> None:
         """Wait for Rerun to write out what it holds (a RuntimeError where it cannot);
-        a writer that has not finished within :data:`FLUSH_TIMEOUT_S` is taken as stuck:
-        its recording is kept unclosed to the process's end, and Rerun's own shutdown at
-        exit, which would wait for it, is not run."""
+        a writer that has not finished within :data:`FLUSH_TIMEOUT_S` is taken as stuck
+        (:func:`_leave_unclosed`)."""
+        started = time.monotonic()
         try:
             self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-        except RuntimeError:
-            self._stuck = True
-            _STUCK_RECORDINGS.append(self.rec)
-            self.rr.unregister_shutdown()
+        except RuntimeError as exc:
+            waited = time.monotonic() - started >= 0.9 * FLUSH_TIMEOUT_S
+            if waited or "timed out" in str(exc).lower():  # not a write that failed
+                self._stuck = True
+                _leave_unclosed(self.rr, self.rec)
             raise
 
     def close(self, wait: bool = False, keep: bool = True) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
         a view that failed writes nothing), or (``wait``) keep the web viewer up until
         Ctrl-C, then stop it."""
+        if self._closed:
+            return
         try:
             if self.sink.kind == "save" and self._tmp is not None and keep:
                 self._finish_file(self._tmp)
@@ -438,4 +469,5 @@ class BackboneView:
                 self.rec.disconnect()  # before the server stops: no broken-connection noise
             if self._tmp is not None:
                 self._tmp.unlink(missing_ok=True)
+            self._closed = True
             stop_web_viewer(self._web)
