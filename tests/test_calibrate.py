@@ -685,6 +685,29 @@ def test_a_tilt_rest_in_degrees_is_read_with_degrees_or_said(
     )
 
 
+def test_a_hanging_robots_tilt_rest_is_averaged_about_its_straight_pose(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A hanging robot's tilt rest reads roll near +-180 degrees, both signs in one
+    recording: its mean is about +-180 (not the 0 of an average over the two signs),
+    its spread the noise's, and the straight pose named is the mounting's."""
+    rng = np.random.default_rng(5)
+    roll = np.angle(np.exp(1j * (np.pi + rng.normal(0, 0.005, 200))))  # both signs
+    pitch = rng.normal(0.01, 0.005, 200)
+    path = tmp_path / "hang.csv"
+    rows = [f"{0.05 * k:.2f},{r:.6f},{p:.6f}" for k, (r, p) in enumerate(zip(roll, pitch))]
+    path.write_text("t,roll,pitch\n" + "\n".join(rows) + "\n")
+    hanging = tmp_path / "hanging.toml"
+    hanging.write_text('mounting = "z-down"\n[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n')
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", str(hanging))
+    assert code == 0 and err == "", err
+    line = next(ln for ln in out.splitlines() if ln.startswith("IMU 1:"))
+    mean = float(line.split("roll mean ")[1].split(" deg")[0])
+    std = float(line.split("(std ")[1].split(")")[0])
+    assert abs(abs(mean) - 180.0) < 0.1 and std < 0.5, line
+    assert line.endswith("a straight robot should read +-180, 0")
+
+
 def test_a_missing_recording_is_said_to_be_missing(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = _calibrate_main(capsys, "--from", "no_such_rest.csv")
     assert (code, out) == (2, "")

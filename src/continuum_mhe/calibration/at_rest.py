@@ -211,6 +211,14 @@ def rest_tilt_warning(
     )
 
 
+def angle_mean_std(angles: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per column of ``angles`` (n, k) rad: the circular mean (in (-pi, pi]) and the
+    standard deviation of the angles' wrapped differences from it (``ddof=1``)."""
+    mean = np.arctan2(np.sin(angles).mean(axis=0), np.cos(angles).mean(axis=0))
+    spread = np.angle(np.exp(1j * (angles - mean)))
+    return mean, spread.std(axis=0, ddof=1)
+
+
 #: The least time at rest calibration takes, s, and valid samples of each IMU.
 MIN_REST_S = 0.5
 MIN_REST_SAMPLES = 20
@@ -239,7 +247,10 @@ def calibrate(
                 f"IMU {i + 1}: {len(block)} valid sample(s); calibration needs at least "
                 f"{MIN_REST_SAMPLES} of each IMU"
             )
-        mean, std = block.mean(axis=0), block.std(axis=0, ddof=1)
+        if fmt == "raw":
+            mean, std = block.mean(axis=0), block.std(axis=0, ddof=1)
+        else:  # angles: roll near +-pi (a hanging robot) would average to about 0
+            mean, std = angle_mean_std(block)
         rpy = mounting_from_gravity(mean[:3], mounting) if fmt == "raw" else None
         imus.append(ImuCalibration(mean, std, rpy))
     return Calibration(
@@ -316,10 +327,10 @@ def motion_at_rest(
             continue
         for what, first, unit, bound, names, option in checks:
             part = block[:, first : first + len(names)]
-            if fmt == "tilt":  # deviations from the circular mean, wrapped
-                mean = np.arctan2(np.sin(part).mean(axis=0), np.cos(part).mean(axis=0))
-                part = np.angle(np.exp(1j * (part - mean)))
-            spread = part.std(axis=0, ddof=1)
+            if fmt == "tilt":  # about the circular mean (roll near +-pi: a hanging robot)
+                spread = angle_mean_std(part)[1]
+            else:
+                spread = part.std(axis=0, ddof=1)
             j = int(np.argmax(spread))
             ratio = float(spread[j]) / bound
             accelerometers_moved |= what != "gyro" and ratio > 1.0
@@ -354,11 +365,13 @@ def format_report(
     source: str,
     bend: tuple[str, float, list[YawCalibration]] | None = None,
     yaws_deg: Sequence[float] | None = None,
+    mounting: Mounting = "z-up",
 ) -> str:
     """The calibration as text for the terminal; ``bend``: ``(file, phi deg, yaws)``
     from a bend in a known plane (each IMU's yaw, and the full mounting); ``yaws_deg``:
     each IMU's yaw as the robot file gives it (gravity does not see it), kept in the
-    mounting printed without a bend (else 0)."""
+    mounting printed without a bend (else 0); ``mounting``: what a straight robot's
+    tilt reads."""
     lines = [
         f"calibration from {source}: {cal.n} samples over {cal.span_s:.3f} s of device time: "
         f"{cal.rate_hz:.1f} Hz (median step {cal.median_period_s * 1e3:.2f} ms, longest "
@@ -404,7 +417,7 @@ def format_report(
             lines.append(
                 f"IMU {i}: roll mean {math.degrees(m[0]):.3f} deg (std {math.degrees(s[0]):.3f}),"
                 f" pitch mean {math.degrees(m[1]):.3f} deg (std {math.degrees(s[1]):.3f}); a "
-                "straight robot should read 0, 0"
+                f"straight robot should read {'0' if mounting == 'z-up' else '+-180'}, 0"
             )
     return "\n".join(lines)
 

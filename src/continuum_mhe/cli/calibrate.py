@@ -152,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
             bend = (args.bend, phi, bend_yaws(args.bend, phi, cal, robot))
         except InputError as exc:
             raise _without_skip_bad(exc, "the bent robot") from None
-    print(format_report(cal, source, bend, [imu.mount_rpy[2] for imu in robot.imus]))
+    yaws = [imu.mount_rpy[2] for imu in robot.imus]
+    print(format_report(cal, source, bend, yaws, robot.mounting))
     if args.write_robot:
         _write_robot(args, robot, cal, bend)
     return 0
