@@ -724,3 +724,59 @@ def test_run_on_a_recording_without_a_reading_warns_that_nothing_was_estimated()
         warnings.simplefilter("error", DropoutWarning)
         series = est.run(rec.t, z)
     assert "no-estimate" in set(series.status) and len(set(series.status)) > 1
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: simulate("straight", noise_std=(np.nan, 0.01)), "noise_std must be two finite"),
+        (lambda: simulate("straight", noise_std=(-0.01, 0.01)), "noise_std must be two finite"),
+        (lambda: simulate("straight", noise_std=(0.01,) * 3), "noise_std must be two finite"),
+        (lambda: simulate("straight", duration=1, dt=50), "dt in milliseconds?"),
+        (lambda: _raw(seed=-1), "seed must be a non-negative integer, got -1"),
+        (lambda: _raw(robot=Robot((Section(0.2),), (ImuPlacement(0),))), "of another robot"),
+        (
+            lambda: _raw(
+                robot=Robot((Section(0.1), Section(0.1)), (ImuPlacement(0), ImuPlacement(1)))
+            ),
+            "of another robot",
+        ),  # fmt: skip
+        (lambda: _ekf_run(progress=True), "progress must be a callable"),
+        (lambda: _ekf_continue(starts=[0, 50]), "starts needs block"),
+    ],
+    ids=[
+        "nan-std",
+        "negative-std",
+        "three-stds",
+        "dt-in-ms",
+        "raw-seed",
+        "raw-one-section",
+        "raw-other-lengths",
+        "progress-true",
+        "starts-without-block",
+    ],  # fmt: skip
+)
+def test_the_librarys_simulation_and_run_arguments_are_checked(call: Any, message: str) -> None:
+    """Arguments a researcher gets wrong are one UserError naming them, not numpy's
+    error from deep inside or a recording silently made wrong (NaN readings, one
+    sample)."""
+    with pytest.raises(UserError, match=message.replace("?", r"\?")):
+        call()
+
+
+def _raw(robot: Robot | None = None, seed: int = 0) -> Any:
+    from continuum_mhe.simulation.raw_readings import raw_readings
+    from continuum_mhe.simulation.scenarios import simulate_robot
+
+    two = read_robot("two-section")
+    return raw_readings(simulate_robot("spatial", two, duration=1.0), robot or two, seed=seed)
+
+
+def _ekf_run(progress: Any) -> Any:
+    rec = simulate("paper3d", duration=1.0)
+    return make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z, progress=progress)
+
+
+def _ekf_continue(starts: list[int]) -> Any:
+    rec = simulate("paper3d", duration=5.0)
+    return make_estimator("ekf", make_formulation("bend")).continue_run(rec.t, rec.z, starts=starts)

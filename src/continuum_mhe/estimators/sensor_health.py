@@ -583,6 +583,11 @@ class Estimator(Generic[InferenceT]):
         Python threads go on; another thread's call into this estimator meanwhile is a
         RuntimeError; ``progress`` is shown per block of samples); the series carries a
         copy of :attr:`diagnostics` (``series.diagnostics``)."""
+        if progress is not None and not callable(progress):
+            raise UserError(
+                "progress must be a callable that wraps an iterable and yields its items "
+                f"(such as tqdm.tqdm), got {progress!r}"
+            )
         t, z = self._samples(t, z)
         check_time_steps(  # milliseconds for seconds: every step a gap that restarts it
             "run", "t advances", t, "t must be in seconds (milliseconds?)", "t must be in seconds"
@@ -718,6 +723,10 @@ class Estimator(Generic[InferenceT]):
         t, z = self._samples(t, z)
         if block is not None and not (is_integer(block) and block >= 1):
             raise UserError(f"continue_run: block must be a positive integer, got {block!r}")
+        if starts is not None and block is None:
+            raise UserError(
+                "continue_run: starts needs block (the samples stepped from each start)"
+            )
         if check_units and not self._units.done:
             problem = self._units.see(t, z)
             if problem is not None:

@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 from continuum_mhe.arrays import FloatArray
 from continuum_mhe.errors import UserError, expect_type
 from continuum_mhe.io.raw_imu import raw_columns
+from continuum_mhe.model.descriptions import pcc_outputs
 from continuum_mhe.model.imu import STANDARD_GRAVITY
 from continuum_mhe.model.kinematics import bend_from_shape
 from continuum_mhe.model.pcc import pose_at, up_vector
@@ -79,6 +80,16 @@ def raw_readings(
     expect_type("robot", robot, Robot, "a Robot (read_robot(NAME) reads a robot file)")
     if robot.tendons:
         raise UserError("raw readings are simulated for constant-curvature robots only")
+    if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
+        raise UserError(f"seed must be a non-negative integer, got {seed!r}")
+    names = tuple(o.name for o in rec.outputs)
+    want = tuple(o.name for o in pcc_outputs(robot.n_sections))
+    if names != want or not np.isclose(rec.length, robot.length, rtol=1e-9, atol=0.0):
+        raise UserError(
+            f"rec is a recording of another robot ({len(names)} outputs, {rec.length:g} m "
+            f"long) than robot ({robot.describe()}): simulate it with "
+            "simulate_robot(SCENARIO, robot) for this robot"
+        )
     if len(rec.t) < 3:
         raise UserError("raw readings need at least 3 samples (their rates are differences)")
     noise = noise or RawNoise()

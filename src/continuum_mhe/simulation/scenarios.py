@@ -254,6 +254,21 @@ def default_noise_deg(scenario: str, noise_deg: float | None) -> float:
     return REST_NOISE_DEG if scenario == "rest" else NOISE_DEG
 
 
+def _noise_std(noise_std: object) -> FloatArray:
+    """``noise_std`` as two finite standard deviations >= 0 (roll, pitch; rad), or a
+    :class:`UserError` naming it."""
+    try:
+        std = np.asarray(noise_std, dtype=float)
+    except (TypeError, ValueError):
+        std = np.empty(0)
+    if std.shape != (2,) or not (np.isfinite(std).all() and (std >= 0).all()):
+        raise UserError(
+            f"noise_std must be two finite standard deviations >= 0 (roll, pitch; rad), "
+            f"got {noise_std!r}"
+        )
+    return std
+
+
 def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> FloatArray:
     for name, v in (("duration", duration), ("dt", dt), ("noise_deg", noise_deg)):
         real_number(name, v)
@@ -264,6 +279,11 @@ def _time_axis(duration: float, dt: float, noise_deg: float, seed: int) -> Float
         raise UserError(f"noise_deg (--noise-deg) must be >= 0, got {noise_deg}")
     if not (isinstance(seed, int) and seed >= 0):
         raise UserError(f"seed must be a non-negative integer, got {seed!r}")
+    if dt > duration:
+        raise UserError(
+            f"dt = {dt:g} s is longer than the duration, {duration:g} s: a recording of one "
+            "sample (both in seconds: dt in milliseconds?)"
+        )
     n = sample_count(duration, dt)
     if n > MAX_SAMPLES:
         raise UserError(
@@ -309,7 +329,7 @@ def simulate(
     theta, phi = shape_from_bend(a, b)  # canonical: theta >= 0, phi in (-pi, pi]
     # the outputs' convention: phi in [-pi, pi), as every estimate and truth file has it
     truth = np.column_stack([tip_position(theta, phi, length), theta, wrap_angle(phi)])
-    std = np.radians([noise_deg, noise_deg]) if noise_std is None else np.abs(noise_std)
+    std = np.radians([noise_deg, noise_deg]) if noise_std is None else _noise_std(noise_std)
     rng = np.random.default_rng(seed)
     z = _noisy(tilt(theta, phi, mounting), std, rng, noise_model)
     return Recording(t=t, z=z, truth=truth, length=length)
