@@ -159,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
             except InputError as exc:
                 view_error = exc
                 if failed:  # another error ends the session: this one said here
-                    say(f"{exc}")
+                    say(str(exc))
             if view_sink.kind == "save" and view_error is None:
                 path = view_sink.path
                 mixed = " (with the estimates from readings in the wrong units)"

@@ -42,8 +42,6 @@ DISK_NEARLY_FULL = 1 << 20
 #: How long closing a .rrd waits for Rerun to write out what it holds, s: its file
 #: writer can wait forever on a full disk; one that has not finished by then has failed
 FLUSH_TIMEOUT_S = 20.0
-#: the recordings whose writer did not finish: never closed nor freed
-_STUCK_RECORDINGS: list[Any] = []
 
 
 def free_bytes(folder: Path) -> int:
@@ -68,9 +66,6 @@ def _leave_unclosed(rr: Any, rec: Any) -> None:
     (``rr``'s) is taken off."""
     import ctypes
 
-    if any(r is rec for r in _STUCK_RECORDINGS):
-        return
-    _STUCK_RECORDINGS.append(rec)
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))  # the interpreter's end frees it not
     rr.unregister_shutdown()
 
