@@ -260,3 +260,37 @@ def test_the_quick_empty_field_test_never_misses_one(sep: bytes, rows: list[list
     body = b"\n".join(ln for ln in lines if ln.strip())  # blank lines are dropped first
     if body and empty_field_pattern(sep).search(body):  # a block has a line at least
         assert may_have_empty_field(body, sep)
+
+
+def test_a_pipe_whose_writer_is_behind_gets_its_rows_as_they_come(tmp_path: Path) -> None:
+    # ten rows written, the writer still open: the first block holds them (the reader
+    # does not wait for a whole block of rows, nor for the input's end)
+    import os
+    import threading
+
+    fifo = tmp_path / "stream.csv"
+    os.mkfifo(fifo)
+    done = threading.Event()
+
+    def write() -> None:
+        with open(fifo, "w") as fh:
+            fh.write("t,roll,pitch\n" + "".join(f"{0.05 * i},0.1,0.2\n" for i in range(10)))
+            fh.flush()
+            done.wait(60)
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    got: list[int] = []
+
+    def read() -> None:
+        with open_rows(fifo) as rows:
+            for block in sample_blocks(rows, ("t", "roll", "pitch"), 4096):
+                got.append(len(block))
+                done.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    assert done.wait(60), "no block before the writer closed the pipe"
+    writer.join()
+    reader.join(60)
+    assert got == [10]

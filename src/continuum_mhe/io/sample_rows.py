@@ -120,7 +120,9 @@ def sample_blocks(
     problems: RowProblems | None = None,
 ) -> Iterator[SampleBlock]:
     """The samples of :func:`iter_samples`, the same values, errors and ``problems``,
-    as blocks of ``size`` rows (the last one shorter); reads ``rows``' input itself
+    as blocks of ``size`` rows (the last one shorter, and a block shorter wherever a
+    read took all that the input had: a pipe whose writer is behind gets its rows
+    estimated as they come); reads ``rows``' input itself
     (``rows.rows`` is not to be used as well).
 
     The lines are read :data:`BLOCK_BYTES` at a time and parsed as a block by numpy's
@@ -136,6 +138,14 @@ def sample_blocks(
     loose: list[tuple[int, float, list[float]]] = []  # rows read one at a time
     count = 0
     for item in checks.blocks():
+        if item is _DRAINED:  # the input has nothing more for now: estimate what came
+            if loose:
+                pieces.append(_block_of(loose, len(columns) - 1))
+                loose = []
+            if pieces:
+                yield _joined(pieces)
+            pieces, count = [], 0
+            continue
         if isinstance(item, SampleBlock):
             pieces += [_block_of(loose, len(columns) - 1), item] if loose else [item]
             loose = []
@@ -208,6 +218,9 @@ def may_have_empty_field(body: bytes, sep: bytes) -> bool:
         or b"\t" in body
     )
 
+
+#: The mark :meth:`_SampleChecks.blocks` gives after a read that took all the input had.
+_DRAINED = object()
 
 #: What a non-finite value's error says ``--skip-bad`` does with a sensor's reading.
 DROPOUT_HINT = "a dropout; --skip-bad keeps it, skip_bad=True in Python"
@@ -320,14 +333,16 @@ class _SampleChecks:
             self.n_out += 1
             yield line, t, vals
 
-    def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]]]:
+    def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]] | object]:
         """The table's samples, read from its input: a :class:`SampleBlock` for each
-        block of lines parsed whole, one ``(line, t, values)`` at a time for the others."""
+        block of lines parsed whole, one ``(line, t, values)`` at a time for the others,
+        and :data:`_DRAINED` after the lines of a read that took all the input had (a
+        pipe whose writer is slower than the reader)."""
         table = self.table
         yield from self.rows(iter([(n, split_fields(text, table.separator))
                                    for n, text in table._pending]))  # fmt: skip
         assert table._stream is not None, "sample_blocks reads an open table"
-        for first, text in _line_blocks(table._stream, table._next_line):
+        for first, text, drained in _line_blocks(table._stream, table._next_line):
             if text and not text.endswith((b"\n", b"\r")):  # the input's last line, no end
                 table.cut.line = first + text.count(b"\n")
             block = None if table.cut.line is not None else self._parse(text, first)
@@ -335,6 +350,8 @@ class _SampleChecks:
                 yield from self.rows(_split_rows(table.name, text, first, table.separator))
             elif len(block):
                 yield block
+            if drained:
+                yield _DRAINED
 
     def _parse(self, text: bytes, first: int) -> SampleBlock | None:
         """The samples of the lines ``text`` (numbered from ``first``) parsed as one
@@ -407,16 +424,19 @@ def _has_blank_line(body: bytes) -> bool:
     return (b" " in body or b"\t" in body) and _BLANK_LINE.search(body) is not None
 
 
-def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes]]:
-    """``(number of the first line, text)`` of the rest of ``fh`` in blocks of whole lines
-    of about :data:`BLOCK_BYTES` (the last line of the input may have no end; a line
-    longer than :data:`MAX_LINE_BYTES` comes in a block of its own, cut)."""
+def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes, bool]]:
+    """``(number of the first line, text, drained)`` of the rest of ``fh`` in blocks of
+    whole lines of about :data:`BLOCK_BYTES` (the last line of the input may have no
+    end; a line longer than :data:`MAX_LINE_BYTES` comes in a block of its own, cut);
+    ``drained``: the read got less than it asked for, all that the input had then (a
+    pipe's writer is behind: what came is to be used before the next read waits)."""
     rest = b""
     # what has arrived, up to the size asked (a pipe's reader gets the lines written so
     # far instead of waiting for a whole block)
     read = getattr(fh, "read1", fh.read)
     while True:
-        data = read(max(BLOCK_BYTES, len(rest)))  # a long line: reads that double
+        asked = max(BLOCK_BYTES, len(rest))  # a long line: reads that double
+        data = read(asked)
         text = rest + data
         if not text:
             return
@@ -427,7 +447,7 @@ def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes]]:
                 continue
             cut = len(text)
         text, rest = text[:cut], text[cut:]
-        yield first, text
+        yield first, text, 0 < len(data) < asked
         first += text.count(b"\n")
 
 
