@@ -138,7 +138,7 @@ def sample_blocks(
     loose: list[tuple[int, float, list[float]]] = []  # rows read one at a time
     count = 0
     for item in checks.blocks():
-        if item is _DRAINED:  # the input has nothing more for now: estimate what came
+        if isinstance(item, _Drained):  # the input has nothing more for now: estimate what came
             if loose:
                 pieces.append(_block_of(loose, len(columns) - 1))
                 loose = []
@@ -219,8 +219,12 @@ def may_have_empty_field(body: bytes, sep: bytes) -> bool:
     )
 
 
-#: The mark :meth:`_SampleChecks.blocks` gives after a read that took all the input had.
-_DRAINED = object()
+class _Drained:
+    """The mark :meth:`_SampleChecks.blocks` gives after a read that took all the input
+    had."""
+
+
+_DRAINED = _Drained()
 
 #: What a non-finite value's error says ``--skip-bad`` does with a sensor's reading.
 DROPOUT_HINT = "a dropout; --skip-bad keeps it, skip_bad=True in Python"
@@ -333,7 +337,7 @@ class _SampleChecks:
             self.n_out += 1
             yield line, t, vals
 
-    def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]] | object]:
+    def blocks(self) -> Iterator[SampleBlock | tuple[int, float, list[float]] | _Drained]:
         """The table's samples, read from its input: a :class:`SampleBlock` for each
         block of lines parsed whole, one ``(line, t, values)`` at a time for the others,
         and :data:`_DRAINED` after the lines of a read that took all the input had (a
