@@ -933,7 +933,7 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
     assert len(said) == 1 and re.fullmatch(
         rf"continuum-mhe: warning: {re.escape(str(late))}: the truth fits the estimate best "
-        r"\+0\.5 s later \(mean tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
+        r"\+0\.5 s later \(median tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
         r"are the two files' clocks offset\? \(a motion that repeats can fit shifted too; "
         r"--truth-shift 0\.5 compares them so\)",
         said[0],
@@ -944,6 +944,21 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     shifted, err = capsys.readouterr()
     assert "warning" not in err  # compared as the clocks run, the tip as on one clock
     assert json.loads(shifted)["tip_mean_mm"] == pytest.approx(same["tip_mean_mm"], abs=1e-9)
+    # a shift given the wrong way: the shift advised is the whole one, not the rest
+    assert main(["evaluate", str(est), str(late), "--truth-shift", "-0.5"]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
+    assert len(said) == 1 and "+1 s later than --truth-shift -0.5 puts it" in said[0], said
+    assert said[0].endswith("--truth-shift 0.5 compares them so)"), said
+    # one row far off (a glitch) makes no shift look better
+    lines = est.read_text().splitlines()
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("t,")) + 3
+    head = lines[at].split(",")
+    head[1] = "1000000"
+    lines[at] = ",".join(head)
+    glitch = tmp_path / "glitch.csv"
+    glitch.write_text("\n".join(lines) + "\n")
+    assert main(["evaluate", str(glitch), str(truth)]) == 0
+    assert "clocks offset" not in capsys.readouterr().err
 
 
 def test_evaluate_skip_start_scores_the_rows_after_the_start_alone(

@@ -254,7 +254,12 @@ def _evaluate(args: argparse.Namespace) -> int:
     # the truth's own positions against its own angles (an estimate's can drift from
     # its angles by design: the paper formulation's positions are states of their own)
     warned.append(truth_frame_warning(args.truth, truth, robot.lengths))
-    warned.append(clock_offset_warning(args.truth, est, truth, length, m.tip_mean_mm / 1e3))
+    warned.append(
+        clock_offset_warning(
+            args.truth, est, truth, length, m.tip_mean_mm / 1e3,
+            given_shift=args.truth_shift or 0.0,
+        )
+    )  # fmt: skip
     warned = [line for line in warned if line]
     for line in warned:
         print(f"{PROG}: warning: {line}", file=sys.stderr)

@@ -35,6 +35,7 @@ def clock_offset_warning(
     length: float,
     tip_mean: float,
     shift_option: str = "--truth-shift",
+    given_shift: float = 0.0,
 ) -> str:
     """A warning where the truth ``path`` (``truth``) looks on a clock offset from the
     estimate ``est``'s (a shift of the truth within :data:`SHIFT_MAX_S` s fits far better:
@@ -42,7 +43,8 @@ def clock_offset_warning(
     for where the mean tip error ``tip_mean`` (m) on a robot of ``length`` m is already
     small. A best shift at the edge of the search says that the offset may be larger.
     ``shift_option``: how the command line compares the files shifted (``evaluate``'s
-    ``--truth-shift``)."""
+    ``--truth-shift``); ``given_shift``: the shift (s) already applied to ``truth``, which
+    the shift advised includes."""
     if not tip_mean >= SHIFT_MIN_ERROR * length:  # close enough: no shift to look for
         return ""
     xyz = ([est.names.index(c) for c in TIP_COLUMNS], [truth.names.index(c) for c in TIP_COLUMNS])
@@ -54,19 +56,22 @@ def clock_offset_warning(
         or not shift.error < SHIFT_GAIN * shift.unshifted
     ):
         return ""
+    as_given = f"at {shift_option} {given_shift:g}" if given_shift else "as the times match"
+    later = f"s later than {shift_option} {given_shift:g} puts it" if given_shift else "s later"
     fits = (
-        f"(mean tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm as "
-        "the times match): are the two files' clocks offset?"
+        f"(median tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
+        f"{as_given}): are the two files' clocks offset?"
     )
     if abs(shift.shift_s) >= SHIFT_MAX_S - 0.05:  # at the edge: the offset may be larger
         return (
-            f"{path}: the truth fits the estimate better {shift.shift_s:+.3g} s later, at the "
+            f"{path}: the truth fits the estimate better {shift.shift_s:+.3g} {later}, at the "
             f"edge of the +-{SHIFT_MAX_S:g} s searched {fits} The offset may be larger; find "
             f"the shift that fits with {shift_option} (a motion that repeats fits shifted too)"
         )
+    total = round(given_shift + shift.shift_s, 6) + 0.0  # (no -0)
     return (
-        f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} s later {fits} (a "
-        f"motion that repeats can fit shifted too; {shift_option} {shift.shift_s:.3g} "
+        f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} {later} {fits} (a "
+        f"motion that repeats can fit shifted too; {shift_option} {total:.3g} "
         "compares them so)"
     )
 

@@ -476,7 +476,7 @@ SHIFT_ROWS = 2_000
 @dataclass(frozen=True)
 class TimeShift:
     """The shift of the truth's clock that fits an estimate best: the truth read at
-    ``t + shift_s`` (s) gives the mean tip error ``error`` (m), against ``unshifted``
+    ``t + shift_s`` (s) gives the median tip error ``error`` (m), against ``unshifted``
     (m) at ``t``."""
 
     shift_s: float
@@ -488,14 +488,15 @@ def best_time_shift(
     t_est: FloatArray, tip_est: FloatArray, t_truth: FloatArray, tip_truth: FloatArray
 ) -> TimeShift | None:
     """The shift of the truth (``t_truth`` (m,) s, ``tip_truth`` (m, 3) m) within
-    :data:`SHIFT_MAX_S` s that gives the smallest mean tip error against the estimate
+    :data:`SHIFT_MAX_S` s that gives the smallest median tip error against the estimate
     (``t_est`` (n,), ``tip_est`` (n, 3), NaN rows left out), the truth interpolated
     linearly at the shifted times: a grid of at most :data:`SHIFT_STEPS` shifts, the
     best refined in steps of the estimate's median sample period. None where fewer
     than 10 rows compare, with or without the shift, or the times do not increase. A
     clock offset between the two files shows as a shift whose error is far below the
     unshifted one (so can half the period of a motion that repeats, on an estimate
-    mirrored in sign)."""
+    mirrored in sign); the median, so that a few rows far off (at the ends, where a
+    shift leaves them out) do not make a shift look better."""
     keep = np.all(np.isfinite(tip_est), axis=1)
     t_e, x_e = t_est[keep], tip_est[keep]
     good = np.all(np.isfinite(tip_truth), axis=1)
@@ -517,7 +518,7 @@ def best_time_shift(
         if inside.sum() < 10:
             return math.inf
         truth = np.column_stack([np.interp(at[inside], t_t, c) for c in columns])
-        return float(np.mean(np.linalg.norm(x_e[inside] - truth, axis=1)))
+        return float(np.median(np.linalg.norm(x_e[inside] - truth, axis=1)))
 
     unshifted = error(0.0)
     if not math.isfinite(unshifted):
