@@ -291,6 +291,42 @@ def test_device_clock_wrap_goes_on_seamlessly() -> None:
     assert sum("wrapped" in m for m in said) == 1
 
 
+@pytest.mark.parametrize("glitch", [1660, 24660])  # a digit lost; the first digit off by one
+def test_one_corrupted_t_ms_is_one_out_of_order_line_and_the_time_axis_goes_on(
+    glitch: int,
+) -> None:
+    """A single line whose t_ms is corrupted (jumping 13 s back, or 10 s ahead) between
+    lines that go on from the old clock: that line is skipped and counted, no restart
+    and no gap, and every other sample is at its device time (the axis is not moved)."""
+    out = io.StringIO()
+    s, said = _session(out=out)
+    stamps = list(range(12000, 17000, 20))
+    k = stamps.index(14660)
+    _feed(s, [*stamps[:k], glitch, *stamps[k + 1 :]])
+    s.finish()
+    assert (s.counts.out_of_order, s.counts.clock_restarts, s.counts.restarts) == (1, 0, 0)
+    assert s.counts.estimates == len(stamps) - 1
+    t = np.array([float(r.split(",")[0]) for r in out.getvalue().splitlines()[1:]])
+    want = np.array([ms / 1e3 for ms in stamps if ms != 14660])
+    np.testing.assert_allclose(t - t[0], want - want[0], atol=1e-9)
+    assert not any("restarted" in m or "gap" in m for m in said), said
+
+
+def test_a_restart_without_a_banner_keeps_its_first_sample() -> None:
+    """A board that restarts its clock with no banner: the first line after the jump is
+    held until the next follows it, and then estimated as the restart's first sample."""
+    s, said = _session()
+    stamps = list(range(0, 3000, 10)) + list(range(0, 1000, 10))
+    _feed(s, stamps)
+    s.finish()
+    assert (s.counts.estimates, s.counts.out_of_order, s.counts.clock_restarts) == (
+        len(stamps),
+        0,
+        1,
+    )
+    assert sum("device clock restarted (2990 ms -> 0 ms)" in m for m in said) == 1
+
+
 def test_small_backward_step_is_out_of_order_not_a_restart() -> None:
     """A line stamped 15 ms after one at 30 ms is skipped and counted, and the first
     such line is said as it comes (with both stamps), the later ones only counted."""

@@ -7,7 +7,9 @@ bad rows counted (:class:`RowProblems`) where ``skip_bad`` keeps or drops them.
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import IO
@@ -438,6 +440,12 @@ def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes, bool]]
     # what has arrived, up to the size asked (a pipe's reader gets the lines written so
     # far instead of waiting for a whole block)
     read = getattr(fh, "read1", fh.read)
+    # a file's short read is its end, which the next read shows: only a pipe, FIFO or
+    # terminal is drained (a block handed on early would not be known as the last)
+    try:
+        streamed = not stat.S_ISREG(os.fstat(fh.fileno()).st_mode)
+    except (AttributeError, OSError, ValueError):  # not a file descriptor (in memory)
+        streamed = False
     while True:
         asked = max(BLOCK_BYTES, len(rest))  # a long line: reads that double
         data = read(asked)
@@ -451,7 +459,7 @@ def _line_blocks(fh: IO[bytes], first: int) -> Iterator[tuple[int, bytes, bool]]
                 continue
             cut = len(text)
         text, rest = text[:cut], text[cut:]
-        yield first, text, 0 < len(data) < asked
+        yield first, text, streamed and 0 < len(data) < asked
         first += text.count(b"\n")
 
 

@@ -299,6 +299,9 @@ class LiveSession:
         self._joined = True
         #: that first line, parsed, until the next sample shows whether it was whole
         self._held: tuple[Sample, float] | None = None
+        # a sample whose t_ms jumped back with no reconnect or banner before it: a
+        # restart if the next sample follows it, else a corrupted t_ms
+        self._jumped: tuple[Sample, float] | None = None
         #: arrival of the first of the garbled lines since the last valid sample, and
         #: their count
         self._garbage_since: float | None = None
@@ -445,7 +448,30 @@ class LiveSession:
             self._release_held(sample)
             if self.fatal is not None:  # the held sample stopped the session
                 return None
+        if self._jumped is not None:
+            self._release_jumped(sample)
+            if self.fatal is not None:
+                return None
+        if self.clock.jumps_back(sample.t_ms):  # a restart, or one corrupted t_ms?
+            self._jumped = (sample, arrival)
+            return None
         return self._handle_sample(sample, arrival)
+
+    def _release_jumped(self, following: Sample | None) -> None:
+        """The sample held for jumping back: the device's restart when ``following``
+        (the next sample) follows it rather than the old clock, else an out-of-order
+        sample (its ``t_ms`` corrupted; also when nothing follows)."""
+        assert self._jumped is not None
+        (held, arrival), self._jumped = self._jumped, None
+        if following is not None and self.clock.confirms_jump(held.t_ms, following.t_ms):
+            self._handle_sample(held, arrival)
+        else:
+            self._out_of_order(
+                held,
+                self.clock.last_ms,
+                "far behind the last sample while the next line goes on from the last "
+                "(a corrupted t_ms), skipped",
+            )
 
     def _release_held(self, following: Sample | None) -> None:
         """Keep the first sample after an open when ``following`` (the next sample)
@@ -466,6 +492,8 @@ class LiveSession:
         samples waiting for the tensions of the ones after them are estimated."""
         if self._held is not None and self.fatal is None:
             self._release_held(None)
+        if self._jumped is not None and self.fatal is None:
+            self._release_jumped(None)
         if self._tension_stream is not None:
             self._estimate_pending(self._tension_stream.end())
 
@@ -534,6 +562,18 @@ class LiveSession:
                 "short)"
             )
 
+    def _out_of_order(self, s: Sample, dev_prev: float | None, why: str) -> None:
+        """Count the sample ``s`` as out of order (after one with device time
+        ``dev_prev``, ms), said for the first with ``why``."""
+        c = self.counts
+        if c.out_of_order == 0 and dev_prev is not None:
+            self.say(
+                f"a line with t_ms {time_text(s.t_ms)} after one with t_ms "
+                f"{time_text(dev_prev)}: out of order, {why} (said for the first only; "
+                "all are counted)"
+            )
+        c.out_of_order += 1
+
     def _handle_sample(self, s: Sample, arrival: float) -> Estimate | None:
         c = self.counts
         if s.problems:
@@ -550,19 +590,14 @@ class LiveSession:
         placed = self.clock.place(s.t_ms, arrival, p)
         t = placed.t
         if placed.event == "out-of-order":
-            if c.out_of_order == 0 and dev_prev is not None:
-                why = (
-                    "far ahead of the time the host saw pass (a corrupted t_ms?), skipped "
-                    "unless the next line confirms it"
-                    if s.t_ms > dev_prev
-                    else "not after the last sample (a repeated, late or stray line), skipped"
-                )
-                self.say(
-                    f"a line with t_ms {time_text(s.t_ms)} after one with t_ms "
-                    f"{time_text(dev_prev)}: out of order, {why} (said for the first only; "
-                    "all are counted)"
-                )
-            c.out_of_order += 1
+            self._out_of_order(
+                s,
+                dev_prev,
+                "far ahead of the time the host saw pass (a corrupted t_ms?), skipped "
+                "unless the next line confirms it"
+                if dev_prev is not None and s.t_ms > dev_prev
+                else "not after the last sample (a repeated, late or stray line), skipped",
+            )
             return None
         given = None
         if self.tension_file is not None:

@@ -6,13 +6,18 @@
   backwards jump of more than ``restart_jump_s``, or any backwards step once
   :meth:`DeviceClock.expect_restart` was called. The time base is broken there: the
   axis continues after the wall-clock time the device was silent, and the caller
-  restarts the estimator.
+  restarts the estimator. A caller that can hold a sample asks :meth:`jumps_back`
+  first and keeps such a sample until the next one says whether the device restarted
+  (:meth:`confirms_jump`: it follows the held one, within :data:`CONFIRM_MS`, instead
+  of the old clock) or the held one's ``t_ms`` was corrupted (an out-of-order sample).
 * A smaller backwards step is an out-of-order sample, dropped by the caller, and so is
   a step forward of more than :data:`FORWARD_JUMP_S` beyond the time the host saw pass
   since the last sample (a corrupted ``t_ms`` would move the whole axis and make the
   next sample look like a restart), unless the next sample confirms it (within
   :data:`CONFIRM_MS` after it: lines left in the port from an earlier run, or a
-  host that was suspended): the axis then jumps with the device's time, a gap.
+  host that was suspended): the axis then jumps with the device's time, a gap. A
+  single corrupted ``t_ms``, ahead (or behind, with a caller that holds), is so one
+  out-of-order sample, and the axis goes on with the samples after it.
 * Samples that share a whole-millisecond stamp (a device faster than 1 kHz stamping
   with ``millis()``: 2 kHz gives pairs of equal ``t_ms``) are spread evenly over that
   millisecond, by the number of samples the previous stamp had: the protocol carries
@@ -33,11 +38,13 @@ MILLIS_WRAP = 2**32
 WRAP_WINDOW_MS = 60_000.0
 
 #: A device time further ahead of the last one than the host's time since then plus
-#: this, s, is not a sample's (serial buffering delays lines by seconds at most; a host
-#: suspended for longer has its first line back dropped and the next confirms the jump).
-FORWARD_JUMP_S = 30.0
-#: A sample this soon after one dropped for jumping ahead (ms of device time) confirms
-#: that jump.
+#: this, s, is not (yet) a sample's: the device's clock and the host's advance alike
+#: between two lines, less the lines' difference in delay on the way, a fraction of a
+#: second (a host that was suspended, whose clock stood still meanwhile, has its first
+#: line back dropped and the next confirms the jump).
+FORWARD_JUMP_S = 2.0
+#: A sample this soon after one dropped for jumping ahead or behind (ms of device time)
+#: confirms that jump.
 CONFIRM_MS = 10_000.0
 
 #: Equal stamps are samples of one millisecond while the usual period is below this, s.
@@ -87,6 +94,27 @@ class DeviceClock:
         """The device reconnected or printed its banner again: its next backwards step,
         however small, is a restart."""
         self._restart_armed = True
+
+    def jumps_back(self, t_ms: float) -> bool:
+        """Whether :meth:`place` would take the device time ``t_ms`` (ms) as a restart
+        that no reconnect or banner announced: a jump back of more than
+        ``restart_jump_s``, not a wrap."""
+        last = self._last_ms
+        if last is None or t_ms >= last or self._restart_armed:
+            return False
+        wrapped = t_ms + MILLIS_WRAP - last
+        if last >= MILLIS_WRAP - WRAP_WINDOW_MS and 0 < wrapped <= WRAP_WINDOW_MS:
+            return False
+        return last - t_ms > self.restart_jump_s * 1e3
+
+    def confirms_jump(self, held_ms: float, t_ms: float) -> bool:
+        """Whether the device time ``t_ms`` (ms) of the sample after one held for jumping
+        back (``held_ms``, :meth:`jumps_back`) follows the held one, within
+        :data:`CONFIRM_MS` (the device restarted), rather than the old clock (the held
+        one's ``t_ms`` was corrupted)."""
+        last = self._last_ms
+        follows_old = last is not None and last < t_ms <= last + CONFIRM_MS
+        return 0 < t_ms - held_ms <= CONFIRM_MS and not follows_old
 
     def place(self, t_ms: float, arrival: float, period_s: float | None) -> Placed:
         """Place one sample (device ``t_ms``, monotonic ``arrival`` in s); the usual
