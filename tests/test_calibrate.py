@@ -114,6 +114,27 @@ def test_calibrate_from_the_port(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
+def test_calibrate_from_the_port_skips_a_corrupted_or_repeated_line(tmp_path: Path) -> None:
+    """One line whose t_ms lost a digit (13 s back) and lines sent twice: each skipped
+    and counted, the samples before them kept (no starting over) and the rate the
+    board's."""
+    acc = np.tile([0.0, 0.0, G], (400, 1))
+    lines = _device_lines(acc)
+    for i in range(2, len(lines)):  # device times from 20 s on
+        t_ms, rest = lines[i].split(",", 1)
+        lines[i] = f"{int(t_ms) + 19000},{rest}"
+    glitch = lines[150].split(",", 1)
+    lines[150] = f"{int(glitch[0]) - 13000},{glitch[1]}"  # a digit lost
+    for i in (120, 90, 60):  # three lines sent twice
+        lines.insert(i, lines[i])
+    code, out, err = _calibrate_port(tmp_path, lines)
+    assert code == 0, err
+    assert "starting over" not in err
+    assert "4 line(s) out of order skipped" in err, err
+    assert "200 samples over 2.000 s of device time: 99.5 Hz (median step 10.00 ms" in out, out
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_says_a_board_sending_degrees_must_send_radians(
     tmp_path: Path,
 ) -> None:
@@ -425,7 +446,12 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     table[0] = ["t", "ax", "ay", "az", "gx", "gy", "gz"]
     one.write_text("\n".join(",".join(r) for r in table) + "\n")
     code, _, err = _calibrate_main(capsys, "--from", str(one), "--mounting", "z-down")
-    assert code == 2 and err.rstrip().endswith("the robot stands on its base? --mounting z-up")
+    assert code == 2 and "the robot stands on its base? --mounting z-up; or, where " in err
+    # one board upside down on a robot mounted as described reads the same: said too
+    assert err.rstrip().endswith(
+        "its board is upside down on it: give each one's mount_rpy (a roll of 180 degrees) "
+        "in the robot file"
+    )
     code, _, err = _calibrate_main(capsys, "--from", rest, "--robot", "two-section")
     assert code == 0, err
     # IMU 2's readings turned over (x and z negated: 180 degrees about y): one board

@@ -119,10 +119,12 @@ def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_fil
     lo, hi = (round(math.degrees(a)) for a in (min(angles), max(angles)))
     spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
     fix = f'set mounting = "{other}" in the robot file' if robot_file else f"--mounting {other}"
+    boards = "its board is" if len(angles) == 1 else "its boards are"
     raise InputError(
         f"{source}: mounting: the robot is described as {robot.mounting}, but at rest gravity "
         f"puts every IMU {spread} degrees from where that mounting puts it: the robot "
-        f"{pose}? {fix}"
+        f"{pose}? {fix}; or, where the robot is mounted as described, {boards} upside "
+        "down on it: give each one's mount_rpy (a roll of 180 degrees) in the robot file"
     )
 
 
@@ -428,6 +430,10 @@ BOOT_S = 15.0
 #: ... and, once garbled lines arrive with no valid one, beyond ``--seconds`` from the
 #: first of them: a board streaming another format does not change it later, s.
 GARBLED_ONLY_S = 2.0
+#: After this much arrival time (s) the device clock must have advanced at least
+#: :data:`CLOCK_SLOW` times as much, else its ``t_ms`` are seconds.
+CLOCK_CHECK_S = 2.0
+CLOCK_SLOW = 0.1
 
 
 def collect(
@@ -457,6 +463,9 @@ def collect(
     t: list[float] = []
     rows: list[FloatArray] = []
     garbled, first_garbled = 0, ""
+    out_of_order = 0
+    jumped: Any = None  # a sample whose t_ms jumped back: a restart if the next follows it
+    host_first = host_last = math.nan  # arrival of the first and last samples kept, s
     give_up = time.monotonic() + seconds + BOOT_S  # the board resets and calibrates first
     garbled_since = math.inf  # when the first garbled line came
     reader.start()
@@ -465,12 +474,24 @@ def collect(
         while time.monotonic() < give_up and not (t and t[-1] - t[0] >= seconds):
             if not t and time.monotonic() - garbled_since > seconds + GARBLED_ONLY_S:
                 break  # streaming, but not one valid line: it will not start now
+            host = host_last - host_first  # between the first and last samples' arrivals
+            if len(t) >= 2 and host >= CLOCK_CHECK_S and t[-1] - t[0] < CLOCK_SLOW * host:
+                raise InputError(
+                    f"{port}: the device clock advanced {1e3 * (t[-1] - t[0]):.3g} ms in "
+                    f"{host:.3g} s of arrival time: t_ms in seconds? (the first field is "
+                    "milliseconds, as millis() gives)"
+                )
             try:
                 kind, payload, arrival = events.get(timeout=0.1)
             except queue.Empty:
                 continue
             if kind == "failed":  # a defect in the reader thread
                 raise payload
+            if kind == "lost":  # unplugged: the reader reopens it, and the board restarts
+                say(f"device lost ({payload}): waiting for it to come back")
+            elif kind == "back":
+                say("device back: its clock restarts, so the samples start over")
+                clock.expect_restart()
             if kind != "line":
                 continue
             try:
@@ -493,17 +514,38 @@ def collect(
                 if text.strip().startswith("#"):
                     say(f"device says: {text.strip()}")
                 continue
-            placed = clock.place(sample.t_ms, arrival, None)
-            if placed.event in ("out-of-order", "restart"):
-                say(f"device clock {placed.event} at t_ms={sample.t_ms:.0f}: starting over")
-                t, rows = [], []
+            if jumped is not None:  # the held sample: the device's restart, or corrupted
+                (held, held_arrival), jumped = jumped, None
+                if clock.confirms_jump(held.t_ms, sample.t_ms):
+                    restart = clock.place(held.t_ms, held_arrival, None)
+                    say(f"device clock restart at t_ms={held.t_ms:.0f}: starting over")
+                    t, rows = [restart.t], [held.values]
+                    host_first = host_last = held_arrival
+                else:
+                    out_of_order += 1
+            if clock.jumps_back(sample.t_ms):
+                jumped = (sample, arrival)
                 continue
+            # the usual period, once known: an equal stamp is then a repeated line
+            period = float(np.median(np.diff(t[-50:]))) if len(t) >= 3 else None
+            placed = clock.place(sample.t_ms, arrival, period)
+            if placed.event == "out-of-order":  # a repeated, late or corrupted line
+                out_of_order += 1
+                continue
+            if placed.event == "restart":  # after a reconnect: the board started again
+                say(f"device clock restart at t_ms={sample.t_ms:.0f}: starting over")
+                t, rows = [], []
+            if not t:
+                host_first = arrival
+            host_last = arrival
             t.append(placed.t)
             rows.append(sample.values)
     finally:
         reader.stop.set()
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
+    if out_of_order:
+        say(f"{out_of_order} line(s) out of order skipped (a repeated, late or corrupted t_ms)")
     if len(t) < 2:
         if garbled:
             why = (
@@ -514,6 +556,11 @@ def collect(
         else:
             why, waited = "is it streaming?", f"{seconds + BOOT_S:g} s"
         raise InputError(f"{port}: {len(t)} valid sample(s) in {waited}; {why}")
+    if t[-1] - t[0] < seconds:
+        say(
+            f"warning: {port}: {time_text(t[-1] - t[0])} s of the {seconds:g} s asked arrived "
+            "(the device stopped sending: unplugged?); the calibration is of those"
+        )
     return np.asarray(t), np.asarray(rows)
 
 
