@@ -327,6 +327,38 @@ def test_a_restart_without_a_banner_keeps_its_first_sample() -> None:
     assert sum("device clock restarted (2990 ms -> 0 ms)" in m for m in said) == 1
 
 
+def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None:
+    """A device whose lines end otherwise (or another baud rate): the splitter tells the
+    bytes of the line that never ends, and 3 s of them stop the session with the cause;
+    a line end in between starts the count again."""
+    sp = LineSplitter(max_bytes=100)
+    assert sp.feed(b"1,0.1;" * 30) == [] and sp.unended == 180 and sp.too_long == []
+    assert sp.feed(b"\n2,0.1,0.1\n") == [b"2,0.1,0.1"] and sp.too_long == [180]
+    assert sp.unended == 0
+    import queue
+
+    from continuum_mhe.stream.reader import SerialReader
+
+    events: queue.Queue = queue.Queue()
+    reader = SerialReader("x", 115200, None, events, 1.0, max_line_bytes=100)
+    reader._feed(b"1,0.1;" * 30)
+    reader._feed(b"1,0.1;" * 30)  # within UNENDED_EVERY_S of the first: not said again
+    assert [(k, n) for k, n, _ in list(events.queue)] == [("unended", 180)]
+    s, _ = _session()
+    s.unended_bytes(5000, 10.0)
+    s.unended_bytes(9000, 12.0)
+    assert s.fatal is None
+    s.handle_line(b"100,0.1,0.1", 12.5)  # a line end came: the run starts again
+    s.unended_bytes(4500, 13.0)
+    s.unended_bytes(9000, 15.9)
+    assert s.fatal is None
+    s.unended_bytes(12000, 16.1)
+    assert s.fatal == (
+        "x: 12000 bytes without a line end (LF or CR) over 3.1 s (7500 in the last "
+        "3.1 s): check --baud, or how the device ends its lines"
+    )
+
+
 def test_small_backward_step_is_out_of_order_not_a_restart() -> None:
     """A line stamped 15 ms after one at 30 ms is skipped and counted, and the first
     such line is said as it comes (with both stamps), the later ones only counted."""

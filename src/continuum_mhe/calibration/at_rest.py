@@ -464,6 +464,7 @@ def collect(
     rows: list[FloatArray] = []
     garbled, first_garbled = 0, ""
     out_of_order = 0
+    unended = 0  # the most bytes seen arriving with no line end
     jumped: Any = None  # a sample whose t_ms jumped back: a restart if the next follows it
     host_first = host_last = math.nan  # arrival of the first and last samples kept, s
     give_up = time.monotonic() + seconds + BOOT_S  # the board resets and calibrates first
@@ -487,6 +488,8 @@ def collect(
                 continue
             if kind == "failed":  # a defect in the reader thread
                 raise payload
+            if kind == "unended":  # bytes with no line end so far
+                unended = max(unended, payload)
             if kind == "lost":  # unplugged: the reader reopens it, and the board restarts
                 say(f"device lost ({payload}): waiting for it to come back")
             elif kind == "back":
@@ -553,6 +556,12 @@ def collect(
                 "--robot and --baud"
             )
             waited = f"{seconds + GARBLED_ONLY_S:g} s of garbled lines"
+        elif unended:
+            why = (
+                f"{unended} bytes arrived without a line end (LF or CR): check --baud, or "
+                "how the device ends its lines"
+            )
+            waited = f"{seconds + BOOT_S:g} s"
         else:
             why, waited = "is it streaming?", f"{seconds + BOOT_S:g} s"
         raise InputError(f"{port}: {len(t)} valid sample(s) in {waited}; {why}")

@@ -127,6 +127,10 @@ def run_live(
                 session.too_long_line(reader.splitter.max_bytes, arrival)
                 if session.fatal is not None:
                     break
+            elif kind == "unended":
+                session.unended_bytes(payload, arrival)
+                if session.fatal is not None:
+                    break
             elif kind == "partial":
                 session.counts.partial += 1
             elif kind == "lost":

@@ -305,6 +305,9 @@ class LiveSession:
         #: arrival of the first of the garbled lines since the last valid sample, and
         #: their count
         self._garbage_since: float | None = None
+        #: (arrival, bytes) of the first report of bytes with no line end, since the
+        #: last line end
+        self._unended_since: tuple[float, int] | None = None
         self._garbage_lines = 0
         estimator.reset()
 
@@ -423,6 +426,7 @@ class LiveSession:
             return None
         c = self.counts
         c.lines += 1
+        self._unended_since = None  # a line end came
         try:
             text = raw.decode("ascii")
         except UnicodeDecodeError:
@@ -518,11 +522,28 @@ class LiveSession:
                     f"expects {len(want)} ({','.join(want)}); check --format and --robot"
                 )
 
+    def unended_bytes(self, nbytes: int, arrival: float) -> None:
+        """``nbytes`` have arrived since the last line end, more than a line may hold: a
+        run of them over :data:`GARBAGE_STOP_S` s sets :attr:`fatal` (the wrong baud
+        rate, or a device whose lines end otherwise: no line would ever come)."""
+        if self._unended_since is None:
+            self._unended_since = (arrival, nbytes)
+            return
+        since, first = self._unended_since
+        span = arrival - since
+        if span >= GARBAGE_STOP_S:
+            self.fatal = (
+                f"{self.settings.port}: {nbytes} bytes without a line end (LF or CR) over "
+                f"{span:.1f} s ({nbytes - first} in the last {span:.1f} s): check --baud, or "
+                "how the device ends its lines"
+            )
+
     def too_long_line(self, max_bytes: int, arrival: float) -> None:
         """The reader dropped a line longer than ``max_bytes`` (no line end: the wrong
         baud rate, or not this protocol): counted, said (rate-limited) as the host's own
         note, and part of a run of garbage (:data:`GARBAGE_STOP_S`)."""
         self.counts.too_long += 1
+        self._unended_since = None  # its end came
         self.messages.show(
             f"dropped a line longer than {max_bytes} bytes (no line end: wrong baud rate or "
             "not this protocol?)",

@@ -283,6 +283,12 @@ class LineSplitter:
             lines.append(bytes(self._buf))
             self._buf.clear()
 
+    @property
+    def unended(self) -> int:
+        """Bytes of the line being dropped for its length so far (0: none): bytes that
+        arrive with no line end (another baud rate, or another line end)."""
+        return self._skipping
+
     def resync(self) -> None:
         """The port was (re)opened mid-stream: what was buffered belongs to the old
         connection and is forgotten."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import glob
+import math
 import os
 import queue
 import sys
@@ -51,11 +52,16 @@ def port_hint(port: str, exc: BaseException) -> str:
     return f"{port}: cannot open serial device ({text}); {causes}; {found}"
 
 
+#: While bytes arrive with no line end, the reader says so this often at most, s.
+UNENDED_EVERY_S = 0.5
+
+
 class SerialReader(threading.Thread):
     """Reads the port into ``events``: ``("line", bytes, t)``, ``("too-long", nbytes,
-    t)``, ``("partial", bytes, t)``, ``("lost", reason, t)``, ``("retrying", reason,
-    t)`` (the port does not reopen for another reason than before) and ``("back",
-    seconds_away, t)``.
+    t)``, ``("unended", nbytes, t)`` (at most every :data:`UNENDED_EVERY_S` while a line
+    too long goes on: the bytes since its start), ``("partial", bytes, t)``, ``("lost",
+    reason, t)``, ``("retrying", reason, t)`` (the port does not reopen for another
+    reason than before) and ``("back", seconds_away, t)``.
     Reopens with backoff. An exception it does not expect (a
     defect) closes the port and ends the thread with ``("failed", exception, t)`` as its
     last event, so that the queue's reader raises it instead of waiting for lines that
@@ -76,6 +82,7 @@ class SerialReader(threading.Thread):
         self.retry_max_s = retry_max_s
         self.splitter = LineSplitter(max_line_bytes)
         self.stop = threading.Event()
+        self._unended_said = -math.inf  # when the last "unended" event was put
 
     def run(self) -> None:
         try:
@@ -108,6 +115,9 @@ class SerialReader(threading.Thread):
             self.events.put(("line", line, now))
         for n in self.splitter.too_long:
             self.events.put(("too-long", n, now))
+        if self.splitter.unended and now - self._unended_said >= UNENDED_EVERY_S:
+            self.events.put(("unended", self.splitter.unended, now))
+            self._unended_said = now
 
     def _drain(self, limit_s: float = 1.0) -> None:
         """Read what the port holds when told to stop: lines the device sent before the
