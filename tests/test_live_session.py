@@ -359,6 +359,22 @@ def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None
     )
 
 
+def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples() -> None:
+    """Tilt lines in degrees, each beyond pi by another value: one cause in the summary
+    (not one per value), and the gap they leave between valid samples says that its
+    lines came and were skipped, none missing."""
+    s, said = _session()
+    now = time.monotonic()
+    for i in range(60):
+        roll = 0.1 if not 20 <= i < 40 else 3.5 + 0.01 * i  # degrees-like, each its own
+        s.handle_line(f"{1000 + 20 * i},{roll},0.1".encode(), now + 0.02 * i)
+    s.finish()
+    assert s.counts.reasons == {"roll beyond pi: degrees given for radians?": 20}
+    assert (s.counts.gaps, s.counts.missing) == (1, 0)
+    (gap,) = [m for m in said if m.startswith("gap of")]
+    assert "(about 0 samples missing, 20 line(s) in it skipped)" in gap, gap
+
+
 def test_small_backward_step_is_out_of_order_not_a_restart() -> None:
     """A line stamped 15 ms after one at 30 ms is skipped and counted, and the first
     such line is said as it comes (with both stamps), the later ones only counted."""

@@ -308,6 +308,8 @@ class LiveSession:
         #: (arrival, bytes) of the first report of bytes with no line end, since the
         #: last line end
         self._unended_since: tuple[float, int] | None = None
+        #: lines skipped (garbled, over-long, out of order) since the last valid sample
+        self._skipped = 0
         self._garbage_lines = 0
         estimator.reset()
 
@@ -323,11 +325,20 @@ class LiveSession:
         self.clock.expect_restart()
         self._joined = True
 
-    def _bad(self, reason: str, arrival: float, text: str = "", shown: str | None = None) -> None:
+    def _bad(
+        self,
+        reason: str,
+        arrival: float,
+        text: str = "",
+        shown: str | None = None,
+        kind: str | None = None,
+    ) -> None:
         """One garbled line (``reason``), ``text`` its characters (``shown``: how to show
         it where it has none, its bytes); the first is said with the port, its line
-        number in the session and its beginning, the rest are counted."""
+        number in the session and its beginning, the rest are counted by ``kind`` (the
+        cause without the line's values; ``reason`` where None)."""
         c = self.counts
+        self._skipped += 1
         if self._joined:  # the port opened mid-line: the tail of a line, not a garbled one
             self._joined = False
             expected = len(line_fields(self.settings.fmt, self.n_imus, self.n_tensions))
@@ -335,7 +346,8 @@ class LiveSession:
                 c.partial += 1
                 return
         c.garbled += 1
-        c.reasons[reason] = c.reasons.get(reason, 0) + 1
+        key = kind or reason
+        c.reasons[key] = c.reasons.get(key, 0) + 1
         if c.first_garbled is None:  # said once, as it happens (the rest are counted)
             c.first_garbled = reason + self._hint(text)
             begin = text[:SHOWN_CHARS] + ("..." if len(text) > SHOWN_CHARS else "")
@@ -437,7 +449,7 @@ class LiveSession:
         except GarbledLine as exc:
             if self._garbage_since is None:  # the first garbled line of a run
                 self._degrees_run = DEGREES_FOR_RADIANS in str(exc) and self._continues(text)
-            self._bad(str(exc), arrival, text)
+            self._bad(str(exc), arrival, text, kind=exc.kind)
             return None
         joined, self._joined = self._joined, False
         if sample is None:
@@ -543,6 +555,7 @@ class LiveSession:
         baud rate, or not this protocol): counted, said (rate-limited) as the host's own
         note, and part of a run of garbage (:data:`GARBAGE_STOP_S`)."""
         self.counts.too_long += 1
+        self._skipped += 1
         self._unended_since = None  # its end came
         self.messages.show(
             f"dropped a line longer than {max_bytes} bytes (no line end: wrong baud rate or "
@@ -587,6 +600,7 @@ class LiveSession:
         """Count the sample ``s`` as out of order (after one with device time
         ``dev_prev``, ms), said for the first with ``why``."""
         c = self.counts
+        self._skipped += 1
         if c.out_of_order == 0 and dev_prev is not None:
             self.say(
                 f"a line with t_ms {time_text(s.t_ms)} after one with t_ms "
@@ -702,7 +716,9 @@ class LiveSession:
         elif t_prev is not None:
             dt = t - t_prev
             if p is not None and dt > self.settings.gap_factor * p:
-                lost = max(int(round(dt / p)) - 1, 0)
+                # the lines that came and were skipped are not missing
+                lost = max(int(round(dt / p)) - 1 - self._skipped, 0)
+                skipped = f", {self._skipped} line(s) in it skipped" if self._skipped else ""
                 c.gaps += 1
                 c.missing += lost
                 gap_reset = self.estimator.recovery.gap_reset
@@ -712,11 +728,13 @@ class LiveSession:
                     for conv in self.converters or ():  # attitude filters of raw IMUs
                         conv.reset()
                 self.say(
-                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing); {how}"
+                    f"gap of {dt:.3f} s before t={t:.3f} s (about {lost} samples missing"
+                    f"{skipped}); {how}"
                 )
             else:
                 self._periods.append(dt)
                 self._period = None
+        self._skipped = 0
         if self.record is not None:
             # "": a dropout, as estimate reads
             cells = (csv_cell(float(v)) if math.isfinite(v) else "" for v in s.values)

@@ -42,7 +42,13 @@ MAX_LINE_BYTES = 4096
 
 
 class GarbledLine(ValueError):
-    """A line that is not a valid sample (the message says why)."""
+    """A line that is not a valid sample (the message says why); ``kind``: the cause
+    without the line's own values, under which such lines are counted (the message
+    where None)."""
+
+    def __init__(self, message: str, kind: str | None = None) -> None:
+        super().__init__(message)
+        self.kind = kind if kind is not None else message
 
 
 @dataclass(frozen=True)
@@ -115,7 +121,8 @@ def _imu_values(fields: list[str], fmt: LineFormat, imu: int, n_imus: int) -> li
         for name, value, limit, bound in zip(("roll", "pitch"), v, TILT_LIMITS, ("pi", "pi/2")):
             if abs(value) > limit:
                 raise GarbledLine(
-                    f"{name}{suffix} = {value:g}, beyond {bound}: {DEGREES_FOR_RADIANS}"
+                    f"{name}{suffix} = {value:g}, beyond {bound}: {DEGREES_FOR_RADIANS}",
+                    kind=f"{name}{suffix} beyond {bound}: {DEGREES_FOR_RADIANS}",
                 )
     return v
 
