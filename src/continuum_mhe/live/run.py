@@ -188,7 +188,22 @@ def run_live(
                     )
                     next_progress = time.monotonic() + settings.status_every
         except KeyboardInterrupt:
-            say(f"abandoned {events.qsize()} received line(s) without estimates")
+            left = events.qsize()
+            if session.record is None:
+                say(f"abandoned {left} received line(s): neither estimated nor recorded")
+            else:  # --record keeps every sample received: these too, without estimates
+                session.record_only = True
+                while True:
+                    try:
+                        kind, payload, arrival = events.get_nowait()
+                    except queue.Empty:
+                        break
+                    if kind == "line":
+                        session.handle_line(payload, arrival)
+                say(
+                    f"abandoned the estimates of {left} received line(s); their samples are "
+                    f"recorded in {session.record.path}"
+                )
     finally:
         stop_deferring()
         reader.stop.set()

@@ -227,6 +227,9 @@ class LiveSession:
             else None
         )
         self._pending: deque[_Pending] = deque()
+        #: samples are recorded (``record``) and counted but not estimated: the lines
+        #: queued when a second signal abandoned their estimates
+        self.record_only = False
         self.converters: list[RawImuConverter] | None = (
             None
             if converter is None
@@ -740,6 +743,8 @@ class LiveSession:
             cells = (csv_cell(float(v)) if math.isfinite(v) else "" for v in s.values)
             tensions = (csv_cell(float(v)) for v in s.tensions)
             self.record.write_row([csv_cell(t), *cells, *tensions])
+        if self.record_only:  # abandoned: recorded as received, not estimated
+            return None
         if restart:  # the estimator restarts when this sample is estimated
             for conv in self.converters or ():
                 conv.reset()
