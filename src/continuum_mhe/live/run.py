@@ -27,6 +27,7 @@ import queue
 import sys
 import time
 from collections import deque
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -167,11 +168,7 @@ def run_live(
             stop_deferring()  # a second signal abandons the queue after its line
             done = 0
             next_progress = time.monotonic() + settings.status_every
-            while True:
-                try:
-                    kind, payload, arrival = events.get_nowait()
-                except queue.Empty:
-                    break
+            for kind, payload, arrival in _queued(events):
                 if kind == "line":
                     # a second signal abandons the queue after this line, not inside it
                     # (its sample recorded without its estimate)
@@ -193,16 +190,13 @@ def run_live(
                 say(f"abandoned {left} received line(s): neither estimated nor recorded")
             else:  # --record keeps every sample received: these too, without estimates
                 session.record_only = True
-                while True:
-                    try:
-                        kind, payload, arrival = events.get_nowait()
-                    except queue.Empty:
-                        break
+                for kind, payload, arrival in _queued(events):
                     if kind == "line":
                         session.handle_line(payload, arrival)
+                where = getattr(session.record, "path", "the recording")
                 say(
                     f"abandoned the estimates of {left} received line(s); their samples are "
-                    f"recorded in {session.record.path}"
+                    f"recorded in {where}"
                 )
     finally:
         stop_deferring()
@@ -221,6 +215,15 @@ def run_live(
     if failed:
         raise InputError(failed)
     return 0
+
+
+def _queued(events: queue.Queue[Event]) -> Iterator[Event]:
+    """The events queued, taken one at a time until the queue is empty."""
+    while True:
+        try:
+            yield events.get_nowait()
+        except queue.Empty:
+            return
 
 
 def _faster(session: LiveSession) -> str:
