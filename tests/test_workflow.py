@@ -671,3 +671,39 @@ def test_view_warns_of_a_drawing_that_misses_the_estimate(tmp_path: Path, capsys
     capsys.readouterr()
     assert main(["view", str(one), "--length", "0.3", "--save", str(tmp_path / "w.rrd")]) == 0
     assert "its rows fit sections of 0.2 m, not the given robot's 0.3 m" in capsys.readouterr().err
+
+
+def test_an_estimate_made_in_another_folder_repeats_from_anywhere(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A robot file given by a relative name from a subfolder: the estimate records it so
+    that --config EST.csv (and evaluate's robot from the record) finds it from another
+    working folder, and still beside the estimate once the folder has moved."""
+    from continuum_mhe.cli.config import recorded_option
+
+    (tmp_path / "sub").mkdir()
+    robot = tmp_path / "r2.toml"
+    robot.write_text(
+        'mounting = "z-up"\n[[section]]\nlength = 0.16\ntheta_max = 2.5\n'
+        "[[section]]\nlength = 0.14\n[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+    )
+    monkeypatch.chdir(tmp_path)
+    assert (
+        main(["simulate", "s-curve", "--robot", "r2.toml", "-o", "m.csv", "--duration", "2"]) == 0
+    )
+    monkeypatch.chdir(tmp_path / "sub")
+    assert main(["estimate", "../m.csv", "--robot", "../r2.toml", "-o", "est.csv"]) == 0
+    assert recorded_option("est.csv", "robot") == str(robot)
+    monkeypatch.chdir(tmp_path)
+    assert main(["estimate", "m.csv", "--config", "sub/est.csv", "-o", "again.csv"]) == 0
+
+    def rows(path: Path) -> list[str]:  # without solve_ms, a time
+        return [ln.rsplit(",", 1)[0] for ln in path.read_text().splitlines()[3:]]
+
+    assert rows(tmp_path / "again.csv") == rows(tmp_path / "sub" / "est.csv")
+    # moved with its robot file: found beside the estimate by its name
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    (tmp_path / "sub" / "est.csv").rename(moved / "est.csv")
+    robot.rename(moved / "r2.toml")
+    assert main(["estimate", "m.csv", "--config", "moved/est.csv", "-o", "third.csv"]) == 0

@@ -14,6 +14,7 @@ options it was made with.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 from collections.abc import Collection
@@ -297,10 +298,11 @@ def apply_config(
 def beside(path: str, value: str) -> str:
     """``value`` (a file named in the options file or estimate ``path``) as a command finds it:
     as given where it exists from the working folder (or is a shipped robot's name),
-    else beside the options file where it is there."""
+    else beside the options file where it is there (an absolute name that no longer
+    exists: its file name there, as a folder moved with its robot file has it)."""
     given = Path(value)
-    there = Path(path).parent / given
-    if given.is_absolute() or given.exists() or not there.exists():
+    there = Path(path).parent / (given.name if given.is_absolute() else given)
+    if given.exists() or not there.exists():
         return value
     return str(there)
 
@@ -368,5 +370,8 @@ def options_record(
             value = not value  # recorded as the switch's own sense
         if not isinstance(value, (bool, int, float, str, list)):
             value = str(value)
+        if dest in FILE_OPTIONS and isinstance(value, str) and Path(value).exists():
+            # the file as any folder finds it (a relative name is the writing run's)
+            value = os.path.abspath(value)
         table[option_key(action)] = value
     return table.as_string()
