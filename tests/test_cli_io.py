@@ -1184,3 +1184,41 @@ def test_evaluate_takes_the_truth_as_plot_does_too(tmp_path, capsys):
         assert main(["evaluate", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and says in err[0], err
+
+
+def test_evaluate_says_the_ok_rows_are_unknown_without_a_status_column(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An estimate without a status column: its ok rows are unknown (not every row), in
+    the text and as null in --json; without std_ columns: the ok rows counted, and no
+    coverage (not 0 ok rows)."""
+    meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
+    assert (
+        main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth), "--duration", "4"])
+        == 0
+    )
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    lines = [ln for ln in est.read_text().splitlines() if not ln.startswith("#")]
+    header = lines[0].split(",")
+    rows = [ln.split(",") for ln in lines[1:]]
+    n_ok = sum(r[header.index("status")] == "ok" for r in rows)
+
+    def without(keep: list[int], name: str) -> Path:
+        out = tmp_path / name
+        out.write_text("\n".join(",".join(r[i] for i in keep) for r in [header, *rows]) + "\n")
+        return out
+
+    no_status = without([i for i, c in enumerate(header) if c != "status"], "nostatus.csv")
+    no_std = without([i for i, c in enumerate(header) if not c.startswith("std_")], "nostd.csv")
+    capsys.readouterr()
+    assert main(["evaluate", str(no_status), str(truth)]) == 0
+    assert (
+        f"ok rows              unknown: {no_status} has no status column" in capsys.readouterr().out
+    )
+    assert main(["evaluate", str(no_status), str(truth), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["ok_rows"] is None
+    assert main(["evaluate", str(no_std), str(truth)]) == 0
+    said = capsys.readouterr().out
+    assert f"ok rows              {n_ok} of {len(rows)} (no std_ columns: no coverage)" in said
+    assert main(["evaluate", str(no_std), str(truth), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["ok_rows"] == n_ok > 0

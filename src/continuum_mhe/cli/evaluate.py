@@ -212,14 +212,15 @@ def _evaluate(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise InputError(f"{args.estimates}: {exc}") from None
     cal = cal_ok = None
-    n_ok = 0
+    n_ok: int | None = None  # None: the file says no status (no column)
+    if est.status_column:
+        n_ok = int((np.asarray(est.status)[i_e] == Status.OK).sum())
     if est.has_std and est.std is not None:
         std = est.std[i_e][:, cols]
         cal = compute_calibration(est.values[i_e][:, cols], std, truth_rows, out_names, truth.names)
         # what the status promises: the rows marked ok alone
         ok = np.asarray(est.status)[i_e] == Status.OK
-        n_ok = int(ok.sum())
-        if n_ok and np.isfinite(std[ok]).any():
+        if est.status_column and n_ok and np.isfinite(std[ok]).any():
             cal_ok = compute_calibration(
                 est.values[i_e][ok][:, cols], std[ok], truth_rows[ok], out_names,
                 truth.names,
@@ -286,6 +287,10 @@ def _evaluate(args: argparse.Namespace) -> int:
         if cal_ok is not None:
             tip = ", ".join(f"{c} {cal_ok.coverage[c]:.3f}" for c in "xyz" if c in cal_ok.coverage)
             print(f"ok rows              {n_ok} of {len(i_e)}: tip 95% interval coverage {tip}")
+        elif n_ok is None:
+            print(f"ok rows              unknown: {args.estimates} has no status column")
+        elif not (est.has_std and est.std is not None):
+            print(f"ok rows              {n_ok} of {len(i_e)} (no std_ columns: no coverage)")
         if unmatched:
             print(f"unmatched rows       {unmatched} of {len(est.t)} (no truth at their t)")
     return 0
