@@ -8,11 +8,12 @@ import itertools
 import json
 import math
 import sys
+import warnings
 from collections import Counter
 from collections.abc import Generator, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, TextIO, cast
 
 import numpy as np
 
@@ -58,6 +59,7 @@ from continuum_mhe.estimators.run_notices import (
     untrusted_start_notice,
 )
 from continuum_mhe.estimators.sensor_health import Estimator
+from continuum_mhe.io.csv_files import TIME_STEP_WARNING, UnitWarning
 from continuum_mhe.io.input_options import robot_fix
 from continuum_mhe.io.output_files import check_output_target, refuse_inputs
 from continuum_mhe.progress import progress_bar
@@ -151,7 +153,54 @@ def _reads_ahead(source: str) -> bool:
     return source != "-" and (Path(source).is_file() or Path(source).is_dir())
 
 
+class _HeldTimeUnitWarnings:
+    """While active, the warnings that the input's ``t`` steps like another unit are
+    held instead of shown (:mod:`warnings`' display, process-wide: the read-ahead thread
+    warns too); on leaving, they are shown unless :meth:`drop` was called: a run that
+    ends in the error of a time unit says it in that one line alone."""
+
+    def __init__(self) -> None:
+        self.held: list[str] = []
+
+    def __enter__(self) -> _HeldTimeUnitWarnings:
+        self._saved = warnings.showwarning
+
+        def show(
+            message: Warning | str,
+            category: type[Warning],
+            filename: str,
+            lineno: int,
+            file: TextIO | None = None,
+            line: str | None = None,
+        ) -> None:
+            if issubclass(category, UnitWarning) and TIME_STEP_WARNING in str(message):
+                self.held.append(str(message))
+                return
+            self._saved(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        return self
+
+    def drop(self) -> None:
+        self.held = []
+
+    def show(self) -> None:
+        """Show the warnings held so far."""
+        for message in self.held:
+            print(f"{PROG}: warning: {message}", file=sys.stderr)
+        self.held = []
+
+    def __exit__(self, *exc: object) -> None:
+        warnings.showwarning = self._saved
+        self.show()
+
+
 def run(args: argparse.Namespace) -> int:
+    with _HeldTimeUnitWarnings() as held:
+        return _run(args, held)
+
+
+def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
     # any input kind (tilt CSV, raw IMU CSV, ROS bag, MCAP; io.inputs reads it) and
     # output (.csv, .mcap), streamed: the input is read once and memory stays flat
     from continuum_mhe.io.background import WriteBehind, read_ahead
@@ -249,11 +298,13 @@ def run(args: argparse.Namespace) -> int:
                         "t must be in seconds: if in milliseconds, name the column t_ms; if "
                         f"in microseconds or nanoseconds, give seconds (else {fix})"
                     )
+                held.drop()  # this says what the time unit's warning would
                 raise InputError(
                     f"{stream.name}: {diag.gap_resets} of {n} samples restarted the estimator "
                     f"after a gap longer than --gap-reset {args.gap_reset:g} s: {fix}; "
                     "nothing written"
                 )
+            held.show()
     if interrupted is not None:
         print(
             f"{PROG}: kept the {n} estimates made before the interruption in {out}, marked "

@@ -228,6 +228,8 @@ class ReadingCounts:
 
 #: ``t`` read in seconds whose median step exceeds this looks like milliseconds.
 MS_LIKE_STEP_S = 2.0
+#: The words every warning of :func:`check_time_steps` holds (after what advances).
+TIME_STEP_WARNING = "by a median of"
 #: Times whose median step is below this (s: over 10 kHz, faster than any IMU stream
 #: read here) are in a unit too small (microseconds stamped as nanoseconds).
 TOO_FAST_STEP_S = 1e-4
@@ -247,7 +249,7 @@ def check_time_steps(name: str, what: str, t: FloatArray, slow_fix: str, fast_fi
     else:
         return
     warnings.warn(
-        f"{name}: {what} by a median of {step:g} s per sample{rate}; {fix}",
+        f"{name}: {what} {TIME_STEP_WARNING} {step:g} s per sample{rate}; {fix}",
         UnitWarning,
         stacklevel=3,
     )
