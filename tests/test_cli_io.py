@@ -206,7 +206,7 @@ BAD_INPUTS = {
     "nan-row": ("t,roll,pitch\n0,0.1,0.1\n0.05,nan,0.1\n", "line 3: column roll is nan"),
     "decreasing-t": (
         "t,roll,pitch\n0,0.1,0.1\n0.1,0.1,0.1\n0.05,0.1,0.1\n",
-        "line 4: decreasing timestamp",
+        "line 4: decreasing timestamp t=0.05 after t=0.1 on line 3",
     ),
     "duplicate-t": ("t,roll,pitch\n0,0.1,0.1\n0,0.1,0.1\n", "line 3: duplicate timestamp"),
     "degrees": ("t,roll,pitch\n0,10,20\n0.05,11,21\n", "look like degrees: pass --degrees"),

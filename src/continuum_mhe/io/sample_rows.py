@@ -255,6 +255,7 @@ class _SampleChecks:
         self.empty_is_dropout = empty_is_dropout
         self.problems = problems if problems is not None else RowProblems()
         self.last_t = -math.inf
+        self.last_line = 0  # the line of the last sample given
         self.last_bad = -1
         self.n_rows = 0  # data rows read
         self.n_out = 0  # samples given
@@ -302,7 +303,7 @@ class _SampleChecks:
                 kind = "duplicate" if t == self.last_t else "decreasing"
                 msg = (
                     f"{kind} timestamp t={time_text(t)} after t={time_text(self.last_t)} "
-                    "(t must strictly increase)"
+                    f"on line {self.last_line} (t must strictly increase)"
                 )
                 bad(line, msg, dropped=True)
                 continue
@@ -335,7 +336,7 @@ class _SampleChecks:
                         )
                         v = math.nan  # with --skip-bad: a dropout, as the message says
                 vals.append(v)
-            self.last_t = t
+            self.last_t, self.last_line = t, line
             self.n_out += 1
             yield line, t, vals
 
@@ -409,7 +410,7 @@ class _SampleChecks:
             return None
         if not self.empty_is_dropout and np.isnan(values).any():
             return None
-        self.last_t = float(t[-1])
+        self.last_t, self.last_line = float(t[-1]), int(numbers[-1])
         self.n_rows += len(t)
         self.n_out += len(t)
         return SampleBlock(list(numbers), t, np.ascontiguousarray(values[:, 1:]))
