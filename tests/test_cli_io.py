@@ -1019,10 +1019,13 @@ def test_the_tip_nees_line_says_which_side_of_its_band_and_what_it_means() -> No
     from continuum_mhe.evaluation.metrics import Calibration
 
     def line(nees: float) -> str:
-        c = Calibration({"x": 0.95}, {"x": 100}, nees, (2.7, 3.3), 100)
+        c = Calibration({"x": 0.95}, {"x": 100}, nees, (2.7, 3.3), 100, 40.2)
         return format_calibration(c).splitlines()[1]
 
-    assert line(3.0).endswith("95% band 2.70 to 3.30: inside)")
+    assert line(3.0).endswith(
+        "95% band 2.70 to 3.30, for the 40 independent samples they are worth, their "
+        "errors correlated in time: inside)"
+    )
     assert line(0.6).endswith(": outside, below: the intervals are wider than the errors)")
     assert line(9.0).endswith(": outside, above: the intervals are narrower than the errors)")
 

@@ -863,3 +863,33 @@ def test_a_dropout_does_not_narrow_the_standard_deviations(
     for name in ("theta_1", "theta_2", "x", "y", "z"):
         narrow = with_dropout.std_column(name)[250:252] / clean.std_column(name)[250:252]
         assert np.all(narrow >= 0.97), (name, narrow)
+
+
+def test_the_nees_band_holds_the_average_nees_of_errors_correlated_in_time() -> None:
+    """Errors whose standard deviation is right but which are correlated in time (an
+    AR(1) series, as a filter's are): the average NEES falls inside its band in about
+    95 % of recordings with the effective sample count, far less often with the band of
+    independent samples; the count is n (1 - a^2) / (1 + a^2) for coefficient a (the
+    NEES of such errors is correlated as a^2 per lag)."""
+    from continuum_mhe.evaluation.metrics import effective_samples
+
+    rng = np.random.default_rng(5)
+    n, a, trials = 400, 0.9, 300
+    inside = inside_naive = 0
+    counts = []
+    for _ in range(trials):
+        e = np.empty((n, 3))
+        e[0] = rng.standard_normal(3)
+        for k in range(1, n):  # unit variance throughout
+            e[k] = a * e[k - 1] + np.sqrt(1 - a * a) * rng.standard_normal(3)
+        c = compute_calibration(e, np.ones((n, 3)), np.zeros((n, 3)), ["x", "y", "z"])
+        counts.append(c.tip_n_eff)
+        lo, hi = c.tip_nees_band
+        inside += lo <= c.tip_nees <= hi
+        lo, hi = nees_band(3, n)
+        inside_naive += lo <= c.tip_nees <= hi
+    assert 0.88 <= inside / trials <= 0.99, inside / trials
+    assert inside_naive / trials < 0.6, inside_naive / trials
+    want = n * (1 - a * a) / (1 + a * a)
+    assert np.median(counts) == pytest.approx(want, rel=0.3)
+    assert effective_samples(rng.standard_normal(2000)) == pytest.approx(2000, rel=0.15)

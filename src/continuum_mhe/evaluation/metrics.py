@@ -245,8 +245,12 @@ class Calibration:
         tip_nees: average normalised estimation error squared of the tip position,
             ``mean(sum_xyz (e / std)^2)`` (3 where the std is right; the per-axis variances
             only, as an estimate file keeps no correlations).
-        tip_nees_band: its 95 % band under calibration, ``chi2(3 n) / n`` quantiles.
+        tip_nees_band: its 95 % band under calibration, ``chi2(3 m) / m`` quantiles for
+            ``m = tip_n_eff`` (:func:`nees_band`).
         tip_n: samples in ``tip_nees``.
+        tip_n_eff: the independent samples whose average NEES varies as this one does
+            (:func:`effective_samples` of the per-sample NEES: an estimate's errors are
+            correlated in time), at most ``tip_n``.
     """
 
     coverage: dict[str, float]
@@ -254,17 +258,44 @@ class Calibration:
     tip_nees: float
     tip_nees_band: tuple[float, float]
     tip_n: int
+    tip_n_eff: float
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
-def nees_band(dof: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Two-sided ``level`` band of the average of ``n`` independent ``chi2(dof)``."""
+def nees_band(dof: int, n: float, level: float = 0.95) -> tuple[float, float]:
+    """Two-sided ``level`` band of the average of ``n`` independent ``chi2(dof)`` (``n``
+    may be an effective count, :func:`effective_samples`)."""
     from scipy.stats import chi2
 
     a = (1 - level) / 2
     return float(chi2.ppf(a, dof * n) / n), float(chi2.ppf(1 - a, dof * n) / n)
+
+
+def effective_samples(series: FloatArray) -> float:
+    """How many independent samples have an average that varies as the average of the
+    correlated ``series`` (n,) does: ``n / tau``, with ``tau = 1 + 2 sum_k rho_k`` the
+    integrated autocorrelation time of the series, summed over Geyer's initial positive
+    sequence (the sums of consecutive pairs of lags, while they are positive); between 1
+    and ``n`` (``n`` for fewer than 4 samples, or a constant series)."""
+    x = np.asarray(series, dtype=float)
+    n = len(x)
+    if n < 4:
+        return float(n)
+    x = x - x.mean()
+    if not np.dot(x, x) > 0.0:
+        return float(n)
+    spectrum = np.fft.rfft(x, 2 * n)
+    acov = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n]
+    rho = acov / acov[0]
+    tau = -1.0
+    for m in range(n // 2):
+        pair = rho[2 * m] + rho[2 * m + 1]
+        if not pair > 0.0:
+            break
+        tau += 2.0 * pair
+    return float(min(n, max(1.0, n / tau)))
 
 
 def compute_calibration(
@@ -315,11 +346,12 @@ def compute_calibration(
     rows = np.all(ok[:, tip], axis=1) & np.all(sd[:, tip] > 0, axis=1) if len(tip) == 3 else []
     n_tip = int(np.sum(rows))
     if n_tip:
-        nees = float(np.mean(np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)))
-        band = nees_band(3, n_tip)
+        each = np.sum((err[rows][:, tip] / sd[rows][:, tip]) ** 2, axis=1)
+        nees, n_eff = float(np.mean(each)), effective_samples(each)
+        band = nees_band(3, n_eff)
     else:
-        nees, band = math.nan, (math.nan, math.nan)
-    return Calibration(coverage, counts, nees, band, n_tip)
+        nees, band, n_eff = math.nan, (math.nan, math.nan), 0.0
+    return Calibration(coverage, counts, nees, band, n_tip, n_eff)
 
 
 def length_misfit(names: Sequence[str], values: FloatArray, lengths: Sequence[float]) -> str:
