@@ -263,34 +263,73 @@ def test_the_quick_empty_field_test_never_misses_one(sep: bytes, rows: list[list
 
 
 def test_a_pipe_whose_writer_is_behind_gets_its_rows_as_they_come(tmp_path: Path) -> None:
-    # ten rows written, the writer still open: the first block holds them (the reader
-    # does not wait for a whole block of rows, nor for the input's end)
+    # 300 rows written, the writer still open: the first block holds them (the reader
+    # waits neither for a whole block of rows nor for the input's end, once the first
+    # block has rows enough for its checks); then 10 rows more: a block of their own
     import os
     import threading
 
     fifo = tmp_path / "stream.csv"
     os.mkfifo(fifo)
-    done = threading.Event()
+    blocks: list[int] = []
+    got = [threading.Event(), threading.Event()]
+
+    def rows(first: int, n: int) -> str:
+        return "".join(f"{0.05 * i},0.1,0.2\n" for i in range(first, first + n))
 
     def write() -> None:
         with open(fifo, "w") as fh:
-            fh.write("t,roll,pitch\n" + "".join(f"{0.05 * i},0.1,0.2\n" for i in range(10)))
+            fh.write("t,roll,pitch\n" + rows(0, 300))
             fh.flush()
-            done.wait(60)
+            got[0].wait(60)
+            fh.write(rows(300, 10))
+            fh.flush()
+            got[1].wait(60)
 
     writer = threading.Thread(target=write)
     writer.start()
-    got: list[int] = []
 
     def read() -> None:
-        with open_rows(fifo) as rows:
-            for block in sample_blocks(rows, ("t", "roll", "pitch"), 4096):
-                got.append(len(block))
-                done.set()
+        with open_rows(fifo) as table:
+            for block in sample_blocks(table, ("t", "roll", "pitch"), 4096):
+                blocks.append(len(block))
+                got[min(len(blocks), 2) - 1].set()
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
-    assert done.wait(60), "no block before the writer closed the pipe"
+    assert got[0].wait(60), "no block before the writer closed the pipe"
+    assert got[1].wait(60), "no second block before the writer closed the pipe"
     writer.join()
     reader.join(60)
-    assert got == [10]
+    assert blocks == [300, 10]
+
+
+def test_a_file_is_read_in_whole_blocks_and_a_short_pipe_start_waits_for_more(
+    tmp_path: Path,
+) -> None:
+    """A regular file's blocks are whole (a short read is its end, not a writer behind);
+    a pipe's first block holds FIRST_STREAMED_ROWS rows before a short read hands it on."""
+    import os
+    import threading
+
+    path = tmp_path / "m.csv"
+    path.write_text("t,roll,pitch\n" + "".join(f"{0.05 * i},0.1,0.2\n" for i in range(5000)))
+    with open_rows(path) as table:
+        assert [len(b) for b in sample_blocks(table, ("t", "roll", "pitch"), 4096)] == [4096, 904]
+    fifo = tmp_path / "few.csv"
+    os.mkfifo(fifo)
+    n = sample_rows.FIRST_STREAMED_ROWS
+
+    def write() -> None:  # the first rows in small pieces, then the rest, then the end
+        with open(fifo, "w") as fh:
+            fh.write("t,roll,pitch\n")
+            for i in range(n + 20):
+                fh.write(f"{0.05 * i},0.1,0.2\n")
+                fh.flush()
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    with open_rows(fifo) as table:
+        sizes = [len(b) for b in sample_blocks(table, ("t", "roll", "pitch"), 4096)]
+    writer.join()
+    assert sizes[0] >= n and sum(sizes) == n + 20, sizes

@@ -123,7 +123,8 @@ def sample_blocks(
 ) -> Iterator[SampleBlock]:
     """The samples of :func:`iter_samples`, the same values, errors and ``problems``,
     as blocks of ``size`` rows (the last one shorter, and a block shorter wherever a
-    read took all that the input had: a pipe whose writer is behind gets its rows
+    read took all that the input had, the first one once it holds
+    :data:`FIRST_STREAMED_ROWS`: a pipe whose writer is behind gets its rows
     estimated as they come); reads ``rows``' input itself
     (``rows.rows`` is not to be used as well).
 
@@ -139,13 +140,17 @@ def sample_blocks(
     pieces: list[SampleBlock] = []
     loose: list[tuple[int, float, list[float]]] = []  # rows read one at a time
     count = 0
+    given = 0  # blocks yielded
     for item in checks.blocks():
         if isinstance(item, _Drained):  # the input has nothing more for now: estimate what came
+            if given == 0 and count < min(size, FIRST_STREAMED_ROWS):
+                continue  # the first block's checks (units, mounting) need rows enough
             if loose:
                 pieces.append(_block_of(loose, len(columns) - 1))
                 loose = []
             if pieces:
                 yield _joined(pieces)
+                given += 1
             pieces, count = [], 0
             continue
         if isinstance(item, SampleBlock):
@@ -161,6 +166,7 @@ def sample_blocks(
                 loose = []
             whole = _joined(pieces)
             yield _part(whole, 0, size)
+            given += 1
             pieces = [_part(whole, size, len(whole))] if len(whole) > size else []
             count -= size
     checks.finish()
@@ -219,6 +225,12 @@ def may_have_empty_field(body: bytes, sep: bytes) -> bool:
         or b" " in body
         or b"\t" in body
     )
+
+
+#: Rows the first block of a pipe holds at least (where the input has as many) before a
+#: read that took all the pipe had hands it on: the checks of a recording's first block
+#: (its time unit, an IMU's units over at least 100 readings, the mounting) judge it.
+FIRST_STREAMED_ROWS = 256
 
 
 class _Drained:
