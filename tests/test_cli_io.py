@@ -933,7 +933,7 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
     assert len(said) == 1 and re.fullmatch(
         rf"continuum-mhe: warning: {re.escape(str(late))}: the truth fits the estimate best "
-        r"\+0\.5 s later \(median tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
+        r"\+0\.5 s later \(mean tip error \d\.\d+ mm against \d\d\.?\d* mm as the times match\): "
         r"are the two files' clocks offset\? \(a motion that repeats can fit shifted too; "
         r"--truth-shift 0\.5 compares them so\)",
         said[0],
@@ -949,6 +949,10 @@ def test_evaluate_warns_when_the_truths_clock_is_offset(
     said = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
     assert len(said) == 1 and "+1 s later than --truth-shift -0.5 puts it" in said[0], said
     assert said[0].endswith("--truth-shift 0.5 compares them so)"), said
+    far = _shifted(truth, tmp_path / "far.csv", 12.75)  # the whole shift, every digit
+    assert main(["evaluate", str(est), str(far), "--truth-shift", "12.25"]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "clocks offset" in ln]
+    assert len(said) == 1 and said[0].endswith("--truth-shift 12.75 compares them so)"), said
     # one row far off (a glitch) makes no shift look better
     lines = est.read_text().splitlines()
     at = next(i for i, ln in enumerate(lines) if ln.startswith("t,")) + 3

@@ -59,7 +59,7 @@ def clock_offset_warning(
     as_given = f"at {shift_option} {given_shift:g}" if given_shift else "as the times match"
     later = f"s later than {shift_option} {given_shift:g} puts it" if given_shift else "s later"
     fits = (
-        f"(median tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
+        f"(mean tip error {shift.error * 1e3:.3g} mm against {shift.unshifted * 1e3:.3g} mm "
         f"{as_given}): are the two files' clocks offset?"
     )
     if abs(shift.shift_s) >= SHIFT_MAX_S - 0.05:  # at the edge: the offset may be larger
@@ -71,7 +71,7 @@ def clock_offset_warning(
     total = round(given_shift + shift.shift_s, 6) + 0.0  # (no -0)
     return (
         f"{path}: the truth fits the estimate best {shift.shift_s:+.3g} {later} {fits} (a "
-        f"motion that repeats can fit shifted too; {shift_option} {total:.3g} "
+        f"motion that repeats can fit shifted too; {shift_option} {total:g} "
         "compares them so)"
     )
 

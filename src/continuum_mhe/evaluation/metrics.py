@@ -508,8 +508,8 @@ SHIFT_ROWS = 2_000
 @dataclass(frozen=True)
 class TimeShift:
     """The shift of the truth's clock that fits an estimate best: the truth read at
-    ``t + shift_s`` (s) gives the median tip error ``error`` (m), against ``unshifted``
-    (m) at ``t``."""
+    ``t + shift_s`` (s) gives the mean tip error ``error`` (m), against ``unshifted``
+    (m) at ``t``, over the same rows (:func:`best_time_shift`)."""
 
     shift_s: float
     error: float
@@ -520,15 +520,16 @@ def best_time_shift(
     t_est: FloatArray, tip_est: FloatArray, t_truth: FloatArray, tip_truth: FloatArray
 ) -> TimeShift | None:
     """The shift of the truth (``t_truth`` (m,) s, ``tip_truth`` (m, 3) m) within
-    :data:`SHIFT_MAX_S` s that gives the smallest median tip error against the estimate
+    :data:`SHIFT_MAX_S` s that gives the smallest mean tip error against the estimate
     (``t_est`` (n,), ``tip_est`` (n, 3), NaN rows left out), the truth interpolated
     linearly at the shifted times: a grid of at most :data:`SHIFT_STEPS` shifts, the
     best refined in steps of the estimate's median sample period. None where fewer
     than 10 rows compare, with or without the shift, or the times do not increase. A
     clock offset between the two files shows as a shift whose error is far below the
     unshifted one (so can half the period of a motion that repeats, on an estimate
-    mirrored in sign); the median, so that a few rows far off (at the ends, where a
-    shift leaves them out) do not make a shift look better."""
+    mirrored in sign). Every shift is scored on the same rows, those at least
+    :data:`SHIFT_MAX_S` s inside the truth's times, so that no shift looks better for
+    leaving out a few rows far off at the ends."""
     keep = np.all(np.isfinite(tip_est), axis=1)
     t_e, x_e = t_est[keep], tip_est[keep]
     good = np.all(np.isfinite(tip_truth), axis=1)
@@ -544,13 +545,14 @@ def best_time_shift(
     t_t = np.ascontiguousarray(t_t, dtype=float)
     columns = [np.ascontiguousarray(x_t[:, k], dtype=float) for k in range(3)]
 
+    inside = (t_e >= t_t[0] + SHIFT_MAX_S) & (t_e <= t_t[-1] - SHIFT_MAX_S)
+    if inside.sum() < 10:  # every shift's rows the same: too short a recording
+        return None
+    t_e, x_e = t_e[inside], x_e[inside]
+
     def error(shift: float) -> float:
-        at = t_e + shift
-        inside = (at >= t_t[0]) & (at <= t_t[-1])
-        if inside.sum() < 10:
-            return math.inf
-        truth = np.column_stack([np.interp(at[inside], t_t, c) for c in columns])
-        return float(np.median(np.linalg.norm(x_e[inside] - truth, axis=1)))
+        truth = np.column_stack([np.interp(t_e + shift, t_t, c) for c in columns])
+        return float(np.mean(np.linalg.norm(x_e - truth, axis=1)))
 
     unshifted = error(0.0)
     if not math.isfinite(unshifted):
