@@ -359,20 +359,32 @@ def test_bytes_without_a_line_end_for_3_s_stop_the_session_in_one_line() -> None
     )
 
 
-def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples() -> None:
+@pytest.mark.parametrize("n_imus", [1, 2])
+def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples(n_imus: int) -> None:
     """Tilt lines in degrees, each beyond pi by another value: one cause in the summary
     (not one per value), and the gap they leave between valid samples says that its
-    lines came and were skipped, none missing."""
-    s, said = _session()
+    lines came and were skipped, none missing; a line sent again and 10 lines that never
+    came leave 10 missing."""
+    robot = None
+    if n_imus > 1:
+        from continuum_mhe.model.robot import ImuPlacement, Section
+
+        robot = Robot((Section(0.15, 3.0), Section(0.15, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    s, said = _session(robot=robot)
     now = time.monotonic()
     for i in range(60):
         roll = 0.1 if not 20 <= i < 40 else 3.5 + 0.01 * i  # degrees-like, each its own
-        s.handle_line(f"{1000 + 20 * i},{roll},0.1".encode(), now + 0.02 * i)
+        s.handle_line(f"{1000 + 20 * i}{f',{roll},0.1' * n_imus}".encode(), now + 0.02 * i)
+    for i in (59, 59, 70):  # the last line twice more, then 10 lines lost
+        s.handle_line(f"{1000 + 20 * i}{',0.1,0.1' * n_imus}".encode(), now + 0.02 * i)
     s.finish()
-    assert s.counts.reasons == {"roll beyond pi: degrees given for radians?": 20}
-    assert (s.counts.gaps, s.counts.missing) == (1, 0)
-    (gap,) = [m for m in said if m.startswith("gap of")]
-    assert "(about 0 samples missing, 20 line(s) in it skipped)" in gap, gap
+    cause = "roll beyond pi: degrees given for radians?"
+    want = cause if n_imus == 1 else f"IMU 1: roll_1 {cause.removeprefix('roll ')}"
+    assert s.counts.reasons == {want: 20}
+    assert (s.counts.gaps, s.counts.missing, s.counts.out_of_order) == (2, 10, 2)
+    gaps = [m for m in said if m.startswith("gap of")]
+    assert "(about 0 samples missing, 20 line(s) in it skipped)" in gaps[0], gaps
+    assert "(about 10 samples missing)" in gaps[1], gaps
 
 
 def test_small_backward_step_is_out_of_order_not_a_restart() -> None:

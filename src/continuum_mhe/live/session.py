@@ -599,11 +599,15 @@ class LiveSession:
                 "short)"
             )
 
-    def _out_of_order(self, s: Sample, dev_prev: float | None, why: str) -> None:
+    def _out_of_order(
+        self, s: Sample, dev_prev: float | None, why: str, fills_slot: bool = True
+    ) -> None:
         """Count the sample ``s`` as out of order (after one with device time
-        ``dev_prev``, ms), said for the first with ``why``."""
+        ``dev_prev``, ms), said for the first with ``why``; ``fills_slot``: it was a
+        sample of its own (a corrupted t_ms), not a repeated or late line, so that a
+        gap it leaves is not a missing sample."""
         c = self.counts
-        self._skipped += 1
+        self._skipped += fills_slot
         if c.out_of_order == 0 and dev_prev is not None:
             self.say(
                 f"a line with t_ms {time_text(s.t_ms)} after one with t_ms "
@@ -635,6 +639,7 @@ class LiveSession:
                 "unless the next line confirms it"
                 if dev_prev is not None and s.t_ms > dev_prev
                 else "not after the last sample (a repeated, late or stray line), skipped",
+                fills_slot=dev_prev is not None and s.t_ms > dev_prev,
             )
             return None
         given = None

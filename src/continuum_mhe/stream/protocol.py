@@ -153,6 +153,7 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
     tensions = _tensions(parts[1 + k * n_imus :])
     values: list[float] = []
     problems: list[str] = []
+    first_kind = ""  # the first problem's cause, without its values
     for i in range(n_imus):
         try:
             values += _imu_values(parts[1 + k * i : 1 + k * (i + 1)], fmt, i, n_imus)
@@ -160,9 +161,10 @@ def parse_line(text: str, fmt: LineFormat, n_imus: int = 1, n_tensions: int = 0)
             if n_imus == 1:
                 raise
             problems.append(f"IMU {i + 1}: {exc}")
+            first_kind = first_kind or f"IMU {i + 1}: {exc.kind}"
             values += [math.nan] * k
     if len(problems) == n_imus:
-        raise GarbledLine(problems[0])
+        raise GarbledLine(problems[0], kind=first_kind)
     return Sample(t_ms, np.array(values), tuple(problems), tensions)
 
 
