@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -116,8 +117,8 @@ def test_calibrate_from_the_port(tmp_path: Path) -> None:
 @pytest.mark.skipif(not hasattr(__import__("os"), "openpty"), reason="needs a pseudo-terminal")
 def test_calibrate_from_the_port_skips_a_corrupted_or_repeated_line(tmp_path: Path) -> None:
     """One line whose t_ms lost a digit (13 s back) and lines sent twice: each skipped
-    and counted, the samples before them kept (no starting over) and the rate the
-    board's."""
+    and counted, the samples before them kept (no starting over), the median step the
+    board's 10 ms (the rate over the span counts the line lost)."""
     acc = np.tile([0.0, 0.0, G], (400, 1))
     lines = _device_lines(acc)
     for i in range(2, len(lines)):  # device times from 20 s on
@@ -449,7 +450,7 @@ def test_calibrate_refuses_a_robot_file_whose_mounting_gravity_contradicts(
     assert code == 2 and "the robot stands on its base? --mounting z-up; or, where " in err
     # one board upside down on a robot mounted as described reads the same: said too
     assert err.rstrip().endswith(
-        "its board is upside down on it: give each one's mount_rpy (a roll of 180 degrees) "
+        "its board is upside down on it: give its mount_rpy (a roll of 180 degrees) "
         "in the robot file"
     )
     code, _, err = _calibrate_main(capsys, "--from", rest, "--robot", "two-section")
@@ -852,3 +853,61 @@ def test_a_simulated_tilt_rest_is_one_calibrate_takes(
         - simulate("paper3d", seed=seed, noise_deg=0.0).z[:, 0]
     )
     assert math.degrees(float(np.std(moving, ddof=1))) == pytest.approx(2.0, rel=0.15)
+
+
+def _collect_events(
+    monkeypatch: pytest.MonkeyPatch, events: list[tuple[str, object, float]], seconds: float
+) -> tuple[object, list[str]]:
+    """``collect`` from a reader that puts ``events`` (kind, payload, arrival s) and
+    nothing more: ``(its result or the InputError raised, what it said)``."""
+    from continuum_mhe.calibration import at_rest
+    from continuum_mhe.errors import InputError
+
+    class Reader:
+        def __init__(self, port: str, baud: int, conn: object, queue: object, retry: float):
+            self.queue = queue
+            self.stop = threading.Event()
+
+        def start(self) -> None:
+            for event in events:
+                self.queue.put(event)  # type: ignore[attr-defined]
+
+    monkeypatch.setattr(at_rest, "SerialReader", Reader)
+    monkeypatch.setattr(at_rest, "open_port", lambda *a: None)
+    monkeypatch.setattr(at_rest, "BOOT_S", 0.5)
+    said: list[str] = []
+    try:
+        got: object = at_rest.collect("PORT", 115200, "raw", 1, seconds, said.append)
+    except InputError as exc:
+        got = exc
+    return got, said
+
+
+def _line(t_ms: float) -> bytes:
+    return f"{t_ms:g},0,0,9.81,0.001,-0.001,0".encode()
+
+
+def test_calibrate_from_the_port_says_a_device_clock_in_another_unit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """t_ms sent in seconds, or in microseconds, over 2 s of arrival time: one line naming
+    the unit (not a calibration of 0.02 s, or of two samples)."""
+    for scale, unit in ((1e-3, "seconds"), (1e3, "microseconds")):
+        events = [("line", _line(10 * i * scale), 0.01 * i) for i in range(400)]
+        got, _ = _collect_events(monkeypatch, events, 3.0)
+        assert f"t_ms in {unit}?" in str(got), got
+
+
+def test_calibrate_from_the_port_says_a_short_collection_and_bytes_without_line_ends(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The device stops after 1 s of the 3 asked: the calibration is of that second, with
+    a warning that says so; a device whose bytes have no line end is named so."""
+    events = [("line", _line(10 * i), 0.01 * i) for i in range(101)]
+    events.append(("lost", "device disconnected", 1.1))
+    (t, _), said = _collect_events(monkeypatch, events, 3.0)
+    assert t[-1] - t[0] == pytest.approx(1.0)
+    assert any("device lost (device disconnected)" in m for m in said), said
+    assert any("1.000 s of the 3 s asked arrived" in m for m in said), said
+    got, _ = _collect_events(monkeypatch, [("unended", 9000, 0.5), ("unended", 12000, 1.0)], 1.0)
+    assert "12000 bytes arrived without a line end (LF or CR)" in str(got), got

@@ -119,12 +119,12 @@ def check_rest_mounting(source: str, values: FloatArray, robot: Robot, robot_fil
     lo, hi = (round(math.degrees(a)) for a in (min(angles), max(angles)))
     spread = f"{lo}" if lo == hi else f"{lo} to {hi}"
     fix = f'set mounting = "{other}" in the robot file' if robot_file else f"--mounting {other}"
-    boards = "its board is" if len(angles) == 1 else "its boards are"
+    boards, each = ("its board is", "its") if len(angles) == 1 else ("its boards are", "each one's")
     raise InputError(
         f"{source}: mounting: the robot is described as {robot.mounting}, but at rest gravity "
         f"puts every IMU {spread} degrees from where that mounting puts it: the robot "
         f"{pose}? {fix}; or, where the robot is mounted as described, {boards} upside "
-        "down on it: give each one's mount_rpy (a roll of 180 degrees) in the robot file"
+        f"down on it: give {each} mount_rpy (a roll of 180 degrees) in the robot file"
     )
 
 
@@ -431,9 +431,15 @@ BOOT_S = 15.0
 #: first of them: a board streaming another format does not change it later, s.
 GARBLED_ONLY_S = 2.0
 #: After this much arrival time (s) the device clock must have advanced at least
-#: :data:`CLOCK_SLOW` times as much, else its ``t_ms`` are seconds.
+#: :data:`CLOCK_SLOW` times as much, else its ``t_ms`` are seconds, and at most
+#: :data:`CLOCK_FAST` times (microseconds; a recording replayed through a port faster
+#: than it was made stays below it).
 CLOCK_CHECK_S = 2.0
 CLOCK_SLOW = 0.1
+CLOCK_FAST = 300.0
+#: Samples further apart than this (s of device time, the median step) are not an IMU
+#: stream's: ``t_ms`` in microseconds.
+SLOWEST_STEP_S = 1.0
 
 
 def collect(
@@ -476,10 +482,16 @@ def collect(
             if not t and time.monotonic() - garbled_since > seconds + GARBLED_ONLY_S:
                 break  # streaming, but not one valid line: it will not start now
             host = host_last - host_first  # between the first and last samples' arrivals
-            if len(t) >= 2 and host >= CLOCK_CHECK_S and t[-1] - t[0] < CLOCK_SLOW * host:
+            device = t[-1] - t[0] if t else 0.0
+            if (
+                len(t) >= 2
+                and host >= CLOCK_CHECK_S
+                and not (CLOCK_SLOW * host <= device <= CLOCK_FAST * host)
+            ):
+                unit = "seconds" if device < CLOCK_SLOW * host else "microseconds"
                 raise InputError(
-                    f"{port}: the device clock advanced {1e3 * (t[-1] - t[0]):.3g} ms in "
-                    f"{host:.3g} s of arrival time: t_ms in seconds? (the first field is "
+                    f"{port}: the device clock advanced {1e3 * device:.3g} ms in "
+                    f"{host:.3g} s of arrival time: t_ms in {unit}? (the first field is "
                     "milliseconds, as millis() gives)"
                 )
             try:
@@ -492,9 +504,10 @@ def collect(
                 unended = max(unended, payload)
             if kind == "lost":  # unplugged: the reader reopens it, and the board restarts
                 say(f"device lost ({payload}): waiting for it to come back")
-            elif kind == "back":
-                say("device back: its clock restarts, so the samples start over")
+            elif kind == "back":  # a board that reset with the port restarts its gyro too
+                say("device back: the samples start over")
                 clock.expect_restart()
+                t, rows, jumped = [], [], None
             if kind != "line":
                 continue
             try:
@@ -545,6 +558,8 @@ def collect(
             rows.append(sample.values)
     finally:
         reader.stop.set()
+    if jumped is not None:  # held for jumping back, and no line came after it
+        out_of_order += 1
     if garbled:
         say(f"{garbled} garbled line(s) skipped")
     if out_of_order:
@@ -565,9 +580,16 @@ def collect(
         else:
             why, waited = "is it streaming?", f"{seconds + BOOT_S:g} s"
         raise InputError(f"{port}: {len(t)} valid sample(s) in {waited}; {why}")
+    step = float(np.median(np.diff(t)))
+    if step > SLOWEST_STEP_S:
+        raise InputError(
+            f"{port}: {len(t)} samples over {t[-1] - t[0]:.3g} s of device time, {step:.3g} s "
+            "apart: t_ms in microseconds? (the first field is milliseconds, as millis() "
+            "gives)"
+        )
     if t[-1] - t[0] < seconds:
         say(
-            f"warning: {port}: {time_text(t[-1] - t[0])} s of the {seconds:g} s asked arrived "
+            f"warning: {port}: {t[-1] - t[0]:.3f} s of the {seconds:g} s asked arrived "
             "(the device stopped sending: unplugged?); the calibration is of those"
         )
     return np.asarray(t), np.asarray(rows)
