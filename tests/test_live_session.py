@@ -387,6 +387,31 @@ def test_garbled_lines_are_counted_by_cause_and_not_as_missing_samples(n_imus: i
     assert "(about 10 samples missing)" in gaps[1], gaps
 
 
+def test_a_line_held_for_jumping_back_is_settled_when_the_device_comes_back() -> None:
+    """A line whose clock jumped back, then the device lost and back: the held line is
+    the device's restart, estimated before the lines after the reopen (in time order,
+    one restart); one held with nothing after it is counted, said as such."""
+    out = io.StringIO()
+    s, said = _session(out=out)
+    now = time.monotonic()
+    stamps = [*range(5000, 6000, 10), 100]
+    for i, ms in enumerate(stamps):
+        s.handle_line(f"{ms},0.1,0.1".encode(), now + 0.01 * i)
+    s.device_back()
+    for i, ms in enumerate((1200, 1210, 1220)):
+        s.handle_line(f"{ms},0.1,0.1".encode(), now + 2 + 0.01 * i)
+    s.finish()
+    t = [float(r.split(",")[0]) for r in out.getvalue().splitlines()[1:]]
+    assert all(b > a for a, b in zip(t, t[1:])) and len(t) == len(stamps) + 3
+    assert (s.counts.clock_restarts, s.counts.out_of_order) == (1, 0)
+    s2, said2 = _session()
+    for i, ms in enumerate([*range(5000, 6000, 10), 100]):
+        s2.handle_line(f"{ms},0.1,0.1".encode(), now + 0.01 * i)
+    s2.finish()
+    assert s2.counts.out_of_order == 1
+    assert any("no line came after it" in m for m in said2), said2
+
+
 def test_small_backward_step_is_out_of_order_not_a_restart() -> None:
     """A line stamped 15 ms after one at 30 ms is skipped and counted, and the first
     such line is said as it comes (with both stamps), the later ones only counted."""

@@ -185,14 +185,22 @@ def run_live(
                     )
                     next_progress = time.monotonic() + settings.status_every
         except KeyboardInterrupt:
-            left = events.qsize()
-            if session.record is None:
-                say(f"abandoned {left} received line(s): neither estimated nor recorded")
-            else:  # --record keeps every sample received: these too, without estimates
-                session.record_only = True
+            acted.extend(SIGNALS_SEEN)  # the second signal is acted on here, as the first
+            SIGNALS_SEEN.clear()
+            reader.join(timeout=1.5)  # what the port still held, read: counted too
+            # --record keeps every sample received: these too, without estimates (a
+            # third signal waits for this, which takes no estimator's time)
+            session.record_only = session.record is not None
+            left = 0
+            with signals_deferred():
                 for kind, payload, arrival in _queued(events):
                     if kind == "line":
-                        session.handle_line(payload, arrival)
+                        left += 1
+                        if session.record_only:
+                            session.handle_line(payload, arrival)
+            if session.record is None:
+                say(f"abandoned {left} received line(s): neither estimated nor recorded")
+            else:
                 where = getattr(session.record, "path", "the recording")
                 say(
                     f"abandoned the estimates of {left} received line(s); their samples are "

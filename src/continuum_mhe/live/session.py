@@ -324,7 +324,11 @@ class LiveSession:
 
     def device_back(self) -> None:
         """The device was reopened: its clock may have restarted, and its first line may
-        be cut."""
+        be cut. A line held for jumping back before it went away is settled first, as
+        the device's restart (no line after it can say otherwise)."""
+        if self._jumped is not None and self.fatal is None:
+            (held, arrival), self._jumped = self._jumped, None
+            self._handle_sample(held, arrival)
         self.clock.expect_restart()
         self._joined = True
 
@@ -489,7 +493,9 @@ class LiveSession:
                 held,
                 self.clock.last_ms,
                 "far behind the last sample while the next line goes on from the last "
-                "(a corrupted t_ms), skipped",
+                "(a corrupted t_ms), skipped"
+                if following is not None
+                else "far behind the last sample, and no line came after it, skipped",
             )
 
     def _release_held(self, following: Sample | None) -> None:
@@ -511,8 +517,12 @@ class LiveSession:
         samples waiting for the tensions of the ones after them are estimated."""
         if self._held is not None and self.fatal is None:
             self._release_held(None)
-        if self._jumped is not None and self.fatal is None:
-            self._release_jumped(None)
+        if self._jumped is not None:
+            if self.fatal is None:
+                self._release_jumped(None)
+            else:  # the session stopped: the line is counted, not estimated
+                self._jumped = None
+                self.counts.out_of_order += 1
         if self._tension_stream is not None:
             self._estimate_pending(self._tension_stream.end())
 
