@@ -630,7 +630,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
              std::vector<int> whole_rows, nb::object process_noise, nb::object inputs,
              nb::object observable, const StateChecks* checks, std::vector<int> change_rows,
              std::vector<double> change_scale, std::vector<double> change_psd,
-             std::vector<double> change_limit, double change_lag) {
+             std::vector<double> change_limit, double change_lag, int confirm_samples) {
             PolicySettings s{nx, nz, ny, std::move(blocks), std::move(imu_blocks),
                              std::move(tilt_rows), std::move(tip_rows), freeze,
                              freeze_samples, gap_reset, bad_start, reject_reset,
@@ -662,6 +662,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
             s.change_psd = std::move(change_psd);
             s.change_limit = std::move(change_limit);
             s.change_lag = change_lag;
+            if (confirm_samples < 1) throw std::invalid_argument("confirm_samples must be >= 1");
+            s.confirm_samples = confirm_samples;
             new (self) Policy();
             if (nb::isinstance<HorizonInference>(inference)) {
               self->used = nb::cast<HorizonInference*>(inference);
@@ -694,6 +696,7 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           nb::arg("change_scale") = std::vector<double>(),
           nb::arg("change_psd") = std::vector<double>(),
           nb::arg("change_limit") = std::vector<double>(), nb::arg("change_lag") = 0.0,
+          nb::arg("confirm_samples") = 5,
           nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>(),
           "``inference``: a HorizonInference, or a Python inference adapter; ``consistency``: the estimator's "
           "ConsistencyCheck; ``blocks``, ``imu_blocks``: (start, size) of every measurement "
@@ -704,7 +707,8 @@ void cmhe::bind_sensor_health(nb::module_& m) {
           "inference's is_diverged, drifted and at_bound); ``change_rows``, ``change_scale``, "
           "``change_psd``, ``change_limit``, ``change_lag``: the estimate-change test of "
           "slowly varying states (rows, prior std, white-noise density per s, chi-square "
-          "limit by dof from index 1, lag s; no rows: off).")
+          "limit by dof from index 1, lag s; no rows: off); ``confirm_samples``: readings "
+          "that must agree with an unconfirmed start once one disagreed with it.")
       .def(
           "reset",
           [](Policy& p, bool keep_counts, bool keep_sensors) {

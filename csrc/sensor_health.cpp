@@ -550,10 +550,16 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
     // confirm it when they agree, and until then it is not trusted
     // (the first estimate of a recording, or after a gap, is as unconfirmed: one later
     // reading that agrees with it confirms it)
+    // A reading that disagrees with the first estimate of a recording (or after a gap)
+    // before another confirmed it says that the readings may contradict the model from
+    // the start (an IMU upside down, columns swapped): a wrong shape can then agree
+    // with a few readings in a row, so confirm_samples of them must agree before it is
+    // trusted. (A restart the readings forced keeps start_samples.)
     if (forced) {
-      unconfirmed_ = s_.start_samples;
+      unconfirmed_ = confirm_after_ = s_.start_samples;
     } else if (first) {
-      unconfirmed_ = 1;
+      confirm_after_ = s_.confirm_samples;
+      unconfirmed_ = disagree ? confirm_after_ : 1;
       start_unconfirmed = trusted(status);
       if (trusted(status)) status = ST_UNCERTAIN;
     } else if (unconfirmed_ > 0) {
@@ -561,7 +567,7 @@ int SensorHealth::step(double t, const double* z_in, double* x, double* P, doubl
       bool compared = has_state && has_cov;
       bool any = false;
       for (int i = 0; i < s_.nz && compared && !any; ++i) any = rows[i] != 0.0 && judged[i] > 0.0;
-      if (compared && any) unconfirmed_ = disagree ? s_.start_samples : unconfirmed_ - 1;
+      if (compared && any) unconfirmed_ = disagree ? confirm_after_ : unconfirmed_ - 1;
       if (unconfirmed_ > 0 && trusted(status)) status = ST_UNCERTAIN;
     }
     const double scale = consistency_.noise_scale();

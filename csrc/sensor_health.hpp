@@ -167,6 +167,9 @@ struct PolicySettings {
   std::vector<int> change_rows;
   std::vector<double> change_scale, change_psd, change_limit;
   double change_lag = 0.0;
+  // readings that must agree with an unconfirmed start (the first estimate, a forced
+  // restart) once one of them disagreed with it, before it is trusted
+  int confirm_samples = 5;
 };
 
 // What the policy did since its reset (continuum_mhe.results.Diagnostics)
@@ -268,6 +271,9 @@ class SensorHealth {
   // or failed): how many more samples' readings must agree with the new estimate, one
   // reading's fit, before it is trusted (start_samples at the restart, 0 otherwise)
   int unconfirmed_ = 0;
+  // what a disagreeing reading sets unconfirmed_ to while it is positive: start_samples
+  // after a forced restart, confirm_samples after the first estimate of a recording
+  int confirm_after_ = 0;
   // an estimate has been made since the last (re)start: the next one is a start from
   // one reading (the first, or the first after a gap), which a later reading confirms
   bool started_ = false;

@@ -331,6 +331,7 @@ class Estimator(Generic[InferenceT]):
             shape_observable=self.shape_observable,
             start_limit=[math.inf] + [chi2_quantile(quantile, k) for k in range(1, f.nz + 1)],
             start_samples=start_check.SAMPLES,
+            confirm_samples=start_check.CONFIRM_SAMPLES,
             start_chain=f.bad_start_chain or 0,
             unobserved_after=UNOBSERVED_AFTER,
             degrees_like=DEGREES_LIKE,

@@ -44,3 +44,7 @@ holds its constants.
 QUANTILE = 0.999
 #: Consecutive inconsistent readings that restart the estimator.
 SAMPLES = 2
+#: Readings that must agree with an unconfirmed start (the first estimate, a forced
+#: restart) once one of them disagreed with it, before its estimates are ``ok``: a wrong
+#: shape fits a few readings in a row (an IMU upside down, two IMUs' columns swapped).
+CONFIRM_SAMPLES = 5
