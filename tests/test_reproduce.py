@@ -894,3 +894,32 @@ def test_earlier_runs_keep_only_those_whose_data_stay(tmp_path: Path) -> None:
     assert earlier_runs(manifest, ["paper"]) == [beyond]
     manifest.write_text("not json")
     assert earlier_runs(manifest, ["paper"]) == []
+
+
+def test_reproduce_refuses_a_bad_scheduler_address_or_rod_recording_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A scheduler address without a port, --jobs with a scheduler, an estimate file given
+    as the rod recording, and a rod recording no longer than the MHE's window: each one
+    line naming it, exit 2, no folder (they were an internal error, a 403-line numpy
+    error, and a claim said to hold on 3 samples)."""
+    from continuum_mhe.simulation.cosserat import default_data_path
+
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "r"
+    est = tmp_path / "e.csv"
+    est.write_text('# continuum-mhe = "0.1.0 estimate m.csv"\nt,x,y,z,status\n0,0,0,0.2,ok\n')
+    rod = default_data_path()
+    short = tmp_path / "short.csv"
+    short.write_text("".join(rod.read_text().splitlines(keepends=True)[:4]))
+    cases = [
+        (["--scheduler", "notanaddress"], "not a scheduler's address: give its host and port"),
+        (["--scheduler", "tcp://h:8786", "--jobs", "2"], "--jobs does nothing with --scheduler"),
+        (["--rod-csv", str(est)], "not a rod recording: missing column(s) roll, pitch"),
+        (["--rod-csv", str(short)], "3 samples: the rod experiment's MHE window needs more"),
+    ]
+    for extra, said in cases:
+        assert main(["reproduce", "--out", str(out), "--quick", *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err, err
+        assert not out.exists()

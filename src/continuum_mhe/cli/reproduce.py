@@ -4,6 +4,7 @@ report."""
 from __future__ import annotations
 
 import argparse
+import re
 import shlex
 import sys
 import time
@@ -22,14 +23,31 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     if args.scheduler:  # before anything is written
         require("dask.distributed", "dask", "reproduce --scheduler", package="dask[distributed]")
-    if args.rod_csv is not None and not Path(args.rod_csv).is_file():
-        raise InputError(f"{args.rod_csv}: no such file")
+        host = r"(?:\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+)"  # a name, IPv4 or [IPv6]
+        if not re.fullmatch(rf"(?:[a-z]+://)?{host}:\d+/?", args.scheduler):
+            raise InputError(
+                f"--scheduler {args.scheduler}: not a scheduler's address: give its host and "
+                "port, as tcp://host:8786"
+            )
+        if args.jobs is not None:
+            raise InputError(
+                "--jobs does nothing with --scheduler: the scheduler's workers run the trials"
+            )
+    cfg = QUICK if args.quick else FULL
+    if args.rod_csv is not None:  # read once here: one line for what is wrong with it
+        from continuum_mhe.simulation.cosserat import read_recording
+
+        samples = len(read_recording(args.rod_csv).columns["t"])
+        if samples <= cfg.horizon:
+            raise InputError(
+                f"{args.rod_csv}: {samples} samples: the rod experiment's MHE window needs "
+                f"more than its N = {cfg.horizon}"
+            )
     out = Path(args.out)
     parts = PARTS if args.only is None else (args.only,)
     # before the trials (the folder is made after them): another part's data may be
     # there, to be reported together; this part's is replaced only with --overwrite
     check_new_folder(out, args.overwrite, part_data_files(parts))
-    cfg = QUICK if args.quick else FULL
     command = "continuum-mhe " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     start = time.perf_counter()
     files = reproduce(

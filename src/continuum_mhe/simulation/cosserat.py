@@ -405,10 +405,20 @@ def read_recording(path: str | Path) -> RodRecording:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: no such file")
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        header = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
+    present = [c.strip() for c in header.strip().split(",")]
+    missing = [c for c in COLUMNS if c not in present]
+    if missing:  # (an estimate or measurement file, not a rod recording)
+        raise InputError(
+            f"{p}: not a rod recording: missing column(s) {', '.join(missing)} "
+            f"(a recording of python -m continuum_mhe.simulation.cosserat has {','.join(COLUMNS)})"
+        )
     try:
-        data = np.genfromtxt(p, delimiter=",", names=True)
-    except ValueError as exc:
-        raise InputError(f"{p}: malformed recording ({exc})") from None
+        data = np.genfromtxt(p, delimiter=",", names=True, comments="#")
+    except ValueError as exc:  # numpy names every bad line: the first is enough
+        first = str(exc).strip().splitlines()
+        raise InputError(f"{p}: malformed recording ({first[-1] if first else exc})") from None
     names = data.dtype.names or ()
     missing = [c for c in COLUMNS if c not in names]
     if missing:
