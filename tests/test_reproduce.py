@@ -923,3 +923,18 @@ def test_reproduce_refuses_a_bad_scheduler_address_or_rod_recording_in_one_line(
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and said in err, err
         assert not out.exists()
+
+
+def test_plot_of_a_results_folder_with_a_malformed_results_file_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A results JSON of the wrong structure (valid JSON): one line naming it, exit 2,
+    no figure (it was an internal error)."""
+    folder = tmp_path / "res"
+    folder.mkdir()
+    (folder / "exp2_constraints.json").write_text('{"config": {}, "example": 5}')
+    out = tmp_path / "figs"
+    assert main(["plot", str(folder), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exp2_constraints.json of the results: not a results" in err
+    assert not any(out.glob("*.png"))

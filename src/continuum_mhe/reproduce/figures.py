@@ -312,12 +312,19 @@ def render_all(
     returns the files, each also put in ``into`` as soon as it is saved. Unless
     ``overwrite``, a figure file that exists is a one-line :class:`UserError` before
     any is written."""
-    figures = [
-        (fname, fig)
-        for name, render in RENDERERS.items()
-        if name in results
-        for fname, fig in render(results[name]).items()
-    ]
+    figures: list[tuple[str, Any]] = []
+    for name, render in RENDERERS.items():
+        if name not in results:
+            continue
+        try:
+            figures += list(render(results[name]).items())
+        except (KeyError, IndexError, TypeError, ValueError) as exc:
+            for _, fig in figures:
+                plotting.close(fig)
+            raise UserError(
+                f"{name}.json of the results: not a results file of this version "
+                f"({type(exc).__name__}: {exc}); run 'continuum-mhe reproduce' again"
+            ) from None
     taken = [
         p
         for fname, _ in figures
