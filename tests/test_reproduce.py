@@ -938,3 +938,19 @@ def test_plot_of_a_results_folder_with_a_malformed_results_file_is_one_line(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "exp2_constraints.json of the results: not a results" in err
     assert not any(out.glob("*.png"))
+
+
+def test_the_horizon_sweeps_verdict_is_on_a_total_its_table_shows(quick_run: Path) -> None:
+    """Sec. 3.5's total time: the table gives the sum of the solves and (M - N + 1) x the
+    median, the one the verdict judges, and the N it names as the peak is that column's
+    largest (the table used to show only the sum, whose peak could be elsewhere)."""
+    report = (quick_run / "report.md").read_text()
+    lines = report[report.index("## 5. Horizon sweep") :].splitlines()
+    header = next(ln for ln in lines if ln.startswith("| N |"))
+    names = [c.strip() for c in header.strip("|").split("|")]
+    judged = names.index("total ms, (M - N + 1) x median (judged)")
+    assert "total ms, sum of the M - N + 1 solves" in names
+    rows = [ln for ln in lines if re.match(r"\| \d+ \|", ln)]
+    cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
+    peak = max(cells, key=lambda c: float(c[judged]))[0]
+    assert f"peaks at N = {peak} in this sweep" in report

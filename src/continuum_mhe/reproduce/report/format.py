@@ -44,17 +44,26 @@ def verdict(diff: dict[str, Any] | None, reference: dict[str, Any] | None = None
     return "no significant difference"
 
 
-def _total_time_peak(summary: dict[str, Any], ns: list[int]) -> int:
-    """N at which the total solve time over the recording, (M - N + 1) t(N), peaks.
+def _median_total_ms(block: dict[str, Any]) -> float:
+    """The total solve time over the recording at one N, ms: (M - N + 1) estimates at
+    the median time per estimate, so that a few samples slowed by other load on the
+    machine cannot fake a peak (the summed wall time, also reported, can)."""
+    median = block.get("solve_ms_median", block["solve_ms_mean"])["mean"]
+    return float(median) * float(block["n_estimates"])
 
-    ``t(N)`` is the median time per estimate, so that a few samples slowed by other
-    load on the machine cannot fake a peak (the summed wall time can)."""
-    tot = [
-        summary[str(n)].get("solve_ms_median", summary[str(n)]["solve_ms_mean"])["mean"]
-        * float(summary[str(n)]["n_estimates"])
-        for n in ns
-    ]
+
+def _total_time_peak(summary: dict[str, Any], ns: list[int]) -> int:
+    """N at which the total solve time over the recording (:func:`_median_total_ms`)
+    peaks."""
+    tot = [_median_total_ms(summary[str(n)]) for n in ns]
     return ns[max(range(len(ns)), key=lambda i: tot[i])]
+
+
+def _g(v: Any, digits: int = 3) -> str:
+    """``v`` to ``digits`` significant digits (a total that spans orders of magnitude)."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return f"{float(v):.{digits}g}"
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
