@@ -938,3 +938,24 @@ def test_a_live_view_that_cannot_be_written_is_said_when_another_error_ends_live
         assert view_line in said, live.err
         assert "deg/s" in said[-1], live.err
         assert list(small.iterdir()) == [filler]
+
+
+def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tendon robot's estimate (its tip force columns) with --robot of a robot without
+    tendons, or --length: one line, exit 2, no view, as plot refuses it (the arcs drawn
+    missed the estimate's tip by up to 100 mm, with a warning about another thing)."""
+    pytest.importorskip("rerun")
+    est = tmp_path / "e.csv"
+    est.write_text(
+        "t,x,y,z,theta_1,phi_1,x_1,y_1,z_1,theta_2,phi_2,fx,fy,fz,status\n"
+        + "".join(f"{0.05 * i},0.01,0,0.39,0.1,0,0.005,0,0.2,0.1,0,0.01,0,0,ok\n" for i in range(5))
+    )
+    for extra in (["--robot", "two-section"], ["--length", "0.3"]):
+        rrd = tmp_path / "v.rrd"
+        assert main(["view", str(est), *extra, "--save", str(rrd)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        assert "the robot has no [[tendon]], but" in err and "tendon robot's estimate" in err
+        assert not rrd.exists()

@@ -13,7 +13,7 @@ from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, add_robot_option, estimate_robot
 from continuum_mhe.cli.truth_checks import truth_beside
-from continuum_mhe.errors import UserError
+from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.io.text_rows import held_for_rereading
 from continuum_mhe.model.imu import MOUNTINGS
 from continuum_mhe.model.robot import Robot
@@ -23,6 +23,7 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
+        _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
         if args.truth:
             _check_truth(args, robot)
@@ -31,6 +32,34 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
         _warn_other_drawing(args, robot)  # after replay's refusals: a drawing was made
     return 0
+
+
+def _refuse_tendon_estimate_on_another_robot(args: argparse.Namespace) -> None:
+    """A tendon robot's estimate (its tip force columns) with a ``--robot`` or
+    ``--length`` robot without tendons is refused in one line, as ``plot`` refuses it: its
+    sections drawn as constant-curvature arcs of that robot would miss the estimate by
+    centimetres. Nothing here where a file cannot be read: the reading after says why."""
+    from continuum_mhe.evaluation.estimate_figure import has_tip_force
+    from continuum_mhe.io.estimate_files import read_estimates
+    from continuum_mhe.io.robot_file import read_robot
+
+    if not (args.robot or args.length is not None):
+        return  # the robot the estimate's options line names
+    try:
+        if args.robot:
+            robot = read_robot(args.robot)
+            if robot.backbone is not None and robot.n_tendons > 0:
+                return
+        est = read_estimates(args.estimates, "view EST.csv")
+    except UserError:
+        return
+    if has_tip_force(est.names):
+        given = args.robot or f"--length {args.length:g}"
+        raise InputError(
+            f"{given}: the robot has no [[tendon]], but {args.estimates} is a tendon robot's "
+            "estimate (its tip force columns): give that robot's file, or no --robot for "
+            "the one its options line names"
+        )
 
 
 def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
