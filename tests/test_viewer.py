@@ -959,3 +959,19 @@ def test_view_refuses_a_tendon_estimate_on_a_robot_without_tendons(
         assert err.count("\n") == 1, err
         assert "the robot has no [[tendon]], but" in err and "tendon robot's estimate" in err
         assert not rrd.exists()
+
+
+def test_view_times_are_the_estimates_to_the_nanosecond(tmp_path: Path) -> None:
+    """Times whose seconds are not exact in binary (2.05 s is 2.0499999999999998): the
+    view's times are the CSV's rounded to the nanosecond (they were truncated, 1 ns
+    early)."""
+    pytest.importorskip("rerun")
+    t = [2.05, 4.1, 8.2, 8.45, 16.15]
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status\n" + "".join(f"{v},0,0,0.2,0,0,ok\n" for v in t))
+    rrd = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--save", str(rrd)]) == 0
+    rows = read_rrd(rrd)
+    timed = [v for v, _ in rows["/world/estimate/backbone"] if v is not None]
+    assert timed == _ns(np.array(t)) == [2_050_000_000, 4_100_000_000, 8_200_000_000,
+                                         8_450_000_000, 16_150_000_000]  # fmt: skip

@@ -86,6 +86,13 @@ def require_rerun() -> Any:
         os.environ.pop("RUST_LOG", None)
 
 
+def nanoseconds(t: Any) -> Any:
+    """Times ``t`` (s, a number or an array) as Rerun's durations, rounded to the
+    nanosecond (Rerun truncates seconds given as floats: 2.05 s would be 2049999999 ns)."""
+    ns = np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
+    return ns.astype("timedelta64[ns]") if ns.ndim else np.timedelta64(int(ns), "ns")
+
+
 class BackboneView:
     """A Rerun recording of backbone estimates (see the module doc for its entities).
 
@@ -238,7 +245,7 @@ class BackboneView:
         entity at a time (``log_rows`` sends a whole recording as columns)."""
         rr, rec, size = self.rr, self.rec, self.robot.length
         self.estimates += 1
-        rec.set_time("t", duration=float(est.t))
+        rec.set_time("t", duration=nanoseconds(est.t))
         changed = str(est.status) != self._status
         self._log_status(str(est.status))
         out = est.output
@@ -293,7 +300,7 @@ class BackboneView:
         colours, labels = self._style(who)
 
         def send(entity: str, times: FloatArray, columns: Any) -> None:
-            rec.send_columns(entity, indexes=[rr.TimeColumn("t", duration=times)],
+            rec.send_columns(entity, indexes=[rr.TimeColumn("t", duration=nanoseconds(times))],
                              columns=columns)  # fmt: skip
 
         if geom is not None:
@@ -337,7 +344,7 @@ class BackboneView:
         has = np.all(np.isfinite(values), axis=1) & (np.asarray(status) != "no-estimate")
         for k in range(len(t)):  # status changes and clears: few rows, one at a time
             if str(status[k]) != self._status or not has[k]:
-                self.rec.set_time("t", duration=float(t[k]))
+                self.rec.set_time("t", duration=nanoseconds(t[k]))
                 self._log_status(str(status[k]))
                 if not has[k]:
                     self.rec.log("world/estimate", self.rr.Clear(recursive=True))
@@ -350,7 +357,7 @@ class BackboneView:
         for unit, cols in self._units.items():
             self.rec.send_columns(
                 f"outputs/{unit}",
-                indexes=[self.rr.TimeColumn("t", duration=t[has])],
+                indexes=[self.rr.TimeColumn("t", duration=nanoseconds(t[has]))],
                 columns=self.rr.Scalars.columns(scalars=values[has][:, cols].ravel()).partition(
                     [len(cols)] * n
                 ),
@@ -395,7 +402,7 @@ class BackboneView:
             pts = np.stack([values[:, [col[f"{c}_{k}"] for c in "xyz"]] for k in ends], axis=1)
             self.rec.send_columns(
                 "world/truth/section_ends",
-                indexes=[self.rr.TimeColumn("t", duration=t)],
+                indexes=[self.rr.TimeColumn("t", duration=nanoseconds(t))],
                 columns=self.rr.Points3D.columns(
                     positions=pts.reshape(-1, 3),
                     radii=[0.012 * self.robot.length] * pts.shape[0] * pts.shape[1],
