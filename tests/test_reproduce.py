@@ -954,3 +954,18 @@ def test_the_horizon_sweeps_verdict_is_on_a_total_its_table_shows(quick_run: Pat
     cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
     peak = max(cells, key=lambda c: float(c[judged]))[0]
     assert f"peaks at N = {peak} in this sweep" in report
+
+
+def test_plot_of_a_results_folder_into_a_file_says_it_is_not_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--out naming a file: one line saying it is not a folder (it was the OS's 'File
+    exists')."""
+    folder = tmp_path / "res"
+    folder.mkdir()
+    (folder / "exp2_constraints.json").write_text("{}")
+    target = tmp_path / "report.md"
+    target.write_text("x")
+    assert main(["plot", str(folder), "--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{target}: not a folder: give --out a folder" in err

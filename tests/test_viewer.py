@@ -975,3 +975,14 @@ def test_view_times_are_the_estimates_to_the_nanosecond(tmp_path: Path) -> None:
     timed = [v for v, _ in rows["/world/estimate/backbone"] if v is not None]
     assert timed == _ns(np.array(t)) == [2_050_000_000, 4_100_000_000, 8_200_000_000,
                                          8_450_000_000, 16_150_000_000]  # fmt: skip
+
+
+def test_the_web_viewer_refuses_one_port_for_both_in_one_line() -> None:
+    """--web-port equal to --grpc-port: one line naming both (it was blamed on a port in
+    use)."""
+    from continuum_mhe.errors import InputError
+    from continuum_mhe.viewer.sink import start_web_viewer
+
+    sink = ViewerSink("web", web_port=9090, grpc_port=9090)
+    with pytest.raises(InputError, match="--web-port and --grpc-port are both 9090"):
+        start_web_viewer(sink)

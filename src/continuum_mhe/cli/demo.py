@@ -27,6 +27,12 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+DESCRIPTION = (
+    "Simulate the paper's 3D motion (or a robot file's), run the MHE, EKF and UKF on it, "
+    "print their errors against the truth and plot them: the whole tool on built-in data."
+)
+
+
 def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 

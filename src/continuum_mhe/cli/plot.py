@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from continuum_mhe.cli.input_options import add_tensions_option
-from continuum_mhe.cli.options import add_overwrite_option
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError, UserError
 from continuum_mhe.model.descriptions import TIP_COLUMNS
@@ -48,6 +47,8 @@ def _reproduction(args: argparse.Namespace) -> int:
             raise InputError(f"{args.source}: a reproduce folder; {flag} is for an estimate file")
     out = Path(args.out) if args.out else Path(args.source)
     refuse_missing_parent(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: not a folder: give --out a folder for the figures")
     results = load_results(args.source)
     # re-rendering a folder's own figures is what plot of a folder is for; figures in
     # another folder are kept unless --overwrite
@@ -253,7 +254,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "-o", "--output", metavar="FIG.png", help="figure to write (.png, .pdf, .svg; default: "
         "EST.png beside the estimate)",
     )  # fmt: skip
-    add_overwrite_option(p)
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace existing figure files, -o's or those in --out (else refused; plot of "
+        "a results folder without --out re-renders its own figures)",
+    )
     p.add_argument(
         "--out",
         default=None,

@@ -109,6 +109,11 @@ def stop_web_viewer(proc: subprocess.Popen[bytes] | None) -> None:
 def start_web_viewer(sink: ViewerSink) -> subprocess.Popen[bytes]:
     """Start ``rerun --serve-web`` bound to 127.0.0.1 (its own process group, its output
     discarded) and wait until both its ports answer."""
+    if sink.web_port == sink.grpc_port:
+        raise InputError(
+            f"--web-port and --grpc-port are both {sink.web_port}: the web viewer and the "
+            "data server need a port each"
+        )
     _check_free(sink.web_port, "--web-port")
     _check_free(sink.grpc_port, "--grpc-port")
     cmd = [
