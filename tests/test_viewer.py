@@ -986,3 +986,27 @@ def test_the_web_viewer_refuses_one_port_for_both_in_one_line() -> None:
     sink = ViewerSink("web", web_port=9090, grpc_port=9090)
     with pytest.raises(InputError, match="--web-port and --grpc-port are both 9090"):
         start_web_viewer(sink)
+
+
+def test_view_reads_a_robot_from_a_pipe_once(tmp_path: Path) -> None:
+    """--robot from a pipe (<(...)): read once, where the robot is taken (the check of a
+    tendon robot's estimate must not read it before)."""
+    import os
+    import threading
+
+    pytest.importorskip("rerun")
+    est = tmp_path / "e.csv"
+    est.write_text(
+        "t,x,y,z,theta,phi,status\n" + "".join(f"{0.05 * i},0,0,0.2,0,0,ok\n" for i in range(3))
+    )
+    fifo = tmp_path / "robot.toml"
+    os.mkfifo(fifo)
+
+    def write() -> None:
+        with open(fifo, "w") as fh:
+            fh.write("[[section]]\nlength = 0.2\n[[imu]]\nsection = 1\n")
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    assert main(["view", str(est), "--robot", str(fifo), "--save", str(tmp_path / "v.rrd")]) == 0
+    writer.join(10)

@@ -4,7 +4,9 @@ Rerun (:func:`continuum_mhe.viewer.replay`)."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import warnings
 from pathlib import Path
 
 from continuum_mhe.cli.input_options import add_tensions_option
@@ -25,6 +27,7 @@ def run(args: argparse.Namespace) -> int:
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
         _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
+        _refuse_tendon_estimate_on_another_robot(args, robot)  # a robot from a pipe
         if args.truth:
             _check_truth(args, robot)
         replay(
@@ -34,11 +37,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refuse_tendon_estimate_on_another_robot(args: argparse.Namespace) -> None:
+def _refuse_tendon_estimate_on_another_robot(
+    args: argparse.Namespace, robot: Robot | None = None
+) -> None:
     """A tendon robot's estimate (its tip force columns) with a ``--robot`` or
     ``--length`` robot without tendons is refused in one line, as ``plot`` refuses it: its
     sections drawn as constant-curvature arcs of that robot would miss the estimate by
-    centimetres. Nothing here where a file cannot be read: the reading after says why."""
+    centimetres. Nothing here where a file cannot be read: the reading after says why.
+    ``robot``: the robot as read (else read here, before the robot's own notes, unless
+    it comes from a pipe, which is read once)."""
     from continuum_mhe.evaluation.estimate_figure import has_tip_force
     from continuum_mhe.io.estimate_files import read_estimates
     from continuum_mhe.io.robot_file import read_robot
@@ -46,10 +53,14 @@ def _refuse_tendon_estimate_on_another_robot(args: argparse.Namespace) -> None:
     if not (args.robot or args.length is not None):
         return  # the robot the estimate's options line names
     try:
-        if args.robot:
-            robot = read_robot(args.robot)
-            if robot.backbone is not None and robot.n_tendons > 0:
-                return
+        if args.robot and robot is None:
+            if os.path.exists(args.robot) and not os.path.isfile(args.robot):
+                return  # a pipe (<(...)) is read once, where the robot is taken
+            with warnings.catch_warnings():  # said where the robot is taken
+                warnings.simplefilter("ignore")
+                robot = read_robot(args.robot)
+        if robot is not None and robot.backbone is not None and robot.n_tendons > 0:
+            return
         est = read_estimates(args.estimates, "view EST.csv")
     except UserError:
         return
