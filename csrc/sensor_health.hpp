@@ -267,9 +267,10 @@ class SensorHealth {
   // the last sample whose tip standard deviation exceeded the uncertain fraction (the
   // estimate's belief spanned shapes far apart); -inf since the (re)start when none
   double wide_t_ = -INFINITY;
-  // after a restart that the readings forced (the estimate before it contradicted them,
-  // or failed): how many more samples' readings must agree with the new estimate, one
-  // reading's fit, before it is trusted (start_samples at the restart, 0 otherwise)
+  // how many more samples' readings must agree with the estimate of a start before it
+  // is trusted: start_samples after a restart that the readings forced (the estimate
+  // before it contradicted them, or failed), 1 after the first estimate of a recording
+  // (or after a gap), confirm_after_ once a reading disagreed with either; 0 otherwise
   int unconfirmed_ = 0;
   // what a disagreeing reading sets unconfirmed_ to while it is positive: start_samples
   // after a forced restart, confirm_samples after the first estimate of a recording

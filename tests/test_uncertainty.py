@@ -893,3 +893,9 @@ def test_the_nees_band_holds_the_average_nees_of_errors_correlated_in_time() -> 
     want = n * (1 - a * a) / (1 + a * a)
     assert np.median(counts) == pytest.approx(want, rel=0.3)
     assert effective_samples(rng.standard_normal(2000)) == pytest.approx(2000, rel=0.15)
+    anti = np.empty(2000)  # anti-correlated: no fewer samples than independent ones
+    anti[0] = 0.0
+    for k in range(1, 2000):
+        anti[k] = -0.9 * anti[k - 1] + rng.standard_normal()
+    assert effective_samples(anti) == 2000
+    assert effective_samples(np.array([1.0, np.nan, 2.0, np.inf, 3.0, 4.0, 2.5])) <= 5

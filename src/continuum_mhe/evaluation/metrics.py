@@ -278,8 +278,11 @@ def effective_samples(series: FloatArray) -> float:
     correlated ``series`` (n,) does: ``n / tau``, with ``tau = 1 + 2 sum_k rho_k`` the
     integrated autocorrelation time of the series, summed over Geyer's initial positive
     sequence (the sums of consecutive pairs of lags, while they are positive); between 1
-    and ``n`` (``n`` for fewer than 4 samples, or a constant series)."""
+    and ``n`` (``n`` for fewer than 4 samples, a constant series, or one whose lags do
+    not add up to a positive time: anti-correlated). Values that are not finite are
+    left out."""
     x = np.asarray(series, dtype=float)
+    x = x[np.isfinite(x)]
     n = len(x)
     if n < 4:
         return float(n)
@@ -295,6 +298,8 @@ def effective_samples(series: FloatArray) -> float:
         if not pair > 0.0:
             break
         tau += 2.0 * pair
+    if not tau > 0.0:  # anti-correlated at the first lags: as independent samples
+        return float(n)
     return float(min(n, max(1.0, n / tau)))
 
 

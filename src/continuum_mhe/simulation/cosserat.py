@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -405,25 +406,30 @@ def read_recording(path: str | Path) -> RodRecording:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: no such file")
-    with open(p, encoding="utf-8", errors="replace") as fh:
-        header = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
-    present = [c.strip() for c in header.strip().split(",")]
+    with open(p, encoding="utf-8-sig", errors="replace") as fh:
+        lines = fh.read().splitlines()
+    at = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")), None)
+    present = [] if at is None else [c.strip() for c in lines[at].split(",")]
     missing = [c for c in COLUMNS if c not in present]
     if missing:  # (an estimate or measurement file, not a rod recording)
         raise InputError(
             f"{p}: not a rod recording: missing column(s) {', '.join(missing)} "
             f"(a recording of python -m continuum_mhe.simulation.cosserat has {','.join(COLUMNS)})"
         )
+    assert at is not None
     try:
-        data = np.genfromtxt(p, delimiter=",", names=True, comments="#")
-    except ValueError as exc:  # numpy names every bad line: the first is enough
-        first = str(exc).strip().splitlines()
-        raise InputError(f"{p}: malformed recording ({first[-1] if first else exc})") from None
-    names = data.dtype.names or ()
-    missing = [c for c in COLUMNS if c not in names]
-    if missing:
-        raise InputError(f"{p}: missing column(s) {', '.join(missing)}")
-    return RodRecording(columns={c: np.asarray(data[c], dtype=float) for c in COLUMNS})
+        data = np.genfromtxt(lines[at + 1 :], delimiter=",", names=present, comments="#", ndmin=1)
+    except ValueError as exc:  # numpy names every bad line: the first is said
+        bad = re.search(r"Line #(\d+) \(got (\d+) columns instead of (\d+)\)", str(exc))
+        why = (
+            f"line {int(bad[1]) + at + 1}: {bad[2]} fields, the header has {bad[3]}"
+            if bad
+            else str(exc).strip().splitlines()[0]
+        )
+        raise InputError(f"{p}: malformed recording ({why})") from None
+    return RodRecording(
+        columns={c: np.atleast_1d(np.asarray(data[c], dtype=float)) for c in COLUMNS}
+    )
 
 
 def info_path(path: str | Path) -> Path:

@@ -63,7 +63,8 @@ def _g(v: Any, digits: int = 3) -> str:
     """``v`` to ``digits`` significant digits (a total that spans orders of magnitude)."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
-    return f"{float(v):.{digits}g}"
+    x = float(v)
+    return f"{x:.0f}" if abs(x) >= 10**digits else f"{x:.{digits}g}"
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
