@@ -1010,3 +1010,22 @@ def test_view_reads_a_robot_from_a_pipe_once(tmp_path: Path) -> None:
     writer.start()
     assert main(["view", str(est), "--robot", str(fifo), "--save", str(tmp_path / "v.rrd")]) == 0
     writer.join(10)
+
+
+def test_view_warns_of_a_mounting_other_than_the_estimates(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--mounting z-down for an estimate made z-up (its options line): a warning that the
+    given one turns the base over; the recorded one given: none."""
+    pytest.importorskip("rerun")
+    meas, est = tmp_path / "m.csv", tmp_path / "e.csv"
+    assert main(["simulate", "paper3d", "-o", str(meas), "--duration", "1"]) == 0
+    assert main(["estimate", str(meas), "-o", str(est), "--method", "ekf"]) == 0
+    capsys.readouterr()
+    rrd = tmp_path / "v.rrd"
+    assert main(["view", str(est), "--mounting", "z-down", "--save", str(rrd)]) == 0
+    assert "was estimated with mounting z-up (its options line), not --mounting z-down" in (
+        capsys.readouterr().err
+    )
+    assert main(["view", str(est), "--mounting", "z-up", "--save", str(rrd), "--overwrite"]) == 0
+    assert "warning" not in capsys.readouterr().err

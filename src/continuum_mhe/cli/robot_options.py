@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import warnings
 from collections.abc import Sequence
 
 from continuum_mhe.cli.config import beside, recorded_option
@@ -96,13 +97,41 @@ def estimate_robot(
     if robot is not None:
         return robot
     robot = robot_from_args(args)
+    line = ""
     if args.robot:
         line = other_recorded_robot(path, args.robot, robot)
-        if line and warned is not None:
-            warned.append(line)
-        elif line:
-            print(f"{PROG}: warning: {line}", file=sys.stderr)
+    elif getattr(args, "mounting", None) is not None:
+        recorded = _recorded_mounting(path)
+        if recorded is not None and recorded != args.mounting:
+            line = (
+                f"{path} was estimated with mounting {recorded} (its options line), not "
+                f"--mounting {args.mounting}: the given one is used, which turns the "
+                "estimate's base over: leave --mounting out to use the recorded one"
+            )
+    if line and warned is not None:
+        warned.append(line)
+    elif line:
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
     return robot
+
+
+def _recorded_mounting(path: str) -> str | None:
+    """The mounting the estimate ``path`` was made with, from its options line (the
+    robot file it names, or its ``--mounting``), or None where it records none or the
+    robot file cannot be read."""
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.io.robot_file import read_robot
+
+    name = recorded_option(path, "robot")
+    if isinstance(name, str):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return read_robot(beside(path, name)).mounting
+        except UserError:
+            return None
+    mounting = recorded_option(path, "mounting")
+    return mounting if isinstance(mounting, str) else None
 
 
 def robot_given(args: argparse.Namespace) -> bool:
