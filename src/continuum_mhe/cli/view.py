@@ -25,9 +25,10 @@ from continuum_mhe.viewer import INSTALL_HINT, replay
 def run(args: argparse.Namespace) -> int:
     sink = viewer_sink_from_args(args)
     with held_for_rereading(args.estimates, args.truth):  # the estimate is read twice
-        _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
+        checked = _refuse_tendon_estimate_on_another_robot(args)  # before the robot's notes
         robot = estimate_robot(args, args.estimates, "drawn on that robot")
-        _refuse_tendon_estimate_on_another_robot(args, robot)  # a robot from a pipe
+        if not checked:  # a robot from a pipe: checked as it was taken
+            _refuse_tendon_estimate_on_another_robot(args, robot)
         if args.truth:
             _check_truth(args, robot)
         replay(
@@ -39,31 +40,32 @@ def run(args: argparse.Namespace) -> int:
 
 def _refuse_tendon_estimate_on_another_robot(
     args: argparse.Namespace, robot: Robot | None = None
-) -> None:
+) -> bool:
     """A tendon robot's estimate (its tip force columns) with a ``--robot`` or
     ``--length`` robot without tendons is refused in one line, as ``plot`` refuses it: its
     sections drawn as constant-curvature arcs of that robot would miss the estimate by
     centimetres. Nothing here where a file cannot be read: the reading after says why.
     ``robot``: the robot as read (else read here, before the robot's own notes, unless
-    it comes from a pipe, which is read once)."""
+    it comes from a pipe, which is read once). False where it was not checked for that
+    reason (the caller checks it with the robot it takes), else True."""
     from continuum_mhe.evaluation.estimate_figure import has_tip_force
     from continuum_mhe.io.estimate_files import read_estimates
     from continuum_mhe.io.robot_file import read_robot
 
     if not (args.robot or args.length is not None):
-        return  # the robot the estimate's options line names
+        return True  # the robot the estimate's options line names
     try:
         if args.robot and robot is None:
             if os.path.exists(args.robot) and not os.path.isfile(args.robot):
-                return  # a pipe (<(...)) is read once, where the robot is taken
+                return False  # a pipe (<(...)) is read once, where the robot is taken
             with warnings.catch_warnings():  # said where the robot is taken
                 warnings.simplefilter("ignore")
                 robot = read_robot(args.robot)
         if robot is not None and robot.backbone is not None and robot.n_tendons > 0:
-            return
+            return True
         est = read_estimates(args.estimates, "view EST.csv")
     except UserError:
-        return
+        return True
     if has_tip_force(est.names):
         given = args.robot or f"--length {args.length:g}"
         raise InputError(
@@ -71,6 +73,7 @@ def _refuse_tendon_estimate_on_another_robot(
             "estimate (its tip force columns): give that robot's file, or no --robot for "
             "the one its options line names"
         )
+    return True
 
 
 def _check_truth(args: argparse.Namespace, robot: Robot) -> None:
