@@ -3,6 +3,7 @@ comments, ``t_ms``, ``;`` and tab, a plain serial capture), with one-line errors
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import subprocess
@@ -471,8 +472,9 @@ def test_an_estimate_piped_in_is_read_as_from_its_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
 ) -> None:
     """``evaluate`` and ``plot`` read an estimate more than once (its header, its options
-    line, its rows): from standard input they give what they give from the file (read in
-    this process: a second interpreter would spend 2 s importing for the same code)."""
+    line, its rows): from a pipe on standard input, which cannot be read from its start
+    again, they give what they give from the file (the file read in this process: a
+    second interpreter would spend 2 s importing for the same code)."""
     meas, truth, est = tmp_path / "m.csv", tmp_path / "t.csv", tmp_path / "e.csv"
     assert main(["simulate", "paper3d", "-o", str(meas), "--truth", str(truth),
                  "--duration", "3"]) == 0  # fmt: skip
@@ -485,17 +487,23 @@ def test_an_estimate_piped_in_is_read_as_from_its_file(
     capsys.readouterr()
     assert main([command, str(est), *args]) == 0
     from_file = capsys.readouterr().out
-    with est.open("rb") as fh:
-        piped = subprocess.run(
-            [*CLI, command, "-", *args], stdin=fh, capture_output=True, text=True, timeout=120
-        )
+    figure = tmp_path / "p.png"
+    figure.unlink(missing_ok=True)
+    # ``input=``: a pipe, which cannot be read again from its start
+    piped = subprocess.run(
+        [*CLI, command, "-", *args], input=est.read_text(), capture_output=True, text=True,
+        timeout=120,
+    )  # fmt: skip
     assert piped.returncode == 0, piped.stderr
     assert piped.stdout == from_file
-    if command == "plot":  # no file to put the figure beside
-        with est.open("rb") as fh:
-            alone = subprocess.run(
-                [*CLI, "plot", "-"], stdin=fh, capture_output=True, text=True, timeout=120
-            )
+    if command == "evaluate":
+        assert json.loads(from_file)["n"] == 61  # every row of the 3 s at 20 Hz
+    else:  # plot prints nothing: the figure is what it makes
+        assert figure.stat().st_size > 0
+        alone = subprocess.run(  # no file to put the figure beside
+            [*CLI, "plot", "-"], input=est.read_text(), capture_output=True, text=True,
+            timeout=120,
+        )  # fmt: skip
         assert alone.returncode == 2 and "give -o" in alone.stderr
 
 
