@@ -596,8 +596,10 @@ def test_direct_formulation_agrees() -> None:
         s: MovingHorizonEstimator(f, MHESettings(horizon=12, solver=s)).run(rec.t, z)
         for s in ("ipopt", "fast")
     }
-    # the overbend sits on theta_max part of the time: those rows say so (at-bound)
+    # the overbend sits on theta_max part of the time (the bound active in the windows
+    # compared): those rows say so (at-bound)
     assert set(out["fast"].status[1:]) <= {"ok", "at-bound"}
+    assert list(out["fast"].status).count("at-bound") >= 10
     assert list(out["fast"].status) == list(out["ipopt"].status)
     np.testing.assert_allclose(out["fast"].output, out["ipopt"].output, atol=1e-6, rtol=0)
 
