@@ -5,7 +5,8 @@ log-density it weighs them by."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +66,78 @@ def _errors(f: TendonFormulation, series, scenario: str) -> tuple[np.ndarray, np
     return err(("x", "y", "z")), err(("fx", "fy", "fz"))
 
 
+@dataclass
+class EkfRun:
+    """The EKF that ``make_estimator`` gives (two hypotheses) run over a whole shipped
+    recording, and the count of its compiled measurement terms' remembered evaluations
+    taken during the run (``hits``)."""
+
+    f: TendonFormulation
+    t: np.ndarray
+    z: np.ndarray
+    estimator: LoadHypothesesKalmanFilter
+    series: object
+    hits: int
+
+
+@pytest.fixture(scope="module")
+def default_ekf() -> Callable[[str, str], EkfRun]:
+    """``default_ekf(scenario, imu)``: the :class:`EkfRun` of that shipped recording, run
+    once a module and shared by the tests that run the default EKF over the whole of it
+    (each such run takes seconds)."""
+    from continuum_mhe.estimators.fast import node_functions
+
+    runs: dict[tuple[str, str], EkfRun] = {}
+
+    def run(scenario: str, imu: str) -> EkfRun:
+        if (scenario, imu) not in runs:
+            f, t, z = _shipped(scenario, imu)
+            memo = node_functions(f).measurement
+            est = make_estimator("ekf", f)
+            assert isinstance(est, LoadHypothesesKalmanFilter)
+            before = memo.hits
+            series = est.run(t, z)
+            runs[scenario, imu] = EkfRun(f, t, z, est, series, memo.hits - before)
+        return runs[scenario, imu]
+
+    return run
+
+
+@dataclass
+class Stepped:
+    """:class:`LoadHypothesesInference` stepped sample by sample over a whole shipped
+    recording: at each sample, whether the free-of-load hypothesis was chosen, and the
+    free-of-load filter's load entries after it (state, covariance rows and columns;
+    None where it had no state); the loaded filter's last state."""
+
+    f: TendonFormulation
+    t: np.ndarray
+    chosen: list[bool]
+    unloaded_load: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]
+    loaded_x: np.ndarray | None
+
+
+@pytest.fixture(scope="module")
+def force29_stepped() -> Stepped:
+    """``force-29`` (raw IMUs) stepped through the two hypotheses once a module (two
+    tests read it: which one is chosen, and the free-of-load filter's load states)."""
+    f, t, z = _shipped("force-29", "raw")
+    inference = LoadHypothesesInference(f)
+    load = list(f.load_states)
+    chosen, unloaded_load = [], []
+    for ti, zi in zip(t, z):
+        inference.infer(Measurement(float(ti), zi))
+        chosen.append(inference.unloaded_chosen)
+        x, P = inference.unloaded._x, inference.unloaded._P
+        unloaded_load.append(
+            None
+            if x is None or P is None
+            else (x[load].copy(), P[load, :].copy(), P[:, load].copy())
+        )
+    loaded_x = None if inference.loaded._x is None else inference.loaded._x.copy()
+    return Stepped(f, t, chosen, unloaded_load, loaded_x)
+
+
 def test_the_compiled_step_gives_its_innovation_log_density() -> None:
     """``log_likelihood`` after a compiled EKF step is ``-(r^T S^-1 r + log|S|) / 2`` of
     the innovation ``r`` and its covariance ``S = H P H^T + R`` at the predicted state,
@@ -118,17 +191,18 @@ def test_the_free_of_load_start_holds_the_tip_force_at_zero() -> None:
 
 
 @pytest.mark.parametrize("imu", ["tilt", "raw"])
-def test_an_unloaded_robot_is_estimated_free_of_load(imu: str) -> None:
+def test_an_unloaded_robot_is_estimated_free_of_load(
+    imu: str, default_ekf: Callable[[str, str], EkfRun]
+) -> None:
     """The shipped ``unloaded`` recording: the EKF that ``make_estimator`` gives a
     tendon robot takes it as free of load after its start, and its tip is within 0.3
     mm of the truth on average (the model's own floor is 0.11 mm; the single loaded
     EKF, which takes part of the IMUs' errors for a tip force, 2.9 mm with tilt IMUs
     and 0.39 mm raw), its tip force within 0.005 N rms."""
-    f, t, z = _shipped("unloaded", imu)
-    est = make_estimator("ekf", f)
-    assert isinstance(est, LoadHypothesesKalmanFilter)
-    series = est.run(t, z)
-    tip, force = _errors(f, series, "unloaded")
+    run = default_ekf("unloaded", imu)
+    f, t, z = run.f, run.t, run.z
+    assert isinstance(run.estimator, LoadHypothesesKalmanFilter)
+    tip, force = _errors(f, run.series, "unloaded")
     late = t >= 1.0
     assert tip[late].mean() < 0.3e-3 and np.sqrt(np.mean(force[late] ** 2)) < 0.005
     single = make_estimator("ekf", replace(f, free_of_load_hypothesis=False))
@@ -137,19 +211,17 @@ def test_an_unloaded_robot_is_estimated_free_of_load(imu: str) -> None:
     assert single_tip[late].mean() > 1.2 * tip[late].mean()
 
 
-def test_a_load_that_appears_is_followed_by_the_loaded_hypothesis() -> None:
+def test_a_load_that_appears_is_followed_by_the_loaded_hypothesis(
+    force29_stepped: Stepped, default_ekf: Callable[[str, str], EkfRun]
+) -> None:
     """``force-29`` (raw IMUs): the tip force rises from zero to 0.29 N over 2 s. After
     it, every estimate is the loaded hypothesis', and the tip and the force are as
     near the truth as the single loaded EKF's (within 0.05 mm and 0.001 N rms)."""
-    f, t, z = _shipped("force-29", "raw")
-    inference = LoadHypothesesInference(f)
-    chosen = []
-    for ti, zi in zip(t, z):
-        inference.infer(Measurement(float(ti), zi))
-        chosen.append(inference.unloaded_chosen)
-    assert not np.any(np.array(chosen)[t >= 1.0])
-    series = make_estimator("ekf", f).run(t, z)
-    tip, force = _errors(f, series, "force-29")
+    run = default_ekf("force-29", "raw")
+    f, t, z = run.f, run.t, run.z
+    assert np.array_equal(force29_stepped.t, t)
+    assert not np.any(np.array(force29_stepped.chosen)[t >= 1.0])
+    tip, force = _errors(f, run.series, "force-29")
     single_tip, single_force = _errors(f, ExtendedKalmanFilter(f).run(t, z), "force-29")
     late = t >= 1.0
     assert tip[late].mean() < single_tip[late].mean() + 0.05e-3
@@ -180,19 +252,19 @@ def test_estimate_says_how_many_rows_were_taken_as_free_of_load(
     assert counts["unloaded"] >= 380 and counts["force-29"] == 0
 
 
-def test_the_free_of_load_filter_keeps_its_force_at_zero_and_certain() -> None:
+def test_the_free_of_load_filter_keeps_its_force_at_zero_and_certain(
+    force29_stepped: Stepped,
+) -> None:
     """Over the whole of ``force-29`` (raw), whose force rises to 0.29 N, the
     free-of-load filter's force and its derivatives stay exactly zero, their rows and
     columns of its covariance too; the loaded filter's force does not."""
-    f, t, z = _shipped("force-29", "raw")
-    inference = LoadHypothesesInference(f)
-    load = list(f.load_states)
-    for ti, zi in zip(t, z):
-        inference.infer(Measurement(float(ti), zi))
-        x, P = inference.unloaded._x, inference.unloaded._P
-        assert x is not None and P is not None
-        assert np.all(x[load] == 0.0) and np.all(P[load, :] == 0.0) and np.all(P[:, load] == 0.0)
-    assert np.linalg.norm(inference.loaded._x[load[:3]]) > 0.2  # type: ignore[index]
+    load = list(force29_stepped.f.load_states)
+    assert len(force29_stepped.unloaded_load) == len(force29_stepped.t) == 401
+    for entries in force29_stepped.unloaded_load:
+        assert entries is not None
+        x, P_rows, P_cols = entries
+        assert np.all(x == 0.0) and np.all(P_rows == 0.0) and np.all(P_cols == 0.0)
+    assert np.linalg.norm(force29_stepped.loaded_x[load[:3]]) > 0.2  # type: ignore[index]
 
 
 def test_the_answer_covariance_is_the_mixture_with_the_prior_odds() -> None:
@@ -225,14 +297,15 @@ def test_the_answer_covariance_is_the_mixture_with_the_prior_odds() -> None:
 
 
 def test_a_failure_of_one_hypothesis_leaves_the_estimate_to_the_other(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, default_ekf: Callable[[str, str], EkfRun]
 ) -> None:
     """``force-29`` (raw): the free-of-load filter's step fails once at sample 200 (a
     numerical failure). The estimate goes on from the loaded filter, without a restart
     of the estimator, and stays as near the truth as without the failure."""
-    f, t, z = _shipped("force-29", "raw")
+    clean = default_ekf("force-29", "raw")  # (run before the failure is patched in)
+    f, t, z = clean.f, clean.t, clean.z
     est = make_estimator("ekf", f)
-    clean_tip, _ = _errors(f, make_estimator("ekf", f).run(t, z), "force-29")
+    clean_tip, _ = _errors(f, clean.series, "force-29")
     unloaded = est.inference.unloaded
     step = type(unloaded).infer
 
@@ -346,19 +419,16 @@ def test_a_new_stretch_at_the_last_counted_time_keeps_the_free_of_load_count() -
     assert inference.free_of_load_samples == counted
 
 
-def test_the_check_takes_the_chosen_hypothesis_evaluation() -> None:
+def test_the_check_takes_the_chosen_hypothesis_evaluation(
+    default_ekf: Callable[[str, str], EkfRun],
+) -> None:
     """Both hypotheses' EKFs evaluate the measurement terms at their predictions, then
     the consistency check at the prediction from the chosen one's estimate: that
     evaluation is one of the two just made (every reading valid), taken instead of
-    evaluated anew at every sample after the first."""
-    from continuum_mhe.estimators.fast import node_functions
-
-    f, t, z = _shipped("unloaded", "raw")
-    memo = node_functions(f).measurement
-    est = make_estimator("ekf", f)
-    before = memo.hits
-    est.run(t, z)
-    assert memo.hits - before >= len(t) + 50  # (one kept evaluation: 397 hits)
+    evaluated anew at every sample after the first. (The hits counted over the run of
+    ``unloaded``, raw, that the fixture makes.)"""
+    run = default_ekf("unloaded", "raw")
+    assert run.hits >= len(run.t) + 50  # (one kept evaluation: 397 hits)
 
 
 def test_a_start_under_load_is_not_trusted_and_said(
