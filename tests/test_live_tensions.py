@@ -278,8 +278,10 @@ def test_tensions_in_mn_on_the_line_stop_the_session_in_one_line(runs: Runs) -> 
 def test_a_stream_that_starts_well_into_its_tensions_file_is_said(runs: Runs) -> None:
     """A device clock that starts 1 s into the tensions file (a file that starts with the
     stream but on another clock: every tension from another time) is said at the first
-    sample; one that starts with the file is not."""
+    sample; one that starts with the file is not. (Six samples each: the check is at
+    the first.)"""
     _, imus_only = _first_samples_lines()
+    imus_only = imus_only[:6]
     late = [f"{int(ln.split(',', 1)[0]) + 1000},{ln.split(',', 1)[1]}" for ln in imus_only]
     options = InputOptions(tensions=str(DATA / "unloaded_tensions.csv"))
     for lines, warned in ((late, True), (imus_only, False)):
