@@ -59,13 +59,65 @@ SMALL = dataclasses.replace(
 
 
 @pytest.fixture(scope="module")
-def quick_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def _quick(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[tuple[Any, Any]]]:
+    """The quick run's folder, and each of its tasks with its result."""
+    from continuum_mhe.reproduce import pipeline
+
     out = tmp_path_factory.mktemp("reproduce") / "results"
+    done: list[tuple[Any, Any]] = []
+    run_parallel = pipeline.run_parallel
+
+    def recorded(run: Any, tasks: list[Any], **kwargs: Any) -> list[Any]:
+        results = run_parallel(run, tasks, **kwargs)
+        done.extend(copy.deepcopy(list(zip(tasks, results))))
+        return results
+
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(ex, "QUICK", SMALL)
+        patch.setattr(pipeline, "run_parallel", recorded)
         # in this process (the process pool: test_dask_local_cluster_matches_local_processes)
         assert main(["reproduce", "--out", str(out), "--quick", "--jobs", "1"]) == 0
-    return out
+    return out, done
+
+
+@pytest.fixture(scope="module")
+def quick_run(_quick: tuple[Path, list[tuple[Any, Any]]]) -> Path:
+    return _quick[0]
+
+
+@pytest.fixture
+def quick_trials(
+    _quick: tuple[Path, list[tuple[Any, Any]]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``reproduce`` given the quick run's results for tasks it ran (the same trials:
+    for the tests of what ``reproduce`` writes once they are done); any other task
+    fails the test."""
+    from continuum_mhe.reproduce import pipeline
+
+    def replayed(run: Any, tasks: list[Any], **kwargs: Any) -> list[Any]:
+        out = []
+        for task in tasks:
+            results = [r for t, r in _quick[1] if t == task]
+            assert results, f"not a task of the quick run: {task}"
+            out.append(copy.deepcopy(results[0]))
+        return out
+
+    monkeypatch.setattr(pipeline, "run_parallel", replayed)
+
+
+def _drawn_small(real_save: Any) -> Any:
+    """``plotting.save`` of a one-inch empty figure in the given figure's stead (closed):
+    for tests of which files are written and removed, not of what they show (the quick
+    run draws every figure from the same data, in each format)."""
+    from matplotlib.figure import Figure
+
+    from continuum_mhe.evaluation import plotting
+
+    def save(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
+        plotting.close(fig)
+        return real_save(Figure(figsize=(1, 1)), path, *args, **kw)
+
+    return save
 
 
 def test_quick_run_writes_data_figures_and_report(quick_run: Path) -> None:
@@ -285,10 +337,10 @@ def test_plot_rerenders_from_data_without_estimating(
 
     from continuum_mhe.evaluation import plotting
 
-    real_save = plotting.save
+    save_small = _drawn_small(plotting.save)
 
     def save_png(fig: Any, path: Path, formats: Any, *args: Any, **kw: Any) -> list[Path]:
-        return real_save(fig, path, formats[:1], *args, **kw)  # (the fixture made the PDFs)
+        return save_small(fig, path, formats[:1], *args, **kw)  # (the fixture made the PDFs)
 
     monkeypatch.setattr(ex, "run_trial", forbidden)
     monkeypatch.setattr(ex, "estimate_all", forbidden)
@@ -331,7 +383,7 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
     from continuum_mhe.evaluation import plotting
 
     saved: list[Path] = []
-    real_save = plotting.save
+    real_save = _drawn_small(plotting.save)
 
     def save_then_interrupt(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
         saved.append(path)
@@ -348,11 +400,12 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
 
 
 def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
-    quick_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    quick_run: Path, quick_trials: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Ctrl-C while ``reproduce --overwrite`` writes into an earlier run's folder: the
     files it replaced keep their new content, so the folder mixes two runs; its
-    manifest, which recorded the interrupted run as made, is removed (it said so)."""
+    manifest, which recorded the interrupted run as made, is removed (it said so). (The
+    trials' results are the quick run's.)"""
     import shutil
 
     from continuum_mhe.evaluation import plotting
@@ -393,7 +446,7 @@ def test_a_ctrl_c_dropped_by_the_garbage_collector_still_interrupts(
         pass
 
     saved: list[Path] = []
-    real_save = plotting.save
+    real_save = _drawn_small(plotting.save)
 
     def save(fig: Any, path: Path, formats: Any, *args: Any, **kw: Any) -> list[Path]:
         saved.append(path)
@@ -854,14 +907,16 @@ def test_reproduce_only_beyond(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
 
 
 def test_a_run_of_one_part_into_the_folder_of_another_keeps_its_record(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    quick_trials: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``--only beyond`` into a folder that holds another part's results records that
     earlier run in its manifest (``earlier_runs``) and report beside its own, as the
-    earlier data stay there; a run of the same part replaces the record with its data."""
+    earlier data stay there; a run of the same part replaces the record with its data.
+    (The trials' results are the quick run's.)"""
     from continuum_mhe.reproduce import pipeline
 
-    one = [s for s in ex.plan_beyond_trials(ex.QUICK) if s.seed == 110_000]
+    monkeypatch.setattr(ex, "QUICK", SMALL)
+    one = [s for s in ex.plan_beyond_trials(SMALL) if s.seed == 110_000]
     monkeypatch.setattr(pipeline, "plan_beyond_trials", lambda cfg: one)
     out = tmp_path / "r"
     out.mkdir()
