@@ -62,12 +62,12 @@ def _two_section_run(tmp: Path) -> tuple[Path, Path, Path]:
 @pytest.fixture(scope="module")
 def two_section(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     tmp = tmp_path_factory.mktemp("view")
-    _, truth, est = _two_section_run(tmp)
+    meas, truth, est = _two_section_run(tmp)
     rrd = tmp / "view.rrd"
     code = main(["view", str(est), "--robot", "two-section", "--truth", str(truth),
                  "--save", str(rrd), "--points", str(POINTS)])  # fmt: skip
     assert code == 0
-    return {"est": est, "truth": truth, "rrd": rrd, "rows": read_rrd(rrd)}
+    return {"meas": meas, "est": est, "truth": truth, "rrd": rrd, "rows": read_rrd(rrd)}
 
 
 def test_view_file_entities_and_timestamps(two_section: dict[str, Any]) -> None:
@@ -500,13 +500,13 @@ def test_view_keeps_an_existing_file_unless_overwrite(
 
 
 def test_evaluate_and_plot_read_an_estimate_mcap_as_its_csv(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, two_section: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """evaluate scores an .mcap estimate as it scores the same run's CSV (not 'not UTF-8
     text'); plot draws it."""
     import json
 
-    meas, truth, est_csv = _two_section_run(tmp_path)
+    meas, truth, est_csv = (two_section[k] for k in ("meas", "truth", "est"))
     est_mcap = tmp_path / "e.mcap"
     robot = ["--robot", "two-section"]
     assert main(["estimate", str(meas), "-o", str(est_mcap), "--method", "ekf", *robot]) == 0
@@ -847,7 +847,7 @@ os.mkfifo(pipe)
 reader = os.open(pipe, os.O_RDONLY | os.O_NONBLOCK)  # open, never read: the writer waits
 from continuum_mhe.viewer import view
 view.temporary_beside = lambda path: pipe
-view.FLUSH_TIMEOUT_S = 2.0
+view.FLUSH_TIMEOUT_S = 1.0
 from continuum_mhe.cli import main
 code = main(["view", {str(est)!r}, "--save", {str(tmp_path / "v.rrd")!r}])
 print("main returned", code, flush=True)
@@ -858,7 +858,7 @@ sys.exit(code)
     assert done.returncode == 2, done.stderr
     assert done.stderr == (
         f"continuum-mhe: error: {tmp_path / 'v.rrd'}: cannot write (Rerun's file writer did "
-        "not finish in 2 s) (nothing written)\n"
+        "not finish in 1 s) (nothing written)\n"
     )
     assert done.stdout == "main returned 2\n"
     assert not (tmp_path / "v.rrd").exists()
