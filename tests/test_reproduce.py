@@ -414,14 +414,15 @@ def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
 ) -> None:
     """Ctrl-C while ``reproduce --overwrite`` writes into an earlier run's folder: the
     files it replaced keep their new content, so the folder mixes two runs; its
-    manifest, which recorded the interrupted run as made, is removed (it said so). (The
-    trials' results are the quick run's.)"""
-    import shutil
-
+    manifest, which recorded the interrupted run as made, is removed (it said so). Here
+    ``--only beyond`` into the folder of an earlier one (the quick run's beyond data,
+    manifest and report), with the quick run's results of its trials."""
     from continuum_mhe.evaluation import plotting
 
     folder = tmp_path / "results"
-    shutil.copytree(quick_run, folder)
+    folder.mkdir()
+    for name in ("exp7_beyond.json", "manifest.json", "report.md"):
+        (folder / name).write_bytes((quick_run / name).read_bytes())
     saved: list[Path] = []
 
     def save_then_interrupt(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
@@ -432,7 +433,7 @@ def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(
     monkeypatch.setattr(ex, "QUICK", SMALL)
     monkeypatch.setattr(plotting, "save", save_then_interrupt)
     argv = ["reproduce", "--out", str(folder), "--quick", "--jobs", "1", "--overwrite"]
-    assert main([*argv, "--only", "paper"]) == 130
+    assert main([*argv, "--only", "beyond"]) == 130
     assert saved and not (folder / "manifest.json").exists()
     assert (folder / "report.md").exists()  # the earlier run's, not replaced
 
