@@ -925,9 +925,11 @@ def test_a_run_of_one_part_into_the_folder_of_another_keeps_its_record(
     """``--only beyond`` into a folder that holds another part's results records that
     earlier run in its manifest (``earlier_runs``) and report beside its own, as the
     earlier data stay there; a run of the same part replaces the record with its data.
-    (The trials' results are the quick run's.)"""
+    (The trials' results are the quick run's, its figure drawn small.)"""
+    from continuum_mhe.evaluation import plotting
     from continuum_mhe.reproduce import pipeline
 
+    monkeypatch.setattr(plotting, "save", _drawn_small(plotting.save))
     monkeypatch.setattr(ex, "QUICK", SMALL)
     one = [s for s in ex.plan_beyond_trials(SMALL) if s.seed == 110_000]
     monkeypatch.setattr(pipeline, "plan_beyond_trials", lambda cfg: one)
