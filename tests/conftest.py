@@ -36,10 +36,18 @@ def linear_recording() -> tuple[LinearBend, np.ndarray, np.ndarray]:
     return f, np.arange(LIN_N) * LIN_DT, np.array(z)
 
 
-#: Test files that run first, longest first: in a fresh environment the first of them
-#: compiles PyElastica's numba kernels and the second runs mypy without its cache, and
-#: with ``--dist loadfile`` a long file taken last leaves the other worker idle.
-FIRST_FILES = ("test_rod_generators.py", "test_hygiene.py", "test_reproduce.py")
+#: Test files that run first, longest first (in a fresh environment
+#: ``test_rod_generators.py`` compiles PyElastica's numba kernels and ``test_hygiene.py``
+#: runs mypy without its cache): with ``--dist loadfile`` a long file taken last leaves
+#: the other worker idle.
+FIRST_FILES = (
+    "test_tendon.py",
+    "test_rod_generators.py",
+    "test_hygiene.py",
+    "test_reproduce.py",
+    "test_live.py",
+    "test_viewer.py",
+)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
