@@ -391,7 +391,7 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
 ) -> None:
     """Ctrl-C during ``plot --out NEW`` leaves nothing it wrote (``reproduce`` renders
     its figures the same way): the figures saved so far and the folders made for them
-    are removed. Here at the third of three figures."""
+    are removed, and no figure is left open. Here at the second of three figures."""
     from continuum_mhe.evaluation import plotting
 
     saved: list[Path] = []
@@ -399,16 +399,18 @@ def test_an_interrupted_plot_leaves_nothing_it_wrote(
 
     def save_then_interrupt(fig: Any, path: Path, *args: Any, **kw: Any) -> list[Path]:
         saved.append(path)
-        if len(saved) == 3:
+        if len(saved) == 2:
             plotting.plt.close(fig)
             raise KeyboardInterrupt
         return real_save(fig, path, *args, **kw)
 
     monkeypatch.setattr(plotting, "save", save_then_interrupt)
     results, out = _first_two_experiments(quick_run, tmp_path / "results"), tmp_path / "figs"
+    open_before = set(plotting.plt.get_fignums())
     assert main(["plot", str(results), "--out", str(out)]) == 130
-    assert len(saved) == 3
+    assert len(saved) == 2
     assert not out.exists()
+    assert set(plotting.plt.get_fignums()) == open_before  # the third, never saved, closed
 
 
 def test_an_interrupted_overwrite_leaves_no_manifest_of_a_run_not_made(

@@ -340,6 +340,10 @@ def render_all(
         raise UserError(f"{taken[0]}: exists; give --overwrite to replace it, or another --out")
     Path(folder).mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
-    for fname, fig in figures:
-        out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
+    try:
+        for fname, fig in figures:
+            out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
+    finally:  # a save that raised (Ctrl-C, a full disk) leaves none of them open
+        for _, fig in figures:
+            plotting.close(fig)
     return out
