@@ -328,22 +328,20 @@ def render_all(
                 f"{name}.json of the results: not a results file of this version "
                 f"({type(exc).__name__}: {exc}); run 'continuum-mhe reproduce' again"
             ) from None
-    taken = [
-        p
-        for fname, _ in figures
-        for fmt in FORMATS
-        if (p := Path(folder) / f"{fname}.{fmt}").exists()
-    ]
-    if taken and not overwrite:
-        for _, fig in figures:
-            plotting.close(fig)
-        raise UserError(f"{taken[0]}: exists; give --overwrite to replace it, or another --out")
-    Path(folder).mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
     try:
+        taken = [
+            p
+            for fname, _ in figures
+            for fmt in FORMATS
+            if (p := Path(folder) / f"{fname}.{fmt}").exists()
+        ]
+        if taken and not overwrite:
+            raise UserError(f"{taken[0]}: exists; give --overwrite to replace it, or another --out")
+        Path(folder).mkdir(parents=True, exist_ok=True)
         for fname, fig in figures:
             out += plotting.save(fig, Path(folder) / fname, FORMATS, into)
-    finally:  # a save that raised (Ctrl-C, a full disk) leaves none of them open
+    finally:  # a refusal, or a save that raised (Ctrl-C, a full disk): none left open
         for _, fig in figures:
             plotting.close(fig)
     return out
