@@ -864,6 +864,54 @@ sys.exit(code)
     assert not (tmp_path / "v.rrd").exists()
 
 
+def test_a_writer_stuck_on_a_full_disk_is_given_up_after_one_slice(tmp_path: Path) -> None:
+    """Rerun's file writer that stops on a full disk (here its file is a pipe nobody
+    reads, and the disk reports no room): closing the view gives it up after one
+    FLUSH_SLICE_S in which its file did not grow, not after FLUSH_TIMEOUT_S, and says
+    the disk is full."""
+    import subprocess
+
+    est = tmp_path / "e.csv"
+    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n" + "".join(
+        f"{0.05 * k:.2f},0,0,0.2,0.1,0.2,ok,0.1\n" for k in range(2000)))  # fmt: skip
+    script = f"""
+import os, sys
+from pathlib import Path
+pipe = Path({str(tmp_path / "pipe")!r})
+os.mkfifo(pipe)
+reader = os.open(pipe, os.O_RDONLY | os.O_NONBLOCK)  # open, never read: the writer waits
+import rerun
+from continuum_mhe.viewer import view
+view.temporary_beside = lambda path: pipe
+view.FLUSH_TIMEOUT_S = 600.0
+flushes = []
+flush = rerun.RecordingStream.flush
+def counted(self, **kw):
+    flushes.append(kw)
+    return flush(self, **kw)
+rerun.RecordingStream.flush = counted
+from continuum_mhe.cli import main
+free = view.free_bytes
+calls = []
+def filled(folder):  # room at the start, none once the view was begun
+    calls.append(folder)
+    return free(folder) if len(calls) == 1 else 0
+view.free_bytes = filled
+code = main(["view", {str(est)!r}, "--save", {str(tmp_path / "v.rrd")!r}])
+print("flushes", [kw.get("timeout_sec") for kw in flushes], flush=True)
+sys.exit(code)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (
+        f"continuum-mhe: error: {tmp_path / 'v.rrd'}: cannot write (No space left on device) "
+        "(nothing written)\n"
+    )
+    assert done.stdout == "flushes [0.5]\n"
+    assert not (tmp_path / "v.rrd").exists()
+
+
 def test_free_bytes_counts_the_reserved_blocks_for_root_alone(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

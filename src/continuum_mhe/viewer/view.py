@@ -42,6 +42,10 @@ DISK_NEARLY_FULL = 1 << 20
 #: How long closing a .rrd waits for Rerun to write out what it holds, s: its file
 #: writer can wait forever on a full disk; one that has not finished by then has failed
 FLUSH_TIMEOUT_S = 20.0
+#: The wait is made of slices this long, s: after each one unfinished, a writer whose
+#: file did not grow over it while its disk has less than DISK_NEARLY_FULL free is
+#: taken as stuck at once
+FLUSH_SLICE_S = 0.5
 
 
 def free_bytes(folder: Path) -> int:
@@ -431,18 +435,37 @@ class BackboneView:
             raise InputError(f"{path}: cannot write ({reason}) (nothing written)") from None
 
     def _flush_file(self) -> None:
-        """Wait for Rerun to write out what it holds (a RuntimeError where it cannot);
-        a writer that has not finished within :data:`FLUSH_TIMEOUT_S` is taken as stuck
+        """Wait for Rerun to write out what it holds (a RuntimeError where it cannot).
+        A writer that has not finished within :data:`FLUSH_TIMEOUT_S`, or whose file
+        stopped growing for a :data:`FLUSH_SLICE_S` on a full disk, is taken as stuck
         (:func:`_leave_unclosed`)."""
         started = time.monotonic()
+        folder = self.sink.path.parent if self.sink.path is not None else Path(".")
+        size = self._written_bytes()
+        while True:
+            left = FLUSH_TIMEOUT_S - (time.monotonic() - started)
+            wait = min(FLUSH_SLICE_S, max(left, 0.0))
+            sliced = time.monotonic()
+            try:
+                self.rec.flush(timeout_sec=wait)
+                return
+            except RuntimeError as exc:
+                waited = time.monotonic() - sliced >= 0.9 * wait
+                if not (waited or "timed out" in str(exc).lower()):
+                    raise  # a write that failed
+                before, size = size, self._written_bytes()
+                full = size == before and free_bytes(folder) < DISK_NEARLY_FULL
+                if full or time.monotonic() - started >= 0.9 * FLUSH_TIMEOUT_S:
+                    self._stuck = True
+                    _leave_unclosed(self.rr, self.rec)
+                    raise
+
+    def _written_bytes(self) -> int:
+        """The size of the .rrd's temporary file so far (-1 where there is none)."""
         try:
-            self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-        except RuntimeError as exc:
-            waited = time.monotonic() - started >= 0.9 * FLUSH_TIMEOUT_S
-            if waited or "timed out" in str(exc).lower():  # not a write that failed
-                self._stuck = True
-                _leave_unclosed(self.rr, self.rec)
-            raise
+            return self._tmp.stat().st_size if self._tmp is not None else -1
+        except OSError:
+            return -1
 
     def close(self, wait: bool = False, keep: bool = True) -> None:
         """Finish the stream: rename the .rrd into place (without ``keep``: remove it,
