@@ -444,7 +444,7 @@ class BackboneView:
         size = self._written_bytes()
         while True:
             left = FLUSH_TIMEOUT_S - (time.monotonic() - started)
-            wait = min(FLUSH_SLICE_S, max(left, 0.0))
+            wait = min(FLUSH_SLICE_S, max(left, 0.05))  # 0 would not wait at all
             sliced = time.monotonic()
             try:
                 self.rec.flush(timeout_sec=wait)
