@@ -117,18 +117,20 @@ def test_the_bound_warning_says_whether_the_estimator_holds_the_bound(tmp_path, 
 
 
 def test_the_bound_warning_counts_every_row_on_the_bound_by_status(tmp_path, capsys):
-    """The spatial rod's raw recording with a robot file that leaves theta_max out (3.0
-    rad): the MHE restarts on the bound, and those rows are ``reset``, not
-    ``at-bound``; the warning counts what the file shows, every row whose theta_k is
-    on the bound, by status."""
-    est = tmp_path / "e.csv"
-    argv = ["estimate", str(ROD / "spatial_raw.csv"), "--robot", str(_robot(tmp_path))]
+    """The spatial rod's raw recording (its first 4 s) with a robot file that leaves
+    theta_max out (3.0 rad): the MHE restarts on the bound, and those rows are
+    ``reset``, not ``at-bound``; the warning counts what the file shows, every row whose
+    theta_k is on the bound, by status."""
+    est, meas = tmp_path / "e.csv", tmp_path / "spatial_raw.csv"
+    lines = (ROD / "spatial_raw.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+    meas.write_text("".join(lines[:201]), encoding="utf-8")  # its first 4 s: both statuses
+    argv = ["estimate", str(meas), "--robot", str(_robot(tmp_path))]
     assert main([*argv, "-o", str(est)]) == 0
     _, on, status = _bends(est, 3.0)
     assert np.sum(status[on] == "reset") > 10 and np.sum(status[on] == "at-bound") > 10
     line = _bound_warning(capsys.readouterr().err)
     assert line.startswith(
-        f"continuum-mhe: warning: {on.sum()} of 601 estimates have a section's bend on its "
+        f"continuum-mhe: warning: {on.sum()} of 200 estimates have a section's bend on its "
         f"bending bound theta_max (3, 3 rad; by status: {_by_status(status[on])}): "
     ), line
 
