@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -40,7 +38,9 @@ def test_mounting_from_gravity_inverts_the_mount_rotation(mounting: str) -> None
         np.testing.assert_allclose(mounting_from_gravity(m, mounting), rpy, atol=1e-9)  # type: ignore[arg-type]
 
 
-def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
+def test_calibrate_from_a_recording_of_two_imus(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     n, dt, d = 500, 0.002, 0.05
     rpy = [(12.0, -7.0, 0.0), (-3.0, 25.0, 0.0)]
     sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)  # +-d: mean 0, std d*sqrt(n/(n-1))
@@ -62,18 +62,12 @@ def test_calibrate_from_a_recording_of_two_imus(tmp_path: Path) -> None:
         np.testing.assert_allclose(imu.mean[3:], [0.01 * (k + 1), -0.02, 0.003], atol=1e-12)
         # the mean is off the noise-free reading by the mean of +-d (0): the mounting is exact
         np.testing.assert_allclose(imu.mount_rpy, rpy[k], atol=1e-9)  # type: ignore[arg-type]
-    res = subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", "--from", str(path)]
-        + ["--robot", "two-section"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert res.returncode == 0, res.stderr
-    assert "500 samples over 0.998 s of device time: 500.0 Hz" in res.stdout
-    assert "IMU 1: mounting with the robot straight: --mount-rpy 12.00,-7.00,0" in res.stdout
-    assert "IMU 2: mounting with the robot straight: --mount-rpy -3.00,25.00,0" in res.stdout
-    assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in res.stdout
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0, err
+    assert "500 samples over 0.998 s of device time: 500.0 Hz" in out
+    assert "IMU 1: mounting with the robot straight: --mount-rpy 12.00,-7.00,0" in out
+    assert "IMU 2: mounting with the robot straight: --mount-rpy -3.00,25.00,0" in out
+    assert "IMU 2: gyro bias (rad/s) gx=0.02000 gy=-0.02000 gz=0.00300" in out
 
 
 def _calibrate_port(
@@ -238,40 +232,32 @@ def test_motion_at_rest_names_the_largest_spread_against_its_bound() -> None:
     assert moved is not None and "IMU 1's tilt spread (std of pitch) is 0.29 rad" in moved
 
 
-def _calibrate_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "continuum_mhe.cli", "calibrate", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-
-
-def test_calibrate_refuses_a_moving_recording() -> None:
-    """The shipped planar-S run bends to 87 deg: refused in one line as a moving robot
-    (taken as still, it would give mount_rpy = [43.85, -0.60, 0])."""
-    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
-    res = _calibrate_cli("--from", str(data / "planar-s_raw.csv"), "--robot", "two-section")
-    assert res.returncode == 2
-    assert res.stdout == ""
-    assert res.stderr.count("\n") == 1
-    assert (
-        "planar-s_raw.csv: the robot moved: IMU 1's accelerometer spread (std of ay) is "
-        "4.15 m/s^2, above the 0.2 m/s^2 of a still robot" in res.stderr
-    )
-    # its rest recording passes, and a bend belongs to --bend, not --from
-    rest = _calibrate_cli("--from", str(data / "planar-s_rest.csv"), "--robot", "two-section")
-    assert rest.returncode == 0, rest.stderr
-    bend = _calibrate_cli("--from", str(data / "planar-s_bend.csv"), "--robot", "two-section")
-    assert bend.returncode == 2 and "--bend BEND.csv" in bend.stderr
-
-
 def _calibrate_main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
     from continuum_mhe.cli import main
 
     code = main(["calibrate", *args])
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def test_calibrate_refuses_a_moving_recording(capsys: pytest.CaptureFixture[str]) -> None:
+    """The shipped planar-S run bends to 87 deg: refused in one line as a moving robot
+    (taken as still, it would give mount_rpy = [43.85, -0.60, 0])."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data/rod2"
+    robot = ("--robot", "two-section")
+    code, out, err = _calibrate_main(capsys, "--from", str(data / "planar-s_raw.csv"), *robot)
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1
+    assert (
+        "planar-s_raw.csv: the robot moved: IMU 1's accelerometer spread (std of ay) is "
+        "4.15 m/s^2, above the 0.2 m/s^2 of a still robot" in err
+    )
+    # its rest recording passes, and a bend belongs to --bend, not --from
+    code, _, err = _calibrate_main(capsys, "--from", str(data / "planar-s_rest.csv"), *robot)
+    assert code == 0, err
+    code, _, err = _calibrate_main(capsys, "--from", str(data / "planar-s_bend.csv"), *robot)
+    assert code == 2 and "--bend BEND.csv" in err
 
 
 def test_the_stillness_bounds_are_options_for_a_noisier_imu(
