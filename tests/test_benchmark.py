@@ -8,6 +8,7 @@ import json
 import math
 import os
 import platform
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -200,11 +201,30 @@ def test_benchmark_help_gives_the_default_duration(capsys: pytest.CaptureFixture
 ACADOS_DIR_VARIABLE = "CONTINUUM_MHE_ACADOS_DIR"
 
 
+@pytest.fixture(scope="module")
+def acados_peer() -> Iterator[peers.WindowSolver]:
+    """The acados peer of the bend formulation at N = 6, built once for the module (its
+    generated solver takes seconds to build) and closed after its last test; a test
+    starts it on a new recording (``reset``). Skipped where acados cannot run here."""
+    folder = os.environ.get(ACADOS_DIR_VARIABLE)
+    why = peers.missing_peers(folder).get("acados")
+    if why is not None:
+        pytest.skip(f"acados: {why} (or set {ACADOS_DIR_VARIABLE}=DIR)")
+    solver = peers.make_peer("acados", make_formulation("bend"), 6, peers.find_acados(folder))
+    try:
+        yield solver
+    finally:
+        getattr(solver, "close", lambda: None)()
+
+
 @pytest.mark.parametrize("name", PEERS)
-def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
+def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(
+    name: str, request: pytest.FixtureRequest
+) -> None:
     """Each peer, on the MHE's own windows (growing, then full; the disk bound, a
     dropout) warm-started from its shifted answer, converges and finds IPOPT's answer to
-    the same window from the same guess, node by node (1e-6; both converge to 1e-8)."""
+    the same window from the same guess, node by node (1e-6; both converge to 1e-8).
+    (acados: the module's solver, started on this recording.)"""
     folder = os.environ.get(ACADOS_DIR_VARIABLE)
     why = peers.missing_peers(folder).get(name)
     if why is not None:
@@ -216,7 +236,12 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
     rec = replace(rec, z=z)
     n = 6
     windows = peers.record_windows(f, rec, n)
-    solver = peers.make_peer(name, f, n, peers.find_acados(folder))
+    shared = name == "acados"
+    if shared:
+        solver = request.getfixturevalue("acados_peer")
+        solver.reset()
+    else:
+        solver = peers.make_peer(name, f, n, peers.find_acados(folder))
     nlp = build_nlp(f, n, 100, 1e-10)
     X = None
     worst = 0.0
@@ -232,50 +257,47 @@ def test_each_peer_solves_the_mhe_windows_to_ipopts_answers(name: str) -> None:
                 X_ipopt = np.asarray(ref["x"], dtype=float).reshape(n, f.nx)
                 worst = max(worst, float(np.abs(X - X_ipopt).max()))
     finally:
-        getattr(solver, "close", lambda: None)()
+        if not shared:  # (the module's acados peer is closed by its fixture)
+            getattr(solver, "close", lambda: None)()
     assert worst < 1e-6
 
 
-def test_acados_starts_each_window_from_its_shifted_multipliers() -> None:
+def test_acados_starts_each_window_from_its_shifted_multipliers(
+    acados_peer: peers.WindowSolver,
+) -> None:
     """As sqpmethod (``shifted_multipliers``) and the fast MHE, acados starts a window
     from the last answer's multipliers moved by one sample: each stage's dynamics
     multipliers, inequality multipliers and slacks are the next stage's of the answer
     before, the last stage's and the dynamics' into it the old last ones'; a new
-    recording starts from what acados holds."""
-    folder = os.environ.get(ACADOS_DIR_VARIABLE)
-    why = peers.missing_peers(folder).get("acados")
-    if why is not None:
-        pytest.skip(f"acados: {why} (or set {ACADOS_DIR_VARIABLE}=DIR)")
+    recording starts from what acados holds (the module's acados peer, N = 6)."""
     f = make_formulation("bend")
     rec = simulate("paper3d", duration=0.6, seed=3)
     n = 6
     windows = [w for w in peers.record_windows(f, rec, n) if w is not None]
-    solver = peers.make_peer("acados", f, n, peers.find_acados(folder))
+    solver = acados_peer
+    solver.reset()  # a new recording
     fields = (("pi", n - 1), ("lam", n), ("t", n))
-    try:
-        X = peers.shifted_guess(f, windows[0], None)
-        X, converged, _ = peers.solve_window(solver, windows[0], X)
-        assert converged
-        s = solver.solver  # type: ignore[attr-defined]
-        held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
-        assert np.any(held["pi"][1] != 0.0)
-        solver.prepare(windows[1], peers.shifted_guess(f, windows[1], X))
-        for k, m in fields:
-            for i in range(m):
-                np.testing.assert_array_equal(s.get(i, k), held[k][min(i + 1, m - 1)])
-        solver.prepare(windows[1], peers.shifted_guess(f, windows[1], X))  # not again
-        for k, m in fields:
-            for i in range(m):
-                np.testing.assert_array_equal(s.get(i, k), held[k][min(i + 1, m - 1)])
-        X, converged, _ = peers.solve_window(solver, windows[1], X)
-        held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
-        solver.reset()  # a new recording: nothing moved
-        solver.prepare(windows[2], peers.shifted_guess(f, windows[2], X))
-        for k, m in fields:
-            for i in range(m):
-                np.testing.assert_array_equal(s.get(i, k), held[k][i])
-    finally:
-        getattr(solver, "close", lambda: None)()
+    X = peers.shifted_guess(f, windows[0], None)
+    X, converged, _ = peers.solve_window(solver, windows[0], X)
+    assert converged
+    s = solver.solver  # type: ignore[attr-defined]
+    held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
+    assert np.any(held["pi"][1] != 0.0)
+    solver.prepare(windows[1], peers.shifted_guess(f, windows[1], X))
+    for k, m in fields:
+        for i in range(m):
+            np.testing.assert_array_equal(s.get(i, k), held[k][min(i + 1, m - 1)])
+    solver.prepare(windows[1], peers.shifted_guess(f, windows[1], X))  # not again
+    for k, m in fields:
+        for i in range(m):
+            np.testing.assert_array_equal(s.get(i, k), held[k][min(i + 1, m - 1)])
+    X, converged, _ = peers.solve_window(solver, windows[1], X)
+    held = {k: [np.array(s.get(i, k)) for i in range(m)] for k, m in fields}
+    solver.reset()  # a new recording: nothing moved
+    solver.prepare(windows[2], peers.shifted_guess(f, windows[2], X))
+    for k, m in fields:
+        for i in range(m):
+            np.testing.assert_array_equal(s.get(i, k), held[k][i])
 
 
 def test_an_acados_solver_that_does_not_build_is_one_line_and_leaves_no_folder(
