@@ -750,7 +750,9 @@ def _overbend_in_xz_plane() -> Recording:
 def test_mhe_converges_through_gimbal_lock_and_tracks_beyond(solver: str) -> None:
     rec = _overbend_in_xz_plane()
     f = BendFormulation(robot=RobotSettings(theta_max=3.0))
-    s = MovingHorizonEstimator(f, solver_settings(solver)).run(rec.t, rec.z)
+    # a window of 10 (HORIZON below), not the default 30: its mean tip error is the
+    # longer window's to 0.01 %, and the IPOPT MHE's time grows with the window
+    s = MovingHorizonEstimator(f, solver_settings(solver, horizon=10)).run(rec.t, rec.z)
     assert_ok_after_the_start(s.status)
     tip = np.linalg.norm(s.output[:, :3] - rec.truth[:, :3], axis=1)
     assert tip.mean() < 0.015 * 0.2 and tip.max() < 0.06 * 0.2
