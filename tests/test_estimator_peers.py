@@ -479,14 +479,19 @@ def overbend() -> Recording:
 @pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("name", FORMULATIONS)
 def test_mhe_never_exceeds_theta_max(name: str, solver: str, overbend) -> None:
-    assert overbend.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
+    # from 3 s on (the truth at 0.45 rad; the IPOPT MHE's time grows with the samples)
+    rec = dataclasses.replace(
+        overbend, t=overbend.t[60:], z=overbend.z[60:], truth=overbend.truth[60:]
+    )
+    assert rec.truth[:, 3].max() > 2.0  # the truth goes well past pi/2
     f = make_formulation(name)
     mhe = MovingHorizonEstimator(f, solver_settings(solver, horizon=HORIZON))
-    series = mhe.run(overbend.t, overbend.z)
+    series = mhe.run(rec.t, rec.z)
+    assert series.output[0, 3] < 1.0  # the estimate starts well below the bound
     assert np.all(np.isfinite(series.output))
     # IPOPT's default bound relaxation (1e-8 relative) allows ~1.6e-8 rad
     assert series.output[:, 3].max() <= f.robot.theta_max + 1e-7
-    late = overbend.t > 7.0  # truth beyond the bound: the estimate sits on it
+    late = rec.t > 7.0  # truth beyond the bound: the estimate sits on it
     assert_allclose(series.output[late, 3], f.robot.theta_max, rtol=0, atol=1e-3)
 
 
