@@ -425,6 +425,10 @@ def test_an_imu_back_from_a_silence_is_never_ok_far_off(index: int, silence) -> 
     this check). The estimate is ``uncertain`` until the returned IMU's readings have
     agreed with it for as long (library default: flagged, no restart)."""
     f, t, z, truth = silent_imu_recording(*silence)
+    # from 3 s before the silence (the IPOPT MHE's time grows with the samples): from
+    # the silence on, every status is the whole recording's, each output within 3e-5
+    keep = t >= silence[2] - 3.0
+    t, z, truth = t[keep], z[keep], truth[keep]
     est = recovery_estimators(bare(), f)[index]
     s = est.run(t, z)
     assert sigmas_off(s, truth)[s.status == "ok"].max() < SIGMAS
