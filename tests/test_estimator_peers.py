@@ -352,7 +352,7 @@ def test_mhe_matches_independent_opti_problem_with_active_disk_bound(solver: str
     # before the truth reaches pi/2 and ends on the bound with a full window
     rec = dataclasses.replace(rec, t=rec.t[100:], z=rec.z[100:], truth=rec.truth[100:])
     f = BendFormulation()
-    upto = len(rec.t) - 1  # truth theta = 1.85 rad > pi/2 at the end
+    upto = len(rec.t) - 1  # truth theta > pi/2 at the end
     assert upto + 1 > 15 and rec.truth[0, 3] < math.pi / 2 < rec.truth[-1, 3]
     # the estimate on the bound says so
     est, ours, peer = run_mhe_and_compare_window(f, rec, 15, upto, solver, "at-bound")
@@ -556,7 +556,8 @@ def straight_run(straight) -> Callable[[str, str], EstimateSeries]:
 def test_straight_configuration_gives_finite_estimates(
     name: str, kind: str, straight, straight_run
 ) -> None:
-    assert straight.truth[:, 3].min() < 1e-2  # the recording passes through straight
+    # the recording passes through straight after its start (at 5 s and 10 s)
+    assert straight.truth[len(straight.t) // 4 :, 3].min() < 1e-2
     series = straight_run(name, kind)
     assert np.all(np.isfinite(series.output))
     # the paper formulation's separate position may drift from its angles: flagged
