@@ -387,7 +387,7 @@ TWO_SECTIONS = Path(__file__).parents[1] / "src/continuum_mhe/data/robots/two_se
 #: deviation): tip IMU 3 s: EKF 138 mm (1.1), UKF 157 mm (1.7); middle IMU 3 s: EKF
 #: 67 mm (2.5), UKF 115 mm (2.1); tip IMU 2 s: 10 mm (1.0). Their standard deviations
 #: widen with the readings' disagreement, so SIGMAS guards against a covariance that
-#: collapses on a wrong estimate (the EKF's first update with the returned IMU did so).
+#: collapses on a wrong estimate (an EKF's first update with a returned IMU can do so).
 SILENCES = [(1, 1, 8.0, 3.0), (0, 0, 6.0, 3.0), (5, 1, 10.0, 2.0)]
 SIGMAS = 5.0  # no "ok" estimate may be further off than this many of its own std
 

@@ -827,13 +827,11 @@ def test_a_live_view_onto_a_full_disk_is_one_line_after_the_estimates_are_kept(
         assert list(small.iterdir()) == [filler]
 
 
-def test_a_view_whose_writer_does_not_finish_is_one_line_and_the_process_ends(
-    tmp_path: Path,
-) -> None:
-    """Rerun's file writer can wait forever (a full disk; here its file is a pipe that
-    nobody reads): closing the view waits FLUSH_TIMEOUT_S, names the file in one line
-    (nothing written), and the process ends (the recording, which would wait again
-    when closed or freed, is left as it is); a second close() does nothing."""
+def _view_onto_an_unread_pipe(tmp_path: Path, patches: str, report: str) -> Any:
+    """``view`` of a 2000-row estimate saved to ``tmp_path / "v.rrd"``, run in a new
+    interpreter whose Rerun file writer writes into a pipe that nobody reads (it waits,
+    as on a full disk), after ``patches`` (Python lines; ``view`` is the module); the
+    finished process, whose stdout has ``report`` (a Python expression) printed."""
     import subprocess
 
     est = tmp_path / "e.csv"
@@ -847,14 +845,26 @@ os.mkfifo(pipe)
 reader = os.open(pipe, os.O_RDONLY | os.O_NONBLOCK)  # open, never read: the writer waits
 from continuum_mhe.viewer import view
 view.temporary_beside = lambda path: pipe
-view.FLUSH_TIMEOUT_S = 1.0
+{patches}
 from continuum_mhe.cli import main
 code = main(["view", {str(est)!r}, "--save", {str(tmp_path / "v.rrd")!r}])
-print("main returned", code, flush=True)
+print({report}, flush=True)
 sys.exit(code)
 """
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           timeout=120)  # fmt: skip
+
+
+def test_a_view_whose_writer_does_not_finish_is_one_line_and_the_process_ends(
+    tmp_path: Path,
+) -> None:
+    """Rerun's file writer can wait forever (a full disk; here its file is a pipe that
+    nobody reads): closing the view waits FLUSH_TIMEOUT_S, names the file in one line
+    (nothing written), and the process ends (the recording, which would wait again
+    when closed or freed, is left as it is); a second close() does nothing."""
+    done = _view_onto_an_unread_pipe(
+        tmp_path, "view.FLUSH_TIMEOUT_S = 1.0", '"main returned", code'
+    )
     assert done.returncode == 2, done.stderr
     assert done.stderr == (
         f"continuum-mhe: error: {tmp_path / 'v.rrd'}: cannot write (Rerun's file writer did "
@@ -869,20 +879,8 @@ def test_a_writer_stuck_on_a_full_disk_is_given_up_after_one_slice(tmp_path: Pat
     reads, and the disk reports no room): closing the view gives it up after one
     FLUSH_SLICE_S in which its file did not grow, not after FLUSH_TIMEOUT_S, and says
     the disk is full."""
-    import subprocess
-
-    est = tmp_path / "e.csv"
-    est.write_text("t,x,y,z,theta,phi,status,solve_ms\n" + "".join(
-        f"{0.05 * k:.2f},0,0,0.2,0.1,0.2,ok,0.1\n" for k in range(2000)))  # fmt: skip
-    script = f"""
-import os, sys
-from pathlib import Path
-pipe = Path({str(tmp_path / "pipe")!r})
-os.mkfifo(pipe)
-reader = os.open(pipe, os.O_RDONLY | os.O_NONBLOCK)  # open, never read: the writer waits
+    patches = """
 import rerun
-from continuum_mhe.viewer import view
-view.temporary_beside = lambda path: pipe
 view.FLUSH_TIMEOUT_S = 600.0
 flushes = []
 flush = rerun.RecordingStream.flush
@@ -890,19 +888,15 @@ def counted(self, **kw):
     flushes.append(kw)
     return flush(self, **kw)
 rerun.RecordingStream.flush = counted
-from continuum_mhe.cli import main
 free = view.free_bytes
 calls = []
 def filled(folder):  # room at the start, none once the view was begun
     calls.append(folder)
     return free(folder) if len(calls) == 1 else 0
 view.free_bytes = filled
-code = main(["view", {str(est)!r}, "--save", {str(tmp_path / "v.rrd")!r}])
-print("flushes", [kw.get("timeout_sec") for kw in flushes], flush=True)
-sys.exit(code)
 """
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=120)  # fmt: skip
+    report = '"flushes", [kw.get("timeout_sec") for kw in flushes]'
+    done = _view_onto_an_unread_pipe(tmp_path, patches, report)
     assert done.returncode == 2, done.stderr
     assert done.stderr == (
         f"continuum-mhe: error: {tmp_path / 'v.rrd'}: cannot write (No space left on device) "

@@ -426,7 +426,7 @@ class BackboneView:
             self.rec.disconnect()
             os.replace(tmp, path)
         except (RuntimeError, OSError) as exc:
-            folder = path.parent if str(path.parent) else Path(".")
+            folder = path.parent  # "." for a bare file name
             reason = str(getattr(exc, "strerror", None) or exc)
             if self._stuck:
                 reason = f"Rerun's file writer did not finish in {FLUSH_TIMEOUT_S:g} s"
@@ -440,7 +440,8 @@ class BackboneView:
         stopped growing for a :data:`FLUSH_SLICE_S` on a full disk, is taken as stuck
         (:func:`_leave_unclosed`)."""
         started = time.monotonic()
-        folder = self.sink.path.parent if self.sink.path is not None else Path(".")
+        assert self.sink.path is not None  # a .rrd is being written (ViewerSink)
+        folder = self.sink.path.parent
         size = self._written_bytes()
         while True:
             left = FLUSH_TIMEOUT_S - (time.monotonic() - started)
