@@ -4,6 +4,31 @@ from __future__ import annotations
 
 import gc
 import os
+import shutil
+import sys
+import tempfile
+
+# Bytecode where PYTHONDONTWRITEBYTECODE is set: each interpreter the tests start (every
+# command-line run, and each pytest-xdist worker) would compile the package's modules
+# anew, about 0.4 s a run on 2 cores. Instead the session's interpreters share a
+# bytecode folder of the session's own (PYTHONPYCACHEPREFIX), removed when the session
+# ends; nothing is written beside the sources either way. Set by the first process only
+# (the xdist controller, before it starts its workers), which the workers inherit.
+_PYC_ENV = "CONTINUUM_MHE_TEST_PYCACHE"
+if os.environ.get("PYTHONDONTWRITEBYTECODE") and _PYC_ENV not in os.environ:
+    _pycache = tempfile.mkdtemp(prefix="continuum-mhe-tests-pyc-")
+    os.environ[_PYC_ENV] = os.environ["PYTHONPYCACHEPREFIX"] = _pycache
+    del os.environ["PYTHONDONTWRITEBYTECODE"]
+    sys.pycache_prefix, sys.dont_write_bytecode = _pycache, False
+else:
+    _pycache = None
+
+
+def pytest_unconfigure() -> None:
+    """Remove the session's bytecode folder (the process that made it)."""
+    if _pycache is not None:
+        shutil.rmtree(_pycache, ignore_errors=True)
+
 
 # One BLAS thread per test process (before numpy loads its BLAS): the estimators'
 # matrices are small, and with a worker per core an idle BLAS thread's spinning takes
