@@ -4,6 +4,7 @@ objective with those rows as constraints, and the evaluations a start takes."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 from pathlib import Path
 
@@ -170,9 +171,17 @@ def test_a_start_under_load_takes_few_evaluations(
     assert np.abs(r[f.nz - n_eq :]).max() <= SETTLE_TOLERANCE
 
 
-def _residual(f, x, z0):  # type: ignore[no-untyped-def]
+@functools.cache
+def _residual_function(f):  # type: ignore[no-untyped-def]
+    """The measurement residual ``(x, z) -> r`` of the formulation ``f`` (a CasADi
+    function, immutable): built once a process for equal formulations (the raw start's
+    two tests)."""
     xs, zs = ca.SX.sym("x", f.nx), ca.SX.sym("z", f.nz)
-    fn = ca.Function("r", [xs, zs], [f.measurement_residual_sym(zs, xs)])
+    return ca.Function("r", [xs, zs], [f.measurement_residual_sym(zs, xs)])
+
+
+def _residual(f, x, z0):  # type: ignore[no-untyped-def]
+    fn = _residual_function(f)
     z = np.nan_to_num(np.asarray(z0, dtype=float))
     return fn, np.asarray(fn(x, z), dtype=float).ravel()
 
