@@ -776,6 +776,17 @@ def test_the_start_misfit_weighs_the_direction_rows_by_noise_and_imu_errors() ->
     assert limit == pytest.approx(chi2.ppf(1 - LOADED_START_PROBABILITY, 3), rel=1e-9)
 
 
+def _estimate_with_own_tensions(meas: Path, name: str, out: Path) -> str:
+    """``estimate`` of ``meas`` into ``out`` with only ``--robot`` and ``--inputs`` (the
+    shipped ``name``'s tensions): what it said on stderr."""
+    argv = ["estimate", str(meas), "--robot", "tendon-two-section",
+            "--inputs", str(DATA / f"{name}_tensions.csv"), "-o", str(out)]  # fmt: skip
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(argv) == 0
+    return err.getvalue()
+
+
 @pytest.fixture(scope="module")
 def twist08_raw_4s(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     """``estimate`` with only ``--robot`` and ``--inputs`` on the first 200 samples (4 s)
@@ -786,12 +797,7 @@ def twist08_raw_4s(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]
     raw = folder / "twist-08_raw_4s.csv"
     raw.write_text("\n".join((DATA / "twist-08_raw.csv").read_text().splitlines()[:201]) + "\n")
     out = folder / "e.csv"
-    argv = ["estimate", str(raw), "--robot", "tendon-two-section",
-            "--inputs", str(DATA / "twist-08_tensions.csv"), "-o", str(out)]  # fmt: skip
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err):
-        assert main(argv) == 0
-    return out, err.getvalue()
+    return out, _estimate_with_own_tensions(raw, "twist-08", out)
 
 
 def test_the_first_second_of_a_raw_recording_is_not_bent_by_the_imus_errors(
@@ -1331,12 +1337,7 @@ def force29_estimate(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, st
     stderr)``, run once a module (seconds) for the tests that read the one and the
     other."""
     out = tmp_path_factory.mktemp("force29") / "e.csv"
-    argv = ["estimate", str(DATA / "force-29_raw.csv"), "--robot", "tendon-two-section",
-            "--inputs", str(DATA / "force-29_tensions.csv"), "-o", str(out)]  # fmt: skip
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err):
-        assert main(argv) == 0
-    return out, err.getvalue()
+    return out, _estimate_with_own_tensions(DATA / "force-29_raw.csv", "force-29", out)
 
 
 def test_estimate_follows_the_loaded_robot_and_its_tip_force(
