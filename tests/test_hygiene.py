@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -10,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -268,3 +270,17 @@ def test_no_development_history_in_docs_or_source():
         if HISTORY.search(line)
     ]
     assert not found, "\n".join(found)
+
+
+def test_the_suites_interpreters_share_one_bytecode_folder() -> None:
+    """Under PYTHONDONTWRITEBYTECODE the suite's interpreters (this worker and a command
+    it starts) write their bytecode into the session's folder (tests/conftest.py), not
+    nowhere and not beside the sources."""
+    folder = os.environ.get("CONTINUUM_MHE_TEST_PYCACHE")
+    if folder is None or not Path(folder).is_dir():
+        pytest.skip("PYTHONDONTWRITEBYTECODE is not set: bytecode goes beside the sources")
+    assert "PYTHONDONTWRITEBYTECODE" not in os.environ
+    assert (sys.pycache_prefix, sys.dont_write_bytecode) == (folder, False)
+    code = "import sys; print(sys.pycache_prefix, sys.dont_write_bytecode)"
+    r = _run(sys.executable, "-c", code)
+    assert r.stdout.split() == [folder, "False"], r.stderr
