@@ -62,7 +62,7 @@ class Status(str, Enum):
     )
     FALLBACK_IPOPT = (
         "fallback-ipopt",
-        "the fast MHE backend did not answer; IPOPT solved this window",
+        "the fast MHE backend could not certify its answer to this window; IPOPT solved it",
     )
     BRANCH_RESTART = (
         "branch-restart",
@@ -106,9 +106,10 @@ class Status(str, Enum):
     INCONSISTENT = (
         "inconsistent",
         "an estimate was made, but the readings disagree with it beyond their noise (this "
-        "sample's normalised residual, or its recent average, beyond the chi-square 99.9 % "
-        "quantile): the model does not follow the data here; the standard deviations are "
-        "widened by the estimated model error (noise_scale)",
+        "sample's normalised residual beyond the chi-square 99.99 % quantile, or beyond "
+        "99 % here and at the sample before, or their recent average beyond the 99.9 % "
+        "quantile of its F distribution): the model does not follow the data here; the "
+        "standard deviations are widened by the estimated model error (noise_scale)",
     )
 
 
