@@ -593,7 +593,9 @@ def test_the_help_and_the_options_page_say_an_option_measured_worse(
 
     from continuum_mhe.cli import build_parser
 
-    clause = f"worse on the shipped two-section rods: {numbers}"
+    clause = (
+        f"worse on the shipped two-section rods (the shipped robot file, uncalibrated): {numbers}"
+    )
     parser = build_parser(only="estimate")
     (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     help_text = commands.choices["estimate"]._option_string_actions[flag].help or ""
@@ -1229,3 +1231,20 @@ def test_evaluate_says_the_ok_rows_are_unknown_without_a_status_column(
     assert f"ok rows              {n_ok} of {len(rows)} (no std_ columns: no coverage)" in said
     assert main(["evaluate", str(no_std), str(truth), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["ok_rows"] == n_ok > 0
+
+
+def test_a_second_demo_in_its_own_folder_replaces_its_files(tmp_path, monkeypatch, short_demo):
+    """The README's main command runs twice: without ``--out`` the demo writes into its
+    own folder and replaces the files of the demo before (with ``--out`` a folder that
+    holds them needs ``--overwrite``: the test above)."""
+    from continuum_mhe.cli.demo import DEFAULT_OUT
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo"]) == 0
+    for name in ("truth.csv", "estimates_mhe.csv"):
+        (tmp_path / DEFAULT_OUT / name).write_text("old\n")
+    assert main(["demo"]) == 0
+    assert (tmp_path / DEFAULT_OUT / "truth.csv").read_text().startswith("t,")
+    assert (tmp_path / DEFAULT_OUT / "estimates_mhe.csv").read_text().startswith("# options")
+    assert main(["demo", "--out", DEFAULT_OUT + "-2"]) == 0
+    assert main(["demo", "--out", DEFAULT_OUT + "-2"]) == 2

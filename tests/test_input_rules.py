@@ -343,6 +343,8 @@ def test_an_imu_at_the_very_base_is_not_called_observable(tmp_path: Path) -> Non
         ("--horizon", "3.5", "--horizon '3.5': expected a whole number"),
         ("--noise-deg", "two", "--noise-deg 'two': expected a number"),
         ("--method", "ekff", "--method 'ekff': expected one of mhe, ekf, ukf; did you mean ekf?"),
+        ("--method", "EKF", "--method 'EKF': expected one of mhe, ekf, ukf; did you mean ekf?"),
+        ("--method", "Mhe", "--method 'Mhe': expected one of mhe, ekf, ukf; did you mean mhe?"),
         ("--imu-model", "gyro", "--imu-model 'gyro': expected one of tilt, direct ("),
     ],
 )

@@ -33,6 +33,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+DESCRIPTION = (
+    "Say whether a robot's IMUs determine its shape: the rank of their readings with "
+    "respect to the bend coordinates (a tendon robot: the tip force, its tensions given) "
+    "over random shapes of the workspace, for tilt IMUs and with gyros, its least "
+    "observable shapes, and a verdict. A robot whose shape its IMUs do not determine is "
+    "estimated with every row uncertain."
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from continuum_mhe.io.robot_file import shipped_robots
 

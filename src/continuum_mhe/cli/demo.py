@@ -27,6 +27,9 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+#: The demo's own folder, where it writes without --out (and replaces its files).
+DEFAULT_OUT = "continuum-mhe-demo"
+
 DESCRIPTION = (
     "Simulate the paper's 3D motion (or a robot file's), run the MHE, EKF and UKF on it, "
     "print their errors against the truth and plot them: the whole tool on built-in data."
@@ -36,9 +39,10 @@ DESCRIPTION = (
 def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    out = Path(args.out)
+    out = Path(args.out or DEFAULT_OUT)
     robot = robot_from_args(args) if args.robot else Robot.single(0.2)
-    check_new_folder(out, args.overwrite, demo_files(robot))
+    # the default folder is the demo's own: a second demo there replaces its files
+    check_new_folder(out, args.overwrite or args.out is None, demo_files(robot))
     scenario: ScenarioName = "paper3d" if robot.n_sections == 1 else "spatial"
     try:
         rec = simulate_robot(scenario, robot, seed=args.seed)
@@ -141,11 +145,14 @@ def _demo_figures(
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--out",
-        default="continuum-mhe-demo",
-        help="folder for figures and CSVs (default continuum-mhe-demo)",
+        default=None,
+        help=f"folder for figures and CSVs (default {DEFAULT_OUT}, whose demo files a new "
+        "demo replaces; in another folder only with --overwrite)",
     )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument(
-        "--overwrite", action="store_true", help="replace the demo's files in --out if there"
+        "--overwrite",
+        action="store_true",
+        help=f"replace the demo's files in --out if there (always in {DEFAULT_OUT})",
     )
     add_robot_option(p, replaces=(), tendons=False)

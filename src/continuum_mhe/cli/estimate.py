@@ -471,6 +471,17 @@ def check_output_path(output: str, source: str, overwrite: bool = False) -> None
     check_output_target(output, overwrite)
 
 
+DESCRIPTION = (
+    "Estimate the robot's shape and tip from a recording of its IMUs (tilt or raw "
+    "accelerometer and gyro), one row per sample: the tip x, y, z (m), each section's "
+    "bend, their standard deviations, the row's status and the solve time. The robot "
+    "comes from --robot (a robot file, or a shipped robot's name) or, for one section, "
+    "--length; a tendon robot takes its tensions with --inputs and adds the tip force. "
+    "The defaults are the best configuration measured for the data given (raw IMUs: their "
+    "gyros and gyro biases); the options below say where one helps and where it is worse."
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "measurements", help="CSV (t,roll,pitch or raw t,ax,ay,az[,gx,gy,gz]), ROS bag, or .mcap"

@@ -363,6 +363,16 @@ def format_metrics(m: Metrics, comparable: bool = True) -> str:
     return "\n".join(lines)
 
 
+DESCRIPTION = (
+    "Score an estimate file against a truth (a simulation's, or a motion-capture log with "
+    "t,x,y,z and any per-section columns), aligned by time (interpolated where the rows "
+    "differ): the tip error in mm and in % of the robot's length, the RMSE of every "
+    "output the truth has, how often the 95 % intervals held the truth (all rows, and "
+    "the rows marked ok) and the tip NEES. The robot is the estimate's own (its options "
+    "line) unless --robot or --length is given."
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("estimates", help="estimate CSV or MCAP, as estimate -o writes it")
     p.add_argument("truth", nargs="?", help="truth CSV: t and the true outputs (x, y, z, ...)")

@@ -27,7 +27,11 @@ class OneLineParser(argparse.ArgumentParser):
             import difflib
 
             choices = [x.strip(" '") for x in c.group(3).split(",")]
-            close = difflib.get_close_matches(c.group(2), choices, n=1, cutoff=0.6)
+            by_lower = {x.lower(): x for x in choices}  # EKF for ekf: case alone is close
+            close = [
+                by_lower[x]
+                for x in difflib.get_close_matches(c.group(2).lower(), by_lower, n=1, cutoff=0.6)
+            ]
             what = (
                 f"{c.group(2)!r} is not a command"
                 if c.group(1) == "COMMAND"

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 PROG = "continuum-mhe"
 DESCRIPTION = (
     "Shape and tip estimation of continuum robots from IMUs on the robot "
-    "(constrained MHE, EKF, UKF; any piecewise-constant-curvature robot)."
+    "(constrained MHE, EKF, UKF): any piecewise-constant-curvature robot, and "
+    "tendon-driven robots on a Cosserat-rod model with their tensions as inputs and "
+    "the tip force estimated."
 )
 
 

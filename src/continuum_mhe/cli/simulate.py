@@ -123,8 +123,24 @@ def _bends_beyond_bounds(truth: np.ndarray, names: list[str], robot: Robot) -> s
     return "; ".join(said)
 
 
+DESCRIPTION = (
+    "Write a synthetic recording of a constant-curvature robot's motion (noisy tilt or "
+    "raw IMU readings) and, with --truth, its true shape, to try the tool without a "
+    "robot. Its readings follow the model the estimators use (raw ones with each IMU's "
+    "own acceleration, which estimate leaves out without --own-acceleration); the "
+    "Cosserat-rod recordings shipped in the package (data/rod2, data/tendon) do not."
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", choices=SCENARIOS)
+    p.add_argument(
+        "scenario",
+        choices=SCENARIOS,
+        help="the motion: one section: paper3d (the paper's 3D motion), planar-overbend "
+        "(one plane, past 90 degrees), straight (through the straight pose); two or more "
+        "sections (--robot): s-curve (neighbours bent opposite ways), spatial (turning "
+        "bending planes); any robot: rest (straight and still, for calibrate --from)",
+    )
     p.add_argument("-o", "--output", required=True, help="measurement CSV to write")
     p.add_argument("--truth", help="truth CSV to write")
     add_overwrite_option(p, "-o or --truth")
