@@ -1246,5 +1246,3 @@ def test_a_second_demo_in_its_own_folder_replaces_its_files(tmp_path, monkeypatc
     assert main(["demo"]) == 0
     assert (tmp_path / DEFAULT_OUT / "truth.csv").read_text().startswith("t,")
     assert (tmp_path / DEFAULT_OUT / "estimates_mhe.csv").read_text().startswith("# options")
-    assert main(["demo", "--out", DEFAULT_OUT + "-2"]) == 0
-    assert main(["demo", "--out", DEFAULT_OUT + "-2"]) == 2

@@ -102,6 +102,16 @@ def _table_rows(text: str, sep: str) -> dict[str, list[str]]:
     return rows
 
 
+#: The README's length, words (split on white space): the documentation site holds the rest.
+README_WORDS = 1500
+
+
+def test_the_readme_is_short():
+    """The README stays a short guide of at most :data:`README_WORDS` words."""
+    words = len((ROOT / "README.md").read_text(encoding="utf-8").split())
+    assert words <= README_WORDS, f"README.md has {words} words, at most {README_WORDS}"
+
+
 def test_readme_demo_command_runs_and_prints_the_readme_numbers(tmp_path):
     """``continuum-mhe demo`` runs as the README says, and its errors are the README's
     table (tip mean mm and %, tip max mm, theta RMSE deg, to the printed precision)
