@@ -452,6 +452,11 @@ def _bend() -> Formulation:
         (lambda: make_estimator("ekf", _bend()).step((0.0, [0, 0])), "must be a Measurement"),
         (lambda: Measurement("0.1", np.zeros(2)), "measurement t must be a number, got '0.1'"),
         (lambda: Measurement(0.1, "ab"), "measurement z must be numbers"),
+        (lambda: Measurement(0.1, np.array([0.1 + 1j, 0.2])), "measurement z must be real"),
+        (
+            lambda: make_estimator("ekf", _bend()).run(np.zeros(2), np.ones((2, 2)) * 1j),
+            "arrays of real numbers",
+        ),  # fmt: skip
         (lambda: make_estimator("ekf", _bend()).run("abc", "def"), "arrays of numbers"),
         (lambda: make_estimator("ekf", _bend()).run(None, None), "z is None: give the readings"),
         (lambda: simulate("paper3d", dt="0.05"), "dt must be a number, got '0.05'"),
@@ -643,6 +648,8 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
     assert simulate("paper3d", duration=0.2, length=np.float32(0.2)).length == pytest.approx(0.2)
     mistakes = [
         (lambda: NoiseSettings(measurement_std=2.0), r"beyond 90 degrees: degrees\? it is in "),
+        (lambda: NoiseSettings(reading_bias_std=1.7), r"^reading_bias_std 1.7 rad .* degrees\?"),
+        (lambda: NoiseSettings(model_error_std=4.0), r"^model_error_std 4.0 rad .* degrees\?"),
         (lambda: simulate("paper3d", length=200.0), "millimetres"),
         # refused where it is made, as the settings promise, not later in the model
         (lambda: RobotSettings(length=200.0), "section length 200.0 m is over 5.0 m"),
@@ -726,6 +733,22 @@ def test_run_on_a_recording_without_a_reading_warns_that_nothing_was_estimated()
         warnings.simplefilter("error", DropoutWarning)
         series = est.run(rec.t, z)
     assert "no-estimate" in set(series.status) and len(set(series.status)) > 1
+
+
+def test_paper_start_with_a_horizon_beyond_the_recording_is_named_as_the_cause() -> None:
+    """``paper_start`` makes no estimate until its window is full: on a recording shorter
+    than the horizon the warning that nothing was estimated names that, not the
+    diagnostics (whose counts are all zero there)."""
+    from continuum_mhe.io.csv_files import DropoutWarning
+
+    rec = simulate("paper3d", seed=1, duration=2.0)
+    est = make_estimator(
+        "mhe", make_formulation("bend"), MHESettings(horizon=100, paper_start=True)
+    )
+    with pytest.warns(DropoutWarning, match=r"paper_start makes no estimate before the window's "
+                      r"horizon of 100 samples is full"):  # fmt: skip
+        series = est.run(rec.t, rec.z)
+    assert set(series.status) == {"no-estimate"}
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,9 @@ from continuum_mhe.io.estimate_csv import write_table
 from continuum_mhe.io.input_options import OptionWarning
 from continuum_mhe.io.state_tables import read_state_table
 from continuum_mhe.io.text_rows import CutLineWarning
+from continuum_mhe.model.robot import ImuPlacement, Robot, Section
 from continuum_mhe.settings import RobotSettings
+from continuum_mhe.simulation.scenarios import simulate_robot
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
 DATA_ROBOTS = Path(__file__).resolve().parents[1] / "src" / "continuum_mhe" / "data" / "robots"
@@ -1293,6 +1295,42 @@ def test_compute_metrics_refuses_what_does_not_fit_in_one_user_error() -> None:
     for args, match in cases:
         with pytest.raises(UserError, match=match):
             compute_metrics(*args)
+
+
+def test_compute_metrics_refuses_positions_in_mm_of_a_robot_of_several_sections() -> None:
+    """Positions in mm on a two-section robot, whose bend columns (theta_1, theta_2, ...)
+    the one ``length`` cannot check: the tip's distance from the base alone says it (a
+    2,000 mm tip error without it), on either side and on both."""
+    robot = Robot((Section(0.16, 3.0), Section(0.14, 3.0)), (ImuPlacement(0), ImuPlacement(1)))
+    rec = simulate_robot("s-curve", robot, duration=1.0, seed=1)
+    s = make_estimator("ekf", make_formulation("bend", robot)).run(rec.t, rec.z)
+    names = list(s.names)
+    metres = [i for i, o in enumerate(s.outputs) if o.unit == "m"]
+    est_mm, truth_mm = s.output.copy(), rec.truth.copy()
+    est_mm[:, metres] *= 1000.0
+    truth_mm[:, metres] *= 1000.0
+    assert compute_metrics(s.output, rec.truth, 0.3, names).tip_mean_mm < 50.0
+    for args, side in (((est_mm, rec.truth), "estimate"), ((s.output, truth_mm), "truth"),
+                       ((est_mm, truth_mm), "estimate")):  # fmt: skip
+        with pytest.raises(UserError, match=rf"^{side}: its tip is .* positions in mm\?"):
+            compute_metrics(*args, 0.3, names)
+
+
+def test_aligned_truth_refuses_a_truth_whose_rows_and_times_differ() -> None:
+    """``aligned_truth`` with times of another length than the truth's rows (rows paired
+    five samples apart, 16 mm of error added, without it), or values of another column
+    count than their names: a UserError naming both; the same arrays aligned run."""
+    from continuum_mhe.evaluation.metrics import aligned_truth
+
+    rec = simulate("paper3d", duration=2.0, seed=1)
+    names = [o.name for o in rec.outputs]
+    with pytest.raises(UserError, match=r"^values has 41 rows but t_truth has 36"):
+        aligned_truth(rec.t, rec.t[5:], rec.truth, names)
+    with pytest.raises(UserError, match=r"^values has 5 columns, but names gives 3"):
+        aligned_truth(rec.t, rec.t, rec.truth, names[:3])
+    i_est, rows, interpolated = aligned_truth(rec.t, rec.t, rec.truth, names)
+    assert len(i_est) == len(rec.t) and not interpolated
+    np.testing.assert_array_equal(rows, rec.truth)
 
 
 def test_compute_metrics_skips_rows_without_a_finite_truth_and_counts_them() -> None:

@@ -138,6 +138,8 @@ class Measurement:
         if self.labels is None and index is not None and hasattr(index, "tolist"):
             object.__setattr__(self, "labels", tuple(str(c) for c in index.tolist()))
         object.__setattr__(self, "t", real_number("measurement t", self.t))
+        if np.iscomplexobj(self.z):  # numpy would drop the imaginary part
+            raise UserError(f"measurement z must be real numbers, got complex {self.z!r:.60}")
         try:
             z = np.asarray(masked_as_missing(self.z), dtype=float)
         except (TypeError, ValueError):

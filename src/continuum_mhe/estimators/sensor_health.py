@@ -61,6 +61,7 @@ from continuum_mhe.io.csv_files import (
     UnitWarning,
     check_time_steps,
 )
+from continuum_mhe.io.input_options import check_mounting
 from continuum_mhe.io.raw_imu import RAW_IMU_COLUMNS
 from continuum_mhe.io.tensions import tension_scale_problem
 from continuum_mhe.model.formulations import MIN_NOISE_STEP_S, Formulation
@@ -583,7 +584,13 @@ class Estimator(Generic[InferenceT]):
         in the compiled policy, which steps each block without holding the GIL (other
         Python threads go on; another thread's call into this estimator meanwhile is a
         RuntimeError; ``progress`` is shown per block of samples); the series carries a
-        copy of :attr:`diagnostics` (``series.diagnostics``)."""
+        copy of :attr:`diagnostics` (``series.diagnostics``).
+
+        The first readings are checked against the robot's ``mounting`` as a recording's
+        reader checks them (:func:`~continuum_mhe.io.input_options.check_mounting`): a
+        :class:`UserError` where gravity says the robot is mounted the other way, a
+        :class:`~continuum_mhe.io.input_options.MountingWarning` where it starts bent past
+        90 degrees or an IMU reads as if mounted upside down."""
         if progress is not None and not callable(progress):
             raise UserError(
                 "progress must be a callable that wraps an iterable and yields its items "
@@ -599,6 +606,9 @@ class Estimator(Generic[InferenceT]):
                 "samples per second): t must be in seconds"
             )
         self._check_units(t, z)
+        # the first readings against the robot's mounting, as a recording's reader checks
+        # them: a robot described the wrong way up fits them bent past 90 degrees
+        check_mounting("run", z, self.formulation, python=True)
         self.reset()
         self._time_steps.done = True  # the whole recording's times were checked above
         self._refuse_before_stepping(t, z)
@@ -611,9 +621,14 @@ class Estimator(Generic[InferenceT]):
         self._ran = True
         no_estimate = STATUSES.index(Status.NO_ESTIMATE)
         if n and bool((batch.status == no_estimate).all()):
+            settings = getattr(self.inference, "settings", None)
+            horizon = getattr(settings, "horizon", 0)
             why = (
                 "every reading is missing (NaN: a dropout)"
                 if not np.isfinite(z).any()
+                else f"paper_start makes no estimate before the window's horizon of {horizon} "
+                "samples is full: give a shorter horizon or leave paper_start out"
+                if getattr(settings, "paper_start", False) and horizon > n
                 else "see series.diagnostics"
             )
             warnings.warn(
@@ -679,6 +694,10 @@ class Estimator(Generic[InferenceT]):
         nz = self.formulation.nz
         if z is None:
             raise UserError(f"z is None: give the readings, an array (n, {nz})")
+        if np.iscomplexobj(t) or np.iscomplexobj(z):  # numpy would drop the imaginary part
+            raise UserError(
+                "t and z must be arrays of real numbers (t (n,) s, z (n, m)), got complex"
+            )
         try:  # masked or pandas' missing entries are NaN (such a t is refused: not finite)
             t = np.ascontiguousarray(masked_as_missing(t), dtype=np.float64)
             z = np.ascontiguousarray(masked_as_missing(z), dtype=np.float64)

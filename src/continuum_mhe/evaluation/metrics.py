@@ -176,8 +176,13 @@ def compute_metrics(
             raise UserError(f"both sides need the tip column {c!r}")
     # positions in another unit than m (as evaluate refuses them): against the robot's
     # length, then the truth against the estimate
+    # (the bend columns of several sections need their lengths, which ``length`` does not
+    # give: there the tip's distance alone, as a file without angles is judged)
     for side, side_names, values in (("estimate", names, est_all), ("truth", tnames, tru_all)):
-        if problem := position_unit_problem(side_names, values, [length]):
+        tip_only = values[:, [side_names.index(c) for c in TIP_COLUMNS]]
+        if problem := position_unit_problem(side_names, values, [length]) or (
+            position_unit_problem(TIP_COLUMNS, tip_only, [length])
+        ):
             raise UserError(f"{side}: {problem}")
     if problem := position_unit_against(tnames, tru_all, names, est_all):
         raise UserError(f"truth: {problem}")
@@ -474,12 +479,29 @@ def aligned_truth(
     estimate's rows have one, the truth interpolated at the estimate's times
     (:func:`truth_at`) where that compares more rows (``interpolated`` True). A
     :class:`TruthCoverageWarning` where fewer than half of the estimate's rows are
-    compared (``warn=False``: none; the command line says it with the files' names)."""
+    compared (``warn=False``: none; the command line says it with the files' names).
+
+    Raises:
+        UserError: ``values`` that are not (len(t_truth), len(names)) numbers, or times
+            that are not 1-D.
+    """
+    names = _column_names("names", names)
+    table = _table("values", values, names, "names")
+    t_est, t_truth = np.asarray(t_est, dtype=float), np.asarray(t_truth, dtype=float)
+    if t_est.ndim != 1 or t_truth.ndim != 1:
+        raise UserError(
+            f"t_est and t_truth must be 1-D arrays of times, got shapes {t_est.shape} and "
+            f"{t_truth.shape}"
+        )
+    if len(table) != len(t_truth):
+        raise UserError(
+            f"values has {len(table)} rows but t_truth has {len(t_truth)}: one truth row per time"
+        )
     i_est, i_truth = match_rows(t_est, t_truth)
-    rows = np.asarray(values, dtype=float)[i_truth]
+    rows = table[i_truth]
     interpolated = False
     if len(i_est) < INTERPOLATE_BELOW * len(t_est):
-        found = truth_at(t_est, t_truth, values, names)
+        found = truth_at(t_est, t_truth, table, names)
         if found is not None and len(found[0]) > len(i_est):
             i_est, rows, interpolated = found[0], found[1], True
     if warn and len(i_est) < 0.5 * len(t_est):

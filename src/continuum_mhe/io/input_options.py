@@ -283,14 +283,22 @@ def flipped_mounting(mounting: str) -> tuple[str, str]:
     return other, "hangs from its base" if other == "z-down" else "stands on its base"
 
 
-def robot_fix(key: str, robot_file: str | None, value: str | None = None) -> str:
+def robot_fix(
+    key: str, robot_file: str | None, value: str | None = None, python: bool = False
+) -> str:
     """How a message says to change the robot's ``key`` (``mounting``, ``theta_max``):
     to ``value`` (``set mounting = "z-down" in the robot file R``), or up where it is
     None (``raise theta_max in the robot file R``); in the robot file where
     ``robot_file`` (as named on the command line) describes the robot, else by the
     one-section option (``give --mounting z-down``, ``raise --theta-max``), the only
     place each is given. A shipped robot named by its name (``two-section``) is changed
-    in a copy of its file (:func:`~continuum_mhe.io.robot_file.shipped_robots`)."""
+    in a copy of its file (:func:`~continuum_mhe.io.robot_file.shipped_robots`). For a
+    caller in Python (``python``), the robot's field: ``make the Robot with
+    mounting="z-down"``, ``raise the Sections' theta_max``."""
+    if python:
+        if value:
+            return f'make the Robot with {key}="{value}"'
+        return f"raise the Sections' {key}"
     if robot_file:
         shipped = shipped_robots().get(robot_file)
         where = (
@@ -312,7 +320,11 @@ ORDER_HINT = (
 
 
 def check_mounting(
-    name: str, z: FloatArray, formulation: Formulation, robot_file: str | None = None
+    name: str,
+    z: FloatArray,
+    formulation: Formulation,
+    robot_file: str | None = None,
+    python: bool = False,
 ) -> None:
     """Refuse, in one line naming ``mounting``, a recording whose first readings put
     the IMU nearest the base more than :data:`MOUNTING_FLIPPED` from the straight pose
@@ -321,9 +333,10 @@ def check_mounting(
     :data:`MOUNTING_MARGIN`) but within it, a :class:`MountingWarning` says which
     mounting the start is closer to, and whether the sections' ``theta_max`` let the
     stated mounting reach it at all; each names the fix as the robot file's key, or
-    without ``robot_file`` the option (:func:`robot_fix`). The IMUs further out are
-    checked against the one before them (:func:`check_imu_mountings`)."""
-    _check_base_mounting(name, z, formulation, robot_file)
+    without ``robot_file`` the option (:func:`robot_fix`; ``python``: the Robot's field).
+    The IMUs further out are checked against the one before them
+    (:func:`check_imu_mountings`)."""
+    _check_base_mounting(name, z, formulation, robot_file, python)
     check_imu_mountings(name, z, formulation)
 
 
@@ -375,7 +388,7 @@ def _reach_between(robot: Robot, before: int, k: int) -> float:
 
 
 def _check_base_mounting(
-    name: str, z: FloatArray, formulation: Formulation, robot_file: str | None
+    name: str, z: FloatArray, formulation: Formulation, robot_file: str | None, python: bool
 ) -> None:
     """:func:`check_mounting`'s check of the IMU nearest the base."""
     got = start_bend_angle(z, formulation)
@@ -404,7 +417,7 @@ def _check_base_mounting(
             f" (IMU {', '.join(map(str, upright))} {reads} upright: is IMU {k + 1} alone "
             f"mounted upside down? its mount_rpy; {ORDER_HINT})"
         )
-    fix = robot_fix("mounting", robot_file, other)
+    fix = robot_fix("mounting", robot_file, other, python)
     imu = robot.imus[k]
     # the largest angle the sections up to the IMU can bend it through (theta_max each;
     # a tendon robot's mechanics model has no such bound)
@@ -425,9 +438,10 @@ def _check_base_mounting(
         raise InputError(f"{where}: the robot {pose}? {fix}{alone}")
     bound = ""
     if angle > reach + MOUNTING_MARGIN and not robot.has_mechanics:
+        raise_it = robot_fix("theta_max", robot_file, python=python)
         bound = (
             f"; it is beyond the {math.degrees(reach):.0f} degrees the sections' theta_max "
-            f"let it bend (if the robot does bend so far, {robot_fix('theta_max', robot_file)})"
+            f"let it bend (if the robot does bend so far, {raise_it})"
         )
     if upright:  # a start bent this far is the likelier reading of a warning's angle
         alone = (

@@ -119,3 +119,9 @@ class NoiseSettings:
             value = getattr(self, name)
             if not (is_real(value) and math.isfinite(value) and value >= 0):
                 raise UserError(f"{name} must be a finite number >= 0 (rad), got {value!r}")
+            if value > MAX_MEASUREMENT_STD:  # no reading's constant error is that large
+                raise UserError(
+                    f"{name} {value!r} rad ({math.degrees(value):.3g} deg) is beyond 90 "
+                    f"degrees: degrees? it is in radians ({value!r} deg = "
+                    f"{math.radians(value):.4g} rad)"
+                )
