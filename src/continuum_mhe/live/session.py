@@ -302,9 +302,11 @@ class LiveSession:
         self._joined = True
         #: that first line, parsed, until the next sample shows whether it was whole
         self._held: tuple[Sample, float] | None = None
-        # a sample whose t_ms jumped back with no reconnect or banner before it: a
-        # restart if the next sample follows it, else a corrupted t_ms
-        self._jumped: tuple[Sample, float] | None = None
+        # a sample whose t_ms jumped back with no reconnect or banner before it (a
+        # restart if the next sample follows it, else a corrupted t_ms), or ahead of the
+        # time the host saw pass (a gap if the next sample follows it, else a corrupted
+        # t_ms), with its arrival and whether it jumped ahead
+        self._jumped: tuple[Sample, float, bool] | None = None
         #: arrival of the first of the garbled lines since the last valid sample, and
         #: their count
         self._garbage_since: float | None = None
@@ -327,8 +329,8 @@ class LiveSession:
         be cut. A line held for jumping back before it went away is settled first, as
         the device's restart (no line after it can say otherwise)."""
         if self._jumped is not None and self.fatal is None:
-            (held, arrival), self._jumped = self._jumped, None
-            self._handle_sample(held, arrival)
+            (held, arrival, ahead), self._jumped = self._jumped, None
+            self._handle_sample(held, arrival, confirmed=ahead)
         self.clock.expect_restart()
         self._joined = True
 
@@ -476,16 +478,35 @@ class LiveSession:
             if self.fatal is not None:
                 return None
         if self.clock.jumps_back(sample.t_ms):  # a restart, or one corrupted t_ms?
-            self._jumped = (sample, arrival)
+            self._jumped = (sample, arrival, False)
+            return None
+        if self.clock.jumps_ahead(sample.t_ms, arrival):  # a gap, or one corrupted t_ms?
+            self._jumped = (sample, arrival, True)
             return None
         return self._handle_sample(sample, arrival)
 
     def _release_jumped(self, following: Sample | None) -> None:
         """The sample held for jumping back: the device's restart when ``following``
         (the next sample) follows it rather than the old clock, else an out-of-order
-        sample (its ``t_ms`` corrupted; also when nothing follows)."""
+        sample (its ``t_ms`` corrupted; also when nothing follows). Held for jumping
+        ahead: the first sample after a gap when ``following`` follows it, else out of
+        order."""
         assert self._jumped is not None
-        (held, arrival), self._jumped = self._jumped, None
+        (held, arrival, ahead), self._jumped = self._jumped, None
+        if ahead:
+            if following is not None and self.clock.confirms_ahead(held.t_ms, following.t_ms):
+                self._handle_sample(held, arrival, confirmed=True)
+            else:
+                self._out_of_order(
+                    held,
+                    self.clock.last_ms,
+                    "far ahead of the time the host saw pass while the next line goes on "
+                    "from the last (a corrupted t_ms), skipped"
+                    if following is not None
+                    else "far ahead of the time the host saw pass, and no line came after "
+                    "it, skipped",
+                )
+            return
         if following is not None and self.clock.confirms_jump(held.t_ms, following.t_ms):
             self._handle_sample(held, arrival)
         else:
@@ -626,7 +647,9 @@ class LiveSession:
             )
         c.out_of_order += 1
 
-    def _handle_sample(self, s: Sample, arrival: float) -> Estimate | None:
+    def _handle_sample(self, s: Sample, arrival: float, confirmed: bool = False) -> Estimate | None:
+        """Estimate the sample ``s`` (arrived at ``arrival``, monotonic s), placed on the
+        device clock's axis (``confirmed``: a jump ahead the next sample confirmed)."""
         c = self.counts
         if s.problems:
             if c.imu_dropouts == 0:
@@ -639,14 +662,13 @@ class LiveSession:
         t_prev = self.clock.t_last
         dev_prev = self.clock.last_ms
         p = self.period()
-        placed = self.clock.place(s.t_ms, arrival, p)
+        placed = self.clock.place(s.t_ms, arrival, p, confirmed)
         t = placed.t
         if placed.event == "out-of-order":
             self._out_of_order(
                 s,
                 dev_prev,
-                "far ahead of the time the host saw pass (a corrupted t_ms?), skipped "
-                "unless the next line confirms it"
+                "far ahead of the time the host saw pass (a corrupted t_ms?), skipped"
                 if dev_prev is not None and s.t_ms > dev_prev
                 else "not after the last sample (a repeated, late or stray line), skipped",
                 fills_slot=dev_prev is not None and s.t_ms > dev_prev,

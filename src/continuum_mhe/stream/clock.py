@@ -16,8 +16,11 @@
   next sample look like a restart), unless the next sample confirms it (within
   :data:`CONFIRM_MS` after it: lines left in the port from an earlier run, or a
   host that was suspended): the axis then jumps with the device's time, a gap. A
-  single corrupted ``t_ms``, ahead (or behind, with a caller that holds), is so one
-  out-of-order sample, and the axis goes on with the samples after it.
+  caller that can hold a sample asks :meth:`jumps_ahead` first and keeps such a sample
+  until the next one says whether it was the jump's first (:meth:`confirms_ahead`; it
+  is then placed with ``confirmed``) or a corrupted ``t_ms``; a caller that does not
+  hold loses the jump's first sample. A single corrupted ``t_ms``, ahead or behind, is
+  so one out-of-order sample, and the axis goes on with the samples after it.
 * Samples that share a whole-millisecond stamp (a device faster than 1 kHz stamping
   with ``millis()``: 2 kHz gives pairs of equal ``t_ms``) are spread evenly over that
   millisecond, by the number of samples the previous stamp had: the protocol carries
@@ -116,10 +119,29 @@ class DeviceClock:
         follows_old = last is not None and last < t_ms <= last + CONFIRM_MS
         return 0 < t_ms - held_ms <= CONFIRM_MS and not follows_old
 
-    def place(self, t_ms: float, arrival: float, period_s: float | None) -> Placed:
+    def jumps_ahead(self, t_ms: float, arrival: float) -> bool:
+        """Whether :meth:`place` would drop the device time ``t_ms`` (ms), arriving at
+        ``arrival`` (monotonic, s), as further ahead of the last sample than the host's
+        time since then plus :data:`FORWARD_JUMP_S`."""
+        last = self._last_ms
+        if last is None or t_ms <= last:
+            return False
+        return t_ms - last > 1e3 * (arrival - self._arrival_last + FORWARD_JUMP_S)
+
+    @staticmethod
+    def confirms_ahead(held_ms: float, t_ms: float) -> bool:
+        """Whether the device time ``t_ms`` (ms) of the sample after one held for jumping
+        ahead (``held_ms``, :meth:`jumps_ahead`) follows it within :data:`CONFIRM_MS`:
+        the device's time did jump (else the held one's ``t_ms`` was corrupted)."""
+        return 0 < t_ms - held_ms <= CONFIRM_MS
+
+    def place(
+        self, t_ms: float, arrival: float, period_s: float | None, confirmed: bool = False
+    ) -> Placed:
         """Place one sample (device ``t_ms``, monotonic ``arrival`` in s); the usual
         ``period_s`` spaces a restarted axis. Out-of-order samples do not move the clock.
-        """
+        ``confirmed``: a jump ahead that the next sample confirmed
+        (:meth:`confirms_ahead`), placed as the gap it is."""
         last = self._last_ms
         event: ClockEvent = "first" if last is None else "next"
         if last is not None and t_ms < last:
@@ -134,8 +156,10 @@ class DeviceClock:
                 event = "restart"
             else:
                 return Placed((t_ms + self._epoch_ms) / 1e3 + self._offset_s, "out-of-order")
-        elif last is not None and t_ms - last > 1e3 * (
-            arrival - self._arrival_last + FORWARD_JUMP_S
+        elif (
+            not confirmed
+            and last is not None
+            and t_ms - last > 1e3 * (arrival - self._arrival_last + FORWARD_JUMP_S)
         ):
             ahead, self._ahead_ms = self._ahead_ms, t_ms
             if ahead is None or not 0 < t_ms - ahead <= CONFIRM_MS:  # not (yet) confirmed
