@@ -613,6 +613,36 @@ def test_a_zero_stamp_among_others_is_left_out_not_put_on_the_log_clock(
     assert len(notes) == 1 and notes[0].startswith("continuum-mhe: note: "), notes
 
 
+def test_stamps_that_do_not_advance_give_the_log_times_and_are_said(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A driver that sets header.stamp once (every stamp the same, non-zero): every
+    message but the first was dropped as not increasing, and the estimate of one row
+    exited 0. Most stamps not passing the one before are no clock: the log's times are
+    the samples', every message kept, and estimate says so in one note. A few stamps
+    out of order among advancing ones are still left out and counted."""
+    n = len(recording["stamps"])
+    same = np.full_like(recording["stamps"], recording["stamps"][0] + 5 * 10**9)
+    log = read_imu_log(write_mcap(tmp_path / "same.mcap", recording, headers=same))
+    assert len(log.t) == n and log.clock == "log times" and log.stale_stamps == n - 1
+    assert log.skipped == [] and log.stamp_offset_s == 0.0
+    np.testing.assert_allclose(
+        log.t, (recording["stamps"] - recording["stamps"][0]) / 1e9, atol=1e-9
+    )
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(tmp_path / "same.mcap"), "--method", "ekf", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"the header stamps do not advance ({n - 1} messages at or before" in err
+    assert "ahead of the log's times" not in err
+    assert len(_states(out)[1]) == n
+    few = recording["stamps"].copy()
+    few[[50, 51]] = few[49]  # two stamps repeated
+    log = read_imu_log(write_mcap(tmp_path / "few.mcap", recording, headers=few))
+    assert log.clock == "header stamps" and len(log.t) == n - 2
+    assert [s.split(":")[0] for s in log.skipped] == ["message 51", "message 52"]
+
+
 def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, Any]) -> None:
     """Messages whose ``angular_velocity_covariance[0]`` is -1 (REP 145) carry no rates:
     the log reads as an accelerometer alone (the tilt model), as the CSV without gyro

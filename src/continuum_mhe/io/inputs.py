@@ -803,8 +803,14 @@ def _load_log(p: Path, options: InputOptions, formulation: Formulation) -> Estim
             blocks.append(_convert_log(p, t, log.acc, log.gyr, raw, log.topic))
     clock = " and ".join(sorted({log.clock for log in logs}))
     notes += tuple(
-        f"{p}: {log.topic}: every header stamp is zero: t from the log's times (when each "
-        "message was logged)"
+        (
+            f"{p}: {log.topic}: the header stamps do not advance ({log.stale_stamps} "
+            "messages at or before the stamp of the one before: a driver that does not set "
+            "header.stamp?): t from the log's times (when each message was logged)"
+            if log.stale_stamps
+            else f"{p}: {log.topic}: every header stamp is zero: t from the log's times "
+            "(when each message was logged)"
+        )
         for log in logs
         if log.clock == "log times"
     )

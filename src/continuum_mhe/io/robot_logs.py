@@ -58,7 +58,8 @@ class ImuLog:
         orientation: (n, 4) ``(w, x, y, z)``, NaN where the message has none.
         skipped: descriptions of skipped messages (numbered from 1 in the topic).
         clock: what ``t`` was read from: ``"header stamps"``, or ``"log times"`` where
-            no message has a stamp (every ``header.stamp`` zero).
+            no message has a stamp (every ``header.stamp`` zero) or the stamps do not
+            advance (``stale_stamps``).
         cut: where a file cut short was read up to (``skip_bad``), else ``""``.
         stamp_offset_s: the median of header stamp minus the log's time over the
             messages kept, s (0 with ``clock`` ``"log times"``): each topic's stamps
@@ -81,6 +82,7 @@ class ImuLog:
     stamp_offset_s: float = 0.0
     frames: tuple[str, ...] = ()
     numbers: NDArray[np.int64] | None = None
+    stale_stamps: int = 0
 
 
 def is_robot_log(path: str | os.PathLike[str]) -> bool:
@@ -411,6 +413,10 @@ def read_imu_log(
     offsets: list[int] = []  # header stamp minus log time, ns, of the messages kept
     rows: list[tuple[list[float], list[float], list[float]]] = []
     skipped: list[str] = []
+    # messages whose stamp did not pass the one before, (number from 0, log time in ns,
+    # row, what skipped says of it): the log's times where most messages are so
+    stale: list[tuple[int, int, tuple[list[float], list[float], list[float]], str]] = []
+    by_log_time = False  # the stamps do not advance: every message kept by its log time
     # header stamps where the messages have them; the log's times only where none has
     # (a zero stamp among others is not on their clock: left out, counted)
     unstamped: list[tuple[int, int, Any]] = []  # before the first stamped message
@@ -439,7 +445,10 @@ def read_imu_log(
                     "there, or --skip-bad leaves out the messages until the times pass the "
                     "last one"
                 )
-            skipped.append(f"message {i + 1}: time {ns} ns does not increase")
+            if by_log_time:
+                skipped.append(f"message {i + 1}: time {ns} ns does not increase")
+            else:
+                stale.append((i, log_ns, row, f"message {i + 1}: time {ns} ns does not increase"))
             return
         stamps.append(ns)
         numbers.append(i + 1)
@@ -495,6 +504,23 @@ def read_imu_log(
         cut = f"the file ends inside a record after message {done}: read up to there"
     for i, log_ns, row in unstamped:  # no message (up to a cut) has a stamp: the log's times
         keep(i, log_ns, row, log_ns)
+    stale_stamps = 0
+    if stamped and len(stale) > len(stamps):
+        # most stamps do not pass the one before (a driver that sets header.stamp once,
+        # or never after its start): they are no clock, and the log's times are
+        by_log_time, stale_stamps = True, len(stale)
+        logged = [(n - 1, s - o, r) for n, s, o, r in zip(numbers, stamps, offsets, rows)]
+        logged += [(i, log_ns, row) for i, log_ns, row, _ in stale]
+        for kept in (stamps, numbers, offsets, rows):
+            kept.clear()
+        for i, log_ns, row in sorted(logged, key=lambda m: m[0]):
+            keep(i, log_ns, row, log_ns)
+        stamped = False
+    else:
+        notes = {i: note for i, _, _, note in stale}
+        skipped = sorted(
+            [*skipped, *notes.values()], key=lambda s: int(s.split(":", 1)[0].split()[-1])
+        )
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     offset = float(np.median(offsets)) / 1e9
@@ -539,6 +565,7 @@ def read_imu_log(
         stamp_offset_s=offset,
         frames=tuple(named),
         numbers=np.array(numbers, dtype=np.int64),
+        stale_stamps=stale_stamps,
     )
 
 
