@@ -643,6 +643,27 @@ def test_stamps_that_do_not_advance_give_the_log_times_and_are_said(
     assert [s.split(":")[0] for s in log.skipped] == ["message 51", "message 52"]
 
 
+def test_stamps_in_milliseconds_are_named_in_the_refusal(
+    tmp_path: Path, recording: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Header stamps whose ``sec`` holds milliseconds step by 1,000 times the period:
+    every sample restarts the estimator after a gap, and the one-line refusal names the
+    stamps' unit (it named --gap-reset alone)."""
+    s0 = recording["stamps"][0]
+    in_ms = s0 + (recording["stamps"] - s0) * 1000
+    log_path = write_mcap(tmp_path / "ms.mcap", recording, headers=in_ms)
+    out = tmp_path / "e.csv"
+    capsys.readouterr()
+    assert main(["estimate", str(log_path), "--method", "ekf", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"continuum-mhe: error: {log_path}: "), err
+    assert err[0].endswith(
+        "header.stamp must be ROS time (sec, and nanosec in ns): milliseconds in sec? "
+        "(else raise --gap-reset, or 0: never); nothing written"
+    ), err
+    assert not out.exists()
+
+
 def test_rates_marked_absent_are_no_gyro(tmp_path: Path, recording: dict[str, Any]) -> None:
     """Messages whose ``angular_velocity_covariance[0]`` is -1 (REP 145) carry no rates:
     the log reads as an accelerometer alone (the tilt model), as the CSV without gyro

@@ -298,6 +298,8 @@ def _run(args: argparse.Namespace, held: _HeldTimeUnitWarnings) -> int:
                         "t must be in seconds: if in milliseconds, name the column t_ms; if "
                         f"in microseconds or nanoseconds, give seconds (else {fix})"
                     )
+                elif held.held:  # its stamps step like another unit: the warning says how
+                    fix = f"{held.held[0].split(': ', 1)[-1]} (else {fix})"
                 held.drop()  # this says what the time unit's warning would
                 raise InputError(
                     f"{stream.name}: {diag.gap_resets} of {n} samples restarted the estimator "
