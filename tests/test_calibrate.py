@@ -642,6 +642,30 @@ def test_a_rest_in_which_every_imu_reads_tilted_warns(
     assert code == 0 and err == ""
 
 
+def test_a_rest_in_which_an_imu_reads_far_off_straight_warns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One IMU 45 degrees off straight at rest (a robot left bent: its section bent 45
+    degrees, the other IMU straight) was taken as its mounting without a word: a warning
+    names it, since a board is mounted flat, on its side or upside down. 25 degrees, and
+    a board on its side (90), say nothing (one upside down: the test above)."""
+    path = tmp_path / "rest.csv"
+    _two_imu_rest(path, (45.0, 1.0))
+    code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+    assert code == 0 and "IMU 1: mounting" in out
+    assert err == (
+        f"continuum-mhe: warning: {path}: IMU 1 reads 45.0 degrees from the straight robot's "
+        "gravity direction, which mount_rpy takes as its mounting: a board is mounted flat, "
+        "on its side or upside down, seldom in between; was the robot straight and its base "
+        "level at rest? If not, every estimate is off by as much; record the rest again (an "
+        "IMU that is mounted so is calibrated right)\n"
+    )
+    for quiet in (25.0, 90.0):
+        _two_imu_rest(path, (quiet, 1.0))
+        code, out, err = _calibrate_main(capsys, "--from", str(path), "--robot", "two-section")
+        assert code == 0 and err == "", quiet
+
+
 def _tilt_rest(path: Path, roll: float, pitch: float, noise: float) -> None:
     """A tilt rest recording of one IMU (10 s at 20 Hz), its angles as numbers around
     ``roll`` and ``pitch``."""

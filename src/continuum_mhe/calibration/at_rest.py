@@ -163,6 +163,12 @@ REST_TILT_WARN_DEG = 5.0
 #: (deg), and read as degrees less than :data:`REST_TILT_WARN_DEG`, gets a warning that
 #: says degrees: no IMU is mounted so far off straight.
 DEGREES_LIKE_TILT_DEG = 30.0
+#: A raw rest in which an IMU reads more than this (deg) from the straight robot's
+#: gravity direction, and more than :data:`BOARD_POSE_DEG` from a board on its side (90)
+#: or upside down (180), gets a warning, whatever the others read: a board is mounted
+#: flat, on its side or upside down, and a robot left bent at rest reads angles between.
+FAR_OFF_MOUNT_DEG = 30.0
+BOARD_POSE_DEG = 15.0
 
 
 def rest_tilt_warning(
@@ -172,7 +178,9 @@ def rest_tilt_warning(
     :data:`REST_TILT_WARN_DEG` from the straight robot's gravity direction (``mounting``
     says which), or None: for two or more IMUs of a raw one (calibrate takes each tilt
     as its IMU's mounting, which a bent robot or a tilted base at rest puts into every
-    estimate; one IMU alone cannot tell its own tilted mounting from a tilted base);
+    estimate; one IMU alone cannot tell its own tilted mounting from a tilted base), and
+    for any IMU of a raw one that reads more than :data:`FAR_OFF_MOUNT_DEG` from it and
+    is not a board on its side or upside down (:data:`BOARD_POSE_DEG`);
     and where every IMU of a tilt one reads more than :data:`DEGREES_LIKE_TILT_DEG`,
     but its angles, read as degrees, would each lie within :data:`REST_TILT_WARN_DEG`
     (degrees given for radians: ``degrees_fix`` says what to do)."""
@@ -202,7 +210,23 @@ def rest_tilt_warning(
         roll, pitch = (math.radians(a) for a in imu.mount_rpy[:2])
         tilts.append(math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch)))))
     if len(tilts) < 2 or min(tilts) <= REST_TILT_WARN_DEG:
-        return None
+        far = [
+            (i + 1, a)
+            for i, a in enumerate(tilts)
+            if a > FAR_OFF_MOUNT_DEG and min(abs(a - 90.0), abs(a - 180.0)) > BOARD_POSE_DEG
+        ]
+        if not far:
+            return None
+        who = ", ".join(str(i) for i, _ in far)
+        angles = ", ".join(f"{a:.1f}" for _, a in far)
+        reads = f"IMU {who} reads" if len(far) == 1 else f"IMUs {who} read"
+        return (
+            f"{reads} {angles} degrees from the straight robot's gravity direction, which "
+            "mount_rpy takes as its mounting: a board is mounted flat, on its side or upside "
+            "down, seldom in between; was the robot straight and its "
+            "base level at rest? If not, every estimate is off by as much; record the rest "
+            "again (an IMU that is mounted so is calibrated right)"
+        )
     each = ", ".join(f"IMU {i + 1} {a:.1f}" for i, a in enumerate(tilts))
     return (
         f"every IMU reads more than {REST_TILT_WARN_DEG:g} degrees from the straight robot's "
