@@ -6,6 +6,7 @@ tape (tens of seconds): every estimate here comes from one module fixture's runs
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -621,3 +622,31 @@ def test_live_summary_says_a_start_under_load_is_not_trusted() -> None:
     assert "; warning: 101 of 101 estimates are of a start whose first IMU reading" in (
         session.summary()
     )
+
+
+def test_live_summary_says_a_tip_force_beyond_every_tension_as_estimate_does() -> None:
+    """Tensions on the line a hundredth of those acting (the shipped ``unloaded``): the
+    tip force makes up for them, far beyond every tension given, and ``live``'s summary
+    carries ``estimate``'s warning (it said nothing of it)."""
+    n = 200
+    head, raw = _rows(DATA / "unloaded_raw.csv", n)
+    _, ten = _rows(DATA / "unloaded_tensions.csv", n)
+    lines = [
+        ",".join(
+            [f"{round(float(r[0]) * 1000)}", *r[1:], *(f"{0.01 * float(v):.6g}" for v in s[1:])]
+        )
+        for r, s in zip(raw, ten)
+    ]
+    base = make_formulation("bend", read_robot(shipped_robots()[ROBOT]), NoiseSettings())
+    serial = serial_input("/dev/ttyTEN", "raw", InputOptions(), base)
+    est = make_estimator("ekf", serial.formulation, MHESettings())
+    session, made, _ = _live(serial, est, lines)
+    force = max(
+        math.hypot(*(e.value(c) for c in ("fx", "fy", "fz"))) for e in made if e.output is not None
+    )
+    largest = max(0.01 * float(v) for s in ten for v in s[1:])
+    assert force > 3 * largest
+    assert (
+        f"; warning: the estimated tip force reached {force:.3g} N, beyond the largest tendon "
+        f"tension given ({largest:.3g} N)"
+    ) in session.summary()

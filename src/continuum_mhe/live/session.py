@@ -19,6 +19,8 @@ from continuum_mhe.errors import InputError, time_text
 from continuum_mhe.estimators.base import Estimate, Measurement, Status
 from continuum_mhe.estimators.reading_units import ReadingUnitsError
 from continuum_mhe.estimators.run_notices import (
+    BendsBeyondBound,
+    ForceBeyondTensions,
     TensionGainFromOne,
     TwistWithTiltImus,
     drifted_notice,
@@ -245,6 +247,10 @@ class LiveSession:
         self.gains = TensionGainFromOne(self.formulation)
         #: a tendon robot's twist estimated from tilt IMUs, for the summary's warning
         self.twist = TwistWithTiltImus(self.formulation)
+        #: a tendon robot's tip force against its tensions, and its bends past a
+        #: section's theta_max, for the summary's warnings (as estimate's)
+        self.force = ForceBeyondTensions(self.formulation)
+        self.beyond = BendsBeyondBound(self.formulation)
         #: the estimates written, by status (the summary's drifted warning counts them)
         self.status_counts: Counter[str] = Counter()
         columns = estimate_columns(self.formulation.outputs, outlier=self.flags_outliers)
@@ -903,6 +909,8 @@ class LiveSession:
             _reraise_interrupt(exc)
             problem = f"{type(exc).__name__}: {exc}"
         if problem is None:
+            if self.force.active and est.output is not None:
+                self.force.add(np.asarray(z, dtype=float)[None], np.asarray(est.output)[None])
             if self._restarted and est.state is not None:
                 self._restarted = False
                 # restarted where the time base broke: the start's row says reset, as
@@ -931,6 +939,8 @@ class LiveSession:
             self.gains.add(np.asarray(est.output)[None], np.asarray(est.output_std)[None])
         if self.twist.active and est.output is not None:
             self.twist.add(np.asarray(est.output)[None])
+        if self.beyond.active and est.output is not None:
+            self.beyond.add(np.asarray(est.output)[None])
         if self.out is None:
             return
         ny = self.formulation.ny
@@ -1054,6 +1064,17 @@ class LiveSession:
             msg += "; warning: " + gain_note
         if twist_note := self.twist.notice():
             msg += "; warning: " + twist_note
+        if beyond_note := self.beyond.notice(c.estimates):
+            msg += "; warning: " + beyond_note
+        if force_note := self.force.notice():
+            msg += "; warning: " + force_note
+        if chains := self.estimator.diagnostics.bad_start_chains:
+            msg += (
+                f"; warning: stopped restarting {chains} time(s) after "
+                f"{self.formulation.bad_start_chain} restarts in a row that the readings "
+                "contradicted too: the model does not fit them (check the robot file and "
+                "the inputs)"
+            )
         drifted = self.status_counts.get("drifted", 0)
         if drift_note := drifted_notice(drifted, c.estimates, self.formulation):
             msg += "; warning: " + drift_note
