@@ -805,3 +805,22 @@ def _ekf_run(progress: Any) -> Any:
 def _ekf_continue(starts: list[int]) -> Any:
     rec = simulate("paper3d", duration=5.0)
     return make_estimator("ekf", make_formulation("bend")).continue_run(rec.t, rec.z, starts=starts)
+
+
+def test_series_rows_refuses_what_selects_no_rows_of_it() -> None:
+    """``EstimateSeries.rows`` takes a slice, a mask of its length or indices (negative
+    from the end, none at all): a mask of another length, an index outside the series
+    (a bare numpy IndexError) or indices that are not integers are one UserError."""
+    rec = simulate("paper3d", duration=1.0, seed=0)
+    s = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    np.testing.assert_array_equal(s.rows([0, 2, -1]).t, rec.t[[0, 2, -1]])
+    assert len(s.rows([]).t) == 0 and len(s.rows(s.t >= 0.5).t) == 11
+    for which, said in (
+        ([21], "row index 21 is outside the series of 21 samples"),
+        ([-22], "row index -22 is outside the series of 21 samples"),
+        ([0.5], "rows takes a slice, a boolean mask or integer indices"),
+        (np.ones(3, dtype=bool), "a row mask has shape (3,), expected (21,)"),
+    ):
+        with pytest.raises(UserError) as refused:
+            s.rows(which)
+        assert str(refused.value).startswith(said), refused.value

@@ -9,7 +9,7 @@ Plots, metrics, writers and the CLI read these and never touch an estimator.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 
@@ -352,17 +352,35 @@ class EstimateSeries:
         by_value = {str(m): m for m in Status}
         return [by_value[str(s)] for s in self.status]
 
-    def rows(self, which: slice | NDArray[np.bool_] | NDArray[np.integer]) -> EstimateSeries:
+    def rows(
+        self, which: slice | Sequence[int] | NDArray[np.bool_] | NDArray[np.integer]
+    ) -> EstimateSeries:
         """The series at the samples ``which`` selects (a slice, a boolean mask of
-        ``len(self)``, or indices), for example ``series.rows(series.t >= 1.0)``: the
-        rows after the first second, as ``evaluate --skip-start 1`` scores them. The
-        ``diagnostics`` are the whole run's."""
+        ``len(self)``, or indices, negative ones from the end), for example
+        ``series.rows(series.t >= 1.0)``: the rows after the first second, as ``evaluate
+        --skip-start 1`` scores them. The ``diagnostics`` are the whole run's.
+
+        Raises:
+            UserError: a mask of another length, or an index outside the series.
+        """
         if not isinstance(which, slice):
             which = np.asarray(which)
+            if which.size == 0 and which.dtype != bool:  # no index: no row
+                which = which.astype(np.intp)
             if which.dtype == bool and which.shape != (len(self),):
                 raise UserError(
                     f"a row mask has shape {which.shape}, expected ({len(self)},): one per sample"
                 )
+            if which.dtype != bool:
+                if which.dtype.kind not in "iu":
+                    raise UserError(
+                        f"rows takes a slice, a boolean mask or integer indices, got {which!r:.60}"
+                    )
+                outside = which[(which >= len(self)) | (which < -len(self))]
+                if len(outside):
+                    raise UserError(
+                        f"row index {int(outside[0])} is outside the series of {len(self)} samples"
+                    )
         outlier = None if self.outlier is None else self.outlier[which]
         return replace(
             self,
