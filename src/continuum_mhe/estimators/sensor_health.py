@@ -31,7 +31,7 @@ from functools import partial
 from typing import Generic, NoReturn, SupportsIndex, TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from continuum_mhe import _core
 from continuum_mhe.arrays import FloatArray
@@ -575,12 +575,14 @@ class Estimator(Generic[InferenceT]):
 
     def run(
         self,
-        t: FloatArray,
-        z: FloatArray,
+        t: ArrayLike,
+        z: ArrayLike,
         progress: Callable[[Iterable[int]], Iterator[int]] | None = None,
     ) -> EstimateSeries:
-        """Estimate over a whole recording (``t`` (n,) s, ``z`` (n, m); NaN or a masked
-        entry of a numpy masked array is a reading missing, a dropout), from a reset,
+        """Estimate over a whole recording (``t`` (n,) s; ``z`` (n, nz), the readings in
+        the order of the formulation's ``measurement_names``, in their units: rad for
+        tilt, m/s^2 and rad/s for raw IMUs, N for tensions; NaN or a masked entry of a
+        numpy masked array is a reading missing, a dropout), from a reset,
         in the compiled policy, which steps each block without holding the GIL (other
         Python threads go on; another thread's call into this estimator meanwhile is a
         RuntimeError; ``progress`` is shown per block of samples); the series carries a
@@ -679,7 +681,7 @@ class Estimator(Generic[InferenceT]):
             f"{len(want)} readings a sample, {', '.join(want)}: {hint}"
         )
 
-    def _samples(self, t: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def _samples(self, t: ArrayLike, z: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """``t`` (n,) and ``z`` (n, nz) as C-contiguous float64 arrays, or a
         :class:`UserError` naming what does not fit (a table whose columns are the
         formulation's readings in another order, too)."""
@@ -718,8 +720,8 @@ class Estimator(Generic[InferenceT]):
 
     def continue_run(
         self,
-        t: FloatArray,
-        z: FloatArray,
+        t: ArrayLike,
+        z: ArrayLike,
         starts: Iterable[int] | None = None,
         block: int | None = None,
         check_units: bool = True,
