@@ -926,6 +926,18 @@ def test_plot_draws_a_tendon_estimate_with_its_tip_force_and_model_backbone(
     assert "cannot be read here" in err and "drawn through the section ends" in err
     assert "drawn with those tensions" not in err
     gone.rename(robot)
+    # a recording with its tension columns beside its IMU's (live --record's) gives them
+    # too, for plot and view
+    both = tmp_path / "recorded_with_tensions.csv"
+    write_table(both, ["t", "roll", "pitch", "tension_1"],
+                [[*r, 1.0 + 5 * r[0]] for r in _recording_rows()])  # fmt: skip
+    argv = ["plot", str(est), "--robot", str(robot), "--inputs", str(both), "-o", str(fig),
+            "--overwrite"]  # fmt: skip
+    assert main(argv) == 0 and "note" not in capsys.readouterr().err
+    argv = ["view", str(est), "--robot", str(robot), "--inputs", str(both), "--save",
+            str(tmp_path / "v.rrd")]  # fmt: skip
+    assert main(argv) == 0 and (tmp_path / "v.rrd").stat().st_size > 0
+    assert "note" not in capsys.readouterr().err
     # --inputs alone: the robot the estimate's options line names draws the backbone
     argv = ["plot", str(est), "--inputs", str(tensions), "-o", str(tmp_path / "rec.png")]
     assert main(argv) == 0

@@ -214,7 +214,9 @@ def _tendon_backbone(
             file=sys.stderr,
         )
         return None
-    tensions = read_tensions(inputs, robot.n_tendons, time_warning=False)
+    # (a recording that carries its tensions beside its IMUs' columns, as live records
+    # them, gives them too: the drawing takes their values alone)
+    tensions = read_tensions(inputs, robot.n_tendons, other_columns=True, time_warning=False)
     tensions.check_scale(robot)  # mN for N, as estimate refuses them
     if len(t):
         tensions.check_span(float(t[0]), float(t[-1]))  # milliseconds?
@@ -248,7 +250,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_tensions_option(
         p, "with --robot, a tendon robot's estimate: its backbone drawn from the mechanics "
-        "model at the estimated tip force"
+        "model at the estimated tip force; a recording with its tension columns, as live "
+        "--record writes it, gives them too"
     )  # fmt: skip
     p.add_argument(
         "-o", "--output", metavar="FIG.png", help="figure to write (.png, .pdf, .svg; default: "

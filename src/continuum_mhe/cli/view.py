@@ -160,7 +160,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_tensions_option(
         p, "a tendon robot's estimate: its backbone drawn from the mechanics model at the "
-        "estimated tip force; without it, the tips alone"
+        "estimated tip force (a recording with its tension columns, as live --record "
+        "writes it, gives them too); without it, the tips alone"
     )  # fmt: skip
     add_viewer_options(p)
     add_overwrite_option(p, "--save")

@@ -32,7 +32,11 @@ def replay(
     tendon = None
     if robot.backbone is not None:
         outputs = tendon_outputs(robot.n_sections)
-        table = read_tensions(tensions, robot.n_tendons, time_warning=False) if tensions else None
+        table = (  # a recording with its tension columns (live --record's) gives them too
+            read_tensions(tensions, robot.n_tendons, other_columns=True, time_warning=False)
+            if tensions
+            else None
+        )
         if table is not None:
             table.check_scale(robot)  # mN for N, as estimate refuses them
         tendon = TendonShapes(robot, points_per_section, table)
