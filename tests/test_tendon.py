@@ -1727,8 +1727,9 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A row's tip force beyond what the rod holds (a force in mN read as N) has no
-    equilibrium to draw: one line naming the file and the row's time, exit 2, no figure
-    (not reported as a bug, exit 70)."""
+    equilibrium to draw: where no row drawn has one, one line naming the file and the
+    row's time, exit 2, no figure (not reported as a bug, exit 70); where some do, the
+    others are drawn and a warning names it."""
     meas, tensions = _recording(tmp_path)
     robot = str(_small_robot(tmp_path))
     est = tmp_path / "e.csv"
@@ -1766,6 +1767,18 @@ def test_plot_of_a_row_whose_loads_have_no_equilibrium_is_one_line(
     with pytest.warns(UserWarning, match=first):
         assert main(argv) == 0
     assert view.exists()
+    # and plot: of the four rows it draws, the one without an equilibrium is drawn
+    # through its section ends, said (it refused the whole figure)
+    for i in range(header + 1, len(lines)):
+        cells = lines[i].rstrip("\n").split(",")
+        cells[fx] = "80" if i == header + 2 else "0"
+        lines[i] = ",".join(cells) + "\n"
+    est.write_text("".join(lines))
+    argv = ["plot", str(est), "--robot", robot, "--inputs", str(tensions), "-o", str(fig)]
+    said = r"^1 of the backbones drawn joined through their section ends: .* the row at t = 0.02 s"
+    with pytest.warns(UserWarning, match=said):
+        assert main(argv) == 0
+    assert fig.stat().st_size > 0
 
 
 def test_plot_and_view_refuse_tensions_in_millinewtons_as_estimate_does(

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
+from continuum_mhe.errors import UserError
 from continuum_mhe.evaluation.metrics import Z95, IndexArray, match_rows
 from continuum_mhe.evaluation.plotting import Figure, plt
 from continuum_mhe.io.state_tables import SECTION_FIELDS, StateTable, tip_section
@@ -164,9 +165,14 @@ def tendon_backbone(robot: Robot, tensions: Tensions) -> BackboneOf:
         try:
             return statics.backbone_points(force, tension, POINTS_PER_SECTION)
         except ArithmeticError as exc:
-            raise no_equilibrium_at(t, exc) from None
+            raise UnsolvedBackbone(str(no_equilibrium_at(t, exc))) from None
 
     return points
+
+
+class UnsolvedBackbone(UserError):
+    """A row whose loads the mechanics model holds no equilibrium under: its backbone
+    cannot be drawn from the model (the drawing joins its section ends instead)."""
 
 
 #: The mechanics model's backbone drawn from a row's tip force and tensions ending more
@@ -427,6 +433,8 @@ def _backbones(
         )  # fmt: skip
     reach = float(sum(lengths)) if lengths is not None else 0.0
     off = 0.0  # the model's backbone's tip from the estimate's (m), at most
+    unsolved: list[str] = []  # the rows drawn whose loads have no equilibrium
+    est_unsolved = 0  # of them the estimate's
     for j, i in enumerate(picks):
         color = plt.get_cmap("viridis")(j / max(1, len(picks) - 1))
         for table, row, style in ((est, i, "-"), (truth, truth_row.get(i), "--")):
@@ -434,8 +442,17 @@ def _backbones(
                 continue
             shown = points if table is est else [p for p in in_truth if p is not None]
             ends_xyz = np.array([[table.column(c)[row] for c in p.columns] for p in shown])
+            solved = None
             if backbone is not None and has_tip_force(table.names):
-                line = backbone(table, row)
+                try:
+                    solved = backbone(table, row)
+                except UnsolvedBackbone as exc:  # drawn through its section ends, said
+                    unsolved.append(str(exc))
+                    est_unsolved += table is est
+                    if est_unsolved == len(picks):  # none of the estimate's: no figure
+                        raise UnsolvedBackbone(unsolved[0]) from None
+            if solved is not None:
+                line = solved
                 if table is est:
                     tip = [table.column(c)[row] for c in TIP_COLUMNS]
                     off = max(off, float(np.linalg.norm(line[-1] - tip)))
@@ -451,6 +468,13 @@ def _backbones(
                     label=label)  # fmt: skip
             ax.plot(*(ends_xyz * 1e3).T, "o", color=color, ms=3)
             reach = max(reach, float(np.max(np.linalg.norm(line, axis=1))))
+    if unsolved:  # (every one of the estimate's: the error above)
+        warnings.warn(
+            f"{len(unsolved)} of the backbones drawn joined through their section ends: the "
+            f"mechanics model holds no equilibrium under their loads; the first: {unsolved[0]}",
+            FigureWarning,
+            stacklevel=3,
+        )
     r = reach * 1e3
     ax.set_xlim(-r, r)
     ax.set_ylim(-r, r)
