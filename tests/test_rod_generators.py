@@ -212,3 +212,24 @@ def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path
     assert cosserat.main(["-o", str(tmp_path / "none" / "x.csv"), "--duration", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "folder" in err[0] and "does not exist" in err[0]
+
+
+def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``-o DIR`` of a folder not there yet: made, as the tendon generator makes its
+    own (it was refused, "no such folder", while the docs' commands name a new DIR); a
+    folder in a folder that does not exist, or a file, is one line, exit 2."""
+    from continuum_mhe.simulation.cosserat_sections import main as generate
+
+    new = tmp_path / "DIR"
+    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(new)]) == 0
+    assert (new / "planar-s_bend.csv").stat().st_size > 0
+    capsys.readouterr()
+    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "a" / "b")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith(f"folder {tmp_path / 'a'} does not exist"), err
+    assert not (tmp_path / "a").exists()
+    (tmp_path / "file").write_text("x\n")
+    assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(tmp_path / "file")]) == 2
+    assert capsys.readouterr().err.strip().endswith("exists and is not a folder")

@@ -562,9 +562,13 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)  # fmt: skip
         return 2
     out = Path(args.out)
-    if not out.is_dir():
-        print(f"{p.prog}: error: {out}: no such folder", file=sys.stderr)
+    if out.exists() and not out.is_dir():
+        print(f"{p.prog}: error: {out}: exists and is not a folder", file=sys.stderr)
         return 2
+    if not out.exists() and not out.absolute().parent.is_dir():  # a mistyped path
+        print(f"{p.prog}: error: {out}: folder {out.parent} does not exist", file=sys.stderr)
+        return 2
+    out.mkdir(exist_ok=True)  # (as the tendon generator makes its folder)
     name = args.name or args.scenario
     settings = SectionRodSettings(
         shear_ratio=args.shear_ratio, sim_dt=args.sim_dt, drive=args.drive
