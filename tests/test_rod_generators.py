@@ -215,13 +215,20 @@ def test_the_rod_generator_refuses_a_missing_folder_before_it_simulates(tmp_path
 
 
 def test_the_section_rod_generator_makes_its_folder_and_refuses_a_mistyped_path(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``-o DIR`` of a folder not there yet: made, as the tendon generator makes its
     own (it was refused, "no such folder", while the docs' commands name a new DIR); a
-    folder in a folder that does not exist, or a file, is one line, exit 2."""
+    folder in a folder that does not exist, or a file, is one line, exit 2. (The bend
+    recording's writer stands in for the rod's simulation: the folder is the point.)"""
+    from continuum_mhe.simulation import cosserat_sections
     from continuum_mhe.simulation.cosserat_sections import main as generate
 
+    def write_bend(out: Path, name: str, *args: object) -> Path:
+        (out / f"{name}_bend.csv").write_text("t\n0\n")
+        return out / f"{name}_bend.csv"
+
+    monkeypatch.setattr(cosserat_sections, "write_bend_recording", write_bend)
     new = tmp_path / "DIR"
     assert generate(["--scenario", "planar-s", "--bend-only", "-o", str(new)]) == 0
     assert (new / "planar-s_bend.csv").stat().st_size > 0
