@@ -414,8 +414,8 @@ def read_imu_log(
     rows: list[tuple[list[float], list[float], list[float]]] = []
     skipped: list[str] = []
     # messages whose stamp did not pass the one before, (number from 0, log time in ns,
-    # row, what skipped says of it): the log's times where most messages are so
-    stale: list[tuple[int, int, tuple[list[float], list[float], list[float]], str]] = []
+    # row, place of their line in skipped): the log's times where most messages are so
+    stale: list[tuple[int, int, tuple[list[float], list[float], list[float]], int]] = []
     by_log_time = False  # the stamps do not advance: every message kept by its log time
     # header stamps where the messages have them; the log's times only where none has
     # (a zero stamp among others is not on their clock: left out, counted)
@@ -445,10 +445,9 @@ def read_imu_log(
                     "there, or --skip-bad leaves out the messages until the times pass the "
                     "last one"
                 )
-            if by_log_time:
-                skipped.append(f"message {i + 1}: time {ns} ns does not increase")
-            else:
-                stale.append((i, log_ns, row, f"message {i + 1}: time {ns} ns does not increase"))
+            if not by_log_time:
+                stale.append((i, log_ns, row, len(skipped)))
+            skipped.append(f"message {i + 1}: time {ns} ns does not increase")
             return
         stamps.append(ns)
         numbers.append(i + 1)
@@ -511,16 +510,13 @@ def read_imu_log(
         by_log_time, stale_stamps = True, len(stale)
         logged = [(n - 1, s - o, r) for n, s, o, r in zip(numbers, stamps, offsets, rows)]
         logged += [(i, log_ns, row) for i, log_ns, row, _ in stale]
+        said = {at for *_, at in stale}  # their lines in skipped go: they are kept now
+        skipped[:] = [line for at, line in enumerate(skipped) if at not in said]
         for kept in (stamps, numbers, offsets, rows):
             kept.clear()
         for i, log_ns, row in sorted(logged, key=lambda m: m[0]):
             keep(i, log_ns, row, log_ns)
         stamped = False
-    else:
-        notes = {i: note for i, _, _, note in stale}
-        skipped = sorted(
-            [*skipped, *notes.values()], key=lambda s: int(s.split(":", 1)[0].split()[-1])
-        )
     if not stamps:
         raise InputError(f"{p}: topic {name} has no messages")
     offset = float(np.median(offsets)) / 1e9

@@ -100,13 +100,7 @@ class NoiseSettings:
                 "finer than any IMU: its weight 1/std^2 makes the estimators' matrices singular"
             )
         check_positive("measurement_std", self.measurement_std)
-        if self.measurement_std > MAX_MEASUREMENT_STD:
-            raise UserError(
-                f"measurement_std {self.measurement_std!r} rad "
-                f"({math.degrees(self.measurement_std):.3g} deg) is beyond 90 degrees: "
-                f"degrees? it is in radians ({self.measurement_std!r} deg = "
-                f"{math.radians(self.measurement_std):.4g} rad)"
-            )
+        _refuse_degrees_like("measurement_std", self.measurement_std)
         for name in (
             "measurement_std",
             "bend_accel_psd",
@@ -119,9 +113,14 @@ class NoiseSettings:
             value = getattr(self, name)
             if not (is_real(value) and math.isfinite(value) and value >= 0):
                 raise UserError(f"{name} must be a finite number >= 0 (rad), got {value!r}")
-            if value > MAX_MEASUREMENT_STD:  # no reading's constant error is that large
-                raise UserError(
-                    f"{name} {value!r} rad ({math.degrees(value):.3g} deg) is beyond 90 "
-                    f"degrees: degrees? it is in radians ({value!r} deg = "
-                    f"{math.radians(value):.4g} rad)"
-                )
+            _refuse_degrees_like(name, value)  # no reading's constant error is that large
+
+
+def _refuse_degrees_like(name: str, value: float) -> None:
+    """A :class:`UserError` where the angle ``value`` (rad) of the setting ``name`` is
+    beyond :data:`MAX_MEASUREMENT_STD`: degrees given for radians."""
+    if value > MAX_MEASUREMENT_STD:
+        raise UserError(
+            f"{name} {value!r} rad ({math.degrees(value):.3g} deg) is beyond 90 degrees: "
+            f"degrees? it is in radians ({value!r} deg = {math.radians(value):.4g} rad)"
+        )
