@@ -1066,3 +1066,33 @@ def test_one_stamp_that_jumps_ahead_is_left_out_alone(
     keep = np.delete(np.arange(len(stamps)), 50)
     np.testing.assert_array_equal(log.numbers, keep + 1)
     np.testing.assert_allclose(log.t, (stamps[keep] - stamps[0]) / 1e9)
+
+
+def test_load_input_checks_the_first_readings_against_the_robots_mounting(
+    tmp_path: Path, recording: dict[str, Any]
+) -> None:
+    """The library's reader checks the mounting as ``estimate`` does, a robot log
+    included, and names the Robot's field, not the command line's option: a hanging
+    robot's log and CSV (the recording turned upside down) on a robot described z-up are
+    refused; on the robot as it hangs they are read."""
+    from continuum_mhe.io.input_options import InputOptions
+    from continuum_mhe.io.inputs import load_input
+    from continuum_mhe.model.registry import make_formulation
+    from continuum_mhe.model.robot import ImuPlacement, Robot, Section
+
+    upside_down = np.array([1.0, -1.0, -1.0])  # turned by pi about x
+    hanging = dict(
+        recording, acc=recording["acc"] * upside_down, gyr=recording["gyr"] * upside_down
+    )
+    log = write_mcap(tmp_path / "hanging.mcap", hanging)
+    table = write_raw_csv(tmp_path / "hanging.csv", hanging)
+    sections, imus = (Section(0.2, theta_max=3.0),), (ImuPlacement(0),)
+    for path in (log, table):
+        up = make_formulation("bend", Robot(sections, imus))
+        with pytest.raises(InputError) as refused:
+            load_input(path, InputOptions(), up)
+        message = str(refused.value)
+        assert "\n" not in message and "--mounting" not in message, message
+        assert message.endswith('make the Robot with mounting="z-down"'), message
+        down = make_formulation("bend", Robot(sections, imus, mounting="z-down"))
+        assert len(load_input(path, InputOptions(), down).t) == len(recording["stamps"])

@@ -351,15 +351,18 @@ def open_input(
     options: InputOptions,
     formulation: Formulation,
     robot_name: str | None = None,
+    *,
+    python: bool = False,
 ) -> MeasurementStream:
     """Open any input of ``estimate`` (tilt or raw CSV, ``-``, bag, MCAP) as a stream of
     measurements for ``formulation``'s robot, tendon tensions appended where it has a
     backbone (``robot_name``: the robot file as named in messages, whose keys they name
     as the fix; None: the command line's one-section options, ``--mounting`` and
-    ``--theta-max``)."""
+    ``--theta-max``; ``python``: a caller in Python, whose messages name the Robot's
+    fields instead)."""
     _check_arguments(path, options, formulation)
     tensions = _tensions(options, formulation.robot, robot_name, path)
-    stream = _open_measurements(path, options, formulation, robot_name)
+    stream = _open_measurements(path, options, formulation, robot_name, python)
     _say_unused_tension_columns(path, formulation.robot, robot_name)
     if formulation.robot.has_mechanics:
         _append_tensions(stream, tensions, options)
@@ -373,12 +376,16 @@ def load_input(
     for ``formulation``'s robot, as :func:`open_input` streams them: a robot with
     tendons is read with its tensions (``options.tensions``, or the recording's own
     tension columns; without them an :class:`InputError` says how to give them), and
-    the formulation returned is its mechanics model."""
+    the formulation returned is its mechanics model. The first readings are checked
+    against the robot's mounting, as ``estimate`` checks them; the messages name the
+    Robot's fields."""
     _check_arguments(path, options, formulation)
     p = Path(path)
     if is_robot_log(p) and options.tensions is None and not formulation.robot.n_tendons:
-        return _load_log(p, options, formulation)
-    with open_input(path, options, formulation) as stream:
+        data = _load_log(p, options, formulation)
+        check_mounting(str(p), data.z, data.formulation, python=True)
+        return data
+    with open_input(path, options, formulation, python=True) as stream:
         problems = stream.description.problems
         problems.keep = sys.maxsize
         blocks = list(stream.blocks)
@@ -425,6 +432,7 @@ def _open_measurements(
     options: InputOptions,
     formulation: Formulation,
     robot_name: str | None = None,
+    python: bool = False,
 ) -> MeasurementStream:
     expect_type("formulation", formulation, Formulation, "a Formulation (make_formulation)")
     if isinstance(formulation, TendonFormulation):
@@ -434,7 +442,7 @@ def _open_measurements(
             "calls for (direct for raw IMUs, tendon with the tensions) is made from it"
         )
     if str(path) != "-" and is_robot_log(Path(path)):
-        return _log_stream(Path(path), options, formulation, robot_name)
+        return _log_stream(Path(path), options, formulation, robot_name, python)
     if str(path) != "-" and Path(path).is_dir():  # not a bag folder: is_robot_log said so
         raise InputError(
             f"{path}: is a directory without metadata.yaml, expected a CSV file or a ROS 2 "
@@ -442,7 +450,7 @@ def _open_measurements(
         )
     rows = open_rows(path)
     try:
-        return _table_stream(rows, options, formulation, robot_name)
+        return _table_stream(rows, options, formulation, robot_name, python)
     except BaseException:
         rows.close()
         raise
@@ -615,7 +623,11 @@ def _table_units(rows: TextRows, kind: InputKind, options: InputOptions) -> str:
 
 
 def _table_stream(
-    rows: TextRows, options: InputOptions, base: Formulation, robot_name: str | None = None
+    rows: TextRows,
+    options: InputOptions,
+    base: Formulation,
+    robot_name: str | None = None,
+    python: bool = False,
 ) -> MeasurementStream:
     n_imus, name = base.robot.n_imus, rows.name
     problems = RowProblems()
@@ -674,7 +686,7 @@ def _table_stream(
         name, kind, tuple(cols), _table_units(rows, kind, options), _imu_model(f),
         problems=problems, readings=readings,
     )  # fmt: skip
-    samples = _chunked(rows, found, convert, readings, f, finish, robot_name, mounting_hint)
+    samples = _chunked(rows, found, convert, readings, f, finish, robot_name, mounting_hint, python)
     return MeasurementStream(description, f, samples, 0, rows)
 
 
@@ -695,12 +707,14 @@ def _chunked(
     finish: Callable[[], None] | None = None,
     robot_name: str | None = None,
     mounting_hint: Callable[[], str | None] | None = None,
+    python: bool = False,
 ) -> Iterator[tuple[FloatArray, FloatArray]]:
     """Convert the blocks of :data:`CHUNK` rows, one at a time. Counts which IMUs
     reported in ``readings``, and warns at the end for one that never did, then calls
     ``finish``. The first block's readings are checked against the robot's mounting
     (:func:`~continuum_mhe.io.input_options.check_mounting`; ``robot_name``: the robot
-    file its messages name, None: the command line's one-section options); a refusal
+    file its messages name, None: the command line's one-section options; ``python``:
+    the Robot's fields); a refusal
     ends with ``mounting_hint()`` where that gives another reading of it."""
     first = True
     for block in found:
@@ -709,7 +723,7 @@ def _chunked(
         z = np.ascontiguousarray(convert(block.t, block.values, block.lines), dtype=np.float64)
         if first:
             try:
-                check_mounting(rows.name, z, formulation, robot_name)
+                check_mounting(rows.name, z, formulation, robot_name, python)
             except InputError as err:
                 hint = mounting_hint() if mounting_hint is not None else None
                 if hint is None:
@@ -725,11 +739,15 @@ def _chunked(
 
 # --- step 3: the samples of a robot log ------------------------------------------------------
 def _log_stream(
-    p: Path, options: InputOptions, formulation: Formulation, robot_name: str | None = None
+    p: Path,
+    options: InputOptions,
+    formulation: Formulation,
+    robot_name: str | None = None,
+    python: bool = False,
 ) -> MeasurementStream:
     data = _load_log(p, options, formulation)
     problems = RowProblems(len(data.skipped), data.skipped[:20], dropped=len(data.skipped))
-    check_mounting(str(p), data.z, data.formulation, robot_name)
+    check_mounting(str(p), data.z, data.formulation, robot_name, python)
     readings = _readings(data.formulation)
     readings.add(data.z)
     readings.warn_silent(str(p))
