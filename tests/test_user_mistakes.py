@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 
 import continuum_mhe.cli.app as cli
 import continuum_mhe.cli.check_robot as check_robot
@@ -882,7 +883,9 @@ def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
     assert outs[0][1] == [] and outs[1][1] == [
         f"{meas}: the robot file's mount_rpy of IMU 2 is not applied to tilt input: it "
         "rotates raw readings, and roll and pitch are used as they are, taken as already in "
-        "the backbone's frame"
+        "the backbone's frame (as simulate writes them); roll and pitch in an IMU's own "
+        "frame need turning into its disk's first (docs/formats.md#tilt), or give its raw "
+        "readings"
     ]
     # the same estimates (solve_ms aside; the '#' lines name each run's robot file)
     rows = [
@@ -890,6 +893,36 @@ def test_a_robot_files_mount_rpy_on_tilt_input_warns_once_and_is_not_applied(
         for text, _ in outs
     ]
     assert len(rows[0]) == 42 and rows[0] == rows[1]  # the column line and 41 rows
+
+
+def test_tilt_in_an_imus_own_frame_turns_into_its_disks_as_the_formats_page_says() -> None:
+    """docs/formats.md#tilt: roll and pitch of a mounted IMU's own frame, turned by its
+    mount_rpy through the gravity direction, are the roll and pitch of its disk's frame,
+    those a tilt file takes: the same IMU's readings unmounted give them (without noise,
+    the motion's own acceleration in both)."""
+    from continuum_mhe.io.raw_imu import mount_rotation
+    from continuum_mhe.simulation.raw_readings import RawNoise, raw_readings
+
+    def tilt(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.arctan2(f[:, 1], f[:, 2]), np.arctan2(-f[:, 0], np.hypot(f[:, 1], f[:, 2]))
+
+    rpy = (10.0, -20.0, 90.0)
+    sections = (Section(0.15, theta_max=3.0), Section(0.12, theta_max=3.0))
+    still = RawNoise(accel_std=0.0, gyro_std=0.0, gyro_bias_std=0.0)
+    mounted, unmounted = (
+        Robot(sections, (ImuPlacement(0), ImuPlacement(1, mount_rpy=mount)))
+        for mount in (rpy, (0.0, 0.0, 0.0))
+    )
+    rec = simulate_robot("spatial", unmounted, duration=2.0, noise_deg=0.0)
+    own_frame, disk_frame = (
+        raw_readings(rec, robot, noise=still)[0][:, 6:9] for robot in (mounted, unmounted)
+    )
+    roll, pitch = tilt(own_frame)  # what an IMU reporting its own frame's tilt sends
+    f = np.stack([-np.sin(pitch), np.sin(roll) * np.cos(pitch), np.cos(roll) * np.cos(pitch)], 1)
+    turned = np.column_stack(tilt(f @ mount_rotation(rpy).T))
+    disk = np.column_stack(tilt(disk_frame))
+    assert np.abs(np.column_stack([roll, pitch]) - disk).max() > 0.3  # not the disk's as sent
+    assert_allclose(np.angle(np.exp(1j * (turned - disk))), 0.0, atol=1e-9)
 
 
 def test_mount_rpy_still_applies_to_raw_imus_without_their_own(tmp_path, capsys) -> None:

@@ -114,6 +114,43 @@ def test_plot_draws_a_one_section_estimate_as_pdf(tmp_path: Path) -> None:
     assert out.read_bytes()[:5] == b"%PDF-"
 
 
+def test_plot_draws_a_hanging_robot_hanging(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The backbone's panel of a z-down robot's estimate draws the base's z axis pointing
+    down (the robot hangs there as it hangs), with the robot file, from the mounting the
+    estimate's options line records, and from standard input; a z-up robot's points up."""
+    from continuum_mhe.evaluation import plotting
+
+    drawn: list[bool] = []  # whether each figure's backbone panel has z pointing down
+
+    def kept(fig, path, formats=("png",)):
+        (view,) = [ax for ax in fig.axes if ax.name == "3d"]
+        low, high = view.get_zlim()
+        drawn.append(bool(low > high))
+        path.with_suffix(".png").write_bytes(b"")
+
+    monkeypatch.setattr(plotting, "save", kept)
+    for mounting in ("z-down", "z-up"):
+        robot = tmp_path / f"{mounting}.toml"
+        robot.write_text(
+            f'mounting = "{mounting}"\n[[section]]\nlength = 0.15\n[[section]]\n'
+            "length = 0.12\n[[imu]]\nsection = 1\n[[imu]]\nsection = 2\n"
+        )
+        meas, est = tmp_path / f"m{mounting}.csv", tmp_path / f"e{mounting}.csv"
+        assert main(["simulate", "s-curve", "--robot", str(robot), "--duration", "1",
+                     "-o", str(meas)]) == 0  # fmt: skip
+        assert main(["estimate", str(meas), "--robot", str(robot), "--method", "ekf",
+                     "-o", str(est)]) == 0  # fmt: skip
+        fig = tmp_path / f"{mounting}.png"
+        assert main(["plot", str(est), "--robot", str(robot), "-o", str(fig)]) == 0
+        assert main(["plot", str(est), "-o", str(fig), "--overwrite"]) == 0
+        with est.open() as piped:
+            monkeypatch.setattr("sys.stdin", piped)
+            assert main(["plot", "-", "-o", str(fig), "--overwrite"]) == 0
+    assert drawn == [True] * 3 + [False] * 3
+
+
 def test_plot_refuses_a_truth_of_another_robot_and_an_existing_figure(
     two_section_run: Path, tmp_path: Path, capsys
 ) -> None:

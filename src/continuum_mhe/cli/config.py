@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 from continuum_mhe.cli.program import PROG
 from continuum_mhe.errors import InputError
 from continuum_mhe.io.robot_file import toml_error_line
-from continuum_mhe.io.text_rows import shorten
+from continuum_mhe.io.text_rows import held_text, shorten
 
 if TYPE_CHECKING:
     from continuum_mhe.model.formulations import Formulation
@@ -118,13 +118,15 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
             return tomllib.loads(text)[OPTIONS_LINE], text, 0
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{path}: its options note: {shorten(str(exc), 200)}") from None
+    held = held_text(path)  # an estimate piped in (read whole, once)
+    estimate = held is not None or p.suffix.lower() == ".csv"
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8") if held is None else held
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None
     offset = indent = 0
-    if p.suffix.lower() == ".csv":
+    if estimate:
         found = [
             (n, ln[1:].strip(), len(ln) - len(ln[1:].lstrip()))
             for n, ln in enumerate(text.splitlines())
@@ -141,7 +143,7 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
         raise UnreadableOptions(
             toml_error_line(path, exc, first_line=offset + 1, first_column=indent + 1, text=text)
         ) from None
-    if p.suffix.lower() == ".csv":
+    if estimate:
         data = data[OPTIONS_LINE]
     return data, text, offset
 

@@ -81,7 +81,11 @@ def _estimate(args: argparse.Namespace) -> int:
 
 def _figure(args: argparse.Namespace, output: Path) -> int:
     """The figure of the estimate ``args.source`` to ``output`` (see :func:`_estimate`)."""
-    from continuum_mhe.cli.robot_options import DEFAULT_LENGTH, warn_other_recorded_robot
+    from continuum_mhe.cli.robot_options import (
+        DEFAULT_LENGTH,
+        recorded_mounting,
+        warn_other_recorded_robot,
+    )
     from continuum_mhe.cli.truth_checks import refuse_an_estimate_as_truth, truth_beside
     from continuum_mhe.evaluation.estimate_figure import (
         estimate_figure,
@@ -141,6 +145,8 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         if unit:
             raise InputError(f"{path}: {unit}")
     backbone = _tendon_backbone(args, est.names, est.t, robot)
+    # the robot file's mounting, else the one the estimate's options line records
+    mounting = robot.mounting if robot is not None else recorded_mounting(args.source)
     title = Path(args.source).name + (f" against {Path(args.truth).name}" if args.truth else "")
     if truth is not None:
         at_est, warned = truth_beside(
@@ -153,7 +159,7 @@ def _figure(args: argparse.Namespace, output: Path) -> int:
         for line in warned:
             print(f"{PROG}: warning: {line}", file=sys.stderr)
     try:
-        fig = estimate_figure(est, truth, lengths, title, backbone)
+        fig = estimate_figure(est, truth, lengths, title, backbone, mounting == "z-down")
     except InputError:  # names its file
         raise
     except UserError as exc:  # a row's loads (the estimate's or the truth's)

@@ -101,7 +101,7 @@ def estimate_robot(
     if args.robot:
         line = other_recorded_robot(path, args.robot, robot)
     elif getattr(args, "mounting", None) is not None:
-        recorded = _recorded_mounting(path)
+        recorded = recorded_mounting(path)
         if recorded is not None and recorded != args.mounting:
             line = (
                 f"{path} was estimated with mounting {recorded} (its options line), not "
@@ -115,7 +115,7 @@ def estimate_robot(
     return robot
 
 
-def _recorded_mounting(path: str) -> str | None:
+def recorded_mounting(path: str) -> str | None:
     """The mounting the estimate ``path`` was made with, from its options line (the
     robot file it names, or its ``--mounting``), or None where it records none or the
     robot file cannot be read."""

@@ -285,6 +285,7 @@ def estimate_figure(
     lengths: Sequence[float] | None = None,
     title: str = "",
     backbone: BackboneOf | None = None,
+    z_down: bool = False,
 ) -> Figure:
     """The figure of an estimate table ``est``: per axis, the position of each section
     end and of the tip over time (mm) with its 95 % band where the file has standard
@@ -293,7 +294,9 @@ def estimate_figure(
     row; and the backbone at :data:`SNAPSHOTS` instants, the truth's dashed: from
     ``backbone`` when given; else, for a constant-curvature estimate, the arcs from
     ``lengths`` (m; else from the file's own rows) and the bend columns; else (a tendon
-    robot's estimate without ``backbone``) straight lines through the section ends.
+    robot's estimate without ``backbone``) straight lines through the section ends;
+    ``z_down``: the robot hangs (mounting ``z-down``), and the backbone's panel draws
+    the base's z axis pointing down, so that the robot hangs there too.
 
     The truth draws the points it has (:func:`truth_points`: a motion-capture log may
     have the tip alone) and its backbone as arcs where it has the bend columns, else as
@@ -363,6 +366,9 @@ def estimate_figure(
         ax.tick_params(labelbottom=False)
     view = fig.add_subplot(grid[:, 1], projection="3d")
     _backbones(view, est, truth, matched, lengths, backbone, in_truth)
+    if z_down:  # the base frame's z points down in the world: drawn so
+        view.invert_zaxis()
+        view.set_zlabel("z (mm, base z down)")
     fig.suptitle(title)
     fig.tight_layout()
     return fig

@@ -203,7 +203,9 @@ def check_options_apply(name: str, kind: str, options: InputOptions, robot: Robo
     if mounted:
         warnings.warn(
             f"{name}: the robot file's mount_rpy of IMU {', '.join(mounted)} is not applied "
-            f"to tilt input: it rotates raw readings, and {why}",
+            f"to tilt input: it rotates raw readings, and {why} (as simulate writes them); "
+            "roll and pitch in an IMU's own frame need turning into its disk's first "
+            "(docs/formats.md#tilt), or give its raw readings",
             OptionWarning,
             stacklevel=3,
         )

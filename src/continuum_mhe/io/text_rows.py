@@ -81,6 +81,13 @@ def held_for_rereading(*paths: str | os.PathLike[str] | None) -> Iterator[None]:
             _HELD.pop(key, None)
 
 
+def held_text(path: str | os.PathLike[str]) -> str | None:
+    """The text of ``path`` where :func:`held_for_rereading` holds it (``-``, a pipe),
+    decoded as UTF-8 (undecodable bytes replaced), else None."""
+    held = _HELD.get(str(path))
+    return held[1].decode("utf-8", errors="replace") if held is not None else None
+
+
 def _open(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
     """``(name shown in messages, binary stream)``; ``-`` is standard input."""
     expect_type("path", path, (str, os.PathLike), "a file name (str or pathlib.Path)")
