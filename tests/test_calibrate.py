@@ -921,3 +921,26 @@ def test_calibrate_from_the_port_says_a_short_collection_and_bytes_without_line_
     assert any("1.000 s of the 1.3 s asked arrived" in m for m in said), said
     got, _ = _collect_events(monkeypatch, [("unended", 9000, 0.5), ("unended", 12000, 1.0)], 0.3)
     assert "12000 bytes arrived without a line end (LF or CR)" in str(got), got
+
+
+def test_write_robot_takes_a_robot_file_that_starts_with_a_byte_order_mark(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot file saved with a UTF-8 byte-order mark (as some Windows editors write
+    it) is read by every command; ``--write-robot`` rewrites it too (it stopped as an
+    internal error in the TOML writer), without the mark, with the same mountings as
+    from the file without it."""
+    data = Path(__file__).resolve().parents[1] / "src/continuum_mhe/data"
+    plain = (data / "robots" / "two_section.toml").read_text(encoding="utf-8")
+    rest = str(data / "rod2" / "planar-s_rest.csv")
+    written = []
+    for name, text in (("bom", "\ufeff# saved on Windows\n" + plain), ("plain", plain)):
+        robot, out = tmp_path / f"{name}.toml", tmp_path / f"{name}_cal.toml"
+        robot.write_text(text, encoding="utf-8")
+        code, _, err = _calibrate_main(
+            capsys, "--from", rest, "--robot", str(robot), "--write-robot", str(out)
+        )
+        assert code == 0, err
+        written.append(out.read_bytes())
+    assert not written[0].startswith(b"\xef\xbb\xbf")
+    assert written[0] == b"# saved on Windows\n" + written[1]

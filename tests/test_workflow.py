@@ -746,3 +746,14 @@ def test_an_estimate_made_in_another_folder_repeats_from_anywhere(
     (tmp_path / "sub" / "est.csv").rename(moved / "est.csv")
     robot.rename(moved / "r2.toml")
     assert main(["estimate", "m.csv", "--config", "moved/est.csv", "-o", "third.csv"]) == 0
+
+
+def test_an_options_file_that_starts_with_a_byte_order_mark_is_read(tmp_path: Path) -> None:
+    """An options file saved with a UTF-8 byte-order mark is read as without it (robot
+    files and CSVs are; it was refused as not valid TOML at column 1)."""
+    assert main(["simulate", "paper3d", "--duration", "1", "-o", str(tmp_path / "m.csv")]) == 0
+    cfg = tmp_path / "opts.toml"
+    cfg.write_text('\ufeffmethod = "ekf"\n', encoding="utf-8")
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(tmp_path / "m.csv"), "--config", str(cfg), "-o", str(out)]) == 0
+    assert _options_of(out)["method"] == "ekf"

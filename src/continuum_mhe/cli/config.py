@@ -121,7 +121,7 @@ def _read(path: str) -> tuple[dict[str, Any], str, int]:
     held = held_text(path)  # an estimate piped in (read whole, once)
     estimate = held is not None or p.suffix.lower() == ".csv"
     try:
-        text = p.read_text(encoding="utf-8") if held is None else held
+        text = p.read_text(encoding="utf-8-sig") if held is None else held  # a BOM dropped
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise InputError(f"{path}: cannot read the options file ({why})") from None

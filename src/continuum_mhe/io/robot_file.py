@@ -578,7 +578,7 @@ def robot_source_text(name: str | None, robot: Robot) -> str:
     p = Path(name)
     if not p.exists() and name in shipped_robots():
         p = shipped_robots()[name]
-    return p.read_text(encoding="utf-8")
+    return p.read_text(encoding="utf-8-sig")  # a byte-order mark dropped, as read_robot does
 
 
 def with_imu_calibration(
