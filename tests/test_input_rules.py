@@ -824,3 +824,30 @@ def test_series_rows_refuses_what_selects_no_rows_of_it() -> None:
         with pytest.raises(UserError) as refused:
             s.rows(which)
         assert str(refused.value).startswith(said), refused.value
+
+
+def test_an_impossible_reading_of_one_of_several_imus_is_refused_or_said(tmp_path, capsys):
+    """An acceleration of 1e6 m/s^2 in IMU 1's columns of a two-IMU recording is refused
+    in one line naming its line and IMU, nothing written, as for one IMU and as a NaN
+    there (it was read as a silent dropout, the run exit 0 with every row ``ok``);
+    ``--skip-bad`` reads it as that IMU's dropout and says which line and why."""
+    from continuum_mhe.cli import main
+
+    data = Path(__file__).parents[1] / "src" / "continuum_mhe" / "data" / "rod2"
+    lines = (data / "spatial-tendon_raw.csv").read_text().splitlines()[:21]
+    cells = lines[5].split(",")
+    cells[1] = "1e6"
+    lines[5] = ",".join(cells)
+    meas = tmp_path / "m.csv"
+    meas.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "e.csv"
+    argv = ["estimate", str(meas), "--robot", "two-section", "-o", str(out)]
+    assert main(argv) == 2 and not out.exists()
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(
+        f"continuum-mhe: error: {meas}: line 6: IMU 1: a reading beyond any IMU's range (|a| 1e+06"
+    ), err
+    assert main([*argv, "--skip-bad"]) == 0
+    err = capsys.readouterr().err
+    assert "(missing: IMU 1 on 1)" in err
+    assert "first: line 6: IMU 1: a reading beyond any IMU's range" in err

@@ -352,7 +352,8 @@ def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
 ) -> None:
     """A corrupt value far beyond any sensor (a 1e200 would overflow the magnitude and
     reach the mounting check as 'nan degrees') is named with its line; ``--skip-bad``
-    reads it as a dropout; with several IMUs it is that IMU's dropout."""
+    reads it as a dropout; with several IMUs it names the IMU too, and ``--skip-bad``
+    reads it as that IMU's dropout (the others' readings kept)."""
     good = "0,0,9.8,0,0,0"
     path = _write(tmp_path / "raw.csv", f"t,ax,ay,az,gx,gy,gz\n0,{good}\n0.02,{row}\n0.04,{good}\n")
     with pytest.raises(
@@ -367,8 +368,15 @@ def test_a_reading_beyond_any_imus_range_is_an_error_unless_skipped(
         f"{c}_{i}" for i in (1, 2) for c in ("ax", "ay", "az", "gx", "gy", "gz")
     )
     two = _write(tmp_path / "two.csv", f"{header}\n0,{good},{good}\n0.02,{row},{good}\n")
-    first, second = read_raw_imus(two, 2).imus
+    with pytest.raises(
+        InputError,
+        match=rf"two.csv: line 3: IMU 1: a reading beyond any IMU's range .*{re.escape(magnitude)}",
+    ):
+        read_raw_imus(two, 2)
+    skipped = read_raw_imus(two, 2, skip_bad=True)
+    first, second = skipped.imus
     assert np.isnan(first.acc[1]).all() and np.isfinite(second.acc).all()
+    assert len(skipped.skipped) == 1 and skipped.skipped[0].startswith("line 3: IMU 1: ")
 
 
 def test_an_accelerometer_in_raw_counts_is_named_not_read_as_dropouts(tmp_path: Path) -> None:

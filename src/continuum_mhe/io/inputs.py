@@ -419,7 +419,11 @@ def read_recording(
             f"{path}: --degrees is for a tilt recording's roll and pitch; this one is raw "
             "(accelerometer in m/s^2, gyro in rad/s)"
         )
-    tables = read_raw_imus(path, n_imus, fix=ROBOT_FIX).imus if n_imus > 1 else [read_raw_imu(path)]
+    tables = (
+        read_raw_imus(path, n_imus, fix=ROBOT_FIX, range_dropouts=True).imus
+        if n_imus > 1
+        else [read_raw_imu(path)]
+    )  # an impossible reading of one of several IMUs: left out, and said by the caller
     for i, tab in enumerate(tables, start=1):
         if tab.gyr is None:
             raise InputError(f"{path}: IMU {i} has no gyro columns (gx, gy, gz)")

@@ -389,6 +389,7 @@ def raw_blocks(
     first_block: bool = True,
     t: FloatArray | None = None,
     time_watch: TimeUnitWatch | None = None,
+    range_dropouts: bool = False,
 ) -> list[tuple[FloatArray, FloatArray | None]]:
     """``(acc, gyr)`` of each IMU from a raw table's values (n, k), unit-checked (a gyro
     in deg/s: an error if ``gyro_used``, else a warning; :func:`check_gyro_units`; on a
@@ -399,10 +400,12 @@ def raw_blocks(
     whole table's, or a stream's, which gathers its first blocks' rows), the times are
     checked against the gyros: :class:`TimeUnitWatch`).
 
-    One IMU: a zero acceleration, or a reading beyond any IMU's range
-    (:data:`ACCEL_READING_MAX`, :data:`GYRO_READING_MAX`), is an error, or with
-    ``skip_bad`` a dropout (recorded); several: any bad value makes that IMU's sample a
-    dropout (NaN)."""
+    A zero acceleration, or a reading beyond any IMU's range (:data:`ACCEL_READING_MAX`,
+    :data:`GYRO_READING_MAX`), is an error naming the line (and, of several IMUs, the
+    IMU), or with ``skip_bad`` a dropout of that IMU's sample (recorded); of several
+    IMUs, a non-finite value that reached here makes that IMU's sample a dropout
+    (NaN), and so does a zero or out-of-range reading where ``range_dropouts`` (for a
+    caller that counts and says them: ``calibrate``'s rest recording)."""
     k = 6 if has_gyro else 3
     out: list[tuple[FloatArray, FloatArray | None]] = []
     for i in range(n_imus):
@@ -417,21 +420,21 @@ def raw_blocks(
         zero = acc_norm == 0.0  # no gravity direction to read
         huge = (acc_norm > ACCEL_READING_MAX) | (gyr_norm > GYRO_READING_MAX)
         check_accel_range(label, acc_norm)
-        if n_imus == 1:
-            for j in np.flatnonzero(zero | huge):
-                msg = f"line {lines[int(j)]}: " + (
-                    "acceleration is zero (no gravity direction)"
-                    if zero[j]
-                    else f"a reading beyond any IMU's range (|a| {acc_norm[j]:.3g} m/s^2, "
-                    f"limit {ACCEL_READING_MAX:g}; |omega| {gyr_norm[j]:.3g} rad/s, limit "
-                    f"{GYRO_READING_MAX:g})"
-                )
-                if not skip_bad:
-                    raise InputError(f"{name}: {msg}")
-                if isinstance(skipped, RowProblems):
-                    skipped.add(msg)
-                else:
-                    skipped.append(msg)
+        which = "" if n_imus == 1 else f"IMU {i + 1}: "
+        for j in np.flatnonzero(zero | huge) if n_imus == 1 or not range_dropouts else ():
+            msg = f"line {lines[int(j)]}: {which}" + (
+                "acceleration is zero (no gravity direction)"
+                if zero[j]
+                else f"a reading beyond any IMU's range (|a| {acc_norm[j]:.3g} m/s^2, "
+                f"limit {ACCEL_READING_MAX:g}; |omega| {gyr_norm[j]:.3g} rad/s, limit "
+                f"{GYRO_READING_MAX:g})"
+            )
+            if not skip_bad:
+                raise InputError(f"{name}: {msg}")
+            if isinstance(skipped, RowProblems):
+                skipped.add(msg)
+            else:
+                skipped.append(msg)
         acc[zero] = np.nan
         block[huge] = np.nan
         check_accel_units(name, acc)
@@ -448,11 +451,19 @@ def raw_blocks(
 
 
 def read_raw_imus(
-    path: str | os.PathLike[str], n_imus: int, *, skip_bad: bool = False, fix: str = READER_FIX
+    path: str | os.PathLike[str],
+    n_imus: int,
+    *,
+    skip_bad: bool = False,
+    fix: str = READER_FIX,
+    range_dropouts: bool = False,
 ) -> MultiRawImuTable:
     """Read a raw CSV of ``n_imus`` IMUs: ``t,ax_1,ay_1,az_1[,gx_1,gy_1,gz_1],ax_2,...``
     (m/s^2, rad/s, each IMU in its own sensor frame). A file of another number of IMUs
-    is a one-line error that names ``fix`` (the command line names ``--robot``)."""
+    is a one-line error that names ``fix`` (the command line names ``--robot``). A
+    reading beyond any IMU's range is an error naming its line and IMU, or with
+    ``skip_bad`` that IMU's dropout there (in ``skipped``), or with ``range_dropouts``
+    that IMU's dropout, for the caller to count (:func:`raw_blocks`)."""
     with open_rows(path) as rows:
         cols, has_gyro = raw_layout(rows, n_imus, fix)
         got = read_sample_rows(rows, cols, skip_bad=skip_bad, empty_is_dropout=True)
@@ -460,7 +471,7 @@ def read_raw_imus(
     skipped = list(got.skipped)
     blocks = raw_blocks(
         rows.name, got.values, got.lines, n_imus, has_gyro, skip_bad, skipped, t=got.t,
-        time_watch=TimeUnitWatch(rows.time_scale),
+        time_watch=TimeUnitWatch(rows.time_scale), range_dropouts=range_dropouts,
     )  # fmt: skip
     imus = [RawImuTable(got.t, acc, gyr) for acc, gyr in blocks]
     return MultiRawImuTable(got.t, imus, skipped)
