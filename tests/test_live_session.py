@@ -1079,3 +1079,27 @@ def test_tilt_in_degrees_of_several_imus_is_found_past_an_imus_dropout() -> None
     assert s.fatal is not None and "degrees given for radians?" in s.fatal
     assert s.counts.samples > 16  # IMU 2 left the range at line 16, IMU 1 at line 32
     assert s.wrong_units is True
+
+
+@pytest.mark.parametrize(("garbled", "wrong"), [(46, True), (5, False)])
+def test_a_stream_that_ends_in_tilt_degrees_is_found_without_the_stop(
+    garbled: int, wrong: bool
+) -> None:
+    """A short recording in degrees (a few lines near straight, valid as radians, then
+    the angles past the radians' range) ends before the garbled lines last the 3 s that
+    stop a session: at its end, a run of 20 lines or more that grew from the valid ones
+    says the readings were degrees, as the stop would (``live`` removes their estimates,
+    exit 2); a few such lines at the end are counted as garbled, the estimates kept."""
+    s, _ = _session()
+    now = time.monotonic()
+    lines = [f"{20 * i},{0.5 * i:.2f},0.5" for i in range(4)]
+    lines += [f"{20 * (4 + i)},{3.5 + 2.5 * i:.2f},0.5" for i in range(garbled)]
+    for i, line in enumerate(lines):
+        s.handle_line(line.encode(), now + 0.02 * i)
+    assert s.fatal is None
+    s.finish()
+    assert s.wrong_units is wrong
+    if wrong:
+        assert s.fatal is not None and "degrees given for radians?" in s.fatal
+    else:
+        assert s.fatal is None and s.counts.garbled == garbled

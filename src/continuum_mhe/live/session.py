@@ -293,6 +293,8 @@ class LiveSession:
         #: lines began with angles beyond their range that follow on from them
         self._last_tilt: FloatArray | None = None
         self._degrees_run = False
+        #: the last garbled line's cause, text and arrival (s)
+        self._garbage_last: tuple[str, str, float] = ("", "", 0.0)
         #: the first sample of the device clock's run (its arrival and time, s), and the
         #: samples since, until the clock is held against the arrival times
         self._clock_checked = False
@@ -409,25 +411,32 @@ class LiveSession:
         if self._garbage_since is None:
             self._garbage_since = arrival
         self._garbage_lines += 1
+        self._garbage_last = (why, text, arrival)
         span = arrival - self._garbage_since
         if span >= GARBAGE_STOP_S and self._garbage_lines >= GARBAGE_STOP_LINES:
-            after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
-            hint = field_count_hint(
-                text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
-            )
-            if hint and hint not in why:
-                why += hint
-            self.fatal = (
-                f"{self.settings.port}: nothing but garbled lines for {span:.1f} s{after} "
-                f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
-                "and --baud"
-            )
-            # tilt angles in degrees that grew past the radians' range from the last
-            # valid sample: the samples since the start or a board reset were degrees
-            # read as radians (their estimates are not kept); a stream that turned to
-            # garbage keeps its estimates
-            if DEGREES_FOR_RADIANS in why and self._degrees_run:
-                self.wrong_units = True
+            self._stop_on_garbage()
+
+    def _stop_on_garbage(self) -> None:
+        """Set :attr:`fatal` for the run of garbled lines since the last valid sample,
+        naming its last line's cause; where the run is of tilt angles in degrees that grew
+        past the radians' range from the last valid sample, the samples since the start
+        or a board reset were degrees read as radians (:attr:`wrong_units`: their
+        estimates are not kept); a stream that turned to garbage keeps its estimates."""
+        why, text, arrival = self._garbage_last
+        span = arrival - (self._garbage_since or arrival)
+        after = f" after {self.counts.samples} valid sample(s)" if self.counts.samples else ""
+        hint = field_count_hint(
+            text, self.settings.fmt, self.n_imus, self.n_tensions, self._file_tensions
+        )
+        if hint and hint not in why:
+            why += hint
+        self.fatal = (
+            f"{self.settings.port}: nothing but garbled lines for {span:.1f} s{after} "
+            f"({self._garbage_lines} lines; the last: {why}); check --format, --robot "
+            "and --baud"
+        )
+        if DEGREES_FOR_RADIANS in why and self._degrees_run:
+            self.wrong_units = True
 
     def only_garbled(self) -> str | None:
         """Why the session failed if it read lines but not one valid sample (every line
@@ -552,6 +561,15 @@ class LiveSession:
                 self.counts.out_of_order += 1
         if self._tension_stream is not None:
             self._estimate_pending(self._tension_stream.end())
+        # a stream that ended inside a run of tilt angles past the radians' range that
+        # grew from its valid samples (shorter than the run that stops a session): degrees
+        if (
+            self.fatal is None
+            and self._degrees_run
+            and self._garbage_since is not None
+            and self._garbage_lines >= GARBAGE_STOP_LINES
+        ):
+            self._stop_on_garbage()
 
     def _comment(self, text: str, arrival: float) -> None:
         c = self.counts
