@@ -237,3 +237,29 @@ def test_a_single_bracket_table_after_a_key_of_its_name_names_the_table(tmp_path
     robot.write_text("[[imu]]\nsection = 1\n\n[section]\nlength = 0.2\n")
     with pytest.raises(InputError, match=r"r\.toml: line 4: 'section' must be a list of tables"):
         read_robot(robot)
+
+
+def test_a_robot_of_more_sections_than_the_models_take_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Past MAX_SECTIONS (16) the models' symbolic Jacobians take minutes and gigabytes
+    (check-robot of 50 sections ran out of memory; their first estimate did not end in
+    two minutes): a robot file of 17 sections is refused in one line naming it, exit 2,
+    and so is such a Robot in Python; one of 16 is a robot."""
+    from continuum_mhe.cli import main
+    from continuum_mhe.errors import UserError
+    from continuum_mhe.model.robot import MAX_SECTIONS, ImuPlacement, Robot, Section
+
+    def robot_file(n: int) -> Path:
+        path = tmp_path / f"r{n}.toml"
+        path.write_text("[[section]]\nlength = 0.01\n" * n + "[[imu]]\nsection = 1\n")
+        return path
+
+    assert MAX_SECTIONS == 16 and read_robot(robot_file(16)).n_sections == 16
+    assert main(["check-robot", str(robot_file(17)), "--samples", "10"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(
+        f"continuum-mhe: error: {robot_file(17)}: 17 sections: a robot has at most 16"
+    ), err
+    with pytest.raises(UserError, match=r"^17 sections: a robot has at most 16 \(the models'"):
+        Robot((Section(0.01),) * 17, (ImuPlacement(0),))

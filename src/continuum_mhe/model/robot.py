@@ -34,6 +34,10 @@ from continuum_mhe.model.imu import MOUNTINGS, Mounting
 MAX_SECTION_LENGTH = 5.0
 #: Shortest section accepted, m (a shorter one is a unit slip, not a robot).
 MIN_SECTION_LENGTH = 1e-3
+#: Most sections a robot may have. The models' symbolic Jacobians (``check-robot``, the
+#: starts, the IPOPT path) grow with about the cube of the sections' number, and past
+#: this a robot's check or first estimate takes minutes and gigabytes.
+MAX_SECTIONS = 16
 #: Largest mounting angle accepted, degrees (as ``--mount-rpy``).
 MAX_MOUNT_DEG = 360.0
 #: A section's bending bound where none is given, rad (172 degrees): one that a real
@@ -373,6 +377,12 @@ class Robot:
             object.__setattr__(self, name, items)
         if not self.sections:
             raise UserError("a robot needs at least one section")
+        if len(self.sections) > MAX_SECTIONS:
+            raise UserError(
+                f"{len(self.sections)} sections: a robot has at most {MAX_SECTIONS} (the "
+                "models' cost grows with about the cube of the sections' number: past "
+                f"{MAX_SECTIONS}, minutes and gigabytes for a check or a first estimate)"
+            )
         if not self.imus:
             raise UserError("a robot needs at least one IMU")
         for i, imu in enumerate(self.imus):
