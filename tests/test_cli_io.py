@@ -1246,3 +1246,36 @@ def test_a_second_demo_in_its_own_folder_replaces_its_files(tmp_path, monkeypatc
     assert main(["demo"]) == 0
     assert (tmp_path / DEFAULT_OUT / "truth.csv").read_text().startswith("t,")
     assert (tmp_path / DEFAULT_OUT / "estimates_mhe.csv").read_text().startswith("# options")
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (("length = 0.3", 'length = "abc"'), "its options line's length = 'abc' make(s) no robot"),
+        (("length = 0.3", "length = -1.0"), "its options line makes no robot (section length"),
+        (
+            ('mounting = "z-up"', 'mounting = "sideways"'),
+            "its options line's mounting = 'sideways' make(s) no robot",
+        ),
+    ],
+    ids=["length-text", "length-negative", "mounting"],
+)
+def test_an_options_line_that_makes_no_robot_is_said(tmp_path, capsys, edit, said):
+    """An estimate whose options line records a length or mounting that makes no robot
+    (edited by hand) is evaluated on the default section with a note naming the value
+    (it was taken silently, or a mounting read as z-up); the recorded 0.3 m is taken."""
+    meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
+    assert (
+        main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
+        == 0
+    )
+    assert main(["estimate", str(meas), "--length", "0.3", "--method", "ekf", "-o", str(est)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    assert "estimated on 1 section (0.3 m)" in capsys.readouterr().err
+    text = est.read_text()
+    assert text.count(edit[0]) == 1
+    est.write_text(text.replace(*edit))
+    assert main(["evaluate", str(est), str(truth)]) == 0
+    err = capsys.readouterr().err
+    assert f"note: {est}: {said}" in err and "the default one section of 0.2 m is used" in err

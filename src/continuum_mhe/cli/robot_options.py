@@ -215,26 +215,55 @@ def recorded_robot(path: str, use: str) -> Robot | None:
 def _recorded_section(path: str, use: str) -> Robot | None:
     """The one-section robot of the ``length``, ``mounting`` and ``theta-max`` the options
     line of the estimate ``path`` records (said in a note), where one of them differs
-    from the command line's default section, else None."""
+    from the command line's default section, else None; a recorded value that makes no
+    robot (a length that is no number, a mounting that is no mounting) is said in a note
+    and the default section is used."""
+    from continuum_mhe.errors import UserError
+
     length = recorded_option(path, "length")
-    if not isinstance(length, (int, float)) or isinstance(length, bool):
-        return None
     mounting = recorded_option(path, "mounting")
     theta_max = recorded_option(path, "theta-max")
-    default_bound = not isinstance(theta_max, (int, float)) or theta_max == math.pi / 2
-    if float(length) == DEFAULT_LENGTH and mounting in (None, "z-up") and default_bound:
+    if length is None and mounting is None and theta_max is None:
         return None
-    try:
-        robot = Robot.single(
-            float(length),
-            float(theta_max) if isinstance(theta_max, (int, float)) else math.pi / 2,
-            mounting if mounting in ("z-up", "z-down") else "z-up",
+    unusable = [
+        f"{key} = {value!r}"
+        for key, value, usable in (
+            ("length", length, length is None or _real(length)),
+            ("theta-max", theta_max, theta_max is None or _real(theta_max)),
+            ("mounting", mounting, mounting is None or mounting in ("z-up", "z-down")),
         )
-    except ValueError:
+        if not usable
+    ]
+    robot, why = None, ""
+    if not unusable:
+        try:
+            robot = Robot.single(
+                float(length) if length is not None else DEFAULT_LENGTH,
+                float(theta_max) if theta_max is not None else math.pi / 2,
+                mounting or "z-up",
+            )
+        except UserError as exc:
+            why = f"its options line makes no robot ({exc})"
+    else:
+        why = f"its options line's {', '.join(unusable)} make(s) no robot"
+    if robot is None:
+        print(
+            f"{PROG}: note: {path}: {why}: the default one section of {DEFAULT_LENGTH:g} m "
+            "is used (give --length or --robot)",
+            file=sys.stderr,
+        )
         return None
+    if robot == Robot.single(DEFAULT_LENGTH):
+        return None
+    given = f"--length {float(length):g}" if length is not None else f"--mounting {mounting}"
     print(
         f"{PROG}: note: {path} was estimated on {robot.describe()} (its options line: "
-        f"--length {float(length):g}): {use} (pass --length or --robot for another)",
+        f"{given}): {use} (pass --length or --robot for another)",
         file=sys.stderr,
     )
     return robot
+
+
+def _real(value: object) -> bool:
+    """Whether an options line's ``value`` is a finite real number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
