@@ -640,6 +640,17 @@ def test_simulate_writes_both_files_or_neither(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.endswith("--truth names the measurement file -o too; give two files")
     assert len(err.splitlines()) == 1 and not meas.exists()
+    # a figure's name for either CSV (it was written as CSV under that name)
+    for argv in (
+        ["-o", str(tmp_path / "m.png")],
+        ["-o", str(meas), "--truth", str(tmp_path / "t.pdf")],
+    ):
+        assert main(["simulate", "paper3d", *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert (
+            len(err.splitlines()) == 1 and "is written as CSV (.csv or .txt, or no suffix)" in err
+        )
+        assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def test_benchmark_checks_its_json_path_before_the_run(tmp_path, capsys, monkeypatch):

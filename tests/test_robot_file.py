@@ -263,3 +263,32 @@ def test_a_robot_of_more_sections_than_the_models_take_is_one_line(
     ), err
     with pytest.raises(UserError, match=r"^17 sections: a robot has at most 16 \(the models'"):
         Robot((Section(0.01),) * 17, (ImuPlacement(0),))
+
+
+def test_two_tendons_on_one_path_are_said(tmp_path: Path) -> None:
+    """A copied [[tendon]] entry (the same section, angle and radius) is read with a
+    one-line warning naming both (each tendon adds a tensions column); the shipped
+    tendon robot, whose tendons are all apart, reads without one."""
+    from continuum_mhe.io.robot_file import RobotFileWarning
+
+    shipped = (
+        Path(__file__).parents[1] / "src/continuum_mhe/data/robots/tendon_two_section.toml"
+    ).read_text()
+    twin = tmp_path / "twin.toml"
+    twin.write_text(shipped + "\n[[tendon]]\nsection = 1\nangle = 0\nradius = 0.01\n")
+    for path, said in ((twin, True), (tmp_path / "apart.toml", False)):
+        if not said:
+            path.write_text(shipped)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            robot = read_robot(path)
+        lines = [str(w.message) for w in seen if w.category is RobotFileWarning]
+        if said:
+            n = robot.n_tendons
+            assert lines == [
+                f"{path}: tendon {n} is at the same place as tendon 1 (section 1, angle 0 "
+                "deg, radius 0.01 m): two tendons listed on one path (a copied entry? each "
+                "adds a tensions column)"
+            ]
+        else:
+            assert lines == []

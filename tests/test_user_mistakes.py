@@ -2666,3 +2666,25 @@ def test_an_options_file_given_as_the_robot_is_named_as_one(tmp_path, capsys, co
     assert main(["check-robot", str(other)]) == 2
     err = capsys.readouterr().err
     assert "unknown key 'segment' (allowed: " in err and "options file" not in err
+
+
+@pytest.mark.parametrize("command", ["estimate", "simulate", "check-robot", "evaluate"])
+def test_an_empty_robot_name_is_refused_not_taken_as_none(tmp_path, capsys, command) -> None:
+    """``--robot ""`` (a shell variable left unset) was taken as no robot file at all, the
+    run on the default one section: refused in one line naming --robot, exit 2."""
+    argv = {
+        "estimate": ["estimate", "m.csv", "-o", str(tmp_path / "e.csv")],
+        "simulate": ["simulate", "paper3d", "-o", str(tmp_path / "m.csv")],
+        "check-robot": ["check-robot"],
+        "evaluate": ["evaluate", "e.csv", "t.csv"],
+    }[command]
+    if command == "check-robot":
+        argv += [""]
+    else:
+        argv += ["--robot", ""]
+    with pytest.raises(SystemExit) as stopped:
+        main(argv)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "an empty name" in err, err
+    assert list(tmp_path.iterdir()) == []

@@ -757,3 +757,22 @@ def test_an_options_file_that_starts_with_a_byte_order_mark_is_read(tmp_path: Pa
     out = tmp_path / "e.csv"
     assert main(["estimate", str(tmp_path / "m.csv"), "--config", str(cfg), "-o", str(out)]) == 0
     assert _options_of(out)["method"] == "ekf"
+
+
+def test_plot_of_a_one_row_estimate_with_a_truth_says_so(tmp_path: Path, capsys) -> None:
+    """A truth beside an estimate of one row is refused saying that the estimate has one
+    row (it said 'only 1 of the estimate's 1 rows have a truth row at the same t')."""
+    meas, truth, est = (tmp_path / n for n in ("m.csv", "t.csv", "e.csv"))
+    assert (
+        main(["simulate", "paper3d", "--duration", "1", "-o", str(meas), "--truth", str(truth)])
+        == 0
+    )
+    assert main(["estimate", str(meas), "--method", "ekf", "-o", str(est)]) == 0
+    lines = est.read_text().splitlines()
+    one = tmp_path / "one.csv"
+    one.write_text("\n".join([ln for ln in lines if ln.startswith("#")] + lines[3:5]) + "\n")
+    capsys.readouterr()
+    assert main(["plot", str(one), "--truth", str(truth), "-o", str(tmp_path / "f.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("the estimate has 1 row: a truth is drawn beside two rows or more"), err
+    assert not (tmp_path / "f.png").exists()

@@ -7,7 +7,7 @@ import json
 import sys
 
 from continuum_mhe.cli.program import PROG
-from continuum_mhe.cli.robot_options import robot_from_args
+from continuum_mhe.cli.robot_options import robot_from_args, robot_name_arg
 from continuum_mhe.errors import InputError, UserError
 
 
@@ -47,7 +47,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     names = ", ".join(shipped_robots())
     p.add_argument(
-        "robot", metavar="ROBOT.toml", help=f"robot file, or a shipped robot's name ({names})"
+        "robot",
+        metavar="ROBOT.toml",
+        type=robot_name_arg,
+        help=f"robot file, or a shipped robot's name ({names})",
     )
     p.add_argument("--samples", type=int, default=2000, help="random shapes (default 2000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random shapes (default 0)")

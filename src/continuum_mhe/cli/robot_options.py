@@ -46,9 +46,19 @@ def add_robot_option(
     if replaces:
         *first, last = replaces
         text += f"; replaces {', '.join(first)} and {last}" if first else f"; replaces {last}"
-    g.add_argument("--robot", metavar="ROBOT.toml", help=text)
+    g.add_argument("--robot", metavar="ROBOT.toml", type=robot_name_arg, help=text)
     # read by the options record: what a robot file sets is not recorded from the flags
     g.set_defaults(robot_replaces=tuple(o.lstrip("-").replace("-", "_") for o in replaces))
+
+
+def robot_name_arg(text: str) -> str:
+    """``--robot``'s value: a name, not an empty one (a shell variable left unset), which
+    would be taken as no robot file at all."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "an empty name: give a robot file or a shipped robot's name (or leave --robot out)"
+        )
+    return text
 
 
 def robot_from_args(args: argparse.Namespace) -> Robot:

@@ -23,6 +23,8 @@ from continuum_mhe.simulation.scenarios import (
     simulate_robot,
 )
 
+#: The suffixes the recording and its truth may have: they are CSV files.
+CSV_SUFFIXES = (".csv", ".txt", "")
 #: Most samples ``simulate`` writes (``--duration / --dt``).
 MAX_SIMULATED_SAMPLES = 10_000_000
 
@@ -51,6 +53,12 @@ def run(args: argparse.Namespace) -> int:
     for target in (args.output, args.truth):
         if target:
             refuse_inputs(target, [("the robot file --robot", getattr(args, "robot", None))])
+    for flag, target in (("-o", args.output), ("--truth", args.truth)):
+        suffix = Path(target).suffix if target else ""
+        if suffix.lower() not in CSV_SUFFIXES:  # a name another reader would misread
+            raise InputError(
+                f"{target}: {flag} is written as CSV (.csv or .txt, or no suffix), not {suffix}"
+            )
     if args.truth:
         truth = check_output_target(args.truth, args.overwrite, "--truth")
         if truth.resolve() == Path(args.output).resolve():

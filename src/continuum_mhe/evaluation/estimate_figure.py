@@ -258,6 +258,8 @@ def truth_problem(est: StateTable, truth: StateTable) -> str | None:
     if not any(truth_points(est, truth)):
         wanted = ", ".join(", ".join(p.columns) for p in tracked_points(est.names))
         return f"the truth has none of the estimate's positions ({wanted}; or x, y, z)"
+    if len(est.t) < 2:
+        return f"the estimate has {len(est.t)} row: a truth is drawn beside two rows or more"
     matched = match_rows(est.t, truth.t)
     if len(matched[0]) < 2:
         return (

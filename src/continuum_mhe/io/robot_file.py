@@ -128,6 +128,26 @@ def warn_imu_order(path: Path, imus: Sequence[ImuPlacement]) -> None:
         )
 
 
+def warn_tendon_twins(path: Path, tendons: Sequence[Tendon]) -> None:
+    """Warn (:class:`RobotFileWarning`, one line) where two tendons are anchored at the
+    same section, angle and radius: a copied entry, which adds a tensions column that
+    pulls on the same path."""
+    seen: dict[tuple[int, float, float], int] = {}
+    for i, tendon in enumerate(tendons):
+        key = (tendon.section, round(tendon.angle, 9), round(tendon.radius, 12))
+        if key in seen:
+            warnings.warn(
+                f"{path}: tendon {i + 1} is at the same place as tendon {seen[key] + 1} "
+                f"(section {tendon.section + 1}, angle {math.degrees(tendon.angle):g} deg, "
+                f"radius {tendon.radius:g} m): two tendons listed on one path (a copied "
+                "entry? each adds a tensions column)",
+                RobotFileWarning,
+                stacklevel=4,
+            )
+            return
+        seen[key] = i
+
+
 def _shown(value: object) -> str:
     """``repr(value)`` for a message, cut short (a value may be a list of thousands)."""
     return shorten(repr(value), 60)
@@ -267,6 +287,7 @@ def parse_robot(doc: dict[str, Any], path: Path) -> Robot:
     warn_imu_order(path, imus)
     backbone = _backbone(path, doc)
     tendons = _tendons(path, doc, len(sections))
+    warn_tendon_twins(path, tendons)
     if tendons and backbone is None:
         raise InputError(
             f"{path}: {len(tendons)} [[tendon]] but no [backbone]: a tendon-driven robot needs "
