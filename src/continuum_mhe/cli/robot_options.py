@@ -265,7 +265,15 @@ def _recorded_section(path: str, use: str) -> Robot | None:
         return None
     if robot == Robot.single(DEFAULT_LENGTH):
         return None
-    given = f"--length {float(length):g}" if length is not None else f"--mounting {mounting}"
+    given = " ".join(  # the options that differ from the default section's
+        f"--{key} {value:g}" if isinstance(value, (int, float)) else f"--{key} {value}"
+        for key, value, default in (
+            ("length", length, DEFAULT_LENGTH),
+            ("theta-max", theta_max, math.pi / 2),
+            ("mounting", mounting, "z-up"),
+        )
+        if value is not None and value != default
+    )
     print(
         f"{PROG}: note: {path} was estimated on {robot.describe()} (its options line: "
         f"{given}): {use} (pass --length or --robot for another)",
