@@ -28,6 +28,12 @@ from continuum_mhe.model.settings import FormulationName
 DRIFT_FRACTION = 0.1
 
 
+#: A bend (rad) above which phi on its bound makes the paper formulation's state
+#: ``at-bound``: below it the tip lies within a twentieth of the length of the straight
+#: pose's tip, whatever phi.
+PHI_BOUND_THETA = 0.1
+
+
 @dataclass(frozen=True)
 class PaperFormulation(Formulation):
     """The paper's five-state formulation, eqs. (3), (4), (10), (11), sign-corrected.
@@ -95,7 +101,14 @@ class PaperFormulation(Formulation):
         return bool(theta_out or np.linalg.norm(x[:3]) > 3 * self.length)
 
     def at_bound(self, x: FloatArray) -> bool:
-        return bool(x[3] >= self.robot.theta_max - AT_BOUND_TOL)
+        """theta on ``theta_max`` (or beyond), or, with the section bent by more than
+        :data:`PHI_BOUND_THETA` (nearly straight, phi hardly moves the shape), phi on its
+        state bound ``-pi`` or ``pi`` (within :data:`AT_BOUND_TOL`): the MHE's box cannot
+        wrap phi, and holds it there while the bending plane turns past it."""
+        on_theta = x[3] >= self.robot.theta_max - AT_BOUND_TOL
+        # (a filter's phi passes the bound, unheld: on it, not beyond it)
+        on_phi = x[3] > PHI_BOUND_THETA and abs(abs(x[4]) - math.pi) <= AT_BOUND_TOL
+        return bool(on_theta or on_phi)
 
     def drift(self, x: FloatArray) -> float:
         """Distance, m, from the position state to the tip of the state's own theta, phi."""
