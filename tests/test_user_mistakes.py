@@ -15,7 +15,15 @@ from numpy.testing import assert_allclose
 
 import continuum_mhe.cli.app as cli
 import continuum_mhe.cli.check_robot as check_robot
-from continuum_mhe import Measurement, compute_metrics, make_estimator, make_formulation, simulate
+from continuum_mhe import (
+    Measurement,
+    MHESettings,
+    NoiseSettings,
+    compute_metrics,
+    make_estimator,
+    make_formulation,
+    simulate,
+)
 from continuum_mhe.cli import main
 from continuum_mhe.cli.options import OPTION_RANGES
 from continuum_mhe.errors import InputError, UserError
@@ -2688,3 +2696,23 @@ def test_an_empty_robot_name_is_refused_not_taken_as_none(tmp_path, capsys, comm
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "an empty name" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda big: Section(big),
+        lambda big: Section(0.2, theta_max=big),
+        lambda big: ImuPlacement(0, gyro_bias=(big, 0.0, 0.0)),
+        lambda big: RobotSettings(length=big),
+        lambda big: NoiseSettings(measurement_std=big),
+        lambda big: MHESettings(tol=big),
+    ],
+    ids=["section-length", "theta-max", "gyro-bias", "robot-settings", "noise", "mhe-tol"],
+)
+def test_an_integer_beyond_a_floats_range_is_a_user_error(make) -> None:
+    """10**400, a Python integer no float holds, is a UserError naming the argument (it
+    was an OverflowError from math.isfinite inside the check)."""
+    with pytest.raises(UserError) as refused:
+        make(10**400)
+    assert "\n" not in str(refused.value)

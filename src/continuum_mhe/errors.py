@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -51,9 +52,19 @@ class UnobservableShapeWarning(UserWarning):
 
 
 def is_real(value: object) -> TypeGuard[float]:
-    """Whether ``value`` is a real number (numpy's scalars too), not a bool (to the type
-    checker a float: every such number compares and converts as one)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+    """Whether ``value`` is a real number (numpy's scalars too), not a bool, that a float
+    holds (not an integer such as 10**400, beyond a float's range, which ``float()`` and
+    ``math.isfinite`` refuse with an OverflowError): to the type checker a float, as
+    every such number compares and converts as one."""
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        return False
+    if isinstance(value, numbers.Integral):
+        return abs(int(value)) <= _LARGEST_FLOAT_INT
+    return True
+
+
+#: The largest integer a float holds (larger ones overflow ``float()``).
+_LARGEST_FLOAT_INT = int(sys.float_info.max)
 
 
 def is_integer(value: object) -> TypeGuard[int]:
@@ -64,12 +75,12 @@ def is_integer(value: object) -> TypeGuard[int]:
 def real_number(name: str, value: object) -> float:
     """``value`` as a float, or a :class:`UserError` naming the argument ``name`` when it
     is not a real number (a string, None, a bool, a list)."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and not is_real(value):
+        # an int beyond a float's range (10**400)
+        raise UserError(f"{name} must be a number a float can hold, got {value!r:.40}")
     if not is_real(value):
         raise UserError(f"{name} must be a number, got {value!r}")
-    try:
-        return float(value)
-    except OverflowError:  # an int beyond a float's range (10**400)
-        raise UserError(f"{name} must be a number a float can hold, got {value!r:.40}") from None
+    return float(value)
 
 
 def finite_reals(name: str, value: object, size: int, what: str) -> tuple[float, ...]:
