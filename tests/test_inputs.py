@@ -155,3 +155,25 @@ def test_a_series_gives_an_output_s_standard_deviation_by_name() -> None:
             get("fx")
     bare = EstimateSeries("ekf", t, output, status, np.zeros(3))
     assert np.isnan(bare.std_column("x")).all()
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        ("degrees", "no", "InputOptions degrees must be True or False, got str 'no'"),
+        ("estimate_gyro_bias", "no", "InputOptions estimate_gyro_bias must be True, False or None"),
+        ("raw", None, "InputOptions raw must be a RawImuSettings, got NoneType None"),
+        ("topics", "/imu", "InputOptions topics must be a sequence of str"),
+        ("gyro_std", -1.0, "InputOptions gyro_std must be a positive finite number"),
+    ],
+)
+def test_input_options_check_their_fields(field: str, value: object, said: str) -> None:
+    """A string for a switch read as true (``degrees="no"`` turned every reading by
+    pi/180), ``raw=None`` failed inside the reader: each field is checked where the
+    options are made, a UserError naming it; a list of topics is taken as a tuple."""
+    from continuum_mhe.errors import UserError
+
+    with pytest.raises(UserError) as refused:
+        InputOptions(**{field: value})
+    assert str(refused.value).startswith(said)
+    assert InputOptions(topics=["/a", "/b"]).topics == ("/a", "/b")

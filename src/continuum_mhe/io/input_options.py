@@ -9,6 +9,7 @@ mounting. The pipeline that applies them, in order, is :mod:`continuum_mhe.io.in
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -16,12 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from continuum_mhe.arrays import FloatArray
-from continuum_mhe.errors import InputError
+from continuum_mhe.errors import InputError, UserError, expect_type
 from continuum_mhe.io.raw_imu import RawImuSettings
 from continuum_mhe.io.robot_file import shipped_robots
 from continuum_mhe.model.direct import DEFAULT_GYRO_STD
 from continuum_mhe.model.formulations import Formulation
 from continuum_mhe.model.robot import ImuPlacement, Robot
+from continuum_mhe.model.settings import check_positive
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,38 @@ class InputOptions:
     skip_bad: bool = False
     tensions: str | None = None
     estimate_tension_gain: bool = False
+
+    def __post_init__(self) -> None:
+        """Each field of its kind (a :class:`UserError` naming it): a switch is a bool
+        (a string such as ``"no"`` would read as true), a file or topic a str, a
+        tolerance or noise a positive finite number; ``topics`` taken as a tuple."""
+        expect_type("InputOptions raw", self.raw, RawImuSettings, "a RawImuSettings")
+        switches = (
+            "mount_rpy_given", "gyro_std_given", "gyro_bias_off_given", "use_orientation",
+            "estimate_accel_bias", "own_acceleration", "degrees", "skip_bad",
+            "estimate_tension_gain",
+        )  # fmt: skip
+        for name in switches:
+            expect_type(f"InputOptions {name}", getattr(self, name), bool, "True or False")
+        if self.estimate_gyro_bias is not None:
+            expect_type(
+                "InputOptions estimate_gyro_bias", self.estimate_gyro_bias, bool,
+                "True, False or None (the default: yes)",
+            )  # fmt: skip
+        for name in ("topic", "tensions"):
+            value = getattr(self, name)
+            if value is not None:
+                expect_type(f"InputOptions {name}", value, (str, os.PathLike), "a str or None")
+        if isinstance(self.topics, (str, bytes)) or not hasattr(self.topics, "__iter__"):
+            raise UserError(
+                f"InputOptions topics must be a sequence of str, got {self.topics!r:.60}"
+            )
+        object.__setattr__(self, "topics", tuple(self.topics))
+        for topic in self.topics:
+            expect_type("InputOptions topics item", topic, str, "a str (an Imu topic)")
+        check_positive("InputOptions gyro_std", self.gyro_std)
+        if self.pair_tolerance is not None:
+            check_positive("InputOptions pair_tolerance", self.pair_tolerance)
 
 
 def with_imu_model(
