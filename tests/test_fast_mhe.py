@@ -379,6 +379,9 @@ def test_default_backend_is_fast_and_settings_validate() -> None:
         MHESettings(solver="qp")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="max_iter"):
         fm.FastOptions(max_iter=0)
+    for beyond in (2**31, 2**32 + 5, 10**30):  # IPOPT's C int: refused, wrapped to 5, stuck
+        with pytest.raises(ValueError, match=r"max_iter must be an integer from 1 to 100,000"):
+            MHESettings(max_iter=beyond)
     with pytest.raises(ValueError, match="step_tol"):
         fm.FastOptions(step_tol=1.0)
 

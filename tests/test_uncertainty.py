@@ -671,7 +671,7 @@ def test_equal_readings_on_both_sides_of_a_gap_are_not_a_freeze(method: str) -> 
 
 def test_freeze_samples_are_validated() -> None:
     assert RecoverySettings(freeze_samples=np.int64(3)).freeze_samples == 3
-    for bad in (1, 0, 2.5, True, np.int64(1)):
+    for bad in (1, 0, 2.5, True, np.int64(1), 2**32 + 2):  # (a C int held the last as 4)
         with pytest.raises(ValueError, match="freeze_samples"):
             RecoverySettings(freeze_samples=bad)  # type: ignore[arg-type]
     t, z = np.array([0.0, 0.6, 1.2]), np.tile([0.1, 0.1], (3, 1))

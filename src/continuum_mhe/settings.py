@@ -61,6 +61,12 @@ DEFAULT_LOSS_SCALE: dict[str, float] = {
 #: Longest MHE window, samples (the command line's ``--horizon`` range: a window of
 #: 10^9 samples is a memory error in CasADi, not an estimator).
 MAX_HORIZON = 1000
+#: Most IPOPT iterations a sample may take (``MHESettings.max_iter``): IPOPT takes a C
+#: int, and a window that needs more does not converge.
+MAX_ITER = 100_000
+#: Most samples a frozen reading is counted over (``RecoverySettings.freeze_samples``):
+#: 1000 s at 1 kHz; the compiled check counts in a C int.
+MAX_FREEZE_SAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -127,9 +133,11 @@ class MHESettings:
         if not (
             isinstance(self.max_iter, whole)
             and not isinstance(self.max_iter, bool)
-            and self.max_iter >= 1
+            and 1 <= self.max_iter <= MAX_ITER
         ):
-            raise UserError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+            raise UserError(
+                f"max_iter must be an integer from 1 to {MAX_ITER:,}, got {self.max_iter!r:.40}"
+            )
         object.__setattr__(self, "max_iter", int(self.max_iter))
         check_positive("tol", self.tol)
 
@@ -232,8 +240,14 @@ class RecoverySettings:
                 check_positive(name, value)
         check_positive("uncertain_fraction", self.uncertain_fraction)
         n = self.freeze_samples
-        if not (isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 2):
-            raise UserError(f"freeze_samples must be an integer >= 2, got {n!r}")
+        if not (
+            isinstance(n, numbers.Integral)
+            and not isinstance(n, bool)
+            and 2 <= n <= MAX_FREEZE_SAMPLES
+        ):
+            raise UserError(
+                f"freeze_samples must be an integer from 2 to {MAX_FREEZE_SAMPLES:,}, got {n!r:.40}"
+            )
         object.__setattr__(self, "freeze_samples", int(n))
 
     @classmethod
