@@ -186,14 +186,24 @@ def test_continue_run_refuses_blocks_that_do_not_cover_the_samples(block, starts
     """``continue_run`` steps every sample once, in order, or refuses in one
     UserError: a block size that is not a positive integer, or starts that skip,
     repeat, reorder or pass the samples (the rows left unstepped would read as ``ok``
-    estimates of uninitialised memory)."""
+    estimates of uninitialised memory). Starts given as a list are checked before any
+    sample is stepped (the blocks before a bad one were stepped, their estimates lost,
+    and the same call again was refused as going back in time)."""
     rec = simulate("paper3d", duration=1.0)
     est = make_estimator("ekf", make_formulation("bend"))
     with pytest.raises(UserError, match=match):
         est.continue_run(rec.t, rec.z, starts=starts, block=block)
-    est.reset()
-    batch = est.continue_run(rec.t, rec.z, starts=range(0, 21, 10), block=10)
+    batch = est.continue_run(rec.t, rec.z, starts=range(0, 21, 10), block=10)  # no reset
     np.testing.assert_array_equal(batch.output, est.run(rec.t, rec.z).output)
+
+
+def test_continue_run_refuses_a_should_stop_that_is_no_function() -> None:
+    """``should_stop=5`` was a TypeError from inside the compiled loop."""
+    rec = simulate("paper3d", duration=1.0)
+    est = make_estimator("ekf", make_formulation("bend"))
+    with pytest.raises(UserError, match=r"should_stop must be a function that says when"):
+        est.continue_run(rec.t, rec.z, should_stop=5)  # type: ignore[arg-type]
+    assert len(est.continue_run(rec.t, rec.z).output) == len(rec.t)
 
 
 def test_theta_max_in_degrees_in_the_library() -> None:

@@ -25,7 +25,7 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import Generic, NoReturn, SupportsIndex, TypeVar
@@ -756,7 +756,14 @@ class Estimator(Generic[InferenceT]):
         self._refuse_before_stepping(t, z)
         if check_units:
             self._warn_time_unit(t, "continue_run")
+        if should_stop is not None and not callable(should_stop):
+            raise UserError(
+                f"continue_run: should_stop must be a function that says when to stop, got "
+                f"{should_stop!r:.40}"
+            )
         size = max(len(t), 1) if block is None else int(block)
+        if isinstance(starts, (Sequence, np.ndarray)):  # checked before any is stepped
+            _check_starts(starts, len(t), size)  # (an iterator, a progress display's, as stepped)
         starts = range(0, len(t), size) if starts is None else starts
         return self._step_blocks(t, z, starts, size, should_stop)
 
@@ -814,14 +821,7 @@ class Estimator(Generic[InferenceT]):
         u8 = np.uint8
         done = 0  # the samples stepped: each block starts where the last one ended
         for i in starts:
-            if not is_integer(i) or i != done or i >= n:
-                raise UserError(
-                    f"continue_run: the blocks must cover the {n} samples in order, "
-                    f"{size} at a time from 0 (starts range(0, n, block)): a block starts "
-                    f"at {i!r} where sample {done} is next"
-                )
-            j = min(i + size, n)
-            done = j
+            done = j = _next_block(i, done, n, size)
             stop, err = self._policy.run(
                 t[i:j], z[i:j], batch.status[i:j], batch.solve_ms[i:j],
                 batch.outlier[i:j].view(u8), batch.frozen[i:j].view(u8),
@@ -832,12 +832,39 @@ class Estimator(Generic[InferenceT]):
                 self._refuse(err, float(t[i + stop]), z[i + stop])
             if stop < j - i:  # should_stop said so: the samples stepped
                 return batch.head(i + stop)
-        if done != n:
-            raise UserError(
-                f"continue_run: the blocks stepped the first {done} of the {n} samples: "
-                "the starts must cover every sample (range(0, n, block))"
-            )
+        _check_covered(done, n)
         return batch
+
+
+def _next_block(i: object, done: int, n: int, size: int) -> int:
+    """The end of the block of :meth:`Estimator.continue_run` that starts at ``i``,
+    where sample ``done`` is next of ``n``, or a :class:`UserError`: a block that does not
+    start there."""
+    if not is_integer(i) or i != done or i >= n:
+        raise UserError(
+            f"continue_run: the blocks must cover the {n} samples in order, {size} at a "
+            f"time from 0 (starts range(0, n, block)): a block starts at {i!r} where "
+            f"sample {done} is next"
+        )
+    return min(int(i) + size, n)
+
+
+def _check_covered(done: int, n: int) -> None:
+    """A :class:`UserError` where the blocks stepped fewer than the ``n`` samples."""
+    if done != n:
+        raise UserError(
+            f"continue_run: the blocks stepped the first {done} of the {n} samples: the "
+            "starts must cover every sample (range(0, n, block))"
+        )
+
+
+def _check_starts(starts: Iterable[object], n: int, size: int) -> None:
+    """The blocks of :meth:`Estimator.continue_run` from ``starts`` (a sequence), checked
+    as stepping them checks them, before any is stepped."""
+    done = 0
+    for i in starts:
+        done = _next_block(i, done, n, size)
+    _check_covered(done, n)
 
 
 #: Samples per call into the compiled policy when ``run`` shows its progress.
