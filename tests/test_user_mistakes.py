@@ -1384,6 +1384,34 @@ def test_aligned_truth_refuses_a_truth_whose_rows_and_times_differ() -> None:
     np.testing.assert_array_equal(rows, rec.truth)
 
 
+def test_aligned_truth_refuses_times_that_do_not_increase() -> None:
+    """A truth whose rows are out of time order was aligned on 1 of 61 rows, with a
+    warning that blamed milliseconds: times that do not increase are a UserError naming
+    the row; the same truth sorted aligns every row."""
+    from continuum_mhe.evaluation.metrics import aligned_truth
+
+    rec = simulate("paper3d", duration=3.0, seed=1)
+    names = [o.name for o in rec.outputs]
+    order = np.random.default_rng(0).permutation(len(rec.t))
+    with pytest.raises(UserError, match=r"^t_truth must increase: row \d+ is at"):
+        aligned_truth(rec.t, rec.t[order], rec.truth[order], names)
+    with pytest.raises(UserError, match=r"^t_est must increase: row 1 is at 0 s after 0.05 s"):
+        aligned_truth(rec.t[[1, 0, 2]], rec.t, rec.truth, names)
+    i_est, _, _ = aligned_truth(rec.t, rec.t, rec.truth, names)
+    assert len(i_est) == len(rec.t)
+
+
+def test_compute_metrics_refuses_angles_in_degrees() -> None:
+    """Bend angles in degrees gave a theta RMSE of 54 "rad": beyond a turn, they are a
+    UserError naming the side, row and column, as read_state_table refuses them."""
+    rec = simulate("paper3d", duration=2.0, seed=1)
+    degrees = rec.truth * [1.0, 1.0, 1.0, 180 / math.pi, 180 / math.pi]
+    for est, truth, side in ((rec.truth, degrees, "truth"), (degrees, rec.truth, "estimate")):
+        with pytest.raises(UserError, match=rf"^{side}: row \d+: (theta|phi)=[\d.]+ beyond 2 pi"):
+            compute_metrics(est, truth, 0.2)
+    assert compute_metrics(rec.truth, rec.truth, 0.2).tip_mean_mm == 0.0
+
+
 def test_compute_metrics_skips_rows_without_a_finite_truth_and_counts_them() -> None:
     """Rows whose truth is NaN (a gap in a motion capture) are left out of the metrics
     and counted, as rows without an estimate are: the metrics are those of the other

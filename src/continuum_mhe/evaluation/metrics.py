@@ -26,6 +26,7 @@ from continuum_mhe.io.position_units import (
     position_unit_problem,
     tip_ratio,
 )
+from continuum_mhe.io.state_tables import angle_beyond_a_turn
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     TIP_FORCE_COLUMNS,
@@ -186,6 +187,14 @@ def compute_metrics(
             raise UserError(f"{side}: {problem}")
     if problem := position_unit_against(tnames, tru_all, names, est_all):
         raise UserError(f"truth: {problem}")
+    for side, side_names, values in (("estimate", names, est_all), ("truth", tnames, tru_all)):
+        turned = angle_beyond_a_turn(side_names, values)
+        if turned is not None:
+            row, name, value = turned
+            raise UserError(
+                f"{side}: row {row}: {name}={value:.6g} beyond 2 pi: degrees? bend angles are "
+                "in rad (numpy.radians converts)"
+            )
     est = est_all[:, [names.index(c) for c in common]]
     tru = tru_all[:, [tnames.index(c) for c in common]]
     estimated = np.all(np.isfinite(est), axis=1)
@@ -483,7 +492,7 @@ def aligned_truth(
 
     Raises:
         UserError: ``values`` that are not (len(t_truth), len(names)) numbers, or times
-            that are not 1-D.
+            that are not 1-D or do not increase.
     """
     names = _column_names("names", names)
     table = _table("values", values, names, "names")
@@ -497,6 +506,14 @@ def aligned_truth(
         raise UserError(
             f"values has {len(table)} rows but t_truth has {len(t_truth)}: one truth row per time"
         )
+    for name, times in (("t_est", t_est), ("t_truth", t_truth)):
+        back = np.flatnonzero(~(np.diff(times) > 0))
+        if len(back):  # (a row matched by its time would be the wrong one: sort them)
+            i = int(back[0]) + 1
+            raise UserError(
+                f"{name} must increase: row {i} is at {times[i]:g} s after {times[i - 1]:g} s "
+                "(sort the rows by time)"
+            )
     i_est, i_truth = match_rows(t_est, t_truth)
     rows = table[i_truth]
     interpolated = False

@@ -88,6 +88,18 @@ _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
 ANGLE_LIMIT = 2.0 * math.pi + 1e-9
 
 
+def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str, float] | None:
+    """The first ``(row, column name, value)`` of a bend angle (a ``theta`` or ``phi``
+    column) beyond :data:`ANGLE_LIMIT` in the table ``values`` (n, len(names)): angles
+    in degrees; else None."""
+    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
+    turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
+    if not len(turned):
+        return None
+    i, j = turned[0]
+    return int(i), names[angles[j]], float(values[i, angles[j]])
+
+
 #: the suffix of a truth column kept beside the measurements of a recording
 TRUE_SUFFIX = "_true"
 
@@ -183,14 +195,12 @@ def read_state_table(
             f"{p}: line {lines[i]}: {names[j]}={values[i, j]:.6g} out of range (|value| <= "
             f"{STATE_LIMIT:g} in m, rad and N)"
         )
-    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
-    turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
-    if len(turned):
-        i, j = turned[0]
-        name = names[angles[j]]
+    turned = angle_beyond_a_turn(names, values)
+    if turned is not None:
+        i, name, value = turned
         raise InputError(
-            f"{p}: line {lines[i]}: {name}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? "
-            "bend angles are in rad (numpy.radians converts)"
+            f"{p}: line {lines[i]}: {name}={value:.6g} beyond 2 pi: degrees? bend angles are "
+            "in rad (numpy.radians converts)"
         )
     return StateTable(
         np.array(t), names, values,
