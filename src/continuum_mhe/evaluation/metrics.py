@@ -190,11 +190,7 @@ def compute_metrics(
     for side, side_names, values in (("estimate", names, est_all), ("truth", tnames, tru_all)):
         turned = angle_beyond_a_turn(side_names, values)
         if turned is not None:
-            row, name, value = turned
-            raise UserError(
-                f"{side}: row {row}: {name}={value:.6g} beyond 2 pi: degrees? bend angles are "
-                "in rad (numpy.radians converts)"
-            )
+            raise UserError(f"{side}: row {turned[0]}: {turned[1]}")
     est = est_all[:, [names.index(c) for c in common]]
     tru = tru_all[:, [tnames.index(c) for c in common]]
     estimated = np.all(np.isfinite(est), axis=1)

@@ -88,16 +88,19 @@ _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
 ANGLE_LIMIT = 2.0 * math.pi + 1e-9
 
 
-def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str, float] | None:
-    """The first ``(row, column name, value)`` of a bend angle (a ``theta`` or ``phi``
-    column) beyond :data:`ANGLE_LIMIT` in the table ``values`` (n, len(names)): angles
-    in degrees; else None."""
+def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str] | None:
+    """The first row of the table ``values`` (n, len(names)) with a bend angle (a
+    ``theta`` or ``phi`` column) beyond :data:`ANGLE_LIMIT`, angles in degrees, and what
+    to say of it (``theta=90 beyond 2 pi: degrees? ...``); else None."""
     angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
     turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
     if not len(turned):
         return None
     i, j = turned[0]
-    return int(i), names[angles[j]], float(values[i, angles[j]])
+    return int(i), (
+        f"{names[angles[j]]}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? bend angles "
+        "are in rad (numpy.radians converts)"
+    )
 
 
 #: the suffix of a truth column kept beside the measurements of a recording
@@ -197,11 +200,7 @@ def read_state_table(
         )
     turned = angle_beyond_a_turn(names, values)
     if turned is not None:
-        i, name, value = turned
-        raise InputError(
-            f"{p}: line {lines[i]}: {name}={value:.6g} beyond 2 pi: degrees? bend angles are "
-            "in rad (numpy.radians converts)"
-        )
+        raise InputError(f"{p}: line {lines[turned[0]]}: {turned[1]}")
     return StateTable(
         np.array(t), names, values,
         np.array(status, dtype=str), np.array(sd, dtype=float).reshape(len(t), len(names)),
