@@ -654,7 +654,7 @@ def test_library_mistakes_are_one_line_user_errors() -> None:
         # refused where it is made, as the settings promise, not later in the model
         (lambda: RobotSettings(length=200.0), "section length 200.0 m is over 5.0 m"),
         (lambda: MHESettings(paper_start="yes"), "paper_start must be True"),
-        (lambda: MHESettings(max_iter=True), "max_iter must be a positive"),
+        (lambda: MHESettings(max_iter=True), "max_iter must be an integer from 1 to"),
         (lambda: NoiseSettings(reading_bias_std="0.1"), "reading_bias_std must"),
         (lambda: NoiseSettings(model_error_std=None), "model_error_std must"),
     ]

@@ -2754,3 +2754,38 @@ def test_an_integer_beyond_a_floats_range_is_a_user_error(make) -> None:
     with pytest.raises(UserError) as refused:
         make(10**400)
     assert "\n" not in str(refused.value)
+
+
+def test_the_writers_refuse_what_their_readers_would_not_read_back(tmp_path) -> None:
+    """write_measurements, write_truth and write_estimates wrote files their own readers
+    refused (a column named twice or empty, a note over two lines, a truth out of time
+    order or in degrees) or failed inside (a note that is no pair, outputs given as
+    names): each is a UserError, and no file is written."""
+    from continuum_mhe.io.estimate_csv import write_estimates, write_measurements, write_truth
+
+    rec = simulate("paper3d", duration=1.0)
+    series = make_estimator("ekf", make_formulation("bend")).run(rec.t, rec.z)
+    out = tmp_path / "w.csv"
+    refused = [
+        (lambda: write_measurements(out, rec.t, rec.z, ["roll", "roll"]), "named twice"),
+        (
+            lambda: write_measurements(out, rec.t, rec.z, ["t", "pitch"]),
+            "column 't' is named twice",
+        ),
+        (lambda: write_measurements(out, rec.t, rec.z, ["", "pitch"]), "column name ''"),
+        (lambda: write_measurements(out, rec.t, rec.z, [1, 2]), "column name 1"),  # type: ignore[list-item]
+        (lambda: write_truth(out, rec.t[::-1], rec.truth), "strictly increasing"),
+        (lambda: write_truth(out, rec.t, rec.truth * [1, 1, 1, 57.3, 57.3]), "degrees?"),
+        (
+            lambda: write_truth(out, rec.t, rec.truth, ["x", "y", "z", "theta", "phi"]),
+            "OutputSpecs",
+        ),  # type: ignore[list-item]
+        (lambda: write_estimates(out, series, [("options", "a\nb")]), "one-line strings"),
+        (lambda: write_estimates(out, series, ["abc"]), "a (key, value) pair"),  # type: ignore[list-item]
+    ]
+    for write, said in refused:
+        with pytest.raises(UserError, match=re.escape(said)):
+            write()
+        assert not out.exists()
+    write_estimates(out, series, [("options", '{method = "ekf"}')])
+    assert out.read_text().startswith('# options = {method = "ekf"}\n')

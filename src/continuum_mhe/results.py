@@ -356,7 +356,8 @@ class EstimateSeries:
         self, which: slice | Sequence[int] | NDArray[np.bool_] | NDArray[np.integer]
     ) -> EstimateSeries:
         """The series at the samples ``which`` selects (a slice, a boolean mask of
-        ``len(self)``, or indices, negative ones from the end), for example
+        ``len(self)``, or indices, negative ones from the end; one index: a series of
+        that row), for example
         ``series.rows(series.t >= 1.0)``: the rows after the first second, as ``evaluate
         --skip-start 1`` scores them. The ``diagnostics`` are the whole run's.
 
@@ -365,6 +366,8 @@ class EstimateSeries:
         """
         if not isinstance(which, slice):
             which = np.asarray(which)
+            if which.ndim == 0 and which.dtype != bool:  # one index: the series of that row
+                which = which.reshape(1)
             if which.size == 0 and which.dtype != bool:  # no index: no row
                 which = which.astype(np.intp)
             if which.dtype == bool and which.shape != (len(self),):

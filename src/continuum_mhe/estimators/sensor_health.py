@@ -368,6 +368,9 @@ class Estimator(Generic[InferenceT]):
         gap does), the same sensors on the same robot; not after a failure that may
         have come from them. A RuntimeError, changing nothing, while another thread
         steps this estimator."""
+        expect_type("reset keep_counts", keep_counts, bool, "True or False")
+        if keep_sensors is not None:
+            expect_type("reset keep_sensors", keep_sensors, bool, "True, False or None")
         if keep_sensors and not keep_counts:
             raise UserError(
                 "reset(keep_sensors=True) needs keep_counts=True: the sensors are kept "

@@ -26,10 +26,10 @@ from continuum_mhe.io.position_units import (
     position_unit_problem,
     tip_ratio,
 )
-from continuum_mhe.io.state_tables import angle_beyond_a_turn
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
     TIP_FORCE_COLUMNS,
+    angle_beyond_a_turn,
     output_names,
     pcc_outputs,
 )

@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,6 +20,7 @@ from continuum_mhe.errors import UserError
 from continuum_mhe.io.output_files import atomic_writer
 from continuum_mhe.model.descriptions import (
     OutputSpec,
+    angle_beyond_a_turn,
     output_names,
     pcc_outputs,
 )
@@ -68,7 +70,12 @@ def write_table(
 ) -> None:
     """Write a CSV atomically; floats must be finite (refuses to write NaN). ``notes``:
     ``(key, value)`` pairs (each value a TOML value) written as ``# key = value`` lines
-    above the header, as ``estimate`` writes its options."""
+    above the header, as ``estimate`` writes its options. Column names and notes that
+    the readers would not read back (a name empty, repeated or holding a comma, quote or
+    line end; a note not a pair of one-line strings, its key not a bare TOML key) are
+    refused before anything is written."""
+    _check_columns(path, columns)
+    _check_notes(path, notes)
     with atomic_writer(path) as fh:
         w = csv.writer(fh, lineterminator="\n")
         for key, value in notes:
@@ -76,6 +83,41 @@ def write_table(
         w.writerow(columns)
         for r in rows:
             w.writerow(format_cells(path, r))
+
+
+def _check_columns(path: str | os.PathLike[str], columns: Sequence[str]) -> None:
+    """A :class:`UserError` for column names the CSV readers would not read back."""
+    seen: set[str] = set()
+    for name in columns:
+        if not isinstance(name, str) or not name.strip() or any(c in name for c in ',"\r\n'):
+            raise UserError(
+                f"{path}: column name {name!r:.40} is not one the readers take: a non-empty "
+                "str without a comma, quote or line end"
+            )
+        if name in seen:
+            raise UserError(f"{path}: column {name!r} is named twice")
+        seen.add(name)
+
+
+def _check_notes(path: str | os.PathLike[str], notes: Sequence[tuple[str, str]]) -> None:
+    """A :class:`UserError` for notes that would not be read back as ``# key = value``."""
+    for note in notes:
+        if not (
+            isinstance(note, tuple)
+            and len(note) == 2
+            and all(
+                isinstance(part, str) and "\n" not in part and "\r" not in part for part in note
+            )
+            and _BARE_KEY.fullmatch(note[0])
+        ):
+            raise UserError(
+                f"{path}: a note must be a (key, value) pair of one-line strings, the key a "
+                f"bare TOML key (letters, digits, _ and -), got {note!r:.60}"
+            )
+
+
+#: A bare TOML key, as a note's key must be.
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
 
 def format_cells(path: str | os.PathLike[str], row: Sequence[object]) -> list[str]:
@@ -207,10 +249,21 @@ def write_truth(
     """Write a truth CSV ``t`` + the output columns atomically (``t`` as
     :func:`format_time` writes it: a device or Unix clock keeps its microseconds)."""
     t, truth = _samples_table(t, truth, "truth")
-    if not np.isfinite(t).all():
-        raise UserError(f"{path}: t must be finite (s)")
+    if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        raise UserError(
+            f"{path}: t must be finite and strictly increasing (s): read_state_table "
+            "refuses a file whose time does not increase"
+        )
+    if isinstance(outputs, (str, bytes)) or not all(isinstance(o, OutputSpec) for o in outputs):
+        raise UserError(
+            f"outputs must be OutputSpecs (a Recording's outputs, or a formulation's), got "
+            f"{outputs!r:.60}"
+        )
     if truth.shape[1] != len(outputs):
         raise UserError(f"truth has {truth.shape[1]} columns, expected {len(outputs)}")
+    turned = angle_beyond_a_turn(output_names(outputs), truth)
+    if turned is not None:
+        raise UserError(f"{path}: row {turned[0] + 1}: {turned[1]}")
     write_table(
         path,
         ("t", *output_names(outputs)),

@@ -20,6 +20,7 @@ from continuum_mhe.io.sample_rows import has_extra_fields
 from continuum_mhe.io.text_rows import TextRows, column_indices, open_rows, parse_float
 from continuum_mhe.model.descriptions import (
     TIP_COLUMNS,
+    angle_beyond_a_turn,
     output_names,
     pcc_outputs,
 )
@@ -82,27 +83,6 @@ class StateTable:
 
 
 _NOT_STATES = {"t", "status", "solve_ms", "outlier"}
-#: The largest bend angle (``theta``, ``phi`` columns, rad) a state table takes: a
-#: section bends less than a turn (``theta_max`` lies below pi), and ``phi`` is given
-#: in ``[-pi, pi]`` or ``[0, 2 pi)``; beyond it, the angles are in degrees.
-ANGLE_LIMIT = 2.0 * math.pi + 1e-9
-
-
-def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str] | None:
-    """The first row of the table ``values`` (n, len(names)) with a bend angle (a
-    ``theta`` or ``phi`` column) beyond :data:`ANGLE_LIMIT`, angles in degrees, and what
-    to say of it (``theta=90 beyond 2 pi: degrees? ...``); else None."""
-    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
-    turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
-    if not len(turned):
-        return None
-    i, j = turned[0]
-    return int(i), (
-        f"{names[angles[j]]}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? bend angles "
-        "are in rad (numpy.radians converts)"
-    )
-
-
 #: the suffix of a truth column kept beside the measurements of a recording
 TRUE_SUFFIX = "_true"
 

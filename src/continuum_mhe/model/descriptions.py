@@ -16,6 +16,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from continuum_mhe.arrays import FloatArray
+
 Unit = Literal["m", "rad", "rad/s", "1", "N"]
 
 
@@ -155,3 +157,24 @@ def section_bends(
         th, ph = float(values[i]), float(values[j])
         out[k] = th * math.cos(ph), th * math.sin(ph)
     return out
+
+
+#: The largest bend angle (``theta``, ``phi`` columns, rad) a state table takes: a
+#: section bends less than a turn (``theta_max`` lies below pi), and ``phi`` is given
+#: in ``[-pi, pi]`` or ``[0, 2 pi)``; beyond it, the angles are in degrees.
+ANGLE_LIMIT = 2.0 * math.pi + 1e-9
+
+
+def angle_beyond_a_turn(names: Sequence[str], values: FloatArray) -> tuple[int, str] | None:
+    """The first row of the table ``values`` (n, len(names)) with a bend angle (a
+    ``theta`` or ``phi`` column) beyond :data:`ANGLE_LIMIT`, angles in degrees, and what
+    to say of it (``theta=90 beyond 2 pi: degrees? ...``); else None."""
+    angles = [j for j, n in enumerate(names) if n.partition("_")[0] in ("theta", "phi")]
+    turned = np.argwhere(np.abs(values[:, angles]) > ANGLE_LIMIT)
+    if not len(turned):
+        return None
+    i, j = turned[0]
+    return int(i), (
+        f"{names[angles[j]]}={values[i, angles[j]]:.6g} beyond 2 pi: degrees? bend angles "
+        "are in rad (numpy.radians converts)"
+    )

@@ -164,7 +164,11 @@ class ImuPlacement:
     gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        if isinstance(self.mount_rpy, (str, bytes)) or not hasattr(self.mount_rpy, "__iter__"):
+        if (
+            isinstance(self.mount_rpy, (str, bytes))
+            or not hasattr(self.mount_rpy, "__iter__")
+            or getattr(self.mount_rpy, "ndim", 1) == 0  # a numpy scalar array
+        ):
             raise UserError(
                 f"IMU mount_rpy must be three angles in degrees, got {self.mount_rpy!r}"
             )
